@@ -1,0 +1,1 @@
+//! Haptic device layer (no geometry beyond glam vectors).

@@ -1,0 +1,1 @@
+//! Fixed-rate loops, triple-buffer exchange and latency recording (no geometry).

@@ -1,0 +1,417 @@
+//! A single B-spline patch: an `nx × ny × nz` lattice of control coefficients.
+
+use glam::Vec3;
+
+use super::basis::{cubic_weights, cubic_weights_and_derivatives};
+
+/// Why a lattice could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LatticeError {
+    /// A dimension was below 4 (a cubic needs four coefficients per axis).
+    TooSmall { dims: [usize; 3] },
+    /// The knot spacing was not a positive finite number.
+    BadSpacing { spacing: f32 },
+    /// The coefficient vector's length does not match the dimensions.
+    WrongLength { expected: usize, got: usize },
+}
+
+impl std::fmt::Display for LatticeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::TooSmall { dims } => write!(
+                f,
+                "lattice {dims:?} is too small: each axis needs at least 4 coefficients"
+            ),
+            Self::BadSpacing { spacing } => {
+                write!(f, "knot spacing {spacing} must be positive and finite")
+            }
+            Self::WrongLength { expected, got } => {
+                write!(f, "expected {expected} coefficients, got {got}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for LatticeError {}
+
+/// A uniform cubic B-spline field `s(x) = Σ p_ijk B_i(x) B_j(y) B_k(z)`.
+///
+/// Coefficient `(i, j, k)` is centred on the lattice point `origin + spacing · (i, j, k)` and
+/// stored at `i + nx · (j + ny · k)` (x fastest). Coefficients beyond the lattice count as
+/// zero, so the field fades to zero (empty space) outside it. Where all four coefficients per
+/// axis exist — lattice coordinates in `[1, n − 2]` — the basis is a partition of unity and
+/// linear functions are reproduced exactly; that box is [`BSplineLattice::exact_domain`].
+///
+/// The solid is where the value is greater than the iso-level `iso` (the paper's `c0`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BSplineLattice {
+    pub dims: [usize; 3],
+    pub spacing: f32,
+    pub origin: Vec3,
+    pub iso: f32,
+    pub coeffs: Vec<f32>,
+}
+
+impl BSplineLattice {
+    /// Default iso-level: the field is a clamped density in `[0, 1]` with the surface at one half.
+    pub const DEFAULT_ISO: f32 = 0.5;
+
+    /// A lattice with every coefficient zero.
+    ///
+    /// # Errors
+    /// When an axis has fewer than 4 coefficients or the spacing is not positive and finite.
+    pub fn zeros(dims: [usize; 3], spacing: f32, origin: Vec3) -> Result<Self, LatticeError> {
+        let count = dims[0] * dims[1] * dims[2];
+        Self::from_coeffs(dims, spacing, origin, vec![0.0; count])
+    }
+
+    /// A lattice over the given coefficients (x fastest).
+    ///
+    /// # Errors
+    /// As [`BSplineLattice::zeros`], and when `coeffs` has the wrong length.
+    pub fn from_coeffs(
+        dims: [usize; 3],
+        spacing: f32,
+        origin: Vec3,
+        coeffs: Vec<f32>,
+    ) -> Result<Self, LatticeError> {
+        if dims.iter().any(|&n| n < 4) {
+            return Err(LatticeError::TooSmall { dims });
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(LatticeError::BadSpacing { spacing });
+        }
+        let expected = dims[0] * dims[1] * dims[2];
+        if coeffs.len() != expected {
+            return Err(LatticeError::WrongLength {
+                expected,
+                got: coeffs.len(),
+            });
+        }
+        Ok(Self {
+            dims,
+            spacing,
+            origin,
+            iso: Self::DEFAULT_ISO,
+            coeffs,
+        })
+    }
+
+    /// Linear index of coefficient `(i, j, k)`.
+    #[inline]
+    #[must_use]
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    /// World position of the lattice point on which coefficient `(i, j, k)` is centred.
+    #[inline]
+    #[must_use]
+    pub fn node_position(&self, i: usize, j: usize, k: usize) -> Vec3 {
+        self.origin + self.spacing * Vec3::new(i as f32, j as f32, k as f32)
+    }
+
+    /// Lattice coordinates (in knot spans) of a world point.
+    #[inline]
+    #[must_use]
+    pub fn to_lattice(&self, x: Vec3) -> Vec3 {
+        (x - self.origin) / self.spacing
+    }
+
+    /// The box (min, max corners) where linear functions are reproduced exactly.
+    #[must_use]
+    pub fn exact_domain(&self) -> (Vec3, Vec3) {
+        let n = Vec3::new(
+            self.dims[0] as f32,
+            self.dims[1] as f32,
+            self.dims[2] as f32,
+        );
+        (
+            self.origin + Vec3::splat(self.spacing),
+            self.origin + (n - 2.0) * self.spacing,
+        )
+    }
+
+    /// The box (min, max corners) outside which the field is exactly zero.
+    #[must_use]
+    pub fn support(&self) -> (Vec3, Vec3) {
+        let n = Vec3::new(
+            self.dims[0] as f32,
+            self.dims[1] as f32,
+            self.dims[2] as f32,
+        );
+        (
+            self.origin - Vec3::splat(2.0 * self.spacing),
+            self.origin + (n + 1.0) * self.spacing,
+        )
+    }
+
+    /// Value of the field at a world point.
+    #[inline]
+    #[must_use]
+    pub fn value(&self, x: Vec3) -> f32 {
+        let Some(stencil) = self.stencil(x) else {
+            return 0.0;
+        };
+        let wx = cubic_weights(stencil.t.x);
+        let wy = cubic_weights(stencil.t.y);
+        let wz = cubic_weights(stencil.t.z);
+        let mut sum = 0.0;
+        for c in 0..4 {
+            let Some(k) = stencil.axis(2, c, self.dims[2]) else {
+                continue;
+            };
+            let mut plane = 0.0;
+            for b in 0..4 {
+                let Some(j) = stencil.axis(1, b, self.dims[1]) else {
+                    continue;
+                };
+                let row = self.index(0, j, k);
+                let mut line = 0.0;
+                for a in 0..4 {
+                    if let Some(i) = stencil.axis(0, a, self.dims[0]) {
+                        line += wx[a] * self.coeffs[row + i];
+                    }
+                }
+                plane += wy[b] * line;
+            }
+            sum += wz[c] * plane;
+        }
+        sum
+    }
+
+    /// Value and analytic gradient (per world unit) at a world point.
+    #[inline]
+    #[must_use]
+    pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
+        let Some(stencil) = self.stencil(x) else {
+            return (0.0, Vec3::ZERO);
+        };
+        let (wx, dx) = cubic_weights_and_derivatives(stencil.t.x);
+        let (wy, dy) = cubic_weights_and_derivatives(stencil.t.y);
+        let (wz, dz) = cubic_weights_and_derivatives(stencil.t.z);
+        let (mut v, mut gx, mut gy, mut gz) = (0.0, 0.0, 0.0, 0.0);
+        for c in 0..4 {
+            let Some(k) = stencil.axis(2, c, self.dims[2]) else {
+                continue;
+            };
+            let (mut pv, mut pgx, mut pgy) = (0.0, 0.0, 0.0);
+            for b in 0..4 {
+                let Some(j) = stencil.axis(1, b, self.dims[1]) else {
+                    continue;
+                };
+                let row = self.index(0, j, k);
+                let (mut lv, mut lg) = (0.0, 0.0);
+                for a in 0..4 {
+                    if let Some(i) = stencil.axis(0, a, self.dims[0]) {
+                        let p = self.coeffs[row + i];
+                        lv += wx[a] * p;
+                        lg += dx[a] * p;
+                    }
+                }
+                pv += wy[b] * lv;
+                pgx += wy[b] * lg;
+                pgy += dy[b] * lv;
+            }
+            v += wz[c] * pv;
+            gx += wz[c] * pgx;
+            gy += wz[c] * pgy;
+            gz += dz[c] * pv;
+        }
+        (v, Vec3::new(gx, gy, gz) / self.spacing)
+    }
+
+    /// Analytic gradient (per world unit) at a world point.
+    #[inline]
+    #[must_use]
+    pub fn gradient(&self, x: Vec3) -> Vec3 {
+        self.value_and_gradient(x).1
+    }
+
+    /// Values at many points, written into `out` (which must be as long as `points`).
+    ///
+    /// # Panics
+    /// When `out.len() != points.len()`.
+    pub fn values_into(&self, points: &[Vec3], out: &mut [f32]) {
+        assert_eq!(points.len(), out.len(), "one output per point");
+        for (x, o) in points.iter().zip(out.iter_mut()) {
+            *o = self.value(*x);
+        }
+    }
+
+    /// Values and gradients at many points, written into `values` and `gradients`.
+    ///
+    /// # Panics
+    /// When the three slices differ in length.
+    pub fn values_and_gradients_into(
+        &self,
+        points: &[Vec3],
+        values: &mut [f32],
+        gradients: &mut [Vec3],
+    ) {
+        assert_eq!(points.len(), values.len(), "one value per point");
+        assert_eq!(points.len(), gradients.len(), "one gradient per point");
+        for ((x, v), g) in points
+            .iter()
+            .zip(values.iter_mut())
+            .zip(gradients.iter_mut())
+        {
+            (*v, *g) = self.value_and_gradient(*x);
+        }
+    }
+
+    /// Whether a world point is inside the solid (value above the iso-level).
+    #[inline]
+    #[must_use]
+    pub fn is_inside(&self, x: Vec3) -> bool {
+        self.value(x) > self.iso
+    }
+
+    fn stencil(&self, x: Vec3) -> Option<Stencil> {
+        let u = self.to_lattice(x);
+        if !u.is_finite() {
+            return None;
+        }
+        let base = u.floor();
+        // Beyond two spans outside the lattice every basis function is zero.
+        let n = [
+            self.dims[0] as f32,
+            self.dims[1] as f32,
+            self.dims[2] as f32,
+        ];
+        for axis in 0..3 {
+            if base[axis] < -3.0 || base[axis] > n[axis] + 1.0 {
+                return None;
+            }
+        }
+        Some(Stencil {
+            first: [base.x as i64 - 1, base.y as i64 - 1, base.z as i64 - 1],
+            t: u - base,
+        })
+    }
+}
+
+/// The 4×4×4 block of coefficients that influences one point.
+struct Stencil {
+    /// Index of the first contributing coefficient per axis (may be outside the lattice).
+    first: [i64; 3],
+    /// Fractional position within the knot span per axis.
+    t: Vec3,
+}
+
+impl Stencil {
+    /// Coefficient index along `axis` of tap `tap` (0..4), or `None` if outside the lattice.
+    #[inline]
+    fn axis(&self, axis: usize, tap: usize, n: usize) -> Option<usize> {
+        let i = self.first[axis] + tap as i64;
+        (i >= 0 && (i as usize) < n).then_some(i as usize)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn linear_lattice(
+        dims: [usize; 3],
+        spacing: f32,
+        origin: Vec3,
+        a: Vec3,
+        b: f32,
+    ) -> BSplineLattice {
+        // A cubic B-spline reproduces a linear function when each coefficient takes the
+        // function's value at the node it is centred on.
+        let mut lattice = BSplineLattice::zeros(dims, spacing, origin).unwrap();
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = a.dot(lattice.node_position(i, j, k)) + b;
+                }
+            }
+        }
+        lattice
+    }
+
+    #[test]
+    fn reproduces_linear_functions_exactly_in_the_exact_domain() {
+        let (a, b) = (Vec3::new(0.3, -1.2, 0.7), 0.25);
+        let lattice = linear_lattice([7, 8, 9], 0.5, Vec3::new(-1.0, 0.5, 2.0), a, b);
+        let (lo, hi) = lattice.exact_domain();
+        for s in 0..200 {
+            let f = Vec3::new(
+                (s * 37 % 101) as f32,
+                (s * 53 % 103) as f32,
+                (s * 71 % 107) as f32,
+            ) / Vec3::new(101.0, 103.0, 107.0);
+            let x = lo + (hi - lo) * f;
+            let (v, g) = lattice.value_and_gradient(x);
+            let expected = a.dot(x) + b;
+            assert!(
+                (v - expected).abs() < 1e-5 * (1.0 + expected.abs()),
+                "{v} vs {expected} at {x}"
+            );
+            assert!((g - a).length() < 1e-4, "gradient {g} vs {a}");
+        }
+    }
+
+    #[test]
+    fn partition_of_unity_inside_and_zero_far_outside() {
+        let lattice =
+            BSplineLattice::from_coeffs([5, 5, 5], 1.0, Vec3::ZERO, vec![1.0; 125]).unwrap();
+        for x in [
+            Vec3::splat(1.0),
+            Vec3::new(1.3, 2.7, 2.99),
+            Vec3::new(2.5, 1.01, 1.5),
+        ] {
+            assert!((lattice.value(x) - 1.0).abs() < 1e-6);
+        }
+        assert_eq!(lattice.value(Vec3::new(-2.5, 1.0, 1.0)), 0.0);
+        assert_eq!(lattice.value(Vec3::new(6.5, 1.0, 1.0)), 0.0);
+        assert_eq!(lattice.value(Vec3::NAN), 0.0);
+    }
+
+    #[test]
+    fn analytic_gradient_matches_central_differences() {
+        let mut lattice = BSplineLattice::zeros([6, 7, 8], 0.4, Vec3::new(0.1, -0.2, 0.3)).unwrap();
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 97) as f32 / 97.0;
+        }
+        let h = 1e-3_f32;
+        for s in 0..50 {
+            let x = Vec3::new(
+                0.5 + 0.031 * s as f32,
+                0.3 + 0.043 * s as f32,
+                0.6 + 0.037 * s as f32,
+            );
+            let g = lattice.gradient(x);
+            let fd = Vec3::new(
+                lattice.value(x + Vec3::X * h) - lattice.value(x - Vec3::X * h),
+                lattice.value(x + Vec3::Y * h) - lattice.value(x - Vec3::Y * h),
+                lattice.value(x + Vec3::Z * h) - lattice.value(x - Vec3::Z * h),
+            ) / (2.0 * h);
+            // f32 central differences carry ~1e-5 of rounding; compare in f64 terms.
+            let rel = (g - fd).length() / g.length().max(1e-3);
+            assert!(rel < 1e-2, "rel {rel} at {x}: {g} vs {fd}");
+        }
+    }
+
+    #[test]
+    fn rejects_bad_construction() {
+        assert!(matches!(
+            BSplineLattice::zeros([3, 5, 5], 1.0, Vec3::ZERO),
+            Err(LatticeError::TooSmall { .. })
+        ));
+        assert!(matches!(
+            BSplineLattice::zeros([5, 5, 5], 0.0, Vec3::ZERO),
+            Err(LatticeError::BadSpacing { .. })
+        ));
+        assert!(matches!(
+            BSplineLattice::from_coeffs([4, 4, 4], 1.0, Vec3::ZERO, vec![0.0; 10]),
+            Err(LatticeError::WrongLength {
+                expected: 64,
+                got: 10
+            })
+        ));
+    }
+}
