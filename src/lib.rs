@@ -9,4 +9,12 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]
 
+pub mod app;
+pub mod dynamics;
+pub mod engine;
 pub mod field;
+pub mod fit;
+pub mod io;
+pub mod mesh;
+pub mod render;
+pub mod tools;
