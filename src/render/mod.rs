@@ -1,1 +1,34 @@
-//! (render: in progress)
+//! The wgpu renderer: brick meshes, Blinn-Phong and environment shading, overlays, offscreen PNGs.
+
+mod camera;
+mod chunk;
+mod context;
+mod environment;
+mod error;
+mod gpu_chunks;
+mod image;
+mod offscreen;
+mod options;
+mod overlay;
+mod renderer;
+mod trackball;
+
+pub use camera::{Camera, NamedView, UnknownView};
+pub use chunk::{ChunkError, MeshChunk, bounds_of};
+pub use context::{AdapterSummary, GpuContext, REQUIRE_GPU_ENV, gpu_required};
+pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
+pub use error::RenderError;
+pub use gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
+pub use image::Image;
+pub use offscreen::{
+    OFFSCREEN_FORMAT, OffscreenRenderer, RenderOutcome, render_to_png, scene_camera,
+};
+pub use options::{
+    BoxOverlay, EnvironmentMode, ForceOverlay, Light, SceneOptions, Shading, ToolOverlay, ToolStyle,
+};
+pub use overlay::{OverlayGeometry, OverlayVertex};
+pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
+pub use trackball::Trackball;
+
+#[cfg(test)]
+mod render_tests;

@@ -1,0 +1,663 @@
+//! Offscreen frames checked against geometry: the sphere's silhouette against the analytic
+//! disk, its shading against a CPU reference (the golden image), a local edit against the
+//! region it may touch, and the chunk store's upload counter.
+//!
+//! These need a GPU adapter (lavapipe or llvmpipe will do). Without one they print
+//! "skipped: no GPU adapter" and pass, unless `DYNACLAY_REQUIRE_GPU` is set.
+
+use glam::{Vec2, Vec3};
+
+use super::*;
+
+/// A headless renderer, or `None` (with a note) when the machine has no adapter.
+fn offscreen(width: u32, height: u32) -> Option<OffscreenRenderer> {
+    match OffscreenRenderer::new(width, height) {
+        Ok(r) => Some(r),
+        Err(e) if e.is_no_adapter() && !gpu_required() => {
+            println!("skipped: no GPU adapter ({e})");
+            None
+        }
+        Err(e) => panic!("{e} ({REQUIRE_GPU_ENV} is set, so a missing adapter fails)"),
+    }
+}
+
+/// Owned mesh data of one chunk.
+#[derive(Clone, Debug, Default)]
+struct OwnedChunk {
+    id: u64,
+    version: u64,
+    positions: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    colors: Vec<[f32; 4]>,
+    indices: Vec<u32>,
+}
+
+impl OwnedChunk {
+    fn view(&self) -> MeshChunk<'_> {
+        MeshChunk {
+            id: self.id,
+            version: self.version,
+            positions: &self.positions,
+            normals: &self.normals,
+            colors: &self.colors,
+            indices: &self.indices,
+        }
+    }
+}
+
+fn views(chunks: &[OwnedChunk]) -> Vec<MeshChunk<'_>> {
+    chunks.iter().map(OwnedChunk::view).collect()
+}
+
+/// A UV sphere split into eight chunks by the octant of each triangle's centroid, the way
+/// octree bricks split a surface (vertices on a border are duplicated into each chunk).
+fn sphere_chunks(centre: Vec3, radius: f32, segments: u32, rings: u32) -> Vec<OwnedChunk> {
+    let mut positions = Vec::new();
+    let mut normals = Vec::new();
+    for r in 0..=rings {
+        let theta = std::f32::consts::PI * r as f32 / rings as f32;
+        for s in 0..=segments {
+            let phi = std::f32::consts::TAU * s as f32 / segments as f32;
+            let n = Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            );
+            positions.push(centre + n * radius);
+            normals.push(n);
+        }
+    }
+    let at = |r: u32, s: u32| r * (segments + 1) + s;
+    let mut chunks: Vec<OwnedChunk> = (0..8)
+        .map(|i| OwnedChunk {
+            id: 100 + i,
+            version: 1,
+            ..OwnedChunk::default()
+        })
+        .collect();
+    let mut remap = vec![vec![u32::MAX; positions.len()]; 8];
+    for r in 0..rings {
+        for s in 0..segments {
+            let quad = [at(r, s), at(r + 1, s), at(r + 1, s + 1), at(r, s + 1)];
+            for tri in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+                let c = (positions[tri[0] as usize]
+                    + positions[tri[1] as usize]
+                    + positions[tri[2] as usize])
+                    / 3.0
+                    - centre;
+                if (positions[tri[0] as usize] - positions[tri[1] as usize]).length_squared()
+                    < 1e-12
+                    && (positions[tri[1] as usize] - positions[tri[2] as usize]).length_squared()
+                        < 1e-12
+                {
+                    continue;
+                }
+                let octant = usize::from(c.x > 0.0)
+                    | usize::from(c.y > 0.0) << 1
+                    | usize::from(c.z > 0.0) << 2;
+                let chunk = &mut chunks[octant];
+                for v in tri {
+                    let slot = &mut remap[octant][v as usize];
+                    if *slot == u32::MAX {
+                        *slot = chunk.positions.len() as u32;
+                        chunk.positions.push(positions[v as usize].into());
+                        chunk.normals.push(normals[v as usize].into());
+                    }
+                    chunk.indices.push(*slot);
+                }
+            }
+        }
+    }
+    chunks
+}
+
+/// Options for measurement: black background, one white key light from the upper left.
+fn plain_options() -> SceneOptions {
+    let mut o = SceneOptions {
+        background: [0.0, 0.0, 0.0, 1.0],
+        ..SceneOptions::default()
+    };
+    o.shading.material_color = [0.8, 0.8, 0.8];
+    o.shading.lights[0] = Light {
+        direction: Vec3::new(-0.5, 0.5, 1.0),
+        color: [1.0, 1.0, 1.0],
+    };
+    o.shading.lights[1].color = [0.0; 3];
+    o
+}
+
+fn front_camera(distance: f32) -> Camera {
+    let mut c = Camera::named(NamedView::Front, Vec3::splat(-1.0), Vec3::splat(1.0));
+    c.target = Vec3::ZERO;
+    c.distance = distance;
+    c
+}
+
+fn luminance(p: [u8; 4]) -> f32 {
+    0.2126 * f32::from(p[0]) + 0.7152 * f32::from(p[1]) + 0.0722 * f32::from(p[2])
+}
+
+fn differs(a: [u8; 4], b: [u8; 4], tolerance: u8) -> bool {
+    a.iter().zip(b).any(|(&x, y)| x.abs_diff(y) > tolerance)
+}
+
+/// Pixel radius of a sphere of `radius` at the target, seen from `distance` (perspective).
+fn analytic_disk_radius_px(camera: &Camera, radius: f32, height: u32) -> f32 {
+    let alpha = (radius / camera.distance).asin();
+    alpha.tan() / (camera.fov_y_rad * 0.5).tan() * height as f32 * 0.5
+}
+
+const W: u32 = 256;
+const H: u32 = 192;
+
+#[test]
+fn sphere_silhouette_matches_the_analytic_disk_and_background_is_clear() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 96, 48);
+    let report = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(report.uploaded, 8);
+    let camera = front_camera(3.5);
+    let options = plain_options();
+    let img = r.render(&camera, &options).unwrap();
+    assert_eq!((img.width, img.height), (W, H));
+
+    let bg = options.background.map(linear_to_srgb8);
+    for (x, y) in [(0, 0), (W - 1, 0), (0, H - 1), (W - 1, H - 1)] {
+        assert_eq!(
+            img.pixel(x, y).unwrap(),
+            bg,
+            "corner ({x}, {y}) is not the clear colour"
+        );
+    }
+
+    let covered = img
+        .rgba8
+        .chunks_exact(4)
+        .filter(|p| differs([p[0], p[1], p[2], p[3]], bg, 2))
+        .count();
+    let measured = covered as f32 / (W * H) as f32;
+    let rho = analytic_disk_radius_px(&camera, 1.0, H);
+    let expected = std::f32::consts::PI * rho * rho / (W * H) as f32;
+    let rel = (measured - expected).abs() / expected;
+    assert!(
+        rel < 0.03,
+        "covered {measured:.4} vs analytic disk {expected:.4} ({rel:.3} off)"
+    );
+}
+
+#[test]
+fn shading_varies_with_the_normal() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let img = r.render(&camera, &plain_options()).unwrap();
+    let rho = analytic_disk_radius_px(&camera, 1.0, H);
+    let (cx, cy) = (W as f32 / 2.0, H as f32 / 2.0);
+    let sample = |dx: f32, dy: f32| {
+        luminance(
+            img.pixel((cx + dx * rho) as u32, (cy - dy * rho) as u32)
+                .unwrap(),
+        )
+    };
+    // The light is up-left and toward the viewer: that side is brighter than down-right.
+    let lit = sample(-0.45, 0.45);
+    let unlit = sample(0.6, -0.6);
+    let centre = sample(0.0, 0.0);
+    let rim = sample(0.0, -0.95);
+    assert!(lit > unlit + 40.0, "lit {lit} vs unlit {unlit}");
+    assert!((centre - rim).abs() > 15.0, "centre {centre} vs rim {rim}");
+}
+
+/// Reference colour of a pixel: ray-cast the analytic sphere and shade it with the same
+/// Blinn-Phong model the mesh pass uses. `None` for background or silhouette-edge pixels.
+fn reference_pixel(
+    camera: &Camera,
+    options: &SceneOptions,
+    radius: f32,
+    x: u32,
+    y: u32,
+) -> Option<[u8; 3]> {
+    let inv = camera.view_projection(W as f32 / H as f32).inverse();
+    let ndc = Vec2::new(
+        (x as f32 + 0.5) / W as f32 * 2.0 - 1.0,
+        1.0 - (y as f32 + 0.5) / H as f32 * 2.0,
+    );
+    let far = inv.project_point3(ndc.extend(1.0));
+    let eye = camera.eye();
+    let d = (far - eye).normalize();
+    // |eye + t d|² = r²
+    let b = eye.dot(d);
+    let disc = b * b - (eye.length_squared() - radius * radius);
+    if disc < 0.0 {
+        return None;
+    }
+    let t = -b - disc.sqrt();
+    let p = eye + d * t;
+    let n = p.normalize();
+    let v = -d;
+    // Skip the silhouette band, where coverage and tessellation dominate.
+    if n.dot(v) < 0.25 {
+        return None;
+    }
+    let s = &options.shading;
+    let albedo = Vec3::from(s.material_color);
+    let mut lit = albedo * s.ambient;
+    let to_world = camera.view().inverse();
+    for light in &s.lights {
+        let l = to_world.transform_vector3(light.direction).normalize();
+        let ndl = n.dot(l).max(0.0);
+        let h = (l + v).normalize();
+        let spec = if ndl > 0.0 {
+            s.specular * n.dot(h).max(0.0).powf(s.shininess)
+        } else {
+            0.0
+        };
+        lit += Vec3::from(light.color) * (albedo * ndl + Vec3::splat(spec));
+    }
+    Some([
+        linear_to_srgb8(lit.x),
+        linear_to_srgb8(lit.y),
+        linear_to_srgb8(lit.z),
+    ])
+}
+
+#[test]
+fn golden_sphere_matches_a_ray_cast_reference_within_tolerance() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 128, 64);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let options = plain_options();
+    let img = r.render(&camera, &options).unwrap();
+    let mut errors = Vec::new();
+    for y in 0..H {
+        for x in 0..W {
+            if let Some(want) = reference_pixel(&camera, &options, 1.0, x, y) {
+                let got = img.pixel(x, y).unwrap();
+                let e = (0..3).map(|c| got[c].abs_diff(want[c])).max().unwrap_or(0);
+                errors.push(e);
+            }
+        }
+    }
+    assert!(
+        errors.len() > 5000,
+        "reference covers {} pixels",
+        errors.len()
+    );
+    errors.sort_unstable();
+    let mean = errors.iter().map(|&e| f64::from(e)).sum::<f64>() / errors.len() as f64;
+    let p99 = errors[errors.len() * 99 / 100];
+    assert!(mean < 2.0, "mean channel error {mean:.2} levels");
+    assert!(p99 <= 8, "99th percentile channel error {p99} levels");
+}
+
+#[test]
+fn a_local_edit_changes_only_pixels_near_the_edit() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let mut chunks = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let options = plain_options();
+    let before = r.render(&camera, &options).unwrap();
+
+    // Push a bump out of the front-upper-right octant's chunk (+x, +y, +z → octant 7).
+    let centre = Vec3::new(0.45, 0.45, 0.77).normalize();
+    let edit_radius = 0.25;
+    let chunk = &mut chunks[7];
+    let mut touched = vec![false; chunk.positions.len()];
+    for (i, (p, n)) in chunk
+        .positions
+        .iter_mut()
+        .zip(&mut chunk.normals)
+        .enumerate()
+    {
+        let d = (Vec3::from(*p) - centre).length();
+        if d < edit_radius {
+            let w = 1.0 - (d / edit_radius).powi(2);
+            let tilt = (Vec3::from(*p) - centre) * 2.0 * w;
+            *p = (Vec3::from(*p) + Vec3::from(*n) * 0.12 * w * w).into();
+            *n = (Vec3::from(*n) + tilt).normalize().into();
+            touched[i] = true;
+        }
+    }
+    assert!(touched.iter().filter(|&&t| t).count() > 5);
+    chunk.version += 1;
+    // The region a frame may change: every triangle touching a moved vertex, before and after.
+    let vp = camera.view_projection(W as f32 / H as f32);
+    let (mut lo, mut hi) = (Vec2::splat(f32::MAX), Vec2::splat(f32::MIN));
+    let original = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    for tri in chunk.indices.chunks_exact(3) {
+        if tri.iter().any(|&i| touched[i as usize]) {
+            for &i in tri {
+                for p in [
+                    chunk.positions[i as usize],
+                    original[7].positions[i as usize],
+                ] {
+                    let ndc = vp.project_point3(Vec3::from(p));
+                    let px = Vec2::new(
+                        (ndc.x + 1.0) * 0.5 * W as f32,
+                        (1.0 - ndc.y) * 0.5 * H as f32,
+                    );
+                    lo = lo.min(px);
+                    hi = hi.max(px);
+                }
+            }
+        }
+    }
+    let (lo, hi) = (lo - Vec2::splat(2.0), hi + Vec2::splat(2.0));
+
+    let report = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(report.uploaded, 1, "only the edited chunk is uploaded");
+    let after = r.render(&camera, &options).unwrap();
+    let mut changed = 0;
+    for y in 0..H {
+        for x in 0..W {
+            if differs(before.pixel(x, y).unwrap(), after.pixel(x, y).unwrap(), 2) {
+                changed += 1;
+                let p = Vec2::new(x as f32 + 0.5, y as f32 + 0.5);
+                assert!(
+                    p.cmpge(lo).all() && p.cmple(hi).all(),
+                    "pixel ({x}, {y}) changed outside the edit's region {lo}..{hi}"
+                );
+            }
+        }
+    }
+    assert!(
+        changed > 30,
+        "the edit is visible ({changed} pixels changed)"
+    );
+}
+
+#[test]
+fn only_dirty_chunks_are_uploaded_and_absent_ones_are_dropped() {
+    let Some(mut r) = offscreen(32, 32) else {
+        return;
+    };
+    let mut chunks = sphere_chunks(Vec3::ZERO, 1.0, 16, 8);
+    let first = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!((first.uploaded, first.resident), (8, 8));
+    let stats = r.renderer().upload_stats();
+    assert_eq!(stats.chunk_uploads, 8);
+
+    let again = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(again.uploaded, 0);
+    assert_eq!(
+        r.renderer().upload_stats(),
+        stats,
+        "unchanged chunks cost no upload"
+    );
+
+    chunks[3].version += 1;
+    let one = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(one.uploaded, 1);
+    let after = r.renderer().upload_stats();
+    assert_eq!(after.chunk_uploads, 9);
+    assert_eq!(
+        after.buffers_created, stats.buffers_created,
+        "same-size data reuses the buffers"
+    );
+    let chunk_bytes =
+        (chunks[3].positions.len() * size_of::<MeshVertex>() + chunks[3].indices.len() * 4) as u64;
+    assert_eq!(after.bytes_uploaded - stats.bytes_uploaded, chunk_bytes);
+
+    let removed = chunks.remove(5);
+    let dropped = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(
+        (dropped.uploaded, dropped.removed, dropped.resident),
+        (0, 1, 7)
+    );
+    chunks.push(removed);
+    assert_eq!(
+        r.sync_chunks(&views(&chunks)).unwrap().uploaded,
+        1,
+        "a returning chunk is uploaded"
+    );
+
+    let mut dup = views(&chunks);
+    dup.push(dup[0]);
+    assert!(matches!(
+        r.sync_chunks(&dup),
+        Err(RenderError::Chunk(ChunkError::DuplicateId { .. }))
+    ));
+    let mut bad = chunks[0].clone();
+    bad.version += 1;
+    bad.indices.push(0);
+    let err = r.sync_chunks(&[bad.view()]).unwrap_err();
+    assert!(
+        err.to_string().contains("not a whole number of triangles"),
+        "{err}"
+    );
+}
+
+#[test]
+fn environment_modes_follow_their_definitions() {
+    let Some(mut r) = offscreen(128, 96) else {
+        return;
+    };
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let mut o = plain_options();
+    let off = r.render(&camera, &o).unwrap();
+    o.shading.environment = EnvironmentMode::Transparent;
+    o.shading.environment_opacity = 0.0;
+    assert_eq!(
+        r.render(&camera, &o).unwrap(),
+        off,
+        "a fully transparent layer shows nothing"
+    );
+    o.shading.environment = EnvironmentMode::Opaque;
+    let opaque = r.render(&camera, &o).unwrap();
+    assert_ne!(opaque, off);
+    o.shading.environment = EnvironmentMode::ClearCoat;
+    o.shading.environment_opacity = 1.0;
+    assert_eq!(
+        r.render(&camera, &o).unwrap(),
+        opaque,
+        "an opaque coat is the opaque texture"
+    );
+    o.shading.environment_opacity = 0.0;
+    let coat = r.render(&camera, &o).unwrap();
+    // Facing the viewer the coat is clear; toward the rim it reflects the environment.
+    let rho = analytic_disk_radius_px(&camera, 1.0, 96);
+    let mean_diff = |lo: f32, hi: f32| {
+        let (mut sum, mut n) = (0.0, 0);
+        for y in 0..96 {
+            for x in 0..128 {
+                let d = Vec2::new(x as f32 + 0.5 - 64.0, y as f32 + 0.5 - 48.0).length() / rho;
+                if (lo..hi).contains(&d) {
+                    let (a, b) = (coat.pixel(x, y).unwrap(), off.pixel(x, y).unwrap());
+                    sum += (0..3).map(|c| f32::from(a[c].abs_diff(b[c]))).sum::<f32>() / 3.0;
+                    n += 1;
+                }
+            }
+        }
+        sum / n.max(1) as f32
+    };
+    let (centre, rim) = (mean_diff(0.0, 0.3), mean_diff(0.9, 0.98));
+    assert!(
+        centre < 1.0,
+        "clear coat facing the viewer changes the colour by {centre}"
+    );
+    assert!(
+        rim > 3.0 && rim > 5.0 * centre,
+        "clear coat at the rim: {rim} vs centre {centre}"
+    );
+}
+
+#[test]
+fn paint_overlays_and_msaa_show_in_the_frame() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let mut chunks = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    for c in &mut chunks {
+        c.colors = vec![[0.9, 0.05, 0.05, 1.0]; c.positions.len()];
+    }
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let mut o = plain_options();
+    let img = r.render(&camera, &o).unwrap();
+    let centre = img.pixel(W / 2, H / 2).unwrap();
+    assert!(
+        centre[0] > 2 * centre[1].max(1) && centre[0] > 100,
+        "painted red: {centre:?}"
+    );
+
+    // A see-through tool to the left of the sphere, a force arrow and a workspace box.
+    let tool_centre = Vec3::new(-1.6, 0.0, 0.0);
+    o.tool = Some(ToolOverlay {
+        centre: tool_centre,
+        radius: 0.3,
+        style: ToolStyle::Transparent,
+        color: [0.2, 0.5, 1.0, 0.4],
+    });
+    o.force = Some(ForceOverlay {
+        origin: Vec3::new(1.2, -0.8, 0.0),
+        force_n: Vec3::new(0.0, 1.0, 0.0),
+        length_per_newton: 0.5,
+        color: [1.0, 1.0, 0.0, 1.0],
+    });
+    o.workspace_box = Some(BoxOverlay {
+        min: Vec3::splat(-1.25),
+        max: Vec3::splat(1.25),
+        color: [0.0, 1.0, 0.0, 1.0],
+    });
+    let with = r.render(&camera, &o).unwrap();
+    let vp = camera.view_projection(W as f32 / H as f32);
+    let to_px = |p: Vec3| {
+        let n = vp.project_point3(p);
+        (
+            ((n.x + 1.0) * 0.5 * W as f32) as u32,
+            ((1.0 - n.y) * 0.5 * H as f32) as u32,
+        )
+    };
+    let (tx, ty) = to_px(tool_centre);
+    let tool = with.pixel(tx, ty).unwrap();
+    assert!(
+        tool[2] > tool[0] + 20 && tool[2] > 40,
+        "blue see-through tool: {tool:?}"
+    );
+    let (ax, ay) = to_px(Vec3::new(1.2, -0.6, 0.0));
+    let arrow = (ax.saturating_sub(1)..=ax + 1).any(|x| {
+        let p = with.pixel(x, ay).unwrap();
+        p[0] > 100 && p[1] > 100 && p[2] < 60
+    });
+    assert!(arrow, "yellow force arrow near ({ax}, {ay})");
+    let green = with
+        .rgba8
+        .chunks_exact(4)
+        .filter(|p| p[1] > 100 && p[0] < 60 && p[2] < 60)
+        .count();
+    assert!(green > 100, "workspace box edges: {green} green pixels");
+    if r.renderer().sample_count() > 1 {
+        // Multisampling leaves intermediate shades along the silhouette.
+        let bg = o.background.map(linear_to_srgb8);
+        let row = H / 2;
+        let edge = (0..W).any(|x| {
+            let p = img.pixel(x, row).unwrap();
+            p != bg && p[0] < centre[0] / 3 && p[0] > bg[0] + 2
+        });
+        assert!(edge, "anti-aliased silhouette edge on row {row}");
+    }
+}
+
+#[test]
+fn render_to_png_writes_a_readable_file_and_reports_the_adapter() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sphere.png");
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 32, 16);
+    let v = views(&chunks);
+    let options = SceneOptions::default();
+    let camera = scene_camera(NamedView::Iso, &v, &options);
+    match render_to_png(&v, &options, &camera, 80, 0, &path) {
+        Ok(outcome) => {
+            assert_eq!(
+                (outcome.width, outcome.height),
+                (80, 1),
+                "sizes are clamped to 1"
+            );
+            assert!(!outcome.adapter.name.is_empty());
+            assert_eq!(
+                outcome.triangles,
+                chunks.iter().map(|c| c.indices.len() / 3).sum::<usize>()
+            );
+            let img = Image::read_png(&path).unwrap();
+            assert_eq!((img.width, img.height), (80, 1));
+        }
+        Err(e) if e.is_no_adapter() && !gpu_required() => println!("skipped: no GPU adapter ({e})"),
+        Err(e) => panic!("{e}"),
+    }
+}
+
+#[test]
+fn no_adapter_error_is_worded_for_users() {
+    let e = RenderError::NoAdapter {
+        tried: vec!["Vulkan (no adapter)".into(), "GL (no adapter)".into()],
+    };
+    assert!(e.is_no_adapter());
+    assert_eq!(
+        e.to_string(),
+        "no GPU adapter: tried Vulkan (no adapter); GL (no adapter)"
+    );
+}
+
+/// Writes one frame per environment mode, with every overlay, for a person to look at:
+/// `DYNACLAY_RENDER_SAMPLES=/tmp/frames cargo test --release --lib sample_frames -- --ignored`.
+#[test]
+#[ignore = "writes sample images for visual review"]
+fn sample_frames() {
+    let Ok(dir) = std::env::var("DYNACLAY_RENDER_SAMPLES") else {
+        println!("set DYNACLAY_RENDER_SAMPLES to a directory");
+        return;
+    };
+    let Some(mut r) = offscreen(640, 480) else {
+        return;
+    };
+    let mut chunks = sphere_chunks(Vec3::ZERO, 1.0, 128, 64);
+    for c in &mut chunks[..2] {
+        c.colors = vec![[0.1, 0.3, 0.9, 0.8]; c.positions.len()];
+    }
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let mut o = SceneOptions {
+        tool: Some(ToolOverlay {
+            centre: Vec3::new(0.9, 0.9, 0.6),
+            radius: 0.35,
+            style: ToolStyle::Transparent,
+            color: [0.3, 0.6, 1.0, 0.35],
+        }),
+        force: Some(ForceOverlay {
+            origin: Vec3::new(0.9, 0.9, 0.6),
+            force_n: Vec3::new(-0.4, -0.6, -0.2),
+            length_per_newton: 1.0,
+            color: [1.0, 0.9, 0.1, 1.0],
+        }),
+        workspace_box: Some(BoxOverlay {
+            min: Vec3::splat(-1.5),
+            max: Vec3::splat(1.5),
+            color: [0.5, 0.5, 0.55, 1.0],
+        }),
+        region_box: Some(BoxOverlay {
+            min: Vec3::new(0.3, 0.3, 0.0),
+            max: Vec3::new(1.4, 1.4, 1.2),
+            color: [0.9, 0.3, 0.3, 1.0],
+        }),
+        ..SceneOptions::default()
+    };
+    let camera = Camera::named(NamedView::Iso, Vec3::splat(-1.5), Vec3::splat(1.5));
+    for (name, mode) in [
+        ("off", EnvironmentMode::Off),
+        ("opaque", EnvironmentMode::Opaque),
+        ("transparent", EnvironmentMode::Transparent),
+        ("clearcoat", EnvironmentMode::ClearCoat),
+    ] {
+        o.shading.environment = mode;
+        let path = std::path::Path::new(&dir).join(format!("sphere_{name}.png"));
+        r.render(&camera, &o).unwrap().write_png(&path).unwrap();
+    }
+    o.tool = o.tool.map(|t| ToolOverlay {
+        style: ToolStyle::Wireframe,
+        ..t
+    });
+    let path = std::path::Path::new(&dir).join("sphere_wire_tool.png");
+    r.render(&camera, &o).unwrap().write_png(&path).unwrap();
+}
