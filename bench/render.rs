@@ -108,7 +108,7 @@ fn main() {
     let gpu = match GpuContext::headless() {
         Ok(g) => g,
         Err(e) if e.is_no_adapter() => {
-            println!("skipped: no GPU adapter ({e})");
+            println!("skipped: {e}");
             return;
         }
         Err(e) => panic!("{e}"),
@@ -156,6 +156,25 @@ fn main() {
             });
         },
     );
+    if samples > 1 {
+        // The same frame without multisampling: what MSAA costs on this adapter.
+        let mut single = SceneRenderer::new(device, queue, OFFSCREEN_FORMAT, 1, width, height);
+        let views: Vec<MeshChunk<'_>> = bricks.iter().map(Brick::view).collect();
+        single
+            .sync_chunks(device, queue, &views)
+            .expect("valid bricks");
+        drop(views);
+        group.bench_function(
+            format!("frame {triangles} tris {width}x{height} msaa1"),
+            |b| {
+                b.iter(|| {
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    single.render(device, queue, &mut encoder, &camera, &options);
+                    finish(encoder);
+                });
+            },
+        );
+    }
 
     // The brick with the median triangle count stands for "one dirty brick".
     let mut order: Vec<usize> = (0..bricks.len()).collect();

@@ -53,7 +53,8 @@ impl GpuContext {
     /// [`RenderError::NoAdapter`] when no backend offers one; [`RenderError::Device`] when the
     /// adapter found refuses to create a device.
     pub fn headless() -> Result<Self, RenderError> {
-        let order: Vec<wgpu::Backends> = match wgpu::Backends::from_env() {
+        let from_env = wgpu::Backends::from_env().filter(|b| !b.is_empty());
+        let order: Vec<wgpu::Backends> = match from_env {
             Some(b) => vec![b],
             None => vec![wgpu::Backends::VULKAN, wgpu::Backends::GL],
         };

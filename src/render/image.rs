@@ -124,7 +124,11 @@ mod tests {
     fn checker(w: u32, h: u32) -> Image {
         let rgba8 = (0..w * h)
             .flat_map(|i| {
-                let v = if (i % w + i / w) % 2 == 0 { 255 } else { 0 };
+                let v = if (i % w + i / w).is_multiple_of(2) {
+                    255
+                } else {
+                    0
+                };
                 [v, (i % 251) as u8, 255 - v, 255]
             })
             .collect();

@@ -89,7 +89,7 @@ pub struct ToolOverlay {
     pub centre: Vec3,
     pub radius: f32,
     pub style: ToolStyle,
-    /// Linear RGBA; alpha is the transparent style's opacity.
+    /// Linear RGBA; alpha is the transparent style's opacity (wireframe lines are opaque).
     pub color: [f32; 4],
 }
 

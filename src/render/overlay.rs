@@ -123,6 +123,8 @@ impl OverlayGeometry {
                     )
         };
         let step = std::f32::consts::TAU / SPHERE_SEGMENTS as f32;
+        // Wire lines are thin: draw them opaque, whatever the see-through opacity is.
+        let color = [t.color[0], t.color[1], t.color[2], 1.0];
         // Three latitudes and four meridians read as a sphere without clutter.
         for lat in 1..4 {
             let theta = std::f32::consts::PI * lat as f32 / 4.0;
@@ -130,7 +132,7 @@ impl OverlayGeometry {
                 self.line(
                     point(theta, s as f32 * step),
                     point(theta, (s + 1) as f32 * step),
-                    t.color,
+                    color,
                 );
             }
         }
@@ -140,7 +142,7 @@ impl OverlayGeometry {
                 self.line(
                     point(s as f32 * step, phi),
                     point((s + 1) as f32 * step, phi),
-                    t.color,
+                    color,
                 );
             }
         }

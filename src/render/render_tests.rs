@@ -14,7 +14,7 @@ fn offscreen(width: u32, height: u32) -> Option<OffscreenRenderer> {
     match OffscreenRenderer::new(width, height) {
         Ok(r) => Some(r),
         Err(e) if e.is_no_adapter() && !gpu_required() => {
-            println!("skipped: no GPU adapter ({e})");
+            println!("skipped: {e}");
             None
         }
         Err(e) => panic!("{e} ({REQUIRE_GPU_ENV} is set, so a missing adapter fails)"),
@@ -571,6 +571,10 @@ fn render_to_png_writes_a_readable_file_and_reports_the_adapter() {
     let camera = scene_camera(NamedView::Iso, &v, &options);
     match render_to_png(&v, &options, &camera, 80, 0, &path) {
         Ok(outcome) => {
+            println!(
+                "rendered on {} with {}x MSAA",
+                outcome.adapter, outcome.sample_count
+            );
             assert_eq!(
                 (outcome.width, outcome.height),
                 (80, 1),
@@ -584,7 +588,7 @@ fn render_to_png_writes_a_readable_file_and_reports_the_adapter() {
             let img = Image::read_png(&path).unwrap();
             assert_eq!((img.width, img.height), (80, 1));
         }
-        Err(e) if e.is_no_adapter() && !gpu_required() => println!("skipped: no GPU adapter ({e})"),
+        Err(e) if e.is_no_adapter() && !gpu_required() => println!("skipped: {e}"),
         Err(e) => panic!("{e}"),
     }
 }
