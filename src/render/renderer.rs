@@ -4,6 +4,14 @@
 //! texture it owns (multisampled when the format allows, resolved into [`SceneRenderer::target`]),
 //! so the same code serves offscreen PNGs (copy the target out) and the GUI (register the target
 //! view as an egui texture). Rendering never blocks: it records into the caller's encoder.
+//!
+//! In an egui-wgpu app: create it with [`crate::render::OFFSCREEN_FORMAT`] (sRGB, as egui
+//! expects of user textures) and [`supported_sample_count`] for the app's adapter; call
+//! `sync_chunks` and `render` from a paint callback's `prepare` (it gets the device, queue and
+//! egui's encoder); register [`SceneRenderer::target_view`] once with
+//! `egui_wgpu::Renderer::register_native_texture` and show it as an image; after a `resize`
+//! that changed the size, point the same id at the new view with
+//! `update_egui_texture_from_wgpu_texture`.
 
 use glam::Mat4;
 
