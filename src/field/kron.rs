@@ -153,9 +153,25 @@ impl KroneckerBasis {
     /// # Panics
     /// When `x` does not have one entry per coefficient.
     pub fn solve_gram(&self, x: &mut [f32]) {
+        self.solve_gram_with(x, true);
+    }
+
+    /// [`KroneckerBasis::solve_gram`] with the x-axis lines swept one at a time instead of in
+    /// tiles: the plain alternative that `bench/core.rs` compares against.
+    pub fn solve_gram_line_by_line(&self, x: &mut [f32]) {
+        self.solve_gram_with(x, false);
+    }
+
+    fn solve_gram_with(&self, x: &mut [f32], tiled: bool) {
         let [nx, ny, nz] = self.cols();
         assert_eq!(x.len(), self.coeff_count(), "coefficient length");
-        solve_x_tiled(&self.chol[0], x, nx);
+        if tiled {
+            solve_x_tiled(&self.chol[0], x, nx);
+        } else {
+            for line in x.chunks_exact_mut(nx) {
+                self.chol[0].solve_in_place(line);
+            }
+        }
         solve_strided(&self.chol[1], x, nx, nz);
         solve_strided(&self.chol[2], x, nx * ny, 1);
     }
