@@ -157,7 +157,15 @@ fn runner_tick_path_does_not_allocate() {
     )
     .expect("spawn");
     handle.join().expect("join");
-    let (start, end) = (at_10.load(Ordering::Relaxed), at_end.load(Ordering::Relaxed));
+    let (start, end) = (
+        at_10.load(Ordering::Relaxed),
+        at_end.load(Ordering::Relaxed),
+    );
     assert_ne!(start, u64::MAX);
-    assert_eq!(end, start, "the loop thread allocated {} times in 290 ticks", end - start);
+    assert_eq!(
+        end,
+        start,
+        "the loop thread allocated {} times in 290 ticks",
+        end - start
+    );
 }

@@ -42,7 +42,11 @@ fn stress_array(publishes: u64) -> u64 {
         // Acquire pairs with the writer's Release store, so after it the final publish is visible.
         let finished = done.load(Ordering::Acquire);
         if let Some(snap) = rx.try_fresh() {
-            assert!(snap.version > last, "version went from {last} to {}", snap.version);
+            assert!(
+                snap.version > last,
+                "version went from {last} to {}",
+                snap.version
+            );
             assert!(
                 snap.value.iter().all(|&w| w == snap.version),
                 "torn snapshot at version {}: {:?}",
@@ -56,7 +60,10 @@ fn stress_array(publishes: u64) -> u64 {
         }
     }
     let final_version = writer.join().expect("writer thread");
-    assert_eq!(last, final_version, "reader must end on the last publication");
+    assert_eq!(
+        last, final_version,
+        "reader must end on the last publication"
+    );
     seen
 }
 
