@@ -797,6 +797,7 @@ mod tests {
                 ticks <= rate_hz * elapsed_s + 2.0,
                 "{ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
             );
+            // At least 30 % of the ticks due in the 300 ms sleep.
             assert!(
                 ticks >= rate_hz * 0.3 * 0.3,
                 "only {ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
