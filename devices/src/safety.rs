@@ -1,0 +1,1 @@
+//! Safety filter between the engine and every device (in progress).
