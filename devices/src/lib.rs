@@ -10,3 +10,4 @@ pub mod safety;
 pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
