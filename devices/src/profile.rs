@@ -10,7 +10,10 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use glam::Vec3;
 use serde::Deserialize;
+
+use crate::device::DeviceInfo;
 
 /// Wire protocol of a force-feedback arm.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
@@ -48,6 +51,14 @@ pub struct Motors {
     /// +1 or -1: direction of a motor command relative to a positive joint torque.
     #[serde(default = "ones")]
     pub command_sign: [f64; 3],
+}
+
+fn default_stiffness() -> f32 {
+    1000.0
+}
+
+fn default_damping() -> f32 {
+    5.0
 }
 
 fn one() -> f64 {
@@ -118,6 +129,12 @@ pub struct DeviceProfile {
     pub max_force_n: f32,
     /// Radius of the usable workspace around the origin, m.
     pub workspace_radius_m: f32,
+    /// Largest virtual stiffness rendered stably, N/m.
+    #[serde(default = "default_stiffness")]
+    pub max_stiffness_n_per_m: f32,
+    /// Largest virtual damping rendered stably, N·s/m.
+    #[serde(default = "default_damping")]
+    pub max_damping_n_s_per_m: f32,
     /// Motors; required unless the geometry is `cartesian`.
     pub motors: Option<Motors>,
     /// Geometry.
@@ -249,6 +266,26 @@ impl DeviceProfile {
         Self::from_toml(&text, path)
     }
 
+    /// The [`DeviceInfo`] of an arm driven by this profile: 3 DoF, force output, the
+    /// workspace a cube of side `2 × workspace_radius_m` around `center_m` (device frame).
+    #[must_use]
+    pub fn device_info(&self, center_m: Vec3, button_count: u8, sample_rate_hz: f32) -> DeviceInfo {
+        let r = Vec3::splat(self.workspace_radius_m);
+        DeviceInfo {
+            name: self.name.clone(),
+            dof: 3,
+            max_force_n: self.max_force_n,
+            max_stiffness_n_per_m: self.max_stiffness_n_per_m,
+            max_damping_n_s_per_m: self.max_damping_n_s_per_m,
+            workspace_min_m: center_m - r,
+            workspace_max_m: center_m + r,
+            has_orientation: false,
+            has_force: true,
+            button_count,
+            sample_rate_hz,
+        }
+    }
+
     fn validate(&self, origin: &Path) -> Result<(), ProfileError> {
         let bad = |field: &'static str, reason: String| ProfileError::Invalid {
             path: origin.to_path_buf(),
@@ -264,6 +301,19 @@ impl DeviceProfile {
         };
         positive("max_force_n", f64::from(self.max_force_n))?;
         positive("workspace_radius_m", f64::from(self.workspace_radius_m))?;
+        positive(
+            "max_stiffness_n_per_m",
+            f64::from(self.max_stiffness_n_per_m),
+        )?;
+        if !(self.max_damping_n_s_per_m.is_finite() && self.max_damping_n_s_per_m >= 0.0) {
+            return Err(bad(
+                "max_damping_n_s_per_m",
+                format!(
+                    "must be zero or positive, got {}",
+                    self.max_damping_n_s_per_m
+                ),
+            ));
+        }
         let needs_motors = !matches!(self.geometry, Geometry::Cartesian);
         if needs_motors != self.motors.is_some() {
             return Err(bad(
