@@ -7,7 +7,8 @@
 //! construction; each call does constant work plus one call into the device.
 //!
 //! Time comes from the device's own sample timestamps (the last successful `read`), not a wall
-//! clock, so a replayed session filters bit for bit as it did live.
+//! clock, so a replayed session filters bit for bit as it did live. A repeated (stale) sample
+//! carries no new time, so the slew limit grants no change for that write and the output holds.
 
 use glam::Vec3;
 
