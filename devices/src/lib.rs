@@ -1,1 +1,36 @@
-//! Haptic device layer (no geometry beyond glam vectors).
+//! Haptic device layer for dynaclay: one [`HapticDevice`] trait, the safety filter every force
+//! passes through, the simulated reference arm, hardware drivers, and record/replay.
+//!
+//! Knows no geometry beyond glam vectors. Everything called on the haptic path (`read`,
+//! `write_force`, the filter) allocates nothing and does bounded work after `open`.
+
+pub mod device;
+pub mod record;
+pub mod safety;
+pub mod sim_arm;
+
+pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+pub use record::{
+    RecordError, RecorderConfig, Recording, RecordingDevice, ReplayDevice, ReplayDivergence,
+};
+pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
+pub use sim_arm::{
+    Fault, FaultKind, HandSample, Interpolation, SimArmConfig, SimArmCounters, SimRng,
+    SimulatedArm, Trajectory, TrajectoryError, Waypoint,
+};
+
+// Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
+pub mod codec;
+pub mod delta;
+pub mod enumerate;
+pub mod falcon;
+pub mod hid_arm;
+pub mod kinematics;
+pub mod open;
+pub mod pose_input;
+pub mod profile;
+pub mod serial_arm;
+pub mod serial_link;
+pub mod spacemouse;
+pub mod spec;
+pub mod velocity;
