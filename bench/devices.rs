@@ -13,6 +13,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use criterion::{Criterion, Throughput};
+use dynaclay_devices::HapticDevice;
 use dynaclay_devices::codec::frame::{self, DeviceMsg, FrameEvent, FrameReader, HostMsg};
 use dynaclay_devices::codec::{cartesian, falcon, spacemouse, woodenhaptics};
 use dynaclay_devices::delta::Delta;
@@ -21,17 +22,28 @@ use dynaclay_devices::kinematics::ArmModel;
 use dynaclay_devices::profile::DeviceProfile;
 use dynaclay_devices::serial_arm::{SerialArm, SerialArmOptions};
 use dynaclay_devices::serial_link::BaudPolicy;
-use dynaclay_devices::HapticDevice;
 use glam::{DVec3, Vec3};
 use serialport::{SerialPort, TTYPort};
 
 fn codecs(c: &mut Criterion) {
     let mut g = c.benchmark_group("codec");
     g.throughput(Throughput::Elements(1));
-    let fcmd = falcon::FalconCommand { motor: [1200, -800, 33], leds: falcon::LED_GREEN, homing: false };
-    let fstat = falcon::encode_status(&falcon::FalconStatus { encoders: [-500, 20, 3000], buttons: 1, homed: 7 });
-    g.bench_function("falcon/encode_command", |b| b.iter(|| falcon::encode_command(black_box(&fcmd))));
-    g.bench_function("falcon/decode_status", |b| b.iter(|| falcon::decode_status(black_box(&fstat))));
+    let fcmd = falcon::FalconCommand {
+        motor: [1200, -800, 33],
+        leds: falcon::LED_GREEN,
+        homing: false,
+    };
+    let fstat = falcon::encode_status(&falcon::FalconStatus {
+        encoders: [-500, 20, 3000],
+        buttons: 1,
+        homed: 7,
+    });
+    g.bench_function("falcon/encode_command", |b| {
+        b.iter(|| falcon::encode_command(black_box(&fcmd)))
+    });
+    g.bench_function("falcon/decode_status", |b| {
+        b.iter(|| falcon::decode_status(black_box(&fstat)))
+    });
     g.bench_function("falcon/reader_16_bytes", |b| {
         let mut r = falcon::FalconReader::new();
         b.iter(|| {
@@ -42,19 +54,51 @@ fn codecs(c: &mut Criterion) {
             out
         })
     });
-    let wcmd = woodenhaptics::WhCommand::Drive { currents_ma: [100, -200, 300] };
-    let wstat = woodenhaptics::encode_status(&woodenhaptics::WhStatus { encoders: [1, 2, 3, 4, 5, 6], info: 0 });
-    g.bench_function("woodenhaptics/encode_command", |b| b.iter(|| woodenhaptics::encode_command(black_box(&wcmd))));
-    g.bench_function("woodenhaptics/decode_status", |b| b.iter(|| woodenhaptics::decode_status(black_box(&wstat))));
-    let cstat = cartesian::encode_state(&cartesian::CartesianState { position_um: [1, 2, 3], buttons: 0, status: 1, seq: 2 });
-    g.bench_function("cartesian_hid/decode_state", |b| b.iter(|| cartesian::decode_state(black_box(&cstat))));
-    let (sm, n) = spacemouse::encode_report(&spacemouse::SpaceMouseReport::Combined { translation: [1, 2, 3], rotation: [4, 5, 6] });
-    g.bench_function("spacemouse/decode_combined", |b| b.iter(|| spacemouse::decode_report(black_box(&sm[..n]))));
+    let wcmd = woodenhaptics::WhCommand::Drive {
+        currents_ma: [100, -200, 300],
+    };
+    let wstat = woodenhaptics::encode_status(&woodenhaptics::WhStatus {
+        encoders: [1, 2, 3, 4, 5, 6],
+        info: 0,
+    });
+    g.bench_function("woodenhaptics/encode_command", |b| {
+        b.iter(|| woodenhaptics::encode_command(black_box(&wcmd)))
+    });
+    g.bench_function("woodenhaptics/decode_status", |b| {
+        b.iter(|| woodenhaptics::decode_status(black_box(&wstat)))
+    });
+    let cstat = cartesian::encode_state(&cartesian::CartesianState {
+        position_um: [1, 2, 3],
+        buttons: 0,
+        status: 1,
+        seq: 2,
+    });
+    g.bench_function("cartesian_hid/decode_state", |b| {
+        b.iter(|| cartesian::decode_state(black_box(&cstat)))
+    });
+    let (sm, n) = spacemouse::encode_report(&spacemouse::SpaceMouseReport::Combined {
+        translation: [1, 2, 3],
+        rotation: [4, 5, 6],
+    });
+    g.bench_function("spacemouse/decode_combined", |b| {
+        b.iter(|| spacemouse::decode_report(black_box(&sm[..n])))
+    });
     let mut buf = [0u8; frame::MAX_FRAME];
     g.bench_function("frame/encode_force", |b| {
-        b.iter(|| HostMsg::Force { force_mn: [1000, -1000, 0], seq: 7 }.encode(black_box(&mut buf)))
+        b.iter(|| {
+            HostMsg::Force {
+                force_mn: [1000, -1000, 0],
+                seq: 7,
+            }
+            .encode(black_box(&mut buf))
+        })
     });
-    let st = DeviceMsg::State { position_um: [10, 20, 30], buttons: 0, seq: 1, status: 1 };
+    let st = DeviceMsg::State {
+        position_um: [10, 20, 30],
+        buttons: 0,
+        seq: 1,
+        status: 1,
+    };
     let mut sbuf = [0u8; frame::MAX_FRAME];
     let sn = st.encode(&mut sbuf).unwrap();
     g.bench_function("frame/decode_state", |b| {
@@ -85,8 +129,12 @@ fn kinematics(c: &mut Criterion) {
     let p = d.home_guess_m + DVec3::new(0.01, -0.01, 0.005);
     let q = d.inverse(p).unwrap();
     g.bench_function("delta/inverse", |b| b.iter(|| d.inverse(black_box(p))));
-    g.bench_function("delta/forward_warm", |b| b.iter(|| d.forward(black_box(q), p + DVec3::splat(1e-4))));
-    g.bench_function("delta/forward_cold", |b| b.iter(|| d.forward(black_box(q), d.home_guess_m)));
+    g.bench_function("delta/forward_warm", |b| {
+        b.iter(|| d.forward(black_box(q), p + DVec3::splat(1e-4)))
+    });
+    g.bench_function("delta/forward_cold", |b| {
+        b.iter(|| d.forward(black_box(q), d.home_guess_m))
+    });
     let mut m = ArmModel::from_profile(&DeviceProfile::built_in("woodenhaptics").unwrap()).unwrap();
     m.update([100, 200, 300]).unwrap();
     g.bench_function("serial_arm/update_and_force", |b| {
@@ -99,14 +147,22 @@ fn kinematics(c: &mut Criterion) {
 }
 
 /// Simulated firmware on the PTY master: answers every Falcon command (or Cartesian FORCE) at once.
-fn spawn_echo_firmware(mut master: TTYPort, cartesian_protocol: bool, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
+fn spawn_echo_firmware(
+    mut master: TTYPort,
+    cartesian_protocol: bool,
+    stop: Arc<AtomicBool>,
+) -> std::thread::JoinHandle<()> {
     std::thread::spawn(move || {
         let _ = master.set_timeout(Duration::from_millis(1));
         let mut buf = [0u8; 256];
         let mut window = Vec::new();
         let mut reader = FrameReader::new();
         let mut out = [0u8; frame::MAX_FRAME];
-        let status = falcon::encode_status(&falcon::FalconStatus { encoders: [-550, -550, -550], buttons: 0, homed: 7 });
+        let status = falcon::encode_status(&falcon::FalconStatus {
+            encoders: [-550, -550, -550],
+            buttons: 0,
+            homed: 7,
+        });
         while !stop.load(Ordering::Relaxed) {
             let n = master.read(&mut buf).unwrap_or(0);
             for &b in &buf[..n] {
@@ -115,9 +171,18 @@ fn spawn_echo_firmware(mut master: TTYPort, cartesian_protocol: bool, stop: Arc<
                     while let Some(e) = ev {
                         if let FrameEvent::Frame { kind, .. } = e {
                             let reply = match HostMsg::decode(kind, reader.payload()) {
-                                Ok(HostMsg::Hello { .. }) => Some(DeviceMsg::HelloAck { version: frame::VERSION, max_force_mn: 5000, workspace_radius_um: 100_000 }),
+                                Ok(HostMsg::Hello { .. }) => Some(DeviceMsg::HelloAck {
+                                    version: frame::VERSION,
+                                    max_force_mn: 5000,
+                                    workspace_radius_um: 100_000,
+                                }),
                                 Ok(HostMsg::Home) => Some(DeviceMsg::HomeDone { ok: true }),
-                                Ok(HostMsg::Force { seq, .. }) => Some(DeviceMsg::State { position_um: [0, 0, 0], buttons: 0, seq, status: 1 }),
+                                Ok(HostMsg::Force { seq, .. }) => Some(DeviceMsg::State {
+                                    position_um: [0, 0, 0],
+                                    buttons: 0,
+                                    seq,
+                                    status: 1,
+                                }),
                                 Err(_) => None,
                             };
                             if let Some(m) = reply {
@@ -158,12 +223,12 @@ fn pty_round_trip(name: &str, dev: &mut dyn HapticDevice, ticks: usize) {
         let t = Instant::now();
         let _ = dev.write_force(Vec3::new(0.0, 0.0, 0.5));
         loop {
-            if let Ok(s) = dev.read() {
-                if s.sequence > last_seq {
-                    last_seq = s.sequence;
-                    lat_us.push(t.elapsed().as_secs_f64() * 1e6);
-                    break;
-                }
+            if let Ok(s) = dev.read()
+                && s.sequence > last_seq
+            {
+                last_seq = s.sequence;
+                lat_us.push(t.elapsed().as_secs_f64() * 1e6);
+                break;
             }
             if t.elapsed() > Duration::from_millis(20) {
                 missed += 1;
@@ -186,7 +251,10 @@ fn pty_round_trip(name: &str, dev: &mut dyn HapticDevice, ticks: usize) {
 }
 
 fn pty_latency() {
-    let ticks = std::env::var("DEVICES_BENCH_TICKS").ok().and_then(|s| s.parse().ok()).unwrap_or(2000);
+    let ticks = std::env::var("DEVICES_BENCH_TICKS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(2000);
     for cartesian_protocol in [false, true] {
         let (master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
         let path = slave.name().unwrap();
@@ -194,8 +262,16 @@ fn pty_latency() {
         let stop = Arc::new(AtomicBool::new(false));
         let fw = spawn_echo_firmware(master, cartesian_protocol, stop.clone());
         if cartesian_protocol {
-            let opts = SerialArmOptions { reply_wait: Duration::from_micros(0), stale_after: Duration::from_secs(1), ..SerialArmOptions::default() };
-            let mut dev = SerialArm::new(&path, DeviceProfile::built_in("cartesian-serial").unwrap(), opts);
+            let opts = SerialArmOptions {
+                reply_wait: Duration::from_micros(0),
+                stale_after: Duration::from_secs(1),
+                ..SerialArmOptions::default()
+            };
+            let mut dev = SerialArm::new(
+                &path,
+                DeviceProfile::built_in("cartesian-serial").unwrap(),
+                opts,
+            );
             dev.open().expect("open cartesian serial");
             pty_round_trip("cartesian_serial", &mut dev, ticks);
             let _ = dev.close();

@@ -191,10 +191,10 @@ impl Delta {
             let mut t = 1.0;
             let mut next = p + step;
             for _ in 0..8 {
-                if let Ok(qn) = self.inverse(next) {
-                    if (q - qn).abs().max_element() < residual {
-                        break;
-                    }
+                if let Ok(qn) = self.inverse(next)
+                    && (q - qn).abs().max_element() < residual
+                {
+                    break;
                 }
                 t *= 0.5;
                 next = p + step * t;

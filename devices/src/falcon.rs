@@ -477,11 +477,11 @@ impl HapticDevice for Falcon {
         }
         let silent = now.duration_since(self.last_frame);
         if silent > self.opts.stale_after {
-            if let Some(l) = self.link.as_mut() {
-                if l.probe_hangup().is_err() {
-                    self.dead = true;
-                    return Err(DeviceError::Disconnected);
-                }
+            if let Some(l) = self.link.as_mut()
+                && l.probe_hangup().is_err()
+            {
+                self.dead = true;
+                return Err(DeviceError::Disconnected);
             }
             return Err(DeviceError::Timeout {
                 waited_us: silent.as_micros() as u64,

@@ -150,8 +150,8 @@ impl EncoderUnwrap {
             self.total = raw.map(i64::from);
             self.primed = true;
         } else {
-            for i in 0..3 {
-                self.total[i] += i64::from(raw[i].wrapping_sub(self.last[i]));
+            for ((total, now), before) in self.total.iter_mut().zip(raw).zip(self.last) {
+                *total += i64::from(now.wrapping_sub(before));
             }
         }
         self.last = raw;

@@ -3,7 +3,7 @@
 //! [`build_driver`] resolves the profile (built-in name or TOML file) and constructs the driver;
 //! it does no I/O, so errors here are configuration errors. The engine then wraps the result in
 //! the [`crate::SafetyFilter`] and calls `open`. `sim` and `replay:FILE` are not hardware: the
-//! engine builds them from [`crate::sim_arm`] and [`crate::record`] directly.
+//! engine builds them from [`crate::SimulatedArm`] and [`crate::ReplayDevice`] directly.
 
 use std::path::PathBuf;
 
@@ -61,7 +61,7 @@ pub fn build_driver(
             what: "`sim` as hardware: build crate::sim_arm::SimulatedArm",
         }),
         DeviceSpec::Replay { .. } => Err(DeviceError::Unsupported {
-            what: "`replay` as hardware: build the crate::record replay device",
+            what: "`replay` as hardware: build crate::record::ReplayDevice",
         }),
         DeviceSpec::SpaceMouse => Ok(Box::new(SpaceMouse::new(opts.spacemouse))),
         DeviceSpec::Hid { profile } => {

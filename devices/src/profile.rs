@@ -329,7 +329,7 @@ impl DeviceProfile {
             self.protocol,
             Protocol::CartesianHid | Protocol::CartesianSerial
         );
-        if cartesian_protocol != !needs_motors {
+        if cartesian_protocol == needs_motors {
             return Err(bad(
                 "geometry.kind",
                 "must be `cartesian` exactly when the protocol is a Cartesian one".into(),

@@ -41,16 +41,16 @@ impl VelocityEstimator {
     /// Feeds a position at `t_us`; returns the filtered velocity. Samples at the same or an
     /// earlier time leave the estimate unchanged.
     pub fn update(&mut self, position_m: Vec3, t_us: u64) -> Vec3 {
-        if let Some((p0, t0)) = self.last {
-            if t_us > t0 {
-                let dt = (t_us - t0) as f32 * 1e-6;
-                let raw = (position_m - p0) / dt;
-                let rc = 1.0 / (std::f32::consts::TAU * self.cutoff_hz);
-                let alpha = dt / (rc + dt);
-                self.velocity_m_per_s += (raw - self.velocity_m_per_s) * alpha;
-                if !self.velocity_m_per_s.is_finite() {
-                    self.velocity_m_per_s = Vec3::ZERO;
-                }
+        if let Some((p0, t0)) = self.last
+            && t_us > t0
+        {
+            let dt = (t_us - t0) as f32 * 1e-6;
+            let raw = (position_m - p0) / dt;
+            let rc = 1.0 / (std::f32::consts::TAU * self.cutoff_hz);
+            let alpha = dt / (rc + dt);
+            self.velocity_m_per_s += (raw - self.velocity_m_per_s) * alpha;
+            if !self.velocity_m_per_s.is_finite() {
+                self.velocity_m_per_s = Vec3::ZERO;
             }
         }
         if self.last.is_none_or(|(_, t0)| t_us > t0) {

@@ -45,9 +45,8 @@ proptest! {
         for b in stream {
             let mut ev = Some(r.push(b));
             while let Some(e) = ev {
-                if let FrameEvent::Frame { kind, .. } = e {
-                    if DeviceMsg::decode(kind, r.payload()) == Ok(msg) { found = true; }
-                }
+                if let FrameEvent::Frame { kind, .. } = e
+                    && DeviceMsg::decode(kind, r.payload()) == Ok(msg) { found = true; }
                 ev = r.drain();
             }
         }

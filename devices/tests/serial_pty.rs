@@ -234,13 +234,13 @@ fn spawn_cartesian(home_after: Duration) -> Sim {
         let mut home_at: Option<Instant> = None;
         let t0 = Instant::now();
         while !s2.load(Ordering::SeqCst) {
-            if let Some(at) = home_at {
-                if at.elapsed() >= home_after {
-                    homed = true;
-                    home_at = None;
-                    let n = DeviceMsg::HomeDone { ok: true }.encode(&mut out).unwrap();
-                    let _ = master.write_all(&out[..n]);
-                }
+            if let Some(at) = home_at
+                && at.elapsed() >= home_after
+            {
+                homed = true;
+                home_at = None;
+                let n = DeviceMsg::HomeDone { ok: true }.encode(&mut out).unwrap();
+                let _ = master.write_all(&out[..n]);
             }
             let n = read_some(&mut master, &mut buf);
             for &b in &buf[..n] {
@@ -331,6 +331,18 @@ fn serial_opts() -> SerialArmOptions {
     }
 }
 
+/// Waits (up to 2 s, the machine may be loaded) until `cond` holds; returns whether it did.
+fn eventually(mut cond: impl FnMut() -> bool) -> bool {
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(2) {
+        if cond() {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    cond()
+}
+
 fn safety() -> SafetyConfig {
     SafetyConfig {
         soft_start_s: 0.0,
@@ -371,6 +383,19 @@ fn stream<D: HapticDevice>(
     (fresh, errors, last)
 }
 
+/// Streams until `want` fresh samples arrive (at most 3 s: the machine may be loaded); returns
+/// (fresh, errors).
+fn stream_until<D: HapticDevice>(dev: &mut D, want: u32, force: Vec3) -> (u32, u32) {
+    let (mut fresh, mut errors) = (0, 0);
+    let start = Instant::now();
+    while fresh < want && start.elapsed() < Duration::from_secs(3) {
+        let (f, e, _) = stream(dev, 10, force);
+        fresh += f;
+        errors += e;
+    }
+    (fresh, errors)
+}
+
 #[test]
 fn falcon_loads_firmware_homes_and_streams_at_1khz() {
     let image: Vec<u8> = (0..1000u32).map(|i| (i * 7 + 3) as u8).collect();
@@ -386,7 +411,13 @@ fn falcon_loads_firmware_homes_and_streams_at_1khz() {
 
     let (fresh, errors, last) = stream(&mut dev, 1200, Vec3::new(0.0, 0.0, 1.0));
     assert_eq!(errors, 0, "no faults on a clean link");
-    assert!(fresh >= 1000, "fresh samples at 1 kHz: {fresh} of 1200");
+    // Every tick's command reaches the firmware; most replies arrive within the tick (the
+    // bound is loose because the test machine is shared; latency is measured in bench/).
+    assert!(
+        eventually(|| sim.commands.load(Ordering::SeqCst) >= 1200),
+        "one command per tick"
+    );
+    assert!(fresh >= 600, "fresh samples at 1 kHz: {fresh} of 1200");
     // The driver's forward kinematics recovers the simulated tool position.
     let d = Delta::from_geometry(&DeviceProfile::built_in("falcon").unwrap().geometry).unwrap();
     let r = (last.position_m.as_dvec3() - d.home_guess_m).length();
@@ -415,7 +446,7 @@ fn falcon_faults_are_reported_zero_force_follows_and_reconnect_works() {
     for f in [fault::GARBAGE, fault::BAD_FRAME, fault::SHORT_FRAME] {
         sim.inject(f);
         let mut reported = None;
-        for _ in 0..50 {
+        for _ in 0..2000 {
             match dev.read() {
                 Err(e) => {
                     reported = Some(e);
@@ -430,25 +461,23 @@ fn falcon_faults_are_reported_zero_force_follows_and_reconnect_works() {
         let e = reported.unwrap_or_else(|| panic!("fault {f} was not reported"));
         assert!(matches!(e, DeviceError::Protocol { .. }), "fault {f}: {e}");
         assert!(dev.fault_latched());
-        std::thread::sleep(Duration::from_millis(5));
-        assert_eq!(
-            sim.last_force(),
-            [0; 3],
+        assert!(
+            eventually(|| sim.last_force() == [0; 3]),
             "the filter sent zero after fault {f}"
         );
         // The link recovers by itself: the next frames are good.
-        let (fresh, _, _) = stream(&mut dev, 30, push);
-        assert!(fresh > 10, "recovered after fault {f}");
+        let (fresh, _) = stream_until(&mut dev, 10, push);
+        assert!(fresh >= 10, "recovered after fault {f}");
     }
 
     sim.inject(fault::CLOSE);
     let mut err = None;
-    for _ in 0..200 {
-        if let Err(e) = dev.read() {
-            if e == DeviceError::Disconnected {
-                err = Some(e);
-                break;
-            }
+    for _ in 0..3000 {
+        if let Err(e) = dev.read()
+            && e == DeviceError::Disconnected
+        {
+            err = Some(e);
+            break;
         }
         let _ = dev.write_force(push);
         std::thread::sleep(Duration::from_millis(1));
@@ -465,9 +494,9 @@ fn falcon_faults_are_reported_zero_force_follows_and_reconnect_works() {
     let sim2 = spawn_falcon(0, 5);
     dev.device_mut().set_path(&sim2.path);
     dev.open().expect("reconnect");
-    let (fresh, errors, _) = stream(&mut dev, 100, Vec3::ZERO);
+    let (fresh, errors) = stream_until(&mut dev, 50, Vec3::ZERO);
     assert_eq!(errors, 0);
-    assert!(fresh > 80);
+    assert!(fresh >= 50, "streaming after reconnect");
 }
 
 #[test]
@@ -505,7 +534,13 @@ fn cartesian_serial_handshakes_homes_and_streams_at_1khz() {
     );
     let (fresh, errors, last) = stream(&mut dev, 1200, Vec3::new(1.0, -2.0, 0.5));
     assert_eq!(errors, 0);
-    assert!(fresh >= 1000, "fresh samples at 1 kHz: {fresh} of 1200");
+    // Every tick's command reaches the firmware; most replies arrive within the tick (the
+    // bound is loose because the test machine is shared; latency is measured in bench/).
+    assert!(
+        eventually(|| sim.commands.load(Ordering::SeqCst) >= 1200),
+        "one command per tick"
+    );
+    assert!(fresh >= 600, "fresh samples at 1 kHz: {fresh} of 1200");
     assert_eq!(sim.last_force(), [1000, -2000, 500]);
     assert!(
         last.position_m.x.abs() <= 0.0201 && (last.position_m.z + 0.005).abs() < 1e-6,
@@ -513,7 +548,6 @@ fn cartesian_serial_handshakes_homes_and_streams_at_1khz() {
         last.position_m
     );
     assert_eq!(last.buttons, 1);
-    assert!(sim.commands.load(Ordering::SeqCst) >= 1000);
 }
 
 #[test]
@@ -535,7 +569,7 @@ fn cartesian_serial_faults_are_reported_zero_force_follows_and_reconnect_works()
     ] {
         sim.inject(f);
         let mut reported = None;
-        for _ in 0..50 {
+        for _ in 0..2000 {
             if let Err(e) = dev.read() {
                 reported = Some(e);
                 break;
@@ -549,18 +583,16 @@ fn cartesian_serial_faults_are_reported_zero_force_follows_and_reconnect_works()
             }
             other => panic!("fault {f} not reported as a protocol error: {other:?}"),
         }
-        std::thread::sleep(Duration::from_millis(5));
-        assert_eq!(
-            sim.last_force(),
-            [0; 3],
+        assert!(
+            eventually(|| sim.last_force() == [0; 3]),
             "the filter sent zero after fault {f}"
         );
-        let (fresh, _, _) = stream(&mut dev, 30, push);
-        assert!(fresh > 10);
+        let (fresh, _) = stream_until(&mut dev, 10, push);
+        assert!(fresh >= 10, "recovered after fault {f}");
     }
     sim.inject(fault::CLOSE);
     let mut disconnected = false;
-    for _ in 0..200 {
+    for _ in 0..3000 {
         if dev.read() == Err(DeviceError::Disconnected) {
             disconnected = true;
             break;
@@ -574,7 +606,7 @@ fn cartesian_serial_faults_are_reported_zero_force_follows_and_reconnect_works()
     let sim2 = spawn_cartesian(Duration::from_millis(1));
     dev.device_mut().set_path(&sim2.path);
     dev.open().expect("reconnect");
-    let (fresh, errors, _) = stream(&mut dev, 100, Vec3::ZERO);
+    let (fresh, errors) = stream_until(&mut dev, 50, Vec3::ZERO);
     assert_eq!(errors, 0);
-    assert!(fresh > 80);
+    assert!(fresh >= 50, "streaming after reconnect");
 }

@@ -10,7 +10,7 @@
 //! | ID 3, 2..=9 bytes | 1 + n | button bits, little-endian, bit i = button i |
 //!
 //! Device axes: x right, y toward the user, z down; rotations about those axes. Mapping them to
-//! the tool frame is [`crate::spacemouse::AxisMap`]'s job, not the codec's. Nothing here
+//! the tool frame is [`crate::pose_input::AxisMap`]'s job, not the codec's. Nothing here
 //! allocates.
 
 use super::CodecError;
