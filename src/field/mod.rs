@@ -5,13 +5,17 @@ mod basis;
 mod kron;
 mod lattice;
 mod mass_grid;
+mod multipatch;
 mod primitive;
 mod refit;
+mod snapshot;
 
 pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
 pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid};
+pub use multipatch::{MultiPatchField, Patch};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
 pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};
+pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
