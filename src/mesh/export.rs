@@ -228,3 +228,196 @@ pub fn encode_stl(mesh: &TriMesh, out: &mut dyn Write) -> io::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{BrickOctree, FnField, MeshStats, SampleGrid};
+    use glam::Vec3;
+    use std::collections::HashMap;
+
+    fn sphere_mesh() -> TriMesh {
+        let field = FnField {
+            value: |p: Vec3| 0.3 - (p - Vec3::splat(0.5)).length(),
+            gradient: |p: Vec3| -(p - Vec3::splat(0.5)).normalize_or_zero(),
+            iso: 0.0,
+            lipschitz: Some(1.0),
+        };
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0 / 24.0, [24; 3]).unwrap();
+        BrickOctree::build(grid, &field).weld()
+    }
+
+    fn read_obj(bytes: &[u8]) -> TriMesh {
+        let text = std::str::from_utf8(bytes).unwrap();
+        let mut mesh = TriMesh::default();
+        let floats = |rest: &str| -> Vec3 {
+            let v: Vec<f32> = rest
+                .split_whitespace()
+                .map(|x| x.parse().unwrap())
+                .collect();
+            Vec3::new(v[0], v[1], v[2])
+        };
+        for line in text.lines() {
+            if let Some(rest) = line.strip_prefix("v ") {
+                mesh.positions.push(floats(rest));
+            } else if let Some(rest) = line.strip_prefix("vn ") {
+                mesh.normals.push(floats(rest));
+            } else if let Some(rest) = line.strip_prefix("f ") {
+                let idx: Vec<u32> = rest
+                    .split_whitespace()
+                    .map(|t| {
+                        let (v, n) = t.split_once("//").unwrap();
+                        assert_eq!(v, n);
+                        v.parse::<u32>().unwrap() - 1
+                    })
+                    .collect();
+                mesh.triangles.push([idx[0], idx[1], idx[2]]);
+            }
+        }
+        mesh
+    }
+
+    fn read_ply(bytes: &[u8]) -> TriMesh {
+        let end = b"end_header\n";
+        let at = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+        let header = std::str::from_utf8(&bytes[..at]).unwrap();
+        assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
+        let count = |name: &str| -> usize {
+            let line = header
+                .lines()
+                .find(|l| l.starts_with(&format!("element {name} ")))
+                .unwrap();
+            line.rsplit(' ').next().unwrap().parse().unwrap()
+        };
+        let (nv, nf) = (count("vertex"), count("face"));
+        let mut body = &bytes[at..];
+        let mut f32_le = || {
+            let v = f32::from_le_bytes(body[..4].try_into().unwrap());
+            body = &body[4..];
+            v
+        };
+        let mut mesh = TriMesh::default();
+        for _ in 0..nv {
+            let v: Vec<f32> = (0..6).map(|_| f32_le()).collect();
+            mesh.positions.push(Vec3::new(v[0], v[1], v[2]));
+            mesh.normals.push(Vec3::new(v[3], v[4], v[5]));
+        }
+        for _ in 0..nf {
+            assert_eq!(body[0], 3);
+            let i = |k: usize| u32::from_le_bytes(body[1 + 4 * k..5 + 4 * k].try_into().unwrap());
+            mesh.triangles.push([i(0), i(1), i(2)]);
+            body = &body[13..];
+        }
+        assert!(body.is_empty(), "{} trailing bytes", body.len());
+        mesh
+    }
+
+    /// Reads binary STL and welds vertices by exact position.
+    fn read_stl(bytes: &[u8]) -> TriMesh {
+        let n = u32::from_le_bytes(bytes[80..84].try_into().unwrap()) as usize;
+        assert_eq!(bytes.len(), 84 + 50 * n);
+        let mut mesh = TriMesh::default();
+        let mut ids: HashMap<[u32; 3], u32> = HashMap::new();
+        for t in 0..n {
+            let rec = &bytes[84 + 50 * t..84 + 50 * (t + 1)];
+            let f = |k: usize| f32::from_le_bytes(rec[4 * k..4 * k + 4].try_into().unwrap());
+            let normal = Vec3::new(f(0), f(1), f(2));
+            let mut tri = [0u32; 3];
+            for (v, slot) in tri.iter_mut().enumerate() {
+                let p = Vec3::new(f(3 + 3 * v), f(4 + 3 * v), f(5 + 3 * v));
+                *slot = *ids
+                    .entry(p.to_array().map(f32::to_bits))
+                    .or_insert_with(|| {
+                        mesh.positions.push(p);
+                        mesh.normals.push(normal);
+                        (mesh.positions.len() - 1) as u32
+                    });
+            }
+            mesh.triangles.push(tri);
+        }
+        mesh
+    }
+
+    #[test]
+    fn exported_files_read_back_with_the_same_counts() {
+        let mesh = sphere_mesh();
+        let stats = MeshStats::of(&mesh);
+        assert!(stats.is_closed_manifold() && stats.triangles > 500);
+        let dir = tempfile::tempdir().unwrap();
+        for format in [MeshFormat::Obj, MeshFormat::Ply, MeshFormat::Stl] {
+            let path = dir.path().join(format!("sphere.{format:?}").to_lowercase());
+            assert_eq!(MeshFormat::from_path(&path), Some(format));
+            write_mesh(&path, &mesh, format).unwrap();
+            let bytes = fs::read(&path).unwrap();
+            let back = match format {
+                MeshFormat::Obj => read_obj(&bytes),
+                MeshFormat::Ply => read_ply(&bytes),
+                MeshFormat::Stl => read_stl(&bytes),
+            };
+            let s = MeshStats::of(&back);
+            assert_eq!(
+                (s.vertices, s.triangles, s.edges),
+                (stats.vertices, stats.triangles, stats.edges),
+                "{format:?}"
+            );
+            assert_eq!(s.euler_characteristic, 2, "{format:?}");
+            assert!(s.is_closed_manifold(), "{format:?}");
+            assert!((s.volume - stats.volume).abs() < 1e-6 * stats.volume);
+            if format != MeshFormat::Stl {
+                // OBJ prints shortest round-trip decimals; PLY is raw bits: both exact.
+                assert_eq!(back, mesh, "{format:?}");
+            }
+        }
+        // Only the three files: no temporary files left over.
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 3);
+    }
+
+    #[test]
+    fn unwritable_path_names_the_path_and_leaves_no_file() {
+        let mesh = sphere_mesh();
+        let dir = tempfile::tempdir().unwrap();
+        let missing = dir.path().join("no_such_dir").join("mesh.obj");
+        let err = write_mesh(&missing, &mesh, MeshFormat::Obj).unwrap_err();
+        assert!(
+            err.to_string().contains(&missing.display().to_string()),
+            "{err}"
+        );
+        assert!(!missing.exists());
+
+        // A parent that is a regular file.
+        let blocker = dir.path().join("file");
+        fs::write(&blocker, b"x").unwrap();
+        let under_file = blocker.join("mesh.stl");
+        let err = write_mesh(&under_file, &mesh, MeshFormat::Stl).unwrap_err();
+        assert!(err.to_string().contains("mesh.stl"), "{err}");
+
+        // The target is a directory: the rename fails after the bytes were written.
+        let target_dir = dir.path().join("taken.ply");
+        fs::create_dir(&target_dir).unwrap();
+        fs::write(target_dir.join("inner"), b"keep").unwrap();
+        let err = write_mesh(&target_dir, &mesh, MeshFormat::Ply).unwrap_err();
+        assert_eq!(err.action, "rename into place");
+        assert!(err.to_string().contains("taken.ply"), "{err}");
+        let names: Vec<_> = fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names.len(), 2, "left behind: {names:?}");
+    }
+
+    #[test]
+    fn a_failing_encoder_leaves_the_old_file_untouched() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mesh.obj");
+        fs::write(&path, b"previous").unwrap();
+        let err = write_atomically(&path, |out| {
+            out.write_all(&[b'x'; 100_000])?;
+            Err(io::Error::other("encoder gave up"))
+        })
+        .unwrap_err();
+        assert_eq!(err.action, "write");
+        assert!(err.to_string().contains("encoder gave up"));
+        assert_eq!(fs::read(&path).unwrap(), b"previous");
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -677,6 +677,19 @@ mod tests {
     }
 
     #[test]
+    fn sphere_at_512_cubed_fits_in_200_megabytes() {
+        let (lattice, _, _) = sphere_lattice(56.5);
+        let grid = SampleGrid::for_lattice(&lattice, 4).unwrap();
+        assert_eq!(grid.cells, [512; 3]);
+        let tree = BrickOctree::build(grid, &lattice);
+        let memory = tree.memory();
+        // Dense storage would be 513³ samples (540 MB) before any mesh.
+        assert!(memory.total_bytes() < 200_000_000, "{memory:?}");
+        assert!(tree.brick_count() < 64 * 64 * 64 / 8);
+        assert!(tree.triangle_count() > 1_000_000);
+    }
+
+    #[test]
     fn morton_codes_keep_octree_nodes_contiguous() {
         // All 8 children of node (2,4,6) at size 2 fall in [morton(node), +8).
         let base = morton([2, 4, 6]);
