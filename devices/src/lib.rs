@@ -11,3 +11,7 @@ pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
+pub use sim_arm::{
+    Fault, FaultKind, HandSample, Interpolation, SimArmConfig, SimArmCounters, SimRng,
+    SimulatedArm, Trajectory, TrajectoryError, Waypoint,
+};
