@@ -15,3 +15,19 @@ pub use sim_arm::{
     Fault, FaultKind, HandSample, Interpolation, SimArmConfig, SimArmCounters, SimRng,
     SimulatedArm, Trajectory, TrajectoryError, Waypoint,
 };
+
+// Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
+pub mod codec;
+pub mod delta;
+pub mod enumerate;
+pub mod falcon;
+pub mod hid_arm;
+pub mod kinematics;
+pub mod open;
+pub mod pose_input;
+pub mod profile;
+pub mod serial_arm;
+pub mod serial_link;
+pub mod spacemouse;
+pub mod spec;
+pub mod velocity;
