@@ -21,8 +21,9 @@ pub enum ToolAction {
     Paint { rgb: [f32; 3] },
     /// Progressive paint, weighted by the tool's potential and the clay's presence.
     SoftPaint { rgb: [f32; 3], rate_per_s: f32 },
-    /// Low-pass the field under the tool: blend towards a local average.
-    Smooth { rate_per_s: f32 },
+    /// Low-pass the field under the tool: blend towards a local average whose 27 taps lie
+    /// `kernel_m` apart (at least one knot span is used).
+    Smooth { rate_per_s: f32, kernel_m: f32 },
     /// Print the tool's shape with Ferley's deformation function.
     Stamp(StampParams),
     /// Zhang's contact deformation `h = f + β·g`.
@@ -102,8 +103,13 @@ impl ToolAction {
         };
         match self {
             Self::Add { deposit_rate_per_s } => rate("deposit_rate_per_s", *deposit_rate_per_s),
-            Self::SoftRemove { rate_per_s } | Self::Smooth { rate_per_s } => {
-                rate("rate_per_s", *rate_per_s)
+            Self::SoftRemove { rate_per_s } => rate("rate_per_s", *rate_per_s),
+            Self::Smooth {
+                rate_per_s,
+                kernel_m,
+            } => {
+                rate("rate_per_s", *rate_per_s)?;
+                rate("kernel_m", *kernel_m)
             }
             Self::Paint { rgb } => colour(rgb),
             Self::SoftPaint { rgb, rate_per_s } => {
@@ -135,7 +141,7 @@ impl ToolAction {
                 (clay - amount(rate_per_s) * tool).max(0.0).min(clay)
             }
             Self::Paint { .. } | Self::SoftPaint { .. } => clay,
-            Self::Smooth { rate_per_s } => {
+            Self::Smooth { rate_per_s, .. } => {
                 let w = amount(rate_per_s) * (2.0 * tool).min(1.0);
                 clay + w * (blurred - clay)
             }
@@ -207,7 +213,10 @@ mod tests {
         assert_eq!(add.density(0.7, 0.0, 0.0, 0.5, 1.0), 0.7);
         let erase = ToolAction::SoftRemove { rate_per_s: 1.0 };
         assert!((erase.density(0.8, 0.5, 0.0, 0.5, 0.2) - 0.7).abs() < 1e-6);
-        let smooth = ToolAction::Smooth { rate_per_s: 1.0 };
+        let smooth = ToolAction::Smooth {
+            rate_per_s: 1.0,
+            kernel_m: 0.1,
+        };
         assert_eq!(smooth.density(1.0, 1.0, 0.5, 0.5, 1.0), 0.5);
         assert_eq!(smooth.density(1.0, 0.0, 0.5, 0.5, 1.0), 1.0);
     }

@@ -1,11 +1,12 @@
 //! The editable sculpt state: density patches and the optional colour field, addressed by
-//! [`FieldId`], with coefficient boxes ([`CoeffBox`]) naming the regions that an edit touched.
+//! [`FieldId`], with coefficient boxes ([`CoeffBox`], inclusive) naming the regions that an edit touched.
 //!
 //! Every tool, every force stroke and the undo history work on a [`Clay`]; the session file
 //! stores one. Nothing here allocates after construction except [`ColourField::new`].
 
 use glam::{Vec3, Vec4};
 
+pub use crate::field::CoeffBox;
 use crate::field::{BSplineLattice, LatticeError};
 
 /// Which coefficient lattice of a [`Clay`] an edit or an undo delta refers to.
@@ -17,102 +18,74 @@ pub enum FieldId {
     Colour(u8),
 }
 
-/// A half-open box of coefficient indices `min ..< max` per axis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct CoeffBox {
-    pub min: [usize; 3],
-    pub max: [usize; 3],
-}
-
 impl CoeffBox {
-    /// The whole lattice of the given dimensions.
-    #[must_use]
-    pub fn full(dims: [usize; 3]) -> Self {
-        Self {
-            min: [0; 3],
-            max: dims,
-        }
-    }
-
-    /// Whether the box holds no coefficient.
-    #[must_use]
-    pub fn is_empty(&self) -> bool {
-        (0..3).any(|a| self.max[a] <= self.min[a])
-    }
-
-    /// Number of coefficients in the box.
-    #[must_use]
-    pub fn count(&self) -> usize {
-        if self.is_empty() {
-            0
-        } else {
-            (0..3).map(|a| self.max[a] - self.min[a]).product()
-        }
-    }
-
-    /// The smallest box holding both (an empty box is ignored).
+    /// The smallest box holding both.
     #[must_use]
     pub fn union(&self, other: &Self) -> Self {
-        if self.is_empty() {
-            return *other;
-        }
-        if other.is_empty() {
-            return *self;
-        }
         Self {
             min: std::array::from_fn(|a| self.min[a].min(other.min[a])),
             max: std::array::from_fn(|a| self.max[a].max(other.max[a])),
         }
     }
 
-    /// This box clipped to a lattice of the given dimensions.
+    /// This box clipped to a lattice of the given dimensions (`None` if nothing is left).
     #[must_use]
-    pub fn clamp_to(&self, dims: [usize; 3]) -> Self {
-        Self {
-            min: std::array::from_fn(|a| self.min[a].min(dims[a])),
-            max: std::array::from_fn(|a| self.max[a].min(dims[a])),
-        }
-    }
-
-    /// The coefficients of `lattice` whose support (two knot spans either side of the
-    /// coefficient's node) meets the world box `lo ..= hi`, clipped to the lattice.
-    #[must_use]
-    pub fn covering(lattice: &BSplineLattice, lo: Vec3, hi: Vec3) -> Self {
-        let (u0, u1) = (lattice.to_lattice(lo), lattice.to_lattice(hi));
-        let mut out = Self {
-            min: [0; 3],
-            max: [0; 3],
+    pub fn clipped(&self, dims: [usize; 3]) -> Option<Self> {
+        let b = Self {
+            min: self.min,
+            max: std::array::from_fn(|a| self.max[a].min(dims[a].saturating_sub(1))),
         };
-        for a in 0..3 {
-            let n = lattice.dims[a] as f32;
-            if !(u0[a].is_finite() && u1[a].is_finite()) {
-                return out;
-            }
-            // Coefficient c influences lattice coordinates (c - 2, c + 2).
-            let first = (u0[a] - 2.0).floor().max(0.0);
-            let last = (u1[a] + 2.0).ceil().min(n - 1.0);
-            if last < first || first > n - 1.0 || last < 0.0 {
-                return out;
-            }
-            out.min[a] = first as usize;
-            out.max[a] = last as usize + 1;
-        }
-        out
+        b.fits(dims).then_some(b)
     }
 
     /// The world box (min, max corners) where a change of these coefficients can show.
     #[must_use]
     pub fn world_support(&self, lattice: &BSplineLattice) -> (Vec3, Vec3) {
         let lo = Vec3::new(self.min[0] as f32, self.min[1] as f32, self.min[2] as f32);
-        let hi = Vec3::new(
-            self.max[0] as f32 - 1.0,
-            self.max[1] as f32 - 1.0,
-            self.max[2] as f32 - 1.0,
-        );
+        let hi = Vec3::new(self.max[0] as f32, self.max[1] as f32, self.max[2] as f32);
         (
             lattice.origin + (lo - 2.0) * lattice.spacing,
             lattice.origin + (hi + 2.0) * lattice.spacing,
         )
+    }
+}
+
+/// A copy of the coefficients of `lattice` in `region` grown by `margin` on every side
+/// (clipped to the lattice, and to at least 4 per axis), as a lattice of its own placed at the
+/// same world position. Inside the world box of `region` grown by `margin − 2` knot spans it
+/// evaluates as `lattice` does (up to the rounding of its shifted origin); tools read the pre-edit clay from it while the
+/// original is being refitted.
+#[must_use]
+pub fn sub_lattice(lattice: &BSplineLattice, region: &CoeffBox, margin: usize) -> BSplineLattice {
+    let mut min = [0; 3];
+    let mut dims = [0; 3];
+    for a in 0..3 {
+        let n = lattice.dims[a];
+        let mut lo = region.min[a].saturating_sub(margin);
+        let mut hi = (region.max[a] + margin).min(n - 1);
+        while hi + 1 - lo < 4.min(n) {
+            if lo > 0 {
+                lo -= 1;
+            } else {
+                hi = (hi + 1).min(n - 1);
+            }
+        }
+        min[a] = lo;
+        dims[a] = hi + 1 - lo;
+    }
+    let mut coeffs = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            let row = lattice.index(min[0], min[1] + j, min[2] + k);
+            coeffs.extend_from_slice(&lattice.coeffs[row..row + dims[0]]);
+        }
+    }
+    BSplineLattice {
+        dims,
+        spacing: lattice.spacing,
+        origin: lattice.node_position(min[0], min[1], min[2]),
+        iso: lattice.iso,
+        coeffs,
     }
 }
 
@@ -211,18 +184,61 @@ mod tests {
     use super::*;
 
     #[test]
-    fn covering_box_holds_every_coefficient_that_reaches_the_world_box() {
+    fn boxes_union_clip_and_bound_their_support() {
         let lattice = BSplineLattice::zeros([20, 20, 20], 0.1, Vec3::ZERO).unwrap();
-        let b = CoeffBox::covering(&lattice, Vec3::splat(0.5), Vec3::splat(0.7));
-        assert_eq!(b.min, [3; 3]);
-        assert_eq!(b.max, [10; 3]);
-        let (lo, hi) = b.world_support(&lattice);
-        assert!(lo.cmple(Vec3::splat(0.5)).all() && hi.cmpge(Vec3::splat(0.7)).all());
-        let outside = CoeffBox::covering(&lattice, Vec3::splat(5.0), Vec3::splat(6.0));
-        assert!(outside.is_empty());
-        let edge = CoeffBox::covering(&lattice, Vec3::splat(-1.0), Vec3::splat(0.05));
-        assert_eq!(edge.min, [0; 3]);
-        assert_eq!(edge.max, [4; 3]);
+        let a = CoeffBox {
+            min: [3; 3],
+            max: [9; 3],
+        };
+        let b = CoeffBox {
+            min: [1, 5, 5],
+            max: [4, 30, 6],
+        };
+        let u = a.union(&b);
+        assert_eq!(
+            u,
+            CoeffBox {
+                min: [1, 3, 3],
+                max: [9, 30, 9]
+            }
+        );
+        assert_eq!(u.clipped([20; 3]).unwrap().max, [9, 19, 9]);
+        assert!(
+            CoeffBox {
+                min: [25; 3],
+                max: [30; 3]
+            }
+            .clipped([20; 3])
+            .is_none()
+        );
+        let (lo, hi) = a.world_support(&lattice);
+        assert!((lo - Vec3::splat(0.1)).length() < 1e-6);
+        assert!((hi - Vec3::splat(1.1)).length() < 1e-6);
+    }
+
+    #[test]
+    fn a_sub_lattice_evaluates_like_the_original_inside_its_margin() {
+        let mut lattice =
+            BSplineLattice::zeros([16, 12, 10], 0.2, Vec3::new(0.3, -0.1, 0.0)).unwrap();
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 37) % 23) as f32 / 23.0;
+        }
+        let region = CoeffBox {
+            min: [5, 0, 3],
+            max: [8, 4, 9],
+        };
+        let sub = sub_lattice(&lattice, &region, 4);
+        let (lo, hi) = region.world_support(&lattice);
+        for s in 0..300 {
+            let f = Vec3::new(
+                (s * 7 % 31) as f32 / 31.0,
+                (s * 11 % 29) as f32 / 29.0,
+                (s * 13 % 37) as f32 / 37.0,
+            );
+            let x = lo + (hi - lo) * f;
+            // Equal up to the rounding of the shifted origin.
+            assert!((sub.value(x) - lattice.value(x)).abs() < 1e-5, "at {x}");
+        }
     }
 
     #[test]

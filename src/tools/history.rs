@@ -112,10 +112,10 @@ impl Step {
 
 /// Visits the linear indices of `region` in a lattice of `dims`, x fastest.
 fn for_each_index(dims: [usize; 3], region: &CoeffBox, mut f: impl FnMut(usize)) {
-    for k in region.min[2]..region.max[2] {
-        for j in region.min[1]..region.max[1] {
+    for k in region.min[2]..=region.max[2] {
+        for j in region.min[1]..=region.max[1] {
             let row = dims[0] * (j + dims[1] * k);
-            for i in region.min[0]..region.max[0] {
+            for i in region.min[0]..=region.max[0] {
                 f(row + i);
             }
         }
@@ -158,12 +158,11 @@ impl StepRecorder {
             return;
         };
         let dims = lattice.dims;
-        let region = region.clamp_to(dims);
-        if region.is_empty() {
+        let Some(region) = region.clipped(dims) else {
             return;
-        }
+        };
         let b0: [usize; 3] = std::array::from_fn(|a| region.min[a] / BRICK);
-        let b1: [usize; 3] = std::array::from_fn(|a| (region.max[a] - 1) / BRICK);
+        let b1: [usize; 3] = std::array::from_fn(|a| region.max[a] / BRICK);
         for bk in b0[2]..=b1[2] {
             for bj in b0[1]..=b1[1] {
                 for bi in b0[0]..=b1[0] {
@@ -171,11 +170,17 @@ impl StepRecorder {
                     if self.old.contains_key(&key) {
                         continue;
                     }
-                    let brick = CoeffBox {
+                    let Some(brick) = (CoeffBox {
                         min: [bi * BRICK, bj * BRICK, bk * BRICK],
-                        max: [(bi + 1) * BRICK, (bj + 1) * BRICK, (bk + 1) * BRICK],
-                    }
-                    .clamp_to(dims);
+                        max: [
+                            (bi + 1) * BRICK - 1,
+                            (bj + 1) * BRICK - 1,
+                            (bk + 1) * BRICK - 1,
+                        ],
+                    })
+                    .clipped(dims) else {
+                        continue;
+                    };
                     let mut bits = Vec::with_capacity(brick.count());
                     for_each_index(dims, &brick, |idx| bits.push(lattice.coeffs[idx].to_bits()));
                     self.old.insert(
@@ -202,22 +207,20 @@ impl StepRecorder {
         }
         for id in ids {
             if let Some(l) = clay.field(id) {
-                let full = CoeffBox::full(l.dims);
+                let full = CoeffBox::whole(l.dims);
                 self.touch(clay, id, full);
             }
         }
     }
 
-    /// The union of touched boxes of `field`, in coefficients (empty if none).
+    /// The union of the touched bricks of `field` (`None` if none).
     #[must_use]
-    pub fn touched_box(&self, field: FieldId) -> CoeffBox {
-        self.old.iter().filter(|((f, _), _)| *f == field).fold(
-            CoeffBox {
-                min: [0; 3],
-                max: [0; 3],
-            },
-            |acc, (_, saved)| acc.union(&saved.region),
-        )
+    pub fn touched_box(&self, field: FieldId) -> Option<CoeffBox> {
+        self.old
+            .iter()
+            .filter(|((f, _), _)| *f == field)
+            .map(|(_, saved)| saved.region)
+            .reduce(|a, b| a.union(&b))
     }
 
     /// Compares the remembered bricks with the clay now; `None` if nothing changed.
@@ -408,7 +411,9 @@ mod tests {
         rec.touch(clay, FieldId::Density(0), region);
         let l = &mut clay.patches[0];
         let dims = l.dims;
-        for_each_index(dims, &region.clamp_to(dims), |i| l.coeffs[i] = value);
+        for_each_index(dims, &region.clipped(dims).unwrap(), |i| {
+            l.coeffs[i] = value
+        });
         history.commit(rec, clay);
     }
 
@@ -419,7 +424,7 @@ mod tests {
         let mut h = History::default();
         let region = CoeffBox {
             min: [3, 2, 1],
-            max: [17, 11, 8],
+            max: [16, 10, 7],
         };
         edit(&mut c, &mut h, region, -0.0);
         edit(&mut c, &mut h, region, f32::from_bits(0x7fc0_1234));
@@ -451,13 +456,13 @@ mod tests {
         let mut h = History::default();
         let rec = {
             let mut r = StepRecorder::new("noop");
-            r.touch(&c, FieldId::Density(0), CoeffBox::full([20, 13, 9]));
+            r.touch(&c, FieldId::Density(0), CoeffBox::whole([20, 13, 9]));
             r
         };
         assert!(!h.commit(rec, &c));
         let region = CoeffBox {
             min: [0; 3],
-            max: [2, 2, 2],
+            max: [1, 1, 1],
         };
         edit(&mut c, &mut h, region, 5.0);
         h.undo(&mut c).unwrap();
@@ -472,7 +477,7 @@ mod tests {
         let mut c = clay();
         let region = CoeffBox {
             min: [0; 3],
-            max: [8, 8, 8],
+            max: [7, 7, 7],
         };
         let one_step = {
             let mut probe = c.clone();
@@ -503,7 +508,7 @@ mod tests {
             &mut h,
             CoeffBox {
                 min: [0; 3],
-                max: [4; 3],
+                max: [3; 3],
             },
             1.0,
         );
