@@ -6,7 +6,7 @@
 //! The push tool follows Hua & Qin §4.2 and §7.2: while a stroke is active and the tip is
 //! inside the clay, the force vector runs from `x0`, the clay's surface above the tip, to
 //! `x1`, the tip. The force on the clay is `f = −l ∫₀¹ (s(x0 + t(x1 − x0)) − c0) dt`
-//! (4-point Gauss–Legendre), negative here (it removes density along the vector), and the user
+//! (4-point Gauss–Legendre, [`force_integral`]), negative here (it removes density along the vector), and the user
 //! feels the equal and opposite force: magnitude `|f|` pointing from the tip back toward the
 //! surface. As the dent catches up with the tip the integral, and so the force, falls smoothly
 //! to zero (§7.2.2).
@@ -17,22 +17,8 @@
 
 use glam::Vec3;
 
+pub use crate::dynamics::force_integral;
 use crate::field::BSplineLattice;
-
-/// Gauss–Legendre nodes on `[0, 1]` (from ±0.3399810436, ±0.8611363116 on `[−1, 1]`).
-const GL_T: [f32; 4] = [
-    0.5 * (1.0 - 0.861_136_3),
-    0.5 * (1.0 - 0.339_981_04),
-    0.5 * (1.0 + 0.339_981_04),
-    0.5 * (1.0 + 0.861_136_3),
-];
-/// Matching weights on `[0, 1]` (half of 0.3478548451, 0.6521451549).
-const GL_W: [f32; 4] = [
-    0.5 * 0.347_854_85,
-    0.5 * 0.652_145_16,
-    0.5 * 0.652_145_16,
-    0.5 * 0.347_854_85,
-];
 
 /// Marching steps used to find the surface above the tip.
 const MARCH_STEPS: usize = 16;
@@ -40,19 +26,6 @@ const MARCH_STEPS: usize = 16;
 const BISECT_STEPS: usize = 10;
 /// Upper bound on field evaluations in one [`Contact::update`].
 pub const MAX_PROBES: usize = MARCH_STEPS + BISECT_STEPS + 4 + 2;
-
-/// Eq. (6) on a straight force vector: `−l ∫₀¹ (s(x0 + t(x1 − x0)) − iso) dt`, 4-point
-/// Gauss–Legendre (exact for a cubic along the segment).
-#[must_use]
-pub fn force_integral(field: &BSplineLattice, x0: Vec3, x1: Vec3) -> f32 {
-    let d = x1 - x0;
-    let l = d.length();
-    let mut sum = 0.0;
-    for (t, w) in GL_T.iter().zip(GL_W) {
-        sum += w * (field.value(x0 + d * *t) - field.iso);
-    }
-    -l * sum
-}
 
 /// Settings of the push tool.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]

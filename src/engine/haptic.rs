@@ -103,6 +103,14 @@ impl HapticStage {
         &self.field
     }
 
+    /// Applies the newest field patch without touching the device (used at shutdown).
+    pub fn sync_field(&mut self) {
+        let stamped = self.patches.latest();
+        stamped.value.apply_to(&mut self.field);
+        self.ack
+            .store(stamped.version, std::sync::atomic::Ordering::Release);
+    }
+
     /// The last sample published.
     #[must_use]
     pub fn last_sample(&self) -> ToolSample {
