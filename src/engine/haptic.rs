@@ -44,6 +44,7 @@ pub struct HapticStage {
     field: BSplineLattice,
     patches: SnapshotReader<FieldPatch>,
     samples: SnapshotWriter<ToolSample>,
+    monitor: SnapshotWriter<ToolSample>,
     map: WorkspaceMap,
     staleness: Staleness,
     contact: Contact,
@@ -58,6 +59,7 @@ impl HapticStage {
     ///
     /// `field` is the starting field (the simulation's at version 0); `ack` receives the
     /// version of every patch applied, so the simulation knows what this reader has seen.
+    /// Samples go to the simulation on `samples` and to observers (GUI, tests) on `monitor`.
     #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
     #[must_use]
     pub fn new(
@@ -65,6 +67,7 @@ impl HapticStage {
         field: BSplineLattice,
         patches: SnapshotReader<FieldPatch>,
         samples: SnapshotWriter<ToolSample>,
+        monitor: SnapshotWriter<ToolSample>,
         map: WorkspaceMap,
         staleness: Staleness,
         contact: ContactConfig,
@@ -76,6 +79,7 @@ impl HapticStage {
             field,
             patches,
             samples,
+            monitor,
             map,
             staleness,
             contact: Contact::new(contact),
@@ -178,6 +182,7 @@ impl HapticStage {
             in_contact: contact.in_contact && fade > 0.0,
             device_force_n: out,
             device_time_us: state.timestamp_us,
+            device_fault,
             tick: self.tick,
         };
         self.publish(sample, now);
@@ -200,6 +205,7 @@ impl HapticStage {
             stroke_active: false,
             in_contact: false,
             device_force_n: Vec3::ZERO,
+            device_fault,
             tick: self.tick,
             ..self.last
         };
@@ -216,5 +222,7 @@ impl HapticStage {
         self.last = sample;
         *self.samples.back_mut() = sample;
         self.samples.publish_at(now);
+        *self.monitor.back_mut() = sample;
+        self.monitor.publish_at(now);
     }
 }

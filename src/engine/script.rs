@@ -320,7 +320,10 @@ impl Script {
                 return Err(bad(format!("stroke[{i}].path"), "needs at least one point"));
             }
             if s.path.iter().flatten().any(|v| !v.is_finite()) {
-                return Err(bad(format!("stroke[{i}].path"), "has a non-finite coordinate"));
+                return Err(bad(
+                    format!("stroke[{i}].path"),
+                    "has a non-finite coordinate",
+                ));
             }
             if !(s.start_s.is_finite() && s.start_s >= 0.0) {
                 return Err(bad(format!("stroke[{i}].start_s"), "must be ≥ 0"));
@@ -416,7 +419,11 @@ impl Script {
             }
             let n = s.path.len();
             for (i, p) in s.path.iter().enumerate() {
-                let frac = if n > 1 { i as f64 / (n - 1) as f64 } else { 0.0 };
+                let frac = if n > 1 {
+                    i as f64 / (n - 1) as f64
+                } else {
+                    0.0
+                };
                 let t = t0 + APPROACH_S + frac * s.duration_s;
                 w.push(Waypoint::with_buttons(t, dev(Vec3::from(*p)), 1));
             }

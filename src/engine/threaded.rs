@@ -8,7 +8,11 @@ use std::time::Duration;
 
 use crossbeam::channel::{Receiver, Sender, bounded};
 use dynaclay_devices::{HapticDevice, SafetyCounters};
-use dynaclay_loops::{LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, spawn_loop};
+use dynaclay_loops::{
+    LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader, spawn_loop,
+};
+
+use super::tool_sample::ToolSample;
 
 use super::command::Command;
 use super::config::EngineConfig;
@@ -57,6 +61,7 @@ pub struct Engine {
     io: Option<JoinHandle<()>>,
     commands: Sender<Command>,
     counters: EngineCounters,
+    tool: SnapshotReader<ToolSample>,
     haptic_back: Receiver<HapticStage>,
     sim_back: Receiver<SimulationStage>,
     graphics_back: Receiver<GraphicsStage>,
@@ -96,6 +101,7 @@ impl Engine {
         let stages = build(config, field, device, sink, false)?;
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
+        let tool = stages.tool_monitor;
         let saves = stages.saves;
         let io = std::thread::Builder::new()
             .name("dynaclay-io".into())
@@ -151,6 +157,7 @@ impl Engine {
             io: Some(io),
             commands,
             counters,
+            tool,
             haptic_back,
             sim_back,
             graphics_back,
@@ -167,6 +174,17 @@ impl Engine {
     #[must_use]
     pub fn counters(&self) -> &EngineCounters {
         &self.counters
+    }
+
+    /// The newest tool sample from the haptic loop (wait-free).
+    pub fn latest_tool(&mut self) -> ToolSample {
+        self.tool.latest().value
+    }
+
+    /// Haptic ticks run so far.
+    #[must_use]
+    pub fn haptic_ticks(&self) -> u64 {
+        self.counters.haptic_tick_count()
     }
 
     /// Whether the haptic thread got SCHED_FIFO.

@@ -25,6 +25,8 @@ pub struct ToolSample {
     pub device_force_n: Vec3,
     /// The device sample's timestamp, microseconds of device time.
     pub device_time_us: u64,
+    /// Whether the device failed this tick (force is zero then).
+    pub device_fault: bool,
     /// The haptic tick that produced this sample.
     pub tick: u64,
 }
@@ -39,6 +41,7 @@ impl ToolSample {
         in_contact: false,
         device_force_n: Vec3::ZERO,
         device_time_us: 0,
+        device_fault: false,
         tick: 0,
     };
 }

@@ -25,6 +25,8 @@ pub struct Stages {
     pub graphics: GraphicsStage,
     /// The simulation's end of the tool-sample buffer.
     pub samples: SnapshotReader<ToolSample>,
+    /// Observers' end of the tool samples (cursor drawing, tests).
+    pub tool_monitor: SnapshotReader<ToolSample>,
     /// Where commands go.
     pub commands: Sender<Command>,
     /// Saves handed out by the simulation.
@@ -52,6 +54,7 @@ pub fn build(
     let (to_haptic, from_sim_h) = snapshot_channel(&empty);
     let (to_graphics, from_sim_g) = snapshot_channel(&empty);
     let (samples_tx, samples_rx) = snapshot_channel(&ToolSample::IDLE);
+    let (monitor_tx, monitor_rx) = snapshot_channel(&ToolSample::IDLE);
     let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
     let (save_tx, save_rx) = crossbeam::channel::unbounded();
     let acks = Acks::default();
@@ -65,6 +68,7 @@ pub fn build(
         field.clone(),
         from_sim_h,
         samples_tx,
+        monitor_tx,
         config.map,
         staleness,
         config.contact,
@@ -94,6 +98,7 @@ pub fn build(
         sim,
         graphics,
         samples: samples_rx,
+        tool_monitor: monitor_rx,
         commands: cmd_tx,
         saves: save_rx,
         counters,
