@@ -10,7 +10,9 @@ mod history;
 mod shape;
 
 pub use action::{ActionError, ToolAction};
-pub use apply::{ApplyOptions, GeometricTool, ToolError, ToolReport, apply_stroke, apply_tool};
+pub use apply::{
+    ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
+};
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, StampParams, StampParamsError};
 pub use force::{
