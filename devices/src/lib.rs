@@ -10,6 +10,9 @@ pub mod safety;
 pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+pub use record::{
+    RecordError, RecorderConfig, Recording, RecordingDevice, ReplayDevice, ReplayDivergence,
+};
 pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
 pub use sim_arm::{
     Fault, FaultKind, HandSample, Interpolation, SimArmConfig, SimArmCounters, SimRng,
