@@ -43,7 +43,10 @@ fn stalled_simulation_fades_force_to_zero_and_haptic_keeps_ticking() {
         std::thread::sleep(Duration::from_micros(900));
     }
     let at_stall = monitor.latest().value;
-    assert!(at_stall.in_contact, "pushing when the simulation stalls: {at_stall:?}");
+    assert!(
+        at_stall.in_contact,
+        "pushing when the simulation stalls: {at_stall:?}"
+    );
     assert!(at_stall.device_force_n.length() > 0.05, "{at_stall:?}");
 
     // Stall: no more steps. Force must reach zero by the staleness limit (plus scheduling
@@ -100,7 +103,11 @@ fn device_disconnect_sends_zero_force_and_the_engine_stays_alive() {
         if t.device_fault {
             fault_seen = true;
             faulted += 1;
-            assert_eq!(t.device_force_n.length(), 0.0, "force during a fault: {t:?}");
+            assert_eq!(
+                t.device_force_n.length(),
+                0.0,
+                "force during a fault: {t:?}"
+            );
             assert!(!t.in_contact);
         } else if fault_seen {
             after_fault_ok += 1;
@@ -111,8 +118,15 @@ fn device_disconnect_sends_zero_force_and_the_engine_stays_alive() {
     let ticks = engine.haptic_ticks();
     let report = engine.stop().expect("engine stops after a disconnect");
     assert!(faulted > 50, "the disconnect was seen ({faulted} samples)");
-    assert!(after_fault_ok > 20, "the device came back ({after_fault_ok} samples)");
+    assert!(
+        after_fault_ok > 20,
+        "the device came back ({after_fault_ok} samples)"
+    );
     assert!(ticks > 1000, "the haptic loop kept running ({ticks} ticks)");
-    assert!(report.counters.device_read_faults >= 200, "{:?}", report.counters);
+    assert!(
+        report.counters.device_read_faults >= 200,
+        "{:?}",
+        report.counters
+    );
     assert!(report.safety.read_faults >= 200, "{:?}", report.safety);
 }

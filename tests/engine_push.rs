@@ -29,13 +29,15 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
     let mut peak_n = 0.0f32;
     while started.elapsed() < Duration::from_millis(2000) {
         let t = engine.latest_tool();
-        assert!(t.tip.is_finite() && t.device_force_n.is_finite(), "NaN in {t:?}");
+        assert!(
+            t.tip.is_finite() && t.device_force_n.is_finite(),
+            "NaN in {t:?}"
+        );
         peak_n = peak_n.max(t.device_force_n.length());
         if t.in_contact && t.device_force_n.length() > 0.05 {
             contact_samples += 1;
             // The push goes down (−y): the reaction must point up, back out of the clay.
-            if t.device_force_n.y > 0.0 && t.device_force_n.y.abs() >= t.device_force_n.x.abs()
-            {
+            if t.device_force_n.y > 0.0 && t.device_force_n.y.abs() >= t.device_force_n.x.abs() {
                 opposing += 1;
             }
         }
@@ -46,10 +48,19 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
     let report = engine.stop().expect("engine stops");
     let after = &report.session.clay.patches[0];
 
-    assert!(contact_samples > 50, "the arm touched the clay ({contact_samples} samples)");
-    assert_eq!(opposing, contact_samples, "every contact force opposes the push");
+    assert!(
+        contact_samples > 50,
+        "the arm touched the clay ({contact_samples} samples)"
+    );
+    assert_eq!(
+        opposing, contact_samples,
+        "every contact force opposes the push"
+    );
     assert!(peak_n > 0.1, "a force was felt ({peak_n} N)");
-    assert!(peak_n <= max_force_n + 1e-3, "peak {peak_n} N over the device max");
+    assert!(
+        peak_n <= max_force_n + 1e-3,
+        "peak {peak_n} N over the device max"
+    );
     assert!(
         report.counters.peak_force_milli_n as f32 <= max_force_n * 1000.0 + 1.0,
         "{:?}",
@@ -76,7 +87,10 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
         let d = (after.value(far) - before.value(far)).abs();
         assert!(d < 1e-3, "changed far away at {far}: {d}");
     }
-    assert!(after.coeffs.iter().all(|c| c.is_finite()), "NaN in the field");
+    assert!(
+        after.coeffs.iter().all(|c| c.is_finite()),
+        "NaN in the field"
+    );
     // The haptic loop saw the final field too.
     assert_eq!(&report.haptic_field, after);
 }

@@ -81,7 +81,17 @@ fn haptic_tick_allocates_nothing() {
             stages.graphics.tick();
         }
     }
-    assert!(contact_ticks > 200, "the tick was exercised in contact ({contact_ticks})");
-    assert!(patched_ticks > 200, "with fresh field patches ({patched_ticks})");
-    assert_eq!(ALLOCS_IN_TICK.load(Ordering::Relaxed), 0, "haptic tick allocated");
+    assert!(
+        contact_ticks > 200,
+        "the tick was exercised in contact ({contact_ticks})"
+    );
+    assert!(
+        patched_ticks > 200,
+        "with fresh field patches ({patched_ticks})"
+    );
+    assert_eq!(
+        ALLOCS_IN_TICK.load(Ordering::Relaxed),
+        0,
+        "haptic tick allocated"
+    );
 }

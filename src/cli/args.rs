@@ -51,6 +51,9 @@ pub struct RunArgs {
     /// Output directory.
     #[arg(long, default_value = "out", value_name = "DIR")]
     pub out: PathBuf,
+    /// Record the device session (every read and force) to FILE, for `--device replay:FILE`.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
     /// Also write DIR/sculpt.ply.
     #[arg(long)]
     pub ply: bool,

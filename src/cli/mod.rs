@@ -7,7 +7,7 @@ mod profile;
 mod run;
 
 pub use args::{Cli, Commands, ProfileArgs, RunArgs};
-pub use outputs::{RunOutputs, write_outputs};
+pub use outputs::{RunOutputs, write_lockstep_outputs, write_outputs};
 pub use profile::profile;
 pub use run::{CliError, run};
 

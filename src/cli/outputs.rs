@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use dynaclay_loops::{LoopSummary, markdown_table, summaries_to_json, write_latency_svg};
 
 use super::run::CliError;
-use crate::engine::{EngineConfig, EngineReport};
-use crate::io::save_session;
+use crate::engine::{EngineConfig, EngineReport, LockstepReport};
+use crate::io::{Session, save_session};
 use crate::mesh::{BrickOctree, MeshFormat, MeshStats, SampleGrid, write_mesh};
 
 /// Paths written by a run, and the final mesh's statistics.
@@ -44,20 +44,36 @@ fn out_err(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::Output(format!("{}: {e}", path.display()))
 }
 
-/// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
-/// `latency.svg` into `dir`.
+/// Writes the meshes and the session of a lockstep (replay) run; a lockstep run has no loop
+/// latencies to report.
 ///
 /// # Errors
 /// [`CliError::Output`] naming the file that could not be written.
-pub fn write_outputs(
+pub fn write_lockstep_outputs(
     dir: &Path,
-    report: &EngineReport,
+    report: &LockstepReport,
     config: &EngineConfig,
     ply: bool,
     stl: bool,
 ) -> Result<RunOutputs, CliError> {
     let mut files = Vec::new();
-    let lattice = &report.session.clay.patches[0];
+    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
+    Ok(RunOutputs {
+        files,
+        mesh: stats,
+        loops: Vec::new(),
+    })
+}
+
+fn write_field_outputs(
+    dir: &Path,
+    session: &Session,
+    config: &EngineConfig,
+    ply: bool,
+    stl: bool,
+    files: &mut Vec<PathBuf>,
+) -> Result<MeshStats, CliError> {
+    let lattice = &session.clay.patches[0];
     // Mesh the final field afresh: the export is exactly the simulation's last state.
     let grid =
         SampleGrid::for_lattice(lattice, config.cells_per_span).map_err(|e| out_err(dir, e))?;
@@ -77,8 +93,25 @@ pub fn write_outputs(
     }
 
     let session_path = dir.join("session.dclay");
-    save_session(&session_path, &report.session).map_err(|e| out_err(&session_path, e))?;
+    save_session(&session_path, session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);
+    Ok(stats)
+}
+
+/// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
+/// `latency.svg` into `dir`.
+///
+/// # Errors
+/// [`CliError::Output`] naming the file that could not be written.
+pub fn write_outputs(
+    dir: &Path,
+    report: &EngineReport,
+    config: &EngineConfig,
+    ply: bool,
+    stl: bool,
+) -> Result<RunOutputs, CliError> {
+    let mut files = Vec::new();
+    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
 
     let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
     let json_path = dir.join("latency.json");

@@ -3,14 +3,16 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
+use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::args::RunArgs;
 use super::outputs::{RunOutputs, write_outputs};
 use crate::engine::{
-    Engine, EngineConfig, EngineError, HeadlessSink, Script, ScriptError, build_clay,
+    Engine, EngineConfig, EngineError, HeadlessSink, Lockstep, Script, ScriptError, build_clay,
 };
+use crate::field::BSplineLattice;
 
 /// Why a command failed; each kind has its own exit code.
 #[derive(Debug)]
@@ -79,11 +81,8 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             (Box::new(SimulatedArm::new(arm_config, trajectory)), info)
         }
         DeviceSpec::Replay { file } => {
-            return Err(CliError::Device(format!(
-                "{}: replaying recordings needs the record/replay device, which this build \
-                 does not have yet",
-                file.display()
-            )));
+            let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
+            return run_replay(args, &script, field, replay);
         }
         hw => {
             let d = dynaclay_devices::open::build_driver(
@@ -94,6 +93,13 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             let info = d.info();
             (d, info)
         }
+    };
+    let device: Box<dyn HapticDevice> = match &args.record {
+        Some(path) => Box::new(
+            RecordingDevice::create(device, path)
+                .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?,
+        ),
+        None => device,
     };
     let mut config = EngineConfig::for_script(&field, &info, &script);
     if !args.rt {
@@ -120,6 +126,38 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     }
     let report = engine.stop().map_err(CliError::Engine)?;
     let outputs = write_outputs(&args.out, &report, &config, args.ply, args.stl)?;
+    print!("{}", outputs.describe());
+    Ok(outputs)
+}
+
+/// Replays a recording through the deterministic lockstep engine: one recorded sample, one
+/// simulation step, until the recording ends. The same recording always gives the same field.
+fn run_replay(
+    args: &RunArgs,
+    script: &Script,
+    field: BSplineLattice,
+    replay: ReplayDevice,
+) -> Result<RunOutputs, CliError> {
+    let samples = replay.read_count();
+    let info = replay.info();
+    let config = EngineConfig::for_script(&field, &info, script);
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
+    let mut lockstep = Lockstep::new(
+        &config,
+        field,
+        Box::new(replay),
+        Box::new(HeadlessSink::default()),
+        16,
+    )
+    .map_err(CliError::Engine)?;
+    println!("dynaclay run: replaying {samples} samples in lockstep");
+    for _ in 0..samples {
+        lockstep.step();
+    }
+    let report = lockstep.finish().map_err(CliError::Engine)?;
+    let outputs =
+        super::outputs::write_lockstep_outputs(&args.out, &report, &config, args.ply, args.stl)?;
     print!("{}", outputs.describe());
     Ok(outputs)
 }

@@ -173,14 +173,10 @@ impl SimulationStage {
     /// The session as it stands: the clay and the material.
     #[must_use]
     pub fn session(&self) -> Session {
-        let m = self.config.material;
         Session {
             clay: self.clay.clone(),
             material: MaterialFields {
-                stiffness: m.stiffness,
-                damping: m.damping,
-                mass: m.mass,
-                plasticity_per_s: m.plasticity_per_s,
+                uniform: self.config.material,
                 grids: Vec::new(),
             },
             ..Session::default()
