@@ -120,11 +120,11 @@ fn grow(acc: &mut Option<CoeffBox>, p: [usize; 3]) {
 
 fn clamp_box(b: CoeffBox, dims: [usize; 3]) -> Option<CoeffBox> {
     let mut out = b;
-    for a in 0..3 {
-        if dims[a] == 0 || b.min[a] > b.max[a] || b.min[a] >= dims[a] {
+    for (a, &n) in dims.iter().enumerate() {
+        if n == 0 || b.min[a] > b.max[a] || b.min[a] >= n {
             return None;
         }
-        out.max[a] = b.max[a].min(dims[a] - 1);
+        out.max[a] = b.max[a].min(n - 1);
     }
     Some(out)
 }
