@@ -43,7 +43,63 @@ type Workload = fn(&LoopConfig, Duration) -> Result<LoopReport, String>;
 
 /// The workloads measured, by name.
 fn workloads() -> Vec<(&'static str, Workload)> {
-    vec![("bare", bare_haptic_loop), ("std-sleep", std_sleep_loop)]
+    vec![
+        ("bare", bare_haptic_loop),
+        ("std-sleep", std_sleep_loop),
+        ("engine", full_engine),
+    ]
+}
+
+// ---------------------------------------------------------------------------------------------
+// The whole engine: haptic, simulation and graphics loops with the simulated arm pushing
+// strokes into the default block for the whole run; the haptic loop's report is returned.
+
+/// A script of back-and-forth pushes along the block's top, one every 2.5 s, filling `seconds`.
+fn engine_script(seconds: f64) -> String {
+    let mut text = String::from("[clay]\nshape = \"block\"\nresolution = 24\n");
+    let mut t = 0.2;
+    let mut k = 0usize;
+    while t + 2.2 < seconds {
+        let z = 0.95 + 0.1 * (k % 4) as f64;
+        text.push_str(&format!(
+            "[[stroke]]\nstart_s = {t}\npath = [[0.85, 1.55, {z}], [1.45, 1.55, {z}]]\n\
+             duration_s = 1.5\n"
+        ));
+        t += 2.5;
+        k += 1;
+    }
+    text
+}
+
+/// Runs the whole engine under the harness's haptic settings (rate, priority; the engine does
+/// not pin its threads, so the core setting is not applied).
+fn full_engine(config: &LoopConfig, duration: Duration) -> Result<LoopReport, String> {
+    use dynaclay::engine::{Engine, EngineConfig, HeadlessSink, Script, build_clay};
+    use dynaclay_devices::{SimArmConfig, SimulatedArm};
+
+    let script = Script::parse(&engine_script(duration.as_secs_f64()), "<bench>")
+        .map_err(|e| e.to_string())?;
+    let field = build_clay(&script.clay).map_err(|e| e.to_string())?;
+    let arm_config = SimArmConfig::default();
+    let mut engine_config = EngineConfig::for_script(&field, &arm_config.info, &script);
+    engine_config.haptic_rate_hz = config.rate_hz;
+    engine_config.haptic_rt_priority = config.rt_priority;
+    let trajectory = script
+        .trajectory(&engine_config.map)
+        .map_err(|e| e.to_string())?;
+    let device = Box::new(SimulatedArm::new(arm_config, trajectory));
+    let engine = Engine::start(
+        &engine_config,
+        field,
+        device,
+        Box::new(HeadlessSink::default()),
+    )
+    .map_err(|e| e.to_string())?;
+    std::thread::sleep(duration);
+    let mut report = engine.stop().map_err(|e| e.to_string())?;
+    let mut haptic = report.loops.remove(0);
+    haptic.config.name = config.name.clone();
+    Ok(haptic)
 }
 
 // ---------------------------------------------------------------------------------------------
