@@ -44,43 +44,67 @@ const END: [u8; 4] = *b"END ";
 /// [`SessionError::Invalid`] when a lattice's coefficient count mismatches its dimensions or
 /// the metadata cannot be encoded.
 pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
-    let mut sections: Vec<([u8; 4], Vec<u8>)> = Vec::new();
     let meta = serde_json::to_vec(&session.meta).map_err(|e| SessionError::Invalid {
         detail: format!("metadata: {e}"),
     })?;
-    sections.push((META, meta));
-    for (n, patch) in session.clay.patches.iter().enumerate() {
-        let mut out = Vec::with_capacity(40 + 4 * patch.coeffs.len());
-        put_lattice(&mut out, patch, &format!("patch {n}"))?;
-        sections.push((PATCH, out));
-    }
-    sections.push((MATERIAL, encode_material(&session.material)?));
-    if let Some(colour) = &session.clay.colour {
-        let mut out = Vec::new();
-        for (c, channel) in colour.channels.iter().enumerate() {
-            put_lattice(&mut out, channel, &format!("colour channel {c}"))?;
-        }
-        sections.push((COLOUR, out));
-    }
-    sections.push((TOOLS, encode_tools(&session.tools)?));
-    sections.push((END, Vec::new()));
-
-    let total: usize = HEADER_LEN + sections.iter().map(|(_, p)| 16 + p.len()).sum::<usize>();
-    let mut out = Vec::with_capacity(total);
+    let coeff_bytes: usize = session
+        .clay
+        .patches
+        .iter()
+        .map(|p| 4 * p.coeffs.len() + 56)
+        .sum();
+    let mut out = Vec::with_capacity(HEADER_LEN + meta.len() + coeff_bytes + 4096);
     out.extend_from_slice(&MAGIC);
     out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
-    out.extend_from_slice(&(sections.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0_u32.to_le_bytes()); // section count, patched below
     out.extend_from_slice(&0_u32.to_le_bytes());
-    let crc = crc32fast::hash(&out[..20]);
-    out.extend_from_slice(&crc.to_le_bytes());
-    for (tag, payload) in &sections {
+    out.extend_from_slice(&0_u32.to_le_bytes()); // header CRC, patched below
+    // Sections are written in place (one copy of the coefficients; see bench/tools.rs).
+    let mut count = 0_u32;
+    let mut section = |out: &mut Vec<u8>,
+                       tag: [u8; 4],
+                       write: &mut dyn FnMut(&mut Vec<u8>) -> Result<(), SessionError>|
+     -> Result<(), SessionError> {
         let start = out.len();
-        out.extend_from_slice(tag);
-        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
-        out.extend_from_slice(payload);
+        out.extend_from_slice(&tag);
+        out.extend_from_slice(&0_u64.to_le_bytes());
+        write(out)?;
+        let len = (out.len() - start - 12) as u64;
+        out[start + 4..start + 12].copy_from_slice(&len.to_le_bytes());
         let crc = crc32fast::hash(&out[start..]);
         out.extend_from_slice(&crc.to_le_bytes());
+        count += 1;
+        Ok(())
+    };
+    section(&mut out, META, &mut |o| {
+        o.extend_from_slice(&meta);
+        Ok(())
+    })?;
+    for (n, patch) in session.clay.patches.iter().enumerate() {
+        section(&mut out, PATCH, &mut |o| {
+            put_lattice(o, patch, &format!("patch {n}"))
+        })?;
     }
+    section(&mut out, MATERIAL, &mut |o| {
+        o.extend_from_slice(&encode_material(&session.material)?);
+        Ok(())
+    })?;
+    if let Some(colour) = &session.clay.colour {
+        section(&mut out, COLOUR, &mut |o| {
+            for (c, channel) in colour.channels.iter().enumerate() {
+                put_lattice(o, channel, &format!("colour channel {c}"))?;
+            }
+            Ok(())
+        })?;
+    }
+    section(&mut out, TOOLS, &mut |o| {
+        o.extend_from_slice(&encode_tools(&session.tools)?);
+        Ok(())
+    })?;
+    section(&mut out, END, &mut |_| Ok(()))?;
+    out[12..16].copy_from_slice(&count.to_le_bytes());
+    let crc = crc32fast::hash(&out[..20]);
+    out[20..24].copy_from_slice(&crc.to_le_bytes());
     Ok(out)
 }
 
@@ -494,10 +518,15 @@ impl Reader<'_> {
             .and_then(|c| c.checked_mul(4))
             .ok_or_else(|| self.error(&format!("{count} values do not fit in memory")))?;
         let raw = self.take(n)?;
-        Ok(raw
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
-            .collect())
+        if cfg!(target_endian = "little") {
+            // One copy into aligned memory (see bench/tools.rs, session_256/load_validated).
+            Ok(bytemuck::pod_collect_to_vec(raw))
+        } else {
+            Ok(raw
+                .chunks_exact(4)
+                .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+                .collect())
+        }
     }
 
     fn string(&mut self) -> Result<String, SessionError> {

@@ -129,7 +129,8 @@ impl GeometricTool {
         self.shape.validate().map_err(ToolError::Shape)?;
         self.action.validate().map_err(ToolError::Action)?;
         let freeform = matches!(self.shape, ToolShape::Freeform(_));
-        if !freeform && !(self.falloff_m.is_finite() && self.falloff_m > 0.0) {
+        let falloff_ok = self.falloff_m.is_finite() && self.falloff_m > 0.0;
+        if !freeform && !falloff_ok {
             return Err(ToolError::BadFalloff {
                 falloff_m: self.falloff_m,
             });

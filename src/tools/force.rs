@@ -185,7 +185,8 @@ pub fn project_to_surface(lattice: &BSplineLattice, mut x: Vec3) -> Vec3 {
     for _ in 0..6 {
         let (v, g) = lattice.value_and_gradient(x);
         let g2 = g.length_squared();
-        if !(g2 > 1e-12) {
+        // Also stops on NaN.
+        if g2.is_nan() || g2 <= 1e-12 {
             break;
         }
         let step = (v - lattice.iso) * g / g2;

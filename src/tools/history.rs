@@ -99,18 +99,31 @@ impl Step {
             let Some(field) = clay.field_mut(d.field) else {
                 continue;
             };
-            let mut n = 0;
-            for_each_index(d.dims, &d.region, |idx| {
-                let bits = field.coeffs[idx].to_bits() ^ d.xor[n];
-                field.coeffs[idx] = f32::from_bits(bits);
-                n += 1;
+            // Row by row over contiguous slices (see bench/tools.rs, undo_redo_256).
+            let mut xor = d.xor.chunks_exact(d.region.dims()[0]);
+            for_each_row(d.dims, &d.region, |start, len| {
+                let bits = xor.next().expect("one XOR row per region row");
+                for (c, x) in field.coeffs[start..start + len].iter_mut().zip(bits) {
+                    *c = f32::from_bits(c.to_bits() ^ x);
+                }
             });
         }
         Ok(())
     }
 }
 
+/// Visits the rows of `region` in a lattice of `dims` as (first linear index, length).
+fn for_each_row(dims: [usize; 3], region: &CoeffBox, mut f: impl FnMut(usize, usize)) {
+    let len = region.max[0] + 1 - region.min[0];
+    for k in region.min[2]..=region.max[2] {
+        for j in region.min[1]..=region.max[1] {
+            f(region.min[0] + dims[0] * (j + dims[1] * k), len);
+        }
+    }
+}
+
 /// Visits the linear indices of `region` in a lattice of `dims`, x fastest.
+#[cfg(test)]
 fn for_each_index(dims: [usize; 3], region: &CoeffBox, mut f: impl FnMut(usize)) {
     for k in region.min[2]..=region.max[2] {
         for j in region.min[1]..=region.max[1] {
@@ -182,7 +195,13 @@ impl StepRecorder {
                         continue;
                     };
                     let mut bits = Vec::with_capacity(brick.count());
-                    for_each_index(dims, &brick, |idx| bits.push(lattice.coeffs[idx].to_bits()));
+                    for_each_row(dims, &brick, |start, len| {
+                        bits.extend(
+                            lattice.coeffs[start..start + len]
+                                .iter()
+                                .map(|c| c.to_bits()),
+                        );
+                    });
                     self.old.insert(
                         key,
                         SavedBrick {
@@ -243,10 +262,14 @@ impl StepRecorder {
                 continue;
             }
             let mut xor = Vec::with_capacity(old.len());
-            let mut n = 0;
-            for_each_index(dims, &region, |idx| {
-                xor.push(lattice.coeffs[idx].to_bits() ^ old[n]);
-                n += 1;
+            for_each_row(dims, &region, |start, len| {
+                let n = xor.len();
+                xor.extend(
+                    lattice.coeffs[start..start + len]
+                        .iter()
+                        .zip(&old[n..n + len])
+                        .map(|(c, o)| c.to_bits() ^ o),
+                );
             });
             if xor.iter().any(|&x| x != 0) {
                 deltas.push(BrickDelta {
