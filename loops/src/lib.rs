@@ -1,1 +1,51 @@
-//! Fixed-rate loops, triple-buffer exchange and latency recording (no geometry).
+//! Fixed-rate real-time loops, lock-free triple-buffer exchange and latency recording. Knows
+//! nothing of geometry.
+//!
+//! Guarantees on the real-time path (after set-up): [`SnapshotWriter::publish`],
+//! [`SnapshotReader::latest`], [`LatencyRecorder::record_tick`], [`Heartbeat::beat`],
+//! [`StopFlag::is_stopped`] and [`Staleness::factor`] are wait-free and never allocate; the loop
+//! body run by [`spawn_loop`]/[`run_loop`] is surrounded by nothing that allocates or locks.
+//! Set-up (spawning, priority requests, pinning, building recorders and channels) allocates
+//! and makes system calls, and so do reports (JSON, Markdown, SVG); keep those off the loop.
+//!
+//! - [`runner`](spawn_loop): absolute-deadline loop on `spin_sleep_util::Interval`, overrun
+//!   policy, stop flag, named threads, per-tick [`TickInfo`].
+//! - [`request_realtime`] / [`pin_current_thread`]: SCHED_FIFO and core pinning as outcome
+//!   values ([`RtOutcome`], [`PinOutcome`]); never fail a loop.
+//! - [`snapshot_channel`]: versioned, time-stamped triple buffer (the `triple_buffer` crate).
+//! - [`LatencyRecorder`] → [`LatencyStats`] → [`LoopSummary`] → JSON, [`markdown_table`],
+//!   [`latency_svg`].
+//! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
+
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(clippy::undocumented_unsafe_blocks)]
+#![warn(missing_docs)]
+
+mod exchange;
+mod plot;
+mod priority;
+mod recorder;
+mod runner;
+mod staleness;
+mod summary;
+mod table;
+mod watchdog;
+
+pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
+pub use plot::{PlotError, latency_svg, write_latency_svg};
+pub use priority::{
+    DEFAULT_RT_PRIORITY, PinOutcome, RtOutcome, current_schedule, pin_current_thread,
+    request_realtime,
+};
+pub use recorder::{
+    LATE_1MS, LATE_2MS, LatencyRecorder, LatencyStats, MAX_RECORDABLE, Percentiles, TickTiming,
+};
+pub use runner::{
+    LoopConfig, LoopControl, LoopError, LoopHandle, LoopMonitor, LoopReport, MAX_RATE_HZ,
+    OverrunPolicy, StopFlag, StopReason, TickInfo, loop_control, run_loop, spawn_loop,
+    spawn_loop_with,
+};
+pub use staleness::Staleness;
+pub use summary::{LoopSummary, summaries_from_json, summaries_to_json};
+pub use table::markdown_table;
+pub use watchdog::{Heartbeat, Liveness, Watchdog};

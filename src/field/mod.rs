@@ -1,7 +1,17 @@
 //! The implicit solid: a uniform cubic B-spline field and the operators on it.
 
+mod axis;
 mod basis;
+mod kron;
 mod lattice;
+mod mass_grid;
+mod primitive;
+mod refit;
 
+pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
+pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
 pub use lattice::{BSplineLattice, LatticeError};
+pub use mass_grid::{CoeffBox, MassGrid};
+pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
+pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};

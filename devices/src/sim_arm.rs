@@ -1,0 +1,1 @@
+//! Simulated reference arm (in progress).

@@ -1,0 +1,545 @@
+//! The sampling operator `A = Bx ⊗ By ⊗ Bz`, its transpose and the inverse of `AᵀA`, applied
+//! axis by axis; `A` is never formed.
+//!
+//! Arrays are x fastest. Coefficients have shape `cols = [nx, ny, nz]`, samples (mass points)
+//! shape `rows = [mx, my, mz]`. `AᵀA = BxᵀBx ⊗ ByᵀBy ⊗ BzᵀBz`, so `(AᵀA)⁻¹` is three banded
+//! Cholesky solves, one per axis. The passes along y and z run over whole rows/planes at a time
+//! (vectorised); the solve along the contiguous x axis is a scalar recurrence, so lines are
+//! transposed into tiles of [`LANES`] and swept together. Nothing allocates after construction
+//! except where a method says so; scratch space is passed in.
+
+use super::axis::{AxisBasis, BandedCholesky};
+
+/// Lines swept together by the x-axis solve.
+// NOTE: 8–16 lines per tile halved the step against a line-by-line sweep (bench/core.rs,
+// `step/*`); 16 keeps a tile row in one 64-byte cache line.
+pub const LANES: usize = 16;
+
+/// Why an operator could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KronError {
+    /// Which axis (0 = x, 1 = y, 2 = z).
+    pub axis: usize,
+    /// What went wrong.
+    pub message: String,
+}
+
+impl std::fmt::Display for KronError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "axis {}: {}", self.axis, self.message)
+    }
+}
+
+impl std::error::Error for KronError {}
+
+/// `A = Bx ⊗ By ⊗ Bz` with the Cholesky factors of the three Gram matrices.
+#[derive(Clone, Debug, PartialEq)]
+pub struct KroneckerBasis {
+    /// The per-axis factors.
+    pub axes: [AxisBasis; 3],
+    /// Cholesky factors of `BᵀB`, per axis.
+    pub chol: [BandedCholesky; 3],
+}
+
+/// Scratch space for [`KroneckerBasis`] operations (two intermediate arrays).
+#[derive(Clone, Debug, Default)]
+pub struct KronScratch {
+    a: Vec<f32>,
+    b: Vec<f32>,
+}
+
+impl KronScratch {
+    /// Scratch large enough for every operation of `basis`.
+    #[must_use]
+    pub fn for_basis(basis: &KroneckerBasis) -> Self {
+        let len = basis.scratch_len();
+        Self {
+            a: vec![0.0; len],
+            b: vec![0.0; len],
+        }
+    }
+}
+
+impl KroneckerBasis {
+    /// Build from three axis factors.
+    ///
+    /// # Errors
+    /// When an axis Gram matrix is not positive definite.
+    pub fn new(axes: [AxisBasis; 3]) -> Result<Self, KronError> {
+        let mut chol = Vec::with_capacity(3);
+        for (axis, b) in axes.iter().enumerate() {
+            chol.push(
+                b.gram_cholesky()
+                    .map_err(|message| KronError { axis, message })?,
+            );
+        }
+        let [cx, cy, cz]: [BandedCholesky; 3] = chol.try_into().expect("three axes");
+        Ok(Self {
+            axes,
+            chol: [cx, cy, cz],
+        })
+    }
+
+    /// Coefficient shape `[nx, ny, nz]`.
+    #[must_use]
+    pub fn cols(&self) -> [usize; 3] {
+        [self.axes[0].cols, self.axes[1].cols, self.axes[2].cols]
+    }
+
+    /// Sample shape `[mx, my, mz]`.
+    #[must_use]
+    pub fn rows(&self) -> [usize; 3] {
+        [self.axes[0].rows, self.axes[1].rows, self.axes[2].rows]
+    }
+
+    /// Number of coefficients.
+    #[must_use]
+    pub fn coeff_count(&self) -> usize {
+        self.cols().iter().product()
+    }
+
+    /// Number of samples.
+    #[must_use]
+    pub fn sample_count(&self) -> usize {
+        self.rows().iter().product()
+    }
+
+    fn scratch_len(&self) -> usize {
+        let [nx, ny, nz] = self.cols();
+        let [mx, my, mz] = self.rows();
+        let (x, y) = (nx.max(mx), ny.max(my));
+        x * y * nz.max(mz)
+    }
+
+    /// `d = A p`.
+    ///
+    /// # Panics
+    /// When the slices do not match the operator's shapes or the scratch is too small.
+    pub fn apply(&self, p: &[f32], d: &mut [f32], scratch: &mut KronScratch) {
+        apply_axes(&self.axes, p, d, &mut scratch.a, &mut scratch.b);
+    }
+
+    /// `b = Aᵀ d`.
+    ///
+    /// # Panics
+    /// When the slices do not match the operator's shapes or the scratch is too small.
+    pub fn apply_transpose(&self, d: &[f32], b: &mut [f32], scratch: &mut KronScratch) {
+        let [nx, ny, _] = self.cols();
+        let [mx, my, mz] = self.rows();
+        assert_eq!(d.len(), self.sample_count(), "sample length");
+        assert_eq!(b.len(), self.coeff_count(), "coefficient length");
+        let _ = mx;
+        let t1 = &mut scratch.a[..nx * my * mz];
+        pass_x_transpose(&self.axes[0], d, t1);
+        let t2 = &mut scratch.b[..nx * ny * mz];
+        pass_strided_transpose(&self.axes[1], t1, nx, mz, t2);
+        pass_strided_transpose(&self.axes[2], t2, nx * ny, 1, b);
+    }
+
+    /// `x ← (AᵀA)⁻¹ x`, in place, by three banded solves.
+    ///
+    /// # Panics
+    /// When `x` does not have one entry per coefficient.
+    pub fn solve_gram(&self, x: &mut [f32]) {
+        let [nx, ny, nz] = self.cols();
+        assert_eq!(x.len(), self.coeff_count(), "coefficient length");
+        solve_x_tiled(&self.chol[0], x, nx);
+        solve_strided(&self.chol[1], x, nx, nz);
+        solve_strided(&self.chol[2], x, nx * ny, 1);
+    }
+}
+
+/// `d = (Bx ⊗ By ⊗ Bz) p` for any three factors (no Gram factor needed). The scratch slices
+/// must each hold at least `mx · max(ny, my) · max(nz, mz)` values.
+///
+/// # Panics
+/// When a slice is shorter than the shapes need.
+pub fn apply_axes(
+    axes: &[AxisBasis; 3],
+    p: &[f32],
+    d: &mut [f32],
+    scratch_a: &mut [f32],
+    scratch_b: &mut [f32],
+) {
+    let [nx, ny, nz] = [axes[0].cols, axes[1].cols, axes[2].cols];
+    let [mx, my, mz] = [axes[0].rows, axes[1].rows, axes[2].rows];
+    assert_eq!(p.len(), nx * ny * nz, "coefficient length");
+    assert_eq!(d.len(), mx * my * mz, "sample length");
+    let t1 = &mut scratch_a[..mx * ny * nz];
+    pass_x(&axes[0], p, t1);
+    let t2 = &mut scratch_b[..mx * my * nz];
+    pass_strided(&axes[1], t1, mx, nz, t2);
+    pass_strided(&axes[2], t2, mx * my, 1, d);
+}
+
+/// Along x (contiguous): `dst[line][r] = Σ_t w[r][t] src[line][first[r] + t]`.
+pub(crate) fn pass_x(basis: &AxisBasis, src: &[f32], dst: &mut [f32]) {
+    let (n, m) = (basis.cols, basis.rows);
+    for (line, out) in src.chunks_exact(n).zip(dst.chunks_exact_mut(m)) {
+        if basis.width == 4 {
+            for ((o, &f), w) in out.iter_mut().zip(&basis.first).zip(&basis.weights) {
+                let s = &line[f..f + 4];
+                *o = w[0] * s[0] + w[1] * s[1] + w[2] * s[2] + w[3] * s[3];
+            }
+        } else {
+            for ((o, &f), w) in out.iter_mut().zip(&basis.first).zip(&basis.weights) {
+                *o = (0..basis.width).map(|t| w[t] * line[f + t]).sum();
+            }
+        }
+    }
+}
+
+/// Transpose of [`pass_x`]: `dst[line][first[r] + t] += w[r][t] src[line][r]`.
+pub(crate) fn pass_x_transpose(basis: &AxisBasis, src: &[f32], dst: &mut [f32]) {
+    let (n, m) = (basis.cols, basis.rows);
+    for (line, out) in src.chunks_exact(m).zip(dst.chunks_exact_mut(n)) {
+        out.fill(0.0);
+        for ((&v, &f), w) in line.iter().zip(&basis.first).zip(&basis.weights) {
+            for t in 0..basis.width {
+                out[f + t] += w[t] * v;
+            }
+        }
+    }
+}
+
+/// Along a strided axis: `src` has shape `[inner, n, outer]`, `dst` shape `[inner, m, outer]`.
+pub(crate) fn pass_strided(
+    basis: &AxisBasis,
+    src: &[f32],
+    inner: usize,
+    outer: usize,
+    dst: &mut [f32],
+) {
+    let (n, m) = (basis.cols, basis.rows);
+    for o in 0..outer {
+        let src_block = &src[o * n * inner..(o + 1) * n * inner];
+        let dst_block = &mut dst[o * m * inner..(o + 1) * m * inner];
+        for (r, out) in dst_block.chunks_exact_mut(inner).enumerate() {
+            let f = basis.first[r];
+            let w = basis.weights[r];
+            if basis.width == 4 {
+                let s0 = &src_block[f * inner..(f + 1) * inner];
+                let s1 = &src_block[(f + 1) * inner..(f + 2) * inner];
+                let s2 = &src_block[(f + 2) * inner..(f + 3) * inner];
+                let s3 = &src_block[(f + 3) * inner..(f + 4) * inner];
+                for i in 0..inner {
+                    out[i] = w[0] * s0[i] + w[1] * s1[i] + w[2] * s2[i] + w[3] * s3[i];
+                }
+            } else {
+                out.fill(0.0);
+                for t in 0..basis.width {
+                    let s = &src_block[(f + t) * inner..(f + t + 1) * inner];
+                    for (o, &v) in out.iter_mut().zip(s) {
+                        *o += w[t] * v;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Transpose of [`pass_strided`]: `src` shape `[inner, m, outer]`, `dst` shape `[inner, n, outer]`.
+pub(crate) fn pass_strided_transpose(
+    basis: &AxisBasis,
+    src: &[f32],
+    inner: usize,
+    outer: usize,
+    dst: &mut [f32],
+) {
+    let (n, m) = (basis.cols, basis.rows);
+    for o in 0..outer {
+        let src_block = &src[o * m * inner..(o + 1) * m * inner];
+        let dst_block = &mut dst[o * n * inner..(o + 1) * n * inner];
+        dst_block.fill(0.0);
+        for (r, s) in src_block.chunks_exact(inner).enumerate() {
+            let f = basis.first[r];
+            let w = basis.weights[r];
+            for t in 0..basis.width {
+                let out = &mut dst_block[(f + t) * inner..(f + t + 1) * inner];
+                let wt = w[t];
+                for (o, &v) in out.iter_mut().zip(s) {
+                    *o += wt * v;
+                }
+            }
+        }
+    }
+}
+
+/// Banded solve along a strided axis of `x` with shape `[inner, n, outer]`.
+pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, outer: usize) {
+    let n = chol.len();
+    for o in 0..outer {
+        let block = &mut x[o * n * inner..(o + 1) * n * inner];
+        for i in 0..n {
+            let (prev, cur) = block.split_at_mut(i * inner);
+            let cur = &mut cur[..inner];
+            let l = chol.sub[i];
+            let inv = chol.inv_diag[i];
+            match i {
+                0 => cur.iter_mut().for_each(|v| *v *= inv),
+                1 => {
+                    let p1 = &prev[..inner];
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - l[0] * p1[e]) * inv;
+                    }
+                }
+                2 => {
+                    let (p2, p1) = prev.split_at(inner);
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - l[0] * p1[e] - l[1] * p2[e]) * inv;
+                    }
+                }
+                _ => {
+                    let base = (i - 3) * inner;
+                    let p3 = &prev[base..base + inner];
+                    let p2 = &prev[base + inner..base + 2 * inner];
+                    let p1 = &prev[base + 2 * inner..base + 3 * inner];
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - l[0] * p1[e] - l[1] * p2[e] - l[2] * p3[e]) * inv;
+                    }
+                }
+            }
+        }
+        for i in (0..n).rev() {
+            let (head, tail) = block.split_at_mut((i + 1) * inner);
+            let cur = &mut head[i * inner..];
+            let inv = chol.inv_diag[i];
+            let c1 = if i + 1 < n { chol.sub[i + 1][0] } else { 0.0 };
+            let c2 = if i + 2 < n { chol.sub[i + 2][1] } else { 0.0 };
+            let c3 = if i + 3 < n { chol.sub[i + 3][2] } else { 0.0 };
+            let avail = n - i - 1;
+            match avail {
+                0 => cur.iter_mut().for_each(|v| *v *= inv),
+                1 => {
+                    let n1 = &tail[..inner];
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - c1 * n1[e]) * inv;
+                    }
+                }
+                2 => {
+                    let (n1, n2) = (&tail[..inner], &tail[inner..2 * inner]);
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - c1 * n1[e] - c2 * n2[e]) * inv;
+                    }
+                }
+                _ => {
+                    let (n1, n2, n3) = (
+                        &tail[..inner],
+                        &tail[inner..2 * inner],
+                        &tail[2 * inner..3 * inner],
+                    );
+                    for e in 0..inner {
+                        cur[e] = (cur[e] - c1 * n1[e] - c2 * n2[e] - c3 * n3[e]) * inv;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Banded solve along the contiguous x axis: `x` holds lines of length `n`. Lines are
+/// transposed into `[n][LANES]` tiles on the stack-free scratch inside and swept together.
+pub(crate) fn solve_x_tiled(chol: &BandedCholesky, x: &mut [f32], n: usize) {
+    const MAX_N: usize = 256;
+    let lines = x.len() / n;
+    if n > MAX_N {
+        for line in x.chunks_exact_mut(n) {
+            chol.solve_in_place(line);
+        }
+        return;
+    }
+    let mut tile = [[0.0_f32; LANES]; MAX_N];
+    let mut start = 0;
+    while start < lines {
+        let count = LANES.min(lines - start);
+        let group = &mut x[start * n..(start + count) * n];
+        for (l, line) in group.chunks_exact(n).enumerate() {
+            for (i, &v) in line.iter().enumerate() {
+                tile[i][l] = v;
+            }
+        }
+        let tile = &mut tile[..n];
+        for i in 0..n {
+            let l = chol.sub[i];
+            let inv = chol.inv_diag[i];
+            let mut acc = tile[i];
+            for k in 1..=3.min(i) {
+                let prev = tile[i - k];
+                let c = l[k - 1];
+                for e in 0..LANES {
+                    acc[e] -= c * prev[e];
+                }
+            }
+            for v in &mut acc {
+                *v *= inv;
+            }
+            tile[i] = acc;
+        }
+        for i in (0..n).rev() {
+            let inv = chol.inv_diag[i];
+            let mut acc = tile[i];
+            for k in 1..=3 {
+                if i + k < n {
+                    let next = tile[i + k];
+                    let c = chol.sub[i + k][k - 1];
+                    for e in 0..LANES {
+                        acc[e] -= c * next[e];
+                    }
+                }
+            }
+            for v in &mut acc {
+                *v *= inv;
+            }
+            tile[i] = acc;
+        }
+        for (l, line) in group.chunks_exact_mut(n).enumerate() {
+            for (i, v) in line.iter_mut().enumerate() {
+                *v = tile[i][l];
+            }
+        }
+        start += count;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn basis(n: [usize; 3], m: [usize; 3]) -> KroneckerBasis {
+        let axis = |a: usize| {
+            let du = (n[a] - 1) as f64 / (m[a] - 1) as f64;
+            AxisBasis::uniform(0.0, n[a], 0.0, du, m[a])
+        };
+        KroneckerBasis::new([axis(0), axis(1), axis(2)]).unwrap()
+    }
+
+    /// Dense `A` (rows = samples, cols = coefficients), both x fastest.
+    fn dense(k: &KroneckerBasis) -> (Vec<f64>, usize, usize) {
+        let [nx, ny, nz] = k.cols();
+        let [mx, my, mz] = k.rows();
+        let (bx, by, bz) = (
+            k.axes[0].to_dense(),
+            k.axes[1].to_dense(),
+            k.axes[2].to_dense(),
+        );
+        let (rows, cols) = (mx * my * mz, nx * ny * nz);
+        let mut a = vec![0.0; rows * cols];
+        for r in 0..rows {
+            let (rx, ry, rz) = (r % mx, (r / mx) % my, r / (mx * my));
+            for c in 0..cols {
+                let (cx, cy, cz) = (c % nx, (c / nx) % ny, c / (nx * ny));
+                a[r * cols + c] = bx[rx * nx + cx] * by[ry * ny + cy] * bz[rz * nz + cz];
+            }
+        }
+        (a, rows, cols)
+    }
+
+    fn pseudo(len: usize, seed: u32) -> Vec<f32> {
+        (0..len)
+            .map(|i| (((i as u32).wrapping_mul(2654435761) ^ seed) % 1000) as f32 / 500.0 - 1.0)
+            .collect()
+    }
+
+    #[test]
+    fn apply_and_transpose_match_dense_reference() {
+        for (n, m) in [
+            ([4, 5, 6], [4, 5, 6]),
+            ([5, 4, 5], [9, 7, 13]),
+            ([6, 5, 4], [11, 9, 7]),
+        ] {
+            let k = basis(n, m);
+            let (a, rows, cols) = dense(&k);
+            let mut scratch = KronScratch::for_basis(&k);
+            let p = pseudo(cols, 7);
+            let mut d = vec![0.0; rows];
+            k.apply(&p, &mut d, &mut scratch);
+            for r in 0..rows {
+                let want: f64 = (0..cols).map(|c| a[r * cols + c] * f64::from(p[c])).sum();
+                assert!((f64::from(d[r]) - want).abs() < 1e-5, "A p row {r}");
+            }
+            let dv = pseudo(rows, 11);
+            let mut b = vec![0.0; cols];
+            k.apply_transpose(&dv, &mut b, &mut scratch);
+            for c in 0..cols {
+                let want: f64 = (0..rows).map(|r| a[r * cols + c] * f64::from(dv[r])).sum();
+                assert!((f64::from(b[c]) - want).abs() < 1e-4, "Aᵀ d col {c}");
+            }
+        }
+    }
+
+    /// Dense Gaussian elimination with partial pivoting, f64.
+    fn dense_solve(mut g: Vec<f64>, mut rhs: Vec<f64>, n: usize) -> Vec<f64> {
+        for c in 0..n {
+            let piv = (c..n)
+                .max_by(|&a, &b| g[a * n + c].abs().total_cmp(&g[b * n + c].abs()))
+                .unwrap();
+            for j in 0..n {
+                g.swap(c * n + j, piv * n + j);
+            }
+            rhs.swap(c, piv);
+            for r in c + 1..n {
+                let f = g[r * n + c] / g[c * n + c];
+                for j in c..n {
+                    g[r * n + j] -= f * g[c * n + j];
+                }
+                rhs[r] -= f * rhs[c];
+            }
+        }
+        let mut x = vec![0.0; n];
+        for r in (0..n).rev() {
+            let s: f64 = (r + 1..n).map(|j| g[r * n + j] * x[j]).sum();
+            x[r] = (rhs[r] - s) / g[r * n + r];
+        }
+        x
+    }
+
+    #[test]
+    fn kronecker_inverse_equals_dense_inverse() {
+        for (n, m) in [([4, 5, 4], [4, 5, 4]), ([5, 4, 6], [9, 10, 6])] {
+            let k = basis(n, m);
+            let (a, rows, cols) = dense(&k);
+            let mut g = vec![0.0; cols * cols];
+            for r in 0..rows {
+                for i in 0..cols {
+                    let ai = a[r * cols + i];
+                    if ai == 0.0 {
+                        continue;
+                    }
+                    for j in 0..cols {
+                        g[i * cols + j] += ai * a[r * cols + j];
+                    }
+                }
+            }
+            let b = pseudo(cols, 3);
+            let want = dense_solve(g, b.iter().map(|&v| f64::from(v)).collect(), cols);
+            let mut x = b.clone();
+            k.solve_gram(&mut x);
+            let scale = want.iter().fold(0.0_f64, |s, v| s.max(v.abs()));
+            for (got, w) in x.iter().zip(&want) {
+                assert!(
+                    (f64::from(*got) - w).abs() < 1e-4 * scale.max(1.0),
+                    "{got} vs {w}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn round_trip_is_well_conditioned_when_samples_equal_coefficients() {
+        // Design trap 1: the grid covers every coefficient's node, so BᵀB stays well
+        // conditioned even at m = n.
+        let k = basis([32, 32, 32], [32, 32, 32]);
+        let mut scratch = KronScratch::for_basis(&k);
+        let p = pseudo(k.coeff_count(), 5);
+        let mut d = vec![0.0; k.sample_count()];
+        k.apply(&p, &mut d, &mut scratch);
+        let mut back = vec![0.0; k.coeff_count()];
+        k.apply_transpose(&d, &mut back, &mut scratch);
+        k.solve_gram(&mut back);
+        let err = back
+            .iter()
+            .zip(&p)
+            .fold(0.0_f32, |e, (a, b)| e.max((a - b).abs()));
+        assert!(err < 1e-4, "round trip error {err}");
+    }
+}

@@ -1,0 +1,173 @@
+//! The regular grid of mass points (sample points) over a box of coefficients, and the
+//! per-axis factors of `d = A p` on it.
+//!
+//! Mapping (design trap 1): the grid spans the coefficient *nodes* of the box — mass point 0
+//! sits on the node of the first coefficient and the last mass point on the node of the last
+//! one — so every coefficient's support is sampled at its centre, where its weight is 2/3.
+//! With `m = n` the per-axis factor is the tridiagonal `(1/6, 2/3, 1/6)` matrix, whose Gram
+//! matrix has eigenvalues in `[1/9, 1]`; finer grids are better conditioned still.
+
+use glam::Vec3;
+
+use super::axis::AxisBasis;
+use super::kron::{KronError, KroneckerBasis};
+use super::lattice::BSplineLattice;
+
+/// A box of coefficients, inclusive on both ends, in lattice indices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CoeffBox {
+    /// First coefficient index per axis.
+    pub min: [usize; 3],
+    /// Last coefficient index per axis (inclusive).
+    pub max: [usize; 3],
+}
+
+impl CoeffBox {
+    /// Coefficients per axis.
+    #[must_use]
+    pub fn dims(&self) -> [usize; 3] {
+        [
+            self.max[0] + 1 - self.min[0],
+            self.max[1] + 1 - self.min[1],
+            self.max[2] + 1 - self.min[2],
+        ]
+    }
+
+    /// Number of coefficients in the box.
+    #[must_use]
+    pub fn count(&self) -> usize {
+        self.dims().iter().product()
+    }
+
+    /// Whether the box is non-empty (`min <= max`) and inside a lattice of `dims`.
+    #[must_use]
+    pub fn fits(&self, dims: [usize; 3]) -> bool {
+        (0..3).all(|a| self.min[a] <= self.max[a] && self.max[a] < dims[a])
+    }
+
+    /// Whether coefficient `(i, j, k)` lies in the box.
+    #[must_use]
+    pub fn contains(&self, i: usize, j: usize, k: usize) -> bool {
+        let c = [i, j, k];
+        (0..3).all(|a| self.min[a] <= c[a] && c[a] <= self.max[a])
+    }
+
+    /// The whole lattice.
+    #[must_use]
+    pub fn whole(dims: [usize; 3]) -> Self {
+        Self {
+            min: [0; 3],
+            max: [dims[0] - 1, dims[1] - 1, dims[2] - 1],
+        }
+    }
+}
+
+/// A regular grid of mass points spanning the nodes of a coefficient box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MassGrid {
+    /// The coefficient box whose nodes the grid spans.
+    pub coeffs: CoeffBox,
+    /// Mass points per axis (at least 1; at least the box's coefficient count for a fit).
+    pub dims: [usize; 3],
+}
+
+impl MassGrid {
+    /// `samples_per_span` mass points per knot span: `(n − 1) · r + 1` per axis.
+    #[must_use]
+    pub fn with_samples_per_span(coeffs: CoeffBox, samples_per_span: usize) -> Self {
+        let r = samples_per_span.max(1);
+        let n = coeffs.dims();
+        Self {
+            coeffs,
+            dims: [(n[0] - 1) * r + 1, (n[1] - 1) * r + 1, (n[2] - 1) * r + 1],
+        }
+    }
+
+    /// Number of mass points.
+    #[must_use]
+    pub fn count(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    /// Lattice-coordinate step between neighbouring mass points along `axis`.
+    #[must_use]
+    pub fn step(&self, axis: usize) -> f64 {
+        let n = self.coeffs.dims()[axis];
+        if self.dims[axis] <= 1 {
+            0.0
+        } else {
+            (n - 1) as f64 / (self.dims[axis] - 1) as f64
+        }
+    }
+
+    /// Lattice coordinate of mass point `j` along `axis`.
+    #[must_use]
+    pub fn coord(&self, axis: usize, j: usize) -> f64 {
+        self.coeffs.min[axis] as f64 + j as f64 * self.step(axis)
+    }
+
+    /// World position of mass point `(i, j, k)` on `lattice`.
+    #[must_use]
+    pub fn position(&self, lattice: &BSplineLattice, i: usize, j: usize, k: usize) -> Vec3 {
+        lattice.origin
+            + lattice.spacing
+                * Vec3::new(
+                    self.coord(0, i) as f32,
+                    self.coord(1, j) as f32,
+                    self.coord(2, k) as f32,
+                )
+    }
+
+    /// The factor along `axis` against the coefficients `c0 ..= c1` (lattice indices).
+    #[must_use]
+    pub fn axis_basis(&self, axis: usize, c0: usize, c1: usize) -> AxisBasis {
+        AxisBasis::uniform(
+            c0 as f64,
+            c1 + 1 - c0,
+            self.coeffs.min[axis] as f64,
+            self.step(axis),
+            self.dims[axis],
+        )
+    }
+
+    /// `A` restricted to the grid's own coefficient box.
+    ///
+    /// # Errors
+    /// When an axis has fewer mass points than coefficients (the Gram matrix is singular).
+    pub fn basis(&self) -> Result<KroneckerBasis, KronError> {
+        let b = &self.coeffs;
+        KroneckerBasis::new([
+            self.axis_basis(0, b.min[0], b.max[0]),
+            self.axis_basis(1, b.min[1], b.max[1]),
+            self.axis_basis(2, b.min[2], b.max[2]),
+        ])
+    }
+
+    /// `A` against the coefficients in the box grown by one on every side (clamped to a
+    /// lattice of `dims`): everything that influences a mass point of this grid. Returns the
+    /// grown box too. Built without a Gram factor; only `apply` may be used.
+    #[must_use]
+    pub fn influence_axes(&self, dims: [usize; 3]) -> ([AxisBasis; 3], CoeffBox) {
+        let b = &self.coeffs;
+        let grown = CoeffBox {
+            min: [
+                b.min[0].saturating_sub(1),
+                b.min[1].saturating_sub(1),
+                b.min[2].saturating_sub(1),
+            ],
+            max: [
+                (b.max[0] + 1).min(dims[0] - 1),
+                (b.max[1] + 1).min(dims[1] - 1),
+                (b.max[2] + 1).min(dims[2] - 1),
+            ],
+        };
+        (
+            [
+                self.axis_basis(0, grown.min[0], grown.max[0]),
+                self.axis_basis(1, grown.min[1], grown.max[1]),
+                self.axis_basis(2, grown.min[2], grown.max[2]),
+            ],
+            grown,
+        )
+    }
+}

@@ -1,0 +1,302 @@
+//! Least-squares fitting of coefficients to a target function: `p = (AᵀA)⁻¹ Aᵀ d`, over the
+//! whole lattice or over a box of coefficients with everything outside held fixed.
+//!
+//! The target is sampled on the mass grid spanning the box's coefficient nodes with
+//! `samples_per_span` points per knot span (see [`MassGrid`]). For a local refit the fixed
+//! contribution of the coefficients outside the box is subtracted from the samples first, so
+//! the box's coefficients fit the remainder; coefficients outside the box are never written
+//! (bit-identical). `(AᵀA)⁻¹` is the Kronecker product of three per-axis banded Cholesky
+//! solves, so a fit costs a few dozen flops per sample.
+//!
+//! Where the fit is exact: any target that is itself a spline on the lattice (a sum of the
+//! basis functions, outside ones included) is recovered exactly, up to f32 rounding. A linear
+//! target is such a spline where all four coefficients per axis exist — the lattice's
+//! [`BSplineLattice::exact_domain`]; so a local refit of a linear function reproduces it
+//! exactly when the box lies at least one coefficient inside the lattice and the outside
+//! coefficients already carry it. Against the lattice's edge (where coefficients beyond count
+//! as zero) a linear target is only approximated.
+
+use glam::Vec3;
+
+use super::kron::{KronScratch, apply_axes};
+use super::lattice::BSplineLattice;
+use super::mass_grid::{CoeffBox, MassGrid};
+
+/// Why a fit could not run.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FitError {
+    /// The coefficient box is empty or reaches beyond the lattice.
+    BadBox {
+        /// The box asked for.
+        coeffs: CoeffBox,
+        /// The lattice's dimensions.
+        dims: [usize; 3],
+    },
+    /// `samples_per_span` was zero.
+    NoSamples,
+    /// The target returned a NaN or an infinity at this world point.
+    NonFiniteTarget {
+        /// Where the target was sampled.
+        at: [f32; 3],
+    },
+}
+
+impl std::fmt::Display for FitError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::BadBox { coeffs, dims } => write!(
+                f,
+                "coefficient box {:?}..={:?} is empty or outside the lattice {dims:?}",
+                coeffs.min, coeffs.max
+            ),
+            Self::NoSamples => write!(f, "samples_per_span must be at least 1"),
+            Self::NonFiniteTarget { at } => {
+                write!(f, "target is not finite at world point {at:?}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FitError {}
+
+/// Least-squares refit of the coefficients in `coeff_min ..= coeff_max` (inclusive, lattice
+/// indices) to `target`, sampled at `samples_per_span` points per knot span on the box's mass
+/// grid. Coefficients outside the box stay bit-identical.
+///
+/// # Errors
+/// [`FitError::BadBox`] when the box is empty or not inside the lattice, [`FitError::NoSamples`]
+/// when `samples_per_span` is zero, [`FitError::NonFiniteTarget`] when the target is not finite
+/// somewhere (the lattice is left unchanged).
+pub fn refit_box(
+    lattice: &mut BSplineLattice,
+    coeff_min: [usize; 3],
+    coeff_max: [usize; 3],
+    samples_per_span: usize,
+    target: impl Fn(Vec3) -> f32,
+) -> Result<(), FitError> {
+    let coeffs = CoeffBox {
+        min: coeff_min,
+        max: coeff_max,
+    };
+    if !coeffs.fits(lattice.dims) {
+        return Err(FitError::BadBox {
+            coeffs,
+            dims: lattice.dims,
+        });
+    }
+    if samples_per_span == 0 {
+        return Err(FitError::NoSamples);
+    }
+    let grid = MassGrid::with_samples_per_span(coeffs, samples_per_span);
+    let basis = grid
+        .basis()
+        .expect("a grid spanning its own nodes is well posed");
+    let [mx, my, mz] = grid.dims;
+
+    // Samples of the target minus the fixed contribution of the coefficients outside the box.
+    let (axes, grown) = grid.influence_axes(lattice.dims);
+    let gd = grown.dims();
+    let mut outside = vec![0.0_f32; grown.count()];
+    for k in 0..gd[2] {
+        for j in 0..gd[1] {
+            for i in 0..gd[0] {
+                let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
+                if !coeffs.contains(gi, gj, gk) {
+                    outside[i + gd[0] * (j + gd[1] * k)] =
+                        lattice.coeffs[lattice.index(gi, gj, gk)];
+                }
+            }
+        }
+    }
+    let scratch_len = mx * my.max(gd[1]) * mz.max(gd[2]);
+    let (mut sa, mut sb) = (vec![0.0; scratch_len], vec![0.0; scratch_len]);
+    let mut residual = vec![0.0_f32; grid.count()];
+    apply_axes(&axes, &outside, &mut residual, &mut sa, &mut sb);
+    for k in 0..mz {
+        for j in 0..my {
+            for i in 0..mx {
+                let x = grid.position(lattice, i, j, k);
+                let t = target(x);
+                if !t.is_finite() {
+                    return Err(FitError::NonFiniteTarget { at: x.to_array() });
+                }
+                let r = &mut residual[i + mx * (j + my * k)];
+                *r = t - *r;
+            }
+        }
+    }
+
+    let mut scratch = KronScratch::for_basis(&basis);
+    let mut p = vec![0.0_f32; coeffs.count()];
+    basis.apply_transpose(&residual, &mut p, &mut scratch);
+    basis.solve_gram(&mut p);
+
+    let n = coeffs.dims();
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);
+            let src = &p[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)];
+            lattice.coeffs[row..row + n[0]].copy_from_slice(src);
+        }
+    }
+    Ok(())
+}
+
+/// Least-squares fit of every coefficient of `lattice` to `target` (a [`refit_box`] over the
+/// whole lattice).
+///
+/// # Errors
+/// As [`refit_box`].
+pub fn fit_lattice(
+    lattice: &mut BSplineLattice,
+    samples_per_span: usize,
+    target: impl Fn(Vec3) -> f32,
+) -> Result<(), FitError> {
+    let whole = CoeffBox::whole(lattice.dims);
+    refit_box(lattice, whole.min, whole.max, samples_per_span, target)
+}
+
+/// The smallest coefficient box (clamped to the lattice) whose coefficients influence the
+/// world box `lo ..= hi`, grown by `margin` coefficients on every side. `None` when the world
+/// box misses the lattice's support entirely.
+#[must_use]
+pub fn coeff_box_around(
+    lattice: &BSplineLattice,
+    lo: Vec3,
+    hi: Vec3,
+    margin: usize,
+) -> Option<CoeffBox> {
+    let (ulo, uhi) = (lattice.to_lattice(lo), lattice.to_lattice(hi));
+    let mut min = [0; 3];
+    let mut max = [0; 3];
+    for a in 0..3 {
+        // Coefficient c influences lattice coordinates (c − 2, c + 2).
+        let first = (ulo[a] - 2.0).floor() as i64 + 1 - margin as i64;
+        let last = (uhi[a] + 2.0).ceil() as i64 - 1 + margin as i64;
+        let n = lattice.dims[a] as i64;
+        if !(ulo[a].is_finite() && uhi[a].is_finite()) || last < 0 || first > n - 1 {
+            return None;
+        }
+        min[a] = first.clamp(0, n - 1) as usize;
+        max[a] = last.clamp(0, n - 1) as usize;
+    }
+    Some(CoeffBox { min, max })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn linear(x: Vec3) -> f32 {
+        0.3 * x.x - 0.7 * x.y + 0.2 * x.z + 0.1
+    }
+
+    #[test]
+    fn local_refit_of_a_linear_function_is_exact() {
+        let mut lattice =
+            BSplineLattice::zeros([12, 11, 10], 0.5, Vec3::new(-1.0, 0.0, 1.0)).unwrap();
+        for k in 0..10 {
+            for j in 0..11 {
+                for i in 0..12 {
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = linear(lattice.node_position(i, j, k)) + 0.5;
+                }
+            }
+        }
+        // Scramble the box, then refit it to the linear function.
+        let before = lattice.clone();
+        let (lo, hi) = ([3, 2, 4], [8, 7, 6]);
+        for k in 4..=6 {
+            for j in 2..=7 {
+                for i in 3..=8 {
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = ((i * 31 + j * 17 + k) % 7) as f32;
+                }
+            }
+        }
+        for r in [1, 2, 3] {
+            refit_box(&mut lattice, lo, hi, r, |x| linear(x) + 0.5).unwrap();
+            for (a, b) in lattice.coeffs.iter().zip(&before.coeffs) {
+                // Exact up to f32 rounding of the sums (a few dozen ulps).
+                assert!((a - b).abs() < 5e-5 * (1.0 + b.abs()), "r={r}: {a} vs {b}");
+            }
+        }
+    }
+
+    #[test]
+    fn coefficients_outside_the_box_are_bit_identical() {
+        let mut lattice = BSplineLattice::zeros([9, 9, 9], 1.0, Vec3::ZERO).unwrap();
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 101) as f32 / 101.0;
+        }
+        let before = lattice.clone();
+        refit_box(&mut lattice, [0, 2, 3], [3, 6, 8], 2, |x| (x.x * 0.5).sin()).unwrap();
+        let b = CoeffBox {
+            min: [0, 2, 3],
+            max: [3, 6, 8],
+        };
+        let mut changed = 0;
+        for k in 0..9 {
+            for j in 0..9 {
+                for i in 0..9 {
+                    let idx = lattice.index(i, j, k);
+                    if b.contains(i, j, k) {
+                        changed += usize::from(lattice.coeffs[idx] != before.coeffs[idx]);
+                    } else {
+                        assert_eq!(
+                            lattice.coeffs[idx].to_bits(),
+                            before.coeffs[idx].to_bits(),
+                            "({i},{j},{k}) changed"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(changed > 0);
+    }
+
+    #[test]
+    fn global_fit_recovers_a_spline_exactly() {
+        let mut truth = BSplineLattice::zeros([7, 6, 8], 0.25, Vec3::new(0.1, 0.2, 0.3)).unwrap();
+        for (n, c) in truth.coeffs.iter_mut().enumerate() {
+            *c = ((n * 31) % 17) as f32 / 17.0;
+        }
+        let mut fitted = BSplineLattice::zeros(truth.dims, truth.spacing, truth.origin).unwrap();
+        fit_lattice(&mut fitted, 1, |x| truth.value(x)).unwrap();
+        for (a, b) in fitted.coeffs.iter().zip(&truth.coeffs) {
+            assert!((a - b).abs() < 1e-4, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn rejects_bad_input_without_touching_the_lattice() {
+        let mut lattice = BSplineLattice::zeros([5, 5, 5], 1.0, Vec3::ZERO).unwrap();
+        let before = lattice.clone();
+        assert!(matches!(
+            refit_box(&mut lattice, [0, 0, 0], [5, 1, 1], 1, |_| 0.0),
+            Err(FitError::BadBox { .. })
+        ));
+        assert!(matches!(
+            refit_box(&mut lattice, [2, 0, 0], [1, 1, 1], 1, |_| 0.0),
+            Err(FitError::BadBox { .. })
+        ));
+        assert_eq!(
+            refit_box(&mut lattice, [0, 0, 0], [1, 1, 1], 0, |_| 0.0),
+            Err(FitError::NoSamples)
+        );
+        assert!(matches!(
+            refit_box(&mut lattice, [0, 0, 0], [1, 1, 1], 1, |_| f32::NAN),
+            Err(FitError::NonFiniteTarget { .. })
+        ));
+        assert_eq!(lattice, before);
+    }
+
+    #[test]
+    fn coeff_box_around_covers_the_influence() {
+        let lattice = BSplineLattice::zeros([20, 20, 20], 1.0, Vec3::ZERO).unwrap();
+        let b = coeff_box_around(&lattice, Vec3::splat(5.5), Vec3::splat(7.0), 0).unwrap();
+        assert_eq!(b.min, [4; 3]);
+        assert_eq!(b.max, [8; 3]);
+        assert!(coeff_box_around(&lattice, Vec3::splat(-10.0), Vec3::splat(-5.0), 0).is_none());
+    }
+}

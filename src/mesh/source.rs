@@ -1,0 +1,341 @@
+//! What the mesher samples: any scalar field with an analytic gradient. The B-spline lattice
+//! is the product's field; [`FnField`] wraps closures (analytic shapes for tests, benchmarks
+//! and previews).
+//!
+//! Contract shared by every implementation: the value at a grid sample is a pure function of
+//! the sample's global index, whichever block it is sampled in, so bricks that share a face
+//! agree bit for bit and the mesh has no cracks.
+
+use glam::Vec3;
+
+use super::grid::SampleGrid;
+use crate::field::{BSplineLattice, cubic_weights};
+
+/// A scalar field whose solid is where the value is greater than [`ScalarField::iso`].
+pub trait ScalarField {
+    /// The iso-level of the surface.
+    fn iso(&self) -> f32;
+
+    /// Value at a world point.
+    fn value(&self, p: Vec3) -> f32;
+
+    /// Value and gradient (per world unit) at a world point.
+    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3);
+
+    /// Values at the grid samples `first + (i, j, k)` for `i < counts[0]` etc., written x
+    /// fastest into `out[..counts product]`. `scratch` is working memory the caller keeps.
+    ///
+    /// Implementations must give each sample the same bits whichever block contains it.
+    fn sample_block(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        scratch: &mut Vec<f32>,
+    ) {
+        let _ = scratch;
+        let mut n = 0;
+        for k in 0..counts[2] as u32 {
+            for j in 0..counts[1] as u32 {
+                for i in 0..counts[0] as u32 {
+                    out[n] = self.value(grid.point([first[0] + i, first[1] + j, first[2] + k]));
+                    n += 1;
+                }
+            }
+        }
+    }
+
+    /// Lower and upper bounds on the value over the box `min..=max`, or `None` when unknown.
+    /// Used only to skip boxes that cannot contain the surface; a bound must never be tighter
+    /// than the true range.
+    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
+        let _ = (min, max);
+        None
+    }
+}
+
+/// A field given by closures: the value, its analytic gradient, the iso-level, and
+/// optionally a Lipschitz constant (largest gradient length) that lets the mesher skip empty
+/// space without sampling it.
+#[derive(Clone, Copy, Debug)]
+pub struct FnField<V, G> {
+    pub value: V,
+    pub gradient: G,
+    pub iso: f32,
+    /// Upper bound on `|∇f|` (per world unit) everywhere, if known.
+    pub lipschitz: Option<f32>,
+}
+
+impl<V, G> ScalarField for FnField<V, G>
+where
+    V: Fn(Vec3) -> f32,
+    G: Fn(Vec3) -> Vec3,
+{
+    #[inline]
+    fn iso(&self) -> f32 {
+        self.iso
+    }
+
+    #[inline]
+    fn value(&self, p: Vec3) -> f32 {
+        (self.value)(p)
+    }
+
+    #[inline]
+    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
+        ((self.value)(p), (self.gradient)(p))
+    }
+
+    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
+        let l = self.lipschitz?;
+        let centre = (min + max) * 0.5;
+        let v = (self.value)(centre);
+        let reach = l * (max - min).length() * 0.5;
+        Some((v - reach, v + reach))
+    }
+}
+
+impl ScalarField for BSplineLattice {
+    #[inline]
+    fn iso(&self) -> f32 {
+        self.iso
+    }
+
+    #[inline]
+    fn value(&self, p: Vec3) -> f32 {
+        BSplineLattice::value(self, p)
+    }
+
+    #[inline]
+    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
+        BSplineLattice::value_and_gradient(self, p)
+    }
+
+    /// Tensor-product evaluation: one pass per axis over the block's coefficients, about 6×
+    /// fewer operations than evaluating each sample's 4×4×4 stencil.
+    fn sample_block(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        scratch: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        if cx == 0 || cy == 0 || cz == 0 {
+            return;
+        }
+        // Per axis: first coefficient index and the four weights of each sample.
+        let mut taps = [[(0i64, [0.0f32; 4]); MAX_BLOCK]; 3];
+        let mut coeff_lo = [0i64; 3];
+        let mut coeff_n = [0usize; 3];
+        for axis in 0..3 {
+            assert!(counts[axis] <= MAX_BLOCK, "block too large for one pass");
+            for s in 0..counts[axis] {
+                let x = grid.coordinate(axis, first[axis] + s as u32);
+                let u = (x - self.origin[axis]) / self.spacing;
+                let base = u.floor();
+                taps[axis][s] = (base as i64 - 1, cubic_weights(u - base));
+            }
+            coeff_lo[axis] = taps[axis][0].0;
+            coeff_n[axis] = (taps[axis][counts[axis] - 1].0 - coeff_lo[axis]) as usize + 4;
+        }
+        let [nx, ny, nz] = coeff_n;
+        // Layout of scratch: coefficients (nx·ny·nz), then after the x pass (cx·ny·nz), then
+        // after the y pass (cx·cy·nz).
+        let (a_len, b_len, c_len) = (nx * ny * nz, cx * ny * nz, cx * cy * nz);
+        scratch.clear();
+        scratch.resize(a_len + b_len + c_len, 0.0);
+        let (coeffs, rest) = scratch.split_at_mut(a_len);
+        let (pass_x, pass_y) = rest.split_at_mut(b_len);
+
+        // Gather, with zeros beyond the lattice.
+        let dims = self.dims.map(|d| d as i64);
+        for k in 0..nz {
+            let gk = coeff_lo[2] + k as i64;
+            if gk < 0 || gk >= dims[2] {
+                continue;
+            }
+            for j in 0..ny {
+                let gj = coeff_lo[1] + j as i64;
+                if gj < 0 || gj >= dims[1] {
+                    continue;
+                }
+                let row = self.index(0, gj as usize, gk as usize);
+                for i in 0..nx {
+                    let gi = coeff_lo[0] + i as i64;
+                    if gi >= 0 && gi < dims[0] {
+                        coeffs[i + nx * (j + ny * k)] = self.coeffs[row + gi as usize];
+                    }
+                }
+            }
+        }
+        // x pass.
+        for jk in 0..ny * nz {
+            let line = &coeffs[jk * nx..(jk + 1) * nx];
+            for (s, (c0, w)) in taps[0][..cx].iter().enumerate() {
+                let o = (c0 - coeff_lo[0]) as usize;
+                pass_x[s + cx * jk] =
+                    w[0] * line[o] + w[1] * line[o + 1] + w[2] * line[o + 2] + w[3] * line[o + 3];
+            }
+        }
+        // y pass.
+        for k in 0..nz {
+            for (t, (c0, w)) in taps[1][..cy].iter().enumerate() {
+                let o = (c0 - coeff_lo[1]) as usize;
+                for s in 0..cx {
+                    let at = |j: usize| pass_x[s + cx * (o + j + ny * k)];
+                    pass_y[s + cx * (t + cy * k)] =
+                        w[0] * at(0) + w[1] * at(1) + w[2] * at(2) + w[3] * at(3);
+                }
+            }
+        }
+        // z pass.
+        for (r, (c0, w)) in taps[2][..cz].iter().enumerate() {
+            let o = (c0 - coeff_lo[2]) as usize;
+            for t in 0..cy {
+                for s in 0..cx {
+                    let at = |k: usize| pass_y[s + cx * (t + cy * (o + k))];
+                    out[s + cx * (t + cy * r)] =
+                        w[0] * at(0) + w[1] * at(1) + w[2] * at(2) + w[3] * at(3);
+                }
+            }
+        }
+    }
+
+    /// Convex-hull bound: the value is a convex combination of the coefficients whose support
+    /// meets the box (coefficients beyond the lattice count as zero).
+    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
+        let lo = self.to_lattice(min);
+        let hi = self.to_lattice(max);
+        if !(lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let mut range = [(0i64, 0i64); 3];
+        let mut beyond = false;
+        for axis in 0..3 {
+            let n = self.dims[axis] as i64;
+            let a = lo[axis].floor() as i64 - 1;
+            let b = hi[axis].floor() as i64 + 2;
+            if a < 0 || b >= n {
+                beyond = true;
+            }
+            let (a, b) = (a.max(0), b.min(n - 1));
+            if a > b {
+                return Some((0.0, 0.0));
+            }
+            range[axis] = (a, b);
+        }
+        let (mut vmin, mut vmax) = if beyond {
+            (0.0f32, 0.0f32)
+        } else {
+            (f32::INFINITY, f32::NEG_INFINITY)
+        };
+        for k in range[2].0..=range[2].1 {
+            for j in range[1].0..=range[1].1 {
+                let row = self.index(0, j as usize, k as usize);
+                for &c in &self.coeffs[row + range[0].0 as usize..=row + range[0].1 as usize] {
+                    vmin = vmin.min(c);
+                    vmax = vmax.max(c);
+                }
+            }
+        }
+        Some((vmin, vmax))
+    }
+}
+
+/// Most samples per axis in one [`ScalarField::sample_block`] call on a lattice.
+pub const MAX_BLOCK: usize = 64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bumpy_lattice() -> BSplineLattice {
+        let mut l = BSplineLattice::zeros([7, 6, 8], 0.5, Vec3::new(-0.3, 0.2, 0.1)).unwrap();
+        for (n, c) in l.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 101) as f32 / 101.0;
+        }
+        l
+    }
+
+    #[test]
+    fn lattice_block_sampling_matches_pointwise_values() {
+        let l = bumpy_lattice();
+        let grid = SampleGrid::for_lattice(&l, 3).unwrap();
+        let counts = [9, 7, 11];
+        let first = [2, 0, 13];
+        let mut out = vec![0.0; 9 * 7 * 11];
+        let mut scratch = Vec::new();
+        l.sample_block(&grid, first, counts, &mut out, &mut scratch);
+        let mut n = 0;
+        for k in 0..counts[2] as u32 {
+            for j in 0..counts[1] as u32 {
+                for i in 0..counts[0] as u32 {
+                    let p = grid.point([first[0] + i, first[1] + j, first[2] + k]);
+                    let v = BSplineLattice::value(&l, p);
+                    assert!((out[n] - v).abs() < 1e-5, "{} vs {v} at {p}", out[n]);
+                    n += 1;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn shared_samples_are_bit_identical_across_blocks() {
+        let l = bumpy_lattice();
+        let grid = SampleGrid::for_lattice(&l, 4).unwrap();
+        let mut scratch = Vec::new();
+        let mut a = vec![0.0; 9 * 9 * 9];
+        let mut b = vec![0.0; 9 * 9 * 9];
+        l.sample_block(&grid, [8, 8, 8], [9, 9, 9], &mut a, &mut scratch);
+        l.sample_block(&grid, [16, 8, 8], [9, 9, 9], &mut b, &mut scratch);
+        for k in 0..9 {
+            for j in 0..9 {
+                // a's x = 8 face is b's x = 0 face.
+                assert_eq!(
+                    a[8 + 9 * (j + 9 * k)].to_bits(),
+                    b[9 * (j + 9 * k)].to_bits()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn lattice_bounds_contain_sampled_values() {
+        let l = bumpy_lattice();
+        for s in 0..40 {
+            let min = Vec3::new(-1.5, -1.0, -1.2) + Vec3::splat(0.11 * s as f32);
+            let max = min + Vec3::new(0.7, 0.4, 1.1);
+            let (lo, hi) = l.bounds(min, max).unwrap();
+            for t in 0..64 {
+                let f = Vec3::new((t % 4) as f32, ((t / 4) % 4) as f32, (t / 16) as f32) / 3.0;
+                let v = BSplineLattice::value(&l, min + (max - min) * f);
+                assert!(v >= lo - 1e-6 && v <= hi + 1e-6, "{v} outside [{lo}, {hi}]");
+            }
+        }
+        // Far outside the support the bound is exactly zero.
+        assert_eq!(
+            l.bounds(Vec3::splat(50.0), Vec3::splat(51.0)),
+            Some((0.0, 0.0))
+        );
+    }
+
+    #[test]
+    fn lipschitz_bounds_contain_values() {
+        let f = FnField {
+            value: |p: Vec3| p.length(),
+            gradient: |p: Vec3| p.normalize_or_zero(),
+            iso: 1.0,
+            lipschitz: Some(1.0),
+        };
+        let (lo, hi) = f.bounds(Vec3::splat(-0.5), Vec3::splat(0.5)).unwrap();
+        assert!(lo <= 0.0 && hi >= 3f32.sqrt() / 2.0);
+        let g = FnField {
+            lipschitz: None,
+            ..f
+        };
+        assert_eq!(g.bounds(Vec3::ZERO, Vec3::ONE), None);
+    }
+}
