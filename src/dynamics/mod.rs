@@ -1,1 +1,18 @@
-//! (dynamics: in progress)
+//! Density-spring dynamics of the implicit solid (Hua & Qin §4, §6, §7.2–§7.3): material,
+//! force mapping, the simulated region and the stepping pipeline.
+
+mod counters;
+mod force;
+mod material;
+mod region;
+mod simulator;
+mod springs;
+
+pub use counters::{StageTimes, StepCounters};
+pub use force::{
+    Distribution, GAUSS_NODES, GAUSS_WEIGHTS, HapticCoupling, ToolForce, force_integral,
+    gauss_legendre_unit, reaction_force, surface_point_on_ray,
+};
+pub use material::{AccelSolver, Integrator, Material, Neighbourhood, StepParams};
+pub use region::{RegionError, RegionState};
+pub use simulator::{Simulator, StepError, StepReport};

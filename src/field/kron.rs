@@ -49,6 +49,18 @@ pub struct KronScratch {
 }
 
 impl KronScratch {
+    /// Length of each scratch array.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.a.len().min(self.b.len())
+    }
+
+    /// Whether the scratch is empty.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
     /// Scratch large enough for every operation of `basis`.
     #[must_use]
     pub fn for_basis(basis: &KroneckerBasis) -> Self {

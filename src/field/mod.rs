@@ -7,6 +7,7 @@ mod lattice;
 mod mass_grid;
 mod primitive;
 mod refit;
+mod snapshot;
 
 pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
@@ -15,3 +16,4 @@ pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
 pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};
+pub use snapshot::{RegionSnapshot, SnapshotError, region_support};

@@ -1,0 +1,126 @@
+//! Material constants of the density-spring model and the stepping parameters.
+
+/// Uniform default material of a region (every mass point starts with these values; the
+/// per-point fields in [`super::RegionState`] can then be edited).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Mass of each mass point (`μ`).
+    pub mass: f32,
+    /// Damping of each mass point's density velocity (`γ`), per second times mass.
+    pub damping: f32,
+    /// Spring stiffness (`ρ`) between neighbouring densities.
+    pub stiffness: f32,
+    /// Rate (per second) at which rest densities drift toward the current ones past the yield
+    /// threshold; 0 is perfectly elastic.
+    pub plasticity_per_s: f32,
+    /// Density deviation from rest below which no plastic drift happens.
+    pub yield_density: f32,
+}
+
+impl Material {
+    /// Elastic clay: springs back fully.
+    pub const ELASTIC: Self = Self {
+        mass: 1.0,
+        damping: 40.0,
+        stiffness: 1000.0,
+        plasticity_per_s: 0.0,
+        yield_density: 0.0,
+    };
+
+    /// Soft clay: dents stay.
+    pub const PLASTIC: Self = Self {
+        plasticity_per_s: 8.0,
+        yield_density: 0.02,
+        ..Self::ELASTIC
+    };
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self::ELASTIC
+    }
+}
+
+/// Which grid neighbours a density spring joins.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Neighbourhood {
+    /// Face neighbours.
+    #[default]
+    Six,
+    /// Face and edge neighbours (edge springs weighted 1/√2).
+    Eighteen,
+    /// Face, edge and corner neighbours (corner springs weighted 1/√3).
+    TwentySix,
+}
+
+/// How `(AᵀMA)⁻¹` is applied.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum AccelSolver {
+    /// Kronecker inverse when the mass is uniform, preconditioned CG otherwise.
+    #[default]
+    Auto,
+    /// Always conjugate gradients preconditioned by the Kronecker inverse.
+    ConjugateGradient,
+}
+
+/// Which forward Euler variant advances the coefficients.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Integrator {
+    /// Velocity first, then position with the new velocity (symplectic Euler). Stable for
+    /// undamped springs at `Δt < 2/ω`; the default.
+    #[default]
+    SemiImplicit,
+    /// Eq. (8) exactly as printed: position with the old velocity. Gains energy on undamped
+    /// springs; needs `Δt < γ/ω²`.
+    Explicit,
+}
+
+/// Parameters of a step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepParams {
+    /// Largest (and initial) time step, seconds.
+    pub dt_max_s: f32,
+    /// Smallest time step, seconds: halving stops here.
+    pub dt_min_s: f32,
+    /// The step halves while `max|p̈| · Δt` exceeds this (largest change of a coefficient
+    /// velocity in one step).
+    pub max_velocity_change: f32,
+    /// Consecutive calm steps (under a quarter of the threshold) before the step grows.
+    pub calm_steps_to_grow: u32,
+    /// Growth factor of the step after a calm run.
+    pub growth: f32,
+    /// A step that would make any coefficient larger than this in magnitude is refused.
+    pub max_abs_coeff: f32,
+    /// Spring neighbourhood.
+    pub neighbourhood: Neighbourhood,
+    /// Acceleration solver.
+    pub solver: AccelSolver,
+    /// Euler variant.
+    pub integrator: Integrator,
+    /// Conjugate-gradient relative residual target.
+    pub cg_tolerance: f32,
+    /// Conjugate-gradient iteration cap.
+    pub cg_max_iterations: u32,
+    /// Densities are recomputed from the coefficients (instead of updated incrementally)
+    /// every this many steps, to bound f32 drift.
+    pub resync_every: u32,
+}
+
+impl Default for StepParams {
+    fn default() -> Self {
+        Self {
+            dt_max_s: 1e-3,
+            dt_min_s: 1e-6,
+            max_velocity_change: 50.0,
+            calm_steps_to_grow: 20,
+            growth: 1.25,
+            max_abs_coeff: 1e6,
+            neighbourhood: Neighbourhood::Six,
+            solver: AccelSolver::Auto,
+            integrator: Integrator::SemiImplicit,
+            cg_tolerance: 1e-5,
+            cg_max_iterations: 60,
+            resync_every: 256,
+        }
+    }
+}

@@ -1,0 +1,288 @@
+//! The simulated local region R (Hua & Qin §7.3): the coefficients of a box, the mass-point
+//! grid over them, and the dynamic state and material fields on that grid.
+//!
+//! Only the coefficients of the box move; every other coefficient of the lattice is fixed and
+//! contributes a constant `d_fixed` to the densities of R's mass points, so
+//! `d = A' p_R + d_fixed`. Mass points just outside R are fixed too: a boundary mass point's
+//! spring to an outside neighbour pulls it toward its own rest density, which anchors R.
+
+use crate::field::{BSplineLattice, CoeffBox, KronError, KroneckerBasis, MassGrid, apply_axes};
+
+use super::material::Material;
+
+/// Why a region could not be set up.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RegionError {
+    /// The coefficient box is empty or not inside the lattice.
+    BadBox {
+        /// The box asked for.
+        coeffs: CoeffBox,
+        /// The lattice's dimensions.
+        dims: [usize; 3],
+    },
+    /// Fewer mass points than coefficients along an axis (the system would be singular).
+    TooFewMassPoints {
+        /// Mass points asked for per axis.
+        mass_dims: [usize; 3],
+        /// Coefficients per axis.
+        coeff_dims: [usize; 3],
+    },
+    /// The operator could not be factored.
+    Basis(KronError),
+}
+
+impl std::fmt::Display for RegionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::BadBox { coeffs, dims } => write!(
+                f,
+                "region {:?}..={:?} is empty or outside the lattice {dims:?}",
+                coeffs.min, coeffs.max
+            ),
+            Self::TooFewMassPoints {
+                mass_dims,
+                coeff_dims,
+            } => write!(
+                f,
+                "region needs at least as many mass points as coefficients per axis: {mass_dims:?} < {coeff_dims:?}"
+            ),
+            Self::Basis(e) => write!(f, "region basis: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for RegionError {}
+
+/// The state of the simulated region: coefficients and their velocity, densities, rest
+/// densities, and the per-mass-point material fields (editable; `mass`, `damping`, `stiffness`
+/// are indexed like the densities, x fastest).
+#[derive(Clone, Debug)]
+pub struct RegionState {
+    /// The mass grid (and the coefficient box it spans).
+    pub grid: MassGrid,
+    /// `A'` on the grid with its Kronecker Gram factors.
+    pub basis: KroneckerBasis,
+    /// Coefficients of the box (`p_R`), x fastest.
+    pub p: Vec<f32>,
+    /// Coefficient velocities `ṗ_R`.
+    pub p_dot: Vec<f32>,
+    /// Densities `d = A' p_R + d_fixed` at the mass points.
+    pub d: Vec<f32>,
+    /// Density velocities `ḋ = A' ṗ_R`.
+    pub d_dot: Vec<f32>,
+    /// Contribution of the fixed coefficients outside the box.
+    pub d_fixed: Vec<f32>,
+    /// Rest densities (drift with plasticity).
+    pub rest: Vec<f32>,
+    /// Mass per mass point.
+    pub mass: Vec<f32>,
+    /// Damping per mass point.
+    pub damping: Vec<f32>,
+    /// Spring stiffness per mass point (a spring uses the mean of its two ends).
+    pub stiffness: Vec<f32>,
+    /// Plastic drift rate, per second.
+    pub plasticity_per_s: f32,
+    /// Yield threshold of the plastic drift.
+    pub yield_density: f32,
+    /// Current adaptive time step, seconds (0 until the first step).
+    pub dt_s: f32,
+    /// Simulated time, seconds.
+    pub time_s: f64,
+    /// Published version (incremented by every successful step).
+    pub version: u64,
+    /// Calm steps in a row (for the step to grow back).
+    pub calm_steps: u32,
+    /// Steps since the densities were last recomputed from the coefficients.
+    pub steps_since_resync: u32,
+}
+
+impl RegionState {
+    /// Set up the region over the coefficients `coeffs` of `lattice` with `mass_dims` mass
+    /// points per axis (spanning the box's coefficient nodes), at rest in the lattice's
+    /// current shape.
+    ///
+    /// # Errors
+    /// When the box is not inside the lattice or has more coefficients than mass points on
+    /// an axis.
+    pub fn new(
+        lattice: &BSplineLattice,
+        coeffs: CoeffBox,
+        mass_dims: [usize; 3],
+        material: Material,
+    ) -> Result<Self, RegionError> {
+        if !coeffs.fits(lattice.dims) {
+            return Err(RegionError::BadBox {
+                coeffs,
+                dims: lattice.dims,
+            });
+        }
+        let n = coeffs.dims();
+        if (0..3).any(|a| mass_dims[a] < n[a]) {
+            return Err(RegionError::TooFewMassPoints {
+                mass_dims,
+                coeff_dims: n,
+            });
+        }
+        let grid = MassGrid {
+            coeffs,
+            dims: mass_dims,
+        };
+        let basis = grid.basis().map_err(RegionError::Basis)?;
+        let count = grid.count();
+        let mut state = Self {
+            grid,
+            basis,
+            p: vec![0.0; coeffs.count()],
+            p_dot: vec![0.0; coeffs.count()],
+            d: vec![0.0; count],
+            d_dot: vec![0.0; count],
+            d_fixed: vec![0.0; count],
+            rest: vec![0.0; count],
+            mass: vec![material.mass; count],
+            damping: vec![material.damping; count],
+            stiffness: vec![material.stiffness; count],
+            plasticity_per_s: material.plasticity_per_s,
+            yield_density: material.yield_density,
+            dt_s: 0.0,
+            time_s: 0.0,
+            version: 0,
+            calm_steps: 0,
+            steps_since_resync: 0,
+        };
+        state.reload(lattice);
+        Ok(state)
+    }
+
+    /// Take the lattice's current coefficients as the new shape at rest (after a geometric
+    /// edit, an undo or a load): `p_R` and `d_fixed` re-read, velocities zeroed, rest densities
+    /// set to the current ones. Material fields are kept. Allocates nothing.
+    ///
+    /// # Panics
+    /// When `lattice` is not the lattice the region was made on (dimensions differ).
+    pub fn reload(&mut self, lattice: &BSplineLattice) {
+        let b = self.grid.coeffs;
+        assert!(b.fits(lattice.dims), "region outside the lattice");
+        let n = b.dims();
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                let row = lattice.index(b.min[0], b.min[1] + j, b.min[2] + k);
+                let dst = n[0] * (j + n[1] * k);
+                self.p[dst..dst + n[0]].copy_from_slice(&lattice.coeffs[row..row + n[0]]);
+            }
+        }
+        self.p_dot.fill(0.0);
+        self.d_fixed_from(lattice);
+        self.resync_densities_with(&mut Vec::new(), &mut Vec::new());
+        self.d_dot.fill(0.0);
+        self.rest.copy_from_slice(&self.d);
+        self.calm_steps = 0;
+    }
+
+    fn d_fixed_from(&mut self, lattice: &BSplineLattice) {
+        let b = self.grid.coeffs;
+        let (axes, grown) = self.grid.influence_axes(lattice.dims);
+        let gd = grown.dims();
+        let mut outside = vec![0.0_f32; grown.count()];
+        for k in 0..gd[2] {
+            for j in 0..gd[1] {
+                for i in 0..gd[0] {
+                    let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
+                    if !b.contains(gi, gj, gk) {
+                        outside[i + gd[0] * (j + gd[1] * k)] =
+                            lattice.coeffs[lattice.index(gi, gj, gk)];
+                    }
+                }
+            }
+        }
+        let m = self.grid.dims;
+        let len = m[0] * m[1].max(gd[1]) * m[2].max(gd[2]);
+        let (mut sa, mut sb) = (vec![0.0; len], vec![0.0; len]);
+        apply_axes(&axes, &outside, &mut self.d_fixed, &mut sa, &mut sb);
+    }
+
+    /// `d = A' p_R + d_fixed` recomputed exactly; the two scratch vectors grow as needed.
+    pub(crate) fn resync_densities_with(&mut self, sa: &mut Vec<f32>, sb: &mut Vec<f32>) {
+        let need = scratch_len(&self.basis);
+        if sa.len() < need {
+            sa.resize(need, 0.0);
+        }
+        if sb.len() < need {
+            sb.resize(need, 0.0);
+        }
+        apply_axes(&self.basis.axes, &self.p, &mut self.d, sa, sb);
+        for (d, f) in self.d.iter_mut().zip(&self.d_fixed) {
+            *d += f;
+        }
+        self.steps_since_resync = 0;
+    }
+
+    /// The coefficient box of the region.
+    #[must_use]
+    pub fn coeff_box(&self) -> CoeffBox {
+        self.grid.coeffs
+    }
+
+    /// Index of mass point `(i, j, k)` in the per-point vectors.
+    #[must_use]
+    pub fn point_index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.grid.dims[0] * (j + self.grid.dims[1] * k)
+    }
+
+    /// Whether every mass point has the same mass.
+    #[must_use]
+    pub fn mass_is_uniform(&self) -> bool {
+        let first = self.mass.first().copied().unwrap_or(0.0);
+        self.mass.iter().all(|&m| m == first)
+    }
+
+    /// Elastic energy `½ Σ k (Δe)²` over the springs (6-neighbourhood, anchors included) plus
+    /// kinetic energy `½ Σ μ ḋ²`, where `e = d − rest`. For tests and diagnostics.
+    #[must_use]
+    pub fn energy(&self) -> f64 {
+        let m = self.grid.dims;
+        let e = |i: usize, j: usize, k: usize| {
+            let n = self.point_index(i, j, k);
+            f64::from(self.d[n] - self.rest[n])
+        };
+        let mut elastic = 0.0;
+        for k in 0..m[2] {
+            for j in 0..m[1] {
+                for i in 0..m[0] {
+                    let n = self.point_index(i, j, k);
+                    let kk = f64::from(self.stiffness[n]);
+                    let here = e(i, j, k);
+                    let c = [i, j, k];
+                    for axis in 0..3 {
+                        // Spring to the + neighbour, or an anchor at either face.
+                        if c[axis] + 1 < m[axis] {
+                            let mut o = c;
+                            o[axis] += 1;
+                            let kn = f64::from(self.stiffness[self.point_index(o[0], o[1], o[2])]);
+                            let diff = e(o[0], o[1], o[2]) - here;
+                            elastic += 0.25 * (kk + kn) * diff * diff;
+                        } else {
+                            elastic += 0.5 * kk * here * here;
+                        }
+                        if c[axis] == 0 {
+                            elastic += 0.5 * kk * here * here;
+                        }
+                    }
+                }
+            }
+        }
+        let kinetic: f64 = self
+            .mass
+            .iter()
+            .zip(&self.d_dot)
+            .map(|(&mu, &v)| 0.5 * f64::from(mu) * f64::from(v) * f64::from(v))
+            .sum();
+        elastic + kinetic
+    }
+}
+
+/// Scratch length for `apply_axes` on a region basis.
+pub(crate) fn scratch_len(basis: &KroneckerBasis) -> usize {
+    let [nx, ny, nz] = basis.cols();
+    let [mx, my, mz] = basis.rows();
+    nx.max(mx) * ny.max(my) * nz.max(mz)
+}

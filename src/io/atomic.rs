@@ -1,0 +1,188 @@
+//! Durable saves: a session is written to a temporary file in the target's directory,
+//! flushed to disk, renamed over the target and the directory entry flushed, so a crash at
+//! any point leaves either the previous file or the new one, never a mix. Loading reads the
+//! whole file and validates it before returning anything.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use super::error::SessionError;
+use super::format::{decode, encode};
+use super::session::Session;
+
+/// Saves `session` to `path` atomically.
+///
+/// # Errors
+/// [`SessionError::Invalid`] when the session cannot be encoded, [`SessionError::Io`] naming
+/// the failing operation; in either case the file at `path` is unchanged.
+pub fn save_session(path: &Path, session: &Session) -> Result<(), SessionError> {
+    let bytes = encode(session)?;
+    write_atomic(path, &bytes)
+}
+
+/// Loads and validates the session at `path`.
+///
+/// # Errors
+/// [`SessionError::Io`] when it cannot be read; the format errors of
+/// [`decode`](super::format::decode) otherwise.
+pub fn load_session(path: &Path) -> Result<Session, SessionError> {
+    let bytes = fs::read(path).map_err(|source| SessionError::Io {
+        path: path.to_path_buf(),
+        op: "read",
+        source,
+    })?;
+    decode(&bytes, path)
+}
+
+/// Writes `bytes` to `path` atomically (temporary file, fsync, rename, fsync of the directory).
+///
+/// # Errors
+/// [`SessionError::Io`] naming the failing step; the previous file at `path` is untouched and
+/// the temporary file is removed.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
+    write_atomic_with(path, bytes, |file, bytes| file.write_all(bytes))
+}
+
+/// [`write_atomic`] with the payload write done by `write` (tests inject failures here).
+pub(crate) fn write_atomic_with(
+    path: &Path,
+    bytes: &[u8],
+    write: impl FnOnce(&mut File, &[u8]) -> std::io::Result<()>,
+) -> Result<(), SessionError> {
+    let io = |op: &'static str, p: &Path| {
+        let p = p.to_path_buf();
+        move |source| SessionError::Io {
+            path: p,
+            op,
+            source,
+        }
+    };
+    let temp = temp_path(path);
+    let mut file = OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&temp)
+        .map_err(io("create temporary file", &temp))?;
+    let written = write(&mut file, bytes)
+        .map_err(io("write temporary file", &temp))
+        .and_then(|()| file.sync_all().map_err(io("flush temporary file", &temp)));
+    drop(file);
+    if let Err(e) = written {
+        let _ = fs::remove_file(&temp);
+        return Err(e);
+    }
+    if let Err(e) = fs::rename(&temp, path).map_err(io("rename temporary file over", path)) {
+        let _ = fs::remove_file(&temp);
+        return Err(e);
+    }
+    sync_dir(path)
+}
+
+/// A fresh temporary name beside `path`: `.<name>.tmp.<pid>.<n>`.
+fn temp_path(path: &Path) -> PathBuf {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    // Relaxed: the counter only has to be unique, not ordered with anything.
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = path
+        .file_name()
+        .map_or_else(|| "session".into(), |n| n.to_string_lossy().into_owned());
+    path.with_file_name(format!(".{name}.tmp.{}.{n}", std::process::id()))
+}
+
+/// Flushes the directory entry of `path` so the rename survives a power loss.
+fn sync_dir(path: &Path) -> Result<(), SessionError> {
+    #[cfg(unix)]
+    {
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        File::open(dir)
+            .and_then(|d| d.sync_all())
+            .map_err(|source| SessionError::Io {
+                path: dir.to_path_buf(),
+                op: "flush directory",
+                source,
+            })?;
+    }
+    #[cfg(not(unix))]
+    let _ = path;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::BSplineLattice;
+    use crate::tools::Clay;
+    use glam::Vec3;
+
+    fn session(value: f32) -> Session {
+        let mut l = BSplineLattice::zeros([6, 6, 6], 0.1, Vec3::ZERO).unwrap();
+        l.coeffs.iter_mut().for_each(|c| *c = value);
+        Session {
+            clay: Clay::single(l),
+            ..Session::default()
+        }
+    }
+
+    #[test]
+    fn save_then_load_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.dclay");
+        save_session(&path, &session(0.25)).unwrap();
+        assert_eq!(load_session(&path).unwrap(), session(0.25));
+        save_session(&path, &session(0.5)).unwrap();
+        assert_eq!(load_session(&path).unwrap(), session(0.5));
+        // No temporary files left behind.
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn a_write_failure_mid_save_leaves_the_previous_file_intact() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.dclay");
+        save_session(&path, &session(0.25)).unwrap();
+        let before = fs::read(&path).unwrap();
+        let bytes = encode(&session(0.75)).unwrap();
+        let err = write_atomic_with(&path, &bytes, |file, bytes| {
+            // Half the file reaches the disk, then the device fails.
+            file.write_all(&bytes[..bytes.len() / 2])?;
+            Err(std::io::Error::other("injected: disk full"))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("injected: disk full"), "{err}");
+        assert_eq!(fs::read(&path).unwrap(), before);
+        assert_eq!(load_session(&path).unwrap(), session(0.25));
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1, "temp removed");
+    }
+
+    #[test]
+    fn a_crash_before_the_rename_leaves_the_previous_file_loadable() {
+        // A kill during the write leaves a partial temporary file and the old target.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.dclay");
+        save_session(&path, &session(0.25)).unwrap();
+        let bytes = encode(&session(0.75)).unwrap();
+        fs::write(temp_path(&path), &bytes[..bytes.len() / 3]).unwrap();
+        assert_eq!(load_session(&path).unwrap(), session(0.25));
+    }
+
+    #[test]
+    fn loading_a_missing_or_corrupt_file_names_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("none.dclay");
+        let err = load_session(&path).unwrap_err();
+        assert!(matches!(err, SessionError::Io { op: "read", .. }));
+        assert!(err.to_string().contains("none.dclay"));
+        let path = dir.path().join("bad.dclay");
+        let mut bytes = encode(&session(0.25)).unwrap();
+        let n = bytes.len();
+        bytes[n / 2] ^= 0xff;
+        fs::write(&path, &bytes).unwrap();
+        let err = load_session(&path).unwrap_err();
+        assert!(matches!(err, SessionError::Checksum { .. }), "{err}");
+    }
+}

@@ -1,0 +1,675 @@
+//! The session file's byte format: a versioned header, then checksummed sections. Encoding
+//! and decoding are pure functions over byte slices; decoding validates everything before it
+//! returns a session, so a bad file yields an error and no partial state.
+//!
+//! Layout (all integers and floats little-endian):
+//!
+//! ```text
+//! header   magic "DYNACLAY" (8) | format version u32 | section count u32 | flags u32 | CRC32 of the previous 20 bytes u32
+//! section  tag [u8; 4] | payload length u64 | payload | CRC32 of tag, length and payload u32
+//! ```
+//!
+//! Sections in order: `META` (JSON metadata), one `PTCH` per patch (a lattice), `MATL`
+//! (material), `COLR` (four lattices, only when the clay has colour), `TOOL` (the tool
+//! library), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
+//! iso `f32`, coefficient count `u64`, coefficients `f32`. Sections with unknown tags are
+//! checked and skipped, so later minor additions stay readable.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::error::SessionError;
+use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
+use crate::field::BSplineLattice;
+use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
+
+/// The first eight bytes of every session file.
+pub const MAGIC: [u8; 8] = *b"DYNACLAY";
+/// The format version this build writes and the newest it reads.
+pub const FORMAT_VERSION: u32 = 1;
+const HEADER_LEN: usize = 24;
+
+const META: [u8; 4] = *b"META";
+const PATCH: [u8; 4] = *b"PTCH";
+const MATERIAL: [u8; 4] = *b"MATL";
+const COLOUR: [u8; 4] = *b"COLR";
+const TOOLS: [u8; 4] = *b"TOOL";
+const END: [u8; 4] = *b"END ";
+
+/// Serialises a session.
+///
+/// # Errors
+/// [`SessionError::Invalid`] when a lattice's coefficient count mismatches its dimensions or
+/// the metadata cannot be encoded.
+pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
+    let mut sections: Vec<([u8; 4], Vec<u8>)> = Vec::new();
+    let meta = serde_json::to_vec(&session.meta).map_err(|e| SessionError::Invalid {
+        detail: format!("metadata: {e}"),
+    })?;
+    sections.push((META, meta));
+    for (n, patch) in session.clay.patches.iter().enumerate() {
+        let mut out = Vec::with_capacity(40 + 4 * patch.coeffs.len());
+        put_lattice(&mut out, patch, &format!("patch {n}"))?;
+        sections.push((PATCH, out));
+    }
+    sections.push((MATERIAL, encode_material(&session.material)?));
+    if let Some(colour) = &session.clay.colour {
+        let mut out = Vec::new();
+        for (c, channel) in colour.channels.iter().enumerate() {
+            put_lattice(&mut out, channel, &format!("colour channel {c}"))?;
+        }
+        sections.push((COLOUR, out));
+    }
+    sections.push((TOOLS, encode_tools(&session.tools)?));
+    sections.push((END, Vec::new()));
+
+    let total: usize = HEADER_LEN + sections.iter().map(|(_, p)| 16 + p.len()).sum::<usize>();
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(&MAGIC);
+    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&(sections.len() as u32).to_le_bytes());
+    out.extend_from_slice(&0_u32.to_le_bytes());
+    let crc = crc32fast::hash(&out[..20]);
+    out.extend_from_slice(&crc.to_le_bytes());
+    for (tag, payload) in &sections {
+        let start = out.len();
+        out.extend_from_slice(tag);
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(payload);
+        let crc = crc32fast::hash(&out[start..]);
+        out.extend_from_slice(&crc.to_le_bytes());
+    }
+    Ok(out)
+}
+
+/// Parses and validates a session; `path` only names the file in errors.
+///
+/// # Errors
+/// [`SessionError::NotASession`] for a foreign file, [`SessionError::UnsupportedVersion`],
+/// [`SessionError::Truncated`], [`SessionError::Checksum`] and [`SessionError::Malformed`]
+/// naming the section and byte offset.
+pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
+    let truncated = |section: &str, offset: usize, needed: usize| SessionError::Truncated {
+        path: path.to_path_buf(),
+        section: section.to_string(),
+        offset: offset as u64,
+        needed: needed as u64,
+        available: bytes.len().saturating_sub(offset) as u64,
+    };
+    if bytes.len() < 8 || bytes[..8] != MAGIC {
+        let mut found = [0_u8; 8];
+        let n = bytes.len().min(8);
+        found[..n].copy_from_slice(&bytes[..n]);
+        return Err(SessionError::NotASession {
+            path: path.to_path_buf(),
+            found,
+        });
+    }
+    if bytes.len() < HEADER_LEN {
+        return Err(truncated("header", 0, HEADER_LEN));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
+    let stored = u32_at(20);
+    let computed = crc32fast::hash(&bytes[..20]);
+    if stored != computed {
+        return Err(SessionError::Checksum {
+            path: path.to_path_buf(),
+            section: "header".into(),
+            offset: 0,
+            stored,
+            computed,
+        });
+    }
+    let version = u32_at(8);
+    if version == 0 || version > FORMAT_VERSION {
+        return Err(SessionError::UnsupportedVersion {
+            path: path.to_path_buf(),
+            found: version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let count = u32_at(12) as usize;
+
+    let mut session = Session::default();
+    let mut meta_seen = false;
+    let mut material_seen = false;
+    let mut ended = false;
+    let mut pos = HEADER_LEN;
+    for index in 0..count {
+        let label = format!("#{index}");
+        if bytes.len() - pos < 12 {
+            return Err(truncated(&label, pos, 12));
+        }
+        let tag: [u8; 4] = bytes[pos..pos + 4].try_into().expect("4 bytes");
+        let name = format!("{} ({label})", String::from_utf8_lossy(&tag));
+        let len = u64::from_le_bytes(bytes[pos + 4..pos + 12].try_into().expect("8 bytes"));
+        let available = (bytes.len() - pos - 12) as u64;
+        if len.saturating_add(4) > available {
+            return Err(SessionError::Truncated {
+                path: path.to_path_buf(),
+                section: name,
+                offset: pos as u64,
+                needed: len.saturating_add(16),
+                available: available + 12,
+            });
+        }
+        let len = len as usize;
+        let end = pos + 12 + len;
+        let stored = u32::from_le_bytes(bytes[end..end + 4].try_into().expect("4 bytes"));
+        let computed = crc32fast::hash(&bytes[pos..end]);
+        if stored != computed {
+            return Err(SessionError::Checksum {
+                path: path.to_path_buf(),
+                section: name,
+                offset: pos as u64,
+                stored,
+                computed,
+            });
+        }
+        if ended {
+            return Err(malformed(path, &name, pos, "section after END"));
+        }
+        let mut r = Reader {
+            bytes: &bytes[pos + 12..end],
+            at: 0,
+            base: pos + 12,
+            section: &name,
+            path,
+        };
+        match tag {
+            META => {
+                session.meta = serde_json::from_slice::<SessionMeta>(r.bytes)
+                    .map_err(|e| r.error(&format!("metadata JSON: {e}")))?;
+                meta_seen = true;
+            }
+            PATCH => session.clay.patches.push(r.lattice()?),
+            MATERIAL => {
+                session.material = decode_material(&mut r)?;
+                material_seen = true;
+            }
+            COLOUR => {
+                let channels = [r.lattice()?, r.lattice()?, r.lattice()?, r.lattice()?];
+                let colour = ColourField { channels };
+                if !colour.is_consistent() {
+                    return Err(r.error("colour channels differ in geometry"));
+                }
+                session.clay.colour = Some(colour);
+            }
+            TOOLS => session.tools = decode_tools(&mut r)?,
+            END => ended = true,
+            // Unknown but intact: a later minor addition; skip it.
+            _ => {}
+        }
+        if matches!(tag, PATCH | MATERIAL | COLOUR | TOOLS | END) {
+            r.finish()?;
+        }
+        pos = end + 4;
+    }
+    if !ended {
+        return Err(truncated("END", pos, 16));
+    }
+    if pos != bytes.len() {
+        return Err(malformed(
+            path,
+            "trailer",
+            pos,
+            &format!("{} unexpected bytes after END", bytes.len() - pos),
+        ));
+    }
+    if !meta_seen || !material_seen {
+        return Err(malformed(path, "header", 0, "missing META or MATL section"));
+    }
+    Ok(session)
+}
+
+fn malformed(path: &Path, section: &str, offset: usize, detail: &str) -> SessionError {
+    SessionError::Malformed {
+        path: path.to_path_buf(),
+        section: section.to_string(),
+        offset: offset as u64,
+        detail: detail.to_string(),
+    }
+}
+
+fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), SessionError> {
+    if l.coeffs.len() != l.dims.iter().product::<usize>() {
+        return Err(SessionError::Invalid {
+            detail: format!(
+                "{what}: {} coefficients for dims {:?}",
+                l.coeffs.len(),
+                l.dims
+            ),
+        });
+    }
+    for d in l.dims {
+        let d = u32::try_from(d).map_err(|_| SessionError::Invalid {
+            detail: format!("{what}: dimension {d} too large"),
+        })?;
+        out.extend_from_slice(&d.to_le_bytes());
+    }
+    out.extend_from_slice(&l.spacing.to_le_bytes());
+    for a in 0..3 {
+        out.extend_from_slice(&l.origin[a].to_le_bytes());
+    }
+    out.extend_from_slice(&l.iso.to_le_bytes());
+    out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
+    put_f32s(out, &l.coeffs);
+    Ok(())
+}
+
+fn put_f32s(out: &mut Vec<u8>, values: &[f32]) {
+    if cfg!(target_endian = "little") {
+        out.extend_from_slice(bytemuck::cast_slice(values));
+    } else {
+        for v in values {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+}
+
+fn put_str(out: &mut Vec<u8>, s: &str) {
+    out.extend_from_slice(&(s.len() as u32).to_le_bytes());
+    out.extend_from_slice(s.as_bytes());
+}
+
+fn encode_material(m: &MaterialFields) -> Result<Vec<u8>, SessionError> {
+    let mut out = Vec::new();
+    for v in [m.stiffness, m.damping, m.mass, m.plasticity_per_s] {
+        out.extend_from_slice(&v.to_le_bytes());
+    }
+    out.extend_from_slice(&(m.grids.len() as u32).to_le_bytes());
+    for g in &m.grids {
+        if g.values.len() != g.dims.iter().product::<usize>() {
+            return Err(SessionError::Invalid {
+                detail: format!(
+                    "material grid {}: {} values for dims {:?}",
+                    g.name,
+                    g.values.len(),
+                    g.dims
+                ),
+            });
+        }
+        put_str(&mut out, &g.name);
+        for d in g.dims {
+            out.extend_from_slice(&(d as u32).to_le_bytes());
+        }
+        out.extend_from_slice(&(g.values.len() as u64).to_le_bytes());
+        put_f32s(&mut out, &g.values);
+    }
+    Ok(out)
+}
+
+fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
+    let mut m = MaterialFields {
+        stiffness: r.f32()?,
+        damping: r.f32()?,
+        mass: r.f32()?,
+        plasticity_per_s: r.f32()?,
+        grids: Vec::new(),
+    };
+    let count = r.u32()?;
+    for _ in 0..count {
+        let name = r.string()?;
+        let dims = [r.u32()? as usize, r.u32()? as usize, r.u32()? as usize];
+        let at = r.at;
+        let len = r.u64()?;
+        if Some(len)
+            != dims
+                .iter()
+                .try_fold(1_u64, |acc, &d| acc.checked_mul(d as u64))
+        {
+            r.at = at;
+            return Err(r.error(&format!(
+                "material grid {name}: {len} values for dims {dims:?}"
+            )));
+        }
+        let values = r.f32s(len)?;
+        m.grids.push(MaterialGrid { name, dims, values });
+    }
+    Ok(m)
+}
+
+// Shape tags in the TOOL section.
+const SPHERE: u8 = 0;
+const ELLIPSOID: u8 = 1;
+const BOX: u8 = 2;
+const CYLINDER: u8 = 3;
+const CAPSULE: u8 = 4;
+const FREEFORM: u8 = 5;
+
+fn encode_tools(tools: &[ToolPreset]) -> Result<Vec<u8>, SessionError> {
+    let mut out = Vec::new();
+    out.extend_from_slice(&(tools.len() as u32).to_le_bytes());
+    for t in tools {
+        put_str(&mut out, &t.name);
+        let action = serde_json::to_string(&t.action).map_err(|e| SessionError::Invalid {
+            detail: format!("tool {}: action: {e}", t.name),
+        })?;
+        put_str(&mut out, &action);
+        out.extend_from_slice(&t.falloff_m.to_le_bytes());
+        let (tag, params): (u8, Vec<f32>) = match &t.shape {
+            ToolShape::Sphere { radius_m } => (SPHERE, vec![*radius_m]),
+            ToolShape::Ellipsoid { radii_m } => (ELLIPSOID, radii_m.to_array().to_vec()),
+            ToolShape::Box { half_extents_m } => (BOX, half_extents_m.to_array().to_vec()),
+            ToolShape::Cylinder {
+                radius_m,
+                half_height_m,
+            } => (CYLINDER, vec![*radius_m, *half_height_m]),
+            ToolShape::Capsule {
+                radius_m,
+                half_height_m,
+            } => (CAPSULE, vec![*radius_m, *half_height_m]),
+            ToolShape::Freeform(f) => (FREEFORM, f.scale.to_array().to_vec()),
+        };
+        out.push(tag);
+        put_f32s(&mut out, &params);
+        if let ToolShape::Freeform(f) = &t.shape {
+            put_lattice(&mut out, &f.lattice, &format!("tool {}", t.name))?;
+        }
+    }
+    Ok(out)
+}
+
+fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
+    let count = r.u32()?;
+    let mut tools = Vec::new();
+    for _ in 0..count {
+        let name = r.string()?;
+        let at = r.at;
+        let action_json = r.string()?;
+        let action: ToolAction = serde_json::from_str(&action_json).map_err(|e| {
+            r.at = at;
+            r.error(&format!("tool {name}: action: {e}"))
+        })?;
+        let falloff_m = r.f32()?;
+        let at = r.at;
+        let tag = r.u8()?;
+        let shape = match tag {
+            SPHERE => ToolShape::Sphere { radius_m: r.f32()? },
+            ELLIPSOID => ToolShape::Ellipsoid { radii_m: r.vec3()? },
+            BOX => ToolShape::Box {
+                half_extents_m: r.vec3()?,
+            },
+            CYLINDER => ToolShape::Cylinder {
+                radius_m: r.f32()?,
+                half_height_m: r.f32()?,
+            },
+            CAPSULE => ToolShape::Capsule {
+                radius_m: r.f32()?,
+                half_height_m: r.f32()?,
+            },
+            FREEFORM => {
+                let scale = r.vec3()?;
+                ToolShape::Freeform(FreeformTool {
+                    lattice: r.lattice()?,
+                    scale,
+                })
+            }
+            other => {
+                r.at = at;
+                return Err(r.error(&format!("tool {name}: unknown shape tag {other}")));
+            }
+        };
+        if let Err(e) = shape.validate() {
+            r.at = at;
+            return Err(r.error(&format!("tool {name}: {e}")));
+        }
+        tools.push(ToolPreset {
+            name,
+            shape,
+            action,
+            falloff_m,
+        });
+    }
+    Ok(tools)
+}
+
+/// A bounds-checked cursor over one section's payload; errors carry absolute byte offsets.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    base: usize,
+    section: &'a str,
+    path: &'a Path,
+}
+
+impl Reader<'_> {
+    fn error(&self, detail: &str) -> SessionError {
+        malformed(self.path, self.section, self.base + self.at, detail)
+    }
+
+    fn take(&mut self, n: usize) -> Result<&[u8], SessionError> {
+        if self.bytes.len() - self.at < n {
+            return Err(self.error(&format!(
+                "needs {n} more bytes, the section has {} left",
+                self.bytes.len() - self.at
+            )));
+        }
+        let s = &self.bytes[self.at..self.at + n];
+        self.at += n;
+        Ok(s)
+    }
+
+    fn u8(&mut self) -> Result<u8, SessionError> {
+        Ok(self.take(1)?[0])
+    }
+
+    fn u32(&mut self) -> Result<u32, SessionError> {
+        Ok(u32::from_le_bytes(
+            self.take(4)?.try_into().expect("4 bytes"),
+        ))
+    }
+
+    fn u64(&mut self) -> Result<u64, SessionError> {
+        Ok(u64::from_le_bytes(
+            self.take(8)?.try_into().expect("8 bytes"),
+        ))
+    }
+
+    fn f32(&mut self) -> Result<f32, SessionError> {
+        Ok(f32::from_le_bytes(
+            self.take(4)?.try_into().expect("4 bytes"),
+        ))
+    }
+
+    fn vec3(&mut self) -> Result<Vec3, SessionError> {
+        Ok(Vec3::new(self.f32()?, self.f32()?, self.f32()?))
+    }
+
+    fn f32s(&mut self, count: u64) -> Result<Vec<f32>, SessionError> {
+        let n = usize::try_from(count)
+            .ok()
+            .and_then(|c| c.checked_mul(4))
+            .ok_or_else(|| self.error(&format!("{count} values do not fit in memory")))?;
+        let raw = self.take(n)?;
+        Ok(raw
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect())
+    }
+
+    fn string(&mut self) -> Result<String, SessionError> {
+        let len = self.u32()? as usize;
+        let at = self.at;
+        let raw = self.take(len)?.to_vec();
+        String::from_utf8(raw).map_err(|e| {
+            self.at = at;
+            self.error(&format!("text is not UTF-8: {e}"))
+        })
+    }
+
+    fn lattice(&mut self) -> Result<BSplineLattice, SessionError> {
+        let start = self.at;
+        let dims = [
+            self.u32()? as usize,
+            self.u32()? as usize,
+            self.u32()? as usize,
+        ];
+        let spacing = self.f32()?;
+        let origin = self.vec3()?;
+        let iso = self.f32()?;
+        let count = self.u64()?;
+        let expected = dims
+            .iter()
+            .try_fold(1_u64, |acc, &d| acc.checked_mul(d as u64));
+        if Some(count) != expected {
+            self.at = start;
+            return Err(self.error(&format!("lattice {dims:?} holds {count} coefficients")));
+        }
+        let coeffs = self.f32s(count)?;
+        if !(origin.is_finite() && iso.is_finite()) {
+            self.at = start;
+            return Err(self.error("lattice origin or iso-level is not finite"));
+        }
+        let mut l = BSplineLattice::from_coeffs(dims, spacing, origin, coeffs).map_err(|e| {
+            self.at = start;
+            self.error(&format!("lattice: {e}"))
+        })?;
+        l.iso = iso;
+        Ok(l)
+    }
+
+    /// Every byte of the payload must have been read.
+    fn finish(&self) -> Result<(), SessionError> {
+        if self.at == self.bytes.len() {
+            Ok(())
+        } else {
+            Err(self.error(&format!(
+                "{} unread bytes at the end of the section",
+                self.bytes.len() - self.at
+            )))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tools::{Clay, StampParams};
+
+    pub(crate) fn sample_session() -> Session {
+        let mut patch = BSplineLattice::zeros([9, 8, 7], 0.25, Vec3::new(-1.0, -1.0, 0.5)).unwrap();
+        for (n, c) in patch.coeffs.iter_mut().enumerate() {
+            *c = ((n * 31) % 17) as f32 / 17.0;
+        }
+        patch.iso = 0.45;
+        let mut colour = ColourField::matching(&patch).unwrap();
+        colour.channels[1].coeffs[5] = 0.75;
+        let mut tool_lattice = BSplineLattice::zeros([5, 5, 5], 0.1, Vec3::ZERO).unwrap();
+        tool_lattice.coeffs[62] = 1.0;
+        Session {
+            clay: Clay {
+                patches: vec![patch.clone(), patch],
+                colour: Some(colour),
+            },
+            material: MaterialFields {
+                stiffness: 3.0,
+                grids: vec![MaterialGrid {
+                    name: "stiffness".into(),
+                    dims: [2, 2, 2],
+                    values: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0],
+                }],
+                ..MaterialFields::default()
+            },
+            tools: vec![
+                ToolPreset {
+                    name: "ball".into(),
+                    shape: ToolShape::Sphere { radius_m: 0.2 },
+                    action: ToolAction::Add {
+                        deposit_rate_per_s: 3.0,
+                    },
+                    falloff_m: 0.05,
+                },
+                ToolPreset {
+                    name: "seal".into(),
+                    shape: ToolShape::Freeform(FreeformTool {
+                        lattice: tool_lattice,
+                        scale: Vec3::new(1.0, 2.0, 0.5),
+                    }),
+                    action: ToolAction::Stamp(StampParams::default()),
+                    falloff_m: 0.0,
+                },
+            ],
+            meta: SessionMeta {
+                name: "test".into(),
+                created_unix_s: 1,
+                saved_unix_s: 2,
+                writer: "dynaclay test".into(),
+            },
+        }
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let s = sample_session();
+        let bytes = encode(&s).unwrap();
+        let back = decode(&bytes, Path::new("mem")).unwrap();
+        assert_eq!(back, s);
+    }
+
+    #[test]
+    fn every_single_byte_flip_is_rejected() {
+        let bytes = encode(&sample_session()).unwrap();
+        // Flip one bit in every byte position; none may load.
+        for pos in 0..bytes.len() {
+            let mut bad = bytes.clone();
+            bad[pos] ^= 0x10;
+            assert!(
+                decode(&bad, Path::new("mem")).is_err(),
+                "flip at {pos} accepted"
+            );
+        }
+    }
+
+    #[test]
+    fn every_truncation_is_rejected_with_a_named_section() {
+        let bytes = encode(&sample_session()).unwrap();
+        for len in 0..bytes.len() {
+            let err = decode(&bytes[..len], Path::new("cut.dclay")).unwrap_err();
+            let text = err.to_string();
+            assert!(text.starts_with("cut.dclay"), "{text}");
+            if len >= 8 {
+                assert!(
+                    matches!(err, SessionError::Truncated { .. }),
+                    "length {len}: {text}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn foreign_and_future_files_are_named_as_such() {
+        let err = decode(b"PK\x03\x04 a zip file, not ours", Path::new("x.zip")).unwrap_err();
+        assert!(matches!(err, SessionError::NotASession { .. }), "{err}");
+        let mut bytes = encode(&sample_session()).unwrap();
+        bytes[8..12].copy_from_slice(&2_u32.to_le_bytes());
+        let crc = crc32fast::hash(&bytes[..20]);
+        bytes[20..24].copy_from_slice(&crc.to_le_bytes());
+        let err = decode(&bytes, Path::new("new.dclay")).unwrap_err();
+        assert!(
+            matches!(err, SessionError::UnsupportedVersion { found: 2, .. }),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_corrupt_payload_names_its_section_and_offset() {
+        let s = sample_session();
+        let bytes = encode(&s).unwrap();
+        // Corrupt a coefficient in the second patch section.
+        let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
+        let second_patch = HEADER_LEN + (16 + meta_len) + (16 + 40 + 4 * 9 * 8 * 7);
+        let mut bad = bytes.clone();
+        bad[second_patch + 12 + 60] ^= 1;
+        match decode(&bad, Path::new("mem")).unwrap_err() {
+            SessionError::Checksum {
+                section, offset, ..
+            } => {
+                assert_eq!(section, "PTCH (#2)");
+                assert_eq!(offset, second_patch as u64);
+            }
+            other => panic!("{other}"),
+        }
+    }
+}

@@ -1,0 +1,83 @@
+//! The session model the engine saves and loads: the clay (patches and colour), the material
+//! fields, the tool library and metadata. Plain data; the byte format lives in `format`.
+
+use serde::{Deserialize, Serialize};
+
+use crate::tools::{Clay, ToolAction, ToolShape};
+
+/// Descriptive metadata stored with a session.
+#[derive(Clone, Debug, PartialEq, Default, Serialize, Deserialize)]
+pub struct SessionMeta {
+    /// The session's display name.
+    pub name: String,
+    /// When the session was created, seconds since the Unix epoch.
+    pub created_unix_s: u64,
+    /// When it was last saved, seconds since the Unix epoch (set by the saver).
+    pub saved_unix_s: u64,
+    /// The program that wrote the file (e.g. `dynaclay 0.1.0`).
+    pub writer: String,
+}
+
+/// One spatially varying material parameter, sampled on a grid (x fastest).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialGrid {
+    /// Which parameter: `stiffness`, `damping`, `mass` or `plasticity`.
+    pub name: String,
+    pub dims: [usize; 3],
+    pub values: Vec<f32>,
+}
+
+/// The material: uniform defaults for the density-spring dynamics, optionally overridden by
+/// per-mass-point grids.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MaterialFields {
+    /// Density-spring stiffness `k`.
+    pub stiffness: f32,
+    /// Damping `D`.
+    pub damping: f32,
+    /// Mass per mass point `μ`.
+    pub mass: f32,
+    /// Rate at which rest densities drift to the current ones (per second).
+    pub plasticity_per_s: f32,
+    /// Spatially varying overrides.
+    pub grids: Vec<MaterialGrid>,
+}
+
+impl Default for MaterialFields {
+    fn default() -> Self {
+        Self {
+            stiffness: 1.0,
+            damping: 0.1,
+            mass: 1.0,
+            plasticity_per_s: 0.0,
+            grids: Vec::new(),
+        }
+    }
+}
+
+/// A named tool in the session's library.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ToolPreset {
+    pub name: String,
+    pub shape: ToolShape,
+    pub action: ToolAction,
+    /// Width of the tool potential's falloff band on each side of its surface.
+    pub falloff_m: f32,
+}
+
+/// Everything a session file holds.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Session {
+    pub clay: Clay,
+    pub material: MaterialFields,
+    pub tools: Vec<ToolPreset>,
+    pub meta: SessionMeta,
+}
+
+impl Session {
+    /// The tool preset called `name`, if any.
+    #[must_use]
+    pub fn tool(&self, name: &str) -> Option<&ToolPreset> {
+        self.tools.iter().find(|t| t.name == name)
+    }
+}

@@ -1,0 +1,256 @@
+//! What a geometric tool does with its potential `t` where it meets the clay's density `f`
+//! (Ferley §4.2–4.3, Guo & Qin Table 1, Zhang §3). Each action is a pure per-point rule; the
+//! progressive ones (toothpaste add, soft remove, soft paint, smooth) scale with the time the
+//! tool dwells, so a stroke deposits at a set speed.
+
+use serde::{Deserialize, Serialize};
+
+use super::deform::{ContactParams, StampParams};
+
+/// A tool action, with its parameters. Rates are per second of tool dwell time.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ToolAction {
+    /// Toothpaste: `f + min(1, rate·dt)·t`, clamped to 1.
+    Add { deposit_rate_per_s: f32 },
+    /// Carve the tool's shape out: `min(f, 1 − t)` (CSG difference with the tool).
+    Remove,
+    /// Progressive eraser: `f − min(1, rate·dt)·t`, clamped to 0.
+    SoftRemove { rate_per_s: f32 },
+    /// Paint the tool's colour where the tool reaches (full coverage inside the tool).
+    Paint { rgb: [f32; 3] },
+    /// Progressive paint, weighted by the tool's potential and the clay's presence.
+    SoftPaint { rgb: [f32; 3], rate_per_s: f32 },
+    /// Low-pass the field under the tool: blend towards a local average whose 27 taps lie
+    /// `kernel_m` apart (at least one knot span is used).
+    Smooth { rate_per_s: f32, kernel_m: f32 },
+    /// Print the tool's shape with Ferley's deformation function.
+    Stamp(StampParams),
+    /// Zhang's contact deformation `h = f + β·g`.
+    Contact(ContactParams),
+    /// Guo & Qin Table 1: clay ∪ tool (`max(f, t)`).
+    Union,
+    /// Clay ∩ tool (`min(f, t)`); clears everything the tool does not cover in its reach.
+    Intersection,
+    /// Clay − tool (`min(f, 2·iso − t)`).
+    Difference,
+}
+
+/// Why an action's parameters were rejected.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ActionError(pub String);
+
+impl std::fmt::Display for ActionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "invalid tool action: {}", self.0)
+    }
+}
+
+impl std::error::Error for ActionError {}
+
+impl ToolAction {
+    /// Short name for menus and undo labels.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Add { .. } => "add",
+            Self::Remove => "remove",
+            Self::SoftRemove { .. } => "soft remove",
+            Self::Paint { .. } => "paint",
+            Self::SoftPaint { .. } => "soft paint",
+            Self::Smooth { .. } => "smooth",
+            Self::Stamp(_) => "stamp",
+            Self::Contact(_) => "contact",
+            Self::Union => "union",
+            Self::Intersection => "intersection",
+            Self::Difference => "difference",
+        }
+    }
+
+    /// Whether the action writes the colour field rather than the density.
+    #[must_use]
+    pub fn paints(&self) -> bool {
+        matches!(self, Self::Paint { .. } | Self::SoftPaint { .. })
+    }
+
+    /// Whether the action changes the clay where the tool's potential is zero (intersection
+    /// clears the clay there, so it must reach the whole clay, not only the tool's box).
+    #[must_use]
+    pub fn acts_outside_tool(&self) -> bool {
+        matches!(self, Self::Intersection)
+    }
+
+    /// Checks rates, colours and stamp parameters.
+    ///
+    /// # Errors
+    /// Names the parameter that is out of range.
+    pub fn validate(&self) -> Result<(), ActionError> {
+        let rate = |name: &str, v: f32| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ActionError(format!(
+                    "{name} must be positive and finite, got {v}"
+                )))
+            }
+        };
+        let colour = |rgb: &[f32; 3]| {
+            if rgb.iter().all(|c| (0.0..=1.0).contains(c)) {
+                Ok(())
+            } else {
+                Err(ActionError(format!("rgb {rgb:?} must be within [0, 1]")))
+            }
+        };
+        match self {
+            Self::Add { deposit_rate_per_s } => rate("deposit_rate_per_s", *deposit_rate_per_s),
+            Self::SoftRemove { rate_per_s } => rate("rate_per_s", *rate_per_s),
+            Self::Smooth {
+                rate_per_s,
+                kernel_m,
+            } => {
+                rate("rate_per_s", *rate_per_s)?;
+                rate("kernel_m", *kernel_m)
+            }
+            Self::Paint { rgb } => colour(rgb),
+            Self::SoftPaint { rgb, rate_per_s } => {
+                colour(rgb)?;
+                rate("rate_per_s", *rate_per_s)
+            }
+            Self::Stamp(p) => p.validate().map_err(|e| ActionError(e.0)),
+            Self::Contact(c) if !c.alpha.is_finite() => Err(ActionError(format!(
+                "alpha must be finite, got {}",
+                c.alpha
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// The new density at a point with clay density `clay` and tool potential `tool`, for a
+    /// dwell of `dt_s`. Smoothing needs the local average too (`blurred`); other actions
+    /// ignore it. Painting actions leave the density unchanged.
+    #[inline]
+    #[must_use]
+    pub fn density(&self, clay: f32, tool: f32, blurred: f32, iso: f32, dt_s: f32) -> f32 {
+        let amount = |rate: f32| (rate * dt_s).clamp(0.0, 1.0);
+        match *self {
+            Self::Add { deposit_rate_per_s } => (clay + amount(deposit_rate_per_s) * tool)
+                .min(1.0)
+                .max(clay),
+            Self::Remove => clay.min(1.0 - tool),
+            Self::SoftRemove { rate_per_s } => {
+                (clay - amount(rate_per_s) * tool).max(0.0).min(clay)
+            }
+            Self::Paint { .. } | Self::SoftPaint { .. } => clay,
+            Self::Smooth { rate_per_s, .. } => {
+                let w = amount(rate_per_s) * (2.0 * tool).min(1.0);
+                clay + w * (blurred - clay)
+            }
+            Self::Stamp(p) => p.apply(clay, tool),
+            Self::Contact(c) => c.apply(clay, tool, iso),
+            Self::Union => clay.max(tool),
+            Self::Intersection => clay.min(tool),
+            Self::Difference => clay.min((2.0 * iso - tool).clamp(0.0, 1.0)),
+        }
+    }
+
+    /// The weight (in `[0, 1]`) with which the tool's colour replaces the clay's colour at a
+    /// point; zero for actions that do not paint.
+    #[inline]
+    #[must_use]
+    pub fn paint_weight(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
+        match *self {
+            // Full coverage inside the tool's surface, fading over its falloff band.
+            Self::Paint { .. } => (2.0 * tool).min(1.0),
+            // Progressive, and only where there is clay to take the paint (Ferley: the
+            // corner's own field value is taken into account).
+            Self::SoftPaint { rate_per_s, .. } => {
+                let presence = (clay / iso.max(f32::EPSILON)).min(1.0);
+                (rate_per_s * dt_s).clamp(0.0, 1.0) * tool * presence
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// The tool's colour for painting actions.
+    #[must_use]
+    pub fn rgb(&self) -> Option<[f32; 3]> {
+        match *self {
+            Self::Paint { rgb } | Self::SoftPaint { rgb, .. } => Some(rgb),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csg_rules_follow_table_1_classification() {
+        let iso = 0.5;
+        // (clay inside?, tool inside?) → inside after the operation?
+        for (f, t) in [(0.9, 0.9), (0.9, 0.1), (0.1, 0.9), (0.1, 0.1)] {
+            let (a, b) = (f > iso, t > iso);
+            assert_eq!(ToolAction::Union.density(f, t, 0.0, iso, 0.0) > iso, a || b);
+            assert_eq!(
+                ToolAction::Intersection.density(f, t, 0.0, iso, 0.0) > iso,
+                a && b
+            );
+            assert_eq!(
+                ToolAction::Difference.density(f, t, 0.0, iso, 0.0) > iso,
+                a && !b
+            );
+        }
+    }
+
+    #[test]
+    fn progressive_actions_scale_with_dwell_time() {
+        let add = ToolAction::Add {
+            deposit_rate_per_s: 2.0,
+        };
+        assert_eq!(add.density(0.0, 1.0, 0.0, 0.5, 0.1), 0.2);
+        assert_eq!(add.density(0.0, 1.0, 0.0, 0.5, 10.0), 1.0);
+        assert_eq!(add.density(0.7, 0.0, 0.0, 0.5, 1.0), 0.7);
+        let erase = ToolAction::SoftRemove { rate_per_s: 1.0 };
+        assert!((erase.density(0.8, 0.5, 0.0, 0.5, 0.2) - 0.7).abs() < 1e-6);
+        let smooth = ToolAction::Smooth {
+            rate_per_s: 1.0,
+            kernel_m: 0.1,
+        };
+        assert_eq!(smooth.density(1.0, 1.0, 0.5, 0.5, 1.0), 0.5);
+        assert_eq!(smooth.density(1.0, 0.0, 0.5, 0.5, 1.0), 1.0);
+    }
+
+    #[test]
+    fn paint_weights_and_validation() {
+        let paint = ToolAction::Paint {
+            rgb: [1.0, 0.0, 0.0],
+        };
+        assert_eq!(paint.paint_weight(0.0, 0.6, 0.5, 0.0), 1.0);
+        assert_eq!(paint.paint_weight(0.0, 0.0, 0.5, 0.0), 0.0);
+        let soft = ToolAction::SoftPaint {
+            rgb: [0.0, 1.0, 0.0],
+            rate_per_s: 1.0,
+        };
+        assert_eq!(
+            soft.paint_weight(0.0, 1.0, 0.5, 1.0),
+            0.0,
+            "no clay, no paint"
+        );
+        assert!(soft.paint_weight(1.0, 1.0, 0.5, 0.5) > 0.4);
+        assert!(
+            ToolAction::Paint {
+                rgb: [2.0, 0.0, 0.0]
+            }
+            .validate()
+            .is_err()
+        );
+        assert!(
+            ToolAction::Add {
+                deposit_rate_per_s: 0.0
+            }
+            .validate()
+            .is_err()
+        );
+    }
+}

@@ -1,0 +1,255 @@
+//! The editable sculpt state: density patches and the optional colour field, addressed by
+//! [`FieldId`], with coefficient boxes ([`CoeffBox`], inclusive) naming the regions that an edit touched.
+//!
+//! Every tool, every force stroke and the undo history work on a [`Clay`]; the session file
+//! stores one. Nothing here allocates after construction except [`ColourField::new`].
+
+use glam::{Vec3, Vec4};
+
+pub use crate::field::CoeffBox;
+use crate::field::{BSplineLattice, LatticeError};
+
+/// Which coefficient lattice of a [`Clay`] an edit or an undo delta refers to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum FieldId {
+    /// The density lattice of patch `n`.
+    Density(u16),
+    /// Colour channel `0..4` (red, green, blue, coverage).
+    Colour(u8),
+}
+
+impl CoeffBox {
+    /// The smallest box holding both.
+    #[must_use]
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            min: std::array::from_fn(|a| self.min[a].min(other.min[a])),
+            max: std::array::from_fn(|a| self.max[a].max(other.max[a])),
+        }
+    }
+
+    /// This box clipped to a lattice of the given dimensions (`None` if nothing is left).
+    #[must_use]
+    pub fn clipped(&self, dims: [usize; 3]) -> Option<Self> {
+        let b = Self {
+            min: self.min,
+            max: std::array::from_fn(|a| self.max[a].min(dims[a].saturating_sub(1))),
+        };
+        b.fits(dims).then_some(b)
+    }
+
+    /// The world box (min, max corners) where a change of these coefficients can show.
+    #[must_use]
+    pub fn world_support(&self, lattice: &BSplineLattice) -> (Vec3, Vec3) {
+        let lo = Vec3::new(self.min[0] as f32, self.min[1] as f32, self.min[2] as f32);
+        let hi = Vec3::new(self.max[0] as f32, self.max[1] as f32, self.max[2] as f32);
+        (
+            lattice.origin + (lo - 2.0) * lattice.spacing,
+            lattice.origin + (hi + 2.0) * lattice.spacing,
+        )
+    }
+}
+
+/// A copy of the coefficients of `lattice` in `region` grown by `margin` on every side
+/// (clipped to the lattice, and to at least 4 per axis), as a lattice of its own placed at the
+/// same world position. Inside the world box of `region` grown by `margin − 2` knot spans it
+/// evaluates as `lattice` does (up to the rounding of its shifted origin); tools read the pre-edit clay from it while the
+/// original is being refitted.
+#[must_use]
+pub fn sub_lattice(lattice: &BSplineLattice, region: &CoeffBox, margin: usize) -> BSplineLattice {
+    let mut min = [0; 3];
+    let mut dims = [0; 3];
+    for a in 0..3 {
+        let n = lattice.dims[a];
+        let mut lo = region.min[a].saturating_sub(margin);
+        let mut hi = (region.max[a] + margin).min(n - 1);
+        while hi + 1 - lo < 4.min(n) {
+            if lo > 0 {
+                lo -= 1;
+            } else {
+                hi = (hi + 1).min(n - 1);
+            }
+        }
+        min[a] = lo;
+        dims[a] = hi + 1 - lo;
+    }
+    let mut coeffs = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            let row = lattice.index(min[0], min[1] + j, min[2] + k);
+            coeffs.extend_from_slice(&lattice.coeffs[row..row + dims[0]]);
+        }
+    }
+    BSplineLattice {
+        dims,
+        spacing: lattice.spacing,
+        origin: lattice.node_position(min[0], min[1], min[2]),
+        iso: lattice.iso,
+        coeffs,
+    }
+}
+
+/// A colour carried with the clay: four B-spline lattices (red, green, blue, coverage) over
+/// the same nodes as the density patch they paint. Coverage 0 means "unpainted: show the
+/// material's base colour"; channel values are in `[0, 1]`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ColourField {
+    /// Red, green, blue and coverage, each with identical dims, spacing and origin.
+    pub channels: [BSplineLattice; 4],
+}
+
+impl ColourField {
+    /// An unpainted colour field over the same nodes as `density`.
+    ///
+    /// # Errors
+    /// When the density lattice's geometry is invalid (see [`BSplineLattice::zeros`]).
+    pub fn matching(density: &BSplineLattice) -> Result<Self, LatticeError> {
+        Self::new(density.dims, density.spacing, density.origin)
+    }
+
+    /// An unpainted colour field.
+    ///
+    /// # Errors
+    /// As [`BSplineLattice::zeros`].
+    pub fn new(dims: [usize; 3], spacing: f32, origin: Vec3) -> Result<Self, LatticeError> {
+        let lattice = BSplineLattice::zeros(dims, spacing, origin)?;
+        Ok(Self {
+            channels: [lattice.clone(), lattice.clone(), lattice.clone(), lattice],
+        })
+    }
+
+    /// Premultiplied-free colour and coverage at a world point, each clamped to `[0, 1]`.
+    #[must_use]
+    pub fn rgba(&self, x: Vec3) -> Vec4 {
+        let c = |n: usize| self.channels[n].value(x).clamp(0.0, 1.0);
+        Vec4::new(c(0), c(1), c(2), c(3))
+    }
+
+    /// Whether the four channels share one geometry.
+    #[must_use]
+    pub fn is_consistent(&self) -> bool {
+        let first = &self.channels[0];
+        self.channels.iter().all(|c| {
+            c.dims == first.dims
+                && c.spacing.to_bits() == first.spacing.to_bits()
+                && c.origin == first.origin
+                && c.coeffs.len() == first.coeffs.len()
+        })
+    }
+}
+
+/// The sculpt: density patches (the paper's eq. (3) sums them) and an optional colour field.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Clay {
+    pub patches: Vec<BSplineLattice>,
+    pub colour: Option<ColourField>,
+}
+
+impl Clay {
+    /// A clay made of one patch and no colour.
+    #[must_use]
+    pub fn single(patch: BSplineLattice) -> Self {
+        Self {
+            patches: vec![patch],
+            colour: None,
+        }
+    }
+
+    /// The lattice named by `id`, if it exists.
+    #[must_use]
+    pub fn field(&self, id: FieldId) -> Option<&BSplineLattice> {
+        match id {
+            FieldId::Density(n) => self.patches.get(usize::from(n)),
+            FieldId::Colour(c) => self.colour.as_ref()?.channels.get(usize::from(c)),
+        }
+    }
+
+    /// The lattice named by `id`, mutably, if it exists.
+    pub fn field_mut(&mut self, id: FieldId) -> Option<&mut BSplineLattice> {
+        match id {
+            FieldId::Density(n) => self.patches.get_mut(usize::from(n)),
+            FieldId::Colour(c) => self.colour.as_mut()?.channels.get_mut(usize::from(c)),
+        }
+    }
+
+    /// The summed density of all patches at a world point (eq. (3) with identity maps).
+    #[must_use]
+    pub fn density(&self, x: Vec3) -> f32 {
+        self.patches.iter().map(|p| p.value(x)).sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn boxes_union_clip_and_bound_their_support() {
+        let lattice = BSplineLattice::zeros([20, 20, 20], 0.1, Vec3::ZERO).unwrap();
+        let a = CoeffBox {
+            min: [3; 3],
+            max: [9; 3],
+        };
+        let b = CoeffBox {
+            min: [1, 5, 5],
+            max: [4, 30, 6],
+        };
+        let u = a.union(&b);
+        assert_eq!(
+            u,
+            CoeffBox {
+                min: [1, 3, 3],
+                max: [9, 30, 9]
+            }
+        );
+        assert_eq!(u.clipped([20; 3]).unwrap().max, [9, 19, 9]);
+        assert!(
+            CoeffBox {
+                min: [25; 3],
+                max: [30; 3]
+            }
+            .clipped([20; 3])
+            .is_none()
+        );
+        let (lo, hi) = a.world_support(&lattice);
+        assert!((lo - Vec3::splat(0.1)).length() < 1e-6);
+        assert!((hi - Vec3::splat(1.1)).length() < 1e-6);
+    }
+
+    #[test]
+    fn a_sub_lattice_evaluates_like_the_original_inside_its_margin() {
+        let mut lattice =
+            BSplineLattice::zeros([16, 12, 10], 0.2, Vec3::new(0.3, -0.1, 0.0)).unwrap();
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 37) % 23) as f32 / 23.0;
+        }
+        let region = CoeffBox {
+            min: [5, 0, 3],
+            max: [8, 4, 9],
+        };
+        let sub = sub_lattice(&lattice, &region, 4);
+        let (lo, hi) = region.world_support(&lattice);
+        for s in 0..300 {
+            let f = Vec3::new(
+                (s * 7 % 31) as f32 / 31.0,
+                (s * 11 % 29) as f32 / 29.0,
+                (s * 13 % 37) as f32 / 37.0,
+            );
+            let x = lo + (hi - lo) * f;
+            // Equal up to the rounding of the shifted origin.
+            assert!((sub.value(x) - lattice.value(x)).abs() < 1e-5, "at {x}");
+        }
+    }
+
+    #[test]
+    fn field_ids_address_patches_and_colour_channels() {
+        let lattice = BSplineLattice::zeros([4, 4, 4], 1.0, Vec3::ZERO).unwrap();
+        let mut clay = Clay::single(lattice.clone());
+        assert!(clay.field(FieldId::Colour(0)).is_none());
+        clay.colour = Some(ColourField::matching(&lattice).unwrap());
+        assert!(clay.field(FieldId::Colour(3)).is_some());
+        assert!(clay.field(FieldId::Colour(4)).is_none());
+        assert!(clay.field_mut(FieldId::Density(1)).is_none());
+        assert!(clay.colour.as_ref().unwrap().is_consistent());
+    }
+}

@@ -1,0 +1,241 @@
+//! Ferley et al.'s stamp deformation function `def(v)` (Fig. 11–12) and Zhang et al.'s contact
+//! deformation `h = f + β·g` (§3, after Cani-Gascuel). Pure scalar functions: no allocation.
+//!
+//! Both take the tool's potential as a density `t` in `[0, 1]` with the surface at one half.
+//! Ferley's `v` grows away from the tool's centre, so here `v = 1 − t`: `v = 0` at the core,
+//! `v = s = 1/2` on the tool's surface, `v = 1` beyond the tool's influence, and the sum
+//! `s + m + r` must stay within that range (`maxVal − minVal` in the paper).
+
+use serde::{Deserialize, Serialize};
+
+/// The five tunable parameters of Ferley's deformation function (Fig. 12).
+///
+/// `def(v)` runs from −1 at `v = 0` (remove everything at the tool's core) up to 0 at `v = s`
+/// with slope `−k`, on to a bulge of height `n` at `v = s + m` (slope 0), and back down to 0
+/// at `v = s + m + r` (slope 0), C¹ throughout. The formula is Ferley's as printed, whose
+/// slope at `s` is `−k`: a wall rising out of the print has `k < 0` (the default is −2), and
+/// `−k ≤ 3/s` keeps the first piece monotone.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StampParams {
+    /// Value of `v` where the deformation crosses zero (Ferley sets it to the iso-value).
+    pub s: f32,
+    /// Width of the rising part of the bulge.
+    pub m: f32,
+    /// Width of the falling part of the bulge.
+    pub r: f32,
+    /// Minus the slope at `v = s` (negative for a wall rising out of the print).
+    pub k: f32,
+    /// Bulge height (material pushed aside).
+    pub n: f32,
+}
+
+impl Default for StampParams {
+    fn default() -> Self {
+        Self {
+            s: 0.5,
+            m: 0.15,
+            r: 0.25,
+            k: -2.0,
+            n: 0.3,
+        }
+    }
+}
+
+/// Why stamp parameters were rejected.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StampParamsError(pub String);
+
+impl std::fmt::Display for StampParamsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "invalid stamp parameters: {}", self.0)
+    }
+}
+
+impl std::error::Error for StampParamsError {}
+
+impl StampParams {
+    /// Checks `s, m, r > 0`, `n ≥ 0`, all finite, and `s + m + r ≤ 1` (so the function is not
+    /// truncated by the potential's range, as Ferley requires).
+    ///
+    /// # Errors
+    /// Names the parameter that is out of range.
+    pub fn validate(&self) -> Result<(), StampParamsError> {
+        // (name, value, lower bound rule): "positive", "non-negative" or "any".
+        for (name, v, rule) in [
+            ("s", self.s, "positive"),
+            ("m", self.m, "positive"),
+            ("r", self.r, "positive"),
+            ("k", self.k, "any"),
+            ("n", self.n, "non-negative"),
+        ] {
+            let ok = v.is_finite()
+                && match rule {
+                    "positive" => v > 0.0,
+                    "non-negative" => v >= 0.0,
+                    _ => true,
+                };
+            if !ok {
+                let bound = if rule == "any" {
+                    String::new()
+                } else {
+                    format!(" and {rule}")
+                };
+                return Err(StampParamsError(format!(
+                    "{name} = {v} must be finite{bound}"
+                )));
+            }
+        }
+        let span = self.s + self.m + self.r;
+        if span > 1.0 + 1e-6 {
+            return Err(StampParamsError(format!(
+                "s + m + r = {span} exceeds the potential's range 1"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Ferley's `def(v)` (Fig. 11).
+    ///
+    /// NOTE: the third piece is printed as `−2n/r³·v₀³ − 3n/m²·v₀² + n`, which neither reaches 0
+    /// at `v₀ = r` nor joins with slope 0; the C¹ cubic the figure draws is
+    /// `2n/r³·v₀³ − 3n/r²·v₀² + n`, used here.
+    #[inline]
+    #[must_use]
+    pub fn def(&self, v: f32) -> f32 {
+        let Self { s, m, r, k, n } = *self;
+        if v <= s {
+            let v = v.max(0.0);
+            -(s * k + 2.0) / (s * s * s) * v * v * v + (s * k + 3.0) / (s * s) * v * v - 1.0
+        } else if v <= s + m {
+            let v0 = v - s;
+            -(k * m + 2.0 * n) / (m * m * m) * v0 * v0 * v0
+                + (2.0 * k * m + 3.0 * n) / (m * m) * v0 * v0
+                - k * v0
+        } else if v <= s + m + r {
+            let v0 = v - s - m;
+            2.0 * n / (r * r * r) * v0 * v0 * v0 - 3.0 * n / (r * r) * v0 * v0 + n
+        } else {
+            0.0
+        }
+    }
+
+    /// The stamped clay density at a point: `clamp(f + def(1 − t))`.
+    #[inline]
+    #[must_use]
+    pub fn apply(&self, clay: f32, tool: f32) -> f32 {
+        (clay + self.def(1.0 - tool)).clamp(0.0, 1.0)
+    }
+}
+
+/// Zhang et al.'s contact deformation (§3): `h = f + β·g` with `g = α (f_tool − c)`.
+///
+/// With `t` the tool's potential and `c` the iso-level: inside the tool (`t ≥ c`, the contact
+/// region) `β = 1`; outside, `β = t / c`, which meets the inside with matching value (0) and
+/// slope (`α`), so the surface is C¹ across the tool boundary; it fades to zero with the
+/// tool's potential. α < 0 dents the clay and raises a rim around the dent; α > 0 bulges it.
+/// The deformation applies only where there is clay (`f > 0`), so the tool never creates
+/// material in empty space.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ContactParams {
+    /// Strength and sign: negative dents, positive bulges.
+    pub alpha: f32,
+}
+
+impl ContactParams {
+    /// The deformed clay density `h`, clamped to `[0, 1]`.
+    #[inline]
+    #[must_use]
+    pub fn apply(&self, clay: f32, tool: f32, iso: f32) -> f32 {
+        if clay <= 0.0 || tool <= 0.0 {
+            return clay;
+        }
+        let g = self.alpha * (tool - iso);
+        let beta = if tool >= iso { 1.0 } else { tool / iso };
+        (clay + beta * g).clamp(0.0, 1.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn derivative(p: &StampParams, v: f32) -> f32 {
+        let h = 1e-3;
+        (p.def(v + h) - p.def(v - h)) / (2.0 * h)
+    }
+
+    #[test]
+    fn def_hits_the_control_values_of_fig_12() {
+        let p = StampParams::default();
+        p.validate().unwrap();
+        assert!((p.def(0.0) + 1.0).abs() < 1e-6);
+        assert!(p.def(p.s).abs() < 1e-5);
+        assert!((p.def(p.s + p.m) - p.n).abs() < 1e-5);
+        assert!(p.def(p.s + p.m + p.r).abs() < 1e-5);
+        assert_eq!(p.def(0.99), 0.0);
+        assert!((derivative(&p, p.s) + p.k).abs() < 1e-2);
+        assert!(derivative(&p, p.s + p.m).abs() < 1e-2);
+        assert!(derivative(&p, 1e-3).abs() < 5e-2);
+    }
+
+    #[test]
+    fn def_is_continuous_at_every_joint() {
+        let p = StampParams {
+            s: 0.4,
+            m: 0.2,
+            r: 0.3,
+            k: -3.0,
+            n: 0.5,
+        };
+        for joint in [p.s, p.s + p.m, p.s + p.m + p.r] {
+            let e = 1e-4;
+            assert!(
+                (p.def(joint - e) - p.def(joint + e)).abs() < 1e-2,
+                "jump at {joint}"
+            );
+            let h = 1e-3;
+            let left = (p.def(joint) - p.def(joint - h)) / h;
+            let right = (p.def(joint + h) - p.def(joint)) / h;
+            assert!(
+                (left - right).abs() < 0.1,
+                "kink at {joint}: {left} vs {right}"
+            );
+        }
+    }
+
+    #[test]
+    fn bad_stamp_parameters_are_named() {
+        let e = StampParams {
+            s: 0.5,
+            m: 0.4,
+            r: 0.3,
+            ..StampParams::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.0.contains("s + m + r"));
+        let e = StampParams {
+            k: f32::NAN,
+            ..StampParams::default()
+        }
+        .validate()
+        .unwrap_err();
+        assert!(e.0.starts_with("k ="));
+    }
+
+    #[test]
+    fn contact_dents_inside_raises_a_rim_and_is_c1_at_the_tool_surface() {
+        let dent = ContactParams { alpha: -2.0 };
+        let iso = 0.5;
+        assert!(dent.apply(0.8, 0.9, iso) < 0.8, "dent inside the tool");
+        assert!(dent.apply(0.4, 0.3, iso) > 0.4, "rim just outside");
+        assert_eq!(dent.apply(0.4, 0.0, iso), 0.4, "untouched beyond the tool");
+        assert_eq!(dent.apply(0.0, 0.9, iso), 0.0, "no clay created in air");
+        let e = 1e-3;
+        let slope =
+            |t: f32| (dent.apply(0.6, t + e, iso) - dent.apply(0.6, t - e, iso)) / (2.0 * e);
+        assert!((slope(iso - 0.01) - slope(iso + 0.01)).abs() < 0.1);
+        let bulge = ContactParams { alpha: 2.0 };
+        assert!(bulge.apply(0.6, 0.9, iso) > 0.6);
+    }
+}

@@ -1,0 +1,524 @@
+//! Undo and redo of tool actions and force strokes, one stroke being one step, stored as
+//! bitwise XOR deltas of the coefficient bricks the step touched.
+//!
+//! Guarantee: undoing a step restores every coefficient (density and colour) bit for bit, and
+//! redoing it restores the post-step bits, provided the clay was changed only through recorded
+//! steps in between. Memory is bounded by [`History::budget_bytes`]: when a new step would
+//! exceed it, the oldest steps are dropped first. Recording allocates (it copies the touched
+//! bricks); it belongs on the simulation thread between steps, never on the haptic path.
+
+use std::collections::{BTreeMap, VecDeque};
+
+use super::clay::{Clay, CoeffBox, FieldId};
+
+/// Edge length (in coefficients) of the bricks that deltas are stored in.
+pub const BRICK: usize = 8;
+
+/// Default memory bound of the history: 256 MiB.
+pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;
+
+/// Why an undo or redo could not be applied.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HistoryError {
+    /// The step refers to a field the clay no longer has, or whose dimensions changed.
+    FieldMismatch { field: FieldId, detail: String },
+}
+
+impl std::fmt::Display for HistoryError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::FieldMismatch { field, detail } => {
+                write!(f, "cannot apply history step to {field:?}: {detail}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for HistoryError {}
+
+/// XOR of old and new coefficient bits over one brick.
+#[derive(Clone, Debug, PartialEq)]
+struct BrickDelta {
+    field: FieldId,
+    /// The field's dimensions when recorded (checked before applying).
+    dims: [usize; 3],
+    region: CoeffBox,
+    xor: Box<[u32]>,
+}
+
+impl BrickDelta {
+    fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + 4 * self.xor.len()
+    }
+}
+
+/// One undoable step: every brick it changed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Step {
+    /// What the user did ("add sphere", "grab stroke"), for menus.
+    pub label: String,
+    deltas: Vec<BrickDelta>,
+}
+
+impl Step {
+    /// Bytes this step holds in the history.
+    #[must_use]
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>()
+            + self.label.len()
+            + self.deltas.iter().map(BrickDelta::bytes).sum::<usize>()
+    }
+
+    /// Number of coefficients the step changed bricks of (a brick counts whole).
+    #[must_use]
+    pub fn coefficients(&self) -> usize {
+        self.deltas.iter().map(|d| d.xor.len()).sum()
+    }
+
+    /// XORs the step into the clay: applying it twice is a no-op, so it both undoes and redoes.
+    fn toggle(&self, clay: &mut Clay) -> Result<(), HistoryError> {
+        // Check every delta first so a failure changes nothing.
+        for d in &self.deltas {
+            let field = clay
+                .field(d.field)
+                .ok_or_else(|| HistoryError::FieldMismatch {
+                    field: d.field,
+                    detail: "the field no longer exists".into(),
+                })?;
+            if field.dims != d.dims || field.coeffs.len() != d.dims.iter().product::<usize>() {
+                return Err(HistoryError::FieldMismatch {
+                    field: d.field,
+                    detail: format!(
+                        "dimensions {:?} differ from recorded {:?}",
+                        field.dims, d.dims
+                    ),
+                });
+            }
+        }
+        for d in &self.deltas {
+            let Some(field) = clay.field_mut(d.field) else {
+                continue;
+            };
+            let mut n = 0;
+            for_each_index(d.dims, &d.region, |idx| {
+                let bits = field.coeffs[idx].to_bits() ^ d.xor[n];
+                field.coeffs[idx] = f32::from_bits(bits);
+                n += 1;
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Visits the linear indices of `region` in a lattice of `dims`, x fastest.
+fn for_each_index(dims: [usize; 3], region: &CoeffBox, mut f: impl FnMut(usize)) {
+    for k in region.min[2]..=region.max[2] {
+        for j in region.min[1]..=region.max[1] {
+            let row = dims[0] * (j + dims[1] * k);
+            for i in region.min[0]..=region.max[0] {
+                f(row + i);
+            }
+        }
+    }
+}
+
+/// Collects the pre-step values of every brick a step is about to change.
+///
+/// Call [`StepRecorder::touch`] with each region *before* writing to it (a tool application,
+/// each simulation step of a stroke); [`StepRecorder::finish`] then compares with the clay.
+#[derive(Debug, Default)]
+pub struct StepRecorder {
+    label: String,
+    /// Old bits of each touched brick, keyed by field and brick index.
+    old: BTreeMap<(FieldId, [usize; 3]), SavedBrick>,
+}
+
+/// The bits of one brick before a step.
+#[derive(Debug)]
+struct SavedBrick {
+    region: CoeffBox,
+    dims: [usize; 3],
+    bits: Vec<u32>,
+}
+
+impl StepRecorder {
+    /// Starts recording a step.
+    #[must_use]
+    pub fn new(label: impl Into<String>) -> Self {
+        Self {
+            label: label.into(),
+            old: BTreeMap::new(),
+        }
+    }
+
+    /// Remembers the current values of the bricks of `field` that meet `region`, unless they
+    /// were already remembered by this recorder. Unknown fields and empty boxes are ignored.
+    pub fn touch(&mut self, clay: &Clay, field: FieldId, region: CoeffBox) {
+        let Some(lattice) = clay.field(field) else {
+            return;
+        };
+        let dims = lattice.dims;
+        let Some(region) = region.clipped(dims) else {
+            return;
+        };
+        let b0: [usize; 3] = std::array::from_fn(|a| region.min[a] / BRICK);
+        let b1: [usize; 3] = std::array::from_fn(|a| region.max[a] / BRICK);
+        for bk in b0[2]..=b1[2] {
+            for bj in b0[1]..=b1[1] {
+                for bi in b0[0]..=b1[0] {
+                    let key = (field, [bi, bj, bk]);
+                    if self.old.contains_key(&key) {
+                        continue;
+                    }
+                    let Some(brick) = (CoeffBox {
+                        min: [bi * BRICK, bj * BRICK, bk * BRICK],
+                        max: [
+                            (bi + 1) * BRICK - 1,
+                            (bj + 1) * BRICK - 1,
+                            (bk + 1) * BRICK - 1,
+                        ],
+                    })
+                    .clipped(dims) else {
+                        continue;
+                    };
+                    let mut bits = Vec::with_capacity(brick.count());
+                    for_each_index(dims, &brick, |idx| bits.push(lattice.coeffs[idx].to_bits()));
+                    self.old.insert(
+                        key,
+                        SavedBrick {
+                            region: brick,
+                            dims,
+                            bits,
+                        },
+                    );
+                }
+            }
+        }
+    }
+
+    /// Remembers every brick of every field (for whole-clay operations such as CSG between
+    /// sessions).
+    pub fn touch_all(&mut self, clay: &Clay) {
+        let mut ids: Vec<FieldId> = (0..clay.patches.len())
+            .map(|n| FieldId::Density(n as u16))
+            .collect();
+        if clay.colour.is_some() {
+            ids.extend((0..4).map(FieldId::Colour));
+        }
+        for id in ids {
+            if let Some(l) = clay.field(id) {
+                let full = CoeffBox::whole(l.dims);
+                self.touch(clay, id, full);
+            }
+        }
+    }
+
+    /// The union of the touched bricks of `field` (`None` if none).
+    #[must_use]
+    pub fn touched_box(&self, field: FieldId) -> Option<CoeffBox> {
+        self.old
+            .iter()
+            .filter(|((f, _), _)| *f == field)
+            .map(|(_, saved)| saved.region)
+            .reduce(|a, b| a.union(&b))
+    }
+
+    /// Compares the remembered bricks with the clay now; `None` if nothing changed.
+    #[must_use]
+    pub fn finish(self, clay: &Clay) -> Option<Step> {
+        let mut deltas = Vec::new();
+        for (
+            (field, _),
+            SavedBrick {
+                region,
+                dims,
+                bits: old,
+            },
+        ) in self.old
+        {
+            let Some(lattice) = clay.field(field) else {
+                continue;
+            };
+            if lattice.dims != dims {
+                continue;
+            }
+            let mut xor = Vec::with_capacity(old.len());
+            let mut n = 0;
+            for_each_index(dims, &region, |idx| {
+                xor.push(lattice.coeffs[idx].to_bits() ^ old[n]);
+                n += 1;
+            });
+            if xor.iter().any(|&x| x != 0) {
+                deltas.push(BrickDelta {
+                    field,
+                    dims,
+                    region,
+                    xor: xor.into_boxed_slice(),
+                });
+            }
+        }
+        if deltas.is_empty() {
+            return None;
+        }
+        Some(Step {
+            label: self.label,
+            deltas,
+        })
+    }
+}
+
+/// The undo and redo stacks with a memory bound.
+#[derive(Debug)]
+pub struct History {
+    undo: VecDeque<Step>,
+    redo: Vec<Step>,
+    /// Memory bound over both stacks, in bytes.
+    pub budget_bytes: usize,
+    used_bytes: usize,
+    dropped_steps: usize,
+}
+
+impl Default for History {
+    fn default() -> Self {
+        Self::new(DEFAULT_BUDGET_BYTES)
+    }
+}
+
+impl History {
+    /// An empty history bounded to `budget_bytes`.
+    #[must_use]
+    pub fn new(budget_bytes: usize) -> Self {
+        Self {
+            undo: VecDeque::new(),
+            redo: Vec::new(),
+            budget_bytes,
+            used_bytes: 0,
+            dropped_steps: 0,
+        }
+    }
+
+    /// Records a finished step; clears the redo stack, then drops the oldest steps until the
+    /// history fits its budget (a step larger than the whole budget is not kept).
+    pub fn push(&mut self, step: Step) {
+        for s in self.redo.drain(..) {
+            self.used_bytes -= s.bytes();
+        }
+        self.used_bytes += step.bytes();
+        self.undo.push_back(step);
+        while self.used_bytes > self.budget_bytes {
+            let Some(old) = self.undo.pop_front() else {
+                break;
+            };
+            self.used_bytes -= old.bytes();
+            self.dropped_steps += 1;
+        }
+    }
+
+    /// Finishes a recorder and pushes its step if anything changed; returns whether it did.
+    pub fn commit(&mut self, recorder: StepRecorder, clay: &Clay) -> bool {
+        match recorder.finish(clay) {
+            Some(step) => {
+                self.push(step);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Undoes the latest step; returns its label, or `None` when there is nothing to undo.
+    ///
+    /// # Errors
+    /// When the clay's fields no longer match the step (nothing is changed then).
+    pub fn undo(&mut self, clay: &mut Clay) -> Result<Option<String>, HistoryError> {
+        let Some(step) = self.undo.pop_back() else {
+            return Ok(None);
+        };
+        if let Err(e) = step.toggle(clay) {
+            self.undo.push_back(step);
+            return Err(e);
+        }
+        let label = step.label.clone();
+        self.redo.push(step);
+        Ok(Some(label))
+    }
+
+    /// Redoes the latest undone step; returns its label, or `None` when there is none.
+    ///
+    /// # Errors
+    /// As [`History::undo`].
+    pub fn redo(&mut self, clay: &mut Clay) -> Result<Option<String>, HistoryError> {
+        let Some(step) = self.redo.pop() else {
+            return Ok(None);
+        };
+        if let Err(e) = step.toggle(clay) {
+            self.redo.push(step);
+            return Err(e);
+        }
+        let label = step.label.clone();
+        self.undo.push_back(step);
+        Ok(Some(label))
+    }
+
+    /// Steps that can be undone.
+    #[must_use]
+    pub fn undo_len(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Steps that can be redone.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Bytes held by both stacks.
+    #[must_use]
+    pub fn used_bytes(&self) -> usize {
+        self.used_bytes
+    }
+
+    /// Steps dropped so far to stay within the budget.
+    #[must_use]
+    pub fn dropped_steps(&self) -> usize {
+        self.dropped_steps
+    }
+
+    /// Forgets everything (after loading another session).
+    pub fn clear(&mut self) {
+        self.undo.clear();
+        self.redo.clear();
+        self.used_bytes = 0;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::field::BSplineLattice;
+
+    fn clay() -> Clay {
+        let mut l = BSplineLattice::zeros([20, 13, 9], 0.1, Vec3::ZERO).unwrap();
+        for (n, c) in l.coeffs.iter_mut().enumerate() {
+            *c = (n % 7) as f32 * 0.1;
+        }
+        Clay::single(l)
+    }
+
+    fn edit(clay: &mut Clay, history: &mut History, region: CoeffBox, value: f32) {
+        let mut rec = StepRecorder::new("set");
+        rec.touch(clay, FieldId::Density(0), region);
+        let l = &mut clay.patches[0];
+        let dims = l.dims;
+        for_each_index(dims, &region.clipped(dims).unwrap(), |i| {
+            l.coeffs[i] = value
+        });
+        history.commit(rec, clay);
+    }
+
+    #[test]
+    fn undo_then_redo_is_bit_exact_including_nan_payloads_and_negative_zero() {
+        let mut c = clay();
+        let before = c.clone();
+        let mut h = History::default();
+        let region = CoeffBox {
+            min: [3, 2, 1],
+            max: [16, 10, 7],
+        };
+        edit(&mut c, &mut h, region, -0.0);
+        edit(&mut c, &mut h, region, f32::from_bits(0x7fc0_1234));
+        let after = c.patches[0]
+            .coeffs
+            .iter()
+            .map(|x| x.to_bits())
+            .collect::<Vec<_>>();
+        assert_eq!(h.undo(&mut c).unwrap().as_deref(), Some("set"));
+        h.undo(&mut c).unwrap();
+        let bits = |c: &Clay| {
+            c.patches[0]
+                .coeffs
+                .iter()
+                .map(|x| x.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&c), bits(&before));
+        assert_eq!(h.undo(&mut c).unwrap(), None);
+        h.redo(&mut c).unwrap();
+        h.redo(&mut c).unwrap();
+        assert_eq!(bits(&c), after);
+        assert_eq!(h.redo(&mut c).unwrap(), None);
+    }
+
+    #[test]
+    fn an_unchanged_region_records_nothing_and_a_new_step_clears_redo() {
+        let mut c = clay();
+        let mut h = History::default();
+        let rec = {
+            let mut r = StepRecorder::new("noop");
+            r.touch(&c, FieldId::Density(0), CoeffBox::whole([20, 13, 9]));
+            r
+        };
+        assert!(!h.commit(rec, &c));
+        let region = CoeffBox {
+            min: [0; 3],
+            max: [1, 1, 1],
+        };
+        edit(&mut c, &mut h, region, 5.0);
+        h.undo(&mut c).unwrap();
+        assert_eq!(h.redo_len(), 1);
+        edit(&mut c, &mut h, region, 6.0);
+        assert_eq!(h.redo_len(), 0);
+        assert_eq!(h.undo_len(), 1);
+    }
+
+    #[test]
+    fn the_budget_drops_the_oldest_steps_first() {
+        let mut c = clay();
+        let region = CoeffBox {
+            min: [0; 3],
+            max: [7, 7, 7],
+        };
+        let one_step = {
+            let mut probe = c.clone();
+            let mut h = History::default();
+            edit(&mut probe, &mut h, region, 9.0);
+            h.used_bytes()
+        };
+        let mut h = History::new(3 * one_step);
+        for v in 0..5 {
+            edit(&mut c, &mut h, region, v as f32 + 10.0);
+        }
+        assert_eq!(h.undo_len(), 3);
+        assert_eq!(h.dropped_steps(), 2);
+        assert!(h.used_bytes() <= h.budget_bytes);
+        h.undo(&mut c).unwrap();
+        h.undo(&mut c).unwrap();
+        h.undo(&mut c).unwrap();
+        // Back to the state after the second edit (value 11), the oldest kept step's base.
+        assert_eq!(c.patches[0].coeffs[0], 11.0);
+    }
+
+    #[test]
+    fn a_step_for_a_resized_field_is_refused_and_changes_nothing() {
+        let mut c = clay();
+        let mut h = History::default();
+        edit(
+            &mut c,
+            &mut h,
+            CoeffBox {
+                min: [0; 3],
+                max: [3; 3],
+            },
+            1.0,
+        );
+        c.patches[0] = BSplineLattice::zeros([5, 5, 5], 0.1, Vec3::ZERO).unwrap();
+        let snapshot = c.clone();
+        assert!(matches!(
+            h.undo(&mut c),
+            Err(HistoryError::FieldMismatch { .. })
+        ));
+        assert_eq!(c, snapshot);
+        assert_eq!(h.undo_len(), 1);
+    }
+}

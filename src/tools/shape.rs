@@ -1,0 +1,341 @@
+//! Tool shapes and their potential fields (Ferley §4.1): an analytic solid (sphere, ellipsoid,
+//! box, cylinder, capsule) or a freeform lattice taken from a sculpted session, placed by a
+//! [`ToolPose`]. A tool's potential is a density in `[0, 1]` like the clay's: 1 deep inside,
+//! exactly one half on the tool's surface, 0 beyond its falloff band, C¹ throughout.
+//! Evaluation is pure and allocates nothing.
+
+use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::field::BSplineLattice;
+
+/// Where a tool is: its centre in world units and its orientation.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ToolPose {
+    pub position_m: Vec3,
+    #[serde(default = "identity")]
+    pub rotation: Quat,
+}
+
+fn identity() -> Quat {
+    Quat::IDENTITY
+}
+
+impl ToolPose {
+    /// A pose at `position_m` with no rotation.
+    #[must_use]
+    pub fn at(position_m: Vec3) -> Self {
+        Self {
+            position_m,
+            rotation: Quat::IDENTITY,
+        }
+    }
+
+    /// World point to the tool's local frame.
+    #[inline]
+    #[must_use]
+    pub fn to_local(&self, x: Vec3) -> Vec3 {
+        self.rotation.inverse() * (x - self.position_m)
+    }
+
+    /// World-axis-aligned bounds of a local box `-half ..= half` (Ferley Fig. 7b).
+    #[must_use]
+    pub fn world_bounds(&self, half: Vec3) -> (Vec3, Vec3) {
+        let m = glam::Mat3::from_quat(self.rotation);
+        let extent = m.x_axis.abs() * half.x + m.y_axis.abs() * half.y + m.z_axis.abs() * half.z;
+        (self.position_m - extent, self.position_m + extent)
+    }
+}
+
+/// A freeform tool: the field of a sculpted patch, scaled along its local axes (Ferley
+/// §4.1.2). The patch is centred on the tool position: local point `p` reads the lattice at
+/// `centre + p / scale` where `centre` is the middle of the lattice's support.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeformTool {
+    pub lattice: BSplineLattice,
+    pub scale: Vec3,
+}
+
+/// The shape of a geometric tool, in its local frame (cylinder and capsule axes run along z).
+#[derive(Clone, Debug, PartialEq)]
+pub enum ToolShape {
+    Sphere { radius_m: f32 },
+    Ellipsoid { radii_m: Vec3 },
+    Box { half_extents_m: Vec3 },
+    Cylinder { radius_m: f32, half_height_m: f32 },
+    Capsule { radius_m: f32, half_height_m: f32 },
+    Freeform(FreeformTool),
+}
+
+/// Why a tool shape cannot be used.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShapeError(pub String);
+
+impl std::fmt::Display for ShapeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "invalid tool shape: {}", self.0)
+    }
+}
+
+impl std::error::Error for ShapeError {}
+
+/// C¹ ramp from 1 (signed distance `-w`) through 1/2 (the surface) to 0 (distance `+w`).
+#[inline]
+#[must_use]
+pub fn density_from_distance(distance_m: f32, falloff_m: f32) -> f32 {
+    let x = ((falloff_m - distance_m) / (2.0 * falloff_m)).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+impl ToolShape {
+    /// Checks dimensions are positive and finite.
+    ///
+    /// # Errors
+    /// Names the offending parameter.
+    pub fn validate(&self) -> Result<(), ShapeError> {
+        let positive = |name: &str, v: f32| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ShapeError(format!(
+                    "{name} must be positive and finite, got {v}"
+                )))
+            }
+        };
+        match self {
+            Self::Sphere { radius_m } => positive("radius_m", *radius_m),
+            Self::Ellipsoid { radii_m } => (0..3).try_for_each(|a| positive("radii_m", radii_m[a])),
+            Self::Box { half_extents_m } => {
+                (0..3).try_for_each(|a| positive("half_extents_m", half_extents_m[a]))
+            }
+            Self::Cylinder {
+                radius_m,
+                half_height_m,
+            }
+            | Self::Capsule {
+                radius_m,
+                half_height_m,
+            } => {
+                positive("radius_m", *radius_m)?;
+                positive("half_height_m", *half_height_m)
+            }
+            Self::Freeform(tool) => (0..3).try_for_each(|a| positive("scale", tool.scale[a])),
+        }
+    }
+
+    /// Half extents of the local box outside which the shape's solid lies (without falloff).
+    #[must_use]
+    pub fn half_extents(&self) -> Vec3 {
+        match self {
+            Self::Sphere { radius_m } => Vec3::splat(*radius_m),
+            Self::Ellipsoid { radii_m } => *radii_m,
+            Self::Box { half_extents_m } => *half_extents_m,
+            Self::Cylinder {
+                radius_m,
+                half_height_m,
+            } => Vec3::new(*radius_m, *radius_m, *half_height_m),
+            Self::Capsule {
+                radius_m,
+                half_height_m,
+            } => Vec3::new(*radius_m, *radius_m, half_height_m + radius_m),
+            Self::Freeform(tool) => {
+                let (lo, hi) = tool.lattice.support();
+                0.5 * (hi - lo) * tool.scale
+            }
+        }
+    }
+
+    /// Signed distance (negative inside) from a local point to an analytic shape's surface;
+    /// for the ellipsoid a first-order estimate that is exact on the axes and on the surface.
+    /// `None` for a freeform shape, which has a density but no distance.
+    #[must_use]
+    pub fn signed_distance(&self, p: Vec3) -> Option<f32> {
+        let box_distance = |q: Vec3| q.max(Vec3::ZERO).length() + q.max_element().min(0.0);
+        Some(match self {
+            Self::Sphere { radius_m } => p.length() - radius_m,
+            Self::Ellipsoid { radii_m } => {
+                let k0 = (p / *radii_m).length();
+                let k1 = (p / (*radii_m * *radii_m)).length();
+                if k1 > 0.0 {
+                    k0 * (k0 - 1.0) / k1
+                } else {
+                    -radii_m.min_element()
+                }
+            }
+            Self::Box { half_extents_m } => box_distance(p.abs() - *half_extents_m),
+            Self::Cylinder {
+                radius_m,
+                half_height_m,
+            } => {
+                let q = Vec3::new(
+                    p.truncate().length() - radius_m,
+                    p.z.abs() - half_height_m,
+                    f32::MIN,
+                );
+                box_distance(q)
+            }
+            Self::Capsule {
+                radius_m,
+                half_height_m,
+            } => {
+                (p - Vec3::new(0.0, 0.0, p.z.clamp(-half_height_m, *half_height_m))).length()
+                    - radius_m
+            }
+            Self::Freeform(_) => return None,
+        })
+    }
+
+    /// The tool's potential (density in `[0, 1]`, one half on the surface) at a local point.
+    #[inline]
+    #[must_use]
+    pub fn density(&self, p: Vec3, falloff_m: f32) -> f32 {
+        match self {
+            Self::Freeform(tool) => {
+                let (lo, hi) = tool.lattice.support();
+                let x = 0.5 * (lo + hi) + p / tool.scale;
+                remap_iso(tool.lattice.value(x), tool.lattice.iso)
+            }
+            analytic => density_from_distance(
+                analytic.signed_distance(p).unwrap_or(f32::INFINITY),
+                falloff_m,
+            ),
+        }
+    }
+
+    /// Half extents of the local box outside which the density is exactly zero.
+    #[must_use]
+    pub fn influence_half_extents(&self, falloff_m: f32) -> Vec3 {
+        match self {
+            Self::Freeform(_) => self.half_extents(),
+            _ => self.half_extents() + Vec3::splat(falloff_m),
+        }
+    }
+
+    /// Volume of the analytic solid in cubic world units (`None` for freeform shapes).
+    #[must_use]
+    pub fn volume_m3(&self) -> Option<f32> {
+        use std::f32::consts::PI;
+        Some(match self {
+            Self::Sphere { radius_m } => 4.0 / 3.0 * PI * radius_m.powi(3),
+            Self::Ellipsoid { radii_m } => 4.0 / 3.0 * PI * radii_m.x * radii_m.y * radii_m.z,
+            Self::Box { half_extents_m } => {
+                8.0 * half_extents_m.x * half_extents_m.y * half_extents_m.z
+            }
+            Self::Cylinder {
+                radius_m,
+                half_height_m,
+            } => PI * radius_m * radius_m * 2.0 * half_height_m,
+            Self::Capsule {
+                radius_m,
+                half_height_m,
+            } => PI * radius_m * radius_m * (2.0 * half_height_m + 4.0 / 3.0 * radius_m),
+            Self::Freeform(_) => return None,
+        })
+    }
+}
+
+/// Maps a freeform field so that its own iso-level lands on one half, clamped to `[0, 1]`.
+#[inline]
+fn remap_iso(value: f32, iso: f32) -> f32 {
+    let v = value.clamp(0.0, 1.0);
+    if !(iso > 0.0 && iso < 1.0) {
+        return v;
+    }
+    if v <= iso {
+        0.5 * v / iso
+    } else {
+        0.5 + 0.5 * (v - iso) / (1.0 - iso)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn density_is_one_half_on_every_analytic_surface() {
+        let w = 0.05;
+        let cases = [
+            (
+                ToolShape::Sphere { radius_m: 0.3 },
+                Vec3::new(0.3, 0.0, 0.0),
+            ),
+            (
+                ToolShape::Ellipsoid {
+                    radii_m: Vec3::new(0.3, 0.2, 0.1),
+                },
+                Vec3::new(0.0, 0.0, 0.1),
+            ),
+            (
+                ToolShape::Box {
+                    half_extents_m: Vec3::new(0.3, 0.2, 0.1),
+                },
+                Vec3::new(0.1, 0.2, 0.0),
+            ),
+            (
+                ToolShape::Cylinder {
+                    radius_m: 0.2,
+                    half_height_m: 0.4,
+                },
+                Vec3::new(0.0, 0.2, 0.1),
+            ),
+            (
+                ToolShape::Capsule {
+                    radius_m: 0.2,
+                    half_height_m: 0.4,
+                },
+                Vec3::new(0.0, 0.0, 0.6),
+            ),
+        ];
+        for (shape, surface) in cases {
+            shape.validate().unwrap();
+            assert!((shape.density(surface, w) - 0.5).abs() < 1e-4, "{shape:?}");
+            assert!(shape.density(Vec3::ZERO, w) > 0.99);
+            let far = shape.influence_half_extents(w) * 1.01;
+            assert_eq!(shape.density(far, w), 0.0);
+        }
+    }
+
+    #[test]
+    fn ramp_is_c1_and_monotone() {
+        let w = 0.1;
+        let mut last = 1.0;
+        for s in 0..=100 {
+            let d = -0.15 + 0.3 * s as f32 / 100.0;
+            let t = density_from_distance(d, w);
+            assert!(t <= last + 1e-7);
+            last = t;
+        }
+        assert_eq!(density_from_distance(-w, w), 1.0);
+        assert_eq!(density_from_distance(w, w), 0.0);
+    }
+
+    #[test]
+    fn rotated_bounds_hold_the_rotated_box() {
+        let pose = ToolPose {
+            position_m: Vec3::new(1.0, 2.0, 3.0),
+            rotation: Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+        };
+        let half = Vec3::new(1.0, 0.1, 0.1);
+        let (lo, hi) = pose.world_bounds(half);
+        let corner = pose.position_m + pose.rotation * half;
+        assert!(corner.cmpge(lo).all() && corner.cmple(hi).all());
+        assert!((pose.to_local(corner) - half).length() < 1e-5);
+    }
+
+    #[test]
+    fn freeform_tool_reads_its_lattice_with_iso_mapped_to_one_half() {
+        let mut lattice = BSplineLattice::zeros([6, 6, 6], 1.0, Vec3::ZERO).unwrap();
+        lattice.coeffs.iter_mut().for_each(|c| *c = 0.8);
+        lattice.iso = 0.4;
+        let tool = ToolShape::Freeform(FreeformTool {
+            lattice,
+            scale: Vec3::ONE,
+        });
+        tool.validate().unwrap();
+        // The centre of the support is well inside the lattice, where the field is 0.8.
+        let expected = 0.5 + 0.5 * (0.8 - 0.4) / 0.6;
+        assert!((tool.density(Vec3::ZERO, 0.0) - expected).abs() < 1e-5);
+        assert!(ToolShape::Sphere { radius_m: -1.0 }.validate().is_err());
+    }
+}
