@@ -11,3 +11,19 @@ pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
+
+// Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
+pub mod codec;
+pub mod delta;
+pub mod enumerate;
+pub mod falcon;
+pub mod hid_arm;
+pub mod kinematics;
+pub mod open;
+pub mod pose_input;
+pub mod profile;
+pub mod serial_arm;
+pub mod serial_link;
+pub mod spacemouse;
+pub mod spec;
+pub mod velocity;

@@ -1,0 +1,277 @@
+//! What is connected: HID devices and serial ports, which of them dynaclay supports, and
+//! whether this user may open them.
+//!
+//! HID enumeration reads sysfs through hidapi (no permission needed); serial enumeration uses
+//! serialport's sysfs scan. Access is checked with `access(2)` on the device node, so nothing
+//! is opened (opening a tty would toggle DTR and reset some boards). Not for the haptic path.
+
+use std::ffi::CString;
+use std::fmt::Write as _;
+
+use crate::spacemouse::SPACEMOUSE_IDS;
+
+/// USB IDs of the Novint Falcon's FTDI bridge.
+pub const FALCON_ID: (u16, u16) = (0x0403, 0xcb48);
+/// USB IDs of the WoodenHaptics / Polhem HID firmware (mbed's USBHID defaults).
+pub const WOODENHAPTICS_ID: (u16, u16) = (0x1234, 0x0006);
+/// USB IDs of the Cartesian HID reference firmware (pid.codes test ID).
+pub const CARTESIAN_HID_ID: (u16, u16) = (0x1209, 0x0001);
+
+/// How the device is attached.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transport {
+    /// A hidraw node.
+    Hid,
+    /// A tty.
+    Serial,
+}
+
+/// Whether this user may open a node.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Access {
+    /// Readable and writable.
+    Ok,
+    /// The node exists but is not readable and writable by this user.
+    Denied,
+    /// The node is not there (enumeration raced an unplug) or the path is not a file path.
+    Missing,
+}
+
+/// One connected device.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Connected {
+    /// HID or serial.
+    pub transport: Transport,
+    /// Device node, e.g. `/dev/hidraw3` or `/dev/ttyUSB0`.
+    pub path: String,
+    /// USB vendor ID (0 when not a USB device).
+    pub vendor_id: u16,
+    /// USB product ID.
+    pub product_id: u16,
+    /// Product string, if the device gives one.
+    pub product: Option<String>,
+    /// What dynaclay would open it as, as a `--device` spec, if supported.
+    pub spec: Option<String>,
+    /// Permission to open the node.
+    pub access: Access,
+}
+
+/// Checks whether this user may read and write `path`, without opening it.
+#[must_use]
+pub fn access(path: &str) -> Access {
+    let Ok(c) = CString::new(path) else {
+        return Access::Missing;
+    };
+    // SAFETY: `c` is a valid NUL-terminated string that outlives the call; access(2) only
+    // reads it.
+    let rw = unsafe { libc::access(c.as_ptr(), libc::R_OK | libc::W_OK) };
+    if rw == 0 {
+        Access::Ok
+    } else if std::path::Path::new(path).exists() {
+        Access::Denied
+    } else {
+        Access::Missing
+    }
+}
+
+/// The `--device` spec for a supported USB device.
+#[must_use]
+pub fn supported_spec(transport: Transport, vid: u16, pid: u16, path: &str) -> Option<String> {
+    match transport {
+        Transport::Hid if SPACEMOUSE_IDS.contains(&(vid, pid)) => Some("spacemouse".into()),
+        Transport::Hid if (vid, pid) == WOODENHAPTICS_ID => Some("hid:woodenhaptics".into()),
+        Transport::Hid if (vid, pid) == CARTESIAN_HID_ID => Some("hid:cartesian-hid".into()),
+        Transport::Serial if (vid, pid) == FALCON_ID => Some(format!("falcon:{path}")),
+        _ => None,
+    }
+}
+
+/// Lists HID devices (one entry per hidraw node).
+///
+/// # Errors
+/// The hidapi error text when HID enumeration itself fails.
+pub fn list_hid() -> Result<Vec<Connected>, String> {
+    let api = hidapi::HidApi::new().map_err(|e| format!("HID enumeration failed: {e}"))?;
+    let mut out: Vec<Connected> = Vec::new();
+    for d in api.device_list() {
+        let path = d.path().to_string_lossy().into_owned();
+        if out.iter().any(|c| c.path == path) {
+            continue;
+        }
+        let (vid, pid) = (d.vendor_id(), d.product_id());
+        out.push(Connected {
+            transport: Transport::Hid,
+            spec: supported_spec(Transport::Hid, vid, pid, &path),
+            access: access(&path),
+            path,
+            vendor_id: vid,
+            product_id: pid,
+            product: d.product_string().map(str::to_string),
+        });
+    }
+    Ok(out)
+}
+
+/// Lists serial ports.
+///
+/// # Errors
+/// The serialport error text when enumeration fails.
+pub fn list_serial() -> Result<Vec<Connected>, String> {
+    let ports = serialport::available_ports()
+        .map_err(|e| format!("serial port enumeration failed: {e}"))?;
+    Ok(ports
+        .into_iter()
+        .map(|p| {
+            let (vid, pid, product) = match &p.port_type {
+                serialport::SerialPortType::UsbPort(u) => (u.vid, u.pid, u.product.clone()),
+                _ => (0, 0, None),
+            };
+            Connected {
+                transport: Transport::Serial,
+                spec: supported_spec(Transport::Serial, vid, pid, &p.port_name),
+                access: access(&p.port_name),
+                path: p.port_name,
+                vendor_id: vid,
+                product_id: pid,
+                product,
+            }
+        })
+        .collect())
+}
+
+/// Lists everything; enumeration failures become notes instead of errors.
+#[must_use]
+pub fn list_all() -> (Vec<Connected>, Vec<String>) {
+    let mut all = Vec::new();
+    let mut notes = Vec::new();
+    for r in [list_hid(), list_serial()] {
+        match r {
+            Ok(v) => all.extend(v),
+            Err(e) => notes.push(e),
+        }
+    }
+    (all, notes)
+}
+
+/// Human-readable report for `dynaclay devices`: one line per device, supported ones marked,
+/// and a clear explanation when permissions are missing.
+#[must_use]
+pub fn report(devices: &[Connected], notes: &[String]) -> String {
+    let mut s = String::new();
+    if devices.is_empty() {
+        s.push_str("No HID devices or serial ports found.\n");
+    }
+    let mut denied = Vec::new();
+    for d in devices {
+        let kind = match d.transport {
+            Transport::Hid => "hid   ",
+            Transport::Serial => "serial",
+        };
+        let ids = if d.vendor_id == 0 && d.product_id == 0 {
+            "---------".to_string()
+        } else {
+            format!("{:04x}:{:04x}", d.vendor_id, d.product_id)
+        };
+        let access = match d.access {
+            Access::Ok => "",
+            Access::Denied => "  [permission denied]",
+            Access::Missing => "  [node missing]",
+        };
+        let supported = d
+            .spec
+            .as_deref()
+            .map(|spec| format!("  supported: --device {spec}"))
+            .unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "{kind} {ids} {:<16} {}{supported}{access}",
+            d.path,
+            d.product.as_deref().unwrap_or("")
+        );
+        if d.access == Access::Denied && d.spec.is_some() {
+            denied.push(d.path.as_str());
+        }
+    }
+    if !denied.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nPermission missing: this user cannot read and write {}.\n\
+             Install the udev rules: sudo cp devices/udev/99-dynaclay.rules /etc/udev/rules.d/ \
+             && sudo udevadm control --reload-rules && sudo udevadm trigger, then replug the device.",
+            denied.join(", ")
+        );
+    }
+    for n in notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn supported_ids_map_to_specs() {
+        assert_eq!(
+            supported_spec(Transport::Hid, 0x046d, 0xc626, "/dev/hidraw0").as_deref(),
+            Some("spacemouse")
+        );
+        assert_eq!(
+            supported_spec(Transport::Hid, 0x256f, 0xc635, "/dev/hidraw0").as_deref(),
+            Some("spacemouse")
+        );
+        assert_eq!(
+            supported_spec(Transport::Hid, 0x1234, 0x0006, "/dev/hidraw1").as_deref(),
+            Some("hid:woodenhaptics")
+        );
+        assert_eq!(
+            supported_spec(Transport::Serial, 0x0403, 0xcb48, "/dev/ttyUSB0").as_deref(),
+            Some("falcon:/dev/ttyUSB0")
+        );
+        assert_eq!(
+            supported_spec(Transport::Serial, 0x0403, 0x6001, "/dev/ttyUSB0"),
+            None
+        );
+    }
+
+    #[test]
+    fn access_tells_denied_from_missing() {
+        assert_eq!(access("/nonexistent/hidraw9"), Access::Missing);
+        assert_eq!(access("bad\0path"), Access::Missing);
+        let f = tempfile::NamedTempFile::new().unwrap();
+        assert_eq!(access(f.path().to_str().unwrap()), Access::Ok);
+    }
+
+    #[test]
+    fn report_explains_missing_permissions() {
+        let d = Connected {
+            transport: Transport::Hid,
+            path: "/dev/hidraw7".into(),
+            vendor_id: 0x256f,
+            product_id: 0xc635,
+            product: Some("SpaceMouse Compact".into()),
+            spec: Some("spacemouse".into()),
+            access: Access::Denied,
+        };
+        let r = report(&[d], &[]);
+        assert!(
+            r.contains("256f:c635") && r.contains("--device spacemouse"),
+            "{r}"
+        );
+        assert!(
+            r.contains("[permission denied]")
+                && r.contains("99-dynaclay.rules")
+                && r.contains("/dev/hidraw7"),
+            "{r}"
+        );
+        assert!(report(&[], &["x".into()]).contains("No HID devices"));
+    }
+
+    #[test]
+    fn listing_this_machine_does_not_fail_or_panic() {
+        // No devices are expected here; the call must still return cleanly.
+        let (devices, _notes) = list_all();
+        let _ = report(&devices, &[]);
+    }
+}

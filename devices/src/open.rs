@@ -1,0 +1,141 @@
+//! From a [`DeviceSpec`] to a hardware driver, ready for `open`.
+//!
+//! [`build_driver`] resolves the profile (built-in name or TOML file) and constructs the driver;
+//! it does no I/O, so errors here are configuration errors. The engine then wraps the result in
+//! the [`crate::SafetyFilter`] and calls `open`. `sim` and `replay:FILE` are not hardware: the
+//! engine builds them from [`crate::sim_arm`] and [`crate::record`] directly.
+
+use std::path::PathBuf;
+
+use crate::device::{DeviceError, HapticDevice};
+use crate::falcon::{Falcon, FalconOptions};
+use crate::hid_arm::HidArm;
+use crate::pose_input::PoseInputConfig;
+use crate::profile::{DeviceProfile, Protocol};
+use crate::serial_arm::{SerialArm, SerialArmOptions};
+use crate::spacemouse::SpaceMouse;
+use crate::spec::DeviceSpec;
+
+/// Environment variable naming the Falcon firmware file.
+pub const FALCON_FIRMWARE_ENV: &str = "DYNACLAY_FALCON_FIRMWARE";
+
+/// Per-driver settings.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DriverOptions {
+    /// Falcon settings (firmware file, homing, timeouts).
+    pub falcon: FalconOptions,
+    /// Cartesian serial settings.
+    pub serial: SerialArmOptions,
+    /// SpaceMouse pose settings.
+    pub spacemouse: PoseInputConfig,
+}
+
+impl DriverOptions {
+    /// Defaults, with the Falcon firmware file taken from `DYNACLAY_FALCON_FIRMWARE` if set.
+    #[must_use]
+    pub fn from_env() -> Self {
+        let mut o = Self::default();
+        o.falcon.firmware = std::env::var_os(FALCON_FIRMWARE_ENV).map(PathBuf::from);
+        o
+    }
+}
+
+fn load_profile(name: &str) -> Result<DeviceProfile, DeviceError> {
+    DeviceProfile::load(name).map_err(|e| DeviceError::Config {
+        source: name.to_string(),
+        message: e.to_string(),
+    })
+}
+
+/// Builds the (unopened) driver for a hardware spec.
+///
+/// # Errors
+/// [`DeviceError::Config`] for a bad or mismatched profile; [`DeviceError::Unsupported`] for
+/// `sim` and `replay`, which the engine builds itself.
+pub fn build_driver(
+    spec: &DeviceSpec,
+    opts: &DriverOptions,
+) -> Result<Box<dyn HapticDevice>, DeviceError> {
+    match spec {
+        DeviceSpec::Sim => Err(DeviceError::Unsupported {
+            what: "`sim` as hardware: build crate::sim_arm::SimulatedArm",
+        }),
+        DeviceSpec::Replay { .. } => Err(DeviceError::Unsupported {
+            what: "`replay` as hardware: build the crate::record replay device",
+        }),
+        DeviceSpec::SpaceMouse => Ok(Box::new(SpaceMouse::new(opts.spacemouse))),
+        DeviceSpec::Hid { profile } => {
+            let p = load_profile(profile.as_deref().unwrap_or("woodenhaptics"))?;
+            Ok(Box::new(HidArm::new(p)?))
+        }
+        DeviceSpec::Falcon { path } => Ok(Box::new(Falcon::new(
+            &path.to_string_lossy(),
+            opts.falcon.clone(),
+        ))),
+        DeviceSpec::Serial { path, profile } => {
+            let name = profile.as_deref().unwrap_or("cartesian-serial");
+            let p = load_profile(name)?;
+            let path = path.to_string_lossy();
+            match p.protocol {
+                Protocol::CartesianSerial => {
+                    Ok(Box::new(SerialArm::new(&path, p, opts.serial.clone())))
+                }
+                Protocol::Falcon => Ok(Box::new(Falcon::with_profile(
+                    &path,
+                    p,
+                    opts.falcon.clone(),
+                )?)),
+                other => Err(DeviceError::Config {
+                    source: name.to_string(),
+                    message: format!(
+                        "profile protocol {other:?} is not a serial protocol; use hid:{name}"
+                    ),
+                }),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_hardware_spec_builds_a_driver_without_io() {
+        let o = DriverOptions::default();
+        for s in [
+            "hid",
+            "hid:polhem",
+            "hid:cartesian-hid",
+            "serial:/dev/null",
+            "serial:/dev/null:falcon",
+            "falcon:/dev/null",
+            "spacemouse",
+        ] {
+            let spec: DeviceSpec = s.parse().unwrap();
+            let d = build_driver(&spec, &o).unwrap_or_else(|e| panic!("{s}: {e}"));
+            assert!(!d.is_open(), "{s}");
+        }
+    }
+
+    #[test]
+    fn mismatches_and_missing_profiles_are_config_errors() {
+        let o = DriverOptions::default();
+        let e = build_driver(&"hid:falcon".parse().unwrap(), &o)
+            .err()
+            .unwrap();
+        assert!(matches!(e, DeviceError::Config { .. }), "{e}");
+        let e = build_driver(&"serial:/dev/null:woodenhaptics".parse().unwrap(), &o)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("not a serial protocol"), "{e}");
+        let e = build_driver(&"hid:/nonexistent/arm.toml".parse().unwrap(), &o)
+            .err()
+            .unwrap();
+        assert!(e.to_string().contains("/nonexistent/arm.toml"), "{e}");
+        assert!(matches!(
+            build_driver(&DeviceSpec::Sim, &o).err().unwrap(),
+            DeviceError::Unsupported { .. }
+        ));
+    }
+}

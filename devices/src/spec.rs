@@ -1,0 +1,221 @@
+//! Device specs as typed on the command line (`--device`): `sim`, `hid[:PROFILE]`,
+//! `serial:PATH[:PROFILE]`, `falcon:PATH`, `spacemouse`, `replay:FILE`.
+//!
+//! Parsing is pure and total: any string gives a [`DeviceSpec`] or a [`SpecError`] that quotes
+//! the input and says what was expected; it never panics.
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+/// Which device to open.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum DeviceSpec {
+    /// The simulated arm.
+    Sim,
+    /// A force-feedback arm over USB HID; profile name or file (default `woodenhaptics`).
+    Hid {
+        /// Built-in profile name or path to a profile TOML.
+        profile: Option<String>,
+    },
+    /// A Cartesian arm on a serial port; profile default `cartesian-serial`.
+    Serial {
+        /// Serial port path.
+        path: PathBuf,
+        /// Built-in profile name or path to a profile TOML.
+        profile: Option<String>,
+    },
+    /// A Novint Falcon on its FTDI serial port.
+    Falcon {
+        /// Serial port path.
+        path: PathBuf,
+    },
+    /// A 3Dconnexion SpaceMouse (pose input, no force).
+    SpaceMouse,
+    /// Replay of a recorded session.
+    Replay {
+        /// Recording file.
+        file: PathBuf,
+    },
+}
+
+/// Why a device spec did not parse.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SpecError {
+    /// The spec as given.
+    pub input: String,
+    /// What was wrong.
+    pub reason: String,
+}
+
+impl fmt::Display for SpecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "invalid device `{}`: {} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse or replay:FILE)",
+            self.input.escape_debug(),
+            self.reason
+        )
+    }
+}
+
+impl std::error::Error for SpecError {}
+
+impl FromStr for DeviceSpec {
+    type Err = SpecError;
+
+    fn from_str(s: &str) -> Result<Self, SpecError> {
+        let err = |reason: &str| SpecError {
+            input: s.to_string(),
+            reason: reason.to_string(),
+        };
+        let (kind, rest) = match s.split_once(':') {
+            Some((k, r)) => (k, Some(r)),
+            None => (s, None),
+        };
+        let nonempty = |what: &str, v: Option<&str>| match v {
+            Some(v) if !v.trim().is_empty() => Ok(v.to_string()),
+            _ => Err(err(&format!("`{kind}` needs a {what} after the colon"))),
+        };
+        match kind.trim().to_ascii_lowercase().as_str() {
+            "sim" if rest.is_none() => Ok(Self::Sim),
+            "spacemouse" if rest.is_none() => Ok(Self::SpaceMouse),
+            "sim" | "spacemouse" => Err(err(&format!("`{kind}` takes no argument"))),
+            "hid" => match rest {
+                None => Ok(Self::Hid { profile: None }),
+                Some(p) => Ok(Self::Hid {
+                    profile: Some(nonempty("profile name or file", Some(p))?),
+                }),
+            },
+            "serial" => {
+                let rest = nonempty("port path", rest)?;
+                // PATH[:PROFILE]: the profile follows the last colon, if any.
+                match rest.rsplit_once(':') {
+                    Some((path, profile)) if !path.is_empty() && !profile.is_empty() => {
+                        Ok(Self::Serial {
+                            path: PathBuf::from(path),
+                            profile: Some(profile.to_string()),
+                        })
+                    }
+                    Some(_) => Err(err(
+                        "`serial` needs PATH or PATH:PROFILE with both parts non-empty",
+                    )),
+                    None => Ok(Self::Serial {
+                        path: PathBuf::from(rest),
+                        profile: None,
+                    }),
+                }
+            }
+            "falcon" => Ok(Self::Falcon {
+                path: PathBuf::from(nonempty("port path", rest)?),
+            }),
+            "replay" => Ok(Self::Replay {
+                file: PathBuf::from(nonempty("recording file", rest)?),
+            }),
+            "" => Err(err("empty device kind")),
+            other => Err(err(&format!(
+                "unknown device kind `{}`",
+                other.escape_debug()
+            ))),
+        }
+    }
+}
+
+impl fmt::Display for DeviceSpec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Sim => write!(f, "sim"),
+            Self::Hid { profile: None } => write!(f, "hid"),
+            Self::Hid { profile: Some(p) } => write!(f, "hid:{p}"),
+            Self::Serial {
+                path,
+                profile: None,
+            } => write!(f, "serial:{}", path.display()),
+            Self::Serial {
+                path,
+                profile: Some(p),
+            } => write!(f, "serial:{}:{p}", path.display()),
+            Self::Falcon { path } => write!(f, "falcon:{}", path.display()),
+            Self::SpaceMouse => write!(f, "spacemouse"),
+            Self::Replay { file } => write!(f, "replay:{}", file.display()),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(s: &str) -> Result<DeviceSpec, SpecError> {
+        s.parse()
+    }
+
+    #[test]
+    fn every_form_parses() {
+        assert_eq!(p("sim"), Ok(DeviceSpec::Sim));
+        assert_eq!(p("SpaceMouse"), Ok(DeviceSpec::SpaceMouse));
+        assert_eq!(p("hid"), Ok(DeviceSpec::Hid { profile: None }));
+        assert_eq!(
+            p("hid:polhem"),
+            Ok(DeviceSpec::Hid {
+                profile: Some("polhem".into())
+            })
+        );
+        assert_eq!(
+            p("serial:/dev/ttyACM0"),
+            Ok(DeviceSpec::Serial {
+                path: "/dev/ttyACM0".into(),
+                profile: None
+            })
+        );
+        assert_eq!(
+            p("serial:/dev/ttyACM0:my-arm.toml"),
+            Ok(DeviceSpec::Serial {
+                path: "/dev/ttyACM0".into(),
+                profile: Some("my-arm.toml".into())
+            })
+        );
+        assert_eq!(
+            p("falcon:/dev/ttyUSB0"),
+            Ok(DeviceSpec::Falcon {
+                path: "/dev/ttyUSB0".into()
+            })
+        );
+        assert_eq!(
+            p("replay:runs/a:b.dcrec"),
+            Ok(DeviceSpec::Replay {
+                file: "runs/a:b.dcrec".into()
+            })
+        );
+    }
+
+    #[test]
+    fn display_round_trips() {
+        for s in [
+            "sim",
+            "hid",
+            "hid:x.toml",
+            "serial:/dev/ttyS0",
+            "serial:/dev/ttyS0:cartesian-serial",
+            "falcon:/dev/ttyUSB1",
+            "spacemouse",
+            "replay:f.rec",
+        ] {
+            assert_eq!(p(s).unwrap().to_string(), s);
+        }
+    }
+
+    #[test]
+    fn errors_quote_the_input_and_say_what_is_missing() {
+        let e = p("falcon").unwrap_err().to_string();
+        assert!(e.contains("`falcon`") && e.contains("port path"), "{e}");
+        let e = p("usb:3").unwrap_err().to_string();
+        assert!(e.contains("unknown device kind `usb`"), "{e}");
+        assert!(p("sim:1").unwrap_err().reason.contains("no argument"));
+        assert!(p("serial:/dev/x:").is_err());
+        assert!(p("serial::arm").is_err());
+        assert!(p("hid:").is_err());
+        assert!(p("").is_err());
+        assert!(p("replay:  ").is_err());
+    }
+}

@@ -1,0 +1,580 @@
+//! Serial drivers end to end over real pseudo-terminal pairs, with simulated firmware threads.
+//!
+//! Each test creates a PTY pair, runs a firmware simulation on the master side and points the
+//! driver at the slave's path, exactly as it would open `/dev/ttyUSB0`. A PTY has no line rate,
+//! so the drivers run with `BaudPolicy::Tolerant` (a refused baud change is noted, not fatal);
+//! the bootloader's byte sequence is otherwise the real one.
+
+use std::io::{Read, Write};
+use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use dynaclay_devices::codec::falcon::{self as fc, FalconStatus};
+use dynaclay_devices::codec::frame::{
+    self, DeviceMsg, FrameEvent, FrameReader, HostMsg, MAX_FRAME,
+};
+use dynaclay_devices::delta::Delta;
+use dynaclay_devices::falcon::{BOOT_HELLO, Falcon, FalconOptions};
+use dynaclay_devices::kinematics::JointMap;
+use dynaclay_devices::profile::DeviceProfile;
+use dynaclay_devices::serial_arm::{SerialArm, SerialArmOptions};
+use dynaclay_devices::serial_link::BaudPolicy;
+use dynaclay_devices::{DeviceError, HapticDevice, SafetyConfig, SafetyFilter};
+use glam::{DVec3, Vec3};
+use serialport::{SerialPort, TTYPort};
+
+/// Fault to inject on the firmware's next reply.
+mod fault {
+    pub const NONE: u8 = 0;
+    pub const GARBAGE: u8 = 1;
+    pub const BAD_FRAME: u8 = 2;
+    pub const SHORT_FRAME: u8 = 3;
+    pub const CLOSE: u8 = 4;
+}
+
+struct Sim {
+    path: String,
+    fault: Arc<AtomicU8>,
+    stop: Arc<AtomicBool>,
+    commands: Arc<AtomicU64>,
+    last_force: Arc<Mutex<[i16; 3]>>,
+    handle: Option<JoinHandle<()>>,
+}
+
+impl Sim {
+    fn inject(&self, f: u8) {
+        self.fault.store(f, Ordering::SeqCst);
+    }
+    fn last_force(&self) -> [i16; 3] {
+        *self.last_force.lock().unwrap()
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+fn pty() -> (TTYPort, String) {
+    let (mut master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
+    let path = slave.name().expect("slave path");
+    drop(slave); // the driver opens the node itself
+    master.set_timeout(Duration::from_millis(1)).unwrap();
+    (master, path)
+}
+
+fn read_some(master: &mut TTYPort, buf: &mut [u8]) -> usize {
+    master.read(buf).unwrap_or(0)
+}
+
+/// Where the simulated tool is at time `t`: a 1 cm circle around the Falcon's home.
+fn falcon_position(home: DVec3, t: f64) -> DVec3 {
+    home + DVec3::new(
+        0.01 * (2.0 * t).sin(),
+        0.01 * (2.0 * t).cos(),
+        0.005 * t.sin(),
+    )
+}
+
+fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
+    let (mut master, path) = pty();
+    let profile = DeviceProfile::built_in("falcon").unwrap();
+    let delta = Delta::from_geometry(&profile.geometry).unwrap();
+    let joints = JointMap {
+        motors: profile.motors.unwrap(),
+    };
+    let fault = Arc::new(AtomicU8::new(0));
+    let stop = Arc::new(AtomicBool::new(false));
+    let commands = Arc::new(AtomicU64::new(0));
+    let last_force = Arc::new(Mutex::new([0i16; 3]));
+    let (f2, s2, c2, l2) = (
+        fault.clone(),
+        stop.clone(),
+        commands.clone(),
+        last_force.clone(),
+    );
+    let handle = std::thread::spawn(move || {
+        #[derive(PartialEq)]
+        enum Stage {
+            Boot,
+            Start,
+            Upload(usize),
+            Running,
+        }
+        let mut stage = if firmware_len == 0 {
+            Stage::Running
+        } else {
+            Stage::Boot
+        };
+        let mut window: Vec<u8> = Vec::new();
+        let mut homed = 0u8;
+        let mut homing_seen = 0u32;
+        let t0 = Instant::now();
+        let mut buf = [0u8; 256];
+        while !s2.load(Ordering::SeqCst) {
+            let n = read_some(&mut master, &mut buf);
+            for &b in &buf[..n] {
+                match stage {
+                    Stage::Boot => {
+                        window.push(b);
+                        if window.ends_with(&BOOT_HELLO) {
+                            let _ = master.write_all(&[0x0a, 0x44, 0x2c, 0x0d]);
+                            stage = Stage::Start;
+                            window.clear();
+                        }
+                    }
+                    Stage::Start => {
+                        if b == b'A' {
+                            let _ = master.write_all(&[0x13, 0x41]);
+                            stage = Stage::Upload(0);
+                        }
+                    }
+                    Stage::Upload(k) => {
+                        let _ = master.write_all(&[b]); // the bootloader echoes every byte
+                        stage = if k + 1 == firmware_len {
+                            Stage::Running
+                        } else {
+                            Stage::Upload(k + 1)
+                        };
+                    }
+                    Stage::Running => {
+                        if b == fc::START {
+                            window.clear();
+                        }
+                        window.push(b);
+                        if window.len() < fc::FRAME_LEN {
+                            continue;
+                        }
+                        let Ok(cmd) = fc::decode_command(&window) else {
+                            window.clear();
+                            continue;
+                        };
+                        window.clear();
+                        c2.fetch_add(1, Ordering::SeqCst);
+                        *l2.lock().unwrap() = cmd.motor;
+                        if cmd.homing {
+                            homing_seen += 1;
+                            if homing_seen >= homing_ticks {
+                                homed = 0x7;
+                            }
+                        }
+                        let p = falcon_position(delta.home_guess_m, t0.elapsed().as_secs_f64());
+                        let q = delta.inverse(p).unwrap();
+                        let counts = joints.counts(q).map(|c| c.round() as i16);
+                        let frame = fc::encode_status(&FalconStatus {
+                            encoders: counts,
+                            buttons: 0,
+                            homed,
+                        });
+                        match f2.swap(fault::NONE, Ordering::SeqCst) {
+                            fault::GARBAGE => {
+                                let _ = master.write_all(b"\x00\xffnoise");
+                                let _ = master.write_all(&frame);
+                            }
+                            fault::BAD_FRAME => {
+                                let mut bad = frame;
+                                bad[6] = b'z';
+                                let _ = master.write_all(&bad);
+                            }
+                            fault::SHORT_FRAME => {
+                                let _ = master.write_all(&frame[..7]);
+                                let _ = master.write_all(&frame);
+                            }
+                            fault::CLOSE => return, // drops the master: the peer hangs up
+                            _ => {
+                                let _ = master.write_all(&frame);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    });
+    Sim {
+        path,
+        fault,
+        stop,
+        commands,
+        last_force,
+        handle: Some(handle),
+    }
+}
+
+fn cartesian_position_um(t: f64) -> [i32; 3] {
+    [
+        (20_000.0 * t.sin()) as i32,
+        (10_000.0 * t.cos()) as i32,
+        -5_000,
+    ]
+}
+
+fn spawn_cartesian(home_after: Duration) -> Sim {
+    let (mut master, path) = pty();
+    let fault = Arc::new(AtomicU8::new(0));
+    let stop = Arc::new(AtomicBool::new(false));
+    let commands = Arc::new(AtomicU64::new(0));
+    let last_force = Arc::new(Mutex::new([0i16; 3]));
+    let (f2, s2, c2, l2) = (
+        fault.clone(),
+        stop.clone(),
+        commands.clone(),
+        last_force.clone(),
+    );
+    let handle = std::thread::spawn(move || {
+        let mut reader = FrameReader::new();
+        let mut buf = [0u8; 256];
+        let mut out = [0u8; MAX_FRAME];
+        let mut homed = false;
+        let mut home_at: Option<Instant> = None;
+        let t0 = Instant::now();
+        while !s2.load(Ordering::SeqCst) {
+            if let Some(at) = home_at {
+                if at.elapsed() >= home_after {
+                    homed = true;
+                    home_at = None;
+                    let n = DeviceMsg::HomeDone { ok: true }.encode(&mut out).unwrap();
+                    let _ = master.write_all(&out[..n]);
+                }
+            }
+            let n = read_some(&mut master, &mut buf);
+            for &b in &buf[..n] {
+                let mut ev = Some(reader.push(b));
+                while let Some(e) = ev {
+                    if let FrameEvent::Frame { kind, .. } = e {
+                        match HostMsg::decode(kind, reader.payload()) {
+                            Ok(HostMsg::Hello { .. }) => {
+                                let m = DeviceMsg::HelloAck {
+                                    version: frame::VERSION,
+                                    max_force_mn: 4000,
+                                    workspace_radius_um: 100_000,
+                                };
+                                let n = m.encode(&mut out).unwrap();
+                                let _ = master.write_all(&out[..n]);
+                            }
+                            Ok(HostMsg::Home) => home_at = Some(Instant::now()),
+                            Ok(HostMsg::Force { force_mn, seq }) => {
+                                c2.fetch_add(1, Ordering::SeqCst);
+                                *l2.lock().unwrap() = force_mn;
+                                let status = if homed {
+                                    frame::status::HOMED | frame::status::MOTORS_ON
+                                } else {
+                                    0
+                                };
+                                let m = DeviceMsg::State {
+                                    position_um: cartesian_position_um(t0.elapsed().as_secs_f64()),
+                                    buttons: 1,
+                                    seq,
+                                    status,
+                                };
+                                let n = m.encode(&mut out).unwrap();
+                                match f2.swap(fault::NONE, Ordering::SeqCst) {
+                                    fault::GARBAGE => {
+                                        let _ = master.write_all(b"\x00\x13garbage");
+                                        let _ = master.write_all(&out[..n]);
+                                    }
+                                    fault::BAD_FRAME => {
+                                        out[n - 1] ^= 0x5a; // corrupt the CRC
+                                        let _ = master.write_all(&out[..n]);
+                                    }
+                                    fault::SHORT_FRAME => {
+                                        let _ = master.write_all(&out[..5]);
+                                        let _ = master.write_all(&out[..n]);
+                                    }
+                                    fault::CLOSE => return,
+                                    _ => {
+                                        let _ = master.write_all(&out[..n]);
+                                    }
+                                }
+                            }
+                            Err(_) => {}
+                        }
+                    }
+                    ev = reader.drain();
+                }
+            }
+        }
+    });
+    Sim {
+        path,
+        fault,
+        stop,
+        commands,
+        last_force,
+        handle: Some(handle),
+    }
+}
+
+fn falcon_opts(firmware: Option<std::path::PathBuf>) -> FalconOptions {
+    FalconOptions {
+        firmware,
+        baud_policy: BaudPolicy::Tolerant,
+        homing_timeout: Duration::from_secs(5),
+        handshake_timeout: Duration::from_millis(300),
+        reply_wait: Duration::from_millis(3),
+        stale_after: Duration::from_millis(500),
+        ..FalconOptions::default()
+    }
+}
+
+fn serial_opts() -> SerialArmOptions {
+    SerialArmOptions {
+        homing_timeout: Duration::from_secs(5),
+        reply_wait: Duration::from_millis(3),
+        stale_after: Duration::from_millis(500),
+        ..SerialArmOptions::default()
+    }
+}
+
+fn safety() -> SafetyConfig {
+    SafetyConfig {
+        soft_start_s: 0.0,
+        slew_rate_n_per_s: 1.0e6,
+        ..SafetyConfig::default()
+    }
+}
+
+/// Runs the device at 1 kHz for `ticks` ticks with a constant requested force; returns
+/// (fresh samples, errors, last state).
+fn stream<D: HapticDevice>(
+    dev: &mut D,
+    ticks: u32,
+    force: Vec3,
+) -> (u32, u32, dynaclay_devices::DeviceState) {
+    let mut fresh = 0;
+    let mut errors = 0;
+    let mut last_seq = 0;
+    let mut last = dynaclay_devices::DeviceState::ZERO;
+    let start = Instant::now();
+    for k in 0..ticks {
+        let deadline = start + Duration::from_micros(1000 * u64::from(k + 1));
+        match dev.read() {
+            Ok(s) => {
+                if s.sequence > last_seq {
+                    fresh += 1;
+                    last_seq = s.sequence;
+                }
+                last = s;
+            }
+            Err(_) => errors += 1,
+        }
+        let _ = dev.write_force(force);
+        while Instant::now() < deadline {
+            std::hint::spin_loop();
+        }
+    }
+    (fresh, errors, last)
+}
+
+#[test]
+fn falcon_loads_firmware_homes_and_streams_at_1khz() {
+    let image: Vec<u8> = (0..1000u32).map(|i| (i * 7 + 3) as u8).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let fw = dir.path().join("falcon_firmware.bin");
+    std::fs::write(&fw, &image).unwrap();
+    let sim = spawn_falcon(image.len(), 30);
+    let mut dev =
+        SafetyFilter::with_config(Falcon::new(&sim.path, falcon_opts(Some(fw))), safety());
+    dev.open().expect("open: firmware upload and homing");
+    assert!(dev.device().status().all_homed());
+    assert_eq!(dev.device().link_stats().firmware_attempts, 1);
+
+    let (fresh, errors, last) = stream(&mut dev, 1200, Vec3::new(0.0, 0.0, 1.0));
+    assert_eq!(errors, 0, "no faults on a clean link");
+    assert!(fresh >= 1000, "fresh samples at 1 kHz: {fresh} of 1200");
+    // The driver's forward kinematics recovers the simulated tool position.
+    let d = Delta::from_geometry(&DeviceProfile::built_in("falcon").unwrap().geometry).unwrap();
+    let r = (last.position_m.as_dvec3() - d.home_guess_m).length();
+    assert!(
+        (0.005..0.02).contains(&r),
+        "position {} is on the simulated circle (r = {r})",
+        last.position_m
+    );
+    assert_ne!(
+        sim.last_force(),
+        [0; 3],
+        "a pushing force reaches the motors"
+    );
+    dev.close().unwrap();
+}
+
+#[test]
+fn falcon_faults_are_reported_zero_force_follows_and_reconnect_works() {
+    let sim = spawn_falcon(0, 5);
+    let mut dev = SafetyFilter::with_config(Falcon::new(&sim.path, falcon_opts(None)), safety());
+    dev.open().expect("firmware already running");
+    let push = Vec3::new(1.0, 0.0, 0.0);
+    stream(&mut dev, 50, push);
+    assert_ne!(sim.last_force(), [0; 3]);
+
+    for f in [fault::GARBAGE, fault::BAD_FRAME, fault::SHORT_FRAME] {
+        sim.inject(f);
+        let mut reported = None;
+        for _ in 0..50 {
+            match dev.read() {
+                Err(e) => {
+                    reported = Some(e);
+                    break;
+                }
+                Ok(_) => {
+                    let _ = dev.write_force(push);
+                }
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let e = reported.unwrap_or_else(|| panic!("fault {f} was not reported"));
+        assert!(matches!(e, DeviceError::Protocol { .. }), "fault {f}: {e}");
+        assert!(dev.fault_latched());
+        std::thread::sleep(Duration::from_millis(5));
+        assert_eq!(
+            sim.last_force(),
+            [0; 3],
+            "the filter sent zero after fault {f}"
+        );
+        // The link recovers by itself: the next frames are good.
+        let (fresh, _, _) = stream(&mut dev, 30, push);
+        assert!(fresh > 10, "recovered after fault {f}");
+    }
+
+    sim.inject(fault::CLOSE);
+    let mut err = None;
+    for _ in 0..200 {
+        if let Err(e) = dev.read() {
+            if e == DeviceError::Disconnected {
+                err = Some(e);
+                break;
+            }
+        }
+        let _ = dev.write_force(push);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(err, Some(DeviceError::Disconnected));
+    assert!(
+        dev.write_force(push).is_err(),
+        "nothing is sent to a vanished device"
+    );
+    dev.close().unwrap();
+    drop(sim);
+
+    // The device comes back on a new node (as a USB serial device re-enumerates).
+    let sim2 = spawn_falcon(0, 5);
+    dev.device_mut().set_path(&sim2.path);
+    dev.open().expect("reconnect");
+    let (fresh, errors, _) = stream(&mut dev, 100, Vec3::ZERO);
+    assert_eq!(errors, 0);
+    assert!(fresh > 80);
+}
+
+#[test]
+fn falcon_open_without_firmware_or_answer_is_a_clear_error() {
+    let sim = spawn_falcon(10, 5); // stuck in the bootloader
+    let mut dev = Falcon::new(&sim.path, falcon_opts(None));
+    match dev.open() {
+        Err(DeviceError::Config { message, .. }) => {
+            assert!(message.contains("firmware"), "{message}")
+        }
+        other => panic!("expected a configuration error, got {other:?}"),
+    }
+    assert!(!dev.is_open());
+    let missing = Falcon::new("/dev/nonexistent-falcon", falcon_opts(None)).open();
+    assert!(
+        matches!(
+            missing,
+            Err(DeviceError::NotFound { .. } | DeviceError::Io { .. })
+        ),
+        "{missing:?}"
+    );
+}
+
+#[test]
+fn cartesian_serial_handshakes_homes_and_streams_at_1khz() {
+    let sim = spawn_cartesian(Duration::from_millis(30));
+    let profile = DeviceProfile::built_in("cartesian-serial").unwrap();
+    let mut dev =
+        SafetyFilter::with_config(SerialArm::new(&sim.path, profile, serial_opts()), safety());
+    dev.open().expect("handshake and homing");
+    assert!(dev.device().homed());
+    assert!(
+        (dev.info().max_force_n - 4.0).abs() < 1e-6,
+        "device limit from HELLO_ACK"
+    );
+    let (fresh, errors, last) = stream(&mut dev, 1200, Vec3::new(1.0, -2.0, 0.5));
+    assert_eq!(errors, 0);
+    assert!(fresh >= 1000, "fresh samples at 1 kHz: {fresh} of 1200");
+    assert_eq!(sim.last_force(), [1000, -2000, 500]);
+    assert!(
+        last.position_m.x.abs() <= 0.0201 && (last.position_m.z + 0.005).abs() < 1e-6,
+        "{}",
+        last.position_m
+    );
+    assert_eq!(last.buttons, 1);
+    assert!(sim.commands.load(Ordering::SeqCst) >= 1000);
+}
+
+#[test]
+fn cartesian_serial_faults_are_reported_zero_force_follows_and_reconnect_works() {
+    let sim = spawn_cartesian(Duration::from_millis(1));
+    let profile = DeviceProfile::built_in("cartesian-serial").unwrap();
+    let mut dev = SafetyFilter::with_config(
+        SerialArm::new(&sim.path, profile.clone(), serial_opts()),
+        safety(),
+    );
+    dev.open().unwrap();
+    let push = Vec3::new(0.0, 1.0, 0.0);
+    stream(&mut dev, 50, push);
+    assert_eq!(sim.last_force(), [0, 1000, 0]);
+    for (f, what) in [
+        (fault::GARBAGE, "byte outside a frame"),
+        (fault::BAD_FRAME, "frame CRC mismatch"),
+        (fault::SHORT_FRAME, ""),
+    ] {
+        sim.inject(f);
+        let mut reported = None;
+        for _ in 0..50 {
+            if let Err(e) = dev.read() {
+                reported = Some(e);
+                break;
+            }
+            let _ = dev.write_force(push);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        match reported {
+            Some(DeviceError::Protocol { what: w, .. }) => {
+                assert!(what.is_empty() || w == what, "fault {f}: {w}")
+            }
+            other => panic!("fault {f} not reported as a protocol error: {other:?}"),
+        }
+        std::thread::sleep(Duration::from_millis(5));
+        assert_eq!(
+            sim.last_force(),
+            [0; 3],
+            "the filter sent zero after fault {f}"
+        );
+        let (fresh, _, _) = stream(&mut dev, 30, push);
+        assert!(fresh > 10);
+    }
+    sim.inject(fault::CLOSE);
+    let mut disconnected = false;
+    for _ in 0..200 {
+        if dev.read() == Err(DeviceError::Disconnected) {
+            disconnected = true;
+            break;
+        }
+        let _ = dev.write_force(push);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert!(disconnected, "peer hang-up is reported as Disconnected");
+    dev.close().unwrap();
+    drop(sim);
+    let sim2 = spawn_cartesian(Duration::from_millis(1));
+    dev.device_mut().set_path(&sim2.path);
+    dev.open().expect("reconnect");
+    let (fresh, errors, _) = stream(&mut dev, 100, Vec3::ZERO);
+    assert_eq!(errors, 0);
+    assert!(fresh > 80);
+}
