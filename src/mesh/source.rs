@@ -132,11 +132,11 @@ impl ScalarField for BSplineLattice {
         let mut coeff_n = [0usize; 3];
         for axis in 0..3 {
             assert!(counts[axis] <= MAX_BLOCK, "block too large for one pass");
-            for s in 0..counts[axis] {
+            for (s, tap) in taps[axis][..counts[axis]].iter_mut().enumerate() {
                 let x = grid.coordinate(axis, first[axis] + s as u32);
                 let u = (x - self.origin[axis]) / self.spacing;
                 let base = u.floor();
-                taps[axis][s] = (base as i64 - 1, cubic_weights(u - base));
+                *tap = (base as i64 - 1, cubic_weights(u - base));
             }
             coeff_lo[axis] = taps[axis][0].0;
             coeff_n[axis] = (taps[axis][counts[axis] - 1].0 - coeff_lo[axis]) as usize + 4;

@@ -147,21 +147,37 @@ const fn build_case(case: u8) -> CaseTriangles {
     let mut start = 0;
     while start < 12 {
         if next[start] != NONE && !visited[start] {
-            // Walk the loop; fan it from its first edge.
-            visited[start] = true;
-            let mut prev = next[start];
-            visited[prev as usize] = true;
-            let mut cur = next[prev as usize];
-            while cur as usize != start {
+            // Collect the loop.
+            let mut ring = [0u8; 12];
+            let mut len = 0;
+            let mut cur = start as u8;
+            loop {
                 visited[cur as usize] = true;
+                ring[len] = cur;
+                len += 1;
+                cur = next[cur as usize];
+                if cur as usize == start {
+                    break;
+                }
+            }
+            // Fan it from an apex none of whose diagonals joins two edges of one face. Such a
+            // diagonal could be made by the neighbouring cell too (a loop that crosses an
+            // ambiguous face twice), giving an edge with four triangles; any other diagonal
+            // belongs to this cell alone, so the mesh stays edge-manifold.
+            let apex = fan_apex(&ring, len);
+            let mut k = 1;
+            while k + 1 < len {
                 assert!(
                     (out.count as usize) < MAX_CASE_TRIANGLES,
                     "a case needs more triangles than MAX_CASE_TRIANGLES"
                 );
-                out.edges[out.count as usize] = [start as u8, prev, cur];
+                out.edges[out.count as usize] = [
+                    ring[apex],
+                    ring[(apex + k) % len],
+                    ring[(apex + k + 1) % len],
+                ];
                 out.count += 1;
-                prev = cur;
-                cur = next[cur as usize];
+                k += 1;
             }
         }
         start += 1;
@@ -169,7 +185,48 @@ const fn build_case(case: u8) -> CaseTriangles {
     out
 }
 
+/// Bit f set when edge e lies on face f.
+const EDGE_FACES: [u8; 12] = edge_faces();
+
+const fn edge_faces() -> [u8; 12] {
+    let mut mask = [0u8; 12];
+    let mut f = 0;
+    while f < 6 {
+        let mut i = 0;
+        while i < 4 {
+            let e = edge_between(FACES[f][i], FACES[f][(i + 1) % 4]);
+            mask[e as usize] |= 1 << f;
+            i += 1;
+        }
+        f += 1;
+    }
+    mask
+}
+
+/// The first loop position from which a fan makes no diagonal between two edges of one face.
+const fn fan_apex(ring: &[u8; 12], len: usize) -> usize {
+    let mut apex = 0;
+    while apex < len {
+        let mut ok = true;
+        let mut j = 0;
+        while j < len {
+            let neighbour = j == apex || j == (apex + 1) % len || j == (apex + len - 1) % len;
+            if !neighbour && EDGE_FACES[ring[apex] as usize] & EDGE_FACES[ring[j] as usize] != 0 {
+                ok = false;
+            }
+            j += 1;
+        }
+        if ok {
+            return apex;
+        }
+        apex += 1;
+    }
+    panic!("no valid fan apex for a loop");
+}
+
 #[cfg(test)]
+// The case number is both an index and a bit pattern here.
+#[allow(clippy::needless_range_loop)]
 mod tests {
     use super::*;
     use std::collections::HashMap;
@@ -253,6 +310,29 @@ mod tests {
                         shares_face,
                         "case {case}: open edge {a}->{b} crosses the cube"
                     );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn no_diagonal_joins_two_edges_of_one_face() {
+        // An edge between vertices on one cube face must be a face segment (used once here,
+        // once by the neighbour); diagonals inside the cube must not lie on a face.
+        for case in 0..256usize {
+            let t = &CASES[case];
+            let mut uses: HashMap<(u8, u8), i32> = HashMap::new();
+            for tri in &t.edges[..t.count as usize] {
+                for k in 0..3 {
+                    let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                    *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+                }
+            }
+            for (&(a, b), &n) in &uses {
+                if EDGE_FACES[a as usize] & EDGE_FACES[b as usize] != 0 {
+                    assert_eq!(n, 1, "case {case}: edge {a}-{b} on a face used {n} times");
+                } else {
+                    assert_eq!(n, 2, "case {case}: diagonal {a}-{b} used {n} times");
                 }
             }
         }

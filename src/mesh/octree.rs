@@ -1,0 +1,705 @@
+//! The sparse brick octree: bricks of 8³ cells exist only where the surface crosses them, so
+//! memory grows with the surface's area, not the grid's volume, and a 512³ virtual grid costs
+//! what its surface costs.
+//!
+//! Representation: a linear octree. Leaves (bricks) live in a `BTreeMap` keyed by the Morton
+//! code of the brick coordinate, so every octree node's bricks form one contiguous key range;
+//! interior nodes are implicit. Extraction descends from the root and skips any node whose
+//! field bound ([`ScalarField::bounds`]) shows it is all inside or all outside; only bricks
+//! that survive are sampled and meshed.
+//!
+//! A local refresh runs the same descent restricted to the bricks a changed box touches, and
+//! every culling decision depends only on the node and the field, never on the query, so a
+//! refresh yields exactly the bricks and meshes a full rebuild would.
+//!
+//! Not real-time: this runs on the graphics thread and allocates.
+
+use std::collections::{BTreeMap, HashMap};
+use std::hash::{BuildHasherDefault, Hasher};
+
+use glam::Vec3;
+
+use super::brick::{BRICK_CELLS, BrickMesh, BrickScratch, build_brick, edge_from_id};
+use super::grid::SampleGrid;
+use super::source::ScalarField;
+use super::trimesh::TriMesh;
+use crate::field::BSplineLattice;
+
+/// One stored brick: its corner samples and its mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Brick {
+    /// Brick coordinate: the brick covers cells `coord · 8 .. coord · 8 + 8` per axis.
+    pub coord: [u32; 3],
+    /// 9³ corner samples, x fastest (see [`super::BRICK_SAMPLES`]); entries beyond a partial
+    /// brick's extent are unspecified.
+    pub samples: Box<[f32]>,
+    pub mesh: BrickMesh,
+    /// The octree generation in which this brick's mesh was last rebuilt.
+    pub version: u64,
+}
+
+/// What a build or refresh changed, for a renderer that uploads only dirty bricks.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RefreshReport {
+    /// The generation the changed bricks now carry.
+    pub generation: u64,
+    /// Bricks whose mesh was rebuilt (new or replaced).
+    pub changed: Vec<[u32; 3]>,
+    /// Bricks that no longer exist (the surface left them).
+    pub removed: Vec<[u32; 3]>,
+    /// Bricks whose samples were evaluated.
+    pub bricks_sampled: usize,
+}
+
+/// Memory held by an octree, in bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryUsage {
+    /// Stored corner samples.
+    pub sample_bytes: usize,
+    /// Per-brick mesh buffers (capacity).
+    pub mesh_bytes: usize,
+    /// Tree nodes, brick headers and scratch (estimated for the B-tree's node slack).
+    pub structure_bytes: usize,
+}
+
+impl MemoryUsage {
+    /// Everything together.
+    #[must_use]
+    pub fn total_bytes(&self) -> usize {
+        self.sample_bytes + self.mesh_bytes + self.structure_bytes
+    }
+}
+
+/// A sparse octree of surface bricks over a [`SampleGrid`].
+#[derive(Clone, Debug)]
+pub struct BrickOctree {
+    grid: SampleGrid,
+    bricks: BTreeMap<u64, Brick>,
+    /// Bricks per axis (the last may be partial).
+    brick_counts: [u32; 3],
+    /// The root covers `root_size` bricks per axis (a power of two).
+    root_size: u32,
+    generation: u64,
+    scratch: BrickScratch,
+}
+
+impl BrickOctree {
+    /// An empty octree over `grid`.
+    #[must_use]
+    pub fn new(grid: SampleGrid) -> Self {
+        let brick_counts = grid.cells.map(|c| c.div_ceil(BRICK_CELLS));
+        let root_size = brick_counts
+            .iter()
+            .copied()
+            .max()
+            .unwrap_or(1)
+            .next_power_of_two();
+        Self {
+            grid,
+            bricks: BTreeMap::new(),
+            brick_counts,
+            root_size,
+            generation: 0,
+            scratch: BrickScratch::default(),
+        }
+    }
+
+    /// Extracts the whole surface of `field` on `grid`.
+    pub fn build<F: ScalarField + ?Sized>(grid: SampleGrid, field: &F) -> Self {
+        let mut tree = Self::new(grid);
+        tree.rebuild(field);
+        tree
+    }
+
+    /// Re-meshes everything (every brick of the result carries the new generation).
+    pub fn rebuild<F: ScalarField + ?Sized>(&mut self, field: &F) -> RefreshReport {
+        let last = self.brick_counts.map(|c| c - 1);
+        self.refresh_bricks(field, [0; 3], last)
+    }
+
+    /// Re-meshes the bricks whose samples or vertices can lie in the world box `min..=max`
+    /// (those it touches and, through shared faces, their neighbours), creating and removing
+    /// bricks as the surface enters or leaves them.
+    ///
+    /// The box must contain every point where the field's value changed; then the result is
+    /// identical to [`BrickOctree::rebuild`]. For a change of lattice coefficients, get the box
+    /// from [`BrickOctree::coefficient_change_box`]. A box that misses the grid changes
+    /// nothing.
+    pub fn refresh_box<F: ScalarField + ?Sized>(
+        &mut self,
+        field: &F,
+        min: Vec3,
+        max: Vec3,
+    ) -> RefreshReport {
+        let Some((lo, hi)) = self.grid.sample_range(min, max) else {
+            return RefreshReport {
+                generation: self.generation,
+                ..RefreshReport::default()
+            };
+        };
+        // Brick b holds samples 8b ..= 8b + 8.
+        let first = lo.map(|s| s.saturating_sub(BRICK_CELLS).div_ceil(BRICK_CELLS));
+        let last = std::array::from_fn(|a| (hi[a] / BRICK_CELLS).min(self.brick_counts[a] - 1));
+        self.refresh_bricks(field, first, last)
+    }
+
+    /// [`BrickOctree::refresh_box`] for the engine: after a lattice's coefficients changed
+    /// inside the world box `min..=max` (already widened to the changed coefficients'
+    /// support), re-mesh from the updated lattice.
+    pub fn refresh_lattice(
+        &mut self,
+        lattice: &BSplineLattice,
+        min: Vec3,
+        max: Vec3,
+    ) -> RefreshReport {
+        self.refresh_box(lattice, min, max)
+    }
+
+    /// The world box where the field can change when the coefficients with indices
+    /// `first ..= last` (per axis) change: their nodes widened by two knot spans, the reach
+    /// of a cubic B-spline.
+    #[must_use]
+    pub fn coefficient_change_box(
+        lattice: &BSplineLattice,
+        first: [usize; 3],
+        last: [usize; 3],
+    ) -> (Vec3, Vec3) {
+        let reach = Vec3::splat(2.0 * lattice.spacing);
+        (
+            lattice.node_position(first[0], first[1], first[2]) - reach,
+            lattice.node_position(last[0], last[1], last[2]) + reach,
+        )
+    }
+
+    fn refresh_bricks<F: ScalarField + ?Sized>(
+        &mut self,
+        field: &F,
+        first: [u32; 3],
+        last: [u32; 3],
+    ) -> RefreshReport {
+        self.generation += 1;
+        let mut report = RefreshReport {
+            generation: self.generation,
+            ..RefreshReport::default()
+        };
+        if (0..3).any(|a| first[a] > last[a]) {
+            return report;
+        }
+        self.visit(field, [0; 3], self.root_size, (first, last), &mut report);
+        report
+    }
+
+    fn visit<F: ScalarField + ?Sized>(
+        &mut self,
+        field: &F,
+        node: [u32; 3],
+        size: u32,
+        query: ([u32; 3], [u32; 3]),
+        report: &mut RefreshReport,
+    ) {
+        let lo: [u32; 3] = std::array::from_fn(|a| node[a].max(query.0[a]));
+        let hi: [u32; 3] = std::array::from_fn(|a| {
+            (node[a] + size - 1)
+                .min(query.1[a])
+                .min(self.brick_counts[a] - 1)
+        });
+        if (0..3).any(|a| lo[a] > hi[a]) {
+            return;
+        }
+        // The node's own box (not clipped to the query): the decision must not depend on it.
+        let node_hi: [u32; 3] =
+            std::array::from_fn(|a| ((node[a] + size) * BRICK_CELLS).min(self.grid.cells[a]));
+        let pmin = self.grid.point(node.map(|n| n * BRICK_CELLS));
+        let pmax = self.grid.point(node_hi);
+        if let Some((vmin, vmax)) = field.bounds(pmin, pmax) {
+            let iso = field.iso();
+            let margin = 1e-5 * iso.abs().max(1.0);
+            if vmax < iso - margin || vmin > iso + margin {
+                self.remove_range(node, size, (lo, hi), report);
+                return;
+            }
+        }
+        if size == 1 {
+            report.bricks_sampled += 1;
+            let key = morton(node);
+            match build_brick(field, &self.grid, node, &mut self.scratch) {
+                Some((samples, mesh)) => {
+                    self.bricks.insert(
+                        key,
+                        Brick {
+                            coord: node,
+                            samples,
+                            mesh,
+                            version: self.generation,
+                        },
+                    );
+                    report.changed.push(node);
+                }
+                None => {
+                    if self.bricks.remove(&key).is_some() {
+                        report.removed.push(node);
+                    }
+                }
+            }
+            return;
+        }
+        let half = size / 2;
+        for child in 0..8u32 {
+            let c = [
+                node[0] + (child & 1) * half,
+                node[1] + ((child >> 1) & 1) * half,
+                node[2] + ((child >> 2) & 1) * half,
+            ];
+            self.visit(field, c, half, query, report);
+        }
+    }
+
+    /// Removes the stored bricks of node (`node`, `size`) that lie in `lo ..= hi`.
+    fn remove_range(
+        &mut self,
+        node: [u32; 3],
+        size: u32,
+        (lo, hi): ([u32; 3], [u32; 3]),
+        report: &mut RefreshReport,
+    ) {
+        let start = morton(node);
+        let end = start + u64::from(size).pow(3);
+        let doomed: Vec<u64> = self
+            .bricks
+            .range(start..end)
+            .filter(|(_, b)| (0..3).all(|a| b.coord[a] >= lo[a] && b.coord[a] <= hi[a]))
+            .map(|(&k, _)| k)
+            .collect();
+        for key in doomed {
+            if let Some(brick) = self.bricks.remove(&key) {
+                report.removed.push(brick.coord);
+            }
+        }
+    }
+
+    /// The sampling grid.
+    #[must_use]
+    pub fn grid(&self) -> &SampleGrid {
+        &self.grid
+    }
+
+    /// The current generation (incremented by every build or refresh).
+    #[must_use]
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// Number of stored bricks.
+    #[must_use]
+    pub fn brick_count(&self) -> usize {
+        self.bricks.len()
+    }
+
+    /// Stored bricks in Morton order.
+    pub fn bricks(&self) -> impl Iterator<Item = &Brick> {
+        self.bricks.values()
+    }
+
+    /// The brick at a brick coordinate, if the surface crosses it.
+    #[must_use]
+    pub fn brick(&self, coord: [u32; 3]) -> Option<&Brick> {
+        self.bricks.get(&morton(coord))
+    }
+
+    /// Bricks rebuilt after generation `seen` (a renderer passes the generation it last
+    /// uploaded). Bricks that disappeared are reported by [`RefreshReport::removed`], or found
+    /// by the renderer as keys it holds that [`BrickOctree::brick`] no longer has.
+    pub fn changed_since(&self, seen: u64) -> impl Iterator<Item = &Brick> {
+        self.bricks.values().filter(move |b| b.version > seen)
+    }
+
+    /// Total triangles over all bricks.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.bricks.values().map(|b| b.mesh.triangle_count()).sum()
+    }
+
+    /// Memory held by samples, meshes and structure.
+    #[must_use]
+    pub fn memory(&self) -> MemoryUsage {
+        let mut usage = MemoryUsage::default();
+        for b in self.bricks.values() {
+            usage.sample_bytes += b.samples.len() * size_of::<f32>();
+            usage.mesh_bytes += b.mesh.heap_bytes();
+        }
+        // B-tree leaves hold up to 11 entries and are at least half full; count 1.5× the
+        // entries as an upper estimate.
+        let entry = size_of::<u64>() + size_of::<Brick>();
+        usage.structure_bytes = self.bricks.len() * entry * 3 / 2
+            + size_of::<Self>()
+            + 3 * super::BRICK_SAMPLE_COUNT * size_of::<u32>()
+            + super::BRICK_SAMPLE_COUNT * size_of::<f32>();
+        usage
+    }
+
+    /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
+    /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
+    #[must_use]
+    pub fn weld(&self) -> TriMesh {
+        let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
+        let triangles = self.triangle_count();
+        let mut out = TriMesh {
+            positions: Vec::with_capacity(vertices),
+            normals: Vec::with_capacity(vertices),
+            triangles: Vec::with_capacity(triangles),
+        };
+        // Only vertices on a brick face can be shared; the rest are unique to their brick.
+        let mut shared: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> =
+            HashMap::with_capacity_and_hasher(vertices / 4, Default::default());
+        let mut local = Vec::new();
+        for brick in self.bricks.values() {
+            let m = &brick.mesh;
+            local.clear();
+            for (v, &id) in m.edge_ids.iter().enumerate() {
+                let (corner, axis) = edge_from_id(id);
+                let on_face = (0..3).any(|a| a != axis as usize && corner[a] % BRICK_CELLS == 0);
+                let next = out.positions.len() as u32;
+                let index = if on_face {
+                    *shared.entry(id).or_insert(next)
+                } else {
+                    next
+                };
+                if index == next {
+                    out.positions.push(m.positions[v]);
+                    out.normals.push(m.normals[v]);
+                }
+                local.push(index);
+            }
+            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
+                [
+                    local[t[0] as usize],
+                    local[t[1] as usize],
+                    local[t[2] as usize],
+                ]
+            }));
+        }
+        out
+    }
+}
+
+/// Interleaves the low 21 bits of each coordinate (x lowest).
+#[inline]
+#[must_use]
+fn morton(c: [u32; 3]) -> u64 {
+    fn spread(v: u32) -> u64 {
+        let mut x = u64::from(v) & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        x = (x | x << 2) & 0x1249_2492_4924_9249;
+        x
+    }
+    spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
+}
+
+/// Multiplicative hash for edge ids (already well spread; SipHash would dominate welding).
+#[derive(Default)]
+struct EdgeIdHasher(u64);
+
+impl Hasher for EdgeIdHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ u64::from(b)).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        }
+    }
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (v ^ v >> 29).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{FnField, MeshStats};
+    use std::f64::consts::PI;
+
+    fn sphere_fn(
+        centre: Vec3,
+        radius: f32,
+    ) -> FnField<impl Fn(Vec3) -> f32 + Copy, impl Fn(Vec3) -> Vec3 + Copy> {
+        FnField {
+            value: move |p: Vec3| radius - (p - centre).length(),
+            gradient: move |p: Vec3| -(p - centre).normalize_or_zero(),
+            iso: 0.0,
+            lipschitz: Some(1.0),
+        }
+    }
+
+    /// A lattice whose level set 0.5 approximates a sphere: coefficients sample a linear ramp
+    /// of the signed distance, 6 knot spans wide, clamped to [0, 1].
+    fn sphere_lattice(radius_spans: f32) -> (BSplineLattice, Vec3, f32) {
+        let spacing = 0.1;
+        let n = (2.0 * radius_spans + 12.0).ceil() as usize;
+        let mut lattice = BSplineLattice::zeros([n; 3], spacing, Vec3::ZERO).unwrap();
+        let centre = Vec3::splat((n - 1) as f32 * spacing / 2.0);
+        let radius = radius_spans * spacing;
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let d = radius - (lattice.node_position(i, j, k) - centre).length();
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = (0.5 + d / (6.0 * spacing)).clamp(0.0, 1.0);
+                }
+            }
+        }
+        (lattice, centre, radius)
+    }
+
+    fn closed_stats(tree: &BrickOctree) -> MeshStats {
+        let mesh = tree.weld();
+        assert!(mesh.is_well_formed());
+        let stats = MeshStats::of(&mesh);
+        assert_eq!(stats.boundary_edges, 0, "{stats:?}");
+        assert_eq!(stats.non_manifold_edges, 0, "{stats:?}");
+        assert_eq!(stats.misoriented_edges, 0, "{stats:?}");
+        stats
+    }
+
+    fn assert_same_bricks(a: &BrickOctree, b: &BrickOctree) {
+        assert_eq!(a.brick_count(), b.brick_count());
+        for (x, y) in a.bricks().zip(b.bricks()) {
+            assert_eq!(x.coord, y.coord);
+            assert_eq!(x.mesh, y.mesh, "brick {:?} differs", x.coord);
+        }
+    }
+
+    #[test]
+    fn analytic_sphere_is_closed_and_converges_to_area_and_volume() {
+        let radius = 1.0f32;
+        let centre = Vec3::new(0.013, -0.021, 0.007);
+        let field = sphere_fn(centre, radius);
+        let exact_area = 4.0 * PI;
+        let exact_volume = 4.0 / 3.0 * PI;
+        let mut last = (f64::INFINITY, f64::INFINITY);
+        for cells_per_radius in [6.0f32, 12.0, 24.0, 48.0] {
+            let h = radius / cells_per_radius;
+            let grid = SampleGrid::covering(centre - 1.3, centre + 1.3, h).unwrap();
+            let tree = BrickOctree::build(grid, &field);
+            let s = closed_stats(&tree);
+            assert_eq!(s.euler_characteristic, 2, "at h = {h}: {s:?}");
+            let area_err = (s.area - exact_area).abs() / exact_area;
+            let volume_err = (s.volume - exact_volume).abs() / exact_volume;
+            assert!(
+                area_err < last.0 && volume_err < last.1,
+                "error grew at h = {h}"
+            );
+            last = (area_err, volume_err);
+            let mesh = tree.weld();
+            for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+                assert!(((*p - centre).length() - radius).abs() < h * h / radius + 1e-4);
+                assert!(
+                    n.dot((*p - centre).normalize()) > 0.999,
+                    "normal points inwards"
+                );
+            }
+        }
+        assert!(last.0 < 0.01, "area error {}", last.0);
+        assert!(last.1 < 0.01, "volume error {}", last.1);
+    }
+
+    #[test]
+    fn lattice_sphere_is_closed_and_accurate_at_several_spacings() {
+        let (lattice, centre, radius) = sphere_lattice(20.0);
+        let exact_area = 4.0 * PI * f64::from(radius).powi(2);
+        let exact_volume = 4.0 / 3.0 * PI * f64::from(radius).powi(3);
+        let mut last = f64::INFINITY;
+        for cells_per_span in [1, 2, 4] {
+            let grid = SampleGrid::for_lattice(&lattice, cells_per_span).unwrap();
+            let tree = BrickOctree::build(grid, &lattice);
+            let s = closed_stats(&tree);
+            assert_eq!(s.euler_characteristic, 2);
+            let err = (s.area - exact_area).abs() / exact_area
+                + (s.volume - exact_volume).abs() / exact_volume;
+            assert!(err < last, "error grew at {cells_per_span} cells per span");
+            last = err;
+            if cells_per_span == 4 {
+                assert!((s.area - exact_area).abs() / exact_area < 0.01, "{s:?}");
+                assert!(
+                    (s.volume - exact_volume).abs() / exact_volume < 0.01,
+                    "{s:?}"
+                );
+                let mesh = tree.weld();
+                for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+                    assert!(n.dot((*p - centre).normalize()) > 0.99);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn torus_is_closed_with_euler_characteristic_zero() {
+        let (major, minor) = (1.0f32, 0.35f32);
+        let field = FnField {
+            value: move |p: Vec3| {
+                let q = (p.x.hypot(p.y) - major).hypot(p.z);
+                minor - q
+            },
+            gradient: move |p: Vec3| {
+                let rho = p.x.hypot(p.y).max(1e-12);
+                let d = Vec3::new(p.x / rho * (rho - major), p.y / rho * (rho - major), p.z);
+                -d.normalize_or_zero()
+            },
+            iso: 0.0,
+            lipschitz: Some(1.0),
+        };
+        for h in [0.1f32, 0.05, 0.025] {
+            let grid = SampleGrid::covering(Vec3::splat(-1.5), Vec3::splat(1.5), h).unwrap();
+            let tree = BrickOctree::build(grid, &field);
+            let s = closed_stats(&tree);
+            assert_eq!(s.euler_characteristic, 0, "at h = {h}: {s:?}");
+            let volume = 2.0 * PI * PI * f64::from(major) * f64::from(minor).powi(2);
+            assert!((s.volume - volume).abs() / volume < 0.05);
+        }
+    }
+
+    #[test]
+    fn random_fields_give_closed_manifolds() {
+        // Noise exercises every case, ambiguous faces included; zero padding closes it.
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        for trial in 0..6 {
+            let mut lattice = BSplineLattice::zeros([9, 8, 10], 1.0, Vec3::ZERO).unwrap();
+            for c in lattice.coeffs.iter_mut() {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                *c = (seed >> 40) as f32 / (1u64 << 24) as f32 * 1.4;
+            }
+            let grid = SampleGrid::for_lattice(&lattice, 1 + trial % 3).unwrap();
+            let tree = BrickOctree::build(grid, &lattice);
+            assert!(tree.triangle_count() > 100);
+            closed_stats(&tree);
+        }
+    }
+
+    #[test]
+    fn culled_build_matches_exhaustive_sampling() {
+        let field = sphere_fn(Vec3::splat(0.5), 0.3);
+        let unbounded = FnField {
+            lipschitz: None,
+            ..field
+        };
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0 / 64.0, [64; 3]).unwrap();
+        let culled = BrickOctree::build(grid, &field);
+        let full = BrickOctree::build(grid, &unbounded);
+        assert_same_bricks(&culled, &full);
+        assert!(culled.brick_count() < 8 * 8 * 8);
+    }
+
+    #[test]
+    fn local_refresh_equals_full_rebuild_after_edits() {
+        let (mut lattice, centre, radius) = sphere_lattice(12.0);
+        let grid = SampleGrid::for_lattice(&lattice, 3).unwrap();
+        let mut tree = BrickOctree::build(grid, &lattice);
+        let full_sampled = tree.rebuild(&lattice).bricks_sampled;
+
+        let n = lattice.dims[0];
+        let node = |p: Vec3| {
+            let u = lattice.to_lattice(p).round();
+            [u.x as usize, u.y as usize, u.z as usize]
+        };
+        // A dent where the surface is, a new blob in empty space, then the blob removed.
+        let surface_point = centre + Vec3::new(radius, 0.0, 0.0);
+        let blob = [2usize, 3, n - 4];
+        let edits: [([usize; 3], [usize; 3], f32); 3] = [
+            (
+                node(surface_point).map(|c| c - 2),
+                node(surface_point).map(|c| c + 2),
+                -0.6,
+            ),
+            (blob, blob.map(|c| c + 1), 1.0),
+            (blob, blob.map(|c| c + 1), -1.0),
+        ];
+        let mut expected_chi = [2, 4, 2].into_iter();
+        for (first, last, delta) in edits {
+            for k in first[2]..=last[2] {
+                for j in first[1]..=last[1] {
+                    for i in first[0]..=last[0] {
+                        let idx = lattice.index(i, j, k);
+                        lattice.coeffs[idx] += delta;
+                    }
+                }
+            }
+            let (min, max) = BrickOctree::coefficient_change_box(&lattice, first, last);
+            let report = tree.refresh_lattice(&lattice, min, max);
+            assert!(report.bricks_sampled * 4 < full_sampled, "{report:?}");
+            assert!(!report.changed.is_empty() || !report.removed.is_empty());
+            for c in &report.changed {
+                assert_eq!(tree.brick(*c).unwrap().version, report.generation);
+            }
+            for c in &report.removed {
+                assert!(tree.brick(*c).is_none());
+            }
+            let fresh = BrickOctree::build(grid, &lattice);
+            assert_same_bricks(&tree, &fresh);
+            assert_eq!(tree.weld(), fresh.weld());
+            let s = closed_stats(&tree);
+            assert_eq!(Some(s.euler_characteristic), expected_chi.next(), "{s:?}");
+        }
+    }
+
+    #[test]
+    fn changed_since_lists_only_refreshed_bricks() {
+        let (mut lattice, _, _) = sphere_lattice(8.0);
+        let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();
+        let mut tree = BrickOctree::build(grid, &lattice);
+        let seen = tree.generation();
+        assert_eq!(tree.changed_since(seen).count(), 0);
+        let idx = lattice.index(6, 14, 14);
+        lattice.coeffs[idx] = 1.0;
+        let (min, max) = BrickOctree::coefficient_change_box(&lattice, [6, 14, 14], [6, 14, 14]);
+        let report = tree.refresh_lattice(&lattice, min, max);
+        let mut changed: Vec<_> = tree.changed_since(seen).map(|b| b.coord).collect();
+        changed.sort_unstable();
+        let mut reported = report.changed.clone();
+        reported.sort_unstable();
+        assert_eq!(changed, reported);
+        assert!(!changed.is_empty() && changed.len() < tree.brick_count());
+    }
+
+    #[test]
+    fn a_box_outside_the_grid_changes_nothing() {
+        let field = sphere_fn(Vec3::splat(0.5), 0.3);
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0 / 32.0, [32; 3]).unwrap();
+        let mut tree = BrickOctree::build(grid, &field);
+        let before = tree.weld();
+        let report = tree.refresh_box(&field, Vec3::splat(5.0), Vec3::splat(6.0));
+        assert_eq!(report.bricks_sampled, 0);
+        assert_eq!(tree.weld(), before);
+    }
+
+    #[test]
+    fn sphere_at_512_cubed_fits_in_200_megabytes() {
+        let (lattice, _, _) = sphere_lattice(56.5);
+        let grid = SampleGrid::for_lattice(&lattice, 4).unwrap();
+        assert_eq!(grid.cells, [512; 3]);
+        let tree = BrickOctree::build(grid, &lattice);
+        let memory = tree.memory();
+        // Dense storage would be 513³ samples (540 MB) before any mesh.
+        assert!(memory.total_bytes() < 200_000_000, "{memory:?}");
+        assert!(tree.brick_count() < 64 * 64 * 64 / 8);
+        assert!(tree.triangle_count() > 1_000_000);
+    }
+
+    #[test]
+    fn morton_codes_keep_octree_nodes_contiguous() {
+        // All 8 children of node (2,4,6) at size 2 fall in [morton(node), +8).
+        let base = morton([2, 4, 6]);
+        for c in 0..8u32 {
+            let m = morton([2 + (c & 1), 4 + ((c >> 1) & 1), 6 + (c >> 2)]);
+            assert!(m >= base && m < base + 8);
+        }
+        assert_eq!(morton([1, 0, 0]), 1);
+        assert_eq!(morton([0, 1, 0]), 2);
+        assert_eq!(morton([0, 0, 1]), 4);
+        assert_eq!(morton([0x1f_ffff, 0, 0]), 0x1249_2492_4924_9249);
+    }
+}
