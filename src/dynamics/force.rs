@@ -112,7 +112,12 @@ pub fn surface_point_on_ray(
     step: f32,
 ) -> Option<Vec3> {
     let dir = toward.normalize_or_zero();
-    if dir == Vec3::ZERO || !(step > 0.0) || !max_len.is_finite() || !lattice.is_inside(anchor) {
+    if dir == Vec3::ZERO
+        || step.is_nan()
+        || step <= 0.0
+        || !max_len.is_finite()
+        || !lattice.is_inside(anchor)
+    {
         return None;
     }
     let steps = (max_len / step).ceil().min(100_000.0) as u32;
@@ -167,7 +172,7 @@ impl Distribution {
         };
         let t = t_raw.clamp(0.0, 1.0);
         let rho = (x - (a + ab * t)).length() / radius;
-        if !(rho <= 1.0) {
+        if rho.is_nan() || rho > 1.0 {
             return 0.0;
         }
         match self {

@@ -246,7 +246,7 @@ impl Simulator {
                 };
                 let first = first.max(0.0);
                 let last = last.min((m[a] - 1) as f32);
-                if !(first <= last) {
+                if first.is_nan() || last.is_nan() || first > last {
                     empty = true;
                     break;
                 }
@@ -376,7 +376,7 @@ impl Simulator {
                 &mut self.kron,
             );
             let dq = dot(&self.cg_dir, &self.cg_q);
-            if !(dq > 0.0) {
+            if dq.is_nan() || dq <= 0.0 {
                 break;
             }
             let alpha = (rz / dq) as f32;

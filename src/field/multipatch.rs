@@ -1,0 +1,215 @@
+//! The multi-patch field of Hua & Qin eq. (3): `F(x) = Σ s_i(T_i x)`, a base patch plus finer
+//! detail patches over sub-boxes (level of detail), each with its own affine map `T_i` from
+//! world space into the patch's space. Value and gradient are summed; the gradient goes through
+//! the chain rule, `∇F = Σ J_iᵀ ∇s_i(T_i x)` with `J_i` the linear part of `T_i`.
+//!
+//! A detail patch's coefficients beyond its lattice count as zero, so it fades out at its own
+//! border: fitting it to the residual of the coarser patches (which is what
+//! [`MultiPatchField::fit_detail`] does) keeps the sum continuous.
+
+use glam::{Affine3A, Vec3, Vec3A};
+
+use super::lattice::BSplineLattice;
+use super::refit::{FitError, fit_lattice};
+
+/// One patch: a lattice and the map from world space into the lattice's space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Patch {
+    /// The patch's B-spline (its `origin` and `spacing` are in patch space).
+    pub lattice: BSplineLattice,
+    /// `T_i`: world → patch space.
+    pub world_to_patch: Affine3A,
+}
+
+impl Patch {
+    /// Value and world-space gradient of this patch's term at a world point.
+    #[inline]
+    #[must_use]
+    pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
+        let u = self.world_to_patch.transform_point3(x);
+        let (v, g) = self.lattice.value_and_gradient(u);
+        let jt = self.world_to_patch.matrix3.transpose();
+        (v, Vec3::from(jt * Vec3A::from(g)))
+    }
+}
+
+/// `F(x) = Σ s_i(T_i x)` over a base patch and detail patches.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MultiPatchField {
+    /// Patch 0 is the base; later ones are details.
+    pub patches: Vec<Patch>,
+    /// The solid is where `F > iso`.
+    pub iso: f32,
+}
+
+impl MultiPatchField {
+    /// A field of one base patch in world coordinates.
+    #[must_use]
+    pub fn new(base: BSplineLattice) -> Self {
+        let iso = base.iso;
+        Self {
+            patches: vec![Patch {
+                lattice: base,
+                world_to_patch: Affine3A::IDENTITY,
+            }],
+            iso,
+        }
+    }
+
+    /// Add a patch with its own map; returns its index.
+    pub fn push(&mut self, lattice: BSplineLattice, world_to_patch: Affine3A) -> usize {
+        self.patches.push(Patch {
+            lattice,
+            world_to_patch,
+        });
+        self.patches.len() - 1
+    }
+
+    /// Add a zero detail patch over the world box `lo ..= hi` with knot spacing
+    /// `base spacing / 2^level`, padded by one span so its coefficients cover the box; returns
+    /// its index.
+    ///
+    /// # Errors
+    /// When the box is degenerate or not finite.
+    pub fn add_detail(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<usize, FitError> {
+        let spacing = self.patches[0].lattice.spacing / (1_u32 << level.min(16)) as f32;
+        let extent = (hi - lo) / spacing;
+        if !(extent.is_finite() && extent.min_element() > 0.0) {
+            return Err(FitError::NonFiniteTarget { at: lo.to_array() });
+        }
+        let dims = [0, 1, 2].map(|a| (extent[a].ceil() as usize + 3).max(4));
+        let origin = lo - Vec3::splat(spacing);
+        let lattice = BSplineLattice::zeros(dims, spacing, origin)
+            .map_err(|_| FitError::NonFiniteTarget { at: lo.to_array() })?;
+        Ok(self.push(lattice, Affine3A::IDENTITY))
+    }
+
+    /// Least-squares fit of patch `index` to `target − Σ_{other patches}`, so the whole field
+    /// approximates `target` over that patch.
+    ///
+    /// # Errors
+    /// As [`fit_lattice`].
+    ///
+    /// # Panics
+    /// When `index` is out of range.
+    pub fn fit_detail(
+        &mut self,
+        index: usize,
+        samples_per_span: usize,
+        target: impl Fn(Vec3) -> f32,
+    ) -> Result<(), FitError> {
+        let mut patch = self.patches[index].clone();
+        let to_world = patch.world_to_patch.inverse();
+        let others = |x: Vec3| -> f32 {
+            self.patches
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != index)
+                .map(|(_, p)| p.value_and_gradient(x).0)
+                .sum()
+        };
+        fit_lattice(&mut patch.lattice, samples_per_span, |u| {
+            let x = to_world.transform_point3(u);
+            target(x) - others(x)
+        })?;
+        self.patches[index] = patch;
+        Ok(())
+    }
+
+    /// `F(x)`.
+    #[inline]
+    #[must_use]
+    pub fn value(&self, x: Vec3) -> f32 {
+        self.patches
+            .iter()
+            .map(|p| p.lattice.value(p.world_to_patch.transform_point3(x)))
+            .sum()
+    }
+
+    /// `F(x)` and its world-space gradient.
+    #[inline]
+    #[must_use]
+    pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
+        self.patches.iter().fold((0.0, Vec3::ZERO), |(v, g), p| {
+            let (pv, pg) = p.value_and_gradient(x);
+            (v + pv, g + pg)
+        })
+    }
+
+    /// Whether `x` is inside the solid.
+    #[inline]
+    #[must_use]
+    pub fn is_inside(&self, x: Vec3) -> bool {
+        self.value(x) > self.iso
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Quat;
+
+    use super::*;
+
+    fn wavy(dims: [usize; 3], spacing: f32) -> BSplineLattice {
+        let mut l = BSplineLattice::zeros(dims, spacing, Vec3::ZERO).unwrap();
+        for (n, c) in l.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 53) as f32 / 53.0;
+        }
+        l
+    }
+
+    #[test]
+    fn value_is_the_sum_and_gradient_follows_the_chain_rule() {
+        let mut field = MultiPatchField::new(wavy([8, 8, 8], 0.25));
+        let t = Affine3A::from_scale_rotation_translation(
+            Vec3::new(2.0, 1.5, 3.0),
+            Quat::from_rotation_y(0.4) * Quat::from_rotation_x(-0.3),
+            Vec3::new(0.2, -0.1, 0.3),
+        );
+        field.push(wavy([6, 7, 5], 0.5), t);
+        let h = 1e-3_f32;
+        for s in 0..40 {
+            let x = Vec3::new(
+                0.4 + 0.03 * s as f32,
+                0.5 + 0.021 * s as f32,
+                0.6 + 0.017 * s as f32,
+            );
+            let (v, g) = field.value_and_gradient(x);
+            let sum = field.patches[0].lattice.value(x)
+                + field.patches[1].lattice.value(t.transform_point3(x));
+            assert!((v - sum).abs() < 1e-6);
+            let fd = Vec3::new(
+                field.value(x + Vec3::X * h) - field.value(x - Vec3::X * h),
+                field.value(x + Vec3::Y * h) - field.value(x - Vec3::Y * h),
+                field.value(x + Vec3::Z * h) - field.value(x - Vec3::Z * h),
+            ) / (2.0 * h);
+            assert!(
+                (g - fd).length() < 2e-3 * (1.0 + g.length()),
+                "{g} vs {fd} at {x}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_detail_patch_fitted_to_the_residual_reduces_the_error() {
+        let target = |x: Vec3| (6.0 * x.x).sin() * (5.0 * x.y).cos() * 0.3 + 0.5 * x.z;
+        let mut base = BSplineLattice::zeros([8, 8, 8], 0.25, Vec3::splat(-0.25)).unwrap();
+        fit_lattice(&mut base, 2, target).unwrap();
+        let mut field = MultiPatchField::new(base);
+        let (lo, hi) = (Vec3::splat(0.6), Vec3::splat(1.0));
+        let err = |f: &MultiPatchField| {
+            let mut e = 0.0_f32;
+            for s in 0..100 {
+                let t = Vec3::new((s % 5) as f32, ((s / 5) % 5) as f32, (s / 25) as f32) / 4.0;
+                let x = lo + (hi - lo) * t;
+                e = e.max((f.value(x) - target(x)).abs());
+            }
+            e
+        };
+        let before = err(&field);
+        let d = field.add_detail(lo, hi, 2).unwrap();
+        field.fit_detail(d, 2, target).unwrap();
+        let after = err(&field);
+        assert!(after < 0.25 * before, "{before} -> {after}");
+    }
+}
