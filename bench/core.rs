@@ -1,1 +1,124 @@
-fn main() {}
+//! Core benchmarks: one simulation step at Hua & Qin Table 1 sizes and beyond, one field
+//! evaluation with gradient, one 4-point force integral, and the tiled x-axis banded solve
+//! against the plain line-by-line sweep.
+//!
+//! Run: `cargo bench --bench core -- --warm-up-time 1 --measurement-time 3`.
+//! Optimistic where noted: the step benches keep one tool force active on a sphere; a step
+//! with no force skips nothing else, so it costs the same within noise.
+
+use std::hint::black_box;
+
+use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use dynaclay::dynamics::{
+    Distribution, Material, RegionState, Simulator, StepParams, ToolForce, force_integral,
+};
+use dynaclay::field::{
+    BSplineLattice, CoeffBox, KronScratch, Primitive, RegionSnapshot, lattice_from_primitive,
+};
+use glam::Vec3;
+
+/// A sphere on a lattice of `n + 4` coefficients per axis; the region is the central `n³`
+/// coefficients with `m³` mass points.
+fn setup(n: usize, m: usize) -> (BSplineLattice, RegionState, ToolForce) {
+    let dims = [n + 4; 3];
+    let spacing = 1.0 / (n + 3) as f32;
+    let centre = Vec3::splat(0.5);
+    let sphere = Primitive::Sphere {
+        centre,
+        radius: 0.3,
+    };
+    let lattice = lattice_from_primitive(dims, spacing, Vec3::ZERO, &sphere, 2.0 * spacing, 2)
+        .expect("sphere fits");
+    let region = CoeffBox {
+        min: [2; 3],
+        max: [n + 1; 3],
+    };
+    let state = RegionState::new(&lattice, region, [m; 3], Material::PLASTIC).expect("region");
+    let force = ToolForce {
+        start: centre + Vec3::X * 0.3,
+        end: centre + Vec3::X * 0.36,
+        distribution: Distribution::Gaussian,
+        radius: 2.0 * spacing,
+        gain: 1e3,
+    };
+    (lattice, state, force)
+}
+
+fn step(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step");
+    for (n, m) in [
+        (5, 5),
+        (5, 10),
+        (10, 10),
+        (10, 15),
+        (15, 15),
+        (32, 32),
+        (64, 64),
+    ] {
+        let (mut lattice, mut state, force) = setup(n, m);
+        let mut sim = Simulator::new(StepParams::default());
+        let mut snap = RegionSnapshot::default();
+        group.bench_function(BenchmarkId::from_parameter(format!("{n}^3/{m}^3")), |b| {
+            b.iter(|| {
+                let r = sim.step(&mut state, &mut lattice, &[force], &mut snap);
+                black_box(r.is_ok())
+            });
+        });
+    }
+    group.finish();
+}
+
+fn solve(c: &mut Criterion) {
+    let mut group = c.benchmark_group("solve_gram");
+    for n in [15, 32, 64] {
+        let (_, state, _) = setup(n, n);
+        let basis = state.basis;
+        let mut x: Vec<f32> = (0..basis.coeff_count()).map(|i| (i % 7) as f32).collect();
+        group.bench_function(BenchmarkId::new("x_tiled", n), |b| {
+            b.iter(|| basis.solve_gram(black_box(&mut x)));
+        });
+        group.bench_function(BenchmarkId::new("x_line_by_line", n), |b| {
+            b.iter(|| basis.solve_gram_line_by_line(black_box(&mut x)));
+        });
+        let mut scratch = KronScratch::for_basis(&basis);
+        let mut d = vec![0.0; basis.sample_count()];
+        group.bench_function(BenchmarkId::new("apply", n), |b| {
+            b.iter(|| basis.apply(black_box(&x), &mut d, &mut scratch));
+        });
+    }
+    group.finish();
+}
+
+fn evaluate(c: &mut Criterion) {
+    let (lattice, _, force) = setup(32, 32);
+    let points: Vec<Vec3> = (0..1024)
+        .map(|i| {
+            let f = i as f32;
+            Vec3::new(
+                (f * 0.618_034).fract(),
+                (f * 0.414_213_6).fract(),
+                (f * 0.732_050_8).fract(),
+            ) * 0.8
+                + Vec3::splat(0.1)
+        })
+        .collect();
+    let mut i = 0;
+    c.bench_function("value_and_gradient", |b| {
+        b.iter(|| {
+            i = (i + 1) & 1023;
+            black_box(lattice.value_and_gradient(black_box(points[i])))
+        });
+    });
+    c.bench_function("force_integral", |b| {
+        b.iter(|| {
+            black_box(force_integral(
+                &lattice,
+                black_box(force.start),
+                black_box(force.end),
+            ))
+        });
+    });
+}
+
+criterion_group!(benches, step, solve, evaluate);
+criterion_main!(benches);

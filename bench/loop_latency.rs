@@ -2,15 +2,20 @@
 //! without a CPU hog on the other core, at SCHED_FIFO and at normal priority — and reports
 //! period error p50 / p99 / p99.9 / max, compute p99 and ticks later than 1 ms and 2 ms.
 //!
-//! Usage: `cargo bench --bench loop_latency -- [--seconds N] [--out DIR] [--only NAME]`, or the
+//! Usage: `cargo bench --bench loop_latency -- [--seconds N] [--out DIR] [--only WORKLOAD]
+//! [--spin-us N]` (`--spin-us` overrides the runner's spin margin), or the
 //! environment variables `DYNACLAY_BENCH_SECONDS` (default 30) and `DYNACLAY_BENCH_OUT`
 //! (default `target/tmp/loop_latency`). Writes `loop_latency.json`, `loop_latency.md` and
 //! `loop_latency.svg` there and prints the table.
 //!
 //! Workloads: each is a function that runs the haptic loop (configured by the harness: rate,
 //! priority, core) for the given time and returns its report. "bare" is the haptic loop alone
-//! with a representative small compute body; a whole-engine workload plugs in as another entry
-//! of `workloads()`.
+//! with a representative small compute body on `dynaclay_loops`' runner; "std-sleep" is the
+//! obvious alternative, the same body on a `std::thread::sleep` loop with the same deadlines. A
+//! whole-engine workload plugs in as another entry of `workloads()`.
+//!
+//! Before the scenarios, a probe spins at SCHED_FIFO reading the clock and reports the time the
+//! environment (hypervisor, interrupts, RT throttling) took from it: no loop can do better.
 //!
 //! Where it is optimistic: the bare body touches a small lattice that stays in cache; the hog
 //! is one spinning thread, not memory traffic. Where it is pessimistic: every tick is measured,
@@ -25,8 +30,10 @@ use std::time::{Duration, Instant};
 
 use dynaclay::field::BSplineLattice;
 use dynaclay_loops::{
-    DEFAULT_RT_PRIORITY, LoopConfig, LoopReport, LoopSummary, PinOutcome, TickInfo, markdown_table,
-    pin_current_thread, snapshot_channel, spawn_loop_with, summaries_to_json, write_latency_svg,
+    DEFAULT_RT_PRIORITY, LatencyRecorder, LoopConfig, LoopReport, LoopSummary, PinOutcome,
+    RtOutcome, SnapshotReader, SnapshotWriter, StopFlag, StopReason, TickInfo, TickTiming,
+    markdown_table, pin_current_thread, request_realtime, snapshot_channel, spawn_loop_with,
+    summaries_to_json, write_latency_svg,
 };
 use glam::Vec3;
 use serde::Serialize;
@@ -36,7 +43,7 @@ type Workload = fn(&LoopConfig, Duration) -> Result<LoopReport, String>;
 
 /// The workloads measured, by name.
 fn workloads() -> Vec<(&'static str, Workload)> {
-    vec![("bare", bare_haptic_loop)]
+    vec![("bare", bare_haptic_loop), ("std-sleep", std_sleep_loop)]
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -101,55 +108,59 @@ fn contact_force(field: &BSplineLattice, tip: Vec3, radius: f32, dirs: &[Vec3; 1
     force + grad * 1e-3
 }
 
-fn bare_haptic_loop(config: &LoopConfig, duration: Duration) -> Result<LoopReport, String> {
-    let max_force_n = 3.0f32;
-    let (mut tool_tx, mut tool_rx) = snapshot_channel(&ToolSample::default());
-    let handle = spawn_loop_with(config.clone(), move || {
-        let field = ball_lattice();
-        // No simulation runs here: the field snapshot stays at its first version.
-        let (_field_tx, mut field_rx) = snapshot_channel(&field);
-        let mut dirs = [Vec3::ZERO; 14];
-        let axes = [Vec3::X, Vec3::Y, Vec3::Z];
-        for (i, a) in axes.iter().enumerate() {
-            dirs[2 * i] = *a;
-            dirs[2 * i + 1] = -*a;
-        }
-        let mut n = 6;
-        for sx in [-1.0f32, 1.0] {
-            for sy in [-1.0f32, 1.0] {
-                for sz in [-1.0f32, 1.0] {
-                    dirs[n] = Vec3::new(sx, sy, sz).normalize();
-                    n += 1;
-                }
+const MAX_FORCE_N: f32 = 3.0;
+
+/// Builds the haptic tick body (on the loop thread): latest field snapshot → contact force →
+/// safety filter → publish the tool sample.
+fn haptic_body(
+    mut tool_tx: SnapshotWriter<ToolSample>,
+) -> impl FnMut(&TickInfo) -> ControlFlow<()> {
+    let field = ball_lattice();
+    // No simulation runs here: the field snapshot stays at its first version.
+    let (_field_tx, mut field_rx) = snapshot_channel(&field);
+    let mut dirs = [Vec3::ZERO; 14];
+    for (i, a) in [Vec3::X, Vec3::Y, Vec3::Z].iter().enumerate() {
+        dirs[2 * i] = *a;
+        dirs[2 * i + 1] = -*a;
+    }
+    let mut n = 6;
+    for sx in [-1.0f32, 1.0] {
+        for sy in [-1.0f32, 1.0] {
+            for sz in [-1.0f32, 1.0] {
+                dirs[n] = Vec3::new(sx, sy, sz).normalize();
+                n += 1;
             }
         }
-        let mut last_force = Vec3::ZERO;
-        move |t: &TickInfo| {
-            let snap = field_rx.latest();
-            // The tip circles the ball just inside its surface (radius 0.3 about the centre).
-            let phase = t.index as f32 * 2e-3;
-            let tip = Vec3::new(0.5 + 0.28 * phase.cos(), 0.5 + 0.28 * phase.sin(), 0.5);
-            let raw = contact_force(&snap.value, tip, 0.05, &dirs);
-            // Safety filter: NaN → 0, clamp magnitude, slew limit of 0.05 N per tick.
-            let raw = if raw.is_finite() { raw } else { Vec3::ZERO };
-            let clamped = raw.clamp_length_max(max_force_n);
-            let force = last_force + (clamped - last_force).clamp_length_max(0.05);
-            last_force = force;
-            tool_tx.write_with(|s| {
-                *s = ToolSample {
-                    position: tip,
-                    force_n: force,
-                    tick: t.index,
-                }
-            });
-            black_box(force);
-            ControlFlow::Continue(())
-        }
-    })
-    .map_err(|e| e.to_string())?;
-    std::thread::sleep(duration);
-    let report = handle.stop_and_join().map_err(|e| e.to_string())?;
-    // The last published tool sample is the last tick's, with a filtered, bounded force.
+    }
+    let mut last_force = Vec3::ZERO;
+    move |t: &TickInfo| {
+        let snap = field_rx.latest();
+        // The tip circles the ball just inside its surface (radius 0.3 about the centre).
+        let phase = t.index as f32 * 2e-3;
+        let tip = Vec3::new(0.5 + 0.28 * phase.cos(), 0.5 + 0.28 * phase.sin(), 0.5);
+        let raw = contact_force(&snap.value, tip, 0.05, &dirs);
+        // Safety filter: NaN → 0, clamp magnitude, slew limit of 0.05 N per tick.
+        let raw = if raw.is_finite() { raw } else { Vec3::ZERO };
+        let clamped = raw.clamp_length_max(MAX_FORCE_N);
+        let force = last_force + (clamped - last_force).clamp_length_max(0.05);
+        last_force = force;
+        tool_tx.write_with(|s| {
+            *s = ToolSample {
+                position: tip,
+                force_n: force,
+                tick: t.index,
+            }
+        });
+        black_box(force);
+        ControlFlow::Continue(())
+    }
+}
+
+/// Checks that the last published tool sample is the last tick's, with a bounded force.
+fn check_last_sample(
+    tool_rx: &mut SnapshotReader<ToolSample>,
+    report: &LoopReport,
+) -> Result<(), String> {
     let last = tool_rx.latest();
     let ticks = report.recorder.ticks();
     if last.value.tick + 1 != ticks || last.version != ticks {
@@ -159,12 +170,157 @@ fn bare_haptic_loop(config: &LoopConfig, duration: Duration) -> Result<LoopRepor
         ));
     }
     if !last.value.force_n.is_finite()
-        || last.value.force_n.length() > max_force_n * 1.001
+        || last.value.force_n.length() > MAX_FORCE_N * 1.001
         || !last.value.position.is_finite()
     {
         return Err(format!("bad tool sample {:?}", last.value));
     }
+    Ok(())
+}
+
+/// The haptic body on the crate's runner (spin_sleep, absolute deadlines).
+fn bare_haptic_loop(config: &LoopConfig, duration: Duration) -> Result<LoopReport, String> {
+    let (tool_tx, mut tool_rx) = snapshot_channel(&ToolSample::default());
+    let handle =
+        spawn_loop_with(config.clone(), move || haptic_body(tool_tx)).map_err(|e| e.to_string())?;
+    std::thread::sleep(duration);
+    let report = handle.stop_and_join().map_err(|e| e.to_string())?;
+    check_last_sample(&mut tool_rx, &report)?;
     Ok(report)
+}
+
+/// Baseline: the same body on a plain `std::thread::sleep` loop with the same absolute
+/// deadlines and skip policy (no spin), measured with the same recorder.
+fn std_sleep_loop(config: &LoopConfig, duration: Duration) -> Result<LoopReport, String> {
+    let (tool_tx, mut tool_rx) = snapshot_channel(&ToolSample::default());
+    let stop = StopFlag::new();
+    let stop_loop = stop.clone();
+    let config_loop = config.clone();
+    let period = config.try_period().map_err(|e| e.to_string())?;
+    let thread = std::thread::Builder::new()
+        .name(config.name.clone())
+        .spawn(move || {
+            let pin = config_loop
+                .core
+                .map_or(PinOutcome::NotRequested, pin_current_thread);
+            let rt = config_loop
+                .rt_priority
+                .map_or(RtOutcome::NotRequested, request_realtime);
+            let mut body = haptic_body(tool_tx);
+            let mut recorder = LatencyRecorder::new(period);
+            let start = Instant::now();
+            let period_ns = u64::try_from(period.as_nanos()).unwrap_or(u64::MAX).max(1);
+            let (mut k, mut index, mut skipped_next) = (0u64, 0u64, 0u64);
+            let mut prev_woke = start;
+            while !stop_loop.is_stopped() {
+                let scheduled = start + Duration::from_nanos(period_ns.saturating_mul(k));
+                if let Some(wait) = scheduled.checked_duration_since(Instant::now()) {
+                    std::thread::sleep(wait);
+                }
+                let woke = Instant::now();
+                let skipped_before = skipped_next;
+                let info = TickInfo {
+                    index,
+                    scheduled,
+                    woke,
+                    dt: if index == 0 { period } else { woke - prev_woke },
+                    skipped_before,
+                    nominal_period: period,
+                };
+                let _ = body(&info);
+                recorder.record_tick(&TickTiming {
+                    scheduled,
+                    woke,
+                    compute: woke.elapsed(),
+                    skipped_before,
+                });
+                prev_woke = woke;
+                index += 1;
+                // Skip policy: the next deadline is the first one still ahead of now.
+                let behind = u64::try_from(
+                    Instant::now()
+                        .saturating_duration_since(scheduled)
+                        .as_nanos()
+                        / u128::from(period_ns),
+                )
+                .unwrap_or(0);
+                skipped_next = behind;
+                k += 1 + behind;
+            }
+            LoopReport {
+                config: config_loop,
+                rt,
+                pin,
+                stop_reason: StopReason::StopRequested,
+                recorder,
+            }
+        })
+        .map_err(|e| e.to_string())?;
+    std::thread::sleep(duration);
+    stop.stop();
+    let report = thread
+        .join()
+        .map_err(|_| "std-sleep loop panicked".to_owned())?;
+    check_last_sample(&mut tool_rx, &report)?;
+    Ok(report)
+}
+
+/// How much time the environment takes from a thread that never sleeps: spins at SCHED_FIFO on
+/// `core` for `duration` reading the clock, and sums the gaps between reads longer than 20 µs
+/// (hypervisor preemption, interrupts, higher-priority kernel work). Sets the floor no loop can
+/// beat.
+#[derive(Debug, Serialize)]
+struct ClockGaps {
+    rt: RtOutcome,
+    seconds: f64,
+    gaps_over_20us: u64,
+    gaps_over_1ms: u64,
+    lost_ms: f64,
+    largest_gap_us: f64,
+}
+
+fn probe_clock_gaps(core: Option<usize>, duration: Duration) -> Option<ClockGaps> {
+    std::thread::spawn(move || {
+        if let Some(c) = core {
+            let _ = pin_current_thread(c);
+        }
+        let rt = request_realtime(DEFAULT_RT_PRIORITY);
+        let (mut n20, mut n1ms, mut lost, mut largest) =
+            (0u64, 0u64, Duration::ZERO, Duration::ZERO);
+        let mut spun = Duration::ZERO;
+        // Spin in 400 ms bursts with 200 ms rests, so the kernel's real-time throttling (by
+        // default 950 ms of every 1 s for SCHED_FIFO) never kicks in and only foreign gaps count.
+        while spun < duration {
+            let burst = (duration - spun).min(Duration::from_millis(400));
+            let start = Instant::now();
+            let mut last = start;
+            while last - start < burst {
+                let now = Instant::now();
+                let gap = now - last;
+                if gap > Duration::from_micros(20) {
+                    n20 += 1;
+                    lost += gap;
+                    largest = largest.max(gap);
+                    if gap > Duration::from_millis(1) {
+                        n1ms += 1;
+                    }
+                }
+                last = now;
+            }
+            spun += last - start;
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        ClockGaps {
+            rt,
+            seconds: duration.as_secs_f64(),
+            gaps_over_20us: n20,
+            gaps_over_1ms: n1ms,
+            lost_ms: lost.as_secs_f64() * 1e3,
+            largest_gap_us: largest.as_secs_f64() * 1e6,
+        }
+    })
+    .join()
+    .ok()
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -234,6 +390,7 @@ struct ScenarioResult {
 
 struct Args {
     seconds: f64,
+    spin_us: Option<u32>,
     out: PathBuf,
     only: Option<String>,
 }
@@ -249,6 +406,7 @@ fn parse_args() -> Result<Args, String> {
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("loop_latency"));
     let mut only = None;
+    let mut spin_us = None;
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
         match a.as_str() {
@@ -257,12 +415,16 @@ fn parse_args() -> Result<Args, String> {
                 seconds = v.parse().map_err(|e| format!("--seconds {v:?}: {e}"))?;
             }
             "--out" => out = PathBuf::from(args.next().ok_or("--out needs a directory")?),
+            "--spin-us" => {
+                let v = args.next().ok_or("--spin-us needs a value")?;
+                spin_us = Some(v.parse().map_err(|e| format!("--spin-us {v:?}: {e}"))?);
+            }
             "--only" => only = Some(args.next().ok_or("--only needs a workload name")?),
             // cargo bench passes --bench to harness = false targets.
             "--bench" => {}
             other => {
                 return Err(format!(
-                    "unknown argument {other:?} (expected --seconds, --out, --only)"
+                    "unknown argument {other:?} (expected --seconds, --out, --only, --spin-us)"
                 ));
             }
         }
@@ -270,7 +432,12 @@ fn parse_args() -> Result<Args, String> {
     if !(seconds.is_finite() && seconds > 0.0) {
         return Err(format!("seconds must be positive, got {seconds}"));
     }
-    Ok(Args { seconds, out, only })
+    Ok(Args {
+        seconds,
+        spin_us,
+        out,
+        only,
+    })
 }
 
 fn main() {
@@ -295,6 +462,16 @@ fn run() -> Result<(), String> {
         load_avg.trim()
     );
 
+    let loop_pin = (cores > 1).then_some(loop_core);
+    let gaps = probe_clock_gaps(loop_pin, duration.min(Duration::from_secs(3)));
+    if let Some(g) = &gaps {
+        println!(
+            "environment: a thread spinning at {} lost {:.1} ms of {:.0} s to {} gaps > 20 µs \
+             ({} > 1 ms, largest {:.0} µs)",
+            g.rt, g.lost_ms, g.seconds, g.gaps_over_20us, g.gaps_over_1ms, g.largest_gap_us
+        );
+    }
+
     let mut results = Vec::new();
     let mut recorders = Vec::new();
     for (workload, run_workload) in workloads() {
@@ -315,8 +492,11 @@ fn run() -> Result<(), String> {
                     }
                 );
                 let mut config = LoopConfig::new("haptic").with_rate_hz(1000.0);
-                if cores > 1 {
-                    config = config.with_core(loop_core);
+                if let Some(spin_us) = args.spin_us {
+                    config.spin_margin_us = spin_us;
+                }
+                if let Some(core) = loop_pin {
+                    config = config.with_core(core);
                 }
                 if priority == Priority::Fifo {
                     config = config.with_rt_priority(DEFAULT_RT_PRIORITY);
@@ -350,13 +530,26 @@ fn run() -> Result<(), String> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| format!("creating {}: {e}", args.out.display()))?;
     let json_path = args.out.join("loop_latency.json");
-    let json = serde_json::to_string_pretty(&results).map_err(|e| e.to_string())?;
+    #[derive(Serialize)]
+    struct Doc<'a> {
+        command_seconds: f64,
+        load_average_before: &'a str,
+        clock_gaps: Option<&'a ClockGaps>,
+        scenarios: &'a [ScenarioResult],
+    }
+    let doc = Doc {
+        command_seconds: args.seconds,
+        load_average_before: load_avg.trim(),
+        clock_gaps: gaps.as_ref(),
+        scenarios: &results,
+    };
+    let json = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
     std::fs::write(&json_path, json)
         .map_err(|e| format!("writing {}: {e}", json_path.display()))?;
     let md_path = args.out.join("loop_latency.md");
     std::fs::write(&md_path, &table).map_err(|e| format!("writing {}: {e}", md_path.display()))?;
     let svg_path = args.out.join("loop_latency.svg");
-    let refs: Vec<(&str, &dynaclay_loops::LatencyRecorder)> =
+    let refs: Vec<(&str, &LatencyRecorder)> =
         recorders.iter().map(|(n, r)| (n.as_str(), r)).collect();
     write_latency_svg(&svg_path, &refs).map_err(|e| e.to_string())?;
     // Also the plain summaries, in the format the engine's `latency.json` uses.

@@ -10,6 +10,7 @@
 #![warn(clippy::undocumented_unsafe_blocks)]
 
 pub mod app;
+pub mod cli;
 pub mod dynamics;
 pub mod engine;
 pub mod field;

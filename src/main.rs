@@ -1,5 +1,8 @@
-//! The `dynaclay` command-line entry point.
+//! The `dynaclay` command-line entry point: parses the arguments and runs the subcommand.
+
+use clap::Parser;
 
 fn main() {
-    println!("dynaclay {}", env!("CARGO_PKG_VERSION"));
+    let cli = dynaclay::cli::Cli::parse();
+    std::process::exit(dynaclay::cli::dispatch(cli));
 }

@@ -10,7 +10,14 @@ pub mod safety;
 pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+pub use record::{
+    RecordError, RecorderConfig, Recording, RecordingDevice, ReplayDevice, ReplayDivergence,
+};
 pub use safety::{SafetyConfig, SafetyCounters, SafetyFilter, soft_start_gain};
+pub use sim_arm::{
+    Fault, FaultKind, HandSample, Interpolation, SimArmConfig, SimArmCounters, SimRng,
+    SimulatedArm, Trajectory, TrajectoryError, Waypoint,
+};
 
 // Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
 pub mod codec;

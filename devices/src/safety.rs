@@ -87,6 +87,33 @@ pub fn soft_start_gain(t: f32) -> f32 {
 /// the time base), `write_force` filters. On any device error it immediately sends zero, and
 /// keeps sending zero until a `read` succeeds again; then force comes back through a fresh soft
 /// start.
+///
+/// # Examples
+///
+/// A haptic loop over the simulated arm, recording the session; the force the engine asks
+/// for is clamped, slewed and ramped before it reaches the arm.
+///
+/// ```
+/// use dynaclay_devices::{HapticDevice, RecordingDevice, SafetyFilter, SimulatedArm, Trajectory};
+/// use glam::Vec3;
+///
+/// let dir = tempfile::tempdir()?;
+/// let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::ZERO));
+/// let recorder = RecordingDevice::create(arm, dir.path().join("session.dcrec"))?;
+/// let mut device = SafetyFilter::new(recorder);
+/// device.open()?;
+/// for _ in 0..1000 {
+///     match device.read() {
+///         Ok(state) => device.write_force(-state.position_m * 500.0)?,
+///         // The filter already sent zero; keep ticking.
+///         Err(_) => continue,
+///     }
+/// }
+/// assert!(device.output_force_n().length() <= device.max_force_n());
+/// let (_arm, summary) = device.into_inner().finish()?;
+/// assert_eq!(summary.records, 2000);
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct SafetyFilter<D: HapticDevice = Box<dyn HapticDevice>> {
     device: D,
     config: SafetyConfig,

@@ -780,6 +780,35 @@ mod tests {
     }
 
     #[test]
+    fn runs_at_about_its_rate_at_1khz_and_4khz() {
+        // A functional check with generous slack (the machine is shared): never ahead of the
+        // deadline grid, and not wildly behind it.
+        for rate_hz in [1000.0, 4000.0] {
+            let handle = spawn_loop(LoopConfig::new("t-rate").with_rate_hz(rate_hz), |_| {
+                ControlFlow::Continue(())
+            })
+            .expect("spawn");
+            let started = Instant::now();
+            std::thread::sleep(Duration::from_millis(300));
+            let report = handle.stop_and_join().expect("join");
+            let elapsed_s = started.elapsed().as_secs_f64();
+            let ticks = report.recorder.ticks() as f64;
+            assert!(
+                ticks <= rate_hz * elapsed_s + 2.0,
+                "{ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
+            );
+            // At least 30 % of the ticks due in the 300 ms sleep.
+            assert!(
+                ticks >= rate_hz * 0.3 * 0.3,
+                "only {ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
+            );
+            let stats = report.recorder.stats();
+            assert!(stats.achieved_rate_hz <= rate_hz * 1.01, "{stats:?}");
+            assert!((stats.nominal_rate_hz - rate_hz).abs() < 1e-6);
+        }
+    }
+
+    #[test]
     fn stats_are_published_while_running() {
         let mut handle = spawn_loop(
             LoopConfig::new("t-stats")

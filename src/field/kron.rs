@@ -153,9 +153,25 @@ impl KroneckerBasis {
     /// # Panics
     /// When `x` does not have one entry per coefficient.
     pub fn solve_gram(&self, x: &mut [f32]) {
+        self.solve_gram_with(x, true);
+    }
+
+    /// [`KroneckerBasis::solve_gram`] with the x-axis lines swept one at a time instead of in
+    /// tiles: the plain alternative that `bench/core.rs` compares against.
+    pub fn solve_gram_line_by_line(&self, x: &mut [f32]) {
+        self.solve_gram_with(x, false);
+    }
+
+    fn solve_gram_with(&self, x: &mut [f32], tiled: bool) {
         let [nx, ny, nz] = self.cols();
         assert_eq!(x.len(), self.coeff_count(), "coefficient length");
-        solve_x_tiled(&self.chol[0], x, nx);
+        if tiled {
+            solve_x_tiled(&self.chol[0], x, nx);
+        } else {
+            for line in x.chunks_exact_mut(nx) {
+                self.chol[0].solve_in_place(line);
+            }
+        }
         solve_strided(&self.chol[1], x, nx, nz);
         solve_strided(&self.chol[2], x, nx * ny, 1);
     }
@@ -234,8 +250,8 @@ pub(crate) fn pass_strided(
                 let s1 = &src_block[(f + 1) * inner..(f + 2) * inner];
                 let s2 = &src_block[(f + 2) * inner..(f + 3) * inner];
                 let s3 = &src_block[(f + 3) * inner..(f + 4) * inner];
-                for i in 0..inner {
-                    out[i] = w[0] * s0[i] + w[1] * s1[i] + w[2] * s2[i] + w[3] * s3[i];
+                for ((((o, &a), &b), &c), &d) in out.iter_mut().zip(s0).zip(s1).zip(s2).zip(s3) {
+                    *o = w[0] * a + w[1] * b + w[2] * c + w[3] * d;
                 }
             } else {
                 out.fill(0.0);
@@ -290,15 +306,14 @@ pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, 
             match i {
                 0 => cur.iter_mut().for_each(|v| *v *= inv),
                 1 => {
-                    let p1 = &prev[..inner];
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - l[0] * p1[e]) * inv;
+                    for (c, &a) in cur.iter_mut().zip(&prev[..inner]) {
+                        *c = (*c - l[0] * a) * inv;
                     }
                 }
                 2 => {
                     let (p2, p1) = prev.split_at(inner);
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - l[0] * p1[e] - l[1] * p2[e]) * inv;
+                    for ((c, &a), &b) in cur.iter_mut().zip(p1).zip(p2) {
+                        *c = (*c - l[0] * a - l[1] * b) * inv;
                     }
                 }
                 _ => {
@@ -306,8 +321,8 @@ pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, 
                     let p3 = &prev[base..base + inner];
                     let p2 = &prev[base + inner..base + 2 * inner];
                     let p1 = &prev[base + 2 * inner..base + 3 * inner];
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - l[0] * p1[e] - l[1] * p2[e] - l[2] * p3[e]) * inv;
+                    for (((c, &a), &b), &d) in cur.iter_mut().zip(p1).zip(p2).zip(p3) {
+                        *c = (*c - l[0] * a - l[1] * b - l[2] * d) * inv;
                     }
                 }
             }
@@ -323,15 +338,14 @@ pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, 
             match avail {
                 0 => cur.iter_mut().for_each(|v| *v *= inv),
                 1 => {
-                    let n1 = &tail[..inner];
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - c1 * n1[e]) * inv;
+                    for (c, &a) in cur.iter_mut().zip(&tail[..inner]) {
+                        *c = (*c - c1 * a) * inv;
                     }
                 }
                 2 => {
                     let (n1, n2) = (&tail[..inner], &tail[inner..2 * inner]);
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - c1 * n1[e] - c2 * n2[e]) * inv;
+                    for ((c, &a), &b) in cur.iter_mut().zip(n1).zip(n2) {
+                        *c = (*c - c1 * a - c2 * b) * inv;
                     }
                 }
                 _ => {
@@ -340,8 +354,8 @@ pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, 
                         &tail[inner..2 * inner],
                         &tail[2 * inner..3 * inner],
                     );
-                    for e in 0..inner {
-                        cur[e] = (cur[e] - c1 * n1[e] - c2 * n2[e] - c3 * n3[e]) * inv;
+                    for (((c, &a), &b), &d) in cur.iter_mut().zip(n1).zip(n2).zip(n3) {
+                        *c = (*c - c1 * a - c2 * b - c3 * d) * inv;
                     }
                 }
             }

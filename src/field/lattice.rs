@@ -157,6 +157,21 @@ impl BSplineLattice {
         let wx = cubic_weights(stencil.t.x);
         let wy = cubic_weights(stencil.t.y);
         let wz = cubic_weights(stencil.t.z);
+        if let Some(base) = self.interior_base(&stencil) {
+            // Fast path: all 64 coefficients exist, no per-tap range checks.
+            let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
+            let mut sum = 0.0;
+            for c in 0..4 {
+                let mut plane = 0.0;
+                for b in 0..4 {
+                    let row = &self.coeffs[base + b * sy + c * sz..][..4];
+                    plane +=
+                        wy[b] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+                }
+                sum += wz[c] * plane;
+            }
+            return sum;
+        }
         let mut sum = 0.0;
         for c in 0..4 {
             let Some(k) = stencil.axis(2, c, self.dims[2]) else {
@@ -191,6 +206,27 @@ impl BSplineLattice {
         let (wx, dx) = cubic_weights_and_derivatives(stencil.t.x);
         let (wy, dy) = cubic_weights_and_derivatives(stencil.t.y);
         let (wz, dz) = cubic_weights_and_derivatives(stencil.t.z);
+        if let Some(base) = self.interior_base(&stencil) {
+            // Fast path: all 64 coefficients exist, no per-tap range checks.
+            let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
+            let (mut v, mut gx, mut gy, mut gz) = (0.0, 0.0, 0.0, 0.0);
+            for c in 0..4 {
+                let (mut pv, mut pgx, mut pgy) = (0.0, 0.0, 0.0);
+                for b in 0..4 {
+                    let row = &self.coeffs[base + b * sy + c * sz..][..4];
+                    let lv = wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3];
+                    let lg = dx[0] * row[0] + dx[1] * row[1] + dx[2] * row[2] + dx[3] * row[3];
+                    pv += wy[b] * lv;
+                    pgx += wy[b] * lg;
+                    pgy += dy[b] * lv;
+                }
+                v += wz[c] * pv;
+                gx += wz[c] * pgx;
+                gy += wz[c] * pgy;
+                gz += dz[c] * pv;
+            }
+            return (v, Vec3::new(gx, gy, gz) / self.spacing);
+        }
         let (mut v, mut gx, mut gy, mut gz) = (0.0, 0.0, 0.0, 0.0);
         for c in 0..4 {
             let Some(k) = stencil.axis(2, c, self.dims[2]) else {
@@ -266,6 +302,14 @@ impl BSplineLattice {
     #[must_use]
     pub fn is_inside(&self, x: Vec3) -> bool {
         self.value(x) > self.iso
+    }
+
+    /// Index of the stencil's first coefficient when all 4×4×4 lie inside the lattice.
+    #[inline]
+    fn interior_base(&self, stencil: &Stencil) -> Option<usize> {
+        let f = stencil.first;
+        let inside = (0..3).all(|a| f[a] >= 0 && (f[a] + 3) < self.dims[a] as i64);
+        inside.then(|| self.index(f[0] as usize, f[1] as usize, f[2] as usize))
     }
 
     fn stencil(&self, x: Vec3) -> Option<Stencil> {

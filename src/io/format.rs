@@ -10,7 +10,7 @@
 //! ```
 //!
 //! Sections in order: `META` (JSON metadata), one `PTCH` per patch (a lattice), `MATL`
-//! (material), `COLR` (four lattices, only when the clay has colour), `TOOL` (the tool
+//! (material: mass, damping, stiffness, plasticity, yield, then named grids), `COLR` (four lattices, only when the clay has colour), `TOOL` (the tool
 //! library), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
 //! iso `f32`, coefficient count `u64`, coefficients `f32`. Sections with unknown tags are
 //! checked and skipped, so later minor additions stay readable.
@@ -21,6 +21,7 @@ use glam::Vec3;
 
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
+use crate::dynamics::Material;
 use crate::field::BSplineLattice;
 use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
 
@@ -275,7 +276,14 @@ fn put_str(out: &mut Vec<u8>, s: &str) {
 
 fn encode_material(m: &MaterialFields) -> Result<Vec<u8>, SessionError> {
     let mut out = Vec::new();
-    for v in [m.stiffness, m.damping, m.mass, m.plasticity_per_s] {
+    let u = &m.uniform;
+    for v in [
+        u.mass,
+        u.damping,
+        u.stiffness,
+        u.plasticity_per_s,
+        u.yield_density,
+    ] {
         out.extend_from_slice(&v.to_le_bytes());
     }
     out.extend_from_slice(&(m.grids.len() as u32).to_le_bytes());
@@ -302,10 +310,13 @@ fn encode_material(m: &MaterialFields) -> Result<Vec<u8>, SessionError> {
 
 fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
     let mut m = MaterialFields {
-        stiffness: r.f32()?,
-        damping: r.f32()?,
-        mass: r.f32()?,
-        plasticity_per_s: r.f32()?,
+        uniform: Material {
+            mass: r.f32()?,
+            damping: r.f32()?,
+            stiffness: r.f32()?,
+            plasticity_per_s: r.f32()?,
+            yield_density: r.f32()?,
+        },
         grids: Vec::new(),
     };
     let count = r.u32()?;
@@ -564,13 +575,12 @@ mod tests {
                 colour: Some(colour),
             },
             material: MaterialFields {
-                stiffness: 3.0,
+                uniform: Material::PLASTIC,
                 grids: vec![MaterialGrid {
                     name: "stiffness".into(),
                     dims: [2, 2, 2],
                     values: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0],
                 }],
-                ..MaterialFields::default()
             },
             tools: vec![
                 ToolPreset {

@@ -5,10 +5,17 @@ mod atomic;
 mod autosave;
 mod error;
 mod format;
+mod run_script;
+mod script;
 mod session;
 
 pub use atomic::{load_session, save_session, write_atomic};
 pub use autosave::{Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for};
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
+pub use run_script::{RunSummary, run_script};
+pub use script::{
+    BetaSpec, CsgSpec, ForceToolSpec, SCRIPT_VERSION, Script, ScriptError, ScriptStep, ShapeSpec,
+    parse_script, poses,
+};
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};

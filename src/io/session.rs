@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::dynamics::Material;
 use crate::tools::{Clay, ToolAction, ToolShape};
 
 /// Descriptive metadata stored with a session.
@@ -29,30 +30,12 @@ pub struct MaterialGrid {
 
 /// The material: uniform defaults for the density-spring dynamics, optionally overridden by
 /// per-mass-point grids.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct MaterialFields {
-    /// Density-spring stiffness `k`.
-    pub stiffness: f32,
-    /// Damping `D`.
-    pub damping: f32,
-    /// Mass per mass point `μ`.
-    pub mass: f32,
-    /// Rate at which rest densities drift to the current ones (per second).
-    pub plasticity_per_s: f32,
+    /// The region's uniform material (mass, damping, stiffness, plasticity, yield).
+    pub uniform: Material,
     /// Spatially varying overrides.
     pub grids: Vec<MaterialGrid>,
-}
-
-impl Default for MaterialFields {
-    fn default() -> Self {
-        Self {
-            stiffness: 1.0,
-            damping: 0.1,
-            mass: 1.0,
-            plasticity_per_s: 0.0,
-            grids: Vec::new(),
-        }
-    }
 }
 
 /// A named tool in the session's library.

@@ -115,25 +115,28 @@ impl SampleGrid {
         self.point(self.cells)
     }
 
-    /// Range of sample indices (inclusive) whose positions may lie in `min..=max`, per axis,
-    /// or `None` when the box misses the grid. Rounds outwards by one sample, so it never
-    /// misses a sample in the box.
+    /// Range of sample indices (inclusive) strictly inside the box `min..max`, per axis, or
+    /// `None` when no sample is. Samples within 1e-4 cell of a face count as on the face,
+    /// i.e. outside: a field whose change is confined to the box (a B-spline edit, whose
+    /// change and its gradient vanish on the support's boundary) has not changed there.
     #[must_use]
-    pub fn sample_range(&self, min: Vec3, max: Vec3) -> Option<([u32; 3], [u32; 3])> {
+    pub fn interior_sample_range(&self, min: Vec3, max: Vec3) -> Option<([u32; 3], [u32; 3])> {
+        const ON_FACE: f32 = 1e-4;
         let mut lo = [0u32; 3];
         let mut hi = [0u32; 3];
         for axis in 0..3 {
             let a = (min[axis] - self.origin[axis]) / self.cell_size;
             let b = (max[axis] - self.origin[axis]) / self.cell_size;
-            if !(a.is_finite() && b.is_finite()) || a > b {
+            if !(a.is_finite() && b.is_finite()) {
                 return None;
             }
-            let n = self.cells[axis] as f32;
-            if b < -1.0 || a > n + 1.0 {
+            let first = ((a + ON_FACE).floor() + 1.0).max(0.0);
+            let last = ((b - ON_FACE).ceil() - 1.0).min(self.cells[axis] as f32);
+            if first > last {
                 return None;
             }
-            lo[axis] = (a.floor() - 1.0).clamp(0.0, n) as u32;
-            hi[axis] = (b.ceil() + 1.0).clamp(0.0, n) as u32;
+            lo[axis] = first as u32;
+            hi[axis] = last as u32;
         }
         Some((lo, hi))
     }
@@ -171,16 +174,27 @@ mod tests {
     }
 
     #[test]
-    fn sample_range_is_conservative_and_clamped() {
+    fn interior_sample_range_excludes_faces_and_clamps() {
         let g = SampleGrid::new(Vec3::ZERO, 1.0, [10; 3]).unwrap();
-        let (lo, hi) = g.sample_range(Vec3::splat(2.5), Vec3::splat(4.5)).unwrap();
-        assert_eq!((lo, hi), ([1; 3], [6; 3]));
-        let (lo, hi) = g
-            .sample_range(Vec3::splat(-5.0), Vec3::splat(50.0))
-            .unwrap();
-        assert_eq!((lo, hi), ([0; 3], [10; 3]));
+        let r = g.interior_sample_range(Vec3::splat(2.5), Vec3::splat(4.5));
+        assert_eq!(r, Some(([3; 3], [4; 3])));
+        // Samples on the faces (2 and 6) are not inside.
+        let r = g.interior_sample_range(Vec3::splat(2.0), Vec3::splat(6.0));
+        assert_eq!(r, Some(([3; 3], [5; 3])));
+        let r = g.interior_sample_range(Vec3::splat(2.0 - 1e-6), Vec3::splat(6.0 + 1e-6));
+        assert_eq!(r, Some(([3; 3], [5; 3])));
+        let r = g.interior_sample_range(Vec3::splat(-5.0), Vec3::splat(50.0));
+        assert_eq!(r, Some(([0; 3], [10; 3])));
         assert!(
-            g.sample_range(Vec3::splat(20.0), Vec3::splat(30.0))
+            g.interior_sample_range(Vec3::splat(20.0), Vec3::splat(30.0))
+                .is_none()
+        );
+        assert!(
+            g.interior_sample_range(Vec3::splat(3.0), Vec3::splat(4.0))
+                .is_none()
+        );
+        assert!(
+            g.interior_sample_range(Vec3::splat(3.2), Vec3::splat(3.1))
                 .is_none()
         );
     }

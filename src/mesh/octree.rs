@@ -8,9 +8,11 @@
 //! field bound ([`ScalarField::bounds`]) shows it is all inside or all outside; only bricks
 //! that survive are sampled and meshed.
 //!
-//! A local refresh runs the same descent restricted to the bricks a changed box touches, and
-//! every culling decision depends only on the node and the field, never on the query, so a
-//! refresh yields exactly the bricks and meshes a full rebuild would.
+//! A local refresh runs the same descent, restricted to the bricks a changed box touches and
+//! starting at the smallest node that holds them. Each brick's samples and mesh depend only
+//! on the brick and the field, and a culled node holds no surface (bounds are never tighter
+//! than the true range), so a refresh yields exactly the bricks and meshes a full rebuild
+//! would.
 //!
 //! Not real-time: this runs on the graphics thread and allocates.
 
@@ -117,21 +119,22 @@ impl BrickOctree {
         self.refresh_bricks(field, [0; 3], last)
     }
 
-    /// Re-meshes the bricks whose samples or vertices can lie in the world box `min..=max`
-    /// (those it touches and, through shared faces, their neighbours), creating and removing
-    /// bricks as the surface enters or leaves them.
+    /// Re-meshes the bricks that hold a sample strictly inside the world box `min..max` (those
+    /// it touches and, through shared faces, their neighbours), creating and removing bricks
+    /// as the surface enters or leaves them.
     ///
-    /// The box must contain every point where the field's value changed; then the result is
-    /// identical to [`BrickOctree::rebuild`]. For a change of lattice coefficients, get the box
-    /// from [`BrickOctree::coefficient_change_box`]. A box that misses the grid changes
-    /// nothing.
+    /// The field must be unchanged on and outside the box's faces (samples within 1e-4 cell of
+    /// a face are taken as unchanged); then the result is identical to
+    /// [`BrickOctree::rebuild`]. For a change of lattice coefficients, get the box from
+    /// [`BrickOctree::coefficient_change_box`]: a cubic B-spline's change and its gradient
+    /// vanish on that box's faces. A box with no sample inside changes nothing.
     pub fn refresh_box<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
         min: Vec3,
         max: Vec3,
     ) -> RefreshReport {
-        let Some((lo, hi)) = self.grid.sample_range(min, max) else {
+        let Some((lo, hi)) = self.grid.interior_sample_range(min, max) else {
             return RefreshReport {
                 generation: self.generation,
                 ..RefreshReport::default()
@@ -157,7 +160,7 @@ impl BrickOctree {
 
     /// The world box where the field can change when the coefficients with indices
     /// `first ..= last` (per axis) change: their nodes widened by two knot spans, the reach
-    /// of a cubic B-spline.
+    /// of a cubic B-spline (the change is zero, with zero gradient, on the box's faces).
     #[must_use]
     pub fn coefficient_change_box(
         lattice: &BSplineLattice,
@@ -185,7 +188,23 @@ impl BrickOctree {
         if (0..3).any(|a| first[a] > last[a]) {
             return report;
         }
-        self.visit(field, [0; 3], self.root_size, (first, last), &mut report);
+        // Start at the level whose nodes are as large as the query (at most two per axis hold
+        // it): bounding the nodes above would only re-read coefficients far from the change.
+        let span = (0..3).map(|a| last[a] - first[a] + 1).max().unwrap_or(1);
+        let size = span.next_power_of_two().min(self.root_size);
+        let start = first.map(|v| v / size * size);
+        for dz in 0..2 {
+            for dy in 0..2 {
+                for dx in 0..2 {
+                    let node = [
+                        start[0] + dx * size,
+                        start[1] + dy * size,
+                        start[2] + dz * size,
+                    ];
+                    self.visit(field, node, size, (first, last), &mut report);
+                }
+            }
+        }
         report
     }
 
@@ -206,7 +225,7 @@ impl BrickOctree {
         if (0..3).any(|a| lo[a] > hi[a]) {
             return;
         }
-        // The node's own box (not clipped to the query): the decision must not depend on it.
+        // The node's own box (not clipped to the query), so decisions repeat between passes.
         let node_hi: [u32; 3] =
             std::array::from_fn(|a| ((node[a] + size) * BRICK_CELLS).min(self.grid.cells[a]));
         let pmin = self.grid.point(node.map(|n| n * BRICK_CELLS));

@@ -522,3 +522,137 @@ mod tests {
         assert_eq!(h.undo_len(), 1);
     }
 }
+
+#[cfg(test)]
+mod property {
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::field::BSplineLattice;
+    use crate::tools::{
+        ApplyOptions, ColourField, ContactParams, GeometricTool, StampParams, ToolAction, ToolPose,
+        ToolShape, apply_tool,
+    };
+
+    #[derive(Clone, Debug)]
+    enum Op {
+        Tool {
+            kind: u8,
+            at: [f32; 3],
+            size: f32,
+            dt: f32,
+        },
+        Undo,
+        Redo,
+    }
+
+    fn op() -> impl Strategy<Value = Op> {
+        prop_oneof![
+            6 => (0_u8..10, prop::array::uniform3(0.0_f32..1.0), 0.08_f32..0.25, 0.05_f32..1.0)
+                .prop_map(|(kind, at, size, dt)| Op::Tool { kind, at, size, dt }),
+            2 => Just(Op::Undo),
+            1 => Just(Op::Redo),
+        ]
+    }
+
+    fn bits(clay: &Clay) -> Vec<u32> {
+        let mut out: Vec<u32> = clay
+            .patches
+            .iter()
+            .flat_map(|p| p.coeffs.iter().map(|c| c.to_bits()))
+            .collect();
+        if let Some(c) = &clay.colour {
+            for ch in &c.channels {
+                out.extend(ch.coeffs.iter().map(|c| c.to_bits()));
+            }
+        }
+        out
+    }
+
+    fn tool(kind: u8, size: f32) -> GeometricTool {
+        let shape = match kind % 3 {
+            0 => ToolShape::Sphere { radius_m: size },
+            1 => ToolShape::Box {
+                half_extents_m: Vec3::new(size, 0.7 * size, 0.5 * size),
+            },
+            _ => ToolShape::Capsule {
+                radius_m: 0.6 * size,
+                half_height_m: size,
+            },
+        };
+        let action = match kind {
+            0 | 1 => ToolAction::Add {
+                deposit_rate_per_s: 2.0,
+            },
+            2 => ToolAction::Remove,
+            3 => ToolAction::SoftRemove { rate_per_s: 1.0 },
+            4 => ToolAction::Paint {
+                rgb: [0.9, 0.1, 0.3],
+            },
+            5 => ToolAction::Smooth {
+                rate_per_s: 1.0,
+                kernel_m: 0.08,
+            },
+            6 => ToolAction::Stamp(StampParams::default()),
+            7 => ToolAction::Contact(ContactParams { alpha: -2.0 }),
+            8 => ToolAction::Union,
+            _ => ToolAction::Difference,
+        };
+        GeometricTool {
+            shape,
+            action,
+            falloff_m: 0.1,
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
+
+        #[test]
+        fn undo_and_redo_are_bit_exact_over_random_sequences(ops in prop::collection::vec(op(), 100)) {
+            let lattice = BSplineLattice::zeros([14, 14, 14], 1.0 / 12.0, Vec3::ZERO).unwrap();
+            let mut clay = Clay {
+                colour: Some(ColourField::matching(&lattice).unwrap()),
+                patches: vec![lattice],
+            };
+            let mut history = History::default();
+            let mut timeline = vec![bits(&clay)];
+            let mut pos = 0;
+            for op in ops {
+                match op {
+                    Op::Tool { kind, at, size, dt } => {
+                        let t = tool(kind, size);
+                        let mut rec = StepRecorder::new(t.action.name());
+                        let pose = ToolPose::at(Vec3::from_array(at) * 1.1);
+                        apply_tool(&mut clay, &t, &pose, dt, &ApplyOptions::default(), Some(&mut rec)).unwrap();
+                        if history.commit(rec, &clay) {
+                            timeline.truncate(pos + 1);
+                            timeline.push(bits(&clay));
+                            pos += 1;
+                        } else {
+                            prop_assert_eq!(&bits(&clay), &timeline[pos]);
+                        }
+                    }
+                    Op::Undo => {
+                        let undone = history.undo(&mut clay).unwrap();
+                        prop_assert_eq!(undone.is_some(), pos > 0);
+                        pos = pos.saturating_sub(1);
+                        prop_assert!(bits(&clay) == timeline[pos], "undo not bit-exact");
+                    }
+                    Op::Redo => {
+                        let redone = history.redo(&mut clay).unwrap();
+                        prop_assert_eq!(redone.is_some(), pos + 1 < timeline.len());
+                        if redone.is_some() {
+                            pos += 1;
+                        }
+                        prop_assert!(bits(&clay) == timeline[pos], "redo not bit-exact");
+                    }
+                }
+            }
+            // Unwind everything: back to the empty clay.
+            while history.undo(&mut clay).unwrap().is_some() {}
+            prop_assert!(bits(&clay) == timeline[0]);
+        }
+    }
+}

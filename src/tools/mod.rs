@@ -5,12 +5,19 @@ mod action;
 mod apply;
 mod clay;
 mod deform;
+mod force;
 mod history;
 mod shape;
 
 pub use action::{ActionError, ToolAction};
-pub use apply::{ApplyOptions, GeometricTool, ToolError, ToolReport, apply_stroke, apply_tool};
+pub use apply::{
+    ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
+};
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, StampParams, StampParamsError};
+pub use force::{
+    ForceInput, ForceTool, ForceToolError, PenetrationTarget, nearest_solid_point, outward_normal,
+    plan_penetration, project_to_surface,
+};
 pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};

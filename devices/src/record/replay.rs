@@ -1,0 +1,198 @@
+//! Playing a recording back as a device, one recorded read per `read`.
+//!
+//! Guarantee: after loading, `read` and `write_force` allocate nothing and do O(1) work. The
+//! replay is indexed by call, not by time: the n-th `read` returns the n-th recorded read
+//! result and the n-th `write_force` returns the n-th recorded write result, so an engine that
+//! steps its simulation in lockstep with the samples reproduces a session bit for bit. Each
+//! written force is compared bit for bit with the recorded one, so divergence is measurable.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::error::RecordError;
+use super::format::{Record, Recording};
+use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+
+/// How far the forces written to a replay differ from the recorded ones.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ReplayDivergence {
+    /// Writes compared with a recorded write.
+    pub writes_compared: u64,
+    /// Writes whose force was not bit-for-bit the recorded one.
+    pub writes_differing: u64,
+    /// Writes past the end of the recorded writes.
+    pub writes_extra: u64,
+    /// Largest difference between a written and the recorded force, newtons.
+    pub max_difference_n: f32,
+}
+
+/// A recorded session played back as a [`HapticDevice`].
+#[derive(Clone, Debug)]
+pub struct ReplayDevice {
+    info: DeviceInfo,
+    reads: Vec<Result<DeviceState, DeviceError>>,
+    writes: Vec<(Vec3, Result<(), DeviceError>)>,
+    dropped: u64,
+    open: bool,
+    next_read: usize,
+    next_write: usize,
+    divergence: ReplayDivergence,
+}
+
+impl ReplayDevice {
+    /// Loads the recording at `path`.
+    ///
+    /// # Errors
+    /// [`RecordError::Io`] if the file cannot be read; otherwise a format error wrapped in
+    /// [`RecordError::InFile`] naming the path, byte offset and block.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, RecordError> {
+        let path = path.as_ref();
+        let bytes = std::fs::read(path).map_err(|source| RecordError::Io {
+            path: path.to_path_buf(),
+            action: "read recording",
+            source,
+        })?;
+        let recording = Recording::parse(&bytes).map_err(|error| RecordError::InFile {
+            path: path.to_path_buf(),
+            error: Box::new(error),
+        })?;
+        Ok(Self::from_recording(recording))
+    }
+
+    /// A replay of an already decoded recording.
+    #[must_use]
+    pub fn from_recording(recording: Recording) -> Self {
+        let mut reads = Vec::new();
+        let mut writes = Vec::new();
+        for record in recording.records {
+            match record {
+                Record::Read(result) => reads.push(result),
+                Record::Write { force_n, result } => writes.push((force_n, result)),
+            }
+        }
+        Self {
+            info: recording.info,
+            reads,
+            writes,
+            dropped: recording.dropped,
+            open: false,
+            next_read: 0,
+            next_write: 0,
+            divergence: ReplayDivergence::default(),
+        }
+    }
+
+    /// Recorded reads (successful or not).
+    #[must_use]
+    pub fn read_count(&self) -> usize {
+        self.reads.len()
+    }
+
+    /// Reads not yet replayed.
+    #[must_use]
+    pub fn reads_remaining(&self) -> usize {
+        self.reads.len() - self.next_read
+    }
+
+    /// The recorded forces and write results, in order.
+    pub fn recorded_writes(&self) -> &[(Vec3, Result<(), DeviceError>)] {
+        &self.writes
+    }
+
+    /// Records the recorder dropped (a replay with drops is not a faithful copy).
+    #[must_use]
+    pub fn dropped_while_recording(&self) -> u64 {
+        self.dropped
+    }
+
+    /// How the forces written so far compare with the recorded ones.
+    #[must_use]
+    pub fn divergence(&self) -> ReplayDivergence {
+        self.divergence
+    }
+
+    /// Starts the replay over from the first record.
+    pub fn rewind(&mut self) {
+        self.next_read = 0;
+        self.next_write = 0;
+        self.divergence = ReplayDivergence::default();
+    }
+}
+
+impl HapticDevice for ReplayDevice {
+    /// The recorded device's info, unchanged, so limits (and the safety filter) match.
+    fn info(&self) -> DeviceInfo {
+        self.info.clone()
+    }
+
+    /// Opens the replay. Opening does not rewind (a reconnect during a replayed session
+    /// continues where it was); use [`ReplayDevice::rewind`].
+    fn open(&mut self) -> Result<(), DeviceError> {
+        self.open = true;
+        Ok(())
+    }
+
+    fn close(&mut self) -> Result<(), DeviceError> {
+        self.open = false;
+        Ok(())
+    }
+
+    fn is_open(&self) -> bool {
+        self.open
+    }
+
+    /// The next recorded read result.
+    ///
+    /// # Errors
+    /// The recorded error, [`DeviceError::NotOpen`], or [`DeviceError::EndOfRecording`] once
+    /// every recorded read has been returned.
+    fn read(&mut self) -> Result<DeviceState, DeviceError> {
+        if !self.open {
+            return Err(DeviceError::NotOpen);
+        }
+        match self.reads.get(self.next_read) {
+            Some(result) => {
+                self.next_read += 1;
+                result.clone()
+            }
+            None => Err(DeviceError::EndOfRecording {
+                samples: self.reads.len() as u64,
+            }),
+        }
+    }
+
+    /// Compares `force_n` with the next recorded force and returns the recorded result
+    /// (`Ok` past the end of the recorded writes).
+    ///
+    /// # Errors
+    /// The recorded error, or [`DeviceError::NotOpen`].
+    fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
+        if !self.open {
+            return Err(DeviceError::NotOpen);
+        }
+        let Some((recorded_n, result)) = self.writes.get(self.next_write) else {
+            self.divergence.writes_extra += 1;
+            return Ok(());
+        };
+        self.next_write += 1;
+        let d = &mut self.divergence;
+        d.writes_compared += 1;
+        let same_bits = force_n
+            .to_array()
+            .iter()
+            .zip(recorded_n.to_array())
+            .all(|(a, b)| a.to_bits() == b.to_bits());
+        if !same_bits {
+            d.writes_differing += 1;
+            let diff = (force_n - *recorded_n).length();
+            // A NaN difference counts as infinitely far.
+            d.max_difference_n = if diff.is_nan() {
+                f32::INFINITY
+            } else {
+                d.max_difference_n.max(diff)
+            };
+        }
+        result.clone()
+    }
+}

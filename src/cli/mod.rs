@@ -1,0 +1,32 @@
+//! The `dynaclay` command line: argument definitions and one module per subcommand.
+
+mod args;
+mod devices;
+mod outputs;
+mod profile;
+mod run;
+
+pub use args::{Cli, Commands, ProfileArgs, RunArgs};
+pub use outputs::{RunOutputs, write_lockstep_outputs, write_outputs};
+pub use profile::profile;
+pub use run::{CliError, run};
+
+/// Runs the parsed command line; returns the process exit code.
+#[must_use]
+pub fn dispatch(cli: Cli) -> i32 {
+    let result = match cli.command {
+        Commands::Run(a) => run(&a).map(|_| ()),
+        Commands::Profile(a) => profile(&a),
+        Commands::Devices => devices::list(),
+        Commands::Render(_) | Commands::Gui(_) => Err(CliError::Usage(
+            "this subcommand is not available in this build yet".to_owned(),
+        )),
+    };
+    match result {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("dynaclay: {e}");
+            e.exit_code()
+        }
+    }
+}

@@ -1,0 +1,162 @@
+//! The files a headless run leaves behind: meshes, the session, latency reports.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use dynaclay_loops::{LoopSummary, markdown_table, summaries_to_json, write_latency_svg};
+
+use super::run::CliError;
+use crate::engine::{EngineConfig, EngineReport, LockstepReport};
+use crate::io::{Session, save_session};
+use crate::mesh::{BrickOctree, MeshFormat, MeshStats, SampleGrid, write_mesh};
+
+/// Paths written by a run, and the final mesh's statistics.
+#[derive(Clone, Debug)]
+pub struct RunOutputs {
+    /// Every file written.
+    pub files: Vec<PathBuf>,
+    /// Statistics of the exported mesh.
+    pub mesh: MeshStats,
+    /// Loop summaries.
+    pub loops: Vec<LoopSummary>,
+}
+
+impl RunOutputs {
+    /// A short human-readable account.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "mesh: {} vertices, {} triangles, closed: {}",
+            self.mesh.vertices,
+            self.mesh.triangles,
+            self.mesh.is_closed_manifold()
+        );
+        for f in &self.files {
+            let _ = writeln!(s, "wrote {}", f.display());
+        }
+        s
+    }
+}
+
+fn out_err(path: &Path, e: impl std::fmt::Display) -> CliError {
+    CliError::Output(format!("{}: {e}", path.display()))
+}
+
+/// Writes the meshes and the session of a lockstep (replay) run; a lockstep run has no loop
+/// latencies to report.
+///
+/// # Errors
+/// [`CliError::Output`] naming the file that could not be written.
+pub fn write_lockstep_outputs(
+    dir: &Path,
+    report: &LockstepReport,
+    config: &EngineConfig,
+    ply: bool,
+    stl: bool,
+) -> Result<RunOutputs, CliError> {
+    let mut files = Vec::new();
+    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
+    Ok(RunOutputs {
+        files,
+        mesh: stats,
+        loops: Vec::new(),
+    })
+}
+
+fn write_field_outputs(
+    dir: &Path,
+    session: &Session,
+    config: &EngineConfig,
+    ply: bool,
+    stl: bool,
+    files: &mut Vec<PathBuf>,
+) -> Result<MeshStats, CliError> {
+    let lattice = &session.clay.patches[0];
+    // Mesh the final field afresh: the export is exactly the simulation's last state.
+    let grid =
+        SampleGrid::for_lattice(lattice, config.cells_per_span).map_err(|e| out_err(dir, e))?;
+    let mesh = BrickOctree::build(grid, lattice).weld();
+    let stats = MeshStats::of(&mesh);
+    let mut formats = vec![("sculpt.obj", MeshFormat::Obj)];
+    if ply {
+        formats.push(("sculpt.ply", MeshFormat::Ply));
+    }
+    if stl {
+        formats.push(("sculpt.stl", MeshFormat::Stl));
+    }
+    for (name, format) in formats {
+        let path = dir.join(name);
+        write_mesh(&path, &mesh, format).map_err(|e| out_err(&path, e))?;
+        files.push(path);
+    }
+
+    let session_path = dir.join("session.dclay");
+    save_session(&session_path, session).map_err(|e| out_err(&session_path, e))?;
+    files.push(session_path);
+    Ok(stats)
+}
+
+/// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
+/// `latency.svg` into `dir`.
+///
+/// # Errors
+/// [`CliError::Output`] naming the file that could not be written.
+pub fn write_outputs(
+    dir: &Path,
+    report: &EngineReport,
+    config: &EngineConfig,
+    ply: bool,
+    stl: bool,
+) -> Result<RunOutputs, CliError> {
+    let mut files = Vec::new();
+    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
+
+    let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
+    let json_path = dir.join("latency.json");
+    let json = summaries_to_json(&summaries).map_err(|e| out_err(&json_path, e))?;
+    std::fs::write(&json_path, json).map_err(|e| out_err(&json_path, e))?;
+    files.push(json_path);
+
+    let md_path = dir.join("latency.md");
+    let mut md = String::from("# dynaclay run: loop latency\n\n");
+    md.push_str(&markdown_table(&summaries));
+    let c = report.counters;
+    let _ = write!(
+        md,
+        "\n## Engine counters\n\n| counter | value |\n| --- | ---: |\n\
+         | haptic ticks | {} |\n| contact ticks | {} |\n| stale ticks | {} |\n\
+         | device read faults | {} |\n| device write faults | {} |\n\
+         | peak force (mN) | {} |\n| simulation steps | {} |\n| rejected steps | {} |\n\
+         | snapshots published | {} |\n| graphics updates | {} |\n| bricks re-meshed | {} |\n",
+        c.haptic_ticks,
+        c.contact_ticks,
+        c.stale_ticks,
+        c.device_read_faults,
+        c.device_write_faults,
+        c.peak_force_milli_n,
+        c.sim_steps,
+        c.sim_nonfinite_rejected,
+        c.snapshots_published,
+        c.graphics_updates,
+        c.bricks_remeshed
+    );
+    std::fs::write(&md_path, md).map_err(|e| out_err(&md_path, e))?;
+    files.push(md_path);
+
+    let svg_path = dir.join("latency.svg");
+    let recorders: Vec<(&str, &dynaclay_loops::LatencyRecorder)> = report
+        .loops
+        .iter()
+        .map(|r| (r.config.name.as_str(), &r.recorder))
+        .collect();
+    write_latency_svg(&svg_path, &recorders).map_err(|e| out_err(&svg_path, e))?;
+    files.push(svg_path);
+
+    Ok(RunOutputs {
+        files,
+        mesh: stats,
+        loops: summaries,
+    })
+}

@@ -1,0 +1,110 @@
+//! Engine settings and the starting clay.
+
+use std::time::Duration;
+
+use dynaclay_devices::{DeviceInfo, SafetyConfig};
+use glam::Vec3;
+
+use super::contact::ContactConfig;
+use super::script::{ClayShape, ClaySpec, Script};
+use super::simulation::SimConfig;
+use super::workspace::WorkspaceMap;
+use crate::field::{BSplineLattice, FitError, Primitive, lattice_from_primitive};
+
+/// Knot spacing of the starting clay, field units.
+pub const CLAY_SPACING: f32 = 0.1;
+
+/// Everything the engine needs besides the device and the starting field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EngineConfig {
+    /// Haptic loop rate, hertz.
+    pub haptic_rate_hz: f64,
+    /// Simulation loop rate, hertz (one step per tick).
+    pub sim_rate_hz: f64,
+    /// Graphics loop rate, hertz.
+    pub graphics_rate_hz: f64,
+    /// SCHED_FIFO priority asked for the haptic thread (`None`: normal priority).
+    pub haptic_rt_priority: Option<i32>,
+    /// Field snapshots younger than this give full force.
+    pub stale_fresh: Duration,
+    /// Field snapshots this old give zero force (the fade runs in between).
+    pub stale_limit: Duration,
+    /// Device metres ↔ field coordinates, and force scale.
+    pub map: WorkspaceMap,
+    /// Contact search.
+    pub contact: ContactConfig,
+    /// Simulation settings.
+    pub sim: SimConfig,
+    /// Marching-cubes cells per knot span.
+    pub cells_per_span: u32,
+    /// Simulation steps per haptic sample in lockstep mode.
+    pub lockstep_steps_per_sample: u32,
+    /// The safety filter's settings (force cap, slew limit, soft start).
+    pub safety: SafetyConfig,
+}
+
+impl EngineConfig {
+    /// Defaults for `field` driven by a device with `info`: 1 kHz haptic, 1 kHz simulation,
+    /// 60 Hz graphics, SCHED_FIFO 80 asked for, staleness fade from 50 to 100 ms, the device
+    /// workspace mapped around the lattice (see [`WorkspaceMap::fitting`]) with 30 N per unit
+    /// of reaction.
+    #[must_use]
+    pub fn for_field(field: &BSplineLattice, info: &DeviceInfo) -> Self {
+        let (lo, hi) = (
+            field.origin,
+            field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
+        );
+        Self {
+            haptic_rate_hz: 1000.0,
+            sim_rate_hz: 1000.0,
+            graphics_rate_hz: 60.0,
+            haptic_rt_priority: Some(dynaclay_loops::DEFAULT_RT_PRIORITY),
+            stale_fresh: Duration::from_millis(50),
+            stale_limit: Duration::from_millis(100),
+            map: WorkspaceMap::fitting(info.workspace_min_m, info.workspace_max_m, lo, hi, 30.0),
+            contact: ContactConfig::default(),
+            sim: SimConfig::default(),
+            cells_per_span: 4,
+            lockstep_steps_per_sample: 1,
+            safety: SafetyConfig::default(),
+        }
+    }
+
+    /// [`EngineConfig::for_field`] with the script's material and tool.
+    #[must_use]
+    pub fn for_script(field: &BSplineLattice, info: &DeviceInfo, script: &Script) -> Self {
+        let mut c = Self::for_field(field, info);
+        c.sim.material = script.material();
+        c.sim.tool = script.tool();
+        c
+    }
+}
+
+/// The starting clay of `spec`: a lattice of `resolution³` coefficients at [`CLAY_SPACING`],
+/// holding a fitted block (the middle half of the lattice) or sphere.
+///
+/// # Errors
+/// When the fit fails (it does not for valid specs).
+pub fn build_clay(spec: &ClaySpec) -> Result<BSplineLattice, FitError> {
+    let n = spec.resolution;
+    let extent = (n - 1) as f32 * CLAY_SPACING;
+    let centre = Vec3::splat(extent * 0.5);
+    let primitive = match spec.shape {
+        ClayShape::Block => Primitive::Box {
+            centre,
+            half_extents: Vec3::splat(extent * 0.25),
+        },
+        ClayShape::Sphere => Primitive::Sphere {
+            centre,
+            radius: extent * 0.25,
+        },
+    };
+    lattice_from_primitive(
+        [n; 3],
+        CLAY_SPACING,
+        Vec3::ZERO,
+        &primitive,
+        2.0 * CLAY_SPACING,
+        2,
+    )
+}

@@ -1,0 +1,228 @@
+//! The haptic stage: one tick of the 1 kHz loop, callable directly from a test.
+//!
+//! Guarantee: after [`HapticStage::new`], [`HapticStage::tick`] allocates nothing, takes no
+//! blocking lock and does bounded work: one device read and one write (through the safety
+//! filter), one wait-free triple-buffer fetch and one publish, a patch copy of at most the
+//! lattice's coefficients when a new snapshot arrived, and the bounded contact search
+//! ([`super::contact::MAX_PROBES`] field evaluations). No file or log I/O.
+//!
+//! Order within a tick: read the device → fetch the newest field patch → contact and force
+//! (eq. 6) → fade by the snapshot's age → safety filter → write → publish the tool sample.
+//! On a device error the filter has already sent zero; the tick publishes an idle sample and
+//! returns, so the loop keeps its rate and retries next tick.
+
+use std::time::Instant;
+
+use dynaclay_devices::{HapticDevice, SafetyFilter};
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, Staleness};
+use glam::Vec3;
+
+use super::contact::{Contact, ContactConfig};
+use super::counters::EngineCounters;
+use super::patch::FieldPatch;
+use super::tool_sample::ToolSample;
+use super::workspace::WorkspaceMap;
+use crate::field::BSplineLattice;
+
+/// What one tick did (plain data, for tests and the lockstep driver).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HapticOutcome {
+    /// The sample published to the simulation.
+    pub sample: ToolSample,
+    /// The force requested before the safety filter, newtons.
+    pub requested_force_n: Vec3,
+    /// Fade factor from the field snapshot's age (1 fresh, 0 stale).
+    pub fade: f32,
+    /// Whether the device read or write failed this tick.
+    pub device_fault: bool,
+}
+
+/// The haptic loop's state: the device (behind the safety filter), its own field copy and the
+/// two triple-buffer ends.
+pub struct HapticStage {
+    device: SafetyFilter<Box<dyn HapticDevice>>,
+    field: BSplineLattice,
+    patches: SnapshotReader<FieldPatch>,
+    samples: SnapshotWriter<ToolSample>,
+    monitor: SnapshotWriter<ToolSample>,
+    map: WorkspaceMap,
+    staleness: Staleness,
+    contact: Contact,
+    counters: EngineCounters,
+    ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    tick: u64,
+    last: ToolSample,
+}
+
+impl HapticStage {
+    /// Builds the stage around an opened device.
+    ///
+    /// `field` is the starting field (the simulation's at version 0); `ack` receives the
+    /// version of every patch applied, so the simulation knows what this reader has seen.
+    /// Samples go to the simulation on `samples` and to observers (GUI, tests) on `monitor`.
+    #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
+    #[must_use]
+    pub fn new(
+        device: SafetyFilter<Box<dyn HapticDevice>>,
+        field: BSplineLattice,
+        patches: SnapshotReader<FieldPatch>,
+        samples: SnapshotWriter<ToolSample>,
+        monitor: SnapshotWriter<ToolSample>,
+        map: WorkspaceMap,
+        staleness: Staleness,
+        contact: ContactConfig,
+        counters: EngineCounters,
+        ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    ) -> Self {
+        Self {
+            device,
+            field,
+            patches,
+            samples,
+            monitor,
+            map,
+            staleness,
+            contact: Contact::new(contact),
+            counters,
+            ack,
+            tick: 0,
+            last: ToolSample::IDLE,
+        }
+    }
+
+    /// The device behind the safety filter.
+    #[must_use]
+    pub fn device(&self) -> &SafetyFilter<Box<dyn HapticDevice>> {
+        &self.device
+    }
+
+    /// The device, mutably (to close it at the end).
+    pub fn device_mut(&mut self) -> &mut SafetyFilter<Box<dyn HapticDevice>> {
+        &mut self.device
+    }
+
+    /// This stage's copy of the field.
+    #[must_use]
+    pub fn field(&self) -> &BSplineLattice {
+        &self.field
+    }
+
+    /// Applies the newest field patch without touching the device (used at shutdown).
+    pub fn sync_field(&mut self) {
+        let stamped = self.patches.latest();
+        stamped.value.apply_to(&mut self.field);
+        self.ack
+            .store(stamped.version, std::sync::atomic::Ordering::Release);
+    }
+
+    /// The last sample published.
+    #[must_use]
+    pub fn last_sample(&self) -> ToolSample {
+        self.last
+    }
+
+    /// Runs one tick at wall time `now` (used for the snapshot's age).
+    pub fn tick(&mut self, now: Instant) -> HapticOutcome {
+        self.tick += 1;
+        self.counters.haptic_ticks(1);
+        let state = match self.device.read() {
+            Ok(s) => s,
+            Err(_) => {
+                // The filter latched the fault and sent zero already.
+                self.counters.device_read_faults(1);
+                self.contact.release();
+                return self.publish_idle(true);
+            }
+        };
+
+        let stamped = self.patches.latest();
+        let (version, age, stroke_armed) = (
+            stamped.version,
+            stamped.age_at(now),
+            stamped.value.stroke_armed,
+        );
+        if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
+            stamped.value.apply_to(&mut self.field);
+            // NOTE: Release pairs with the simulation's Acquire load: once it sees this
+            // version acknowledged, every coefficient of that patch is in our copy.
+            self.ack
+                .store(version, std::sync::atomic::Ordering::Release);
+        }
+
+        let fade = self.staleness.factor(age) as f32;
+        if fade <= 0.0 {
+            self.counters.stale_ticks(1);
+        }
+        let tip = self.map.to_field(state.position_m);
+        let stroke_active = state.button(0) || stroke_armed;
+        let contact = self.contact.update(&self.field, tip, stroke_active);
+        if contact.in_contact {
+            self.counters.contact_ticks(1);
+        }
+        let mut requested = self.map.force_to_device(contact.reaction) * fade;
+        if !requested.is_finite() {
+            self.counters.nonfinite_forces(1);
+            requested = Vec3::ZERO;
+        }
+        let device_fault = match self.device.write_force(requested) {
+            Ok(()) => false,
+            Err(_) => {
+                self.counters.device_write_faults(1);
+                true
+            }
+        };
+        let out = self.device.output_force_n();
+        self.counters.note_force(out.length());
+        let sample = ToolSample {
+            tip,
+            force_from: contact.from,
+            force_to: contact.to,
+            stroke_active,
+            // A stale field must not keep pushing the clay either.
+            in_contact: contact.in_contact && fade > 0.0,
+            device_force_n: out,
+            device_time_us: state.timestamp_us,
+            device_fault,
+            tick: self.tick,
+        };
+        self.publish(sample, now);
+        HapticOutcome {
+            sample,
+            requested_force_n: requested,
+            fade,
+            device_fault,
+        }
+    }
+
+    /// The force most recently sent to the device, newtons.
+    #[must_use]
+    pub fn output_force_n(&self) -> Vec3 {
+        self.device.output_force_n()
+    }
+
+    fn publish_idle(&mut self, device_fault: bool) -> HapticOutcome {
+        let sample = ToolSample {
+            stroke_active: false,
+            in_contact: false,
+            device_force_n: Vec3::ZERO,
+            device_fault,
+            tick: self.tick,
+            ..self.last
+        };
+        self.publish(sample, Instant::now());
+        HapticOutcome {
+            sample,
+            requested_force_n: Vec3::ZERO,
+            fade: 0.0,
+            device_fault,
+        }
+    }
+
+    fn publish(&mut self, sample: ToolSample, now: Instant) {
+        self.last = sample;
+        *self.samples.back_mut() = sample;
+        self.samples.publish_at(now);
+        *self.monitor.back_mut() = sample;
+        self.monitor.publish_at(now);
+    }
+}

@@ -1,0 +1,118 @@
+//! Deterministic single-thread mode: each haptic sample is followed by a fixed number of
+//! simulation steps, then a graphics update. Used when driving from a replay file, so the same
+//! recording gives the same final field bit for bit (the simulation depends only on the tool
+//! samples, and the device's own clock drives the safety filter).
+
+use std::time::Instant;
+
+use crossbeam::channel::Sender;
+use dynaclay_devices::{HapticDevice, SafetyCounters};
+
+use super::command::Command;
+use super::config::EngineConfig;
+use super::counters::{CounterSnapshot, EngineCounters};
+use super::error::EngineError;
+use super::graphics::MeshSink;
+use super::haptic::HapticOutcome;
+use super::wiring::{Stages, build};
+use crate::field::BSplineLattice;
+use crate::io::Session;
+use crate::mesh::BrickOctree;
+
+/// A lockstep run in progress.
+pub struct Lockstep {
+    stages: Stages,
+    steps_per_sample: u32,
+    graphics_every: u64,
+    ticks: u64,
+}
+
+/// What a finished lockstep run hands back.
+pub struct LockstepReport {
+    /// The simulation's final session.
+    pub session: Session,
+    /// Counters.
+    pub counters: CounterSnapshot,
+    /// The safety filter's counters.
+    pub safety: SafetyCounters,
+    /// The graphics stage's final octree.
+    pub octree: BrickOctree,
+}
+
+impl Lockstep {
+    /// Opens `device` and wires the stages around `field`; the graphics stage runs every
+    /// `graphics_every` samples (at least 1).
+    ///
+    /// # Errors
+    /// When the device does not open or the mesh grid cannot be made.
+    pub fn new(
+        config: &EngineConfig,
+        field: BSplineLattice,
+        device: Box<dyn HapticDevice>,
+        sink: Box<dyn MeshSink>,
+        graphics_every: u64,
+    ) -> Result<Self, EngineError> {
+        Ok(Self {
+            stages: build(config, field, device, sink, true)?,
+            steps_per_sample: config.lockstep_steps_per_sample.max(1),
+            graphics_every: graphics_every.max(1),
+            ticks: 0,
+        })
+    }
+
+    /// Where to send commands (applied before the next simulation step).
+    #[must_use]
+    pub fn commands(&self) -> Sender<Command> {
+        self.stages.commands.clone()
+    }
+
+    /// The live counters.
+    #[must_use]
+    pub fn counters(&self) -> &EngineCounters {
+        &self.stages.counters
+    }
+
+    /// One haptic sample, then the simulation steps, then (every `graphics_every`) graphics.
+    pub fn step(&mut self) -> HapticOutcome {
+        let out = self.stages.haptic.tick(Instant::now());
+        for _ in 0..self.steps_per_sample {
+            self.stages.sim.apply_commands();
+            let sample = self.stages.samples.latest().value;
+            self.stages.sim.step(&sample);
+        }
+        self.ticks += 1;
+        if self.ticks.is_multiple_of(self.graphics_every) {
+            self.stages.graphics.tick();
+        }
+        out
+    }
+
+    /// The simulation's current field.
+    #[must_use]
+    pub fn field(&self) -> &BSplineLattice {
+        self.stages.sim.lattice()
+    }
+
+    /// Samples taken so far.
+    #[must_use]
+    pub fn ticks(&self) -> u64 {
+        self.ticks
+    }
+
+    /// Ends the run: a last graphics update, the last undo step recorded, the device closed.
+    ///
+    /// # Errors
+    /// When closing the device fails (the report is lost then only if it did).
+    pub fn finish(mut self) -> Result<LockstepReport, EngineError> {
+        self.stages.sim.finish();
+        self.stages.graphics.tick();
+        let safety = self.stages.haptic.device().counters();
+        self.stages.haptic.device_mut().close()?;
+        Ok(LockstepReport {
+            session: self.stages.sim.session(),
+            counters: self.stages.counters.snapshot(),
+            safety,
+            octree: self.stages.graphics.octree().clone(),
+        })
+    }
+}

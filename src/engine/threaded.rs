@@ -1,0 +1,275 @@
+//! The threaded engine: haptic, simulation and graphics loops on their own named threads, plus
+//! an I/O thread that writes saves. State crosses threads only through triple buffers (field
+//! patches, tool samples), crossbeam channels (commands, saves) and relaxed counters.
+
+use std::ops::ControlFlow;
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crossbeam::channel::{Receiver, Sender, bounded};
+use dynaclay_devices::{HapticDevice, SafetyCounters};
+use dynaclay_loops::{
+    LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader, spawn_loop,
+};
+
+use super::tool_sample::ToolSample;
+
+use super::command::Command;
+use super::config::EngineConfig;
+use super::counters::{CounterSnapshot, EngineCounters};
+use super::error::EngineError;
+use super::graphics::{GraphicsStage, MeshSink};
+use super::haptic::HapticStage;
+use super::simulation::{SaveJob, SimulationStage};
+use super::wiring::build;
+use crate::field::BSplineLattice;
+use crate::io::{Session, save_session};
+use crate::mesh::BrickOctree;
+
+/// Sends its value back on a channel when dropped, so a loop's closure returns its stage to
+/// the thread that joins it (the loop runner does not return the closure).
+struct Handback<T> {
+    value: Option<T>,
+    tx: Sender<T>,
+}
+
+impl<T> Drop for Handback<T> {
+    fn drop(&mut self) {
+        if let Some(v) = self.value.take() {
+            // The receiver only disappears if the engine itself was dropped; nothing to tell.
+            let _ = self.tx.send(v);
+        }
+    }
+}
+
+fn handback<T>(value: T) -> (Handback<T>, Receiver<T>) {
+    let (tx, rx) = bounded(1);
+    (
+        Handback {
+            value: Some(value),
+            tx,
+        },
+        rx,
+    )
+}
+
+/// A running engine.
+pub struct Engine {
+    haptic: LoopHandle,
+    sim: LoopHandle,
+    graphics: LoopHandle,
+    io: Option<JoinHandle<()>>,
+    commands: Sender<Command>,
+    counters: EngineCounters,
+    tool: SnapshotReader<ToolSample>,
+    haptic_back: Receiver<HapticStage>,
+    sim_back: Receiver<SimulationStage>,
+    graphics_back: Receiver<GraphicsStage>,
+}
+
+/// What a stopped engine hands back.
+pub struct EngineReport {
+    /// The simulation's final session (field and material).
+    pub session: Session,
+    /// The haptic loop's own field copy at the end (equals the session's field once the last
+    /// patch arrived).
+    pub haptic_field: BSplineLattice,
+    /// The graphics stage's final octree.
+    pub octree: BrickOctree,
+    /// Latency reports of the haptic, simulation and graphics loops, in that order.
+    pub loops: Vec<LoopReport>,
+    /// Final counters.
+    pub counters: CounterSnapshot,
+    /// The safety filter's counters.
+    pub safety: SafetyCounters,
+}
+
+impl Engine {
+    /// Opens `device` and starts the three loops around `field`.
+    ///
+    /// The haptic thread asks for SCHED_FIFO at `config.haptic_rt_priority`; whether it got
+    /// it is [`Engine::haptic_rt`]. It never fails on a refusal.
+    ///
+    /// # Errors
+    /// When the device does not open, the mesh grid cannot be made or a thread cannot start.
+    pub fn start(
+        config: &EngineConfig,
+        field: BSplineLattice,
+        device: Box<dyn HapticDevice>,
+        sink: Box<dyn MeshSink>,
+    ) -> Result<Self, EngineError> {
+        let stages = build(config, field, device, sink, false)?;
+        let counters = stages.counters.clone();
+        let commands = stages.commands.clone();
+        let tool = stages.tool_monitor;
+        let saves = stages.saves;
+        let io = std::thread::Builder::new()
+            .name("dynaclay-io".into())
+            .spawn(move || run_saves(&saves))
+            .map_err(|source| {
+                EngineError::Loop(dynaclay_loops::LoopError::Spawn {
+                    loop_name: "io".into(),
+                    source,
+                })
+            })?;
+
+        let mut haptic_cfg = LoopConfig::new("haptic").with_rate_hz(config.haptic_rate_hz);
+        if let Some(p) = config.haptic_rt_priority {
+            haptic_cfg = haptic_cfg.with_rt_priority(p);
+        }
+        let (mut hb, haptic_back) = handback(stages.haptic);
+        let haptic = spawn_loop(haptic_cfg, move |tick| {
+            if let Some(stage) = hb.value.as_mut() {
+                stage.tick(tick.woke);
+            }
+            ControlFlow::Continue(())
+        })?;
+
+        let (mut sb, sim_back) = handback(stages.sim);
+        let mut samples = stages.samples;
+        let sim_cfg = LoopConfig::new("simulation")
+            .with_rate_hz(config.sim_rate_hz)
+            .with_overrun(OverrunPolicy::Skip);
+        let sim = spawn_loop(sim_cfg, move |_| {
+            if let Some(stage) = sb.value.as_mut() {
+                stage.apply_commands();
+                let sample = samples.latest().value;
+                stage.step(&sample);
+            }
+            ControlFlow::Continue(())
+        })?;
+
+        let (mut gb, graphics_back) = handback(stages.graphics);
+        let gfx_cfg = LoopConfig::new("graphics")
+            .with_rate_hz(config.graphics_rate_hz)
+            .with_stats_every_ticks(60);
+        let graphics = spawn_loop(gfx_cfg, move |_| {
+            if let Some(stage) = gb.value.as_mut() {
+                stage.tick();
+            }
+            ControlFlow::Continue(())
+        })?;
+
+        Ok(Self {
+            haptic,
+            sim,
+            graphics,
+            io: Some(io),
+            commands,
+            counters,
+            tool,
+            haptic_back,
+            sim_back,
+            graphics_back,
+        })
+    }
+
+    /// Where to send commands.
+    #[must_use]
+    pub fn commands(&self) -> Sender<Command> {
+        self.commands.clone()
+    }
+
+    /// The live counters.
+    #[must_use]
+    pub fn counters(&self) -> &EngineCounters {
+        &self.counters
+    }
+
+    /// The newest tool sample from the haptic loop (wait-free).
+    pub fn latest_tool(&mut self) -> ToolSample {
+        self.tool.latest().value
+    }
+
+    /// Haptic ticks run so far.
+    #[must_use]
+    pub fn haptic_ticks(&self) -> u64 {
+        self.counters.haptic_tick_count()
+    }
+
+    /// Whether the haptic thread got SCHED_FIFO.
+    #[must_use]
+    pub fn haptic_rt(&self) -> RtOutcome {
+        self.haptic.rt_outcome()
+    }
+
+    /// Whether every loop thread is still running.
+    #[must_use]
+    pub fn is_alive(&self) -> bool {
+        !(self.haptic.is_finished() || self.sim.is_finished() || self.graphics.is_finished())
+    }
+
+    /// Asks the simulation to save the session to `path` and waits up to `timeout` for the
+    /// I/O thread's answer.
+    ///
+    /// # Errors
+    /// The save's error message, or a timeout.
+    pub fn save(&self, path: &std::path::Path, timeout: Duration) -> Result<(), String> {
+        let (tx, rx) = bounded(1);
+        self.commands
+            .send(Command::Save {
+                path: path.to_path_buf(),
+                reply: Some(tx),
+            })
+            .map_err(|_| "the simulation loop has stopped".to_owned())?;
+        match rx.recv_timeout(timeout) {
+            Ok(r) => r.map(|_| ()),
+            Err(_) => Err(format!("no answer to the save within {timeout:?}")),
+        }
+    }
+
+    /// Stops the loops (simulation and graphics first, then haptic), closes the device
+    /// (commanding zero force) and hands back the final state and the latency reports.
+    ///
+    /// # Errors
+    /// When a loop panicked or the device fails to close.
+    pub fn stop(mut self) -> Result<EngineReport, EngineError> {
+        let sim = self.sim.stop_and_join()?;
+        let graphics = self.graphics.stop_and_join()?;
+        let haptic = self.haptic.stop_and_join()?;
+        let mut sim_stage = self
+            .sim_back
+            .recv()
+            .map_err(|_| EngineError::Lost("simulation"))?;
+        let mut graphics_stage = self
+            .graphics_back
+            .recv()
+            .map_err(|_| EngineError::Lost("graphics"))?;
+        let mut haptic_stage = self
+            .haptic_back
+            .recv()
+            .map_err(|_| EngineError::Lost("haptic"))?;
+        sim_stage.finish();
+        sim_stage.publish_now();
+        graphics_stage.tick();
+        haptic_stage.sync_field();
+        let safety = haptic_stage.device().counters();
+        haptic_stage.device_mut().close()?;
+        let session = sim_stage.session();
+        drop(sim_stage);
+        drop(self.commands);
+        if let Some(io) = self.io.take() {
+            let _ = io.join();
+        }
+        Ok(EngineReport {
+            session,
+            haptic_field: haptic_stage.field().clone(),
+            octree: graphics_stage.octree().clone(),
+            loops: vec![haptic, sim, graphics],
+            counters: self.counters.snapshot(),
+            safety,
+        })
+    }
+}
+
+/// The I/O thread: writes each save and answers.
+fn run_saves(saves: &Receiver<SaveJob>) {
+    for job in saves {
+        let result = save_session(&job.path, &job.session)
+            .map(|()| job.path.clone())
+            .map_err(|e| e.to_string());
+        if let Some(reply) = job.reply {
+            let _ = reply.send(result);
+        }
+    }
+}

@@ -1,0 +1,53 @@
+//! What the haptic loop tells the simulation each tick: where the tool is and which force
+//! vector it is applying.
+
+use glam::Vec3;
+
+/// The latest tool state, published by the haptic loop through a triple buffer (plain data).
+///
+/// Positions are in field coordinates. While `in_contact`, the tool applies the force vector
+/// from `force_from` (on the clay's surface) to `force_to` (the tool tip); the simulation maps
+/// it onto the mass points with Hua & Qin's eq. (6) evaluated on its own, newest field.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ToolSample {
+    /// Tool tip, field coordinates.
+    pub tip: Vec3,
+    /// Start of the force vector (the surface point the push started from), field coordinates.
+    pub force_from: Vec3,
+    /// End of the force vector (the tip), field coordinates.
+    pub force_to: Vec3,
+    /// Whether the user holds the stroke (button 0, or a stroke armed by command).
+    pub stroke_active: bool,
+    /// Whether the tool is pushing into the clay this tick (a stroke is active and the tip is
+    /// inside the clay).
+    pub in_contact: bool,
+    /// The force sent to the device after the safety filter, newtons.
+    pub device_force_n: Vec3,
+    /// The device sample's timestamp, microseconds of device time.
+    pub device_time_us: u64,
+    /// Whether the device failed this tick (force is zero then).
+    pub device_fault: bool,
+    /// The haptic tick that produced this sample.
+    pub tick: u64,
+}
+
+impl ToolSample {
+    /// No tool, no stroke, time zero.
+    pub const IDLE: Self = Self {
+        tip: Vec3::ZERO,
+        force_from: Vec3::ZERO,
+        force_to: Vec3::ZERO,
+        stroke_active: false,
+        in_contact: false,
+        device_force_n: Vec3::ZERO,
+        device_time_us: 0,
+        device_fault: false,
+        tick: 0,
+    };
+}
+
+impl Default for ToolSample {
+    fn default() -> Self {
+        Self::IDLE
+    }
+}

@@ -1,0 +1,106 @@
+//! Builds the three stages and the channels between them (shared by the threaded engine and
+//! the lockstep driver).
+
+use std::time::Duration;
+
+use crossbeam::channel::{Receiver, Sender};
+use dynaclay_devices::{HapticDevice, SafetyFilter};
+use dynaclay_loops::{SnapshotReader, Staleness, snapshot_channel};
+
+use super::command::Command;
+use super::config::EngineConfig;
+use super::counters::EngineCounters;
+use super::error::EngineError;
+use super::graphics::{GraphicsStage, MeshSink};
+use super::haptic::HapticStage;
+use super::patch::FieldPatch;
+use super::simulation::{Acks, SaveJob, SimulationStage};
+use super::tool_sample::ToolSample;
+use crate::field::BSplineLattice;
+
+/// The three stages, connected.
+pub struct Stages {
+    pub haptic: HapticStage,
+    pub sim: SimulationStage,
+    pub graphics: GraphicsStage,
+    /// The simulation's end of the tool-sample buffer.
+    pub samples: SnapshotReader<ToolSample>,
+    /// Observers' end of the tool samples (cursor drawing, tests).
+    pub tool_monitor: SnapshotReader<ToolSample>,
+    /// Where commands go.
+    pub commands: Sender<Command>,
+    /// Saves handed out by the simulation.
+    pub saves: Receiver<SaveJob>,
+    pub counters: EngineCounters,
+}
+
+/// Opens `device` behind the safety filter and builds the stages around `field`.
+/// `lockstep` disables the staleness fade (a lockstep simulation cannot fall behind).
+///
+/// # Errors
+/// When the device does not open or the mesh grid cannot be made.
+pub fn build(
+    config: &EngineConfig,
+    field: BSplineLattice,
+    device: Box<dyn HapticDevice>,
+    sink: Box<dyn MeshSink>,
+    lockstep: bool,
+) -> Result<Stages, EngineError> {
+    let mut device = SafetyFilter::with_config(device, config.safety);
+    device.open()?;
+    let counters = EngineCounters::new();
+    let mut empty = FieldPatch::with_capacity_for(&field);
+    empty.coeff_box = None;
+    let (to_haptic, from_sim_h) = snapshot_channel(&empty);
+    let (to_graphics, from_sim_g) = snapshot_channel(&empty);
+    let (samples_tx, samples_rx) = snapshot_channel(&ToolSample::IDLE);
+    let (monitor_tx, monitor_rx) = snapshot_channel(&ToolSample::IDLE);
+    let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
+    let (save_tx, save_rx) = crossbeam::channel::unbounded();
+    let acks = Acks::default();
+    let staleness = if lockstep {
+        Staleness::new(Duration::MAX, Duration::MAX)
+    } else {
+        Staleness::new(config.stale_fresh, config.stale_limit)
+    };
+    let haptic = HapticStage::new(
+        device,
+        field.clone(),
+        from_sim_h,
+        samples_tx,
+        monitor_tx,
+        config.map,
+        staleness,
+        config.contact,
+        counters.clone(),
+        acks.haptic.clone(),
+    );
+    let graphics = GraphicsStage::new(
+        field.clone(),
+        config.cells_per_span,
+        from_sim_g,
+        acks.graphics.clone(),
+        sink,
+        counters.clone(),
+    )?;
+    let sim = SimulationStage::new(
+        config.sim,
+        field,
+        to_haptic,
+        to_graphics,
+        acks,
+        cmd_rx,
+        Some(save_tx),
+        counters.clone(),
+    );
+    Ok(Stages {
+        haptic,
+        sim,
+        graphics,
+        samples: samples_rx,
+        tool_monitor: monitor_rx,
+        commands: cmd_tx,
+        saves: save_rx,
+        counters,
+    })
+}

@@ -1,0 +1,633 @@
+//! Force-based tools (Hua & Qin §7.2): each turns the user's input for one tick into force
+//! vectors ([`ToolForce`]) that the dynamics integrates (eq. 6) and spreads over mass points.
+//!
+//! Real-time contract: [`ForceTool::forces`] allocates nothing, takes no lock and does bounded
+//! work (at most `out.len()` force vectors, each found with a bounded ray search), so the
+//! engine may call it on the haptic or the simulation thread every tick. Paths and curves are
+//! plain slices the engine owns. One stroke (button down to up) is one undo step: the engine
+//! touches the region in a [`super::StepRecorder`] before the first step of the stroke.
+
+use glam::Vec3;
+
+use crate::dynamics::{Distribution, ToolForce};
+use crate::field::BSplineLattice;
+
+/// Which force tool, with its parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ForceTool {
+    /// Grab the nearest mass point in the solid and drag it toward the cursor.
+    PointGrab { gain: f32 },
+    /// Grab a patch of mass points: parallel tracks over a disc of `radius_m` around the
+    /// grabbed point, each weighted by `distribution`'s profile at its offset.
+    Area {
+        distribution: Distribution,
+        radius_m: f32,
+        /// Tracks per disc diameter (the disc holds about `π/4 · tracks²` of them).
+        tracks: u32,
+        gain: f32,
+    },
+    /// A force along a user curve: every curve sample moves with the cursor's displacement.
+    Curve { radius_m: f32, gain: f32 },
+    /// Fixed shallow penetration `depth_m` along the inward surface normal at every path
+    /// sample (plan the stroke's targets with [`plan_penetration`]).
+    Chisel {
+        depth_m: f32,
+        radius_m: f32,
+        gain: f32,
+    },
+    /// The chisel's opposite: material raised `depth_m` along the outward normal.
+    Squirt {
+        depth_m: f32,
+        radius_m: f32,
+        gain: f32,
+    },
+    /// Pull a region with the spread `distribution` (Hua & Qin Fig. 10).
+    Pull {
+        distribution: Distribution,
+        radius_m: f32,
+        gain: f32,
+    },
+    /// Bend about `pivot`: samples along pivot → grab point rotate with the cursor, so their
+    /// displacement grows linearly with the distance from the pivot.
+    Bend {
+        samples: u32,
+        radius_m: f32,
+        gain: f32,
+    },
+}
+
+/// The user's input for one tick.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceInput<'a> {
+    /// Where the stroke grabbed the clay (from [`nearest_solid_point`] at button down).
+    pub grab: Vec3,
+    /// The cursor now.
+    pub cursor: Vec3,
+    /// The pivot of a bend.
+    pub pivot: Vec3,
+    /// The user curve (curve tool), world points.
+    pub path: &'a [Vec3],
+    /// The fixed targets of a chisel or squirt stroke, from [`plan_penetration`].
+    pub targets: &'a [PenetrationTarget],
+}
+
+/// Where a chisel or squirt stroke wants the surface: `depth` along the normal from where the
+/// path met the surface at the stroke's start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PenetrationTarget {
+    pub target: Vec3,
+    /// Outward unit normal of the surface at the path sample when planned.
+    pub normal: Vec3,
+    /// The set depth, world units.
+    pub depth_m: f32,
+}
+
+/// Plans a chisel (`squirt == false`: inward) or squirt (outward) stroke over `path`: each
+/// sample is moved onto the surface and its target set `depth_m` along the normal. Called once
+/// per stroke (it allocates); samples where the field has no gradient are skipped.
+#[must_use]
+pub fn plan_penetration(
+    lattice: &BSplineLattice,
+    path: &[Vec3],
+    depth_m: f32,
+    squirt: bool,
+) -> Vec<PenetrationTarget> {
+    let sign = if squirt { 1.0 } else { -1.0 };
+    path.iter()
+        .filter_map(|&p| {
+            let x0 = project_to_surface(lattice, p);
+            let normal = outward_normal(lattice, x0);
+            (normal != Vec3::ZERO).then_some(PenetrationTarget {
+                target: x0 + sign * depth_m * normal,
+                normal,
+                depth_m,
+            })
+        })
+        .collect()
+}
+
+/// The surface crossing on the line `target + λ·normal`, `λ ∈ [−2·depth, 2·depth]`, nearest
+/// the outside end; the window's end when the line does not cross. Bounded: 16 + 20
+/// evaluations.
+fn crossing_on_line(lattice: &BSplineLattice, t: &PenetrationTarget) -> Vec3 {
+    let reach = 2.0 * t.depth_m;
+    let at = |l: f32| t.target + l * t.normal;
+    let inside = |l: f32| lattice.is_inside(at(l));
+    const STEPS: u32 = 16;
+    let step = 2.0 * reach / STEPS as f32;
+    // Walk inward from the outside end to the first inside sample.
+    let mut outer = reach;
+    if inside(outer) {
+        return at(outer);
+    }
+    for s in 1..=STEPS {
+        let l = reach - s as f32 * step;
+        if inside(l) {
+            let (mut lo, mut hi) = (l, outer);
+            for _ in 0..20 {
+                let m = 0.5 * (lo + hi);
+                if inside(m) {
+                    lo = m;
+                } else {
+                    hi = m;
+                }
+            }
+            return at(0.5 * (lo + hi));
+        }
+        outer = l;
+    }
+    at(-reach)
+}
+
+/// The point closest to `cursor` inside the solid among the points of a grid of pitch
+/// `step_m` within `search_m` of the cursor (the nearest mass point when `step_m` is the mass
+/// spacing). Bounded work: at most `(2·search_m/step_m + 1)³` evaluations (capped at 33³).
+#[must_use]
+pub fn nearest_solid_point(
+    lattice: &BSplineLattice,
+    cursor: Vec3,
+    search_m: f32,
+    step_m: f32,
+) -> Option<Vec3> {
+    if !(step_m > 0.0 && search_m >= 0.0 && cursor.is_finite()) {
+        return None;
+    }
+    let n = ((search_m / step_m).ceil() as i32).min(16);
+    // Snap to the grid the mass points lie on (through the lattice origin).
+    let base = lattice.origin + ((cursor - lattice.origin) / step_m).round() * step_m;
+    let mut best: Option<(f32, Vec3)> = None;
+    for k in -n..=n {
+        for j in -n..=n {
+            for i in -n..=n {
+                let x = base + Vec3::new(i as f32, j as f32, k as f32) * step_m;
+                let d = x.distance_squared(cursor);
+                if d <= search_m * search_m + 1e-12
+                    && best.is_none_or(|(b, _)| d < b)
+                    && lattice.is_inside(x)
+                {
+                    best = Some((d, x));
+                }
+            }
+        }
+    }
+    best.map(|(_, x)| x)
+}
+
+/// The outward unit normal of the solid at `x` (the density falls outward), or zero.
+#[must_use]
+pub fn outward_normal(lattice: &BSplineLattice, x: Vec3) -> Vec3 {
+    (-lattice.gradient(x)).normalize_or_zero()
+}
+
+/// Moves `x` onto the iso-surface by a few Newton steps along the gradient (bounded work).
+#[must_use]
+pub fn project_to_surface(lattice: &BSplineLattice, mut x: Vec3) -> Vec3 {
+    for _ in 0..6 {
+        let (v, g) = lattice.value_and_gradient(x);
+        let g2 = g.length_squared();
+        if !(g2 > 1e-12) {
+            break;
+        }
+        let step = (v - lattice.iso) * g / g2;
+        // Keep each step within a knot span so a flat region cannot throw the point away.
+        x -= step.clamp_length_max(lattice.spacing);
+    }
+    x
+}
+
+/// Why a force tool's parameters were rejected.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ForceToolError(pub String);
+
+impl std::fmt::Display for ForceToolError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "invalid force tool: {}", self.0)
+    }
+}
+
+impl std::error::Error for ForceToolError {}
+
+impl ForceTool {
+    /// Short name for menus and undo labels.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::PointGrab { .. } => "grab",
+            Self::Area { .. } => "area",
+            Self::Curve { .. } => "curve",
+            Self::Chisel { .. } => "chisel",
+            Self::Squirt { .. } => "squirt",
+            Self::Pull { .. } => "pull",
+            Self::Bend { .. } => "bend",
+        }
+    }
+
+    /// Checks that radii, depths and gains are positive and finite.
+    ///
+    /// # Errors
+    /// Names the parameter.
+    pub fn validate(&self) -> Result<(), ForceToolError> {
+        let check = |name: &str, v: f32| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(ForceToolError(format!(
+                    "{name} must be positive and finite, got {v}"
+                )))
+            }
+        };
+        match *self {
+            Self::PointGrab { gain } => check("gain", gain),
+            Self::Area {
+                radius_m,
+                tracks,
+                gain,
+                ..
+            } => {
+                check("radius_m", radius_m)?;
+                check("gain", gain)?;
+                if tracks == 0 {
+                    return Err(ForceToolError("tracks must be at least 1".into()));
+                }
+                Ok(())
+            }
+            Self::Curve { radius_m, gain }
+            | Self::Pull { radius_m, gain, .. }
+            | Self::Bend { radius_m, gain, .. } => {
+                check("radius_m", radius_m)?;
+                check("gain", gain)
+            }
+            Self::Chisel {
+                depth_m,
+                radius_m,
+                gain,
+            }
+            | Self::Squirt {
+                depth_m,
+                radius_m,
+                gain,
+            } => {
+                check("depth_m", depth_m)?;
+                check("radius_m", radius_m)?;
+                check("gain", gain)
+            }
+        }
+    }
+
+    /// Writes this tick's force vectors into `out` and returns how many (never more than
+    /// `out.len()`; extra tracks or path samples are dropped). Allocates nothing.
+    pub fn forces(
+        &self,
+        lattice: &BSplineLattice,
+        input: &ForceInput,
+        out: &mut [ToolForce],
+    ) -> usize {
+        let spacing = lattice.spacing;
+        let mut n = 0;
+        let mut push = |f: ToolForce| {
+            if n < out.len() && f.start.is_finite() && f.end.is_finite() {
+                out[n] = f;
+                n += 1;
+            }
+        };
+        let drag = input.cursor - input.grab;
+        match *self {
+            Self::PointGrab { gain } => {
+                // Half a knot span: the spread reaches the grabbed mass point only.
+                push(ToolForce {
+                    start: input.grab,
+                    end: input.cursor,
+                    distribution: Distribution::Constant,
+                    radius: 0.5 * spacing,
+                    gain,
+                });
+            }
+            Self::Pull {
+                distribution,
+                radius_m,
+                gain,
+            } => push(ToolForce {
+                start: input.grab,
+                end: input.cursor,
+                distribution,
+                radius: radius_m,
+                gain,
+            }),
+            Self::Area {
+                distribution,
+                radius_m,
+                tracks,
+                gain,
+            } => {
+                // A disc of track offsets perpendicular to the drag.
+                let axis = drag.normalize_or(Vec3::Z);
+                let (u, v) = axis.any_orthonormal_pair();
+                let t = tracks.max(1) as i32;
+                let pitch = 2.0 * radius_m / t as f32;
+                for b in 0..t {
+                    for a in 0..t {
+                        let o = (a as f32 + 0.5 - 0.5 * t as f32) * pitch * u
+                            + (b as f32 + 0.5 - 0.5 * t as f32) * pitch * v;
+                        // The track's weight is the β profile at its offset.
+                        let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_m);
+                        if w <= 0.0 {
+                            continue;
+                        }
+                        push(ToolForce {
+                            start: input.grab + o,
+                            end: input.cursor + o,
+                            distribution: Distribution::Constant,
+                            radius: 0.5 * pitch.max(spacing),
+                            gain: gain * w,
+                        });
+                    }
+                }
+            }
+            Self::Curve { radius_m, gain } => {
+                for &p in input.path {
+                    push(ToolForce {
+                        start: p,
+                        end: p + drag,
+                        distribution: Distribution::Gaussian,
+                        radius: radius_m,
+                        gain,
+                    });
+                }
+            }
+            Self::Chisel { radius_m, gain, .. } | Self::Squirt { radius_m, gain, .. } => {
+                // From the surface as it is now to the fixed target: the integral vanishes as
+                // the surface reaches the set depth, and reverses if it overshoots.
+                for t in input.targets {
+                    push(ToolForce {
+                        start: crossing_on_line(lattice, t),
+                        end: t.target,
+                        distribution: Distribution::Gaussian,
+                        radius: radius_m,
+                        gain,
+                    });
+                }
+            }
+            Self::Bend {
+                samples,
+                radius_m,
+                gain,
+            } => {
+                let arm = input.grab - input.pivot;
+                let len = arm.length();
+                if len > 0.0 {
+                    let rotation = glam::Quat::from_rotation_arc(
+                        arm / len,
+                        (input.cursor - input.pivot).normalize_or(arm / len),
+                    );
+                    let s = samples.max(1);
+                    for i in 1..=s {
+                        let p = input.pivot + arm * (i as f32 / s as f32);
+                        let q = input.pivot + rotation * (p - input.pivot);
+                        push(ToolForce {
+                            start: p,
+                            end: q,
+                            distribution: Distribution::Gaussian,
+                            radius: radius_m,
+                            gain,
+                        });
+                    }
+                }
+            }
+        }
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::{Material, RegionState, Simulator, StepParams, surface_point_on_ray};
+    use crate::field::{CoeffBox, Primitive, RegionSnapshot, lattice_from_primitive};
+    use crate::tools::{Clay, FieldId, History, StepRecorder};
+
+    const CENTRE: Vec3 = Vec3::new(0.95, 0.95, 0.95);
+    const RADIUS: f32 = 0.4;
+
+    fn sphere() -> BSplineLattice {
+        let s = Primitive::Sphere {
+            centre: CENTRE,
+            radius: RADIUS,
+        };
+        lattice_from_primitive([20, 20, 20], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap()
+    }
+
+    fn radius_along(lattice: &BSplineLattice, dir: Vec3) -> f32 {
+        surface_point_on_ray(lattice, CENTRE, dir, 0.9, 0.005)
+            .map_or(0.0, |p| (p - CENTRE).length())
+    }
+
+    fn input<'a>(grab: Vec3, cursor: Vec3, targets: &'a [PenetrationTarget]) -> ForceInput<'a> {
+        ForceInput {
+            grab,
+            cursor,
+            pivot: Vec3::ZERO,
+            path: &[],
+            targets,
+        }
+    }
+
+    /// Runs a chisel or squirt stroke at the +x pole through the dynamics; returns the pole's
+    /// radius before and after, and checks the stroke undoes bit for bit.
+    fn penetrate(squirt: bool, depth_m: f32) -> (f32, f32) {
+        let mut clay = Clay::single(sphere());
+        let before_bits = clay.clone();
+        let r0 = radius_along(&clay.patches[0], Vec3::X);
+        let region = CoeffBox {
+            min: [10, 6, 6],
+            max: [17, 13, 13],
+        };
+        let material = Material {
+            yield_density: 0.0,
+            ..Material::PLASTIC
+        };
+        let mut state = RegionState::new(&clay.patches[0], region, [15, 15, 15], material).unwrap();
+        let mut sim = Simulator::new(StepParams::default());
+        let mut snap = RegionSnapshot::default();
+        let tool = if squirt {
+            ForceTool::Squirt {
+                depth_m,
+                radius_m: 0.12,
+                gain: 1e6,
+            }
+        } else {
+            ForceTool::Chisel {
+                depth_m,
+                radius_m: 0.12,
+                gain: 1e6,
+            }
+        };
+        tool.validate().unwrap();
+        // A short path across the pole.
+        let path: Vec<Vec3> = (-1..=1)
+            .map(|s| CENTRE + Vec3::new(RADIUS, s as f32 * 0.03, 0.0))
+            .collect();
+        let targets = plan_penetration(&clay.patches[0], &path, depth_m, squirt);
+        assert_eq!(targets.len(), 3);
+        let mut recorder = StepRecorder::new(tool.name());
+        recorder.touch(&clay, FieldId::Density(0), region);
+        let mut out = [ToolForce {
+            start: Vec3::ZERO,
+            end: Vec3::ZERO,
+            distribution: Distribution::Constant,
+            radius: 1.0,
+            gain: 0.0,
+        }; 8];
+        for _ in 0..3000 {
+            let n = tool.forces(
+                &clay.patches[0],
+                &input(Vec3::ZERO, Vec3::ZERO, &targets),
+                &mut out,
+            );
+            assert_eq!(n, 3);
+            sim.step(&mut state, &mut clay.patches[0], &out[..n], &mut snap)
+                .unwrap();
+        }
+        let r1 = radius_along(&clay.patches[0], Vec3::X);
+        // One stroke is one undo step and restores the field bit for bit.
+        let mut history = History::default();
+        assert!(history.commit(recorder, &clay));
+        history.undo(&mut clay).unwrap();
+        assert_eq!(clay, before_bits);
+        (r0, r1)
+    }
+
+    #[test]
+    fn the_chisel_cuts_to_about_the_set_depth() {
+        let depth = 0.08;
+        let (r0, r1) = penetrate(false, depth);
+        let cut = r0 - r1;
+        assert!(
+            (cut - depth).abs() < 0.25 * depth,
+            "cut {cut} for depth {depth}"
+        );
+    }
+
+    #[test]
+    fn the_squirt_raises_about_the_set_height() {
+        let depth = 0.08;
+        let (r0, r1) = penetrate(true, depth);
+        let raised = r1 - r0;
+        assert!(
+            (raised - depth).abs() < 0.25 * depth,
+            "raised {raised} for {depth}"
+        );
+    }
+
+    #[test]
+    fn grab_finds_the_nearest_mass_point_inside_the_solid() {
+        let l = sphere();
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.12);
+        let p = nearest_solid_point(&l, cursor, 0.3, 0.05).unwrap();
+        assert!(l.is_inside(p));
+        assert!((p - cursor).length() < 0.2);
+        // Nothing solid within reach far away.
+        assert!(nearest_solid_point(&l, Vec3::splat(10.0), 0.3, 0.05).is_none());
+        let mut out = [ToolForce {
+            start: Vec3::ZERO,
+            end: Vec3::ZERO,
+            distribution: Distribution::Constant,
+            radius: 1.0,
+            gain: 0.0,
+        }; 4];
+        let n = ForceTool::PointGrab { gain: 2.0 }.forces(&l, &input(p, cursor, &[]), &mut out);
+        assert_eq!(n, 1);
+        assert_eq!((out[0].start, out[0].end, out[0].gain), (p, cursor, 2.0));
+        assert!(
+            crate::dynamics::force_integral(&l, out[0].start, out[0].end) > 0.0,
+            "pull grows"
+        );
+    }
+
+    #[test]
+    fn area_tracks_follow_the_beta_profile_and_respect_the_buffer() {
+        let l = sphere();
+        let grab = CENTRE + Vec3::X * RADIUS;
+        let cursor = grab + Vec3::X * 0.1;
+        let mut out = [ToolForce {
+            start: Vec3::ZERO,
+            end: Vec3::ZERO,
+            distribution: Distribution::Constant,
+            radius: 1.0,
+            gain: 0.0,
+        }; 64];
+        let tool = ForceTool::Area {
+            distribution: Distribution::Conical,
+            radius_m: 0.1,
+            tracks: 6,
+            gain: 1.0,
+        };
+        let n = tool.forces(&l, &input(grab, cursor, &[]), &mut out);
+        assert!(n > 20 && n <= 36, "{n} tracks");
+        for f in &out[..n] {
+            let offset = (f.start - grab).length();
+            // Conical: weight 1 − ρ, every track parallel to the drag.
+            assert!((f.gain - (1.0 - offset / 0.1)).abs() < 1e-4);
+            assert!(((f.end - f.start) - (cursor - grab)).length() < 1e-5);
+        }
+        // A short buffer truncates rather than overflows.
+        assert_eq!(tool.forces(&l, &input(grab, cursor, &[]), &mut out[..5]), 5);
+    }
+
+    #[test]
+    fn curve_and_bend_move_their_samples_as_designed() {
+        let l = sphere();
+        let curve = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let mut out = [ToolForce {
+            start: Vec3::ZERO,
+            end: Vec3::ZERO,
+            distribution: Distribution::Constant,
+            radius: 1.0,
+            gain: 0.0,
+        }; 8];
+        let tool = ForceTool::Curve {
+            radius_m: 0.05,
+            gain: 1.0,
+        };
+        let drag = Vec3::new(0.0, 0.0, 0.2);
+        let i = ForceInput {
+            grab: Vec3::ONE,
+            cursor: Vec3::ONE + drag,
+            pivot: Vec3::ZERO,
+            path: &curve,
+            targets: &[],
+        };
+        assert_eq!(tool.forces(&l, &i, &mut out), 3);
+        for (f, p) in out.iter().zip(curve) {
+            assert_eq!(f.start, p);
+            assert!((f.end - (p + drag)).length() < 1e-6);
+        }
+        // Bend: a quarter turn about the pivot; displacement grows with distance from it.
+        let bend = ForceTool::Bend {
+            samples: 4,
+            radius_m: 0.05,
+            gain: 1.0,
+        };
+        let i = ForceInput {
+            grab: Vec3::X,
+            cursor: Vec3::Y,
+            pivot: Vec3::ZERO,
+            path: &[],
+            targets: &[],
+        };
+        assert_eq!(bend.forces(&l, &i, &mut out), 4);
+        for (k, f) in out[..4].iter().enumerate() {
+            let d = (k + 1) as f32 / 4.0;
+            assert!((f.start - Vec3::X * d).length() < 1e-5);
+            assert!((f.end - Vec3::Y * d).length() < 1e-5);
+        }
+        assert!(
+            ForceTool::Chisel {
+                depth_m: 0.0,
+                radius_m: 0.1,
+                gain: 1.0
+            }
+            .validate()
+            .is_err()
+        );
+    }
+}
