@@ -68,8 +68,8 @@ impl Default for ForceTool {
         Self {
             mode: ForceMode::PointGrab,
             distribution: Distribution::Gaussian,
-            radius_m: 0.15,
-            gain: 1.0,
+            radius_m: 0.25,
+            gain: 2.0e6,
             depth_m: 0.02,
         }
     }

@@ -1,10 +1,12 @@
 //! The sculpting app (`dynaclay gui`): an egui window on wgpu that shows the engine's meshes,
 //! navigates the camera, and sends the engine commands without ever blocking its loops.
 
+mod bridge;
 mod camera_input;
 mod command;
 mod device_panel;
 mod latency;
+mod launch;
 mod link;
 mod material_panel;
 mod meshes;
@@ -14,12 +16,14 @@ mod state;
 mod view;
 mod viewport;
 
+pub use bridge::{EngineBridge, GuiMeshSink, export_chunks, start_bridge};
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };
 pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample};
+pub use launch::{LaunchError, gui_main, parse_gui_args};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };

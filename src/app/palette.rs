@@ -344,7 +344,7 @@ impl ToolPalette {
             });
         ui.add(egui::Slider::new(&mut f.radius_m, 0.005..=1.0).text("Spread radius"));
         ui.add(
-            egui::Slider::new(&mut f.gain, 0.01..=100.0)
+            egui::Slider::new(&mut f.gain, 1.0e3..=1.0e9)
                 .logarithmic(true)
                 .text("Gain"),
         );
