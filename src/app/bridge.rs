@@ -16,6 +16,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam::channel::{Receiver, Sender, bounded};
+use dynaclay_devices::DeviceInfo;
 use dynaclay_loops::SnapshotWriter;
 use glam::Vec3;
 use parking_lot::Mutex;
@@ -88,13 +89,13 @@ impl EngineBridge {
 
 /// Starts the engine with a mesh sink that feeds `endpoint`, and a bridge thread that serves
 /// the app's commands. `start` receives the sink and starts the engine (the caller chooses
-/// clay, device and configuration); `device_name` is shown in the device panel.
+/// clay, device and configuration); `device` describes the opened device for the panel.
 ///
 /// # Errors
 /// Whatever `start` returns.
 pub fn start_bridge(
     endpoint: EngineEndpoint,
-    device_name: String,
+    device: DeviceInfo,
     start: impl FnOnce(Box<dyn MeshSink>) -> Result<Engine, EngineError>,
 ) -> Result<EngineBridge, EngineError> {
     let EngineEndpoint {
@@ -121,7 +122,7 @@ pub fn start_bridge(
         events,
         view,
         shared,
-        device_name,
+        device,
         tool_radius: EngineForceTool::default().radius,
         saves: Vec::new(),
     };
@@ -149,7 +150,7 @@ struct Bridge {
     events: Sender<EngineEvent>,
     view: SnapshotWriter<EngineView>,
     shared: Arc<Mutex<MeshSet>>,
-    device_name: String,
+    device: DeviceInfo,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
 }
@@ -179,7 +180,7 @@ impl Bridge {
         });
         let tool = self.engine.latest_tool();
         let counters = self.engine.counters().snapshot();
-        let device_name = &self.device_name;
+        let device = &self.device;
         let radius = self.tool_radius;
         self.view.write_with(|v| {
             v.tool_position = tool.tip;
@@ -195,8 +196,10 @@ impl Bridge {
             } else {
                 DeviceLinkState::Connected
             };
-            v.device.name.clone_from(device_name);
-            v.device.max_force_n = counters.peak_force_milli_n as f32 / 1000.0;
+            v.device.name.clone_from(&device.name);
+            v.device.max_force_n = device.max_force_n;
+            v.device.has_force = device.has_force;
+            v.device.peak_force_n = counters.peak_force_milli_n as f32 / 1000.0;
         });
     }
 

@@ -102,14 +102,14 @@ impl DevicePanel {
         });
         if status.state == DeviceLinkState::Connected {
             ui.label(format!(
-                "force limit {:.2} N{}, {} clamped",
+                "force limit {:.2} N{}, peak {:.2} N",
                 status.max_force_n,
                 if status.has_force {
                     ""
                 } else {
                     " (no force output)"
                 },
-                status.clamped_forces
+                status.peak_force_n
             ));
         }
         egui::ComboBox::from_label("Device")

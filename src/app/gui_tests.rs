@@ -37,7 +37,7 @@ fn the_first_frame_sends_the_current_tool() {
     assert!(
         matches!(
             sent.as_slice(),
-            [EngineCommand::SelectTool(ToolChoice::Geometric(t))] if matches!(t.action, ToolAction::Add { .. })
+            [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.mode == ForceMode::PointGrab
         ),
         "{sent:?}"
     );

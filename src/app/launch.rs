@@ -93,7 +93,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     };
     let config = EngineConfig::for_script(&field, &info, &script);
     let (link, endpoint) = engine_link();
-    let bridge = start_bridge(endpoint, info.name.clone(), |sink| {
+    let bridge = start_bridge(endpoint, info.clone(), |sink| {
         Engine::start(&config, field, device, sink)
     })
     .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;

@@ -105,7 +105,8 @@ pub struct ToolPalette {
 impl Default for ToolPalette {
     fn default() -> Self {
         Self {
-            selected: PaletteEntry::Geometric(ActionKind::Add),
+            // The threaded engine applies force tools; start with the one it supports fully.
+            selected: PaletteEntry::Force(ForceMode::PointGrab),
             shape: ShapeKind::Sphere,
             radius_m: 0.1,
             extents_m: Vec3::new(0.1, 0.06, 0.06),

@@ -77,8 +77,8 @@ pub struct DeviceStatus {
     pub max_force_n: f32,
     /// Whether the device outputs force at all (a SpaceMouse does not).
     pub has_force: bool,
-    /// Forces clamped by the safety filter since connecting.
-    pub clamped_forces: u64,
+    /// Largest force sent to the device since it was connected, newtons.
+    pub peak_force_n: f32,
 }
 
 /// An axis-aligned box in world units.
