@@ -1,1 +1,39 @@
-//! (app: in progress)
+//! The sculpting app (`dynaclay gui`): an egui window on wgpu that shows the engine's meshes,
+//! navigates the camera, and sends the engine commands without ever blocking its loops.
+
+mod bridge;
+mod camera_input;
+mod command;
+mod device_panel;
+mod latency;
+mod launch;
+mod link;
+mod material_panel;
+mod meshes;
+mod palette;
+mod run;
+mod state;
+mod view;
+mod viewport;
+
+pub use bridge::{EngineBridge, GuiMeshSink, export_chunks, start_bridge};
+pub use camera_input::{
+    SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
+};
+pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
+pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
+pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample};
+pub use launch::{LaunchError, gui_main, parse_gui_args};
+pub use link::{
+    COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
+};
+pub use material_panel::material_ui;
+pub use meshes::{ChunkMesh, MeshSet, brick_id};
+pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
+pub use run::{GuiError, GuiOptions, run_gui};
+pub use state::{DisplaySettings, FilePaths, SculptApp};
+pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
+pub use viewport::SceneView;
+
+#[cfg(test)]
+mod gui_tests;

@@ -18,7 +18,12 @@ pub fn dispatch(cli: Cli) -> i32 {
         Commands::Run(a) => run(&a).map(|_| ()),
         Commands::Profile(a) => profile(&a),
         Commands::Devices => devices::list(),
-        Commands::Render(_) | Commands::Gui(_) => Err(CliError::Usage(
+        Commands::Gui(a) => crate::app::gui_main(&a.rest).map_err(|e| match e {
+            crate::app::LaunchError::Usage(_) => CliError::Usage(e.to_string()),
+            crate::app::LaunchError::Device(_) => CliError::Device(e.to_string()),
+            crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
+        }),
+        Commands::Render(_) => Err(CliError::Usage(
             "this subcommand is not available in this build yet".to_owned(),
         )),
     };

@@ -1,0 +1,163 @@
+//! What the app asks of the engine, and what the engine answers: plain values sent over a
+//! crossbeam channel and applied by the simulation thread between steps.
+//!
+//! Nothing here is on a real-time path; commands may own heap data (paths, tool lattices).
+
+use std::path::PathBuf;
+
+use dynaclay_devices::spec::DeviceSpec;
+
+use crate::dynamics::{Distribution, Material};
+use crate::tools::GeometricTool;
+
+/// How a force tool pushes on the clay (Hua & Qin §7.2, design notes "Force tools").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ForceMode {
+    /// One force vector from the surface point to the cursor, spread by the distribution.
+    #[default]
+    PointGrab,
+    /// Like the point grab with a wide β-distributed footprint.
+    Area,
+    /// A fixed shallow penetration along the tool normal (cuts a groove).
+    Chisel,
+    /// The chisel's opposite: pushes material out along the tool normal.
+    Squirt,
+    /// Pulls the surface toward the cursor (bending and drawing out).
+    Pull,
+}
+
+impl ForceMode {
+    /// Every mode, in palette order.
+    pub const ALL: [ForceMode; 5] = [
+        Self::PointGrab,
+        Self::Area,
+        Self::Chisel,
+        Self::Squirt,
+        Self::Pull,
+    ];
+
+    /// Label for menus.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::PointGrab => "point grab",
+            Self::Area => "area",
+            Self::Chisel => "chisel",
+            Self::Squirt => "squirt",
+            Self::Pull => "pull",
+        }
+    }
+}
+
+/// A force tool and its parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceTool {
+    pub mode: ForceMode,
+    /// Spread `β` of each force over nearby mass points.
+    pub distribution: Distribution,
+    /// Spread radius, world units.
+    pub radius_m: f32,
+    /// Density force per unit of force integral.
+    pub gain: f32,
+    /// Penetration depth of the chisel and squirt, world units (ignored by other modes).
+    pub depth_m: f32,
+}
+
+impl Default for ForceTool {
+    fn default() -> Self {
+        Self {
+            mode: ForceMode::PointGrab,
+            distribution: Distribution::Gaussian,
+            radius_m: 0.25,
+            gain: 2.0e6,
+            depth_m: 0.02,
+        }
+    }
+}
+
+/// The tool the user holds: a geometric tool (shape + action) or a force tool.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ToolChoice {
+    Geometric(GeometricTool),
+    Force(ForceTool),
+}
+
+impl ToolChoice {
+    /// Short name for the status line.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Geometric(t) => t.action.name(),
+            Self::Force(t) => t.mode.name(),
+        }
+    }
+}
+
+/// A request from the app to the engine.
+#[derive(Clone, Debug, PartialEq)]
+pub enum EngineCommand {
+    /// Use this tool for the next strokes.
+    SelectTool(ToolChoice),
+    /// Replace the material of the simulated region.
+    SetMaterial(Material),
+    /// Start applying the tool (as if the device button went down).
+    StrokeStart,
+    /// Stop applying the tool; the stroke becomes one undo step.
+    StrokeStop,
+    Undo,
+    Redo,
+    /// Write the session to `path` (atomically).
+    Save {
+        path: PathBuf,
+    },
+    /// Replace the session with the one at `path`.
+    Load {
+        path: PathBuf,
+    },
+    /// Write the welded surface mesh to `path`; the format follows the extension.
+    Export {
+        path: PathBuf,
+    },
+    /// Close the current device (if any) and open `spec`, limiting force to `max_force_n`.
+    ConnectDevice {
+        spec: DeviceSpec,
+        max_force_n: f32,
+    },
+    /// Close the device; the engine keeps running with zero force.
+    DisconnectDevice,
+    /// Change the force limit of the connected device's safety filter.
+    SetMaxForce {
+        max_force_n: f32,
+    },
+}
+
+impl EngineCommand {
+    /// Short name for status messages.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::SelectTool(_) => "select tool",
+            Self::SetMaterial(_) => "set material",
+            Self::StrokeStart => "stroke start",
+            Self::StrokeStop => "stroke stop",
+            Self::Undo => "undo",
+            Self::Redo => "redo",
+            Self::Save { .. } => "save",
+            Self::Load { .. } => "load",
+            Self::Export { .. } => "export",
+            Self::ConnectDevice { .. } => "connect device",
+            Self::DisconnectDevice => "disconnect device",
+            Self::SetMaxForce { .. } => "set max force",
+        }
+    }
+}
+
+/// The engine's answer to a command that can fail or takes a while (save, load, export,
+/// connect), shown in the app's status line and log.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EngineEvent {
+    /// `what` finished; `detail` says what happened (for example the path written).
+    Done { what: String, detail: String },
+    /// `what` failed with `error` (the error's own message, naming file and field).
+    Failed { what: String, error: String },
+}

@@ -1,0 +1,224 @@
+//! The device panel: choose a device spec (typed, or picked from a scan of what is plugged
+//! in), connect and disconnect, see its status, and set the force limit.
+//!
+//! Specs are parsed by the devices crate's own parser, so the panel accepts exactly what
+//! `--device` accepts and shows the same error text.
+
+use dynaclay_devices::enumerate::{self, Access, Connected};
+use dynaclay_devices::spec::{DeviceSpec, SpecError};
+
+use super::view::{DeviceLinkState, DeviceStatus};
+
+/// The kinds of spec, as the first word of the spec string.
+pub const SPEC_KINDS: [(&str, &str); 6] = [
+    ("sim", "simulated arm"),
+    ("hid", "HID arm (optional profile)"),
+    ("serial", "serial arm (port, optional :profile)"),
+    ("falcon", "Novint Falcon (port)"),
+    ("spacemouse", "SpaceMouse (pose only)"),
+    ("replay", "replay (recording file)"),
+];
+
+/// What the user asked the panel to do.
+#[derive(Clone, Debug, PartialEq)]
+pub enum DeviceAction {
+    Connect { spec: DeviceSpec, max_force_n: f32 },
+    Disconnect,
+    SetMaxForce { max_force_n: f32 },
+}
+
+/// The panel's state.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DevicePanel {
+    /// Index into [`SPEC_KINDS`].
+    pub kind: usize,
+    /// What follows `kind:` in the spec (port, profile, file); may be empty.
+    pub argument: String,
+    /// Force limit asked for, newtons.
+    pub max_force_n: f32,
+    /// Result of the last scan (`None`: not scanned yet).
+    pub scanned: Option<(Vec<Connected>, Vec<String>)>,
+}
+
+impl Default for DevicePanel {
+    fn default() -> Self {
+        Self {
+            kind: 0,
+            argument: String::new(),
+            max_force_n: 3.0,
+            scanned: None,
+        }
+    }
+}
+
+/// Largest force limit the slider offers, newtons (drivers clamp further to their own maximum).
+pub const MAX_FORCE_LIMIT_N: f32 = 20.0;
+
+impl DevicePanel {
+    /// The spec string as typed: `kind` or `kind:argument`.
+    #[must_use]
+    pub fn spec_text(&self) -> String {
+        let kind = SPEC_KINDS.get(self.kind).map_or("sim", |k| k.0);
+        let arg = self.argument.trim();
+        if arg.is_empty() {
+            kind.to_string()
+        } else {
+            format!("{kind}:{arg}")
+        }
+    }
+
+    /// The parsed spec.
+    ///
+    /// # Errors
+    /// The parser's [`SpecError`], quoting the text.
+    pub fn spec(&self) -> Result<DeviceSpec, SpecError> {
+        self.spec_text().parse()
+    }
+
+    /// Fills kind and argument from a spec string (for example one found by a scan).
+    pub fn set_spec_text(&mut self, text: &str) {
+        let (kind, arg) = text.split_once(':').unwrap_or((text, ""));
+        if let Some(i) = SPEC_KINDS.iter().position(|k| k.0 == kind) {
+            self.kind = i;
+            self.argument = arg.to_string();
+        }
+    }
+
+    /// Draws the panel; returns what the user asked for, if anything.
+    pub fn ui(&mut self, ui: &mut egui::Ui, status: &DeviceStatus) -> Option<DeviceAction> {
+        let mut action = None;
+        ui.horizontal(|ui| {
+            ui.label("Status:");
+            let colour = match status.state {
+                DeviceLinkState::Connected => egui::Color32::from_rgb(90, 200, 90),
+                DeviceLinkState::Connecting => ui.visuals().warn_fg_color,
+                DeviceLinkState::Faulted => ui.visuals().error_fg_color,
+                DeviceLinkState::Disconnected => ui.visuals().weak_text_color(),
+            };
+            ui.colored_label(colour, status.state.name());
+            if !status.name.is_empty() {
+                ui.label(&status.name);
+            }
+        });
+        if status.state == DeviceLinkState::Connected {
+            ui.label(format!(
+                "force limit {:.2} N{}, peak {:.2} N",
+                status.max_force_n,
+                if status.has_force {
+                    ""
+                } else {
+                    " (no force output)"
+                },
+                status.peak_force_n
+            ));
+        }
+        egui::ComboBox::from_label("Device")
+            .selected_text(SPEC_KINDS.get(self.kind).map_or("sim", |k| k.1))
+            .show_ui(ui, |ui| {
+                for (i, (_, label)) in SPEC_KINDS.iter().enumerate() {
+                    ui.selectable_value(&mut self.kind, i, *label);
+                }
+            });
+        ui.horizontal(|ui| {
+            let label = ui.label("Port / profile / file");
+            ui.text_edit_singleline(&mut self.argument)
+                .labelled_by(label.id);
+        });
+        let spec = self.spec();
+        match &spec {
+            Ok(s) => ui.weak(format!("--device {s}")),
+            Err(e) => ui.colored_label(ui.visuals().error_fg_color, e.to_string()),
+        };
+        let limit = ui.add(
+            egui::Slider::new(&mut self.max_force_n, 0.0..=MAX_FORCE_LIMIT_N).text("Max force N"),
+        );
+        if limit.changed() && status.state == DeviceLinkState::Connected {
+            action = Some(DeviceAction::SetMaxForce {
+                max_force_n: self.max_force_n,
+            });
+        }
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(spec.is_ok(), egui::Button::new("Connect"))
+                .clicked()
+                && let Ok(spec) = &spec
+            {
+                action = Some(DeviceAction::Connect {
+                    spec: spec.clone(),
+                    max_force_n: self.max_force_n,
+                });
+            }
+            if ui
+                .add_enabled(
+                    status.state != DeviceLinkState::Disconnected,
+                    egui::Button::new("Disconnect"),
+                )
+                .clicked()
+            {
+                action = Some(DeviceAction::Disconnect);
+            }
+            // Enumeration reads sysfs: only on request, never per frame.
+            if ui.button("Scan").clicked() {
+                self.scanned = Some(enumerate::list_all());
+            }
+        });
+        if let Some((found, notes)) = &self.scanned {
+            let mut pick = None;
+            if found.is_empty() {
+                ui.weak("nothing found");
+            }
+            for d in found {
+                let name = d.product.as_deref().unwrap_or("unknown");
+                let text = format!("{} {} {}", d.path, name, access_note(d.access));
+                match &d.spec {
+                    Some(spec) => {
+                        if ui.link(format!("{text} → {spec}")).clicked() {
+                            pick = Some(spec.clone());
+                        }
+                    }
+                    None => {
+                        ui.weak(text);
+                    }
+                }
+            }
+            for n in notes {
+                ui.weak(n);
+            }
+            if let Some(s) = pick {
+                self.set_spec_text(&s);
+            }
+        }
+        action
+    }
+}
+
+fn access_note(a: Access) -> &'static str {
+    match a {
+        Access::Ok => "",
+        Access::Denied => "(no permission: see the udev rules)",
+        Access::Missing => "(gone)",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spec_text_round_trips_through_the_devices_parser() {
+        let mut p = DevicePanel::default();
+        assert_eq!(p.spec(), Ok(DeviceSpec::Sim));
+        p.set_spec_text("serial:/dev/ttyUSB0:cartesian-serial");
+        assert_eq!(p.spec_text(), "serial:/dev/ttyUSB0:cartesian-serial");
+        assert!(matches!(p.spec(), Ok(DeviceSpec::Serial { .. })));
+        p.set_spec_text("falcon");
+        let err = p.spec().unwrap_err();
+        assert!(err.to_string().contains("falcon"), "{err}");
+        p.set_spec_text("nonsense:x");
+        assert_eq!(
+            p.spec_text(),
+            "falcon",
+            "unknown kinds leave the panel unchanged"
+        );
+    }
+}

@@ -1,0 +1,240 @@
+//! Headless frames of the whole app (egui_kittest, no display server, no GPU): widgets are
+//! found through the accessibility tree and clicked or set as a user would, and the commands
+//! that reach the engine's end of the link are checked.
+
+use egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+
+use dynaclay_devices::spec::DeviceSpec;
+use dynaclay_loops::LatencyStats;
+
+use super::command::{EngineCommand, EngineEvent, ForceMode, ToolChoice};
+use super::link::{EngineEndpoint, engine_link};
+use super::state::SculptApp;
+use super::view::{DeviceLinkState, EngineView};
+use crate::dynamics::Material;
+use crate::tools::ToolAction;
+
+fn harness() -> (Harness<'static, SculptApp>, EngineEndpoint) {
+    let (link, end) = engine_link();
+    let app = SculptApp::new(link);
+    let h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 1000.0))
+        .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
+    (h, end)
+}
+
+fn drain(end: &EngineEndpoint) -> Vec<EngineCommand> {
+    end.commands.try_iter().collect()
+}
+
+#[test]
+fn the_first_frame_sends_the_current_tool() {
+    let (mut h, end) = harness();
+    h.run();
+    let sent = drain(&end);
+    assert!(
+        matches!(
+            sent.as_slice(),
+            [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.mode == ForceMode::PointGrab
+        ),
+        "{sent:?}"
+    );
+}
+
+#[test]
+fn clicking_a_tool_selects_it_in_the_engine() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+
+    h.get_by_label("Smooth").click();
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::SelectTool(ToolChoice::Geometric(tool))] = sent.as_slice() else {
+        panic!("expected one SelectTool, got {sent:?}");
+    };
+    assert!(matches!(tool.action, ToolAction::Smooth { .. }), "{tool:?}");
+
+    h.get_by_label("Chisel").click();
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::SelectTool(ToolChoice::Force(force))] = sent.as_slice() else {
+        panic!("expected one SelectTool, got {sent:?}");
+    };
+    assert_eq!(force.mode, ForceMode::Chisel);
+    assert_eq!(h.state().palette.choice(), ToolChoice::Force(*force));
+}
+
+#[test]
+fn moving_a_material_slider_sets_the_engine_material() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+
+    h.get_by_role_and_label(Role::Slider, "Stiffness")
+        .set_value_accesskit(5000.0);
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::SetMaterial(m)] = sent.as_slice() else {
+        panic!("expected one SetMaterial, got {sent:?}");
+    };
+    assert!(
+        (m.stiffness - 5000.0).abs() < 1.0,
+        "stiffness {}",
+        m.stiffness
+    );
+    assert_eq!(m.mass, Material::default().mass, "other fields unchanged");
+
+    h.get_by_role_and_label(Role::Slider, "Plasticity /s")
+        .set_value_accesskit(8.0);
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::SetMaterial(m2)] = sent.as_slice() else {
+        panic!("expected one SetMaterial, got {sent:?}");
+    };
+    assert!((m2.plasticity_per_s - 8.0).abs() < 1e-3);
+    assert!(
+        (m2.stiffness - m.stiffness).abs() < 1e-3,
+        "earlier change kept"
+    );
+}
+
+#[test]
+fn file_and_history_buttons_send_their_commands() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    for label in ["Undo", "Redo", "Save", "Load", "Export"] {
+        h.get_by_label(label).click();
+        h.run();
+    }
+    let sent = drain(&end);
+    assert_eq!(
+        sent,
+        vec![
+            EngineCommand::Undo,
+            EngineCommand::Redo,
+            EngineCommand::Save {
+                path: "sculpt.dclay".into()
+            },
+            EngineCommand::Load {
+                path: "sculpt.dclay".into()
+            },
+            EngineCommand::Export {
+                path: "sculpt.obj".into()
+            },
+        ]
+    );
+
+    // An export path without a known mesh extension is refused in the app, with a reason.
+    h.state_mut().files.export = "sculpt.xyz".into();
+    h.get_by_label("Export").click();
+    h.run();
+    assert!(drain(&end).is_empty());
+    assert!(h.state().log.back().unwrap().contains(".obj, .ply or .stl"));
+}
+
+#[test]
+fn connecting_the_device_sends_the_parsed_spec_and_limit() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    h.get_by_label("Connect").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::ConnectDevice {
+            spec: DeviceSpec::Sim,
+            max_force_n: 3.0
+        }]
+    );
+}
+
+#[test]
+fn published_state_reaches_the_panels_without_commands_back() {
+    let (mut h, mut end) = harness();
+    h.run();
+    drain(&end);
+
+    let mut loops = [LatencyStats::default(); 3];
+    loops[0].ticks = 1000;
+    loops[0].achieved_rate_hz = 999.5;
+    loops[0].nominal_rate_hz = 1000.0;
+    loops[0].period_error.p99_us = 12.0;
+    let view = EngineView {
+        material: Material::PLASTIC,
+        undo_steps: 2,
+        loops,
+        ..EngineView::default()
+    };
+    let mut connected = view.clone();
+    connected.device.state = DeviceLinkState::Connected;
+    connected.device.name = "simulated arm".into();
+    end.view.publish_clone_of(&connected);
+    end.events
+        .send(EngineEvent::Done {
+            what: "save".into(),
+            detail: "wrote sculpt.dclay".into(),
+        })
+        .unwrap();
+    h.run();
+
+    let app = h.state();
+    assert_eq!(
+        app.material,
+        Material::PLASTIC,
+        "sliders follow the engine's material"
+    );
+    assert_eq!(app.latency.samples[0].len(), 1);
+    assert_eq!(
+        app.log.back().map(String::as_str),
+        Some("save: wrote sculpt.dclay")
+    );
+    h.get_by_label("simulated arm");
+    h.get_by_label("connected");
+    assert!(drain(&end).is_empty(), "reading state sends nothing");
+}
+
+#[test]
+fn dragging_in_the_view_orbits_and_scrolling_zooms() {
+    let (mut h, _end) = harness();
+    h.run();
+    let before = h.state().camera;
+    let centre = egui::pos2(700.0, 500.0);
+    let press = |pressed| egui::Event::PointerButton {
+        pos: centre,
+        button: egui::PointerButton::Primary,
+        pressed,
+        modifiers: egui::Modifiers::NONE,
+    };
+    h.event(egui::Event::PointerMoved(centre));
+    h.event(press(true));
+    h.step();
+    for i in 1..=5 {
+        h.event(egui::Event::PointerMoved(
+            centre + egui::vec2(12.0 * i as f32, 0.0),
+        ));
+        h.step();
+    }
+    h.event(press(false));
+    h.run();
+    let after = h.state().camera;
+    assert!(
+        (after.yaw_rad - before.yaw_rad).abs() > 1e-3,
+        "yaw {} -> {}",
+        before.yaw_rad,
+        after.yaw_rad
+    );
+
+    h.event(egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 120.0),
+        phase: egui::TouchPhase::Move,
+        modifiers: egui::Modifiers::NONE,
+        source: egui::MouseWheelSource::Wheel,
+    });
+    h.run();
+    assert!(h.state().camera.distance < after.distance);
+}

@@ -1,0 +1,129 @@
+//! `dynaclay gui [--device SPEC]`: builds the starting clay and the device, starts the
+//! threaded engine behind a bridge, and runs the window until it is closed.
+
+use dynaclay_devices::spec::DeviceSpec;
+use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
+
+use super::bridge::start_bridge;
+use super::link::engine_link;
+use super::run::{GuiOptions, run_gui};
+use crate::engine::{Engine, EngineConfig, Script, build_clay};
+
+/// Why `dynaclay gui` stopped.
+#[derive(Debug)]
+pub enum LaunchError {
+    /// A bad argument.
+    Usage(String),
+    /// The device could not be made or opened.
+    Device(String),
+    /// The engine or the window failed.
+    Failed(String),
+}
+
+impl std::fmt::Display for LaunchError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Usage(m) => write!(f, "gui: {m} (usage: dynaclay gui [--device SPEC])"),
+            Self::Device(m) => write!(f, "gui: device: {m}"),
+            Self::Failed(m) => write!(f, "gui: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for LaunchError {}
+
+/// The device spec from `args` (`--device SPEC` or `--device=SPEC`; default `sim`).
+///
+/// # Errors
+/// An unknown argument, a missing value or a spec the devices parser rejects.
+pub fn parse_gui_args(args: &[String]) -> Result<DeviceSpec, LaunchError> {
+    let mut spec = "sim".to_owned();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        if a == "--device" {
+            spec = it
+                .next()
+                .ok_or_else(|| LaunchError::Usage("--device needs a value".into()))?
+                .clone();
+        } else if let Some(v) = a.strip_prefix("--device=") {
+            spec = v.to_owned();
+        } else {
+            return Err(LaunchError::Usage(format!("unexpected argument {a:?}")));
+        }
+    }
+    spec.parse()
+        .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))
+}
+
+/// Runs `dynaclay gui` with the given arguments.
+///
+/// # Errors
+/// See [`LaunchError`].
+pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
+    let spec = parse_gui_args(args)?;
+    let script = Script::builtin();
+    let field =
+        build_clay(&script.clay).map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?;
+    let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
+        DeviceSpec::Sim => {
+            // The simulated arm follows the built-in script's strokes, so the view moves.
+            let arm = SimArmConfig::default();
+            let info = arm.info.clone();
+            let map = EngineConfig::for_field(&field, &info).map;
+            let trajectory = script
+                .trajectory(&map)
+                .map_err(|e| LaunchError::Failed(e.to_string()))?;
+            (Box::new(SimulatedArm::new(arm, trajectory)), info)
+        }
+        DeviceSpec::Replay { file } => {
+            return Err(LaunchError::Device(format!(
+                "{}: use `dynaclay run --device replay:FILE` to replay recordings",
+                file.display()
+            )));
+        }
+        hw => {
+            let d = dynaclay_devices::open::build_driver(
+                hw,
+                &dynaclay_devices::open::DriverOptions::from_env(),
+            )
+            .map_err(|e| LaunchError::Device(e.to_string()))?;
+            let info = d.info();
+            (d, info)
+        }
+    };
+    let config = EngineConfig::for_script(&field, &info, &script);
+    let (link, endpoint) = engine_link();
+    let bridge = start_bridge(endpoint, info.clone(), |sink| {
+        Engine::start(&config, field, device, sink)
+    })
+    .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
+    let shown = run_gui(GuiOptions::default(), link);
+    let stopped = bridge.stop();
+    shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
+    stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gui_arguments_parse_like_run_devices() {
+        let s = |v: &[&str]| parse_gui_args(&v.iter().map(|x| x.to_string()).collect::<Vec<_>>());
+        assert_eq!(s(&[]).unwrap(), DeviceSpec::Sim);
+        assert_eq!(
+            s(&["--device", "spacemouse"]).unwrap(),
+            DeviceSpec::SpaceMouse
+        );
+        assert_eq!(s(&["--device=sim"]).unwrap(), DeviceSpec::Sim);
+        assert!(
+            s(&["--device"])
+                .unwrap_err()
+                .to_string()
+                .contains("needs a value")
+        );
+        assert!(s(&["--bogus"]).is_err());
+        assert!(s(&["--device", "falcon"]).is_err());
+    }
+}

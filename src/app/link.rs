@@ -1,0 +1,225 @@
+//! The app's only connection to the engine: commands out over a bounded crossbeam channel,
+//! published state in through triple buffers, answers back over a second channel.
+//!
+//! Guarantee: nothing on either side ever waits for the other. The app sends with `try_send`
+//! and reads with `try_recv` and [`SnapshotReader::latest`]; the engine drains commands with
+//! `try_recv` between simulation steps and publishes with [`SnapshotWriter::publish_clone_of`]
+//! (wait-free). The haptic and simulation loops therefore never wait on the GUI, and a GUI
+//! that stops drawing costs them nothing. [`RepaintSignal::request`] may briefly take egui's
+//! context lock: call it from the graphics loop or other non-real-time threads only (the app
+//! polls the view at display rate anyway).
+
+use std::sync::{Arc, OnceLock};
+
+use crossbeam::channel::{self, Receiver, Sender, TrySendError};
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
+
+use super::command::{EngineCommand, EngineEvent};
+use super::meshes::MeshSet;
+use super::view::EngineView;
+
+/// Commands that may queue before [`EngineLink::send`] reports the engine as not keeping up.
+pub const COMMAND_QUEUE_LEN: usize = 1024;
+
+/// Wakes the app when new data arrives. Cheap to clone; does nothing until the app installs
+/// its waker.
+#[derive(Clone, Default)]
+pub struct RepaintSignal {
+    waker: Arc<OnceLock<Box<dyn Fn() + Send + Sync>>>,
+}
+
+impl RepaintSignal {
+    /// Installs the function that requests a repaint (the app passes egui's
+    /// `Context::request_repaint`). Only the first call takes effect.
+    pub fn install(&self, waker: impl Fn() + Send + Sync + 'static) {
+        let _ = self.waker.set(Box::new(waker));
+    }
+
+    /// Asks the app to draw a new frame. Not for the haptic loop (see the module docs).
+    pub fn request(&self) {
+        if let Some(w) = self.waker.get() {
+            w();
+        }
+    }
+}
+
+impl std::fmt::Debug for RepaintSignal {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RepaintSignal")
+            .field("installed", &self.waker.get().is_some())
+            .finish()
+    }
+}
+
+/// Why a command did not reach the engine.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SendError {
+    /// The engine is not draining its queue (stalled or busy); the command was dropped.
+    QueueFull { command: &'static str },
+    /// No engine is listening (not started, or stopped).
+    NoEngine { command: &'static str },
+}
+
+impl std::fmt::Display for SendError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::QueueFull { command } => write!(
+                f,
+                "{command}: the engine's command queue is full ({COMMAND_QUEUE_LEN} waiting); command dropped"
+            ),
+            Self::NoEngine { command } => write!(f, "{command}: no engine is running"),
+        }
+    }
+}
+
+impl std::error::Error for SendError {}
+
+/// The app's end.
+pub struct EngineLink {
+    commands: Sender<EngineCommand>,
+    events: Receiver<EngineEvent>,
+    view: SnapshotReader<EngineView>,
+    meshes: SnapshotReader<MeshSet>,
+    repaint: RepaintSignal,
+}
+
+/// The engine's end: drain `commands` between steps, publish `view` and `meshes`, report
+/// outcomes on `events`, and call `repaint.request()` after publishing meshes.
+pub struct EngineEndpoint {
+    pub commands: Receiver<EngineCommand>,
+    pub events: Sender<EngineEvent>,
+    pub view: SnapshotWriter<EngineView>,
+    pub meshes: SnapshotWriter<MeshSet>,
+    pub repaint: RepaintSignal,
+}
+
+/// A connected pair (allocates the channels and the three copies of each snapshot).
+#[must_use]
+pub fn engine_link() -> (EngineLink, EngineEndpoint) {
+    let (cmd_tx, cmd_rx) = channel::bounded(COMMAND_QUEUE_LEN);
+    let (ev_tx, ev_rx) = channel::unbounded();
+    let (view_tx, view_rx) = snapshot_channel(&EngineView::default());
+    let (mesh_tx, mesh_rx) = snapshot_channel(&MeshSet::new());
+    let repaint = RepaintSignal::default();
+    (
+        EngineLink {
+            commands: cmd_tx,
+            events: ev_rx,
+            view: view_rx,
+            meshes: mesh_rx,
+            repaint: repaint.clone(),
+        },
+        EngineEndpoint {
+            commands: cmd_rx,
+            events: ev_tx,
+            view: view_tx,
+            meshes: mesh_tx,
+            repaint,
+        },
+    )
+}
+
+impl Default for EngineLink {
+    /// A link with no engine behind it: every send fails with [`SendError::NoEngine`] and the
+    /// view stays at its default.
+    fn default() -> Self {
+        let (link, endpoint) = engine_link();
+        drop(endpoint);
+        link
+    }
+}
+
+impl EngineLink {
+    /// Queues `command` without waiting.
+    ///
+    /// # Errors
+    /// [`SendError::QueueFull`] when the engine is not keeping up, [`SendError::NoEngine`] when
+    /// nothing listens; the command is dropped in both cases.
+    pub fn send(&self, command: EngineCommand) -> Result<(), SendError> {
+        let name = command.name();
+        self.commands.try_send(command).map_err(|e| match e {
+            TrySendError::Full(_) => SendError::QueueFull { command: name },
+            TrySendError::Disconnected(_) => SendError::NoEngine { command: name },
+        })
+    }
+
+    /// The next answer from the engine, if one is waiting.
+    pub fn try_event(&self) -> Option<EngineEvent> {
+        // Empty and disconnected both mean: nothing to show now.
+        self.events.try_recv().ok()
+    }
+
+    /// The newest published view (wait-free).
+    pub fn view(&mut self) -> &Stamped<EngineView> {
+        self.view.latest()
+    }
+
+    /// The newest published meshes (wait-free).
+    pub fn meshes(&mut self) -> &Stamped<MeshSet> {
+        self.meshes.latest()
+    }
+
+    /// The signal the engine uses to wake the app.
+    #[must_use]
+    pub fn repaint_signal(&self) -> RepaintSignal {
+        self.repaint.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    use super::*;
+
+    #[test]
+    fn commands_arrive_in_order_and_views_are_latest_only() {
+        let (mut link, mut end) = engine_link();
+        link.send(EngineCommand::Undo).unwrap();
+        link.send(EngineCommand::Redo).unwrap();
+        assert_eq!(end.commands.try_recv(), Ok(EngineCommand::Undo));
+        assert_eq!(end.commands.try_recv(), Ok(EngineCommand::Redo));
+        assert!(end.commands.try_recv().is_err());
+
+        for steps in 1..=3 {
+            end.view.back_mut().clone_from(&EngineView {
+                undo_steps: steps,
+                ..EngineView::default()
+            });
+            end.view.publish();
+        }
+        let v = link.view();
+        assert_eq!((v.version, v.value.undo_steps), (3, 3));
+    }
+
+    #[test]
+    fn a_full_queue_or_a_missing_engine_is_reported_not_waited_on() {
+        let (link, end) = engine_link();
+        for _ in 0..COMMAND_QUEUE_LEN {
+            link.send(EngineCommand::StrokeStop).unwrap();
+        }
+        assert_eq!(
+            link.send(EngineCommand::Undo),
+            Err(SendError::QueueFull { command: "undo" })
+        );
+        drop(end);
+        let err = link.send(EngineCommand::Redo).unwrap_err();
+        assert_eq!(err, SendError::NoEngine { command: "redo" });
+        assert!(err.to_string().contains("no engine"));
+        assert!(EngineLink::default().send(EngineCommand::Undo).is_err());
+    }
+
+    #[test]
+    fn repaint_signal_calls_the_installed_waker_once_installed() {
+        let count = Arc::new(AtomicUsize::new(0));
+        let signal = RepaintSignal::default();
+        signal.request();
+        let c = Arc::clone(&count);
+        signal.clone().install(move || {
+            c.fetch_add(1, Ordering::Relaxed);
+        });
+        signal.request();
+        signal.request();
+        assert_eq!(count.load(Ordering::Relaxed), 2);
+    }
+}

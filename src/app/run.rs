@@ -1,0 +1,65 @@
+//! Opening the app's window: `dynaclay gui`.
+
+use super::link::EngineLink;
+use super::state::SculptApp;
+
+/// Window settings.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GuiOptions {
+    pub title: String,
+    /// Initial inner size of the window, logical points.
+    pub window_size_pt: [f32; 2],
+}
+
+impl Default for GuiOptions {
+    fn default() -> Self {
+        Self {
+            title: "dynaclay".into(),
+            window_size_pt: [1400.0, 900.0],
+        }
+    }
+}
+
+/// Why the window could not run.
+#[derive(Debug)]
+pub struct GuiError {
+    pub message: String,
+}
+
+impl std::fmt::Display for GuiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "cannot run the GUI: {}", self.message)
+    }
+}
+
+impl std::error::Error for GuiError {}
+
+/// Opens the window and runs the app until it is closed. The engine behind `link` keeps
+/// running on its own threads; the app only sends commands and reads what it publishes.
+///
+/// # Errors
+/// No display (no `DISPLAY` or `WAYLAND_DISPLAY`), no wgpu adapter for the window, or another
+/// windowing failure, as a [`GuiError`] carrying eframe's message.
+pub fn run_gui(options: GuiOptions, link: EngineLink) -> Result<(), GuiError> {
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title(options.title.clone())
+            .with_inner_size(options.window_size_pt),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    let repaint = link.repaint_signal();
+    let app = SculptApp::new(link);
+    eframe::run_native(
+        &options.title,
+        native,
+        Box::new(move |cc| {
+            let ctx = cc.egui_ctx.clone();
+            repaint.install(move || ctx.request_repaint());
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| GuiError {
+        message: e.to_string(),
+    })
+}

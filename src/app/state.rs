@@ -1,0 +1,483 @@
+//! The sculpting app's state and its frame: panels for tools, material, device, display and
+//! loop latency around the 3D view, and a top bar with undo, redo, save, load and export.
+//!
+//! Each frame reads the engine's latest view and meshes without waiting, draws, and sends
+//! commands for what the user changed. Nothing here can stall the engine's loops (see
+//! [`super::link`]).
+
+use std::collections::VecDeque;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use crate::dynamics::Material;
+use crate::mesh::MeshFormat;
+use crate::render::{
+    BoxOverlay, Camera, ForceOverlay, MeshChunk, SceneOptions, Shading, ToolOverlay, ToolStyle,
+    Trackball, bounds_of,
+};
+
+use super::camera_input::SpaceMouseCamera;
+use super::command::{EngineCommand, EngineEvent};
+use super::device_panel::{DeviceAction, DevicePanel};
+use super::latency::LatencyHistory;
+use super::link::EngineLink;
+use super::material_panel::material_ui;
+use super::palette::ToolPalette;
+use super::view::{EngineView, WorldBox};
+use super::viewport::{SceneView, camera_input};
+
+/// Lines kept in the message log.
+const LOG_LEN: usize = 50;
+/// How often the app looks at the engine's view when nothing else wakes it.
+const POLL_PERIOD: Duration = Duration::from_millis(33);
+
+/// How the scene is drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DisplaySettings {
+    pub shading: Shading,
+    pub tool_style: ToolStyle,
+    pub show_force: bool,
+    /// Arrow length per newton of force, world units.
+    pub force_arrow_per_n: f32,
+    pub show_workspace: bool,
+    pub show_region: bool,
+}
+
+impl Default for DisplaySettings {
+    fn default() -> Self {
+        Self {
+            shading: Shading::default(),
+            tool_style: ToolStyle::Transparent,
+            show_force: true,
+            force_arrow_per_n: 0.05,
+            show_workspace: true,
+            show_region: true,
+        }
+    }
+}
+
+/// The session and export paths typed in the top bar.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FilePaths {
+    pub session: String,
+    pub export: String,
+}
+
+impl Default for FilePaths {
+    fn default() -> Self {
+        Self {
+            session: "sculpt.dclay".into(),
+            export: "sculpt.obj".into(),
+        }
+    }
+}
+
+/// The whole app.
+#[derive(Default)]
+pub struct SculptApp {
+    pub link: EngineLink,
+    pub camera: Camera,
+    pub trackball: Trackball,
+    pub palette: ToolPalette,
+    /// The material the sliders show and the engine was last sent.
+    pub material: Material,
+    pub device: DevicePanel,
+    pub display: DisplaySettings,
+    pub files: FilePaths,
+    pub latency: LatencyHistory,
+    pub spacemouse: SpaceMouseCamera,
+    /// Recent messages, newest last.
+    pub log: VecDeque<String>,
+    /// A copy of the latest engine view.
+    pub view: EngineView,
+    scene: Option<SceneView>,
+    started: Option<Instant>,
+    /// Whether the sliders were initialised from the engine's first published material.
+    material_synced: bool,
+    /// Settings that failed to reach the engine and are sent again next frame.
+    tool_pending: bool,
+    material_pending: bool,
+    /// Whether the Space key currently holds a stroke.
+    key_stroke: bool,
+    /// Mesh version last framed by the camera (frames once when the first meshes arrive).
+    framed: bool,
+}
+
+impl SculptApp {
+    /// An app talking to the engine through `link`. The current tool and material are sent on
+    /// the first frame.
+    #[must_use]
+    pub fn new(link: EngineLink) -> Self {
+        Self {
+            link,
+            tool_pending: true,
+            ..Self::default()
+        }
+    }
+
+    /// Sends `command`; a failure goes to the log. Returns whether it was queued.
+    pub fn send(&mut self, command: EngineCommand) -> bool {
+        match self.link.send(command) {
+            Ok(()) => true,
+            Err(e) => {
+                self.note(e.to_string());
+                false
+            }
+        }
+    }
+
+    /// Adds a line to the message log.
+    pub fn note(&mut self, line: impl Into<String>) {
+        if self.log.len() == LOG_LEN {
+            self.log.pop_front();
+        }
+        self.log.push_back(line.into());
+    }
+
+    /// Takes in what the engine published since the last frame. Never waits.
+    pub fn poll_engine(&mut self) {
+        let t_s = self
+            .started
+            .get_or_insert_with(Instant::now)
+            .elapsed()
+            .as_secs_f64();
+        while let Some(ev) = self.link.try_event() {
+            let line = match ev {
+                EngineEvent::Done { what, detail } => format!("{what}: {detail}"),
+                EngineEvent::Failed { what, error } => format!("{what} failed: {error}"),
+            };
+            self.note(line);
+        }
+        let snap = self.link.view();
+        let version = snap.version;
+        if version != 0 {
+            self.view.clone_from(&snap.value);
+            if !self.material_synced {
+                self.material = self.view.material;
+                self.material_synced = true;
+            }
+        }
+        self.latency.record(version, t_s, &self.view.loops);
+    }
+
+    /// Sends settings changed or left pending.
+    fn flush_settings(&mut self, tool_changed: bool, material_changed: bool) {
+        self.tool_pending |= tool_changed;
+        self.material_pending |= material_changed;
+        if material_changed {
+            self.material_synced = true;
+        }
+        if self.tool_pending {
+            let choice = self.palette.choice();
+            self.tool_pending = !self.send(EngineCommand::SelectTool(choice));
+        }
+        if self.material_pending {
+            self.material_pending = !self.send(EngineCommand::SetMaterial(self.material));
+        }
+    }
+
+    /// The overlays for this frame.
+    #[must_use]
+    pub fn scene_options(&self) -> SceneOptions {
+        let v = &self.view;
+        let d = &self.display;
+        let boxed = |b: Option<WorldBox>, show: bool, color: [f32; 4]| {
+            b.filter(|_| show).map(|b| BoxOverlay {
+                min: b.min,
+                max: b.max,
+                color,
+            })
+        };
+        SceneOptions {
+            shading: d.shading,
+            tool: (v.tool_radius > 0.0 && d.tool_style != ToolStyle::Hidden).then_some(
+                ToolOverlay {
+                    centre: v.tool_position,
+                    radius: v.tool_radius,
+                    style: d.tool_style,
+                    color: if v.stroke_active {
+                        [0.9, 0.35, 0.2, 0.35]
+                    } else {
+                        [0.3, 0.6, 0.9, 0.3]
+                    },
+                },
+            ),
+            force: (d.show_force && v.force_n.length_squared() > 0.0).then_some(ForceOverlay {
+                origin: v.tool_position,
+                force_n: v.force_n,
+                length_per_newton: d.force_arrow_per_n,
+                color: [1.0, 0.85, 0.2, 1.0],
+            }),
+            workspace_box: boxed(v.workspace, d.show_workspace, [0.5, 0.5, 0.55, 1.0]),
+            region_box: boxed(v.region, d.show_region, [0.3, 0.8, 0.4, 1.0]),
+            ..SceneOptions::default()
+        }
+    }
+
+    /// One frame of the whole app. `gpu` is eframe's wgpu state (`None` in headless tests:
+    /// everything but the 3D image works).
+    pub fn show(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
+        self.poll_engine();
+        self.keyboard(ui);
+        egui::Panel::top("dynaclay top bar").show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("dynaclay log").show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.label(self.log.back().map_or("ready", String::as_str));
+            });
+        });
+        let mut tool_changed = false;
+        let mut material_changed = false;
+        egui::Panel::left("dynaclay controls")
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    egui::CollapsingHeader::new("Tools")
+                        .default_open(true)
+                        .show(ui, |ui| tool_changed = self.palette.ui(ui));
+                    egui::CollapsingHeader::new("Material")
+                        .default_open(true)
+                        .show(ui, |ui| {
+                            material_changed = material_ui(ui, &mut self.material)
+                        });
+                    egui::CollapsingHeader::new("Device")
+                        .default_open(true)
+                        .show(ui, |ui| self.device_ui(ui));
+                    egui::CollapsingHeader::new("Display")
+                        .default_open(false)
+                        .show(ui, |ui| self.display_ui(ui));
+                });
+            });
+        egui::Panel::right("dynaclay latency")
+            .default_size(260.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    ui.heading("Loops");
+                    self.latency.ui(ui);
+                });
+            });
+        self.flush_settings(tool_changed, material_changed);
+        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, gpu));
+        ui.ctx().request_repaint_after(POLL_PERIOD);
+    }
+
+    fn keyboard(&mut self, ui: &egui::Ui) {
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        let (undo, redo, space_down) = ui.input_mut(|i| {
+            let redo = i.consume_key(
+                egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+                egui::Key::Z,
+            ) || i.consume_key(egui::Modifiers::COMMAND, egui::Key::Y);
+            let undo = i.consume_key(egui::Modifiers::COMMAND, egui::Key::Z);
+            (undo, redo, i.key_down(egui::Key::Space))
+        });
+        if undo {
+            self.send(EngineCommand::Undo);
+        }
+        if redo {
+            self.send(EngineCommand::Redo);
+        }
+        if space_down != self.key_stroke {
+            self.key_stroke = space_down;
+            self.send(if space_down {
+                EngineCommand::StrokeStart
+            } else {
+                EngineCommand::StrokeStop
+            });
+        }
+    }
+
+    fn top_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| {
+            let (undo_n, redo_n) = (self.view.undo_steps, self.view.redo_steps);
+            if ui
+                .button("Undo")
+                .on_hover_text(format!("Ctrl+Z ({undo_n} steps)"))
+                .clicked()
+            {
+                self.send(EngineCommand::Undo);
+            }
+            if ui
+                .button("Redo")
+                .on_hover_text(format!("Ctrl+Shift+Z ({redo_n} steps)"))
+                .clicked()
+            {
+                self.send(EngineCommand::Redo);
+            }
+            ui.separator();
+            let label = ui.label("Session");
+            ui.add(egui::TextEdit::singleline(&mut self.files.session).desired_width(160.0))
+                .labelled_by(label.id);
+            if ui.button("Save").clicked() {
+                let path = PathBuf::from(self.files.session.trim());
+                self.send(EngineCommand::Save { path });
+            }
+            if ui.button("Load").clicked() {
+                let path = PathBuf::from(self.files.session.trim());
+                self.send(EngineCommand::Load { path });
+            }
+            ui.separator();
+            let label = ui.label("Mesh");
+            ui.add(egui::TextEdit::singleline(&mut self.files.export).desired_width(160.0))
+                .labelled_by(label.id);
+            if ui.button("Export").clicked() {
+                let path = PathBuf::from(self.files.export.trim());
+                if MeshFormat::from_path(&path).is_some() {
+                    self.send(EngineCommand::Export { path });
+                } else {
+                    self.note(format!(
+                        "export: cannot tell the mesh format of {}: use .obj, .ply or .stl",
+                        path.display()
+                    ));
+                }
+            }
+            ui.separator();
+            let active = self.view.stroke_active;
+            if ui
+                .selectable_label(active, "Sculpt")
+                .on_hover_text("hold Space to sculpt")
+                .clicked()
+            {
+                self.send(if active {
+                    EngineCommand::StrokeStop
+                } else {
+                    EngineCommand::StrokeStart
+                });
+            }
+            ui.weak(format!("tool: {}", self.palette.choice().name()));
+        });
+    }
+
+    fn device_ui(&mut self, ui: &mut egui::Ui) {
+        let status = self.view.device.clone();
+        match self.device.ui(ui, &status) {
+            Some(DeviceAction::Connect { spec, max_force_n }) => {
+                // One process cannot read the same SpaceMouse as camera and as tool.
+                if spec == dynaclay_devices::spec::DeviceSpec::SpaceMouse
+                    && self.spacemouse.is_connected()
+                {
+                    self.spacemouse.disconnect();
+                }
+                self.send(EngineCommand::ConnectDevice { spec, max_force_n });
+            }
+            Some(DeviceAction::Disconnect) => {
+                self.send(EngineCommand::DisconnectDevice);
+            }
+            Some(DeviceAction::SetMaxForce { max_force_n }) => {
+                self.send(EngineCommand::SetMaxForce { max_force_n });
+            }
+            None => {}
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            if self.spacemouse.is_connected() {
+                if ui.button("SpaceMouse camera off").clicked() {
+                    self.spacemouse.disconnect();
+                }
+            } else if ui.button("SpaceMouse camera").clicked() {
+                self.spacemouse.connect();
+            }
+        });
+        if !self.spacemouse.status.is_empty() {
+            ui.weak(&self.spacemouse.status);
+        }
+    }
+
+    fn display_ui(&mut self, ui: &mut egui::Ui) {
+        use crate::render::EnvironmentMode as E;
+        let d = &mut self.display;
+        egui::ComboBox::from_label("Environment")
+            .selected_text(format!("{:?}", d.shading.environment))
+            .show_ui(ui, |ui| {
+                for m in [E::Off, E::Opaque, E::Transparent, E::ClearCoat] {
+                    ui.selectable_value(&mut d.shading.environment, m, format!("{m:?}"));
+                }
+            });
+        ui.add(
+            egui::Slider::new(&mut d.shading.environment_opacity, 0.0..=1.0)
+                .text("Environment opacity"),
+        );
+        ui.add(egui::Slider::new(&mut d.shading.specular, 0.0..=1.0).text("Specular"));
+        ui.add(
+            egui::Slider::new(&mut d.shading.shininess, 1.0..=256.0)
+                .logarithmic(true)
+                .text("Shininess"),
+        );
+        ui.horizontal(|ui| {
+            ui.label("Clay colour");
+            ui.color_edit_button_rgb(&mut d.shading.material_color);
+        });
+        egui::ComboBox::from_label("Tool drawn")
+            .selected_text(format!("{:?}", d.tool_style))
+            .show_ui(ui, |ui| {
+                for s in [
+                    ToolStyle::Hidden,
+                    ToolStyle::Transparent,
+                    ToolStyle::Wireframe,
+                ] {
+                    ui.selectable_value(&mut d.tool_style, s, format!("{s:?}"));
+                }
+            });
+        ui.checkbox(&mut d.show_force, "Force arrow");
+        ui.checkbox(&mut d.show_workspace, "Workspace box");
+        ui.checkbox(&mut d.show_region, "Simulated region box");
+    }
+
+    fn viewport(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
+        let rect = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        camera_input(ui, &response, &mut self.camera, &self.trackball);
+        if self.spacemouse.poll(&mut self.camera) {
+            ui.ctx().request_repaint();
+        }
+        let options = self.scene_options();
+        let meshes = self.link.meshes();
+        let mesh_version = meshes.version;
+        let chunks: Vec<MeshChunk<'_>> = meshes.value.iter().map(|c| c.as_chunk()).collect();
+        let bounds = bounds_of(&chunks);
+        let frame_now = response.double_clicked() || (!self.framed && bounds.is_some());
+        if frame_now && let Some((lo, hi)) = bounds {
+            self.camera.frame_box(lo, hi);
+            self.framed = true;
+        }
+        let Some(rs) = gpu else {
+            centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            return;
+        };
+        let ppp = ui.ctx().pixels_per_point();
+        let size = (
+            (rect.width() * ppp).round().max(1.0) as u32,
+            (rect.height() * ppp).round().max(1.0) as u32,
+        );
+        let scene = self
+            .scene
+            .get_or_insert_with(|| SceneView::new(rs, size.0, size.1));
+        match scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options) {
+            Ok(texture) => {
+                let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
+                image.paint_at(ui, rect);
+            }
+            Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
+        }
+    }
+}
+
+/// Text painted over the view; painted rather than a label widget so it never takes the
+/// pointer drags meant for the camera.
+fn centred_note(ui: &egui::Ui, rect: egui::Rect, text: &str) {
+    ui.painter().text(
+        rect.center(),
+        egui::Align2::CENTER_CENTER,
+        text,
+        egui::FontId::proportional(14.0),
+        ui.visuals().weak_text_color(),
+    );
+}
+
+impl eframe::App for SculptApp {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let gpu = frame.wgpu_render_state().cloned();
+        self.show(ui, gpu.as_ref());
+    }
+}

@@ -1,0 +1,135 @@
+//! What the engine publishes for the app to show: one [`EngineView`] value, replaced whole
+//! through a triple buffer, so the app reads a consistent picture without ever blocking the
+//! publisher.
+//!
+//! The view is plain data apart from the device name, which the publisher overwrites in place
+//! (`clone_from`), so publishing allocates only when the name grows.
+
+use glam::Vec3;
+
+use dynaclay_loops::LatencyStats;
+
+use crate::dynamics::Material;
+
+/// The three loops, in the order of [`EngineView::loops`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LoopId {
+    Haptic,
+    Simulation,
+    Graphics,
+}
+
+impl LoopId {
+    /// Every loop, in display order.
+    pub const ALL: [LoopId; 3] = [Self::Haptic, Self::Simulation, Self::Graphics];
+
+    /// The loop's name, as in latency reports.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Haptic => "haptic",
+            Self::Simulation => "simulation",
+            Self::Graphics => "graphics",
+        }
+    }
+
+    /// Index into [`EngineView::loops`].
+    #[must_use]
+    pub fn index(self) -> usize {
+        match self {
+            Self::Haptic => 0,
+            Self::Simulation => 1,
+            Self::Graphics => 2,
+        }
+    }
+}
+
+/// Where the haptic device stands.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DeviceLinkState {
+    #[default]
+    Disconnected,
+    Connecting,
+    Connected,
+    /// The device reported an error or went away; force is zero until it is reconnected.
+    Faulted,
+}
+
+impl DeviceLinkState {
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Disconnected => "disconnected",
+            Self::Connecting => "connecting",
+            Self::Connected => "connected",
+            Self::Faulted => "faulted",
+        }
+    }
+}
+
+/// The device as the engine sees it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DeviceStatus {
+    pub state: DeviceLinkState,
+    /// Model name from the driver's `DeviceInfo` (empty when disconnected).
+    pub name: String,
+    /// Force limit applied by the safety filter, newtons.
+    pub max_force_n: f32,
+    /// Whether the device outputs force at all (a SpaceMouse does not).
+    pub has_force: bool,
+    /// Largest force sent to the device since it was connected, newtons.
+    pub peak_force_n: f32,
+}
+
+/// An axis-aligned box in world units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WorldBox {
+    pub min: Vec3,
+    pub max: Vec3,
+}
+
+/// Everything the app shows besides the meshes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EngineView {
+    /// Tool centre in world units.
+    pub tool_position: Vec3,
+    /// Radius of the tool's bounding sphere, world units (0: draw no tool).
+    pub tool_radius: f32,
+    /// Force the user feels, newtons, in world axes.
+    pub force_n: Vec3,
+    /// Whether a stroke is being applied.
+    pub stroke_active: bool,
+    /// The material in effect.
+    pub material: Material,
+    /// Steps that undo and redo can take.
+    pub undo_steps: usize,
+    pub redo_steps: usize,
+    pub device: DeviceStatus,
+    /// Latency figures of each loop, indexed by [`LoopId::index`].
+    pub loops: [LatencyStats; 3],
+    /// The sculpting workspace.
+    pub workspace: Option<WorldBox>,
+    /// The locally simulated region (Hua & Qin §7.3).
+    pub region: Option<WorldBox>,
+    /// Simulated time, seconds.
+    pub sim_time_s: f64,
+}
+
+impl Default for EngineView {
+    fn default() -> Self {
+        Self {
+            tool_position: Vec3::ZERO,
+            tool_radius: 0.0,
+            force_n: Vec3::ZERO,
+            stroke_active: false,
+            material: Material::default(),
+            undo_steps: 0,
+            redo_steps: 0,
+            device: DeviceStatus::default(),
+            loops: [LatencyStats::default(); 3],
+            workspace: None,
+            region: None,
+            sim_time_s: 0.0,
+        }
+    }
+}
