@@ -666,6 +666,39 @@ mod tests {
     }
 
     #[test]
+    fn local_refresh_of_a_closure_field_equals_full_rebuild() {
+        // A smooth bump of compact support (radius r around q) added to a sphere.
+        let (centre, radius) = (Vec3::splat(0.5), 0.3f32);
+        let q = Vec3::new(0.8, 0.52, 0.47);
+        let r = 0.09f32;
+        let bumped = move |p: Vec3| {
+            let w = (1.0 - (p - q).length_squared() / (r * r)).max(0.0);
+            radius - (p - centre).length() + 0.05 * w * w * w
+        };
+        let bumped_gradient = move |p: Vec3| {
+            let w = (1.0 - (p - q).length_squared() / (r * r)).max(0.0);
+            -(p - centre).normalize_or_zero() - 0.05 * 3.0 * w * w * 2.0 * (p - q) / (r * r)
+        };
+        let before = sphere_fn(centre, radius);
+        let after = FnField {
+            value: bumped,
+            gradient: bumped_gradient,
+            iso: 0.0,
+            lipschitz: Some(2.0),
+        };
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0 / 80.0, [80; 3]).unwrap();
+        let mut tree = BrickOctree::build(grid, &before);
+        let report = tree.refresh_box(&after, q - r, q + r);
+        assert!(
+            report.bricks_sampled > 0 && report.bricks_sampled < 30,
+            "{report:?}"
+        );
+        let fresh = BrickOctree::build(grid, &after);
+        assert_same_bricks(&tree, &fresh);
+        assert_eq!(closed_stats(&tree).euler_characteristic, 2);
+    }
+
+    #[test]
     fn changed_since_lists_only_refreshed_bricks() {
         let (mut lattice, _, _) = sphere_lattice(8.0);
         let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();
