@@ -417,7 +417,7 @@ fn morton(c: [u32; 3]) -> u64 {
     spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
 }
 
-/// Multiplicative hash for edge ids (already well spread; SipHash would dominate welding).
+/// A fast mixing hash for edge ids (SipHash would dominate welding).
 #[derive(Default)]
 struct EdgeIdHasher(u64);
 
@@ -431,7 +431,12 @@ impl Hasher for EdgeIdHasher {
         }
     }
     fn write_u64(&mut self, v: u64) {
-        self.0 = (v ^ v >> 29).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        // SplitMix64's finaliser: every input bit reaches the low bits the table indexes by.
+        let mut x = v ^ (v >> 30);
+        x = x.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x ^= x >> 27;
+        x = x.wrapping_mul(0x94d0_49bb_1331_11eb);
+        self.0 = x ^ (x >> 31);
     }
 }
 
