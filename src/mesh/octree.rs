@@ -9,7 +9,7 @@
 //! that survive are sampled and meshed.
 //!
 //! A local refresh runs the same descent, restricted to the bricks a changed box touches and
-//! starting at the smallest node that holds them. Each brick's samples and mesh depend only
+//! starting at the octree level whose nodes are the size of the box. Each brick's samples and mesh depend only
 //! on the brick and the field, and a culled node holds no surface (bounds are never tighter
 //! than the true range), so a refresh yields exactly the bricks and meshes a full rebuild
 //! would.
@@ -146,9 +146,9 @@ impl BrickOctree {
         self.refresh_bricks(field, first, last)
     }
 
-    /// [`BrickOctree::refresh_box`] for the engine: after a lattice's coefficients changed
-    /// inside the world box `min..=max` (already widened to the changed coefficients'
-    /// support), re-mesh from the updated lattice.
+    /// [`BrickOctree::refresh_box`] for the engine: after a lattice's coefficients changed,
+    /// re-mesh from the updated lattice. `min..max` is the world box of the changed
+    /// coefficients' support, e.g. from [`BrickOctree::coefficient_change_box`].
     pub fn refresh_lattice(
         &mut self,
         lattice: &BSplineLattice,
