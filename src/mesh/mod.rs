@@ -1,11 +1,22 @@
 //! Surface extraction: a sparse brick octree over the sampled field, marching cubes per
 //! brick with shared edge vertices, dirty-box re-meshing, mesh statistics and export.
 //!
-//! The engine builds a [`BrickOctree`] once ([`BrickOctree::build`]) and, after each region
-//! snapshot, calls [`BrickOctree::refresh_lattice`] with the changed world box; the renderer
-//! uploads the bricks in [`RefreshReport::changed`] (or [`BrickOctree::changed_since`]) and
-//! drops those in [`RefreshReport::removed`]; export takes [`BrickOctree::weld`] to
-//! [`write_mesh`].
+//! Guarantees: the mesh of a field that is outside on the grid's boundary is closed,
+//! edge-manifold and consistently oriented (triangles counter-clockwise seen from outside,
+//! normals `−∇s/|∇s|` from the analytic gradient); a local refresh gives exactly the bricks a
+//! full rebuild gives; memory grows with the surface's area. Not real-time: it allocates and
+//! belongs on the graphics thread.
+//!
+//! How the rest of the engine uses it:
+//! - Engine: [`SampleGrid::for_lattice`] (cell = spacing / k), then [`BrickOctree::build`];
+//!   after applying each region snapshot to its lattice copy,
+//!   [`BrickOctree::coefficient_change_box`] on the snapshot's dirty coefficient range and
+//!   [`BrickOctree::refresh_lattice`] with that box.
+//! - Renderer: per-brick buffers from [`Brick::mesh`]; upload the bricks named in
+//!   [`RefreshReport::changed`] (or [`BrickOctree::changed_since`] its last generation) and
+//!   drop those in [`RefreshReport::removed`].
+//! - Export: [`BrickOctree::weld`] to a [`TriMesh`], then [`write_mesh`]; [`MeshStats::of`]
+//!   for counts, area, volume and topology.
 
 mod brick;
 mod error;

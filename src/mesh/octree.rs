@@ -9,7 +9,7 @@
 //! that survive are sampled and meshed.
 //!
 //! A local refresh runs the same descent, restricted to the bricks a changed box touches and
-//! starting at the smallest node that holds them. Each brick's samples and mesh depend only
+//! starting at the octree level whose nodes are the size of the box. Each brick's samples and mesh depend only
 //! on the brick and the field, and a culled node holds no surface (bounds are never tighter
 //! than the true range), so a refresh yields exactly the bricks and meshes a full rebuild
 //! would.
@@ -146,9 +146,9 @@ impl BrickOctree {
         self.refresh_bricks(field, first, last)
     }
 
-    /// [`BrickOctree::refresh_box`] for the engine: after a lattice's coefficients changed
-    /// inside the world box `min..=max` (already widened to the changed coefficients'
-    /// support), re-mesh from the updated lattice.
+    /// [`BrickOctree::refresh_box`] for the engine: after a lattice's coefficients changed,
+    /// re-mesh from the updated lattice. `min..max` is the world box of the changed
+    /// coefficients' support, e.g. from [`BrickOctree::coefficient_change_box`].
     pub fn refresh_lattice(
         &mut self,
         lattice: &BSplineLattice,
@@ -417,7 +417,7 @@ fn morton(c: [u32; 3]) -> u64 {
     spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
 }
 
-/// Multiplicative hash for edge ids (already well spread; SipHash would dominate welding).
+/// A fast mixing hash for edge ids (SipHash would dominate welding).
 #[derive(Default)]
 struct EdgeIdHasher(u64);
 
@@ -431,7 +431,12 @@ impl Hasher for EdgeIdHasher {
         }
     }
     fn write_u64(&mut self, v: u64) {
-        self.0 = (v ^ v >> 29).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        // SplitMix64's finaliser: every input bit reaches the low bits the table indexes by.
+        let mut x = v ^ (v >> 30);
+        x = x.wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        x ^= x >> 27;
+        x = x.wrapping_mul(0x94d0_49bb_1331_11eb);
+        self.0 = x ^ (x >> 31);
     }
 }
 
@@ -663,6 +668,39 @@ mod tests {
             let s = closed_stats(&tree);
             assert_eq!(Some(s.euler_characteristic), expected_chi.next(), "{s:?}");
         }
+    }
+
+    #[test]
+    fn local_refresh_of_a_closure_field_equals_full_rebuild() {
+        // A smooth bump of compact support (radius r around q) added to a sphere.
+        let (centre, radius) = (Vec3::splat(0.5), 0.3f32);
+        let q = Vec3::new(0.8, 0.52, 0.47);
+        let r = 0.09f32;
+        let bumped = move |p: Vec3| {
+            let w = (1.0 - (p - q).length_squared() / (r * r)).max(0.0);
+            radius - (p - centre).length() + 0.05 * w * w * w
+        };
+        let bumped_gradient = move |p: Vec3| {
+            let w = (1.0 - (p - q).length_squared() / (r * r)).max(0.0);
+            -(p - centre).normalize_or_zero() - 0.05 * 3.0 * w * w * 2.0 * (p - q) / (r * r)
+        };
+        let before = sphere_fn(centre, radius);
+        let after = FnField {
+            value: bumped,
+            gradient: bumped_gradient,
+            iso: 0.0,
+            lipschitz: Some(2.0),
+        };
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0 / 80.0, [80; 3]).unwrap();
+        let mut tree = BrickOctree::build(grid, &before);
+        let report = tree.refresh_box(&after, q - r, q + r);
+        assert!(
+            report.bricks_sampled > 0 && report.bricks_sampled < 30,
+            "{report:?}"
+        );
+        let fresh = BrickOctree::build(grid, &after);
+        assert_same_bricks(&tree, &fresh);
+        assert_eq!(closed_stats(&tree).euler_characteristic, 2);
     }
 
     #[test]

@@ -26,6 +26,9 @@ pub trait ScalarField {
     /// fastest into `out[..counts product]`. `scratch` is working memory the caller keeps.
     ///
     /// Implementations must give each sample the same bits whichever block contains it.
+    ///
+    /// # Panics
+    /// When `out` is shorter than `counts[0] · counts[1] · counts[2]`.
     fn sample_block(
         &self,
         grid: &SampleGrid,
@@ -159,12 +162,37 @@ impl ScalarField for BSplineLattice {
         if cx == 0 || cy == 0 || cz == 0 {
             return;
         }
+        if let Some(axis) = (0..3).find(|&a| counts[a] > MAX_BLOCK) {
+            // Too long for one pass: split; each sample's bits do not depend on its block.
+            let mut head = counts;
+            head[axis] = MAX_BLOCK;
+            let mut tail = counts;
+            tail[axis] -= MAX_BLOCK;
+            let mut tail_first = first;
+            tail_first[axis] += MAX_BLOCK as u32;
+            let mut part = vec![0.0; head[0] * head[1] * head[2]];
+            for (sub_first, sub) in [(first, head), (tail_first, tail)] {
+                part.resize(sub[0] * sub[1] * sub[2], 0.0);
+                self.sample_block(grid, sub_first, sub, &mut part, scratch);
+                let shift = (sub_first[axis] - first[axis]) as usize;
+                for k in 0..sub[2] {
+                    for j in 0..sub[1] {
+                        for i in 0..sub[0] {
+                            let mut at = [i, j, k];
+                            at[axis] += shift;
+                            out[at[0] + cx * (at[1] + cy * at[2])] =
+                                part[i + sub[0] * (j + sub[1] * k)];
+                        }
+                    }
+                }
+            }
+            return;
+        }
         // Per axis: first coefficient index and the four weights of each sample.
         let mut taps = [[(0i64, [0.0f32; 4]); MAX_BLOCK]; 3];
         let mut coeff_lo = [0i64; 3];
         let mut coeff_n = [0usize; 3];
         for axis in 0..3 {
-            assert!(counts[axis] <= MAX_BLOCK, "block too large for one pass");
             for (s, tap) in taps[axis][..counts[axis]].iter_mut().enumerate() {
                 let x = grid.coordinate(axis, first[axis] + s as u32);
                 let u = (x - self.origin[axis]) / self.spacing;
@@ -278,7 +306,7 @@ impl ScalarField for BSplineLattice {
     }
 }
 
-/// Most samples per axis in one [`ScalarField::sample_block`] call on a lattice.
+/// Most samples per axis in one tensor-product pass on a lattice (larger blocks are split).
 pub const MAX_BLOCK: usize = 64;
 
 #[cfg(test)]
@@ -310,6 +338,26 @@ mod tests {
                     let v = BSplineLattice::value(&l, p);
                     assert!((out[n] - v).abs() < 1e-5, "{} vs {v} at {p}", out[n]);
                     n += 1;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn large_blocks_are_split_without_changing_bits() {
+        let l = bumpy_lattice();
+        let grid = SampleGrid::for_lattice(&l, 12).unwrap();
+        let counts = [MAX_BLOCK + 30, 3, 2];
+        let mut big = vec![0.0; counts[0] * 6];
+        let mut scratch = Vec::new();
+        l.sample_block(&grid, [5, 7, 9], counts, &mut big, &mut scratch);
+        let mut small = vec![0.0; 9 * 6];
+        l.sample_block(&grid, [5 + 60, 7, 9], [9, 3, 2], &mut small, &mut scratch);
+        for k in 0..2 {
+            for j in 0..3 {
+                for i in 0..9 {
+                    let a = big[60 + i + counts[0] * (j + 3 * k)];
+                    assert_eq!(a.to_bits(), small[i + 9 * (j + 3 * k)].to_bits());
                 }
             }
         }
