@@ -120,6 +120,9 @@ pub struct SafetyFilter<D: HapticDevice = Box<dyn HapticDevice>> {
     config: SafetyConfig,
     /// Effective magnitude bound, newtons (min of config and device info), refreshed on open.
     limit_n: f32,
+    /// The device's own bound from its info, newtons, cached so a new configured bound is
+    /// applied without asking the device (whose info may allocate).
+    device_limit_n: f32,
     enabled: bool,
     /// A device error was seen and no successful read has followed yet.
     fault_latched: bool,
@@ -144,11 +147,12 @@ impl<D: HapticDevice> SafetyFilter<D> {
     /// Wraps `device` with `config`.
     #[must_use]
     pub fn with_config(device: D, config: SafetyConfig) -> Self {
-        let limit_n = effective_limit(&config, &device.info());
+        let device_limit_n = device_limit(&device.info());
         Self {
             device,
             config,
-            limit_n,
+            limit_n: effective_limit(&config, device_limit_n),
+            device_limit_n,
             enabled: false,
             fault_latched: false,
             ramp_start_us: None,
@@ -193,6 +197,18 @@ impl<D: HapticDevice> SafetyFilter<D> {
     #[must_use]
     pub fn output_force_n(&self) -> Vec3 {
         self.output_n
+    }
+
+    /// Sets the configured force bound to `max_force_n` newtons from the next write on; the
+    /// effective bound ([`SafetyFilter::max_force_n`]) stays at most the device's own maximum
+    /// (as of the last `open`). NaN and negative values mean zero, `f32::INFINITY` defers to
+    /// the device. A lower bound holds from the next write on, even if that drops the output
+    /// faster than the slew limit; a higher one is reached through the slew limit.
+    ///
+    /// Constant work, no allocation, no device call: safe on the haptic path.
+    pub fn set_max_force_n(&mut self, max_force_n: f32) {
+        self.config.max_force_n = max_force_n;
+        self.limit_n = effective_limit(&self.config, self.device_limit_n);
     }
 
     /// Counters since the last `open`.
@@ -293,17 +309,26 @@ impl<D: HapticDevice> SafetyFilter<D> {
             } else {
                 self.output_n
             };
+            // A bound lowered while running holds at once: slewing down from the old output
+            // must not leave the force above the new bound.
+            let slewed_n = force.length();
+            if slewed_n > self.limit_n {
+                force *= self.limit_n / slewed_n;
+            }
         }
         force
     }
 }
 
-fn effective_limit(config: &SafetyConfig, info: &DeviceInfo) -> f32 {
-    let device = if info.max_force_n.is_finite() && info.max_force_n >= 0.0 {
+fn device_limit(info: &DeviceInfo) -> f32 {
+    if info.max_force_n.is_finite() && info.max_force_n >= 0.0 {
         info.max_force_n
     } else {
         0.0
-    };
+    }
+}
+
+fn effective_limit(config: &SafetyConfig, device: f32) -> f32 {
     let configured = if config.max_force_n.is_nan() {
         0.0
     } else {
@@ -323,7 +348,8 @@ impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
     /// enables forces with a soft start.
     fn open(&mut self) -> Result<(), DeviceError> {
         self.device.open()?;
-        self.limit_n = effective_limit(&self.config, &self.device.info());
+        self.device_limit_n = device_limit(&self.device.info());
+        self.limit_n = effective_limit(&self.config, self.device_limit_n);
         self.counters = SafetyCounters::default();
         self.fault_latched = false;
         self.now_us = 0;
@@ -524,6 +550,52 @@ mod tests {
         tick(&mut f, Vec3::ZERO);
         assert!((tick(&mut f, Vec3::X * 4.0).length() - 2.0).abs() < 1e-6);
         assert_eq!(f.info().max_force_n, 2.0);
+    }
+
+    #[test]
+    fn max_force_changes_while_running_and_never_exceeds_the_device() {
+        let mut f = SafetyFilter::with_config(Probe::new(), no_ramp());
+        f.open().unwrap();
+        tick(&mut f, Vec3::ZERO);
+        assert!((tick(&mut f, Vec3::X * 30.0).length() - 5.0).abs() < 1e-5);
+        // Lowering the bound clamps the very next write.
+        f.set_max_force_n(1.5);
+        assert_eq!(f.max_force_n(), 1.5);
+        assert_eq!(f.config().max_force_n, 1.5);
+        assert!((tick(&mut f, Vec3::X * 30.0).length() - 1.5).abs() < 1e-6);
+        // Even under a slow slew limit, the lower bound is not slewed down to.
+        let mut slow = SafetyFilter::with_config(
+            Probe::new(),
+            SafetyConfig {
+                slew_rate_n_per_s: 1000.0,
+                ..no_ramp()
+            },
+        );
+        slow.open().unwrap();
+        for _ in 0..10 {
+            tick(&mut slow, Vec3::X * 30.0);
+        }
+        assert!((slow.output_force_n().length() - 5.0).abs() < 1e-5);
+        slow.set_max_force_n(0.5);
+        assert!((tick(&mut slow, Vec3::X * 30.0).length() - 0.5).abs() < 1e-6);
+        // Above the device's own maximum (5 N) the device's bound holds.
+        f.set_max_force_n(50.0);
+        assert_eq!(f.max_force_n(), 5.0);
+        assert_eq!(f.info().max_force_n, 5.0);
+        assert!((tick(&mut f, Vec3::X * 30.0).length() - 5.0).abs() < 1e-5);
+        f.set_max_force_n(f32::INFINITY);
+        assert_eq!(f.max_force_n(), 5.0);
+        // Nonsense means no force, never more.
+        f.set_max_force_n(f32::NAN);
+        assert_eq!(f.max_force_n(), 0.0);
+        assert_eq!(tick(&mut f, Vec3::X * 30.0), Vec3::ZERO);
+        f.set_max_force_n(-3.0);
+        assert_eq!(f.max_force_n(), 0.0);
+        // The bound survives a reopen.
+        f.set_max_force_n(2.0);
+        f.close().unwrap();
+        f.open().unwrap();
+        assert_eq!(f.max_force_n(), 2.0);
     }
 
     #[test]

@@ -5,8 +5,13 @@
 //! Guarantee: neither side ever waits for the app. The sink runs on the graphics loop (not the
 //! haptic loop), copies only the bricks a refresh changed, publishes through a triple buffer
 //! and then asks for a repaint. The bridge thread is an ordinary thread: it sends engine
-//! commands on the engine's own channel, reads the tool sample wait-free, and writes exports
-//! itself, so no loop does disk I/O for the app.
+//! commands on the engine's own channel, reads the tool sample, the simulation's status and
+//! each loop's latency figures wait-free, sets the force limit through an atomic the haptic
+//! tick reads, and reads sessions and writes exports itself, so no loop does disk I/O for
+//! the app.
+//!
+//! Not yet wired: switching or disconnecting the device while running (the haptic loop owns
+//! the opened device; replacing it needs a restart of that loop), and geometric tools.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -24,7 +29,7 @@ use parking_lot::Mutex;
 use super::command::{EngineCommand, EngineEvent, ForceMode, ToolChoice};
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
-use super::view::{DeviceLinkState, EngineView};
+use super::view::{DeviceLinkState, EngineView, WorldBox};
 use crate::engine::{
     Command, Engine, EngineError, EngineReport, ForceTool as EngineForceTool, MeshSink,
 };
@@ -125,6 +130,7 @@ pub fn start_bridge(
         device,
         tool_radius: EngineForceTool::default().radius,
         saves: Vec::new(),
+        loads: Vec::new(),
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -153,6 +159,41 @@ struct Bridge {
     device: DeviceInfo,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
+    loads: Vec<Receiver<Result<String, String>>>,
+}
+
+/// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
+/// into its detail line) and forgets the channels that answered or hung up.
+fn forward_replies<T>(
+    pending: &mut Vec<Receiver<Result<T, String>>>,
+    events: &Sender<EngineEvent>,
+    what: &str,
+    describe: impl Fn(T) -> String,
+) {
+    pending.retain(|rx| match rx.try_recv() {
+        Ok(r) => {
+            let ev = match r {
+                Ok(v) => EngineEvent::Done {
+                    what: what.into(),
+                    detail: describe(v),
+                },
+                Err(error) => EngineEvent::Failed {
+                    what: what.into(),
+                    error,
+                },
+            };
+            let _ = events.send(ev);
+            false
+        }
+        Err(crossbeam::channel::TryRecvError::Empty) => true,
+        Err(crossbeam::channel::TryRecvError::Disconnected) => {
+            let _ = events.send(EngineEvent::Failed {
+                what: what.into(),
+                error: "the engine stopped before answering".into(),
+            });
+            false
+        }
+    });
 }
 
 impl Bridge {
@@ -160,29 +201,28 @@ impl Bridge {
         while let Ok(cmd) = self.commands.try_recv() {
             self.apply(cmd);
         }
-        self.saves.retain(|rx| match rx.try_recv() {
-            Ok(r) => {
-                let ev = match r {
-                    Ok(p) => EngineEvent::Done {
-                        what: "save".into(),
-                        detail: format!("wrote {}", p.display()),
-                    },
-                    Err(error) => EngineEvent::Failed {
-                        what: "save".into(),
-                        error,
-                    },
-                };
-                let _ = self.events.send(ev);
-                false
-            }
-            Err(crossbeam::channel::TryRecvError::Empty) => true,
-            Err(crossbeam::channel::TryRecvError::Disconnected) => false,
+        forward_replies(&mut self.saves, &self.events, "save", |p| {
+            format!("wrote {}", p.display())
         });
+        forward_replies(&mut self.loads, &self.events, "load", |summary| summary);
+        // Nothing to show before the simulation's first step (its material is not known yet).
+        let Some(status) = self.engine.sim_status() else {
+            return;
+        };
         let tool = self.engine.latest_tool();
         let counters = self.engine.counters().snapshot();
+        let loops = self.engine.loop_stats().map(|(_, stats)| stats);
+        let force_limit_n = self.engine.force_limit().applied_n();
         let device = &self.device;
         let radius = self.tool_radius;
         self.view.write_with(|v| {
+            v.loops = loops;
+            v.undo_steps = status.undo_steps;
+            v.redo_steps = status.redo_steps;
+            v.material = status.material;
+            v.sessions_loaded = status.sessions_loaded;
+            v.region = status.region.map(|(min, max)| WorldBox { min, max });
+            v.sim_time_s = status.sim_time_s;
             v.tool_position = tool.tip;
             v.tool_radius = radius;
             v.force_n = if tool.device_force_n.is_finite() {
@@ -197,7 +237,8 @@ impl Bridge {
                 DeviceLinkState::Connected
             };
             v.device.name.clone_from(&device.name);
-            v.device.max_force_n = device.max_force_n;
+            v.device.max_force_n = force_limit_n;
+            v.device.device_max_force_n = device.max_force_n;
             v.device.has_force = device.has_force;
             v.device.peak_force_n = counters.peak_force_milli_n as f32 / 1000.0;
         });
@@ -274,17 +315,37 @@ impl Bridge {
                 };
                 let _ = self.events.send(ev);
             }
-            EngineCommand::Load { path } => self.fail(
-                what,
-                format!("{}: the running engine cannot replace its session yet", path.display()),
-            ),
+            EngineCommand::Load { path } => match self.engine.request_load(&path) {
+                // The simulation answers between two steps; serve() forwards it.
+                Ok(rx) => self.loads.push(rx),
+                Err(error) => self.fail(what, error),
+            },
+            EngineCommand::SetMaxForce { max_force_n } => {
+                match self.engine.force_limit().request(max_force_n) {
+                    Ok(()) => {
+                        let device_max = self.device.max_force_n;
+                        let detail = if max_force_n > device_max {
+                            format!(
+                                "{max_force_n:.2} N asked; the device's own maximum {device_max:.2} N applies"
+                            )
+                        } else {
+                            format!("{max_force_n:.2} N")
+                        };
+                        let _ = self.events.send(EngineEvent::Done {
+                            what: what.into(),
+                            detail,
+                        });
+                    }
+                    Err(error) => self.fail(what, error),
+                }
+            }
             EngineCommand::ConnectDevice { spec, .. } => self.fail(
                 what,
-                format!("{spec}: the running engine cannot switch devices yet; restart with --device {spec}"),
+                format!("{spec}: the running engine cannot switch devices yet (the haptic loop would have to restart); restart with --device {spec}"),
             ),
-            EngineCommand::DisconnectDevice | EngineCommand::SetMaxForce { .. } => self.fail(
+            EngineCommand::DisconnectDevice => self.fail(
                 what,
-                "the running engine cannot change its device or force limit yet".into(),
+                "the running engine cannot close its device yet (the haptic loop would have to restart); close the app to release it".into(),
             ),
         }
     }

@@ -75,6 +75,8 @@ pub struct DeviceStatus {
     pub name: String,
     /// Force limit applied by the safety filter, newtons.
     pub max_force_n: f32,
+    /// The device's own force maximum, newtons (the limit never exceeds it).
+    pub device_max_force_n: f32,
     /// Whether the device outputs force at all (a SpaceMouse does not).
     pub has_force: bool,
     /// Largest force sent to the device since it was connected, newtons.
@@ -113,6 +115,9 @@ pub struct EngineView {
     pub region: Option<WorldBox>,
     /// Simulated time, seconds.
     pub sim_time_s: f64,
+    /// Sessions loaded into the running engine so far (the app re-reads the material when
+    /// this changes).
+    pub sessions_loaded: u64,
 }
 
 impl Default for EngineView {
@@ -130,6 +135,7 @@ impl Default for EngineView {
             workspace: None,
             region: None,
             sim_time_s: 0.0,
+            sessions_loaded: 0,
         }
     }
 }

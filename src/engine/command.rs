@@ -57,4 +57,17 @@ pub enum Command {
         /// Optional result channel.
         reply: Option<Sender<Result<PathBuf, String>>>,
     },
+    /// Replace the clay and material with `session`, already read and validated from
+    /// `source` by the sender (so the simulation thread does no disk I/O). The undo history
+    /// is cleared; the whole field is republished to the haptic and graphics loops. A session
+    /// whose lattice differs from the running one is refused and nothing changes; `reply`
+    /// gets a one-line summary or the reason.
+    Load {
+        /// The session to install.
+        session: Box<Session>,
+        /// The file it came from (for messages).
+        source: PathBuf,
+        /// Optional result channel.
+        reply: Option<Sender<Result<String, String>>>,
+    },
 }

@@ -4,10 +4,13 @@
 //! blocking lock and does bounded work: one device read and one write (through the safety
 //! filter), one wait-free triple-buffer fetch and one publish, a patch copy of at most the
 //! lattice's coefficients when a new snapshot arrived, and the bounded contact search
-//! ([`super::contact::MAX_PROBES`] field evaluations). No file or log I/O.
+//! ([`super::contact::MAX_PROBES`] field evaluations), and one relaxed load of the requested
+//! force limit ([`ForceLimit`]), applied to the filter in constant time when it changed. No
+//! file or log I/O.
 //!
 //! Order within a tick: read the device → fetch the newest field patch → contact and force
-//! (eq. 6) → fade by the snapshot's age → safety filter → write → publish the tool sample.
+//! (eq. 6) → fade by the snapshot's age → force limit → safety filter → write → publish the
+//! tool sample.
 //! On a device error the filter has already sent zero; the tick publishes an idle sample and
 //! returns, so the loop keeps its rate and retries next tick.
 
@@ -19,6 +22,7 @@ use glam::Vec3;
 
 use super::contact::{Contact, ContactConfig};
 use super::counters::EngineCounters;
+use super::force_limit::ForceLimit;
 use super::patch::FieldPatch;
 use super::tool_sample::ToolSample;
 use super::workspace::WorkspaceMap;
@@ -52,6 +56,9 @@ pub struct HapticStage {
     ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
     tick: u64,
     last: ToolSample,
+    /// The user's force limit, and the request bits last applied to the filter.
+    force_limit: ForceLimit,
+    limit_seen: u32,
 }
 
 impl HapticStage {
@@ -74,7 +81,11 @@ impl HapticStage {
         counters: EngineCounters,
         ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
     ) -> Self {
+        let requested = device.config().max_force_n;
+        let force_limit = ForceLimit::new(requested, device.max_force_n());
         Self {
+            limit_seen: force_limit.requested_bits(),
+            force_limit,
             device,
             field,
             patches,
@@ -99,6 +110,13 @@ impl HapticStage {
     /// The device, mutably (to close it at the end).
     pub fn device_mut(&mut self) -> &mut SafetyFilter<Box<dyn HapticDevice>> {
         &mut self.device
+    }
+
+    /// A handle on the force limit: requests made through it reach the safety filter at the
+    /// next tick (see [`ForceLimit`]).
+    #[must_use]
+    pub fn force_limit(&self) -> ForceLimit {
+        self.force_limit.clone()
     }
 
     /// This stage's copy of the field.
@@ -164,6 +182,7 @@ impl HapticStage {
             self.counters.nonfinite_forces(1);
             requested = Vec3::ZERO;
         }
+        self.apply_force_limit();
         let device_fault = match self.device.write_force(requested) {
             Ok(()) => false,
             Err(_) => {
@@ -200,6 +219,16 @@ impl HapticStage {
         self.device.output_force_n()
     }
 
+    /// Applies a changed force-limit request to the filter (constant work, no allocation).
+    fn apply_force_limit(&mut self) {
+        let bits = self.force_limit.requested_bits();
+        if bits != self.limit_seen {
+            self.limit_seen = bits;
+            self.device.set_max_force_n(f32::from_bits(bits));
+            self.force_limit.set_applied(self.device.max_force_n());
+        }
+    }
+
     fn publish_idle(&mut self, device_fault: bool) -> HapticOutcome {
         let sample = ToolSample {
             stroke_active: false,
@@ -224,5 +253,88 @@ impl HapticStage {
         self.samples.publish_at(now);
         *self.monitor.back_mut() = sample;
         self.monitor.publish_at(now);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Instant;
+
+    use dynaclay_devices::{SimArmConfig, SimulatedArm};
+
+    use super::super::{EngineConfig, HeadlessSink, Script, build, build_clay};
+
+    /// A push along the top of the block (the whole-engine tests' stroke).
+    const PUSH: &str = r#"
+[clay]
+shape = "block"
+resolution = 20
+
+[[stroke]]
+start_s = 0.1
+path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]
+duration_s = 1.0
+hover = 0.3
+"#;
+
+    #[test]
+    fn a_force_limit_request_clamps_the_output_from_the_next_tick() {
+        let script = Script::parse(PUSH, "test").unwrap();
+        let field = build_clay(&script.clay).unwrap();
+        let arm = SimArmConfig::default();
+        let device_max_n = arm.info.max_force_n;
+        let mut config = EngineConfig::for_script(&field, &arm.info, &script);
+        config.safety.soft_start_s = 0.0;
+        let trajectory = script.trajectory(&config.map).unwrap();
+        let device = Box::new(SimulatedArm::new(arm, trajectory));
+        let mut stages = build(
+            &config,
+            field,
+            device,
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap();
+        let limit = stages.haptic.force_limit();
+        assert_eq!(
+            limit.applied_n(),
+            device_max_n,
+            "starts at the device's own"
+        );
+
+        // The push asks for up to about 0.3 N.
+        let cap_n = 0.1;
+        limit.request(cap_n).unwrap();
+        let (mut peak_n, mut clamped, mut over) = (0.0f32, 0, 0);
+        for _ in 0..1400 {
+            let out = stages.haptic.tick(Instant::now());
+            let sent_n = out.sample.device_force_n.length();
+            peak_n = peak_n.max(sent_n);
+            if out.requested_force_n.length() > cap_n {
+                over += 1;
+                if (sent_n - cap_n).abs() < 1e-4 {
+                    clamped += 1;
+                }
+            }
+            stages.sim.apply_commands();
+            let sample = stages.samples.latest().value;
+            stages.sim.step(&sample);
+        }
+        assert_eq!(limit.applied_n(), cap_n);
+        assert!(
+            over > 100,
+            "the push asked for more than the cap ({over} ticks)"
+        );
+        assert!(
+            clamped * 10 > over * 9,
+            "held at the cap: {clamped} of {over}"
+        );
+        assert!(peak_n <= cap_n + 1e-5, "peak {peak_n} N over the cap");
+
+        // A request above the device's own maximum is capped by it.
+        limit.request(1000.0).unwrap();
+        stages.haptic.tick(Instant::now());
+        assert_eq!(limit.applied_n(), device_max_n);
+        assert_eq!(stages.haptic.device().max_force_n(), device_max_n);
     }
 }

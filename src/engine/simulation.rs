@@ -18,12 +18,13 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use crossbeam::channel::{Receiver, Sender};
-use dynaclay_loops::SnapshotWriter;
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
 use super::command::{Command, ForceTool};
 use super::counters::EngineCounters;
 use super::patch::{FieldPatch, union_box};
+use super::sim_status::SimStatus;
 use super::tool_sample::ToolSample;
 use crate::dynamics::{Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
@@ -117,6 +118,10 @@ pub struct SimulationStage {
     counters: EngineCounters,
     steps: u64,
     sim_time_s: f64,
+    /// Observers' view of this stage, published every step.
+    status: SnapshotWriter<SimStatus>,
+    status_reader: Option<SnapshotReader<SimStatus>>,
+    sessions_loaded: u64,
 }
 
 impl SimulationStage {
@@ -134,6 +139,7 @@ impl SimulationStage {
         counters: EngineCounters,
     ) -> Self {
         let scratch = RegionSnapshot::with_capacity(lattice.coeffs.len());
+        let (status, status_reader) = snapshot_channel(&SimStatus::default());
         Self {
             config,
             clay: Clay::single(lattice),
@@ -155,6 +161,9 @@ impl SimulationStage {
             counters,
             steps: 0,
             sim_time_s: 0.0,
+            status,
+            status_reader: Some(status_reader),
+            sessions_loaded: 0,
         }
     }
 
@@ -230,6 +239,18 @@ impl SimulationStage {
                 done.is_ok()
             }
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
+            Command::Load {
+                session,
+                source,
+                reply,
+            } => {
+                let result = self.load(*session, &source);
+                let ok = result.is_ok();
+                if let Some(r) = reply {
+                    let _ = r.send(result);
+                }
+                ok
+            }
             Command::Save { path, reply } => match &self.saves {
                 Some(saves) => saves
                     .send(SaveJob {
@@ -394,6 +415,7 @@ impl SimulationStage {
             w.publish();
         }
         self.counters.snapshots_published(1);
+        self.publish_status();
     }
 
     /// Publishes the current field without stepping (used at shutdown so readers catch up).
@@ -410,4 +432,294 @@ impl SimulationStage {
 
 fn contains(outer: &CoeffBox, inner: &CoeffBox) -> bool {
     (0..3).all(|a| outer.min[a] <= inner.min[a] && inner.max[a] <= outer.max[a])
+}
+
+/// Loading a session into the running stage, and the status published for observers.
+impl SimulationStage {
+    /// The observers' end of this stage's [`SimStatus`] (there is one; the second call gets
+    /// `None`).
+    pub fn take_status_reader(&mut self) -> Option<SnapshotReader<SimStatus>> {
+        self.status_reader.take()
+    }
+
+    /// Undo steps that can be redone.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.history.redo_len()
+    }
+
+    /// Installs `session` (read from `source`): the clay and the uniform material replace
+    /// the current ones, the active region is dropped, the undo history is cleared (its
+    /// steps are differences against the replaced clay, meaningless on the new one) and the
+    /// whole field is marked changed so both readers receive all of it. A stroke held across
+    /// the load continues on the new clay as a new undo step.
+    ///
+    /// # Errors
+    /// When the session does not fit the running engine (see [`check_loadable`]); nothing
+    /// changes then.
+    pub fn load(&mut self, session: Session, source: &std::path::Path) -> Result<String, String> {
+        check_loadable(self.lattice(), &session, source)?;
+        let ignored_grids = session.material.grids.len();
+        self.region = None;
+        self.idle_steps = 0;
+        self.recorder = None;
+        self.history.clear();
+        self.clay = session.clay;
+        self.config.material = session.material.uniform;
+        if self.was_active {
+            self.recorder = Some(StepRecorder::new("stroke"));
+        }
+        let whole = CoeffBox::whole(self.lattice().dims);
+        self.mark_changed(whole);
+        self.sessions_loaded += 1;
+        let d = self.lattice().dims;
+        let mut summary = format!(
+            "loaded {} ({}×{}×{} coefficients); undo history cleared",
+            source.display(),
+            d[0],
+            d[1],
+            d[2]
+        );
+        if ignored_grids > 0 {
+            summary.push_str(&format!(
+                "; {ignored_grids} material grid(s) not applied (the engine simulates a uniform material)"
+            ));
+        }
+        Ok(summary)
+    }
+
+    fn publish_status(&mut self) {
+        let lattice = &self.clay.patches[0];
+        let region = self.region.as_ref().map(|r| {
+            let b = r.coeff_box();
+            (
+                lattice.node_position(b.min[0], b.min[1], b.min[2]),
+                lattice.node_position(b.max[0], b.max[1], b.max[2]),
+            )
+        });
+        *self.status.back_mut() = SimStatus {
+            undo_steps: self.history.undo_len(),
+            redo_steps: self.history.redo_len(),
+            material: self.config.material,
+            region,
+            sessions_loaded: self.sessions_loaded,
+            sim_step: self.steps,
+            sim_time_s: self.sim_time_s,
+        };
+        self.status.publish();
+    }
+}
+
+/// Whether `session` can replace the clay of an engine running on `running`: the haptic and
+/// graphics loops hold copies sized for that lattice (allocated once, so the haptic tick never
+/// allocates), so the session must have exactly one density patch with the same dimensions,
+/// spacing, origin and iso-level, and finite coefficients.
+///
+/// # Errors
+/// A message naming `source` and the first mismatch.
+pub fn check_loadable(
+    running: &BSplineLattice,
+    session: &Session,
+    source: &std::path::Path,
+) -> Result<(), String> {
+    let shown = source.display();
+    let [patch] = session.clay.patches.as_slice() else {
+        return Err(format!(
+            "{shown}: the session has {} density patches; the running engine sculpts exactly one",
+            session.clay.patches.len()
+        ));
+    };
+    let describe = |l: &BSplineLattice| {
+        format!(
+            "{}×{}×{} coefficients at spacing {}, origin {}, iso {}",
+            l.dims[0], l.dims[1], l.dims[2], l.spacing, l.origin, l.iso
+        )
+    };
+    if patch.dims != running.dims
+        || patch.spacing != running.spacing
+        || patch.origin != running.origin
+        || patch.iso != running.iso
+    {
+        return Err(format!(
+            "{shown}: the session's lattice ({}) differs from the running engine's ({}); start the engine on this session instead",
+            describe(patch),
+            describe(running)
+        ));
+    }
+    if let Some(i) = patch.coeffs.iter().position(|c| !c.is_finite()) {
+        return Err(format!(
+            "{shown}: density coefficient {i} is {}, not a finite number",
+            patch.coeffs[i]
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+    use std::time::Instant;
+
+    use crossbeam::channel::bounded;
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+
+    use super::super::{EngineConfig, HeadlessSink, Stages, build, build_clay};
+    use super::*;
+    use crate::engine::{ClayShape, ClaySpec};
+
+    fn stages() -> Stages {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        // The tool waits at a workspace corner, away from the clay.
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap()
+    }
+
+    /// One undo step made by hand: raise a few coefficients.
+    fn record_an_edit(sim: &mut SimulationStage) {
+        let b = CoeffBox {
+            min: [2; 3],
+            max: [4; 3],
+        };
+        let mut rec = StepRecorder::new("edit");
+        rec.touch(&sim.clay, FieldId::Density(0), b);
+        let idx = sim.clay.patches[0].index(3, 3, 3);
+        sim.clay.patches[0].coeffs[idx] += 0.25;
+        assert!(sim.history.commit(rec, &sim.clay));
+        sim.mark_changed(b);
+    }
+
+    fn session_with(lattice: BSplineLattice, material: Material) -> Session {
+        Session {
+            clay: Clay::single(lattice),
+            material: MaterialFields {
+                uniform: material,
+                grids: Vec::new(),
+            },
+            ..Session::default()
+        }
+    }
+
+    fn run_ticks(s: &mut Stages, n: usize) {
+        for _ in 0..n {
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            let sample = s.samples.latest().value;
+            s.sim.step(&sample);
+            s.graphics.tick();
+        }
+    }
+
+    #[test]
+    fn loading_replaces_the_clay_in_every_loop_and_clears_history() {
+        let mut s = stages();
+        let mut status = s.sim.take_status_reader().unwrap();
+        assert!(s.sim.take_status_reader().is_none(), "one observer end");
+        record_an_edit(&mut s.sim);
+        run_ticks(&mut s, 3);
+        assert_eq!(status.latest().value.undo_steps, 1);
+        let triangles_before = s.graphics.octree().triangle_count();
+
+        // A different sculpt on the same lattice: a slab carved off the top.
+        let mut loaded = s.sim.lattice().clone();
+        let d = loaded.dims;
+        for k in d[2] / 2..d[2] {
+            for j in 0..d[1] {
+                for i in 0..d[0] {
+                    let idx = loaded.index(i, j, k);
+                    loaded.coeffs[idx] = 0.0;
+                }
+            }
+        }
+        let (tx, rx) = bounded(1);
+        s.commands
+            .send(Command::Load {
+                session: Box::new(session_with(loaded.clone(), Material::ELASTIC)),
+                source: "carved.dclay".into(),
+                reply: Some(tx),
+            })
+            .unwrap();
+        run_ticks(&mut s, 3);
+        let summary = rx.try_recv().unwrap().unwrap();
+        assert!(summary.contains("carved.dclay"), "{summary}");
+        assert_eq!(s.sim.lattice(), &loaded);
+        assert_eq!(s.haptic.field(), &loaded, "haptic copy republished");
+        assert_eq!(s.graphics.field(), &loaded, "graphics copy republished");
+        let triangles_after = s.graphics.octree().triangle_count();
+        assert!(
+            triangles_after < triangles_before,
+            "meshes follow: {triangles_before} -> {triangles_after} triangles"
+        );
+        let st = status.latest().value;
+        assert_eq!((st.undo_steps, st.redo_steps), (0, 0), "history cleared");
+        assert_eq!(st.material, Material::ELASTIC);
+        assert_eq!(st.sessions_loaded, 1);
+    }
+
+    #[test]
+    fn a_session_that_does_not_fit_is_refused_and_changes_nothing() {
+        let mut s = stages();
+        let mut status = s.sim.take_status_reader().unwrap();
+        record_an_edit(&mut s.sim);
+        run_ticks(&mut s, 2);
+        let before = s.sim.lattice().clone();
+        let material = s.sim.config.material;
+
+        let mut smaller = build_clay(&ClaySpec {
+            shape: ClayShape::Block,
+            resolution: 10,
+        })
+        .unwrap();
+        let mut nan = before.clone();
+        nan.coeffs[7] = f32::NAN;
+        let mut two = session_with(before.clone(), Material::ELASTIC);
+        two.clay.patches.push(before.clone());
+        smaller.iso = before.iso;
+        let cases = [
+            (session_with(smaller, Material::ELASTIC), "differs"),
+            (session_with(nan, Material::ELASTIC), "coefficient 7"),
+            (two, "2 density patches"),
+        ];
+        for (session, expected) in cases {
+            let (tx, rx) = bounded(1);
+            s.commands
+                .send(Command::Load {
+                    session: Box::new(session),
+                    source: "other.dclay".into(),
+                    reply: Some(tx),
+                })
+                .unwrap();
+            run_ticks(&mut s, 2);
+            let err = rx.try_recv().unwrap().unwrap_err();
+            assert!(
+                err.contains("other.dclay") && err.contains(expected),
+                "{err}"
+            );
+        }
+        assert_eq!(s.sim.lattice(), &before);
+        assert_eq!(s.haptic.field(), &before);
+        assert_eq!(s.sim.config.material, material);
+        let st = status.latest().value;
+        assert_eq!((st.undo_steps, st.sessions_loaded), (1, 0));
+        assert_eq!(s.counters.snapshot().command_errors, 3);
+        assert!(
+            check_loadable(
+                &before,
+                &session_with(before.clone(), material),
+                Path::new("x")
+            )
+            .is_ok()
+        );
+    }
 }

@@ -9,7 +9,8 @@ use std::time::Duration;
 use crossbeam::channel::{Receiver, Sender, bounded};
 use dynaclay_devices::{HapticDevice, SafetyCounters};
 use dynaclay_loops::{
-    LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader, spawn_loop,
+    LatencyStats, LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader,
+    spawn_loop,
 };
 
 use super::tool_sample::ToolSample;
@@ -18,12 +19,14 @@ use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::{CounterSnapshot, EngineCounters};
 use super::error::EngineError;
+use super::force_limit::ForceLimit;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
+use super::sim_status::SimStatus;
 use super::simulation::{SaveJob, SimulationStage};
 use super::wiring::build;
 use crate::field::BSplineLattice;
-use crate::io::{Session, save_session};
+use crate::io::{Session, load_session, save_session};
 use crate::mesh::BrickOctree;
 
 /// Sends its value back on a channel when dropped, so a loop's closure returns its stage to
@@ -62,6 +65,8 @@ pub struct Engine {
     commands: Sender<Command>,
     counters: EngineCounters,
     tool: SnapshotReader<ToolSample>,
+    status: SnapshotReader<SimStatus>,
+    force_limit: ForceLimit,
     haptic_back: Receiver<HapticStage>,
     sim_back: Receiver<SimulationStage>,
     graphics_back: Receiver<GraphicsStage>,
@@ -98,7 +103,12 @@ impl Engine {
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
     ) -> Result<Self, EngineError> {
-        let stages = build(config, field, device, sink, false)?;
+        let mut stages = build(config, field, device, sink, false)?;
+        let status = stages
+            .sim
+            .take_status_reader()
+            .ok_or(EngineError::Lost("simulation status"))?;
+        let force_limit = stages.haptic.force_limit();
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
         let tool = stages.tool_monitor;
@@ -158,6 +168,8 @@ impl Engine {
             commands,
             counters,
             tool,
+            status,
+            force_limit,
             haptic_back,
             sim_back,
             graphics_back,
@@ -179,6 +191,69 @@ impl Engine {
     /// The newest tool sample from the haptic loop (wait-free).
     pub fn latest_tool(&mut self) -> ToolSample {
         self.tool.latest().value
+    }
+
+    /// The latest latency figures each loop published, named, in the order haptic,
+    /// simulation, graphics (the order of [`EngineReport::loops`]). Wait-free: reads each
+    /// loop's statistics triple buffer; a loop publishes them every `stats_every_ticks`
+    /// ticks (about once a second at the default settings), zeros before the first time.
+    pub fn loop_stats(&mut self) -> [(&'static str, LatencyStats); 3] {
+        [
+            ("haptic", self.haptic.monitor().latest_stats().value),
+            ("simulation", self.sim.monitor().latest_stats().value),
+            ("graphics", self.graphics.monitor().latest_stats().value),
+        ]
+    }
+
+    /// The simulation's latest published status (undo and redo depth, material, region);
+    /// `None` until its first step. Wait-free.
+    pub fn sim_status(&mut self) -> Option<SimStatus> {
+        let stamped = self.status.latest();
+        (stamped.version != 0).then_some(stamped.value)
+    }
+
+    /// The force limit: [`ForceLimit::request`] reaches the safety filter at the next haptic
+    /// tick (never above the device's own maximum); [`ForceLimit::applied_n`] is the bound in
+    /// effect.
+    #[must_use]
+    pub fn force_limit(&self) -> &ForceLimit {
+        &self.force_limit
+    }
+
+    /// Reads and validates the session at `path` on the calling thread, then asks the
+    /// simulation to install it between two steps (see [`Command::Load`]). Returns the channel
+    /// on which the simulation answers.
+    ///
+    /// # Errors
+    /// The file's error (unreadable, not a session, corrupt: naming the path, section and
+    /// offset) or a stopped simulation; the engine is unchanged then.
+    pub fn request_load(
+        &self,
+        path: &std::path::Path,
+    ) -> Result<Receiver<Result<String, String>>, String> {
+        let session = load_session(path).map_err(|e| e.to_string())?;
+        let (tx, rx) = bounded(1);
+        self.commands
+            .send(Command::Load {
+                session: Box::new(session),
+                source: path.to_path_buf(),
+                reply: Some(tx),
+            })
+            .map_err(|_| "the simulation loop has stopped".to_owned())?;
+        Ok(rx)
+    }
+
+    /// [`Engine::request_load`], waiting up to `timeout` for the simulation's answer.
+    ///
+    /// # Errors
+    /// As [`Engine::request_load`], the simulation's refusal (a lattice that does not fit),
+    /// or a timeout.
+    pub fn load(&self, path: &std::path::Path, timeout: Duration) -> Result<String, String> {
+        let rx = self.request_load(path)?;
+        match rx.recv_timeout(timeout) {
+            Ok(r) => r,
+            Err(_) => Err(format!("no answer to the load within {timeout:?}")),
+        }
     }
 
     /// Haptic ticks run so far.

@@ -1,0 +1,30 @@
+//! What the simulation publishes about itself for observers (the GUI, tests): undo and redo
+//! depth, the material in effect, the simulated region and how many sessions were loaded.
+//!
+//! Guarantee: plain `Copy` data published once per simulation step through a triple buffer
+//! (wait-free, no allocation after set-up); observers read the newest copy without ever
+//! holding up the simulation.
+
+use glam::Vec3;
+
+use crate::dynamics::Material;
+
+/// The simulation's state as observers see it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SimStatus {
+    /// Steps that undo can take.
+    pub undo_steps: usize,
+    /// Steps that redo can take.
+    pub redo_steps: usize,
+    /// The material of new regions.
+    pub material: Material,
+    /// The simulated region's coefficient nodes as a world box (min, max corners), if a
+    /// region is active.
+    pub region: Option<(Vec3, Vec3)>,
+    /// Sessions loaded into the running engine so far.
+    pub sessions_loaded: u64,
+    /// Simulation steps taken.
+    pub sim_step: u64,
+    /// Simulated time, seconds.
+    pub sim_time_s: f64,
+}
