@@ -102,8 +102,9 @@ impl DevicePanel {
         });
         if status.state == DeviceLinkState::Connected {
             ui.label(format!(
-                "force limit {:.2} N{}, peak {:.2} N",
+                "force limit {:.2} N (device max {:.2} N){}, peak {:.2} N",
                 status.max_force_n,
+                status.device_max_force_n,
                 if status.has_force {
                     ""
                 } else {

@@ -238,3 +238,149 @@ fn dragging_in_the_view_orbits_and_scrolling_zooms() {
     h.run();
     assert!(h.state().camera.distance < after.distance);
 }
+
+fn loop_stats(ticks: u64, rate_hz: f64, p99_us: f64) -> LatencyStats {
+    let mut s = LatencyStats {
+        ticks,
+        achieved_rate_hz: rate_hz,
+        nominal_rate_hz: 1000.0,
+        deadline_misses: 2,
+        ..LatencyStats::default()
+    };
+    s.period_error.p99_us = p99_us;
+    s.compute.p50_us = 3.0;
+    s.compute.p99_us = 8.5;
+    s
+}
+
+#[test]
+fn the_latency_panel_shows_each_loops_published_figures() {
+    let (mut h, mut end) = harness();
+    h.run();
+    assert_eq!(h.query_all_by_label("no figures yet").count(), 3);
+
+    let view = EngineView {
+        loops: [
+            loop_stats(1000, 999.5, 12.0),
+            loop_stats(980, 980.0, 40.0),
+            loop_stats(60, 59.9, 900.0),
+        ],
+        ..EngineView::default()
+    };
+    end.view.publish_clone_of(&view);
+    h.run();
+    h.get_by_label("1000 / 1000 Hz, 2 misses, 0 late >1 ms");
+    h.get_by_label("period error p99 12.0 µs, compute p50 3.0 / p99 8.5 µs");
+    h.get_by_label("980 / 1000 Hz, 2 misses, 0 late >1 ms");
+    h.get_by_label("period error p99 900.0 µs, compute p50 3.0 / p99 8.5 µs");
+    assert!(h.query_by_label("no figures yet").is_none());
+    assert!(h.state().latency.samples.iter().all(|s| s.len() == 1));
+
+    // The bridge republishes the view often; only loops with new figures add a point.
+    let mut next = view.clone();
+    next.tool_position.x = 1.0;
+    end.view.publish_clone_of(&next);
+    h.run();
+    next.loops[0] = loop_stats(2000, 1000.0, 15.0);
+    end.view.publish_clone_of(&next);
+    h.run();
+    let lens: Vec<usize> = h.state().latency.samples.iter().map(|s| s.len()).collect();
+    assert_eq!(lens, vec![2, 1, 1]);
+    h.get_by_label("period error p99 15.0 µs, compute p50 3.0 / p99 8.5 µs");
+}
+
+#[test]
+fn undo_and_redo_counts_are_shown() {
+    let (mut h, mut end) = harness();
+    h.run();
+    h.get_by_label("0 undo · 0 redo");
+    end.view.publish_clone_of(&EngineView {
+        undo_steps: 3,
+        redo_steps: 1,
+        ..EngineView::default()
+    });
+    h.run();
+    h.get_by_label("3 undo · 1 redo");
+}
+
+#[test]
+fn the_force_limit_slider_follows_the_engine_then_sets_its_limit() {
+    let (mut h, mut end) = harness();
+    h.run();
+    let mut view = EngineView::default();
+    view.device.state = DeviceLinkState::Connected;
+    view.device.name = "simulated arm".into();
+    view.device.has_force = true;
+    view.device.max_force_n = 8.0;
+    view.device.device_max_force_n = 8.0;
+    end.view.publish_clone_of(&view);
+    h.run();
+    assert_eq!(
+        h.state().device.max_force_n,
+        8.0,
+        "starts at the engine's limit"
+    );
+    h.get_by_label("force limit 8.00 N (device max 8.00 N), peak 0.00 N");
+    drain(&end);
+
+    h.get_by_role_and_label(Role::Slider, "Max force N")
+        .set_value_accesskit(2.5);
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetMaxForce { max_force_n: 2.5 }]
+    );
+    // The engine's later figures do not move the slider back.
+    view.device.max_force_n = 2.5;
+    end.view.publish_clone_of(&view);
+    h.run();
+    assert_eq!(h.state().device.max_force_n, 2.5);
+}
+
+#[test]
+fn sliders_take_the_material_of_a_loaded_session_but_keep_user_changes_otherwise() {
+    let (mut h, mut end) = harness();
+    h.run();
+    let mut view = EngineView {
+        material: Material::PLASTIC,
+        ..EngineView::default()
+    };
+    end.view.publish_clone_of(&view);
+    h.run();
+    assert_eq!(h.state().material, Material::PLASTIC);
+
+    h.get_by_role_and_label(Role::Slider, "Stiffness")
+        .set_value_accesskit(5000.0);
+    h.run();
+    // A view published before the engine applied the change must not undo it.
+    end.view.publish_clone_of(&view);
+    h.run();
+    assert!((h.state().material.stiffness - 5000.0).abs() < 1.0);
+
+    view.material = Material::ELASTIC;
+    view.sessions_loaded = 1;
+    end.view.publish_clone_of(&view);
+    end.events
+        .send(EngineEvent::Done {
+            what: "load".into(),
+            detail: "loaded a.dclay".into(),
+        })
+        .unwrap();
+    h.run();
+    assert_eq!(h.state().material, Material::ELASTIC);
+    h.get_by_label("load: loaded a.dclay");
+}
+
+#[test]
+fn a_refused_load_is_shown_with_its_reason() {
+    let (mut h, end) = harness();
+    h.run();
+    end.events
+        .send(EngineEvent::Failed {
+            what: "load".into(),
+            error: "bad.dclay: section \"density\" checksum mismatch".into(),
+        })
+        .unwrap();
+    h.run();
+    h.get_by_label("load failed: bad.dclay: section \"density\" checksum mismatch");
+}

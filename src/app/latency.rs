@@ -1,8 +1,9 @@
 //! Live loop-latency plots: a short history of each loop's published figures (period error,
 //! compute time, achieved rate) and strip charts drawn with egui's painter.
 //!
-//! A sample is added only when the engine published new statistics (a new view version), so a
-//! stalled engine shows a flat, ageing chart rather than invented points. The charts use the
+//! A loop's sample is added only when that loop published new statistics (a new view version
+//! whose tick count for the loop moved on), so a stalled loop shows a flat, ageing chart
+//! rather than invented points, and the bridge republishing the same figures adds nothing. The charts use the
 //! painter directly rather than `egui_plot`: three fixed-size strip charts need only line
 //! strips and a scale, and a plotting crate would have to track egui's version exactly.
 
@@ -12,7 +13,7 @@ use dynaclay_loops::LatencyStats;
 
 use super::view::LoopId;
 
-/// Samples kept per loop (at the GUI's ~30 Hz polling, about ten seconds).
+/// Samples kept per loop (the loops publish figures about once a second: five minutes).
 pub const HISTORY_LEN: usize = 300;
 
 /// One point of a loop's history.
@@ -33,21 +34,27 @@ pub struct LatencyHistory {
     /// The latest figures per loop, for the numeric summary.
     pub latest: [LatencyStats; 3],
     last_version: u64,
+    /// Tick count of each loop's last recorded figures.
+    last_ticks: [u64; 3],
 }
 
 impl LatencyHistory {
-    /// Records `loops` (from a view of `version`) at `t_s`, if the version is new. Returns
-    /// whether a sample was added.
+    /// Records `loops` (from a view of `version`) at `t_s`: one sample for each loop whose
+    /// figures are new (ticks recorded and changed since its last sample). Returns whether
+    /// a sample was added.
     pub fn record(&mut self, version: u64, t_s: f64, loops: &[LatencyStats; 3]) -> bool {
         if version == 0 || version == self.last_version {
             return false;
         }
         self.last_version = version;
         self.latest = *loops;
-        for (hist, s) in self.samples.iter_mut().zip(loops) {
-            if s.ticks == 0 {
+        let mut added = false;
+        for ((hist, s), seen) in self.samples.iter_mut().zip(loops).zip(&mut self.last_ticks) {
+            if s.ticks == 0 || s.ticks == *seen {
                 continue;
             }
+            *seen = s.ticks;
+            added = true;
             if hist.len() == HISTORY_LEN {
                 hist.pop_front();
             }
@@ -59,7 +66,7 @@ impl LatencyHistory {
                 rate_hz: s.achieved_rate_hz,
             });
         }
-        true
+        added
     }
 
     /// Draws a summary line and two strip charts (period error, compute time) per loop.
@@ -75,6 +82,10 @@ impl LatencyHistory {
             ui.label(format!(
                 "{:.0} / {:.0} Hz, {} misses, {} late >1 ms",
                 s.achieved_rate_hz, s.nominal_rate_hz, s.deadline_misses, s.late_over_1ms
+            ));
+            ui.label(format!(
+                "period error p99 {:.1} µs, compute p50 {:.1} / p99 {:.1} µs",
+                s.period_error.p99_us, s.compute.p50_us, s.compute.p99_us
             ));
             let colours = [
                 egui::Color32::from_rgb(230, 160, 60),
@@ -159,7 +170,7 @@ mod tests {
 
     fn stats(p99: f64) -> LatencyStats {
         let mut s = LatencyStats {
-            ticks: 10,
+            ticks: 10 + p99 as u64,
             achieved_rate_hz: 999.0,
             ..LatencyStats::default()
         };
@@ -176,7 +187,11 @@ mod tests {
         assert!(!h.record(1, 0.2, &[stats(2.0), idle, idle]));
         assert_eq!(h.samples[0].len(), 1);
         assert!(h.samples[1].is_empty(), "a loop with no ticks adds nothing");
-        for v in 2..(HISTORY_LEN as u64 + 50) {
+        // A new view repeating a loop's figures (same tick count) adds nothing for it.
+        assert!(!h.record(2, 0.3, &[stats(1.0), idle, idle]));
+        assert!(h.record(3, 0.4, &[stats(1.0), stats(3.0), idle]));
+        assert_eq!((h.samples[0].len(), h.samples[1].len()), (1, 1));
+        for v in 4..(HISTORY_LEN as u64 + 50) {
             h.record(v, v as f64, &[stats(v as f64), idle, idle]);
         }
         assert_eq!(h.samples[0].len(), HISTORY_LEN);

@@ -1,5 +1,8 @@
-//! `dynaclay gui [--device SPEC]`: builds the starting clay and the device, starts the
-//! threaded engine behind a bridge, and runs the window until it is closed.
+//! `dynaclay gui [SESSION] [--device SPEC]`: builds the starting clay (the built-in script's,
+//! or the session's) and the device, starts the threaded engine behind a bridge, and runs the
+//! window until it is closed.
+
+use std::path::PathBuf;
 
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
@@ -8,6 +11,7 @@ use super::bridge::start_bridge;
 use super::link::engine_link;
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, Script, build_clay};
+use crate::io::load_session;
 
 /// Why `dynaclay gui` stopped.
 #[derive(Debug)]
@@ -23,7 +27,10 @@ pub enum LaunchError {
 impl std::fmt::Display for LaunchError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Self::Usage(m) => write!(f, "gui: {m} (usage: dynaclay gui [--device SPEC])"),
+            Self::Usage(m) => write!(
+                f,
+                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC])"
+            ),
             Self::Device(m) => write!(f, "gui: device: {m}"),
             Self::Failed(m) => write!(f, "gui: {m}"),
         }
@@ -32,12 +39,23 @@ impl std::fmt::Display for LaunchError {
 
 impl std::error::Error for LaunchError {}
 
-/// The device spec from `args` (`--device SPEC` or `--device=SPEC`; default `sim`).
+/// What `dynaclay gui` was asked for.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GuiArgs {
+    /// The device (`--device SPEC` or `--device=SPEC`; default `sim`).
+    pub device: DeviceSpec,
+    /// A session file to start from (the engine keeps its lattice for the whole run, so
+    /// later loads must match it).
+    pub session: Option<PathBuf>,
+}
+
+/// Parses `dynaclay gui`'s arguments: an optional session path and `--device`.
 ///
 /// # Errors
-/// An unknown argument, a missing value or a spec the devices parser rejects.
-pub fn parse_gui_args(args: &[String]) -> Result<DeviceSpec, LaunchError> {
+/// An unknown option, a second session, a missing value or a spec the devices parser rejects.
+pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
     let mut spec = "sim".to_owned();
+    let mut session = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         if a == "--device" {
@@ -47,12 +65,16 @@ pub fn parse_gui_args(args: &[String]) -> Result<DeviceSpec, LaunchError> {
                 .clone();
         } else if let Some(v) = a.strip_prefix("--device=") {
             spec = v.to_owned();
-        } else {
+        } else if a.starts_with('-') || session.is_some() {
             return Err(LaunchError::Usage(format!("unexpected argument {a:?}")));
+        } else {
+            session = Some(PathBuf::from(a));
         }
     }
-    spec.parse()
-        .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))
+    let device = spec
+        .parse()
+        .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))?;
+    Ok(GuiArgs { device, session })
 }
 
 /// Runs `dynaclay gui` with the given arguments.
@@ -60,10 +82,29 @@ pub fn parse_gui_args(args: &[String]) -> Result<DeviceSpec, LaunchError> {
 /// # Errors
 /// See [`LaunchError`].
 pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
-    let spec = parse_gui_args(args)?;
+    let GuiArgs {
+        device: spec,
+        session,
+    } = parse_gui_args(args)?;
     let script = Script::builtin();
-    let field =
-        build_clay(&script.clay).map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?;
+    let (field, material) = match &session {
+        None => (
+            build_clay(&script.clay)
+                .map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?,
+            None,
+        ),
+        Some(path) => {
+            let s = load_session(path).map_err(|e| LaunchError::Failed(e.to_string()))?;
+            let [patch] = <[_; 1]>::try_from(s.clay.patches).map_err(|p: Vec<_>| {
+                LaunchError::Failed(format!(
+                    "{}: the session has {} density patches; the engine sculpts exactly one",
+                    path.display(),
+                    p.len()
+                ))
+            })?;
+            (patch, Some(s.material.uniform))
+        }
+    };
     let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
         DeviceSpec::Sim => {
             // The simulated arm follows the built-in script's strokes, so the view moves.
@@ -91,7 +132,10 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (d, info)
         }
     };
-    let config = EngineConfig::for_script(&field, &info, &script);
+    let mut config = EngineConfig::for_script(&field, &info, &script);
+    if let Some(m) = material {
+        config.sim.material = m;
+    }
     let (link, endpoint) = engine_link();
     let bridge = start_bridge(endpoint, info.clone(), |sink| {
         Engine::start(&config, field, device, sink)
@@ -111,12 +155,16 @@ mod tests {
     #[test]
     fn gui_arguments_parse_like_run_devices() {
         let s = |v: &[&str]| parse_gui_args(&v.iter().map(|x| x.to_string()).collect::<Vec<_>>());
-        assert_eq!(s(&[]).unwrap(), DeviceSpec::Sim);
+        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Sim);
+        assert_eq!(s(&[]).unwrap().session, None);
         assert_eq!(
-            s(&["--device", "spacemouse"]).unwrap(),
+            s(&["--device", "spacemouse"]).unwrap().device,
             DeviceSpec::SpaceMouse
         );
-        assert_eq!(s(&["--device=sim"]).unwrap(), DeviceSpec::Sim);
+        assert_eq!(s(&["--device=sim"]).unwrap().device, DeviceSpec::Sim);
+        let with_session = s(&["a.dclay", "--device=sim"]).unwrap();
+        assert_eq!(with_session.session, Some(PathBuf::from("a.dclay")));
+        assert!(s(&["a.dclay", "b.dclay"]).is_err(), "one session at most");
         assert!(
             s(&["--device"])
                 .unwrap_err()

@@ -23,7 +23,7 @@ pub use camera_input::{
 pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample};
-pub use launch::{LaunchError, gui_main, parse_gui_args};
+pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };

@@ -92,8 +92,12 @@ pub struct SculptApp {
     pub view: EngineView,
     scene: Option<SceneView>,
     started: Option<Instant>,
-    /// Whether the sliders were initialised from the engine's first published material.
-    material_synced: bool,
+    /// The engine's session-load count when the material sliders last took the engine's
+    /// material (`None`: not yet): they follow the engine at start and after each load, and
+    /// otherwise keep what the user set.
+    material_loads_seen: Option<u64>,
+    /// Whether the force-limit slider took the engine's limit once.
+    force_limit_synced: bool,
     /// Settings that failed to reach the engine and are sent again next frame.
     tool_pending: bool,
     material_pending: bool,
@@ -152,9 +156,16 @@ impl SculptApp {
         let version = snap.version;
         if version != 0 {
             self.view.clone_from(&snap.value);
-            if !self.material_synced {
+            if self.material_loads_seen != Some(self.view.sessions_loaded) {
                 self.material = self.view.material;
-                self.material_synced = true;
+                self.material_loads_seen = Some(self.view.sessions_loaded);
+                // A material the user set before the load is superseded by the session's.
+                self.material_pending = false;
+            }
+            let limit_n = self.view.device.max_force_n;
+            if !self.force_limit_synced && limit_n.is_finite() && limit_n > 0.0 {
+                self.device.max_force_n = limit_n.min(super::device_panel::MAX_FORCE_LIMIT_N);
+                self.force_limit_synced = true;
             }
         }
         self.latency.record(version, t_s, &self.view.loops);
@@ -164,8 +175,9 @@ impl SculptApp {
     fn flush_settings(&mut self, tool_changed: bool, material_changed: bool) {
         self.tool_pending |= tool_changed;
         self.material_pending |= material_changed;
-        if material_changed {
-            self.material_synced = true;
+        if material_changed && self.material_loads_seen.is_none() {
+            // Changed before the engine's first view: keep the user's choice.
+            self.material_loads_seen = Some(self.view.sessions_loaded);
         }
         if self.tool_pending {
             let choice = self.palette.choice();
@@ -305,6 +317,7 @@ impl SculptApp {
             {
                 self.send(EngineCommand::Redo);
             }
+            ui.weak(format!("{undo_n} undo · {redo_n} redo"));
             ui.separator();
             let label = ui.label("Session");
             ui.add(egui::TextEdit::singleline(&mut self.files.session).desired_width(160.0))
