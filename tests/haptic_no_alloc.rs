@@ -1,6 +1,7 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
-//! patches and the safety filter.
+//! patches, the safety filter, a force-limit change and a whole-field republication after a
+//! session load.
 
 mod common;
 
@@ -9,7 +10,9 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use dynaclay::engine::{HeadlessSink, build};
+use dynaclay::engine::{Command, HeadlessSink, build};
+use dynaclay::io::Session;
+use dynaclay::tools::Clay;
 
 struct Counting;
 
@@ -62,9 +65,32 @@ fn haptic_tick_allocates_nothing() {
     drop(probe);
     assert_eq!(ALLOCS_IN_TICK.swap(0, Ordering::Relaxed), 1);
 
+    let limit = stages.haptic.force_limit();
+    let mut status = stages.sim.take_status_reader().expect("status reader");
+    let mut loaded = stages.sim.lattice().clone();
+    for c in &mut loaded.coeffs {
+        *c *= 0.999;
+    }
     let mut contact_ticks = 0;
     let mut patched_ticks = 0;
     for i in 0..1400 {
+        if i == 300 {
+            limit.request(0.1).unwrap();
+        }
+        if i == 700 {
+            let session = Session {
+                clay: Clay::single(loaded.clone()),
+                ..Session::default()
+            };
+            stages
+                .commands
+                .send(Command::Load {
+                    session: Box::new(session),
+                    source: "same-lattice.dclay".into(),
+                    reply: None,
+                })
+                .unwrap();
+        }
         IN_TICK.with(|f| f.set(true));
         let out = stages.haptic.tick(Instant::now());
         IN_TICK.with(|f| f.set(false));
@@ -88,6 +114,19 @@ fn haptic_tick_allocates_nothing() {
     assert!(
         patched_ticks > 200,
         "with fresh field patches ({patched_ticks})"
+    );
+    assert_eq!(
+        limit.applied_n(),
+        0.1,
+        "the limit change was applied in a tick"
+    );
+    assert_eq!(
+        (
+            status.latest().value.sessions_loaded,
+            stages.counters.snapshot().command_errors
+        ),
+        (1, 0),
+        "the load was applied"
     );
     assert_eq!(
         ALLOCS_IN_TICK.load(Ordering::Relaxed),

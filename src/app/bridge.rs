@@ -392,9 +392,190 @@ pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, String> {
 
 #[cfg(test)]
 mod tests {
+    use std::time::Instant;
+
+    use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm, Trajectory};
+
     use super::*;
-    use crate::engine::{ClayShape, ClaySpec, build_clay};
+    use crate::dynamics::Material;
+    use crate::engine::{ClayShape, ClaySpec, EngineConfig, build_clay};
+    use crate::field::BSplineLattice;
+    use crate::io::{MaterialFields, Session, save_session};
     use crate::mesh::{MeshStats, SampleGrid};
+    use crate::tools::Clay;
+
+    /// Polls `link` until `done` holds for its view (or panics after a few seconds), taking
+    /// in the events on the way.
+    fn wait_for(
+        link: &mut super::super::EngineLink,
+        events: &mut Vec<EngineEvent>,
+        what: &str,
+        done: impl Fn(&EngineView, &[EngineEvent]) -> bool,
+    ) {
+        let start = Instant::now();
+        loop {
+            while let Some(ev) = link.try_event() {
+                events.push(ev);
+            }
+            if done(&link.view().value, events) {
+                return;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(10),
+                "timed out waiting for {what}; events {events:?}"
+            );
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    fn triangles(link: &mut super::super::EngineLink) -> usize {
+        link.meshes()
+            .value
+            .iter()
+            .map(|c| c.indices.len() / 3)
+            .sum()
+    }
+
+    /// The running engine behind the bridge: loading a session replaces the field in every
+    /// loop and the meshes; a corrupt file is refused with its reason and changes nothing;
+    /// the force limit reaches the safety filter (capped at the device's own maximum); the
+    /// latency figures of all three loops reach the view.
+    #[test]
+    fn the_bridge_loads_sessions_sets_the_force_limit_and_publishes_loop_figures() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+        })
+        .unwrap();
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let device_max_n = info.max_force_n;
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        // The tool waits at a workspace corner, away from the clay.
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+
+        // A session on the same lattice with the top half carved away, and a corrupt copy.
+        let mut carved: BSplineLattice = field.clone();
+        let d = carved.dims;
+        for k in d[2] / 2..d[2] {
+            for j in 0..d[1] {
+                for i in 0..d[0] {
+                    let idx = carved.index(i, j, k);
+                    carved.coeffs[idx] = 0.0;
+                }
+            }
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let good = dir.path().join("carved.dclay");
+        let session = Session {
+            clay: Clay::single(carved.clone()),
+            material: MaterialFields {
+                uniform: Material::ELASTIC,
+                grids: Vec::new(),
+            },
+            ..Session::default()
+        };
+        save_session(&good, &session).unwrap();
+        let corrupt = dir.path().join("corrupt.dclay");
+        let mut bytes = std::fs::read(&good).unwrap();
+        let mid = bytes.len() / 2;
+        bytes[mid] ^= 0x5a;
+        std::fs::write(&corrupt, &bytes).unwrap();
+
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        wait_for(&mut link, &mut events, "first meshes", |v, _| {
+            v.device.state == DeviceLinkState::Connected
+        });
+        let start = Instant::now();
+        while triangles(&mut link) == 0 && start.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let whole_triangles = triangles(&mut link);
+        assert!(whole_triangles > 0);
+        assert_eq!(link.view().value.device.max_force_n, device_max_n);
+
+        link.send(EngineCommand::Load { path: good.clone() })
+            .unwrap();
+        wait_for(&mut link, &mut events, "the load", |v, ev| {
+            v.sessions_loaded == 1 && ev.iter().any(|e| matches!(e, EngineEvent::Done { .. }))
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { what, detail }] if what == "load" && detail.contains("carved.dclay")),
+            "{events:?}"
+        );
+        assert_eq!(link.view().value.material, Material::ELASTIC);
+        let start = Instant::now();
+        while triangles(&mut link) >= whole_triangles && start.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let carved_triangles = triangles(&mut link);
+        assert!(
+            carved_triangles < whole_triangles,
+            "meshes follow the load: {whole_triangles} -> {carved_triangles} triangles"
+        );
+
+        events.clear();
+        link.send(EngineCommand::Load {
+            path: corrupt.clone(),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the refusal", |_, ev| {
+            !ev.is_empty()
+        });
+        let [EngineEvent::Failed { what, error }] = &events[..] else {
+            panic!("expected one failure, got {events:?}");
+        };
+        assert_eq!(what, "load");
+        assert!(error.contains("corrupt.dclay"), "{error}");
+
+        link.send(EngineCommand::SetMaxForce { max_force_n: 0.5 })
+            .unwrap();
+        wait_for(&mut link, &mut events, "the force limit", |v, _| {
+            v.device.max_force_n == 0.5
+        });
+        link.send(EngineCommand::SetMaxForce { max_force_n: 100.0 })
+            .unwrap();
+        wait_for(&mut link, &mut events, "the device's own limit", |v, _| {
+            v.device.max_force_n == device_max_n
+        });
+        assert!(
+            events.iter().any(
+                |e| matches!(e, EngineEvent::Done { detail, .. } if detail.contains("maximum"))
+            ),
+            "{events:?}"
+        );
+
+        // The loops publish figures about once a second.
+        wait_for(&mut link, &mut events, "loop figures", |v, _| {
+            v.loops
+                .iter()
+                .all(|s| s.ticks > 0 && s.achieved_rate_hz > 0.0)
+        });
+        let loops = link.view().value.loops;
+        assert!((loops[0].nominal_rate_hz - 1000.0).abs() < 0.1);
+        assert!(
+            (loops[2].nominal_rate_hz - 60.0).abs() < 0.1,
+            "{}",
+            loops[2].nominal_rate_hz
+        );
+        assert!(loops[0].compute.p99_us > 0.0);
+
+        let report = bridge.stop().unwrap();
+        assert_eq!(
+            report.session.clay.patches[0], carved,
+            "the corrupt file changed nothing"
+        );
+        assert_eq!(report.haptic_field, carved);
+        assert_eq!(report.session.material.uniform, Material::ELASTIC);
+        assert_eq!(report.safety.clamped, 0, "the tool never touched the clay");
+    }
 
     /// A sphere through the real octree mesher, published by the sink and exported welded.
     #[test]
