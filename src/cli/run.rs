@@ -1,6 +1,7 @@
 //! `dynaclay run`: a headless session from a script, written to an output directory.
 
 use std::fmt;
+use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
@@ -8,11 +9,13 @@ use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::args::RunArgs;
-use super::outputs::{RunOutputs, write_outputs};
+use super::outputs::{ExtraOutputs, RunOutputs, write_outputs};
 use crate::engine::{
     Engine, EngineConfig, EngineError, HeadlessSink, Lockstep, Script, ScriptError, build_clay,
 };
 use crate::field::BSplineLattice;
+use crate::io::SessionError;
+use crate::render::RenderError;
 
 /// Why a command failed; each kind has its own exit code.
 #[derive(Debug)]
@@ -27,16 +30,26 @@ pub enum CliError {
     Engine(EngineError),
     /// An output could not be written, or the starting clay could not be built (exit 1).
     Output(String),
+    /// A session file could not be read (exit 2).
+    Session(SessionError),
+    /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
+    /// [`CliError::NO_ADAPTER_EXIT`]).
+    Render(RenderError, PathBuf),
 }
 
 impl CliError {
+    /// Exit status of `dynaclay render` when the machine has no GPU adapter: distinct from a
+    /// failure (1) and a bad argument (2), so scripts can tell "cannot render here" apart.
+    pub const NO_ADAPTER_EXIT: i32 = 4;
+
     /// The process exit code for this error.
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Script(_) => 2,
+            Self::Usage(_) | Self::Script(_) | Self::Session(_) => 2,
             Self::Device(_) => 3,
-            Self::Engine(_) | Self::Output(_) => 1,
+            Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
+            Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
         }
     }
 }
@@ -49,6 +62,11 @@ impl fmt::Display for CliError {
             Self::Device(m) => write!(f, "device error: {m}"),
             Self::Engine(e) => write!(f, "engine error: {e}"),
             Self::Output(m) => write!(f, "output error: {m}"),
+            Self::Session(e) => write!(f, "cannot read session: {e}"),
+            Self::Render(e, path) if e.is_no_adapter() => {
+                write!(f, "{e}; skipped rendering {}", path.display())
+            }
+            Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
         }
     }
 }
@@ -125,9 +143,21 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         std::thread::sleep(Duration::from_millis(20));
     }
     let report = engine.stop().map_err(CliError::Engine)?;
-    let outputs = write_outputs(&args.out, &report, &config, args.ply, args.stl)?;
+    let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
     Ok(outputs)
+}
+
+/// The optional outputs `args` ask for; `--png` with no file means `DIR/sculpt.png`.
+fn extras(args: &RunArgs) -> ExtraOutputs {
+    ExtraOutputs {
+        ply: args.ply,
+        stl: args.stl,
+        png: args.png.as_ref().map(|file| {
+            let path = file.clone().unwrap_or_else(|| args.out.join("sculpt.png"));
+            (path, args.image.clone())
+        }),
+    }
 }
 
 /// Replays a recording through the deterministic lockstep engine: one recorded sample, one
@@ -157,7 +187,7 @@ fn run_replay(
     }
     let report = lockstep.finish().map_err(CliError::Engine)?;
     let outputs =
-        super::outputs::write_lockstep_outputs(&args.out, &report, &config, args.ply, args.stl)?;
+        super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
     Ok(outputs)
 }
