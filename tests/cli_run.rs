@@ -110,7 +110,7 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
     let script = dir.path().join("bad.toml");
     std::fs::write(
         &script,
-        "seconds = 1\n[[stroke]]\npath = [[1, 1, 1]]\nspeed = 3\n",
+        "version = 1\nseconds = 1\n\n[[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nspeed = 3\n",
     )
     .unwrap();
     let out = Command::new(BIN)
@@ -121,12 +121,13 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("bad.toml:4:") && err.contains("speed"),
-        "{err}"
-    );
+    assert!(err.contains("bad.toml:7") && err.contains("speed"), "{err}");
 
-    std::fs::write(&script, "[[stroke]]\npath = [[1, 1, 1]]\nduration_s = -2\n").unwrap();
+    std::fs::write(
+        &script,
+        "version = 1\n[[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nduration_s = -2\n",
+    )
+    .unwrap();
     let out = Command::new(BIN)
         .arg("run")
         .arg("--script")
@@ -135,5 +136,5 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("stroke[0].duration_s"), "{err}");
+    assert!(err.contains("bad.toml:5: step 1: duration_s"), "{err}");
 }
