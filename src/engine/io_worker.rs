@@ -156,11 +156,11 @@ mod tests {
 
         let (reply_tx, reply_rx) = bounded(1);
         job_tx
-            .send(IoJob::Save(SaveJob {
+            .send(IoJob::Save(Box::new(SaveJob {
                 path: dir.path().join("explicit.dclay"),
                 session: Session::default(),
                 reply: Some(reply_tx),
-            }))
+            })))
             .unwrap();
         job_tx.send(IoJob::Committed).unwrap();
         assert!(worker.poll(Instant::now()));

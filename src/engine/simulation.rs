@@ -83,8 +83,8 @@ impl Default for SimConfig {
 /// Work the simulation thread hands to the I/O thread.
 #[derive(Debug)]
 pub enum IoJob {
-    /// Write a session file.
-    Save(SaveJob),
+    /// Write a session file (boxed: a session is large and autosave notes are frequent).
+    Save(Box<SaveJob>),
     /// An undo step was committed (a stroke or a tool step ended): counts toward autosave.
     Committed,
 }
@@ -314,11 +314,11 @@ impl SimulationStage {
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
             Command::Save { path, reply } => match &self.io {
                 Some(io) => io
-                    .send(IoJob::Save(SaveJob {
+                    .send(IoJob::Save(Box::new(SaveJob {
                         path,
                         session: self.session(),
                         reply,
-                    }))
+                    })))
                     .is_ok(),
                 None => {
                     if let Some(r) = reply {
