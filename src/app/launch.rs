@@ -7,7 +7,7 @@ use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 use super::bridge::start_bridge;
 use super::link::engine_link;
 use super::run::{GuiOptions, run_gui};
-use crate::engine::{Engine, EngineConfig, Script, build_clay};
+use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
 
 /// Why `dynaclay gui` stopped.
 #[derive(Debug)]
@@ -61,7 +61,7 @@ pub fn parse_gui_args(args: &[String]) -> Result<DeviceSpec, LaunchError> {
 /// See [`LaunchError`].
 pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let spec = parse_gui_args(args)?;
-    let script = Script::builtin();
+    let script = ScriptPlan::builtin();
     let field =
         build_clay(&script.clay).map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?;
     let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
@@ -91,7 +91,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (d, info)
         }
     };
-    let config = EngineConfig::for_script(&field, &info, &script);
+    let config = EngineConfig::for_field(&field, &info);
     let (link, endpoint) = engine_link();
     let bridge = start_bridge(endpoint, info.clone(), |sink| {
         Engine::start(&config, field, device, sink)

@@ -43,9 +43,14 @@ pub struct PassThrough {
 /// `dynaclay run`.
 #[derive(Debug, Args, Clone)]
 pub struct RunArgs {
-    /// Script of strokes, clay, material and tool (TOML; see the README). Default: built in.
+    /// Script: starting clay, strokes, tool steps, undo, saves (TOML; the README's "Script
+    /// format"). Default: built in.
     #[arg(long, value_name = "FILE")]
     pub script: Option<PathBuf>,
+    /// Start from the recovery file that autosave left in DIR (after a crash) instead of the
+    /// script's clay.
+    #[arg(long)]
+    pub recover: bool,
     /// Device: sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, replay:FILE.
     #[arg(long, default_value = "sim", value_name = "SPEC")]
     pub device: String,

@@ -136,10 +136,11 @@ impl HapticStage {
         };
 
         let stamped = self.patches.latest();
-        let (version, age, stroke_armed) = (
+        let (version, age, stroke_armed, contact_enabled) = (
             stamped.version,
             stamped.age_at(now),
             stamped.value.stroke_armed,
+            stamped.value.contact_enabled,
         );
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
             stamped.value.apply_to(&mut self.field);
@@ -155,7 +156,9 @@ impl HapticStage {
         }
         let tip = self.map.to_field(state.position_m);
         let stroke_active = state.button(0) || stroke_armed;
-        let contact = self.contact.update(&self.field, tip, stroke_active);
+        let contact = self
+            .contact
+            .update(&self.field, tip, stroke_active && contact_enabled);
         if contact.in_contact {
             self.counters.contact_ticks(1);
         }

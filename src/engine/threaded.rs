@@ -20,10 +20,11 @@ use super::counters::{CounterSnapshot, EngineCounters};
 use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
-use super::simulation::{SaveJob, SimulationStage};
+use super::io_worker::{IoReport, IoWorker};
+use super::simulation::SimulationStage;
 use super::wiring::build;
 use crate::field::BSplineLattice;
-use crate::io::{Session, save_session};
+use crate::io::{Autosave, Session};
 use crate::mesh::BrickOctree;
 
 /// Sends its value back on a channel when dropped, so a loop's closure returns its stage to
@@ -58,7 +59,7 @@ pub struct Engine {
     haptic: LoopHandle,
     sim: LoopHandle,
     graphics: LoopHandle,
-    io: Option<JoinHandle<()>>,
+    io: Option<JoinHandle<IoReport>>,
     commands: Sender<Command>,
     counters: EngineCounters,
     tool: SnapshotReader<ToolSample>,
@@ -82,6 +83,8 @@ pub struct EngineReport {
     pub counters: CounterSnapshot,
     /// The safety filter's counters.
     pub safety: SafetyCounters,
+    /// Saves and autosaves written by the I/O thread, and their failures.
+    pub io: IoReport,
 }
 
 impl Engine {
@@ -98,14 +101,32 @@ impl Engine {
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
     ) -> Result<Self, EngineError> {
+        Self::start_with(config, field, device, sink, None)
+    }
+
+    /// [`Engine::start`] with autosave: the I/O thread writes `autosave`'s recovery file when
+    /// its policy says so (counting committed strokes and tool steps).
+    ///
+    /// # Errors
+    /// As [`Engine::start`].
+    pub fn start_with(
+        config: &EngineConfig,
+        field: BSplineLattice,
+        device: Box<dyn HapticDevice>,
+        sink: Box<dyn MeshSink>,
+        autosave: Option<Autosave>,
+    ) -> Result<Self, EngineError> {
         let stages = build(config, field, device, sink, false)?;
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
         let tool = stages.tool_monitor;
-        let saves = stages.saves;
+        let mut worker = IoWorker::new(stages.io_jobs, commands.clone());
+        if let Some(a) = autosave {
+            worker.set_autosave(a);
+        }
         let io = std::thread::Builder::new()
             .name("dynaclay-io".into())
-            .spawn(move || run_saves(&saves))
+            .spawn(move || worker.run(Duration::from_millis(50)))
             .map_err(|source| {
                 EngineError::Loop(dynaclay_loops::LoopError::Spawn {
                     loop_name: "io".into(),
@@ -248,9 +269,10 @@ impl Engine {
         let session = sim_stage.session();
         drop(sim_stage);
         drop(self.commands);
-        if let Some(io) = self.io.take() {
-            let _ = io.join();
-        }
+        let io = match self.io.take() {
+            Some(h) => h.join().map_err(|_| EngineError::Lost("io"))?,
+            None => IoReport::default(),
+        };
         Ok(EngineReport {
             session,
             haptic_field: haptic_stage.field().clone(),
@@ -258,18 +280,7 @@ impl Engine {
             loops: vec![haptic, sim, graphics],
             counters: self.counters.snapshot(),
             safety,
+            io,
         })
-    }
-}
-
-/// The I/O thread: writes each save and answers.
-fn run_saves(saves: &Receiver<SaveJob>) {
-    for job in saves {
-        let result = save_session(&job.path, &job.session)
-            .map(|()| job.path.clone())
-            .map_err(|e| e.to_string());
-        if let Some(reply) = job.reply {
-            let _ = reply.send(result);
-        }
     }
 }
