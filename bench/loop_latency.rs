@@ -56,14 +56,14 @@ fn workloads() -> Vec<(&'static str, Workload)> {
 
 /// A script of back-and-forth pushes along the block's top, one every 2.5 s, filling `seconds`.
 fn engine_script(seconds: f64) -> String {
-    let mut text = String::from("[clay]\nshape = \"block\"\nresolution = 24\n");
+    let mut text = String::from("version = 1\n[clay]\nshape = \"block\"\nresolution = 24\n");
     let mut t = 0.2;
     let mut k = 0usize;
     while t + 2.2 < seconds {
         let z = 0.95 + 0.1 * (k % 4) as f64;
         text.push_str(&format!(
-            "[[stroke]]\nstart_s = {t}\npath = [[0.85, 1.55, {z}], [1.45, 1.55, {z}]]\n\
-             duration_s = 1.5\n"
+            "[[step]]\ndo = \"stroke\"\nstart_s = {t}\n\
+             path = [[0.85, 1.55, {z}], [1.45, 1.55, {z}]]\nduration_s = 1.5\n"
         ));
         t += 2.5;
         k += 1;
@@ -74,17 +74,27 @@ fn engine_script(seconds: f64) -> String {
 /// Runs the whole engine under the harness's haptic settings (rate, priority; the engine does
 /// not pin its threads, so the core setting is not applied).
 fn full_engine(config: &LoopConfig, duration: Duration) -> Result<LoopReport, String> {
-    use dynaclay::engine::{Engine, EngineConfig, HeadlessSink, Script, build_clay};
+    use dynaclay::dynamics::Material;
+    use dynaclay::engine::{Engine, EngineConfig, HeadlessSink, ScriptPlan, build_clay};
+    use dynaclay::io::parse_script;
     use dynaclay_devices::{SimArmConfig, SimulatedArm};
 
-    let script = Script::parse(&engine_script(duration.as_secs_f64()), "<bench>")
+    let script = parse_script(&engine_script(duration.as_secs_f64()), "<bench>")
         .map_err(|e| e.to_string())?;
-    let field = build_clay(&script.clay).map_err(|e| e.to_string())?;
+    let plan = ScriptPlan::new(
+        &script,
+        "<bench>",
+        std::path::Path::new("."),
+        &[],
+        Material::PLASTIC,
+    )
+    .map_err(|e| e.to_string())?;
+    let field = build_clay(&plan.clay).map_err(|e| e.to_string())?;
     let arm_config = SimArmConfig::default();
-    let mut engine_config = EngineConfig::for_script(&field, &arm_config.info, &script);
+    let mut engine_config = EngineConfig::for_field(&field, &arm_config.info);
     engine_config.haptic_rate_hz = config.rate_hz;
     engine_config.haptic_rt_priority = config.rt_priority;
-    let trajectory = script
+    let trajectory = plan
         .trajectory(&engine_config.map)
         .map_err(|e| e.to_string())?;
     let device = Box::new(SimulatedArm::new(arm_config, trajectory));

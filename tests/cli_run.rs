@@ -110,7 +110,7 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
     let script = dir.path().join("bad.toml");
     std::fs::write(
         &script,
-        "seconds = 1\n[[stroke]]\npath = [[1, 1, 1]]\nspeed = 3\n",
+        "version = 1\nseconds = 1\n\n[[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nspeed = 3\n",
     )
     .unwrap();
     let out = Command::new(BIN)
@@ -121,12 +121,13 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("bad.toml:4:") && err.contains("speed"),
-        "{err}"
-    );
+    assert!(err.contains("bad.toml:7") && err.contains("speed"), "{err}");
 
-    std::fs::write(&script, "[[stroke]]\npath = [[1, 1, 1]]\nduration_s = -2\n").unwrap();
+    std::fs::write(
+        &script,
+        "version = 1\n[[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nduration_s = -2\n",
+    )
+    .unwrap();
     let out = Command::new(BIN)
         .arg("run")
         .arg("--script")
@@ -135,5 +136,99 @@ fn bad_arguments_and_scripts_fail_with_a_clear_message() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("stroke[0].duration_s"), "{err}");
+    assert!(err.contains("bad.toml:5: step 1: duration_s"), "{err}");
+}
+
+#[test]
+fn autosave_leaves_a_recovery_file_that_the_next_run_offers_and_recover_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let script = dir.path().join("long.toml");
+    std::fs::write(
+        &script,
+        r#"version = 1
+seconds = 60
+
+[autosave]
+every_strokes = 1
+
+[[step]]
+do = "tool"
+shape = { kind = "sphere", radius_m = 0.2 }
+action = { kind = "add", deposit_rate_per_s = 10.0 }
+positions = [[1.15, 1.95, 1.15]]
+duration_s = 1.0
+falloff_m = 0.1
+
+[[step]]
+do = "stroke"
+path = [[0.85, 1.55, 1.15], [1.45, 1.55, 1.15]]
+duration_s = 50.0
+"#,
+    )
+    .unwrap();
+    // A run that crashes (is killed) after its first autosave.
+    let mut child = Command::new(BIN)
+        .args(["run", "--no-rt", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let recovery = out.join("session.dclay.recovery");
+    let started = std::time::Instant::now();
+    while !recovery.exists() && started.elapsed() < std::time::Duration::from_secs(30) {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(recovery.exists(), "no recovery file within 30 s");
+    let saved = load_session(&recovery).expect("the recovery file loads");
+    assert!(
+        saved.clay.patches[0].is_inside(glam::Vec3::new(1.15, 1.95, 1.15)),
+        "the recovery holds the tool step"
+    );
+
+    // The next run names the recovery file and refuses to overwrite it.
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--seconds", "0.3", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("session.dclay.recovery") && err.contains("--recover"),
+        "{err}"
+    );
+
+    // --recover starts from it: with a script of no steps the session comes out unchanged.
+    let idle = dir.path().join("idle.toml");
+    std::fs::write(&idle, "version = 1\nseconds = 0.5\n").unwrap();
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--recover", "--script"])
+        .arg(&idle)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(String::from_utf8_lossy(&run.stdout).contains("starting from recovery file"));
+    let session = load_session(&out.join("session.dclay")).unwrap();
+    assert_eq!(session.clay, saved.clay);
+    assert!(!recovery.exists(), "a normal end removes the recovery file");
+
+    // Without a recovery file, --recover says what it looked for.
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--recover", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&run.stderr).contains("no recovery file"));
 }

@@ -11,7 +11,7 @@
 //! the app.
 //!
 //! Not yet wired: switching or disconnecting the device while running (the haptic loop owns
-//! the opened device; replacing it needs a restart of that loop), and geometric tools.
+//! the opened device; replacing it needs a restart of that loop).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -26,12 +26,13 @@ use dynaclay_loops::SnapshotWriter;
 use glam::Vec3;
 use parking_lot::Mutex;
 
-use super::command::{EngineCommand, EngineEvent, ForceMode, ToolChoice};
+use super::command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
 use crate::engine::{
-    Command, Engine, EngineError, EngineReport, ForceTool as EngineForceTool, MeshSink,
+    Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
+    ToolChoice as EngineToolChoice,
 };
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 
@@ -128,7 +129,7 @@ pub fn start_bridge(
         view,
         shared,
         device,
-        tool_radius: EngineForceTool::default().radius,
+        tool_radius: PushTool::default().radius,
         saves: Vec::new(),
         loads: Vec::new(),
     };
@@ -262,32 +263,11 @@ impl Bridge {
         match cmd {
             EngineCommand::SelectTool(ToolChoice::Force(t)) => {
                 self.tool_radius = t.radius_m;
-                self.send(
-                    what,
-                    Command::SetTool(EngineForceTool {
-                        distribution: t.distribution,
-                        radius: t.radius_m,
-                        gain: t.gain,
-                    }),
-                );
-                if t.mode != ForceMode::PointGrab && t.mode != ForceMode::Area {
-                    self.fail(
-                        what,
-                        format!(
-                            "the engine applies {} as a point grab: it has no {} mode yet",
-                            t.mode.name(),
-                            t.mode.name()
-                        ),
-                    );
-                }
+                self.send(what, Command::SetTool(engine_force_tool(&t)));
             }
-            EngineCommand::SelectTool(ToolChoice::Geometric(t)) => self.fail(
-                what,
-                format!(
-                    "{}: the threaded engine applies force tools only; geometric tools are not wired into it yet",
-                    t.action.name()
-                ),
-            ),
+            EngineCommand::SelectTool(ToolChoice::Geometric(t)) => {
+                self.send(what, Command::SetTool(EngineToolChoice::Geometric(t)));
+            }
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
@@ -390,6 +370,47 @@ pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, String> {
     Ok(mesh.triangles.len())
 }
 
+/// The engine tool for an app force tool: the point grab is the contact push felt through the
+/// arm (Hua & Qin's single force vector); the others drive the dynamics with their own force
+/// vectors each step.
+fn engine_force_tool(t: &ForceTool) -> EngineToolChoice {
+    let stroke = |tool| {
+        EngineToolChoice::Force(ForceStrokeTool {
+            tool,
+            curve: Vec::new(),
+            pivot: Vec3::ZERO,
+        })
+    };
+    match t.mode {
+        ForceMode::PointGrab => EngineToolChoice::Push(PushTool {
+            distribution: t.distribution,
+            radius: t.radius_m,
+            gain: t.gain,
+        }),
+        ForceMode::Area => stroke(crate::tools::ForceTool::Area {
+            distribution: t.distribution,
+            radius_m: t.radius_m,
+            tracks: 8,
+            gain: t.gain,
+        }),
+        ForceMode::Chisel => stroke(crate::tools::ForceTool::Chisel {
+            depth_m: t.depth_m,
+            radius_m: t.radius_m,
+            gain: t.gain,
+        }),
+        ForceMode::Squirt => stroke(crate::tools::ForceTool::Squirt {
+            depth_m: t.depth_m,
+            radius_m: t.radius_m,
+            gain: t.gain,
+        }),
+        ForceMode::Pull => stroke(crate::tools::ForceTool::Pull {
+            distribution: t.distribution,
+            radius_m: t.radius_m,
+            gain: t.gain,
+        }),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use std::time::Instant;
@@ -398,9 +419,9 @@ mod tests {
 
     use super::*;
     use crate::dynamics::Material;
-    use crate::engine::{ClayShape, ClaySpec, EngineConfig, build_clay};
+    use crate::engine::{EngineConfig, build_clay};
     use crate::field::BSplineLattice;
-    use crate::io::{MaterialFields, Session, save_session};
+    use crate::io::{ClayShape, ClaySpec, MaterialFields, Session, save_session};
     use crate::mesh::{MeshStats, SampleGrid};
     use crate::tools::Clay;
 

@@ -10,7 +10,7 @@ use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 use super::bridge::start_bridge;
 use super::link::engine_link;
 use super::run::{GuiOptions, run_gui};
-use crate::engine::{Engine, EngineConfig, Script, build_clay};
+use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
 use crate::io::load_session;
 
 /// Why `dynaclay gui` stopped.
@@ -86,7 +86,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         device: spec,
         session,
     } = parse_gui_args(args)?;
-    let script = Script::builtin();
+    let script = ScriptPlan::builtin();
     let (field, material) = match &session {
         None => (
             build_clay(&script.clay)
@@ -132,7 +132,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (d, info)
         }
     };
-    let mut config = EngineConfig::for_script(&field, &info, &script);
+    let mut config = EngineConfig::for_field(&field, &info);
     if let Some(m) = material {
         config.sim.material = m;
     }

@@ -2,7 +2,9 @@
 
 use std::path::PathBuf;
 
-use clap::{Args, Parser, Subcommand};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+use crate::render::{EnvironmentMode, NamedView, SceneOptions, Shading};
 
 /// Haptic volumetric sculpting: dynamic B-spline clay under a force-feedback arm.
 #[derive(Debug, Parser)]
@@ -17,14 +19,16 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Commands {
     /// Run a headless sculpting session (simulated arm and built-in script by default).
+    #[command(after_help = RUN_AFTER_HELP)]
     Run(RunArgs),
     /// Run the three loops and print their latency table.
     Profile(ProfileArgs),
     /// List connected haptic devices (HID and serial) and permission problems.
     Devices,
-    /// Render a session to a PNG (not available in this build yet).
-    Render(PassThrough),
-    /// Open the interactive sculpting window (not available in this build yet).
+    /// Render a session file to a PNG image, offscreen.
+    #[command(after_help = RENDER_AFTER_HELP)]
+    Render(RenderArgs),
+    /// Open the interactive sculpting window (egui on wgpu).
     Gui(PassThrough),
 }
 
@@ -39,9 +43,14 @@ pub struct PassThrough {
 /// `dynaclay run`.
 #[derive(Debug, Args, Clone)]
 pub struct RunArgs {
-    /// Script of strokes, clay, material and tool (TOML; see the README). Default: built in.
+    /// Script: starting clay, strokes, tool steps, undo, saves (TOML; the README's "Script
+    /// format"). Default: built in.
     #[arg(long, value_name = "FILE")]
     pub script: Option<PathBuf>,
+    /// Start from the recovery file that autosave left in DIR (after a crash) instead of the
+    /// script's clay.
+    #[arg(long)]
+    pub recover: bool,
     /// Device: sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, replay:FILE.
     #[arg(long, default_value = "sim", value_name = "SPEC")]
     pub device: String,
@@ -63,6 +72,125 @@ pub struct RunArgs {
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).
     #[arg(long = "no-rt", action = clap::ArgAction::SetFalse)]
     pub rt: bool,
+    /// Also render the final sculpt offscreen to a PNG: FILE, or DIR/sculpt.png when no FILE
+    /// is given. Skipped with a message (the run still succeeds) when there is no GPU adapter.
+    #[arg(long, value_name = "FILE", num_args = 0..=1)]
+    pub png: Option<Option<PathBuf>>,
+    /// How the PNG is rendered.
+    #[command(flatten, next_help_heading = "Image (with --png)")]
+    pub image: ImageArgs,
+}
+
+/// Exit statuses of `dynaclay render`, shown by `dynaclay render --help`.
+pub const RENDER_AFTER_HELP: &str = "\
+Exit status:
+  0  the PNG was written
+  1  rendering or writing the PNG failed
+  2  bad argument, or the session file cannot be read
+  4  no GPU adapter on this machine (hardware or software, e.g. Mesa lavapipe): nothing was
+     rendered, and the message says which backends were tried";
+
+/// The PNG note of `dynaclay run --help`.
+pub const RUN_AFTER_HELP: &str = "\
+With --png and no GPU adapter, the run prints \"no GPU adapter: ...; skipped rendering\",
+writes every other file and exits 0 (use `dynaclay render` for a status that reports it).";
+
+/// `dynaclay render`.
+#[derive(Debug, Args, Clone)]
+pub struct RenderArgs {
+    /// Session file to render (as written by `dynaclay run` or saved by the app).
+    #[arg(value_name = "SESSION")]
+    pub session: PathBuf,
+    /// PNG file to write (replaced atomically).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Marching-cubes cells per knot span (the resolution of the rendered surface).
+    #[arg(long, default_value_t = 4, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub cells_per_span: u32,
+    /// How the image is rendered.
+    #[command(flatten)]
+    pub image: ImageArgs,
+}
+
+/// Image settings shared by `dynaclay render` and `dynaclay run --png`.
+#[derive(Debug, Args, Clone)]
+pub struct ImageArgs {
+    /// Viewpoint: front, back, left, right, top, bottom or iso.
+    #[arg(long, default_value = "iso", value_name = "VIEW", value_parser = parse_view)]
+    pub view: NamedView,
+    /// Image width in pixels.
+    #[arg(long, default_value_t = 1024, value_name = "PX",
+          value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(long, default_value_t = 768, value_name = "PX",
+          value_parser = clap::value_parser!(u32).range(1..=16384))]
+    pub height: u32,
+    /// Surface shading (Ferley et al. §5).
+    #[arg(long, value_enum, default_value_t = ShadingMode::Phong, value_name = "MODE")]
+    pub shading: ShadingMode,
+    /// Opacity of the environment layer for `transparent`, and at normal incidence for
+    /// `clearcoat`, in [0, 1].
+    #[arg(long, default_value_t = 0.35, value_name = "A", value_parser = parse_opacity)]
+    pub opacity: f32,
+}
+
+/// The `--shading` choices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ShadingMode {
+    /// Blinn-Phong lighting of the clay colour and paint.
+    Phong,
+    /// The studio environment (matcap) replaces the surface colour: a metallic look.
+    Matcap,
+    /// The environment blended over the lit clay with constant opacity (`--opacity`).
+    Transparent,
+    /// An angle-dependent clear coat: the environment's opacity rises from `--opacity` facing
+    /// the viewer to 1 at grazing angles.
+    Clearcoat,
+}
+
+impl ShadingMode {
+    /// The renderer's environment mode for this choice.
+    #[must_use]
+    pub fn environment(self) -> EnvironmentMode {
+        match self {
+            Self::Phong => EnvironmentMode::Off,
+            Self::Matcap => EnvironmentMode::Opaque,
+            Self::Transparent => EnvironmentMode::Transparent,
+            Self::Clearcoat => EnvironmentMode::ClearCoat,
+        }
+    }
+}
+
+impl ImageArgs {
+    /// The scene options these settings ask for: default lights and clay colour, the chosen
+    /// environment mode, no overlays.
+    #[must_use]
+    pub fn scene_options(&self) -> SceneOptions {
+        SceneOptions {
+            shading: Shading {
+                environment: self.shading.environment(),
+                environment_opacity: self.opacity,
+                ..Shading::default()
+            },
+            ..SceneOptions::default()
+        }
+    }
+}
+
+fn parse_view(s: &str) -> Result<NamedView, String> {
+    s.parse()
+        .map_err(|e: crate::render::UnknownView| e.to_string())
+}
+
+fn parse_opacity(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{s} is out of range: give an opacity in [0, 1]"))
+    }
 }
 
 /// `dynaclay profile`.

@@ -4,12 +4,16 @@ mod args;
 mod devices;
 mod outputs;
 mod profile;
+mod render;
 mod run;
+mod sculpt;
 
-pub use args::{Cli, Commands, ProfileArgs, RunArgs};
-pub use outputs::{RunOutputs, write_lockstep_outputs, write_outputs};
+pub use args::{Cli, Commands, ImageArgs, ProfileArgs, RenderArgs, RunArgs, ShadingMode};
+pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
 pub use profile::profile;
+pub use render::render;
 pub use run::{CliError, run};
+pub use sculpt::{describe_outcome, mesh_clay, render_sculpt};
 
 /// Runs the parsed command line; returns the process exit code.
 #[must_use]
@@ -23,9 +27,7 @@ pub fn dispatch(cli: Cli) -> i32 {
             crate::app::LaunchError::Device(_) => CliError::Device(e.to_string()),
             crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
         }),
-        Commands::Render(_) => Err(CliError::Usage(
-            "this subcommand is not available in this build yet".to_owned(),
-        )),
+        Commands::Render(a) => render(&a).map(|_| ()),
     };
     match result {
         Ok(()) => 0,

@@ -1,14 +1,29 @@
-//! The files a headless run leaves behind: meshes, the session, latency reports.
+//! The files a headless run leaves behind: meshes, the session, latency reports, and on
+//! request a PNG of the sculpt.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use dynaclay_loops::{LoopSummary, markdown_table, summaries_to_json, write_latency_svg};
 
+use super::args::ImageArgs;
 use super::run::CliError;
+use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
 use crate::io::{Session, save_session};
 use crate::mesh::{BrickOctree, MeshFormat, MeshStats, SampleGrid, write_mesh};
+use crate::render::RenderOutcome;
+
+/// The optional outputs of a run, besides `sculpt.obj`, the session and the latency reports.
+#[derive(Clone, Debug)]
+pub struct ExtraOutputs {
+    /// Also write `sculpt.ply`.
+    pub ply: bool,
+    /// Also write `sculpt.stl`.
+    pub stl: bool,
+    /// Render the final sculpt to this PNG with these settings.
+    pub png: Option<(PathBuf, ImageArgs)>,
+}
 
 /// Paths written by a run, and the final mesh's statistics.
 #[derive(Clone, Debug)]
@@ -19,6 +34,10 @@ pub struct RunOutputs {
     pub mesh: MeshStats,
     /// Loop summaries.
     pub loops: Vec<LoopSummary>,
+    /// The PNG of the sculpt, when one was asked for and rendered.
+    pub image: Option<RenderOutcome>,
+    /// Outputs that were asked for but skipped, each with the reason (no GPU adapter).
+    pub skipped: Vec<String>,
 }
 
 impl RunOutputs {
@@ -34,7 +53,17 @@ impl RunOutputs {
             self.mesh.is_closed_manifold()
         );
         for f in &self.files {
-            let _ = writeln!(s, "wrote {}", f.display());
+            match &self.image {
+                Some(image) if &image.path == f => {
+                    let _ = writeln!(s, "{}", describe_outcome(image));
+                }
+                _ => {
+                    let _ = writeln!(s, "wrote {}", f.display());
+                }
+            }
+        }
+        for reason in &self.skipped {
+            let _ = writeln!(s, "{reason}");
         }
         s
     }
@@ -44,46 +73,77 @@ fn out_err(path: &Path, e: impl std::fmt::Display) -> CliError {
     CliError::Output(format!("{}: {e}", path.display()))
 }
 
-/// Writes the meshes and the session of a lockstep (replay) run; a lockstep run has no loop
-/// latencies to report.
+/// Writes the meshes and the session of a lockstep (replay) run, then the PNG if asked; a
+/// lockstep run has no loop latencies to report.
 ///
 /// # Errors
-/// [`CliError::Output`] naming the file that could not be written.
+/// [`CliError::Output`] naming the file that could not be written; [`CliError::Render`] when
+/// the PNG was asked for and rendering failed for a reason other than a missing GPU adapter.
 pub fn write_lockstep_outputs(
     dir: &Path,
     report: &LockstepReport,
     config: &EngineConfig,
-    ply: bool,
-    stl: bool,
+    extras: &ExtraOutputs,
 ) -> Result<RunOutputs, CliError> {
     let mut files = Vec::new();
-    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
-    Ok(RunOutputs {
+    let (stats, octree) = write_field_outputs(dir, &report.session, config, extras, &mut files)?;
+    let mut outputs = RunOutputs {
         files,
         mesh: stats,
         loops: Vec::new(),
-    })
+        image: None,
+        skipped: Vec::new(),
+    };
+    write_png(&mut outputs, &octree, &report.session, extras)?;
+    Ok(outputs)
+}
+
+/// Renders the sculpt when `extras` asks for a PNG. A missing GPU adapter is not an error
+/// here: the reason goes to [`RunOutputs::skipped`] and the run succeeds.
+fn write_png(
+    outputs: &mut RunOutputs,
+    octree: &BrickOctree,
+    session: &Session,
+    extras: &ExtraOutputs,
+) -> Result<(), CliError> {
+    let Some((path, image)) = &extras.png else {
+        return Ok(());
+    };
+    match render_sculpt(octree, session.clay.colour.as_ref(), image, path) {
+        Ok(outcome) => {
+            outputs.files.push(outcome.path.clone());
+            outputs.image = Some(outcome);
+            Ok(())
+        }
+        Err(e) if e.is_no_adapter() => {
+            // The same wording as `dynaclay render`, but the run itself succeeds.
+            let reason = CliError::Render(e, path.clone()).to_string();
+            outputs.skipped.push(reason);
+            Ok(())
+        }
+        Err(e) => Err(CliError::Render(e, path.clone())),
+    }
 }
 
 fn write_field_outputs(
     dir: &Path,
     session: &Session,
     config: &EngineConfig,
-    ply: bool,
-    stl: bool,
+    extras: &ExtraOutputs,
     files: &mut Vec<PathBuf>,
-) -> Result<MeshStats, CliError> {
+) -> Result<(MeshStats, BrickOctree), CliError> {
     let lattice = &session.clay.patches[0];
     // Mesh the final field afresh: the export is exactly the simulation's last state.
     let grid =
         SampleGrid::for_lattice(lattice, config.cells_per_span).map_err(|e| out_err(dir, e))?;
-    let mesh = BrickOctree::build(grid, lattice).weld();
+    let octree = BrickOctree::build(grid, lattice);
+    let mesh = octree.weld();
     let stats = MeshStats::of(&mesh);
     let mut formats = vec![("sculpt.obj", MeshFormat::Obj)];
-    if ply {
+    if extras.ply {
         formats.push(("sculpt.ply", MeshFormat::Ply));
     }
-    if stl {
+    if extras.stl {
         formats.push(("sculpt.stl", MeshFormat::Stl));
     }
     for (name, format) in formats {
@@ -95,23 +155,23 @@ fn write_field_outputs(
     let session_path = dir.join("session.dclay");
     save_session(&session_path, session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);
-    Ok(stats)
+    Ok((stats, octree))
 }
 
 /// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
-/// `latency.svg` into `dir`.
+/// `latency.svg` into `dir`, then the PNG if asked.
 ///
 /// # Errors
-/// [`CliError::Output`] naming the file that could not be written.
+/// [`CliError::Output`] naming the file that could not be written; [`CliError::Render`] when
+/// the PNG was asked for and rendering failed for a reason other than a missing GPU adapter.
 pub fn write_outputs(
     dir: &Path,
     report: &EngineReport,
     config: &EngineConfig,
-    ply: bool,
-    stl: bool,
+    extras: &ExtraOutputs,
 ) -> Result<RunOutputs, CliError> {
     let mut files = Vec::new();
-    let stats = write_field_outputs(dir, &report.session, config, ply, stl, &mut files)?;
+    let (stats, octree) = write_field_outputs(dir, &report.session, config, extras, &mut files)?;
 
     let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
     let json_path = dir.join("latency.json");
@@ -154,9 +214,13 @@ pub fn write_outputs(
     write_latency_svg(&svg_path, &recorders).map_err(|e| out_err(&svg_path, e))?;
     files.push(svg_path);
 
-    Ok(RunOutputs {
+    let mut outputs = RunOutputs {
         files,
         mesh: stats,
         loops: summaries,
-    })
+        image: None,
+        skipped: Vec::new(),
+    };
+    write_png(&mut outputs, &octree, &report.session, extras)?;
+    Ok(outputs)
 }

@@ -10,22 +10,22 @@ use dynaclay_loops::{LoopSummary, markdown_table};
 
 use super::args::ProfileArgs;
 use super::run::CliError;
-use crate::engine::{Engine, EngineConfig, HeadlessSink, Script, build_clay};
+use crate::engine::{Engine, EngineConfig, HeadlessSink, ScriptPlan, build_clay};
 
 /// Runs the loops for `args.seconds` and prints their latency table.
 ///
 /// # Errors
 /// When the engine cannot start or a loop fails.
 pub fn profile(args: &ProfileArgs) -> Result<(), CliError> {
-    let script = Script::builtin();
+    let plan = ScriptPlan::builtin();
     let field =
-        build_clay(&script.clay).map_err(|e| CliError::Output(format!("clay fit failed: {e}")))?;
+        build_clay(&plan.clay).map_err(|e| CliError::Output(format!("clay fit failed: {e}")))?;
     let arm_config = SimArmConfig::default();
-    let mut config = EngineConfig::for_script(&field, &arm_config.info, &script);
+    let mut config = EngineConfig::for_field(&field, &arm_config.info);
     if !args.rt {
         config.haptic_rt_priority = None;
     }
-    let trajectory = script.trajectory(&config.map).map_err(CliError::Script)?;
+    let trajectory = plan.trajectory(&config.map).map_err(CliError::Script)?;
     let device = Box::new(SimulatedArm::new(arm_config, trajectory));
 
     let stop = Arc::new(AtomicBool::new(false));

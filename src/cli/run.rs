@@ -1,6 +1,7 @@
 //! `dynaclay run`: a headless session from a script, written to an output directory.
 
 use std::fmt;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
@@ -8,11 +9,21 @@ use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::args::RunArgs;
-use super::outputs::{RunOutputs, write_outputs};
+use super::outputs::{ExtraOutputs, RunOutputs, write_outputs};
 use crate::engine::{
-    Engine, EngineConfig, EngineError, HeadlessSink, Lockstep, Script, ScriptError, build_clay,
+    Engine, EngineConfig, EngineError, HeadlessSink, IoReport, Lockstep, ScriptDriver, ScriptPlan,
+    build_clay, builtin_script,
 };
-use crate::field::BSplineLattice;
+use crate::io::SessionError;
+use crate::io::{
+    Autosave, MaterialFields, ScriptError, Session, find_recovery, load_script, load_session,
+    recovery_path_for,
+};
+use crate::render::RenderError;
+
+/// The session file a run writes into its output directory (autosave keeps its recovery
+/// file beside it).
+pub const SESSION_FILE: &str = "session.dclay";
 
 /// Why a command failed; each kind has its own exit code.
 #[derive(Debug)]
@@ -27,16 +38,26 @@ pub enum CliError {
     Engine(EngineError),
     /// An output could not be written, or the starting clay could not be built (exit 1).
     Output(String),
+    /// A session file could not be read (exit 2).
+    Session(SessionError),
+    /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
+    /// [`CliError::NO_ADAPTER_EXIT`]).
+    Render(RenderError, PathBuf),
 }
 
 impl CliError {
+    /// Exit status of `dynaclay render` when the machine has no GPU adapter: distinct from a
+    /// failure (1) and a bad argument (2), so scripts can tell "cannot render here" apart.
+    pub const NO_ADAPTER_EXIT: i32 = 4;
+
     /// The process exit code for this error.
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Script(_) => 2,
+            Self::Usage(_) | Self::Script(_) | Self::Session(_) => 2,
             Self::Device(_) => 3,
-            Self::Engine(_) | Self::Output(_) => 1,
+            Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
+            Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
         }
     }
 }
@@ -49,6 +70,11 @@ impl fmt::Display for CliError {
             Self::Device(m) => write!(f, "device error: {m}"),
             Self::Engine(e) => write!(f, "engine error: {e}"),
             Self::Output(m) => write!(f, "output error: {m}"),
+            Self::Session(e) => write!(f, "cannot read session: {e}"),
+            Self::Render(e, path) if e.is_no_adapter() => {
+                write!(f, "{e}; skipped rendering {}", path.display())
+            }
+            Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
         }
     }
 }
@@ -57,32 +83,57 @@ impl std::error::Error for CliError {}
 
 /// Runs a headless session and writes its outputs.
 ///
+/// The script is laid out on the device clock (see [`ScriptPlan`]): its strokes drive the
+/// simulated arm and its other steps are sent to the simulation when their time comes.
+/// Autosave writes `DIR/session.dclay.recovery` during the run; a recovery file newer than
+/// `DIR/session.dclay` left by a crashed run stops the next run unless `--recover` starts
+/// from it.
+///
 /// # Errors
-/// A [`CliError`] naming what failed (argument, script line or field, device, output path).
+/// A [`CliError`] naming what failed (argument, script line or step, device, output path).
 pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
-    let script = match &args.script {
-        Some(path) => Script::load(path).map_err(CliError::Script)?,
-        None => Script::builtin(),
+    let (script, file, base_dir) = match &args.script {
+        Some(path) => (
+            load_script(path).map_err(CliError::Script)?,
+            path.display().to_string(),
+            path.parent().map_or_else(PathBuf::new, Path::to_path_buf),
+        ),
+        None => (
+            builtin_script(),
+            "<built-in>".to_owned(),
+            PathBuf::from("."),
+        ),
     };
     let spec: DeviceSpec = args
         .device
         .parse()
         .map_err(|e: dynaclay_devices::spec::SpecError| CliError::Usage(e.to_string()))?;
-    let seconds = args.seconds.or(script.seconds).unwrap_or(3.0);
-    let field = build_clay(&script.clay)
-        .map_err(|e| CliError::Output(format!("starting clay: fit failed: {e}")))?;
+    let session_path = args.out.join(SESSION_FILE);
+    let start = starting_session(args.recover, &script, &session_path)?;
+    let plan = ScriptPlan::new(
+        &script,
+        &file,
+        &base_dir,
+        &start.tools,
+        start.material.uniform,
+    )
+    .map_err(CliError::Script)?;
+    let seconds = args.seconds.unwrap_or(plan.seconds);
+    let field = start.clay.patches[0].clone();
+    std::fs::create_dir_all(&args.out)
+        .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
 
     let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
         DeviceSpec::Sim => {
             let arm_config = SimArmConfig::default();
             let info = arm_config.info.clone();
             let map = EngineConfig::for_field(&field, &info).map;
-            let trajectory = script.trajectory(&map).map_err(CliError::Script)?;
+            let trajectory = plan.trajectory(&map).map_err(CliError::Script)?;
             (Box::new(SimulatedArm::new(arm_config, trajectory)), info)
         }
         DeviceSpec::Replay { file } => {
             let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
-            return run_replay(args, &script, field, replay);
+            return run_replay(args, &plan, &start, &session_path, replay);
         }
         hw => {
             let d = dynaclay_devices::open::build_driver(
@@ -101,48 +152,169 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         ),
         None => device,
     };
-    let mut config = EngineConfig::for_script(&field, &info, &script);
+    let mut config = EngineConfig::for_field(&field, &info);
+    config.sim.material = start.material.uniform;
     if !args.rt {
         config.haptic_rt_priority = None;
     }
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
+    let autosave = Autosave::new(
+        &session_path,
+        script.autosave.unwrap_or_default().into(),
+        Instant::now(),
+    );
 
-    let engine =
-        Engine::start(&config, field, device, Box::new(HeadlessSink::default())).map_err(|e| {
-            match e {
-                EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
-                other => CliError::Engine(other),
-            }
-        })?;
+    let engine = Engine::start_with(
+        &config,
+        field,
+        device,
+        Box::new(HeadlessSink::default()),
+        Some(autosave),
+    )
+    .map_err(|e| match e {
+        EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
+        other => CliError::Engine(other),
+    })?;
     let rt = engine.haptic_rt();
     println!(
-        "dynaclay run: {seconds:.1} s, device {}, haptic priority: {rt}",
+        "dynaclay run: {seconds:.1} s, script {file}, device {}, haptic priority: {rt}",
         args.device
     );
+    note_short_run(seconds, &plan);
+    let mut driver = ScriptDriver::new(&plan);
+    let commands = engine.commands();
+    let mut engine = engine;
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs_f64(seconds) && engine.is_alive() {
-        std::thread::sleep(Duration::from_millis(20));
+        let sample = engine.latest_tool();
+        driver.dispatch(&sample, &commands);
+        std::thread::sleep(Duration::from_millis(2));
     }
+    drop(commands);
     let report = engine.stop().map_err(CliError::Engine)?;
-    let outputs = write_outputs(&args.out, &report, &config, args.ply, args.stl)?;
+    let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
+    finish_run(&session_path, &mut driver, &report.io)?;
     Ok(outputs)
 }
 
+/// The optional outputs `args` ask for; `--png` with no file means `DIR/sculpt.png`.
+fn extras(args: &RunArgs) -> ExtraOutputs {
+    ExtraOutputs {
+        ply: args.ply,
+        stl: args.stl,
+        png: args.png.as_ref().map(|file| {
+            let path = file.clone().unwrap_or_else(|| args.out.join("sculpt.png"));
+            (path, args.image.clone())
+        }),
+    }
+}
+
+/// The session a run starts from: the recovery file with `--recover`, else the script's clay.
+/// A recovery file newer than the session (unsaved work of a crashed run) stops a run without
+/// `--recover`, so it is never overwritten unseen.
+fn starting_session(
+    recover: bool,
+    script: &crate::io::Script,
+    session_path: &Path,
+) -> Result<Session, CliError> {
+    let found = find_recovery(session_path);
+    match (found, recover) {
+        (Some(r), true) => {
+            let session =
+                load_session(&r.path).map_err(|e| CliError::Output(format!("--recover: {e}")))?;
+            if session.clay.patches.is_empty() {
+                return Err(CliError::Output(format!(
+                    "--recover: {} holds no clay",
+                    r.path.display()
+                )));
+            }
+            println!(
+                "dynaclay run: starting from recovery file {}",
+                r.path.display()
+            );
+            Ok(session)
+        }
+        (Some(r), false) => Err(CliError::Usage(format!(
+            "recovery file {} is newer than session {}{}; pass --recover to start from it \
+             (or remove it to start afresh)",
+            r.path.display(),
+            session_path.display(),
+            if session_path.exists() {
+                ""
+            } else {
+                " (never saved)"
+            }
+        ))),
+        (None, true) => Err(CliError::Usage(format!(
+            "--recover: no recovery file newer than {} (looked for {})",
+            session_path.display(),
+            recovery_path_for(session_path).display()
+        ))),
+        (None, false) => {
+            let clay = build_clay(&script.clay.unwrap_or_default())
+                .map_err(|e| CliError::Output(format!("starting clay: fit failed: {e}")))?;
+            Ok(Session {
+                clay: crate::tools::Clay::single(clay),
+                material: MaterialFields::default(),
+                ..Session::default()
+            })
+        }
+    }
+}
+
+fn note_short_run(seconds: f64, plan: &ScriptPlan) {
+    if seconds < plan.end_s {
+        println!(
+            "note: the run ends at {seconds:.1} s, before the script's last step ends at {:.1} s",
+            plan.end_s
+        );
+    }
+}
+
+/// After a finished run whose session was written: removes the recovery file, reports
+/// failed autosaves and steps, and fails on a failed script step.
+fn finish_run(
+    session_path: &Path,
+    driver: &mut ScriptDriver,
+    io: &IoReport,
+) -> Result<(), CliError> {
+    // The session was saved normally: the recovery file holds nothing newer.
+    let mut autosave = Autosave::new(session_path, Default::default(), Instant::now());
+    autosave
+        .discard(Instant::now())
+        .map_err(|e| CliError::Output(e.to_string()))?;
+    for e in &io.errors {
+        eprintln!("dynaclay: autosave or save failed: {e}");
+    }
+    let unsent = driver.unsent_steps();
+    if !unsent.is_empty() {
+        println!("note: script steps {unsent:?} were not reached");
+    }
+    let failures = driver.failures().to_vec();
+    for e in failures.iter().skip(1) {
+        eprintln!("dynaclay: script error: {e}");
+    }
+    match failures.into_iter().next() {
+        Some(first) => Err(CliError::Script(first)),
+        None => Ok(()),
+    }
+}
+
 /// Replays a recording through the deterministic lockstep engine: one recorded sample, one
-/// simulation step, until the recording ends. The same recording always gives the same field.
+/// simulation step, until the recording ends; the script's non-stroke steps are sent on the
+/// recording's clock. The same recording always gives the same field.
 fn run_replay(
     args: &RunArgs,
-    script: &Script,
-    field: BSplineLattice,
+    plan: &ScriptPlan,
+    start: &Session,
+    session_path: &Path,
     replay: ReplayDevice,
 ) -> Result<RunOutputs, CliError> {
     let samples = replay.read_count();
     let info = replay.info();
-    let config = EngineConfig::for_script(&field, &info, script);
-    std::fs::create_dir_all(&args.out)
-        .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
+    let field = start.clay.patches[0].clone();
+    let mut config = EngineConfig::for_field(&field, &info);
+    config.sim.material = start.material.uniform;
     let mut lockstep = Lockstep::new(
         &config,
         field,
@@ -152,12 +324,17 @@ fn run_replay(
     )
     .map_err(CliError::Engine)?;
     println!("dynaclay run: replaying {samples} samples in lockstep");
+    let mut driver = ScriptDriver::new(plan);
+    let commands = lockstep.commands();
     for _ in 0..samples {
+        let sample = lockstep.latest_tool();
+        driver.dispatch(&sample, &commands);
         lockstep.step();
     }
     let report = lockstep.finish().map_err(CliError::Engine)?;
     let outputs =
-        super::outputs::write_lockstep_outputs(&args.out, &report, &config, args.ply, args.stl)?;
+        super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
+    finish_run(session_path, &mut driver, &report.io)?;
     Ok(outputs)
 }

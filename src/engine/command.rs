@@ -1,15 +1,20 @@
-//! Non-real-time commands to the engine, applied by the simulation thread between steps.
+//! Non-real-time commands to the engine, applied by the simulation thread between steps, and
+//! the tool the device holds.
 
 use std::path::PathBuf;
 
 use crossbeam::channel::Sender;
+use glam::Vec3;
 
 use crate::dynamics::{Distribution, Material};
 use crate::io::Session;
+use crate::tools::{Clay, ForceTool, GeometricTool, ToolAction, ToolPose};
 
-/// The force tool: how the push's force vector is spread over mass points (Hua & Qin §7.2.1).
+/// The contact push (the default tool): while a stroke is held and the tip is inside the clay,
+/// the force vector from the surface above the tip to the tip (Hua & Qin §7.2.1) is spread
+/// over the mass points by `distribution`.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ForceTool {
+pub struct PushTool {
     /// Spread shape `β`.
     pub distribution: Distribution,
     /// Spread radius around the force vector, field units.
@@ -18,7 +23,7 @@ pub struct ForceTool {
     pub gain: f32,
 }
 
-impl Default for ForceTool {
+impl Default for PushTool {
     fn default() -> Self {
         Self {
             distribution: Distribution::Gaussian,
@@ -28,20 +33,104 @@ impl Default for ForceTool {
     }
 }
 
+/// A force tool of the dynamics (grab, area, curve, chisel, squirt, pull, bend) with the
+/// inputs it needs besides the cursor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ForceStrokeTool {
+    /// The tool and its parameters.
+    pub tool: ForceTool,
+    /// The user curve of a curve tool, field coordinates (ignored by the others).
+    pub curve: Vec<Vec3>,
+    /// The pivot of a bend, field coordinates (ignored by the others).
+    pub pivot: Vec3,
+}
+
+/// The tool the device holds: what a stroke (button 0 held, or a stroke armed by command)
+/// does.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ToolChoice {
+    /// The contact push, felt through the haptic contact.
+    Push(PushTool),
+    /// A force tool: its per-tick force vectors drive the dynamics.
+    Force(ForceStrokeTool),
+    /// A geometric tool applied at the tip while the stroke is held (no contact force).
+    Geometric(GeometricTool),
+}
+
+impl Default for ToolChoice {
+    fn default() -> Self {
+        Self::Push(PushTool::default())
+    }
+}
+
+impl From<PushTool> for ToolChoice {
+    fn from(t: PushTool) -> Self {
+        Self::Push(t)
+    }
+}
+
+impl From<GeometricTool> for ToolChoice {
+    fn from(t: GeometricTool) -> Self {
+        Self::Geometric(t)
+    }
+}
+
+impl ToolChoice {
+    /// Short name for undo labels and messages.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Push(_) => "push",
+            Self::Force(f) => f.tool.name(),
+            Self::Geometric(g) => g.action.name(),
+        }
+    }
+}
+
+/// Where a command's outcome goes: `Ok` with a short account, or the error message.
+pub type Reply = Sender<Result<String, String>>;
+
 /// A request to the simulation thread. Each is applied between two steps, in order.
 #[derive(Debug)]
 pub enum Command {
-    /// Use this force tool from the next step on.
-    SetTool(ForceTool),
+    /// Use this tool from the next step on (a held stroke ends first).
+    SetTool(ToolChoice),
     /// Use this material for regions created from now on.
     SetMaterial(Material),
     /// Arm a stroke (as if button 0 were held) until [`Command::StrokeStop`].
     StrokeStart,
     /// Disarm a stroke armed by [`Command::StrokeStart`].
     StrokeStop,
-    /// Undo the latest stroke (one stroke is one step).
+    /// Apply a geometric tool at each pose in turn over `duration_s` of tool dwell (one undo
+    /// step), as a script's `tool` step does.
+    ApplyTool {
+        /// The tool.
+        tool: GeometricTool,
+        /// Where it is applied, field coordinates.
+        poses: Vec<ToolPose>,
+        /// Total dwell time, seconds (split evenly over the poses).
+        duration_s: f32,
+        /// Which density patch.
+        patch: u16,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// CSG between the clay and another clay (one undo step): `op` is
+    /// [`ToolAction::Union`], [`ToolAction::Intersection`] or [`ToolAction::Difference`].
+    Csg {
+        /// The operation.
+        op: ToolAction,
+        /// The other operand (loaded by the caller: the simulation thread does no file I/O).
+        other: Box<Clay>,
+        /// Which density patch.
+        patch: u16,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Undo the latest stroke or tool step (one stroke is one step); nothing to undo is not
+    /// an error.
     Undo,
-    /// Redo the latest undone stroke.
+    /// Redo the latest undone step.
     Redo,
     /// Copy the current session (field, material) and send it on `reply`; the receiver writes
     /// files, so the simulation thread never does disk I/O.
@@ -68,6 +157,6 @@ pub enum Command {
         /// The file it came from (for messages).
         source: PathBuf,
         /// Optional result channel.
-        reply: Option<Sender<Result<String, String>>>,
+        reply: Option<Reply>,
     },
 }

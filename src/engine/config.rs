@@ -6,10 +6,10 @@ use dynaclay_devices::{DeviceInfo, SafetyConfig};
 use glam::Vec3;
 
 use super::contact::ContactConfig;
-use super::script::{ClayShape, ClaySpec, Script};
 use super::simulation::SimConfig;
 use super::workspace::WorkspaceMap;
 use crate::field::{BSplineLattice, FitError, Primitive, lattice_from_primitive};
+use crate::io::{ClayShape, ClaySpec};
 
 /// Knot spacing of the starting clay, field units.
 pub const CLAY_SPACING: f32 = 0.1;
@@ -68,15 +68,6 @@ impl EngineConfig {
             lockstep_steps_per_sample: 1,
             safety: SafetyConfig::default(),
         }
-    }
-
-    /// [`EngineConfig::for_field`] with the script's material and tool.
-    #[must_use]
-    pub fn for_script(field: &BSplineLattice, info: &DeviceInfo, script: &Script) -> Self {
-        let mut c = Self::for_field(field, info);
-        c.sim.material = script.material();
-        c.sim.tool = script.tool();
-        c
     }
 }
 

@@ -154,10 +154,11 @@ impl HapticStage {
         };
 
         let stamped = self.patches.latest();
-        let (version, age, stroke_armed) = (
+        let (version, age, stroke_armed, contact_enabled) = (
             stamped.version,
             stamped.age_at(now),
             stamped.value.stroke_armed,
+            stamped.value.contact_enabled,
         );
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
             stamped.value.apply_to(&mut self.field);
@@ -173,7 +174,9 @@ impl HapticStage {
         }
         let tip = self.map.to_field(state.position_m);
         let stroke_active = state.button(0) || stroke_armed;
-        let contact = self.contact.update(&self.field, tip, stroke_active);
+        let contact = self
+            .contact
+            .update(&self.field, tip, stroke_active && contact_enabled);
         if contact.in_contact {
             self.counters.contact_ticks(1);
         }
@@ -262,30 +265,43 @@ mod tests {
 
     use dynaclay_devices::{SimArmConfig, SimulatedArm};
 
-    use super::super::{EngineConfig, HeadlessSink, Script, build, build_clay};
+    use super::super::{EngineConfig, HeadlessSink, ScriptPlan, build, build_clay};
+    use crate::dynamics::Material;
+    use crate::io::parse_script;
 
     /// A push along the top of the block (the whole-engine tests' stroke).
     const PUSH: &str = r#"
+version = 1
+
 [clay]
 shape = "block"
 resolution = 20
 
-[[stroke]]
+[[step]]
+do = "stroke"
 start_s = 0.1
 path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]
 duration_s = 1.0
-hover = 0.3
+hover_m = 0.3
 "#;
 
     #[test]
     fn a_force_limit_request_clamps_the_output_from_the_next_tick() {
-        let script = Script::parse(PUSH, "test").unwrap();
-        let field = build_clay(&script.clay).unwrap();
+        let script = parse_script(PUSH, "test").unwrap();
+        let plan = ScriptPlan::new(
+            &script,
+            "test",
+            std::path::Path::new("."),
+            &[],
+            Material::PLASTIC,
+        )
+        .unwrap();
+        let field = build_clay(&plan.clay).unwrap();
         let arm = SimArmConfig::default();
         let device_max_n = arm.info.max_force_n;
-        let mut config = EngineConfig::for_script(&field, &arm.info, &script);
+        let mut config = EngineConfig::for_field(&field, &arm.info);
         config.safety.soft_start_s = 0.0;
-        let trajectory = script.trajectory(&config.map).unwrap();
+        let trajectory = plan.trajectory(&config.map).unwrap();
         let device = Box::new(SimulatedArm::new(arm, trajectory));
         let mut stages = build(
             &config,

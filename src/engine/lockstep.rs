@@ -14,14 +14,18 @@ use super::counters::{CounterSnapshot, EngineCounters};
 use super::error::EngineError;
 use super::graphics::MeshSink;
 use super::haptic::HapticOutcome;
+use super::io_worker::{IoReport, IoWorker};
+use super::simulation::SimulationStage;
+use super::tool_sample::ToolSample;
 use super::wiring::{Stages, build};
 use crate::field::BSplineLattice;
-use crate::io::Session;
+use crate::io::{Autosave, Session};
 use crate::mesh::BrickOctree;
 
 /// A lockstep run in progress.
 pub struct Lockstep {
     stages: Stages,
+    io: IoWorker,
     steps_per_sample: u32,
     graphics_every: u64,
     ticks: u64,
@@ -37,6 +41,8 @@ pub struct LockstepReport {
     pub safety: SafetyCounters,
     /// The graphics stage's final octree.
     pub octree: BrickOctree,
+    /// Saves and autosaves written, and their failures.
+    pub io: IoReport,
 }
 
 impl Lockstep {
@@ -52,8 +58,11 @@ impl Lockstep {
         sink: Box<dyn MeshSink>,
         graphics_every: u64,
     ) -> Result<Self, EngineError> {
+        let stages = build(config, field, device, sink, true)?;
+        let io = IoWorker::new(stages.io_jobs.clone(), stages.commands.clone());
         Ok(Self {
-            stages: build(config, field, device, sink, true)?,
+            stages,
+            io,
             steps_per_sample: config.lockstep_steps_per_sample.max(1),
             graphics_every: graphics_every.max(1),
             ticks: 0,
@@ -64,6 +73,11 @@ impl Lockstep {
     #[must_use]
     pub fn commands(&self) -> Sender<Command> {
         self.stages.commands.clone()
+    }
+
+    /// Autosaves with `autosave` from now on (checked after every sample).
+    pub fn set_autosave(&mut self, autosave: Autosave) {
+        self.io.set_autosave(autosave);
     }
 
     /// The live counters.
@@ -84,7 +98,19 @@ impl Lockstep {
         if self.ticks.is_multiple_of(self.graphics_every) {
             self.stages.graphics.tick();
         }
+        self.io.poll(Instant::now());
         out
+    }
+
+    /// The newest tool sample (for script drivers: its device time is the script clock).
+    pub fn latest_tool(&mut self) -> ToolSample {
+        self.stages.tool_monitor.latest().value
+    }
+
+    /// The simulation stage (its clay, history and tool).
+    #[must_use]
+    pub fn sim(&self) -> &SimulationStage {
+        &self.stages.sim
     }
 
     /// The simulation's current field.
@@ -104,8 +130,11 @@ impl Lockstep {
     /// # Errors
     /// When closing the device fails (the report is lost then only if it did).
     pub fn finish(mut self) -> Result<LockstepReport, EngineError> {
+        self.stages.sim.apply_commands();
         self.stages.sim.finish();
+        self.stages.sim.publish_now();
         self.stages.graphics.tick();
+        self.io.poll(Instant::now());
         let safety = self.stages.haptic.device().counters();
         self.stages.haptic.device_mut().close()?;
         Ok(LockstepReport {
@@ -113,6 +142,7 @@ impl Lockstep {
             counters: self.stages.counters.snapshot(),
             safety,
             octree: self.stages.graphics.octree().clone(),
+            io: self.io.report().clone(),
         })
     }
 }

@@ -1,6 +1,7 @@
 //! The three loops wired together: haptic (1 kHz), simulation and graphics, exchanging state
-//! only through lock-free triple buffers, plus a deterministic single-thread lockstep mode and
-//! the headless run script.
+//! only through lock-free triple buffers, plus the I/O worker (saves, autosave), a
+//! deterministic single-thread lockstep mode, and the layout and driver that play a script
+//! (the one format of [`crate::io::Script`]) through the engine.
 
 mod command;
 mod config;
@@ -10,9 +11,12 @@ mod error;
 mod force_limit;
 mod graphics;
 mod haptic;
+mod io_worker;
+mod live_tool;
 mod lockstep;
 mod patch;
-mod script;
+mod plan;
+mod script_driver;
 mod sim_status;
 mod simulation;
 mod threaded;
@@ -20,7 +24,7 @@ mod tool_sample;
 mod wiring;
 mod workspace;
 
-pub use command::{Command, ForceTool};
+pub use command::{Command, ForceStrokeTool, PushTool, Reply, ToolChoice};
 pub use config::{CLAY_SPACING, EngineConfig, build_clay};
 pub use contact::{Contact, ContactConfig, ContactForce, MAX_PROBES};
 pub use counters::{CounterSnapshot, EngineCounters};
@@ -28,13 +32,19 @@ pub use error::EngineError;
 pub use force_limit::ForceLimit;
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
+pub use io_worker::{IoReport, IoWorker};
+pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use patch::{FieldPatch, union_box};
-pub use script::{
-    ClayShape, ClaySpec, DEFAULT_SCRIPT, MaterialSpec, Script, ScriptError, StrokeSpec, ToolSpec,
+pub use plan::{
+    APPROACH_S, DEFAULT_SCRIPT, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S, ScriptPlan,
+    TRAVEL_S, builtin_script,
 };
+pub use script_driver::ScriptDriver;
 pub use sim_status::SimStatus;
-pub use simulation::{Acks, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable};
+pub use simulation::{
+    Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
+};
 pub use threaded::{Engine, EngineReport};
 pub use tool_sample::ToolSample;
 pub use wiring::{Stages, build};

@@ -23,6 +23,9 @@ pub struct FieldPatch {
     pub coeffs: Vec<f32>,
     /// Whether a stroke was armed by command (in addition to the device's button 0).
     pub stroke_armed: bool,
+    /// Whether the held tool renders contact (the push and force tools do; a geometric tool
+    /// sculpts where the tip is and pushes nothing back).
+    pub contact_enabled: bool,
     /// Simulated time at publication, seconds.
     pub sim_time_s: f64,
     /// Simulation steps taken when this was published.
@@ -38,6 +41,7 @@ impl FieldPatch {
             coeff_box: None,
             coeffs: Vec::with_capacity(lattice.coeffs.len()),
             stroke_armed: false,
+            contact_enabled: true,
             sim_time_s: 0.0,
             sim_step: 0,
         }

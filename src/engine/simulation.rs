@@ -1,11 +1,20 @@
-//! The simulation stage: applies the tool's force vector to the mass points of a local region
-//! around the tool, steps the density-spring dynamics, and publishes the field to the haptic
-//! and graphics loops.
+//! The simulation stage: applies the held tool — the contact push's or a force tool's force
+//! vectors to the mass points of a local region around them, or a geometric tool at the tip —
+//! steps the density-spring dynamics, applies non-real-time commands (tool steps, CSG,
+//! undo/redo, material, saves) between steps, and publishes the field to the haptic and
+//! graphics loops.
 //!
-//! Not hard real-time: it allocates when a region is created or moved, when a stroke's undo
-//! step is recorded, and when commands are applied; it never blocks on another loop. All
-//! decisions depend only on the tool samples, the commands and step counts — never on wall
-//! time — so a lockstep run is reproducible bit for bit.
+//! Not hard real-time: it allocates when a region is created or moved, when a geometric tool
+//! is applied, when a stroke's undo step is recorded, and when commands are applied; it never
+//! blocks on another loop and never does file I/O (saves go to the I/O thread). All decisions
+//! depend only on the tool samples, the commands and step counts — never on wall time — so a
+//! lockstep run is reproducible bit for bit.
+//!
+//! Undo rule: one stroke (button 0 down to up) is one undo step. Every write to the clay is
+//! preceded by a [`StepRecorder::touch`] of its box. A stroke's step is committed when the
+//! stroke ends if no dynamics region is alive; otherwise when the region retires (the clay has
+//! stopped moving), when the next stroke starts, or before any command that edits the clay —
+//! so every change belongs to exactly one step and undo restores the field bit for bit.
 //!
 //! Publication rule: every step publishes to both readers a [`FieldPatch`] whose box is the
 //! current region plus every box changed elsewhere (a retired region, an undo) that a reader
@@ -21,15 +30,19 @@ use crossbeam::channel::{Receiver, Sender};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
-use super::command::{Command, ForceTool};
+use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
+use super::live_tool::LiveTool;
 use super::patch::{FieldPatch, union_box};
 use super::sim_status::SimStatus;
 use super::tool_sample::ToolSample;
-use crate::dynamics::{Material, RegionState, Simulator, StepParams, ToolForce};
+use crate::dynamics::{Material, RegionState, Simulator, StepParams};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
-use crate::tools::{Clay, FieldId, History, StepRecorder};
+use crate::tools::{
+    ApplyOptions, Clay, FieldId, History, StepRecorder, ToolPose, ToolReport, apply_csg,
+    apply_stroke, apply_tool,
+};
 
 /// Settings of the simulation stage.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -38,8 +51,8 @@ pub struct SimConfig {
     pub material: Material,
     /// Step parameters (time step, adaptivity).
     pub step: StepParams,
-    /// The force tool.
-    pub tool: ForceTool,
+    /// The contact push held at the start (a [`Command::SetTool`] changes the tool).
+    pub tool: PushTool,
     /// Half the edge of the simulated region around the tool, field units.
     pub region_half: f32,
     /// Mass points per knot span inside the region.
@@ -49,6 +62,8 @@ pub struct SimConfig {
     pub retire_after_steps: u32,
     /// Memory bound of the undo history, bytes.
     pub history_budget_bytes: usize,
+    /// Least device time between two applications of a held geometric tool, microseconds.
+    pub geometric_interval_us: u64,
 }
 
 impl Default for SimConfig {
@@ -56,13 +71,23 @@ impl Default for SimConfig {
         Self {
             material: Material::PLASTIC,
             step: StepParams::default(),
-            tool: ForceTool::default(),
+            tool: PushTool::default(),
             region_half: 0.5,
             samples_per_span: 2,
             retire_after_steps: 400,
             history_budget_bytes: crate::tools::DEFAULT_BUDGET_BYTES,
+            geometric_interval_us: 10_000,
         }
     }
+}
+
+/// Work the simulation thread hands to the I/O thread.
+#[derive(Debug)]
+pub enum IoJob {
+    /// Write a session file (boxed: a session is large and autosave notes are frequent).
+    Save(Box<SaveJob>),
+    /// An undo step was committed (a stroke or a tool step ended): counts toward autosave.
+    Committed,
 }
 
 /// A save the simulation thread hands to whoever does the file I/O.
@@ -102,6 +127,7 @@ pub struct SimulationStage {
     clay: Clay,
     history: History,
     recorder: Option<StepRecorder>,
+    tool: LiveTool,
     simulator: Simulator,
     region: Option<RegionState>,
     idle_steps: u32,
@@ -114,7 +140,7 @@ pub struct SimulationStage {
     pending: Option<CoeffBox>,
     pending_since: u64,
     commands: Receiver<Command>,
-    saves: Option<Sender<SaveJob>>,
+    io: Option<Sender<IoJob>>,
     counters: EngineCounters,
     steps: u64,
     sim_time_s: f64,
@@ -135,7 +161,7 @@ impl SimulationStage {
         to_graphics: SnapshotWriter<FieldPatch>,
         acks: Acks,
         commands: Receiver<Command>,
-        saves: Option<Sender<SaveJob>>,
+        io: Option<Sender<IoJob>>,
         counters: EngineCounters,
     ) -> Self {
         let scratch = RegionSnapshot::with_capacity(lattice.coeffs.len());
@@ -145,6 +171,7 @@ impl SimulationStage {
             clay: Clay::single(lattice),
             history: History::new(config.history_budget_bytes),
             recorder: None,
+            tool: LiveTool::new(ToolChoice::Push(config.tool)),
             simulator: Simulator::new(config.step),
             region: None,
             idle_steps: 0,
@@ -157,7 +184,7 @@ impl SimulationStage {
             pending: None,
             pending_since: 0,
             commands,
-            saves,
+            io,
             counters,
             steps: 0,
             sim_time_s: 0.0,
@@ -198,6 +225,18 @@ impl SimulationStage {
         self.history.undo_len()
     }
 
+    /// Redo steps available.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.history.redo_len()
+    }
+
+    /// The tool held.
+    #[must_use]
+    pub fn tool(&self) -> &ToolChoice {
+        self.tool.choice()
+    }
+
     /// Applies every queued command (non-blocking).
     pub fn apply_commands(&mut self) {
         while let Ok(cmd) = self.commands.try_recv() {
@@ -212,7 +251,9 @@ impl SimulationStage {
     fn apply(&mut self, cmd: Command) -> bool {
         match cmd {
             Command::SetTool(tool) => {
-                self.config.tool = tool;
+                // A held stroke ends with the tool it was made with.
+                self.end_stroke_now();
+                self.tool.set(tool);
                 true
             }
             Command::SetMaterial(m) => {
@@ -227,8 +268,49 @@ impl SimulationStage {
                 self.stroke_armed = false;
                 true
             }
+            Command::ApplyTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let mut rec = StepRecorder::new(tool.action.name());
+                let options = ApplyOptions {
+                    patch,
+                    ..ApplyOptions::default()
+                };
+                let result = apply_stroke(
+                    &mut self.clay,
+                    &tool,
+                    &poses,
+                    duration_s,
+                    &options,
+                    Some(&mut rec),
+                );
+                // Whatever was applied before a failure stays undoable.
+                self.commit(rec);
+                self.edited(result, tool.action.name(), reply)
+            }
+            Command::Csg {
+                op,
+                other,
+                patch,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let mut rec = StepRecorder::new(format!("csg {}", op.name()));
+                let options = ApplyOptions {
+                    patch,
+                    ..ApplyOptions::default()
+                };
+                let result = apply_csg(&mut self.clay, &other, op, &options, Some(&mut rec));
+                self.commit(rec);
+                self.edited(result, op.name(), reply)
+            }
             Command::Undo | Command::Redo => {
-                self.retire_region();
+                self.end_stroke_now();
                 let whole = CoeffBox::whole(self.lattice().dims);
                 let done = if matches!(cmd, Command::Undo) {
                     self.history.undo(&mut self.clay)
@@ -251,13 +333,13 @@ impl SimulationStage {
                 }
                 ok
             }
-            Command::Save { path, reply } => match &self.saves {
-                Some(saves) => saves
-                    .send(SaveJob {
+            Command::Save { path, reply } => match &self.io {
+                Some(io) => io
+                    .send(IoJob::Save(Box::new(SaveJob {
                         path,
                         session: self.session(),
                         reply,
-                    })
+                    })))
                     .is_ok(),
                 None => {
                     if let Some(r) = reply {
@@ -269,44 +351,87 @@ impl SimulationStage {
         }
     }
 
-    /// One step under `sample`: region upkeep, dynamics, publication.
+    /// Publishes a tool or CSG edit's box and answers `reply`; returns whether it succeeded.
+    fn edited(
+        &mut self,
+        result: Result<ToolReport, crate::tools::ToolError>,
+        what: &str,
+        reply: Option<Reply>,
+    ) -> bool {
+        let answer = match result {
+            Ok(report) => {
+                if let Some(b) = report.coeff_box {
+                    self.mark_changed(b);
+                }
+                Ok(format!(
+                    "{what}: {} samples visited, {} dirtied",
+                    report.visited, report.dirtied
+                ))
+            }
+            Err(e) => {
+                // A failed application may have applied earlier poses: publish the patch.
+                self.mark_changed(CoeffBox::whole(self.lattice().dims));
+                Err(format!("{what}: {e}"))
+            }
+        };
+        let ok = answer.is_ok();
+        if let Some(r) = reply {
+            let _ = r.send(answer);
+        }
+        ok
+    }
+
+    /// One step under `sample`: stroke bookkeeping, the held tool, region upkeep, dynamics,
+    /// publication.
     pub fn step(&mut self, sample: &ToolSample) -> SimOutcome {
         let mut out = SimOutcome::default();
         let active = sample.stroke_active;
         if active && !self.was_active {
             // A new stroke is a new undo step.
             self.commit_recorder();
-            self.recorder = Some(StepRecorder::new("stroke"));
+            self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
+            self.tool.end_stroke();
+        } else if !active && self.was_active {
+            self.tool.end_stroke();
+            if self.region.is_none() {
+                // Nothing keeps moving: the stroke's step is complete.
+                self.commit_recorder();
+            }
         }
         self.was_active = active;
 
-        let push = sample.in_contact
-            && sample.force_from.is_finite()
-            && sample.force_to.is_finite()
-            && sample.force_from != sample.force_to;
-        if push {
-            self.ensure_region(sample.force_from, sample.force_to);
-            self.idle_steps = 0;
-        } else if self.region.is_some() {
-            self.idle_steps += 1;
-            if self.idle_steps > self.config.retire_after_steps {
-                self.retire_region();
-            }
+        if let Some(dwell_s) = self
+            .tool
+            .geometric_due(sample, self.config.geometric_interval_us)
+        {
+            self.apply_held_geometric(sample.tip, dwell_s);
         }
+
+        let mass_step = self.lattice().spacing / self.config.samples_per_span.max(1) as f32;
+        self.tool
+            .update_forces(sample, &self.clay.patches[0], mass_step);
+        let push = match self.tool.force_bounds() {
+            Some((lo, hi)) => {
+                self.ensure_region(lo, hi);
+                self.idle_steps = 0;
+                true
+            }
+            None => {
+                if self.region.is_some() {
+                    self.idle_steps += 1;
+                    if self.idle_steps > self.config.retire_after_steps {
+                        self.retire_region();
+                    }
+                }
+                false
+            }
+        };
 
         if let Some(region) = self.region.as_mut() {
             if let Some(rec) = self.recorder.as_mut() {
                 rec.touch(&self.clay, FieldId::Density(0), region.coeff_box());
             }
-            let tool = self.config.tool;
-            let forces = [ToolForce {
-                start: sample.force_from,
-                end: sample.force_to,
-                distribution: tool.distribution,
-                radius: tool.radius,
-                gain: tool.gain,
-            }];
-            let forces: &[ToolForce] = if push { &forces } else { &[] };
+            let forces = if push { self.tool.forces() } else { &[] };
             let lattice = &mut self.clay.patches[0];
             match self
                 .simulator
@@ -330,11 +455,38 @@ impl SimulationStage {
         out
     }
 
-    /// Makes sure the region covers the force vector `from → to` with its spread.
-    fn ensure_region(&mut self, from: Vec3, to: Vec3) {
-        let r = Vec3::splat(self.config.tool.radius);
+    /// Applies the held geometric tool at `tip` for `dwell_s` (recorded in the stroke's step),
+    /// reloads the dynamics region it may have changed and marks the box for publication.
+    fn apply_held_geometric(&mut self, tip: Vec3, dwell_s: f32) {
+        let ToolChoice::Geometric(tool) = self.tool.choice() else {
+            return;
+        };
+        let result = apply_tool(
+            &mut self.clay,
+            tool,
+            &ToolPose::at(tip),
+            dwell_s,
+            &ApplyOptions::default(),
+            self.recorder.as_mut(),
+        );
+        match result {
+            Ok(report) => {
+                if let Some(b) = report.coeff_box {
+                    if let Some(region) = self.region.as_mut() {
+                        // The region's own copy of the coefficients is stale now.
+                        region.reload(&self.clay.patches[0]);
+                    }
+                    self.mark_changed(b);
+                }
+            }
+            Err(_) => self.counters.command_errors(1),
+        }
+    }
+
+    /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread).
+    fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
         let lattice = &self.clay.patches[0];
-        let Some(needed) = coeff_box_around(lattice, from.min(to) - r, from.max(to) + r, 0) else {
+        let Some(needed) = coeff_box_around(lattice, lo, hi, 0) else {
             return;
         };
         if let Some(region) = &self.region {
@@ -344,7 +496,7 @@ impl SimulationStage {
             }
         }
         let half = Vec3::splat(self.config.region_half);
-        let centre = (from + to) * 0.5;
+        let centre = (lo + hi) * 0.5;
         let Some(around) = coeff_box_around(lattice, centre - half, centre + half, 0) else {
             return;
         };
@@ -373,8 +525,26 @@ impl SimulationStage {
 
     fn commit_recorder(&mut self) {
         if let Some(rec) = self.recorder.take() {
-            self.history.commit(rec, &self.clay);
+            self.commit(rec);
         }
+    }
+
+    /// Records a finished step and tells the I/O thread (autosave counts strokes).
+    fn commit(&mut self, rec: StepRecorder) {
+        if self.history.commit(rec, &self.clay)
+            && let Some(io) = &self.io
+        {
+            let _ = io.send(IoJob::Committed);
+        }
+    }
+
+    /// Ends a held or settling stroke now: the region retires and the stroke's step is
+    /// committed; a stroke still held continues as a new stroke from the next step.
+    fn end_stroke_now(&mut self) {
+        self.was_active = false;
+        self.retire_region();
+        self.commit_recorder();
+        self.tool.end_stroke();
     }
 
     /// Records that `b` changed outside the region's regular publication.
@@ -410,6 +580,7 @@ impl SimulationStage {
                 }
             }
             patch.stroke_armed = self.stroke_armed;
+            patch.contact_enabled = !matches!(self.tool.choice(), ToolChoice::Geometric(_));
             patch.sim_time_s = self.sim_time_s;
             patch.sim_step = self.steps;
             w.publish();
@@ -442,17 +613,11 @@ impl SimulationStage {
         self.status_reader.take()
     }
 
-    /// Undo steps that can be redone.
-    #[must_use]
-    pub fn redo_len(&self) -> usize {
-        self.history.redo_len()
-    }
-
     /// Installs `session` (read from `source`): the clay and the uniform material replace
     /// the current ones, the active region is dropped, the undo history is cleared (its
     /// steps are differences against the replaced clay, meaningless on the new one) and the
     /// whole field is marked changed so both readers receive all of it. A stroke held across
-    /// the load continues on the new clay as a new undo step.
+    /// the load continues on the new clay as a new stroke (a new undo step).
     ///
     /// # Errors
     /// When the session does not fit the running engine (see [`check_loadable`]); nothing
@@ -460,15 +625,11 @@ impl SimulationStage {
     pub fn load(&mut self, session: Session, source: &std::path::Path) -> Result<String, String> {
         check_loadable(self.lattice(), &session, source)?;
         let ignored_grids = session.material.grids.len();
-        self.region = None;
-        self.idle_steps = 0;
-        self.recorder = None;
+        // The stroke in progress ends on the old clay (its step is dropped with the history).
+        self.end_stroke_now();
         self.history.clear();
         self.clay = session.clay;
         self.config.material = session.material.uniform;
-        if self.was_active {
-            self.recorder = Some(StepRecorder::new("stroke"));
-        }
         let whole = CoeffBox::whole(self.lattice().dims);
         self.mark_changed(whole);
         self.sessions_loaded += 1;
@@ -565,7 +726,7 @@ mod tests {
 
     use super::super::{EngineConfig, HeadlessSink, Stages, build, build_clay};
     use super::*;
-    use crate::engine::{ClayShape, ClaySpec};
+    use crate::io::{ClayShape, ClaySpec};
 
     fn stages() -> Stages {
         let field = build_clay(&ClaySpec {

@@ -22,11 +22,12 @@ use super::error::EngineError;
 use super::force_limit::ForceLimit;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
+use super::io_worker::{IoReport, IoWorker};
 use super::sim_status::SimStatus;
-use super::simulation::{SaveJob, SimulationStage};
+use super::simulation::SimulationStage;
 use super::wiring::build;
 use crate::field::BSplineLattice;
-use crate::io::{Session, load_session, save_session};
+use crate::io::{Autosave, Session, load_session};
 use crate::mesh::BrickOctree;
 
 /// Sends its value back on a channel when dropped, so a loop's closure returns its stage to
@@ -61,7 +62,7 @@ pub struct Engine {
     haptic: LoopHandle,
     sim: LoopHandle,
     graphics: LoopHandle,
-    io: Option<JoinHandle<()>>,
+    io: Option<JoinHandle<IoReport>>,
     commands: Sender<Command>,
     counters: EngineCounters,
     tool: SnapshotReader<ToolSample>,
@@ -87,6 +88,8 @@ pub struct EngineReport {
     pub counters: CounterSnapshot,
     /// The safety filter's counters.
     pub safety: SafetyCounters,
+    /// Saves and autosaves written by the I/O thread, and their failures.
+    pub io: IoReport,
 }
 
 impl Engine {
@@ -103,6 +106,21 @@ impl Engine {
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
     ) -> Result<Self, EngineError> {
+        Self::start_with(config, field, device, sink, None)
+    }
+
+    /// [`Engine::start`] with autosave: the I/O thread writes `autosave`'s recovery file when
+    /// its policy says so (counting committed strokes and tool steps).
+    ///
+    /// # Errors
+    /// As [`Engine::start`].
+    pub fn start_with(
+        config: &EngineConfig,
+        field: BSplineLattice,
+        device: Box<dyn HapticDevice>,
+        sink: Box<dyn MeshSink>,
+        autosave: Option<Autosave>,
+    ) -> Result<Self, EngineError> {
         let mut stages = build(config, field, device, sink, false)?;
         let status = stages
             .sim
@@ -112,10 +130,13 @@ impl Engine {
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
         let tool = stages.tool_monitor;
-        let saves = stages.saves;
+        let mut worker = IoWorker::new(stages.io_jobs, commands.clone());
+        if let Some(a) = autosave {
+            worker.set_autosave(a);
+        }
         let io = std::thread::Builder::new()
             .name("dynaclay-io".into())
-            .spawn(move || run_saves(&saves))
+            .spawn(move || worker.run(Duration::from_millis(50)))
             .map_err(|source| {
                 EngineError::Loop(dynaclay_loops::LoopError::Spawn {
                     loop_name: "io".into(),
@@ -323,9 +344,10 @@ impl Engine {
         let session = sim_stage.session();
         drop(sim_stage);
         drop(self.commands);
-        if let Some(io) = self.io.take() {
-            let _ = io.join();
-        }
+        let io = match self.io.take() {
+            Some(h) => h.join().map_err(|_| EngineError::Lost("io"))?,
+            None => IoReport::default(),
+        };
         Ok(EngineReport {
             session,
             haptic_field: haptic_stage.field().clone(),
@@ -333,18 +355,7 @@ impl Engine {
             loops: vec![haptic, sim, graphics],
             counters: self.counters.snapshot(),
             safety,
+            io,
         })
-    }
-}
-
-/// The I/O thread: writes each save and answers.
-fn run_saves(saves: &Receiver<SaveJob>) {
-    for job in saves {
-        let result = save_session(&job.path, &job.session)
-            .map(|()| job.path.clone())
-            .map_err(|e| e.to_string());
-        if let Some(reply) = job.reply {
-            let _ = reply.send(result);
-        }
     }
 }

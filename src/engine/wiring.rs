@@ -14,7 +14,7 @@ use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
 use super::patch::FieldPatch;
-use super::simulation::{Acks, SaveJob, SimulationStage};
+use super::simulation::{Acks, IoJob, SimulationStage};
 use super::tool_sample::ToolSample;
 use crate::field::BSplineLattice;
 
@@ -29,8 +29,8 @@ pub struct Stages {
     pub tool_monitor: SnapshotReader<ToolSample>,
     /// Where commands go.
     pub commands: Sender<Command>,
-    /// Saves handed out by the simulation.
-    pub saves: Receiver<SaveJob>,
+    /// File work handed out by the simulation (saves, autosave notes).
+    pub io_jobs: Receiver<IoJob>,
     pub counters: EngineCounters,
 }
 
@@ -56,7 +56,7 @@ pub fn build(
     let (samples_tx, samples_rx) = snapshot_channel(&ToolSample::IDLE);
     let (monitor_tx, monitor_rx) = snapshot_channel(&ToolSample::IDLE);
     let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
-    let (save_tx, save_rx) = crossbeam::channel::unbounded();
+    let (io_tx, io_rx) = crossbeam::channel::unbounded();
     let acks = Acks::default();
     let staleness = if lockstep {
         Staleness::new(Duration::MAX, Duration::MAX)
@@ -90,7 +90,7 @@ pub fn build(
         to_graphics,
         acks,
         cmd_rx,
-        Some(save_tx),
+        Some(io_tx),
         counters.clone(),
     );
     Ok(Stages {
@@ -100,7 +100,7 @@ pub fn build(
         samples: samples_rx,
         tool_monitor: monitor_rx,
         commands: cmd_tx,
-        saves: save_rx,
+        io_jobs: io_rx,
         counters,
     })
 }

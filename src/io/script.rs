@@ -1,9 +1,18 @@
-//! The headless script format (TOML): every geometric tool, force stroke, material change,
-//! CSG, undo/redo and save, so any session can be replayed without a device. This module
-//! holds the serde types and the parser, whose errors name the line, column and field.
+//! The one script format of dynaclay (TOML): the starting clay, autosave, and an ordered list
+//! of steps covering every geometric tool, force stroke, material change, CSG, undo/redo and
+//! save, so any session can be scripted. `dynaclay run --script` plays it through the engine
+//! (strokes become the simulated arm's hand trajectory; see `engine::ScriptPlan` for the
+//! timeline); [`super::run_script`] applies it to a session without a device. This module
+//! holds the serde types and the parser, whose errors name the file, line, column and field.
+//! The README's "Script format" section is the user reference.
 //!
 //! ```toml
 //! version = 1
+//! seconds = 4.0                 # optional run length
+//!
+//! [clay]                        # optional starting clay
+//! shape = "block"
+//! resolution = 24
 //!
 //! [[step]]
 //! do = "tool"
@@ -38,8 +47,76 @@ pub const SCRIPT_VERSION: u32 = 1;
 #[serde(deny_unknown_fields)]
 pub struct Script {
     pub version: u32,
+    /// Run length in seconds for a headless run (the command line may override it); default:
+    /// the end of the last step plus half a second.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f64>,
+    /// The clay to start from when no session is given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clay: Option<ClaySpec>,
+    /// Autosave policy of a headless run (default: every 60 s or 20 strokes).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub autosave: Option<AutosaveSpec>,
     #[serde(default, rename = "step")]
     pub steps: Vec<ScriptStep>,
+}
+
+/// The starting clay's shape.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClayShape {
+    /// A box filling the middle half of the lattice.
+    #[default]
+    Block,
+    /// A ball of radius a quarter of the lattice.
+    Sphere,
+}
+
+/// `[clay]`: the starting clay, a lattice of `resolution³` coefficients (see
+/// `engine::build_clay`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ClaySpec {
+    pub shape: ClayShape,
+    /// Coefficients per axis, 8 to 96.
+    pub resolution: usize,
+}
+
+impl Default for ClaySpec {
+    fn default() -> Self {
+        Self {
+            shape: ClayShape::Block,
+            resolution: 24,
+        }
+    }
+}
+
+/// `[autosave]`: write a recovery file every `every_s` seconds or `every_strokes` strokes,
+/// whichever comes first (0 disables that limit).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct AutosaveSpec {
+    pub every_s: f32,
+    pub every_strokes: u32,
+}
+
+impl Default for AutosaveSpec {
+    fn default() -> Self {
+        let p = crate::io::AutosavePolicy::default();
+        Self {
+            every_s: p.every_s,
+            every_strokes: p.every_strokes,
+        }
+    }
+}
+
+impl From<AutosaveSpec> for crate::io::AutosavePolicy {
+    fn from(a: AutosaveSpec) -> Self {
+        Self {
+            every_s: a.every_s,
+            every_strokes: a.every_strokes,
+        }
+    }
 }
 
 /// A tool shape as written in a script; `freeform` names a preset of the session's library.
@@ -101,6 +178,16 @@ impl From<BetaSpec> for Distribution {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ForceToolSpec {
+    /// The contact push (the default tool of a stroke): while the stroke is held and the tip
+    /// is inside the clay, the force vector runs from the surface above the tip to the tip.
+    Push {
+        #[serde(default = "default_beta")]
+        beta: BetaSpec,
+        #[serde(default = "default_push_radius")]
+        radius_m: f32,
+        #[serde(default = "default_push_gain")]
+        gain: f32,
+    },
     Grab {
         gain: f32,
     },
@@ -136,58 +223,100 @@ pub enum ForceToolSpec {
     },
 }
 
-impl From<ForceToolSpec> for ForceTool {
-    fn from(s: ForceToolSpec) -> Self {
-        match s {
-            ForceToolSpec::Grab { gain } => Self::PointGrab { gain },
-            ForceToolSpec::Area {
+fn default_beta() -> BetaSpec {
+    BetaSpec::Gaussian
+}
+
+fn default_push_radius() -> f32 {
+    0.25
+}
+
+fn default_push_gain() -> f32 {
+    2.0e6
+}
+
+impl ForceToolSpec {
+    /// The default tool of a stroke: a Gaussian push of radius 0.25 and gain 2·10⁶.
+    pub const DEFAULT_PUSH: Self = Self::Push {
+        beta: BetaSpec::Gaussian,
+        radius_m: 0.25,
+        gain: 2.0e6,
+    };
+
+    /// The dynamics force tool this names; `None` for the contact push, which the engine's
+    /// haptic contact drives.
+    #[must_use]
+    pub fn force_tool(&self) -> Option<ForceTool> {
+        Some(match *self {
+            Self::Push { .. } => return None,
+            Self::Grab { gain } => ForceTool::PointGrab { gain },
+            Self::Area {
                 beta,
                 radius_m,
                 tracks,
                 gain,
-            } => Self::Area {
+            } => ForceTool::Area {
                 distribution: beta.into(),
                 radius_m,
                 tracks,
                 gain,
             },
-            ForceToolSpec::Curve { radius_m, gain } => Self::Curve { radius_m, gain },
-            ForceToolSpec::Chisel {
+            Self::Curve { radius_m, gain } => ForceTool::Curve { radius_m, gain },
+            Self::Chisel {
                 depth_m,
                 radius_m,
                 gain,
-            } => Self::Chisel {
-                depth_m,
-                radius_m,
-                gain,
-            },
-            ForceToolSpec::Squirt {
-                depth_m,
-                radius_m,
-                gain,
-            } => Self::Squirt {
+            } => ForceTool::Chisel {
                 depth_m,
                 radius_m,
                 gain,
             },
-            ForceToolSpec::Pull {
+            Self::Squirt {
+                depth_m,
+                radius_m,
+                gain,
+            } => ForceTool::Squirt {
+                depth_m,
+                radius_m,
+                gain,
+            },
+            Self::Pull {
                 beta,
                 radius_m,
                 gain,
-            } => Self::Pull {
+            } => ForceTool::Pull {
                 distribution: beta.into(),
                 radius_m,
                 gain,
             },
-            ForceToolSpec::Bend {
+            Self::Bend {
                 samples,
                 radius_m,
                 gain,
-            } => Self::Bend {
+            } => ForceTool::Bend {
                 samples,
                 radius_m,
                 gain,
             },
+        })
+    }
+
+    /// Checks the parameters (radii, depths and gains positive and finite).
+    ///
+    /// # Errors
+    /// Names the parameter.
+    pub fn validate(&self) -> Result<(), String> {
+        match (self, self.force_tool()) {
+            (_, Some(tool)) => tool.validate().map_err(|e| e.0),
+            (Self::Push { radius_m, gain, .. }, None) => {
+                for (name, v) in [("radius_m", *radius_m), ("gain", *gain)] {
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(format!("{name} must be positive and finite, got {v}"));
+                    }
+                }
+                Ok(())
+            }
+            (_, None) => Ok(()),
         }
     }
 }
@@ -219,6 +348,10 @@ fn one() -> u32 {
     1
 }
 
+fn default_hover() -> f32 {
+    0.35
+}
+
 /// One step of a script. Each tool application or stroke is one undo step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
@@ -245,16 +378,41 @@ pub enum ScriptStep {
         #[serde(default)]
         duration_s: f32,
     },
-    /// A force stroke: the cursor follows `path` over `duration_s` (run by the engine).
+    /// A stroke of the device: the (simulated) hand hovers above `path`, descends, follows
+    /// it holding `buttons` and lifts again; run live by the engine. The tool is a force tool
+    /// (`tool`, the contact push by default) or a geometric tool (`shape` and `action`).
     Stroke {
-        tool: ForceToolSpec,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        tool: Option<ForceToolSpec>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        shape: Option<ShapeSpec>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        action: Option<ToolAction>,
+        #[serde(default = "default_falloff")]
+        falloff_m: f32,
+        /// Tip targets, field coordinates.
         path: Vec<[f32; 3]>,
-        duration_s: f32,
+        /// Time along the path (default 1 s, or the last of `times_s`).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        duration_s: Option<f32>,
+        /// When the tip reaches each path point, seconds from the start of the path (instead
+        /// of `duration_s`, which spaces the points evenly).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        times_s: Vec<f32>,
+        /// Earliest time the hand leaves its hover point, seconds from the start of the run.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        start_s: Option<f64>,
+        /// Hover height above the path's ends before and after the stroke.
+        #[serde(default = "default_hover")]
+        hover_m: f32,
+        /// Device buttons held along the path (bit 0 is the stroke button).
+        #[serde(default = "one")]
+        buttons: u32,
         /// The user curve of a curve tool.
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
         curve: Vec<[f32; 3]>,
         /// The pivot of a bend.
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "Option::is_none")]
         pivot: Option<[f32; 3]>,
     },
     /// Change the uniform material; absent fields keep their values.
@@ -418,10 +576,21 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 /// naming the step and its line.
 pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
     let script: Script = toml::from_str(text).map_err(|e| {
+        let message = e.message().trim().to_string();
         let (line, column) = match e.span() {
             Some(span) => {
                 let (l, c) = line_col(text, span.start);
-                (Some(l), Some(c))
+                // Inside a step the parser points at the step's header (tagged steps are
+                // read as a whole); point at the named field's own line when there is one.
+                let header = text
+                    .lines()
+                    .nth(l - 1)
+                    .is_some_and(|h| h.trim_start().starts_with('['));
+                let field = backticked(&message).filter(|_| header);
+                match field.and_then(|key| key_line(text, l, key)) {
+                    Some(field_line) => (Some(field_line), None),
+                    None => (Some(l), Some(c)),
+                }
             }
             None => (None, None),
         };
@@ -430,7 +599,7 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             line,
             column,
             step: None,
-            message: e.message().to_string(),
+            message,
         }
     })?;
     // Steps begin at their `[[step]]` headers; find them for semantic errors.
@@ -440,32 +609,116 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
         .filter(|(_, l)| l.trim_start().starts_with("[[step]]"))
         .map(|(n, _)| n + 1)
         .collect();
-    let at = |n: usize, message: String| ScriptError {
+    let at = |n: usize, message: String| {
+        let header = step_lines.get(n).copied();
+        // Messages begin with the field at fault (`duration_s = -2 must be …`).
+        let key = message
+            .split([' ', '[', ':', '='])
+            .next()
+            .unwrap_or_default();
+        let line = header.map(|h| key_line(text, h, key).unwrap_or(h));
+        ScriptError {
+            file: file.to_string(),
+            line,
+            column: None,
+            step: Some(n + 1),
+            message,
+        }
+    };
+    let top = |key: &str, message: String| ScriptError {
         file: file.to_string(),
-        line: step_lines.get(n).copied(),
+        line: text
+            .lines()
+            .position(|l| l.trim_start().starts_with(key))
+            .map(|n| n + 1),
         column: None,
-        step: Some(n + 1),
+        step: None,
         message,
     };
     if script.version != SCRIPT_VERSION {
-        return Err(ScriptError {
-            file: file.to_string(),
-            line: text
-                .lines()
-                .position(|l| l.trim_start().starts_with("version"))
-                .map(|n| n + 1),
-            column: None,
-            step: None,
-            message: format!(
+        return Err(top(
+            "version",
+            format!(
                 "version = {} is not supported (this build reads version {SCRIPT_VERSION})",
                 script.version
             ),
-        });
+        ));
+    }
+    if let Some(s) = script.seconds
+        && !(s.is_finite() && s > 0.0 && s <= 3600.0)
+    {
+        return Err(top(
+            "seconds",
+            format!("seconds = {s} must be in (0, 3600]"),
+        ));
+    }
+    if let Some(c) = script.clay
+        && !(8..=96).contains(&c.resolution)
+    {
+        return Err(top(
+            "resolution",
+            format!(
+                "clay.resolution = {} must be between 8 and 96",
+                c.resolution
+            ),
+        ));
+    }
+    if let Some(a) = script.autosave
+        && !(a.every_s.is_finite() && a.every_s >= 0.0)
+    {
+        return Err(top(
+            "every_s",
+            format!("autosave.every_s = {} must be finite and ≥ 0", a.every_s),
+        ));
     }
     for (n, step) in script.steps.iter().enumerate() {
         check_step(step).map_err(|m| at(n, m))?;
     }
     Ok(script)
+}
+
+/// Reads and parses the script at `path` (named by its path in errors).
+///
+/// # Errors
+/// When the file cannot be read (no line), or as [`parse_script`].
+pub fn load_script(path: &std::path::Path) -> Result<Script, ScriptError> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| ScriptError {
+        file: file.clone(),
+        line: None,
+        column: None,
+        step: None,
+        message: format!("cannot read the script: {e}"),
+    })?;
+    parse_script(&text, &file)
+}
+
+/// The first `` `name` `` in a parser message.
+fn backticked(message: &str) -> Option<&str> {
+    let start = message.find('`')? + 1;
+    let len = message[start..].find('`')?;
+    Some(&message[start..start + len]).filter(|k| !k.is_empty())
+}
+
+/// The 1-based line where `key = …` is written (also inside an inline table) in the table
+/// whose header is on line `header`, if any.
+fn key_line(text: &str, header: usize, key: &str) -> Option<usize> {
+    if key.is_empty() {
+        return None;
+    }
+    let assigns = |line: &str| {
+        line.match_indices(key).any(|(at, _)| {
+            let before = line[..at].trim_end();
+            let starts = before.is_empty() || before.ends_with('{') || before.ends_with(',');
+            starts && line[at + key.len()..].trim_start().starts_with('=')
+        })
+    };
+    text.lines()
+        .enumerate()
+        .skip(header)
+        .take_while(|(_, l)| !l.trim_start().starts_with('['))
+        .find(|(_, l)| assigns(l))
+        .map(|(n, _)| n + 1)
 }
 
 fn finite(name: &str, v: f32) -> Result<(), String> {
@@ -516,20 +769,74 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
         }
         ScriptStep::Stroke {
             tool,
+            shape,
+            action,
+            falloff_m,
             path,
             duration_s,
+            times_s,
+            start_s,
+            hover_m,
             curve,
             pivot,
+            ..
         } => {
             check_points("path", path, true)?;
             check_points("curve", curve, false)?;
-            finite("duration_s", *duration_s)?;
+            if let Some(d) = duration_s {
+                finite("duration_s", *d)?;
+                if !times_s.is_empty() {
+                    return Err("duration_s: give either duration_s or times_s, not both".into());
+                }
+            }
+            if !times_s.is_empty() {
+                if times_s.len() != path.len() {
+                    return Err(format!(
+                        "times_s has {} entries but path has {} points",
+                        times_s.len(),
+                        path.len()
+                    ));
+                }
+                for (i, t) in times_s.iter().enumerate() {
+                    finite(&format!("times_s[{i}]"), *t)?;
+                    if i > 0 && *t <= times_s[i - 1] {
+                        return Err(format!(
+                            "times_s[{i}] = {t} must be after times_s[{}]",
+                            i - 1
+                        ));
+                    }
+                }
+            }
+            if let Some(t) = start_s
+                && !(t.is_finite() && *t >= 0.0)
+            {
+                return Err(format!("start_s = {t} must be finite and non-negative"));
+            }
+            if !(hover_m.is_finite() && *hover_m > 0.0) {
+                return Err(format!("hover_m = {hover_m} must be positive"));
+            }
             if let Some(p) = pivot {
                 check_points("pivot", std::slice::from_ref(p), true)?;
             }
-            ForceTool::from(*tool)
-                .validate()
-                .map_err(|e| format!("tool: {}", e.0))
+            match (tool, shape, action) {
+                (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(
+                    "tool: give either tool (a force tool) or shape and action (a geometric \
+                     tool), not both"
+                        .into(),
+                ),
+                (Some(tool), None, None) => tool.validate().map_err(|e| format!("tool: {e}")),
+                (None, Some(_), None) => Err("shape needs an action".into()),
+                (None, None, Some(_)) => Err("action needs a shape".into()),
+                (None, Some(shape), Some(action)) => {
+                    action.validate().map_err(|e| format!("action: {}", e.0))?;
+                    finite("falloff_m", *falloff_m)?;
+                    if let Ok(shape) = shape.resolve(|_| None) {
+                        shape.validate().map_err(|e| format!("shape: {}", e.0))?;
+                    }
+                    Ok(())
+                }
+                (None, None, None) => Ok(()),
+            }
         }
         ScriptStep::Material {
             mass,
@@ -640,11 +947,13 @@ path = "out.dclay"
     fn syntax_and_type_errors_name_line_and_field() {
         let bad = "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius = 0.2 }\naction = { kind = \"remove\" }\npositions = [[0, 0, 0]]\n";
         let e = parse_script(bad, "bad.toml").unwrap_err();
-        // Inside a step the span is the step's table (its `[[step]]` header); the message
-        // names the field.
-        assert_eq!(e.line, Some(3), "{e}");
+        // The parser points at the step's header; the error names the field's own line.
+        assert_eq!(e.line, Some(5), "{e}");
         assert!(e.message.contains("`radius`"), "{e}");
-        assert!(e.to_string().starts_with("bad.toml:3:"), "{e}");
+        assert!(e.to_string().starts_with("bad.toml:5"), "{e}");
+        let bad = "version = 1\n[[step]]\ndo = \"undo\"\nspeed = 3\n";
+        let e = parse_script(bad, "u.toml").unwrap_err();
+        assert_eq!(e.line, Some(4), "{e}");
         let e = parse_script("version = \"one\"\n", "v.toml").unwrap_err();
         assert_eq!(e.line, Some(1), "{e}");
 
@@ -658,12 +967,79 @@ path = "out.dclay"
     fn semantic_errors_name_the_step_and_its_line() {
         let bad = "version = 1\n\n[[step]]\ndo = \"undo\"\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_m = -1.0 }\naction = { kind = \"remove\" }\npositions = [[0, 0, 0]]\n";
         let e = parse_script(bad, "x").unwrap_err();
-        assert_eq!((e.step, e.line), (Some(2), Some(6)), "{e}");
+        assert_eq!((e.step, e.line), (Some(2), Some(8)), "{e}");
         assert!(e.message.contains("radius_m"), "{e}");
         let e = parse_script("version = 7\n", "x").unwrap_err();
         assert!(e.message.contains("version = 7"), "{e}");
         let bad = "version = 1\n[[step]]\ndo = \"stroke\"\ntool = { kind = \"chisel\", depth_m = 0.0, radius_m = 0.1, gain = 1.0 }\npath = []\nduration_s = 1.0\n";
         let e = parse_script(bad, "x").unwrap_err();
         assert!(e.message.contains("path"), "{e}");
+        assert_eq!(e.line, Some(5), "{e}");
+    }
+
+    #[test]
+    fn strokes_take_a_force_or_a_geometric_tool_and_optional_timing() {
+        let good = r#"
+version = 1
+seconds = 2.5
+[clay]
+shape = "sphere"
+resolution = 16
+[autosave]
+every_strokes = 1
+
+[[step]]
+do = "stroke"
+path = [[1, 1, 1], [1.2, 1, 1]]
+times_s = [0.0, 0.4]
+buttons = 1
+
+[[step]]
+do = "stroke"
+shape = { kind = "sphere", radius_m = 0.1 }
+action = { kind = "remove" }
+path = [[1, 1, 1]]
+start_s = 3.0
+"#;
+        let s = parse_script(good, "g.toml").unwrap();
+        assert_eq!(s.clay.unwrap().shape, ClayShape::Sphere);
+        assert_eq!(s.autosave.unwrap().every_strokes, 1);
+        assert_eq!(s.seconds, Some(2.5));
+        let text = toml::to_string(&s).unwrap();
+        assert_eq!(parse_script(&text, "again").unwrap(), s);
+
+        let stroke = |body: &str| format!("version = 1\n[[step]]\ndo = \"stroke\"\n{body}");
+        for (body, field, line) in [
+            ("path = [[1, 1, 1]]\nduration_s = -2\n", "duration_s", 5),
+            (
+                "path = [[1, 1, 1], [2, 1, 1]]\ntimes_s = [0.0, 0.0]\n",
+                "times_s[1]",
+                5,
+            ),
+            ("path = [[1, 1, 1]]\ntimes_s = [0.0, 1.0]\n", "times_s", 5),
+            ("path = [[1, 1, 1]]\nhover_m = 0\n", "hover_m", 5),
+            (
+                "tool = { kind = \"push\", radius_m = -1 }\npath = [[1, 1, 1]]\n",
+                "radius_m",
+                4,
+            ),
+            (
+                "tool = { kind = \"grab\", gain = 1 }\nshape = { kind = \"sphere\", radius_m = 0.1 }\npath = [[1, 1, 1]]\n",
+                "not both",
+                4,
+            ),
+            (
+                "shape = { kind = \"sphere\", radius_m = 0.1 }\npath = [[1, 1, 1]]\n",
+                "action",
+                4,
+            ),
+        ] {
+            let e = parse_script(&stroke(body), "s.toml").unwrap_err();
+            assert!(e.message.contains(field), "{body}: {e}");
+            assert_eq!(e.line, Some(line), "{body}: {e}");
+        }
+        let e = parse_script("version = 1\n[clay]\nresolution = 200\n", "c.toml").unwrap_err();
+        assert_eq!(e.line, Some(3), "{e}");
+        assert!(e.message.contains("clay.resolution"), "{e}");
     }
 }

@@ -5,6 +5,7 @@ mod chunk;
 mod context;
 mod environment;
 mod error;
+mod from_mesh;
 mod gpu_chunks;
 mod image;
 mod offscreen;
@@ -18,6 +19,9 @@ pub use chunk::{ChunkError, MeshChunk, bounds_of};
 pub use context::{AdapterSummary, GpuContext, REQUIRE_GPU_ENV, gpu_required};
 pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
 pub use error::RenderError;
+pub use from_mesh::{
+    ChunkMesh, MIN_PAINT_COVERAGE, brick_id, chunk_views, octree_chunks, paint_colors,
+};
 pub use gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 pub use image::Image;
 pub use offscreen::{

@@ -3,26 +3,32 @@
 
 #![allow(dead_code)]
 
-use dynaclay::engine::{EngineConfig, Script, build_clay};
+use dynaclay::dynamics::Material;
+use dynaclay::engine::{EngineConfig, ScriptPlan, build_clay};
 use dynaclay::field::BSplineLattice;
+use dynaclay::io::{Script, ScriptStep, parse_script};
 use dynaclay_devices::{Fault, HapticDevice, SimArmConfig, SimulatedArm};
 use glam::Vec3;
 
 /// A push along the top of the block, 1.2 s long, starting at 0.1 s.
 pub const PUSH_SCRIPT: &str = r#"
+version = 1
+
 [clay]
 shape = "block"
 resolution = 20
 
-[[stroke]]
+[[step]]
+do = "stroke"
 start_s = 0.1
 path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]
 duration_s = 1.0
-hover = 0.3
+hover_m = 0.3
 "#;
 
 pub struct Setup {
     pub script: Script,
+    pub plan: ScriptPlan,
     pub field: BSplineLattice,
     pub config: EngineConfig,
     pub arm: SimulatedArm,
@@ -30,20 +36,29 @@ pub struct Setup {
 
 /// The script's clay, engine config and a simulated arm following its strokes.
 pub fn setup(script_text: &str, faults: Vec<Fault>) -> Setup {
-    let script = Script::parse(script_text, "test").expect("test script parses");
-    let field = build_clay(&script.clay).expect("clay fits");
+    let script = parse_script(script_text, "test").expect("test script parses");
+    let plan = ScriptPlan::new(
+        &script,
+        "test",
+        std::path::Path::new("."),
+        &[],
+        Material::PLASTIC,
+    )
+    .expect("script lays out");
+    let field = build_clay(&plan.clay).expect("clay fits");
     let arm_config = SimArmConfig {
         faults,
         ..SimArmConfig::default()
     };
-    let mut config = EngineConfig::for_script(&field, &arm_config.info, &script);
+    let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptic_rt_priority = None;
     // A short soft start: the tests run for about two seconds.
     config.safety.soft_start_s = 0.1;
-    let trajectory = script.trajectory(&config.map).expect("trajectory");
+    let trajectory = plan.trajectory(&config.map).expect("trajectory");
     let arm = SimulatedArm::new(arm_config, trajectory);
     Setup {
         script,
+        plan,
         field,
         config,
         arm,
@@ -55,10 +70,17 @@ pub fn boxed(arm: SimulatedArm) -> Box<dyn HapticDevice> {
     Box::new(arm)
 }
 
-/// Points along the stroke's path (field coordinates).
+/// Points along the first stroke's path (field coordinates).
 pub fn path_points(script: &Script) -> Vec<Vec3> {
-    let s = &script.strokes[0];
-    let a = Vec3::from(s.path[0]);
-    let b = Vec3::from(*s.path.last().unwrap());
+    let path = script
+        .steps
+        .iter()
+        .find_map(|s| match s {
+            ScriptStep::Stroke { path, .. } => Some(path),
+            _ => None,
+        })
+        .expect("a stroke");
+    let a = Vec3::from(path[0]);
+    let b = Vec3::from(*path.last().unwrap());
     (0..=8).map(|i| a.lerp(b, i as f32 / 8.0)).collect()
 }

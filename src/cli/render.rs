@@ -1,0 +1,27 @@
+//! `dynaclay render`: a session file to a PNG image, rendered offscreen.
+
+use super::args::RenderArgs;
+use super::run::CliError;
+use super::sculpt::{describe_outcome, mesh_clay, render_sculpt};
+use crate::io::load_session;
+use crate::render::RenderOutcome;
+
+/// Loads the session, meshes its clay and writes the PNG.
+///
+/// # Errors
+/// [`CliError::Session`] when the session cannot be read (exit 2); [`CliError::Render`] when
+/// rendering fails (exit 1) or there is no GPU adapter (exit
+/// [`CliError::NO_ADAPTER_EXIT`]); [`CliError::Output`] when the clay cannot be meshed.
+pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
+    let session = load_session(&args.session).map_err(CliError::Session)?;
+    let octree = mesh_clay(&session.clay, args.cells_per_span)?;
+    let outcome = render_sculpt(
+        &octree,
+        session.clay.colour.as_ref(),
+        &args.image,
+        &args.out,
+    )
+    .map_err(|e| CliError::Render(e, args.out.clone()))?;
+    println!("{}", describe_outcome(&outcome));
+    Ok(outcome)
+}

@@ -1,0 +1,291 @@
+//! The held tool during a live stroke, on the simulation thread: turns each tool sample into
+//! this step's force vectors (push and force tools) or decides when a geometric tool is
+//! applied at the tip and for how long a dwell.
+//!
+//! Not real-time, but steady: the force buffer is allocated once, so a step with a force tool
+//! allocates only when a chisel or squirt plans a new penetration target. Every decision
+//! depends on the tool samples (device time, tip, buttons), never on wall time, so a lockstep
+//! run is reproducible bit for bit.
+
+use glam::Vec3;
+
+use super::command::{ForceStrokeTool, PushTool, ToolChoice};
+use super::tool_sample::ToolSample;
+use crate::dynamics::ToolForce;
+use crate::field::BSplineLattice;
+use crate::tools::{
+    ForceInput, ForceTool, PenetrationTarget, nearest_solid_point, plan_penetration,
+};
+
+/// Most force vectors one step applies (an area tool's tracks, a curve's samples).
+pub const MAX_FORCES: usize = 256;
+
+/// Most penetration targets one chisel or squirt stroke plans.
+pub const MAX_TARGETS: usize = 256;
+
+/// The tool and its per-stroke state.
+#[derive(Debug)]
+pub struct LiveTool {
+    choice: ToolChoice,
+    /// Force vectors of the current step (first `len` valid).
+    forces: Vec<ToolForce>,
+    len: usize,
+    /// Where a force stroke grabbed the clay.
+    grab: Option<Vec3>,
+    /// Chisel and squirt targets planned so far in this stroke.
+    targets: Vec<PenetrationTarget>,
+    last_planned: Option<Vec3>,
+    /// Device time of the last geometric application in this stroke, microseconds.
+    last_apply_us: Option<u64>,
+}
+
+impl LiveTool {
+    /// Holds `choice`, no stroke in progress.
+    #[must_use]
+    pub fn new(choice: ToolChoice) -> Self {
+        let idle = ToolForce {
+            start: Vec3::ZERO,
+            end: Vec3::ZERO,
+            distribution: crate::dynamics::Distribution::Constant,
+            radius: 0.0,
+            gain: 0.0,
+        };
+        Self {
+            choice,
+            forces: vec![idle; MAX_FORCES],
+            len: 0,
+            grab: None,
+            targets: Vec::with_capacity(MAX_TARGETS),
+            last_planned: None,
+            last_apply_us: None,
+        }
+    }
+
+    /// The tool held.
+    #[must_use]
+    pub fn choice(&self) -> &ToolChoice {
+        &self.choice
+    }
+
+    /// Replaces the tool (and forgets the stroke state).
+    pub fn set(&mut self, choice: ToolChoice) {
+        self.choice = choice;
+        self.end_stroke();
+    }
+
+    /// Forgets the stroke's grab point, targets and timing.
+    pub fn end_stroke(&mut self) {
+        self.grab = None;
+        self.targets.clear();
+        self.last_planned = None;
+        self.last_apply_us = None;
+        self.len = 0;
+    }
+
+    /// This step's force vectors, as computed by [`LiveTool::update_forces`].
+    #[must_use]
+    pub fn forces(&self) -> &[ToolForce] {
+        &self.forces[..self.len]
+    }
+
+    /// The bounding box of this step's force vectors grown by their spread radii, if any.
+    #[must_use]
+    pub fn force_bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.forces().iter().fold(None, |acc, f| {
+            let r = Vec3::splat(f.radius);
+            let (lo, hi) = (f.start.min(f.end) - r, f.start.max(f.end) + r);
+            Some(match acc {
+                Some((a, b)) => (a.min(lo), b.max(hi)),
+                None => (lo, hi),
+            })
+        })
+    }
+
+    /// Computes this step's force vectors from `sample` on the simulation's `lattice`;
+    /// `mass_step` is the mass-point pitch (the grab snaps to it). A geometric tool, a released
+    /// stroke or a push out of contact gives none.
+    pub fn update_forces(&mut self, sample: &ToolSample, lattice: &BSplineLattice, mass_step: f32) {
+        self.len = 0;
+        match &self.choice {
+            ToolChoice::Push(push) => {
+                let push_on = sample.in_contact
+                    && sample.force_from.is_finite()
+                    && sample.force_to.is_finite()
+                    && sample.force_from != sample.force_to;
+                if push_on {
+                    self.forces[0] = push_force(push, sample);
+                    self.len = 1;
+                }
+            }
+            ToolChoice::Force(tool) => {
+                if sample.stroke_active && sample.tip.is_finite() {
+                    self.len = force_tool_step(
+                        tool,
+                        sample.tip,
+                        lattice,
+                        mass_step,
+                        &mut self.grab,
+                        &mut self.targets,
+                        &mut self.last_planned,
+                        &mut self.forces,
+                    );
+                }
+            }
+            ToolChoice::Geometric(_) => {}
+        }
+    }
+
+    /// For a geometric tool during a held stroke: whether to apply it this step and with which
+    /// dwell time, seconds. Applications are at least `interval_us` of device time apart (a
+    /// local refit costs milliseconds); the dwell is the device time since the previous
+    /// application (capped at `4 · interval_us`), and `interval_us` for the first.
+    pub fn geometric_due(&mut self, sample: &ToolSample, interval_us: u64) -> Option<f32> {
+        if !matches!(self.choice, ToolChoice::Geometric(_))
+            || !sample.stroke_active
+            || !sample.tip.is_finite()
+        {
+            return None;
+        }
+        let now = sample.device_time_us;
+        let dwell_us = match self.last_apply_us {
+            None => interval_us,
+            Some(t) if now >= t.saturating_add(interval_us) => (now - t).min(4 * interval_us),
+            Some(_) => return None,
+        };
+        self.last_apply_us = Some(now);
+        Some(dwell_us as f32 / 1e6)
+    }
+}
+
+fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
+    ToolForce {
+        start: sample.force_from,
+        end: sample.force_to,
+        distribution: push.distribution,
+        radius: push.radius,
+        gain: push.gain,
+    }
+}
+
+/// One step of a force tool: sets the grab point (first tick in reach of the solid), plans
+/// chisel and squirt targets along the tip's path, and writes the tool's force vectors.
+#[allow(clippy::too_many_arguments)] // the stroke state is split so the buffers borrow apart
+fn force_tool_step(
+    stroke: &ForceStrokeTool,
+    tip: Vec3,
+    lattice: &BSplineLattice,
+    mass_step: f32,
+    grab: &mut Option<Vec3>,
+    targets: &mut Vec<PenetrationTarget>,
+    last_planned: &mut Option<Vec3>,
+    out: &mut [ToolForce],
+) -> usize {
+    let penetration = match stroke.tool {
+        ForceTool::Chisel { depth_m, .. } => Some((depth_m, false)),
+        ForceTool::Squirt { depth_m, .. } => Some((depth_m, true)),
+        _ => None,
+    };
+    if grab.is_none() {
+        *grab = match stroke.tool {
+            // These move with the cursor's displacement from where the stroke began.
+            ForceTool::Curve { .. } | ForceTool::Chisel { .. } | ForceTool::Squirt { .. } => {
+                Some(tip)
+            }
+            // These hold the nearest mass point of the solid within two knot spans.
+            _ => nearest_solid_point(lattice, tip, 2.0 * lattice.spacing, mass_step),
+        };
+    }
+    let Some(grab) = *grab else {
+        return 0;
+    };
+    if let Some((depth_m, squirt)) = penetration {
+        let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
+        if moved && targets.len() < MAX_TARGETS {
+            targets.extend(plan_penetration(lattice, &[tip], depth_m, squirt));
+            *last_planned = Some(tip);
+        }
+    }
+    let input = ForceInput {
+        grab,
+        cursor: tip,
+        pivot: stroke.pivot,
+        path: &stroke.curve,
+        targets,
+    };
+    stroke.tool.forces(lattice, &input, out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::{Primitive, lattice_from_primitive};
+    use crate::tools::{GeometricTool, ToolAction, ToolShape};
+
+    fn ball() -> BSplineLattice {
+        let s = Primitive::Sphere {
+            centre: Vec3::splat(0.95),
+            radius: 0.5,
+        };
+        lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap()
+    }
+
+    fn sample(tip: Vec3, active: bool, time_us: u64) -> ToolSample {
+        ToolSample {
+            tip,
+            force_from: tip,
+            force_to: tip,
+            stroke_active: active,
+            device_time_us: time_us,
+            ..ToolSample::IDLE
+        }
+    }
+
+    #[test]
+    fn a_grab_holds_the_nearest_solid_point_and_pulls_toward_the_cursor() {
+        let lattice = ball();
+        let mut live = LiveTool::new(ToolChoice::Force(ForceStrokeTool {
+            tool: ForceTool::PointGrab { gain: 1.0 },
+            curve: Vec::new(),
+            pivot: Vec3::ZERO,
+        }));
+        // Out of reach: nothing grabbed, no force.
+        live.update_forces(&sample(Vec3::splat(0.1), true, 0), &lattice, 0.05);
+        assert!(live.forces().is_empty());
+        // At the surface (+x pole): grabbed; dragging out pulls from the grab to the cursor.
+        let pole = Vec3::new(1.45, 0.95, 0.95);
+        live.update_forces(&sample(pole, true, 1000), &lattice, 0.05);
+        let grab = live.forces()[0].start;
+        assert!(lattice.is_inside(grab) && grab.distance(pole) <= 0.2 + 1e-4);
+        let out = pole + Vec3::X * 0.2;
+        live.update_forces(&sample(out, true, 2000), &lattice, 0.05);
+        assert_eq!(live.forces().len(), 1);
+        assert_eq!((live.forces()[0].start, live.forces()[0].end), (grab, out));
+        let (lo, hi) = live.force_bounds().unwrap();
+        assert!(lo.x <= grab.x && hi.x >= out.x);
+        // Released: no force.
+        live.update_forces(&sample(out, false, 3000), &lattice, 0.05);
+        assert!(live.forces().is_empty());
+    }
+
+    #[test]
+    fn geometric_applications_are_spaced_by_device_time() {
+        let mut live = LiveTool::new(ToolChoice::Geometric(GeometricTool {
+            shape: ToolShape::Sphere { radius_m: 0.1 },
+            action: ToolAction::Remove,
+            falloff_m: 0.05,
+        }));
+        let at = |t| sample(Vec3::ONE, true, t);
+        assert_eq!(live.geometric_due(&at(0), 10_000), Some(0.01));
+        assert_eq!(live.geometric_due(&at(5_000), 10_000), None);
+        assert_eq!(live.geometric_due(&at(12_000), 10_000), Some(0.012));
+        // A long gap is capped.
+        assert_eq!(live.geometric_due(&at(1_000_000), 10_000), Some(0.04));
+        assert_eq!(
+            live.geometric_due(&sample(Vec3::ONE, false, 2_000_000), 10_000),
+            None
+        );
+        // The push tool never applies geometry.
+        live.set(ToolChoice::default());
+        assert_eq!(live.geometric_due(&at(3_000_000), 10_000), None);
+    }
+}

@@ -1,0 +1,525 @@
+//! A script ([`crate::io::Script`], the one script format) laid out as a run: the simulated
+//! hand's trajectory for its `stroke` steps, and the commands for every other step with the
+//! script time at which each is sent.
+//!
+//! # Timeline
+//!
+//! Steps run in file order against one script clock (seconds; the device's clock during a
+//! run, so a lockstep run is exactly reproducible):
+//!
+//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `undo`, `redo`,
+//!   `save`) takes no script time. It is sent when the clock reaches the end of everything
+//!   before it — after the previous stroke has ended with the hand back at hover — and the
+//!   simulation applies it between two steps, in file order, before the next stroke starts.
+//!   Tool steps dwell for their own `duration_s` of tool time, not script time.
+//! - A stroke starts at `start_s` if given (it must leave [`SETTLE_S`] after the previous
+//!   step ends), else [`TRAVEL_S`] after it. The hand moves to `hover_m` above the path's first
+//!   point by then, descends in [`APPROACH_S`], follows the path (evenly over `duration_s`, or
+//!   at `times_s`), lifts in [`APPROACH_S`] and the stroke ends there. A stroke's tool is
+//!   selected when the previous step ends (a change of tool ends any settling stroke first).
+//! - Buttons: `buttons` (default 1, the stroke button) are held along the path. With the
+//!   contact push they are held from the start of the descent, so the contact starts where
+//!   the tip enters the clay; with a force or geometric tool from the first path point, so
+//!   nothing is grabbed or deposited on the way down.
+//! - A stroke's undo step is committed when it ends, or — while the clay it pushed still
+//!   moves — when the next stroke or clay-editing step starts. So `undo` right after a stroke
+//!   undoes that stroke.
+
+use std::path::Path;
+
+use dynaclay_devices::{Interpolation, Trajectory, Waypoint};
+use glam::Vec3;
+
+use super::command::{ForceStrokeTool, PushTool, ToolChoice};
+use super::workspace::WorkspaceMap;
+use crate::dynamics::Material;
+use crate::io::{
+    ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
+    parse_script, poses,
+};
+use crate::tools::{Clay, GeometricTool, ToolAction, ToolPose};
+
+/// Time the hand takes from hover to the path and back, seconds.
+pub const APPROACH_S: f64 = 0.3;
+/// Default time between the end of the previous step and a stroke's start, seconds.
+pub const TRAVEL_S: f64 = 0.3;
+/// Least time between the end of the previous step and a stroke's start, seconds.
+pub const SETTLE_S: f64 = 0.05;
+
+/// The script used when none is given: one push along the top of the default block.
+pub const DEFAULT_SCRIPT: &str = r#"
+version = 1
+seconds = 3.0
+
+[clay]
+shape = "block"
+resolution = 24
+
+[[step]]
+do = "stroke"
+tool = { kind = "push", beta = "gaussian", radius_m = 0.25, gain = 2e6 }
+start_s = 0.2
+path = [[0.85, 1.55, 1.15], [1.15, 1.5, 1.15], [1.45, 1.55, 1.15]]
+duration_s = 1.6
+hover_m = 0.35
+"#;
+
+/// The built-in default script.
+#[must_use]
+pub fn builtin_script() -> Script {
+    parse_script(DEFAULT_SCRIPT, "<built-in>")
+        .unwrap_or_else(|e| unreachable!("the built-in script is valid: {e}"))
+}
+
+/// What a non-stroke step does, resolved (tool presets looked up, CSG operands loaded).
+#[derive(Clone, Debug, PartialEq)]
+pub enum PlannedAction {
+    /// Hold this tool for the following strokes.
+    SetTool(ToolChoice),
+    /// Use this material from now on.
+    SetMaterial(Material),
+    /// A geometric tool step.
+    ApplyTool {
+        tool: GeometricTool,
+        poses: Vec<ToolPose>,
+        duration_s: f32,
+        patch: u16,
+    },
+    /// CSG with a loaded clay.
+    Csg {
+        op: ToolAction,
+        other: Box<Clay>,
+        patch: u16,
+    },
+    /// Undo this many steps.
+    Undo(u32),
+    /// Redo this many steps.
+    Redo(u32),
+    /// Save the session to this path (already joined to the script's folder).
+    Save(std::path::PathBuf),
+}
+
+/// One timed action.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedEvent {
+    /// Script time at which it is sent, seconds.
+    pub at_s: f64,
+    /// The 1-based step it comes from.
+    pub step: usize,
+    /// What it does.
+    pub action: PlannedAction,
+}
+
+/// One stroke's hand motion, field coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PlannedStroke {
+    /// The 1-based step it comes from.
+    pub step: usize,
+    /// When the hand leaves its hover point, seconds.
+    pub start_s: f64,
+    /// When it is back at hover, seconds.
+    pub end_s: f64,
+    /// Hand waypoints, field coordinates.
+    pub waypoints: Vec<Waypoint>,
+}
+
+/// A script laid out on the script clock.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScriptPlan {
+    /// The script's name in messages (its path, or `<built-in>`).
+    pub file: String,
+    /// The starting clay.
+    pub clay: ClaySpec,
+    /// Run length, seconds: the script's `seconds`, else the end of its last step plus 0.5.
+    pub seconds: f64,
+    /// When the last step ends, seconds.
+    pub end_s: f64,
+    /// Non-stroke actions in time (and file) order.
+    pub events: Vec<PlannedEvent>,
+    /// Strokes in time order.
+    pub strokes: Vec<PlannedStroke>,
+}
+
+impl ScriptPlan {
+    /// Lays out `script` (named `file` in errors); relative paths are taken from `base_dir`,
+    /// `preset` and freeform shapes are looked up in `library`, and material steps change
+    /// `material`, the material the run starts with.
+    ///
+    /// # Errors
+    /// A [`ScriptError`] naming the step: an unknown preset, a CSG file that does not load,
+    /// or a `start_s` before the previous step ends.
+    pub fn new(
+        script: &Script,
+        file: &str,
+        base_dir: &Path,
+        library: &[ToolPreset],
+        mut material: Material,
+    ) -> Result<Self, ScriptError> {
+        let lookup = |name: &str| library.iter().find(|t| t.name == name);
+        let mut events = Vec::new();
+        let mut strokes = Vec::new();
+        let mut clock = 0.0_f64;
+        let mut held: Option<ToolChoice> = None;
+        for (n, step) in script.steps.iter().enumerate() {
+            let at = n + 1;
+            let fail = |message: String| ScriptError {
+                file: file.to_owned(),
+                line: None,
+                column: None,
+                step: Some(at),
+                message,
+            };
+            let mut event = |action| {
+                events.push(PlannedEvent {
+                    at_s: clock,
+                    step: at,
+                    action,
+                });
+            };
+            match step {
+                ScriptStep::Stroke {
+                    tool,
+                    shape,
+                    action,
+                    falloff_m,
+                    path,
+                    duration_s,
+                    times_s,
+                    start_s,
+                    hover_m,
+                    buttons,
+                    curve,
+                    pivot,
+                } => {
+                    let choice = match (tool, shape, action) {
+                        (_, Some(shape), Some(action)) => ToolChoice::Geometric(GeometricTool {
+                            shape: shape
+                                .resolve(|name| lookup(name).map(|t| &t.shape))
+                                .map_err(fail)?,
+                            action: *action,
+                            falloff_m: *falloff_m,
+                        }),
+                        (Some(spec), _, _) => tool_choice(spec, curve, *pivot),
+                        _ => tool_choice(&ForceToolSpec::DEFAULT_PUSH, curve, *pivot),
+                    };
+                    if held.as_ref() != Some(&choice) {
+                        event(PlannedAction::SetTool(choice.clone()));
+                    }
+                    let start = match start_s {
+                        Some(s) if *s < clock + SETTLE_S => {
+                            return Err(fail(format!(
+                                "start_s = {s} is too early: the previous step ends at \
+                                 {clock:.3} s and a stroke needs {SETTLE_S} s after it"
+                            )));
+                        }
+                        Some(s) => *s,
+                        None => clock + TRAVEL_S,
+                    };
+                    let push = matches!(choice, ToolChoice::Push(_));
+                    let times: Vec<f64> = if times_s.is_empty() {
+                        let d = f64::from(duration_s.unwrap_or(1.0));
+                        let k = path.len();
+                        (0..k)
+                            .map(|i| {
+                                if k > 1 {
+                                    d * i as f64 / (k - 1) as f64
+                                } else {
+                                    d
+                                }
+                            })
+                            .collect()
+                    } else {
+                        times_s.iter().map(|t| f64::from(*t)).collect()
+                    };
+                    let stroke =
+                        stroke_waypoints(at, start, path, &times, *hover_m, *buttons, push);
+                    clock = stroke.end_s;
+                    strokes.push(stroke);
+                    held = Some(choice);
+                }
+                ScriptStep::Tool {
+                    shape,
+                    action,
+                    positions,
+                    falloff_m,
+                    rotation,
+                    duration_s,
+                    patch,
+                } => {
+                    let shape = shape
+                        .resolve(|name| lookup(name).map(|t| &t.shape))
+                        .map_err(fail)?;
+                    event(PlannedAction::ApplyTool {
+                        tool: GeometricTool {
+                            shape,
+                            action: *action,
+                            falloff_m: *falloff_m,
+                        },
+                        poses: poses(positions, *rotation),
+                        duration_s: *duration_s,
+                        patch: *patch,
+                    });
+                }
+                ScriptStep::Preset {
+                    name,
+                    positions,
+                    duration_s,
+                } => {
+                    let preset = lookup(name)
+                        .ok_or_else(|| fail(format!("no tool preset named {name:?}")))?;
+                    event(PlannedAction::ApplyTool {
+                        tool: GeometricTool {
+                            shape: preset.shape.clone(),
+                            action: preset.action,
+                            falloff_m: preset.falloff_m,
+                        },
+                        poses: poses(positions, None),
+                        duration_s: *duration_s,
+                        patch: 0,
+                    });
+                }
+                ScriptStep::Csg { op, with, patch } => {
+                    let path = base_dir.join(with);
+                    let other = load_session(&path).map_err(|e| fail(format!("with: {e}")))?;
+                    event(PlannedAction::Csg {
+                        op: csg_action(*op),
+                        other: Box::new(other.clay),
+                        patch: *patch,
+                    });
+                }
+                ScriptStep::Material { .. } => {
+                    material = step.updated_material(material);
+                    event(PlannedAction::SetMaterial(material));
+                }
+                ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),
+                ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
+                ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),
+            }
+        }
+        Ok(Self {
+            file: file.to_owned(),
+            clay: script.clay.unwrap_or_default(),
+            seconds: script.seconds.unwrap_or(clock + 0.5),
+            end_s: clock,
+            events,
+            strokes,
+        })
+    }
+
+    /// The built-in default script, laid out.
+    #[must_use]
+    pub fn builtin() -> Self {
+        Self::new(
+            &builtin_script(),
+            "<built-in>",
+            Path::new("."),
+            &[],
+            Material::PLASTIC,
+        )
+        .unwrap_or_else(|e| unreachable!("the built-in script lays out: {e}"))
+    }
+
+    /// The simulated hand's trajectory in device metres through `map`. Before the first
+    /// stroke the hand hovers above its first point (above the clay's centre when there is no
+    /// stroke); between strokes it travels from one hover point to the next.
+    ///
+    /// # Errors
+    /// When the waypoints do not make a trajectory (not after a successful layout).
+    pub fn trajectory(&self, map: &WorkspaceMap) -> Result<Trajectory, ScriptError> {
+        let first = self
+            .strokes
+            .first()
+            .and_then(|s| s.waypoints.first())
+            .map_or(map.field_centre + Vec3::Y * map.field_centre.y, |w| {
+                w.position_m
+            });
+        let mut w = vec![Waypoint::new(0.0, map.to_device(first))];
+        for s in &self.strokes {
+            for p in &s.waypoints {
+                w.push(Waypoint::with_buttons(
+                    p.time_s,
+                    map.to_device(p.position_m),
+                    p.buttons,
+                ));
+            }
+        }
+        Trajectory::new(w, Interpolation::Smooth).map_err(|e| ScriptError {
+            file: self.file.clone(),
+            line: None,
+            column: None,
+            step: None,
+            message: e.to_string(),
+        })
+    }
+}
+
+fn tool_choice(spec: &ForceToolSpec, curve: &[[f32; 3]], pivot: Option<[f32; 3]>) -> ToolChoice {
+    match (spec, spec.force_tool()) {
+        (_, Some(tool)) => ToolChoice::Force(ForceStrokeTool {
+            tool,
+            curve: curve.iter().map(|p| Vec3::from_array(*p)).collect(),
+            pivot: pivot.map_or(Vec3::ZERO, Vec3::from_array),
+        }),
+        (
+            ForceToolSpec::Push {
+                beta,
+                radius_m,
+                gain,
+            },
+            None,
+        ) => ToolChoice::Push(PushTool {
+            distribution: (*beta).into(),
+            radius: *radius_m,
+            gain: *gain,
+        }),
+        (_, None) => ToolChoice::default(),
+    }
+}
+
+fn csg_action(op: CsgSpec) -> ToolAction {
+    op.into()
+}
+
+/// The waypoints of one stroke (field coordinates, absolute script times).
+fn stroke_waypoints(
+    step: usize,
+    start: f64,
+    path: &[[f32; 3]],
+    times: &[f64],
+    hover_m: f32,
+    buttons: u32,
+    push: bool,
+) -> PlannedStroke {
+    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_m;
+    let down = start + APPROACH_S;
+    let last = path.len() - 1;
+    let mut w = vec![Waypoint::with_buttons(
+        start,
+        up(path[0]),
+        if push { buttons } else { 0 },
+    )];
+    for (i, (p, t)) in path.iter().zip(times).enumerate() {
+        // Released from the last path point on.
+        let held = if i == last && path.len() > 1 {
+            0
+        } else {
+            buttons
+        };
+        w.push(Waypoint::with_buttons(down + t, Vec3::from_array(*p), held));
+    }
+    if path.len() == 1 {
+        // A single point is held for the whole duration (its one time is the duration).
+        let hold = times[0].max(1e-3);
+        w[1].time_s = down;
+        w.push(Waypoint::new(down + hold, Vec3::from_array(path[0])));
+    }
+    let path_end = w.last().map_or(down, |l| l.time_s);
+    let end = path_end + APPROACH_S;
+    w.push(Waypoint::new(end, up(path[last])));
+    PlannedStroke {
+        step,
+        start_s: start,
+        end_s: end,
+        waypoints: w,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::parse_script;
+
+    fn plan(text: &str) -> Result<ScriptPlan, ScriptError> {
+        let script = parse_script(text, "t.toml")?;
+        ScriptPlan::new(&script, "t.toml", Path::new("."), &[], Material::PLASTIC)
+    }
+
+    fn map() -> WorkspaceMap {
+        WorkspaceMap::fitting(
+            Vec3::splat(-0.1),
+            Vec3::splat(0.1),
+            Vec3::ZERO,
+            Vec3::splat(2.3),
+            30.0,
+        )
+    }
+
+    #[test]
+    fn the_builtin_script_is_one_push_with_the_button_held_along_it() {
+        let p = ScriptPlan::builtin();
+        assert_eq!((p.strokes.len(), p.events.len()), (1, 1));
+        assert!(matches!(
+            p.events[0].action,
+            PlannedAction::SetTool(ToolChoice::Push(_))
+        ));
+        let t = p.trajectory(&map()).unwrap();
+        let s = &p.strokes[0];
+        assert_eq!(s.start_s, 0.2);
+        let mid = s.start_s + APPROACH_S + 0.8;
+        assert_eq!(t.sample(mid).buttons & 1, 1);
+        // Pressed during the descent (push), released after the path.
+        assert_eq!(t.sample(s.start_s + 0.1).buttons & 1, 1);
+        assert_eq!(t.sample(s.end_s + 0.1).buttons & 1, 0);
+        assert_eq!(p.seconds, 3.0);
+    }
+
+    #[test]
+    fn steps_between_strokes_are_sent_when_the_stroke_before_them_ends() {
+        let p = plan(
+            r#"
+version = 1
+[[step]]
+do = "tool"
+shape = { kind = "sphere", radius_m = 0.2 }
+action = { kind = "add", deposit_rate_per_s = 4.0 }
+positions = [[1, 1, 1]]
+
+[[step]]
+do = "stroke"
+tool = { kind = "grab", gain = 1e6 }
+path = [[1, 1.5, 1], [1, 1.7, 1]]
+times_s = [0.0, 0.5]
+
+[[step]]
+do = "undo"
+
+[[step]]
+do = "stroke"
+tool = { kind = "grab", gain = 1e6 }
+path = [[1, 1.5, 1]]
+duration_s = 0.2
+"#,
+        )
+        .unwrap();
+        let kinds: Vec<(usize, f64)> = p.events.iter().map(|e| (e.step, e.at_s)).collect();
+        let first = &p.strokes[0];
+        // Tool step and the grab's tool at 0; the undo when the first stroke ends; the second
+        // stroke keeps the same tool (no second SetTool).
+        assert_eq!(kinds, [(1, 0.0), (2, 0.0), (3, first.end_s)]);
+        assert_eq!(first.start_s, TRAVEL_S);
+        assert!((first.end_s - (TRAVEL_S + 2.0 * APPROACH_S + 0.5)).abs() < 1e-9);
+        assert_eq!(p.strokes[1].start_s, first.end_s + TRAVEL_S);
+        assert!((p.seconds - (p.end_s + 0.5)).abs() < 1e-9);
+        // A grab presses at the first path point, not during the descent.
+        let t = p.trajectory(&map()).unwrap();
+        assert_eq!(t.sample(first.start_s + 0.1).buttons, 0);
+        assert_eq!(t.sample(first.start_s + APPROACH_S + 0.2).buttons, 1);
+    }
+
+    #[test]
+    fn a_start_before_the_previous_step_ends_names_the_step() {
+        let e = plan(
+            "version = 1\n[[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\n\
+             [[step]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nstart_s = 0.5\n",
+        )
+        .unwrap_err();
+        assert_eq!(e.step, Some(2));
+        assert!(e.message.contains("start_s"), "{e}");
+        let e = plan(
+            "version = 1\n[[step]]\ndo = \"preset\"\nname = \"pot\"\npositions = [[1, 1, 1]]\n",
+        )
+        .unwrap_err();
+        assert_eq!(e.step, Some(1));
+        assert!(e.message.contains("pot"), "{e}");
+    }
+}

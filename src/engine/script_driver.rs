@@ -1,0 +1,180 @@
+//! Sends a [`ScriptPlan`]'s commands to a running engine when the script clock reaches them,
+//! and collects the outcome of each tool, CSG and save step.
+//!
+//! The script clock is the device's clock (the tool sample's `device_time_us`, counted from
+//! the first sample seen), so the simulated arm's strokes and the commands between them stay
+//! in the order the plan defines, in the threaded engine and — exactly — in lockstep.
+
+use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
+
+use super::command::{Command, Reply};
+use super::plan::{PlannedAction, PlannedEvent, ScriptPlan};
+use super::tool_sample::ToolSample;
+use crate::io::ScriptError;
+
+/// A plan being played.
+pub struct ScriptDriver {
+    file: String,
+    events: std::vec::IntoIter<PlannedEvent>,
+    next: Option<PlannedEvent>,
+    origin_us: Option<u64>,
+    /// Outcomes still to come: (step, receiver).
+    waiting: Vec<(usize, Receiver<Result<String, String>>)>,
+    saves: Vec<(usize, Receiver<Result<std::path::PathBuf, String>>)>,
+    failures: Vec<ScriptError>,
+    sent: usize,
+}
+
+impl ScriptDriver {
+    /// A driver for `plan`'s events.
+    #[must_use]
+    pub fn new(plan: &ScriptPlan) -> Self {
+        let mut events = plan.events.clone().into_iter();
+        let next = events.next();
+        Self {
+            file: plan.file.clone(),
+            events,
+            next,
+            origin_us: None,
+            waiting: Vec::new(),
+            saves: Vec::new(),
+            failures: Vec::new(),
+            sent: 0,
+        }
+    }
+
+    /// The script clock at device time `device_time_us`, seconds (zero at the first call).
+    pub fn clock_s(&mut self, device_time_us: u64) -> f64 {
+        let origin = *self.origin_us.get_or_insert(device_time_us);
+        device_time_us.saturating_sub(origin) as f64 / 1e6
+    }
+
+    /// Sends every event due at the time of `sample` (the newest tool sample) on `commands`,
+    /// in order. Returns how many were sent. Before the first haptic tick (tick 0) the clock
+    /// has not started and nothing is sent.
+    pub fn dispatch(&mut self, sample: &ToolSample, commands: &Sender<Command>) -> usize {
+        if sample.tick == 0 {
+            return 0;
+        }
+        let now = self.clock_s(sample.device_time_us);
+        let mut n = 0;
+        while self.next.as_ref().is_some_and(|e| e.at_s <= now) {
+            let Some(event) = self.next.take() else { break };
+            self.send(event, commands);
+            self.next = self.events.next();
+            n += 1;
+        }
+        self.collect();
+        n
+    }
+
+    /// Whether every event was sent.
+    #[must_use]
+    pub fn is_done(&self) -> bool {
+        self.next.is_none()
+    }
+
+    /// Events sent so far.
+    #[must_use]
+    pub fn sent(&self) -> usize {
+        self.sent
+    }
+
+    /// Steps not sent yet (the run ended before them).
+    #[must_use]
+    pub fn unsent_steps(&self) -> Vec<usize> {
+        self.next
+            .iter()
+            .chain(self.events.as_slice())
+            .map(|e| e.step)
+            .collect()
+    }
+
+    /// Collects the outcomes that arrived and returns every failure so far, naming the file
+    /// and the step. Outcomes of commands the simulation never applied are not failures.
+    pub fn failures(&mut self) -> &[ScriptError] {
+        self.collect();
+        &self.failures
+    }
+
+    fn send(&mut self, event: PlannedEvent, commands: &Sender<Command>) {
+        let step = event.step;
+        let mut reply = || -> Reply {
+            let (tx, rx) = bounded(1);
+            self.waiting.push((step, rx));
+            tx
+        };
+        let batch: Vec<Command> = match event.action {
+            PlannedAction::SetTool(t) => vec![Command::SetTool(t)],
+            PlannedAction::SetMaterial(m) => vec![Command::SetMaterial(m)],
+            PlannedAction::ApplyTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+            } => vec![Command::ApplyTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+                reply: Some(reply()),
+            }],
+            PlannedAction::Csg { op, other, patch } => vec![Command::Csg {
+                op,
+                other,
+                patch,
+                reply: Some(reply()),
+            }],
+            PlannedAction::Undo(k) => (0..k).map(|_| Command::Undo).collect(),
+            PlannedAction::Redo(k) => (0..k).map(|_| Command::Redo).collect(),
+            PlannedAction::Save(path) => {
+                let (tx, rx) = bounded(1);
+                self.saves.push((step, rx));
+                vec![Command::Save {
+                    path,
+                    reply: Some(tx),
+                }]
+            }
+        };
+        for cmd in batch {
+            if commands.send(cmd).is_err() {
+                self.fail(step, "the simulation loop has stopped".into());
+                return;
+            }
+        }
+        self.sent += 1;
+    }
+
+    fn collect(&mut self) {
+        let mut failed = Vec::new();
+        self.waiting.retain(|(step, rx)| match rx.try_recv() {
+            Ok(Ok(_)) | Err(TryRecvError::Disconnected) => false,
+            Ok(Err(e)) => {
+                failed.push((*step, e));
+                false
+            }
+            Err(TryRecvError::Empty) => true,
+        });
+        self.saves.retain(|(step, rx)| match rx.try_recv() {
+            Ok(Ok(_)) | Err(TryRecvError::Disconnected) => false,
+            Ok(Err(e)) => {
+                failed.push((*step, format!("save: {e}")));
+                false
+            }
+            Err(TryRecvError::Empty) => true,
+        });
+        for (step, e) in failed {
+            self.fail(step, e);
+        }
+    }
+
+    fn fail(&mut self, step: usize, message: String) {
+        self.failures.push(ScriptError {
+            file: self.file.clone(),
+            line: None,
+            column: None,
+            step: Some(step),
+            message,
+        });
+    }
+}

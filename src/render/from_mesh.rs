@@ -1,0 +1,207 @@
+//! The bridge from the mesher to the renderer: octree bricks become [`MeshChunk`]s, with the
+//! paint of the clay's colour field sampled at every vertex.
+//!
+//! One owned [`ChunkMesh`] per brick, keyed by a stable [`brick_id`] and versioned by the
+//! octree generation that last rebuilt it, so a renderer re-uploads only bricks that changed.
+//! The offscreen commands (`dynaclay render`, `dynaclay run --png`) and the interactive app
+//! use the same conversion. Not real-time: it allocates one copy of each brick's mesh.
+
+use crate::mesh::{Brick, BrickMesh, BrickOctree};
+use crate::tools::ColourField;
+
+use super::chunk::MeshChunk;
+
+/// Paint coverage below which a vertex counts as unpainted; a brick whose vertices are all
+/// below it is handed over without colours (the renderer then skips the attribute).
+pub const MIN_PAINT_COVERAGE: f32 = 1.0 / 512.0;
+
+/// A brick coordinate packed into a stable chunk id: 21 bits per axis, x lowest.
+///
+/// Distinct for every coordinate below 2²¹ per axis (an octree of 8-cell bricks never comes
+/// near that).
+#[must_use]
+pub fn brick_id(coord: [u32; 3]) -> u64 {
+    let m = (1u64 << 21) - 1;
+    (u64::from(coord[0]) & m)
+        | ((u64::from(coord[1]) & m) << 21)
+        | ((u64::from(coord[2]) & m) << 42)
+}
+
+/// One brick's mesh, owned, in the renderer's vertex layout.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ChunkMesh {
+    /// Stable brick identity ([`brick_id`]).
+    pub id: u64,
+    /// The octree generation of the brick's last rebuild: changes whenever the mesh does.
+    pub version: u64,
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    /// Paint per vertex, linear RGBA with coverage in alpha; empty when unpainted.
+    pub colors: Vec<[f32; 4]>,
+    pub indices: Vec<u32>,
+}
+
+impl ChunkMesh {
+    /// Copies a brick's mesh; `colors` is the per-vertex paint (see [`paint_colors`]) or
+    /// empty.
+    #[must_use]
+    pub fn from_brick(
+        coord: [u32; 3],
+        version: u64,
+        mesh: &BrickMesh,
+        colors: Vec<[f32; 4]>,
+    ) -> Self {
+        Self {
+            id: brick_id(coord),
+            version,
+            positions: mesh.positions.iter().map(|p| p.to_array()).collect(),
+            normals: mesh.normals.iter().map(|n| n.to_array()).collect(),
+            colors,
+            indices: mesh.indices.clone(),
+        }
+    }
+
+    /// Copies an octree brick, painting it from `colour` when the clay has a colour field.
+    #[must_use]
+    pub fn from_octree_brick(brick: &Brick, colour: Option<&ColourField>) -> Self {
+        let colors = colour.map_or_else(Vec::new, |c| paint_colors(&brick.mesh, c));
+        Self::from_brick(brick.coord, brick.version, &brick.mesh, colors)
+    }
+
+    /// A borrowed view for the renderer.
+    #[must_use]
+    pub fn as_chunk(&self) -> MeshChunk<'_> {
+        MeshChunk {
+            id: self.id,
+            version: self.version,
+            positions: &self.positions,
+            normals: &self.normals,
+            colors: &self.colors,
+            indices: &self.indices,
+        }
+    }
+}
+
+/// The paint at each vertex of `mesh`, as linear RGBA with coverage in alpha, or an empty
+/// vector when no vertex carries coverage of at least [`MIN_PAINT_COVERAGE`].
+#[must_use]
+pub fn paint_colors(mesh: &BrickMesh, colour: &ColourField) -> Vec<[f32; 4]> {
+    let colors: Vec<[f32; 4]> = mesh
+        .positions
+        .iter()
+        .map(|&p| colour.rgba(p).to_array())
+        .collect();
+    if colors.iter().any(|c| c[3] >= MIN_PAINT_COVERAGE) {
+        colors
+    } else {
+        Vec::new()
+    }
+}
+
+/// Every brick of `octree` as a chunk, in the octree's (Morton) order.
+#[must_use]
+pub fn octree_chunks(octree: &BrickOctree, colour: Option<&ColourField>) -> Vec<ChunkMesh> {
+    octree
+        .bricks()
+        .map(|b| ChunkMesh::from_octree_brick(b, colour))
+        .collect()
+}
+
+/// Borrowed views of `chunks`, for [`super::render_to_png`] or a renderer's `sync_chunks`.
+#[must_use]
+pub fn chunk_views(chunks: &[ChunkMesh]) -> Vec<MeshChunk<'_>> {
+    chunks.iter().map(ChunkMesh::as_chunk).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::field::BSplineLattice;
+    use crate::mesh::SampleGrid;
+
+    /// Level set 0.5 of a clamped distance ramp: a ball of radius 0.6 around (1, 1, 1).
+    fn ball() -> BSplineLattice {
+        let mut lattice = BSplineLattice::zeros([12; 3], 0.2, Vec3::ZERO).unwrap();
+        for k in 0..12 {
+            for j in 0..12 {
+                for i in 0..12 {
+                    let d = (lattice.node_position(i, j, k) - Vec3::ONE).length() - 0.6;
+                    let n = lattice.index(i, j, k);
+                    lattice.coeffs[n] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+                }
+            }
+        }
+        lattice
+    }
+
+    #[test]
+    fn brick_ids_are_distinct_per_axis() {
+        let ids = [[1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, 0], [5, 9, 1]].map(brick_id);
+        for (i, a) in ids.iter().enumerate() {
+            for b in &ids[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+    }
+
+    #[test]
+    fn octree_bricks_become_valid_chunks_with_their_versions() {
+        let lattice = ball();
+        let octree = BrickOctree::build(SampleGrid::for_lattice(&lattice, 4).unwrap(), &lattice);
+        let chunks = octree_chunks(&octree, None);
+        assert_eq!(chunks.len(), octree.brick_count());
+        let views = chunk_views(&chunks);
+        let mut ids = std::collections::HashSet::new();
+        for (chunk, brick) in views.iter().zip(octree.bricks()) {
+            assert_eq!(chunk.validate(), Ok(()));
+            assert!(ids.insert(chunk.id), "duplicate id");
+            assert_eq!(chunk.id, brick_id(brick.coord));
+            assert_eq!(chunk.version, brick.version);
+            assert!(chunk.colors.is_empty());
+        }
+        let triangles: usize = views.iter().map(MeshChunk::triangle_count).sum();
+        assert_eq!(triangles, octree.triangle_count());
+        let (lo, hi) = super::super::bounds_of(&views).unwrap();
+        assert!((lo - Vec3::splat(0.4)).abs().max_element() < 0.05, "{lo}");
+        assert!((hi - Vec3::splat(1.6)).abs().max_element() < 0.05, "{hi}");
+    }
+
+    #[test]
+    fn paint_is_sampled_per_vertex_and_unpainted_bricks_carry_no_colours() {
+        let lattice = ball();
+        let octree = BrickOctree::build(SampleGrid::for_lattice(&lattice, 4).unwrap(), &lattice);
+        // Paint the +x half red with full coverage.
+        let mut colour = ColourField::matching(&lattice).unwrap();
+        for k in 0..12 {
+            for j in 0..12 {
+                for i in 6..12 {
+                    let n = lattice.index(i, j, k);
+                    colour.channels[0].coeffs[n] = 1.0;
+                    colour.channels[3].coeffs[n] = 1.0;
+                }
+            }
+        }
+        let chunks = octree_chunks(&octree, Some(&colour));
+        let (mut painted, mut bare) = (0, 0);
+        for c in &chunks {
+            assert_eq!(c.as_chunk().validate(), Ok(()));
+            if c.colors.is_empty() {
+                bare += 1;
+                assert!(c.positions.iter().all(|p| p[0] < 1.0), "bare brick on +x");
+                continue;
+            }
+            painted += 1;
+            for (p, rgba) in c.positions.iter().zip(&c.colors) {
+                let expect = colour.rgba(Vec3::from(*p)).to_array();
+                assert_eq!(*rgba, expect);
+                if p[0] > 1.4 {
+                    assert!(rgba[0] > 0.99 && rgba[3] > 0.99, "{p:?}: {rgba:?}");
+                    assert!(rgba[1] < 0.01, "{p:?}: {rgba:?}");
+                }
+            }
+        }
+        assert!(painted > 0 && bare > 0, "painted {painted}, bare {bare}");
+    }
+}
