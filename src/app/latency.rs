@@ -13,8 +13,8 @@ use dynaclay_loops::LatencyStats;
 
 use super::view::LoopId;
 
-/// Samples kept per loop (the loops publish figures about once a second: five minutes).
-pub const HISTORY_LEN: usize = 300;
+/// Samples kept per loop (the loops publish figures about once a second: two minutes).
+pub const HISTORY_LEN: usize = 120;
 
 /// One point of a loop's history.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -260,12 +260,16 @@ impl SculptApp {
                 });
             });
         egui::Panel::right("dynaclay latency")
-            .default_size(260.0)
+            .default_size(280.0)
+            .min_size(220.0)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| {
-                    ui.heading("Loops");
-                    self.latency.ui(ui);
-                });
+                // Not shrunk to the wrapped labels: the strip charts take the panel's width.
+                egui::ScrollArea::vertical()
+                    .auto_shrink([false, true])
+                    .show(ui, |ui| {
+                        ui.heading("Loops");
+                        self.latency.ui(ui);
+                    });
             });
         self.flush_settings(tool_changed, material_changed);
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, gpu));
