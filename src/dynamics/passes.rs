@@ -1,0 +1,445 @@
+//! The data-parallel passes of a step, each split over the threads of a [`Team`]: the
+//! six-neighbour springs, the projection `p̈ = (AᵀA)⁻¹ Aᵀ f / μ`, the coefficient bounds, and
+//! the Euler update with `ḋ = A ṗ` fused with the density and plastic updates.
+//!
+//! Every pass splits its work the same way whatever the thread count (whole planes for the x
+//! and y sweeps, column ranges for the z sweep), and every value is produced by the same lane
+//! operations in either split, so one and two threads give bit-identical results. Threads
+//! write disjoint ranges between barriers; no pass allocates.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use crate::field::{Emit, KroneckerBasis, LANES, SharedOut, split_range, sweep_strided, sweep_x};
+
+use super::material::Integrator;
+use super::springs::{SixInputs, six_forces, six_pads};
+use super::team::Team;
+
+/// `(max |v|, all finite)` over `v`, in lane-wise form so it vectorises.
+#[must_use]
+pub(crate) fn max_abs(v: &[f32]) -> (f32, bool) {
+    let mut m = [0.0_f32; LANES];
+    // x − x is 0 for finite x and NaN for an infinity or a NaN.
+    let mut probe = [0.0_f32; LANES];
+    let chunks = v.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        for l in 0..LANES {
+            let a = c[l].abs();
+            m[l] = if a > m[l] { a } else { m[l] };
+            probe[l] += c[l] - c[l];
+        }
+    }
+    for (l, &x) in tail.iter().enumerate() {
+        let a = x.abs();
+        m[l] = if a > m[l] { a } else { m[l] };
+        probe[l] += x - x;
+    }
+    let max = m.iter().fold(0.0_f32, |a, &b| if b > a { b } else { a });
+    (max, probe.iter().all(|&p| p == 0.0))
+}
+
+/// Per-part `(max, finite)` results.
+struct PartMax {
+    bits: [AtomicU32; 2],
+    finite: [AtomicBool; 2],
+}
+
+impl PartMax {
+    fn new() -> Self {
+        Self {
+            bits: [AtomicU32::new(0), AtomicU32::new(0)],
+            finite: [AtomicBool::new(true), AtomicBool::new(true)],
+        }
+    }
+
+    fn merge(&self, part: usize, (max, finite): (f32, bool)) {
+        // Relaxed: `Team::run` orders the parts' writes before the caller's reads.
+        let old = f32::from_bits(self.bits[part].load(Ordering::Relaxed));
+        self.bits[part].store(old.max(max).to_bits(), Ordering::Relaxed);
+        if !finite {
+            self.finite[part].store(false, Ordering::Relaxed);
+        }
+    }
+
+    fn result(&self) -> (f32, bool) {
+        let m0 = f32::from_bits(self.bits[0].load(Ordering::Relaxed));
+        let m1 = f32::from_bits(self.bits[1].load(Ordering::Relaxed));
+        (
+            m0.max(m1),
+            self.finite[0].load(Ordering::Relaxed) && self.finite[1].load(Ordering::Relaxed),
+        )
+    }
+}
+
+/// The per-point fields the spring pass reads.
+pub(crate) struct SpringFields<'a> {
+    pub dims: [usize; 3],
+    pub d: &'a [f32],
+    pub rest: &'a [f32],
+    pub stiffness: &'a [f32],
+    pub damping: &'a [f32],
+    pub d_dot: &'a [f32],
+    pub external: &'a [f32],
+    pub zeros: &'a [f32],
+}
+
+/// `force = external + six-neighbour springs − damping · ḋ`, split by planes.
+pub(crate) fn springs_six(
+    team: &Team,
+    f: &SpringFields<'_>,
+    e_pad: &mut [f32],
+    k_pad: &mut [f32],
+    force: &mut [f32],
+) {
+    let parts = team.threads();
+    let mz = f.dims[2];
+    let (ep, kp, out) = (
+        SharedOut::new(e_pad),
+        SharedOut::new(k_pad),
+        SharedOut::new(force),
+    );
+    team.run(&|part, barrier| {
+        let planes = split_range(mz, parts, part, 1);
+        // SAFETY: each part fills only the rows of its own planes.
+        unsafe { six_pads(f.dims, f.d, f.rest, f.stiffness, planes.clone(), &ep, &kp) };
+        barrier.wait();
+        // SAFETY: after the barrier nobody writes the padded copies.
+        let (e_pad, k_pad) = unsafe { (ep.slice(0..ep.len()), kp.slice(0..kp.len())) };
+        let inputs = SixInputs {
+            dims: f.dims,
+            e_pad,
+            k_pad,
+            zeros: f.zeros,
+            external: f.external,
+            damping: f.damping,
+            d_dot: f.d_dot,
+        };
+        // SAFETY: each part writes only the rows of its own planes.
+        unsafe { six_forces(&inputs, planes, &out) };
+    });
+}
+
+/// Two scratch arrays for the intermediate results of a three-pass chain.
+pub(crate) struct ChainScratch<'a> {
+    pub t1: &'a mut [f32],
+    pub t2: &'a mut [f32],
+}
+
+/// `accel = scale · (AᵀA)⁻¹ Aᵀ force`; returns `(max |accel|, all finite)`.
+pub(crate) fn project(
+    team: &Team,
+    basis: &KroneckerBasis,
+    force: &[f32],
+    scale: f32,
+    scratch: ChainScratch<'_>,
+    accel: &mut [f32],
+) -> (f32, bool) {
+    let parts = team.threads();
+    let ops = [
+        basis.op_project(0, 1.0),
+        basis.op_project(1, 1.0),
+        basis.op_project(2, scale),
+    ];
+    let [sx, sy, sz] = basis.pass_shapes(&ops);
+    let (t1, t2, out) = (
+        SharedOut::new(&mut scratch.t1[..sx.out_len]),
+        SharedOut::new(&mut scratch.t2[..sy.out_len]),
+        SharedOut::new(accel),
+    );
+    let result = PartMax::new();
+    team.run(&|part, barrier| {
+        let planes = split_range(sy.outer, parts, part, 1);
+        planes_xy(&ops, &[sx, sy], force, planes, &t1, &t2);
+        barrier.wait();
+        // SAFETY: after the barrier nobody writes t2.
+        let t2 = unsafe { t2.slice(0..t2.len()) };
+        let cols = split_range(sz.inner, parts, part, LANES);
+        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out);
+        for row in 0..out.len() / sz.inner.max(1) {
+            let base = row * sz.inner;
+            // SAFETY: these columns were written by this part alone.
+            let seg = unsafe { out.slice(base + cols.start..base + cols.end) };
+            result.merge(part, max_abs(seg));
+        }
+    });
+    result.result()
+}
+
+/// The x and y passes of a chain over the planes `planes` of its input (whole planes, so no
+/// barrier is needed between them).
+fn planes_xy(
+    ops: &[crate::field::AxisOp<'_>; 3],
+    shapes: &[crate::field::PassShape; 2],
+    src: &[f32],
+    planes: Range<usize>,
+    t1: &SharedOut<'_>,
+    t2: &SharedOut<'_>,
+) {
+    let [sx, sy] = *shapes;
+    let planes_total = sy.outer.max(1);
+    let lines_per_plane = sx.lines / planes_total;
+    let t1_plane = sx.out_len / planes_total;
+    let t2_plane = sy.out_len / planes_total;
+    sweep_x(
+        &ops[0],
+        src,
+        planes.start * lines_per_plane..planes.end * lines_per_plane,
+        t1,
+    );
+    // SAFETY: this part wrote these planes of t1 and nobody else touches them.
+    let mine = unsafe { t1.slice(planes.start * t1_plane..planes.end * t1_plane) };
+    sweep_strided(
+        &ops[1],
+        mine,
+        sy.inner,
+        0..planes.len(),
+        0..sy.inner,
+        &t2.sub(planes.start * t2_plane..planes.end * t2_plane),
+    );
+}
+
+/// `(max |p|, max |ṗ|, all finite)`.
+pub(crate) fn coefficient_bounds(team: &Team, p: &[f32], p_dot: &[f32]) -> (f32, f32, bool) {
+    let parts = team.threads();
+    let (pm, vm) = (PartMax::new(), PartMax::new());
+    team.run(&|part, _| {
+        let r = split_range(p.len(), parts, part, LANES);
+        pm.merge(part, max_abs(&p[r.clone()]));
+        vm.merge(part, max_abs(&p_dot[r]));
+    });
+    let ((p_max, p_ok), (v_max, v_ok)) = (pm.result(), vm.result());
+    (p_max, v_max, p_ok && v_ok)
+}
+
+/// The density-side state a step updates from `ḋ = A ṗ`.
+pub(crate) struct Densities<'a> {
+    pub d_dot: &'a mut [f32],
+    pub d: &'a mut [f32],
+    pub rest: &'a mut [f32],
+}
+
+/// Plastic drift `rest += rate · excess`, `excess = dev − clamp(dev, −yield, yield)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Plastic {
+    pub rate: f32,
+    pub yield_density: f32,
+}
+
+/// Writes `ḋ` and advances `d` (and the rest densities) element by element.
+struct DensityEmit<'a> {
+    d_dot: SharedOut<'a>,
+    d: SharedOut<'a>,
+    rest: SharedOut<'a>,
+    dt: f32,
+    integrator: Integrator,
+    plastic: Option<Plastic>,
+}
+
+impl DensityEmit<'_> {
+    /// The update of one block row, with a compile-time width.
+    #[inline(always)]
+    fn update<const N: usize>(
+        &self,
+        dd: &mut [f32; N],
+        d: &mut [f32; N],
+        rest: &mut [f32; N],
+        vals: &[f32; N],
+    ) {
+        let dt = self.dt;
+        match self.integrator {
+            Integrator::SemiImplicit => {
+                for l in 0..N {
+                    dd[l] = vals[l];
+                    d[l] += dt * vals[l];
+                }
+            }
+            Integrator::Explicit => {
+                for l in 0..N {
+                    d[l] += dt * dd[l];
+                    dd[l] = vals[l];
+                }
+            }
+        }
+        if let Some(pl) = self.plastic {
+            let y = pl.yield_density;
+            for l in 0..N {
+                let dev = d[l] - rest[l];
+                let clamped = if dev > y {
+                    y
+                } else if dev < -y {
+                    -y
+                } else {
+                    dev
+                };
+                rest[l] += pl.rate * (dev - clamped);
+            }
+        }
+    }
+}
+
+impl Emit for DensityEmit<'_> {
+    #[inline]
+    unsafe fn emit_lanes(&self, off: usize, vals: &[f32; LANES]) {
+        let range = off..off + LANES;
+        fn lanes(s: &mut [f32]) -> &mut [f32; LANES] {
+            s.try_into().expect("a block row")
+        }
+        // SAFETY: forwarded contract (the same range of three arrays).
+        let (dd, d, rest) = unsafe {
+            (
+                lanes(self.d_dot.slice_mut(range.clone())),
+                lanes(self.d.slice_mut(range.clone())),
+                lanes(self.rest.slice_mut(range)),
+            )
+        };
+        self.update(dd, d, rest, vals);
+    }
+
+    unsafe fn emit(&self, off: usize, vals: &[f32]) {
+        let range = off..off + vals.len();
+        // SAFETY: forwarded contract (the same range of three arrays).
+        let (dd, d, rest) = unsafe {
+            (
+                self.d_dot.slice_mut(range.clone()),
+                self.d.slice_mut(range.clone()),
+                self.rest.slice_mut(range),
+            )
+        };
+        let dt = self.dt;
+        match self.integrator {
+            Integrator::SemiImplicit => {
+                for ((dd, d), &v) in dd.iter_mut().zip(d.iter_mut()).zip(vals) {
+                    *dd = v;
+                    *d += dt * v;
+                }
+            }
+            Integrator::Explicit => {
+                for ((dd, d), &v) in dd.iter_mut().zip(d.iter_mut()).zip(vals) {
+                    *d += dt * *dd;
+                    *dd = v;
+                }
+            }
+        }
+        if let Some(pl) = self.plastic {
+            plastic_drift(d, rest, pl);
+        }
+    }
+}
+
+/// Apply the plastic drift of the rest densities toward `d`.
+pub(crate) fn plastic_drift(d: &[f32], rest: &mut [f32], pl: Plastic) {
+    let y = pl.yield_density;
+    for (r, &d) in rest.iter_mut().zip(d) {
+        let dev = d - *r;
+        let clamped = if dev > y {
+            y
+        } else if dev < -y {
+            -y
+        } else {
+            dev
+        };
+        *r += pl.rate * (dev - clamped);
+    }
+}
+
+/// Forward Euler on `(p, ṗ)` with `p̈ = accel`, then `ḋ = A ṗ` with `d` advanced and the
+/// plastic drift applied as each value of `ḋ` comes out.
+#[allow(clippy::too_many_arguments)] // one pass over the whole state
+pub(crate) fn integrate(
+    team: &Team,
+    basis: &KroneckerBasis,
+    dt: f32,
+    integrator: Integrator,
+    plastic: Option<Plastic>,
+    (p, p_dot, accel): (&mut [f32], &mut [f32], &[f32]),
+    scratch: ChainScratch<'_>,
+    dens: Densities<'_>,
+) {
+    let parts = team.threads();
+    let ops = [basis.op_apply(0), basis.op_apply(1), basis.op_apply(2)];
+    let [sx, sy, sz] = basis.pass_shapes(&ops);
+    let (po, vo) = (SharedOut::new(p), SharedOut::new(p_dot));
+    let (t1, t2) = (
+        SharedOut::new(&mut scratch.t1[..sx.out_len]),
+        SharedOut::new(&mut scratch.t2[..sy.out_len]),
+    );
+    let out = DensityEmit {
+        d_dot: SharedOut::new(dens.d_dot),
+        d: SharedOut::new(dens.d),
+        rest: SharedOut::new(dens.rest),
+        dt,
+        integrator,
+        plastic,
+    };
+    let plane = po.len() / sy.outer.max(1);
+    team.run(&|part, barrier| {
+        let planes = split_range(sy.outer, parts, part, 1);
+        let range = planes.start * plane..planes.end * plane;
+        // SAFETY: each part updates only the coefficients of its own planes.
+        let (x, v) = unsafe { (po.slice_mut(range.clone()), vo.slice_mut(range.clone())) };
+        let a = &accel[range];
+        match integrator {
+            Integrator::SemiImplicit => {
+                for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
+                    *v += dt * a;
+                    *x += dt * *v;
+                }
+            }
+            Integrator::Explicit => {
+                for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
+                    *x += dt * *v;
+                    *v += dt * a;
+                }
+            }
+        }
+        let v: &[f32] = v;
+        let shifted = planes.start..planes.end;
+        // The x pass reads only this part's planes of ṗ: hand it those, re-based at 0.
+        let lines_per_plane = sx.lines / sy.outer.max(1);
+        let t1_plane = sx.out_len / sy.outer.max(1);
+        sweep_x(
+            &ops[0],
+            v,
+            0..shifted.len() * lines_per_plane,
+            &t1.sub(shifted.start * t1_plane..shifted.end * t1_plane),
+        );
+        let t2_plane = sy.out_len / sy.outer.max(1);
+        // SAFETY: this part wrote these planes of t1 and nobody else touches them.
+        let mine = unsafe { t1.slice(shifted.start * t1_plane..shifted.end * t1_plane) };
+        sweep_strided(
+            &ops[1],
+            mine,
+            sy.inner,
+            0..shifted.len(),
+            0..sy.inner,
+            &t2.sub(shifted.start * t2_plane..shifted.end * t2_plane),
+        );
+        barrier.wait();
+        // SAFETY: after the barrier nobody writes t2.
+        let t2 = unsafe { t2.slice(0..t2.len()) };
+        let cols = split_range(sz.inner, parts, part, LANES);
+        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols, &out);
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn max_abs_finds_the_largest_magnitude_and_flags_non_finite_values() {
+        let mut v: Vec<f32> = (0..37).map(|i| (i as f32 * 0.37).sin()).collect();
+        v[29] = -3.5;
+        assert_eq!(max_abs(&v), (3.5, true));
+        v[35] = f32::INFINITY;
+        assert!(!max_abs(&v).1);
+        v[35] = f32::NAN;
+        assert!(!max_abs(&v).1);
+        v[35] = 0.0;
+        v[3] = f32::NAN;
+        assert!(!max_abs(&v).1);
+        assert_eq!(max_abs(&[]), (0.0, true));
+    }
+}

@@ -1,0 +1,414 @@
+//! The per-axis sweeps behind `A`, `Aᵀ` and `(AᵀA)⁻¹`: every pass works on blocks of
+//! [`LANES`] independent lines at once, so the inner loops are fixed-width lane loops that
+//! LLVM turns into SSE2 vectors, and the banded recurrence of the Cholesky solve advances eight
+//! lines per step instead of one (a scalar recurrence is latency-bound).
+//!
+//! Along a strided axis (y, z) a block is `LANES` neighbouring columns of every row, read and
+//! written with contiguous loads; along the contiguous x axis a block is `LANES` whole lines,
+//! transposed into the block and back. A partial block at the end computes all lanes and
+//! writes back only the valid ones, so each output value is produced by the same lane
+//! operations whatever the blocking: results do not depend on how the work is split between
+//! threads.
+//!
+//! Each call works on caller-chosen ranges (planes, columns, lines) and writes through an
+//! [`Emit`], which is how two threads share one output array. Block buffers live on the stack
+//! (axes up to 250 long) and are allocated only for longer axes.
+
+use std::marker::PhantomData;
+use std::ops::Range;
+
+use super::band::{Band, SolvePlan};
+
+/// Lines swept together by one block.
+pub const LANES: usize = 8;
+
+/// One block row: the same position on [`LANES`] lines.
+pub(crate) type Lanes = [f32; LANES];
+
+/// Zero rows kept before and after the solve's rows so its recurrence needs no edge cases.
+const PAD: usize = 3;
+
+/// What one axis pass computes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum AxisOp<'a> {
+    /// `out = B in` (or `Bᵀ in`, with the transposed band).
+    Apply(&'a Band),
+    /// `out = (BᵀB)⁻¹ (scale · Bᵀ in)`: `band` is `Bᵀ`.
+    Project {
+        band: &'a Band,
+        solve: &'a SolvePlan,
+        scale: f32,
+    },
+    /// `out = (BᵀB)⁻¹ (scale · in)`.
+    Solve { solve: &'a SolvePlan, scale: f32 },
+}
+
+impl AxisOp<'_> {
+    pub(crate) fn rows_in(&self) -> usize {
+        match self {
+            Self::Apply(b) | Self::Project { band: b, .. } => b.inputs,
+            Self::Solve { solve, .. } => solve.len(),
+        }
+    }
+
+    pub(crate) fn rows_out(&self) -> usize {
+        match self {
+            Self::Apply(b) | Self::Project { band: b, .. } => b.outputs,
+            Self::Solve { solve, .. } => solve.len(),
+        }
+    }
+}
+
+/// Where a sweep writes its output segments.
+pub(crate) trait Emit {
+    /// Write `vals` at flat offset `off` of the destination.
+    ///
+    /// # Safety
+    /// No other thread may read or write `off..off + vals.len()` of the destination during
+    /// the call.
+    unsafe fn emit(&self, off: usize, vals: &[f32]);
+
+    /// [`Emit::emit`] for a whole block row (the common case, worth a fixed-width path).
+    ///
+    /// # Safety
+    /// As [`Emit::emit`].
+    #[inline]
+    unsafe fn emit_lanes(&self, off: usize, vals: &Lanes) {
+        // SAFETY: forwarded contract.
+        unsafe { self.emit(off, vals) };
+    }
+}
+
+/// A mutable slice that several threads write disjoint parts of. It borrows the slice
+/// exclusively for its lifetime, so nothing else can touch it meanwhile.
+pub(crate) struct SharedOut<'a> {
+    ptr: *mut f32,
+    len: usize,
+    _borrow: PhantomData<&'a mut [f32]>,
+}
+
+// SAFETY: a SharedOut is only a pointer to an exclusively borrowed slice; every access goes
+// through an `unsafe fn` whose contract makes concurrent accesses disjoint.
+unsafe impl Send for SharedOut<'_> {}
+// SAFETY: as above.
+unsafe impl Sync for SharedOut<'_> {}
+
+impl<'a> SharedOut<'a> {
+    /// Share `slice` for the lifetime of the borrow.
+    pub(crate) fn new(slice: &'a mut [f32]) -> Self {
+        Self {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    /// Length of the shared slice.
+    pub(crate) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// The part `range` of the slice, as a slice of its own (offsets start at 0).
+    ///
+    /// # Panics
+    /// When `range` is out of bounds.
+    pub(crate) fn sub(&self, range: Range<usize>) -> SharedOut<'_> {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "range out of bounds"
+        );
+        SharedOut {
+            // SAFETY: in bounds (checked above).
+            ptr: unsafe { self.ptr.add(range.start) },
+            len: range.len(),
+            _borrow: PhantomData,
+        }
+    }
+
+    /// Mutable access to `range`.
+    ///
+    /// # Safety
+    /// No other thread may access `range` while the returned slice lives.
+    ///
+    /// # Panics
+    /// When `range` is out of bounds.
+    #[allow(clippy::mut_from_ref)] // the contract above is what makes this sound
+    pub(crate) unsafe fn slice_mut(&self, range: Range<usize>) -> &mut [f32] {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "range out of bounds"
+        );
+        // SAFETY: in bounds (checked); exclusive by the caller's contract.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+
+    /// Shared access to `range`.
+    ///
+    /// # Safety
+    /// No other thread may write `range` while the returned slice lives.
+    ///
+    /// # Panics
+    /// When `range` is out of bounds.
+    pub(crate) unsafe fn slice(&self, range: Range<usize>) -> &[f32] {
+        assert!(
+            range.start <= range.end && range.end <= self.len,
+            "range out of bounds"
+        );
+        // SAFETY: in bounds (checked); no concurrent writer by the caller's contract.
+        unsafe { std::slice::from_raw_parts(self.ptr.add(range.start), range.len()) }
+    }
+}
+
+impl Emit for SharedOut<'_> {
+    #[inline]
+    unsafe fn emit(&self, off: usize, vals: &[f32]) {
+        // SAFETY: forwarded contract.
+        let dst = unsafe { self.slice_mut(off..off + vals.len()) };
+        for (d, &v) in dst.iter_mut().zip(vals) {
+            *d = v;
+        }
+    }
+
+    #[inline]
+    unsafe fn emit_lanes(&self, off: usize, vals: &Lanes) {
+        // SAFETY: forwarded contract.
+        let dst: &mut Lanes = unsafe { self.slice_mut(off..off + LANES) }
+            .try_into()
+            .expect("a block row");
+        *dst = *vals;
+    }
+}
+
+/// Run `f` with two block buffers of at least `rows` rows and a line buffer of `rows` values.
+fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut [Lanes], &mut [Lanes], &mut [f32]) -> R) -> R {
+    const SMALL: usize = 64;
+    const LARGE: usize = 256;
+    if rows <= SMALL {
+        let (mut a, mut b, mut l) = ([[0.0; LANES]; SMALL], [[0.0; LANES]; SMALL], [0.0; SMALL]);
+        f(&mut a, &mut b, &mut l)
+    } else if rows <= LARGE {
+        let (mut a, mut b, mut l) = ([[0.0; LANES]; LARGE], [[0.0; LANES]; LARGE], [0.0; LARGE]);
+        f(&mut a, &mut b, &mut l)
+    } else {
+        // Axes this long are far beyond interactive sizes; allocating is acceptable there.
+        f(
+            &mut vec![[0.0; LANES]; rows],
+            &mut vec![[0.0; LANES]; rows],
+            &mut vec![0.0; rows],
+        )
+    }
+}
+
+/// `out[o] = Σ_t w[o][t] · input[start[o] + t]` with a compile-time tap count.
+#[inline(always)]
+fn gather_fixed<const T: usize>(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
+    let weights = band.weights.chunks_exact(T);
+    for ((dst, &s), w) in out.iter_mut().zip(&band.start).zip(weights) {
+        let rows: &[Lanes; T] = input[s..s + T].try_into().expect("window in range");
+        let mut acc = [0.0; LANES];
+        for t in 0..T {
+            for l in 0..LANES {
+                acc[l] += w[t] * rows[t][l];
+            }
+        }
+        *dst = acc;
+    }
+}
+
+fn gather_block(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
+    let out = &mut out[..band.outputs];
+    match band.taps {
+        3 => gather_fixed::<3>(band, input, out),
+        4 => gather_fixed::<4>(band, input, out),
+        taps => {
+            for ((dst, &s), w) in out
+                .iter_mut()
+                .zip(&band.start)
+                .zip(band.weights.chunks_exact(taps))
+            {
+                let mut acc = [0.0; LANES];
+                for (wt, row) in w.iter().zip(&input[s..s + taps]) {
+                    for l in 0..LANES {
+                        acc[l] += wt * row[l];
+                    }
+                }
+                *dst = acc;
+            }
+        }
+    }
+}
+
+/// `x[PAD..PAD + n] ← (L Lᵀ)⁻¹ (scale · x[PAD..PAD + n])`; the `PAD` rows on either side must
+/// be zero (they stand for the missing neighbours at the ends).
+fn solve_block(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
+    if scale == 1.0 {
+        solve_block_scaled::<false>(plan, scale, x);
+    } else {
+        solve_block_scaled::<true>(plan, scale, x);
+    }
+}
+
+#[inline(always)]
+fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
+    let n = plan.len();
+    let x = &mut x[..n + 2 * PAD];
+    for (o, (l, &inv)) in plan.lower.iter().zip(&plan.inv_diag).enumerate() {
+        let w: &mut [Lanes; 4] = (&mut x[o..o + 4]).try_into().expect("window in range");
+        let mut v = [0.0; LANES];
+        for e in 0..LANES {
+            let b = if SCALED { scale * w[3][e] } else { w[3][e] };
+            v[e] = (b - l[0] * w[2][e] - l[1] * w[1][e] - l[2] * w[0][e]) * inv;
+        }
+        w[3] = v;
+    }
+    for (o, (u, &inv)) in plan.upper.iter().zip(&plan.inv_diag).enumerate().rev() {
+        let w: &mut [Lanes; 4] = (&mut x[o + PAD..o + PAD + 4])
+            .try_into()
+            .expect("window in range");
+        let mut v = [0.0; LANES];
+        for e in 0..LANES {
+            v[e] = (w[0][e] - u[0] * w[1][e] - u[1] * w[2][e] - u[2] * w[3][e]) * inv;
+        }
+        w[0] = v;
+    }
+}
+
+/// Compute one block: `input` holds the op's input rows; returns the output rows (inside
+/// `mid`).
+fn run_block<'m>(op: &AxisOp<'_>, input: &[Lanes], mid: &'m mut [Lanes]) -> &'m [Lanes] {
+    match *op {
+        AxisOp::Apply(band) => {
+            gather_block(band, input, mid);
+            &mid[..band.outputs]
+        }
+        AxisOp::Project { band, solve, scale } => {
+            let n = band.outputs;
+            mid[..PAD].fill([0.0; LANES]);
+            mid[PAD + n..n + 2 * PAD].fill([0.0; LANES]);
+            gather_block(band, input, &mut mid[PAD..]);
+            solve_block(solve, scale, mid);
+            &mid[PAD..PAD + n]
+        }
+        AxisOp::Solve { solve, scale } => {
+            let n = solve.len();
+            mid[..PAD].fill([0.0; LANES]);
+            mid[PAD..PAD + n].copy_from_slice(&input[..n]);
+            mid[PAD + n..n + 2 * PAD].fill([0.0; LANES]);
+            solve_block(solve, scale, mid);
+            &mid[PAD..PAD + n]
+        }
+    }
+}
+
+/// One pass along a strided axis. `src` has shape `[outer][rows_in][inner]` (inner fastest),
+/// the output `[outer][rows_out][inner]`; only blocks `outer` and columns `cols` are done.
+///
+/// # Panics
+/// When `src` is too short for the ranges.
+pub(crate) fn sweep_strided(
+    op: &AxisOp<'_>,
+    src: &[f32],
+    inner: usize,
+    outer: Range<usize>,
+    cols: Range<usize>,
+    out: &impl Emit,
+) {
+    let (ri, ro) = (op.rows_in(), op.rows_out());
+    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, _| {
+        for b in outer {
+            let (sb, db) = (b * ri * inner, b * ro * inner);
+            let mut c = cols.start;
+            while c < cols.end {
+                let w = LANES.min(cols.end - c);
+                if w == LANES {
+                    for (r, row) in input[..ri].iter_mut().enumerate() {
+                        let s = sb + r * inner + c;
+                        *row = src[s..s + LANES].try_into().expect("a block row");
+                    }
+                } else {
+                    for (r, row) in input[..ri].iter_mut().enumerate() {
+                        let s = sb + r * inner + c;
+                        for (d, &v) in row.iter_mut().zip(&src[s..s + w]) {
+                            *d = v;
+                        }
+                    }
+                }
+                let res = run_block(op, input, mid);
+                for (r, row) in res.iter().enumerate() {
+                    let off = db + r * inner + c;
+                    // SAFETY: the caller hands each (block, column) range to one thread.
+                    unsafe {
+                        if w == LANES {
+                            out.emit_lanes(off, row);
+                        } else {
+                            out.emit(off, &row[..w]);
+                        }
+                    }
+                }
+                c += w;
+            }
+        }
+    });
+}
+
+/// One pass along the contiguous x axis: `src` holds lines of `rows_in` values, the output
+/// lines of `rows_out`; only `lines` are done.
+///
+/// # Panics
+/// When `src` is too short for the range.
+pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &impl Emit) {
+    let (ri, ro) = (op.rows_in(), op.rows_out());
+    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, line| {
+        let mut g = lines.start;
+        while g < lines.end {
+            let count = LANES.min(lines.end - g);
+            let group = &src[g * ri..(g + count) * ri];
+            if count == LANES {
+                transpose_in(group, ri, &mut input[..ri]);
+            } else {
+                for (l, s) in group.chunks_exact(ri).enumerate() {
+                    for (row, &v) in input.iter_mut().zip(s) {
+                        row[l] = v;
+                    }
+                }
+            }
+            let res = run_block(op, input, mid);
+            let line = &mut line[..ro];
+            for l in 0..count {
+                for (v, row) in line.iter_mut().zip(res) {
+                    *v = row[l];
+                }
+                // SAFETY: the caller hands each line range to one thread.
+                unsafe { out.emit((g + l) * ro, line) };
+            }
+            g += count;
+        }
+    });
+}
+
+/// `block[r][l] = group[l · len + r]` for `LANES` lines of `len` values.
+#[inline(always)]
+fn transpose_in(group: &[f32], len: usize, block: &mut [Lanes]) {
+    let lines: [&[f32]; LANES] = std::array::from_fn(|l| &group[l * len..(l + 1) * len]);
+    for (r, row) in block[..len].iter_mut().enumerate() {
+        for l in 0..LANES {
+            row[l] = lines[l][r];
+        }
+    }
+}
+
+/// Split `0..len` into `parts` near-equal ranges (the `i`-th of them), cut on multiples of
+/// `align` where possible.
+#[must_use]
+pub(crate) fn split_range(len: usize, parts: usize, i: usize, align: usize) -> Range<usize> {
+    let parts = parts.max(1);
+    let cut = |k: usize| {
+        if k >= parts {
+            return len;
+        }
+        let raw = len * k / parts;
+        let aligned = (raw + align / 2) / align.max(1) * align.max(1);
+        aligned.min(len)
+    };
+    cut(i)..cut(i + 1)
+}
