@@ -20,24 +20,26 @@ use super::team::Team;
 #[must_use]
 pub(crate) fn max_abs(v: &[f32]) -> (f32, bool) {
     let mut m = [0.0_f32; LANES];
-    // x − x is 0 for finite x and NaN for an infinity or a NaN.
+    // 0 · x is 0 for finite x and NaN for an infinity or a NaN.
     let mut probe = [0.0_f32; LANES];
     let chunks = v.chunks_exact(LANES);
     let tail = chunks.remainder();
     for c in chunks {
+        let c: &[f32; LANES] = c.try_into().expect("a chunk");
         for l in 0..LANES {
-            let a = c[l].abs();
+            let a = f32::from_bits(c[l].to_bits() & 0x7fff_ffff);
             m[l] = if a > m[l] { a } else { m[l] };
-            probe[l] += c[l] - c[l];
+            probe[l] += 0.0 * c[l];
         }
     }
     for (l, &x) in tail.iter().enumerate() {
         let a = x.abs();
         m[l] = if a > m[l] { a } else { m[l] };
-        probe[l] += x - x;
+        probe[l] += 0.0 * x;
     }
     let max = m.iter().fold(0.0_f32, |a, &b| if b > a { b } else { a });
-    (max, probe.iter().all(|&p| p == 0.0))
+    // A NaN in any lane survives the sum.
+    (max, probe.iter().sum::<f32>() == 0.0)
 }
 
 /// Per-part `(max, finite)` results.
@@ -263,24 +265,25 @@ impl DensityEmit<'_> {
             }
         }
         if let Some(pl) = self.plastic {
-            let y = pl.yield_density;
             for l in 0..N {
-                let dev = d[l] - rest[l];
-                let clamped = if dev > y {
-                    y
-                } else if dev < -y {
-                    -y
-                } else {
-                    dev
-                };
-                rest[l] += pl.rate * (dev - clamped);
+                rest[l] = drifted(d[l], rest[l], pl);
             }
         }
     }
 }
 
+/// One rest density after the plastic drift toward `d` (written as selects so it vectorises).
+#[inline(always)]
+fn drifted(d: f32, rest: f32, pl: Plastic) -> f32 {
+    let y = pl.yield_density;
+    let dev = d - rest;
+    let upper = if dev > y { y } else { dev };
+    let clamped = if upper < -y { -y } else { upper };
+    rest + pl.rate * (dev - clamped)
+}
+
 impl Emit for DensityEmit<'_> {
-    #[inline]
+    #[inline(always)]
     unsafe fn emit_lanes(&self, off: usize, vals: &[f32; LANES]) {
         let range = off..off + LANES;
         fn lanes(s: &mut [f32]) -> &mut [f32; LANES] {
@@ -330,17 +333,8 @@ impl Emit for DensityEmit<'_> {
 
 /// Apply the plastic drift of the rest densities toward `d`.
 pub(crate) fn plastic_drift(d: &[f32], rest: &mut [f32], pl: Plastic) {
-    let y = pl.yield_density;
     for (r, &d) in rest.iter_mut().zip(d) {
-        let dev = d - *r;
-        let clamped = if dev > y {
-            y
-        } else if dev < -y {
-            -y
-        } else {
-            dev
-        };
-        *r += pl.rate * (dev - clamped);
+        *r = drifted(d, *r, pl);
     }
 }
 

@@ -76,6 +76,8 @@ pub struct Simulator {
     pub counters: StepCounters,
     /// External forces gathered from the tools, per mass point.
     external: Vec<f32>,
+    /// The part of `external` that may be non-zero.
+    external_dirty: std::ops::Range<usize>,
     /// Total force per mass point (external, springs, damping).
     force: Vec<f32>,
     e: Vec<f32>,
@@ -117,6 +119,9 @@ impl Simulator {
 
     fn ensure_scratch(&mut self, state: &RegionState) {
         let (n, m) = (state.p.len(), state.d.len());
+        if self.external.len() != m {
+            self.external_dirty = 0..m;
+        }
         for v in [
             &mut self.external,
             &mut self.force,
@@ -229,7 +234,11 @@ impl Simulator {
         forces: &[ToolForce],
     ) {
         self.ensure_scratch(state);
-        self.external.fill(0.0);
+        // The forces are sparse: clear only what the previous step wrote.
+        let dirty = self.external_dirty.start.min(self.external.len())
+            ..self.external_dirty.end.min(self.external.len());
+        self.external[dirty].fill(0.0);
+        self.external_dirty = 0..0;
         let grid = &state.grid;
         let m = grid.dims;
         for tf in forces {
@@ -280,7 +289,14 @@ impl Simulator {
                             if pass == 0 {
                                 total += w;
                             } else {
-                                self.external[state.point_index(i, j, k)] += scale * w;
+                                let at = state.point_index(i, j, k);
+                                self.external[at] += scale * w;
+                                let d = &mut self.external_dirty;
+                                (d.start, d.end) = if d.start >= d.end {
+                                    (at, at + 1)
+                                } else {
+                                    (d.start.min(at), d.end.max(at + 1))
+                                };
                             }
                         }
                     }
@@ -578,7 +594,7 @@ mod tests {
 
     use super::*;
     use crate::dynamics::{
-        Distribution, HapticCoupling, Material, reaction_force, surface_point_on_ray,
+        Distribution, HapticCoupling, Integrator, Material, reaction_force, surface_point_on_ray,
     };
     use crate::field::{CoeffBox, Primitive, lattice_from_primitive};
 
@@ -880,6 +896,53 @@ mod tests {
             .sum::<f64>()
             .sqrt();
         assert!(res < 1e-4 * norm, "residual {res} of {norm}");
+    }
+
+    #[test]
+    fn two_threads_give_bit_identical_steps() {
+        for (mass_dims, integrator, neighbourhood) in [
+            ([15, 15, 15], Integrator::SemiImplicit, Neighbourhood::Six),
+            ([8, 8, 8], Integrator::SemiImplicit, Neighbourhood::Six),
+            ([11, 9, 13], Integrator::Explicit, Neighbourhood::Eighteen),
+        ] {
+            let mut runs = Vec::new();
+            for threads in [1, 2] {
+                let mut lattice = sphere();
+                let b = CoeffBox {
+                    min: [10, 6, 6],
+                    max: [17, 13, 13],
+                };
+                let mut state =
+                    RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+                let mut sim = Simulator::new(StepParams {
+                    threads,
+                    integrator,
+                    neighbourhood,
+                    resync_every: 7,
+                    ..StepParams::default()
+                });
+                let mut snap = RegionSnapshot::default();
+                let cursor = CENTRE + Vec3::new(0.6, 0.1, 0.0);
+                for _ in 0..40 {
+                    let tf = grab(&lattice, cursor, GAIN).unwrap();
+                    sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                        .unwrap();
+                }
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                runs.push((
+                    bits(&state.p),
+                    bits(&state.p_dot),
+                    bits(&state.d),
+                    bits(&state.d_dot),
+                    bits(&state.rest),
+                    bits(&lattice.coeffs),
+                ));
+            }
+            assert!(
+                runs[0] == runs[1],
+                "{mass_dims:?}: one and two threads differ"
+            );
+        }
     }
 
     #[test]

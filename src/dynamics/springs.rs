@@ -151,15 +151,24 @@ pub(crate) struct SixInputs<'a> {
 /// zeros with the row's own stiffness), each `mx` long.
 type NeighbourRows<'a> = [(&'a [f32], &'a [f32]); 4];
 
+/// `s[i..i + W]`.
+///
+/// # Safety
+/// `i + W <= s.len()`.
 #[inline(always)]
-fn lanes(s: &[f32], i: usize) -> [f32; W] {
-    s[i..i + W].try_into().expect("eight values")
+unsafe fn lanes(s: &[f32], i: usize) -> [f32; W] {
+    debug_assert!(i + W <= s.len());
+    // SAFETY: in bounds by the caller's contract; [f32; W] has the alignment of f32.
+    unsafe { s.as_ptr().add(i).cast::<[f32; W]>().read_unaligned() }
 }
 
 /// The fused kernel on `W` points starting at `i` (full width).
+///
+/// # Safety
+/// `i + W <= mx`, where `ec` and `kc` hold `mx + 2` values and every other slice `mx`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the streams of one row
-fn six_chunk(
+unsafe fn six_chunk(
     i: usize,
     ec: &[f32],
     kc: &[f32],
@@ -169,24 +178,28 @@ fn six_chunk(
     v: &[f32],
     out: &mut [f32],
 ) {
-    let (e0, k0) = (lanes(ec, i + 1), lanes(kc, i + 1));
-    let (exm, kxm) = (lanes(ec, i), lanes(kc, i));
-    let (exp, kxp) = (lanes(ec, i + 2), lanes(kc, i + 2));
+    // SAFETY (all loads): i + W <= mx, and the padded rows are two longer.
+    let (e0, k0) = unsafe { (lanes(ec, i + 1), lanes(kc, i + 1)) };
+    let (exm, kxm) = unsafe { (lanes(ec, i), lanes(kc, i)) };
+    let (exp, kxp) = unsafe { (lanes(ec, i + 2), lanes(kc, i + 2)) };
     let mut acc = [0.0; W];
     for l in 0..W {
         acc[l] = (k0[l] + kxm[l]) * (exm[l] - e0[l]) + (k0[l] + kxp[l]) * (exp[l] - e0[l]);
     }
     for &(en, kn) in rows {
-        let (en, kn) = (lanes(en, i), lanes(kn, i));
+        // SAFETY: as above.
+        let (en, kn) = unsafe { (lanes(en, i), lanes(kn, i)) };
         for l in 0..W {
             acc[l] += (k0[l] + kn[l]) * (en[l] - e0[l]);
         }
     }
-    let (x, gg, vv) = (lanes(ext, i), lanes(g, i), lanes(v, i));
-    let dst: &mut [f32; W] = (&mut out[i..i + W]).try_into().expect("eight values");
+    // SAFETY: as above.
+    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let mut f = [0.0; W];
     for l in 0..W {
-        dst[l] = x[l] + 0.5 * acc[l] - gg[l] * vv[l];
+        f[l] = x[l] + 0.5 * acc[l] - gg[l] * vv[l];
     }
+    out[i..i + W].copy_from_slice(&f);
 }
 
 /// The same sum for one point (rows shorter than `W`).
@@ -244,6 +257,15 @@ pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force
         );
         // SAFETY: this row is ours by the caller's contract.
         let out = unsafe { force.slice_mut(flat) };
+        assert!(
+            rows.iter().all(|(e, k)| e.len() >= mx && k.len() >= mx)
+                && ec.len() >= mx + 2
+                && kc.len() >= mx + 2
+                && ext.len() >= mx
+                && g.len() >= mx
+                && v.len() >= mx,
+            "row lengths"
+        );
         if mx < W {
             for i in 0..mx {
                 six_point(i, ec, kc, &rows, ext, g, v, out);
@@ -253,10 +275,12 @@ pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force
         // Chunks of W; the last one overlaps the previous (outputs depend only on inputs).
         let mut i = 0;
         while i + W < mx {
-            six_chunk(i, ec, kc, &rows, ext, g, v, out);
+            // SAFETY: i + W < mx, and the lengths were checked above.
+            unsafe { six_chunk(i, ec, kc, &rows, ext, g, v, out) };
             i += W;
         }
-        six_chunk(mx - W, ec, kc, &rows, ext, g, v, out);
+        // SAFETY: mx >= W here.
+        unsafe { six_chunk(mx - W, ec, kc, &rows, ext, g, v, out) };
     }
 }
 

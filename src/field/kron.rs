@@ -11,7 +11,7 @@
 //! one-off operators built without Gram factors.
 
 use super::axis::{AxisBasis, BandedCholesky};
-use super::band::{Band, SolvePlan};
+use super::band::{Band, SolvePlan, TriLu};
 pub use super::sweep::LANES;
 use super::sweep::{AxisOp, SharedOut, sweep_strided, sweep_x};
 
@@ -45,6 +45,8 @@ pub struct KroneckerBasis {
     transposed: [Band; 3],
     /// The Cholesky factors laid out for the sweeps.
     solve: [SolvePlan; 3],
+    /// `B⁻¹` per axis where `B` is square (then `(BᵀB)⁻¹Bᵀ = B⁻¹`).
+    inverse: [Option<TriLu>; 3],
 }
 
 /// Scratch space for [`KroneckerBasis`] operations (two intermediate arrays).
@@ -97,6 +99,7 @@ impl KroneckerBasis {
             forward: std::array::from_fn(|a| Band::forward(&axes[a])),
             transposed: std::array::from_fn(|a| Band::transposed(&axes[a])),
             solve: std::array::from_fn(|a| SolvePlan::new(&chol[a])),
+            inverse: std::array::from_fn(|a| TriLu::new(&axes[a])),
             axes,
             chol,
         })
@@ -290,8 +293,11 @@ impl KroneckerBasis {
         AxisOp::Apply(&self.transposed[axis])
     }
 
-    /// `scale · (BᵀB)⁻¹ Bᵀ` along `axis`.
+    /// `scale · (BᵀB)⁻¹ Bᵀ` along `axis` (`scale · B⁻¹` when `B` is square).
     pub(crate) fn op_project(&self, axis: usize, scale: f32) -> AxisOp<'_> {
+        if let Some(lu) = &self.inverse[axis] {
+            return AxisOp::Inverse { lu, scale };
+        }
         AxisOp::Project {
             band: &self.transposed[axis],
             solve: &self.solve[axis],

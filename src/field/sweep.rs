@@ -17,7 +17,7 @@
 use std::marker::PhantomData;
 use std::ops::Range;
 
-use super::band::{Band, SolvePlan};
+use super::band::{Band, SolvePlan, TriLu};
 
 /// Lines swept together by one block.
 pub const LANES: usize = 8;
@@ -41,6 +41,8 @@ pub(crate) enum AxisOp<'a> {
     },
     /// `out = (BᵀB)⁻¹ (scale · in)`.
     Solve { solve: &'a SolvePlan, scale: f32 },
+    /// `out = B⁻¹ (scale · in)` for a square `B`: the same as `Project` then.
+    Inverse { lu: &'a TriLu, scale: f32 },
 }
 
 impl AxisOp<'_> {
@@ -48,6 +50,7 @@ impl AxisOp<'_> {
         match self {
             Self::Apply(b) | Self::Project { band: b, .. } => b.inputs,
             Self::Solve { solve, .. } => solve.len(),
+            Self::Inverse { lu, .. } => lu.len(),
         }
     }
 
@@ -55,6 +58,7 @@ impl AxisOp<'_> {
         match self {
             Self::Apply(b) | Self::Project { band: b, .. } => b.outputs,
             Self::Solve { solve, .. } => solve.len(),
+            Self::Inverse { lu, .. } => lu.len(),
         }
     }
 }
@@ -181,9 +185,14 @@ impl Emit for SharedOut<'_> {
 
 /// Run `f` with two block buffers of at least `rows` rows and a line buffer of `rows` values.
 fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut [Lanes], &mut [Lanes], &mut [f32]) -> R) -> R {
-    const SMALL: usize = 64;
-    const LARGE: usize = 256;
-    if rows <= SMALL {
+    const TINY: usize = 24;
+    const SMALL: usize = 72;
+    const LARGE: usize = 264;
+    // Sized tiers: the buffers are zeroed on every call.
+    if rows <= TINY {
+        let (mut a, mut b, mut l) = ([[0.0; LANES]; TINY], [[0.0; LANES]; TINY], [0.0; TINY]);
+        f(&mut a, &mut b, &mut l)
+    } else if rows <= SMALL {
         let (mut a, mut b, mut l) = ([[0.0; LANES]; SMALL], [[0.0; LANES]; SMALL], [0.0; SMALL]);
         f(&mut a, &mut b, &mut l)
     } else if rows <= LARGE {
@@ -273,6 +282,31 @@ fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut 
     }
 }
 
+/// `mid[PAD..PAD + n] = B⁻¹ (scale · input[..n])` by the tridiagonal `L U` sweeps; the row
+/// before `PAD` must be zero.
+fn inverse_block(lu: &TriLu, scale: f32, input: &[Lanes], mid: &mut [Lanes]) {
+    let n = lu.len();
+    let mid = &mut mid[PAD - 1..PAD + n + 1];
+    for (o, (b, &l)) in input[..n].iter().zip(&lu.lower).enumerate() {
+        let w: &mut [Lanes; 2] = (&mut mid[o..o + 2]).try_into().expect("window in range");
+        let mut v = [0.0; LANES];
+        for e in 0..LANES {
+            v[e] = scale * b[e] - l * w[0][e];
+        }
+        w[1] = v;
+    }
+    for (o, (&u, &inv)) in lu.upper.iter().zip(&lu.inv_diag).enumerate().rev() {
+        let w: &mut [Lanes; 2] = (&mut mid[o + 1..o + 3])
+            .try_into()
+            .expect("window in range");
+        let mut v = [0.0; LANES];
+        for e in 0..LANES {
+            v[e] = (w[0][e] - u * w[1][e]) * inv;
+        }
+        w[0] = v;
+    }
+}
+
 /// Compute one block: `input` holds the op's input rows; returns the output rows (inside
 /// `mid`).
 fn run_block<'m>(op: &AxisOp<'_>, input: &[Lanes], mid: &'m mut [Lanes]) -> &'m [Lanes] {
@@ -287,6 +321,13 @@ fn run_block<'m>(op: &AxisOp<'_>, input: &[Lanes], mid: &'m mut [Lanes]) -> &'m 
             mid[PAD + n..n + 2 * PAD].fill([0.0; LANES]);
             gather_block(band, input, &mut mid[PAD..]);
             solve_block(solve, scale, mid);
+            &mid[PAD..PAD + n]
+        }
+        AxisOp::Inverse { lu, scale } => {
+            let n = lu.len();
+            mid[PAD - 1] = [0.0; LANES];
+            mid[PAD + n] = [0.0; LANES];
+            inverse_block(lu, scale, input, mid);
             &mid[PAD..PAD + n]
         }
         AxisOp::Solve { solve, scale } => {
@@ -317,38 +358,231 @@ pub(crate) fn sweep_strided(
     with_blocks(ri.max(ro) + 2 * PAD, |input, mid, _| {
         for b in outer {
             let (sb, db) = (b * ri * inner, b * ro * inner);
+            if inner >= LANES {
+                // Fast path: full-width blocks read straight from the source rows.
+                let src = &src[sb..sb + ri * inner];
+                let mut c = cols.start;
+                while c < cols.end {
+                    let (start, skip) = if cols.end - c >= LANES {
+                        (c, 0)
+                    } else {
+                        (cols.end - LANES, c + LANES - cols.end)
+                    };
+                    let start = start.min(inner - LANES);
+                    match *op {
+                        AxisOp::Apply(band) => {
+                            direct_apply(band, src, inner, start, db, skip, out);
+                        }
+                        AxisOp::Inverse { lu, scale } => {
+                            direct_inverse(lu, scale, src, inner, start, db, skip, mid, out);
+                        }
+                        _ => strided_block(
+                            op,
+                            src,
+                            inner,
+                            (0, db),
+                            start,
+                            LANES,
+                            skip,
+                            input,
+                            mid,
+                            out,
+                        ),
+                    }
+                    c = start + LANES;
+                }
+                continue;
+            }
             let mut c = cols.start;
             while c < cols.end {
-                let w = LANES.min(cols.end - c);
-                if w == LANES {
-                    for (r, row) in input[..ri].iter_mut().enumerate() {
-                        let s = sb + r * inner + c;
-                        *row = src[s..s + LANES].try_into().expect("a block row");
-                    }
+                let left = cols.end - c;
+                if left >= LANES || cols.len() < LANES {
+                    let w = LANES.min(left);
+                    strided_block(op, src, inner, (sb, db), c, w, 0, input, mid, out);
+                    c += w;
                 } else {
-                    for (r, row) in input[..ri].iter_mut().enumerate() {
-                        let s = sb + r * inner + c;
-                        for (d, &v) in row.iter_mut().zip(&src[s..s + w]) {
-                            *d = v;
-                        }
-                    }
+                    // A short tail: compute the last full block of the range (the source is
+                    // not the destination) and emit only the lanes not emitted yet.
+                    let start = cols.end - LANES;
+                    strided_block(
+                        op,
+                        src,
+                        inner,
+                        (sb, db),
+                        start,
+                        LANES,
+                        c - start,
+                        input,
+                        mid,
+                        out,
+                    );
+                    c = cols.end;
                 }
-                let res = run_block(op, input, mid);
-                for (r, row) in res.iter().enumerate() {
-                    let off = db + r * inner + c;
-                    // SAFETY: the caller hands each (block, column) range to one thread.
-                    unsafe {
-                        if w == LANES {
-                            out.emit_lanes(off, row);
-                        } else {
-                            out.emit(off, &row[..w]);
-                        }
-                    }
-                }
-                c += w;
             }
         }
     });
+}
+
+#[inline(always)]
+fn row_at(src: &[f32], off: usize) -> &Lanes {
+    src[off..off + LANES].try_into().expect("a block row")
+}
+
+#[inline(always)]
+fn emit_row(out: &impl Emit, off: usize, row: &Lanes, skip: usize) {
+    // SAFETY: the caller hands each (block, column) range to one thread.
+    unsafe {
+        if skip == 0 {
+            out.emit_lanes(off, row);
+        } else {
+            out.emit(off + skip, &row[skip..]);
+        }
+    }
+}
+
+/// `B` on columns `c..c + LANES` of one block, read straight from the source rows.
+#[inline(always)]
+fn direct_apply(
+    band: &Band,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    skip: usize,
+    out: &impl Emit,
+) {
+    match band.taps {
+        3 => direct_apply_fixed::<3>(band, src, inner, c, db, skip, out),
+        4 => direct_apply_fixed::<4>(band, src, inner, c, db, skip, out),
+        taps => {
+            for (o, (&s, w)) in band
+                .start
+                .iter()
+                .zip(band.weights.chunks_exact(taps))
+                .enumerate()
+            {
+                let mut acc = [0.0; LANES];
+                for (t, &wt) in w.iter().enumerate() {
+                    let row = row_at(src, (s + t) * inner + c);
+                    for l in 0..LANES {
+                        acc[l] += wt * row[l];
+                    }
+                }
+                emit_row(out, db + o * inner + c, &acc, skip);
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn direct_apply_fixed<const T: usize>(
+    band: &Band,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    skip: usize,
+    out: &impl Emit,
+) {
+    let src = &src[c..];
+    for (o, (&s, w)) in band
+        .start
+        .iter()
+        .zip(band.weights.chunks_exact(T))
+        .enumerate()
+    {
+        let w: &[f32; T] = w.try_into().expect("T weights");
+        let mut acc = [0.0; LANES];
+        for t in 0..T {
+            let row = row_at(src, (s + t) * inner);
+            for l in 0..LANES {
+                acc[l] += w[t] * row[l];
+            }
+        }
+        emit_row(out, db + o * inner + c, &acc, skip);
+    }
+}
+
+/// `scale · B⁻¹` on columns `c..c + LANES` of one block, read straight from the source rows.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // one block's coordinates and buffers
+fn direct_inverse(
+    lu: &TriLu,
+    scale: f32,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    skip: usize,
+    mid: &mut [Lanes],
+    out: &impl Emit,
+) {
+    let n = lu.len();
+    let mut prev = [0.0; LANES];
+    for (o, (y, &l)) in mid[..n].iter_mut().zip(&lu.lower).enumerate() {
+        let b = row_at(src, o * inner + c);
+        for e in 0..LANES {
+            prev[e] = scale * b[e] - l * prev[e];
+        }
+        *y = prev;
+    }
+    let mut next = [0.0; LANES];
+    for (o, ((y, &u), &inv)) in mid[..n]
+        .iter()
+        .zip(&lu.upper)
+        .zip(&lu.inv_diag)
+        .enumerate()
+        .rev()
+    {
+        for e in 0..LANES {
+            next[e] = (y[e] - u * next[e]) * inv;
+        }
+        emit_row(out, db + o * inner + c, &next, skip);
+    }
+}
+
+/// One block of a strided pass: columns `c..c + w` of block `(sb, db)` (source and
+/// destination offsets), emitting lanes `skip..w`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // one block's coordinates and buffers
+fn strided_block(
+    op: &AxisOp<'_>,
+    src: &[f32],
+    inner: usize,
+    (sb, db): (usize, usize),
+    c: usize,
+    w: usize,
+    skip: usize,
+    input: &mut [Lanes],
+    mid: &mut [Lanes],
+    out: &impl Emit,
+) {
+    let ri = op.rows_in();
+    if w == LANES {
+        for (r, row) in input[..ri].iter_mut().enumerate() {
+            let s = sb + r * inner + c;
+            *row = src[s..s + LANES].try_into().expect("a block row");
+        }
+    } else {
+        for (r, row) in input[..ri].iter_mut().enumerate() {
+            let s = sb + r * inner + c;
+            for (d, &v) in row.iter_mut().zip(&src[s..s + w]) {
+                *d = v;
+            }
+        }
+    }
+    let res = run_block(op, input, mid);
+    for (r, row) in res.iter().enumerate() {
+        let off = db + r * inner + c;
+        // SAFETY: the caller hands each (block, column) range to one thread.
+        unsafe {
+            if w == LANES && skip == 0 {
+                out.emit_lanes(off, row);
+            } else {
+                out.emit(off + skip, &row[skip..w]);
+            }
+        }
+    }
 }
 
 /// One pass along the contiguous x axis: `src` holds lines of `rows_in` values, the output
@@ -356,9 +590,9 @@ pub(crate) fn sweep_strided(
 ///
 /// # Panics
 /// When `src` is too short for the range.
-pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &impl Emit) {
+pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &SharedOut<'_>) {
     let (ri, ro) = (op.rows_in(), op.rows_out());
-    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, line| {
+    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, _| {
         let mut g = lines.start;
         while g < lines.end {
             let count = LANES.min(lines.end - g);
@@ -373,26 +607,66 @@ pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &i
                 }
             }
             let res = run_block(op, input, mid);
-            let line = &mut line[..ro];
-            for l in 0..count {
-                for (v, row) in line.iter_mut().zip(res) {
-                    *v = row[l];
+            // SAFETY: the caller hands each line range to one thread.
+            let dst = unsafe { out.slice_mut(g * ro..(g + count) * ro) };
+            if count == LANES {
+                transpose_out(res, ro, dst);
+            } else {
+                for (l, d) in dst.chunks_exact_mut(ro).enumerate() {
+                    for (v, row) in d.iter_mut().zip(res) {
+                        *v = row[l];
+                    }
                 }
-                // SAFETY: the caller hands each line range to one thread.
-                unsafe { out.emit((g + l) * ro, line) };
             }
             g += count;
         }
     });
 }
 
-/// `block[r][l] = group[l · len + r]` for `LANES` lines of `len` values.
+/// `block[r][l] = group[l · len + r]` for `LANES` lines of `len` values, in 4 × 4 tiles
+/// (which LLVM turns into register shuffles).
 #[inline(always)]
 fn transpose_in(group: &[f32], len: usize, block: &mut [Lanes]) {
     let lines: [&[f32]; LANES] = std::array::from_fn(|l| &group[l * len..(l + 1) * len]);
-    for (r, row) in block[..len].iter_mut().enumerate() {
+    let full = len / 4 * 4;
+    for r0 in (0..full).step_by(4) {
+        let rows: &mut [Lanes; 4] = (&mut block[r0..r0 + 4]).try_into().expect("four rows");
+        for h in 0..LANES / 4 {
+            let a: [[f32; 4]; 4] =
+                std::array::from_fn(|l| lines[4 * h + l][r0..r0 + 4].try_into().expect("four"));
+            for (i, row) in rows.iter_mut().enumerate() {
+                row[4 * h..4 * h + 4].copy_from_slice(&[a[0][i], a[1][i], a[2][i], a[3][i]]);
+            }
+        }
+    }
+    for (r, row) in block[full..len].iter_mut().enumerate() {
         for l in 0..LANES {
-            row[l] = lines[l][r];
+            row[l] = lines[l][full + r];
+        }
+    }
+}
+
+/// `group[l · len + r] = block[r][l]`: the inverse of [`transpose_in`].
+#[inline(always)]
+fn transpose_out(block: &[Lanes], len: usize, group: &mut [f32]) {
+    let mut lines: [&mut [f32]; LANES] = {
+        let mut it = group.chunks_exact_mut(len);
+        std::array::from_fn(|_| it.next().expect("eight lines"))
+    };
+    let full = len / 4 * 4;
+    for r0 in (0..full).step_by(4) {
+        let rows: &[Lanes; 4] = block[r0..r0 + 4].try_into().expect("four rows");
+        for h in 0..LANES / 4 {
+            for i in 0..4 {
+                let l = 4 * h + i;
+                lines[l][r0..r0 + 4]
+                    .copy_from_slice(&[rows[0][l], rows[1][l], rows[2][l], rows[3][l]]);
+            }
+        }
+    }
+    for (r, row) in block[full..len].iter().enumerate() {
+        for (l, line) in lines.iter_mut().enumerate() {
+            line[full + r] = row[l];
         }
     }
 }
