@@ -10,7 +10,10 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
-use crate::field::{Emit, KroneckerBasis, LANES, SharedOut, split_range, sweep_strided, sweep_x};
+use crate::field::{
+    KroneckerBasis, LANES, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with,
+    with_blocks,
+};
 
 use super::material::Integrator;
 use super::springs::{SixInputs, six_forces, six_pads};
@@ -169,8 +172,8 @@ pub(crate) fn project(
     result.result()
 }
 
-/// The x and y passes of a chain over the planes `planes` of its input (whole planes, so no
-/// barrier is needed between them).
+/// The x and y passes of a chain over the planes `planes` of its input, plane by plane so
+/// the intermediate plane stays in cache (whole planes, so no barrier is needed between them).
 fn planes_xy(
     ops: &[crate::field::AxisOp<'_>; 3],
     shapes: &[crate::field::PassShape; 2],
@@ -184,22 +187,29 @@ fn planes_xy(
     let lines_per_plane = sx.lines / planes_total;
     let t1_plane = sx.out_len / planes_total;
     let t2_plane = sy.out_len / planes_total;
-    sweep_x(
-        &ops[0],
-        src,
-        planes.start * lines_per_plane..planes.end * lines_per_plane,
-        t1,
-    );
-    // SAFETY: this part wrote these planes of t1 and nobody else touches them.
-    let mine = unsafe { t1.slice(planes.start * t1_plane..planes.end * t1_plane) };
-    sweep_strided(
-        &ops[1],
-        mine,
-        sy.inner,
-        0..planes.len(),
-        0..sy.inner,
-        &t2.sub(planes.start * t2_plane..planes.end * t2_plane),
-    );
+    let rows = [&ops[0], &ops[1]].map(|o| o.rows_in().max(o.rows_out()));
+    with_blocks(rows[0].max(rows[1]), |blocks| {
+        for plane in planes {
+            sweep_x_with(
+                blocks,
+                &ops[0],
+                src,
+                plane * lines_per_plane..(plane + 1) * lines_per_plane,
+                t1,
+            );
+            // SAFETY: this part wrote this plane of t1 and nobody else touches it.
+            let mine = unsafe { t1.slice(plane * t1_plane..(plane + 1) * t1_plane) };
+            sweep_strided_with(
+                blocks,
+                &ops[1],
+                mine,
+                sy.inner,
+                0..1,
+                0..sy.inner,
+                &t2.sub(plane * t2_plane..(plane + 1) * t2_plane),
+            );
+        }
+    });
 }
 
 /// `(max |p|, max |ṗ|, all finite)`.
@@ -229,47 +239,11 @@ pub(crate) struct Plastic {
     pub yield_density: f32,
 }
 
-/// Writes `ḋ` and advances `d` (and the rest densities) element by element.
-struct DensityEmit<'a> {
+/// The density arrays shared between the parts.
+struct DensityOut<'a> {
     d_dot: SharedOut<'a>,
     d: SharedOut<'a>,
     rest: SharedOut<'a>,
-    dt: f32,
-    integrator: Integrator,
-    plastic: Option<Plastic>,
-}
-
-impl DensityEmit<'_> {
-    /// The update of one block row, with a compile-time width.
-    #[inline(always)]
-    fn update<const N: usize>(
-        &self,
-        dd: &mut [f32; N],
-        d: &mut [f32; N],
-        rest: &mut [f32; N],
-        vals: &[f32; N],
-    ) {
-        let dt = self.dt;
-        match self.integrator {
-            Integrator::SemiImplicit => {
-                for l in 0..N {
-                    dd[l] = vals[l];
-                    d[l] += dt * vals[l];
-                }
-            }
-            Integrator::Explicit => {
-                for l in 0..N {
-                    d[l] += dt * dd[l];
-                    dd[l] = vals[l];
-                }
-            }
-        }
-        if let Some(pl) = self.plastic {
-            for l in 0..N {
-                rest[l] = drifted(d[l], rest[l], pl);
-            }
-        }
-    }
 }
 
 /// One rest density after the plastic drift toward `d` (written as selects so it vectorises).
@@ -280,55 +254,6 @@ fn drifted(d: f32, rest: f32, pl: Plastic) -> f32 {
     let upper = if dev > y { y } else { dev };
     let clamped = if upper < -y { -y } else { upper };
     rest + pl.rate * (dev - clamped)
-}
-
-impl Emit for DensityEmit<'_> {
-    #[inline(always)]
-    unsafe fn emit_lanes(&self, off: usize, vals: &[f32; LANES]) {
-        let range = off..off + LANES;
-        fn lanes(s: &mut [f32]) -> &mut [f32; LANES] {
-            s.try_into().expect("a block row")
-        }
-        // SAFETY: forwarded contract (the same range of three arrays).
-        let (dd, d, rest) = unsafe {
-            (
-                lanes(self.d_dot.slice_mut(range.clone())),
-                lanes(self.d.slice_mut(range.clone())),
-                lanes(self.rest.slice_mut(range)),
-            )
-        };
-        self.update(dd, d, rest, vals);
-    }
-
-    unsafe fn emit(&self, off: usize, vals: &[f32]) {
-        let range = off..off + vals.len();
-        // SAFETY: forwarded contract (the same range of three arrays).
-        let (dd, d, rest) = unsafe {
-            (
-                self.d_dot.slice_mut(range.clone()),
-                self.d.slice_mut(range.clone()),
-                self.rest.slice_mut(range),
-            )
-        };
-        let dt = self.dt;
-        match self.integrator {
-            Integrator::SemiImplicit => {
-                for ((dd, d), &v) in dd.iter_mut().zip(d.iter_mut()).zip(vals) {
-                    *dd = v;
-                    *d += dt * v;
-                }
-            }
-            Integrator::Explicit => {
-                for ((dd, d), &v) in dd.iter_mut().zip(d.iter_mut()).zip(vals) {
-                    *d += dt * *dd;
-                    *dd = v;
-                }
-            }
-        }
-        if let Some(pl) = self.plastic {
-            plastic_drift(d, rest, pl);
-        }
-    }
 }
 
 /// Apply the plastic drift of the rest densities toward `d`.
@@ -359,62 +284,92 @@ pub(crate) fn integrate(
         SharedOut::new(&mut scratch.t1[..sx.out_len]),
         SharedOut::new(&mut scratch.t2[..sy.out_len]),
     );
-    let out = DensityEmit {
+    let out = DensityOut {
         d_dot: SharedOut::new(dens.d_dot),
         d: SharedOut::new(dens.d),
         rest: SharedOut::new(dens.rest),
-        dt,
-        integrator,
-        plastic,
     };
     let plane = po.len() / sy.outer.max(1);
+    let lines_per_plane = sx.lines / sy.outer.max(1);
+    let t1_plane = sx.out_len / sy.outer.max(1);
+    let t2_plane = sy.out_len / sy.outer.max(1);
+    let rows = [&ops[0], &ops[1]].map(|o| o.rows_in().max(o.rows_out()));
     team.run(&|part, barrier| {
         let planes = split_range(sy.outer, parts, part, 1);
-        let range = planes.start * plane..planes.end * plane;
-        // SAFETY: each part updates only the coefficients of its own planes.
-        let (x, v) = unsafe { (po.slice_mut(range.clone()), vo.slice_mut(range.clone())) };
-        let a = &accel[range];
-        match integrator {
-            Integrator::SemiImplicit => {
-                for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
-                    *v += dt * a;
-                    *x += dt * *v;
+        // Plane by plane: Euler on the plane's coefficients, then its x and y passes, while
+        // the plane is in cache.
+        with_blocks(rows[0].max(rows[1]), |blocks| {
+            for k in planes {
+                let range = k * plane..(k + 1) * plane;
+                // SAFETY: each part updates only the coefficients of its own planes.
+                let (x, v) = unsafe { (po.slice_mut(range.clone()), vo.slice_mut(range.clone())) };
+                let a = &accel[range];
+                match integrator {
+                    Integrator::SemiImplicit => {
+                        for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
+                            *v += dt * a;
+                            *x += dt * *v;
+                        }
+                    }
+                    Integrator::Explicit => {
+                        for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
+                            *x += dt * *v;
+                            *v += dt * a;
+                        }
+                    }
                 }
+                let v: &[f32] = v;
+                let t1k = t1.sub(k * t1_plane..(k + 1) * t1_plane);
+                sweep_x_with(blocks, &ops[0], v, 0..lines_per_plane, &t1k);
+                // SAFETY: this part wrote this plane of t1 and nobody else touches it.
+                let mine = unsafe { t1k.slice(0..t1k.len()) };
+                sweep_strided_with(
+                    blocks,
+                    &ops[1],
+                    mine,
+                    sy.inner,
+                    0..1,
+                    0..sy.inner,
+                    &t2.sub(k * t2_plane..(k + 1) * t2_plane),
+                );
             }
-            Integrator::Explicit => {
-                for ((x, v), &a) in x.iter_mut().zip(v.iter_mut()).zip(a) {
-                    *x += dt * *v;
-                    *v += dt * a;
-                }
-            }
-        }
-        let v: &[f32] = v;
-        let shifted = planes.start..planes.end;
-        // The x pass reads only this part's planes of ṗ: hand it those, re-based at 0.
-        let lines_per_plane = sx.lines / sy.outer.max(1);
-        let t1_plane = sx.out_len / sy.outer.max(1);
-        sweep_x(
-            &ops[0],
-            v,
-            0..shifted.len() * lines_per_plane,
-            &t1.sub(shifted.start * t1_plane..shifted.end * t1_plane),
-        );
-        let t2_plane = sy.out_len / sy.outer.max(1);
-        // SAFETY: this part wrote these planes of t1 and nobody else touches them.
-        let mine = unsafe { t1.slice(shifted.start * t1_plane..shifted.end * t1_plane) };
-        sweep_strided(
-            &ops[1],
-            mine,
-            sy.inner,
-            0..shifted.len(),
-            0..sy.inner,
-            &t2.sub(shifted.start * t2_plane..shifted.end * t2_plane),
-        );
+        });
         barrier.wait();
         // SAFETY: after the barrier nobody writes t2.
         let t2 = unsafe { t2.slice(0..t2.len()) };
         let cols = split_range(sz.inner, parts, part, LANES);
-        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols, &out);
+        // The density updates run over this part's columns row by row (contiguous, so they
+        // vectorise), around the z pass that writes ḋ.
+        let rows = out.d_dot.len() / sz.inner.max(1);
+        let segments = || (0..rows).map(|r| r * sz.inner + cols.start..r * sz.inner + cols.end);
+        if integrator == Integrator::Explicit {
+            for seg in segments() {
+                // SAFETY: these columns belong to this part alone.
+                let (d, dd) = unsafe { (out.d.slice_mut(seg.clone()), out.d_dot.slice(seg)) };
+                for (d, &v) in d.iter_mut().zip(dd) {
+                    *d += dt * v;
+                }
+            }
+        }
+        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out.d_dot);
+        for seg in segments() {
+            // SAFETY: these columns belong to this part alone.
+            let (dd, d, rest) = unsafe {
+                (
+                    out.d_dot.slice(seg.clone()),
+                    out.d.slice_mut(seg.clone()),
+                    out.rest.slice_mut(seg),
+                )
+            };
+            if integrator == Integrator::SemiImplicit {
+                for (d, &v) in d.iter_mut().zip(dd) {
+                    *d += dt * v;
+                }
+            }
+            if let Some(pl) = plastic {
+                plastic_drift(d, rest, pl);
+            }
+        }
     });
 }
 

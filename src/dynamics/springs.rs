@@ -158,8 +158,10 @@ type NeighbourRows<'a> = [(&'a [f32], &'a [f32]); 4];
 #[inline(always)]
 unsafe fn lanes(s: &[f32], i: usize) -> [f32; W] {
     debug_assert!(i + W <= s.len());
-    // SAFETY: in bounds by the caller's contract; [f32; W] has the alignment of f32.
-    unsafe { s.as_ptr().add(i).cast::<[f32; W]>().read_unaligned() }
+    let p = s.as_ptr();
+    // SAFETY: in bounds by the caller's contract. Element loads (not an array copy), which
+    // LLVM merges into vector loads.
+    std::array::from_fn(|l| unsafe { *p.add(i + l) })
 }
 
 /// The fused kernel on `W` points starting at `i` (full width).

@@ -22,4 +22,6 @@ pub use multipatch::{MultiPatchField, Patch};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
 pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};
 pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
-pub(crate) use sweep::{AxisOp, Emit, SharedOut, split_range, sweep_strided, sweep_x};
+pub(crate) use sweep::{
+    AxisOp, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with, with_blocks,
+};

@@ -183,28 +183,51 @@ impl Emit for SharedOut<'_> {
     }
 }
 
-/// Run `f` with two block buffers of at least `rows` rows and a line buffer of `rows` values.
-fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut [Lanes], &mut [Lanes], &mut [f32]) -> R) -> R {
+/// Block buffers for the sweeps of one thread, reused across calls (zeroed once).
+pub(crate) struct Blocks<'a> {
+    input: &'a mut [Lanes],
+    mid: &'a mut [Lanes],
+}
+
+impl Blocks<'_> {
+    /// Whether the buffers hold an axis of `rows` values.
+    fn fits(&self, rows: usize) -> bool {
+        self.input.len().min(self.mid.len()) >= rows + 2 * PAD
+    }
+}
+
+/// Run `f` with block buffers for axes up to `rows` long (on the stack up to 258, else
+/// allocated).
+pub(crate) fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut Blocks<'_>) -> R) -> R {
     const TINY: usize = 24;
     const SMALL: usize = 72;
     const LARGE: usize = 264;
-    // Sized tiers: the buffers are zeroed on every call.
+    let rows = rows + 2 * PAD;
+    // Sized tiers: the buffers are zeroed once per call.
     if rows <= TINY {
-        let (mut a, mut b, mut l) = ([[0.0; LANES]; TINY], [[0.0; LANES]; TINY], [0.0; TINY]);
-        f(&mut a, &mut b, &mut l)
+        let (mut a, mut b) = ([[0.0; LANES]; TINY], [[0.0; LANES]; TINY]);
+        f(&mut Blocks {
+            input: &mut a,
+            mid: &mut b,
+        })
     } else if rows <= SMALL {
-        let (mut a, mut b, mut l) = ([[0.0; LANES]; SMALL], [[0.0; LANES]; SMALL], [0.0; SMALL]);
-        f(&mut a, &mut b, &mut l)
+        let (mut a, mut b) = ([[0.0; LANES]; SMALL], [[0.0; LANES]; SMALL]);
+        f(&mut Blocks {
+            input: &mut a,
+            mid: &mut b,
+        })
     } else if rows <= LARGE {
-        let (mut a, mut b, mut l) = ([[0.0; LANES]; LARGE], [[0.0; LANES]; LARGE], [0.0; LARGE]);
-        f(&mut a, &mut b, &mut l)
+        let (mut a, mut b) = ([[0.0; LANES]; LARGE], [[0.0; LANES]; LARGE]);
+        f(&mut Blocks {
+            input: &mut a,
+            mid: &mut b,
+        })
     } else {
         // Axes this long are far beyond interactive sizes; allocating is acceptable there.
-        f(
-            &mut vec![[0.0; LANES]; rows],
-            &mut vec![[0.0; LANES]; rows],
-            &mut vec![0.0; rows],
-        )
+        f(&mut Blocks {
+            input: &mut vec![[0.0; LANES]; rows],
+            mid: &mut vec![[0.0; LANES]; rows],
+        })
     }
 }
 
@@ -354,8 +377,28 @@ pub(crate) fn sweep_strided(
     cols: Range<usize>,
     out: &impl Emit,
 ) {
+    with_blocks(op.rows_in().max(op.rows_out()), |blocks| {
+        sweep_strided_with(blocks, op, src, inner, outer, cols, out);
+    });
+}
+
+/// [`sweep_strided`] with the caller's block buffers.
+///
+/// # Panics
+/// When `src` is too short for the ranges or the buffers too small for the axis.
+pub(crate) fn sweep_strided_with(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    inner: usize,
+    outer: Range<usize>,
+    cols: Range<usize>,
+    out: &impl Emit,
+) {
     let (ri, ro) = (op.rows_in(), op.rows_out());
-    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, _| {
+    assert!(blocks.fits(ri.max(ro)), "block buffers too small");
+    let (input, mid) = (&mut *blocks.input, &mut *blocks.mid);
+    {
         for b in outer {
             let (sb, db) = (b * ri * inner, b * ro * inner);
             if inner >= LANES {
@@ -420,7 +463,7 @@ pub(crate) fn sweep_strided(
                 }
             }
         }
-    });
+    }
 }
 
 #[inline(always)]
@@ -591,10 +634,33 @@ fn strided_block(
 /// # Panics
 /// When `src` is too short for the range.
 pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &SharedOut<'_>) {
+    with_blocks(op.rows_in().max(op.rows_out()), |blocks| {
+        sweep_x_with(blocks, op, src, lines, out);
+    });
+}
+
+/// [`sweep_x`] with the caller's block buffers.
+///
+/// # Panics
+/// When `src` is too short for the range or the buffers too small for the axis.
+pub(crate) fn sweep_x_with(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    lines: Range<usize>,
+    out: &SharedOut<'_>,
+) {
     let (ri, ro) = (op.rows_in(), op.rows_out());
-    with_blocks(ri.max(ro) + 2 * PAD, |input, mid, _| {
+    assert!(blocks.fits(ri.max(ro)), "block buffers too small");
+    let (input, mid) = (&mut *blocks.input, &mut *blocks.mid);
+    {
         let mut g = lines.start;
         while g < lines.end {
+            if lines.end - g < LANES && lines.len() >= LANES {
+                // A short tail: redo the last full group instead (the source is not the
+                // destination, so rewriting lines with the same values is harmless).
+                g = lines.end - LANES;
+            }
             let count = LANES.min(lines.end - g);
             let group = &src[g * ri..(g + count) * ri];
             if count == LANES {
@@ -620,7 +686,7 @@ pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &S
             }
             g += count;
         }
-    });
+    }
 }
 
 /// `block[r][l] = group[l · len + r]` for `LANES` lines of `len` values, in 4 × 4 tiles
