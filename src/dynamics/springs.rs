@@ -180,10 +180,9 @@ unsafe fn six_chunk(
     v: &[f32],
     out: &mut [f32],
 ) {
-    // SAFETY (all loads): i + W <= mx, and the padded rows are two longer.
-    let (e0, k0) = unsafe { (lanes(ec, i + 1), lanes(kc, i + 1)) };
-    let (exm, kxm) = unsafe { (lanes(ec, i), lanes(kc, i)) };
-    let (exp, kxp) = unsafe { (lanes(ec, i + 2), lanes(kc, i + 2)) };
+    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
+    let [(e0, k0), (exm, kxm), (exp, kxp)] =
+        [1, 0, 2].map(|o| unsafe { (lanes(ec, i + o), lanes(kc, i + o)) });
     let mut acc = [0.0; W];
     for l in 0..W {
         acc[l] = (k0[l] + kxm[l]) * (exm[l] - e0[l]) + (k0[l] + kxp[l]) * (exp[l] - e0[l]);

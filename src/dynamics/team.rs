@@ -3,8 +3,9 @@
 //!
 //! Guarantee: [`Team::run`] returns only after both halves have finished, so a job may borrow
 //! the caller's data. After construction nothing allocates; a dispatch costs two atomic
-//! stores and an unpark, each barrier a fetch-add and a short spin (threads spawned per step
-//! or a sleeping pool cost more than a 32³ pass itself). Waiting spins briefly, then yields;
+//! stores and an unpark, each barrier a fetch-add and a short spin, instead of a thread spawn
+//! or a pool wake-up per pass (a step has four dependent phases in three dispatches). Waiting
+//! spins briefly, then yields, so an oversubscribed machine degrades instead of livelocking;
 //! an idle helper spins a little longer and then parks. A panic in either half is caught,
 //! the other half is released from any barrier, and `run` panics on the caller's thread.
 

@@ -536,10 +536,10 @@ fn direct_apply_fixed<const T: usize>(
     {
         let w: &[f32; T] = w.try_into().expect("T weights");
         let mut acc = [0.0; LANES];
-        for t in 0..T {
+        for (t, &wt) in w.iter().enumerate() {
             let row = row_at(src, (s + t) * inner);
             for l in 0..LANES {
-                acc[l] += w[t] * row[l];
+                acc[l] += wt * row[l];
             }
         }
         emit_row(out, db + o * inner + c, &acc, skip);
