@@ -45,6 +45,24 @@ pub(crate) fn max_abs(v: &[f32]) -> (f32, bool) {
     (max, probe.iter().sum::<f32>() == 0.0)
 }
 
+/// The common value of `v` when every element is the same (lane-wise, so it vectorises).
+#[must_use]
+pub(crate) fn uniform_value(v: &[f32]) -> Option<f32> {
+    let first = *v.first()?;
+    let chunks = v.chunks_exact(LANES);
+    let tail = chunks.remainder();
+    for c in chunks {
+        let mut same = true;
+        for &x in c {
+            same &= x == first;
+        }
+        if !same {
+            return None;
+        }
+    }
+    tail.iter().all(|&x| x == first).then_some(first)
+}
+
 /// Per-part `(max, finite)` results.
 struct PartMax {
     bits: [AtomicU32; 2],
@@ -105,15 +123,29 @@ pub(crate) fn springs_six(
         SharedOut::new(k_pad),
         SharedOut::new(force),
     );
+    // A uniform stiffness (the usual case) needs no padded copy and fewer operations.
+    let uniform_k = uniform_value(f.stiffness);
     team.run(&|part, barrier| {
         let planes = split_range(mz, parts, part, 1);
+        let k_copy = if uniform_k.is_some() { None } else { Some(&kp) };
         // SAFETY: each part fills only the rows of its own planes.
-        unsafe { six_pads(f.dims, f.d, f.rest, f.stiffness, planes.clone(), &ep, &kp) };
+        unsafe {
+            six_pads(
+                f.dims,
+                f.d,
+                f.rest,
+                f.stiffness,
+                planes.clone(),
+                &ep,
+                k_copy,
+            )
+        };
         barrier.wait();
         // SAFETY: after the barrier nobody writes the padded copies.
         let (e_pad, k_pad) = unsafe { (ep.slice(0..ep.len()), kp.slice(0..kp.len())) };
         let inputs = SixInputs {
             dims: f.dims,
+            uniform_k,
             e_pad,
             k_pad,
             zeros: f.zeros,

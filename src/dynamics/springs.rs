@@ -109,7 +109,7 @@ pub(crate) unsafe fn six_pads(
     stiffness: &[f32],
     planes: Range<usize>,
     e_pad: &SharedOut<'_>,
-    k_pad: &SharedOut<'_>,
+    k_pad: Option<&SharedOut<'_>>,
 ) {
     let [mx, my, _] = dims;
     let s = padded_row(mx);
@@ -117,8 +117,6 @@ pub(crate) unsafe fn six_pads(
         let src = row * mx..(row + 1) * mx;
         // SAFETY: this row is ours by the caller's contract.
         let ep = unsafe { e_pad.slice_mut(row * s..(row + 1) * s) };
-        // SAFETY: as above.
-        let kp = unsafe { k_pad.slice_mut(row * s..(row + 1) * s) };
         for ((e, &d), &r) in ep[1..=mx]
             .iter_mut()
             .zip(&d[src.clone()])
@@ -128,16 +126,22 @@ pub(crate) unsafe fn six_pads(
         }
         ep[0] = 0.0;
         ep[mx + 1] = 0.0;
-        let k = &stiffness[src];
-        kp[1..=mx].copy_from_slice(k);
-        kp[0] = k[0];
-        kp[mx + 1] = k[mx - 1];
+        if let Some(k_pad) = k_pad {
+            // SAFETY: as above.
+            let kp = unsafe { k_pad.slice_mut(row * s..(row + 1) * s) };
+            let k = &stiffness[src];
+            kp[1..=mx].copy_from_slice(k);
+            kp[0] = k[0];
+            kp[mx + 1] = k[mx - 1];
+        }
     }
 }
 
 /// Fixed inputs of the fused six-neighbour kernel.
 pub(crate) struct SixInputs<'a> {
     pub dims: [usize; 3],
+    /// The stiffness when it is the same at every point; `k_pad` is not read then.
+    pub uniform_k: Option<f32>,
     pub e_pad: &'a [f32],
     pub k_pad: &'a [f32],
     /// At least `dims[0]` zeros: the `e` of an anchor row.
@@ -203,10 +207,49 @@ unsafe fn six_chunk(
     out[i..i + W].copy_from_slice(&f);
 }
 
-/// The same sum for one point (rows shorter than `W`).
+/// [`six_chunk`] with one stiffness `k` everywhere: `k Σ (e_n − e)`.
+///
+/// # Safety
+/// As [`six_chunk`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // the streams of one row
+unsafe fn six_chunk_uniform(
+    i: usize,
+    k: f32,
+    ec: &[f32],
+    rows: &NeighbourRows<'_>,
+    ext: &[f32],
+    g: &[f32],
+    v: &[f32],
+    out: &mut [f32],
+) {
+    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
+    let [e0, exm, exp] = [1, 0, 2].map(|o| unsafe { lanes(ec, i + o) });
+    let mut acc = [0.0; W];
+    for l in 0..W {
+        acc[l] = (exm[l] - e0[l]) + (exp[l] - e0[l]);
+    }
+    for &(en, _) in rows {
+        // SAFETY: as above.
+        let en = unsafe { lanes(en, i) };
+        for l in 0..W {
+            acc[l] += en[l] - e0[l];
+        }
+    }
+    // SAFETY: as above.
+    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let mut f = [0.0; W];
+    for l in 0..W {
+        f[l] = x[l] + k * acc[l] - gg[l] * vv[l];
+    }
+    out[i..i + W].copy_from_slice(&f);
+}
+
+/// The same sum for one point (rows shorter than `W`); `uniform` replaces every stiffness.
 #[allow(clippy::too_many_arguments)] // the streams of one row
 fn six_point(
     i: usize,
+    uniform: Option<f32>,
     ec: &[f32],
     kc: &[f32],
     rows: &NeighbourRows<'_>,
@@ -215,10 +258,11 @@ fn six_point(
     v: &[f32],
     out: &mut [f32],
 ) {
-    let (e0, k0) = (ec[i + 1], kc[i + 1]);
-    let mut acc = (k0 + kc[i]) * (ec[i] - e0) + (k0 + kc[i + 2]) * (ec[i + 2] - e0);
+    let k = |s: &[f32], j: usize| uniform.unwrap_or_else(|| s[j]);
+    let (e0, k0) = (ec[i + 1], k(kc, i + 1));
+    let mut acc = (k0 + k(kc, i)) * (ec[i] - e0) + (k0 + k(kc, i + 2)) * (ec[i + 2] - e0);
     for &(en, kn) in rows {
-        acc += (k0 + kn[i]) * (en[i] - e0);
+        acc += (k0 + k(kn, i)) * (en[i] - e0);
     }
     out[i] = ext[i] + 0.5 * acc - g[i] * v[i];
 }
@@ -269,19 +313,27 @@ pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force
         );
         if mx < W {
             for i in 0..mx {
-                six_point(i, ec, kc, &rows, ext, g, v, out);
+                six_point(i, inp.uniform_k, ec, kc, &rows, ext, g, v, out);
             }
             continue;
         }
         // Chunks of W; the last one overlaps the previous (outputs depend only on inputs).
         let mut i = 0;
-        while i + W < mx {
-            // SAFETY: i + W < mx, and the lengths were checked above.
-            unsafe { six_chunk(i, ec, kc, &rows, ext, g, v, out) };
+        loop {
+            // The last chunk overlaps the previous one.
+            let at = i.min(mx - W);
+            // SAFETY: at + W <= mx, and the lengths were checked above.
+            unsafe {
+                match inp.uniform_k {
+                    Some(k) => six_chunk_uniform(at, k, ec, &rows, ext, g, v, out),
+                    None => six_chunk(at, ec, kc, &rows, ext, g, v, out),
+                }
+            }
             i += W;
+            if i >= mx {
+                break;
+            }
         }
-        // SAFETY: mx >= W here.
-        unsafe { six_chunk(mx - W, ec, kc, &rows, ext, g, v, out) };
     }
 }
 
@@ -334,11 +386,21 @@ mod tests {
 
     #[test]
     fn fused_six_kernel_matches_the_generic_springs() {
-        for dims in [[5, 4, 3], [9, 3, 4], [17, 5, 2], [8, 8, 8], [1, 2, 3]] {
+        for (dims, uniform) in [
+            ([5, 4, 3], false),
+            ([9, 3, 4], false),
+            ([17, 5, 2], false),
+            ([8, 8, 8], false),
+            ([1, 2, 3], false),
+            ([9, 3, 4], true),
+            ([5, 4, 3], true),
+        ] {
             let n: usize = dims.iter().product();
             let d: Vec<f32> = (0..n).map(|i| ((i * 7) % 5) as f32 * 0.1).collect();
             let rest: Vec<f32> = (0..n).map(|i| ((i * 3) % 4) as f32 * 0.05).collect();
-            let stiff: Vec<f32> = (0..n).map(|i| 1.0 + (i % 3) as f32).collect();
+            let stiff: Vec<f32> = (0..n)
+                .map(|i| if uniform { 2.5 } else { 1.0 + (i % 3) as f32 })
+                .collect();
             let ext: Vec<f32> = (0..n).map(|i| (i % 4) as f32).collect();
             let damping: Vec<f32> = (0..n).map(|i| 0.5 + (i % 2) as f32).collect();
             let d_dot: Vec<f32> = (0..n).map(|i| ((i * 5) % 3) as f32 - 1.0).collect();
@@ -369,11 +431,12 @@ mod tests {
                     &stiff,
                     0..dims[2],
                     &SharedOut::new(&mut e_pad),
-                    &SharedOut::new(&mut k_pad),
+                    (!uniform).then_some(&SharedOut::new(&mut k_pad)),
                 );
             }
             let inputs = SixInputs {
                 dims,
+                uniform_k: uniform.then_some(2.5),
                 e_pad: &e_pad,
                 k_pad: &k_pad,
                 zeros: &zeros,
