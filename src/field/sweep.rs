@@ -406,6 +406,32 @@ pub(crate) fn sweep_strided_with(
                 let src = &src[sb..sb + ri * inner];
                 let mut c = cols.start;
                 while c < cols.end {
+                    if cols.end - c >= 2 * LANES {
+                        // Two blocks side by side: each row read is a whole cache line, which
+                        // keeps long strides (the z pass) friendly to the prefetcher.
+                        match *op {
+                            AxisOp::Apply(band) if band.taps == 3 => {
+                                direct_apply_wide::<3>(band, src, inner, c, db, out);
+                                c += 2 * LANES;
+                                continue;
+                            }
+                            AxisOp::Inverse { lu, scale } => {
+                                direct_inverse_wide(
+                                    lu,
+                                    scale,
+                                    src,
+                                    inner,
+                                    c,
+                                    db,
+                                    [mid, input],
+                                    out,
+                                );
+                                c += 2 * LANES;
+                                continue;
+                            }
+                            _ => {}
+                        }
+                    }
                     let (start, skip) = if cols.end - c >= LANES {
                         (c, 0)
                     } else {
@@ -543,6 +569,85 @@ fn direct_apply_fixed<const T: usize>(
             }
         }
         emit_row(out, db + o * inner + c, &acc, skip);
+    }
+}
+
+/// [`direct_apply_fixed`] on two neighbouring blocks (columns `c..c + 2 · LANES`).
+#[inline(always)]
+fn direct_apply_wide<const T: usize>(
+    band: &Band,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    out: &impl Emit,
+) {
+    let src = &src[c..];
+    for (o, (&s, w)) in band
+        .start
+        .iter()
+        .zip(band.weights.chunks_exact(T))
+        .enumerate()
+    {
+        let w: &[f32; T] = w.try_into().expect("T weights");
+        let (mut a0, mut a1) = ([0.0; LANES], [0.0; LANES]);
+        for (t, &wt) in w.iter().enumerate() {
+            let off = (s + t) * inner;
+            let (r0, r1) = (row_at(src, off), row_at(src, off + LANES));
+            for l in 0..LANES {
+                a0[l] += wt * r0[l];
+                a1[l] += wt * r1[l];
+            }
+        }
+        let off = db + o * inner + c;
+        emit_row(out, off, &a0, 0);
+        emit_row(out, off + LANES, &a1, 0);
+    }
+}
+
+/// [`direct_inverse`] on two neighbouring blocks (columns `c..c + 2 · LANES`), with one
+/// buffer per block.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // one block pair's coordinates and buffers
+fn direct_inverse_wide(
+    lu: &TriLu,
+    scale: f32,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    [m0, m1]: [&mut [Lanes]; 2],
+    out: &impl Emit,
+) {
+    let n = lu.len();
+    let (m0, m1) = (&mut m0[..n], &mut m1[..n]);
+    let (mut p0, mut p1) = ([0.0; LANES], [0.0; LANES]);
+    for (o, ((y0, y1), &l)) in m0.iter_mut().zip(m1.iter_mut()).zip(&lu.lower).enumerate() {
+        let off = o * inner + c;
+        let (b0, b1) = (row_at(src, off), row_at(src, off + LANES));
+        for e in 0..LANES {
+            p0[e] = scale * b0[e] - l * p0[e];
+            p1[e] = scale * b1[e] - l * p1[e];
+        }
+        *y0 = p0;
+        *y1 = p1;
+    }
+    let (mut q0, mut q1) = ([0.0; LANES], [0.0; LANES]);
+    for (o, (((y0, y1), &u), &inv)) in m0
+        .iter()
+        .zip(m1.iter())
+        .zip(&lu.upper)
+        .zip(&lu.inv_diag)
+        .enumerate()
+        .rev()
+    {
+        for e in 0..LANES {
+            q0[e] = (y0[e] - u * q0[e]) * inv;
+            q1[e] = (y1[e] - u * q1[e]) * inv;
+        }
+        let off = db + o * inner + c;
+        emit_row(out, off, &q0, 0);
+        emit_row(out, off + LANES, &q1, 0);
     }
 }
 
