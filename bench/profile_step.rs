@@ -2,7 +2,8 @@
 //! warm-up step and then STEPS steps at N³ coefficients / M³ mass points (the setup of
 //! `bench/core.rs`), printing the mean wall time per step. Meant for instruction counts, which
 //! do not depend on the machine's load:
-//! `valgrind --tool=callgrind --toggle-collect='*Simulator*step*' target/release/examples/profile_step 32 32 25`
+//! `cargo build --release --bench profile_step`, then
+//! `valgrind --tool=callgrind --toggle-collect='*Simulator*step*' target/release/deps/profile_step-* 32 32 25`
 //! (per-step counts by the difference of two runs with different STEPS).
 use dynaclay::dynamics::{Distribution, Material, RegionState, Simulator, StepParams, ToolForce};
 use dynaclay::field::{
