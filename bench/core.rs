@@ -1,6 +1,6 @@
-//! Core benchmarks: one simulation step at Hua & Qin Table 1 sizes and beyond, one field
-//! evaluation with gradient, one 4-point force integral, and the tiled x-axis banded solve
-//! against the plain line-by-line sweep.
+//! Core benchmarks: one simulation step at Hua & Qin Table 1 sizes and beyond (32³ and 64³
+//! also split over two threads), one field evaluation with gradient, one 4-point force
+//! integral, and the lane-blocked Gram solve against the plain line-by-line sweep.
 //!
 //! Run: `cargo bench --bench core -- --warm-up-time 1 --measurement-time 3`.
 //! Optimistic where noted: the step benches keep one tool force active on a sphere; a step
@@ -55,15 +55,26 @@ fn step(c: &mut Criterion) {
         (32, 32),
         (64, 64),
     ] {
-        let (mut lattice, mut state, force) = setup(n, m);
-        let mut sim = Simulator::new(StepParams::default());
-        let mut snap = RegionSnapshot::default();
-        group.bench_function(BenchmarkId::from_parameter(format!("{n}^3/{m}^3")), |b| {
-            b.iter(|| {
-                let r = sim.step(&mut state, &mut lattice, &[force], &mut snap);
-                black_box(r.is_ok())
+        let threads: &[usize] = if n >= 32 { &[1, 2] } else { &[1] };
+        for &threads in threads {
+            let (mut lattice, mut state, force) = setup(n, m);
+            let mut sim = Simulator::new(StepParams {
+                threads,
+                ..StepParams::default()
             });
-        });
+            let mut snap = RegionSnapshot::default();
+            let id = if threads == 1 {
+                format!("{n}^3/{m}^3")
+            } else {
+                format!("{n}^3/{m}^3/{threads}_threads")
+            };
+            group.bench_function(BenchmarkId::from_parameter(id), |b| {
+                b.iter(|| {
+                    let r = sim.step(&mut state, &mut lattice, &[force], &mut snap);
+                    black_box(r.is_ok())
+                });
+            });
+        }
     }
     group.finish();
 }
@@ -74,16 +85,20 @@ fn solve(c: &mut Criterion) {
         let (_, state, _) = setup(n, n);
         let basis = state.basis;
         let mut x: Vec<f32> = (0..basis.coeff_count()).map(|i| (i % 7) as f32).collect();
-        group.bench_function(BenchmarkId::new("x_tiled", n), |b| {
-            b.iter(|| basis.solve_gram(black_box(&mut x)));
+        let b_in = x.clone();
+        let mut scratch = KronScratch::for_basis(&basis);
+        group.bench_function(BenchmarkId::new("lane_blocked", n), |b| {
+            b.iter(|| basis.solve_gram_into(black_box(&b_in), &mut x, &mut scratch));
         });
-        group.bench_function(BenchmarkId::new("x_line_by_line", n), |b| {
+        group.bench_function(BenchmarkId::new("line_by_line", n), |b| {
             b.iter(|| basis.solve_gram_line_by_line(black_box(&mut x)));
         });
-        let mut scratch = KronScratch::for_basis(&basis);
         let mut d = vec![0.0; basis.sample_count()];
         group.bench_function(BenchmarkId::new("apply", n), |b| {
             b.iter(|| basis.apply(black_box(&x), &mut d, &mut scratch));
+        });
+        group.bench_function(BenchmarkId::new("project", n), |b| {
+            b.iter(|| basis.project(black_box(&d), &mut x, 1.0, &mut scratch));
         });
     }
     group.finish();

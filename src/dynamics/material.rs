@@ -104,6 +104,9 @@ pub struct StepParams {
     /// Densities are recomputed from the coefficients (instead of updated incrementally)
     /// every this many steps, to bound f32 drift.
     pub resync_every: u32,
+    /// Threads a step's passes are split over: 1, or 2 (one persistent helper thread; larger
+    /// values count as 2). The result is bit-identical either way.
+    pub threads: usize,
 }
 
 impl Default for StepParams {
@@ -121,6 +124,7 @@ impl Default for StepParams {
             cg_tolerance: 1e-5,
             cg_max_iterations: 60,
             resync_every: 256,
+            threads: 1,
         }
     }
 }

@@ -4,9 +4,11 @@
 mod counters;
 mod force;
 mod material;
+mod passes;
 mod region;
 mod simulator;
 mod springs;
+mod team;
 
 pub use counters::{StageTimes, StepCounters};
 pub use force::{

@@ -6,7 +6,9 @@
 //! `d = A' p_R + d_fixed`. Mass points just outside R are fixed too: a boundary mass point's
 //! spring to an outside neighbour pulls it toward its own rest density, which anchors R.
 
-use crate::field::{BSplineLattice, CoeffBox, KronError, KroneckerBasis, MassGrid, apply_axes};
+use crate::field::{
+    BSplineLattice, CoeffBox, KronError, KronScratch, KroneckerBasis, MassGrid, apply_axes,
+};
 
 use super::material::Material;
 
@@ -172,7 +174,7 @@ impl RegionState {
         }
         self.p_dot.fill(0.0);
         self.d_fixed_from(lattice);
-        self.resync_densities_with(&mut Vec::new(), &mut Vec::new());
+        self.resync_densities_with(&mut KronScratch::for_basis(&self.basis));
         self.d_dot.fill(0.0);
         self.rest.copy_from_slice(&self.d);
         self.calm_steps = 0;
@@ -200,16 +202,12 @@ impl RegionState {
         apply_axes(&axes, &outside, &mut self.d_fixed, &mut sa, &mut sb);
     }
 
-    /// `d = A' p_R + d_fixed` recomputed exactly; the two scratch vectors grow as needed.
-    pub(crate) fn resync_densities_with(&mut self, sa: &mut Vec<f32>, sb: &mut Vec<f32>) {
-        let need = scratch_len(&self.basis);
-        if sa.len() < need {
-            sa.resize(need, 0.0);
-        }
-        if sb.len() < need {
-            sb.resize(need, 0.0);
-        }
-        apply_axes(&self.basis.axes, &self.p, &mut self.d, sa, sb);
+    /// `d = A' p_R + d_fixed` recomputed exactly.
+    ///
+    /// # Panics
+    /// When `scratch` was not made for this region's basis (too small).
+    pub(crate) fn resync_densities_with(&mut self, scratch: &mut KronScratch) {
+        self.basis.apply(&self.p, &mut self.d, scratch);
         for (d, f) in self.d.iter_mut().zip(&self.d_fixed) {
             *d += f;
         }
@@ -232,7 +230,19 @@ impl RegionState {
     #[must_use]
     pub fn mass_is_uniform(&self) -> bool {
         let first = self.mass.first().copied().unwrap_or(0.0);
-        self.mass.iter().all(|&m| m == first)
+        // Lane-wise so it vectorises: it runs every step.
+        let chunks = self.mass.chunks_exact(8);
+        let tail = chunks.remainder();
+        for c in chunks {
+            let mut same = true;
+            for &m in c {
+                same &= m == first;
+            }
+            if !same {
+                return false;
+            }
+        }
+        tail.iter().all(|&m| m == first)
     }
 
     /// Elastic energy `½ Σ k (Δe)²` over the springs (6-neighbourhood, anchors included) plus

@@ -14,9 +14,11 @@ use crate::field::{BSplineLattice, KronScratch, RegionSnapshot};
 
 use super::counters::{StageTimes, StepCounters};
 use super::force::{ToolForce, force_integral};
-use super::material::{AccelSolver, Integrator, StepParams};
+use super::material::{AccelSolver, Neighbourhood, StepParams};
+use super::passes::{self, ChainScratch, Densities, Plastic, SpringFields, max_abs, plastic_drift};
 use super::region::{RegionState, scratch_len};
-use super::springs::add_spring_forces;
+use super::springs::{add_spring_forces, padded_row};
+use super::team::Team;
 
 /// Why a step was refused. The region state is unchanged except for its (halved) time step.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -64,15 +66,24 @@ pub struct StepReport {
     pub version: u64,
 }
 
-/// The stepping object: parameters, counters and scratch.
+/// The stepping object: parameters, counters, scratch and (with `params.threads == 2`) the
+/// helper thread the passes are split with.
 #[derive(Debug, Default)]
 pub struct Simulator {
     /// Step parameters.
     pub params: StepParams,
     /// Running counters and the last step's stage timings.
     pub counters: StepCounters,
+    /// External forces gathered from the tools, per mass point.
+    external: Vec<f32>,
+    /// The part of `external` that may be non-zero.
+    external_dirty: std::ops::Range<usize>,
+    /// Total force per mass point (external, springs, damping).
     force: Vec<f32>,
     e: Vec<f32>,
+    e_pad: Vec<f32>,
+    k_pad: Vec<f32>,
+    zeros: Vec<f32>,
     tmp: Vec<f32>,
     rhs: Vec<f32>,
     accel: Vec<f32>,
@@ -81,24 +92,15 @@ pub struct Simulator {
     cg_dir: Vec<f32>,
     cg_q: Vec<f32>,
     kron: KronScratch,
-    sa: Vec<f32>,
-    sb: Vec<f32>,
+    t1: Vec<f32>,
+    t2: Vec<f32>,
+    team: Team,
 }
 
 fn fit(v: &mut Vec<f32>, len: usize) {
     if v.len() != len {
         v.resize(len, 0.0);
     }
-}
-
-fn max_abs(v: &[f32]) -> (f32, bool) {
-    let mut m = 0.0_f32;
-    let mut finite = true;
-    for &x in v {
-        finite &= x.is_finite();
-        m = m.max(x.abs());
-    }
-    (m, finite)
 }
 
 fn elapsed_ns(t: Instant) -> u64 {
@@ -117,7 +119,15 @@ impl Simulator {
 
     fn ensure_scratch(&mut self, state: &RegionState) {
         let (n, m) = (state.p.len(), state.d.len());
-        for v in [&mut self.force, &mut self.e, &mut self.tmp] {
+        if self.external.len() != m {
+            self.external_dirty = 0..m;
+        }
+        for v in [
+            &mut self.external,
+            &mut self.force,
+            &mut self.e,
+            &mut self.tmp,
+        ] {
             fit(v, m);
         }
         for v in [
@@ -130,20 +140,24 @@ impl Simulator {
         ] {
             fit(v, n);
         }
+        let [mx, my, mz] = state.grid.dims;
+        let padded = padded_row(mx) * my * mz;
+        fit(&mut self.e_pad, padded);
+        fit(&mut self.k_pad, padded);
+        fit(&mut self.zeros, mx);
         let need = scratch_len(&state.basis);
-        fit(&mut self.sa, need);
-        fit(&mut self.sb, need);
-        if self.kron_len() < need {
+        fit(&mut self.t1, need);
+        fit(&mut self.t2, need);
+        if self.kron.len() < need {
             self.kron = KronScratch::for_basis(&state.basis);
         }
-    }
-
-    fn kron_len(&self) -> usize {
-        self.kron.len()
+        self.team.resize(self.params.threads);
     }
 
     /// Advance the region by one adaptive step under the tool forces, write the region's
-    /// coefficients into `lattice` and publish them into `snapshot`.
+    /// coefficients into `lattice` and publish them into `snapshot`. With
+    /// `params.threads == 2` the passes are split with a helper thread; the result is
+    /// bit-identical to one thread.
     ///
     /// # Errors
     /// [`StepError`] when the step would let a non-finite or diverging value into the state;
@@ -212,13 +226,19 @@ impl Simulator {
     }
 
     /// Stage 1: `f_ext` at the mass points from the force vectors, each spread by its `β`.
+    /// It replaces the external forces of the previous step.
     pub fn gather_forces(
         &mut self,
         state: &RegionState,
         lattice: &BSplineLattice,
         forces: &[ToolForce],
     ) {
-        self.force.fill(0.0);
+        self.ensure_scratch(state);
+        // The forces are sparse: clear only what the previous step wrote.
+        let dirty = self.external_dirty.start.min(self.external.len())
+            ..self.external_dirty.end.min(self.external.len());
+        self.external[dirty].fill(0.0);
+        self.external_dirty = 0..0;
         let grid = &state.grid;
         let m = grid.dims;
         for tf in forces {
@@ -269,7 +289,14 @@ impl Simulator {
                             if pass == 0 {
                                 total += w;
                             } else {
-                                self.force[state.point_index(i, j, k)] += scale * w;
+                                let at = state.point_index(i, j, k);
+                                self.external[at] += scale * w;
+                                let d = &mut self.external_dirty;
+                                (d.start, d.end) = if d.start >= d.end {
+                                    (at, at + 1)
+                                } else {
+                                    (d.start.min(at), d.end.max(at + 1))
+                                };
                             }
                         }
                     }
@@ -281,8 +308,31 @@ impl Simulator {
         }
     }
 
-    /// Stage 2: density springs toward the rest densities, and damping `−γ ḋ`.
+    /// Stage 2: the total force per mass point: the external forces of stage 1, density
+    /// springs toward the rest densities, and damping `−γ ḋ`.
     pub fn spring_forces(&mut self, state: &RegionState) {
+        self.ensure_scratch(state);
+        if self.params.neighbourhood == Neighbourhood::Six {
+            let fields = SpringFields {
+                dims: state.grid.dims,
+                d: &state.d,
+                rest: &state.rest,
+                stiffness: &state.stiffness,
+                damping: &state.damping,
+                d_dot: &state.d_dot,
+                external: &self.external,
+                zeros: &self.zeros,
+            };
+            passes::springs_six(
+                &self.team,
+                &fields,
+                &mut self.e_pad,
+                &mut self.k_pad,
+                &mut self.force,
+            );
+            return;
+        }
+        self.force.copy_from_slice(&self.external);
         add_spring_forces(
             state.grid.dims,
             &state.d,
@@ -297,25 +347,36 @@ impl Simulator {
         }
     }
 
-    /// Stage 3: `p̈ = (AᵀMA)⁻¹ Aᵀ f`. Returns `max|p̈|` and the CG iteration count.
+    /// Stage 3: `p̈ = (AᵀMA)⁻¹ Aᵀ f`. Returns `max|p̈|` and the CG iteration count. With a
+    /// uniform mass this is one fused projection `(AᵀA)⁻¹ Aᵀ f / μ`.
     ///
     /// # Errors
     /// When `p̈` is not finite.
     pub fn solve_accel(&mut self, state: &RegionState) -> Result<(f32, u32), StepError> {
+        self.ensure_scratch(state);
         let basis = &state.basis;
-        basis.apply_transpose(&self.force, &mut self.rhs, &mut self.kron);
         let uniform = self.params.solver == AccelSolver::Auto && state.mass_is_uniform();
-        let iterations = if uniform {
+        let (max, finite, iterations) = if uniform {
             let mu = state.mass.first().copied().unwrap_or(1.0);
-            self.accel.copy_from_slice(&self.rhs);
-            basis.solve_gram(&mut self.accel);
-            let inv = 1.0 / mu;
-            self.accel.iter_mut().for_each(|a| *a *= inv);
-            0
+            let scratch = ChainScratch {
+                t1: &mut self.t1,
+                t2: &mut self.t2,
+            };
+            let (max, finite) = passes::project(
+                &self.team,
+                basis,
+                &self.force,
+                1.0 / mu,
+                scratch,
+                &mut self.accel,
+            );
+            (max, finite, 0)
         } else {
-            self.conjugate_gradient(state)
+            basis.apply_transpose(&self.force, &mut self.rhs, &mut self.kron);
+            let it = self.conjugate_gradient(state);
+            let (max, finite) = max_abs(&self.accel);
+            (max, finite, it)
         };
-        let (max, finite) = max_abs(&self.accel);
         if !finite {
             return Err(StepError::NonFinite {
                 stage: "solve_accel",
@@ -356,8 +417,7 @@ impl Simulator {
             self.accel.fill(0.0);
             return 0;
         }
-        self.cg_z.copy_from_slice(&self.cg_r);
-        basis.solve_gram(&mut self.cg_z);
+        basis.solve_gram_into(&self.cg_r, &mut self.cg_z, &mut self.kron);
         self.cg_z.iter_mut().for_each(|z| *z *= inv_mean);
         self.cg_dir.copy_from_slice(&self.cg_z);
         let mut rz = dot(&self.cg_r, &self.cg_z);
@@ -389,8 +449,7 @@ impl Simulator {
                 *x += alpha * p;
                 *r -= alpha * q;
             }
-            self.cg_z.copy_from_slice(&self.cg_r);
-            basis.solve_gram(&mut self.cg_z);
+            basis.solve_gram_into(&self.cg_r, &mut self.cg_z, &mut self.kron);
             self.cg_z.iter_mut().for_each(|z| *z *= inv_mean);
             let rz_new = dot(&self.cg_r, &self.cg_z);
             let beta = (rz_new / rz) as f32;
@@ -457,61 +516,41 @@ impl Simulator {
         state.dt_s = dt;
 
         // Bound the new state before writing any of it.
-        let (v_max, v_ok) = max_abs(&state.p_dot);
-        let (p_max, p_ok) = max_abs(&state.p);
+        let (p_max, v_max, finite) = passes::coefficient_bounds(&self.team, &state.p, &state.p_dot);
         let v_new = v_max + dt * max_accel;
         let bound = p_max + dt * v_new.max(v_max);
-        if !(v_ok && p_ok && bound.is_finite() && bound <= p.max_abs_coeff) {
+        if !(finite && bound.is_finite() && bound <= p.max_abs_coeff) {
             return Err(StepError::Diverged { bound });
         }
 
-        match p.integrator {
-            Integrator::SemiImplicit => {
-                for ((x, v), &a) in state
-                    .p
-                    .iter_mut()
-                    .zip(state.p_dot.iter_mut())
-                    .zip(&self.accel)
-                {
-                    *v += dt * a;
-                    *x += dt * *v;
-                }
-                state
-                    .basis
-                    .apply(&state.p_dot, &mut state.d_dot, &mut self.kron);
-                for (d, &v) in state.d.iter_mut().zip(&state.d_dot) {
-                    *d += dt * v;
-                }
-            }
-            Integrator::Explicit => {
-                for ((x, v), &a) in state
-                    .p
-                    .iter_mut()
-                    .zip(state.p_dot.iter_mut())
-                    .zip(&self.accel)
-                {
-                    *x += dt * *v;
-                    *v += dt * a;
-                }
-                for (d, &v) in state.d.iter_mut().zip(&state.d_dot) {
-                    *d += dt * v;
-                }
-                state
-                    .basis
-                    .apply(&state.p_dot, &mut state.d_dot, &mut self.kron);
-            }
-        }
         state.steps_since_resync += 1;
-        if state.steps_since_resync >= p.resync_every {
-            state.resync_densities_with(&mut self.sa, &mut self.sb);
-        }
-        if state.plasticity_per_s > 0.0 {
-            let a = (state.plasticity_per_s * dt).min(1.0);
-            let y = state.yield_density.max(0.0);
-            for (r, &d) in state.rest.iter_mut().zip(&state.d) {
-                let dev = d - *r;
-                let excess = dev - dev.clamp(-y, y);
-                *r += a * excess;
+        let resync = state.steps_since_resync >= p.resync_every;
+        let plastic = (state.plasticity_per_s > 0.0).then(|| Plastic {
+            rate: (state.plasticity_per_s * dt).min(1.0),
+            yield_density: state.yield_density.max(0.0),
+        });
+        passes::integrate(
+            &self.team,
+            &state.basis,
+            dt,
+            p.integrator,
+            // On a resync step the drift waits for the recomputed densities.
+            if resync { None } else { plastic },
+            (&mut state.p, &mut state.p_dot, &self.accel),
+            ChainScratch {
+                t1: &mut self.t1,
+                t2: &mut self.t2,
+            },
+            Densities {
+                d_dot: &mut state.d_dot,
+                d: &mut state.d,
+                rest: &mut state.rest,
+            },
+        );
+        if resync {
+            state.resync_densities_with(&mut self.kron);
+            if let Some(pl) = plastic {
+                plastic_drift(&state.d, &mut state.rest, pl);
             }
         }
         state.time_s += f64::from(dt);
@@ -555,7 +594,7 @@ mod tests {
 
     use super::*;
     use crate::dynamics::{
-        Distribution, HapticCoupling, Material, reaction_force, surface_point_on_ray,
+        Distribution, HapticCoupling, Integrator, Material, reaction_force, surface_point_on_ray,
     };
     use crate::field::{CoeffBox, Primitive, lattice_from_primitive};
 
@@ -664,8 +703,7 @@ mod tests {
             *p += 0.2 * ((n * 13 % 7) as f32 / 7.0 - 0.5);
         }
         let mut sim = Simulator::new(StepParams::default());
-        let mut scratch = (Vec::new(), Vec::new());
-        state.resync_densities_with(&mut scratch.0, &mut scratch.1);
+        state.resync_densities_with(&mut KronScratch::for_basis(&state.basis));
         let mut snap = RegionSnapshot::default();
         let e0 = state.energy();
         let mut previous = e0;
@@ -858,6 +896,53 @@ mod tests {
             .sum::<f64>()
             .sqrt();
         assert!(res < 1e-4 * norm, "residual {res} of {norm}");
+    }
+
+    #[test]
+    fn two_threads_give_bit_identical_steps() {
+        for (mass_dims, integrator, neighbourhood) in [
+            ([15, 15, 15], Integrator::SemiImplicit, Neighbourhood::Six),
+            ([8, 8, 8], Integrator::SemiImplicit, Neighbourhood::Six),
+            ([11, 9, 13], Integrator::Explicit, Neighbourhood::Eighteen),
+        ] {
+            let mut runs = Vec::new();
+            for threads in [1, 2] {
+                let mut lattice = sphere();
+                let b = CoeffBox {
+                    min: [10, 6, 6],
+                    max: [17, 13, 13],
+                };
+                let mut state =
+                    RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+                let mut sim = Simulator::new(StepParams {
+                    threads,
+                    integrator,
+                    neighbourhood,
+                    resync_every: 7,
+                    ..StepParams::default()
+                });
+                let mut snap = RegionSnapshot::default();
+                let cursor = CENTRE + Vec3::new(0.6, 0.1, 0.0);
+                for _ in 0..40 {
+                    let tf = grab(&lattice, cursor, GAIN).unwrap();
+                    sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                        .unwrap();
+                }
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                runs.push((
+                    bits(&state.p),
+                    bits(&state.p_dot),
+                    bits(&state.d),
+                    bits(&state.d_dot),
+                    bits(&state.rest),
+                    bits(&lattice.coeffs),
+                ));
+            }
+            assert!(
+                runs[0] == runs[1],
+                "{mass_dims:?}: one and two threads differ"
+            );
+        }
     }
 
     #[test]

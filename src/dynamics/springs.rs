@@ -4,8 +4,21 @@
 //! corner springs). A neighbour outside the grid is fixed at its rest density, so the spring
 //! to it pulls with `k_i (r_i − d_i)`. Each spring is evaluated from both ends, row by row, so
 //! the inner loops are contiguous and vectorise.
+//!
+//! The six-neighbour springs (the default) have a fused kernel: one pass over the rows that
+//! adds every neighbour, the damping and the external force in fixed-width lane loops. It
+//! reads `e = d − rest` and the stiffness from copies padded by one value at both ends of
+//! every row (`e` zero there, the stiffness repeated), so an anchor at a face of the grid is
+//! just a neighbour at rest with the point's own stiffness, and the loops need no edge cases.
+
+use std::ops::Range;
+
+use crate::field::SharedOut;
 
 use super::material::Neighbourhood;
+
+/// Lanes of the fused kernel.
+const W: usize = 8;
 
 /// Offsets of the neighbourhood with their weights.
 fn offsets(nb: Neighbourhood) -> impl Iterator<Item = ([i64; 3], f32)> {
@@ -79,6 +92,251 @@ pub(crate) fn add_spring_forces(
     }
 }
 
+/// Row length of the padded copies for rows of `mx` points.
+#[must_use]
+pub(crate) fn padded_row(mx: usize) -> usize {
+    mx + 2
+}
+
+/// Fill the padded copies of `e = d − rest` and the stiffness for the rows of `planes`.
+///
+/// # Safety
+/// No other thread may access the rows of `planes` in `e_pad` and `k_pad` meanwhile.
+pub(crate) unsafe fn six_pads(
+    dims: [usize; 3],
+    d: &[f32],
+    rest: &[f32],
+    stiffness: &[f32],
+    planes: Range<usize>,
+    e_pad: &SharedOut<'_>,
+    k_pad: Option<&SharedOut<'_>>,
+) {
+    let [mx, my, _] = dims;
+    let s = padded_row(mx);
+    for row in planes.start * my..planes.end * my {
+        let src = row * mx..(row + 1) * mx;
+        // SAFETY: this row is ours by the caller's contract.
+        let ep = unsafe { e_pad.slice_mut(row * s..(row + 1) * s) };
+        for ((e, &d), &r) in ep[1..=mx]
+            .iter_mut()
+            .zip(&d[src.clone()])
+            .zip(&rest[src.clone()])
+        {
+            *e = d - r;
+        }
+        ep[0] = 0.0;
+        ep[mx + 1] = 0.0;
+        if let Some(k_pad) = k_pad {
+            // SAFETY: as above.
+            let kp = unsafe { k_pad.slice_mut(row * s..(row + 1) * s) };
+            let k = &stiffness[src];
+            kp[1..=mx].copy_from_slice(k);
+            kp[0] = k[0];
+            kp[mx + 1] = k[mx - 1];
+        }
+    }
+}
+
+/// Fixed inputs of the fused six-neighbour kernel.
+pub(crate) struct SixInputs<'a> {
+    pub dims: [usize; 3],
+    /// The stiffness when it is the same at every point; `k_pad` is not read then.
+    pub uniform_k: Option<f32>,
+    pub e_pad: &'a [f32],
+    pub k_pad: &'a [f32],
+    /// At least `dims[0]` zeros: the `e` of an anchor row.
+    pub zeros: &'a [f32],
+    pub external: &'a [f32],
+    pub damping: &'a [f32],
+    pub d_dot: &'a [f32],
+}
+
+/// The neighbour rows of one row: `(e, stiffness)` for y−, y+, z−, z+ (an anchor is a row of
+/// zeros with the row's own stiffness), each `mx` long.
+type NeighbourRows<'a> = [(&'a [f32], &'a [f32]); 4];
+
+/// `s[i..i + W]`.
+///
+/// # Safety
+/// `i + W <= s.len()`.
+#[inline(always)]
+unsafe fn lanes(s: &[f32], i: usize) -> [f32; W] {
+    debug_assert!(i + W <= s.len());
+    let p = s.as_ptr();
+    // SAFETY: in bounds by the caller's contract. Element loads (not an array copy), which
+    // LLVM merges into vector loads.
+    std::array::from_fn(|l| unsafe { *p.add(i + l) })
+}
+
+/// The fused kernel on `W` points starting at `i` (full width).
+///
+/// # Safety
+/// `i + W <= mx`, where `ec` and `kc` hold `mx + 2` values and every other slice `mx`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // the streams of one row
+unsafe fn six_chunk(
+    i: usize,
+    ec: &[f32],
+    kc: &[f32],
+    rows: &NeighbourRows<'_>,
+    ext: &[f32],
+    g: &[f32],
+    v: &[f32],
+    out: &mut [f32],
+) {
+    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
+    let [(e0, k0), (exm, kxm), (exp, kxp)] =
+        [1, 0, 2].map(|o| unsafe { (lanes(ec, i + o), lanes(kc, i + o)) });
+    let mut acc = [0.0; W];
+    for l in 0..W {
+        acc[l] = (k0[l] + kxm[l]) * (exm[l] - e0[l]) + (k0[l] + kxp[l]) * (exp[l] - e0[l]);
+    }
+    for &(en, kn) in rows {
+        // SAFETY: as above.
+        let (en, kn) = unsafe { (lanes(en, i), lanes(kn, i)) };
+        for l in 0..W {
+            acc[l] += (k0[l] + kn[l]) * (en[l] - e0[l]);
+        }
+    }
+    // SAFETY: as above.
+    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let mut f = [0.0; W];
+    for l in 0..W {
+        f[l] = x[l] + 0.5 * acc[l] - gg[l] * vv[l];
+    }
+    out[i..i + W].copy_from_slice(&f);
+}
+
+/// [`six_chunk`] with one stiffness `k` everywhere: `k Σ (e_n − e)`.
+///
+/// # Safety
+/// As [`six_chunk`].
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // the streams of one row
+unsafe fn six_chunk_uniform(
+    i: usize,
+    k: f32,
+    ec: &[f32],
+    rows: &NeighbourRows<'_>,
+    ext: &[f32],
+    g: &[f32],
+    v: &[f32],
+    out: &mut [f32],
+) {
+    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
+    let [e0, exm, exp] = [1, 0, 2].map(|o| unsafe { lanes(ec, i + o) });
+    let mut acc = [0.0; W];
+    for l in 0..W {
+        acc[l] = (exm[l] - e0[l]) + (exp[l] - e0[l]);
+    }
+    for &(en, _) in rows {
+        // SAFETY: as above.
+        let en = unsafe { lanes(en, i) };
+        for l in 0..W {
+            acc[l] += en[l] - e0[l];
+        }
+    }
+    // SAFETY: as above.
+    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let mut f = [0.0; W];
+    for l in 0..W {
+        f[l] = x[l] + k * acc[l] - gg[l] * vv[l];
+    }
+    out[i..i + W].copy_from_slice(&f);
+}
+
+/// The same sum for one point (rows shorter than `W`); `uniform` replaces every stiffness.
+#[allow(clippy::too_many_arguments)] // the streams of one row
+fn six_point(
+    i: usize,
+    uniform: Option<f32>,
+    ec: &[f32],
+    kc: &[f32],
+    rows: &NeighbourRows<'_>,
+    ext: &[f32],
+    g: &[f32],
+    v: &[f32],
+    out: &mut [f32],
+) {
+    let k = |s: &[f32], j: usize| uniform.unwrap_or_else(|| s[j]);
+    let (e0, k0) = (ec[i + 1], k(kc, i + 1));
+    let mut acc = (k0 + k(kc, i)) * (ec[i] - e0) + (k0 + k(kc, i + 2)) * (ec[i + 2] - e0);
+    for &(en, kn) in rows {
+        acc += (k0 + k(kn, i)) * (en[i] - e0);
+    }
+    out[i] = ext[i] + 0.5 * acc - g[i] * v[i];
+}
+
+/// `force = external + springs − damping · ḋ` for the rows of `planes`.
+///
+/// # Safety
+/// No other thread may access the rows of `planes` in `force` meanwhile.
+pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force: &SharedOut<'_>) {
+    let [mx, my, mz] = inp.dims;
+    let s = padded_row(mx);
+    let plane = s * my;
+    for row in planes.start * my..planes.end * my {
+        let (j, k) = (row % my, row / my);
+        let pad = row * s;
+        let ec = &inp.e_pad[pad..pad + s];
+        let kc = &inp.k_pad[pad..pad + s];
+        let centre_k = &kc[1..=mx];
+        let neighbour = |present: bool, at: usize| {
+            if present {
+                (&inp.e_pad[at + 1..=at + mx], &inp.k_pad[at + 1..=at + mx])
+            } else {
+                (&inp.zeros[..mx], centre_k)
+            }
+        };
+        let rows = [
+            neighbour(j > 0, pad.wrapping_sub(s)),
+            neighbour(j + 1 < my, pad + s),
+            neighbour(k > 0, pad.wrapping_sub(plane)),
+            neighbour(k + 1 < mz, pad + plane),
+        ];
+        let flat = row * mx..(row + 1) * mx;
+        let (ext, g, v) = (
+            &inp.external[flat.clone()],
+            &inp.damping[flat.clone()],
+            &inp.d_dot[flat.clone()],
+        );
+        // SAFETY: this row is ours by the caller's contract.
+        let out = unsafe { force.slice_mut(flat) };
+        assert!(
+            rows.iter().all(|(e, k)| e.len() >= mx && k.len() >= mx)
+                && ec.len() >= mx + 2
+                && kc.len() >= mx + 2
+                && ext.len() >= mx
+                && g.len() >= mx
+                && v.len() >= mx,
+            "row lengths"
+        );
+        if mx < W {
+            for i in 0..mx {
+                six_point(i, inp.uniform_k, ec, kc, &rows, ext, g, v, out);
+            }
+            continue;
+        }
+        // Chunks of W; the last one overlaps the previous (outputs depend only on inputs).
+        let mut i = 0;
+        loop {
+            // The last chunk overlaps the previous one.
+            let at = i.min(mx - W);
+            // SAFETY: at + W <= mx, and the lengths were checked above.
+            unsafe {
+                match inp.uniform_k {
+                    Some(k) => six_chunk_uniform(at, k, ec, &rows, ext, g, v, out),
+                    None => six_chunk(at, ec, kc, &rows, ext, g, v, out),
+                }
+            }
+            i += W;
+            if i >= mx {
+                break;
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -123,6 +381,74 @@ mod tests {
             let mut f0 = vec![0.0; n];
             add_spring_forces(dims, &d, &d, &stiff, nb, &mut e, &mut f0);
             assert!(f0.iter().all(|&v| v == 0.0));
+        }
+    }
+
+    #[test]
+    fn fused_six_kernel_matches_the_generic_springs() {
+        for (dims, uniform) in [
+            ([5, 4, 3], false),
+            ([9, 3, 4], false),
+            ([17, 5, 2], false),
+            ([8, 8, 8], false),
+            ([1, 2, 3], false),
+            ([9, 3, 4], true),
+            ([5, 4, 3], true),
+        ] {
+            let n: usize = dims.iter().product();
+            let d: Vec<f32> = (0..n).map(|i| ((i * 7) % 5) as f32 * 0.1).collect();
+            let rest: Vec<f32> = (0..n).map(|i| ((i * 3) % 4) as f32 * 0.05).collect();
+            let stiff: Vec<f32> = (0..n)
+                .map(|i| if uniform { 2.5 } else { 1.0 + (i % 3) as f32 })
+                .collect();
+            let ext: Vec<f32> = (0..n).map(|i| (i % 4) as f32).collect();
+            let damping: Vec<f32> = (0..n).map(|i| 0.5 + (i % 2) as f32).collect();
+            let d_dot: Vec<f32> = (0..n).map(|i| ((i * 5) % 3) as f32 - 1.0).collect();
+            let mut want = ext.clone();
+            let mut e = vec![0.0; n];
+            add_spring_forces(
+                dims,
+                &d,
+                &rest,
+                &stiff,
+                Neighbourhood::Six,
+                &mut e,
+                &mut want,
+            );
+            for ((f, &g), &v) in want.iter_mut().zip(&damping).zip(&d_dot) {
+                *f -= g * v;
+            }
+            let padded = padded_row(dims[0]) * dims[1] * dims[2];
+            let (mut e_pad, mut k_pad) = (vec![f32::NAN; padded], vec![f32::NAN; padded]);
+            let mut got = vec![f32::NAN; n];
+            let zeros = vec![0.0; dims[0]];
+            // SAFETY: one thread.
+            unsafe {
+                six_pads(
+                    dims,
+                    &d,
+                    &rest,
+                    &stiff,
+                    0..dims[2],
+                    &SharedOut::new(&mut e_pad),
+                    (!uniform).then_some(&SharedOut::new(&mut k_pad)),
+                );
+            }
+            let inputs = SixInputs {
+                dims,
+                uniform_k: uniform.then_some(2.5),
+                e_pad: &e_pad,
+                k_pad: &k_pad,
+                zeros: &zeros,
+                external: &ext,
+                damping: &damping,
+                d_dot: &d_dot,
+            };
+            // SAFETY: one thread.
+            unsafe { six_forces(&inputs, 0..dims[2], &SharedOut::new(&mut got)) };
+            for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!((g - w).abs() < 1e-5, "{dims:?} point {i}: {g} vs {w}");
+            }
         }
     }
 }

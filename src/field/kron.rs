@@ -3,17 +3,17 @@
 //!
 //! Arrays are x fastest. Coefficients have shape `cols = [nx, ny, nz]`, samples (mass points)
 //! shape `rows = [mx, my, mz]`. `AᵀA = BxᵀBx ⊗ ByᵀBy ⊗ BzᵀBz`, so `(AᵀA)⁻¹` is three banded
-//! Cholesky solves, one per axis. The passes along y and z run over whole rows/planes at a time
-//! (vectorised); the solve along the contiguous x axis is a scalar recurrence, so lines are
-//! transposed into tiles of [`LANES`] and swept together. Nothing allocates after construction
-//! except where a method says so; scratch space is passed in.
+//! Cholesky solves, one per axis, and `(AᵀA)⁻¹Aᵀ` fuses into one pass per axis. Every pass
+//! sweeps [`LANES`] lines together (see `sweep.rs`): columns of whole rows along y and z, lines
+//! transposed into a block along the contiguous x axis, whose banded solve would otherwise be a
+//! latency-bound scalar recurrence. Nothing allocates after construction except where a method
+//! says so; scratch space is passed in. [`apply_axes`] keeps the plain row-by-row passes for
+//! one-off operators built without Gram factors.
 
 use super::axis::{AxisBasis, BandedCholesky};
-
-/// Lines swept together by the x-axis solve.
-// NOTE: 8–16 lines per tile halved the step against a line-by-line sweep (bench/core.rs,
-// `step/*`); 16 keeps a tile row in one 64-byte cache line.
-pub const LANES: usize = 16;
+use super::band::{Band, SolvePlan, TriLu};
+pub use super::sweep::LANES;
+use super::sweep::{AxisOp, SharedOut, sweep_strided, sweep_x};
 
 /// Why an operator could not be built.
 #[derive(Clone, Debug, PartialEq)]
@@ -39,6 +39,14 @@ pub struct KroneckerBasis {
     pub axes: [AxisBasis; 3],
     /// Cholesky factors of `BᵀB`, per axis.
     pub chol: [BandedCholesky; 3],
+    /// `B` per axis in gather form.
+    forward: [Band; 3],
+    /// `Bᵀ` per axis in gather form.
+    transposed: [Band; 3],
+    /// The Cholesky factors laid out for the sweeps.
+    solve: [SolvePlan; 3],
+    /// `B⁻¹` per axis where `B` is square (then `(BᵀB)⁻¹Bᵀ = B⁻¹`).
+    inverse: [Option<TriLu>; 3],
 }
 
 /// Scratch space for [`KroneckerBasis`] operations (two intermediate arrays).
@@ -86,9 +94,14 @@ impl KroneckerBasis {
             );
         }
         let [cx, cy, cz]: [BandedCholesky; 3] = chol.try_into().expect("three axes");
+        let chol = [cx, cy, cz];
         Ok(Self {
+            forward: std::array::from_fn(|a| Band::forward(&axes[a])),
+            transposed: std::array::from_fn(|a| Band::transposed(&axes[a])),
+            solve: std::array::from_fn(|a| SolvePlan::new(&chol[a])),
+            inverse: std::array::from_fn(|a| TriLu::new(&axes[a])),
             axes,
-            chol: [cx, cy, cz],
+            chol,
         })
     }
 
@@ -123,58 +136,192 @@ impl KroneckerBasis {
         x * y * nz.max(mz)
     }
 
-    /// `d = A p`.
+    /// `d = A p`. Allocates nothing.
     ///
     /// # Panics
     /// When the slices do not match the operator's shapes or the scratch is too small.
     pub fn apply(&self, p: &[f32], d: &mut [f32], scratch: &mut KronScratch) {
-        apply_axes(&self.axes, p, d, &mut scratch.a, &mut scratch.b);
+        assert_eq!(p.len(), self.coeff_count(), "coefficient length");
+        assert_eq!(d.len(), self.sample_count(), "sample length");
+        self.chain(
+            [self.op_apply(0), self.op_apply(1), self.op_apply(2)],
+            p,
+            d,
+            scratch,
+        );
     }
 
-    /// `b = Aᵀ d`.
+    /// `b = Aᵀ d`. Allocates nothing.
     ///
     /// # Panics
     /// When the slices do not match the operator's shapes or the scratch is too small.
     pub fn apply_transpose(&self, d: &[f32], b: &mut [f32], scratch: &mut KronScratch) {
-        let [nx, ny, _] = self.cols();
-        let [mx, my, mz] = self.rows();
         assert_eq!(d.len(), self.sample_count(), "sample length");
         assert_eq!(b.len(), self.coeff_count(), "coefficient length");
-        let _ = mx;
-        let t1 = &mut scratch.a[..nx * my * mz];
-        pass_x_transpose(&self.axes[0], d, t1);
-        let t2 = &mut scratch.b[..nx * ny * mz];
-        pass_strided_transpose(&self.axes[1], t1, nx, mz, t2);
-        pass_strided_transpose(&self.axes[2], t2, nx * ny, 1, b);
+        self.chain(
+            [
+                self.op_apply_transpose(0),
+                self.op_apply_transpose(1),
+                self.op_apply_transpose(2),
+            ],
+            d,
+            b,
+            scratch,
+        );
     }
 
-    /// `x ← (AᵀA)⁻¹ x`, in place, by three banded solves.
+    /// `p = scale · (AᵀA)⁻¹ Aᵀ d`: the least-squares coefficients of the samples `d`, with
+    /// `Aᵀ` and the Gram solve fused per axis. Allocates nothing.
+    ///
+    /// # Panics
+    /// When the slices do not match the operator's shapes or the scratch is too small.
+    pub fn project(&self, d: &[f32], p: &mut [f32], scale: f32, scratch: &mut KronScratch) {
+        assert_eq!(d.len(), self.sample_count(), "sample length");
+        assert_eq!(p.len(), self.coeff_count(), "coefficient length");
+        self.chain(
+            [
+                self.op_project(0, 1.0),
+                self.op_project(1, 1.0),
+                self.op_project(2, scale),
+            ],
+            d,
+            p,
+            scratch,
+        );
+    }
+
+    /// `x ← (AᵀA)⁻¹ x`, in place, by three banded solves. Allocates a scratch copy; use
+    /// [`KroneckerBasis::solve_gram_into`] on a real-time path.
     ///
     /// # Panics
     /// When `x` does not have one entry per coefficient.
     pub fn solve_gram(&self, x: &mut [f32]) {
-        self.solve_gram_with(x, true);
+        let src = x.to_vec();
+        self.solve_gram_into(&src, x, &mut KronScratch::for_basis(self));
     }
 
-    /// [`KroneckerBasis::solve_gram`] with the x-axis lines swept one at a time instead of in
-    /// tiles: the plain alternative that `bench/core.rs` compares against.
+    /// `x = (AᵀA)⁻¹ b`. Allocates nothing.
+    ///
+    /// # Panics
+    /// When the slices do not have one entry per coefficient or the scratch is too small.
+    pub fn solve_gram_into(&self, b: &[f32], x: &mut [f32], scratch: &mut KronScratch) {
+        assert_eq!(b.len(), self.coeff_count(), "coefficient length");
+        assert_eq!(x.len(), self.coeff_count(), "coefficient length");
+        self.chain(
+            [
+                self.op_solve(0, 1.0),
+                self.op_solve(1, 1.0),
+                self.op_solve(2, 1.0),
+            ],
+            b,
+            x,
+            scratch,
+        );
+    }
+
+    /// [`KroneckerBasis::solve_gram`] as a plain sweep, one line at a time along x and one
+    /// row at a time along y and z: the alternative that `bench/core.rs` compares against.
     pub fn solve_gram_line_by_line(&self, x: &mut [f32]) {
-        self.solve_gram_with(x, false);
-    }
-
-    fn solve_gram_with(&self, x: &mut [f32], tiled: bool) {
         let [nx, ny, nz] = self.cols();
         assert_eq!(x.len(), self.coeff_count(), "coefficient length");
-        if tiled {
-            solve_x_tiled(&self.chol[0], x, nx);
-        } else {
-            for line in x.chunks_exact_mut(nx) {
-                self.chol[0].solve_in_place(line);
-            }
+        for line in x.chunks_exact_mut(nx) {
+            self.chol[0].solve_in_place(line);
         }
         solve_strided(&self.chol[1], x, nx, nz);
         solve_strided(&self.chol[2], x, nx * ny, 1);
     }
+
+    /// The x, y, z passes of `ops` one after the other, single-threaded.
+    fn chain(&self, ops: [AxisOp<'_>; 3], src: &[f32], dst: &mut [f32], scratch: &mut KronScratch) {
+        let [sx, sy, sz] = self.pass_shapes(&ops);
+        let t1 = &mut scratch.a[..sx.out_len];
+        sweep_x(&ops[0], src, 0..sx.lines, &SharedOut::new(t1));
+        let t1 = &scratch.a[..sx.out_len];
+        let t2 = &mut scratch.b[..sy.out_len];
+        sweep_strided(
+            &ops[1],
+            t1,
+            sy.inner,
+            0..sy.outer,
+            0..sy.inner,
+            &SharedOut::new(t2),
+        );
+        let t2 = &scratch.b[..sy.out_len];
+        sweep_strided(
+            &ops[2],
+            t2,
+            sz.inner,
+            0..1,
+            0..sz.inner,
+            &SharedOut::new(dst),
+        );
+    }
+
+    /// Shapes of the three passes of `ops` (x, then y, then z).
+    pub(crate) fn pass_shapes(&self, ops: &[AxisOp<'_>; 3]) -> [PassShape; 3] {
+        let [iy, iz] = [ops[1].rows_in(), ops[2].rows_in()];
+        let [ox, oy, oz] = [ops[0].rows_out(), ops[1].rows_out(), ops[2].rows_out()];
+        [
+            PassShape {
+                lines: iy * iz,
+                inner: 1,
+                outer: iy * iz,
+                out_len: ox * iy * iz,
+            },
+            PassShape {
+                lines: ox * iz,
+                inner: ox,
+                outer: iz,
+                out_len: ox * oy * iz,
+            },
+            PassShape {
+                lines: ox * oy,
+                inner: ox * oy,
+                outer: 1,
+                out_len: ox * oy * oz,
+            },
+        ]
+    }
+
+    /// `B` along `axis`.
+    pub(crate) fn op_apply(&self, axis: usize) -> AxisOp<'_> {
+        AxisOp::Apply(&self.forward[axis])
+    }
+
+    /// `Bᵀ` along `axis`.
+    pub(crate) fn op_apply_transpose(&self, axis: usize) -> AxisOp<'_> {
+        AxisOp::Apply(&self.transposed[axis])
+    }
+
+    /// `scale · (BᵀB)⁻¹ Bᵀ` along `axis` (`scale · B⁻¹` when `B` is square).
+    pub(crate) fn op_project(&self, axis: usize, scale: f32) -> AxisOp<'_> {
+        if let Some(lu) = &self.inverse[axis] {
+            return AxisOp::Inverse { lu, scale };
+        }
+        AxisOp::Project {
+            band: &self.transposed[axis],
+            solve: &self.solve[axis],
+            scale,
+        }
+    }
+
+    /// `scale · (BᵀB)⁻¹` along `axis`.
+    pub(crate) fn op_solve(&self, axis: usize, scale: f32) -> AxisOp<'_> {
+        AxisOp::Solve {
+            solve: &self.solve[axis],
+            scale,
+        }
+    }
+}
+
+/// The shape of one pass of a chain: along x, `lines` lines; along y, `outer` planes of rows
+/// `inner` long; along z, one block of rows `inner` long. `out_len` values come out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct PassShape {
+    pub lines: usize,
+    pub inner: usize,
+    pub outer: usize,
+    pub out_len: usize,
 }
 
 /// `d = (Bx ⊗ By ⊗ Bz) p` for any three factors (no Gram factor needed). The scratch slices
@@ -217,19 +364,6 @@ pub(crate) fn pass_x(basis: &AxisBasis, src: &[f32], dst: &mut [f32]) {
     }
 }
 
-/// Transpose of [`pass_x`]: `dst[line][first[r] + t] += w[r][t] src[line][r]`.
-pub(crate) fn pass_x_transpose(basis: &AxisBasis, src: &[f32], dst: &mut [f32]) {
-    let (n, m) = (basis.cols, basis.rows);
-    for (line, out) in src.chunks_exact(m).zip(dst.chunks_exact_mut(n)) {
-        out.fill(0.0);
-        for ((&v, &f), w) in line.iter().zip(&basis.first).zip(&basis.weights) {
-            for t in 0..basis.width {
-                out[f + t] += w[t] * v;
-            }
-        }
-    }
-}
-
 /// Along a strided axis: `src` has shape `[inner, n, outer]`, `dst` shape `[inner, m, outer]`.
 pub(crate) fn pass_strided(
     basis: &AxisBasis,
@@ -260,33 +394,6 @@ pub(crate) fn pass_strided(
                     for (o, &v) in out.iter_mut().zip(s) {
                         *o += w[t] * v;
                     }
-                }
-            }
-        }
-    }
-}
-
-/// Transpose of [`pass_strided`]: `src` shape `[inner, m, outer]`, `dst` shape `[inner, n, outer]`.
-pub(crate) fn pass_strided_transpose(
-    basis: &AxisBasis,
-    src: &[f32],
-    inner: usize,
-    outer: usize,
-    dst: &mut [f32],
-) {
-    let (n, m) = (basis.cols, basis.rows);
-    for o in 0..outer {
-        let src_block = &src[o * m * inner..(o + 1) * m * inner];
-        let dst_block = &mut dst[o * n * inner..(o + 1) * n * inner];
-        dst_block.fill(0.0);
-        for (r, s) in src_block.chunks_exact(inner).enumerate() {
-            let f = basis.first[r];
-            let w = basis.weights[r];
-            for t in 0..basis.width {
-                let out = &mut dst_block[(f + t) * inner..(f + t + 1) * inner];
-                let wt = w[t];
-                for (o, &v) in out.iter_mut().zip(s) {
-                    *o += wt * v;
                 }
             }
         }
@@ -360,70 +467,6 @@ pub(crate) fn solve_strided(chol: &BandedCholesky, x: &mut [f32], inner: usize, 
                 }
             }
         }
-    }
-}
-
-/// Banded solve along the contiguous x axis: `x` holds lines of length `n`. Lines are
-/// transposed into `[n][LANES]` tiles on the stack-free scratch inside and swept together.
-pub(crate) fn solve_x_tiled(chol: &BandedCholesky, x: &mut [f32], n: usize) {
-    const MAX_N: usize = 256;
-    let lines = x.len() / n;
-    if n > MAX_N {
-        for line in x.chunks_exact_mut(n) {
-            chol.solve_in_place(line);
-        }
-        return;
-    }
-    let mut tile = [[0.0_f32; LANES]; MAX_N];
-    let mut start = 0;
-    while start < lines {
-        let count = LANES.min(lines - start);
-        let group = &mut x[start * n..(start + count) * n];
-        for (l, line) in group.chunks_exact(n).enumerate() {
-            for (i, &v) in line.iter().enumerate() {
-                tile[i][l] = v;
-            }
-        }
-        let tile = &mut tile[..n];
-        for i in 0..n {
-            let l = chol.sub[i];
-            let inv = chol.inv_diag[i];
-            let mut acc = tile[i];
-            for k in 1..=3.min(i) {
-                let prev = tile[i - k];
-                let c = l[k - 1];
-                for e in 0..LANES {
-                    acc[e] -= c * prev[e];
-                }
-            }
-            for v in &mut acc {
-                *v *= inv;
-            }
-            tile[i] = acc;
-        }
-        for i in (0..n).rev() {
-            let inv = chol.inv_diag[i];
-            let mut acc = tile[i];
-            for k in 1..=3 {
-                if i + k < n {
-                    let next = tile[i + k];
-                    let c = chol.sub[i + k][k - 1];
-                    for e in 0..LANES {
-                        acc[e] -= c * next[e];
-                    }
-                }
-            }
-            for v in &mut acc {
-                *v *= inv;
-            }
-            tile[i] = acc;
-        }
-        for (l, line) in group.chunks_exact_mut(n).enumerate() {
-            for (i, v) in line.iter_mut().enumerate() {
-                *v = tile[i][l];
-            }
-        }
-        start += count;
     }
 }
 
@@ -567,5 +610,31 @@ mod tests {
             .zip(&p)
             .fold(0.0_f32, |e, (a, b)| e.max((a - b).abs()));
         assert!(err < 1e-4, "round trip error {err}");
+    }
+
+    #[test]
+    fn fused_projection_and_solve_match_the_line_by_line_reference() {
+        for (n, m) in [
+            ([4, 5, 6], [4, 5, 6]),
+            ([9, 12, 5], [17, 12, 9]),
+            ([15, 15, 15], [15, 15, 15]),
+        ] {
+            let k = basis(n, m);
+            let mut scratch = KronScratch::for_basis(&k);
+            let d = pseudo(k.sample_count(), 13);
+            let mut reference = vec![0.0; k.coeff_count()];
+            k.apply_transpose(&d, &mut reference, &mut scratch);
+            let rhs = reference.clone();
+            k.solve_gram_line_by_line(&mut reference);
+            let scale = reference.iter().fold(0.0_f32, |s, v| s.max(v.abs()));
+            let mut fused = vec![0.0; k.coeff_count()];
+            k.project(&d, &mut fused, 0.5, &mut scratch);
+            let mut solved = vec![0.0; k.coeff_count()];
+            k.solve_gram_into(&rhs, &mut solved, &mut scratch);
+            for ((f, s), r) in fused.iter().zip(&solved).zip(&reference) {
+                assert!((f - 0.5 * r).abs() <= 1e-5 * scale, "{f} vs {}", 0.5 * r);
+                assert!((s - r).abs() <= 1e-5 * scale, "{s} vs {r}");
+            }
+        }
     }
 }

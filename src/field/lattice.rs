@@ -1,6 +1,6 @@
 //! A single B-spline patch: an `nx × ny × nz` lattice of control coefficients.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 use super::basis::{cubic_weights, cubic_weights_and_derivatives};
 
@@ -158,19 +158,18 @@ impl BSplineLattice {
         let wy = cubic_weights(stencil.t.y);
         let wz = cubic_weights(stencil.t.z);
         if let Some(base) = self.interior_base(&stencil) {
-            // Fast path: all 64 coefficients exist, no per-tap range checks.
+            // Fast path: all 64 coefficients exist, no per-tap range checks. Rows along x are
+            // summed as 4-wide vectors and dotted with the x weights once at the end.
             let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
-            let mut sum = 0.0;
-            for c in 0..4 {
-                let mut plane = 0.0;
-                for b in 0..4 {
-                    let row = &self.coeffs[base + b * sy + c * sz..][..4];
-                    plane +=
-                        wy[b] * (wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3]);
+            let mut sum = Vec4::ZERO;
+            for (c, &wzc) in wz.iter().enumerate() {
+                let mut plane = Vec4::ZERO;
+                for (b, &wyb) in wy.iter().enumerate() {
+                    plane += wyb * Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
                 }
-                sum += wz[c] * plane;
+                sum += wzc * plane;
             }
-            return sum;
+            return sum.dot(Vec4::from_array(wx));
         }
         let mut sum = 0.0;
         for c in 0..4 {
@@ -207,25 +206,25 @@ impl BSplineLattice {
         let (wy, dy) = cubic_weights_and_derivatives(stencil.t.y);
         let (wz, dz) = cubic_weights_and_derivatives(stencil.t.z);
         if let Some(base) = self.interior_base(&stencil) {
-            // Fast path: all 64 coefficients exist, no per-tap range checks.
+            // Fast path: all 64 coefficients exist, no per-tap range checks. Rows along x are
+            // summed as 4-wide vectors with the y/z weights (three sums share the rows) and
+            // dotted with the x weights or their derivatives once at the end.
             let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
-            let (mut v, mut gx, mut gy, mut gz) = (0.0, 0.0, 0.0, 0.0);
+            let (mut s, mut sdy, mut sdz) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
             for c in 0..4 {
-                let (mut pv, mut pgx, mut pgy) = (0.0, 0.0, 0.0);
+                let (mut plane, mut plane_dy) = (Vec4::ZERO, Vec4::ZERO);
                 for b in 0..4 {
-                    let row = &self.coeffs[base + b * sy + c * sz..][..4];
-                    let lv = wx[0] * row[0] + wx[1] * row[1] + wx[2] * row[2] + wx[3] * row[3];
-                    let lg = dx[0] * row[0] + dx[1] * row[1] + dx[2] * row[2] + dx[3] * row[3];
-                    pv += wy[b] * lv;
-                    pgx += wy[b] * lg;
-                    pgy += dy[b] * lv;
+                    let row = Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
+                    plane += wy[b] * row;
+                    plane_dy += dy[b] * row;
                 }
-                v += wz[c] * pv;
-                gx += wz[c] * pgx;
-                gy += wz[c] * pgy;
-                gz += dz[c] * pv;
+                s += wz[c] * plane;
+                sdy += wz[c] * plane_dy;
+                sdz += dz[c] * plane;
             }
-            return (v, Vec3::new(gx, gy, gz) / self.spacing);
+            let (wx, dx) = (Vec4::from_array(wx), Vec4::from_array(dx));
+            let g = Vec3::new(s.dot(dx), sdy.dot(wx), sdz.dot(wx));
+            return (s.dot(wx), g / self.spacing);
         }
         let (mut v, mut gx, mut gy, mut gz) = (0.0, 0.0, 0.0, 0.0);
         for c in 0..4 {

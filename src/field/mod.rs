@@ -1,6 +1,7 @@
 //! The implicit solid: a uniform cubic B-spline field and the operators on it.
 
 mod axis;
+mod band;
 mod basis;
 mod kron;
 mod lattice;
@@ -9,9 +10,11 @@ mod multipatch;
 mod primitive;
 mod refit;
 mod snapshot;
+mod sweep;
 
 pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
+pub(crate) use kron::PassShape;
 pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
 pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid};
@@ -19,3 +22,6 @@ pub use multipatch::{MultiPatchField, Patch};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
 pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};
 pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
+pub(crate) use sweep::{
+    AxisOp, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with, with_blocks,
+};

@@ -1,0 +1,68 @@
+//! Profiling harness for the simulation step: `profile_step N M STEPS [THREADS]` runs one
+//! warm-up step and then STEPS steps at N³ coefficients / M³ mass points (the setup of
+//! `bench/core.rs`), printing the mean wall time per step. Meant for instruction counts, which
+//! do not depend on the machine's load:
+//! `cargo build --release --bench profile_step`, then
+//! `valgrind --tool=callgrind --toggle-collect='*Simulator*step*' target/release/deps/profile_step-* 32 32 25`
+//! (per-step counts by the difference of two runs with different STEPS).
+use dynaclay::dynamics::{Distribution, Material, RegionState, Simulator, StepParams, ToolForce};
+use dynaclay::field::{
+    BSplineLattice, CoeffBox, Primitive, RegionSnapshot, lattice_from_primitive,
+};
+use glam::Vec3;
+
+fn setup(n: usize, m: usize) -> (BSplineLattice, RegionState, ToolForce) {
+    let dims = [n + 4; 3];
+    let spacing = 1.0 / (n + 3) as f32;
+    let centre = Vec3::splat(0.5);
+    let sphere = Primitive::Sphere {
+        centre,
+        radius: 0.3,
+    };
+    let lattice =
+        lattice_from_primitive(dims, spacing, Vec3::ZERO, &sphere, 2.0 * spacing, 2).unwrap();
+    let region = CoeffBox {
+        min: [2; 3],
+        max: [n + 1; 3],
+    };
+    let state = RegionState::new(&lattice, region, [m; 3], Material::PLASTIC).unwrap();
+    let force = ToolForce {
+        start: centre + Vec3::X * 0.3,
+        end: centre + Vec3::X * 0.36,
+        distribution: Distribution::Gaussian,
+        radius: 2.0 * spacing,
+        gain: 1e3,
+    };
+    (lattice, state, force)
+}
+
+fn main() {
+    let a: Vec<usize> = std::env::args()
+        .skip(1)
+        .map(|s| s.parse().unwrap())
+        .collect();
+    let (n, m, steps) = (a[0], a[1], a[2]);
+    let (mut lattice, mut state, force) = setup(n, m);
+    let threads = a.get(3).copied().unwrap_or(1);
+    let mut sim = Simulator::new(StepParams {
+        threads,
+        ..StepParams::default()
+    });
+    let mut snap = RegionSnapshot::default();
+    sim.step(&mut state, &mut lattice, &[force], &mut snap)
+        .unwrap();
+    let t = std::time::Instant::now();
+    for _ in 0..steps {
+        std::hint::black_box(
+            sim.step(&mut state, &mut lattice, &[force], &mut snap)
+                .is_ok(),
+        );
+    }
+    let el = t.elapsed();
+    let s: f32 = state.p.iter().sum();
+    println!(
+        "{n}^3/{m}^3: {:.1} us/step  checksum {s}  {:?}",
+        el.as_secs_f64() * 1e6 / steps as f64,
+        sim.counters.last
+    );
+}
