@@ -128,7 +128,7 @@ impl HapticStage {
     /// Applies the newest field patch without touching the device (used at shutdown).
     pub fn sync_field(&mut self) {
         let stamped = self.patches.latest();
-        stamped.value.apply_to(&mut self.field);
+        stamped.value.copy_into(&mut self.field);
         self.ack
             .store(stamped.version, std::sync::atomic::Ordering::Release);
     }
@@ -161,7 +161,7 @@ impl HapticStage {
             stamped.value.contact_enabled,
         );
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
-            stamped.value.apply_to(&mut self.field);
+            stamped.value.copy_into(&mut self.field);
             // NOTE: Release pairs with the simulation's Acquire load: once it sees this
             // version acknowledged, every coefficient of that patch is in our copy.
             self.ack

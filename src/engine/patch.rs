@@ -68,6 +68,31 @@ impl FieldPatch {
         self.coeff_box = Some(b);
     }
 
+    /// Writes the carried coefficients into `lattice` without tracking what changed: a row
+    /// copy per line of the box, for the haptic path, which needs the values but not the
+    /// changed box (the per-coefficient comparison in [`FieldPatch::apply_to`] is the bulk of
+    /// its cost). Returns whether the patch fitted; one that does not changes nothing.
+    pub fn copy_into(&self, lattice: &mut BSplineLattice) -> bool {
+        let Some(b) = self.coeff_box else {
+            return false;
+        };
+        if !b.fits(lattice.dims) || b.count() != self.coeffs.len() {
+            return false;
+        }
+        let len = b.max[0] + 1 - b.min[0];
+        let mut rows = self.coeffs.chunks_exact(len);
+        for k in b.min[2]..=b.max[2] {
+            for j in b.min[1]..=b.max[1] {
+                let row = lattice.index(b.min[0], j, k);
+                // The length check above guarantees one chunk per row.
+                if let Some(from) = rows.next() {
+                    lattice.coeffs[row..row + len].copy_from_slice(from);
+                }
+            }
+        }
+        true
+    }
+
     /// Writes the carried coefficients into `lattice` and returns the box of coefficients
     /// whose value actually changed (`None` if none did). A patch whose box does not fit the
     /// lattice, or whose length is wrong, changes nothing and returns `None`.
@@ -181,6 +206,26 @@ mod tests {
     }
 
     #[test]
+    fn copy_into_writes_the_same_field_as_apply_to() {
+        let mut moved = lattice(1.0);
+        for c in &mut moved.coeffs[40..90] {
+            *c = -*c;
+        }
+        let b = CoeffBox {
+            min: [0, 1, 1],
+            max: [5, 3, 6],
+        };
+        let mut patch = FieldPatch::with_capacity_for(&moved);
+        patch.capture(&moved, b);
+        let mut by_apply = lattice(1.0);
+        let mut by_copy = lattice(1.0);
+        assert!(patch.apply_to(&mut by_apply).is_some());
+        assert!(patch.copy_into(&mut by_copy));
+        assert_eq!(by_copy, by_apply);
+        assert_ne!(by_copy, lattice(1.0), "the patch changed something");
+    }
+
+    #[test]
     fn bad_patches_change_nothing() {
         let src = lattice(0.0);
         let mut dst = lattice(2.0);
@@ -195,6 +240,7 @@ mod tests {
         );
         patch.coeffs.pop();
         assert_eq!(patch.apply_to(&mut dst), None);
+        assert!(!patch.copy_into(&mut dst));
         assert_eq!(dst, before);
         patch.capture(
             &src,
