@@ -1,7 +1,7 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
-//! patches, the safety filter, a force-limit change and a whole-field republication after a
-//! session load.
+//! patches, the safety filter, a force-limit change, a whole-field republication after a
+//! session load, and a device switch and a disconnect while ticking.
 
 mod common;
 
@@ -10,9 +10,11 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use dynaclay::engine::{Command, HeadlessSink, build};
+use dynaclay::engine::{Command, DeviceHandover, HeadlessSink, build};
 use dynaclay::io::Session;
 use dynaclay::tools::Clay;
+use dynaclay_devices::{HapticDevice, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory};
+use glam::Vec3;
 
 struct Counting;
 
@@ -66,6 +68,10 @@ fn haptic_tick_allocates_nothing() {
     assert_eq!(ALLOCS_IN_TICK.swap(0, Ordering::Relaxed), 1);
 
     let limit = stages.haptic.force_limit();
+    let map = s.config.map;
+    let mut swaps = Some(stages.device_swaps);
+    let mut swapper = None;
+    let mut applied_before_swap = f32::NAN;
     let mut status = stages.sim.take_status_reader().expect("status reader");
     let mut loaded = stages.sim.lattice().clone();
     for c in &mut loaded.coeffs {
@@ -90,6 +96,31 @@ fn haptic_tick_allocates_nothing() {
                     reply: None,
                 })
                 .unwrap();
+        }
+        if i == 999 {
+            applied_before_swap = limit.applied_n();
+        }
+        if i == 1000 {
+            // Another thread opens a second arm and offers it, then disconnects: the ticks
+            // below take each in turn (the devices are built and closed on that thread).
+            let request = swaps.take().expect("one swapper");
+            swapper = Some(std::thread::spawn(move || {
+                let timeout = std::time::Duration::from_secs(10);
+                let arm = SimulatedArm::new(SimArmConfig::default(), Trajectory::hold(Vec3::ZERO));
+                let mut device: SafetyFilter<Box<dyn HapticDevice>> =
+                    SafetyFilter::new(Box::new(arm));
+                device.open().expect("second arm opens");
+                let handover = DeviceHandover {
+                    device,
+                    map,
+                    connected: true,
+                };
+                let first = request.swap(handover, timeout).expect("switched");
+                let second = request
+                    .swap(DeviceHandover::parked(map), timeout)
+                    .expect("parked");
+                (first.connected, second.connected)
+            }));
         }
         IN_TICK.with(|f| f.set(true));
         let out = stages.haptic.tick(Instant::now());
@@ -116,8 +147,7 @@ fn haptic_tick_allocates_nothing() {
         "with fresh field patches ({patched_ticks})"
     );
     assert_eq!(
-        limit.applied_n(),
-        0.1,
+        applied_before_swap, 0.1,
         "the limit change was applied in a tick"
     );
     assert_eq!(
@@ -128,6 +158,17 @@ fn haptic_tick_allocates_nothing() {
         (1, 0),
         "the load was applied"
     );
+    let (first_was_connected, second_was_connected) = swapper
+        .expect("swapper started")
+        .join()
+        .expect("swapper finished");
+    assert!(
+        first_was_connected && second_was_connected,
+        "the original arm, then the second, came back"
+    );
+    assert!(!stages.haptic.is_connected(), "parked by the disconnect");
+    assert_eq!(limit.applied_n(), 0.0, "no device, no force");
+    assert_eq!(stages.counters.snapshot().device_swaps, 2);
     assert_eq!(
         ALLOCS_IN_TICK.load(Ordering::Relaxed),
         0,

@@ -22,6 +22,7 @@ struct Inner {
     stale_ticks: AtomicU64,
     contact_ticks: AtomicU64,
     nonfinite_forces: AtomicU64,
+    device_swaps: AtomicU64,
     sim_steps: AtomicU64,
     sim_substeps: AtomicU64,
     sim_nonfinite_rejected: AtomicU64,
@@ -48,6 +49,9 @@ pub struct CounterSnapshot {
     pub contact_ticks: u64,
     /// Computed forces that were NaN or infinite and replaced by zero before the filter.
     pub nonfinite_forces: u64,
+    /// Devices replaced (connected, switched or disconnected) while the engine ran.
+    #[serde(default)]
+    pub device_swaps: u64,
     /// Simulation steps taken.
     pub sim_steps: u64,
     /// Adaptive sub-steps inside those steps.
@@ -94,6 +98,7 @@ impl EngineCounters {
         stale_ticks,
         contact_ticks,
         nonfinite_forces,
+        device_swaps,
         sim_steps,
         sim_substeps,
         sim_nonfinite_rejected,
@@ -133,6 +138,7 @@ impl EngineCounters {
             stale_ticks: r(&i.stale_ticks),
             contact_ticks: r(&i.contact_ticks),
             nonfinite_forces: r(&i.nonfinite_forces),
+            device_swaps: r(&i.device_swaps),
             sim_steps: r(&i.sim_steps),
             sim_substeps: r(&i.sim_substeps),
             sim_nonfinite_rejected: r(&i.sim_nonfinite_rejected),

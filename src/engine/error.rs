@@ -18,6 +18,8 @@ pub enum EngineError {
     Loop(LoopError),
     /// A loop thread ended without handing its state back (it panicked).
     Lost(&'static str),
+    /// A device could not be switched while running.
+    DeviceSwap(String),
 }
 
 impl fmt::Display for EngineError {
@@ -27,6 +29,7 @@ impl fmt::Display for EngineError {
             Self::Mesh(e) => write!(f, "mesh grid: {e}"),
             Self::Loop(e) => write!(f, "loop: {e}"),
             Self::Lost(what) => write!(f, "the {what} loop ended without handing back its state"),
+            Self::DeviceSwap(why) => write!(f, "device switch: {why}"),
         }
     }
 }

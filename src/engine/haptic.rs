@@ -5,7 +5,9 @@
 //! filter), one wait-free triple-buffer fetch and one publish, a patch copy of at most the
 //! lattice's coefficients when a new snapshot arrived, and the bounded contact search
 //! ([`super::contact::MAX_PROBES`] field evaluations), and one relaxed load of the requested
-//! force limit ([`ForceLimit`]), applied to the filter in constant time when it changed. No
+//! force limit ([`ForceLimit`]), applied to the filter in constant time when it changed, and
+//! one wait-free look for a replacement device ([`super::DeviceSwapPort`]), installed by
+//! moving it into the slot (it was opened, and the old one is closed, on another thread). No
 //! file or log I/O.
 //!
 //! Order within a tick: read the device → fetch the newest field patch → contact and force
@@ -22,6 +24,7 @@ use glam::Vec3;
 
 use super::contact::{Contact, ContactConfig};
 use super::counters::EngineCounters;
+use super::device_swap::{DeviceHandover, DeviceSwapPort};
 use super::force_limit::ForceLimit;
 use super::patch::FieldPatch;
 use super::tool_sample::ToolSample;
@@ -59,6 +62,10 @@ pub struct HapticStage {
     /// The user's force limit, and the request bits last applied to the filter.
     force_limit: ForceLimit,
     limit_seen: u32,
+    /// Where a replacement device arrives while running, and the old one leaves.
+    swaps: DeviceSwapPort,
+    /// Whether a device is connected (false after a disconnect: the loop ticks idle).
+    connected: bool,
 }
 
 impl HapticStage {
@@ -80,6 +87,7 @@ impl HapticStage {
         contact: ContactConfig,
         counters: EngineCounters,
         ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
+        swaps: DeviceSwapPort,
     ) -> Self {
         let requested = device.config().max_force_n;
         let force_limit = ForceLimit::new(requested, device.max_force_n());
@@ -98,6 +106,8 @@ impl HapticStage {
             ack,
             tick: 0,
             last: ToolSample::IDLE,
+            swaps,
+            connected: true,
         }
     }
 
@@ -143,6 +153,14 @@ impl HapticStage {
     pub fn tick(&mut self, now: Instant) -> HapticOutcome {
         self.tick += 1;
         self.counters.haptic_ticks(1);
+        if let Some(new) = self.swaps.take() {
+            self.install(new);
+        }
+        if !self.connected {
+            // Parked: keep the field copy current (and acknowledged) for the next device.
+            self.refresh_field(now);
+            return self.publish_idle(false);
+        }
         let state = match self.device.read() {
             Ok(s) => s,
             Err(_) => {
@@ -153,21 +171,7 @@ impl HapticStage {
             }
         };
 
-        let stamped = self.patches.latest();
-        let (version, age, stroke_armed, contact_enabled) = (
-            stamped.version,
-            stamped.age_at(now),
-            stamped.value.stroke_armed,
-            stamped.value.contact_enabled,
-        );
-        if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
-            stamped.value.copy_into(&mut self.field);
-            // NOTE: Release pairs with the simulation's Acquire load: once it sees this
-            // version acknowledged, every coefficient of that patch is in our copy.
-            self.ack
-                .store(version, std::sync::atomic::Ordering::Release);
-        }
-
+        let (age, stroke_armed, contact_enabled) = self.refresh_field(now);
         let fade = self.staleness.factor(age) as f32;
         if fade <= 0.0 {
             self.counters.stale_ticks(1);
@@ -220,6 +224,54 @@ impl HapticStage {
     #[must_use]
     pub fn output_force_n(&self) -> Vec3 {
         self.device.output_force_n()
+    }
+
+    /// Copies the newest field patch into this stage's field if it is new, and returns the
+    /// snapshot's age at `now` with the stroke and contact flags it carries.
+    fn refresh_field(&mut self, now: Instant) -> (std::time::Duration, bool, bool) {
+        let stamped = self.patches.latest();
+        let version = stamped.version;
+        if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
+            stamped.value.copy_into(&mut self.field);
+            // NOTE: Release pairs with the simulation's Acquire load: once it sees this
+            // version acknowledged, every coefficient of that patch is in our copy.
+            self.ack
+                .store(version, std::sync::atomic::Ordering::Release);
+        }
+        (
+            stamped.age_at(now),
+            stamped.value.stroke_armed,
+            stamped.value.contact_enabled,
+        )
+    }
+
+    /// Whether a device is connected (false after a disconnect).
+    #[must_use]
+    pub fn is_connected(&self) -> bool {
+        self.connected
+    }
+
+    /// Puts `new` in the device slot and sends the old device back to be closed off this
+    /// thread. Constant work, no allocation: the devices move by value.
+    fn install(&mut self, mut new: DeviceHandover) {
+        if self.connected {
+            // The old device must not keep the last force while it waits to be closed: a
+            // disabled filter sends zero at once, not slewed down.
+            self.device.set_forces_enabled(false);
+            let _ = self.device.write_force(Vec3::ZERO);
+        }
+        std::mem::swap(&mut self.device, &mut new.device);
+        std::mem::swap(&mut self.map, &mut new.map);
+        std::mem::swap(&mut self.connected, &mut new.connected);
+        self.contact.release();
+        // Re-apply the user's limit to the new filter at this tick.
+        self.limit_seen = !self.force_limit.requested_bits();
+        self.apply_force_limit();
+        self.counters.device_swaps(1);
+        // NOTE: cannot fail: `take` only hands out a device while the retired slot has room.
+        if let Err(old) = self.swaps.retire(new) {
+            std::mem::forget(old);
+        }
     }
 
     /// Applies a changed force-limit request to the filter (constant work, no allocation).

@@ -7,6 +7,7 @@ mod command;
 mod config;
 mod contact;
 mod counters;
+mod device_swap;
 mod error;
 mod force_limit;
 mod graphics;
@@ -28,6 +29,9 @@ pub use command::{Command, ForceStrokeTool, PushTool, Reply, ToolChoice};
 pub use config::{CLAY_SPACING, EngineConfig, build_clay};
 pub use contact::{Contact, ContactConfig, ContactForce, MAX_PROBES};
 pub use counters::{CounterSnapshot, EngineCounters};
+pub use device_swap::{
+    DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
+};
 pub use error::EngineError;
 pub use force_limit::ForceLimit;
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
@@ -45,7 +49,7 @@ pub use sim_status::SimStatus;
 pub use simulation::{
     Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
 };
-pub use threaded::{Engine, EngineReport};
+pub use threaded::{DeviceSwapReport, Engine, EngineReport};
 pub use tool_sample::ToolSample;
 pub use wiring::{Stages, build};
 pub use workspace::WorkspaceMap;

@@ -7,17 +7,21 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam::channel::{Receiver, Sender, bounded};
-use dynaclay_devices::{HapticDevice, SafetyCounters};
+use dynaclay_devices::{
+    DeviceError, DeviceInfo, HapticDevice, SafetyConfig, SafetyCounters, SafetyFilter,
+};
 use dynaclay_loops::{
     LatencyStats, LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader,
     spawn_loop,
 };
+use glam::Vec3;
 
 use super::tool_sample::ToolSample;
 
 use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::{CounterSnapshot, EngineCounters};
+use super::device_swap::{DeviceHandover, DeviceSwapRequest, SwapFailure};
 use super::error::EngineError;
 use super::force_limit::ForceLimit;
 use super::graphics::{GraphicsStage, MeshSink};
@@ -26,6 +30,7 @@ use super::io_worker::{IoReport, IoWorker};
 use super::sim_status::SimStatus;
 use super::simulation::SimulationStage;
 use super::wiring::build;
+use super::workspace::WorkspaceMap;
 use crate::field::BSplineLattice;
 use crate::io::{Autosave, Session, load_session};
 use crate::mesh::BrickOctree;
@@ -71,6 +76,23 @@ pub struct Engine {
     haptic_back: Receiver<HapticStage>,
     sim_back: Receiver<SimulationStage>,
     graphics_back: Receiver<GraphicsStage>,
+    device_swaps: DeviceSwapRequest,
+    /// What a replacement device is fitted with: the safety settings, the clay's box (its
+    /// workspace is mapped around it) and the force scale.
+    safety: SafetyConfig,
+    field_box: (Vec3, Vec3),
+    force_n_per_unit: f32,
+}
+
+/// What a device replacement hands back about the device it replaced.
+#[derive(Debug)]
+pub struct DeviceSwapReport {
+    /// The replaced device (`"no device"` when none was connected).
+    pub replaced: DeviceInfo,
+    /// Its safety filter's counters since it was opened.
+    pub replaced_safety: SafetyCounters,
+    /// The result of closing it (the swap itself succeeded either way).
+    pub close: Result<(), DeviceError>,
 }
 
 /// What a stopped engine hands back.
@@ -121,6 +143,10 @@ impl Engine {
         sink: Box<dyn MeshSink>,
         autosave: Option<Autosave>,
     ) -> Result<Self, EngineError> {
+        let field_box = (
+            field.origin,
+            field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
+        );
         let mut stages = build(config, field, device, sink, false)?;
         let status = stages
             .sim
@@ -194,7 +220,90 @@ impl Engine {
             haptic_back,
             sim_back,
             graphics_back,
+            device_swaps: stages.device_swaps,
+            safety: config.safety,
+            field_box,
+            force_n_per_unit: config.map.force_n_per_unit,
         })
+    }
+
+    /// Switches the haptic loop to `device` while everything keeps running: opens it here
+    /// behind a fresh safety filter (the engine's safety settings and the force limit in
+    /// effect, so forces soft-start again), maps its workspace around the clay, hands it to
+    /// the haptic loop, which installs it at its next tick after sending zero to the old
+    /// device, and then closes the old device on this thread.
+    ///
+    /// # Errors
+    /// When `device` does not open ([`EngineError::Device`]), or the haptic loop does not take
+    /// it within `timeout` ([`EngineError::DeviceSwap`]; `device` is closed again). The old
+    /// device stays in use in both cases.
+    pub fn replace_device(
+        &self,
+        device: Box<dyn HapticDevice>,
+        timeout: Duration,
+    ) -> Result<DeviceSwapReport, EngineError> {
+        let mut safety = self.safety;
+        safety.max_force_n = self.force_limit.requested_n();
+        let mut filter = SafetyFilter::with_config(device, safety);
+        filter.open()?;
+        let info = filter.device().info();
+        let (lo, hi) = self.field_box;
+        let map = WorkspaceMap::fitting(
+            info.workspace_min_m,
+            info.workspace_max_m,
+            lo,
+            hi,
+            self.force_n_per_unit,
+        );
+        self.swap(
+            DeviceHandover {
+                device: filter,
+                map,
+                connected: true,
+            },
+            timeout,
+        )
+    }
+
+    /// Closes the device while the engine keeps running: the haptic loop sends it zero,
+    /// parks (ticking, publishing an idle tool sample, keeping its field current) until
+    /// [`Engine::replace_device`] connects another, and the device is closed on this thread.
+    ///
+    /// # Errors
+    /// As [`Engine::replace_device`].
+    pub fn disconnect_device(&self, timeout: Duration) -> Result<DeviceSwapReport, EngineError> {
+        let (lo, hi) = self.field_box;
+        let map = WorkspaceMap::fitting(lo, hi, lo, hi, self.force_n_per_unit);
+        self.swap(DeviceHandover::parked(map), timeout)
+    }
+
+    fn swap(
+        &self,
+        handover: DeviceHandover,
+        timeout: Duration,
+    ) -> Result<DeviceSwapReport, EngineError> {
+        match self.device_swaps.swap(handover, timeout) {
+            Ok(mut old) => {
+                // A parked slot holds the empty device, whose info says "no device".
+                let replaced = old.device.device().info();
+                let replaced_safety = old.device.counters();
+                let close = old.device.close();
+                Ok(DeviceSwapReport {
+                    replaced,
+                    replaced_safety,
+                    close,
+                })
+            }
+            Err(SwapFailure::NotTaken(mut new) | SwapFailure::Busy(mut new)) => {
+                let _ = new.device.close();
+                Err(EngineError::DeviceSwap(format!(
+                    "the haptic loop did not take the new device within {timeout:?} (it has stopped, or another change is pending); the current device stays"
+                )))
+            }
+            Err(SwapFailure::Lost) => Err(EngineError::DeviceSwap(
+                "the haptic loop took the new device but never returned the old one".into(),
+            )),
+        }
     }
 
     /// Where to send commands.

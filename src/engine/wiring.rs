@@ -10,6 +10,7 @@ use dynaclay_loops::{SnapshotReader, Staleness, snapshot_channel};
 use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::EngineCounters;
+use super::device_swap::{DeviceSwapRequest, device_swap_channel};
 use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
@@ -32,6 +33,8 @@ pub struct Stages {
     /// File work handed out by the simulation (saves, autosave notes).
     pub io_jobs: Receiver<IoJob>,
     pub counters: EngineCounters,
+    /// Where a replacement device is handed to the haptic stage while it runs.
+    pub device_swaps: DeviceSwapRequest,
 }
 
 /// Opens `device` behind the safety filter and builds the stages around `field`.
@@ -58,6 +61,7 @@ pub fn build(
     let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
     let (io_tx, io_rx) = crossbeam::channel::unbounded();
     let acks = Acks::default();
+    let (device_swaps, swap_port) = device_swap_channel();
     let staleness = if lockstep {
         Staleness::new(Duration::MAX, Duration::MAX)
     } else {
@@ -74,6 +78,7 @@ pub fn build(
         config.contact,
         counters.clone(),
         acks.haptic.clone(),
+        swap_port,
     );
     let graphics = GraphicsStage::new(
         field.clone(),
@@ -102,5 +107,6 @@ pub fn build(
         commands: cmd_tx,
         io_jobs: io_rx,
         counters,
+        device_swaps,
     })
 }
