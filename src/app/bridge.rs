@@ -10,8 +10,9 @@
 //! tick reads, and reads sessions and writes exports itself, so no loop does disk I/O for
 //! the app.
 //!
-//! Not yet wired: switching or disconnecting the device while running (the haptic loop owns
-//! the opened device; replacing it needs a restart of that loop).
+//! The device panel's connect and disconnect reach [`Engine::replace_device`] and
+//! [`Engine::disconnect_device`] from the bridge thread: the device is opened and the old one
+//! closed there, and the haptic loop switches between two ticks without stopping.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -21,7 +22,8 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam::channel::{Receiver, Sender, bounded};
-use dynaclay_devices::DeviceInfo;
+use dynaclay_devices::spec::DeviceSpec;
+use dynaclay_devices::{DeviceInfo, HapticDevice};
 use dynaclay_loops::SnapshotWriter;
 use glam::Vec3;
 use parking_lot::Mutex;
@@ -38,6 +40,12 @@ use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 
 /// How often the bridge drains commands and publishes the view.
 const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
+
+/// How long a device switch waits for the haptic loop to take the new device.
+const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Makes (without opening) the device a spec names; the bridge opens it through the engine.
+pub type DeviceOpener = Box<dyn FnMut(&DeviceSpec) -> Result<Box<dyn HapticDevice>, String> + Send>;
 
 /// Publishes the graphics loop's brick meshes to the app.
 pub struct GuiMeshSink {
@@ -95,13 +103,15 @@ impl EngineBridge {
 
 /// Starts the engine with a mesh sink that feeds `endpoint`, and a bridge thread that serves
 /// the app's commands. `start` receives the sink and starts the engine (the caller chooses
-/// clay, device and configuration); `device` describes the opened device for the panel.
+/// clay, device and configuration); `device` describes the opened device for the panel;
+/// `opener` makes the devices the panel connects later.
 ///
 /// # Errors
 /// Whatever `start` returns.
 pub fn start_bridge(
     endpoint: EngineEndpoint,
     device: DeviceInfo,
+    opener: DeviceOpener,
     start: impl FnOnce(Box<dyn MeshSink>) -> Result<Engine, EngineError>,
 ) -> Result<EngineBridge, EngineError> {
     let EngineEndpoint {
@@ -129,6 +139,8 @@ pub fn start_bridge(
         view,
         shared,
         device,
+        connected: true,
+        opener,
         tool_radius: PushTool::default().radius,
         saves: Vec::new(),
         loads: Vec::new(),
@@ -158,6 +170,9 @@ struct Bridge {
     view: SnapshotWriter<EngineView>,
     shared: Arc<Mutex<MeshSet>>,
     device: DeviceInfo,
+    /// Whether a device is connected (false after the panel's disconnect).
+    connected: bool,
+    opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
     loads: Vec<Receiver<Result<String, String>>>,
@@ -215,6 +230,7 @@ impl Bridge {
         let loops = self.engine.loop_stats().map(|(_, stats)| stats);
         let force_limit_n = self.engine.force_limit().applied_n();
         let device = &self.device;
+        let connected = self.connected;
         let radius = self.tool_radius;
         self.view.write_with(|v| {
             v.loops = loops;
@@ -232,7 +248,9 @@ impl Bridge {
                 Vec3::ZERO
             };
             v.stroke_active = tool.stroke_active;
-            v.device.state = if tool.device_fault {
+            v.device.state = if !connected {
+                DeviceLinkState::Disconnected
+            } else if tool.device_fault {
                 DeviceLinkState::Faulted
             } else {
                 DeviceLinkState::Connected
@@ -243,6 +261,40 @@ impl Bridge {
             v.device.has_force = device.has_force;
             v.device.peak_force_n = counters.peak_force_milli_n as f32 / 1000.0;
         });
+    }
+
+    /// Makes the device `spec` names and switches the running engine to it (the force limit
+    /// asked for applies from its first tick); the old device is closed here.
+    fn connect(&mut self, what: &str, spec: &DeviceSpec, max_force_n: f32) {
+        if let Err(e) = self.engine.force_limit().request(max_force_n) {
+            self.fail(what, e);
+            return;
+        }
+        let device = match (self.opener)(spec) {
+            Ok(d) => d,
+            Err(e) => {
+                self.fail(what, format!("{spec}: {e}"));
+                return;
+            }
+        };
+        match self.engine.replace_device(device, SWAP_TIMEOUT) {
+            Ok(report) => {
+                self.connected = true;
+                let mut detail = format!("{} connected", report.connected.name);
+                if report.replaced.name != "no device" {
+                    detail = format!(
+                        "{detail}; {}",
+                        closed_detail(&report.replaced.name, &report.close)
+                    );
+                }
+                self.device = report.connected;
+                let _ = self.events.send(EngineEvent::Done {
+                    what: what.into(),
+                    detail,
+                });
+            }
+            Err(e) => self.fail(what, format!("{spec}: {e}")),
+        }
     }
 
     fn fail(&self, what: &str, error: String) {
@@ -276,10 +328,13 @@ impl Bridge {
             EngineCommand::Save { path } => {
                 let (tx, rx) = bounded(1);
                 self.saves.push(rx);
-                self.send(what, Command::Save {
-                    path,
-                    reply: Some(tx),
-                });
+                self.send(
+                    what,
+                    Command::Save {
+                        path,
+                        reply: Some(tx),
+                    },
+                );
             }
             EngineCommand::Export { path } => {
                 let set = self.shared.lock().clone();
@@ -319,15 +374,30 @@ impl Bridge {
                     Err(error) => self.fail(what, error),
                 }
             }
-            EngineCommand::ConnectDevice { spec, .. } => self.fail(
-                what,
-                format!("{spec}: the running engine cannot switch devices yet (the haptic loop would have to restart); restart with --device {spec}"),
-            ),
-            EngineCommand::DisconnectDevice => self.fail(
-                what,
-                "the running engine cannot close its device yet (the haptic loop would have to restart); close the app to release it".into(),
-            ),
+            EngineCommand::ConnectDevice { spec, max_force_n } => {
+                self.connect(what, &spec, max_force_n);
+            }
+            EngineCommand::DisconnectDevice => match self.engine.disconnect_device(SWAP_TIMEOUT) {
+                Ok(report) => {
+                    self.connected = false;
+                    let detail = closed_detail(&report.replaced.name, &report.close);
+                    self.device = report.connected;
+                    let _ = self.events.send(EngineEvent::Done {
+                        what: what.into(),
+                        detail,
+                    });
+                }
+                Err(e) => self.fail(what, e.to_string()),
+            },
         }
+    }
+}
+
+/// "NAME closed", or the close error with it.
+fn closed_detail(name: &str, close: &Result<(), dynaclay_devices::DeviceError>) -> String {
+    match close {
+        Ok(()) => format!("{name} closed"),
+        Err(e) => format!("{name} closed with an error: {e}"),
     }
 }
 
@@ -415,7 +485,7 @@ fn engine_force_tool(t: &ForceTool) -> EngineToolChoice {
 mod tests {
     use std::time::Instant;
 
-    use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm, Trajectory};
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
 
     use super::*;
     use crate::dynamics::Material;
@@ -506,7 +576,7 @@ mod tests {
         std::fs::write(&corrupt, &bytes).unwrap();
 
         let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, |sink| {
+        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
             Engine::start(&config, field.clone(), device, sink)
         })
         .unwrap();
@@ -596,6 +666,124 @@ mod tests {
         assert_eq!(report.haptic_field, carved);
         assert_eq!(report.session.material.uniform, Material::ELASTIC);
         assert_eq!(report.safety.clamped, 0, "the tool never touched the clay");
+    }
+
+    /// An opener that makes nothing (for tests that never use the device panel).
+    fn no_devices() -> DeviceOpener {
+        Box::new(|spec: &DeviceSpec| Err(format!("no {spec} in this test")))
+    }
+
+    /// The device panel's commands reach the running engine: connect switches to a new
+    /// device (the old one closed, the asked force limit applied), a device that cannot be
+    /// made is refused and leaves the current one, disconnect parks the haptic loop and a
+    /// later connect brings a device back; the engine runs throughout.
+    #[test]
+    fn the_panel_switches_disconnects_and_reconnects_devices() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+        })
+        .unwrap();
+        let mut first = SimArmConfig::default();
+        first.info.name = "arm 1".into();
+        let info = first.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> = Box::new(SimulatedArm::new(
+            first,
+            Trajectory::hold(Vec3::splat(-0.09)),
+        ));
+        // Simulated arms, numbered from 2; any other spec cannot be made here.
+        let mut made = 1;
+        let opener: DeviceOpener = Box::new(move |spec: &DeviceSpec| match spec {
+            DeviceSpec::Sim => {
+                made += 1;
+                let mut arm = SimArmConfig::default();
+                arm.info.name = format!("arm {made}");
+                let held = Trajectory::hold(Vec3::splat(0.09));
+                Ok(Box::new(SimulatedArm::new(arm, held)) as Box<dyn HapticDevice>)
+            }
+            other => Err(format!("{other}: no such port")),
+        });
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, opener, |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        wait_for(&mut link, &mut events, "the first arm", |v, _| {
+            v.device.state == DeviceLinkState::Connected && v.device.name == "arm 1"
+        });
+
+        link.send(EngineCommand::ConnectDevice {
+            spec: DeviceSpec::Sim,
+            max_force_n: 1.5,
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the switch", |v, ev| {
+            v.device.name == "arm 2" && !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { detail, .. }] if detail == "arm 2 connected; arm 1 closed"),
+            "{events:?}"
+        );
+        wait_for(&mut link, &mut events, "the asked limit", |v, _| {
+            v.device.max_force_n == 1.5 && v.device.state == DeviceLinkState::Connected
+        });
+
+        events.clear();
+        let falcon = DeviceSpec::Falcon {
+            path: "/dev/ttyUSB9".into(),
+        };
+        link.send(EngineCommand::ConnectDevice {
+            spec: falcon,
+            max_force_n: 1.5,
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the refusal", |_, ev| {
+            !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Failed { error, .. }] if error.contains("no such port")),
+            "{events:?}"
+        );
+        assert_eq!(link.view().value.device.name, "arm 2", "still connected");
+
+        events.clear();
+        link.send(EngineCommand::DisconnectDevice).unwrap();
+        wait_for(&mut link, &mut events, "the disconnect", |v, ev| {
+            v.device.state == DeviceLinkState::Disconnected && !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { detail, .. }] if detail == "arm 2 closed"),
+            "{events:?}"
+        );
+        let ticks = link.view().value.loops[0].ticks;
+
+        events.clear();
+        link.send(EngineCommand::ConnectDevice {
+            spec: DeviceSpec::Sim,
+            max_force_n: 1.0,
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the reconnect", |v, ev| {
+            v.device.name == "arm 3"
+                && v.device.state == DeviceLinkState::Connected
+                && !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { detail, .. }] if detail == "arm 3 connected"),
+            "{events:?}"
+        );
+        wait_for(
+            &mut link,
+            &mut events,
+            "the haptic loop's figures",
+            |v, _| v.loops[0].ticks > ticks,
+        );
+        let report = bridge.stop().unwrap();
+        assert_eq!(report.counters.device_swaps, 3);
+        assert_eq!(report.counters.device_read_faults, 0);
     }
 
     /// A sphere through the real octree mesher, published by the sink and exported welded.

@@ -5,12 +5,13 @@
 use std::path::PathBuf;
 
 use dynaclay_devices::spec::DeviceSpec;
-use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
+use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
 
-use super::bridge::start_bridge;
+use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
+use crate::field::BSplineLattice;
 use crate::io::load_session;
 
 /// Why `dynaclay gui` stopped.
@@ -105,39 +106,18 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (patch, Some(s.material.uniform))
         }
     };
-    let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
-        DeviceSpec::Sim => {
-            // The simulated arm follows the built-in script's strokes, so the view moves.
-            let arm = SimArmConfig::default();
-            let info = arm.info.clone();
-            let map = EngineConfig::for_field(&field, &info).map;
-            let trajectory = script
-                .trajectory(&map)
-                .map_err(|e| LaunchError::Failed(e.to_string()))?;
-            (Box::new(SimulatedArm::new(arm, trajectory)), info)
-        }
-        DeviceSpec::Replay { file } => {
-            return Err(LaunchError::Device(format!(
-                "{}: use `dynaclay run --device replay:FILE` to replay recordings",
-                file.display()
-            )));
-        }
-        hw => {
-            let d = dynaclay_devices::open::build_driver(
-                hw,
-                &dynaclay_devices::open::DriverOptions::from_env(),
-            )
-            .map_err(|e| LaunchError::Device(e.to_string()))?;
-            let info = d.info();
-            (d, info)
-        }
-    };
+    let (device, info) = make_device(&spec, &field, &script).map_err(LaunchError::Device)?;
     let mut config = EngineConfig::for_field(&field, &info);
     if let Some(m) = material {
         config.sim.material = m;
     }
     let (link, endpoint) = engine_link();
-    let bridge = start_bridge(endpoint, info.clone(), |sink| {
+    // The device panel opens devices for the same clay while the engine runs.
+    let opener_field = field.clone();
+    let opener: DeviceOpener = Box::new(move |spec: &DeviceSpec| {
+        make_device(spec, &opener_field, &script).map(|(d, _)| d)
+    });
+    let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
         Engine::start(&config, field, device, sink)
     })
     .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
@@ -146,6 +126,41 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
     stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
     Ok(())
+}
+
+/// Makes the device `spec` names, for the clay `field`: the simulated arm follows `script`'s
+/// strokes mapped onto that clay (so the view moves); a hardware spec gets its driver. A
+/// replay is refused here: recordings are replayed by `dynaclay run`.
+///
+/// # Errors
+/// The driver's error, or the refusal of a replay, as text naming the spec.
+pub fn make_device(
+    spec: &DeviceSpec,
+    field: &BSplineLattice,
+    script: &ScriptPlan,
+) -> Result<(Box<dyn HapticDevice>, DeviceInfo), String> {
+    match spec {
+        DeviceSpec::Sim => {
+            let arm = SimArmConfig::default();
+            let info = arm.info.clone();
+            let map = EngineConfig::for_field(field, &info).map;
+            let trajectory = script.trajectory(&map).map_err(|e| e.to_string())?;
+            Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
+        }
+        DeviceSpec::Replay { file } => Err(format!(
+            "{}: use `dynaclay run --device replay:FILE` to replay recordings",
+            file.display()
+        )),
+        hw => {
+            let d = dynaclay_devices::open::build_driver(
+                hw,
+                &dynaclay_devices::open::DriverOptions::from_env(),
+            )
+            .map_err(|e| e.to_string())?;
+            let info = d.info();
+            Ok((d, info))
+        }
+    }
 }
 
 #[cfg(test)]

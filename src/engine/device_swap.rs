@@ -28,6 +28,16 @@ pub struct DeviceHandover {
     pub connected: bool,
 }
 
+impl std::fmt::Debug for DeviceHandover {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DeviceHandover")
+            .field("device", &self.device.device().info().name)
+            .field("map", &self.map)
+            .field("connected", &self.connected)
+            .finish()
+    }
+}
+
 impl DeviceHandover {
     /// The handover that parks the loop with no device.
     #[must_use]
@@ -84,9 +94,9 @@ const POLL: Duration = Duration::from_millis(1);
 pub enum SwapFailure {
     /// The loop did not take the new device within the timeout (it is stopped or stalled);
     /// the new device is handed back, still open.
-    NotTaken(DeviceHandover),
+    NotTaken(Box<DeviceHandover>),
     /// A previous swap's device is still waiting in the slot.
-    Busy(DeviceHandover),
+    Busy(Box<DeviceHandover>),
     /// The loop took the new device but never returned the old one (it stopped mid-swap).
     Lost,
 }
@@ -112,7 +122,7 @@ impl DeviceSwapRequest {
         timeout: Duration,
     ) -> Result<DeviceHandover, SwapFailure> {
         if let Err(e) = self.incoming.try_send(new) {
-            return Err(SwapFailure::Busy(e.into_inner()));
+            return Err(SwapFailure::Busy(Box::new(e.into_inner())));
         }
         let deadline = Instant::now() + timeout;
         loop {
@@ -124,7 +134,7 @@ impl DeviceSwapRequest {
             }
         }
         match self.withdraw.try_recv() {
-            Ok(new) => Err(SwapFailure::NotTaken(new)),
+            Ok(new) => Err(SwapFailure::NotTaken(Box::new(new))),
             // Taken between the last poll and the withdrawal: the old one is on its way.
             Err(_) => {
                 let late = Instant::now() + Duration::from_millis(100);

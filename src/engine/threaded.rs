@@ -87,6 +87,9 @@ pub struct Engine {
 /// What a device replacement hands back about the device it replaced.
 #[derive(Debug)]
 pub struct DeviceSwapReport {
+    /// The device now in use, as it describes itself once open (`"no device"` after a
+    /// disconnect).
+    pub connected: DeviceInfo,
     /// The replaced device (`"no device"` when none was connected).
     pub replaced: DeviceInfo,
     /// Its safety filter's counters since it was opened.
@@ -282,6 +285,7 @@ impl Engine {
         handover: DeviceHandover,
         timeout: Duration,
     ) -> Result<DeviceSwapReport, EngineError> {
+        let connected = handover.device.device().info();
         match self.device_swaps.swap(handover, timeout) {
             Ok(mut old) => {
                 // A parked slot holds the empty device, whose info says "no device".
@@ -289,6 +293,7 @@ impl Engine {
                 let replaced_safety = old.device.counters();
                 let close = old.device.close();
                 Ok(DeviceSwapReport {
+                    connected,
                     replaced,
                     replaced_safety,
                     close,
