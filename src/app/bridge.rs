@@ -37,6 +37,8 @@ use crate::engine::{
     ToolChoice as EngineToolChoice,
 };
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
+use crate::render::paint_colors;
+use crate::tools::ColourField;
 
 /// How often the bridge drains commands and publishes the view.
 const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
@@ -47,7 +49,7 @@ const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
 /// Makes (without opening) the device a spec names; the bridge opens it through the engine.
 pub type DeviceOpener = Box<dyn FnMut(&DeviceSpec) -> Result<Box<dyn HapticDevice>, String> + Send>;
 
-/// Publishes the graphics loop's brick meshes to the app.
+/// Publishes the graphics loop's brick meshes, painted, to the app.
 pub struct GuiMeshSink {
     meshes: SnapshotWriter<MeshSet>,
     bricks: HashMap<[u32; 3], Arc<ChunkMesh>>,
@@ -55,6 +57,53 @@ pub struct GuiMeshSink {
     /// The latest set, for exports by the bridge thread (held only to clone the `Arc`s).
     shared: Arc<Mutex<MeshSet>>,
     repaint: RepaintSignal,
+    /// The clay's paint, as last handed over by the graphics stage.
+    colour: Option<ColourField>,
+    /// Version for the next chunk made: the renderer re-uploads a chunk whose version
+    /// changed, and a recoloured brick keeps its octree version, so the sink numbers chunks.
+    next_version: u64,
+}
+
+impl GuiMeshSink {
+    /// A sink publishing on `meshes` (and into `shared` for exports), unpainted until the
+    /// graphics stage hands it paint.
+    fn new(
+        meshes: SnapshotWriter<MeshSet>,
+        shared: Arc<Mutex<MeshSet>>,
+        repaint: RepaintSignal,
+    ) -> Self {
+        Self {
+            meshes,
+            bricks: HashMap::new(),
+            set: MeshSet::new(),
+            shared,
+            repaint,
+            colour: None,
+            next_version: 0,
+        }
+    }
+
+    fn chunk(&mut self, coord: [u32; 3], mesh: &crate::mesh::BrickMesh) -> Arc<ChunkMesh> {
+        let colors = self
+            .colour
+            .as_ref()
+            .map_or_else(Vec::new, |c| paint_colors(mesh, c));
+        self.next_version += 1;
+        Arc::new(ChunkMesh::from_brick(
+            coord,
+            self.next_version,
+            mesh,
+            colors,
+        ))
+    }
+
+    fn publish(&mut self) {
+        self.set.clear();
+        self.set.extend(self.bricks.values().cloned());
+        self.meshes.publish_clone_of(&self.set);
+        self.shared.lock().clone_from(&self.set);
+        self.repaint.request();
+    }
 }
 
 impl MeshSink for GuiMeshSink {
@@ -65,19 +114,40 @@ impl MeshSink for GuiMeshSink {
         for c in &report.changed {
             match octree.brick(*c) {
                 Some(b) if !b.mesh.indices.is_empty() => {
-                    let mesh = ChunkMesh::from_brick(*c, b.version, &b.mesh, Vec::new());
-                    self.bricks.insert(*c, Arc::new(mesh));
+                    let chunk = self.chunk(*c, &b.mesh);
+                    self.bricks.insert(*c, chunk);
                 }
                 _ => {
                     self.bricks.remove(c);
                 }
             }
         }
-        self.set.clear();
-        self.set.extend(self.bricks.values().cloned());
-        self.meshes.publish_clone_of(&self.set);
-        self.shared.lock().clone_from(&self.set);
-        self.repaint.request();
+        self.publish();
+    }
+
+    /// Recolours every brick whose paint changed (the others keep their chunk, so the
+    /// renderer uploads only the repainted ones).
+    fn paint(&mut self, octree: &BrickOctree, colour: Option<&ColourField>) {
+        self.colour = colour.cloned();
+        let coords: Vec<[u32; 3]> = self.bricks.keys().copied().collect();
+        for c in coords {
+            let Some(b) = octree.brick(c) else { continue };
+            let colors = self
+                .colour
+                .as_ref()
+                .map_or_else(Vec::new, |p| paint_colors(&b.mesh, p));
+            if self
+                .bricks
+                .get(&c)
+                .is_some_and(|held| held.colors == colors)
+            {
+                continue;
+            }
+            self.next_version += 1;
+            let chunk = ChunkMesh::from_brick(c, self.next_version, &b.mesh, colors);
+            self.bricks.insert(c, Arc::new(chunk));
+        }
+        self.publish();
     }
 }
 
@@ -122,13 +192,7 @@ pub fn start_bridge(
         repaint,
     } = endpoint;
     let shared = Arc::new(Mutex::new(MeshSet::new()));
-    let sink = GuiMeshSink {
-        meshes,
-        bricks: HashMap::new(),
-        set: MeshSet::new(),
-        shared: Arc::clone(&shared),
-        repaint,
-    };
+    let sink = GuiMeshSink::new(meshes, Arc::clone(&shared), repaint);
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -800,13 +864,7 @@ mod tests {
 
         let (mut link, end) = super::super::link::engine_link();
         let shared = Arc::new(Mutex::new(MeshSet::new()));
-        let mut sink = GuiMeshSink {
-            meshes: end.meshes,
-            bricks: HashMap::new(),
-            set: MeshSet::new(),
-            shared: Arc::clone(&shared),
-            repaint: end.repaint,
-        };
+        let mut sink = GuiMeshSink::new(end.meshes, Arc::clone(&shared), end.repaint);
         sink.update(&octree, &report);
         let published = link.meshes().value.clone();
         assert!(published.len() > 1, "sphere spans several bricks");
@@ -822,5 +880,81 @@ mod tests {
         let welded = octree.weld();
         assert!(MeshStats::of(&welded).is_closed_manifold());
         assert!(export_chunks(&published, &dir.path().join("x.abc")).is_err());
+    }
+
+    /// Paint reaches the chunks: painting the low-x half red recolours (and re-versions)
+    /// exactly the bricks it covers; clearing the paint takes the colour off again.
+    #[test]
+    fn sink_recolours_the_bricks_paint_covers() {
+        let lattice = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 16,
+        })
+        .unwrap();
+        let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();
+        let mut octree = BrickOctree::new(grid);
+        let report = octree.rebuild(&lattice);
+        let (mut link, end) = super::super::link::engine_link();
+        let mut sink = GuiMeshSink::new(
+            end.meshes,
+            Arc::new(Mutex::new(MeshSet::new())),
+            end.repaint,
+        );
+        sink.update(&octree, &report);
+        let before = link.meshes().value.clone();
+        assert!(before.iter().all(|c| c.colors.is_empty()), "unpainted");
+
+        let mut colour = ColourField::matching(&lattice).unwrap();
+        let d = lattice.dims;
+        for k in 0..d[2] {
+            for j in 0..d[1] {
+                for i in 0..d[0] / 3 {
+                    let idx = lattice.index(i, j, k);
+                    colour.channels[0].coeffs[idx] = 1.0;
+                    colour.channels[3].coeffs[idx] = 1.0;
+                }
+            }
+        }
+        sink.paint(&octree, Some(&colour));
+        let painted = link.meshes().value.clone();
+        assert_eq!(painted.len(), before.len(), "the same bricks");
+        let by_id = |set: &MeshSet, id: u64| set.iter().find(|c| c.id == id).cloned().unwrap();
+        let (mut recoloured, mut kept, mut red) = (0, 0, 0);
+        for chunk in &painted {
+            let old = by_id(&before, chunk.id);
+            if chunk.colors.is_empty() {
+                assert!(
+                    Arc::ptr_eq(chunk, &old),
+                    "an unpainted brick keeps its chunk"
+                );
+                kept += 1;
+            } else {
+                assert_ne!(
+                    chunk.version, old.version,
+                    "a repainted brick is re-uploaded"
+                );
+                assert!(
+                    chunk.colors.iter().any(|c| c[3] > 0.0),
+                    "brick {} carries paint",
+                    chunk.id
+                );
+                red += chunk
+                    .colors
+                    .iter()
+                    .filter(|c| c[0] > 0.9 && c[3] > 0.9)
+                    .count();
+                recoloured += 1;
+            }
+        }
+        assert!(
+            recoloured > 0 && kept > 0,
+            "{recoloured} recoloured, {kept} kept"
+        );
+
+        assert!(red > 0, "fully painted vertices are red");
+
+        sink.paint(&octree, None);
+        let cleared = link.meshes().value.clone();
+        assert!(cleared.iter().all(|c| c.colors.is_empty()), "paint cleared");
     }
 }

@@ -121,6 +121,12 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         Engine::start(&config, field, device, sink)
     })
     .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
+    if let Some(path) = session {
+        // The engine started on the session's density; the load installs the rest of it (its
+        // paint) the way the Load button does.
+        link.send(super::command::EngineCommand::Load { path })
+            .map_err(|e| LaunchError::Failed(e.to_string()))?;
+    }
     let shown = run_gui(GuiOptions::default(), link);
     let stopped = bridge.stop();
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;

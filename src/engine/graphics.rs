@@ -13,12 +13,17 @@ use super::counters::EngineCounters;
 use super::patch::FieldPatch;
 use crate::field::BSplineLattice;
 use crate::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
+use crate::tools::ColourField;
 
 /// Receives the meshes after every update. Implemented by the GUI's renderer bridge and by
 /// [`HeadlessSink`].
 pub trait MeshSink: Send {
     /// Called once the octree was refreshed; `report` lists the bricks that changed.
     fn update(&mut self, octree: &BrickOctree, report: &RefreshReport);
+
+    /// Called when the clay's paint changed (`None`: unpainted); the meshes did not. A sink
+    /// that shows colour recolours its meshes; the default ignores paint.
+    fn paint(&mut self, _octree: &BrickOctree, _colour: Option<&ColourField>) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -45,6 +50,8 @@ pub struct GraphicsStage {
     field: BSplineLattice,
     octree: BrickOctree,
     patches: SnapshotReader<FieldPatch>,
+    /// The clay's paint, published by the simulation when it changes.
+    colours: SnapshotReader<Option<ColourField>>,
     ack: Arc<AtomicU64>,
     sink: Box<dyn MeshSink>,
     counters: EngineCounters,
@@ -52,7 +59,7 @@ pub struct GraphicsStage {
 
 impl GraphicsStage {
     /// Builds the stage and meshes `field` in full; `cells_per_span` sets the marching-cubes
-    /// resolution (cells per knot span).
+    /// resolution (cells per knot span); paint arrives on `colours`.
     ///
     /// # Errors
     /// When the sampling grid cannot be made for the lattice.
@@ -60,6 +67,7 @@ impl GraphicsStage {
         field: BSplineLattice,
         cells_per_span: u32,
         patches: SnapshotReader<FieldPatch>,
+        colours: SnapshotReader<Option<ColourField>>,
         ack: Arc<AtomicU64>,
         mut sink: Box<dyn MeshSink>,
         counters: EngineCounters,
@@ -72,15 +80,19 @@ impl GraphicsStage {
             field,
             octree,
             patches,
+            colours,
             ack,
             sink,
             counters,
         })
     }
 
-    /// Applies the newest patch if there is one and re-meshes what it changed; returns the
-    /// number of bricks re-meshed.
+    /// Applies the newest patch if there is one and re-meshes what it changed, after handing
+    /// the sink any new paint; returns the number of bricks re-meshed.
     pub fn tick(&mut self) -> usize {
+        if let Some(paint) = self.colours.try_fresh() {
+            self.sink.paint(&self.octree, paint.value.as_ref());
+        }
         let Some(stamped) = self.patches.try_fresh() else {
             return 0;
         };
@@ -109,5 +121,89 @@ impl GraphicsStage {
     #[must_use]
     pub fn octree(&self) -> &BrickOctree {
         &self.octree
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+    use glam::Vec3;
+    use parking_lot::Mutex;
+
+    use super::super::{Command, EngineConfig, ToolSample, build, build_clay};
+    use super::*;
+    use crate::io::{ClayShape, ClaySpec};
+    use crate::tools::{GeometricTool, ToolAction, ToolPose, ToolShape};
+
+    /// Keeps the last paint handed over.
+    struct PaintSink(Arc<Mutex<Option<Option<ColourField>>>>);
+
+    impl MeshSink for PaintSink {
+        fn update(&mut self, _: &BrickOctree, _: &RefreshReport) {}
+        fn paint(&mut self, _: &BrickOctree, colour: Option<&ColourField>) {
+            *self.0.lock() = Some(colour.cloned());
+        }
+    }
+
+    /// A paint stroke applied by the simulation reaches the graphics loop's sink, and so does
+    /// its undo.
+    #[test]
+    fn paint_travels_from_the_simulation_to_the_sink_and_undo_takes_it_back() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let centre = Vec3::splat(11.0 * 0.1 * 0.5);
+        let surface = centre + Vec3::new(11.0 * 0.1 * 0.25, 0.0, 0.0);
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let seen = Arc::new(Mutex::new(None));
+        let mut s = build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(PaintSink(Arc::clone(&seen))),
+            true,
+        )
+        .unwrap();
+        let run = |s: &mut super::super::Stages| {
+            for _ in 0..40 {
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+                s.graphics.tick();
+            }
+        };
+        run(&mut s);
+        assert!(seen.lock().is_none(), "no paint, no call");
+
+        let tool = GeometricTool {
+            shape: ToolShape::Sphere { radius_m: 0.25 },
+            action: ToolAction::Paint {
+                rgb: [1.0, 0.0, 0.0],
+            },
+            falloff_m: 0.2,
+        };
+        s.commands
+            .send(Command::ApplyTool {
+                tool,
+                poses: vec![ToolPose::at(surface)],
+                duration_s: 0.1,
+                patch: 0,
+                reply: None,
+            })
+            .unwrap();
+        run(&mut s);
+        let painted = seen.lock().clone().expect("paint handed over");
+        let rgba = painted.expect("the clay carries colour").rgba(surface);
+        assert!(rgba.w > 0.5 && rgba.x > 0.9, "red at the stroke: {rgba}");
+
+        s.commands.send(Command::Undo).unwrap();
+        run(&mut s);
+        let after = seen.lock().clone().expect("undo handed over");
+        let coverage = after.map_or(0.0, |c| c.rgba(surface).w);
+        assert!(coverage < 0.01, "undo took the paint off: {coverage}");
     }
 }

@@ -40,8 +40,8 @@ use crate::dynamics::{Material, RegionState, Simulator, StepParams};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
-    ApplyOptions, Clay, FieldId, History, StepRecorder, ToolPose, ToolReport, apply_csg,
-    apply_stroke, apply_tool,
+    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolPose, ToolReport,
+    apply_csg, apply_stroke, apply_tool,
 };
 
 /// Settings of the simulation stage.
@@ -148,7 +148,18 @@ pub struct SimulationStage {
     status: SnapshotWriter<SimStatus>,
     status_reader: Option<SnapshotReader<SimStatus>>,
     sessions_loaded: u64,
+    /// The clay's paint for the graphics loop, published when it changed (see
+    /// [`COLOUR_PUBLISH_EVERY_STEPS`]).
+    colour: SnapshotWriter<Option<ColourField>>,
+    colour_reader: Option<SnapshotReader<Option<ColourField>>>,
+    colour_dirty: bool,
+    colour_published_step: u64,
 }
+
+/// Steps between two publications of a changing colour field. Painting changes it every step;
+/// the graphics loop shows it at 60 Hz, so copying all four channels at the simulation's rate
+/// would be wasted work.
+const COLOUR_PUBLISH_EVERY_STEPS: u64 = 16;
 
 impl SimulationStage {
     /// Builds the stage over `lattice` (it becomes the clay's single density patch).
@@ -166,6 +177,7 @@ impl SimulationStage {
     ) -> Self {
         let scratch = RegionSnapshot::with_capacity(lattice.coeffs.len());
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
+        let (colour, colour_reader) = snapshot_channel(&None);
         Self {
             config,
             clay: Clay::single(lattice),
@@ -191,6 +203,10 @@ impl SimulationStage {
             status,
             status_reader: Some(status_reader),
             sessions_loaded: 0,
+            colour,
+            colour_reader: Some(colour_reader),
+            colour_dirty: false,
+            colour_published_step: 0,
         }
     }
 
@@ -289,6 +305,7 @@ impl SimulationStage {
                     &options,
                     Some(&mut rec),
                 );
+                self.colour_dirty |= tool.action.paints();
                 // Whatever was applied before a failure stays undoable.
                 self.commit(rec);
                 self.edited(result, tool.action.name(), reply)
@@ -306,6 +323,8 @@ impl SimulationStage {
                     ..ApplyOptions::default()
                 };
                 let result = apply_csg(&mut self.clay, &other, op, &options, Some(&mut rec));
+                // The other clay's paint may come along.
+                self.colour_dirty = true;
                 self.commit(rec);
                 self.edited(result, op.name(), reply)
             }
@@ -318,6 +337,7 @@ impl SimulationStage {
                     self.history.redo(&mut self.clay)
                 };
                 self.mark_changed(whole);
+                self.colour_dirty = true;
                 done.is_ok()
             }
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
@@ -469,6 +489,7 @@ impl SimulationStage {
             &ApplyOptions::default(),
             self.recorder.as_mut(),
         );
+        self.colour_dirty |= tool.action.paints();
         match result {
             Ok(report) => {
                 if let Some(b) = report.coeff_box {
@@ -586,12 +607,36 @@ impl SimulationStage {
             w.publish();
         }
         self.counters.snapshots_published(1);
+        if self.colour_dirty
+            && self.steps >= self.colour_published_step + COLOUR_PUBLISH_EVERY_STEPS
+        {
+            self.publish_colour();
+        }
         self.publish_status();
     }
 
-    /// Publishes the current field without stepping (used at shutdown so readers catch up).
+    /// Copies the clay's paint into the colour buffer and publishes it (the simulation loop
+    /// may allocate; the haptic loop never sees this buffer).
+    fn publish_colour(&mut self) {
+        let paint = &self.clay.colour;
+        self.colour.write_with(|c| c.clone_from(paint));
+        self.colour_dirty = false;
+        self.colour_published_step = self.steps;
+    }
+
+    /// Publishes the current field, and the paint if it changed, without stepping (used at
+    /// shutdown so readers catch up).
     pub fn publish_now(&mut self) {
         self.publish();
+        if self.colour_dirty {
+            self.publish_colour();
+        }
+    }
+
+    /// The graphics loop's end of the paint publications (there is one; the second call gets
+    /// `None`).
+    pub fn take_colour_reader(&mut self) -> Option<SnapshotReader<Option<ColourField>>> {
+        self.colour_reader.take()
     }
 
     /// Ends the session: retires the region and records the last stroke's undo step.
@@ -629,6 +674,7 @@ impl SimulationStage {
         self.end_stroke_now();
         self.history.clear();
         self.clay = session.clay;
+        self.colour_dirty = true;
         self.config.material = session.material.uniform;
         let whole = CoeffBox::whole(self.lattice().dims);
         self.mark_changed(whole);

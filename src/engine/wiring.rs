@@ -80,15 +80,9 @@ pub fn build(
         acks.haptic.clone(),
         swap_port,
     );
-    let graphics = GraphicsStage::new(
-        field.clone(),
-        config.cells_per_span,
-        from_sim_g,
-        acks.graphics.clone(),
-        sink,
-        counters.clone(),
-    )?;
-    let sim = SimulationStage::new(
+    // The graphics stage is built after the simulation, whose paint channel it reads.
+    let (graphics_field, graphics_ack) = (field.clone(), acks.graphics.clone());
+    let mut sim = SimulationStage::new(
         config.sim,
         field,
         to_haptic,
@@ -98,6 +92,18 @@ pub fn build(
         Some(io_tx),
         counters.clone(),
     );
+    let colours = sim
+        .take_colour_reader()
+        .ok_or(EngineError::Lost("simulation paint"))?;
+    let graphics = GraphicsStage::new(
+        graphics_field,
+        config.cells_per_span,
+        from_sim_g,
+        colours,
+        graphics_ack,
+        sink,
+        counters.clone(),
+    )?;
     Ok(Stages {
         haptic,
         sim,
