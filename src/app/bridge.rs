@@ -850,9 +850,8 @@ mod tests {
         assert_eq!(report.counters.device_read_faults, 0);
     }
 
-    /// A sphere through the real octree mesher, published by the sink and exported welded.
-    #[test]
-    fn sink_publishes_bricks_and_export_welds_them_closed() {
+    /// A 16³ sphere clay meshed in full by the octree.
+    fn meshed_sphere() -> (BSplineLattice, BrickOctree, RefreshReport) {
         let lattice = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 16,
@@ -861,6 +860,13 @@ mod tests {
         let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();
         let mut octree = BrickOctree::new(grid);
         let report = octree.rebuild(&lattice);
+        (lattice, octree, report)
+    }
+
+    /// A sphere through the real octree mesher, published by the sink and exported welded.
+    #[test]
+    fn sink_publishes_bricks_and_export_welds_them_closed() {
+        let (_, octree, report) = meshed_sphere();
 
         let (mut link, end) = super::super::link::engine_link();
         let shared = Arc::new(Mutex::new(MeshSet::new()));
@@ -886,14 +892,7 @@ mod tests {
     /// exactly the bricks it covers; clearing the paint takes the colour off again.
     #[test]
     fn sink_recolours_the_bricks_paint_covers() {
-        let lattice = build_clay(&ClaySpec {
-            shape: ClayShape::Sphere,
-            resolution: 16,
-        })
-        .unwrap();
-        let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();
-        let mut octree = BrickOctree::new(grid);
-        let report = octree.rebuild(&lattice);
+        let (lattice, octree, report) = meshed_sphere();
         let (mut link, end) = super::super::link::engine_link();
         let mut sink = GuiMeshSink::new(
             end.meshes,
