@@ -35,6 +35,31 @@ impl Material {
     };
 }
 
+impl Material {
+    /// Checks that the constants can drive a step: all finite, mass positive, the others zero
+    /// or more.
+    ///
+    /// # Errors
+    /// Names the first constant out of range and its value.
+    pub fn validate(&self) -> Result<(), String> {
+        let fields = [
+            ("mass", self.mass, false),
+            ("damping", self.damping, true),
+            ("stiffness", self.stiffness, true),
+            ("plasticity_per_s", self.plasticity_per_s, true),
+            ("yield_density", self.yield_density, true),
+        ];
+        for (name, v, zero_ok) in fields {
+            let ok = v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0));
+            if !ok {
+                let need = if zero_ok { "zero or more" } else { "positive" };
+                return Err(format!("material {name} = {v} must be finite and {need}"));
+            }
+        }
+        Ok(())
+    }
+}
+
 impl Default for Material {
     fn default() -> Self {
         Self::ELASTIC
@@ -126,5 +151,31 @@ impl Default for StepParams {
             resync_every: 256,
             threads: 1,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validate_accepts_the_presets_and_names_a_bad_constant() {
+        assert_eq!(Material::ELASTIC.validate(), Ok(()));
+        assert_eq!(Material::PLASTIC.validate(), Ok(()));
+        let no_mass = Material {
+            mass: 0.0,
+            ..Material::ELASTIC
+        };
+        assert!(no_mass.validate().unwrap_err().contains("mass = 0"));
+        let nan_damping = Material {
+            damping: f32::NAN,
+            ..Material::ELASTIC
+        };
+        assert!(nan_damping.validate().unwrap_err().contains("damping"));
+        let negative = Material {
+            yield_density: -0.1,
+            ..Material::PLASTIC
+        };
+        assert!(negative.validate().unwrap_err().contains("yield_density"));
     }
 }

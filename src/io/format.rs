@@ -333,6 +333,7 @@ fn encode_material(m: &MaterialFields) -> Result<Vec<u8>, SessionError> {
 }
 
 fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
+    let start = r.at;
     let mut m = MaterialFields {
         uniform: Material {
             mass: r.f32()?,
@@ -343,6 +344,10 @@ fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
         },
         grids: Vec::new(),
     };
+    if let Err(e) = m.uniform.validate() {
+        r.at = start;
+        return Err(r.error(&e));
+    }
     let count = r.u32()?;
     for _ in 0..count {
         let name = r.string()?;
@@ -557,10 +562,19 @@ impl Reader<'_> {
             self.at = start;
             return Err(self.error(&format!("lattice {dims:?} holds {count} coefficients")));
         }
+        let values_at = self.at;
         let coeffs = self.f32s(count)?;
         if !(origin.is_finite() && iso.is_finite()) {
             self.at = start;
             return Err(self.error("lattice origin or iso-level is not finite"));
+        }
+        if let Some(i) = coeffs.iter().position(|c| !c.is_finite()) {
+            // Point at the value itself.
+            self.at = values_at + 4 * i;
+            return Err(self.error(&format!(
+                "lattice coefficient {i} is {}, not a finite number",
+                coeffs[i]
+            )));
         }
         let mut l = BSplineLattice::from_coeffs(dims, spacing, origin, coeffs).map_err(|e| {
             self.at = start;
@@ -689,6 +703,27 @@ mod tests {
         assert!(
             matches!(err, SessionError::UnsupportedVersion { found: 2, .. }),
             "{err}"
+        );
+    }
+
+    #[test]
+    fn a_non_finite_coefficient_under_a_valid_checksum_is_refused_at_its_offset() {
+        let s = sample_session();
+        let mut bytes = encode(&s).unwrap();
+        let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
+        let first_patch = HEADER_LEN + (16 + meta_len);
+        // The lattice header is 40 bytes; put NaN into coefficient 3 of the first patch.
+        let at = first_patch + 12 + 40 + 4 * 3;
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        let len = u64::from_le_bytes(bytes[first_patch + 4..first_patch + 12].try_into().unwrap());
+        let end = first_patch + 12 + len as usize;
+        let crc = crc32fast::hash(&bytes[first_patch..end]);
+        bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+        let err = decode(&bytes, Path::new("mem")).unwrap_err().to_string();
+        assert!(err.contains("coefficient 3"), "{err}");
+        assert!(
+            err.contains(&format!("{at}")),
+            "names the byte offset {at}: {err}"
         );
     }
 

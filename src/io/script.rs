@@ -975,6 +975,14 @@ path = "out.dclay"
         let e = parse_script(bad, "x").unwrap_err();
         assert!(e.message.contains("path"), "{e}");
         assert_eq!(e.line, Some(5), "{e}");
+        // A material a session could not load back is refused here already.
+        let bad = "version = 1\n[[step]]\ndo = \"material\"\ndamping = -2.0\n";
+        let e = parse_script(bad, "x").unwrap_err();
+        assert!(
+            e.message
+                .contains("damping = -2 must be finite and non-negative"),
+            "{e}"
+        );
     }
 
     #[test]
