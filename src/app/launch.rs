@@ -1,8 +1,9 @@
-//! `dynaclay gui [SESSION] [--device SPEC]`: builds the starting clay (the built-in script's,
+//! `dynaclay gui [SESSION] [--device SPEC] [--recover]`: builds the starting clay (the built-in script's,
 //! or the session's) and the device, starts the threaded engine behind a bridge, and runs the
 //! window until it is closed.
 
 use std::path::PathBuf;
+use std::time::Instant;
 
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
@@ -12,7 +13,7 @@ use super::link::engine_link;
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
 use crate::field::BSplineLattice;
-use crate::io::load_session;
+use crate::io::{Autosave, AutosavePolicy, load_session, recovery_to_use};
 
 /// Why `dynaclay gui` stopped.
 #[derive(Debug)]
@@ -30,7 +31,7 @@ impl std::fmt::Display for LaunchError {
         match self {
             Self::Usage(m) => write!(
                 f,
-                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC])"
+                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--recover])"
             ),
             Self::Device(m) => write!(f, "gui: device: {m}"),
             Self::Failed(m) => write!(f, "gui: {m}"),
@@ -48,18 +49,26 @@ pub struct GuiArgs {
     /// A session file to start from (the engine keeps its lattice for the whole run, so
     /// later loads must match it).
     pub session: Option<PathBuf>,
+    /// Start from the recovery file autosave left for the session (`--recover`).
+    pub recover: bool,
 }
 
-/// Parses `dynaclay gui`'s arguments: an optional session path and `--device`.
+/// The session file the window saves to and autosaves next to when none is named.
+pub const DEFAULT_SESSION: &str = "sculpt.dclay";
+
+/// Parses `dynaclay gui`'s arguments: an optional session path, `--device` and `--recover`.
 ///
 /// # Errors
 /// An unknown option, a second session, a missing value or a spec the devices parser rejects.
 pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
     let mut spec = "sim".to_owned();
     let mut session = None;
+    let mut recover = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
-        if a == "--device" {
+        if a == "--recover" {
+            recover = true;
+        } else if a == "--device" {
             spec = it
                 .next()
                 .ok_or_else(|| LaunchError::Usage("--device needs a value".into()))?
@@ -75,7 +84,11 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
     let device = spec
         .parse()
         .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))?;
-    Ok(GuiArgs { device, session })
+    Ok(GuiArgs {
+        device,
+        session,
+        recover,
+    })
 }
 
 /// Runs `dynaclay gui` with the given arguments.
@@ -85,8 +98,16 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
 pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let GuiArgs {
         device: spec,
-        session,
+        session: named,
+        recover,
     } = parse_gui_args(args)?;
+    // Autosave writes next to the session the window saves to; unsaved work a crash left
+    // there stops the start unless --recover opens it, so it is never overwritten unseen.
+    let session_path = named
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_SESSION));
+    let recovery = recovery_to_use(&session_path, recover).map_err(LaunchError::Usage)?;
+    let session = recovery.map(|r| r.path).or(named);
     let script = ScriptPlan::builtin();
     let (field, material) = match &session {
         None => (
@@ -117,8 +138,9 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let opener: DeviceOpener = Box::new(move |spec: &DeviceSpec| {
         make_device(spec, &opener_field, &script).map(|(d, _)| d)
     });
+    let autosave = Autosave::new(&session_path, AutosavePolicy::default(), Instant::now());
     let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
-        Engine::start(&config, field, device, sink)
+        Engine::start_with(&config, field, device, sink, Some(autosave))
     })
     .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
     if let Some(path) = session {
@@ -127,7 +149,11 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         link.send(super::command::EngineCommand::Load { path })
             .map_err(|e| LaunchError::Failed(e.to_string()))?;
     }
-    let shown = run_gui(GuiOptions::default(), link);
+    let options = GuiOptions {
+        session_path: session_path.display().to_string(),
+        ..GuiOptions::default()
+    };
+    let shown = run_gui(options, link);
     let stopped = bridge.stop();
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
     stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
@@ -194,5 +220,9 @@ mod tests {
         );
         assert!(s(&["--bogus"]).is_err());
         assert!(s(&["--device", "falcon"]).is_err());
+        assert!(!s(&[]).unwrap().recover);
+        let recovering = s(&["--recover", "a.dclay"]).unwrap();
+        assert!(recovering.recover);
+        assert_eq!(recovering.session, Some(PathBuf::from("a.dclay")));
     }
 }

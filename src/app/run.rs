@@ -9,6 +9,8 @@ pub struct GuiOptions {
     pub title: String,
     /// Initial inner size of the window, logical points.
     pub window_size_pt: [f32; 2],
+    /// The session path the top bar starts with (Save and Load use it).
+    pub session_path: String,
 }
 
 impl Default for GuiOptions {
@@ -16,6 +18,7 @@ impl Default for GuiOptions {
         Self {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
+            session_path: super::launch::DEFAULT_SESSION.into(),
         }
     }
 }
@@ -49,7 +52,8 @@ pub fn run_gui(options: GuiOptions, link: EngineLink) -> Result<(), GuiError> {
         ..Default::default()
     };
     let repaint = link.repaint_signal();
-    let app = SculptApp::new(link);
+    let mut app = SculptApp::new(link);
+    app.files.session.clone_from(&options.session_path);
     eframe::run_native(
         &options.title,
         native,

@@ -66,7 +66,7 @@ pub struct FilePaths {
 impl Default for FilePaths {
     fn default() -> Self {
         Self {
-            session: "sculpt.dclay".into(),
+            session: super::launch::DEFAULT_SESSION.into(),
             export: "sculpt.obj".into(),
         }
     }

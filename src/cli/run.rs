@@ -16,8 +16,7 @@ use crate::engine::{
 };
 use crate::io::SessionError;
 use crate::io::{
-    Autosave, MaterialFields, ScriptError, Session, find_recovery, load_script, load_session,
-    recovery_path_for,
+    Autosave, MaterialFields, ScriptError, Session, load_script, load_session, recovery_to_use,
 };
 use crate::render::RenderError;
 
@@ -217,9 +216,9 @@ fn starting_session(
     script: &crate::io::Script,
     session_path: &Path,
 ) -> Result<Session, CliError> {
-    let found = find_recovery(session_path);
-    match (found, recover) {
-        (Some(r), true) => {
+    let found = recovery_to_use(session_path, recover).map_err(CliError::Usage)?;
+    match found {
+        Some(r) => {
             let session =
                 load_session(&r.path).map_err(|e| CliError::Output(format!("--recover: {e}")))?;
             if session.clay.patches.is_empty() {
@@ -234,23 +233,7 @@ fn starting_session(
             );
             Ok(session)
         }
-        (Some(r), false) => Err(CliError::Usage(format!(
-            "recovery file {} is newer than session {}{}; pass --recover to start from it \
-             (or remove it to start afresh)",
-            r.path.display(),
-            session_path.display(),
-            if session_path.exists() {
-                ""
-            } else {
-                " (never saved)"
-            }
-        ))),
-        (None, true) => Err(CliError::Usage(format!(
-            "--recover: no recovery file newer than {} (looked for {})",
-            session_path.display(),
-            recovery_path_for(session_path).display()
-        ))),
-        (None, false) => {
+        None => {
             let clay = build_clay(&script.clay.unwrap_or_default())
                 .map_err(|e| CliError::Output(format!("starting clay: fit failed: {e}")))?;
             Ok(Session {

@@ -56,6 +56,36 @@ pub fn find_recovery(session_path: &Path) -> Option<Recovery> {
     }
 }
 
+/// What a start-up does about the recovery file of `session_path`. With `recover`, the recovery
+/// file to start from; without, `None`.
+///
+/// # Errors
+/// A message for the user when a recovery file newer than the session exists and `recover` was
+/// not given (so unsaved work is never overwritten unseen), or `recover` was given and there is
+/// none.
+pub fn recovery_to_use(session_path: &Path, recover: bool) -> Result<Option<Recovery>, String> {
+    match (find_recovery(session_path), recover) {
+        (Some(r), true) => Ok(Some(r)),
+        (Some(r), false) => Err(format!(
+            "recovery file {} is newer than session {}{}; pass --recover to start from it \
+             (or remove it to start afresh)",
+            r.path.display(),
+            session_path.display(),
+            if session_path.exists() {
+                ""
+            } else {
+                " (never saved)"
+            }
+        )),
+        (None, true) => Err(format!(
+            "--recover: no recovery file newer than {} (looked for {})",
+            session_path.display(),
+            recovery_path_for(session_path).display()
+        )),
+        (None, false) => Ok(None),
+    }
+}
+
 /// Autosave state: the recovery path, the policy and the counters since the last save.
 #[derive(Debug)]
 pub struct Autosave {
@@ -131,6 +161,29 @@ impl Autosave {
 mod tests {
     use super::*;
     use crate::io::load_session;
+
+    #[test]
+    fn a_start_uses_a_recovery_file_only_when_asked_and_never_ignores_one() {
+        let dir = tempfile::tempdir().unwrap();
+        let session_path = dir.path().join("bust.dclay");
+        assert_eq!(recovery_to_use(&session_path, false), Ok(None));
+        let e = recovery_to_use(&session_path, true).unwrap_err();
+        assert!(e.contains("no recovery file newer than"), "{e}");
+
+        std::fs::write(recovery_path_for(&session_path), b"unsaved work").unwrap();
+        let e = recovery_to_use(&session_path, false).unwrap_err();
+        assert!(
+            e.contains("pass --recover") && e.contains("never saved"),
+            "{e}"
+        );
+        let found = recovery_to_use(&session_path, true).unwrap().unwrap();
+        assert_eq!(found.path, recovery_path_for(&session_path));
+
+        // A session saved after the recovery file holds that work: nothing to offer.
+        std::thread::sleep(Duration::from_millis(20));
+        std::fs::write(&session_path, b"saved").unwrap();
+        assert_eq!(recovery_to_use(&session_path, false), Ok(None));
+    }
 
     #[test]
     fn saves_after_n_strokes_or_n_seconds_and_is_offered_at_start() {

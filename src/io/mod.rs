@@ -10,7 +10,9 @@ mod script;
 mod session;
 
 pub use atomic::{load_session, save_session, write_atomic};
-pub use autosave::{Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for};
+pub use autosave::{
+    Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for, recovery_to_use,
+};
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use run_script::{RunSummary, run_script};
