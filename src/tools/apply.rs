@@ -217,21 +217,7 @@ pub fn apply_tool(
         }
         new
     };
-    let lattice = clay.field_mut(id).expect("checked above");
-    refit_box(
-        lattice,
-        region.min,
-        region.max,
-        options.samples_per_span,
-        target,
-    )?;
-    Ok(ToolReport {
-        coeff_box: Some(region),
-        dirty_world: Some(region.world_support(lattice)),
-        visited: counts.visited.get(),
-        computed: counts.computed.get(),
-        dirtied: counts.dirtied.get(),
-    })
+    refit_region(clay, id, region, options, &counts, target)
 }
 
 /// Applies `tool` at each pose of a path in turn, splitting `duration_s` evenly (toothpaste
@@ -316,7 +302,29 @@ pub fn apply_csg(
         }
         new
     };
-    let lattice = clay.field_mut(id).expect("checked above");
+    refit_region(clay, id, region, options, &counts, target)
+}
+
+#[derive(Default)]
+struct Counts {
+    visited: Cell<usize>,
+    computed: Cell<usize>,
+    dirtied: Cell<usize>,
+}
+
+/// Refits `region` of the lattice `id` (which must exist) to `target` and reports it with the
+/// counts `target` kept (Ferley's visited, computed and dirtied corners).
+fn refit_region(
+    clay: &mut Clay,
+    id: FieldId,
+    region: CoeffBox,
+    options: &ApplyOptions,
+    counts: &Counts,
+    target: impl Fn(Vec3) -> f32,
+) -> Result<ToolReport, ToolError> {
+    let lattice = clay
+        .field_mut(id)
+        .expect("the caller checked the lattice exists");
     refit_box(
         lattice,
         region.min,
@@ -331,13 +339,6 @@ pub fn apply_csg(
         computed: counts.computed.get(),
         dirtied: counts.dirtied.get(),
     })
-}
-
-#[derive(Default)]
-struct Counts {
-    visited: Cell<usize>,
-    computed: Cell<usize>,
-    dirtied: Cell<usize>,
 }
 
 /// Separable binomial (1, 2, 1)/4 average over the 27 points `h` apart: a local low-pass of
@@ -411,22 +412,9 @@ fn paint(
             counts.dirtied.set(counts.dirtied.get() + 1);
             old + w * (goal - old)
         };
-        let lattice = clay.field_mut(id).expect("colour exists");
-        refit_box(
-            lattice,
-            region.min,
-            region.max,
-            options.samples_per_span,
-            target,
-        )?;
+        let channel_report = refit_region(clay, id, region, options, &counts, target)?;
         if channel == 0 {
-            report = ToolReport {
-                coeff_box: Some(region),
-                dirty_world: Some(region.world_support(lattice)),
-                visited: counts.visited.get(),
-                computed: counts.computed.get(),
-                dirtied: counts.dirtied.get(),
-            };
+            report = channel_report;
         }
     }
     Ok(report)
@@ -442,6 +430,40 @@ mod tests {
 
     const N: usize = 36;
     const H: f32 = 1.0 / 16.0;
+
+    /// Over `samples` quasi-random points of the lattice's interior, away from both surfaces
+    /// (sharp CSG edges round off over the fit's width), counts the points checked and those
+    /// `l` classifies differently from the analytic CSG `action` of `a` and `b` (signed
+    /// distances, negative inside).
+    fn csg_misclassified(
+        l: &BSplineLattice,
+        action: ToolAction,
+        samples: usize,
+        a: impl Fn(Vec3) -> f32,
+        b: impl Fn(Vec3) -> f32,
+    ) -> (usize, usize) {
+        let (mut checked, mut wrong) = (0, 0);
+        for s in 0..samples {
+            let f = Vec3::new(
+                (s * 37 % 101) as f32 / 101.0,
+                (s * 53 % 103) as f32 / 103.0,
+                (s * 71 % 107) as f32 / 107.0,
+            );
+            let x = Vec3::splat(0.2) + f * (N as f32 * H - 0.4);
+            let (da, db) = (a(x), b(x));
+            if da.abs() < 1.5 * H || db.abs() < 1.5 * H {
+                continue;
+            }
+            let expected = match action {
+                ToolAction::Union => da < 0.0 || db < 0.0,
+                ToolAction::Intersection => da < 0.0 && db < 0.0,
+                _ => da < 0.0 && db >= 0.0,
+            };
+            checked += 1;
+            wrong += usize::from(l.is_inside(x) != expected);
+        }
+        (checked, wrong)
+    }
 
     fn empty() -> Clay {
         Clay::single(BSplineLattice::zeros([N; 3], H, Vec3::ZERO).unwrap())
@@ -683,27 +705,7 @@ mod tests {
             )
             .unwrap();
             let l = &clay.patches[0];
-            let (mut checked, mut wrong) = (0, 0);
-            for s in 0..4000 {
-                let f = Vec3::new(
-                    (s * 37 % 101) as f32 / 101.0,
-                    (s * 53 % 103) as f32 / 103.0,
-                    (s * 71 % 107) as f32 / 107.0,
-                );
-                let x = Vec3::splat(0.2) + f * (N as f32 * H - 0.4);
-                let (a, b) = (in_sphere(x), in_box(x));
-                // Sharp CSG edges round off over the fit's width: skip points near either surface.
-                if a.abs() < 1.5 * H || b.abs() < 1.5 * H {
-                    continue;
-                }
-                let expected = match action {
-                    ToolAction::Union => a < 0.0 || b < 0.0,
-                    ToolAction::Intersection => a < 0.0 && b < 0.0,
-                    _ => a < 0.0 && b >= 0.0,
-                };
-                checked += 1;
-                wrong += usize::from(l.is_inside(x) != expected);
-            }
+            let (checked, wrong) = csg_misclassified(l, action, 4000, in_sphere, in_box);
             assert!(checked > 2000);
             assert!(
                 wrong * 200 < checked,
@@ -973,27 +975,13 @@ mod tests {
             let mut clay = clay_of(a);
             apply_csg(&mut clay, &other, action, &ApplyOptions::default(), None).unwrap();
             let l = &clay.patches[0];
-            let mut wrong = 0;
-            let mut checked = 0;
-            for s in 0..3000 {
-                let f = Vec3::new(
-                    (s * 37 % 101) as f32 / 101.0,
-                    (s * 53 % 103) as f32 / 103.0,
-                    (s * 71 % 107) as f32 / 107.0,
-                );
-                let x = Vec3::splat(0.2) + f * (N as f32 * H - 0.4);
-                let (da, db) = (a.signed_distance(x), b.signed_distance(x));
-                if da.abs() < 1.5 * H || db.abs() < 1.5 * H {
-                    continue;
-                }
-                let expected = match action {
-                    ToolAction::Union => da < 0.0 || db < 0.0,
-                    ToolAction::Intersection => da < 0.0 && db < 0.0,
-                    _ => da < 0.0 && db >= 0.0,
-                };
-                checked += 1;
-                wrong += usize::from(l.is_inside(x) != expected);
-            }
+            let (checked, wrong) = csg_misclassified(
+                l,
+                action,
+                3000,
+                |x| a.signed_distance(x),
+                |x| b.signed_distance(x),
+            );
             assert!(wrong * 200 < checked, "{action:?}: {wrong} of {checked}");
         }
         let mut clay = clay_of(a);
