@@ -48,55 +48,64 @@ pub fn force_integral(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> f32 {
     -l * mean
 }
 
-/// How the user's reaction force is scaled and bounded.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct HapticCoupling {
-    /// Newtons per unit of force integral (density × world length).
-    pub gain_n: f32,
-    /// Magnitude limit, newtons (the device's safety filter clamps again).
-    pub max_force_n: f32,
-}
-
-impl Default for HapticCoupling {
-    fn default() -> Self {
-        Self {
-            gain_n: 40.0,
-            max_force_n: 3.0,
-        }
-    }
-}
-
-/// The force on the user's cursor at `x1` for the force vector `x0 → x1`, in newtons: equal
-/// and opposite to the sculpting force, `gain · |f| · (x0 − x1)/l`, with its magnitude clamped
-/// to `max_force_n`: the cursor is drawn back toward the surface point, so pulling outward
-/// (`f > 0`) is resisted inward and pushing in (`f < 0`) is pushed back out. Zero for a
-/// degenerate vector.
+/// The reaction on the cursor at `x1` for the force vector `x0 → x1`, in field units
+/// (density × length): equal and opposite to the sculpting force, `|f| · (x0 − x1)/l`. The
+/// cursor is drawn back toward the surface point whichever way the density moves: pulling
+/// outward (`f > 0`) is resisted inward and pushing in (`f < 0`) is pushed back out. Zero for
+/// a degenerate or non-finite vector. The haptic loop scales it to newtons
+/// ([`crate::haptics`]).
 #[inline]
 #[must_use]
-pub fn reaction_force(
-    lattice: &BSplineLattice,
-    x0: Vec3,
-    x1: Vec3,
-    coupling: HapticCoupling,
-) -> Vec3 {
+pub fn reaction_force(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> Vec3 {
     let v = x1 - x0;
     let l = v.length();
     if !(l.is_finite() && l > 0.0) {
         return Vec3::ZERO;
     }
-    // The user is drawn back toward x0 whichever way the density moves: pulling out raises
-    // densities (f > 0), pushing in lowers them (f < 0); both resist the cursor's offset.
     let f = force_integral(lattice, x0, x1);
-    let r = v * (-coupling.gain_n * f.abs() / l);
-    let m = r.length();
-    if !m.is_finite() {
-        return Vec3::ZERO;
+    let r = v * (-f.abs() / l);
+    if r.is_finite() { r } else { Vec3::ZERO }
+}
+
+/// Marching steps of [`start_on_surface`].
+pub const REFIND_MARCH_STEPS: u32 = 8;
+/// Bisection steps of [`start_on_surface`].
+pub const REFIND_BISECT_STEPS: u32 = 8;
+
+/// The start of the force vector `start → end` found again on the current surface: the
+/// iso-surface crossing on the segment nearest `end`, or `start` when the segment does not
+/// cross (Hua & Qin §7.2.2). Because `x0` is a surface point, a surface that follows the
+/// cursor shortens the vector, so the force falls to zero as the surface reaches the cursor;
+/// a fixed `x0` would stall the surface where `∫(s − iso)` vanishes, half-way.
+///
+/// The same rule serves the simulation (which force vectors act on the clay) and the haptic
+/// loop (what the hand feels), so both integrate the same vectors. Bounded work: at most
+/// [`REFIND_MARCH_STEPS`] + [`REFIND_BISECT_STEPS`] + 1 field evaluations; allocates nothing.
+#[must_use]
+pub fn start_on_surface(lattice: &BSplineLattice, start: Vec3, end: Vec3) -> Vec3 {
+    if !(start.is_finite() && end.is_finite()) {
+        return start;
     }
-    if m > coupling.max_force_n {
-        r * (coupling.max_force_n / m)
-    } else {
-        r
+    let end_inside = lattice.is_inside(end);
+    let back = start - end;
+    let mut near = 0.0_f32;
+    for i in 1..=REFIND_MARCH_STEPS {
+        let t = i as f32 / REFIND_MARCH_STEPS as f32;
+        if lattice.is_inside(end + back * t) != end_inside {
+            let mut far = t;
+            for _ in 0..REFIND_BISECT_STEPS {
+                let mid = 0.5 * (near + far);
+                if lattice.is_inside(end + back * mid) == end_inside {
+                    near = mid;
+                } else {
+                    far = mid;
+                }
+            }
+            return end + back * (0.5 * (near + far));
+        }
+        near = t;
     }
+    start
 }
 
 /// The first point where the solid ends along the ray from `anchor` in direction `toward`
@@ -274,20 +283,17 @@ mod tests {
         assert!((x0.x - 1.0).abs() < 0.05, "surface at {x0}");
         let out = x0 + Vec3::X * 0.3;
         assert!(force_integral(&lattice, x0, out) > 0.0);
-        let r = reaction_force(&lattice, x0, out, HapticCoupling::default());
+        let r = reaction_force(&lattice, x0, out);
         assert!(r.x < 0.0, "user pulled back toward the surface: {r}");
         let inside = x0 - Vec3::X * 0.3;
         assert!(force_integral(&lattice, x0, inside) < 0.0);
-        let r = reaction_force(&lattice, x0, inside, HapticCoupling::default());
+        let r = reaction_force(&lattice, x0, inside);
         assert!(r.x > 0.0, "user pushed back out: {r}");
         // Vanishes as the vector shrinks to the surface.
         let near = force_integral(&lattice, x0, x0 + Vec3::X * 1e-3).abs();
         assert!(near < 1e-5, "{near}");
         assert_eq!(force_integral(&lattice, x0, x0), 0.0);
-        assert_eq!(
-            reaction_force(&lattice, Vec3::NAN, x0, HapticCoupling::default()),
-            Vec3::ZERO
-        );
+        assert_eq!(reaction_force(&lattice, Vec3::NAN, x0), Vec3::ZERO);
     }
 
     #[test]

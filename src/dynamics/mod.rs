@@ -12,8 +12,8 @@ mod team;
 
 pub use counters::{StageTimes, StepCounters};
 pub use force::{
-    Distribution, GAUSS_NODES, GAUSS_WEIGHTS, HapticCoupling, ToolForce, force_integral,
-    gauss_legendre_unit, reaction_force, surface_point_on_ray,
+    Distribution, GAUSS_NODES, GAUSS_WEIGHTS, REFIND_BISECT_STEPS, REFIND_MARCH_STEPS, ToolForce,
+    force_integral, gauss_legendre_unit, reaction_force, start_on_surface, surface_point_on_ray,
 };
 pub use material::{AccelSolver, Integrator, Material, Neighbourhood, StepParams};
 pub use region::{RegionError, RegionState};

@@ -594,7 +594,7 @@ mod tests {
 
     use super::*;
     use crate::dynamics::{
-        Distribution, HapticCoupling, Integrator, Material, reaction_force, surface_point_on_ray,
+        Distribution, Integrator, Material, reaction_force, surface_point_on_ray,
     };
     use crate::field::{CoeffBox, Primitive, lattice_from_primitive};
 
@@ -649,17 +649,13 @@ mod tests {
         let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
         let between = CENTRE + Vec3::X * (RADIUS + 0.075);
         assert!(lattice.value(between) < lattice.iso);
-        let coupling = HapticCoupling {
-            gain_n: 40.0,
-            max_force_n: 1e9,
-        };
         let mut peak = 0.0_f32;
         let mut last = 0.0_f32;
         for _ in 0..4000 {
             let Some(tf) = grab(&lattice, cursor, GAIN) else {
                 break;
             };
-            last = reaction_force(&lattice, tf.start, tf.end, coupling).length();
+            last = reaction_force(&lattice, tf.start, tf.end).length();
             peak = peak.max(last);
             sim.step(&mut state, &mut lattice, &[tf], &mut snap)
                 .unwrap();

@@ -5,11 +5,15 @@ use std::time::Duration;
 use dynaclay_devices::{DeviceInfo, SafetyConfig};
 use glam::Vec3;
 
-use super::contact::ContactConfig;
 use super::simulation::SimConfig;
 use super::workspace::WorkspaceMap;
 use crate::field::{BSplineLattice, FitError, Primitive, lattice_from_primitive};
+use crate::haptics::{HapticConfig, calibrated_force_scale};
 use crate::io::{ClayShape, ClaySpec};
+
+/// Newtons per unit of reaction when the clay cannot be calibrated (about what the
+/// calibration gives for the default block on the simulated arm).
+pub const DEFAULT_FORCE_N_PER_UNIT: f32 = 300.0;
 
 /// Knot spacing of the starting clay, field units.
 pub const CLAY_SPACING: f32 = 0.1;
@@ -31,8 +35,8 @@ pub struct EngineConfig {
     pub stale_limit: Duration,
     /// Device metres ↔ field coordinates, and force scale.
     pub map: WorkspaceMap,
-    /// Contact search.
-    pub contact: ContactConfig,
+    /// How the clay feels: touch, sculpting reaction, shaping, passivity.
+    pub haptics: HapticConfig,
     /// Simulation settings.
     pub sim: SimConfig,
     /// Marching-cubes cells per knot span.
@@ -46,14 +50,26 @@ pub struct EngineConfig {
 impl EngineConfig {
     /// Defaults for `field` driven by a device with `info`: 1 kHz haptic, 1 kHz simulation,
     /// 60 Hz graphics, SCHED_FIFO 80 asked for, staleness fade from 50 to 100 ms, the device
-    /// workspace mapped around the lattice (see [`WorkspaceMap::fitting`]) with 30 N per unit
-    /// of reaction.
+    /// workspace mapped around the lattice (see [`WorkspaceMap::fitting`]), touch as stiff as
+    /// the device allows, and the sculpting force calibrated on `field` so that pressing 5 mm
+    /// into its top feels 2 N at haptic gain 1 ([`calibrated_force_scale`];
+    /// [`DEFAULT_FORCE_N_PER_UNIT`] when the field has no top to press).
     #[must_use]
     pub fn for_field(field: &BSplineLattice, info: &DeviceInfo) -> Self {
         let (lo, hi) = (
             field.origin,
             field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
         );
+        let mut map = WorkspaceMap::fitting(
+            info.workspace_min_m,
+            info.workspace_max_m,
+            lo,
+            hi,
+            DEFAULT_FORCE_N_PER_UNIT,
+        );
+        if let Some(scale) = calibrated_force_scale(field, map.field_per_m) {
+            map.force_n_per_unit = scale;
+        }
         Self {
             haptic_rate_hz: 1000.0,
             sim_rate_hz: 1000.0,
@@ -61,8 +77,11 @@ impl EngineConfig {
             haptic_rt_priority: Some(dynaclay_loops::DEFAULT_RT_PRIORITY),
             stale_fresh: Duration::from_millis(50),
             stale_limit: Duration::from_millis(100),
-            map: WorkspaceMap::fitting(info.workspace_min_m, info.workspace_max_m, lo, hi, 30.0),
-            contact: ContactConfig::default(),
+            map,
+            haptics: HapticConfig::for_device(
+                info.max_stiffness_n_per_m,
+                info.max_damping_n_s_per_m,
+            ),
             sim: SimConfig::default(),
             cells_per_span: 4,
             lockstep_steps_per_sample: 1,

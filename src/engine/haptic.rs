@@ -3,16 +3,17 @@
 //! Guarantee: after [`HapticStage::new`], [`HapticStage::tick`] allocates nothing, takes no
 //! blocking lock and does bounded work: one device read and one write (through the safety
 //! filter), one wait-free triple-buffer fetch and one publish, a patch copy of at most the
-//! lattice's coefficients when a new snapshot arrived, and the bounded contact search
-//! ([`super::contact::MAX_PROBES`] field evaluations), and one relaxed load of the requested
-//! force limit ([`ForceLimit`]), applied to the filter in constant time when it changed, and
-//! one wait-free look for a replacement device ([`super::DeviceSwapPort`]), installed by
-//! moving it into the slot (it was opened, and the old one is closed, on another thread). No
-//! file or log I/O.
+//! lattice's coefficients and of the stroke geometry (fixed capacity) when a new snapshot
+//! arrived, the force renderer's bounded work ([`crate::haptics::ForceRenderer`]: the touch
+//! proxy, at most one sculpting reaction, blending, passivity and shaping), one relaxed load
+//! each of the requested force limit ([`ForceLimit`]), applied to the filter in constant time
+//! when it changed, and of the haptic gain ([`HapticGain`]), and one wait-free look for a
+//! replacement device ([`super::DeviceSwapPort`]), installed by moving it into the slot (it
+//! was opened, and the old one is closed, on another thread). No file or log I/O.
 //!
-//! Order within a tick: read the device → fetch the newest field patch → contact and force
-//! (eq. 6) → fade by the snapshot's age → force limit → safety filter → write → publish the
-//! tool sample.
+//! Order within a tick: read the device → fetch the newest field patch → force limit → render
+//! (touch, eq. 6 reaction, blend, fade by the snapshot's age, passivity, shaping) → safety
+//! filter → write → publish the tool sample.
 //! On a device error the filter has already sent zero; the tick publishes an idle sample and
 //! returns, so the loop keeps its rate and retries next tick.
 
@@ -22,14 +23,15 @@ use dynaclay_devices::{HapticDevice, SafetyFilter};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Staleness};
 use glam::Vec3;
 
-use super::contact::{Contact, ContactConfig};
 use super::counters::EngineCounters;
 use super::device_swap::{DeviceHandover, DeviceSwapPort};
 use super::force_limit::ForceLimit;
+use super::haptic_gain::HapticGain;
 use super::patch::FieldPatch;
 use super::tool_sample::ToolSample;
 use super::workspace::WorkspaceMap;
 use crate::field::BSplineLattice;
+use crate::haptics::{FeltInput, FeltTool, ForceRenderer, HapticConfig, StrokeGeometry};
 
 /// What one tick did (plain data, for tests and the lockstep driver).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -54,7 +56,12 @@ pub struct HapticStage {
     monitor: SnapshotWriter<ToolSample>,
     map: WorkspaceMap,
     staleness: Staleness,
-    contact: Contact,
+    renderer: ForceRenderer,
+    /// The held tool and stroke, from the newest patch.
+    tool: FeltTool,
+    stroke: StrokeGeometry,
+    stroke_armed: bool,
+    haptic_gain: HapticGain,
     counters: EngineCounters,
     ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
     tick: u64,
@@ -84,7 +91,7 @@ impl HapticStage {
         monitor: SnapshotWriter<ToolSample>,
         map: WorkspaceMap,
         staleness: Staleness,
-        contact: ContactConfig,
+        haptics: HapticConfig,
         counters: EngineCounters,
         ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
         swaps: DeviceSwapPort,
@@ -101,7 +108,11 @@ impl HapticStage {
             monitor,
             map,
             staleness,
-            contact: Contact::new(contact),
+            renderer: ForceRenderer::new(haptics),
+            tool: FeltTool::Push,
+            stroke: StrokeGeometry::default(),
+            stroke_armed: false,
+            haptic_gain: HapticGain::new(haptics.haptic_gain),
             counters,
             ack,
             tick: 0,
@@ -127,6 +138,12 @@ impl HapticStage {
     #[must_use]
     pub fn force_limit(&self) -> ForceLimit {
         self.force_limit.clone()
+    }
+
+    /// A handle on the haptic gain: changes made through it apply from the next tick.
+    #[must_use]
+    pub fn haptic_gain(&self) -> HapticGain {
+        self.haptic_gain.clone()
     }
 
     /// This stage's copy of the field.
@@ -166,46 +183,63 @@ impl HapticStage {
             Err(_) => {
                 // The filter latched the fault and sent zero already.
                 self.counters.device_read_faults(1);
-                self.contact.release();
+                self.renderer.reset();
                 return self.publish_idle(true);
             }
         };
 
-        let (age, stroke_armed, contact_enabled) = self.refresh_field(now);
+        let age = self.refresh_field(now);
         let fade = self.staleness.factor(age) as f32;
         if fade <= 0.0 {
             self.counters.stale_ticks(1);
         }
         let tip = self.map.to_field(state.position_m);
-        let stroke_active = state.button(0) || stroke_armed;
-        let contact = self
-            .contact
-            .update(&self.field, tip, stroke_active && contact_enabled);
-        if contact.in_contact {
+        let stroke_active = state.button(0) || self.stroke_armed;
+        self.apply_force_limit();
+        self.renderer.set_haptic_gain(self.haptic_gain.get());
+        let felt = self.renderer.render(&FeltInput {
+            field: &self.field,
+            tip,
+            position_m: state.position_m,
+            velocity_m_per_s: state.velocity_m_per_s,
+            time_us: state.timestamp_us,
+            field_per_m: self.map.field_per_m,
+            force_n_per_unit: self.map.force_n_per_unit,
+            stroke_active,
+            tool: self.tool,
+            stroke: &self.stroke,
+            fade,
+            saturation_n: self.device.max_force_n(),
+            sent_n: self.device.output_force_n(),
+        });
+        let in_contact = felt.touch.touching || felt.sculpting;
+        if in_contact {
             self.counters.contact_ticks(1);
         }
-        let mut requested = self.map.force_to_device(contact.reaction) * fade;
+        let mut requested = felt.force_n;
         if !requested.is_finite() {
             self.counters.nonfinite_forces(1);
             requested = Vec3::ZERO;
         }
-        self.apply_force_limit();
         let device_fault = match self.device.write_force(requested) {
             Ok(()) => false,
             Err(_) => {
                 self.counters.device_write_faults(1);
+                self.renderer.reset();
                 true
             }
         };
         let out = self.device.output_force_n();
         self.counters.note_force(out.length());
+        let (force_from, force_to) = felt.vector.unwrap_or((tip, tip));
         let sample = ToolSample {
             tip,
-            force_from: contact.from,
-            force_to: contact.to,
+            force_from,
+            force_to,
             stroke_active,
             // A stale field must not keep pushing the clay either.
-            in_contact: contact.in_contact && fade > 0.0,
+            in_contact: felt.sculpting && fade > 0.0,
+            touching: felt.touch.touching,
             device_force_n: out,
             device_time_us: state.timestamp_us,
             device_fault,
@@ -226,23 +260,22 @@ impl HapticStage {
         self.device.output_force_n()
     }
 
-    /// Copies the newest field patch into this stage's field if it is new, and returns the
-    /// snapshot's age at `now` with the stroke and contact flags it carries.
-    fn refresh_field(&mut self, now: Instant) -> (std::time::Duration, bool, bool) {
+    /// Copies the newest field patch into this stage's field, and its tool and stroke into
+    /// this stage, if it is new, and returns the snapshot's age at `now`.
+    fn refresh_field(&mut self, now: Instant) -> std::time::Duration {
         let stamped = self.patches.latest();
         let version = stamped.version;
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
             stamped.value.copy_into(&mut self.field);
+            self.tool = stamped.value.tool;
+            self.stroke_armed = stamped.value.stroke_armed;
+            self.stroke.copy_from(&stamped.value.stroke);
             // NOTE: Release pairs with the simulation's Acquire load: once it sees this
             // version acknowledged, every coefficient of that patch is in our copy.
             self.ack
                 .store(version, std::sync::atomic::Ordering::Release);
         }
-        (
-            stamped.age_at(now),
-            stamped.value.stroke_armed,
-            stamped.value.contact_enabled,
-        )
+        stamped.age_at(now)
     }
 
     /// Whether a device is connected (false after a disconnect).
@@ -263,7 +296,7 @@ impl HapticStage {
         std::mem::swap(&mut self.device, &mut new.device);
         std::mem::swap(&mut self.map, &mut new.map);
         std::mem::swap(&mut self.connected, &mut new.connected);
-        self.contact.release();
+        self.renderer.reset();
         // Re-apply the user's limit to the new filter at this tick.
         self.limit_seen = !self.force_limit.requested_bits();
         self.apply_force_limit();
@@ -288,6 +321,7 @@ impl HapticStage {
         let sample = ToolSample {
             stroke_active: false,
             in_contact: false,
+            touching: false,
             device_force_n: Vec3::ZERO,
             device_fault,
             tick: self.tick,

@@ -11,17 +11,18 @@ use glam::Vec3;
 
 use super::command::{ForceStrokeTool, PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
-use crate::dynamics::ToolForce;
+use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::BSplineLattice;
+use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry};
 use crate::tools::{
     ForceInput, ForceTool, PenetrationTarget, nearest_solid_point, plan_penetration,
 };
 
 /// Most force vectors one step applies (an area tool's tracks, a curve's samples).
-pub const MAX_FORCES: usize = 256;
+pub const MAX_FORCES: usize = crate::haptics::MAX_TOOL_VECTORS;
 
 /// Most penetration targets one chisel or squirt stroke plans.
-pub const MAX_TARGETS: usize = 256;
+pub const MAX_TARGETS: usize = MAX_STROKE_POINTS;
 
 /// The tool and its per-stroke state.
 #[derive(Debug)]
@@ -71,6 +72,25 @@ impl LiveTool {
     pub fn set(&mut self, choice: ToolChoice) {
         self.choice = choice;
         self.end_stroke();
+    }
+
+    /// The held tool as the haptic loop renders it.
+    #[must_use]
+    pub fn felt_tool(&self) -> FeltTool {
+        match &self.choice {
+            ToolChoice::Push(_) => FeltTool::Push,
+            ToolChoice::Force(f) => FeltTool::Force(f.tool),
+            ToolChoice::Geometric(_) => FeltTool::Geometric,
+        }
+    }
+
+    /// Writes the stroke's anchor, pivot, curve and targets into `out`, for the haptic loop
+    /// (no anchor while no force tool holds the clay).
+    pub fn stroke_geometry(&self, out: &mut StrokeGeometry) {
+        match &self.choice {
+            ToolChoice::Force(f) => out.set(self.grab, f.pivot, &f.curve, &self.targets),
+            _ => out.clear(),
+        }
     }
 
     /// Forgets the stroke's grab point, targets and timing.
@@ -168,7 +188,9 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
 }
 
 /// One step of a force tool: sets the grab point (first tick in reach of the solid), plans
-/// chisel and squirt targets along the tip's path, and writes the tool's force vectors.
+/// chisel and squirt targets along the tip's path, and writes the tool's force vectors, each
+/// starting on the surface as it is now ([`start_on_surface`], the rule the haptic loop feels
+/// by), so the surface can follow the cursor all the way.
 #[allow(clippy::too_many_arguments)] // the stroke state is split so the buffers borrow apart
 fn force_tool_step(
     stroke: &ForceStrokeTool,
@@ -212,7 +234,11 @@ fn force_tool_step(
         path: &stroke.curve,
         targets,
     };
-    stroke.tool.forces(lattice, &input, out)
+    let n = stroke.tool.forces(lattice, &input, out);
+    for f in &mut out[..n] {
+        f.start = start_on_surface(lattice, f.start, f.end);
+    }
+    n
 }
 
 #[cfg(test)]
@@ -259,9 +285,17 @@ mod tests {
         let out = pole + Vec3::X * 0.2;
         live.update_forces(&sample(out, true, 2000), &lattice, 0.05);
         assert_eq!(live.forces().len(), 1);
-        assert_eq!((live.forces()[0].start, live.forces()[0].end), (grab, out));
+        let (start, end) = (live.forces()[0].start, live.forces()[0].end);
+        assert_eq!(end, out);
+        // The start is the surface on the way from the grab to the cursor, found again.
+        assert!((start.x - 1.45).abs() < 0.01, "start {start}");
+        assert!(start.x >= grab.x - 1e-4);
         let (lo, hi) = live.force_bounds().unwrap();
-        assert!(lo.x <= grab.x && hi.x >= out.x);
+        assert!(lo.x <= start.x && hi.x >= out.x);
+        let mut geometry = StrokeGeometry::default();
+        live.stroke_geometry(&mut geometry);
+        assert_eq!(geometry.anchor, Some(grab));
+        assert!(matches!(live.felt_tool(), FeltTool::Force(_)));
         // Released: no force.
         live.update_forces(&sample(out, false, 3000), &lattice, 0.05);
         assert!(live.forces().is_empty());

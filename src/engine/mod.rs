@@ -5,13 +5,13 @@
 
 mod command;
 mod config;
-mod contact;
 mod counters;
 mod device_swap;
 mod error;
 mod force_limit;
 mod graphics;
 mod haptic;
+mod haptic_gain;
 mod io_worker;
 mod live_tool;
 mod lockstep;
@@ -26,8 +26,7 @@ mod wiring;
 mod workspace;
 
 pub use command::{Command, ForceStrokeTool, PushTool, Reply, ToolChoice};
-pub use config::{CLAY_SPACING, EngineConfig, build_clay};
-pub use contact::{Contact, ContactConfig, ContactForce, MAX_PROBES};
+pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
 pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
@@ -36,6 +35,7 @@ pub use error::EngineError;
 pub use force_limit::ForceLimit;
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
+pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
 pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};

@@ -4,9 +4,12 @@
 //! Guarantee: [`FieldPatch::capture`] and [`FieldPatch::apply_to`] never allocate once the
 //! patch was built with [`FieldPatch::with_capacity_for`] for the lattice it carries (capacity
 //! for every coefficient), and do work linear in the box's coefficient count, which is bounded
-//! by the lattice size. They are safe on the haptic path.
+//! by the lattice size. They are safe on the haptic path. The stroke geometry has a fixed
+//! capacity ([`crate::haptics::MAX_STROKE_POINTS`]) and is copied with
+//! [`StrokeGeometry::copy_from`], which never allocates.
 
 use crate::field::{BSplineLattice, CoeffBox};
+use crate::haptics::{FeltTool, StrokeGeometry};
 
 /// A box of coefficients copied out of the simulation's lattice (the payload of the triple
 /// buffers from the simulation to the haptic and graphics loops).
@@ -23,9 +26,11 @@ pub struct FieldPatch {
     pub coeffs: Vec<f32>,
     /// Whether a stroke was armed by command (in addition to the device's button 0).
     pub stroke_armed: bool,
-    /// Whether the held tool renders contact (the push and force tools do; a geometric tool
-    /// sculpts where the tip is and pushes nothing back).
-    pub contact_enabled: bool,
+    /// The held tool, as the haptic loop renders it.
+    pub tool: FeltTool,
+    /// The held stroke's anchor, pivot, curve and targets (fixed capacity: the haptic loop
+    /// copies it without allocating).
+    pub stroke: StrokeGeometry,
     /// Simulated time at publication, seconds.
     pub sim_time_s: f64,
     /// Simulation steps taken when this was published.
@@ -41,7 +46,8 @@ impl FieldPatch {
             coeff_box: None,
             coeffs: Vec::with_capacity(lattice.coeffs.len()),
             stroke_armed: false,
-            contact_enabled: true,
+            tool: FeltTool::Push,
+            stroke: StrokeGeometry::default(),
             sim_time_s: 0.0,
             sim_step: 0,
         }

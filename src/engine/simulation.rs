@@ -601,7 +601,8 @@ impl SimulationStage {
                 }
             }
             patch.stroke_armed = self.stroke_armed;
-            patch.contact_enabled = !matches!(self.tool.choice(), ToolChoice::Geometric(_));
+            patch.tool = self.tool.felt_tool();
+            self.tool.stroke_geometry(&mut patch.stroke);
             patch.sim_time_s = self.sim_time_s;
             patch.sim_step = self.steps;
             w.publish();

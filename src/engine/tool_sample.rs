@@ -5,9 +5,11 @@ use glam::Vec3;
 
 /// The latest tool state, published by the haptic loop through a triple buffer (plain data).
 ///
-/// Positions are in field coordinates. While `in_contact`, the tool applies the force vector
-/// from `force_from` (on the clay's surface) to `force_to` (the tool tip); the simulation maps
-/// it onto the mass points with Hua & Qin's eq. (6) evaluated on its own, newest field.
+/// Positions are in field coordinates. While `in_contact` with the push tool, the tool applies
+/// the force vector from `force_from` (the touch proxy, on the clay's surface) to `force_to`
+/// (the tool tip); the simulation maps it onto the mass points with Hua & Qin's eq. (6)
+/// evaluated on its own, newest field. With a force tool the pair is the first vector the
+/// haptic loop felt (for display); the simulation makes the tool's vectors itself.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolSample {
     /// Tool tip, field coordinates.
@@ -18,9 +20,12 @@ pub struct ToolSample {
     pub force_to: Vec3,
     /// Whether the user holds the stroke (button 0, or a stroke armed by command).
     pub stroke_active: bool,
-    /// Whether the tool is pushing into the clay this tick (a stroke is active and the tip is
-    /// inside the clay).
+    /// Whether the held tool is acting on the clay this tick (a stroke is active and the push
+    /// tool's tip is inside the clay, or a force tool has taken hold).
     pub in_contact: bool,
+    /// Whether the tip is inside the clay with the touch proxy on its surface.
+    #[serde(default)]
+    pub touching: bool,
     /// The force sent to the device after the safety filter, newtons.
     pub device_force_n: Vec3,
     /// The device sample's timestamp, microseconds of device time.
@@ -39,6 +44,7 @@ impl ToolSample {
         force_to: Vec3::ZERO,
         stroke_active: false,
         in_contact: false,
+        touching: false,
         device_force_n: Vec3::ZERO,
         device_time_us: 0,
         device_fault: false,

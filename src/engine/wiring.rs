@@ -75,7 +75,7 @@ pub fn build(
         monitor_tx,
         config.map,
         staleness,
-        config.contact,
+        config.haptics,
         counters.clone(),
         acks.haptic.clone(),
         swap_port,

@@ -223,6 +223,20 @@ impl ForceTool {
         }
     }
 
+    /// The tool's gain (density force per unit of force integral).
+    #[must_use]
+    pub fn gain(&self) -> f32 {
+        match *self {
+            Self::PointGrab { gain }
+            | Self::Area { gain, .. }
+            | Self::Curve { gain, .. }
+            | Self::Chisel { gain, .. }
+            | Self::Squirt { gain, .. }
+            | Self::Pull { gain, .. }
+            | Self::Bend { gain, .. } => gain,
+        }
+    }
+
     /// Checks that radii, depths and gains are positive and finite.
     ///
     /// # Errors

@@ -1,0 +1,414 @@
+//! The force the hand feels, one tick at a time: touch, the sculpting reaction, blending,
+//! passivity and shaping, in that order.
+//!
+//! Guarantee: after [`ForceRenderer::new`], [`ForceRenderer::render`] allocates nothing, takes
+//! no lock and does bounded work: one proxy update ([`super::MAX_PROXY_PROBES`] field
+//! evaluations), at most one sculpting reaction ([`super::SculptReaction`]'s bound) and
+//! constant work besides. It reads device time and device positions only, so a replay renders
+//! the same forces bit for bit.
+//!
+//! Per tick:
+//! 1. **Touch.** The proxy ([`super::SurfaceProxy`]) is moved; while it is on the surface the
+//!    touch force is a spring from the tip to the proxy, `k (proxy − tip)` at the device's
+//!    stiffness, plus a damper on the tip's normal velocity that fades in over the first
+//!    millimetre of depth.
+//! 2. **Sculpting.** During a stroke, the push tool feels eq. (6) along the vector from the
+//!    proxy to the tip; a force tool feels the sum over its vectors
+//!    ([`super::SculptReaction`]). Field units become newtons through the calibrated scale
+//!    times the haptic gain, and saturate smoothly (`F_max · tanh(|F| / F_max)`) at the
+//!    device's force limit instead of dropping.
+//! 3. **Blend.** Touch renders between strokes, sculpting during them; each cross-fades over
+//!    the shaping stage's `blend_s` when a stroke starts or ends or the tool changes.
+//! 4. **Passivity.** The observer's damper is added whenever the rendering has given the hand
+//!    more energy than it took ([`super::PassivityController`]).
+//! 5. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]); the safety filter
+//!    after it is a backstop.
+
+use glam::Vec3;
+
+use super::passivity::{PassivityConfig, PassivityController};
+use super::proxy::{ProxyConfig, SurfaceProxy, Touch};
+use super::sculpt::{FeltTool, SculptReaction, StrokeGeometry};
+use super::shaping::{Blend, ForceShaper, ShapingConfig};
+use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
+use crate::field::BSplineLattice;
+
+/// Depth over which the touch damper fades in, metres.
+const DAMPING_FADE_M: f32 = 1e-3;
+
+/// How the clay feels.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HapticConfig {
+    /// Friction of the touched surface.
+    pub proxy: ProxyConfig,
+    /// Rate limit and cross-fades.
+    pub shaping: ShapingConfig,
+    /// Passivity observer and damper.
+    pub passivity: PassivityConfig,
+    /// Stiffness of touch, newtons per metre.
+    pub touch_stiffness_n_per_m: f32,
+    /// Damping of touch along the normal, newton-seconds per metre.
+    pub touch_damping_n_s_per_m: f32,
+    /// Multiplies the calibrated sculpting force (1: pressing 5 mm into the fresh clay feels
+    /// [`CALIBRATION_FORCE_N`]).
+    pub haptic_gain: f32,
+}
+
+/// The sculpting force that a 5 mm press into the fresh clay gives at haptic gain 1, newtons:
+/// firm clay on a Touch-class arm.
+pub const CALIBRATION_FORCE_N: f32 = 2.0;
+/// The press depth of the calibration, metres.
+pub const CALIBRATION_DEPTH_M: f32 = 0.005;
+
+impl HapticConfig {
+    /// Settings for a device that renders `max_stiffness_n_per_m` and `max_damping_n_s_per_m`
+    /// stably: touch as stiff as the device allows, a fifth of its damping on the normal, the
+    /// passivity damper capped at its damping.
+    #[must_use]
+    pub fn for_device(max_stiffness_n_per_m: f32, max_damping_n_s_per_m: f32) -> Self {
+        let damping = if max_damping_n_s_per_m > 0.0 {
+            max_damping_n_s_per_m
+        } else {
+            PassivityConfig::default().max_damping_n_s_per_m
+        };
+        Self {
+            proxy: ProxyConfig::default(),
+            shaping: ShapingConfig::default(),
+            passivity: PassivityConfig {
+                max_damping_n_s_per_m: damping,
+                ..PassivityConfig::default()
+            },
+            touch_stiffness_n_per_m: max_stiffness_n_per_m.max(0.0),
+            touch_damping_n_s_per_m: 0.2 * damping,
+            haptic_gain: 1.0,
+        }
+    }
+}
+
+/// Newtons per unit of reaction (field units) such that pressing [`CALIBRATION_DEPTH_M`] into
+/// `field` from its top gives [`CALIBRATION_FORCE_N`], with `field_per_m` field units per
+/// device metre. The press is measured where a ray from the centre of the lattice straight up
+/// leaves the clay; `None` when it does not (no clay above the centre).
+#[must_use]
+pub fn calibrated_force_scale(field: &BSplineLattice, field_per_m: f32) -> Option<f32> {
+    let (lo, hi) = field.support();
+    let centre = (lo + hi) * 0.5;
+    let top = surface_point_on_ray(
+        field,
+        centre,
+        Vec3::Y,
+        hi.y - centre.y,
+        0.25 * field.spacing,
+    )?;
+    let depth = CALIBRATION_DEPTH_M * field_per_m;
+    let f = force_integral(field, top, top - Vec3::Y * depth).abs();
+    (f.is_finite() && f > 0.0).then(|| CALIBRATION_FORCE_N / f)
+}
+
+/// Everything a tick reads.
+#[derive(Clone, Copy, Debug)]
+pub struct FeltInput<'a> {
+    /// The haptic loop's field.
+    pub field: &'a BSplineLattice,
+    /// The tip, field coordinates.
+    pub tip: Vec3,
+    /// The tip's device position, metres.
+    pub position_m: Vec3,
+    /// The tip's device velocity, metres per second.
+    pub velocity_m_per_s: Vec3,
+    /// Device time of the sample, microseconds.
+    pub time_us: u64,
+    /// Field units per device metre.
+    pub field_per_m: f32,
+    /// Newtons per unit of reaction at haptic gain 1.
+    pub force_n_per_unit: f32,
+    /// Whether a stroke is held.
+    pub stroke_active: bool,
+    /// The held tool.
+    pub tool: FeltTool,
+    /// The stroke as the simulation fixed it.
+    pub stroke: &'a StrokeGeometry,
+    /// Fade from the field's age (1 fresh, 0 stale).
+    pub fade: f32,
+    /// Where the sculpting force saturates, newtons (the device's force limit).
+    pub saturation_n: f32,
+    /// The force sent to the device over the interval that ends now, newtons.
+    pub sent_n: Vec3,
+}
+
+/// What a tick rendered.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Felt {
+    /// The shaped force to send (before the safety filter), newtons.
+    pub force_n: Vec3,
+    /// The touch proxy.
+    pub touch: Touch,
+    /// The sculpting force vector (push: proxy → tip; a force tool: its first vector).
+    pub vector: Option<(Vec3, Vec3)>,
+    /// Whether a stroke's tool is acting on the clay.
+    pub sculpting: bool,
+    /// The passivity observer's energy, joules.
+    pub energy_j: f32,
+}
+
+/// The haptic renderer's state (see the module docs).
+#[derive(Clone, Debug)]
+pub struct ForceRenderer {
+    config: HapticConfig,
+    proxy: SurfaceProxy,
+    sculpt: SculptReaction,
+    shaper: ForceShaper,
+    passivity: PassivityController,
+    touch_blend: Blend,
+    sculpt_blend: Blend,
+    last_tool: FeltTool,
+    /// A tool switch fades the sculpting force out before the new tool fades in.
+    switching: bool,
+}
+
+impl ForceRenderer {
+    /// A renderer at rest.
+    #[must_use]
+    pub fn new(config: HapticConfig) -> Self {
+        Self {
+            proxy: SurfaceProxy::new(config.proxy),
+            sculpt: SculptReaction::default(),
+            shaper: ForceShaper::new(config.shaping),
+            passivity: PassivityController::new(config.passivity),
+            touch_blend: Blend::default(),
+            sculpt_blend: Blend::default(),
+            last_tool: FeltTool::default(),
+            switching: false,
+            config,
+        }
+    }
+
+    /// The settings.
+    #[must_use]
+    pub fn config(&self) -> &HapticConfig {
+        &self.config
+    }
+
+    /// Sets the haptic gain (finite, ≥ 0; others are ignored).
+    pub fn set_haptic_gain(&mut self, gain: f32) {
+        if gain.is_finite() && gain >= 0.0 {
+            self.config.haptic_gain = gain;
+        }
+    }
+
+    /// Zero force at once and no contact (a device fault or a new device: the safety filter
+    /// sent zero already).
+    pub fn reset(&mut self) {
+        self.proxy.release();
+        self.shaper.reset();
+        self.passivity.reset();
+        self.touch_blend.reset();
+        self.sculpt_blend.reset();
+    }
+
+    /// Renders one tick.
+    pub fn render(&mut self, input: &FeltInput) -> Felt {
+        let dt = self.shaper.elapsed_s(input.time_us);
+        self.passivity.observe(input.position_m, input.sent_n, dt);
+        let touch = self.proxy.update(input.field, input.tip);
+        let per_m = input.field_per_m.max(f32::MIN_POSITIVE);
+
+        // Sculpting reaction, field units.
+        let (reaction, vector, sculpting) = if input.stroke_active {
+            match input.tool {
+                FeltTool::Push if touch.touching => (
+                    reaction_force(input.field, touch.proxy, input.tip),
+                    Some((touch.proxy, input.tip)),
+                    true,
+                ),
+                FeltTool::Force(tool) => {
+                    let f = self
+                        .sculpt
+                        .compute(&tool, input.field, input.tip, input.stroke);
+                    (f.reaction, f.first, f.vectors > 0)
+                }
+                _ => (Vec3::ZERO, None, false),
+            }
+        } else {
+            (Vec3::ZERO, None, false)
+        };
+        let scale = input.force_n_per_unit * self.config.haptic_gain;
+        let sculpt_n = saturate(reaction * scale, input.saturation_n);
+
+        // Touch, newtons.
+        let touch_n = if touch.touching {
+            let spring = (touch.proxy - input.tip) / per_m * self.config.touch_stiffness_n_per_m;
+            let depth_m = touch.depth / per_m;
+            let fade_in = (depth_m / DAMPING_FADE_M).min(1.0);
+            let normal_speed = input.velocity_m_per_s.dot(touch.normal);
+            let damper =
+                -touch.normal * (normal_speed * self.config.touch_damping_n_s_per_m * fade_in);
+            saturate(spring + damper, input.saturation_n)
+        } else {
+            Vec3::ZERO
+        };
+
+        // Blend the sources.
+        if input.tool != self.last_tool {
+            self.last_tool = input.tool;
+            self.switching = true;
+        }
+        let blend_s = self.config.shaping.blend_s;
+        let sculpt_on =
+            input.stroke_active && !self.switching && !matches!(input.tool, FeltTool::Geometric);
+        let ws = self.sculpt_blend.advance(sculpt_on, dt, blend_s);
+        if self.switching && ws == 0.0 {
+            self.switching = false;
+        }
+        let wt = self.touch_blend.advance(!input.stroke_active, dt, blend_s);
+        let fade = if input.fade.is_finite() {
+            input.fade.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut target = (touch_n * wt + sculpt_n * ws) * fade;
+
+        // Passivity: a new account between contacts; the damper while in deficit.
+        if target == Vec3::ZERO && self.shaper.output_n() == Vec3::ZERO {
+            self.passivity.restart();
+        } else {
+            target += self.passivity.damping_n(dt);
+        }
+        let force_n = self.shaper.shape(target, dt);
+        Felt {
+            force_n,
+            touch,
+            vector,
+            sculpting,
+            energy_j: self.passivity.energy_j(),
+        }
+    }
+}
+
+/// `v` with its length passed through `limit · tanh(|v| / limit)`: linear for small forces,
+/// smoothly saturating at `limit` (zero for a non-positive limit).
+#[must_use]
+pub fn saturate(v: Vec3, limit: f32) -> Vec3 {
+    let len = v.length();
+    if !(limit > 0.0 && len.is_finite()) {
+        return Vec3::ZERO;
+    }
+    if len == 0.0 {
+        return v;
+    }
+    v * (limit * (len / limit).tanh() / len)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::{Primitive, lattice_from_primitive};
+
+    /// Solid below y = 1.0.
+    fn slab() -> BSplineLattice {
+        lattice_from_primitive(
+            [14, 14, 14],
+            0.2,
+            Vec3::ZERO,
+            &Primitive::Box {
+                centre: Vec3::new(1.3, 0.5, 1.3),
+                half_extents: Vec3::new(2.0, 0.5, 2.0),
+            },
+            0.4,
+            2,
+        )
+        .unwrap()
+    }
+
+    fn input<'a>(
+        field: &'a BSplineLattice,
+        stroke: &'a StrokeGeometry,
+        y: f32,
+        t_us: u64,
+        active: bool,
+    ) -> FeltInput<'a> {
+        FeltInput {
+            field,
+            tip: Vec3::new(1.3, y, 1.3),
+            position_m: Vec3::new(0.0, y / 10.0, 0.0),
+            velocity_m_per_s: Vec3::ZERO,
+            time_us: t_us,
+            field_per_m: 10.0,
+            force_n_per_unit: 300.0,
+            stroke_active: active,
+            tool: FeltTool::Push,
+            stroke,
+            fade: 1.0,
+            saturation_n: 8.0,
+            sent_n: Vec3::ZERO,
+        }
+    }
+
+    #[test]
+    fn touch_is_a_stiff_spring_to_the_proxy_and_zero_outside() {
+        let field = slab();
+        let stroke = StrokeGeometry::default();
+        let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
+        let mut t = 0;
+        let mut run = |y: f32, r: &mut ForceRenderer| {
+            let mut f = Vec3::ZERO;
+            for _ in 0..200 {
+                t += 1000;
+                f = r.render(&input(&field, &stroke, y, t, false)).force_n;
+            }
+            f
+        };
+        assert_eq!(run(1.1, &mut r), Vec3::ZERO);
+        // 1 mm deep (0.01 field units at 10 per metre): 2 N at 2 kN/m, before saturation
+        // (the fitted surface is within a tenth of a millimetre of y = 1).
+        let f = run(0.99, &mut r);
+        assert!((1.8..2.2).contains(&f.y), "{f}");
+        assert!(f.x.abs() < 1e-3 && f.z.abs() < 1e-3);
+        assert_eq!(run(1.1, &mut r), Vec3::ZERO, "released");
+    }
+
+    #[test]
+    fn a_push_stroke_cross_fades_from_touch_to_the_sculpting_reaction() {
+        let field = slab();
+        let stroke = StrokeGeometry::default();
+        let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
+        let mut t = 0;
+        for _ in 0..50 {
+            t += 1000;
+            r.render(&input(&field, &stroke, 1.1, t, false));
+        }
+        let mut last = Vec3::ZERO;
+        let mut max_step = 0.0_f32;
+        for i in 0..200 {
+            t += 1000;
+            // Touch down to 5 mm, then start the stroke.
+            let f = r.render(&input(&field, &stroke, 0.95, t, i >= 100));
+            max_step = max_step.max((f.force_n - last).length());
+            last = f.force_n;
+            if i >= 130 {
+                assert!(f.sculpting && f.vector.is_some());
+            }
+        }
+        let sculpt = saturate(
+            reaction_force(&field, Vec3::new(1.3, 1.0, 1.3), Vec3::new(1.3, 0.95, 1.3)) * 300.0,
+            8.0,
+        );
+        assert!(
+            (last - sculpt).length() < 0.05 * sculpt.length() + 1e-3,
+            "{last} vs {sculpt}"
+        );
+        assert!(
+            max_step <= 0.5 + 1e-5,
+            "step {max_step} N over the rate limit"
+        );
+    }
+
+    #[test]
+    fn saturation_is_smooth_and_bounded() {
+        let big = saturate(Vec3::new(0.0, 100.0, 0.0), 8.0);
+        assert!(big.y <= 8.0 && big.y > 7.99);
+        let small = saturate(Vec3::new(0.0, 0.1, 0.0), 8.0);
+        assert!((small.y - 0.1).abs() < 1e-3);
+        assert_eq!(saturate(Vec3::NAN, 8.0), Vec3::ZERO);
+    }
+}
