@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 
 use dynaclay::engine::{Command, Engine, EngineError, HeadlessSink};
 use dynaclay_devices::{
-    DeviceError, DeviceInfo, DeviceState, HapticDevice, SimArmConfig, SimulatedArm, Trajectory,
+    DeviceError, DeviceInfo, DeviceState, HapticDevice, Interpolation, SimArmConfig, SimulatedArm,
+    Trajectory, Waypoint,
 };
 use glam::Vec3;
 
@@ -24,9 +25,22 @@ struct Watched {
 
 impl Watched {
     fn holding(position_m: Vec3) -> (Self, Arc<AtomicBool>, Arc<AtomicU32>) {
+        Self::following(Trajectory::hold(position_m))
+    }
+
+    /// An arm whose hand comes down from above the block into it (2 cm deep at the centre).
+    fn pressing_in() -> (Self, Arc<AtomicBool>, Arc<AtomicU32>) {
+        let path = vec![
+            Waypoint::new(0.0, Vec3::new(0.0, 0.08, 0.0)),
+            Waypoint::new(0.5, Vec3::new(0.0, 0.03, 0.0)),
+        ];
+        Self::following(Trajectory::new(path, Interpolation::Linear).expect("trajectory"))
+    }
+
+    fn following(trajectory: Trajectory) -> (Self, Arc<AtomicBool>, Arc<AtomicU32>) {
         let closed = Arc::new(AtomicBool::new(false));
         let last = Arc::new(AtomicU32::new(0));
-        let arm = SimulatedArm::new(SimArmConfig::default(), Trajectory::hold(position_m));
+        let arm = SimulatedArm::new(SimArmConfig::default(), trajectory);
         (
             Self {
                 arm,
@@ -107,9 +121,9 @@ fn wait_for(engine: &mut Engine, what: &str, cond: impl Fn(&dynaclay::engine::To
 fn devices_switch_disconnect_and_reconnect_while_the_haptic_loop_keeps_ticking() {
     let s = common::setup(common::PUSH_SCRIPT, vec![]);
     let map = s.config.map;
-    // The first arm rests at the workspace centre, inside the block: with a stroke armed it
-    // pushes and feels a force when the switch comes.
-    let (first, first_closed, first_force) = Watched::holding(Vec3::ZERO);
+    // The first arm comes down into the block: with a stroke armed it pushes and feels a force
+    // when the switch comes.
+    let (first, first_closed, first_force) = Watched::pressing_in();
     let mut engine = Engine::start(
         &s.config,
         s.field,

@@ -29,8 +29,6 @@ const BISECT_STEPS: usize = 12;
 const OUTWARD_STEPS: usize = 6;
 /// Newton steps that put a sliding proxy back on the surface.
 const NEWTON_STEPS: usize = 3;
-/// How far outside a slid proxy looks for the surface when Newton left it inside, knot spans.
-const NUDGE_SPANS: f32 = 0.05;
 /// Upper bound on field evaluations in one [`SurfaceProxy::update`].
 pub const MAX_PROXY_PROBES: usize =
     2 + BISECT_STEPS + (OUTWARD_STEPS + BISECT_STEPS) + 1 + NEWTON_STEPS + 2 + BISECT_STEPS;
@@ -105,11 +103,21 @@ impl SurfaceProxy {
         }
     }
 
-    /// Forgets the contact (device fault, device switch): a tip inside the clay counts as
-    /// buried until it leaves.
+    /// Forgets the contact (device fault, device switch, a stroke released inside the clay):
+    /// a tip inside the clay counts as buried until it leaves.
     pub fn release(&mut self) {
         self.proxy = None;
         self.touching = false;
+    }
+
+    /// Buries a tip that is inside the clay now (a stroke ended with the tool in the clay:
+    /// sculpting moved the surface to the tool, and a rigid surface there would kick the hand
+    /// out). Nothing happens to a tip outside.
+    pub fn bury_if_inside(&mut self, field: &BSplineLattice, tip: Vec3) {
+        if tip.is_finite() && field.value(tip) > field.iso {
+            self.release();
+            self.buried = true;
+        }
     }
 
     /// Whether the proxy is on the surface.
@@ -198,13 +206,9 @@ impl SurfaceProxy {
         if field.value(projected) <= field.iso {
             return projected;
         }
-        // Newton landed a hair inside: take the crossing just outside along the normal.
-        let outside = projected + normal * (NUDGE_SPANS * field.spacing);
-        if field.value(outside) <= field.iso {
-            crossing(field, outside, projected)
-        } else {
-            seated
-        }
+        // The way to the tip's projection is blocked (a wall ahead): go as far as the surface
+        // along the straight line, as a god object does.
+        crossing(field, seated, projected)
     }
 }
 

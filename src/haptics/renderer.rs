@@ -18,7 +18,9 @@
 //!    times the haptic gain, and saturate smoothly (`F_max · tanh(|F| / F_max)`) at the
 //!    device's force limit instead of dropping.
 //! 3. **Blend.** Touch renders between strokes, sculpting during them; each cross-fades over
-//!    the shaping stage's `blend_s` when a stroke starts or ends or the tool changes.
+//!    the shaping stage's `blend_s` when a stroke starts or ends or the tool changes. A stroke
+//!    that ends with the tool inside the clay leaves it buried (no touch until it comes out):
+//!    the sculpting force fades out and nothing kicks the hand.
 //! 4. **Passivity.** The observer's damper is added whenever the rendering has given the hand
 //!    more energy than it took ([`super::PassivityController`]).
 //! 5. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]); the safety filter
@@ -164,6 +166,8 @@ pub struct ForceRenderer {
     last_tool: FeltTool,
     /// A tool switch fades the sculpting force out before the new tool fades in.
     switching: bool,
+    /// Whether the previous tick held a stroke.
+    was_stroke: bool,
 }
 
 impl ForceRenderer {
@@ -179,6 +183,7 @@ impl ForceRenderer {
             sculpt_blend: Blend::default(),
             last_tool: FeltTool::default(),
             switching: false,
+            was_stroke: false,
             config,
         }
     }
@@ -210,6 +215,10 @@ impl ForceRenderer {
     pub fn render(&mut self, input: &FeltInput) -> Felt {
         let dt = self.shaper.elapsed_s(input.time_us);
         self.passivity.observe(input.position_m, input.sent_n, dt);
+        if self.was_stroke && !input.stroke_active {
+            self.proxy.bury_if_inside(input.field, input.tip);
+        }
+        self.was_stroke = input.stroke_active;
         let touch = self.proxy.update(input.field, input.tip);
         let per_m = input.field_per_m.max(f32::MIN_POSITIVE);
 
