@@ -72,40 +72,66 @@ pub const REFIND_MARCH_STEPS: u32 = 8;
 /// Bisection steps of [`start_on_surface`].
 pub const REFIND_BISECT_STEPS: u32 = 8;
 
-/// The start of the force vector `start → end` found again on the current surface: the
-/// iso-surface crossing on the segment nearest `end`, or `start` when the segment does not
-/// cross (Hua & Qin §7.2.2). Because `x0` is a surface point, a surface that follows the
-/// cursor shortens the vector, so the force falls to zero as the surface reaches the cursor;
-/// a fixed `x0` would stall the surface where `∫(s − iso)` vanishes, half-way.
+/// The start of the force vector `start → end` found again on the current surface (Hua &
+/// Qin §7.2.2): the iso-surface crossing on the segment nearest `end`. Because `x0` is a
+/// surface point, a surface that follows the cursor shortens the vector, so the force falls
+/// to zero as the surface reaches the cursor; a fixed `x0` would stall the surface where
+/// `∫(s − iso)` vanishes, half-way.
+///
+/// When the segment does not cross the surface:
+/// - both ends inside: the surface has reached (or passed) the cursor. The start is the exit
+///   crossing just beyond `end`, within one segment length along the vector, so the vector
+///   turns into a short push back and the force passes smoothly through zero; with no exit
+///   within that reach (the cursor deep in the clay), `start`;
+/// - both ends outside: `start` (the vector acts in open air, as eq. 6 gives).
 ///
 /// The same rule serves the simulation (which force vectors act on the clay) and the haptic
 /// loop (what the hand feels), so both integrate the same vectors. Bounded work: at most
-/// [`REFIND_MARCH_STEPS`] + [`REFIND_BISECT_STEPS`] + 1 field evaluations; allocates nothing.
+/// `2 · (`[`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`]`) + 1` field evaluations;
+/// allocates nothing.
 #[must_use]
 pub fn start_on_surface(lattice: &BSplineLattice, start: Vec3, end: Vec3) -> Vec3 {
     if !(start.is_finite() && end.is_finite()) {
         return start;
     }
     let end_inside = lattice.is_inside(end);
-    let back = start - end;
+    if let Some(x) = first_change(lattice, end, start - end, end_inside) {
+        return x;
+    }
+    if end_inside {
+        if let Some(x) = first_change(lattice, end, end - start, true) {
+            return x;
+        }
+    }
+    start
+}
+
+/// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
+/// `from_inside`, refined by bisection; `None` when there is none at the march's resolution.
+fn first_change(
+    lattice: &BSplineLattice,
+    from: Vec3,
+    span: Vec3,
+    from_inside: bool,
+) -> Option<Vec3> {
     let mut near = 0.0_f32;
     for i in 1..=REFIND_MARCH_STEPS {
         let t = i as f32 / REFIND_MARCH_STEPS as f32;
-        if lattice.is_inside(end + back * t) != end_inside {
+        if lattice.is_inside(from + span * t) != from_inside {
             let mut far = t;
             for _ in 0..REFIND_BISECT_STEPS {
                 let mid = 0.5 * (near + far);
-                if lattice.is_inside(end + back * mid) == end_inside {
+                if lattice.is_inside(from + span * mid) == from_inside {
                     near = mid;
                 } else {
                     far = mid;
                 }
             }
-            return end + back * (0.5 * (near + far));
+            return Some(from + span * (0.5 * (near + far)));
         }
         near = t;
     }
-    start
+    None
 }
 
 /// The first point where the solid ends along the ray from `anchor` in direction `toward`

@@ -44,6 +44,8 @@ pub struct HapticOutcome {
     pub fade: f32,
     /// Whether the device read or write failed this tick.
     pub device_fault: bool,
+    /// The passivity observer's energy account, joules (negative: a deficit being spent).
+    pub passivity_energy_j: f32,
 }
 
 /// The haptic loop's state: the device (behind the safety filter), its own field copy and the
@@ -251,6 +253,7 @@ impl HapticStage {
             requested_force_n: requested,
             fade,
             device_fault,
+            passivity_energy_j: felt.energy_j,
         }
     }
 
@@ -333,6 +336,7 @@ impl HapticStage {
             requested_force_n: Vec3::ZERO,
             fade: 0.0,
             device_fault,
+            passivity_energy_j: 0.0,
         }
     }
 

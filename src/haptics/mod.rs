@@ -12,11 +12,11 @@ mod renderer;
 mod sculpt;
 mod shaping;
 
-pub use passivity::{PassivityConfig, PassivityController};
+pub use passivity::{MAX_SENSOR_DELAY_TICKS, PassivityConfig, PassivityController};
 pub use proxy::{MAX_PROXY_PROBES, ProxyConfig, SurfaceProxy, Touch};
 pub use renderer::{
     CALIBRATION_DEPTH_M, CALIBRATION_FORCE_N, Felt, FeltInput, ForceRenderer, HapticConfig,
-    calibrated_force_scale, saturate,
+    calibrated_force_scale, saturate, spring_energy_j,
 };
 pub use sculpt::{
     FELT_TARGETS, FeltTool, MAX_FELT_VECTORS, MAX_STROKE_POINTS, MAX_TOOL_VECTORS, SculptForce,

@@ -206,9 +206,10 @@ impl SurfaceProxy {
         if field.value(projected) <= field.iso {
             return projected;
         }
-        // The way to the tip's projection is blocked (a wall ahead): go as far as the surface
-        // along the straight line, as a god object does.
-        crossing(field, seated, projected)
+        // Newton stopped a hair inside: step out along the normal there. Failing that, the way
+        // to the tip's projection is blocked (a wall ahead): go as far as the surface along
+        // the straight line, as a god object does.
+        push_out(field, projected).unwrap_or_else(|| crossing(field, seated, projected))
     }
 }
 

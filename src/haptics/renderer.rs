@@ -21,10 +21,12 @@
 //!    the shaping stage's `blend_s` when a stroke starts or ends or the tool changes. A stroke
 //!    that ends with the tool inside the clay leaves it buried (no touch until it comes out):
 //!    the sculpting force fades out and nothing kicks the hand.
-//! 4. **Passivity.** The observer's damper is added whenever the rendering has given the hand
-//!    more energy than it took ([`super::PassivityController`]).
-//! 5. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]); the safety filter
-//!    after it is a backstop.
+//! 4. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]).
+//! 5. **Passivity.** The observer's damper is added whenever the hand has put in less energy
+//!    than the rendering stores ([`super::PassivityController`]). It comes after the rate
+//!    limit, which would otherwise hold it back half an oscillation and turn it into a source;
+//!    its size is bounded by the device's damping times the (filtered) speed, and the safety
+//!    filter's slew limit after it is the backstop.
 
 use glam::Vec3;
 
@@ -275,15 +277,31 @@ impl ForceRenderer {
         } else {
             0.0
         };
-        let mut target = (touch_n * wt + sculpt_n * ws) * fade;
+        let target = (touch_n * wt + sculpt_n * ws) * fade;
 
-        // Passivity: a new account between contacts; the damper while in deficit.
-        if target == Vec3::ZERO && self.shaper.output_n() == Vec3::ZERO {
-            self.passivity.restart();
+        // Shaping, then passivity: the damper while in deficit, in contact only (free space
+        // stays free). The damper comes after the rate limit: it answers an oscillation within
+        // the tick, and a damper held back by a rate limit would feed the oscillation instead.
+        let shaped = self.shaper.shape(target, dt);
+        let force_n = if target == Vec3::ZERO && shaped == Vec3::ZERO {
+            self.passivity.between_contacts();
+            shaped
         } else {
-            target += self.passivity.damping_n(dt);
-        }
-        let force_n = self.shaper.shape(target, dt);
+            // What the touch spring stores and will give back on the way out: the work to
+            // press it to its depth, `∫ F_max tanh(k x / F_max) dx`.
+            let stored_j = if touch.touching {
+                spring_energy_j(
+                    self.config.touch_stiffness_n_per_m,
+                    touch.depth / per_m,
+                    input.saturation_n,
+                ) * wt
+                    * fade
+            } else {
+                0.0
+            };
+            let damper = self.passivity.damping_n(dt, stored_j);
+            shaped + damper.clamp_length_max(input.saturation_n.max(0.0))
+        };
         Felt {
             force_n,
             touch,
@@ -292,6 +310,23 @@ impl ForceRenderer {
             energy_j: self.passivity.energy_j(),
         }
     }
+}
+
+/// The work to press the saturating touch spring (`F = F_max · tanh(k x / F_max)`) to
+/// `depth_m`, joules: `(F_max² / k) · ln cosh(k · depth / F_max)`.
+#[must_use]
+pub fn spring_energy_j(stiffness_n_per_m: f32, depth_m: f32, saturation_n: f32) -> f32 {
+    if !(stiffness_n_per_m > 0.0 && saturation_n > 0.0 && depth_m > 0.0) {
+        return 0.0;
+    }
+    let u = stiffness_n_per_m * depth_m / saturation_n;
+    // ln cosh u; past u = 10, as u − ln 2 (cosh would lose nothing but may overflow later).
+    let ln_cosh = if u < 10.0 {
+        u.cosh().ln()
+    } else {
+        u - std::f32::consts::LN_2
+    };
+    saturation_n * saturation_n / stiffness_n_per_m * ln_cosh
 }
 
 /// `v` with its length passed through `limit · tanh(|v| / limit)`: linear for small forces,
@@ -380,7 +415,10 @@ mod tests {
     fn a_push_stroke_cross_fades_from_touch_to_the_sculpting_reaction() {
         let field = slab();
         let stroke = StrokeGeometry::default();
-        let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
+        // The shaped force alone (the passivity damper comes after the rate limit).
+        let mut config = HapticConfig::for_device(2000.0, 10.0);
+        config.passivity.enabled = false;
+        let mut r = ForceRenderer::new(config);
         let mut t = 0;
         for _ in 0..50 {
             t += 1000;
@@ -388,13 +426,14 @@ mod tests {
         }
         let mut last = Vec3::ZERO;
         let mut max_step = 0.0_f32;
-        for i in 0..200 {
+        for i in 0..300 {
             t += 1000;
-            // Touch down to 5 mm, then start the stroke.
-            let f = r.render(&input(&field, &stroke, 0.95, t, i >= 100));
+            // Touch down to 5 mm at 0.1 m/s, hold, then start the stroke.
+            let y = (1.1 - 0.001 * i as f32).max(0.95);
+            let f = r.render(&input(&field, &stroke, y, t, i >= 200));
             max_step = max_step.max((f.force_n - last).length());
             last = f.force_n;
-            if i >= 130 {
+            if i >= 230 {
                 assert!(f.sculpting && f.vector.is_some());
             }
         }
@@ -410,6 +449,17 @@ mod tests {
             max_step <= 0.5 + 1e-5,
             "step {max_step} N over the rate limit"
         );
+    }
+
+    #[test]
+    fn the_stored_energy_is_the_work_to_press_the_saturating_spring() {
+        // Well below saturation: ½ k d².
+        let e = spring_energy_j(1000.0, 1e-3, 8.0);
+        assert!((e - 0.5e-3).abs() < 5e-6, "{e}");
+        // Deep in saturation: about F_max · d.
+        let e = spring_energy_j(3000.0, 0.1, 8.0);
+        assert!((e - 8.0 * 0.1).abs() < 0.02, "{e}");
+        assert_eq!(spring_energy_j(1000.0, -1.0, 8.0), 0.0);
     }
 
     #[test]

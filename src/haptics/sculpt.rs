@@ -9,12 +9,15 @@
 //! simulation published, at most a step old — along the same force vectors the simulation
 //! applies ([`crate::tools::ForceTool::forces`] with the stroke's anchor, then
 //! [`start_on_surface`]). The felt force is the sum over the vectors of the equal and opposite
-//! of the sculpting force, `Σ wᵢ |fᵢ| (x0ᵢ − x1ᵢ)/lᵢ`, with `wᵢ` a vector's share of the
-//! tool's gain (an area tool's β profile). Every start is a surface point, so the force falls
-//! smoothly to zero as the surface reaches the cursor. Tools with more vectors than
-//! [`MAX_FELT_VECTORS`] (a wide area tool) are felt through an evenly strided subset scaled by
-//! the count, so the sum keeps its size; a chisel or squirt is felt through its last
-//! [`FELT_TARGETS`] targets, the ones near the tool (earlier ones have reached their depth).
+//! of the sculpting force, summed with weights: `Σ wᵢ |fᵢ| (x0ᵢ − x1ᵢ)/lᵢ / max(1, Σ wᵢ)`, with
+//! `wᵢ` a vector's share of the tool's gain (an area tool's β profile). The division keeps a
+//! many-vector tool as stiff as a point grab: the plain sum over an area tool's fifty tracks
+//! is fifty times stiffer than one vector, far past what an arm renders stably (it buzzed on
+//! the recorded sessions of `tests/haptic_quality.rs`). Every start is a surface point, so
+//! the force falls smoothly to zero as the surface reaches the cursor. Tools with more vectors
+//! than [`MAX_FELT_VECTORS`] (a wide area tool) are felt through an evenly strided subset; a
+//! chisel or squirt is felt through its last [`FELT_TARGETS`] targets, the ones near the tool
+//! (earlier ones have reached their depth).
 
 use glam::Vec3;
 
@@ -181,7 +184,7 @@ impl SculptReaction {
         let tool_gain = tool.gain();
         let mut reaction = Vec3::ZERO;
         let mut first = None;
-        let mut felt = 0usize;
+        let mut shares = 0.0_f32;
         for v in self.vectors[..n].iter().step_by(stride) {
             let start = start_on_surface(field, v.start, v.end);
             if first.is_none() {
@@ -193,10 +196,10 @@ impl SculptReaction {
                 1.0
             };
             reaction += reaction_force(field, start, v.end) * share;
-            felt += 1;
+            // Strided: each felt vector stands for `stride` of them.
+            shares += share * stride as f32;
         }
-        // Strided: each felt vector stands for `n / felt` of them.
-        reaction *= n as f32 / felt as f32;
+        reaction *= stride as f32 / shares.max(1.0);
         SculptForce {
             reaction: if reaction.is_finite() {
                 reaction
@@ -265,7 +268,7 @@ mod tests {
     }
 
     #[test]
-    fn a_wide_area_tool_is_felt_as_the_sum_over_its_tracks() {
+    fn a_wide_area_tool_is_felt_as_the_weighted_mean_over_its_tracks() {
         let field = ball();
         let mut r = SculptReaction::default();
         let anchor = Vec3::new(1.3, 0.95, 0.95);
@@ -280,8 +283,8 @@ mod tests {
         let many = r.compute(&area(12), &field, cursor, &stroke_at(anchor));
         assert!(many.vectors > MAX_FELT_VECTORS);
         assert!(one.reaction.x < 0.0 && many.reaction.x < 0.0);
-        // About `vectors` times the single track (the disc is nearly flat over 5 cm).
-        let ratio = many.reaction.x / one.reaction.x / many.vectors as f32;
+        // About the single track (the disc is nearly flat over 5 cm), not a hundred times it.
+        let ratio = many.reaction.x / one.reaction.x;
         assert!((0.6..1.2).contains(&ratio), "ratio {ratio}");
     }
 }

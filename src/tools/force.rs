@@ -173,6 +173,16 @@ pub fn nearest_solid_point(
     best.map(|(_, x)| x)
 }
 
+/// Density above the iso-level at which a track's start counts as fully held.
+const HOLD_BAND: f32 = 0.25;
+
+/// How firmly the clay holds a point: 0 at or outside the surface, rising linearly to 1 at
+/// [`HOLD_BAND`] of density above the iso-level.
+#[must_use]
+pub fn hold_weight(lattice: &BSplineLattice, x: Vec3) -> f32 {
+    ((lattice.value(x) - lattice.iso) / HOLD_BAND).clamp(0.0, 1.0)
+}
+
 /// The outward unit normal of the solid at `x` (the density falls outward), or zero.
 #[must_use]
 pub fn outward_normal(lattice: &BSplineLattice, x: Vec3) -> Vec3 {
@@ -343,8 +353,13 @@ impl ForceTool {
                     for a in 0..t {
                         let o = (a as f32 + 0.5 - 0.5 * t as f32) * pitch * u
                             + (b as f32 + 0.5 - 0.5 * t as f32) * pitch * v;
-                        // The track's weight is the β profile at its offset.
-                        let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_m);
+                        // The track's weight is the β profile at its offset, times how firmly
+                        // its start is held in the clay: a track whose start the clay has
+                        // left holds nothing, and fades out instead of dropping (its vector
+                        // would otherwise jump from the short re-found one to the whole
+                        // segment in open air).
+                        let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_m)
+                            * hold_weight(lattice, input.grab + o);
                         if w <= 0.0 {
                             continue;
                         }
@@ -561,7 +576,8 @@ mod tests {
     #[test]
     fn area_tracks_follow_the_beta_profile_and_respect_the_buffer() {
         let l = sphere();
-        let grab = CENTRE + Vec3::X * RADIUS;
+        // Held well inside the clay, where every track's start is fully held.
+        let grab = CENTRE + Vec3::X * (RADIUS - 0.15);
         let cursor = grab + Vec3::X * 0.1;
         let mut out = [ToolForce {
             start: Vec3::ZERO,
@@ -586,6 +602,12 @@ mod tests {
         }
         // A short buffer truncates rather than overflows.
         assert_eq!(tool.forces(&l, &input(grab, cursor, &[]), &mut out[..5]), 5);
+        // Held outside the clay, no track holds anything.
+        let outside = CENTRE + Vec3::X * (RADIUS + 0.1);
+        assert_eq!(
+            tool.forces(&l, &input(outside, outside + Vec3::X * 0.1, &[]), &mut out),
+            0
+        );
     }
 
     #[test]

@@ -1,0 +1,528 @@
+//! Force quality on recorded sessions of the simulated arm, through the lockstep engine: for
+//! touch and for the push, grab, pull, area, chisel and squirt tools, the forces written to the
+//! device (read back from the recording) have
+//! - no step between ticks larger than the shaping stage's limit,
+//! - no sign reversal along the contact normal during steady contact,
+//! - under 5% of their (mean-free) spectral energy above 100 Hz during steady contact,
+//! - zero force (within 1 mN) while the tip is outside the clay with no stroke held,
+//! - and a pull renders a force toward the surface.
+//!
+//! A second test sweeps the arm's grip stiffness and damping at 1 and 4 kHz with a noisy,
+//! one-tick-delayed position signal and checks passivity at the device port: over a
+//! press–release cycle the device does no more work on the hand than the hand did on it, within
+//! 1% of the peak energy.
+
+mod common;
+
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
+
+use dynaclay::dynamics::Distribution;
+use dynaclay::engine::{
+    Command, EngineConfig, ForceStrokeTool, HeadlessSink, Lockstep, ToolChoice,
+};
+use dynaclay::field::BSplineLattice;
+use dynaclay::haptics::ShapingConfig;
+use dynaclay::tools::ForceTool;
+use dynaclay_devices::record::{Record, Recording, RecordingDevice};
+use dynaclay_devices::{
+    DeviceError, DeviceInfo, DeviceState, Fault, FaultKind, HapticDevice, Interpolation,
+    SimArmConfig, SimulatedArm, Trajectory, Waypoint,
+};
+use glam::Vec3;
+
+/// The block's top face in device coordinates (the default 20³ clay on the simulated arm).
+const TOP_Y_M: f32 = 0.05;
+
+/// One tick of a recorded session.
+#[derive(Clone, Copy, Debug)]
+struct Tick {
+    buttons: u32,
+    /// Force written to the device at this tick, newtons.
+    force_n: Vec3,
+    /// Whether the tip was inside the clay or a tool acted (from the engine's sample).
+    touching: bool,
+    in_contact: bool,
+}
+
+fn clay() -> (BSplineLattice, EngineConfig, SimArmConfig) {
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let arm = SimArmConfig::default();
+    (s.field, s.config, arm)
+}
+
+/// A hand that comes down from above onto the top's centre at `(x, z)`, to `press_m` below
+/// the top (a hand target; the effector stops where the forces balance), with button 0 held
+/// from `button_from_s` to `button_to_s`, then `lift_m` above the top while still held, and back
+/// up; a slow ±1 mm, 2 Hz wobble during the hold gives steady contact something to follow.
+fn press_trajectory(press_m: f32, lift_m: f32, button: Option<(f64, f64)>) -> Trajectory {
+    let held = |t: f64| match button {
+        Some((a, b)) if t >= a && t < b => 1,
+        _ => 0,
+    };
+    let mut w = Vec::new();
+    let mut push = |t: f64, y: f32, x: f32| {
+        w.push(Waypoint::with_buttons(
+            t,
+            Vec3::new(x, TOP_Y_M + y, 0.0),
+            held(t),
+        ));
+    };
+    push(0.0, 0.03, 0.0);
+    push(0.3, 0.01, 0.0);
+    push(0.6, -press_m, 0.0);
+    // Hold with a slow wobble.
+    for i in 0..8 {
+        let t = 0.7 + 0.125 * f64::from(i);
+        push(t, -press_m, if i % 2 == 0 { 0.001 } else { -0.001 });
+    }
+    push(1.8, -press_m, 0.0);
+    push(2.2, lift_m - press_m, 0.0);
+    push(2.6, lift_m - press_m, 0.0);
+    push(3.0, 0.03, 0.0);
+    push(3.4, 0.04, 0.0);
+    Trajectory::new(w, Interpolation::Smooth).expect("trajectory")
+}
+
+/// Records a lockstep session of `ticks` with `tool` held and returns its ticks, read back
+/// from the recording.
+fn record(
+    tool: Option<ToolChoice>,
+    trajectory: Trajectory,
+    arm: SimArmConfig,
+    ticks: usize,
+) -> Vec<Tick> {
+    let (field, mut config, _) = clay();
+    config.safety.soft_start_s = 0.0;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("session.rec");
+    let device = RecordingDevice::create(SimulatedArm::new(arm, trajectory), &path).unwrap();
+    let mut ls = Lockstep::new(
+        &config,
+        field,
+        Box::new(device),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+    if let Some(tool) = tool {
+        ls.commands().send(Command::SetTool(tool)).unwrap();
+    }
+    let flags: Vec<(bool, bool)> = (0..ticks)
+        .map(|_| {
+            let s = ls.step().sample;
+            (s.touching, s.in_contact)
+        })
+        .collect();
+    ls.finish().unwrap();
+    let recording = Recording::parse(&std::fs::read(&path).unwrap()).unwrap();
+    assert_eq!(recording.dropped, 0);
+    let mut out = Vec::with_capacity(ticks);
+    let mut state: Option<DeviceState> = None;
+    for r in recording.records {
+        match r {
+            Record::Read(Ok(s)) => state = Some(s),
+            Record::Read(Err(e)) => panic!("read failed: {e}"),
+            Record::Write { force_n, .. } => {
+                let s = state.expect("a read before each write");
+                let (touching, in_contact) = flags[out.len()];
+                out.push(Tick {
+                    buttons: s.buttons,
+                    force_n,
+                    touching,
+                    in_contact,
+                });
+            }
+        }
+    }
+    assert_eq!(out.len(), ticks);
+    out
+}
+
+/// Mean-free spectral energy above `cutoff_hz` as a share of the whole, for a signal sampled at
+/// `rate_hz` (a plain DFT: the windows are short).
+fn high_frequency_share(signal: &[f32], rate_hz: f32, cutoff_hz: f32) -> f32 {
+    let n = signal.len();
+    let mean = signal.iter().sum::<f32>() / n as f32;
+    let (mut high, mut total) = (0.0f64, 0.0f64);
+    for k in 1..=n / 2 {
+        let (mut re, mut im) = (0.0f64, 0.0f64);
+        for (i, &x) in signal.iter().enumerate() {
+            let a = -2.0 * std::f64::consts::PI * (k * i) as f64 / n as f64;
+            re += f64::from(x - mean) * a.cos();
+            im += f64::from(x - mean) * a.sin();
+        }
+        let e = re * re + im * im;
+        total += e;
+        if k as f32 * rate_hz / n as f32 > cutoff_hz {
+            high += e;
+        }
+    }
+    if total == 0.0 {
+        0.0
+    } else {
+        (high / total) as f32
+    }
+}
+
+struct Quality {
+    max_step_n: f32,
+    steady_sign_flips: usize,
+    steady_high_share: f32,
+    free_max_n: f32,
+    steady_mean_n: Vec3,
+}
+
+/// The quality figures of a session; steady contact is 0.8–1.7 s (the hold), the free phase
+/// is where the tip is outside the clay with no button.
+fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
+    let max_step_n = ticks
+        .windows(2)
+        .map(|w| (w[1].force_n - w[0].force_n).length())
+        .fold(0.0, f32::max);
+    let from = (0.8 * rate_hz) as usize;
+    let to = (1.7 * rate_hz) as usize;
+    let steady = &ticks[from..to];
+    let along: Vec<f32> = steady.iter().map(|t| t.force_n.dot(normal)).collect();
+    let sign = along.iter().sum::<f32>().signum();
+    let steady_sign_flips = along.iter().filter(|&&f| f * sign < -1e-3).count();
+    let steady_high_share = high_frequency_share(&along, rate_hz, 100.0);
+    // Free: outside, no tool acting and no button for the last cross-fade (a released stroke
+    // fades out over `blend_s`).
+    let settle = (ShapingConfig::DEFAULT_BLEND_S * rate_hz).ceil() as usize + 1;
+    let free_max_n = ticks
+        .iter()
+        .enumerate()
+        .filter(|(i, t)| {
+            !t.touching
+                && !t.in_contact
+                && ticks[i.saturating_sub(settle)..=*i]
+                    .iter()
+                    .all(|p| p.buttons == 0)
+        })
+        .map(|(_, t)| t.force_n.length())
+        .fold(0.0, f32::max);
+    let steady_mean_n = steady.iter().map(|t| t.force_n).sum::<Vec3>() / steady.len() as f32;
+    Quality {
+        max_step_n,
+        steady_sign_flips,
+        steady_high_share,
+        free_max_n,
+        steady_mean_n,
+    }
+}
+
+fn force_tool(tool: ForceTool) -> Option<ToolChoice> {
+    Some(ToolChoice::Force(ForceStrokeTool {
+        tool,
+        curve: Vec::new(),
+        pivot: Vec3::ZERO,
+    }))
+}
+
+fn check(name: &str, q: &Quality, limit_step_n: f32) {
+    eprintln!(
+        "{name}: max step {:.3} N, steady mean {:.3} N, flips {}, >100 Hz {:.4}, free max {:.5} N",
+        q.max_step_n, q.steady_mean_n, q.steady_sign_flips, q.steady_high_share, q.free_max_n
+    );
+    assert!(
+        q.max_step_n <= limit_step_n + 1e-4,
+        "{name}: step {} N",
+        q.max_step_n
+    );
+    assert_eq!(
+        q.steady_sign_flips, 0,
+        "{name}: sign reversals in steady contact"
+    );
+    assert!(
+        q.steady_high_share < 0.05,
+        "{name}: {} above 100 Hz",
+        q.steady_high_share
+    );
+    assert!(
+        q.free_max_n <= 1e-3,
+        "{name}: {} N outside the clay",
+        q.free_max_n
+    );
+}
+
+#[test]
+fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
+    let rate_hz = 1000.0;
+    let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
+    let ticks = 3400;
+    let gain = 2.0e6;
+    let radius_m = 0.25;
+
+    // Touch: no stroke; the surface pushes back up, firmly.
+    let t = record(
+        None,
+        press_trajectory(0.01, 0.0, None),
+        SimArmConfig::default(),
+        ticks,
+    );
+    let q = quality(&t, rate_hz, Vec3::Y);
+    check("touch", &q, step_limit_n);
+    assert!(
+        q.steady_mean_n.y > 1.0,
+        "touch is felt: {}",
+        q.steady_mean_n
+    );
+
+    // Push: a stroke held while pressing in; felt up.
+    let push = Some(ToolChoice::default());
+    let t = record(
+        push,
+        press_trajectory(0.01, 0.0, Some((0.35, 1.9))),
+        SimArmConfig::default(),
+        ticks,
+    );
+    let q = quality(&t, rate_hz, Vec3::Y);
+    check("push", &q, step_limit_n);
+    assert!(q.steady_mean_n.y > 0.3, "push is felt: {}", q.steady_mean_n);
+
+    // Chisel and squirt: a held stroke along the surface; felt along the surface normal.
+    for (name, tool) in [
+        (
+            "chisel",
+            ForceTool::Chisel {
+                depth_m: 0.02,
+                radius_m,
+                gain,
+            },
+        ),
+        (
+            "squirt",
+            ForceTool::Squirt {
+                depth_m: 0.02,
+                radius_m,
+                gain,
+            },
+        ),
+    ] {
+        let t = record(
+            force_tool(tool),
+            press_trajectory(0.002, 0.0, Some((0.35, 1.9))),
+            SimArmConfig::default(),
+            ticks,
+        );
+        let q = quality(&t, rate_hz, Vec3::Y);
+        check(name, &q, step_limit_n);
+        assert!(
+            q.steady_mean_n.length() > 0.05,
+            "{name} is felt: {}",
+            q.steady_mean_n
+        );
+    }
+
+    // Grab, pull and area: take hold at the surface, then pull up 8 mm and hold there. The
+    // steady window is then the pulled hold: shift the trajectory's hold to the lift.
+    for (name, tool) in [
+        ("grab", ForceTool::PointGrab { gain }),
+        (
+            "pull",
+            ForceTool::Pull {
+                distribution: Distribution::Gaussian,
+                radius_m,
+                gain,
+            },
+        ),
+        (
+            "area",
+            ForceTool::Area {
+                distribution: Distribution::Gaussian,
+                radius_m: 0.1,
+                tracks: 8,
+                gain,
+            },
+        ),
+    ] {
+        let t = record(
+            force_tool(tool),
+            pull_trajectory(),
+            SimArmConfig::default(),
+            ticks,
+        );
+        let q = quality(&t, rate_hz, Vec3::Y);
+        check(name, &q, step_limit_n);
+        assert!(
+            q.steady_mean_n.y < -0.01,
+            "{name}: a pull is felt toward the surface: {}",
+            q.steady_mean_n
+        );
+    }
+}
+
+/// Down onto the top's centre, take hold (button from 0.55 s), lift 8 mm by 0.8 s, hold with a
+/// wobble to 1.8 s, let go, go back up.
+fn pull_trajectory() -> Trajectory {
+    let held = |t: f64| u32::from((0.55..1.9).contains(&t));
+    let mut w = Vec::new();
+    let mut push = |t: f64, y: f32, x: f32| {
+        w.push(Waypoint::with_buttons(
+            t,
+            Vec3::new(x, TOP_Y_M + y, 0.0),
+            held(t),
+        ));
+    };
+    push(0.0, 0.03, 0.0);
+    push(0.4, 0.0, 0.0);
+    push(0.55, -0.001, 0.0);
+    push(0.8, 0.008, 0.0);
+    for i in 0..8 {
+        let t = 0.9 + 0.11 * f64::from(i);
+        push(t, 0.008, if i % 2 == 0 { 0.001 } else { -0.001 });
+    }
+    push(1.85, 0.008, 0.0);
+    push(2.0, 0.02, 0.0);
+    push(3.4, 0.04, 0.0);
+    Trajectory::new(w, Interpolation::Smooth).expect("trajectory")
+}
+
+/// The device as the engine sees it: the simulated arm with its reported position delayed by
+/// `delay` reads, while the true work at the port is summed from the arm's own state.
+struct DelayedArm {
+    arm: SimulatedArm,
+    delay: VecDeque<DeviceState>,
+    ticks_of_delay: usize,
+    port: Arc<Mutex<Port>>,
+}
+
+/// Energy at the device port, joules: `absorbed` is what the hand put in minus what the
+/// device gave back (`−Σ F · Δx` over the true effector motion), `peak` its largest value.
+#[derive(Default)]
+struct Port {
+    last_x: Option<Vec3>,
+    absorbed_j: f64,
+    peak_j: f64,
+    peak_force_n: f32,
+}
+
+impl HapticDevice for DelayedArm {
+    fn info(&self) -> DeviceInfo {
+        self.arm.info()
+    }
+    fn open(&mut self) -> Result<(), DeviceError> {
+        self.arm.open()
+    }
+    fn close(&mut self) -> Result<(), DeviceError> {
+        self.arm.close()
+    }
+    fn is_open(&self) -> bool {
+        self.arm.is_open()
+    }
+    fn read(&mut self) -> Result<DeviceState, DeviceError> {
+        let force = self.arm.motor_force_n();
+        let s = self.arm.read()?;
+        let x = self.arm.effector_position_m();
+        let mut port = self.port.lock().unwrap();
+        if let Some(last) = port.last_x {
+            port.absorbed_j -= f64::from(force.dot(x - last));
+            port.peak_j = port.peak_j.max(port.absorbed_j);
+        }
+        port.last_x = Some(x);
+        port.peak_force_n = port.peak_force_n.max(force.length());
+        drop(port);
+        self.delay.push_back(s);
+        let mut out = if self.delay.len() > self.ticks_of_delay {
+            self.delay.pop_front().unwrap()
+        } else {
+            *self.delay.front().unwrap()
+        };
+        // The delayed position with the fresh clock and buttons.
+        out.timestamp_us = s.timestamp_us;
+        out.sequence = s.sequence;
+        out.buttons = s.buttons;
+        Ok(out)
+    }
+    fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
+        self.arm.write_force(force_n)
+    }
+}
+
+/// One press–release with the arm's grip `hand_stiffness`/`hand_damping`, its position
+/// reported with `noise_m` of noise and `delay` reads late, at `step_us` per tick: the port's
+/// (net absorbed, peak absorbed, peak force).
+fn press_release(
+    field: &BSplineLattice,
+    config: &EngineConfig,
+    step_us: u64,
+    grip: (f32, f32),
+    noise_m: f32,
+    delay: usize,
+) -> (f64, f64, f32) {
+    let arm = SimArmConfig {
+        step_us,
+        hand_stiffness_n_per_m: grip.0,
+        hand_damping_n_s_per_m: grip.1,
+        faults: vec![Fault {
+            start_s: 0.0,
+            duration_s: f64::INFINITY,
+            kind: FaultKind::Noise { std_m: noise_m },
+        }],
+        ..SimArmConfig::default()
+    };
+    let port = Arc::new(Mutex::new(Port::default()));
+    let device = DelayedArm {
+        arm: SimulatedArm::new(arm, press_trajectory(0.01, 0.0, None)),
+        delay: VecDeque::new(),
+        ticks_of_delay: delay,
+        port: Arc::clone(&port),
+    };
+    let mut ls = Lockstep::new(
+        config,
+        field.clone(),
+        Box::new(device),
+        Box::new(HeadlessSink::default()),
+        1_000_000,
+    )
+    .unwrap();
+    let ticks = (3.4e6 / step_us as f64) as usize;
+    for _ in 0..ticks {
+        ls.step();
+    }
+    ls.finish().unwrap();
+    let p = port.lock().unwrap();
+    (p.absorbed_j, p.peak_j, p.peak_force_n)
+}
+
+#[test]
+fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() {
+    let (field, mut config, _) = clay();
+    config.safety.soft_start_s = 0.0;
+    // 5 µm of position noise (a few encoder counts) on every case; a one-read delay on the
+    // firm grips (a hand holding the arm at 1 kN/m).
+    let mut cases = Vec::new();
+    for step_us in [1000u64, 250] {
+        for stiffness in [100.0f32, 300.0, 1000.0] {
+            for damping in [0.5f32, 2.0, 8.0] {
+                cases.push((step_us, (stiffness, damping), 0usize));
+            }
+        }
+        for damping in [0.5f32, 2.0, 8.0] {
+            cases.push((step_us, (1000.0, damping), 1));
+        }
+    }
+    for (step_us, grip, delay) in cases {
+        let (absorbed, peak, peak_force_n) =
+            press_release(&field, &config, step_us, grip, 5e-6, delay);
+        let what = format!(
+            "{} Hz, grip {} N/m {} N·s/m, delay {delay}",
+            1_000_000 / step_us,
+            grip.0,
+            grip.1
+        );
+        eprintln!(
+            "{what}: peak {peak_force_n:.2} N, peak energy {:.3} mJ, net absorbed {:.4} mJ",
+            peak * 1e3,
+            absorbed * 1e3
+        );
+        assert!(peak_force_n > 0.5, "{what}: the press was felt");
+        assert!(
+            absorbed >= -0.01 * peak,
+            "{what}: the device gave back {} mJ more than it took (peak {} mJ)",
+            -absorbed * 1e3,
+            peak * 1e3
+        );
+    }
+}
