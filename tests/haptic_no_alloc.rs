@@ -1,7 +1,9 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
 //! patches, the safety filter, a force-limit change, a whole-field republication after a
-//! session load, and a device switch and a disconnect while ticking.
+//! session load, and a device switch and a disconnect while ticking; and through strokes of
+//! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
+//! tool's vectors, their starts found again on the surface).
 
 mod common;
 
@@ -10,10 +12,14 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use dynaclay::engine::{Command, DeviceHandover, HeadlessSink, build};
+use dynaclay::dynamics::Distribution;
+use dynaclay::engine::{Command, DeviceHandover, ForceStrokeTool, HeadlessSink, ToolChoice, build};
 use dynaclay::io::Session;
 use dynaclay::tools::Clay;
-use dynaclay_devices::{HapticDevice, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory};
+use dynaclay::tools::ForceTool;
+use dynaclay_devices::{
+    HapticDevice, Interpolation, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
+};
 use glam::Vec3;
 
 struct Counting;
@@ -174,4 +180,80 @@ fn haptic_tick_allocates_nothing() {
         0,
         "haptic tick allocated"
     );
+}
+
+#[test]
+fn force_tool_strokes_tick_without_allocating() {
+    let top_y_m = 0.05;
+    let gain = 2.0e6;
+    for tool in [
+        ForceTool::Area {
+            distribution: Distribution::Gaussian,
+            radius_m: 0.1,
+            tracks: 8,
+            gain,
+        },
+        ForceTool::Chisel {
+            depth_m: 0.02,
+            radius_m: 0.25,
+            gain,
+        },
+        ForceTool::Bend {
+            samples: 8,
+            radius_m: 0.25,
+            gain,
+        },
+    ] {
+        let s = common::setup(common::PUSH_SCRIPT, vec![]);
+        // Down onto the top, take hold, drag up and sideways while held, let go.
+        let path = vec![
+            Waypoint::with_buttons(0.0, Vec3::new(0.0, top_y_m + 0.02, 0.0), 0),
+            Waypoint::with_buttons(0.3, Vec3::new(0.0, top_y_m - 0.001, 0.0), 0),
+            Waypoint::with_buttons(0.35, Vec3::new(0.0, top_y_m - 0.001, 0.0), 1),
+            Waypoint::with_buttons(0.9, Vec3::new(0.01, top_y_m + 0.008, 0.0), 1),
+            Waypoint::with_buttons(1.2, Vec3::new(0.01, top_y_m + 0.02, 0.0), 0),
+        ];
+        let trajectory = Trajectory::new(path, Interpolation::Smooth).unwrap();
+        let arm = SimulatedArm::new(SimArmConfig::default(), trajectory);
+        let mut stages = build(
+            &s.config,
+            s.field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .expect("stages build");
+        stages
+            .commands
+            .send(Command::SetTool(ToolChoice::Force(ForceStrokeTool {
+                tool,
+                curve: Vec::new(),
+                pivot: Vec3::new(0.95, 0.95, 0.95),
+            })))
+            .unwrap();
+        let before = ALLOCS_IN_TICK.load(Ordering::Relaxed);
+        let mut holding = 0;
+        for _ in 0..1300 {
+            IN_TICK.with(|f| f.set(true));
+            let out = stages.haptic.tick(Instant::now());
+            IN_TICK.with(|f| f.set(false));
+            if out.sample.in_contact && out.sample.stroke_active {
+                holding += 1;
+            }
+            stages.sim.apply_commands();
+            let sample = stages.samples.latest().value;
+            stages.sim.step(&sample);
+        }
+        assert!(
+            holding > 200,
+            "{}: the tool took hold ({holding})",
+            tool.name()
+        );
+        assert_eq!(
+            ALLOCS_IN_TICK.load(Ordering::Relaxed),
+            before,
+            "{}: haptic tick allocated",
+            tool.name()
+        );
+    }
 }
