@@ -202,6 +202,7 @@ impl ToolPalette {
             ActionKind::Stamp => ToolAction::Stamp(self.stamp),
             ActionKind::Contact => ToolAction::Contact(ContactParams {
                 alpha: self.contact_alpha,
+                rate_per_s: crate::tools::DEFAULT_DEFORM_RATE_PER_S,
             }),
             ActionKind::Union => ToolAction::Union,
             ActionKind::Intersection => ToolAction::Intersection,

@@ -121,6 +121,12 @@ impl ToolAction {
                 "alpha must be finite, got {}",
                 c.alpha
             ))),
+            Self::Contact(c) if !(c.rate_per_s.is_finite() && c.rate_per_s > 0.0) => {
+                Err(ActionError(format!(
+                    "rate_per_s must be positive and finite, got {}",
+                    c.rate_per_s
+                )))
+            }
             _ => Ok(()),
         }
     }
@@ -145,8 +151,8 @@ impl ToolAction {
                 let w = amount(rate_per_s) * (2.0 * tool).min(1.0);
                 clay + w * (blurred - clay)
             }
-            Self::Stamp(p) => p.apply(clay, tool),
-            Self::Contact(c) => c.apply(clay, tool, iso),
+            Self::Stamp(p) => p.apply(clay, tool, dt_s),
+            Self::Contact(c) => c.apply(clay, tool, iso, dt_s),
             Self::Union => clay.max(tool),
             Self::Intersection => clay.min(tool),
             Self::Difference => clay.min((2.0 * iso - tool).clamp(0.0, 1.0)),

@@ -804,7 +804,7 @@ mod tests {
             &mut clay,
             &t,
             &ToolPose::at(at),
-            0.0,
+            0.01,
             &ApplyOptions::default(),
             None,
         )
@@ -843,13 +843,13 @@ mod tests {
         let mut dent = clay_of(sphere);
         let t = tool(
             small.clone(),
-            ToolAction::Contact(ContactParams { alpha: -3.0 }),
+            ToolAction::Contact(ContactParams::with_alpha(-3.0)),
         );
         apply_tool(
             &mut dent,
             &t,
             &ToolPose::at(surface),
-            0.0,
+            0.01,
             &ApplyOptions::default(),
             None,
         )
@@ -858,12 +858,12 @@ mod tests {
         assert!(dent.patches[0].is_inside(centre()), "core untouched");
 
         let mut bulge = clay_of(sphere);
-        let t = tool(small, ToolAction::Contact(ContactParams { alpha: 3.0 }));
+        let t = tool(small, ToolAction::Contact(ContactParams::with_alpha(3.0)));
         apply_tool(
             &mut bulge,
             &t,
             &ToolPose::at(surface),
-            0.0,
+            0.01,
             &ApplyOptions::default(),
             None,
         )
@@ -1022,5 +1022,86 @@ mod tests {
         let far = ToolPose::at(Vec3::splat(100.0));
         let report = apply_tool(&mut clay, &t, &far, 1.0, &ApplyOptions::default(), None).unwrap();
         assert!(report.coeff_box.is_none());
+    }
+
+    /// The field change of `action` held for `dwell_s` at the centre of a clay whose density
+    /// ramps gently through the iso-level (0.3 to 0.7, so no density meets the range's ends and
+    /// only the tool's own effect shows), applied `times` times (coefficient deltas).
+    fn held(action: ToolAction, dwell_s: f32, times: u32) -> Vec<f32> {
+        let mut lattice = BSplineLattice::zeros([N; 3], H, Vec3::ZERO).unwrap();
+        lattice.iso = 0.5;
+        for k in 0..N {
+            for j in 0..N {
+                for i in 0..N {
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = 0.7 - 0.4 * k as f32 / (N - 1) as f32;
+                }
+            }
+        }
+        let mut clay = Clay::single(lattice);
+        let before = clay.patches[0].coeffs.clone();
+        let t = GeometricTool {
+            shape: ToolShape::Sphere { radius_m: 0.3 },
+            action,
+            falloff_m: 4.0 * H,
+        };
+        for _ in 0..times {
+            apply_tool(
+                &mut clay,
+                &t,
+                &ToolPose::at(centre()),
+                dwell_s,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
+        clay.patches[0]
+            .coeffs
+            .iter()
+            .zip(&before)
+            .map(|(a, b)| a - b)
+            .collect()
+    }
+
+    #[test]
+    fn stamp_and_contact_scale_with_dwell_time() {
+        let stamp = |rate_per_s| {
+            ToolAction::Stamp(StampParams {
+                rate_per_s,
+                ..StampParams::default()
+            })
+        };
+        let contact = |rate_per_s| {
+            ToolAction::Contact(ContactParams {
+                alpha: -0.5,
+                rate_per_s,
+            })
+        };
+        // A tenth of a whole application: no density leaves the range.
+        for (name, make) in [
+            ("stamp", &stamp as &dyn Fn(f32) -> ToolAction),
+            ("contact", &contact),
+        ] {
+            let long = held(make(10.0), 0.01, 1);
+            let twice = held(make(5.0), 0.01, 2);
+            let peak = long.iter().fold(0.0_f32, |m, d| m.max(d.abs()));
+            assert!(peak > 1e-3, "{name}: the tool did something");
+            let worst = long
+                .iter()
+                .zip(&twice)
+                .fold(0.0_f32, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                worst <= 0.01 * peak,
+                "{name}: twice as long differs from two halves by {worst} (peak {peak})"
+            );
+            // And the change grows with the dwell.
+            let short = held(make(10.0), 0.005, 1);
+            let short_peak = short.iter().fold(0.0_f32, |m, d| m.max(d.abs()));
+            assert!(
+                (short_peak / peak - 0.5).abs() < 0.01,
+                "{name}: {short_peak} vs {peak}"
+            );
+        }
     }
 }

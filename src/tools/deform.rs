@@ -27,6 +27,19 @@ pub struct StampParams {
     pub k: f32,
     /// Bulge height (material pushed aside).
     pub n: f32,
+    /// Whole stamps per second of dwell: a held stamp deepens with time, and holding twice as
+    /// long does what two stamps do. Sessions saved before the rate existed read
+    /// [`DEFAULT_DEFORM_RATE_PER_S`].
+    #[serde(default = "default_deform_rate")]
+    pub rate_per_s: f32,
+}
+
+/// Default rate of the stamp and contact tools: one whole application per 10 ms of dwell, what
+/// one application of a live stroke gave before they scaled with dwell time.
+pub const DEFAULT_DEFORM_RATE_PER_S: f32 = 100.0;
+
+fn default_deform_rate() -> f32 {
+    DEFAULT_DEFORM_RATE_PER_S
 }
 
 impl Default for StampParams {
@@ -37,6 +50,7 @@ impl Default for StampParams {
             r: 0.25,
             k: -2.0,
             n: 0.3,
+            rate_per_s: DEFAULT_DEFORM_RATE_PER_S,
         }
     }
 }
@@ -67,6 +81,7 @@ impl StampParams {
             ("r", self.r, "positive"),
             ("k", self.k, "any"),
             ("n", self.n, "non-negative"),
+            ("rate_per_s", self.rate_per_s, "positive"),
         ] {
             let ok = v.is_finite()
                 && match rule {
@@ -102,7 +117,7 @@ impl StampParams {
     #[inline]
     #[must_use]
     pub fn def(&self, v: f32) -> f32 {
-        let Self { s, m, r, k, n } = *self;
+        let Self { s, m, r, k, n, .. } = *self;
         if v <= s {
             let v = v.max(0.0);
             -(s * k + 2.0) / (s * s * s) * v * v * v + (s * k + 3.0) / (s * s) * v * v - 1.0
@@ -119,11 +134,14 @@ impl StampParams {
         }
     }
 
-    /// The stamped clay density at a point: `clamp(f + def(1 − t))`.
+    /// The stamped clay density at a point after a dwell of `dt_s`: `f + rate · dt · def(1 − t)`,
+    /// kept within `[0, 1]`. Only the stamp's own change is limited: a density the fit left a
+    /// little outside the range is not pulled back where the stamp does nothing, so two short
+    /// applications do what one long one does.
     #[inline]
     #[must_use]
-    pub fn apply(&self, clay: f32, tool: f32) -> f32 {
-        (clay + self.def(1.0 - tool)).clamp(0.0, 1.0)
+    pub fn apply(&self, clay: f32, tool: f32, dt_s: f32) -> f32 {
+        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * self.def(1.0 - tool))
     }
 }
 
@@ -139,20 +157,44 @@ impl StampParams {
 pub struct ContactParams {
     /// Strength and sign: negative dents, positive bulges.
     pub alpha: f32,
+    /// Whole applications per second of dwell (see [`StampParams::rate_per_s`]).
+    #[serde(default = "default_deform_rate")]
+    pub rate_per_s: f32,
 }
 
 impl ContactParams {
-    /// The deformed clay density `h`, clamped to `[0, 1]`.
+    /// Contact deformation of strength `alpha` at the default rate.
+    #[must_use]
+    pub fn with_alpha(alpha: f32) -> Self {
+        Self {
+            alpha,
+            rate_per_s: DEFAULT_DEFORM_RATE_PER_S,
+        }
+    }
+
+    /// The deformed clay density `h = f + rate · dt · β·g` after a dwell of `dt_s`, kept within
+    /// `[0, 1]` as [`StampParams::apply`] keeps it.
     #[inline]
     #[must_use]
-    pub fn apply(&self, clay: f32, tool: f32, iso: f32) -> f32 {
+    pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
         if clay <= 0.0 || tool <= 0.0 {
             return clay;
         }
         let g = self.alpha * (tool - iso);
         let beta = if tool >= iso { 1.0 } else { tool / iso };
-        (clay + beta * g).clamp(0.0, 1.0)
+        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * beta * g)
     }
+}
+
+/// `clay + change`, with the change cut so that the result stays in `[0, 1]` when the clay
+/// was; the clay itself is not clamped (zero change leaves it bit-identical).
+#[inline]
+fn limited_change(clay: f32, change: f32) -> f32 {
+    if change == 0.0 {
+        return clay;
+    }
+    let from = clay.clamp(0.0, 1.0);
+    clay + ((from + change).clamp(0.0, 1.0) - from)
 }
 
 #[cfg(test)]
@@ -186,6 +228,7 @@ mod tests {
             r: 0.3,
             k: -3.0,
             n: 0.5,
+            ..StampParams::default()
         };
         for joint in [p.s, p.s + p.m, p.s + p.m + p.r] {
             let e = 1e-4;
@@ -225,17 +268,29 @@ mod tests {
 
     #[test]
     fn contact_dents_inside_raises_a_rim_and_is_c1_at_the_tool_surface() {
-        let dent = ContactParams { alpha: -2.0 };
+        let dent = ContactParams::with_alpha(-2.0);
         let iso = 0.5;
-        assert!(dent.apply(0.8, 0.9, iso) < 0.8, "dent inside the tool");
-        assert!(dent.apply(0.4, 0.3, iso) > 0.4, "rim just outside");
-        assert_eq!(dent.apply(0.4, 0.0, iso), 0.4, "untouched beyond the tool");
-        assert_eq!(dent.apply(0.0, 0.9, iso), 0.0, "no clay created in air");
+        assert!(
+            dent.apply(0.8, 0.9, iso, 0.01) < 0.8,
+            "dent inside the tool"
+        );
+        assert!(dent.apply(0.4, 0.3, iso, 0.01) > 0.4, "rim just outside");
+        assert_eq!(
+            dent.apply(0.4, 0.0, iso, 0.01),
+            0.4,
+            "untouched beyond the tool"
+        );
+        assert_eq!(
+            dent.apply(0.0, 0.9, iso, 0.01),
+            0.0,
+            "no clay created in air"
+        );
         let e = 1e-3;
-        let slope =
-            |t: f32| (dent.apply(0.6, t + e, iso) - dent.apply(0.6, t - e, iso)) / (2.0 * e);
+        let slope = |t: f32| {
+            (dent.apply(0.6, t + e, iso, 0.01) - dent.apply(0.6, t - e, iso, 0.01)) / (2.0 * e)
+        };
         assert!((slope(iso - 0.01) - slope(iso + 0.01)).abs() < 0.1);
-        let bulge = ContactParams { alpha: 2.0 };
-        assert!(bulge.apply(0.6, 0.9, iso) > 0.6);
+        let bulge = ContactParams::with_alpha(2.0);
+        assert!(bulge.apply(0.6, 0.9, iso, 0.01) > 0.6);
     }
 }

@@ -618,7 +618,7 @@ mod property {
                 kernel_m: 0.08,
             },
             6 => ToolAction::Stamp(StampParams::default()),
-            7 => ToolAction::Contact(ContactParams { alpha: -2.0 }),
+            7 => ToolAction::Contact(ContactParams::with_alpha(-2.0)),
             8 => ToolAction::Union,
             _ => ToolAction::Difference,
         };

@@ -14,7 +14,7 @@ pub use apply::{
     ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
-pub use deform::{ContactParams, StampParams, StampParamsError};
+pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PenetrationTarget, nearest_solid_point, outward_normal,
     plan_penetration, project_to_surface,
