@@ -526,3 +526,45 @@ fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() 
         );
     }
 }
+
+#[test]
+fn a_five_millimetre_press_into_the_default_clay_feels_like_firm_clay() {
+    use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry};
+    let (field, config, arm) = clay();
+    let map = config.map;
+    let max_n = arm.info.max_force_n;
+    let stroke = StrokeGeometry::default();
+    // Come down onto the top's centre at 50 mm/s, then hold 5 mm deep with a push stroke
+    // held: the felt force settles on the sculpting reaction of the fresh clay (the clay here
+    // does not move: the renderer alone, on the starting field).
+    let mut renderer = ForceRenderer::new(config.haptics);
+    let mut felt = Vec3::ZERO;
+    let mut peak = 0.0f32;
+    for tick in 0..1000u64 {
+        let y = (TOP_Y_M + 0.01 - 5e-5 * tick as f32).max(TOP_Y_M - 0.005);
+        let position_m = Vec3::new(0.0, y, 0.0);
+        felt = renderer
+            .render(&FeltInput {
+                field: &field,
+                tip: map.to_field(position_m),
+                position_m,
+                velocity_m_per_s: Vec3::ZERO,
+                time_us: tick * 1000,
+                field_per_m: map.field_per_m,
+                force_n_per_unit: map.force_n_per_unit,
+                stroke_active: tick >= 600,
+                tool: FeltTool::Push,
+                stroke: &stroke,
+                fade: 1.0,
+                saturation_n: max_n,
+                sent_n: felt,
+            })
+            .force_n;
+        peak = peak.max(felt.length());
+    }
+    assert!(
+        (1.0..=3.0).contains(&felt.y),
+        "a 5 mm press feels {felt} N, not firm clay"
+    );
+    assert!(peak <= max_n, "peak {peak} N over the device's {max_n} N");
+}

@@ -26,6 +26,7 @@ use super::error::EngineError;
 use super::force_limit::ForceLimit;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
+use super::haptic_gain::HapticGain;
 use super::io_worker::{IoReport, IoWorker};
 use super::sim_status::SimStatus;
 use super::simulation::SimulationStage;
@@ -73,6 +74,7 @@ pub struct Engine {
     tool: SnapshotReader<ToolSample>,
     status: SnapshotReader<SimStatus>,
     force_limit: ForceLimit,
+    haptic_gain: HapticGain,
     haptic_back: Receiver<HapticStage>,
     sim_back: Receiver<SimulationStage>,
     graphics_back: Receiver<GraphicsStage>,
@@ -156,6 +158,7 @@ impl Engine {
             .take_status_reader()
             .ok_or(EngineError::Lost("simulation status"))?;
         let force_limit = stages.haptic.force_limit();
+        let haptic_gain = stages.haptic.haptic_gain();
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
         let tool = stages.tool_monitor;
@@ -220,6 +223,7 @@ impl Engine {
             tool,
             status,
             force_limit,
+            haptic_gain,
             haptic_back,
             sim_back,
             graphics_back,
@@ -353,6 +357,13 @@ impl Engine {
     #[must_use]
     pub fn force_limit(&self) -> &ForceLimit {
         &self.force_limit
+    }
+
+    /// The haptic gain: how strongly the sculpting reaction is felt (1: a 5 mm press into the
+    /// fresh clay feels 2 N); a change applies from the next haptic tick.
+    #[must_use]
+    pub fn haptic_gain(&self) -> &HapticGain {
+        &self.haptic_gain
     }
 
     /// Reads and validates the session at `path` on the calling thread, then asks the
