@@ -204,12 +204,21 @@ fn main() {
             .enumerate()
         {
             let mut k = 250.0f32;
+            let mut sweep = String::new();
             while k <= 256_000.0 {
-                if run(&field, &config, renderer, k, step_us).stable() {
+                let r = run(&field, &config, renderer, k, step_us);
+                sweep += &format!(
+                    " {k:.0}: ripple {:.2}%, net {:+.3} mJ{};",
+                    r.ripple * 100.0,
+                    r.absorbed_j * 1e3,
+                    if r.stable() { "" } else { " (unstable)" }
+                );
+                if r.stable() {
                     highest[slot] = k;
                 }
                 k *= 2.0;
             }
+            eprintln!("sweep, {rate}:{sweep}");
             let at = run(&field, &config, renderer, 3000.0, step_us);
             println!(
                 "| {rate} | {} | {:.0} N/m | {:.2}% of {:.2} N | {:+.3} / {:.2} mJ | {} ticks |",
