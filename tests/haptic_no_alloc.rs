@@ -158,7 +158,7 @@ fn haptic_tick_allocates_nothing() {
         if stages.sim.step(&sample).stepped {
             patched_ticks += 1;
         }
-        if i % 50 == 0 {
+        if i.is_multiple_of(50) {
             stages.graphics.tick();
         }
         i += 1;

@@ -98,10 +98,8 @@ pub fn start_on_surface(lattice: &BSplineLattice, start: Vec3, end: Vec3) -> Vec
     if let Some(x) = first_change(lattice, end, start - end, end_inside) {
         return x;
     }
-    if end_inside {
-        if let Some(x) = first_change(lattice, end, end - start, true) {
-            return x;
-        }
+    if end_inside && let Some(x) = first_change(lattice, end, end - start, true) {
+        return x;
     }
     start
 }

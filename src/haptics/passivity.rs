@@ -129,13 +129,13 @@ impl PassivityController {
         // itself put energy into the hand.
         let speed = self.velocity_m_per_s.length();
         let above = speed - self.config.velocity_deadband_m_per_s;
-        if !(above > 0.0) {
+        if above.is_nan() || above <= 0.0 {
             return Vec3::ZERO;
         }
         let v = self.velocity_m_per_s * (above / speed);
         let v2 = v.length_squared();
         let deficit = stored_j.max(0.0) - self.energy_j();
-        if !self.config.enabled || !(deficit > 0.0) || dt_s <= 0.0 || v2 < 1e-10 {
+        if !self.config.enabled || deficit.is_nan() || deficit <= 0.0 || dt_s <= 0.0 || v2 < 1e-10 {
             return Vec3::ZERO;
         }
         let alpha = (deficit / (v2 * dt_s)).min(self.config.max_damping_n_s_per_m);
