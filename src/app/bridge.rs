@@ -438,6 +438,15 @@ impl Bridge {
                     Err(error) => self.fail(what, error),
                 }
             }
+            EngineCommand::SetHapticGain { gain } => match self.engine.haptic_gain().set(gain) {
+                Ok(()) => {
+                    let _ = self.events.send(EngineEvent::Done {
+                        what: what.into(),
+                        detail: format!("{gain:.2}"),
+                    });
+                }
+                Err(error) => self.fail(what, error.to_string()),
+            },
             EngineCommand::ConnectDevice { spec, max_force_n } => {
                 self.connect(what, &spec, max_force_n);
             }

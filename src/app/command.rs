@@ -129,6 +129,11 @@ pub enum EngineCommand {
     SetMaxForce {
         max_force_n: f32,
     },
+    /// Change how strongly sculpting is felt (the haptic gain, 0 to
+    /// [`crate::engine::MAX_HAPTIC_GAIN`]).
+    SetHapticGain {
+        gain: f32,
+    },
 }
 
 impl EngineCommand {
@@ -148,6 +153,7 @@ impl EngineCommand {
             Self::ConnectDevice { .. } => "connect device",
             Self::DisconnectDevice => "disconnect device",
             Self::SetMaxForce { .. } => "set max force",
+            Self::SetHapticGain { .. } => "set haptic gain",
         }
     }
 }

@@ -1,5 +1,5 @@
 //! The device panel: choose a device spec (typed, or picked from a scan of what is plugged
-//! in), connect and disconnect, see its status, and set the force limit.
+//! in), connect and disconnect, see its status, and set the force limit and the haptic gain.
 //!
 //! Specs are parsed by the devices crate's own parser, so the panel accepts exactly what
 //! `--device` accepts and shows the same error text.
@@ -25,6 +25,7 @@ pub enum DeviceAction {
     Connect { spec: DeviceSpec, max_force_n: f32 },
     Disconnect,
     SetMaxForce { max_force_n: f32 },
+    SetHapticGain { gain: f32 },
 }
 
 /// The panel's state.
@@ -36,6 +37,8 @@ pub struct DevicePanel {
     pub argument: String,
     /// Force limit asked for, newtons.
     pub max_force_n: f32,
+    /// How strongly sculpting is felt (shown in the material panel too).
+    pub haptic_gain: f32,
     /// Result of the last scan (`None`: not scanned yet).
     pub scanned: Option<(Vec<Connected>, Vec<String>)>,
 }
@@ -46,6 +49,7 @@ impl Default for DevicePanel {
             kind: 0,
             argument: String::new(),
             max_force_n: 3.0,
+            haptic_gain: 1.0,
             scanned: None,
         }
     }
@@ -53,6 +57,15 @@ impl Default for DevicePanel {
 
 /// Largest force limit the slider offers, newtons (drivers clamp further to their own maximum).
 pub const MAX_FORCE_LIMIT_N: f32 = 20.0;
+
+/// The haptic gain slider, the same in the device and material panels: how strongly the
+/// sculpting reaction is felt, 1 meaning that a 5 mm press into the fresh clay feels 2 N (the
+/// device's force limit still caps it). True when the user moved it.
+pub fn haptic_gain_slider(ui: &mut egui::Ui, gain: &mut f32) -> bool {
+    ui.add(egui::Slider::new(gain, 0.0..=crate::engine::MAX_HAPTIC_GAIN).text("Haptic gain"))
+        .on_hover_text("1: a 5 mm press into the fresh clay feels 2 N")
+        .changed()
+}
 
 impl DevicePanel {
     /// The spec string as typed: `kind` or `kind:argument`.
@@ -136,6 +149,11 @@ impl DevicePanel {
         if limit.changed() && status.state == DeviceLinkState::Connected {
             action = Some(DeviceAction::SetMaxForce {
                 max_force_n: self.max_force_n,
+            });
+        }
+        if haptic_gain_slider(ui, &mut self.haptic_gain) {
+            action = Some(DeviceAction::SetHapticGain {
+                gain: self.haptic_gain,
             });
         }
         ui.horizontal(|ui| {

@@ -384,3 +384,34 @@ fn a_refused_load_is_shown_with_its_reason() {
     h.run();
     h.get_by_label("load failed: bad.dclay: section \"density\" checksum mismatch");
 }
+
+#[test]
+fn the_haptic_gain_is_one_value_set_from_the_material_or_the_device_panel() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    let sliders = h
+        .get_all_by_role_and_label(Role::Slider, "Haptic gain")
+        .count();
+    assert_eq!(sliders, 2, "in the material and the device panel");
+    h.get_all_by_role_and_label(Role::Slider, "Haptic gain")
+        .next()
+        .unwrap()
+        .set_value_accesskit(2.5);
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetHapticGain { gain: 2.5 }]
+    );
+    assert_eq!(h.state().device.haptic_gain, 2.5);
+    h.get_all_by_role_and_label(Role::Slider, "Haptic gain")
+        .last()
+        .unwrap()
+        .set_value_accesskit(0.5);
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetHapticGain { gain: 0.5 }]
+    );
+    assert_eq!(h.state().device.haptic_gain, 0.5);
+}

@@ -18,6 +18,7 @@ use crate::render::{
 
 use super::camera_input::SpaceMouseCamera;
 use super::command::{EngineCommand, EngineEvent};
+use super::device_panel::haptic_gain_slider;
 use super::device_panel::{DeviceAction, DevicePanel};
 use super::latency::LatencyHistory;
 use super::link::EngineLink;
@@ -249,7 +250,12 @@ impl SculptApp {
                     egui::CollapsingHeader::new("Material")
                         .default_open(true)
                         .show(ui, |ui| {
-                            material_changed = material_ui(ui, &mut self.material)
+                            material_changed = material_ui(ui, &mut self.material);
+                            // The one haptic gain, shown here and in the device panel.
+                            if haptic_gain_slider(ui, &mut self.device.haptic_gain) {
+                                let gain = self.device.haptic_gain;
+                                self.send(EngineCommand::SetHapticGain { gain });
+                            }
                         });
                     egui::CollapsingHeader::new("Device")
                         .default_open(true)
@@ -383,6 +389,9 @@ impl SculptApp {
             }
             Some(DeviceAction::SetMaxForce { max_force_n }) => {
                 self.send(EngineCommand::SetMaxForce { max_force_n });
+            }
+            Some(DeviceAction::SetHapticGain { gain }) => {
+                self.send(EngineCommand::SetHapticGain { gain });
             }
             None => {}
         }
