@@ -232,3 +232,76 @@ duration_s = 50.0
     assert_eq!(run.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&run.stderr).contains("no recovery file"));
 }
+
+/// The highest point of the OBJ mesh above `(x, z)` (a vertical ray against every triangle).
+fn top_of(vertices: &[[f32; 3]], faces: &[[usize; 3]], x: f32, z: f32) -> Option<f32> {
+    let mut best: Option<f32> = None;
+    for f in faces {
+        let [a, b, c] = [vertices[f[0]], vertices[f[1]], vertices[f[2]]];
+        let d = (b[0] - a[0]) * (c[2] - a[2]) - (b[2] - a[2]) * (c[0] - a[0]);
+        if d.abs() < 1e-12 {
+            continue;
+        }
+        let l1 = ((b[0] - x) * (c[2] - z) - (b[2] - z) * (c[0] - x)) / d;
+        let l2 = ((c[0] - x) * (a[2] - z) - (c[2] - z) * (a[0] - x)) / d;
+        let l3 = 1.0 - l1 - l2;
+        if l1 >= 0.0 && l2 >= 0.0 && l3 >= 0.0 {
+            let y = l1 * a[1] + l2 * b[1] + l3 * c[1];
+            best = Some(best.map_or(y, |t| t.max(y)));
+        }
+    }
+    best
+}
+
+#[test]
+fn the_built_in_run_leaves_a_groove_along_its_path_and_nothing_elsewhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.path().join("sculpt.obj")).unwrap();
+    let (mut vertices, mut faces) = (Vec::new(), Vec::new());
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let v: Vec<f32> = it.map(|t| t.parse().unwrap()).collect();
+                vertices.push([v[0], v[1], v[2]]);
+            }
+            Some("f") => {
+                let f: Vec<usize> = it
+                    .map(|t| t.split('/').next().unwrap().parse::<usize>().unwrap() - 1)
+                    .collect();
+                faces.push([f[0], f[1], f[2]]);
+            }
+            _ => {}
+        }
+    }
+    // The built-in script: the 24³ block spans [0.575, 1.725]; the push runs at z = 1.15
+    // through (0.85, 1.55), (1.15, 1.5), (1.45, 1.55), so it goes 0.175 to 0.225 deep.
+    let (top, block) = (1.725f32, 1.15f32);
+    let push_depth = 0.175f32;
+    for i in 0..=5 {
+        let x = 0.9 + 0.1 * i as f32;
+        let y = top_of(&vertices, &faces, x, 1.15).expect("clay under the path");
+        assert!(
+            top - y >= push_depth / 3.0,
+            "at x = {x} the top is {y}: not a third of the push deep"
+        );
+    }
+    // Away from the path the top face is where it was, within 1% of the block's size.
+    for (x, z) in [(0.7, 0.7), (1.15, 0.7), (1.6, 0.7), (0.7, 1.6), (1.6, 1.6)] {
+        let y = top_of(&vertices, &faces, x, z).expect("clay there");
+        assert!(
+            (y - top).abs() <= 0.01 * block,
+            "the top moved at ({x}, {z}): {y}"
+        );
+    }
+}

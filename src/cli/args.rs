@@ -69,6 +69,11 @@ pub struct RunArgs {
     /// Also write DIR/sculpt.stl.
     #[arg(long)]
     pub stl: bool,
+    /// Run the loops in lockstep on the device's clock instead of in real time: one device
+    /// sample, one simulation step, as fast as the machine goes; the same script always gives
+    /// the same sculpt, bit for bit (simulated arm only; a replay is always in lockstep).
+    #[arg(long)]
+    pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).
     #[arg(long = "no-rt", action = clap::ArgAction::SetFalse)]
     pub rt: bool,
@@ -202,6 +207,11 @@ pub struct ProfileArgs {
     /// Run a CPU hog thread on each other core meanwhile.
     #[arg(long)]
     pub load: bool,
+    /// Run the loops in lockstep on the device's clock instead of in real time: one device
+    /// sample, one simulation step, as fast as the machine goes; the same script always gives
+    /// the same sculpt, bit for bit (simulated arm only; a replay is always in lockstep).
+    #[arg(long)]
+    pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).
     #[arg(long = "no-rt", action = clap::ArgAction::SetFalse)]
     pub rt: bool,

@@ -122,7 +122,29 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
 
+    if args.lockstep && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. }) {
+        return Err(CliError::Usage(format!(
+            "--lockstep runs the simulated arm on its own clock; device {} runs in real time",
+            args.device
+        )));
+    }
     let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
+        DeviceSpec::Sim if args.lockstep => {
+            let arm_config = SimArmConfig::default();
+            let map = EngineConfig::for_field(&field, &arm_config.info).map;
+            let trajectory = plan.trajectory(&map).map_err(CliError::Script)?;
+            // One sample per step of the arm's clock for the whole session.
+            let samples = (seconds * 1e6 / arm_config.step_us as f64).ceil() as usize;
+            let arm = SimulatedArm::new(arm_config, trajectory);
+            let device: Box<dyn HapticDevice> = match &args.record {
+                Some(path) => Box::new(
+                    RecordingDevice::create(arm, path)
+                        .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?,
+                ),
+                None => Box::new(arm),
+            };
+            return run_lockstep(args, &plan, &start, &session_path, device, samples);
+        }
         DeviceSpec::Sim => {
             let arm_config = SimArmConfig::default();
             let info = arm_config.info.clone();
@@ -132,7 +154,15 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         }
         DeviceSpec::Replay { file } => {
             let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
-            return run_replay(args, &plan, &start, &session_path, replay);
+            let samples = replay.read_count();
+            return run_lockstep(
+                args,
+                &plan,
+                &start,
+                &session_path,
+                Box::new(replay),
+                samples,
+            );
         }
         hw => {
             let d = dynaclay_devices::open::build_driver(
@@ -283,30 +313,34 @@ fn finish_run(
     }
 }
 
-/// Replays a recording through the deterministic lockstep engine: one recorded sample, one
-/// simulation step, until the recording ends; the script's non-stroke steps are sent on the
-/// recording's clock. The same recording always gives the same field.
-fn run_replay(
+/// Runs `samples` device samples through the deterministic lockstep engine: one sample, one
+/// simulation step; the script's non-stroke steps are sent on the device's clock. A replay
+/// gives the recorded session's samples, the simulated arm its scripted hand; either way the
+/// same input always gives the same field.
+fn run_lockstep(
     args: &RunArgs,
     plan: &ScriptPlan,
     start: &Session,
     session_path: &Path,
-    replay: ReplayDevice,
+    device: Box<dyn HapticDevice>,
+    samples: usize,
 ) -> Result<RunOutputs, CliError> {
-    let samples = replay.read_count();
-    let info = replay.info();
+    let info = device.info();
     let field = start.clay.patches[0].clone();
     let mut config = EngineConfig::for_field(&field, &info);
     config.sim.material = start.material.uniform;
     let mut lockstep = Lockstep::new(
         &config,
         field,
-        Box::new(replay),
+        device,
         Box::new(HeadlessSink::default()),
         16,
     )
     .map_err(CliError::Engine)?;
-    println!("dynaclay run: replaying {samples} samples in lockstep");
+    println!(
+        "dynaclay run: {samples} samples of {} in lockstep",
+        args.device
+    );
     let mut driver = ScriptDriver::new(plan);
     let commands = lockstep.commands();
     for _ in 0..samples {

@@ -61,8 +61,9 @@ impl Material {
 }
 
 impl Default for Material {
+    /// Plastic: what a stroke does stays (elastic is one click away in the material panel).
     fn default() -> Self {
-        Self::ELASTIC
+        Self::PLASTIC
     }
 }
 

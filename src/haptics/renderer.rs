@@ -13,7 +13,10 @@
 //!    stiffness, plus a damper on the tip's normal velocity that fades in over the first
 //!    millimetre of depth.
 //! 2. **Sculpting.** During a stroke, the push tool feels eq. (6) along the vector from the
-//!    proxy to the tip; a force tool feels the sum over its vectors
+//!    surface to the tip along the tool's axis (the outward normal where the tip first touched
+//!    the clay in this stroke; the surface is searched a bounded reach above the tip, and a
+//!    deeper tip feels the force of that reach: it saturates, never drops); a force tool feels
+//!    the weighted sum over its vectors
 //!    ([`super::SculptReaction`]). Field units become newtons through the calibrated scale
 //!    times the haptic gain, and saturate smoothly (`F_max · tanh(|F| / F_max)`) at the
 //!    device's force limit instead of dropping.
@@ -170,6 +173,9 @@ pub struct ForceRenderer {
     switching: bool,
     /// Whether the previous tick held a stroke.
     was_stroke: bool,
+    /// The push's direction for the held stroke: the outward normal where the tip first
+    /// touched the clay during it (the tool's axis, as Hua & Qin's push vector runs along it).
+    push_axis: Option<Vec3>,
 }
 
 impl ForceRenderer {
@@ -186,6 +192,7 @@ impl ForceRenderer {
             last_tool: FeltTool::default(),
             switching: false,
             was_stroke: false,
+            push_axis: None,
             config,
         }
     }
@@ -222,16 +229,27 @@ impl ForceRenderer {
         }
         self.was_stroke = input.stroke_active;
         let touch = self.proxy.update(input.field, input.tip);
+        if !input.stroke_active {
+            self.push_axis = None;
+        } else if self.push_axis.is_none() && touch.touching {
+            self.push_axis = Some(touch.normal);
+        }
         let per_m = input.field_per_m.max(f32::MIN_POSITIVE);
 
         // Sculpting reaction, field units.
         let (reaction, vector, sculpting) = if input.stroke_active {
             match input.tool {
-                FeltTool::Push if touch.touching => (
-                    reaction_force(input.field, touch.proxy, input.tip),
-                    Some((touch.proxy, input.tip)),
-                    true,
-                ),
+                FeltTool::Push if input.field.is_inside(input.tip) => match self.push_axis {
+                    Some(axis) => {
+                        let from = surface_along(input.field, input.tip, axis);
+                        (
+                            reaction_force(input.field, from, input.tip),
+                            Some((from, input.tip)),
+                            true,
+                        )
+                    }
+                    None => (Vec3::ZERO, None, false),
+                },
                 FeltTool::Force(tool) => {
                     let f = self
                         .sculpt
@@ -310,6 +328,40 @@ impl ForceRenderer {
             energy_j: self.passivity.energy_j(),
         }
     }
+}
+
+/// Marching steps of [`surface_along`].
+const PUSH_MARCH_STEPS: usize = 16;
+/// Bisection steps of [`surface_along`].
+const PUSH_BISECT_STEPS: usize = 10;
+/// How far the push looks for the surface above the tip, knot spans.
+const PUSH_REACH_SPANS: f32 = 6.0;
+
+/// The start of the push's force vector: the first point outside the clay from `tip` along
+/// `axis`, within [`PUSH_REACH_SPANS`] knot spans (bisected), or the end of that reach when the
+/// tip is deeper still, so the force saturates there instead of dropping. Bounded: at most
+/// [`PUSH_MARCH_STEPS`] + [`PUSH_BISECT_STEPS`] field evaluations.
+fn surface_along(field: &BSplineLattice, tip: Vec3, axis: Vec3) -> Vec3 {
+    let reach = PUSH_REACH_SPANS * field.spacing;
+    let step = reach / PUSH_MARCH_STEPS as f32;
+    let mut inner = 0.0_f32;
+    for i in 1..=PUSH_MARCH_STEPS {
+        let t = step * i as f32;
+        if field.value(tip + axis * t) <= field.iso {
+            let mut outer = t;
+            for _ in 0..PUSH_BISECT_STEPS {
+                let mid = 0.5 * (inner + outer);
+                if field.value(tip + axis * mid) > field.iso {
+                    inner = mid;
+                } else {
+                    outer = mid;
+                }
+            }
+            return tip + axis * outer;
+        }
+        inner = t;
+    }
+    tip + axis * reach
 }
 
 /// The work to press the saturating touch spring (`F = F_max · tanh(k x / F_max)`) to
