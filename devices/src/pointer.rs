@@ -210,14 +210,21 @@ mod tests {
         d.open().unwrap();
         assert!(feed.is_listening());
         let first = d.read().unwrap();
-        assert_eq!(first.position_m, Vec3::ZERO, "starts at the workspace centre");
+        assert_eq!(
+            first.position_m,
+            Vec3::ZERO,
+            "starts at the workspace centre"
+        );
         let pose = PointerPose {
             position_m: Vec3::new(0.01, 0.02, -0.03),
             buttons: 1,
         };
         feed.set(pose);
         let s = d.read().unwrap();
-        assert_eq!((s.position_m, s.buttons, s.sequence), (pose.position_m, 1, 1));
+        assert_eq!(
+            (s.position_m, s.buttons, s.sequence),
+            (pose.position_m, 1, 1)
+        );
         // Non-finite poses are not passed on.
         feed.set(PointerPose {
             position_m: Vec3::NAN,
