@@ -110,7 +110,7 @@ pub(crate) struct SpringFields<'a> {
 
 /// `force = external + six-neighbour springs − damping · ḋ`, split by planes.
 pub(crate) fn springs_six(
-    team: &Team,
+    team: &mut Team,
     f: &SpringFields<'_>,
     e_pad: &mut [f32],
     k_pad: &mut [f32],
@@ -166,7 +166,7 @@ pub(crate) struct ChainScratch<'a> {
 
 /// `accel = scale · (AᵀA)⁻¹ Aᵀ force`; returns `(max |accel|, all finite)`.
 pub(crate) fn project(
-    team: &Team,
+    team: &mut Team,
     basis: &KroneckerBasis,
     force: &[f32],
     scale: f32,
@@ -193,7 +193,9 @@ pub(crate) fn project(
         // SAFETY: after the barrier nobody writes t2.
         let t2 = unsafe { t2.slice(0..t2.len()) };
         let cols = split_range(sz.inner, parts, part, LANES);
-        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out);
+        // SAFETY: `split_range` gives each part disjoint columns of `out`, written by this
+        // part alone; `t2` is a different buffer, read only after the barrier.
+        unsafe { sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out) };
         for row in 0..out.len() / sz.inner.max(1) {
             let base = row * sz.inner;
             // SAFETY: these columns were written by this part alone.
@@ -222,30 +224,39 @@ fn planes_xy(
     let rows = [&ops[0], &ops[1]].map(|o| o.rows_in().max(o.rows_out()));
     with_blocks(rows[0].max(rows[1]), |blocks| {
         for plane in planes {
-            sweep_x_with(
-                blocks,
-                &ops[0],
-                src,
-                plane * lines_per_plane..(plane + 1) * lines_per_plane,
-                t1,
-            );
+            // SAFETY: the callers split the planes between parts (`split_range`), so this
+            // plane's lines of t1 are written by this part alone; `src` is another buffer.
+            // Whole planes hold whole lane groups, so a short tail stays inside the plane.
+            unsafe {
+                sweep_x_with(
+                    blocks,
+                    &ops[0],
+                    src,
+                    plane * lines_per_plane..(plane + 1) * lines_per_plane,
+                    t1,
+                );
+            }
             // SAFETY: this part wrote this plane of t1 and nobody else touches it.
             let mine = unsafe { t1.slice(plane * t1_plane..(plane + 1) * t1_plane) };
-            sweep_strided_with(
-                blocks,
-                &ops[1],
-                mine,
-                sy.inner,
-                0..1,
-                0..sy.inner,
-                &t2.sub(plane * t2_plane..(plane + 1) * t2_plane),
-            );
+            // SAFETY: this plane of t2 (a `sub` of this plane alone) belongs to this part;
+            // `mine` lies in t1.
+            unsafe {
+                sweep_strided_with(
+                    blocks,
+                    &ops[1],
+                    mine,
+                    sy.inner,
+                    0..1,
+                    0..sy.inner,
+                    &t2.sub(plane * t2_plane..(plane + 1) * t2_plane),
+                );
+            }
         }
     });
 }
 
 /// `(max |p|, max |ṗ|, all finite)`.
-pub(crate) fn coefficient_bounds(team: &Team, p: &[f32], p_dot: &[f32]) -> (f32, f32, bool) {
+pub(crate) fn coefficient_bounds(team: &mut Team, p: &[f32], p_dot: &[f32]) -> (f32, f32, bool) {
     let parts = team.threads();
     let (pm, vm) = (PartMax::new(), PartMax::new());
     team.run(&|part, _| {
@@ -299,7 +310,7 @@ pub(crate) fn plastic_drift(d: &[f32], rest: &mut [f32], pl: Plastic) {
 /// plastic drift applied as each value of `ḋ` comes out.
 #[allow(clippy::too_many_arguments)] // one pass over the whole state
 pub(crate) fn integrate(
-    team: &Team,
+    team: &mut Team,
     basis: &KroneckerBasis,
     dt: f32,
     integrator: Integrator,
@@ -352,18 +363,23 @@ pub(crate) fn integrate(
                 }
                 let v: &[f32] = v;
                 let t1k = t1.sub(k * t1_plane..(k + 1) * t1_plane);
-                sweep_x_with(blocks, &ops[0], v, 0..lines_per_plane, &t1k);
+                // SAFETY: plane k is this part's (split by `split_range`), so t1k (this
+                // plane of t1 alone) is written by this part only; `v` lies in the velocity.
+                unsafe { sweep_x_with(blocks, &ops[0], v, 0..lines_per_plane, &t1k) };
                 // SAFETY: this part wrote this plane of t1 and nobody else touches it.
                 let mine = unsafe { t1k.slice(0..t1k.len()) };
-                sweep_strided_with(
-                    blocks,
-                    &ops[1],
-                    mine,
-                    sy.inner,
-                    0..1,
-                    0..sy.inner,
-                    &t2.sub(k * t2_plane..(k + 1) * t2_plane),
-                );
+                // SAFETY: this plane of t2 belongs to this part; `mine` lies in t1.
+                unsafe {
+                    sweep_strided_with(
+                        blocks,
+                        &ops[1],
+                        mine,
+                        sy.inner,
+                        0..1,
+                        0..sy.inner,
+                        &t2.sub(k * t2_plane..(k + 1) * t2_plane),
+                    );
+                }
             }
         });
         barrier.wait();
@@ -383,7 +399,9 @@ pub(crate) fn integrate(
                 }
             }
         }
-        sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out.d_dot);
+        // SAFETY: `split_range` gives each part disjoint columns of ḋ; t2 is another buffer,
+        // read only after the barrier.
+        unsafe { sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out.d_dot) };
         for seg in segments() {
             // SAFETY: these columns belong to this part alone.
             let (dd, d, rest) = unsafe {

@@ -324,7 +324,7 @@ impl Simulator {
                 zeros: &self.zeros,
             };
             passes::springs_six(
-                &self.team,
+                &mut self.team,
                 &fields,
                 &mut self.e_pad,
                 &mut self.k_pad,
@@ -363,7 +363,7 @@ impl Simulator {
                 t2: &mut self.t2,
             };
             let (max, finite) = passes::project(
-                &self.team,
+                &mut self.team,
                 basis,
                 &self.force,
                 1.0 / mu,
@@ -516,7 +516,8 @@ impl Simulator {
         state.dt_s = dt;
 
         // Bound the new state before writing any of it.
-        let (p_max, v_max, finite) = passes::coefficient_bounds(&self.team, &state.p, &state.p_dot);
+        let (p_max, v_max, finite) =
+            passes::coefficient_bounds(&mut self.team, &state.p, &state.p_dot);
         let v_new = v_max + dt * max_accel;
         let bound = p_max + dt * v_new.max(v_max);
         if !(finite && bound.is_finite() && bound <= p.max_abs_coeff) {
@@ -530,7 +531,7 @@ impl Simulator {
             yield_density: state.yield_density.max(0.0),
         });
         passes::integrate(
-            &self.team,
+            &mut self.team,
             &state.basis,
             dt,
             p.integrator,

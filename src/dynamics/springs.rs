@@ -155,26 +155,26 @@ pub(crate) struct SixInputs<'a> {
 /// zeros with the row's own stiffness), each `mx` long.
 type NeighbourRows<'a> = [(&'a [f32], &'a [f32]); 4];
 
-/// `s[i..i + W]`.
+/// `s[i..i + W]`, bounds-checked (one check per lane group, which the loops around it hoist
+/// or fold: see `cargo bench --bench core -- step` in `bench/RESULTS.md`).
 ///
-/// # Safety
-/// `i + W <= s.len()`.
+/// # Panics
+/// When `i + W > s.len()`.
 #[inline(always)]
-unsafe fn lanes(s: &[f32], i: usize) -> [f32; W] {
-    debug_assert!(i + W <= s.len());
-    let p = s.as_ptr();
-    // SAFETY: in bounds by the caller's contract. Element loads (not an array copy), which
-    // LLVM merges into vector loads.
-    std::array::from_fn(|l| unsafe { *p.add(i + l) })
+fn lanes(s: &[f32], i: usize) -> [f32; W] {
+    let chunk: &[f32; W] = s[i..i + W]
+        .try_into()
+        .unwrap_or_else(|_| unreachable!("a slice of W is W long"));
+    *chunk
 }
 
 /// The fused kernel on `W` points starting at `i` (full width).
 ///
-/// # Safety
-/// `i + W <= mx`, where `ec` and `kc` hold `mx + 2` values and every other slice `mx`.
+/// # Panics
+/// Unless `i + W <= mx`, where `ec` and `kc` hold `mx + 2` values and every other slice `mx`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the streams of one row
-unsafe fn six_chunk(
+fn six_chunk(
     i: usize,
     ec: &[f32],
     kc: &[f32],
@@ -184,22 +184,20 @@ unsafe fn six_chunk(
     v: &[f32],
     out: &mut [f32],
 ) {
-    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
+    // The padded rows are two longer: centre at i + 1, x− at i, x+ at i + 2.
     let [(e0, k0), (exm, kxm), (exp, kxp)] =
-        [1, 0, 2].map(|o| unsafe { (lanes(ec, i + o), lanes(kc, i + o)) });
+        [1, 0, 2].map(|o| (lanes(ec, i + o), lanes(kc, i + o)));
     let mut acc = [0.0; W];
     for l in 0..W {
         acc[l] = (k0[l] + kxm[l]) * (exm[l] - e0[l]) + (k0[l] + kxp[l]) * (exp[l] - e0[l]);
     }
     for &(en, kn) in rows {
-        // SAFETY: as above.
-        let (en, kn) = unsafe { (lanes(en, i), lanes(kn, i)) };
+        let (en, kn) = (lanes(en, i), lanes(kn, i));
         for l in 0..W {
             acc[l] += (k0[l] + kn[l]) * (en[l] - e0[l]);
         }
     }
-    // SAFETY: as above.
-    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let (x, gg, vv) = (lanes(ext, i), lanes(g, i), lanes(v, i));
     let mut f = [0.0; W];
     for l in 0..W {
         f[l] = x[l] + 0.5 * acc[l] - gg[l] * vv[l];
@@ -209,11 +207,11 @@ unsafe fn six_chunk(
 
 /// [`six_chunk`] with one stiffness `k` everywhere: `k Σ (e_n − e)`.
 ///
-/// # Safety
+/// # Panics
 /// As [`six_chunk`].
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // the streams of one row
-unsafe fn six_chunk_uniform(
+fn six_chunk_uniform(
     i: usize,
     k: f32,
     ec: &[f32],
@@ -223,21 +221,19 @@ unsafe fn six_chunk_uniform(
     v: &[f32],
     out: &mut [f32],
 ) {
-    // SAFETY: i + W <= mx by the caller's contract, and the padded rows are two longer.
-    let [e0, exm, exp] = [1, 0, 2].map(|o| unsafe { lanes(ec, i + o) });
+    // The padded row is two longer: centre at i + 1, x− at i, x+ at i + 2.
+    let [e0, exm, exp] = [1, 0, 2].map(|o| lanes(ec, i + o));
     let mut acc = [0.0; W];
     for l in 0..W {
         acc[l] = (exm[l] - e0[l]) + (exp[l] - e0[l]);
     }
     for &(en, _) in rows {
-        // SAFETY: as above.
-        let en = unsafe { lanes(en, i) };
+        let en = lanes(en, i);
         for l in 0..W {
             acc[l] += en[l] - e0[l];
         }
     }
-    // SAFETY: as above.
-    let (x, gg, vv) = unsafe { (lanes(ext, i), lanes(g, i), lanes(v, i)) };
+    let (x, gg, vv) = (lanes(ext, i), lanes(g, i), lanes(v, i));
     let mut f = [0.0; W];
     for l in 0..W {
         f[l] = x[l] + k * acc[l] - gg[l] * vv[l];
@@ -322,12 +318,10 @@ pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force
         loop {
             // The last chunk overlaps the previous one.
             let at = i.min(mx - W);
-            // SAFETY: at + W <= mx, and the lengths were checked above.
-            unsafe {
-                match inp.uniform_k {
-                    Some(k) => six_chunk_uniform(at, k, ec, &rows, ext, g, v, out),
-                    None => six_chunk(at, ec, kc, &rows, ext, g, v, out),
-                }
+            // at + W <= mx, and the lengths were checked above.
+            match inp.uniform_k {
+                Some(k) => six_chunk_uniform(at, k, ec, &rows, ext, g, v, out),
+                None => six_chunk(at, ec, kc, &rows, ext, g, v, out),
             }
             i += W;
             if i >= mx {

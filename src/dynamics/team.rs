@@ -133,18 +133,20 @@ impl Team {
     }
 
     /// Run `job(0)` here and `job(1)` on the helper (or only `job(0)` with one thread), and
-    /// return when both are done.
+    /// return when both are done. Takes `&mut self`: one dispatch at a time is what makes the
+    /// helper's job slot safe to write (see the SAFETY note inside), and the borrow checker
+    /// now enforces it instead of a comment.
     ///
     /// # Panics
     /// When either half panicked.
-    pub(crate) fn run(&self, job: &Job<'_>) {
+    pub(crate) fn run(&mut self, job: &Job<'_>) {
         let Some((shared, handle)) = &self.helper else {
             job(0, &Barrier::default());
             return;
         };
         let ticket = shared.posted.load(Ordering::Relaxed) + 1;
-        // SAFETY: the helper is idle (every earlier dispatch finished before `run` returned),
-        // so nobody reads `job` now. The lifetime is erased only for the duration of this
+        // SAFETY: `&mut self` rules out a concurrent `run`, and the helper is idle (every
+        // earlier dispatch finished before `run` returned), so nobody reads `job` now. The lifetime is erased only for the duration of this
         // dispatch: `Wait` below blocks until the helper has finished with it, even when our
         // half panics.
         unsafe {

@@ -235,26 +235,35 @@ impl KroneckerBasis {
     fn chain(&self, ops: [AxisOp<'_>; 3], src: &[f32], dst: &mut [f32], scratch: &mut KronScratch) {
         let [sx, sy, sz] = self.pass_shapes(&ops);
         let t1 = &mut scratch.a[..sx.out_len];
-        sweep_x(&ops[0], src, 0..sx.lines, &SharedOut::new(t1));
+        // SAFETY: one thread, and the output is an exclusively borrowed buffer (a fresh
+        // `SharedOut` over `&mut`) that the source does not overlap; the same for the two
+        // passes below.
+        unsafe { sweep_x(&ops[0], src, 0..sx.lines, &SharedOut::new(t1)) };
         let t1 = &scratch.a[..sx.out_len];
         let t2 = &mut scratch.b[..sy.out_len];
-        sweep_strided(
-            &ops[1],
-            t1,
-            sy.inner,
-            0..sy.outer,
-            0..sy.inner,
-            &SharedOut::new(t2),
-        );
+        // SAFETY: as above.
+        unsafe {
+            sweep_strided(
+                &ops[1],
+                t1,
+                sy.inner,
+                0..sy.outer,
+                0..sy.inner,
+                &SharedOut::new(t2),
+            );
+        }
         let t2 = &scratch.b[..sy.out_len];
-        sweep_strided(
-            &ops[2],
-            t2,
-            sz.inner,
-            0..1,
-            0..sz.inner,
-            &SharedOut::new(dst),
-        );
+        // SAFETY: as above.
+        unsafe {
+            sweep_strided(
+                &ops[2],
+                t2,
+                sz.inner,
+                0..1,
+                0..sz.inner,
+                &SharedOut::new(dst),
+            );
+        }
     }
 
     /// Shapes of the three passes of `ops` (x, then y, then z).

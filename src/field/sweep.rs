@@ -367,9 +367,14 @@ fn run_block<'m>(op: &AxisOp<'_>, input: &[Lanes], mid: &'m mut [Lanes]) -> &'m 
 /// One pass along a strided axis. `src` has shape `[outer][rows_in][inner]` (inner fastest),
 /// the output `[outer][rows_out][inner]`; only blocks `outer` and columns `cols` are done.
 ///
+/// # Safety
+/// `out` is written at every row of blocks `outer`, columns `cols`: while this runs, no other
+/// thread may read or write those elements of `out` (threads splitting one pass must give
+/// each a disjoint `outer × cols`), and `src` must not overlap them.
+///
 /// # Panics
 /// When `src` is too short for the ranges.
-pub(crate) fn sweep_strided(
+pub(crate) unsafe fn sweep_strided(
     op: &AxisOp<'_>,
     src: &[f32],
     inner: usize,
@@ -378,15 +383,19 @@ pub(crate) fn sweep_strided(
     out: &impl Emit,
 ) {
     with_blocks(op.rows_in().max(op.rows_out()), |blocks| {
-        sweep_strided_with(blocks, op, src, inner, outer, cols, out);
+        // SAFETY: forwarded contract (the same `out`, `outer` and `cols`).
+        unsafe { sweep_strided_with(blocks, op, src, inner, outer, cols, out) };
     });
 }
 
 /// [`sweep_strided`] with the caller's block buffers.
 ///
+/// # Safety
+/// As [`sweep_strided`].
+///
 /// # Panics
 /// When `src` is too short for the ranges or the buffers too small for the axis.
-pub(crate) fn sweep_strided_with(
+pub(crate) unsafe fn sweep_strided_with(
     blocks: &mut Blocks<'_>,
     op: &AxisOp<'_>,
     src: &[f32],
@@ -736,19 +745,33 @@ fn strided_block(
 /// One pass along the contiguous x axis: `src` holds lines of `rows_in` values, the output
 /// lines of `rows_out`; only `lines` are done.
 ///
+/// # Safety
+/// `out` is written at lines `lines` (and, for a range shorter than a lane group at its end,
+/// at most `LANES − 1` lines before it, rewritten with the same values): while this runs, no
+/// other thread may read or write those lines of `out`, and `src` must not overlap them.
+///
 /// # Panics
 /// When `src` is too short for the range.
-pub(crate) fn sweep_x(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, out: &SharedOut<'_>) {
+pub(crate) unsafe fn sweep_x(
+    op: &AxisOp<'_>,
+    src: &[f32],
+    lines: Range<usize>,
+    out: &SharedOut<'_>,
+) {
     with_blocks(op.rows_in().max(op.rows_out()), |blocks| {
-        sweep_x_with(blocks, op, src, lines, out);
+        // SAFETY: forwarded contract (the same `out` and `lines`).
+        unsafe { sweep_x_with(blocks, op, src, lines, out) };
     });
 }
 
 /// [`sweep_x`] with the caller's block buffers.
 ///
+/// # Safety
+/// As [`sweep_x`].
+///
 /// # Panics
 /// When `src` is too short for the range or the buffers too small for the axis.
-pub(crate) fn sweep_x_with(
+pub(crate) unsafe fn sweep_x_with(
     blocks: &mut Blocks<'_>,
     op: &AxisOp<'_>,
     src: &[f32],
@@ -778,7 +801,8 @@ pub(crate) fn sweep_x_with(
                 }
             }
             let res = run_block(op, input, mid);
-            // SAFETY: the caller hands each line range to one thread.
+            // SAFETY: these lines are in (or, for a short tail, just before) `lines`, which the
+            // caller's contract gives to this call alone.
             let dst = unsafe { out.slice_mut(g * ro..(g + count) * ro) };
             if count == LANES {
                 transpose_out(res, ro, dst);
