@@ -4,6 +4,10 @@
 //! Knows no geometry beyond glam vectors. Everything called on the haptic path (`read`,
 //! `write_force`, the filter) allocates nothing and does bounded work after `open`.
 
+#![deny(unsafe_op_in_unsafe_fn)]
+#![warn(clippy::undocumented_unsafe_blocks)]
+#![warn(missing_docs)]
+
 pub mod device;
 pub mod record;
 pub mod safety;
