@@ -14,7 +14,6 @@ pub mod safety;
 pub mod sim_arm;
 
 pub use device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-pub use pointer::{PointerDevice, PointerFeed, PointerPose};
 pub use record::{
     RecordError, RecorderConfig, Recording, RecordingDevice, ReplayDevice, ReplayDivergence,
 };
@@ -32,7 +31,6 @@ pub mod falcon;
 pub mod hid_arm;
 pub mod kinematics;
 pub mod open;
-pub mod pointer;
 pub mod pose_input;
 pub mod profile;
 pub mod serial_arm;

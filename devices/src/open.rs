@@ -51,7 +51,7 @@ fn load_profile(name: &str) -> Result<DeviceProfile, DeviceError> {
 ///
 /// # Errors
 /// [`DeviceError::Config`] for a bad or mismatched profile; [`DeviceError::Unsupported`] for
-/// `sim`, `replay` and `pointer`, which the engine or the window builds itself.
+/// `sim` and `replay`, which the engine builds itself.
 pub fn build_driver(
     spec: &DeviceSpec,
     opts: &DriverOptions,
@@ -62,9 +62,6 @@ pub fn build_driver(
         }),
         DeviceSpec::Replay { .. } => Err(DeviceError::Unsupported {
             what: "`replay` as hardware: build crate::record::ReplayDevice",
-        }),
-        DeviceSpec::Pointer => Err(DeviceError::Unsupported {
-            what: "`pointer` as hardware: the window builds crate::pointer::PointerDevice",
         }),
         DeviceSpec::SpaceMouse => Ok(Box::new(SpaceMouse::new(opts.spacemouse))),
         DeviceSpec::Hid { profile } => {

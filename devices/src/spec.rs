@@ -32,8 +32,6 @@ pub enum DeviceSpec {
     },
     /// A 3Dconnexion SpaceMouse (pose input, no force).
     SpaceMouse,
-    /// The window's mouse or pen as the tool (`dynaclay gui` only; no force).
-    Pointer,
     /// Replay of a recorded session.
     Replay {
         /// Recording file.
@@ -82,10 +80,7 @@ impl FromStr for DeviceSpec {
         match kind.trim().to_ascii_lowercase().as_str() {
             "sim" if rest.is_none() => Ok(Self::Sim),
             "spacemouse" if rest.is_none() => Ok(Self::SpaceMouse),
-            "pointer" | "mouse" if rest.is_none() => Ok(Self::Pointer),
-            "sim" | "spacemouse" | "pointer" | "mouse" => {
-                Err(err(&format!("`{kind}` takes no argument")))
-            }
+            "sim" | "spacemouse" => Err(err(&format!("`{kind}` takes no argument"))),
             "hid" => match rest {
                 None => Ok(Self::Hid { profile: None }),
                 Some(p) => Ok(Self::Hid {
@@ -142,7 +137,6 @@ impl fmt::Display for DeviceSpec {
             } => write!(f, "serial:{}:{p}", path.display()),
             Self::Falcon { path } => write!(f, "falcon:{}", path.display()),
             Self::SpaceMouse => write!(f, "spacemouse"),
-            Self::Pointer => write!(f, "pointer"),
             Self::Replay { file } => write!(f, "replay:{}", file.display()),
         }
     }

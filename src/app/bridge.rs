@@ -36,7 +36,6 @@ use crate::engine::{
     Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
     ToolChoice as EngineToolChoice,
 };
-use crate::field::BSplineLattice;
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -57,8 +56,6 @@ pub struct GuiMeshSink {
     set: MeshSet,
     /// The latest set, for exports by the bridge thread (held only to clone the `Arc`s).
     shared: Arc<Mutex<MeshSet>>,
-    /// Where the graphics loop's field goes for picking (none in tests without a window).
-    field: Option<SnapshotWriter<BSplineLattice>>,
     repaint: RepaintSignal,
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
@@ -80,7 +77,6 @@ impl GuiMeshSink {
             bricks: HashMap::new(),
             set: MeshSet::new(),
             shared,
-            field: None,
             repaint,
             colour: None,
             next_version: 0,
@@ -111,15 +107,6 @@ impl GuiMeshSink {
 }
 
 impl MeshSink for GuiMeshSink {
-    /// Publishes a copy of the field for picking (the copy reuses the buffer it replaces once
-    /// the three buffers have the lattice's size).
-    fn field(&mut self, lattice: &BSplineLattice) {
-        if let Some(w) = self.field.as_mut() {
-            w.back_mut().clone_from(lattice);
-            w.publish();
-        }
-    }
-
     fn update(&mut self, octree: &BrickOctree, report: &RefreshReport) {
         for c in &report.removed {
             self.bricks.remove(c);
@@ -202,13 +189,10 @@ pub fn start_bridge(
         events,
         view,
         meshes,
-        field,
-        pointer: _,
         repaint,
     } = endpoint;
     let shared = Arc::new(Mutex::new(MeshSet::new()));
-    let mut sink = GuiMeshSink::new(meshes, Arc::clone(&shared), repaint);
-    sink.field = Some(field);
+    let sink = GuiMeshSink::new(meshes, Arc::clone(&shared), repaint);
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);

@@ -10,8 +10,7 @@ use dynaclay_devices::spec::{DeviceSpec, SpecError};
 use super::view::{DeviceLinkState, DeviceStatus};
 
 /// The kinds of spec, as the first word of the spec string.
-pub const SPEC_KINDS: [(&str, &str); 7] = [
-    ("pointer", "mouse or pen (no force)"),
+pub const SPEC_KINDS: [(&str, &str); 6] = [
     ("sim", "simulated arm"),
     ("hid", "HID arm (optional profile)"),
     ("serial", "serial arm (port, optional :profile)"),
@@ -227,8 +226,6 @@ mod tests {
     #[test]
     fn spec_text_round_trips_through_the_devices_parser() {
         let mut p = DevicePanel::default();
-        assert_eq!(p.spec(), Ok(DeviceSpec::Pointer), "the mouse, by default");
-        p.set_spec_text("sim");
         assert_eq!(p.spec(), Ok(DeviceSpec::Sim));
         p.set_spec_text("serial:/dev/ttyUSB0:cartesian-serial");
         assert_eq!(p.spec_text(), "serial:/dev/ttyUSB0:cartesian-serial");

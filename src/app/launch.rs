@@ -6,9 +6,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use dynaclay_devices::spec::DeviceSpec;
-use dynaclay_devices::{
-    DeviceInfo, HapticDevice, PointerDevice, PointerFeed, SimArmConfig, SimulatedArm,
-};
+use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
@@ -46,7 +44,7 @@ impl std::error::Error for LaunchError {}
 /// What `dynaclay gui` was asked for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuiArgs {
-    /// The device (`--device SPEC` or `--device=SPEC`; default `pointer`: the mouse).
+    /// The device (`--device SPEC` or `--device=SPEC`; default `sim`).
     pub device: DeviceSpec,
     /// A session file to start from (the engine keeps its lattice for the whole run, so
     /// later loads must match it).
@@ -63,7 +61,7 @@ pub const DEFAULT_SESSION: &str = "sculpt.dclay";
 /// # Errors
 /// An unknown option, a second session, a missing value or a spec the devices parser rejects.
 pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
-    let mut spec = "pointer".to_owned();
+    let mut spec = "sim".to_owned();
     let mut session = None;
     let mut recover = false;
     let mut it = args.iter();
@@ -129,19 +127,16 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (patch, Some(s.material.uniform))
         }
     };
-    let (link, endpoint) = engine_link();
-    let feed = link.pointer_feed();
-    let (device, info) = make_device(&spec, &field, &script, &feed).map_err(LaunchError::Device)?;
+    let (device, info) = make_device(&spec, &field, &script).map_err(LaunchError::Device)?;
     let mut config = EngineConfig::for_field(&field, &info);
-    // The pointer tool's map: the engine's for a pointer device on this clay.
-    let pointer_map = EngineConfig::for_field(&field, &pointer_device(&feed).info()).map;
     if let Some(m) = material {
         config.sim.material = m;
     }
+    let (link, endpoint) = engine_link();
     // The device panel opens devices for the same clay while the engine runs.
     let opener_field = field.clone();
     let opener: DeviceOpener = Box::new(move |spec: &DeviceSpec| {
-        make_device(spec, &opener_field, &script, &feed).map(|(d, _)| d)
+        make_device(spec, &opener_field, &script).map(|(d, _)| d)
     });
     let autosave = Autosave::new(&session_path, AutosavePolicy::default(), Instant::now());
     let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
@@ -156,7 +151,6 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     }
     let options = GuiOptions {
         session_path: session_path.display().to_string(),
-        workspace_map: Some(pointer_map),
         ..GuiOptions::default()
     };
     let shown = run_gui(options, link);
@@ -166,17 +160,9 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     Ok(())
 }
 
-/// The pointer device reading `feed`, in the simulated arm's workspace box (so the clay maps
-/// onto it as it maps onto the arm).
-fn pointer_device(feed: &PointerFeed) -> PointerDevice {
-    let info = SimArmConfig::default_info();
-    PointerDevice::new(feed.clone(), info.workspace_min_m, info.workspace_max_m)
-}
-
-/// Makes the device `spec` names, for the clay `field`: the pointer reads the window's
-/// `feed`; the simulated arm follows `script`'s strokes mapped onto that clay (so the view
-/// moves); a hardware spec gets its driver. A replay is refused here: recordings are
-/// replayed by `dynaclay run`.
+/// Makes the device `spec` names, for the clay `field`: the simulated arm follows `script`'s
+/// strokes mapped onto that clay (so the view moves); a hardware spec gets its driver. A
+/// replay is refused here: recordings are replayed by `dynaclay run`.
 ///
 /// # Errors
 /// The driver's error, or the refusal of a replay, as text naming the spec.
@@ -184,14 +170,8 @@ pub fn make_device(
     spec: &DeviceSpec,
     field: &BSplineLattice,
     script: &ScriptPlan,
-    feed: &PointerFeed,
 ) -> Result<(Box<dyn HapticDevice>, DeviceInfo), String> {
     match spec {
-        DeviceSpec::Pointer => {
-            let d = pointer_device(feed);
-            let info = d.info();
-            Ok((Box::new(d), info))
-        }
         DeviceSpec::Sim => {
             let arm = SimArmConfig::default();
             let info = arm.info.clone();
@@ -222,7 +202,7 @@ mod tests {
     #[test]
     fn gui_arguments_parse_like_run_devices() {
         let s = |v: &[&str]| parse_gui_args(&v.iter().map(|x| x.to_string()).collect::<Vec<_>>());
-        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Pointer);
+        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Sim);
         assert_eq!(s(&[]).unwrap().session, None);
         assert_eq!(
             s(&["--device", "spacemouse"]).unwrap().device,

@@ -12,10 +12,7 @@
 use std::sync::{Arc, OnceLock};
 
 use crossbeam::channel::{self, Receiver, Sender, TrySendError};
-use dynaclay_devices::PointerFeed;
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
-
-use crate::field::BSplineLattice;
 
 use super::command::{EngineCommand, EngineEvent};
 use super::meshes::MeshSet;
@@ -83,8 +80,6 @@ pub struct EngineLink {
     events: Receiver<EngineEvent>,
     view: SnapshotReader<EngineView>,
     meshes: SnapshotReader<MeshSet>,
-    field: SnapshotReader<BSplineLattice>,
-    pointer: PointerFeed,
     repaint: RepaintSignal,
 }
 
@@ -95,10 +90,6 @@ pub struct EngineEndpoint {
     pub events: Sender<EngineEvent>,
     pub view: SnapshotWriter<EngineView>,
     pub meshes: SnapshotWriter<MeshSet>,
-    /// The graphics loop's field, for picking the clay under the pointer.
-    pub field: SnapshotWriter<BSplineLattice>,
-    /// Where the window puts the pointer tool's pose (read by a pointer device).
-    pub pointer: PointerFeed,
     pub repaint: RepaintSignal,
 }
 
@@ -109,10 +100,6 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
     let (ev_tx, ev_rx) = channel::unbounded();
     let (view_tx, view_rx) = snapshot_channel(&EngineView::default());
     let (mesh_tx, mesh_rx) = snapshot_channel(&MeshSet::new());
-    let none = BSplineLattice::zeros([4; 3], 1.0, glam::Vec3::ZERO)
-        .unwrap_or_else(|e| unreachable!("a 4³ lattice is valid: {e}"));
-    let (field_tx, field_rx) = snapshot_channel(&none);
-    let pointer = PointerFeed::new();
     let repaint = RepaintSignal::default();
     (
         EngineLink {
@@ -120,8 +107,6 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             events: ev_rx,
             view: view_rx,
             meshes: mesh_rx,
-            field: field_rx,
-            pointer: pointer.clone(),
             repaint: repaint.clone(),
         },
         EngineEndpoint {
@@ -129,8 +114,6 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             events: ev_tx,
             view: view_tx,
             meshes: mesh_tx,
-            field: field_tx,
-            pointer,
             repaint,
         },
     )
@@ -174,18 +157,6 @@ impl EngineLink {
     /// The newest published meshes (wait-free).
     pub fn meshes(&mut self) -> &Stamped<MeshSet> {
         self.meshes.latest()
-    }
-
-    /// The graphics loop's newest field (wait-free); `None` before the first publication.
-    pub fn field(&mut self) -> Option<&BSplineLattice> {
-        let stamped = self.field.latest();
-        (stamped.version != 0).then_some(&stamped.value)
-    }
-
-    /// The pointer tool's feed (a pointer device connected to the engine reads it).
-    #[must_use]
-    pub fn pointer_feed(&self) -> PointerFeed {
-        self.pointer.clone()
     }
 
     /// The signal the engine uses to wake the app.

@@ -11,8 +11,6 @@ pub struct GuiOptions {
     pub window_size_pt: [f32; 2],
     /// The session path the top bar starts with (Save and Load use it).
     pub session_path: String,
-    /// How the clay maps onto the pointer device's metres (the mouse as the tool).
-    pub workspace_map: Option<crate::engine::WorkspaceMap>,
 }
 
 impl Default for GuiOptions {
@@ -21,7 +19,6 @@ impl Default for GuiOptions {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
             session_path: super::launch::DEFAULT_SESSION.into(),
-            workspace_map: None,
         }
     }
 }
@@ -57,9 +54,6 @@ pub fn run_gui(options: GuiOptions, link: EngineLink) -> Result<(), GuiError> {
     let repaint = link.repaint_signal();
     let mut app = SculptApp::new(link);
     app.files.session.clone_from(&options.session_path);
-    if let Some(map) = options.workspace_map {
-        app.set_workspace_map(map);
-    }
     eframe::run_native(
         &options.title,
         native,

@@ -24,11 +24,8 @@ use super::latency::LatencyHistory;
 use super::link::EngineLink;
 use super::material_panel::material_ui;
 use super::palette::ToolPalette;
-use super::pointer_tool::PointerTool;
 use super::view::{EngineView, WorldBox};
 use super::viewport::{SceneView, camera_input};
-use crate::engine::WorkspaceMap;
-use glam::Vec3;
 
 /// Lines kept in the message log.
 const LOG_LEN: usize = 50;
@@ -109,12 +106,6 @@ pub struct SculptApp {
     key_stroke: bool,
     /// Mesh version last framed by the camera (frames once when the first meshes arrive).
     framed: bool,
-    /// The mouse or pen as the sculpting tool (feeds a pointer device when one is connected).
-    pub pointer: Option<PointerTool>,
-    /// Whether the held left drag is a stroke (it began on the clay) rather than an orbit.
-    pointer_stroke: bool,
-    /// Where the 3D view was drawn in the last frame.
-    pub viewport_rect: Option<egui::Rect>,
 }
 
 impl SculptApp {
@@ -122,33 +113,11 @@ impl SculptApp {
     /// the first frame.
     #[must_use]
     pub fn new(link: EngineLink) -> Self {
-        // Until the launcher says how field units map to the pointer device's metres, one to
-        // one (a pointer device is fitted around the clay by the same map as an arm).
-        let map = WorkspaceMap {
-            device_centre_m: Vec3::ZERO,
-            field_centre: Vec3::ZERO,
-            field_per_m: 1.0,
-            force_n_per_unit: 0.0,
-        };
-        let pointer = Some(PointerTool::new(link.pointer_feed(), map));
         Self {
             link,
             tool_pending: true,
-            pointer,
             ..Self::default()
         }
-    }
-
-    /// Tells the pointer tool how field coordinates map to the pointer device's metres (the
-    /// engine's map for that device).
-    pub fn set_workspace_map(&mut self, map: WorkspaceMap) {
-        let feed = self.link.pointer_feed();
-        let depth = self.pointer.as_ref().map(|p| p.depth);
-        let mut tool = PointerTool::new(feed, map);
-        if let Some(d) = depth {
-            tool.depth = d;
-        }
-        self.pointer = Some(tool);
     }
 
     /// Sends `command`; a failure goes to the log. Returns whether it was queued.
@@ -484,11 +453,7 @@ impl SculptApp {
     fn viewport(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
         let rect = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-        self.viewport_rect = Some(rect);
-        self.pointer_input(ui, &response);
-        if !self.pointer_stroke {
-            camera_input(ui, &response, &mut self.camera, &self.trackball);
-        }
+        camera_input(ui, &response, &mut self.camera, &self.trackball);
         if self.spacemouse.poll(&mut self.camera) {
             ui.ctx().request_repaint();
         }
@@ -520,66 +485,6 @@ impl SculptApp {
                 image.paint_at(ui, rect);
             }
             Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
-        }
-    }
-}
-
-impl SculptApp {
-    /// The mouse on the view as the sculpting tool, while a pointer device listens: a left
-    /// drag that begins on the clay is a stroke (the tip `depth` under the surface under the
-    /// pointer), one that begins off the clay, or with Alt or Shift held, moves the camera;
-    /// hovering keeps the tip just above the surface; Ctrl + wheel sets the depth.
-    fn pointer_input(&mut self, ui: &egui::Ui, response: &egui::Response) {
-        let Some(pointer) = self.pointer.as_mut() else {
-            return;
-        };
-        if !self.link.pointer_feed().is_listening() {
-            self.pointer_stroke = false;
-            return;
-        }
-        let rect = response.rect;
-        let size = glam::Vec2::new(rect.width(), rect.height());
-        let at = response
-            .interact_pointer_pos()
-            .or_else(|| response.hover_pos());
-        let ray = at.map(|p| {
-            self.camera
-                .pointer_ray(glam::Vec2::new(p.x - rect.min.x, p.y - rect.min.y), size)
-        });
-        // egui turns Ctrl + wheel into a zoom factor (and leaves the camera's scroll alone).
-        let (alt, shift, ctrl, zoom) = ui.input(|i| {
-            (
-                i.modifiers.alt,
-                i.modifiers.shift,
-                i.modifiers.ctrl || i.modifiers.command,
-                i.zoom_delta(),
-            )
-        });
-        if ctrl && zoom != 1.0 && response.hovered() {
-            pointer.scale_depth(zoom);
-        }
-        let Some(field) = self.link.field() else {
-            return;
-        };
-        if response.drag_started_by(egui::PointerButton::Primary)
-            && !alt
-            && !shift
-            && let Some(ray) = ray
-        {
-            self.pointer_stroke = pointer.begin_stroke(ray, field);
-        }
-        if self.pointer_stroke {
-            if response.dragged_by(egui::PointerButton::Primary)
-                && let Some(ray) = ray
-            {
-                pointer.drag(ray);
-            }
-            if response.drag_stopped() || !ui.input(|i| i.pointer.primary_down()) {
-                pointer.end_stroke();
-                self.pointer_stroke = false;
-            }
-        } else if let Some(ray) = ray {
-            pointer.hover(ray, field);
         }
     }
 }

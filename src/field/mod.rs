@@ -8,7 +8,6 @@ mod lattice;
 mod mass_grid;
 mod multipatch;
 mod primitive;
-mod ray;
 mod refit;
 mod snapshot;
 mod sweep;
@@ -21,7 +20,6 @@ pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid};
 pub use multipatch::{MultiPatchField, Patch};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
-pub use ray::{MAX_PICK_STEPS, PICK_BISECT_STEPS, RayHit, pick_surface};
 pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box};
 pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
 pub(crate) use sweep::{

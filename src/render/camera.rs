@@ -118,30 +118,6 @@ impl Camera {
         )
     }
 
-    /// The ray through a point of the view, `at_px` from its top-left corner in a view of
-    /// `size_px`: its origin on the near plane and its unit direction, world units.
-    #[must_use]
-    pub fn pointer_ray(&self, at_px: glam::Vec2, size_px: glam::Vec2) -> (Vec3, Vec3) {
-        let size = size_px.max(glam::Vec2::ONE);
-        let ndc = glam::Vec2::new(2.0 * at_px.x / size.x - 1.0, 1.0 - 2.0 * at_px.y / size.y);
-        let inverse = self.view_projection(size.x / size.y).inverse();
-        let near = inverse.project_point3(ndc.extend(0.0));
-        let far = inverse.project_point3(ndc.extend(1.0));
-        (near, (far - near).normalize_or(-self.eye_direction()))
-    }
-
-    /// Where a world point shows in a view of `size_px`, from its top-left corner (`None`
-    /// behind the eye).
-    #[must_use]
-    pub fn to_screen(&self, world: Vec3, size_px: glam::Vec2) -> Option<glam::Vec2> {
-        let size = size_px.max(glam::Vec2::ONE);
-        let clip = self.view_projection(size.x / size.y) * world.extend(1.0);
-        (clip.w > 0.0).then(|| {
-            let ndc = clip.truncate() / clip.w;
-            glam::Vec2::new((ndc.x + 1.0) * 0.5 * size.x, (1.0 - ndc.y) * 0.5 * size.y)
-        })
-    }
-
     /// `projection(aspect) * view()`.
     #[must_use]
     pub fn view_projection(&self, aspect: f32) -> Mat4 {
@@ -381,22 +357,5 @@ mod tests {
         b.rotate(Quat::from_rotation_y(0.3));
         assert!((a.yaw_rad - b.yaw_rad).abs() < 1e-5);
         assert!(close(a.eye(), b.eye()));
-    }
-
-    #[test]
-    fn the_pointer_ray_through_the_centre_passes_the_target_and_back_again() {
-        let mut c = Camera::named(NamedView::Iso, Vec3::ZERO, Vec3::splat(2.0));
-        c.orbit(0.3, -0.2);
-        let size = glam::Vec2::new(800.0, 600.0);
-        let (origin, dir) = c.pointer_ray(size * 0.5, size);
-        let to_target = c.target - origin;
-        assert!((to_target.normalize() - dir).length() < 1e-4, "{dir}");
-        let centre = c.to_screen(c.target, size).unwrap();
-        assert!((centre - size * 0.5).length() < 1e-2, "{centre}");
-        // Any pixel: the ray through it shows up at that pixel.
-        let px = glam::Vec2::new(120.0, 470.0);
-        let (o, d) = c.pointer_ray(px, size);
-        let back = c.to_screen(o + d * 3.0, size).unwrap();
-        assert!((back - px).length() < 0.05, "{back}");
     }
 }
