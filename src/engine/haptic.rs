@@ -408,19 +408,17 @@ hover_m = 0.3
             "starts at the device's own"
         );
 
-        // The push asks for up to about 0.3 N.
+        // The push would ask for over 1 N; the renderer saturates smoothly at the limit the
+        // filter applies, and the filter clamps what is left over.
         let cap_n = 0.1;
         limit.request(cap_n).unwrap();
-        let (mut peak_n, mut clamped, mut over) = (0.0f32, 0, 0);
+        let (mut peak_n, mut near_cap) = (0.0f32, 0);
         for _ in 0..1400 {
             let out = stages.haptic.tick(Instant::now());
             let sent_n = out.sample.device_force_n.length();
             peak_n = peak_n.max(sent_n);
-            if out.requested_force_n.length() > cap_n {
-                over += 1;
-                if (sent_n - cap_n).abs() < 1e-4 {
-                    clamped += 1;
-                }
+            if sent_n > 0.95 * cap_n {
+                near_cap += 1;
             }
             stages.sim.apply_commands();
             let sample = stages.samples.latest().value;
@@ -428,12 +426,8 @@ hover_m = 0.3
         }
         assert_eq!(limit.applied_n(), cap_n);
         assert!(
-            over > 100,
-            "the push asked for more than the cap ({over} ticks)"
-        );
-        assert!(
-            clamped * 10 > over * 9,
-            "held at the cap: {clamped} of {over}"
+            near_cap > 100,
+            "the push was held at the cap ({near_cap} ticks within 5% of it)"
         );
         assert!(peak_n <= cap_n + 1e-5, "peak {peak_n} N over the cap");
 
