@@ -220,10 +220,18 @@ mod tests {
         assert_eq!(again, s, "no new sample: the same state, same sequence");
         handle.set(Vec3::new(5.0, 0.0, f32::NAN), false);
         let s = dev.read().unwrap();
-        assert_eq!(s.position_m, Vec3::new(0.01, 0.02, 0.03), "NaN keeps the tip");
+        assert_eq!(
+            s.position_m,
+            Vec3::new(0.01, 0.02, 0.03),
+            "NaN keeps the tip"
+        );
         handle.set(Vec3::new(5.0, 0.0, 0.0), false);
         let s = dev.read().unwrap();
-        assert_eq!(s.position_m, Vec3::new(0.1, 0.0, 0.0), "clamped to the workspace");
+        assert_eq!(
+            s.position_m,
+            Vec3::new(0.1, 0.0, 0.0),
+            "clamped to the workspace"
+        );
         assert!(!s.button(PRESS_BUTTON));
         assert_eq!(s.sequence, 3);
         assert!(dev.write_force(Vec3::X).is_ok());

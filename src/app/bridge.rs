@@ -36,6 +36,7 @@ use crate::engine::{
     Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
     ToolChoice as EngineToolChoice,
 };
+use crate::field::BSplineLattice;
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -59,6 +60,8 @@ pub struct GuiMeshSink {
     repaint: RepaintSignal,
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
+    /// The clay, for the app's pointer picking.
+    field: SnapshotWriter<BSplineLattice>,
     /// Version for the next chunk made: the renderer re-uploads a chunk whose version
     /// changed, and a recoloured brick keeps its octree version, so the sink numbers chunks.
     next_version: u64,
@@ -69,10 +72,12 @@ impl GuiMeshSink {
     /// graphics stage hands it paint.
     fn new(
         meshes: SnapshotWriter<MeshSet>,
+        field: SnapshotWriter<BSplineLattice>,
         shared: Arc<Mutex<MeshSet>>,
         repaint: RepaintSignal,
     ) -> Self {
         Self {
+            field,
             meshes,
             bricks: HashMap::new(),
             set: MeshSet::new(),
@@ -149,6 +154,10 @@ impl MeshSink for GuiMeshSink {
         }
         self.publish();
     }
+
+    fn field(&mut self, field: &BSplineLattice) {
+        self.field.publish_clone_of(field);
+    }
 }
 
 /// A running bridge; stopping it stops the engine.
@@ -189,10 +198,11 @@ pub fn start_bridge(
         events,
         view,
         meshes,
+        field,
         repaint,
     } = endpoint;
     let shared = Arc::new(Mutex::new(MeshSet::new()));
-    let sink = GuiMeshSink::new(meshes, Arc::clone(&shared), repaint);
+    let sink = GuiMeshSink::new(meshes, field, Arc::clone(&shared), repaint);
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -870,7 +880,7 @@ mod tests {
 
         let (mut link, end) = super::super::link::engine_link();
         let shared = Arc::new(Mutex::new(MeshSet::new()));
-        let mut sink = GuiMeshSink::new(end.meshes, Arc::clone(&shared), end.repaint);
+        let mut sink = GuiMeshSink::new(end.meshes, end.field, Arc::clone(&shared), end.repaint);
         sink.update(&octree, &report);
         let published = link.meshes().value.clone();
         assert!(published.len() > 1, "sphere spans several bricks");
@@ -896,6 +906,7 @@ mod tests {
         let (mut link, end) = super::super::link::engine_link();
         let mut sink = GuiMeshSink::new(
             end.meshes,
+            end.field,
             Arc::new(Mutex::new(MeshSet::new())),
             end.repaint,
         );

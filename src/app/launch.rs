@@ -5,11 +5,13 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
+use super::pointer_tool::PointerTool;
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
 use crate::field::BSplineLattice;
@@ -61,7 +63,7 @@ pub const DEFAULT_SESSION: &str = "sculpt.dclay";
 /// # Errors
 /// An unknown option, a second session, a missing value or a spec the devices parser rejects.
 pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
-    let mut spec = "sim".to_owned();
+    let mut spec = "mouse".to_owned();
     let mut session = None;
     let mut recover = false;
     let mut it = args.iter();
@@ -127,8 +129,18 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (patch, Some(s.material.uniform))
         }
     };
-    let (device, info) = make_device(&spec, &field, &script).map_err(LaunchError::Device)?;
+    // The window's own pointer is the default tool; its handle stays with the app.
+    let mut pointer_handle = None;
+    let (device, info) = if spec == DeviceSpec::Pointer {
+        let pointer = PointerConfig::default();
+        let (device, handle) = pointer_device(pointer);
+        pointer_handle = Some(handle);
+        (Box::new(device) as Box<dyn HapticDevice>, pointer.info())
+    } else {
+        make_device(&spec, &field, &script).map_err(LaunchError::Device)?
+    };
     let mut config = EngineConfig::for_field(&field, &info);
+    let pointer = pointer_handle.map(|h| PointerTool::new(h, config.map));
     if let Some(m) = material {
         config.sim.material = m;
     }
@@ -153,7 +165,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         session_path: session_path.display().to_string(),
         ..GuiOptions::default()
     };
-    let shown = run_gui(options, link);
+    let shown = run_gui(options, link, pointer);
     let stopped = bridge.stop();
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
     stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
@@ -179,6 +191,10 @@ pub fn make_device(
             let trajectory = script.trajectory(&map).map_err(|e| e.to_string())?;
             Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
         }
+        DeviceSpec::Pointer => Err(
+            "the mouse is the window's own device: start with `dynaclay gui` (or `--device mouse`) to sculpt with it"
+                .into(),
+        ),
         DeviceSpec::Replay { file } => Err(format!(
             "{}: use `dynaclay run --device replay:FILE` to replay recordings",
             file.display()
@@ -202,7 +218,7 @@ mod tests {
     #[test]
     fn gui_arguments_parse_like_run_devices() {
         let s = |v: &[&str]| parse_gui_args(&v.iter().map(|x| x.to_string()).collect::<Vec<_>>());
-        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Sim);
+        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Pointer);
         assert_eq!(s(&[]).unwrap().session, None);
         assert_eq!(
             s(&["--device", "spacemouse"]).unwrap().device,

@@ -130,7 +130,14 @@ mod tests {
             (Vec3::new(1.6, 2.1, 4.5), Vec3::NEG_Z),
             (Vec3::new(-0.5, 1.5, 1.7), Vec3::new(1.0, 0.1, 0.05)),
         ] {
-            let hit = pick_surface(&field, Ray { origin, direction: dir }).expect("ray hits");
+            let hit = pick_surface(
+                &field,
+                Ray {
+                    origin,
+                    direction: dir,
+                },
+            )
+            .expect("ray hits");
             // Analytic first intersection of the ray with the ball.
             let d = dir.normalize();
             let oc = origin - c;
@@ -138,7 +145,10 @@ mod tests {
             let t = -b - (b * b - (oc.length_squared() - r * r)).sqrt();
             let expected = origin + d * t;
             let err_spans = (hit.point - expected).length() / span;
-            assert!(err_spans < 1e-3, "{origin} → {dir}: off by {err_spans} spans");
+            assert!(
+                err_spans < 1e-3,
+                "{origin} → {dir}: off by {err_spans} spans"
+            );
             let n = (expected - c).normalize();
             assert!(hit.normal.dot(n) > 0.999, "normal {} vs {n}", hit.normal);
             assert!((hit.distance - t).abs() / span < 1e-3);
@@ -151,8 +161,7 @@ mod tests {
             centre: Vec3::splat(1.6),
             radius: 1.0,
         };
-        let field =
-            lattice_from_primitive([17, 17, 17], 0.2, Vec3::ZERO, &sphere, 0.4, 2).unwrap();
+        let field = lattice_from_primitive([17, 17, 17], 0.2, Vec3::ZERO, &sphere, 0.4, 2).unwrap();
         let origin = Vec3::new(1.6, 1.6, -0.5);
         let hit = pick_surface(
             &field,
