@@ -4,7 +4,9 @@
 //! the block's size) away from it.
 
 use dynaclay::dynamics::Material;
-use dynaclay::engine::{EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay};
+use dynaclay::engine::{
+    EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
+};
 use dynaclay::field::BSplineLattice;
 use dynaclay::io::MaterialFields;
 use dynaclay::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};

@@ -575,9 +575,19 @@ impl SculptApp {
     /// goes down, aims the tool under the pointer, reads the brush wheels and paints the
     /// brush cursor.
     fn pointer_input(&mut self, ui: &egui::Ui, response: &egui::Response) {
-        let (pressed, down, modifiers, pos, wheel) = ui.input(|i| {
+        let (pressed, down, mut modifiers, pos, wheel, press_modifiers) = ui.input(|i| {
             let mut wheel = (0.0f32, egui::Modifiers::NONE);
+            let mut press_modifiers = None;
             for e in &i.events {
+                if let egui::Event::PointerButton {
+                    button: egui::PointerButton::Primary,
+                    pressed: true,
+                    modifiers,
+                    ..
+                } = e
+                {
+                    press_modifiers = Some(*modifiers);
+                }
                 if let egui::Event::MouseWheel {
                     unit,
                     delta,
@@ -603,8 +613,13 @@ impl SculptApp {
                 i.modifiers,
                 i.pointer.latest_pos(),
                 wheel,
+                press_modifiers,
             )
         });
+        // The modifiers held when the button went down decide between sculpting and orbiting.
+        if let Some(m) = press_modifiers {
+            modifiers = m;
+        }
         if !self.pointer.is_connected() {
             self.sculpt_drag = false;
             return;
