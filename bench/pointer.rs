@@ -95,7 +95,10 @@ fn pointer_frame(c: &mut Criterion) {
         ))
     };
     let on_clay = frame(&mut tool, false, 0);
-    println!("pointer_frame_96: tip on the clay: {:?}", tool.pose.map(|p| p.on_clay));
+    println!(
+        "pointer_frame_96: tip on the clay: {:?}",
+        tool.pose.map(|p| p.on_clay)
+    );
     black_box(on_clay);
     let mut i = 0;
     group.bench_function("hover", |b| {

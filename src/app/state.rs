@@ -48,7 +48,7 @@ impl Default for DisplaySettings {
     fn default() -> Self {
         Self {
             shading: Shading::default(),
-            tool_style: ToolStyle::Transparent,
+            tool_style: ToolStyle::TipAndReach,
             show_force: true,
             force_arrow_per_n: 0.05,
             show_workspace: true,
@@ -115,6 +115,8 @@ pub struct SculptApp {
     pub viewport_rect: Option<egui::Rect>,
     /// A pen's latest pressure, 0..1 (`None` for a mouse: full depth).
     pen_pressure: Option<f32>,
+    /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
+    brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
 }
 
 /// Brush radius factor per `[` or `]` press.
@@ -512,6 +514,7 @@ impl SculptApp {
             .show_ui(ui, |ui| {
                 for s in [
                     ToolStyle::Hidden,
+                    ToolStyle::TipAndReach,
                     ToolStyle::Transparent,
                     ToolStyle::Wireframe,
                 ] {
@@ -550,6 +553,7 @@ impl SculptApp {
         }
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            self.paint_brush_cursor(ui, rect);
             return;
         };
         let ppp = ui.ctx().pixels_per_point();
@@ -564,6 +568,7 @@ impl SculptApp {
             Ok(texture) => {
                 let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
                 image.paint_at(ui, rect);
+                self.paint_brush_cursor(ui, rect);
             }
             Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
         }
@@ -620,6 +625,7 @@ impl SculptApp {
         if let Some(m) = press_modifiers {
             modifiers = m;
         }
+        self.brush_cursor = None;
         if !self.pointer.is_connected() {
             self.sculpt_drag = false;
             return;
@@ -682,13 +688,16 @@ impl SculptApp {
         let centre = to_screen(pose.surface);
         let rim = to_screen(pose.surface + right * radius);
         let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
-        let painter = ui.painter_at(rect);
-        painter.circle_stroke(
-            centre,
-            (rim - centre).length(),
-            egui::Stroke::new(2.0, tint),
-        );
-        painter.circle_filled(centre, 2.5, tint);
+        self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// Paints the brush cursor over the scene image.
+    fn paint_brush_cursor(&self, ui: &egui::Ui, rect: egui::Rect) {
+        if let Some((centre, radius, tint)) = self.brush_cursor {
+            let painter = ui.painter_at(rect);
+            painter.circle_stroke(centre, radius, egui::Stroke::new(2.0, tint));
+            painter.circle_filled(centre, 2.5, tint);
+        }
     }
 }
 
