@@ -397,6 +397,7 @@ impl Bridge {
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
+            EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),
             EngineCommand::Undo => self.send(what, Command::Undo),
             EngineCommand::Redo => self.send(what, Command::Redo),
             EngineCommand::Save { path } => {

@@ -115,6 +115,8 @@ pub struct SculptApp {
     pub viewport_rect: Option<egui::Rect>,
     /// A pen's latest pressure, 0..1 (`None` for a mouse: full depth).
     pen_pressure: Option<f32>,
+    /// Mirror planes for strokes, as last sent to the engine.
+    pub symmetry: crate::engine::Symmetry,
     /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
     brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
 }
@@ -382,6 +384,16 @@ impl SculptApp {
                     .text("Strength"),
             )
             .changed();
+        ui.horizontal(|ui| {
+            ui.label("Mirror");
+            let before = self.symmetry;
+            ui.checkbox(&mut self.symmetry.x, "X");
+            ui.checkbox(&mut self.symmetry.y, "Y");
+            ui.checkbox(&mut self.symmetry.z, "Z");
+            if self.symmetry != before && !self.send(EngineCommand::SetSymmetry(self.symmetry)) {
+                self.symmetry = before;
+            }
+        });
         ui.label("Left drag on the clay: stroke · Alt+left or left off the clay: orbit");
         ui.label("Right, middle or Shift+left: pan · wheel: zoom");
         ui.label("Ctrl+wheel: depth · Shift+wheel: strength · [ ]: brush size");
