@@ -82,7 +82,7 @@ fn pointer_frame(c: &mut Criterion) {
     let aspect = 1.6;
     let mut group = c.benchmark_group("pointer_frame_96");
     group.measurement_time(Duration::from_secs(3));
-    let mut frame = |tool: &mut PointerTool, pressing: bool, i: u32| {
+    let frame = |tool: &mut PointerTool, pressing: bool, i: u32| {
         // The pointer wanders a few pixels around the middle of the view.
         let ndc = Vec2::new(0.01 * (i % 7) as f32, 0.01 * (i % 5) as f32);
         let pose = tool.aim(&field, &camera, ndc, aspect, pressing, 1.0);

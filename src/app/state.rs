@@ -721,7 +721,7 @@ fn brush_tint(choice: &super::command::ToolChoice, pressing: bool) -> egui::Colo
         super::command::ToolChoice::Force(_) => [240, 150, 60],
         super::command::ToolChoice::Geometric(t) => match t.action {
             ToolAction::Add { .. } => [90, 210, 110],
-            ToolAction::Remove { .. } => [230, 80, 70],
+            ToolAction::Remove => [230, 80, 70],
             _ => [90, 160, 240],
         },
     };
