@@ -353,15 +353,19 @@ impl Bridge {
         };
         match self.engine.replace_device(device, SWAP_TIMEOUT) {
             Ok(report) => {
-                self.connected = true;
-                let mut detail = format!("{} connected", report.connected.name);
-                if report.replaced.name != "no device" {
-                    detail = format!(
-                        "{detail}; {}",
-                        closed_detail(&report.replaced.name, &report.close)
+                let Some(connected) = report.connected else {
+                    self.fail(
+                        what,
+                        format!("{spec}: the engine parked instead of connecting"),
                     );
+                    return;
+                };
+                self.connected = true;
+                let mut detail = format!("{} connected", connected.name);
+                if let Some(replaced) = &report.replaced {
+                    detail = format!("{detail}; {}", closed_detail(&replaced.name, &report.close));
                 }
-                self.device = report.connected;
+                self.device = connected;
                 let _ = self.events.send(EngineEvent::Done {
                     what: what.into(),
                     detail,
@@ -454,9 +458,12 @@ impl Bridge {
             }
             EngineCommand::DisconnectDevice => match self.engine.disconnect_device(SWAP_TIMEOUT) {
                 Ok(report) => {
+                    // The panel keeps the last device's description, shown as disconnected.
                     self.connected = false;
-                    let detail = closed_detail(&report.replaced.name, &report.close);
-                    self.device = report.connected;
+                    let detail = match &report.replaced {
+                        Some(replaced) => closed_detail(&replaced.name, &report.close),
+                        None => "no device was connected".into(),
+                    };
                     let _ = self.events.send(EngineEvent::Done {
                         what: what.into(),
                         detail,
