@@ -4,7 +4,8 @@
 //!
 //! Guarantee: neither side ever waits for the app. The sink runs on the graphics loop (not the
 //! haptic loop), copies only the bricks a refresh changed, publishes through a triple buffer
-//! and then asks for a repaint. The bridge thread is an ordinary thread: it sends engine
+//! (a second one for the bridge thread's exports, and a third with its field copy for the
+//! pointer's picking) and then asks for a repaint: no lock anywhere. The bridge thread is an ordinary thread: it sends engine
 //! commands on the engine's own channel, reads the tool sample, the simulation's status and
 //! each loop's latency figures wait-free, sets the force limit through an atomic the haptic
 //! tick reads, and reads sessions and writes exports itself, so no loop does disk I/O for
@@ -24,9 +25,8 @@ use std::time::Duration;
 use crossbeam::channel::{Receiver, Sender, bounded};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice};
-use dynaclay_loops::SnapshotWriter;
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
-use parking_lot::Mutex;
 
 use super::command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 use super::link::{EngineEndpoint, RepaintSignal};
@@ -56,7 +56,7 @@ pub struct GuiMeshSink {
     bricks: HashMap<[u32; 3], Arc<ChunkMesh>>,
     set: MeshSet,
     /// The latest set, for exports by the bridge thread (held only to clone the `Arc`s).
-    shared: Arc<Mutex<MeshSet>>,
+    exports: SnapshotWriter<MeshSet>,
     repaint: RepaintSignal,
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
@@ -68,12 +68,12 @@ pub struct GuiMeshSink {
 }
 
 impl GuiMeshSink {
-    /// A sink publishing on `meshes` (and into `shared` for exports), unpainted until the
+    /// A sink publishing on `meshes` (and on `exports` for the bridge thread's exports), unpainted until the
     /// graphics stage hands it paint.
     fn new(
         meshes: SnapshotWriter<MeshSet>,
         field: SnapshotWriter<BSplineLattice>,
-        shared: Arc<Mutex<MeshSet>>,
+        exports: SnapshotWriter<MeshSet>,
         repaint: RepaintSignal,
     ) -> Self {
         Self {
@@ -81,7 +81,7 @@ impl GuiMeshSink {
             meshes,
             bricks: HashMap::new(),
             set: MeshSet::new(),
-            shared,
+            exports,
             repaint,
             colour: None,
             next_version: 0,
@@ -106,7 +106,7 @@ impl GuiMeshSink {
         self.set.clear();
         self.set.extend(self.bricks.values().cloned());
         self.meshes.publish_clone_of(&self.set);
-        self.shared.lock().clone_from(&self.set);
+        self.exports.publish_clone_of(&self.set);
         self.repaint.request();
     }
 }
@@ -201,8 +201,8 @@ pub fn start_bridge(
         field,
         repaint,
     } = endpoint;
-    let shared = Arc::new(Mutex::new(MeshSet::new()));
-    let sink = GuiMeshSink::new(meshes, field, Arc::clone(&shared), repaint);
+    let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
+    let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -211,7 +211,7 @@ pub fn start_bridge(
         commands,
         events,
         view,
-        shared,
+        exports,
         device,
         connected: true,
         opener,
@@ -242,7 +242,8 @@ struct Bridge {
     commands: Receiver<EngineCommand>,
     events: Sender<EngineEvent>,
     view: SnapshotWriter<EngineView>,
-    shared: Arc<Mutex<MeshSet>>,
+    /// The latest meshes, for exports (read wait-free).
+    exports: SnapshotReader<MeshSet>,
     device: DeviceInfo,
     /// Whether a device is connected (false after the panel's disconnect).
     connected: bool,
@@ -416,7 +417,7 @@ impl Bridge {
                 );
             }
             EngineCommand::Export { path } => {
-                let set = self.shared.lock().clone();
+                let set = self.exports.latest().value.clone();
                 let ev = match export_chunks(&set, &path) {
                     Ok(n) => EngineEvent::Done {
                         what: what.into(),
@@ -725,6 +726,20 @@ mod tests {
             "{events:?}"
         );
 
+        // Export writes the meshes the graphics loop handed over (read wait-free).
+        let exported = dir.path().join("carved.obj");
+        link.send(EngineCommand::Export {
+            path: exported.clone(),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the export", |_, ev| {
+            ev.iter().any(|e| {
+                matches!(e, EngineEvent::Done { what, detail } if what == "export" && detail.contains("triangles"))
+            })
+        });
+        let obj = std::fs::read_to_string(&exported).unwrap();
+        assert!(obj.lines().filter(|l| l.starts_with("f ")).count() > 100);
+
         // The loops publish figures about once a second.
         wait_for(&mut link, &mut events, "loop figures", |v, _| {
             v.loops
@@ -887,8 +902,8 @@ mod tests {
         let (_, octree, report) = meshed_sphere();
 
         let (mut link, end) = super::super::link::engine_link();
-        let shared = Arc::new(Mutex::new(MeshSet::new()));
-        let mut sink = GuiMeshSink::new(end.meshes, end.field, Arc::clone(&shared), end.repaint);
+        let (exports, _exported) = snapshot_channel(&MeshSet::new());
+        let mut sink = GuiMeshSink::new(end.meshes, end.field, exports, end.repaint);
         sink.update(&octree, &report);
         let published = link.meshes().value.clone();
         assert!(published.len() > 1, "sphere spans several bricks");
@@ -915,7 +930,7 @@ mod tests {
         let mut sink = GuiMeshSink::new(
             end.meshes,
             end.field,
-            Arc::new(Mutex::new(MeshSet::new())),
+            snapshot_channel(&MeshSet::new()).0,
             end.repaint,
         );
         sink.update(&octree, &report);
