@@ -525,3 +525,79 @@ fn a_left_drag_over_the_clay_sculpts_under_the_pointer_and_nowhere_else() {
         );
     }
 }
+
+/// The brush bindings: `]` and `[` scale every tool's radius, Shift + wheel the strength,
+/// Ctrl + wheel the press depth; a plain wheel still zooms and leaves the brush alone.
+#[test]
+fn brush_keys_and_wheels_change_size_strength_and_depth() {
+    use dynaclay_devices::pointer::{PointerConfig, pointer_device};
+
+    use super::pointer_tool::PointerTool;
+    use crate::engine::WorkspaceMap;
+
+    let (mut h, end) = harness();
+    let config = PointerConfig::default();
+    let (_device, handle) = pointer_device(config);
+    let map = WorkspaceMap::fitting(
+        config.workspace_min_m,
+        config.workspace_max_m,
+        glam::Vec3::ZERO,
+        glam::Vec3::splat(2.3),
+        30.0,
+    );
+    h.state_mut().pointer = PointerTool::new(handle, map);
+    h.run();
+    drain(&end);
+    let radius = h.state().palette.force.radius_m;
+    h.key_press(egui::Key::CloseBracket);
+    h.run();
+    assert!(h.state().palette.force.radius_m > radius * 1.1);
+    let sent = drain(&end);
+    assert!(
+        matches!(sent.as_slice(), [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.radius_m > radius * 1.1),
+        "{sent:?}"
+    );
+    h.key_press(egui::Key::OpenBracket);
+    h.run();
+    assert!((h.state().palette.force.radius_m - radius).abs() < 1e-5);
+
+    let rect = h.state().viewport_rect.unwrap();
+    let wheel = |modifiers| egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 100.0),
+        phase: egui::TouchPhase::Move,
+        modifiers,
+        source: egui::MouseWheelSource::Wheel,
+    };
+    h.hover_at(rect.center());
+    h.run();
+    let (gain, depth, distance) = (
+        h.state().palette.force.gain,
+        h.state().pointer.depth_spans,
+        h.state().camera.distance,
+    );
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    h.event(wheel(egui::Modifiers::SHIFT));
+    h.run();
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run();
+    assert!(
+        h.state().palette.force.gain > gain * 1.2,
+        "Shift + wheel: strength"
+    );
+    assert_eq!(h.state().pointer.depth_spans, depth);
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::CTRL));
+    h.event(wheel(egui::Modifiers::CTRL));
+    h.run();
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run();
+    assert!(h.state().pointer.depth_spans > depth, "Ctrl + wheel: depth");
+    assert_eq!(
+        h.state().camera.distance,
+        distance,
+        "brush wheels do not zoom"
+    );
+    h.event(wheel(egui::Modifiers::NONE));
+    h.run();
+    assert!(h.state().camera.distance < distance, "a plain wheel zooms");
+}
