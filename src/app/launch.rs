@@ -1,4 +1,4 @@
-//! `dynaclay gui [SESSION] [--device SPEC] [--recover]`: builds the starting clay (the built-in script's,
+//! `dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover]`: builds the starting clay (the built-in script's,
 //! or the session's) and the device, starts the threaded engine behind a bridge, and runs the
 //! window until it is closed.
 
@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 use dynaclay_devices::spec::DeviceSpec;
-use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
+use dynaclay_devices::{DeviceInfo, HapticDevice, RecordingDevice, SimArmConfig, SimulatedArm};
 
 use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
@@ -33,7 +33,7 @@ impl std::fmt::Display for LaunchError {
         match self {
             Self::Usage(m) => write!(
                 f,
-                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--recover])"
+                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover])"
             ),
             Self::Device(m) => write!(f, "gui: device: {m}"),
             Self::Failed(m) => write!(f, "gui: {m}"),
@@ -46,8 +46,11 @@ impl std::error::Error for LaunchError {}
 /// What `dynaclay gui` was asked for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuiArgs {
-    /// The device (`--device SPEC` or `--device=SPEC`; default `sim`).
+    /// The device (`--device SPEC` or `--device=SPEC`; default `mouse`, the window's pointer).
     pub device: DeviceSpec,
+    /// Record the device's samples to this file (`--record FILE`); the engine reads the
+    /// recording like any device, so the session replays bit for bit through the lockstep engine.
+    pub record: Option<PathBuf>,
     /// A session file to start from (the engine keeps its lattice for the whole run, so
     /// later loads must match it).
     pub session: Option<PathBuf>,
@@ -66,10 +69,18 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
     let mut spec = "mouse".to_owned();
     let mut session = None;
     let mut recover = false;
+    let mut record = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         if a == "--recover" {
             recover = true;
+        } else if a == "--record" {
+            record =
+                Some(PathBuf::from(it.next().ok_or_else(|| {
+                    LaunchError::Usage("--record needs a file".into())
+                })?));
+        } else if let Some(v) = a.strip_prefix("--record=") {
+            record = Some(PathBuf::from(v));
         } else if a == "--device" {
             spec = it
                 .next()
@@ -88,6 +99,7 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
         .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))?;
     Ok(GuiArgs {
         device,
+        record,
         session,
         recover,
     })
@@ -100,6 +112,7 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
 pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let GuiArgs {
         device: spec,
+        record,
         session: named,
         recover,
     } = parse_gui_args(args)?;
@@ -138,6 +151,13 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         (Box::new(device) as Box<dyn HapticDevice>, pointer.info())
     } else {
         make_device(&spec, &field, &script).map_err(LaunchError::Device)?
+    };
+    let device: Box<dyn HapticDevice> = match &record {
+        Some(path) => Box::new(
+            RecordingDevice::create(device, path)
+                .map_err(|e| LaunchError::Failed(format!("{}: {e}", path.display())))?,
+        ),
+        None => device,
     };
     let mut config = EngineConfig::for_field(&field, &info);
     let pointer = pointer_handle.map(|h| PointerTool::new(h, config.map));
@@ -237,6 +257,16 @@ mod tests {
         assert!(s(&["--bogus"]).is_err());
         assert!(s(&["--device", "falcon"]).is_err());
         assert!(!s(&[]).unwrap().recover);
+        assert_eq!(s(&[]).unwrap().record, None);
+        assert_eq!(
+            s(&["--record", "m.rec"]).unwrap().record,
+            Some(PathBuf::from("m.rec"))
+        );
+        assert_eq!(
+            s(&["--record=m.rec"]).unwrap().record,
+            Some(PathBuf::from("m.rec"))
+        );
+        assert!(s(&["--record"]).is_err());
         let recovering = s(&["--recover", "a.dclay"]).unwrap();
         assert!(recovering.recover);
         assert_eq!(recovering.session, Some(PathBuf::from("a.dclay")));
