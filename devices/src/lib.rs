@@ -31,6 +31,7 @@ pub mod falcon;
 pub mod hid_arm;
 pub mod kinematics;
 pub mod open;
+pub mod pointer;
 pub mod pose_input;
 pub mod profile;
 pub mod serial_arm;

@@ -63,6 +63,9 @@ pub fn build_driver(
         DeviceSpec::Replay { .. } => Err(DeviceError::Unsupported {
             what: "`replay` as hardware: build crate::record::ReplayDevice",
         }),
+        DeviceSpec::Pointer => Err(DeviceError::Unsupported {
+            what: "`mouse` as hardware: the window builds crate::pointer::PointerDevice",
+        }),
         DeviceSpec::SpaceMouse => Ok(Box::new(SpaceMouse::new(opts.spacemouse))),
         DeviceSpec::Hid { profile } => {
             let p = load_profile(profile.as_deref().unwrap_or("woodenhaptics"))?;

@@ -1,5 +1,5 @@
 //! Device specs as typed on the command line (`--device`): `sim`, `hid[:PROFILE]`,
-//! `serial:PATH[:PROFILE]`, `falcon:PATH`, `spacemouse`, `replay:FILE`.
+//! `serial:PATH[:PROFILE]`, `falcon:PATH`, `spacemouse`, `mouse`, `replay:FILE`.
 //!
 //! Parsing is pure and total: any string gives a [`DeviceSpec`] or a [`SpecError`] that quotes
 //! the input and says what was expected; it never panics.
@@ -32,6 +32,8 @@ pub enum DeviceSpec {
     },
     /// A 3Dconnexion SpaceMouse (pose input, no force).
     SpaceMouse,
+    /// The window's mouse or pen (`mouse`): the app aims it at the clay (pose input, no force).
+    Pointer,
     /// Replay of a recorded session.
     Replay {
         /// Recording file.
@@ -52,7 +54,7 @@ impl fmt::Display for SpecError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "invalid device `{}`: {} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse or replay:FILE)",
+            "invalid device `{}`: {} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, mouse or replay:FILE)",
             self.input.escape_debug(),
             self.reason
         )
@@ -80,7 +82,8 @@ impl FromStr for DeviceSpec {
         match kind.trim().to_ascii_lowercase().as_str() {
             "sim" if rest.is_none() => Ok(Self::Sim),
             "spacemouse" if rest.is_none() => Ok(Self::SpaceMouse),
-            "sim" | "spacemouse" => Err(err(&format!("`{kind}` takes no argument"))),
+            "mouse" if rest.is_none() => Ok(Self::Pointer),
+            "sim" | "spacemouse" | "mouse" => Err(err(&format!("`{kind}` takes no argument"))),
             "hid" => match rest {
                 None => Ok(Self::Hid { profile: None }),
                 Some(p) => Ok(Self::Hid {
@@ -137,6 +140,7 @@ impl fmt::Display for DeviceSpec {
             } => write!(f, "serial:{}:{p}", path.display()),
             Self::Falcon { path } => write!(f, "falcon:{}", path.display()),
             Self::SpaceMouse => write!(f, "spacemouse"),
+            Self::Pointer => write!(f, "mouse"),
             Self::Replay { file } => write!(f, "replay:{}", file.display()),
         }
     }

@@ -4,7 +4,8 @@
 //!
 //! Guarantee: neither side ever waits for the app. The sink runs on the graphics loop (not the
 //! haptic loop), copies only the bricks a refresh changed, publishes through a triple buffer
-//! and then asks for a repaint. The bridge thread is an ordinary thread: it sends engine
+//! (a second one for the bridge thread's exports, and a third with its field copy for the
+//! pointer's picking) and then asks for a repaint: no lock anywhere. The bridge thread is an ordinary thread: it sends engine
 //! commands on the engine's own channel, reads the tool sample, the simulation's status and
 //! each loop's latency figures wait-free, sets the force limit through an atomic the haptic
 //! tick reads, and reads sessions and writes exports itself, so no loop does disk I/O for
@@ -24,9 +25,8 @@ use std::time::Duration;
 use crossbeam::channel::{Receiver, Sender, bounded};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice};
-use dynaclay_loops::SnapshotWriter;
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
-use parking_lot::Mutex;
 
 use super::command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 use super::link::{EngineEndpoint, RepaintSignal};
@@ -36,6 +36,7 @@ use crate::engine::{
     Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
     ToolChoice as EngineToolChoice,
 };
+use crate::field::BSplineLattice;
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -55,28 +56,32 @@ pub struct GuiMeshSink {
     bricks: HashMap<[u32; 3], Arc<ChunkMesh>>,
     set: MeshSet,
     /// The latest set, for exports by the bridge thread (held only to clone the `Arc`s).
-    shared: Arc<Mutex<MeshSet>>,
+    exports: SnapshotWriter<MeshSet>,
     repaint: RepaintSignal,
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
+    /// The clay, for the app's pointer picking.
+    field: SnapshotWriter<BSplineLattice>,
     /// Version for the next chunk made: the renderer re-uploads a chunk whose version
     /// changed, and a recoloured brick keeps its octree version, so the sink numbers chunks.
     next_version: u64,
 }
 
 impl GuiMeshSink {
-    /// A sink publishing on `meshes` (and into `shared` for exports), unpainted until the
+    /// A sink publishing on `meshes` (and on `exports` for the bridge thread's exports), unpainted until the
     /// graphics stage hands it paint.
     fn new(
         meshes: SnapshotWriter<MeshSet>,
-        shared: Arc<Mutex<MeshSet>>,
+        field: SnapshotWriter<BSplineLattice>,
+        exports: SnapshotWriter<MeshSet>,
         repaint: RepaintSignal,
     ) -> Self {
         Self {
+            field,
             meshes,
             bricks: HashMap::new(),
             set: MeshSet::new(),
-            shared,
+            exports,
             repaint,
             colour: None,
             next_version: 0,
@@ -101,7 +106,7 @@ impl GuiMeshSink {
         self.set.clear();
         self.set.extend(self.bricks.values().cloned());
         self.meshes.publish_clone_of(&self.set);
-        self.shared.lock().clone_from(&self.set);
+        self.exports.publish_clone_of(&self.set);
         self.repaint.request();
     }
 }
@@ -149,6 +154,10 @@ impl MeshSink for GuiMeshSink {
         }
         self.publish();
     }
+
+    fn field(&mut self, field: &BSplineLattice) {
+        self.field.publish_clone_of(field);
+    }
 }
 
 /// A running bridge; stopping it stops the engine.
@@ -189,10 +198,11 @@ pub fn start_bridge(
         events,
         view,
         meshes,
+        field,
         repaint,
     } = endpoint;
-    let shared = Arc::new(Mutex::new(MeshSet::new()));
-    let sink = GuiMeshSink::new(meshes, Arc::clone(&shared), repaint);
+    let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
+    let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -201,7 +211,7 @@ pub fn start_bridge(
         commands,
         events,
         view,
-        shared,
+        exports,
         device,
         connected: true,
         opener,
@@ -232,7 +242,8 @@ struct Bridge {
     commands: Receiver<EngineCommand>,
     events: Sender<EngineEvent>,
     view: SnapshotWriter<EngineView>,
-    shared: Arc<Mutex<MeshSet>>,
+    /// The latest meshes, for exports (read wait-free).
+    exports: SnapshotReader<MeshSet>,
     device: DeviceInfo,
     /// Whether a device is connected (false after the panel's disconnect).
     connected: bool,
@@ -343,15 +354,19 @@ impl Bridge {
         };
         match self.engine.replace_device(device, SWAP_TIMEOUT) {
             Ok(report) => {
-                self.connected = true;
-                let mut detail = format!("{} connected", report.connected.name);
-                if report.replaced.name != "no device" {
-                    detail = format!(
-                        "{detail}; {}",
-                        closed_detail(&report.replaced.name, &report.close)
+                let Some(connected) = report.connected else {
+                    self.fail(
+                        what,
+                        format!("{spec}: the engine parked instead of connecting"),
                     );
+                    return;
+                };
+                self.connected = true;
+                let mut detail = format!("{} connected", connected.name);
+                if let Some(replaced) = &report.replaced {
+                    detail = format!("{detail}; {}", closed_detail(&replaced.name, &report.close));
                 }
-                self.device = report.connected;
+                self.device = connected;
                 let _ = self.events.send(EngineEvent::Done {
                     what: what.into(),
                     detail,
@@ -387,6 +402,7 @@ impl Bridge {
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
+            EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),
             EngineCommand::Undo => self.send(what, Command::Undo),
             EngineCommand::Redo => self.send(what, Command::Redo),
             EngineCommand::Save { path } => {
@@ -401,7 +417,7 @@ impl Bridge {
                 );
             }
             EngineCommand::Export { path } => {
-                let set = self.shared.lock().clone();
+                let set = self.exports.latest().value.clone();
                 let ev = match export_chunks(&set, &path) {
                     Ok(n) => EngineEvent::Done {
                         what: what.into(),
@@ -452,9 +468,12 @@ impl Bridge {
             }
             EngineCommand::DisconnectDevice => match self.engine.disconnect_device(SWAP_TIMEOUT) {
                 Ok(report) => {
+                    // The panel keeps the last device's description, shown as disconnected.
                     self.connected = false;
-                    let detail = closed_detail(&report.replaced.name, &report.close);
-                    self.device = report.connected;
+                    let detail = match &report.replaced {
+                        Some(replaced) => closed_detail(&replaced.name, &report.close),
+                        None => "no device was connected".into(),
+                    };
                     let _ = self.events.send(EngineEvent::Done {
                         what: what.into(),
                         detail,
@@ -716,6 +735,20 @@ mod tests {
             "{events:?}"
         );
 
+        // Export writes the meshes the graphics loop handed over (read wait-free).
+        let exported = dir.path().join("carved.obj");
+        link.send(EngineCommand::Export {
+            path: exported.clone(),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the export", |_, ev| {
+            ev.iter().any(|e| {
+                matches!(e, EngineEvent::Done { what, detail } if what == "export" && detail.contains("triangles"))
+            })
+        });
+        let obj = std::fs::read_to_string(&exported).unwrap();
+        assert!(obj.lines().filter(|l| l.starts_with("f ")).count() > 100);
+
         // The loops publish figures about once a second.
         wait_for(&mut link, &mut events, "loop figures", |v, _| {
             v.loops
@@ -878,8 +911,8 @@ mod tests {
         let (_, octree, report) = meshed_sphere();
 
         let (mut link, end) = super::super::link::engine_link();
-        let shared = Arc::new(Mutex::new(MeshSet::new()));
-        let mut sink = GuiMeshSink::new(end.meshes, Arc::clone(&shared), end.repaint);
+        let (exports, _exported) = snapshot_channel(&MeshSet::new());
+        let mut sink = GuiMeshSink::new(end.meshes, end.field, exports, end.repaint);
         sink.update(&octree, &report);
         let published = link.meshes().value.clone();
         assert!(published.len() > 1, "sphere spans several bricks");
@@ -905,7 +938,8 @@ mod tests {
         let (mut link, end) = super::super::link::engine_link();
         let mut sink = GuiMeshSink::new(
             end.meshes,
-            Arc::new(Mutex::new(MeshSet::new())),
+            end.field,
+            snapshot_channel(&MeshSet::new()).0,
             end.repaint,
         );
         sink.update(&octree, &report);

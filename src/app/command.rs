@@ -104,6 +104,8 @@ pub enum EngineCommand {
     StrokeStart,
     /// Stop applying the tool; the stroke becomes one undo step.
     StrokeStop,
+    /// Mirror strokes across the x, y and z planes through the clay's centre (each on or off).
+    SetSymmetry(crate::engine::Symmetry),
     Undo,
     Redo,
     /// Write the session to `path` (atomically).
@@ -145,6 +147,7 @@ impl EngineCommand {
             Self::SetMaterial(_) => "set material",
             Self::StrokeStart => "stroke start",
             Self::StrokeStop => "stroke stop",
+            Self::SetSymmetry(_) => "symmetry",
             Self::Undo => "undo",
             Self::Redo => "redo",
             Self::Save { .. } => "save",

@@ -88,13 +88,13 @@ fn moving_a_material_slider_sets_the_engine_material() {
     assert_eq!(m.mass, Material::default().mass, "other fields unchanged");
 
     h.get_by_role_and_label(Role::Slider, "Plasticity /s")
-        .set_value_accesskit(8.0);
+        .set_value_accesskit(4.0);
     h.run();
     let sent = drain(&end);
     let [EngineCommand::SetMaterial(m2)] = sent.as_slice() else {
         panic!("expected one SetMaterial, got {sent:?}");
     };
-    assert!((m2.plasticity_per_s - 8.0).abs() < 1e-3);
+    assert!((m2.plasticity_per_s - 4.0).abs() < 1e-3);
     assert!(
         (m2.stiffness - m.stiffness).abs() < 1e-3,
         "earlier change kept"
@@ -414,4 +414,221 @@ fn the_haptic_gain_is_one_value_set_from_the_material_or_the_device_panel() {
         vec![EngineCommand::SetHapticGain { gain: 0.5 }]
     );
     assert_eq!(h.state().device.haptic_gain, 0.5);
+}
+
+/// A left drag over the clay in the viewport, with the app's pointer tool feeding a pointer
+/// device in a lockstep engine: the clay gives way under the dragged path and nowhere far
+/// from it. Alt + left drag over the same clay orbits instead and changes nothing.
+#[test]
+fn a_left_drag_over_the_clay_sculpts_under_the_pointer_and_nowhere_else() {
+    use dynaclay_devices::pointer::{PointerConfig, pointer_device};
+    use glam::Vec3;
+
+    use super::pointer_tool::PointerTool;
+    use crate::engine::{EngineConfig, HeadlessSink, Lockstep, build_clay};
+    use crate::io::ClaySpec;
+    use crate::render::{Camera, NamedView};
+
+    let field = build_clay(&ClaySpec::default()).unwrap();
+    let start = field.clone();
+    let pointer = PointerConfig::default();
+    let mut config = EngineConfig::for_field(&field, &pointer.info());
+    config.haptic_rt_priority = None;
+    config.safety.soft_start_s = 0.05;
+    let (device, handle) = pointer_device(pointer);
+    let mut engine = Lockstep::new(
+        &config,
+        field,
+        Box::new(device),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+
+    let (link, mut end) = engine_link();
+    let mut app = SculptApp::new(link);
+    app.pointer = PointerTool::new(handle, config.map);
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 1000.0))
+        .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
+    end.field.publish_clone_of(engine.field());
+    h.run();
+    // Looking down on the block's top face (y = 1.725; the block spans 0.575..1.725).
+    let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
+    h.state_mut().camera = Camera::named(NamedView::Top, lo, hi);
+    h.run();
+    let rect = h.state().viewport_rect.expect("the view was laid out");
+    let camera = h.state().camera;
+    let to_screen = |x: Vec3| {
+        let c = camera
+            .view_projection(rect.width() / rect.height())
+            .project_point3(x);
+        egui::pos2(
+            rect.min.x + (c.x + 1.0) * 0.5 * rect.width(),
+            rect.min.y + (1.0 - c.y) * 0.5 * rect.height(),
+        )
+    };
+    let (from, to) = (Vec3::new(0.95, 1.725, 1.15), Vec3::new(1.35, 1.725, 1.15));
+    // One frame, then 20 haptic/simulation ticks with the newest field published.
+    let mut frame = |h: &mut Harness<'static, SculptApp>, engine: &mut Lockstep| {
+        h.step();
+        for _ in 0..20 {
+            engine.step();
+        }
+        end.field.publish_clone_of(engine.field());
+    };
+
+    // Alt + left drag orbits: the camera turns, the clay is untouched (a drag across the
+    // view's vertical tips the eye off the pole).
+    let (orbit_from, orbit_to) = (Vec3::new(1.15, 1.725, 1.35), Vec3::new(1.15, 1.725, 0.95));
+    h.hover_at(to_screen(orbit_from));
+    frame(&mut h, &mut engine);
+    h.event(egui::Event::PointerButton {
+        pos: to_screen(orbit_from),
+        button: egui::PointerButton::Primary,
+        pressed: true,
+        modifiers: egui::Modifiers::ALT,
+    });
+    for i in 1..=5 {
+        h.hover_at(to_screen(orbit_from.lerp(orbit_to, i as f32 / 5.0)));
+        frame(&mut h, &mut engine);
+    }
+    h.event(egui::Event::PointerButton {
+        pos: to_screen(orbit_to),
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: egui::Modifiers::ALT,
+    });
+    frame(&mut h, &mut engine);
+    assert_ne!(h.state().camera, camera, "Alt + left drag orbits");
+    assert_eq!(
+        engine.field().coeffs,
+        start.coeffs,
+        "orbiting changed the clay"
+    );
+    h.state_mut().camera = camera;
+    frame(&mut h, &mut engine);
+
+    // A plain left drag from `from` to `to` sculpts.
+    h.hover_at(to_screen(from));
+    frame(&mut h, &mut engine);
+    h.drag_at(to_screen(from));
+    for i in 0..=40 {
+        h.hover_at(to_screen(from.lerp(to, i as f32 / 40.0)));
+        frame(&mut h, &mut engine);
+        if i == 20 {
+            assert!(
+                h.state().pointer.last_sample().unwrap().pressed,
+                "the drag presses the device's button"
+            );
+        }
+    }
+    h.drop_at(to_screen(to));
+    for _ in 0..20 {
+        frame(&mut h, &mut engine);
+    }
+    assert!(!h.state().pointer.last_sample().unwrap().pressed);
+    assert_eq!(h.state().camera, camera, "sculpting does not orbit");
+
+    let end_field = engine.field();
+    let iso = start.iso;
+    for x in [1.05, 1.15, 1.25] {
+        let under = Vec3::new(x, 1.67, 1.15);
+        assert!(
+            start.value(under) > iso && end_field.value(under) < iso,
+            "under the path at x = {x}: {} → {}",
+            start.value(under),
+            end_field.value(under)
+        );
+    }
+    // Far from the path the density springs carry at most a trace of the push (a hundredth,
+    // against the half that the clay under the path lost).
+    for far in [
+        Vec3::new(0.7, 1.67, 0.7),
+        Vec3::new(1.6, 1.67, 1.6),
+        Vec3::new(1.15, 0.7, 1.15),
+    ] {
+        assert!(
+            (end_field.value(far) - start.value(far)).abs() < 1e-2,
+            "far from the path at {far}: {} → {}",
+            start.value(far),
+            end_field.value(far)
+        );
+    }
+}
+
+/// The brush bindings: `]` and `[` scale every tool's radius, Shift + wheel the strength,
+/// Ctrl + wheel the press depth; a plain wheel still zooms and leaves the brush alone.
+#[test]
+fn brush_keys_and_wheels_change_size_strength_and_depth() {
+    use dynaclay_devices::pointer::{PointerConfig, pointer_device};
+
+    use super::pointer_tool::PointerTool;
+    use crate::engine::WorkspaceMap;
+
+    let (mut h, end) = harness();
+    let config = PointerConfig::default();
+    let (_device, handle) = pointer_device(config);
+    let map = WorkspaceMap::fitting(
+        config.workspace_min_m,
+        config.workspace_max_m,
+        glam::Vec3::ZERO,
+        glam::Vec3::splat(2.3),
+        30.0,
+    );
+    h.state_mut().pointer = PointerTool::new(handle, map);
+    h.run();
+    drain(&end);
+    let radius = h.state().palette.force.radius_m;
+    h.key_press(egui::Key::CloseBracket);
+    h.run();
+    assert!(h.state().palette.force.radius_m > radius * 1.1);
+    let sent = drain(&end);
+    assert!(
+        matches!(sent.as_slice(), [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.radius_m > radius * 1.1),
+        "{sent:?}"
+    );
+    h.key_press(egui::Key::OpenBracket);
+    h.run();
+    assert!((h.state().palette.force.radius_m - radius).abs() < 1e-5);
+
+    let rect = h.state().viewport_rect.unwrap();
+    let wheel = |modifiers| egui::Event::MouseWheel {
+        unit: egui::MouseWheelUnit::Point,
+        delta: egui::vec2(0.0, 100.0),
+        phase: egui::TouchPhase::Move,
+        modifiers,
+        source: egui::MouseWheelSource::Wheel,
+    };
+    h.hover_at(rect.center());
+    h.run();
+    let (gain, depth, distance) = (
+        h.state().palette.force.gain,
+        h.state().pointer.depth_spans,
+        h.state().camera.distance,
+    );
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::SHIFT));
+    h.event(wheel(egui::Modifiers::SHIFT));
+    h.run();
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run();
+    assert!(
+        h.state().palette.force.gain > gain * 1.2,
+        "Shift + wheel: strength"
+    );
+    assert_eq!(h.state().pointer.depth_spans, depth);
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::CTRL));
+    h.event(wheel(egui::Modifiers::CTRL));
+    h.run();
+    h.event(egui::Event::ModifiersChanged(egui::Modifiers::NONE));
+    h.run();
+    assert!(h.state().pointer.depth_spans > depth, "Ctrl + wheel: depth");
+    assert_eq!(
+        h.state().camera.distance,
+        distance,
+        "brush wheels do not zoom"
+    );
+    h.event(wheel(egui::Modifiers::NONE));
+    h.run();
+    assert!(h.state().camera.distance < distance, "a plain wheel zooms");
 }

@@ -1,15 +1,17 @@
-//! `dynaclay gui [SESSION] [--device SPEC] [--recover]`: builds the starting clay (the built-in script's,
+//! `dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover]`: builds the starting clay (the built-in script's,
 //! or the session's) and the device, starts the threaded engine behind a bridge, and runs the
 //! window until it is closed.
 
 use std::path::PathBuf;
 use std::time::Instant;
 
+use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 use dynaclay_devices::spec::DeviceSpec;
-use dynaclay_devices::{DeviceInfo, HapticDevice, SimArmConfig, SimulatedArm};
+use dynaclay_devices::{DeviceInfo, HapticDevice, RecordingDevice, SimArmConfig, SimulatedArm};
 
 use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
+use super::pointer_tool::PointerTool;
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
 use crate::field::BSplineLattice;
@@ -31,7 +33,7 @@ impl std::fmt::Display for LaunchError {
         match self {
             Self::Usage(m) => write!(
                 f,
-                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--recover])"
+                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover])"
             ),
             Self::Device(m) => write!(f, "gui: device: {m}"),
             Self::Failed(m) => write!(f, "gui: {m}"),
@@ -44,8 +46,11 @@ impl std::error::Error for LaunchError {}
 /// What `dynaclay gui` was asked for.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GuiArgs {
-    /// The device (`--device SPEC` or `--device=SPEC`; default `sim`).
+    /// The device (`--device SPEC` or `--device=SPEC`; default `mouse`, the window's pointer).
     pub device: DeviceSpec,
+    /// Record the device's samples to this file (`--record FILE`); the engine reads the
+    /// recording like any device, so the session replays bit for bit through the lockstep engine.
+    pub record: Option<PathBuf>,
     /// A session file to start from (the engine keeps its lattice for the whole run, so
     /// later loads must match it).
     pub session: Option<PathBuf>,
@@ -61,13 +66,21 @@ pub const DEFAULT_SESSION: &str = "sculpt.dclay";
 /// # Errors
 /// An unknown option, a second session, a missing value or a spec the devices parser rejects.
 pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
-    let mut spec = "sim".to_owned();
+    let mut spec = "mouse".to_owned();
     let mut session = None;
     let mut recover = false;
+    let mut record = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         if a == "--recover" {
             recover = true;
+        } else if a == "--record" {
+            record =
+                Some(PathBuf::from(it.next().ok_or_else(|| {
+                    LaunchError::Usage("--record needs a file".into())
+                })?));
+        } else if let Some(v) = a.strip_prefix("--record=") {
+            record = Some(PathBuf::from(v));
         } else if a == "--device" {
             spec = it
                 .next()
@@ -86,6 +99,7 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
         .map_err(|e: dynaclay_devices::spec::SpecError| LaunchError::Usage(e.to_string()))?;
     Ok(GuiArgs {
         device,
+        record,
         session,
         recover,
     })
@@ -98,6 +112,7 @@ pub fn parse_gui_args(args: &[String]) -> Result<GuiArgs, LaunchError> {
 pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let GuiArgs {
         device: spec,
+        record,
         session: named,
         recover,
     } = parse_gui_args(args)?;
@@ -127,8 +142,25 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             (patch, Some(s.material.uniform))
         }
     };
-    let (device, info) = make_device(&spec, &field, &script).map_err(LaunchError::Device)?;
+    // The window's own pointer is the default tool; its handle stays with the app.
+    let mut pointer_handle = None;
+    let (device, info) = if spec == DeviceSpec::Pointer {
+        let pointer = PointerConfig::default();
+        let (device, handle) = pointer_device(pointer);
+        pointer_handle = Some(handle);
+        (Box::new(device) as Box<dyn HapticDevice>, pointer.info())
+    } else {
+        make_device(&spec, &field, &script).map_err(LaunchError::Device)?
+    };
+    let device: Box<dyn HapticDevice> = match &record {
+        Some(path) => Box::new(
+            RecordingDevice::create(device, path)
+                .map_err(|e| LaunchError::Failed(format!("{}: {e}", path.display())))?,
+        ),
+        None => device,
+    };
     let mut config = EngineConfig::for_field(&field, &info);
+    let pointer = pointer_handle.map(|h| PointerTool::new(h, config.map));
     if let Some(m) = material {
         config.sim.material = m;
     }
@@ -153,7 +185,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         session_path: session_path.display().to_string(),
         ..GuiOptions::default()
     };
-    let shown = run_gui(options, link);
+    let shown = run_gui(options, link, pointer);
     let stopped = bridge.stop();
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
     stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
@@ -179,6 +211,10 @@ pub fn make_device(
             let trajectory = script.trajectory(&map).map_err(|e| e.to_string())?;
             Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
         }
+        DeviceSpec::Pointer => Err(
+            "the mouse is the window's own device: start with `dynaclay gui` (or `--device mouse`) to sculpt with it"
+                .into(),
+        ),
         DeviceSpec::Replay { file } => Err(format!(
             "{}: use `dynaclay run --device replay:FILE` to replay recordings",
             file.display()
@@ -202,7 +238,7 @@ mod tests {
     #[test]
     fn gui_arguments_parse_like_run_devices() {
         let s = |v: &[&str]| parse_gui_args(&v.iter().map(|x| x.to_string()).collect::<Vec<_>>());
-        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Sim);
+        assert_eq!(s(&[]).unwrap().device, DeviceSpec::Pointer);
         assert_eq!(s(&[]).unwrap().session, None);
         assert_eq!(
             s(&["--device", "spacemouse"]).unwrap().device,
@@ -221,6 +257,16 @@ mod tests {
         assert!(s(&["--bogus"]).is_err());
         assert!(s(&["--device", "falcon"]).is_err());
         assert!(!s(&[]).unwrap().recover);
+        assert_eq!(s(&[]).unwrap().record, None);
+        assert_eq!(
+            s(&["--record", "m.rec"]).unwrap().record,
+            Some(PathBuf::from("m.rec"))
+        );
+        assert_eq!(
+            s(&["--record=m.rec"]).unwrap().record,
+            Some(PathBuf::from("m.rec"))
+        );
+        assert!(s(&["--record"]).is_err());
         let recovering = s(&["--recover", "a.dclay"]).unwrap();
         assert!(recovering.recover);
         assert_eq!(recovering.session, Some(PathBuf::from("a.dclay")));

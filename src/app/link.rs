@@ -17,6 +17,7 @@ use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 use super::command::{EngineCommand, EngineEvent};
 use super::meshes::MeshSet;
 use super::view::EngineView;
+use crate::field::BSplineLattice;
 
 /// Commands that may queue before [`EngineLink::send`] reports the engine as not keeping up.
 pub const COMMAND_QUEUE_LEN: usize = 1024;
@@ -80,6 +81,7 @@ pub struct EngineLink {
     events: Receiver<EngineEvent>,
     view: SnapshotReader<EngineView>,
     meshes: SnapshotReader<MeshSet>,
+    field: SnapshotReader<BSplineLattice>,
     repaint: RepaintSignal,
 }
 
@@ -90,7 +92,16 @@ pub struct EngineEndpoint {
     pub events: Sender<EngineEvent>,
     pub view: SnapshotWriter<EngineView>,
     pub meshes: SnapshotWriter<MeshSet>,
+    /// The graphics loop's copy of the clay, for picking under the pointer.
+    pub field: SnapshotWriter<BSplineLattice>,
     pub repaint: RepaintSignal,
+}
+
+/// The field shown before the engine publishes one: the smallest lattice, empty everywhere, so
+/// every pick misses.
+fn no_clay() -> BSplineLattice {
+    BSplineLattice::zeros([4; 3], 1.0, glam::Vec3::ZERO)
+        .unwrap_or_else(|e| unreachable!("a 4³ lattice with unit spacing is valid: {e}"))
 }
 
 /// A connected pair (allocates the channels and the three copies of each snapshot).
@@ -100,6 +111,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
     let (ev_tx, ev_rx) = channel::unbounded();
     let (view_tx, view_rx) = snapshot_channel(&EngineView::default());
     let (mesh_tx, mesh_rx) = snapshot_channel(&MeshSet::new());
+    let (field_tx, field_rx) = snapshot_channel(&no_clay());
     let repaint = RepaintSignal::default();
     (
         EngineLink {
@@ -107,6 +119,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             events: ev_rx,
             view: view_rx,
             meshes: mesh_rx,
+            field: field_rx,
             repaint: repaint.clone(),
         },
         EngineEndpoint {
@@ -114,6 +127,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             events: ev_tx,
             view: view_tx,
             meshes: mesh_tx,
+            field: field_tx,
             repaint,
         },
     )
@@ -157,6 +171,11 @@ impl EngineLink {
     /// The newest published meshes (wait-free).
     pub fn meshes(&mut self) -> &Stamped<MeshSet> {
         self.meshes.latest()
+    }
+
+    /// The newest published copy of the clay (wait-free).
+    pub fn field(&mut self) -> &Stamped<BSplineLattice> {
+        self.field.latest()
     }
 
     /// The signal the engine uses to wake the app.

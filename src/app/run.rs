@@ -1,6 +1,7 @@
 //! Opening the app's window: `dynaclay gui`.
 
 use super::link::EngineLink;
+use super::pointer_tool::PointerTool;
 use super::state::SculptApp;
 
 /// Window settings.
@@ -38,12 +39,16 @@ impl std::fmt::Display for GuiError {
 impl std::error::Error for GuiError {}
 
 /// Opens the window and runs the app until it is closed. The engine behind `link` keeps
-/// running on its own threads; the app only sends commands and reads what it publishes.
+/// running on its own threads (`pointer`, when given, aims the engine's pointer device); the app only sends commands and reads what it publishes.
 ///
 /// # Errors
 /// No display (no `DISPLAY` or `WAYLAND_DISPLAY`), no wgpu adapter for the window, or another
 /// windowing failure, as a [`GuiError`] carrying eframe's message.
-pub fn run_gui(options: GuiOptions, link: EngineLink) -> Result<(), GuiError> {
+pub fn run_gui(
+    options: GuiOptions,
+    link: EngineLink,
+    pointer: Option<PointerTool>,
+) -> Result<(), GuiError> {
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title(options.title.clone())
@@ -53,6 +58,9 @@ pub fn run_gui(options: GuiOptions, link: EngineLink) -> Result<(), GuiError> {
     };
     let repaint = link.repaint_signal();
     let mut app = SculptApp::new(link);
+    if let Some(pointer) = pointer {
+        app.pointer = pointer;
+    }
     app.files.session.clone_from(&options.session_path);
     eframe::run_native(
         &options.title,

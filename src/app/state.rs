@@ -24,6 +24,7 @@ use super::latency::LatencyHistory;
 use super::link::EngineLink;
 use super::material_panel::material_ui;
 use super::palette::ToolPalette;
+use super::pointer_tool::PointerTool;
 use super::view::{EngineView, WorldBox};
 use super::viewport::{SceneView, camera_input};
 
@@ -48,7 +49,7 @@ impl Default for DisplaySettings {
     fn default() -> Self {
         Self {
             shading: Shading::default(),
-            tool_style: ToolStyle::Transparent,
+            tool_style: ToolStyle::TipAndReach,
             show_force: true,
             force_arrow_per_n: 0.05,
             show_workspace: true,
@@ -106,7 +107,27 @@ pub struct SculptApp {
     key_stroke: bool,
     /// Mesh version last framed by the camera (frames once when the first meshes arrive).
     framed: bool,
+    /// The mouse or pen as the sculpting tool (inert without a pointer device).
+    pub pointer: PointerTool,
+    /// Whether the held left drag sculpts (it began on the clay without Alt or Shift); a left
+    /// drag that began off the clay, or with Alt, orbits.
+    sculpt_drag: bool,
+    /// The 3D view's rectangle in the last frame, points.
+    pub viewport_rect: Option<egui::Rect>,
+    /// A pen's latest pressure, 0..1 (`None` for a mouse: full depth).
+    pen_pressure: Option<f32>,
+    /// Mirror planes for strokes, as last sent to the engine.
+    pub symmetry: crate::engine::Symmetry,
+    /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
+    brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
 }
+
+/// Brush radius factor per `[` or `]` press.
+const BRUSH_STEP: f32 = 1.15;
+/// Strength factor per scroll point with Shift held (one notch of about 50 points: ×1.22).
+const STRENGTH_PER_SCROLL_POINT: f32 = 0.004;
+/// Scroll points per line for wheels that report lines.
+const POINTS_PER_LINE: f32 = 50.0;
 
 impl SculptApp {
     /// An app talking to the engine through `link`. The current tool and material are sent on
@@ -247,6 +268,9 @@ impl SculptApp {
                     egui::CollapsingHeader::new("Tools")
                         .default_open(true)
                         .show(ui, |ui| tool_changed = self.palette.ui(ui));
+                    egui::CollapsingHeader::new("Pointer")
+                        .default_open(true)
+                        .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
                     egui::CollapsingHeader::new("Material")
                         .default_open(true)
                         .show(ui, |ui| {
@@ -286,6 +310,15 @@ impl SculptApp {
         if ui.ctx().egui_wants_keyboard_input() {
             return;
         }
+        let (smaller, larger) = ui.input_mut(|i| {
+            (
+                i.consume_key(egui::Modifiers::NONE, egui::Key::OpenBracket),
+                i.consume_key(egui::Modifiers::NONE, egui::Key::CloseBracket),
+            )
+        });
+        if smaller || larger {
+            self.scale_brush(if larger { BRUSH_STEP } else { 1.0 / BRUSH_STEP });
+        }
         let (undo, redo, space_down) = ui.input_mut(|i| {
             let redo = i.consume_key(
                 egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
@@ -308,6 +341,69 @@ impl SculptApp {
                 EngineCommand::StrokeStop
             });
         }
+    }
+
+    /// Scales the brush (every tool's radius) by `factor`, within the sliders' range.
+    pub fn scale_brush(&mut self, factor: f32) {
+        let p = &mut self.palette;
+        p.radius_m = (p.radius_m * factor).clamp(0.005, 1.0);
+        p.force.radius_m = (p.force.radius_m * factor).clamp(0.005, 1.0);
+        self.tool_pending = true;
+    }
+
+    /// Scales the strength (force gain and the geometric tools' rates) by `factor`, within
+    /// the sliders' range.
+    pub fn scale_strength(&mut self, factor: f32) {
+        if !(factor.is_finite() && factor > 0.0) {
+            return;
+        }
+        let p = &mut self.palette;
+        p.force.gain = (p.force.gain * factor).clamp(1.0e3, 1.0e9);
+        for rate in [
+            &mut p.deposit_rate_per_s,
+            &mut p.remove_rate_per_s,
+            &mut p.smooth_rate_per_s,
+            &mut p.paint_rate_per_s,
+        ] {
+            *rate = (*rate * factor).clamp(1.0e-3, 1.0e3);
+        }
+        self.tool_pending = true;
+    }
+
+    /// The pointer panel: press depth and strength, and the bindings.
+    fn pointer_ui(&mut self, ui: &mut egui::Ui) -> bool {
+        if !self.pointer.is_connected() {
+            ui.label("The engine's device is not the mouse (start with --device mouse).");
+            return false;
+        }
+        ui.add(
+            egui::Slider::new(
+                &mut self.pointer.depth_spans,
+                0.0..=super::pointer_tool::MAX_DEPTH_SPANS,
+            )
+            .text("Press depth (spans)"),
+        );
+        let changed = ui
+            .add(
+                egui::Slider::new(&mut self.palette.force.gain, 1.0e3..=1.0e9)
+                    .logarithmic(true)
+                    .text("Strength"),
+            )
+            .changed();
+        ui.horizontal(|ui| {
+            ui.label("Mirror");
+            let before = self.symmetry;
+            ui.checkbox(&mut self.symmetry.x, "X");
+            ui.checkbox(&mut self.symmetry.y, "Y");
+            ui.checkbox(&mut self.symmetry.z, "Z");
+            if self.symmetry != before && !self.send(EngineCommand::SetSymmetry(self.symmetry)) {
+                self.symmetry = before;
+            }
+        });
+        ui.label("Left drag on the clay: stroke · Alt+left or left off the clay: orbit");
+        ui.label("Right, middle or Shift+left: pan · wheel: zoom");
+        ui.label("Ctrl+wheel: depth · Shift+wheel: strength · [ ]: brush size");
+        changed
     }
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
@@ -439,6 +535,7 @@ impl SculptApp {
             .show_ui(ui, |ui| {
                 for s in [
                     ToolStyle::Hidden,
+                    ToolStyle::TipAndReach,
                     ToolStyle::Transparent,
                     ToolStyle::Wireframe,
                 ] {
@@ -453,7 +550,15 @@ impl SculptApp {
     fn viewport(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
         let rect = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
-        camera_input(ui, &response, &mut self.camera, &self.trackball);
+        self.viewport_rect = Some(rect);
+        self.pointer_input(ui, &response);
+        camera_input(
+            ui,
+            &response,
+            &mut self.camera,
+            &self.trackball,
+            self.sculpt_drag,
+        );
         if self.spacemouse.poll(&mut self.camera) {
             ui.ctx().request_repaint();
         }
@@ -469,6 +574,7 @@ impl SculptApp {
         }
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            self.paint_brush_cursor(ui, rect);
             return;
         };
         let ppp = ui.ctx().pixels_per_point();
@@ -483,10 +589,153 @@ impl SculptApp {
             Ok(texture) => {
                 let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
                 image.paint_at(ui, rect);
+                self.paint_brush_cursor(ui, rect);
             }
             Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
         }
     }
+}
+
+impl SculptApp {
+    /// The pointer as the tool: chooses between sculpting and orbiting when the left button
+    /// goes down, aims the tool under the pointer, reads the brush wheels and paints the
+    /// brush cursor.
+    fn pointer_input(&mut self, ui: &egui::Ui, response: &egui::Response) {
+        let (pressed, down, mut modifiers, pos, wheel, press_modifiers) = ui.input(|i| {
+            let mut wheel = (0.0f32, egui::Modifiers::NONE);
+            let mut press_modifiers = None;
+            for e in &i.events {
+                if let egui::Event::PointerButton {
+                    button: egui::PointerButton::Primary,
+                    pressed: true,
+                    modifiers,
+                    ..
+                } = e
+                {
+                    press_modifiers = Some(*modifiers);
+                }
+                if let egui::Event::MouseWheel {
+                    unit,
+                    delta,
+                    modifiers,
+                    ..
+                } = e
+                {
+                    let per = match unit {
+                        egui::MouseWheelUnit::Point => 1.0,
+                        egui::MouseWheelUnit::Line => POINTS_PER_LINE,
+                        egui::MouseWheelUnit::Page => 10.0 * POINTS_PER_LINE,
+                    };
+                    wheel.0 += (delta.y + delta.x) * per;
+                    wheel.1 = *modifiers;
+                }
+                if let egui::Event::Touch { force: Some(f), .. } = e {
+                    self.pen_pressure = Some(f.clamp(0.0, 1.0));
+                }
+            }
+            (
+                i.pointer.primary_pressed(),
+                i.pointer.primary_down(),
+                i.modifiers,
+                i.pointer.latest_pos(),
+                wheel,
+                press_modifiers,
+            )
+        });
+        // The modifiers held when the button went down decide between sculpting and orbiting.
+        if let Some(m) = press_modifiers {
+            modifiers = m;
+        }
+        self.brush_cursor = None;
+        if !self.pointer.is_connected() {
+            self.sculpt_drag = false;
+            return;
+        }
+        if response.hovered() && wheel.0 != 0.0 {
+            if wheel.1.ctrl || wheel.1.command {
+                self.pointer.scroll_depth(wheel.0);
+            } else if wheel.1.shift {
+                self.scale_strength((wheel.0 * STRENGTH_PER_SCROLL_POINT).exp());
+            }
+        }
+        if pressed && response.hovered() {
+            self.sculpt_drag =
+                !modifiers.alt && !modifiers.shift && self.pointer.pose.is_some_and(|p| p.on_clay);
+        }
+        if !down {
+            self.sculpt_drag = false;
+        }
+        let rect = response.rect;
+        let over = pos.filter(|p| rect.contains(*p));
+        let Some(p) = over.or(pos.filter(|_| self.sculpt_drag)) else {
+            self.pointer.release();
+            return;
+        };
+        let size = rect.size().max(egui::vec2(1.0, 1.0));
+        let ndc = glam::Vec2::new(
+            2.0 * (p.x - rect.min.x) / size.x - 1.0,
+            1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+        );
+        let pressure = self
+            .pen_pressure
+            .filter(|_| self.sculpt_drag)
+            .unwrap_or(1.0);
+        let field = &self.link.field().value;
+        let pose = self.pointer.aim(
+            field,
+            &self.camera,
+            ndc,
+            size.x / size.y,
+            self.sculpt_drag,
+            pressure,
+        );
+        if !pose.on_clay {
+            return;
+        }
+        // The brush cursor: the tool's footprint on the surface, tinted by the tool.
+        let radius = match self.palette.choice() {
+            super::command::ToolChoice::Force(t) => t.radius_m,
+            super::command::ToolChoice::Geometric(_) => self.palette.radius_m,
+        };
+        let aspect = size.x / size.y;
+        let to_screen = |x: glam::Vec3| {
+            let c = self.camera.view_projection(aspect).project_point3(x);
+            egui::pos2(
+                rect.min.x + (c.x + 1.0) * 0.5 * size.x,
+                rect.min.y + (1.0 - c.y) * 0.5 * size.y,
+            )
+        };
+        let (right, _) = self.camera.right_up();
+        let centre = to_screen(pose.surface);
+        let rim = to_screen(pose.surface + right * radius);
+        let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
+        self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// Paints the brush cursor over the scene image.
+    fn paint_brush_cursor(&self, ui: &egui::Ui, rect: egui::Rect) {
+        if let Some((centre, radius, tint)) = self.brush_cursor {
+            let painter = ui.painter_at(rect);
+            painter.circle_stroke(centre, radius, egui::Stroke::new(2.0, tint));
+            painter.circle_filled(centre, 2.5, tint);
+        }
+    }
+}
+
+/// The brush cursor's colour: warm for force tools, green for adding, red for removing,
+/// blue for the others; brighter while a stroke is held.
+fn brush_tint(choice: &super::command::ToolChoice, pressing: bool) -> egui::Color32 {
+    use crate::tools::ToolAction;
+    let [r, g, b] = match choice {
+        super::command::ToolChoice::Force(_) => [240, 150, 60],
+        super::command::ToolChoice::Geometric(t) => match t.action {
+            ToolAction::Add { .. } => [90, 210, 110],
+            ToolAction::Remove => [230, 80, 70],
+            _ => [90, 160, 240],
+        },
+    };
+    let alpha = if pressing { 255 } else { 170 };
+    egui::Color32::from_rgba_unmultiplied(r, g, b, alpha)
 }
 
 /// Text painted over the view; painted rather than a label widget so it never takes the

@@ -103,13 +103,15 @@ impl SceneView {
     }
 }
 
-/// Pointer handling on the view: left drag rotates (trackball), right or middle drag (or
-/// shift + left) pans, scrolling zooms. Returns whether the camera changed.
+/// Pointer handling on the view: left drag rotates (trackball) unless it `sculpts`, right or
+/// middle drag (or Shift + left) pans, scrolling zooms (Ctrl and Shift with the wheel are the
+/// brush's, see the pointer tool). Returns whether the camera changed.
 pub fn camera_input(
     ui: &egui::Ui,
     response: &egui::Response,
     camera: &mut Camera,
     trackball: &Trackball,
+    sculpts: bool,
 ) -> bool {
     let before = *camera;
     let rect = response.rect;
@@ -123,6 +125,7 @@ pub fn camera_input(
         if pan {
             drag_pan(camera, Vec2::new(delta.x, delta.y), size.y);
         } else if response.dragged_by(egui::PointerButton::Primary)
+            && !sculpts
             && let Some(pos) = response.interact_pointer_pos()
         {
             let to = pos - rect.min;
@@ -136,7 +139,8 @@ pub fn camera_input(
             );
         }
     }
-    if response.hovered() {
+    let brush_wheel = ui.input(|i| i.modifiers.shift || i.modifiers.ctrl || i.modifiers.command);
+    if response.hovered() && !brush_wheel {
         let scroll = ui.input(|i| i.smooth_scroll_delta.y);
         if scroll != 0.0 {
             scroll_zoom(camera, scroll);

@@ -27,7 +27,8 @@ impl Material {
         yield_density: 0.0,
     };
 
-    /// Soft clay: dents stay.
+    /// Soft clay: dents stay. The yield is low enough that a light stroke already leaves its
+    /// mark; the default material, so a new sculpt keeps what the tools do.
     pub const PLASTIC: Self = Self {
         plasticity_per_s: 8.0,
         yield_density: 0.02,
@@ -61,7 +62,8 @@ impl Material {
 }
 
 impl Default for Material {
-    /// Plastic: what a stroke does stays (elastic is one click away in the material panel).
+    /// [`Material::PLASTIC`]: work stays where the tools put it (elastic is one click away in
+    /// the material panel).
     fn default() -> Self {
         Self::PLASTIC
     }

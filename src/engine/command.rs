@@ -101,6 +101,9 @@ pub enum Command {
     StrokeStart,
     /// Disarm a stroke armed by [`Command::StrokeStart`].
     StrokeStop,
+    /// Mirror strokes across these planes through the clay's centre, from the next step on
+    /// (a held stroke ends first).
+    SetSymmetry(super::Symmetry),
     /// Apply a geometric tool at each pose in turn over `duration_s` of tool dwell (one undo
     /// step), as a script's `tool` step does.
     ApplyTool {

@@ -24,6 +24,11 @@ pub trait MeshSink: Send {
     /// Called when the clay's paint changed (`None`: unpainted); the meshes did not. A sink
     /// that shows colour recolours its meshes; the default ignores paint.
     fn paint(&mut self, _octree: &BrickOctree, _colour: Option<&ColourField>) {}
+
+    /// Called with the graphics loop's field copy after each applied patch (and once at the
+    /// start); a sink that picks on the clay (the GUI's pointer) keeps a copy. The default
+    /// ignores it.
+    fn field(&mut self, _field: &BSplineLattice) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -76,6 +81,7 @@ impl GraphicsStage {
         let mut octree = BrickOctree::new(grid);
         let report = octree.rebuild(&field);
         sink.update(&octree, &report);
+        sink.field(&field);
         Ok(Self {
             field,
             octree,
@@ -108,6 +114,7 @@ impl GraphicsStage {
         self.counters.graphics_updates(1);
         self.counters.bricks_remeshed(n as u64);
         self.sink.update(&self.octree, &report);
+        self.sink.field(&self.field);
         n
     }
 

@@ -20,6 +20,7 @@ mod plan;
 mod script_driver;
 mod sim_status;
 mod simulation;
+mod symmetry;
 mod threaded;
 mod tool_sample;
 mod wiring;
@@ -49,6 +50,7 @@ pub use sim_status::SimStatus;
 pub use simulation::{
     Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
 };
+pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
 pub use threaded::{DeviceSwapReport, Engine, EngineReport};
 pub use tool_sample::ToolSample;
 pub use wiring::{Stages, build};

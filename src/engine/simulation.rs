@@ -35,8 +35,9 @@ use super::counters::EngineCounters;
 use super::live_tool::LiveTool;
 use super::patch::{FieldPatch, union_box};
 use super::sim_status::SimStatus;
+use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
-use crate::dynamics::{Material, RegionState, Simulator, StepParams};
+use crate::dynamics::{Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
@@ -154,6 +155,22 @@ pub struct SimulationStage {
     colour_reader: Option<SnapshotReader<Option<ColourField>>>,
     colour_dirty: bool,
     colour_published_step: u64,
+    /// Mirror planes strokes are copied across.
+    symmetry: Symmetry,
+    /// This step's tool forces with their mirrored copies (used only while mirroring).
+    mirrored_forces: Vec<ToolForce>,
+}
+
+/// The bounding box of `forces` grown by their spread radii, if there are any.
+fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
+    forces.iter().fold(None, |acc, f| {
+        let r = Vec3::splat(f.radius);
+        let (lo, hi) = (f.start.min(f.end) - r, f.start.max(f.end) + r);
+        Some(match acc {
+            Some((a, b)) => (a.min(lo), b.max(hi)),
+            None => (lo, hi),
+        })
+    })
 }
 
 /// Steps between two publications of a changing colour field. Painting changes it every step;
@@ -184,6 +201,9 @@ impl SimulationStage {
             history: History::new(config.history_budget_bytes),
             recorder: None,
             tool: LiveTool::new(ToolChoice::Push(config.tool)),
+            symmetry: Symmetry::OFF,
+            // Room for every force of the held tool and its seven mirrored copies.
+            mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
             idle_steps: 0,
@@ -282,6 +302,12 @@ impl SimulationStage {
             }
             Command::StrokeStop => {
                 self.stroke_armed = false;
+                true
+            }
+            Command::SetSymmetry(symmetry) => {
+                // A held stroke ends mirrored as it began.
+                self.end_stroke_now();
+                self.symmetry = symmetry;
                 true
             }
             Command::ApplyTool {
@@ -430,7 +456,16 @@ impl SimulationStage {
         let mass_step = self.lattice().spacing / self.config.samples_per_span.max(1) as f32;
         self.tool
             .update_forces(sample, &self.clay.patches[0], mass_step);
-        let push = match self.tool.force_bounds() {
+        let mirroring = self.symmetry.any() && !self.tool.forces().is_empty();
+        if mirroring {
+            self.mirror_forces();
+        }
+        let bounds = if mirroring {
+            forces_bounds(&self.mirrored_forces)
+        } else {
+            self.tool.force_bounds()
+        };
+        let push = match bounds {
             Some((lo, hi)) => {
                 self.ensure_region(lo, hi);
                 self.idle_steps = 0;
@@ -451,7 +486,11 @@ impl SimulationStage {
             if let Some(rec) = self.recorder.as_mut() {
                 rec.touch(&self.clay, FieldId::Density(0), region.coeff_box());
             }
-            let forces = if push { self.tool.forces() } else { &[] };
+            let forces: &[ToolForce] = match (push, mirroring) {
+                (false, _) => &[],
+                (true, false) => self.tool.forces(),
+                (true, true) => &self.mirrored_forces,
+            };
             let lattice = &mut self.clay.patches[0];
             match self
                 .simulator
@@ -475,9 +514,33 @@ impl SimulationStage {
         out
     }
 
+    /// Fills `mirrored_forces` with this step's tool forces and their mirrored copies.
+    fn mirror_forces(&mut self) {
+        let centre = clay_centre(&self.clay.patches[0]);
+        self.mirrored_forces.clear();
+        self.mirrored_forces.extend_from_slice(self.tool.forces());
+        for flip in self.symmetry.flips() {
+            for f in self.tool.forces() {
+                self.mirrored_forces.push(mirror_force(f, centre, flip));
+            }
+        }
+    }
+
+    /// Applies the held geometric tool at `tip` and at its mirrored copies (one stroke, one
+    /// undo step).
+    fn apply_held_geometric(&mut self, tip: Vec3, dwell_s: f32) {
+        self.apply_held_geometric_at(tip, dwell_s);
+        if self.symmetry.any() {
+            let centre = clay_centre(&self.clay.patches[0]);
+            for image in self.symmetry.images(tip, centre) {
+                self.apply_held_geometric_at(image, dwell_s);
+            }
+        }
+    }
+
     /// Applies the held geometric tool at `tip` for `dwell_s` (recorded in the stroke's step),
     /// reloads the dynamics region it may have changed and marks the box for publication.
-    fn apply_held_geometric(&mut self, tip: Vec3, dwell_s: f32) {
+    fn apply_held_geometric_at(&mut self, tip: Vec3, dwell_s: f32) {
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
         };

@@ -89,11 +89,10 @@ pub struct Engine {
 /// What a device replacement hands back about the device it replaced.
 #[derive(Debug)]
 pub struct DeviceSwapReport {
-    /// The device now in use, as it describes itself once open (`"no device"` after a
-    /// disconnect).
-    pub connected: DeviceInfo,
-    /// The replaced device (`"no device"` when none was connected).
-    pub replaced: DeviceInfo,
+    /// The device now in use, as it describes itself once open (`None` after a disconnect).
+    pub connected: Option<DeviceInfo>,
+    /// The replaced device (`None` when none was connected).
+    pub replaced: Option<DeviceInfo>,
     /// Its safety filter's counters since it was opened.
     pub replaced_safety: SafetyCounters,
     /// The result of closing it (the swap itself succeeded either way).
@@ -289,11 +288,11 @@ impl Engine {
         handover: DeviceHandover,
         timeout: Duration,
     ) -> Result<DeviceSwapReport, EngineError> {
-        let connected = handover.device.device().info();
+        let connected = handover.connected.then(|| handover.device.device().info());
         match self.device_swaps.swap(handover, timeout) {
             Ok(mut old) => {
-                // A parked slot holds the empty device, whose info says "no device".
-                let replaced = old.device.device().info();
+                // A parked slot holds the empty device: nothing was connected.
+                let replaced = old.connected.then(|| old.device.device().info());
                 let replaced_safety = old.device.counters();
                 let close = old.device.close();
                 Ok(DeviceSwapReport {

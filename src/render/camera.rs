@@ -124,6 +124,16 @@ impl Camera {
         self.projection(aspect) * self.view()
     }
 
+    /// The view ray through a point of the image, `ndc` in normalised device coordinates
+    /// (x right, y up, both −1..1): its origin on the near plane and its unit direction.
+    #[must_use]
+    pub fn ray_through(&self, ndc: glam::Vec2, aspect: f32) -> (Vec3, Vec3) {
+        let inverse = self.view_projection(aspect).inverse();
+        let near = inverse.project_point3(Vec3::new(ndc.x, ndc.y, 0.0));
+        let far = inverse.project_point3(Vec3::new(ndc.x, ndc.y, 1.0));
+        (near, (far - near).normalize_or(-self.eye_direction()))
+    }
+
     /// Turns the eye about the target: `d_yaw_rad` about +Y, `d_pitch_rad` up/down (clamped).
     pub fn orbit(&mut self, d_yaw_rad: f32, d_pitch_rad: f32) {
         if d_yaw_rad.is_finite() {

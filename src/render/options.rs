@@ -81,6 +81,14 @@ pub enum ToolStyle {
     Transparent,
     /// Latitude and longitude circles.
     Wireframe,
+    /// A small opaque tip at the centre and the reach (the area of influence) as faint
+    /// circles, so the work under the tool stays visible.
+    TipAndReach,
+}
+
+impl ToolStyle {
+    /// The tip's radius in [`ToolStyle::TipAndReach`], as a fraction of the reach.
+    pub const TIP_FRACTION: f32 = 0.12;
 }
 
 /// The tool's bounding sphere as the user sees it.

@@ -50,6 +50,18 @@ impl OverlayGeometry {
                 ToolStyle::Hidden => {}
                 ToolStyle::Wireframe => self.push_wire_sphere(&t),
                 ToolStyle::Transparent => self.push_shaded_sphere(&t),
+                ToolStyle::TipAndReach => {
+                    let [r, g, b, _] = t.color;
+                    self.push_wire_sphere(&ToolOverlay {
+                        color: [r, g, b, 0.5],
+                        ..t
+                    });
+                    self.push_shaded_sphere(&ToolOverlay {
+                        radius: t.radius * ToolStyle::TIP_FRACTION,
+                        color: [r, g, b, 1.0],
+                        ..t
+                    });
+                }
             }
         }
     }
@@ -280,5 +292,33 @@ mod tests {
             ..SceneOptions::default()
         });
         assert!(g.triangles.is_empty());
+    }
+
+    /// The tip-and-reach style: the reach as opaque-free circles on the full radius, and a
+    /// small opaque tip at the centre, so the clay under the tool stays visible.
+    #[test]
+    fn tip_and_reach_draws_a_small_opaque_tip_inside_reach_circles() {
+        let tool = ToolOverlay {
+            centre: Vec3::new(0.5, -1.0, 2.0),
+            radius: 0.25,
+            style: ToolStyle::TipAndReach,
+            color: [0.9, 0.35, 0.2, 0.3],
+        };
+        let mut g = OverlayGeometry::default();
+        g.rebuild(&SceneOptions {
+            tool: Some(tool),
+            ..SceneOptions::default()
+        });
+        assert!(!g.lines.is_empty() && !g.triangles.is_empty());
+        for v in &g.lines {
+            let r = (Vec3::from(v.position) - tool.centre).length();
+            assert!((r - tool.radius).abs() < 1e-5);
+        }
+        let tip = tool.radius * ToolStyle::TIP_FRACTION;
+        for v in &g.triangles {
+            let r = (Vec3::from(v.position) - tool.centre).length();
+            assert!((r - tip).abs() < 1e-5);
+            assert_eq!(v.color[3], 1.0, "the tip is opaque");
+        }
     }
 }

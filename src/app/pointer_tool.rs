@@ -1,0 +1,221 @@
+//! The mouse or pen as the sculpting tool: turns the pointer over the view into the tool tip
+//! that the pointer device hands to the haptic loop.
+//!
+//! Work per frame is one pick (bounded, see [`crate::field::pick_surface`]) and one wait-free
+//! hand-over ([`PointerHandle::set`]). While a stroke is held the pick is made on the clay as
+//! it was when the stroke began, so a drag carves a groove of the set depth instead of digging
+//! deeper every frame as the clay gives way.
+
+use glam::{Vec2, Vec3};
+
+use dynaclay_devices::pointer::PointerHandle;
+
+use crate::engine::WorkspaceMap;
+use crate::field::{BSplineLattice, Ray, pick_surface};
+use crate::render::Camera;
+
+/// Depth step per scroll point with the depth modifier held, as a fraction of the depth range.
+const DEPTH_PER_SCROLL_POINT: f32 = 0.002;
+/// Deepest the tip goes below the surface, knot spans.
+pub const MAX_DEPTH_SPANS: f32 = 4.0;
+
+/// Where the tool is this frame, field coordinates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TipPose {
+    /// The point of the clay under the pointer (on the view ray at the last depth when off
+    /// the clay).
+    pub surface: Vec3,
+    /// The clay's outward normal there (toward the eye when off the clay).
+    pub normal: Vec3,
+    /// The tool tip handed to the device.
+    pub tip: Vec3,
+    /// Whether the ray met the clay.
+    pub on_clay: bool,
+    /// Whether the tip presses (a stroke is held).
+    pub pressed: bool,
+}
+
+/// The pointer as a tool.
+#[derive(Default)]
+pub struct PointerTool {
+    handle: Option<PointerHandle>,
+    /// Field → device map of the engine the handle feeds.
+    map: Option<WorkspaceMap>,
+    /// How far below the surface a pressing tip goes, knot spans.
+    pub depth_spans: f32,
+    /// The clay as it was when the held stroke began.
+    stroke_field: Option<BSplineLattice>,
+    /// Distance along the view ray of the last hit, to hover off the clay.
+    last_distance: Option<f32>,
+    /// This frame's tip.
+    pub pose: Option<TipPose>,
+}
+
+impl PointerTool {
+    /// A tool feeding `handle`, whose engine maps field to device with `map`.
+    #[must_use]
+    pub fn new(handle: PointerHandle, map: WorkspaceMap) -> Self {
+        Self {
+            handle: Some(handle),
+            map: Some(map),
+            depth_spans: 1.5,
+            ..Self::default()
+        }
+    }
+
+    /// Whether a pointer device is connected to this tool.
+    #[must_use]
+    pub fn is_connected(&self) -> bool {
+        self.handle.is_some()
+    }
+
+    /// The last sample handed to the device, for tests and the status line.
+    #[must_use]
+    pub fn last_sample(&self) -> Option<dynaclay_devices::pointer::PointerSample> {
+        self.handle.as_ref().map(PointerHandle::last)
+    }
+
+    /// Changes the press depth for a scroll of `scroll_points` (up: deeper).
+    pub fn scroll_depth(&mut self, scroll_points: f32) {
+        if scroll_points.is_finite() {
+            self.depth_spans = (self.depth_spans
+                + scroll_points * DEPTH_PER_SCROLL_POINT * MAX_DEPTH_SPANS)
+                .clamp(0.0, MAX_DEPTH_SPANS);
+        }
+    }
+
+    /// Aims the tool along the view ray under `pointer_ndc` and hands the tip to the device.
+    /// `pressing` holds a stroke; `pressure` (0..1, a pen's) scales the depth, 1 for a mouse.
+    pub fn aim(
+        &mut self,
+        field: &BSplineLattice,
+        camera: &Camera,
+        pointer_ndc: Vec2,
+        aspect: f32,
+        pressing: bool,
+        pressure: f32,
+    ) -> TipPose {
+        if pressing && self.stroke_field.is_none() {
+            self.stroke_field = Some(field.clone());
+        } else if !pressing {
+            self.stroke_field = None;
+        }
+        let picked_on = self.stroke_field.as_ref().unwrap_or(field);
+        let (origin, direction) = camera.ray_through(pointer_ndc, aspect);
+        let hover = 0.5 * field.spacing;
+        let pose = match pick_surface(picked_on, Ray { origin, direction }) {
+            Some(hit) => {
+                self.last_distance = Some(hit.distance);
+                let depth = self.depth_spans * field.spacing * pressure.clamp(0.0, 1.0);
+                let tip = if pressing {
+                    hit.point - hit.normal * depth
+                } else {
+                    hit.point + hit.normal * hover
+                };
+                TipPose {
+                    surface: hit.point,
+                    normal: hit.normal,
+                    tip,
+                    on_clay: true,
+                    pressed: pressing,
+                }
+            }
+            None => {
+                let distance = self.last_distance.unwrap_or(camera.distance);
+                let at = origin + direction * distance;
+                TipPose {
+                    surface: at,
+                    normal: -direction,
+                    tip: at,
+                    on_clay: false,
+                    pressed: pressing,
+                }
+            }
+        };
+        if let (Some(handle), Some(map)) = (self.handle.as_mut(), self.map.as_ref()) {
+            handle.set(map.to_device(pose.tip), pressing);
+        }
+        self.pose = Some(pose);
+        pose
+    }
+
+    /// Lifts the tool (the pointer left the view or the drag ended elsewhere): the tip stays
+    /// where it was and stops pressing.
+    pub fn release(&mut self) {
+        self.stroke_field = None;
+        if let Some(pose) = self.pose.as_mut() {
+            pose.pressed = false;
+        }
+        if let Some(handle) = self.handle.as_mut() {
+            let last = handle.last();
+            if last.pressed {
+                handle.set(last.position_m, false);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::NamedView;
+    use dynaclay_devices::pointer::{PointerConfig, pointer_device};
+
+    fn ball() -> BSplineLattice {
+        crate::field::lattice_from_primitive(
+            [17, 17, 17],
+            0.2,
+            Vec3::ZERO,
+            &crate::field::Primitive::Sphere {
+                centre: Vec3::splat(1.6),
+                radius: 1.0,
+            },
+            0.4,
+            2,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn the_tip_hovers_above_presses_below_and_keeps_its_depth_off_the_clay() {
+        let field = ball();
+        let config = PointerConfig::default();
+        let (_device, handle) = pointer_device(config);
+        let map = WorkspaceMap::fitting(
+            config.workspace_min_m,
+            config.workspace_max_m,
+            Vec3::ZERO,
+            Vec3::splat(3.2),
+            30.0,
+        );
+        let mut tool = PointerTool::new(handle, map);
+        let camera = Camera::named(NamedView::Front, Vec3::splat(0.6), Vec3::splat(2.6));
+        let centre = Vec2::ZERO;
+        let hover = tool.aim(&field, &camera, centre, 1.0, false, 1.0);
+        assert!(hover.on_clay && !hover.pressed);
+        assert!(
+            field.value(hover.tip) < field.iso,
+            "hovers outside the clay"
+        );
+        let press = tool.aim(&field, &camera, centre, 1.0, true, 1.0);
+        assert!(field.value(press.tip) > field.iso, "presses into the clay");
+        let depth = (press.surface - press.tip).length();
+        assert!((depth - 1.5 * 0.2).abs() < 1e-4, "depth {depth}");
+        let sent = tool.last_sample().unwrap();
+        assert!(sent.pressed);
+        assert!((sent.position_m - map.to_device(press.tip)).length() < 1e-6);
+        // A pen's half pressure goes half as deep.
+        let light = tool.aim(&field, &camera, centre, 1.0, true, 0.5);
+        assert!(((light.surface - light.tip).length() - 0.15).abs() < 1e-4);
+        // Off the clay: on the ray at the last hit's distance, not pressing into anything.
+        let off = tool.aim(&field, &camera, Vec2::new(0.95, 0.95), 1.0, false, 1.0);
+        assert!(!off.on_clay);
+        assert!(field.value(off.tip) < field.iso);
+        tool.release();
+        assert!(!tool.last_sample().unwrap().pressed);
+        tool.scroll_depth(1.0e6);
+        assert_eq!(tool.depth_spans, MAX_DEPTH_SPANS);
+        tool.scroll_depth(f32::NAN);
+        assert_eq!(tool.depth_spans, MAX_DEPTH_SPANS);
+    }
+}
