@@ -153,7 +153,9 @@ fn write_field_outputs(
     }
 
     let session_path = dir.join("session.dclay");
-    save_session(&session_path, session).map_err(|e| out_err(&session_path, e))?;
+    let mut session = session.clone();
+    session.meta.saved_unix_s = super::run::unix_now_s();
+    save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);
     Ok((stats, octree))
 }

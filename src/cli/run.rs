@@ -2,7 +2,9 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
+
+use crossbeam::channel::RecvTimeoutError;
 
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
 use dynaclay_devices::spec::DeviceSpec;
@@ -173,6 +175,11 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
         other => CliError::Engine(other),
     })?;
+    let installed = install_session(&engine.commands(), &start, &session_path);
+    installed_or_stop(
+        installed.recv_timeout(Duration::from_secs(10)),
+        &session_path,
+    )?;
     let rt = engine.haptic_rt();
     println!(
         "dynaclay run: {seconds:.1} s, script {file}, device {}, haptic priority: {rt}",
@@ -245,6 +252,50 @@ fn starting_session(
     }
 }
 
+/// Sends the whole starting session to the engine, so that every part of it (the paint, the
+/// further patches, material grids, tool library and metadata) is in the session the run
+/// hands back; the reply tells whether the engine took it.
+fn install_session(
+    commands: &crossbeam::channel::Sender<crate::engine::Command>,
+    start: &Session,
+    session_path: &Path,
+) -> crossbeam::channel::Receiver<Result<String, String>> {
+    let (tx, rx) = crossbeam::channel::bounded(1);
+    let mut session = start.clone();
+    if session.meta.created_unix_s == 0 {
+        session.meta.created_unix_s = unix_now_s();
+    }
+    // A closed channel shows up as a missing reply below.
+    let _ = commands.send(crate::engine::Command::Load {
+        session: Box::new(session),
+        source: session_path.to_path_buf(),
+        reply: Some(tx),
+    });
+    rx
+}
+
+/// Seconds since the Unix epoch now (0 on a clock set before 1970).
+pub(super) fn unix_now_s() -> u64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}
+
+/// Stops the run when the engine refused or never answered the starting session.
+fn installed_or_stop(
+    reply: Result<Result<String, String>, RecvTimeoutError>,
+    session_path: &Path,
+) -> Result<(), CliError> {
+    match reply {
+        Ok(Ok(_)) => Ok(()),
+        Ok(Err(e)) => Err(CliError::Output(format!("starting session: {e}"))),
+        Err(_) => Err(CliError::Output(format!(
+            "starting session {}: the engine did not take it",
+            session_path.display()
+        ))),
+    }
+}
+
 fn note_short_run(seconds: f64, plan: &ScriptPlan) {
     if seconds < plan.end_s {
         println!(
@@ -309,7 +360,18 @@ fn run_replay(
     println!("dynaclay run: replaying {samples} samples in lockstep");
     let mut driver = ScriptDriver::new(plan);
     let commands = lockstep.commands();
+    // The whole starting session (paint, further patches, grids, tools, metadata) is
+    // installed by the first step, before the first recorded sample acts on the clay.
+    let installed = install_session(&commands, start, session_path);
+    let mut pending_install = Some(installed);
     for _ in 0..samples {
+        if let Some(rx) = pending_install.take() {
+            lockstep.step();
+            installed_or_stop(
+                rx.try_recv().map_err(|_| RecvTimeoutError::Disconnected),
+                session_path,
+            )?;
+        }
         let sample = lockstep.latest_tool();
         driver.dispatch(&sample, &commands);
         lockstep.step();
