@@ -41,6 +41,9 @@ pub enum CliError {
     Output(String),
     /// A session file could not be read (exit 2).
     Session(SessionError),
+    /// The run ended and every output was written, but the device failed to close (exit 5;
+    /// see [`CliError::DEVICE_FAULT_EXIT`]).
+    DeviceFault(dynaclay_devices::DeviceError),
     /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
     /// [`CliError::NO_ADAPTER_EXIT`]).
     Render(RenderError, PathBuf),
@@ -51,12 +54,17 @@ impl CliError {
     /// failure (1) and a bad argument (2), so scripts can tell "cannot render here" apart.
     pub const NO_ADAPTER_EXIT: i32 = 4;
 
+    /// Exit status of `dynaclay run` when every output was written but the device failed at
+    /// the end of the run (closing it): the sculpt is safe, the hardware needs a look.
+    pub const DEVICE_FAULT_EXIT: i32 = 5;
+
     /// The process exit code for this error.
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
             Self::Usage(_) | Self::Script(_) | Self::Session(_) => 2,
             Self::Device(_) => 3,
+            Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
         }
@@ -69,6 +77,10 @@ impl fmt::Display for CliError {
             Self::Usage(m) => write!(f, "{m}"),
             Self::Script(e) => write!(f, "script error: {e}"),
             Self::Device(m) => write!(f, "device error: {m}"),
+            Self::DeviceFault(e) => write!(
+                f,
+                "device fault at the end of the run (every output was written): {e}"
+            ),
             Self::Engine(e) => write!(f, "engine error: {e}"),
             Self::Output(m) => write!(f, "output error: {m}"),
             Self::Session(e) => write!(f, "cannot read session: {e}"),
@@ -199,8 +211,12 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let report = engine.stop().map_err(CliError::Engine)?;
     let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
+    report_device_faults(&report.safety);
     finish_run(&session_path, &mut driver, &report.io)?;
-    Ok(outputs)
+    match report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e)),
+        None => Ok(outputs),
+    }
 }
 
 /// The optional outputs `args` ask for; `--png` with no file means `DIR/sculpt.png`.
@@ -305,6 +321,18 @@ fn note_short_run(seconds: f64, plan: &ScriptPlan) {
     }
 }
 
+/// Tells stderr about device faults the run survived (force went to zero meanwhile), so
+/// that they are not found only in `latency.md`.
+fn report_device_faults(safety: &dynaclay_devices::SafetyCounters) {
+    if safety.read_faults + safety.write_faults + safety.nonfinite > 0 {
+        eprintln!(
+            "dynaclay: the device faulted during the run and the engine carried on with zero \
+             force: {} read fault(s), {} write fault(s), {} non-finite force(s) replaced by zero",
+            safety.read_faults, safety.write_faults, safety.nonfinite
+        );
+    }
+}
+
 /// After a finished run whose session was written: removes the recovery file, reports
 /// failed autosaves and steps, and fails on a failed script step.
 fn finish_run(
@@ -380,6 +408,10 @@ fn run_replay(
     let outputs =
         super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
     print!("{}", outputs.describe());
+    report_device_faults(&report.safety);
     finish_run(session_path, &mut driver, &report.io)?;
-    Ok(outputs)
+    match report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e)),
+        None => Ok(outputs),
+    }
 }
