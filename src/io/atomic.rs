@@ -22,16 +22,22 @@ pub fn save_session(path: &Path, session: &Session) -> Result<(), SessionError> 
     write_atomic(path, &bytes)
 }
 
-/// Loads and validates the session at `path`.
+/// The largest session file read, bytes (sixteen 96³ patches with paint fit well inside).
+pub const MAX_SESSION_BYTES: u64 = 1 << 30;
+
+/// Loads and validates the session at `path`. Only a regular file of at most
+/// [`MAX_SESSION_BYTES`] is read (a FIFO or a device such as `/dev/zero` is refused at once).
 ///
 /// # Errors
 /// [`SessionError::Io`] when it cannot be read; the format errors of
 /// [`decode`](super::format::decode) otherwise.
 pub fn load_session(path: &Path) -> Result<Session, SessionError> {
-    let bytes = fs::read(path).map_err(|source| SessionError::Io {
-        path: path.to_path_buf(),
-        op: "read",
-        source,
+    let bytes = super::bounded_read::read_regular_file(path, MAX_SESSION_BYTES).map_err(|e| {
+        SessionError::Io {
+            path: path.to_path_buf(),
+            op: "read",
+            source: e.into_io(),
+        }
     })?;
     decode(&bytes, path)
 }

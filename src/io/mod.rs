@@ -3,6 +3,7 @@
 
 mod atomic;
 mod autosave;
+pub mod bounded_read;
 mod error;
 mod format;
 mod run_script;
