@@ -340,3 +340,52 @@ fn a_run_writes_real_creation_and_save_times() {
         back.meta
     );
 }
+
+#[test]
+fn script_saves_stay_in_their_folders_and_never_replace_other_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let scripts = dir.path().join("scripts");
+    std::fs::create_dir_all(&scripts).unwrap();
+    let out = dir.path().join("out");
+    let run = |save: &str, extra: &[&str]| {
+        let script = scripts.join("save.toml");
+        std::fs::write(
+            &script,
+            format!("version = 1\nseconds = 0.5\n\n[[step]]\ndo = \"save\"\npath = \"{save}\"\n"),
+        )
+        .unwrap();
+        Command::new(BIN)
+            .args(["run", "--no-rt", "--script"])
+            .arg(&script)
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // Outside the script's folder: refused before the run, nothing written.
+    let outside = run("../escaped.dclay", &[]);
+    assert_eq!(outside.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&outside.stderr);
+    assert!(
+        err.contains("--allow-outside") && err.contains("escaped"),
+        "{err}"
+    );
+    assert!(!dir.path().join("escaped.dclay").exists());
+    // With --allow-outside it is written.
+    let allowed = run("../escaped.dclay", &["--allow-outside"]);
+    assert!(
+        allowed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&allowed.stderr)
+    );
+    assert!(load_session(&dir.path().join("escaped.dclay")).is_ok());
+    // A file that is not a session is never replaced.
+    let precious = scripts.join("notes.txt");
+    std::fs::write(&precious, "precious").unwrap();
+    let refused = run("notes.txt", &[]);
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("not a dynaclay session"), "{err}");
+    assert_eq!(std::fs::read_to_string(&precious).unwrap(), "precious");
+}

@@ -131,6 +131,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         start.material.uniform,
     )
     .map_err(CliError::Script)?;
+    if !args.allow_outside {
+        check_save_folders(&plan, &base_dir, &args.out)?;
+    }
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.patches[0].clone();
     std::fs::create_dir_all(&args.out)
@@ -266,6 +269,52 @@ fn starting_session(
             })
         }
     }
+}
+
+/// `path` with `.` and `..` resolved lexically (no file-system access, so the check below
+/// holds for paths that do not exist yet), made absolute against the current directory.
+fn lexical_absolute(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let joined = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// Refuses a script whose `save` steps would write outside the script's folder and the
+/// output directory (`--allow-outside` lifts this).
+fn check_save_folders(plan: &ScriptPlan, script_dir: &Path, out: &Path) -> Result<(), CliError> {
+    let allowed = [lexical_absolute(script_dir), lexical_absolute(out)];
+    for event in &plan.events {
+        if let crate::engine::PlannedAction::Save(path) = &event.action {
+            let target = lexical_absolute(path);
+            if !allowed.iter().any(|dir| target.starts_with(dir)) {
+                return Err(CliError::Script(ScriptError {
+                    file: plan.file.clone(),
+                    line: None,
+                    column: None,
+                    step: Some(event.step),
+                    message: format!(
+                        "save: {} is outside the script's folder and the output directory; pass --allow-outside to write there",
+                        path.display()
+                    ),
+                }));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Sends the whole starting session to the engine, so that every part of it (the paint, the
