@@ -389,3 +389,27 @@ fn script_saves_stay_in_their_folders_and_never_replace_other_files() {
     assert!(err.contains("not a dynaclay session"), "{err}");
     assert_eq!(std::fs::read_to_string(&precious).unwrap(), "precious");
 }
+
+#[test]
+fn a_closed_stdout_does_not_stop_a_run_before_its_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    // Like `dynaclay run | head -0`: the reader is gone before the first line.
+    let mut child = Command::new(BIN)
+        .args(["run", "--no-rt", "--seconds", "0.3", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let done = child.wait_with_output().unwrap();
+    assert_eq!(
+        done.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(load_session(&out.join("session.dclay")).is_ok());
+    assert!(out.join("sculpt.obj").exists());
+}

@@ -1,5 +1,22 @@
 //! The `dynaclay` command line: argument definitions and one module per subcommand.
 
+/// `println!` for progress lines that tolerates a closed stdout (`dynaclay run | head -1`): a
+/// broken pipe must not stop a run before its outputs are written, so the error is dropped.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
+/// `print!` with the same tolerance as [`say!`].
+macro_rules! say_raw {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 mod args;
 mod devices;
 mod outputs;

@@ -196,7 +196,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         &session_path,
     )?;
     let rt = engine.haptic_rt();
-    println!(
+    say!(
         "dynaclay run: {seconds:.1} s, script {file}, device {}, haptic priority: {rt}",
         args.device
     );
@@ -213,7 +213,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     drop(commands);
     let report = engine.stop().map_err(CliError::Engine)?;
     let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
-    print!("{}", outputs.describe());
+    say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
     finish_run(&session_path, &mut driver, &report.io)?;
     match report.device_close_error {
@@ -253,7 +253,7 @@ fn starting_session(
                     r.path.display()
                 )));
             }
-            println!(
+            say!(
                 "dynaclay run: starting from recovery file {}",
                 r.path.display()
             );
@@ -363,7 +363,7 @@ fn installed_or_stop(
 
 fn note_short_run(seconds: f64, plan: &ScriptPlan) {
     if seconds < plan.end_s {
-        println!(
+        say!(
             "note: the run ends at {seconds:.1} s, before the script's last step ends at {:.1} s",
             plan.end_s
         );
@@ -377,7 +377,9 @@ fn report_device_faults(safety: &dynaclay_devices::SafetyCounters) {
         eprintln!(
             "dynaclay: the device faulted during the run and the engine carried on with zero \
              force: {} read fault(s), {} write fault(s), {} non-finite force(s) replaced by zero",
-            safety.read_faults, safety.write_faults, safety.nonfinite
+            safety.read_faults,
+            safety.write_faults,
+            safety.nonfinite
         );
     }
 }
@@ -399,7 +401,7 @@ fn finish_run(
     }
     let unsent = driver.unsent_steps();
     if !unsent.is_empty() {
-        println!("note: script steps {unsent:?} were not reached");
+        say!("note: script steps {unsent:?} were not reached");
     }
     let failures = driver.failures().to_vec();
     for e in failures.iter().skip(1) {
@@ -434,7 +436,7 @@ fn run_replay(
         16,
     )
     .map_err(CliError::Engine)?;
-    println!("dynaclay run: replaying {samples} samples in lockstep");
+    say!("dynaclay run: replaying {samples} samples in lockstep");
     let mut driver = ScriptDriver::new(plan);
     let commands = lockstep.commands();
     // The whole starting session (paint, further patches, grids, tools, metadata) is
@@ -456,7 +458,7 @@ fn run_replay(
     let report = lockstep.finish().map_err(CliError::Engine)?;
     let outputs =
         super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
-    print!("{}", outputs.describe());
+    say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
     finish_run(session_path, &mut driver, &report.io)?;
     match report.device_close_error {
