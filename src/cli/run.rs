@@ -377,9 +377,7 @@ fn report_device_faults(safety: &dynaclay_devices::SafetyCounters) {
         eprintln!(
             "dynaclay: the device faulted during the run and the engine carried on with zero \
              force: {} read fault(s), {} write fault(s), {} non-finite force(s) replaced by zero",
-            safety.read_faults,
-            safety.write_faults,
-            safety.nonfinite
+            safety.read_faults, safety.write_faults, safety.nonfinite
         );
     }
 }
