@@ -43,6 +43,7 @@ pub fn dispatch(cli: Cli) -> i32 {
             crate::app::LaunchError::Usage(_) => CliError::Usage(e.to_string()),
             crate::app::LaunchError::Device(_) => CliError::Device(e.to_string()),
             crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
+            crate::app::LaunchError::Session(s) => CliError::Session(s),
         }),
         Commands::Render(a) => render(&a).map(|_| ()),
     };
