@@ -413,3 +413,22 @@ fn a_closed_stdout_does_not_stop_a_run_before_its_outputs() {
     assert!(load_session(&out.join("session.dclay")).is_ok());
     assert!(out.join("sculpt.obj").exists());
 }
+
+#[test]
+fn out_naming_a_file_says_it_is_not_a_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("plain");
+    std::fs::write(&file, "keep").unwrap();
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--seconds", "0.3", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("not a directory") && err.contains("plain"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+}

@@ -136,6 +136,12 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     }
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.patches[0].clone();
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(CliError::Usage(format!(
+            "--out {}: exists and is not a directory; --out names the folder the run writes into",
+            args.out.display()
+        )));
+    }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
 
