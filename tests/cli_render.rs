@@ -258,3 +258,30 @@ fn bad_views_and_unreadable_sessions_are_named() {
     );
     assert!(!png.exists());
 }
+
+#[test]
+fn gui_and_render_refuse_a_bad_session_with_the_same_exit_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.dclay");
+    std::fs::write(&bad, b"not a session at all").unwrap();
+    for args in [
+        vec!["gui".to_owned(), bad.display().to_string()],
+        vec![
+            "render".to_owned(),
+            bad.display().to_string(),
+            "--out".to_owned(),
+            dir.path().join("x.png").display().to_string(),
+        ],
+    ] {
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_dynaclay"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("bad.dclay") && err.contains("not a dynaclay session"),
+            "{err}"
+        );
+    }
+}

@@ -305,3 +305,203 @@ fn the_built_in_run_leaves_a_groove_along_its_path_and_nothing_elsewhere() {
         );
     }
 }
+
+/// A session holding every section: a painted sculpted patch, a second patch, a material
+/// grid, a tool library and metadata.
+fn session_with_every_section() -> dynaclay::io::Session {
+    use dynaclay::dynamics::Material;
+    use dynaclay::io::{
+        ClayShape, ClaySpec, MaterialFields, MaterialGrid, SessionMeta, ToolPreset,
+    };
+    use dynaclay::tools::{Clay, ColourField, ToolAction, ToolShape};
+    let patch = dynaclay::engine::build_clay(&ClaySpec {
+        shape: ClayShape::Sphere,
+        resolution: 12,
+    })
+    .unwrap();
+    let mut colour = ColourField::matching(&patch).unwrap();
+    for (n, c) in colour.channels[0].coeffs.iter_mut().enumerate() {
+        *c = (n % 7) as f32 / 7.0;
+    }
+    colour.channels[3].coeffs.fill(1.0);
+    let mut second = patch.clone();
+    second.coeffs.iter_mut().for_each(|c| *c *= 0.5);
+    dynaclay::io::Session {
+        clay: Clay {
+            patches: vec![patch, second],
+            colour: Some(colour),
+        },
+        material: MaterialFields {
+            uniform: Material::PLASTIC,
+            grids: vec![MaterialGrid {
+                name: "stiffness".into(),
+                dims: [2, 2, 2],
+                values: vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0],
+            }],
+        },
+        tools: vec![ToolPreset {
+            name: "ball".into(),
+            shape: ToolShape::Sphere { radius_m: 0.2 },
+            action: ToolAction::Add {
+                deposit_rate_per_s: 3.0,
+            },
+            falloff_m: 0.05,
+        }],
+        meta: SessionMeta {
+            name: "every section".into(),
+            created_unix_s: 1_700_000_000,
+            saved_unix_s: 1_700_000_001,
+            writer: "dynaclay test".into(),
+        },
+    }
+}
+
+#[test]
+fn recover_keeps_every_section_of_the_session_paint_included() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let saved = session_with_every_section();
+    dynaclay::io::save_session(&out.join("session.dclay.recovery"), &saved).unwrap();
+    let idle = dir.path().join("idle.toml");
+    std::fs::write(&idle, "version = 1\nseconds = 0.3\n").unwrap();
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--recover", "--script"])
+        .arg(&idle)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let back = load_session(&out.join("session.dclay")).unwrap();
+    assert_eq!(back.clay, saved.clay, "patches and paint");
+    assert_eq!(back.material, saved.material, "uniform material and grids");
+    assert_eq!(back.tools, saved.tools, "tool library");
+    assert_eq!(back.meta.name, saved.meta.name);
+    assert_eq!(back.meta.created_unix_s, saved.meta.created_unix_s);
+    assert!(
+        back.meta.saved_unix_s > saved.meta.saved_unix_s,
+        "the save time is the run's: {}",
+        back.meta.saved_unix_s
+    );
+}
+
+#[test]
+fn a_run_writes_real_creation_and_save_times() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    let idle = dir.path().join("idle.toml");
+    std::fs::write(&idle, "version = 1\nseconds = 0.3\n").unwrap();
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--script"])
+        .arg(&idle)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(run.status.success());
+    let back = load_session(&out.join("session.dclay")).unwrap();
+    // 2020-01-01: any real clock is later.
+    assert!(back.meta.created_unix_s > 1_577_836_800, "{:?}", back.meta);
+    assert!(
+        back.meta.saved_unix_s >= back.meta.created_unix_s,
+        "{:?}",
+        back.meta
+    );
+}
+
+#[test]
+fn script_saves_stay_in_their_folders_and_never_replace_other_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let scripts = dir.path().join("scripts");
+    std::fs::create_dir_all(&scripts).unwrap();
+    let out = dir.path().join("out");
+    let run = |save: &str, extra: &[&str]| {
+        let script = scripts.join("save.toml");
+        std::fs::write(
+            &script,
+            format!("version = 1\nseconds = 0.5\n\n[[step]]\ndo = \"save\"\npath = \"{save}\"\n"),
+        )
+        .unwrap();
+        Command::new(BIN)
+            .args(["run", "--no-rt", "--script"])
+            .arg(&script)
+            .arg("--out")
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    // Outside the script's folder: refused before the run, nothing written.
+    let outside = run("../escaped.dclay", &[]);
+    assert_eq!(outside.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&outside.stderr);
+    assert!(
+        err.contains("--allow-outside") && err.contains("escaped"),
+        "{err}"
+    );
+    assert!(!dir.path().join("escaped.dclay").exists());
+    // With --allow-outside it is written.
+    let allowed = run("../escaped.dclay", &["--allow-outside"]);
+    assert!(
+        allowed.status.success(),
+        "{}",
+        String::from_utf8_lossy(&allowed.stderr)
+    );
+    assert!(load_session(&dir.path().join("escaped.dclay")).is_ok());
+    // A file that is not a session is never replaced.
+    let precious = scripts.join("notes.txt");
+    std::fs::write(&precious, "precious").unwrap();
+    let refused = run("notes.txt", &[]);
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("not a dynaclay session"), "{err}");
+    assert_eq!(std::fs::read_to_string(&precious).unwrap(), "precious");
+}
+
+#[test]
+fn a_closed_stdout_does_not_stop_a_run_before_its_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    // Like `dynaclay run | head -0`: the reader is gone before the first line.
+    let mut child = Command::new(BIN)
+        .args(["run", "--no-rt", "--seconds", "0.3", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let done = child.wait_with_output().unwrap();
+    assert_eq!(
+        done.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(load_session(&out.join("session.dclay")).is_ok());
+    assert!(out.join("sculpt.obj").exists());
+}
+
+#[test]
+fn out_naming_a_file_says_it_is_not_a_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("plain");
+    std::fs::write(&file, "keep").unwrap();
+    let run = Command::new(BIN)
+        .args(["run", "--no-rt", "--seconds", "0.3", "--out"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        err.contains("not a directory") && err.contains("plain"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+}

@@ -130,3 +130,72 @@ fn device_disconnect_sends_zero_force_and_the_engine_stays_alive() {
     );
     assert!(report.safety.read_faults >= 200, "{:?}", report.safety);
 }
+
+/// A simulated arm whose peer vanishes at the very end: closing fails.
+struct FailsToClose(dynaclay_devices::SimulatedArm);
+
+impl dynaclay_devices::HapticDevice for FailsToClose {
+    fn info(&self) -> dynaclay_devices::DeviceInfo {
+        self.0.info()
+    }
+    fn open(&mut self) -> Result<(), dynaclay_devices::DeviceError> {
+        self.0.open()
+    }
+    fn close(&mut self) -> Result<(), dynaclay_devices::DeviceError> {
+        let _ = self.0.close();
+        Err(dynaclay_devices::DeviceError::Disconnected)
+    }
+    fn is_open(&self) -> bool {
+        self.0.is_open()
+    }
+    fn read(&mut self) -> Result<dynaclay_devices::DeviceState, dynaclay_devices::DeviceError> {
+        self.0.read()
+    }
+    fn write_force(&mut self, force_n: glam::Vec3) -> Result<(), dynaclay_devices::DeviceError> {
+        self.0.write_force(force_n)
+    }
+}
+
+#[test]
+fn a_device_that_fails_to_close_still_hands_back_the_sculpt() {
+    let s = common::setup(common::PUSH_SCRIPT, Vec::new());
+    let field = s.field.clone();
+    let engine = Engine::start(
+        &s.config,
+        s.field,
+        Box::new(FailsToClose(s.arm)),
+        Box::new(HeadlessSink::default()),
+    )
+    .expect("engine starts");
+    std::thread::sleep(Duration::from_millis(50));
+    let report = engine
+        .stop()
+        .expect("a failed close does not cost the session");
+    assert_eq!(
+        report.device_close_error,
+        Some(dynaclay_devices::DeviceError::Disconnected)
+    );
+    assert_eq!(report.session.clay.patches[0].dims, field.dims);
+}
+
+#[test]
+fn a_lockstep_run_whose_device_fails_to_close_still_hands_back_the_sculpt() {
+    let s = common::setup(common::PUSH_SCRIPT, Vec::new());
+    let field = s.field.clone();
+    let mut lockstep = dynaclay::engine::Lockstep::new(
+        &s.config,
+        s.field,
+        Box::new(FailsToClose(s.arm)),
+        Box::new(HeadlessSink::default()),
+        16,
+    )
+    .expect("lockstep starts");
+    for _ in 0..20 {
+        lockstep.step();
+    }
+    let report = lockstep
+        .finish()
+        .expect("a failed close does not cost the session");
+    assert!(report.device_close_error.is_some());
+    assert_eq!(report.session.clay.patches[0].dims, field.dims);
+}

@@ -26,6 +26,8 @@ pub enum LaunchError {
     Device(String),
     /// The engine or the window failed.
     Failed(String),
+    /// The session named on the command line could not be read (exit 2, as for `render`).
+    Session(crate::io::SessionError),
 }
 
 impl std::fmt::Display for LaunchError {
@@ -37,6 +39,7 @@ impl std::fmt::Display for LaunchError {
             ),
             Self::Device(m) => write!(f, "gui: device: {m}"),
             Self::Failed(m) => write!(f, "gui: {m}"),
+            Self::Session(e) => write!(f, "gui: cannot read session: {e}"),
         }
     }
 }
@@ -131,7 +134,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             None,
         ),
         Some(path) => {
-            let s = load_session(path).map_err(|e| LaunchError::Failed(e.to_string()))?;
+            let s = load_session(path).map_err(LaunchError::Session)?;
             let [patch] = <[_; 1]>::try_from(s.clay.patches).map_err(|p: Vec<_>| {
                 LaunchError::Failed(format!(
                     "{}: the session has {} density patches; the engine sculpts exactly one",

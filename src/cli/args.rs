@@ -51,6 +51,10 @@ pub struct RunArgs {
     /// script's clay.
     #[arg(long)]
     pub recover: bool,
+    /// Let the script's `save` steps write outside the script's folder and the output
+    /// directory.
+    #[arg(long)]
+    pub allow_outside: bool,
     /// Device: sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, replay:FILE.
     #[arg(long, default_value = "sim", value_name = "SPEC")]
     pub device: String,

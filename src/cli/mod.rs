@@ -1,5 +1,22 @@
 //! The `dynaclay` command line: argument definitions and one module per subcommand.
 
+/// `println!` for progress lines that tolerates a closed stdout (`dynaclay run | head -1`): a
+/// broken pipe must not stop a run before its outputs are written, so the error is dropped.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
+/// `print!` with the same tolerance as [`say!`].
+macro_rules! say_raw {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = write!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 mod args;
 mod devices;
 mod outputs;
@@ -26,6 +43,7 @@ pub fn dispatch(cli: Cli) -> i32 {
             crate::app::LaunchError::Usage(_) => CliError::Usage(e.to_string()),
             crate::app::LaunchError::Device(_) => CliError::Device(e.to_string()),
             crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
+            crate::app::LaunchError::Session(s) => CliError::Session(s),
         }),
         Commands::Render(a) => render(&a).map(|_| ()),
     };

@@ -2,7 +2,9 @@
 
 use std::fmt;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
+
+use crossbeam::channel::RecvTimeoutError;
 
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
 use dynaclay_devices::spec::DeviceSpec;
@@ -39,6 +41,9 @@ pub enum CliError {
     Output(String),
     /// A session file could not be read (exit 2).
     Session(SessionError),
+    /// The run ended and every output was written, but the device failed to close (exit 5;
+    /// see [`CliError::DEVICE_FAULT_EXIT`]).
+    DeviceFault(dynaclay_devices::DeviceError),
     /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
     /// [`CliError::NO_ADAPTER_EXIT`]).
     Render(RenderError, PathBuf),
@@ -49,12 +54,17 @@ impl CliError {
     /// failure (1) and a bad argument (2), so scripts can tell "cannot render here" apart.
     pub const NO_ADAPTER_EXIT: i32 = 4;
 
+    /// Exit status of `dynaclay run` when every output was written but the device failed at
+    /// the end of the run (closing it): the sculpt is safe, the hardware needs a look.
+    pub const DEVICE_FAULT_EXIT: i32 = 5;
+
     /// The process exit code for this error.
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
             Self::Usage(_) | Self::Script(_) | Self::Session(_) => 2,
             Self::Device(_) => 3,
+            Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
         }
@@ -67,6 +77,10 @@ impl fmt::Display for CliError {
             Self::Usage(m) => write!(f, "{m}"),
             Self::Script(e) => write!(f, "script error: {e}"),
             Self::Device(m) => write!(f, "device error: {m}"),
+            Self::DeviceFault(e) => write!(
+                f,
+                "device fault at the end of the run (every output was written): {e}"
+            ),
             Self::Engine(e) => write!(f, "engine error: {e}"),
             Self::Output(m) => write!(f, "output error: {m}"),
             Self::Session(e) => write!(f, "cannot read session: {e}"),
@@ -117,8 +131,17 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         start.material.uniform,
     )
     .map_err(CliError::Script)?;
+    if !args.allow_outside {
+        check_save_folders(&plan, &base_dir, &args.out)?;
+    }
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.patches[0].clone();
+    if args.out.exists() && !args.out.is_dir() {
+        return Err(CliError::Usage(format!(
+            "--out {}: exists and is not a directory; --out names the folder the run writes into",
+            args.out.display()
+        )));
+    }
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
 
@@ -203,8 +226,13 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
         other => CliError::Engine(other),
     })?;
+    let installed = install_session(&engine.commands(), &start, &session_path);
+    installed_or_stop(
+        installed.recv_timeout(Duration::from_secs(10)),
+        &session_path,
+    )?;
     let rt = engine.haptic_rt();
-    println!(
+    say!(
         "dynaclay run: {seconds:.1} s, script {file}, device {}, haptic priority: {rt}",
         args.device
     );
@@ -221,9 +249,13 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     drop(commands);
     let report = engine.stop().map_err(CliError::Engine)?;
     let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
-    print!("{}", outputs.describe());
+    say_raw!("{}", outputs.describe());
+    report_device_faults(&report.safety);
     finish_run(&session_path, &mut driver, &report.io)?;
-    Ok(outputs)
+    match report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e)),
+        None => Ok(outputs),
+    }
 }
 
 /// The optional outputs `args` ask for; `--png` with no file means `DIR/sculpt.png`.
@@ -257,7 +289,7 @@ fn starting_session(
                     r.path.display()
                 )));
             }
-            println!(
+            say!(
                 "dynaclay run: starting from recovery file {}",
                 r.path.display()
             );
@@ -275,11 +307,113 @@ fn starting_session(
     }
 }
 
+/// `path` with `.` and `..` resolved lexically (no file-system access, so the check below
+/// holds for paths that do not exist yet), made absolute against the current directory.
+fn lexical_absolute(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let joined = if path.is_absolute() {
+        path.to_path_buf()
+    } else {
+        std::env::current_dir().unwrap_or_default().join(path)
+    };
+    let mut out = PathBuf::new();
+    for c in joined.components() {
+        match c {
+            Component::ParentDir => {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    out
+}
+
+/// Refuses a script whose `save` steps would write outside the script's folder and the
+/// output directory (`--allow-outside` lifts this).
+fn check_save_folders(plan: &ScriptPlan, script_dir: &Path, out: &Path) -> Result<(), CliError> {
+    let allowed = [lexical_absolute(script_dir), lexical_absolute(out)];
+    for event in &plan.events {
+        if let crate::engine::PlannedAction::Save(path) = &event.action {
+            let target = lexical_absolute(path);
+            if !allowed.iter().any(|dir| target.starts_with(dir)) {
+                return Err(CliError::Script(ScriptError {
+                    file: plan.file.clone(),
+                    line: None,
+                    column: None,
+                    step: Some(event.step),
+                    message: format!(
+                        "save: {} is outside the script's folder and the output directory; pass --allow-outside to write there",
+                        path.display()
+                    ),
+                }));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Sends the whole starting session to the engine, so that every part of it (the paint, the
+/// further patches, material grids, tool library and metadata) is in the session the run
+/// hands back; the reply tells whether the engine took it.
+fn install_session(
+    commands: &crossbeam::channel::Sender<crate::engine::Command>,
+    start: &Session,
+    session_path: &Path,
+) -> crossbeam::channel::Receiver<Result<String, String>> {
+    let (tx, rx) = crossbeam::channel::bounded(1);
+    let mut session = start.clone();
+    if session.meta.created_unix_s == 0 {
+        session.meta.created_unix_s = unix_now_s();
+    }
+    // A closed channel shows up as a missing reply below.
+    let _ = commands.send(crate::engine::Command::Load {
+        session: Box::new(session),
+        source: session_path.to_path_buf(),
+        reply: Some(tx),
+    });
+    rx
+}
+
+/// Seconds since the Unix epoch now (0 on a clock set before 1970).
+pub(super) fn unix_now_s() -> u64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}
+
+/// Stops the run when the engine refused or never answered the starting session.
+fn installed_or_stop(
+    reply: Result<Result<String, String>, RecvTimeoutError>,
+    session_path: &Path,
+) -> Result<(), CliError> {
+    match reply {
+        Ok(Ok(_)) => Ok(()),
+        Ok(Err(e)) => Err(CliError::Output(format!("starting session: {e}"))),
+        Err(_) => Err(CliError::Output(format!(
+            "starting session {}: the engine did not take it",
+            session_path.display()
+        ))),
+    }
+}
+
 fn note_short_run(seconds: f64, plan: &ScriptPlan) {
     if seconds < plan.end_s {
-        println!(
+        say!(
             "note: the run ends at {seconds:.1} s, before the script's last step ends at {:.1} s",
             plan.end_s
+        );
+    }
+}
+
+/// Tells stderr about device faults the run survived (force went to zero meanwhile), so
+/// that they are not found only in `latency.md`.
+fn report_device_faults(safety: &dynaclay_devices::SafetyCounters) {
+    if safety.read_faults + safety.write_faults + safety.nonfinite > 0 {
+        eprintln!(
+            "dynaclay: the device faulted during the run and the engine carried on with zero \
+             force: {} read fault(s), {} write fault(s), {} non-finite force(s) replaced by zero",
+            safety.read_faults, safety.write_faults, safety.nonfinite
         );
     }
 }
@@ -301,7 +435,7 @@ fn finish_run(
     }
     let unsent = driver.unsent_steps();
     if !unsent.is_empty() {
-        println!("note: script steps {unsent:?} were not reached");
+        say!("note: script steps {unsent:?} were not reached");
     }
     let failures = driver.failures().to_vec();
     for e in failures.iter().skip(1) {
@@ -337,13 +471,24 @@ fn run_lockstep(
         16,
     )
     .map_err(CliError::Engine)?;
-    println!(
+    say!(
         "dynaclay run: {samples} samples of {} in lockstep",
         args.device
     );
     let mut driver = ScriptDriver::new(plan);
     let commands = lockstep.commands();
+    // The whole starting session (paint, further patches, grids, tools, metadata) is
+    // installed by the first step, before the first recorded sample acts on the clay.
+    let installed = install_session(&commands, start, session_path);
+    let mut pending_install = Some(installed);
     for _ in 0..samples {
+        if let Some(rx) = pending_install.take() {
+            lockstep.step();
+            installed_or_stop(
+                rx.try_recv().map_err(|_| RecvTimeoutError::Disconnected),
+                session_path,
+            )?;
+        }
         let sample = lockstep.latest_tool();
         driver.dispatch(&sample, &commands);
         lockstep.step();
@@ -351,7 +496,11 @@ fn run_lockstep(
     let report = lockstep.finish().map_err(CliError::Engine)?;
     let outputs =
         super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
-    print!("{}", outputs.describe());
+    say_raw!("{}", outputs.describe());
+    report_device_faults(&report.safety);
     finish_run(session_path, &mut driver, &report.io)?;
-    Ok(outputs)
+    match report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e)),
+        None => Ok(outputs),
+    }
 }

@@ -90,9 +90,9 @@ impl IoWorker {
     fn handle(&mut self, job: IoJob) {
         match job {
             IoJob::Save(job) => {
-                let result = save_session(&job.path, &job.session)
-                    .map(|()| job.path.clone())
-                    .map_err(|e| e.to_string());
+                let result = crate::io::check_replaceable(&job.path)
+                    .and_then(|()| save_session(&job.path, &job.session).map_err(|e| e.to_string()))
+                    .map(|()| job.path.clone());
                 match &result {
                     Ok(_) => self.report.saves += 1,
                     Err(e) => self.report.errors.push(e.clone()),

@@ -43,6 +43,8 @@ pub struct LockstepReport {
     pub octree: BrickOctree,
     /// Saves and autosaves written, and their failures.
     pub io: IoReport,
+    /// Closing the device at the end failed: the session is still here, whole.
+    pub device_close_error: Option<dynaclay_devices::DeviceError>,
 }
 
 impl Lockstep {
@@ -127,8 +129,11 @@ impl Lockstep {
 
     /// Ends the run: a last graphics update, the last undo step recorded, the device closed.
     ///
+    /// A device that fails to close is reported in [`LockstepReport::device_close_error`];
+    /// the session is handed back all the same.
+    ///
     /// # Errors
-    /// When closing the device fails (the report is lost then only if it did).
+    /// None today; kept for the engine's other end-of-run failures.
     pub fn finish(mut self) -> Result<LockstepReport, EngineError> {
         self.stages.sim.apply_commands();
         self.stages.sim.finish();
@@ -136,13 +141,14 @@ impl Lockstep {
         self.stages.graphics.tick();
         self.io.poll(Instant::now());
         let safety = self.stages.haptic.device().counters();
-        self.stages.haptic.device_mut().close()?;
+        let device_close_error = self.stages.haptic.device_mut().close().err();
         Ok(LockstepReport {
             session: self.stages.sim.session(),
             counters: self.stages.counters.snapshot(),
             safety,
             octree: self.stages.graphics.octree().clone(),
             io: self.io.report().clone(),
+            device_close_error,
         })
     }
 }

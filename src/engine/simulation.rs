@@ -159,6 +159,24 @@ pub struct SimulationStage {
     symmetry: Symmetry,
     /// This step's tool forces with their mirrored copies (used only while mirroring).
     mirrored_forces: Vec<ToolForce>,
+    /// The session's parts the engine does not simulate, carried unchanged from the loaded
+    /// session into every session it hands back.
+    carried: CarriedSections,
+}
+
+/// What a loaded session holds besides the sculpted patch, its paint and its uniform
+/// material: the engine sculpts one density patch with a uniform material, and keeps the
+/// rest untouched so that saving loses nothing.
+#[derive(Clone, Debug, Default)]
+struct CarriedSections {
+    /// Density patches after the first, unchanged.
+    extra_patches: Vec<BSplineLattice>,
+    /// Spatially varying material grids (not applied by the simulation).
+    material_grids: Vec<crate::io::MaterialGrid>,
+    /// The tool library.
+    tools: Vec<crate::io::ToolPreset>,
+    /// Name, creation time and writer of the session.
+    meta: crate::io::SessionMeta,
 }
 
 /// The bounding box of `forces` grown by their spread radii, if there are any.
@@ -227,6 +245,7 @@ impl SimulationStage {
             colour_reader: Some(colour_reader),
             colour_dirty: false,
             colour_published_step: 0,
+            carried: CarriedSections::default(),
         }
     }
 
@@ -242,16 +261,22 @@ impl SimulationStage {
         &self.clay
     }
 
-    /// The session as it stands: the clay and the material.
+    /// The session as it stands: the sculpted patch, its paint and the uniform material,
+    /// with every part of the loaded session the engine does not simulate (further patches,
+    /// material grids, tool library, metadata) carried through unchanged.
     #[must_use]
     pub fn session(&self) -> Session {
+        let mut clay = self.clay.clone();
+        clay.patches
+            .extend(self.carried.extra_patches.iter().cloned());
         Session {
-            clay: self.clay.clone(),
+            clay,
             material: MaterialFields {
                 uniform: self.config.material,
-                grids: Vec::new(),
+                grids: self.carried.material_grids.clone(),
             },
-            ..Session::default()
+            tools: self.carried.tools.clone(),
+            meta: self.carried.meta.clone(),
         }
     }
 
@@ -737,9 +762,28 @@ impl SimulationStage {
         // The stroke in progress ends on the old clay (its step is dropped with the history).
         self.end_stroke_now();
         self.history.clear();
-        self.clay = session.clay;
+        let Session {
+            clay,
+            material,
+            tools,
+            meta,
+        } = session;
+        let mut patches = clay.patches;
+        let extra_patches = patches.split_off(1);
+        let extra = extra_patches.len();
+        self.carried = CarriedSections {
+            extra_patches,
+            material_grids: material.grids,
+            tools,
+            meta,
+        };
+        self.clay = Clay {
+            patches,
+            colour: clay.colour,
+        };
+
         self.colour_dirty = true;
-        self.config.material = session.material.uniform;
+        self.config.material = material.uniform;
         let whole = CoeffBox::whole(self.lattice().dims);
         self.mark_changed(whole);
         self.sessions_loaded += 1;
@@ -753,7 +797,12 @@ impl SimulationStage {
         );
         if ignored_grids > 0 {
             summary.push_str(&format!(
-                "; {ignored_grids} material grid(s) not applied (the engine simulates a uniform material)"
+                "; {ignored_grids} material grid(s) kept but not applied (the engine simulates a uniform material)"
+            ));
+        }
+        if extra > 0 {
+            summary.push_str(&format!(
+                "; {extra} further patch(es) kept unchanged (the engine sculpts the first)"
             ));
         }
         Ok(summary)
@@ -783,8 +832,9 @@ impl SimulationStage {
 
 /// Whether `session` can replace the clay of an engine running on `running`: the haptic and
 /// graphics loops hold copies sized for that lattice (allocated once, so the haptic tick never
-/// allocates), so the session must have exactly one density patch with the same dimensions,
-/// spacing, origin and iso-level, and finite coefficients.
+/// allocates), so the session's first density patch (the one sculpted; further patches are
+/// carried unchanged) must have the same dimensions, spacing, origin and iso-level, and
+/// finite coefficients.
 ///
 /// # Errors
 /// A message naming `source` and the first mismatch.
@@ -794,10 +844,9 @@ pub fn check_loadable(
     source: &std::path::Path,
 ) -> Result<(), String> {
     let shown = source.display();
-    let [patch] = session.clay.patches.as_slice() else {
+    let Some(patch) = session.clay.patches.first() else {
         return Err(format!(
-            "{shown}: the session has {} density patches; the running engine sculpts exactly one",
-            session.clay.patches.len()
+            "{shown}: the session has no density patch; the running engine sculpts one"
         ));
     };
     let describe = |l: &BSplineLattice| {
@@ -939,6 +988,47 @@ mod tests {
     }
 
     #[test]
+    fn a_loaded_session_comes_back_whole_paint_patches_grids_tools_and_metadata() {
+        let mut s = stages();
+        let running = s.sim.lattice().clone();
+        let mut colour = crate::tools::ColourField::matching(&running).unwrap();
+        colour.channels[2].coeffs[11] = 0.5;
+        let mut extra = running.clone();
+        extra.coeffs.fill(0.25);
+        let full = Session {
+            clay: Clay {
+                patches: vec![running, extra],
+                colour: Some(colour),
+            },
+            material: MaterialFields {
+                uniform: Material::PLASTIC,
+                grids: vec![crate::io::MaterialGrid {
+                    name: "damping".into(),
+                    dims: [1, 1, 2],
+                    values: vec![0.5, 1.5],
+                }],
+            },
+            tools: vec![crate::io::ToolPreset {
+                name: "ball".into(),
+                shape: crate::tools::ToolShape::Sphere { radius_m: 0.1 },
+                action: crate::tools::ToolAction::Add {
+                    deposit_rate_per_s: 2.0,
+                },
+                falloff_m: 0.02,
+            }],
+            meta: crate::io::SessionMeta {
+                name: "whole".into(),
+                created_unix_s: 10,
+                saved_unix_s: 20,
+                writer: "dynaclay test".into(),
+            },
+        };
+        s.sim.load(full.clone(), Path::new("full.dclay")).unwrap();
+        run_ticks(&mut s, 3);
+        assert_eq!(s.sim.session(), full);
+    }
+
+    #[test]
     fn a_session_that_does_not_fit_is_refused_and_changes_nothing() {
         let mut s = stages();
         let mut status = s.sim.take_status_reader().unwrap();
@@ -954,13 +1044,13 @@ mod tests {
         .unwrap();
         let mut nan = before.clone();
         nan.coeffs[7] = f32::NAN;
-        let mut two = session_with(before.clone(), Material::ELASTIC);
-        two.clay.patches.push(before.clone());
+        let mut none = session_with(before.clone(), Material::ELASTIC);
+        none.clay.patches.clear();
         smaller.iso = before.iso;
         let cases = [
             (session_with(smaller, Material::ELASTIC), "differs"),
             (session_with(nan, Material::ELASTIC), "coefficient 7"),
-            (two, "2 density patches"),
+            (none, "no density patch"),
         ];
         for (session, expected) in cases {
             let (tx, rx) = bounded(1);

@@ -116,6 +116,8 @@ pub struct EngineReport {
     pub safety: SafetyCounters,
     /// Saves and autosaves written by the I/O thread, and their failures.
     pub io: IoReport,
+    /// Closing the device at the end failed: the session is still here, whole.
+    pub device_close_error: Option<dynaclay_devices::DeviceError>,
 }
 
 impl Engine {
@@ -464,7 +466,9 @@ impl Engine {
         graphics_stage.tick();
         haptic_stage.sync_field();
         let safety = haptic_stage.device().counters();
-        haptic_stage.device_mut().close()?;
+        // A device that fails to close (unplugged, peer gone) costs nothing: the session
+        // is handed back and the failure reported beside it.
+        let device_close_error = haptic_stage.device_mut().close().err();
         let session = sim_stage.session();
         drop(sim_stage);
         drop(self.commands);
@@ -480,6 +484,7 @@ impl Engine {
             counters: self.counters.snapshot(),
             safety,
             io,
+            device_close_error,
         })
     }
 }

@@ -22,16 +22,22 @@ pub fn save_session(path: &Path, session: &Session) -> Result<(), SessionError> 
     write_atomic(path, &bytes)
 }
 
-/// Loads and validates the session at `path`.
+/// The largest session file read, bytes (sixteen 96³ patches with paint fit well inside).
+pub const MAX_SESSION_BYTES: u64 = 1 << 30;
+
+/// Loads and validates the session at `path`. Only a regular file of at most
+/// [`MAX_SESSION_BYTES`] is read (a FIFO or a device such as `/dev/zero` is refused at once).
 ///
 /// # Errors
 /// [`SessionError::Io`] when it cannot be read; the format errors of
 /// [`decode`](super::format::decode) otherwise.
 pub fn load_session(path: &Path) -> Result<Session, SessionError> {
-    let bytes = fs::read(path).map_err(|source| SessionError::Io {
-        path: path.to_path_buf(),
-        op: "read",
-        source,
+    let bytes = super::bounded_read::read_regular_file(path, MAX_SESSION_BYTES).map_err(|e| {
+        SessionError::Io {
+            path: path.to_path_buf(),
+            op: "read",
+            source: e.into_io(),
+        }
     })?;
     decode(&bytes, path)
 }
@@ -184,5 +190,64 @@ mod tests {
         fs::write(&path, &bytes).unwrap();
         let err = load_session(&path).unwrap_err();
         assert!(matches!(err, SessionError::Checksum { .. }), "{err}");
+    }
+}
+
+/// Whether a save may write `path`: nothing is there yet, or a regular file that is a dynaclay
+/// session (it starts with [`MAGIC`](super::format::MAGIC)). A symlink, a device, a FIFO, a
+/// directory or any other file is never replaced.
+///
+/// # Errors
+/// A message naming `path` and what is there.
+pub fn check_replaceable(path: &Path) -> Result<(), String> {
+    use std::io::Read;
+    let shown = path.display();
+    let meta = match fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(format!("{shown}: cannot inspect before saving: {e}")),
+    };
+    if !meta.file_type().is_file() {
+        return Err(format!(
+            "{shown}: refusing to replace something that is not a regular file (a link, device, FIFO or directory)"
+        ));
+    }
+    let mut head = [0u8; 8];
+    let read = fs::File::open(path).and_then(|mut f| f.read_exact(&mut head));
+    if read.is_err() || head != super::format::MAGIC {
+        return Err(format!(
+            "{shown}: refusing to replace a file that is not a dynaclay session"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod replace_tests {
+    use super::*;
+
+    #[test]
+    fn only_absent_paths_and_sessions_may_be_replaced() {
+        let dir = tempfile::tempdir().unwrap();
+        let absent = dir.path().join("new.dclay");
+        assert!(check_replaceable(&absent).is_ok());
+        save_session(&absent, &Session::default()).unwrap();
+        assert!(
+            check_replaceable(&absent).is_ok(),
+            "a session may be replaced"
+        );
+        let text = dir.path().join("notes.txt");
+        fs::write(&text, "precious").unwrap();
+        let err = check_replaceable(&text).unwrap_err();
+        assert!(err.contains("not a dynaclay session"), "{err}");
+        let link = dir.path().join("link.dclay");
+        std::os::unix::fs::symlink(&absent, &link).unwrap();
+        assert!(
+            check_replaceable(&link)
+                .unwrap_err()
+                .contains("not a regular file")
+        );
+        assert!(check_replaceable(Path::new("/dev/null")).is_err());
+        assert!(check_replaceable(dir.path()).is_err());
     }
 }

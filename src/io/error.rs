@@ -12,6 +12,8 @@ pub enum SessionError {
         op: &'static str,
         source: std::io::Error,
     },
+    /// The file holds no bytes at all.
+    Empty { path: PathBuf },
     /// The file does not start with the session magic: not a dynaclay session.
     NotASession { path: PathBuf, found: [u8; 8] },
     /// The file was written by a newer, incompatible format version.
@@ -53,6 +55,11 @@ impl std::fmt::Display for SessionError {
             Self::Io { path, op, source } => {
                 write!(f, "{}: cannot {op}: {source}", path.display())
             }
+            Self::Empty { path } => write!(
+                f,
+                "{}: the file is empty (0 bytes), not a dynaclay session",
+                path.display()
+            ),
             Self::NotASession { path, found } => write!(
                 f,
                 "{}: not a dynaclay session (starts with {:?}, expected \"DYNACLAY\")",
@@ -63,9 +70,18 @@ impl std::fmt::Display for SessionError {
                 path,
                 found,
                 supported,
+            } if *found == 0 => write!(
+                f,
+                "{}: format version 0 at byte 8 is not a valid version (this build reads versions 1 to {supported})",
+                path.display()
+            ),
+            Self::UnsupportedVersion {
+                path,
+                found,
+                supported,
             } => write!(
                 f,
-                "{}: format version {found} is newer than the supported version {supported}",
+                "{}: format version {found} at byte 8 is newer than the supported version {supported}",
                 path.display()
             ),
             Self::Truncated {

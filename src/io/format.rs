@@ -122,6 +122,11 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
         needed: needed as u64,
         available: bytes.len().saturating_sub(offset) as u64,
     };
+    if bytes.is_empty() {
+        return Err(SessionError::Empty {
+            path: path.to_path_buf(),
+        });
+    }
     if bytes.len() < 8 || bytes[..8] != MAGIC {
         let mut found = [0_u8; 8];
         let n = bytes.len().min(8);
@@ -155,6 +160,14 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
         });
     }
     let count = u32_at(12) as usize;
+    if count == 0 {
+        return Err(SessionError::Malformed {
+            path: path.to_path_buf(),
+            section: "header".into(),
+            offset: 12,
+            detail: "the section count is 0; a session holds at least its END section".into(),
+        });
+    }
 
     let mut session = Session::default();
     let mut meta_seen = false;
@@ -651,6 +664,34 @@ mod tests {
                 writer: "dynaclay test".into(),
             },
         }
+    }
+
+    #[test]
+    fn empty_files_version_zero_and_no_sections_say_what_is_wrong() {
+        let p = Path::new("bad.dclay");
+        let empty = decode(&[], p).unwrap_err().to_string();
+        assert!(
+            empty.contains("bad.dclay") && empty.contains("empty"),
+            "{empty}"
+        );
+        let good = encode(&sample_session()).unwrap();
+        let with_header = |at: usize, value: u32| {
+            let mut b = good.clone();
+            b[at..at + 4].copy_from_slice(&value.to_le_bytes());
+            let crc = crc32fast::hash(&b[..20]);
+            b[20..24].copy_from_slice(&crc.to_le_bytes());
+            b
+        };
+        let v0 = decode(&with_header(8, 0), p).unwrap_err().to_string();
+        assert!(
+            v0.contains("version 0") && !v0.contains("newer") && v0.contains("byte 8"),
+            "{v0}"
+        );
+        let none = decode(&with_header(12, 0), p).unwrap_err().to_string();
+        assert!(
+            none.contains("section count is 0") && !none.contains("truncated"),
+            "{none}"
+        );
     }
 
     #[test]

@@ -3,13 +3,14 @@
 
 mod atomic;
 mod autosave;
+pub mod bounded_read;
 mod error;
 mod format;
 mod run_script;
 mod script;
 mod session;
 
-pub use atomic::{load_session, save_session, write_atomic};
+pub use atomic::{check_replaceable, load_session, save_session, write_atomic};
 pub use autosave::{
     Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for, recovery_to_use,
 };

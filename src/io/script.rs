@@ -42,6 +42,17 @@ use crate::tools::{ForceTool, ToolAction, ToolPose, ToolShape};
 /// The version of the script format this build reads.
 pub const SCRIPT_VERSION: u32 = 1;
 
+/// The largest script file read, bytes; a longer file is refused before it is read whole.
+pub const MAX_SCRIPT_BYTES: u64 = 4 << 20;
+/// The most steps a script may hold.
+pub const MAX_STEPS: usize = 10_000;
+/// The most points in one list (`positions`, `path`, `curve`, `times_s`).
+pub const MAX_POINTS: usize = 10_000;
+/// The longest a step, a stroke or a run may last, and the latest a step may start, seconds.
+pub const MAX_SCRIPT_SECONDS: f32 = 3600.0;
+/// The most undo or redo steps one `undo`/`redo` step may ask for.
+pub const MAX_UNDO_COUNT: u32 = 10_000;
+
 /// A parsed script.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -671,6 +682,15 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             format!("autosave.every_s = {} must be finite and ≥ 0", a.every_s),
         ));
     }
+    if script.steps.len() > MAX_STEPS {
+        return Err(top(
+            "[[step]]",
+            format!(
+                "the script has {} steps; at most {MAX_STEPS} are allowed",
+                script.steps.len()
+            ),
+        ));
+    }
     for (n, step) in script.steps.iter().enumerate() {
         check_step(step).map_err(|m| at(n, m))?;
     }
@@ -683,12 +703,20 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
 /// When the file cannot be read (no line), or as [`parse_script`].
 pub fn load_script(path: &std::path::Path) -> Result<Script, ScriptError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| ScriptError {
+    let fail = |message: String| ScriptError {
         file: file.clone(),
         line: None,
         column: None,
         step: None,
-        message: format!("cannot read the script: {e}"),
+        message,
+    };
+    let bytes = super::bounded_read::read_regular_file(path, MAX_SCRIPT_BYTES)
+        .map_err(|e| fail(format!("cannot read the script: {e}")))?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        fail(format!(
+            "the script is not UTF-8 text (invalid byte at offset {})",
+            e.utf8_error().valid_up_to()
+        ))
     })?;
     parse_script(&text, &file)
 }
@@ -729,9 +757,27 @@ fn finite(name: &str, v: f32) -> Result<(), String> {
     }
 }
 
+/// A duration or time of day on the script clock: finite, non-negative, at most
+/// [`MAX_SCRIPT_SECONDS`].
+fn seconds(name: &str, v: f32) -> Result<(), String> {
+    finite(name, v)?;
+    if v > MAX_SCRIPT_SECONDS {
+        return Err(format!(
+            "{name} = {v} s is longer than the {MAX_SCRIPT_SECONDS} s a script may last"
+        ));
+    }
+    Ok(())
+}
+
 fn check_points(name: &str, points: &[[f32; 3]], need_one: bool) -> Result<(), String> {
     if need_one && points.is_empty() {
         return Err(format!("{name} needs at least one point"));
+    }
+    if points.len() > MAX_POINTS {
+        return Err(format!(
+            "{name} has {} points; at most {MAX_POINTS} are allowed",
+            points.len()
+        ));
     }
     match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         Some(i) => Err(format!("{name}[{i}] is not finite")),
@@ -750,7 +796,7 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             ..
         } => {
             check_points("positions", positions, true)?;
-            finite("duration_s", *duration_s)?;
+            seconds("duration_s", *duration_s)?;
             finite("falloff_m", *falloff_m)?;
             action.validate().map_err(|e| format!("action: {}", e.0))?;
             // Freeform shapes are checked against the library when run.
@@ -765,7 +811,7 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             ..
         } => {
             check_points("positions", positions, true)?;
-            finite("duration_s", *duration_s)
+            seconds("duration_s", *duration_s)
         }
         ScriptStep::Stroke {
             tool,
@@ -784,7 +830,7 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             check_points("path", path, true)?;
             check_points("curve", curve, false)?;
             if let Some(d) = duration_s {
-                finite("duration_s", *d)?;
+                seconds("duration_s", *d)?;
                 if !times_s.is_empty() {
                     return Err("duration_s: give either duration_s or times_s, not both".into());
                 }
@@ -798,7 +844,7 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
                     ));
                 }
                 for (i, t) in times_s.iter().enumerate() {
-                    finite(&format!("times_s[{i}]"), *t)?;
+                    seconds(&format!("times_s[{i}]"), *t)?;
                     if i > 0 && *t <= times_s[i - 1] {
                         return Err(format!(
                             "times_s[{i}] = {t} must be after times_s[{}]",
@@ -808,9 +854,11 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
                 }
             }
             if let Some(t) = start_s
-                && !(t.is_finite() && *t >= 0.0)
+                && !(t.is_finite() && *t >= 0.0 && *t <= f64::from(MAX_SCRIPT_SECONDS))
             {
-                return Err(format!("start_s = {t} must be finite and non-negative"));
+                return Err(format!(
+                    "start_s = {t} must be between 0 and {MAX_SCRIPT_SECONDS} s"
+                ));
             }
             if !(hover_m.is_finite() && *hover_m > 0.0) {
                 return Err(format!("hover_m = {hover_m} must be positive"));
@@ -861,6 +909,11 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             }
             Ok(())
         }
+        ScriptStep::Undo { count } | ScriptStep::Redo { count } if *count > MAX_UNDO_COUNT => {
+            Err(format!(
+                "count = {count} is more than the {MAX_UNDO_COUNT} steps one undo or redo may take"
+            ))
+        }
         ScriptStep::Csg { .. }
         | ScriptStep::Undo { .. }
         | ScriptStep::Redo { .. }
@@ -871,6 +924,50 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn unbounded_values_are_refused_with_their_line() {
+        let stroke = |field: &str| {
+            format!("version = 1\n\n[[step]]\ndo = \"stroke\"\npath = [[0.1, 0.2, 0.3]]\n{field}\n")
+        };
+        let many: Vec<String> = (0..=MAX_POINTS).map(|_| "[0.1, 0.2, 0.3]".into()).collect();
+        let cases = [
+            (
+                "version = 1\n\n[[step]]\ndo = \"undo\"\ncount = 4294967295\n".to_owned(),
+                "count = 4294967295",
+                5,
+            ),
+            (stroke("duration_s = 1e9"), "duration_s = 1000000000", 6),
+            (stroke("start_s = 1e30"), "start_s = 1", 6),
+            (
+                format!(
+                    "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = {{ kind = \"sphere\", radius_m = 0.2 }}\naction = {{ kind = \"add\", deposit_rate_per_s = 1.0 }}\npositions = [{}]\n",
+                    many.join(", ")
+                ),
+                "positions has 10001 points",
+                7,
+            ),
+        ];
+        for (text, expected, line) in cases {
+            let err = parse_script(&text, "bomb.toml").unwrap_err();
+            let shown = err.to_string();
+            assert!(shown.contains(expected), "{shown}");
+            assert_eq!(err.line, Some(line), "{shown}");
+            assert!(shown.contains("bomb.toml"), "{shown}");
+        }
+    }
+
+    #[test]
+    fn a_device_or_an_oversized_file_is_not_read_as_a_script() {
+        let err = load_script(std::path::Path::new("/dev/zero")).unwrap_err();
+        assert!(err.to_string().contains("not a regular file"), "{err}");
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.toml");
+        let file = std::fs::File::create(&big).unwrap();
+        file.set_len(MAX_SCRIPT_BYTES + 1).unwrap();
+        let err = load_script(&big).unwrap_err();
+        assert!(err.to_string().contains("more than the"), "{err}");
+    }
 
     const EXAMPLE: &str = r#"
 version = 1
