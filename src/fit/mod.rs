@@ -1,1 +1,0 @@
-//! (fit: in progress)
