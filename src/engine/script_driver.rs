@@ -19,7 +19,7 @@ pub struct ScriptDriver {
     next: Option<PlannedEvent>,
     origin_us: Option<u64>,
     /// Outcomes still to come: (step, receiver).
-    waiting: Vec<(usize, Receiver<Result<String, String>>)>,
+    waiting: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
     saves: Vec<(usize, Receiver<Result<std::path::PathBuf, String>>)>,
     failures: Vec<ScriptError>,
     sent: usize,
@@ -150,7 +150,7 @@ impl ScriptDriver {
         self.waiting.retain(|(step, rx)| match rx.try_recv() {
             Ok(Ok(_)) | Err(TryRecvError::Disconnected) => false,
             Ok(Err(e)) => {
-                failed.push((*step, e));
+                failed.push((*step, e.to_string()));
                 false
             }
             Err(TryRecvError::Empty) => true,
