@@ -15,6 +15,7 @@ pub mod cli;
 pub mod dynamics;
 pub mod engine;
 pub mod field;
+pub mod fit;
 pub mod haptics;
 pub mod io;
 pub mod mesh;

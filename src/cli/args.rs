@@ -30,6 +30,30 @@ pub enum Commands {
     Render(RenderArgs),
     /// Open the interactive sculpting window (egui on wgpu).
     Gui(PassThrough),
+    /// Fit a clay to a point cloud (.xyz, .txt, .pts or .ply) and write it as a session.
+    Import(ImportArgs),
+}
+
+/// `dynaclay import`.
+#[derive(Debug, Args, Clone)]
+pub struct ImportArgs {
+    /// The point cloud: XYZ text (`x y z` or `x y z nx ny nz` per line) or PLY (ASCII or
+    /// binary, normals used when present).
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// The session to write (`.dclay`).
+    #[arg(long, value_name = "SESSION")]
+    pub out: PathBuf,
+    /// Coefficients per axis of the fitted clay (12 to 256; the object spans this less eight).
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    pub resolution: usize,
+    /// Without normals: the widest gap between neighbouring points that still closes the
+    /// surface, in knot spans (above 0, below 2).
+    #[arg(long, default_value_t = crate::fit::cloud::DEFAULT_GAP_SPANS, value_name = "SPANS")]
+    pub gap: f32,
+    /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
 }
 
 /// Arguments kept for subcommands that other builds provide.
