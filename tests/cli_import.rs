@@ -1,5 +1,5 @@
-//! `dynaclay import`: a point cloud file becomes a session whose clay is fitted to it, with a
-//! mesh to check; bad files and arguments are refused with what and where.
+//! `dynaclay import`: a point cloud or a volume becomes a session whose clay is fitted to it,
+//! with a mesh to check; bad files and arguments are refused with what and where.
 
 use std::path::Path;
 use std::process::Command;
@@ -138,4 +138,64 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
         assert!(err.contains(want), "{flag}: {err}");
     }
+}
+
+#[test]
+fn a_raw_volume_imports_at_its_iso_value_as_a_closed_ball() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ball.raw");
+    // 40³ unsigned bytes: 255 at the centre falling to 0 twenty voxels out.
+    let mut bytes = Vec::new();
+    for k in 0..40 {
+        for j in 0..40 {
+            for i in 0..40 {
+                let d = ((i as f32 - 19.5).powi(2)
+                    + (j as f32 - 19.5).powi(2)
+                    + (k as f32 - 19.5).powi(2))
+                .sqrt();
+                bytes.push((255.0 * (1.0 - d / 20.0)).clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    std::fs::write(&input, &bytes).unwrap();
+    let session = dir.path().join("ball.dclay");
+    let run = |extra: &[&str]| {
+        Command::new(BIN)
+            .arg("import")
+            .arg(&input)
+            .arg("--out")
+            .arg(&session)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--dims", "40,40,40"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--iso"));
+    let out = run(&["--iso", "128", "--dims", "40,40,41"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("64000 bytes of samples"), "{err}");
+
+    let obj = dir.path().join("ball.obj");
+    let out = run(&["--iso", "128", "--dims", "40,40,40", "--mesh"]);
+    assert_eq!(out.status.code(), Some(2), "--mesh needs a file");
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .args(["--iso", "128", "--dims", "40,40,40", "--out"])
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&obj)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(load_session(&session).is_ok());
+    let (_, _, euler, closed) = obj_topology(&obj);
+    assert!(closed);
+    assert_eq!(euler, 2, "a ball has genus zero");
 }

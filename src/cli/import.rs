@@ -1,11 +1,15 @@
-//! `dynaclay import`: a point cloud becomes a session whose clay is fitted to it.
+//! `dynaclay import`: a point cloud or a volume becomes a session whose clay is fitted to it.
 
 use std::path::Path;
 
-use super::args::ImportArgs;
+use super::args::{ImportArgs, RawSample};
 use super::run::CliError;
 use crate::dynamics::Material;
-use crate::fit::{CloudFitOptions, SignedBy, fit_point_cloud, read_points};
+use crate::field::BSplineLattice;
+use crate::fit::{
+    CloudFitError, CloudFitOptions, Sample, SignedBy, Volume, fit_point_cloud, fit_volume,
+    read_nrrd, read_points, read_raw,
+};
 use crate::io::{MaterialFields, Session, SessionMeta, save_session};
 use crate::mesh::{MeshFormat, write_mesh};
 use crate::tools::Clay;
@@ -30,45 +34,15 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             args.out.display()
         )));
     }
-    let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
-    let options = CloudFitOptions {
-        resolution: args.resolution,
-        gap_spans: args.gap,
-        ..CloudFitOptions::default()
+    let ext = args
+        .input
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let lattice = match ext.as_deref() {
+        Some("raw" | "nrrd") => import_volume(args, ext.as_deref() == Some("nrrd"))?,
+        _ => import_cloud(args)?,
     };
-    say!(
-        "dynaclay import: {} points{} from {}, fitting a {}³ clay",
-        cloud.points.len(),
-        if cloud.normals.is_some() {
-            " with normals"
-        } else {
-            ""
-        },
-        args.input.display(),
-        options.resolution
-    );
-    let fit = fit_point_cloud(&cloud, &options).map_err(|e| match e {
-        crate::fit::CloudFitError::Options(m) => CliError::Usage(m),
-        other => CliError::Output(format!("{}: {other}", args.input.display())),
-    })?;
-    // How far the points lie from the fitted surface, to first order: |s − iso| / |∇s|.
-    let (mut sum, mut worst) = (0.0f64, 0.0f32);
-    for &p in &cloud.points {
-        let (v, g) = fit.lattice.value_and_gradient(fit.to_field(p));
-        let d = (v - fit.lattice.iso).abs() / g.length().max(1e-6);
-        sum += f64::from(d);
-        worst = worst.max(d);
-    }
-    let spans = |d: f32| d / fit.lattice.spacing;
-    say!(
-        "signed by {}; points lie {:.3} spans from the surface on average, {:.3} at most",
-        match fit.signed_by {
-            SignedBy::Normals => "the normals",
-            SignedBy::Tagging => "flood tagging",
-        },
-        spans((sum / cloud.points.len() as f64) as f32),
-        spans(worst)
-    );
     let name = args
         .input
         .file_stem()
@@ -77,7 +51,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         .to_owned();
     let session = Session {
         clay: Clay {
-            patches: vec![fit.lattice],
+            patches: vec![lattice],
             colour: None,
         },
         material: MaterialFields {
@@ -98,6 +72,87 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         write_fitted_mesh(&session, path, format)?;
     }
     Ok(())
+}
+
+/// Reads and fits a point cloud; reports how far its points lie from the fitted surface.
+fn import_cloud(args: &ImportArgs) -> Result<BSplineLattice, CliError> {
+    let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
+    let options = CloudFitOptions {
+        resolution: args.resolution,
+        gap_spans: args.gap,
+        ..CloudFitOptions::default()
+    };
+    say!(
+        "dynaclay import: {} points{} from {}, fitting a {}³ clay",
+        cloud.points.len(),
+        if cloud.normals.is_some() {
+            " with normals"
+        } else {
+            ""
+        },
+        args.input.display(),
+        options.resolution
+    );
+    let fit = fit_point_cloud(&cloud, &options).map_err(|e| match e {
+        CloudFitError::Options(m) => CliError::Usage(m),
+        other => CliError::Output(format!("{}: {other}", args.input.display())),
+    })?;
+    // How far the points lie from the fitted surface, to first order: |s − iso| / |∇s|.
+    let (mut sum, mut worst) = (0.0f64, 0.0f32);
+    for &p in &cloud.points {
+        let (v, g) = fit.lattice.value_and_gradient(fit.to_field(p));
+        let d = (v - fit.lattice.iso).abs() / g.length().max(1e-6);
+        sum += f64::from(d);
+        worst = worst.max(d);
+    }
+    let spans = |d: f32| d / fit.lattice.spacing;
+    say!(
+        "signed by {}; points lie {:.3} spans from the surface on average, {:.3} at most",
+        match fit.signed_by {
+            SignedBy::Normals => "the normals",
+            SignedBy::Tagging => "flood tagging",
+        },
+        spans((sum / cloud.points.len() as f64) as f32),
+        spans(worst)
+    );
+    Ok(fit.lattice)
+}
+
+/// Reads and fits a volume at `args.iso`.
+fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliError> {
+    let iso = args.iso.ok_or_else(|| {
+        CliError::Usage("a volume needs --iso V: the intensity of its surface".into())
+    })?;
+    let volume: Volume = if nrrd {
+        read_nrrd(&args.input)
+    } else {
+        let dims = args.dims.ok_or_else(|| {
+            CliError::Usage("a raw volume needs --dims X,Y,Z (voxels per axis)".into())
+        })?;
+        let sample = match args.sample {
+            RawSample::U8 => Sample::U8,
+            RawSample::U16 => Sample::U16,
+            RawSample::I16 => Sample::I16,
+            RawSample::F32 => Sample::F32,
+        };
+        read_raw(&args.input, dims, sample)
+    }
+    .map_err(|e| CliError::Usage(e.to_string()))?;
+    say!(
+        "dynaclay import: a {}×{}×{} volume from {}, surface at {iso}, fitting a {}³ clay",
+        volume.dims[0],
+        volume.dims[1],
+        volume.dims[2],
+        args.input.display(),
+        args.resolution
+    );
+    let fit = fit_volume(&volume, iso, args.resolution, crate::engine::CLAY_SPACING).map_err(
+        |e| match e {
+            CloudFitError::Options(m) => CliError::Usage(m),
+            other => CliError::Output(format!("{}: {other}", args.input.display())),
+        },
+    )?;
+    Ok(fit.lattice)
 }
 
 fn write_fitted_mesh(session: &Session, path: &Path, format: MeshFormat) -> Result<(), CliError> {
