@@ -169,7 +169,7 @@ pub fn fit_point_cloud(
                     - to_exterior[grid.nearest_node(p + n * probe)]
             };
             (
-                estimate_normals(&points, BAND_SPANS * spacing, side),
+                estimate_normals(&points, grid.h, BAND_SPANS * spacing, side),
                 SignedBy::Tagging,
             )
         }
@@ -415,37 +415,55 @@ fn squared_distance_1d(f: &[f32], out: &mut [f32], hull: &mut [usize], bounds: &
     }
 }
 
-/// Unit normals of `points`: for each, the direction of least variance of the points within
-/// `radius` (principal components of their covariance), pointing where `side(p, n)` is
-/// positive (flipped otherwise). A point with fewer than three neighbours starts from the x
-/// axis, turned the same way.
-fn estimate_normals(points: &[Vec3], radius: f32, side: impl Fn(Vec3, Vec3) -> f32) -> Vec<Vec3> {
+/// Neighbours a normal is estimated from, at least (the search widens until it has them).
+const MIN_NEIGHBOURS: usize = 12;
+
+/// Unit normals of `points`: for each, the direction of least variance of its neighbours
+/// (principal components of their covariance), pointing where `side(p, n)` is positive
+/// (flipped otherwise). The neighbours are the points within one `cell` of it, or within two,
+/// four … cells up to `radius` until there are [`MIN_NEIGHBOURS`]: a dense cloud looks close,
+/// a sparse one looks wider. A point with fewer than three neighbours within `radius` starts
+/// from the x axis, turned the same way.
+fn estimate_normals(
+    points: &[Vec3],
+    cell: f32,
+    radius: f32,
+    side: impl Fn(Vec3, Vec3) -> f32,
+) -> Vec<Vec3> {
     use std::collections::HashMap;
-    let cell = |p: Vec3| (p / radius).floor().as_ivec3();
+    let cell_of = |p: Vec3| (p / cell).floor().as_ivec3();
     let mut buckets: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
     for (i, &p) in points.iter().enumerate() {
-        buckets.entry(cell(p)).or_default().push(i as u32);
+        buckets.entry(cell_of(p)).or_default().push(i as u32);
     }
-    let r2 = radius * radius;
+    let widest = (radius / cell).ceil().max(1.0) as i32;
     let mut near = Vec::new();
     points
         .iter()
         .map(|&p| {
-            let c = cell(p);
-            near.clear();
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        if let Some(b) = buckets.get(&(c + glam::IVec3::new(dx, dy, dz))) {
-                            near.extend(
-                                b.iter()
-                                    .map(|&j| points[j as usize])
-                                    .filter(|q| (*q - p).length_squared() <= r2)
-                                    .map(Vec3::as_dvec3),
-                            );
+            let c = cell_of(p);
+            let mut ring = 1;
+            loop {
+                near.clear();
+                let r2 = (ring as f32 * cell).powi(2);
+                for dz in -ring..=ring {
+                    for dy in -ring..=ring {
+                        for dx in -ring..=ring {
+                            if let Some(b) = buckets.get(&(c + glam::IVec3::new(dx, dy, dz))) {
+                                near.extend(
+                                    b.iter()
+                                        .map(|&j| points[j as usize])
+                                        .filter(|q| (*q - p).length_squared() <= r2)
+                                        .map(Vec3::as_dvec3),
+                                );
+                            }
                         }
                     }
                 }
+                if near.len() >= MIN_NEIGHBOURS || ring >= widest {
+                    break;
+                }
+                ring = (ring * 2).min(widest);
             }
             let n = if near.len() >= 3 {
                 let mean = near.iter().sum::<glam::DVec3>() / near.len() as f64;
