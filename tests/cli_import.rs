@@ -106,7 +106,7 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         (vec![bad.as_os_str()], "bad.xyz:2: `x` is not a number"),
         (vec![empty.as_os_str()], "empty.xyz: no points"),
         (vec![huge.as_os_str()], "4000000000 vertices declared"),
-        (vec!["/dev/zero".as_ref()], "unknown point format"),
+        (vec!["/dev/zero".as_ref()], "unknown format"),
     ];
     for (args, want) in cases {
         let out = Command::new(BIN)
@@ -198,4 +198,59 @@ fn a_raw_volume_imports_at_its_iso_value_as_a_closed_ball() {
     let (_, _, euler, closed) = obj_topology(&obj);
     assert!(closed);
     assert_eq!(euler, 2, "a ball has genus zero");
+}
+
+#[test]
+fn a_cube_mesh_imports_as_a_closed_clay_near_its_faces() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cube.obj");
+    // A 20-unit cube as quads (its winding does not matter: normals are estimated).
+    std::fs::write(
+        &input,
+        "v 0 0 0\nv 20 0 0\nv 20 20 0\nv 0 20 0\nv 0 0 20\nv 20 0 20\nv 20 20 20\nv 0 20 20\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .unwrap();
+    let (session, mesh) = (
+        dir.path().join("cube.dclay"),
+        dir.path().join("cube.obj.out.obj"),
+    );
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .arg("--out")
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&mesh)
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (_, _, euler, closed) = obj_topology(&mesh);
+    assert!(closed);
+    assert_eq!(euler, 2, "a cube has genus zero");
+    // The fitted clay's box: 24 spans wide (the lattice less four spans each side), so its
+    // faces sit 11.5 spans from the centre; rounded edges pull in, faces stay within a span.
+    let lattice = &load_session(&session).unwrap().clay.patches[0];
+    let centre = glam::Vec3::splat(15.5 * lattice.spacing);
+    for dir in [glam::Vec3::X, glam::Vec3::NEG_Y, glam::Vec3::Z] {
+        let (mut a, mut b) = (0.0f32, 20.0 * lattice.spacing);
+        for _ in 0..40 {
+            let m = 0.5 * (a + b);
+            if lattice.value(centre + dir * m) > lattice.iso {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        let spans = 0.5 * (a + b) / lattice.spacing;
+        assert!(
+            (spans - 11.5).abs() < 0.5,
+            "face along {dir} at {spans} spans"
+        );
+    }
 }

@@ -1,8 +1,10 @@
-//! Bringing real objects in: point clouds ([`points`]) and volumes ([`volume`]) read from
+//! Bringing real objects in: point clouds ([`points`]), meshes sampled into clouds ([`mesh`])
+//! and volumes ([`volume`]) read from
 //! files become a clay fitted by least squares ([`cloud`], [`volume::fit_volume`]).
 //! `dynaclay import` is the command that uses them.
 
 pub mod cloud;
+pub mod mesh;
 pub mod points;
 pub mod volume;
 

@@ -64,15 +64,19 @@ pub enum PointsError {
         /// The file.
         file: PathBuf,
     },
-    /// The file's extension names no point format this reader knows.
-    #[error("{}: unknown point format (expected .xyz, .txt, .pts or .ply)", file.display())]
+    /// The file's extension names no format this reader knows.
+    #[error(
+        "{}: unknown format (expected a cloud .xyz, .txt, .pts, .ply or a mesh .obj, .stl)",
+        file.display()
+    )]
     UnknownFormat {
         /// The file.
         file: PathBuf,
     },
 }
 
-/// Reads the point cloud at `path`, by its extension: `.xyz`, `.txt`, `.pts` (text) or `.ply`.
+/// Reads the point cloud at `path`, by its extension: `.xyz`, `.txt`, `.pts` (text) or `.ply`;
+/// or a mesh, `.obj` or `.stl`, sampled into points ([`super::mesh`]).
 ///
 /// # Errors
 /// [`PointsError`] naming the file and, where it applies, the line or byte.
@@ -83,17 +87,25 @@ pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
         .map(str::to_ascii_lowercase);
     let file = path.to_path_buf();
     let bytes = match ext.as_deref() {
-        Some("xyz" | "txt" | "pts" | "ply") => read_regular_file(path, MAX_POINT_FILE_BYTES)
-            .map_err(|error| PointsError::Read {
+        Some("xyz" | "txt" | "pts" | "ply" | "obj" | "stl") => {
+            read_regular_file(path, MAX_POINT_FILE_BYTES).map_err(|error| PointsError::Read {
                 file: file.clone(),
                 error,
-            })?,
+            })?
+        }
         _ => return Err(PointsError::UnknownFormat { file }),
     };
-    let cloud = if ext.as_deref() == Some("ply") {
-        parse_ply(&bytes, &file)?
-    } else {
-        parse_xyz(&bytes, &file)?
+    let cloud = match ext.as_deref() {
+        Some("ply") => parse_ply(&bytes, &file)?,
+        Some("obj") => {
+            let (vertices, triangles) = super::mesh::parse_obj(&bytes, &file)?;
+            super::mesh::sample_triangles(&vertices, &triangles, &file)?
+        }
+        Some("stl") => {
+            let (vertices, triangles) = super::mesh::parse_stl(&bytes, &file)?;
+            super::mesh::sample_triangles(&vertices, &triangles, &file)?
+        }
+        _ => parse_xyz(&bytes, &file)?,
     };
     if cloud.points.is_empty() {
         return Err(PointsError::Empty { file });
