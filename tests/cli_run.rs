@@ -330,6 +330,7 @@ fn session_with_every_section() -> dynaclay::io::Session {
         clay: Clay {
             patches: vec![patch, second],
             colour: Some(colour),
+            constraints: Vec::new(),
         },
         material: MaterialFields {
             uniform: Material::PLASTIC,

@@ -130,6 +130,21 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
+    /// Pin a point, curve or normal on the clay (one undo step); points off the surface are
+    /// moved onto it first and the outcome on `reply` says so.
+    Constrain {
+        /// What to pin.
+        request: crate::tools::PinRequest,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Remove pin `index`, or every pin when `None` (one undo step).
+    Unconstrain {
+        /// Which pin (its place in the clay's list).
+        index: Option<usize>,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
     /// Undo the latest stroke or tool step (one stroke is one step); nothing to undo is not
     /// an error.
     Undo,

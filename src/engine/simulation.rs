@@ -26,6 +26,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+mod constrain;
+
 use crossbeam::channel::{Receiver, Sender};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
@@ -37,7 +39,7 @@ use super::patch::{FieldPatch, union_box};
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
-use crate::dynamics::{Material, RegionState, Simulator, StepParams, ToolForce};
+use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
@@ -131,6 +133,8 @@ pub struct SimulationStage {
     tool: LiveTool,
     simulator: Simulator,
     region: Option<RegionState>,
+    /// The clay's pins as the live region holds them (see `constrain.rs`).
+    region_pins: ConstraintSolver,
     idle_steps: u32,
     stroke_armed: bool,
     was_active: bool,
@@ -224,6 +228,7 @@ impl SimulationStage {
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
+            region_pins: ConstraintSolver::empty(),
             idle_steps: 0,
             stroke_armed: false,
             was_active: false,
@@ -391,6 +396,18 @@ impl SimulationStage {
                 self.colour_dirty = true;
                 done.is_ok()
             }
+            Command::Constrain { request, reply } => {
+                let result = self.pin(&request);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
+            Command::Unconstrain { index, reply } => {
+                let result = self.unpin(index);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
             Command::Load {
                 session,
@@ -517,10 +534,13 @@ impl SimulationStage {
                 (true, true) => &self.mirrored_forces,
             };
             let lattice = &mut self.clay.patches[0];
-            match self
-                .simulator
-                .step(region, lattice, forces, &mut self.scratch)
-            {
+            match self.simulator.step_constrained(
+                region,
+                lattice,
+                forces,
+                Some(&mut self.region_pins),
+                &mut self.scratch,
+            ) {
                 Ok(report) => {
                     out.stepped = true;
                     out.pushed = push;
@@ -584,6 +604,7 @@ impl SimulationStage {
                     if let Some(region) = self.region.as_mut() {
                         // The region's own copy of the coefficients is stale now.
                         region.reload(&self.clay.patches[0]);
+                        self.rebuild_pins();
                     }
                     self.mark_changed(b);
                 }
@@ -618,6 +639,7 @@ impl SimulationStage {
             Ok(state) => self.region = Some(state),
             Err(_) => self.counters.command_errors(1),
         }
+        self.rebuild_pins();
     }
 
     /// Ends the active region: its final coefficients stay in the lattice and are published
@@ -780,6 +802,7 @@ impl SimulationStage {
         self.clay = Clay {
             patches,
             colour: clay.colour,
+            constraints: clay.constraints,
         };
 
         self.colour_dirty = true;
@@ -999,6 +1022,7 @@ mod tests {
             clay: Clay {
                 patches: vec![running, extra],
                 colour: Some(colour),
+                constraints: Vec::new(),
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,

@@ -18,7 +18,7 @@ pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use run_script::{RunSummary, run_script};
 pub use script::{
-    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, SCRIPT_VERSION, Script,
-    ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, poses,
+    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, PinKind, SCRIPT_VERSION,
+    Script, ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,
 };
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};

@@ -6,10 +6,11 @@
 use std::path::Path;
 
 use super::atomic::{load_session, save_session};
-use super::script::{Script, ScriptError, ScriptStep, poses};
+use super::script::{Script, ScriptError, ScriptStep, pin_request, poses};
 use super::session::Session;
 use crate::tools::{
-    ApplyOptions, GeometricTool, History, StepRecorder, ToolReport, apply_csg, apply_stroke,
+    ApplyOptions, GeometricTool, History, PinRequest, StepRecorder, ToolReport, add_pins,
+    apply_csg, apply_stroke, remove_pins,
 };
 
 /// What a run did.
@@ -21,6 +22,8 @@ pub struct RunSummary {
     pub tool_reports: Vec<ToolReport>,
     /// Steps handed to the engine callback.
     pub handed_to_engine: usize,
+    /// What `constrain` and `unconstrain` steps did (1-based step, message).
+    pub notes: Vec<(usize, String)>,
 }
 
 /// Runs `script` on `session`; paths in the script are relative to `base_dir`. `engine` runs
@@ -137,6 +140,15 @@ pub fn run_script(
             ScriptStep::Save { path } => {
                 save_session(&base_dir.join(path), session).map_err(|e| fail(e.to_string()))?;
             }
+            ScriptStep::Constrain { kind, at, points } => {
+                let request = pin_request(*kind, *at, points).map_err(fail)?;
+                let note = pin_on_session(session, history, &request).map_err(fail)?;
+                summary.notes.push((n + 1, note));
+            }
+            ScriptStep::Unconstrain { index } => {
+                let note = unpin_on_session(session, history, *index).map_err(fail)?;
+                summary.notes.push((n + 1, note));
+            }
             ScriptStep::Material { .. } => {
                 session.material.uniform = step.updated_material(session.material.uniform);
                 engine(step, session, history).map_err(fail)?;
@@ -150,6 +162,32 @@ pub fn run_script(
         summary.steps_run += 1;
     }
     Ok(summary)
+}
+
+/// Pins `request` on the session's clay as one undo step.
+fn pin_on_session(
+    session: &mut Session,
+    history: &mut History,
+    request: &PinRequest,
+) -> Result<String, String> {
+    let mut recorder = StepRecorder::new("pin");
+    recorder.touch_constraints(&session.clay);
+    let message = add_pins(&mut session.clay, request)?;
+    history.commit(recorder, &session.clay);
+    Ok(message)
+}
+
+/// Removes pin `index` (or all) from the session's clay as one undo step.
+fn unpin_on_session(
+    session: &mut Session,
+    history: &mut History,
+    index: Option<usize>,
+) -> Result<String, String> {
+    let mut recorder = StepRecorder::new("unpin");
+    recorder.touch_constraints(&session.clay);
+    let message = remove_pins(&mut session.clay, index)?;
+    history.commit(recorder, &session.clay);
+    Ok(message)
 }
 
 /// One geometric tool step as one undo step.

@@ -1,0 +1,219 @@
+//! Pinning, the tool of Hua & Qin §7.3: pins as the user asks for them (script steps, the GUI): a point, a curve or a normal at
+//! places that may be off the surface, turned into the clay's [`Constraint`]s, and the
+//! constraint stage of a dynamics region built from the clay's pins.
+//!
+//! "Pin" means what a CAD user expects: the place stays where it is on the surface while the
+//! clay around it is pushed and pulled. A point not on the surface is first moved onto it
+//! (along the field's gradient, at most [`PROJECT_REACH_SPANS`] knot spans) and the outcome
+//! says so. Runs on the simulation thread between steps; it allocates.
+
+use glam::Vec3;
+
+use super::clay::Clay;
+use crate::dynamics::{
+    Constraint, ConstraintPath, ConstraintRow, ConstraintSolver, MAX_CONSTRAINTS, RegionState,
+    project_onto_surface,
+};
+use crate::field::BSplineLattice;
+
+/// How far a point may be moved onto the surface, in knot spans.
+pub const PROJECT_REACH_SPANS: f32 = 4.0;
+/// A point this close to the surface (in field units) counts as on it.
+pub const ON_SURFACE_TOLERANCE: f32 = 1e-5;
+
+/// A pin as asked for, before its points are moved onto the surface.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PinRequest {
+    /// Keep this point on the surface.
+    Point(Vec3),
+    /// Keep the surface passing through this polyline.
+    Curve(Vec<Vec3>),
+    /// Keep the surface's normal at this point (the point is kept too: a pinned normal
+    /// without its point would hold a direction in empty space once the surface moved).
+    Normal(Vec3),
+}
+
+/// Moves `at` onto the surface of `lattice`; returns the point and how far it moved.
+fn onto_surface(lattice: &BSplineLattice, at: Vec3) -> Result<(Vec3, f32), String> {
+    let reach = PROJECT_REACH_SPANS * lattice.spacing;
+    let on = project_onto_surface(lattice, at, reach).map_err(|e| e.to_string())?;
+    Ok((on, (on - at).length()))
+}
+
+fn moved_note(notes: &mut Vec<String>, at: Vec3, on: Vec3, by: f32, lattice: &BSplineLattice) {
+    if (lattice.value(at) - lattice.iso).abs() > ON_SURFACE_TOLERANCE {
+        notes.push(format!(
+            "[{:.4}, {:.4}, {:.4}] was off the surface; projected {by:.4} onto it at [{:.4}, {:.4}, {:.4}]",
+            at.x, at.y, at.z, on.x, on.y, on.z
+        ));
+    }
+}
+
+/// The constraints `request` stands for on `lattice`, and a message saying what was pinned
+/// (and which points were moved onto the surface first).
+///
+/// # Errors
+/// A message naming the point when it is not finite, outside the clay, or has no surface
+/// within reach, or when a curve has fewer than 2 points.
+pub fn resolve_pin(
+    lattice: &BSplineLattice,
+    request: &PinRequest,
+) -> Result<(Vec<Constraint>, String), String> {
+    let mut notes = Vec::new();
+    let pins = match request {
+        PinRequest::Point(at) => {
+            let (on, by) = onto_surface(lattice, *at)?;
+            moved_note(&mut notes, *at, on, by, lattice);
+            vec![Constraint::Point { at: on }]
+        }
+        PinRequest::Normal(at) => {
+            let (on, by) = onto_surface(lattice, *at)?;
+            moved_note(&mut notes, *at, on, by, lattice);
+            let normal = Constraint::normal_here(lattice, on).map_err(|e| e.to_string())?;
+            vec![normal, Constraint::Point { at: on }]
+        }
+        PinRequest::Curve(points) => {
+            if points.len() < 2 {
+                return Err(format!(
+                    "a curve needs at least 2 points, got {}",
+                    points.len()
+                ));
+            }
+            let mut on_curve = Vec::with_capacity(points.len());
+            let mut moved = 0;
+            let mut furthest = 0.0_f32;
+            for (i, &p) in points.iter().enumerate() {
+                let (on, by) = onto_surface(lattice, p).map_err(|e| format!("points[{i}]: {e}"))?;
+                if (lattice.value(p) - lattice.iso).abs() > ON_SURFACE_TOLERANCE {
+                    moved += 1;
+                    furthest = furthest.max(by);
+                }
+                on_curve.push(on);
+            }
+            if moved > 0 {
+                notes.push(format!(
+                    "{moved} of {} points were off the surface; projected onto it (at most {furthest:.4})",
+                    points.len()
+                ));
+            }
+            let curve = Constraint::Curve { points: on_curve };
+            // Checks the sample count and that every sample lies in the clay.
+            curve.rows(lattice).map_err(|e| e.to_string())?;
+            vec![curve]
+        }
+    };
+    let what = match request {
+        PinRequest::Point(_) => "pinned a point".to_owned(),
+        PinRequest::Normal(_) => "pinned a normal and its point".to_owned(),
+        PinRequest::Curve(p) => format!("pinned a curve of {} points", p.len()),
+    };
+    let message = if notes.is_empty() {
+        what
+    } else {
+        format!("{what}; {}", notes.join("; "))
+    };
+    Ok((pins, message))
+}
+
+/// Pins `request` on `clay` (on its first patch); returns what was pinned with the new pins
+/// listed. The caller records the undo step (`StepRecorder::touch_constraints` first).
+///
+/// # Errors
+/// As [`resolve_pin`], when the clay has no patch, or when the clay's list is full.
+pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, String> {
+    let lattice = clay.patches.first().ok_or("the clay has no patch to pin")?;
+    let (pins, message) = resolve_pin(lattice, request)?;
+    check_room(clay.constraints.len(), pins.len())?;
+    let first = clay.constraints.len();
+    clay.constraints.extend(pins);
+    let listed: Vec<String> = (first..clay.constraints.len())
+        .map(|i| describe_pin(i, &clay.constraints[i]))
+        .collect();
+    Ok(format!("{message} ({})", listed.join("; ")))
+}
+
+/// Removes pin `index` from `clay`, or every pin with `None`; returns what was removed. The
+/// caller records the undo step.
+///
+/// # Errors
+/// When `index` is past the end of the list (nothing changes then).
+pub fn remove_pins(clay: &mut Clay, index: Option<usize>) -> Result<String, String> {
+    let count = clay.constraints.len();
+    match index {
+        Some(i) if i >= count => Err(format!(
+            "index = {i}: the clay has {count} constraint(s){}",
+            if count > 0 {
+                format!(" (0 to {})", count - 1)
+            } else {
+                String::new()
+            }
+        )),
+        Some(i) => Ok(format!(
+            "removed {}",
+            describe_pin(i, &clay.constraints.remove(i))
+        )),
+        None => {
+            clay.constraints.clear();
+            Ok(format!("removed all {count} constraint(s)"))
+        }
+    }
+}
+
+/// Whether `count` more pins fit beside `existing`.
+///
+/// # Errors
+/// A message with the limit when they do not.
+pub fn check_room(existing: usize, count: usize) -> Result<(), String> {
+    if existing + count > MAX_CONSTRAINTS {
+        return Err(format!(
+            "the clay holds {existing} constraints; at most {MAX_CONSTRAINTS} are allowed"
+        ));
+    }
+    Ok(())
+}
+
+/// The constraint stage for `region` from `pins` on `lattice`. Pins that no longer make rows
+/// (a point outside the lattice) are left out and counted in the second value.
+#[must_use]
+pub fn solver_for(
+    pins: &[Constraint],
+    lattice: &BSplineLattice,
+    region: &RegionState,
+) -> (ConstraintSolver, usize) {
+    if pins.is_empty() {
+        return (ConstraintSolver::empty(), 0);
+    }
+    let mut rows: Vec<ConstraintRow> = Vec::new();
+    let mut skipped = 0;
+    for pin in pins {
+        match pin.rows(lattice) {
+            Ok(r) => rows.extend(r),
+            Err(_) => skipped += 1,
+        }
+    }
+    (
+        ConstraintSolver::new(&rows, lattice, region, ConstraintPath::Auto),
+        skipped,
+    )
+}
+
+/// One line describing a pin, for lists (`0: point at [x, y, z]`).
+#[must_use]
+pub fn describe_pin(index: usize, pin: &Constraint) -> String {
+    let v = |p: &Vec3| format!("[{:.3}, {:.3}, {:.3}]", p.x, p.y, p.z);
+    match pin {
+        Constraint::Point { at } => format!("{index}: point at {}", v(at)),
+        Constraint::Normal { at, normal } => {
+            format!("{index}: normal {} at {}", v(normal), v(at))
+        }
+        Constraint::Curve { points } => match (points.first(), points.last()) {
+            (Some(a), Some(b)) => format!(
+                "{index}: curve of {} points from {} to {}",
+                points.len(),
+                v(a),
+                v(b)
+            ),
+            _ => format!("{index}: empty curve"),
+        },
+    }
+}
