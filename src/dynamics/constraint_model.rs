@@ -134,7 +134,7 @@ impl ConstraintRow {
             .map(|&(_, w)| f64::from(w) * f64::from(w))
             .sum::<f64>()
             .sqrt();
-        if !(norm > 1e-12) {
+        if norm.is_nan() || norm <= 1e-12 {
             return None;
         }
         let inv = (1.0 / norm) as f32;
@@ -222,7 +222,7 @@ pub fn project_onto_surface(
         return Ok(at);
     }
     let g = lattice.gradient(at);
-    if !(g.length_squared() > 0.0) {
+    if !g.is_finite() || g.length_squared() <= 0.0 {
         return Err(ConstraintError::NoSurfaceNear {
             at,
             searched: reach,
@@ -265,7 +265,7 @@ impl Constraint {
     pub fn normal_here(lattice: &BSplineLattice, at: Vec3) -> Result<Self, ConstraintError> {
         check_inside(lattice, "the normal's point", at)?;
         let g = lattice.gradient(at);
-        if !(g.length() > 1e-6) || !g.is_finite() {
+        if !g.is_finite() || g.length() <= 1e-6 {
             return Err(ConstraintError::FlatField { at });
         }
         Ok(Self::Normal {
@@ -295,7 +295,7 @@ impl Constraint {
             Self::Normal { at, normal } => {
                 check_finite("the normal's point", *at)?;
                 check_finite("the normal", *normal)?;
-                if !(normal.length() > 1e-6) {
+                if normal.length() <= 1e-6 {
                     return Err(ConstraintError::FlatField { at: *at });
                 }
                 Ok(())
@@ -331,7 +331,7 @@ impl Constraint {
                 let mut count = 1_usize;
                 for w in points.windows(2) {
                     let pieces = ((w[1] - w[0]).length() / step).ceil().max(1.0);
-                    if !(pieces < MAX_CURVE_SAMPLES as f32) {
+                    if !pieces.is_finite() || pieces >= MAX_CURVE_SAMPLES as f32 {
                         count = MAX_CURVE_SAMPLES + 1;
                         break;
                     }

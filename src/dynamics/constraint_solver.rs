@@ -435,7 +435,7 @@ impl ConstraintSolver {
         dt_s: f32,
         integrator: Integrator,
     ) {
-        if self.is_empty() || !(dt_s > 0.0) {
+        if self.is_empty() || dt_s.is_nan() || dt_s <= 0.0 {
             return;
         }
         let dt = f64::from(dt_s);

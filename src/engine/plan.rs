@@ -302,7 +302,11 @@ impl ScriptPlan {
                     let request = pin_request(*kind, *at, points).map_err(fail)?;
                     event(PlannedAction::Constrain(request));
                 }
-                ScriptStep::Unconstrain { index } => event(PlannedAction::Unconstrain(*index)),
+                ScriptStep::Unconstrain { index } => {
+                    // Checked non-negative and bounded when the script was parsed.
+                    let index = index.map(|i| usize::try_from(i).unwrap_or(usize::MAX));
+                    event(PlannedAction::Unconstrain(index));
+                }
             }
         }
         Ok(Self {

@@ -829,4 +829,36 @@ mod tests {
             other => panic!("{other}"),
         }
     }
+
+    #[test]
+    fn pins_are_written_only_when_present_and_a_bad_pin_is_named() {
+        let mut session = sample_session();
+        assert!(!session.clay.constraints.is_empty());
+        let with = encode(&session).unwrap();
+        assert!(with.windows(4).any(|w| w == PINS));
+        assert_eq!(decode(&with, Path::new("p.dclay")).unwrap(), session);
+        // Without pins the file is what older builds wrote, and reads back with none.
+        session.clay.constraints.clear();
+        let without = encode(&session).unwrap();
+        assert!(!without.windows(4).any(|w| w == PINS));
+        assert!(
+            decode(&without, Path::new("old.dclay"))
+                .unwrap()
+                .clay
+                .constraints
+                .is_empty()
+        );
+        // A curve of one point under a valid checksum is refused, naming the section.
+        session.clay.constraints = vec![Constraint::Curve {
+            points: vec![Vec3::ZERO],
+        }];
+        let bad = encode(&session).unwrap();
+        let err = decode(&bad, Path::new("bad.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("PINS") && err.contains("constraint 0"),
+            "{err}"
+        );
+    }
 }

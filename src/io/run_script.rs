@@ -146,7 +146,9 @@ pub fn run_script(
                 summary.notes.push((n + 1, note));
             }
             ScriptStep::Unconstrain { index } => {
-                let note = unpin_on_session(session, history, *index).map_err(fail)?;
+                // Checked non-negative and bounded when the script was parsed.
+                let index = index.map(|i| usize::try_from(i).unwrap_or(usize::MAX));
+                let note = unpin_on_session(session, history, index).map_err(fail)?;
                 summary.notes.push((n + 1, note));
             }
             ScriptStep::Material { .. } => {
@@ -317,5 +319,83 @@ path = "second.dclay"
         .unwrap_err();
         assert_eq!(e.step, Some(2));
         assert!(e.message.contains("nope"), "{e}");
+    }
+
+    #[test]
+    fn constrain_steps_pin_project_list_and_undo_on_a_session() {
+        use crate::dynamics::Constraint;
+        use crate::field::{Primitive, lattice_from_primitive};
+        let centre = Vec3::splat(0.95);
+        let ball = Primitive::Sphere {
+            centre,
+            radius: 0.4,
+        };
+        let lattice = lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &ball, 0.2, 2).unwrap();
+        let text = r#"
+version = 1
+
+[[step]]
+do = "constrain"
+kind = "point"
+at = [1.4, 0.95, 0.95]
+
+[[step]]
+do = "constrain"
+kind = "curve"
+points = [[0.95, 1.35, 0.9], [0.95, 1.35, 1.0]]
+
+[[step]]
+do = "constrain"
+kind = "normal"
+at = [0.95, 0.95, 1.35]
+
+[[step]]
+do = "unconstrain"
+index = 1
+
+[[step]]
+do = "undo"
+
+[[step]]
+do = "constrain"
+kind = "point"
+at = [5.0, 5.0, 5.0]
+"#;
+        let script = parse_script(text, "pins.toml").unwrap();
+        let mut session = Session {
+            clay: Clay::single(lattice.clone()),
+            ..Session::default()
+        };
+        let mut history = History::default();
+        let err = run_script(
+            &script,
+            &mut session,
+            &mut history,
+            Path::new("."),
+            &mut |_, _, _| Ok(()),
+        )
+        .unwrap_err();
+        // The last pin lies outside the clay: the step is named, earlier steps stay.
+        assert_eq!(err.step, Some(6), "{err}");
+        assert!(err.to_string().contains("outside"), "{err}");
+        let pins = &session.clay.constraints;
+        // point, curve, normal + its point; the unconstrain was undone.
+        assert_eq!(pins.len(), 4, "{pins:?}");
+        let Constraint::Point { at } = pins[0] else {
+            panic!("{pins:?}")
+        };
+        // 1.4 is outside the ball of radius 0.4 about 0.95: moved in onto the surface.
+        assert!((at.x - 1.35).abs() < 0.01, "{at}");
+        assert!((lattice.value(at) - lattice.iso).abs() < 1e-5);
+        assert!(matches!(pins[1], Constraint::Curve { .. }));
+        assert!(matches!(pins[2], Constraint::Normal { .. }));
+        assert!(matches!(pins[3], Constraint::Point { .. }));
+        // Undo all four pin steps (the unconstrain is already undone).
+        for _ in 0..3 {
+            history.undo(&mut session.clay).unwrap();
+        }
+        assert!(session.clay.constraints.is_empty());
+        history.redo(&mut session.clay).unwrap();
+        assert_eq!(session.clay.constraints.len(), 1);
     }
 }

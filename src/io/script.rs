@@ -41,7 +41,7 @@ use std::path::PathBuf;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::dynamics::{Distribution, MAX_CURVE_POINTS, Material};
+use crate::dynamics::{Distribution, MAX_CONSTRAINTS, MAX_CURVE_POINTS, Material};
 use crate::tools::{ForceTool, PinRequest, ToolAction, ToolPose, ToolShape};
 
 /// The version of the script format this build reads.
@@ -474,8 +474,9 @@ pub enum ScriptStep {
     /// Remove pin `index` (counted from 0 in the order pinned), or every pin when absent (one
     /// undo step).
     Unconstrain {
+        /// Signed so that a negative index is refused with its line, not as a type error.
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        index: Option<usize>,
+        index: Option<i64>,
     },
 }
 
@@ -998,6 +999,12 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             ))
         }
         ScriptStep::Constrain { kind, at, points } => pin_request(*kind, *at, points).map(|_| ()),
+        ScriptStep::Unconstrain { index: Some(i) } if *i < 0 || *i >= MAX_CONSTRAINTS as i64 => {
+            Err(format!(
+                "index = {i} must be between 0 and {}",
+                MAX_CONSTRAINTS - 1
+            ))
+        }
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }
@@ -1231,5 +1238,45 @@ start_s = 3.0
         let e = parse_script("version = 1\n[clay]\nresolution = 200\n", "c.toml").unwrap_err();
         assert_eq!(e.line, Some(3), "{e}");
         assert!(e.message.contains("clay.resolution"), "{e}");
+    }
+
+    #[test]
+    fn constrain_keys_must_match_their_kind() {
+        let step = |keys: &str| format!("version = 1\n\n[[step]]\ndo = \"constrain\"\n{keys}\n");
+        let ok = [
+            "kind = \"point\"\nat = [1.0, 2.0, 3.0]",
+            "kind = \"normal\"\nat = [1.0, 2.0, 3.0]",
+            "kind = \"curve\"\npoints = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]",
+        ];
+        for keys in ok {
+            parse_script(&step(keys), "pins.toml").unwrap_or_else(|e| panic!("{keys}: {e}"));
+        }
+        parse_script("version = 1\n\n[[step]]\ndo = \"unconstrain\"\n", "u.toml").unwrap();
+        parse_script(
+            "version = 1\n\n[[step]]\ndo = \"unconstrain\"\nindex = 2\n",
+            "u.toml",
+        )
+        .unwrap();
+        let bad = [
+            ("kind = \"point\"", "needs at"),
+            ("kind = \"curve\"\nat = [1.0, 2.0, 3.0]", "not at"),
+            ("kind = \"curve\"\npoints = [[0.0, 0.0, 0.0]]", "at least 2"),
+            ("kind = \"normal\"\nat = [1.0, 2.0, nan]", "not finite"),
+            ("kind = \"edge\"\nat = [1.0, 2.0, 3.0]", "edge"),
+        ];
+        for (keys, expected) in bad {
+            let err = parse_script(&step(keys), "pins.toml").unwrap_err();
+            let shown = err.to_string();
+            assert!(
+                shown.contains(expected) && shown.contains("pins.toml"),
+                "{keys}: {shown}"
+            );
+        }
+        let err = parse_script(
+            "version = 1\n\n[[step]]\ndo = \"unconstrain\"\nindex = -1\n",
+            "u.toml",
+        )
+        .unwrap_err();
+        assert_eq!(err.line, Some(5), "{err}");
     }
 }
