@@ -304,3 +304,66 @@ fn rows_outside_the_region_are_reported_and_an_empty_stage_changes_nothing() {
     }
     assert_eq!(a, b);
 }
+
+/// The benchmark's set-up (bench/constraints.rs) at test size: a sphere on a lattice of
+/// `n + 4` coefficients, the central `n³` as the region with `(2n − 1)³` mass points, point
+/// pins spread over the sphere, one tool force; every pin holds.
+#[test]
+fn the_benchmark_case_at_test_size_holds_every_pin() {
+    let n = 8;
+    let spacing = 1.0 / (n + 3) as f32;
+    let (centre, radius) = (Vec3::splat(0.5), 0.3);
+    let sphere = Primitive::Sphere { centre, radius };
+    let mut lattice =
+        lattice_from_primitive([n + 4; 3], spacing, Vec3::ZERO, &sphere, 2.0 * spacing, 2).unwrap();
+    let b = CoeffBox {
+        min: [2; 3],
+        max: [n + 1; 3],
+    };
+    let mut state = RegionState::new(&lattice, b, [2 * n - 1; 3], Material::PLASTIC).unwrap();
+    let golden = std::f32::consts::PI * (3.0 - 5.0_f32.sqrt());
+    let count = 10;
+    let pins: Vec<Vec3> = (0..count)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
+            let r = (1.0 - y * y).sqrt();
+            let a = golden * i as f32;
+            let near = centre + Vec3::new(r * a.cos(), y, r * a.sin()) * radius;
+            project_onto_surface(&lattice, near, 0.1).unwrap()
+        })
+        .collect();
+    let rows = rows_of(
+        &pins
+            .iter()
+            .map(|&at| Constraint::Point { at })
+            .collect::<Vec<_>>(),
+        &lattice,
+    );
+    let mut solver = ConstraintSolver::new(&rows, &lattice, &state, ConstraintPath::Auto);
+    assert_eq!((solver.report().rows, solver.report().rank), (10, 10));
+    let force = ToolForce {
+        start: centre + Vec3::X * radius,
+        end: centre + Vec3::X * (radius + 0.06),
+        distribution: Distribution::Gaussian,
+        radius: 2.0 * spacing,
+        gain: 1e3,
+    };
+    let mut sim = Simulator::new(StepParams::default());
+    let mut snap = RegionSnapshot::default();
+    let start = lattice.clone();
+    for _ in 0..200 {
+        sim.step_constrained(
+            &mut state,
+            &mut lattice,
+            &[force],
+            Some(&mut solver),
+            &mut snap,
+        )
+        .unwrap();
+    }
+    assert_ne!(lattice, start, "the force moved the clay");
+    for &x in &pins {
+        assert!((lattice.value(x) - lattice.iso).abs() < 1e-4);
+    }
+    assert!(solver.max_violation(&state.p) < 1e-4);
+}
