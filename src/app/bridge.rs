@@ -218,6 +218,10 @@ pub fn start_bridge(
         tool_radius: PushTool::default().radius,
         saves: Vec::new(),
         loads: Vec::new(),
+        pin_replies: Vec::new(),
+        pins_seen: None,
+        pins_list: None,
+        pin_lines: Vec::new(),
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -251,6 +255,14 @@ struct Bridge {
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
     loads: Vec<Receiver<Result<String, String>>>,
+    /// Answers to pin and unpin commands.
+    pin_replies: Vec<Receiver<Result<String, String>>>,
+    /// The pins revision last asked about, and the list asked for.
+    pins_seen: Option<u64>,
+    pins_list: Option<Receiver<Vec<crate::dynamics::Constraint>>>,
+    /// The latest pin list, one line each (copied into every view: the view's buffers
+    /// rotate, so each publication carries the whole list).
+    pin_lines: Vec<String>,
 }
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
@@ -296,10 +308,12 @@ impl Bridge {
             format!("wrote {}", p.display())
         });
         forward_replies(&mut self.loads, &self.events, "load", |summary| summary);
+        forward_replies(&mut self.pin_replies, &self.events, "pins", |detail| detail);
         // Nothing to show before the simulation's first step (its material is not known yet).
         let Some(status) = self.engine.sim_status() else {
             return;
         };
+        self.poll_pins(status.pins_revision);
         let tool = self.engine.latest_tool();
         let counters = self.engine.counters().snapshot();
         let loops = self.engine.loop_stats().map(|(_, stats)| stats);
@@ -307,7 +321,9 @@ impl Bridge {
         let device = &self.device;
         let connected = self.connected;
         let radius = self.tool_radius;
+        let pin_lines = &self.pin_lines;
         self.view.write_with(|v| {
+            v.pins.clone_from(pin_lines);
             v.loops = loops;
             v.undo_steps = status.undo_steps;
             v.redo_steps = status.redo_steps;
@@ -376,6 +392,33 @@ impl Bridge {
         }
     }
 
+    /// Asks the engine for its pins when their revision moved, and takes the list in when
+    /// the answer arrived.
+    fn poll_pins(&mut self, revision: u64) {
+        // One question at a time: a newer revision is asked about once the answer is in.
+        if self.pins_seen != Some(revision) && self.pins_list.is_none() {
+            let (tx, rx) = bounded(1);
+            if self
+                .engine
+                .commands()
+                .send(Command::ListPins { reply: tx })
+                .is_ok()
+            {
+                self.pins_seen = Some(revision);
+                self.pins_list = Some(rx);
+            }
+        }
+        let Some(pins) = self.pins_list.as_ref().and_then(|rx| rx.try_recv().ok()) else {
+            return;
+        };
+        self.pins_list = None;
+        self.pin_lines = pins
+            .iter()
+            .enumerate()
+            .map(|(i, p)| crate::tools::describe_pin(i, p))
+            .collect();
+    }
+
     fn fail(&self, what: &str, error: String) {
         let _ = self.events.send(EngineEvent::Failed {
             what: what.into(),
@@ -405,6 +448,28 @@ impl Bridge {
             EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),
             EngineCommand::Undo => self.send(what, Command::Undo),
             EngineCommand::Redo => self.send(what, Command::Redo),
+            EngineCommand::Pin(request) => {
+                let (tx, rx) = bounded(1);
+                self.pin_replies.push(rx);
+                self.send(
+                    what,
+                    Command::Constrain {
+                        request,
+                        reply: Some(tx),
+                    },
+                );
+            }
+            EngineCommand::Unpin { index } => {
+                let (tx, rx) = bounded(1);
+                self.pin_replies.push(rx);
+                self.send(
+                    what,
+                    Command::Unconstrain {
+                        index,
+                        reply: Some(tx),
+                    },
+                );
+            }
             EngineCommand::Save { path } => {
                 let (tx, rx) = bounded(1);
                 self.saves.push(rx);

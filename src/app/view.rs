@@ -118,6 +118,8 @@ pub struct EngineView {
     /// Sessions loaded into the running engine so far (the app re-reads the material when
     /// this changes).
     pub sessions_loaded: u64,
+    /// The clay's pins, one line each, in the order `EngineCommand::Unpin` counts them.
+    pub pins: Vec<String>,
 }
 
 impl Default for EngineView {
@@ -136,6 +138,7 @@ impl Default for EngineView {
             region: None,
             sim_time_s: 0.0,
             sessions_loaded: 0,
+            pins: Vec::new(),
         }
     }
 }

@@ -145,6 +145,11 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
+    /// Send the clay's pins (in order: the index `Unconstrain` takes) on `reply`.
+    ListPins {
+        /// Where the list goes.
+        reply: Sender<Vec<crate::dynamics::Constraint>>,
+    },
     /// Undo the latest stroke or tool step (one stroke is one step); nothing to undo is not
     /// an error.
     Undo,

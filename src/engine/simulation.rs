@@ -135,6 +135,8 @@ pub struct SimulationStage {
     region: Option<RegionState>,
     /// The clay's pins as the live region holds them (see `constrain.rs`).
     region_pins: ConstraintSolver,
+    /// Bumped by every command that may change the clay's pins (see [`SimStatus`]).
+    pins_revision: u64,
     idle_steps: u32,
     stroke_armed: bool,
     was_active: bool,
@@ -229,6 +231,7 @@ impl SimulationStage {
             simulator: Simulator::new(config.step),
             region: None,
             region_pins: ConstraintSolver::empty(),
+            pins_revision: 0,
             idle_steps: 0,
             stroke_armed: false,
             was_active: false,
@@ -315,6 +318,7 @@ impl SimulationStage {
     }
 
     fn apply(&mut self, cmd: Command) -> bool {
+        self.pins_revision += u64::from(constrain::may_change_pins(&cmd));
         match cmd {
             Command::SetTool(tool) => {
                 // A held stroke ends with the tool it was made with.
@@ -408,6 +412,7 @@ impl SimulationStage {
                 reply.map(|r| r.send(result));
                 ok
             }
+            Command::ListPins { reply } => reply.send(self.clay.constraints.clone()).is_ok(),
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
             Command::Load {
                 session,
@@ -848,6 +853,7 @@ impl SimulationStage {
             sessions_loaded: self.sessions_loaded,
             sim_step: self.steps,
             sim_time_s: self.sim_time_s,
+            pins_revision: self.pins_revision,
         };
         self.status.publish();
     }

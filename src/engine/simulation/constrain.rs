@@ -4,7 +4,20 @@
 
 use super::SimulationStage;
 use crate::dynamics::ConstraintSolver;
+use crate::engine::Command;
 use crate::tools::{PinRequest, StepRecorder, add_pins, remove_pins, solver_for};
+
+/// Whether `cmd` may change the clay's pin list.
+pub(super) fn may_change_pins(cmd: &Command) -> bool {
+    matches!(
+        cmd,
+        Command::Constrain { .. }
+            | Command::Unconstrain { .. }
+            | Command::Undo
+            | Command::Redo
+            | Command::Load { .. }
+    )
+}
 
 impl SimulationStage {
     /// Pins `request` on the clay (one undo step). Returns what was pinned, saying which
