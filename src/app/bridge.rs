@@ -684,6 +684,56 @@ mod tests {
             .sum()
     }
 
+    /// Pins through the running engine: a pin's answer comes back as an event and the list
+    /// reaches the view; undo and "remove all" empty it again.
+    #[test]
+    fn pins_made_through_the_bridge_are_listed_and_follow_undo_and_removal() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+        })
+        .unwrap();
+        let centre = crate::engine::clay_centre(&field);
+        let on = crate::dynamics::surface_point_on_ray(&field, centre, Vec3::X, 2.0, 0.01)
+            .expect("the sphere has a surface along +x");
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Point(on)))
+            .unwrap();
+        wait_for(&mut link, &mut events, "the pin", |v, ev| {
+            v.pins.len() == 1 && !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { what, detail }] if what == "pins" && detail.contains("pinned a point")),
+            "{events:?}"
+        );
+        assert!(link.view().value.pins[0].starts_with("0: point at"));
+        link.send(EngineCommand::Undo).unwrap();
+        wait_for(&mut link, &mut events, "the undo", |v, _| v.pins.is_empty());
+        let curve = vec![on, on + Vec3::Y * 0.05, on + Vec3::Y * 0.1];
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Curve(curve)))
+            .unwrap();
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Normal(on)))
+            .unwrap();
+        // The curve, then the normal and its point.
+        wait_for(&mut link, &mut events, "two pins", |v, _| v.pins.len() == 3);
+        link.send(EngineCommand::Unpin { index: None }).unwrap();
+        wait_for(&mut link, &mut events, "the removal", |v, _| {
+            v.pins.is_empty()
+        });
+        bridge.stop().unwrap();
+    }
+
     /// The running engine behind the bridge: loading a session replaces the field in every
     /// loop and the meshes; a corrupt file is refused with its reason and changes nothing;
     /// the force limit reaches the safety filter (capped at the device's own maximum); the
