@@ -35,7 +35,7 @@
 
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, CoeffBox};
 
 use super::constraint_model::ConstraintRow;
 use super::material::Integrator;
@@ -165,7 +165,24 @@ impl ConstraintSolver {
         region: &RegionState,
         path: ConstraintPath,
     ) -> Self {
-        let b = region.coeff_box();
+        Self::on_box(rows, lattice, region.coeff_box(), &region.p, path)
+    }
+
+    /// The stage for `rows` on the coefficients `b` of `lattice`, whose current values are
+    /// `p` (x fastest over the box). With the whole lattice as the box and its coefficients
+    /// as `p`, [`ConstraintSolver::report`] says whether a set of pins can be held at all.
+    ///
+    /// # Panics
+    /// When `p` is shorter than the box.
+    #[must_use]
+    pub fn on_box(
+        rows: &[ConstraintRow],
+        lattice: &BSplineLattice,
+        b: CoeffBox,
+        p: &[f32],
+        path: ConstraintPath,
+    ) -> Self {
+        assert!(p.len() >= b.count(), "coefficients for the whole box");
         let n = b.dims();
         let [dx, dy, _] = lattice.dims;
         let mut report = ConstraintReport::default();
@@ -231,7 +248,7 @@ impl ConstraintSolver {
                 solver.row_start.push(solver.cols.len());
             }
             let rows = first_row..solver.targets.len();
-            let cluster = solver.build_cluster(rows, &region.p, path, &mut report);
+            let cluster = solver.build_cluster(rows, p, path, &mut report);
             solver.clusters.push(cluster);
             start = end;
         }

@@ -9,10 +9,10 @@
 
 use glam::Vec3;
 
-use super::clay::Clay;
+use super::clay::{Clay, CoeffBox};
 use crate::dynamics::{
-    Constraint, ConstraintPath, ConstraintRow, ConstraintSolver, MAX_CONSTRAINTS, RegionState,
-    project_onto_surface,
+    Constraint, ConstraintPath, ConstraintReport, ConstraintRow, ConstraintSolver, MAX_CONSTRAINTS,
+    RegionState, project_onto_surface,
 };
 use crate::field::BSplineLattice;
 
@@ -129,7 +129,43 @@ pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, String>
     let listed: Vec<String> = (first..clay.constraints.len())
         .map(|i| describe_pin(i, &clay.constraints[i]))
         .collect();
-    Ok(format!("{message} ({})", listed.join("; ")))
+    let check = describe_report(&check_pins(&clay.patches[0], &clay.constraints));
+    Ok(format!("{message} ({}); {check}", listed.join("; ")))
+}
+
+/// How well every pin of `pins` can be held together on `lattice` (rank and residual of all
+/// their rows over the whole lattice).
+#[must_use]
+pub fn check_pins(lattice: &BSplineLattice, pins: &[Constraint]) -> ConstraintReport {
+    let rows: Vec<ConstraintRow> = pins
+        .iter()
+        .filter_map(|p| p.rows(lattice).ok())
+        .flatten()
+        .collect();
+    ConstraintSolver::on_box(
+        &rows,
+        lattice,
+        CoeffBox::whole(lattice.dims),
+        &lattice.coeffs,
+        ConstraintPath::Auto,
+    )
+    .report()
+}
+
+/// A report in words: rows and rank, and whether rows repeat or conflict.
+#[must_use]
+pub fn describe_report(r: &ConstraintReport) -> String {
+    let mut s = format!("{} constraint rows, rank {}", r.rows, r.rank);
+    if r.redundant() {
+        s.push_str(&format!(" ({} redundant)", r.rows - r.rank));
+    }
+    if r.conflicting() {
+        s.push_str(&format!(
+            "; the pins conflict (residual {:.2e}): they are met as nearly as they can be",
+            r.residual
+        ));
+    }
+    s
 }
 
 /// Removes pin `index` from `clay`, or every pin with `None`; returns what was removed. The
@@ -215,5 +251,64 @@ pub fn describe_pin(index: usize, pin: &Constraint) -> String {
             ),
             _ => format!("{index}: empty curve"),
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::field::{Primitive, lattice_from_primitive};
+
+    fn ball() -> Clay {
+        let s = Primitive::Sphere {
+            centre: Vec3::splat(0.95),
+            radius: 0.4,
+        };
+        Clay::single(lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap())
+    }
+
+    #[test]
+    fn pinning_says_what_it_moved_and_reports_redundant_pins() {
+        let mut clay = ball();
+        let first = add_pins(&mut clay, &PinRequest::Point(Vec3::new(1.5, 0.95, 0.95))).unwrap();
+        assert!(first.contains("off the surface"), "{first}");
+        assert!(first.contains("1 constraint rows, rank 1"), "{first}");
+        let Constraint::Point { at } = clay.constraints[0] else {
+            panic!("{:?}", clay.constraints)
+        };
+        // The same place again: its row repeats the first.
+        let again = add_pins(&mut clay, &PinRequest::Point(at)).unwrap();
+        assert!(!again.contains("off the surface"), "{again}");
+        assert!(again.contains("rank 1 (1 redundant)"), "{again}");
+        assert!(!again.contains("conflict"), "{again}");
+        // A normal adds two rows and its point (a third, repeating the first two pins).
+        let normal = add_pins(&mut clay, &PinRequest::Normal(at)).unwrap();
+        assert!(normal.contains("5 constraint rows, rank 3"), "{normal}");
+        assert_eq!(clay.constraints.len(), 4);
+        assert!(
+            remove_pins(&mut clay, Some(4))
+                .unwrap_err()
+                .contains("0 to 3")
+        );
+        assert!(
+            remove_pins(&mut clay, Some(1))
+                .unwrap()
+                .contains("removed 1: point")
+        );
+        assert!(remove_pins(&mut clay, None).unwrap().contains("all 3"));
+        assert!(clay.constraints.is_empty());
+    }
+
+    #[test]
+    fn a_pin_far_from_the_surface_or_outside_the_clay_is_refused_by_name() {
+        let mut clay = ball();
+        // The centre of the ball is 4 knot spans deep: farther than the reach.
+        let deep = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(0.95))).unwrap_err();
+        assert!(deep.contains("no surface found"), "{deep}");
+        let outside = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(40.0))).unwrap_err();
+        assert!(outside.contains("outside"), "{outside}");
+        let short = add_pins(&mut clay, &PinRequest::Curve(vec![Vec3::ONE])).unwrap_err();
+        assert!(short.contains("at least 2"), "{short}");
+        assert!(clay.constraints.is_empty(), "nothing pinned");
     }
 }
