@@ -222,6 +222,7 @@ pub fn start_bridge(
         pins_seen: None,
         pins_list: None,
         pin_lines: Vec::new(),
+        pin_marks: Vec::new(),
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -263,6 +264,8 @@ struct Bridge {
     /// The latest pin list, one line each (copied into every view: the view's buffers
     /// rotate, so each publication carries the whole list).
     pin_lines: Vec<String>,
+    /// Where the pins are (see [`EngineView::pin_marks`]).
+    pin_marks: Vec<Vec<Vec3>>,
 }
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
@@ -321,9 +324,10 @@ impl Bridge {
         let device = &self.device;
         let connected = self.connected;
         let radius = self.tool_radius;
-        let pin_lines = &self.pin_lines;
+        let (pin_lines, pin_marks) = (&self.pin_lines, &self.pin_marks);
         self.view.write_with(|v| {
             v.pins.clone_from(pin_lines);
+            v.pin_marks.clone_from(pin_marks);
             v.loops = loops;
             v.undo_steps = status.undo_steps;
             v.redo_steps = status.redo_steps;
@@ -416,6 +420,14 @@ impl Bridge {
             .iter()
             .enumerate()
             .map(|(i, p)| crate::tools::describe_pin(i, p))
+            .collect();
+        self.pin_marks = pins
+            .into_iter()
+            .map(|p| match p {
+                crate::dynamics::Constraint::Point { at }
+                | crate::dynamics::Constraint::Normal { at, .. } => vec![at],
+                crate::dynamics::Constraint::Curve { points } => points,
+            })
             .collect();
     }
 

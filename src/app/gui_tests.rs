@@ -707,11 +707,20 @@ fn with_pin_mode_a_click_pins_a_point_a_drag_a_curve_and_the_list_deletes() {
             "0: point at [1.000, 1.725, 1.200]".into(),
             "1: curve of 13 points from [0.800, 1.725, 1.000] to [1.400, 1.725, 1.000]".into(),
         ],
+        pin_marks: vec![vec![target], vec![from, to]],
         ..EngineView::default()
     };
     end.view.publish_clone_of(&view);
     h.run();
     h.get_by_label("1: curve of 13 points from [0.800, 1.725, 1.000] to [1.400, 1.725, 1.000]");
+    // The marks land where the pins were made on the screen.
+    let marks = h.state().pin_marks_on_screen(rect);
+    assert_eq!(marks.len(), 2);
+    assert!(
+        (marks[0][0] - to_screen(target)).length() < 1.0,
+        "{marks:?}"
+    );
+    assert!((marks[1][1] - to_screen(to)).length() < 1.0, "{marks:?}");
     let deletes: Vec<_> = h.get_all_by_label("Delete").collect();
     assert_eq!(deletes.len(), 2);
     deletes[1].click();

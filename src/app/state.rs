@@ -584,6 +584,7 @@ impl SculptApp {
         }
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            self.paint_pins(ui, rect);
             self.paint_brush_cursor(ui, rect);
             return;
         };
@@ -599,6 +600,7 @@ impl SculptApp {
             Ok(texture) => {
                 let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
                 image.paint_at(ui, rect);
+                self.paint_pins(ui, rect);
                 self.paint_brush_cursor(ui, rect);
             }
             Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
@@ -758,6 +760,51 @@ impl SculptApp {
             self.send(command);
         }
         self.sculpt_drag = self.pins.tracing();
+    }
+
+    /// The pins' marks in screen points over the view `rect`: one position per point pin,
+    /// the polyline of a curve pin. Marks behind the eye are left out.
+    #[must_use]
+    pub fn pin_marks_on_screen(&self, rect: egui::Rect) -> Vec<Vec<egui::Pos2>> {
+        let size = rect.size().max(egui::vec2(1.0, 1.0));
+        let vp = self.camera.view_projection(size.x / size.y);
+        self.view
+            .pin_marks
+            .iter()
+            .map(|mark| {
+                mark.iter()
+                    .filter_map(|&x| {
+                        let c = vp * x.extend(1.0);
+                        (c.w > 0.0).then(|| {
+                            egui::pos2(
+                                rect.min.x + (c.x / c.w + 1.0) * 0.5 * size.x,
+                                rect.min.y + (1.0 - c.y / c.w) * 0.5 * size.y,
+                            )
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Marks the pins over the scene image: a ringed dot per point, a line per curve.
+    fn paint_pins(&self, ui: &egui::Ui, rect: egui::Rect) {
+        let painter = ui.painter_at(rect);
+        let colour = egui::Color32::from_rgb(60, 200, 90);
+        for mark in self.pin_marks_on_screen(rect) {
+            match mark.as_slice() {
+                [p] => {
+                    painter.circle_filled(*p, 3.5, colour);
+                    painter.circle_stroke(*p, 6.0, egui::Stroke::new(1.5, colour));
+                }
+                points => {
+                    painter.add(egui::Shape::line(
+                        points.to_vec(),
+                        egui::Stroke::new(2.5, colour),
+                    ));
+                }
+            }
+        }
     }
 
     /// Paints the brush cursor over the scene image.

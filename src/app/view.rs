@@ -120,6 +120,9 @@ pub struct EngineView {
     pub sessions_loaded: u64,
     /// The clay's pins, one line each, in the order `EngineCommand::Unpin` counts them.
     pub pins: Vec<String>,
+    /// Where each pin is, field coordinates: one point for a point or normal pin, the
+    /// polyline of a curve pin (drawn over the view).
+    pub pin_marks: Vec<Vec<Vec3>>,
 }
 
 impl Default for EngineView {
@@ -139,6 +142,7 @@ impl Default for EngineView {
             sim_time_s: 0.0,
             sessions_loaded: 0,
             pins: Vec::new(),
+            pin_marks: Vec::new(),
         }
     }
 }
