@@ -8,6 +8,7 @@ use dynaclay::engine::{
     EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
 };
 use dynaclay::io::{load_session, parse_script};
+use dynaclay::tools::{PinRequest, resolve_pin};
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use glam::Vec3;
 
@@ -74,13 +75,33 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
         64,
     )
     .unwrap();
+    // Where the engine will pin: the same projection on the same starting clay.
+    let (expected, _) =
+        resolve_pin(run.field(), &PinRequest::Point(Vec3::new(0.95, 1.74, 0.8))).unwrap();
+    let [Constraint::Point { at: pin }] = expected[..] else {
+        panic!("{expected:?}");
+    };
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
+    let (mut checked, mut worst) = (0, 0.0_f32);
     for _ in 0..(plan.seconds * 1000.0) as usize {
         let sample = run.latest_tool();
         driver.dispatch(&sample, &commands);
         run.step();
+        // During the pinned push: from the pin's answer until the first undo is sent.
+        let pinned = !driver.notes().is_empty();
+        let undone = !driver.unsent_steps().contains(&4);
+        if pinned && !undone {
+            let l = run.field();
+            worst = worst.max((l.value(pin) - l.iso).abs());
+            checked += 1;
+        }
     }
+    assert!(checked > 1000, "checked {checked} steps");
+    assert!(
+        worst < 1e-4,
+        "the pinned point left the surface by {worst} during the push"
+    );
     assert!(driver.is_done(), "steps left: {:?}", driver.unsent_steps());
     run.finish().unwrap();
     assert!(driver.failures().is_empty(), "{:?}", driver.failures());
@@ -97,6 +118,7 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
     let [Constraint::Point { at }] = pinned.clay.constraints[..] else {
         panic!("one point pin saved: {:?}", pinned.clay.constraints);
     };
+    assert_eq!(at, pin, "pinned where the projection puts it");
     assert!(
         (at - Vec3::new(0.95, 1.74, 0.8)).length() < 0.05,
         "moved to {at}"
