@@ -18,9 +18,12 @@
 //!   `h`: `ḧ = Nᵀ p̈_S` (eqs. 11–12 with the unit metric of eq. 7's solved form), then
 //!   `p̈_S = N ḧ + C⁺ t`.
 //!
-//! `t` is zero for the pure constraint (`C p̈ = 0` keeps `C p` fixed when `C ṗ = 0`); the drift
-//! correction sets it so that the next Euler update lands exactly on `C p = e` (f32 rounding
-//! would otherwise accumulate). Redundant rows are handled by the pseudo-inverse (singular
+//! A step runs the stage in two passes: the pure constraint (`t = 0`: `C p̈ = 0` keeps `C p`
+//! fixed while `C ṗ = 0`) before the adaptive time step is chosen from the constrained `p̈`,
+//! then, with the step known, the drift correction, whose `t` makes the Euler update land
+//! exactly on `C p = e` (f32 rounding would otherwise accumulate). The second pass measures
+//! `C p̈` again rather than assume the first left it at zero: with large accelerations the
+//! first pass's own rounding is worth removing (a pinned curve drifts past 1e-4 otherwise). Redundant rows are handled by the pseudo-inverse (singular
 //! values below [`RANK_TOLERANCE`] of the largest are dropped); conflicting rows are met in the
 //! least-squares sense and reported ([`ConstraintReport`]). Nothing here produces a NaN from
 //! finite input: every division is by a kept singular value.
@@ -294,6 +297,18 @@ impl ConstraintSolver {
         (&self.cols[s.clone()], &self.weights[s])
     }
 
+    /// Row `r` against two vectors in one pass over its terms.
+    fn dot_row_pair(&self, r: usize, a: &[f32], b: &[f32]) -> (f64, f64) {
+        let (c, w) = self.row(r);
+        c.iter().zip(w).fold((0.0, 0.0), |(sa, sb), (&c, &w)| {
+            let w = f64::from(w);
+            (
+                sa + w * f64::from(a[c as usize]),
+                sb + w * f64::from(b[c as usize]),
+            )
+        })
+    }
+
     fn dot_row(&self, r: usize, v: &[f32]) -> f64 {
         let (c, w) = self.row(r);
         c.iter()
@@ -463,8 +478,8 @@ impl ConstraintSolver {
         // Targets first (they only read p and ṗ); taking the buffer out allocates nothing.
         let mut t = std::mem::take(&mut self.t);
         for (r, tr) in t.iter_mut().enumerate() {
-            let cx = self.dot_row(r, p) - f64::from(self.targets[r]);
-            let cv = self.dot_row(r, p_dot);
+            let (cx, cv) = self.dot_row_pair(r, p, p_dot);
+            let cx = cx - f64::from(self.targets[r]);
             *tr = -cx / (dt * dt) - velocity_weight * cv / dt;
         }
         self.enforce(accel, Some(&t));
