@@ -401,13 +401,13 @@ impl SimulationStage {
                 done.is_ok()
             }
             Command::Constrain { request, reply } => {
-                let result = self.pin(&request);
+                let result = self.pin(&request).map_err(|e| e.to_string());
                 let ok = result.is_ok();
                 reply.map(|r| r.send(result));
                 ok
             }
             Command::Unconstrain { index, reply } => {
-                let result = self.unpin(index);
+                let result = self.unpin(index).map_err(|e| e.to_string());
                 let ok = result.is_ok();
                 reply.map(|r| r.send(result));
                 ok

@@ -174,7 +174,7 @@ fn pin_on_session(
 ) -> Result<String, String> {
     let mut recorder = StepRecorder::new("pin");
     recorder.touch_constraints(&session.clay);
-    let message = add_pins(&mut session.clay, request)?;
+    let message = add_pins(&mut session.clay, request).map_err(|e| e.to_string())?;
     history.commit(recorder, &session.clay);
     Ok(message)
 }
@@ -187,7 +187,7 @@ fn unpin_on_session(
 ) -> Result<String, String> {
     let mut recorder = StepRecorder::new("unpin");
     recorder.touch_constraints(&session.clay);
-    let message = remove_pins(&mut session.clay, index)?;
+    let message = remove_pins(&mut session.clay, index).map_err(|e| e.to_string())?;
     history.commit(recorder, &session.clay);
     Ok(message)
 }

@@ -22,7 +22,7 @@ pub use force::{
 };
 pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use pin::{
-    ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinRequest, add_pins, check_pins, check_room,
-    describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
+    ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
+    check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};

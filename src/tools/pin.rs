@@ -10,6 +10,7 @@
 use glam::Vec3;
 
 use super::clay::{Clay, CoeffBox};
+use crate::dynamics::ConstraintError;
 use crate::dynamics::{
     Constraint, ConstraintPath, ConstraintReport, ConstraintRow, ConstraintSolver, MAX_CONSTRAINTS,
     RegionState, project_onto_surface,
@@ -33,10 +34,46 @@ pub enum PinRequest {
     Normal(Vec3),
 }
 
+/// Why a pin could not be made or removed (nothing changes then).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PinError {
+    /// The point (or, for a curve, `points[index]`) cannot be pinned.
+    #[error("{}{source}", point.map(|i| format!("points[{i}]: ")).unwrap_or_default())]
+    Point {
+        /// Which vertex of a curve (`None` for a point or normal pin).
+        point: Option<usize>,
+        /// What is wrong with it.
+        source: ConstraintError,
+    },
+    /// The clay has no density patch to pin.
+    #[error("the clay has no patch to pin")]
+    NoPatch,
+    /// The clay's list of pins is full.
+    #[error("the clay holds {existing} constraints; at most {limit} are allowed")]
+    Full {
+        /// Pins already on the clay.
+        existing: usize,
+        /// The bound.
+        limit: usize,
+    },
+    /// `unconstrain` named a pin that does not exist.
+    #[error("index = {index}: the clay has {count} constraint(s){}", if *count > 0 { format!(" (0 to {})", count - 1) } else { String::new() })]
+    NoSuchPin {
+        /// The index asked for.
+        index: usize,
+        /// Pins on the clay.
+        count: usize,
+    },
+}
+
+fn at_point(point: Option<usize>) -> impl Fn(ConstraintError) -> PinError {
+    move |source| PinError::Point { point, source }
+}
+
 /// Moves `at` onto the surface of `lattice`; returns the point and how far it moved.
-fn onto_surface(lattice: &BSplineLattice, at: Vec3) -> Result<(Vec3, f32), String> {
+fn onto_surface(lattice: &BSplineLattice, at: Vec3) -> Result<(Vec3, f32), ConstraintError> {
     let reach = PROJECT_REACH_SPANS * lattice.spacing;
-    let on = project_onto_surface(lattice, at, reach).map_err(|e| e.to_string())?;
+    let on = project_onto_surface(lattice, at, reach)?;
     Ok((on, (on - at).length()))
 }
 
@@ -53,37 +90,37 @@ fn moved_note(notes: &mut Vec<String>, at: Vec3, on: Vec3, by: f32, lattice: &BS
 /// (and which points were moved onto the surface first).
 ///
 /// # Errors
-/// A message naming the point when it is not finite, outside the clay, or has no surface
-/// within reach, or when a curve has fewer than 2 points.
+/// [`PinError::Point`] naming the point when it is not finite, outside the clay, or has no
+/// surface within reach, or when a curve has fewer than 2 points or too many samples.
 pub fn resolve_pin(
     lattice: &BSplineLattice,
     request: &PinRequest,
-) -> Result<(Vec<Constraint>, String), String> {
+) -> Result<(Vec<Constraint>, String), PinError> {
     let mut notes = Vec::new();
     let pins = match request {
         PinRequest::Point(at) => {
-            let (on, by) = onto_surface(lattice, *at)?;
+            let (on, by) = onto_surface(lattice, *at).map_err(at_point(None))?;
             moved_note(&mut notes, *at, on, by, lattice);
             vec![Constraint::Point { at: on }]
         }
         PinRequest::Normal(at) => {
-            let (on, by) = onto_surface(lattice, *at)?;
+            let (on, by) = onto_surface(lattice, *at).map_err(at_point(None))?;
             moved_note(&mut notes, *at, on, by, lattice);
-            let normal = Constraint::normal_here(lattice, on).map_err(|e| e.to_string())?;
+            let normal = Constraint::normal_here(lattice, on).map_err(at_point(None))?;
             vec![normal, Constraint::Point { at: on }]
         }
         PinRequest::Curve(points) => {
             if points.len() < 2 {
-                return Err(format!(
-                    "a curve needs at least 2 points, got {}",
-                    points.len()
-                ));
+                return Err(PinError::Point {
+                    point: None,
+                    source: ConstraintError::TooFewPoints { got: points.len() },
+                });
             }
             let mut on_curve = Vec::with_capacity(points.len());
             let mut moved = 0;
             let mut furthest = 0.0_f32;
             for (i, &p) in points.iter().enumerate() {
-                let (on, by) = onto_surface(lattice, p).map_err(|e| format!("points[{i}]: {e}"))?;
+                let (on, by) = onto_surface(lattice, p).map_err(at_point(Some(i)))?;
                 if (lattice.value(p) - lattice.iso).abs() > ON_SURFACE_TOLERANCE {
                     moved += 1;
                     furthest = furthest.max(by);
@@ -98,7 +135,7 @@ pub fn resolve_pin(
             }
             let curve = Constraint::Curve { points: on_curve };
             // Checks the sample count and that every sample lies in the clay.
-            curve.rows(lattice).map_err(|e| e.to_string())?;
+            curve.rows(lattice).map_err(at_point(None))?;
             vec![curve]
         }
     };
@@ -119,9 +156,10 @@ pub fn resolve_pin(
 /// listed. The caller records the undo step (`StepRecorder::touch_constraints` first).
 ///
 /// # Errors
-/// As [`resolve_pin`], when the clay has no patch, or when the clay's list is full.
-pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, String> {
-    let lattice = clay.patches.first().ok_or("the clay has no patch to pin")?;
+/// As [`resolve_pin`]; [`PinError::NoPatch`], or [`PinError::Full`] when the clay's list is
+/// full.
+pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, PinError> {
+    let lattice = clay.patches.first().ok_or(PinError::NoPatch)?;
     let (pins, message) = resolve_pin(lattice, request)?;
     check_room(clay.constraints.len(), pins.len())?;
     let first = clay.constraints.len();
@@ -172,18 +210,11 @@ pub fn describe_report(r: &ConstraintReport) -> String {
 /// caller records the undo step.
 ///
 /// # Errors
-/// When `index` is past the end of the list (nothing changes then).
-pub fn remove_pins(clay: &mut Clay, index: Option<usize>) -> Result<String, String> {
+/// [`PinError::NoSuchPin`] when `index` is past the end of the list (nothing changes then).
+pub fn remove_pins(clay: &mut Clay, index: Option<usize>) -> Result<String, PinError> {
     let count = clay.constraints.len();
     match index {
-        Some(i) if i >= count => Err(format!(
-            "index = {i}: the clay has {count} constraint(s){}",
-            if count > 0 {
-                format!(" (0 to {})", count - 1)
-            } else {
-                String::new()
-            }
-        )),
+        Some(i) if i >= count => Err(PinError::NoSuchPin { index: i, count }),
         Some(i) => Ok(format!(
             "removed {}",
             describe_pin(i, &clay.constraints.remove(i))
@@ -198,12 +229,13 @@ pub fn remove_pins(clay: &mut Clay, index: Option<usize>) -> Result<String, Stri
 /// Whether `count` more pins fit beside `existing`.
 ///
 /// # Errors
-/// A message with the limit when they do not.
-pub fn check_room(existing: usize, count: usize) -> Result<(), String> {
+/// [`PinError::Full`] when they do not.
+pub fn check_room(existing: usize, count: usize) -> Result<(), PinError> {
     if existing + count > MAX_CONSTRAINTS {
-        return Err(format!(
-            "the clay holds {existing} constraints; at most {MAX_CONSTRAINTS} are allowed"
-        ));
+        return Err(PinError::Full {
+            existing,
+            limit: MAX_CONSTRAINTS,
+        });
     }
     Ok(())
 }
@@ -288,6 +320,7 @@ mod tests {
         assert!(
             remove_pins(&mut clay, Some(4))
                 .unwrap_err()
+                .to_string()
                 .contains("0 to 3")
         );
         assert!(
@@ -303,11 +336,17 @@ mod tests {
     fn a_pin_far_from_the_surface_or_outside_the_clay_is_refused_by_name() {
         let mut clay = ball();
         // The centre of the ball is 4 knot spans deep: farther than the reach.
-        let deep = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(0.95))).unwrap_err();
+        let deep = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(0.95)))
+            .unwrap_err()
+            .to_string();
         assert!(deep.contains("no surface found"), "{deep}");
-        let outside = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(40.0))).unwrap_err();
+        let outside = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(40.0)))
+            .unwrap_err()
+            .to_string();
         assert!(outside.contains("outside"), "{outside}");
-        let short = add_pins(&mut clay, &PinRequest::Curve(vec![Vec3::ONE])).unwrap_err();
+        let short = add_pins(&mut clay, &PinRequest::Curve(vec![Vec3::ONE]))
+            .unwrap_err()
+            .to_string();
         assert!(short.contains("at least 2"), "{short}");
         assert!(clay.constraints.is_empty(), "nothing pinned");
     }

@@ -5,7 +5,7 @@
 use super::SimulationStage;
 use crate::dynamics::ConstraintSolver;
 use crate::engine::Command;
-use crate::tools::{PinRequest, StepRecorder, add_pins, remove_pins, solver_for};
+use crate::tools::{PinError, PinRequest, StepRecorder, add_pins, remove_pins, solver_for};
 
 /// Whether `cmd` may change the clay's pin list.
 pub(super) fn may_change_pins(cmd: &Command) -> bool {
@@ -22,7 +22,7 @@ pub(super) fn may_change_pins(cmd: &Command) -> bool {
 impl SimulationStage {
     /// Pins `request` on the clay (one undo step). Returns what was pinned, saying which
     /// points were first moved onto the surface.
-    pub(super) fn pin(&mut self, request: &PinRequest) -> Result<String, String> {
+    pub(super) fn pin(&mut self, request: &PinRequest) -> Result<String, PinError> {
         // A held stroke ends first (its region retires): the pin is its own undo step.
         self.end_stroke_now();
         let mut rec = StepRecorder::new("pin");
@@ -33,7 +33,7 @@ impl SimulationStage {
     }
 
     /// Removes pin `index`, or every pin with `None` (one undo step).
-    pub(super) fn unpin(&mut self, index: Option<usize>) -> Result<String, String> {
+    pub(super) fn unpin(&mut self, index: Option<usize>) -> Result<String, PinError> {
         self.end_stroke_now();
         let mut rec = StepRecorder::new("unpin");
         rec.touch_constraints(&self.clay);
