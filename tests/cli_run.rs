@@ -86,7 +86,8 @@ fn run_writes_meshes_session_and_latency_reports() {
     let loops = dynaclay_loops::summaries_from_json(&json).unwrap();
     let names: Vec<_> = loops.iter().map(|l| l.name.as_str()).collect();
     assert_eq!(names, ["haptic", "simulation", "graphics"]);
-    assert!(loops[0].stats.ticks > 1000);
+    // Loop rates belong in bench/: here only that each loop ran and reported.
+    assert!(loops.iter().all(|l| l.stats.ticks > 0), "{loops:?}");
 }
 
 #[test]

@@ -7,8 +7,9 @@
 //! - zero force (within 1 mN) while the tip is outside the clay with no stroke held,
 //! - and a pull renders a force toward the surface.
 //!
-//! A second test sweeps the arm's grip stiffness and damping at 1 and 4 kHz with a noisy,
-//! one-tick-delayed position signal and checks passivity at the device port: over a
+//! A second test sweeps the arm's grip stiffness (100, 300, 1000 N/m) and damping (0.5, 2,
+//! 8 N·s/m) at 1 and 4 kHz, with the position reported on time or one read late and with 1, 5
+//! or 8 µm of noise (108 cases), and checks passivity at the device port: over a
 //! press–release cycle the device does no more work on the hand than the hand did on it, within
 //! 1% of the peak energy.
 
@@ -490,27 +491,31 @@ fn press_release(
 fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() {
     let (field, mut config, _) = clay();
     config.safety.soft_start_s = 0.0;
-    // 5 µm of position noise (a few encoder counts) on every case; a one-read delay on the
-    // firm grips (a hand holding the arm at 1 kN/m).
+    // Every grip, on time and one read late (a USB frame); each with 1, 5 and 8 µm of position
+    // noise (a few encoder counts).
     let mut cases = Vec::new();
     for step_us in [1000u64, 250] {
         for stiffness in [100.0f32, 300.0, 1000.0] {
             for damping in [0.5f32, 2.0, 8.0] {
-                cases.push((step_us, (stiffness, damping), 0usize));
+                for delay in [0usize, 1] {
+                    cases.push((step_us, (stiffness, damping), delay));
+                }
             }
         }
-        for damping in [0.5f32, 2.0, 8.0] {
-            cases.push((step_us, (1000.0, damping), 1));
-        }
     }
-    for (step_us, grip, delay) in cases {
+    let mut given_back = Vec::new();
+    for ((step_us, grip, delay), noise_m) in cases
+        .into_iter()
+        .flat_map(|case| [1e-6f32, 5e-6, 8e-6].map(|noise| (case, noise)))
+    {
         let (absorbed, peak, peak_force_n) =
-            press_release(&field, &config, step_us, grip, 5e-6, delay);
+            press_release(&field, &config, step_us, grip, noise_m, delay);
         let what = format!(
-            "{} Hz, grip {} N/m {} N·s/m, delay {delay}",
+            "{} Hz, grip {} N/m {} N·s/m, delay {delay}, noise {} µm",
             1_000_000 / step_us,
             grip.0,
-            grip.1
+            grip.1,
+            noise_m * 1e6
         );
         eprintln!(
             "{what}: peak {peak_force_n:.2} N, peak energy {:.3} mJ, net absorbed {:.4} mJ",
@@ -518,13 +523,15 @@ fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() 
             absorbed * 1e3
         );
         assert!(peak_force_n > 0.5, "{what}: the press was felt");
-        assert!(
-            absorbed >= -0.01 * peak,
-            "{what}: the device gave back {} mJ more than it took (peak {} mJ)",
-            -absorbed * 1e3,
-            peak * 1e3
-        );
+        if absorbed < -0.01 * peak {
+            given_back.push(format!(
+                "{what}: the device gave back {:.4} mJ more than it took (peak {:.3} mJ)",
+                -absorbed * 1e3,
+                peak * 1e3
+            ));
+        }
     }
+    assert!(given_back.is_empty(), "{given_back:#?}");
 }
 
 #[test]

@@ -269,9 +269,27 @@ mod tests {
     }
 
     #[test]
-    fn listing_this_machine_does_not_fail_or_panic() {
-        // No devices are expected here; the call must still return cleanly.
-        let (devices, _notes) = list_all();
-        let _ = report(&devices, &[]);
+    fn listing_this_machine_gives_a_line_per_device_and_a_spec_for_each_supported_one() {
+        // Whatever this machine has connected (often nothing): the report has one line per
+        // device naming its path, or says there are none, and every device the listing marks
+        // as supported carries the spec `supported_spec` gives for its ids.
+        let (devices, notes) = list_all();
+        let text = report(&devices, &notes);
+        if devices.is_empty() {
+            assert!(
+                text.starts_with("No HID devices or serial ports found."),
+                "{text}"
+            );
+        }
+        for d in &devices {
+            assert!(text.contains(&d.path), "{} missing from:\n{text}", d.path);
+            assert_eq!(
+                d.spec,
+                supported_spec(d.transport, d.vendor_id, d.product_id, &d.path),
+                "{}",
+                d.path
+            );
+        }
+        assert_eq!(text.matches("note: ").count(), notes.len());
     }
 }

@@ -255,9 +255,9 @@ struct Bridge {
     opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
-    loads: Vec<Receiver<Result<String, String>>>,
+    loads: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// Answers to pin and unpin commands.
-    pin_replies: Vec<Receiver<Result<String, String>>>,
+    pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// The pins revision last asked about, and the list asked for.
     pins_seen: Option<u64>,
     pins_list: Option<Receiver<Vec<crate::dynamics::Constraint>>>,
@@ -270,8 +270,8 @@ struct Bridge {
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
 /// into its detail line) and forgets the channels that answered or hung up.
-fn forward_replies<T>(
-    pending: &mut Vec<Receiver<Result<T, String>>>,
+fn forward_replies<T, E: std::fmt::Display>(
+    pending: &mut Vec<Receiver<Result<T, E>>>,
     events: &Sender<EngineEvent>,
     what: &str,
     describe: impl Fn(T) -> String,
@@ -285,7 +285,7 @@ fn forward_replies<T>(
                 },
                 Err(error) => EngineEvent::Failed {
                     what: what.into(),
-                    error,
+                    error: error.to_string(),
                 },
             };
             let _ = events.send(ev);
@@ -362,7 +362,7 @@ impl Bridge {
     /// asked for applies from its first tick); the old device is closed here.
     fn connect(&mut self, what: &str, spec: &DeviceSpec, max_force_n: f32) {
         if let Err(e) = self.engine.force_limit().request(max_force_n) {
-            self.fail(what, e);
+            self.fail(what, e.to_string());
             return;
         }
         let device = match (self.opener)(spec) {
@@ -510,7 +510,7 @@ impl Bridge {
             EngineCommand::Load { path } => match self.engine.request_load(&path) {
                 // The simulation answers between two steps; serve() forwards it.
                 Ok(rx) => self.loads.push(rx),
-                Err(error) => self.fail(what, error),
+                Err(error) => self.fail(what, error.to_string()),
             },
             EngineCommand::SetMaxForce { max_force_n } => {
                 match self.engine.force_limit().request(max_force_n) {
@@ -528,7 +528,7 @@ impl Bridge {
                             detail,
                         });
                     }
-                    Err(error) => self.fail(what, error),
+                    Err(error) => self.fail(what, error.to_string()),
                 }
             }
             EngineCommand::SetHapticGain { gain } => match self.engine.haptic_gain().set(gain) {

@@ -30,6 +30,66 @@ pub enum Commands {
     Render(RenderArgs),
     /// Open the interactive sculpting window (egui on wgpu).
     Gui(PassThrough),
+    /// Fit a clay to a point cloud (.xyz, .txt, .pts, .ply) or a volume (.raw, .nrrd) and
+    /// write it as a session.
+    Import(ImportArgs),
+}
+
+/// A raw volume's sample type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum RawSample {
+    /// Unsigned 8-bit.
+    U8,
+    /// Unsigned 16-bit.
+    U16,
+    /// Signed 16-bit.
+    I16,
+    /// 32-bit float.
+    F32,
+}
+
+fn parse_dims(s: &str) -> Result<[usize; 3], String> {
+    let v: Vec<usize> = s
+        .split(',')
+        .map(|t| t.trim().parse::<usize>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{s}`: three whole numbers X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] => Ok([x, y, z]),
+        _ => Err(format!("`{s}`: three whole numbers X,Y,Z")),
+    }
+}
+
+/// `dynaclay import`.
+#[derive(Debug, Args, Clone)]
+pub struct ImportArgs {
+    /// The point cloud: XYZ text (`x y z` or `x y z nx ny nz` per line) or PLY (ASCII or
+    /// binary, normals used when present); or a volume: raw samples (`.raw`, with `--dims`)
+    /// or NRRD (`.nrrd`, data in the same file, raw encoding).
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// A volume's iso-value: intensities above it are solid (required for volumes).
+    #[arg(long, value_name = "V")]
+    pub iso: Option<f32>,
+    /// A raw volume's voxels per axis, `X,Y,Z` (x fastest in the file).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_dims)]
+    pub dims: Option<[usize; 3]>,
+    /// A raw volume's sample type (little-endian).
+    #[arg(long, value_enum, default_value_t = RawSample::U8)]
+    pub sample: RawSample,
+    /// The session to write (`.dclay`).
+    #[arg(long, value_name = "SESSION")]
+    pub out: PathBuf,
+    /// Coefficients per axis of the fitted clay (12 to 256; the object spans this less eight).
+    #[arg(long, default_value_t = 32, value_name = "N")]
+    pub resolution: usize,
+    /// Without normals: the widest gap between neighbouring points that still closes the
+    /// surface, in knot spans (above 0, below 2).
+    #[arg(long, default_value_t = crate::fit::cloud::DEFAULT_GAP_SPANS, value_name = "SPANS")]
+    pub gap: f32,
+    /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
 }
 
 /// Arguments kept for subcommands that other builds provide.

@@ -19,6 +19,7 @@ macro_rules! say_raw {
 
 mod args;
 mod devices;
+mod import;
 mod outputs;
 mod profile;
 mod render;
@@ -46,6 +47,7 @@ pub fn dispatch(cli: Cli) -> i32 {
             crate::app::LaunchError::Session(s) => CliError::Session(s),
         }),
         Commands::Render(a) => render(&a).map(|_| ()),
+        Commands::Import(a) => import::import(&a),
     };
     match result {
         Ok(()) => 0,

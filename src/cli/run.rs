@@ -360,7 +360,7 @@ fn install_session(
     commands: &crossbeam::channel::Sender<crate::engine::Command>,
     start: &Session,
     session_path: &Path,
-) -> crossbeam::channel::Receiver<Result<String, String>> {
+) -> crossbeam::channel::Receiver<Result<String, crate::engine::CommandError>> {
     let (tx, rx) = crossbeam::channel::bounded(1);
     let mut session = start.clone();
     if session.meta.created_unix_s == 0 {
@@ -384,7 +384,7 @@ pub(super) fn unix_now_s() -> u64 {
 
 /// Stops the run when the engine refused or never answered the starting session.
 fn installed_or_stop(
-    reply: Result<Result<String, String>, RecvTimeoutError>,
+    reply: Result<Result<String, crate::engine::CommandError>, RecvTimeoutError>,
     session_path: &Path,
 ) -> Result<(), CliError> {
     match reply {

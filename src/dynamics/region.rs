@@ -6,9 +6,7 @@
 //! `d = A' p_R + d_fixed`. Mass points just outside R are fixed too: a boundary mass point's
 //! spring to an outside neighbour pulls it toward its own rest density, which anchors R.
 
-use crate::field::{
-    BSplineLattice, CoeffBox, KronError, KronScratch, KroneckerBasis, MassGrid, apply_axes,
-};
+use crate::field::{BSplineLattice, CoeffBox, KronError, KronScratch, KroneckerBasis, MassGrid};
 
 use super::material::Material;
 
@@ -181,25 +179,7 @@ impl RegionState {
     }
 
     fn d_fixed_from(&mut self, lattice: &BSplineLattice) {
-        let b = self.grid.coeffs;
-        let (axes, grown) = self.grid.influence_axes(lattice.dims);
-        let gd = grown.dims();
-        let mut outside = vec![0.0_f32; grown.count()];
-        for k in 0..gd[2] {
-            for j in 0..gd[1] {
-                for i in 0..gd[0] {
-                    let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
-                    if !b.contains(gi, gj, gk) {
-                        outside[i + gd[0] * (j + gd[1] * k)] =
-                            lattice.coeffs[lattice.index(gi, gj, gk)];
-                    }
-                }
-            }
-        }
-        let m = self.grid.dims;
-        let len = m[0] * m[1].max(gd[1]) * m[2].max(gd[2]);
-        let (mut sa, mut sb) = (vec![0.0; len], vec![0.0; len]);
-        apply_axes(&axes, &outside, &mut self.d_fixed, &mut sa, &mut sb);
+        self.grid.fixed_outside(lattice, &mut self.d_fixed);
     }
 
     /// `d = A' p_R + d_fixed` recomputed exactly.

@@ -87,8 +87,8 @@ impl ToolChoice {
     }
 }
 
-/// Where a command's outcome goes: `Ok` with a short account, or the error message.
-pub type Reply = Sender<Result<String, String>>;
+/// Where a command's outcome goes: `Ok` with a short account, or what went wrong.
+pub type Reply = Sender<Result<String, super::CommandError>>;
 
 /// A request to the simulation thread. Each is applied between two steps, in order.
 #[derive(Debug)]

@@ -1,55 +1,157 @@
-//! Why the engine could not start or finish.
+//! Why the engine could not start or finish, and why a command to a running engine failed.
 
 use std::fmt;
+use std::path::PathBuf;
+use std::time::Duration;
+
+use glam::Vec3;
 
 use dynaclay_devices::DeviceError;
 use dynaclay_loops::LoopError;
 
+use crate::field::BSplineLattice;
+use crate::io::SessionError;
 use crate::mesh::GridError;
+use crate::tools::ToolError;
 
 /// An engine failure, naming the part that failed.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum EngineError {
     /// Opening or closing the device failed.
-    Device(DeviceError),
+    #[error("device: {0}")]
+    Device(#[from] DeviceError),
     /// The meshing grid could not be made for the field.
-    Mesh(GridError),
+    #[error("mesh grid: {0}")]
+    Mesh(#[from] GridError),
     /// A loop could not start, or panicked.
-    Loop(LoopError),
+    #[error("loop: {0}")]
+    Loop(#[from] LoopError),
     /// A loop thread ended without handing its state back (it panicked).
+    #[error("the {0} loop ended without handing back its state")]
     Lost(&'static str),
     /// A device could not be switched while running.
-    DeviceSwap(String),
+    #[error("device switch: {0}")]
+    DeviceSwap(SwapRefused),
 }
 
-impl fmt::Display for EngineError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Device(e) => write!(f, "device: {e}"),
-            Self::Mesh(e) => write!(f, "mesh grid: {e}"),
-            Self::Loop(e) => write!(f, "loop: {e}"),
-            Self::Lost(what) => write!(f, "the {what} loop ended without handing back its state"),
-            Self::DeviceSwap(why) => write!(f, "device switch: {why}"),
+/// Why a running device switch did not happen.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SwapRefused {
+    /// The haptic loop did not take the new device in time; the current device stays.
+    #[error(
+        "the haptic loop did not take the new device within {waited:?} (it has stopped, or another change is pending); the current device stays"
+    )]
+    NotTaken {
+        /// How long the engine waited.
+        waited: Duration,
+    },
+    /// The haptic loop took the new device but never handed the old one back.
+    #[error("the haptic loop took the new device but never returned the old one")]
+    Lost,
+}
+
+/// A lattice's shape as the engine compares it: the running engine's loops hold copies of
+/// exactly this shape.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LatticeShape {
+    /// Coefficients per axis.
+    pub dims: [usize; 3],
+    /// Knot spacing, field units.
+    pub spacing: f32,
+    /// Position of coefficient (0, 0, 0), field units.
+    pub origin: Vec3,
+    /// The iso-level of the surface.
+    pub iso: f32,
+}
+
+impl LatticeShape {
+    /// The shape of `lattice`.
+    #[must_use]
+    pub fn of(lattice: &BSplineLattice) -> Self {
+        Self {
+            dims: lattice.dims,
+            spacing: lattice.spacing,
+            origin: lattice.origin,
+            iso: lattice.iso,
         }
     }
 }
 
-impl std::error::Error for EngineError {}
-
-impl From<DeviceError> for EngineError {
-    fn from(e: DeviceError) -> Self {
-        Self::Device(e)
+impl fmt::Display for LatticeShape {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let [x, y, z] = self.dims;
+        write!(
+            f,
+            "{x}×{y}×{z} coefficients at spacing {}, origin {}, iso {}",
+            self.spacing, self.origin, self.iso
+        )
     }
 }
 
-impl From<GridError> for EngineError {
-    fn from(e: GridError) -> Self {
-        Self::Mesh(e)
-    }
+/// Why a session cannot replace the clay of a running engine; nothing changed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LoadRefused {
+    /// The session holds no density patch.
+    #[error("{}: the session has no density patch; the running engine sculpts one", file.display())]
+    NoPatch {
+        /// The session's file.
+        file: PathBuf,
+    },
+    /// The sculpted patch's lattice differs from the running one.
+    #[error(
+        "{}: the session's lattice ({session}) differs from the running engine's ({running}); start the engine on this session instead",
+        file.display()
+    )]
+    LatticeMismatch {
+        /// The session's file.
+        file: PathBuf,
+        /// The session's first patch.
+        session: LatticeShape,
+        /// The running engine's lattice.
+        running: LatticeShape,
+    },
+    /// A coefficient is NaN or infinite.
+    #[error("{}: density coefficient {index} is {value}, not a finite number", file.display())]
+    NonFinite {
+        /// The session's file.
+        file: PathBuf,
+        /// Index of the first such coefficient.
+        index: usize,
+        /// Its value.
+        value: f32,
+    },
 }
 
-impl From<LoopError> for EngineError {
-    fn from(e: LoopError) -> Self {
-        Self::Loop(e)
-    }
+/// Why a command to the running simulation failed.
+#[derive(Debug, thiserror::Error)]
+pub enum CommandError {
+    /// A geometric tool or a CSG operation failed (`what` names it); poses applied before the
+    /// failure stay, as one undo step.
+    #[error("{what}: {error}")]
+    Tool {
+        /// The tool or operation.
+        what: String,
+        /// What went wrong.
+        error: ToolError,
+    },
+    /// The session could not be read.
+    #[error(transparent)]
+    Read(#[from] SessionError),
+    /// The session does not fit the running engine.
+    #[error(transparent)]
+    Load(#[from] LoadRefused),
+    /// A pin could not be made or removed (nothing changed).
+    #[error(transparent)]
+    Pin(#[from] crate::tools::PinError),
+    /// The simulation loop is no longer running.
+    #[error("the simulation loop has stopped")]
+    Stopped,
+    /// No answer came in time.
+    #[error("no answer to the {what} within {waited:?}")]
+    NoAnswer {
+        /// The command.
+        what: &'static str,
+        /// How long the caller waited.
+        waited: Duration,
+    },
 }

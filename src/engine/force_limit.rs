@@ -24,6 +24,14 @@ struct Cells {
     applied: AtomicU32,
 }
 
+/// A force limit that is not a number of newtons, zero or more.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+#[error("max force {requested_n} N: must be a number of newtons, zero or more")]
+pub struct InvalidForceLimit {
+    /// The value asked for.
+    pub requested_n: f32,
+}
+
 impl ForceLimit {
     /// A limit whose request and applied bound start at `requested_n` and `applied_n`.
     #[must_use]
@@ -40,12 +48,12 @@ impl ForceLimit {
     /// (the device's own maximum still caps it; `f32::INFINITY` means the device's maximum).
     ///
     /// # Errors
-    /// A NaN or negative value, with the value in the message; nothing changes then.
-    pub fn request(&self, max_force_n: f32) -> Result<(), String> {
+    /// A NaN or negative value; nothing changes then.
+    pub fn request(&self, max_force_n: f32) -> Result<(), InvalidForceLimit> {
         if max_force_n.is_nan() || max_force_n < 0.0 {
-            return Err(format!(
-                "max force {max_force_n} N: must be a number of newtons, zero or more"
-            ));
+            return Err(InvalidForceLimit {
+                requested_n: max_force_n,
+            });
         }
         self.inner
             .requested
@@ -92,7 +100,8 @@ mod tests {
         assert_eq!(other.requested_n(), 2.5);
         assert_eq!(other.requested_bits(), 2.5f32.to_bits());
         let err = limit.request(-1.0).unwrap_err();
-        assert!(err.contains("-1"), "{err}");
+        assert_eq!(err.requested_n, -1.0);
+        assert!(err.to_string().contains("-1 N"), "{err}");
         assert!(limit.request(f32::NAN).is_err());
         assert_eq!(other.requested_n(), 2.5, "refused values change nothing");
         other.set_applied(2.5);

@@ -32,8 +32,8 @@ pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
 };
-pub use error::EngineError;
-pub use force_limit::ForceLimit;
+pub use error::{CommandError, EngineError, LatticeShape, LoadRefused, SwapRefused};
+pub use force_limit::{ForceLimit, InvalidForceLimit};
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
 pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};

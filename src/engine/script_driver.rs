@@ -19,10 +19,10 @@ pub struct ScriptDriver {
     next: Option<PlannedEvent>,
     origin_us: Option<u64>,
     /// Outcomes still to come: (step, receiver).
-    waiting: Vec<(usize, Receiver<Result<String, String>>)>,
+    waiting: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
     saves: Vec<(usize, Receiver<Result<std::path::PathBuf, String>>)>,
     /// Outcomes worth telling the user (pins: which points were moved onto the surface).
-    telling: Vec<(usize, Receiver<Result<String, String>>)>,
+    telling: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
     notes: Vec<(usize, String)>,
     failures: Vec<ScriptError>,
     sent: usize,
@@ -171,7 +171,7 @@ impl ScriptDriver {
         self.waiting.retain(|(step, rx)| match rx.try_recv() {
             Ok(Ok(_)) | Err(TryRecvError::Disconnected) => false,
             Ok(Err(e)) => {
-                failed.push((*step, e));
+                failed.push((*step, e.to_string()));
                 false
             }
             Err(TryRecvError::Empty) => true,
@@ -191,7 +191,7 @@ impl ScriptDriver {
                 false
             }
             Ok(Err(e)) => {
-                failed.push((*step, e));
+                failed.push((*step, e.to_string()));
                 false
             }
             Err(TryRecvError::Disconnected) => false,

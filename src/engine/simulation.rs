@@ -34,6 +34,7 @@ use glam::Vec3;
 
 use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
+use super::error::{CommandError, LatticeShape, LoadRefused};
 use super::live_tool::LiveTool;
 use super::patch::{FieldPatch, union_box};
 use super::sim_status::SimStatus;
@@ -401,13 +402,13 @@ impl SimulationStage {
                 done.is_ok()
             }
             Command::Constrain { request, reply } => {
-                let result = self.pin(&request).map_err(|e| e.to_string());
+                let result = self.pin(&request).map_err(CommandError::from);
                 let ok = result.is_ok();
                 reply.map(|r| r.send(result));
                 ok
             }
             Command::Unconstrain { index, reply } => {
-                let result = self.unpin(index).map_err(|e| e.to_string());
+                let result = self.unpin(index).map_err(CommandError::from);
                 let ok = result.is_ok();
                 reply.map(|r| r.send(result));
                 ok
@@ -422,7 +423,7 @@ impl SimulationStage {
                 let result = self.load(*session, &source);
                 let ok = result.is_ok();
                 if let Some(r) = reply {
-                    let _ = r.send(result);
+                    let _ = r.send(result.map_err(CommandError::from));
                 }
                 ok
             }
@@ -461,10 +462,13 @@ impl SimulationStage {
                     report.visited, report.dirtied
                 ))
             }
-            Err(e) => {
+            Err(error) => {
                 // A failed application may have applied earlier poses: publish the patch.
                 self.mark_changed(CoeffBox::whole(self.lattice().dims));
-                Err(format!("{what}: {e}"))
+                Err(CommandError::Tool {
+                    what: what.to_owned(),
+                    error,
+                })
             }
         };
         let ok = answer.is_ok();
@@ -783,7 +787,11 @@ impl SimulationStage {
     /// # Errors
     /// When the session does not fit the running engine (see [`check_loadable`]); nothing
     /// changes then.
-    pub fn load(&mut self, session: Session, source: &std::path::Path) -> Result<String, String> {
+    pub fn load(
+        &mut self,
+        session: Session,
+        source: &std::path::Path,
+    ) -> Result<String, LoadRefused> {
         check_loadable(self.lattice(), &session, source)?;
         let ignored_grids = session.material.grids.len();
         // The stroke in progress ends on the old clay (its step is dropped with the history).
@@ -866,40 +874,30 @@ impl SimulationStage {
 /// finite coefficients.
 ///
 /// # Errors
-/// A message naming `source` and the first mismatch.
+/// The first mismatch, naming `source`.
 pub fn check_loadable(
     running: &BSplineLattice,
     session: &Session,
     source: &std::path::Path,
-) -> Result<(), String> {
-    let shown = source.display();
+) -> Result<(), LoadRefused> {
+    let file = || source.to_path_buf();
     let Some(patch) = session.clay.patches.first() else {
-        return Err(format!(
-            "{shown}: the session has no density patch; the running engine sculpts one"
-        ));
+        return Err(LoadRefused::NoPatch { file: file() });
     };
-    let describe = |l: &BSplineLattice| {
-        format!(
-            "{}×{}×{} coefficients at spacing {}, origin {}, iso {}",
-            l.dims[0], l.dims[1], l.dims[2], l.spacing, l.origin, l.iso
-        )
-    };
-    if patch.dims != running.dims
-        || patch.spacing != running.spacing
-        || patch.origin != running.origin
-        || patch.iso != running.iso
-    {
-        return Err(format!(
-            "{shown}: the session's lattice ({}) differs from the running engine's ({}); start the engine on this session instead",
-            describe(patch),
-            describe(running)
-        ));
+    let (ours, theirs) = (LatticeShape::of(running), LatticeShape::of(patch));
+    if ours != theirs {
+        return Err(LoadRefused::LatticeMismatch {
+            file: file(),
+            session: theirs,
+            running: ours,
+        });
     }
-    if let Some(i) = patch.coeffs.iter().position(|c| !c.is_finite()) {
-        return Err(format!(
-            "{shown}: density coefficient {i} is {}, not a finite number",
-            patch.coeffs[i]
-        ));
+    if let Some(index) = patch.coeffs.iter().position(|c| !c.is_finite()) {
+        return Err(LoadRefused::NonFinite {
+            file: file(),
+            index,
+            value: patch.coeffs[index],
+        });
     }
     Ok(())
 }
@@ -1078,11 +1076,19 @@ mod tests {
         none.clay.patches.clear();
         smaller.iso = before.iso;
         let cases = [
-            (session_with(smaller, Material::ELASTIC), "differs"),
-            (session_with(nan, Material::ELASTIC), "coefficient 7"),
-            (none, "no density patch"),
+            (
+                session_with(smaller, Material::ELASTIC),
+                "differs",
+                "LatticeMismatch",
+            ),
+            (
+                session_with(nan, Material::ELASTIC),
+                "coefficient 7",
+                "NonFinite",
+            ),
+            (none, "no density patch", "NoPatch"),
         ];
-        for (session, expected) in cases {
+        for (session, expected, kind) in cases {
             let (tx, rx) = bounded(1);
             s.commands
                 .send(Command::Load {
@@ -1093,9 +1099,14 @@ mod tests {
                 .unwrap();
             run_ticks(&mut s, 2);
             let err = rx.try_recv().unwrap().unwrap_err();
+            let CommandError::Load(refused) = &err else {
+                panic!("a load refusal: {err:?}");
+            };
+            assert!(format!("{refused:?}").starts_with(kind), "{refused:?}");
+            let shown = err.to_string();
             assert!(
-                err.contains("other.dclay") && err.contains(expected),
-                "{err}"
+                shown.contains("other.dclay") && shown.contains(expected),
+                "{shown}"
             );
         }
         assert_eq!(s.sim.lattice(), &before);

@@ -22,7 +22,7 @@ use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::{CounterSnapshot, EngineCounters};
 use super::device_swap::{DeviceHandover, DeviceSwapRequest, SwapFailure};
-use super::error::EngineError;
+use super::error::{CommandError, EngineError, SwapRefused};
 use super::force_limit::ForceLimit;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
@@ -306,13 +306,11 @@ impl Engine {
             }
             Err(SwapFailure::NotTaken(mut new) | SwapFailure::Busy(mut new)) => {
                 let _ = new.device.close();
-                Err(EngineError::DeviceSwap(format!(
-                    "the haptic loop did not take the new device within {timeout:?} (it has stopped, or another change is pending); the current device stays"
-                )))
+                Err(EngineError::DeviceSwap(SwapRefused::NotTaken {
+                    waited: timeout,
+                }))
             }
-            Err(SwapFailure::Lost) => Err(EngineError::DeviceSwap(
-                "the haptic loop took the new device but never returned the old one".into(),
-            )),
+            Err(SwapFailure::Lost) => Err(EngineError::DeviceSwap(SwapRefused::Lost)),
         }
     }
 
@@ -377,8 +375,8 @@ impl Engine {
     pub fn request_load(
         &self,
         path: &std::path::Path,
-    ) -> Result<Receiver<Result<String, String>>, String> {
-        let session = load_session(path).map_err(|e| e.to_string())?;
+    ) -> Result<Receiver<Result<String, CommandError>>, CommandError> {
+        let session = load_session(path)?;
         let (tx, rx) = bounded(1);
         self.commands
             .send(Command::Load {
@@ -386,7 +384,7 @@ impl Engine {
                 source: path.to_path_buf(),
                 reply: Some(tx),
             })
-            .map_err(|_| "the simulation loop has stopped".to_owned())?;
+            .map_err(|_| CommandError::Stopped)?;
         Ok(rx)
     }
 
@@ -395,12 +393,13 @@ impl Engine {
     /// # Errors
     /// As [`Engine::request_load`], the simulation's refusal (a lattice that does not fit),
     /// or a timeout.
-    pub fn load(&self, path: &std::path::Path, timeout: Duration) -> Result<String, String> {
+    pub fn load(&self, path: &std::path::Path, timeout: Duration) -> Result<String, CommandError> {
         let rx = self.request_load(path)?;
-        match rx.recv_timeout(timeout) {
-            Ok(r) => r,
-            Err(_) => Err(format!("no answer to the load within {timeout:?}")),
-        }
+        rx.recv_timeout(timeout)
+            .unwrap_or(Err(CommandError::NoAnswer {
+                what: "load",
+                waited: timeout,
+            }))
     }
 
     /// Haptic ticks run so far.

@@ -10,7 +10,7 @@
 use glam::Vec3;
 
 use super::axis::AxisBasis;
-use super::kron::{KronError, KroneckerBasis};
+use super::kron::{KronError, KroneckerBasis, apply_axes};
 use super::lattice::BSplineLattice;
 
 /// A box of coefficients, inclusive on both ends, in lattice indices.
@@ -169,5 +169,35 @@ impl MassGrid {
             ],
             grown,
         )
+    }
+
+    /// The fixed part of the densities at this grid's mass points: what the lattice's
+    /// coefficients *outside* the grid's box contribute (`A_outside p_outside`), written into
+    /// `out` (one value per mass point, x fastest). A region's dynamics add it to `A' p_R`; a
+    /// local refit subtracts it from the target before fitting the box.
+    ///
+    /// # Panics
+    /// When `out` is not [`MassGrid::count`] long or the box does not fit the lattice.
+    pub fn fixed_outside(&self, lattice: &BSplineLattice, out: &mut [f32]) {
+        assert_eq!(out.len(), self.count(), "one value per mass point");
+        let b = self.coeffs;
+        let (axes, grown) = self.influence_axes(lattice.dims);
+        let gd = grown.dims();
+        let mut outside = vec![0.0_f32; grown.count()];
+        for k in 0..gd[2] {
+            for j in 0..gd[1] {
+                for i in 0..gd[0] {
+                    let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
+                    if !b.contains(gi, gj, gk) {
+                        outside[i + gd[0] * (j + gd[1] * k)] =
+                            lattice.coeffs[lattice.index(gi, gj, gk)];
+                    }
+                }
+            }
+        }
+        let m = self.dims;
+        let len = m[0] * m[1].max(gd[1]) * m[2].max(gd[2]);
+        let (mut sa, mut sb) = (vec![0.0; len], vec![0.0; len]);
+        apply_axes(&axes, &outside, out, &mut sa, &mut sb);
     }
 }

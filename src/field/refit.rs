@@ -18,7 +18,7 @@
 
 use glam::Vec3;
 
-use super::kron::{KronScratch, apply_axes};
+use super::kron::KronScratch;
 use super::lattice::BSplineLattice;
 use super::mass_grid::{CoeffBox, MassGrid};
 
@@ -94,24 +94,8 @@ pub fn refit_box(
     let [mx, my, mz] = grid.dims;
 
     // Samples of the target minus the fixed contribution of the coefficients outside the box.
-    let (axes, grown) = grid.influence_axes(lattice.dims);
-    let gd = grown.dims();
-    let mut outside = vec![0.0_f32; grown.count()];
-    for k in 0..gd[2] {
-        for j in 0..gd[1] {
-            for i in 0..gd[0] {
-                let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
-                if !coeffs.contains(gi, gj, gk) {
-                    outside[i + gd[0] * (j + gd[1] * k)] =
-                        lattice.coeffs[lattice.index(gi, gj, gk)];
-                }
-            }
-        }
-    }
-    let scratch_len = mx * my.max(gd[1]) * mz.max(gd[2]);
-    let (mut sa, mut sb) = (vec![0.0; scratch_len], vec![0.0; scratch_len]);
     let mut residual = vec![0.0_f32; grid.count()];
-    apply_axes(&axes, &outside, &mut residual, &mut sa, &mut sb);
+    grid.fixed_outside(lattice, &mut residual);
     for k in 0..mz {
         for j in 0..my {
             for i in 0..mx {

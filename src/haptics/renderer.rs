@@ -26,10 +26,10 @@
 //!    the sculpting force fades out and nothing kicks the hand.
 //! 4. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]).
 //! 5. **Passivity.** The observer's damper is added whenever the hand has put in less energy
-//!    than the rendering stores ([`super::PassivityController`]). It comes after the rate
-//!    limit, which would otherwise hold it back half an oscillation and turn it into a source;
-//!    its size is bounded by the device's damping times the (filtered) speed, and the safety
-//!    filter's slew limit after it is the backstop.
+//!    than the rendering stores ([`super::PassivityController`]). It is added to the shaped
+//!    force (not to its target, where the first rate limit would hold it back half an
+//!    oscillation), and the sum passes the rate limit once more, so no step the hand feels
+//!    exceeds the stated rate; the safety filter's slew limit after it is the backstop.
 
 use glam::Vec3;
 
@@ -40,8 +40,14 @@ use super::shaping::{Blend, ForceShaper, ShapingConfig};
 use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
 use crate::field::BSplineLattice;
 
-/// Depth over which the touch damper fades in, metres.
-const DAMPING_FADE_M: f32 = 1e-3;
+/// Depth over which the touch damper fades in, metres: short, because a light touch (1 N on a
+/// 3 kN/m wall is 0.3 mm deep) needs the damper's full share to stay passive on a late
+/// position; long enough that entering at hand speed is no step.
+const DAMPING_FADE_M: f32 = 2e-4;
+/// The touch damper's share of the device's stable damping. The passivity sweep (grips
+/// 100–1000 N/m, 1 and 4 kHz, a one-tick-late position with 1–8 µm of noise) is passive within
+/// 1% from about 0.6; more damping driven by a noisy velocity starts to inject energy itself.
+const TOUCH_DAMPING_SHARE: f32 = 0.6;
 
 /// How the clay feels.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -69,8 +75,8 @@ pub const CALIBRATION_DEPTH_M: f32 = 0.005;
 
 impl HapticConfig {
     /// Settings for a device that renders `max_stiffness_n_per_m` and `max_damping_n_s_per_m`
-    /// stably: touch as stiff as the device allows, a fifth of its damping on the normal, the
-    /// passivity damper capped at its damping.
+    /// stably: touch as stiff as the device allows, [`TOUCH_DAMPING_SHARE`] of its damping on
+    /// the normal, the passivity damper capped at its damping.
     #[must_use]
     pub fn for_device(max_stiffness_n_per_m: f32, max_damping_n_s_per_m: f32) -> Self {
         let damping = if max_damping_n_s_per_m > 0.0 {
@@ -86,7 +92,7 @@ impl HapticConfig {
                 ..PassivityConfig::default()
             },
             touch_stiffness_n_per_m: max_stiffness_n_per_m.max(0.0),
-            touch_damping_n_s_per_m: 0.2 * damping,
+            touch_damping_n_s_per_m: TOUCH_DAMPING_SHARE * damping,
             haptic_gain: 1.0,
         }
     }
@@ -165,6 +171,8 @@ pub struct ForceRenderer {
     proxy: SurfaceProxy,
     sculpt: SculptReaction,
     shaper: ForceShaper,
+    /// The rate limit on the sum sent (shaped force plus passivity damper).
+    output_limit: ForceShaper,
     passivity: PassivityController,
     touch_blend: Blend,
     sculpt_blend: Blend,
@@ -186,6 +194,7 @@ impl ForceRenderer {
             proxy: SurfaceProxy::new(config.proxy),
             sculpt: SculptReaction::default(),
             shaper: ForceShaper::new(config.shaping),
+            output_limit: ForceShaper::new(config.shaping),
             passivity: PassivityController::new(config.passivity),
             touch_blend: Blend::default(),
             sculpt_blend: Blend::default(),
@@ -215,6 +224,7 @@ impl ForceRenderer {
     pub fn reset(&mut self) {
         self.proxy.release();
         self.shaper.reset();
+        self.output_limit.reset();
         self.passivity.reset();
         self.touch_blend.reset();
         self.sculpt_blend.reset();
@@ -298,8 +308,8 @@ impl ForceRenderer {
         let target = (touch_n * wt + sculpt_n * ws) * fade;
 
         // Shaping, then passivity: the damper while in deficit, in contact only (free space
-        // stays free). The damper comes after the rate limit: it answers an oscillation within
-        // the tick, and a damper held back by a rate limit would feed the oscillation instead.
+        // stays free). The damper is added to the shaped force, not to its target: it answers
+        // an oscillation within the tick instead of queueing behind the source's rate limit.
         let shaped = self.shaper.shape(target, dt);
         let force_n = if target == Vec3::ZERO && shaped == Vec3::ZERO {
             self.passivity.between_contacts();
@@ -320,6 +330,9 @@ impl ForceRenderer {
             let damper = self.passivity.damping_n(dt, stored_j);
             shaped + damper.clamp_length_max(input.saturation_n.max(0.0))
         };
+        // The damper's share passes the same rate limit as the rest, on the sum: no step the
+        // hand feels is larger than the stated rate, whatever its source.
+        let force_n = self.output_limit.shape(force_n, dt);
         Felt {
             force_n,
             touch,

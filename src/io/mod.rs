@@ -6,7 +6,6 @@ mod autosave;
 pub mod bounded_read;
 mod error;
 mod format;
-mod run_script;
 mod script;
 mod session;
 
@@ -16,7 +15,6 @@ pub use autosave::{
 };
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
-pub use run_script::{RunSummary, run_script};
 pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, PinKind, SCRIPT_VERSION,
     Script, ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,

@@ -2,9 +2,8 @@
 //! of steps covering every geometric tool, force stroke, material change, CSG, undo/redo and
 //! save, so any session can be scripted. `dynaclay run --script` plays it through the engine
 //! (strokes become the simulated arm's hand trajectory; see `engine::ScriptPlan` for the
-//! timeline); [`super::run_script`] applies it to a session without a device. This module
-//! holds the serde types and the parser, whose errors name the file, line, column and field.
-//! The README's "Script format" section is the user reference.
+//! timeline; `dynaclay run --lockstep` plays it deterministically). This module holds the
+//! serde types and the parser, whose errors name the file, line, column and field. The README's "Script format" section is the user reference.
 //!
 //! ```toml
 //! version = 1

@@ -1,0 +1,201 @@
+//! `dynaclay import`: a point cloud or a volume becomes a session whose clay is fitted to it,
+//! with a mesh to check; bad files and arguments are refused with what and where.
+
+use std::path::Path;
+use std::process::Command;
+
+use dynaclay::io::load_session;
+
+const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+
+/// A torus (ring radius 30, tube radius 10, file units) as XYZ text, without normals.
+fn write_torus_xyz(path: &Path) {
+    let mut text = String::from("# torus\n");
+    for i in 0..150 {
+        for j in 0..60 {
+            let (u, v) = (
+                i as f32 / 150.0 * std::f32::consts::TAU,
+                j as f32 / 60.0 * std::f32::consts::TAU,
+            );
+            let r = 30.0 + 10.0 * v.cos();
+            text.push_str(&format!(
+                "{} {} {}\n",
+                r * u.cos(),
+                10.0 * v.sin(),
+                r * u.sin()
+            ));
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Counts the OBJ mesh's vertices, faces and its Euler characteristic `V − E + F`, and whether
+/// every edge has two faces (closed).
+fn obj_topology(path: &Path) -> (usize, usize, i64, bool) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (mut v, mut faces) = (0usize, Vec::new());
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => v += 1,
+            Some("f") => faces.push(
+                it.map(|t| t.split('/').next().unwrap().parse::<usize>().unwrap())
+                    .collect::<Vec<_>>(),
+            ),
+            _ => {}
+        }
+    }
+    let mut edges = std::collections::HashMap::new();
+    for f in &faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            *edges.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
+        }
+    }
+    let closed = edges.values().all(|&n| n == 2);
+    let euler = v as i64 - edges.len() as i64 + faces.len() as i64;
+    (v, faces.len(), euler, closed)
+}
+
+#[test]
+fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("torus.xyz");
+    write_torus_xyz(&input);
+    let (session, mesh) = (dir.path().join("torus.dclay"), dir.path().join("torus.obj"));
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .arg("--out")
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&mesh)
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(said.contains("9000 points"), "{said}");
+    let loaded = load_session(&session).expect("the session loads");
+    assert_eq!(loaded.clay.patches.len(), 1);
+    assert_eq!(loaded.clay.patches[0].dims, [32; 3]);
+    let (v, f, euler, closed) = obj_topology(&mesh);
+    assert!(v > 1000 && f > 2000, "{v} vertices, {f} faces");
+    assert!(closed, "the fitted surface is closed");
+    assert_eq!(euler, 0, "a torus has genus one (V − E + F = 0)");
+}
+
+#[test]
+fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.xyz");
+    std::fs::write(&bad, "0 0 0\n1 2 x\n").unwrap();
+    let empty = dir.path().join("empty.xyz");
+    std::fs::write(&empty, "# nothing\n").unwrap();
+    let huge = dir.path().join("huge.ply");
+    std::fs::write(
+        &huge,
+        "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+    )
+    .unwrap();
+    let out_ok = dir.path().join("out.dclay");
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (vec![bad.as_os_str()], "bad.xyz:2: `x` is not a number"),
+        (vec![empty.as_os_str()], "empty.xyz: no points"),
+        (vec![huge.as_os_str()], "4000000000 vertices declared"),
+        (vec!["/dev/zero".as_ref()], "unknown point format"),
+    ];
+    for (args, want) in cases {
+        let out = Command::new(BIN)
+            .arg("import")
+            .args(&args)
+            .arg("--out")
+            .arg(&out_ok)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(want), "{err}");
+        assert!(!out_ok.exists(), "nothing written for a refused file");
+    }
+    let torus = dir.path().join("t.xyz");
+    write_torus_xyz(&torus);
+    for (flag, value, want) in [
+        ("--out", "x.txt", "ends in .dclay"),
+        ("--resolution", "4", "resolution 4"),
+        ("--gap", "5", "gap 5 spans"),
+    ] {
+        let mut cmd = Command::new(BIN);
+        cmd.arg("import").arg(&torus);
+        if flag != "--out" {
+            cmd.arg("--out").arg(&out_ok);
+        }
+        let out = cmd.arg(flag).arg(value).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
+        assert!(err.contains(want), "{flag}: {err}");
+    }
+}
+
+#[test]
+fn a_raw_volume_imports_at_its_iso_value_as_a_closed_ball() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ball.raw");
+    // 40³ unsigned bytes: 255 at the centre falling to 0 twenty voxels out.
+    let mut bytes = Vec::new();
+    for k in 0..40 {
+        for j in 0..40 {
+            for i in 0..40 {
+                let d = ((i as f32 - 19.5).powi(2)
+                    + (j as f32 - 19.5).powi(2)
+                    + (k as f32 - 19.5).powi(2))
+                .sqrt();
+                bytes.push((255.0 * (1.0 - d / 20.0)).clamp(0.0, 255.0) as u8);
+            }
+        }
+    }
+    std::fs::write(&input, &bytes).unwrap();
+    let session = dir.path().join("ball.dclay");
+    let run = |extra: &[&str]| {
+        Command::new(BIN)
+            .arg("import")
+            .arg(&input)
+            .arg("--out")
+            .arg(&session)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--dims", "40,40,40"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--iso"));
+    let out = run(&["--iso", "128", "--dims", "40,40,41"]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("64000 bytes of samples"), "{err}");
+
+    let obj = dir.path().join("ball.obj");
+    let out = run(&["--iso", "128", "--dims", "40,40,40", "--mesh"]);
+    assert_eq!(out.status.code(), Some(2), "--mesh needs a file");
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .args(["--iso", "128", "--dims", "40,40,40", "--out"])
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&obj)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(load_session(&session).is_ok());
+    let (_, _, euler, closed) = obj_topology(&obj);
+    assert!(closed);
+    assert_eq!(euler, 2, "a ball has genus zero");
+}
