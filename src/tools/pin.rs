@@ -350,4 +350,35 @@ mod tests {
         assert!(short.contains("at least 2"), "{short}");
         assert!(clay.constraints.is_empty(), "nothing pinned");
     }
+
+    #[test]
+    fn a_pin_step_is_undone_and_redone_with_the_history() {
+        use crate::tools::{History, StepRecorder};
+        let mut clay = ball();
+        let mut history = History::default();
+        let pin = |clay: &mut Clay, history: &mut History, at: Vec3| {
+            let mut rec = StepRecorder::new("pin");
+            rec.touch_constraints(clay);
+            add_pins(clay, &PinRequest::Point(at)).unwrap();
+            assert!(history.commit(rec, clay), "a pin is an undo step");
+        };
+        pin(&mut clay, &mut history, Vec3::new(1.35, 0.95, 0.95));
+        pin(&mut clay, &mut history, Vec3::new(0.95, 1.35, 0.95));
+        let both = clay.constraints.clone();
+        let mut rec = StepRecorder::new("unpin");
+        rec.touch_constraints(&clay);
+        remove_pins(&mut clay, None).unwrap();
+        assert!(history.commit(rec, &clay));
+        assert!(clay.constraints.is_empty());
+        history.undo(&mut clay).unwrap();
+        assert_eq!(clay.constraints, both, "undo of the removal");
+        history.undo(&mut clay).unwrap();
+        assert_eq!(clay.constraints, both[..1], "undo of the second pin");
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay.constraints, both, "redo of the second pin");
+        // A recorder that saw no change of the list records nothing.
+        let mut rec = StepRecorder::new("nothing");
+        rec.touch_constraints(&clay);
+        assert!(!history.commit(rec, &clay));
+    }
 }
