@@ -63,6 +63,7 @@ fn painted_ball_session(path: &Path) {
         clay: Clay {
             patches: vec![lattice],
             colour: Some(colour),
+            constraints: Vec::new(),
         },
         ..Session::default()
     };

@@ -331,6 +331,7 @@ fn session_with_every_section() -> dynaclay::io::Session {
         clay: Clay {
             patches: vec![patch, second],
             colour: Some(colour),
+            constraints: Vec::new(),
         },
         material: MaterialFields {
             uniform: Material::PLASTIC,
@@ -505,4 +506,57 @@ fn out_naming_a_file_says_it_is_not_a_directory() {
         "{err}"
     );
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+}
+
+/// A `constrain` step through `dynaclay run`: the run says which point it moved onto the
+/// surface, the session keeps the pin, and an `unconstrain` of a pin that does not exist
+/// fails the run with the step and the reason.
+#[test]
+fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("pin.toml");
+    std::fs::write(
+        &script,
+        "version = 1\nseconds = 1.0\n\n[[step]]\ndo = \"constrain\"\nkind = \"point\"\nat = [1.15, 1.75, 1.15]\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(dir.path().join("ok"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("script step 1: pinned a point")
+            && stdout.contains("[1.1500, 1.7500, 1.1500] was off the surface"),
+        "{stdout}"
+    );
+    let session = load_session(&dir.path().join("ok/session.dclay")).unwrap();
+    assert_eq!(session.clay.constraints.len(), 1, "the pin is saved");
+
+    std::fs::write(
+        &script,
+        "version = 1\nseconds = 1.0\n\n[[step]]\ndo = \"unconstrain\"\nindex = 3\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(dir.path().join("bad"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("step 1") && stderr.contains("index = 3: the clay has 0 constraint(s)"),
+        "{stderr}"
+    );
 }

@@ -27,6 +27,7 @@ fn valid_session_bytes() -> Vec<u8> {
         clay: Clay {
             patches: vec![lattice],
             colour: Some(colour),
+            constraints: Vec::new(),
         },
         tools: vec![ToolPreset {
             name: "blob".into(),

@@ -218,6 +218,11 @@ pub fn start_bridge(
         tool_radius: PushTool::default().radius,
         saves: Vec::new(),
         loads: Vec::new(),
+        pin_replies: Vec::new(),
+        pins_seen: None,
+        pins_list: None,
+        pin_lines: Vec::new(),
+        pin_marks: Vec::new(),
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -251,6 +256,16 @@ struct Bridge {
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
     loads: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
+    /// Answers to pin and unpin commands.
+    pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
+    /// The pins revision last asked about, and the list asked for.
+    pins_seen: Option<u64>,
+    pins_list: Option<Receiver<Vec<crate::dynamics::Constraint>>>,
+    /// The latest pin list, one line each (copied into every view: the view's buffers
+    /// rotate, so each publication carries the whole list).
+    pin_lines: Vec<String>,
+    /// Where the pins are (see [`EngineView::pin_marks`]).
+    pin_marks: Vec<Vec<Vec3>>,
 }
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
@@ -296,10 +311,12 @@ impl Bridge {
             format!("wrote {}", p.display())
         });
         forward_replies(&mut self.loads, &self.events, "load", |summary| summary);
+        forward_replies(&mut self.pin_replies, &self.events, "pins", |detail| detail);
         // Nothing to show before the simulation's first step (its material is not known yet).
         let Some(status) = self.engine.sim_status() else {
             return;
         };
+        self.poll_pins(status.pins_revision);
         let tool = self.engine.latest_tool();
         let counters = self.engine.counters().snapshot();
         let loops = self.engine.loop_stats().map(|(_, stats)| stats);
@@ -307,7 +324,10 @@ impl Bridge {
         let device = &self.device;
         let connected = self.connected;
         let radius = self.tool_radius;
+        let (pin_lines, pin_marks) = (&self.pin_lines, &self.pin_marks);
         self.view.write_with(|v| {
+            v.pins.clone_from(pin_lines);
+            v.pin_marks.clone_from(pin_marks);
             v.loops = loops;
             v.undo_steps = status.undo_steps;
             v.redo_steps = status.redo_steps;
@@ -376,6 +396,41 @@ impl Bridge {
         }
     }
 
+    /// Asks the engine for its pins when their revision moved, and takes the list in when
+    /// the answer arrived.
+    fn poll_pins(&mut self, revision: u64) {
+        // One question at a time: a newer revision is asked about once the answer is in.
+        if self.pins_seen != Some(revision) && self.pins_list.is_none() {
+            let (tx, rx) = bounded(1);
+            if self
+                .engine
+                .commands()
+                .send(Command::ListPins { reply: tx })
+                .is_ok()
+            {
+                self.pins_seen = Some(revision);
+                self.pins_list = Some(rx);
+            }
+        }
+        let Some(pins) = self.pins_list.as_ref().and_then(|rx| rx.try_recv().ok()) else {
+            return;
+        };
+        self.pins_list = None;
+        self.pin_lines = pins
+            .iter()
+            .enumerate()
+            .map(|(i, p)| crate::tools::describe_pin(i, p))
+            .collect();
+        self.pin_marks = pins
+            .into_iter()
+            .map(|p| match p {
+                crate::dynamics::Constraint::Point { at }
+                | crate::dynamics::Constraint::Normal { at, .. } => vec![at],
+                crate::dynamics::Constraint::Curve { points } => points,
+            })
+            .collect();
+    }
+
     fn fail(&self, what: &str, error: String) {
         let _ = self.events.send(EngineEvent::Failed {
             what: what.into(),
@@ -405,6 +460,28 @@ impl Bridge {
             EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),
             EngineCommand::Undo => self.send(what, Command::Undo),
             EngineCommand::Redo => self.send(what, Command::Redo),
+            EngineCommand::Pin(request) => {
+                let (tx, rx) = bounded(1);
+                self.pin_replies.push(rx);
+                self.send(
+                    what,
+                    Command::Constrain {
+                        request,
+                        reply: Some(tx),
+                    },
+                );
+            }
+            EngineCommand::Unpin { index } => {
+                let (tx, rx) = bounded(1);
+                self.pin_replies.push(rx);
+                self.send(
+                    what,
+                    Command::Unconstrain {
+                        index,
+                        reply: Some(tx),
+                    },
+                );
+            }
             EngineCommand::Save { path } => {
                 let (tx, rx) = bounded(1);
                 self.saves.push(rx);
@@ -617,6 +694,56 @@ mod tests {
             .iter()
             .map(|c| c.indices.len() / 3)
             .sum()
+    }
+
+    /// Pins through the running engine: a pin's answer comes back as an event and the list
+    /// reaches the view; undo and "remove all" empty it again.
+    #[test]
+    fn pins_made_through_the_bridge_are_listed_and_follow_undo_and_removal() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+        })
+        .unwrap();
+        let centre = crate::engine::clay_centre(&field);
+        let on = crate::dynamics::surface_point_on_ray(&field, centre, Vec3::X, 2.0, 0.01)
+            .expect("the sphere has a surface along +x");
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Point(on)))
+            .unwrap();
+        wait_for(&mut link, &mut events, "the pin", |v, ev| {
+            v.pins.len() == 1 && !ev.is_empty()
+        });
+        assert!(
+            matches!(&events[..], [EngineEvent::Done { what, detail }] if what == "pins" && detail.contains("pinned a point")),
+            "{events:?}"
+        );
+        assert!(link.view().value.pins[0].starts_with("0: point at"));
+        link.send(EngineCommand::Undo).unwrap();
+        wait_for(&mut link, &mut events, "the undo", |v, _| v.pins.is_empty());
+        let curve = vec![on, on + Vec3::Y * 0.05, on + Vec3::Y * 0.1];
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Curve(curve)))
+            .unwrap();
+        link.send(EngineCommand::Pin(crate::tools::PinRequest::Normal(on)))
+            .unwrap();
+        // The curve, then the normal and its point.
+        wait_for(&mut link, &mut events, "two pins", |v, _| v.pins.len() == 3);
+        link.send(EngineCommand::Unpin { index: None }).unwrap();
+        wait_for(&mut link, &mut events, "the removal", |v, _| {
+            v.pins.is_empty()
+        });
+        bridge.stop().unwrap();
     }
 
     /// The running engine behind the bridge: loading a session replaces the field in every

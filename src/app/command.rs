@@ -108,6 +108,12 @@ pub enum EngineCommand {
     SetSymmetry(crate::engine::Symmetry),
     Undo,
     Redo,
+    /// Pin a point, curve or normal on the clay (one undo step).
+    Pin(crate::tools::PinRequest),
+    /// Remove pin `index`, or every pin with `None` (one undo step).
+    Unpin {
+        index: Option<usize>,
+    },
     /// Write the session to `path` (atomically).
     Save {
         path: PathBuf,
@@ -150,6 +156,8 @@ impl EngineCommand {
             Self::SetSymmetry(_) => "symmetry",
             Self::Undo => "undo",
             Self::Redo => "redo",
+            Self::Pin(_) => "pin",
+            Self::Unpin { .. } => "unpin",
             Self::Save { .. } => "save",
             Self::Load { .. } => "load",
             Self::Export { .. } => "export",

@@ -632,3 +632,101 @@ fn brush_keys_and_wheels_change_size_strength_and_depth() {
     h.run();
     assert!(h.state().camera.distance < distance, "a plain wheel zooms");
 }
+
+/// Pin mode: a click on the clay pins a point where the pointer meets the clay, a drag pins
+/// the curve it traced, and the list's buttons remove one pin or all; nothing sculpts or
+/// orbits meanwhile.
+#[test]
+fn with_pin_mode_a_click_pins_a_point_a_drag_a_curve_and_the_list_deletes() {
+    use glam::Vec3;
+
+    use crate::engine::build_clay;
+    use crate::io::ClaySpec;
+    use crate::render::{Camera, NamedView};
+    use crate::tools::PinRequest;
+
+    let (mut h, mut end) = harness();
+    let field = build_clay(&ClaySpec::default()).unwrap();
+    end.field.publish_clone_of(&field);
+    h.run();
+    let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
+    h.state_mut().camera = Camera::named(NamedView::Top, lo, hi);
+    h.get_by_label("Pin with the mouse").click();
+    h.run();
+    drain(&end);
+    assert!(h.state().pins.active);
+    let rect = h.state().viewport_rect.expect("the view was laid out");
+    let camera = h.state().camera;
+    let to_screen = |x: Vec3| {
+        let c = camera
+            .view_projection(rect.width() / rect.height())
+            .project_point3(x);
+        egui::pos2(
+            rect.min.x + (c.x + 1.0) * 0.5 * rect.width(),
+            rect.min.y + (1.0 - c.y) * 0.5 * rect.height(),
+        )
+    };
+
+    // A click on the top face pins a point on it.
+    let target = Vec3::new(1.0, 1.725, 1.2);
+    h.hover_at(to_screen(target));
+    h.run();
+    h.drag_at(to_screen(target));
+    h.run();
+    h.drop_at(to_screen(target));
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::Pin(PinRequest::Point(at))] = sent.as_slice() else {
+        panic!("a click pins a point: {sent:?}");
+    };
+    assert!((*at - target).length() < 0.02, "pinned at {at}");
+    assert!((field.value(*at) - field.iso).abs() < 1e-3, "on the clay");
+
+    // A drag across the top face pins the traced curve; the camera stays put.
+    let (from, to) = (Vec3::new(0.8, 1.725, 1.0), Vec3::new(1.4, 1.725, 1.0));
+    h.hover_at(to_screen(from));
+    h.run();
+    h.drag_at(to_screen(from));
+    for i in 0..=20 {
+        h.hover_at(to_screen(from.lerp(to, i as f32 / 20.0)));
+        h.run();
+    }
+    h.drop_at(to_screen(to));
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::Pin(PinRequest::Curve(points))] = sent.as_slice() else {
+        panic!("a drag pins a curve: {sent:?}");
+    };
+    assert!(points.len() >= 10, "{} points", points.len());
+    assert!((points[0] - from).length() < 0.02 && (points[points.len() - 1] - to).length() < 0.02);
+    assert_eq!(h.state().camera, camera, "pinning does not orbit");
+
+    // The engine's list, with a delete button per pin and one for all.
+    let view = EngineView {
+        pins: vec![
+            "0: point at [1.000, 1.725, 1.200]".into(),
+            "1: curve of 13 points from [0.800, 1.725, 1.000] to [1.400, 1.725, 1.000]".into(),
+        ],
+        pin_marks: vec![vec![target], vec![from, to]],
+        ..EngineView::default()
+    };
+    end.view.publish_clone_of(&view);
+    h.run();
+    h.get_by_label("1: curve of 13 points from [0.800, 1.725, 1.000] to [1.400, 1.725, 1.000]");
+    // The marks land where the pins were made on the screen.
+    let marks = h.state().pin_marks_on_screen(rect);
+    assert_eq!(marks.len(), 2);
+    assert!(
+        (marks[0][0] - to_screen(target)).length() < 1.0,
+        "{marks:?}"
+    );
+    assert!((marks[1][1] - to_screen(to)).length() < 1.0, "{marks:?}");
+    let deletes: Vec<_> = h.get_all_by_label("Delete").collect();
+    assert_eq!(deletes.len(), 2);
+    deletes[1].click();
+    h.run();
+    assert_eq!(drain(&end), vec![EngineCommand::Unpin { index: Some(1) }]);
+    h.get_by_label("Remove all pins").click();
+    h.run();
+    assert_eq!(drain(&end), vec![EngineCommand::Unpin { index: None }]);
+}

@@ -11,6 +11,7 @@ mod link;
 mod material_panel;
 mod meshes;
 mod palette;
+mod pin_panel;
 mod pointer_tool;
 mod run;
 mod state;
@@ -31,6 +32,7 @@ pub use link::{
 pub use material_panel::material_ui;
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
+pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
 pub use run::{GuiError, GuiOptions, run_gui};
 pub use state::{DisplaySettings, FilePaths, SculptApp};

@@ -24,6 +24,7 @@ use super::latency::LatencyHistory;
 use super::link::EngineLink;
 use super::material_panel::material_ui;
 use super::palette::ToolPalette;
+use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
 use super::view::{EngineView, WorldBox};
 use super::viewport::{SceneView, camera_input};
@@ -120,6 +121,8 @@ pub struct SculptApp {
     pub symmetry: crate::engine::Symmetry,
     /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
     brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
+    /// Pinning with the mouse, and the list of the clay's pins.
+    pub pins: PinPanel,
 }
 
 /// Brush radius factor per `[` or `]` press.
@@ -279,6 +282,13 @@ impl SculptApp {
                             if haptic_gain_slider(ui, &mut self.device.haptic_gain) {
                                 let gain = self.device.haptic_gain;
                                 self.send(EngineCommand::SetHapticGain { gain });
+                            }
+                        });
+                    egui::CollapsingHeader::new("Pins")
+                        .default_open(true)
+                        .show(ui, |ui| {
+                            if let Some(command) = self.pins.ui(ui, &self.view.pins) {
+                                self.send(command);
                             }
                         });
                     egui::CollapsingHeader::new("Device")
@@ -574,6 +584,7 @@ impl SculptApp {
         }
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            self.paint_pins(ui, rect);
             self.paint_brush_cursor(ui, rect);
             return;
         };
@@ -589,6 +600,7 @@ impl SculptApp {
             Ok(texture) => {
                 let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
                 image.paint_at(ui, rect);
+                self.paint_pins(ui, rect);
                 self.paint_brush_cursor(ui, rect);
             }
             Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
@@ -647,6 +659,10 @@ impl SculptApp {
             modifiers = m;
         }
         self.brush_cursor = None;
+        if self.pins.active {
+            self.pin_input(response, pos, pressed, down, modifiers);
+            return;
+        }
         if !self.pointer.is_connected() {
             self.sculpt_drag = false;
             return;
@@ -710,6 +726,85 @@ impl SculptApp {
         let rim = to_screen(pose.surface + right * radius);
         let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
         self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// With pin mode on, the left button pins instead of sculpting: a click on the clay pins
+    /// a point (Ctrl: a normal), a drag that starts on the clay pins the curve it traces.
+    fn pin_input(
+        &mut self,
+        response: &egui::Response,
+        pos: Option<egui::Pos2>,
+        pressed: bool,
+        down: bool,
+        modifiers: egui::Modifiers,
+    ) {
+        self.pointer.release();
+        let rect = response.rect;
+        let field = &self.link.field().value;
+        let spacing = field.spacing;
+        let hit = pos.filter(|p| rect.contains(*p)).and_then(|p| {
+            let size = rect.size().max(egui::vec2(1.0, 1.0));
+            let ndc = glam::Vec2::new(
+                2.0 * (p.x - rect.min.x) / size.x - 1.0,
+                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+            );
+            let (origin, direction) = self.camera.ray_through(ndc, size.x / size.y);
+            crate::field::pick_surface(field, crate::field::Ray { origin, direction })
+                .map(|h| h.point)
+        });
+        // A gesture starts only with a press on the clay; a press beside it orbits.
+        let starts = pressed && response.hovered() && hit.is_some();
+        let held = down && (self.pins.tracing() || starts);
+        let ctrl = modifiers.ctrl || modifiers.command;
+        if let Some(command) = self.pins.pointer(hit, held, ctrl, spacing) {
+            self.send(command);
+        }
+        self.sculpt_drag = self.pins.tracing();
+    }
+
+    /// The pins' marks in screen points over the view `rect`: one position per point pin,
+    /// the polyline of a curve pin. Marks behind the eye are left out.
+    #[must_use]
+    pub fn pin_marks_on_screen(&self, rect: egui::Rect) -> Vec<Vec<egui::Pos2>> {
+        let size = rect.size().max(egui::vec2(1.0, 1.0));
+        let vp = self.camera.view_projection(size.x / size.y);
+        self.view
+            .pin_marks
+            .iter()
+            .map(|mark| {
+                mark.iter()
+                    .filter_map(|&x| {
+                        let c = vp * x.extend(1.0);
+                        (c.w > 0.0).then(|| {
+                            egui::pos2(
+                                rect.min.x + (c.x / c.w + 1.0) * 0.5 * size.x,
+                                rect.min.y + (1.0 - c.y / c.w) * 0.5 * size.y,
+                            )
+                        })
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Marks the pins over the scene image: a ringed dot per point, a line per curve.
+    fn paint_pins(&self, ui: &egui::Ui, rect: egui::Rect) {
+        let painter = ui.painter_at(rect);
+        let colour = egui::Color32::from_rgb(60, 200, 90);
+        for mark in self.pin_marks_on_screen(rect) {
+            match mark.as_slice() {
+                [p] => {
+                    painter.circle_filled(*p, 3.5, colour);
+                    painter.circle_stroke(*p, 6.0, egui::Stroke::new(1.5, colour));
+                }
+                points => {
+                    painter.add(egui::Shape::line(
+                        points.to_vec(),
+                        egui::Stroke::new(2.5, colour),
+                    ));
+                }
+            }
+        }
     }
 
     /// Paints the brush cursor over the scene image.

@@ -118,6 +118,11 @@ pub struct EngineView {
     /// Sessions loaded into the running engine so far (the app re-reads the material when
     /// this changes).
     pub sessions_loaded: u64,
+    /// The clay's pins, one line each, in the order `EngineCommand::Unpin` counts them.
+    pub pins: Vec<String>,
+    /// Where each pin is, field coordinates: one point for a point or normal pin, the
+    /// polyline of a curve pin (drawn over the view).
+    pub pin_marks: Vec<Vec<Vec3>>,
 }
 
 impl Default for EngineView {
@@ -136,6 +141,8 @@ impl Default for EngineView {
             region: None,
             sim_time_s: 0.0,
             sessions_loaded: 0,
+            pins: Vec::new(),
+            pin_marks: Vec::new(),
         }
     }
 }

@@ -50,10 +50,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         .unwrap_or("import")
         .to_owned();
     let session = Session {
-        clay: Clay {
-            patches: vec![lattice],
-            colour: None,
-        },
+        clay: Clay::single(lattice),
         material: MaterialFields {
             uniform: Material::PLASTIC,
             grids: Vec::new(),

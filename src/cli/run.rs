@@ -437,6 +437,9 @@ fn finish_run(
     if !unsent.is_empty() {
         say!("note: script steps {unsent:?} were not reached");
     }
+    for (step, note) in driver.notes() {
+        say!("script step {step}: {note}");
+    }
     let failures = driver.failures().to_vec();
     for e in failures.iter().skip(1) {
         eprintln!("dynaclay: script error: {e}");

@@ -184,6 +184,7 @@ mod tests {
         let clay = Clay {
             patches: vec![a, b],
             colour: None,
+            constraints: Vec::new(),
         };
         let octree = mesh_clay(&clay, 4).unwrap();
         let (lo, hi) = x_range(&octree);

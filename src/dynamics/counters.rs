@@ -9,6 +9,8 @@ pub struct StageTimes {
     pub spring_forces_ns: u64,
     /// `p̈ = (AᵀMA)⁻¹ Aᵀ f`.
     pub solve_accel_ns: u64,
+    /// Geometric constraints on `p̈` (§7.3; zero without constraints).
+    pub constrain_ns: u64,
     /// Adaptive forward Euler, densities, plasticity.
     pub integrate_ns: u64,
     /// Coefficients into the lattice and the region snapshot.
@@ -22,6 +24,7 @@ impl StageTimes {
         self.gather_forces_ns
             + self.spring_forces_ns
             + self.solve_accel_ns
+            + self.constrain_ns
             + self.integrate_ns
             + self.publish_ns
     }

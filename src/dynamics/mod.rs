@@ -1,6 +1,10 @@
 //! Density-spring dynamics of the implicit solid (Hua & Qin §4, §6, §7.2–§7.3): material,
-//! force mapping, the simulated region and the stepping pipeline.
+//! force mapping, the simulated region, geometric constraints and the stepping pipeline.
 
+mod constraint_model;
+mod constraint_solver;
+#[cfg(test)]
+mod constraint_tests;
 mod counters;
 mod force;
 mod material;
@@ -10,6 +14,13 @@ mod simulator;
 mod springs;
 mod team;
 
+pub use constraint_model::{
+    CURVE_SAMPLES_PER_SPAN, Constraint, ConstraintError, ConstraintRow, MAX_CONSTRAINTS,
+    MAX_CURVE_POINTS, MAX_CURVE_SAMPLES, project_onto_surface,
+};
+pub use constraint_solver::{
+    ConstraintPath, ConstraintReport, ConstraintSolver, RANK_TOLERANCE, REDUCED_MAX_SUPPORT,
+};
 pub use counters::{StageTimes, StepCounters};
 pub use force::{
     Distribution, GAUSS_NODES, GAUSS_WEIGHTS, REFIND_BISECT_STEPS, REFIND_MARCH_STEPS, ToolForce,

@@ -12,6 +12,7 @@ use std::time::Instant;
 
 use crate::field::{BSplineLattice, KronScratch, RegionSnapshot};
 
+use super::constraint_solver::ConstraintSolver;
 use super::counters::{StageTimes, StepCounters};
 use super::force::{ToolForce, force_integral};
 use super::material::{AccelSolver, Neighbourhood, StepParams};
@@ -169,6 +170,23 @@ impl Simulator {
         forces: &[ToolForce],
         snapshot: &mut RegionSnapshot,
     ) -> Result<StepReport, StepError> {
+        self.step_constrained(state, lattice, forces, None, snapshot)
+    }
+
+    /// [`Simulator::step`] with the geometric constraints of `constraints` held (§7.3): a
+    /// `constrain` stage between `solve_accel` and `integrate` makes `p̈` keep every
+    /// constraint row and removes any drift in the same Euler update.
+    ///
+    /// # Errors
+    /// As [`Simulator::step`].
+    pub fn step_constrained(
+        &mut self,
+        state: &mut RegionState,
+        lattice: &mut BSplineLattice,
+        forces: &[ToolForce],
+        mut constraints: Option<&mut ConstraintSolver>,
+        snapshot: &mut RegionSnapshot,
+    ) -> Result<StepReport, StepError> {
         if !state.coeff_box().fits(lattice.dims) {
             self.counters.failed_steps += 1;
             return Err(StepError::RegionMismatch);
@@ -196,9 +214,34 @@ impl Simulator {
             }
         };
 
+        let (mut max_accel, mut constrain_ns) = (max_accel, 0);
+        if let Some(c) = constraints.as_deref_mut().filter(|c| !c.is_empty()) {
+            let t = Instant::now();
+            c.project_accel(&mut self.accel);
+            max_accel = max_abs(&self.accel).0;
+            constrain_ns = elapsed_ns(t);
+        }
+
         let t = Instant::now();
-        let integrated = self.integrate(state, max_accel);
-        times.integrate_ns = elapsed_ns(t);
+        let (dt_s, halvings) = self.choose_dt(state, max_accel);
+        let mut drift_ns = 0;
+        if let Some(c) = constraints.filter(|c| !c.is_empty()) {
+            let tc = Instant::now();
+            c.enforce_with_drift(
+                &state.p,
+                &state.p_dot,
+                &mut self.accel,
+                dt_s,
+                self.params.integrator,
+            );
+            max_accel = max_abs(&self.accel).0;
+            drift_ns = elapsed_ns(tc);
+        }
+        times.constrain_ns = constrain_ns + drift_ns;
+        let integrated = self
+            .integrate_with_dt(state, dt_s, max_accel)
+            .map(|()| (dt_s, halvings));
+        times.integrate_ns = elapsed_ns(t).saturating_sub(drift_ns);
         let (dt_s, halvings) = match integrated {
             Ok(v) => v,
             Err(e) => {
@@ -489,6 +532,14 @@ impl Simulator {
         state: &mut RegionState,
         max_accel: f32,
     ) -> Result<(f32, u32), StepError> {
+        let (dt, halvings) = self.choose_dt(state, max_accel);
+        self.integrate_with_dt(state, dt, max_accel)?;
+        Ok((dt, halvings))
+    }
+
+    /// The adaptive step (§6): halved while `max_accel · Δt` exceeds the velocity-change
+    /// bound, grown back after calm steps. Stored in `state.dt_s`; returns it and the halvings.
+    fn choose_dt(&mut self, state: &mut RegionState, max_accel: f32) -> (f32, u32) {
         let p = &self.params;
         let mut dt = if state.dt_s > 0.0 {
             state.dt_s.clamp(p.dt_min_s, p.dt_max_s)
@@ -514,7 +565,17 @@ impl Simulator {
         }
         self.counters.halvings += u64::from(halvings);
         state.dt_s = dt;
+        (dt, halvings)
+    }
 
+    /// Forward Euler with the step `dt` (see [`Simulator::integrate`]).
+    fn integrate_with_dt(
+        &mut self,
+        state: &mut RegionState,
+        dt: f32,
+        max_accel: f32,
+    ) -> Result<(), StepError> {
+        let p = &self.params;
         // Bound the new state before writing any of it.
         let (p_max, v_max, finite) =
             passes::coefficient_bounds(&mut self.team, &state.p, &state.p_dot);
@@ -556,7 +617,7 @@ impl Simulator {
         }
         state.time_s += f64::from(dt);
         state.version += 1;
-        Ok((dt, halvings))
+        Ok(())
     }
 
     /// Stage 5: the region's coefficients into the lattice, and a snapshot of them.

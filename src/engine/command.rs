@@ -130,6 +130,26 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
+    /// Pin a point, curve or normal on the clay (one undo step); points off the surface are
+    /// moved onto it first and the outcome on `reply` says so.
+    Constrain {
+        /// What to pin.
+        request: crate::tools::PinRequest,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Remove pin `index`, or every pin when `None` (one undo step).
+    Unconstrain {
+        /// Which pin (its place in the clay's list).
+        index: Option<usize>,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Send the clay's pins (in order: the index `Unconstrain` takes) on `reply`.
+    ListPins {
+        /// Where the list goes.
+        reply: Sender<Vec<crate::dynamics::Constraint>>,
+    },
     /// Undo the latest stroke or tool step (one stroke is one step); nothing to undo is not
     /// an error.
     Undo,

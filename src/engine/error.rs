@@ -140,6 +140,9 @@ pub enum CommandError {
     /// The session does not fit the running engine.
     #[error(transparent)]
     Load(#[from] LoadRefused),
+    /// A pin could not be made or removed (nothing changed).
+    #[error(transparent)]
+    Pin(#[from] crate::tools::PinError),
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,

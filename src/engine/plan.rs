@@ -7,8 +7,8 @@
 //! Steps run in file order against one script clock (seconds; the device's clock during a
 //! run, so a lockstep run is exactly reproducible):
 //!
-//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `undo`, `redo`,
-//!   `save`) takes no script time. It is sent when the clock reaches the end of everything
+//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `constrain`,
+//!   `unconstrain`, `undo`, `redo`, `save`) takes no script time. It is sent when the clock reaches the end of everything
 //!   before it — after the previous stroke has ended with the hand back at hover — and the
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
@@ -35,9 +35,9 @@ use super::workspace::WorkspaceMap;
 use crate::dynamics::Material;
 use crate::io::{
     ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
-    parse_script, poses,
+    parse_script, pin_request, poses,
 };
-use crate::tools::{Clay, GeometricTool, ToolAction, ToolPose};
+use crate::tools::{Clay, GeometricTool, PinRequest, ToolAction, ToolPose};
 
 /// Time the hand takes from hover to the path and back, seconds.
 pub const APPROACH_S: f64 = 0.3;
@@ -97,6 +97,10 @@ pub enum PlannedAction {
     Redo(u32),
     /// Save the session to this path (already joined to the script's folder).
     Save(std::path::PathBuf),
+    /// Pin a place on the clay.
+    Constrain(PinRequest),
+    /// Remove one pin, or all.
+    Unconstrain(Option<usize>),
 }
 
 /// One timed action.
@@ -294,6 +298,15 @@ impl ScriptPlan {
                 ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),
                 ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
                 ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),
+                ScriptStep::Constrain { kind, at, points } => {
+                    let request = pin_request(*kind, *at, points).map_err(fail)?;
+                    event(PlannedAction::Constrain(request));
+                }
+                ScriptStep::Unconstrain { index } => {
+                    // Checked non-negative and bounded when the script was parsed.
+                    let index = index.map(|i| usize::try_from(i).unwrap_or(usize::MAX));
+                    event(PlannedAction::Unconstrain(index));
+                }
             }
         }
         Ok(Self {

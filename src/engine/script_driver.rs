@@ -21,6 +21,9 @@ pub struct ScriptDriver {
     /// Outcomes still to come: (step, receiver).
     waiting: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
     saves: Vec<(usize, Receiver<Result<std::path::PathBuf, String>>)>,
+    /// Outcomes worth telling the user (pins: which points were moved onto the surface).
+    telling: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
+    notes: Vec<(usize, String)>,
     failures: Vec<ScriptError>,
     sent: usize,
 }
@@ -38,6 +41,8 @@ impl ScriptDriver {
             origin_us: None,
             waiting: Vec::new(),
             saves: Vec::new(),
+            telling: Vec::new(),
+            notes: Vec::new(),
             failures: Vec::new(),
             sent: 0,
         }
@@ -125,6 +130,22 @@ impl ScriptDriver {
                 patch,
                 reply: Some(reply()),
             }],
+            PlannedAction::Constrain(request) => {
+                let (tx, rx) = bounded(1);
+                self.telling.push((step, rx));
+                vec![Command::Constrain {
+                    request,
+                    reply: Some(tx),
+                }]
+            }
+            PlannedAction::Unconstrain(index) => {
+                let (tx, rx) = bounded(1);
+                self.telling.push((step, rx));
+                vec![Command::Unconstrain {
+                    index,
+                    reply: Some(tx),
+                }]
+            }
             PlannedAction::Undo(k) => (0..k).map(|_| Command::Undo).collect(),
             PlannedAction::Redo(k) => (0..k).map(|_| Command::Redo).collect(),
             PlannedAction::Save(path) => {
@@ -163,9 +184,31 @@ impl ScriptDriver {
             }
             Err(TryRecvError::Empty) => true,
         });
+        let mut told = Vec::new();
+        self.telling.retain(|(step, rx)| match rx.try_recv() {
+            Ok(Ok(note)) => {
+                told.push((*step, note));
+                false
+            }
+            Ok(Err(e)) => {
+                failed.push((*step, e.to_string()));
+                false
+            }
+            Err(TryRecvError::Disconnected) => false,
+            Err(TryRecvError::Empty) => true,
+        });
+        self.notes.extend(told);
         for (step, e) in failed {
             self.fail(step, e);
         }
+    }
+
+    /// What the steps that report their outcome said (step, message), in the order they
+    /// arrived: each `constrain` step says what it pinned and which points it first moved
+    /// onto the surface.
+    pub fn notes(&mut self) -> &[(usize, String)] {
+        self.collect();
+        &self.notes
     }
 
     fn fail(&mut self, step: usize, message: String) {

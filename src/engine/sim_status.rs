@@ -27,4 +27,7 @@ pub struct SimStatus {
     pub sim_step: u64,
     /// Simulated time, seconds.
     pub sim_time_s: f64,
+    /// Bumped whenever the clay's pins may have changed (pin, unpin, undo, redo, load): an
+    /// observer showing the pins asks for the list again ([`super::Command::ListPins`]).
+    pub pins_revision: u64,
 }

@@ -26,6 +26,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+mod constrain;
+
 use crossbeam::channel::{Receiver, Sender};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
@@ -38,7 +40,7 @@ use super::patch::{FieldPatch, union_box};
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
-use crate::dynamics::{Material, RegionState, Simulator, StepParams, ToolForce};
+use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
@@ -132,6 +134,10 @@ pub struct SimulationStage {
     tool: LiveTool,
     simulator: Simulator,
     region: Option<RegionState>,
+    /// The clay's pins as the live region holds them (see `constrain.rs`).
+    region_pins: ConstraintSolver,
+    /// Bumped by every command that may change the clay's pins (see [`SimStatus`]).
+    pins_revision: u64,
     idle_steps: u32,
     stroke_armed: bool,
     was_active: bool,
@@ -225,6 +231,8 @@ impl SimulationStage {
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
+            region_pins: ConstraintSolver::empty(),
+            pins_revision: 0,
             idle_steps: 0,
             stroke_armed: false,
             was_active: false,
@@ -311,6 +319,7 @@ impl SimulationStage {
     }
 
     fn apply(&mut self, cmd: Command) -> bool {
+        self.pins_revision += u64::from(constrain::may_change_pins(&cmd));
         match cmd {
             Command::SetTool(tool) => {
                 // A held stroke ends with the tool it was made with.
@@ -392,6 +401,19 @@ impl SimulationStage {
                 self.colour_dirty = true;
                 done.is_ok()
             }
+            Command::Constrain { request, reply } => {
+                let result = self.pin(&request).map_err(CommandError::from);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
+            Command::Unconstrain { index, reply } => {
+                let result = self.unpin(index).map_err(CommandError::from);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
+            Command::ListPins { reply } => reply.send(self.clay.constraints.clone()).is_ok(),
             Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
             Command::Load {
                 session,
@@ -521,10 +543,13 @@ impl SimulationStage {
                 (true, true) => &self.mirrored_forces,
             };
             let lattice = &mut self.clay.patches[0];
-            match self
-                .simulator
-                .step(region, lattice, forces, &mut self.scratch)
-            {
+            match self.simulator.step_constrained(
+                region,
+                lattice,
+                forces,
+                Some(&mut self.region_pins),
+                &mut self.scratch,
+            ) {
                 Ok(report) => {
                     out.stepped = true;
                     out.pushed = push;
@@ -588,6 +613,7 @@ impl SimulationStage {
                     if let Some(region) = self.region.as_mut() {
                         // The region's own copy of the coefficients is stale now.
                         region.reload(&self.clay.patches[0]);
+                        self.rebuild_pins();
                     }
                     self.mark_changed(b);
                 }
@@ -622,6 +648,7 @@ impl SimulationStage {
             Ok(state) => self.region = Some(state),
             Err(_) => self.counters.command_errors(1),
         }
+        self.rebuild_pins();
     }
 
     /// Ends the active region: its final coefficients stay in the lattice and are published
@@ -788,6 +815,7 @@ impl SimulationStage {
         self.clay = Clay {
             patches,
             colour: clay.colour,
+            constraints: clay.constraints,
         };
 
         self.colour_dirty = true;
@@ -833,6 +861,7 @@ impl SimulationStage {
             sessions_loaded: self.sessions_loaded,
             sim_step: self.steps,
             sim_time_s: self.sim_time_s,
+            pins_revision: self.pins_revision,
         };
         self.status.publish();
     }
@@ -997,6 +1026,7 @@ mod tests {
             clay: Clay {
                 patches: vec![running, extra],
                 colour: Some(colour),
+                constraints: Vec::new(),
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,

@@ -264,8 +264,8 @@ mod tests {
             stl.extend_from_slice(&[0u8; 12]);
             ascii.push_str("facet normal 0 0 0\nouter loop\n");
             for &i in tri {
-                for k in 0..3 {
-                    stl.extend_from_slice(&v[i as usize][k].to_le_bytes());
+                for c in v[i as usize].to_array() {
+                    stl.extend_from_slice(&c.to_le_bytes());
                 }
                 let p = v[i as usize];
                 ascii.push_str(&format!("vertex {} {} {}\n", p.x, p.y, p.z));

@@ -11,7 +11,8 @@
 //!
 //! Sections in order: `META` (JSON metadata), one `PTCH` per patch (a lattice), `MATL`
 //! (material: mass, damping, stiffness, plasticity, yield, then named grids), `COLR` (four lattices, only when the clay has colour), `TOOL` (the tool
-//! library), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
+//! library), `PINS` (the clay's geometric constraints as a JSON list, only when it has some;
+//! files without it read as having none), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
 //! iso `f32`, coefficient count `u64`, coefficients `f32`. Sections with unknown tags are
 //! checked and skipped, so later minor additions stay readable.
 
@@ -21,7 +22,7 @@ use glam::Vec3;
 
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
-use crate::dynamics::Material;
+use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material};
 use crate::field::BSplineLattice;
 use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
 
@@ -36,6 +37,7 @@ const PATCH: [u8; 4] = *b"PTCH";
 const MATERIAL: [u8; 4] = *b"MATL";
 const COLOUR: [u8; 4] = *b"COLR";
 const TOOLS: [u8; 4] = *b"TOOL";
+const PINS: [u8; 4] = *b"PINS";
 const END: [u8; 4] = *b"END ";
 
 /// Serialises a session.
@@ -101,6 +103,16 @@ pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
         o.extend_from_slice(&encode_tools(&session.tools)?);
         Ok(())
     })?;
+    if !session.clay.constraints.is_empty() {
+        let pins =
+            serde_json::to_vec(&session.clay.constraints).map_err(|e| SessionError::Invalid {
+                detail: format!("constraints: {e}"),
+            })?;
+        section(&mut out, PINS, &mut |o| {
+            o.extend_from_slice(&pins);
+            Ok(())
+        })?;
+    }
     section(&mut out, END, &mut |_| Ok(()))?;
     out[12..16].copy_from_slice(&count.to_le_bytes());
     let crc = crc32fast::hash(&out[..20]);
@@ -235,6 +247,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 session.clay.colour = Some(colour);
             }
             TOOLS => session.tools = decode_tools(&mut r)?,
+            PINS => session.clay.constraints = decode_pins(&r)?,
             END => ended = true,
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
@@ -259,6 +272,23 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
         return Err(malformed(path, "header", 0, "missing META or MATL section"));
     }
     Ok(session)
+}
+
+/// The `PINS` section: a JSON list of constraints, each checked, at most [`MAX_CONSTRAINTS`].
+fn decode_pins(r: &Reader) -> Result<Vec<Constraint>, SessionError> {
+    let pins: Vec<Constraint> =
+        serde_json::from_slice(r.bytes).map_err(|e| r.error(&format!("constraints JSON: {e}")))?;
+    if pins.len() > MAX_CONSTRAINTS {
+        return Err(r.error(&format!(
+            "{} constraints; at most {MAX_CONSTRAINTS} are allowed",
+            pins.len()
+        )));
+    }
+    for (i, pin) in pins.iter().enumerate() {
+        pin.validate()
+            .map_err(|e| r.error(&format!("constraint {i}: {e}")))?;
+    }
+    Ok(pins)
 }
 
 fn malformed(path: &Path, section: &str, offset: usize, detail: &str) -> SessionError {
@@ -629,6 +659,18 @@ mod tests {
             clay: Clay {
                 patches: vec![patch.clone(), patch],
                 colour: Some(colour),
+                constraints: vec![
+                    Constraint::Point {
+                        at: Vec3::new(0.1, 0.2, 0.3),
+                    },
+                    Constraint::Curve {
+                        points: vec![Vec3::ZERO, Vec3::ONE],
+                    },
+                    Constraint::Normal {
+                        at: Vec3::ONE,
+                        normal: Vec3::Z,
+                    },
+                ],
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,
@@ -786,5 +828,37 @@ mod tests {
             }
             other => panic!("{other}"),
         }
+    }
+
+    #[test]
+    fn pins_are_written_only_when_present_and_a_bad_pin_is_named() {
+        let mut session = sample_session();
+        assert!(!session.clay.constraints.is_empty());
+        let with = encode(&session).unwrap();
+        assert!(with.windows(4).any(|w| w == PINS));
+        assert_eq!(decode(&with, Path::new("p.dclay")).unwrap(), session);
+        // Without pins the file is what older builds wrote, and reads back with none.
+        session.clay.constraints.clear();
+        let without = encode(&session).unwrap();
+        assert!(!without.windows(4).any(|w| w == PINS));
+        assert!(
+            decode(&without, Path::new("old.dclay"))
+                .unwrap()
+                .clay
+                .constraints
+                .is_empty()
+        );
+        // A curve of one point under a valid checksum is refused, naming the section.
+        session.clay.constraints = vec![Constraint::Curve {
+            points: vec![Vec3::ZERO],
+        }];
+        let bad = encode(&session).unwrap();
+        let err = decode(&bad, Path::new("bad.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("PINS") && err.contains("constraint 0"),
+            "{err}"
+        );
     }
 }

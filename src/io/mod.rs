@@ -16,7 +16,7 @@ pub use autosave::{
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{
-    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, SCRIPT_VERSION, Script,
-    ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, poses,
+    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, PinKind, SCRIPT_VERSION,
+    Script, ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,
 };
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};

@@ -27,6 +27,11 @@
 //! duration_s = 1.0
 //!
 //! [[step]]
+//! do = "constrain"
+//! kind = "point"
+//! at = [0.9, 0.5, 0.5]
+//!
+//! [[step]]
 //! do = "undo"
 //! ```
 
@@ -35,8 +40,8 @@ use std::path::PathBuf;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::dynamics::{Distribution, Material};
-use crate::tools::{ForceTool, ToolAction, ToolPose, ToolShape};
+use crate::dynamics::{Distribution, MAX_CONSTRAINTS, MAX_CURVE_POINTS, Material};
+use crate::tools::{ForceTool, PinRequest, ToolAction, ToolPose, ToolShape};
 
 /// The version of the script format this build reads.
 pub const SCRIPT_VERSION: u32 = 1;
@@ -455,6 +460,85 @@ pub enum ScriptStep {
     },
     /// Save the session (relative to the script's folder).
     Save { path: PathBuf },
+    /// Pin a place on the clay (one undo step): `kind = "point"` or `"normal"` with `at`,
+    /// `kind = "curve"` with `points`. A point off the surface is moved onto it first, and the
+    /// step says so.
+    Constrain {
+        kind: PinKind,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        at: Option<[f32; 3]>,
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        points: Vec<[f32; 3]>,
+    },
+    /// Remove pin `index` (counted from 0 in the order pinned), or every pin when absent (one
+    /// undo step).
+    Unconstrain {
+        /// Signed so that a negative index is refused with its line, not as a type error.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        index: Option<i64>,
+    },
+}
+
+/// What a `constrain` step pins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PinKind {
+    /// A point that stays on the surface (`at`).
+    Point,
+    /// A polyline the surface keeps passing through (`points`).
+    Curve,
+    /// A normal kept, with its point (`at`).
+    Normal,
+}
+
+/// The pin a `constrain` step asks for.
+///
+/// # Errors
+/// When the keys do not match the kind (`at` for point and normal, `points` for curve) or a
+/// point is not finite.
+pub fn pin_request(
+    kind: PinKind,
+    at: Option<[f32; 3]>,
+    points: &[[f32; 3]],
+) -> Result<PinRequest, String> {
+    match (kind, at, points.is_empty()) {
+        (PinKind::Point | PinKind::Normal, Some(at), true) => {
+            check_points("at", &[at], true)?;
+            let at = Vec3::from_array(at);
+            Ok(if kind == PinKind::Point {
+                PinRequest::Point(at)
+            } else {
+                PinRequest::Normal(at)
+            })
+        }
+        (PinKind::Point | PinKind::Normal, None, _) => {
+            Err(format!("kind = {kind:?} needs at = [x, y, z]").to_lowercase())
+        }
+        (PinKind::Point | PinKind::Normal, Some(_), false) => {
+            Err("points: a point or normal pin takes at = [x, y, z], not points".into())
+        }
+        (PinKind::Curve, None, _) => {
+            check_points("points", points, true)?;
+            if points.len() < 2 {
+                return Err(format!(
+                    "points: a curve needs at least 2 points, got {}",
+                    points.len()
+                ));
+            }
+            if points.len() > MAX_CURVE_POINTS {
+                return Err(format!(
+                    "points: a curve may have at most {MAX_CURVE_POINTS} points, got {}",
+                    points.len()
+                ));
+            }
+            Ok(PinRequest::Curve(
+                points.iter().map(|&p| Vec3::from_array(p)).collect(),
+            ))
+        }
+        (PinKind::Curve, Some(_), _) => {
+            Err("at: a curve pin takes points = [[x, y, z], ...], not at".into())
+        }
+    }
 }
 
 impl ShapeSpec {
@@ -913,7 +997,15 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
                 "count = {count} is more than the {MAX_UNDO_COUNT} steps one undo or redo may take"
             ))
         }
+        ScriptStep::Constrain { kind, at, points } => pin_request(*kind, *at, points).map(|_| ()),
+        ScriptStep::Unconstrain { index: Some(i) } if *i < 0 || *i >= MAX_CONSTRAINTS as i64 => {
+            Err(format!(
+                "index = {i} must be between 0 and {}",
+                MAX_CONSTRAINTS - 1
+            ))
+        }
         ScriptStep::Csg { .. }
+        | ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }
         | ScriptStep::Redo { .. }
         | ScriptStep::Save { .. } => Ok(()),
@@ -1145,5 +1237,45 @@ start_s = 3.0
         let e = parse_script("version = 1\n[clay]\nresolution = 200\n", "c.toml").unwrap_err();
         assert_eq!(e.line, Some(3), "{e}");
         assert!(e.message.contains("clay.resolution"), "{e}");
+    }
+
+    #[test]
+    fn constrain_keys_must_match_their_kind() {
+        let step = |keys: &str| format!("version = 1\n\n[[step]]\ndo = \"constrain\"\n{keys}\n");
+        let ok = [
+            "kind = \"point\"\nat = [1.0, 2.0, 3.0]",
+            "kind = \"normal\"\nat = [1.0, 2.0, 3.0]",
+            "kind = \"curve\"\npoints = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]",
+        ];
+        for keys in ok {
+            parse_script(&step(keys), "pins.toml").unwrap_or_else(|e| panic!("{keys}: {e}"));
+        }
+        parse_script("version = 1\n\n[[step]]\ndo = \"unconstrain\"\n", "u.toml").unwrap();
+        parse_script(
+            "version = 1\n\n[[step]]\ndo = \"unconstrain\"\nindex = 2\n",
+            "u.toml",
+        )
+        .unwrap();
+        let bad = [
+            ("kind = \"point\"", "needs at"),
+            ("kind = \"curve\"\nat = [1.0, 2.0, 3.0]", "not at"),
+            ("kind = \"curve\"\npoints = [[0.0, 0.0, 0.0]]", "at least 2"),
+            ("kind = \"normal\"\nat = [1.0, 2.0, nan]", "not finite"),
+            ("kind = \"edge\"\nat = [1.0, 2.0, 3.0]", "edge"),
+        ];
+        for (keys, expected) in bad {
+            let err = parse_script(&step(keys), "pins.toml").unwrap_err();
+            let shown = err.to_string();
+            assert!(
+                shown.contains(expected) && shown.contains("pins.toml"),
+                "{keys}: {shown}"
+            );
+        }
+        let err = parse_script(
+            "version = 1\n\n[[step]]\ndo = \"unconstrain\"\nindex = -1\n",
+            "u.toml",
+        )
+        .unwrap_err();
+        assert_eq!(err.line, Some(5), "{err}");
     }
 }

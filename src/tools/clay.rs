@@ -6,6 +6,7 @@
 
 use glam::{Vec3, Vec4};
 
+use crate::dynamics::Constraint;
 pub use crate::field::CoeffBox;
 use crate::field::{BSplineLattice, LatticeError};
 
@@ -143,6 +144,9 @@ impl ColourField {
 pub struct Clay {
     pub patches: Vec<BSplineLattice>,
     pub colour: Option<ColourField>,
+    /// Geometric constraints (pins, Hua & Qin §7.3) the dynamics hold on the first patch.
+    /// Changing them is an undo step like any edit.
+    pub constraints: Vec<Constraint>,
 }
 
 impl Clay {
@@ -152,6 +156,7 @@ impl Clay {
         Self {
             patches: vec![patch],
             colour: None,
+            constraints: Vec::new(),
         }
     }
 

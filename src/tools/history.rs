@@ -10,6 +10,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use super::clay::{Clay, CoeffBox, FieldId};
+use crate::dynamics::Constraint;
 
 /// Edge length (in coefficients) of the bricks that deltas are stored in.
 pub const BRICK: usize = 8;
@@ -58,6 +59,34 @@ pub struct Step {
     /// What the user did ("add sphere", "grab stroke"), for menus.
     pub label: String,
     deltas: Vec<BrickDelta>,
+    /// The clay's constraints before and after the step, when it changed them.
+    pins: Option<Box<PinSwap>>,
+}
+
+/// A change of the clay's constraint list (small: the lists are kept whole).
+#[derive(Clone, Debug, PartialEq)]
+struct PinSwap {
+    before: Vec<Constraint>,
+    after: Vec<Constraint>,
+}
+
+impl PinSwap {
+    fn bytes(&self) -> usize {
+        let one = |c: &Constraint| {
+            std::mem::size_of::<Constraint>()
+                + match c {
+                    Constraint::Curve { points } => 12 * points.len(),
+                    _ => 0,
+                }
+        };
+        std::mem::size_of::<Self>()
+            + self
+                .before
+                .iter()
+                .chain(&self.after)
+                .map(one)
+                .sum::<usize>()
+    }
 }
 
 impl Step {
@@ -67,6 +96,7 @@ impl Step {
         std::mem::size_of::<Self>()
             + self.label.len()
             + self.deltas.iter().map(BrickDelta::bytes).sum::<usize>()
+            + self.pins.as_ref().map_or(0, |p| p.bytes())
     }
 
     /// Number of coefficients the step changed bricks of (a brick counts whole).
@@ -108,6 +138,14 @@ impl Step {
                 }
             });
         }
+        if let Some(p) = &self.pins {
+            // Undo finds the list as the step left it; redo finds it as the step found it.
+            clay.constraints = if clay.constraints == p.after {
+                p.before.clone()
+            } else {
+                p.after.clone()
+            };
+        }
         Ok(())
     }
 }
@@ -144,6 +182,8 @@ pub struct StepRecorder {
     label: String,
     /// Old bits of each touched brick, keyed by field and brick index.
     old: BTreeMap<(FieldId, [usize; 3]), SavedBrick>,
+    /// The clay's constraints before the step, when the step may change them.
+    pins_before: Option<Vec<Constraint>>,
 }
 
 /// The bits of one brick before a step.
@@ -161,6 +201,14 @@ impl StepRecorder {
         Self {
             label: label.into(),
             old: BTreeMap::new(),
+            pins_before: None,
+        }
+    }
+
+    /// Remembers the clay's constraint list before the step changes it (once per recorder).
+    pub fn touch_constraints(&mut self, clay: &Clay) {
+        if self.pins_before.is_none() {
+            self.pins_before = Some(clay.constraints.clone());
         }
     }
 
@@ -280,12 +328,22 @@ impl StepRecorder {
                 });
             }
         }
-        if deltas.is_empty() {
+        let pins = self
+            .pins_before
+            .filter(|before| *before != clay.constraints)
+            .map(|before| {
+                Box::new(PinSwap {
+                    before,
+                    after: clay.constraints.clone(),
+                })
+            });
+        if deltas.is_empty() && pins.is_none() {
             return None;
         }
         Some(Step {
             label: self.label,
             deltas,
+            pins,
         })
     }
 }
@@ -638,6 +696,7 @@ mod property {
             let mut clay = Clay {
                 colour: Some(ColourField::matching(&lattice).unwrap()),
                 patches: vec![lattice],
+                constraints: Vec::new(),
             };
             let mut history = History::default();
             let mut timeline = vec![bits(&clay)];

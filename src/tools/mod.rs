@@ -7,6 +7,7 @@ mod clay;
 mod deform;
 mod force;
 mod history;
+mod pin;
 mod shape;
 
 pub use action::{ActionError, ToolAction};
@@ -20,4 +21,8 @@ pub use force::{
     plan_penetration, project_to_surface,
 };
 pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
+pub use pin::{
+    ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
+    check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
+};
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
