@@ -182,6 +182,7 @@ fn main() {
     let field = build_clay(&ClaySpec {
         shape: ClayShape::Block,
         resolution: 20,
+        ..ClaySpec::default()
     })
     .expect("clay");
     let arm = SimArmConfig::default();

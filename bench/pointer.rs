@@ -26,6 +26,7 @@ fn clay_96() -> dynaclay::field::BSplineLattice {
     build_clay(&ClaySpec {
         shape: ClayShape::Block,
         resolution: 96,
+        ..ClaySpec::default()
     })
     .expect("the 96³ block fits")
 }

@@ -254,3 +254,61 @@ fn a_cube_mesh_imports_as_a_closed_clay_near_its_faces() {
         );
     }
 }
+
+#[test]
+fn a_script_starts_from_an_imported_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let cloud = dir.path().join("torus.xyz");
+    write_torus_xyz(&cloud);
+    let session = dir.path().join("scan.dclay");
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&cloud)
+        .arg("--out")
+        .arg(&session)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let script = dir.path().join("start.toml");
+    std::fs::write(
+        &script,
+        "version = 1\nseconds = 0.2\n[clay]\nsession = \"scan.dclay\"\n",
+    )
+    .unwrap();
+    let results = dir.path().join("out");
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(&results)
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(said.contains("starting from"), "{said}");
+    let imported = load_session(&session).unwrap();
+    let written = load_session(&results.join("session.dclay")).unwrap();
+    assert_eq!(
+        written.clay.patches[0].dims, imported.clay.patches[0].dims,
+        "the run sculpted the imported clay"
+    );
+    // A missing session is an argument error naming it.
+    std::fs::write(
+        &script,
+        "version = 1\nseconds = 0.2\n[clay]\nsession = \"nowhere.dclay\"\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(&results)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nowhere.dclay"));
+}

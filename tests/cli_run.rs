@@ -318,6 +318,7 @@ fn session_with_every_section() -> dynaclay::io::Session {
     let patch = dynaclay::engine::build_clay(&ClaySpec {
         shape: ClayShape::Sphere,
         resolution: 12,
+        ..ClaySpec::default()
     })
     .unwrap();
     let mut colour = ColourField::matching(&patch).unwrap();

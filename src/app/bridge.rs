@@ -703,6 +703,7 @@ mod tests {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 14,
+            ..ClaySpec::default()
         })
         .unwrap();
         let centre = crate::engine::clay_centre(&field);
@@ -755,6 +756,7 @@ mod tests {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 14,
+            ..ClaySpec::default()
         })
         .unwrap();
         let arm = SimArmConfig::default();
@@ -915,6 +917,7 @@ mod tests {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 12,
+            ..ClaySpec::default()
         })
         .unwrap();
         let mut first = SimArmConfig::default();
@@ -1024,6 +1027,7 @@ mod tests {
         let lattice = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 16,
+            ..ClaySpec::default()
         })
         .unwrap();
         let grid = SampleGrid::for_lattice(&lattice, 2).unwrap();

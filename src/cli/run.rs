@@ -122,7 +122,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         .parse()
         .map_err(|e: dynaclay_devices::spec::SpecError| CliError::Usage(e.to_string()))?;
     let session_path = args.out.join(SESSION_FILE);
-    let start = starting_session(args.recover, &script, &session_path)?;
+    let start = starting_session(args.recover, &script, &base_dir, &session_path)?;
     let plan = ScriptPlan::new(
         &script,
         &file,
@@ -270,12 +270,14 @@ fn extras(args: &RunArgs) -> ExtraOutputs {
     }
 }
 
-/// The session a run starts from: the recovery file with `--recover`, else the script's clay.
-/// A recovery file newer than the session (unsaved work of a crashed run) stops a run without
-/// `--recover`, so it is never overwritten unseen.
+/// The session a run starts from: the recovery file with `--recover`, else the script's clay
+/// (the session its `[clay] session` names, relative to the script's folder `base_dir`, or a
+/// fresh block or ball). A recovery file newer than the session (unsaved work of a crashed
+/// run) stops a run without `--recover`, so it is never overwritten unseen.
 fn starting_session(
     recover: bool,
     script: &crate::io::Script,
+    base_dir: &Path,
     session_path: &Path,
 ) -> Result<Session, CliError> {
     let found = recovery_to_use(session_path, recover).map_err(CliError::Usage)?;
@@ -296,7 +298,20 @@ fn starting_session(
             Ok(session)
         }
         None => {
-            let clay = build_clay(&script.clay.unwrap_or_default())
+            let spec = script.clay.clone().unwrap_or_default();
+            if let Some(file) = &spec.session {
+                let path = base_dir.join(file);
+                let session = load_session(&path).map_err(CliError::Session)?;
+                if session.clay.patches.is_empty() {
+                    return Err(CliError::Usage(format!(
+                        "[clay] session = {}: the session holds no clay",
+                        path.display()
+                    )));
+                }
+                say!("dynaclay run: starting from {}", path.display());
+                return Ok(session);
+            }
+            let clay = build_clay(&spec)
                 .map_err(|e| CliError::Output(format!("starting clay: fit failed: {e}")))?;
             Ok(Session {
                 clay: crate::tools::Clay::single(clay),

@@ -161,6 +161,7 @@ mod tests {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 12,
+            ..ClaySpec::default()
         })
         .unwrap();
         let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());

@@ -311,7 +311,7 @@ impl ScriptPlan {
         }
         Ok(Self {
             file: file.to_owned(),
-            clay: script.clay.unwrap_or_default(),
+            clay: script.clay.clone().unwrap_or_default(),
             seconds: script.seconds.unwrap_or(clock + 0.5),
             end_s: clock,
             events,

@@ -918,6 +918,7 @@ mod tests {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
             resolution: 12,
+            ..ClaySpec::default()
         })
         .unwrap();
         let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
@@ -1068,6 +1069,7 @@ mod tests {
         let mut smaller = build_clay(&ClaySpec {
             shape: ClayShape::Block,
             resolution: 10,
+            ..ClaySpec::default()
         })
         .unwrap();
         let mut nan = before.clone();

@@ -88,13 +88,17 @@ pub enum ClayShape {
 }
 
 /// `[clay]`: the starting clay, a lattice of `resolution³` coefficients (see
-/// `engine::build_clay`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+/// `engine::build_clay`), or the session file `session` (relative to the script's folder;
+/// `shape` and `resolution` are then not used).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ClaySpec {
     pub shape: ClayShape,
     /// Coefficients per axis, 8 to 96.
     pub resolution: usize,
+    /// A session to start from instead (an imported scan, an earlier sculpt).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub session: Option<std::path::PathBuf>,
 }
 
 impl Default for ClaySpec {
@@ -102,6 +106,7 @@ impl Default for ClaySpec {
         Self {
             shape: ClayShape::Block,
             resolution: 24,
+            session: None,
         }
     }
 }
@@ -746,7 +751,7 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             format!("seconds = {s} must be in (0, 3600]"),
         ));
     }
-    if let Some(c) = script.clay
+    if let Some(c) = &script.clay
         && !(8..=96).contains(&c.resolution)
     {
         return Err(top(
@@ -1198,7 +1203,7 @@ path = [[1, 1, 1]]
 start_s = 3.0
 "#;
         let s = parse_script(good, "g.toml").unwrap();
-        assert_eq!(s.clay.unwrap().shape, ClayShape::Sphere);
+        assert_eq!(s.clay.as_ref().unwrap().shape, ClayShape::Sphere);
         assert_eq!(s.autosave.unwrap().every_strokes, 1);
         assert_eq!(s.seconds, Some(2.5));
         let text = toml::to_string(&s).unwrap();
