@@ -24,7 +24,10 @@
 mod exchange;
 mod plot;
 mod priority;
+mod probe;
+mod readiness;
 mod recorder;
+mod report;
 mod runner;
 mod staleness;
 mod summary;
@@ -37,15 +40,24 @@ pub use priority::{
     DEFAULT_RT_PRIORITY, PinOutcome, RtOutcome, current_schedule, pin_current_thread,
     request_realtime,
 };
+pub use probe::{
+    DEFAULT_GAP_THRESHOLD, ProbeRun, ProbeSummary, StallCounter, StallStats, run_probes,
+    run_stall_probe, run_wakeup_probe,
+};
+pub use readiness::{
+    FACT_FILE_CAP, Finding, Grade, PlatformFacts, Verdict, busy_fraction, cpu_jiffies,
+    read_fact_file, read_platform_facts, verdict, verdict_text,
+};
 pub use recorder::{
     LATE_1MS, LATE_2MS, LatencyRecorder, LatencyStats, MAX_RECORDABLE, Percentiles, TickTiming,
 };
+pub use report::{HAPTIC_LOOP, profile_report};
 pub use runner::{
     LoopConfig, LoopControl, LoopError, LoopHandle, LoopMonitor, LoopReport, MAX_RATE_HZ,
     OverrunPolicy, StopFlag, StopReason, TickInfo, loop_control, run_loop, spawn_loop,
     spawn_loop_with,
 };
 pub use staleness::Staleness;
-pub use summary::{LoopSummary, summaries_from_json, summaries_to_json};
-pub use table::markdown_table;
+pub use summary::{LoopSummary, ProfileDoc, summaries_from_json, summaries_to_json};
+pub use table::{compare_table, markdown_table, probe_table};
 pub use watchdog::{Heartbeat, Liveness, Watchdog};
