@@ -32,6 +32,7 @@ mod runner;
 mod staleness;
 mod summary;
 mod table;
+mod timeline;
 mod watchdog;
 
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
@@ -60,4 +61,5 @@ pub use runner::{
 pub use staleness::Staleness;
 pub use summary::{LoopSummary, ProfileDoc, summaries_from_json, summaries_to_json};
 pub use table::{compare_table, markdown_table, probe_table};
+pub use timeline::{FIRST_WINDOW, TIMELINE_WINDOWS, Timeline, TimelineWindow};
 pub use watchdog::{Heartbeat, Liveness, Watchdog};

@@ -9,8 +9,8 @@ use std::time::{Duration, Instant};
 
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use dynaclay_loops::{
-    LatencyRecorder, ProbeSummary, ProfileDoc, RtOutcome, busy_fraction, compare_table,
-    cpu_jiffies, profile_report, read_platform_facts, run_probes, verdict, write_latency_svg,
+    LatencyRecorder, ProbeRun, ProfileDoc, RtOutcome, busy_fraction, compare_table, cpu_jiffies,
+    profile_report, read_platform_facts, run_probes, verdict, write_latency_svg,
 };
 
 use super::args::ProfileArgs;
@@ -107,9 +107,8 @@ impl Drop for Hogs {
     }
 }
 
-fn probe(rate_hz: f64, each: Duration, rt: Option<i32>) -> Result<ProbeSummary, CliError> {
+fn probe(rate_hz: f64, each: Duration, rt: Option<i32>) -> Result<ProbeRun, CliError> {
     run_probes(rate_hz, each, rt)
-        .map(|r| r.summary())
         .map_err(|e| CliError::Output(format!("cannot run the platform probe: {e}")))
 }
 
@@ -159,7 +158,7 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     facts.cpu_busy_fraction = jiffies_before
         .zip(jiffies_after)
         .and_then(|(b, a)| busy_fraction(b, a));
-    let probes = [probe_before, probe_after];
+    let probes = [probe_before.summary(), probe_after.summary()];
     facts.stall_ms_per_s = Some(
         probes
             .iter()
@@ -180,8 +179,8 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     );
     let doc = ProfileDoc {
         loops: report.loops.iter().map(|r| r.summary()).collect(),
-        probe_before: Some(probe_before),
-        probe_after: Some(probe_after),
+        probe_before: Some(probes[0]),
+        probe_after: Some(probes[1]),
         readiness: JUDGED_RATES_HZ
             .iter()
             .map(|&hz| verdict(&facts, hz))
@@ -205,19 +204,28 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
             .iter()
             .map(|r| (r.config.name.as_str(), &r.recorder))
             .collect();
-        for path in write_profile_files(dir, &doc, &text, &recorders)? {
+        // The probe run with the worse tail is drawn over the loops.
+        let worse_probe =
+            if probes[1].wakeup.period_error.p999_us > probes[0].wakeup.period_error.p999_us {
+                &probe_after.wakeup
+            } else {
+                &probe_before.wakeup
+            };
+        for path in write_profile_files(dir, &doc, &text, &recorders, worse_probe)? {
             println!("wrote {}", path.display());
         }
     }
     Ok(())
 }
 
-/// Writes `latency.json`, `latency.md` and `latency.svg` into `dir` (created if missing).
+/// Writes `latency.json`, `latency.md` and `latency.svg` (with `probe` drawn over the loops)
+/// into `dir` (created if missing).
 fn write_profile_files(
     dir: &Path,
     doc: &ProfileDoc,
     text: &str,
     recorders: &[(&str, &LatencyRecorder)],
+    probe: &LatencyRecorder,
 ) -> Result<Vec<std::path::PathBuf>, CliError> {
     let err =
         |p: &Path, e: &dyn std::fmt::Display| CliError::Output(format!("{}: {e}", p.display()));
@@ -229,7 +237,7 @@ fn write_profile_files(
     let md = format!("# dynaclay profile\n\n{text}");
     crate::io::write_atomic(&md_path, md.as_bytes()).map_err(|e| err(&md_path, &e))?;
     let svg_path = dir.join("latency.svg");
-    write_latency_svg(&svg_path, recorders).map_err(|e| err(&svg_path, &e))?;
+    write_latency_svg(&svg_path, recorders, Some(probe)).map_err(|e| err(&svg_path, &e))?;
     Ok(vec![json_path, md_path, svg_path])
 }
 
