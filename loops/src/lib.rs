@@ -16,6 +16,11 @@
 //! - [`LatencyRecorder`] → [`LatencyStats`] → [`LoopSummary`] → JSON, [`markdown_table`],
 //!   [`latency_svg`].
 //! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
+//! - [`Timeline`]: a recorder's run over time in fixed memory, for the timeline plot.
+//! - [`run_probes`]: the platform probe (cyclictest-style wake-ups, host stalls) →
+//!   [`ProbeSummary`]; [`read_platform_facts`] + [`verdict`]: is the machine fit for a rate;
+//!   [`ProfileDoc`] (the `latency.json` document), [`profile_report`], [`probe_table`],
+//!   [`compare_table`].
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]
