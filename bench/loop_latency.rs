@@ -617,7 +617,7 @@ fn run() -> Result<(), String> {
     let svg_path = args.out.join("loop_latency.svg");
     let refs: Vec<(&str, &LatencyRecorder)> =
         recorders.iter().map(|(n, r)| (n.as_str(), r)).collect();
-    write_latency_svg(&svg_path, &refs).map_err(|e| e.to_string())?;
+    write_latency_svg(&svg_path, &refs, None).map_err(|e| e.to_string())?;
     // Also the plain summaries, in the format the engine's `latency.json` uses.
     let plain = summaries_to_json(&summaries).map_err(|e| e.to_string())?;
     let plain_path = args.out.join("loop_latency_summaries.json");

@@ -16,6 +16,11 @@
 //! - [`LatencyRecorder`] → [`LatencyStats`] → [`LoopSummary`] → JSON, [`markdown_table`],
 //!   [`latency_svg`].
 //! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
+//! - [`Timeline`]: a recorder's run over time in fixed memory, for the timeline plot.
+//! - [`run_probes`]: the platform probe (cyclictest-style wake-ups, host stalls) →
+//!   [`ProbeSummary`]; [`read_platform_facts`] + [`verdict`]: is the machine fit for a rate;
+//!   [`ProfileDoc`] (the `latency.json` document), [`profile_report`], [`probe_table`],
+//!   [`compare_table`].
 
 #![deny(unsafe_op_in_unsafe_fn)]
 #![warn(clippy::undocumented_unsafe_blocks)]
@@ -24,11 +29,15 @@
 mod exchange;
 mod plot;
 mod priority;
+mod probe;
+mod readiness;
 mod recorder;
+mod report;
 mod runner;
 mod staleness;
 mod summary;
 mod table;
+mod timeline;
 mod watchdog;
 
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
@@ -37,15 +46,25 @@ pub use priority::{
     DEFAULT_RT_PRIORITY, PinOutcome, RtOutcome, current_schedule, pin_current_thread,
     request_realtime,
 };
+pub use probe::{
+    DEFAULT_GAP_THRESHOLD, ProbeRun, ProbeSummary, StallCounter, StallStats, run_probes,
+    run_stall_probe, run_wakeup_probe,
+};
+pub use readiness::{
+    FACT_FILE_CAP, Finding, Grade, PlatformFacts, Verdict, busy_fraction, cpu_jiffies,
+    read_fact_file, read_platform_facts, verdict, verdict_text,
+};
 pub use recorder::{
     LATE_1MS, LATE_2MS, LatencyRecorder, LatencyStats, MAX_RECORDABLE, Percentiles, TickTiming,
 };
+pub use report::{HAPTIC_LOOP, profile_report};
 pub use runner::{
     LoopConfig, LoopControl, LoopError, LoopHandle, LoopMonitor, LoopReport, MAX_RATE_HZ,
     OverrunPolicy, StopFlag, StopReason, TickInfo, loop_control, run_loop, spawn_loop,
     spawn_loop_with,
 };
 pub use staleness::Staleness;
-pub use summary::{LoopSummary, summaries_from_json, summaries_to_json};
-pub use table::markdown_table;
+pub use summary::{LoopSummary, ProfileDoc, summaries_from_json, summaries_to_json};
+pub use table::{compare_table, markdown_table, probe_table};
+pub use timeline::{FIRST_WINDOW, TIMELINE_WINDOWS, Timeline, TimelineWindow};
 pub use watchdog::{Heartbeat, Liveness, Watchdog};

@@ -1,5 +1,8 @@
-//! SVG plots of loop latency: per loop, a histogram of period error and one of compute time, on
-//! logarithmic axes so both the body of the distribution and its rare tail are visible.
+//! SVG plots of loop latency, one page: per loop, a histogram of period error and one of compute
+//! time on a logarithmic µs/ms axis (so both the body of the distribution and its rare tail are
+//! visible) with p50/p99/p99.9/max marked, and a timeline of the run with deadline misses
+//! marked. The platform probe's period error is drawn over each loop's, so engine and machine
+//! are seen together.
 //!
 //! Not for the real-time path (allocates, may write files). Works from a [`LatencyRecorder`],
 //! which a loop hands back when it ends ([`crate::LoopReport::recorder`]).
@@ -10,10 +13,18 @@ use std::path::{Path, PathBuf};
 use hdrhistogram::Histogram;
 use plotters::prelude::*;
 
-use crate::recorder::LatencyRecorder;
+use crate::recorder::{LatencyRecorder, Percentiles};
+use crate::timeline::Timeline;
 
-/// Size of one panel in pixels.
-const PANEL: (u32, u32) = (520, 300);
+/// Size of one panel in pixels (three per loop: a page 1440 px wide).
+const PANEL: (u32, u32) = (480, 300);
+/// Grid colours: light enough that the data stands out.
+const GRID_FINE: RGBColor = RGBColor(242, 242, 242);
+const GRID_MAIN: RGBColor = RGBColor(220, 220, 220);
+/// The probe's overlay colour.
+const PROBE_COLOUR: RGBColor = RGBColor(60, 60, 60);
+/// Percentile marker colour.
+const MARKER_COLOUR: RGBColor = RGBColor(200, 120, 0);
 /// Smallest bin upper edge (ns) and growth factor of the logarithmic bins.
 const FIRST_BIN_NS: u64 = 100;
 const BIN_GROWTH: f64 = 1.5;
@@ -56,31 +67,54 @@ fn draw_err(e: impl fmt::Display) -> PlotError {
     PlotError::Draw(e.to_string())
 }
 
-/// Renders the histograms of several loops (one row each: period error, compute time) as an SVG
-/// document.
+/// Renders one page: per loop (one row each) the period-error histogram with the probe's
+/// overlaid when `probe` is given, the compute-time histogram and the timeline.
 ///
 /// # Errors
 /// [`PlotError::Draw`] if plotters fails.
-pub fn latency_svg(loops: &[(&str, &LatencyRecorder)]) -> Result<String, PlotError> {
+pub fn latency_svg(
+    loops: &[(&str, &LatencyRecorder)],
+    probe: Option<&LatencyRecorder>,
+) -> Result<String, PlotError> {
     let rows = u32::try_from(loops.len().max(1)).unwrap_or(u32::MAX);
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (PANEL.0 * 2, PANEL.1.saturating_mul(rows)))
+        let root = SVGBackend::with_string(&mut svg, (PANEL.0 * 3, PANEL.1.saturating_mul(rows)))
             .into_drawing_area();
         root.fill(&WHITE).map_err(draw_err)?;
-        let panels = root.split_evenly((rows as usize, 2));
+        let panels = root.split_evenly((rows as usize, 3));
         for (row, (name, rec)) in loops.iter().enumerate() {
+            let stats = rec.stats();
             draw_histogram(
-                &panels[row * 2],
-                &format!("{name}: period error"),
-                rec.period_error_histogram(),
-                &BLUE,
+                &panels[row * 3],
+                &Histo {
+                    title: format!("{name}: period error"),
+                    series: name,
+                    hist: rec.period_error_histogram(),
+                    marks: stats.period_error,
+                    colour: BLUE,
+                    // Only a loop at the probe's rate is comparable with it.
+                    probe: probe
+                        .filter(|p| p.nominal_period() == rec.nominal_period())
+                        .map(LatencyRecorder::period_error_histogram),
+                },
             )?;
             draw_histogram(
-                &panels[row * 2 + 1],
-                &format!("{name}: compute time"),
-                rec.compute_histogram(),
-                &RED,
+                &panels[row * 3 + 1],
+                &Histo {
+                    title: format!("{name}: compute time"),
+                    series: name,
+                    hist: rec.compute_histogram(),
+                    marks: stats.compute,
+                    colour: RED,
+                    probe: None,
+                },
+            )?;
+            draw_timeline(
+                &panels[row * 3 + 2],
+                &format!("{name}: over the run"),
+                rec.timeline(),
+                rec.nominal_period(),
             )?;
         }
         root.present().map_err(draw_err)?;
@@ -93,12 +127,53 @@ pub fn latency_svg(loops: &[(&str, &LatencyRecorder)]) -> Result<String, PlotErr
 /// # Errors
 /// [`PlotError::Draw`] if plotters fails, [`PlotError::Write`] (with the path) if the file
 /// cannot be written.
-pub fn write_latency_svg(path: &Path, loops: &[(&str, &LatencyRecorder)]) -> Result<(), PlotError> {
-    let svg = latency_svg(loops)?;
+pub fn write_latency_svg(
+    path: &Path,
+    loops: &[(&str, &LatencyRecorder)],
+    probe: Option<&LatencyRecorder>,
+) -> Result<(), PlotError> {
+    let svg = latency_svg(loops, probe)?;
     std::fs::write(path, svg).map_err(|source| PlotError::Write {
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// A time in µs as a reader says it: "100 ns", "1 µs", "250 µs", "1 ms", "2.5 ms".
+fn time_label(us: f64) -> String {
+    let trim = |v: f64| {
+        if (v - v.round()).abs() < 1e-6 {
+            format!("{v:.0}")
+        } else {
+            format!("{v:.1}")
+        }
+    };
+    if us >= 1000.0 {
+        format!("{} ms", trim(us / 1000.0))
+    } else if us >= 1.0 {
+        format!("{} µs", trim(us))
+    } else {
+        format!("{} ns", trim(us * 1000.0))
+    }
+}
+
+/// A share of ticks as a percentage with as many decimals as it needs: "10%", "0.1%".
+fn share_label(share: f64) -> String {
+    let pc = share * 100.0;
+    let decimals = if pc >= 1.0 {
+        0
+    } else {
+        (-pc.log10()).ceil().clamp(1.0, 6.0) as usize
+    };
+    format!("{pc:.decimals$}%")
+}
+
+/// Powers of ten (in µs) inside `lo..=hi`, for axis labels.
+fn decades(lo: f64, hi: f64) -> Vec<f64> {
+    (-3..=8)
+        .map(|e| 10f64.powi(e))
+        .filter(|v| (lo..=hi).contains(v))
+        .collect()
 }
 
 /// Logarithmic bins of a histogram in µs: (lower edge, upper edge, count), empty bins left out.
@@ -119,39 +194,226 @@ fn log_bins(hist: &Histogram<u64>) -> Vec<(f64, f64, u64)> {
     bins
 }
 
+/// One histogram panel's contents.
+struct Histo<'a> {
+    title: String,
+    series: &'a str,
+    hist: &'a Histogram<u64>,
+    marks: Percentiles,
+    colour: RGBColor,
+    probe: Option<&'a Histogram<u64>>,
+}
+
 fn draw_histogram<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
-    title: &str,
-    hist: &Histogram<u64>,
-    colour: &RGBColor,
+    h: &Histo<'_>,
 ) -> Result<(), PlotError> {
-    let bins = log_bins(hist);
-    let x_min = FIRST_BIN_NS as f64 / 1e3 / BIN_GROWTH;
-    let x_max = bins.iter().map(|b| b.1).fold(x_min * 10.0, f64::max) * BIN_GROWTH;
-    let y_max = bins.iter().map(|b| b.2).max().unwrap_or(1) as f64 * 2.0;
-    let y_min = 0.5;
+    let share = |hist: &Histogram<u64>| {
+        let total = hist.len().max(1) as f64;
+        log_bins(hist)
+            .into_iter()
+            .map(|(lo, hi, n)| (lo, hi, n as f64 / total))
+            .collect::<Vec<_>>()
+    };
+    let bins = share(h.hist);
+    let probe_bins = h.probe.map(share).unwrap_or_default();
+    let x_min = FIRST_BIN_NS as f64 / 1e3;
+    let x_max = bins
+        .iter()
+        .chain(&probe_bins)
+        .map(|b| b.1)
+        .fold(h.marks.max_us.max(x_min * 100.0), f64::max)
+        * BIN_GROWTH;
+    let y_min = bins
+        .iter()
+        .chain(&probe_bins)
+        .map(|b| b.2)
+        .fold(1.0, f64::min)
+        / 3.0;
+    let y_max = 3.0;
     let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 16))
+        .caption(&h.title, ("sans-serif", 16))
         .margin(8)
-        .x_label_area_size(36)
-        .y_label_area_size(56)
-        .build_cartesian_2d((x_min..x_max).log_scale(), (y_min..y_max).log_scale())
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(
+            (x_min..x_max)
+                .log_scale()
+                .with_key_points(decades(x_min, x_max)),
+            (y_min..y_max).log_scale(),
+        )
         .map_err(draw_err)?;
     chart
         .configure_mesh()
-        .x_desc("µs (log)")
-        .y_desc("ticks (log)")
-        .x_label_formatter(&|v| format!("{v:.3}"))
-        .y_label_formatter(&|v| format!("{v:.0}"))
+        .light_line_style(GRID_FINE)
+        .bold_line_style(GRID_MAIN)
+        .axis_desc_style(("sans-serif", 12))
+        .y_desc("share of ticks (log)")
+        .x_label_formatter(&|v| time_label(*v))
+        .y_label_formatter(&|v| share_label(*v))
         .draw()
         .map_err(draw_err)?;
+    let colour = h.colour;
     chart
-        .draw_series(bins.iter().map(|&(lo, hi, count)| {
-            Rectangle::new(
-                [(lo.max(x_min), y_min), (hi, count as f64)],
-                colour.mix(0.6).filled(),
-            )
+        .draw_series(bins.iter().map(|&(lo, hi, s)| {
+            Rectangle::new([(lo.max(x_min), y_min), (hi, s)], colour.mix(0.55).filled())
         }))
+        .map_err(draw_err)?
+        .label(h.series.to_string())
+        .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], colour.filled()));
+    if !probe_bins.is_empty() {
+        let steps = probe_bins.iter().flat_map(|&(lo, hi, s)| {
+            [
+                (lo.max(x_min), y_min),
+                (lo.max(x_min), s),
+                (hi, s),
+                (hi, y_min),
+            ]
+        });
+        chart
+            .draw_series(LineSeries::new(steps, PROBE_COLOUR.stroke_width(2)))
+            .map_err(draw_err)?
+            .label("probe (sleeping thread)")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 12, y)], PROBE_COLOUR.stroke_width(2)));
+    }
+    // The legend first, so the percentile labels drawn next stay readable over it.
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(GRID_MAIN)
+        .label_font(("sans-serif", 11))
+        .draw()
+        .map_err(draw_err)?;
+    let marks = [
+        ("p50", h.marks.p50_us),
+        ("p99", h.marks.p99_us),
+        ("p99.9", h.marks.p999_us),
+        ("max", h.marks.max_us),
+    ];
+    for (i, (label, value)) in marks.into_iter().enumerate() {
+        let x = value.clamp(x_min, x_max);
+        chart
+            .draw_series(std::iter::once(PathElement::new(
+                [(x, y_min), (x, y_max)],
+                MARKER_COLOUR.stroke_width(1),
+            )))
+            .map_err(draw_err)?;
+        // Labels step down the panel so neighbouring markers do not overwrite each other.
+        let y = y_max / 2.2f64.powi(i32::try_from(i).unwrap_or(0) + 1);
+        chart
+            .draw_series(std::iter::once(Text::new(
+                format!("{label} {}", time_label(value)),
+                (x, y),
+                ("sans-serif", 11).into_font().color(&MARKER_COLOUR),
+            )))
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+fn draw_timeline<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    timeline: &Timeline,
+    period: std::time::Duration,
+) -> Result<(), PlotError> {
+    let window_s = timeline.window().as_secs_f64();
+    let windows = timeline.windows();
+    let x_max = (windows.len() as f64 * window_s).max(window_s);
+    let y_min = FIRST_BIN_NS as f64 / 1e3;
+    let period_us = period.as_secs_f64() * 1e6;
+    let worst_us = windows
+        .iter()
+        .map(|w| w.max_period_error_ns.max(w.max_compute_ns) as f64 / 1e3)
+        .fold(period_us, f64::max);
+    let y_max = worst_us * 4.0;
+    let misses: u64 = windows.iter().map(|w| u64::from(w.deadline_misses)).sum();
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 16))
+        .margin(8)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d(
+            0.0..x_max,
+            (y_min..y_max)
+                .log_scale()
+                .with_key_points(decades(y_min, y_max)),
+        )
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .light_line_style(GRID_FINE)
+        .bold_line_style(GRID_MAIN)
+        .axis_desc_style(("sans-serif", 12))
+        .x_desc("seconds")
+        .y_desc(format!("worst per {} (log)", time_label(window_s * 1e6)))
+        .y_label_formatter(&|v| time_label(*v))
+        .x_label_formatter(&|v| format!("{v:.1}"))
+        .draw()
+        .map_err(draw_err)?;
+    let series = |pick: fn(&crate::timeline::TimelineWindow) -> u64| {
+        windows
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| w.ticks > 0)
+            .map(move |(i, w)| {
+                (
+                    (i as f64 + 0.5) * window_s,
+                    (pick(w) as f64 / 1e3).clamp(y_min, y_max),
+                )
+            })
+            .collect::<Vec<_>>()
+    };
+    chart
+        .draw_series(LineSeries::new(
+            series(|w| w.max_period_error_ns),
+            BLUE.stroke_width(1),
+        ))
+        .map_err(draw_err)?
+        .label("period error")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 12, y)], BLUE.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(
+            series(|w| w.max_compute_ns),
+            RED.stroke_width(1),
+        ))
+        .map_err(draw_err)?
+        .label("compute")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 12, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(std::iter::once(PathElement::new(
+            [(0.0, period_us), (x_max, period_us)],
+            GRID_MAIN.stroke_width(2),
+        )))
+        .map_err(draw_err)?
+        .label(format!("period {}", time_label(period_us)))
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 12, y)], GRID_MAIN.stroke_width(2)));
+    let miss_y = y_max / 1.6;
+    chart
+        .draw_series(
+            windows
+                .iter()
+                .enumerate()
+                .filter(|(_, w)| w.deadline_misses > 0)
+                .map(|(i, _)| {
+                    Cross::new(
+                        ((i as f64 + 0.5) * window_s, miss_y),
+                        4,
+                        RED.stroke_width(2),
+                    )
+                }),
+        )
+        .map_err(draw_err)?
+        .label(format!("deadline misses: {misses}"))
+        .legend(|(x, y)| Cross::new((x + 6, y), 4, RED.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.85))
+        .border_style(GRID_MAIN)
+        .label_font(("sans-serif", 11))
+        .draw()
         .map_err(draw_err)?;
     Ok(())
 }
@@ -194,16 +456,74 @@ mod tests {
     }
 
     #[test]
+    fn time_labels_read_in_units() {
+        assert_eq!(time_label(1.0), "1 µs");
+        assert_eq!(time_label(100.0), "100 µs");
+        assert_eq!(time_label(1000.0), "1 ms");
+        assert_eq!(time_label(2500.0), "2.5 ms");
+        assert_eq!(time_label(0.1), "100 ns");
+        assert_eq!(decades(0.1, 5000.0), vec![0.1, 1.0, 10.0, 100.0, 1000.0]);
+        assert_eq!(share_label(0.25), "25%");
+        assert_eq!(share_label(0.001), "0.1%");
+        assert_eq!(share_label(0.0001), "0.01%");
+    }
+
+    #[test]
+    fn svg_marks_percentiles_units_probe_and_misses() {
+        let mut a = recorder_with_ticks();
+        // One tick 1.5 ms late: a deadline miss on the timeline.
+        let t0 = Instant::now();
+        a.record_tick(&TickTiming {
+            scheduled: t0,
+            woke: t0 + Duration::from_micros(1500),
+            compute: Duration::from_micros(3),
+            skipped_before: 0,
+        });
+        let probe = recorder_with_ticks();
+        let svg = latency_svg(&[("haptic", &a)], Some(&probe)).expect("svg");
+        let p = a.stats().period_error;
+        for label in [
+            format!("p50 {}", time_label(p.p50_us)),
+            format!("p99 {}", time_label(p.p99_us)),
+            format!("p99.9 {}", time_label(p.p999_us)),
+            format!("max {}", time_label(p.max_us)),
+        ] {
+            assert!(svg.contains(&label), "missing marker {label}");
+        }
+        for text in [
+            "1 µs",
+            "100 µs",
+            "1 ms",
+            "probe (sleeping thread)",
+            "haptic: over the run",
+            "deadline misses: 1",
+            "period 1 ms",
+        ] {
+            assert!(svg.contains(text), "missing {text}");
+        }
+        // No bare-number tick labels such as "1.000".
+        assert!(!svg.contains(">1.000<"));
+        // Without a probe, or with one at another rate, there is no overlay.
+        let alone = latency_svg(&[("haptic", &a)], None).expect("svg");
+        assert!(!alone.contains("probe (sleeping thread)"));
+        let other_rate = LatencyRecorder::new(Duration::from_micros(250));
+        let apart = latency_svg(&[("haptic", &a)], Some(&other_rate)).expect("svg");
+        assert!(!apart.contains("probe (sleeping thread)"));
+    }
+
+    #[test]
     fn svg_has_a_panel_per_loop_and_quantity() {
         let a = recorder_with_ticks();
         let b = LatencyRecorder::new(Duration::from_micros(250));
-        let svg = latency_svg(&[("haptic", &a), ("sim", &b)]).expect("svg");
+        let svg = latency_svg(&[("haptic", &a), ("sim", &b)], None).expect("svg");
         assert!(svg.starts_with("<svg"), "{}", &svg[..svg.len().min(80)]);
         for title in [
             "haptic: period error",
             "haptic: compute time",
             "sim: period error",
             "sim: compute time",
+            "haptic: over the run",
+            "sim: over the run",
         ] {
             assert!(svg.contains(title), "missing {title}");
         }
@@ -214,7 +534,7 @@ mod tests {
     fn write_error_names_the_path() {
         let rec = recorder_with_ticks();
         let path = Path::new("/nonexistent-dir-for-dynaclay-test/plot.svg");
-        let err = write_latency_svg(path, &[("x", &rec)]).expect_err("must fail");
+        let err = write_latency_svg(path, &[("x", &rec)], None).expect_err("must fail");
         assert!(
             err.to_string()
                 .contains("/nonexistent-dir-for-dynaclay-test/plot.svg")

@@ -1,5 +1,5 @@
 //! Per-loop latency recorder: HDR histograms of period, period error, wake-up lateness and
-//! compute time, plus deadline-miss and late-tick counters.
+//! compute time, deadline-miss and late-tick counters, and a [`Timeline`] of the run.
 //!
 //! Guarantee: after [`LatencyRecorder::new`] (which allocates every histogram at its full size),
 //! [`record_tick`](LatencyRecorder::record_tick), [`stats`](LatencyRecorder::stats) and
@@ -14,6 +14,8 @@ use std::time::{Duration, Instant};
 
 use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
+
+use crate::timeline::Timeline;
 
 /// Largest value a histogram holds before saturating (10 s, in ns).
 pub const MAX_RECORDABLE: Duration = Duration::from_secs(10);
@@ -99,6 +101,7 @@ pub struct LatencyRecorder {
     late_over_2ms: u64,
     first_woke: Option<Instant>,
     last_woke: Option<Instant>,
+    timeline: Timeline,
 }
 
 /// A histogram plus the exact maximum (the histogram saturates, the maximum does not).
@@ -157,7 +160,7 @@ fn us(ns: u64) -> f64 {
 
 impl LatencyRecorder {
     /// A recorder for a loop of nominal period `nominal_period`; allocates all histograms now
-    /// (about 200 KiB each, four of them).
+    /// (about 200 KiB each, four of them) and the timeline (32 KiB).
     #[must_use]
     pub fn new(nominal_period: Duration) -> Self {
         Self {
@@ -173,6 +176,7 @@ impl LatencyRecorder {
             late_over_2ms: 0,
             first_woke: None,
             last_woke: None,
+            timeline: Timeline::new(),
         }
     }
 
@@ -180,11 +184,12 @@ impl LatencyRecorder {
     /// histograms start at the second.
     pub fn record_tick(&mut self, t: &TickTiming) {
         let lateness = t.woke.saturating_duration_since(t.scheduled);
+        let mut period_error = Duration::ZERO;
         if let Some(prev) = self.last_woke {
             let period = t.woke.saturating_duration_since(prev);
+            period_error = period.abs_diff(self.nominal_period);
             self.period.record(nanos(period));
-            self.period_error
-                .record(nanos(period.abs_diff(self.nominal_period)));
+            self.period_error.record(nanos(period_error));
         } else {
             self.first_woke = Some(t.woke);
         }
@@ -193,7 +198,8 @@ impl LatencyRecorder {
         self.compute.record(nanos(t.compute));
         self.ticks += 1;
         self.skipped_ticks += t.skipped_before;
-        if lateness + t.compute > self.nominal_period {
+        let missed = lateness + t.compute > self.nominal_period;
+        if missed {
             self.deadline_misses += 1;
         }
         if lateness > LATE_1MS {
@@ -202,6 +208,11 @@ impl LatencyRecorder {
         if lateness > LATE_2MS {
             self.late_over_2ms += 1;
         }
+        let since_start = self.first_woke.map_or(Duration::ZERO, |first| {
+            t.woke.saturating_duration_since(first)
+        });
+        self.timeline
+            .record(since_start, period_error, t.compute, missed);
     }
 
     /// Forgets everything recorded (for example after a warm-up). No allocation.
@@ -221,6 +232,7 @@ impl LatencyRecorder {
         self.late_over_2ms = 0;
         self.first_woke = None;
         self.last_woke = None;
+        self.timeline.reset();
     }
 
     /// Current figures. No allocation; scans each histogram once (call it every N ticks).
@@ -279,6 +291,12 @@ impl LatencyRecorder {
     #[must_use]
     pub fn period_histogram(&self) -> &Histogram<u64> {
         &self.period.hist
+    }
+
+    /// The run over time: per window the worst period error and compute time, and the misses.
+    #[must_use]
+    pub fn timeline(&self) -> &Timeline {
+        &self.timeline
     }
 
     /// Histogram of wake-up lateness (tick start − scheduled time), in ns.

@@ -7,6 +7,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::priority::{PinOutcome, RtOutcome};
+use crate::probe::ProbeSummary;
+use crate::readiness::{PlatformFacts, Verdict};
 use crate::recorder::LatencyStats;
 
 /// One loop's figures with how it was scheduled.
@@ -22,17 +24,57 @@ pub struct LoopSummary {
     pub stats: LatencyStats,
 }
 
+/// Everything a profile run reports: the loops, the platform probe before and after them, the
+/// machine's facts and the readiness verdicts. The JSON form of `latency.json`; a document
+/// holding only `loops` (as `dynaclay run` writes) is valid too.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ProfileDoc {
+    /// One summary per loop.
+    pub loops: Vec<LoopSummary>,
+    /// The platform probe run before the loops started.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_before: Option<ProbeSummary>,
+    /// The platform probe run after the loops stopped.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub probe_after: Option<ProbeSummary>,
+    /// What was known about the machine.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub facts: Option<PlatformFacts>,
+    /// The readiness verdicts, one per rate judged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub readiness: Vec<Verdict>,
+}
+
+impl ProfileDoc {
+    /// Pretty JSON.
+    ///
+    /// # Errors
+    /// Only if serde_json fails to write, which does not happen for these types; kept as a
+    /// value rather than a panic.
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string_pretty(self)
+    }
+
+    /// Parses what [`ProfileDoc::to_json`] (or [`summaries_to_json`]) wrote.
+    ///
+    /// # Errors
+    /// The serde_json error, with line and column, if `json` is not such a document.
+    pub fn from_json(json: &str) -> Result<Self, serde_json::Error> {
+        serde_json::from_str(json)
+    }
+}
+
 /// Pretty JSON for a set of loop summaries: `{"loops": [...]}`.
 ///
 /// # Errors
 /// Only if serde_json fails to write, which does not happen for these types; kept as a value
 /// rather than a panic.
 pub fn summaries_to_json(summaries: &[LoopSummary]) -> Result<String, serde_json::Error> {
-    #[derive(Serialize)]
-    struct Doc<'a> {
-        loops: &'a [LoopSummary],
+    ProfileDoc {
+        loops: summaries.to_vec(),
+        ..ProfileDoc::default()
     }
-    serde_json::to_string_pretty(&Doc { loops: summaries })
+    .to_json()
 }
 
 /// Parses what [`summaries_to_json`] wrote.
@@ -40,11 +82,7 @@ pub fn summaries_to_json(summaries: &[LoopSummary]) -> Result<String, serde_json
 /// # Errors
 /// The serde_json error, with line and column, if `json` is not such a document.
 pub fn summaries_from_json(json: &str) -> Result<Vec<LoopSummary>, serde_json::Error> {
-    #[derive(Deserialize)]
-    struct Doc {
-        loops: Vec<LoopSummary>,
-    }
-    serde_json::from_str::<Doc>(json).map(|d| d.loops)
+    ProfileDoc::from_json(json).map(|d| d.loops)
 }
 
 #[cfg(test)]
@@ -79,6 +117,45 @@ mod tests {
         assert!(json.contains("\"p999_us\": 30.0"), "{json}");
         assert!(json.contains("\"status\": \"granted\""), "{json}");
         assert_eq!(summaries_from_json(&json).expect("parse"), vec![sample()]);
+    }
+
+    #[test]
+    fn full_profile_doc_round_trips() {
+        let probe = ProbeSummary {
+            wakeup_rt: RtOutcome::Granted { priority: 80 },
+            wakeup: sample().stats,
+            stall_rt: RtOutcome::NotRequested,
+            stalls: crate::probe::StallStats {
+                seconds: 0.5,
+                gap_threshold_us: 20.0,
+                gaps: 7,
+                stolen_ms: 1.25,
+                max_gap_us: 400.0,
+            },
+        };
+        let facts = PlatformFacts {
+            rt_granted: Some(true),
+            governors: Some(vec!["schedutil".into()]),
+            stall_ms_per_s: Some(2.5),
+            ..PlatformFacts::default()
+        };
+        let doc = ProfileDoc {
+            loops: vec![sample()],
+            probe_before: Some(probe),
+            probe_after: Some(probe),
+            readiness: vec![crate::readiness::verdict(&facts, 1000.0)],
+            facts: Some(facts),
+        };
+        let json = doc.to_json().expect("json");
+        assert!(json.contains("\"stolen_ms\": 1.25"), "{json}");
+        assert_eq!(ProfileDoc::from_json(&json).expect("parse"), doc);
+        // A run's loops-only document is a valid profile document.
+        let loops_only = summaries_to_json(&[sample()]).expect("json");
+        assert!(!loops_only.contains("probe_before"));
+        assert_eq!(
+            ProfileDoc::from_json(&loops_only).expect("parse").loops,
+            vec![sample()]
+        );
     }
 
     #[test]

@@ -21,7 +21,9 @@ pub enum Commands {
     /// Run a headless sculpting session (simulated arm and built-in script by default).
     #[command(after_help = RUN_AFTER_HELP)]
     Run(RunArgs),
-    /// Run the three loops and print their latency table.
+    /// Run the three loops with a platform probe before and after, print their latency table,
+    /// the probe side by side and a readiness verdict for 1 kHz and 4 kHz; or compare two
+    /// `latency.json` files.
     Profile(ProfileArgs),
     /// List connected haptic devices (HID and serial) and permission problems.
     Devices,
@@ -271,6 +273,15 @@ pub struct ProfileArgs {
     /// Run a CPU hog thread on each other core meanwhile.
     #[arg(long)]
     pub load: bool,
+    /// The haptic loop's rate (1000 or 4000 Hz; the probe wakes at the same rate).
+    #[arg(long, default_value = "1000", value_name = "HZ", value_parser = parse_profile_rate)]
+    pub rate_hz: f64,
+    /// Also write latency.json, latency.md and latency.svg into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Print per-figure ratios B ÷ A of two latency.json files instead of profiling.
+    #[arg(long, num_args = 2, value_names = ["A.json", "B.json"])]
+    pub compare: Option<Vec<PathBuf>>,
     /// Run the loops in lockstep on the device's clock instead of in real time: one device
     /// sample, one simulation step, as fast as the machine goes; the same script always gives
     /// the same sculpt, bit for bit (simulated arm only; a replay is always in lockstep).
@@ -279,6 +290,13 @@ pub struct ProfileArgs {
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).
     #[arg(long = "no-rt", action = clap::ArgAction::SetFalse)]
     pub rt: bool,
+}
+
+fn parse_profile_rate(s: &str) -> Result<f64, String> {
+    match s.parse::<u32>() {
+        Ok(hz @ (1000 | 4000)) => Ok(f64::from(hz)),
+        _ => Err(format!("`{s}` is not a profiled rate: give 1000 or 4000")),
+    }
 }
 
 fn parse_seconds(s: &str) -> Result<f64, String> {

@@ -214,7 +214,7 @@ pub fn write_outputs(
         .iter()
         .map(|r| (r.config.name.as_str(), &r.recorder))
         .collect();
-    write_latency_svg(&svg_path, &recorders).map_err(|e| out_err(&svg_path, e))?;
+    write_latency_svg(&svg_path, &recorders, None).map_err(|e| out_err(&svg_path, e))?;
     files.push(svg_path);
 
     let mut outputs = RunOutputs {

@@ -1,82 +1,194 @@
-//! `dynaclay profile`: runs the engine with the simulated arm and prints the latency table,
-//! optionally with a CPU hog thread on every other core.
+//! `dynaclay profile`: runs the engine with the simulated arm between two runs of the platform
+//! probe, prints the latency table, the haptic loop beside the probe and the readiness verdict
+//! for 1 kHz and 4 kHz, and writes them on request; or compares two `latency.json` files.
 
+use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
-use dynaclay_loops::{LoopSummary, markdown_table};
+use dynaclay_loops::{
+    LatencyRecorder, ProbeRun, ProfileDoc, RtOutcome, busy_fraction, compare_table, cpu_jiffies,
+    profile_report, read_platform_facts, run_probes, verdict, write_latency_svg,
+};
 
 use super::args::ProfileArgs;
 use super::run::CliError;
 use crate::engine::{Engine, EngineConfig, HeadlessSink, ScriptPlan, build_clay};
+use crate::io::bounded_read::read_regular_file;
 
-/// Runs the loops for `args.seconds` and prints their latency table.
+/// The largest `latency.json` that `--compare` reads.
+const MAX_PROFILE_JSON_BYTES: u64 = 16 * 1024 * 1024;
+
+/// The rates the readiness verdict judges, Hz.
+const JUDGED_RATES_HZ: [f64; 2] = [1000.0, 4000.0];
+
+/// Runs the profile `args` asks for, or the comparison.
 ///
 /// # Errors
-/// When the engine cannot start or a loop fails.
+/// When the engine cannot start or a loop fails, when an output cannot be written, or (for
+/// `--compare`) when a file cannot be read or parsed.
 pub fn profile(args: &ProfileArgs) -> Result<(), CliError> {
+    if let Some(files) = &args.compare {
+        let [a, b] = files.as_slice() else {
+            return Err(CliError::Usage("--compare takes two files".into()));
+        };
+        print!("{}", compare_files(a, b)?);
+        return Ok(());
+    }
+    run_profile(args)
+}
+
+fn read_doc(path: &Path) -> Result<ProfileDoc, CliError> {
+    let bytes = read_regular_file(path, MAX_PROFILE_JSON_BYTES)
+        .map_err(|e| CliError::Usage(format!("{}: {e}", path.display())))?;
+    let text = String::from_utf8(bytes)
+        .map_err(|e| CliError::Usage(format!("{}: not UTF-8: {e}", path.display())))?;
+    ProfileDoc::from_json(&text).map_err(|e| CliError::Usage(format!("{}: {e}", path.display())))
+}
+
+/// The per-figure ratio table of `b` to `a`, with a heading naming both files.
+///
+/// # Errors
+/// [`CliError::Usage`] naming the file that cannot be read or parsed.
+pub fn compare_files(a: &Path, b: &Path) -> Result<String, CliError> {
+    let (doc_a, doc_b) = (read_doc(a)?, read_doc(b)?);
+    Ok(format!(
+        "A = {}\nB = {}\nB ÷ A below 1 means B is better.\n\n{}",
+        a.display(),
+        b.display(),
+        compare_table(&doc_a, &doc_b)
+    ))
+}
+
+/// CPU hog threads on every other core, stopped on drop.
+struct Hogs {
+    stop: Arc<AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl Hogs {
+    fn start(on: bool) -> Result<Self, CliError> {
+        let mut hogs = Self {
+            stop: Arc::new(AtomicBool::new(false)),
+            threads: Vec::new(),
+        };
+        if !on {
+            return Ok(hogs);
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        for i in 0..cores.saturating_sub(1).max(1) {
+            let stop = hogs.stop.clone();
+            let thread = std::thread::Builder::new()
+                .name(format!("cpu-hog-{i}"))
+                .spawn(move || {
+                    let mut x = 0u64;
+                    // NOTE: Relaxed: the flag only ends the loop eventually.
+                    while !stop.load(Ordering::Relaxed) {
+                        x = std::hint::black_box(
+                            x.wrapping_mul(6364136223846793005).wrapping_add(1),
+                        );
+                    }
+                })
+                .map_err(|e| CliError::Output(format!("cannot start a CPU hog: {e}")))?;
+            hogs.threads.push(thread);
+        }
+        Ok(hogs)
+    }
+}
+
+impl Drop for Hogs {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        for h in self.threads.drain(..) {
+            let _ = h.join();
+        }
+    }
+}
+
+fn probe(rate_hz: f64, each: Duration, rt: Option<i32>) -> Result<ProbeRun, CliError> {
+    run_probes(rate_hz, each, rt)
+        .map_err(|e| CliError::Output(format!("cannot run the platform probe: {e}")))
+}
+
+fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     let plan = ScriptPlan::builtin();
     let field =
         build_clay(&plan.clay).map_err(|e| CliError::Output(format!("clay fit failed: {e}")))?;
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
+    config.haptic_rate_hz = args.rate_hz;
     if !args.rt {
         config.haptic_rt_priority = None;
     }
     let trajectory = plan.trajectory(&config.map).map_err(CliError::Script)?;
     let device = Box::new(SimulatedArm::new(arm_config, trajectory));
 
-    let stop = Arc::new(AtomicBool::new(false));
-    let mut hogs = Vec::new();
-    if args.load {
-        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-        for i in 0..cores.saturating_sub(1).max(1) {
-            let stop = stop.clone();
-            hogs.push(
-                std::thread::Builder::new()
-                    .name(format!("cpu-hog-{i}"))
-                    .spawn(move || {
-                        let mut x = 0u64;
-                        // NOTE: Relaxed: the flag only ends the loop eventually.
-                        while !stop.load(Ordering::Relaxed) {
-                            x = std::hint::black_box(
-                                x.wrapping_mul(6364136223846793005).wrapping_add(1),
-                            );
-                        }
-                    })
-                    .map_err(|e| CliError::Output(format!("cannot start a CPU hog: {e}")))?,
-            );
-        }
-    }
+    let hogs = Hogs::start(args.load)?;
+    // Each probe (wake-up, then stalls) runs for a fifth of the engine's time, 0.2 to 2 s.
+    let each = Duration::from_secs_f64((args.seconds * 0.2).clamp(0.2, 2.0));
+    let probe_before = probe(args.rate_hz, each, config.haptic_rt_priority)?;
+
     let engine = Engine::start(&config, field, device, Box::new(HeadlessSink::default()))
-        .map_err(CliError::Engine);
-    let engine = match engine {
-        Ok(e) => e,
-        Err(e) => {
-            stop.store(true, Ordering::Relaxed);
-            return Err(e);
-        }
-    };
+        .map_err(CliError::Engine)?;
     println!(
-        "profiling {:.1} s{}; haptic priority: {}",
+        "profiling {:.1} s at {:.0} Hz{}; haptic priority: {}",
         args.seconds,
+        args.rate_hz,
         if args.load { " with CPU hogs" } else { "" },
         engine.haptic_rt()
     );
+    let haptic_rt = engine.haptic_rt();
+    let jiffies_before = cpu_jiffies();
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs_f64(args.seconds) && engine.is_alive() {
         std::thread::sleep(Duration::from_millis(50));
     }
-    let report = engine.stop();
-    stop.store(true, Ordering::Relaxed);
-    for h in hogs {
-        let _ = h.join();
-    }
-    let report = report.map_err(CliError::Engine)?;
-    let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
-    print!("{}", markdown_table(&summaries));
+    let jiffies_after = cpu_jiffies();
+    let report = engine.stop().map_err(CliError::Engine)?;
+    let probe_after = probe(args.rate_hz, each, config.haptic_rt_priority)?;
+    drop(hogs);
+
+    let mut facts = read_platform_facts();
+    facts.rt_granted = match haptic_rt {
+        RtOutcome::Granted { .. } => Some(true),
+        _ => Some(false),
+    };
+    facts.cpu_busy_fraction = jiffies_before
+        .zip(jiffies_after)
+        .and_then(|(b, a)| busy_fraction(b, a));
+    let probes = [probe_before.summary(), probe_after.summary()];
+    facts.stall_ms_per_s = Some(
+        probes
+            .iter()
+            .map(|p| p.stalls.stolen_ms_per_s())
+            .fold(0.0, f64::max),
+    );
+    facts.wakeup_p999_us = Some(
+        probes
+            .iter()
+            .map(|p| p.wakeup.lateness.p999_us)
+            .fold(0.0, f64::max),
+    );
+    facts.wakeup_max_us = Some(
+        probes
+            .iter()
+            .map(|p| p.wakeup.lateness.max_us)
+            .fold(0.0, f64::max),
+    );
+    let doc = ProfileDoc {
+        loops: report.loops.iter().map(|r| r.summary()).collect(),
+        probe_before: Some(probes[0]),
+        probe_after: Some(probes[1]),
+        readiness: JUDGED_RATES_HZ
+            .iter()
+            .map(|&hz| verdict(&facts, hz))
+            .collect(),
+        facts: Some(facts),
+    };
+    let text = profile_report(&doc);
+    print!("{text}");
     let c = report.counters;
     println!(
         "haptic ticks {}, simulation steps {}, graphics updates {}, stale ticks {}, device faults {}",
@@ -86,5 +198,88 @@ pub fn profile(args: &ProfileArgs) -> Result<(), CliError> {
         c.stale_ticks,
         c.device_read_faults + c.device_write_faults
     );
+    if let Some(dir) = &args.out {
+        let recorders: Vec<(&str, &LatencyRecorder)> = report
+            .loops
+            .iter()
+            .map(|r| (r.config.name.as_str(), &r.recorder))
+            .collect();
+        // The probe run with the worse tail is drawn over the loops.
+        let worse_probe =
+            if probes[1].wakeup.period_error.p999_us > probes[0].wakeup.period_error.p999_us {
+                &probe_after.wakeup
+            } else {
+                &probe_before.wakeup
+            };
+        for path in write_profile_files(dir, &doc, &text, &recorders, worse_probe)? {
+            println!("wrote {}", path.display());
+        }
+    }
     Ok(())
+}
+
+/// Writes `latency.json`, `latency.md` and `latency.svg` (with `probe` drawn over the loops)
+/// into `dir` (created if missing).
+fn write_profile_files(
+    dir: &Path,
+    doc: &ProfileDoc,
+    text: &str,
+    recorders: &[(&str, &LatencyRecorder)],
+    probe: &LatencyRecorder,
+) -> Result<Vec<std::path::PathBuf>, CliError> {
+    let err =
+        |p: &Path, e: &dyn std::fmt::Display| CliError::Output(format!("{}: {e}", p.display()));
+    std::fs::create_dir_all(dir).map_err(|e| err(dir, &e))?;
+    let json_path = dir.join("latency.json");
+    let json = doc.to_json().map_err(|e| err(&json_path, &e))?;
+    crate::io::write_atomic(&json_path, json.as_bytes()).map_err(|e| err(&json_path, &e))?;
+    let md_path = dir.join("latency.md");
+    let md = format!("# dynaclay profile\n\n{text}");
+    crate::io::write_atomic(&md_path, md.as_bytes()).map_err(|e| err(&md_path, &e))?;
+    let svg_path = dir.join("latency.svg");
+    write_latency_svg(&svg_path, recorders, Some(probe)).map_err(|e| err(&svg_path, &e))?;
+    Ok(vec![json_path, md_path, svg_path])
+}
+
+#[cfg(test)]
+mod tests {
+    use dynaclay_loops::LoopSummary;
+
+    use super::*;
+
+    #[test]
+    fn compare_reads_two_files_and_names_a_bad_one() {
+        let dir = std::env::temp_dir().join(format!("dynaclay-compare-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let a = dir.join("a.json");
+        let b = dir.join("b.json");
+        let bad = dir.join("bad.json");
+        let doc = |p99: f64| {
+            let mut s = dynaclay_loops::LatencyStats {
+                ticks: 100,
+                ..Default::default()
+            };
+            s.period_error.p99_us = p99;
+            ProfileDoc {
+                loops: vec![LoopSummary {
+                    name: "haptic".into(),
+                    rt_priority: RtOutcome::NotRequested,
+                    pinning: dynaclay_loops::PinOutcome::NotRequested,
+                    stats: s,
+                }],
+                ..ProfileDoc::default()
+            }
+        };
+        std::fs::write(&a, doc(4.0).to_json().expect("json")).expect("write a");
+        std::fs::write(&b, doc(1.0).to_json().expect("json")).expect("write b");
+        std::fs::write(&bad, "{\"loops\": 3}").expect("write bad");
+        let table = compare_files(&a, &b).expect("compare");
+        assert!(
+            table.contains("| haptic | period error p99 µs | 4.00 | 1.00 | 0.25 |"),
+            "{table}"
+        );
+        let e = compare_files(&a, &bad).expect_err("bad file").to_string();
+        assert!(e.contains("bad.json"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
