@@ -18,33 +18,21 @@ use crate::field::BSplineLattice;
 use crate::io::{Autosave, AutosavePolicy, load_session, recovery_to_use};
 
 /// Why `dynaclay gui` stopped.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum LaunchError {
     /// A bad argument.
+    #[error("gui: {0} (usage: dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover])")]
     Usage(String),
     /// The device could not be made or opened.
+    #[error("gui: device: {0}")]
     Device(String),
     /// The engine or the window failed.
+    #[error("gui: {0}")]
     Failed(String),
     /// The session named on the command line could not be read (exit 2, as for `render`).
+    #[error("gui: cannot read session: {0}")]
     Session(crate::io::SessionError),
 }
-
-impl std::fmt::Display for LaunchError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Usage(m) => write!(
-                f,
-                "gui: {m} (usage: dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover])"
-            ),
-            Self::Device(m) => write!(f, "gui: device: {m}"),
-            Self::Failed(m) => write!(f, "gui: {m}"),
-            Self::Session(e) => write!(f, "gui: cannot read session: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for LaunchError {}
 
 /// What `dynaclay gui` was asked for.
 #[derive(Clone, Debug, PartialEq)]

@@ -53,27 +53,15 @@ impl std::fmt::Debug for RepaintSignal {
 }
 
 /// Why a command did not reach the engine.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SendError {
     /// The engine is not draining its queue (stalled or busy); the command was dropped.
+    #[error("{command}: the engine's command queue is full ({COMMAND_QUEUE_LEN} waiting); command dropped", COMMAND_QUEUE_LEN = COMMAND_QUEUE_LEN)]
     QueueFull { command: &'static str },
     /// No engine is listening (not started, or stopped).
+    #[error("{command}: no engine is running")]
     NoEngine { command: &'static str },
 }
-
-impl std::fmt::Display for SendError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::QueueFull { command } => write!(
-                f,
-                "{command}: the engine's command queue is full ({COMMAND_QUEUE_LEN} waiting); command dropped"
-            ),
-            Self::NoEngine { command } => write!(f, "{command}: no engine is running"),
-        }
-    }
-}
-
-impl std::error::Error for SendError {}
 
 /// The app's end.
 pub struct EngineLink {

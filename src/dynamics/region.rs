@@ -11,9 +11,10 @@ use crate::field::{BSplineLattice, CoeffBox, KronError, KronScratch, KroneckerBa
 use super::material::Material;
 
 /// Why a region could not be set up.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum RegionError {
     /// The coefficient box is empty or not inside the lattice.
+    #[error("region {:?}..={:?} is empty or outside the lattice {dims:?}", .coeffs.min, .coeffs.max)]
     BadBox {
         /// The box asked for.
         coeffs: CoeffBox,
@@ -21,6 +22,9 @@ pub enum RegionError {
         dims: [usize; 3],
     },
     /// Fewer mass points than coefficients along an axis (the system would be singular).
+    #[error(
+        "region needs at least as many mass points as coefficients per axis: {mass_dims:?} < {coeff_dims:?}"
+    )]
     TooFewMassPoints {
         /// Mass points asked for per axis.
         mass_dims: [usize; 3],
@@ -28,30 +32,9 @@ pub enum RegionError {
         coeff_dims: [usize; 3],
     },
     /// The operator could not be factored.
+    #[error("region basis: {0}")]
     Basis(KronError),
 }
-
-impl std::fmt::Display for RegionError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::BadBox { coeffs, dims } => write!(
-                f,
-                "region {:?}..={:?} is empty or outside the lattice {dims:?}",
-                coeffs.min, coeffs.max
-            ),
-            Self::TooFewMassPoints {
-                mass_dims,
-                coeff_dims,
-            } => write!(
-                f,
-                "region needs at least as many mass points as coefficients per axis: {mass_dims:?} < {coeff_dims:?}"
-            ),
-            Self::Basis(e) => write!(f, "region basis: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for RegionError {}
 
 /// The state of the simulated region: coefficients and their velocity, densities, rest
 /// densities, and the per-mass-point material fields (editable; `mass`, `damping`, `stiffness`

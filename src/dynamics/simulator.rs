@@ -22,35 +22,24 @@ use super::springs::{add_spring_forces, padded_row};
 use super::team::Team;
 
 /// Why a step was refused. The region state is unchanged except for its (halved) time step.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum StepError {
     /// A stage produced a NaN or an infinity.
+    #[error("step refused: non-finite values in {stage}")]
     NonFinite {
         /// The stage that produced it.
         stage: &'static str,
     },
     /// The step would push a coefficient beyond `max_abs_coeff`.
+    #[error("step refused: coefficients would reach {bound}")]
     Diverged {
         /// The bound the new coefficients would have reached.
         bound: f32,
     },
     /// The region does not fit the lattice passed in.
+    #[error("step refused: region does not fit the lattice")]
     RegionMismatch,
 }
-
-impl std::fmt::Display for StepError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::NonFinite { stage } => write!(f, "step refused: non-finite values in {stage}"),
-            Self::Diverged { bound } => {
-                write!(f, "step refused: coefficients would reach {bound}")
-            }
-            Self::RegionMismatch => write!(f, "step refused: region does not fit the lattice"),
-        }
-    }
-}
-
-impl std::error::Error for StepError {}
 
 /// What a successful step did.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -13,20 +13,9 @@ use std::sync::atomic::{AtomicU32, Ordering};
 pub const MAX_HAPTIC_GAIN: f32 = 10.0;
 
 /// A gain outside `0..=MAX_HAPTIC_GAIN`, or not a number.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("haptic gain {0}: must be a number from 0 to {MAX_HAPTIC_GAIN}", MAX_HAPTIC_GAIN = MAX_HAPTIC_GAIN)]
 pub struct InvalidHapticGain(pub f32);
-
-impl std::fmt::Display for InvalidHapticGain {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "haptic gain {}: must be a number from 0 to {MAX_HAPTIC_GAIN}",
-            self.0
-        )
-    }
-}
-
-impl std::error::Error for InvalidHapticGain {}
 
 /// A shared handle on the haptic gain (cheap to clone: an `Arc`).
 #[derive(Clone, Debug)]

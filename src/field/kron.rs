@@ -16,21 +16,14 @@ pub use super::sweep::LANES;
 use super::sweep::{AxisOp, SharedOut, sweep_strided, sweep_x};
 
 /// Why an operator could not be built.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("axis {axis}: {message}")]
 pub struct KronError {
     /// Which axis (0 = x, 1 = y, 2 = z).
     pub axis: usize,
     /// What went wrong.
     pub message: String,
 }
-
-impl std::fmt::Display for KronError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "axis {}: {}", self.axis, self.message)
-    }
-}
-
-impl std::error::Error for KronError {}
 
 /// `A = Bx ⊗ By ⊗ Bz` with the Cholesky factors of the three Gram matrices.
 #[derive(Clone, Debug, PartialEq)]

@@ -5,34 +5,18 @@ use glam::{Vec3, Vec4};
 use super::basis::{cubic_weights, cubic_weights_and_derivatives};
 
 /// Why a lattice could not be built.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum LatticeError {
     /// A dimension was below 4 (a cubic needs four coefficients per axis).
+    #[error("lattice {dims:?} is too small: each axis needs at least 4 coefficients")]
     TooSmall { dims: [usize; 3] },
     /// The knot spacing was not a positive finite number.
+    #[error("knot spacing {spacing} must be positive and finite")]
     BadSpacing { spacing: f32 },
     /// The coefficient vector's length does not match the dimensions.
+    #[error("expected {expected} coefficients, got {got}")]
     WrongLength { expected: usize, got: usize },
 }
-
-impl std::fmt::Display for LatticeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::TooSmall { dims } => write!(
-                f,
-                "lattice {dims:?} is too small: each axis needs at least 4 coefficients"
-            ),
-            Self::BadSpacing { spacing } => {
-                write!(f, "knot spacing {spacing} must be positive and finite")
-            }
-            Self::WrongLength { expected, got } => {
-                write!(f, "expected {expected} coefficients, got {got}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for LatticeError {}
 
 /// A uniform cubic B-spline field `s(x) = Σ p_ijk B_i(x) B_j(y) B_k(z)`.
 ///

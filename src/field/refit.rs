@@ -23,9 +23,10 @@ use super::lattice::BSplineLattice;
 use super::mass_grid::{CoeffBox, MassGrid};
 
 /// Why a fit could not run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum FitError {
     /// The coefficient box is empty or reaches beyond the lattice.
+    #[error("coefficient box {:?}..={:?} is empty or outside the lattice {dims:?}", .coeffs.min, .coeffs.max)]
     BadBox {
         /// The box asked for.
         coeffs: CoeffBox,
@@ -33,31 +34,15 @@ pub enum FitError {
         dims: [usize; 3],
     },
     /// `samples_per_span` was zero.
+    #[error("samples_per_span must be at least 1")]
     NoSamples,
     /// The target returned a NaN or an infinity at this world point.
+    #[error("target is not finite at world point {at:?}")]
     NonFiniteTarget {
         /// Where the target was sampled.
         at: [f32; 3],
     },
 }
-
-impl std::fmt::Display for FitError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::BadBox { coeffs, dims } => write!(
-                f,
-                "coefficient box {:?}..={:?} is empty or outside the lattice {dims:?}",
-                coeffs.min, coeffs.max
-            ),
-            Self::NoSamples => write!(f, "samples_per_span must be at least 1"),
-            Self::NonFiniteTarget { at } => {
-                write!(f, "target is not finite at world point {at:?}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for FitError {}
 
 /// Least-squares refit of the coefficients in `coeff_min ..= coeff_max` (inclusive, lattice
 /// indices) to `target`, sampled at `samples_per_span` points per knot span on the box's mass

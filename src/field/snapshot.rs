@@ -11,9 +11,12 @@ use super::lattice::BSplineLattice;
 use super::mass_grid::CoeffBox;
 
 /// Why a snapshot could not be applied.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum SnapshotError {
     /// The snapshot's region does not fit in the lattice.
+    #[error(
+        "snapshot region at {coeff_origin:?} of size {coeff_dims:?} is outside the lattice {lattice_dims:?}"
+    )]
     RegionOutside {
         /// First coefficient of the region.
         coeff_origin: [usize; 3],
@@ -23,6 +26,7 @@ pub enum SnapshotError {
         lattice_dims: [usize; 3],
     },
     /// The coefficient buffer does not hold `coeff_dims` values.
+    #[error("snapshot holds {got} coefficients, its region needs {expected}")]
     WrongLength {
         /// Coefficients expected from `coeff_dims`.
         expected: usize,
@@ -30,29 +34,6 @@ pub enum SnapshotError {
         got: usize,
     },
 }
-
-impl std::fmt::Display for SnapshotError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::RegionOutside {
-                coeff_origin,
-                coeff_dims,
-                lattice_dims,
-            } => write!(
-                f,
-                "snapshot region at {coeff_origin:?} of size {coeff_dims:?} is outside the lattice {lattice_dims:?}"
-            ),
-            Self::WrongLength { expected, got } => {
-                write!(
-                    f,
-                    "snapshot holds {got} coefficients, its region needs {expected}"
-                )
-            }
-        }
-    }
-}
-
-impl std::error::Error for SnapshotError {}
 
 /// The coefficients of a box of the lattice at one version, with the world box whose field
 /// values may have changed since the previous version.

@@ -37,16 +37,9 @@ pub enum ToolAction {
 }
 
 /// Why an action's parameters were rejected.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid tool action: {0}")]
 pub struct ActionError(pub String);
-
-impl std::fmt::Display for ActionError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "invalid tool action: {}", self.0)
-    }
-}
-
-impl std::error::Error for ActionError {}
 
 impl ToolAction {
     /// Short name for menus and undo labels.

@@ -79,40 +79,25 @@ impl ToolReport {
 }
 
 /// Why a tool could not be applied.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum ToolError {
+    #[error("{0}")]
     Shape(ShapeError),
+    #[error("{0}")]
     Action(ActionError),
     /// The falloff band must be positive for analytic shapes.
-    BadFalloff {
-        falloff_m: f32,
-    },
+    #[error("falloff_m = {falloff_m} must be positive and finite")]
+    BadFalloff { falloff_m: f32 },
     /// The clay has no patch with this index.
-    NoPatch {
-        patch: u16,
-    },
+    #[error("the clay has no patch {patch}")]
+    NoPatch { patch: u16 },
     /// A painting action needs a colour field, and its geometry was invalid.
+    #[error("colour field: {0}")]
     Colour(String),
     /// The refit failed (e.g. a non-finite target).
+    #[error("refit failed: {0}")]
     Fit(FitError),
 }
-
-impl std::fmt::Display for ToolError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::Shape(e) => write!(f, "{e}"),
-            Self::Action(e) => write!(f, "{e}"),
-            Self::BadFalloff { falloff_m } => {
-                write!(f, "falloff_m = {falloff_m} must be positive and finite")
-            }
-            Self::NoPatch { patch } => write!(f, "the clay has no patch {patch}"),
-            Self::Colour(e) => write!(f, "colour field: {e}"),
-            Self::Fit(e) => write!(f, "refit failed: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for ToolError {}
 
 impl From<FitError> for ToolError {
     fn from(e: FitError) -> Self {

@@ -56,16 +56,9 @@ impl Default for StampParams {
 }
 
 /// Why stamp parameters were rejected.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid stamp parameters: {0}")]
 pub struct StampParamsError(pub String);
-
-impl std::fmt::Display for StampParamsError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "invalid stamp parameters: {}", self.0)
-    }
-}
-
-impl std::error::Error for StampParamsError {}
 
 impl StampParams {
     /// Checks `s, m, r > 0`, `n ≥ 0`, all finite, and `s + m + r ≤ 1` (so the function is not

@@ -207,16 +207,9 @@ pub fn project_to_surface(lattice: &BSplineLattice, mut x: Vec3) -> Vec3 {
 }
 
 /// Why a force tool's parameters were rejected.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid force tool: {0}")]
 pub struct ForceToolError(pub String);
-
-impl std::fmt::Display for ForceToolError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "invalid force tool: {}", self.0)
-    }
-}
-
-impl std::error::Error for ForceToolError {}
 
 impl ForceTool {
     /// Short name for menus and undo labels.

@@ -19,23 +19,12 @@ pub const BRICK: usize = 8;
 pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;
 
 /// Why an undo or redo could not be applied.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum HistoryError {
     /// The step refers to a field the clay no longer has, or whose dimensions changed.
+    #[error("cannot apply history step to {field:?}: {detail}")]
     FieldMismatch { field: FieldId, detail: String },
 }
-
-impl std::fmt::Display for HistoryError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::FieldMismatch { field, detail } => {
-                write!(f, "cannot apply history step to {field:?}: {detail}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for HistoryError {}
 
 /// XOR of old and new coefficient bits over one brick.
 #[derive(Clone, Debug, PartialEq)]

@@ -68,16 +68,9 @@ pub enum ToolShape {
 }
 
 /// Why a tool shape cannot be used.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid tool shape: {0}")]
 pub struct ShapeError(pub String);
-
-impl std::fmt::Display for ShapeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "invalid tool shape: {}", self.0)
-    }
-}
-
-impl std::error::Error for ShapeError {}
 
 /// C¹ ramp from 1 (signed distance `-w`) through 1/2 (the surface) to 0 (distance `+w`).
 #[inline]
