@@ -129,28 +129,10 @@ impl FieldPatch {
     }
 }
 
-/// Smallest box holding `b` and `c`.
-#[must_use]
-pub fn union_box(b: Option<CoeffBox>, c: CoeffBox) -> CoeffBox {
-    match b {
-        None => c,
-        Some(b) => CoeffBox {
-            min: [
-                b.min[0].min(c.min[0]),
-                b.min[1].min(c.min[1]),
-                b.min[2].min(c.min[2]),
-            ],
-            max: [
-                b.max[0].max(c.max[0]),
-                b.max[1].max(c.max[1]),
-                b.max[2].max(c.max[2]),
-            ],
-        },
-    }
-}
-
+/// Grows `acc` to hold coefficient `p`.
 fn grow(acc: &mut Option<CoeffBox>, p: [usize; 3]) {
-    *acc = Some(union_box(*acc, CoeffBox { min: p, max: p }));
+    let point = CoeffBox { min: p, max: p };
+    *acc = Some(acc.map_or(point, |b| b.union(&point)));
 }
 
 fn clamp_box(b: CoeffBox, dims: [usize; 3]) -> Option<CoeffBox> {

@@ -26,7 +26,13 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+mod commands;
 mod constrain;
+mod publication;
+mod session_io;
+
+use session_io::CarriedSections;
+pub use session_io::check_loadable;
 
 use crossbeam::channel::{Receiver, Sender};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
@@ -36,7 +42,7 @@ use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
 use super::error::{CommandError, LatticeShape, LoadRefused};
 use super::live_tool::LiveTool;
-use super::patch::{FieldPatch, union_box};
+use super::patch::FieldPatch;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
@@ -171,21 +177,6 @@ pub struct SimulationStage {
     carried: CarriedSections,
 }
 
-/// What a loaded session holds besides the sculpted patch, its paint and its uniform
-/// material: the engine sculpts one density patch with a uniform material, and keeps the
-/// rest untouched so that saving loses nothing.
-#[derive(Clone, Debug, Default)]
-struct CarriedSections {
-    /// Density patches after the first, unchanged.
-    extra_patches: Vec<BSplineLattice>,
-    /// Spatially varying material grids (not applied by the simulation).
-    material_grids: Vec<crate::io::MaterialGrid>,
-    /// The tool library.
-    tools: Vec<crate::io::ToolPreset>,
-    /// Name, creation time and writer of the session.
-    meta: crate::io::SessionMeta,
-}
-
 /// The bounding box of `forces` grown by their spread radii, if there are any.
 fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
     forces.iter().fold(None, |acc, f| {
@@ -197,11 +188,6 @@ fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
         })
     })
 }
-
-/// Steps between two publications of a changing colour field. Painting changes it every step;
-/// the graphics loop shows it at 60 Hz, so copying all four channels at the simulation's rate
-/// would be wasted work.
-const COLOUR_PUBLISH_EVERY_STEPS: u64 = 16;
 
 impl SimulationStage {
     /// Builds the stage over `lattice` (it becomes the clay's single density patch).
@@ -270,25 +256,6 @@ impl SimulationStage {
         &self.clay
     }
 
-    /// The session as it stands: the sculpted patch, its paint and the uniform material,
-    /// with every part of the loaded session the engine does not simulate (further patches,
-    /// material grids, tool library, metadata) carried through unchanged.
-    #[must_use]
-    pub fn session(&self) -> Session {
-        let mut clay = self.clay.clone();
-        clay.patches
-            .extend(self.carried.extra_patches.iter().cloned());
-        Session {
-            clay,
-            material: MaterialFields {
-                uniform: self.config.material,
-                grids: self.carried.material_grids.clone(),
-            },
-            tools: self.carried.tools.clone(),
-            meta: self.carried.meta.clone(),
-        }
-    }
-
     /// Undo steps available.
     #[must_use]
     pub fn undo_len(&self) -> usize {
@@ -305,177 +272,6 @@ impl SimulationStage {
     #[must_use]
     pub fn tool(&self) -> &ToolChoice {
         self.tool.choice()
-    }
-
-    /// Applies every queued command (non-blocking).
-    pub fn apply_commands(&mut self) {
-        while let Ok(cmd) = self.commands.try_recv() {
-            let ok = self.apply(cmd);
-            self.counters.commands_applied(1);
-            if !ok {
-                self.counters.command_errors(1);
-            }
-        }
-    }
-
-    fn apply(&mut self, cmd: Command) -> bool {
-        self.pins_revision += u64::from(constrain::may_change_pins(&cmd));
-        match cmd {
-            Command::SetTool(tool) => {
-                // A held stroke ends with the tool it was made with.
-                self.end_stroke_now();
-                self.tool.set(tool);
-                true
-            }
-            Command::SetMaterial(m) => {
-                self.config.material = m;
-                true
-            }
-            Command::StrokeStart => {
-                self.stroke_armed = true;
-                true
-            }
-            Command::StrokeStop => {
-                self.stroke_armed = false;
-                true
-            }
-            Command::SetSymmetry(symmetry) => {
-                // A held stroke ends mirrored as it began.
-                self.end_stroke_now();
-                self.symmetry = symmetry;
-                true
-            }
-            Command::ApplyTool {
-                tool,
-                poses,
-                duration_s,
-                patch,
-                reply,
-            } => {
-                self.end_stroke_now();
-                let mut rec = StepRecorder::new(tool.action.name());
-                let options = ApplyOptions {
-                    patch,
-                    ..ApplyOptions::default()
-                };
-                let result = apply_stroke(
-                    &mut self.clay,
-                    &tool,
-                    &poses,
-                    duration_s,
-                    &options,
-                    Some(&mut rec),
-                );
-                self.colour_dirty |= tool.action.paints();
-                // Whatever was applied before a failure stays undoable.
-                self.commit(rec);
-                self.edited(result, tool.action.name(), reply)
-            }
-            Command::Csg {
-                op,
-                other,
-                patch,
-                reply,
-            } => {
-                self.end_stroke_now();
-                let mut rec = StepRecorder::new(format!("csg {}", op.name()));
-                let options = ApplyOptions {
-                    patch,
-                    ..ApplyOptions::default()
-                };
-                let result = apply_csg(&mut self.clay, &other, op, &options, Some(&mut rec));
-                // The other clay's paint may come along.
-                self.colour_dirty = true;
-                self.commit(rec);
-                self.edited(result, op.name(), reply)
-            }
-            Command::Undo | Command::Redo => {
-                self.end_stroke_now();
-                let whole = CoeffBox::whole(self.lattice().dims);
-                let done = if matches!(cmd, Command::Undo) {
-                    self.history.undo(&mut self.clay)
-                } else {
-                    self.history.redo(&mut self.clay)
-                };
-                self.mark_changed(whole);
-                self.colour_dirty = true;
-                done.is_ok()
-            }
-            Command::Constrain { request, reply } => {
-                let result = self.pin(&request).map_err(CommandError::from);
-                let ok = result.is_ok();
-                reply.map(|r| r.send(result));
-                ok
-            }
-            Command::Unconstrain { index, reply } => {
-                let result = self.unpin(index).map_err(CommandError::from);
-                let ok = result.is_ok();
-                reply.map(|r| r.send(result));
-                ok
-            }
-            Command::ListPins { reply } => reply.send(self.clay.constraints.clone()).is_ok(),
-            Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
-            Command::Load {
-                session,
-                source,
-                reply,
-            } => {
-                let result = self.load(*session, &source);
-                let ok = result.is_ok();
-                if let Some(r) = reply {
-                    let _ = r.send(result.map_err(CommandError::from));
-                }
-                ok
-            }
-            Command::Save { path, reply } => match &self.io {
-                Some(io) => io
-                    .send(IoJob::Save(Box::new(SaveJob {
-                        path,
-                        session: self.session(),
-                        reply,
-                    })))
-                    .is_ok(),
-                None => {
-                    if let Some(r) = reply {
-                        let _ = r.send(Err("this engine has no I/O thread".to_owned()));
-                    }
-                    false
-                }
-            },
-        }
-    }
-
-    /// Publishes a tool or CSG edit's box and answers `reply`; returns whether it succeeded.
-    fn edited(
-        &mut self,
-        result: Result<ToolReport, crate::tools::ToolError>,
-        what: &str,
-        reply: Option<Reply>,
-    ) -> bool {
-        let answer = match result {
-            Ok(report) => {
-                if let Some(b) = report.coeff_box {
-                    self.mark_changed(b);
-                }
-                Ok(format!(
-                    "{what}: {} samples visited, {} dirtied",
-                    report.visited, report.dirtied
-                ))
-            }
-            Err(error) => {
-                // A failed application may have applied earlier poses: publish the patch.
-                self.mark_changed(CoeffBox::whole(self.lattice().dims));
-                Err(CommandError::Tool {
-                    what: what.to_owned(),
-                    error,
-                })
-            }
-        };
-        let ok = answer.is_ok();
-        if let Some(r) = reply {
-            let _ = r.send(answer);
-        }
-        ok
     }
 
     /// One step under `sample`: stroke bookkeeping, the held tool, region upkeep, dynamics,
@@ -630,7 +426,7 @@ impl SimulationStage {
         };
         if let Some(region) = &self.region {
             let b = region.coeff_box();
-            if contains(&b, &needed) {
+            if b.contains_box(&needed) {
                 return;
             }
         }
@@ -639,7 +435,7 @@ impl SimulationStage {
         let Some(around) = coeff_box_around(lattice, centre - half, centre + half, 0) else {
             return;
         };
-        let b = union_box(Some(around), needed);
+        let b = around.union(&needed);
         self.retire_region();
         let n = b.dims();
         let s = self.config.samples_per_span.max(1);
@@ -687,219 +483,11 @@ impl SimulationStage {
         self.tool.end_stroke();
     }
 
-    /// Records that `b` changed outside the region's regular publication.
-    fn mark_changed(&mut self, b: CoeffBox) {
-        self.pending = Some(union_box(self.pending, b));
-        self.pending_since = self.to_haptic.version() + 1;
-    }
-
-    fn publish(&mut self) {
-        // NOTE: Acquire pairs with the readers' Release store of their ack: once a reader has
-        // acknowledged a version, it holds every coefficient that version carried.
-        let seen = self
-            .acks
-            .haptic
-            .load(Ordering::Acquire)
-            .min(self.acks.graphics.load(Ordering::Acquire));
-        if self.pending.is_some() && seen >= self.pending_since {
-            self.pending = None;
-        }
-        let region = self.region.as_ref().map(RegionState::coeff_box);
-        let b = match (region, self.pending) {
-            (Some(r), p) => Some(union_box(p, r)),
-            (None, p) => p,
-        };
-        let lattice = &self.clay.patches[0];
-        for w in [&mut self.to_haptic, &mut self.to_graphics] {
-            let patch = w.back_mut();
-            match b {
-                Some(b) => patch.capture(lattice, b),
-                None => {
-                    patch.coeff_box = None;
-                    patch.coeffs.clear();
-                }
-            }
-            patch.stroke_armed = self.stroke_armed;
-            patch.tool = self.tool.felt_tool();
-            self.tool.stroke_geometry(&mut patch.stroke);
-            patch.sim_time_s = self.sim_time_s;
-            patch.sim_step = self.steps;
-            w.publish();
-        }
-        self.counters.snapshots_published(1);
-        if self.colour_dirty
-            && self.steps >= self.colour_published_step + COLOUR_PUBLISH_EVERY_STEPS
-        {
-            self.publish_colour();
-        }
-        self.publish_status();
-    }
-
-    /// Copies the clay's paint into the colour buffer and publishes it (the simulation loop
-    /// may allocate; the haptic loop never sees this buffer).
-    fn publish_colour(&mut self) {
-        let paint = &self.clay.colour;
-        self.colour.write_with(|c| c.clone_from(paint));
-        self.colour_dirty = false;
-        self.colour_published_step = self.steps;
-    }
-
-    /// Publishes the current field, and the paint if it changed, without stepping (used at
-    /// shutdown so readers catch up).
-    pub fn publish_now(&mut self) {
-        self.publish();
-        if self.colour_dirty {
-            self.publish_colour();
-        }
-    }
-
-    /// The graphics loop's end of the paint publications (there is one; the second call gets
-    /// `None`).
-    pub fn take_colour_reader(&mut self) -> Option<SnapshotReader<Option<ColourField>>> {
-        self.colour_reader.take()
-    }
-
     /// Ends the session: retires the region and records the last stroke's undo step.
     pub fn finish(&mut self) {
         self.was_active = false;
         self.retire_region();
     }
-}
-
-fn contains(outer: &CoeffBox, inner: &CoeffBox) -> bool {
-    (0..3).all(|a| outer.min[a] <= inner.min[a] && inner.max[a] <= outer.max[a])
-}
-
-/// Loading a session into the running stage, and the status published for observers.
-impl SimulationStage {
-    /// The observers' end of this stage's [`SimStatus`] (there is one; the second call gets
-    /// `None`).
-    pub fn take_status_reader(&mut self) -> Option<SnapshotReader<SimStatus>> {
-        self.status_reader.take()
-    }
-
-    /// Installs `session` (read from `source`): the clay and the uniform material replace
-    /// the current ones, the active region is dropped, the undo history is cleared (its
-    /// steps are differences against the replaced clay, meaningless on the new one) and the
-    /// whole field is marked changed so both readers receive all of it. A stroke held across
-    /// the load continues on the new clay as a new stroke (a new undo step).
-    ///
-    /// # Errors
-    /// When the session does not fit the running engine (see [`check_loadable`]); nothing
-    /// changes then.
-    pub fn load(
-        &mut self,
-        session: Session,
-        source: &std::path::Path,
-    ) -> Result<String, LoadRefused> {
-        check_loadable(self.lattice(), &session, source)?;
-        let ignored_grids = session.material.grids.len();
-        // The stroke in progress ends on the old clay (its step is dropped with the history).
-        self.end_stroke_now();
-        self.history.clear();
-        let Session {
-            clay,
-            material,
-            tools,
-            meta,
-        } = session;
-        let mut patches = clay.patches;
-        let extra_patches = patches.split_off(1);
-        let extra = extra_patches.len();
-        self.carried = CarriedSections {
-            extra_patches,
-            material_grids: material.grids,
-            tools,
-            meta,
-        };
-        self.clay = Clay {
-            patches,
-            colour: clay.colour,
-            constraints: clay.constraints,
-        };
-
-        self.colour_dirty = true;
-        self.config.material = material.uniform;
-        let whole = CoeffBox::whole(self.lattice().dims);
-        self.mark_changed(whole);
-        self.sessions_loaded += 1;
-        let d = self.lattice().dims;
-        let mut summary = format!(
-            "loaded {} ({}×{}×{} coefficients); undo history cleared",
-            source.display(),
-            d[0],
-            d[1],
-            d[2]
-        );
-        if ignored_grids > 0 {
-            summary.push_str(&format!(
-                "; {ignored_grids} material grid(s) kept but not applied (the engine simulates a uniform material)"
-            ));
-        }
-        if extra > 0 {
-            summary.push_str(&format!(
-                "; {extra} further patch(es) kept unchanged (the engine sculpts the first)"
-            ));
-        }
-        Ok(summary)
-    }
-
-    fn publish_status(&mut self) {
-        let lattice = &self.clay.patches[0];
-        let region = self.region.as_ref().map(|r| {
-            let b = r.coeff_box();
-            (
-                lattice.node_position(b.min[0], b.min[1], b.min[2]),
-                lattice.node_position(b.max[0], b.max[1], b.max[2]),
-            )
-        });
-        *self.status.back_mut() = SimStatus {
-            undo_steps: self.history.undo_len(),
-            redo_steps: self.history.redo_len(),
-            material: self.config.material,
-            region,
-            sessions_loaded: self.sessions_loaded,
-            sim_step: self.steps,
-            sim_time_s: self.sim_time_s,
-            pins_revision: self.pins_revision,
-        };
-        self.status.publish();
-    }
-}
-
-/// Whether `session` can replace the clay of an engine running on `running`: the haptic and
-/// graphics loops hold copies sized for that lattice (allocated once, so the haptic tick never
-/// allocates), so the session's first density patch (the one sculpted; further patches are
-/// carried unchanged) must have the same dimensions, spacing, origin and iso-level, and
-/// finite coefficients.
-///
-/// # Errors
-/// The first mismatch, naming `source`.
-pub fn check_loadable(
-    running: &BSplineLattice,
-    session: &Session,
-    source: &std::path::Path,
-) -> Result<(), LoadRefused> {
-    let file = || source.to_path_buf();
-    let Some(patch) = session.clay.patches.first() else {
-        return Err(LoadRefused::NoPatch { file: file() });
-    };
-    let (ours, theirs) = (LatticeShape::of(running), LatticeShape::of(patch));
-    if ours != theirs {
-        return Err(LoadRefused::LatticeMismatch {
-            file: file(),
-            session: theirs,
-            running: ours,
-        });
-    }
-    if let Some(index) = patch.coeffs.iter().position(|c| !c.is_finite()) {
-        return Err(LoadRefused::NonFinite {
-            file: file(),
-            index,
-            value: patch.coeffs[index],
-        });
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -52,6 +52,42 @@ impl CoeffBox {
         (0..3).all(|a| self.min[a] <= c[a] && c[a] <= self.max[a])
     }
 
+    /// The smallest box holding both.
+    #[must_use]
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            min: std::array::from_fn(|a| self.min[a].min(other.min[a])),
+            max: std::array::from_fn(|a| self.max[a].max(other.max[a])),
+        }
+    }
+
+    /// This box clipped to a lattice of the given dimensions (`None` if nothing is left).
+    #[must_use]
+    pub fn clipped(&self, dims: [usize; 3]) -> Option<Self> {
+        let b = Self {
+            min: self.min,
+            max: std::array::from_fn(|a| self.max[a].min(dims[a].saturating_sub(1))),
+        };
+        b.fits(dims).then_some(b)
+    }
+
+    /// The world box (min, max corners) where a change of these coefficients can show.
+    #[must_use]
+    pub fn world_support(&self, lattice: &BSplineLattice) -> (Vec3, Vec3) {
+        let lo = Vec3::new(self.min[0] as f32, self.min[1] as f32, self.min[2] as f32);
+        let hi = Vec3::new(self.max[0] as f32, self.max[1] as f32, self.max[2] as f32);
+        (
+            lattice.origin + (lo - 2.0) * lattice.spacing,
+            lattice.origin + (hi + 2.0) * lattice.spacing,
+        )
+    }
+
+    /// Whether every coefficient of `inner` lies in this box.
+    #[must_use]
+    pub fn contains_box(&self, inner: &CoeffBox) -> bool {
+        (0..3).all(|a| self.min[a] <= inner.min[a] && inner.max[a] <= self.max[a])
+    }
+
     /// The whole lattice.
     #[must_use]
     pub fn whole(dims: [usize; 3]) -> Self {

@@ -1,0 +1,177 @@
+//! Commands: what the stage does with each [`Command`] between two steps, and how it answers.
+
+#[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
+use super::*;
+
+impl SimulationStage {
+    /// Applies every queued command (non-blocking).
+    pub fn apply_commands(&mut self) {
+        while let Ok(cmd) = self.commands.try_recv() {
+            let ok = self.apply(cmd);
+            self.counters.commands_applied(1);
+            if !ok {
+                self.counters.command_errors(1);
+            }
+        }
+    }
+
+    fn apply(&mut self, cmd: Command) -> bool {
+        self.pins_revision += u64::from(constrain::may_change_pins(&cmd));
+        match cmd {
+            Command::SetTool(tool) => {
+                // A held stroke ends with the tool it was made with.
+                self.end_stroke_now();
+                self.tool.set(tool);
+                true
+            }
+            Command::SetMaterial(m) => {
+                self.config.material = m;
+                true
+            }
+            Command::StrokeStart => {
+                self.stroke_armed = true;
+                true
+            }
+            Command::StrokeStop => {
+                self.stroke_armed = false;
+                true
+            }
+            Command::SetSymmetry(symmetry) => {
+                // A held stroke ends mirrored as it began.
+                self.end_stroke_now();
+                self.symmetry = symmetry;
+                true
+            }
+            Command::ApplyTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let mut rec = StepRecorder::new(tool.action.name());
+                let options = ApplyOptions {
+                    patch,
+                    ..ApplyOptions::default()
+                };
+                let result = apply_stroke(
+                    &mut self.clay,
+                    &tool,
+                    &poses,
+                    duration_s,
+                    &options,
+                    Some(&mut rec),
+                );
+                self.colour_dirty |= tool.action.paints();
+                // Whatever was applied before a failure stays undoable.
+                self.commit(rec);
+                self.edited(result, tool.action.name(), reply)
+            }
+            Command::Csg {
+                op,
+                other,
+                patch,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let mut rec = StepRecorder::new(format!("csg {}", op.name()));
+                let options = ApplyOptions {
+                    patch,
+                    ..ApplyOptions::default()
+                };
+                let result = apply_csg(&mut self.clay, &other, op, &options, Some(&mut rec));
+                // The other clay's paint may come along.
+                self.colour_dirty = true;
+                self.commit(rec);
+                self.edited(result, op.name(), reply)
+            }
+            Command::Undo | Command::Redo => {
+                self.end_stroke_now();
+                let whole = CoeffBox::whole(self.lattice().dims);
+                let done = if matches!(cmd, Command::Undo) {
+                    self.history.undo(&mut self.clay)
+                } else {
+                    self.history.redo(&mut self.clay)
+                };
+                self.mark_changed(whole);
+                self.colour_dirty = true;
+                done.is_ok()
+            }
+            Command::Constrain { request, reply } => {
+                let result = self.pin(&request).map_err(CommandError::from);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
+            Command::Unconstrain { index, reply } => {
+                let result = self.unpin(index).map_err(CommandError::from);
+                let ok = result.is_ok();
+                reply.map(|r| r.send(result));
+                ok
+            }
+            Command::ListPins { reply } => reply.send(self.clay.constraints.clone()).is_ok(),
+            Command::Snapshot { reply } => reply.send(self.session()).is_ok(),
+            Command::Load {
+                session,
+                source,
+                reply,
+            } => {
+                let result = self.load(*session, &source);
+                let ok = result.is_ok();
+                if let Some(r) = reply {
+                    let _ = r.send(result.map_err(CommandError::from));
+                }
+                ok
+            }
+            Command::Save { path, reply } => match &self.io {
+                Some(io) => io
+                    .send(IoJob::Save(Box::new(SaveJob {
+                        path,
+                        session: self.session(),
+                        reply,
+                    })))
+                    .is_ok(),
+                None => {
+                    if let Some(r) = reply {
+                        let _ = r.send(Err("this engine has no I/O thread".to_owned()));
+                    }
+                    false
+                }
+            },
+        }
+    }
+
+    /// Publishes a tool or CSG edit's box and answers `reply`; returns whether it succeeded.
+    fn edited(
+        &mut self,
+        result: Result<ToolReport, crate::tools::ToolError>,
+        what: &str,
+        reply: Option<Reply>,
+    ) -> bool {
+        let answer = match result {
+            Ok(report) => {
+                if let Some(b) = report.coeff_box {
+                    self.mark_changed(b);
+                }
+                Ok(format!(
+                    "{what}: {} samples visited, {} dirtied",
+                    report.visited, report.dirtied
+                ))
+            }
+            Err(error) => {
+                // A failed application may have applied earlier poses: publish the patch.
+                self.mark_changed(CoeffBox::whole(self.lattice().dims));
+                Err(CommandError::Tool {
+                    what: what.to_owned(),
+                    error,
+                })
+            }
+        };
+        let ok = answer.is_ok();
+        if let Some(r) = reply {
+            let _ = r.send(answer);
+        }
+        ok
+    }
+}

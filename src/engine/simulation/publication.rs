@@ -1,0 +1,113 @@
+//! Publication: the changed box of the field to the haptic and graphics loops (with the
+//! acknowledgement protocol that lets the simulation reuse a buffer once both have copied it),
+//! the paint at a throttled rate, and the status for observers.
+
+#[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
+use super::*;
+
+/// Steps between two publications of a changing colour field. Painting changes it every step;
+/// the graphics loop shows it at 60 Hz, so copying all four channels at the simulation's rate
+/// would be wasted work.
+const COLOUR_PUBLISH_EVERY_STEPS: u64 = 16;
+
+impl SimulationStage {
+    /// Records that `b` changed outside the region's regular publication.
+    pub(super) fn mark_changed(&mut self, b: CoeffBox) {
+        self.pending = Some(self.pending.map_or(b, |p| p.union(&b)));
+        self.pending_since = self.to_haptic.version() + 1;
+    }
+
+    pub(super) fn publish(&mut self) {
+        // NOTE: Acquire pairs with the readers' Release store of their ack: once a reader has
+        // acknowledged a version, it holds every coefficient that version carried.
+        let seen = self
+            .acks
+            .haptic
+            .load(Ordering::Acquire)
+            .min(self.acks.graphics.load(Ordering::Acquire));
+        if self.pending.is_some() && seen >= self.pending_since {
+            self.pending = None;
+        }
+        let region = self.region.as_ref().map(RegionState::coeff_box);
+        let b = match (region, self.pending) {
+            (Some(r), p) => Some(p.map_or(r, |p| p.union(&r))),
+            (None, p) => p,
+        };
+        let lattice = &self.clay.patches[0];
+        for w in [&mut self.to_haptic, &mut self.to_graphics] {
+            let patch = w.back_mut();
+            match b {
+                Some(b) => patch.capture(lattice, b),
+                None => {
+                    patch.coeff_box = None;
+                    patch.coeffs.clear();
+                }
+            }
+            patch.stroke_armed = self.stroke_armed;
+            patch.tool = self.tool.felt_tool();
+            self.tool.stroke_geometry(&mut patch.stroke);
+            patch.sim_time_s = self.sim_time_s;
+            patch.sim_step = self.steps;
+            w.publish();
+        }
+        self.counters.snapshots_published(1);
+        if self.colour_dirty
+            && self.steps >= self.colour_published_step + COLOUR_PUBLISH_EVERY_STEPS
+        {
+            self.publish_colour();
+        }
+        self.publish_status();
+    }
+
+    /// Copies the clay's paint into the colour buffer and publishes it (the simulation loop
+    /// may allocate; the haptic loop never sees this buffer).
+    pub(super) fn publish_colour(&mut self) {
+        let paint = &self.clay.colour;
+        self.colour.write_with(|c| c.clone_from(paint));
+        self.colour_dirty = false;
+        self.colour_published_step = self.steps;
+    }
+
+    /// Publishes the current field, and the paint if it changed, without stepping (used at
+    /// shutdown so readers catch up).
+    pub fn publish_now(&mut self) {
+        self.publish();
+        if self.colour_dirty {
+            self.publish_colour();
+        }
+    }
+
+    /// The graphics loop's end of the paint publications (there is one; the second call gets
+    /// `None`).
+    pub fn take_colour_reader(&mut self) -> Option<SnapshotReader<Option<ColourField>>> {
+        self.colour_reader.take()
+    }
+
+    /// The observers' end of this stage's [`SimStatus`] (there is one; the second call gets
+    /// `None`).
+    pub fn take_status_reader(&mut self) -> Option<SnapshotReader<SimStatus>> {
+        self.status_reader.take()
+    }
+
+    pub(super) fn publish_status(&mut self) {
+        let lattice = &self.clay.patches[0];
+        let region = self.region.as_ref().map(|r| {
+            let b = r.coeff_box();
+            (
+                lattice.node_position(b.min[0], b.min[1], b.min[2]),
+                lattice.node_position(b.max[0], b.max[1], b.max[2]),
+            )
+        });
+        *self.status.back_mut() = SimStatus {
+            undo_steps: self.history.undo_len(),
+            redo_steps: self.history.redo_len(),
+            material: self.config.material,
+            region,
+            sessions_loaded: self.sessions_loaded,
+            sim_step: self.steps,
+            sim_time_s: self.sim_time_s,
+            pins_revision: self.pins_revision,
+        };
+        self.status.publish();
+    }
+}
