@@ -59,6 +59,39 @@ pub fn refit_box(
     samples_per_span: usize,
     target: impl Fn(Vec3) -> f32,
 ) -> Result<(), FitError> {
+    refit(lattice, coeff_min, coeff_max, samples_per_span, false, |x, _| {
+        target(x)
+    })
+}
+
+/// [`refit_box`] for an edit of the field: `edit(x, old)` gets the field's value at `x` before
+/// the refit. The old values come from the lattice by the separable operator (the box's
+/// coefficients through `A`, three 1-D passes, plus the fixed part of those outside), about
+/// a fifth of the work of evaluating each sample's 4×4×4 stencil; an edit that leaves most
+/// samples as they were costs little more than the fit itself.
+///
+/// # Errors
+/// As [`refit_box`].
+pub fn refit_box_edit(
+    lattice: &mut BSplineLattice,
+    coeff_min: [usize; 3],
+    coeff_max: [usize; 3],
+    samples_per_span: usize,
+    edit: impl Fn(Vec3, f32) -> f32,
+) -> Result<(), FitError> {
+    refit(lattice, coeff_min, coeff_max, samples_per_span, true, edit)
+}
+
+/// The refit of [`refit_box`] and [`refit_box_edit`]; `old` (the pre-edit field at each
+/// sample) is computed only when `want_old`, else `edit` gets the fixed part alone.
+fn refit(
+    lattice: &mut BSplineLattice,
+    coeff_min: [usize; 3],
+    coeff_max: [usize; 3],
+    samples_per_span: usize,
+    want_old: bool,
+    edit: impl Fn(Vec3, f32) -> f32,
+) -> Result<(), FitError> {
     let coeffs = CoeffBox {
         min: coeff_min,
         max: coeff_max,
@@ -77,30 +110,48 @@ pub fn refit_box(
         .basis()
         .expect("a grid spanning its own nodes is well posed");
     let [mx, my, mz] = grid.dims;
+    let n = coeffs.dims();
+    let mut scratch = KronScratch::for_basis(&basis);
 
-    // Samples of the target minus the fixed contribution of the coefficients outside the box.
-    let mut residual = vec![0.0_f32; grid.count()];
-    grid.fixed_outside(lattice, &mut residual);
+    // The fixed contribution of the coefficients outside the box at every sample and, for an
+    // edit, the box's own contribution (so `fixed + inside` is the field before the edit).
+    let mut fixed = vec![0.0_f32; grid.count()];
+    grid.fixed_outside(lattice, &mut fixed);
+    let mut inside = Vec::new();
+    if want_old {
+        let mut p_box = vec![0.0_f32; coeffs.count()];
+        for k in 0..n[2] {
+            for j in 0..n[1] {
+                let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);
+                p_box[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)]
+                    .copy_from_slice(&lattice.coeffs[row..row + n[0]]);
+            }
+        }
+        inside = vec![0.0_f32; grid.count()];
+        basis.apply(&p_box, &mut inside, &mut scratch);
+    }
+
+    // Samples of the target minus the fixed contribution.
+    let mut residual = fixed;
     for k in 0..mz {
         for j in 0..my {
             for i in 0..mx {
+                let at = i + mx * (j + my * k);
                 let x = grid.position(lattice, i, j, k);
-                let t = target(x);
+                let old = residual[at] + inside.get(at).copied().unwrap_or(0.0);
+                let t = edit(x, old);
                 if !t.is_finite() {
                     return Err(FitError::NonFiniteTarget { at: x.to_array() });
                 }
-                let r = &mut residual[i + mx * (j + my * k)];
-                *r = t - *r;
+                residual[at] = t - residual[at];
             }
         }
     }
 
-    let mut scratch = KronScratch::for_basis(&basis);
     let mut p = vec![0.0_f32; coeffs.count()];
     basis.apply_transpose(&residual, &mut p, &mut scratch);
     basis.solve_gram(&mut p);
 
-    let n = coeffs.dims();
     for k in 0..n[2] {
         for j in 0..n[1] {
             let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);

@@ -16,7 +16,7 @@ use super::action::{ActionError, ToolAction};
 use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 use super::history::StepRecorder;
 use super::shape::{ShapeError, ToolPose, ToolShape};
-use crate::field::{BSplineLattice, FitError, coeff_box_around, refit_box};
+use crate::field::{BSplineLattice, FitError, coeff_box_around, refit_box_edit};
 
 /// A geometric tool: a shape, what it does, and the width of its potential's falloff band.
 #[derive(Clone, Debug, PartialEq)]
@@ -168,16 +168,18 @@ pub fn apply_tool(
         ToolAction::Smooth { kernel_m, .. } => (kernel_m / lattice.spacing).ceil() as usize,
         _ => 0,
     };
-    let before = sub_lattice(lattice, &region, 5 + reach);
+    // Only smoothing reads the old field away from the samples (its blur); the refit hands
+    // every other action the old value at each sample.
+    let before = matches!(tool.action, ToolAction::Smooth { .. })
+        .then(|| sub_lattice(lattice, &region, 5 + reach));
     let iso = lattice.iso;
     let spacing = lattice.spacing;
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
     let counts = Counts::default();
-    let target = |x: Vec3| {
+    let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
-        let old = before.value(x);
         let local = pose.to_local(x);
         let inside_box = local.abs().cmple(half).all();
         if !inside_box && !tool.action.acts_outside_tool() {
@@ -192,8 +194,10 @@ pub fn apply_tool(
         if t == 0.0 && !tool.action.acts_outside_tool() {
             return old;
         }
-        let blurred = match tool.action {
-            ToolAction::Smooth { kernel_m, .. } => blur(&before, x, kernel_m.max(spacing)),
+        let blurred = match (tool.action, &before) {
+            (ToolAction::Smooth { kernel_m, .. }, Some(before)) => {
+                blur(before, x, kernel_m.max(spacing))
+            }
             _ => 0.0,
         };
         let new = tool.action.density(old, t, blurred, iso, dt_s);
@@ -271,16 +275,14 @@ pub fn apply_csg(
     let Some(region) = region else {
         return Ok(ToolReport::default());
     };
-    let before = sub_lattice(lattice, &region, 5);
     let iso = lattice.iso;
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
     let counts = Counts::default();
-    let target = |x: Vec3| {
+    let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
         counts.computed.set(counts.computed.get() + 1);
-        let old = before.value(x);
         let new = action.density(old, other.density(x).clamp(0.0, 1.0), 0.0, iso, 0.0);
         if new != old {
             counts.dirtied.set(counts.dirtied.get() + 1);
@@ -297,7 +299,8 @@ struct Counts {
     dirtied: Cell<usize>,
 }
 
-/// Refits `region` of the lattice `id` (which must exist) to `target` and reports it with the
+/// Refits `region` of the lattice `id` (which must exist) to `target(x, old)` (`old`: the
+/// field at `x` before the edit) and reports it with the
 /// counts `target` kept (Ferley's visited, computed and dirtied corners).
 fn refit_region(
     clay: &mut Clay,
@@ -305,12 +308,12 @@ fn refit_region(
     region: CoeffBox,
     options: &ApplyOptions,
     counts: &Counts,
-    target: impl Fn(Vec3) -> f32,
+    target: impl Fn(Vec3, f32) -> f32,
 ) -> Result<ToolReport, ToolError> {
     let lattice = clay
         .field_mut(id)
         .expect("the caller checked the lattice exists");
-    refit_box(
+    refit_box_edit(
         lattice,
         region.min,
         region.max,
@@ -370,7 +373,6 @@ fn paint(
         let Some(region) = coeff_box_around(lattice, lo, hi, 0) else {
             return Ok(report);
         };
-        let before = sub_lattice(lattice, &region, 5);
         let goal = if channel < 3 {
             rgb[usize::from(channel)]
         } else {
@@ -380,9 +382,8 @@ fn paint(
             r.touch(clay, id, region);
         }
         let counts = Counts::default();
-        let target = |x: Vec3| {
+        let target = |x: Vec3, old: f32| {
             counts.visited.set(counts.visited.get() + 1);
-            let old = before.value(x);
             let local = pose.to_local(x);
             if !local.abs().cmple(half).all() {
                 return old;
