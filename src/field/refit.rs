@@ -59,9 +59,14 @@ pub fn refit_box(
     samples_per_span: usize,
     target: impl Fn(Vec3) -> f32,
 ) -> Result<(), FitError> {
-    refit(lattice, coeff_min, coeff_max, samples_per_span, false, |x, _| {
-        target(x)
-    })
+    refit(
+        lattice,
+        coeff_min,
+        coeff_max,
+        samples_per_span,
+        false,
+        |x, _| target(x),
+    )
 }
 
 /// [`refit_box`] for an edit of the field: `edit(x, old)` gets the field's value at `x` before
@@ -131,13 +136,28 @@ fn refit(
         basis.apply(&p_box, &mut inside, &mut scratch);
     }
 
-    // Samples of the target minus the fixed contribution.
+    // Samples of the target minus the fixed contribution. The sample positions, per axis
+    // (the grid is a tensor product): the same values `MassGrid::position` gives.
+    let axis_positions = |axis: usize, count: usize| -> Vec<f32> {
+        (0..count)
+            .map(|t| {
+                let mut at = [0; 3];
+                at[axis] = t;
+                grid.position(lattice, at[0], at[1], at[2])[axis]
+            })
+            .collect()
+    };
+    let (xs, ys, zs) = (
+        axis_positions(0, mx),
+        axis_positions(1, my),
+        axis_positions(2, mz),
+    );
     let mut residual = fixed;
-    for k in 0..mz {
-        for j in 0..my {
-            for i in 0..mx {
+    for (k, &z) in zs.iter().enumerate() {
+        for (j, &y) in ys.iter().enumerate() {
+            for (i, &x_coord) in xs.iter().enumerate() {
                 let at = i + mx * (j + my * k);
-                let x = grid.position(lattice, i, j, k);
+                let x = Vec3::new(x_coord, y, z);
                 let old = residual[at] + inside.get(at).copied().unwrap_or(0.0);
                 let t = edit(x, old);
                 if !t.is_finite() {

@@ -178,9 +178,12 @@ pub fn apply_tool(
         r.touch(clay, id, region);
     }
     let counts = Counts::default();
+    // `pose.to_local` with the rotation turned into a matrix once, not per sample.
+    let to_local =
+        glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_m).inverse();
     let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
-        let local = pose.to_local(x);
+        let local = to_local.transform_point3(x);
         let inside_box = local.abs().cmple(half).all();
         if !inside_box && !tool.action.acts_outside_tool() {
             return old;
