@@ -561,3 +561,58 @@ fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
+    if !std::path::Path::new("/dev/full").exists() {
+        eprintln!("no /dev/full here: nothing to test");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--lockstep",
+            "--seconds",
+            "0.3",
+            "--record",
+            "/dev/full",
+            "--out",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(5), "{err}");
+    assert!(
+        err.contains("recording") && err.contains("incomplete"),
+        "{err}"
+    );
+    // Every other output is there all the same.
+    assert!(dir.path().join("session.dclay").is_file());
+    assert!(dir.path().join("sculpt.obj").is_file());
+}
+
+#[test]
+fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let victim = dir.path().join("victim.txt");
+    std::fs::write(&victim, "keep").unwrap();
+    std::os::unix::fs::symlink(&victim, out_dir.join("latency.json")).unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--seconds", "0.3", "--no-rt", "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+    let json = out_dir.join("latency.json");
+    assert!(!json.symlink_metadata().unwrap().file_type().is_symlink());
+    assert!(std::fs::read_to_string(&json).unwrap().contains("haptic"));
+}

@@ -4,13 +4,13 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use dynaclay_loops::{LoopSummary, markdown_table, summaries_to_json, write_latency_svg};
+use dynaclay_loops::{LoopSummary, latency_svg, markdown_table, summaries_to_json};
 
 use super::args::ImageArgs;
 use super::run::CliError;
 use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
-use crate::io::{Session, save_session};
+use crate::io::{Session, save_session, write_atomic};
 use crate::mesh::{BrickOctree, MeshFormat, MeshStats, SampleGrid, write_mesh};
 use crate::render::RenderOutcome;
 
@@ -162,7 +162,9 @@ fn write_field_outputs(
 }
 
 /// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
-/// `latency.svg` into `dir`, then the PNG if asked.
+/// `latency.svg` into `dir`, then the PNG if asked. The latency files are written atomically
+/// (a temporary file renamed into place): a full disk leaves the old file whole, and a link
+/// placed at the name is replaced, never written through.
 ///
 /// # Errors
 /// [`CliError::Output`] naming the file that could not be written; [`CliError::Render`] when
@@ -179,7 +181,7 @@ pub fn write_outputs(
     let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
     let json_path = dir.join("latency.json");
     let json = summaries_to_json(&summaries).map_err(|e| out_err(&json_path, e))?;
-    std::fs::write(&json_path, json).map_err(|e| out_err(&json_path, e))?;
+    write_atomic(&json_path, json.as_bytes()).map_err(|e| out_err(&json_path, e))?;
     files.push(json_path);
 
     let md_path = dir.join("latency.md");
@@ -205,7 +207,7 @@ pub fn write_outputs(
         c.graphics_updates,
         c.bricks_remeshed
     );
-    std::fs::write(&md_path, md).map_err(|e| out_err(&md_path, e))?;
+    write_atomic(&md_path, md.as_bytes()).map_err(|e| out_err(&md_path, e))?;
     files.push(md_path);
 
     let svg_path = dir.join("latency.svg");
@@ -214,7 +216,8 @@ pub fn write_outputs(
         .iter()
         .map(|r| (r.config.name.as_str(), &r.recorder))
         .collect();
-    write_latency_svg(&svg_path, &recorders, None).map_err(|e| out_err(&svg_path, e))?;
+    let svg = latency_svg(&recorders, None).map_err(|e| out_err(&svg_path, e))?;
+    write_atomic(&svg_path, svg.as_bytes()).map_err(|e| out_err(&svg_path, e))?;
     files.push(svg_path);
 
     let mut outputs = RunOutputs {

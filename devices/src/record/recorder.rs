@@ -291,8 +291,25 @@ impl<D: HapticDevice> HapticDevice for RecordingDevice<D> {
         Ok(())
     }
 
+    /// Closes the device, then ends the recording (drains the queue, writes the end marker,
+    /// syncs the file). A recording that could not be written whole (a full disk, a lost
+    /// mount) is reported as the close's I/O error, so the caller learns the file is
+    /// incomplete; the device's own close error comes first.
     fn close(&mut self) -> Result<(), DeviceError> {
-        self.device.close()
+        let closed = self.device.close();
+        let recorded = self.recorder.stop_writer();
+        closed?;
+        recorded.map(|_| ()).map_err(|e| {
+            let (kind, os_code) = match &e {
+                RecordError::Io { source, .. } => (source.kind(), source.raw_os_error()),
+                _ => (std::io::ErrorKind::Other, None),
+            };
+            DeviceError::Io {
+                kind,
+                os_code,
+                context: "write the recording (the file is incomplete)",
+            }
+        })
     }
 
     fn is_open(&self) -> bool {
