@@ -616,3 +616,29 @@ fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_
     assert!(!json.symlink_metadata().unwrap().file_type().is_symlink());
     assert!(std::fs::read_to_string(&json).unwrap().contains("haptic"));
 }
+
+#[test]
+fn a_device_path_that_is_not_a_serial_port_is_refused_with_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("not-a-port");
+    std::fs::write(&file, "x").unwrap();
+    for path in [std::path::Path::new("/dev/null"), file.as_path()] {
+        if !path.exists() {
+            continue;
+        }
+        let out = Command::new(BIN)
+            .args(["run", "--seconds", "0.2", "--no-rt", "--device"])
+            .arg(format!("serial:{}", path.display()))
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(3), "{err}");
+        assert!(
+            err.contains("cannot set it up as a serial port")
+                && err.contains(&*path.to_string_lossy()),
+            "{err}"
+        );
+    }
+}
