@@ -181,8 +181,15 @@ pub fn apply_tool(
     // `pose.to_local` with the rotation turned into a matrix once, not per sample.
     let to_local =
         glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_m).inverse();
+    // The world-aligned box around the tool's own: samples outside it are left as they were
+    // without transforming them (most of a refit box's margin).
+    let (world_lo, world_hi) = pose.world_bounds(half);
+    let acts_outside = tool.action.acts_outside_tool();
     let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
+        if !acts_outside && (x.cmplt(world_lo).any() || x.cmpgt(world_hi).any()) {
+            return old;
+        }
         let local = to_local.transform_point3(x);
         let inside_box = local.abs().cmple(half).all();
         if !inside_box && !tool.action.acts_outside_tool() {
