@@ -642,3 +642,77 @@ fn a_device_path_that_is_not_a_serial_port_is_refused_with_why() {
         );
     }
 }
+
+/// `run --record` on the threaded engine, then `run --device replay:` with the same script:
+/// the replay's session and its script save equal the live run's bit for bit.
+#[test]
+fn a_recorded_threaded_run_replays_to_the_same_session_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("s.toml");
+    std::fs::write(
+        &script,
+        r#"
+version = 1
+
+[clay]
+shape = "block"
+resolution = 16
+
+[[step]]
+do = "stroke"
+path = [[0.8, 1.3, 0.95], [1.1, 1.3, 0.95]]
+duration_s = 0.5
+hover_m = 0.3
+
+[[step]]
+do = "save"
+path = "mid.dclay"
+
+[[step]]
+do = "tool"
+shape = { kind = "sphere", radius_m = 0.12 }
+action = { kind = "remove" }
+positions = [[1.0, 1.45, 1.0]]
+duration_s = 0.2
+falloff_m = 0.1
+"#,
+    )
+    .unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let o = Command::new(BIN)
+            .args(["run", "--no-rt", "--script"])
+            .arg(&script)
+            .args(extra)
+            .arg("--out")
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{extra:?}: {err}");
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let rec = dir.path().join("live.rec");
+    let rec_arg = rec.to_str().unwrap();
+    run(&["--record", rec_arg], "live");
+    let live_mid = std::fs::read(dir.path().join("mid.dclay")).unwrap();
+    let replay_arg = format!("replay:{rec_arg}");
+    let said = run(&["--device", &replay_arg], "replayed");
+    assert!(said.contains("as scheduled in the recorded run"), "{said}");
+    let replayed_mid = std::fs::read(dir.path().join("mid.dclay")).unwrap();
+
+    let field = |bytes: &[u8]| {
+        let session = dynaclay::io::decode(bytes, Path::new("s.dclay")).unwrap();
+        session.clay.patches[0]
+            .coeffs
+            .iter()
+            .map(|c| c.to_bits())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(field(&replayed_mid), field(&live_mid), "the script's save");
+    let session = |out: &str| std::fs::read(dir.path().join(out).join("session.dclay")).unwrap();
+    assert_eq!(
+        field(&session("replayed")),
+        field(&session("live")),
+        "the final session"
+    );
+}

@@ -64,14 +64,22 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn haptic_tick_allocates_nothing() {
     let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    // Recorded, with the schedule noted every tick: the recorder's encode and queue push are
+    // part of the tick too.
+    let dir = tempfile::tempdir().unwrap();
+    let recorder =
+        dynaclay_devices::RecordingDevice::create(s.arm, dir.path().join("tick.rec")).unwrap();
+    let schedule = recorder.schedule_log();
     let mut stages = build(
         &s.config,
         s.field,
-        common::boxed(s.arm),
+        Box::new(recorder),
         Box::new(HeadlessSink::default()),
         true,
     )
     .expect("stages build");
+    stages.haptic.set_schedule_log(schedule.clone());
+    stages.sim.set_schedule_log(schedule);
     // The guard itself works: an allocation inside it is counted.
     IN_TICK.with(|f| f.set(true));
     let probe = std::hint::black_box(vec![1u8; 16]);

@@ -134,6 +134,8 @@ fn record(
                     in_contact,
                 });
             }
+            // A lockstep run notes no schedule; a threaded one's notes are not forces.
+            Record::Schedule(_) => {}
         }
     }
     assert_eq!(out.len(), ticks);

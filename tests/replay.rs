@@ -117,3 +117,180 @@ fn a_recorded_pointer_session_replays_bit_for_bit() {
         "replay differs from the recorded pointer session"
     );
 }
+
+/// A script with every kind of input the engine's outcome depends on: a geometric tool step
+/// (a command), a contact push (tool samples), an undo (a command between strokes) and a
+/// pull with a force tool.
+const MIXED_SCRIPT: &str = r#"
+version = 1
+
+[clay]
+shape = "block"
+resolution = 20
+
+[[step]]
+do = "tool"
+shape = { kind = "sphere", radius_m = 0.15 }
+action = { kind = "add", deposit_rate_per_s = 10.0 }
+positions = [[1.15, 1.75, 1.15]]
+duration_s = 0.3
+falloff_m = 0.1
+
+[[step]]
+do = "stroke"
+path = [[0.75, 1.3, 0.95], [1.1, 1.3, 0.95]]
+duration_s = 0.6
+hover_m = 0.3
+
+[[step]]
+do = "undo"
+
+[[step]]
+do = "stroke"
+tool = { kind = "pull", beta = "gaussian", radius_m = 0.15, gain = 2e6 }
+path = [[1.3, 1.4, 1.3], [1.3, 1.55, 1.3]]
+duration_s = 0.4
+hover_m = 0.2
+"#;
+
+/// A threaded run, recorded with its schedule while two threads load the machine, replays to
+/// the live run's final field bit for bit: whatever interleaving the threads had, the replay
+/// gives each haptic tick the snapshot and fade it saw, and each step its sample and commands.
+#[test]
+fn a_threaded_run_under_load_replays_to_the_live_field_bit_for_bit() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::time::{Duration, Instant};
+
+    use dynaclay::engine::{Engine, ScheduledReplay, ScriptDriver, StartOptions};
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.rec");
+    let s = common::setup(MIXED_SCRIPT, vec![]);
+    let start = s.field.clone();
+    let recorder = RecordingDevice::create(s.arm, &path).expect("recording starts");
+    let schedule = recorder.schedule_log();
+
+    // Two spinning threads compete with the loops for the machine's cores.
+    let stop_load = Arc::new(AtomicBool::new(false));
+    let load: Vec<_> = (0..2)
+        .map(|_| {
+            let stop = Arc::clone(&stop_load);
+            std::thread::spawn(move || {
+                let mut x = 1u64;
+                while !stop.load(Ordering::Relaxed) {
+                    x = x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+                    std::hint::black_box(x);
+                }
+            })
+        })
+        .collect();
+    let mut engine = Engine::start_with(
+        &s.config,
+        s.field,
+        Box::new(recorder),
+        Box::new(HeadlessSink::default()),
+        StartOptions {
+            autosave: None,
+            schedule: Some(schedule),
+        },
+    )
+    .expect("engine starts");
+    let mut driver = ScriptDriver::new(&s.plan);
+    let commands = engine.commands();
+    // The run lasts as long as the script on the arm's clock; the wall-clock bound only
+    // keeps a stalled machine from hanging the test (the replay is exact either way).
+    let started = Instant::now();
+    while !(driver.is_done() && engine.latest_tool().device_time_us as f64 > s.plan.end_s * 1e6)
+        && started.elapsed() < Duration::from_secs(30)
+    {
+        let sample = engine.latest_tool();
+        driver.dispatch(&sample, &commands);
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    drop(commands);
+    let live = engine.stop().expect("engine stops");
+    stop_load.store(true, Ordering::Relaxed);
+    for t in load {
+        t.join().unwrap();
+    }
+    assert!(driver.failures().is_empty(), "{:?}", driver.failures());
+    let live_field = live.session.clay.patches[0].clone();
+    assert_ne!(live_field, start, "the live run sculpted something");
+
+    let device = ReplayDevice::load(&path).expect("recording loads");
+    let schedule = device.schedule().expect("the recording holds its schedule");
+    assert_eq!(schedule.ticks.len(), device.read_count());
+    assert!(!schedule.steps.is_empty());
+    let mut replay = ScheduledReplay::new(
+        &s.config,
+        start,
+        device,
+        Box::new(HeadlessSink::default()),
+        16,
+    )
+    .expect("replay starts");
+    let mut driver = ScriptDriver::new(&s.plan);
+    let commands = replay.commands();
+    while replay
+        .tick()
+        .expect("the replay follows the schedule")
+        .is_some()
+    {
+        driver.dispatch(&replay.latest_tool(), &commands);
+    }
+    let replayed = replay.finish().expect("replay finishes");
+    assert!(driver.failures().is_empty(), "{:?}", driver.failures());
+    let bits = |l: &BSplineLattice| l.coeffs.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+    let replayed_field = &replayed.session.clay.patches[0];
+    let differing = live_field
+        .coeffs
+        .iter()
+        .zip(&replayed_field.coeffs)
+        .filter(|(a, b)| a.to_bits() != b.to_bits())
+        .count();
+    assert_eq!(
+        bits(replayed_field),
+        bits(&live_field),
+        "the replay differs from the live run in {differing} coefficients"
+    );
+    assert_eq!(
+        replayed.counters.sim_steps, live.counters.sim_steps,
+        "as many steps as the live run"
+    );
+}
+
+/// A recording whose schedule was cut short (the recorder dropped records) is refused as a
+/// schedule, with the reason; it still replays in lockstep.
+#[test]
+fn a_recording_without_a_usable_schedule_says_why() {
+    use dynaclay_devices::record::{Record, Recording, ScheduleGap, ScheduleNote};
+
+    let info = common::setup(common::PUSH_SCRIPT, vec![]).arm.info();
+    let none = ReplayDevice::from_recording(Recording {
+        info: info.clone(),
+        records: Vec::new(),
+        dropped: 0,
+    });
+    assert_eq!(none.schedule().unwrap_err(), ScheduleGap::Absent);
+    let tick = |tick| {
+        Record::Schedule(ScheduleNote::Tick {
+            tick,
+            snapshot_version: Some(0),
+            fade: 1.0,
+        })
+    };
+    let dropped = ReplayDevice::from_recording(Recording {
+        info: info.clone(),
+        records: vec![tick(1), tick(2)],
+        dropped: 1,
+    });
+    assert_eq!(dropped.schedule().unwrap_err(), ScheduleGap::Dropped(1));
+    let gap = ReplayDevice::from_recording(Recording {
+        info,
+        records: vec![tick(1), tick(3)],
+        dropped: 0,
+    });
+    let e = gap.schedule().unwrap_err();
+    assert!(e.to_string().contains("tick 3 follows 1"), "{e}");
+}

@@ -10,6 +10,8 @@ mod recorder;
 mod replay;
 
 pub use error::RecordError;
-pub use format::{FORMAT_VERSION, Record, Recording, WriteSummary};
-pub use recorder::{RecorderConfig, RecordingDevice};
-pub use replay::{ReplayDevice, ReplayDivergence};
+pub use format::{FORMAT_VERSION, Record, Recording, ScheduleNote, WriteSummary};
+pub use recorder::{RecorderConfig, RecordingDevice, ScheduleLog};
+pub use replay::{
+    RecordedSchedule, RecordedStep, RecordedTick, ReplayDevice, ReplayDivergence, ScheduleGap,
+};

@@ -13,7 +13,7 @@ use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
 use super::pointer_tool::PointerTool;
 use super::run::{GuiOptions, run_gui};
-use crate::engine::{Engine, EngineConfig, ScriptPlan, build_clay};
+use crate::engine::{Engine, EngineConfig, ScriptPlan, StartOptions, build_clay};
 use crate::field::BSplineLattice;
 use crate::io::{Autosave, AutosavePolicy, load_session, recovery_to_use};
 
@@ -163,7 +163,18 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     });
     let autosave = Autosave::new(&session_path, AutosavePolicy::default(), Instant::now());
     let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
-        Engine::start_with(&config, field, device, sink, Some(autosave))
+        Engine::start_with(
+            &config,
+            field,
+            device,
+            sink,
+            StartOptions {
+                autosave: Some(autosave),
+                // The GUI's commands are not recorded, so its schedule could not drive an
+                // exact replay: a GUI recording replays the hand's motion in lockstep.
+                schedule: None,
+            },
+        )
     })
     .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
     if let Some(path) = session {

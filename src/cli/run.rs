@@ -13,8 +13,8 @@ use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 use super::args::RunArgs;
 use super::outputs::{ExtraOutputs, RunOutputs, write_outputs};
 use crate::engine::{
-    Engine, EngineConfig, EngineError, HeadlessSink, IoReport, Lockstep, ScriptDriver, ScriptPlan,
-    build_clay, builtin_script,
+    Engine, EngineConfig, EngineError, HeadlessSink, IoReport, Lockstep, ScheduledReplay,
+    ScriptDriver, ScriptPlan, StartOptions, build_clay, builtin_script,
 };
 use crate::io::SessionError;
 use crate::io::{
@@ -177,6 +177,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         }
         DeviceSpec::Replay { file } => {
             let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
+            if replay.schedule().is_ok() {
+                return run_scheduled_replay(args, &plan, &start, &session_path, replay);
+            }
             let samples = replay.read_count();
             return run_lockstep(
                 args,
@@ -197,12 +200,15 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             (d, info)
         }
     };
-    let device: Box<dyn HapticDevice> = match &args.record {
-        Some(path) => Box::new(
-            RecordingDevice::create(device, path)
-                .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?,
-        ),
-        None => device,
+    // A recording also notes the loops' schedule, so that its replay is exact.
+    let (device, schedule): (Box<dyn HapticDevice>, _) = match &args.record {
+        Some(path) => {
+            let recorder = RecordingDevice::create(device, path)
+                .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?;
+            let log = recorder.schedule_log();
+            (Box::new(recorder), Some(log))
+        }
+        None => (device, None),
     };
     let mut config = EngineConfig::for_field(&field, &info);
     config.sim.material = start.material.uniform;
@@ -220,7 +226,10 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         field,
         device,
         Box::new(HeadlessSink::default()),
-        Some(autosave),
+        StartOptions {
+            autosave: Some(autosave),
+            schedule,
+        },
     )
     .map_err(|e| match e {
         EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
@@ -462,6 +471,59 @@ fn finish_run(
     match failures.into_iter().next() {
         Some(first) => Err(CliError::Script(first)),
         None => Ok(()),
+    }
+}
+
+/// Replays a recorded threaded run with its schedule: every haptic tick sees the snapshot and
+/// fade it saw, every step takes the sample and commands it took, so the final field is the
+/// recorded run's bit for bit (given the same script and starting session).
+fn run_scheduled_replay(
+    args: &RunArgs,
+    plan: &ScriptPlan,
+    start: &Session,
+    session_path: &Path,
+    replay: ReplayDevice,
+) -> Result<RunOutputs, CliError> {
+    let info = replay.info();
+    let field = start.clay.patches[0].clone();
+    let mut config = EngineConfig::for_field(&field, &info);
+    config.sim.material = start.material.uniform;
+    let mut replay = ScheduledReplay::new(
+        &config,
+        field,
+        replay,
+        Box::new(HeadlessSink::default()),
+        16,
+    )
+    .map_err(CliError::Engine)?;
+    say!(
+        "dynaclay run: {} ticks of {} as scheduled in the recorded run",
+        replay.tick_count(),
+        args.device
+    );
+    let mut driver = ScriptDriver::new(plan);
+    let commands = replay.commands();
+    // As in the recorded run, the starting session is the first command sent; the recorded
+    // schedule says before which step it was applied.
+    let installed = install_session(&commands, start, session_path);
+    while replay.tick().map_err(CliError::Engine)?.is_some() {
+        driver.dispatch(&replay.latest_tool(), &commands);
+    }
+    let report = replay.finish().map_err(CliError::Engine)?;
+    installed_or_stop(
+        installed
+            .try_recv()
+            .map_err(|_| RecvTimeoutError::Disconnected),
+        session_path,
+    )?;
+    let outputs =
+        super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
+    say_raw!("{}", outputs.describe());
+    report_device_faults(&report.safety);
+    finish_run(session_path, &mut driver, &report.io)?;
+    match report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e)),
+        None => Ok(outputs),
     }
 }
 

@@ -32,6 +32,9 @@ pub enum EngineError {
     /// A device could not be switched while running.
     #[error("device switch: {0}")]
     DeviceSwap(SwapRefused),
+    /// A replay could not follow its recording's schedule.
+    #[error("replay: {0}")]
+    Replay(#[from] super::replay::ReplayMismatch),
 }
 
 /// Why a running device switch did not happen.

@@ -19,6 +19,7 @@
 
 use std::time::Instant;
 
+use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_devices::{HapticDevice, SafetyFilter};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Staleness};
 use glam::Vec3;
@@ -75,6 +76,10 @@ pub struct HapticStage {
     swaps: DeviceSwapPort,
     /// Whether a device is connected (false after a disconnect: the loop ticks idle).
     connected: bool,
+    /// Where each tick's schedule is noted while a recording runs (see [`ScheduleNote`]).
+    schedule: Option<ScheduleLog>,
+    /// Version of the snapshot this tick fetched, if it fetched one.
+    fetched: Option<u64>,
 }
 
 impl HapticStage {
@@ -121,7 +126,15 @@ impl HapticStage {
             last: ToolSample::IDLE,
             swaps,
             connected: true,
+            schedule: None,
+            fetched: None,
         }
+    }
+
+    /// Notes every tick's snapshot and fade into `log` from now on, so that a replay can give
+    /// each tick what this run's tick saw (see [`super::ScheduledReplay`]).
+    pub fn set_schedule_log(&mut self, log: ScheduleLog) {
+        self.schedule = Some(log);
     }
 
     /// The device behind the safety filter.
@@ -170,6 +183,29 @@ impl HapticStage {
 
     /// Runs one tick at wall time `now` (used for the snapshot's age).
     pub fn tick(&mut self, now: Instant) -> HapticOutcome {
+        self.tick_faded(now, None)
+    }
+
+    /// Runs one tick as a recorded run's tick ran: with the staleness fade it applied,
+    /// instead of one from the snapshot's age.
+    pub fn tick_as_recorded(&mut self, now: Instant, fade: f32) -> HapticOutcome {
+        self.tick_faded(now, Some(fade))
+    }
+
+    fn tick_faded(&mut self, now: Instant, fade: Option<f32>) -> HapticOutcome {
+        self.fetched = None;
+        let out = self.tick_inner(now, fade);
+        if let Some(log) = &self.schedule {
+            log.note(&ScheduleNote::Tick {
+                tick: self.tick,
+                snapshot_version: self.fetched,
+                fade: out.fade,
+            });
+        }
+        out
+    }
+
+    fn tick_inner(&mut self, now: Instant, recorded_fade: Option<f32>) -> HapticOutcome {
         self.tick += 1;
         self.counters.haptic_ticks(1);
         if let Some(new) = self.swaps.take() {
@@ -191,7 +227,7 @@ impl HapticStage {
         };
 
         let age = self.refresh_field(now);
-        let fade = self.staleness.factor(age) as f32;
+        let fade = recorded_fade.unwrap_or_else(|| self.staleness.factor(age) as f32);
         if fade <= 0.0 {
             self.counters.stale_ticks(1);
         }
@@ -268,6 +304,7 @@ impl HapticStage {
     fn refresh_field(&mut self, now: Instant) -> std::time::Duration {
         let stamped = self.patches.latest();
         let version = stamped.version;
+        self.fetched = Some(version);
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
             stamped.value.copy_into(&mut self.field);
             self.tool = stamped.value.tool;

@@ -17,6 +17,7 @@ mod live_tool;
 mod lockstep;
 mod patch;
 mod plan;
+mod replay;
 mod script_driver;
 mod sim_status;
 mod simulation;
@@ -45,13 +46,14 @@ pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S, ScriptPlan,
     TRAVEL_S, builtin_script,
 };
+pub use replay::{ReplayMismatch, ScheduledReplay};
 pub use script_driver::ScriptDriver;
 pub use sim_status::SimStatus;
 pub use simulation::{
     Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
 };
 pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
-pub use threaded::{DeviceSwapReport, Engine, EngineReport};
+pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions};
 pub use tool_sample::ToolSample;
 pub use wiring::{Stages, build};
 pub use workspace::WorkspaceMap;

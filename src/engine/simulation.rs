@@ -35,6 +35,7 @@ use session_io::CarriedSections;
 pub use session_io::check_loadable;
 
 use crossbeam::channel::{Receiver, Sender};
+use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
@@ -175,6 +176,10 @@ pub struct SimulationStage {
     /// The session's parts the engine does not simulate, carried unchanged from the loaded
     /// session into every session it hands back.
     carried: CarriedSections,
+    /// Where each step's schedule is noted while a recording runs (see [`ScheduleNote`]).
+    schedule: Option<ScheduleLog>,
+    /// Commands applied since the last step (noted with the next step).
+    commands_since_step: u32,
 }
 
 /// The bounding box of `forces` grown by their spread radii, if there are any.
@@ -241,7 +246,28 @@ impl SimulationStage {
             colour_dirty: false,
             colour_published_step: 0,
             carried: CarriedSections::default(),
+            schedule: None,
+            commands_since_step: 0,
         }
+    }
+
+    /// Notes every step's tool sample and command count into `log` from now on, so that a
+    /// replay can run the steps as this run did (see [`super::ScheduledReplay`]).
+    pub fn set_schedule_log(&mut self, log: ScheduleLog) {
+        self.schedule = Some(log);
+    }
+
+    /// Steps taken so far (the number the next step is noted with).
+    #[must_use]
+    pub fn steps_taken(&self) -> u64 {
+        self.steps
+    }
+
+    /// Version of the newest field snapshot published to the haptic loop (0 before the
+    /// first step).
+    #[must_use]
+    pub fn snapshot_version(&self) -> u64 {
+        self.to_haptic.version()
     }
 
     /// The authoritative field.
@@ -277,6 +303,14 @@ impl SimulationStage {
     /// One step under `sample`: stroke bookkeeping, the held tool, region upkeep, dynamics,
     /// publication.
     pub fn step(&mut self, sample: &ToolSample) -> SimOutcome {
+        if let Some(log) = &self.schedule {
+            log.note(&ScheduleNote::Step {
+                step: self.steps,
+                sample_tick: sample.tick,
+                commands: self.commands_since_step,
+            });
+        }
+        self.commands_since_step = 0;
         let mut out = SimOutcome::default();
         let active = sample.stroke_active;
         if active && !self.was_active {

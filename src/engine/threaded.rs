@@ -7,6 +7,7 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crossbeam::channel::{Receiver, Sender, bounded};
+use dynaclay_devices::record::ScheduleLog;
 use dynaclay_devices::{
     DeviceError, DeviceInfo, HapticDevice, SafetyConfig, SafetyCounters, SafetyFilter,
 };
@@ -86,6 +87,17 @@ pub struct Engine {
     force_n_per_unit: f32,
 }
 
+/// What an engine starts with besides its clay and device.
+#[derive(Debug, Default)]
+pub struct StartOptions {
+    /// Autosave: the I/O thread writes its recovery file when its policy says so (counting
+    /// committed strokes and tool steps).
+    pub autosave: Option<Autosave>,
+    /// The recording's schedule log: the haptic and simulation loops note each tick and step
+    /// into it, so that [`super::ScheduledReplay`] can reproduce the run bit for bit.
+    pub schedule: Option<ScheduleLog>,
+}
+
 /// What a device replacement hands back about the device it replaced.
 #[derive(Debug)]
 pub struct DeviceSwapReport {
@@ -134,11 +146,10 @@ impl Engine {
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
     ) -> Result<Self, EngineError> {
-        Self::start_with(config, field, device, sink, None)
+        Self::start_with(config, field, device, sink, StartOptions::default())
     }
 
-    /// [`Engine::start`] with autosave: the I/O thread writes `autosave`'s recovery file when
-    /// its policy says so (counting committed strokes and tool steps).
+    /// [`Engine::start`] with `options` (autosave, a schedule log).
     ///
     /// # Errors
     /// As [`Engine::start`].
@@ -147,13 +158,18 @@ impl Engine {
         field: BSplineLattice,
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
-        autosave: Option<Autosave>,
+        options: StartOptions,
     ) -> Result<Self, EngineError> {
+        let StartOptions { autosave, schedule } = options;
         let field_box = (
             field.origin,
             field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
         );
         let mut stages = build(config, field, device, sink, false)?;
+        if let Some(log) = schedule {
+            stages.haptic.set_schedule_log(log.clone());
+            stages.sim.set_schedule_log(log);
+        }
         let status = stages
             .sim
             .take_status_reader()

@@ -123,8 +123,9 @@ impl fmt::Display for RecordError {
             Self::BadMagic => write!(f, "not a dynaclay recording (bad magic at byte 0)"),
             Self::UnsupportedVersion { found, supported } => write!(
                 f,
-                "recording format version {found} is not supported (this build reads version \
-                 {supported})"
+                "recording format version {found} is not supported (this build reads versions \
+                 {} to {supported})",
+                super::format::OLDEST_READ_VERSION
             ),
             Self::Truncated {
                 offset,

@@ -4,7 +4,8 @@
 //! [`BlockWriter`] produces and names the byte offset (and block) of the first fault otherwise.
 //! [`encode_record`] is allocation-free, so the recorder runs it on the haptic thread.
 //!
-//! Layout, all integers little-endian (version 1):
+//! Layout, all integers little-endian (version 2; version 1 files, which hold no schedule
+//! records, are read as well):
 //!
 //! ```text
 //! header   magic "DCLYREC\x1a" (8) | version u16 | info_len u32 | info (info_len)
@@ -22,7 +23,15 @@
 //!          | buttons u32 (or OS error code) | timestamp_us u64 (or error detail)
 //!          | sequence u64 | vec3 A (position or force, 3×f32) | vec3 B (velocity, 3×f32)
 //!          | quat (x, y, z, w as f32)
+//! tick     kind u8 = 5 | flags u8 (1 = a field snapshot was fetched) | 0u16 | fade f32
+//!          | snapshot version u64 | tick u64 | zeros (40)
+//! step     kind u8 = 6 | 0u8 | 0u16 | commands applied before the step u32
+//!          | sample tick u64 | step u64 | zeros (40)
 //! ```
+//!
+//! Tick and step records are the engine's schedule (see [`ScheduleNote`]): which field
+//! snapshot each haptic tick saw and how faded, and which tool sample and how many commands
+//! each simulation step took. They let a replay reproduce a threaded session bit for bit.
 //!
 //! Floats are stored as their exact bits, so a round trip is bit for bit.
 
@@ -36,7 +45,9 @@ use crate::device::{DeviceError, DeviceInfo, DeviceState};
 /// First eight bytes of every recording.
 pub const MAGIC: [u8; 8] = *b"DCLYREC\x1a";
 /// The format version this build writes and reads.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
+/// The oldest format version this build reads.
+pub const OLDEST_READ_VERSION: u16 = 1;
 /// Size of one encoded record, bytes.
 pub const RECORD_SIZE: usize = 64;
 const BLOCK_MAGIC: [u8; 4] = *b"DCBK";
@@ -50,6 +61,9 @@ const KIND_READ: u8 = 1;
 const KIND_READ_ERROR: u8 = 2;
 const KIND_WRITE: u8 = 3;
 const KIND_WRITE_ERROR: u8 = 4;
+const KIND_TICK: u8 = 5;
+const KIND_STEP: u8 = 6;
+const FLAG_FETCHED: u8 = 1;
 const FLAG_ORIENTATION: u8 = 1;
 const FLAG_OS_CODE: u8 = 2;
 
@@ -64,6 +78,33 @@ pub enum Record {
         force_n: Vec3,
         /// The device's answer.
         result: Result<(), DeviceError>,
+    },
+    /// A note of the engine's schedule, recorded beside the device calls.
+    Schedule(ScheduleNote),
+}
+
+/// What the engine's outcome depended on besides the device: recorded by a threaded run so
+/// that a replay can interleave its loops exactly as they ran.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ScheduleNote {
+    /// One haptic tick.
+    Tick {
+        /// The haptic stage's tick number (1, 2, …).
+        tick: u64,
+        /// Version of the field snapshot the tick fetched (`None`: it fetched none, as on a
+        /// failed read).
+        snapshot_version: Option<u64>,
+        /// The staleness fade the tick applied to its forces (0 to 1).
+        fade: f32,
+    },
+    /// One simulation step.
+    Step {
+        /// The simulation's step number (0, 1, …).
+        step: u64,
+        /// Tick number of the tool sample the step took (0: the idle sample before any tick).
+        sample_tick: u64,
+        /// Commands applied since the previous step, in arrival order.
+        commands: u32,
     },
 }
 
@@ -200,7 +241,40 @@ pub fn encode_record(
         Record::Write { force_n, result } => {
             encode_write(*force_n, result, read_count, last_timestamp_us)
         }
+        Record::Schedule(note) => encode_schedule(note),
     }
+}
+
+/// Encodes a note of the engine's schedule (see [`encode_record`]). Allocation-free.
+#[must_use]
+pub fn encode_schedule(note: &ScheduleNote) -> [u8; RECORD_SIZE] {
+    let mut b = [0u8; RECORD_SIZE];
+    match *note {
+        ScheduleNote::Tick {
+            tick,
+            snapshot_version,
+            fade,
+        } => {
+            b[0] = KIND_TICK;
+            if let Some(v) = snapshot_version {
+                b[1] = FLAG_FETCHED;
+                b[8..16].copy_from_slice(&v.to_le_bytes());
+            }
+            b[4..8].copy_from_slice(&fade.to_le_bytes());
+            b[16..24].copy_from_slice(&tick.to_le_bytes());
+        }
+        ScheduleNote::Step {
+            step,
+            sample_tick,
+            commands,
+        } => {
+            b[0] = KIND_STEP;
+            b[4..8].copy_from_slice(&commands.to_le_bytes());
+            b[8..16].copy_from_slice(&sample_tick.to_le_bytes());
+            b[16..24].copy_from_slice(&step.to_le_bytes());
+        }
+    }
+    b
 }
 
 /// Encodes a `read` and its result (see [`encode_record`]).
@@ -320,6 +394,38 @@ pub fn decode_record(b: &[u8; RECORD_SIZE]) -> Result<Record, &'static str> {
             force_n: get_vec3(b, 24),
             result: Err(error(FLAG_OS_CODE)?),
         }),
+        KIND_TICK | KIND_STEP => {
+            if code != 0 || b[24..].iter().any(|&x| x != 0) {
+                return Err("non-zero padding in a schedule record");
+            }
+            if kind == KIND_TICK {
+                if flags & !FLAG_FETCHED != 0 {
+                    return Err("unknown record flags");
+                }
+                let fade = f32::from_bits(extra);
+                if !(0.0..=1.0).contains(&fade) {
+                    return Err("tick fade outside 0 to 1");
+                }
+                let fetched = flags & FLAG_FETCHED != 0;
+                if !fetched && detail != 0 {
+                    return Err("snapshot version on a tick that fetched none");
+                }
+                Ok(Record::Schedule(ScheduleNote::Tick {
+                    tick: get_u64(b, 16),
+                    snapshot_version: fetched.then_some(detail),
+                    fade,
+                }))
+            } else {
+                if flags != 0 {
+                    return Err("unknown record flags");
+                }
+                Ok(Record::Schedule(ScheduleNote::Step {
+                    step: get_u64(b, 16),
+                    sample_tick: detail,
+                    commands: extra,
+                }))
+            }
+        }
         _ => Err("unknown record kind"),
     }
 }
@@ -593,7 +699,7 @@ impl Recording {
         let version_at = c.at;
         let version = c.take(2, "format version")?;
         let version = u16::from_le_bytes([version[0], version[1]]);
-        if version != FORMAT_VERSION {
+        if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&version) {
             return Err(RecordError::UnsupportedVersion {
                 found: version,
                 supported: FORMAT_VERSION,
@@ -800,6 +906,18 @@ mod tests {
                 result: Err(e),
             });
         }
+        for (i, fetched) in [None, Some(0), Some(u64::MAX)].into_iter().enumerate() {
+            records.push(Record::Schedule(ScheduleNote::Tick {
+                tick: i as u64 + 1,
+                snapshot_version: fetched,
+                fade: [1.0, 0.0, 0.375][i],
+            }));
+            records.push(Record::Schedule(ScheduleNote::Step {
+                step: i as u64,
+                sample_tick: [0, 7, u64::MAX][i],
+                commands: [0, 1, u32::MAX][i],
+            }));
+        }
         Recording {
             info: info(),
             records,
@@ -818,6 +936,35 @@ mod tests {
                 "{per_block} per block"
             );
         }
+    }
+
+    #[test]
+    fn schedule_records_refuse_what_the_engine_never_writes() {
+        let tick = |fade: f32| {
+            encode_schedule(&ScheduleNote::Tick {
+                tick: 1,
+                snapshot_version: Some(4),
+                fade,
+            })
+        };
+        assert!(decode_record(&tick(0.5)).is_ok());
+        assert_eq!(decode_record(&tick(1.5)), Err("tick fade outside 0 to 1"));
+        assert_eq!(
+            decode_record(&tick(f32::NAN)),
+            Err("tick fade outside 0 to 1")
+        );
+        let mut raw = tick(0.5);
+        raw[1] = 0;
+        assert_eq!(
+            decode_record(&raw),
+            Err("snapshot version on a tick that fetched none")
+        );
+        let mut raw = tick(0.5);
+        raw[40] = 1;
+        assert_eq!(
+            decode_record(&raw),
+            Err("non-zero padding in a schedule record")
+        );
     }
 
     #[test]
@@ -860,16 +1007,21 @@ mod tests {
             Err(RecordError::BadMagic)
         ));
         let mut bytes = all_kinds().to_bytes(4);
-        bytes[8] = 2;
+        bytes[8] = 3;
         let e = Recording::parse(&bytes).unwrap_err();
         assert!(matches!(
             e,
             RecordError::UnsupportedVersion {
-                found: 2,
-                supported: 1
+                found: 3,
+                supported: 2
             }
         ));
-        assert!(e.to_string().contains("version 2"), "{e}");
+        assert!(e.to_string().contains("version 3"), "{e}");
+        bytes[8] = 0;
+        assert!(matches!(
+            Recording::parse(&bytes),
+            Err(RecordError::UnsupportedVersion { found: 0, .. })
+        ));
     }
 
     #[test]

@@ -19,14 +19,18 @@ use crossbeam::queue::ArrayQueue;
 use glam::Vec3;
 
 use super::error::RecordError;
-use super::format::{BlockWriter, RECORD_SIZE, WriteSummary, encode_read, encode_write};
+use super::format::{
+    BlockWriter, RECORD_SIZE, ScheduleNote, WriteSummary, encode_read, encode_schedule,
+    encode_write,
+};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 
 /// Settings of a [`RecordingDevice`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RecorderConfig {
     /// Queue capacity between the haptic thread and the writer, records (two per tick at
-    /// 1 kHz, so the default holds about four seconds).
+    /// 1 kHz, four with the engine's schedule notes, so the default holds about four
+    /// seconds).
     pub queue_capacity: usize,
     /// Records per checksummed block.
     pub records_per_block: u32,
@@ -37,7 +41,7 @@ pub struct RecorderConfig {
 impl Default for RecorderConfig {
     fn default() -> Self {
         Self {
-            queue_capacity: 8192,
+            queue_capacity: 16384,
             records_per_block: 256,
             flush_interval_ms: 100,
         }
@@ -132,6 +136,15 @@ impl<D: HapticDevice> RecordingDevice<D> {
         &self.recorder.path
     }
 
+    /// A handle through which the engine notes its schedule (see [`ScheduleNote`]) into this
+    /// recording, from any thread, beside the device's calls.
+    #[must_use]
+    pub fn schedule_log(&self) -> ScheduleLog {
+        ScheduleLog {
+            shared: Arc::clone(&self.recorder.shared),
+        }
+    }
+
     /// Records dropped so far because the queue was full.
     #[must_use]
     pub fn dropped(&self) -> u64 {
@@ -167,12 +180,44 @@ impl<D: HapticDevice> RecordingDevice<D> {
     }
 }
 
+/// Where the engine notes its schedule into a recording (see
+/// [`RecordingDevice::schedule_log`]).
+///
+/// Guarantee: [`ScheduleLog::note`] is one fixed-size encode and one lock-free push into the
+/// recorder's bounded queue: no allocation, no lock, no I/O, so the haptic and simulation
+/// threads call it every tick and step. A full queue drops the note and counts it, as for
+/// the device's own records. Notes pushed after the recording was finished go nowhere.
+#[derive(Clone)]
+pub struct ScheduleLog {
+    shared: Arc<Shared>,
+}
+
+impl ScheduleLog {
+    /// Queues `note` for the recording.
+    pub fn note(&self, note: &ScheduleNote) {
+        self.shared.push(encode_schedule(note));
+    }
+}
+
+impl std::fmt::Debug for ScheduleLog {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ScheduleLog").finish_non_exhaustive()
+    }
+}
+
+impl Shared {
+    /// Queues one encoded record; a full queue drops it (counted), never waits.
+    fn push(&self, raw: [u8; RECORD_SIZE]) {
+        if self.queue.push(raw).is_err() {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
 impl Recorder {
     /// Queues one encoded record; a full queue drops it (counted), never waits.
     fn push(&self, raw: [u8; RECORD_SIZE]) {
-        if self.shared.queue.push(raw).is_err() {
-            self.shared.dropped.fetch_add(1, Ordering::Relaxed);
-        }
+        self.shared.push(raw);
     }
 
     fn start_writer(&mut self, info: &DeviceInfo) -> Result<(), DeviceError> {

@@ -11,7 +11,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::error::RecordError;
-use super::format::{Record, Recording};
+use super::format::{Record, Recording, ScheduleNote};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 
 /// How far the forces written to a replay differ from the recorded ones.
@@ -27,12 +27,62 @@ pub struct ReplayDivergence {
     pub max_difference_n: f32,
 }
 
+/// What one recorded haptic tick saw (see [`ScheduleNote::Tick`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RecordedTick {
+    /// Version of the field snapshot the tick fetched, if it fetched one.
+    pub snapshot_version: Option<u64>,
+    /// The staleness fade it applied.
+    pub fade: f32,
+}
+
+/// What one recorded simulation step took (see [`ScheduleNote::Step`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RecordedStep {
+    /// Tick number of the tool sample it took (0: the idle sample before the first tick).
+    pub sample_tick: u64,
+    /// Commands applied since the previous step.
+    pub commands: u32,
+}
+
+/// A threaded run's schedule, as its recording holds it: every haptic tick (tick `n` at index
+/// `n - 1`) and every simulation step (step `n` at index `n`), in order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RecordedSchedule {
+    /// The haptic ticks.
+    pub ticks: Vec<RecordedTick>,
+    /// The simulation steps.
+    pub steps: Vec<RecordedStep>,
+}
+
+/// Why a recording's schedule cannot drive an exact replay.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ScheduleGap {
+    /// The recording holds no schedule (a lockstep run, the GUI, or a version-1 file).
+    #[error("the recording holds no schedule of the engine's loops")]
+    Absent,
+    /// The recorder dropped records, so ticks or steps are missing.
+    #[error("the recorder dropped {0} record(s), so the schedule is incomplete")]
+    Dropped(u64),
+    /// Tick or step numbers do not follow each other.
+    #[error("{what} {found} follows {expected_before} (the schedule is out of order)")]
+    OutOfOrder {
+        /// "tick" or "step".
+        what: &'static str,
+        /// The number found.
+        found: u64,
+        /// The number before it.
+        expected_before: u64,
+    },
+}
+
 /// A recorded session played back as a [`HapticDevice`].
 #[derive(Clone, Debug)]
 pub struct ReplayDevice {
     info: DeviceInfo,
     reads: Vec<Result<DeviceState, DeviceError>>,
     writes: Vec<(Vec3, Result<(), DeviceError>)>,
+    schedule: Result<RecordedSchedule, ScheduleGap>,
     dropped: u64,
     open: bool,
     next_read: usize,
@@ -65,22 +115,78 @@ impl ReplayDevice {
     pub fn from_recording(recording: Recording) -> Self {
         let mut reads = Vec::new();
         let mut writes = Vec::new();
+        let mut schedule = RecordedSchedule::default();
+        let mut order: Result<(), ScheduleGap> = Ok(());
         for record in recording.records {
             match record {
                 Record::Read(result) => reads.push(result),
                 Record::Write { force_n, result } => writes.push((force_n, result)),
+                Record::Schedule(ScheduleNote::Tick {
+                    tick,
+                    snapshot_version,
+                    fade,
+                }) => {
+                    let before = schedule.ticks.len() as u64;
+                    if order.is_ok() && tick != before + 1 {
+                        order = Err(ScheduleGap::OutOfOrder {
+                            what: "tick",
+                            found: tick,
+                            expected_before: before,
+                        });
+                    }
+                    schedule.ticks.push(RecordedTick {
+                        snapshot_version,
+                        fade,
+                    });
+                }
+                Record::Schedule(ScheduleNote::Step {
+                    step,
+                    sample_tick,
+                    commands,
+                }) => {
+                    let index = schedule.steps.len() as u64;
+                    if order.is_ok() && step != index {
+                        order = Err(ScheduleGap::OutOfOrder {
+                            what: "step",
+                            found: step,
+                            expected_before: index.wrapping_sub(1),
+                        });
+                    }
+                    schedule.steps.push(RecordedStep {
+                        sample_tick,
+                        commands,
+                    });
+                }
             }
         }
+        let schedule = if schedule.ticks.is_empty() && schedule.steps.is_empty() {
+            Err(ScheduleGap::Absent)
+        } else if recording.dropped > 0 {
+            Err(ScheduleGap::Dropped(recording.dropped))
+        } else {
+            order.map(|()| schedule)
+        };
         Self {
             info: recording.info,
             reads,
             writes,
+            schedule,
             dropped: recording.dropped,
             open: false,
             next_read: 0,
             next_write: 0,
             divergence: ReplayDivergence::default(),
         }
+    }
+
+    /// The engine's schedule recorded beside the device's calls by a threaded run, or why
+    /// there is none usable (then a replay reproduces the session only where it ran in
+    /// lockstep).
+    ///
+    /// # Errors
+    /// The [`ScheduleGap`] that keeps the schedule from driving an exact replay.
+    pub fn schedule(&self) -> Result<&RecordedSchedule, ScheduleGap> {
+        self.schedule.as_ref().map_err(|gap| *gap)
     }
 
     /// Recorded reads (successful or not).

@@ -6,13 +6,26 @@ use super::*;
 impl SimulationStage {
     /// Applies every queued command (non-blocking).
     pub fn apply_commands(&mut self) {
-        while let Ok(cmd) = self.commands.try_recv() {
+        self.apply_commands_at_most(u32::MAX);
+    }
+
+    /// Applies up to `limit` queued commands in arrival order (non-blocking) and returns how
+    /// many it applied; a replay applies exactly the recorded number before each step.
+    pub fn apply_commands_at_most(&mut self, limit: u32) -> u32 {
+        let mut applied = 0;
+        while applied < limit {
+            let Ok(cmd) = self.commands.try_recv() else {
+                break;
+            };
             let ok = self.apply(cmd);
+            applied += 1;
             self.counters.commands_applied(1);
             if !ok {
                 self.counters.command_errors(1);
             }
         }
+        self.commands_since_step = self.commands_since_step.saturating_add(applied);
+        applied
     }
 
     fn apply(&mut self, cmd: Command) -> bool {
