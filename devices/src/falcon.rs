@@ -24,6 +24,7 @@ use crate::codec::falcon::{
 };
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 use crate::kinematics::ArmModel;
+use crate::link_health::LinkHealth;
 use crate::profile::DeviceProfile;
 use crate::serial_link::{BaudPolicy, SerialLink};
 use crate::velocity::VelocityEstimator;
@@ -97,7 +98,7 @@ pub struct Falcon {
     model: ArmModel,
     opts: FalconOptions,
     link: Option<SerialLink>,
-    dead: bool,
+    health: LinkHealth,
     reader: FalconReader,
     cmd: FalconCommand,
     sent_since_read: bool,
@@ -105,7 +106,6 @@ pub struct Falcon {
     state: DeviceState,
     velocity: VelocityEstimator,
     t0: Instant,
-    last_frame: Instant,
     rx_bytes: u64,
     stats: LinkStats,
 }
@@ -179,13 +179,14 @@ impl Falcon {
             message: e.to_string(),
         })?;
         let now = Instant::now();
+        let health = LinkHealth::new(opts.stale_after, now);
         Ok(Self {
             path: path.to_string(),
             profile,
             model,
             opts,
             link: None,
-            dead: false,
+            health,
             reader: FalconReader::new(),
             cmd: FalconCommand::default(),
             sent_since_read: false,
@@ -193,7 +194,6 @@ impl Falcon {
             state: DeviceState::ZERO,
             velocity: VelocityEstimator::default(),
             t0: now,
-            last_frame: now,
             rx_bytes: 0,
             stats: LinkStats::default(),
         })
@@ -225,12 +225,7 @@ impl Falcon {
                 self.stats.sent += 1;
                 Ok(())
             }
-            Err(e) => {
-                if e == DeviceError::Disconnected {
-                    self.dead = true;
-                }
-                Err(e)
-            }
+            Err(e) => Err(self.health.note(e)),
         }
     }
 
@@ -240,12 +235,7 @@ impl Falcon {
         let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
         let bytes = match link.read_available(wait) {
             Ok(b) => b,
-            Err(e) => {
-                if e == DeviceError::Disconnected {
-                    self.dead = true;
-                }
-                return Err(e);
-            }
+            Err(e) => return Err(self.health.note(e)),
         };
         let mut fresh = false;
         let mut fault = None;
@@ -371,7 +361,7 @@ impl Falcon {
             self.opts.baud_policy,
             Duration::from_millis(5),
         )?);
-        self.dead = false;
+        self.health.restart(Instant::now());
         self.reader.reset();
         self.stats = LinkStats::default();
         self.rx_bytes = 0;
@@ -392,7 +382,7 @@ impl Falcon {
         self.model.reset();
         self.velocity.reset();
         self.t0 = Instant::now();
-        self.last_frame = self.t0;
+        self.health.restart(self.t0);
         self.state = DeviceState::ZERO;
         self.sent_since_read = false;
         Ok(())
@@ -409,7 +399,7 @@ impl HapticDevice for Falcon {
     }
 
     fn open(&mut self) -> Result<(), DeviceError> {
-        if self.link.is_some() && !self.dead {
+        if self.link.is_some() && !self.health.is_dead() {
             return Ok(());
         }
         let r = self.open_inner();
@@ -420,7 +410,7 @@ impl HapticDevice for Falcon {
     }
 
     fn close(&mut self) -> Result<(), DeviceError> {
-        let r = if self.link.is_some() && !self.dead {
+        let r = if self.link.is_some() && !self.health.is_dead() {
             self.cmd = FalconCommand {
                 motor: [0; 3],
                 leds: 0,
@@ -431,7 +421,7 @@ impl HapticDevice for Falcon {
             Ok(())
         };
         self.link = None;
-        self.dead = false;
+        self.health.restart(Instant::now());
         match r {
             Err(DeviceError::Disconnected) => Ok(()),
             other => other,
@@ -446,9 +436,7 @@ impl HapticDevice for Falcon {
         if self.link.is_none() {
             return Err(DeviceError::NotOpen);
         }
-        if self.dead {
-            return Err(DeviceError::Disconnected);
-        }
+        self.health.alive()?;
         if !self.sent_since_read {
             // Keep the stream flowing: the firmware answers one frame per command.
             self.send()?;
@@ -457,7 +445,7 @@ impl HapticDevice for Falcon {
         let (fresh, fault) = self.pump(self.opts.reply_wait)?;
         let now = Instant::now();
         if fresh {
-            self.last_frame = now;
+            self.health.frame(now);
             // Keep the last good position if the solve fails (a glitch near a singularity).
             if let Ok(p) = self.model.update(self.status.encoders) {
                 let t_us = now.duration_since(self.t0).as_micros() as u64;
@@ -475,18 +463,10 @@ impl HapticDevice for Falcon {
         if let Some(f) = fault {
             return Err(f);
         }
-        let silent = now.duration_since(self.last_frame);
-        if silent > self.opts.stale_after {
-            if let Some(l) = self.link.as_mut()
-                && l.probe_hangup().is_err()
-            {
-                self.dead = true;
-                return Err(DeviceError::Disconnected);
-            }
-            return Err(DeviceError::Timeout {
-                waited_us: silent.as_micros() as u64,
-            });
-        }
+        let link = &mut self.link;
+        self.health.check(now, || {
+            link.as_mut().is_some_and(|l| l.probe_hangup().is_err())
+        })?;
         Ok(self.state)
     }
 
@@ -494,9 +474,7 @@ impl HapticDevice for Falcon {
         if self.link.is_none() {
             return Err(DeviceError::NotOpen);
         }
-        if self.dead {
-            return Err(DeviceError::Disconnected);
-        }
+        self.health.alive()?;
         let f = if force_n.is_finite() {
             force_n.as_dvec3()
         } else {

@@ -20,6 +20,7 @@ use crate::codec::{cartesian, woodenhaptics as wh};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 use crate::enumerate::{Access, access};
 use crate::kinematics::ArmModel;
+use crate::link_health::LinkHealth;
 use crate::profile::{DeviceProfile, Protocol};
 use crate::velocity::VelocityEstimator;
 
@@ -90,9 +91,9 @@ pub struct HidArm {
     state: DeviceState,
     velocity: VelocityEstimator,
     t0: Instant,
-    last_report: Instant,
-    /// No input report for this long makes `read` fail with a timeout.
-    pub stale_after: Duration,
+    /// No input report for 100 ms makes `read` fail with a timeout (a failed HID read is a
+    /// disconnect at once, so the link is never probed).
+    health: LinkHealth,
 }
 
 impl HidArm {
@@ -132,8 +133,7 @@ impl HidArm {
             state: DeviceState::ZERO,
             velocity: VelocityEstimator::default(),
             t0: now,
-            last_report: now,
-            stale_after: Duration::from_millis(100),
+            health: LinkHealth::new(Duration::from_millis(100), now),
         })
     }
 
@@ -245,7 +245,7 @@ impl HapticDevice for HidArm {
         self.velocity.reset();
         self.state = DeviceState::ZERO;
         self.t0 = Instant::now();
-        self.last_report = self.t0;
+        self.health.restart(self.t0);
         self.command = self.command_for_force(Vec3::ZERO);
         self.send()
     }
@@ -293,11 +293,9 @@ impl HapticDevice for HidArm {
         let now = Instant::now();
         if let Some(n) = newest_len {
             self.apply_report(&newest[..n], now.duration_since(self.t0).as_micros() as u64)?;
-            self.last_report = now;
-        } else if now.duration_since(self.last_report) > self.stale_after {
-            return Err(DeviceError::Timeout {
-                waited_us: now.duration_since(self.last_report).as_micros() as u64,
-            });
+            self.health.frame(now);
+        } else {
+            self.health.check(now, || false)?;
         }
         Ok(self.state)
     }

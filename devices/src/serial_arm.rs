@@ -15,6 +15,7 @@ use crate::codec::CodecError;
 use crate::codec::frame::{self, DeviceMsg, FrameEvent, FrameReader, HostMsg, MAX_FRAME, VERSION};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 use crate::falcon::LinkStats;
+use crate::link_health::LinkHealth;
 use crate::profile::DeviceProfile;
 use crate::serial_link::{BaudPolicy, SerialLink};
 use crate::velocity::VelocityEstimator;
@@ -61,7 +62,7 @@ pub struct SerialArm {
     profile: DeviceProfile,
     opts: SerialArmOptions,
     link: Option<SerialLink>,
-    dead: bool,
+    health: LinkHealth,
     reader: FrameReader,
     force_mn: [i16; 3],
     seq: u16,
@@ -70,7 +71,6 @@ pub struct SerialArm {
     device_max_force_n: f32,
     velocity: VelocityEstimator,
     t0: Instant,
-    last_frame: Instant,
     rx_bytes: u64,
     stats: LinkStats,
     homed: bool,
@@ -90,13 +90,14 @@ impl SerialArm {
     #[must_use]
     pub fn new(path: &str, profile: DeviceProfile, opts: SerialArmOptions) -> Self {
         let now = Instant::now();
+        let health = LinkHealth::new(opts.stale_after, now);
         let device_max_force_n = profile.max_force_n;
         Self {
             path: path.to_string(),
             profile,
             opts,
             link: None,
-            dead: false,
+            health,
             reader: FrameReader::new(),
             force_mn: [0; 3],
             seq: 0,
@@ -105,7 +106,6 @@ impl SerialArm {
             device_max_force_n,
             velocity: VelocityEstimator::default(),
             t0: now,
-            last_frame: now,
             rx_bytes: 0,
             stats: LinkStats::default(),
             homed: false,
@@ -141,12 +141,7 @@ impl SerialArm {
                 self.stats.sent += 1;
                 Ok(())
             }
-            Err(e) => {
-                if e == DeviceError::Disconnected {
-                    self.dead = true;
-                }
-                Err(e)
-            }
+            Err(e) => Err(self.health.note(e)),
         }
     }
 
@@ -172,12 +167,7 @@ impl SerialArm {
                     chunk[..b.len()].copy_from_slice(b);
                     b.len()
                 }
-                Err(e) => {
-                    if e == DeviceError::Disconnected {
-                        self.dead = true;
-                    }
-                    return Err(e);
-                }
+                Err(e) => return Err(self.health.note(e)),
             }
         };
         let mut fault = None;
@@ -246,7 +236,7 @@ impl SerialArm {
         )?;
         link.clear_input();
         self.link = Some(link);
-        self.dead = false;
+        self.health.restart(Instant::now());
         self.reader.reset();
         self.stats = LinkStats::default();
         self.rx_bytes = 0;
@@ -318,7 +308,7 @@ impl SerialArm {
         }
         self.velocity.reset();
         self.t0 = Instant::now();
-        self.last_frame = self.t0;
+        self.health.restart(self.t0);
         self.state = DeviceState::ZERO;
         self.sent_since_read = false;
         Ok(())
@@ -340,7 +330,7 @@ impl SerialArm {
                 position_um[2] as f32,
             ) * 1e-6;
             self.homed = status & frame::status::HOMED != 0;
-            self.last_frame = now;
+            self.health.frame(now);
             self.state = DeviceState {
                 position_m: p,
                 orientation: None,
@@ -361,7 +351,7 @@ impl HapticDevice for SerialArm {
     }
 
     fn open(&mut self) -> Result<(), DeviceError> {
-        if self.link.is_some() && !self.dead {
+        if self.link.is_some() && !self.health.is_dead() {
             return Ok(());
         }
         let r = self.open_inner();
@@ -372,14 +362,14 @@ impl HapticDevice for SerialArm {
     }
 
     fn close(&mut self) -> Result<(), DeviceError> {
-        let r = if self.link.is_some() && !self.dead {
+        let r = if self.link.is_some() && !self.health.is_dead() {
             self.force_mn = [0; 3];
             self.send_force()
         } else {
             Ok(())
         };
         self.link = None;
-        self.dead = false;
+        self.health.restart(Instant::now());
         match r {
             Err(DeviceError::Disconnected) => Ok(()),
             other => other,
@@ -394,9 +384,7 @@ impl HapticDevice for SerialArm {
         if self.link.is_none() {
             return Err(DeviceError::NotOpen);
         }
-        if self.dead {
-            return Err(DeviceError::Disconnected);
-        }
+        self.health.alive()?;
         if !self.sent_since_read {
             self.send_force()?;
         }
@@ -405,18 +393,10 @@ impl HapticDevice for SerialArm {
         if let Some(f) = fault {
             return Err(f);
         }
-        let silent = self.last_frame.elapsed();
-        if silent > self.opts.stale_after {
-            if let Some(l) = self.link.as_mut()
-                && l.probe_hangup().is_err()
-            {
-                self.dead = true;
-                return Err(DeviceError::Disconnected);
-            }
-            return Err(DeviceError::Timeout {
-                waited_us: silent.as_micros() as u64,
-            });
-        }
+        let link = &mut self.link;
+        self.health.check(Instant::now(), || {
+            link.as_mut().is_some_and(|l| l.probe_hangup().is_err())
+        })?;
         Ok(self.state)
     }
 
@@ -424,9 +404,7 @@ impl HapticDevice for SerialArm {
         if self.link.is_none() {
             return Err(DeviceError::NotOpen);
         }
-        if self.dead {
-            return Err(DeviceError::Disconnected);
-        }
+        self.health.alive()?;
         let f = if force_n.is_finite() {
             force_n.clamp_length_max(self.device_max_force_n)
         } else {
