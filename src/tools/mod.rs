@@ -5,6 +5,7 @@ mod action;
 mod apply;
 mod clay;
 mod deform;
+mod emboss;
 mod force;
 mod history;
 mod pin;
@@ -16,6 +17,9 @@ pub use apply::{
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
+pub use emboss::{
+    EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
+};
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PenetrationTarget, nearest_solid_point, outward_normal,
     plan_penetration, project_to_surface,
