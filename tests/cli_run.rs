@@ -716,3 +716,99 @@ falloff_m = 0.1
         "the final session"
     );
 }
+
+/// A script's emboss step raises the clay's top under the image's white half by the depth and
+/// leaves it under the black half; an engrave cuts in; a missing image is named.
+#[test]
+fn a_script_embosses_and_engraves_an_image_onto_the_clay() {
+    let dir = tempfile::tempdir().unwrap();
+    // 8×8: white on the left half, black on the right.
+    let mut png_bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut png_bytes, 8, 8);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().unwrap();
+        let pixels: Vec<u8> = (0..64).map(|i| if i % 8 < 4 { 255 } else { 0 }).collect();
+        w.write_image_data(&pixels).unwrap();
+    }
+    std::fs::write(dir.path().join("half.png"), &png_bytes).unwrap();
+    let script = |engrave: bool, image: &str| {
+        format!(
+            r#"
+version = 1
+
+[clay]
+shape = "block"
+resolution = 24
+
+[[step]]
+do = "emboss"
+image = "{image}"
+projection = {{ kind = "planar", centre = [1.15, 1.725, 1.15], axis = [0, 1, 0], up = [0, 0, -1], size = 0.8 }}
+depth = 0.05
+engrave = {engrave}
+"#
+        )
+    };
+    let top = |session: &Path, x: f32| {
+        let l = load_session(session).unwrap().clay.patches[0].clone();
+        // Bisect the surface height above (x, 1.15).
+        let (mut lo, mut hi) = (1.3f32, 2.1f32);
+        for _ in 0..40 {
+            let m = 0.5 * (lo + hi);
+            if l.value(glam::Vec3::new(x, m, 1.15)) > l.iso {
+                lo = m;
+            } else {
+                hi = m;
+            }
+        }
+        0.5 * (lo + hi)
+    };
+    let run = |name: &str, text: String| {
+        std::fs::write(dir.path().join(format!("{name}.toml")), text).unwrap();
+        Command::new(BIN)
+            .args(["run", "--lockstep", "--seconds", "0.2", "--script"])
+            .arg(dir.path().join(format!("{name}.toml")))
+            .arg("--out")
+            .arg(dir.path().join(name))
+            .output()
+            .unwrap()
+    };
+    let clay_only = "version = 1\n\n[clay]\nshape = \"block\"\nresolution = 24\n";
+    let plain = run("plain", clay_only.to_string());
+    assert!(
+        plain.status.success(),
+        "{}",
+        String::from_utf8_lossy(&plain.stderr)
+    );
+    let out = run("emboss", script(false, "half.png"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = run("engrave", script(true, "half.png"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let session = |name: &str| dir.path().join(name).join("session.dclay");
+    // Seen from +y looking down with −z up, the image's left (white) is −x.
+    let (white_x, black_x) = (0.95, 1.35);
+    let raised = top(&session("emboss"), white_x) - top(&session("plain"), white_x);
+    let kept = top(&session("emboss"), black_x) - top(&session("plain"), black_x);
+    let cut = top(&session("plain"), white_x) - top(&session("engrave"), white_x);
+    assert!((raised - 0.05).abs() < 0.015, "embossed by {raised}");
+    assert!(kept.abs() < 0.01, "black moved by {kept}");
+    assert!((cut - 0.05).abs() < 0.015, "engraved by {cut}");
+
+    let out = run("missing", script(false, "nowhere.png"));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("image:") && err.contains("nowhere.png"),
+        "{err}"
+    );
+}

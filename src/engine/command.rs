@@ -130,6 +130,17 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
+    /// Emboss (or engrave) an image onto the clay (one undo step).
+    Emboss {
+        /// The image's brightness (loaded by the caller).
+        relief: std::sync::Arc<crate::tools::Relief>,
+        /// Projection, depth and direction.
+        params: crate::tools::EmbossParams,
+        /// Which density patch.
+        patch: u16,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
     /// Pin a point, curve or normal on the clay (one undo step); points off the surface are
     /// moved onto it first and the outcome on `reply` says so.
     Constrain {

@@ -37,7 +37,7 @@ use crate::io::{
     ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
     parse_script, pin_request, poses,
 };
-use crate::tools::{Clay, GeometricTool, PinRequest, ToolAction, ToolPose};
+use crate::tools::{Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose};
 
 /// Time the hand takes from hover to the path and back, seconds.
 pub const APPROACH_S: f64 = 0.3;
@@ -97,6 +97,12 @@ pub enum PlannedAction {
     Redo(u32),
     /// Save the session to this path (already joined to the script's folder).
     Save(std::path::PathBuf),
+    /// Emboss or engrave a loaded image.
+    Emboss {
+        relief: std::sync::Arc<Relief>,
+        params: EmbossParams,
+        patch: u16,
+    },
     /// Pin a place on the clay.
     Constrain(PinRequest),
     /// Remove one pin, or all.
@@ -298,6 +304,25 @@ impl ScriptPlan {
                 ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),
                 ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
                 ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),
+                ScriptStep::Emboss {
+                    image,
+                    projection,
+                    depth,
+                    engrave,
+                    patch,
+                } => {
+                    let relief = Relief::load(&base_dir.join(image))
+                        .map_err(|e| fail(format!("image: {e}")))?;
+                    event(PlannedAction::Emboss {
+                        relief: std::sync::Arc::new(relief),
+                        params: EmbossParams {
+                            projection: projection.projection(),
+                            depth: *depth,
+                            engrave: *engrave,
+                        },
+                        patch: *patch,
+                    });
+                }
                 ScriptStep::Constrain { kind, at, points } => {
                     let request = pin_request(*kind, *at, points).map_err(fail)?;
                     event(PlannedAction::Constrain(request));

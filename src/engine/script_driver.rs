@@ -130,6 +130,16 @@ impl ScriptDriver {
                 patch,
                 reply: Some(reply()),
             }],
+            PlannedAction::Emboss {
+                relief,
+                params,
+                patch,
+            } => vec![Command::Emboss {
+                relief,
+                params,
+                patch,
+                reply: Some(reply()),
+            }],
             PlannedAction::Constrain(request) => {
                 let (tx, rx) = bounded(1);
                 self.telling.push((step, rx));

@@ -52,7 +52,7 @@ use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
     ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolPose, ToolReport,
-    apply_csg, apply_stroke, apply_tool,
+    apply_csg, apply_emboss, apply_stroke, apply_tool,
 };
 
 /// Settings of the simulation stage.

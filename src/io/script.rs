@@ -341,6 +341,64 @@ impl ForceToolSpec {
     }
 }
 
+/// How an embossed image lies on the clay (field coordinates and lengths).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ProjectionSpec {
+    /// Projected along `axis` onto the faces turned toward it, `size` wide.
+    Planar {
+        centre: [f32; 3],
+        axis: [f32; 3],
+        up: [f32; 3],
+        size: f32,
+    },
+    /// Wrapped once around `axis` through `centre`, `height` tall.
+    Cylindrical {
+        centre: [f32; 3],
+        axis: [f32; 3],
+        up: [f32; 3],
+        height: f32,
+    },
+    /// Longitude and latitude about `centre`, the image's top at `up`.
+    Spherical { centre: [f32; 3], up: [f32; 3] },
+}
+
+impl ProjectionSpec {
+    /// The tools' projection.
+    #[must_use]
+    pub fn projection(&self) -> crate::tools::Projection {
+        use crate::tools::Projection;
+        match *self {
+            Self::Planar {
+                centre,
+                axis,
+                up,
+                size,
+            } => Projection::Planar {
+                centre: centre.into(),
+                axis: axis.into(),
+                up: up.into(),
+                size,
+            },
+            Self::Cylindrical {
+                centre,
+                axis,
+                up,
+                height,
+            } => Projection::Cylindrical {
+                centre: centre.into(),
+                axis: axis.into(),
+                up: up.into(),
+                height,
+            },
+            Self::Spherical { centre, up } => Projection::Spherical {
+                centre: centre.into(),
+                up: up.into(),
+            },
+        }
+    }
+}
+
 /// CSG operations between the clay and another session file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -465,6 +523,17 @@ pub enum ScriptStep {
     },
     /// Save the session (relative to the script's folder).
     Save { path: PathBuf },
+    /// Emboss (or engrave) an image onto the clay: `image` (PNG or JPEG, relative to the
+    /// script's folder), `projection`, `depth` (field units) and `engrave`.
+    Emboss {
+        image: PathBuf,
+        projection: ProjectionSpec,
+        depth: f32,
+        #[serde(default)]
+        engrave: bool,
+        #[serde(default)]
+        patch: u16,
+    },
     /// Pin a place on the clay (one undo step): `kind = "point"` or `"normal"` with `at`,
     /// `kind = "curve"` with `points`. A point off the surface is moved onto it first, and the
     /// step says so.
@@ -1009,6 +1078,17 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
                 MAX_CONSTRAINTS - 1
             ))
         }
+        ScriptStep::Emboss {
+            projection,
+            depth,
+            engrave,
+            ..
+        } => crate::tools::EmbossParams {
+            projection: projection.projection(),
+            depth: *depth,
+            engrave: *engrave,
+        }
+        .validate(),
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }

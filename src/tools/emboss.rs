@@ -190,14 +190,15 @@ pub enum Projection {
         /// The image's width and height.
         size: f32,
     },
-    /// Wrapped once around `axis` through `centre` (the image's left edge at `up`'s side,
-    /// running counter-clockwise about `axis`), `height` tall along the axis.
+    /// Wrapped once around `axis` through `centre` (the image's centre facing `up`, reading
+    /// left to right counter-clockwise about `axis`, its seam opposite), `height` tall along
+    /// the axis.
     Cylindrical {
         /// A point on the axis, at the image's mid-height.
         centre: Vec3,
         /// The cylinder's axis (the image's up).
         axis: Vec3,
-        /// Where the image's left edge lies (made perpendicular to `axis`).
+        /// Where the image's centre faces (made perpendicular to `axis`).
         up: Vec3,
         /// The image's height along the axis.
         height: f32,
@@ -286,7 +287,9 @@ impl EmbossParams {
                 up,
                 size,
             } => {
-                let (a, u, r) = frame(axis, up)?;
+                let (a, u, _) = frame(axis, up)?;
+                // The image's right as the projector (at +axis, looking back) sees it.
+                let r = u.cross(a);
                 let facing = normal.dot(a);
                 let weight = ((facing - 0.2) / 0.3).clamp(0.0, 1.0);
                 let d = x - centre;
@@ -476,9 +479,9 @@ mod tests {
         let report = apply_emboss(&mut clay, &half_white(), &params, 0, 2, Some(&mut rec)).unwrap();
         assert!(report.dirtied > 0);
         let after = &clay.patches[0];
-        // The image's left (white) is −x seen from +y with z up; the right is +x.
-        let white = Vec3::new(-0.25, 1.0, 0.0).normalize();
-        let black = Vec3::new(0.25, 1.0, 0.0).normalize();
+        // Seen from +y looking down with z up, the image's left (white) is +x.
+        let white = Vec3::new(0.25, 1.0, 0.0).normalize();
+        let black = Vec3::new(-0.25, 1.0, 0.0).normalize();
         let grown = radius_along(after, centre, white) - radius_along(&before, centre, white);
         let kept = radius_along(after, centre, black) - radius_along(&before, centre, black);
         assert!(

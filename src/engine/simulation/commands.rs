@@ -99,6 +99,26 @@ impl SimulationStage {
                 self.commit(rec);
                 self.edited(result, op.name(), reply)
             }
+            Command::Emboss {
+                relief,
+                params,
+                patch,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let what = if params.engrave { "engrave" } else { "emboss" };
+                let mut rec = StepRecorder::new(what);
+                let result = apply_emboss(
+                    &mut self.clay,
+                    &relief,
+                    &params,
+                    patch,
+                    ApplyOptions::default().samples_per_span,
+                    Some(&mut rec),
+                );
+                self.commit(rec);
+                self.edited(result, what, reply)
+            }
             Command::Undo | Command::Redo => {
                 self.end_stroke_now();
                 let whole = CoeffBox::whole(self.lattice().dims);
