@@ -7,22 +7,29 @@
 //! an [`ArmModel`] can run on the haptic thread; the delta's forward solve is a bounded Newton
 //! iteration warm-started from the previous position.
 
-use std::fmt;
-
 use glam::{DMat3, DVec3};
 
 use crate::delta::Delta;
 use crate::profile::{DeviceProfile, Geometry, Motors};
 
 /// Why a kinematic solve failed.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum KinematicsError {
     /// No joint angles reach this position.
+    #[error(
+        "position ({:.4}, {:.4}, {:.4}) m is outside the arm's reach",
+        position_m[0],
+        position_m[1],
+        position_m[2]
+    )]
     Unreachable {
         /// The position asked for, m.
         position_m: [f64; 3],
     },
     /// The forward solve did not converge within its iteration budget.
+    #[error(
+        "forward kinematics did not converge in {iterations} iterations (residual {residual_rad:.2e} rad)"
+    )]
     NoConvergence {
         /// Iterations spent.
         iterations: u32,
@@ -30,32 +37,9 @@ pub enum KinematicsError {
         residual_rad: f64,
     },
     /// The profile has no joint kinematics (a Cartesian device).
+    #[error("profile has no joint kinematics (Cartesian device)")]
     NotAnArm,
 }
-
-impl fmt::Display for KinematicsError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Unreachable { position_m: p } => {
-                write!(
-                    f,
-                    "position ({:.4}, {:.4}, {:.4}) m is outside the arm's reach",
-                    p[0], p[1], p[2]
-                )
-            }
-            Self::NoConvergence {
-                iterations,
-                residual_rad,
-            } => write!(
-                f,
-                "forward kinematics did not converge in {iterations} iterations (residual {residual_rad:.2e} rad)"
-            ),
-            Self::NotAnArm => write!(f, "profile has no joint kinematics (Cartesian device)"),
-        }
-    }
-}
-
-impl std::error::Error for KinematicsError {}
 
 /// Motor side of an arm: counts ↔ joint angles, joint torques → firmware commands.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -7,7 +7,6 @@
 //! other name is read as a path. Loading validates every number and names the file and field
 //! that is wrong.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
@@ -142,9 +141,10 @@ pub struct DeviceProfile {
 }
 
 /// Why a profile could not be loaded.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
     /// The file could not be read.
+    #[error("cannot read device profile {}: {source}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
@@ -152,6 +152,11 @@ pub enum ProfileError {
         source: std::io::Error,
     },
     /// The TOML was malformed or had a missing, unknown or mistyped field.
+    #[error(
+        "device profile {}{}: {message}",
+        path.display(),
+        line.map(|l| format!(":{l}")).unwrap_or_default()
+    )]
     Parse {
         /// The file, or `built-in:NAME`.
         path: PathBuf,
@@ -161,6 +166,7 @@ pub enum ProfileError {
         message: String,
     },
     /// A value was out of range.
+    #[error("device profile {}: field `{field}` {reason}", path.display())]
     Invalid {
         /// The file, or `built-in:NAME`.
         path: PathBuf,
@@ -170,41 +176,6 @@ pub enum ProfileError {
         reason: String,
     },
 }
-
-impl fmt::Display for ProfileError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Io { path, source } => {
-                write!(f, "cannot read device profile {}: {source}", path.display())
-            }
-            Self::Parse {
-                path,
-                line: Some(l),
-                message,
-            } => {
-                write!(f, "device profile {}:{l}: {message}", path.display())
-            }
-            Self::Parse {
-                path,
-                line: None,
-                message,
-            } => write!(f, "device profile {}: {message}", path.display()),
-            Self::Invalid {
-                path,
-                field,
-                reason,
-            } => {
-                write!(
-                    f,
-                    "device profile {}: field `{field}` {reason}",
-                    path.display()
-                )
-            }
-        }
-    }
-}
-
-impl std::error::Error for ProfileError {}
 
 /// Names and texts of the profiles compiled into dynaclay.
 pub const BUILT_IN: [(&str, &str); 5] = [

@@ -42,26 +42,17 @@ pub enum DeviceSpec {
 }
 
 /// Why a device spec did not parse.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "invalid device `{input}`: {reason} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, mouse or replay:FILE)",
+    input = input.escape_debug()
+)]
 pub struct SpecError {
     /// The spec as given.
     pub input: String,
     /// What was wrong.
     pub reason: String,
 }
-
-impl fmt::Display for SpecError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "invalid device `{}`: {} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, mouse or replay:FILE)",
-            self.input.escape_debug(),
-            self.reason
-        )
-    }
-}
-
-impl std::error::Error for SpecError {}
 
 impl FromStr for DeviceSpec {
     type Err = SpecError;

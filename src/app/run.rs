@@ -25,18 +25,11 @@ impl Default for GuiOptions {
 }
 
 /// Why the window could not run.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
+#[error("cannot run the GUI: {message}")]
 pub struct GuiError {
     pub message: String,
 }
-
-impl std::fmt::Display for GuiError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "cannot run the GUI: {}", self.message)
-    }
-}
-
-impl std::error::Error for GuiError {}
 
 /// Opens the window and runs the app until it is closed. The engine behind `link` keeps
 /// running on its own threads (`pointer`, when given, aims the engine's pointer device); the app only sends commands and reads what it publishes.

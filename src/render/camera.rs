@@ -240,22 +240,9 @@ impl NamedView {
 }
 
 /// An unknown view name.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown view {0:?}: expected one of {names}", names = NamedView::ALL.map(NamedView::name).join(", "))]
 pub struct UnknownView(pub String);
-
-impl std::fmt::Display for UnknownView {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let names: Vec<&str> = NamedView::ALL.iter().map(|v| v.name()).collect();
-        write!(
-            f,
-            "unknown view {:?}: expected one of {}",
-            self.0,
-            names.join(", ")
-        )
-    }
-}
-
-impl std::error::Error for UnknownView {}
 
 impl FromStr for NamedView {
     type Err = UnknownView;

@@ -24,9 +24,12 @@ pub struct MeshChunk<'a> {
 }
 
 /// Why a chunk cannot be drawn.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ChunkError {
     /// `normals` (or non-empty `colors`) does not have one entry per position.
+    #[error(
+        "mesh chunk {id}: {attribute} has {got} entries, expected {expected} (one per position)"
+    )]
     AttributeLength {
         id: u64,
         attribute: &'static str,
@@ -34,8 +37,12 @@ pub enum ChunkError {
         got: usize,
     },
     /// The index count is not a multiple of three.
+    #[error("mesh chunk {id}: {index_count} indices is not a whole number of triangles")]
     PartialTriangle { id: u64, index_count: usize },
     /// An index points past the last vertex.
+    #[error(
+        "mesh chunk {id}: index {index} at position {at} is out of range ({vertex_count} vertices)"
+    )]
     IndexOutOfRange {
         id: u64,
         at: usize,
@@ -43,42 +50,9 @@ pub enum ChunkError {
         vertex_count: usize,
     },
     /// The same id appears twice in one set of chunks.
+    #[error("mesh chunk id {id} appears more than once in one frame")]
     DuplicateId { id: u64 },
 }
-
-impl std::fmt::Display for ChunkError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::AttributeLength {
-                id,
-                attribute,
-                expected,
-                got,
-            } => write!(
-                f,
-                "mesh chunk {id}: {attribute} has {got} entries, expected {expected} (one per position)"
-            ),
-            Self::PartialTriangle { id, index_count } => write!(
-                f,
-                "mesh chunk {id}: {index_count} indices is not a whole number of triangles"
-            ),
-            Self::IndexOutOfRange {
-                id,
-                at,
-                index,
-                vertex_count,
-            } => write!(
-                f,
-                "mesh chunk {id}: index {index} at position {at} is out of range ({vertex_count} vertices)"
-            ),
-            Self::DuplicateId { id } => {
-                write!(f, "mesh chunk id {id} appears more than once in one frame")
-            }
-        }
-    }
-}
-
-impl std::error::Error for ChunkError {}
 
 impl MeshChunk<'_> {
     /// Number of triangles in the chunk.

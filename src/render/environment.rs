@@ -16,25 +16,15 @@ pub struct EnvironmentMap {
 }
 
 /// Why an environment image was refused.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "environment map of {size_px}×{size_px} pixels needs {needed} RGBA bytes, got {byte_len}",
+    needed = u64::from(*size_px) * u64::from(*size_px) * 4
+)]
 pub struct EnvironmentSizeError {
     pub size_px: u32,
     pub byte_len: usize,
 }
-
-impl std::fmt::Display for EnvironmentSizeError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "environment map of {0}×{0} pixels needs {1} RGBA bytes, got {2}",
-            self.size_px,
-            u64::from(self.size_px) * u64::from(self.size_px) * 4,
-            self.byte_len
-        )
-    }
-}
-
-impl std::error::Error for EnvironmentSizeError {}
 
 impl EnvironmentMap {
     /// Wraps a user image (for example a loaded matcap).

@@ -3,12 +3,11 @@
 //! Codecs never panic on input; a malformed report or frame is a [`CodecError`] value that names
 //! the protocol, the field and the byte offset, so a log line says exactly where a stream broke.
 
-use std::fmt;
-
 /// Why a report or frame could not be decoded.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum CodecError {
     /// The input was shorter than the form needs.
+    #[error("{what}: short input, {got} bytes where {needed} are needed")]
     TooShort {
         /// Protocol or report name.
         what: &'static str,
@@ -18,6 +17,7 @@ pub enum CodecError {
         got: usize,
     },
     /// The input was longer than the form allows.
+    #[error("{what}: input of {got} bytes is longer than the {max} allowed")]
     TooLong {
         /// Protocol or report name.
         what: &'static str,
@@ -27,6 +27,7 @@ pub enum CodecError {
         got: usize,
     },
     /// A byte had a value the protocol does not allow there.
+    #[error("{what}: byte 0x{value:02x} at offset {offset} is not a valid {field}")]
     BadByte {
         /// Protocol or report name.
         what: &'static str,
@@ -38,6 +39,9 @@ pub enum CodecError {
         value: u8,
     },
     /// The checksum did not match the bytes it covers.
+    #[error(
+        "{what}: CRC at offset {offset} is 0x{expected:08x} but the bytes give 0x{computed:08x}"
+    )]
     BadCrc {
         /// Protocol or frame name.
         what: &'static str,
@@ -49,6 +53,7 @@ pub enum CodecError {
         computed: u32,
     },
     /// A length field disagreed with the form it announces.
+    #[error("{what}: length field at offset {offset} says {announced}, expected {expected}")]
     BadLength {
         /// Protocol or frame name.
         what: &'static str,
@@ -60,53 +65,3 @@ pub enum CodecError {
         expected: usize,
     },
 }
-
-impl fmt::Display for CodecError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
-            Self::TooShort { what, needed, got } => {
-                write!(
-                    f,
-                    "{what}: short input, {got} bytes where {needed} are needed"
-                )
-            }
-            Self::TooLong { what, max, got } => {
-                write!(
-                    f,
-                    "{what}: input of {got} bytes is longer than the {max} allowed"
-                )
-            }
-            Self::BadByte {
-                what,
-                field,
-                offset,
-                value,
-            } => {
-                write!(
-                    f,
-                    "{what}: byte 0x{value:02x} at offset {offset} is not a valid {field}"
-                )
-            }
-            Self::BadCrc {
-                what,
-                offset,
-                expected,
-                computed,
-            } => write!(
-                f,
-                "{what}: CRC at offset {offset} is 0x{expected:08x} but the bytes give 0x{computed:08x}"
-            ),
-            Self::BadLength {
-                what,
-                offset,
-                announced,
-                expected,
-            } => write!(
-                f,
-                "{what}: length field at offset {offset} says {announced}, expected {expected}"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for CodecError {}

@@ -4,8 +4,6 @@
 //! waypoints, so the simulated arm can call it on the haptic path. Construction validates the
 //! script and reports the first bad waypoint by index.
 
-use std::fmt;
-
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -69,21 +67,14 @@ pub struct HandSample {
 }
 
 /// A script that is not a valid trajectory.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("trajectory waypoint {index}: {what}")]
 pub struct TrajectoryError {
     /// Index of the offending waypoint.
     pub index: usize,
     /// What is wrong with it.
     pub what: &'static str,
 }
-
-impl fmt::Display for TrajectoryError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "trajectory waypoint {}: {}", self.index, self.what)
-    }
-}
-
-impl std::error::Error for TrajectoryError {}
 
 /// A validated, time-ordered hand path. Before the first waypoint the hand waits at the first;
 /// after the last it holds the last position and buttons.
