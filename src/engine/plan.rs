@@ -324,7 +324,7 @@ impl ScriptPlan {
                     });
                 }
                 ScriptStep::Constrain { kind, at, points } => {
-                    let request = pin_request(*kind, *at, points).map_err(fail)?;
+                    let request = pin_request(*kind, *at, points).map_err(|f| fail(f.message))?;
                     event(PlannedAction::Constrain(request));
                 }
                 ScriptStep::Unconstrain { index } => {

@@ -574,7 +574,7 @@ pub fn pin_request(
     kind: PinKind,
     at: Option<[f32; 3]>,
     points: &[[f32; 3]],
-) -> Result<PinRequest, String> {
+) -> Result<PinRequest, StepFault> {
     match (kind, at, points.is_empty()) {
         (PinKind::Point | PinKind::Normal, Some(at), true) => {
             check_points("at", &[at], true)?;
@@ -585,33 +585,42 @@ pub fn pin_request(
                 PinRequest::Normal(at)
             })
         }
-        (PinKind::Point | PinKind::Normal, None, _) => {
-            Err(format!("kind = {kind:?} needs at = [x, y, z]").to_lowercase())
-        }
-        (PinKind::Point | PinKind::Normal, Some(_), false) => {
-            Err("points: a point or normal pin takes at = [x, y, z], not points".into())
-        }
+        (PinKind::Point | PinKind::Normal, None, _) => Err(fault(
+            "kind",
+            format!("kind = {kind:?} needs at = [x, y, z]").to_lowercase(),
+        )),
+        (PinKind::Point | PinKind::Normal, Some(_), false) => Err(fault(
+            "points",
+            "points: a point or normal pin takes at = [x, y, z], not points",
+        )),
         (PinKind::Curve, None, _) => {
             check_points("points", points, true)?;
             if points.len() < 2 {
-                return Err(format!(
-                    "points: a curve needs at least 2 points, got {}",
-                    points.len()
+                return Err(fault(
+                    "points",
+                    format!(
+                        "points: a curve needs at least 2 points, got {}",
+                        points.len()
+                    ),
                 ));
             }
             if points.len() > MAX_CURVE_POINTS {
-                return Err(format!(
-                    "points: a curve may have at most {MAX_CURVE_POINTS} points, got {}",
-                    points.len()
+                return Err(fault(
+                    "points",
+                    format!(
+                        "points: a curve may have at most {MAX_CURVE_POINTS} points, got {}",
+                        points.len()
+                    ),
                 ));
             }
             Ok(PinRequest::Curve(
                 points.iter().map(|&p| Vec3::from_array(p)).collect(),
             ))
         }
-        (PinKind::Curve, Some(_), _) => {
-            Err("at: a curve pin takes points = [[x, y, z], ...], not at".into())
-        }
+        (PinKind::Curve, Some(_), _) => Err(fault(
+            "at",
+            "at: a curve pin takes points = [[x, y, z], ...], not at",
+        )),
     }
 }
 
@@ -743,19 +752,19 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 /// because tagged steps are read as a whole); then semantic errors (wrong version, bad tool parameters, empty paths)
 /// naming the step and its line.
 pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
+    let spans = Spans::new(text);
     let script: Script = toml::from_str(text).map_err(|e| {
         let message = e.message().trim().to_string();
         let (line, column) = match e.span() {
             Some(span) => {
                 let (l, c) = line_col(text, span.start);
-                // Inside a step the parser points at the step's header (tagged steps are
-                // read as a whole); point at the named field's own line when there is one.
-                let header = text
-                    .lines()
-                    .nth(l - 1)
-                    .is_some_and(|h| h.trim_start().starts_with('['));
-                let field = backticked(&message).filter(|_| header);
-                match field.and_then(|key| key_line(text, l, key)) {
+                // Inside a step the parser points at the step's table (tagged steps are read
+                // as a whole); point at the named field's own line when the step has it.
+                let field_line = backticked(&message).and_then(|key| {
+                    let n = spans.step_at(span.start)?;
+                    spans.step_key_line(n, key)
+                });
+                match field_line {
                     Some(field_line) => (Some(field_line), None),
                     None => (Some(l), Some(c)),
                 }
@@ -770,42 +779,25 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             message,
         }
     })?;
-    // Steps begin at their `[[step]]` headers; find them for semantic errors.
-    let step_lines: Vec<usize> = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| l.trim_start().starts_with("[[step]]"))
-        .map(|(n, _)| n + 1)
-        .collect();
-    let at = |n: usize, message: String| {
-        let header = step_lines.get(n).copied();
-        // Messages begin with the field at fault (`duration_s = -2 must be …`).
-        let key = message
-            .split([' ', '[', ':', '='])
-            .next()
-            .unwrap_or_default();
-        let line = header.map(|h| key_line(text, h, key).unwrap_or(h));
-        ScriptError {
-            file: file.to_string(),
-            line,
-            column: None,
-            step: Some(n + 1),
-            message,
-        }
-    };
-    let top = |key: &str, message: String| ScriptError {
+    let at = |n: usize, fault: StepFault| ScriptError {
         file: file.to_string(),
-        line: text
-            .lines()
-            .position(|l| l.trim_start().starts_with(key))
-            .map(|n| n + 1),
+        line: spans
+            .step_key_line(n, fault.key)
+            .or_else(|| spans.step_line(n)),
+        column: None,
+        step: Some(n + 1),
+        message: fault.message,
+    };
+    let top = |path: &[&str], message: String| ScriptError {
+        file: file.to_string(),
+        line: spans.key_line(path),
         column: None,
         step: None,
         message,
     };
     if script.version != SCRIPT_VERSION {
         return Err(top(
-            "version",
+            &["version"],
             format!(
                 "version = {} is not supported (this build reads version {SCRIPT_VERSION})",
                 script.version
@@ -816,7 +808,7 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
         && !(s.is_finite() && s > 0.0 && s <= 3600.0)
     {
         return Err(top(
-            "seconds",
+            &["seconds"],
             format!("seconds = {s} must be in (0, 3600]"),
         ));
     }
@@ -824,7 +816,7 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
         && !(8..=96).contains(&c.resolution)
     {
         return Err(top(
-            "resolution",
+            &["clay", "resolution"],
             format!(
                 "clay.resolution = {} must be between 8 and 96",
                 c.resolution
@@ -835,13 +827,13 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
         && !(a.every_s.is_finite() && a.every_s >= 0.0)
     {
         return Err(top(
-            "every_s",
+            &["autosave", "every_s"],
             format!("autosave.every_s = {} must be finite and ≥ 0", a.every_s),
         ));
     }
     if script.steps.len() > MAX_STEPS {
         return Err(top(
-            "[[step]]",
+            &["step"],
             format!(
                 "the script has {} steps; at most {MAX_STEPS} are allowed",
                 script.steps.len()
@@ -849,9 +841,86 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
         ));
     }
     for (n, step) in script.steps.iter().enumerate() {
-        check_step(step).map_err(|m| at(n, m))?;
+        check_step(step).map_err(|f| at(n, f))?;
     }
     Ok(script)
+}
+
+/// Where keys and steps are written in a script's text, from the TOML parser's spans (no
+/// searching of the text or of messages). Built from text that may not parse; then nothing
+/// is found and errors fall back to the parser's own position.
+struct Spans<'t> {
+    text: &'t str,
+    document: Option<toml::Spanned<toml::de::DeTable<'t>>>,
+}
+
+impl<'t> Spans<'t> {
+    fn new(text: &'t str) -> Self {
+        Self {
+            text,
+            document: toml::de::DeTable::parse(text).ok(),
+        }
+    }
+
+    fn line(&self, offset: usize) -> usize {
+        line_col(self.text, offset).0
+    }
+
+    /// The `[[step]]` tables, in order.
+    fn steps(&self) -> &[toml::Spanned<toml::de::DeValue<'t>>] {
+        match self.document.as_ref().and_then(|d| d.get_ref().get("step")) {
+            Some(v) => match v.get_ref() {
+                toml::de::DeValue::Array(a) => a,
+                _ => &[],
+            },
+            None => &[],
+        }
+    }
+
+    /// Line of the key at `path` (a top-level key, or a key of a table).
+    fn key_line(&self, path: &[&str]) -> Option<usize> {
+        let mut table = self.document.as_ref()?.get_ref();
+        let (last, parents) = path.split_last()?;
+        for key in parents {
+            match table.get(*key)?.get_ref() {
+                toml::de::DeValue::Table(t) => table = t,
+                toml::de::DeValue::Array(a) => match a.first()?.get_ref() {
+                    toml::de::DeValue::Table(t) => table = t,
+                    _ => return None,
+                },
+                _ => return None,
+            }
+        }
+        let (key, _) = table.iter().find(|(k, _)| k.get_ref() == last)?;
+        Some(self.line(key.span().start))
+    }
+
+    /// Which step's table holds byte `offset`.
+    fn step_at(&self, offset: usize) -> Option<usize> {
+        self.steps().iter().position(|s| s.span().contains(&offset))
+    }
+
+    /// Line where step `n`'s table starts.
+    fn step_line(&self, n: usize) -> Option<usize> {
+        Some(self.line(self.steps().get(n)?.span().start))
+    }
+
+    /// Line of `key` in step `n`, looked up in the step's table and then in the inline tables
+    /// it holds (`shape = { radius_m = … }`).
+    fn step_key_line(&self, n: usize, key: &str) -> Option<usize> {
+        let toml::de::DeValue::Table(table) = self.steps().get(n)?.get_ref() else {
+            return None;
+        };
+        let direct = table.iter().find(|(k, _)| k.get_ref() == key);
+        let nested = || {
+            table.iter().find_map(|(_, v)| match v.get_ref() {
+                toml::de::DeValue::Table(inner) => inner.iter().find(|(k, _)| k.get_ref() == key),
+                _ => None,
+            })
+        };
+        let (k, _) = direct.or_else(nested)?;
+        Some(self.line(k.span().start))
+    }
 }
 
 /// Reads and parses the script at `path` (named by its path in errors).
@@ -885,64 +954,83 @@ fn backticked(message: &str) -> Option<&str> {
     Some(&message[start..start + len]).filter(|k| !k.is_empty())
 }
 
-/// The 1-based line where `key = …` is written (also inside an inline table) in the table
-/// whose header is on line `header`, if any.
-fn key_line(text: &str, header: usize, key: &str) -> Option<usize> {
-    if key.is_empty() {
-        return None;
-    }
-    let assigns = |line: &str| {
-        line.match_indices(key).any(|(at, _)| {
-            let before = line[..at].trim_end();
-            let starts = before.is_empty() || before.ends_with('{') || before.ends_with(',');
-            starts && line[at + key.len()..].trim_start().starts_with('=')
-        })
-    };
-    text.lines()
-        .enumerate()
-        .skip(header)
-        .take_while(|(_, l)| !l.trim_start().starts_with('['))
-        .find(|(_, l)| assigns(l))
-        .map(|(n, _)| n + 1)
+/// A step's parameter at fault: the key it is written under (whose line the error names)
+/// and what is wrong with it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepFault {
+    /// The step's key, as written in the script.
+    pub key: &'static str,
+    /// What is wrong, naming the value.
+    pub message: String,
 }
 
-fn finite(name: &str, v: f32) -> Result<(), String> {
+impl std::fmt::Display for StepFault {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+fn fault(key: &'static str, message: impl Into<String>) -> StepFault {
+    StepFault {
+        key,
+        message: message.into(),
+    }
+}
+
+fn finite(name: &'static str, v: f32) -> Result<(), StepFault> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(format!("{name} = {v} must be finite and non-negative"))
+        Err(fault(
+            name,
+            format!("{name} = {v} must be finite and non-negative"),
+        ))
     }
 }
 
 /// A duration or time of day on the script clock: finite, non-negative, at most
 /// [`MAX_SCRIPT_SECONDS`].
-fn seconds(name: &str, v: f32) -> Result<(), String> {
-    finite(name, v)?;
+fn seconds(name: &'static str, v: f32) -> Result<(), StepFault> {
+    seconds_shown(name, name, v)
+}
+
+/// [`seconds`] for the value `shown` (such as `times_s[2]`) written under `key`.
+fn seconds_shown(key: &'static str, shown: &str, v: f32) -> Result<(), StepFault> {
+    if !(v.is_finite() && v >= 0.0) {
+        return Err(fault(
+            key,
+            format!("{shown} = {v} must be finite and non-negative"),
+        ));
+    }
     if v > MAX_SCRIPT_SECONDS {
-        return Err(format!(
-            "{name} = {v} s is longer than the {MAX_SCRIPT_SECONDS} s a script may last"
+        return Err(fault(
+            key,
+            format!("{shown} = {v} s is longer than the {MAX_SCRIPT_SECONDS} s a script may last"),
         ));
     }
     Ok(())
 }
 
-fn check_points(name: &str, points: &[[f32; 3]], need_one: bool) -> Result<(), String> {
+fn check_points(name: &'static str, points: &[[f32; 3]], need_one: bool) -> Result<(), StepFault> {
     if need_one && points.is_empty() {
-        return Err(format!("{name} needs at least one point"));
+        return Err(fault(name, format!("{name} needs at least one point")));
     }
     if points.len() > MAX_POINTS {
-        return Err(format!(
-            "{name} has {} points; at most {MAX_POINTS} are allowed",
-            points.len()
+        return Err(fault(
+            name,
+            format!(
+                "{name} has {} points; at most {MAX_POINTS} are allowed",
+                points.len()
+            ),
         ));
     }
     match points.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        Some(i) => Err(format!("{name}[{i}] is not finite")),
+        Some(i) => Err(fault(name, format!("{name}[{i}] is not finite"))),
         None => Ok(()),
     }
 }
 
-fn check_step(step: &ScriptStep) -> Result<(), String> {
+fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
     match step {
         ScriptStep::Tool {
             shape,
@@ -955,10 +1043,14 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             check_points("positions", positions, true)?;
             seconds("duration_s", *duration_s)?;
             finite("falloff_m", *falloff_m)?;
-            action.validate().map_err(|e| format!("action: {}", e.0))?;
+            action
+                .validate()
+                .map_err(|e| fault("action", format!("action: {}", e.0)))?;
             // Freeform shapes are checked against the library when run.
             if let Ok(shape) = shape.resolve(|_| None) {
-                shape.validate().map_err(|e| format!("shape: {}", e.0))?;
+                shape
+                    .validate()
+                    .map_err(|e| fault("shape", format!("shape: {}", e.0)))?;
             }
             Ok(())
         }
@@ -989,23 +1081,29 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             if let Some(d) = duration_s {
                 seconds("duration_s", *d)?;
                 if !times_s.is_empty() {
-                    return Err("duration_s: give either duration_s or times_s, not both".into());
+                    return Err(fault(
+                        "duration_s",
+                        "duration_s: give either duration_s or times_s, not both",
+                    ));
                 }
             }
             if !times_s.is_empty() {
                 if times_s.len() != path.len() {
-                    return Err(format!(
-                        "times_s has {} entries but path has {} points",
-                        times_s.len(),
-                        path.len()
+                    return Err(fault(
+                        "times_s",
+                        format!(
+                            "times_s has {} entries but path has {} points",
+                            times_s.len(),
+                            path.len()
+                        ),
                     ));
                 }
                 for (i, t) in times_s.iter().enumerate() {
-                    seconds(&format!("times_s[{i}]"), *t)?;
+                    seconds_shown("times_s", &format!("times_s[{i}]"), *t)?;
                     if i > 0 && *t <= times_s[i - 1] {
-                        return Err(format!(
-                            "times_s[{i}] = {t} must be after times_s[{}]",
-                            i - 1
+                        return Err(fault(
+                            "times_s",
+                            format!("times_s[{i}] = {t} must be after times_s[{}]", i - 1),
                         ));
                     }
                 }
@@ -1013,30 +1111,40 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             if let Some(t) = start_s
                 && !(t.is_finite() && *t >= 0.0 && *t <= f64::from(MAX_SCRIPT_SECONDS))
             {
-                return Err(format!(
-                    "start_s = {t} must be between 0 and {MAX_SCRIPT_SECONDS} s"
+                return Err(fault(
+                    "start_s",
+                    format!("start_s = {t} must be between 0 and {MAX_SCRIPT_SECONDS} s"),
                 ));
             }
             if !(hover_m.is_finite() && *hover_m > 0.0) {
-                return Err(format!("hover_m = {hover_m} must be positive"));
+                return Err(fault(
+                    "hover_m",
+                    format!("hover_m = {hover_m} must be positive"),
+                ));
             }
             if let Some(p) = pivot {
                 check_points("pivot", std::slice::from_ref(p), true)?;
             }
             match (tool, shape, action) {
-                (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(
+                (Some(_), Some(_), _) | (Some(_), _, Some(_)) => Err(fault(
+                    "tool",
                     "tool: give either tool (a force tool) or shape and action (a geometric \
-                     tool), not both"
-                        .into(),
-                ),
-                (Some(tool), None, None) => tool.validate().map_err(|e| format!("tool: {e}")),
-                (None, Some(_), None) => Err("shape needs an action".into()),
-                (None, None, Some(_)) => Err("action needs a shape".into()),
+                     tool), not both",
+                )),
+                (Some(tool), None, None) => tool
+                    .validate()
+                    .map_err(|e| fault("tool", format!("tool: {e}"))),
+                (None, Some(_), None) => Err(fault("shape", "shape needs an action")),
+                (None, None, Some(_)) => Err(fault("action", "action needs a shape")),
                 (None, Some(shape), Some(action)) => {
-                    action.validate().map_err(|e| format!("action: {}", e.0))?;
+                    action
+                        .validate()
+                        .map_err(|e| fault("action", format!("action: {}", e.0)))?;
                     finite("falloff_m", *falloff_m)?;
                     if let Ok(shape) = shape.resolve(|_| None) {
-                        shape.validate().map_err(|e| format!("shape: {}", e.0))?;
+                        shape
+                            .validate()
+                            .map_err(|e| fault("shape", format!("shape: {}", e.0)))?;
                     }
                     Ok(())
                 }
@@ -1062,20 +1170,23 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
                 }
             }
             if mass.is_some_and(|m| m <= 0.0) {
-                return Err("mass must be positive".into());
+                return Err(fault("mass", "mass must be positive"));
             }
             Ok(())
         }
         ScriptStep::Undo { count } | ScriptStep::Redo { count } if *count > MAX_UNDO_COUNT => {
-            Err(format!(
-                "count = {count} is more than the {MAX_UNDO_COUNT} steps one undo or redo may take"
+            Err(fault(
+                "count",
+                format!(
+                    "count = {count} is more than the {MAX_UNDO_COUNT} steps one undo or redo may take"
+                ),
             ))
         }
         ScriptStep::Constrain { kind, at, points } => pin_request(*kind, *at, points).map(|_| ()),
         ScriptStep::Unconstrain { index: Some(i) } if *i < 0 || *i >= MAX_CONSTRAINTS as i64 => {
-            Err(format!(
-                "index = {i} must be between 0 and {}",
-                MAX_CONSTRAINTS - 1
+            Err(fault(
+                "index",
+                format!("index = {i} must be between 0 and {}", MAX_CONSTRAINTS - 1),
             ))
         }
         ScriptStep::Emboss {
@@ -1083,12 +1194,18 @@ fn check_step(step: &ScriptStep) -> Result<(), String> {
             depth,
             engrave,
             ..
-        } => crate::tools::EmbossParams {
-            projection: projection.projection(),
-            depth: *depth,
-            engrave: *engrave,
+        } => {
+            if !(depth.is_finite() && *depth > 0.0) {
+                return Err(fault("depth", format!("depth = {depth} must be positive")));
+            }
+            crate::tools::EmbossParams {
+                projection: projection.projection(),
+                depth: *depth,
+                engrave: *engrave,
+            }
+            .validate()
+            .map_err(|m| fault("projection", format!("projection: {m}")))
         }
-        .validate(),
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }
@@ -1234,6 +1351,20 @@ path = "out.dclay"
         let e = parse_script(bad, "x").unwrap_err();
         assert!(e.message.contains("teleport"), "{e}");
         assert!(e.line.is_some());
+    }
+
+    #[test]
+    fn lines_come_from_the_parser_not_from_the_text_or_the_message() {
+        // A header written with spaces, a comment that looks like one, and a value that
+        // looks like the key: only the parser's spans find the right line.
+        let text = "version = 1\n# [[step]] duration_s = 5\n[[ step ]]\ndo = \"stroke\"\npath = [[1, 1, 1]]\nduration_s = -2\n";
+        let e = parse_script(text, "x").unwrap_err();
+        assert_eq!((e.step, e.line), (Some(1), Some(6)), "{e}");
+        let text = "version = 1\n[[step]]\ndo = \"save\"\npath = \"a\"\n[[step]]\ndo = \"undo\"\ncount = 4000000000\n";
+        let e = parse_script(text, "x").unwrap_err();
+        assert_eq!((e.step, e.line), (Some(2), Some(7)), "{e}");
+        let text = "version = 1\n[autosave]\nevery_s = -1.0\n";
+        assert_eq!(parse_script(text, "x").unwrap_err().line, Some(3));
     }
 
     #[test]
