@@ -594,16 +594,82 @@ fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
 }
 
 #[test]
-fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_it() {
+fn a_link_placed_at_an_output_name_is_neither_written_through_nor_replaced() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("out");
     std::fs::create_dir(&out_dir).unwrap();
     let victim = dir.path().join("victim.txt");
     std::fs::write(&victim, "keep").unwrap();
-    std::os::unix::fs::symlink(&victim, out_dir.join("latency.json")).unwrap();
+    let json = out_dir.join("latency.json");
+    std::os::unix::fs::symlink(&victim, &json).unwrap();
     let out = Command::new(BIN)
         .args(["run", "--seconds", "0.3", "--no-rt", "--out"])
         .arg(&out_dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("latency.json"), "{stderr}");
+    assert!(stderr.contains("symbolic link"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+    assert!(json.symlink_metadata().unwrap().file_type().is_symlink());
+    // The session and mesh come first and are written all the same.
+    assert!(out_dir.join("session.dclay").is_file());
+}
+
+#[test]
+fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_one() {
+    let dir = tempfile::tempdir().unwrap();
+    // `/dev/full` would take the bytes and fail them; it is refused before the run.
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--seconds",
+            "0.2",
+            "--no-rt",
+            "--record",
+            "/dev/full",
+            "--out",
+        ])
+        .arg(dir.path().join("a"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("/dev/full"), "{stderr}");
+    assert!(stderr.contains("character device"), "{stderr}");
+    // A folder that is a file: an error naming it.
+    let blocker = dir.path().join("blocker");
+    std::fs::write(&blocker, "keep").unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--seconds", "0.2", "--no-rt", "--record"])
+        .arg(blocker.join("rec.dcrec"))
+        .arg("--out")
+        .arg(dir.path().join("b"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.to_lowercase().contains("not a directory"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(&blocker).unwrap(), "keep");
+    // A good recording replaces the previous one whole, and leaves no temporary file.
+    let rec = dir.path().join("rec.dcrec");
+    std::fs::write(&rec, "previous").unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--seconds",
+            "0.2",
+            "--no-rt",
+            "--lockstep",
+            "--record",
+        ])
+        .arg(&rec)
+        .arg("--out")
+        .arg(dir.path().join("c"))
         .output()
         .unwrap();
     assert!(
@@ -611,10 +677,13 @@ fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
-    let json = out_dir.join("latency.json");
-    assert!(!json.symlink_metadata().unwrap().file_type().is_symlink());
-    assert!(std::fs::read_to_string(&json).unwrap().contains("haptic"));
+    assert!(std::fs::read(&rec).unwrap().starts_with(b"DCLYREC"));
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp."))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }
 
 #[test]
