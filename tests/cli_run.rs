@@ -564,31 +564,49 @@ fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
 
 #[test]
 fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
-    if !std::path::Path::new("/dev/full").exists() {
-        eprintln!("no /dev/full here: nothing to test");
-        return;
-    }
+    use std::os::unix::process::CommandExt;
+    // A full disk, for this process only: files may not grow past 4 MB (RLIMIT_FSIZE), and
+    // SIGXFSZ is ignored (kept across exec) so a write past it fails with EFBIG instead of
+    // killing the process. The mesh and session fit; a 60 s recording (7.7 MB) does not.
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(BIN)
-        .args([
-            "run",
-            "--lockstep",
-            "--seconds",
-            "0.3",
-            "--record",
-            "/dev/full",
-            "--out",
-        ])
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let rec = dir.path().join("rec.dcrec");
+    std::fs::write(&rec, "previous recording").unwrap();
+    let mut cmd = Command::new(BIN);
+    cmd.args(["run", "--lockstep", "--seconds", "60", "--record"])
+        .arg(&rec)
+        .arg("--out")
+        .arg(dir.path());
+    // SAFETY: between fork and exec the closure only makes two async-signal-safe system
+    // calls on plain values.
+    unsafe {
+        cmd.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 4 << 20,
+                rlim_max: 4 << 20,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let out = cmd.output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(5), "{err}");
     assert!(
         err.contains("recording") && err.contains("incomplete"),
         "{err}"
     );
-    // Every other output is there all the same.
+    // The previous recording is whole, no temporary file is left, and every other output is
+    // there all the same.
+    assert_eq!(std::fs::read(&rec).unwrap(), b"previous recording");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp."))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
     assert!(dir.path().join("session.dclay").is_file());
     assert!(dir.path().join("sculpt.obj").is_file());
 }
