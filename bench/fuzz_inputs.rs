@@ -70,15 +70,20 @@ fn main() {
         })
     });
     let mut failed = false;
-    for (name, handle) in [
+    for (format, (name, handle)) in [
         ("sessions", sessions),
         ("scripts", scripts),
         ("recordings", recordings),
-    ] {
+    ]
+    .into_iter()
+    .enumerate()
+    {
         match handle.join() {
             Ok(Ok((cases, seconds))) => println!(
-                "  {name:<10} {cases:>9} cases  {seconds:>7.1} s  {:>6.1} µs/case",
-                seconds * 1e6 / f64::from(cases)
+                "  {name:<10} {cases:>9} cases  {seconds:>7.1} s  {:>6.1} µs/case  \
+                 {:>8} parsed, the rest refused with an error",
+                seconds * 1e6 / f64::from(cases),
+                fuzz::ACCEPTED[format].load(std::sync::atomic::Ordering::Relaxed)
             ),
             Ok(Err(e)) => {
                 failed = true;

@@ -18,6 +18,7 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use dynaclay::dynamics::Material;
 use dynaclay::engine::{DEFAULT_SCRIPT, ScriptPlan};
@@ -107,6 +108,15 @@ pub fn peak_heap_during<T>(f: impl FnOnce() -> T) -> (T, u64) {
 #[must_use]
 pub fn heap_bound(input_len: usize) -> u64 {
     32 * input_len as u64 + (4 << 20)
+}
+
+/// Cases each check accepted (parsed `Ok`), by format: sessions, scripts, recordings. The
+/// rest were refused with a typed error.
+pub static ACCEPTED: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
+
+fn accepted(format: usize) {
+    // NOTE: Relaxed: a statistic, read once after the runner threads are joined.
+    ACCEPTED[format].fetch_add(1, Ordering::Relaxed);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -339,6 +349,7 @@ pub fn check_session(bytes: &[u8]) -> Result<(), TestCaseError> {
             }
             prop_assert!(session.material.uniform.validate().is_ok());
             prop_assert!(encode(&session).is_ok());
+            accepted(0);
         }
     }
     Ok(())
@@ -392,7 +403,7 @@ pub fn check_script(text: &str) -> Result<(), TestCaseError> {
         Err(e) | Ok(Err(e)) => {
             prop_assert!(e.to_string().starts_with("edited.toml"), "{e}");
         }
-        Ok(Ok(())) => {}
+        Ok(Ok(())) => accepted(1),
     }
     Ok(())
 }
@@ -496,8 +507,9 @@ pub fn check_recording(bytes: &[u8]) -> Result<(), TestCaseError> {
         "parsing {} bytes took {peak} bytes of heap",
         bytes.len()
     );
-    if let Err(e) = outcome {
-        prop_assert!(!e.to_string().is_empty());
+    match outcome {
+        Err(e) => prop_assert!(!e.to_string().is_empty()),
+        Ok(_) => accepted(2),
     }
     Ok(())
 }
