@@ -29,6 +29,10 @@ struct Finished {
 
 /// Runs the binary with `args` and reaps it with `wait4`, which gives that child's own peak
 /// resident set (not the largest of all children the test process has had).
+#[expect(
+    clippy::zombie_processes,
+    reason = "the child is reaped by wait4 below, which also gives its own rusage"
+)]
 fn run(args: &[&std::ffi::OsStr]) -> Finished {
     let child = Command::new(BIN)
         .args(args)

@@ -115,6 +115,31 @@ impl MemoryBudget {
     }
 }
 
+impl MemoryBudget {
+    /// Refuses to read an input file whose decoded form would not fit: `bytes_per_byte` bytes
+    /// of memory per byte of the file (the bytes read plus what they decode to). A missing
+    /// file passes, for the reader to report.
+    ///
+    /// # Errors
+    /// [`OverBudget`] naming the file and its size.
+    pub fn check_input(&self, path: &Path, bytes_per_byte: u64) -> Result<(), OverBudget> {
+        let Ok(meta) = std::fs::metadata(path) else {
+            return Ok(());
+        };
+        let needed = meta.len().saturating_mul(bytes_per_byte);
+        if needed <= self.bytes {
+            return Ok(());
+        }
+        Err(OverBudget {
+            what: format!("reading {} ({})", path.display(), human_bytes(meta.len())),
+            needed_bytes: Some(needed),
+            at_least: false,
+            budget: *self,
+            hint: "Use a smaller session",
+        })
+    }
+}
+
 /// `MemTotal` from a meminfo file, bytes (the file is read through a 64 KiB cap).
 #[must_use]
 pub fn mem_total_bytes(meminfo: &Path) -> Option<u64> {
@@ -198,5 +223,17 @@ mod tests {
         assert!(m.contains("16384×16384"), "{m}");
         assert!(m.contains("12.0 GiB") && m.contains("1.0 GiB"), "{m}");
         assert!(m.contains("--memory-budget-mib"), "{m}");
+    }
+
+    #[test]
+    fn an_input_that_would_not_fit_decoded_is_refused_and_a_missing_one_passes() {
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.dclay");
+        std::fs::write(&big, vec![0u8; 600 << 10]).unwrap();
+        let b = MemoryBudget::from_flag(Some(1));
+        let e = b.check_input(&big, 2).unwrap_err();
+        assert!(e.to_string().contains("big.dclay"), "{e}");
+        assert!(b.check_input(&big, 1).is_ok());
+        assert!(b.check_input(&dir.path().join("none"), 2).is_ok());
     }
 }

@@ -20,6 +20,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
     budget
         .check_image(args.image.width, args.image.height)
         .map_err(CliError::OverBudget)?;
+    // The file is read whole, then decoded into as many bytes again.
+    budget
+        .check_input(&args.session, 2)
+        .map_err(CliError::OverBudget)?;
     let session = load_session(&args.session).map_err(CliError::Session)?;
     let octree = mesh_clay(&session.clay, args.cells_per_span, &budget)?;
     let outcome = render_sculpt(
