@@ -610,10 +610,9 @@ fn run() -> Result<(), String> {
         scenarios: &results,
     };
     let json = serde_json::to_string_pretty(&doc).map_err(|e| e.to_string())?;
-    std::fs::write(&json_path, json)
-        .map_err(|e| format!("writing {}: {e}", json_path.display()))?;
+    dynaclay_files::write_atomic(&json_path, json.as_bytes()).map_err(|e| e.to_string())?;
     let md_path = args.out.join("loop_latency.md");
-    std::fs::write(&md_path, &table).map_err(|e| format!("writing {}: {e}", md_path.display()))?;
+    dynaclay_files::write_atomic(&md_path, table.as_bytes()).map_err(|e| e.to_string())?;
     let svg_path = args.out.join("loop_latency.svg");
     let refs: Vec<(&str, &LatencyRecorder)> =
         recorders.iter().map(|(n, r)| (n.as_str(), r)).collect();
@@ -621,8 +620,7 @@ fn run() -> Result<(), String> {
     // Also the plain summaries, in the format the engine's `latency.json` uses.
     let plain = summaries_to_json(&summaries).map_err(|e| e.to_string())?;
     let plain_path = args.out.join("loop_latency_summaries.json");
-    std::fs::write(&plain_path, plain)
-        .map_err(|e| format!("writing {}: {e}", plain_path.display()))?;
+    dynaclay_files::write_atomic(&plain_path, plain.as_bytes()).map_err(|e| e.to_string())?;
     println!(
         "wrote {}, {}, {}, {}",
         json_path.display(),

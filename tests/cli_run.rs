@@ -564,46 +564,130 @@ fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
 
 #[test]
 fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
-    if !std::path::Path::new("/dev/full").exists() {
-        eprintln!("no /dev/full here: nothing to test");
-        return;
-    }
+    use std::os::unix::process::CommandExt;
+    // A full disk, for this process only: files may not grow past 4 MB (RLIMIT_FSIZE), and
+    // SIGXFSZ is ignored (kept across exec) so a write past it fails with EFBIG instead of
+    // killing the process. The mesh and session fit; a 60 s recording (7.7 MB) does not.
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(BIN)
-        .args([
-            "run",
-            "--lockstep",
-            "--seconds",
-            "0.3",
-            "--record",
-            "/dev/full",
-            "--out",
-        ])
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let rec = dir.path().join("rec.dcrec");
+    std::fs::write(&rec, "previous recording").unwrap();
+    let mut cmd = Command::new(BIN);
+    cmd.args(["run", "--lockstep", "--seconds", "60", "--record"])
+        .arg(&rec)
+        .arg("--out")
+        .arg(dir.path());
+    // SAFETY: between fork and exec the closure only makes two async-signal-safe system
+    // calls on plain values.
+    unsafe {
+        cmd.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 4 << 20,
+                rlim_max: 4 << 20,
+            };
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            Ok(())
+        });
+    }
+    let out = cmd.output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(5), "{err}");
     assert!(
         err.contains("recording") && err.contains("incomplete"),
         "{err}"
     );
-    // Every other output is there all the same.
+    // The previous recording is whole, no temporary file is left, and every other output is
+    // there all the same.
+    assert_eq!(std::fs::read(&rec).unwrap(), b"previous recording");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp."))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
     assert!(dir.path().join("session.dclay").is_file());
     assert!(dir.path().join("sculpt.obj").is_file());
 }
 
 #[test]
-fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_it() {
+fn a_link_placed_at_an_output_name_is_neither_written_through_nor_replaced() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("out");
     std::fs::create_dir(&out_dir).unwrap();
     let victim = dir.path().join("victim.txt");
     std::fs::write(&victim, "keep").unwrap();
-    std::os::unix::fs::symlink(&victim, out_dir.join("latency.json")).unwrap();
+    let json = out_dir.join("latency.json");
+    std::os::unix::fs::symlink(&victim, &json).unwrap();
     let out = Command::new(BIN)
         .args(["run", "--seconds", "0.3", "--no-rt", "--out"])
         .arg(&out_dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("latency.json"), "{stderr}");
+    assert!(stderr.contains("symbolic link"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
+    assert!(json.symlink_metadata().unwrap().file_type().is_symlink());
+    // The session and mesh come first and are written all the same.
+    assert!(out_dir.join("session.dclay").is_file());
+}
+
+#[test]
+fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_one() {
+    let dir = tempfile::tempdir().unwrap();
+    // `/dev/full` would take the bytes and fail them; it is refused before the run.
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--seconds",
+            "0.2",
+            "--no-rt",
+            "--record",
+            "/dev/full",
+            "--out",
+        ])
+        .arg(dir.path().join("a"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("/dev/full"), "{stderr}");
+    assert!(stderr.contains("character device"), "{stderr}");
+    // A folder that is a file: an error naming it.
+    let blocker = dir.path().join("blocker");
+    std::fs::write(&blocker, "keep").unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--seconds", "0.2", "--no-rt", "--record"])
+        .arg(blocker.join("rec.dcrec"))
+        .arg("--out")
+        .arg(dir.path().join("b"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.to_lowercase().contains("not a directory"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_to_string(&blocker).unwrap(), "keep");
+    // A good recording replaces the previous one whole, and leaves no temporary file.
+    let rec = dir.path().join("rec.dcrec");
+    std::fs::write(&rec, "previous").unwrap();
+    let out = Command::new(BIN)
+        .args([
+            "run",
+            "--seconds",
+            "0.2",
+            "--no-rt",
+            "--lockstep",
+            "--record",
+        ])
+        .arg(&rec)
+        .arg("--out")
+        .arg(dir.path().join("c"))
         .output()
         .unwrap();
     assert!(
@@ -611,10 +695,13 @@ fn latency_files_replace_a_link_placed_at_their_name_instead_of_writing_through_
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    assert_eq!(std::fs::read_to_string(&victim).unwrap(), "keep");
-    let json = out_dir.join("latency.json");
-    assert!(!json.symlink_metadata().unwrap().file_type().is_symlink());
-    assert!(std::fs::read_to_string(&json).unwrap().contains("haptic"));
+    assert!(std::fs::read(&rec).unwrap().starts_with(b"DCLYREC"));
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".tmp."))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }
 
 #[test]

@@ -296,9 +296,12 @@ impl Falcon {
                 message: "no firmware answers on this port; give the Falcon firmware file (DYNACLAY_FALCON_FIRMWARE)".into(),
             });
         };
-        let image = std::fs::read(&file).map_err(|e| DeviceError::Config {
-            source: file.display().to_string(),
-            message: format!("cannot read the Falcon firmware file: {e}"),
+        // Falcon firmware images are tens of kilobytes; a FIFO or a device is refused at once.
+        let image = dynaclay_files::read_regular_file(&file, 16 << 20).map_err(|e| {
+            DeviceError::Config {
+                source: file.display().to_string(),
+                message: format!("cannot read the Falcon firmware file: {e}"),
+            }
         })?;
         if image.is_empty() {
             return Err(DeviceError::Config {

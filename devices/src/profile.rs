@@ -140,6 +140,9 @@ pub struct DeviceProfile {
     pub geometry: Geometry,
 }
 
+/// The largest device profile file read, bytes.
+pub const MAX_PROFILE_BYTES: u64 = 1 << 20;
+
 /// Why a profile could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ProfileError {
@@ -221,7 +224,8 @@ impl DeviceProfile {
             .and_then(|(n, text)| Self::from_toml(text, Path::new(&format!("built-in:{n}"))).ok())
     }
 
-    /// A built-in profile by name, or else the file at that path.
+    /// A built-in profile by name, or else the file at that path (a regular file of at most
+    /// [`MAX_PROFILE_BYTES`]; a FIFO or `/dev/zero` is refused at once).
     ///
     /// # Errors
     /// [`ProfileError`] when the name is not built in and the file cannot be read or is invalid.
@@ -230,9 +234,15 @@ impl DeviceProfile {
             return Ok(p);
         }
         let path = Path::new(name_or_path);
-        let text = std::fs::read_to_string(path).map_err(|source| ProfileError::Io {
+        let bytes = dynaclay_files::read_regular_file(path, MAX_PROFILE_BYTES).map_err(|e| {
+            ProfileError::Io {
+                path: path.to_path_buf(),
+                source: e.into_io(),
+            }
+        })?;
+        let text = String::from_utf8(bytes).map_err(|e| ProfileError::Io {
             path: path.to_path_buf(),
-            source,
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()),
         })?;
         Self::from_toml(&text, path)
     }

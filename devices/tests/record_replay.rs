@@ -290,3 +290,42 @@ fn unwritable_path_is_an_io_error_naming_it() {
     let err = ReplayDevice::load(&path).unwrap_err();
     assert!(err.to_string().contains("missing-dir"), "{err}");
 }
+
+#[test]
+fn a_recording_appears_at_its_name_only_when_complete() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("take.dcrec");
+    std::fs::write(&path, b"previous take").unwrap();
+    let mut rec = RecordingDevice::create(faulty_arm(), &path).unwrap();
+    rec.open().unwrap();
+    for _ in 0..50 {
+        let _ = rec.read();
+    }
+    // Still recording: the previous file is what a reader sees.
+    assert_eq!(std::fs::read(&path).unwrap(), b"previous take");
+    let (_, summary) = rec.finish().unwrap();
+    assert_eq!(summary.records, 50);
+    assert_eq!(ReplayDevice::load(&path).unwrap().read_count(), 50);
+    let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+    assert_eq!(names.len(), 1, "no temporary file left");
+}
+
+#[test]
+fn links_devices_and_endless_inputs_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let victim = dir.path().join("victim");
+    std::fs::write(&victim, b"keep").unwrap();
+    let link = dir.path().join("link.dcrec");
+    std::os::unix::fs::symlink(&victim, &link).unwrap();
+    for path in [link.as_path(), std::path::Path::new("/dev/full")] {
+        let Err(err) = RecordingDevice::create(faulty_arm(), path) else {
+            panic!("recorded into {}", path.display())
+        };
+        assert!(err.to_string().contains("refusing"), "{err}");
+    }
+    assert_eq!(std::fs::read(&victim).unwrap(), b"keep");
+    let err = ReplayDevice::load("/dev/zero").unwrap_err();
+    assert!(err.to_string().contains("not a regular file"), "{err}");
+    let err = dynaclay_devices::profile::DeviceProfile::load("/dev/zero").unwrap_err();
+    assert!(err.to_string().contains("not a regular file"), "{err}");
+}

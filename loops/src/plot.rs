@@ -8,7 +8,7 @@
 //! which a loop hands back when it ends ([`crate::LoopReport::recorder`]).
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use hdrhistogram::Histogram;
 use plotters::prelude::*;
@@ -34,22 +34,15 @@ const BIN_GROWTH: f64 = 1.5;
 pub enum PlotError {
     /// Plotters failed while drawing.
     Draw(String),
-    /// The SVG could not be written to `path`.
-    Write {
-        /// Where the file was to go.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
+    /// The SVG could not be written (the previous file at the path is untouched).
+    Write(dynaclay_files::WriteError),
 }
 
 impl fmt::Display for PlotError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Self::Draw(m) => write!(f, "drawing latency plot: {m}"),
-            Self::Write { path, source } => {
-                write!(f, "writing latency plot {}: {source}", path.display())
-            }
+            Self::Write(e) => write!(f, "writing latency plot: {e}"),
         }
     }
 }
@@ -57,7 +50,7 @@ impl fmt::Display for PlotError {
 impl std::error::Error for PlotError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Self::Write { source, .. } => Some(source),
+            Self::Write(e) => Some(e),
             Self::Draw(_) => None,
         }
     }
@@ -122,7 +115,7 @@ pub fn latency_svg(
     Ok(svg)
 }
 
-/// Writes [`latency_svg`] to `path`.
+/// Writes [`latency_svg`] to `path` atomically ([`dynaclay_files::write_atomic`]).
 ///
 /// # Errors
 /// [`PlotError::Draw`] if plotters fails, [`PlotError::Write`] (with the path) if the file
@@ -133,10 +126,7 @@ pub fn write_latency_svg(
     probe: Option<&LatencyRecorder>,
 ) -> Result<(), PlotError> {
     let svg = latency_svg(loops, probe)?;
-    std::fs::write(path, svg).map_err(|source| PlotError::Write {
-        path: path.to_path_buf(),
-        source,
-    })
+    dynaclay_files::write_atomic(path, svg.as_bytes()).map_err(PlotError::Write)
 }
 
 /// A time in µs as a reader says it: "100 ns", "1 µs", "250 µs", "1 ms", "2.5 ms".

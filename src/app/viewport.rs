@@ -35,6 +35,14 @@ impl SceneView {
     /// Builds the renderer on eframe's device and registers its target with egui.
     #[must_use]
     pub fn new(rs: &egui_wgpu::RenderState, width: u32, height: u32) -> Self {
+        // eframe makes the device; a lost one is said on stderr (the engine, its autosave and
+        // the session live apart from the GPU and carry on).
+        rs.device.set_device_lost_callback(|reason, message| {
+            eprintln!(
+                "dynaclay: the GPU device was lost ({reason:?}: {message}); the sculpt is \
+                 kept and autosaved: save it and restart the window"
+            );
+        });
         let samples = supported_sample_count(&rs.adapter, OFFSCREEN_FORMAT);
         let renderer = SceneRenderer::new(
             &rs.device,

@@ -92,6 +92,10 @@ pub struct ImportArgs {
     /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,
+    /// The memory budget, MiB: a mesh or image that would need more is refused before
+    /// anything is allocated (exit 2). Default: half of the machine's physical memory.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub memory_budget_mib: Option<u64>,
 }
 
 /// Arguments kept for subcommands that other builds provide.
@@ -150,6 +154,10 @@ pub struct RunArgs {
     /// How the PNG is rendered.
     #[command(flatten, next_help_heading = "Image (with --png)")]
     pub image: ImageArgs,
+    /// The memory budget, MiB: the --png image that would need more is refused before
+    /// anything is allocated (exit 2). Default: half of the machine's physical memory.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub memory_budget_mib: Option<u64>,
 }
 
 /// Exit statuses of `dynaclay render`, shown by `dynaclay render --help`.
@@ -157,7 +165,8 @@ pub const RENDER_AFTER_HELP: &str = "\
 Exit status:
   0  the PNG was written
   1  rendering or writing the PNG failed
-  2  bad argument, or the session file cannot be read
+  2  bad argument, the session file cannot be read, or the mesh or image would need more than
+     the memory budget (--memory-budget-mib; default half of physical memory)
   4  no GPU adapter on this machine (hardware or software, e.g. Mesa lavapipe): nothing was
      rendered, and the message says which backends were tried";
 
@@ -182,6 +191,10 @@ pub struct RenderArgs {
     /// How the image is rendered.
     #[command(flatten)]
     pub image: ImageArgs,
+    /// The memory budget, MiB: a mesh or image that would need more is refused before
+    /// anything is allocated (exit 2). Default: half of the machine's physical memory.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub memory_budget_mib: Option<u64>,
 }
 
 /// Image settings shared by `dynaclay render` and `dynaclay run --png`.

@@ -3,6 +3,7 @@
 use std::path::Path;
 
 use super::args::{ImportArgs, RawSample};
+use super::budget::MemoryBudget;
 use super::run::CliError;
 use crate::dynamics::Material;
 use crate::field::BSplineLattice;
@@ -11,7 +12,7 @@ use crate::fit::{
     read_nrrd, read_points, read_raw,
 };
 use crate::io::{MaterialFields, Session, SessionMeta, save_session};
-use crate::mesh::{MeshFormat, write_mesh};
+use crate::mesh::{MeshFormat, TriMesh, write_mesh};
 use crate::tools::Clay;
 
 /// Reads `args.input`, fits a clay to it, writes the session (and the mesh when asked).
@@ -62,11 +63,24 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             ..SessionMeta::default()
         },
     };
+    // The mesh is made (within the memory budget) before anything is written, so a refused
+    // mesh leaves no half-finished import.
+    let mesh = match (&args.mesh, mesh_format) {
+        (Some(path), Some(format)) => {
+            let budget = MemoryBudget::from_flag(args.memory_budget_mib);
+            Some((
+                path,
+                format,
+                super::mesh_clay(&session.clay, 4, &budget)?.weld(),
+            ))
+        }
+        _ => None,
+    };
     save_session(&args.out, &session)
         .map_err(|e| CliError::Output(format!("{}: {e}", args.out.display())))?;
     say!("wrote {}", args.out.display());
-    if let (Some(path), Some(format)) = (&args.mesh, mesh_format) {
-        write_fitted_mesh(&session, path, format)?;
+    if let Some((path, format, mesh)) = mesh {
+        write_fitted_mesh(&mesh, path, format)?;
     }
     Ok(())
 }
@@ -152,9 +166,8 @@ fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliErr
     Ok(fit.lattice)
 }
 
-fn write_fitted_mesh(session: &Session, path: &Path, format: MeshFormat) -> Result<(), CliError> {
-    let mesh = super::mesh_clay(&session.clay, 4)?.weld();
-    write_mesh(path, &mesh, format)
+fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {
+    write_mesh(path, mesh, format)
         .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?;
     say!(
         "wrote {} ({} vertices, {} triangles)",

@@ -18,6 +18,7 @@ macro_rules! say_raw {
 }
 
 mod args;
+pub mod budget;
 mod devices;
 mod import;
 mod outputs;

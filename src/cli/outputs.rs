@@ -162,9 +162,9 @@ fn write_field_outputs(
 }
 
 /// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
-/// `latency.svg` into `dir`, then the PNG if asked. The latency files are written atomically
-/// (a temporary file renamed into place): a full disk leaves the old file whole, and a link
-/// placed at the name is replaced, never written through.
+/// `latency.svg` into `dir`, then the PNG if asked. Every file goes through the one atomic
+/// writer ([`dynaclay_files::write_atomic`]): a full disk leaves the old file whole, and a
+/// link, device, FIFO or directory at an output's name is refused, never written through.
 ///
 /// # Errors
 /// [`CliError::Output`] naming the file that could not be written; [`CliError::Render`] when

@@ -1,6 +1,7 @@
 //! `dynaclay render`: a session file to a PNG image, rendered offscreen.
 
 use super::args::RenderArgs;
+use super::budget::MemoryBudget;
 use super::run::CliError;
 use super::sculpt::{describe_outcome, mesh_clay, render_sculpt};
 use crate::io::load_session;
@@ -9,12 +10,22 @@ use crate::render::RenderOutcome;
 /// Loads the session, meshes its clay and writes the PNG.
 ///
 /// # Errors
-/// [`CliError::Session`] when the session cannot be read (exit 2); [`CliError::Render`] when
+/// [`CliError::Session`] when the session cannot be read (exit 2); [`CliError::OverBudget`]
+/// when the image or the mesh would not fit the memory budget (exit 2, checked before either is
+/// allocated); [`CliError::Render`] when
 /// rendering fails (exit 1) or there is no GPU adapter (exit
 /// [`CliError::NO_ADAPTER_EXIT`]); [`CliError::Output`] when the clay cannot be meshed.
 pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
+    let budget = MemoryBudget::from_flag(args.memory_budget_mib);
+    budget
+        .check_image(args.image.width, args.image.height)
+        .map_err(CliError::OverBudget)?;
+    // The file is read whole, then decoded into as many bytes again.
+    budget
+        .check_input(&args.session, 2)
+        .map_err(CliError::OverBudget)?;
     let session = load_session(&args.session).map_err(CliError::Session)?;
-    let octree = mesh_clay(&session.clay, args.cells_per_span)?;
+    let octree = mesh_clay(&session.clay, args.cells_per_span, &budget)?;
     let outcome = render_sculpt(
         &octree,
         session.clay.colour.as_ref(),

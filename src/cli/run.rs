@@ -47,6 +47,8 @@ pub enum CliError {
     /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
     /// [`CliError::NO_ADAPTER_EXIT`]).
     Render(RenderError, PathBuf),
+    /// A mesh or image would not fit the memory budget; refused before allocating (exit 2).
+    OverBudget(super::budget::OverBudget),
 }
 
 impl CliError {
@@ -62,7 +64,7 @@ impl CliError {
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Script(_) | Self::Session(_) => 2,
+            Self::Usage(_) | Self::Script(_) | Self::Session(_) | Self::OverBudget(_) => 2,
             Self::Device(_) => 3,
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
@@ -88,6 +90,7 @@ impl fmt::Display for CliError {
                 write!(f, "{e}; skipped rendering {}", path.display())
             }
             Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
+            Self::OverBudget(e) => write!(f, "{e}"),
         }
     }
 }
@@ -105,6 +108,12 @@ impl std::error::Error for CliError {}
 /// # Errors
 /// A [`CliError`] naming what failed (argument, script line or step, device, output path).
 pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
+    if args.png.is_some() {
+        // Refused before the run, not after it: the image's size is known now.
+        super::budget::MemoryBudget::from_flag(args.memory_budget_mib)
+            .check_image(args.image.width, args.image.height)
+            .map_err(CliError::OverBudget)?;
+    }
     let (script, file, base_dir) = match &args.script {
         Some(path) => (
             load_script(path).map_err(CliError::Script)?,

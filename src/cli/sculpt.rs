@@ -10,6 +10,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::args::ImageArgs;
+use super::budget::{MESH_BYTES_PER_BRICK, MemoryBudget, OverBudget};
 use super::run::CliError;
 use crate::field::BSplineLattice;
 use crate::mesh::{BrickOctree, SampleGrid, ScalarField};
@@ -18,19 +19,50 @@ use crate::render::{
 };
 use crate::tools::{Clay, ColourField};
 
-/// Meshes the clay's surface with `cells_per_span` marching-cubes cells per knot span.
+/// Meshes the clay's surface with `cells_per_span` marching-cubes cells per knot span, after
+/// checking that the mesh fits `budget`: the bricks the mesher would sample are counted first
+/// ([`BrickOctree::count_sampled_bricks`], no sampling, stopped at the budget), each taken at
+/// [`MESH_BYTES_PER_BRICK`].
 ///
 /// # Errors
-/// [`CliError::Output`] when the clay has no density patch or its sampling grid cannot be made
-/// (a lattice with a bad geometry, or a grid over [`SampleGrid::MAX_CELLS`] per axis).
-pub fn mesh_clay(clay: &Clay, cells_per_span: u32) -> Result<BrickOctree, CliError> {
+/// [`CliError::OverBudget`] (exit 2) when the mesh would not fit; [`CliError::Output`] when
+/// the clay has no density patch or its sampling grid cannot be made (a lattice with a bad
+/// geometry, or a grid over [`SampleGrid::MAX_CELLS`] per axis).
+pub fn mesh_clay(
+    clay: &Clay,
+    cells_per_span: u32,
+    budget: &MemoryBudget,
+) -> Result<BrickOctree, CliError> {
     let fail = |e: &dyn std::fmt::Display| CliError::Output(format!("meshing the clay: {e}"));
+    let hint = if clay.patches.len() > 1 {
+        "Lower --cells-per-span, or give the patches similar spacings"
+    } else {
+        "Lower --cells-per-span"
+    };
+    let check = |grid: &SampleGrid, field: &dyn ScalarField| {
+        let limit = budget.bricks();
+        let count = BrickOctree::count_sampled_bricks(grid, field, limit);
+        if count.is_some() {
+            return Ok(());
+        }
+        Err(CliError::OverBudget(OverBudget {
+            what: format!(
+                "meshing the clay at {cells_per_span} cells per knot span ({} × {} × {} cells)",
+                grid.cells[0], grid.cells[1], grid.cells[2]
+            ),
+            needed_bytes: Some(limit.saturating_add(1).saturating_mul(MESH_BYTES_PER_BRICK)),
+            at_least: true,
+            budget: *budget,
+            hint,
+        }))
+    };
     match clay.patches.as_slice() {
         [] => Err(CliError::Output(
             "meshing the clay: the session has no density patch".to_owned(),
         )),
         [lattice] => {
             let grid = SampleGrid::for_lattice(lattice, cells_per_span).map_err(|e| fail(&e))?;
+            check(&grid, lattice)?;
             Ok(BrickOctree::build(grid, lattice))
         }
         patches => {
@@ -44,7 +76,23 @@ pub fn mesh_clay(clay: &Clay, cells_per_span: u32) -> Result<BrickOctree, CliErr
                 spacing = spacing.min(p.spacing);
             }
             let cell = spacing / cells_per_span.max(1) as f32;
+            let widest = ((hi - lo) / cell).max_element();
+            if widest.is_finite() && widest > SampleGrid::MAX_CELLS as f32 {
+                return Err(CliError::OverBudget(OverBudget {
+                    what: format!(
+                        "meshing the clay at {cells_per_span} cells per knot span needs {widest:.3e} \
+                         cells along an axis (one grid over every patch at the finest spacing, \
+                         {spacing}), past the mesher's {} per axis",
+                        SampleGrid::MAX_CELLS
+                    ),
+                    needed_bytes: None,
+                    at_least: true,
+                    budget: *budget,
+                    hint,
+                }));
+            }
             let grid = SampleGrid::covering(lo, hi, cell).map_err(|e| fail(&e))?;
+            check(&grid, &field)?;
             Ok(BrickOctree::build(grid, &field))
         }
     }
@@ -138,6 +186,10 @@ impl ScalarField for SummedPatches<'_> {
 mod tests {
     use super::*;
 
+    fn budget() -> MemoryBudget {
+        MemoryBudget::from_flag(Some(1024))
+    }
+
     /// A ball of radius 0.6 around `origin + (1, 1, 1)` as the level set 0.5 of a ramp.
     fn ball(origin: Vec3) -> BSplineLattice {
         let mut lattice = BSplineLattice::zeros([12; 3], 0.2, origin).unwrap();
@@ -165,7 +217,7 @@ mod tests {
     #[test]
     fn one_patch_meshes_like_the_export() {
         let lattice = ball(Vec3::ZERO);
-        let octree = mesh_clay(&Clay::single(lattice.clone()), 4).unwrap();
+        let octree = mesh_clay(&Clay::single(lattice.clone()), 4, &budget()).unwrap();
         let grid = SampleGrid::for_lattice(&lattice, 4).unwrap();
         assert_eq!(
             octree.weld(),
@@ -178,7 +230,7 @@ mod tests {
     fn several_patches_are_summed_and_all_shown() {
         let a = ball(Vec3::ZERO);
         let b = ball(Vec3::new(3.0, 0.0, 0.0));
-        let single = mesh_clay(&Clay::single(a.clone()), 4)
+        let single = mesh_clay(&Clay::single(a.clone()), 4, &budget())
             .unwrap()
             .triangle_count();
         let clay = Clay {
@@ -186,7 +238,7 @@ mod tests {
             colour: None,
             constraints: Vec::new(),
         };
-        let octree = mesh_clay(&clay, 4).unwrap();
+        let octree = mesh_clay(&clay, 4, &budget()).unwrap();
         let (lo, hi) = x_range(&octree);
         assert!(
             (lo - 0.4).abs() < 0.05 && (hi - 4.6).abs() < 0.05,
@@ -202,7 +254,62 @@ mod tests {
 
     #[test]
     fn clay_without_patches_is_an_error() {
-        let err = mesh_clay(&Clay::default(), 4).unwrap_err();
+        let err = mesh_clay(&Clay::default(), 4, &budget()).unwrap_err();
         assert!(err.to_string().contains("no density patch"), "{err}");
+    }
+
+    #[test]
+    fn a_brick_costs_less_than_the_budget_allows() {
+        // A ball of radius 10 spans: a few hundred surface bricks, so the octree's fixed
+        // scratch does not dominate.
+        let mut lattice = BSplineLattice::zeros([28; 3], 0.1, Vec3::ZERO).unwrap();
+        for k in 0..28 {
+            for j in 0..28 {
+                for i in 0..28 {
+                    let d = Vec3::new(i as f32, j as f32, k as f32) - Vec3::splat(13.5);
+                    let n = lattice.index(i, j, k);
+                    lattice.coeffs[n] = (1.0 - d.length() / 20.0).clamp(0.0, 1.0);
+                }
+            }
+        }
+        let octree = mesh_clay(&Clay::single(lattice.clone()), 4, &budget()).unwrap();
+        let grid = SampleGrid::for_lattice(&lattice, 4).unwrap();
+        let counted = BrickOctree::count_sampled_bricks(&grid, &lattice, u64::MAX).unwrap();
+        let stored = octree.bricks().count() as u64;
+        assert!(
+            counted >= stored && stored > 0,
+            "{counted} counted, {stored} stored"
+        );
+        // The octree, then the welded mesh and a chunk copy of it for drawing.
+        let weld = octree.weld();
+        let drawn = (weld.vertex_count() * 24 + weld.triangle_count() * 12) as u64;
+        let bytes = octree.memory().total_bytes() as u64 + 2 * drawn;
+        assert!(stored > 200, "{stored} bricks");
+        assert!(
+            bytes <= stored * MESH_BYTES_PER_BRICK,
+            "{bytes} bytes for {stored} bricks"
+        );
+    }
+
+    #[test]
+    fn patches_of_very_different_spacing_are_refused_without_meshing() {
+        let fine = ball(Vec3::ZERO);
+        let mut coarse = BSplineLattice::zeros([4; 3], 37.0, Vec3::splat(-50.0)).unwrap();
+        coarse.coeffs.fill(0.3);
+        coarse.coeffs[21] = 0.9;
+        let mut fine = fine;
+        fine.spacing = 1e-3;
+        let clay = Clay {
+            patches: vec![fine, coarse],
+            colour: None,
+            constraints: Vec::new(),
+        };
+        let err = mesh_clay(&clay, 4, &MemoryBudget::from_flag(Some(64))).unwrap_err();
+        assert!(matches!(err, CliError::OverBudget(_)), "{err}");
+        assert_eq!(err.exit_code(), 2);
+        assert!(
+            err.to_string().contains("more than the memory budget"),
+            "{err}"
+        );
     }
 }

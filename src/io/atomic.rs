@@ -1,12 +1,11 @@
-//! Durable saves: a session is written to a temporary file in the target's directory,
-//! flushed to disk, renamed over the target and the directory entry flushed, so a crash at
-//! any point leaves either the previous file or the new one, never a mix. Loading reads the
-//! whole file and validates it before returning anything.
+//! Durable saves: a session is written through the one atomic writer
+//! ([`dynaclay_files::write_atomic`]: a temporary file in the target's directory, flushed to
+//! disk, renamed over the target and the directory entry flushed), so a crash at any point
+//! leaves either the previous file or the new one, never a mix. Loading reads the whole file
+//! through a size cap and validates it before returning anything.
 
-use std::fs::{self, File, OpenOptions};
-use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::fs;
+use std::path::Path;
 
 use super::error::SessionError;
 use super::format::{decode, encode};
@@ -32,7 +31,7 @@ pub const MAX_SESSION_BYTES: u64 = 1 << 30;
 /// [`SessionError::Io`] when it cannot be read; the format errors of
 /// [`decode`](super::format::decode) otherwise.
 pub fn load_session(path: &Path) -> Result<Session, SessionError> {
-    let bytes = super::bounded_read::read_regular_file(path, MAX_SESSION_BYTES).map_err(|e| {
+    let bytes = dynaclay_files::read_regular_file(path, MAX_SESSION_BYTES).map_err(|e| {
         SessionError::Io {
             path: path.to_path_buf(),
             op: "read",
@@ -42,80 +41,13 @@ pub fn load_session(path: &Path) -> Result<Session, SessionError> {
     decode(&bytes, path)
 }
 
-/// Writes `bytes` to `path` atomically (temporary file, fsync, rename, fsync of the directory).
+/// Writes `bytes` to `path` atomically (see [`dynaclay_files::write_atomic`]).
 ///
 /// # Errors
-/// [`SessionError::Io`] naming the failing step; the previous file at `path` is untouched and
-/// the temporary file is removed.
+/// [`SessionError::Write`] naming the failing step; the previous file at `path` is untouched
+/// and the temporary file is removed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SessionError> {
-    write_atomic_with(path, bytes, |file, bytes| file.write_all(bytes))
-}
-
-/// [`write_atomic`] with the payload write done by `write` (tests inject failures here).
-pub(crate) fn write_atomic_with(
-    path: &Path,
-    bytes: &[u8],
-    write: impl FnOnce(&mut File, &[u8]) -> std::io::Result<()>,
-) -> Result<(), SessionError> {
-    let io = |op: &'static str, p: &Path| {
-        let p = p.to_path_buf();
-        move |source| SessionError::Io {
-            path: p,
-            op,
-            source,
-        }
-    };
-    let temp = temp_path(path);
-    let mut file = OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&temp)
-        .map_err(io("create temporary file", &temp))?;
-    let written = write(&mut file, bytes)
-        .map_err(io("write temporary file", &temp))
-        .and_then(|()| file.sync_all().map_err(io("flush temporary file", &temp)));
-    drop(file);
-    if let Err(e) = written {
-        let _ = fs::remove_file(&temp);
-        return Err(e);
-    }
-    if let Err(e) = fs::rename(&temp, path).map_err(io("rename temporary file over", path)) {
-        let _ = fs::remove_file(&temp);
-        return Err(e);
-    }
-    sync_dir(path)
-}
-
-/// A fresh temporary name beside `path`: `.<name>.tmp.<pid>.<n>`.
-fn temp_path(path: &Path) -> PathBuf {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    // Relaxed: the counter only has to be unique, not ordered with anything.
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let name = path
-        .file_name()
-        .map_or_else(|| "session".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.tmp.{}.{n}", std::process::id()))
-}
-
-/// Flushes the directory entry of `path` so the rename survives a power loss.
-fn sync_dir(path: &Path) -> Result<(), SessionError> {
-    #[cfg(unix)]
-    {
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        File::open(dir)
-            .and_then(|d| d.sync_all())
-            .map_err(|source| SessionError::Io {
-                path: dir.to_path_buf(),
-                op: "flush directory",
-                source,
-            })?;
-    }
-    #[cfg(not(unix))]
-    let _ = path;
-    Ok(())
+    Ok(dynaclay_files::write_atomic(path, bytes)?)
 }
 
 #[cfg(test)]
@@ -153,7 +85,7 @@ mod tests {
         save_session(&path, &session(0.25)).unwrap();
         let before = fs::read(&path).unwrap();
         let bytes = encode(&session(0.75)).unwrap();
-        let err = write_atomic_with(&path, &bytes, |file, bytes| {
+        let err = dynaclay_files::write_atomic_with(&path, |file| {
             // Half the file reaches the disk, then the device fails.
             file.write_all(&bytes[..bytes.len() / 2])?;
             Err(std::io::Error::other("injected: disk full"))
@@ -172,7 +104,11 @@ mod tests {
         let path = dir.path().join("a.dclay");
         save_session(&path, &session(0.25)).unwrap();
         let bytes = encode(&session(0.75)).unwrap();
-        fs::write(temp_path(&path), &bytes[..bytes.len() / 3]).unwrap();
+        fs::write(
+            dir.path().join(".a.dclay.tmp.1.0"),
+            &bytes[..bytes.len() / 3],
+        )
+        .unwrap();
         assert_eq!(load_session(&path).unwrap(), session(0.25));
     }
 

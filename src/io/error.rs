@@ -47,6 +47,14 @@ pub enum SessionError {
     },
     /// The session itself cannot be written (e.g. a lattice whose length mismatches its dims).
     Invalid { detail: String },
+    /// The file could not be written (the previous file at the path is untouched).
+    Write(dynaclay_files::WriteError),
+}
+
+impl From<dynaclay_files::WriteError> for SessionError {
+    fn from(e: dynaclay_files::WriteError) -> Self {
+        Self::Write(e)
+    }
 }
 
 impl std::fmt::Display for SessionError {
@@ -117,6 +125,7 @@ impl std::fmt::Display for SessionError {
                 path.display()
             ),
             Self::Invalid { detail } => write!(f, "cannot save session: {detail}"),
+            Self::Write(e) => write!(f, "{e}"),
         }
     }
 }
@@ -125,6 +134,7 @@ impl std::error::Error for SessionError {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
             Self::Io { source, .. } => Some(source),
+            Self::Write(e) => e.source(),
             _ => None,
         }
     }

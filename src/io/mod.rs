@@ -3,7 +3,6 @@
 
 mod atomic;
 mod autosave;
-pub mod bounded_read;
 mod error;
 mod format;
 mod script;
@@ -13,6 +12,7 @@ pub use atomic::{check_replaceable, load_session, save_session, write_atomic};
 pub use autosave::{
     Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for, recovery_to_use,
 };
+pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{

@@ -1,13 +1,14 @@
 //! Mesh export to OBJ (with normals), binary little-endian PLY and binary STL.
 //!
-//! Every write is atomic: the bytes go to a temporary file in the target's directory, which
-//! is flushed, fsynced and renamed over the target. On any error the temporary file is
-//! removed, so the target is either the complete new file or untouched; errors name the path.
+//! Every write goes through the one atomic writer ([`dynaclay_files::write_atomic_with`]): the
+//! bytes go to a temporary file in the target's directory, which is flushed, fsynced and
+//! renamed over the target. On any error the temporary file is removed, so the target is either
+//! the complete new file or untouched; errors name the path.
 
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, BufWriter, Write};
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::io::{self, Write};
+use std::path::Path;
+
+use dynaclay_files::{WriteError, write_atomic_with};
 
 use super::trimesh::TriMesh;
 
@@ -36,107 +37,22 @@ impl MeshFormat {
     }
 }
 
-/// A mesh could not be written to `path`.
-#[derive(Debug)]
-pub struct ExportError {
-    pub path: PathBuf,
-    /// What was being done: "create a temporary file", "write", "rename into place", ...
-    pub action: &'static str,
-    pub source: io::Error,
-}
+/// A mesh could not be written (the previous file at the path is untouched).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot write mesh: {0}")]
+pub struct ExportError(#[from] pub WriteError);
 
-impl std::fmt::Display for ExportError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "cannot write mesh to {}: {} failed: {}",
-            self.path.display(),
-            self.action,
-            self.source
-        )
-    }
-}
-
-impl std::error::Error for ExportError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        Some(&self.source)
-    }
-}
-
-/// Writes `mesh` to `path` in `format`, atomically.
+/// Writes `mesh` to `path` in `format`, atomically (through [`write_atomic_with`]).
 ///
 /// # Errors
-/// When the directory cannot take a new file, a write or fsync fails, or the rename fails;
-/// the error names `path` and no file is left behind.
+/// When the target is not a regular file, the directory cannot take a new file, a write or
+/// fsync fails, or the rename fails; the error names `path` and no file is left behind.
 pub fn write_mesh(path: &Path, mesh: &TriMesh, format: MeshFormat) -> Result<(), ExportError> {
-    write_atomically(path, |out| match format {
+    Ok(write_atomic_with(path, |out| match format {
         MeshFormat::Obj => encode_obj(mesh, out),
         MeshFormat::Ply => encode_ply(mesh, out),
         MeshFormat::Stl => encode_stl(mesh, out),
-    })
-}
-
-/// Writes the bytes that `fill` produces to `path` atomically (temporary file in the same
-/// directory, flush, fsync, rename, then fsync of the directory where supported).
-///
-/// # Errors
-/// As [`write_mesh`]; an error from `fill` is reported with action "write".
-pub fn write_atomically<W>(path: &Path, fill: W) -> Result<(), ExportError>
-where
-    W: FnOnce(&mut dyn Write) -> io::Result<()>,
-{
-    let fail = |action, source| ExportError {
-        path: path.to_path_buf(),
-        action,
-        source,
-    };
-    let name = path.file_name().ok_or_else(|| {
-        fail(
-            "name the file",
-            io::Error::new(io::ErrorKind::InvalidInput, "the path has no file name"),
-        )
-    })?;
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    // Relaxed: the counter only has to be unique, not ordered with anything.
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let temp = dir.join(format!(
-        ".{}.{}-{n}.tmp",
-        name.to_string_lossy(),
-        std::process::id()
-    ));
-    let file = OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&temp)
-        .map_err(|e| fail("create a temporary file beside it", e))?;
-
-    let written = (|| {
-        let mut out = BufWriter::with_capacity(1 << 16, &file);
-        fill(&mut out).map_err(|e| ("write", e))?;
-        out.flush().map_err(|e| ("write", e))?;
-        drop(out);
-        file.sync_all().map_err(|e| ("fsync", e))?;
-        Ok::<(), (&'static str, io::Error)>(())
-    })();
-    drop(file);
-    if let Err((action, e)) = written {
-        let _ = fs::remove_file(&temp);
-        return Err(fail(action, e));
-    }
-    if let Err(e) = fs::rename(&temp, path) {
-        let _ = fs::remove_file(&temp);
-        return Err(fail("rename into place", e));
-    }
-    // Make the rename durable. Not every platform can open a directory; the file itself is
-    // complete either way.
-    if let Ok(d) = File::open(&dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
+    })?)
 }
 
 /// OBJ text: `v`, `vn` per vertex, `f a//a b//b c//c` per triangle (1-based).
@@ -235,6 +151,7 @@ mod tests {
     use crate::mesh::{BrickOctree, FnField, MeshStats, SampleGrid};
     use glam::Vec3;
     use std::collections::HashMap;
+    use std::fs;
 
     fn sphere_mesh() -> TriMesh {
         let field = FnField {
@@ -396,7 +313,7 @@ mod tests {
         fs::create_dir(&target_dir).unwrap();
         fs::write(target_dir.join("inner"), b"keep").unwrap();
         let err = write_mesh(&target_dir, &mesh, MeshFormat::Ply).unwrap_err();
-        assert_eq!(err.action, "rename into place");
+        assert!(matches!(err.0, WriteError::NotRegular { .. }), "{err}");
         assert!(err.to_string().contains("taken.ply"), "{err}");
         let names: Vec<_> = fs::read_dir(dir.path())
             .unwrap()
@@ -410,12 +327,12 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("mesh.obj");
         fs::write(&path, b"previous").unwrap();
-        let err = write_atomically(&path, |out| {
+        let err = write_atomic_with(&path, |out| {
             out.write_all(&[b'x'; 100_000])?;
             Err(io::Error::other("encoder gave up"))
         })
         .unwrap_err();
-        assert_eq!(err.action, "write");
+        assert!(matches!(err, WriteError::Io { op: "write", .. }), "{err}");
         assert!(err.to_string().contains("encoder gave up"));
         assert_eq!(fs::read(&path).unwrap(), b"previous");
         assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -33,9 +33,7 @@ pub use brick::{
     edge_from_id, edge_id, march_brick, sample_brick,
 };
 pub use error::GridError;
-pub use export::{
-    ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_atomically, write_mesh,
-};
+pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;
 pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport};
 pub use source::{FnField, MAX_BLOCK, ScalarField};

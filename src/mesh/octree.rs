@@ -106,6 +106,29 @@ impl BrickOctree {
         }
     }
 
+    /// How many bricks [`BrickOctree::build`] would sample for `field` on `grid`, counted
+    /// without sampling anything: the same walk down the tree, pruned by the same
+    /// [`ScalarField::bounds`], so it costs a small part of a build and allocates nothing.
+    /// `None` as soon as the count passes `limit` (or the walk visits more than `16 × limit`
+    /// nodes), so a grid far too large for memory is refused in bounded time.
+    #[must_use]
+    pub fn count_sampled_bricks<F: ScalarField + ?Sized>(
+        grid: &SampleGrid,
+        field: &F,
+        limit: u64,
+    ) -> Option<u64> {
+        let shape = Self::new(*grid);
+        let mut walk = CountWalk {
+            tree: &shape,
+            field,
+            iso: field.iso(),
+            sampled: 0,
+            visited: 0,
+            limit,
+        };
+        walk.visit([0; 3], shape.root_size).then_some(walk.sampled)
+    }
+
     /// Extracts the whole surface of `field` on `grid`.
     pub fn build<F: ScalarField + ?Sized>(grid: SampleGrid, field: &F) -> Self {
         let mut tree = Self::new(grid);
@@ -398,6 +421,55 @@ impl BrickOctree {
             }));
         }
         out
+    }
+}
+
+/// The state of [`BrickOctree::count_sampled_bricks`]: the walk of `visit` without sampling.
+struct CountWalk<'a, F: ScalarField + ?Sized> {
+    tree: &'a BrickOctree,
+    field: &'a F,
+    iso: f32,
+    sampled: u64,
+    visited: u64,
+    limit: u64,
+}
+
+impl<F: ScalarField + ?Sized> CountWalk<'_, F> {
+    /// False once a limit is passed.
+    fn visit(&mut self, node: [u32; 3], size: u32) -> bool {
+        if (0..3).any(|a| node[a] >= self.tree.brick_counts[a]) {
+            return true;
+        }
+        self.visited += 1;
+        if self.visited > self.limit.saturating_mul(16) {
+            return false;
+        }
+        let grid = &self.tree.grid;
+        let node_hi: [u32; 3] =
+            std::array::from_fn(|a| ((node[a] + size) * BRICK_CELLS).min(grid.cells[a]));
+        let pmin = grid.point(node.map(|n| n * BRICK_CELLS));
+        let pmax = grid.point(node_hi);
+        if let Some((vmin, vmax)) = self.field.bounds(pmin, pmax) {
+            let margin = 1e-5 * self.iso.abs().max(1.0);
+            if vmax < self.iso - margin || vmin > self.iso + margin {
+                return true;
+            }
+        }
+        if size == 1 {
+            self.sampled += 1;
+            return self.sampled <= self.limit;
+        }
+        let half = size / 2;
+        (0..8u32).all(|child| {
+            self.visit(
+                [
+                    node[0] + (child & 1) * half,
+                    node[1] + ((child >> 1) & 1) * half,
+                    node[2] + ((child >> 2) & 1) * half,
+                ],
+                half,
+            )
+        })
     }
 }
 

@@ -4,6 +4,8 @@
 //! work on machines without a GPU. When nothing answers, the error is
 //! [`RenderError::NoAdapter`], worded "no GPU adapter: …", so callers can skip and say why.
 
+use std::sync::{Arc, Mutex, PoisonError};
+
 use super::error::RenderError;
 
 /// Environment variable that turns a missing adapter into a test failure (set by CI).
@@ -44,6 +46,22 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub summary: AdapterSummary,
+    /// Faults wgpu reports through callbacks: a lost device, an error outside any scope.
+    faults: Arc<GpuFaults>,
+}
+
+/// What the device-lost and uncaptured-error callbacks saw (first of each kept).
+#[derive(Debug, Default)]
+struct GpuFaults {
+    lost: Mutex<Option<String>>,
+    uncaptured: Mutex<Option<(bool, String)>>,
+}
+
+fn keep_first<T>(slot: &Mutex<Option<T>>, value: T) {
+    let mut slot = slot.lock().unwrap_or_else(PoisonError::into_inner);
+    if slot.is_none() {
+        *slot = Some(value);
+    }
 }
 
 impl GpuContext {
@@ -101,13 +119,85 @@ impl GpuContext {
             adapter: summary.to_string(),
             message: e.to_string(),
         })?;
+        // Without these, wgpu panics on a lost device or an error outside a scope; with them
+        // the fault is kept and `guarded` returns it as a RenderError.
+        let faults = Arc::new(GpuFaults::default());
+        let lost = Arc::clone(&faults);
+        device.set_device_lost_callback(move |reason, message| {
+            keep_first(&lost.lost, format!("{reason:?}: {message}"));
+        });
+        let uncaptured = Arc::clone(&faults);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let oom = matches!(e, wgpu::Error::OutOfMemory { .. });
+            keep_first(&uncaptured.uncaptured, (oom, e.to_string()));
+        }));
         Ok(Self {
             _instance: instance,
             adapter,
             device,
             queue,
             summary,
+            faults,
         })
+    }
+
+    /// Runs `f` on the device with its out-of-memory and validation errors caught in error
+    /// scopes, so an allocation the GPU cannot hold is an error value, never a panic.
+    ///
+    /// # Errors
+    /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] naming `what`;
+    /// [`RenderError::DeviceLost`] when the device was lost meanwhile.
+    pub fn guarded<T>(
+        &self,
+        what: &'static str,
+        f: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> T,
+    ) -> Result<T, RenderError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f(&self.device, &self.queue);
+        // Scopes pop in reverse order of their pushes.
+        let invalid = pollster::block_on(validation.pop());
+        let out_of_memory = pollster::block_on(oom.pop());
+        if let Some(e) = out_of_memory {
+            return Err(RenderError::OutOfMemory {
+                what,
+                message: e.to_string(),
+            });
+        }
+        if let Some(e) = invalid {
+            return Err(RenderError::Gpu {
+                what,
+                message: e.to_string(),
+            });
+        }
+        self.check_faults(what)?;
+        Ok(value)
+    }
+
+    /// The first fault the callbacks saw, as an error.
+    ///
+    /// # Errors
+    /// [`RenderError::DeviceLost`], or the uncaptured error as in [`Self::guarded`].
+    pub fn check_faults(&self, what: &'static str) -> Result<(), RenderError> {
+        let lost = self
+            .faults
+            .lost
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some(message) = lost.clone() {
+            return Err(RenderError::DeviceLost { message });
+        }
+        drop(lost);
+        let uncaptured = self
+            .faults
+            .uncaptured
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        match uncaptured.clone() {
+            Some((true, message)) => Err(RenderError::OutOfMemory { what, message }),
+            Some((false, message)) => Err(RenderError::Gpu { what, message }),
+            None => Ok(()),
+        }
     }
 }
 

@@ -21,6 +21,14 @@ pub enum RenderError {
     Readback { message: String },
     /// Writing the PNG failed.
     Png { path: PathBuf, message: String },
+    /// The GPU (or the software rasterizer's memory) could not hold `what`: caught from
+    /// wgpu's out-of-memory error scope instead of a panic.
+    OutOfMemory { what: &'static str, message: String },
+    /// The GPU refused an operation on `what` (a validation or internal error, caught from an
+    /// error scope instead of a panic).
+    Gpu { what: &'static str, message: String },
+    /// The GPU device was lost (driver reset, device removed).
+    DeviceLost { message: String },
 }
 
 impl RenderError {
@@ -47,6 +55,12 @@ impl std::fmt::Display for RenderError {
             Self::Png { path, message } => {
                 write!(f, "writing PNG {}: {message}", path.display())
             }
+            Self::OutOfMemory { what, message } => write!(
+                f,
+                "the GPU ran out of memory for {what} ({message}); try a smaller --width/--height"
+            ),
+            Self::Gpu { what, message } => write!(f, "the GPU refused {what}: {message}"),
+            Self::DeviceLost { message } => write!(f, "the GPU device was lost: {message}"),
         }
     }
 }

@@ -1,9 +1,9 @@
 //! A rendered frame in CPU memory, and its atomic PNG file.
 //!
-//! The PNG is written to a temporary file beside the destination, flushed to disk and renamed
-//! over it, so a reader never sees a half-written image and a failed write leaves the old file.
+//! The PNG is written through the one atomic writer ([`dynaclay_files::write_atomic_with`]), so
+//! a reader never sees a half-written image and a failed write leaves the old file.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use super::error::RenderError;
 
@@ -45,31 +45,18 @@ impl Image {
                 self.rgba8.len()
             )));
         }
-        let tmp = temporary_sibling(path);
-        let result = (|| -> Result<(), String> {
-            let file = std::fs::File::create(&tmp)
-                .map_err(|e| format!("creating {}: {e}", tmp.display()))?;
-            let mut out = std::io::BufWriter::new(file);
-            {
-                let mut encoder = png::Encoder::new(&mut out, self.width, self.height);
-                encoder.set_color(png::ColorType::Rgba);
-                encoder.set_depth(png::BitDepth::Eight);
-                encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-                let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-                writer
-                    .write_image_data(&self.rgba8)
-                    .map_err(|e| e.to_string())?;
-                writer.finish().map_err(|e| e.to_string())?;
-            }
-            let file = out.into_inner().map_err(|e| e.error().to_string())?;
-            file.sync_all().map_err(|e| e.to_string())?;
-            std::fs::rename(&tmp, path).map_err(|e| format!("renaming {}: {e}", tmp.display()))
-        })();
-        if result.is_err() {
-            // Best effort: the temporary may not exist if creation failed.
-            let _ = std::fs::remove_file(&tmp);
-        }
-        result.map_err(fail)
+        dynaclay_files::write_atomic_with(path, |out| {
+            let mut encoder = png::Encoder::new(out, self.width, self.height);
+            encoder.set_color(png::ColorType::Rgba);
+            encoder.set_depth(png::BitDepth::Eight);
+            encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+            let mut writer = encoder.write_header().map_err(std::io::Error::other)?;
+            writer
+                .write_image_data(&self.rgba8)
+                .map_err(std::io::Error::other)?;
+            writer.finish().map_err(std::io::Error::other)
+        })
+        .map_err(|e| fail(e.to_string()))
     }
 
     /// Reads an 8-bit RGBA or RGB PNG (as written by [`Image::write_png`]).
@@ -82,8 +69,10 @@ impl Image {
             path: path.to_path_buf(),
             message,
         };
-        let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
-        let decoder = png::Decoder::new(std::io::BufReader::new(file));
+        // A regular file through a cap: `/dev/zero` or a FIFO is refused at once.
+        let bytes =
+            dynaclay_files::read_regular_file(path, 1 << 30).map_err(|e| fail(e.to_string()))?;
+        let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
         let mut reader = decoder.read_info().map_err(|e| fail(e.to_string()))?;
         let size = reader
             .output_buffer_size()
@@ -107,14 +96,6 @@ impl Image {
             rgba8,
         })
     }
-}
-
-/// `dir/.name.tmp-PID` beside `path`, so the final rename stays on one file system.
-fn temporary_sibling(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map_or_else(|| "image.png".into(), |n| n.to_string_lossy().into_owned());
-    path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
 
 #[cfg(test)]

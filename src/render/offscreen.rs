@@ -44,46 +44,59 @@ impl OffscreenRenderer {
     /// (clamped to at least 1 and to the adapter's texture limit).
     ///
     /// # Errors
-    /// [`RenderError::NoAdapter`] or [`RenderError::Device`].
+    /// [`RenderError::NoAdapter`] or [`RenderError::Device`]; [`RenderError::OutOfMemory`]
+    /// when the GPU cannot hold the target.
     pub fn new(width: u32, height: u32) -> Result<Self, RenderError> {
-        Ok(Self::with_context(GpuContext::headless()?, width, height))
+        Self::with_context(GpuContext::headless()?, width, height)
     }
 
     /// Uses an existing context.
-    #[must_use]
-    pub fn with_context(gpu: GpuContext, width: u32, height: u32) -> Self {
+    ///
+    /// # Errors
+    /// [`RenderError::OutOfMemory`] (or another caught GPU error) when the target's textures
+    /// cannot be made.
+    pub fn with_context(gpu: GpuContext, width: u32, height: u32) -> Result<Self, RenderError> {
         let samples = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
         let max = gpu.device.limits().max_texture_dimension_2d.max(1);
-        let renderer = SceneRenderer::new(
-            &gpu.device,
-            &gpu.queue,
-            OFFSCREEN_FORMAT,
-            samples,
-            width.clamp(1, max),
-            height.clamp(1, max),
-        );
-        Self {
+        let renderer = gpu.guarded("the frame's textures", |device, queue| {
+            SceneRenderer::new(
+                device,
+                queue,
+                OFFSCREEN_FORMAT,
+                samples,
+                width.clamp(1, max),
+                height.clamp(1, max),
+            )
+        })?;
+        Ok(Self {
             gpu,
             renderer,
             readback: None,
-        }
+        })
     }
 
     /// Changes the frame size (clamped as in [`Self::new`]).
-    pub fn resize(&mut self, width: u32, height: u32) {
+    ///
+    /// # Errors
+    /// As [`Self::with_context`].
+    pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
         let max = self.gpu.device.limits().max_texture_dimension_2d.max(1);
-        self.renderer
-            .resize(&self.gpu.device, width.clamp(1, max), height.clamp(1, max));
+        let renderer = &mut self.renderer;
+        self.gpu.guarded("the frame's textures", |device, _| {
+            renderer.resize(device, width.clamp(1, max), height.clamp(1, max));
+        })
     }
 
     /// Uploads changed chunks and drops absent ones; see [`SceneRenderer::sync_chunks`].
     ///
     /// # Errors
-    /// [`RenderError::Chunk`] for a malformed chunk or a repeated id.
+    /// [`RenderError::Chunk`] for a malformed chunk or a repeated id;
+    /// [`RenderError::OutOfMemory`] when the GPU cannot hold the meshes.
     pub fn sync_chunks(&mut self, chunks: &[MeshChunk<'_>]) -> Result<SyncReport, RenderError> {
-        Ok(self
-            .renderer
-            .sync_chunks(&self.gpu.device, &self.gpu.queue, chunks)?)
+        let renderer = &mut self.renderer;
+        Ok(self.gpu.guarded("the mesh buffers", |device, queue| {
+            renderer.sync_chunks(device, queue, chunks)
+        })??)
     }
 
     /// Renders the synced chunks and reads the frame back.
@@ -96,50 +109,38 @@ impl OffscreenRenderer {
         options: &SceneOptions,
     ) -> Result<Image, RenderError> {
         let (width, height) = self.renderer.size();
-        let device = &self.gpu.device;
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("offscreen frame"),
-        });
-        self.renderer
-            .render(device, &self.gpu.queue, &mut encoder, camera, options);
-
         // Rows in a texture-to-buffer copy must be 256-byte aligned.
         let row_bytes = 4 * width;
         let padded_row = row_bytes.next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
         let needed = u64::from(padded_row) * u64::from(height);
-        if self.readback.as_ref().is_none_or(|b| b.size() < needed) {
-            self.readback = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("offscreen readback"),
-                size: needed,
-                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                mapped_at_creation: false,
-            }));
-        }
-        let Some(readback) = self.readback.as_ref() else {
-            unreachable!("readback buffer was just ensured");
-        };
-        encoder.copy_texture_to_buffer(
-            wgpu::TexelCopyTextureInfo {
-                texture: self.renderer.target(),
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            wgpu::TexelCopyBufferInfo {
-                buffer: readback,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded_row),
-                    rows_per_image: Some(height),
-                },
-            },
-            wgpu::Extent3d {
+        let renderer = &mut self.renderer;
+        let slot = &mut self.readback;
+        let readback = self.gpu.guarded("the frame", |device, queue| {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("offscreen frame"),
+            });
+            renderer.render(device, queue, &mut encoder, camera, options);
+            if slot.as_ref().is_none_or(|b| b.size() < needed) {
+                *slot = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("offscreen readback"),
+                    size: needed,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                }));
+            }
+            let readback = slot.clone().unwrap_or_else(|| unreachable!("just ensured"));
+            copy_frame(
+                &mut encoder,
+                renderer.target(),
+                &readback,
+                padded_row,
                 width,
                 height,
-                depth_or_array_layers: 1,
-            },
-        );
-        self.gpu.queue.submit([encoder.finish()]);
+            );
+            queue.submit([encoder.finish()]);
+            readback
+        })?;
+        let device = &self.gpu.device;
 
         let slice = readback.slice(..needed);
         let (tx, rx) = mpsc::channel();
@@ -162,6 +163,7 @@ impl OffscreenRenderer {
             }
         }
         readback.unmap();
+        self.gpu.check_faults("the frame")?;
         Ok(Image {
             width,
             height,
@@ -180,6 +182,38 @@ impl OffscreenRenderer {
     pub fn renderer(&self) -> &SceneRenderer {
         &self.renderer
     }
+}
+
+/// Records the copy of the frame `target` into `readback`, `padded_row` bytes per row.
+fn copy_frame(
+    encoder: &mut wgpu::CommandEncoder,
+    target: &wgpu::Texture,
+    readback: &wgpu::Buffer,
+    padded_row: u32,
+    width: u32,
+    height: u32,
+) {
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture: target,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: readback,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded_row),
+                rows_per_image: Some(height),
+            },
+        },
+        wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+    );
 }
 
 /// A camera that frames the chunks and the workspace box (when shown) from `view`, or the unit

@@ -6,9 +6,12 @@
 //! no I/O. A writer thread drains the queue into checksummed blocks. If the writer falls
 //! behind and the queue is full, the record is dropped and counted, never waited for; the
 //! count is stored in the file's end marker. The writer thread owns and frees the file.
+//!
+//! The file appears at its path only when it is complete: the writer fills a temporary file
+//! beside it ([`dynaclay_files::AtomicFile`]) and renames it into place after the end marker
+//! is written and synced. A write that fails (a full disk) leaves whatever was at the path
+//! before, and the error is reported by [`RecordingDevice::finish`] and by `close`.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -24,6 +27,7 @@ use super::format::{
     encode_write,
 };
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+use dynaclay_files::{AtomicFile, WriteError};
 
 /// Settings of a [`RecordingDevice`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -73,8 +77,8 @@ pub struct RecordingDevice<D: HapticDevice> {
 struct Recorder {
     path: PathBuf,
     config: RecorderConfig,
-    /// The file until the writer thread takes it at the first `open`.
-    file: Option<File>,
+    /// The temporary file until the writer thread takes it at the first `open`.
+    file: Option<AtomicFile>,
     shared: Arc<Shared>,
     writer: Option<JoinHandle<Result<WriteSummary, RecordError>>>,
     reads: u64,
@@ -82,10 +86,12 @@ struct Recorder {
 }
 
 impl<D: HapticDevice> RecordingDevice<D> {
-    /// Creates (or truncates) the recording file at `path` and wraps `device`.
+    /// Wraps `device` and starts the recording for `path` (a temporary file beside it, renamed
+    /// over `path` when the recording is finished whole).
     ///
     /// # Errors
-    /// [`RecordError::Io`] if the file cannot be created.
+    /// [`RecordError::Io`] if the file cannot be created, or `path` is a link, a device, a FIFO
+    /// or a directory (never written through or replaced).
     pub fn create(device: D, path: impl AsRef<Path>) -> Result<Self, RecordError> {
         Self::with_config(device, path, RecorderConfig::default())
     }
@@ -100,11 +106,7 @@ impl<D: HapticDevice> RecordingDevice<D> {
         config: RecorderConfig,
     ) -> Result<Self, RecordError> {
         let path = path.as_ref().to_path_buf();
-        let file = File::create(&path).map_err(|source| RecordError::Io {
-            path: path.clone(),
-            action: "create recording",
-            source,
-        })?;
+        let file = AtomicFile::create(&path).map_err(|e| write_error(e, "create recording"))?;
         Ok(Self {
             device,
             recorder: Recorder {
@@ -224,7 +226,7 @@ impl Recorder {
         let Some(file) = self.file.take() else {
             return Ok(());
         };
-        let writer = BlockWriter::new(BufWriter::new(file), info, self.config.records_per_block)
+        let writer = BlockWriter::new(file, info, self.config.records_per_block)
             .map_err(|e| DeviceError::io(&e, "write recording header"))?;
         let shared = Arc::clone(&self.shared);
         let path = self.path.clone();
@@ -254,8 +256,23 @@ impl Recorder {
     }
 }
 
+/// A failed step of the atomic writer as a [`RecordError::Io`] (`action` names the step when
+/// the writer was refused before it did any I/O).
+fn write_error(e: WriteError, action: &'static str) -> RecordError {
+    let path = e.path().to_path_buf();
+    let action = match &e {
+        WriteError::Io { op, .. } => op,
+        WriteError::NotRegular { .. } => action,
+    };
+    RecordError::Io {
+        path,
+        action,
+        source: e.into_io(),
+    }
+}
+
 fn writer_loop(
-    mut writer: BlockWriter<BufWriter<File>>,
+    mut writer: BlockWriter<AtomicFile>,
     shared: &Shared,
     path: &Path,
     flush_interval: Duration,
@@ -303,12 +320,8 @@ fn writer_loop(
         .finish(dropped)
         .map_err(io_err("finish recording"))
         .map_err(fail)?;
-    let file = out
-        .into_inner()
-        .map_err(|e| io_err("flush recording")(e.into_error()))
-        .map_err(fail)?;
-    file.sync_all()
-        .map_err(io_err("sync recording"))
+    out.commit()
+        .map_err(|e| write_error(e, "finish recording"))
         .map_err(fail)?;
     Ok(summary)
 }

@@ -90,18 +90,24 @@ pub struct ReplayDevice {
     divergence: ReplayDivergence,
 }
 
+/// The largest recording read, bytes: 16 M records of 64 bytes, over two hours of a 1 kHz
+/// loop. Only a regular file is read (a FIFO or `/dev/zero` is refused at once).
+pub const MAX_RECORDING_BYTES: u64 = 1 << 30;
+
 impl ReplayDevice {
-    /// Loads the recording at `path`.
+    /// Loads the recording at `path` (a regular file of at most [`MAX_RECORDING_BYTES`]).
     ///
     /// # Errors
     /// [`RecordError::Io`] if the file cannot be read; otherwise a format error wrapped in
     /// [`RecordError::InFile`] naming the path, byte offset and block.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, RecordError> {
         let path = path.as_ref();
-        let bytes = std::fs::read(path).map_err(|source| RecordError::Io {
-            path: path.to_path_buf(),
-            action: "read recording",
-            source,
+        let bytes = dynaclay_files::read_regular_file(path, MAX_RECORDING_BYTES).map_err(|e| {
+            RecordError::Io {
+                path: path.to_path_buf(),
+                action: "read recording",
+                source: e.into_io(),
+            }
         })?;
         let recording = Recording::parse(&bytes).map_err(|error| RecordError::InFile {
             path: path.to_path_buf(),
