@@ -57,6 +57,10 @@ fn step(c: &mut Criterion) {
         (15, 15),
         (32, 32),
         (64, 64),
+        // The engine's regions: two mass points per knot span.
+        (11, 21),
+        (16, 31),
+        (32, 63),
     ] {
         let threads: &[usize] = if n >= 32 { &[1, 2] } else { &[1] };
         for &threads in threads {
