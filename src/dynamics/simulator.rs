@@ -72,6 +72,8 @@ pub struct Simulator {
     force: Vec<f32>,
     /// The distribution weights of one tool force over its box of mass points.
     weights: Vec<f32>,
+    /// One plane of total forces per thread (the springs fused into the projection).
+    plane_buf: Vec<f32>,
     e: Vec<f32>,
     e_pad: Vec<f32>,
     k_pad: Vec<f32>,
@@ -213,6 +215,7 @@ impl Simulator {
         fit(&mut self.e_pad, padded);
         fit(&mut self.k_pad, padded);
         fit(&mut self.zeros, mx);
+        fit(&mut self.plane_buf, 2 * mx * my);
         let need = scratch_len(&state.basis);
         fit(&mut self.t1, need);
         fit(&mut self.t2, need);
@@ -284,13 +287,24 @@ impl Simulator {
         self.gather_forces(state, lattice, forces);
         times.gather_forces_ns = elapsed_ns(t);
 
-        let t = Instant::now();
-        self.spring_forces(state);
-        times.spring_forces_ns = elapsed_ns(t);
-
-        let t = Instant::now();
-        let solved = self.solve_accel(state);
-        times.solve_accel_ns = elapsed_ns(t);
+        let fused = self.params.neighbourhood == Neighbourhood::Six
+            && self.params.solver == AccelSolver::Auto
+            && state.mass_is_uniform();
+        let solved = if fused {
+            // The springs are made inside the projection; their time is in `solve_accel`.
+            let t = Instant::now();
+            let solved = self.springs_and_solve(state);
+            times.solve_accel_ns = elapsed_ns(t);
+            solved
+        } else {
+            let t = Instant::now();
+            self.spring_forces(state);
+            times.spring_forces_ns = elapsed_ns(t);
+            let t = Instant::now();
+            let solved = self.solve_accel(state);
+            times.solve_accel_ns = elapsed_ns(t);
+            solved
+        };
         let (max_accel, cg_iterations) = match solved {
             Ok(v) => v,
             Err(e) => {
@@ -484,6 +498,47 @@ impl Simulator {
         for ((f, &g), &v) in self.force.iter_mut().zip(&state.damping).zip(&state.d_dot) {
             *f -= g * v;
         }
+    }
+
+    /// Stages 2 and 3 fused, for the six-neighbour springs and a uniform mass: the total
+    /// force is made plane by plane inside the projection `p̈ = (AᵀA)⁻¹ Aᵀ f / μ` and never
+    /// stored whole. Bit-identical to [`Simulator::spring_forces`] then
+    /// [`Simulator::solve_accel`]. Returns `max|p̈|` and 0 CG iterations.
+    ///
+    /// # Errors
+    /// When `p̈` is not finite.
+    fn springs_and_solve(&mut self, state: &RegionState) -> Result<(f32, u32), StepError> {
+        self.ensure_scratch(state);
+        let fields = SpringFields {
+            dims: state.grid.dims,
+            d: &state.d,
+            rest: &state.rest,
+            stiffness: &state.stiffness,
+            damping: &state.damping,
+            d_dot: &state.d_dot,
+            external: &self.external,
+            zeros: &self.zeros,
+        };
+        let mu = state.mass.first().copied().unwrap_or(1.0);
+        let (max, finite) = passes::springs_project(
+            &mut self.team,
+            &fields,
+            (&mut self.e_pad, &mut self.k_pad),
+            &mut self.plane_buf,
+            &state.basis,
+            1.0 / mu,
+            ChainScratch {
+                t1: &mut self.t1,
+                t2: &mut self.t2,
+            },
+            &mut self.accel,
+        );
+        if !finite {
+            return Err(StepError::NonFinite {
+                stage: "solve_accel",
+            });
+        }
+        Ok((max, 0))
     }
 
     /// Stage 3: `p̈ = (AᵀMA)⁻¹ Aᵀ f`. Returns `max|p̈|` and the CG iteration count. With a
@@ -1082,6 +1137,50 @@ mod tests {
             c.record(if solo { 2_000 } else { 1_000 });
         }
         assert_eq!(counts[0], PROBE_STEPS, "one thread only while probing");
+    }
+
+    #[test]
+    fn springs_fused_into_the_projection_give_bit_identical_accelerations() {
+        let lattice = sphere();
+        for (mass_dims, uniform_k) in [([15, 15, 15], true), ([15, 11, 9], false)] {
+            let b = CoeffBox {
+                min: [10, 6, 6],
+                max: [17, 13, 13],
+            };
+            let mut state = RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+            for (n, d) in state.d.iter_mut().enumerate() {
+                *d += 0.05 * ((n * 7 % 11) as f32 / 11.0 - 0.5);
+            }
+            for (n, v) in state.d_dot.iter_mut().enumerate() {
+                *v = 0.01 * ((n * 5 % 7) as f32 - 3.0);
+            }
+            if !uniform_k {
+                for (n, k) in state.stiffness.iter_mut().enumerate() {
+                    *k *= 1.0 + 0.1 * (n % 3) as f32;
+                }
+            }
+            let force = grab(&lattice, CENTRE + Vec3::new(0.6, 0.1, 0.0), GAIN).unwrap();
+            let mut accels = Vec::new();
+            for threads in [1, 2] {
+                let mut sim = Simulator::new(StepParams {
+                    threads,
+                    ..StepParams::default()
+                });
+                sim.always_split = true;
+                sim.ensure_scratch(&state);
+                sim.gather_forces(&state, &lattice, &[force]);
+                sim.spring_forces(&state);
+                let apart = sim.solve_accel(&state).unwrap();
+                let want = sim.last_accel().to_vec();
+                sim.accel.fill(f32::NAN);
+                let fused = sim.springs_and_solve(&state).unwrap();
+                assert_eq!(apart.0.to_bits(), fused.0.to_bits());
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&want), bits(sim.last_accel()), "{mass_dims:?}");
+                accels.push(bits(&want));
+            }
+            assert_eq!(accels[0], accels[1]);
+        }
     }
 
     #[test]
