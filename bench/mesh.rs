@@ -160,6 +160,12 @@ fn full_extraction(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("dynaclay/welded", n), |b| {
                 b.iter(|| black_box(BrickOctree::build(grid, &field).weld()))
             });
+            group.bench_function(BenchmarkId::new("dynaclay/bricks_2_threads", n), |b| {
+                b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2)))
+            });
+            group.bench_function(BenchmarkId::new("dynaclay/welded_2_threads", n), |b| {
+                b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2).weld()))
+            });
             if let Shape3::Sphere = shape {
                 let culled = FnField {
                     lipschitz: Some(1.0),
