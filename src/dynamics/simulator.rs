@@ -143,7 +143,7 @@ impl ThreadChoice {
             self.steps_since_probe = 0;
         }
         if self.probe_left > 0 {
-            self.two = self.probe_left % 2 == 0;
+            self.two = self.probe_left.is_multiple_of(2);
         }
         !self.two
     }
