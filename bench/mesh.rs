@@ -1,22 +1,33 @@
 //! Meshing benchmarks: full extraction against the `isosurface` crate's marching cubes on the
-//! same samples (and `fast-surface-nets`, a different algorithm, for reference), a local
-//! re-mesh of a tool-sized box, and the octree's memory for a sphere at 512³.
+//! same samples (its 0.0.4 release, with and without normals, and the 0.1.0 alpha), and
+//! `fast-surface-nets` (a different algorithm, for reference), a local re-mesh of a tool-sized
+//! box, and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
 //!
 //! Fairness notes. Every contender samples the same closure at the same points `i / n`
-//! (`isosurface` also samples one extra layer of cells past z = 1, ~1/n more work) and
-//! produces an indexed mesh with per-vertex normals from the analytic gradient
-//! (`isosurface` through `IndexedInterleavedNormals`; `fast-surface-nets` estimates normals
-//! by central differences). All run on one thread. "dynaclay/culled" adds a Lipschitz bound so
-//! the octree skips empty space: it is the sparse path, not the like-for-like comparison.
+//! (both `isosurface` releases also march one extra layer of cells past z = 1, ~1/n more
+//! work) and produces an indexed mesh with per-vertex normals from the analytic gradient
+//! (`isosurface` 0.0.4 through `extract_with_normals`, the alpha through
+//! `IndexedInterleavedNormals`; `fast-surface-nets` estimates normals by central differences).
+//! `isosurface-0.0.4/mc_positions` is the same marching cubes without normals (less work than
+//! the others). Every extractor and buffer that its authors mean to be reused is made once,
+//! outside the timed loop: the 0.0.4 `MarchingCubes` (it keeps two layers of samples) and the
+//! output vectors (cleared per run), `fast-surface-nets`' sample array and output buffer.
+//! All run on one thread. Before timing, the marching-cubes contenders' triangle counts are
+//! checked to agree within 2% (the same algorithm on the same samples; the extra layer is
+//! under 2% at 64³), and so are the vertex counts of those that share every edge's vertex
+//! (dynaclay welded and the alpha); 0.0.4's index cache shares only some edges, so it emits
+//! most vertices twice and its vertex count is printed, not compared.
+//! "dynaclay/culled" adds a Lipschitz bound so the octree skips empty space: it is the sparse
+//! path, not the like-for-like comparison.
 
 use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use dynaclay::field::BSplineLattice;
-use dynaclay::mesh::{BrickOctree, FnField, MeshStats, SampleGrid};
+use dynaclay::mesh::{BrickOctree, FnField, SampleGrid};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 use glam::Vec3;
@@ -25,6 +36,7 @@ use isosurface::distance::Signed;
 use isosurface::extractor::IndexedInterleavedNormals;
 use isosurface::sampler::Sampler;
 use isosurface::source::{HermiteSource, ScalarSource};
+use isosurface004::marching_cubes::MarchingCubes as MarchingCubes004;
 
 const CENTRE: Vec3 = Vec3::splat(0.5);
 const RADIUS: f32 = 0.4;
@@ -92,6 +104,43 @@ impl HermiteSource for IsoSource {
     }
 }
 
+/// The same field for `isosurface` 0.0.4 (negative inside).
+struct IsoSource004(Shape3);
+
+impl isosurface004::source::Source for IsoSource004 {
+    fn sample(&self, x: f32, y: f32, z: f32) -> f32 {
+        -self.0.value(Vec3::new(x, y, z))
+    }
+}
+
+impl isosurface004::source::HermiteSource for IsoSource004 {
+    fn sample_normal(&self, x: f32, y: f32, z: f32) -> isosurface004::math::Vec3 {
+        let n = -self.0.gradient(Vec3::new(x, y, z)).normalize_or_zero();
+        isosurface004::math::Vec3::new(n.x, n.y, n.z)
+    }
+}
+
+/// Vertex and triangle counts of one contender's mesh.
+#[derive(Clone, Copy, Debug)]
+struct Counts {
+    vertices: usize,
+    triangles: usize,
+}
+
+/// Panics unless `b`'s triangle count (and, with `vertices`, its vertex count) is within 2%
+/// of `a`'s.
+fn assert_counts_agree(what: &str, a: (&str, Counts), b: (&str, Counts), vertices: bool) {
+    let close = |x: usize, y: usize| (x as f64 - y as f64).abs() <= 0.02 * x.max(y) as f64;
+    assert!(
+        close(a.1.triangles, b.1.triangles) && (!vertices || close(a.1.vertices, b.1.vertices)),
+        "{what}: {} gives {:?} but {} gives {:?} (more than 2% apart)",
+        a.0,
+        a.1,
+        b.0,
+        b.1
+    );
+}
+
 fn full_extraction(c: &mut Criterion) {
     for shape in [Shape3::Sphere, Shape3::Gyroid] {
         let mut group = c.benchmark_group(format!("extract_{}", shape.name()));
@@ -111,6 +160,12 @@ fn full_extraction(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("dynaclay/welded", n), |b| {
                 b.iter(|| black_box(BrickOctree::build(grid, &field).weld()))
             });
+            group.bench_function(BenchmarkId::new("dynaclay/bricks_2_threads", n), |b| {
+                b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2)))
+            });
+            group.bench_function(BenchmarkId::new("dynaclay/welded_2_threads", n), |b| {
+                b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2).weld()))
+            });
             if let Shape3::Sphere = shape {
                 let culled = FnField {
                     lipschitz: Some(1.0),
@@ -120,22 +175,91 @@ fn full_extraction(c: &mut Criterion) {
                     b.iter(|| black_box(BrickOctree::build(grid, &culled).weld()))
                 });
             }
+            // Counts of each marching-cubes contender, checked before any timing.
+            let welded = BrickOctree::build(grid, &field).weld();
+            let ours = Counts {
+                vertices: welded.vertex_count(),
+                triangles: welded.triangle_count(),
+            };
             let source = IsoSource(shape);
-            group.bench_function(BenchmarkId::new("isosurface/mc", n), |b| {
+            let alpha = |vertices: &mut Vec<f32>, indices: &mut Vec<u32>| {
+                let sampler = Sampler::new(&source);
+                let mut out = IndexedInterleavedNormals::new(vertices, indices, &source);
+                MarchingCubes::<Signed>::new(n as usize + 1).extract(&sampler, &mut out);
+            };
+            let source004 = IsoSource004(shape);
+            let mut mc004 = MarchingCubes004::new(n as usize + 1);
+            let (mut vertices, mut indices) = (Vec::new(), Vec::new());
+            mc004.extract_with_normals(&source004, &mut vertices, &mut indices);
+            // Its index cache shares only some of the edges between cells, so it emits most
+            // vertices twice: only its triangles are compared.
+            let counts004 = Counts {
+                vertices: vertices.len() / 6,
+                triangles: indices.len() / 3,
+            };
+            vertices.clear();
+            indices.clear();
+            mc004.extract(&source004, &mut vertices, &mut indices);
+            let counts004_positions = Counts {
+                vertices: vertices.len() / 3,
+                triangles: indices.len() / 3,
+            };
+            let what = format!("{} {n}^3", shape.name());
+            println!("{what}: dynaclay welded {ours:?}, isosurface 0.0.4 {counts004:?}");
+            let ours = ("dynaclay/welded", ours);
+            assert_counts_agree(&what, ours, ("isosurface-0.0.4/mc", counts004), false);
+            assert_counts_agree(
+                &what,
+                ours,
+                ("isosurface-0.0.4/mc_positions", counts004_positions),
+                false,
+            );
+
+            group.bench_function(BenchmarkId::new("isosurface-0.0.4/mc", n), |b| {
                 b.iter(|| {
-                    let sampler = Sampler::new(&source);
-                    let (mut vertices, mut indices) = (Vec::new(), Vec::new());
-                    let mut out =
-                        IndexedInterleavedNormals::new(&mut vertices, &mut indices, &source);
-                    MarchingCubes::<Signed>::new(n as usize + 1).extract(&sampler, &mut out);
-                    black_box((vertices, indices))
+                    vertices.clear();
+                    indices.clear();
+                    mc004.extract_with_normals(&source004, &mut vertices, &mut indices);
+                    black_box((vertices.len(), indices.len()))
+                })
+            });
+            group.bench_function(BenchmarkId::new("isosurface-0.0.4/mc_positions", n), |b| {
+                b.iter(|| {
+                    vertices.clear();
+                    indices.clear();
+                    mc004.extract(&source004, &mut vertices, &mut indices);
+                    black_box((vertices.len(), indices.len()))
+                })
+            });
+            // The alpha's extractor borrows its output for one run, so it is made per run.
+            // Its counts are checked when it is first run (it is slow at 256³, so only when
+            // the filter selects it).
+            let mut alpha_checked = false;
+            group.bench_function(BenchmarkId::new("isosurface-alpha/mc", n), |b| {
+                if !alpha_checked {
+                    vertices.clear();
+                    indices.clear();
+                    alpha(&mut vertices, &mut indices);
+                    let counts = Counts {
+                        vertices: vertices.len() / 6,
+                        triangles: indices.len() / 3,
+                    };
+                    println!("{what}: isosurface alpha {counts:?}");
+                    assert_counts_agree(&what, ours, ("isosurface-alpha/mc", counts), true);
+                    alpha_checked = true;
+                }
+                b.iter(|| {
+                    vertices.clear();
+                    indices.clear();
+                    alpha(&mut vertices, &mut indices);
+                    black_box((vertices.len(), indices.len()))
                 })
             });
             let shape_nd = RuntimeShape::<u32, 3>::new([n + 1; 3]);
             group.bench_function(BenchmarkId::new("fast-surface-nets", n), |b| {
                 let mut buffer = SurfaceNetsBuffer::default();
+                let mut sdf = vec![0.0f32; shape_nd.usize()];
                 b.iter(|| {
-                    let mut sdf = vec![0.0f32; shape_nd.usize()];
                     for (i, s) in sdf.iter_mut().enumerate() {
                         let [x, y, z] = shape_nd.delinearize(i as u32);
                         *s = -shape.value(grid.point([x, y, z]));
@@ -212,53 +336,90 @@ fn local_remesh(c: &mut Criterion) {
     );
 }
 
-/// Resident and peak resident memory of this process, in bytes (Linux).
-fn rss_bytes() -> (usize, usize) {
+/// Peak resident memory of this process so far (`VmHWM`), in bytes (Linux).
+fn peak_rss_bytes() -> usize {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    let field = |name: &str| {
-        status
-            .lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_whitespace().nth(1))
-            .and_then(|kb| kb.parse::<usize>().ok())
-            .map_or(0, |kb| kb * 1024)
-    };
-    (field("VmRSS:"), field("VmHWM:"))
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<usize>().ok())
+        .map_or(0, |kb| kb * 1024)
 }
 
-fn memory_at_512() {
+/// The environment variable that makes this binary the child of [`memory_at_512`].
+const MEMORY_CHILD: &str = "DYNACLAY_MESH_BENCH_MEMORY_CHILD";
+
+/// Floor on the peak resident memory of the child that builds the 512³ sphere.
+const MEMORY_FLOOR_BYTES: usize = 200_000_000;
+
+/// In the child: builds the 512³ sphere's octree in a fresh process and prints its peak
+/// resident memory before and after the build, and what the octree says it holds.
+fn memory_child() {
     // 125 + 3 spans × 4 cells = 512 cells per axis; radius 56 spans = 224 voxels.
     let lattice = sphere_lattice(125, 56.0);
     let grid = SampleGrid::for_lattice(&lattice, 4).unwrap();
     assert_eq!(grid.cells, [512; 3]);
-    let (rss_before, _) = rss_bytes();
+    let peak_before = peak_rss_bytes();
     let start = Instant::now();
     let tree = BrickOctree::build(grid, &lattice);
     let seconds = start.elapsed().as_secs_f64();
-    let (rss_after, peak) = rss_bytes();
+    let peak_after_build = peak_rss_bytes();
     let m = tree.memory();
-    let stats = MeshStats::of(&tree.weld());
+    assert!(tree.triangle_count() > 0, "the 512^3 sphere has a surface");
     println!(
-        "sphere 512^3 (radius 224 voxels): {} bricks, {} triangles, chi {}, closed {}",
+        "sphere 512^3 (radius 224 voxels): {} bricks, {} triangles",
         tree.brick_count(),
         tree.triangle_count(),
-        stats.euler_characteristic,
-        stats.is_closed_manifold()
     );
     println!(
-        "  octree memory: samples {} B + meshes {} B + structure {} B = {} B ({:.1} MB); \
-         RSS grew {:.1} MB during the build (peak RSS {:.1} MB); one-shot build {seconds:.2} s",
+        "  child: peak RSS {:.1} MB before the build (lattice and binary), {:.1} MB after it; \
+         the octree's own estimate {:.1} MB (samples {} B + meshes {} B + structure {} B); \
+         one-shot build {seconds:.2} s",
+        peak_before as f64 / 1e6,
+        peak_after_build as f64 / 1e6,
+        m.total_bytes() as f64 / 1e6,
         m.sample_bytes,
         m.mesh_bytes,
         m.structure_bytes,
-        m.total_bytes(),
-        m.total_bytes() as f64 / 1e6,
-        (rss_after.saturating_sub(rss_before)) as f64 / 1e6,
+    );
+}
+
+/// Runs [`memory_child`] in a child process (this binary again) and checks its peak resident
+/// memory, as the kernel counts it for the waited-for child (`getrusage(RUSAGE_CHILDREN)`),
+/// against the floor. The child only builds (no welded copy), so the figure is the build's:
+/// the lattice, the binary and the octree with its transient scratch.
+fn memory_at_512() {
+    let exe = std::env::current_exe().expect("benchmark binary path");
+    let status = std::process::Command::new(exe)
+        .env(MEMORY_CHILD, "1")
+        .status()
+        .expect("memory child starts");
+    assert!(status.success(), "memory child failed: {status}");
+    // SAFETY: `getrusage` writes one `rusage` into the zeroed struct we own.
+    let usage = unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        assert_eq!(libc::getrusage(libc::RUSAGE_CHILDREN, &mut usage), 0);
+        usage
+    };
+    // Linux reports `ru_maxrss` in kilobytes.
+    let peak = usage.ru_maxrss as usize * 1024;
+    println!(
+        "  peak RSS of the child (getrusage RUSAGE_CHILDREN): {:.1} MB (floor {:.0} MB)",
         peak as f64 / 1e6,
+        MEMORY_FLOOR_BYTES as f64 / 1e6
+    );
+    assert!(
+        peak <= MEMORY_FLOOR_BYTES,
+        "building the 512^3 sphere peaks at {peak} B resident, over the {MEMORY_FLOOR_BYTES} B floor"
     );
 }
 
 fn main() {
+    if std::env::var_os(MEMORY_CHILD).is_some() {
+        memory_child();
+        return;
+    }
     memory_at_512();
     let mut c = Criterion::default().configure_from_args();
     local_remesh(&mut c);

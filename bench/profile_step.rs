@@ -1,6 +1,7 @@
 //! Profiling harness for the simulation step: `profile_step N M STEPS [THREADS]` runs one
 //! warm-up step and then STEPS steps at N³ coefficients / M³ mass points (the setup of
-//! `bench/core.rs`), printing the mean wall time per step. Meant for instruction counts, which
+//! `bench/core.rs`), printing the mean wall time per step, the mean time of each stage, and a checksum of the
+//! coefficients (equal before and after a change that must not alter the numbers). Meant for instruction counts, which
 //! do not depend on the machine's load:
 //! `cargo build --release --bench profile_step`, then
 //! `valgrind --tool=callgrind --toggle-collect='*Simulator*step*' target/release/deps/profile_step-* 32 32 25`
@@ -51,18 +52,36 @@ fn main() {
     let mut snap = RegionSnapshot::default();
     sim.step(&mut state, &mut lattice, &[force], &mut snap)
         .unwrap();
+    let mut stages = [0u64; 6];
     let t = std::time::Instant::now();
     for _ in 0..steps {
-        std::hint::black_box(
-            sim.step(&mut state, &mut lattice, &[force], &mut snap)
-                .is_ok(),
-        );
+        let ok = sim
+            .step(&mut state, &mut lattice, &[force], &mut snap)
+            .is_ok();
+        assert!(ok, "a step failed");
+        let l = sim.counters.last;
+        for (s, v) in stages.iter_mut().zip([
+            l.gather_forces_ns,
+            l.spring_forces_ns,
+            l.solve_accel_ns,
+            l.constrain_ns,
+            l.integrate_ns,
+            l.publish_ns,
+        ]) {
+            *s += v;
+        }
     }
     let el = t.elapsed();
-    let s: f32 = state.p.iter().sum();
+    let s: f64 = state.p.iter().map(|&v| f64::from(v)).sum();
+    let per = |v: u64| v as f64 / 1e3 / steps as f64;
     println!(
-        "{n}^3/{m}^3: {:.1} us/step  checksum {s}  {:?}",
+        "{n}^3/{m}^3 {threads} thread(s): {:.1} us/step  checksum {s:.9e}  stages us: gather {:.1} springs {:.1} solve {:.1} constrain {:.1} integrate {:.1} publish {:.1}",
         el.as_secs_f64() * 1e6 / steps as f64,
-        sim.counters.last
+        per(stages[0]),
+        per(stages[1]),
+        per(stages[2]),
+        per(stages[3]),
+        per(stages[4]),
+        per(stages[5]),
     );
 }

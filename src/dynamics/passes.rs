@@ -154,7 +154,7 @@ pub(crate) fn springs_six(
             d_dot: f.d_dot,
         };
         // SAFETY: each part writes only the rows of its own planes.
-        unsafe { six_forces(&inputs, planes, &out) };
+        unsafe { six_forces(&inputs, planes, &out, 0) };
     });
 }
 
@@ -189,6 +189,117 @@ pub(crate) fn project(
     team.run(&|part, barrier| {
         let planes = split_range(sy.outer, parts, part, 1);
         planes_xy(&ops, &[sx, sy], force, planes, &t1, &t2);
+        barrier.wait();
+        // SAFETY: after the barrier nobody writes t2.
+        let t2 = unsafe { t2.slice(0..t2.len()) };
+        let cols = split_range(sz.inner, parts, part, LANES);
+        // SAFETY: `split_range` gives each part disjoint columns of `out`, written by this
+        // part alone; `t2` is a different buffer, read only after the barrier.
+        unsafe { sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out) };
+        for row in 0..out.len() / sz.inner.max(1) {
+            let base = row * sz.inner;
+            // SAFETY: these columns were written by this part alone.
+            let seg = unsafe { out.slice(base + cols.start..base + cols.end) };
+            result.merge(part, max_abs(seg));
+        }
+    });
+    result.result()
+}
+
+/// The springs fused into the projection: `accel = scale · (AᵀA)⁻¹ Aᵀ force` with
+/// `force = external + six-neighbour springs − damping · ḋ` made one plane at a time, into a
+/// plane-sized buffer per thread that the x pass reads at once, instead of a whole force
+/// array written by one pass and read back by the next. Returns `(max |accel|, all finite)`.
+/// Bit-identical to [`springs_six`] followed by [`project`].
+#[allow(clippy::too_many_arguments)] // the spring fields, their scratch and the projection's
+pub(crate) fn springs_project(
+    team: &mut Team,
+    f: &SpringFields<'_>,
+    (e_pad, k_pad): (&mut [f32], &mut [f32]),
+    plane_buf: &mut [f32],
+    basis: &KroneckerBasis,
+    scale: f32,
+    scratch: ChainScratch<'_>,
+    accel: &mut [f32],
+) -> (f32, bool) {
+    let parts = team.threads();
+    let [mx, my, mz] = f.dims;
+    let ops = [
+        basis.op_project(0, 1.0),
+        basis.op_project(1, 1.0),
+        basis.op_project(2, scale),
+    ];
+    let [sx, sy, sz] = basis.pass_shapes(&ops);
+    assert_eq!(sy.outer, mz, "the projection's planes are the mass grid's");
+    let plane_len = mx * my;
+    let (ep, kp) = (SharedOut::new(e_pad), SharedOut::new(k_pad));
+    let (t1, t2, out, planes_out) = (
+        SharedOut::new(&mut scratch.t1[..sx.out_len]),
+        SharedOut::new(&mut scratch.t2[..sy.out_len]),
+        SharedOut::new(accel),
+        SharedOut::new(&mut plane_buf[..2 * plane_len]),
+    );
+    let uniform_k = uniform_value(f.stiffness);
+    let result = PartMax::new();
+    let lines_per_plane = sx.lines / mz.max(1);
+    let t1_plane = sx.out_len / mz.max(1);
+    let t2_plane = sy.out_len / mz.max(1);
+    let rows = [&ops[0], &ops[1]].map(|o| o.rows_in().max(o.rows_out()));
+    team.run(&|part, barrier| {
+        let planes = split_range(mz, parts, part, 1);
+        let k_copy = if uniform_k.is_some() { None } else { Some(&kp) };
+        // SAFETY: each part fills only the rows of its own planes.
+        unsafe {
+            six_pads(
+                f.dims,
+                f.d,
+                f.rest,
+                f.stiffness,
+                planes.clone(),
+                &ep,
+                k_copy,
+            );
+        }
+        barrier.wait();
+        // SAFETY: after the barrier nobody writes the padded copies.
+        let (e_pad, k_pad) = unsafe { (ep.slice(0..ep.len()), kp.slice(0..kp.len())) };
+        let inputs = SixInputs {
+            dims: f.dims,
+            uniform_k,
+            e_pad,
+            k_pad,
+            zeros: f.zeros,
+            external: f.external,
+            damping: f.damping,
+            d_dot: f.d_dot,
+        };
+        let mine = planes_out.sub(part * plane_len..(part + 1) * plane_len);
+        with_blocks(rows[0].max(rows[1]), |blocks| {
+            for k in planes {
+                // SAFETY: this part's plane buffer is written by this part alone, and row
+                // `r` of plane k lands at `r − k · plane_len`, inside it.
+                unsafe { six_forces(&inputs, k..k + 1, &mine, k * plane_len) };
+                // SAFETY: written just above by this part; nobody else touches it.
+                let force = unsafe { mine.slice(0..plane_len) };
+                let t1k = t1.sub(k * t1_plane..(k + 1) * t1_plane);
+                // SAFETY: plane k is this part's, so t1k is written by this part alone.
+                unsafe { sweep_x_with(blocks, &ops[0], force, 0..lines_per_plane, &t1k) };
+                // SAFETY: this part wrote this plane of t1 and nobody else touches it.
+                let src = unsafe { t1k.slice(0..t1k.len()) };
+                // SAFETY: this plane of t2 belongs to this part; `src` lies in t1.
+                unsafe {
+                    sweep_strided_with(
+                        blocks,
+                        &ops[1],
+                        src,
+                        sy.inner,
+                        0..1,
+                        0..sy.inner,
+                        &t2.sub(k * t2_plane..(k + 1) * t2_plane),
+                    );
+                }
+            }
+        });
         barrier.wait();
         // SAFETY: after the barrier nobody writes t2.
         let t2 = unsafe { t2.slice(0..t2.len()) };

@@ -70,6 +70,10 @@ pub struct Simulator {
     external_dirty: std::ops::Range<usize>,
     /// Total force per mass point (external, springs, damping).
     force: Vec<f32>,
+    /// The distribution weights of one tool force over its box of mass points.
+    weights: Vec<f32>,
+    /// One plane of total forces per thread (the springs fused into the projection).
+    plane_buf: Vec<f32>,
     e: Vec<f32>,
     e_pad: Vec<f32>,
     k_pad: Vec<f32>,
@@ -85,6 +89,81 @@ pub struct Simulator {
     t1: Vec<f32>,
     t2: Vec<f32>,
     team: Team,
+    /// One thread or two for the next step.
+    choice: ThreadChoice,
+    /// Split every step over the helper when there is one, whatever the size (tests).
+    always_split: bool,
+}
+
+/// Regions smaller than this many mass points always step on one thread: the hand-offs
+/// between passes cost more than the second core gives (32³ mass points: 330 µs on two
+/// threads against 202 µs on one, measured quietly).
+const MIN_POINTS_FOR_TWO: usize = 40_000;
+/// Steps timed when choosing (alternately one and two threads).
+const PROBE_STEPS: u32 = 16;
+/// Steps between two choices for the same region size.
+const REPROBE_EVERY: u32 = 4096;
+
+/// Whether the next step runs on one thread or two, chosen per region size by timing: the
+/// fastest of a few steps on each, re-checked every [`REPROBE_EVERY`] steps. Both give
+/// bit-identical results, so the choice changes only the time.
+#[derive(Debug, Default)]
+struct ThreadChoice {
+    /// Mass points of the region the choice is for.
+    points: usize,
+    /// Fastest step seen on one and on two threads during the current probe.
+    best_ns: [u64; 2],
+    /// Probe steps still to time.
+    probe_left: u32,
+    /// The choice (or, while probing, the thread count of the step being timed).
+    two: bool,
+    steps_since_probe: u32,
+}
+
+impl ThreadChoice {
+    /// Whether the next step on a region of `points` mass points runs on one thread.
+    fn solo(&mut self, points: usize, has_helper: bool, always_split: bool) -> bool {
+        if !has_helper {
+            return true;
+        }
+        if always_split {
+            return false;
+        }
+        if points < MIN_POINTS_FOR_TWO {
+            self.points = points;
+            self.probe_left = 0;
+            return true;
+        }
+        if points != self.points
+            || (self.probe_left == 0 && self.steps_since_probe >= REPROBE_EVERY)
+        {
+            self.points = points;
+            self.best_ns = [u64::MAX; 2];
+            self.probe_left = PROBE_STEPS;
+            self.steps_since_probe = 0;
+        }
+        if self.probe_left > 0 {
+            self.two = self.probe_left.is_multiple_of(2);
+        }
+        !self.two
+    }
+
+    /// Record how long the step chosen by [`ThreadChoice::solo`] took.
+    fn record(&mut self, ns: u64) {
+        if self.points < MIN_POINTS_FOR_TWO {
+            return;
+        }
+        if self.probe_left == 0 {
+            self.steps_since_probe = self.steps_since_probe.saturating_add(1);
+            return;
+        }
+        let best = &mut self.best_ns[usize::from(self.two)];
+        *best = (*best).min(ns);
+        self.probe_left -= 1;
+        if self.probe_left == 0 {
+            self.two = self.best_ns[1] < self.best_ns[0];
+        }
+    }
 }
 
 fn fit(v: &mut Vec<f32>, len: usize) {
@@ -115,6 +194,7 @@ impl Simulator {
         for v in [
             &mut self.external,
             &mut self.force,
+            &mut self.weights,
             &mut self.e,
             &mut self.tmp,
         ] {
@@ -135,6 +215,7 @@ impl Simulator {
         fit(&mut self.e_pad, padded);
         fit(&mut self.k_pad, padded);
         fit(&mut self.zeros, mx);
+        fit(&mut self.plane_buf, 2 * mx * my);
         let need = scratch_len(&state.basis);
         fit(&mut self.t1, need);
         fit(&mut self.t2, need);
@@ -173,7 +254,7 @@ impl Simulator {
         state: &mut RegionState,
         lattice: &mut BSplineLattice,
         forces: &[ToolForce],
-        mut constraints: Option<&mut ConstraintSolver>,
+        constraints: Option<&mut ConstraintSolver>,
         snapshot: &mut RegionSnapshot,
     ) -> Result<StepReport, StepError> {
         if !state.coeff_box().fits(lattice.dims) {
@@ -181,19 +262,49 @@ impl Simulator {
             return Err(StepError::RegionMismatch);
         }
         self.ensure_scratch(state);
+        let started = Instant::now();
+        let solo = self
+            .choice
+            .solo(state.d.len(), self.team.has_helper(), self.always_split);
+        self.team.set_solo(solo);
+        let result = self.step_on_team(state, lattice, forces, constraints, snapshot);
+        self.choice.record(elapsed_ns(started));
+        result
+    }
+
+    /// [`Simulator::step_constrained`] on the team as chosen.
+    fn step_on_team(
+        &mut self,
+        state: &mut RegionState,
+        lattice: &mut BSplineLattice,
+        forces: &[ToolForce],
+        mut constraints: Option<&mut ConstraintSolver>,
+        snapshot: &mut RegionSnapshot,
+    ) -> Result<StepReport, StepError> {
         let mut times = StageTimes::default();
 
         let t = Instant::now();
         self.gather_forces(state, lattice, forces);
         times.gather_forces_ns = elapsed_ns(t);
 
-        let t = Instant::now();
-        self.spring_forces(state);
-        times.spring_forces_ns = elapsed_ns(t);
-
-        let t = Instant::now();
-        let solved = self.solve_accel(state);
-        times.solve_accel_ns = elapsed_ns(t);
+        let fused = self.params.neighbourhood == Neighbourhood::Six
+            && self.params.solver == AccelSolver::Auto
+            && state.mass_is_uniform();
+        let solved = if fused {
+            // The springs are made inside the projection; their time is in `solve_accel`.
+            let t = Instant::now();
+            let solved = self.springs_and_solve(state);
+            times.solve_accel_ns = elapsed_ns(t);
+            solved
+        } else {
+            let t = Instant::now();
+            self.spring_forces(state);
+            times.spring_forces_ns = elapsed_ns(t);
+            let t = Instant::now();
+            let solved = self.solve_accel(state);
+            times.solve_accel_ns = elapsed_ns(t);
+            solved
+        };
         let (max_accel, cg_iterations) = match solved {
             Ok(v) => v,
             Err(e) => {
@@ -307,34 +418,44 @@ impl Simulator {
             if empty {
                 continue;
             }
+            // Two passes over the box: the weights and their total, then the scaled forces
+            // from the weights kept in the first (the box has at most one weight per point).
             let mut total = 0.0_f32;
-            for pass in 0..2 {
-                let scale = if pass == 1 { f / total } else { 0.0 };
-                for k in range[2].0..=range[2].1 {
-                    for j in range[1].0..=range[1].1 {
-                        for i in range[0].0..=range[0].1 {
-                            let x = grid.position(lattice, i, j, k);
-                            let w = tf.distribution.weight(x, tf.start, tf.end, tf.radius);
-                            if w == 0.0 {
-                                continue;
-                            }
-                            if pass == 0 {
-                                total += w;
-                            } else {
-                                let at = state.point_index(i, j, k);
-                                self.external[at] += scale * w;
-                                let d = &mut self.external_dirty;
-                                (d.start, d.end) = if d.start >= d.end {
-                                    (at, at + 1)
-                                } else {
-                                    (d.start.min(at), d.end.max(at + 1))
-                                };
-                            }
+            let mut at_weight = 0;
+            for k in range[2].0..=range[2].1 {
+                for j in range[1].0..=range[1].1 {
+                    for i in range[0].0..=range[0].1 {
+                        let x = grid.position(lattice, i, j, k);
+                        let w = tf.distribution.weight(x, tf.start, tf.end, tf.radius);
+                        self.weights[at_weight] = w;
+                        at_weight += 1;
+                        if w != 0.0 {
+                            total += w;
                         }
                     }
                 }
-                if pass == 0 && total <= 0.0 {
-                    break;
+            }
+            if total <= 0.0 {
+                continue;
+            }
+            let scale = f / total;
+            let mut weights = self.weights.iter();
+            for k in range[2].0..=range[2].1 {
+                for j in range[1].0..=range[1].1 {
+                    for i in range[0].0..=range[0].1 {
+                        let w = *weights.next().unwrap_or(&0.0);
+                        if w == 0.0 {
+                            continue;
+                        }
+                        let at = state.point_index(i, j, k);
+                        self.external[at] += scale * w;
+                        let d = &mut self.external_dirty;
+                        (d.start, d.end) = if d.start >= d.end {
+                            (at, at + 1)
+                        } else {
+                            (d.start.min(at), d.end.max(at + 1))
+                        };
+                    }
                 }
             }
         }
@@ -377,6 +498,47 @@ impl Simulator {
         for ((f, &g), &v) in self.force.iter_mut().zip(&state.damping).zip(&state.d_dot) {
             *f -= g * v;
         }
+    }
+
+    /// Stages 2 and 3 fused, for the six-neighbour springs and a uniform mass: the total
+    /// force is made plane by plane inside the projection `p̈ = (AᵀA)⁻¹ Aᵀ f / μ` and never
+    /// stored whole. Bit-identical to [`Simulator::spring_forces`] then
+    /// [`Simulator::solve_accel`]. Returns `max|p̈|` and 0 CG iterations.
+    ///
+    /// # Errors
+    /// When `p̈` is not finite.
+    fn springs_and_solve(&mut self, state: &RegionState) -> Result<(f32, u32), StepError> {
+        self.ensure_scratch(state);
+        let fields = SpringFields {
+            dims: state.grid.dims,
+            d: &state.d,
+            rest: &state.rest,
+            stiffness: &state.stiffness,
+            damping: &state.damping,
+            d_dot: &state.d_dot,
+            external: &self.external,
+            zeros: &self.zeros,
+        };
+        let mu = state.mass.first().copied().unwrap_or(1.0);
+        let (max, finite) = passes::springs_project(
+            &mut self.team,
+            &fields,
+            (&mut self.e_pad, &mut self.k_pad),
+            &mut self.plane_buf,
+            &state.basis,
+            1.0 / mu,
+            ChainScratch {
+                t1: &mut self.t1,
+                t2: &mut self.t2,
+            },
+            &mut self.accel,
+        );
+        if !finite {
+            return Err(StepError::NonFinite {
+                stage: "solve_accel",
+            });
+        }
+        Ok((max, 0))
     }
 
     /// Stage 3: `p̈ = (AᵀMA)⁻¹ Aᵀ f`. Returns `max|p̈|` and the CG iteration count. With a
@@ -946,6 +1108,82 @@ mod tests {
     }
 
     #[test]
+    fn small_regions_step_on_one_thread_and_large_ones_on_the_faster_count() {
+        let mut c = ThreadChoice::default();
+        assert!(c.solo(1000, true, false), "a small region runs alone");
+        assert!(!c.solo(1000, true, true), "unless splitting is forced");
+        assert!(c.solo(1_000_000, false, false), "no helper, one thread");
+        // A large region: alternate while probing, then keep the faster count.
+        for fast_two in [true, false] {
+            let mut c = ThreadChoice::default();
+            let mut seen = [0, 0];
+            for _ in 0..PROBE_STEPS {
+                let solo = c.solo(100_000, true, false);
+                seen[usize::from(!solo)] += 1;
+                c.record(if solo == fast_two { 2_000 } else { 1_000 });
+            }
+            assert_eq!(seen, [PROBE_STEPS / 2; 2]);
+            for _ in 0..10 {
+                assert_eq!(c.solo(100_000, true, false), !fast_two);
+                c.record(5_000);
+            }
+        }
+        // The choice is timed again after REPROBE_EVERY steps.
+        let mut c = ThreadChoice::default();
+        let mut counts = [0, 0];
+        for _ in 0..(PROBE_STEPS + REPROBE_EVERY + PROBE_STEPS) {
+            let solo = c.solo(100_000, true, false);
+            counts[usize::from(!solo)] += 1;
+            c.record(if solo { 2_000 } else { 1_000 });
+        }
+        assert_eq!(counts[0], PROBE_STEPS, "one thread only while probing");
+    }
+
+    #[test]
+    fn springs_fused_into_the_projection_give_bit_identical_accelerations() {
+        let lattice = sphere();
+        for (mass_dims, uniform_k) in [([15, 15, 15], true), ([15, 11, 9], false)] {
+            let b = CoeffBox {
+                min: [10, 6, 6],
+                max: [17, 13, 13],
+            };
+            let mut state = RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+            for (n, d) in state.d.iter_mut().enumerate() {
+                *d += 0.05 * ((n * 7 % 11) as f32 / 11.0 - 0.5);
+            }
+            for (n, v) in state.d_dot.iter_mut().enumerate() {
+                *v = 0.01 * ((n * 5 % 7) as f32 - 3.0);
+            }
+            if !uniform_k {
+                for (n, k) in state.stiffness.iter_mut().enumerate() {
+                    *k *= 1.0 + 0.1 * (n % 3) as f32;
+                }
+            }
+            let force = grab(&lattice, CENTRE + Vec3::new(0.6, 0.1, 0.0), GAIN).unwrap();
+            let mut accels = Vec::new();
+            for threads in [1, 2] {
+                let mut sim = Simulator::new(StepParams {
+                    threads,
+                    ..StepParams::default()
+                });
+                sim.always_split = true;
+                sim.ensure_scratch(&state);
+                sim.gather_forces(&state, &lattice, &[force]);
+                sim.spring_forces(&state);
+                let apart = sim.solve_accel(&state).unwrap();
+                let want = sim.last_accel().to_vec();
+                sim.accel.fill(f32::NAN);
+                let fused = sim.springs_and_solve(&state).unwrap();
+                assert_eq!(apart.0.to_bits(), fused.0.to_bits());
+                let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&want), bits(sim.last_accel()), "{mass_dims:?}");
+                accels.push(bits(&want));
+            }
+            assert_eq!(accels[0], accels[1]);
+        }
+    }
+
+    #[test]
     fn two_threads_give_bit_identical_steps() {
         for (mass_dims, integrator, neighbourhood) in [
             ([15, 15, 15], Integrator::SemiImplicit, Neighbourhood::Six),
@@ -968,6 +1206,8 @@ mod tests {
                     resync_every: 7,
                     ..StepParams::default()
                 });
+                // These regions are below the size where a step chooses two threads.
+                sim.always_split = true;
                 let mut snap = RegionSnapshot::default();
                 let cursor = CENTRE + Vec3::new(0.6, 0.1, 0.0);
                 for _ in 0..40 {

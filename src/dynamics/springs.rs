@@ -263,11 +263,17 @@ fn six_point(
     out[i] = ext[i] + 0.5 * acc - g[i] * v[i];
 }
 
-/// `force = external + springs − damping · ḋ` for the rows of `planes`.
+/// `force = external + springs − damping · ḋ` for the rows of `planes`. The point at flat
+/// index `i` is written at `i − base` of `force` (a buffer that holds only some planes).
 ///
 /// # Safety
 /// No other thread may access the rows of `planes` in `force` meanwhile.
-pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force: &SharedOut<'_>) {
+pub(crate) unsafe fn six_forces(
+    inp: &SixInputs<'_>,
+    planes: Range<usize>,
+    force: &SharedOut<'_>,
+    base: usize,
+) {
     let [mx, my, mz] = inp.dims;
     let s = padded_row(mx);
     let plane = s * my;
@@ -297,7 +303,7 @@ pub(crate) unsafe fn six_forces(inp: &SixInputs<'_>, planes: Range<usize>, force
             &inp.d_dot[flat.clone()],
         );
         // SAFETY: this row is ours by the caller's contract.
-        let out = unsafe { force.slice_mut(flat) };
+        let out = unsafe { force.slice_mut(flat.start - base..flat.end - base) };
         assert!(
             rows.iter().all(|(e, k)| e.len() >= mx && k.len() >= mx)
                 && ec.len() >= mx + 2
@@ -439,7 +445,7 @@ mod tests {
                 d_dot: &d_dot,
             };
             // SAFETY: one thread.
-            unsafe { six_forces(&inputs, 0..dims[2], &SharedOut::new(&mut got)) };
+            unsafe { six_forces(&inputs, 0..dims[2], &SharedOut::new(&mut got), 0) };
             for (i, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert!((g - w).abs() < 1e-5, "{dims:?} point {i}: {g} vs {w}");
             }

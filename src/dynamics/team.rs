@@ -85,6 +85,9 @@ unsafe impl Send for Shared {}
 #[derive(Default)]
 pub(crate) struct Team {
     helper: Option<(Arc<Shared>, JoinHandle<()>)>,
+    /// Run jobs on the caller alone although a helper exists (a job too small to pay for the
+    /// hand-offs); the helper stays alive, so switching back costs nothing.
+    solo: bool,
 }
 
 impl std::fmt::Debug for Team {
@@ -98,14 +101,26 @@ impl std::fmt::Debug for Team {
 impl Team {
     /// Threads that run a job: 1, or 2 with a helper.
     pub(crate) fn threads(&self) -> usize {
-        1 + usize::from(self.helper.is_some())
+        1 + usize::from(self.helper.is_some() && !self.solo)
+    }
+
+    /// Whether a helper thread exists (whatever [`Team::set_solo`] says).
+    pub(crate) fn has_helper(&self) -> bool {
+        self.helper.is_some()
+    }
+
+    /// Run the next jobs on the caller alone (`true`) or split with the helper (`false`,
+    /// when there is one). Every pass splits its work so that the results are bit-identical
+    /// either way.
+    pub(crate) fn set_solo(&mut self, solo: bool) {
+        self.solo = solo;
     }
 
     /// Have `threads.clamp(1, 2)` threads run jobs from now on, starting or stopping the
     /// helper. Falls back to one thread when the helper cannot be spawned.
     pub(crate) fn resize(&mut self, threads: usize) {
         let want = threads.clamp(1, 2);
-        if want == self.threads() {
+        if want == 1 + usize::from(self.helper.is_some()) {
             return;
         }
         if want == 1 {
@@ -140,7 +155,7 @@ impl Team {
     /// # Panics
     /// When either half panicked.
     pub(crate) fn run(&mut self, job: &Job<'_>) {
-        let Some((shared, handle)) = &self.helper else {
+        let Some((shared, handle)) = self.helper.as_ref().filter(|_| !self.solo) else {
             job(0, &Barrier::default());
             return;
         };
@@ -255,6 +270,16 @@ mod tests {
                 barrier.wait();
             });
         }
+        team.set_solo(true);
+        assert_eq!(team.threads(), 1);
+        let parts = AtomicUsize::new(0);
+        team.run(&|part, barrier| {
+            barrier.wait();
+            parts.fetch_add(part + 1, Ordering::Relaxed);
+        });
+        assert_eq!(parts.load(Ordering::Relaxed), 1, "only the caller ran");
+        team.set_solo(false);
+        assert_eq!(team.threads(), 2);
         team.resize(1);
         assert_eq!(team.threads(), 1);
     }

@@ -252,6 +252,8 @@ fn gather_block(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
     match band.taps {
         3 => gather_fixed::<3>(band, input, out),
         4 => gather_fixed::<4>(band, input, out),
+        // `Bᵀ` with two mass points per knot span (the engine's regions).
+        7 => gather_fixed::<7>(band, input, out),
         taps => {
             for ((dst, &s), w) in out
                 .iter_mut()
@@ -284,24 +286,29 @@ fn solve_block(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
 fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
     let n = plan.len();
     let x = &mut x[..n + 2 * PAD];
+    // The last three rows solved are carried in registers (a store and reload per row would
+    // put the store-forwarding latency on the recurrence), and the row just solved enters
+    // last, so the critical path is one multiply, one subtract and the scaling.
+    let (mut a0, mut a1, mut a2) = (x[0], x[1], x[2]);
     for (o, (l, &inv)) in plan.lower.iter().zip(&plan.inv_diag).enumerate() {
-        let w: &mut [Lanes; 4] = (&mut x[o..o + 4]).try_into().expect("window in range");
+        let b = &mut x[o + PAD];
         let mut v = [0.0; LANES];
         for e in 0..LANES {
-            let b = if SCALED { scale * w[3][e] } else { w[3][e] };
-            v[e] = (b - l[0] * w[2][e] - l[1] * w[1][e] - l[2] * w[0][e]) * inv;
+            let b = if SCALED { scale * b[e] } else { b[e] };
+            v[e] = ((b - l[2] * a0[e]) - l[1] * a1[e] - l[0] * a2[e]) * inv;
         }
-        w[3] = v;
+        *b = v;
+        (a0, a1, a2) = (a1, a2, v);
     }
+    let (mut c1, mut c2, mut c3) = (x[n + PAD], x[n + PAD + 1], x[n + PAD + 2]);
     for (o, (u, &inv)) in plan.upper.iter().zip(&plan.inv_diag).enumerate().rev() {
-        let w: &mut [Lanes; 4] = (&mut x[o + PAD..o + PAD + 4])
-            .try_into()
-            .expect("window in range");
+        let w = &mut x[o + PAD];
         let mut v = [0.0; LANES];
         for e in 0..LANES {
-            v[e] = (w[0][e] - u[0] * w[1][e] - u[1] * w[2][e] - u[2] * w[3][e]) * inv;
+            v[e] = ((w[e] - u[2] * c3[e]) - u[1] * c2[e] - u[0] * c1[e]) * inv;
         }
-        w[0] = v;
+        *w = v;
+        (c1, c2, c3) = (v, c1, c2);
     }
 }
 

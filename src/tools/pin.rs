@@ -334,12 +334,19 @@ mod tests {
 
     #[test]
     fn a_pin_far_from_the_surface_or_outside_the_clay_is_refused_by_name() {
-        let mut clay = ball();
-        // The centre of the ball is 4 knot spans deep: farther than the reach.
-        let deep = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(0.95)))
+        // The centre of a ball of radius 0.7 is 7 knot spans deep: well beyond the reach of
+        // 4 (the test ball's centre, 4 spans deep, sits on the reach itself).
+        let big = Primitive::Sphere {
+            centre: Vec3::splat(0.95),
+            radius: 0.7,
+        };
+        let mut deep_clay =
+            Clay::single(lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &big, 0.2, 2).unwrap());
+        let deep = add_pins(&mut deep_clay, &PinRequest::Point(Vec3::splat(0.95)))
             .unwrap_err()
             .to_string();
         assert!(deep.contains("no surface found"), "{deep}");
+        let mut clay = ball();
         let outside = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(40.0)))
             .unwrap_err()
             .to_string();
