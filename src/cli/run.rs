@@ -12,6 +12,7 @@ use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::args::RunArgs;
 use super::outputs::{ExtraOutputs, RunOutputs, write_outputs};
+use super::platform::{PlatformWatch, RUN_PROBE_EACH};
 use crate::engine::{
     Engine, EngineConfig, EngineError, HeadlessSink, IoReport, Lockstep, ScriptDriver, ScriptPlan,
     build_clay, builtin_script,
@@ -215,6 +216,13 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         Instant::now(),
     );
 
+    // The platform probe, short, before the loops and after them: the machine's side of the
+    // latency report and the readiness verdict.
+    let mut watch = PlatformWatch::before(
+        config.haptic_rate_hz,
+        RUN_PROBE_EACH,
+        config.haptic_rt_priority,
+    )?;
     let engine = Engine::start_with(
         &config,
         field,
@@ -240,6 +248,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let mut driver = ScriptDriver::new(&plan);
     let commands = engine.commands();
     let mut engine = engine;
+    watch.loops_running();
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs_f64(seconds) && engine.is_alive() {
         let sample = engine.latest_tool();
@@ -247,8 +256,12 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         std::thread::sleep(Duration::from_millis(2));
     }
     drop(commands);
+    let cpu_busy = watch.loops_stopping();
     let report = engine.stop().map_err(CliError::Engine)?;
-    let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
+    let summaries = report.loops.iter().map(|r| r.summary()).collect();
+    let judged = watch.after(summaries, rt, cpu_busy)?;
+    say!("{}", judged.headline());
+    let outputs = write_outputs(&args.out, &report, &config, &extras(args), Some(&judged))?;
     say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
     finish_run(&session_path, &mut driver, &report.io)?;
