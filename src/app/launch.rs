@@ -174,6 +174,10 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     }
     let options = GuiOptions {
         session_path: session_path.display().to_string(),
+        probe_at_start: Some(super::probe_panel::ProbeSettings {
+            rate_hz: config.haptic_rate_hz,
+            rt_priority: config.haptic_rt_priority,
+        }),
         ..GuiOptions::default()
     };
     let shown = run_gui(options, link, pointer);

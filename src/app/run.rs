@@ -12,6 +12,8 @@ pub struct GuiOptions {
     pub window_size_pt: [f32; 2],
     /// The session path the top bar starts with (Save and Load use it).
     pub session_path: String,
+    /// Probe the machine at start, imitating the haptic loop with these settings.
+    pub probe_at_start: Option<super::probe_panel::ProbeSettings>,
 }
 
 impl Default for GuiOptions {
@@ -20,6 +22,7 @@ impl Default for GuiOptions {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
             session_path: super::launch::DEFAULT_SESSION.into(),
+            probe_at_start: None,
         }
     }
 }
@@ -62,6 +65,9 @@ pub fn run_gui(
         app.pointer = pointer;
     }
     app.files.session.clone_from(&options.session_path);
+    if let Some(settings) = options.probe_at_start {
+        app.probe = super::probe_panel::ProbePanel::probing_at_start(settings);
+    }
     eframe::run_native(
         &options.title,
         native,
