@@ -315,7 +315,10 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
     };
     h.state_mut()
         .probe
-        .finish(Ok(super::probe_panel::judge(summary, Some(0.1))));
+        .finish(Ok(super::probe_panel::ProbeOutcome::before_engine(
+            &summary,
+            Some(0.1),
+        )));
     h.run();
     assert!(h.query_by_label("not probed yet").is_none());
     h.get_by_label("wake-up p99 3.0 µs, p99.9 30.0 µs, max 120.0 µs");
@@ -323,13 +326,32 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
     h.get_by_label_contains("1000 Hz: ");
     h.get_by_label_contains("4000 Hz: ");
 
+    h.get_by_label_contains("before the engine started");
+
+    // A probe beside the engine keeps the stalls counted at launch and says so.
+    let stalls = h.state().probe.last.as_ref().and_then(|(_, o)| o.stalls);
+    let mut later = wakeup;
+    later.lateness.p99_us = 5.0;
+    h.state_mut().probe.finish(Ok(super::probe_panel::judge(
+        dynaclay_loops::RtOutcome::Granted { priority: 79 },
+        later,
+        stalls,
+        true,
+        None,
+    )));
+    h.run();
+    h.get_by_label("wake-up p99 5.0 µs, p99.9 30.0 µs, max 120.0 µs");
+    h.get_by_label("host stalls: 7 gaps, 2.50 ms/s, worst 400 µs");
+    h.get_by_label("(stalls counted at launch, before the engine started)");
+    h.get_by_label_contains("beside the engine");
+
     // A failed probe says why and keeps the last figures.
     h.state_mut()
         .probe
         .finish(Err("cannot run the platform probe: test".into()));
     h.run();
     h.get_by_label("cannot run the platform probe: test");
-    h.get_by_label("wake-up p99 3.0 µs, p99.9 30.0 µs, max 120.0 µs");
+    h.get_by_label("wake-up p99 5.0 µs, p99.9 30.0 µs, max 120.0 µs");
 }
 
 #[test]

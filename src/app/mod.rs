@@ -35,7 +35,7 @@ pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
-pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, judge};
+pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
 pub use run::{GuiError, GuiOptions, run_gui};
 pub use state::{DisplaySettings, FilePaths, SculptApp};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};

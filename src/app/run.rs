@@ -12,8 +12,10 @@ pub struct GuiOptions {
     pub window_size_pt: [f32; 2],
     /// The session path the top bar starts with (Save and Load use it).
     pub session_path: String,
-    /// Probe the machine at start, imitating the haptic loop with these settings.
-    pub probe_at_start: Option<super::probe_panel::ProbeSettings>,
+    /// The haptic loop's rate and priority, which the latency panel's probe imitates.
+    pub probe_settings: super::probe_panel::ProbeSettings,
+    /// The probe run at launch, before the engine started.
+    pub probe_at_start: Option<super::probe_panel::ProbeOutcome>,
 }
 
 impl Default for GuiOptions {
@@ -22,6 +24,7 @@ impl Default for GuiOptions {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
             session_path: super::launch::DEFAULT_SESSION.into(),
+            probe_settings: super::probe_panel::ProbeSettings::default(),
             probe_at_start: None,
         }
     }
@@ -65,9 +68,8 @@ pub fn run_gui(
         app.pointer = pointer;
     }
     app.files.session.clone_from(&options.session_path);
-    if let Some(settings) = options.probe_at_start {
-        app.probe = super::probe_panel::ProbePanel::probing_at_start(settings);
-    }
+    app.probe =
+        super::probe_panel::ProbePanel::new(options.probe_settings, options.probe_at_start.clone());
     eframe::run_native(
         &options.title,
         native,
