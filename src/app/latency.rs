@@ -15,8 +15,8 @@ use std::collections::VecDeque;
 
 use dynaclay_loops::{LatencyStats, LogBins};
 use egui_plot::{
-    Bar, BarChart, GridInput, GridMark, HLine, HoverPosition, Legend, Line, Plot, PlotPoint,
-    Points, VLine,
+    Axis, AxisHints, Bar, BarChart, GridInput, GridMark, HLine, HoverPosition, Line, Plot,
+    PlotPoint, Points, VLine,
 };
 
 use super::view::LoopId;
@@ -105,7 +105,8 @@ fn hover_point(pos: &HoverPosition<'_>) -> PlotPoint {
     }
 }
 
-/// Grid marks at every whole number (every decade, on a log₁₀ axis) inside the bounds.
+/// Grid marks at every whole number (every decade, on a log₁₀ axis) inside the bounds; even
+/// decades are the major marks, so on a narrow plot every other decade keeps its label.
 fn decade_marks(input: GridInput) -> Vec<GridMark> {
     let (lo, hi) = input.bounds;
     if !(lo.is_finite() && hi.is_finite()) || hi - lo > 40.0 {
@@ -116,9 +117,44 @@ fn decade_marks(input: GridInput) -> Vec<GridMark> {
     (first..=last)
         .map(|d| GridMark {
             value: d as f64,
-            step_size: 1.0,
+            step_size: if d % 2 == 0 { 2.0 } else { 1.0 },
         })
         .collect()
+}
+
+/// An axis whose tick labels may sit closer than egui_plot's default (the panel is narrow).
+fn tight_axis(axis: Axis, format: fn(f64) -> String) -> AxisHints<'static> {
+    let hints = match axis {
+        Axis::X => AxisHints::new_x().label_spacing(28.0..=40.0),
+        Axis::Y => AxisHints::new_y().label_spacing(14.0..=20.0),
+    };
+    hints.formatter(move |mark, _| format(mark.value))
+}
+
+fn log_time_label(log10_us: f64) -> String {
+    time_label(10f64.powf(log10_us))
+}
+
+fn log_share_label(log10_share: f64) -> String {
+    share_label(10f64.powf(log10_share))
+}
+
+fn seconds_label(s: f64) -> String {
+    format!("{s:.0} s")
+}
+
+/// A line of coloured keys above a plot (in place of a legend, which would cover a small plot).
+fn keys(ui: &mut egui::Ui, entries: &[(String, egui::Color32)]) {
+    ui.horizontal_wrapped(|ui| {
+        ui.spacing_mut().item_spacing.x = 10.0;
+        for (text, colour) in entries {
+            ui.label(
+                egui::RichText::new(format!("— {text}"))
+                    .small()
+                    .color(*colour),
+            );
+        }
+    });
 }
 
 /// One bar per non-empty bin: x is log₁₀ µs (the bin's geometric middle, its log width), y
@@ -234,9 +270,15 @@ impl LatencyHistory {
             ("period error p99", p99(&period_error), PERIOD_ERROR_COLOUR),
             ("compute p99", p99(&compute), COMPUTE_COLOUR),
         ];
+        let mut entries = Vec::new();
+        for (name, value, colour) in &marks {
+            if let Some(us) = value {
+                entries.push((format!("{name} ≤ {}", time_label(*us)), *colour));
+            }
+        }
+        keys(ui, &entries);
         Plot::new(("latency histogram", id.index()))
             .height(HISTOGRAM_HEIGHT)
-            .legend(Legend::default().position(egui_plot::Corner::RightTop))
             .allow_zoom(false)
             .allow_drag(false)
             .allow_scroll(false)
@@ -245,8 +287,8 @@ impl LatencyHistory {
             .include_y(0.0)
             .x_grid_spacer(decade_marks)
             .y_grid_spacer(decade_marks)
-            .x_axis_formatter(|mark, _| time_label(10f64.powf(mark.value)))
-            .y_axis_formatter(|mark, _| share_label(10f64.powf(mark.value)))
+            .custom_x_axes(vec![tight_axis(Axis::X, log_time_label)])
+            .custom_y_axes(vec![tight_axis(Axis::Y, log_share_label)])
             .label_formatter(|pos| {
                 let p = hover_point(pos);
                 Some(format!(
@@ -305,9 +347,20 @@ impl LatencyHistory {
             .filter(|s| s.new_misses > 0)
             .map(|s| [s.t_s - now_s, top])
             .collect();
+        keys(
+            ui,
+            &[
+                ("worst period error".into(), PERIOD_ERROR_COLOUR),
+                ("worst compute".into(), COMPUTE_COLOUR),
+                (
+                    format!("period {}", time_label(period_us)),
+                    egui::Color32::GRAY,
+                ),
+                ("deadline misses".into(), MISS_COLOUR),
+            ],
+        );
         Plot::new(("latency timeline", id.index()))
             .height(TIMELINE_HEIGHT)
-            .legend(Legend::default().position(egui_plot::Corner::LeftTop))
             .allow_zoom(false)
             .allow_drag(false)
             .allow_scroll(false)
@@ -317,8 +370,8 @@ impl LatencyHistory {
             .include_y(-1.0)
             .include_y(top)
             .y_grid_spacer(decade_marks)
-            .x_axis_formatter(|mark, _| format!("{:.0} s", mark.value))
-            .y_axis_formatter(|mark, _| time_label(10f64.powf(mark.value)))
+            .custom_x_axes(vec![tight_axis(Axis::X, seconds_label)])
+            .custom_y_axes(vec![tight_axis(Axis::Y, log_time_label)])
             .label_formatter(|pos| {
                 let p = hover_point(pos);
                 Some(format!("{:.0} s: {}", p.x, time_label(10f64.powf(p.y))))

@@ -281,11 +281,13 @@ impl ProbePanel {
             let head = format!("{:.0} Hz: {}", v.rate_hz, v.grade);
             egui::CollapsingHeader::new(egui::RichText::new(head).color(grade_colour(v.grade)))
                 .id_salt(("readiness", v.rate_hz.to_bits()))
-                .default_open(v.grade != Grade::Pass)
+                .default_open(false)
                 .show(ui, |ui| {
                     for f in &v.findings {
-                        ui.colored_label(grade_colour(f.grade), format!("[{}]", f.grade));
-                        ui.label(&f.reason);
+                        ui.horizontal_wrapped(|ui| {
+                            ui.colored_label(grade_colour(f.grade), format!("[{}]", f.grade));
+                            ui.label(&f.reason);
+                        });
                         if !f.fix.is_empty() {
                             ui.weak(format!("fix: {}", f.fix));
                         }

@@ -304,18 +304,18 @@ impl SculptApp {
                 });
             });
         egui::Panel::right("dynaclay latency")
-            .default_size(280.0)
+            .default_size(320.0)
             .min_size(220.0)
             .show(ui, |ui| {
                 // Not shrunk to the wrapped labels: the plots take the panel's width.
                 egui::ScrollArea::vertical()
                     .auto_shrink([false, true])
                     .show(ui, |ui| {
-                        ui.heading("Loops");
-                        self.latency.ui(ui);
-                        ui.separator();
                         ui.heading("Machine");
                         self.probe.ui(ui);
+                        ui.separator();
+                        ui.heading("Loops");
+                        self.latency.ui(ui);
                     });
             });
         self.flush_settings(tool_changed, material_changed);
