@@ -7,6 +7,15 @@ use dynaclay_loops::ProfileDoc;
 
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
 
+/// The width and height in a PNG's header, after decoding the whole image.
+fn png_size(path: &std::path::Path) -> (u32, u32) {
+    let file = std::io::BufReader::new(std::fs::File::open(path).expect("png opens"));
+    let mut reader = png::Decoder::new(file).read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size().expect("buffer size")];
+    let info = reader.next_frame(&mut buf).expect("png decodes");
+    (info.width, info.height)
+}
+
 #[test]
 fn profile_reports_probe_and_verdict_and_compares_its_own_json() {
     let dir = std::env::temp_dir().join(format!("dynaclay-cli-profile-{}", std::process::id()));
@@ -43,6 +52,11 @@ fn profile_reports_probe_and_verdict_and_compares_its_own_json() {
     assert!(md.contains("## Readiness"));
     let svg = std::fs::read_to_string(dir.join("latency.svg")).unwrap();
     assert!(svg.contains("haptic: over the run") && svg.contains("p99.9 "));
+    // The same page as a PNG: one row of plots per loop.
+    assert_eq!(
+        png_size(&dir.join("latency.png")),
+        dynaclay_loops::page_size(doc.loops.len())
+    );
 
     let cmp = Command::new(BIN)
         .args(["profile", "--compare"])

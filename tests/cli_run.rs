@@ -62,6 +62,7 @@ fn run_writes_meshes_session_and_latency_reports() {
         "latency.json",
         "latency.md",
         "latency.svg",
+        "latency.png",
     ] {
         let p = out.join(f);
         assert!(
@@ -88,6 +89,25 @@ fn run_writes_meshes_session_and_latency_reports() {
     assert_eq!(names, ["haptic", "simulation", "graphics"]);
     // Loop rates belong in bench/: here only that each loop ran and reported.
     assert!(loops.iter().all(|l| l.stats.ticks > 0), "{loops:?}");
+    // The platform probe ran around the loops and the machine was judged for 1 and 4 kHz.
+    let doc = dynaclay_loops::ProfileDoc::from_json(&json).unwrap();
+    assert!(doc.probe_before.is_some() && doc.probe_after.is_some());
+    let rates: Vec<f64> = doc.readiness.iter().map(|v| v.rate_hz).collect();
+    assert_eq!(rates, [1000.0, 4000.0]);
+    let md = std::fs::read_to_string(out.join("latency.md")).unwrap();
+    for section in [
+        "## Loops",
+        "## Haptic loop beside the platform probe",
+        "## Readiness",
+    ] {
+        assert!(md.contains(section), "missing {section} in\n{md}");
+    }
+    let svg = std::fs::read_to_string(out.join("latency.svg")).unwrap();
+    assert!(svg.contains("probe (sleeping thread)"));
+    assert_eq!(
+        png_size(&out.join("latency.png")),
+        dynaclay_loops::page_size(loops.len())
+    );
 }
 
 #[test]
@@ -898,4 +918,13 @@ engrave = {engrave}
         err.contains("image:") && err.contains("nowhere.png"),
         "{err}"
     );
+}
+
+/// The width and height in a PNG's header, after decoding the whole image.
+fn png_size(path: &std::path::Path) -> (u32, u32) {
+    let file = std::io::BufReader::new(std::fs::File::open(path).expect("png opens"));
+    let mut reader = png::Decoder::new(file).read_info().expect("png header");
+    let mut buf = vec![0; reader.output_buffer_size().expect("buffer size")];
+    let info = reader.next_frame(&mut buf).expect("png decodes");
+    (info.width, info.height)
 }

@@ -14,8 +14,9 @@
 //!   values ([`RtOutcome`], [`PinOutcome`]); never fail a loop.
 //! - [`snapshot_channel`]: versioned, time-stamped triple buffer (the `triple_buffer` crate).
 //! - [`LatencyRecorder`] → [`LatencyStats`] → [`LoopSummary`] → JSON, [`markdown_table`],
-//!   [`latency_svg`].
+//!   [`latency_svg`] / [`latency_png`].
 //! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
+//! - [`LogBins`]: coarse half-octave bins published with [`LatencyStats`] for live plots.
 //! - [`Timeline`]: a recorder's run over time in fixed memory, for the timeline plot.
 //! - [`run_probes`]: the platform probe (cyclictest-style wake-ups, host stalls) →
 //!   [`ProbeSummary`]; [`read_platform_facts`] + [`verdict`]: is the machine fit for a rate;
@@ -27,6 +28,8 @@
 #![warn(missing_docs)]
 
 mod exchange;
+mod glyphs;
+mod live;
 mod plot;
 mod priority;
 mod probe;
@@ -41,7 +44,8 @@ mod timeline;
 mod watchdog;
 
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
-pub use plot::{PlotError, latency_svg, write_latency_svg};
+pub use live::{LOG_BINS, LogBins};
+pub use plot::{PlotError, latency_png, latency_svg, page_size, write_latency_svg};
 pub use priority::{
     DEFAULT_RT_PRIORITY, PinOutcome, RtOutcome, current_schedule, pin_current_thread,
     request_realtime,

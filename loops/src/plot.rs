@@ -1,18 +1,25 @@
-//! SVG plots of loop latency, one page: per loop, a histogram of period error and one of compute
-//! time on a logarithmic µs/ms axis (so both the body of the distribution and its rare tail are
-//! visible) with p50/p99/p99.9/max marked, and a timeline of the run with deadline misses
-//! marked. The platform probe's period error is drawn over each loop's, so engine and machine
-//! are seen together.
+//! Plots of loop latency, one page in SVG or PNG: per loop, a histogram of period error and one
+//! of compute time on a logarithmic µs/ms axis (so both the body of the distribution and its
+//! rare tail are visible) with p50/p99/p99.9/max marked, and a timeline of the run with
+//! deadline misses marked. The platform probe's period error is drawn over each loop's, so
+//! engine and machine are seen together.
+//!
+//! The PNG is drawn by plotters' bitmap backend with text from an embedded font (Ubuntu Light,
+//! the one egui ships, drawn by [`CrispText`]), so it reads the same on a machine without system
+//! fonts, and encoded with `png`.
 //!
 //! Not for the real-time path (allocates, may write files). Works from a [`LatencyRecorder`],
 //! which a loop hands back when it ends ([`crate::LoopReport::recorder`]).
 
-use std::fmt;
 use std::path::Path;
+use std::sync::OnceLock;
 
 use hdrhistogram::Histogram;
+use plotters::backend::RGBPixel;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use crate::glyphs::CrispText;
 use crate::recorder::{LatencyRecorder, Percentiles};
 use crate::timeline::Timeline;
 
@@ -28,91 +35,148 @@ const MARKER_COLOUR: RGBColor = RGBColor(200, 120, 0);
 /// Smallest bin upper edge (ns) and growth factor of the logarithmic bins.
 const FIRST_BIN_NS: u64 = 100;
 const BIN_GROWTH: f64 = 1.5;
+/// The font family every label asks for.
+const FONT_FAMILY: &str = "sans-serif";
 
 /// A plot could not be drawn or written.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum PlotError {
     /// Plotters failed while drawing.
+    #[error("drawing latency plot: {0}")]
     Draw(String),
-    /// The SVG could not be written (the previous file at the path is untouched).
-    Write(dynaclay_files::WriteError),
+    /// The embedded font could not be loaded for the plots' text.
+    #[error("loading the plot font: {0}")]
+    Font(String),
+    /// The PNG could not be encoded.
+    #[error("encoding latency plot as PNG: {0}")]
+    Encode(#[from] png::EncodingError),
+    /// The plot could not be written (the previous file at the path is untouched).
+    #[error("writing latency plot: {0}")]
+    Write(#[source] dynaclay_files::WriteError),
 }
 
-impl fmt::Display for PlotError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Draw(m) => write!(f, "drawing latency plot: {m}"),
-            Self::Write(e) => write!(f, "writing latency plot: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for PlotError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            Self::Write(e) => Some(e),
-            Self::Draw(_) => None,
-        }
-    }
-}
-
-fn draw_err(e: impl fmt::Display) -> PlotError {
+fn draw_err(e: impl std::fmt::Display) -> PlotError {
     PlotError::Draw(e.to_string())
 }
 
-/// Renders one page: per loop (one row each) the period-error histogram with the probe's
-/// overlaid when `probe` is given, the compute-time histogram and the timeline.
+/// Registers the embedded font for [`FONT_FAMILY`] once per process; every later call returns
+/// the first outcome.
+fn ensure_font() -> Result<(), PlotError> {
+    static REGISTERED: OnceLock<Result<(), String>> = OnceLock::new();
+    REGISTERED
+        .get_or_init(|| {
+            plotters::style::register_font(
+                FONT_FAMILY,
+                FontStyle::Normal,
+                epaint_default_fonts::UBUNTU_LIGHT,
+            )
+            .map_err(|_| "the embedded Ubuntu Light font is not a valid font".to_string())
+        })
+        .clone()
+        .map_err(PlotError::Font)
+}
+
+/// The page's size in pixels for `loops` rows (one row per loop, at least one).
+#[must_use]
+pub fn page_size(loops: usize) -> (u32, u32) {
+    let rows = u32::try_from(loops.max(1)).unwrap_or(u32::MAX);
+    (PANEL.0 * 3, PANEL.1.saturating_mul(rows))
+}
+
+/// Draws the page on `root`: per loop (one row each) the period-error histogram with the
+/// probe's overlaid when `probe` is given, the compute-time histogram and the timeline.
+fn draw_page<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    loops: &[(&str, &LatencyRecorder)],
+    probe: Option<&LatencyRecorder>,
+) -> Result<(), PlotError> {
+    root.fill(&WHITE).map_err(draw_err)?;
+    let panels = root.split_evenly((loops.len().max(1), 3));
+    for (row, (name, rec)) in loops.iter().enumerate() {
+        let stats = rec.stats();
+        draw_histogram(
+            &panels[row * 3],
+            &Histo {
+                title: format!("{name}: period error"),
+                series: name,
+                hist: rec.period_error_histogram(),
+                marks: stats.period_error,
+                colour: BLUE,
+                // Only a loop at the probe's rate is comparable with it.
+                probe: probe
+                    .filter(|p| p.nominal_period() == rec.nominal_period())
+                    .map(LatencyRecorder::period_error_histogram),
+            },
+        )?;
+        draw_histogram(
+            &panels[row * 3 + 1],
+            &Histo {
+                title: format!("{name}: compute time"),
+                series: name,
+                hist: rec.compute_histogram(),
+                marks: stats.compute,
+                colour: RED,
+                probe: None,
+            },
+        )?;
+        draw_timeline(
+            &panels[row * 3 + 2],
+            &format!("{name}: over the run"),
+            rec.timeline(),
+            rec.nominal_period(),
+        )?;
+    }
+    root.present().map_err(draw_err)
+}
+
+/// Renders one page as SVG text: per loop (one row each) the period-error histogram with the
+/// probe's overlaid when `probe` is given, the compute-time histogram and the timeline.
 ///
 /// # Errors
-/// [`PlotError::Draw`] if plotters fails.
+/// [`PlotError::Draw`] if plotters fails, [`PlotError::Font`] if the embedded font is refused.
 pub fn latency_svg(
     loops: &[(&str, &LatencyRecorder)],
     probe: Option<&LatencyRecorder>,
 ) -> Result<String, PlotError> {
-    let rows = u32::try_from(loops.len().max(1)).unwrap_or(u32::MAX);
+    ensure_font()?;
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (PANEL.0 * 3, PANEL.1.saturating_mul(rows)))
-            .into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let panels = root.split_evenly((rows as usize, 3));
-        for (row, (name, rec)) in loops.iter().enumerate() {
-            let stats = rec.stats();
-            draw_histogram(
-                &panels[row * 3],
-                &Histo {
-                    title: format!("{name}: period error"),
-                    series: name,
-                    hist: rec.period_error_histogram(),
-                    marks: stats.period_error,
-                    colour: BLUE,
-                    // Only a loop at the probe's rate is comparable with it.
-                    probe: probe
-                        .filter(|p| p.nominal_period() == rec.nominal_period())
-                        .map(LatencyRecorder::period_error_histogram),
-                },
-            )?;
-            draw_histogram(
-                &panels[row * 3 + 1],
-                &Histo {
-                    title: format!("{name}: compute time"),
-                    series: name,
-                    hist: rec.compute_histogram(),
-                    marks: stats.compute,
-                    colour: RED,
-                    probe: None,
-                },
-            )?;
-            draw_timeline(
-                &panels[row * 3 + 2],
-                &format!("{name}: over the run"),
-                rec.timeline(),
-                rec.nominal_period(),
-            )?;
-        }
-        root.present().map_err(draw_err)?;
+        let root = SVGBackend::with_string(&mut svg, page_size(loops.len())).into_drawing_area();
+        draw_page(&root, loops, probe)?;
     }
     Ok(svg)
+}
+
+/// Renders the page of [`latency_svg`] as an 8-bit RGB PNG of [`page_size`] pixels, returned
+/// as the file's bytes.
+///
+/// # Errors
+/// [`PlotError::Draw`] if plotters fails, [`PlotError::Font`] if the embedded font is refused,
+/// [`PlotError::Encode`] if the PNG cannot be encoded.
+pub fn latency_png(
+    loops: &[(&str, &LatencyRecorder)],
+    probe: Option<&LatencyRecorder>,
+) -> Result<Vec<u8>, PlotError> {
+    ensure_font()?;
+    let (w, h) = page_size(loops.len());
+    let mut rgb = vec![0u8; w as usize * h as usize * 3];
+    {
+        let bitmap = BitMapBackend::<RGBPixel>::with_buffer_and_format(&mut rgb, (w, h))
+            .map_err(draw_err)?;
+        let backend = CrispText::new(bitmap, epaint_default_fonts::UBUNTU_LIGHT)
+            .map_err(|e| PlotError::Font(e.to_string()))?;
+        draw_page(&backend.into_drawing_area(), loops, probe)?;
+    }
+    let mut out = Vec::new();
+    {
+        let mut encoder = png::Encoder::new(&mut out, w, h);
+        encoder.set_color(png::ColorType::Rgb);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(&rgb)?;
+        writer.finish()?;
+    }
+    Ok(out)
 }
 
 /// Writes [`latency_svg`] to `path` atomically ([`dynaclay_files::write_atomic`]).
@@ -166,6 +230,14 @@ fn decades(lo: f64, hi: f64) -> Vec<f64> {
         .collect()
 }
 
+/// Powers of ten of a share (10⁻⁸ to 1) inside `lo..=hi`, for the histograms' share axis.
+fn share_decades(lo: f64, hi: f64) -> Vec<f64> {
+    (-8..=0)
+        .map(|e| 10f64.powi(e))
+        .filter(|v| (lo..=hi).contains(v))
+        .collect()
+}
+
 /// Logarithmic bins of a histogram in µs: (lower edge, upper edge, count), empty bins left out.
 fn log_bins(hist: &Histogram<u64>) -> Vec<(f64, f64, u64)> {
     let mut bins = Vec::new();
@@ -195,7 +267,7 @@ struct Histo<'a> {
 }
 
 fn draw_histogram<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
+    area: &DrawingArea<DB, Shift>,
     h: &Histo<'_>,
 ) -> Result<(), PlotError> {
     let share = |hist: &Histogram<u64>| {
@@ -222,7 +294,7 @@ fn draw_histogram<DB: DrawingBackend>(
         / 3.0;
     let y_max = 3.0;
     let mut chart = ChartBuilder::on(area)
-        .caption(&h.title, ("sans-serif", 16))
+        .caption(&h.title, (FONT_FAMILY, 16))
         .margin(8)
         .x_label_area_size(40)
         .y_label_area_size(64)
@@ -230,14 +302,16 @@ fn draw_histogram<DB: DrawingBackend>(
             (x_min..x_max)
                 .log_scale()
                 .with_key_points(decades(x_min, x_max)),
-            (y_min..y_max).log_scale(),
+            (y_min..y_max)
+                .log_scale()
+                .with_key_points(share_decades(y_min, y_max)),
         )
         .map_err(draw_err)?;
     chart
         .configure_mesh()
         .light_line_style(GRID_FINE)
         .bold_line_style(GRID_MAIN)
-        .axis_desc_style(("sans-serif", 12))
+        .axis_desc_style((FONT_FAMILY, 12))
         .y_desc("share of ticks (log)")
         .x_label_formatter(&|v| time_label(*v))
         .y_label_formatter(&|v| share_label(*v))
@@ -272,7 +346,7 @@ fn draw_histogram<DB: DrawingBackend>(
         .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.85))
         .border_style(GRID_MAIN)
-        .label_font(("sans-serif", 11))
+        .label_font((FONT_FAMILY, 11))
         .draw()
         .map_err(draw_err)?;
     let marks = [
@@ -295,7 +369,7 @@ fn draw_histogram<DB: DrawingBackend>(
             .draw_series(std::iter::once(Text::new(
                 format!("{label} {}", time_label(value)),
                 (x, y),
-                ("sans-serif", 11).into_font().color(&MARKER_COLOUR),
+                (FONT_FAMILY, 11).into_font().color(&MARKER_COLOUR),
             )))
             .map_err(draw_err)?;
     }
@@ -303,7 +377,7 @@ fn draw_histogram<DB: DrawingBackend>(
 }
 
 fn draw_timeline<DB: DrawingBackend>(
-    area: &DrawingArea<DB, plotters::coord::Shift>,
+    area: &DrawingArea<DB, Shift>,
     title: &str,
     timeline: &Timeline,
     period: std::time::Duration,
@@ -320,7 +394,7 @@ fn draw_timeline<DB: DrawingBackend>(
     let y_max = worst_us * 4.0;
     let misses: u64 = windows.iter().map(|w| u64::from(w.deadline_misses)).sum();
     let mut chart = ChartBuilder::on(area)
-        .caption(title, ("sans-serif", 16))
+        .caption(title, (FONT_FAMILY, 16))
         .margin(8)
         .x_label_area_size(40)
         .y_label_area_size(64)
@@ -335,7 +409,7 @@ fn draw_timeline<DB: DrawingBackend>(
         .configure_mesh()
         .light_line_style(GRID_FINE)
         .bold_line_style(GRID_MAIN)
-        .axis_desc_style(("sans-serif", 12))
+        .axis_desc_style((FONT_FAMILY, 12))
         .x_desc("seconds")
         .y_desc(format!("worst per {} (log)", time_label(window_s * 1e6)))
         .y_label_formatter(&|v| time_label(*v))
@@ -402,7 +476,7 @@ fn draw_timeline<DB: DrawingBackend>(
         .position(SeriesLabelPosition::LowerRight)
         .background_style(WHITE.mix(0.85))
         .border_style(GRID_MAIN)
-        .label_font(("sans-serif", 11))
+        .label_font((FONT_FAMILY, 11))
         .draw()
         .map_err(draw_err)?;
     Ok(())
@@ -453,6 +527,7 @@ mod tests {
         assert_eq!(time_label(2500.0), "2.5 ms");
         assert_eq!(time_label(0.1), "100 ns");
         assert_eq!(decades(0.1, 5000.0), vec![0.1, 1.0, 10.0, 100.0, 1000.0]);
+        assert_eq!(share_decades(0.0005, 3.0), vec![0.001, 0.01, 0.1, 1.0]);
         assert_eq!(share_label(0.25), "25%");
         assert_eq!(share_label(0.001), "0.1%");
         assert_eq!(share_label(0.0001), "0.01%");
@@ -518,6 +593,47 @@ mod tests {
             assert!(svg.contains(title), "missing {title}");
         }
         assert!(svg.contains("<rect"));
+    }
+
+    /// Decodes a PNG into (width, height, RGB bytes).
+    fn decode_png(bytes: &[u8]) -> (u32, u32, Vec<u8>) {
+        let decoder = png::Decoder::new(std::io::Cursor::new(bytes));
+        let mut reader = decoder.read_info().expect("png header");
+        let mut buf = vec![0; reader.output_buffer_size().expect("buffer size")];
+        let info = reader.next_frame(&mut buf).expect("png frame");
+        assert_eq!(info.color_type, png::ColorType::Rgb);
+        assert_eq!(info.bit_depth, png::BitDepth::Eight);
+        buf.truncate(info.buffer_size());
+        (info.width, info.height, buf)
+    }
+
+    #[test]
+    fn png_decodes_at_the_page_size_with_the_plot_drawn() {
+        let a = recorder_with_ticks();
+        let b = LatencyRecorder::new(Duration::from_micros(250));
+        let probe = recorder_with_ticks();
+        let bytes = latency_png(&[("haptic", &a), ("sim", &b)], Some(&probe)).expect("png");
+        let (w, h, rgb) = decode_png(&bytes);
+        assert_eq!((w, h), page_size(2));
+        assert_eq!((w, h), (1440, 600));
+        let pixels: Vec<&[u8]> = rgb.chunks_exact(3).collect();
+        assert_eq!(pixels.len(), 1440 * 600);
+        // A white page with the percentile markers, the histogram bars and dark text on it.
+        let count = |want: [u8; 3]| pixels.iter().filter(|p| **p == want).count();
+        assert!(
+            count([255, 255, 255]) > pixels.len() / 2,
+            "not a white page"
+        );
+        let marker = [MARKER_COLOUR.0, MARKER_COLOUR.1, MARKER_COLOUR.2];
+        assert!(count(marker) > 50, "no percentile markers");
+        assert!(
+            pixels.iter().any(|p| p.iter().all(|&c| c < 80)),
+            "no dark text"
+        );
+        // One loop: one row.
+        let (w1, h1, _) = decode_png(&latency_png(&[("haptic", &a)], None).expect("png"));
+        assert_eq!((w1, h1), page_size(1));
+        assert_eq!(page_size(0), page_size(1));
     }
 
     #[test]

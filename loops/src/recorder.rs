@@ -15,6 +15,7 @@ use std::time::{Duration, Instant};
 use hdrhistogram::Histogram;
 use serde::{Deserialize, Serialize};
 
+use crate::live::LogBins;
 use crate::timeline::Timeline;
 
 /// Largest value a histogram holds before saturating (10 s, in ns).
@@ -84,6 +85,13 @@ pub struct LatencyStats {
     pub lateness: Percentiles,
     /// Time spent in the tick body.
     pub compute: Percentiles,
+    /// Period error in coarse bins, for live displays. Not in the JSON: reports draw the
+    /// recorder's exact histograms.
+    #[serde(skip)]
+    pub period_error_bins: LogBins,
+    /// Compute time in coarse bins, for live displays. Not in the JSON.
+    #[serde(skip)]
+    pub compute_bins: LogBins,
 }
 
 /// Histograms and counters of one loop. See the module docs for the allocation guarantee.
@@ -102,6 +110,8 @@ pub struct LatencyRecorder {
     first_woke: Option<Instant>,
     last_woke: Option<Instant>,
     timeline: Timeline,
+    period_error_bins: LogBins,
+    compute_bins: LogBins,
 }
 
 /// A histogram plus the exact maximum (the histogram saturates, the maximum does not).
@@ -177,6 +187,8 @@ impl LatencyRecorder {
             first_woke: None,
             last_woke: None,
             timeline: Timeline::new(),
+            period_error_bins: LogBins::default(),
+            compute_bins: LogBins::default(),
         }
     }
 
@@ -190,12 +202,14 @@ impl LatencyRecorder {
             period_error = period.abs_diff(self.nominal_period);
             self.period.record(nanos(period));
             self.period_error.record(nanos(period_error));
+            self.period_error_bins.record(nanos(period_error));
         } else {
             self.first_woke = Some(t.woke);
         }
         self.last_woke = Some(t.woke);
         self.lateness.record(nanos(lateness));
         self.compute.record(nanos(t.compute));
+        self.compute_bins.record(nanos(t.compute));
         self.ticks += 1;
         self.skipped_ticks += t.skipped_before;
         let missed = lateness + t.compute > self.nominal_period;
@@ -233,6 +247,8 @@ impl LatencyRecorder {
         self.first_woke = None;
         self.last_woke = None;
         self.timeline.reset();
+        self.period_error_bins.reset();
+        self.compute_bins.reset();
     }
 
     /// Current figures. No allocation; scans each histogram once (call it every N ticks).
@@ -260,6 +276,8 @@ impl LatencyRecorder {
             period_error: self.period_error.percentiles(),
             lateness: self.lateness.percentiles(),
             compute: self.compute.percentiles(),
+            period_error_bins: self.period_error_bins,
+            compute_bins: self.compute_bins,
         }
     }
 

@@ -290,6 +290,94 @@ fn the_latency_panel_shows_each_loops_published_figures() {
 }
 
 #[test]
+fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
+    let (mut h, _end) = harness();
+    h.run();
+    // The app built for tests does not probe by itself.
+    h.get_by_label("not probed yet");
+    assert!(!h.state().probe.is_running());
+
+    let mut wakeup = loop_stats(1000, 999.8, 4.0);
+    wakeup.lateness.p99_us = 3.0;
+    wakeup.lateness.p999_us = 30.0;
+    wakeup.lateness.max_us = 120.0;
+    let summary = dynaclay_loops::ProbeSummary {
+        wakeup_rt: dynaclay_loops::RtOutcome::Granted { priority: 80 },
+        wakeup,
+        stall_rt: dynaclay_loops::RtOutcome::NotRequested,
+        stalls: dynaclay_loops::StallStats {
+            seconds: 0.5,
+            gap_threshold_us: 20.0,
+            gaps: 7,
+            stolen_ms: 1.25,
+            max_gap_us: 400.0,
+        },
+    };
+    h.state_mut()
+        .probe
+        .finish(Ok(super::probe_panel::ProbeOutcome::before_engine(
+            &summary,
+            Some(0.1),
+        )));
+    h.run();
+    assert!(h.query_by_label("not probed yet").is_none());
+    h.get_by_label("wake-up p99 3.0 µs, p99.9 30.0 µs, max 120.0 µs");
+    h.get_by_label("host stalls: 7 gaps, 2.50 ms/s, worst 400 µs");
+    h.get_by_label_contains("1000 Hz: ");
+    h.get_by_label_contains("4000 Hz: ");
+
+    h.get_by_label_contains("before the engine started");
+
+    // A probe beside the engine keeps the stalls counted at launch and says so.
+    let stalls = h.state().probe.last.as_ref().and_then(|(_, o)| o.stalls);
+    let mut later = wakeup;
+    later.lateness.p99_us = 5.0;
+    h.state_mut().probe.finish(Ok(super::probe_panel::judge(
+        dynaclay_loops::RtOutcome::Granted { priority: 79 },
+        later,
+        stalls,
+        true,
+        None,
+    )));
+    h.run();
+    h.get_by_label("wake-up p99 5.0 µs, p99.9 30.0 µs, max 120.0 µs");
+    h.get_by_label("host stalls: 7 gaps, 2.50 ms/s, worst 400 µs");
+    h.get_by_label("(stalls counted at launch, before the engine started)");
+    h.get_by_label_contains("beside the engine");
+
+    // A failed probe says why and keeps the last figures.
+    h.state_mut()
+        .probe
+        .finish(Err("cannot run the platform probe: test".into()));
+    h.run();
+    h.get_by_label("cannot run the platform probe: test");
+    h.get_by_label("wake-up p99 5.0 µs, p99.9 30.0 µs, max 120.0 µs");
+}
+
+#[test]
+fn the_latency_panel_draws_histograms_and_timelines_from_the_loops_bins() {
+    let (mut h, mut end) = harness();
+    h.run();
+    let mut view = EngineView::default();
+    for (i, stats) in view.loops.iter_mut().enumerate() {
+        *stats = loop_stats(1000 * (i as u64 + 1), 999.0, 10.0);
+        for _ in 0..1000 {
+            stats.period_error_bins.record(2_000);
+            stats.compute_bins.record(8_000);
+        }
+    }
+    end.view.publish_clone_of(&view);
+    h.run();
+    let (period_error, compute) = h.state().latency.window_bins(0);
+    assert_eq!((period_error.total(), compute.total()), (1000, 1000));
+    // Each loop's histogram has a bar per non-empty bin of each quantity.
+    assert_eq!(super::latency::histogram_bars(&compute).len(), 1);
+    // The plots replaced the strip charts and the frame still draws.
+    h.run();
+    assert!(h.query_by_label("no figures yet").is_none());
+}
+
+#[test]
 fn undo_and_redo_counts_are_shown() {
     let (mut h, mut end) = harness();
     h.run();

@@ -3,15 +3,17 @@
 //! window until it is closed.
 
 use std::path::PathBuf;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice, RecordingDevice, SimArmConfig, SimulatedArm};
+use dynaclay_loops::{busy_fraction, cpu_jiffies, run_probes};
 
 use super::bridge::{DeviceOpener, start_bridge};
 use super::link::engine_link;
 use super::pointer_tool::PointerTool;
+use super::probe_panel::{ProbeOutcome, ProbeSettings};
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, StartOptions, build_clay};
 use crate::field::BSplineLattice;
@@ -162,6 +164,11 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         make_device(spec, &opener_field, &script).map(|(d, _)| d)
     });
     let autosave = Autosave::new(&session_path, AutosavePolicy::default(), Instant::now());
+    let probe_settings = ProbeSettings {
+        rate_hz: config.haptic_rate_hz,
+        rt_priority: config.haptic_rt_priority,
+    };
+    let probe_at_start = probe_before_engine(probe_settings);
     let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
         Engine::start_with(
             &config,
@@ -185,6 +192,8 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     }
     let options = GuiOptions {
         session_path: session_path.display().to_string(),
+        probe_settings,
+        probe_at_start,
         ..GuiOptions::default()
     };
     let shown = run_gui(options, link, pointer);
@@ -192,6 +201,20 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     shown.map_err(|e| LaunchError::Failed(e.to_string()))?;
     stopped.map_err(|e| LaunchError::Failed(format!("engine: {e}")))?;
     Ok(())
+}
+
+/// How long each half of the probe at launch runs (wake-ups, then stalls).
+const LAUNCH_PROBE_EACH: Duration = Duration::from_millis(300);
+
+/// The whole platform probe, as `dynaclay run` runs it, before the engine starts: the panel's
+/// first figures. A probe that cannot run is left out (the panel says it was not probed).
+fn probe_before_engine(settings: ProbeSettings) -> Option<ProbeOutcome> {
+    let jiffies = cpu_jiffies();
+    let run = run_probes(settings.rate_hz, LAUNCH_PROBE_EACH, settings.rt_priority).ok()?;
+    let busy = jiffies
+        .zip(cpu_jiffies())
+        .and_then(|(b, a)| busy_fraction(b, a));
+    Some(ProbeOutcome::before_engine(&run.summary(), busy))
 }
 
 /// Makes the device `spec` names, for the clay `field`: the simulated arm follows `script`'s

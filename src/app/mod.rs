@@ -13,6 +13,7 @@ mod meshes;
 mod palette;
 mod pin_panel;
 mod pointer_tool;
+mod probe_panel;
 mod run;
 mod state;
 mod view;
@@ -24,7 +25,7 @@ pub use camera_input::{
 };
 pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
-pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample};
+pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
@@ -34,6 +35,7 @@ pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
+pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
 pub use run::{GuiError, GuiOptions, run_gui};
 pub use state::{DisplaySettings, FilePaths, SculptApp};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};

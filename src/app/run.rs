@@ -12,6 +12,10 @@ pub struct GuiOptions {
     pub window_size_pt: [f32; 2],
     /// The session path the top bar starts with (Save and Load use it).
     pub session_path: String,
+    /// The haptic loop's rate and priority, which the latency panel's probe imitates.
+    pub probe_settings: super::probe_panel::ProbeSettings,
+    /// The probe run at launch, before the engine started.
+    pub probe_at_start: Option<super::probe_panel::ProbeOutcome>,
 }
 
 impl Default for GuiOptions {
@@ -20,6 +24,8 @@ impl Default for GuiOptions {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
             session_path: super::launch::DEFAULT_SESSION.into(),
+            probe_settings: super::probe_panel::ProbeSettings::default(),
+            probe_at_start: None,
         }
     }
 }
@@ -55,6 +61,8 @@ pub fn run_gui(
         app.pointer = pointer;
     }
     app.files.session.clone_from(&options.session_path);
+    app.probe =
+        super::probe_panel::ProbePanel::new(options.probe_settings, options.probe_at_start.clone());
     eframe::run_native(
         &options.title,
         native,

@@ -26,6 +26,7 @@ use super::material_panel::material_ui;
 use super::palette::ToolPalette;
 use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
+use super::probe_panel::ProbePanel;
 use super::view::{EngineView, WorldBox};
 use super::viewport::{SceneView, camera_input};
 
@@ -88,6 +89,8 @@ pub struct SculptApp {
     pub display: DisplaySettings,
     pub files: FilePaths,
     pub latency: LatencyHistory,
+    /// The platform probe and the readiness verdict.
+    pub probe: ProbePanel,
     pub spacemouse: SpaceMouseCamera,
     /// Recent messages, newest last.
     pub log: VecDeque<String>,
@@ -194,6 +197,7 @@ impl SculptApp {
             }
         }
         self.latency.record(version, t_s, &self.view.loops);
+        self.probe.poll();
     }
 
     /// Sends settings changed or left pending.
@@ -300,13 +304,16 @@ impl SculptApp {
                 });
             });
         egui::Panel::right("dynaclay latency")
-            .default_size(280.0)
+            .default_size(320.0)
             .min_size(220.0)
             .show(ui, |ui| {
-                // Not shrunk to the wrapped labels: the strip charts take the panel's width.
+                // Not shrunk to the wrapped labels: the plots take the panel's width.
                 egui::ScrollArea::vertical()
                     .auto_shrink([false, true])
                     .show(ui, |ui| {
+                        ui.heading("Machine");
+                        self.probe.ui(ui);
+                        ui.separator();
                         ui.heading("Loops");
                         self.latency.ui(ui);
                     });

@@ -22,6 +22,7 @@ pub mod budget;
 mod devices;
 mod import;
 mod outputs;
+mod platform;
 mod profile;
 mod render;
 mod run;
@@ -29,6 +30,7 @@ mod sculpt;
 
 pub use args::{Cli, Commands, ImageArgs, ProfileArgs, RenderArgs, RunArgs, ShadingMode};
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
+pub use platform::{PlatformJudged, PlatformWatch};
 pub use profile::profile;
 pub use render::render;
 pub use run::{CliError, run};

@@ -4,9 +4,10 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use dynaclay_loops::{LoopSummary, latency_svg, markdown_table, summaries_to_json};
+use dynaclay_loops::{LoopSummary, ProfileDoc, latency_png, latency_svg, profile_report};
 
 use super::args::ImageArgs;
+use super::platform::PlatformJudged;
 use super::run::CliError;
 use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
@@ -161,10 +162,13 @@ fn write_field_outputs(
     Ok((stats, octree))
 }
 
-/// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md` and
-/// `latency.svg` into `dir`, then the PNG if asked. Every file goes through the one atomic
-/// writer ([`dynaclay_files::write_atomic`]): a full disk leaves the old file whole, and a
-/// link, device, FIFO or directory at an output's name is refused, never written through.
+/// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md`,
+/// `latency.svg` and `latency.png` into `dir`, then the PNG if asked. With `platform` (the
+/// probe run around the loops), `latency.json` and `latency.md` hold the probe beside the
+/// haptic loop and the readiness verdict, and the plots draw the probe over the loops. Every
+/// file goes through the one atomic writer ([`dynaclay_files::write_atomic`]): a full disk
+/// leaves the old file whole, and a link, device, FIFO or directory at an output's name is
+/// refused, never written through.
 ///
 /// # Errors
 /// [`CliError::Output`] naming the file that could not be written; [`CliError::Render`] when
@@ -174,19 +178,30 @@ pub fn write_outputs(
     report: &EngineReport,
     config: &EngineConfig,
     extras: &ExtraOutputs,
+    platform: Option<&PlatformJudged>,
 ) -> Result<RunOutputs, CliError> {
     let mut files = Vec::new();
     let (stats, octree) = write_field_outputs(dir, &report.session, config, extras, &mut files)?;
 
     let summaries: Vec<LoopSummary> = report.loops.iter().map(|r| r.summary()).collect();
+    let doc = match platform {
+        Some(judged) => ProfileDoc {
+            loops: summaries.clone(),
+            ..judged.doc.clone()
+        },
+        None => ProfileDoc {
+            loops: summaries.clone(),
+            ..ProfileDoc::default()
+        },
+    };
     let json_path = dir.join("latency.json");
-    let json = summaries_to_json(&summaries).map_err(|e| out_err(&json_path, e))?;
+    let json = doc.to_json().map_err(|e| out_err(&json_path, e))?;
     write_atomic(&json_path, json.as_bytes()).map_err(|e| out_err(&json_path, e))?;
     files.push(json_path);
 
     let md_path = dir.join("latency.md");
     let mut md = String::from("# dynaclay run: loop latency\n\n");
-    md.push_str(&markdown_table(&summaries));
+    md.push_str(&profile_report(&doc));
     let c = report.counters;
     let _ = write!(
         md,
@@ -216,9 +231,14 @@ pub fn write_outputs(
         .iter()
         .map(|r| (r.config.name.as_str(), &r.recorder))
         .collect();
-    let svg = latency_svg(&recorders, None).map_err(|e| out_err(&svg_path, e))?;
+    let probe = platform.map(PlatformJudged::worse_probe);
+    let svg = latency_svg(&recorders, probe).map_err(|e| out_err(&svg_path, e))?;
     write_atomic(&svg_path, svg.as_bytes()).map_err(|e| out_err(&svg_path, e))?;
     files.push(svg_path);
+    let png_path = dir.join("latency.png");
+    let png = latency_png(&recorders, probe).map_err(|e| out_err(&png_path, e))?;
+    write_atomic(&png_path, &png).map_err(|e| out_err(&png_path, e))?;
+    files.push(png_path);
 
     let mut outputs = RunOutputs {
         files,

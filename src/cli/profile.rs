@@ -9,20 +9,17 @@ use std::time::{Duration, Instant};
 
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use dynaclay_loops::{
-    LatencyRecorder, ProbeRun, ProfileDoc, RtOutcome, busy_fraction, compare_table, cpu_jiffies,
-    profile_report, read_platform_facts, run_probes, verdict, write_latency_svg,
+    LatencyRecorder, ProfileDoc, compare_table, latency_png, latency_svg, profile_report,
 };
 
 use super::args::ProfileArgs;
+use super::platform::PlatformWatch;
 use super::run::CliError;
 use crate::engine::{Engine, EngineConfig, HeadlessSink, ScriptPlan, build_clay};
 use crate::io::bounded_read::read_regular_file;
 
 /// The largest `latency.json` that `--compare` reads.
 const MAX_PROFILE_JSON_BYTES: u64 = 16 * 1024 * 1024;
-
-/// The rates the readiness verdict judges, Hz.
-const JUDGED_RATES_HZ: [f64; 2] = [1000.0, 4000.0];
 
 /// Runs the profile `args` asks for, or the comparison.
 ///
@@ -107,11 +104,6 @@ impl Drop for Hogs {
     }
 }
 
-fn probe(rate_hz: f64, each: Duration, rt: Option<i32>) -> Result<ProbeRun, CliError> {
-    run_probes(rate_hz, each, rt)
-        .map_err(|e| CliError::Output(format!("cannot run the platform probe: {e}")))
-}
-
 fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     let plan = ScriptPlan::builtin();
     let field =
@@ -128,7 +120,7 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     let hogs = Hogs::start(args.load)?;
     // Each probe (wake-up, then stalls) runs for a fifth of the engine's time, 0.2 to 2 s.
     let each = Duration::from_secs_f64((args.seconds * 0.2).clamp(0.2, 2.0));
-    let probe_before = probe(args.rate_hz, each, config.haptic_rt_priority)?;
+    let mut watch = PlatformWatch::before(args.rate_hz, each, config.haptic_rt_priority)?;
 
     let engine = Engine::start(&config, field, device, Box::new(HeadlessSink::default()))
         .map_err(CliError::Engine)?;
@@ -140,54 +132,18 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
         engine.haptic_rt()
     );
     let haptic_rt = engine.haptic_rt();
-    let jiffies_before = cpu_jiffies();
+    watch.loops_running();
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs_f64(args.seconds) && engine.is_alive() {
         std::thread::sleep(Duration::from_millis(50));
     }
-    let jiffies_after = cpu_jiffies();
+    let cpu_busy = watch.loops_stopping();
     let report = engine.stop().map_err(CliError::Engine)?;
-    let probe_after = probe(args.rate_hz, each, config.haptic_rt_priority)?;
+    let summaries = report.loops.iter().map(|r| r.summary()).collect();
+    let judged = watch.after(summaries, haptic_rt, cpu_busy)?;
     drop(hogs);
 
-    let mut facts = read_platform_facts();
-    facts.rt_granted = match haptic_rt {
-        RtOutcome::Granted { .. } => Some(true),
-        _ => Some(false),
-    };
-    facts.cpu_busy_fraction = jiffies_before
-        .zip(jiffies_after)
-        .and_then(|(b, a)| busy_fraction(b, a));
-    let probes = [probe_before.summary(), probe_after.summary()];
-    facts.stall_ms_per_s = Some(
-        probes
-            .iter()
-            .map(|p| p.stalls.stolen_ms_per_s())
-            .fold(0.0, f64::max),
-    );
-    facts.wakeup_p999_us = Some(
-        probes
-            .iter()
-            .map(|p| p.wakeup.lateness.p999_us)
-            .fold(0.0, f64::max),
-    );
-    facts.wakeup_max_us = Some(
-        probes
-            .iter()
-            .map(|p| p.wakeup.lateness.max_us)
-            .fold(0.0, f64::max),
-    );
-    let doc = ProfileDoc {
-        loops: report.loops.iter().map(|r| r.summary()).collect(),
-        probe_before: Some(probes[0]),
-        probe_after: Some(probes[1]),
-        readiness: JUDGED_RATES_HZ
-            .iter()
-            .map(|&hz| verdict(&facts, hz))
-            .collect(),
-        facts: Some(facts),
-    };
-    let text = profile_report(&doc);
+    let text = profile_report(&judged.doc);
     print!("{text}");
     let c = report.counters;
     println!(
@@ -205,21 +161,16 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
             .map(|r| (r.config.name.as_str(), &r.recorder))
             .collect();
         // The probe run with the worse tail is drawn over the loops.
-        let worse_probe =
-            if probes[1].wakeup.period_error.p999_us > probes[0].wakeup.period_error.p999_us {
-                &probe_after.wakeup
-            } else {
-                &probe_before.wakeup
-            };
-        for path in write_profile_files(dir, &doc, &text, &recorders, worse_probe)? {
+        for path in write_profile_files(dir, &judged.doc, &text, &recorders, judged.worse_probe())?
+        {
             println!("wrote {}", path.display());
         }
     }
     Ok(())
 }
 
-/// Writes `latency.json`, `latency.md` and `latency.svg` (with `probe` drawn over the loops)
-/// into `dir` (created if missing).
+/// Writes `latency.json`, `latency.md`, `latency.svg` and `latency.png` (the plots with `probe`
+/// drawn over the loops) into `dir` (created if missing), each atomically.
 fn write_profile_files(
     dir: &Path,
     doc: &ProfileDoc,
@@ -237,13 +188,17 @@ fn write_profile_files(
     let md = format!("# dynaclay profile\n\n{text}");
     crate::io::write_atomic(&md_path, md.as_bytes()).map_err(|e| err(&md_path, &e))?;
     let svg_path = dir.join("latency.svg");
-    write_latency_svg(&svg_path, recorders, Some(probe)).map_err(|e| err(&svg_path, &e))?;
-    Ok(vec![json_path, md_path, svg_path])
+    let svg = latency_svg(recorders, Some(probe)).map_err(|e| err(&svg_path, &e))?;
+    crate::io::write_atomic(&svg_path, svg.as_bytes()).map_err(|e| err(&svg_path, &e))?;
+    let png_path = dir.join("latency.png");
+    let png = latency_png(recorders, Some(probe)).map_err(|e| err(&png_path, &e))?;
+    crate::io::write_atomic(&png_path, &png).map_err(|e| err(&png_path, &e))?;
+    Ok(vec![json_path, md_path, svg_path, png_path])
 }
 
 #[cfg(test)]
 mod tests {
-    use dynaclay_loops::LoopSummary;
+    use dynaclay_loops::{LoopSummary, RtOutcome};
 
     use super::*;
 

@@ -12,6 +12,7 @@ use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
 use super::args::RunArgs;
 use super::outputs::{ExtraOutputs, RunOutputs, write_outputs};
+use super::platform::{PlatformWatch, RUN_PROBE_EACH};
 use crate::engine::{
     Engine, EngineConfig, EngineError, HeadlessSink, IoReport, Lockstep, ScheduledReplay,
     ScriptDriver, ScriptPlan, StartOptions, build_clay, builtin_script,
@@ -230,6 +231,16 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         Instant::now(),
     );
 
+    // The platform probe, short, before the loops and after them: the machine's side of the
+    // latency report and the readiness verdict. A probe that cannot run costs the report its
+    // probe, never the run.
+    let mut watch = PlatformWatch::before(
+        config.haptic_rate_hz,
+        RUN_PROBE_EACH,
+        config.haptic_rt_priority,
+    )
+    .map_err(|e| eprintln!("dynaclay: {e}; the latency report has no probe"))
+    .ok();
     let engine = Engine::start_with(
         &config,
         field,
@@ -258,6 +269,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let mut driver = ScriptDriver::new(&plan);
     let commands = engine.commands();
     let mut engine = engine;
+    if let Some(w) = &mut watch {
+        w.loops_running();
+    }
     let started = Instant::now();
     while started.elapsed() < Duration::from_secs_f64(seconds) && engine.is_alive() {
         let sample = engine.latest_tool();
@@ -265,8 +279,18 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         std::thread::sleep(Duration::from_millis(2));
     }
     drop(commands);
+    let cpu_busy = watch.as_ref().and_then(PlatformWatch::loops_stopping);
     let report = engine.stop().map_err(CliError::Engine)?;
-    let outputs = write_outputs(&args.out, &report, &config, &extras(args))?;
+    let summaries = report.loops.iter().map(|r| r.summary()).collect();
+    let judged = watch.and_then(|w| {
+        w.after(summaries, rt, cpu_busy)
+            .map_err(|e| eprintln!("dynaclay: {e}; the latency report has no probe"))
+            .ok()
+    });
+    if let Some(j) = &judged {
+        say!("{}", j.headline());
+    }
+    let outputs = write_outputs(&args.out, &report, &config, &extras(args), judged.as_ref())?;
     say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
     finish_run(&session_path, &mut driver, &report.io)?;
