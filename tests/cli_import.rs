@@ -312,3 +312,26 @@ fn a_script_starts_from_an_imported_session() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("nowhere.dclay"));
 }
+
+#[test]
+fn a_mesh_over_the_memory_budget_is_refused_before_anything_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("torus.xyz");
+    write_torus_xyz(&input);
+    let (session, mesh) = (dir.path().join("torus.dclay"), dir.path().join("torus.obj"));
+    let out = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .arg("--out")
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&mesh)
+        .args(["--memory-budget-mib", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("memory budget of 1.0 MiB"), "{err}");
+    assert!(err.contains("--resolution"), "{err}");
+    assert!(!session.exists() && !mesh.exists());
+}

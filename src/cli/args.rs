@@ -173,7 +173,9 @@ Exit status:
 /// The PNG note of `dynaclay run --help`.
 pub const RUN_AFTER_HELP: &str = "\
 With --png and no GPU adapter, the run prints \"no GPU adapter: ...; skipped rendering\",
-writes every other file and exits 0 (use `dynaclay render` for a status that reports it).";
+writes every other file and exits 0 (use `dynaclay render` for a status that reports it).
+A --png image larger than the memory budget (--memory-budget-mib; default half of physical
+memory) is refused with exit 2 before the run starts.";
 
 /// `dynaclay render`.
 #[derive(Debug, Args, Clone)]

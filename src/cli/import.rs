@@ -71,7 +71,16 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             Some((
                 path,
                 format,
-                super::mesh_clay(&session.clay, 4, &budget)?.weld(),
+                super::mesh_clay(&session.clay, 4, &budget)
+                    .map_err(|e| match e {
+                        // The mesh's resolution follows the clay's here.
+                        CliError::OverBudget(mut o) => {
+                            o.hint = "Lower --resolution";
+                            CliError::OverBudget(o)
+                        }
+                        other => other,
+                    })?
+                    .weld(),
             ))
         }
         _ => None,

@@ -665,3 +665,41 @@ fn sample_frames() {
     let path = std::path::Path::new(&dir).join("sphere_wire_tool.png");
     r.render(&camera, &o).unwrap().write_png(&path).unwrap();
 }
+
+#[test]
+fn a_gpu_allocation_the_device_refuses_is_an_error_value_not_a_panic() {
+    let Some(r) = offscreen(8, 8) else {
+        return;
+    };
+    let gpu = r.gpu();
+    let too_big = gpu.device.limits().max_buffer_size.saturating_add(1);
+    let err = gpu
+        .guarded("a test buffer", |device, _| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("too big"),
+                size: too_big,
+                usage: wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        })
+        .map(|_| ())
+        .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            RenderError::Gpu { .. } | RenderError::OutOfMemory { .. }
+        ),
+        "{err}"
+    );
+    assert!(err.to_string().contains("a test buffer"), "{err}");
+    // The scope took the error: the device goes on working.
+    gpu.guarded("a small buffer", |device, _| {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("small"),
+            size: 256,
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    })
+    .unwrap();
+}
