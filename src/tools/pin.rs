@@ -335,8 +335,16 @@ mod tests {
     #[test]
     fn a_pin_far_from_the_surface_or_outside_the_clay_is_refused_by_name() {
         let mut clay = ball();
-        // The centre of the ball is 4 knot spans deep: farther than the reach.
-        let deep = add_pins(&mut clay, &PinRequest::Point(Vec3::splat(0.95)))
+        // The centre of a ball of radius 6 knot spans is farther than the 4-span reach
+        // whichever way its (rounding-noise) gradient points. (The centre of `ball()` is
+        // exactly 4 spans deep, where the outcome hangs on the last bits of the fit.)
+        let s = Primitive::Sphere {
+            centre: Vec3::splat(0.95),
+            radius: 0.6,
+        };
+        let mut big =
+            Clay::single(lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap());
+        let deep = add_pins(&mut big, &PinRequest::Point(Vec3::splat(0.95)))
             .unwrap_err()
             .to_string();
         assert!(deep.contains("no surface found"), "{deep}");
