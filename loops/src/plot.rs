@@ -256,6 +256,28 @@ fn log_bins(hist: &Histogram<u64>) -> Vec<(f64, f64, u64)> {
     bins
 }
 
+/// The outline of histogram bins `(lower edge, upper edge, height)` as one path that never
+/// turns back on itself: it drops to `floor` only across a gap between bins (a path that goes
+/// down and straight back up draws broken in the bitmap backend).
+fn step_outline(bins: &[(f64, f64, f64)], x_min: f64, floor: f64) -> Vec<(f64, f64)> {
+    let mut path = Vec::with_capacity(bins.len() * 2 + 4);
+    let mut last_hi: Option<f64> = None;
+    for &(lo, hi, h) in bins {
+        let lo = lo.max(x_min);
+        match last_hi {
+            Some(prev) if (lo - prev).abs() <= prev * 1e-9 => {}
+            Some(prev) => path.extend([(prev, floor), (lo, floor)]),
+            None => path.push((lo, floor)),
+        }
+        path.extend([(lo, h), (hi, h)]);
+        last_hi = Some(hi);
+    }
+    if let Some(prev) = last_hi {
+        path.push((prev, floor));
+    }
+    path
+}
+
 /// One histogram panel's contents.
 struct Histo<'a> {
     title: String,
@@ -326,16 +348,11 @@ fn draw_histogram<DB: DrawingBackend>(
         .label(h.series.to_string())
         .legend(move |(x, y)| Rectangle::new([(x, y - 4), (x + 12, y + 4)], colour.filled()));
     if !probe_bins.is_empty() {
-        let steps = probe_bins.iter().flat_map(|&(lo, hi, s)| {
-            [
-                (lo.max(x_min), y_min),
-                (lo.max(x_min), s),
-                (hi, s),
-                (hi, y_min),
-            ]
-        });
         chart
-            .draw_series(LineSeries::new(steps, PROBE_COLOUR.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                step_outline(&probe_bins, x_min, y_min),
+                PROBE_COLOUR.stroke_width(2),
+            ))
             .map_err(draw_err)?
             .label("probe (sleeping thread)")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 12, y)], PROBE_COLOUR.stroke_width(2)));
@@ -517,6 +534,27 @@ mod tests {
         assert!(
             log_bins(LatencyRecorder::new(Duration::from_millis(1)).compute_histogram()).is_empty()
         );
+    }
+
+    #[test]
+    fn step_outline_goes_down_only_across_gaps() {
+        let bins = [(1.0, 2.0, 0.5), (2.0, 3.0, 0.25), (5.0, 6.0, 0.1)];
+        assert_eq!(
+            step_outline(&bins, 0.1, 0.01),
+            vec![
+                (1.0, 0.01),
+                (1.0, 0.5),
+                (2.0, 0.5),
+                (2.0, 0.25),
+                (3.0, 0.25),
+                (3.0, 0.01),
+                (5.0, 0.01),
+                (5.0, 0.1),
+                (6.0, 0.1),
+                (6.0, 0.01),
+            ]
+        );
+        assert!(step_outline(&[], 0.1, 0.01).is_empty());
     }
 
     #[test]

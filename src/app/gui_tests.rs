@@ -355,6 +355,28 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
 }
 
 #[test]
+fn probe_again_runs_the_wake_up_probe_on_a_worker_and_shows_it() {
+    let (mut h, _end) = harness();
+    h.run();
+    h.get_by_label("Probe again").click();
+    // Single frames: the spinner keeps asking for repaints while the probe runs.
+    h.step();
+    assert!(h.state().probe.is_running());
+    // The worker sleeps through half a second of wake-ups; the frame only polls it.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
+    while h.state().probe.is_running() && std::time::Instant::now() < deadline {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.step();
+    }
+    assert!(!h.state().probe.is_running(), "the probe never finished");
+    h.run();
+    h.get_by_label_contains("beside the engine");
+    h.get_by_label_contains("wake-up p99 ");
+    // No stall counts: none were made at launch here.
+    h.get_by_label("host stalls: not counted (counted only before the engine starts)");
+}
+
+#[test]
 fn the_latency_panel_draws_histograms_and_timelines_from_the_loops_bins() {
     let (mut h, mut end) = harness();
     h.run();

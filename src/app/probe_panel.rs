@@ -92,7 +92,7 @@ impl ProbeSettings {
 #[derive(Debug, Default)]
 pub struct ProbePanel {
     pub settings: ProbeSettings,
-    running: Option<(Instant, Receiver<Result<ProbeOutcome, String>>)>,
+    running: Option<(Instant, Receiver<ProbeOutcome>)>,
     /// The last finished probe and when it finished.
     pub last: Option<(Instant, ProbeOutcome)>,
     /// Why the last probe failed, if it did.
@@ -181,7 +181,7 @@ impl ProbePanel {
             .name("probe-panel".into())
             .spawn(move || {
                 // The frame may have gone (app closed): nothing to tell then.
-                let _ = tx.send(Ok(probe_beside_engine(settings, stalls)));
+                let _ = tx.send(probe_beside_engine(settings, stalls));
             });
         match spawned {
             Ok(_) => {
@@ -198,9 +198,9 @@ impl ProbePanel {
             return;
         };
         match rx.try_recv() {
-            Ok(result) => {
+            Ok(outcome) => {
                 self.running = None;
-                self.finish(result);
+                self.finish(Ok(outcome));
             }
             Err(TryRecvError::Empty) => {}
             Err(TryRecvError::Disconnected) => {
