@@ -780,27 +780,30 @@ mod tests {
     }
 
     #[test]
-    fn runs_at_about_its_rate_at_1khz_and_4khz() {
-        // A functional check with generous slack (the machine is shared): never ahead of the
-        // deadline grid, and not wildly behind it.
+    fn never_runs_ahead_of_its_deadline_grid_at_1khz_and_4khz() {
+        // Whatever the machine's load: never more ticks than were due, and the rate it reports
+        // never above the nominal one. How far behind a loaded machine falls belongs in bench/.
         for rate_hz in [1000.0, 4000.0] {
-            let handle = spawn_loop(LoopConfig::new("t-rate").with_rate_hz(rate_hz), |_| {
-                ControlFlow::Continue(())
-            })
+            let mut handle = spawn_loop(
+                LoopConfig::new("t-rate")
+                    .with_rate_hz(rate_hz)
+                    .with_stats_every_ticks(10),
+                |_| ControlFlow::Continue(()),
+            )
             .expect("spawn");
             let started = Instant::now();
-            std::thread::sleep(Duration::from_millis(300));
+            // Run until the loop has published its figures once (ten ticks), however late.
+            let patience = started + Duration::from_secs(60);
+            while handle.monitor().latest_stats().version == 0 && Instant::now() < patience {
+                std::thread::sleep(Duration::from_millis(1));
+            }
             let report = handle.stop_and_join().expect("join");
             let elapsed_s = started.elapsed().as_secs_f64();
             let ticks = report.recorder.ticks() as f64;
+            assert!(ticks >= 10.0, "{ticks} ticks before the first figures");
             assert!(
                 ticks <= rate_hz * elapsed_s + 2.0,
                 "{ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
-            );
-            // At least 30 % of the ticks due in the 300 ms sleep.
-            assert!(
-                ticks >= rate_hz * 0.3 * 0.3,
-                "only {ticks} ticks in {elapsed_s} s at {rate_hz} Hz"
             );
             let stats = report.recorder.stats();
             assert!(stats.achieved_rate_hz <= rate_hz * 1.01, "{stats:?}");
