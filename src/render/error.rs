@@ -5,29 +5,37 @@ use std::path::PathBuf;
 use super::chunk::ChunkError;
 
 /// Why a render could not be produced.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum RenderError {
     /// No usable GPU adapter (hardware or software) on this machine. Callers that can do
     /// without a picture should print this and carry on; see [`RenderError::is_no_adapter`].
+    #[error("no GPU adapter: tried {}", tried.join("; "))]
     NoAdapter {
         /// One entry per backend tried, with the reason it gave.
         tried: Vec<String>,
     },
     /// The adapter refused to create a device.
+    #[error("GPU adapter {adapter:?} refused a device: {message}")]
     Device { adapter: String, message: String },
     /// A mesh chunk was malformed.
-    Chunk(ChunkError),
+    #[error("cannot render: {0}")]
+    Chunk(#[from] ChunkError),
     /// Copying the frame back from the GPU failed.
+    #[error("reading the frame back from the GPU failed: {message}")]
     Readback { message: String },
     /// Writing the PNG failed.
+    #[error("writing PNG {}: {message}", path.display())]
     Png { path: PathBuf, message: String },
     /// The GPU (or the software rasterizer's memory) could not hold `what`: caught from
     /// wgpu's out-of-memory error scope instead of a panic.
+    #[error("the GPU ran out of memory for {what} ({message}); try a smaller --width/--height")]
     OutOfMemory { what: &'static str, message: String },
     /// The GPU refused an operation on `what` (a validation or internal error, caught from an
     /// error scope instead of a panic).
+    #[error("the GPU refused {what}: {message}")]
     Gpu { what: &'static str, message: String },
     /// The GPU device was lost (driver reset, device removed).
+    #[error("the GPU device was lost: {message}")]
     DeviceLost { message: String },
 }
 
@@ -36,46 +44,5 @@ impl RenderError {
     #[must_use]
     pub fn is_no_adapter(&self) -> bool {
         matches!(self, Self::NoAdapter { .. })
-    }
-}
-
-impl std::fmt::Display for RenderError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::NoAdapter { tried } => {
-                write!(f, "no GPU adapter: tried {}", tried.join("; "))
-            }
-            Self::Device { adapter, message } => {
-                write!(f, "GPU adapter {adapter:?} refused a device: {message}")
-            }
-            Self::Chunk(e) => write!(f, "cannot render: {e}"),
-            Self::Readback { message } => {
-                write!(f, "reading the frame back from the GPU failed: {message}")
-            }
-            Self::Png { path, message } => {
-                write!(f, "writing PNG {}: {message}", path.display())
-            }
-            Self::OutOfMemory { what, message } => write!(
-                f,
-                "the GPU ran out of memory for {what} ({message}); try a smaller --width/--height"
-            ),
-            Self::Gpu { what, message } => write!(f, "the GPU refused {what}: {message}"),
-            Self::DeviceLost { message } => write!(f, "the GPU device was lost: {message}"),
-        }
-    }
-}
-
-impl std::error::Error for RenderError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            Self::Chunk(e) => Some(e),
-            _ => None,
-        }
-    }
-}
-
-impl From<ChunkError> for RenderError {
-    fn from(e: ChunkError) -> Self {
-        Self::Chunk(e)
     }
 }
