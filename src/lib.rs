@@ -19,5 +19,6 @@ pub mod fit;
 pub mod haptics;
 pub mod io;
 pub mod mesh;
+pub mod particles;
 pub mod render;
 pub mod tools;
