@@ -20,5 +20,6 @@ pub mod haptics;
 pub mod io;
 pub mod mesh;
 pub mod particles;
+pub mod rbf;
 pub mod render;
 pub mod tools;

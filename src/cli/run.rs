@@ -47,6 +47,8 @@ pub enum CliError {
     /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
     /// [`CliError::NO_ADAPTER_EXIT`]).
     Render(RenderError, PathBuf),
+    /// `dynaclay rbf` failed (exit 2 for bad input, 1 otherwise).
+    Rbf(super::rbf::RbfCommandError),
 }
 
 impl CliError {
@@ -67,6 +69,7 @@ impl CliError {
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
+            Self::Rbf(e) => e.exit_code(),
         }
     }
 }
@@ -88,6 +91,7 @@ impl fmt::Display for CliError {
                 write!(f, "{e}; skipped rendering {}", path.display())
             }
             Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
+            Self::Rbf(e) => write!(f, "rbf: {e}"),
         }
     }
 }

@@ -493,7 +493,7 @@ impl ParticleSystem {
         let after_deaths = live - deaths;
         // Fission candidates, sparsest first, at most half the population per step.
         let births = fission_candidates
-            .min(big_n.saturating_sub(after_deaths) + deaths.min(swaps))
+            .min(big_n.saturating_sub(after_deaths))
             .min(after_deaths / 2 + 1);
         self.candidates.clear();
         for i in 0..n {
