@@ -8,9 +8,11 @@
 //! are at most half the population. Nothing here runs on the haptic thread.
 
 mod pds;
+mod surface;
 mod system;
 
 pub use pds::{MAX_LEVEL, Pds};
+pub use surface::ImplicitSurface;
 pub use system::{
     NeighbourSearch, ParticleError, ParticleParams, ParticleSystem, StepReport,
     nearest_neighbour_distances,

@@ -27,7 +27,7 @@
 use glam::Vec3;
 
 use super::pds::Pds;
-use crate::field::BSplineLattice;
+use super::surface::ImplicitSurface;
 
 /// Why the particles could not be seeded or stepped.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -252,7 +252,7 @@ impl ParticleSystem {
     /// bounded number of draws (`2000 · count + 100000`) finds too few surface points.
     pub fn seed_random(
         &mut self,
-        field: &BSplineLattice,
+        field: &(impl ImplicitSurface + ?Sized),
         count: usize,
         seed: u64,
     ) -> Result<(), ParticleError> {
@@ -260,18 +260,18 @@ impl ParticleSystem {
             return Err(ParticleError::ZeroCount);
         }
         self.rng = seed ^ 0xD1B5_4A32_D192_ED03;
-        let (lo, hi) = field.support();
+        let (lo, hi) = field.bounds();
         let extent = hi - lo;
-        let band = field.spacing;
+        let band = field.resolution();
         let mut points = Vec::with_capacity(count);
         let max_draws = 2000 * count + 100_000;
         let mut draws = 0;
         while points.len() < count && draws < max_draws {
             draws += 1;
             let x = lo + extent * Vec3::new(self.next_unit(), self.next_unit(), self.next_unit());
-            let (v, g) = field.value_and_gradient(x);
+            let (f, g) = field.eval(x);
             let g2 = g.length_squared();
-            if g2 <= f32::EPSILON || ((v - field.iso).abs() / g2.sqrt()) > band {
+            if g2 <= f32::EPSILON || (f.abs() / g2.sqrt()) > band {
                 continue;
             }
             if let Some(p) = project_point(field, x, 8) {
@@ -292,7 +292,7 @@ impl ParticleSystem {
 
     /// Move every particle onto the surface by `iterations` Newton steps along the gradient
     /// (`p ← p − F ∇F / |∇F|²`); particles where the gradient vanishes are removed.
-    pub fn project(&mut self, field: &BSplineLattice, iterations: usize) {
+    pub fn project(&mut self, field: &(impl ImplicitSurface + ?Sized), iterations: usize) {
         let mut w = 0;
         for r in 0..self.positions.len() {
             if let Some(p) = project_point(field, self.positions[r], iterations) {
@@ -307,7 +307,7 @@ impl ParticleSystem {
 
     /// Run `steps` steps of size `dt = 0.1` and then project the particles onto the surface
     /// (two Newton steps). Returns the report of the last step.
-    pub fn settle(&mut self, field: &BSplineLattice, steps: usize) -> StepReport {
+    pub fn settle(&mut self, field: &(impl ImplicitSurface + ?Sized), steps: usize) -> StepReport {
         let mut report = StepReport {
             count: self.len(),
             ..StepReport::default()
@@ -331,7 +331,11 @@ impl ParticleSystem {
     ///
     /// # Errors
     /// [`ParticleError::BadTimeStep`] when `dt` is not positive and finite (nothing changes).
-    pub fn step(&mut self, field: &BSplineLattice, dt: f32) -> Result<StepReport, ParticleError> {
+    pub fn step(
+        &mut self,
+        field: &(impl ImplicitSurface + ?Sized),
+        dt: f32,
+    ) -> Result<StepReport, ParticleError> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(ParticleError::BadTimeStep { dt });
         }
@@ -351,8 +355,8 @@ impl ParticleSystem {
     }
 
     /// Stage 1: the PDS over the lattice's support, query radius `3 σ_max`.
-    fn index(&mut self, field: &BSplineLattice) {
-        let (lo, hi) = field.support();
+    fn index(&mut self, field: &(impl ImplicitSurface + ?Sized)) {
+        let (lo, hi) = field.bounds();
         let sigma_max = self.sigmas.iter().copied().fold(0.0f32, f32::max);
         self.pds.build(&self.positions, lo, hi, 3.0 * sigma_max);
     }
@@ -407,20 +411,19 @@ impl ParticleSystem {
 
     /// Stage 3: constrained motion. Returns how many particles were removed for having no
     /// gradient (they left the clay's transition band).
-    fn constrain(&mut self, field: &BSplineLattice, dt: f32) -> usize {
+    fn constrain(&mut self, field: &(impl ImplicitSurface + ?Sized), dt: f32) -> usize {
         let max_move = self.params.max_move_ratio;
         self.keep.clear();
         let mut lost = 0;
         for i in 0..self.positions.len() {
             let p = self.positions[i];
-            let (v, g) = field.value_and_gradient(p);
+            let (f, g) = field.eval(p);
             let g2 = g.length_squared();
-            if !(g2 > 1e-12) || !v.is_finite() {
+            if !(g2 > 1e-12) || !f.is_finite() {
                 self.keep.push(false);
                 lost += 1;
                 continue;
             }
-            let f = v - field.iso;
             let d = self.desired[i];
             // Tangential part of the repulsion, limited to a fraction of σ per step.
             let mut tangent = (d - g * (g.dot(d) / g2)) * dt;
@@ -438,12 +441,12 @@ impl ParticleSystem {
     }
 
     /// Stage 4: radii toward the target energy.
-    fn adapt(&mut self, field: &BSplineLattice, dt: f32) {
+    fn adapt(&mut self, field: &(impl ImplicitSurface + ?Sized), dt: f32) {
         let p = self.params;
         let target = p.energy_ratio * p.alpha;
-        let (lo, hi) = field.support();
+        let (lo, hi) = field.bounds();
         let sigma_cap = MAX_SIGMA_OF_EXTENT * (hi - lo).max_element();
-        let sigma_floor = 1e-4 * field.spacing;
+        let sigma_floor = 1e-4 * field.resolution();
         for i in 0..self.sigmas.len() {
             let rate = -p.rho * (self.energy[i] - target) / (self.denergy[i] + p.beta);
             let step = (rate * dt).clamp(-p.max_log_sigma_step, p.max_log_sigma_step);
@@ -452,7 +455,7 @@ impl ParticleSystem {
     }
 
     /// Stage 5: fission, death and the count feedback. Returns (births, deaths).
-    fn population(&mut self, field: &BSplineLattice) -> (usize, usize) {
+    fn population(&mut self, field: &(impl ImplicitSurface + ?Sized)) -> (usize, usize) {
         let n = self.positions.len();
         let big_n = self.params.target_count;
         // σ̂: the radius at which N particles tile the surface whose area the live particles'
@@ -525,7 +528,7 @@ impl ParticleSystem {
         for c in 0..births {
             let parent = self.new_index[self.candidates[c] as usize] as usize;
             let (p, s) = (self.positions[parent], self.sigmas[parent]);
-            let g = field.gradient(p);
+            let g = field.eval(p).1;
             let t = random_tangent(g, self.next_unit(), self.next_unit());
             let child_sigma = s * std::f32::consts::FRAC_1_SQRT_2;
             self.positions[parent] = p - t * (0.5 * s);
@@ -568,15 +571,19 @@ fn random_tangent(normal: Vec3, u: f32, _v: f32) -> Vec3 {
 
 /// Newton steps `p ← p − F ∇F / |∇F|²` from `x`; `None` where the gradient vanishes or the
 /// result is not finite.
-fn project_point(field: &BSplineLattice, x: Vec3, iterations: usize) -> Option<Vec3> {
+fn project_point(
+    field: &(impl ImplicitSurface + ?Sized),
+    x: Vec3,
+    iterations: usize,
+) -> Option<Vec3> {
     let mut p = x;
     for _ in 0..iterations {
-        let (v, g) = field.value_and_gradient(p);
+        let (f, g) = field.eval(p);
         let g2 = g.length_squared();
         if !(g2 > 1e-12) {
             return None;
         }
-        p -= g * ((v - field.iso) / g2);
+        p -= g * (f / g2);
     }
     p.is_finite().then_some(p)
 }

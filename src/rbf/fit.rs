@@ -22,7 +22,7 @@
 use glam::{DVec3, Vec3};
 use nalgebra::{DMatrix, DVector};
 
-use crate::field::BSplineLattice;
+use crate::particles::ImplicitSurface;
 
 /// Why an RBF could not be fitted.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -212,7 +212,8 @@ pub fn solve_rbf(points: &[DVec3], values: &[f64]) -> Result<Rbf, RbfError> {
     })
 }
 
-/// Fit the RBF to surface points of `field` (the settled particles): each gives a surface,
+/// Fit the RBF to surface points of `field` (the settled particles; the clay, or any
+/// [`ImplicitSurface`] whose gradient gives the normal): each gives a surface,
 /// an inner and an outer constraint (§5.3). Above `options.max_centres` constraints the
 /// centres are reduced greedily.
 ///
@@ -220,7 +221,7 @@ pub fn solve_rbf(points: &[DVec3], values: &[f64]) -> Result<Rbf, RbfError> {
 /// [`RbfError::NoPoints`], [`RbfError::BadOffset`], [`RbfError::NoNormal`],
 /// [`RbfError::TooFewCentres`], [`RbfError::Singular`], [`RbfError::NonFinite`].
 pub fn fit_surface(
-    field: &BSplineLattice,
+    field: &(impl ImplicitSurface + ?Sized),
     surface: &[Vec3],
     options: &RbfOptions,
 ) -> Result<(Rbf, RbfFitReport), RbfError> {
@@ -241,7 +242,7 @@ pub fn fit_surface(
     let mut points = Vec::with_capacity(3 * surface.len());
     let mut values = Vec::with_capacity(3 * surface.len());
     for (i, &p) in surface.iter().enumerate() {
-        let g = field.gradient(p).as_dvec3();
+        let g = field.eval(p).1.as_dvec3();
         let len = g.length();
         if !(len > 1e-12) {
             return Err(RbfError::NoNormal { index: i });

@@ -5,8 +5,10 @@
 
 mod file;
 mod fit;
+mod sculpt;
 
 pub use file::{
     MAGIC, MAX_CENTRES, RbfFile, RbfFileError, VERSION, decode, encode, read_rbf, write_rbf,
 };
 pub use fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface, solve_rbf};
+pub use sculpt::{RbfSculpt, RbfSculptError};
