@@ -419,7 +419,7 @@ impl ParticleSystem {
             let p = self.positions[i];
             let (f, g) = field.eval(p);
             let g2 = g.length_squared();
-            if !(g2 > 1e-12) || !f.is_finite() {
+            if g2.is_nan() || g2 <= 1e-12 || !f.is_finite() {
                 self.keep.push(false);
                 lost += 1;
                 continue;
@@ -580,7 +580,7 @@ fn project_point(
     for _ in 0..iterations {
         let (f, g) = field.eval(p);
         let g2 = g.length_squared();
-        if !(g2 > 1e-12) {
+        if g2.is_nan() || g2 <= 1e-12 {
             return None;
         }
         p -= g * (f / g2);

@@ -218,7 +218,8 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<RbfFile, RbfFileError> {
     if dims.iter().any(|&d| !(4..=512).contains(&d)) {
         return Err(invalid("lattice size"));
     }
-    if !(spacing.is_finite() && spacing > 0.0) || !origin.is_finite() || !iso.is_finite() {
+    let spacing_ok = spacing.is_finite() && spacing > 0.0;
+    if !spacing_ok || !origin.is_finite() || !iso.is_finite() {
         return Err(invalid("lattice geometry"));
     }
     let poly = [f64_at(48), f64_at(56), f64_at(64), f64_at(72)];

@@ -244,7 +244,7 @@ pub fn fit_surface(
     for (i, &p) in surface.iter().enumerate() {
         let g = field.eval(p).1.as_dvec3();
         let len = g.length();
-        if !(len > 1e-12) {
+        if len.is_nan() || len <= 1e-12 {
             return Err(RbfError::NoNormal { index: i });
         }
         // The value rises inward, so the outward normal is −∇f/|∇f|.
