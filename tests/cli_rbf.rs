@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::Command;
 
 use dynaclay::dynamics::Material;
-use dynaclay::field::{Primitive, lattice_from_primitive};
+use dynaclay::field::{BSplineLattice, Primitive, lattice_from_primitive};
 use dynaclay::io::{MaterialFields, Session, SessionMeta, load_session, save_session};
 use dynaclay::rbf::read_rbf;
 use dynaclay::tools::Clay;
@@ -20,6 +20,10 @@ const SPHERE: Primitive = Primitive::Sphere {
 
 fn write_sphere_session(path: &Path) {
     let lattice = lattice_from_primitive([21; 3], 0.1, Vec3::ZERO, &SPHERE, 0.2, 2).unwrap();
+    write_session(path, lattice);
+}
+
+fn write_session(path: &Path, lattice: BSplineLattice) {
     let session = Session {
         clay: Clay::single(lattice),
         material: MaterialFields {
@@ -88,10 +92,17 @@ fn bad_input_exits_2() {
     let s = session.to_str().unwrap();
     let out = dir.path().join("x.rbf");
     let o = out.to_str().unwrap();
-    // Missing session, wrong extension, zero particles, a file that is not a session.
+    // Missing session, wrong extension, zero particles, a file that is not a session, a clay
+    // with no surface.
     let missing = dir.path().join("none.dclay");
     let garbage = dir.path().join("garbage.dclay");
     std::fs::write(&garbage, b"not a session").unwrap();
+    // A clay with no surface: every coefficient zero.
+    let empty = dir.path().join("empty.dclay");
+    write_session(
+        &empty,
+        BSplineLattice::zeros([8; 3], 0.1, Vec3::ZERO).unwrap(),
+    );
     for args in [
         vec!["rbf", missing.to_str().unwrap(), "--out", o],
         vec![
@@ -102,6 +113,7 @@ fn bad_input_exits_2() {
         ],
         vec!["rbf", s, "--particles", "0", "--out", o],
         vec!["rbf", garbage.to_str().unwrap(), "--out", o],
+        vec!["rbf", empty.to_str().unwrap(), "--out", o],
     ] {
         let r = run(&args);
         assert_eq!(
