@@ -14,6 +14,6 @@ mod system;
 pub use pds::{MAX_LEVEL, Pds};
 pub use surface::ImplicitSurface;
 pub use system::{
-    NeighbourSearch, ParticleError, ParticleParams, ParticleSystem, StepReport,
+    NeighbourSearch, ParticleError, ParticleParams, ParticleSystem, SWAP_RATIO, StepReport,
     nearest_neighbour_distances,
 };

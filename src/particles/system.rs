@@ -75,6 +75,9 @@ pub struct ParticleParams {
     pub fission_ratio: f32,
     /// Gain of the feedback `S` (eq. 13 uses `t = count_gain / N`).
     pub count_gain: f32,
+    /// Curvature bias (Zhang §7, beyond the paper): the particle density where the surface is
+    /// most curved over that where it is flat. 1 samples evenly.
+    pub curvature_ratio: f32,
     /// The largest change of `ln σᵢ` in one step.
     pub max_log_sigma_step: f32,
     /// The largest tangential move in one step, as a fraction of `σᵢ`.
@@ -94,6 +97,7 @@ impl ParticleParams {
             theta: 0.5,
             fission_ratio: 1.2,
             count_gain: 0.05,
+            curvature_ratio: 1.0,
             max_log_sigma_step: 0.2,
             max_move_ratio: 0.3,
         }
@@ -130,8 +134,15 @@ pub struct ParticleSystem {
     desired: Vec<Vec3>,
     keep: Vec<bool>,
     candidates: Vec<u32>,
+    /// Per-particle scale of the fission and death radii (1 without curvature bias).
+    scale: Vec<f32>,
+    curvature: Vec<f32>,
     new_index: Vec<u32>,
 }
+
+/// With curvature bias, a crowded and a sparse particle swap (one dies, one splits) while
+/// their `σ / scale` differ by more than this factor.
+pub const SWAP_RATIO: f32 = 1.3;
 
 /// The largest `σ` allowed, as a fraction of the clay's extent.
 const MAX_SIGMA_OF_EXTENT: f32 = 0.25;
@@ -159,6 +170,8 @@ impl ParticleSystem {
             desired: Vec::new(),
             keep: Vec::new(),
             candidates: Vec::new(),
+            scale: Vec::new(),
+            curvature: Vec::new(),
             new_index: Vec::new(),
         })
     }
@@ -347,6 +360,7 @@ impl ParticleSystem {
         self.repel();
         report.lost = self.constrain(field, dt);
         self.adapt(field, dt);
+        self.bias(field);
         let (births, deaths) = self.population(field);
         report.births = births;
         report.deaths = deaths;
@@ -454,6 +468,73 @@ impl ParticleSystem {
         }
     }
 
+    /// Stage 4b (beyond the paper, its §7): curvature bias. Each particle's fission and death
+    /// radii are scaled by `ρᵢ^(−1/2)`, with the wanted density
+    /// `ρᵢ = 1 + (ratio − 1) · min(κᵢ / κ₉₀, 1)`, `κᵢ = √(k₁² + k₂²)` the norm of the shape
+    /// operator at the particle and `κ₉₀` the 90th percentile over the particles: where the
+    /// surface is curved the particles split sooner and die later. A surface of one curvature
+    /// (a sphere) stays evenly sampled.
+    fn bias(&mut self, field: &(impl ImplicitSurface + ?Sized)) {
+        let n = self.positions.len();
+        self.scale.clear();
+        self.scale.resize(n, 1.0);
+        let ratio = self.params.curvature_ratio;
+        let biased = ratio.is_finite() && ratio > 1.0;
+        if !biased || n == 0 {
+            return;
+        }
+        let h = 0.25 * field.resolution();
+        self.curvature.clear();
+        for &p in &self.positions {
+            self.curvature.push(shape_operator_norm(field, p, h));
+        }
+        let mut sorted = self.curvature.clone();
+        let k = (9 * n / 10).min(n - 1);
+        let (_, &mut reference, _) = sorted.select_nth_unstable_by(k, f32::total_cmp);
+        if reference.is_nan() || reference <= 0.0 {
+            return;
+        }
+        for (s, c) in self.scale.iter_mut().zip(&self.curvature) {
+            let density = 1.0 + (ratio - 1.0) * (c / reference).clamp(0.0, 1.0);
+            *s = density.sqrt().recip();
+        }
+    }
+
+    /// With curvature bias, the fission and death thresholds alone would leave an evenly
+    /// seeded population as it is (a particle between them neither splits nor dies, and the
+    /// count is already `N`). So, count-neutral swaps: the particle most crowded for its wanted
+    /// density (smallest `σᵢ / scaleᵢ`) dies and the sparsest splits, while the two differ by
+    /// more than [`SWAP_RATIO`], at most `n/100 + 1` pairs a step. Returns the swaps, whose
+    /// parents are appended to `candidates`.
+    fn redistribute(&mut self, n: usize) -> usize {
+        let ratio = self.params.curvature_ratio;
+        if !(ratio.is_finite() && ratio > 1.0) {
+            return 0;
+        }
+        let mut splitting = vec![false; n];
+        for &c in &self.candidates {
+            splitting[c as usize] = true;
+        }
+        let (sigmas, scale) = (&self.sigmas, &self.scale);
+        let key = |i: u32| sigmas[i as usize] / scale[i as usize];
+        let mut order: Vec<u32> = (0..n as u32)
+            .filter(|&i| self.keep[i as usize] && !splitting[i as usize])
+            .collect();
+        order.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)));
+        let max_swaps = n / 100 + 1;
+        let mut swaps = 0;
+        while swaps < max_swaps && 2 * swaps + 1 < order.len() {
+            let (lo, hi) = (order[swaps], order[order.len() - 1 - swaps]);
+            if key(hi) <= SWAP_RATIO * key(lo) {
+                break;
+            }
+            self.keep[lo as usize] = false;
+            self.candidates.push(hi);
+            swaps += 1;
+        }
+        swaps
+    }
+
     /// Stage 5: fission, death and the count feedback. Returns (births, deaths).
     fn population(&mut self, field: &(impl ImplicitSurface + ?Sized)) -> (usize, usize) {
         let n = self.positions.len();
@@ -474,21 +555,22 @@ impl ParticleSystem {
         // Death candidates, most crowded first.
         self.candidates.clear();
         for i in 0..n {
-            if self.keep[i] && self.sigmas[i] < low {
+            if self.keep[i] && self.sigmas[i] < low * self.scale[i] {
                 self.candidates.push(i as u32);
             }
         }
         let live = self.keep.iter().filter(|k| **k).count();
         let death_candidates = self.candidates.len();
         let fission_candidates = (0..n)
-            .filter(|&i| self.keep[i] && self.sigmas[i] > high)
+            .filter(|&i| self.keep[i] && self.sigmas[i] > high * self.scale[i])
             .count();
         let swaps = death_candidates.min(fission_candidates);
         let deaths = death_candidates.min(live.saturating_sub(big_n) + swaps);
         {
-            let sigmas = &self.sigmas;
+            let (sigmas, scale) = (&self.sigmas, &self.scale);
+            let key = |i: u32| sigmas[i as usize] / scale[i as usize];
             self.candidates
-                .sort_unstable_by(|&a, &b| sigmas[a as usize].total_cmp(&sigmas[b as usize]));
+                .sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)));
         }
         for &i in &self.candidates[..deaths] {
             self.keep[i as usize] = false;
@@ -500,16 +582,19 @@ impl ParticleSystem {
             .min(after_deaths / 2 + 1);
         self.candidates.clear();
         for i in 0..n {
-            if self.keep[i] && self.sigmas[i] > high {
+            if self.keep[i] && self.sigmas[i] > high * self.scale[i] {
                 self.candidates.push(i as u32);
             }
         }
         {
-            let sigmas = &self.sigmas;
+            let (sigmas, scale) = (&self.sigmas, &self.scale);
+            let key = |i: u32| sigmas[i as usize] / scale[i as usize];
             self.candidates
-                .sort_unstable_by(|&a, &b| sigmas[b as usize].total_cmp(&sigmas[a as usize]));
+                .sort_unstable_by(|&a, &b| key(b).total_cmp(&key(a)));
         }
         self.candidates.truncate(births);
+        let swaps = self.redistribute(n);
+        let (births, deaths) = (births + swaps, deaths + swaps);
         // Compact the survivors (remembering where each went), then append the children.
         self.new_index.clear();
         let mut w = 0;
@@ -525,7 +610,7 @@ impl ParticleSystem {
         }
         self.positions.truncate(w);
         self.sigmas.truncate(w);
-        for c in 0..births {
+        for c in 0..self.candidates.len() {
             let parent = self.new_index[self.candidates[c] as usize] as usize;
             let (p, s) = (self.positions[parent], self.sigmas[parent]);
             let g = field.eval(p).1;
@@ -612,4 +697,25 @@ pub fn nearest_neighbour_distances(points: &[Vec3], radius: f32) -> Vec<f32> {
             best.sqrt()
         })
         .collect()
+}
+
+/// `√(k₁² + k₂²)`: the Frobenius norm of the shape operator `P H P / |∇F|` at `p`, with the
+/// Hessian `H` from central differences of the gradient at step `h` and `P` the projection
+/// onto the tangent plane.
+fn shape_operator_norm(field: &(impl ImplicitSurface + ?Sized), p: Vec3, h: f32) -> f32 {
+    let g = field.eval(p).1;
+    let len = g.length();
+    if len.is_nan() || len <= 1e-12 {
+        return 0.0;
+    }
+    let col = |axis: Vec3| (field.eval(p + axis * h).1 - field.eval(p - axis * h).1) / (2.0 * h);
+    let hess = glam::Mat3::from_cols(col(Vec3::X), col(Vec3::Y), col(Vec3::Z));
+    let hess = (hess + hess.transpose()) * 0.5;
+    let n = g / len;
+    let proj = glam::Mat3::IDENTITY - glam::Mat3::from_cols(n * n.x, n * n.y, n * n.z);
+    let shape = proj * hess * proj;
+    let norm2 = shape.x_axis.length_squared()
+        + shape.y_axis.length_squared()
+        + shape.z_axis.length_squared();
+    norm2.sqrt() / len
 }
