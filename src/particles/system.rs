@@ -144,7 +144,7 @@ pub struct ParticleSystem {
 /// their `σ / scale` differ by more than this factor.
 pub const SWAP_RATIO: f32 = 1.3;
 
-/// The largest `σ` allowed, as a fraction of the clay's extent.
+/// The largest `σ` allowed, as a fraction of the surface's bounds.
 const MAX_SIGMA_OF_EXTENT: f32 = 0.25;
 
 impl ParticleSystem {
@@ -255,9 +255,9 @@ impl ParticleSystem {
             .resize(positions.len(), sigma.max(f32::MIN_POSITIVE));
     }
 
-    /// Replace the particles by `count` points scattered at random (seeded) on the clay's
-    /// surface: points drawn uniformly in the lattice's support, kept where they lie in the
-    /// transition band of the field, and projected onto the surface by Newton steps. Each gets
+    /// Replace the particles by `count` points scattered at random (seeded) on the surface:
+    /// points drawn uniformly in its bounds (the clay's support), kept where they lie within
+    /// [`ImplicitSurface::resolution`] of it (first order), and projected onto the surface by Newton steps. Each gets
     /// the radius at which `count` particles would tile the surface.
     ///
     /// # Errors
@@ -326,9 +326,9 @@ impl ParticleSystem {
             ..StepReport::default()
         };
         for _ in 0..steps {
-            match self.step(field, Self::DEFAULT_DT) {
-                Ok(r) => report = r,
-                Err(_) => unreachable!("DEFAULT_DT is positive and finite"),
+            // NOTE: `step` refuses only a bad `dt`, and DEFAULT_DT is positive and finite.
+            if let Ok(r) = self.step(field, Self::DEFAULT_DT) {
+                report = r;
             }
         }
         self.project(field, 2);
@@ -368,7 +368,7 @@ impl ParticleSystem {
         Ok(report)
     }
 
-    /// Stage 1: the PDS over the lattice's support, query radius `3 σ_max`.
+    /// Stage 1: the PDS over the surface's bounds, query radius `3 σ_max`.
     fn index(&mut self, field: &(impl ImplicitSurface + ?Sized)) {
         let (lo, hi) = field.bounds();
         let sigma_max = self.sigmas.iter().copied().fold(0.0f32, f32::max);
