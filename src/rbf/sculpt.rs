@@ -122,7 +122,7 @@ impl RbfSculpt {
             iso: field.iso,
             bounds: field.support(),
             resolution: field.spacing,
-            steps_per_action: 20,
+            steps_per_action: 40,
             max_extra_steps: 200,
         };
         sculpt.check_count(settle_steps)?;
