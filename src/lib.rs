@@ -19,5 +19,7 @@ pub mod fit;
 pub mod haptics;
 pub mod io;
 pub mod mesh;
+pub mod particles;
+pub mod rbf;
 pub mod render;
 pub mod tools;

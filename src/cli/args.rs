@@ -35,6 +35,50 @@ pub enum Commands {
     /// Fit a clay to a point cloud (.xyz, .txt, .pts, .ply) or a volume (.raw, .nrrd) and
     /// write it as a session.
     Import(ImportArgs),
+    /// Sample a session's clay with constrained particles and write the compact RBF that
+    /// interpolates them (Zhang et al. §5.3): centres, weights and a linear polynomial.
+    Rbf(RbfArgs),
+}
+
+/// `dynaclay rbf`.
+#[derive(Debug, Args, Clone)]
+pub struct RbfArgs {
+    /// Session file whose clay is interpolated.
+    #[arg(value_name = "SESSION")]
+    pub session: PathBuf,
+    /// How many particles sample the surface (the RBF has three centres per particle, fewer
+    /// when more than --max-centres are needed).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(4..=100_000),
+          default_value_t = 400)]
+    pub particles: u32,
+    /// RBF file to write (`.rbf`, replaced atomically).
+    #[arg(long, value_name = "FILE")]
+    pub out: PathBuf,
+    /// Particle steps before the fit.
+    #[arg(long, value_name = "STEPS", default_value_t = 200,
+          value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub steps: u32,
+    /// Offset of the inner and outer constraint points along the normal, field units
+    /// (default: half a knot span).
+    #[arg(long, value_name = "D", value_parser = parse_positive)]
+    pub offset: Option<f32>,
+    /// Most centres in one dense solve; above, centres are chosen greedily.
+    #[arg(long, value_name = "M", default_value_t = 3000,
+          value_parser = clap::value_parser!(u32).range(4..=6000))]
+    pub max_centres: u32,
+    /// Seed of the particles' random start.
+    #[arg(long, value_name = "S", default_value_t = 1)]
+    pub seed: u64,
+    /// Also import the RBF back as a clay and write it as this session (`.dclay`).
+    #[arg(long, value_name = "FILE")]
+    pub clay: Option<PathBuf>,
+}
+
+fn parse_positive(text: &str) -> Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("{text}: expected a positive number")),
+    }
 }
 
 /// A raw volume's sample type.

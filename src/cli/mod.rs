@@ -24,14 +24,16 @@ mod import;
 mod outputs;
 mod platform;
 mod profile;
+mod rbf;
 mod render;
 mod run;
 mod sculpt;
 
-pub use args::{Cli, Commands, ImageArgs, ProfileArgs, RenderArgs, RunArgs, ShadingMode};
+pub use args::{Cli, Commands, ImageArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode};
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
 pub use platform::{PlatformJudged, PlatformWatch};
 pub use profile::profile;
+pub use rbf::{RbfCommandError, RbfOutcome, rbf};
 pub use render::render;
 pub use run::{CliError, run};
 pub use sculpt::{describe_outcome, mesh_clay, render_sculpt};
@@ -51,6 +53,7 @@ pub fn dispatch(cli: Cli) -> i32 {
         }),
         Commands::Render(a) => render(&a).map(|_| ()),
         Commands::Import(a) => import::import(&a),
+        Commands::Rbf(a) => rbf(&a).map(|_| ()).map_err(CliError::Rbf),
     };
     match result {
         Ok(()) => 0,

@@ -50,6 +50,8 @@ pub enum CliError {
     Render(RenderError, PathBuf),
     /// A mesh or image would not fit the memory budget; refused before allocating (exit 2).
     OverBudget(super::budget::OverBudget),
+    /// `dynaclay rbf` failed (exit 2 for bad input, 1 otherwise).
+    Rbf(super::rbf::RbfCommandError),
 }
 
 impl CliError {
@@ -70,6 +72,7 @@ impl CliError {
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
+            Self::Rbf(e) => e.exit_code(),
         }
     }
 }
@@ -92,6 +95,7 @@ impl fmt::Display for CliError {
             }
             Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
             Self::OverBudget(e) => write!(f, "{e}"),
+            Self::Rbf(e) => write!(f, "rbf: {e}"),
         }
     }
 }

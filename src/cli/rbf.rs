@@ -1,0 +1,140 @@
+//! `dynaclay rbf`: sample a session's clay with constrained particles and write the compact
+//! RBF that interpolates them (Zhang et al. §5.3); optionally import it back as a clay.
+
+use std::path::Path;
+
+use super::args::RbfArgs;
+use crate::field::{BSplineLattice, FitError, fit_lattice};
+use crate::io::{Session, SessionError, load_session, save_session};
+use crate::particles::{ParticleError, ParticleParams, ParticleSystem};
+use crate::rbf::{RbfError, RbfFile, RbfFileError, RbfOptions, fit_surface, write_rbf};
+use crate::tools::Clay;
+
+/// Why `dynaclay rbf` failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RbfCommandError {
+    /// A bad argument (exit 2).
+    #[error("{0}")]
+    Usage(String),
+    /// The session could not be read (exit 2).
+    #[error("cannot read session: {0}")]
+    Session(#[source] SessionError),
+    /// The particles could not be placed: the clay has no surface (exit 2).
+    #[error("particles: {0}")]
+    Particles(#[from] ParticleError),
+    /// Flattening a multi-patch clay failed (exit 1).
+    #[error("flattening the clay: {0}")]
+    Flatten(#[from] FitError),
+    /// The interpolation failed (exit 1).
+    #[error("RBF fit: {0}")]
+    Fit(#[from] RbfError),
+    /// Writing the RBF file or importing it back failed (exit 1).
+    #[error("{0}")]
+    File(#[from] RbfFileError),
+    /// Writing the imported clay as a session failed (exit 1).
+    #[error("writing the imported clay: {0}")]
+    Save(#[source] SessionError),
+}
+
+impl RbfCommandError {
+    /// The process exit code: 2 for bad input, 1 for a failure.
+    #[must_use]
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Self::Usage(_) | Self::Session(_) | Self::Particles(_) => 2,
+            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) => 1,
+        }
+    }
+}
+
+/// What `dynaclay rbf` produced.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RbfOutcome {
+    /// Particles on the surface after settling.
+    pub particles: usize,
+    /// Centres in the RBF.
+    pub centres: usize,
+    /// Largest interpolation residual, world units.
+    pub max_residual: f64,
+}
+
+/// The clay as one lattice: the first patch, or (several patches) a lattice of the first
+/// patch's geometry least-squares fitted to their clamped sum.
+fn flatten(clay: &Clay) -> Result<BSplineLattice, RbfCommandError> {
+    let first = clay
+        .patches
+        .first()
+        .ok_or_else(|| RbfCommandError::Usage("the session's clay has no patches".into()))?;
+    if clay.patches.len() == 1 {
+        return Ok(first.clone());
+    }
+    let mut lattice = first.clone();
+    fit_lattice(&mut lattice, 2, |x| clay.density(x).clamp(0.0, 1.0))?;
+    Ok(lattice)
+}
+
+fn check_extension(path: &Path, ext: &str, flag: &str) -> Result<(), RbfCommandError> {
+    if path.extension().and_then(|e| e.to_str()) == Some(ext) {
+        Ok(())
+    } else {
+        Err(RbfCommandError::Usage(format!(
+            "{flag} {}: the file must end in .{ext}",
+            path.display()
+        )))
+    }
+}
+
+/// Runs `dynaclay rbf`.
+///
+/// # Errors
+/// [`RbfCommandError`] naming what failed.
+pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
+    check_extension(&args.out, "rbf", "--out")?;
+    if let Some(clay) = &args.clay {
+        check_extension(clay, "dclay", "--clay")?;
+    }
+    let session = load_session(&args.session).map_err(RbfCommandError::Session)?;
+    let lattice = flatten(&session.clay)?;
+    let mut particles = ParticleSystem::new(ParticleParams::new(args.particles as usize))?;
+    particles.seed_random(&lattice, args.particles as usize, args.seed)?;
+    particles.settle(&lattice, args.steps as usize);
+    let offset = args
+        .offset
+        .map_or(0.5 * f64::from(lattice.spacing), f64::from);
+    let options = RbfOptions {
+        max_centres: args.max_centres as usize,
+        ..RbfOptions::with_offset(offset)
+    };
+    let (function, report) = fit_surface(&lattice, particles.positions(), &options)?;
+    let file = RbfFile {
+        rbf: function,
+        dims: lattice.dims,
+        spacing: lattice.spacing,
+        origin: lattice.origin,
+        iso: lattice.iso,
+    };
+    write_rbf(&args.out, &file)?;
+    say!(
+        "rbf: {} particles, {} centres of {} constraints ({} greedy rounds), largest residual {:.2e}; wrote {}",
+        particles.len(),
+        report.centres,
+        report.constraints,
+        report.greedy_rounds,
+        report.max_residual,
+        args.out.display()
+    );
+    if let Some(path) = &args.clay {
+        let lattice = file.to_clay(2)?;
+        let imported = Session {
+            clay: Clay::single(lattice),
+            ..session
+        };
+        save_session(path, &imported).map_err(RbfCommandError::Save)?;
+        say!("rbf: imported back as a clay; wrote {}", path.display());
+    }
+    Ok(RbfOutcome {
+        particles: particles.len(),
+        centres: report.centres,
+        max_residual: report.max_residual,
+    })
+}

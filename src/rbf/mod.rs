@@ -1,0 +1,14 @@
+//! A compact implicit function of the sculpt: a variational RBF `I(x) = Σ λᵢ |x − cᵢ|³ + P(x)`
+//! with a linear polynomial `P`, interpolating the constrained particles and inner and outer
+//! points offset along the normal (Zhang et al. §5.3, eq. 9–12), with its file format and the
+//! way back to a clay.
+
+mod file;
+mod fit;
+mod sculpt;
+
+pub use file::{
+    MAGIC, MAX_CENTRES, RbfFile, RbfFileError, VERSION, decode, encode, read_rbf, write_rbf,
+};
+pub use fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface, solve_rbf};
+pub use sculpt::{RbfSculpt, RbfSculptError};

@@ -1,0 +1,127 @@
+//! `dynaclay rbf SESSION --particles N --out FILE`: the RBF of a session's clay, written and
+//! read back, imported back as a clay; bad input exits 2.
+
+use std::path::Path;
+use std::process::Command;
+
+use dynaclay::dynamics::Material;
+use dynaclay::field::{BSplineLattice, Primitive, lattice_from_primitive};
+use dynaclay::io::{MaterialFields, Session, SessionMeta, load_session, save_session};
+use dynaclay::rbf::read_rbf;
+use dynaclay::tools::Clay;
+use glam::{DVec3, Vec3};
+
+const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+
+const SPHERE: Primitive = Primitive::Sphere {
+    centre: Vec3::splat(1.0),
+    radius: 0.6,
+};
+
+fn write_sphere_session(path: &Path) {
+    let lattice = lattice_from_primitive([21; 3], 0.1, Vec3::ZERO, &SPHERE, 0.2, 2).unwrap();
+    write_session(path, lattice);
+}
+
+fn write_session(path: &Path, lattice: BSplineLattice) {
+    let session = Session {
+        clay: Clay::single(lattice),
+        material: MaterialFields {
+            uniform: Material::PLASTIC,
+            grids: Vec::new(),
+        },
+        tools: Vec::new(),
+        meta: SessionMeta {
+            name: "sphere".into(),
+            ..SessionMeta::default()
+        },
+    };
+    save_session(path, &session).unwrap();
+}
+
+#[test]
+fn writes_an_rbf_whose_zero_set_is_the_sphere_and_imports_it_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("in.dclay");
+    write_sphere_session(&session);
+    let out = dir.path().join("sphere.rbf");
+    let back = dir.path().join("back.dclay");
+    let status = Command::new(BIN)
+        .args([
+            "rbf",
+            session.to_str().unwrap(),
+            "--particles",
+            "200",
+            "--out",
+        ])
+        .arg(&out)
+        .arg("--clay")
+        .arg(&back)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&status.stdout);
+    assert!(
+        status.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    assert!(stdout.contains("600 centres"), "{stdout}");
+    let file = read_rbf(&out).unwrap();
+    assert_eq!(file.rbf.len(), 600);
+    // Along rays from the centre the RBF changes sign within 1% of the diameter of r = 0.6.
+    for k in 0..50 {
+        let (u, v) = (k as f64 * 2.399, (k as f64 + 0.5) / 50.0);
+        let z = 1.0 - 2.0 * v;
+        let s = (1.0 - z * z).sqrt();
+        let dir = DVec3::new(s * u.cos(), s * u.sin(), z);
+        let at = |r: f64| file.rbf.value(DVec3::ONE + dir * r);
+        assert!(at(0.6 - 0.012) > 0.0 && at(0.6 + 0.012) < 0.0, "ray {k}");
+    }
+    let clay = load_session(&back).unwrap().clay;
+    let p = Vec3::new(1.6, 1.0, 1.0);
+    let (value, grad) = clay.patches[0].value_and_gradient(p);
+    assert!((value - 0.5).abs() / grad.length() < 0.02);
+}
+
+#[test]
+fn bad_input_exits_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("in.dclay");
+    write_sphere_session(&session);
+    let run = |args: &[&str]| Command::new(BIN).args(args).output().unwrap();
+    let s = session.to_str().unwrap();
+    let out = dir.path().join("x.rbf");
+    let o = out.to_str().unwrap();
+    // Missing session, wrong extension, zero particles, a file that is not a session, a clay
+    // with no surface.
+    let missing = dir.path().join("none.dclay");
+    let garbage = dir.path().join("garbage.dclay");
+    std::fs::write(&garbage, b"not a session").unwrap();
+    // A clay with no surface: every coefficient zero.
+    let empty = dir.path().join("empty.dclay");
+    write_session(
+        &empty,
+        BSplineLattice::zeros([8; 3], 0.1, Vec3::ZERO).unwrap(),
+    );
+    for args in [
+        vec!["rbf", missing.to_str().unwrap(), "--out", o],
+        vec![
+            "rbf",
+            s,
+            "--out",
+            dir.path().join("x.txt").to_str().unwrap(),
+        ],
+        vec!["rbf", s, "--particles", "0", "--out", o],
+        vec!["rbf", garbage.to_str().unwrap(), "--out", o],
+        vec!["rbf", empty.to_str().unwrap(), "--out", o],
+    ] {
+        let r = run(&args);
+        assert_eq!(
+            r.status.code(),
+            Some(2),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&r.stderr)
+        );
+        assert!(!out.exists());
+    }
+}
