@@ -5,9 +5,10 @@ use std::io;
 use std::path::PathBuf;
 
 /// Why a recording could not be written or loaded.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum RecordError {
     /// A file operation failed.
+    #[error("cannot {action} {}: {source}", path.display())]
     Io {
         /// The file involved.
         path: PathBuf,
@@ -17,8 +18,13 @@ pub enum RecordError {
         source: io::Error,
     },
     /// The file does not start with the recording magic.
+    #[error("not a dynaclay recording (bad magic at byte 0)")]
     BadMagic,
     /// The file is a recording of a format version this build cannot read.
+    #[error(
+        "recording format version {found} is not supported (this build reads versions {oldest} to {supported})",
+        oldest = super::format::OLDEST_READ_VERSION
+    )]
     UnsupportedVersion {
         /// Version found in the header.
         found: u16,
@@ -26,6 +32,10 @@ pub enum RecordError {
         supported: u16,
     },
     /// The file ends before a structure it announces is complete.
+    #[error(
+        "recording truncated at byte {offset}{}: {what} needs {needed} bytes, {available} remain",
+        Where(*block)
+    )]
     Truncated {
         /// Byte offset where the incomplete structure starts.
         offset: u64,
@@ -39,6 +49,10 @@ pub enum RecordError {
         available: u64,
     },
     /// A checksum does not match its data.
+    #[error(
+        "recording checksum mismatch at byte {offset}{}: stored {stored:#010x}, computed {computed:#010x}",
+        Where(*block)
+    )]
     Checksum {
         /// Byte offset of the checksummed structure.
         offset: u64,
@@ -50,6 +64,7 @@ pub enum RecordError {
         computed: u32,
     },
     /// A field has a value the format does not allow.
+    #[error("malformed recording at byte {offset}{}: {what}", Where(*block))]
     Malformed {
         /// Byte offset of the offending field or record.
         offset: u64,
@@ -59,10 +74,12 @@ pub enum RecordError {
         what: &'static str,
     },
     /// An error in the file at `path`.
+    #[error("{}: {error}", path.display())]
     InFile {
         /// The recording file.
         path: PathBuf,
         /// What is wrong with it.
+        #[source]
         error: Box<RecordError>,
     },
 }
@@ -108,68 +125,6 @@ impl fmt::Display for Where {
         match self.0 {
             Some(block) => write!(f, " in block {block}"),
             None => Ok(()),
-        }
-    }
-}
-
-impl fmt::Display for RecordError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Io {
-                path,
-                action,
-                source,
-            } => write!(f, "cannot {action} {}: {source}", path.display()),
-            Self::BadMagic => write!(f, "not a dynaclay recording (bad magic at byte 0)"),
-            Self::UnsupportedVersion { found, supported } => write!(
-                f,
-                "recording format version {found} is not supported (this build reads versions \
-                 {} to {supported})",
-                super::format::OLDEST_READ_VERSION
-            ),
-            Self::Truncated {
-                offset,
-                block,
-                what,
-                needed,
-                available,
-            } => write!(
-                f,
-                "recording truncated at byte {offset}{}: {what} needs {needed} bytes, \
-                 {available} remain",
-                Where(*block)
-            ),
-            Self::Checksum {
-                offset,
-                block,
-                stored,
-                computed,
-            } => write!(
-                f,
-                "recording checksum mismatch at byte {offset}{}: stored {stored:#010x}, \
-                 computed {computed:#010x}",
-                Where(*block)
-            ),
-            Self::Malformed {
-                offset,
-                block,
-                what,
-            } => write!(
-                f,
-                "malformed recording at byte {offset}{}: {what}",
-                Where(*block)
-            ),
-            Self::InFile { path, error } => write!(f, "{}: {error}", path.display()),
-        }
-    }
-}
-
-impl std::error::Error for RecordError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            Self::Io { source, .. } => Some(source),
-            Self::InFile { error, .. } => Some(error.as_ref()),
-            _ => None,
         }
     }
 }
