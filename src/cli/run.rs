@@ -1,6 +1,5 @@
 //! `dynaclay run`: a headless session from a script, written to an output directory.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -28,30 +27,49 @@ use crate::render::RenderError;
 pub const SESSION_FILE: &str = "session.dclay";
 
 /// Why a command failed; each kind has its own exit code.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum CliError {
     /// A bad argument (exit 2).
+    #[error("{0}")]
     Usage(String),
     /// A bad script (exit 2).
+    #[error("script error: {0}")]
     Script(ScriptError),
     /// The device could not be made or opened (exit 3).
+    #[error("device error: {0}")]
     Device(String),
     /// The engine failed (exit 1).
+    #[error("engine error: {0}")]
     Engine(EngineError),
     /// An output could not be written, or the starting clay could not be built (exit 1).
+    #[error("output error: {0}")]
     Output(String),
     /// A session file could not be read (exit 2).
+    #[error("cannot read session: {0}")]
     Session(SessionError),
     /// The run ended and every output was written, but the device failed to close (exit 5;
     /// see [`CliError::DEVICE_FAULT_EXIT`]).
+    #[error("device fault at the end of the run (every output was written): {0}")]
     DeviceFault(dynaclay_devices::DeviceError),
     /// Rendering the PNG at the path failed (exit 1), or found no GPU adapter (exit 4; see
     /// [`CliError::NO_ADAPTER_EXIT`]).
+    #[error("{}", render_message(.0, .1))]
     Render(RenderError, PathBuf),
     /// A mesh or image would not fit the memory budget; refused before allocating (exit 2).
+    #[error("{0}")]
     OverBudget(super::budget::OverBudget),
     /// `dynaclay rbf` failed (exit 2 for bad input, 1 otherwise).
+    #[error("rbf: {0}")]
     Rbf(super::rbf::RbfCommandError),
+}
+
+/// A render failure with its file; no adapter at all is said as a skip, not a failure.
+fn render_message(e: &RenderError, path: &Path) -> String {
+    if e.is_no_adapter() {
+        format!("{e}; skipped rendering {}", path.display())
+    } else {
+        format!("rendering {}: {e}", path.display())
+    }
 }
 
 impl CliError {
@@ -76,31 +94,6 @@ impl CliError {
         }
     }
 }
-
-impl fmt::Display for CliError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Usage(m) => write!(f, "{m}"),
-            Self::Script(e) => write!(f, "script error: {e}"),
-            Self::Device(m) => write!(f, "device error: {m}"),
-            Self::DeviceFault(e) => write!(
-                f,
-                "device fault at the end of the run (every output was written): {e}"
-            ),
-            Self::Engine(e) => write!(f, "engine error: {e}"),
-            Self::Output(m) => write!(f, "output error: {m}"),
-            Self::Session(e) => write!(f, "cannot read session: {e}"),
-            Self::Render(e, path) if e.is_no_adapter() => {
-                write!(f, "{e}; skipped rendering {}", path.display())
-            }
-            Self::Render(e, path) => write!(f, "rendering {}: {e}", path.display()),
-            Self::OverBudget(e) => write!(f, "{e}"),
-            Self::Rbf(e) => write!(f, "rbf: {e}"),
-        }
-    }
-}
-
-impl std::error::Error for CliError {}
 
 /// Runs a headless session and writes its outputs.
 ///
