@@ -57,7 +57,8 @@ impl std::fmt::Display for RenderError {
             }
             Self::OutOfMemory { what, message } => write!(
                 f,
-                "the GPU ran out of memory for {what} ({message}); try a smaller --width/--height"
+                "the GPU ran out of memory for {what} ({message}); a smaller image or window \
+                 needs less"
             ),
             Self::Gpu { what, message } => write!(f, "the GPU refused {what}: {message}"),
             Self::DeviceLost { message } => write!(f, "the GPU device was lost: {message}"),
