@@ -13,13 +13,8 @@ use std::time::{Duration, Instant};
 
 use dynaclay::engine::{Engine, HeadlessSink, Lockstep};
 
-#[test]
-fn the_test_build_arms_the_blocking_check() {
-    assert!(
-        dynaclay_loops::BLOCKING_CHECK_PANICS,
-        "tests build dynaclay-loops with the check-blocking feature"
-    );
-}
+// Tests build dynaclay-loops with the check-blocking feature (or in debug): the check panics.
+const _: () = assert!(dynaclay_loops::BLOCKING_CHECK_PANICS);
 
 #[test]
 fn lockstep_ticks_of_a_push_and_a_save_take_no_blocking_path() {
