@@ -15,6 +15,8 @@
 //! - [`snapshot_channel`]: versioned, time-stamped triple buffer (the `triple_buffer` crate).
 //! - [`LatencyRecorder`] → [`LatencyStats`] → [`LoopSummary`] → JSON, [`markdown_table`],
 //!   [`latency_svg`] / [`latency_png`].
+//! - [`assert_not_in_tick`]: the "a tick never blocks" rule, checked at every blocking point
+//!   (each tick is marked on its thread; see the `blocking` module's docs for the rule).
 //! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
 //! - [`LogBins`]: coarse half-octave bins published with [`LatencyStats`] for live plots.
 //! - [`Timeline`]: a recorder's run over time in fixed memory, for the timeline plot.
@@ -27,6 +29,7 @@
 #![warn(clippy::undocumented_unsafe_blocks)]
 #![warn(missing_docs)]
 
+mod blocking;
 mod exchange;
 mod glyphs;
 mod live;
@@ -43,6 +46,10 @@ mod table;
 mod timeline;
 mod watchdog;
 
+pub use blocking::{
+    BLOCKING_CHECK_PANICS, TickMark, assert_not_in_tick, blocking_in_tick_count, enter_tick,
+    in_tick,
+};
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 pub use live::{LOG_BINS, LogBins};
 pub use plot::{PlotError, latency_png, latency_svg, page_size, write_latency_svg};

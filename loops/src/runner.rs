@@ -472,7 +472,12 @@ where
             skipped_before,
             nominal_period: period,
         };
-        let flow = body(&info);
+        let flow = {
+            // Marks the tick on this thread: a blocking path inside it trips
+            // `assert_not_in_tick` (see `crate::blocking`).
+            let _tick = crate::blocking::enter_tick();
+            body(&info)
+        };
         let compute = woke.elapsed();
         recorder.record_tick(&TickTiming {
             scheduled,
@@ -829,6 +834,49 @@ mod tests {
         assert!(summary.stats.ticks >= 10);
         assert_eq!(summary.stats.ticks % 10, 0);
         handle.stop_and_join().expect("join");
+    }
+
+    #[test]
+    fn a_blocking_receive_in_a_tick_is_caught_on_its_first_tick() {
+        // The sender stays alive: without the check this tick would wait forever.
+        let (_tx, rx) = mpsc::channel::<u32>();
+        let handle = spawn_loop(LoopConfig::new("t-blocks"), move |_| {
+            crate::assert_not_in_tick("mpsc::Receiver::recv");
+            let _ = rx.recv();
+            ControlFlow::Continue(())
+        })
+        .expect("spawn");
+        match handle.join() {
+            Err(LoopError::Panicked { loop_name, message }) => {
+                assert_eq!(loop_name, "t-blocks");
+                assert!(message.contains("mpsc::Receiver::recv"), "{message}");
+                assert!(message.contains("t-blocks"), "names the thread: {message}");
+            }
+            other => panic!(
+                "expected the check to stop the loop, got {:?}",
+                other.map(|r| r.stop_reason)
+            ),
+        }
+    }
+
+    #[test]
+    fn non_blocking_calls_in_a_tick_pass_and_the_mark_ends_with_the_tick() {
+        let (tx, rx) = mpsc::channel::<u32>();
+        tx.send(7).expect("send");
+        let handle = spawn_loop(LoopConfig::new("t-try").with_rate_hz(4000.0), move |t| {
+            assert!(crate::in_tick());
+            // try_recv never waits: no check needed, nothing fires.
+            let _ = rx.try_recv();
+            if t.index == 9 {
+                ControlFlow::Break(())
+            } else {
+                ControlFlow::Continue(())
+            }
+        })
+        .expect("spawn");
+        let report = handle.join().expect("no check fired");
+        assert_eq!(report.stop_reason, StopReason::BodyFinished);
+        assert!(!crate::in_tick(), "the caller was never in a tick");
     }
 
     #[test]

@@ -174,6 +174,7 @@ impl EngineBridge {
     /// [`EngineError::Lost`].
     pub fn stop(self) -> Result<EngineReport, EngineError> {
         self.stop.store(true, Ordering::Relaxed);
+        dynaclay_loops::assert_not_in_tick("EngineBridge::stop joining the bridge");
         self.thread
             .join()
             .unwrap_or(Err(EngineError::Lost("gui bridge")))

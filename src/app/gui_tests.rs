@@ -840,3 +840,105 @@ fn with_pin_mode_a_click_pins_a_point_a_drag_a_curve_and_the_list_deletes() {
     h.run();
     assert_eq!(drain(&end), vec![EngineCommand::Unpin { index: None }]);
 }
+
+/// eframe's render state, built on a headless device the way eframe builds it on a window's,
+/// or `None` (with a note) when the machine has no adapter.
+fn render_state() -> Option<(crate::render::GpuContext, egui_wgpu::RenderState)> {
+    use crate::render::{GpuContext, REQUIRE_GPU_ENV, gpu_required};
+    let gpu = match GpuContext::headless() {
+        Ok(g) => g,
+        Err(e) if e.is_no_adapter() && !gpu_required() => {
+            println!("skipped: {e}");
+            return None;
+        }
+        Err(e) => panic!("{e} ({REQUIRE_GPU_ENV} is set, so a missing adapter fails)"),
+    };
+    let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+    let renderer =
+        egui_wgpu::Renderer::new(&gpu.device, format, egui_wgpu::RendererOptions::default());
+    let rs = egui_wgpu::RenderState {
+        adapter: gpu.adapter.clone(),
+        available_adapters: Vec::new(),
+        instance: gpu.instance().clone(),
+        device: gpu.device.clone(),
+        queue: gpu.queue.clone(),
+        target_format: format,
+        renderer: std::sync::Arc::new(egui::mutex::RwLock::new(renderer)),
+    };
+    Some((gpu, rs))
+}
+
+#[test]
+fn the_view_survives_a_size_and_a_mesh_the_gpu_refuses() {
+    use crate::render::{Camera, MeshChunk, SceneOptions};
+    let Some((gpu, rs)) = render_state() else {
+        return;
+    };
+    let log = crate::render::GpuFaultLog::install(&rs.device, true);
+    let mut view = super::SceneView::new(&rs, 64, 48).expect("a small view");
+    let camera = Camera::default();
+    let options = SceneOptions::default();
+    let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+    let n = [[0.0, 0.0, 1.0]; 3];
+    let chunk = |indices: &'static [u32], version| MeshChunk {
+        id: 1,
+        version,
+        positions: &p,
+        normals: &n,
+        colors: &[],
+        indices,
+    };
+    static GOOD: [u32; 3] = [0, 1, 2];
+    // An index past the vertices: the upload refuses it.
+    static BAD: [u32; 3] = [0, 1, 7];
+    assert!(
+        view.draw(&rs, (64, 48), &[chunk(&GOOD, 1)], 1, &camera, &options)
+            .is_some()
+    );
+    assert_eq!(view.problem(), None);
+
+    // A window wider than the device's texture limit: refused, the last size's image stays.
+    let over = rs.device.limits().max_texture_dimension_2d + 1;
+    let shown = view.draw(&rs, (over, 48), &[chunk(&GOOD, 1)], 1, &camera, &options);
+    assert!(shown.is_some(), "the last image is still shown");
+    assert_eq!(view.size(), (64, 48));
+    let problem = view.problem().expect("the refusal is said");
+    assert!(problem.contains(&format!("{over}×48")), "{problem}");
+    // Back to a size the GPU takes: the problem goes.
+    assert!(
+        view.draw(&rs, (80, 60), &[chunk(&GOOD, 1)], 1, &camera, &options)
+            .is_some()
+    );
+    assert_eq!(view.size(), (80, 60));
+    assert_eq!(view.problem(), None);
+
+    // A mesh that cannot be uploaded: said, the frame still drawn, a new mesh recovers.
+    let shown = view.draw(&rs, (80, 60), &[chunk(&BAD, 2)], 2, &camera, &options);
+    assert!(shown.is_some());
+    let problem = view.problem().expect("the refused mesh is said");
+    assert!(problem.contains("cannot show the clay"), "{problem}");
+    assert!(
+        view.draw(&rs, (80, 60), &[chunk(&GOOD, 3)], 3, &camera, &options)
+            .is_some()
+    );
+    assert_eq!(view.problem(), None);
+    assert_eq!(log.error_count(), 0, "every failure was caught in a scope");
+    gpu.check_faults("the test").unwrap();
+}
+
+#[test]
+fn the_app_draws_its_view_on_a_gpu_with_the_fault_log_installed() {
+    let Some((_gpu, rs)) = render_state() else {
+        return;
+    };
+    let (link, _end) = engine_link();
+    let mut app = SculptApp::new(link);
+    app.gpu_faults = Some(crate::render::GpuFaultLog::install(&rs.device, true));
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 1000.0))
+        .build_ui_state(move |ui, app: &mut SculptApp| app.show(ui, Some(&rs)), app);
+    h.run();
+    assert_eq!(h.state().view_problem(), None);
+    let faults = h.state().gpu_faults.clone().expect("installed");
+    assert_eq!(faults.error_count(), 0);
+}

@@ -67,6 +67,11 @@ pub fn run_gui(
         &options.title,
         native,
         Box::new(move |cc| {
+            // wgpu's default handler panics on an error outside an error scope (a validation
+            // or out-of-memory error): count and report them instead, and say a lost device.
+            if let Some(rs) = &cc.wgpu_render_state {
+                app.gpu_faults = Some(crate::render::GpuFaultLog::install(&rs.device, true));
+            }
             let ctx = cc.egui_ctx.clone();
             repaint.install(move || ctx.request_repaint());
             Ok(Box::new(app))

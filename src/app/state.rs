@@ -97,6 +97,10 @@ pub struct SculptApp {
     /// A copy of the latest engine view.
     pub view: EngineView,
     scene: Option<SceneView>,
+    /// A view size at which the GPU refused to build the view, with why (retried on a new size).
+    scene_refused: Option<((u32, u32), String)>,
+    /// What the GUI device's fault callbacks saw (set by `run_gui` on eframe's device).
+    pub gpu_faults: Option<std::sync::Arc<crate::render::GpuFaultLog>>,
     started: Option<Instant>,
     /// The engine's session-load count when the material sliders last took the engine's
     /// material (`None`: not yet): they follow the engine at start and after each load, and
@@ -600,17 +604,71 @@ impl SculptApp {
             (rect.width() * ppp).round().max(1.0) as u32,
             (rect.height() * ppp).round().max(1.0) as u32,
         );
-        let scene = self
-            .scene
-            .get_or_insert_with(|| SceneView::new(rs, size.0, size.1));
-        match scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options) {
-            Ok(texture) => {
-                let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
-                image.paint_at(ui, rect);
-                self.paint_pins(ui, rect);
-                self.paint_brush_cursor(ui, rect);
+        if let Some(lost) = self.gpu_faults.as_ref().and_then(|f| f.lost()) {
+            centred_note(
+                ui,
+                rect,
+                &format!(
+                    "the GPU device was lost ({lost}); the sculpt is kept and autosaved: save \
+                     it and restart the window"
+                ),
+            );
+            return;
+        }
+        if self.scene.is_none() {
+            if let Some((refused, why)) = &self.scene_refused
+                && *refused == size
+            {
+                centred_note(ui, rect, why);
+                return;
             }
-            Err(e) => centred_note(ui, rect, &format!("cannot draw the meshes: {e}")),
+            match SceneView::new(rs, size.0, size.1) {
+                Ok(view) => {
+                    self.scene = Some(view);
+                    self.scene_refused = None;
+                }
+                Err(e) => {
+                    let why = format!("cannot build the 3D view: {e}");
+                    centred_note(ui, rect, &why);
+                    self.scene_refused = Some((size, why));
+                    return;
+                }
+            }
+        }
+        let Some(scene) = self.scene.as_mut() else {
+            return;
+        };
+        let texture = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
+        let problem = scene.problem();
+        if let Some(texture) = texture {
+            let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
+            image.paint_at(ui, rect);
+            self.paint_pins(ui, rect);
+            self.paint_brush_cursor(ui, rect);
+        }
+        if let Some(problem) = problem {
+            centred_note(ui, rect, &problem);
+        }
+        if let Some(faults) = &self.gpu_faults
+            && faults.error_count() > 0
+        {
+            ui.painter().text(
+                rect.left_bottom() + egui::vec2(8.0, -8.0),
+                egui::Align2::LEFT_BOTTOM,
+                format!("{} GPU errors (see stderr)", faults.error_count()),
+                egui::FontId::proportional(12.0),
+                ui.visuals().warn_fg_color,
+            );
+        }
+    }
+
+    /// The 3D view's problem, if it has one (a refused size or mesh, a failed frame, or a
+    /// view the GPU would not build).
+    #[must_use]
+    pub fn view_problem(&self) -> Option<String> {
+        match &self.scene {
+            Some(scene) => scene.problem(),
+            None => self.scene_refused.as_ref().map(|(_, why)| why.clone()),
         }
     }
 }

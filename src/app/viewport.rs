@@ -5,12 +5,18 @@
 //! changed. Its command buffer is submitted before egui's own, so the image shows this frame's
 //! render. Without a wgpu device (headless tests) the view still takes camera input and says
 //! that nothing is drawn.
+//!
+//! Every GPU allocation of the view (its textures on a resize, the mesh buffers on a new mesh,
+//! the overlay buffers of a frame) runs inside wgpu's error scopes: a size or a mesh the GPU
+//! refuses becomes a [`SceneView::problem`] shown over the view, never a panic, and the
+//! engine, the sculpt and the rest of the window carry on. A refused size keeps the last
+//! size's image; a refused mesh is not retried until the engine publishes a new one.
 
 use glam::Vec2;
 
 use crate::render::{
-    Camera, ChunkError, MeshChunk, OFFSCREEN_FORMAT, SceneOptions, SceneRenderer, Trackball,
-    supported_sample_count,
+    Camera, MeshChunk, OFFSCREEN_FORMAT, RenderError, SceneOptions, SceneRenderer, Trackball,
+    guarded_on, supported_sample_count,
 };
 
 use super::camera_input::{drag_pan, drag_rotate, scroll_zoom};
@@ -29,45 +35,55 @@ pub struct SceneView {
     renderer: SceneRenderer,
     texture: egui::TextureId,
     last: Option<RenderedKey>,
+    /// The mesh version whose chunks are on the GPU.
+    synced: Option<u64>,
+    /// A size the GPU refused, with why (not retried until the size changes).
+    size_refused: Option<((u32, u32), RenderError)>,
+    /// A mesh version the GPU could not take, with why (not retried until a new version).
+    mesh_refused: Option<(u64, RenderError)>,
+    /// Why the last frame could not be recorded.
+    frame_failed: Option<RenderError>,
 }
 
 impl SceneView {
-    /// Builds the renderer on eframe's device and registers its target with egui.
-    #[must_use]
-    pub fn new(rs: &egui_wgpu::RenderState, width: u32, height: u32) -> Self {
-        // eframe makes the device; a lost one is said on stderr (the engine, its autosave and
-        // the session live apart from the GPU and carry on).
-        rs.device.set_device_lost_callback(|reason, message| {
-            eprintln!(
-                "dynaclay: the GPU device was lost ({reason:?}: {message}); the sculpt is \
-                 kept and autosaved: save it and restart the window"
-            );
-        });
+    /// Builds the renderer on eframe's device (inside error scopes) and registers its target
+    /// with egui.
+    ///
+    /// # Errors
+    /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] when the GPU refuses the pipelines
+    /// or a `width × height` target.
+    pub fn new(rs: &egui_wgpu::RenderState, width: u32, height: u32) -> Result<Self, RenderError> {
         let samples = supported_sample_count(&rs.adapter, OFFSCREEN_FORMAT);
-        let renderer = SceneRenderer::new(
-            &rs.device,
-            &rs.queue,
-            OFFSCREEN_FORMAT,
-            samples,
-            width,
-            height,
-        );
+        let renderer = guarded_on(&rs.device, "the 3D view's textures", || {
+            SceneRenderer::new(
+                &rs.device,
+                &rs.queue,
+                OFFSCREEN_FORMAT,
+                samples,
+                width,
+                height,
+            )
+        })?;
+        dynaclay_loops::assert_not_in_tick("the egui renderer's lock");
         let texture = rs.renderer.write().register_native_texture(
             &rs.device,
             renderer.target_view(),
             wgpu::FilterMode::Linear,
         );
-        Self {
+        Ok(Self {
             renderer,
             texture,
             last: None,
-        }
+            synced: None,
+            size_refused: None,
+            mesh_refused: None,
+            frame_failed: None,
+        })
     }
 
-    /// Renders the scene at `width × height` if anything changed; returns the texture to show.
-    ///
-    /// # Errors
-    /// A malformed chunk (see [`SceneRenderer::sync_chunks`]); nothing is drawn then.
+    /// Renders the scene at `width × height` if anything changed; returns the texture to show,
+    /// or `None` when no frame could be recorded. Whatever the GPU refused is kept in
+    /// [`Self::problem`].
     pub fn draw(
         &mut self,
         rs: &egui_wgpu::RenderState,
@@ -76,38 +92,110 @@ impl SceneView {
         mesh_version: u64,
         camera: &Camera,
         options: &SceneOptions,
-    ) -> Result<egui::TextureId, ChunkError> {
-        let before = self.renderer.size();
-        self.renderer.resize(&rs.device, size.0, size.1);
-        let size = self.renderer.size();
-        if size != before {
-            rs.renderer.write().update_egui_texture_from_wgpu_texture(
-                &rs.device,
-                self.renderer.target_view(),
-                wgpu::FilterMode::Linear,
-                self.texture,
-            );
-        }
+    ) -> Option<egui::TextureId> {
+        self.resize(rs, size);
         let key = RenderedKey {
             camera: *camera,
             options: *options,
             mesh_version,
-            size,
+            size: self.renderer.size(),
         };
-        if self.last != Some(key) {
-            self.last = None;
-            self.renderer.sync_chunks(&rs.device, &rs.queue, chunks)?;
+        if self.last == Some(key) {
+            return self.frame_failed.is_none().then_some(self.texture);
+        }
+        self.sync(rs, chunks, mesh_version);
+        let renderer = &mut self.renderer;
+        let recorded = guarded_on(&rs.device, "the 3D view's frame", || {
             let mut encoder = rs
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("dynaclay scene"),
                 });
-            self.renderer
-                .render(&rs.device, &rs.queue, &mut encoder, camera, options);
+            renderer.render(&rs.device, &rs.queue, &mut encoder, camera, options);
             rs.queue.submit([encoder.finish()]);
-            self.last = Some(key);
+        });
+        // Kept even on failure: the same frame is not retried until something changes.
+        self.last = Some(key);
+        self.frame_failed = recorded.err();
+        self.frame_failed.is_none().then_some(self.texture)
+    }
+
+    /// Resizes the target unless the GPU refuses; a refused size is remembered and the old
+    /// target (and its image) stays.
+    fn resize(&mut self, rs: &egui_wgpu::RenderState, size: (u32, u32)) {
+        let size = (size.0.max(1), size.1.max(1));
+        if self.size_refused.as_ref().is_some_and(|(s, _)| *s == size) {
+            return;
         }
-        Ok(self.texture)
+        match self.renderer.try_resize(&rs.device, size.0, size.1) {
+            Ok(changed) => {
+                self.size_refused = None;
+                if changed {
+                    dynaclay_loops::assert_not_in_tick("the egui renderer's lock");
+                    rs.renderer.write().update_egui_texture_from_wgpu_texture(
+                        &rs.device,
+                        self.renderer.target_view(),
+                        wgpu::FilterMode::Linear,
+                        self.texture,
+                    );
+                }
+            }
+            Err(e) => self.size_refused = Some((size, e)),
+        }
+    }
+
+    /// Uploads a new mesh version; one the GPU cannot take (or a malformed one) leaves no
+    /// chunk on the GPU and is not retried.
+    fn sync(&mut self, rs: &egui_wgpu::RenderState, chunks: &[MeshChunk<'_>], version: u64) {
+        if self.synced == Some(version)
+            || self
+                .mesh_refused
+                .as_ref()
+                .is_some_and(|(v, _)| *v == version)
+        {
+            return;
+        }
+        let renderer = &mut self.renderer;
+        let synced = guarded_on(&rs.device, "the mesh buffers", || {
+            renderer.sync_chunks(&rs.device, &rs.queue, chunks)
+        })
+        .and_then(|r| r.map_err(RenderError::from));
+        match synced {
+            Ok(_) => {
+                self.synced = Some(version);
+                self.mesh_refused = None;
+            }
+            Err(e) => {
+                // Buffers made in a failed scope are invalid: drop them all.
+                self.renderer.clear_chunks();
+                self.synced = None;
+                self.mesh_refused = Some((version, e));
+            }
+        }
+    }
+
+    /// Why the view is not showing everything: a refused size (the last size's image is
+    /// shown), a mesh the GPU could not take (the clay is missing), or a frame that could not
+    /// be recorded.
+    #[must_use]
+    pub fn problem(&self) -> Option<String> {
+        if let Some(e) = &self.frame_failed {
+            return Some(format!("cannot draw the 3D view: {e}"));
+        }
+        if let Some((_, e)) = &self.mesh_refused {
+            return Some(format!(
+                "cannot show the clay: {e}; the sculpt is kept, save it as usual"
+            ));
+        }
+        self.size_refused.as_ref().map(|((w, h), e)| {
+            format!("cannot draw the view at {w}×{h}: {e}; make the window smaller")
+        })
+    }
+
+    /// The target's size in pixels (the last size the GPU accepted).
+    #[must_use]
+    pub fn size(&self) -> (u32, u32) {
+        self.renderer.size()
     }
 }
 

@@ -253,6 +253,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         other => CliError::Engine(other),
     })?;
     let installed = install_session(&engine.commands(), &start, &session_path);
+    dynaclay_loops::assert_not_in_tick("dynaclay run waiting for the session install");
     installed_or_stop(
         installed.recv_timeout(Duration::from_secs(10)),
         &session_path,

@@ -71,6 +71,7 @@ impl IoWorker {
     #[must_use]
     pub fn run(mut self, tick: Duration) -> IoReport {
         loop {
+            dynaclay_loops::assert_not_in_tick("IoWorker::run waiting for jobs");
             match self.jobs.recv_timeout(tick) {
                 Ok(job) => self.handle(job),
                 Err(RecvTimeoutError::Timeout) => {}

@@ -89,15 +89,23 @@ impl Lockstep {
     }
 
     /// One haptic sample, then the simulation steps, then (every `graphics_every`) graphics.
+    ///
+    /// The three loop bodies run as marked ticks, as on their own threads: a blocking path in
+    /// one trips [`dynaclay_loops::assert_not_in_tick`] here too. The I/O poll is not a tick.
     pub fn step(&mut self) -> HapticOutcome {
-        let out = self.stages.haptic.tick(Instant::now());
+        let out = {
+            let _tick = dynaclay_loops::enter_tick();
+            self.stages.haptic.tick(Instant::now())
+        };
         for _ in 0..self.steps_per_sample {
+            let _tick = dynaclay_loops::enter_tick();
             self.stages.sim.apply_commands();
             let sample = self.stages.samples.latest().value;
             self.stages.sim.step(&sample);
         }
         self.ticks += 1;
         if self.ticks.is_multiple_of(self.graphics_every) {
+            let _tick = dynaclay_loops::enter_tick();
             self.stages.graphics.tick();
         }
         self.io.poll(Instant::now());

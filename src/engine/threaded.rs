@@ -411,6 +411,7 @@ impl Engine {
     /// or a timeout.
     pub fn load(&self, path: &std::path::Path, timeout: Duration) -> Result<String, CommandError> {
         let rx = self.request_load(path)?;
+        dynaclay_loops::assert_not_in_tick("Engine::load waiting for the simulation");
         rx.recv_timeout(timeout)
             .unwrap_or(Err(CommandError::NoAnswer {
                 what: "load",
@@ -449,6 +450,7 @@ impl Engine {
                 reply: Some(tx),
             })
             .map_err(|_| "the simulation loop has stopped".to_owned())?;
+        dynaclay_loops::assert_not_in_tick("Engine::save waiting for the I/O thread");
         match rx.recv_timeout(timeout) {
             Ok(r) => r.map(|_| ()),
             Err(_) => Err(format!("no answer to the save within {timeout:?}")),
@@ -461,6 +463,7 @@ impl Engine {
     /// # Errors
     /// When a loop panicked or the device fails to close.
     pub fn stop(mut self) -> Result<EngineReport, EngineError> {
+        dynaclay_loops::assert_not_in_tick("Engine::stop joining the loops");
         let sim = self.sim.stop_and_join()?;
         let graphics = self.graphics.stop_and_join()?;
         let haptic = self.haptic.stop_and_join()?;

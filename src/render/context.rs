@@ -4,9 +4,10 @@
 //! work on machines without a GPU. When nothing answers, the error is
 //! [`RenderError::NoAdapter`], worded "no GPU adapter: …", so callers can skip and say why.
 
-use std::sync::{Arc, Mutex, PoisonError};
+use std::sync::Arc;
 
 use super::error::RenderError;
+use super::faults::{GpuFaultLog, guarded_on};
 
 /// Environment variable that turns a missing adapter into a test failure (set by CI).
 pub const REQUIRE_GPU_ENV: &str = "DYNACLAY_REQUIRE_GPU";
@@ -41,27 +42,13 @@ impl std::fmt::Display for AdapterSummary {
 /// An adapter with its device and queue, for rendering without a window.
 pub struct GpuContext {
     /// Kept alive for the adapter's sake.
-    _instance: wgpu::Instance,
+    instance: wgpu::Instance,
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub summary: AdapterSummary,
     /// Faults wgpu reports through callbacks: a lost device, an error outside any scope.
-    faults: Arc<GpuFaults>,
-}
-
-/// What the device-lost and uncaptured-error callbacks saw (first of each kept).
-#[derive(Debug, Default)]
-struct GpuFaults {
-    lost: Mutex<Option<String>>,
-    uncaptured: Mutex<Option<(bool, String)>>,
-}
-
-fn keep_first<T>(slot: &Mutex<Option<T>>, value: T) {
-    let mut slot = slot.lock().unwrap_or_else(PoisonError::into_inner);
-    if slot.is_none() {
-        *slot = Some(value);
-    }
+    faults: Arc<GpuFaultLog>,
 }
 
 impl GpuContext {
@@ -119,20 +106,11 @@ impl GpuContext {
             adapter: summary.to_string(),
             message: e.to_string(),
         })?;
-        // Without these, wgpu panics on a lost device or an error outside a scope; with them
-        // the fault is kept and `guarded` returns it as a RenderError.
-        let faults = Arc::new(GpuFaults::default());
-        let lost = Arc::clone(&faults);
-        device.set_device_lost_callback(move |reason, message| {
-            keep_first(&lost.lost, format!("{reason:?}: {message}"));
-        });
-        let uncaptured = Arc::clone(&faults);
-        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
-            let oom = matches!(e, wgpu::Error::OutOfMemory { .. });
-            keep_first(&uncaptured.uncaptured, (oom, e.to_string()));
-        }));
+        // Without these, wgpu panics on an error outside a scope; with them the fault is
+        // kept and `guarded` returns it as a RenderError.
+        let faults = GpuFaultLog::install(&device, false);
         Ok(Self {
-            _instance: instance,
+            instance,
             adapter,
             device,
             queue,
@@ -152,24 +130,7 @@ impl GpuContext {
         what: &'static str,
         f: impl FnOnce(&wgpu::Device, &wgpu::Queue) -> T,
     ) -> Result<T, RenderError> {
-        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let value = f(&self.device, &self.queue);
-        // Scopes pop in reverse order of their pushes.
-        let invalid = pollster::block_on(validation.pop());
-        let out_of_memory = pollster::block_on(oom.pop());
-        if let Some(e) = out_of_memory {
-            return Err(RenderError::OutOfMemory {
-                what,
-                message: e.to_string(),
-            });
-        }
-        if let Some(e) = invalid {
-            return Err(RenderError::Gpu {
-                what,
-                message: e.to_string(),
-            });
-        }
+        let value = guarded_on(&self.device, what, || f(&self.device, &self.queue))?;
         self.check_faults(what)?;
         Ok(value)
     }
@@ -179,25 +140,20 @@ impl GpuContext {
     /// # Errors
     /// [`RenderError::DeviceLost`], or the uncaptured error as in [`Self::guarded`].
     pub fn check_faults(&self, what: &'static str) -> Result<(), RenderError> {
-        let lost = self
-            .faults
-            .lost
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        if let Some(message) = lost.clone() {
-            return Err(RenderError::DeviceLost { message });
-        }
-        drop(lost);
-        let uncaptured = self
-            .faults
-            .uncaptured
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        match uncaptured.clone() {
-            Some((true, message)) => Err(RenderError::OutOfMemory { what, message }),
-            Some((false, message)) => Err(RenderError::Gpu { what, message }),
-            None => Ok(()),
-        }
+        self.faults.check(what)
+    }
+
+    /// The log behind the device's fault callbacks.
+    #[must_use]
+    pub fn faults(&self) -> &Arc<GpuFaultLog> {
+        &self.faults
+    }
+
+    /// The instance the adapter came from (for building an `egui_wgpu::RenderState` on this
+    /// device in tests).
+    #[must_use]
+    pub fn instance(&self) -> &wgpu::Instance {
+        &self.instance
     }
 }
 

@@ -28,7 +28,9 @@ pub enum RenderError {
     Png { path: PathBuf, message: String },
     /// The GPU (or the software rasterizer's memory) could not hold `what`: caught from
     /// wgpu's out-of-memory error scope instead of a panic.
-    #[error("the GPU ran out of memory for {what} ({message}); try a smaller --width/--height")]
+    #[error(
+        "the GPU ran out of memory for {what} ({message}); a smaller image or window needs less"
+    )]
     OutOfMemory { what: &'static str, message: String },
     /// The GPU refused an operation on `what` (a validation or internal error, caught from an
     /// error scope instead of a panic).

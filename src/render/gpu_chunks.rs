@@ -69,6 +69,12 @@ pub struct ChunkBuffers {
 const GROWTH: f64 = 1.25;
 
 impl ChunkBuffers {
+    /// Drops every chunk's buffers (the totals stay): after a failed upload, whose buffers may
+    /// be invalid, the next [`Self::sync`] uploads every chunk afresh.
+    pub fn clear(&mut self) {
+        self.chunks.clear();
+    }
+
     /// Makes the GPU copy match `chunks` exactly (the full set, not a delta).
     ///
     /// # Errors

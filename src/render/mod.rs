@@ -5,6 +5,7 @@ mod chunk;
 mod context;
 mod environment;
 mod error;
+mod faults;
 mod from_mesh;
 mod gpu_chunks;
 mod image;
@@ -19,6 +20,7 @@ pub use chunk::{ChunkError, MeshChunk, bounds_of};
 pub use context::{AdapterSummary, GpuContext, REQUIRE_GPU_ENV, gpu_required};
 pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
 pub use error::RenderError;
+pub use faults::{GpuFaultLog, PRINTED_ERRORS, guarded_on};
 pub use from_mesh::{
     ChunkMesh, MIN_PAINT_COVERAGE, brick_id, chunk_views, octree_chunks, paint_colors,
 };

@@ -81,10 +81,9 @@ impl OffscreenRenderer {
     /// As [`Self::with_context`].
     pub fn resize(&mut self, width: u32, height: u32) -> Result<(), RenderError> {
         let max = self.gpu.device.limits().max_texture_dimension_2d.max(1);
-        let renderer = &mut self.renderer;
-        self.gpu.guarded("the frame's textures", |device, _| {
-            renderer.resize(device, width.clamp(1, max), height.clamp(1, max));
-        })
+        self.renderer
+            .try_resize(&self.gpu.device, width.clamp(1, max), height.clamp(1, max))?;
+        self.gpu.check_faults("the frame's textures")
     }
 
     /// Uploads changed chunks and drops absent ones; see [`SceneRenderer::sync_chunks`].
@@ -149,6 +148,7 @@ impl OffscreenRenderer {
             let _ = tx.send(r);
         });
         let fail = |message: String| RenderError::Readback { message };
+        dynaclay_loops::assert_not_in_tick("OffscreenRenderer::render waiting for the GPU");
         device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| fail(e.to_string()))?;

@@ -703,3 +703,69 @@ fn a_gpu_allocation_the_device_refuses_is_an_error_value_not_a_panic() {
     })
     .unwrap();
 }
+
+/// A headless GPU context, or `None` (with a note) when the machine has no adapter.
+fn context() -> Option<GpuContext> {
+    match GpuContext::headless() {
+        Ok(g) => Some(g),
+        Err(e) if e.is_no_adapter() && !gpu_required() => {
+            println!("skipped: {e}");
+            None
+        }
+        Err(e) => panic!("{e} ({REQUIRE_GPU_ENV} is set, so a missing adapter fails)"),
+    }
+}
+
+#[test]
+fn an_error_outside_any_scope_is_counted_and_reported_not_a_panic() {
+    let Some(gpu) = context() else {
+        return;
+    };
+    // The handler the GUI installs on eframe's device, on a device made the same way.
+    let log = GpuFaultLog::install(&gpu.device, true);
+    let too_big = gpu.device.limits().max_buffer_size.saturating_add(1);
+    // No error scope here: wgpu's default handler would panic.
+    let _invalid = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("too big, unscoped"),
+        size: too_big,
+        usage: wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    assert_eq!(log.error_count(), 1);
+    let (oom, message) = log.first_error().expect("the first error is kept");
+    assert!(
+        !oom,
+        "a size over the limit is a validation error: {message}"
+    );
+    assert!(log.lost().is_none());
+    let err = log.check("a test buffer").unwrap_err();
+    assert!(matches!(err, RenderError::Gpu { .. }), "{err}");
+    // A scoped failure is the scope's, not the handler's.
+    let scoped = guarded_on(&gpu.device, "a scoped buffer", || {
+        gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("too big, scoped"),
+            size: too_big,
+            usage: wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    });
+    assert!(scoped.is_err());
+    assert_eq!(log.error_count(), 1, "the scope caught the second one");
+}
+
+#[test]
+fn a_resize_over_the_texture_limit_is_refused_and_keeps_the_old_target() {
+    let Some(gpu) = context() else {
+        return;
+    };
+    let samples = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
+    let mut r = SceneRenderer::new(&gpu.device, &gpu.queue, OFFSCREEN_FORMAT, samples, 16, 8);
+    let over = gpu.device.limits().max_texture_dimension_2d + 1;
+    let err = r.try_resize(&gpu.device, over, 8).unwrap_err();
+    assert!(matches!(err, RenderError::Gpu { .. }), "{err}");
+    assert!(err.to_string().contains("the view's textures"), "{err}");
+    assert_eq!(r.size(), (16, 8), "the old target stays");
+    assert!(r.try_resize(&gpu.device, 32, 24).unwrap(), "a new size");
+    assert_eq!(r.size(), (32, 24));
+    gpu.check_faults("the test").unwrap();
+}

@@ -18,6 +18,8 @@ use glam::Mat4;
 use super::camera::Camera;
 use super::chunk::{ChunkError, MeshChunk};
 use super::environment::EnvironmentMap;
+use super::error::RenderError;
+use super::faults::guarded_on;
 use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
@@ -417,6 +419,34 @@ impl SceneRenderer {
         if (width, height) != (self.targets.width, self.targets.height) {
             self.targets = Targets::new(device, self.format, self.samples, width, height);
         }
+    }
+
+    /// As [`Self::resize`], with the new textures made inside wgpu's error scopes: they replace
+    /// the old ones only when the GPU made them. Returns whether the size changed.
+    ///
+    /// # Errors
+    /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] (a side over the device's texture
+    /// limit, say); the renderer keeps its previous size and targets then.
+    pub fn try_resize(
+        &mut self,
+        device: &wgpu::Device,
+        width: u32,
+        height: u32,
+    ) -> Result<bool, RenderError> {
+        let (width, height) = (width.max(1), height.max(1));
+        if (width, height) == (self.targets.width, self.targets.height) {
+            return Ok(false);
+        }
+        let (format, samples) = (self.format, self.samples);
+        self.targets = guarded_on(device, "the view's textures", || {
+            Targets::new(device, format, samples, width, height)
+        })?;
+        Ok(true)
+    }
+
+    /// Drops every uploaded chunk; the next [`Self::sync_chunks`] uploads them all again.
+    pub fn clear_chunks(&mut self) {
+        self.chunks.clear();
     }
 
     /// Replaces the environment sphere map (for example with a loaded matcap).
