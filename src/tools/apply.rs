@@ -285,17 +285,30 @@ impl ToolRows<'_> {
                 return;
             }
             let (boxed, live) = reach.spans(xs, y, z);
-            for i in boxed {
+            // The samples in the tool's local box form one run of the row: each local
+            // coordinate is a rounded affine function of x, monotone, so each slab of the
+            // box holds an interval of the row. Its ends are found by testing inwards from the
+            // analytic span's; every sample between them passes the per-sample test.
+            let inside = |i: usize| {
+                to_local
+                    .transform_point3(Vec3::new(xs[i], y, z))
+                    .abs()
+                    .cmple(half)
+                    .all()
+            };
+            let mut first = boxed.start;
+            while first < boxed.end && !inside(first) {
+                first += 1;
+            }
+            let mut end = boxed.end;
+            while end > first && !inside(end - 1) {
+                end -= 1;
+            }
+            computed += end - first;
+            // Beyond the shape's zero radius the potential is exactly zero: the old value.
+            for i in live.start.max(first)..live.end.min(end) {
                 let x = Vec3::new(xs[i], y, z);
                 let local = to_local.transform_point3(x);
-                if !local.abs().cmple(half).all() {
-                    continue;
-                }
-                computed += 1;
-                // Beyond the shape's zero radius the potential is exactly zero: the old value.
-                if !live.contains(&i) {
-                    continue;
-                }
                 let old = values[i];
                 let new = rule(x, density(local), old);
                 dirtied += usize::from(new != old);
