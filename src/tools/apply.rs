@@ -339,8 +339,9 @@ struct Reach {
 impl Reach {
     /// For the row `(xs[i], y, z)`: the index range outside which no sample lies in the
     /// tool's local box, and the one outside which the tool's potential is exactly zero. Both
-    /// are computed analytically and widened by a sample on each side; the samples inside
-    /// are still tested one by one, so the spans only spare the samples that cannot count.
+    /// are computed analytically and widened by a sample on each side: they only spare the
+    /// samples that cannot count, and the caller still finds the box's run within the first
+    /// with the per-sample test.
     fn spans(&self, xs: &[f32], y: f32, z: f32) -> (Range<usize>, Range<usize>) {
         let empty = (0..0, 0..0);
         let (lo, hi) = (self.world_lo, self.world_hi);
