@@ -399,7 +399,7 @@ impl Reach {
 
 /// The indices within `within` of the ascending `xs` that lie in `[t0, t1]`.
 fn index_span(xs: &[f32], t0: f32, t1: f32, within: Range<usize>) -> Range<usize> {
-    if !(t0 <= t1) {
+    if t0.is_nan() || t1.is_nan() || t0 > t1 {
         return within.start..within.start;
     }
     let a = xs.partition_point(|&x| x < t0).max(within.start);
