@@ -62,6 +62,11 @@ impl KronScratch {
         self.len() == 0
     }
 
+    /// Both scratch arrays, for a caller's own passes between operations.
+    pub(crate) fn arrays(&mut self) -> (&mut [f32], &mut [f32]) {
+        (&mut self.a, &mut self.b)
+    }
+
     /// Scratch large enough for every operation of `basis`.
     #[must_use]
     pub fn for_basis(basis: &KroneckerBasis) -> Self {

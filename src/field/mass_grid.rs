@@ -215,6 +215,20 @@ impl MassGrid {
     /// # Panics
     /// When `out` is not [`MassGrid::count`] long or the box does not fit the lattice.
     pub fn fixed_outside(&self, lattice: &BSplineLattice, out: &mut [f32]) {
+        self.fixed_outside_with(lattice, out, None);
+    }
+
+    /// [`MassGrid::fixed_outside`] with the caller's scratch arrays for its passes (used when
+    /// both are long enough, else it allocates its own).
+    ///
+    /// # Panics
+    /// As [`MassGrid::fixed_outside`].
+    pub(crate) fn fixed_outside_with(
+        &self,
+        lattice: &BSplineLattice,
+        out: &mut [f32],
+        scratch: Option<(&mut [f32], &mut [f32])>,
+    ) {
         assert_eq!(out.len(), self.count(), "one value per mass point");
         let b = self.coeffs;
         let (axes, grown) = self.influence_axes(lattice.dims);
@@ -231,9 +245,22 @@ impl MassGrid {
                 }
             }
         }
+        let len = self.fixed_scratch_len(gd);
+        match scratch {
+            Some((sa, sb)) if sa.len() >= len && sb.len() >= len => {
+                apply_axes(&axes, &outside, out, sa, sb);
+            }
+            _ => {
+                let (mut sa, mut sb) = (vec![0.0; len], vec![0.0; len]);
+                apply_axes(&axes, &outside, out, &mut sa, &mut sb);
+            }
+        }
+    }
+
+    /// Scratch length each of [`MassGrid::fixed_outside`]'s two passes needs, for the grown
+    /// box's dimensions `gd`.
+    fn fixed_scratch_len(&self, gd: [usize; 3]) -> usize {
         let m = self.dims;
-        let len = m[0] * m[1].max(gd[1]) * m[2].max(gd[2]);
-        let (mut sa, mut sb) = (vec![0.0; len], vec![0.0; len]);
-        apply_axes(&axes, &outside, out, &mut sa, &mut sb);
+        m[0] * m[1].max(gd[1]) * m[2].max(gd[2])
     }
 }

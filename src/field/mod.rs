@@ -22,7 +22,10 @@ pub use mass_grid::{CoeffBox, MassGrid};
 pub use multipatch::{MultiPatchField, Patch};
 pub use pick::{BISECTION_STEPS, MARCH_STEP_SPANS, Ray, SurfaceHit, pick_surface};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};
-pub use refit::{FitError, coeff_box_around, fit_lattice, refit_box, refit_box_edit};
+pub use refit::{
+    FitError, SampleRow, coeff_box_around, fit_lattice, refit_box, refit_box_edit,
+    refit_box_edit_rows,
+};
 pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
 pub(crate) use sweep::{
     AxisOp, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with, with_blocks,

@@ -65,7 +65,7 @@ pub fn refit_box(
         coeff_max,
         samples_per_span,
         false,
-        |x, _| target(x),
+        |row: SampleRow<'_>| edit_each(row, &|x, _| target(x)),
     )
 }
 
@@ -84,18 +84,71 @@ pub fn refit_box_edit(
     samples_per_span: usize,
     edit: impl Fn(Vec3, f32) -> f32,
 ) -> Result<(), FitError> {
-    refit(lattice, coeff_min, coeff_max, samples_per_span, true, edit)
+    refit(
+        lattice,
+        coeff_min,
+        coeff_max,
+        samples_per_span,
+        true,
+        |row: SampleRow<'_>| edit_each(row, &edit),
+    )
+}
+
+/// One row of the sample grid along x, handed to a row edit: the samples lie at
+/// `(xs[i], y, z)` (`xs` ascending), and `values[i]` holds the field's value there before the
+/// edit; the edit overwrites the values it changes and leaves the rest.
+pub struct SampleRow<'a> {
+    /// The samples' x coordinates, ascending.
+    pub xs: &'a [f32],
+    /// The row's y coordinate.
+    pub y: f32,
+    /// The row's z coordinate.
+    pub z: f32,
+    /// The old values on entry, the edited ones on return.
+    pub values: &'a mut [f32],
+}
+
+/// [`refit_box_edit`] a row at a time: `edit_row` sees every row of the sample grid once, in
+/// order (x fastest, then y, then z), and can pass over the part of a row it cannot reach
+/// without looking at each sample. The result is the same as [`refit_box_edit`] with the
+/// per-sample rule the row edit applies.
+///
+/// # Errors
+/// As [`refit_box`].
+pub fn refit_box_edit_rows(
+    lattice: &mut BSplineLattice,
+    coeff_min: [usize; 3],
+    coeff_max: [usize; 3],
+    samples_per_span: usize,
+    edit_row: impl FnMut(SampleRow<'_>),
+) -> Result<(), FitError> {
+    refit(
+        lattice,
+        coeff_min,
+        coeff_max,
+        samples_per_span,
+        true,
+        edit_row,
+    )
+}
+
+/// Applies a per-sample `edit(x, old)` to every sample of a row.
+#[inline]
+fn edit_each(row: SampleRow<'_>, edit: &impl Fn(Vec3, f32) -> f32) {
+    for (&x, v) in row.xs.iter().zip(row.values.iter_mut()) {
+        *v = edit(Vec3::new(x, row.y, row.z), *v);
+    }
 }
 
 /// The refit of [`refit_box`] and [`refit_box_edit`]; `old` (the pre-edit field at each
-/// sample) is computed only when `want_old`, else `edit` gets the fixed part alone.
+/// sample) is computed only when `want_old`, else the rows get the fixed part alone.
 fn refit(
     lattice: &mut BSplineLattice,
     coeff_min: [usize; 3],
     coeff_max: [usize; 3],
     samples_per_span: usize,
     want_old: bool,
-    edit: impl Fn(Vec3, f32) -> f32,
+    mut edit_row: impl FnMut(SampleRow<'_>),
 ) -> Result<(), FitError> {
     let coeffs = CoeffBox {
         min: coeff_min,
@@ -121,9 +174,9 @@ fn refit(
     // The fixed contribution of the coefficients outside the box at every sample and, for an
     // edit, the box's own contribution (so `fixed + inside` is the field before the edit).
     let mut fixed = vec![0.0_f32; grid.count()];
-    grid.fixed_outside(lattice, &mut fixed);
-    let mut inside = Vec::new();
-    if want_old {
+    grid.fixed_outside_with(lattice, &mut fixed, Some(scratch.arrays()));
+    // The values handed to the rows: the old field, then the edited one.
+    let mut values = if want_old {
         let mut p_box = vec![0.0_f32; coeffs.count()];
         for k in 0..n[2] {
             for j in 0..n[1] {
@@ -132,12 +185,18 @@ fn refit(
                     .copy_from_slice(&lattice.coeffs[row..row + n[0]]);
             }
         }
-        inside = vec![0.0_f32; grid.count()];
+        let mut inside = vec![0.0_f32; grid.count()];
         basis.apply(&p_box, &mut inside, &mut scratch);
-    }
+        for (v, f) in inside.iter_mut().zip(&fixed) {
+            *v += f;
+        }
+        inside
+    } else {
+        fixed.clone()
+    };
 
-    // Samples of the target minus the fixed contribution. The sample positions, per axis
-    // (the grid is a tensor product): the same values `MassGrid::position` gives.
+    // The sample positions, per axis (the grid is a tensor product): the same values
+    // `MassGrid::position` gives.
     let axis_positions = |axis: usize, count: usize| -> Vec<f32> {
         (0..count)
             .map(|t| {
@@ -152,25 +211,38 @@ fn refit(
         axis_positions(1, my),
         axis_positions(2, mz),
     );
-    let mut residual = fixed;
-    for (k, &z) in zs.iter().enumerate() {
-        for (j, &y) in ys.iter().enumerate() {
-            for (i, &x_coord) in xs.iter().enumerate() {
-                let at = i + mx * (j + my * k);
-                let x = Vec3::new(x_coord, y, z);
-                let old = residual[at] + inside.get(at).copied().unwrap_or(0.0);
-                let t = edit(x, old);
-                if !t.is_finite() {
-                    return Err(FitError::NonFiniteTarget { at: x.to_array() });
-                }
-                residual[at] = t - residual[at];
-            }
+    for (plane, &z) in values.chunks_exact_mut(mx * my).zip(&zs) {
+        for (row, &y) in plane.chunks_exact_mut(mx).zip(&ys) {
+            edit_row(SampleRow {
+                xs: &xs,
+                y,
+                z,
+                values: row,
+            });
         }
+    }
+    // Samples of the target minus the fixed contribution.
+    let mut residual = fixed;
+    let mut finite = true;
+    for (r, &v) in residual.iter_mut().zip(&values) {
+        finite &= v.is_finite();
+        *r = v - *r;
+    }
+    if !finite {
+        let at = values
+            .iter()
+            .position(|v| !v.is_finite())
+            .expect("a non-finite value was seen");
+        let (i, j, k) = (at % mx, (at / mx) % my, at / (mx * my));
+        return Err(FitError::NonFiniteTarget {
+            at: [xs[i], ys[j], zs[k]],
+        });
     }
 
     let mut p = vec![0.0_f32; coeffs.count()];
-    basis.apply_transpose(&residual, &mut p, &mut scratch);
-    basis.solve_gram(&mut p);
+    let mut b = vec![0.0_f32; coeffs.count()];
+    basis.apply_transpose(&residual, &mut b, &mut scratch);
+    basis.solve_gram_into(&b, &mut p, &mut scratch);
 
     for k in 0..n[2] {
         for j in 0..n[1] {

@@ -9,14 +9,17 @@
 //! fit's scratch).
 
 use std::cell::Cell;
+use std::ops::Range;
 
 use glam::Vec3;
 
 use super::action::{ActionError, ToolAction};
 use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 use super::history::StepRecorder;
-use super::shape::{ShapeError, ToolPose, ToolShape};
-use crate::field::{BSplineLattice, FitError, coeff_box_around, refit_box_edit};
+use super::shape::{ShapeError, ToolPose, ToolShape, density_from_distance};
+use crate::field::{
+    BSplineLattice, FitError, SampleRow, coeff_box_around, refit_box_edit, refit_box_edit_rows,
+};
 
 /// A geometric tool: a shape, what it does, and the width of its potential's falloff band.
 #[derive(Clone, Debug, PartialEq)]
@@ -177,7 +180,6 @@ pub fn apply_tool(
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
-    let counts = Counts::default();
     // `pose.to_local` with the rotation turned into a matrix once, not per sample.
     let to_local =
         glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_m).inverse();
@@ -185,38 +187,224 @@ pub fn apply_tool(
     // without transforming them (most of a refit box's margin).
     let (world_lo, world_hi) = pose.world_bounds(half);
     let acts_outside = tool.action.acts_outside_tool();
-    let target = |x: Vec3, old: f32| {
-        counts.visited.set(counts.visited.get() + 1);
-        if !acts_outside && (x.cmplt(world_lo).any() || x.cmpgt(world_hi).any()) {
-            return old;
+    let reach = Reach {
+        to_local,
+        world_lo,
+        world_hi,
+        half,
+        zero_beyond: tool.shape.zero_beyond(tool.falloff_m),
+    };
+    let blur_h = match tool.action {
+        ToolAction::Smooth { kernel_m, .. } => Some(kernel_m.max(spacing)),
+        _ => None,
+    };
+    let rows = ToolRows {
+        reach: &reach,
+        acts_outside,
+        before: before.as_ref(),
+        blur_h,
+        action: tool.action,
+        iso,
+        dt_s,
+    };
+    let lattice = clay.field_mut(id).expect("checked above");
+    let falloff = tool.falloff_m;
+    let [visited, computed, dirtied] = match tool.shape {
+        // The sphere's potential inlined into the row loop: the expressions of
+        // `ToolShape::density` for a sphere, so the values are the same.
+        ToolShape::Sphere { radius_m } => rows.refit(lattice, region, options, |p: Vec3| {
+            density_from_distance(p.length() - radius_m, falloff)
+        }),
+        ref shape => rows.refit(lattice, region, options, |p: Vec3| {
+            shape.density(p, falloff)
+        }),
+    }?;
+    Ok(ToolReport {
+        coeff_box: Some(region),
+        dirty_world: Some(region.world_support(lattice)),
+        visited,
+        computed,
+        dirtied,
+    })
+}
+
+/// What a geometric tool's row edit needs besides the shape's potential.
+struct ToolRows<'a> {
+    reach: &'a Reach,
+    acts_outside: bool,
+    /// The clay before the edit, for smoothing's blur.
+    before: Option<&'a BSplineLattice>,
+    /// Smoothing's blur step.
+    blur_h: Option<f32>,
+    action: ToolAction,
+    iso: f32,
+    dt_s: f32,
+}
+
+impl ToolRows<'_> {
+    /// Refits `region` to the tool's rule with the potential `density` (local point to
+    /// `[0, 1]`), row by row; returns Ferley's visited, computed and dirtied counts.
+    fn refit<D: Fn(Vec3) -> f32>(
+        &self,
+        lattice: &mut BSplineLattice,
+        region: CoeffBox,
+        options: &ApplyOptions,
+        density: D,
+    ) -> Result<[usize; 3], ToolError> {
+        let (mut visited, mut computed, mut dirtied) = (0_usize, 0_usize, 0_usize);
+        let reach = self.reach;
+        let (to_local, half) = (reach.to_local, reach.half);
+        // The rule at one sample with potential `t` (zero outside the tool's box).
+        let rule = |x: Vec3, t: f32, old: f32| -> f32 {
+            if t == 0.0 && !self.acts_outside {
+                return old;
+            }
+            let blurred = match (self.blur_h, self.before) {
+                (Some(h), Some(before)) => blur(before, x, h),
+                _ => 0.0,
+            };
+            self.action.density(old, t, blurred, self.iso, self.dt_s)
+        };
+        let edit_row = |row: SampleRow<'_>| {
+            let SampleRow { xs, y, z, values } = row;
+            visited += xs.len();
+            if self.acts_outside {
+                for (&xc, v) in xs.iter().zip(values.iter_mut()) {
+                    let x = Vec3::new(xc, y, z);
+                    let local = to_local.transform_point3(x);
+                    let t = if local.abs().cmple(half).all() {
+                        density(local)
+                    } else {
+                        0.0
+                    };
+                    computed += 1;
+                    let new = rule(x, t, *v);
+                    dirtied += usize::from(new != *v);
+                    *v = new;
+                }
+                return;
+            }
+            let (boxed, live) = reach.spans(xs, y, z);
+            // The samples in the tool's local box form one run of the row: each local
+            // coordinate is a rounded affine function of x, monotone, so each slab of the
+            // box holds an interval of the row. Its ends are found by testing inwards from the
+            // analytic span's; every sample between them passes the per-sample test.
+            let inside = |i: usize| {
+                to_local
+                    .transform_point3(Vec3::new(xs[i], y, z))
+                    .abs()
+                    .cmple(half)
+                    .all()
+            };
+            let mut first = boxed.start;
+            while first < boxed.end && !inside(first) {
+                first += 1;
+            }
+            let mut end = boxed.end;
+            while end > first && !inside(end - 1) {
+                end -= 1;
+            }
+            computed += end - first;
+            // Beyond the shape's zero radius the potential is exactly zero: the old value.
+            for i in live.start.max(first)..live.end.min(end) {
+                let x = Vec3::new(xs[i], y, z);
+                let local = to_local.transform_point3(x);
+                let old = values[i];
+                let new = rule(x, density(local), old);
+                dirtied += usize::from(new != old);
+                values[i] = new;
+            }
+        };
+        refit_box_edit_rows(
+            lattice,
+            region.min,
+            region.max,
+            options.samples_per_span,
+            edit_row,
+        )?;
+        Ok([visited, computed, dirtied])
+    }
+}
+
+/// Where along a row of samples a tool can act: its world-aligned box, its local box and the
+/// sphere beyond which its potential is exactly zero.
+struct Reach {
+    to_local: glam::Affine3A,
+    world_lo: Vec3,
+    world_hi: Vec3,
+    half: Vec3,
+    zero_beyond: Option<f32>,
+}
+
+impl Reach {
+    /// For the row `(xs[i], y, z)`: the index range outside which no sample lies in the
+    /// tool's local box, and the one outside which the tool's potential is exactly zero. Both
+    /// are computed analytically and widened by a sample on each side: they only spare the
+    /// samples that cannot count, and the caller still finds the box's run within the first
+    /// with the per-sample test.
+    fn spans(&self, xs: &[f32], y: f32, z: f32) -> (Range<usize>, Range<usize>) {
+        let empty = (0..0, 0..0);
+        let (lo, hi) = (self.world_lo, self.world_hi);
+        if xs.is_empty() || y < lo.y || y > hi.y || z < lo.z || z > hi.z {
+            return empty;
         }
-        let local = to_local.transform_point3(x);
-        let inside_box = local.abs().cmple(half).all();
-        if !inside_box && !tool.action.acts_outside_tool() {
-            return old;
+        // The world box's x extent, exactly as a per-sample comparison would find it.
+        let first = xs.partition_point(|&x| x < lo.x);
+        let last = xs.partition_point(|&x| x <= hi.x);
+        if first >= last {
+            return empty;
         }
-        counts.computed.set(counts.computed.get() + 1);
-        let t = if inside_box {
-            tool.shape.density(local, tool.falloff_m)
+        // The row in local coordinates: `base + dir · x`.
+        let dir = Vec3::from(self.to_local.matrix3.x_axis);
+        let base = self.to_local.transform_point3(Vec3::new(0.0, y, z));
+        let step = if xs.len() > 1 {
+            (xs[1] - xs[0]).abs()
         } else {
             0.0
         };
-        if t == 0.0 && !tool.action.acts_outside_tool() {
-            return old;
-        }
-        let blurred = match (tool.action, &before) {
-            (ToolAction::Smooth { kernel_m, .. }, Some(before)) => {
-                blur(before, x, kernel_m.max(spacing))
+        let (mut t0, mut t1) = (f32::NEG_INFINITY, f32::INFINITY);
+        for a in 0..3 {
+            let (d, b, h) = (dir[a], base[a], self.half[a]);
+            if d.abs() < 1e-6 {
+                // Parallel to this slab: all in or all out (with a rounding margin).
+                if b.abs() > h + 1e-4 * (h + b.abs()) + step {
+                    return empty;
+                }
+            } else {
+                let (u, v) = ((-h - b) / d, (h - b) / d);
+                t0 = t0.max(u.min(v));
+                t1 = t1.min(u.max(v));
             }
-            _ => 0.0,
-        };
-        let new = tool.action.density(old, t, blurred, iso, dt_s);
-        if new != old {
-            counts.dirtied.set(counts.dirtied.get() + 1);
         }
-        new
-    };
-    refit_region(clay, id, region, options, &counts, target)
+        let boxed = index_span(xs, t0 - step, t1 + step, first..last);
+        let live = match self.zero_beyond {
+            None => boxed.clone(),
+            Some(r) => {
+                // |base + dir·x|² ≤ R² with R widened well beyond rounding.
+                let r = r * (1.0 + 1e-3) + step;
+                let (dd, db, bb) = (dir.dot(dir), dir.dot(base), base.dot(base));
+                let disc = db * db - dd * (bb - r * r);
+                if disc < 0.0 || dd <= 0.0 {
+                    0..0
+                } else {
+                    let s = disc.sqrt();
+                    let (u, v) = ((-db - s) / dd, (-db + s) / dd);
+                    index_span(xs, u - step, v + step, boxed.clone())
+                }
+            }
+        };
+        (boxed, live)
+    }
+}
+
+/// The indices within `within` of the ascending `xs` that lie in `[t0, t1]`.
+fn index_span(xs: &[f32], t0: f32, t1: f32, within: Range<usize>) -> Range<usize> {
+    if t0.is_nan() || t1.is_nan() || t0 > t1 {
+        return within.start..within.start;
+    }
+    let a = xs.partition_point(|&x| x < t0).max(within.start);
+    let b = xs.partition_point(|&x| x <= t1).min(within.end);
+    a..b.max(a)
 }
 
 /// Applies `tool` at each pose of a path in turn, splitting `duration_s` evenly (toothpaste

@@ -141,6 +141,7 @@ impl ToolShape {
     /// Signed distance (negative inside) from a local point to an analytic shape's surface;
     /// for the ellipsoid a first-order estimate that is exact on the axes and on the surface.
     /// `None` for a freeform shape, which has a density but no distance.
+    #[inline]
     #[must_use]
     pub fn signed_distance(&self, p: Vec3) -> Option<f32> {
         let box_distance = |q: Vec3| q.max(Vec3::ZERO).length() + q.max_element().min(0.0);
@@ -193,6 +194,27 @@ impl ToolShape {
                 falloff_m,
             ),
         }
+    }
+
+    /// A radius around the tool's centre (local frame) beyond which an analytic shape's
+    /// potential is exactly zero: its solid's farthest point plus the falloff band. `None`
+    /// for the ellipsoid, whose distance is an estimate, and for freeform shapes.
+    #[must_use]
+    pub fn zero_beyond(&self, falloff_m: f32) -> Option<f32> {
+        let solid = match self {
+            Self::Sphere { radius_m } => *radius_m,
+            Self::Box { half_extents_m } => half_extents_m.length(),
+            Self::Cylinder {
+                radius_m,
+                half_height_m,
+            } => radius_m.hypot(*half_height_m),
+            Self::Capsule {
+                radius_m,
+                half_height_m,
+            } => radius_m + half_height_m,
+            Self::Ellipsoid { .. } | Self::Freeform(_) => return None,
+        };
+        Some(solid + falloff_m)
     }
 
     /// Half extents of the local box outside which the density is exactly zero.
