@@ -801,11 +801,14 @@ falloff_m = 0.1
     let rec = dir.path().join("live.rec");
     let rec_arg = rec.to_str().unwrap();
     run(&["--record", rec_arg], "live");
-    let live_mid = std::fs::read(dir.path().join("mid.dclay")).unwrap();
+    // On a loaded machine the live run may end (on the wall clock) before the script's save;
+    // the replay then must not reach it either.
+    let live_mid = std::fs::read(dir.path().join("mid.dclay")).ok();
+    let _ = std::fs::remove_file(dir.path().join("mid.dclay"));
     let replay_arg = format!("replay:{rec_arg}");
     let said = run(&["--device", &replay_arg], "replayed");
     assert!(said.contains("as scheduled in the recorded run"), "{said}");
-    let replayed_mid = std::fs::read(dir.path().join("mid.dclay")).unwrap();
+    let replayed_mid = std::fs::read(dir.path().join("mid.dclay")).ok();
 
     let field = |bytes: &[u8]| {
         let session = dynaclay::io::decode(bytes, Path::new("s.dclay")).unwrap();
@@ -815,7 +818,11 @@ falloff_m = 0.1
             .map(|c| c.to_bits())
             .collect::<Vec<_>>()
     };
-    assert_eq!(field(&replayed_mid), field(&live_mid), "the script's save");
+    assert_eq!(
+        replayed_mid.as_deref().map(field),
+        live_mid.as_deref().map(field),
+        "the script's save"
+    );
     let session = |out: &str| std::fs::read(dir.path().join(out).join("session.dclay")).unwrap();
     assert_eq!(
         field(&session("replayed")),

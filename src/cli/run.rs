@@ -517,8 +517,7 @@ fn run_scheduled_replay(
 ) -> Result<RunOutputs, CliError> {
     let info = replay.info();
     let field = start.clay.patches[0].clone();
-    let mut config = EngineConfig::for_field(&field, &info);
-    config.sim.material = start.material.uniform;
+    let config = single_thread_config(&field, &info, start);
     let mut replay = ScheduledReplay::new(
         &config,
         field,
@@ -547,13 +546,35 @@ fn run_scheduled_replay(
             .map_err(|_| RecvTimeoutError::Disconnected),
         session_path,
     )?;
-    let outputs =
-        super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
+    finish_single_thread_run(args, &config, &report, session_path, &mut driver)
+}
+
+/// The engine settings of a lockstep or replayed run starting from `start` on `field`.
+fn single_thread_config(
+    field: &crate::field::BSplineLattice,
+    info: &dynaclay_devices::DeviceInfo,
+    start: &Session,
+) -> EngineConfig {
+    let mut config = EngineConfig::for_field(field, info);
+    config.sim.material = start.material.uniform;
+    config
+}
+
+/// Writes a lockstep or replayed run's outputs, reports its device faults and script outcome,
+/// and turns a device that failed to close into exit 5.
+fn finish_single_thread_run(
+    args: &RunArgs,
+    config: &EngineConfig,
+    report: &crate::engine::LockstepReport,
+    session_path: &Path,
+    driver: &mut ScriptDriver,
+) -> Result<RunOutputs, CliError> {
+    let outputs = super::outputs::write_lockstep_outputs(&args.out, report, config, &extras(args))?;
     say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
-    finish_run(session_path, &mut driver, &report.io)?;
-    match report.device_close_error {
-        Some(e) => Err(CliError::DeviceFault(e)),
+    finish_run(session_path, driver, &report.io)?;
+    match &report.device_close_error {
+        Some(e) => Err(CliError::DeviceFault(e.clone())),
         None => Ok(outputs),
     }
 }
@@ -572,8 +593,7 @@ fn run_lockstep(
 ) -> Result<RunOutputs, CliError> {
     let info = device.info();
     let field = start.clay.patches[0].clone();
-    let mut config = EngineConfig::for_field(&field, &info);
-    config.sim.material = start.material.uniform;
+    let config = single_thread_config(&field, &info, start);
     let mut lockstep = Lockstep::new(
         &config,
         field,
@@ -605,13 +625,5 @@ fn run_lockstep(
         lockstep.step();
     }
     let report = lockstep.finish().map_err(CliError::Engine)?;
-    let outputs =
-        super::outputs::write_lockstep_outputs(&args.out, &report, &config, &extras(args))?;
-    say_raw!("{}", outputs.describe());
-    report_device_faults(&report.safety);
-    finish_run(session_path, &mut driver, &report.io)?;
-    match report.device_close_error {
-        Some(e) => Err(CliError::DeviceFault(e)),
-        None => Ok(outputs),
-    }
+    finish_single_thread_run(args, &config, &report, session_path, &mut driver)
 }

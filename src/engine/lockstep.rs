@@ -144,19 +144,27 @@ impl Lockstep {
     /// None today; kept for the engine's other end-of-run failures.
     pub fn finish(mut self) -> Result<LockstepReport, EngineError> {
         self.stages.sim.apply_commands();
-        self.stages.sim.finish();
-        self.stages.sim.publish_now();
-        self.stages.graphics.tick();
-        self.io.poll(Instant::now());
-        let safety = self.stages.haptic.device().counters();
-        let device_close_error = self.stages.haptic.device_mut().close().err();
-        Ok(LockstepReport {
-            session: self.stages.sim.session(),
-            counters: self.stages.counters.snapshot(),
-            safety,
-            octree: self.stages.graphics.octree().clone(),
-            io: self.io.report().clone(),
-            device_close_error,
-        })
+        Ok(end_single_thread_run(&mut self.stages, &mut self.io))
+    }
+}
+
+/// Ends a single-thread run (lockstep or replayed): the region retired and the last undo step
+/// recorded, a last publication and graphics update, the haptic copy synced, the device closed
+/// (a failure is reported in the report, the session handed back all the same).
+pub(super) fn end_single_thread_run(stages: &mut Stages, io: &mut IoWorker) -> LockstepReport {
+    stages.sim.finish();
+    stages.sim.publish_now();
+    stages.graphics.tick();
+    stages.haptic.sync_field();
+    io.poll(Instant::now());
+    let safety = stages.haptic.device().counters();
+    let device_close_error = stages.haptic.device_mut().close().err();
+    LockstepReport {
+        session: stages.sim.session(),
+        counters: stages.counters.snapshot(),
+        safety,
+        octree: stages.graphics.octree().clone(),
+        io: io.report().clone(),
+        device_close_error,
     }
 }

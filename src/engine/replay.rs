@@ -24,7 +24,6 @@
 use std::time::Instant;
 
 use crossbeam::channel::Sender;
-use dynaclay_devices::HapticDevice;
 use dynaclay_devices::record::{RecordedSchedule, ReplayDevice, ScheduleGap};
 
 use super::command::Command;
@@ -248,20 +247,9 @@ impl ScheduledReplay {
     /// The [`ReplayMismatch`] of a step left over that cannot run.
     pub fn finish(mut self) -> Result<LockstepReport, EngineError> {
         while self.recorded_step()? {}
-        self.stages.sim.finish();
-        self.stages.sim.publish_now();
-        self.stages.graphics.tick();
-        self.stages.haptic.sync_field();
-        self.io.poll(Instant::now());
-        let safety = self.stages.haptic.device().counters();
-        let device_close_error = self.stages.haptic.device_mut().close().err();
-        Ok(LockstepReport {
-            session: self.stages.sim.session(),
-            counters: self.stages.counters.snapshot(),
-            safety,
-            octree: self.stages.graphics.octree().clone(),
-            io: self.io.report().clone(),
-            device_close_error,
-        })
+        Ok(super::lockstep::end_single_thread_run(
+            &mut self.stages,
+            &mut self.io,
+        ))
     }
 }

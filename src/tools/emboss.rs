@@ -239,36 +239,35 @@ impl EmbossParams {
         if !(self.depth.is_finite() && self.depth > 0.0) {
             return Err(format!("depth = {} must be positive", self.depth));
         }
-        let finite = |v: Vec3| v.is_finite();
+        let positive = |name: &str, v: f32| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("{name} = {v} must be positive"))
+            }
+        };
+        let axes = |centre: Vec3, axis: Vec3, up: Vec3| {
+            if centre.is_finite() && frame(axis, up).is_some() {
+                Ok(())
+            } else {
+                Err("axis and up must be finite, non-zero and not parallel".to_string())
+            }
+        };
         match self.projection {
             Projection::Planar {
                 centre,
                 axis,
                 up,
                 size,
-            } => {
-                if !(size.is_finite() && size > 0.0) {
-                    return Err(format!("size = {size} must be positive"));
-                }
-                if !finite(centre) || frame(axis, up).is_none() {
-                    return Err("axis and up must be finite, non-zero and not parallel".to_string());
-                }
-            }
+            } => positive("size", size).and(axes(centre, axis, up))?,
             Projection::Cylindrical {
                 centre,
                 axis,
                 up,
                 height,
-            } => {
-                if !(height.is_finite() && height > 0.0) {
-                    return Err(format!("height = {height} must be positive"));
-                }
-                if !finite(centre) || frame(axis, up).is_none() {
-                    return Err("axis and up must be finite, non-zero and not parallel".to_string());
-                }
-            }
+            } => positive("height", height).and(axes(centre, axis, up))?,
             Projection::Spherical { centre, up } => {
-                if !finite(centre) || up.try_normalize().is_none() {
+                if !centre.is_finite() || up.try_normalize().is_none() {
                     return Err("up must be finite and non-zero".to_string());
                 }
             }

@@ -33,8 +33,8 @@ use dynaclay_files::{AtomicFile, WriteError};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RecorderConfig {
     /// Queue capacity between the haptic thread and the writer, records (two per tick at
-    /// 1 kHz, four with the engine's schedule notes, so the default holds about four
-    /// seconds).
+    /// 1 kHz, about four with the engine's schedule notes, so the default, 4 MiB, holds some
+    /// sixteen seconds of a writer thread that gets no CPU).
     pub queue_capacity: usize,
     /// Records per checksummed block.
     pub records_per_block: u32,
@@ -45,7 +45,7 @@ pub struct RecorderConfig {
 impl Default for RecorderConfig {
     fn default() -> Self {
         Self {
-            queue_capacity: 16384,
+            queue_capacity: 65536,
             records_per_block: 256,
             flush_interval_ms: 100,
         }
