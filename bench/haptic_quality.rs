@@ -21,7 +21,7 @@
 //! Where it is pessimistic: the grip's damping is low for a human hand.
 
 use dynaclay::engine::{CLAY_SPACING, EngineConfig, build_clay};
-use dynaclay::field::BSplineLattice;
+use dynaclay::field::MultiPatchField;
 use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry};
 use dynaclay::io::{ClayShape, ClaySpec};
 use dynaclay_devices::{
@@ -71,7 +71,7 @@ fn trajectory() -> Trajectory {
 }
 
 fn run(
-    field: &BSplineLattice,
+    field: &MultiPatchField,
     config: &EngineConfig,
     renderer: Renderer,
     stiffness_n_per_m: f32,
@@ -187,6 +187,7 @@ fn main() {
     .expect("clay");
     let arm = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm.info);
+    let density = MultiPatchField::new(field.clone());
     config.safety.soft_start_s = 0.0;
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
@@ -207,7 +208,7 @@ fn main() {
             let mut k = 250.0f32;
             let mut sweep = String::new();
             while k <= 256_000.0 {
-                let r = run(&field, &config, renderer, k, step_us);
+                let r = run(&density, &config, renderer, k, step_us);
                 sweep += &format!(
                     " {k:.0}: ripple {:.2}%, net {:+.3} mJ{};",
                     r.ripple * 100.0,
@@ -220,7 +221,7 @@ fn main() {
                 k *= 2.0;
             }
             eprintln!("sweep, {rate}:{sweep}");
-            let at = run(&field, &config, renderer, 3000.0, step_us);
+            let at = run(&density, &config, renderer, 3000.0, step_us);
             println!(
                 "| {rate} | {} | {:.0} N/m | {:.2}% of {:.2} N | {:+.3} / {:.2} mJ | {} ticks |",
                 match renderer {

@@ -62,9 +62,12 @@ fn pick(c: &mut Criterion) {
         ),
     ];
     for (name, ray) in rays {
-        let hit = pick_surface(&field, ray);
+        let hit = pick_surface(&dynaclay::field::MultiPatchField::new(field.clone()), ray);
         println!("pick_96/{name}: {:?}", hit.map(|h| h.point));
-        group.bench_function(name, |b| b.iter(|| pick_surface(black_box(&field), ray)));
+        group.bench_function(name, |b| {
+            let density = dynaclay::field::MultiPatchField::new(field.clone());
+            b.iter(|| pick_surface(black_box(&density), ray));
+        });
     }
     group.finish();
 }
@@ -83,10 +86,11 @@ fn pointer_frame(c: &mut Criterion) {
     let aspect = 1.6;
     let mut group = c.benchmark_group("pointer_frame_96");
     group.measurement_time(Duration::from_secs(3));
+    let density = dynaclay::field::MultiPatchField::new(field.clone());
     let frame = |tool: &mut PointerTool, pressing: bool, i: u32| {
         // The pointer wanders a few pixels around the middle of the view.
         let ndc = Vec2::new(0.01 * (i % 7) as f32, 0.01 * (i % 5) as f32);
-        let pose = tool.aim(&field, &camera, ndc, aspect, pressing, 1.0);
+        let pose = tool.aim(&density, &camera, ndc, aspect, pressing, 1.0);
         // The brush cursor: the surface point and its rim, projected to the screen.
         let vp = camera.view_projection(aspect);
         let (right, _) = camera.right_up();

@@ -35,7 +35,7 @@ fn sculpt(n: usize) -> Clay {
 
 fn tool_apply(c: &mut Criterion) {
     let clay = sculpt(128);
-    let h = clay.patches[0].spacing;
+    let h = clay.density.patches[0].lattice.spacing;
     let centre = Vec3::splat(63.5 * h) + Vec3::X * (0.3 * 128.0 * h);
     let mut group = c.benchmark_group("tool_apply");
     group
@@ -104,7 +104,7 @@ fn tool_apply(c: &mut Criterion) {
 
 fn undo_redo(c: &mut Criterion) {
     let mut clay = sculpt(256);
-    let h = clay.patches[0].spacing;
+    let h = clay.density.patches[0].lattice.spacing;
     let mut history = History::default();
     let tool = GeometricTool {
         shape: ToolShape::Sphere { radius_m: 16.0 * h },
@@ -142,7 +142,7 @@ fn undo_redo(c: &mut Criterion) {
     let mut whole = History::default();
     let mut rec = StepRecorder::new("everything");
     rec.touch_all(&clay);
-    for v in &mut clay.patches[0].coeffs {
+    for v in &mut clay.density.patches[0].lattice.coeffs {
         *v = 1.0 - *v;
     }
     whole.commit(rec, &clay);
@@ -152,11 +152,17 @@ fn undo_redo(c: &mut Criterion) {
             whole.redo(&mut clay).unwrap();
         });
     });
-    let snapshot = clay.patches[0].coeffs.clone();
+    let snapshot = clay.density.patches[0].lattice.coeffs.clone();
     group.bench_function("restore_full_copy_twice", |bench| {
         bench.iter(|| {
-            clay.patches[0].coeffs.copy_from_slice(black_box(&snapshot));
-            clay.patches[0].coeffs.copy_from_slice(black_box(&snapshot));
+            clay.density.patches[0]
+                .lattice
+                .coeffs
+                .copy_from_slice(black_box(&snapshot));
+            clay.density.patches[0]
+                .lattice
+                .coeffs
+                .copy_from_slice(black_box(&snapshot));
         });
     });
     let _ = FieldId::Density(0);

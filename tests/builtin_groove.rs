@@ -83,7 +83,9 @@ fn the_builtin_run_leaves_a_groove_along_its_path_and_nothing_elsewhere() {
         driver.dispatch(&sample, &commands);
         run.step();
     }
-    let end = run.finish().unwrap().session.clay.patches[0].clone();
+    let end = run.finish().unwrap().session.clay.density.patches[0]
+        .lattice
+        .clone();
 
     let dir = tempfile::tempdir().unwrap();
     let before = exported_vertices(&start, dir.path(), "before.obj");

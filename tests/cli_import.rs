@@ -80,8 +80,8 @@ fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
     );
     assert!(said.contains("9000 points"), "{said}");
     let loaded = load_session(&session).expect("the session loads");
-    assert_eq!(loaded.clay.patches.len(), 1);
-    assert_eq!(loaded.clay.patches[0].dims, [32; 3]);
+    assert_eq!(loaded.clay.density.patches.len(), 1);
+    assert_eq!(loaded.clay.density.patches[0].lattice.dims, [32; 3]);
     let (v, f, euler, closed) = obj_topology(&mesh);
     assert!(v > 1000 && f > 2000, "{v} vertices, {f} faces");
     assert!(closed, "the fitted surface is closed");
@@ -235,7 +235,7 @@ fn a_cube_mesh_imports_as_a_closed_clay_near_its_faces() {
     assert_eq!(euler, 2, "a cube has genus zero");
     // The fitted clay's box: 24 spans wide (the lattice less four spans each side), so its
     // faces sit 11.5 spans from the centre; rounded edges pull in, faces stay within a span.
-    let lattice = &load_session(&session).unwrap().clay.patches[0];
+    let lattice = &load_session(&session).unwrap().clay.density.patches[0].lattice;
     let centre = glam::Vec3::splat(15.5 * lattice.spacing);
     for dir in [glam::Vec3::X, glam::Vec3::NEG_Y, glam::Vec3::Z] {
         let (mut a, mut b) = (0.0f32, 20.0 * lattice.spacing);
@@ -293,7 +293,7 @@ fn a_script_starts_from_an_imported_session() {
     let imported = load_session(&session).unwrap();
     let written = load_session(&results.join("session.dclay")).unwrap();
     assert_eq!(
-        written.clay.patches[0].dims, imported.clay.patches[0].dims,
+        written.clay.density.patches[0].lattice.dims, imported.clay.density.patches[0].lattice.dims,
         "the run sculpted the imported clay"
     );
     // A missing session is an argument error naming it.

@@ -79,7 +79,7 @@ fn writes_an_rbf_whose_zero_set_is_the_sphere_and_imports_it_back() {
     }
     let clay = load_session(&back).unwrap().clay;
     let p = Vec3::new(1.6, 1.0, 1.0);
-    let (value, grad) = clay.patches[0].value_and_gradient(p);
+    let (value, grad) = clay.density.patches[0].lattice.value_and_gradient(p);
     assert!((value - 0.5).abs() / grad.length() < 0.02);
 }
 

@@ -61,7 +61,7 @@ fn painted_ball_session(path: &Path) {
     }
     let session = Session {
         clay: Clay {
-            patches: vec![lattice],
+            density: dynaclay::field::MultiPatchField::new(lattice),
             colour: Some(colour),
             constraints: Vec::new(),
         },

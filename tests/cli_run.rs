@@ -75,7 +75,7 @@ fn run_writes_meshes_session_and_latency_reports() {
 
     // The session loads back to the field the mesh was made from.
     let session = load_session(&out.join("session.dclay")).expect("session loads");
-    let lattice = &session.clay.patches[0];
+    let lattice = &session.clay.density.patches[0].lattice;
     let grid = SampleGrid::for_lattice(lattice, 4).unwrap();
     let mesh = BrickOctree::build(grid, lattice).weld();
     assert_eq!(
@@ -207,7 +207,9 @@ duration_s = 50.0
     assert!(recovery.exists(), "no recovery file within 30 s");
     let saved = load_session(&recovery).expect("the recovery file loads");
     assert!(
-        saved.clay.patches[0].is_inside(glam::Vec3::new(1.15, 1.95, 1.15)),
+        saved.clay.density.patches[0]
+            .lattice
+            .is_inside(glam::Vec3::new(1.15, 1.95, 1.15)),
         "the recovery holds the tool step"
     );
 
@@ -350,7 +352,12 @@ fn session_with_every_section() -> dynaclay::io::Session {
     second.coeffs.iter_mut().for_each(|c| *c *= 0.5);
     dynaclay::io::Session {
         clay: Clay {
-            patches: vec![patch, second],
+            density: dynaclay::field::MultiPatchField {
+                patches: vec![
+                    dynaclay::field::Patch::identity(patch),
+                    dynaclay::field::Patch::identity(second),
+                ],
+            },
             colour: Some(colour),
             constraints: Vec::new(),
         },
@@ -812,7 +819,8 @@ falloff_m = 0.1
 
     let field = |bytes: &[u8]| {
         let session = dynaclay::io::decode(bytes, Path::new("s.dclay")).unwrap();
-        session.clay.patches[0]
+        session.clay.density.patches[0]
+            .lattice
             .coeffs
             .iter()
             .map(|c| c.to_bits())
@@ -866,7 +874,9 @@ engrave = {engrave}
         )
     };
     let top = |session: &Path, x: f32| {
-        let l = load_session(session).unwrap().clay.patches[0].clone();
+        let l = load_session(session).unwrap().clay.density.patches[0]
+            .lattice
+            .clone();
         // Bisect the surface height above (x, 1.15).
         let (mut lo, mut hi) = (1.3f32, 2.1f32);
         for _ in 0..40 {

@@ -172,7 +172,10 @@ fn a_device_that_fails_to_close_still_hands_back_the_sculpt() {
         report.device_close_error,
         Some(dynaclay_devices::DeviceError::Disconnected)
     );
-    assert_eq!(report.session.clay.patches[0].dims, field.dims);
+    assert_eq!(
+        report.session.clay.density.patches[0].lattice.dims,
+        field.dims
+    );
 }
 
 #[test]
@@ -194,5 +197,8 @@ fn a_lockstep_run_whose_device_fails_to_close_still_hands_back_the_sculpt() {
         .finish()
         .expect("a failed close does not cost the session");
     assert!(report.device_close_error.is_some());
-    assert_eq!(report.session.clay.patches[0].dims, field.dims);
+    assert_eq!(
+        report.session.clay.density.patches[0].lattice.dims,
+        field.dims
+    );
 }

@@ -45,7 +45,7 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
         }
     }
     let report = engine.finish().expect("engine stops");
-    let after = &report.session.clay.patches[0];
+    let after = &report.session.clay.density.patches[0].lattice;
 
     assert!(
         contact_samples > 500,

@@ -540,6 +540,7 @@ fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() 
 fn a_five_millimetre_press_into_the_default_clay_feels_like_firm_clay() {
     use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry};
     let (field, config, arm) = clay();
+    let field = dynaclay::field::MultiPatchField::new(field);
     let map = config.map;
     let max_n = arm.info.max_force_n;
     let stroke = StrokeGeometry::default();

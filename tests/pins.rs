@@ -123,7 +123,7 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
         (at - Vec3::new(0.95, 1.74, 0.8)).length() < 0.05,
         "moved to {at}"
     );
-    let l = &pinned.clay.patches[0];
+    let l = &pinned.clay.density.patches[0].lattice;
     assert!(
         (l.value(at) - l.iso).abs() < 1e-4,
         "pinned point is {} off the iso-value after the push",
@@ -136,7 +136,7 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
     let unpinned = load_session(&dir.path().join("unpinned.dclay")).unwrap();
     assert!(unpinned.clay.constraints.is_empty(), "undo removed the pin");
     let free = load_session(&dir.path().join("free.dclay")).unwrap();
-    let lf = &free.clay.patches[0];
+    let lf = &free.clay.density.patches[0].lattice;
     assert!(
         lf.iso - lf.value(at) > 0.05,
         "without the pin the push dents the point: {} vs iso {}",

@@ -69,7 +69,12 @@ fn save(dir: &Path, name: &str, patches: Vec<BSplineLattice>) -> std::path::Path
     let path = dir.join(name);
     let session = Session {
         clay: Clay {
-            patches,
+            density: dynaclay::field::MultiPatchField {
+                patches: patches
+                    .into_iter()
+                    .map(dynaclay::field::Patch::identity)
+                    .collect(),
+            },
             colour: None,
             constraints: Vec::new(),
         },

@@ -20,7 +20,7 @@ fn run(
         ls.step();
     }
     let report = ls.finish().expect("lockstep finishes");
-    report.session.clay.patches[0].clone()
+    report.session.clay.density.patches[0].lattice.clone()
 }
 
 #[test]
@@ -97,7 +97,15 @@ fn a_recorded_pointer_session_replays_bit_for_bit() {
         handle.set(config.map.to_device(p), pressed);
         ls.step();
     }
-    let recorded = ls.finish().expect("lockstep finishes").session.clay.patches[0].clone();
+    let recorded = ls
+        .finish()
+        .expect("lockstep finishes")
+        .session
+        .clay
+        .density
+        .patches[0]
+        .lattice
+        .clone();
     let iso = start.iso;
     let mid = Vec3::new(0.95, 1.35, 0.95);
     assert!(
@@ -225,7 +233,7 @@ fn a_threaded_run_under_load_replays_to_the_live_field_bit_for_bit() {
         t.join().unwrap();
     }
     assert!(driver.failures().is_empty(), "{:?}", driver.failures());
-    let live_field = live.session.clay.patches[0].clone();
+    let live_field = live.session.clay.density.patches[0].lattice.clone();
     assert_ne!(live_field, start, "the live run sculpted something");
 
     let device = ReplayDevice::load(&path).expect("recording loads");
@@ -252,7 +260,7 @@ fn a_threaded_run_under_load_replays_to_the_live_field_bit_for_bit() {
     let replayed = replay.finish().expect("replay finishes");
     assert!(driver.failures().is_empty(), "{:?}", driver.failures());
     let bits = |l: &BSplineLattice| l.coeffs.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
-    let replayed_field = &replayed.session.clay.patches[0];
+    let replayed_field = &replayed.session.clay.density.patches[0].lattice;
     let differing = live_field
         .coeffs
         .iter()

@@ -124,7 +124,7 @@ fn load(dir: &Path, name: &str) -> BSplineLattice {
     load_session(&dir.join(name))
         .unwrap_or_else(|e| panic!("{name}: {e}"))
         .clay
-        .patches[0]
+        .base()
         .clone()
 }
 
@@ -209,9 +209,13 @@ fn a_scripted_run_sculpts_pushes_pulls_and_undoes_bit_for_bit() {
     // Two undos give back the state before the pull; two redos the state after the groove.
     assert_eq!(bits(&s[6]), bits(&s[3]), "undo of groove and pull");
     assert_eq!(bits(&s[7]), bits(&s[5]), "redo of pull and groove");
-    assert_eq!(bits(&report.session.clay.patches[0]), bits(&s[7]));
+    assert_eq!(
+        bits(&report.session.clay.density.patches[0].lattice),
+        bits(&s[7])
+    );
     assert!(
-        report.session.clay.patches[0]
+        report.session.clay.density.patches[0]
+            .lattice
             .coeffs
             .iter()
             .all(|c| c.is_finite())

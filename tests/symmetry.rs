@@ -87,7 +87,7 @@ fn a_mirrored_stroke_changes_both_sides_alike_and_undoes_as_one_step() {
     assert_eq!(bits(run.field()), bits(&start), "undo restores the field");
     let report = run.finish().unwrap();
     assert_eq!(
-        report.session.clay.patches[0].coeffs.len(),
+        report.session.clay.density.patches[0].lattice.coeffs.len(),
         start.coeffs.len()
     );
 }

@@ -36,7 +36,7 @@ use crate::engine::{
     Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
     ToolChoice as EngineToolChoice,
 };
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -61,7 +61,7 @@ pub struct GuiMeshSink {
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
     /// The clay, for the app's pointer picking.
-    field: SnapshotWriter<BSplineLattice>,
+    field: SnapshotWriter<MultiPatchField>,
     /// Version for the next chunk made: the renderer re-uploads a chunk whose version
     /// changed, and a recoloured brick keeps its octree version, so the sink numbers chunks.
     next_version: u64,
@@ -72,7 +72,7 @@ impl GuiMeshSink {
     /// graphics stage hands it paint.
     fn new(
         meshes: SnapshotWriter<MeshSet>,
-        field: SnapshotWriter<BSplineLattice>,
+        field: SnapshotWriter<MultiPatchField>,
         exports: SnapshotWriter<MeshSet>,
         repaint: RepaintSignal,
     ) -> Self {
@@ -155,7 +155,7 @@ impl MeshSink for GuiMeshSink {
         self.publish();
     }
 
-    fn field(&mut self, field: &BSplineLattice) {
+    fn field(&mut self, field: &MultiPatchField) {
         self.field.publish_clone_of(field);
     }
 }
@@ -896,10 +896,10 @@ mod tests {
 
         let report = bridge.stop().unwrap();
         assert_eq!(
-            report.session.clay.patches[0], carved,
+            report.session.clay.density.patches[0].lattice, carved,
             "the corrupt file changed nothing"
         );
-        assert_eq!(report.haptic_field, carved);
+        assert_eq!(report.haptic_field.base(), &carved);
         assert_eq!(report.session.material.uniform, Material::ELASTIC);
         assert_eq!(report.safety.clamped, 0, "the tool never touched the clay");
     }

@@ -561,7 +561,7 @@ fn a_left_drag_over_the_clay_sculpts_under_the_pointer_and_nowhere_else() {
     let mut h = Harness::builder()
         .with_size(egui::vec2(1400.0, 1000.0))
         .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
-    end.field.publish_clone_of(engine.field());
+    end.field.publish_clone_of(engine.density());
     h.run();
     // Looking down on the block's top face (y = 1.725; the block spans 0.575..1.725).
     let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
@@ -585,7 +585,7 @@ fn a_left_drag_over_the_clay_sculpts_under_the_pointer_and_nowhere_else() {
         for _ in 0..20 {
             engine.step();
         }
-        end.field.publish_clone_of(engine.field());
+        end.field.publish_clone_of(engine.density());
     };
 
     // Alt + left drag orbits: the camera turns, the clay is untouched (a drag across the
@@ -756,7 +756,7 @@ fn with_pin_mode_a_click_pins_a_point_a_drag_a_curve_and_the_list_deletes() {
     use crate::tools::PinRequest;
 
     let (mut h, mut end) = harness();
-    let field = build_clay(&ClaySpec::default()).unwrap();
+    let field = crate::field::MultiPatchField::new(build_clay(&ClaySpec::default()).unwrap());
     end.field.publish_clone_of(&field);
     h.run();
     let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
@@ -790,7 +790,7 @@ fn with_pin_mode_a_click_pins_a_point_a_drag_a_curve_and_the_list_deletes() {
         panic!("a click pins a point: {sent:?}");
     };
     assert!((*at - target).length() < 0.02, "pinned at {at}");
-    assert!((field.value(*at) - field.iso).abs() < 1e-3, "on the clay");
+    assert!((field.value(*at) - field.iso()).abs() < 1e-3, "on the clay");
 
     // A drag across the top face pins the traced curve; the camera stays put.
     let (from, to) = (Vec3::new(0.8, 1.725, 1.0), Vec3::new(1.4, 1.725, 1.0));

@@ -16,7 +16,7 @@ use super::pointer_tool::PointerTool;
 use super::probe_panel::{ProbeOutcome, ProbeSettings};
 use super::run::{GuiOptions, run_gui};
 use crate::engine::{Engine, EngineConfig, ScriptPlan, StartOptions, build_clay};
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::io::{Autosave, AutosavePolicy, load_session, recovery_to_use};
 
 /// Why `dynaclay gui` stopped.
@@ -119,20 +119,21 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let script = ScriptPlan::builtin();
     let (field, material) = match &session {
         None => (
-            build_clay(&script.clay)
-                .map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?,
+            MultiPatchField::new(
+                build_clay(&script.clay)
+                    .map_err(|e| LaunchError::Failed(format!("starting clay: {e}")))?,
+            ),
             None,
         ),
         Some(path) => {
             let s = load_session(path).map_err(LaunchError::Session)?;
-            let [patch] = <[_; 1]>::try_from(s.clay.patches).map_err(|p: Vec<_>| {
-                LaunchError::Failed(format!(
-                    "{}: the session has {} density patches; the engine sculpts exactly one",
-                    path.display(),
-                    p.len()
-                ))
-            })?;
-            (patch, Some(s.material.uniform))
+            if !s.clay.density.patches[0].is_identity() {
+                return Err(LaunchError::Failed(format!(
+                    "{}: the session's base patch is mapped; the engine sculpts a base patch in world coordinates",
+                    path.display()
+                )));
+            }
+            (s.clay.density, Some(s.material.uniform))
         }
     };
     // The window's own pointer is the default tool; its handle stays with the app.
@@ -152,7 +153,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         ),
         None => device,
     };
-    let mut config = EngineConfig::for_field(&field, &info);
+    let mut config = EngineConfig::for_clay(&field, &info);
     let pointer = pointer_handle.map(|h| PointerTool::new(h, config.map));
     if let Some(m) = material {
         config.sim.material = m;
@@ -225,14 +226,14 @@ fn probe_before_engine(settings: ProbeSettings) -> Option<ProbeOutcome> {
 /// The driver's error, or the refusal of a replay, as text naming the spec.
 pub fn make_device(
     spec: &DeviceSpec,
-    field: &BSplineLattice,
+    field: &MultiPatchField,
     script: &ScriptPlan,
 ) -> Result<(Box<dyn HapticDevice>, DeviceInfo), String> {
     match spec {
         DeviceSpec::Sim => {
             let arm = SimArmConfig::default();
             let info = arm.info.clone();
-            let map = EngineConfig::for_field(field, &info).map;
+            let map = EngineConfig::for_clay(field, &info).map;
             let trajectory = script.trajectory(&map).map_err(|e| e.to_string())?;
             Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
         }

@@ -17,7 +17,7 @@ use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 use super::command::{EngineCommand, EngineEvent};
 use super::meshes::MeshSet;
 use super::view::EngineView;
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, MultiPatchField};
 
 /// Commands that may queue before [`EngineLink::send`] reports the engine as not keeping up.
 pub const COMMAND_QUEUE_LEN: usize = 1024;
@@ -69,7 +69,7 @@ pub struct EngineLink {
     events: Receiver<EngineEvent>,
     view: SnapshotReader<EngineView>,
     meshes: SnapshotReader<MeshSet>,
-    field: SnapshotReader<BSplineLattice>,
+    field: SnapshotReader<MultiPatchField>,
     repaint: RepaintSignal,
 }
 
@@ -81,15 +81,17 @@ pub struct EngineEndpoint {
     pub view: SnapshotWriter<EngineView>,
     pub meshes: SnapshotWriter<MeshSet>,
     /// The graphics loop's copy of the clay, for picking under the pointer.
-    pub field: SnapshotWriter<BSplineLattice>,
+    pub field: SnapshotWriter<MultiPatchField>,
     pub repaint: RepaintSignal,
 }
 
 /// The field shown before the engine publishes one: the smallest lattice, empty everywhere, so
 /// every pick misses.
-fn no_clay() -> BSplineLattice {
-    BSplineLattice::zeros([4; 3], 1.0, glam::Vec3::ZERO)
-        .unwrap_or_else(|e| unreachable!("a 4³ lattice with unit spacing is valid: {e}"))
+fn no_clay() -> MultiPatchField {
+    MultiPatchField::from(
+        BSplineLattice::zeros([4; 3], 1.0, glam::Vec3::ZERO)
+            .unwrap_or_else(|e| unreachable!("a 4³ lattice with unit spacing is valid: {e}")),
+    )
 }
 
 /// A connected pair (allocates the channels and the three copies of each snapshot).
@@ -162,7 +164,7 @@ impl EngineLink {
     }
 
     /// The newest published copy of the clay (wait-free).
-    pub fn field(&mut self) -> &Stamped<BSplineLattice> {
+    pub fn field(&mut self) -> &Stamped<MultiPatchField> {
         self.field.latest()
     }
 

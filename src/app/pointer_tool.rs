@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3};
 use dynaclay_devices::pointer::PointerHandle;
 
 use crate::engine::WorkspaceMap;
-use crate::field::{BSplineLattice, Ray, pick_surface};
+use crate::field::{MultiPatchField, Ray, pick_surface};
 use crate::render::Camera;
 
 /// Depth step per scroll point with the depth modifier held, as a fraction of the depth range.
@@ -44,7 +44,7 @@ pub struct PointerTool {
     /// How far below the surface a pressing tip goes, knot spans.
     pub depth_spans: f32,
     /// The clay as it was when the held stroke began.
-    stroke_field: Option<BSplineLattice>,
+    stroke_field: Option<MultiPatchField>,
     /// Distance along the view ray of the last hit, to hover off the clay.
     last_distance: Option<f32>,
     /// This frame's tip.
@@ -88,7 +88,7 @@ impl PointerTool {
     /// `pressing` holds a stroke; `pressure` (0..1, a pen's) scales the depth, 1 for a mouse.
     pub fn aim(
         &mut self,
-        field: &BSplineLattice,
+        field: &MultiPatchField,
         camera: &Camera,
         pointer_ndc: Vec2,
         aspect: f32,
@@ -102,11 +102,11 @@ impl PointerTool {
         }
         let picked_on = self.stroke_field.as_ref().unwrap_or(field);
         let (origin, direction) = camera.ray_through(pointer_ndc, aspect);
-        let hover = 0.5 * field.spacing;
+        let hover = 0.5 * field.finest_spacing();
         let pose = match pick_surface(picked_on, Ray { origin, direction }) {
             Some(hit) => {
                 self.last_distance = Some(hit.distance);
-                let depth = self.depth_spans * field.spacing * pressure.clamp(0.0, 1.0);
+                let depth = self.depth_spans * field.finest_spacing() * pressure.clamp(0.0, 1.0);
                 let tip = if pressing {
                     hit.point - hit.normal * depth
                 } else {
@@ -161,19 +161,21 @@ mod tests {
     use crate::render::NamedView;
     use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 
-    fn ball() -> BSplineLattice {
-        crate::field::lattice_from_primitive(
-            [17, 17, 17],
-            0.2,
-            Vec3::ZERO,
-            &crate::field::Primitive::Sphere {
-                centre: Vec3::splat(1.6),
-                radius: 1.0,
-            },
-            0.4,
-            2,
+    fn ball() -> MultiPatchField {
+        MultiPatchField::new(
+            crate::field::lattice_from_primitive(
+                [17, 17, 17],
+                0.2,
+                Vec3::ZERO,
+                &crate::field::Primitive::Sphere {
+                    centre: Vec3::splat(1.6),
+                    radius: 1.0,
+                },
+                0.4,
+                2,
+            )
+            .unwrap(),
         )
-        .unwrap()
     }
 
     #[test]
@@ -194,11 +196,14 @@ mod tests {
         let hover = tool.aim(&field, &camera, centre, 1.0, false, 1.0);
         assert!(hover.on_clay && !hover.pressed);
         assert!(
-            field.value(hover.tip) < field.iso,
+            field.value(hover.tip) < field.iso(),
             "hovers outside the clay"
         );
         let press = tool.aim(&field, &camera, centre, 1.0, true, 1.0);
-        assert!(field.value(press.tip) > field.iso, "presses into the clay");
+        assert!(
+            field.value(press.tip) > field.iso(),
+            "presses into the clay"
+        );
         let depth = (press.surface - press.tip).length();
         assert!((depth - 1.5 * 0.2).abs() < 1e-4, "depth {depth}");
         let sent = tool.last_sample().unwrap();
@@ -210,7 +215,7 @@ mod tests {
         // Off the clay: on the ray at the last hit's distance, not pressing into anything.
         let off = tool.aim(&field, &camera, Vec2::new(0.95, 0.95), 1.0, false, 1.0);
         assert!(!off.on_clay);
-        assert!(field.value(off.tip) < field.iso);
+        assert!(field.value(off.tip) < field.iso());
         tool.release();
         assert!(!tool.last_sample().unwrap().pressed);
         tool.scroll_depth(1.0e6);

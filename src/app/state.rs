@@ -806,7 +806,7 @@ impl SculptApp {
         self.pointer.release();
         let rect = response.rect;
         let field = &self.link.field().value;
-        let spacing = field.spacing;
+        let spacing = field.finest_spacing();
         let hit = pos.filter(|p| rect.contains(*p)).and_then(|p| {
             let size = rect.size().max(egui::vec2(1.0, 1.0));
             let ndc = glam::Vec2::new(

@@ -133,11 +133,12 @@ fn write_field_outputs(
     extras: &ExtraOutputs,
     files: &mut Vec<PathBuf>,
 ) -> Result<(MeshStats, BrickOctree), CliError> {
-    let lattice = &session.clay.patches[0];
-    // Mesh the final field afresh: the export is exactly the simulation's last state.
+    let density = &session.clay.density;
+    // Mesh the final field afresh (every patch, summed): the export is exactly the
+    // simulation's last state.
     let grid =
-        SampleGrid::for_lattice(lattice, config.cells_per_span).map_err(|e| out_err(dir, e))?;
-    let octree = BrickOctree::build(grid, lattice);
+        SampleGrid::for_field(density, config.cells_per_span).map_err(|e| out_err(dir, e))?;
+    let octree = BrickOctree::build(grid, density);
     let mesh = octree.weld();
     let stats = MeshStats::of(&mesh);
     let mut formats = vec![("sculpt.obj", MeshFormat::Obj)];

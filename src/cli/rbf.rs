@@ -61,15 +61,17 @@ pub struct RbfOutcome {
 /// The clay as one lattice: the first patch, or (several patches) a lattice of the first
 /// patch's geometry least-squares fitted to their clamped sum.
 fn flatten(clay: &Clay) -> Result<BSplineLattice, RbfCommandError> {
-    let first = clay
+    let first = &clay
+        .density
         .patches
         .first()
-        .ok_or_else(|| RbfCommandError::Usage("the session's clay has no patches".into()))?;
-    if clay.patches.len() == 1 {
+        .ok_or_else(|| RbfCommandError::Usage("the session's clay has no patches".into()))?
+        .lattice;
+    if clay.density.patches.len() == 1 && clay.density.patches[0].is_identity() {
         return Ok(first.clone());
     }
     let mut lattice = first.clone();
-    fit_lattice(&mut lattice, 2, |x| clay.density(x).clamp(0.0, 1.0))?;
+    fit_lattice(&mut lattice, 2, |x| clay.density.value(x).clamp(0.0, 1.0))?;
     Ok(lattice)
 }
 

@@ -142,7 +142,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         check_save_folders(&plan, &base_dir, &args.out)?;
     }
     let seconds = args.seconds.unwrap_or(plan.seconds);
-    let field = start.clay.patches[0].clone();
+    let field = start.clay.density.clone();
     if args.out.exists() && !args.out.is_dir() {
         return Err(CliError::Usage(format!(
             "--out {}: exists and is not a directory; --out names the folder the run writes into",
@@ -161,7 +161,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let (device, info): (Box<dyn HapticDevice>, _) = match &spec {
         DeviceSpec::Sim if args.lockstep => {
             let arm_config = SimArmConfig::default();
-            let map = EngineConfig::for_field(&field, &arm_config.info).map;
+            let map = EngineConfig::for_clay(&field, &arm_config.info).map;
             let trajectory = plan.trajectory(&map).map_err(CliError::Script)?;
             // One sample per step of the arm's clock for the whole session.
             let samples = (seconds * 1e6 / arm_config.step_us as f64).ceil() as usize;
@@ -178,7 +178,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         DeviceSpec::Sim => {
             let arm_config = SimArmConfig::default();
             let info = arm_config.info.clone();
-            let map = EngineConfig::for_field(&field, &info).map;
+            let map = EngineConfig::for_clay(&field, &info).map;
             let trajectory = plan.trajectory(&map).map_err(CliError::Script)?;
             (Box::new(SimulatedArm::new(arm_config, trajectory)), info)
         }
@@ -217,7 +217,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         }
         None => (device, None),
     };
-    let mut config = EngineConfig::for_field(&field, &info);
+    let mut config = EngineConfig::for_clay(&field, &info);
     config.sim.material = start.material.uniform;
     if !args.rt {
         config.haptic_rt_priority = None;
@@ -325,7 +325,7 @@ fn starting_session(
         Some(r) => {
             let session =
                 load_session(&r.path).map_err(|e| CliError::Output(format!("--recover: {e}")))?;
-            if session.clay.patches.is_empty() {
+            if session.clay.density.patches.is_empty() {
                 return Err(CliError::Output(format!(
                     "--recover: {} holds no clay",
                     r.path.display()
@@ -342,7 +342,7 @@ fn starting_session(
             if let Some(file) = &spec.session {
                 let path = base_dir.join(file);
                 let session = load_session(&path).map_err(CliError::Session)?;
-                if session.clay.patches.is_empty() {
+                if session.clay.density.patches.is_empty() {
                     return Err(CliError::Usage(format!(
                         "[clay] session = {}: the session holds no clay",
                         path.display()
@@ -516,7 +516,7 @@ fn run_scheduled_replay(
     replay: ReplayDevice,
 ) -> Result<RunOutputs, CliError> {
     let info = replay.info();
-    let field = start.clay.patches[0].clone();
+    let field = start.clay.density.clone();
     let config = single_thread_config(&field, &info, start);
     let mut replay = ScheduledReplay::new(
         &config,
@@ -551,11 +551,11 @@ fn run_scheduled_replay(
 
 /// The engine settings of a lockstep or replayed run starting from `start` on `field`.
 fn single_thread_config(
-    field: &crate::field::BSplineLattice,
+    field: &crate::field::MultiPatchField,
     info: &dynaclay_devices::DeviceInfo,
     start: &Session,
 ) -> EngineConfig {
-    let mut config = EngineConfig::for_field(field, info);
+    let mut config = EngineConfig::for_clay(field, info);
     config.sim.material = start.material.uniform;
     config
 }
@@ -592,7 +592,7 @@ fn run_lockstep(
     samples: usize,
 ) -> Result<RunOutputs, CliError> {
     let info = device.info();
-    let field = start.clay.patches[0].clone();
+    let field = start.clay.density.clone();
     let config = single_thread_config(&field, &info, start);
     let mut lockstep = Lockstep::new(
         &config,

@@ -1,19 +1,16 @@
 //! The sculpt as a picture: a session's clay meshed with the brick octree and rendered
 //! offscreen to a PNG, for `dynaclay render` and `dynaclay run --png`.
 //!
-//! The clay's density is the sum of its patches (Hua & Qin eq. (3) with identity maps); one
-//! patch is meshed on exactly the grid the OBJ export uses, several on a grid covering all of
-//! them at the finest patch's resolution. Paint comes from the clay's colour field.
+//! The clay's density is the sum of its patches (Hua & Qin eq. (3)); one patch is meshed on
+//! exactly the grid the OBJ export uses, several on a grid covering all of them at the finest
+//! patch's resolution ([`SampleGrid::for_field`]). Paint comes from the clay's colour field.
 
 use std::path::Path;
-
-use glam::Vec3;
 
 use super::args::ImageArgs;
 use super::budget::{MESH_BYTES_PER_BRICK, MemoryBudget, OverBudget};
 use super::run::CliError;
-use crate::field::BSplineLattice;
-use crate::mesh::{BrickOctree, SampleGrid, ScalarField};
+use crate::mesh::{BrickOctree, SampleGrid};
 use crate::render::{
     RenderError, RenderOutcome, chunk_views, octree_chunks, render_to_png, scene_camera,
 };
@@ -34,18 +31,41 @@ pub fn mesh_clay(
     budget: &MemoryBudget,
 ) -> Result<BrickOctree, CliError> {
     let fail = |e: &dyn std::fmt::Display| CliError::Output(format!("meshing the clay: {e}"));
-    let hint = if clay.patches.len() > 1 {
+    let density = &clay.density;
+    let several = density.patches.len() > 1;
+    let hint = if several {
         "Lower --cells-per-span, or give the patches similar spacings"
     } else {
         "Lower --cells-per-span"
     };
-    let check = |grid: &SampleGrid, field: &dyn ScalarField| {
-        let limit = budget.bricks();
-        let count = BrickOctree::count_sampled_bricks(grid, field, limit);
-        if count.is_some() {
-            return Ok(());
+    if density.patches.is_empty() {
+        return Err(CliError::Output(
+            "meshing the clay: the session has no density patch".to_owned(),
+        ));
+    }
+    if several {
+        let (lo, hi) = density.support();
+        let spacing = density.finest_spacing();
+        let widest = ((hi - lo) / (spacing / cells_per_span.max(1) as f32)).max_element();
+        if widest.is_finite() && widest > SampleGrid::MAX_CELLS as f32 {
+            return Err(CliError::OverBudget(OverBudget {
+                what: format!(
+                    "meshing the clay at {cells_per_span} cells per knot span needs {widest:.3e} \
+                     cells along an axis (one grid over every patch at the finest spacing, \
+                     {spacing}), past the mesher's {} per axis",
+                    SampleGrid::MAX_CELLS
+                ),
+                needed_bytes: None,
+                at_least: true,
+                budget: *budget,
+                hint,
+            }));
         }
-        Err(CliError::OverBudget(OverBudget {
+    }
+    let grid = SampleGrid::for_field(density, cells_per_span).map_err(|e| fail(&e))?;
+    let limit = budget.bricks();
+    if BrickOctree::count_sampled_bricks(&grid, density, limit).is_none() {
+        return Err(CliError::OverBudget(OverBudget {
             what: format!(
                 "meshing the clay at {cells_per_span} cells per knot span ({} × {} × {} cells)",
                 grid.cells[0], grid.cells[1], grid.cells[2]
@@ -54,48 +74,9 @@ pub fn mesh_clay(
             at_least: true,
             budget: *budget,
             hint,
-        }))
-    };
-    match clay.patches.as_slice() {
-        [] => Err(CliError::Output(
-            "meshing the clay: the session has no density patch".to_owned(),
-        )),
-        [lattice] => {
-            let grid = SampleGrid::for_lattice(lattice, cells_per_span).map_err(|e| fail(&e))?;
-            check(&grid, lattice)?;
-            Ok(BrickOctree::build(grid, lattice))
-        }
-        patches => {
-            let field = SummedPatches { patches };
-            let (mut lo, mut hi) = patches[0].support();
-            let mut spacing = patches[0].spacing;
-            for p in &patches[1..] {
-                let (plo, phi) = p.support();
-                lo = lo.min(plo);
-                hi = hi.max(phi);
-                spacing = spacing.min(p.spacing);
-            }
-            let cell = spacing / cells_per_span.max(1) as f32;
-            let widest = ((hi - lo) / cell).max_element();
-            if widest.is_finite() && widest > SampleGrid::MAX_CELLS as f32 {
-                return Err(CliError::OverBudget(OverBudget {
-                    what: format!(
-                        "meshing the clay at {cells_per_span} cells per knot span needs {widest:.3e} \
-                         cells along an axis (one grid over every patch at the finest spacing, \
-                         {spacing}), past the mesher's {} per axis",
-                        SampleGrid::MAX_CELLS
-                    ),
-                    needed_bytes: None,
-                    at_least: true,
-                    budget: *budget,
-                    hint,
-                }));
-            }
-            let grid = SampleGrid::covering(lo, hi, cell).map_err(|e| fail(&e))?;
-            check(&grid, &field)?;
-            Ok(BrickOctree::build(grid, &field))
-        }
+        }));
     }
+    Ok(BrickOctree::build(grid, density))
 }
 
 /// Renders the meshed sculpt to a PNG at `path` (written atomically), painted from `colour`
@@ -131,60 +112,12 @@ pub fn describe_outcome(outcome: &RenderOutcome) -> String {
     )
 }
 
-/// The summed density of several patches; the surface is at the first patch's iso-level.
-struct SummedPatches<'a> {
-    patches: &'a [BSplineLattice],
-}
-
-impl ScalarField for SummedPatches<'_> {
-    fn iso(&self) -> f32 {
-        self.patches.first().map_or(0.0, |p| p.iso)
-    }
-
-    fn value(&self, p: Vec3) -> f32 {
-        self.patches.iter().map(|l| ScalarField::value(l, p)).sum()
-    }
-
-    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
-        self.patches.iter().fold((0.0, Vec3::ZERO), |(v, g), l| {
-            let (lv, lg) = ScalarField::value_and_gradient(l, p);
-            (v + lv, g + lg)
-        })
-    }
-
-    fn sample_block(
-        &self,
-        grid: &SampleGrid,
-        first: [u32; 3],
-        counts: [usize; 3],
-        out: &mut [f32],
-        scratch: &mut Vec<f32>,
-    ) {
-        // Each patch's block sampler gives the same bits for a sample in any block, and the
-        // patches are summed in a fixed order, so the sum keeps that guarantee.
-        let n: usize = counts.iter().product();
-        let out = &mut out[..n];
-        out.fill(0.0);
-        let mut part = vec![0.0; n];
-        for lattice in self.patches {
-            ScalarField::sample_block(lattice, grid, first, counts, &mut part, scratch);
-            for (o, v) in out.iter_mut().zip(&part) {
-                *o += v;
-            }
-        }
-    }
-
-    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
-        self.patches.iter().try_fold((0.0, 0.0), |(lo, hi), l| {
-            let (llo, lhi) = ScalarField::bounds(l, min, max)?;
-            Some((lo + llo, hi + lhi))
-        })
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::BSplineLattice;
+    use crate::field::{MultiPatchField, Patch};
+    use glam::Vec3;
 
     fn budget() -> MemoryBudget {
         MemoryBudget::from_flag(Some(1024))
@@ -234,7 +167,9 @@ mod tests {
             .unwrap()
             .triangle_count();
         let clay = Clay {
-            patches: vec![a, b],
+            density: MultiPatchField {
+                patches: vec![Patch::identity(a), Patch::identity(b)],
+            },
             colour: None,
             constraints: Vec::new(),
         };
@@ -300,7 +235,9 @@ mod tests {
         let mut fine = fine;
         fine.spacing = 1e-3;
         let clay = Clay {
-            patches: vec![fine, coarse],
+            density: MultiPatchField {
+                patches: vec![Patch::identity(fine), Patch::identity(coarse)],
+            },
             colour: None,
             constraints: Vec::new(),
         };

@@ -15,7 +15,7 @@
 
 use glam::Vec3;
 
-use crate::field::BSplineLattice;
+use crate::mesh::ScalarField;
 
 /// Gauss–Legendre nodes on `[−1, 1]`, ascending.
 pub const GAUSS_NODES: [f32; 4] = [-0.861_136_3, -0.339_981_04, 0.339_981_04, 0.861_136_3];
@@ -38,13 +38,13 @@ pub fn gauss_legendre_unit(g: impl Fn(f32) -> f32) -> f32 {
 /// degenerate or non-finite vector.
 #[inline]
 #[must_use]
-pub fn force_integral(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> f32 {
+pub fn force_integral<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> f32 {
     let v = x1 - x0;
     let l = v.length();
     if !(l.is_finite() && l > 0.0) {
         return 0.0;
     }
-    let mean = gauss_legendre_unit(|t| lattice.value(x0 + v * t) - lattice.iso);
+    let mean = gauss_legendre_unit(|t| lattice.value(x0 + v * t) - lattice.iso());
     -l * mean
 }
 
@@ -56,7 +56,7 @@ pub fn force_integral(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> f32 {
 /// ([`crate::haptics`]).
 #[inline]
 #[must_use]
-pub fn reaction_force(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> Vec3 {
+pub fn reaction_force<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> Vec3 {
     let v = x1 - x0;
     let l = v.length();
     if !(l.is_finite() && l > 0.0) {
@@ -68,6 +68,12 @@ pub fn reaction_force(lattice: &BSplineLattice, x0: Vec3, x1: Vec3) -> Vec3 {
 }
 
 /// Marching steps of [`start_on_surface`].
+/// Whether `x` is inside the solid of `field`.
+#[inline]
+fn is_inside<F: ScalarField + ?Sized>(field: &F, x: Vec3) -> bool {
+    field.value(x) > field.iso()
+}
+
 pub const REFIND_MARCH_STEPS: u32 = 8;
 /// Bisection steps of [`start_on_surface`].
 pub const REFIND_BISECT_STEPS: u32 = 8;
@@ -90,11 +96,11 @@ pub const REFIND_BISECT_STEPS: u32 = 8;
 /// `2 · (`[`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`]`) + 1` field evaluations;
 /// allocates nothing.
 #[must_use]
-pub fn start_on_surface(lattice: &BSplineLattice, start: Vec3, end: Vec3) -> Vec3 {
+pub fn start_on_surface<F: ScalarField + ?Sized>(lattice: &F, start: Vec3, end: Vec3) -> Vec3 {
     if !(start.is_finite() && end.is_finite()) {
         return start;
     }
-    let end_inside = lattice.is_inside(end);
+    let end_inside = is_inside(lattice, end);
     if let Some(x) = first_change(lattice, end, start - end, end_inside) {
         return x;
     }
@@ -106,8 +112,8 @@ pub fn start_on_surface(lattice: &BSplineLattice, start: Vec3, end: Vec3) -> Vec
 
 /// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
 /// `from_inside`, refined by bisection; `None` when there is none at the march's resolution.
-fn first_change(
-    lattice: &BSplineLattice,
+fn first_change<F: ScalarField + ?Sized>(
+    lattice: &F,
     from: Vec3,
     span: Vec3,
     from_inside: bool,
@@ -115,11 +121,11 @@ fn first_change(
     let mut near = 0.0_f32;
     for i in 1..=REFIND_MARCH_STEPS {
         let t = i as f32 / REFIND_MARCH_STEPS as f32;
-        if lattice.is_inside(from + span * t) != from_inside {
+        if is_inside(lattice, from + span * t) != from_inside {
             let mut far = t;
             for _ in 0..REFIND_BISECT_STEPS {
                 let mid = 0.5 * (near + far);
-                if lattice.is_inside(from + span * mid) == from_inside {
+                if is_inside(lattice, from + span * mid) == from_inside {
                     near = mid;
                 } else {
                     far = mid;
@@ -137,8 +143,8 @@ fn first_change(
 /// bisection. `None` when `anchor` is outside the solid or the solid does not end within
 /// `max_len`. Bounded work: at most `max_len / step + 24` field evaluations; allocates nothing.
 #[must_use]
-pub fn surface_point_on_ray(
-    lattice: &BSplineLattice,
+pub fn surface_point_on_ray<F: ScalarField + ?Sized>(
+    lattice: &F,
     anchor: Vec3,
     toward: Vec3,
     max_len: f32,
@@ -149,7 +155,7 @@ pub fn surface_point_on_ray(
         || step.is_nan()
         || step <= 0.0
         || !max_len.is_finite()
-        || !lattice.is_inside(anchor)
+        || !is_inside(lattice, anchor)
     {
         return None;
     }
@@ -157,11 +163,11 @@ pub fn surface_point_on_ray(
     let mut a = 0.0_f32;
     for s in 1..=steps {
         let b = (s as f32 * step).min(max_len);
-        if !lattice.is_inside(anchor + dir * b) {
+        if !is_inside(lattice, anchor + dir * b) {
             let (mut lo, mut hi) = (a, b);
             for _ in 0..24 {
                 let m = 0.5 * (lo + hi);
-                if lattice.is_inside(anchor + dir * m) {
+                if is_inside(lattice, anchor + dir * m) {
                     lo = m;
                 } else {
                     hi = m;
@@ -244,6 +250,7 @@ pub struct ToolForce {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::BSplineLattice;
 
     #[test]
     fn gauss_legendre_is_exact_up_to_degree_seven() {

@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::simulation::SimConfig;
 use super::workspace::WorkspaceMap;
-use crate::field::{BSplineLattice, FitError, Primitive, lattice_from_primitive};
+use crate::field::{BSplineLattice, FitError, MultiPatchField, Primitive, lattice_from_primitive};
 use crate::haptics::{HapticConfig, calibrated_force_scale};
 use crate::io::{ClayShape, ClaySpec};
 
@@ -56,6 +56,14 @@ impl EngineConfig {
     /// [`DEFAULT_FORCE_N_PER_UNIT`] when the field has no top to press).
     #[must_use]
     pub fn for_field(field: &BSplineLattice, info: &DeviceInfo) -> Self {
+        Self::for_clay(&MultiPatchField::new(field.clone()), info)
+    }
+
+    /// [`EngineConfig::for_field`] for a clay of several patches: the workspace is mapped
+    /// around the base patch's lattice and the force is calibrated on the whole density.
+    #[must_use]
+    pub fn for_clay(density: &MultiPatchField, info: &DeviceInfo) -> Self {
+        let field = density.base();
         let (lo, hi) = (
             field.origin,
             field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
@@ -67,7 +75,7 @@ impl EngineConfig {
             hi,
             DEFAULT_FORCE_N_PER_UNIT,
         );
-        if let Some(scale) = calibrated_force_scale(field, map.field_per_m) {
+        if let Some(scale) = calibrated_force_scale(density, map.field_per_m) {
             map.force_n_per_unit = scale;
         }
         Self {

@@ -113,6 +113,29 @@ pub enum LoadRefused {
         /// The running engine's lattice.
         running: LatticeShape,
     },
+    /// The session's density patches differ from the running engine's in number or in a
+    /// patch's map (the loops hold copies laid out for the running clay).
+    #[error(
+        "{}: the session's density patches ({session} patches) are laid out unlike the running engine's ({running}); start the engine on this session instead",
+        file.display()
+    )]
+    PatchLayout {
+        /// The session's file.
+        file: PathBuf,
+        /// Patches in the session.
+        session: usize,
+        /// Patches in the running engine.
+        running: usize,
+    },
+    /// The base patch has a map to patch space: the engine sculpts in world coordinates.
+    #[error(
+        "{}: the session's base patch is mapped (not in world coordinates); the engine needs a base patch in world coordinates",
+        file.display()
+    )]
+    MappedBase {
+        /// The session's file.
+        file: PathBuf,
+    },
     /// A coefficient is NaN or infinite.
     #[error("{}: density coefficient {index} is {value}, not a finite number", file.display())]
     NonFinite {

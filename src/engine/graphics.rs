@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use dynaclay_loops::SnapshotReader;
 
 use super::counters::EngineCounters;
-use super::patch::FieldPatch;
-use crate::field::BSplineLattice;
+use super::update::FieldUpdate;
+use crate::field::MultiPatchField;
 use crate::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
 use crate::tools::ColourField;
 
@@ -28,7 +28,7 @@ pub trait MeshSink: Send {
     /// Called with the graphics loop's field copy after each applied patch (and once at the
     /// start); a sink that picks on the clay (the GUI's pointer) keeps a copy. The default
     /// ignores it.
-    fn field(&mut self, _field: &BSplineLattice) {}
+    fn field(&mut self, _field: &MultiPatchField) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -52,9 +52,9 @@ impl MeshSink for HeadlessSink {
 
 /// The graphics loop's state.
 pub struct GraphicsStage {
-    field: BSplineLattice,
+    field: MultiPatchField,
     octree: BrickOctree,
-    patches: SnapshotReader<FieldPatch>,
+    updates: SnapshotReader<FieldUpdate>,
     /// The clay's paint, published by the simulation when it changes.
     colours: SnapshotReader<Option<ColourField>>,
     ack: Arc<AtomicU64>,
@@ -69,15 +69,15 @@ impl GraphicsStage {
     /// # Errors
     /// When the sampling grid cannot be made for the lattice.
     pub fn new(
-        field: BSplineLattice,
+        field: MultiPatchField,
         cells_per_span: u32,
-        patches: SnapshotReader<FieldPatch>,
+        updates: SnapshotReader<FieldUpdate>,
         colours: SnapshotReader<Option<ColourField>>,
         ack: Arc<AtomicU64>,
         mut sink: Box<dyn MeshSink>,
         counters: EngineCounters,
     ) -> Result<Self, GridError> {
-        let grid = SampleGrid::for_lattice(&field, cells_per_span)?;
+        let grid = SampleGrid::for_field(&field, cells_per_span)?;
         let mut octree = BrickOctree::new(grid);
         let report = octree.rebuild(&field);
         sink.update(&octree, &report);
@@ -85,7 +85,7 @@ impl GraphicsStage {
         Ok(Self {
             field,
             octree,
-            patches,
+            updates,
             colours,
             ack,
             sink,
@@ -99,17 +99,16 @@ impl GraphicsStage {
         if let Some(paint) = self.colours.try_fresh() {
             self.sink.paint(&self.octree, paint.value.as_ref());
         }
-        let Some(stamped) = self.patches.try_fresh() else {
+        let Some(stamped) = self.updates.try_fresh() else {
             return 0;
         };
         let changed = stamped.value.apply_to(&mut self.field);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
         self.ack.store(stamped.version, Ordering::Release);
-        let Some(b) = changed else {
+        let Some((lo, hi)) = changed else {
             return 0;
         };
-        let (lo, hi) = BrickOctree::coefficient_change_box(&self.field, b.min, b.max);
-        let report = self.octree.refresh_lattice(&self.field, lo, hi);
+        let report = self.octree.refresh_box(&self.field, lo, hi);
         let n = report.changed.len() + report.removed.len();
         self.counters.graphics_updates(1);
         self.counters.bricks_remeshed(n as u64);
@@ -120,7 +119,7 @@ impl GraphicsStage {
 
     /// This stage's field copy.
     #[must_use]
-    pub fn field(&self) -> &BSplineLattice {
+    pub fn field(&self) -> &MultiPatchField {
         &self.field
     }
 

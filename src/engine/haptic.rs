@@ -28,10 +28,10 @@ use super::counters::EngineCounters;
 use super::device_swap::{DeviceHandover, DeviceSwapPort};
 use super::force_limit::ForceLimit;
 use super::haptic_gain::HapticGain;
-use super::patch::FieldPatch;
 use super::tool_sample::ToolSample;
+use super::update::FieldUpdate;
 use super::workspace::WorkspaceMap;
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::haptics::{FeltInput, FeltTool, ForceRenderer, HapticConfig, StrokeGeometry};
 
 /// What one tick did (plain data, for tests and the lockstep driver).
@@ -53,8 +53,8 @@ pub struct HapticOutcome {
 /// two triple-buffer ends.
 pub struct HapticStage {
     device: SafetyFilter<Box<dyn HapticDevice>>,
-    field: BSplineLattice,
-    patches: SnapshotReader<FieldPatch>,
+    field: MultiPatchField,
+    updates: SnapshotReader<FieldUpdate>,
     samples: SnapshotWriter<ToolSample>,
     monitor: SnapshotWriter<ToolSample>,
     map: WorkspaceMap,
@@ -92,8 +92,8 @@ impl HapticStage {
     #[must_use]
     pub fn new(
         device: SafetyFilter<Box<dyn HapticDevice>>,
-        field: BSplineLattice,
-        patches: SnapshotReader<FieldPatch>,
+        field: MultiPatchField,
+        updates: SnapshotReader<FieldUpdate>,
         samples: SnapshotWriter<ToolSample>,
         monitor: SnapshotWriter<ToolSample>,
         map: WorkspaceMap,
@@ -110,7 +110,7 @@ impl HapticStage {
             force_limit,
             device,
             field,
-            patches,
+            updates,
             samples,
             monitor,
             map,
@@ -163,13 +163,13 @@ impl HapticStage {
 
     /// This stage's copy of the field.
     #[must_use]
-    pub fn field(&self) -> &BSplineLattice {
+    pub fn field(&self) -> &MultiPatchField {
         &self.field
     }
 
     /// Applies the newest field patch without touching the device (used at shutdown).
     pub fn sync_field(&mut self) {
-        let stamped = self.patches.latest();
+        let stamped = self.updates.latest();
         stamped.value.copy_into(&mut self.field);
         self.ack
             .store(stamped.version, std::sync::atomic::Ordering::Release);
@@ -302,7 +302,7 @@ impl HapticStage {
     /// Copies the newest field patch into this stage's field, and its tool and stroke into
     /// this stage, if it is new, and returns the snapshot's age at `now`.
     fn refresh_field(&mut self, now: Instant) -> std::time::Duration {
-        let stamped = self.patches.latest();
+        let stamped = self.updates.latest();
         let version = stamped.version;
         self.fetched = Some(version);
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {

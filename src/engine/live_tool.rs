@@ -12,7 +12,7 @@ use glam::Vec3;
 use super::command::{ForceStrokeTool, PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
 use crate::dynamics::{ToolForce, start_on_surface};
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry};
 use crate::tools::{
     ForceInput, ForceTool, PenetrationTarget, nearest_solid_point, plan_penetration,
@@ -121,10 +121,10 @@ impl LiveTool {
         })
     }
 
-    /// Computes this step's force vectors from `sample` on the simulation's `lattice`;
+    /// Computes this step's force vectors from `sample` on the simulation's `field`;
     /// `mass_step` is the mass-point pitch (the grab snaps to it). A geometric tool, a released
     /// stroke or a push out of contact gives none.
-    pub fn update_forces(&mut self, sample: &ToolSample, lattice: &BSplineLattice, mass_step: f32) {
+    pub fn update_forces(&mut self, sample: &ToolSample, field: &MultiPatchField, mass_step: f32) {
         self.len = 0;
         match &self.choice {
             ToolChoice::Push(push) => {
@@ -142,7 +142,7 @@ impl LiveTool {
                     self.len = force_tool_step(
                         tool,
                         sample.tip,
-                        lattice,
+                        field,
                         mass_step,
                         &mut self.grab,
                         &mut self.targets,
@@ -195,7 +195,7 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
 fn force_tool_step(
     stroke: &ForceStrokeTool,
     tip: Vec3,
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
     mass_step: f32,
     grab: &mut Option<Vec3>,
     targets: &mut Vec<PenetrationTarget>,
@@ -214,7 +214,7 @@ fn force_tool_step(
                 Some(tip)
             }
             // These hold the nearest mass point of the solid within two knot spans.
-            _ => nearest_solid_point(lattice, tip, 2.0 * lattice.spacing, mass_step),
+            _ => nearest_solid_point(field, tip, 2.0 * field.finest_spacing(), mass_step),
         };
     }
     let Some(grab) = *grab else {
@@ -223,7 +223,7 @@ fn force_tool_step(
     if let Some((depth_m, squirt)) = penetration {
         let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
         if moved && targets.len() < MAX_TARGETS {
-            targets.extend(plan_penetration(lattice, &[tip], depth_m, squirt));
+            targets.extend(plan_penetration(field, &[tip], depth_m, squirt));
             *last_planned = Some(tip);
         }
     }
@@ -234,9 +234,9 @@ fn force_tool_step(
         path: &stroke.curve,
         targets,
     };
-    let n = stroke.tool.forces(lattice, &input, out);
+    let n = stroke.tool.forces(field, &input, out);
     for f in &mut out[..n] {
-        f.start = start_on_surface(lattice, f.start, f.end);
+        f.start = start_on_surface(field, f.start, f.end);
     }
     n
 }
@@ -244,6 +244,7 @@ fn force_tool_step(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::BSplineLattice;
     use crate::field::{Primitive, lattice_from_primitive};
     use crate::tools::{GeometricTool, ToolAction, ToolShape};
 
@@ -275,15 +276,27 @@ mod tests {
             pivot: Vec3::ZERO,
         }));
         // Out of reach: nothing grabbed, no force.
-        live.update_forces(&sample(Vec3::splat(0.1), true, 0), &lattice, 0.05);
+        live.update_forces(
+            &sample(Vec3::splat(0.1), true, 0),
+            &MultiPatchField::new(lattice.clone()),
+            0.05,
+        );
         assert!(live.forces().is_empty());
         // At the surface (+x pole): grabbed; dragging out pulls from the grab to the cursor.
         let pole = Vec3::new(1.45, 0.95, 0.95);
-        live.update_forces(&sample(pole, true, 1000), &lattice, 0.05);
+        live.update_forces(
+            &sample(pole, true, 1000),
+            &MultiPatchField::new(lattice.clone()),
+            0.05,
+        );
         let grab = live.forces()[0].start;
         assert!(lattice.is_inside(grab) && grab.distance(pole) <= 0.2 + 1e-4);
         let out = pole + Vec3::X * 0.2;
-        live.update_forces(&sample(out, true, 2000), &lattice, 0.05);
+        live.update_forces(
+            &sample(out, true, 2000),
+            &MultiPatchField::new(lattice.clone()),
+            0.05,
+        );
         assert_eq!(live.forces().len(), 1);
         let (start, end) = (live.forces()[0].start, live.forces()[0].end);
         assert_eq!(end, out);
@@ -297,7 +310,11 @@ mod tests {
         assert_eq!(geometry.anchor, Some(grab));
         assert!(matches!(live.felt_tool(), FeltTool::Force(_)));
         // Released: no force.
-        live.update_forces(&sample(out, false, 3000), &lattice, 0.05);
+        live.update_forces(
+            &sample(out, false, 3000),
+            &MultiPatchField::new(lattice.clone()),
+            0.05,
+        );
         assert!(live.forces().is_empty());
     }
 

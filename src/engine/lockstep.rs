@@ -18,7 +18,7 @@ use super::io_worker::{IoReport, IoWorker};
 use super::simulation::SimulationStage;
 use super::tool_sample::ToolSample;
 use super::wiring::{Stages, build};
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, MultiPatchField};
 use crate::io::{Autosave, Session};
 use crate::mesh::BrickOctree;
 
@@ -55,7 +55,7 @@ impl Lockstep {
     /// When the device does not open or the mesh grid cannot be made.
     pub fn new(
         config: &EngineConfig,
-        field: BSplineLattice,
+        field: impl Into<MultiPatchField>,
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
         graphics_every: u64,
@@ -123,10 +123,16 @@ impl Lockstep {
         &self.stages.sim
     }
 
-    /// The simulation's current field.
+    /// The simulation's current base patch (see [`Self::density`] for every patch).
     #[must_use]
     pub fn field(&self) -> &BSplineLattice {
         self.stages.sim.lattice()
+    }
+
+    /// The simulation's current density: every patch of the clay.
+    #[must_use]
+    pub fn density(&self) -> &MultiPatchField {
+        self.stages.sim.field()
     }
 
     /// Samples taken so far.

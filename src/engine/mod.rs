@@ -15,7 +15,6 @@ mod haptic_gain;
 mod io_worker;
 mod live_tool;
 mod lockstep;
-mod patch;
 mod plan;
 mod replay;
 mod script_driver;
@@ -24,6 +23,7 @@ mod simulation;
 mod symmetry;
 mod threaded;
 mod tool_sample;
+mod update;
 mod wiring;
 mod workspace;
 
@@ -41,7 +41,6 @@ pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
 pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
-pub use patch::FieldPatch;
 pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S, ScriptPlan,
     TRAVEL_S, builtin_script,
@@ -55,5 +54,6 @@ pub use simulation::{
 pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
 pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions};
 pub use tool_sample::ToolSample;
+pub use update::{ChangedBox, FieldUpdate};
 pub use wiring::{Stages, build};
 pub use workspace::WorkspaceMap;

@@ -35,7 +35,7 @@ use super::io_worker::IoWorker;
 use super::lockstep::LockstepReport;
 use super::tool_sample::ToolSample;
 use super::wiring::{Stages, build};
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, MultiPatchField};
 
 /// Where a replay and its recorded schedule part.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -105,7 +105,7 @@ impl ScheduledReplay {
     /// [`super::Lockstep::new`].
     pub fn new(
         config: &EngineConfig,
-        field: BSplineLattice,
+        field: impl Into<MultiPatchField>,
         device: ReplayDevice,
         sink: Box<dyn MeshSink>,
         graphics_every: u64,
@@ -161,10 +161,16 @@ impl ScheduledReplay {
         self.samples.last().copied().unwrap_or(ToolSample::IDLE)
     }
 
-    /// The simulation's current field.
+    /// The simulation's current base patch (see [`Self::density`] for every patch).
     #[must_use]
     pub fn field(&self) -> &BSplineLattice {
         self.stages.sim.lattice()
+    }
+
+    /// The simulation's current density: every patch of the clay.
+    #[must_use]
+    pub fn density(&self) -> &MultiPatchField {
+        self.stages.sim.field()
     }
 
     /// The next recorded haptic tick, after the simulation steps that ran before it in the

@@ -16,9 +16,14 @@
 //! stopped moving), when the next stroke starts, or before any command that edits the clay —
 //! so every change belongs to exactly one step and undo restores the field bit for bit.
 //!
-//! Publication rule: every step publishes to both readers a [`FieldPatch`] whose box is the
-//! current region plus every box changed elsewhere (a retired region, an undo) that a reader
-//! has not acknowledged yet. Readers store the version they applied in their ack atomics; a
+//! Detail patches (Hua & Qin eq. (3)): the region a stroke touches is simulated on the patch
+//! in world coordinates that holds the most detail at the tool (the finest one whose support
+//! holds the tip well inside); the other patches stay fixed and take part through the sum, in
+//! the tool's forces as in what the haptic loop feels and the graphics loop meshes.
+//!
+//! Publication rule: every step publishes to both readers a [`FieldUpdate`] whose boxes are the
+//! current region plus every box changed elsewhere (a retired region, an undo), per patch,
+//! that a reader has not acknowledged yet. Readers store the version they applied in their ack atomics; a
 //! changed box is dropped from the patch once both acks reach the first version that carried
 //! it. So a reader that skips versions (triple buffers keep only the newest) still converges
 //! to the simulation's field.
@@ -43,12 +48,12 @@ use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
 use super::error::{CommandError, LatticeShape, LoadRefused};
 use super::live_tool::LiveTool;
-use super::patch::FieldPatch;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
+use super::update::FieldUpdate;
 use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce};
-use crate::field::{BSplineLattice, CoeffBox, RegionSnapshot, coeff_box_around};
+use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
     ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolPose, ToolReport,
@@ -141,6 +146,8 @@ pub struct SimulationStage {
     tool: LiveTool,
     simulator: Simulator,
     region: Option<RegionState>,
+    /// The density patch the region simulates (its lattice is the one stepped).
+    region_patch: usize,
     /// The clay's pins as the live region holds them (see `constrain.rs`).
     region_pins: ConstraintSolver,
     /// Bumped by every command that may change the clay's pins (see [`SimStatus`]).
@@ -149,10 +156,11 @@ pub struct SimulationStage {
     stroke_armed: bool,
     was_active: bool,
     scratch: RegionSnapshot,
-    to_haptic: SnapshotWriter<FieldPatch>,
-    to_graphics: SnapshotWriter<FieldPatch>,
+    to_haptic: SnapshotWriter<FieldUpdate>,
+    to_graphics: SnapshotWriter<FieldUpdate>,
     acks: Acks,
-    pending: Option<CoeffBox>,
+    /// Per density patch, the box changed outside the region that a reader may not have yet.
+    pending: Vec<Option<CoeffBox>>,
     pending_since: u64,
     commands: Receiver<Command>,
     io: Option<Sender<IoJob>>,
@@ -182,6 +190,12 @@ pub struct SimulationStage {
     commands_since_step: u32,
 }
 
+/// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
+/// patches: [`FieldUpdate`] names them by `u16`).
+fn density_id(patch: usize) -> FieldId {
+    FieldId::Density(u16::try_from(patch).unwrap_or(u16::MAX))
+}
+
 /// The bounding box of `forces` grown by their spread radii, if there are any.
 fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
     forces.iter().fold(None, |acc, f| {
@@ -195,25 +209,36 @@ fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
 }
 
 impl SimulationStage {
-    /// Builds the stage over `lattice` (it becomes the clay's single density patch).
+    /// Builds the stage over `field` (it becomes the clay's density).
     #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
     #[must_use]
     pub fn new(
         config: SimConfig,
-        lattice: BSplineLattice,
-        to_haptic: SnapshotWriter<FieldPatch>,
-        to_graphics: SnapshotWriter<FieldPatch>,
+        field: MultiPatchField,
+        to_haptic: SnapshotWriter<FieldUpdate>,
+        to_graphics: SnapshotWriter<FieldUpdate>,
         acks: Acks,
         commands: Receiver<Command>,
         io: Option<Sender<IoJob>>,
         counters: EngineCounters,
     ) -> Self {
-        let scratch = RegionSnapshot::with_capacity(lattice.coeffs.len());
+        let largest = field
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.len())
+            .max()
+            .unwrap_or(0);
+        let scratch = RegionSnapshot::with_capacity(largest);
+        let pending = vec![None; field.patches.len()];
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
         let (colour, colour_reader) = snapshot_channel(&None);
         Self {
             config,
-            clay: Clay::single(lattice),
+            clay: Clay {
+                density: field,
+                colour: None,
+                constraints: Vec::new(),
+            },
             history: History::new(config.history_budget_bytes),
             recorder: None,
             tool: LiveTool::new(ToolChoice::Push(config.tool)),
@@ -222,6 +247,7 @@ impl SimulationStage {
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
+            region_patch: 0,
             region_pins: ConstraintSolver::empty(),
             pins_revision: 0,
             idle_steps: 0,
@@ -231,7 +257,7 @@ impl SimulationStage {
             to_haptic,
             to_graphics,
             acks,
-            pending: None,
+            pending,
             pending_since: 0,
             commands,
             io,
@@ -270,10 +296,16 @@ impl SimulationStage {
         self.to_haptic.version()
     }
 
-    /// The authoritative field.
+    /// The authoritative field's base patch.
     #[must_use]
     pub fn lattice(&self) -> &BSplineLattice {
-        &self.clay.patches[0]
+        self.clay.base()
+    }
+
+    /// The authoritative field: the clay's density, every patch.
+    #[must_use]
+    pub fn field(&self) -> &MultiPatchField {
+        &self.clay.density
     }
 
     /// The clay (for saving at the end).
@@ -334,9 +366,12 @@ impl SimulationStage {
             self.apply_held_geometric(sample.tip, dwell_s);
         }
 
-        let mass_step = self.lattice().spacing / self.config.samples_per_span.max(1) as f32;
+        // The patch that would hold this step's region: its mass points set the step.
+        let sculpted = self.sculpted_patch_at(sample.tip);
+        let spacing = self.clay.density.patches[sculpted].lattice.spacing;
+        let mass_step = spacing / self.config.samples_per_span.max(1) as f32;
         self.tool
-            .update_forces(sample, &self.clay.patches[0], mass_step);
+            .update_forces(sample, &self.clay.density, mass_step);
         let mirroring = self.symmetry.any() && !self.tool.forces().is_empty();
         if mirroring {
             self.mirror_forces();
@@ -365,21 +400,24 @@ impl SimulationStage {
 
         if let Some(region) = self.region.as_mut() {
             if let Some(rec) = self.recorder.as_mut() {
-                rec.touch(&self.clay, FieldId::Density(0), region.coeff_box());
+                rec.touch(
+                    &self.clay,
+                    density_id(self.region_patch),
+                    region.coeff_box(),
+                );
             }
             let forces: &[ToolForce] = match (push, mirroring) {
                 (false, _) => &[],
                 (true, false) => self.tool.forces(),
                 (true, true) => &self.mirrored_forces,
             };
-            let lattice = &mut self.clay.patches[0];
-            match self.simulator.step_constrained(
-                region,
-                lattice,
-                forces,
-                Some(&mut self.region_pins),
-                &mut self.scratch,
-            ) {
+            let lattice = &mut self.clay.density.patches[self.region_patch].lattice;
+            // Pins hold the base patch's surface (see `constrain.rs`).
+            let pins = (self.region_patch == 0).then_some(&mut self.region_pins);
+            match self
+                .simulator
+                .step_constrained(region, lattice, forces, pins, &mut self.scratch)
+            {
                 Ok(report) => {
                     out.stepped = true;
                     out.pushed = push;
@@ -400,7 +438,7 @@ impl SimulationStage {
 
     /// Fills `mirrored_forces` with this step's tool forces and their mirrored copies.
     fn mirror_forces(&mut self) {
-        let centre = clay_centre(&self.clay.patches[0]);
+        let centre = clay_centre(self.clay.base());
         self.mirrored_forces.clear();
         self.mirrored_forces.extend_from_slice(self.tool.forces());
         for flip in self.symmetry.flips() {
@@ -415,7 +453,7 @@ impl SimulationStage {
     fn apply_held_geometric(&mut self, tip: Vec3, dwell_s: f32) {
         self.apply_held_geometric_at(tip, dwell_s);
         if self.symmetry.any() {
-            let centre = clay_centre(&self.clay.patches[0]);
+            let centre = clay_centre(self.clay.base());
             for image in self.symmetry.images(tip, centre) {
                 self.apply_held_geometric_at(image, dwell_s);
             }
@@ -440,25 +478,51 @@ impl SimulationStage {
         match result {
             Ok(report) => {
                 if let Some(b) = report.coeff_box {
-                    if let Some(region) = self.region.as_mut() {
+                    let edited = usize::from(report.patch);
+                    if let Some(region) = self.region.as_mut()
+                        && edited == self.region_patch
+                    {
                         // The region's own copy of the coefficients is stale now.
-                        region.reload(&self.clay.patches[0]);
+                        region.reload(&self.clay.density.patches[edited].lattice);
                         self.rebuild_pins();
                     }
-                    self.mark_changed(b);
+                    self.mark_changed(edited, b);
                 }
             }
             Err(_) => self.counters.command_errors(1),
         }
     }
 
-    /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread).
+    /// The patch a region at `x` simulates: the finest patch in world coordinates whose
+    /// support holds `x` well inside, else the base.
+    fn sculpted_patch_at(&self, x: Vec3) -> usize {
+        let field = &self.clay.density;
+        let mut best = (0, f32::INFINITY);
+        for (n, p) in field.patches.iter().enumerate() {
+            if !p.is_identity() {
+                continue;
+            }
+            let (lo, hi) = p.lattice.support();
+            let margin = Vec3::splat(p.lattice.spacing);
+            let inside = x.cmpge(lo + margin).all() && x.cmple(hi - margin).all();
+            if (n == 0 || inside) && p.lattice.spacing < best.1 {
+                best = (n, p.lattice.spacing);
+            }
+        }
+        best.0
+    }
+
+    /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
+    /// on the patch that holds the most detail at its centre.
     fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
-        let lattice = &self.clay.patches[0];
+        let patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        let lattice = &self.clay.density.patches[patch].lattice;
         let Some(needed) = coeff_box_around(lattice, lo, hi, 0) else {
             return;
         };
-        if let Some(region) = &self.region {
+        if let Some(region) = &self.region
+            && self.region_patch == patch
+        {
             let b = region.coeff_box();
             if b.contains_box(&needed) {
                 return;
@@ -471,10 +535,12 @@ impl SimulationStage {
         };
         let b = around.union(&needed);
         self.retire_region();
+        self.region_patch = patch;
         let n = b.dims();
         let s = self.config.samples_per_span.max(1);
         let mass_dims = [(n[0] - 1) * s + 1, (n[1] - 1) * s + 1, (n[2] - 1) * s + 1];
-        match RegionState::new(&self.clay.patches[0], b, mass_dims, self.config.material) {
+        let lattice = &self.clay.density.patches[patch].lattice;
+        match RegionState::new(lattice, b, mass_dims, self.config.material) {
             Ok(state) => self.region = Some(state),
             Err(_) => self.counters.command_errors(1),
         }
@@ -485,7 +551,7 @@ impl SimulationStage {
     /// until both readers have them; the stroke's undo step is recorded if no stroke is held.
     fn retire_region(&mut self) {
         if let Some(region) = self.region.take() {
-            self.mark_changed(region.coeff_box());
+            self.mark_changed(self.region_patch, region.coeff_box());
         }
         self.idle_steps = 0;
         if !self.was_active {
@@ -564,10 +630,10 @@ mod tests {
         };
         let mut rec = StepRecorder::new("edit");
         rec.touch(&sim.clay, FieldId::Density(0), b);
-        let idx = sim.clay.patches[0].index(3, 3, 3);
-        sim.clay.patches[0].coeffs[idx] += 0.25;
+        let idx = sim.clay.density.patches[0].lattice.index(3, 3, 3);
+        sim.clay.density.patches[0].lattice.coeffs[idx] += 0.25;
         assert!(sim.history.commit(rec, &sim.clay));
-        sim.mark_changed(b);
+        sim.mark_changed(0, b);
     }
 
     fn session_with(lattice: BSplineLattice, material: Material) -> Session {
@@ -624,8 +690,12 @@ mod tests {
         let summary = rx.try_recv().unwrap().unwrap();
         assert!(summary.contains("carved.dclay"), "{summary}");
         assert_eq!(s.sim.lattice(), &loaded);
-        assert_eq!(s.haptic.field(), &loaded, "haptic copy republished");
-        assert_eq!(s.graphics.field(), &loaded, "graphics copy republished");
+        assert_eq!(s.haptic.field().base(), &loaded, "haptic copy republished");
+        assert_eq!(
+            s.graphics.field().base(),
+            &loaded,
+            "graphics copy republished"
+        );
         let triangles_after = s.graphics.octree().triangle_count();
         assert!(
             triangles_after < triangles_before,
@@ -643,11 +713,9 @@ mod tests {
         let running = s.sim.lattice().clone();
         let mut colour = crate::tools::ColourField::matching(&running).unwrap();
         colour.channels[2].coeffs[11] = 0.5;
-        let mut extra = running.clone();
-        extra.coeffs.fill(0.25);
         let full = Session {
             clay: Clay {
-                patches: vec![running, extra],
+                density: MultiPatchField::new(running),
                 colour: Some(colour),
                 constraints: Vec::new(),
             },
@@ -697,7 +765,12 @@ mod tests {
         let mut nan = before.clone();
         nan.coeffs[7] = f32::NAN;
         let mut none = session_with(before.clone(), Material::ELASTIC);
-        none.clay.patches.clear();
+        none.clay.density.patches.clear();
+        let mut two = session_with(before.clone(), Material::ELASTIC);
+        two.clay
+            .density
+            .patches
+            .push(crate::field::Patch::identity(before.clone()));
         smaller.iso = before.iso;
         let cases = [
             (
@@ -711,6 +784,7 @@ mod tests {
                 "NonFinite",
             ),
             (none, "no density patch", "NoPatch"),
+            (two, "laid out", "PatchLayout"),
         ];
         for (session, expected, kind) in cases {
             let (tx, rx) = bounded(1);
@@ -734,14 +808,14 @@ mod tests {
             );
         }
         assert_eq!(s.sim.lattice(), &before);
-        assert_eq!(s.haptic.field(), &before);
+        assert_eq!(s.haptic.field().base(), &before);
         assert_eq!(s.sim.config.material, material);
         let st = status.latest().value;
         assert_eq!((st.undo_steps, st.sessions_loaded), (1, 0));
-        assert_eq!(s.counters.snapshot().command_errors, 3);
+        assert_eq!(s.counters.snapshot().command_errors, 4);
         assert!(
             check_loadable(
-                &before,
+                &MultiPatchField::new(before.clone()),
                 &session_with(before.clone(), material),
                 Path::new("x")
             )

@@ -33,7 +33,7 @@ use super::sim_status::SimStatus;
 use super::simulation::SimulationStage;
 use super::wiring::build;
 use super::workspace::WorkspaceMap;
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::io::{Autosave, Session, load_session};
 use crate::mesh::BrickOctree;
 
@@ -117,7 +117,7 @@ pub struct EngineReport {
     pub session: Session,
     /// The haptic loop's own field copy at the end (equals the session's field once the last
     /// patch arrived).
-    pub haptic_field: BSplineLattice,
+    pub haptic_field: MultiPatchField,
     /// The graphics stage's final octree.
     pub octree: BrickOctree,
     /// Latency reports of the haptic, simulation and graphics loops, in that order.
@@ -142,7 +142,7 @@ impl Engine {
     /// When the device does not open, the mesh grid cannot be made or a thread cannot start.
     pub fn start(
         config: &EngineConfig,
-        field: BSplineLattice,
+        field: impl Into<MultiPatchField>,
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
     ) -> Result<Self, EngineError> {
@@ -155,17 +155,19 @@ impl Engine {
     /// As [`Engine::start`].
     pub fn start_with(
         config: &EngineConfig,
-        field: BSplineLattice,
+        field: impl Into<MultiPatchField>,
         device: Box<dyn HapticDevice>,
         sink: Box<dyn MeshSink>,
         options: StartOptions,
     ) -> Result<Self, EngineError> {
         let StartOptions { autosave, schedule } = options;
+        let density = field.into();
+        let field = density.base();
         let field_box = (
             field.origin,
             field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
         );
-        let mut stages = build(config, field, device, sink, false)?;
+        let mut stages = build(config, density, device, sink, false)?;
         if let Some(log) = schedule {
             stages.haptic.set_schedule_log(log.clone());
             stages.sim.set_schedule_log(log);

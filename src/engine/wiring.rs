@@ -14,10 +14,10 @@ use super::device_swap::{DeviceSwapRequest, device_swap_channel};
 use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
-use super::patch::FieldPatch;
 use super::simulation::{Acks, IoJob, SimulationStage};
 use super::tool_sample::ToolSample;
-use crate::field::BSplineLattice;
+use super::update::FieldUpdate;
+use crate::field::MultiPatchField;
 
 /// The three stages, connected.
 pub struct Stages {
@@ -37,14 +37,15 @@ pub struct Stages {
     pub device_swaps: DeviceSwapRequest,
 }
 
-/// Opens `device` behind the safety filter and builds the stages around `field`.
+/// Opens `device` behind the safety filter and builds the stages around `field` (the clay's
+/// density: one lattice, or a base patch with detail patches).
 /// `lockstep` disables the staleness fade (a lockstep simulation cannot fall behind).
 ///
 /// # Errors
 /// When the device does not open or the mesh grid cannot be made.
 pub fn build(
     config: &EngineConfig,
-    field: BSplineLattice,
+    field: impl Into<MultiPatchField>,
     device: Box<dyn HapticDevice>,
     sink: Box<dyn MeshSink>,
     lockstep: bool,
@@ -52,8 +53,8 @@ pub fn build(
     let mut device = SafetyFilter::with_config(device, config.safety);
     device.open()?;
     let counters = EngineCounters::new();
-    let mut empty = FieldPatch::with_capacity_for(&field);
-    empty.coeff_box = None;
+    let field = field.into();
+    let empty = FieldUpdate::with_capacity_for(&field);
     let (to_haptic, from_sim_h) = snapshot_channel(&empty);
     let (to_graphics, from_sim_g) = snapshot_channel(&empty);
     let (samples_tx, samples_rx) = snapshot_channel(&ToolSample::IDLE);

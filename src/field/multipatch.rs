@@ -22,10 +22,90 @@ pub struct Patch {
 }
 
 impl Patch {
+    /// A patch in world coordinates (`T_i` the identity: the lattice's origin and spacing
+    /// place it).
+    #[must_use]
+    pub fn identity(lattice: BSplineLattice) -> Self {
+        Self {
+            lattice,
+            world_to_patch: Affine3A::IDENTITY,
+        }
+    }
+
+    /// Whether `T_i` is the identity, so the lattice's own world-space fast paths apply.
+    #[inline]
+    #[must_use]
+    pub fn is_identity(&self) -> bool {
+        self.world_to_patch == Affine3A::IDENTITY
+    }
+
+    /// The world box holding this patch's support (the axis-aligned box around the support's
+    /// eight corners mapped back to world space).
+    #[must_use]
+    pub fn world_support(&self) -> (Vec3, Vec3) {
+        let (lo, hi) = self.lattice.support();
+        self.world_box_of(lo, hi)
+    }
+
+    /// The world box around the patch-space box `lo..=hi`.
+    #[must_use]
+    pub fn world_box_of(&self, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
+        if self.is_identity() {
+            return (lo, hi);
+        }
+        let to_world = self.world_to_patch.inverse();
+        corners(lo, hi)
+            .map(|c| to_world.transform_point3(c))
+            .into_iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| {
+                (a.min(c), b.max(c))
+            })
+    }
+
+    /// The patch-space box around the world box `lo..=hi`.
+    #[must_use]
+    pub fn patch_box_of(&self, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
+        if self.is_identity() {
+            return (lo, hi);
+        }
+        corners(lo, hi)
+            .map(|c| self.world_to_patch.transform_point3(c))
+            .into_iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), c| {
+                (a.min(c), b.max(c))
+            })
+    }
+
+    /// The knot spacing in world units: the lattice spacing divided by the largest stretch of
+    /// `T_i` (so the finest length this patch resolves).
+    #[must_use]
+    pub fn world_spacing(&self) -> f32 {
+        let m = self.world_to_patch.matrix3;
+        let stretch = m
+            .x_axis
+            .length()
+            .max(m.y_axis.length())
+            .max(m.z_axis.length());
+        self.lattice.spacing / stretch
+    }
+
+    /// This patch's term at a world point.
+    #[inline]
+    #[must_use]
+    pub fn value(&self, x: Vec3) -> f32 {
+        if self.is_identity() {
+            return self.lattice.value(x);
+        }
+        self.lattice.value(self.world_to_patch.transform_point3(x))
+    }
+
     /// Value and world-space gradient of this patch's term at a world point.
     #[inline]
     #[must_use]
     pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
+        if self.is_identity() {
+            return self.lattice.value_and_gradient(x);
+        }
         let u = self.world_to_patch.transform_point3(x);
         let (v, g) = self.lattice.value_and_gradient(u);
         let jt = self.world_to_patch.matrix3.transpose();
@@ -33,27 +113,89 @@ impl Patch {
     }
 }
 
-/// `F(x) = Σ s_i(T_i x)` over a base patch and detail patches.
-#[derive(Clone, Debug, PartialEq)]
+/// `F(x) = Σ s_i(T_i x)` over a base patch and detail patches: the clay's density, the one
+/// model of eq. (3) that evaluation, forces, meshing, tools and sessions act on.
+///
+/// The solid is where `F` exceeds the base patch's iso-level ([`MultiPatchField::iso`]); the
+/// detail patches' own `iso` fields are not used.
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MultiPatchField {
     /// Patch 0 is the base; later ones are details.
     pub patches: Vec<Patch>,
-    /// The solid is where `F > iso`.
-    pub iso: f32,
 }
 
 impl MultiPatchField {
     /// A field of one base patch in world coordinates.
     #[must_use]
     pub fn new(base: BSplineLattice) -> Self {
-        let iso = base.iso;
         Self {
-            patches: vec![Patch {
-                lattice: base,
-                world_to_patch: Affine3A::IDENTITY,
-            }],
-            iso,
+            patches: vec![Patch::identity(base)],
         }
+    }
+
+    /// The iso-level of the surface: the base patch's (0 for a field without patches).
+    #[inline]
+    #[must_use]
+    pub fn iso(&self) -> f32 {
+        self.patches.first().map_or(0.0, |p| p.lattice.iso)
+    }
+
+    /// The base patch's lattice.
+    ///
+    /// # Panics
+    /// When the field has no patch (a loaded session always has one; see
+    /// [`crate::io`]'s decoder).
+    #[must_use]
+    pub fn base(&self) -> &BSplineLattice {
+        &self.patches[0].lattice
+    }
+
+    /// The base patch's lattice, mutably.
+    ///
+    /// # Panics
+    /// As [`MultiPatchField::base`].
+    pub fn base_mut(&mut self) -> &mut BSplineLattice {
+        &mut self.patches[0].lattice
+    }
+
+    /// The world box that holds every patch's support (an empty box at the origin for a
+    /// field without patches).
+    #[must_use]
+    pub fn support(&self) -> (Vec3, Vec3) {
+        self.patches
+            .iter()
+            .map(Patch::world_support)
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
+            .unwrap_or((Vec3::ZERO, Vec3::ZERO))
+    }
+
+    /// The finest knot spacing of any patch, in world units (the spacing measured along the
+    /// patch's axes after its map): the length scale of the finest detail the field holds.
+    /// Infinite for a field without patches.
+    #[must_use]
+    pub fn finest_spacing(&self) -> f32 {
+        self.patches
+            .iter()
+            .map(Patch::world_spacing)
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    /// The patch with the finest spacing whose support holds `x` well inside (one knot span
+    /// from its border, where its own detail lives); the base when no detail patch does.
+    #[must_use]
+    pub fn finest_patch_at(&self, x: Vec3) -> usize {
+        let mut best = (0, f32::INFINITY);
+        for (n, p) in self.patches.iter().enumerate() {
+            let u = p.world_to_patch.transform_point3(x);
+            let (lo, hi) = p.lattice.support();
+            let h = p.lattice.spacing;
+            let inside = u.cmpge(lo + Vec3::splat(h)).all() && u.cmple(hi - Vec3::splat(h)).all();
+            let spacing = p.world_spacing();
+            if (n == 0 || inside) && spacing < best.1 {
+                best = (n, spacing);
+            }
+        }
+        best.0
     }
 
     /// Add a patch with its own map; returns its index.
@@ -120,10 +262,7 @@ impl MultiPatchField {
     #[inline]
     #[must_use]
     pub fn value(&self, x: Vec3) -> f32 {
-        self.patches
-            .iter()
-            .map(|p| p.lattice.value(p.world_to_patch.transform_point3(x)))
-            .sum()
+        self.patches.iter().map(|p| p.value(x)).sum()
     }
 
     /// `F(x)` and its world-space gradient.
@@ -140,8 +279,26 @@ impl MultiPatchField {
     #[inline]
     #[must_use]
     pub fn is_inside(&self, x: Vec3) -> bool {
-        self.value(x) > self.iso
+        self.value(x) > self.iso()
     }
+}
+
+impl From<BSplineLattice> for MultiPatchField {
+    /// A field of one base patch in world coordinates.
+    fn from(base: BSplineLattice) -> Self {
+        Self::new(base)
+    }
+}
+
+/// The eight corners of the box `lo..=hi`.
+fn corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|n| {
+        Vec3::new(
+            if n & 1 == 0 { lo.x } else { hi.x },
+            if n & 2 == 0 { lo.y } else { hi.y },
+            if n & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }
 
 #[cfg(test)]

@@ -12,7 +12,7 @@
 
 use glam::Vec3;
 
-use super::lattice::BSplineLattice;
+use super::multipatch::MultiPatchField;
 
 /// March step along the ray, knot spans.
 pub const MARCH_STEP_SPANS: f32 = 0.5;
@@ -54,15 +54,15 @@ fn clip_to_box(origin: Vec3, dir: Vec3, lo: Vec3, hi: Vec3) -> Option<(f32, f32)
 /// The first point where `ray` enters the solid (`value > iso`), or `None` when the ray misses
 /// the clay, starts inside it, or is not finite.
 #[must_use]
-pub fn pick_surface(field: &BSplineLattice, ray: Ray) -> Option<SurfaceHit> {
+pub fn pick_surface(field: &MultiPatchField, ray: Ray) -> Option<SurfaceHit> {
     let dir = ray.direction.try_normalize()?;
     if !ray.origin.is_finite() {
         return None;
     }
     let (lo, hi) = field.support();
     let (near, far) = clip_to_box(ray.origin, dir, lo, hi)?;
-    let step = MARCH_STEP_SPANS * field.spacing;
-    let inside = |t: f32| field.value(ray.origin + dir * t) > field.iso;
+    let step = MARCH_STEP_SPANS * field.finest_spacing();
+    let inside = |t: f32| field.value(ray.origin + dir * t) > field.iso();
     if inside(near) {
         return None;
     }
@@ -83,7 +83,9 @@ pub fn pick_surface(field: &BSplineLattice, ray: Ray) -> Option<SurfaceHit> {
             }
             let t_hit = 0.5 * (a + b);
             let point = ray.origin + dir * t_hit;
-            let normal = (-field.gradient(point)).try_normalize().unwrap_or(-dir);
+            let normal = (-field.value_and_gradient(point).1)
+                .try_normalize()
+                .unwrap_or(-dir);
             return Some(SurfaceHit {
                 point,
                 normal,
@@ -98,6 +100,7 @@ pub fn pick_surface(field: &BSplineLattice, ray: Ray) -> Option<SurfaceHit> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::{BSplineLattice, MultiPatchField};
     use crate::field::{Primitive, lattice_from_primitive};
 
     /// A ball of radius `r` around `c` held exactly by the cubic lattice: the field
@@ -123,8 +126,8 @@ mod tests {
     fn a_ray_meets_an_exact_ball_at_the_analytic_point() {
         let c = Vec3::splat(1.9);
         let r = 0.8;
-        let field = exact_ball(c, r);
-        let span = field.spacing;
+        let field = MultiPatchField::new(exact_ball(c, r));
+        let span = field.finest_spacing();
         for (origin, dir) in [
             (Vec3::new(1.9, 1.9, -1.0), Vec3::Z),
             (Vec3::new(1.6, 2.1, 4.5), Vec3::NEG_Z),
@@ -161,7 +164,9 @@ mod tests {
             centre: Vec3::splat(1.6),
             radius: 1.0,
         };
-        let field = lattice_from_primitive([17, 17, 17], 0.2, Vec3::ZERO, &sphere, 0.4, 2).unwrap();
+        let field = MultiPatchField::new(
+            lattice_from_primitive([17, 17, 17], 0.2, Vec3::ZERO, &sphere, 0.4, 2).unwrap(),
+        );
         let origin = Vec3::new(1.6, 1.6, -0.5);
         let hit = pick_surface(
             &field,
@@ -172,8 +177,8 @@ mod tests {
         )
         .unwrap();
         // On the fitted field's own iso-surface to a thousandth of a span …
-        let g = field.gradient(hit.point).length();
-        let off_spans = (field.value(hit.point) - field.iso).abs() / g / field.spacing;
+        let g = field.value_and_gradient(hit.point).1.length();
+        let off_spans = (field.value(hit.point) - field.iso()).abs() / g / field.finest_spacing();
         assert!(off_spans < 1e-3, "{off_spans} spans off the iso-surface");
         // … which lies within the fit's tolerance of the true sphere (z = 0.6).
         assert!((hit.point.z - 0.6).abs() < 0.02, "{}", hit.point);
@@ -181,7 +186,7 @@ mod tests {
 
     #[test]
     fn rays_that_miss_return_none() {
-        let field = exact_ball(Vec3::splat(1.9), 0.8);
+        let field = MultiPatchField::new(exact_ball(Vec3::splat(1.9), 0.8));
         let miss = |origin, direction| pick_surface(&field, Ray { origin, direction });
         // Passes beside the ball.
         assert_eq!(miss(Vec3::new(0.3, 0.3, -1.0), Vec3::Z), None);

@@ -21,7 +21,7 @@
 
 use glam::Vec3;
 
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 
 /// Bisection steps when the proxy meets the surface.
 const BISECT_STEPS: usize = 12;
@@ -113,8 +113,8 @@ impl SurfaceProxy {
     /// Buries a tip that is inside the clay now (a stroke ended with the tool in the clay:
     /// sculpting moved the surface to the tool, and a rigid surface there would kick the hand
     /// out). Nothing happens to a tip outside.
-    pub fn bury_if_inside(&mut self, field: &BSplineLattice, tip: Vec3) {
-        if tip.is_finite() && field.value(tip) > field.iso {
+    pub fn bury_if_inside(&mut self, field: &MultiPatchField, tip: Vec3) {
+        if tip.is_finite() && field.value(tip) > field.iso() {
             self.release();
             self.buried = true;
         }
@@ -127,12 +127,12 @@ impl SurfaceProxy {
     }
 
     /// Moves the proxy for the tip at `tip` on `field` and returns the touch.
-    pub fn update(&mut self, field: &BSplineLattice, tip: Vec3) -> Touch {
+    pub fn update(&mut self, field: &MultiPatchField, tip: Vec3) -> Touch {
         if !tip.is_finite() {
             self.release();
             return Touch::free(tip);
         }
-        let inside = |x: Vec3| field.value(x) > field.iso;
+        let inside = |x: Vec3| field.value(x) > field.iso();
         if !inside(tip) {
             self.proxy = Some(tip);
             self.touching = false;
@@ -185,7 +185,7 @@ impl SurfaceProxy {
 
     /// The proxy after sliding from `seated` toward the tip's projection on the tangent plane,
     /// with friction, put back on the surface.
-    fn slide(&self, field: &BSplineLattice, seated: Vec3, normal: Vec3, tip: Vec3) -> Vec3 {
+    fn slide(&self, field: &MultiPatchField, seated: Vec3, normal: Vec3, tip: Vec3) -> Vec3 {
         let offset = tip - seated;
         let along = offset.dot(normal);
         let depth = (-along).max(0.0);
@@ -199,11 +199,11 @@ impl SurfaceProxy {
             return seated;
         }
         let candidate = seated + tangential * (travel / reach);
-        let projected = newton_to_surface(field, candidate, field.spacing);
+        let projected = newton_to_surface(field, candidate, field.finest_spacing());
         if !projected.is_finite() {
             return seated;
         }
-        if field.value(projected) <= field.iso {
+        if field.value(projected) <= field.iso() {
             return projected;
         }
         // Newton stopped a hair inside: step out along the normal there. Failing that, the way
@@ -214,18 +214,18 @@ impl SurfaceProxy {
 }
 
 /// The outward unit normal at `x` (the density falls outward), or zero.
-fn outward_normal(field: &BSplineLattice, x: Vec3) -> Vec3 {
-    (-field.gradient(x)).normalize_or_zero()
+fn outward_normal(field: &MultiPatchField, x: Vec3) -> Vec3 {
+    (-field.value_and_gradient(x).1).normalize_or_zero()
 }
 
 /// The surface point on the segment `outside → inside` (the outside end of the last
 /// bisection bracket, so it is never inside).
-fn crossing(field: &BSplineLattice, outside: Vec3, inside: Vec3) -> Vec3 {
+fn crossing(field: &MultiPatchField, outside: Vec3, inside: Vec3) -> Vec3 {
     let (mut lo, mut hi) = (0.0_f32, 1.0_f32);
     let d = inside - outside;
     for _ in 0..BISECT_STEPS {
         let mid = 0.5 * (lo + hi);
-        if field.value(outside + d * mid) > field.iso {
+        if field.value(outside + d * mid) > field.iso() {
             hi = mid;
         } else {
             lo = mid;
@@ -236,15 +236,15 @@ fn crossing(field: &BSplineLattice, outside: Vec3, inside: Vec3) -> Vec3 {
 
 /// From a point inside, the first surface point along the outward normal within one knot
 /// span, or `None`.
-fn push_out(field: &BSplineLattice, from: Vec3) -> Option<Vec3> {
+fn push_out(field: &MultiPatchField, from: Vec3) -> Option<Vec3> {
     let normal = outward_normal(field, from);
     if normal == Vec3::ZERO {
         return None;
     }
-    let step = field.spacing / OUTWARD_STEPS as f32;
+    let step = field.finest_spacing() / OUTWARD_STEPS as f32;
     for i in 1..=OUTWARD_STEPS {
         let x = from + normal * (step * i as f32);
-        if field.value(x) <= field.iso {
+        if field.value(x) <= field.iso() {
             return Some(crossing(field, x, from));
         }
     }
@@ -252,14 +252,14 @@ fn push_out(field: &BSplineLattice, from: Vec3) -> Option<Vec3> {
 }
 
 /// A few Newton steps along the gradient toward `s = iso`, each at most `max_step` long.
-fn newton_to_surface(field: &BSplineLattice, mut x: Vec3, max_step: f32) -> Vec3 {
+fn newton_to_surface(field: &MultiPatchField, mut x: Vec3, max_step: f32) -> Vec3 {
     for _ in 0..NEWTON_STEPS {
         let (v, g) = field.value_and_gradient(x);
         let g2 = g.length_squared();
         if g2.is_nan() || g2 <= 1e-12 {
             break;
         }
-        x -= ((v - field.iso) * g / g2).clamp_length_max(max_step);
+        x -= ((v - field.iso()) * g / g2).clamp_length_max(max_step);
     }
     x
 }
@@ -270,19 +270,21 @@ mod tests {
     use crate::field::{Primitive, lattice_from_primitive};
 
     /// Solid below y = 1.0.
-    fn slab() -> BSplineLattice {
-        lattice_from_primitive(
-            [14, 14, 14],
-            0.2,
-            Vec3::ZERO,
-            &Primitive::Box {
-                centre: Vec3::new(1.3, 0.5, 1.3),
-                half_extents: Vec3::new(2.0, 0.5, 2.0),
-            },
-            0.4,
-            2,
+    fn slab() -> MultiPatchField {
+        MultiPatchField::new(
+            lattice_from_primitive(
+                [14, 14, 14],
+                0.2,
+                Vec3::ZERO,
+                &Primitive::Box {
+                    centre: Vec3::new(1.3, 0.5, 1.3),
+                    half_extents: Vec3::new(2.0, 0.5, 2.0),
+                },
+                0.4,
+                2,
+            )
+            .unwrap(),
         )
-        .unwrap()
     }
 
     #[test]
@@ -295,7 +297,7 @@ mod tests {
             let t = p.update(&field, tip);
             assert!(t.touching);
             assert!((t.proxy.y - 1.0).abs() < 0.01, "proxy at {}", t.proxy);
-            assert!(field.value(t.proxy) <= field.iso + 1e-6, "never inside");
+            assert!(field.value(t.proxy) <= field.iso() + 1e-6, "never inside");
             assert!(
                 (t.depth - depth).abs() < 0.015,
                 "depth {} vs {depth}",
@@ -340,18 +342,20 @@ mod tests {
         p.update(&field, Vec3::new(1.3, 1.2, 1.3));
         p.update(&field, Vec3::new(1.3, 0.8, 1.3));
         // The same slab, 0.1 lower: the proxy follows down toward the tip.
-        let lower = lattice_from_primitive(
-            [14, 14, 14],
-            0.2,
-            Vec3::ZERO,
-            &Primitive::Box {
-                centre: Vec3::new(1.3, 0.4, 1.3),
-                half_extents: Vec3::new(2.0, 0.5, 2.0),
-            },
-            0.4,
-            2,
-        )
-        .unwrap();
+        let lower = MultiPatchField::new(
+            lattice_from_primitive(
+                [14, 14, 14],
+                0.2,
+                Vec3::ZERO,
+                &Primitive::Box {
+                    centre: Vec3::new(1.3, 0.4, 1.3),
+                    half_extents: Vec3::new(2.0, 0.5, 2.0),
+                },
+                0.4,
+                2,
+            )
+            .unwrap(),
+        );
         let t = p.update(&lower, Vec3::new(1.3, 0.8, 1.3));
         assert!(t.touching && (t.proxy.y - 0.9).abs() < 0.01, "{}", t.proxy);
         // And grows back over it: the proxy steps out.

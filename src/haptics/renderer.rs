@@ -38,7 +38,7 @@ use super::proxy::{ProxyConfig, SurfaceProxy, Touch};
 use super::sculpt::{FeltTool, SculptReaction, StrokeGeometry};
 use super::shaping::{Blend, ForceShaper, ShapingConfig};
 use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 
 /// Depth over which the touch damper fades in, metres: short, because a light touch (1 N on a
 /// 3 kN/m wall is 0.3 mm deep) needs the damper's full share to stay passive on a late
@@ -103,7 +103,7 @@ impl HapticConfig {
 /// device metre. The press is measured where a ray from the centre of the lattice straight up
 /// leaves the clay; `None` when it does not (no clay above the centre).
 #[must_use]
-pub fn calibrated_force_scale(field: &BSplineLattice, field_per_m: f32) -> Option<f32> {
+pub fn calibrated_force_scale(field: &MultiPatchField, field_per_m: f32) -> Option<f32> {
     let (lo, hi) = field.support();
     let centre = (lo + hi) * 0.5;
     let top = surface_point_on_ray(
@@ -111,7 +111,7 @@ pub fn calibrated_force_scale(field: &BSplineLattice, field_per_m: f32) -> Optio
         centre,
         Vec3::Y,
         hi.y - centre.y,
-        0.25 * field.spacing,
+        0.25 * field.finest_spacing(),
     )?;
     let depth = CALIBRATION_DEPTH_M * field_per_m;
     let f = force_integral(field, top, top - Vec3::Y * depth).abs();
@@ -122,7 +122,7 @@ pub fn calibrated_force_scale(field: &BSplineLattice, field_per_m: f32) -> Optio
 #[derive(Clone, Copy, Debug)]
 pub struct FeltInput<'a> {
     /// The haptic loop's field.
-    pub field: &'a BSplineLattice,
+    pub field: &'a MultiPatchField,
     /// The tip, field coordinates.
     pub tip: Vec3,
     /// The tip's device position, metres.
@@ -354,17 +354,17 @@ const PUSH_REACH_SPANS: f32 = 6.0;
 /// `axis`, within [`PUSH_REACH_SPANS`] knot spans (bisected), or the end of that reach when the
 /// tip is deeper still, so the force saturates there instead of dropping. Bounded: at most
 /// [`PUSH_MARCH_STEPS`] + [`PUSH_BISECT_STEPS`] field evaluations.
-fn surface_along(field: &BSplineLattice, tip: Vec3, axis: Vec3) -> Vec3 {
-    let reach = PUSH_REACH_SPANS * field.spacing;
+fn surface_along(field: &MultiPatchField, tip: Vec3, axis: Vec3) -> Vec3 {
+    let reach = PUSH_REACH_SPANS * field.finest_spacing();
     let step = reach / PUSH_MARCH_STEPS as f32;
     let mut inner = 0.0_f32;
     for i in 1..=PUSH_MARCH_STEPS {
         let t = step * i as f32;
-        if field.value(tip + axis * t) <= field.iso {
+        if field.value(tip + axis * t) <= field.iso() {
             let mut outer = t;
             for _ in 0..PUSH_BISECT_STEPS {
                 let mid = 0.5 * (inner + outer);
-                if field.value(tip + axis * mid) > field.iso {
+                if field.value(tip + axis * mid) > field.iso() {
                     inner = mid;
                 } else {
                     outer = mid;
@@ -414,23 +414,25 @@ mod tests {
     use crate::field::{Primitive, lattice_from_primitive};
 
     /// Solid below y = 1.0.
-    fn slab() -> BSplineLattice {
-        lattice_from_primitive(
-            [14, 14, 14],
-            0.2,
-            Vec3::ZERO,
-            &Primitive::Box {
-                centre: Vec3::new(1.3, 0.5, 1.3),
-                half_extents: Vec3::new(2.0, 0.5, 2.0),
-            },
-            0.4,
-            2,
+    fn slab() -> MultiPatchField {
+        MultiPatchField::new(
+            lattice_from_primitive(
+                [14, 14, 14],
+                0.2,
+                Vec3::ZERO,
+                &Primitive::Box {
+                    centre: Vec3::new(1.3, 0.5, 1.3),
+                    half_extents: Vec3::new(2.0, 0.5, 2.0),
+                },
+                0.4,
+                2,
+            )
+            .unwrap(),
         )
-        .unwrap()
     }
 
     fn input<'a>(
-        field: &'a BSplineLattice,
+        field: &'a MultiPatchField,
         stroke: &'a StrokeGeometry,
         y: f32,
         t_us: u64,

@@ -22,7 +22,7 @@
 use glam::Vec3;
 
 use crate::dynamics::{Distribution, ToolForce, reaction_force, start_on_surface};
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::tools::{ForceInput, ForceTool, PenetrationTarget};
 
 /// Most force vectors a tool may produce for the haptic loop (as many as the simulation
@@ -153,7 +153,7 @@ impl SculptReaction {
     pub fn compute(
         &mut self,
         tool: &ForceTool,
-        field: &BSplineLattice,
+        field: &MultiPatchField,
         cursor: Vec3,
         stroke: &StrokeGeometry,
     ) -> SculptForce {
@@ -217,12 +217,12 @@ mod tests {
     use super::*;
     use crate::field::{Primitive, lattice_from_primitive};
 
-    fn ball() -> BSplineLattice {
+    fn ball() -> MultiPatchField {
         let s = Primitive::Sphere {
             centre: Vec3::splat(0.95),
             radius: 0.4,
         };
-        lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap()
+        MultiPatchField::new(lattice_from_primitive([20; 3], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap())
     }
 
     fn stroke_at(anchor: Vec3) -> StrokeGeometry {

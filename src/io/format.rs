@@ -15,21 +15,25 @@
 //! files without it read as having none), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
 //! iso `f32`, coefficient count `u64`, coefficients `f32`. Sections with unknown tags are
 //! checked and skipped, so later minor additions stay readable.
+//!
+//! Version 2 adds each patch's map `T_i` (world → patch space, eq. (3)) after its lattice in
+//! `PTCH`: the linear part column by column, then the translation, 12 × `f32`. Version 1 files
+//! have no map and read with the identity. A session holds at least one patch.
 
 use std::path::Path;
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
 use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material};
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, Patch};
 use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
 
 /// The first eight bytes of every session file.
 pub const MAGIC: [u8; 8] = *b"DYNACLAY";
 /// The format version this build writes and the newest it reads.
-pub const FORMAT_VERSION: u32 = 1;
+pub const FORMAT_VERSION: u32 = 2;
 const HEADER_LEN: usize = 24;
 
 const META: [u8; 4] = *b"META";
@@ -46,18 +50,25 @@ const END: [u8; 4] = *b"END ";
 /// [`SessionError::Invalid`] when a lattice's coefficient count mismatches its dimensions or
 /// the metadata cannot be encoded.
 pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
+    encode_version(session, FORMAT_VERSION)
+}
+
+/// [`encode`] in format `version` (1 writes no patch maps; tests use it to check that old
+/// files still read).
+fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionError> {
     let meta = serde_json::to_vec(&session.meta).map_err(|e| SessionError::Invalid {
         detail: format!("metadata: {e}"),
     })?;
     let coeff_bytes: usize = session
         .clay
+        .density
         .patches
         .iter()
-        .map(|p| 4 * p.coeffs.len() + 56)
+        .map(|p| 4 * p.lattice.coeffs.len() + 104)
         .sum();
     let mut out = Vec::with_capacity(HEADER_LEN + meta.len() + coeff_bytes + 4096);
     out.extend_from_slice(&MAGIC);
-    out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    out.extend_from_slice(&version.to_le_bytes());
     out.extend_from_slice(&0_u32.to_le_bytes()); // section count, patched below
     out.extend_from_slice(&0_u32.to_le_bytes());
     out.extend_from_slice(&0_u32.to_le_bytes()); // header CRC, patched below
@@ -82,9 +93,13 @@ pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
         o.extend_from_slice(&meta);
         Ok(())
     })?;
-    for (n, patch) in session.clay.patches.iter().enumerate() {
+    for (n, patch) in session.clay.density.patches.iter().enumerate() {
         section(&mut out, PATCH, &mut |o| {
-            put_lattice(o, patch, &format!("patch {n}"))
+            put_lattice(o, &patch.lattice, &format!("patch {n}"))?;
+            if version >= 2 {
+                put_map(o, &patch.world_to_patch, &format!("patch {n}"))?;
+            }
+            Ok(())
         })?;
     }
     section(&mut out, MATERIAL, &mut |o| {
@@ -233,7 +248,18 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                     .map_err(|e| r.error(&format!("metadata JSON: {e}")))?;
                 meta_seen = true;
             }
-            PATCH => session.clay.patches.push(r.lattice()?),
+            PATCH => {
+                let lattice = r.lattice()?;
+                let world_to_patch = if version >= 2 {
+                    r.map()?
+                } else {
+                    Affine3A::IDENTITY
+                };
+                session.clay.density.patches.push(Patch {
+                    lattice,
+                    world_to_patch,
+                });
+            }
             MATERIAL => {
                 session.material = decode_material(&mut r)?;
                 material_seen = true;
@@ -270,6 +296,14 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
     }
     if !meta_seen || !material_seen {
         return Err(malformed(path, "header", 0, "missing META or MATL section"));
+    }
+    if session.clay.density.patches.is_empty() {
+        return Err(malformed(
+            path,
+            "header",
+            0,
+            "no PTCH section; a session holds at least one density patch",
+        ));
     }
     Ok(session)
 }
@@ -323,6 +357,17 @@ fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), 
     out.extend_from_slice(&l.iso.to_le_bytes());
     out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
     put_f32s(out, &l.coeffs);
+    Ok(())
+}
+
+/// A patch map `T_i`: the linear part column by column, then the translation.
+fn put_map(out: &mut Vec<u8>, map: &Affine3A, what: &str) -> Result<(), SessionError> {
+    if !map.is_finite() {
+        return Err(SessionError::Invalid {
+            detail: format!("{what}: the map to patch space is not finite"),
+        });
+    }
+    put_f32s(out, &map.to_cols_array());
     Ok(())
 }
 
@@ -627,6 +672,24 @@ impl Reader<'_> {
         Ok(l)
     }
 
+    /// A patch map `T_i` (see [`put_map`]): finite and invertible, with a finite inverse.
+    fn map(&mut self) -> Result<Affine3A, SessionError> {
+        let start = self.at;
+        let mut cols = [0.0_f32; 12];
+        for c in &mut cols {
+            *c = self.f32()?;
+        }
+        let map = Affine3A::from_cols_array(&cols);
+        let det = map.matrix3.determinant();
+        if !(map.is_finite() && det.is_finite() && det.abs() > 1e-12 && map.inverse().is_finite()) {
+            self.at = start;
+            return Err(self.error(&format!(
+                "the patch's map to patch space is not finite and invertible (determinant {det})"
+            )));
+        }
+        Ok(map)
+    }
+
     /// Every byte of the payload must have been read.
     fn finish(&self) -> Result<(), SessionError> {
         if self.at == self.bytes.len() {
@@ -643,6 +706,7 @@ impl Reader<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::field::MultiPatchField;
     use crate::tools::{Clay, StampParams};
 
     pub(crate) fn sample_session() -> Session {
@@ -657,7 +721,19 @@ mod tests {
         tool_lattice.coeffs[62] = 1.0;
         Session {
             clay: Clay {
-                patches: vec![patch.clone(), patch],
+                density: MultiPatchField {
+                    patches: vec![
+                        Patch::identity(patch.clone()),
+                        Patch {
+                            lattice: patch,
+                            world_to_patch: Affine3A::from_scale_rotation_translation(
+                                Vec3::splat(2.0),
+                                glam::Quat::from_rotation_z(0.3),
+                                Vec3::new(0.5, -0.25, 1.0),
+                            ),
+                        },
+                    ],
+                },
                 colour: Some(colour),
                 constraints: vec![
                     Constraint::Point {
@@ -860,5 +936,49 @@ mod tests {
             err.contains("PINS") && err.contains("constraint 0"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn patch_maps_round_trip_and_version_1_files_read_with_identity_maps() {
+        let session = sample_session();
+        let path = Path::new("maps.dclay");
+        let back = decode(&encode(&session).unwrap(), path).unwrap();
+        assert_eq!(back.clay.density, session.clay.density);
+        let old = decode(&encode_version(&session, 1).unwrap(), path).unwrap();
+        assert_eq!(old.clay.density.patches.len(), 2);
+        for (old, new) in old
+            .clay
+            .density
+            .patches
+            .iter()
+            .zip(&session.clay.density.patches)
+        {
+            assert_eq!(old.lattice, new.lattice);
+            assert_eq!(old.world_to_patch, Affine3A::IDENTITY);
+        }
+    }
+
+    #[test]
+    fn a_singular_patch_map_is_refused_with_its_offset() {
+        let mut session = sample_session();
+        session.clay.density.patches[1]
+            .world_to_patch
+            .matrix3
+            .z_axis = glam::Vec3A::ZERO;
+        let err = decode(&encode(&session).unwrap(), Path::new("flat.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("PTCH") && err.contains("invertible"), "{err}");
+    }
+
+    #[test]
+    fn a_session_without_a_density_patch_is_refused() {
+        let mut session = sample_session();
+        session.clay.density.patches.clear();
+        session.clay.colour = None;
+        let err = decode(&encode(&session).unwrap(), Path::new("none.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("at least one density patch"), "{err}");
     }
 }

@@ -7,7 +7,7 @@
 use glam::Vec3;
 
 use super::error::GridError;
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, MultiPatchField};
 
 /// A regular sampling grid (virtual resolution `cells`, stored sparsely by the octree).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -89,6 +89,27 @@ impl SampleGrid {
                 .min(u64::from(u32::MAX)) as u32
         });
         Self::new(min, lattice.spacing / cells_per_span as f32, cells)
+    }
+
+    /// A grid over the support of every patch of a multi-patch field at its finest spacing,
+    /// with `cells_per_span` cells per finest knot span; a field of one patch in world
+    /// coordinates gets exactly [`SampleGrid::for_lattice`]'s grid.
+    ///
+    /// # Errors
+    /// When the field has no patch, `cells_per_span` is zero, or the grid would exceed
+    /// [`SampleGrid::MAX_CELLS`] per axis.
+    pub fn for_field(field: &MultiPatchField, cells_per_span: u32) -> Result<Self, GridError> {
+        match field.patches.as_slice() {
+            [] => Err(GridError::BadCellCount { cells: [0; 3] }),
+            [only] if only.is_identity() => Self::for_lattice(&only.lattice, cells_per_span),
+            _ => {
+                if cells_per_span == 0 {
+                    return Err(GridError::BadCellCount { cells: [0; 3] });
+                }
+                let (min, max) = field.support();
+                Self::covering(min, max, field.finest_spacing() / cells_per_span as f32)
+            }
+        }
     }
 
     /// World position of sample `(i, j, k)`.

@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 use super::grid::SampleGrid;
-use crate::field::{BSplineLattice, cubic_weights};
+use crate::field::{BSplineLattice, MultiPatchField, cubic_weights};
 
 /// A scalar field whose solid is where the value is greater than [`ScalarField::iso`].
 pub trait ScalarField {
@@ -277,6 +277,84 @@ impl ScalarField for BSplineLattice {
 
 /// Most samples per axis in one tensor-product pass on a lattice (larger blocks are split).
 pub const MAX_BLOCK: usize = 64;
+
+/// The clay's density, `Σ s_i(T_i x)` (Hua & Qin eq. (3)), at the base patch's iso-level.
+impl ScalarField for MultiPatchField {
+    #[inline]
+    fn iso(&self) -> f32 {
+        MultiPatchField::iso(self)
+    }
+
+    #[inline]
+    fn value(&self, p: Vec3) -> f32 {
+        MultiPatchField::value(self, p)
+    }
+
+    #[inline]
+    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
+        MultiPatchField::value_and_gradient(self, p)
+    }
+
+    /// Each patch's block in a fixed order, summed: a patch in world coordinates uses the
+    /// lattice's tensor-product pass, a mapped one its per-sample value. Either gives a sample
+    /// the same bits in any block, and so does the sum.
+    fn sample_block(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        scratch: &mut Vec<f32>,
+    ) {
+        let n: usize = counts.iter().product();
+        let out = &mut out[..n];
+        match self.patches.as_slice() {
+            [] => out.fill(0.0),
+            [only] if only.is_identity() => {
+                ScalarField::sample_block(&only.lattice, grid, first, counts, out, scratch);
+            }
+            patches => {
+                out.fill(0.0);
+                let mut part = vec![0.0; n];
+                for patch in patches {
+                    if patch.is_identity() {
+                        ScalarField::sample_block(
+                            &patch.lattice,
+                            grid,
+                            first,
+                            counts,
+                            &mut part,
+                            scratch,
+                        );
+                    } else {
+                        let mut at = 0;
+                        for k in 0..counts[2] as u32 {
+                            for j in 0..counts[1] as u32 {
+                                for i in 0..counts[0] as u32 {
+                                    let x = grid.point([first[0] + i, first[1] + j, first[2] + k]);
+                                    part[at] = patch.value(x);
+                                    at += 1;
+                                }
+                            }
+                        }
+                    }
+                    for (o, v) in out.iter_mut().zip(&part) {
+                        *o += v;
+                    }
+                }
+            }
+        }
+    }
+
+    /// The sum of each patch's convex-hull bound over the patch-space box around `min..=max`.
+    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
+        self.patches.iter().try_fold((0.0, 0.0), |(lo, hi), p| {
+            let (a, b) = p.patch_box_of(min, max);
+            let (plo, phi) = ScalarField::bounds(&p.lattice, a, b)?;
+            Some((lo + plo, hi + phi))
+        })
+    }
+}
 
 #[cfg(test)]
 mod tests {

@@ -18,7 +18,8 @@ use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 use super::history::StepRecorder;
 use super::shape::{ShapeError, ToolPose, ToolShape, density_from_distance};
 use crate::field::{
-    BSplineLattice, FitError, SampleRow, coeff_box_around, refit_box_edit, refit_box_edit_rows,
+    BSplineLattice, FitError, MultiPatchField, Patch, SampleRow, coeff_box_around, refit_box_edit,
+    refit_box_edit_rows,
 };
 
 /// A geometric tool: a shape, what it does, and the width of its potential's falloff band.
@@ -52,6 +53,8 @@ impl Default for ApplyOptions {
 /// What an application touched.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub struct ToolReport {
+    /// The density patch edited (paint edits the colour over patch 0).
+    pub patch: u16,
     /// The refitted coefficient box of the edited lattice (density, or colour for paint);
     /// `None` when the tool missed the lattice.
     pub coeff_box: Option<CoeffBox>,
@@ -198,7 +201,9 @@ pub fn apply_tool(
         ToolAction::Smooth { kernel_m, .. } => Some(kernel_m.max(spacing)),
         _ => None,
     };
+    let (lattice, others) = split_patch(&mut clay.density, usize::from(options.patch));
     let rows = ToolRows {
+        others: &others,
         reach: &reach,
         acts_outside,
         before: before.as_ref(),
@@ -207,7 +212,6 @@ pub fn apply_tool(
         iso,
         dt_s,
     };
-    let lattice = clay.field_mut(id).expect("checked above");
     let falloff = tool.falloff_m;
     let [visited, computed, dirtied] = match tool.shape {
         // The sphere's potential inlined into the row loop: the expressions of
@@ -220,6 +224,7 @@ pub fn apply_tool(
         }),
     }?;
     Ok(ToolReport {
+        patch: options.patch,
         coeff_box: Some(region),
         dirty_world: Some(region.world_support(lattice)),
         visited,
@@ -228,8 +233,53 @@ pub fn apply_tool(
     })
 }
 
+/// The terms of eq. (3) other than the edited patch's: a tool's rule acts on the whole
+/// clay's density, so the edited patch is fitted to `rule(old + others) − others`.
+struct OtherPatches<'a> {
+    before: &'a [Patch],
+    after: &'a [Patch],
+}
+
+impl OtherPatches<'_> {
+    /// Whether the clay has no other patch (the rule then acts on the patch alone).
+    fn is_empty(&self) -> bool {
+        self.before.is_empty() && self.after.is_empty()
+    }
+
+    /// The other patches' summed density at world point `x`.
+    fn value(&self, x: Vec3) -> f32 {
+        self.before
+            .iter()
+            .chain(self.after)
+            .map(|p| p.value(x))
+            .sum()
+    }
+
+    /// [`blur`] of the other patches' summed density.
+    fn blur(&self, x: Vec3, h: f32) -> f32 {
+        if self.is_empty() {
+            return 0.0;
+        }
+        binomial_average(|p| self.value(p), x, h)
+    }
+}
+
+/// Patch `n`'s lattice, mutably, beside the other patches.
+///
+/// # Panics
+/// When `n` is not a patch of `density` (callers check it first).
+fn split_patch(density: &mut MultiPatchField, n: usize) -> (&mut BSplineLattice, OtherPatches<'_>) {
+    let (before, rest) = density.patches.split_at_mut(n);
+    let (edited, after) = rest
+        .split_first_mut()
+        .expect("the caller checked the patch");
+    (&mut edited.lattice, OtherPatches { before, after })
+}
+
 /// What a geometric tool's row edit needs besides the shape's potential.
 struct ToolRows<'a> {
+    /// The clay's other patches (their sum offsets the rule).
+    others: &'a OtherPatches<'a>,
     reach: &'a Reach,
     acts_outside: bool,
     /// The clay before the edit, for smoothing's blur.
@@ -259,11 +309,21 @@ impl ToolRows<'_> {
             if t == 0.0 && !self.acts_outside {
                 return old;
             }
+            if self.others.is_empty() {
+                let blurred = match (self.blur_h, self.before) {
+                    (Some(h), Some(before)) => blur(before, x, h),
+                    _ => 0.0,
+                };
+                return self.action.density(old, t, blurred, self.iso, self.dt_s);
+            }
+            let offset = self.others.value(x);
             let blurred = match (self.blur_h, self.before) {
-                (Some(h), Some(before)) => blur(before, x, h),
+                (Some(h), Some(before)) => blur(before, x, h) + self.others.blur(x, h),
                 _ => 0.0,
             };
-            self.action.density(old, t, blurred, self.iso, self.dt_s)
+            self.action
+                .density(old + offset, t, blurred, self.iso, self.dt_s)
+                - offset
         };
         let edit_row = |row: SampleRow<'_>| {
             let SampleRow { xs, y, z, values } = row;
@@ -462,10 +522,11 @@ pub fn apply_csg(
         Some(CoeffBox::whole(lattice.dims))
     } else {
         other
+            .density
             .patches
             .iter()
             .filter_map(|p| {
-                let (lo, hi) = p.support();
+                let (lo, hi) = p.world_support();
                 coeff_box_around(lattice, lo, hi, 0)
             })
             .reduce(|a, b| a.union(&b))
@@ -478,16 +539,38 @@ pub fn apply_csg(
         r.touch(clay, id, region);
     }
     let counts = Counts::default();
+    let patch = usize::from(options.patch);
+    let (lattice, others) = split_patch(&mut clay.density, patch);
     let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
         counts.computed.set(counts.computed.get() + 1);
-        let new = action.density(old, other.density(x).clamp(0.0, 1.0), 0.0, iso, 0.0);
+        let offset = if others.is_empty() {
+            0.0
+        } else {
+            others.value(x)
+        };
+        let tool = other.density.value(x).clamp(0.0, 1.0);
+        let new = action.density(old + offset, tool, 0.0, iso, 0.0) - offset;
         if new != old {
             counts.dirtied.set(counts.dirtied.get() + 1);
         }
         new
     };
-    refit_region(clay, id, region, options, &counts, target)
+    refit_box_edit(
+        lattice,
+        region.min,
+        region.max,
+        options.samples_per_span,
+        target,
+    )?;
+    Ok(ToolReport {
+        patch: options.patch,
+        coeff_box: Some(region),
+        dirty_world: Some(region.world_support(lattice)),
+        visited: counts.visited.get(),
+        computed: counts.computed.get(),
+        dirtied: counts.dirtied.get(),
+    })
 }
 
 #[derive(Default)]
@@ -519,6 +602,7 @@ fn refit_region(
         target,
     )?;
     Ok(ToolReport {
+        patch: 0,
         coeff_box: Some(region),
         dirty_world: Some(region.world_support(lattice)),
         visited: counts.visited.get(),
@@ -530,13 +614,18 @@ fn refit_region(
 /// Separable binomial (1, 2, 1)/4 average over the 27 points `h` apart: a local low-pass of
 /// the clay with a standard deviation of `h/√2` per axis.
 fn blur(lattice: &BSplineLattice, x: Vec3, h: f32) -> f32 {
+    binomial_average(|p| lattice.value(p), x, h)
+}
+
+/// The separable binomial (1, 2, 1)/4 average of `f` over the 27 points `h` apart around `x`.
+fn binomial_average(f: impl Fn(Vec3) -> f32, x: Vec3, h: f32) -> f32 {
     const W: [f32; 3] = [0.25, 0.5, 0.25];
     let mut sum = 0.0;
     for (c, wz) in W.iter().enumerate() {
         for (b, wy) in W.iter().enumerate() {
             for (a, wx) in W.iter().enumerate() {
                 let o = Vec3::new(a as f32 - 1.0, b as f32 - 1.0, c as f32 - 1.0) * h;
-                sum += wx * wy * wz * lattice.value(x + o);
+                sum += wx * wy * wz * f(x + o);
             }
         }
     }
@@ -553,7 +642,7 @@ fn paint(
     options: &ApplyOptions,
     mut recorder: Option<&mut StepRecorder>,
 ) -> Result<ToolReport, ToolError> {
-    let patch = &clay.patches[usize::from(options.patch)];
+    let patch = clay.base();
     let half = tool.shape.influence_half_extents(tool.falloff_m);
     let (lo, hi) = pose.world_bounds(half);
     // The clay's density near the tool, for the soft painter's presence weight.
@@ -709,7 +798,7 @@ mod tests {
         let before = clay.clone();
         let r = 0.5;
         let report = add_once(&mut clay, ToolShape::Sphere { radius_m: r }, centre());
-        let v = volume(&clay.patches[0]);
+        let v = volume(&clay.density.patches[0].lattice);
         let expected = 4.0 / 3.0 * PI * r * r * r;
         assert!((v - expected).abs() < 0.03 * expected, "{v} vs {expected}");
         // Ferley's counts are nested and non-trivial.
@@ -717,7 +806,7 @@ mod tests {
         assert!(report.dirtied > 0);
         // Every coefficient outside the refitted box is bit-identical.
         let b = report.coeff_box.unwrap();
-        let l = &clay.patches[0];
+        let l = &clay.density.patches[0].lattice;
         for k in 0..N {
             for j in 0..N {
                 for i in 0..N {
@@ -725,7 +814,7 @@ mod tests {
                         let idx = l.index(i, j, k);
                         assert_eq!(
                             l.coeffs[idx].to_bits(),
-                            before.patches[0].coeffs[idx].to_bits()
+                            before.density.patches[0].lattice.coeffs[idx].to_bits()
                         );
                     }
                 }
@@ -754,7 +843,7 @@ mod tests {
         for shape in shapes {
             let mut clay = empty();
             add_once(&mut clay, shape.clone(), centre());
-            let v = volume(&clay.patches[0]);
+            let v = volume(&clay.density.patches[0].lattice);
             let expected = shape.volume_m3().unwrap();
             // Box and cylinder edges round off by the fit's smoothness.
             assert!(
@@ -776,9 +865,9 @@ mod tests {
         let pose = ToolPose::at(centre());
         // 0.3 s at 1/s deposits 0.3 < iso: no solid yet.
         apply_tool(&mut clay, &t, &pose, 0.3, &ApplyOptions::default(), None).unwrap();
-        assert_eq!(volume(&clay.patches[0]), 0.0);
+        assert_eq!(volume(&clay.density.patches[0].lattice), 0.0);
         apply_tool(&mut clay, &t, &pose, 0.3, &ApplyOptions::default(), None).unwrap();
-        assert!(volume(&clay.patches[0]) > 0.0);
+        assert!(volume(&clay.density.patches[0].lattice) > 0.0);
         // A stroke along a path lays a sausage longer than the tool.
         let mut clay = empty();
         let path: Vec<ToolPose> = (0..8)
@@ -799,7 +888,7 @@ mod tests {
             None,
         )
         .unwrap();
-        let l = &clay.patches[0];
+        let l = &clay.density.patches[0].lattice;
         assert!(l.is_inside(centre() - Vec3::X * 0.4) && l.is_inside(centre() + Vec3::X * 0.4));
         assert!(!l.is_inside(centre() + Vec3::Y * 0.3));
     }
@@ -811,7 +900,7 @@ mod tests {
             half_extents: Vec3::splat(0.8),
         };
         let mut clay = clay_of(block);
-        let v0 = volume(&clay.patches[0]);
+        let v0 = volume(&clay.density.patches[0].lattice);
         let r = 0.4;
         let t = tool(ToolShape::Sphere { radius_m: r }, ToolAction::Remove);
         apply_tool(
@@ -823,13 +912,13 @@ mod tests {
             None,
         )
         .unwrap();
-        let hole = v0 - volume(&clay.patches[0]);
+        let hole = v0 - volume(&clay.density.patches[0].lattice);
         let expected = 4.0 / 3.0 * PI * r * r * r;
         assert!(
             (hole - expected).abs() < 0.05 * expected,
             "{hole} vs {expected}"
         );
-        let l = &clay.patches[0];
+        let l = &clay.density.patches[0].lattice;
         assert!(!l.is_inside(centre()));
         assert!(!l.is_inside(centre() + Vec3::Y * (r - 1.5 * H)));
         assert!(l.is_inside(centre() + Vec3::Y * (r + 1.5 * H)));
@@ -841,16 +930,16 @@ mod tests {
             centre: centre(),
             half_extents: Vec3::splat(0.8),
         });
-        let v0 = volume(&clay.patches[0]);
+        let v0 = volume(&clay.density.patches[0].lattice);
         let t = tool(
             ToolShape::Sphere { radius_m: 0.4 },
             ToolAction::SoftRemove { rate_per_s: 1.0 },
         );
         let pose = ToolPose::at(centre() + Vec3::Z * 0.8);
         apply_tool(&mut clay, &t, &pose, 0.2, &ApplyOptions::default(), None).unwrap();
-        let v1 = volume(&clay.patches[0]);
+        let v1 = volume(&clay.density.patches[0].lattice);
         apply_tool(&mut clay, &t, &pose, 0.6, &ApplyOptions::default(), None).unwrap();
-        let v2 = volume(&clay.patches[0]);
+        let v2 = volume(&clay.density.patches[0].lattice);
         assert!(v0 > v1 && v1 > v2, "{v0} {v1} {v2}");
     }
 
@@ -888,7 +977,7 @@ mod tests {
                 None,
             )
             .unwrap();
-            let l = &clay.patches[0];
+            let l = &clay.density.patches[0].lattice;
             let (checked, wrong) = csg_misclassified(l, action, 4000, in_sphere, in_box);
             assert!(checked > 2000);
             assert!(
@@ -944,7 +1033,7 @@ mod tests {
             half_extents: Vec3::splat(0.6),
         });
         let corner = centre() + Vec3::splat(0.6);
-        let k0 = mean_curvature_near(&clay.patches[0], corner, 0.25);
+        let k0 = mean_curvature_near(&clay.density.patches[0].lattice, corner, 0.25);
         let t = tool(
             ToolShape::Sphere { radius_m: 0.4 },
             ToolAction::Smooth {
@@ -963,7 +1052,7 @@ mod tests {
             )
             .unwrap();
         }
-        let k1 = mean_curvature_near(&clay.patches[0], corner, 0.25);
+        let k1 = mean_curvature_near(&clay.density.patches[0].lattice, corner, 0.25);
         assert!(k1 < 0.8 * k0, "curvature {k0} -> {k1}");
     }
 
@@ -993,7 +1082,7 @@ mod tests {
             None,
         )
         .unwrap();
-        let l = &clay.patches[0];
+        let l = &clay.density.patches[0].lattice;
         // The print: the tool's hemisphere is hollowed out of the slab.
         for depth in [0.1, 0.2, r - 2.0 * H] {
             assert!(
@@ -1038,8 +1127,11 @@ mod tests {
             None,
         )
         .unwrap();
-        assert!(!dent.patches[0].is_inside(probe), "dent");
-        assert!(dent.patches[0].is_inside(centre()), "core untouched");
+        assert!(!dent.density.patches[0].lattice.is_inside(probe), "dent");
+        assert!(
+            dent.density.patches[0].lattice.is_inside(centre()),
+            "core untouched"
+        );
 
         let mut bulge = clay_of(sphere);
         let t = tool(small, ToolAction::Contact(ContactParams::with_alpha(3.0)));
@@ -1052,7 +1144,12 @@ mod tests {
             None,
         )
         .unwrap();
-        assert!(bulge.patches[0].is_inside(surface + Vec3::X * H), "bulge");
+        assert!(
+            bulge.density.patches[0]
+                .lattice
+                .is_inside(surface + Vec3::X * H),
+            "bulge"
+        );
     }
 
     #[test]
@@ -1068,7 +1165,7 @@ mod tests {
             },
         );
         let at = centre() + Vec3::Y * 0.6;
-        let density = clay.patches[0].clone();
+        let density = clay.density.patches[0].lattice.clone();
         let mut rec = StepRecorder::new("paint");
         apply_tool(
             &mut clay,
@@ -1080,7 +1177,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            clay.patches[0], density,
+            clay.density.patches[0].lattice, density,
             "painting leaves the density alone"
         );
         let c = clay.colour.as_ref().unwrap();
@@ -1133,11 +1230,15 @@ mod tests {
         });
         let mut clay = empty();
         add_once(&mut clay, freeform, centre());
-        let v = volume(&clay.patches[0]);
+        let v = volume(&clay.density.patches[0].lattice);
         // Scaled by two along x: an ellipsoid of radii (2r, r, r).
         let expected = 4.0 / 3.0 * PI * 2.0 * r * r * r;
         assert!((v - expected).abs() < 0.08 * expected, "{v} vs {expected}");
-        assert!(clay.patches[0].is_inside(centre() + Vec3::X * (2.0 * r - 2.0 * H)));
+        assert!(
+            clay.density.patches[0]
+                .lattice
+                .is_inside(centre() + Vec3::X * (2.0 * r - 2.0 * H))
+        );
     }
 
     #[test]
@@ -1158,7 +1259,7 @@ mod tests {
         ] {
             let mut clay = clay_of(a);
             apply_csg(&mut clay, &other, action, &ApplyOptions::default(), None).unwrap();
-            let l = &clay.patches[0];
+            let l = &clay.density.patches[0].lattice;
             let (checked, wrong) = csg_misclassified(
                 l,
                 action,
@@ -1223,7 +1324,7 @@ mod tests {
             }
         }
         let mut clay = Clay::single(lattice);
-        let before = clay.patches[0].coeffs.clone();
+        let before = clay.density.patches[0].lattice.coeffs.clone();
         let t = GeometricTool {
             shape: ToolShape::Sphere { radius_m: 0.3 },
             action,
@@ -1240,7 +1341,8 @@ mod tests {
             )
             .unwrap();
         }
-        clay.patches[0]
+        clay.density.patches[0]
+            .lattice
             .coeffs
             .iter()
             .zip(&before)

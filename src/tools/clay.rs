@@ -8,7 +8,7 @@ use glam::{Vec3, Vec4};
 
 use crate::dynamics::Constraint;
 pub use crate::field::CoeffBox;
-use crate::field::{BSplineLattice, LatticeError};
+use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
 
 /// Which coefficient lattice of a [`Clay`] an edit or an undo delta refers to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -107,10 +107,11 @@ impl ColourField {
     }
 }
 
-/// The sculpt: density patches (the paper's eq. (3) sums them) and an optional colour field.
+/// The sculpt: the density of eq. (3) (a base patch and detail patches, each with its map
+/// `T_i`), an optional colour field over the base patch's nodes, and the pins.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Clay {
-    pub patches: Vec<BSplineLattice>,
+    pub density: MultiPatchField,
     pub colour: Option<ColourField>,
     /// Geometric constraints (pins, Hua & Qin §7.3) the dynamics hold on the first patch.
     /// Changing them is an undo step like any edit.
@@ -122,7 +123,7 @@ impl Clay {
     #[must_use]
     pub fn single(patch: BSplineLattice) -> Self {
         Self {
-            patches: vec![patch],
+            density: MultiPatchField::new(patch),
             colour: None,
             constraints: Vec::new(),
         }
@@ -132,7 +133,7 @@ impl Clay {
     #[must_use]
     pub fn field(&self, id: FieldId) -> Option<&BSplineLattice> {
         match id {
-            FieldId::Density(n) => self.patches.get(usize::from(n)),
+            FieldId::Density(n) => self.density.patches.get(usize::from(n)).map(|p| &p.lattice),
             FieldId::Colour(c) => self.colour.as_ref()?.channels.get(usize::from(c)),
         }
     }
@@ -140,15 +141,30 @@ impl Clay {
     /// The lattice named by `id`, mutably, if it exists.
     pub fn field_mut(&mut self, id: FieldId) -> Option<&mut BSplineLattice> {
         match id {
-            FieldId::Density(n) => self.patches.get_mut(usize::from(n)),
+            FieldId::Density(n) => self
+                .density
+                .patches
+                .get_mut(usize::from(n))
+                .map(|p| &mut p.lattice),
             FieldId::Colour(c) => self.colour.as_mut()?.channels.get_mut(usize::from(c)),
         }
     }
 
-    /// The summed density of all patches at a world point (eq. (3) with identity maps).
+    /// The base patch's lattice (the one the colour field and the pins live on).
+    ///
+    /// # Panics
+    /// When the clay has no patch (every clay built or loaded has one).
     #[must_use]
-    pub fn density(&self, x: Vec3) -> f32 {
-        self.patches.iter().map(|p| p.value(x)).sum()
+    pub fn base(&self) -> &BSplineLattice {
+        self.density.base()
+    }
+
+    /// The base patch's lattice, mutably.
+    ///
+    /// # Panics
+    /// As [`Clay::base`].
+    pub fn base_mut(&mut self) -> &mut BSplineLattice {
+        self.density.base_mut()
     }
 }
 

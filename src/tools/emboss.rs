@@ -405,6 +405,7 @@ pub fn apply_emboss(
         lattice.node_position(region.max[0], region.max[1], region.max[2]),
     ));
     Ok(ToolReport {
+        patch,
         coeff_box: Some(CoeffBox {
             min: region.min,
             max: region.max,
@@ -462,7 +463,7 @@ mod tests {
     #[test]
     fn a_planar_emboss_raises_the_white_half_by_the_depth_and_leaves_the_black_half() {
         let mut clay = ball();
-        let before = clay.patches[0].clone();
+        let before = clay.density.patches[0].lattice.clone();
         let centre = Vec3::ONE;
         let params = EmbossParams {
             projection: Projection::Planar {
@@ -477,7 +478,7 @@ mod tests {
         let mut rec = StepRecorder::new("emboss");
         let report = apply_emboss(&mut clay, &half_white(), &params, 0, 2, Some(&mut rec)).unwrap();
         assert!(report.dirtied > 0);
-        let after = &clay.patches[0];
+        let after = &clay.density.patches[0].lattice;
         // Seen from +y looking down with z up, the image's left (white) is +x.
         let white = Vec3::new(0.25, 1.0, 0.0).normalize();
         let black = Vec3::new(-0.25, 1.0, 0.0).normalize();
@@ -496,13 +497,13 @@ mod tests {
         let mut history = crate::tools::History::new(usize::MAX);
         history.push(step);
         history.undo(&mut clay).unwrap();
-        assert_eq!(clay.patches[0], before);
+        assert_eq!(clay.density.patches[0].lattice, before);
     }
 
     #[test]
     fn engraving_cuts_in_by_the_depth() {
         let mut clay = ball();
-        let before = clay.patches[0].clone();
+        let before = clay.density.patches[0].lattice.clone();
         let params = EmbossParams {
             projection: Projection::Spherical {
                 centre: Vec3::ONE,
@@ -520,7 +521,7 @@ mod tests {
             Vec3::new(1.0, 1.0, 1.0).normalize(),
         ] {
             let cut = radius_along(&before, Vec3::ONE, dir)
-                - radius_along(&clay.patches[0], Vec3::ONE, dir);
+                - radius_along(&clay.density.patches[0].lattice, Vec3::ONE, dir);
             assert!((cut - 0.05).abs() < 0.012, "{dir}: cut {cut}");
         }
     }

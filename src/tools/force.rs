@@ -10,7 +10,7 @@
 use glam::Vec3;
 
 use crate::dynamics::{Distribution, ToolForce};
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 
 /// Which force tool, with its parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -87,7 +87,7 @@ pub struct PenetrationTarget {
 /// per stroke (it allocates); samples where the field has no gradient are skipped.
 #[must_use]
 pub fn plan_penetration(
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
     path: &[Vec3],
     depth_m: f32,
     squirt: bool,
@@ -95,8 +95,8 @@ pub fn plan_penetration(
     let sign = if squirt { 1.0 } else { -1.0 };
     path.iter()
         .filter_map(|&p| {
-            let x0 = project_to_surface(lattice, p);
-            let normal = outward_normal(lattice, x0);
+            let x0 = project_to_surface(field, p);
+            let normal = outward_normal(field, x0);
             (normal != Vec3::ZERO).then_some(PenetrationTarget {
                 target: x0 + sign * depth_m * normal,
                 normal,
@@ -109,10 +109,10 @@ pub fn plan_penetration(
 /// The surface crossing on the line `target + λ·normal`, `λ ∈ [−2·depth, 2·depth]`, nearest
 /// the outside end; the window's end when the line does not cross. Bounded: 16 + 20
 /// evaluations.
-fn crossing_on_line(lattice: &BSplineLattice, t: &PenetrationTarget) -> Vec3 {
+fn crossing_on_line(field: &MultiPatchField, t: &PenetrationTarget) -> Vec3 {
     let reach = 2.0 * t.depth_m;
     let at = |l: f32| t.target + l * t.normal;
-    let inside = |l: f32| lattice.is_inside(at(l));
+    let inside = |l: f32| field.is_inside(at(l));
     const STEPS: u32 = 16;
     let step = 2.0 * reach / STEPS as f32;
     // Walk inward from the outside end to the first inside sample.
@@ -144,7 +144,7 @@ fn crossing_on_line(lattice: &BSplineLattice, t: &PenetrationTarget) -> Vec3 {
 /// spacing). Bounded work: at most `(2·search_m/step_m + 1)³` evaluations (capped at 33³).
 #[must_use]
 pub fn nearest_solid_point(
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
     cursor: Vec3,
     search_m: f32,
     step_m: f32,
@@ -153,8 +153,8 @@ pub fn nearest_solid_point(
         return None;
     }
     let n = ((search_m / step_m).ceil() as i32).min(16);
-    // Snap to the grid the mass points lie on (through the lattice origin).
-    let base = lattice.origin + ((cursor - lattice.origin) / step_m).round() * step_m;
+    // Snap to the grid the mass points lie on (through the field origin).
+    let base = field.base().origin + ((cursor - field.base().origin) / step_m).round() * step_m;
     let mut best: Option<(f32, Vec3)> = None;
     for k in -n..=n {
         for j in -n..=n {
@@ -163,7 +163,7 @@ pub fn nearest_solid_point(
                 let d = x.distance_squared(cursor);
                 if d <= search_m * search_m + 1e-12
                     && best.is_none_or(|(b, _)| d < b)
-                    && lattice.is_inside(x)
+                    && field.is_inside(x)
                 {
                     best = Some((d, x));
                 }
@@ -179,29 +179,29 @@ const HOLD_BAND: f32 = 0.25;
 /// How firmly the clay holds a point: 0 at or outside the surface, rising linearly to 1 at
 /// [`HOLD_BAND`] of density above the iso-level.
 #[must_use]
-pub fn hold_weight(lattice: &BSplineLattice, x: Vec3) -> f32 {
-    ((lattice.value(x) - lattice.iso) / HOLD_BAND).clamp(0.0, 1.0)
+pub fn hold_weight(field: &MultiPatchField, x: Vec3) -> f32 {
+    ((field.value(x) - field.iso()) / HOLD_BAND).clamp(0.0, 1.0)
 }
 
 /// The outward unit normal of the solid at `x` (the density falls outward), or zero.
 #[must_use]
-pub fn outward_normal(lattice: &BSplineLattice, x: Vec3) -> Vec3 {
-    (-lattice.gradient(x)).normalize_or_zero()
+pub fn outward_normal(field: &MultiPatchField, x: Vec3) -> Vec3 {
+    (-field.value_and_gradient(x).1).normalize_or_zero()
 }
 
 /// Moves `x` onto the iso-surface by a few Newton steps along the gradient (bounded work).
 #[must_use]
-pub fn project_to_surface(lattice: &BSplineLattice, mut x: Vec3) -> Vec3 {
+pub fn project_to_surface(field: &MultiPatchField, mut x: Vec3) -> Vec3 {
     for _ in 0..6 {
-        let (v, g) = lattice.value_and_gradient(x);
+        let (v, g) = field.value_and_gradient(x);
         let g2 = g.length_squared();
         // Also stops on NaN.
         if g2.is_nan() || g2 <= 1e-12 {
             break;
         }
-        let step = (v - lattice.iso) * g / g2;
+        let step = (v - field.iso()) * g / g2;
         // Keep each step within a knot span so a flat region cannot throw the point away.
-        x -= step.clamp_length_max(lattice.spacing);
+        x -= step.clamp_length_max(field.finest_spacing());
     }
     x
 }
@@ -296,11 +296,11 @@ impl ForceTool {
     /// `out.len()`; extra tracks or path samples are dropped). Allocates nothing.
     pub fn forces(
         &self,
-        lattice: &BSplineLattice,
+        field: &MultiPatchField,
         input: &ForceInput,
         out: &mut [ToolForce],
     ) -> usize {
-        let spacing = lattice.spacing;
+        let spacing = field.finest_spacing();
         let mut n = 0;
         let mut push = |f: ToolForce| {
             if n < out.len() && f.start.is_finite() && f.end.is_finite() {
@@ -352,7 +352,7 @@ impl ForceTool {
                         // would otherwise jump from the short re-found one to the whole
                         // segment in open air).
                         let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_m)
-                            * hold_weight(lattice, input.grab + o);
+                            * hold_weight(field, input.grab + o);
                         if w <= 0.0 {
                             continue;
                         }
@@ -382,7 +382,7 @@ impl ForceTool {
                 // the surface reaches the set depth, and reverses if it overshoots.
                 for t in input.targets {
                     push(ToolForce {
-                        start: crossing_on_line(lattice, t),
+                        start: crossing_on_line(field, t),
                         end: t.target,
                         distribution: Distribution::Gaussian,
                         radius: radius_m,
@@ -425,6 +425,8 @@ impl ForceTool {
 mod tests {
     use super::*;
     use crate::dynamics::{Material, RegionState, Simulator, StepParams, surface_point_on_ray};
+    use crate::field::BSplineLattice;
+    use crate::field::MultiPatchField;
     use crate::field::{CoeffBox, Primitive, RegionSnapshot, lattice_from_primitive};
     use crate::tools::{Clay, FieldId, History, StepRecorder};
 
@@ -459,7 +461,7 @@ mod tests {
     fn penetrate(squirt: bool, depth_m: f32) -> (f32, f32) {
         let mut clay = Clay::single(sphere());
         let before_bits = clay.clone();
-        let r0 = radius_along(&clay.patches[0], Vec3::X);
+        let r0 = radius_along(&clay.density.patches[0].lattice, Vec3::X);
         let region = CoeffBox {
             min: [10, 6, 6],
             max: [17, 13, 13],
@@ -468,7 +470,13 @@ mod tests {
             yield_density: 0.0,
             ..Material::PLASTIC
         };
-        let mut state = RegionState::new(&clay.patches[0], region, [15, 15, 15], material).unwrap();
+        let mut state = RegionState::new(
+            &clay.density.patches[0].lattice,
+            region,
+            [15, 15, 15],
+            material,
+        )
+        .unwrap();
         let mut sim = Simulator::new(StepParams::default());
         let mut snap = RegionSnapshot::default();
         let tool = if squirt {
@@ -489,7 +497,7 @@ mod tests {
         let path: Vec<Vec3> = (-1..=1)
             .map(|s| CENTRE + Vec3::new(RADIUS, s as f32 * 0.03, 0.0))
             .collect();
-        let targets = plan_penetration(&clay.patches[0], &path, depth_m, squirt);
+        let targets = plan_penetration(&clay.density, &path, depth_m, squirt);
         assert_eq!(targets.len(), 3);
         let mut recorder = StepRecorder::new(tool.name());
         recorder.touch(&clay, FieldId::Density(0), region);
@@ -502,15 +510,20 @@ mod tests {
         }; 8];
         for _ in 0..3000 {
             let n = tool.forces(
-                &clay.patches[0],
+                &clay.density,
                 &input(Vec3::ZERO, Vec3::ZERO, &targets),
                 &mut out,
             );
             assert_eq!(n, 3);
-            sim.step(&mut state, &mut clay.patches[0], &out[..n], &mut snap)
-                .unwrap();
+            sim.step(
+                &mut state,
+                &mut clay.density.patches[0].lattice,
+                &out[..n],
+                &mut snap,
+            )
+            .unwrap();
         }
-        let r1 = radius_along(&clay.patches[0], Vec3::X);
+        let r1 = radius_along(&clay.density.patches[0].lattice, Vec3::X);
         // One stroke is one undo step and restores the field bit for bit.
         let mut history = History::default();
         assert!(history.commit(recorder, &clay));
@@ -543,7 +556,7 @@ mod tests {
 
     #[test]
     fn grab_finds_the_nearest_mass_point_inside_the_solid() {
-        let l = sphere();
+        let l = MultiPatchField::new(sphere());
         let cursor = CENTRE + Vec3::X * (RADIUS + 0.12);
         let p = nearest_solid_point(&l, cursor, 0.3, 0.05).unwrap();
         assert!(l.is_inside(p));
@@ -568,7 +581,7 @@ mod tests {
 
     #[test]
     fn area_tracks_follow_the_beta_profile_and_respect_the_buffer() {
-        let l = sphere();
+        let l = MultiPatchField::new(sphere());
         // Held well inside the clay, where every track's start is fully held.
         let grab = CENTRE + Vec3::X * (RADIUS - 0.15);
         let cursor = grab + Vec3::X * 0.1;
@@ -605,7 +618,7 @@ mod tests {
 
     #[test]
     fn curve_and_bend_move_their_samples_as_designed() {
-        let l = sphere();
+        let l = MultiPatchField::new(sphere());
         let curve = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let mut out = [ToolForce {
             start: Vec3::ZERO,

@@ -255,7 +255,7 @@ impl StepRecorder {
     /// Remembers every brick of every field (for whole-clay operations such as CSG between
     /// sessions).
     pub fn touch_all(&mut self, clay: &Clay) {
-        let mut ids: Vec<FieldId> = (0..clay.patches.len())
+        let mut ids: Vec<FieldId> = (0..clay.density.patches.len())
             .map(|n| FieldId::Density(n as u16))
             .collect();
         if clay.colour.is_some() {
@@ -479,7 +479,7 @@ mod tests {
     fn edit(clay: &mut Clay, history: &mut History, region: CoeffBox, value: f32) {
         let mut rec = StepRecorder::new("set");
         rec.touch(clay, FieldId::Density(0), region);
-        let l = &mut clay.patches[0];
+        let l = &mut clay.density.patches[0].lattice;
         let dims = l.dims;
         for_each_index(dims, &region.clipped(dims).unwrap(), |i| {
             l.coeffs[i] = value
@@ -498,7 +498,8 @@ mod tests {
         };
         edit(&mut c, &mut h, region, -0.0);
         edit(&mut c, &mut h, region, f32::from_bits(0x7fc0_1234));
-        let after = c.patches[0]
+        let after = c.density.patches[0]
+            .lattice
             .coeffs
             .iter()
             .map(|x| x.to_bits())
@@ -506,7 +507,8 @@ mod tests {
         assert_eq!(h.undo(&mut c).unwrap().as_deref(), Some("set"));
         h.undo(&mut c).unwrap();
         let bits = |c: &Clay| {
-            c.patches[0]
+            c.density.patches[0]
+                .lattice
                 .coeffs
                 .iter()
                 .map(|x| x.to_bits())
@@ -566,7 +568,7 @@ mod tests {
         h.undo(&mut c).unwrap();
         h.undo(&mut c).unwrap();
         // Back to the state after the second edit (value 11), the oldest kept step's base.
-        assert_eq!(c.patches[0].coeffs[0], 11.0);
+        assert_eq!(c.density.patches[0].lattice.coeffs[0], 11.0);
     }
 
     #[test]
@@ -582,7 +584,7 @@ mod tests {
             },
             1.0,
         );
-        c.patches[0] = BSplineLattice::zeros([5, 5, 5], 0.1, Vec3::ZERO).unwrap();
+        c.density.patches[0].lattice = BSplineLattice::zeros([5, 5, 5], 0.1, Vec3::ZERO).unwrap();
         let snapshot = c.clone();
         assert!(matches!(
             h.undo(&mut c),
@@ -628,9 +630,10 @@ mod property {
 
     fn bits(clay: &Clay) -> Vec<u32> {
         let mut out: Vec<u32> = clay
+            .density
             .patches
             .iter()
-            .flat_map(|p| p.coeffs.iter().map(|c| c.to_bits()))
+            .flat_map(|p| p.lattice.coeffs.iter().map(|c| c.to_bits()))
             .collect();
         if let Some(c) = &clay.colour {
             for ch in &c.channels {
@@ -684,7 +687,7 @@ mod property {
             let lattice = BSplineLattice::zeros([14, 14, 14], 1.0 / 12.0, Vec3::ZERO).unwrap();
             let mut clay = Clay {
                 colour: Some(ColourField::matching(&lattice).unwrap()),
-                patches: vec![lattice],
+                density: crate::field::MultiPatchField::new(lattice),
                 constraints: Vec::new(),
             };
             let mut history = History::default();

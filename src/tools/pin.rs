@@ -159,7 +159,12 @@ pub fn resolve_pin(
 /// As [`resolve_pin`]; [`PinError::NoPatch`], or [`PinError::Full`] when the clay's list is
 /// full.
 pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, PinError> {
-    let lattice = clay.patches.first().ok_or(PinError::NoPatch)?;
+    let lattice = &clay
+        .density
+        .patches
+        .first()
+        .ok_or(PinError::NoPatch)?
+        .lattice;
     let (pins, message) = resolve_pin(lattice, request)?;
     check_room(clay.constraints.len(), pins.len())?;
     let first = clay.constraints.len();
@@ -167,7 +172,7 @@ pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, PinErro
     let listed: Vec<String> = (first..clay.constraints.len())
         .map(|i| describe_pin(i, &clay.constraints[i]))
         .collect();
-    let check = describe_report(&check_pins(&clay.patches[0], &clay.constraints));
+    let check = describe_report(&check_pins(clay.base(), &clay.constraints));
     Ok(format!("{message} ({}); {check}", listed.join("; ")))
 }
 

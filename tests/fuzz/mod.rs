@@ -275,7 +275,7 @@ pub fn valid_session_bytes() -> Vec<u8> {
     colour.channels[3].coeffs.fill(0.5);
     let session = Session {
         clay: Clay {
-            patches: vec![lattice],
+            density: dynaclay::field::MultiPatchField::new(lattice),
             colour: Some(colour),
             constraints: Vec::new(),
         },
@@ -341,8 +341,10 @@ pub fn check_session(bytes: &[u8]) -> Result<(), TestCaseError> {
         Ok(session) => {
             let lattices = session
                 .clay
+                .density
                 .patches
                 .iter()
+                .map(|p| &p.lattice)
                 .chain(session.clay.colour.iter().flat_map(|c| c.channels.iter()));
             for l in lattices {
                 prop_assert!(l.coeffs.iter().all(|c| c.is_finite()));

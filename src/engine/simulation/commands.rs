@@ -121,13 +121,12 @@ impl SimulationStage {
             }
             Command::Undo | Command::Redo => {
                 self.end_stroke_now();
-                let whole = CoeffBox::whole(self.lattice().dims);
                 let done = if matches!(cmd, Command::Undo) {
                     self.history.undo(&mut self.clay)
                 } else {
                     self.history.redo(&mut self.clay)
                 };
-                self.mark_changed(whole);
+                self.mark_all_changed();
                 self.colour_dirty = true;
                 done.is_ok()
             }
@@ -185,7 +184,7 @@ impl SimulationStage {
         let answer = match result {
             Ok(report) => {
                 if let Some(b) = report.coeff_box {
-                    self.mark_changed(b);
+                    self.mark_changed(usize::from(report.patch), b);
                 }
                 Ok(format!(
                     "{what}: {} samples visited, {} dirtied",
@@ -194,7 +193,7 @@ impl SimulationStage {
             }
             Err(error) => {
                 // A failed application may have applied earlier poses: publish the patch.
-                self.mark_changed(CoeffBox::whole(self.lattice().dims));
+                self.mark_all_changed();
                 Err(CommandError::Tool {
                     what: what.to_owned(),
                     error,

@@ -47,7 +47,7 @@ impl SimulationStage {
     /// held; they stay in the list so that saving loses nothing.
     pub(super) fn rebuild_pins(&mut self) {
         self.region_pins = match &self.region {
-            Some(region) => solver_for(&self.clay.constraints, &self.clay.patches[0], region).0,
+            Some(region) => solver_for(&self.clay.constraints, self.clay.base(), region).0,
             None => ConstraintSolver::empty(),
         };
     }

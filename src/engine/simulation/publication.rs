@@ -11,10 +11,21 @@ use super::*;
 const COLOUR_PUBLISH_EVERY_STEPS: u64 = 16;
 
 impl SimulationStage {
-    /// Records that `b` changed outside the region's regular publication.
-    pub(super) fn mark_changed(&mut self, b: CoeffBox) {
-        self.pending = Some(self.pending.map_or(b, |p| p.union(&b)));
-        self.pending_since = self.to_haptic.version() + 1;
+    /// Records that box `b` of density patch `patch` changed outside the region's regular
+    /// publication.
+    pub(super) fn mark_changed(&mut self, patch: usize, b: CoeffBox) {
+        if let Some(pending) = self.pending.get_mut(patch) {
+            *pending = Some(pending.map_or(b, |p| p.union(&b)));
+            self.pending_since = self.to_haptic.version() + 1;
+        }
+    }
+
+    /// Records that every coefficient of every density patch changed (a load, an undo).
+    pub(super) fn mark_all_changed(&mut self) {
+        for patch in 0..self.clay.density.patches.len() {
+            let whole = CoeffBox::whole(self.clay.density.patches[patch].lattice.dims);
+            self.mark_changed(patch, whole);
+        }
     }
 
     pub(super) fn publish(&mut self) {
@@ -25,22 +36,24 @@ impl SimulationStage {
             .haptic
             .load(Ordering::Acquire)
             .min(self.acks.graphics.load(Ordering::Acquire));
-        if self.pending.is_some() && seen >= self.pending_since {
-            self.pending = None;
+        if seen >= self.pending_since {
+            self.pending.fill(None);
         }
-        let region = self.region.as_ref().map(RegionState::coeff_box);
-        let b = match (region, self.pending) {
-            (Some(r), p) => Some(p.map_or(r, |p| p.union(&r))),
-            (None, p) => p,
-        };
-        let lattice = &self.clay.patches[0];
+        let region = self
+            .region
+            .as_ref()
+            .map(|r| (self.region_patch, r.coeff_box()));
+        let field = &self.clay.density;
         for w in [&mut self.to_haptic, &mut self.to_graphics] {
             let patch = w.back_mut();
-            match b {
-                Some(b) => patch.capture(lattice, b),
-                None => {
-                    patch.coeff_box = None;
-                    patch.coeffs.clear();
+            patch.clear();
+            for (n, pending) in self.pending.iter().enumerate() {
+                let b = match (region, pending) {
+                    (Some((rp, r)), p) if rp == n => Some(p.map_or(r, |p| p.union(&r))),
+                    (_, p) => *p,
+                };
+                if let Some(b) = b {
+                    patch.capture(field, n, b);
                 }
             }
             patch.stroke_armed = self.stroke_armed;
@@ -90,7 +103,7 @@ impl SimulationStage {
     }
 
     pub(super) fn publish_status(&mut self) {
-        let lattice = &self.clay.patches[0];
+        let lattice = &self.clay.density.patches[self.region_patch].lattice;
         let region = self.region.as_ref().map(|r| {
             let b = r.coeff_box();
             (

@@ -4,13 +4,10 @@
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
 
-/// What a loaded session holds besides the sculpted patch, its paint and its uniform
-/// material: the engine sculpts one density patch with a uniform material, and keeps the
-/// rest untouched so that saving loses nothing.
+/// What a loaded session holds besides its clay and its uniform material: the engine
+/// simulates a uniform material, and keeps the rest untouched so that saving loses nothing.
 #[derive(Clone, Debug, Default)]
 pub(super) struct CarriedSections {
-    /// Density patches after the first, unchanged.
-    pub(super) extra_patches: Vec<BSplineLattice>,
     /// Spatially varying material grids (not applied by the simulation).
     pub(super) material_grids: Vec<crate::io::MaterialGrid>,
     /// The tool library.
@@ -20,16 +17,13 @@ pub(super) struct CarriedSections {
 }
 
 impl SimulationStage {
-    /// The session as it stands: the sculpted patch, its paint and the uniform material,
-    /// with every part of the loaded session the engine does not simulate (further patches,
-    /// material grids, tool library, metadata) carried through unchanged.
+    /// The session as it stands: the clay (every density patch, its paint and pins) and the
+    /// uniform material, with every part of the loaded session the engine does not simulate
+    /// (material grids, tool library, metadata) carried through unchanged.
     #[must_use]
     pub fn session(&self) -> Session {
-        let mut clay = self.clay.clone();
-        clay.patches
-            .extend(self.carried.extra_patches.iter().cloned());
         Session {
-            clay,
+            clay: self.clay.clone(),
             material: MaterialFields {
                 uniform: self.config.material,
                 grids: self.carried.material_grids.clone(),
@@ -53,7 +47,7 @@ impl SimulationStage {
         session: Session,
         source: &std::path::Path,
     ) -> Result<String, LoadRefused> {
-        check_loadable(self.lattice(), &session, source)?;
+        check_loadable(&self.clay.density, &session, source)?;
         let ignored_grids = session.material.grids.len();
         // The stroke in progress ends on the old clay (its step is dropped with the history).
         self.end_stroke_now();
@@ -64,25 +58,17 @@ impl SimulationStage {
             tools,
             meta,
         } = session;
-        let mut patches = clay.patches;
-        let extra_patches = patches.split_off(1);
-        let extra = extra_patches.len();
+        let patches = clay.density.patches.len();
         self.carried = CarriedSections {
-            extra_patches,
             material_grids: material.grids,
             tools,
             meta,
         };
-        self.clay = Clay {
-            patches,
-            colour: clay.colour,
-            constraints: clay.constraints,
-        };
+        self.clay = clay;
 
         self.colour_dirty = true;
         self.config.material = material.uniform;
-        let whole = CoeffBox::whole(self.lattice().dims);
-        self.mark_changed(whole);
+        self.mark_all_changed();
         self.sessions_loaded += 1;
         let d = self.lattice().dims;
         let mut summary = format!(
@@ -97,46 +83,69 @@ impl SimulationStage {
                 "; {ignored_grids} material grid(s) kept but not applied (the engine simulates a uniform material)"
             ));
         }
-        if extra > 0 {
-            summary.push_str(&format!(
-                "; {extra} further patch(es) kept unchanged (the engine sculpts the first)"
-            ));
+        if patches > 1 {
+            summary.push_str(&format!("; {patches} density patches"));
         }
         Ok(summary)
     }
 }
 
 /// Whether `session` can replace the clay of an engine running on `running`: the haptic and
-/// graphics loops hold copies sized for that lattice (allocated once, so the haptic tick never
-/// allocates), so the session's first density patch (the one sculpted; further patches are
-/// carried unchanged) must have the same dimensions, spacing, origin and iso-level, and
-/// finite coefficients.
+/// graphics loops hold copies laid out for that field (allocated once, so the haptic tick
+/// never allocates), so the session's density must have as many patches, each with the same
+/// lattice dimensions, spacing, origin and iso-level and the same map, and finite
+/// coefficients. The base patch must be in world coordinates.
 ///
 /// # Errors
 /// The first mismatch, naming `source`.
 pub fn check_loadable(
-    running: &BSplineLattice,
+    running: &MultiPatchField,
     session: &Session,
     source: &std::path::Path,
 ) -> Result<(), LoadRefused> {
     let file = || source.to_path_buf();
-    let Some(patch) = session.clay.patches.first() else {
+    let theirs = &session.clay.density.patches;
+    let Some(base) = theirs.first() else {
         return Err(LoadRefused::NoPatch { file: file() });
     };
-    let (ours, theirs) = (LatticeShape::of(running), LatticeShape::of(patch));
-    if ours != theirs {
-        return Err(LoadRefused::LatticeMismatch {
-            file: file(),
-            session: theirs,
-            running: ours,
-        });
+    if !base.is_identity() {
+        return Err(LoadRefused::MappedBase { file: file() });
     }
-    if let Some(index) = patch.coeffs.iter().position(|c| !c.is_finite()) {
-        return Err(LoadRefused::NonFinite {
-            file: file(),
-            index,
-            value: patch.coeffs[index],
-        });
+    let layout = || LoadRefused::PatchLayout {
+        file: file(),
+        session: theirs.len(),
+        running: running.patches.len(),
+    };
+    if theirs.len() != running.patches.len() {
+        return Err(layout());
+    }
+    for (ours, patch) in running.patches.iter().zip(theirs) {
+        let (a, b) = (
+            LatticeShape::of(&ours.lattice),
+            LatticeShape::of(&patch.lattice),
+        );
+        if a != b {
+            return Err(LoadRefused::LatticeMismatch {
+                file: file(),
+                session: b,
+                running: a,
+            });
+        }
+        if ours.world_to_patch != patch.world_to_patch {
+            return Err(layout());
+        }
+    }
+    let mut offset = 0;
+    for patch in theirs {
+        let coeffs = &patch.lattice.coeffs;
+        if let Some(index) = coeffs.iter().position(|c| !c.is_finite()) {
+            return Err(LoadRefused::NonFinite {
+                file: file(),
+                index: offset + index,
+                value: coeffs[index],
+            });
+        }
+        offset += coeffs.len();
     }
     Ok(())
 }
