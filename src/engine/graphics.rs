@@ -10,6 +10,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use dynaclay_loops::SnapshotReader;
 
 use super::counters::EngineCounters;
+use super::layout::LayoutPort;
 use super::update::FieldUpdate;
 use crate::field::MultiPatchField;
 use crate::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
@@ -52,7 +53,11 @@ impl MeshSink for HeadlessSink {
 
 /// The graphics loop's state.
 pub struct GraphicsStage {
-    field: MultiPatchField,
+    /// Boxed so that a new layout moves in by pointer (see [`super::layout`]).
+    field: Box<MultiPatchField>,
+    /// The layout generation of `field`.
+    layout: u64,
+    layouts: LayoutPort,
     octree: BrickOctree,
     updates: SnapshotReader<FieldUpdate>,
     /// The clay's paint, published by the simulation when it changes.
@@ -70,6 +75,7 @@ impl GraphicsStage {
     /// When the sampling grid cannot be made for the lattice.
     pub fn new(
         field: MultiPatchField,
+        layouts: LayoutPort,
         cells_per_span: u32,
         updates: SnapshotReader<FieldUpdate>,
         colours: SnapshotReader<Option<ColourField>>,
@@ -83,7 +89,9 @@ impl GraphicsStage {
         sink.update(&octree, &report);
         sink.field(&field);
         Ok(Self {
-            field,
+            field: Box::new(field),
+            layout: 0,
+            layouts,
             octree,
             updates,
             colours,
@@ -99,16 +107,25 @@ impl GraphicsStage {
         if let Some(paint) = self.colours.try_fresh() {
             self.sink.paint(&self.octree, paint.value.as_ref());
         }
-        let Some(stamped) = self.updates.try_fresh() else {
+        if let Some(generation) = self.layouts.install(&mut self.field) {
+            // A new patch holds nothing yet: the field and its mesh are unchanged. The grid
+            // keeps the resolution the engine started with.
+            self.layout = generation;
+            self.sink.field(&self.field);
+        }
+        let stamped = self.updates.latest();
+        if stamped.value.layout != self.layout
+            || stamped.version == self.ack.load(Ordering::Relaxed)
+        {
             return 0;
-        };
+        }
         let changed = stamped.value.apply_to(&mut self.field);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
         self.ack.store(stamped.version, Ordering::Release);
         let Some((lo, hi)) = changed else {
             return 0;
         };
-        let report = self.octree.refresh_box(&self.field, lo, hi);
+        let report = self.octree.refresh_box(&*self.field, lo, hi);
         let n = report.changed.len() + report.removed.len();
         self.counters.graphics_updates(1);
         self.counters.bricks_remeshed(n as u64);

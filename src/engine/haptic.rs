@@ -29,6 +29,7 @@ use super::device_swap::{DeviceHandover, DeviceSwapPort};
 use super::force_limit::ForceLimit;
 use super::haptic_gain::HapticGain;
 use super::tool_sample::ToolSample;
+use super::layout::LayoutPort;
 use super::update::FieldUpdate;
 use super::workspace::WorkspaceMap;
 use crate::field::MultiPatchField;
@@ -53,7 +54,11 @@ pub struct HapticOutcome {
 /// two triple-buffer ends.
 pub struct HapticStage {
     device: SafetyFilter<Box<dyn HapticDevice>>,
-    field: MultiPatchField,
+    /// Boxed so that a new layout moves in by pointer (see [`super::layout`]).
+    field: Box<MultiPatchField>,
+    /// The layout generation of `field`.
+    layout: u64,
+    layouts: LayoutPort,
     updates: SnapshotReader<FieldUpdate>,
     samples: SnapshotWriter<ToolSample>,
     monitor: SnapshotWriter<ToolSample>,
@@ -93,6 +98,7 @@ impl HapticStage {
     pub fn new(
         device: SafetyFilter<Box<dyn HapticDevice>>,
         field: MultiPatchField,
+        layouts: LayoutPort,
         updates: SnapshotReader<FieldUpdate>,
         samples: SnapshotWriter<ToolSample>,
         monitor: SnapshotWriter<ToolSample>,
@@ -109,7 +115,9 @@ impl HapticStage {
             limit_seen: force_limit.requested_bits(),
             force_limit,
             device,
-            field,
+            field: Box::new(field),
+            layout: 0,
+            layouts,
             updates,
             samples,
             monitor,
@@ -167,12 +175,17 @@ impl HapticStage {
         &self.field
     }
 
-    /// Applies the newest field patch without touching the device (used at shutdown).
+    /// Applies the newest field update without touching the device (used at shutdown).
     pub fn sync_field(&mut self) {
+        if let Some(generation) = self.layouts.install(&mut self.field) {
+            self.layout = generation;
+        }
         let stamped = self.updates.latest();
-        stamped.value.copy_into(&mut self.field);
-        self.ack
-            .store(stamped.version, std::sync::atomic::Ordering::Release);
+        if stamped.value.layout == self.layout {
+            stamped.value.copy_into(&mut self.field);
+            self.ack
+                .store(stamped.version, std::sync::atomic::Ordering::Release);
+        }
     }
 
     /// The last sample published.
@@ -302,18 +315,24 @@ impl HapticStage {
     /// Copies the newest field patch into this stage's field, and its tool and stroke into
     /// this stage, if it is new, and returns the snapshot's age at `now`.
     fn refresh_field(&mut self, now: Instant) -> std::time::Duration {
+        if let Some(generation) = self.layouts.install(&mut self.field) {
+            self.layout = generation;
+        }
         let stamped = self.updates.latest();
         let version = stamped.version;
         self.fetched = Some(version);
         if version != self.ack.load(std::sync::atomic::Ordering::Relaxed) {
-            stamped.value.copy_into(&mut self.field);
             self.tool = stamped.value.tool;
             self.stroke_armed = stamped.value.stroke_armed;
             self.stroke.copy_from(&stamped.value.stroke);
-            // NOTE: Release pairs with the simulation's Acquire load: once it sees this
-            // version acknowledged, every coefficient of that patch is in our copy.
-            self.ack
-                .store(version, std::sync::atomic::Ordering::Release);
+            // An update for another layout waits until that layout's copy arrives.
+            if stamped.value.layout == self.layout {
+                stamped.value.copy_into(&mut self.field);
+                // NOTE: Release pairs with the simulation's Acquire load: once it sees this
+                // version acknowledged, every coefficient of that update is in our copy.
+                self.ack
+                    .store(version, std::sync::atomic::Ordering::Release);
+            }
         }
         stamped.age_at(now)
     }

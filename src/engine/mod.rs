@@ -23,6 +23,7 @@ mod simulation;
 mod symmetry;
 mod threaded;
 mod tool_sample;
+mod layout;
 mod update;
 mod wiring;
 mod workspace;

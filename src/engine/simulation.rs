@@ -51,6 +51,7 @@ use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
+use super::layout::LayoutSender;
 use super::update::FieldUpdate;
 use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around};
@@ -161,6 +162,10 @@ pub struct SimulationStage {
     acks: Acks,
     /// Per density patch, the box changed outside the region that a reader may not have yet.
     pending: Vec<Option<CoeffBox>>,
+    /// The patch layout's generation (bumped when a detail patch is added).
+    layout_generation: u64,
+    /// Where new layouts go to the haptic and graphics loops (none in a bare stage).
+    layout_senders: Vec<LayoutSender>,
     pending_since: u64,
     commands: Receiver<Command>,
     io: Option<Sender<IoJob>>,
@@ -258,6 +263,8 @@ impl SimulationStage {
             to_graphics,
             acks,
             pending,
+            layout_generation: 0,
+            layout_senders: Vec::new(),
             pending_since: 0,
             commands,
             io,
@@ -275,6 +282,12 @@ impl SimulationStage {
             schedule: None,
             commands_since_step: 0,
         }
+    }
+
+    /// Sends every new patch layout to the readers behind `senders` (the haptic and graphics
+    /// loops; see [`super::layout`]).
+    pub fn set_layout_senders(&mut self, senders: [LayoutSender; 2]) {
+        self.layout_senders = senders.into();
     }
 
     /// Notes every step's tool sample and command count into `log` from now on, so that a

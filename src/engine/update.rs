@@ -48,6 +48,9 @@ pub struct FieldUpdate {
     pub sim_time_s: f64,
     /// Simulation steps taken when this was published.
     pub sim_step: u64,
+    /// The patch layout the boxes belong to (see [`super::layout`]): a reader applies them
+    /// only to a copy of this generation.
+    pub layout: u64,
 }
 
 impl FieldUpdate {
@@ -64,6 +67,7 @@ impl FieldUpdate {
             stroke: StrokeGeometry::default(),
             sim_time_s: 0.0,
             sim_step: 0,
+            layout: 0,
         }
     }
 

@@ -14,6 +14,7 @@ use super::device_swap::{DeviceSwapRequest, device_swap_channel};
 use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
+use super::layout::layout_channel;
 use super::simulation::{Acks, IoJob, SimulationStage};
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
@@ -63,6 +64,8 @@ pub fn build(
     let (io_tx, io_rx) = crossbeam::channel::unbounded();
     let acks = Acks::default();
     let (device_swaps, swap_port) = device_swap_channel();
+    let (haptic_layouts, haptic_layout_port) = layout_channel();
+    let (graphics_layouts, graphics_layout_port) = layout_channel();
     let staleness = if lockstep {
         Staleness::new(Duration::MAX, Duration::MAX)
     } else {
@@ -71,6 +74,7 @@ pub fn build(
     let haptic = HapticStage::new(
         device,
         field.clone(),
+        haptic_layout_port,
         from_sim_h,
         samples_tx,
         monitor_tx,
@@ -93,11 +97,13 @@ pub fn build(
         Some(io_tx),
         counters.clone(),
     );
+    sim.set_layout_senders([haptic_layouts, graphics_layouts]);
     let colours = sim
         .take_colour_reader()
         .ok_or(EngineError::Lost("simulation paint"))?;
     let graphics = GraphicsStage::new(
         graphics_field,
+        graphics_layout_port,
         config.cells_per_span,
         from_sim_g,
         colours,

@@ -39,6 +39,9 @@ impl SimulationStage {
         if seen >= self.pending_since {
             self.pending.fill(None);
         }
+        for sender in &self.layout_senders {
+            sender.drop_retired();
+        }
         let region = self
             .region
             .as_ref()
@@ -61,6 +64,7 @@ impl SimulationStage {
             self.tool.stroke_geometry(&mut patch.stroke);
             patch.sim_time_s = self.sim_time_s;
             patch.sim_step = self.steps;
+            patch.layout = self.layout_generation;
             w.publish();
         }
         self.counters.snapshots_published(1);
