@@ -18,6 +18,21 @@ pub struct Material {
 }
 
 impl Material {
+    /// This material on mass points holding `volume_ratio` times the volume of the ones it
+    /// was set for (a detail patch at half the spacing holds 1/8): mass, damping and stiffness
+    /// scale with the volume, so a force spread over a region moves it alike at any spacing
+    /// and the step's stability (`√(ρ/μ)`) is unchanged. Plasticity and yield are per density
+    /// and stay.
+    #[must_use]
+    pub fn for_volume_ratio(self, volume_ratio: f32) -> Self {
+        Self {
+            mass: self.mass * volume_ratio,
+            damping: self.damping * volume_ratio,
+            stiffness: self.stiffness * volume_ratio,
+            ..self
+        }
+    }
+
     /// Elastic clay: springs back fully.
     pub const ELASTIC: Self = Self {
         mass: 1.0,

@@ -10,7 +10,9 @@
 
 use std::time::Instant;
 
-use crate::field::{BSplineLattice, KronScratch, RegionSnapshot};
+use crate::field::{BSplineLattice, KronScratch, OtherPatches, RegionSnapshot};
+use crate::mesh::ScalarField;
+use glam::Vec3;
 
 use super::constraint_solver::ConstraintSolver;
 use super::counters::{StageTimes, StepCounters};
@@ -257,6 +259,31 @@ impl Simulator {
         constraints: Option<&mut ConstraintSolver>,
         snapshot: &mut RegionSnapshot,
     ) -> Result<StepReport, StepError> {
+        self.step_layered(
+            state,
+            lattice,
+            OtherPatches::NONE,
+            forces,
+            constraints,
+            snapshot,
+        )
+    }
+
+    /// [`Simulator::step_constrained`] on one patch of a multi-patch clay (Hua & Qin eq. (3)):
+    /// `lattice` is the patch simulated, `others` the fixed patches around it. The forces'
+    /// line integrals are taken on the whole clay's density; only `lattice` moves.
+    ///
+    /// # Errors
+    /// As [`Simulator::step`].
+    pub fn step_layered(
+        &mut self,
+        state: &mut RegionState,
+        lattice: &mut BSplineLattice,
+        others: OtherPatches<'_>,
+        forces: &[ToolForce],
+        constraints: Option<&mut ConstraintSolver>,
+        snapshot: &mut RegionSnapshot,
+    ) -> Result<StepReport, StepError> {
         if !state.coeff_box().fits(lattice.dims) {
             self.counters.failed_steps += 1;
             return Err(StepError::RegionMismatch);
@@ -267,7 +294,7 @@ impl Simulator {
             .choice
             .solo(state.d.len(), self.team.has_helper(), self.always_split);
         self.team.set_solo(solo);
-        let result = self.step_on_team(state, lattice, forces, constraints, snapshot);
+        let result = self.step_on_team(state, lattice, others, forces, constraints, snapshot);
         self.choice.record(elapsed_ns(started));
         result
     }
@@ -277,6 +304,7 @@ impl Simulator {
         &mut self,
         state: &mut RegionState,
         lattice: &mut BSplineLattice,
+        others: OtherPatches<'_>,
         forces: &[ToolForce],
         mut constraints: Option<&mut ConstraintSolver>,
         snapshot: &mut RegionSnapshot,
@@ -284,7 +312,7 @@ impl Simulator {
         let mut times = StageTimes::default();
 
         let t = Instant::now();
-        self.gather_forces(state, lattice, forces);
+        self.gather_forces_over(state, lattice, others, forces);
         times.gather_forces_ns = elapsed_ns(t);
 
         let fused = self.params.neighbourhood == Neighbourhood::Six
@@ -376,6 +404,18 @@ impl Simulator {
         lattice: &BSplineLattice,
         forces: &[ToolForce],
     ) {
+        self.gather_forces_over(state, lattice, OtherPatches::NONE, forces);
+    }
+
+    /// [`Simulator::gather_forces`] on one patch of a multi-patch clay: the forces' integrals
+    /// are taken on `lattice` plus `others`.
+    pub fn gather_forces_over(
+        &mut self,
+        state: &RegionState,
+        lattice: &BSplineLattice,
+        others: OtherPatches<'_>,
+        forces: &[ToolForce],
+    ) {
         self.ensure_scratch(state);
         // The forces are sparse: clear only what the previous step wrote.
         let dirty = self.external_dirty.start.min(self.external.len())
@@ -385,7 +425,12 @@ impl Simulator {
         let grid = &state.grid;
         let m = grid.dims;
         for tf in forces {
-            let f = force_integral(lattice, tf.start, tf.end) * tf.gain;
+            let integral = if others.is_empty() {
+                force_integral(lattice, tf.start, tf.end)
+            } else {
+                force_integral(&PatchAmongOthers { lattice, others }, tf.start, tf.end)
+            };
+            let f = integral * tf.gain;
             let ok = f.is_finite() && tf.radius.is_finite() && tf.radius > 0.0;
             if !ok {
                 self.counters.rejected_forces += 1;
@@ -799,6 +844,29 @@ fn dot(a: &[f32], b: &[f32]) -> f64 {
         .zip(b)
         .map(|(&x, &y)| f64::from(x) * f64::from(y))
         .sum()
+}
+
+/// One patch's lattice with the fixed patches around it: the clay's density as the force
+/// integrals read it while the patch is simulated.
+struct PatchAmongOthers<'a> {
+    lattice: &'a BSplineLattice,
+    others: OtherPatches<'a>,
+}
+
+impl ScalarField for PatchAmongOthers<'_> {
+    fn iso(&self) -> f32 {
+        self.lattice.iso
+    }
+
+    fn value(&self, p: Vec3) -> f32 {
+        self.lattice.value(p) + self.others.value(p)
+    }
+
+    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
+        let (v, g) = self.lattice.value_and_gradient(p);
+        let (ov, og) = self.others.value_and_gradient(p);
+        (v + ov, g + og)
+    }
 }
 
 #[cfg(test)]

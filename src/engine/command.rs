@@ -141,6 +141,20 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
+    /// Add a detail patch over the world box `lo ..= hi` (field coordinates, clipped to the
+    /// clay) at knot spacing `base / 2^level`: strokes inside it are simulated there, at the
+    /// finer spacing, and the other patches take part through the sum. Not an undo step: the
+    /// new patch holds zeros, so the clay is unchanged; edits in it are undone as any others.
+    Refine {
+        /// The box's low corner.
+        lo: glam::Vec3,
+        /// The box's high corner.
+        hi: glam::Vec3,
+        /// Halvings of the base's knot spacing (1 to [`crate::field::MAX_DETAIL_LEVEL`]).
+        level: u32,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
     /// Pin a point, curve or normal on the clay (one undo step); points off the surface are
     /// moved onto it first and the outcome on `reply` says so.
     Constrain {

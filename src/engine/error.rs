@@ -169,6 +169,9 @@ pub enum CommandError {
     /// A pin could not be made or removed (nothing changed).
     #[error(transparent)]
     Pin(#[from] crate::tools::PinError),
+    /// A detail patch could not be added (nothing changed).
+    #[error("refine: {0}")]
+    Refine(#[from] crate::field::DetailError),
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,

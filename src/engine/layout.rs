@@ -123,11 +123,13 @@ mod tests {
         assert_eq!(port.install(&mut copy), None);
         // The old copy waits in the return slot; a further layout is installed only once the
         // simulation has taken it back.
-        sender.incoming.try_send(LayoutHandover {
-            generation: 3,
-            field: Box::new(field(4)),
-        })
-        .unwrap();
+        sender
+            .incoming
+            .try_send(LayoutHandover {
+                generation: 3,
+                field: Box::new(field(4)),
+            })
+            .unwrap();
         assert_eq!(port.install(&mut copy), None, "return slot full");
         sender.drop_retired();
         assert_eq!(port.install(&mut copy), Some(3));

@@ -129,6 +129,12 @@ impl Lockstep {
         self.stages.sim.lattice()
     }
 
+    /// The haptic loop's copy of the density (what the arm feels).
+    #[must_use]
+    pub fn haptic_density(&self) -> &MultiPatchField {
+        self.stages.haptic.field()
+    }
+
     /// The simulation's current density: every patch of the clay.
     #[must_use]
     pub fn density(&self) -> &MultiPatchField {

@@ -103,6 +103,12 @@ pub enum PlannedAction {
         params: EmbossParams,
         patch: u16,
     },
+    /// Add a detail patch over a box at a level.
+    Refine {
+        lo: glam::Vec3,
+        hi: glam::Vec3,
+        level: u32,
+    },
     /// Pin a place on the clay.
     Constrain(PinRequest),
     /// Remove one pin, or all.
@@ -302,6 +308,11 @@ impl ScriptPlan {
                     event(PlannedAction::SetMaterial(material));
                 }
                 ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),
+                ScriptStep::Refine { min, max, level } => event(PlannedAction::Refine {
+                    lo: glam::Vec3::from_array(*min),
+                    hi: glam::Vec3::from_array(*max),
+                    level: *level,
+                }),
                 ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
                 ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),
                 ScriptStep::Emboss {

@@ -156,6 +156,12 @@ impl ScriptDriver {
                     reply: Some(tx),
                 }]
             }
+            PlannedAction::Refine { lo, hi, level } => vec![Command::Refine {
+                lo,
+                hi,
+                level,
+                reply: Some(reply()),
+            }],
             PlannedAction::Undo(k) => (0..k).map(|_| Command::Undo).collect(),
             PlannedAction::Redo(k) => (0..k).map(|_| Command::Redo).collect(),
             PlannedAction::Save(path) => {

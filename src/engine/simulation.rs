@@ -47,11 +47,11 @@ use glam::Vec3;
 use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
 use super::error::{CommandError, LatticeShape, LoadRefused};
+use super::layout::LayoutSender;
 use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_force};
 use super::tool_sample::ToolSample;
-use super::layout::LayoutSender;
 use super::update::FieldUpdate;
 use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce};
 use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around};
@@ -424,20 +424,33 @@ impl SimulationStage {
                 (true, false) => self.tool.forces(),
                 (true, true) => &self.mirrored_forces,
             };
-            let lattice = &mut self.clay.density.patches[self.region_patch].lattice;
-            // Pins hold the base patch's surface (see `constrain.rs`).
+            // The region's patch moves; the other patches take part in the forces. Pins hold
+            // the base patch's surface (see `constrain.rs`).
             let pins = (self.region_patch == 0).then_some(&mut self.region_pins);
-            match self
-                .simulator
-                .step_constrained(region, lattice, forces, pins, &mut self.scratch)
-            {
-                Ok(report) => {
+            let stepped =
+                self.clay
+                    .density
+                    .split_patch_mut(self.region_patch)
+                    .map(|(lattice, others)| {
+                        self.simulator.step_layered(
+                            region,
+                            lattice,
+                            others,
+                            forces,
+                            pins,
+                            &mut self.scratch,
+                        )
+                    });
+            match stepped {
+                Some(Ok(report)) => {
                     out.stepped = true;
                     out.pushed = push;
                     self.sim_time_s += f64::from(report.dt_s);
                     self.counters.sim_substeps(u64::from(report.halvings) + 1);
                 }
-                Err(_) => {
+                // A step refused for a non-finite value, or a region whose patch is gone
+                // (never: regions retire before the layout changes).
+                Some(Err(_)) | None => {
                     out.rejected = true;
                     self.counters.sim_nonfinite_rejected(1);
                 }
@@ -553,7 +566,14 @@ impl SimulationStage {
         let s = self.config.samples_per_span.max(1);
         let mass_dims = [(n[0] - 1) * s + 1, (n[1] - 1) * s + 1, (n[2] - 1) * s + 1];
         let lattice = &self.clay.density.patches[patch].lattice;
-        match RegionState::new(lattice, b, mass_dims, self.config.material) {
+        // A detail patch's mass points hold less clay than the base's.
+        let ratio = (lattice.spacing / self.clay.base().spacing).powi(3);
+        let material = if patch == 0 {
+            self.config.material
+        } else {
+            self.config.material.for_volume_ratio(ratio)
+        };
+        match RegionState::new(lattice, b, mass_dims, material) {
             Ok(state) => self.region = Some(state),
             Err(_) => self.counters.command_errors(1),
         }

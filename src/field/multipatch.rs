@@ -12,6 +12,48 @@ use glam::{Affine3A, Vec3, Vec3A};
 use super::lattice::BSplineLattice;
 use super::refit::{FitError, fit_lattice};
 
+/// Most density patches a clay holds (a base and its details).
+pub const MAX_PATCHES: usize = 256;
+/// Finest detail level over the base: spacing down to 1/16 of the base's.
+pub const MAX_DETAIL_LEVEL: u32 = 4;
+/// Most coefficients one detail patch may hold (64 MiB of `f32`).
+pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
+
+/// Why a detail patch could not be added.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DetailError {
+    /// The clay has no base patch to refine.
+    #[error("the clay has no base patch to refine")]
+    NoBase,
+    /// The level is outside `1..=MAX_DETAIL_LEVEL`.
+    #[error(
+        "detail level {level} is outside 1..={MAX_DETAIL_LEVEL} (each level halves the knot spacing)"
+    )]
+    Level {
+        /// The level asked for.
+        level: u32,
+    },
+    /// The box is not finite, is empty, or misses the base patch's support.
+    #[error("the box {lo:?}..{hi:?} is empty, not finite or outside the clay")]
+    Box {
+        /// The box's low corner.
+        lo: [f32; 3],
+        /// The box's high corner.
+        hi: [f32; 3],
+    },
+    /// The clay already holds [`MAX_PATCHES`] patches.
+    #[error("the clay already holds {MAX_PATCHES} patches")]
+    TooManyPatches,
+    /// The patch would hold more than [`MAX_DETAIL_COEFFS`] coefficients.
+    #[error(
+        "the detail patch would hold {coefficients} coefficients, more than {MAX_DETAIL_COEFFS}; refine a smaller box or a lower level"
+    )]
+    TooLarge {
+        /// Coefficients the patch would hold.
+        coefficients: usize,
+    },
+}
+
 /// One patch: a lattice and the map from world space into the lattice's space.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Patch {
@@ -226,6 +268,52 @@ impl MultiPatchField {
         Ok(self.push(lattice, Affine3A::IDENTITY))
     }
 
+    /// Adds a zero detail patch over the world box `lo ..= hi` clipped to the base patch's
+    /// support, at knot spacing `base spacing / 2^level`, in world coordinates; returns its
+    /// index. The sum is unchanged (the patch holds zeros) until something edits the patch.
+    ///
+    /// # Errors
+    /// [`DetailError`] when the level, the box or the size is out of bounds; the field is
+    /// unchanged then.
+    pub fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<usize, DetailError> {
+        let Some(base) = self.patches.first() else {
+            return Err(DetailError::NoBase);
+        };
+        if !(1..=MAX_DETAIL_LEVEL).contains(&level) {
+            return Err(DetailError::Level { level });
+        }
+        if self.patches.len() >= MAX_PATCHES {
+            return Err(DetailError::TooManyPatches);
+        }
+        let (slo, shi) = base.world_support();
+        let (clo, chi) = (lo.max(slo), hi.min(shi));
+        if !(lo.is_finite() && hi.is_finite()) || clo.cmpge(chi).any() {
+            return Err(DetailError::Box {
+                lo: lo.to_array(),
+                hi: hi.to_array(),
+            });
+        }
+        let spacing = base.lattice.spacing / (1_u32 << level) as f32;
+        let coefficients = ((chi - clo) / spacing)
+            .to_array()
+            .iter()
+            .map(|e| e.ceil() as usize + 3)
+            .try_fold(1_usize, |acc, n| acc.checked_mul(n.max(4)))
+            .unwrap_or(usize::MAX);
+        if coefficients > MAX_DETAIL_COEFFS {
+            return Err(DetailError::TooLarge { coefficients });
+        }
+        let iso = base.lattice.iso;
+        let n = self
+            .add_detail(clo, chi, level)
+            .map_err(|_| DetailError::Box {
+                lo: lo.to_array(),
+                hi: hi.to_array(),
+            })?;
+        self.patches[n].lattice.iso = iso;
+        Ok(n)
+    }
+
     /// Least-squares fit of patch `index` to `target − Σ_{other patches}`, so the whole field
     /// approximates `target` over that patch.
     ///
@@ -287,6 +375,68 @@ impl From<BSplineLattice> for MultiPatchField {
     /// A field of one base patch in world coordinates.
     fn from(base: BSplineLattice) -> Self {
         Self::new(base)
+    }
+}
+
+/// Every term of eq. (3) but one patch's, beside that patch's lattice borrowed mutably (see
+/// [`MultiPatchField::split_patch_mut`]): what an edit of one patch adds its change to.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OtherPatches<'a> {
+    /// The patches before the edited one.
+    pub before: &'a [Patch],
+    /// The patches after it.
+    pub after: &'a [Patch],
+}
+
+impl OtherPatches<'_> {
+    /// No other patch.
+    pub const NONE: OtherPatches<'static> = OtherPatches {
+        before: &[],
+        after: &[],
+    };
+
+    /// Whether there is no other patch.
+    #[inline]
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.before.is_empty() && self.after.is_empty()
+    }
+
+    /// The other patches' summed density at world point `x`.
+    #[inline]
+    #[must_use]
+    pub fn value(&self, x: Vec3) -> f32 {
+        self.before
+            .iter()
+            .chain(self.after)
+            .map(|p| p.value(x))
+            .sum()
+    }
+
+    /// The other patches' summed density and world-space gradient at `x`.
+    #[inline]
+    #[must_use]
+    pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
+        self.before
+            .iter()
+            .chain(self.after)
+            .fold((0.0, Vec3::ZERO), |(v, g), p| {
+                let (pv, pg) = p.value_and_gradient(x);
+                (v + pv, g + pg)
+            })
+    }
+}
+
+impl MultiPatchField {
+    /// Patch `n`'s lattice, mutably, beside the other patches (`None` when `n` is not a
+    /// patch).
+    pub fn split_patch_mut(&mut self, n: usize) -> Option<(&mut BSplineLattice, OtherPatches<'_>)> {
+        if n >= self.patches.len() {
+            return None;
+        }
+        let (before, rest) = self.patches.split_at_mut(n);
+        let (edited, after) = rest.split_first_mut()?;
+        Some((&mut edited.lattice, OtherPatches { before, after }))
     }
 }
 

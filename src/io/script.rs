@@ -534,6 +534,15 @@ pub enum ScriptStep {
         #[serde(default)]
         patch: u16,
     },
+    /// Add a detail patch over the box `min ..= max` (field coordinates, clipped to the clay)
+    /// at knot spacing `base / 2^level` (`level` 1 by default, at most 4): strokes inside it
+    /// are simulated at the finer spacing.
+    Refine {
+        min: [f32; 3],
+        max: [f32; 3],
+        #[serde(default = "one")]
+        level: u32,
+    },
     /// Pin a place on the clay (one undo step): `kind = "point"` or `"normal"` with `at`,
     /// `kind = "curve"` with `points`. A point off the surface is moved onto it first, and the
     /// step says so.
@@ -1205,6 +1214,29 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             }
             .validate()
             .map_err(|m| fault("projection", format!("projection: {m}")))
+        }
+        ScriptStep::Refine { min, max, level } => {
+            for (name, corner) in [("min", min), ("max", max)] {
+                for v in corner {
+                    finite(name, *v)?;
+                }
+            }
+            if (0..3).any(|a| min[a] >= max[a]) {
+                return Err(fault(
+                    "max",
+                    format!("the box {min:?}..{max:?} is empty: max must exceed min on every axis"),
+                ));
+            }
+            if !(1..=crate::field::MAX_DETAIL_LEVEL).contains(level) {
+                return Err(fault(
+                    "level",
+                    format!(
+                        "level = {level} must be between 1 and {} (each level halves the knot spacing)",
+                        crate::field::MAX_DETAIL_LEVEL
+                    ),
+                ));
+            }
+            Ok(())
         }
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }

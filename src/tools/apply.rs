@@ -18,8 +18,8 @@ use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 use super::history::StepRecorder;
 use super::shape::{ShapeError, ToolPose, ToolShape, density_from_distance};
 use crate::field::{
-    BSplineLattice, FitError, MultiPatchField, Patch, SampleRow, coeff_box_around, refit_box_edit,
-    refit_box_edit_rows,
+    BSplineLattice, FitError, MultiPatchField, OtherPatches, SampleRow, coeff_box_around,
+    refit_box_edit, refit_box_edit_rows,
 };
 
 /// A geometric tool: a shape, what it does, and the width of its potential's falloff band.
@@ -233,35 +233,12 @@ pub fn apply_tool(
     })
 }
 
-/// The terms of eq. (3) other than the edited patch's: a tool's rule acts on the whole
-/// clay's density, so the edited patch is fitted to `rule(old + others) − others`.
-struct OtherPatches<'a> {
-    before: &'a [Patch],
-    after: &'a [Patch],
-}
-
-impl OtherPatches<'_> {
-    /// Whether the clay has no other patch (the rule then acts on the patch alone).
-    fn is_empty(&self) -> bool {
-        self.before.is_empty() && self.after.is_empty()
+/// [`blur`] of the other patches' summed density.
+fn blur_others(others: &OtherPatches<'_>, x: Vec3, h: f32) -> f32 {
+    if others.is_empty() {
+        return 0.0;
     }
-
-    /// The other patches' summed density at world point `x`.
-    fn value(&self, x: Vec3) -> f32 {
-        self.before
-            .iter()
-            .chain(self.after)
-            .map(|p| p.value(x))
-            .sum()
-    }
-
-    /// [`blur`] of the other patches' summed density.
-    fn blur(&self, x: Vec3, h: f32) -> f32 {
-        if self.is_empty() {
-            return 0.0;
-        }
-        binomial_average(|p| self.value(p), x, h)
-    }
+    binomial_average(|p| others.value(p), x, h)
 }
 
 /// Patch `n`'s lattice, mutably, beside the other patches.
@@ -269,11 +246,9 @@ impl OtherPatches<'_> {
 /// # Panics
 /// When `n` is not a patch of `density` (callers check it first).
 fn split_patch(density: &mut MultiPatchField, n: usize) -> (&mut BSplineLattice, OtherPatches<'_>) {
-    let (before, rest) = density.patches.split_at_mut(n);
-    let (edited, after) = rest
-        .split_first_mut()
-        .expect("the caller checked the patch");
-    (&mut edited.lattice, OtherPatches { before, after })
+    density
+        .split_patch_mut(n)
+        .expect("the caller checked the patch")
 }
 
 /// What a geometric tool's row edit needs besides the shape's potential.
@@ -318,7 +293,7 @@ impl ToolRows<'_> {
             }
             let offset = self.others.value(x);
             let blurred = match (self.blur_h, self.before) {
-                (Some(h), Some(before)) => blur(before, x, h) + self.others.blur(x, h),
+                (Some(h), Some(before)) => blur(before, x, h) + blur_others(self.others, x, h),
                 _ => 0.0,
             };
             self.action

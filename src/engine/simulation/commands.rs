@@ -119,6 +119,20 @@ impl SimulationStage {
                 self.commit(rec);
                 self.edited(result, what, reply)
             }
+            Command::Refine {
+                lo,
+                hi,
+                level,
+                reply,
+            } => {
+                self.end_stroke_now();
+                let result = self.refine(lo, hi, level);
+                let ok = result.is_ok();
+                if let Some(r) = reply {
+                    let _ = r.send(result);
+                }
+                ok
+            }
             Command::Undo | Command::Redo => {
                 self.end_stroke_now();
                 let done = if matches!(cmd, Command::Undo) {
@@ -205,5 +219,24 @@ impl SimulationStage {
             let _ = r.send(answer);
         }
         ok
+    }
+
+    /// Adds a detail patch (see [`Command::Refine`]) and hands the new layout to the readers;
+    /// returns what was added.
+    fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<String, CommandError> {
+        let n = self.clay.density.refine(lo, hi, level)?;
+        self.pending.push(None);
+        self.layout_generation += 1;
+        for sender in &self.layout_senders {
+            sender.offer(&self.clay.density, self.layout_generation);
+        }
+        // Readers skip updates until their copy has the new layout; everything is published
+        // again so that none is lost in between.
+        self.mark_all_changed();
+        let l = &self.clay.density.patches[n].lattice;
+        Ok(format!(
+            "refine: detail patch {n}, {}×{}×{} coefficients at knot spacing {} (level {level})",
+            l.dims[0], l.dims[1], l.dims[2], l.spacing
+        ))
     }
 }
