@@ -1,7 +1,8 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
 //! patches, the safety filter, a force-limit change, a whole-field republication after a
-//! session load, and a device switch and a disconnect while ticking (the ticks go on until the
+//! session load, a new patch layout after a refinement, and a device switch and a disconnect
+//! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
 //! tool's vectors, their starts found again on the surface).
@@ -15,7 +16,6 @@ use std::time::Instant;
 use dynaclay::dynamics::Distribution;
 use dynaclay::engine::{Command, DeviceHandover, ForceStrokeTool, HeadlessSink, ToolChoice, build};
 use dynaclay::io::Session;
-use dynaclay::tools::Clay;
 use dynaclay::tools::ForceTool;
 use dynaclay_devices::{
     HapticDevice, Interpolation, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
@@ -115,9 +115,27 @@ fn haptic_tick_allocates_nothing() {
         if i == 300 {
             limit.request(0.1).unwrap();
         }
+        if i == 500 {
+            // A detail patch over the clay's middle: the tick takes the new layout's copy
+            // by pointer and hands its old one back.
+            let (lo, hi) = stages.sim.lattice().support();
+            let (c, r) = ((lo + hi) * 0.5, (hi - lo) * 0.2);
+            stages
+                .commands
+                .send(Command::Refine {
+                    lo: c - r,
+                    hi: c + r,
+                    level: 1,
+                    reply: None,
+                })
+                .unwrap();
+        }
         if i == 700 {
+            // The session loaded must be laid out like the running clay: with its detail.
+            let mut clay = stages.sim.clay().clone();
+            clay.density.patches[0].lattice = loaded.clone();
             let session = Session {
-                clay: Clay::single(loaded.clone()),
+                clay,
                 ..Session::default()
             };
             stages
@@ -200,6 +218,11 @@ fn haptic_tick_allocates_nothing() {
         "the original arm, then the second, came back"
     );
     assert!(!stages.haptic.is_connected(), "parked by the disconnect");
+    assert_eq!(
+        stages.haptic.field().patches.len(),
+        2,
+        "the tick installed the refined layout"
+    );
     assert_eq!(limit.applied_n(), 0.0, "no device, no force");
     assert_eq!(stages.counters.snapshot().device_swaps, 2);
     assert_eq!(allocs_in_tick(), 0, "haptic tick allocated");

@@ -220,6 +220,7 @@ pub fn start_bridge(
         saves: Vec::new(),
         loads: Vec::new(),
         pin_replies: Vec::new(),
+        refine_replies: Vec::new(),
         pins_seen: None,
         pins_list: None,
         pin_lines: Vec::new(),
@@ -259,6 +260,8 @@ struct Bridge {
     loads: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// Answers to pin and unpin commands.
     pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
+    /// Answers to "refine here" not yet shown.
+    refine_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// The pins revision last asked about, and the list asked for.
     pins_seen: Option<u64>,
     pins_list: Option<Receiver<Vec<crate::dynamics::Constraint>>>,
@@ -313,6 +316,9 @@ impl Bridge {
         });
         forward_replies(&mut self.loads, &self.events, "load", |summary| summary);
         forward_replies(&mut self.pin_replies, &self.events, "pins", |detail| detail);
+        forward_replies(&mut self.refine_replies, &self.events, "refine", |detail| {
+            detail
+        });
         // Nothing to show before the simulation's first step (its material is not known yet).
         let Some(status) = self.engine.sim_status() else {
             return;
@@ -468,6 +474,19 @@ impl Bridge {
                     what,
                     Command::Constrain {
                         request,
+                        reply: Some(tx),
+                    },
+                );
+            }
+            EngineCommand::Refine { lo, hi, level } => {
+                let (tx, rx) = bounded(1);
+                self.refine_replies.push(rx);
+                self.send(
+                    what,
+                    Command::Refine {
+                        lo,
+                        hi,
+                        level,
                         reply: Some(tx),
                     },
                 );

@@ -110,6 +110,13 @@ pub enum EngineCommand {
     Redo,
     /// Pin a point, curve or normal on the clay (one undo step).
     Pin(crate::tools::PinRequest),
+    /// Add a detail patch over the box `lo ..= hi` (field coordinates) at knot spacing
+    /// `base / 2^level`.
+    Refine {
+        lo: glam::Vec3,
+        hi: glam::Vec3,
+        level: u32,
+    },
     /// Remove pin `index`, or every pin with `None` (one undo step).
     Unpin {
         index: Option<usize>,
@@ -157,6 +164,7 @@ impl EngineCommand {
             Self::Undo => "undo",
             Self::Redo => "redo",
             Self::Pin(_) => "pin",
+            Self::Refine { .. } => "refine",
             Self::Unpin { .. } => "unpin",
             Self::Save { .. } => "save",
             Self::Load { .. } => "load",

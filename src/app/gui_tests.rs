@@ -102,6 +102,35 @@ fn moving_a_material_slider_sets_the_engine_material() {
 }
 
 #[test]
+fn refine_here_asks_for_a_detail_patch_around_the_last_brush_point() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    // Before the brush was on the clay there is nowhere to refine: the button is disabled.
+    h.get_by_label("Refine here").click();
+    h.run();
+    assert!(drain(&end).is_empty());
+    let at = glam::Vec3::new(1.0, 1.7, 1.1);
+    h.state_mut().refine_at = Some(at);
+    h.run();
+    h.get_by_label("Refine here").click();
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::Refine { lo, hi, level }] = sent.as_slice() else {
+        panic!("expected one Refine, got {sent:?}");
+    };
+    assert_eq!(*level, 2);
+    assert!(
+        lo.cmplt(at).all() && hi.cmpgt(at).all(),
+        "{lo}..{hi} holds {at}"
+    );
+    assert!(
+        ((*lo + *hi) * 0.5 - at).length() < 1e-5,
+        "centred on the point"
+    );
+}
+
+#[test]
 fn file_and_history_buttons_send_their_commands() {
     let (mut h, end) = harness();
     h.run();

@@ -128,6 +128,8 @@ pub struct SculptApp {
     pub symmetry: crate::engine::Symmetry,
     /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
     brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
+    /// The last surface point the brush was on, where "Refine here" adds a detail patch.
+    pub(crate) refine_at: Option<glam::Vec3>,
     /// Pinning with the mouse, and the list of the clay's pins.
     pub pins: PinPanel,
 }
@@ -140,6 +142,36 @@ const STRENGTH_PER_SCROLL_POINT: f32 = 0.004;
 const POINTS_PER_LINE: f32 = 50.0;
 
 impl SculptApp {
+    /// The brush's radius, field units.
+    fn brush_radius(&self) -> f32 {
+        match self.palette.choice() {
+            super::command::ToolChoice::Force(t) => t.radius_m,
+            super::command::ToolChoice::Geometric(_) => self.palette.radius_m,
+        }
+    }
+
+    /// Asks for a detail patch two levels down (a quarter of the base knot spacing) over a box
+    /// around the last surface point the brush was on: twice the brush radius, and at least
+    /// two and a half base knot spans, on each side.
+    fn refine_here(&mut self) {
+        let Some(at) = self.refine_at else {
+            return;
+        };
+        let spacing = self
+            .link
+            .field()
+            .value
+            .patches
+            .first()
+            .map_or(0.0, |p| p.lattice.spacing);
+        let half = glam::Vec3::splat((2.0 * self.brush_radius()).max(2.5 * spacing));
+        self.send(EngineCommand::Refine {
+            lo: at - half,
+            hi: at + half,
+            level: 2,
+        });
+    }
+
     /// An app talking to the engine through `link`. The current tool and material are sent on
     /// the first frame.
     #[must_use]
@@ -445,6 +477,16 @@ impl SculptApp {
                 self.send(EngineCommand::Redo);
             }
             ui.weak(format!("{undo_n} undo · {redo_n} redo"));
+            ui.separator();
+            let refine = ui
+                .add_enabled(self.refine_at.is_some(), egui::Button::new("Refine here"))
+                .on_hover_text(
+                    "Add a detail patch at a quarter of the knot spacing around the last point \
+                     the brush was on: strokes there carve finer features",
+                );
+            if refine.clicked() {
+                self.refine_here();
+            }
             ui.separator();
             let label = ui.label("Session");
             ui.add(egui::TextEdit::singleline(&mut self.files.session).desired_width(160.0))
@@ -773,11 +815,9 @@ impl SculptApp {
         if !pose.on_clay {
             return;
         }
+        self.refine_at = Some(pose.surface);
         // The brush cursor: the tool's footprint on the surface, tinted by the tool.
-        let radius = match self.palette.choice() {
-            super::command::ToolChoice::Force(t) => t.radius_m,
-            super::command::ToolChoice::Geometric(_) => self.palette.radius_m,
-        };
+        let radius = self.brush_radius();
         let aspect = size.x / size.y;
         let to_screen = |x: glam::Vec3| {
             let c = self.camera.view_projection(aspect).project_point3(x);

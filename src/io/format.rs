@@ -18,7 +18,7 @@
 //!
 //! Version 2 adds each patch's map `T_i` (world → patch space, eq. (3)) after its lattice in
 //! `PTCH`: the linear part column by column, then the translation, 12 × `f32`. Version 1 files
-//! have no map and read with the identity. A session holds at least one patch.
+//! have no map and read with the identity.
 
 use std::path::Path;
 
@@ -296,14 +296,6 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
     }
     if !meta_seen || !material_seen {
         return Err(malformed(path, "header", 0, "missing META or MATL section"));
-    }
-    if session.clay.density.patches.is_empty() {
-        return Err(malformed(
-            path,
-            "header",
-            0,
-            "no PTCH section; a session holds at least one density patch",
-        ));
     }
     Ok(session)
 }
@@ -855,12 +847,12 @@ mod tests {
         let err = decode(b"PK\x03\x04 a zip file, not ours", Path::new("x.zip")).unwrap_err();
         assert!(matches!(err, SessionError::NotASession { .. }), "{err}");
         let mut bytes = encode(&sample_session()).unwrap();
-        bytes[8..12].copy_from_slice(&2_u32.to_le_bytes());
+        bytes[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
         let crc = crc32fast::hash(&bytes[..20]);
         bytes[20..24].copy_from_slice(&crc.to_le_bytes());
         let err = decode(&bytes, Path::new("new.dclay")).unwrap_err();
         assert!(
-            matches!(err, SessionError::UnsupportedVersion { found: 2, .. }),
+            matches!(err, SessionError::UnsupportedVersion { found: 3, .. }),
             "{err}"
         );
     }
@@ -892,7 +884,8 @@ mod tests {
         let bytes = encode(&s).unwrap();
         // Corrupt a coefficient in the second patch section.
         let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
-        let second_patch = HEADER_LEN + (16 + meta_len) + (16 + 40 + 4 * 9 * 8 * 7);
+        // A patch section: its 16 framing bytes, the lattice (40 + coefficients) and its map (48).
+        let second_patch = HEADER_LEN + (16 + meta_len) + (16 + 40 + 4 * 9 * 8 * 7 + 48);
         let mut bad = bytes.clone();
         bad[second_patch + 12 + 60] ^= 1;
         match decode(&bad, Path::new("mem")).unwrap_err() {
@@ -969,16 +962,5 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("PTCH") && err.contains("invertible"), "{err}");
-    }
-
-    #[test]
-    fn a_session_without_a_density_patch_is_refused() {
-        let mut session = sample_session();
-        session.clay.density.patches.clear();
-        session.clay.colour = None;
-        let err = decode(&encode(&session).unwrap(), Path::new("none.dclay"))
-            .unwrap_err()
-            .to_string();
-        assert!(err.contains("at least one density patch"), "{err}");
     }
 }

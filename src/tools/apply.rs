@@ -767,6 +767,41 @@ mod tests {
         .unwrap()
     }
 
+    /// On a clay of two patches the tool's rule acts on the sum (eq. (3)): a union on the
+    /// detail patch raises the sum to the tool's potential where that exceeds the base, not
+    /// base plus potential, and the base patch is left alone.
+    #[test]
+    fn a_tool_on_a_detail_patch_makes_the_sum_follow_its_rule() {
+        let mut clay = empty();
+        clay.base_mut().coeffs.fill(0.3);
+        let c = centre();
+        let detail = clay
+            .density
+            .refine(c - Vec3::splat(0.8), c + Vec3::splat(0.8), 1)
+            .unwrap();
+        assert_eq!(detail, 1);
+        let base = clay.base().clone();
+        let r = 0.35;
+        let t = tool(ToolShape::Sphere { radius_m: r }, ToolAction::Union);
+        let options = ApplyOptions {
+            patch: 1,
+            ..ApplyOptions::default()
+        };
+        let report = apply_tool(&mut clay, &t, &ToolPose::at(c), 1.0, &options, None).unwrap();
+        assert_eq!(report.patch, 1);
+        assert_eq!(clay.base(), &base, "the base patch is untouched");
+        // Inside the tool its potential (1 at the centre) wins: the sum is 1, not 1.3.
+        let at_centre = clay.density.value(c);
+        assert!(
+            (at_centre - 1.0).abs() < 0.05,
+            "sum at the centre {at_centre}"
+        );
+        // Far outside the tool the sum is the base's 0.3.
+        let away = c + Vec3::new(0.7, 0.0, 0.0);
+        assert!((clay.density.value(away) - 0.3).abs() < 0.02);
+        assert!(clay.density.is_inside(c) && !clay.density.is_inside(away));
+    }
+
     #[test]
     fn adding_a_sphere_grows_the_volume_by_the_sphere_and_touches_only_its_box() {
         let mut clay = empty();

@@ -367,8 +367,13 @@ pub fn apply_emboss(
     let Some(region) = coeff_box_around(lattice, a, b, 2) else {
         return Ok(ToolReport::default());
     };
-    let before = lattice.clone();
-    let iso = before.iso;
+    // The whole clay before the edit: the relief moves the sum's surface (eq. (3)), and the
+    // edited patch takes the change.
+    let spacing = lattice.spacing;
+    let before = clay.density.clone();
+    let edited = &before.patches[usize::from(patch)];
+    let others = |x: Vec3| before.value(x) - edited.value(x);
+    let iso = before.iso();
     let sign = if params.engrave { -1.0 } else { 1.0 };
     if let Some(r) = recorder {
         r.touch(clay, id, region);
@@ -377,12 +382,12 @@ pub fn apply_emboss(
     let dirtied = std::cell::Cell::new(0usize);
     let displaced = |x: Vec3, old: f32| {
         visited.set(visited.get() + 1);
-        let gradient = before.gradient(x);
+        let gradient = before.value_and_gradient(x).1;
         let Some(normal) = (-gradient).try_normalize() else {
             return old;
         };
         // Only level sets near the surface carry the relief (a flat field has no normal).
-        if gradient.length() < 1e-3 * (iso.abs() + 1.0) / before.spacing {
+        if gradient.length() < 1e-3 * (iso.abs() + 1.0) / spacing {
             return old;
         }
         let Some((s, t, weight)) = params.project(x, normal) else {
@@ -396,7 +401,7 @@ pub fn apply_emboss(
             return old;
         }
         dirtied.set(dirtied.get() + 1);
-        before.value(x - d * normal)
+        before.value(x - d * normal) - others(x)
     };
     let lattice = clay.field_mut(id).expect("checked above");
     refit_box_edit(lattice, region.min, region.max, samples_per_span, displaced)?;
