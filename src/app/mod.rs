@@ -19,14 +19,14 @@ mod state;
 mod view;
 mod viewport;
 
-pub use bridge::{EngineBridge, GuiMeshSink, export_chunks, start_bridge};
+pub use bridge::{ChunkExportError, EngineBridge, GuiMeshSink, export_chunks, start_bridge};
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };
 pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
-pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
+pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };

@@ -320,7 +320,8 @@ fn starting_session(
     base_dir: &Path,
     session_path: &Path,
 ) -> Result<Session, CliError> {
-    let found = recovery_to_use(session_path, recover).map_err(CliError::Usage)?;
+    let found =
+        recovery_to_use(session_path, recover).map_err(|e| CliError::Usage(e.to_string()))?;
     match found {
         Some(r) => {
             let session =

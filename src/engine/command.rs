@@ -178,7 +178,7 @@ pub enum Command {
         /// Destination file.
         path: PathBuf,
         /// Optional result channel.
-        reply: Option<Sender<Result<PathBuf, String>>>,
+        reply: Option<super::SaveReply>,
     },
     /// Replace the clay and material with `session`, already read and validated from
     /// `source` by the sender (so the simulation thread does no disk I/O). The undo history

@@ -33,7 +33,9 @@ pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
 };
-pub use error::{CommandError, EngineError, LatticeShape, LoadRefused, SwapRefused};
+pub use error::{
+    CommandError, EngineError, LatticeShape, LoadRefused, SaveError, SaveReply, SwapRefused,
+};
 pub use force_limit::{ForceLimit, InvalidForceLimit};
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};

@@ -59,7 +59,7 @@ impl FieldPatch {
     /// has capacity for the lattice.
     pub fn capture(&mut self, lattice: &BSplineLattice, coeff_box: CoeffBox) {
         self.coeffs.clear();
-        let Some(b) = clamp_box(coeff_box, lattice.dims) else {
+        let Some(b) = coeff_box.clipped(lattice.dims) else {
             self.coeff_box = None;
             return;
         };
@@ -119,7 +119,8 @@ impl FieldPatch {
                     // Bit comparison: a changed NaN payload or signed zero still counts.
                     if d.to_bits() != s.to_bits() {
                         *d = *s;
-                        grow(&mut changed, [b.min[0] + i, j, k]);
+                        let p = [b.min[0] + i, j, k];
+                        changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
                     }
                 }
                 src += len;
@@ -127,23 +128,6 @@ impl FieldPatch {
         }
         changed
     }
-}
-
-/// Grows `acc` to hold coefficient `p`.
-fn grow(acc: &mut Option<CoeffBox>, p: [usize; 3]) {
-    let point = CoeffBox { min: p, max: p };
-    *acc = Some(acc.map_or(point, |b| b.union(&point)));
-}
-
-fn clamp_box(b: CoeffBox, dims: [usize; 3]) -> Option<CoeffBox> {
-    let mut out = b;
-    for (a, &n) in dims.iter().enumerate() {
-        if n == 0 || b.min[a] > b.max[a] || b.min[a] >= n {
-            return None;
-        }
-        out.max[a] = b.max[a].min(n - 1);
-    }
-    Some(out)
 }
 
 #[cfg(test)]

@@ -41,7 +41,7 @@ use glam::Vec3;
 
 use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
-use super::error::{CommandError, LatticeShape, LoadRefused};
+use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
 use super::live_tool::LiveTool;
 use super::patch::FieldPatch;
 use super::sim_status::SimStatus;
@@ -109,7 +109,7 @@ pub struct SaveJob {
     /// The session to write.
     pub session: Session,
     /// Where the result goes.
-    pub reply: Option<Sender<Result<std::path::PathBuf, String>>>,
+    pub reply: Option<super::SaveReply>,
 }
 
 /// What one step did.

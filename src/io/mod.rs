@@ -8,9 +8,10 @@ mod format;
 mod script;
 mod session;
 
-pub use atomic::{check_replaceable, load_session, save_session, write_atomic};
+pub use atomic::{ReplaceRefused, check_replaceable, load_session, save_session, write_atomic};
 pub use autosave::{
-    Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for, recovery_to_use,
+    Autosave, AutosavePolicy, Recovery, RecoveryRefused, find_recovery, recovery_path_for,
+    recovery_to_use,
 };
 pub use dynaclay_files::bounded_read;
 pub use error::SessionError;

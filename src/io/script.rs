@@ -707,7 +707,8 @@ impl ScriptStep {
 }
 
 /// Why a script could not be read or run: where (file, line, column, step) and what.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{file}{}: {message}", Location { line: *line, column: *column, step: *step })]
 pub struct ScriptError {
     pub file: String,
     /// 1-based line and column, when known.
@@ -718,9 +719,16 @@ pub struct ScriptError {
     pub message: String,
 }
 
-impl std::fmt::Display for ScriptError {
+/// The `:line:column: step N` between a script error's file and message (each part only
+/// when known; the column only with a line).
+struct Location {
+    line: Option<usize>,
+    column: Option<usize>,
+    step: Option<usize>,
+}
+
+impl std::fmt::Display for Location {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}", self.file)?;
         if let Some(l) = self.line {
             write!(f, ":{l}")?;
             if let Some(c) = self.column {
@@ -730,11 +738,9 @@ impl std::fmt::Display for ScriptError {
         if let Some(s) = self.step {
             write!(f, ": step {s}")?;
         }
-        write!(f, ": {}", self.message)
+        Ok(())
     }
 }
-
-impl std::error::Error for ScriptError {}
 
 /// 1-based line and column of a byte offset.
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
@@ -956,18 +962,13 @@ fn backticked(message: &str) -> Option<&str> {
 
 /// A step's parameter at fault: the key it is written under (whose line the error names)
 /// and what is wrong with it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
 pub struct StepFault {
     /// The step's key, as written in the script.
     pub key: &'static str,
     /// What is wrong, naming the value.
     pub message: String,
-}
-
-impl std::fmt::Display for StepFault {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
 }
 
 fn fault(key: &'static str, message: impl Into<String>) -> StepFault {
