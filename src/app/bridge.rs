@@ -28,15 +28,12 @@ use dynaclay_devices::{DeviceInfo, HapticDevice};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
-use super::command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
+use super::command::{EngineCommand, EngineEvent};
 use super::launch::MakeDeviceError;
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
-use crate::engine::{
-    Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
-    ToolChoice as EngineToolChoice,
-};
+use crate::engine::{Command, Engine, EngineError, EngineReport, MeshSink, PushTool};
 use crate::field::BSplineLattice;
 use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
@@ -221,7 +218,7 @@ pub fn start_bridge(
         device,
         connected: true,
         opener,
-        tool_radius: PushTool::default().radius,
+        tool_radius: PushTool::default().radius_fu,
         saves: Vec::new(),
         loads: Vec::new(),
         pin_replies: Vec::new(),
@@ -453,12 +450,12 @@ impl Bridge {
     fn apply(&mut self, cmd: EngineCommand) {
         let what = cmd.name();
         match cmd {
-            EngineCommand::SelectTool(ToolChoice::Force(t)) => {
-                self.tool_radius = t.radius_m;
-                self.send(what, Command::SetTool(engine_force_tool(&t)));
-            }
-            EngineCommand::SelectTool(ToolChoice::Geometric(t)) => {
-                self.send(what, Command::SetTool(EngineToolChoice::Geometric(t)));
+            EngineCommand::SelectTool(choice) => {
+                // The view's brush keeps the last spread radius through a geometric tool.
+                if let Some(r) = choice.spread_radius_fu() {
+                    self.tool_radius = r;
+                }
+                self.send(what, Command::SetTool(choice));
             }
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
@@ -638,47 +635,6 @@ pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, ChunkExportErr
     let mesh = weld_pieces(&pieces);
     write_mesh(path, &mesh, format)?;
     Ok(mesh.triangles.len())
-}
-
-/// The engine tool for an app force tool: the point grab is the contact push felt through the
-/// arm (Hua & Qin's single force vector); the others drive the dynamics with their own force
-/// vectors each step.
-fn engine_force_tool(t: &ForceTool) -> EngineToolChoice {
-    let stroke = |tool| {
-        EngineToolChoice::Force(ForceStrokeTool {
-            tool,
-            curve: Vec::new(),
-            pivot: Vec3::ZERO,
-        })
-    };
-    match t.mode {
-        ForceMode::PointGrab => EngineToolChoice::Push(PushTool {
-            distribution: t.distribution,
-            radius: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Area => stroke(crate::tools::ForceTool::Area {
-            distribution: t.distribution,
-            radius_m: t.radius_m,
-            tracks: 8,
-            gain: t.gain,
-        }),
-        ForceMode::Chisel => stroke(crate::tools::ForceTool::Chisel {
-            depth_m: t.depth_m,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Squirt => stroke(crate::tools::ForceTool::Squirt {
-            depth_m: t.depth_m,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Pull => stroke(crate::tools::ForceTool::Pull {
-            distribution: t.distribution,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
-    }
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@ pub use bridge::{ChunkExportError, EngineBridge, GuiMeshSink, export_chunks, sta
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };
-pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
+pub use command::{EngineCommand, EngineEvent, ForceMode};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args};
@@ -32,7 +32,7 @@ pub use link::{
 };
 pub use material_panel::material_ui;
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
-pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
+pub use palette::{ActionKind, ForceSettings, PaletteEntry, ShapeKind, ToolPalette, entry_label};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};

@@ -124,6 +124,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             PathBuf::from("."),
         ),
     };
+    for note in &script.deprecated {
+        eprintln!("warning: {note}");
+    }
     let spec: DeviceSpec = args
         .device
         .parse()

@@ -27,7 +27,7 @@ mod tool_sample;
 mod wiring;
 mod workspace;
 
-pub use command::{Command, ForceStrokeTool, PushTool, Reply, ToolChoice};
+pub use command::{Command, PushTool, Reply, ToolChoice};
 pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
 pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{

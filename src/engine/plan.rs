@@ -13,7 +13,7 @@
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
 //! - A stroke starts at `start_s` if given (it must leave [`SETTLE_S`] after the previous
-//!   step ends), else [`TRAVEL_S`] after it. The hand moves to `hover_m` above the path's first
+//!   step ends), else [`TRAVEL_S`] after it. The hand moves to `hover_fu` above the path's first
 //!   point by then, descends in [`APPROACH_S`], follows the path (evenly over `duration_s`, or
 //!   at `times_s`), lifts in [`APPROACH_S`] and the stroke ends there. A stroke's tool is
 //!   selected when the previous step ends (a change of tool ends any settling stroke first).
@@ -30,7 +30,7 @@ use std::path::Path;
 use dynaclay_devices::{Interpolation, Trajectory, Waypoint};
 use glam::Vec3;
 
-use super::command::{ForceStrokeTool, PushTool, ToolChoice};
+use super::command::{PushTool, ToolChoice};
 use super::workspace::WorkspaceMap;
 use crate::dynamics::Material;
 use crate::io::{
@@ -57,11 +57,11 @@ resolution = 24
 
 [[step]]
 do = "stroke"
-tool = { kind = "push", beta = "gaussian", radius_m = 0.25, gain = 2e6 }
+tool = { kind = "push", beta = "gaussian", radius_fu = 0.25, gain = 2e6 }
 start_s = 0.2
 path = [[0.85, 1.55, 1.15], [1.15, 1.5, 1.15], [1.45, 1.55, 1.15]]
 duration_s = 1.6
-hover_m = 0.35
+hover_fu = 0.35
 "#;
 
 /// The built-in default script.
@@ -191,12 +191,12 @@ impl ScriptPlan {
                     tool,
                     shape,
                     action,
-                    falloff_m,
+                    falloff_fu,
                     path,
                     duration_s,
                     times_s,
                     start_s,
-                    hover_m,
+                    hover_fu,
                     buttons,
                     curve,
                     pivot,
@@ -207,7 +207,7 @@ impl ScriptPlan {
                                 .resolve(|name| lookup(name).map(|t| &t.shape))
                                 .map_err(fail)?,
                             action: *action,
-                            falloff_m: *falloff_m,
+                            falloff_fu: *falloff_fu,
                         }),
                         (Some(spec), _, _) => tool_choice(spec, curve, *pivot),
                         _ => tool_choice(&ForceToolSpec::DEFAULT_PUSH, curve, *pivot),
@@ -242,7 +242,7 @@ impl ScriptPlan {
                         times_s.iter().map(|t| f64::from(*t)).collect()
                     };
                     let stroke =
-                        stroke_waypoints(at, start, path, &times, *hover_m, *buttons, push);
+                        stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, push);
                     clock = stroke.end_s;
                     strokes.push(stroke);
                     held = Some(choice);
@@ -251,7 +251,7 @@ impl ScriptPlan {
                     shape,
                     action,
                     positions,
-                    falloff_m,
+                    falloff_fu,
                     rotation,
                     duration_s,
                     patch,
@@ -263,7 +263,7 @@ impl ScriptPlan {
                         tool: GeometricTool {
                             shape,
                             action: *action,
-                            falloff_m: *falloff_m,
+                            falloff_fu: *falloff_fu,
                         },
                         poses: poses(positions, *rotation),
                         duration_s: *duration_s,
@@ -281,7 +281,7 @@ impl ScriptPlan {
                         tool: GeometricTool {
                             shape: preset.shape.clone(),
                             action: preset.action,
-                            falloff_m: preset.falloff_m,
+                            falloff_fu: preset.falloff_fu,
                         },
                         poses: poses(positions, None),
                         duration_s: *duration_s,
@@ -393,21 +393,21 @@ impl ScriptPlan {
 
 fn tool_choice(spec: &ForceToolSpec, curve: &[[f32; 3]], pivot: Option<[f32; 3]>) -> ToolChoice {
     match (spec, spec.force_tool()) {
-        (_, Some(tool)) => ToolChoice::Force(ForceStrokeTool {
+        (_, Some(tool)) => ToolChoice::Force {
             tool,
             curve: curve.iter().map(|p| Vec3::from_array(*p)).collect(),
             pivot: pivot.map_or(Vec3::ZERO, Vec3::from_array),
-        }),
+        },
         (
             ForceToolSpec::Push {
                 beta,
-                radius_m,
+                radius_fu,
                 gain,
             },
             None,
         ) => ToolChoice::Push(PushTool {
             distribution: (*beta).into(),
-            radius: *radius_m,
+            radius_fu: *radius_fu,
             gain: *gain,
         }),
         (_, None) => ToolChoice::default(),
@@ -424,11 +424,11 @@ fn stroke_waypoints(
     start: f64,
     path: &[[f32; 3]],
     times: &[f64],
-    hover_m: f32,
+    hover_fu: f32,
     buttons: u32,
     push: bool,
 ) -> PlannedStroke {
-    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_m;
+    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_fu;
     let down = start + APPROACH_S;
     let last = path.len() - 1;
     let mut w = vec![Waypoint::with_buttons(
@@ -508,7 +508,7 @@ mod tests {
 version = 1
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.2 }
+shape = { kind = "sphere", radius_fu = 0.2 }
 action = { kind = "add", deposit_rate_per_s = 4.0 }
 positions = [[1, 1, 1]]
 

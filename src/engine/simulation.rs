@@ -661,11 +661,11 @@ mod tests {
             },
             tools: vec![crate::io::ToolPreset {
                 name: "ball".into(),
-                shape: crate::tools::ToolShape::Sphere { radius_m: 0.1 },
+                shape: crate::tools::ToolShape::Sphere { radius_fu: 0.1 },
                 action: crate::tools::ToolAction::Add {
                     deposit_rate_per_s: 2.0,
                 },
-                falloff_m: 0.02,
+                falloff_fu: 0.02,
             }],
             meta: crate::io::SessionMeta {
                 name: "whole".into(),

@@ -17,7 +17,8 @@ pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{
-    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, PinKind, SCRIPT_VERSION,
-    Script, ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,
+    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DeprecatedKey, ForceToolSpec, PinKind,
+    RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, ShapeSpec, load_script,
+    parse_script, pin_request, poses,
 };
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
