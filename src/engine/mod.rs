@@ -45,8 +45,8 @@ pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use patch::FieldPatch;
 pub use plan::{
-    APPROACH_S, DEFAULT_SCRIPT, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S, ScriptPlan,
-    TRAVEL_S, builtin_script,
+    APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,
+    ScriptPlan, TRAVEL_S, builtin_script,
 };
 pub use replay::{ReplayMismatch, ScheduledReplay};
 pub use script_driver::ScriptDriver;

@@ -130,7 +130,29 @@ pub struct PlannedStroke {
     /// When it is back at hover, seconds.
     pub end_s: f64,
     /// Hand waypoints, field coordinates.
-    pub waypoints: Vec<Waypoint>,
+    pub waypoints: Vec<HandWaypoint>,
+}
+
+/// A waypoint of the simulated hand in field coordinates; [`ScriptPlan::trajectory`] maps it to
+/// the device's [`Waypoint`] (metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HandWaypoint {
+    /// Time the hand reaches this point, seconds from the start of the script.
+    pub time_s: f64,
+    /// Hand position, field units.
+    pub position_fu: Vec3,
+    /// Buttons held from this waypoint until the next (bit 0: the stroke button).
+    pub buttons: u32,
+}
+
+impl HandWaypoint {
+    fn new(time_s: f64, position_fu: Vec3, buttons: u32) -> Self {
+        Self {
+            time_s,
+            position_fu,
+            buttons,
+        }
+    }
 }
 
 /// A script laid out on the script clock.
@@ -369,14 +391,14 @@ impl ScriptPlan {
             .first()
             .and_then(|s| s.waypoints.first())
             .map_or(map.field_centre + Vec3::Y * map.field_centre.y, |w| {
-                w.position_m
+                w.position_fu
             });
         let mut w = vec![Waypoint::new(0.0, map.to_device(first))];
         for s in &self.strokes {
             for p in &s.waypoints {
                 w.push(Waypoint::with_buttons(
                     p.time_s,
-                    map.to_device(p.position_m),
+                    map.to_device(p.position_fu),
                     p.buttons,
                 ));
             }
@@ -431,7 +453,7 @@ fn stroke_waypoints(
     let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_fu;
     let down = start + APPROACH_S;
     let last = path.len() - 1;
-    let mut w = vec![Waypoint::with_buttons(
+    let mut w = vec![HandWaypoint::new(
         start,
         up(path[0]),
         if push { buttons } else { 0 },
@@ -443,17 +465,17 @@ fn stroke_waypoints(
         } else {
             buttons
         };
-        w.push(Waypoint::with_buttons(down + t, Vec3::from_array(*p), held));
+        w.push(HandWaypoint::new(down + t, Vec3::from_array(*p), held));
     }
     if path.len() == 1 {
         // A single point is held for the whole duration (its one time is the duration).
         let hold = times[0].max(1e-3);
         w[1].time_s = down;
-        w.push(Waypoint::new(down + hold, Vec3::from_array(path[0])));
+        w.push(HandWaypoint::new(down + hold, Vec3::from_array(path[0]), 0));
     }
     let path_end = w.last().map_or(down, |l| l.time_s);
     let end = path_end + APPROACH_S;
-    w.push(Waypoint::new(end, up(path[last])));
+    w.push(HandWaypoint::new(end, up(path[last]), 0));
     PlannedStroke {
         step,
         start_s: start,
