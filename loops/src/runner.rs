@@ -765,6 +765,9 @@ mod tests {
         // Whatever the machine's load: never more ticks than were due, and the rate it reports
         // never above the nominal one. How far behind a loaded machine falls belongs in bench/.
         for rate_hz in [1000.0, 4000.0] {
+            // Before the spawn: the loop's deadline grid starts on its own thread, possibly
+            // before spawn_loop returns here.
+            let started = Instant::now();
             let mut handle = spawn_loop(
                 LoopConfig::new("t-rate")
                     .with_rate_hz(rate_hz)
@@ -772,7 +775,6 @@ mod tests {
                 |_| ControlFlow::Continue(()),
             )
             .expect("spawn");
-            let started = Instant::now();
             // Run until the loop has published its figures once (ten ticks), however late.
             let patience = started + Duration::from_secs(60);
             while handle.monitor().latest_stats().version == 0 && Instant::now() < patience {
