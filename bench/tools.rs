@@ -44,12 +44,12 @@ fn tool_apply(c: &mut Criterion) {
     for (name, radius_spans) in [("small", 2.0), ("medium", 6.0), ("large", 16.0)] {
         let tool = GeometricTool {
             shape: ToolShape::Sphere {
-                radius_m: radius_spans * h,
+                radius_fu: radius_spans * h,
             },
             action: ToolAction::Add {
                 deposit_rate_per_s: 1.0,
             },
-            falloff_m: 2.0 * h,
+            falloff_fu: 2.0 * h,
         };
         let pose = ToolPose::at(centre);
         let mut probe = clay.clone();
@@ -80,7 +80,7 @@ fn tool_apply(c: &mut Criterion) {
         let union = GeometricTool {
             action: ToolAction::Union,
             shape: ToolShape::Box {
-                half_extents_m: Vec3::splat(radius_spans * h),
+                half_extents_fu: Vec3::splat(radius_spans * h),
             },
             ..tool.clone()
         };
@@ -107,9 +107,11 @@ fn undo_redo(c: &mut Criterion) {
     let h = clay.density.patches[0].lattice.spacing;
     let mut history = History::default();
     let tool = GeometricTool {
-        shape: ToolShape::Sphere { radius_m: 16.0 * h },
+        shape: ToolShape::Sphere {
+            radius_fu: 16.0 * h,
+        },
         action: ToolAction::Remove,
-        falloff_m: 2.0 * h,
+        falloff_fu: 2.0 * h,
     };
     let mut rec = StepRecorder::new("remove");
     let pose = ToolPose::at(Vec3::splat(127.5 * h) + Vec3::X * (0.3 * 256.0 * h));

@@ -175,11 +175,11 @@ every_strokes = 1
 
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.2 }
+shape = { kind = "sphere", radius_fu = 0.2 }
 action = { kind = "add", deposit_rate_per_s = 10.0 }
 positions = [[1.15, 1.95, 1.15]]
 duration_s = 1.0
-falloff_m = 0.1
+falloff_fu = 0.1
 
 [[step]]
 do = "stroke"
@@ -371,11 +371,11 @@ fn session_with_every_section() -> dynaclay::io::Session {
         },
         tools: vec![ToolPreset {
             name: "ball".into(),
-            shape: ToolShape::Sphere { radius_m: 0.2 },
+            shape: ToolShape::Sphere { radius_fu: 0.2 },
             action: ToolAction::Add {
                 deposit_rate_per_s: 3.0,
             },
-            falloff_m: 0.05,
+            falloff_fu: 0.05,
         }],
         meta: SessionMeta {
             name: "every section".into(),
@@ -539,6 +539,43 @@ fn out_naming_a_file_says_it_is_not_a_directory() {
 /// A `constrain` step through `dynaclay run`: the run says which point it moved onto the
 /// surface, the session keeps the pin, and an `unconstrain` of a pin that does not exist
 /// fails the run with the step and the reason.
+/// Scripts written before lengths on the clay were named in field units still run, and the
+/// run says which old key to rename on which line.
+#[test]
+fn a_script_with_the_old_metre_keys_runs_and_warns_with_key_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("old.toml");
+    std::fs::write(
+        &script,
+        "version = 1\nseconds = 0.5\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_m = 0.1 }\naction = { kind = \"remove\" }\npositions = [[1.15, 1.75, 1.15]]\nfalloff_m = 0.05\n",
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let warnings: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.starts_with("warning:"))
+        .collect();
+    assert_eq!(warnings.len(), 2, "{stderr}");
+    assert!(
+        warnings[0].contains("old.toml:6:")
+            && warnings[0].contains("`radius_m`")
+            && warnings[0].contains("`radius_fu`"),
+        "{stderr}"
+    );
+    assert!(
+        warnings[1].contains("old.toml:9:") && warnings[1].contains("`falloff_m`"),
+        "{stderr}"
+    );
+}
+
 #[test]
 fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
     let dir = tempfile::tempdir().unwrap();
@@ -776,7 +813,7 @@ resolution = 16
 do = "stroke"
 path = [[0.8, 1.3, 0.95], [1.1, 1.3, 0.95]]
 duration_s = 0.5
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "save"
@@ -784,11 +821,11 @@ path = "mid.dclay"
 
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.12 }
+shape = { kind = "sphere", radius_fu = 0.12 }
 action = { kind = "remove" }
 positions = [[1.0, 1.45, 1.0]]
 duration_s = 0.2
-falloff_m = 0.1
+falloff_fu = 0.1
 "#,
     )
     .unwrap();

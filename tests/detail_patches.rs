@@ -37,7 +37,7 @@ fn press(refine: u32) -> (MultiPatchField, f32, usize) {
     let commands = run.commands();
     commands
         .send(Command::SetTool(ToolChoice::Push(PushTool {
-            radius: 0.25 * spacing,
+            radius_fu: 0.25 * spacing,
             ..PushTool::default()
         })))
         .unwrap();

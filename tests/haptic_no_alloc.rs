@@ -14,7 +14,7 @@ use std::cell::Cell;
 use std::time::Instant;
 
 use dynaclay::dynamics::Distribution;
-use dynaclay::engine::{Command, DeviceHandover, ForceStrokeTool, HeadlessSink, ToolChoice, build};
+use dynaclay::engine::{Command, DeviceHandover, HeadlessSink, ToolChoice, build};
 use dynaclay::io::Session;
 use dynaclay::tools::ForceTool;
 use dynaclay_devices::{
@@ -235,18 +235,18 @@ fn force_tool_strokes_tick_without_allocating() {
     for tool in [
         ForceTool::Area {
             distribution: Distribution::Gaussian,
-            radius_m: 0.1,
+            radius_fu: 0.1,
             tracks: 8,
             gain,
         },
         ForceTool::Chisel {
-            depth_m: 0.02,
-            radius_m: 0.25,
+            depth_fu: 0.02,
+            radius_fu: 0.25,
             gain,
         },
         ForceTool::Bend {
             samples: 8,
-            radius_m: 0.25,
+            radius_fu: 0.25,
             gain,
         },
     ] {
@@ -271,11 +271,11 @@ fn force_tool_strokes_tick_without_allocating() {
         .expect("stages build");
         stages
             .commands
-            .send(Command::SetTool(ToolChoice::Force(ForceStrokeTool {
+            .send(Command::SetTool(ToolChoice::Force {
                 tool,
                 curve: Vec::new(),
                 pivot: Vec3::new(0.95, 0.95, 0.95),
-            })))
+            }))
             .unwrap();
         let before = allocs_in_tick();
         let mut holding = 0;

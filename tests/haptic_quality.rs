@@ -19,9 +19,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 
 use dynaclay::dynamics::Distribution;
-use dynaclay::engine::{
-    Command, EngineConfig, ForceStrokeTool, HeadlessSink, Lockstep, ToolChoice,
-};
+use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ToolChoice};
 use dynaclay::field::BSplineLattice;
 use dynaclay::haptics::ShapingConfig;
 use dynaclay::tools::ForceTool;
@@ -216,11 +214,7 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
 }
 
 fn force_tool(tool: ForceTool) -> Option<ToolChoice> {
-    Some(ToolChoice::Force(ForceStrokeTool {
-        tool,
-        curve: Vec::new(),
-        pivot: Vec3::ZERO,
-    }))
+    Some(ToolChoice::from(tool))
 }
 
 fn check(name: &str, q: &Quality, limit_step_n: f32) {
@@ -255,7 +249,7 @@ fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
     let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
     let ticks = 3400;
     let gain = 2.0e6;
-    let radius_m = 0.25;
+    let radius_fu = 0.25;
 
     // Touch: no stroke; the surface pushes back up, firmly.
     let t = record(
@@ -289,16 +283,16 @@ fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
         (
             "chisel",
             ForceTool::Chisel {
-                depth_m: 0.02,
-                radius_m,
+                depth_fu: 0.02,
+                radius_fu,
                 gain,
             },
         ),
         (
             "squirt",
             ForceTool::Squirt {
-                depth_m: 0.02,
-                radius_m,
+                depth_fu: 0.02,
+                radius_fu,
                 gain,
             },
         ),
@@ -326,7 +320,7 @@ fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
             "pull",
             ForceTool::Pull {
                 distribution: Distribution::Gaussian,
-                radius_m,
+                radius_fu,
                 gain,
             },
         ),
@@ -334,7 +328,7 @@ fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
             "area",
             ForceTool::Area {
                 distribution: Distribution::Gaussian,
-                radius_m: 0.1,
+                radius_fu: 0.1,
                 tracks: 8,
                 gain,
             },

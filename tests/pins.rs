@@ -29,7 +29,7 @@ at = [0.95, 1.74, 0.8]
 do = "stroke"
 path = [[0.8, 1.55, 0.8], [1.1, 1.55, 0.8]]
 duration_s = 1.0
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "save"
@@ -49,7 +49,7 @@ path = "unpinned.dclay"
 do = "stroke"
 path = [[0.8, 1.55, 0.8], [1.1, 1.55, 0.8]]
 duration_s = 1.0
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "save"

@@ -138,27 +138,27 @@ resolution = 20
 
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.15 }
+shape = { kind = "sphere", radius_fu = 0.15 }
 action = { kind = "add", deposit_rate_per_s = 10.0 }
 positions = [[1.15, 1.75, 1.15]]
 duration_s = 0.3
-falloff_m = 0.1
+falloff_fu = 0.1
 
 [[step]]
 do = "stroke"
 path = [[0.75, 1.3, 0.95], [1.1, 1.3, 0.95]]
 duration_s = 0.6
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "undo"
 
 [[step]]
 do = "stroke"
-tool = { kind = "pull", beta = "gaussian", radius_m = 0.15, gain = 2e6 }
+tool = { kind = "pull", beta = "gaussian", radius_fu = 0.15, gain = 2e6 }
 path = [[1.3, 1.4, 1.3], [1.3, 1.55, 1.3]]
 duration_s = 0.4
-hover_m = 0.2
+hover_fu = 0.2
 "#;
 
 /// A threaded run, recorded with its schedule while two threads load the machine, replays to

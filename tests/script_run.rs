@@ -31,11 +31,11 @@ path = "s0.dclay"
 
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.2 }
+shape = { kind = "sphere", radius_fu = 0.2 }
 action = { kind = "add", deposit_rate_per_s = 10.0 }
 positions = [[1.15, 1.95, 1.15]]
 duration_s = 1.0
-falloff_m = 0.1
+falloff_fu = 0.1
 
 [[step]]
 do = "save"
@@ -45,7 +45,7 @@ path = "s1.dclay"
 do = "stroke"
 path = [[0.8, 1.55, 0.8], [1.1, 1.55, 0.8]]
 duration_s = 1.0
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "save"
@@ -60,10 +60,10 @@ path = "s3.dclay"
 
 [[step]]
 do = "stroke"
-tool = { kind = "pull", beta = "gaussian", radius_m = 0.15, gain = 2e6 }
+tool = { kind = "pull", beta = "gaussian", radius_fu = 0.15, gain = 2e6 }
 path = [[1.45, 1.7, 1.45], [1.45, 1.9, 1.45]]
 duration_s = 0.6
-hover_m = 0.2
+hover_fu = 0.2
 
 [[step]]
 do = "save"
@@ -71,12 +71,12 @@ path = "s4.dclay"
 
 [[step]]
 do = "stroke"
-shape = { kind = "sphere", radius_m = 0.12 }
+shape = { kind = "sphere", radius_fu = 0.12 }
 action = { kind = "remove" }
-falloff_m = 0.1
+falloff_fu = 0.1
 path = [[0.8, 1.72, 1.45], [1.2, 1.72, 1.45]]
 duration_s = 0.4
-hover_m = 0.3
+hover_fu = 0.3
 
 [[step]]
 do = "save"

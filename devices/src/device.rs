@@ -111,18 +111,22 @@ impl Default for DeviceState {
 /// (`NotOpen`, `Disconnected`, `Timeout`, `Protocol`, `Io`, `EndOfRecording`) carry no heap
 /// data, so producing them allocates nothing. Variants with strings come from `open` and
 /// configuration only.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum DeviceError {
     /// `read` or `write_force` was called while the device is not open.
+    #[error("device is not open")]
     NotOpen,
     /// The device went away (unplugged, port closed by the peer, powered off).
+    #[error("device disconnected")]
     Disconnected,
     /// No answer arrived within the bounded wait.
+    #[error("device did not answer within {waited_us} µs")]
     Timeout {
         /// How long the driver waited, microseconds.
         waited_us: u64,
     },
     /// The device sent bytes that do not follow its protocol.
+    #[error("device protocol error at byte {offset}: {what}")]
     Protocol {
         /// What was wrong, e.g. `"bad frame terminator"`.
         what: &'static str,
@@ -130,6 +134,7 @@ pub enum DeviceError {
         offset: usize,
     },
     /// An operating-system I/O call failed.
+    #[error("I/O error during {context}: {kind}{}", OsCode(*os_code))]
     Io {
         /// The kind of failure.
         kind: io::ErrorKind,
@@ -139,28 +144,35 @@ pub enum DeviceError {
         context: &'static str,
     },
     /// The device node exists but this user may not open it (see the README's udev rules).
+    #[error(
+        "permission denied opening {path} (install the udev rules from the README or add your user to the owning group)"
+    )]
     PermissionDenied {
         /// Path of the device node, e.g. `/dev/hidraw3`.
         path: String,
     },
     /// No device matching the request was found.
+    #[error("no device found: {what}")]
     NotFound {
         /// What was looked for, e.g. `"HID 0x1234:0x0001"`.
         what: String,
     },
     /// A device profile or setting is invalid.
+    #[error("{origin}: {message}")]
     Config {
         /// Where the setting came from: a file path (with line when known) or an option name.
-        source: String,
+        origin: String,
         /// What is wrong with it.
         message: String,
     },
     /// The device does not support the requested operation.
+    #[error("device does not support {what}")]
     Unsupported {
         /// The operation, e.g. `"orientation"`.
         what: &'static str,
     },
     /// A replayed recording has no more samples.
+    #[error("recording ended after {samples} samples")]
     EndOfRecording {
         /// How many samples the recording held.
         samples: u64,
@@ -186,41 +198,17 @@ impl DeviceError {
     }
 }
 
-impl fmt::Display for DeviceError {
+/// ` (os error N)` after an I/O error's kind, when the OS gave a code (allocates nothing).
+struct OsCode(Option<i32>);
+
+impl fmt::Display for OsCode {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::NotOpen => write!(f, "device is not open"),
-            Self::Disconnected => write!(f, "device disconnected"),
-            Self::Timeout { waited_us } => {
-                write!(f, "device did not answer within {waited_us} µs")
-            }
-            Self::Protocol { what, offset } => {
-                write!(f, "device protocol error at byte {offset}: {what}")
-            }
-            Self::Io {
-                kind,
-                os_code,
-                context,
-            } => match os_code {
-                Some(code) => write!(f, "I/O error during {context}: {kind} (os error {code})"),
-                None => write!(f, "I/O error during {context}: {kind}"),
-            },
-            Self::PermissionDenied { path } => write!(
-                f,
-                "permission denied opening {path} (install the udev rules from the README or \
-                 add your user to the owning group)"
-            ),
-            Self::NotFound { what } => write!(f, "no device found: {what}"),
-            Self::Config { source, message } => write!(f, "{source}: {message}"),
-            Self::Unsupported { what } => write!(f, "device does not support {what}"),
-            Self::EndOfRecording { samples } => {
-                write!(f, "recording ended after {samples} samples")
-            }
+        match self.0 {
+            Some(code) => write!(f, " (os error {code})"),
+            None => Ok(()),
         }
     }
 }
-
-impl std::error::Error for DeviceError {}
 
 /// A haptic device or pose-input device, after CHAI3D's `cGenericHapticDevice`.
 ///

@@ -175,7 +175,7 @@ impl Falcon {
         opts: FalconOptions,
     ) -> Result<Self, DeviceError> {
         let model = ArmModel::from_profile(&profile).map_err(|e| DeviceError::Config {
-            source: profile.name.clone(),
+            origin: profile.name.clone(),
             message: e.to_string(),
         })?;
         let now = Instant::now();
@@ -292,20 +292,20 @@ impl Falcon {
     fn load_firmware(&mut self) -> Result<(), DeviceError> {
         let Some(file) = self.opts.firmware.clone() else {
             return Err(DeviceError::Config {
-                source: format!("falcon:{}", self.path),
+                origin: format!("falcon:{}", self.path),
                 message: "no firmware answers on this port; give the Falcon firmware file (DYNACLAY_FALCON_FIRMWARE)".into(),
             });
         };
         // Falcon firmware images are tens of kilobytes; a FIFO or a device is refused at once.
         let image = dynaclay_files::read_regular_file(&file, 16 << 20).map_err(|e| {
             DeviceError::Config {
-                source: file.display().to_string(),
+                origin: file.display().to_string(),
                 message: format!("cannot read the Falcon firmware file: {e}"),
             }
         })?;
         if image.is_empty() {
             return Err(DeviceError::Config {
-                source: file.display().to_string(),
+                origin: file.display().to_string(),
                 message: "the firmware file is empty".into(),
             });
         }

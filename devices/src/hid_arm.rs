@@ -106,7 +106,7 @@ impl HidArm {
             Protocol::Woodenhaptics => {
                 Some(
                     ArmModel::from_profile(&profile).map_err(|e| DeviceError::Config {
-                        source: profile.name.clone(),
+                        origin: profile.name.clone(),
                         message: e.to_string(),
                     })?,
                 )
@@ -114,7 +114,7 @@ impl HidArm {
             Protocol::CartesianHid => None,
             other => {
                 return Err(DeviceError::Config {
-                    source: profile.name.clone(),
+                    origin: profile.name.clone(),
                     message: format!(
                         "protocol {other:?} is not a USB HID protocol; use serial: or falcon:"
                     ),

@@ -42,7 +42,7 @@ impl DriverOptions {
 
 fn load_profile(name: &str) -> Result<DeviceProfile, DeviceError> {
     DeviceProfile::load(name).map_err(|e| DeviceError::Config {
-        source: name.to_string(),
+        origin: name.to_string(),
         message: e.to_string(),
     })
 }
@@ -89,7 +89,7 @@ pub fn build_driver(
                     opts.falcon.clone(),
                 )?)),
                 other => Err(DeviceError::Config {
-                    source: name.to_string(),
+                    origin: name.to_string(),
                     message: format!(
                         "profile protocol {other:?} is not a serial protocol; use hid:{name}"
                     ),

@@ -273,7 +273,7 @@ impl SerialArm {
             }
             Some(v) if v != VERSION => {
                 return Err(DeviceError::Config {
-                    source: format!("serial:{}", self.path),
+                    origin: format!("serial:{}", self.path),
                     message: format!(
                         "device speaks Cartesian protocol version {v}, dynaclay speaks {VERSION}"
                     ),
@@ -295,7 +295,7 @@ impl SerialArm {
                 Some(true) => self.homed = true,
                 Some(false) => {
                     return Err(DeviceError::Config {
-                        source: format!("serial:{}", self.path),
+                        origin: format!("serial:{}", self.path),
                         message: "the device reported that homing failed".into(),
                     });
                 }

@@ -52,13 +52,13 @@ fn map_serial_error(e: &serialport::Error, path: &str) -> DeviceError {
             what: format!("serial port {path}"),
         },
         serialport::ErrorKind::InvalidInput => DeviceError::Config {
-            source: path.to_string(),
+            origin: path.to_string(),
             message: e.description.clone(),
         },
         // The node opened but would not take serial settings: not a serial port (a file,
         // `/dev/null`, a non-tty device), or a driver that refused them.
         serialport::ErrorKind::Io(_) | serialport::ErrorKind::Unknown => DeviceError::Config {
-            source: path.to_string(),
+            origin: path.to_string(),
             message: format!(
                 "cannot set it up as a serial port ({}); is it a serial device such as /dev/ttyACM0?",
                 e.description

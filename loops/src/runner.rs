@@ -168,9 +168,10 @@ impl LoopConfig {
 }
 
 /// Errors from setting up or joining a loop.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum LoopError {
     /// A configuration field is out of range.
+    #[error("loop '{loop_name}': invalid `{field}`: {message}")]
     InvalidConfig {
         /// The loop's name.
         loop_name: String,
@@ -180,6 +181,7 @@ pub enum LoopError {
         message: String,
     },
     /// The OS could not start the thread.
+    #[error("loop '{loop_name}': could not start thread: {source}")]
     Spawn {
         /// The loop's name.
         loop_name: String,
@@ -187,39 +189,13 @@ pub enum LoopError {
         source: std::io::Error,
     },
     /// The loop thread panicked (in the tick closure or during set-up).
+    #[error("loop '{loop_name}' panicked: {message}")]
     Panicked {
         /// The loop's name.
         loop_name: String,
         /// The panic message, if it was a string.
         message: String,
     },
-}
-
-impl std::fmt::Display for LoopError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Self::InvalidConfig {
-                loop_name,
-                field,
-                message,
-            } => write!(f, "loop '{loop_name}': invalid `{field}`: {message}"),
-            Self::Spawn { loop_name, source } => {
-                write!(f, "loop '{loop_name}': could not start thread: {source}")
-            }
-            Self::Panicked { loop_name, message } => {
-                write!(f, "loop '{loop_name}' panicked: {message}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for LoopError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match self {
-            Self::Spawn { source, .. } => Some(source),
-            _ => None,
-        }
-    }
 }
 
 /// What the tick closure is told about the current tick.
@@ -789,6 +765,9 @@ mod tests {
         // Whatever the machine's load: never more ticks than were due, and the rate it reports
         // never above the nominal one. How far behind a loaded machine falls belongs in bench/.
         for rate_hz in [1000.0, 4000.0] {
+            // Before the spawn: the loop's deadline grid starts on its own thread, possibly
+            // before spawn_loop returns here.
+            let started = Instant::now();
             let mut handle = spawn_loop(
                 LoopConfig::new("t-rate")
                     .with_rate_hz(rate_hz)
@@ -796,7 +775,6 @@ mod tests {
                 |_| ControlFlow::Continue(()),
             )
             .expect("spawn");
-            let started = Instant::now();
             // Run until the loop has published its figures once (ten ticks), however late.
             let patience = started + Duration::from_secs(60);
             while handle.monitor().latest_stats().version == 0 && Instant::now() < patience {

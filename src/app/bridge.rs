@@ -16,7 +16,7 @@
 //! closed there, and the haptic loop switches between two ticks without stopping.
 
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
@@ -28,16 +28,17 @@ use dynaclay_devices::{DeviceInfo, HapticDevice};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
-use super::command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
+use super::command::{EngineCommand, EngineEvent};
+use super::launch::MakeDeviceError;
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
-use crate::engine::{
-    Command, Engine, EngineError, EngineReport, ForceStrokeTool, MeshSink, PushTool,
-    ToolChoice as EngineToolChoice,
-};
+use crate::engine::{Command, Engine, EngineError, EngineReport, MeshSink, PushTool};
 use crate::field::MultiPatchField;
-use crate::mesh::{BrickOctree, MeshFormat, RefreshReport, TriMesh, write_mesh};
+use crate::mesh::{
+    BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
+};
+use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
 
@@ -48,7 +49,8 @@ const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
 const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// Makes (without opening) the device a spec names; the bridge opens it through the engine.
-pub type DeviceOpener = Box<dyn FnMut(&DeviceSpec) -> Result<Box<dyn HapticDevice>, String> + Send>;
+pub type DeviceOpener =
+    Box<dyn FnMut(&DeviceSpec) -> Result<Box<dyn HapticDevice>, MakeDeviceError> + Send>;
 
 /// Publishes the graphics loop's brick meshes, painted, to the app.
 pub struct GuiMeshSink {
@@ -216,7 +218,7 @@ pub fn start_bridge(
         device,
         connected: true,
         opener,
-        tool_radius: PushTool::default().radius,
+        tool_radius: PushTool::default().radius_fu,
         saves: Vec::new(),
         loads: Vec::new(),
         pin_replies: Vec::new(),
@@ -256,7 +258,7 @@ struct Bridge {
     connected: bool,
     opener: DeviceOpener,
     tool_radius: f32,
-    saves: Vec<Receiver<Result<std::path::PathBuf, String>>>,
+    saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
     loads: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// Answers to pin and unpin commands.
     pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
@@ -454,12 +456,12 @@ impl Bridge {
     fn apply(&mut self, cmd: EngineCommand) {
         let what = cmd.name();
         match cmd {
-            EngineCommand::SelectTool(ToolChoice::Force(t)) => {
-                self.tool_radius = t.radius_m;
-                self.send(what, Command::SetTool(engine_force_tool(&t)));
-            }
-            EngineCommand::SelectTool(ToolChoice::Geometric(t)) => {
-                self.send(what, Command::SetTool(EngineToolChoice::Geometric(t)));
+            EngineCommand::SelectTool(choice) => {
+                // The view's brush keeps the last spread radius through a geometric tool.
+                if let Some(r) = choice.spread_radius_fu() {
+                    self.tool_radius = r;
+                }
+                self.send(what, Command::SetTool(choice));
             }
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
@@ -522,7 +524,7 @@ impl Bridge {
                     },
                     Err(error) => EngineEvent::Failed {
                         what: what.into(),
-                        error,
+                        error: error.to_string(),
                     },
                 };
                 let _ = self.events.send(ev);
@@ -590,91 +592,75 @@ fn closed_detail(name: &str, close: &Result<(), dynaclay_devices::DeviceError>) 
     }
 }
 
-/// Welds the chunks (vertices on shared brick faces coincide exactly) and writes them in the
-/// format named by `path`'s extension; returns the triangle count.
-///
-/// # Errors
-/// An unknown extension or the writer's error, naming the path.
-pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, String> {
-    let format = MeshFormat::from_path(path).ok_or_else(|| {
-        format!(
-            "{}: unknown mesh format (use .obj, .ply or .stl)",
-            path.display()
-        )
-    })?;
-    let mut mesh = TriMesh::default();
-    let mut index: HashMap<[u32; 3], u32> = HashMap::new();
-    for chunk in set {
-        let map: Vec<u32> = chunk
-            .positions
-            .iter()
-            .zip(&chunk.normals)
-            .map(|(p, n)| {
-                let key = p.map(f32::to_bits);
-                *index.entry(key).or_insert_with(|| {
-                    mesh.positions.push(Vec3::from(*p));
-                    mesh.normals.push(Vec3::from(*n));
-                    (mesh.positions.len() - 1) as u32
-                })
-            })
-            .collect();
-        for t in chunk.indices.chunks_exact(3) {
-            let tri = [map[t[0] as usize], map[t[1] as usize], map[t[2] as usize]];
-            if tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] {
-                mesh.triangles.push(tri);
-            }
-        }
-    }
-    write_mesh(path, &mesh, format).map_err(|e| e.to_string())?;
-    Ok(mesh.triangles.len())
+/// Why [`export_chunks`] wrote nothing.
+#[derive(Debug, thiserror::Error)]
+pub enum ChunkExportError {
+    /// The path's extension names no mesh format.
+    #[error("{}: unknown mesh format (use .obj, .ply or .stl)", path.display())]
+    UnknownFormat {
+        /// The path asked for.
+        path: PathBuf,
+    },
+    /// A chunk is not a consistent brick mesh (attributes, indices or edge ids).
+    #[error("{}: {source}", path.display())]
+    Chunk {
+        /// The path asked for.
+        path: PathBuf,
+        /// What is wrong with the chunk.
+        source: ChunkError,
+    },
+    /// Writing the file failed (the error names the path).
+    #[error(transparent)]
+    Write(#[from] ExportError),
 }
 
-/// The engine tool for an app force tool: the point grab is the contact push felt through the
-/// arm (Hua & Qin's single force vector); the others drive the dynamics with their own force
-/// vectors each step.
-fn engine_force_tool(t: &ForceTool) -> EngineToolChoice {
-    let stroke = |tool| {
-        EngineToolChoice::Force(ForceStrokeTool {
-            tool,
-            curve: Vec::new(),
-            pivot: Vec3::ZERO,
-        })
+/// Welds the chunks with the mesher's own welding ([`weld_pieces`]: vertices on shared brick
+/// faces are merged by edge id) and writes them in the format named by `path`'s extension;
+/// returns the triangle count. Chunks are welded in id order, so the same set always writes
+/// the same file.
+///
+/// # Errors
+/// An unknown extension, an inconsistent chunk or the writer's error, naming the path.
+pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, ChunkExportError> {
+    let format = MeshFormat::from_path(path).ok_or_else(|| ChunkExportError::UnknownFormat {
+        path: path.to_path_buf(),
+    })?;
+    let mut chunks: Vec<&ChunkMesh> = set.iter().map(|c| &**c).collect();
+    chunks.sort_by_key(|c| c.id);
+    let bad = |source| ChunkExportError::Chunk {
+        path: path.to_path_buf(),
+        source,
     };
-    match t.mode {
-        ForceMode::PointGrab => EngineToolChoice::Push(PushTool {
-            distribution: t.distribution,
-            radius: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Area => stroke(crate::tools::ForceTool::Area {
-            distribution: t.distribution,
-            radius_m: t.radius_m,
-            tracks: 8,
-            gain: t.gain,
-        }),
-        ForceMode::Chisel => stroke(crate::tools::ForceTool::Chisel {
-            depth_m: t.depth_m,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Squirt => stroke(crate::tools::ForceTool::Squirt {
-            depth_m: t.depth_m,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
-        ForceMode::Pull => stroke(crate::tools::ForceTool::Pull {
-            distribution: t.distribution,
-            radius_m: t.radius_m,
-            gain: t.gain,
-        }),
+    for c in &chunks {
+        c.as_chunk().validate().map_err(bad)?;
+        if c.edge_ids.len() != c.positions.len() {
+            return Err(bad(ChunkError::AttributeLength {
+                id: c.id,
+                attribute: "edge_ids",
+                expected: c.positions.len(),
+                got: c.edge_ids.len(),
+            }));
+        }
     }
+    let pieces: Vec<WeldPiece<'_, [f32; 3]>> = chunks
+        .iter()
+        .map(|c| WeldPiece {
+            positions: &c.positions,
+            normals: &c.normals,
+            edge_ids: &c.edge_ids,
+            indices: &c.indices,
+        })
+        .collect();
+    let mesh = weld_pieces(&pieces);
+    write_mesh(path, &mesh, format)?;
+    Ok(mesh.triangles.len())
 }
 
 #[cfg(test)]
 mod tests {
     use std::time::Instant;
 
-    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+    use dynaclay_devices::{DeviceError, SimArmConfig, SimulatedArm, Trajectory};
 
     use super::*;
     use crate::dynamics::Material;
@@ -925,7 +911,12 @@ mod tests {
 
     /// An opener that makes nothing (for tests that never use the device panel).
     fn no_devices() -> DeviceOpener {
-        Box::new(|spec: &DeviceSpec| Err(format!("no {spec} in this test")))
+        Box::new(|spec: &DeviceSpec| {
+            Err(DeviceError::NotFound {
+                what: format!("{spec} in this test"),
+            }
+            .into())
+        })
     }
 
     /// The device panel's commands reach the running engine: connect switches to a new
@@ -959,7 +950,10 @@ mod tests {
                 let held = Trajectory::hold(Vec3::splat(0.09));
                 Ok(Box::new(SimulatedArm::new(arm, held)) as Box<dyn HapticDevice>)
             }
-            other => Err(format!("{other}: no such port")),
+            other => Err(DeviceError::NotFound {
+                what: format!("{other}: no such port"),
+            }
+            .into()),
         });
         let (mut link, endpoint) = super::super::engine_link();
         let bridge = start_bridge(endpoint, info, opener, |sink| {
@@ -1078,7 +1072,21 @@ mod tests {
         assert!(text.lines().filter(|l| l.starts_with("f ")).count() == n);
         let welded = octree.weld();
         assert!(MeshStats::of(&welded).is_closed_manifold());
-        assert!(export_chunks(&published, &dir.path().join("x.abc")).is_err());
+        // One welding: the export is the octree's weld, vertex for vertex.
+        assert_eq!(n, welded.triangle_count());
+        let vertices = text.lines().filter(|l| l.starts_with("v ")).count();
+        assert_eq!(vertices, welded.positions.len());
+        assert!(matches!(
+            export_chunks(&published, &dir.path().join("x.abc")),
+            Err(ChunkExportError::UnknownFormat { .. })
+        ));
+        let mut broken = (*published[0]).clone();
+        broken.edge_ids.pop();
+        let broken: MeshSet = vec![Arc::new(broken)];
+        assert!(matches!(
+            export_chunks(&broken, &path),
+            Err(ChunkExportError::Chunk { .. })
+        ));
     }
 
     /// Paint reaches the chunks: painting the low-x half red recolours (and re-versions)

@@ -7,10 +7,11 @@ use std::path::PathBuf;
 
 use dynaclay_devices::spec::DeviceSpec;
 
-use crate::dynamics::{Distribution, Material};
-use crate::tools::GeometricTool;
+use crate::dynamics::Material;
+use crate::engine::ToolChoice;
 
-/// How a force tool pushes on the clay (Hua & Qin §7.2, design notes "Force tools").
+/// Which force tool the palette offers (Hua & Qin §7.2, design notes "Force tools"); the
+/// palette makes the engine's [`ToolChoice`] for it ([`super::ToolPalette::choice`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum ForceMode {
     /// One force vector from the surface point to the cursor, spread by the distribution.
@@ -45,50 +46,6 @@ impl ForceMode {
             Self::Chisel => "chisel",
             Self::Squirt => "squirt",
             Self::Pull => "pull",
-        }
-    }
-}
-
-/// A force tool and its parameters.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ForceTool {
-    pub mode: ForceMode,
-    /// Spread `β` of each force over nearby mass points.
-    pub distribution: Distribution,
-    /// Spread radius, world units.
-    pub radius_m: f32,
-    /// Density force per unit of force integral.
-    pub gain: f32,
-    /// Penetration depth of the chisel and squirt, world units (ignored by other modes).
-    pub depth_m: f32,
-}
-
-impl Default for ForceTool {
-    fn default() -> Self {
-        Self {
-            mode: ForceMode::PointGrab,
-            distribution: Distribution::Gaussian,
-            radius_m: 0.25,
-            gain: 2.0e6,
-            depth_m: 0.02,
-        }
-    }
-}
-
-/// The tool the user holds: a geometric tool (shape + action) or a force tool.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ToolChoice {
-    Geometric(GeometricTool),
-    Force(ForceTool),
-}
-
-impl ToolChoice {
-    /// Short name for the status line.
-    #[must_use]
-    pub fn name(&self) -> &'static str {
-        match self {
-            Self::Geometric(t) => t.action.name(),
-            Self::Force(t) => t.mode.name(),
         }
     }
 }

@@ -9,11 +9,13 @@ use egui_kittest::kittest::Queryable;
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_loops::LatencyStats;
 
-use super::command::{EngineCommand, EngineEvent, ForceMode, ToolChoice};
+use super::command::{EngineCommand, EngineEvent};
 use super::link::{EngineEndpoint, engine_link};
 use super::state::SculptApp;
 use super::view::{DeviceLinkState, EngineView};
 use crate::dynamics::Material;
+use crate::engine::ToolChoice;
+use crate::tools::ForceTool;
 use crate::tools::ToolAction;
 
 fn harness() -> (Harness<'static, SculptApp>, EngineEndpoint) {
@@ -37,7 +39,7 @@ fn the_first_frame_sends_the_current_tool() {
     assert!(
         matches!(
             sent.as_slice(),
-            [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.mode == ForceMode::PointGrab
+            [EngineCommand::SelectTool(ToolChoice::Push(_))]
         ),
         "{sent:?}"
     );
@@ -60,11 +62,20 @@ fn clicking_a_tool_selects_it_in_the_engine() {
     h.get_by_label("Chisel").click();
     h.run();
     let sent = drain(&end);
-    let [EngineCommand::SelectTool(ToolChoice::Force(force))] = sent.as_slice() else {
+    let [EngineCommand::SelectTool(force)] = sent.as_slice() else {
         panic!("expected one SelectTool, got {sent:?}");
     };
-    assert_eq!(force.mode, ForceMode::Chisel);
-    assert_eq!(h.state().palette.choice(), ToolChoice::Force(*force));
+    assert!(
+        matches!(
+            force,
+            ToolChoice::Force {
+                tool: ForceTool::Chisel { .. },
+                ..
+            }
+        ),
+        "{force:?}"
+    );
+    assert_eq!(&h.state().palette.choice(), force);
 }
 
 #[test]
@@ -718,18 +729,18 @@ fn brush_keys_and_wheels_change_size_strength_and_depth() {
     h.state_mut().pointer = PointerTool::new(handle, map);
     h.run();
     drain(&end);
-    let radius = h.state().palette.force.radius_m;
+    let radius = h.state().palette.force.radius_fu;
     h.key_press(egui::Key::CloseBracket);
     h.run();
-    assert!(h.state().palette.force.radius_m > radius * 1.1);
+    assert!(h.state().palette.force.radius_fu > radius * 1.1);
     let sent = drain(&end);
     assert!(
-        matches!(sent.as_slice(), [EngineCommand::SelectTool(ToolChoice::Force(t))] if t.radius_m > radius * 1.1),
+        matches!(sent.as_slice(), [EngineCommand::SelectTool(t)] if t.spread_radius_fu().is_some_and(|r| r > radius * 1.1)),
         "{sent:?}"
     );
     h.key_press(egui::Key::OpenBracket);
     h.run();
-    assert!((h.state().palette.force.radius_m - radius).abs() < 1e-5);
+    assert!((h.state().palette.force.radius_fu - radius).abs() < 1e-5);
 
     let rect = h.state().viewport_rect.unwrap();
     let wheel = |modifiers| egui::Event::MouseWheel {

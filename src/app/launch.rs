@@ -25,9 +25,17 @@ pub enum LaunchError {
     /// A bad argument.
     #[error("gui: {0} (usage: dynaclay gui [SESSION] [--device SPEC] [--record FILE] [--recover])")]
     Usage(String),
-    /// The device could not be made or opened.
+    /// The device could not be made.
     #[error("gui: device: {0}")]
-    Device(String),
+    Device(#[from] MakeDeviceError),
+    /// The engine could not start on the device (it could not be opened, or a loop failed).
+    #[error("gui: device: {source} ({spec})")]
+    Start {
+        /// The device asked for.
+        spec: DeviceSpec,
+        /// The engine's error.
+        source: crate::engine::EngineError,
+    },
     /// The engine or the window failed.
     #[error("gui: {0}")]
     Failed(String),
@@ -114,7 +122,8 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     let session_path = named
         .clone()
         .unwrap_or_else(|| PathBuf::from(DEFAULT_SESSION));
-    let recovery = recovery_to_use(&session_path, recover).map_err(LaunchError::Usage)?;
+    let recovery =
+        recovery_to_use(&session_path, recover).map_err(|e| LaunchError::Usage(e.to_string()))?;
     let session = recovery.map(|r| r.path).or(named);
     let script = ScriptPlan::builtin();
     let (field, material) = match &session {
@@ -144,7 +153,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         pointer_handle = Some(handle);
         (Box::new(device) as Box<dyn HapticDevice>, pointer.info())
     } else {
-        make_device(&spec, &field, &script).map_err(LaunchError::Device)?
+        make_device(&spec, &field, &script)?
     };
     let device: Box<dyn HapticDevice> = match &record {
         Some(path) => Box::new(
@@ -184,7 +193,7 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
             },
         )
     })
-    .map_err(|e| LaunchError::Device(format!("{e} ({spec})")))?;
+    .map_err(|source| LaunchError::Start { spec, source })?;
     if let Some(path) = session {
         // The engine started on the session's density; the load installs the rest of it (its
         // paint) the way the Load button does.
@@ -218,39 +227,54 @@ fn probe_before_engine(settings: ProbeSettings) -> Option<ProbeOutcome> {
     Some(ProbeOutcome::before_engine(&run.summary(), busy))
 }
 
+/// Why [`make_device`] made no device.
+#[derive(Debug, thiserror::Error)]
+pub enum MakeDeviceError {
+    /// The mouse is the window's own device, made with the window.
+    #[error(
+        "the mouse is the window's own device: start with `dynaclay gui` (or `--device mouse`) to sculpt with it"
+    )]
+    PointerIsTheWindow,
+    /// Recordings are replayed by `dynaclay run`.
+    #[error("{}: use `dynaclay run --device replay:FILE` to replay recordings", file.display())]
+    Replay {
+        /// The recording named.
+        file: PathBuf,
+    },
+    /// The simulated arm's script does not map onto the clay.
+    #[error(transparent)]
+    Script(#[from] crate::io::ScriptError),
+    /// The driver could not be made.
+    #[error(transparent)]
+    Device(#[from] dynaclay_devices::DeviceError),
+}
+
 /// Makes the device `spec` names, for the clay `field`: the simulated arm follows `script`'s
 /// strokes mapped onto that clay (so the view moves); a hardware spec gets its driver. A
 /// replay is refused here: recordings are replayed by `dynaclay run`.
 ///
 /// # Errors
-/// The driver's error, or the refusal of a replay, as text naming the spec.
+/// The driver's or the script's error, or the refusal of the mouse or a replay.
 pub fn make_device(
     spec: &DeviceSpec,
     field: &MultiPatchField,
     script: &ScriptPlan,
-) -> Result<(Box<dyn HapticDevice>, DeviceInfo), String> {
+) -> Result<(Box<dyn HapticDevice>, DeviceInfo), MakeDeviceError> {
     match spec {
         DeviceSpec::Sim => {
             let arm = SimArmConfig::default();
             let info = arm.info.clone();
             let map = EngineConfig::for_clay(field, &info).map;
-            let trajectory = script.trajectory(&map).map_err(|e| e.to_string())?;
+            let trajectory = script.trajectory(&map)?;
             Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
         }
-        DeviceSpec::Pointer => Err(
-            "the mouse is the window's own device: start with `dynaclay gui` (or `--device mouse`) to sculpt with it"
-                .into(),
-        ),
-        DeviceSpec::Replay { file } => Err(format!(
-            "{}: use `dynaclay run --device replay:FILE` to replay recordings",
-            file.display()
-        )),
+        DeviceSpec::Pointer => Err(MakeDeviceError::PointerIsTheWindow),
+        DeviceSpec::Replay { file } => Err(MakeDeviceError::Replay { file: file.clone() }),
         hw => {
             let d = dynaclay_devices::open::build_driver(
                 hw,
                 &dynaclay_devices::open::DriverOptions::from_env(),
-            )
-            .map_err(|e| e.to_string())?;
+            )?;
             let info = d.info();
             Ok((d, info))
         }

@@ -19,20 +19,20 @@ mod state;
 mod view;
 mod viewport;
 
-pub use bridge::{EngineBridge, GuiMeshSink, export_chunks, start_bridge};
+pub use bridge::{ChunkExportError, EngineBridge, GuiMeshSink, export_chunks, start_bridge};
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };
-pub use command::{EngineCommand, EngineEvent, ForceMode, ForceTool, ToolChoice};
+pub use command::{EngineCommand, EngineEvent, ForceMode};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
-pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
+pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };
 pub use material_panel::material_ui;
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
-pub use palette::{ActionKind, PaletteEntry, ShapeKind, ToolPalette, entry_label};
+pub use palette::{ActionKind, ForceSettings, PaletteEntry, ShapeKind, ToolPalette, entry_label};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};

@@ -5,9 +5,10 @@
 
 use glam::Vec3;
 
-use super::command::{ForceMode, ForceTool, ToolChoice};
+use super::command::ForceMode;
 use crate::dynamics::Distribution;
-use crate::tools::{ContactParams, GeometricTool, StampParams, ToolAction, ToolShape};
+use crate::engine::{PushTool, ToolChoice};
+use crate::tools::{ContactParams, ForceTool, GeometricTool, StampParams, ToolAction, ToolShape};
 
 /// The geometric actions, in palette order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -84,22 +85,96 @@ pub enum PaletteEntry {
 pub struct ToolPalette {
     pub selected: PaletteEntry,
     pub shape: ShapeKind,
-    /// Sphere, cylinder and capsule radius; box and ellipsoid use `extents_m`.
-    pub radius_m: f32,
-    /// Box half extents and ellipsoid radii, world units.
-    pub extents_m: Vec3,
-    /// Cylinder and capsule half height, world units.
-    pub half_height_m: f32,
-    pub falloff_m: f32,
+    /// Sphere, cylinder and capsule radius, field units; box and ellipsoid use `extents_fu`.
+    pub radius_fu: f32,
+    /// Box half extents and ellipsoid radii, field units.
+    pub extents_fu: Vec3,
+    /// Cylinder and capsule half height, field units.
+    pub half_height_fu: f32,
+    pub falloff_fu: f32,
     pub deposit_rate_per_s: f32,
     pub remove_rate_per_s: f32,
     pub paint_rgb: [f32; 3],
     pub paint_rate_per_s: f32,
     pub smooth_rate_per_s: f32,
-    pub smooth_kernel_m: f32,
+    pub smooth_kernel_fu: f32,
     pub stamp: StampParams,
     pub contact_alpha: f32,
-    pub force: ForceTool,
+    /// The force tools' settings (each force entry reads the ones it uses).
+    pub force: ForceSettings,
+}
+
+/// The settings the force entries share; [`ToolPalette::choice`] makes the engine's tool from
+/// them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ForceSettings {
+    /// Spread `β` of each force over nearby mass points.
+    pub distribution: Distribution,
+    /// Spread radius, field units.
+    pub radius_fu: f32,
+    /// Density force per unit of force integral.
+    pub gain: f32,
+    /// Penetration depth of the chisel and squirt, field units.
+    pub depth_fu: f32,
+}
+
+impl Default for ForceSettings {
+    fn default() -> Self {
+        let push = PushTool::default();
+        Self {
+            distribution: push.distribution,
+            radius_fu: push.radius_fu,
+            gain: push.gain,
+            depth_fu: 0.02,
+        }
+    }
+}
+
+impl ForceSettings {
+    /// The engine's tool for a force entry: the point grab is the contact push felt through
+    /// the arm (Hua & Qin's single force vector); the others drive the dynamics with their own
+    /// force vectors each step.
+    #[must_use]
+    pub fn choice(&self, mode: ForceMode) -> ToolChoice {
+        let Self {
+            distribution,
+            radius_fu,
+            gain,
+            depth_fu,
+        } = *self;
+        match mode {
+            ForceMode::PointGrab => ToolChoice::Push(PushTool {
+                distribution,
+                radius_fu,
+                gain,
+            }),
+            ForceMode::Area => ForceTool::Area {
+                distribution,
+                radius_fu,
+                tracks: 8,
+                gain,
+            }
+            .into(),
+            ForceMode::Chisel => ForceTool::Chisel {
+                depth_fu,
+                radius_fu,
+                gain,
+            }
+            .into(),
+            ForceMode::Squirt => ForceTool::Squirt {
+                depth_fu,
+                radius_fu,
+                gain,
+            }
+            .into(),
+            ForceMode::Pull => ForceTool::Pull {
+                distribution,
+                radius_fu,
+                gain,
+            }
+            .into(),
+        }
+    }
 }
 
 impl Default for ToolPalette {
@@ -108,19 +183,19 @@ impl Default for ToolPalette {
             // The threaded engine applies force tools; start with the one it supports fully.
             selected: PaletteEntry::Force(ForceMode::PointGrab),
             shape: ShapeKind::Sphere,
-            radius_m: 0.1,
-            extents_m: Vec3::new(0.1, 0.06, 0.06),
-            half_height_m: 0.1,
-            falloff_m: 0.05,
+            radius_fu: 0.1,
+            extents_fu: Vec3::new(0.1, 0.06, 0.06),
+            half_height_fu: 0.1,
+            falloff_fu: 0.05,
             deposit_rate_per_s: 2.0,
             remove_rate_per_s: 2.0,
             paint_rgb: [0.8, 0.2, 0.15],
             paint_rate_per_s: 2.0,
             smooth_rate_per_s: 4.0,
-            smooth_kernel_m: 0.05,
+            smooth_kernel_fu: 0.05,
             stamp: StampParams::default(),
             contact_alpha: -0.5,
-            force: ForceTool::default(),
+            force: ForceSettings::default(),
         }
     }
 }
@@ -158,21 +233,21 @@ impl ToolPalette {
     pub fn tool_shape(&self) -> ToolShape {
         match self.shape {
             ShapeKind::Sphere => ToolShape::Sphere {
-                radius_m: self.radius_m,
+                radius_fu: self.radius_fu,
             },
             ShapeKind::Ellipsoid => ToolShape::Ellipsoid {
-                radii_m: self.extents_m,
+                radii_fu: self.extents_fu,
             },
             ShapeKind::Box => ToolShape::Box {
-                half_extents_m: self.extents_m,
+                half_extents_fu: self.extents_fu,
             },
             ShapeKind::Cylinder => ToolShape::Cylinder {
-                radius_m: self.radius_m,
-                half_height_m: self.half_height_m,
+                radius_fu: self.radius_fu,
+                half_height_fu: self.half_height_fu,
             },
             ShapeKind::Capsule => ToolShape::Capsule {
-                radius_m: self.radius_m,
-                half_height_m: self.half_height_m,
+                radius_fu: self.radius_fu,
+                half_height_fu: self.half_height_fu,
             },
         }
     }
@@ -197,7 +272,7 @@ impl ToolPalette {
             },
             ActionKind::Smooth => ToolAction::Smooth {
                 rate_per_s: self.smooth_rate_per_s,
-                kernel_m: self.smooth_kernel_m,
+                kernel_fu: self.smooth_kernel_fu,
             },
             ActionKind::Stamp => ToolAction::Stamp(self.stamp),
             ActionKind::Contact => ToolAction::Contact(ContactParams {
@@ -217,9 +292,9 @@ impl ToolPalette {
             PaletteEntry::Geometric(kind) => ToolChoice::Geometric(GeometricTool {
                 shape: self.tool_shape(),
                 action: self.action(kind),
-                falloff_m: self.falloff_m,
+                falloff_fu: self.falloff_fu,
             }),
-            PaletteEntry::Force(mode) => ToolChoice::Force(ForceTool { mode, ..self.force }),
+            PaletteEntry::Force(mode) => self.force.choice(mode),
         }
     }
 
@@ -258,23 +333,25 @@ impl ToolPalette {
             });
         match self.shape {
             ShapeKind::Sphere => {
-                ui.add(egui::Slider::new(&mut self.radius_m, 0.005..=1.0).text("Radius"));
+                ui.add(egui::Slider::new(&mut self.radius_fu, 0.005..=1.0).text("Radius"));
             }
             ShapeKind::Ellipsoid | ShapeKind::Box => {
                 for (v, label) in [
-                    (&mut self.extents_m.x, "Half size x"),
-                    (&mut self.extents_m.y, "Half size y"),
-                    (&mut self.extents_m.z, "Half size z"),
+                    (&mut self.extents_fu.x, "Half size x"),
+                    (&mut self.extents_fu.y, "Half size y"),
+                    (&mut self.extents_fu.z, "Half size z"),
                 ] {
                     ui.add(egui::Slider::new(v, 0.005..=1.0).text(label));
                 }
             }
             ShapeKind::Cylinder | ShapeKind::Capsule => {
-                ui.add(egui::Slider::new(&mut self.radius_m, 0.005..=1.0).text("Radius"));
-                ui.add(egui::Slider::new(&mut self.half_height_m, 0.005..=1.0).text("Half height"));
+                ui.add(egui::Slider::new(&mut self.radius_fu, 0.005..=1.0).text("Radius"));
+                ui.add(
+                    egui::Slider::new(&mut self.half_height_fu, 0.005..=1.0).text("Half height"),
+                );
             }
         }
-        ui.add(egui::Slider::new(&mut self.falloff_m, 0.001..=0.5).text("Falloff"));
+        ui.add(egui::Slider::new(&mut self.falloff_fu, 0.001..=0.5).text("Falloff"));
         match kind {
             ActionKind::Add => {
                 ui.add(
@@ -309,7 +386,7 @@ impl ToolPalette {
                         .logarithmic(true)
                         .text("Smooth rate /s"),
                 );
-                ui.add(egui::Slider::new(&mut self.smooth_kernel_m, 0.005..=0.5).text("Kernel"));
+                ui.add(egui::Slider::new(&mut self.smooth_kernel_fu, 0.005..=0.5).text("Kernel"));
             }
             ActionKind::Stamp => {
                 let p = &mut self.stamp;
@@ -344,14 +421,14 @@ impl ToolPalette {
                     ui.selectable_value(&mut f.distribution, d, distribution_name(d));
                 }
             });
-        ui.add(egui::Slider::new(&mut f.radius_m, 0.005..=1.0).text("Spread radius"));
+        ui.add(egui::Slider::new(&mut f.radius_fu, 0.005..=1.0).text("Spread radius"));
         ui.add(
             egui::Slider::new(&mut f.gain, 1.0e3..=1.0e9)
                 .logarithmic(true)
                 .text("Gain"),
         );
         if matches!(mode, ForceMode::Chisel | ForceMode::Squirt) {
-            ui.add(egui::Slider::new(&mut f.depth_m, 0.001..=0.2).text("Depth"));
+            ui.add(egui::Slider::new(&mut f.depth_fu, 0.001..=0.2).text("Depth"));
         }
     }
 }
@@ -397,17 +474,19 @@ mod tests {
         p.selected = PaletteEntry::Force(ForceMode::Chisel);
         assert!(matches!(
             p.choice(),
-            ToolChoice::Force(ForceTool {
-                mode: ForceMode::Chisel,
+            ToolChoice::Force {
+                tool: ForceTool::Chisel { .. },
                 ..
-            })
+            }
         ));
+        p.selected = PaletteEntry::Force(ForceMode::PointGrab);
+        assert!(matches!(p.choice(), ToolChoice::Push(_)));
     }
 
     #[test]
     fn parameters_survive_switching_tools() {
         let mut p = ToolPalette {
-            smooth_kernel_m: 0.123,
+            smooth_kernel_fu: 0.123,
             ..ToolPalette::default()
         };
         p.selected = PaletteEntry::Geometric(ActionKind::Smooth);
@@ -420,7 +499,7 @@ mod tests {
             t.action,
             ToolAction::Smooth {
                 rate_per_s: 4.0,
-                kernel_m: 0.123
+                kernel_fu: 0.123
             }
         );
     }

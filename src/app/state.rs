@@ -144,10 +144,10 @@ const POINTS_PER_LINE: f32 = 50.0;
 impl SculptApp {
     /// The brush's radius, field units.
     fn brush_radius(&self) -> f32 {
-        match self.palette.choice() {
-            super::command::ToolChoice::Force(t) => t.radius_m,
-            super::command::ToolChoice::Geometric(_) => self.palette.radius_m,
-        }
+        self.palette
+            .choice()
+            .spread_radius_fu()
+            .unwrap_or(self.palette.radius_fu)
     }
 
     /// Asks for a detail patch two levels down (a quarter of the base knot spacing) over a box
@@ -399,8 +399,8 @@ impl SculptApp {
     /// Scales the brush (every tool's radius) by `factor`, within the sliders' range.
     pub fn scale_brush(&mut self, factor: f32) {
         let p = &mut self.palette;
-        p.radius_m = (p.radius_m * factor).clamp(0.005, 1.0);
-        p.force.radius_m = (p.force.radius_m * factor).clamp(0.005, 1.0);
+        p.radius_fu = (p.radius_fu * factor).clamp(0.005, 1.0);
+        p.force.radius_fu = (p.force.radius_fu * factor).clamp(0.005, 1.0);
         self.tool_pending = true;
     }
 
@@ -924,11 +924,13 @@ impl SculptApp {
 
 /// The brush cursor's colour: warm for force tools, green for adding, red for removing,
 /// blue for the others; brighter while a stroke is held.
-fn brush_tint(choice: &super::command::ToolChoice, pressing: bool) -> egui::Color32 {
+fn brush_tint(choice: &crate::engine::ToolChoice, pressing: bool) -> egui::Color32 {
     use crate::tools::ToolAction;
     let [r, g, b] = match choice {
-        super::command::ToolChoice::Force(_) => [240, 150, 60],
-        super::command::ToolChoice::Geometric(t) => match t.action {
+        crate::engine::ToolChoice::Push(_) | crate::engine::ToolChoice::Force { .. } => {
+            [240, 150, 60]
+        }
+        crate::engine::ToolChoice::Geometric(t) => match t.action {
             ToolAction::Add { .. } => [90, 210, 110],
             ToolAction::Remove => [230, 80, 70],
             _ => [90, 160, 240],

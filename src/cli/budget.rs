@@ -45,7 +45,12 @@ pub enum BudgetSource {
 }
 
 /// A job refused before it allocated: `what` would need at least `needed_bytes`.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{what}{}; nothing was allocated. {hint}{}",
+    NeedClause { needed_bytes: *needed_bytes, at_least: *at_least, budget: *budget },
+    if needed_bytes.is_some() { ", or raise --memory-budget-mib" } else { "" }
+)]
 pub struct OverBudget {
     /// What was refused ("meshing the clay at 4 cells per span", "a 16384×16384 image").
     pub what: String,
@@ -167,14 +172,18 @@ pub fn human_bytes(bytes: u64) -> String {
     format!("{bytes} bytes")
 }
 
-impl fmt::Display for OverBudget {
+/// What an [`OverBudget`] job would need, against which budget: the part of its message
+/// between `what` and "nothing was allocated".
+struct NeedClause {
+    needed_bytes: Option<u64>,
+    at_least: bool,
+    budget: MemoryBudget,
+}
+
+impl fmt::Display for NeedClause {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let Some(needed) = self.needed_bytes else {
-            return write!(
-                f,
-                "{}, more than can be meshed; nothing was allocated. {}",
-                self.what, self.hint
-            );
+            return f.write_str(", more than can be meshed");
         };
         let budget = human_bytes(self.budget.bytes);
         let whence = match self.budget.source {
@@ -191,9 +200,7 @@ impl fmt::Display for OverBudget {
         };
         write!(
             f,
-            "{} would need {need} the memory budget of {budget} ({whence}); nothing was \
-             allocated. {}, or raise --memory-budget-mib",
-            self.what, self.hint
+            " would need {need} the memory budget of {budget} ({whence})"
         )
     }
 }

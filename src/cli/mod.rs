@@ -47,7 +47,9 @@ pub fn dispatch(cli: Cli) -> i32 {
         Commands::Devices => devices::list(),
         Commands::Gui(a) => crate::app::gui_main(&a.rest).map_err(|e| match e {
             crate::app::LaunchError::Usage(_) => CliError::Usage(e.to_string()),
-            crate::app::LaunchError::Device(_) => CliError::Device(e.to_string()),
+            crate::app::LaunchError::Device(_) | crate::app::LaunchError::Start { .. } => {
+                CliError::Device(e.to_string())
+            }
             crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
             crate::app::LaunchError::Session(s) => CliError::Session(s),
         }),

@@ -157,7 +157,7 @@ fn write_field_outputs(
     let session_path = dir.join("session.dclay");
     let mut session = session.clone();
     session.meta.saved_unix_s = super::run::unix_now_s();
-    crate::io::check_replaceable(&session_path).map_err(CliError::Output)?;
+    crate::io::check_replaceable(&session_path).map_err(|e| CliError::Output(e.to_string()))?;
     save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);
     Ok((stats, octree))

@@ -124,6 +124,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             PathBuf::from("."),
         ),
     };
+    for note in &script.deprecated {
+        eprintln!("warning: {note}");
+    }
     let spec: DeviceSpec = args
         .device
         .parse()
@@ -320,7 +323,8 @@ fn starting_session(
     base_dir: &Path,
     session_path: &Path,
 ) -> Result<Session, CliError> {
-    let found = recovery_to_use(session_path, recover).map_err(CliError::Usage)?;
+    let found =
+        recovery_to_use(session_path, recover).map_err(|e| CliError::Usage(e.to_string()))?;
     match found {
         Some(r) => {
             let session =

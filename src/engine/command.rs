@@ -18,7 +18,7 @@ pub struct PushTool {
     /// Spread shape `β`.
     pub distribution: Distribution,
     /// Spread radius around the force vector, field units.
-    pub radius: f32,
+    pub radius_fu: f32,
     /// Density force per unit of force integral.
     pub gain: f32,
 }
@@ -27,32 +27,28 @@ impl Default for PushTool {
     fn default() -> Self {
         Self {
             distribution: Distribution::Gaussian,
-            radius: 0.25,
+            radius_fu: 0.25,
             gain: 2.0e6,
         }
     }
 }
 
-/// A force tool of the dynamics (grab, area, curve, chisel, squirt, pull, bend) with the
-/// inputs it needs besides the cursor.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ForceStrokeTool {
-    /// The tool and its parameters.
-    pub tool: ForceTool,
-    /// The user curve of a curve tool, field coordinates (ignored by the others).
-    pub curve: Vec<Vec3>,
-    /// The pivot of a bend, field coordinates (ignored by the others).
-    pub pivot: Vec3,
-}
-
 /// The tool the device holds: what a stroke (button 0 held, or a stroke armed by command)
-/// does.
+/// does. The one tool choice of the engine, the app and scripts.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ToolChoice {
     /// The contact push, felt through the haptic contact.
     Push(PushTool),
-    /// A force tool: its per-tick force vectors drive the dynamics.
-    Force(ForceStrokeTool),
+    /// A force tool of the dynamics (grab, area, curve, chisel, squirt, pull, bend): its
+    /// per-tick force vectors drive the dynamics.
+    Force {
+        /// The tool and its parameters.
+        tool: ForceTool,
+        /// The user curve of a curve tool, field coordinates (empty for the others).
+        curve: Vec<Vec3>,
+        /// The pivot of a bend, field coordinates (ignored by the others).
+        pivot: Vec3,
+    },
     /// A geometric tool applied at the tip while the stroke is held (no contact force).
     Geometric(GeometricTool),
 }
@@ -75,14 +71,36 @@ impl From<GeometricTool> for ToolChoice {
     }
 }
 
+impl From<ForceTool> for ToolChoice {
+    /// The force tool with no curve and the pivot at the origin.
+    fn from(tool: ForceTool) -> Self {
+        Self::Force {
+            tool,
+            curve: Vec::new(),
+            pivot: Vec3::ZERO,
+        }
+    }
+}
+
 impl ToolChoice {
     /// Short name for undo labels and messages.
     #[must_use]
     pub fn name(&self) -> &'static str {
         match self {
             Self::Push(_) => "push",
-            Self::Force(f) => f.tool.name(),
+            Self::Force { tool, .. } => tool.name(),
             Self::Geometric(g) => g.action.name(),
+        }
+    }
+
+    /// The spread radius of the push or of a force tool, field units (`None` for a tool
+    /// without one: the point grab and the geometric tools).
+    #[must_use]
+    pub fn spread_radius_fu(&self) -> Option<f32> {
+        match self {
+            Self::Push(p) => Some(p.radius_fu),
+            Self::Force { tool, .. } => tool.radius_fu(),
+            Self::Geometric(_) => None,
         }
     }
 }
@@ -192,7 +210,7 @@ pub enum Command {
         /// Destination file.
         path: PathBuf,
         /// Optional result channel.
-        reply: Option<Sender<Result<PathBuf, String>>>,
+        reply: Option<super::SaveReply>,
     },
     /// Replace the clay and material with `session`, already read and validated from
     /// `source` by the sender (so the simulation thread does no disk I/O). The undo history

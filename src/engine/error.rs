@@ -10,7 +10,7 @@ use dynaclay_devices::DeviceError;
 use dynaclay_loops::LoopError;
 
 use crate::field::BSplineLattice;
-use crate::io::SessionError;
+use crate::io::{ReplaceRefused, SessionError};
 use crate::mesh::GridError;
 use crate::tools::ToolError;
 
@@ -175,6 +175,9 @@ pub enum CommandError {
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,
+    /// A save was not written.
+    #[error(transparent)]
+    Save(#[from] SaveError),
     /// No answer came in time.
     #[error("no answer to the {what} within {waited:?}")]
     NoAnswer {
@@ -184,3 +187,20 @@ pub enum CommandError {
         waited: Duration,
     },
 }
+
+/// Why a save was not written; whatever was at the path is unchanged.
+#[derive(Debug, thiserror::Error)]
+pub enum SaveError {
+    /// Something other than a session is at the path.
+    #[error(transparent)]
+    Refused(#[from] ReplaceRefused),
+    /// Writing the session failed.
+    #[error(transparent)]
+    Write(#[from] SessionError),
+    /// The engine was built without the I/O thread that writes saves.
+    #[error("this engine has no I/O thread")]
+    NoIoThread,
+}
+
+/// Where a save's outcome goes: the path written, or why not.
+pub type SaveReply = crossbeam::channel::Sender<Result<PathBuf, SaveError>>;

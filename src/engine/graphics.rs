@@ -204,11 +204,11 @@ mod tests {
         assert!(seen.lock().is_none(), "no paint, no call");
 
         let tool = GeometricTool {
-            shape: ToolShape::Sphere { radius_m: 0.25 },
+            shape: ToolShape::Sphere { radius_fu: 0.25 },
             action: ToolAction::Paint {
                 rgb: [1.0, 0.0, 0.0],
             },
-            falloff_m: 0.2,
+            falloff_fu: 0.2,
         };
         s.commands
             .send(Command::ApplyTool {

@@ -428,7 +428,7 @@ do = "stroke"
 start_s = 0.1
 path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]
 duration_s = 1.0
-hover_m = 0.3
+hover_fu = 0.3
 "#;
 
     #[test]

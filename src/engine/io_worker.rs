@@ -11,6 +11,7 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::{Receiver, RecvTimeoutError, Sender, TryRecvError, bounded};
 
 use super::command::Command;
+use super::error::SaveError;
 use super::simulation::IoJob;
 use crate::io::{Autosave, Session, save_session};
 
@@ -92,11 +93,12 @@ impl IoWorker {
         match job {
             IoJob::Save(job) => {
                 let result = crate::io::check_replaceable(&job.path)
-                    .and_then(|()| save_session(&job.path, &job.session).map_err(|e| e.to_string()))
+                    .map_err(SaveError::from)
+                    .and_then(|()| Ok(save_session(&job.path, &job.session)?))
                     .map(|()| job.path.clone());
                 match &result {
                     Ok(_) => self.report.saves += 1,
-                    Err(e) => self.report.errors.push(e.clone()),
+                    Err(e) => self.report.errors.push(e.to_string()),
                 }
                 if let Some(reply) = job.reply {
                     let _ = reply.send(result);

@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 
-use super::command::{ForceStrokeTool, PushTool, ToolChoice};
+use super::command::{PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
 use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::MultiPatchField;
@@ -79,7 +79,7 @@ impl LiveTool {
     pub fn felt_tool(&self) -> FeltTool {
         match &self.choice {
             ToolChoice::Push(_) => FeltTool::Push,
-            ToolChoice::Force(f) => FeltTool::Force(f.tool),
+            ToolChoice::Force { tool, .. } => FeltTool::Force(*tool),
             ToolChoice::Geometric(_) => FeltTool::Geometric,
         }
     }
@@ -88,7 +88,9 @@ impl LiveTool {
     /// (no anchor while no force tool holds the clay).
     pub fn stroke_geometry(&self, out: &mut StrokeGeometry) {
         match &self.choice {
-            ToolChoice::Force(f) => out.set(self.grab, f.pivot, &f.curve, &self.targets),
+            ToolChoice::Force { curve, pivot, .. } => {
+                out.set(self.grab, *pivot, curve, &self.targets);
+            }
             _ => out.clear(),
         }
     }
@@ -137,10 +139,10 @@ impl LiveTool {
                     self.len = 1;
                 }
             }
-            ToolChoice::Force(tool) => {
+            ToolChoice::Force { tool, curve, pivot } => {
                 if sample.stroke_active && sample.tip.is_finite() {
                     self.len = force_tool_step(
-                        tool,
+                        (*tool, curve, *pivot),
                         sample.tip,
                         field,
                         mass_step,
@@ -182,7 +184,7 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
         start: sample.force_from,
         end: sample.force_to,
         distribution: push.distribution,
-        radius: push.radius,
+        radius: push.radius_fu,
         gain: push.gain,
     }
 }
@@ -193,7 +195,7 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
 /// by), so the surface can follow the cursor all the way.
 #[allow(clippy::too_many_arguments)] // the stroke state is split so the buffers borrow apart
 fn force_tool_step(
-    stroke: &ForceStrokeTool,
+    (tool, curve, pivot): (ForceTool, &[Vec3], Vec3),
     tip: Vec3,
     field: &MultiPatchField,
     mass_step: f32,
@@ -202,13 +204,13 @@ fn force_tool_step(
     last_planned: &mut Option<Vec3>,
     out: &mut [ToolForce],
 ) -> usize {
-    let penetration = match stroke.tool {
-        ForceTool::Chisel { depth_m, .. } => Some((depth_m, false)),
-        ForceTool::Squirt { depth_m, .. } => Some((depth_m, true)),
+    let penetration = match tool {
+        ForceTool::Chisel { depth_fu, .. } => Some((depth_fu, false)),
+        ForceTool::Squirt { depth_fu, .. } => Some((depth_fu, true)),
         _ => None,
     };
     if grab.is_none() {
-        *grab = match stroke.tool {
+        *grab = match tool {
             // These move with the cursor's displacement from where the stroke began.
             ForceTool::Curve { .. } | ForceTool::Chisel { .. } | ForceTool::Squirt { .. } => {
                 Some(tip)
@@ -220,21 +222,21 @@ fn force_tool_step(
     let Some(grab) = *grab else {
         return 0;
     };
-    if let Some((depth_m, squirt)) = penetration {
+    if let Some((depth_fu, squirt)) = penetration {
         let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
         if moved && targets.len() < MAX_TARGETS {
-            targets.extend(plan_penetration(field, &[tip], depth_m, squirt));
+            targets.extend(plan_penetration(field, &[tip], depth_fu, squirt));
             *last_planned = Some(tip);
         }
     }
     let input = ForceInput {
         grab,
         cursor: tip,
-        pivot: stroke.pivot,
-        path: &stroke.curve,
+        pivot,
+        path: curve,
         targets,
     };
-    let n = stroke.tool.forces(field, &input, out);
+    let n = tool.forces(field, &input, out);
     for f in &mut out[..n] {
         f.start = start_on_surface(field, f.start, f.end);
     }
@@ -270,11 +272,7 @@ mod tests {
     #[test]
     fn a_grab_holds_the_nearest_solid_point_and_pulls_toward_the_cursor() {
         let lattice = ball();
-        let mut live = LiveTool::new(ToolChoice::Force(ForceStrokeTool {
-            tool: ForceTool::PointGrab { gain: 1.0 },
-            curve: Vec::new(),
-            pivot: Vec3::ZERO,
-        }));
+        let mut live = LiveTool::new(ToolChoice::from(ForceTool::PointGrab { gain: 1.0 }));
         // Out of reach: nothing grabbed, no force.
         live.update_forces(
             &sample(Vec3::splat(0.1), true, 0),
@@ -321,9 +319,9 @@ mod tests {
     #[test]
     fn geometric_applications_are_spaced_by_device_time() {
         let mut live = LiveTool::new(ToolChoice::Geometric(GeometricTool {
-            shape: ToolShape::Sphere { radius_m: 0.1 },
+            shape: ToolShape::Sphere { radius_fu: 0.1 },
             action: ToolAction::Remove,
-            falloff_m: 0.05,
+            falloff_fu: 0.05,
         }));
         let at = |t| sample(Vec3::ONE, true, t);
         assert_eq!(live.geometric_due(&at(0), 10_000), Some(0.01));

@@ -28,13 +28,15 @@ mod update;
 mod wiring;
 mod workspace;
 
-pub use command::{Command, ForceStrokeTool, PushTool, Reply, ToolChoice};
+pub use command::{Command, PushTool, Reply, ToolChoice};
 pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
 pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
 };
-pub use error::{CommandError, EngineError, LatticeShape, LoadRefused, SwapRefused};
+pub use error::{
+    CommandError, EngineError, LatticeShape, LoadRefused, SaveError, SaveReply, SwapRefused,
+};
 pub use force_limit::{ForceLimit, InvalidForceLimit};
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
@@ -43,8 +45,8 @@ pub use io_worker::{IoReport, IoWorker};
 pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use plan::{
-    APPROACH_S, DEFAULT_SCRIPT, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S, ScriptPlan,
-    TRAVEL_S, builtin_script,
+    APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,
+    ScriptPlan, TRAVEL_S, builtin_script,
 };
 pub use replay::{ReplayMismatch, ScheduledReplay};
 pub use script_driver::ScriptDriver;

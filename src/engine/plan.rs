@@ -13,7 +13,7 @@
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
 //! - A stroke starts at `start_s` if given (it must leave [`SETTLE_S`] after the previous
-//!   step ends), else [`TRAVEL_S`] after it. The hand moves to `hover_m` above the path's first
+//!   step ends), else [`TRAVEL_S`] after it. The hand moves to `hover_fu` above the path's first
 //!   point by then, descends in [`APPROACH_S`], follows the path (evenly over `duration_s`, or
 //!   at `times_s`), lifts in [`APPROACH_S`] and the stroke ends there. A stroke's tool is
 //!   selected when the previous step ends (a change of tool ends any settling stroke first).
@@ -30,7 +30,7 @@ use std::path::Path;
 use dynaclay_devices::{Interpolation, Trajectory, Waypoint};
 use glam::Vec3;
 
-use super::command::{ForceStrokeTool, PushTool, ToolChoice};
+use super::command::{PushTool, ToolChoice};
 use super::workspace::WorkspaceMap;
 use crate::dynamics::Material;
 use crate::io::{
@@ -57,11 +57,11 @@ resolution = 24
 
 [[step]]
 do = "stroke"
-tool = { kind = "push", beta = "gaussian", radius_m = 0.25, gain = 2e6 }
+tool = { kind = "push", beta = "gaussian", radius_fu = 0.25, gain = 2e6 }
 start_s = 0.2
 path = [[0.85, 1.55, 1.15], [1.15, 1.5, 1.15], [1.45, 1.55, 1.15]]
 duration_s = 1.6
-hover_m = 0.35
+hover_fu = 0.35
 "#;
 
 /// The built-in default script.
@@ -136,7 +136,29 @@ pub struct PlannedStroke {
     /// When it is back at hover, seconds.
     pub end_s: f64,
     /// Hand waypoints, field coordinates.
-    pub waypoints: Vec<Waypoint>,
+    pub waypoints: Vec<HandWaypoint>,
+}
+
+/// A waypoint of the simulated hand in field coordinates; [`ScriptPlan::trajectory`] maps it to
+/// the device's [`Waypoint`] (metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HandWaypoint {
+    /// Time the hand reaches this point, seconds from the start of the script.
+    pub time_s: f64,
+    /// Hand position, field units.
+    pub position_fu: Vec3,
+    /// Buttons held from this waypoint until the next (bit 0: the stroke button).
+    pub buttons: u32,
+}
+
+impl HandWaypoint {
+    fn new(time_s: f64, position_fu: Vec3, buttons: u32) -> Self {
+        Self {
+            time_s,
+            position_fu,
+            buttons,
+        }
+    }
 }
 
 /// A script laid out on the script clock.
@@ -197,12 +219,12 @@ impl ScriptPlan {
                     tool,
                     shape,
                     action,
-                    falloff_m,
+                    falloff_fu,
                     path,
                     duration_s,
                     times_s,
                     start_s,
-                    hover_m,
+                    hover_fu,
                     buttons,
                     curve,
                     pivot,
@@ -213,7 +235,7 @@ impl ScriptPlan {
                                 .resolve(|name| lookup(name).map(|t| &t.shape))
                                 .map_err(fail)?,
                             action: *action,
-                            falloff_m: *falloff_m,
+                            falloff_fu: *falloff_fu,
                         }),
                         (Some(spec), _, _) => tool_choice(spec, curve, *pivot),
                         _ => tool_choice(&ForceToolSpec::DEFAULT_PUSH, curve, *pivot),
@@ -248,7 +270,7 @@ impl ScriptPlan {
                         times_s.iter().map(|t| f64::from(*t)).collect()
                     };
                     let stroke =
-                        stroke_waypoints(at, start, path, &times, *hover_m, *buttons, push);
+                        stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, push);
                     clock = stroke.end_s;
                     strokes.push(stroke);
                     held = Some(choice);
@@ -257,7 +279,7 @@ impl ScriptPlan {
                     shape,
                     action,
                     positions,
-                    falloff_m,
+                    falloff_fu,
                     rotation,
                     duration_s,
                     patch,
@@ -269,7 +291,7 @@ impl ScriptPlan {
                         tool: GeometricTool {
                             shape,
                             action: *action,
-                            falloff_m: *falloff_m,
+                            falloff_fu: *falloff_fu,
                         },
                         poses: poses(positions, *rotation),
                         duration_s: *duration_s,
@@ -287,7 +309,7 @@ impl ScriptPlan {
                         tool: GeometricTool {
                             shape: preset.shape.clone(),
                             action: preset.action,
-                            falloff_m: preset.falloff_m,
+                            falloff_fu: preset.falloff_fu,
                         },
                         poses: poses(positions, None),
                         duration_s: *duration_s,
@@ -380,14 +402,14 @@ impl ScriptPlan {
             .first()
             .and_then(|s| s.waypoints.first())
             .map_or(map.field_centre + Vec3::Y * map.field_centre.y, |w| {
-                w.position_m
+                w.position_fu
             });
         let mut w = vec![Waypoint::new(0.0, map.to_device(first))];
         for s in &self.strokes {
             for p in &s.waypoints {
                 w.push(Waypoint::with_buttons(
                     p.time_s,
-                    map.to_device(p.position_m),
+                    map.to_device(p.position_fu),
                     p.buttons,
                 ));
             }
@@ -404,21 +426,21 @@ impl ScriptPlan {
 
 fn tool_choice(spec: &ForceToolSpec, curve: &[[f32; 3]], pivot: Option<[f32; 3]>) -> ToolChoice {
     match (spec, spec.force_tool()) {
-        (_, Some(tool)) => ToolChoice::Force(ForceStrokeTool {
+        (_, Some(tool)) => ToolChoice::Force {
             tool,
             curve: curve.iter().map(|p| Vec3::from_array(*p)).collect(),
             pivot: pivot.map_or(Vec3::ZERO, Vec3::from_array),
-        }),
+        },
         (
             ForceToolSpec::Push {
                 beta,
-                radius_m,
+                radius_fu,
                 gain,
             },
             None,
         ) => ToolChoice::Push(PushTool {
             distribution: (*beta).into(),
-            radius: *radius_m,
+            radius_fu: *radius_fu,
             gain: *gain,
         }),
         (_, None) => ToolChoice::default(),
@@ -435,14 +457,14 @@ fn stroke_waypoints(
     start: f64,
     path: &[[f32; 3]],
     times: &[f64],
-    hover_m: f32,
+    hover_fu: f32,
     buttons: u32,
     push: bool,
 ) -> PlannedStroke {
-    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_m;
+    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_fu;
     let down = start + APPROACH_S;
     let last = path.len() - 1;
-    let mut w = vec![Waypoint::with_buttons(
+    let mut w = vec![HandWaypoint::new(
         start,
         up(path[0]),
         if push { buttons } else { 0 },
@@ -454,17 +476,17 @@ fn stroke_waypoints(
         } else {
             buttons
         };
-        w.push(Waypoint::with_buttons(down + t, Vec3::from_array(*p), held));
+        w.push(HandWaypoint::new(down + t, Vec3::from_array(*p), held));
     }
     if path.len() == 1 {
         // A single point is held for the whole duration (its one time is the duration).
         let hold = times[0].max(1e-3);
         w[1].time_s = down;
-        w.push(Waypoint::new(down + hold, Vec3::from_array(path[0])));
+        w.push(HandWaypoint::new(down + hold, Vec3::from_array(path[0]), 0));
     }
     let path_end = w.last().map_or(down, |l| l.time_s);
     let end = path_end + APPROACH_S;
-    w.push(Waypoint::new(end, up(path[last])));
+    w.push(HandWaypoint::new(end, up(path[last]), 0));
     PlannedStroke {
         step,
         start_s: start,
@@ -519,7 +541,7 @@ mod tests {
 version = 1
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.2 }
+shape = { kind = "sphere", radius_fu = 0.2 }
 action = { kind = "add", deposit_rate_per_s = 4.0 }
 positions = [[1, 1, 1]]
 

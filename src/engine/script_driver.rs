@@ -20,7 +20,10 @@ pub struct ScriptDriver {
     origin_us: Option<u64>,
     /// Outcomes still to come: (step, receiver).
     waiting: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
-    saves: Vec<(usize, Receiver<Result<std::path::PathBuf, String>>)>,
+    saves: Vec<(
+        usize,
+        Receiver<Result<std::path::PathBuf, super::SaveError>>,
+    )>,
     /// Outcomes worth telling the user (pins: which points were moved onto the surface).
     telling: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
     notes: Vec<(usize, String)>,

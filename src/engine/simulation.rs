@@ -46,7 +46,7 @@ use glam::Vec3;
 
 use super::command::{Command, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
-use super::error::{CommandError, LatticeShape, LoadRefused};
+use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
 use super::layout::LayoutSender;
 use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
@@ -115,7 +115,7 @@ pub struct SaveJob {
     /// The session to write.
     pub session: Session,
     /// Where the result goes.
-    pub reply: Option<Sender<Result<std::path::PathBuf, String>>>,
+    pub reply: Option<super::SaveReply>,
 }
 
 /// What one step did.
@@ -762,11 +762,11 @@ mod tests {
             },
             tools: vec![crate::io::ToolPreset {
                 name: "ball".into(),
-                shape: crate::tools::ToolShape::Sphere { radius_m: 0.1 },
+                shape: crate::tools::ToolShape::Sphere { radius_fu: 0.1 },
                 action: crate::tools::ToolAction::Add {
                     deposit_rate_per_s: 2.0,
                 },
-                falloff_m: 0.02,
+                falloff_fu: 0.02,
             }],
             meta: crate::io::SessionMeta {
                 name: "whole".into(),

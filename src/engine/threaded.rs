@@ -443,19 +443,23 @@ impl Engine {
     /// I/O thread's answer.
     ///
     /// # Errors
-    /// The save's error message, or a timeout.
-    pub fn save(&self, path: &std::path::Path, timeout: Duration) -> Result<(), String> {
+    /// Why the save was not written ([`CommandError::Save`]), a stopped simulation, or a
+    /// timeout.
+    pub fn save(&self, path: &std::path::Path, timeout: Duration) -> Result<(), CommandError> {
         let (tx, rx) = bounded(1);
         self.commands
             .send(Command::Save {
                 path: path.to_path_buf(),
                 reply: Some(tx),
             })
-            .map_err(|_| "the simulation loop has stopped".to_owned())?;
+            .map_err(|_| CommandError::Stopped)?;
         dynaclay_loops::assert_not_in_tick("Engine::save waiting for the I/O thread");
         match rx.recv_timeout(timeout) {
-            Ok(r) => r.map(|_| ()),
-            Err(_) => Err(format!("no answer to the save within {timeout:?}")),
+            Ok(r) => Ok(r.map(|_| ())?),
+            Err(_) => Err(CommandError::NoAnswer {
+                what: "save",
+                waited: timeout,
+            }),
         }
     }
 

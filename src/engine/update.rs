@@ -86,7 +86,7 @@ impl FieldUpdate {
             return;
         };
         let lattice = &p.lattice;
-        let Some(b) = clamp_box(coeff_box, lattice.dims) else {
+        let Some(b) = coeff_box.clipped(lattice.dims) else {
             return;
         };
         for k in b.min[2]..=b.max[2] {
@@ -193,30 +193,14 @@ fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Optio
                 // Bit comparison: a changed NaN payload or signed zero still counts.
                 if d.to_bits() != s.to_bits() {
                     *d = *s;
-                    grow(&mut changed, [b.min[0] + i, j, k]);
+                    let p = [b.min[0] + i, j, k];
+                    changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
                 }
             }
             src += len;
         }
     }
     changed
-}
-
-/// Grows `acc` to hold coefficient `p`.
-fn grow(acc: &mut Option<CoeffBox>, p: [usize; 3]) {
-    let point = CoeffBox { min: p, max: p };
-    *acc = Some(acc.map_or(point, |b| b.union(&point)));
-}
-
-fn clamp_box(b: CoeffBox, dims: [usize; 3]) -> Option<CoeffBox> {
-    let mut out = b;
-    for (a, &n) in dims.iter().enumerate() {
-        if n == 0 || b.min[a] > b.max[a] || b.min[a] >= n {
-            return None;
-        }
-        out.max[a] = b.max[a].min(n - 1);
-    }
-    Some(out)
 }
 
 #[cfg(test)]

@@ -52,6 +52,18 @@ impl CoeffBox {
         (0..3).all(|a| self.min[a] <= c[a] && c[a] <= self.max[a])
     }
 
+    /// The box of the one coefficient `p`.
+    #[must_use]
+    pub fn point(p: [usize; 3]) -> Self {
+        Self { min: p, max: p }
+    }
+
+    /// The smallest box holding this box and coefficient `p`.
+    #[must_use]
+    pub fn grown_to(&self, p: [usize; 3]) -> Self {
+        self.union(&Self::point(p))
+    }
+
     /// The smallest box holding both.
     #[must_use]
     pub fn union(&self, other: &Self) -> Self {
@@ -61,7 +73,8 @@ impl CoeffBox {
         }
     }
 
-    /// This box clipped to a lattice of the given dimensions (`None` if nothing is left).
+    /// This box clipped to a lattice of the given dimensions (`None` if nothing is left, or
+    /// the box is empty).
     #[must_use]
     pub fn clipped(&self, dims: [usize; 3]) -> Option<Self> {
         let b = Self {

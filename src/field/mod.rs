@@ -29,7 +29,7 @@ pub use refit::{
     FitError, SampleRow, coeff_box_around, fit_lattice, refit_box, refit_box_edit,
     refit_box_edit_rows,
 };
-pub use snapshot::{RegionSnapshot, SnapshotError, region_support};
+pub use snapshot::{RegionSnapshot, SnapshotError};
 pub(crate) use sweep::{
     AxisOp, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with, with_blocks,
 };

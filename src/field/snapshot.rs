@@ -106,7 +106,7 @@ impl RegionSnapshot {
             }
         }
         self.version = version;
-        let (lo, hi) = region_support(lattice, region);
+        let (lo, hi) = region.world_support(lattice);
         self.dirty_min = lo;
         self.dirty_max = hi;
     }
@@ -159,25 +159,6 @@ impl RegionSnapshot {
         }
         Ok(())
     }
-}
-
-/// World box outside which the coefficients of `region` have no influence.
-#[must_use]
-pub fn region_support(lattice: &BSplineLattice, region: CoeffBox) -> (Vec3, Vec3) {
-    let lo = Vec3::new(
-        region.min[0] as f32 - 2.0,
-        region.min[1] as f32 - 2.0,
-        region.min[2] as f32 - 2.0,
-    );
-    let hi = Vec3::new(
-        region.max[0] as f32 + 2.0,
-        region.max[1] as f32 + 2.0,
-        region.max[2] as f32 + 2.0,
-    );
-    (
-        lattice.origin + lattice.spacing * lo,
-        lattice.origin + lattice.spacing * hi,
-    )
 }
 
 #[cfg(test)]

@@ -275,7 +275,7 @@ mod tests {
         let cursor = Vec3::new(1.45, 0.95, 0.95);
         let area = |tracks| ForceTool::Area {
             distribution: Distribution::Constant,
-            radius_m: 0.05,
+            radius_fu: 0.05,
             tracks,
             gain: 1.0,
         };

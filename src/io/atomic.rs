@@ -5,7 +5,7 @@
 //! through a size cap and validates it before returning anything.
 
 use std::fs;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::error::SessionError;
 use super::format::{decode, encode};
@@ -129,31 +129,63 @@ mod tests {
     }
 }
 
+/// Why a save may not write its path; nothing was written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplaceRefused {
+    /// What is at the path could not be inspected.
+    #[error("{}: cannot inspect before saving: {source}", path.display())]
+    Inspect {
+        /// The path to save to.
+        path: PathBuf,
+        /// The inspection's error.
+        source: std::io::Error,
+    },
+    /// A link, device, FIFO or directory is at the path.
+    #[error(
+        "{}: refusing to replace something that is not a regular file (a link, device, FIFO or directory)",
+        path.display()
+    )]
+    NotRegularFile {
+        /// The path to save to.
+        path: PathBuf,
+    },
+    /// A regular file that is not a dynaclay session is at the path.
+    #[error("{}: refusing to replace a file that is not a dynaclay session", path.display())]
+    NotSession {
+        /// The path to save to.
+        path: PathBuf,
+    },
+}
+
 /// Whether a save may write `path`: nothing is there yet, or a regular file that is a dynaclay
 /// session (it starts with [`MAGIC`](super::format::MAGIC)). A symlink, a device, a FIFO, a
 /// directory or any other file is never replaced.
 ///
 /// # Errors
-/// A message naming `path` and what is there.
-pub fn check_replaceable(path: &Path) -> Result<(), String> {
+/// What is there, naming `path`.
+pub fn check_replaceable(path: &Path) -> Result<(), ReplaceRefused> {
     use std::io::Read;
-    let shown = path.display();
     let meta = match fs::symlink_metadata(path) {
         Ok(m) => m,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(format!("{shown}: cannot inspect before saving: {e}")),
+        Err(source) => {
+            return Err(ReplaceRefused::Inspect {
+                path: path.to_path_buf(),
+                source,
+            });
+        }
     };
     if !meta.file_type().is_file() {
-        return Err(format!(
-            "{shown}: refusing to replace something that is not a regular file (a link, device, FIFO or directory)"
-        ));
+        return Err(ReplaceRefused::NotRegularFile {
+            path: path.to_path_buf(),
+        });
     }
     let mut head = [0u8; 8];
     let read = fs::File::open(path).and_then(|mut f| f.read_exact(&mut head));
     if read.is_err() || head != super::format::MAGIC {
-        return Err(format!(
-            "{shown}: refusing to replace a file that is not a dynaclay session"
-        ));
+        return Err(ReplaceRefused::NotSession {
+            path: path.to_path_buf(),
+        });
     }
     Ok(())
 }
@@ -175,12 +207,14 @@ mod replace_tests {
         let text = dir.path().join("notes.txt");
         fs::write(&text, "precious").unwrap();
         let err = check_replaceable(&text).unwrap_err();
-        assert!(err.contains("not a dynaclay session"), "{err}");
+        assert!(matches!(err, ReplaceRefused::NotSession { .. }), "{err}");
+        assert!(err.to_string().contains("not a dynaclay session"), "{err}");
         let link = dir.path().join("link.dclay");
         std::os::unix::fs::symlink(&absent, &link).unwrap();
         assert!(
             check_replaceable(&link)
                 .unwrap_err()
+                .to_string()
                 .contains("not a regular file")
         );
         assert!(check_replaceable(Path::new("/dev/null")).is_err());

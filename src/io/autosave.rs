@@ -56,32 +56,60 @@ pub fn find_recovery(session_path: &Path) -> Option<Recovery> {
     }
 }
 
+/// Why a start-up may not go on as asked about a recovery file.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum RecoveryRefused {
+    /// A recovery file newer than the session exists and `--recover` was not given.
+    #[error(
+        "recovery file {} is newer than session {}{}; pass --recover to start from it \
+         (or remove it to start afresh)",
+        recovery.display(),
+        session.display(),
+        if *never_saved { " (never saved)" } else { "" }
+    )]
+    Unseen {
+        /// The recovery file.
+        recovery: PathBuf,
+        /// The session it belongs to.
+        session: PathBuf,
+        /// Whether the session file does not exist.
+        never_saved: bool,
+    },
+    /// `--recover` was given and there is no recovery file newer than the session.
+    #[error(
+        "--recover: no recovery file newer than {} (looked for {})",
+        session.display(),
+        looked_for.display()
+    )]
+    NoneToRecover {
+        /// The session.
+        session: PathBuf,
+        /// Where the recovery file would be.
+        looked_for: PathBuf,
+    },
+}
+
 /// What a start-up does about the recovery file of `session_path`. With `recover`, the recovery
 /// file to start from; without, `None`.
 ///
 /// # Errors
-/// A message for the user when a recovery file newer than the session exists and `recover` was
-/// not given (so unsaved work is never overwritten unseen), or `recover` was given and there is
-/// none.
-pub fn recovery_to_use(session_path: &Path, recover: bool) -> Result<Option<Recovery>, String> {
+/// A recovery file newer than the session exists and `recover` was not given (so unsaved work
+/// is never overwritten unseen), or `recover` was given and there is none.
+pub fn recovery_to_use(
+    session_path: &Path,
+    recover: bool,
+) -> Result<Option<Recovery>, RecoveryRefused> {
     match (find_recovery(session_path), recover) {
         (Some(r), true) => Ok(Some(r)),
-        (Some(r), false) => Err(format!(
-            "recovery file {} is newer than session {}{}; pass --recover to start from it \
-             (or remove it to start afresh)",
-            r.path.display(),
-            session_path.display(),
-            if session_path.exists() {
-                ""
-            } else {
-                " (never saved)"
-            }
-        )),
-        (None, true) => Err(format!(
-            "--recover: no recovery file newer than {} (looked for {})",
-            session_path.display(),
-            recovery_path_for(session_path).display()
-        )),
+        (Some(r), false) => Err(RecoveryRefused::Unseen {
+            recovery: r.path,
+            session: session_path.to_path_buf(),
+            never_saved: !session_path.exists(),
+        }),
+        (None, true) => Err(RecoveryRefused::NoneToRecover {
+            session: session_path.to_path_buf(),
+            looked_for: recovery_path_for(session_path),
+        }),
         (None, false) => Ok(None),
     }
 }
@@ -168,10 +196,13 @@ mod tests {
         let session_path = dir.path().join("bust.dclay");
         assert_eq!(recovery_to_use(&session_path, false), Ok(None));
         let e = recovery_to_use(&session_path, true).unwrap_err();
-        assert!(e.contains("no recovery file newer than"), "{e}");
+        assert!(matches!(e, RecoveryRefused::NoneToRecover { .. }));
+        assert!(e.to_string().contains("no recovery file newer than"), "{e}");
 
         std::fs::write(recovery_path_for(&session_path), b"unsaved work").unwrap();
-        let e = recovery_to_use(&session_path, false).unwrap_err();
+        let e = recovery_to_use(&session_path, false)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("pass --recover") && e.contains("never saved"),
             "{e}"

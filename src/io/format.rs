@@ -467,19 +467,19 @@ fn encode_tools(tools: &[ToolPreset]) -> Result<Vec<u8>, SessionError> {
             detail: format!("tool {}: action: {e}", t.name),
         })?;
         put_str(&mut out, &action);
-        out.extend_from_slice(&t.falloff_m.to_le_bytes());
+        out.extend_from_slice(&t.falloff_fu.to_le_bytes());
         let (tag, params): (u8, Vec<f32>) = match &t.shape {
-            ToolShape::Sphere { radius_m } => (SPHERE, vec![*radius_m]),
-            ToolShape::Ellipsoid { radii_m } => (ELLIPSOID, radii_m.to_array().to_vec()),
-            ToolShape::Box { half_extents_m } => (BOX, half_extents_m.to_array().to_vec()),
+            ToolShape::Sphere { radius_fu } => (SPHERE, vec![*radius_fu]),
+            ToolShape::Ellipsoid { radii_fu } => (ELLIPSOID, radii_fu.to_array().to_vec()),
+            ToolShape::Box { half_extents_fu } => (BOX, half_extents_fu.to_array().to_vec()),
             ToolShape::Cylinder {
-                radius_m,
-                half_height_m,
-            } => (CYLINDER, vec![*radius_m, *half_height_m]),
+                radius_fu,
+                half_height_fu,
+            } => (CYLINDER, vec![*radius_fu, *half_height_fu]),
             ToolShape::Capsule {
-                radius_m,
-                half_height_m,
-            } => (CAPSULE, vec![*radius_m, *half_height_m]),
+                radius_fu,
+                half_height_fu,
+            } => (CAPSULE, vec![*radius_fu, *half_height_fu]),
             ToolShape::Freeform(f) => (FREEFORM, f.scale.to_array().to_vec()),
         };
         out.push(tag);
@@ -502,22 +502,26 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
             r.at = at;
             r.error(&format!("tool {name}: action: {e}"))
         })?;
-        let falloff_m = r.f32()?;
+        let falloff_fu = r.f32()?;
         let at = r.at;
         let tag = r.u8()?;
         let shape = match tag {
-            SPHERE => ToolShape::Sphere { radius_m: r.f32()? },
-            ELLIPSOID => ToolShape::Ellipsoid { radii_m: r.vec3()? },
+            SPHERE => ToolShape::Sphere {
+                radius_fu: r.f32()?,
+            },
+            ELLIPSOID => ToolShape::Ellipsoid {
+                radii_fu: r.vec3()?,
+            },
             BOX => ToolShape::Box {
-                half_extents_m: r.vec3()?,
+                half_extents_fu: r.vec3()?,
             },
             CYLINDER => ToolShape::Cylinder {
-                radius_m: r.f32()?,
-                half_height_m: r.f32()?,
+                radius_fu: r.f32()?,
+                half_height_fu: r.f32()?,
             },
             CAPSULE => ToolShape::Capsule {
-                radius_m: r.f32()?,
-                half_height_m: r.f32()?,
+                radius_fu: r.f32()?,
+                half_height_fu: r.f32()?,
             },
             FREEFORM => {
                 let scale = r.vec3()?;
@@ -539,7 +543,7 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
             name,
             shape,
             action,
-            falloff_m,
+            falloff_fu,
         });
     }
     Ok(tools)
@@ -751,11 +755,11 @@ mod tests {
             tools: vec![
                 ToolPreset {
                     name: "ball".into(),
-                    shape: ToolShape::Sphere { radius_m: 0.2 },
+                    shape: ToolShape::Sphere { radius_fu: 0.2 },
                     action: ToolAction::Add {
                         deposit_rate_per_s: 3.0,
                     },
-                    falloff_m: 0.05,
+                    falloff_fu: 0.05,
                 },
                 ToolPreset {
                     name: "seal".into(),
@@ -764,7 +768,7 @@ mod tests {
                         scale: Vec3::new(1.0, 2.0, 0.5),
                     }),
                     action: ToolAction::Stamp(StampParams::default()),
-                    falloff_m: 0.0,
+                    falloff_fu: 0.0,
                 },
             ],
             meta: SessionMeta {

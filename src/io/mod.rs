@@ -8,15 +8,17 @@ mod format;
 mod script;
 mod session;
 
-pub use atomic::{check_replaceable, load_session, save_session, write_atomic};
+pub use atomic::{ReplaceRefused, check_replaceable, load_session, save_session, write_atomic};
 pub use autosave::{
-    Autosave, AutosavePolicy, Recovery, find_recovery, recovery_path_for, recovery_to_use,
+    Autosave, AutosavePolicy, Recovery, RecoveryRefused, find_recovery, recovery_path_for,
+    recovery_to_use,
 };
 pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{
-    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, ForceToolSpec, PinKind, SCRIPT_VERSION,
-    Script, ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,
+    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DeprecatedKey, ForceToolSpec, PinKind,
+    RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, ShapeSpec, load_script,
+    parse_script, pin_request, poses,
 };
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};

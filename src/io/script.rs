@@ -15,14 +15,14 @@
 //!
 //! [[step]]
 //! do = "tool"
-//! shape = { kind = "sphere", radius_m = 0.2 }
+//! shape = { kind = "sphere", radius_fu = 0.2 }
 //! action = { kind = "add", deposit_rate_per_s = 4.0 }
 //! positions = [[0.5, 0.5, 0.5], [0.6, 0.5, 0.5]]
 //! duration_s = 0.5
 //!
 //! [[step]]
 //! do = "stroke"
-//! tool = { kind = "chisel", depth_m = 0.03, radius_m = 0.05, gain = 1e6 }
+//! tool = { kind = "chisel", depth_fu = 0.03, radius_fu = 0.05, gain = 1e6 }
 //! path = [[0.9, 0.5, 0.5]]
 //! duration_s = 1.0
 //!
@@ -74,6 +74,48 @@ pub struct Script {
     pub autosave: Option<AutosaveSpec>,
     #[serde(default, rename = "step")]
     pub steps: Vec<ScriptStep>,
+    /// Keys written under a name the format renamed (read as the new name), in file order;
+    /// a run prints each as a warning.
+    #[serde(skip)]
+    pub deprecated: Vec<DeprecatedKey>,
+}
+
+/// Keys the format renamed when lengths on the clay got their true unit, as (old name, name
+/// to write now). Lengths on the clay are field units (`_fu`), not metres; the old names are
+/// still read, with a [`DeprecatedKey`] note.
+pub const RENAMED_KEYS: [(&str, &str); 8] = [
+    ("radius_m", "radius_fu"),
+    ("radii_m", "radii_fu"),
+    ("half_extents_m", "half_extents_fu"),
+    ("half_height_m", "half_height_fu"),
+    ("depth_m", "depth_fu"),
+    ("falloff_m", "falloff_fu"),
+    ("hover_m", "hover_fu"),
+    ("kernel_m", "kernel_fu"),
+];
+
+/// A key written under its old name ([`RENAMED_KEYS`]): read as the new one, and noted so the
+/// run can say where to change it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeprecatedKey {
+    /// The script, as named in errors.
+    pub file: String,
+    /// 1-based line of the key.
+    pub line: usize,
+    /// The key as written.
+    pub key: &'static str,
+    /// The key to write instead.
+    pub replacement: &'static str,
+}
+
+impl std::fmt::Display for DeprecatedKey {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}:{}: `{}` is deprecated: lengths on the clay are in field units, not metres; write `{}`",
+            self.file, self.line, self.key, self.replacement
+        )
+    }
 }
 
 /// The starting clay's shape.
@@ -144,21 +186,28 @@ impl From<AutosaveSpec> for crate::io::AutosavePolicy {
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeSpec {
     Sphere {
-        radius_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
     },
     Ellipsoid {
-        radii_m: [f32; 3],
+        #[serde(alias = "radii_m")]
+        radii_fu: [f32; 3],
     },
     Box {
-        half_extents_m: [f32; 3],
+        #[serde(alias = "half_extents_m")]
+        half_extents_fu: [f32; 3],
     },
     Cylinder {
-        radius_m: f32,
-        half_height_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
+        #[serde(alias = "half_height_m")]
+        half_height_fu: f32,
     },
     Capsule {
-        radius_m: f32,
-        half_height_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
+        #[serde(alias = "half_height_m")]
+        half_height_fu: f32,
     },
     Freeform {
         preset: String,
@@ -203,8 +252,8 @@ pub enum ForceToolSpec {
     Push {
         #[serde(default = "default_beta")]
         beta: BetaSpec,
-        #[serde(default = "default_push_radius")]
-        radius_m: f32,
+        #[serde(default = "default_push_radius", alias = "radius_m")]
+        radius_fu: f32,
         #[serde(default = "default_push_gain")]
         gain: f32,
     },
@@ -213,32 +262,40 @@ pub enum ForceToolSpec {
     },
     Area {
         beta: BetaSpec,
-        radius_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         tracks: u32,
         gain: f32,
     },
     Curve {
-        radius_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         gain: f32,
     },
     Chisel {
-        depth_m: f32,
-        radius_m: f32,
+        #[serde(alias = "depth_m")]
+        depth_fu: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         gain: f32,
     },
     Squirt {
-        depth_m: f32,
-        radius_m: f32,
+        #[serde(alias = "depth_m")]
+        depth_fu: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         gain: f32,
     },
     Pull {
         beta: BetaSpec,
-        radius_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         gain: f32,
     },
     Bend {
         samples: u32,
-        radius_m: f32,
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
         gain: f32,
     },
 }
@@ -259,7 +316,7 @@ impl ForceToolSpec {
     /// The default tool of a stroke: a Gaussian push of radius 0.25 and gain 2·10⁶.
     pub const DEFAULT_PUSH: Self = Self::Push {
         beta: BetaSpec::Gaussian,
-        radius_m: 0.25,
+        radius_fu: 0.25,
         gain: 2.0e6,
     };
 
@@ -272,50 +329,50 @@ impl ForceToolSpec {
             Self::Grab { gain } => ForceTool::PointGrab { gain },
             Self::Area {
                 beta,
-                radius_m,
+                radius_fu,
                 tracks,
                 gain,
             } => ForceTool::Area {
                 distribution: beta.into(),
-                radius_m,
+                radius_fu,
                 tracks,
                 gain,
             },
-            Self::Curve { radius_m, gain } => ForceTool::Curve { radius_m, gain },
+            Self::Curve { radius_fu, gain } => ForceTool::Curve { radius_fu, gain },
             Self::Chisel {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             } => ForceTool::Chisel {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             },
             Self::Squirt {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             } => ForceTool::Squirt {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             },
             Self::Pull {
                 beta,
-                radius_m,
+                radius_fu,
                 gain,
             } => ForceTool::Pull {
                 distribution: beta.into(),
-                radius_m,
+                radius_fu,
                 gain,
             },
             Self::Bend {
                 samples,
-                radius_m,
+                radius_fu,
                 gain,
             } => ForceTool::Bend {
                 samples,
-                radius_m,
+                radius_fu,
                 gain,
             },
         })
@@ -328,8 +385,13 @@ impl ForceToolSpec {
     pub fn validate(&self) -> Result<(), String> {
         match (self, self.force_tool()) {
             (_, Some(tool)) => tool.validate().map_err(|e| e.0),
-            (Self::Push { radius_m, gain, .. }, None) => {
-                for (name, v) in [("radius_m", *radius_m), ("gain", *gain)] {
+            (
+                Self::Push {
+                    radius_fu, gain, ..
+                },
+                None,
+            ) => {
+                for (name, v) in [("radius_fu", *radius_fu), ("gain", *gain)] {
                     if !(v.is_finite() && v > 0.0) {
                         return Err(format!("{name} must be positive and finite, got {v}"));
                     }
@@ -439,8 +501,8 @@ pub enum ScriptStep {
         shape: ShapeSpec,
         action: ToolAction,
         positions: Vec<[f32; 3]>,
-        #[serde(default = "default_falloff")]
-        falloff_m: f32,
+        #[serde(default = "default_falloff", alias = "falloff_m")]
+        falloff_fu: f32,
         /// Quaternion `[x, y, z, w]`; identity when absent.
         #[serde(default)]
         rotation: Option<[f32; 4]>,
@@ -466,8 +528,8 @@ pub enum ScriptStep {
         shape: Option<ShapeSpec>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         action: Option<ToolAction>,
-        #[serde(default = "default_falloff")]
-        falloff_m: f32,
+        #[serde(default = "default_falloff", alias = "falloff_m")]
+        falloff_fu: f32,
         /// Tip targets, field coordinates.
         path: Vec<[f32; 3]>,
         /// Time along the path (default 1 s, or the last of `times_s`).
@@ -481,8 +543,8 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         start_s: Option<f64>,
         /// Hover height above the path's ends before and after the stroke.
-        #[serde(default = "default_hover")]
-        hover_m: f32,
+        #[serde(default = "default_hover", alias = "hover_m")]
+        hover_fu: f32,
         /// Device buttons held along the path (bit 0 is the stroke button).
         #[serde(default = "one")]
         buttons: u32,
@@ -643,28 +705,28 @@ impl ShapeSpec {
         library: impl Fn(&str) -> Option<&'a ToolShape>,
     ) -> Result<ToolShape, String> {
         Ok(match self {
-            Self::Sphere { radius_m } => ToolShape::Sphere {
-                radius_m: *radius_m,
+            Self::Sphere { radius_fu } => ToolShape::Sphere {
+                radius_fu: *radius_fu,
             },
-            Self::Ellipsoid { radii_m } => ToolShape::Ellipsoid {
-                radii_m: Vec3::from_array(*radii_m),
+            Self::Ellipsoid { radii_fu } => ToolShape::Ellipsoid {
+                radii_fu: Vec3::from_array(*radii_fu),
             },
-            Self::Box { half_extents_m } => ToolShape::Box {
-                half_extents_m: Vec3::from_array(*half_extents_m),
+            Self::Box { half_extents_fu } => ToolShape::Box {
+                half_extents_fu: Vec3::from_array(*half_extents_fu),
             },
             Self::Cylinder {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             } => ToolShape::Cylinder {
-                radius_m: *radius_m,
-                half_height_m: *half_height_m,
+                radius_fu: *radius_fu,
+                half_height_fu: *half_height_fu,
             },
             Self::Capsule {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             } => ToolShape::Capsule {
-                radius_m: *radius_m,
-                half_height_m: *half_height_m,
+                radius_fu: *radius_fu,
+                half_height_fu: *half_height_fu,
             },
             Self::Freeform { preset, scale } => match library(preset) {
                 Some(ToolShape::Freeform(f)) => {
@@ -686,7 +748,7 @@ pub fn poses(positions: &[[f32; 3]], rotation: Option<[f32; 4]>) -> Vec<ToolPose
     positions
         .iter()
         .map(|p| ToolPose {
-            position_m: Vec3::from_array(*p),
+            position_fu: Vec3::from_array(*p),
             rotation,
         })
         .collect()
@@ -716,7 +778,8 @@ impl ScriptStep {
 }
 
 /// Why a script could not be read or run: where (file, line, column, step) and what.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{file}{}: {message}", Location { line: *line, column: *column, step: *step })]
 pub struct ScriptError {
     pub file: String,
     /// 1-based line and column, when known.
@@ -727,9 +790,16 @@ pub struct ScriptError {
     pub message: String,
 }
 
-impl std::fmt::Display for ScriptError {
+/// The `:line:column: step N` between a script error's file and message (each part only
+/// when known; the column only with a line).
+struct Location {
+    line: Option<usize>,
+    column: Option<usize>,
+    step: Option<usize>,
+}
+
+impl std::fmt::Display for Location {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}", self.file)?;
         if let Some(l) = self.line {
             write!(f, ":{l}")?;
             if let Some(c) = self.column {
@@ -739,11 +809,9 @@ impl std::fmt::Display for ScriptError {
         if let Some(s) = self.step {
             write!(f, ": step {s}")?;
         }
-        write!(f, ": {}", self.message)
+        Ok(())
     }
 }
-
-impl std::error::Error for ScriptError {}
 
 /// 1-based line and column of a byte offset.
 fn line_col(text: &str, offset: usize) -> (usize, usize) {
@@ -762,7 +830,7 @@ fn line_col(text: &str, offset: usize) -> (usize, usize) {
 /// naming the step and its line.
 pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
     let spans = Spans::new(text);
-    let script: Script = toml::from_str(text).map_err(|e| {
+    let mut script: Script = toml::from_str(text).map_err(|e| {
         let message = e.message().trim().to_string();
         let (line, column) = match e.span() {
             Some(span) => {
@@ -852,6 +920,16 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
     for (n, step) in script.steps.iter().enumerate() {
         check_step(step).map_err(|f| at(n, f))?;
     }
+    script.deprecated = spans
+        .renamed_keys()
+        .into_iter()
+        .map(|(line, key, replacement)| DeprecatedKey {
+            file: file.to_string(),
+            line,
+            key,
+            replacement,
+        })
+        .collect();
     Ok(script)
 }
 
@@ -904,6 +982,51 @@ impl<'t> Spans<'t> {
         Some(self.line(key.span().start))
     }
 
+    /// Every key written under an old name of [`RENAMED_KEYS`], as (line, old name, new
+    /// name), in file order.
+    fn renamed_keys(&self) -> Vec<(usize, &'static str, &'static str)> {
+        let mut found = Vec::new();
+        if let Some(document) = &self.document {
+            self.collect_renamed(document.get_ref(), &mut found);
+        }
+        // In file order (a table's keys may come back in another order).
+        found.sort_by_key(|&(offset, ..)| offset);
+        found
+            .into_iter()
+            .map(|(offset, old, new)| (self.line(offset), old, new))
+            .collect()
+    }
+
+    fn collect_renamed(
+        &self,
+        table: &toml::de::DeTable<'t>,
+        found: &mut Vec<(usize, &'static str, &'static str)>,
+    ) {
+        // Byte offsets here; `renamed_keys` turns them into lines.
+        for (k, v) in table.iter() {
+            if let Some(&(old, new)) = RENAMED_KEYS.iter().find(|(old, _)| k.get_ref() == *old) {
+                found.push((k.span().start, old, new));
+            }
+            self.collect_renamed_in(v.get_ref(), found);
+        }
+    }
+
+    fn collect_renamed_in(
+        &self,
+        value: &toml::de::DeValue<'t>,
+        found: &mut Vec<(usize, &'static str, &'static str)>,
+    ) {
+        match value {
+            toml::de::DeValue::Table(t) => self.collect_renamed(t, found),
+            toml::de::DeValue::Array(a) => {
+                for v in a {
+                    self.collect_renamed_in(v.get_ref(), found);
+                }
+            }
+            _ => {}
+        }
+    }
+
     /// Which step's table holds byte `offset`.
     fn step_at(&self, offset: usize) -> Option<usize> {
         self.steps().iter().position(|s| s.span().contains(&offset))
@@ -915,15 +1038,21 @@ impl<'t> Spans<'t> {
     }
 
     /// Line of `key` in step `n`, looked up in the step's table and then in the inline tables
-    /// it holds (`shape = { radius_m = … }`).
+    /// it holds (`shape = { radius_fu = … }`).
     fn step_key_line(&self, n: usize, key: &str) -> Option<usize> {
         let toml::de::DeValue::Table(table) = self.steps().get(n)?.get_ref() else {
             return None;
         };
-        let direct = table.iter().find(|(k, _)| k.get_ref() == key);
+        // A renamed key may be written under its old name.
+        let old = RENAMED_KEYS
+            .iter()
+            .find(|(_, new)| *new == key)
+            .map(|(old, _)| *old);
+        let is_key = |k: &str| k == key || Some(k) == old;
+        let direct = table.iter().find(|(k, _)| is_key(k.get_ref()));
         let nested = || {
             table.iter().find_map(|(_, v)| match v.get_ref() {
-                toml::de::DeValue::Table(inner) => inner.iter().find(|(k, _)| k.get_ref() == key),
+                toml::de::DeValue::Table(inner) => inner.iter().find(|(k, _)| is_key(k.get_ref())),
                 _ => None,
             })
         };
@@ -965,18 +1094,13 @@ fn backticked(message: &str) -> Option<&str> {
 
 /// A step's parameter at fault: the key it is written under (whose line the error names)
 /// and what is wrong with it.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("{message}")]
 pub struct StepFault {
     /// The step's key, as written in the script.
     pub key: &'static str,
     /// What is wrong, naming the value.
     pub message: String,
-}
-
-impl std::fmt::Display for StepFault {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.message)
-    }
 }
 
 fn fault(key: &'static str, message: impl Into<String>) -> StepFault {
@@ -1045,13 +1169,13 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             shape,
             action,
             positions,
-            falloff_m,
+            falloff_fu,
             duration_s,
             ..
         } => {
             check_points("positions", positions, true)?;
             seconds("duration_s", *duration_s)?;
-            finite("falloff_m", *falloff_m)?;
+            finite("falloff_fu", *falloff_fu)?;
             action
                 .validate()
                 .map_err(|e| fault("action", format!("action: {}", e.0)))?;
@@ -1075,12 +1199,12 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             tool,
             shape,
             action,
-            falloff_m,
+            falloff_fu,
             path,
             duration_s,
             times_s,
             start_s,
-            hover_m,
+            hover_fu,
             curve,
             pivot,
             ..
@@ -1125,10 +1249,10 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                     format!("start_s = {t} must be between 0 and {MAX_SCRIPT_SECONDS} s"),
                 ));
             }
-            if !(hover_m.is_finite() && *hover_m > 0.0) {
+            if !(hover_fu.is_finite() && *hover_fu > 0.0) {
                 return Err(fault(
-                    "hover_m",
-                    format!("hover_m = {hover_m} must be positive"),
+                    "hover_fu",
+                    format!("hover_fu = {hover_fu} must be positive"),
                 ));
             }
             if let Some(p) = pivot {
@@ -1149,7 +1273,7 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                     action
                         .validate()
                         .map_err(|e| fault("action", format!("action: {}", e.0)))?;
-                    finite("falloff_m", *falloff_m)?;
+                    finite("falloff_fu", *falloff_fu)?;
                     if let Ok(shape) = shape.resolve(|_| None) {
                         shape
                             .validate()
@@ -1266,7 +1390,7 @@ mod tests {
             (stroke("start_s = 1e30"), "start_s = 1", 6),
             (
                 format!(
-                    "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = {{ kind = \"sphere\", radius_m = 0.2 }}\naction = {{ kind = \"add\", deposit_rate_per_s = 1.0 }}\npositions = [{}]\n",
+                    "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = {{ kind = \"sphere\", radius_fu = 0.2 }}\naction = {{ kind = \"add\", deposit_rate_per_s = 1.0 }}\npositions = [{}]\n",
                     many.join(", ")
                 ),
                 "positions has 10001 points",
@@ -1299,27 +1423,27 @@ version = 1
 
 [[step]]
 do = "tool"
-shape = { kind = "sphere", radius_m = 0.2 }
+shape = { kind = "sphere", radius_fu = 0.2 }
 action = { kind = "add", deposit_rate_per_s = 4.0 }
 positions = [[0.5, 0.5, 0.5], [0.6, 0.5, 0.5]]
 duration_s = 0.5
 
 [[step]]
 do = "tool"
-shape = { kind = "ellipsoid", radii_m = [0.1, 0.2, 0.1] }
+shape = { kind = "ellipsoid", radii_fu = [0.1, 0.2, 0.1] }
 action = { kind = "stamp", s = 0.5, m = 0.15, r = 0.25, k = -2.0, n = 0.3 }
 positions = [[0.5, 0.7, 0.5]]
 rotation = [0.0, 0.0, 0.0, 1.0]
 
 [[step]]
 do = "tool"
-shape = { kind = "capsule", radius_m = 0.05, half_height_m = 0.1 }
+shape = { kind = "capsule", radius_fu = 0.05, half_height_fu = 0.1 }
 action = { kind = "contact", alpha = -2.0 }
 positions = [[0.5, 0.7, 0.5]]
 
 [[step]]
 do = "stroke"
-tool = { kind = "area", beta = "gaussian", radius_m = 0.05, tracks = 5, gain = 1e6 }
+tool = { kind = "area", beta = "gaussian", radius_fu = 0.05, tracks = 5, gain = 1e6 }
 path = [[0.9, 0.5, 0.5], [1.0, 0.5, 0.5]]
 duration_s = 1.0
 
@@ -1401,13 +1525,13 @@ path = "out.dclay"
 
     #[test]
     fn semantic_errors_name_the_step_and_its_line() {
-        let bad = "version = 1\n\n[[step]]\ndo = \"undo\"\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_m = -1.0 }\naction = { kind = \"remove\" }\npositions = [[0, 0, 0]]\n";
+        let bad = "version = 1\n\n[[step]]\ndo = \"undo\"\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_fu = -1.0 }\naction = { kind = \"remove\" }\npositions = [[0, 0, 0]]\n";
         let e = parse_script(bad, "x").unwrap_err();
         assert_eq!((e.step, e.line), (Some(2), Some(8)), "{e}");
-        assert!(e.message.contains("radius_m"), "{e}");
+        assert!(e.message.contains("radius_fu"), "{e}");
         let e = parse_script("version = 7\n", "x").unwrap_err();
         assert!(e.message.contains("version = 7"), "{e}");
-        let bad = "version = 1\n[[step]]\ndo = \"stroke\"\ntool = { kind = \"chisel\", depth_m = 0.0, radius_m = 0.1, gain = 1.0 }\npath = []\nduration_s = 1.0\n";
+        let bad = "version = 1\n[[step]]\ndo = \"stroke\"\ntool = { kind = \"chisel\", depth_fu = 0.0, radius_fu = 0.1, gain = 1.0 }\npath = []\nduration_s = 1.0\n";
         let e = parse_script(bad, "x").unwrap_err();
         assert!(e.message.contains("path"), "{e}");
         assert_eq!(e.line, Some(5), "{e}");
@@ -1440,7 +1564,7 @@ buttons = 1
 
 [[step]]
 do = "stroke"
-shape = { kind = "sphere", radius_m = 0.1 }
+shape = { kind = "sphere", radius_fu = 0.1 }
 action = { kind = "remove" }
 path = [[1, 1, 1]]
 start_s = 3.0
@@ -1461,19 +1585,19 @@ start_s = 3.0
                 5,
             ),
             ("path = [[1, 1, 1]]\ntimes_s = [0.0, 1.0]\n", "times_s", 5),
-            ("path = [[1, 1, 1]]\nhover_m = 0\n", "hover_m", 5),
+            ("path = [[1, 1, 1]]\nhover_m = 0\n", "hover_fu", 5),
             (
-                "tool = { kind = \"push\", radius_m = -1 }\npath = [[1, 1, 1]]\n",
-                "radius_m",
+                "tool = { kind = \"push\", radius_fu = -1 }\npath = [[1, 1, 1]]\n",
+                "radius_fu",
                 4,
             ),
             (
-                "tool = { kind = \"grab\", gain = 1 }\nshape = { kind = \"sphere\", radius_m = 0.1 }\npath = [[1, 1, 1]]\n",
+                "tool = { kind = \"grab\", gain = 1 }\nshape = { kind = \"sphere\", radius_fu = 0.1 }\npath = [[1, 1, 1]]\n",
                 "not both",
                 4,
             ),
             (
-                "shape = { kind = \"sphere\", radius_m = 0.1 }\npath = [[1, 1, 1]]\n",
+                "shape = { kind = \"sphere\", radius_fu = 0.1 }\npath = [[1, 1, 1]]\n",
                 "action",
                 4,
             ),
@@ -1525,5 +1649,42 @@ start_s = 3.0
         )
         .unwrap_err();
         assert_eq!(err.line, Some(5), "{err}");
+    }
+
+    #[test]
+    fn old_metre_keys_read_as_field_unit_keys_with_a_note_per_key() {
+        let new = "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"capsule\", radius_fu = 0.05, half_height_fu = 0.1 }\naction = { kind = \"smooth\", rate_per_s = 1.0, kernel_fu = 0.1 }\npositions = [[0, 0, 0]]\nfalloff_fu = 0.02\n\n[[step]]\ndo = \"stroke\"\ntool = { kind = \"chisel\", depth_fu = 0.03, radius_fu = 0.05, gain = 1e6 }\npath = [[1, 1, 1]]\nhover_fu = 0.2\n";
+        let old = new.replace("_fu", "_m");
+        let read_new = parse_script(new, "new.toml").unwrap();
+        let read_old = parse_script(&old, "old.toml").unwrap();
+        assert!(read_new.deprecated.is_empty());
+        assert_eq!(read_old.steps, read_new.steps);
+        let noted: Vec<(usize, &str, &str)> = read_old
+            .deprecated
+            .iter()
+            .map(|d| (d.line, d.key, d.replacement))
+            .collect();
+        assert_eq!(
+            noted,
+            [
+                (5, "radius_m", "radius_fu"),
+                (5, "half_height_m", "half_height_fu"),
+                (6, "kernel_m", "kernel_fu"),
+                (8, "falloff_m", "falloff_fu"),
+                (12, "depth_m", "depth_fu"),
+                (12, "radius_m", "radius_fu"),
+                (14, "hover_m", "hover_fu"),
+            ]
+        );
+        let shown = read_old.deprecated[0].to_string();
+        assert!(
+            shown.starts_with("old.toml:5: `radius_m` is deprecated")
+                && shown.contains("`radius_fu`"),
+            "{shown}"
+        );
+        // A fault in an old key still names its line.
+        let bad = old.replace("depth_m = 0.03", "depth_m = -1");
+        let e = parse_script(&bad, "old.toml").unwrap_err();
+        assert_eq!(e.line, Some(12), "{e}");
     }
 }

@@ -45,7 +45,7 @@ pub struct ToolPreset {
     pub shape: ToolShape,
     pub action: ToolAction,
     /// Width of the tool potential's falloff band on each side of its surface.
-    pub falloff_m: f32,
+    pub falloff_fu: f32,
 }
 
 /// Everything a session file holds.

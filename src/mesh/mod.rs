@@ -15,7 +15,8 @@
 //! - Renderer: per-brick buffers from [`Brick::mesh`]; upload the bricks named in
 //!   [`RefreshReport::changed`] (or [`BrickOctree::changed_since`] its last generation) and
 //!   drop those in [`RefreshReport::removed`].
-//! - Export: [`BrickOctree::weld`] to a [`TriMesh`], then [`write_mesh`]; [`MeshStats::of`]
+//! - Export: [`BrickOctree::weld`] (or [`weld_pieces`] over copies of brick meshes, as the
+//!   app's published chunks are) to a [`TriMesh`], then [`write_mesh`]; [`MeshStats::of`]
 //!   for counts, area, volume and topology.
 
 mod brick;
@@ -35,7 +36,7 @@ pub use brick::{
 pub use error::GridError;
 pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;
-pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport};
+pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, weld_pieces};
 pub use source::{FnField, MAX_BLOCK, ScalarField};
 pub use stats::MeshStats;
 pub use tables::{

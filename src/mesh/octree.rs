@@ -493,45 +493,91 @@ impl BrickOctree {
     /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
     #[must_use]
     pub fn weld(&self) -> TriMesh {
-        let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
-        let triangles = self.triangle_count();
-        let mut out = TriMesh {
-            positions: Vec::with_capacity(vertices),
-            normals: Vec::with_capacity(vertices),
-            triangles: Vec::with_capacity(triangles),
-        };
-        // Only vertices on a brick face can be shared; the rest are unique to their brick.
-        let mut shared: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> =
-            HashMap::with_capacity_and_hasher(vertices / 4, Default::default());
-        let mut local = Vec::new();
-        for brick in self.bricks.values() {
-            let m = &brick.mesh;
-            local.clear();
-            for (v, &id) in m.edge_ids.iter().enumerate() {
-                let (corner, axis) = edge_from_id(id);
-                let on_face = (0..3).any(|a| a != axis as usize && corner[a] % BRICK_CELLS == 0);
-                let next = out.positions.len() as u32;
-                let index = if on_face {
-                    *shared.entry(id).or_insert(next)
-                } else {
-                    next
-                };
-                if index == next {
-                    out.positions.push(m.positions[v]);
-                    out.normals.push(m.normals[v]);
-                }
-                local.push(index);
-            }
-            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
-                [
-                    local[t[0] as usize],
-                    local[t[1] as usize],
-                    local[t[2] as usize],
-                ]
-            }));
-        }
-        out
+        let pieces: Vec<WeldPiece<'_, Vec3>> = self
+            .bricks
+            .values()
+            .map(|b| WeldPiece::of(&b.mesh))
+            .collect();
+        weld_pieces(&pieces)
     }
+}
+
+/// One brick's mesh as [`weld_pieces`] reads it: per vertex a position, a normal (as [`Vec3`]
+/// or `[f32; 3]`) and the global edge id the vertex lies on ([`super::edge_id`]), and the
+/// triangle list. Every slice but `indices` has one entry per vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct WeldPiece<'a, V> {
+    pub positions: &'a [V],
+    pub normals: &'a [V],
+    pub edge_ids: &'a [u64],
+    /// Three vertex indices per triangle, each less than the vertex count.
+    pub indices: &'a [u32],
+}
+
+impl<'a> WeldPiece<'a, Vec3> {
+    /// The pieces of a brick's mesh.
+    #[must_use]
+    pub fn of(mesh: &'a BrickMesh) -> Self {
+        Self {
+            positions: &mesh.positions,
+            normals: &mesh.normals,
+            edge_ids: &mesh.edge_ids,
+            indices: &mesh.indices,
+        }
+    }
+}
+
+/// The one welding of brick meshes (the octree's [`BrickOctree::weld`] and the app's export of
+/// its published chunks): vertices on a brick face are merged by their global edge id, so a
+/// vertex two bricks share appears once; the others are unique to their brick. Vertex and
+/// triangle order follow `pieces`.
+///
+/// # Panics
+/// When a piece's slices disagree in length or an index is out of range (callers with
+/// untrusted pieces check them first).
+#[must_use]
+pub fn weld_pieces<V: Copy + Into<Vec3>>(pieces: &[WeldPiece<'_, V>]) -> TriMesh {
+    let vertices: usize = pieces.iter().map(|p| p.positions.len()).sum();
+    let triangles: usize = pieces.iter().map(|p| p.indices.len() / 3).sum();
+    let mut out = TriMesh {
+        positions: Vec::with_capacity(vertices),
+        normals: Vec::with_capacity(vertices),
+        triangles: Vec::with_capacity(triangles),
+    };
+    // Only vertices on a brick face can be shared; the rest are unique to their brick.
+    let mut shared: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> =
+        HashMap::with_capacity_and_hasher(vertices / 4, Default::default());
+    let mut local = Vec::new();
+    for m in pieces {
+        assert!(
+            m.positions.len() == m.edge_ids.len() && m.normals.len() == m.edge_ids.len(),
+            "a weld piece needs one position, normal and edge id per vertex"
+        );
+        local.clear();
+        for (v, &id) in m.edge_ids.iter().enumerate() {
+            let (corner, axis) = edge_from_id(id);
+            let on_face = (0..3).any(|a| a != axis as usize && corner[a] % BRICK_CELLS == 0);
+            let next = out.positions.len() as u32;
+            let index = if on_face {
+                *shared.entry(id).or_insert(next)
+            } else {
+                next
+            };
+            if index == next {
+                out.positions.push(m.positions[v].into());
+                out.normals.push(m.normals[v].into());
+            }
+            local.push(index);
+        }
+        out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
+            [
+                local[t[0] as usize],
+                local[t[1] as usize],
+                local[t[2] as usize],
+            ]
+        }));
+    }
+    out
 }
 
 /// The state of [`BrickOctree::count_sampled_bricks`]: the walk of `visit` without sampling.

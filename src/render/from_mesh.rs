@@ -39,6 +39,9 @@ pub struct ChunkMesh {
     /// Paint per vertex, linear RGBA with coverage in alpha; empty when unpainted.
     pub colors: Vec<[f32; 4]>,
     pub indices: Vec<u32>,
+    /// Global edge id of each vertex ([`crate::mesh::edge_id`]): the key that welds chunks
+    /// ([`crate::mesh::weld_pieces`]).
+    pub edge_ids: Vec<u64>,
 }
 
 impl ChunkMesh {
@@ -58,6 +61,7 @@ impl ChunkMesh {
             normals: mesh.normals.iter().map(|n| n.to_array()).collect(),
             colors,
             indices: mesh.indices.clone(),
+            edge_ids: mesh.edge_ids.clone(),
         }
     }
 

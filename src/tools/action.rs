@@ -22,8 +22,12 @@ pub enum ToolAction {
     /// Progressive paint, weighted by the tool's potential and the clay's presence.
     SoftPaint { rgb: [f32; 3], rate_per_s: f32 },
     /// Low-pass the field under the tool: blend towards a local average whose 27 taps lie
-    /// `kernel_m` apart (at least one knot span is used).
-    Smooth { rate_per_s: f32, kernel_m: f32 },
+    /// `kernel_fu` apart (at least one knot span is used).
+    Smooth {
+        rate_per_s: f32,
+        #[serde(alias = "kernel_m")]
+        kernel_fu: f32,
+    },
     /// Print the tool's shape with Ferley's deformation function.
     Stamp(StampParams),
     /// Zhang's contact deformation `h = f + β·g`.
@@ -99,10 +103,10 @@ impl ToolAction {
             Self::SoftRemove { rate_per_s } => rate("rate_per_s", *rate_per_s),
             Self::Smooth {
                 rate_per_s,
-                kernel_m,
+                kernel_fu,
             } => {
                 rate("rate_per_s", *rate_per_s)?;
-                rate("kernel_m", *kernel_m)
+                rate("kernel_fu", *kernel_fu)
             }
             Self::Paint { rgb } => colour(rgb),
             Self::SoftPaint { rgb, rate_per_s } => {
@@ -214,7 +218,7 @@ mod tests {
         assert!((erase.density(0.8, 0.5, 0.0, 0.5, 0.2) - 0.7).abs() < 1e-6);
         let smooth = ToolAction::Smooth {
             rate_per_s: 1.0,
-            kernel_m: 0.1,
+            kernel_fu: 0.1,
         };
         assert_eq!(smooth.density(1.0, 1.0, 0.5, 0.5, 1.0), 0.5);
         assert_eq!(smooth.density(1.0, 0.0, 0.5, 0.5, 1.0), 1.0);

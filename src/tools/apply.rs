@@ -29,7 +29,7 @@ pub struct GeometricTool {
     pub action: ToolAction,
     /// Half-width of the band over which the tool's potential falls from 1 to 0 around its
     /// surface (analytic shapes; about two knot spans suits the fit).
-    pub falloff_m: f32,
+    pub falloff_fu: f32,
 }
 
 /// How an application is fitted.
@@ -92,8 +92,8 @@ pub enum ToolError {
     #[error("{0}")]
     Action(ActionError),
     /// The falloff band must be positive for analytic shapes.
-    #[error("falloff_m = {falloff_m} must be positive and finite")]
-    BadFalloff { falloff_m: f32 },
+    #[error("falloff_fu = {falloff_fu} must be positive and finite")]
+    BadFalloff { falloff_fu: f32 },
     /// The clay has no patch with this index.
     #[error("the clay has no patch {patch}")]
     NoPatch { patch: u16 },
@@ -120,10 +120,10 @@ impl GeometricTool {
         self.shape.validate().map_err(ToolError::Shape)?;
         self.action.validate().map_err(ToolError::Action)?;
         let freeform = matches!(self.shape, ToolShape::Freeform(_));
-        let falloff_ok = self.falloff_m.is_finite() && self.falloff_m > 0.0;
+        let falloff_ok = self.falloff_fu.is_finite() && self.falloff_fu > 0.0;
         if !freeform && !falloff_ok {
             return Err(ToolError::BadFalloff {
-                falloff_m: self.falloff_m,
+                falloff_fu: self.falloff_fu,
             });
         }
         Ok(())
@@ -156,14 +156,14 @@ pub fn apply_tool(
         return paint(clay, tool, pose, dt_s, options, recorder);
     }
     let lattice = clay.field(id).expect("checked above");
-    let half = tool.shape.influence_half_extents(tool.falloff_m);
+    let half = tool.shape.influence_half_extents(tool.falloff_fu);
     let (mut lo, mut hi) = pose.world_bounds(half);
     if tool.action.acts_outside_tool() {
         (lo, hi) = lattice.support();
     }
-    if let ToolAction::Smooth { kernel_m, .. } = tool.action {
+    if let ToolAction::Smooth { kernel_fu, .. } = tool.action {
         // The average reads one kernel width beyond the tool.
-        let reach = kernel_m.max(lattice.spacing);
+        let reach = kernel_fu.max(lattice.spacing);
         lo -= Vec3::splat(reach);
         hi += Vec3::splat(reach);
     }
@@ -171,7 +171,7 @@ pub fn apply_tool(
         return Ok(ToolReport::default());
     };
     let reach = match tool.action {
-        ToolAction::Smooth { kernel_m, .. } => (kernel_m / lattice.spacing).ceil() as usize,
+        ToolAction::Smooth { kernel_fu, .. } => (kernel_fu / lattice.spacing).ceil() as usize,
         _ => 0,
     };
     // Only smoothing reads the old field away from the samples (its blur); the refit hands
@@ -185,7 +185,7 @@ pub fn apply_tool(
     }
     // `pose.to_local` with the rotation turned into a matrix once, not per sample.
     let to_local =
-        glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_m).inverse();
+        glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_fu).inverse();
     // The world-aligned box around the tool's own: samples outside it are left as they were
     // without transforming them (most of a refit box's margin).
     let (world_lo, world_hi) = pose.world_bounds(half);
@@ -195,10 +195,10 @@ pub fn apply_tool(
         world_lo,
         world_hi,
         half,
-        zero_beyond: tool.shape.zero_beyond(tool.falloff_m),
+        zero_beyond: tool.shape.zero_beyond(tool.falloff_fu),
     };
     let blur_h = match tool.action {
-        ToolAction::Smooth { kernel_m, .. } => Some(kernel_m.max(spacing)),
+        ToolAction::Smooth { kernel_fu, .. } => Some(kernel_fu.max(spacing)),
         _ => None,
     };
     let (lattice, others) = split_patch(&mut clay.density, usize::from(options.patch));
@@ -212,12 +212,12 @@ pub fn apply_tool(
         iso,
         dt_s,
     };
-    let falloff = tool.falloff_m;
+    let falloff = tool.falloff_fu;
     let [visited, computed, dirtied] = match tool.shape {
         // The sphere's potential inlined into the row loop: the expressions of
         // `ToolShape::density` for a sphere, so the values are the same.
-        ToolShape::Sphere { radius_m } => rows.refit(lattice, region, options, |p: Vec3| {
-            density_from_distance(p.length() - radius_m, falloff)
+        ToolShape::Sphere { radius_fu } => rows.refit(lattice, region, options, |p: Vec3| {
+            density_from_distance(p.length() - radius_fu, falloff)
         }),
         ref shape => rows.refit(lattice, region, options, |p: Vec3| {
             shape.density(p, falloff)
@@ -618,7 +618,7 @@ fn paint(
     mut recorder: Option<&mut StepRecorder>,
 ) -> Result<ToolReport, ToolError> {
     let patch = clay.base();
-    let half = tool.shape.influence_half_extents(tool.falloff_m);
+    let half = tool.shape.influence_half_extents(tool.falloff_fu);
     let (lo, hi) = pose.world_bounds(half);
     // The clay's density near the tool, for the soft painter's presence weight.
     let density = coeff_box_around(patch, lo, hi, 0).map(|b| sub_lattice(patch, &b, 5));
@@ -651,7 +651,7 @@ fn paint(
                 return old;
             }
             counts.computed.set(counts.computed.get() + 1);
-            let t = tool.shape.density(local, tool.falloff_m);
+            let t = tool.shape.density(local, tool.falloff_fu);
             let clay_here = density.as_ref().map_or(0.0, |d| d.value(x));
             let w = tool.action.paint_weight(clay_here, t, iso, dt_s);
             if w == 0.0 {
@@ -729,7 +729,7 @@ mod tests {
         GeometricTool {
             shape,
             action,
-            falloff_m: 2.0 * H,
+            falloff_fu: 2.0 * H,
         }
     }
 
@@ -782,7 +782,7 @@ mod tests {
         assert_eq!(detail, 1);
         let base = clay.base().clone();
         let r = 0.35;
-        let t = tool(ToolShape::Sphere { radius_m: r }, ToolAction::Union);
+        let t = tool(ToolShape::Sphere { radius_fu: r }, ToolAction::Union);
         let options = ApplyOptions {
             patch: 1,
             ..ApplyOptions::default()
@@ -807,7 +807,7 @@ mod tests {
         let mut clay = empty();
         let before = clay.clone();
         let r = 0.5;
-        let report = add_once(&mut clay, ToolShape::Sphere { radius_m: r }, centre());
+        let report = add_once(&mut clay, ToolShape::Sphere { radius_fu: r }, centre());
         let v = volume(&clay.density.patches[0].lattice);
         let expected = 4.0 / 3.0 * PI * r * r * r;
         assert!((v - expected).abs() < 0.03 * expected, "{v} vs {expected}");
@@ -836,18 +836,18 @@ mod tests {
     fn every_analytic_shape_adds_about_its_own_volume() {
         let shapes = [
             ToolShape::Ellipsoid {
-                radii_m: Vec3::new(0.6, 0.4, 0.3),
+                radii_fu: Vec3::new(0.6, 0.4, 0.3),
             },
             ToolShape::Box {
-                half_extents_m: Vec3::new(0.5, 0.3, 0.4),
+                half_extents_fu: Vec3::new(0.5, 0.3, 0.4),
             },
             ToolShape::Cylinder {
-                radius_m: 0.35,
-                half_height_m: 0.5,
+                radius_fu: 0.35,
+                half_height_fu: 0.5,
             },
             ToolShape::Capsule {
-                radius_m: 0.3,
-                half_height_m: 0.4,
+                radius_fu: 0.3,
+                half_height_fu: 0.4,
             },
         ];
         for shape in shapes {
@@ -867,7 +867,7 @@ mod tests {
     fn toothpaste_deposits_progressively_at_its_rate() {
         let mut clay = empty();
         let t = tool(
-            ToolShape::Sphere { radius_m: 0.4 },
+            ToolShape::Sphere { radius_fu: 0.4 },
             ToolAction::Add {
                 deposit_rate_per_s: 1.0,
             },
@@ -884,7 +884,7 @@ mod tests {
             .map(|s| ToolPose::at(centre() + Vec3::X * (s as f32 * 0.1 - 0.35)))
             .collect();
         let small = tool(
-            ToolShape::Sphere { radius_m: 0.15 },
+            ToolShape::Sphere { radius_fu: 0.15 },
             ToolAction::Add {
                 deposit_rate_per_s: 8.0,
             },
@@ -912,7 +912,7 @@ mod tests {
         let mut clay = clay_of(block);
         let v0 = volume(&clay.density.patches[0].lattice);
         let r = 0.4;
-        let t = tool(ToolShape::Sphere { radius_m: r }, ToolAction::Remove);
+        let t = tool(ToolShape::Sphere { radius_fu: r }, ToolAction::Remove);
         apply_tool(
             &mut clay,
             &t,
@@ -942,7 +942,7 @@ mod tests {
         });
         let v0 = volume(&clay.density.patches[0].lattice);
         let t = tool(
-            ToolShape::Sphere { radius_m: 0.4 },
+            ToolShape::Sphere { radius_fu: 0.4 },
             ToolAction::SoftRemove { rate_per_s: 1.0 },
         );
         let pose = ToolPose::at(centre() + Vec3::Z * 0.8);
@@ -974,7 +974,7 @@ mod tests {
             let mut clay = clay_of(sphere);
             let t = tool(
                 ToolShape::Box {
-                    half_extents_m: half,
+                    half_extents_fu: half,
                 },
                 action,
             );
@@ -1045,10 +1045,10 @@ mod tests {
         let corner = centre() + Vec3::splat(0.6);
         let k0 = mean_curvature_near(&clay.density.patches[0].lattice, corner, 0.25);
         let t = tool(
-            ToolShape::Sphere { radius_m: 0.4 },
+            ToolShape::Sphere { radius_fu: 0.4 },
             ToolAction::Smooth {
                 rate_per_s: 1.0,
-                kernel_m: 2.0 * H,
+                kernel_fu: 2.0 * H,
             },
         );
         for _ in 0..3 {
@@ -1079,9 +1079,9 @@ mod tests {
         let at = Vec3::new(centre().x, centre().y, top);
         // A wide falloff band: the bulge lives in it, and must span a few knots to be fitted.
         let t = GeometricTool {
-            shape: ToolShape::Sphere { radius_m: r },
+            shape: ToolShape::Sphere { radius_fu: r },
             action: ToolAction::Stamp(StampParams::default()),
-            falloff_m: 4.0 * H,
+            falloff_fu: 4.0 * H,
         };
         apply_tool(
             &mut clay,
@@ -1121,7 +1121,7 @@ mod tests {
         };
         let surface = centre() + Vec3::X * 0.6;
         let probe = centre() + Vec3::X * (0.6 - 2.0 * H);
-        let small = ToolShape::Sphere { radius_m: 0.2 };
+        let small = ToolShape::Sphere { radius_fu: 0.2 };
 
         let mut dent = clay_of(sphere);
         let t = tool(
@@ -1169,7 +1169,7 @@ mod tests {
             radius: 0.6,
         });
         let t = tool(
-            ToolShape::Sphere { radius_m: 0.25 },
+            ToolShape::Sphere { radius_fu: 0.25 },
             ToolAction::Paint {
                 rgb: [1.0, 0.2, 0.0],
             },
@@ -1200,7 +1200,7 @@ mod tests {
         assert!(rec.touched_box(FieldId::Colour(0)).is_some());
         // The soft painter takes paint only where there is clay.
         let soft = tool(
-            ToolShape::Sphere { radius_m: 0.25 },
+            ToolShape::Sphere { radius_fu: 0.25 },
             ToolAction::SoftPaint {
                 rgb: [0.0, 0.0, 1.0],
                 rate_per_s: 1.0,
@@ -1296,8 +1296,8 @@ mod tests {
     fn bad_parameters_are_rejected_without_changing_the_clay() {
         let mut clay = empty();
         let before = clay.clone();
-        let mut t = tool(ToolShape::Sphere { radius_m: 0.3 }, ToolAction::Remove);
-        t.falloff_m = 0.0;
+        let mut t = tool(ToolShape::Sphere { radius_fu: 0.3 }, ToolAction::Remove);
+        t.falloff_fu = 0.0;
         let pose = ToolPose::at(centre());
         assert!(matches!(
             apply_tool(&mut clay, &t, &pose, 1.0, &ApplyOptions::default(), None),
@@ -1307,7 +1307,7 @@ mod tests {
             patch: 3,
             ..ApplyOptions::default()
         };
-        let t = tool(ToolShape::Sphere { radius_m: 0.3 }, ToolAction::Remove);
+        let t = tool(ToolShape::Sphere { radius_fu: 0.3 }, ToolAction::Remove);
         assert!(matches!(
             apply_tool(&mut clay, &t, &pose, 1.0, &options, None),
             Err(ToolError::NoPatch { patch: 3 })
@@ -1336,9 +1336,9 @@ mod tests {
         let mut clay = Clay::single(lattice);
         let before = clay.density.patches[0].lattice.coeffs.clone();
         let t = GeometricTool {
-            shape: ToolShape::Sphere { radius_m: 0.3 },
+            shape: ToolShape::Sphere { radius_fu: 0.3 },
             action,
-            falloff_m: 4.0 * H,
+            falloff_fu: 4.0 * H,
         };
         for _ in 0..times {
             apply_tool(

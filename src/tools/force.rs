@@ -17,41 +17,41 @@ use crate::field::MultiPatchField;
 pub enum ForceTool {
     /// Grab the nearest mass point in the solid and drag it toward the cursor.
     PointGrab { gain: f32 },
-    /// Grab a patch of mass points: parallel tracks over a disc of `radius_m` around the
+    /// Grab a patch of mass points: parallel tracks over a disc of `radius_fu` around the
     /// grabbed point, each weighted by `distribution`'s profile at its offset.
     Area {
         distribution: Distribution,
-        radius_m: f32,
+        radius_fu: f32,
         /// Tracks per disc diameter (the disc holds about `π/4 · tracks²` of them).
         tracks: u32,
         gain: f32,
     },
     /// A force along a user curve: every curve sample moves with the cursor's displacement.
-    Curve { radius_m: f32, gain: f32 },
-    /// Fixed shallow penetration `depth_m` along the inward surface normal at every path
+    Curve { radius_fu: f32, gain: f32 },
+    /// Fixed shallow penetration `depth_fu` along the inward surface normal at every path
     /// sample (plan the stroke's targets with [`plan_penetration`]).
     Chisel {
-        depth_m: f32,
-        radius_m: f32,
+        depth_fu: f32,
+        radius_fu: f32,
         gain: f32,
     },
-    /// The chisel's opposite: material raised `depth_m` along the outward normal.
+    /// The chisel's opposite: material raised `depth_fu` along the outward normal.
     Squirt {
-        depth_m: f32,
-        radius_m: f32,
+        depth_fu: f32,
+        radius_fu: f32,
         gain: f32,
     },
     /// Pull a region with the spread `distribution` (Hua & Qin Fig. 10).
     Pull {
         distribution: Distribution,
-        radius_m: f32,
+        radius_fu: f32,
         gain: f32,
     },
     /// Bend about `pivot`: samples along pivot → grab point rotate with the cursor, so their
     /// displacement grows linearly with the distance from the pivot.
     Bend {
         samples: u32,
-        radius_m: f32,
+        radius_fu: f32,
         gain: f32,
     },
 }
@@ -78,18 +78,18 @@ pub struct PenetrationTarget {
     pub target: Vec3,
     /// Outward unit normal of the surface at the path sample when planned.
     pub normal: Vec3,
-    /// The set depth, world units.
-    pub depth_m: f32,
+    /// The set depth, field units.
+    pub depth_fu: f32,
 }
 
 /// Plans a chisel (`squirt == false`: inward) or squirt (outward) stroke over `path`: each
-/// sample is moved onto the surface and its target set `depth_m` along the normal. Called once
+/// sample is moved onto the surface and its target set `depth_fu` along the normal. Called once
 /// per stroke (it allocates); samples where the field has no gradient are skipped.
 #[must_use]
 pub fn plan_penetration(
     field: &MultiPatchField,
     path: &[Vec3],
-    depth_m: f32,
+    depth_fu: f32,
     squirt: bool,
 ) -> Vec<PenetrationTarget> {
     let sign = if squirt { 1.0 } else { -1.0 };
@@ -98,9 +98,9 @@ pub fn plan_penetration(
             let x0 = project_to_surface(field, p);
             let normal = outward_normal(field, x0);
             (normal != Vec3::ZERO).then_some(PenetrationTarget {
-                target: x0 + sign * depth_m * normal,
+                target: x0 + sign * depth_fu * normal,
                 normal,
-                depth_m,
+                depth_fu,
             })
         })
         .collect()
@@ -110,7 +110,7 @@ pub fn plan_penetration(
 /// the outside end; the window's end when the line does not cross. Bounded: 16 + 20
 /// evaluations.
 fn crossing_on_line(field: &MultiPatchField, t: &PenetrationTarget) -> Vec3 {
-    let reach = 2.0 * t.depth_m;
+    let reach = 2.0 * t.depth_fu;
     let at = |l: f32| t.target + l * t.normal;
     let inside = |l: f32| field.is_inside(at(l));
     const STEPS: u32 = 16;
@@ -140,28 +140,28 @@ fn crossing_on_line(field: &MultiPatchField, t: &PenetrationTarget) -> Vec3 {
 }
 
 /// The point closest to `cursor` inside the solid among the points of a grid of pitch
-/// `step_m` within `search_m` of the cursor (the nearest mass point when `step_m` is the mass
-/// spacing). Bounded work: at most `(2·search_m/step_m + 1)³` evaluations (capped at 33³).
+/// `step_fu` within `search_fu` of the cursor (the nearest mass point when `step_fu` is the mass
+/// spacing). Bounded work: at most `(2·search_fu/step_fu + 1)³` evaluations (capped at 33³).
 #[must_use]
 pub fn nearest_solid_point(
     field: &MultiPatchField,
     cursor: Vec3,
-    search_m: f32,
-    step_m: f32,
+    search_fu: f32,
+    step_fu: f32,
 ) -> Option<Vec3> {
-    if !(step_m > 0.0 && search_m >= 0.0 && cursor.is_finite()) {
+    if !(step_fu > 0.0 && search_fu >= 0.0 && cursor.is_finite()) {
         return None;
     }
-    let n = ((search_m / step_m).ceil() as i32).min(16);
+    let n = ((search_fu / step_fu).ceil() as i32).min(16);
     // Snap to the grid the mass points lie on (through the field origin).
-    let base = field.base().origin + ((cursor - field.base().origin) / step_m).round() * step_m;
+    let base = field.base().origin + ((cursor - field.base().origin) / step_fu).round() * step_fu;
     let mut best: Option<(f32, Vec3)> = None;
     for k in -n..=n {
         for j in -n..=n {
             for i in -n..=n {
-                let x = base + Vec3::new(i as f32, j as f32, k as f32) * step_m;
+                let x = base + Vec3::new(i as f32, j as f32, k as f32) * step_fu;
                 let d = x.distance_squared(cursor);
-                if d <= search_m * search_m + 1e-12
+                if d <= search_fu * search_fu + 1e-12
                     && best.is_none_or(|(b, _)| d < b)
                     && field.is_inside(x)
                 {
@@ -240,6 +240,20 @@ impl ForceTool {
         }
     }
 
+    /// The tool's spread radius, field units (`None` for the point grab, which has none).
+    #[must_use]
+    pub fn radius_fu(&self) -> Option<f32> {
+        match *self {
+            Self::PointGrab { .. } => None,
+            Self::Area { radius_fu, .. }
+            | Self::Curve { radius_fu, .. }
+            | Self::Chisel { radius_fu, .. }
+            | Self::Squirt { radius_fu, .. }
+            | Self::Pull { radius_fu, .. }
+            | Self::Bend { radius_fu, .. } => Some(radius_fu),
+        }
+    }
+
     /// Checks that radii, depths and gains are positive and finite.
     ///
     /// # Errors
@@ -257,36 +271,40 @@ impl ForceTool {
         match *self {
             Self::PointGrab { gain } => check("gain", gain),
             Self::Area {
-                radius_m,
+                radius_fu,
                 tracks,
                 gain,
                 ..
             } => {
-                check("radius_m", radius_m)?;
+                check("radius_fu", radius_fu)?;
                 check("gain", gain)?;
                 if tracks == 0 {
                     return Err(ForceToolError("tracks must be at least 1".into()));
                 }
                 Ok(())
             }
-            Self::Curve { radius_m, gain }
-            | Self::Pull { radius_m, gain, .. }
-            | Self::Bend { radius_m, gain, .. } => {
-                check("radius_m", radius_m)?;
+            Self::Curve { radius_fu, gain }
+            | Self::Pull {
+                radius_fu, gain, ..
+            }
+            | Self::Bend {
+                radius_fu, gain, ..
+            } => {
+                check("radius_fu", radius_fu)?;
                 check("gain", gain)
             }
             Self::Chisel {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             }
             | Self::Squirt {
-                depth_m,
-                radius_m,
+                depth_fu,
+                radius_fu,
                 gain,
             } => {
-                check("depth_m", depth_m)?;
-                check("radius_m", radius_m)?;
+                check("depth_fu", depth_fu)?;
+                check("radius_fu", radius_fu)?;
                 check("gain", gain)
             }
         }
@@ -322,18 +340,18 @@ impl ForceTool {
             }
             Self::Pull {
                 distribution,
-                radius_m,
+                radius_fu,
                 gain,
             } => push(ToolForce {
                 start: input.grab,
                 end: input.cursor,
                 distribution,
-                radius: radius_m,
+                radius: radius_fu,
                 gain,
             }),
             Self::Area {
                 distribution,
-                radius_m,
+                radius_fu,
                 tracks,
                 gain,
             } => {
@@ -341,7 +359,7 @@ impl ForceTool {
                 let axis = drag.normalize_or(Vec3::Z);
                 let (u, v) = axis.any_orthonormal_pair();
                 let t = tracks.max(1) as i32;
-                let pitch = 2.0 * radius_m / t as f32;
+                let pitch = 2.0 * radius_fu / t as f32;
                 for b in 0..t {
                     for a in 0..t {
                         let o = (a as f32 + 0.5 - 0.5 * t as f32) * pitch * u
@@ -351,7 +369,7 @@ impl ForceTool {
                         // left holds nothing, and fades out instead of dropping (its vector
                         // would otherwise jump from the short re-found one to the whole
                         // segment in open air).
-                        let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_m)
+                        let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_fu)
                             * hold_weight(field, input.grab + o);
                         if w <= 0.0 {
                             continue;
@@ -366,18 +384,23 @@ impl ForceTool {
                     }
                 }
             }
-            Self::Curve { radius_m, gain } => {
+            Self::Curve { radius_fu, gain } => {
                 for &p in input.path {
                     push(ToolForce {
                         start: p,
                         end: p + drag,
                         distribution: Distribution::Gaussian,
-                        radius: radius_m,
+                        radius: radius_fu,
                         gain,
                     });
                 }
             }
-            Self::Chisel { radius_m, gain, .. } | Self::Squirt { radius_m, gain, .. } => {
+            Self::Chisel {
+                radius_fu, gain, ..
+            }
+            | Self::Squirt {
+                radius_fu, gain, ..
+            } => {
                 // From the surface as it is now to the fixed target: the integral vanishes as
                 // the surface reaches the set depth, and reverses if it overshoots.
                 for t in input.targets {
@@ -385,14 +408,14 @@ impl ForceTool {
                         start: crossing_on_line(field, t),
                         end: t.target,
                         distribution: Distribution::Gaussian,
-                        radius: radius_m,
+                        radius: radius_fu,
                         gain,
                     });
                 }
             }
             Self::Bend {
                 samples,
-                radius_m,
+                radius_fu,
                 gain,
             } => {
                 let arm = input.grab - input.pivot;
@@ -410,7 +433,7 @@ impl ForceTool {
                             start: p,
                             end: q,
                             distribution: Distribution::Gaussian,
-                            radius: radius_m,
+                            radius: radius_fu,
                             gain,
                         });
                     }
@@ -458,7 +481,7 @@ mod tests {
 
     /// Runs a chisel or squirt stroke at the +x pole through the dynamics; returns the pole's
     /// radius before and after, and checks the stroke undoes bit for bit.
-    fn penetrate(squirt: bool, depth_m: f32) -> (f32, f32) {
+    fn penetrate(squirt: bool, depth_fu: f32) -> (f32, f32) {
         let mut clay = Clay::single(sphere());
         let before_bits = clay.clone();
         let r0 = radius_along(&clay.density.patches[0].lattice, Vec3::X);
@@ -481,14 +504,14 @@ mod tests {
         let mut snap = RegionSnapshot::default();
         let tool = if squirt {
             ForceTool::Squirt {
-                depth_m,
-                radius_m: 0.12,
+                depth_fu,
+                radius_fu: 0.12,
                 gain: 1e6,
             }
         } else {
             ForceTool::Chisel {
-                depth_m,
-                radius_m: 0.12,
+                depth_fu,
+                radius_fu: 0.12,
                 gain: 1e6,
             }
         };
@@ -497,7 +520,7 @@ mod tests {
         let path: Vec<Vec3> = (-1..=1)
             .map(|s| CENTRE + Vec3::new(RADIUS, s as f32 * 0.03, 0.0))
             .collect();
-        let targets = plan_penetration(&clay.density, &path, depth_m, squirt);
+        let targets = plan_penetration(&clay.density, &path, depth_fu, squirt);
         assert_eq!(targets.len(), 3);
         let mut recorder = StepRecorder::new(tool.name());
         recorder.touch(&clay, FieldId::Density(0), region);
@@ -594,7 +617,7 @@ mod tests {
         }; 64];
         let tool = ForceTool::Area {
             distribution: Distribution::Conical,
-            radius_m: 0.1,
+            radius_fu: 0.1,
             tracks: 6,
             gain: 1.0,
         };
@@ -628,7 +651,7 @@ mod tests {
             gain: 0.0,
         }; 8];
         let tool = ForceTool::Curve {
-            radius_m: 0.05,
+            radius_fu: 0.05,
             gain: 1.0,
         };
         let drag = Vec3::new(0.0, 0.0, 0.2);
@@ -647,7 +670,7 @@ mod tests {
         // Bend: a quarter turn about the pivot; displacement grows with distance from it.
         let bend = ForceTool::Bend {
             samples: 4,
-            radius_m: 0.05,
+            radius_fu: 0.05,
             gain: 1.0,
         };
         let i = ForceInput {
@@ -665,8 +688,8 @@ mod tests {
         }
         assert!(
             ForceTool::Chisel {
-                depth_m: 0.0,
-                radius_m: 0.1,
+                depth_fu: 0.0,
+                radius_fu: 0.1,
                 gain: 1.0
             }
             .validate()

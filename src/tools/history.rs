@@ -645,13 +645,13 @@ mod property {
 
     fn tool(kind: u8, size: f32) -> GeometricTool {
         let shape = match kind % 3 {
-            0 => ToolShape::Sphere { radius_m: size },
+            0 => ToolShape::Sphere { radius_fu: size },
             1 => ToolShape::Box {
-                half_extents_m: Vec3::new(size, 0.7 * size, 0.5 * size),
+                half_extents_fu: Vec3::new(size, 0.7 * size, 0.5 * size),
             },
             _ => ToolShape::Capsule {
-                radius_m: 0.6 * size,
-                half_height_m: size,
+                radius_fu: 0.6 * size,
+                half_height_fu: size,
             },
         };
         let action = match kind {
@@ -665,7 +665,7 @@ mod property {
             },
             5 => ToolAction::Smooth {
                 rate_per_s: 1.0,
-                kernel_m: 0.08,
+                kernel_fu: 0.08,
             },
             6 => ToolAction::Stamp(StampParams::default()),
             7 => ToolAction::Contact(ContactParams::with_alpha(-2.0)),
@@ -675,7 +675,7 @@ mod property {
         GeometricTool {
             shape,
             action,
-            falloff_m: 0.1,
+            falloff_fu: 0.1,
         }
     }
 

@@ -1,5 +1,12 @@
 //! Sculpting tools: geometric tools with their actions, the stamp and contact deformations,
 //! force tools for the dynamics, and the undo history.
+//!
+//! Units: every length on the clay (tool positions, radii, half extents, falloff bands,
+//! chisel depths) is in *field units*, the lattice's own coordinates (its knot spacing is
+//! [`BSplineLattice::spacing`](crate::field::BSplineLattice::spacing) of them), and carries
+//! the suffix `_fu`. Field units are not metres: the suffix `_m` is kept for lengths in the
+//! device's workspace, which the engine maps to field units with
+//! [`WorkspaceMap::field_per_m`](crate::engine::WorkspaceMap::field_per_m).
 
 mod action;
 mod apply;

@@ -2,17 +2,19 @@
 //! box, cylinder, capsule) or a freeform lattice taken from a sculpted session, placed by a
 //! [`ToolPose`]. A tool's potential is a density in `[0, 1]` like the clay's: 1 deep inside,
 //! exactly one half on the tool's surface, 0 beyond its falloff band, C¹ throughout.
-//! Evaluation is pure and allocates nothing.
+//! Evaluation is pure and allocates nothing. Lengths are in field units (`_fu`, see
+//! [`crate::tools`]).
 
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 use crate::field::BSplineLattice;
 
-/// Where a tool is: its centre in world units and its orientation.
+/// Where a tool is: its centre in field units and its orientation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ToolPose {
-    pub position_m: Vec3,
+    #[serde(alias = "position_fu")]
+    pub position_fu: Vec3,
     #[serde(default = "identity")]
     pub rotation: Quat,
 }
@@ -22,11 +24,11 @@ fn identity() -> Quat {
 }
 
 impl ToolPose {
-    /// A pose at `position_m` with no rotation.
+    /// A pose at `position_fu` with no rotation.
     #[must_use]
-    pub fn at(position_m: Vec3) -> Self {
+    pub fn at(position_fu: Vec3) -> Self {
         Self {
-            position_m,
+            position_fu,
             rotation: Quat::IDENTITY,
         }
     }
@@ -35,7 +37,7 @@ impl ToolPose {
     #[inline]
     #[must_use]
     pub fn to_local(&self, x: Vec3) -> Vec3 {
-        self.rotation.inverse() * (x - self.position_m)
+        self.rotation.inverse() * (x - self.position_fu)
     }
 
     /// World-axis-aligned bounds of a local box `-half ..= half` (Ferley Fig. 7b).
@@ -43,7 +45,7 @@ impl ToolPose {
     pub fn world_bounds(&self, half: Vec3) -> (Vec3, Vec3) {
         let m = glam::Mat3::from_quat(self.rotation);
         let extent = m.x_axis.abs() * half.x + m.y_axis.abs() * half.y + m.z_axis.abs() * half.z;
-        (self.position_m - extent, self.position_m + extent)
+        (self.position_fu - extent, self.position_fu + extent)
     }
 }
 
@@ -59,11 +61,11 @@ pub struct FreeformTool {
 /// The shape of a geometric tool, in its local frame (cylinder and capsule axes run along z).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ToolShape {
-    Sphere { radius_m: f32 },
-    Ellipsoid { radii_m: Vec3 },
-    Box { half_extents_m: Vec3 },
-    Cylinder { radius_m: f32, half_height_m: f32 },
-    Capsule { radius_m: f32, half_height_m: f32 },
+    Sphere { radius_fu: f32 },
+    Ellipsoid { radii_fu: Vec3 },
+    Box { half_extents_fu: Vec3 },
+    Cylinder { radius_fu: f32, half_height_fu: f32 },
+    Capsule { radius_fu: f32, half_height_fu: f32 },
     Freeform(FreeformTool),
 }
 
@@ -75,8 +77,8 @@ pub struct ShapeError(pub String);
 /// C¹ ramp from 1 (signed distance `-w`) through 1/2 (the surface) to 0 (distance `+w`).
 #[inline]
 #[must_use]
-pub fn density_from_distance(distance_m: f32, falloff_m: f32) -> f32 {
-    let x = ((falloff_m - distance_m) / (2.0 * falloff_m)).clamp(0.0, 1.0);
+pub fn density_from_distance(distance_fu: f32, falloff_fu: f32) -> f32 {
+    let x = ((falloff_fu - distance_fu) / (2.0 * falloff_fu)).clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
 }
 
@@ -96,21 +98,23 @@ impl ToolShape {
             }
         };
         match self {
-            Self::Sphere { radius_m } => positive("radius_m", *radius_m),
-            Self::Ellipsoid { radii_m } => (0..3).try_for_each(|a| positive("radii_m", radii_m[a])),
-            Self::Box { half_extents_m } => {
-                (0..3).try_for_each(|a| positive("half_extents_m", half_extents_m[a]))
+            Self::Sphere { radius_fu } => positive("radius_fu", *radius_fu),
+            Self::Ellipsoid { radii_fu } => {
+                (0..3).try_for_each(|a| positive("radii_fu", radii_fu[a]))
+            }
+            Self::Box { half_extents_fu } => {
+                (0..3).try_for_each(|a| positive("half_extents_fu", half_extents_fu[a]))
             }
             Self::Cylinder {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             }
             | Self::Capsule {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             } => {
-                positive("radius_m", *radius_m)?;
-                positive("half_height_m", *half_height_m)
+                positive("radius_fu", *radius_fu)?;
+                positive("half_height_fu", *half_height_fu)
             }
             Self::Freeform(tool) => (0..3).try_for_each(|a| positive("scale", tool.scale[a])),
         }
@@ -120,17 +124,17 @@ impl ToolShape {
     #[must_use]
     pub fn half_extents(&self) -> Vec3 {
         match self {
-            Self::Sphere { radius_m } => Vec3::splat(*radius_m),
-            Self::Ellipsoid { radii_m } => *radii_m,
-            Self::Box { half_extents_m } => *half_extents_m,
+            Self::Sphere { radius_fu } => Vec3::splat(*radius_fu),
+            Self::Ellipsoid { radii_fu } => *radii_fu,
+            Self::Box { half_extents_fu } => *half_extents_fu,
             Self::Cylinder {
-                radius_m,
-                half_height_m,
-            } => Vec3::new(*radius_m, *radius_m, *half_height_m),
+                radius_fu,
+                half_height_fu,
+            } => Vec3::new(*radius_fu, *radius_fu, *half_height_fu),
             Self::Capsule {
-                radius_m,
-                half_height_m,
-            } => Vec3::new(*radius_m, *radius_m, half_height_m + radius_m),
+                radius_fu,
+                half_height_fu,
+            } => Vec3::new(*radius_fu, *radius_fu, half_height_fu + radius_fu),
             Self::Freeform(tool) => {
                 let (lo, hi) = tool.lattice.support();
                 0.5 * (hi - lo) * tool.scale
@@ -146,34 +150,34 @@ impl ToolShape {
     pub fn signed_distance(&self, p: Vec3) -> Option<f32> {
         let box_distance = |q: Vec3| q.max(Vec3::ZERO).length() + q.max_element().min(0.0);
         Some(match self {
-            Self::Sphere { radius_m } => p.length() - radius_m,
-            Self::Ellipsoid { radii_m } => {
-                let k0 = (p / *radii_m).length();
-                let k1 = (p / (*radii_m * *radii_m)).length();
+            Self::Sphere { radius_fu } => p.length() - radius_fu,
+            Self::Ellipsoid { radii_fu } => {
+                let k0 = (p / *radii_fu).length();
+                let k1 = (p / (*radii_fu * *radii_fu)).length();
                 if k1 > 0.0 {
                     k0 * (k0 - 1.0) / k1
                 } else {
-                    -radii_m.min_element()
+                    -radii_fu.min_element()
                 }
             }
-            Self::Box { half_extents_m } => box_distance(p.abs() - *half_extents_m),
+            Self::Box { half_extents_fu } => box_distance(p.abs() - *half_extents_fu),
             Self::Cylinder {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             } => {
                 let q = Vec3::new(
-                    p.truncate().length() - radius_m,
-                    p.z.abs() - half_height_m,
+                    p.truncate().length() - radius_fu,
+                    p.z.abs() - half_height_fu,
                     f32::MIN,
                 );
                 box_distance(q)
             }
             Self::Capsule {
-                radius_m,
-                half_height_m,
+                radius_fu,
+                half_height_fu,
             } => {
-                (p - Vec3::new(0.0, 0.0, p.z.clamp(-half_height_m, *half_height_m))).length()
-                    - radius_m
+                (p - Vec3::new(0.0, 0.0, p.z.clamp(-half_height_fu, *half_height_fu))).length()
+                    - radius_fu
             }
             Self::Freeform(_) => return None,
         })
@@ -182,7 +186,7 @@ impl ToolShape {
     /// The tool's potential (density in `[0, 1]`, one half on the surface) at a local point.
     #[inline]
     #[must_use]
-    pub fn density(&self, p: Vec3, falloff_m: f32) -> f32 {
+    pub fn density(&self, p: Vec3, falloff_fu: f32) -> f32 {
         match self {
             Self::Freeform(tool) => {
                 let (lo, hi) = tool.lattice.support();
@@ -191,7 +195,7 @@ impl ToolShape {
             }
             analytic => density_from_distance(
                 analytic.signed_distance(p).unwrap_or(f32::INFINITY),
-                falloff_m,
+                falloff_fu,
             ),
         }
     }
@@ -200,50 +204,50 @@ impl ToolShape {
     /// potential is exactly zero: its solid's farthest point plus the falloff band. `None`
     /// for the ellipsoid, whose distance is an estimate, and for freeform shapes.
     #[must_use]
-    pub fn zero_beyond(&self, falloff_m: f32) -> Option<f32> {
+    pub fn zero_beyond(&self, falloff_fu: f32) -> Option<f32> {
         let solid = match self {
-            Self::Sphere { radius_m } => *radius_m,
-            Self::Box { half_extents_m } => half_extents_m.length(),
+            Self::Sphere { radius_fu } => *radius_fu,
+            Self::Box { half_extents_fu } => half_extents_fu.length(),
             Self::Cylinder {
-                radius_m,
-                half_height_m,
-            } => radius_m.hypot(*half_height_m),
+                radius_fu,
+                half_height_fu,
+            } => radius_fu.hypot(*half_height_fu),
             Self::Capsule {
-                radius_m,
-                half_height_m,
-            } => radius_m + half_height_m,
+                radius_fu,
+                half_height_fu,
+            } => radius_fu + half_height_fu,
             Self::Ellipsoid { .. } | Self::Freeform(_) => return None,
         };
-        Some(solid + falloff_m)
+        Some(solid + falloff_fu)
     }
 
     /// Half extents of the local box outside which the density is exactly zero.
     #[must_use]
-    pub fn influence_half_extents(&self, falloff_m: f32) -> Vec3 {
+    pub fn influence_half_extents(&self, falloff_fu: f32) -> Vec3 {
         match self {
             Self::Freeform(_) => self.half_extents(),
-            _ => self.half_extents() + Vec3::splat(falloff_m),
+            _ => self.half_extents() + Vec3::splat(falloff_fu),
         }
     }
 
-    /// Volume of the analytic solid in cubic world units (`None` for freeform shapes).
+    /// Volume of the analytic solid in cubic field units (`None` for freeform shapes).
     #[must_use]
     pub fn volume_m3(&self) -> Option<f32> {
         use std::f32::consts::PI;
         Some(match self {
-            Self::Sphere { radius_m } => 4.0 / 3.0 * PI * radius_m.powi(3),
-            Self::Ellipsoid { radii_m } => 4.0 / 3.0 * PI * radii_m.x * radii_m.y * radii_m.z,
-            Self::Box { half_extents_m } => {
-                8.0 * half_extents_m.x * half_extents_m.y * half_extents_m.z
+            Self::Sphere { radius_fu } => 4.0 / 3.0 * PI * radius_fu.powi(3),
+            Self::Ellipsoid { radii_fu } => 4.0 / 3.0 * PI * radii_fu.x * radii_fu.y * radii_fu.z,
+            Self::Box { half_extents_fu } => {
+                8.0 * half_extents_fu.x * half_extents_fu.y * half_extents_fu.z
             }
             Self::Cylinder {
-                radius_m,
-                half_height_m,
-            } => PI * radius_m * radius_m * 2.0 * half_height_m,
+                radius_fu,
+                half_height_fu,
+            } => PI * radius_fu * radius_fu * 2.0 * half_height_fu,
             Self::Capsule {
-                radius_m,
-                half_height_m,
-            } => PI * radius_m * radius_m * (2.0 * half_height_m + 4.0 / 3.0 * radius_m),
+                radius_fu,
+                half_height_fu,
+            } => PI * radius_fu * radius_fu * (2.0 * half_height_fu + 4.0 / 3.0 * radius_fu),
             Self::Freeform(_) => return None,
         })
     }
@@ -272,32 +276,32 @@ mod tests {
         let w = 0.05;
         let cases = [
             (
-                ToolShape::Sphere { radius_m: 0.3 },
+                ToolShape::Sphere { radius_fu: 0.3 },
                 Vec3::new(0.3, 0.0, 0.0),
             ),
             (
                 ToolShape::Ellipsoid {
-                    radii_m: Vec3::new(0.3, 0.2, 0.1),
+                    radii_fu: Vec3::new(0.3, 0.2, 0.1),
                 },
                 Vec3::new(0.0, 0.0, 0.1),
             ),
             (
                 ToolShape::Box {
-                    half_extents_m: Vec3::new(0.3, 0.2, 0.1),
+                    half_extents_fu: Vec3::new(0.3, 0.2, 0.1),
                 },
                 Vec3::new(0.1, 0.2, 0.0),
             ),
             (
                 ToolShape::Cylinder {
-                    radius_m: 0.2,
-                    half_height_m: 0.4,
+                    radius_fu: 0.2,
+                    half_height_fu: 0.4,
                 },
                 Vec3::new(0.0, 0.2, 0.1),
             ),
             (
                 ToolShape::Capsule {
-                    radius_m: 0.2,
-                    half_height_m: 0.4,
+                    radius_fu: 0.2,
+                    half_height_fu: 0.4,
                 },
                 Vec3::new(0.0, 0.0, 0.6),
             ),
@@ -328,12 +332,12 @@ mod tests {
     #[test]
     fn rotated_bounds_hold_the_rotated_box() {
         let pose = ToolPose {
-            position_m: Vec3::new(1.0, 2.0, 3.0),
+            position_fu: Vec3::new(1.0, 2.0, 3.0),
             rotation: Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
         };
         let half = Vec3::new(1.0, 0.1, 0.1);
         let (lo, hi) = pose.world_bounds(half);
-        let corner = pose.position_m + pose.rotation * half;
+        let corner = pose.position_fu + pose.rotation * half;
         assert!(corner.cmpge(lo).all() && corner.cmple(hi).all());
         assert!((pose.to_local(corner) - half).length() < 1e-5);
     }
@@ -351,6 +355,6 @@ mod tests {
         // The centre of the support is well inside the lattice, where the field is 0.8.
         let expected = 0.5 + 0.5 * (0.8 - 0.4) / 0.6;
         assert!((tool.density(Vec3::ZERO, 0.0) - expected).abs() < 1e-5);
-        assert!(ToolShape::Sphere { radius_m: -1.0 }.validate().is_err());
+        assert!(ToolShape::Sphere { radius_fu: -1.0 }.validate().is_err());
     }
 }

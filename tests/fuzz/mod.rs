@@ -281,11 +281,11 @@ pub fn valid_session_bytes() -> Vec<u8> {
         },
         tools: vec![ToolPreset {
             name: "blob".into(),
-            shape: ToolShape::Sphere { radius_m: 0.2 },
+            shape: ToolShape::Sphere { radius_fu: 0.2 },
             action: ToolAction::Paint {
                 rgb: [0.2, 0.4, 0.6],
             },
-            falloff_m: 0.1,
+            falloff_fu: 0.1,
         }],
         ..Session::default()
     };

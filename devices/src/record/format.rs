@@ -191,7 +191,7 @@ fn decode_error(code: u16, flags: u8, extra: u32, detail: u64) -> Option<DeviceE
             what: String::new(),
         },
         9 => DeviceError::Config {
-            source: String::new(),
+            origin: String::new(),
             message: String::new(),
         },
         10 => DeviceError::Unsupported {

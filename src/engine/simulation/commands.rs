@@ -180,7 +180,7 @@ impl SimulationStage {
                     .is_ok(),
                 None => {
                     if let Some(r) = reply {
-                        let _ = r.send(Err("this engine has no I/O thread".to_owned()));
+                        let _ = r.send(Err(SaveError::NoIoThread));
                     }
                     false
                 }
