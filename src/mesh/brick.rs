@@ -104,6 +104,8 @@ pub struct BrickScratch {
     /// Vertex index per (axis, local start sample), `u32::MAX` when not yet made.
     slots: Vec<u32>,
     pub(crate) samples: Vec<f32>,
+    /// The samples not taken from a neighbour's face, densely, before they are spread.
+    dense: Vec<f32>,
     pub(crate) field: Vec<f32>,
     pub(crate) mesh: BrickMesh,
 }
@@ -113,6 +115,7 @@ impl Default for BrickScratch {
         Self {
             slots: vec![u32::MAX; 3 * BRICK_SAMPLE_COUNT],
             samples: vec![0.0; BRICK_SAMPLE_COUNT],
+            dense: Vec::with_capacity(BRICK_SAMPLE_COUNT),
             field: Vec::new(),
             mesh: BrickMesh::default(),
         }
@@ -172,6 +175,98 @@ pub fn sample_brick<F: ScalarField + ?Sized>(
         }
     }
     inside != 0 && inside != n
+}
+
+/// The samples on one face of a brick: 9 × 9, the lower of the two other axes fastest.
+pub(crate) type Face = [f32; BRICK_SAMPLES * BRICK_SAMPLES];
+
+/// Index in a brick's 9³ samples of entry (`a`, `b`) of its face at `level` across `axis`.
+#[inline]
+fn face_index(axis: usize, level: usize, a: usize, b: usize) -> usize {
+    const S: usize = BRICK_SAMPLES;
+    match axis {
+        0 => level + S * (a + S * b),
+        1 => a + S * (level + S * b),
+        _ => a + S * (b + S * level),
+    }
+}
+
+/// [`sample_brick`], taking the samples on the brick's lower face across axis `a` from
+/// `near[a]` where given: the upper face of the brick below along that axis, which holds the
+/// same samples (a sample's bits depend only on its global index), so only the rest of the
+/// brick is sampled. A brick with all three neighbours below samples 8³ points, not 9³.
+pub(crate) fn sample_brick_sharing<F: ScalarField + ?Sized>(
+    field: &F,
+    grid: &SampleGrid,
+    coord: [u32; 3],
+    near: [Option<&Face>; 3],
+    scratch: &mut BrickScratch,
+) -> bool {
+    const S: usize = BRICK_SAMPLES;
+    let (first, cells) = brick_extent(grid, coord);
+    let counts = cells.map(|c| c as usize + 1);
+    let lo = near.map(|f| usize::from(f.is_some()));
+    let sub: [usize; 3] = std::array::from_fn(|a| counts[a] - lo[a]);
+    let start: [u32; 3] = std::array::from_fn(|a| first[a] + lo[a] as u32);
+    let BrickScratch {
+        samples,
+        dense,
+        field: field_scratch,
+        ..
+    } = scratch;
+    if lo == [0; 3] && counts == [S; 3] {
+        field.sample_block(grid, start, sub, samples, field_scratch);
+    } else {
+        let n = sub[0] * sub[1] * sub[2];
+        dense.clear();
+        dense.resize(n, 0.0);
+        field.sample_block(grid, start, sub, dense, field_scratch);
+        if counts != [S; 3] {
+            // Entries beyond a partial brick's extent: zero, whatever was sampled before.
+            samples.fill(0.0);
+        }
+        for k in 0..sub[2] {
+            for j in 0..sub[1] {
+                let from = sub[0] * (j + sub[1] * k);
+                let to = lo[0] + S * (lo[1] + j + S * (lo[2] + k));
+                samples[to..to + sub[0]].copy_from_slice(&dense[from..from + sub[0]]);
+            }
+        }
+        for (axis, face) in near.iter().enumerate() {
+            let Some(face) = face else { continue };
+            let (a_axis, b_axis) = match axis {
+                0 => (1, 2),
+                1 => (0, 2),
+                _ => (0, 1),
+            };
+            for b in 0..counts[b_axis] {
+                for a in 0..counts[a_axis] {
+                    samples[face_index(axis, 0, a, b)] = face[a + S * b];
+                }
+            }
+        }
+    }
+    let iso = field.iso();
+    let mut inside = 0usize;
+    for k in 0..counts[2] {
+        for j in 0..counts[1] {
+            let row = S * (j + S * k);
+            for &v in &samples[row..row + counts[0]] {
+                inside += usize::from(v > iso);
+            }
+        }
+    }
+    inside != 0 && inside != counts[0] * counts[1] * counts[2]
+}
+
+/// Copies the upper face across `axis` of the brick sampled in `scratch` into `face`.
+pub(crate) fn upper_face(scratch: &BrickScratch, axis: usize, face: &mut Face) {
+    const S: usize = BRICK_SAMPLES;
+    for b in 0..S {
+        for a in 0..S {
+            face[a + S * b] = scratch.samples[face_index(axis, S - 1, a, b)];
+        }
+    }
 }
 
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
@@ -245,7 +340,7 @@ fn push_vertex<F: ScalarField + ?Sized>(
     // v0 != v1: exactly one of them is above the iso-level.
     let t = ((field.iso() - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
     let p = p0 + (p1 - p0) * t;
-    let (_, gradient) = field.value_and_gradient(p);
+    let gradient = field.gradient(p);
     let length = gradient.length();
     let normal = if length > 1e-20 && length.is_finite() {
         -gradient / length
@@ -271,10 +366,21 @@ pub(crate) fn build_brick<F: ScalarField + ?Sized>(
     if !sample_brick(field, grid, coord, scratch) {
         return None;
     }
+    Some(mesh_sampled_brick(field, grid, coord, scratch))
+}
+
+/// Meshes the brick whose samples are in `scratch` and returns copies of its samples and
+/// mesh, sized to fit.
+pub(crate) fn mesh_sampled_brick<F: ScalarField + ?Sized>(
+    field: &F,
+    grid: &SampleGrid,
+    coord: [u32; 3],
+    scratch: &mut BrickScratch,
+) -> (Box<[f32]>, BrickMesh) {
     march_brick(field, grid, coord, scratch);
     let mut mesh = scratch.mesh.clone();
     mesh.shrink();
-    Some((scratch.samples.clone().into_boxed_slice(), mesh))
+    (scratch.samples.clone().into_boxed_slice(), mesh)
 }
 
 #[cfg(test)]

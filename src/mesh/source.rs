@@ -22,6 +22,14 @@ pub trait ScalarField {
     /// Value and gradient (per world unit) at a world point.
     fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3);
 
+    /// Gradient (per world unit) at a world point: the gradient of
+    /// [`ScalarField::value_and_gradient`], bit for bit. The mesher asks only for this at
+    /// each vertex; a field that gets it for less than value and gradient overrides it.
+    #[inline]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        self.value_and_gradient(p).1
+    }
+
     /// Values at the grid samples `first + (i, j, k)` for `i < counts[0]` etc., written x
     /// fastest into `out[..counts product]`. `scratch` is working memory the caller keeps.
     ///
@@ -88,6 +96,12 @@ where
     #[inline]
     fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
         ((self.value)(p), (self.gradient)(p))
+    }
+
+    /// Only the gradient closure: the value would be thrown away.
+    #[inline]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        (self.gradient)(p)
     }
 
     fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
