@@ -103,6 +103,8 @@ impl BrickMesh {
 pub struct BrickScratch {
     /// Vertex index per (axis, local start sample), `u32::MAX` when not yet made.
     slots: Vec<u32>,
+    /// The slots the last marched brick filled (reset before the next).
+    made: Vec<u32>,
     pub(crate) samples: Vec<f32>,
     /// The samples not taken from a neighbour's face, densely, before they are spread.
     dense: Vec<f32>,
@@ -114,6 +116,7 @@ impl Default for BrickScratch {
     fn default() -> Self {
         Self {
             slots: vec![u32::MAX; 3 * BRICK_SAMPLE_COUNT],
+            made: Vec::new(),
             samples: vec![0.0; BRICK_SAMPLE_COUNT],
             dense: Vec::with_capacity(BRICK_SAMPLE_COUNT),
             field: Vec::new(),
@@ -143,38 +146,7 @@ pub fn sample_brick<F: ScalarField + ?Sized>(
     coord: [u32; 3],
     scratch: &mut BrickScratch,
 ) -> bool {
-    let (first, cells) = brick_extent(grid, coord);
-    let counts = cells.map(|c| c as usize + 1);
-    let n = counts[0] * counts[1] * counts[2];
-    // Sample densely into the front, then spread to the fixed 9³ layout if partial.
-    field.sample_block(
-        grid,
-        first,
-        counts,
-        &mut scratch.samples[..n],
-        &mut scratch.field,
-    );
-    if counts != [BRICK_SAMPLES; 3] {
-        for k in (0..counts[2]).rev() {
-            for j in (0..counts[1]).rev() {
-                for i in (0..counts[0]).rev() {
-                    scratch.samples[i + BRICK_SAMPLES * (j + BRICK_SAMPLES * k)] =
-                        scratch.samples[i + counts[0] * (j + counts[1] * k)];
-                }
-            }
-        }
-    }
-    let iso = field.iso();
-    let mut inside = 0usize;
-    for k in 0..counts[2] {
-        for j in 0..counts[1] {
-            let row = BRICK_SAMPLES * (j + BRICK_SAMPLES * k);
-            for &v in &scratch.samples[row..row + counts[0]] {
-                inside += usize::from(v > iso);
-            }
-        }
-    }
-    inside != 0 && inside != n
+    sample_brick_sharing(field, grid, coord, [None; 3], scratch)
 }
 
 /// The samples on one face of a brick: 9 × 9, the lower of the two other axes fastest.
@@ -269,7 +241,39 @@ pub(crate) fn upper_face(scratch: &BrickScratch, axis: usize, face: &mut Face) {
     }
 }
 
+/// Spreads a column's four inside bits (bit `y + 2z` for the samples at `(y, z)` of the
+/// cell's near or far x) onto the case bits of the cell's corners at x = 0 (bits 0, 2, 4, 6);
+/// the corners at x = 1 are the same shifted by one.
+const SPREAD: [u8; 16] = {
+    let mut t = [0u8; 16];
+    let mut q = 0;
+    while q < 16 {
+        t[q] = ((q & 1) | (q & 2) << 1 | (q & 4) << 2 | (q & 8) << 3) as u8;
+        q += 1;
+    }
+    t
+};
+
+/// Per cube edge: its vertex slot relative to the cell's first sample (`axis · 9³` plus the
+/// edge's start sample in the brick's layout).
+const EDGE_SLOT: [usize; 12] = {
+    let mut t = [0usize; 12];
+    let mut e = 0;
+    while e < 12 {
+        let o = CORNER_OFFSETS[EDGE_CORNERS[e][0] as usize];
+        t[e] = EDGE_AXIS[e] as usize * BRICK_SAMPLE_COUNT
+            + o[0] as usize
+            + BRICK_SAMPLES * (o[1] as usize + BRICK_SAMPLES * o[2] as usize);
+        e += 1;
+    }
+    t
+};
+
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
+///
+/// Each sample's inside bit is taken once; a cell's case comes from the four bits of the
+/// column of samples at each of its two x positions, and cells all inside or all outside
+/// are passed over before any table is read.
 pub fn march_brick<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
@@ -282,31 +286,59 @@ pub fn march_brick<F: ScalarField + ?Sized>(
     let iso = field.iso();
     let BrickScratch {
         slots,
+        made,
         samples,
         mesh,
         ..
     } = scratch;
-    slots.fill(u32::MAX);
+    // Only the slots the last brick filled are reset.
+    for &slot in made.iter() {
+        slots[slot as usize] = u32::MAX;
+    }
+    made.clear();
     mesh.clear();
-
-    for z in 0..cells[2] as usize {
-        for y in 0..cells[1] as usize {
-            for x in 0..cells[0] as usize {
-                let base = x + S * (y + S * z);
-                let mut case = 0usize;
-                for (c, o) in CORNER_OFFSETS.iter().enumerate() {
-                    let v = samples[base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize)];
-                    case |= usize::from(v > iso) << c;
+    let mut inside = [0u8; BRICK_SAMPLE_COUNT];
+    for (b, &v) in inside.iter_mut().zip(samples.iter()) {
+        *b = u8::from(v > iso);
+    }
+    let [cx, cy, cz] = cells.map(|c| c as usize);
+    let mut column = [0u8; S];
+    for z in 0..cz {
+        for y in 0..cy {
+            let row = S * (y + S * z);
+            let mut any = 0u8;
+            let mut all = 1u8;
+            for (x, q) in column[..=cx].iter_mut().enumerate() {
+                let at = row + x;
+                *q = inside[at]
+                    | inside[at + S] << 1
+                    | inside[at + S * S] << 2
+                    | inside[at + S + S * S] << 3;
+                any |= *q;
+                all &= u8::from(*q == 15);
+            }
+            if any == 0 || all == 1 {
+                continue;
+            }
+            for x in 0..cx {
+                let case =
+                    usize::from(SPREAD[column[x] as usize] | SPREAD[column[x + 1] as usize] << 1);
+                if case == 0 || case == 255 {
+                    continue;
                 }
+                let base = row + x;
                 let tris = &CASES[case];
                 for tri in &tris.edges[..tris.count as usize] {
                     for &e in tri {
-                        let axis = EDGE_AXIS[e as usize];
-                        let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
-                        let start = base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
-                        let slot = &mut slots[axis as usize * BRICK_SAMPLE_COUNT + start];
+                        let at = base + EDGE_SLOT[e as usize];
+                        let slot = &mut slots[at];
                         if *slot == u32::MAX {
                             *slot = mesh.positions.len() as u32;
+                            made.push(at as u32);
+                            let axis = EDGE_AXIS[e as usize];
+                            let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
+                            let start =
+                                base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
                             let corner = [
                                 first[0] + (x as u32 + o[0]),
                                 first[1] + (y as u32 + o[1]),

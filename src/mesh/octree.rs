@@ -513,8 +513,15 @@ impl BrickOctree {
 
     /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
     /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
+    ///
+    /// A vertex on a brick's face is shared by every brick that holds its edge; the first of
+    /// them in Morton order is the one with the least coordinates (Morton order grows with
+    /// each coordinate), so a brick owns the vertices not on its lower faces and finds the
+    /// others in the short list of upper-face vertices its owner kept (sorted by the edge's
+    /// place in the brick, searched by halves): no hashing, and the lists stay in cache.
     #[must_use]
     pub fn weld(&self) -> TriMesh {
+        const S: u32 = BRICK_SAMPLES as u32;
         let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
         let triangles = self.triangle_count();
         let mut out = TriMesh {
@@ -522,9 +529,93 @@ impl BrickOctree {
             normals: Vec::with_capacity(vertices),
             triangles: Vec::with_capacity(triangles),
         };
-        // Only vertices on a brick face can be shared; the rest are unique to their brick.
-        let mut shared: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> =
-            HashMap::with_capacity_and_hasher(vertices / 4, Default::default());
+        let keys: Vec<u64> = self.bricks.keys().copied().collect();
+        // Per brick (in Morton order), its upper-face vertices: (place in the brick, index).
+        let mut kept: Vec<(u16, u32)> = Vec::with_capacity(vertices / 2);
+        let mut kept_range: Vec<(u32, u32)> = Vec::with_capacity(keys.len());
+        // Vertices whose owner brick is missing or did not keep them (never, for a tree this
+        // octree built; kept so that welding stays by edge id whatever the bricks hold).
+        let mut stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> = HashMap::default();
+        let mut local = Vec::new();
+        for brick in self.bricks.values() {
+            let m = &brick.mesh;
+            let base = brick.coord.map(|c| c * BRICK_CELLS);
+            // The ordinals of the bricks below, by mask of axes (looked up when first needed).
+            let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
+            let kept_start = kept.len();
+            local.clear();
+            for (v, &id) in m.edge_ids.iter().enumerate() {
+                let (corner, axis) = edge_from_id(id);
+                let axis = axis as usize;
+                let mut lower = 0usize;
+                let mut upper = false;
+                for a in 0..3 {
+                    if a != axis && corner[a] % BRICK_CELLS == 0 {
+                        if corner[a] == base[a] {
+                            lower |= usize::from(corner[a] > 0) << a;
+                        } else {
+                            upper = true;
+                        }
+                    }
+                }
+                let index = if lower == 0 {
+                    let next = out.positions.len() as u32;
+                    out.positions.push(m.positions[v]);
+                    out.normals.push(m.normals[v]);
+                    if upper {
+                        let l = [0, 1, 2].map(|a| corner[a] - base[a]);
+                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
+                        kept.push((place as u16, next));
+                    }
+                    next
+                } else {
+                    let owner = *below[lower].get_or_insert_with(|| {
+                        let mut c = brick.coord;
+                        for (a, c) in c.iter_mut().enumerate() {
+                            *c -= ((lower >> a) & 1) as u32;
+                        }
+                        keys.binary_search(&morton(c)).ok().map(|o| (o, c))
+                    });
+                    let found = owner.and_then(|(o, oc)| {
+                        let (start, end) = kept_range[o];
+                        let list = &kept[start as usize..end as usize];
+                        let l: [u32; 3] = std::array::from_fn(|a| corner[a] - oc[a] * BRICK_CELLS);
+                        let place = (axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2])) as u16;
+                        list.binary_search_by_key(&place, |e| e.0)
+                            .ok()
+                            .map(|i| list[i].1)
+                    });
+                    found.unwrap_or_else(|| {
+                        let next = out.positions.len() as u32;
+                        let index = *stray.entry(id).or_insert(next);
+                        if index == next {
+                            out.positions.push(m.positions[v]);
+                            out.normals.push(m.normals[v]);
+                        }
+                        index
+                    })
+                };
+                local.push(index);
+            }
+            kept[kept_start..].sort_unstable_by_key(|e| e.0);
+            kept_range.push((kept_start as u32, kept.len() as u32));
+            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
+                [
+                    local[t[0] as usize],
+                    local[t[1] as usize],
+                    local[t[2] as usize],
+                ]
+            }));
+        }
+        out
+    }
+
+    /// [`BrickOctree::weld`] by a hash of the edge ids of all face vertices (the reference
+    /// the faster weld is checked against).
+    #[cfg(test)]
+    fn weld_by_hash(&self) -> TriMesh {
+        let mut out = TriMesh::default();
+        let mut shared: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> = HashMap::default();
         let mut local = Vec::new();
         for brick in self.bricks.values() {
             let m = &brick.mesh;
@@ -544,13 +635,11 @@ impl BrickOctree {
                 }
                 local.push(index);
             }
-            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
-                [
-                    local[t[0] as usize],
-                    local[t[1] as usize],
-                    local[t[2] as usize],
-                ]
-            }));
+            out.triangles.extend(
+                m.indices
+                    .chunks_exact(3)
+                    .map(|t| [0, 1, 2].map(|k| local[t[k] as usize])),
+            );
         }
         out
     }
@@ -1072,6 +1161,38 @@ mod tests {
             assert_eq!(tree.weld(), fresh.weld());
             let s = closed_stats(&tree);
             assert_eq!(Some(s.euler_characteristic), expected_chi.next(), "{s:?}");
+        }
+    }
+
+    #[test]
+    fn weld_by_owner_equals_weld_by_hash() {
+        let (lattice, _, _) = sphere_lattice(12.0);
+        let grid = SampleGrid::for_lattice(&lattice, 3).unwrap();
+        let tree = BrickOctree::build(grid, &lattice);
+        assert_eq!(tree.weld(), tree.weld_by_hash());
+        // A dense surface that meets every brick face, and partial bricks at the far faces.
+        const W: f32 = 9.0;
+        let gyroid = FnField {
+            value: |p: Vec3| {
+                (W * p.x).sin() * (W * p.y).cos()
+                    + (W * p.y).sin() * (W * p.z).cos()
+                    + (W * p.z).sin() * (W * p.x).cos()
+            },
+            gradient: |_| Vec3::X,
+            iso: 0.1,
+            lipschitz: None,
+        };
+        let grid = SampleGrid::new(Vec3::splat(-0.2), 1.0 / 29.0, [37, 45, 41]).unwrap();
+        let tree = BrickOctree::build(grid, &gyroid);
+        let welded = tree.weld();
+        assert_eq!(welded, tree.weld_by_hash());
+        assert!(welded.triangle_count() > 5000);
+        // The same bricks (samples included) as meshing each brick on its own.
+        let mut alone = BrickOctree::new(grid);
+        alone.refresh_box(&gyroid, Vec3::splat(-10.0), Vec3::splat(10.0));
+        assert_same_bricks(&tree, &alone);
+        for (x, y) in tree.bricks().zip(alone.bricks()) {
+            assert_eq!(x.samples, y.samples);
         }
     }
 
