@@ -104,6 +104,34 @@ where
         (self.gradient)(p)
     }
 
+    /// The closure at each sample, with each axis's coordinates worked out once per block
+    /// (the same expression as [`SampleGrid::point`], so the same bits).
+    fn sample_block(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        scratch: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        scratch.clear();
+        scratch.extend((0..cx).map(|i| grid.coordinate(0, first[0] + i as u32)));
+        scratch.extend((0..cy).map(|j| grid.coordinate(1, first[1] + j as u32)));
+        scratch.extend((0..cz).map(|k| grid.coordinate(2, first[2] + k as u32)));
+        let (xs, rest) = scratch.split_at(cx);
+        let (ys, zs) = rest.split_at(cy);
+        let mut rows = out[..cx * cy * cz].chunks_exact_mut(cx.max(1));
+        for &z in zs {
+            for &y in ys {
+                let Some(row) = rows.next() else { return };
+                for (o, &x) in row.iter_mut().zip(xs) {
+                    *o = (self.value)(Vec3::new(x, y, z));
+                }
+            }
+        }
+    }
+
     fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
         let l = self.lipschitz?;
         let centre = (min + max) * 0.5;
