@@ -5,7 +5,9 @@
 //! local re-mesh redoes little beyond the edit; a brick's samples (9³ f32 = 2.9 KB) stay in L1
 //! while it is meshed; and storage near a surface wastes less than with 16³ bricks (a 16³
 //! brick holds 4913 samples for a surface patch only ~4× the area of an 8³ brick's 729). The
-//! cost is sampling shared faces twice (9³/8³ = 1.42 samples per cell against 1.20 for 16³).
+//! cost would be sampling shared faces twice (9³/8³ = 1.42 samples per cell against 1.20 for
+//! 16³); a full build avoids it by taking a brick's lower faces from the bricks below it
+//! (`sample_brick_sharing`), and only a local refresh samples whole bricks.
 //!
 //! Vertices sit on grid edges and are identified by a global edge id, so a vertex on a face
 //! shared by two bricks is computed identically (same samples, same position, same normal) by

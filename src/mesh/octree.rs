@@ -911,7 +911,7 @@ fn morton(c: [u32; 3]) -> u64 {
     spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
 }
 
-/// A fast mixing hash for edge ids (SipHash would dominate welding).
+/// A fast mixing hash for edge ids (the weld's fallback and its test reference).
 #[derive(Default)]
 struct EdgeIdHasher(u64);
 
