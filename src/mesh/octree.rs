@@ -1194,6 +1194,14 @@ mod tests {
         for (x, y) in tree.bricks().zip(alone.bricks()) {
             assert_eq!(x.samples, y.samples);
         }
+        // Runs of the build order split over threads start without the faces below them.
+        for threads in [2, 3] {
+            let many = BrickOctree::build_with_threads(grid, &gyroid, threads);
+            assert_same_bricks(&tree, &many);
+            for (x, y) in tree.bricks().zip(many.bricks()) {
+                assert_eq!(x.samples, y.samples);
+            }
+        }
     }
 
     #[test]
