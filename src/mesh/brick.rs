@@ -5,7 +5,9 @@
 //! local re-mesh redoes little beyond the edit; a brick's samples (9³ f32 = 2.9 KB) stay in L1
 //! while it is meshed; and storage near a surface wastes less than with 16³ bricks (a 16³
 //! brick holds 4913 samples for a surface patch only ~4× the area of an 8³ brick's 729). The
-//! cost is sampling shared faces twice (9³/8³ = 1.42 samples per cell against 1.20 for 16³).
+//! cost would be sampling shared faces twice (9³/8³ = 1.42 samples per cell against 1.20 for
+//! 16³); a full build avoids it by taking a brick's lower faces from the bricks below it
+//! (`sample_brick_sharing`), and only a local refresh samples whole bricks.
 //!
 //! Vertices sit on grid edges and are identified by a global edge id, so a vertex on a face
 //! shared by two bricks is computed identically (same samples, same position, same normal) by
@@ -103,7 +105,11 @@ impl BrickMesh {
 pub struct BrickScratch {
     /// Vertex index per (axis, local start sample), `u32::MAX` when not yet made.
     slots: Vec<u32>,
+    /// The slots the last marched brick filled (reset before the next).
+    made: Vec<u32>,
     pub(crate) samples: Vec<f32>,
+    /// The samples not taken from a neighbour's face, densely, before they are spread.
+    dense: Vec<f32>,
     pub(crate) field: Vec<f32>,
     pub(crate) mesh: BrickMesh,
 }
@@ -112,7 +118,9 @@ impl Default for BrickScratch {
     fn default() -> Self {
         Self {
             slots: vec![u32::MAX; 3 * BRICK_SAMPLE_COUNT],
+            made: Vec::new(),
             samples: vec![0.0; BRICK_SAMPLE_COUNT],
+            dense: Vec::with_capacity(BRICK_SAMPLE_COUNT),
             field: Vec::new(),
             mesh: BrickMesh::default(),
         }
@@ -140,23 +148,74 @@ pub fn sample_brick<F: ScalarField + ?Sized>(
     coord: [u32; 3],
     scratch: &mut BrickScratch,
 ) -> bool {
+    sample_brick_sharing(field, grid, coord, [None; 3], scratch)
+}
+
+/// The samples on one face of a brick: 9 × 9, the lower of the two other axes fastest.
+pub(crate) type Face = [f32; BRICK_SAMPLES * BRICK_SAMPLES];
+
+/// Index in a brick's 9³ samples of entry (`a`, `b`) of its face at `level` across `axis`.
+#[inline]
+fn face_index(axis: usize, level: usize, a: usize, b: usize) -> usize {
+    const S: usize = BRICK_SAMPLES;
+    match axis {
+        0 => level + S * (a + S * b),
+        1 => a + S * (level + S * b),
+        _ => a + S * (b + S * level),
+    }
+}
+
+/// [`sample_brick`], taking the samples on the brick's lower face across axis `a` from
+/// `near[a]` where given: the upper face of the brick below along that axis, which holds the
+/// same samples (a sample's bits depend only on its global index), so only the rest of the
+/// brick is sampled. A brick with all three neighbours below samples 8³ points, not 9³.
+pub(crate) fn sample_brick_sharing<F: ScalarField + ?Sized>(
+    field: &F,
+    grid: &SampleGrid,
+    coord: [u32; 3],
+    near: [Option<&Face>; 3],
+    scratch: &mut BrickScratch,
+) -> bool {
+    const S: usize = BRICK_SAMPLES;
     let (first, cells) = brick_extent(grid, coord);
     let counts = cells.map(|c| c as usize + 1);
-    let n = counts[0] * counts[1] * counts[2];
-    // Sample densely into the front, then spread to the fixed 9³ layout if partial.
-    field.sample_block(
-        grid,
-        first,
-        counts,
-        &mut scratch.samples[..n],
-        &mut scratch.field,
-    );
-    if counts != [BRICK_SAMPLES; 3] {
-        for k in (0..counts[2]).rev() {
-            for j in (0..counts[1]).rev() {
-                for i in (0..counts[0]).rev() {
-                    scratch.samples[i + BRICK_SAMPLES * (j + BRICK_SAMPLES * k)] =
-                        scratch.samples[i + counts[0] * (j + counts[1] * k)];
+    let lo = near.map(|f| usize::from(f.is_some()));
+    let sub: [usize; 3] = std::array::from_fn(|a| counts[a] - lo[a]);
+    let start: [u32; 3] = std::array::from_fn(|a| first[a] + lo[a] as u32);
+    let BrickScratch {
+        samples,
+        dense,
+        field: field_scratch,
+        ..
+    } = scratch;
+    if lo == [0; 3] && counts == [S; 3] {
+        field.sample_block(grid, start, sub, samples, field_scratch);
+    } else {
+        let n = sub[0] * sub[1] * sub[2];
+        dense.clear();
+        dense.resize(n, 0.0);
+        field.sample_block(grid, start, sub, dense, field_scratch);
+        if counts != [S; 3] {
+            // Entries beyond a partial brick's extent: zero, whatever was sampled before.
+            samples.fill(0.0);
+        }
+        for k in 0..sub[2] {
+            for j in 0..sub[1] {
+                let from = sub[0] * (j + sub[1] * k);
+                let to = lo[0] + S * (lo[1] + j + S * (lo[2] + k));
+                samples[to..to + sub[0]].copy_from_slice(&dense[from..from + sub[0]]);
+            }
+        }
+        for (axis, face) in near.iter().enumerate() {
+            let Some(face) = face else { continue };
+            let (a_axis, b_axis) = match axis {
+                0 => (1, 2),
+                1 => (0, 2),
+                _ => (0, 1),
+            };
+            for b in 0..counts[b_axis] {
+                for a in 0..counts[a_axis] {
+                    samples[face_index(axis, 0, a, b)] = face[a + S * b];
                 }
             }
         }
@@ -165,16 +224,58 @@ pub fn sample_brick<F: ScalarField + ?Sized>(
     let mut inside = 0usize;
     for k in 0..counts[2] {
         for j in 0..counts[1] {
-            let row = BRICK_SAMPLES * (j + BRICK_SAMPLES * k);
-            for &v in &scratch.samples[row..row + counts[0]] {
+            let row = S * (j + S * k);
+            for &v in &samples[row..row + counts[0]] {
                 inside += usize::from(v > iso);
             }
         }
     }
-    inside != 0 && inside != n
+    inside != 0 && inside != counts[0] * counts[1] * counts[2]
 }
 
+/// Copies the upper face across `axis` of the brick sampled in `scratch` into `face`.
+pub(crate) fn upper_face(scratch: &BrickScratch, axis: usize, face: &mut Face) {
+    const S: usize = BRICK_SAMPLES;
+    for b in 0..S {
+        for a in 0..S {
+            face[a + S * b] = scratch.samples[face_index(axis, S - 1, a, b)];
+        }
+    }
+}
+
+/// Spreads a column's four inside bits (bit `y + 2z` for the samples at `(y, z)` of the
+/// cell's near or far x) onto the case bits of the cell's corners at x = 0 (bits 0, 2, 4, 6);
+/// the corners at x = 1 are the same shifted by one.
+const SPREAD: [u8; 16] = {
+    let mut t = [0u8; 16];
+    let mut q = 0;
+    while q < 16 {
+        t[q] = ((q & 1) | (q & 2) << 1 | (q & 4) << 2 | (q & 8) << 3) as u8;
+        q += 1;
+    }
+    t
+};
+
+/// Per cube edge: its vertex slot relative to the cell's first sample (`axis · 9³` plus the
+/// edge's start sample in the brick's layout).
+const EDGE_SLOT: [usize; 12] = {
+    let mut t = [0usize; 12];
+    let mut e = 0;
+    while e < 12 {
+        let o = CORNER_OFFSETS[EDGE_CORNERS[e][0] as usize];
+        t[e] = EDGE_AXIS[e] as usize * BRICK_SAMPLE_COUNT
+            + o[0] as usize
+            + BRICK_SAMPLES * (o[1] as usize + BRICK_SAMPLES * o[2] as usize);
+        e += 1;
+    }
+    t
+};
+
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
+///
+/// Each sample's inside bit is taken once; a cell's case comes from the four bits of the
+/// column of samples at each of its two x positions, and cells all inside or all outside
+/// are passed over before any table is read.
 pub fn march_brick<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
@@ -187,31 +288,59 @@ pub fn march_brick<F: ScalarField + ?Sized>(
     let iso = field.iso();
     let BrickScratch {
         slots,
+        made,
         samples,
         mesh,
         ..
     } = scratch;
-    slots.fill(u32::MAX);
+    // Only the slots the last brick filled are reset.
+    for &slot in made.iter() {
+        slots[slot as usize] = u32::MAX;
+    }
+    made.clear();
     mesh.clear();
-
-    for z in 0..cells[2] as usize {
-        for y in 0..cells[1] as usize {
-            for x in 0..cells[0] as usize {
-                let base = x + S * (y + S * z);
-                let mut case = 0usize;
-                for (c, o) in CORNER_OFFSETS.iter().enumerate() {
-                    let v = samples[base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize)];
-                    case |= usize::from(v > iso) << c;
+    let mut inside = [0u8; BRICK_SAMPLE_COUNT];
+    for (b, &v) in inside.iter_mut().zip(samples.iter()) {
+        *b = u8::from(v > iso);
+    }
+    let [cx, cy, cz] = cells.map(|c| c as usize);
+    let mut column = [0u8; S];
+    for z in 0..cz {
+        for y in 0..cy {
+            let row = S * (y + S * z);
+            let mut any = 0u8;
+            let mut all = 1u8;
+            for (x, q) in column[..=cx].iter_mut().enumerate() {
+                let at = row + x;
+                *q = inside[at]
+                    | inside[at + S] << 1
+                    | inside[at + S * S] << 2
+                    | inside[at + S + S * S] << 3;
+                any |= *q;
+                all &= u8::from(*q == 15);
+            }
+            if any == 0 || all == 1 {
+                continue;
+            }
+            for x in 0..cx {
+                let case =
+                    usize::from(SPREAD[column[x] as usize] | SPREAD[column[x + 1] as usize] << 1);
+                if case == 0 || case == 255 {
+                    continue;
                 }
+                let base = row + x;
                 let tris = &CASES[case];
                 for tri in &tris.edges[..tris.count as usize] {
                     for &e in tri {
-                        let axis = EDGE_AXIS[e as usize];
-                        let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
-                        let start = base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
-                        let slot = &mut slots[axis as usize * BRICK_SAMPLE_COUNT + start];
+                        let at = base + EDGE_SLOT[e as usize];
+                        let slot = &mut slots[at];
                         if *slot == u32::MAX {
                             *slot = mesh.positions.len() as u32;
+                            made.push(at as u32);
+                            let axis = EDGE_AXIS[e as usize];
+                            let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
+                            let start =
+                                base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
                             let corner = [
                                 first[0] + (x as u32 + o[0]),
                                 first[1] + (y as u32 + o[1]),
@@ -245,7 +374,7 @@ fn push_vertex<F: ScalarField + ?Sized>(
     // v0 != v1: exactly one of them is above the iso-level.
     let t = ((field.iso() - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
     let p = p0 + (p1 - p0) * t;
-    let (_, gradient) = field.value_and_gradient(p);
+    let gradient = field.gradient(p);
     let length = gradient.length();
     let normal = if length > 1e-20 && length.is_finite() {
         -gradient / length
@@ -271,10 +400,21 @@ pub(crate) fn build_brick<F: ScalarField + ?Sized>(
     if !sample_brick(field, grid, coord, scratch) {
         return None;
     }
+    Some(mesh_sampled_brick(field, grid, coord, scratch))
+}
+
+/// Meshes the brick whose samples are in `scratch` and returns copies of its samples and
+/// mesh, sized to fit.
+pub(crate) fn mesh_sampled_brick<F: ScalarField + ?Sized>(
+    field: &F,
+    grid: &SampleGrid,
+    coord: [u32; 3],
+    scratch: &mut BrickScratch,
+) -> (Box<[f32]>, BrickMesh) {
     march_brick(field, grid, coord, scratch);
     let mut mesh = scratch.mesh.clone();
     mesh.shrink();
-    Some((scratch.samples.clone().into_boxed_slice(), mesh))
+    (scratch.samples.clone().into_boxed_slice(), mesh)
 }
 
 #[cfg(test)]

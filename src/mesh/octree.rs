@@ -18,10 +18,14 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 use glam::Vec3;
 
-use super::brick::{BRICK_CELLS, BrickMesh, BrickScratch, build_brick, edge_from_id};
+use super::brick::{
+    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, build_brick,
+    edge_from_id, mesh_sampled_brick, sample_brick_sharing, upper_face,
+};
 use super::grid::SampleGrid;
 use super::source::ScalarField;
 use super::trimesh::TriMesh;
@@ -137,9 +141,18 @@ impl BrickOctree {
     }
 
     /// Re-meshes everything (every brick of the result carries the new generation).
+    ///
+    /// The descent lists the bricks to sample; they are then built with x fastest, then y,
+    /// then z, each taking the faces it shares with the bricks below it from them, and stored
+    /// in the descent's order. Every new brick is held until all are built, so a rebuild
+    /// briefly holds the old and the new meshes.
     pub fn rebuild<F: ScalarField + ?Sized>(&mut self, field: &F) -> RefreshReport {
-        let last = self.brick_counts.map(|c| c - 1);
-        self.refresh_bricks(field, [0; 3], last)
+        self.rebuild_on(field, |field, grid, counts, leaves| {
+            let order = brick_order(leaves);
+            let next = AtomicUsize::new(0);
+            let built = build_runs(field, grid, counts, leaves, &order, order.len(), &next);
+            in_list_order(leaves.len(), [built])
+        })
     }
 
     /// [`BrickOctree::build`] with the bricks split over `threads` threads (1 or more):
@@ -156,17 +169,26 @@ impl BrickOctree {
 
     /// [`BrickOctree::rebuild`] with the bricks split over `threads` threads; the result
     /// (bricks, meshes and report) is identical. The descent runs first on the caller and
-    /// lists the bricks to sample; the threads then build them, taking small runs of the
-    /// list in turn; the results are stored in the descent's order. Every new brick is held
-    /// until all are built, so a rebuild briefly holds the old and the new meshes.
+    /// lists the bricks to sample; the threads then build them, taking runs of the build
+    /// order in turn (four runs per thread); the results are stored in the descent's
+    /// order.
     pub fn rebuild_with_threads<F: ScalarField + Sync + ?Sized>(
         &mut self,
         field: &F,
         threads: usize,
     ) -> RefreshReport {
-        if threads <= 1 {
-            return self.rebuild(field);
-        }
+        self.rebuild_on(field, |field, grid, counts, leaves| {
+            build_bricks_parallel(field, grid, counts, leaves, threads)
+        })
+    }
+
+    /// The rebuild, with the listed bricks built by `build` (in the list's order). The
+    /// result is that of the descent of [`BrickOctree::visit`] from the root.
+    fn rebuild_on<F: ScalarField + ?Sized>(
+        &mut self,
+        field: &F,
+        build: impl FnOnce(&F, &SampleGrid, [u32; 3], &[[u32; 3]]) -> Vec<BuiltBrick>,
+    ) -> RefreshReport {
         self.generation += 1;
         let mut report = RefreshReport {
             generation: self.generation,
@@ -182,7 +204,7 @@ impl BrickOctree {
                 PlanStep::Cull { .. } => None,
             })
             .collect();
-        let built = build_bricks_parallel(field, &self.grid, &leaves, threads);
+        let built = build(field, &self.grid, self.brick_counts, &leaves);
         let mut built = built.into_iter();
         for step in plan {
             match step {
@@ -491,8 +513,107 @@ impl BrickOctree {
 
     /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
     /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
+    ///
+    /// A vertex on a brick's face is shared by every brick that holds its edge; the first of
+    /// them in Morton order is the one with the least coordinates (Morton order grows with
+    /// each coordinate), so a brick owns the vertices not on its lower faces and finds the
+    /// others in the short list of upper-face vertices its owner kept (sorted by the edge's
+    /// place in the brick, searched by halves): no hashing, and the lists stay in cache.
     #[must_use]
     pub fn weld(&self) -> TriMesh {
+        const S: u32 = BRICK_SAMPLES as u32;
+        let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
+        let triangles = self.triangle_count();
+        let mut out = TriMesh {
+            positions: Vec::with_capacity(vertices),
+            normals: Vec::with_capacity(vertices),
+            triangles: Vec::with_capacity(triangles),
+        };
+        let keys: Vec<u64> = self.bricks.keys().copied().collect();
+        // Per brick (in Morton order), its upper-face vertices: (place in the brick, index).
+        let mut kept: Vec<(u16, u32)> = Vec::with_capacity(vertices / 2);
+        let mut kept_range: Vec<(u32, u32)> = Vec::with_capacity(keys.len());
+        // Vertices whose owner brick is missing or did not keep them (never, for a tree this
+        // octree built; kept so that welding stays by edge id whatever the bricks hold).
+        let mut stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> = HashMap::default();
+        let mut local = Vec::new();
+        for brick in self.bricks.values() {
+            let m = &brick.mesh;
+            let base = brick.coord.map(|c| c * BRICK_CELLS);
+            // The ordinals of the bricks below, by mask of axes (looked up when first needed).
+            let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
+            let kept_start = kept.len();
+            local.clear();
+            for (v, &id) in m.edge_ids.iter().enumerate() {
+                let (corner, axis) = edge_from_id(id);
+                let axis = axis as usize;
+                let mut lower = 0usize;
+                let mut upper = false;
+                for a in 0..3 {
+                    if a != axis && corner[a] % BRICK_CELLS == 0 {
+                        if corner[a] == base[a] {
+                            lower |= usize::from(corner[a] > 0) << a;
+                        } else {
+                            upper = true;
+                        }
+                    }
+                }
+                let index = if lower == 0 {
+                    let next = out.positions.len() as u32;
+                    out.positions.push(m.positions[v]);
+                    out.normals.push(m.normals[v]);
+                    if upper {
+                        let l = [0, 1, 2].map(|a| corner[a] - base[a]);
+                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
+                        kept.push((place as u16, next));
+                    }
+                    next
+                } else {
+                    let owner = *below[lower].get_or_insert_with(|| {
+                        let mut c = brick.coord;
+                        for (a, c) in c.iter_mut().enumerate() {
+                            *c -= ((lower >> a) & 1) as u32;
+                        }
+                        keys.binary_search(&morton(c)).ok().map(|o| (o, c))
+                    });
+                    let found = owner.and_then(|(o, oc)| {
+                        let (start, end) = kept_range[o];
+                        let list = &kept[start as usize..end as usize];
+                        let l: [u32; 3] = std::array::from_fn(|a| corner[a] - oc[a] * BRICK_CELLS);
+                        let place = (axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2])) as u16;
+                        list.binary_search_by_key(&place, |e| e.0)
+                            .ok()
+                            .map(|i| list[i].1)
+                    });
+                    found.unwrap_or_else(|| {
+                        let next = out.positions.len() as u32;
+                        let index = *stray.entry(id).or_insert(next);
+                        if index == next {
+                            out.positions.push(m.positions[v]);
+                            out.normals.push(m.normals[v]);
+                        }
+                        index
+                    })
+                };
+                local.push(index);
+            }
+            kept[kept_start..].sort_unstable_by_key(|e| e.0);
+            kept_range.push((kept_start as u32, kept.len() as u32));
+            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
+                [
+                    local[t[0] as usize],
+                    local[t[1] as usize],
+                    local[t[2] as usize],
+                ]
+            }));
+        }
+        out
+    }
+
+    /// The bricks welded by [`weld_pieces`], the weld the app's export uses (the reference
+    /// the octree's faster weld is checked against).
+    #[cfg(test)]
+    fn weld_by_hash(&self) -> TriMesh {
         let pieces: Vec<WeldPiece<'_, Vec3>> = self
             .bricks
             .values()
@@ -527,9 +648,10 @@ impl<'a> WeldPiece<'a, Vec3> {
     }
 }
 
-/// The one welding of brick meshes (the octree's [`BrickOctree::weld`] and the app's export of
-/// its published chunks): vertices on a brick face are merged by their global edge id, so a
-/// vertex two bricks share appears once; the others are unique to their brick. Vertex and
+/// Welding of brick meshes by edge id, for any set of pieces (the app's export of its
+/// published chunks; [`BrickOctree::weld`] is the octree's faster path for its own bricks and
+/// is tested to give exactly this mesh): vertices on a brick face are merged by their global
+/// edge id, so a vertex two bricks share appears once; the others are unique to their brick. Vertex and
 /// triangle order follow `pieces`.
 ///
 /// # Panics
@@ -642,34 +764,180 @@ enum PlanStep {
     Leaf([u32; 3]),
 }
 
-/// Bricks built by one thread: their indices in the list and what was built.
-type Built = Vec<(usize, Option<(Box<[f32]>, BrickMesh)>)>;
+/// What building one brick gives: its samples and mesh, or `None` when the surface does not
+/// cross it.
+type BuiltBrick = Option<(Box<[f32]>, BrickMesh)>;
 
-/// Builds the bricks `leaves` on `threads` threads (the caller and `threads − 1` more), each
-/// taking the next run of a few bricks in turn; the results come back in the list's order.
+/// Bricks built by one thread: their indices in the list and what was built.
+type Built = Vec<(usize, BuiltBrick)>;
+
+/// Most entries in a per-row or per-layer table of faces (16384 faces, 5.5 MB: a 1024² grid
+/// of cells per layer); larger grids share fewer faces.
+const MAX_FACE_TABLE: usize = 1 << 14;
+
+/// The upper faces of recently sampled bricks, so a brick takes its three lower faces from
+/// the bricks below it instead of sampling them again. Bricks are met with x fastest, then
+/// y, then z; each table keeps the latest brick per line (x: one; y: per column; z: per
+/// column of the layer) and is checked against the coordinate it was made for, so a stale
+/// entry is never used.
+struct FaceCache {
+    /// Brick counts per axis.
+    counts: [u32; 3],
+    x: ([u32; 3], Face),
+    y: Vec<([u32; 3], Face)>,
+    z: Vec<([u32; 3], Face)>,
+}
+
+impl FaceCache {
+    const NONE: [u32; 3] = [u32::MAX; 3];
+
+    fn new(counts: [u32; 3]) -> Self {
+        let per_row = counts[0] as usize;
+        let per_layer = per_row.saturating_mul(counts[1] as usize);
+        let empty = (Self::NONE, [0.0; BRICK_SAMPLES * BRICK_SAMPLES]);
+        Self {
+            counts,
+            x: empty,
+            y: if per_row <= MAX_FACE_TABLE {
+                vec![empty; per_row]
+            } else {
+                Vec::new()
+            },
+            z: if per_layer <= MAX_FACE_TABLE {
+                vec![empty; per_layer]
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// Slot of brick `node` in the table of `axis` (0: the single x slot).
+    fn slot(&self, axis: usize, node: [u32; 3]) -> Option<usize> {
+        match axis {
+            0 => Some(0),
+            1 => (!self.y.is_empty()).then_some(node[0] as usize),
+            _ => (!self.z.is_empty())
+                .then(|| node[0] as usize + self.counts[0] as usize * node[1] as usize),
+        }
+    }
+
+    fn entry(&self, axis: usize, slot: usize) -> &([u32; 3], Face) {
+        match axis {
+            0 => &self.x,
+            1 => &self.y[slot],
+            _ => &self.z[slot],
+        }
+    }
+
+    fn entry_mut(&mut self, axis: usize, slot: usize) -> &mut ([u32; 3], Face) {
+        match axis {
+            0 => &mut self.x,
+            1 => &mut self.y[slot],
+            _ => &mut self.z[slot],
+        }
+    }
+
+    /// The upper faces of the bricks just below `node` along each axis, where held.
+    fn near(&self, node: [u32; 3]) -> [Option<&Face>; 3] {
+        std::array::from_fn(|axis| {
+            if node[axis] == 0 {
+                return None;
+            }
+            let mut below = node;
+            below[axis] -= 1;
+            let slot = self.slot(axis, node)?;
+            let (coord, face) = self.entry(axis, slot);
+            (*coord == below).then_some(face)
+        })
+    }
+
+    /// Keeps the upper faces of brick `node`, just sampled into `scratch` (not those of a
+    /// brick partial along that axis: nothing lies above it).
+    fn keep(&mut self, node: [u32; 3], grid: &SampleGrid, scratch: &BrickScratch) {
+        let (_, cells) = brick_extent(grid, node);
+        for (axis, &n) in cells.iter().enumerate() {
+            if n != BRICK_CELLS {
+                continue;
+            }
+            let Some(slot) = self.slot(axis, node) else {
+                continue;
+            };
+            let entry = self.entry_mut(axis, slot);
+            entry.0 = node;
+            upper_face(scratch, axis, &mut entry.1);
+        }
+    }
+}
+
+/// The bricks of `leaves` (indices into it) with x fastest, then y, then z: the order in
+/// which each brick follows the bricks below it.
+fn brick_order(leaves: &[[u32; 3]]) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
+    order.sort_unstable_by_key(|&i| {
+        let c = leaves[i as usize];
+        (c[2], c[1], c[0])
+    });
+    order
+}
+
+/// One thread's share of a build: runs of `run` bricks of `order`, taken in turn from the
+/// shared counter `next` (no lock) until none is left. Within a run, each brick takes the
+/// faces it shares with the bricks below it from them (about one sample per cell instead
+/// of 1.42).
+fn build_runs<F: ScalarField + ?Sized>(
+    field: &F,
+    grid: &SampleGrid,
+    counts: [u32; 3],
+    leaves: &[[u32; 3]],
+    order: &[u32],
+    run: usize,
+    next: &AtomicUsize,
+) -> Built {
+    let mut scratch = BrickScratch::default();
+    let mut cache = FaceCache::new(counts);
+    let mut out: Built = Vec::new();
+    loop {
+        let start = next.fetch_add(run, Ordering::Relaxed);
+        if start >= order.len() {
+            return out;
+        }
+        for &i in &order[start..(start + run).min(order.len())] {
+            let node = leaves[i as usize];
+            let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
+            cache.keep(node, grid, &scratch);
+            let built = crossed.then(|| mesh_sampled_brick(field, grid, node, &mut scratch));
+            out.push((i as usize, built));
+        }
+    }
+}
+
+/// The threads' results put back in the list's order.
+fn in_list_order(len: usize, parts: impl IntoIterator<Item = Built>) -> Vec<BuiltBrick> {
+    let mut results: Vec<BuiltBrick> = Vec::with_capacity(len);
+    results.resize_with(len, || None);
+    for (i, built) in parts.into_iter().flatten() {
+        results[i] = built;
+    }
+    results
+}
+
+/// Builds the bricks `leaves` on `threads` threads (the caller and `threads − 1` more), a
+/// few runs of [`brick_order`] per thread; the results come back in the list's order. A
+/// brick's samples and mesh depend only on the brick and the field, so the split changes
+/// nothing in the result.
 fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     field: &F,
     grid: &SampleGrid,
+    counts: [u32; 3],
     leaves: &[[u32; 3]],
     threads: usize,
-) -> Vec<Option<(Box<[f32]>, BrickMesh)>> {
-    use std::sync::atomic::{AtomicUsize, Ordering};
-    /// Bricks taken at once: enough to make the shared counter rare, few enough to balance.
-    const RUN: usize = 8;
+) -> Vec<BuiltBrick> {
+    let threads = threads.max(1);
+    let order = brick_order(leaves);
+    let runs = if threads == 1 { 1 } else { threads * 4 };
+    let run = order.len().div_ceil(runs).max(1);
     let next = AtomicUsize::new(0);
-    let work = || {
-        let mut scratch = BrickScratch::default();
-        let mut out: Built = Vec::new();
-        loop {
-            let start = next.fetch_add(RUN, Ordering::Relaxed);
-            if start >= leaves.len() {
-                return out;
-            }
-            for (i, &node) in leaves.iter().enumerate().skip(start).take(RUN) {
-                out.push((i, build_brick(field, grid, node, &mut scratch)));
-            }
-        }
-    };
+    let work = || build_runs(field, grid, counts, leaves, &order, run, &next);
     let parts: Vec<Built> = std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
         let mut parts = vec![work()];
@@ -681,12 +949,7 @@ fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
         }
         parts
     });
-    let mut results: Vec<Option<(Box<[f32]>, BrickMesh)>> = Vec::with_capacity(leaves.len());
-    results.resize_with(leaves.len(), || None);
-    for (i, built) in parts.into_iter().flatten() {
-        results[i] = built;
-    }
-    results
+    in_list_order(leaves.len(), parts)
 }
 
 /// Interleaves the low 21 bits of each coordinate (x lowest).
@@ -705,7 +968,7 @@ fn morton(c: [u32; 3]) -> u64 {
     spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
 }
 
-/// A fast mixing hash for edge ids (SipHash would dominate welding).
+/// A fast mixing hash for edge ids (the weld's fallback and its test reference).
 #[derive(Default)]
 struct EdgeIdHasher(u64);
 
@@ -955,6 +1218,46 @@ mod tests {
             assert_eq!(tree.weld(), fresh.weld());
             let s = closed_stats(&tree);
             assert_eq!(Some(s.euler_characteristic), expected_chi.next(), "{s:?}");
+        }
+    }
+
+    #[test]
+    fn weld_by_owner_equals_weld_by_hash() {
+        let (lattice, _, _) = sphere_lattice(12.0);
+        let grid = SampleGrid::for_lattice(&lattice, 3).unwrap();
+        let tree = BrickOctree::build(grid, &lattice);
+        assert_eq!(tree.weld(), tree.weld_by_hash());
+        // A dense surface that meets every brick face, and partial bricks at the far faces.
+        const W: f32 = 9.0;
+        let gyroid = FnField {
+            value: |p: Vec3| {
+                (W * p.x).sin() * (W * p.y).cos()
+                    + (W * p.y).sin() * (W * p.z).cos()
+                    + (W * p.z).sin() * (W * p.x).cos()
+            },
+            gradient: |_| Vec3::X,
+            iso: 0.1,
+            lipschitz: None,
+        };
+        let grid = SampleGrid::new(Vec3::splat(-0.2), 1.0 / 29.0, [37, 45, 41]).unwrap();
+        let tree = BrickOctree::build(grid, &gyroid);
+        let welded = tree.weld();
+        assert_eq!(welded, tree.weld_by_hash());
+        assert!(welded.triangle_count() > 5000);
+        // The same bricks (samples included) as meshing each brick on its own.
+        let mut alone = BrickOctree::new(grid);
+        alone.refresh_box(&gyroid, Vec3::splat(-10.0), Vec3::splat(10.0));
+        assert_same_bricks(&tree, &alone);
+        for (x, y) in tree.bricks().zip(alone.bricks()) {
+            assert_eq!(x.samples, y.samples);
+        }
+        // Runs of the build order split over threads start without the faces below them.
+        for threads in [2, 3] {
+            let many = BrickOctree::build_with_threads(grid, &gyroid, threads);
+            assert_same_bricks(&tree, &many);
+            for (x, y) in tree.bricks().zip(many.bricks()) {
+                assert_eq!(x.samples, y.samples);
+            }
         }
     }
 

@@ -22,6 +22,14 @@ pub trait ScalarField {
     /// Value and gradient (per world unit) at a world point.
     fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3);
 
+    /// Gradient (per world unit) at a world point: the gradient of
+    /// [`ScalarField::value_and_gradient`], bit for bit. The mesher asks only for this at
+    /// each vertex; a field that gets it for less than value and gradient overrides it.
+    #[inline]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        self.value_and_gradient(p).1
+    }
+
     /// Values at the grid samples `first + (i, j, k)` for `i < counts[0]` etc., written x
     /// fastest into `out[..counts product]`. `scratch` is working memory the caller keeps.
     ///
@@ -88,6 +96,40 @@ where
     #[inline]
     fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
         ((self.value)(p), (self.gradient)(p))
+    }
+
+    /// Only the gradient closure: the value would be thrown away.
+    #[inline]
+    fn gradient(&self, p: Vec3) -> Vec3 {
+        (self.gradient)(p)
+    }
+
+    /// The closure at each sample, with each axis's coordinates worked out once per block
+    /// (the same expression as [`SampleGrid::point`], so the same bits).
+    fn sample_block(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        scratch: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        scratch.clear();
+        scratch.extend((0..cx).map(|i| grid.coordinate(0, first[0] + i as u32)));
+        scratch.extend((0..cy).map(|j| grid.coordinate(1, first[1] + j as u32)));
+        scratch.extend((0..cz).map(|k| grid.coordinate(2, first[2] + k as u32)));
+        let (xs, rest) = scratch.split_at(cx);
+        let (ys, zs) = rest.split_at(cy);
+        let mut rows = out[..cx * cy * cz].chunks_exact_mut(cx.max(1));
+        for &z in zs {
+            for &y in ys {
+                let Some(row) = rows.next() else { return };
+                for (o, &x) in row.iter_mut().zip(xs) {
+                    *o = (self.value)(Vec3::new(x, y, z));
+                }
+            }
+        }
     }
 
     fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
