@@ -58,7 +58,8 @@ fn construction() {
         let mut last = None;
         for _ in 0..3 {
             let t = Instant::now();
-            let (set, times) = PointSet::build(&cloud, &PointSetOptions::default()).expect("builds");
+            let (set, times) =
+                PointSet::build(&cloud, &PointSetOptions::default()).expect("builds");
             runs.push(t.elapsed().as_secs_f64());
             assert_eq!(set.len(), count);
             last = Some(times);
@@ -97,8 +98,8 @@ fn update() {
         ..Material::PLASTIC
     };
     let pilot_count = 8000usize;
-    let (pilot, _) = PointSet::build(&sphere(pilot_count, 0.5), &PointSetOptions::default())
-        .expect("builds");
+    let (pilot, _) =
+        PointSet::build(&sphere(pilot_count, 0.5), &PointSetOptions::default()).expect("builds");
     let pilot_inside = PointSetSculpt::new(&pilot, lo, hi, &opts)
         .expect("region")
         .member_count()
@@ -134,8 +135,14 @@ fn update() {
         let ms = |v: Vec<f64>| median(v) * 1e3;
         let ours = ms(whole);
         let sim = ms(parts.iter().map(|p| p.simulate_ns as f64 * 1e-9).collect());
-        let dom = ms(parts.iter().map(|p| p.update_domains_ns as f64 * 1e-9).collect());
-        let mov = ms(parts.iter().map(|p| p.move_points_ns as f64 * 1e-9).collect());
+        let dom = ms(parts
+            .iter()
+            .map(|p| p.update_domains_ns as f64 * 1e-9)
+            .collect());
+        let mov = ms(parts
+            .iter()
+            .map(|p| p.move_points_ns as f64 * 1e-9)
+            .collect());
         println!(
             "| {inside} (paper {want}) | {paper_ms:.0} ms | {ours:.3} ms | {:.0}× | {sim:.3} ms | {dom:.3} ms | {mov:.3} ms |",
             paper_ms / ours

@@ -30,7 +30,9 @@ mod render;
 mod run;
 mod sculpt;
 
-pub use args::{Cli, Commands, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode};
+pub use args::{
+    Cli, Commands, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode,
+};
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
 pub use platform::{PlatformJudged, PlatformWatch};
 pub use points::{PointsOutcome, points};

@@ -39,7 +39,12 @@ pub struct PointsOutcome {
 /// # Errors
 /// A bad argument or unreadable input (exit 2), a failed build, sculpt or write (exit 1).
 pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
-    if args.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref()
+    if args
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
         != Some("ply")
     {
         return Err(CliError::Usage(format!(
@@ -114,7 +119,11 @@ fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
         .points
         .iter()
         .copied()
-        .min_by(|a, b| (*a - target).length_squared().total_cmp(&(*b - target).length_squared()))
+        .min_by(|a, b| {
+            (*a - target)
+                .length_squared()
+                .total_cmp(&(*b - target).length_squared())
+        })
         .ok_or_else(|| CliError::Usage("--pull: no points".into()))?;
     let h = set.spacing_m;
     let reach = (target - nearest).length();

@@ -175,7 +175,12 @@ mod tests {
         let (cube, sphere, centre, radius) = cube_and_sphere();
         let diff = SharpBoolean::new(&cube, &sphere, BooleanOp::Difference).unwrap();
         // Q1: the cube's points outside the sphere; Q2: the sphere's points inside the cube.
-        assert!(diff.first.points.iter().all(|p| (*p - centre).length() > radius - 0.02));
+        assert!(
+            diff.first
+                .points
+                .iter()
+                .all(|p| (*p - centre).length() > radius - 0.02)
+        );
         assert!(diff.first.len() < cube.len());
         assert!(diff.second.points.iter().all(|p| p.z < 0.5 + 0.02));
         // The kept sphere points face into the cavity.
@@ -185,7 +190,13 @@ mod tests {
         let union = SharpBoolean::new(&cube, &sphere, BooleanOp::Union).unwrap();
         assert!(union.second.points.iter().all(|p| p.z > 0.5 - 0.02));
         let inter = SharpBoolean::new(&cube, &sphere, BooleanOp::Intersection).unwrap();
-        assert!(inter.first.points.iter().all(|p| (*p - centre).length() < radius + 0.02));
+        assert!(
+            inter
+                .first
+                .points
+                .iter()
+                .all(|p| (*p - centre).length() < radius + 0.02)
+        );
         assert_eq!(inter.second.len() + union.second.len(), sphere.len());
         // Inside/outside of the results.
         assert!(diff.value(Vec3::new(0.0, 0.0, 0.4)) < 0.0);
@@ -208,7 +219,10 @@ mod tests {
         let mut sphere_sum = 0.0f32;
         for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
             let rho = (p.x * p.x + p.y * p.y).sqrt();
-            if (p.z - 0.5).abs() < 0.5 * cell && rho > radius + 1.5 * cell && rho < radius + 4.0 * cell {
+            if (p.z - 0.5).abs() < 0.5 * cell
+                && rho > radius + 1.5 * cell
+                && rho < radius + 4.0 * cell
+            {
                 face_n += *n;
                 face_count += 1;
                 worst_face = worst_face.max(n.angle_between(Vec3::Z).to_degrees());
@@ -226,7 +240,10 @@ mod tests {
                 sphere_n += 1;
             }
         }
-        assert!(face_count > 20 && sphere_n > 20, "{face_count} face, {sphere_n} sphere");
+        assert!(
+            face_count > 20 && sphere_n > 20,
+            "{face_count} face, {sphere_n} sphere"
+        );
         assert!(worst_face < 12.0, "face normals off by {worst_face}°");
         assert!(worst_sphere < 12.0, "sphere normals off by {worst_sphere}°");
         // The dihedral angle across the crease: 90° for a sphere centred on the face. Measured

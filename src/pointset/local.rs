@@ -46,7 +46,10 @@ pub struct LocalField {
 #[inline]
 fn weights(u: f32) -> ([f32; 3], [f32; 3]) {
     let v = 1.0 - u;
-    ([v * v, 2.0 * u * v, u * u], [-2.0 * v, 2.0 - 4.0 * u, 2.0 * u])
+    (
+        [v * v, 2.0 * u * v, u * u],
+        [-2.0 * v, 2.0 - 4.0 * u, 2.0 * u],
+    )
 }
 
 impl LocalField {
@@ -144,7 +147,8 @@ impl LocalField {
                 let pos = (n / stride) % 3;
                 let base = n - pos * stride;
                 let r = &B_INV[pos];
-                dst[n] = r[0] * src[base] + r[1] * src[base + stride] + r[2] * src[base + 2 * stride];
+                dst[n] =
+                    r[0] * src[base] + r[1] * src[base + stride] + r[2] * src[base + 2 * stride];
             }
         }
         // Three passes: a → b → a → b.

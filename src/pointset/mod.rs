@@ -16,15 +16,15 @@ mod sampling;
 mod sculpt;
 mod surface;
 
+pub use boolean::{BooleanOp, SharpBoolean};
 pub use error::PointSetError;
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
 pub use normals::{orient_over_mst, plane_normal};
-pub use surface::{
-    BuildTimes, DEFAULT_COLOUR, FALLBACK_WEIGHT, PointSet, PointSetOptions, nearest_neighbours,
-};
-pub use sculpt::{CornerBlend, PointSetSculpt, SculptOptions, UpdateTimes};
+pub use ply::{encode_point_ply, write_point_ply};
 pub use sampling::{
     SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings, resample,
 };
-pub use boolean::{BooleanOp, SharpBoolean};
-pub use ply::{encode_point_ply, write_point_ply};
+pub use sculpt::{CornerBlend, PointSetSculpt, SculptOptions, UpdateTimes};
+pub use surface::{
+    BuildTimes, DEFAULT_COLOUR, FALLBACK_WEIGHT, PointSet, PointSetOptions, nearest_neighbours,
+};

@@ -11,11 +11,12 @@
 //!   nearest neighbour is closer than `remove_below · h` is removed, the earlier of the two
 //!   kept.
 //!
-//! Why the defaults (0.7 and 1/1.5) keep the spacing within a factor 1.5 of `h`: an inserted
-//! point is at the empty disc's radius (> 0.7 h) from its three nearest points, so insertion
-//! never makes a pair closer than `h/1.5`; and a point whose nearest neighbour is `r` away has
-//! a Voronoi vertex at least `r/2` away, so once no disc exceeds `0.7 h`, no nearest neighbour
-//! is farther than `1.4 h`.
+//! Why the defaults (insert above 0.72 h, remove below 0.7 h) keep the spacing within a factor
+//! 1.5 of `h`: removal leaves no pair closer than `0.7 h`, and an inserted point is at the
+//! empty disc's radius (> 0.72 h, measured in the tangent plane) from its nearest points, so
+//! insertion makes no pair closer than about `0.7 h > h/1.5`; and a point whose nearest
+//! neighbour is `r` away has a Voronoi vertex at least `r/2` away, so once no disc exceeds
+//! `0.72 h`, no nearest neighbour is farther than `1.44 h`.
 //!
 //! Not real-time: it allocates and rebuilds a k-d tree per pass.
 
@@ -46,8 +47,8 @@ impl SamplingOptions {
     pub fn for_target(target_m: f32) -> Self {
         Self {
             target_m,
-            insert_above: 0.7,
-            remove_below: 1.0 / 1.5,
+            insert_above: 0.72,
+            remove_below: 0.7,
             max_passes: 8,
         }
     }

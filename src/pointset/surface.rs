@@ -141,8 +141,8 @@ pub fn nearest_neighbours(
     threads: usize,
 ) -> Result<Vec<u32>, PointSetError> {
     let arr: Vec<[f32; 3]> = points.iter().map(|&p| as_array(p)).collect();
-    let tree: ImmutableKdTree<f32, 3> =
-        ImmutableKdTree::new_from_slice(&arr).map_err(|e| PointSetError::Index(format!("{e:?}")))?;
+    let tree: ImmutableKdTree<f32, 3> = ImmutableKdTree::new_from_slice(&arr)
+        .map_err(|e| PointSetError::Index(format!("{e:?}")))?;
     let mut out = vec![0u32; points.len() * k];
     let want = NonZero::new(k + 1).unwrap_or(NonZero::<usize>::MIN);
     par_chunks(&mut out, threads, |first, chunk| {
@@ -224,8 +224,7 @@ impl PointSet {
                 });
                 times.normals_ns = t.elapsed().as_nanos() as u64;
                 let t = Instant::now();
-                let lists: Vec<Vec<u32>> =
-                    nbrs.chunks(k).map(<[u32]>::to_vec).collect();
+                let lists: Vec<Vec<u32>> = nbrs.chunks(k).map(<[u32]>::to_vec).collect();
                 orient_over_mst(points, &mut normals, &lists);
                 times.orient_ns = t.elapsed().as_nanos() as u64;
                 normals
@@ -241,7 +240,16 @@ impl PointSet {
             for (n, slot) in chunk.iter_mut().enumerate() {
                 let i = first + n;
                 let list = &nbrs[i * k..(i + 1) * k];
-                match fit_point(i, list, points, &normals, spacing_m, options, &mut samples, &mut scratch) {
+                match fit_point(
+                    i,
+                    list,
+                    points,
+                    &normals,
+                    spacing_m,
+                    options,
+                    &mut samples,
+                    &mut scratch,
+                ) {
                     Some(f) => *slot = f,
                     None => {
                         failed.fetch_min(i, std::sync::atomic::Ordering::Relaxed);
@@ -377,7 +385,10 @@ impl PointSet {
             gwv += g * w + gw_i * s;
         }
         if sw < FALLBACK_WEIGHT {
-            let near = tree.query(&q).nearest_one::<SquaredEuclidean<f32>>().execute();
+            let near = tree
+                .query(&q)
+                .nearest_one::<SquaredEuclidean<f32>>()
+                .execute();
             let i = near.item as usize;
             let (fs, fg) = self.nearest_distance(i.min(self.points.len() - 1), x);
             let wf = FALLBACK_WEIGHT - sw;
@@ -399,7 +410,11 @@ impl PointSet {
         if len <= 0.0 {
             return (0.0, -self.normals[i]);
         }
-        let sign = if self.normals[i].dot(d) > 0.0 { -1.0 } else { 1.0 };
+        let sign = if self.normals[i].dot(d) > 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
         (sign * len, d * (sign / len))
     }
 }
@@ -517,7 +532,10 @@ pub(crate) mod tests {
             set.value(x + Vec3::Y * e) - set.value(x - Vec3::Y * e),
             set.value(x + Vec3::Z * e) - set.value(x - Vec3::Z * e),
         ) / (2.0 * e);
-        assert!((g - fd).length() < 0.05 * fd.length().max(1.0), "{g} vs {fd}");
+        assert!(
+            (g - fd).length() < 0.05 * fd.length().max(1.0),
+            "{g} vs {fd}"
+        );
     }
 
     #[test]
