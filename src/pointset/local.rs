@@ -192,14 +192,18 @@ pub struct FitSample {
 /// Working memory of [`fit_local`], kept by the caller so repeated fits allocate nothing.
 #[derive(Clone, Debug)]
 pub struct FitScratch {
-    normal: Vec<f64>,
+    /// The normal matrix, accumulated in `f32` over full rows so the rank-one updates
+    /// vectorise (`bench/pointset.rs`: the fits are most of the construction time).
+    normal: [[f32; LOCAL_COUNT]; LOCAL_COUNT],
+    solve: Vec<f64>,
     rhs: [f64; LOCAL_COUNT],
 }
 
 impl Default for FitScratch {
     fn default() -> Self {
         Self {
-            normal: vec![0.0; LOCAL_COUNT * LOCAL_COUNT],
+            normal: [[0.0; LOCAL_COUNT]; LOCAL_COUNT],
+            solve: vec![0.0; LOCAL_COUNT * LOCAL_COUNT],
             rhs: [0.0; LOCAL_COUNT],
         }
     }
@@ -221,11 +225,10 @@ pub fn fit_local(
     scratch: &mut FitScratch,
 ) -> Option<LocalField> {
     let mut field = LocalField::zero(centre, half_m);
-    let a = &mut scratch.normal;
-    a.fill(0.0);
-    scratch.rhs = [0.0; LOCAL_COUNT];
-    let mut total = 0.0_f64;
-    let mut row = [0.0_f64; LOCAL_COUNT];
+    scratch.normal = [[0.0; LOCAL_COUNT]; LOCAL_COUNT];
+    let mut rhs = [0.0f32; LOCAL_COUNT];
+    let mut total = 0.0_f32;
+    let mut row = [0.0_f32; LOCAL_COUNT];
     for s in samples {
         let u = field.to_param(s.position);
         let (wx, _) = weights(u.x);
@@ -233,36 +236,36 @@ pub fn fit_local(
         let (wz, _) = weights(u.z);
         for k in 0..3 {
             for j in 0..3 {
-                let wjk = f64::from(wy[j] * wz[k]);
+                let wjk = wy[j] * wz[k];
                 for i in 0..3 {
-                    row[i + 3 * j + 9 * k] = wjk * f64::from(wx[i]);
+                    row[i + 3 * j + 9 * k] = wjk * wx[i];
                 }
             }
         }
-        let w = f64::from(s.weight);
-        let wd = w * f64::from(s.distance);
+        let w = s.weight;
+        let wd = w * s.distance;
         total += w;
-        // Upper triangle only; mirrored before the solve.
-        for r in 0..LOCAL_COUNT {
+        for (r, line) in scratch.normal.iter_mut().enumerate() {
             let wr = w * row[r];
-            scratch.rhs[r] += wd * row[r];
-            let line = &mut a[r * LOCAL_COUNT..(r + 1) * LOCAL_COUNT];
-            for c in r..LOCAL_COUNT {
-                line[c] += wr * row[c];
+            rhs[r] += wd * row[r];
+            for (a, b) in line.iter_mut().zip(&row) {
+                *a += wr * b;
             }
         }
     }
-    let lambda = f64::from(ridge) * total.max(1e-12);
+    let lambda = f64::from(ridge) * f64::from(total).max(1e-12);
     let nodes = field.nodes();
+    let a = &mut scratch.solve;
+    for r in 0..LOCAL_COUNT {
+        for c in 0..LOCAL_COUNT {
+            a[r * LOCAL_COUNT + c] = f64::from(scratch.normal[r][c]);
+        }
+        scratch.rhs[r] = f64::from(rhs[r]);
+    }
     for (c, g) in nodes.iter().enumerate() {
         let plane = -normal.dot(*g - point);
         a[c * LOCAL_COUNT + c] += lambda;
         scratch.rhs[c] += lambda * f64::from(plane);
-    }
-    for r in 0..LOCAL_COUNT {
-        for c in 0..r {
-            a[r * LOCAL_COUNT + c] = a[c * LOCAL_COUNT + r];
-        }
     }
     let x = cholesky_solve(a, &scratch.rhs)?;
     for (p, v) in field.coeffs.iter_mut().zip(x) {

@@ -116,13 +116,19 @@ fn thread_count(requested: usize, work: usize) -> usize {
     t.clamp(1, (work / 256).max(1))
 }
 
-/// Runs `job(first, chunk)` over `out` split into `threads` contiguous chunks.
-fn par_chunks<T: Send>(out: &mut [T], threads: usize, job: impl Fn(usize, &mut [T]) + Sync) {
-    if threads <= 1 || out.len() < 2 {
+/// Runs `job(first, chunk)` over `out` split into `threads` contiguous chunks, each a whole
+/// number of `unit`s long.
+fn par_chunks<T: Send>(
+    out: &mut [T],
+    unit: usize,
+    threads: usize,
+    job: impl Fn(usize, &mut [T]) + Sync,
+) {
+    if threads <= 1 || out.len() < 2 * unit {
         job(0, out);
         return;
     }
-    let size = out.len().div_ceil(threads);
+    let size = out.len().div_ceil(unit).div_ceil(threads) * unit;
     std::thread::scope(|s| {
         for (c, chunk) in out.chunks_mut(size).enumerate() {
             let job = &job;
@@ -145,7 +151,7 @@ pub fn nearest_neighbours(
         .map_err(|e| PointSetError::Index(format!("{e:?}")))?;
     let mut out = vec![0u32; points.len() * k];
     let want = NonZero::new(k + 1).unwrap_or(NonZero::<usize>::MIN);
-    par_chunks(&mut out, threads, |first, chunk| {
+    par_chunks(&mut out, k, threads, |first, chunk| {
         let first_point = first / k;
         for (n, slot) in chunk.chunks_mut(k).enumerate() {
             let i = first_point + n;
@@ -213,7 +219,7 @@ impl PointSet {
                 .collect(),
             _ => {
                 let mut normals = vec![Vec3::Z; points.len()];
-                par_chunks(&mut normals, threads, |first, chunk| {
+                par_chunks(&mut normals, 1, threads, |first, chunk| {
                     for (n, slot) in chunk.iter_mut().enumerate() {
                         let i = first + n;
                         let around = std::iter::once(i as u32)
@@ -234,7 +240,7 @@ impl PointSet {
         let t = Instant::now();
         let mut fields = vec![LocalField::zero(Vec3::ZERO, 1.0); points.len()];
         let failed = std::sync::atomic::AtomicUsize::new(usize::MAX);
-        par_chunks(&mut fields, threads, |first, chunk| {
+        par_chunks(&mut fields, 1, threads, |first, chunk| {
             let mut scratch = FitScratch::default();
             let mut samples = Vec::with_capacity(3 * (k + 1));
             for (n, slot) in chunk.iter_mut().enumerate() {
