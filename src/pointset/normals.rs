@@ -108,21 +108,41 @@ impl PartialOrd for Edge {
 }
 
 /// Flips normals in place so neighbours agree, by Prim's minimal spanning tree over the
-/// neighbour lists `neighbours[i]` (indices; need not be symmetric, each list is used both
-/// ways). Each connected part is rooted at its highest point, turned to face `+z`.
-pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[Vec<u32>]) {
+/// neighbour lists (`k` indices per point, flat: point `i`'s are `neighbours[i k .. (i + 1) k]`;
+/// they need not be symmetric, each is used both ways). Each connected part is rooted at its
+/// highest point, turned to face `+z`.
+///
+/// # Panics
+/// When `neighbours` is not `k` entries per point or names a point that does not exist.
+pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[u32], k: usize) {
     let n = points.len();
-    // Symmetric adjacency: the lists plus their reverse.
-    let mut adj: Vec<Vec<u32>> = neighbours.to_vec();
-    for (i, list) in neighbours.iter().enumerate() {
+    assert_eq!(neighbours.len(), n * k, "k neighbours per point");
+    // Symmetric adjacency in one flat array (CSR): each list plus its reverse.
+    let mut start = vec![0u32; n + 1];
+    for (i, list) in neighbours.chunks(k.max(1)).enumerate() {
+        start[i + 1] += list.len() as u32;
         for &j in list {
-            adj[j as usize].push(i as u32);
+            start[j as usize + 1] += 1;
+        }
+    }
+    for i in 0..n {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut adj = vec![0u32; start[n] as usize];
+    for (i, list) in neighbours.chunks(k.max(1)).enumerate() {
+        for &j in list {
+            adj[fill[i] as usize] = j;
+            fill[i] += 1;
+            adj[fill[j as usize] as usize] = i as u32;
+            fill[j as usize] += 1;
         }
     }
     let mut order: Vec<u32> = (0..n as u32).collect();
-    order.sort_by(|&a, &b| points[b as usize].z.total_cmp(&points[a as usize].z));
+    order.sort_unstable_by(|&a, &b| points[b as usize].z.total_cmp(&points[a as usize].z));
     let mut done = vec![false; n];
-    let mut heap = BinaryHeap::new();
+    let mut heap = BinaryHeap::with_capacity(4 * k);
+    let around = |i: u32| &adj[start[i as usize] as usize..start[i as usize + 1] as usize];
     for &root in &order {
         if done[root as usize] {
             continue;
@@ -131,7 +151,7 @@ pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[Vec<
             normals[root as usize] = -normals[root as usize];
         }
         done[root as usize] = true;
-        push_edges(root, normals, &adj, &done, &mut heap);
+        push_edges(root, normals, around(root), &done, &mut heap);
         while let Some(Edge { to, from, .. }) = heap.pop() {
             if done[to as usize] {
                 continue;
@@ -140,7 +160,7 @@ pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[Vec<
             if normals[to as usize].dot(normals[from as usize]) < 0.0 {
                 normals[to as usize] = -normals[to as usize];
             }
-            push_edges(to, normals, &adj, &done, &mut heap);
+            push_edges(to, normals, around(to), &done, &mut heap);
         }
     }
 }
@@ -148,12 +168,12 @@ pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[Vec<
 fn push_edges(
     from: u32,
     normals: &[Vec3],
-    adj: &[Vec<u32>],
+    around: &[u32],
     done: &[bool],
     heap: &mut BinaryHeap<Edge>,
 ) {
     let nf = normals[from as usize];
-    for &to in &adj[from as usize] {
+    for &to in around {
         if !done[to as usize] {
             let cost = 1.0 - nf.dot(normals[to as usize]).abs();
             heap.push(Edge { cost, to, from });
@@ -191,9 +211,9 @@ mod tests {
             points.push(p);
             normals.push(if i % 3 == 0 { -p } else { p });
         }
-        let neighbours: Vec<Vec<u32>> = points
+        let neighbours: Vec<u32> = points
             .iter()
-            .map(|p| {
+            .flat_map(|p| {
                 let mut idx: Vec<u32> = (0..count as u32).collect();
                 idx.sort_by(|&a, &b| {
                     (points[a as usize] - *p)
@@ -203,7 +223,7 @@ mod tests {
                 idx[1..9].to_vec()
             })
             .collect();
-        orient_over_mst(&points, &mut normals, &neighbours);
+        orient_over_mst(&points, &mut normals, &neighbours, 8);
         assert!(points.iter().zip(&normals).all(|(p, n)| p.dot(*n) > 0.0));
     }
 }

@@ -230,8 +230,7 @@ impl PointSet {
                 });
                 times.normals_ns = t.elapsed().as_nanos() as u64;
                 let t = Instant::now();
-                let lists: Vec<Vec<u32>> = nbrs.chunks(k).map(<[u32]>::to_vec).collect();
-                orient_over_mst(points, &mut normals, &lists);
+                orient_over_mst(points, &mut normals, &nbrs, k);
                 times.orient_ns = t.elapsed().as_nanos() as u64;
                 normals
             }
