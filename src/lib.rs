@@ -20,6 +20,7 @@ pub mod haptics;
 pub mod io;
 pub mod mesh;
 pub mod particles;
+pub mod pointset;
 pub mod rbf;
 pub mod render;
 pub mod tools;

@@ -35,6 +35,10 @@ pub enum Commands {
     /// Fit a clay to a point cloud (.xyz, .txt, .pts, .ply) or a volume (.raw, .nrrd) and
     /// write it as a session.
     Import(ImportArgs),
+    /// Build a point-set surface (Guo & Qin: a local B-spline field per point, blended) from a
+    /// point cloud, optionally pull it with the density-spring dynamics, and write the points
+    /// with their normals as PLY.
+    Points(PointsArgs),
     /// Sample a session's clay with constrained particles and write the compact RBF that
     /// interpolates them (Zhang et al. §5.3): centres, weights and a linear polynomial.
     Rbf(RbfArgs),
@@ -140,6 +144,46 @@ pub struct ImportArgs {
     /// anything is allocated (exit 2). Default: half of the machine's physical memory.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub memory_budget_mib: Option<u64>,
+}
+
+/// `dynaclay points`.
+#[derive(Debug, Args, Clone)]
+pub struct PointsArgs {
+    /// The point cloud: XYZ text (`x y z` or `x y z nx ny nz`), PLY, or a mesh (.obj, .stl)
+    /// sampled into points. Normals are estimated and oriented when the file has none.
+    #[arg(value_name = "INPUT")]
+    pub input: PathBuf,
+    /// The PLY file to write: positions, normals and colours.
+    #[arg(long, value_name = "OUT.ply")]
+    pub out: PathBuf,
+    /// Also write the blended surface (eq. 5) as a mesh (.obj, .ply or .stl).
+    #[arg(long, value_name = "FILE")]
+    pub mesh: Option<PathBuf>,
+    /// Pull the surface toward `X,Y,Z` (repeatable; one after another): the nearest surface
+    /// point is dragged there by the density-spring dynamics, with points inserted and removed
+    /// as the surface stretches.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    pub pull: Vec<[f32; 3]>,
+    /// Simulation steps per pull.
+    #[arg(long, default_value_t = 2000, value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub steps: u32,
+    /// Neighbours per point (`k`) for normals and local fits.
+    #[arg(long, default_value_t = 10, value_name = "K",
+          value_parser = clap::value_parser!(u32).range(4..=64))]
+    pub neighbours: u32,
+}
+
+fn parse_point(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("`{s}`: three numbers X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok([x, y, z]),
+        _ => Err(format!("`{s}`: three finite numbers X,Y,Z")),
+    }
 }
 
 /// Arguments kept for subcommands that other builds provide.

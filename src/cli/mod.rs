@@ -23,15 +23,19 @@ mod devices;
 mod import;
 mod outputs;
 mod platform;
+mod points;
 mod profile;
 mod rbf;
 mod render;
 mod run;
 mod sculpt;
 
-pub use args::{Cli, Commands, ImageArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode};
+pub use args::{
+    Cli, Commands, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode,
+};
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
 pub use platform::{PlatformJudged, PlatformWatch};
+pub use points::{PointsOutcome, points};
 pub use profile::profile;
 pub use rbf::{RbfCommandError, RbfOutcome, rbf};
 pub use render::render;
@@ -55,6 +59,7 @@ pub fn dispatch(cli: Cli) -> i32 {
         }),
         Commands::Render(a) => render(&a).map(|_| ()),
         Commands::Import(a) => import::import(&a),
+        Commands::Points(a) => points::points(&a).map(|_| ()),
         Commands::Rbf(a) => rbf(&a).map(|_| ()).map_err(CliError::Rbf),
     };
     match result {

@@ -1,0 +1,163 @@
+//! `dynaclay points`: a point cloud becomes a point-set surface (Guo & Qin), is optionally
+//! pulled by the density-spring dynamics with dynamic sampling, and is written as PLY with
+//! normals (and, when asked, the blended surface as a mesh).
+
+use glam::Vec3;
+
+use super::args::PointsArgs;
+use super::run::CliError;
+use crate::dynamics::{Distribution, Material, ToolForce, start_on_surface};
+use crate::fit::read_points;
+use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
+use crate::pointset::{
+    PointSet, PointSetOptions, PointSetSculpt, SamplingOptions, SculptOptions, resample,
+    write_point_ply,
+};
+
+/// Most mesh cells per axis.
+const MAX_MESH_CELLS: u32 = 512;
+/// Steps between two resamplings during a pull.
+const RESAMPLE_EVERY: u32 = 25;
+/// Density force per unit of force integral (field units are world units here).
+const PULL_GAIN: f32 = 5e6;
+
+/// What `dynaclay points` made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PointsOutcome {
+    /// Points read.
+    pub read: usize,
+    /// Points written.
+    pub written: usize,
+    /// The sampling spacing.
+    pub spacing_m: f32,
+    /// Construction time, seconds.
+    pub build_s: f64,
+}
+
+/// Runs `dynaclay points`.
+///
+/// # Errors
+/// A bad argument or unreadable input (exit 2), a failed build, sculpt or write (exit 1).
+pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
+    if args
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .as_deref()
+        != Some("ply")
+    {
+        return Err(CliError::Usage(format!(
+            "--out {}: the points are written as .ply",
+            args.out.display()
+        )));
+    }
+    let mesh_format = match &args.mesh {
+        Some(path) => Some(MeshFormat::from_path(path).ok_or_else(|| {
+            CliError::Usage(format!(
+                "--mesh {}: the extension must be .obj, .ply or .stl",
+                path.display()
+            ))
+        })?),
+        None => None,
+    };
+    let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
+    let options = PointSetOptions {
+        neighbours: args.neighbours as usize,
+        ..PointSetOptions::default()
+    };
+    let (mut set, times) = PointSet::build(&cloud, &options)
+        .map_err(|e| CliError::Usage(format!("{}: {e}", args.input.display())))?;
+    let build_s = times.total_ns() as f64 * 1e-9;
+    say!(
+        "{}: {} points, spacing {:.4}, built in {:.3} s",
+        args.input.display(),
+        set.len(),
+        set.spacing_m,
+        build_s
+    );
+    for target in &args.pull {
+        pull(&mut set, Vec3::from(*target), args.steps)?;
+    }
+    if let (Some(path), Some(format)) = (&args.mesh, mesh_format) {
+        let (lo, hi) = set.bounds();
+        let cell = 0.75 * set.spacing_m;
+        let cells = ((hi - lo) / cell).ceil() + Vec3::splat(2.0);
+        if cells.max_element() > MAX_MESH_CELLS as f32 {
+            return Err(CliError::Usage(format!(
+                "--mesh: the surface spans {} cells of {cell:.4} (at most {MAX_MESH_CELLS}); \
+                 thin the cloud first",
+                cells.max_element()
+            )));
+        }
+        let grid = SampleGrid::new(
+            lo - Vec3::splat(cell),
+            cell,
+            [cells.x as u32, cells.y as u32, cells.z as u32],
+        )
+        .map_err(|e| CliError::Output(e.to_string()))?;
+        let mesh = BrickOctree::build(grid, &set).weld();
+        write_mesh(path, &mesh, format).map_err(|e| CliError::Output(e.to_string()))?;
+        say!("{}: {} triangles", path.display(), mesh.triangle_count());
+    }
+    write_point_ply(&args.out, &set.points, &set.normals, &set.colours)
+        .map_err(|e| CliError::Output(e.to_string()))?;
+    say!("{}: {} points with normals", args.out.display(), set.len());
+    Ok(PointsOutcome {
+        read: cloud.points.len(),
+        written: set.len(),
+        spacing_m: set.spacing_m,
+        build_s,
+    })
+}
+
+/// Drags the surface point nearest to `target` there: a sculpting region around both, the
+/// dynamics for `steps` steps, resampling every [`RESAMPLE_EVERY`].
+fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
+    let fail = |e: crate::pointset::PointSetError| CliError::Output(format!("--pull: {e}"));
+    let nearest = set
+        .points
+        .iter()
+        .copied()
+        .min_by(|a, b| {
+            (*a - target)
+                .length_squared()
+                .total_cmp(&(*b - target).length_squared())
+        })
+        .ok_or_else(|| CliError::Usage("--pull: no points".into()))?;
+    let h = set.spacing_m;
+    let reach = (target - nearest).length();
+    let margin = Vec3::splat(reach + 6.0 * h);
+    let (lo, hi) = (nearest.min(target) - margin, nearest.max(target) + margin);
+    let mut opts = SculptOptions::for_spacing(h);
+    opts.material = Material {
+        yield_density: 0.0,
+        ..Material::PLASTIC
+    };
+    let mut sculpt = PointSetSculpt::new(set, lo, hi, &opts).map_err(fail)?;
+    let sampling = SamplingOptions::for_target(h);
+    let radius = (reach * 0.75).max(3.0 * h);
+    for step in 0..steps {
+        let start = start_on_surface(&sculpt.lattice, nearest, target);
+        let force = ToolForce {
+            start,
+            end: target,
+            distribution: Distribution::Gaussian,
+            radius,
+            gain: PULL_GAIN,
+        };
+        sculpt.step(set, &[force]).map_err(fail)?;
+        if step % RESAMPLE_EVERY == RESAMPLE_EVERY - 1 {
+            resample(set, Some(sculpt.grid_box()), &sampling).map_err(fail)?;
+            sculpt.enlist(set);
+        }
+    }
+    resample(set, Some(sculpt.grid_box()), &sampling).map_err(fail)?;
+    set.reindex().map_err(fail)?;
+    say!(
+        "pull to {target}: {} points in the region, {} points in all",
+        sculpt.member_count(),
+        set.len()
+    );
+    Ok(())
+}

@@ -1,0 +1,30 @@
+//! Point-set surfaces with local B-spline fields (Guo & Qin 2003): each point sample carries a
+//! small trivariate B-spline distance field (§3), the fields blend into one global field
+//! (eq. 5), the global field gets the density-spring dynamics of Hua & Qin on a mass-spring
+//! grid (§4), points are inserted and removed as the surface stretches (§4.3), and booleans
+//! keep their intersection curve sharp by keeping two patches (§5.1, Table 1).
+//!
+//! Nothing here runs on the haptic thread: construction, sampling and booleans allocate; the
+//! per-step update of [`PointSetSculpt`] allocates nothing after its set-up.
+
+mod boolean;
+mod error;
+mod local;
+mod normals;
+mod ply;
+mod sampling;
+mod sculpt;
+mod surface;
+
+pub use boolean::{BooleanOp, SharpBoolean};
+pub use error::PointSetError;
+pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
+pub use normals::{orient_over_mst, plane_normal};
+pub use ply::{encode_point_ply, write_point_ply};
+pub use sampling::{
+    SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings, resample,
+};
+pub use sculpt::{CornerBlend, PointSetSculpt, SculptOptions, UpdateTimes};
+pub use surface::{
+    BuildTimes, DEFAULT_COLOUR, FALLBACK_WEIGHT, PointSet, PointSetOptions, nearest_neighbours,
+};
