@@ -1,12 +1,12 @@
 //! Zhang et al. §5.4: the clay is the RBF. Fifty contact actions (dents and bulges) leave the
 //! centre count at `3N`, and the RBF's zero set stays within 1% of the same actions applied to
-//! the B-spline clay.
+//! the B-spline clay: the Hausdorff distance, both ways, between the two surfaces meshed by the
+//! same mesher on the same grid.
 
 use dynaclay::field::{
     BSplineLattice, Primitive, coeff_box_around, lattice_from_primitive, refit_box_edit,
 };
-use dynaclay::particles::{ParticleParams, ParticleSystem};
-use dynaclay::rbf::{Rbf, RbfOptions, RbfSculpt};
+use dynaclay::rbf::{RbfOptions, RbfSculpt, clay_rbf_distance};
 use dynaclay::tools::ContactParams;
 use glam::Vec3;
 
@@ -30,21 +30,6 @@ fn contact_on_clay(
     .unwrap();
 }
 
-fn zero_set_distance(field: &BSplineLattice, rbf: &Rbf, p: Vec3, reach: f64) -> Option<f64> {
-    let n = -field.gradient(p).normalize().as_dvec3();
-    let p = p.as_dvec3();
-    let f = |t: f64| rbf.value(p + n * t);
-    let (mut a, mut b) = (-reach, reach);
-    if !(f(a) > 0.0 && f(b) < 0.0) {
-        return None;
-    }
-    for _ in 0..60 {
-        let m = 0.5 * (a + b);
-        if f(m) > 0.0 { a = m } else { b = m }
-    }
-    Some(0.5 * (a + b))
-}
-
 #[test]
 fn fifty_contact_actions_keep_the_centre_count_and_follow_the_clay() {
     let sphere = Primitive::Sphere {
@@ -54,7 +39,11 @@ fn fifty_contact_actions_keep_the_centre_count_and_follow_the_clay() {
     let (lo, hi) = sphere.bounds();
     let diag = f64::from((hi - lo).length());
     let mut clay = lattice_from_primitive([25; 3], SPACING, Vec3::ZERO, &sphere, WIDTH, 2).unwrap();
-    let n = 350;
+    // 450 particles (1350 centres). Measured on this test (worst of both directions, % of
+    // the diagonal): 350 → 1.09, 400 → 1.02, 450 → 0.77, 500 → 0.70; the mean falls with N
+    // (4.6, 4.2, 3.5, 3.2 thousandths of a unit). An offset of 0.03 instead of 0.05 and 60
+    // steps per action instead of 40 change it by at most 0.01 point.
+    let n = 450;
     let mut sculpt = RbfSculpt::from_clay(&clay, n, 120, RbfOptions::with_offset(0.05)).unwrap();
     assert_eq!(sculpt.rbf().len(), 3 * n);
     let dwell = 0.002;
@@ -74,28 +63,20 @@ fn fifty_contact_actions_keep_the_centre_count_and_follow_the_clay() {
         assert_eq!(sculpt.rbf().len(), 3 * n, "action {k}");
         contact_on_clay(&mut clay, &params, &tool, dwell);
     }
-    // The edited clay's surface, sampled by particles of its own, against the RBF.
-    let mut probes = ParticleSystem::new(ParticleParams::new(400)).unwrap();
-    probes.seed_random(&clay, 400, 17).unwrap();
-    probes.settle(&clay, 100);
-    let reach = 0.05 * diag;
-    let (mut worst, mut sum) = (0.0f64, 0.0);
-    for &p in probes.positions() {
-        let d = zero_set_distance(&clay, sculpt.rbf(), p, reach)
-            .unwrap_or_else(|| panic!("no zero of the RBF near {p}"))
-            .abs();
-        worst = worst.max(d);
-        sum += d;
-    }
+    // The edited clay's surface against the RBF's zero set: both meshed by the same mesher on
+    // the same grid, Hausdorff both ways.
+    let h = clay_rbf_distance(&clay, sculpt.rbf(), 4)
+        .unwrap()
+        .expect("both meshes");
     eprintln!(
-        "after 50 actions: {} centres, RBF zero set from the clay: worst {worst:.4} ({:.2}% of the \
-         diagonal {diag:.3}), mean {:.5}",
+        "after 50 actions: {} centres; meshes: clay→RBF worst {:.4} mean {:.5}, RBF→clay worst \
+         {:.4} mean {:.5} ({:.2}% of the diagonal {diag:.3})",
         sculpt.rbf().len(),
-        100.0 * worst / diag,
-        sum / probes.len() as f64
+        h.a_to_b,
+        h.mean_a_to_b,
+        h.b_to_a,
+        h.mean_b_to_a,
+        100.0 * f64::from(h.max()) / diag
     );
-    // The issue asks for 1%; this build lands between 0.96% and 1.06% of the diagonal
-    // depending on the last bits of the clay's fit (the mean is 0.2%), so the test holds the
-    // margin it can keep reliably and the gap is reported, not hidden.
-    assert!(worst < 0.015 * diag, "worst {worst}");
+    assert!(f64::from(h.max()) <= 0.01 * diag, "Hausdorff {h:?}");
 }

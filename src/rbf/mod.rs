@@ -5,10 +5,12 @@
 
 mod file;
 mod fit;
+mod mesh;
 mod sculpt;
 
 pub use file::{
     MAGIC, MAX_CENTRES, RbfFile, RbfFileError, VERSION, decode, encode, read_rbf, write_rbf,
 };
 pub use fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface, solve_rbf};
+pub use mesh::{clay_and_rbf_meshes, clay_rbf_distance};
 pub use sculpt::{RbfSculpt, RbfSculptError};
