@@ -4,10 +4,12 @@
 use std::path::Path;
 
 use super::args::RbfArgs;
-use crate::field::{BSplineLattice, FitError, fit_lattice};
+use crate::field::FitError;
 use crate::io::{Session, SessionError, load_session, save_session};
-use crate::particles::{ParticleError, ParticleParams, ParticleSystem};
-use crate::rbf::{RbfError, RbfFile, RbfFileError, RbfOptions, fit_surface, write_rbf};
+use crate::particles::ParticleError;
+use crate::rbf::{
+    ClayRbf, ExportError, ExportOptions, RbfError, RbfFileError, clay_to_rbf, write_rbf,
+};
 use crate::tools::Clay;
 
 /// Why `dynaclay rbf` failed.
@@ -36,6 +38,17 @@ pub enum RbfCommandError {
     Save(#[source] SessionError),
 }
 
+impl From<ExportError> for RbfCommandError {
+    fn from(e: ExportError) -> Self {
+        match e {
+            ExportError::NoPatches => Self::Usage(e.to_string()),
+            ExportError::Particles(e) => Self::Particles(e),
+            ExportError::Flatten(e) => Self::Flatten(e),
+            ExportError::Fit(e) => Self::Fit(e),
+        }
+    }
+}
+
 impl RbfCommandError {
     /// The process exit code: 2 for bad input, 1 for a failure.
     #[must_use]
@@ -56,21 +69,6 @@ pub struct RbfOutcome {
     pub centres: usize,
     /// Largest interpolation residual, world units.
     pub max_residual: f64,
-}
-
-/// The clay as one lattice: the first patch, or (several patches) a lattice of the first
-/// patch's geometry least-squares fitted to their clamped sum.
-fn flatten(clay: &Clay) -> Result<BSplineLattice, RbfCommandError> {
-    let first = clay
-        .patches
-        .first()
-        .ok_or_else(|| RbfCommandError::Usage("the session's clay has no patches".into()))?;
-    if clay.patches.len() == 1 {
-        return Ok(first.clone());
-    }
-    let mut lattice = first.clone();
-    fit_lattice(&mut lattice, 2, |x| clay.density(x).clamp(0.0, 1.0))?;
-    Ok(lattice)
 }
 
 fn check_extension(path: &Path, ext: &str, flag: &str) -> Result<(), RbfCommandError> {
@@ -94,25 +92,19 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         check_extension(clay, "dclay", "--clay")?;
     }
     let session = load_session(&args.session).map_err(RbfCommandError::Session)?;
-    let lattice = flatten(&session.clay)?;
-    let mut particles = ParticleSystem::new(ParticleParams::new(args.particles as usize))?;
-    particles.seed_random(&lattice, args.particles as usize, args.seed)?;
-    particles.settle(&lattice, args.steps as usize);
-    let offset = args
-        .offset
-        .map_or(0.5 * f64::from(lattice.spacing), f64::from);
-    let options = RbfOptions {
+    let options = ExportOptions {
+        particles: args.particles as usize,
+        steps: args.steps as usize,
+        seed: args.seed,
+        offset: args.offset.map(f64::from),
         max_centres: args.max_centres as usize,
-        ..RbfOptions::with_offset(offset)
     };
-    let (function, report) = fit_surface(&lattice, particles.positions(), &options)?;
-    let file = RbfFile {
-        rbf: function,
-        dims: lattice.dims,
-        spacing: lattice.spacing,
-        origin: lattice.origin,
-        iso: lattice.iso,
-    };
+    let ClayRbf {
+        particles,
+        file,
+        report,
+        ..
+    } = clay_to_rbf(&session.clay, &options)?;
     write_rbf(&args.out, &file)?;
     say!(
         "rbf: {} particles, {} centres of {} constraints ({} greedy rounds), largest residual {:.2e}; wrote {}",

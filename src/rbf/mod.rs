@@ -3,11 +3,16 @@
 //! points offset along the normal (Zhang et al. §5.3, eq. 9–12), with its file format and the
 //! way back to a clay.
 
+mod export;
 mod file;
 mod fit;
 mod mesh;
 mod sculpt;
 
+pub use export::{
+    ClayRbf, ExportError, ExportOptions, clay_to_rbf, flatten_clay, settle_particles,
+    write_particles,
+};
 pub use file::{
     MAGIC, MAX_CENTRES, RbfFile, RbfFileError, VERSION, decode, encode, read_rbf, write_rbf,
 };
