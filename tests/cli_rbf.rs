@@ -241,3 +241,61 @@ fn bad_particles_and_rbf_steps_are_refused_with_their_key() {
     }
     assert!(!dir.path().join("c.rbf").exists());
 }
+
+/// `--sculpt SCRIPT`: the script's contact tool steps are applied to the clay held as the
+/// RBF, which keeps its centres; any other step is refused with its number (exit 2).
+#[test]
+fn sculpt_applies_contact_steps_to_the_rbf_and_refuses_others() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("in.dclay");
+    write_sphere_session(&session);
+    let script = dir.path().join("edits.toml");
+    let out = dir.path().join("sculpted.rbf");
+    let run = |steps: &str| {
+        std::fs::write(&script, format!("version = 1\n{steps}")).unwrap();
+        Command::new(BIN)
+            .args([
+                "rbf",
+                session.to_str().unwrap(),
+                "--particles",
+                "100",
+                "--out",
+            ])
+            .arg(&out)
+            .arg("--sculpt")
+            .arg(&script)
+            .output()
+            .unwrap()
+    };
+    let contact = "\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_m = 0.3 }\n\
+                   action = { kind = \"contact\", alpha = -1.0 }\npositions = [[1.0, 1.0, 1.6], \
+                   [1.0, 1.6, 1.0]]\nfalloff_m = 0.1\nduration_s = 0.004\n";
+    let done = run(contact);
+    let stdout = String::from_utf8_lossy(&done.stdout);
+    assert!(
+        done.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&done.stderr)
+    );
+    assert!(
+        stdout.contains("2 contact actions applied to the clay as the RBF (300 centres)"),
+        "{stdout}"
+    );
+    let file = read_rbf(&out).unwrap();
+    assert_eq!(file.rbf.len(), 300);
+    // The dent: the surface under the first position moved inward.
+    assert!(file.rbf.value(DVec3::new(1.0, 1.0, 1.58)) < 0.0);
+    std::fs::remove_file(&out).unwrap();
+
+    let refused = run(&format!(
+        "{contact}\n[[step]]\ndo = \"tool\"\nshape = {{ kind = \"sphere\", radius_m = 0.2 }}\n\
+         action = {{ kind = \"remove\" }}\npositions = [[1.0, 1.0, 1.6]]\n"
+    ));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("step 2: the RBF clay takes contact tools only, not the remove action"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+}

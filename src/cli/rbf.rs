@@ -5,10 +5,12 @@ use std::path::Path;
 
 use super::args::RbfArgs;
 use crate::field::FitError;
+use crate::io::load_script;
 use crate::io::{Session, SessionError, load_session, save_session};
 use crate::particles::ParticleError;
 use crate::rbf::{
-    ClayRbf, ExportError, ExportOptions, RbfError, RbfFileError, clay_to_rbf, write_rbf,
+    ClayRbf, ExportError, ExportOptions, RbfError, RbfFileError, RbfOptions, RbfSculpt,
+    RbfSculptError, clay_to_rbf, flatten_clay, write_rbf,
 };
 use crate::tools::Clay;
 
@@ -33,6 +35,9 @@ pub enum RbfCommandError {
     /// Writing the RBF file or importing it back failed (exit 1).
     #[error("{0}")]
     File(#[from] RbfFileError),
+    /// Sculpting the clay as the RBF failed (exit 1; a refused step exits 2).
+    #[error("RBF sculpt: {0}")]
+    Sculpt(#[from] RbfSculptError),
     /// Writing the imported clay as a session failed (exit 1).
     #[error("writing the imported clay: {0}")]
     Save(#[source] SessionError),
@@ -54,8 +59,11 @@ impl RbfCommandError {
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Session(_) | Self::Particles(_) => 2,
-            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) => 1,
+            Self::Usage(_)
+            | Self::Session(_)
+            | Self::Particles(_)
+            | Self::Sculpt(RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. }) => 2,
+            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) | Self::Sculpt(_) => 1,
         }
     }
 }
@@ -99,16 +107,37 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         offset: args.offset.map(f64::from),
         max_centres: args.max_centres as usize,
     };
-    let ClayRbf {
-        particles,
-        file,
-        report,
-        ..
-    } = clay_to_rbf(&session.clay, &options)?;
+    let (particles, file, report) = match &args.sculpt {
+        None => {
+            let ClayRbf {
+                particles,
+                file,
+                report,
+                ..
+            } = clay_to_rbf(&session.clay, &options)?;
+            (particles.len(), file, report)
+        }
+        Some(path) => {
+            let script = load_script(path).map_err(|e| RbfCommandError::Usage(e.to_string()))?;
+            let lattice = flatten_clay(&session.clay)?;
+            let offset = options.offset.unwrap_or(0.5 * f64::from(lattice.spacing));
+            let fit = RbfOptions {
+                max_centres: options.max_centres,
+                ..RbfOptions::with_offset(offset)
+            };
+            let mut sculpt = RbfSculpt::from_clay(&lattice, options.particles, options.steps, fit)?;
+            let actions = sculpt.run_script(&script, &session.tools)?;
+            say!(
+                "rbf: {actions} contact actions applied to the clay as the RBF ({} centres)",
+                sculpt.rbf().len()
+            );
+            (sculpt.particles().len(), sculpt.to_file(), *sculpt.report())
+        }
+    };
     write_rbf(&args.out, &file)?;
     say!(
         "rbf: {} particles, {} centres of {} constraints ({} greedy rounds), largest residual {:.2e}; wrote {}",
-        particles.len(),
+        particles,
         report.centres,
         report.constraints,
         report.greedy_rounds,
@@ -125,7 +154,7 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         say!("rbf: imported back as a clay; wrote {}", path.display());
     }
     Ok(RbfOutcome {
-        particles: particles.len(),
+        particles,
         centres: report.centres,
         max_residual: report.max_residual,
     })
