@@ -414,6 +414,8 @@ impl ParticleSystem {
         self.desired.resize(n, Vec3::ZERO);
         let alpha = self.params.alpha;
         let reach = 3.0 * self.query_radius();
+        let ratio = self.params.curvature_ratio;
+        let biased = ratio.is_finite() && ratio > 1.0;
         for i in 0..n {
             let p = self.positions[i];
             let si = self.sigmas[i];
@@ -426,9 +428,13 @@ impl ParticleSystem {
                     return;
                 }
                 let sj = sigmas[j];
-                // Distances in the metric of the wanted density (1 without curvature bias).
-                let metric = ki * scale[j];
-                let r2 = r2 / metric;
+                // Distances in the metric of the wanted density (none without curvature bias).
+                let (r2, along) = if biased {
+                    let metric = ki * scale[j];
+                    (r2 / metric, metric.sqrt().recip())
+                } else {
+                    (r2, 1.0)
+                };
                 let cut = 3.0 * si.max(sj);
                 if r2 > cut * cut {
                     return;
@@ -438,7 +444,7 @@ impl ParticleSystem {
                 let eji = alpha * (-0.5 * r2 * inv_sj2).exp();
                 e += eij;
                 de += r2 * inv_si2 * eij;
-                d += (p - q) * ((eij * inv_si2 + eji * inv_sj2) / metric.sqrt());
+                d += (p - q) * ((eij * inv_si2 + eji * inv_sj2) * along);
             };
             match self.search {
                 NeighbourSearch::Pds => self.pds.for_each_within(p, reach, &mut pair),
