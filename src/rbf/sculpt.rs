@@ -54,11 +54,16 @@ pub enum RbfSculptError {
     },
 }
 
+/// A tool's potential (density in `[0, 1]`) at world points.
+type Potential<'a> = &'a dyn Fn(Vec3) -> f32;
+
+/// One contact action: the rule, the tool's potential and the dwell.
+type Action<'a> = (&'a ContactParams, Potential<'a>, f32);
+
 /// The function the particles sample: `I`, or `h = I + β·g` during an action.
 struct Edited<'a> {
     rbf: &'a Rbf,
-    /// The contact rule, the tool's potential and the dwell.
-    action: Option<(&'a ContactParams, &'a dyn Fn(Vec3) -> f32, f32)>,
+    action: Option<Action<'a>>,
     width: f32,
     iso: f32,
     bounds: (Vec3, Vec3),
