@@ -290,3 +290,49 @@ fn curvature_bias_reaches_the_density_ratio_asked() {
         }
     }
 }
+
+/// Particles following the clay in the graphics loop: each field update takes a fixed budget
+/// of steps and publishes the particles wait-free; a grown clay is followed, and a new `N`
+/// set through the handle is reached.
+#[test]
+fn a_follower_tracks_the_clay_and_the_count_a_viewer_sets() {
+    use dynaclay::engine::{HeadlessSink, MeshSink};
+    use dynaclay::particles::ParticleFollower;
+    use std::sync::atomic::Ordering;
+
+    let small = sphere();
+    let grown = clay(
+        &Primitive::Sphere {
+            centre: Vec3::splat(1.2),
+            radius: 0.8,
+        },
+        25,
+    );
+    let (mut follower, mut view) = ParticleFollower::new(HeadlessSink::default(), 400, 10).unwrap();
+    assert!(view.latest().is_initial());
+    for _ in 0..12 {
+        follower.field(&small);
+    }
+    let seen = view.latest();
+    assert_eq!(seen.value.updates, 12);
+    assert!((seen.value.positions.len() as f32 - 400.0).abs() <= 8.0);
+    assert_eq!(seen.value.normals.len(), seen.value.positions.len());
+    // The clay grows: a few updates bring the particles onto the new surface.
+    for _ in 0..4 {
+        follower.field(&grown);
+    }
+    let seen = &view.latest().value;
+    for (p, n) in seen.positions.iter().zip(&seen.normals) {
+        assert!(surface_distance(&grown, *p) < 0.05 * SPACING, "{p}");
+        let radial = (*p - Vec3::splat(1.2)).normalize();
+        assert!(n.dot(radial) > 0.99, "normal {n} at {p}");
+    }
+    // A viewer asks for 250 particles.
+    follower.count_handle().store(250, Ordering::Relaxed);
+    for _ in 0..30 {
+        follower.field(&grown);
+    }
+    let count = view.latest().value.positions.len();
+    assert!((count as f32 - 250.0).abs() <= 5.0, "count {count}");
+    assert!(follower.last_error().is_none());
+}
