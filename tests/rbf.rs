@@ -7,7 +7,8 @@ use dynaclay::field::{
 };
 use dynaclay::particles::{ParticleParams, ParticleSystem};
 use dynaclay::rbf::{
-    Rbf, RbfFile, RbfFileError, RbfOptions, decode, encode, fit_surface, read_rbf, write_rbf,
+    Rbf, RbfFile, RbfFileError, RbfOptions, clay_rbf_distance, decode, encode, fit_surface,
+    read_rbf, write_rbf,
 };
 use dynaclay::tools::ContactParams;
 use glam::{DVec3, Vec3};
@@ -78,6 +79,24 @@ fn accuracy(field: &BSplineLattice, rbf: &Rbf, samples: &[Vec3], diag: f32) -> (
     (worst, sum / samples.len() as f64)
 }
 
+/// The Hausdorff distance, both ways, between the meshes of the clay's surface and of the
+/// RBF's zero set (same mesher, same grid: four cells per knot span). Returns the larger.
+fn mesh_distance(field: &BSplineLattice, rbf: &Rbf, diag: f32, what: &str) -> f64 {
+    let h = clay_rbf_distance(field, rbf, 4)
+        .unwrap()
+        .unwrap_or_else(|| panic!("{what}: an empty mesh"));
+    eprintln!(
+        "{what}: meshes: clay→RBF worst {:.4} mean {:.5}, RBF→clay worst {:.4} mean {:.5} \
+         ({:.2}% of the diagonal {diag:.3})",
+        h.a_to_b,
+        h.mean_a_to_b,
+        h.b_to_a,
+        h.mean_b_to_a,
+        100.0 * h.max() / diag
+    );
+    f64::from(h.max())
+}
+
 fn check_shape(field: &BSplineLattice, diag: f32, n: usize, what: &str) -> Rbf {
     let surface = particles(field, n, 1);
     let (rbf, report) = fit_surface(field, &surface, &RbfOptions::with_offset(0.05)).unwrap();
@@ -88,12 +107,17 @@ fn check_shape(field: &BSplineLattice, diag: f32, n: usize, what: &str) -> Rbf {
     let samples = particles(field, 500, 99);
     let (worst, mean) = accuracy(field, &rbf, &samples, diag);
     eprintln!(
-        "{what}: {} centres, zero set from the clay: worst {worst:.4}, mean {mean:.5} \
-         (bounding-box diagonal {diag:.3}, {:.2}% worst)",
+        "{what}: {} centres, zero set from the clay along its normal: worst {worst:.4}, mean \
+         {mean:.5} (bounding-box diagonal {diag:.3}, {:.2}% worst)",
         report.centres,
         100.0 * worst / f64::from(diag)
     );
     assert!(worst < 0.01 * f64::from(diag), "{what}: worst {worst}");
+    let hausdorff = mesh_distance(field, &rbf, diag, what);
+    assert!(
+        hausdorff < 0.01 * f64::from(diag),
+        "{what}: Hausdorff {hausdorff} on meshes"
+    );
     rbf
 }
 
@@ -151,6 +175,11 @@ fn greedy_reduction_keeps_the_limit_and_the_accuracy() {
     let samples = particles(&field, 300, 7);
     let (worst, _) = accuracy(&field, &rbf, &samples, diag);
     assert!(worst < 0.01 * f64::from(diag), "greedy: worst {worst}");
+    let hausdorff = mesh_distance(&field, &rbf, diag, "greedy");
+    assert!(
+        hausdorff < 0.01 * f64::from(diag),
+        "greedy: Hausdorff {hausdorff}"
+    );
 }
 
 #[test]

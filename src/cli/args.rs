@@ -76,6 +76,10 @@ pub struct RbfArgs {
     /// Also import the RBF back as a clay and write it as this session (`.dclay`).
     #[arg(long, value_name = "FILE")]
     pub clay: Option<PathBuf>,
+    /// Sculpt the clay as the RBF (Zhang et al. §5.4) with this script's contact tool steps
+    /// before writing it: each action resamples and re-interpolates, the centre count stays.
+    #[arg(long, value_name = "SCRIPT")]
+    pub sculpt: Option<PathBuf>,
 }
 
 fn parse_positive(text: &str) -> Result<f32, String> {

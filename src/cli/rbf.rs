@@ -4,10 +4,14 @@
 use std::path::Path;
 
 use super::args::RbfArgs;
-use crate::field::{BSplineLattice, FitError, fit_lattice};
+use crate::field::FitError;
+use crate::io::load_script;
 use crate::io::{Session, SessionError, load_session, save_session};
-use crate::particles::{ParticleError, ParticleParams, ParticleSystem};
-use crate::rbf::{RbfError, RbfFile, RbfFileError, RbfOptions, fit_surface, write_rbf};
+use crate::particles::ParticleError;
+use crate::rbf::{
+    ClayRbf, ExportError, ExportOptions, RbfError, RbfFileError, RbfOptions, RbfSculpt,
+    RbfSculptError, clay_to_rbf, flatten_clay, write_rbf,
+};
 use crate::tools::Clay;
 
 /// Why `dynaclay rbf` failed.
@@ -31,9 +35,23 @@ pub enum RbfCommandError {
     /// Writing the RBF file or importing it back failed (exit 1).
     #[error("{0}")]
     File(#[from] RbfFileError),
+    /// Sculpting the clay as the RBF failed (exit 1; a refused step exits 2).
+    #[error("RBF sculpt: {0}")]
+    Sculpt(#[from] RbfSculptError),
     /// Writing the imported clay as a session failed (exit 1).
     #[error("writing the imported clay: {0}")]
     Save(#[source] SessionError),
+}
+
+impl From<ExportError> for RbfCommandError {
+    fn from(e: ExportError) -> Self {
+        match e {
+            ExportError::NoPatches => Self::Usage(e.to_string()),
+            ExportError::Particles(e) => Self::Particles(e),
+            ExportError::Flatten(e) => Self::Flatten(e),
+            ExportError::Fit(e) => Self::Fit(e),
+        }
+    }
 }
 
 impl RbfCommandError {
@@ -41,8 +59,11 @@ impl RbfCommandError {
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Session(_) | Self::Particles(_) => 2,
-            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) => 1,
+            Self::Usage(_)
+            | Self::Session(_)
+            | Self::Particles(_)
+            | Self::Sculpt(RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. }) => 2,
+            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) | Self::Sculpt(_) => 1,
         }
     }
 }
@@ -56,23 +77,6 @@ pub struct RbfOutcome {
     pub centres: usize,
     /// Largest interpolation residual, world units.
     pub max_residual: f64,
-}
-
-/// The clay as one lattice: the first patch, or (several patches) a lattice of the first
-/// patch's geometry least-squares fitted to their clamped sum.
-fn flatten(clay: &Clay) -> Result<BSplineLattice, RbfCommandError> {
-    let first = &clay
-        .density
-        .patches
-        .first()
-        .ok_or_else(|| RbfCommandError::Usage("the session's clay has no patches".into()))?
-        .lattice;
-    if clay.density.patches.len() == 1 && clay.density.patches[0].is_identity() {
-        return Ok(first.clone());
-    }
-    let mut lattice = first.clone();
-    fit_lattice(&mut lattice, 2, |x| clay.density.value(x).clamp(0.0, 1.0))?;
-    Ok(lattice)
 }
 
 fn check_extension(path: &Path, ext: &str, flag: &str) -> Result<(), RbfCommandError> {
@@ -96,29 +100,44 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         check_extension(clay, "dclay", "--clay")?;
     }
     let session = load_session(&args.session).map_err(RbfCommandError::Session)?;
-    let lattice = flatten(&session.clay)?;
-    let mut particles = ParticleSystem::new(ParticleParams::new(args.particles as usize))?;
-    particles.seed_random(&lattice, args.particles as usize, args.seed)?;
-    particles.settle(&lattice, args.steps as usize);
-    let offset = args
-        .offset
-        .map_or(0.5 * f64::from(lattice.spacing), f64::from);
-    let options = RbfOptions {
+    let options = ExportOptions {
+        particles: args.particles as usize,
+        steps: args.steps as usize,
+        seed: args.seed,
+        offset: args.offset.map(f64::from),
         max_centres: args.max_centres as usize,
-        ..RbfOptions::with_offset(offset)
     };
-    let (function, report) = fit_surface(&lattice, particles.positions(), &options)?;
-    let file = RbfFile {
-        rbf: function,
-        dims: lattice.dims,
-        spacing: lattice.spacing,
-        origin: lattice.origin,
-        iso: lattice.iso,
+    let (particles, file, report) = match &args.sculpt {
+        None => {
+            let ClayRbf {
+                particles,
+                file,
+                report,
+                ..
+            } = clay_to_rbf(&session.clay, &options)?;
+            (particles.len(), file, report)
+        }
+        Some(path) => {
+            let script = load_script(path).map_err(|e| RbfCommandError::Usage(e.to_string()))?;
+            let lattice = flatten_clay(&session.clay)?;
+            let offset = options.offset.unwrap_or(0.5 * f64::from(lattice.spacing));
+            let fit = RbfOptions {
+                max_centres: options.max_centres,
+                ..RbfOptions::with_offset(offset)
+            };
+            let mut sculpt = RbfSculpt::from_clay(&lattice, options.particles, options.steps, fit)?;
+            let actions = sculpt.run_script(&script, &session.tools)?;
+            say!(
+                "rbf: {actions} contact actions applied to the clay as the RBF ({} centres)",
+                sculpt.rbf().len()
+            );
+            (sculpt.particles().len(), sculpt.to_file(), *sculpt.report())
+        }
     };
     write_rbf(&args.out, &file)?;
     say!(
         "rbf: {} particles, {} centres of {} constraints ({} greedy rounds), largest residual {:.2e}; wrote {}",
-        particles.len(),
+        particles,
         report.centres,
         report.constraints,
         report.greedy_rounds,
@@ -135,7 +154,7 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         say!("rbf: imported back as a clay; wrote {}", path.display());
     }
     Ok(RbfOutcome {
-        particles: particles.len(),
+        particles,
         centres: report.centres,
         max_residual: report.max_residual,
     })

@@ -388,12 +388,12 @@ fn lexical_absolute(path: &Path) -> PathBuf {
     out
 }
 
-/// Refuses a script whose `save` steps would write outside the script's folder and the
+/// Refuses a script whose `save`, `particles` or `rbf` steps would write outside the script's folder and the
 /// output directory (`--allow-outside` lifts this).
 fn check_save_folders(plan: &ScriptPlan, script_dir: &Path, out: &Path) -> Result<(), CliError> {
     let allowed = [lexical_absolute(script_dir), lexical_absolute(out)];
     for event in &plan.events {
-        if let crate::engine::PlannedAction::Save(path) = &event.action {
+        if let Some((kind, path)) = event.action.output() {
             let target = lexical_absolute(path);
             if !allowed.iter().any(|dir| target.starts_with(dir)) {
                 return Err(CliError::Script(ScriptError {
@@ -402,7 +402,7 @@ fn check_save_folders(plan: &ScriptPlan, script_dir: &Path, out: &Path) -> Resul
                     column: None,
                     step: Some(event.step),
                     message: format!(
-                        "save: {} is outside the script's folder and the output directory; pass --allow-outside to write there",
+                        "{kind}: {} is outside the script's folder and the output directory; pass --allow-outside to write there",
                         path.display()
                     ),
                 }));
@@ -492,6 +492,7 @@ fn finish_run(
     for e in &io.errors {
         eprintln!("dynaclay: autosave or save failed: {e}");
     }
+    driver.wait_for_exports();
     let unsent = driver.unsent_steps();
     if !unsent.is_empty() {
         say!("note: script steps {unsent:?} were not reached");

@@ -8,7 +8,7 @@
 //! run, so a lockstep run is exactly reproducible):
 //!
 //! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `constrain`,
-//!   `unconstrain`, `undo`, `redo`, `save`) takes no script time. It is sent when the clock reaches the end of everything
+//!   `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`) takes no script time. It is sent when the clock reaches the end of everything
 //!   before it — after the previous stroke has ended with the hand back at hover — and the
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
@@ -64,6 +64,24 @@ duration_s = 1.6
 hover_fu = 0.35
 "#;
 
+/// The sampling and fitting a `particles` or `rbf` step asks for (defaults where absent).
+fn export_options(
+    particles: usize,
+    steps: Option<u32>,
+    seed: Option<u64>,
+    offset: Option<f32>,
+    max_centres: Option<u32>,
+) -> crate::rbf::ExportOptions {
+    let d = crate::rbf::ExportOptions::default();
+    crate::rbf::ExportOptions {
+        particles,
+        steps: steps.map_or(d.steps, |k| k as usize),
+        seed: seed.unwrap_or(d.seed),
+        offset: offset.map(f64::from),
+        max_centres: max_centres.map_or(d.max_centres, |m| m as usize),
+    }
+}
+
 /// The built-in default script.
 #[must_use]
 pub fn builtin_script() -> Script {
@@ -113,6 +131,30 @@ pub enum PlannedAction {
     Constrain(PinRequest),
     /// Remove one pin, or all.
     Unconstrain(Option<usize>),
+    /// Copy the clay and settle particles on it (beside the engine); write them to `out`.
+    Particles {
+        options: crate::rbf::ExportOptions,
+        out: Option<std::path::PathBuf>,
+    },
+    /// Copy the clay, sample and interpolate it (beside the engine), and write the RBF.
+    Rbf {
+        options: crate::rbf::ExportOptions,
+        out: std::path::PathBuf,
+    },
+}
+
+impl PlannedAction {
+    /// The file this action writes, if any, with its step's name (`save`, `particles` with
+    /// `out`, `rbf`).
+    #[must_use]
+    pub fn output(&self) -> Option<(&'static str, &Path)> {
+        match self {
+            Self::Save(path) => Some(("save", path)),
+            Self::Rbf { out, .. } => Some(("rbf", out)),
+            Self::Particles { out, .. } => out.as_deref().map(|p| ("particles", p)),
+            _ => None,
+        }
+    }
 }
 
 /// One timed action.
@@ -198,6 +240,8 @@ impl ScriptPlan {
         let mut strokes = Vec::new();
         let mut clock = 0.0_f64;
         let mut held: Option<ToolChoice> = None;
+        // The count `rbf` steps use when they name none: the last `particles` step's.
+        let mut particle_count = crate::rbf::ExportOptions::default().particles;
         for (n, step) in script.steps.iter().enumerate() {
             let at = n + 1;
             let fail = |message: String| ScriptError {
@@ -359,6 +403,32 @@ impl ScriptPlan {
                 ScriptStep::Constrain { kind, at, points } => {
                     let request = pin_request(*kind, *at, points).map_err(|f| fail(f.message))?;
                     event(PlannedAction::Constrain(request));
+                }
+                ScriptStep::Particles {
+                    count,
+                    steps,
+                    seed,
+                    out,
+                } => {
+                    particle_count = *count as usize;
+                    event(PlannedAction::Particles {
+                        options: export_options(particle_count, *steps, *seed, None, None),
+                        out: out.as_ref().map(|p| base_dir.join(p)),
+                    });
+                }
+                ScriptStep::Rbf {
+                    out,
+                    particles,
+                    offset,
+                    max_centres,
+                    steps,
+                    seed,
+                } => {
+                    let count = particles.map_or(particle_count, |n| n as usize);
+                    event(PlannedAction::Rbf {
+                        options: export_options(count, *steps, *seed, *offset, *max_centres),
+                        out: base_dir.join(out),
+                    });
                 }
                 ScriptStep::Unconstrain { index } => {
                     // Checked non-negative and bounded when the script was parsed.

@@ -10,7 +10,63 @@ use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 use super::command::{Command, Reply};
 use super::plan::{PlannedAction, PlannedEvent, ScriptPlan};
 use super::tool_sample::ToolSample;
-use crate::io::ScriptError;
+use crate::io::{ScriptError, Session};
+use crate::rbf::{
+    ExportOptions, clay_to_rbf, flatten_clay, settle_particles, write_particles, write_rbf,
+};
+
+/// A `particles` or `rbf` step: what it computes from the clay's copy.
+#[derive(Debug)]
+enum ExportJob {
+    Particles {
+        options: ExportOptions,
+        out: Option<std::path::PathBuf>,
+    },
+    Rbf {
+        options: ExportOptions,
+        out: std::path::PathBuf,
+    },
+}
+
+/// Where a `particles` or `rbf` step is: waiting for the engine's copy of the session, or
+/// running on a thread of its own (never on a loop: sampling and solving take seconds).
+enum ExportState {
+    Waiting(ExportJob, Receiver<Session>),
+    Running(Receiver<Result<String, String>>),
+}
+
+impl ExportJob {
+    /// Samples (and interpolates) `session`'s clay and writes the result; the note to tell.
+    fn run(self, session: &Session) -> Result<String, String> {
+        match self {
+            Self::Particles { options, out } => {
+                let lattice = flatten_clay(&session.clay).map_err(|e| e.to_string())?;
+                let particles =
+                    settle_particles(&lattice, &options).map_err(|e| format!("particles: {e}"))?;
+                let mut note = format!("{} particles settled", particles.len());
+                if let Some(out) = out {
+                    write_particles(&out, &lattice, particles.positions())
+                        .map_err(|e| format!("particles: {e}"))?;
+                    note += &format!("; wrote {}", out.display());
+                }
+                Ok(note)
+            }
+            Self::Rbf { options, out } => {
+                let fitted = clay_to_rbf(&session.clay, &options).map_err(|e| e.to_string())?;
+                write_rbf(&out, &fitted.file).map_err(|e| format!("rbf: {e}"))?;
+                Ok(format!(
+                    "rbf: {} particles, {} centres of {} constraints, largest residual {:.2e}; \
+                     wrote {}",
+                    fitted.particles.len(),
+                    fitted.report.centres,
+                    fitted.report.constraints,
+                    fitted.report.max_residual,
+                    out.display()
+                ))
+            }
+        }
+    }
+}
 
 /// A plan being played.
 pub struct ScriptDriver {
@@ -26,6 +82,8 @@ pub struct ScriptDriver {
     )>,
     /// Outcomes worth telling the user (pins: which points were moved onto the surface).
     telling: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
+    /// `particles` and `rbf` steps not finished: (step, state).
+    exports: Vec<(usize, ExportState)>,
     notes: Vec<(usize, String)>,
     failures: Vec<ScriptError>,
     sent: usize,
@@ -45,6 +103,7 @@ impl ScriptDriver {
             waiting: Vec::new(),
             saves: Vec::new(),
             telling: Vec::new(),
+            exports: Vec::new(),
             notes: Vec::new(),
             failures: Vec::new(),
             sent: 0,
@@ -175,6 +234,12 @@ impl ScriptDriver {
                     reply: Some(tx),
                 }]
             }
+            PlannedAction::Particles { options, out } => {
+                self.export(step, ExportJob::Particles { options, out })
+            }
+            PlannedAction::Rbf { options, out } => {
+                self.export(step, ExportJob::Rbf { options, out })
+            }
         };
         for cmd in batch {
             if commands.send(cmd).is_err() {
@@ -185,7 +250,85 @@ impl ScriptDriver {
         self.sent += 1;
     }
 
+    /// Asks the engine for a copy of the session; `job` starts when it arrives.
+    fn export(&mut self, step: usize, job: ExportJob) -> Vec<Command> {
+        let (tx, rx) = bounded(1);
+        self.exports.push((step, ExportState::Waiting(job, rx)));
+        vec![Command::Snapshot { reply: tx }]
+    }
+
+    /// Starts the exports whose copy arrived, and gathers the finished ones. With `block`,
+    /// waits for every copy and every job (the engine must have stopped or be running).
+    fn collect_exports(&mut self, block: bool) {
+        let mut told = Vec::new();
+        let mut failed = Vec::new();
+        for (step, state) in std::mem::take(&mut self.exports) {
+            let state = match state {
+                ExportState::Waiting(job, rx) => {
+                    let copy = if block {
+                        rx.recv().ok()
+                    } else {
+                        match rx.try_recv() {
+                            Ok(session) => Some(session),
+                            Err(TryRecvError::Empty) => {
+                                self.exports.push((step, ExportState::Waiting(job, rx)));
+                                continue;
+                            }
+                            Err(TryRecvError::Disconnected) => None,
+                        }
+                    };
+                    // A copy the engine never made: the run ended first (not a failure, as
+                    // for the other steps).
+                    let Some(session) = copy else { continue };
+                    let (tx, done) = bounded(1);
+                    let spawned = std::thread::Builder::new()
+                        .name(format!("script step {step}"))
+                        .spawn(move || {
+                            let _ = tx.send(job.run(&session));
+                        });
+                    if let Err(e) = spawned {
+                        failed.push((step, format!("cannot start its thread: {e}")));
+                        continue;
+                    }
+                    ExportState::Running(done)
+                }
+                running @ ExportState::Running(_) => running,
+            };
+            let ExportState::Running(done) = state else {
+                continue;
+            };
+            let outcome = if block {
+                done.recv().map_err(|_| TryRecvError::Disconnected)
+            } else {
+                done.try_recv()
+            };
+            match outcome {
+                Ok(Ok(note)) => told.push((step, note)),
+                Ok(Err(e)) => failed.push((step, e)),
+                Err(TryRecvError::Empty) => self.exports.push((step, ExportState::Running(done))),
+                Err(TryRecvError::Disconnected) => {
+                    failed.push((step, "its thread stopped without an answer".into()));
+                }
+            }
+        }
+        self.notes.extend(told);
+        for (step, e) in failed {
+            self.fail(step, e);
+        }
+    }
+
+    /// Waits for every `particles` and `rbf` step sent so far to finish (their files written
+    /// or their failures recorded). Call it once the engine has stopped: a copy it never
+    /// made is not waited for.
+    pub fn wait_for_exports(&mut self) {
+        if !self.exports.is_empty() {
+            dynaclay_loops::assert_not_in_tick("a script waiting for its particles and rbf steps");
+        }
+        self.collect_exports(true);
+    }
+
     fn collect(&mut self) {
+        self.collect_exports(false);
         let mut failed = Vec::new();
         self.waiting.retain(|(step, rx)| match rx.try_recv() {
             Ok(Ok(_)) | Err(TryRecvError::Disconnected) => false,

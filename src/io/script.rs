@@ -615,6 +615,38 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         points: Vec<[f32; 3]>,
     },
+    /// Settle `count` constrained particles on the clay's surface (Zhang et al. §5): later
+    /// `rbf` steps use this count. With `out` (relative to the script's folder) the particles
+    /// are written as a point cloud, one `x y z nx ny nz` line each. Takes no script time:
+    /// the clay is copied when the step is reached and sampled beside the engine.
+    Particles {
+        count: u32,
+        /// Particle steps from the seeded random start (default 200).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        steps: Option<u32>,
+        /// Seed of the random start (default 1).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        seed: Option<u64>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        out: Option<PathBuf>,
+    },
+    /// Interpolate the clay's surface with an RBF (Zhang et al. §5.3) and write it to `out`
+    /// (`.rbf`, relative to the script's folder): `particles` particles (default: the last
+    /// `particles` step's count, else 400), normal offset `offset` (default half a knot span),
+    /// at most `max_centres` centres in one solve (default 3000).
+    Rbf {
+        out: PathBuf,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        particles: Option<u32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        offset: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max_centres: Option<u32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        steps: Option<u32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        seed: Option<u64>,
+    },
     /// Remove pin `index` (counted from 0 in the order pinned), or every pin when absent (one
     /// undo step).
     Unconstrain {
@@ -1144,6 +1176,34 @@ fn seconds_shown(key: &'static str, shown: &str, v: f32) -> Result<(), StepFault
     Ok(())
 }
 
+/// Most particles a `particles` or `rbf` step may ask for.
+pub const MAX_PARTICLES: u32 = 100_000;
+/// Most particle steps a `particles` or `rbf` step may ask for.
+pub const MAX_PARTICLE_STEPS: u32 = 100_000;
+/// Most centres one dense RBF solve may take (`max_centres`).
+pub const MAX_RBF_CENTRES: u32 = 6000;
+
+fn check_particle_count(key: &'static str, n: u32) -> Result<(), StepFault> {
+    if (4..=MAX_PARTICLES).contains(&n) {
+        Ok(())
+    } else {
+        Err(fault(
+            key,
+            format!("{key} = {n} must be between 4 and {MAX_PARTICLES}"),
+        ))
+    }
+}
+
+fn check_particle_steps(steps: Option<u32>) -> Result<(), StepFault> {
+    match steps {
+        Some(k) if !(1..=MAX_PARTICLE_STEPS).contains(&k) => Err(fault(
+            "steps",
+            format!("steps = {k} must be between 1 and {MAX_PARTICLE_STEPS}"),
+        )),
+        _ => Ok(()),
+    }
+}
+
 fn check_points(name: &'static str, points: &[[f32; 3]], need_one: bool) -> Result<(), StepFault> {
     if need_one && points.is_empty() {
         return Err(fault(name, format!("{name} needs at least one point")));
@@ -1358,6 +1418,51 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                         "level = {level} must be between 1 and {} (each level halves the knot spacing)",
                         crate::field::MAX_DETAIL_LEVEL
                     ),
+                ));
+            }
+            Ok(())
+        }
+        ScriptStep::Particles {
+            count, steps, out, ..
+        } => {
+            check_particle_count("count", *count)?;
+            check_particle_steps(*steps)?;
+            match out {
+                Some(path) if path.as_os_str().is_empty() => {
+                    Err(fault("out", "out must name a file"))
+                }
+                _ => Ok(()),
+            }
+        }
+        ScriptStep::Rbf {
+            out,
+            particles,
+            offset,
+            max_centres,
+            steps,
+            ..
+        } => {
+            if out.extension().and_then(|e| e.to_str()) != Some("rbf") {
+                return Err(fault(
+                    "out",
+                    format!("out = {:?} must end in .rbf", out.display().to_string()),
+                ));
+            }
+            if let Some(n) = particles {
+                check_particle_count("particles", *n)?;
+            }
+            check_particle_steps(*steps)?;
+            if let Some(d) = offset
+                && !(d.is_finite() && *d > 0.0)
+            {
+                return Err(fault("offset", format!("offset = {d} must be positive")));
+            }
+            if let Some(m) = max_centres
+                && !(4..=MAX_RBF_CENTRES).contains(m)
+            {
+                return Err(fault(
+                    "max_centres",
+                    format!("max_centres = {m} must be between 4 and {MAX_RBF_CENTRES}"),
                 ));
             }
             Ok(())

@@ -20,6 +20,7 @@
 //!   for counts, area, volume and topology.
 
 mod brick;
+mod distance;
 mod error;
 mod export;
 mod grid;
@@ -33,6 +34,7 @@ pub use brick::{
     BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
     edge_from_id, edge_id, march_brick, sample_brick,
 };
+pub use distance::{Hausdorff, hausdorff, point_triangle_distance};
 pub use error::GridError;
 pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;

@@ -7,10 +7,12 @@
 //! `S` of §5.5. Work per step is bounded: the neighbour search is the PDS, and births per step
 //! are at most half the population. Nothing here runs on the haptic thread.
 
+mod follow;
 mod pds;
 mod surface;
 mod system;
 
+pub use follow::{ParticleFollower, ParticleView};
 pub use pds::{MAX_LEVEL, Pds};
 pub use surface::ImplicitSurface;
 pub use system::{

@@ -211,6 +211,17 @@ impl ParticleSystem {
         &self.sigmas
     }
 
+    /// Each particle's wanted density relative to the flattest parts: 1 without curvature
+    /// bias, up to `curvature_ratio` where the surface is most curved (as of the last step).
+    #[must_use]
+    pub fn wanted_density(&self) -> Vec<f32> {
+        if self.scale.len() == self.positions.len() {
+            self.scale.iter().map(|s| (s * s).recip()).collect()
+        } else {
+            vec![1.0; self.positions.len()]
+        }
+    }
+
     /// Number of particles.
     #[must_use]
     pub fn len(&self) -> usize {
@@ -253,6 +264,7 @@ impl ParticleSystem {
         self.sigmas.clear();
         self.sigmas
             .resize(positions.len(), sigma.max(f32::MIN_POSITIVE));
+        self.scale.clear();
     }
 
     /// Replace the particles by `count` points scattered at random (seeded) on the surface:
@@ -311,11 +323,15 @@ impl ParticleSystem {
             if let Some(p) = project_point(field, self.positions[r], iterations) {
                 self.positions[w] = p;
                 self.sigmas[w] = self.sigmas[r];
+                if let Some(&k) = self.scale.get(r) {
+                    self.scale[w] = k;
+                }
                 w += 1;
             }
         }
         self.positions.truncate(w);
         self.sigmas.truncate(w);
+        self.scale.truncate(w);
     }
 
     /// Run `steps` steps of size `dt = 0.1` and then project the particles onto the surface
@@ -368,11 +384,23 @@ impl ParticleSystem {
         Ok(report)
     }
 
-    /// Stage 1: the PDS over the surface's bounds, query radius `3 σ_max`.
+    /// Stage 1: the PDS over the surface's bounds, query radius `3 σ_max s_max` (the
+    /// largest radius in world units).
     fn index(&mut self, field: &(impl ImplicitSurface + ?Sized)) {
         let (lo, hi) = field.bounds();
+        if self.scale.len() != self.positions.len() {
+            self.scale.clear();
+            self.scale.resize(self.positions.len(), 1.0);
+        }
+        let reach = 3.0 * self.query_radius();
+        self.pds.build(&self.positions, lo, hi, reach);
+    }
+
+    /// `σ_max · s_max`: no pair farther apart than three times this interacts.
+    fn query_radius(&self) -> f32 {
         let sigma_max = self.sigmas.iter().copied().fold(0.0f32, f32::max);
-        self.pds.build(&self.positions, lo, hi, 3.0 * sigma_max);
+        let scale_max = self.scale.iter().copied().fold(1.0f32, f32::max);
+        sigma_max * scale_max
     }
 
     /// Stage 2: energies, their `σ` derivatives, and the desired (repulsion) velocities.
@@ -385,18 +413,28 @@ impl ParticleSystem {
         self.desired.clear();
         self.desired.resize(n, Vec3::ZERO);
         let alpha = self.params.alpha;
-        let sigma_max = self.sigmas.iter().copied().fold(0.0f32, f32::max);
+        let reach = 3.0 * self.query_radius();
+        let ratio = self.params.curvature_ratio;
+        let biased = ratio.is_finite() && ratio > 1.0;
         for i in 0..n {
             let p = self.positions[i];
             let si = self.sigmas[i];
+            let ki = self.scale[i];
             let inv_si2 = 1.0 / (si * si);
             let (mut e, mut de, mut d) = (0.0f32, 0.0f32, Vec3::ZERO);
-            let sigmas = &self.sigmas;
+            let (sigmas, scale) = (&self.sigmas, &self.scale);
             let mut pair = |j: usize, q: Vec3, r2: f32| {
                 if j == i {
                     return;
                 }
                 let sj = sigmas[j];
+                // Distances in the metric of the wanted density (none without curvature bias).
+                let (r2, along) = if biased {
+                    let metric = ki * scale[j];
+                    (r2 / metric, metric.sqrt().recip())
+                } else {
+                    (r2, 1.0)
+                };
                 let cut = 3.0 * si.max(sj);
                 if r2 > cut * cut {
                     return;
@@ -406,10 +444,10 @@ impl ParticleSystem {
                 let eji = alpha * (-0.5 * r2 * inv_sj2).exp();
                 e += eij;
                 de += r2 * inv_si2 * eij;
-                d += (p - q) * (eij * inv_si2 + eji * inv_sj2);
+                d += (p - q) * ((eij * inv_si2 + eji * inv_sj2) * along);
             };
             match self.search {
-                NeighbourSearch::Pds => self.pds.for_each_within(p, 3.0 * sigma_max, &mut pair),
+                NeighbourSearch::Pds => self.pds.for_each_within(p, reach, &mut pair),
                 NeighbourSearch::AllPairs => {
                     for (j, &q) in self.positions.iter().enumerate() {
                         pair(j, q, (q - p).length_squared());
@@ -419,7 +457,7 @@ impl ParticleSystem {
             self.energy[i] = e;
             // σ ∂E/∂σ (dimensionless).
             self.denergy[i] = de;
-            self.desired[i] = d * (si * si);
+            self.desired[i] = d * (si * si * ki);
         }
     }
 
@@ -441,7 +479,7 @@ impl ParticleSystem {
             let d = self.desired[i];
             // Tangential part of the repulsion, limited to a fraction of σ per step.
             let mut tangent = (d - g * (g.dot(d) / g2)) * dt;
-            let limit = max_move * self.sigmas[i];
+            let limit = max_move * self.sigmas[i] * self.scale[i];
             let len = tangent.length();
             if len > limit {
                 tangent *= limit / len;
@@ -468,12 +506,16 @@ impl ParticleSystem {
         }
     }
 
-    /// Stage 4b (beyond the paper, its §7): curvature bias. Each particle's fission and death
-    /// radii are scaled by `ρᵢ^(−1/2)`, with the wanted density
-    /// `ρᵢ = 1 + (ratio − 1) · min(κᵢ / κ₉₀, 1)`, `κᵢ = √(k₁² + k₂²)` the norm of the shape
-    /// operator at the particle and `κ₉₀` the 90th percentile over the particles: where the
-    /// surface is curved the particles split sooner and die later. A surface of one curvature
-    /// (a sphere) stays evenly sampled.
+    /// Stage 4b (beyond the paper, its §7): curvature bias. Each particle gets the length
+    /// scale `sᵢ = ρᵢ^(−1/2)` of the wanted density `ρᵢ = 1 + (ratio − 1) · min(κᵢ / κ₉₀, 1)`,
+    /// `κᵢ = √(k₁² + k₂²)` the norm of the shape operator at the particle and `κ₉₀` the 90th
+    /// percentile over the particles. The particles live in the metric this defines: a pair's
+    /// distance is measured in units of `√(sᵢ sⱼ)` (repulsion, energy and the radii `σᵢ`, which
+    /// are therefore in those units, world radius `σᵢ sᵢ`), so the settled state that is even
+    /// in the metric has `ρᵢ` times the density where the surface is curved. Fission, death and
+    /// the count feedback work on the metric's radii unchanged. Without bias `sᵢ = 1` and
+    /// every step is exactly the unbiased one. A surface of one curvature (a sphere) stays
+    /// evenly sampled.
     fn bias(&mut self, field: &(impl ImplicitSurface + ?Sized)) {
         let n = self.positions.len();
         self.scale.clear();
@@ -502,8 +544,9 @@ impl ParticleSystem {
 
     /// With curvature bias, the fission and death thresholds alone would leave an evenly
     /// seeded population as it is (a particle between them neither splits nor dies, and the
-    /// count is already `N`). So, count-neutral swaps: the particle most crowded for its wanted
-    /// density (smallest `σᵢ / scaleᵢ`) dies and the sparsest splits, while the two differ by
+    /// count is already `N`), and the repulsion alone moves particles only locally. So,
+    /// count-neutral swaps: the particle most crowded in the metric (smallest `σᵢ`, the
+    /// metric's radius) dies and the sparsest splits, while the two differ by
     /// more than [`SWAP_RATIO`], at most `n/100 + 1` pairs a step. Returns the swaps, whose
     /// parents are appended to `candidates`.
     fn redistribute(&mut self, n: usize) -> usize {
@@ -515,8 +558,8 @@ impl ParticleSystem {
         for &c in &self.candidates {
             splitting[c as usize] = true;
         }
-        let (sigmas, scale) = (&self.sigmas, &self.scale);
-        let key = |i: u32| sigmas[i as usize] / scale[i as usize];
+        let sigmas = &self.sigmas;
+        let key = |i: u32| sigmas[i as usize];
         let mut order: Vec<u32> = (0..n as u32)
             .filter(|&i| self.keep[i as usize] && !splitting[i as usize])
             .collect();
@@ -555,20 +598,20 @@ impl ParticleSystem {
         // Death candidates, most crowded first.
         self.candidates.clear();
         for i in 0..n {
-            if self.keep[i] && self.sigmas[i] < low * self.scale[i] {
+            if self.keep[i] && self.sigmas[i] < low {
                 self.candidates.push(i as u32);
             }
         }
         let live = self.keep.iter().filter(|k| **k).count();
         let death_candidates = self.candidates.len();
         let fission_candidates = (0..n)
-            .filter(|&i| self.keep[i] && self.sigmas[i] > high * self.scale[i])
+            .filter(|&i| self.keep[i] && self.sigmas[i] > high)
             .count();
         let swaps = death_candidates.min(fission_candidates);
         let deaths = death_candidates.min(live.saturating_sub(big_n) + swaps);
         {
-            let (sigmas, scale) = (&self.sigmas, &self.scale);
-            let key = |i: u32| sigmas[i as usize] / scale[i as usize];
+            let sigmas = &self.sigmas;
+            let key = |i: u32| sigmas[i as usize];
             self.candidates
                 .sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)));
         }
@@ -582,13 +625,13 @@ impl ParticleSystem {
             .min(after_deaths / 2 + 1);
         self.candidates.clear();
         for i in 0..n {
-            if self.keep[i] && self.sigmas[i] > high * self.scale[i] {
+            if self.keep[i] && self.sigmas[i] > high {
                 self.candidates.push(i as u32);
             }
         }
         {
-            let (sigmas, scale) = (&self.sigmas, &self.scale);
-            let key = |i: u32| sigmas[i as usize] / scale[i as usize];
+            let sigmas = &self.sigmas;
+            let key = |i: u32| sigmas[i as usize];
             self.candidates
                 .sort_unstable_by(|&a, &b| key(b).total_cmp(&key(a)));
         }
@@ -602,6 +645,7 @@ impl ParticleSystem {
             if self.keep[r] {
                 self.positions[w] = self.positions[r];
                 self.sigmas[w] = self.sigmas[r];
+                self.scale[w] = self.scale[r];
                 self.new_index.push(w as u32);
                 w += 1;
             } else {
@@ -610,16 +654,23 @@ impl ParticleSystem {
         }
         self.positions.truncate(w);
         self.sigmas.truncate(w);
+        self.scale.truncate(w);
         for c in 0..self.candidates.len() {
             let parent = self.new_index[self.candidates[c] as usize] as usize;
-            let (p, s) = (self.positions[parent], self.sigmas[parent]);
+            let (p, s, k) = (
+                self.positions[parent],
+                self.sigmas[parent],
+                self.scale[parent],
+            );
             let g = field.eval(p).1;
             let t = random_tangent(g, self.next_unit(), self.next_unit());
             let child_sigma = s * std::f32::consts::FRAC_1_SQRT_2;
-            self.positions[parent] = p - t * (0.5 * s);
+            let half = 0.5 * s * k;
+            self.positions[parent] = p - t * half;
             self.sigmas[parent] = child_sigma;
-            self.positions.push(p + t * (0.5 * s));
+            self.positions.push(p + t * half);
             self.sigmas.push(child_sigma);
+            self.scale.push(k);
         }
         // Eq. 13 with t = count_gain / N.
         let error = self.positions.len() as f32 - big_n as f32;

@@ -3,12 +3,19 @@
 //! points offset along the normal (Zhang et al. §5.3, eq. 9–12), with its file format and the
 //! way back to a clay.
 
+mod export;
 mod file;
 mod fit;
+mod mesh;
 mod sculpt;
 
+pub use export::{
+    ClayRbf, ExportError, ExportOptions, clay_to_rbf, flatten_clay, settle_particles,
+    write_particles,
+};
 pub use file::{
     MAGIC, MAX_CENTRES, RbfFile, RbfFileError, VERSION, decode, encode, read_rbf, write_rbf,
 };
 pub use fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface, solve_rbf};
+pub use mesh::{clay_and_rbf_meshes, clay_rbf_distance};
 pub use sculpt::{RbfSculpt, RbfSculptError};

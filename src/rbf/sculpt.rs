@@ -10,10 +10,12 @@
 
 use glam::Vec3;
 
+use super::file::RbfFile;
 use super::fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface};
 use crate::field::{BSplineLattice, Primitive};
+use crate::io::{Script, ScriptStep, ToolPreset, poses};
 use crate::particles::{ImplicitSurface, ParticleError, ParticleParams, ParticleSystem};
-use crate::tools::ContactParams;
+use crate::tools::{ContactParams, GeometricTool, ToolAction, ToolPose};
 
 /// Why the RBF sculpt could not start or take an action.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -24,6 +26,22 @@ pub enum RbfSculptError {
     /// Interpolation failed.
     #[error("interpolation: {0}")]
     Fit(#[from] RbfError),
+    /// The clay held as an RBF takes only contact actions (Zhang's `h = I + β·g`).
+    #[error("step {step}: the RBF clay takes contact tools only, not {what}")]
+    NotContact {
+        /// The 1-based script step (0 for a tool applied directly).
+        step: usize,
+        /// What was asked for.
+        what: String,
+    },
+    /// The tool's parameters were refused.
+    #[error("step {step}: {message}")]
+    BadTool {
+        /// The 1-based script step (0 for a tool applied directly).
+        step: usize,
+        /// Why.
+        message: String,
+    },
     /// The particles did not settle at `N` within the step budget.
     #[error("{count} particles after {steps} steps, not the {target} asked for")]
     Count {
@@ -36,10 +54,16 @@ pub enum RbfSculptError {
     },
 }
 
+/// A tool's potential (density in `[0, 1]`) at world points.
+type Potential<'a> = &'a dyn Fn(Vec3) -> f32;
+
+/// One contact action: the rule, the tool's potential and the dwell.
+type Action<'a> = (&'a ContactParams, Potential<'a>, f32);
+
 /// The function the particles sample: `I`, or `h = I + β·g` during an action.
 struct Edited<'a> {
     rbf: &'a Rbf,
-    action: Option<(&'a ContactParams, &'a Primitive, f32)>,
+    action: Option<Action<'a>>,
     width: f32,
     iso: f32,
     bounds: (Vec3, Vec3),
@@ -50,11 +74,11 @@ impl Edited<'_> {
     /// `h(x)` and whether the action touches `x`.
     fn value(&self, x: Vec3) -> (f32, bool) {
         let i = self.rbf.value(x.as_dvec3()) as f32;
-        let Some((params, tool, dwell_s)) = self.action else {
+        let Some((params, potential, dwell_s)) = self.action else {
             return (i, false);
         };
         let density = (self.iso + i / self.width).clamp(0.0, 1.0);
-        let t = tool.density(x, self.width);
+        let t = potential(x);
         let changed = params.apply(density, t, self.iso, dwell_s);
         let delta = changed - density;
         (i + self.width * delta, t > 0.0 && density > 0.0)
@@ -86,12 +110,17 @@ impl ImplicitSurface for Edited<'_> {
 #[derive(Clone, Debug)]
 pub struct RbfSculpt {
     rbf: Rbf,
+    /// The latest fit's report.
+    report: RbfFitReport,
     particles: ParticleSystem,
     options: RbfOptions,
     width: f32,
     iso: f32,
     bounds: (Vec3, Vec3),
     resolution: f32,
+    /// The clay's lattice geometry, for the file and the way back to a clay.
+    dims: [usize; 3],
+    origin: Vec3,
     /// Particle steps after each action before the count is checked.
     pub steps_per_action: usize,
     /// Further steps allowed for the count to return to `N`.
@@ -113,15 +142,18 @@ impl RbfSculpt {
         let mut particles = ParticleSystem::new(ParticleParams::new(n))?;
         particles.seed_random(field, n, 1)?;
         particles.settle(field, settle_steps);
-        let (rbf, _) = fit_surface(field, particles.positions(), &options)?;
+        let (rbf, report) = fit_surface(field, particles.positions(), &options)?;
         let sculpt = Self {
             rbf,
+            report,
             particles,
             options,
             width: 2.0 * field.spacing,
             iso: field.iso,
             bounds: field.support(),
             resolution: field.spacing,
+            dims: field.dims,
+            origin: field.origin,
             steps_per_action: 40,
             max_extra_steps: 200,
         };
@@ -133,6 +165,25 @@ impl RbfSculpt {
     #[must_use]
     pub fn rbf(&self) -> &Rbf {
         &self.rbf
+    }
+
+    /// The function with the clay's lattice geometry: what `.rbf` files hold, and what
+    /// [`RbfFile::to_clay`] turns back into a clay.
+    #[must_use]
+    pub fn to_file(&self) -> RbfFile {
+        RbfFile {
+            rbf: self.rbf.clone(),
+            dims: self.dims,
+            spacing: self.resolution,
+            origin: self.origin,
+            iso: self.iso,
+        }
+    }
+
+    /// What the latest interpolation did.
+    #[must_use]
+    pub fn report(&self) -> &RbfFitReport {
+        &self.report
     }
 
     /// The particles sampling it.
@@ -167,9 +218,24 @@ impl RbfSculpt {
         tool: &Primitive,
         dwell_s: f32,
     ) -> Result<RbfFitReport, RbfSculptError> {
+        let width = self.width;
+        self.contact_with(params, &|x| tool.density(x, width), dwell_s)
+    }
+
+    /// [`RbfSculpt::contact`] with the tool given by its potential (density in `[0, 1]`, one
+    /// half on the tool's surface) at world points.
+    ///
+    /// # Errors
+    /// As [`RbfSculpt::contact`].
+    pub fn contact_with(
+        &mut self,
+        params: &ContactParams,
+        potential: &dyn Fn(Vec3) -> f32,
+        dwell_s: f32,
+    ) -> Result<RbfFitReport, RbfSculptError> {
         let h = Edited {
             rbf: &self.rbf,
-            action: Some((params, tool, dwell_s)),
+            action: Some((params, potential, dwell_s)),
             width: self.width,
             iso: self.iso,
             bounds: self.bounds,
@@ -188,6 +254,137 @@ impl RbfSculpt {
         self.check_count(steps)?;
         let (rbf, report) = fit_surface(&h, self.particles.positions(), &self.options)?;
         self.rbf = rbf;
+        self.report = report;
         Ok(report)
+    }
+}
+
+impl RbfSculpt {
+    /// A geometric tool step, as the B-spline clay takes it ([`crate::tools::apply_stroke`]):
+    /// one contact action per pose, the duration split evenly. Only
+    /// [`ToolAction::Contact`] applies to the RBF clay. Returns the last fit's report.
+    ///
+    /// # Errors
+    /// [`RbfSculptError::NotContact`] for any other action, [`RbfSculptError::BadTool`] for
+    /// invalid parameters, and the errors of [`RbfSculpt::contact`].
+    pub fn apply_tool(
+        &mut self,
+        tool: &GeometricTool,
+        poses: &[ToolPose],
+        duration_s: f32,
+    ) -> Result<Option<RbfFitReport>, RbfSculptError> {
+        self.apply_step(0, tool, poses, duration_s)
+    }
+
+    fn apply_step(
+        &mut self,
+        step: usize,
+        tool: &GeometricTool,
+        poses: &[ToolPose],
+        duration_s: f32,
+    ) -> Result<Option<RbfFitReport>, RbfSculptError> {
+        let ToolAction::Contact(params) = tool.action else {
+            return Err(RbfSculptError::NotContact {
+                step,
+                what: format!("the {} action", tool.action.name()),
+            });
+        };
+        tool.validate().map_err(|e| RbfSculptError::BadTool {
+            step,
+            message: e.to_string(),
+        })?;
+        let dt_s = duration_s / poses.len().max(1) as f32;
+        let mut last = None;
+        for pose in poses {
+            let potential = |x: Vec3| tool.shape.density(pose.to_local(x), tool.falloff_fu);
+            last = Some(self.contact_with(&params, &potential, dt_s)?);
+        }
+        Ok(last)
+    }
+
+    /// The session mode of Zhang et al. §5.4: a script's edits applied to the clay held as
+    /// this RBF. `tool` and `preset` steps with the contact action are taken in order (presets
+    /// from `library`); any other step is refused, naming it. Returns how many contact actions
+    /// were applied (one per pose).
+    ///
+    /// # Errors
+    /// [`RbfSculptError`] naming the step that could not be applied; the steps before it stay
+    /// applied.
+    pub fn run_script(
+        &mut self,
+        script: &Script,
+        library: &[ToolPreset],
+    ) -> Result<usize, RbfSculptError> {
+        let mut actions = 0;
+        for (n, step) in script.steps.iter().enumerate() {
+            let at = n + 1;
+            let bad = |message: String| RbfSculptError::BadTool { step: at, message };
+            let (tool, poses, duration_s) = match step {
+                ScriptStep::Tool {
+                    shape,
+                    action,
+                    positions,
+                    falloff_fu,
+                    rotation,
+                    duration_s,
+                    ..
+                } => {
+                    let shape = shape
+                        .resolve(|name| library.iter().find(|t| t.name == name).map(|t| &t.shape))
+                        .map_err(bad)?;
+                    let tool = GeometricTool {
+                        shape,
+                        action: *action,
+                        falloff_fu: *falloff_fu,
+                    };
+                    (tool, poses(positions, *rotation), *duration_s)
+                }
+                ScriptStep::Preset {
+                    name,
+                    positions,
+                    duration_s,
+                } => {
+                    let preset = library
+                        .iter()
+                        .find(|t| &t.name == name)
+                        .ok_or_else(|| bad(format!("no tool preset named {name:?}")))?;
+                    let tool = GeometricTool {
+                        shape: preset.shape.clone(),
+                        action: preset.action,
+                        falloff_fu: preset.falloff_fu,
+                    };
+                    (tool, poses(positions, None), *duration_s)
+                }
+                other => {
+                    return Err(RbfSculptError::NotContact {
+                        step: at,
+                        what: format!("do = {:?}", step_name(other)),
+                    });
+                }
+            };
+            self.apply_step(at, &tool, &poses, duration_s)?;
+            actions += poses.len();
+        }
+        Ok(actions)
+    }
+}
+
+/// The `do = …` name of a step.
+fn step_name(step: &ScriptStep) -> &'static str {
+    match step {
+        ScriptStep::Tool { .. } => "tool",
+        ScriptStep::Preset { .. } => "preset",
+        ScriptStep::Stroke { .. } => "stroke",
+        ScriptStep::Material { .. } => "material",
+        ScriptStep::Csg { .. } => "csg",
+        ScriptStep::Undo { .. } => "undo",
+        ScriptStep::Redo { .. } => "redo",
+        ScriptStep::Save { .. } => "save",
+        ScriptStep::Emboss { .. } => "emboss",
+        ScriptStep::Constrain { .. } => "constrain",
+        ScriptStep::Unconstrain { .. } => "unconstrain",
+        ScriptStep::Refine { .. } => "refine",
+        ScriptStep::Particles { .. } => "particles",
+        ScriptStep::Rbf { .. } => "rbf",
     }
 }

@@ -1,0 +1,166 @@
+//! Particles that follow the clay while it is sculpted, in the graphics loop: a [`MeshSink`]
+//! wrapper that, each time the graphics loop hands over its refreshed field copy, takes a fixed
+//! budget of particle steps on it and publishes the positions through a triple buffer that a
+//! viewer reads wait-free.
+//!
+//! The haptic loop never waits on it: the work runs on the graphics thread, after that loop's
+//! own meshing, on the copy the graphics loop already keeps, and publication is a wait-free
+//! buffer swap. The budget is a step count (`steps_per_update`), so the work per update is
+//! bounded by `steps_per_update` PDS steps of `N` particles whatever the clay does. The count
+//! `N` is read from an atomic that a viewer may set at any time.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
+use glam::Vec3;
+
+use super::system::{ParticleError, ParticleParams, ParticleSystem};
+use crate::engine::MeshSink;
+use crate::field::MultiPatchField;
+use crate::mesh::{BrickOctree, RefreshReport};
+use crate::particles::ImplicitSurface;
+use crate::tools::ColourField;
+
+/// What a viewer draws: each particle's position, outward unit normal and world radius.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParticleView {
+    /// Particle positions.
+    pub positions: Vec<Vec3>,
+    /// Outward unit normals (the discs' orientation).
+    pub normals: Vec<Vec3>,
+    /// Repulsion radii `σᵢ` in world units (the discs' size).
+    pub radii: Vec<f32>,
+    /// Field updates followed so far.
+    pub updates: u64,
+}
+
+/// A [`MeshSink`] that passes everything to `inner` and moves particles along with the clay.
+pub struct ParticleFollower<S: MeshSink> {
+    inner: S,
+    system: ParticleSystem,
+    steps_per_update: usize,
+    seed: u64,
+    count: Arc<AtomicUsize>,
+    writer: SnapshotWriter<ParticleView>,
+    updates: u64,
+    /// The last failure to place particles (the clay had no surface), if any.
+    last_error: Option<ParticleError>,
+}
+
+impl<S: MeshSink> ParticleFollower<S> {
+    /// Follows with `count` particles and `steps_per_update` steps per field update; returns
+    /// the follower and the reader a viewer draws from.
+    ///
+    /// # Errors
+    /// [`ParticleError::ZeroCount`] for `count == 0`.
+    pub fn new(
+        inner: S,
+        count: usize,
+        steps_per_update: usize,
+    ) -> Result<(Self, SnapshotReader<ParticleView>), ParticleError> {
+        let system = ParticleSystem::new(ParticleParams::new(count))?;
+        let (writer, reader) = snapshot_channel(&ParticleView::default());
+        Ok((
+            Self {
+                inner,
+                system,
+                steps_per_update,
+                seed: 1,
+                count: Arc::new(AtomicUsize::new(count)),
+                writer,
+                updates: 0,
+                last_error: None,
+            },
+            reader,
+        ))
+    }
+
+    /// The particle count `N` the follower reads before each update; a viewer stores a new
+    /// value (0 is ignored).
+    #[must_use]
+    pub fn count_handle(&self) -> Arc<AtomicUsize> {
+        Arc::clone(&self.count)
+    }
+
+    /// The wrapped sink.
+    #[must_use]
+    pub fn inner(&self) -> &S {
+        &self.inner
+    }
+
+    /// The particles.
+    #[must_use]
+    pub fn particles(&self) -> &ParticleSystem {
+        &self.system
+    }
+
+    /// Why the particles could not be placed at the last update, if they could not.
+    #[must_use]
+    pub fn last_error(&self) -> Option<&ParticleError> {
+        self.last_error.as_ref()
+    }
+
+    /// One update on `field`: the count from the handle, a seeded start if there are no
+    /// particles, `steps_per_update` steps, a projection onto the surface, and publication.
+    pub fn follow(&mut self, field: &MultiPatchField) {
+        let wanted = self.count.load(Ordering::Relaxed);
+        if wanted > 0 && wanted != self.system.params().target_count {
+            // NOTE: only a zero count is refused, and it is excluded above.
+            let _ = self.system.set_target_count(wanted);
+        }
+        self.last_error = None;
+        if self.system.is_empty() {
+            let n = self.system.params().target_count;
+            if let Err(e) = self.system.seed_random(field, n, self.seed) {
+                self.last_error = Some(e);
+            }
+            self.seed += 1;
+        }
+        if !self.system.is_empty() {
+            for _ in 0..self.steps_per_update {
+                // NOTE: `step` refuses only a bad `dt`, and DEFAULT_DT is valid.
+                let _ = self.system.step(field, ParticleSystem::DEFAULT_DT);
+            }
+            self.system.project(field, 2);
+        }
+        self.updates += 1;
+        let (system, updates) = (&self.system, self.updates);
+        self.writer.write_with(|view| {
+            view.positions.clear();
+            view.positions.extend_from_slice(system.positions());
+            view.normals.clear();
+            view.normals.extend(
+                system
+                    .positions()
+                    .iter()
+                    .map(|p| -field.eval(*p).1.normalize_or_zero()),
+            );
+            let density = system.wanted_density();
+            view.radii.clear();
+            view.radii.extend(
+                system
+                    .sigmas()
+                    .iter()
+                    .zip(&density)
+                    .map(|(s, d)| s / d.sqrt()),
+            );
+            view.updates = updates;
+        });
+    }
+}
+
+impl<S: MeshSink> MeshSink for ParticleFollower<S> {
+    fn update(&mut self, octree: &BrickOctree, report: &RefreshReport) {
+        self.inner.update(octree, report);
+    }
+
+    fn paint(&mut self, octree: &BrickOctree, colour: Option<&ColourField>) {
+        self.inner.paint(octree, colour);
+    }
+
+    fn field(&mut self, field: &MultiPatchField) {
+        self.inner.field(field);
+        self.follow(field);
+    }
+}
