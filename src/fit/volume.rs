@@ -138,7 +138,12 @@ fn decode(
 /// # Errors
 /// [`VolumeError`] naming the file: unreadable, or a byte count that does not match.
 pub fn read_raw(path: &Path, dims: [usize; 3], sample: Sample) -> Result<Volume, VolumeError> {
-    let cap = voxel_count(dims).map_or(0, |n| n * sample.bytes()) as u64;
+    // Absurd dimensions are refused before the file is read or anything allocated.
+    let count = voxel_count(dims).ok_or_else(|| VolumeError::Data {
+        file: path.to_path_buf(),
+        what: format!("dimensions {dims:?}: each at least 2, at most {MAX_VOXELS} voxels in all"),
+    })?;
+    let cap = (count * sample.bytes()) as u64;
     let bytes = read_regular_file(path, cap.max(1)).map_err(|error| VolumeError::Read {
         file: path.to_path_buf(),
         error,
