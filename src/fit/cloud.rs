@@ -19,8 +19,10 @@
 //!    exterior (the side nearer the grown region). A node within the band takes its signed
 //!    distance to its nearest point's tangent plane, smooth across the surface (the distance
 //!    to the nearest point alone would dimple between points), which also spans a hole's
-//!    rim with the rim's tangent planes: the hole is filled by a flat, minimal-looking cap
-//!    (Hua & Qin Fig. 6). Beyond the band, exterior nodes are outside and the rest inside.
+//!    rim with the rim's tangent planes: the hole is closed by a smooth cap that continues
+//!    the surface around it (Hua & Qin Fig. 6; on a convex surface the rim's planes meet a
+//!    little above the missing part, 0.06 of the tube's radius over a hole 1.4 radii wide in
+//!    the test). Beyond the band, exterior nodes are outside and the rest inside.
 //! 4. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
 //!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
@@ -141,7 +143,8 @@ pub fn fit_point_cloud(
 pub struct SignedCloud {
     /// The points, field units.
     pub points: Vec<Vec3>,
-    /// Their unit outward normals.
+    /// Their unit outward normals; zero for a point no node takes its plane from (normals
+    /// are estimated only where they are used).
     pub normals: Vec<Vec3>,
     grid: SignGrid,
     /// Per node: its nearest point within the band, or [`NO_POINT`].
@@ -169,17 +172,45 @@ const NO_POINT: u32 = u32::MAX;
 
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
-    /// band, the distance to the tangent plane of the point nearest the nearest node (exact
-    /// for a plane, smooth across the surface); beyond it, twice the profile's width with
-    /// the side the tagging found.
+    /// band, the distance to the tangent plane of the point nearest `x` among the nearest
+    /// points of the eight grid nodes around it (exact for a plane, smooth across the
+    /// surface; at a node, its own nearest point); beyond the band, twice the profile's width
+    /// with the side the tagging found.
     #[must_use]
     pub fn signed_distance(&self, x: Vec3) -> f32 {
-        let node = self.grid.nearest_node(x);
-        match self.nearest[node] {
-            NO_POINT if self.exterior[node] => 2.0 * self.width,
-            NO_POINT => -2.0 * self.width,
-            p => (x - self.points[p as usize]).dot(self.normals[p as usize]),
+        match self.nearest_point(x) {
+            Some(p) => (x - self.points[p]).dot(self.normals[p]),
+            None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
+            None => -2.0 * self.width,
         }
+    }
+
+    /// The point nearest `x` among the nearest points of the eight nodes around it.
+    fn nearest_point(&self, x: Vec3) -> Option<usize> {
+        let u = x / self.grid.h;
+        let [mx, my, mz] = self.grid.dims;
+        let corner = |a: f32, m: usize| (a.floor().max(0.0) as usize).min(m - 1);
+        let (i0, j0, k0) = (corner(u.x, mx), corner(u.y, my), corner(u.z, mz));
+        let mut best = (f32::INFINITY, None);
+        for c in 0..8 {
+            let i = (i0 + (c & 1)).min(mx - 1);
+            let j = (j0 + ((c >> 1) & 1)).min(my - 1);
+            let k = (k0 + ((c >> 2) & 1)).min(mz - 1);
+            let p = self.nearest[self.grid.index(i, j, k)];
+            if p != NO_POINT {
+                let d = (x - self.points[p as usize]).length_squared();
+                if d < best.0 {
+                    best = (d, Some(p as usize));
+                }
+            }
+        }
+        best.1
+    }
+
+    /// The unit outward normal of the plane that signs `x`, or `None` beyond the band.
+    #[must_use]
+    pub fn normal_near(&self, x: Vec3) -> Option<Vec3> {
+        self.nearest_point(x).map(|p| self.normals[p])
     }
 
     /// The density the clay is fitted to at `x`: the profile of the signed distance,
@@ -277,8 +308,16 @@ pub fn sign_cloud(
                 to_exterior[grid.nearest_node(p - n * probe)]
                     - to_exterior[grid.nearest_node(p + n * probe)]
             };
+            // Only the points some node takes its plane from need a normal (a dense cloud
+            // has many more points than band nodes).
+            let mut wanted = vec![false; points.len()];
+            for (&p, d) in nearest.iter().zip(&dist) {
+                if d.is_finite() {
+                    wanted[p as usize] = true;
+                }
+            }
             (
-                estimate_normals(&points, grid.h, BAND_SPANS * spacing, side),
+                estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
                 SignedBy::Tagging,
             )
         }
@@ -533,6 +572,8 @@ fn squared_distance_1d(f: &[f32], out: &mut [f32], hull: &mut [usize], bounds: &
 
 /// Neighbours a normal is estimated from, at least (the search widens until it has them).
 const MIN_NEIGHBOURS: usize = 12;
+/// Points a cell of the neighbour search offers, at most (an even subset of a denser cell).
+const MAX_CELL_NEIGHBOURS: usize = 24;
 
 /// Unit normals of `points`: for each, the direction of least variance of its neighbours
 /// (principal components of their covariance), pointing where `side(p, n)` is positive
@@ -542,6 +583,7 @@ const MIN_NEIGHBOURS: usize = 12;
 /// from the x axis, turned the same way.
 fn estimate_normals(
     points: &[Vec3],
+    wanted: &[bool],
     cell: f32,
     radius: f32,
     side: impl Fn(Vec3, Vec3) -> f32,
@@ -552,11 +594,24 @@ fn estimate_normals(
     for (i, &p) in points.iter().enumerate() {
         buckets.entry(cell_of(p)).or_default().push(i as u32);
     }
+    // A dense cell offers an even subset of its points as neighbours: a plane is well
+    // estimated from a few dozen, and the cost stays bounded where a scan piles points up.
+    for bucket in buckets.values_mut() {
+        if bucket.len() > MAX_CELL_NEIGHBOURS {
+            let stride = bucket.len().div_ceil(MAX_CELL_NEIGHBOURS);
+            let kept: Vec<u32> = bucket.iter().copied().step_by(stride).collect();
+            *bucket = kept;
+        }
+    }
     let widest = (radius / cell).ceil().max(1.0) as i32;
     let mut near = Vec::new();
     points
         .iter()
-        .map(|&p| {
+        .zip(wanted)
+        .map(|(&p, &wanted)| {
+            if !wanted {
+                return Vec3::ZERO;
+            }
             let c = cell_of(p);
             let mut ring = 1;
             loop {
@@ -622,7 +677,12 @@ fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
         if len.is_nan() || len <= 0.0 {
             break;
         }
-        v = w / len;
+        let next = w / len;
+        let settled = (next - v).length_squared() < 1e-12;
+        v = next;
+        if settled {
+            break;
+        }
     }
     v.as_vec3()
 }

@@ -4,7 +4,8 @@
 //! 1. **Base.** The cloud is signed and the base lattice fitted to its density profile
 //!    ([`super::cloud`]); it is patch 0 of the [`MultiPatchField`].
 //! 2. **Error samples.** Each point gives three samples, as in the paper (one on the surface,
-//!    one inside and one outside, half a base knot span along its normal), each with the
+//!    one inside and one outside, half a base knot span along the normal of the plane that
+//!    signs it), each with the
 //!    density the clay should have there. A node's error is the root mean square of
 //!    `(F − target) · width` over its samples: with the profile's slope `1 / width`, that is
 //!    how far the surface lies from where the data puts it, in field units. The bound is
@@ -146,8 +147,10 @@ impl Samples {
         let stride = signed.points.len().div_ceil(MAX_ERROR_POINTS).max(1);
         let offset = 0.5 * signed.spacing;
         let mut at = Vec::with_capacity(3 * signed.points.len() / stride + 3);
-        for (p, n) in signed.points.iter().zip(&signed.normals).step_by(stride) {
-            at.extend([*p, *p + *n * offset, *p - *n * offset]);
+        for &p in signed.points.iter().step_by(stride) {
+            // The inside and outside samples follow the plane that signs the point.
+            let n = signed.normal_near(p).unwrap_or(Vec3::ZERO);
+            at.extend([p, p + n * offset, p - n * offset]);
         }
         let target = at.iter().map(|&x| signed.density(x)).collect();
         let value = at.iter().map(|&x| field.value(x)).collect();
