@@ -10,7 +10,9 @@
 use std::collections::HashMap;
 
 use dynaclay::field::MultiPatchField;
-use dynaclay::fit::{HierarchicalFit, HierarchyOptions, PointCloud, fit_hierarchy, fit_volume};
+use dynaclay::fit::{
+    HierarchicalFit, HierarchyOptions, PointCloud, fit_hierarchy, fit_volume, fit_volume_hierarchy,
+};
 use dynaclay::mesh::{BrickOctree, SampleGrid, ScalarField, TriMesh};
 use glam::Vec3;
 
@@ -395,8 +397,23 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         dims: [n; 3],
         values,
     };
-    let fit = fit_volume(&volume, 0.5, 48, 0.1).unwrap();
-    let field = MultiPatchField::new(fit.lattice.clone());
+    // The base alone, and the hierarchy at a tight bound (what `import` runs).
+    let base = fit_volume(&volume, 0.5, 48, 0.1).unwrap();
+    let tight = HierarchyOptions {
+        error: 0.0005,
+        max_depth: 1,
+        ..HierarchyOptions::default()
+    };
+    let fit = fit_volume_hierarchy(&volume, 0.5, 48, 0.1, &tight, &mut |_| true).unwrap();
+    assert_eq!(fit.field.patches[0].lattice, base.lattice);
+    println!(
+        "volume: {} patches, rms {:.4}% (base {:.4}%)",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base
+    );
+    assert!(fit.rms <= fit.rms_base);
+    let field = fit.field.clone();
     let mesh = mesh_of(&field);
     let (closed, euler) = topology(&mesh);
     assert!(closed);

@@ -15,10 +15,10 @@ use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::run::CliError;
 use crate::dynamics::Material;
-use crate::field::{BSplineLattice, MultiPatchField};
+use crate::field::MultiPatchField;
 use crate::fit::{
     CloudFitError, CloudFitOptions, FitProgress, HierarchyOptions, Sample, SignedBy, Volume,
-    fit_hierarchy, fit_volume, read_nrrd, read_points, read_raw,
+    fit_hierarchy, fit_volume_hierarchy, read_nrrd, read_points, read_raw,
 };
 use crate::io::{MaterialFields, Session, SessionMeta, save_session};
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
@@ -51,7 +51,9 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         .map(str::to_ascii_lowercase);
     watch_for_ctrl_c();
     let clay = match ext.as_deref() {
-        Some("raw" | "nrrd") => Clay::single(import_volume(args, ext.as_deref() == Some("nrrd"))?),
+        Some("raw" | "nrrd") => {
+            clay_from_field(import_volume(args, ext.as_deref() == Some("nrrd"))?)
+        }
         _ => clay_from_field(import_cloud(args)?),
     };
     let name = args
@@ -149,6 +151,18 @@ fn progress_bar() -> indicatif::ProgressBar {
     bar
 }
 
+/// Shows `stage` on `bar`; `false` (stop) once Ctrl-C was pressed.
+fn show_progress(bar: &indicatif::ProgressBar, stage: FitProgress) -> bool {
+    match stage {
+        FitProgress::Signing => bar.set_message("signing the points"),
+        FitProgress::Base => bar.set_message("fitting the base lattice"),
+        FitProgress::Detail { depth, done, of } => {
+            bar.set_message(format!("depth {depth}: detail patch {} of {of}", done + 1));
+        }
+    }
+    !INTERRUPTED.load(Ordering::Relaxed)
+}
+
 /// Reads a point cloud and fits it hierarchically; reports the levels and how far the
 /// points lie from the fitted surface.
 fn import_cloud(args: &ImportArgs) -> Result<MultiPatchField, CliError> {
@@ -177,17 +191,7 @@ fn import_cloud(args: &ImportArgs) -> Result<MultiPatchField, CliError> {
         args.error
     );
     let bar = progress_bar();
-    let mut on_progress = |stage: FitProgress| {
-        match stage {
-            FitProgress::Signing => bar.set_message("signing the points"),
-            FitProgress::Base => bar.set_message("fitting the base lattice"),
-            FitProgress::Detail { depth, done, of } => {
-                bar.set_message(format!("depth {depth}: detail patch {} of {of}", done + 1));
-            }
-        }
-        !INTERRUPTED.load(Ordering::Relaxed)
-    };
-    let fit = fit_hierarchy(&cloud, &options, &mut on_progress);
+    let fit = fit_hierarchy(&cloud, &options, &mut |stage| show_progress(&bar, stage));
     bar.finish_and_clear();
     let fit = fit.map_err(|e| match e {
         CloudFitError::Options(m) => CliError::Usage(m),
@@ -227,8 +231,8 @@ fn import_cloud(args: &ImportArgs) -> Result<MultiPatchField, CliError> {
     Ok(fit.field)
 }
 
-/// Reads and fits a volume at `args.iso`.
-fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliError> {
+/// Reads and fits a volume at `args.iso`, hierarchically as a cloud is.
+fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<MultiPatchField, CliError> {
     let iso = args.iso.ok_or_else(|| {
         CliError::Usage("a volume needs --iso V: the intensity of its surface".into())
     })?;
@@ -255,18 +259,42 @@ fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliErr
         args.input.display(),
         args.resolution
     );
+    let options = HierarchyOptions {
+        error: args.error / 100.0,
+        max_depth: args.max_depth,
+        ..HierarchyOptions::default()
+    };
     let bar = progress_bar();
-    bar.set_message("fitting the volume");
-    let fit = fit_volume(&volume, iso, args.resolution, crate::engine::CLAY_SPACING);
+    let fit = fit_volume_hierarchy(
+        &volume,
+        iso,
+        args.resolution,
+        crate::engine::CLAY_SPACING,
+        &options,
+        &mut |stage| show_progress(&bar, stage),
+    );
     bar.finish_and_clear();
     let fit = fit.map_err(|e| match e {
         CloudFitError::Options(m) => CliError::Usage(m),
+        CloudFitError::Interrupted => interrupted(),
         other => CliError::Output(format!("{}: {other}", args.input.display())),
     })?;
-    if INTERRUPTED.load(Ordering::Relaxed) {
-        return Err(interrupted());
+    for level in &fit.levels {
+        say!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth,
+            level.refined,
+            level.nodes
+        );
     }
-    Ok(fit.lattice)
+    say!(
+        "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
+         base alone)",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base
+    );
+    Ok(fit.field)
 }
 
 fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {

@@ -36,7 +36,7 @@
 
 use glam::{Affine3A, Vec3};
 
-use super::cloud::{CloudFitError, CloudFitOptions, SignedBy, SignedCloud, sign_cloud};
+use super::cloud::{CloudFitError, CloudFitOptions, SignedBy, sign_cloud};
 use super::points::PointCloud;
 use crate::field::{BSplineLattice, MultiPatchField, refit_box};
 
@@ -143,16 +143,8 @@ struct Samples {
 }
 
 impl Samples {
-    fn new(signed: &SignedCloud, field: &MultiPatchField) -> Self {
-        let stride = signed.points.len().div_ceil(MAX_ERROR_POINTS).max(1);
-        let offset = 0.5 * signed.spacing;
-        let mut at = Vec::with_capacity(3 * signed.points.len() / stride + 3);
-        for &p in signed.points.iter().step_by(stride) {
-            // The inside and outside samples follow the plane that signs the point.
-            let n = signed.normal_near(p).unwrap_or(Vec3::ZERO);
-            at.extend([p, p + n * offset, p - n * offset]);
-        }
-        let target = at.iter().map(|&x| signed.density(x)).collect();
+    fn new(at: Vec<Vec3>, target: &dyn Fn(Vec3) -> f32, field: &MultiPatchField) -> Self {
+        let target = at.iter().map(|&x| target(x)).collect();
         let value = at.iter().map(|&x| field.value(x)).collect();
         Self { at, target, value }
     }
@@ -219,18 +211,7 @@ pub fn fit_hierarchy(
     options: &HierarchyOptions,
     progress: &mut dyn FnMut(FitProgress) -> bool,
 ) -> Result<HierarchicalFit, CloudFitError> {
-    if !(options.error.is_finite() && options.error > 0.0) {
-        return Err(CloudFitError::Options(format!(
-            "error bound {}: must be above 0",
-            options.error
-        )));
-    }
-    if options.max_depth > MAX_DEPTH {
-        return Err(CloudFitError::Options(format!(
-            "max depth {}: at most {MAX_DEPTH}",
-            options.max_depth
-        )));
-    }
+    check_options(options)?;
     let go_on = |progress: &mut dyn FnMut(FitProgress) -> bool, stage| {
         if progress(stage) {
             Ok(())
@@ -250,13 +231,96 @@ pub fn fit_hierarchy(
         .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
             (a.min(p), b.max(p))
         });
-    let size = (hi - lo).max_element();
-    let mut samples = Samples::new(&signed, &field);
-    // The bound on the mean square density error: (distance / width)².
-    let bound = f64::from(options.error * size / signed.width).powi(2);
-    let to_fraction = |ms: f64| (ms.sqrt() as f32) * signed.width / size;
-    let rms_base = to_fraction(samples.mean_square(None));
+    // Three error samples per point (an even subset of a large cloud): on the surface, and
+    // half a base span outside and inside along the plane that signs it.
+    let stride = signed.points.len().div_ceil(MAX_ERROR_POINTS).max(1);
+    let offset = 0.5 * signed.spacing;
+    let mut at = Vec::with_capacity(3 * signed.points.len() / stride + 3);
+    for &p in signed.points.iter().step_by(stride) {
+        let n = signed.normal_near(p).unwrap_or(Vec3::ZERO);
+        at.extend([p, p + n * offset, p - n * offset]);
+    }
+    let density = |x: Vec3| signed.density(x);
+    let data = Refinement {
+        target: &density,
+        spacing: signed.spacing,
+        width: signed.width,
+        samples_per_span: signed.samples_per_span,
+        lo,
+        hi,
+    };
+    let refined = refine(&mut field, &data, at, options, progress)?;
+    Ok(HierarchicalFit {
+        field,
+        scale: signed.scale,
+        offset: signed.offset,
+        signed_by: signed.signed_by,
+        size: refined.size,
+        rms_base: refined.rms_base,
+        rms: refined.rms,
+        levels: refined.levels,
+    })
+}
 
+/// What the octree refines against: the density to fit (`target`, the clay's iso-level 0.5
+/// on the surface, slope `1 / width` across it), the base lattice's spacing and samples per
+/// span, and the data's box `lo ..= hi` (field units; the root cube and the size).
+pub struct Refinement<'a> {
+    /// The density the clay should have at a field point.
+    pub target: &'a dyn Fn(Vec3) -> f32,
+    /// The base lattice's knot spacing, field units.
+    pub spacing: f32,
+    /// The density profile's width, field units.
+    pub width: f32,
+    /// Samples per knot span of each detail fit.
+    pub samples_per_span: usize,
+    /// The data's box, field units.
+    pub lo: Vec3,
+    /// See [`Refinement::lo`].
+    pub hi: Vec3,
+}
+
+/// The outcome of [`refine`].
+pub struct Refined {
+    /// The data's size (its box's longest side), field units.
+    pub size: f32,
+    /// RMS distance error over the samples with the base alone, fraction of the size.
+    pub rms_base: f32,
+    /// RMS distance error with every patch, fraction of the size.
+    pub rms: f32,
+    /// Per depth: nodes checked and refined.
+    pub levels: Vec<LevelReport>,
+}
+
+/// Steps 3–4 of the module docs: adds detail patches to `field` (whose patch 0 is the fitted
+/// base) where the error at the samples `at` is above `options.error`, down to
+/// `options.max_depth`.
+///
+/// # Errors
+/// [`CloudFitError::Options`] for a bad bound or depth, [`CloudFitError::Fit`] for a failed
+/// fit, [`CloudFitError::Interrupted`] when `progress` asked to stop.
+pub fn refine(
+    field: &mut MultiPatchField,
+    data: &Refinement<'_>,
+    at: Vec<Vec3>,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<Refined, CloudFitError> {
+    check_options(options)?;
+    let go_on = |progress: &mut dyn FnMut(FitProgress) -> bool, stage| {
+        if progress(stage) {
+            Ok(())
+        } else {
+            Err(CloudFitError::Interrupted)
+        }
+    };
+    let (lo, hi) = (data.lo, data.hi);
+    let size = (hi - lo).max_element().max(f32::MIN_POSITIVE);
+    let mut samples = Samples::new(at, data.target, field);
+    // The bound on the mean square density error: (distance / width)².
+    let bound = f64::from(options.error * size / data.width).powi(2);
+    let to_fraction = |ms: f64| (ms.sqrt() as f32) * data.width / size;
+    let rms_base = to_fraction(samples.mean_square(None));
     // The root: the cloud's bounding cube, centred on its box, a hair larger so that every
     // point falls inside.
     let side = size * (1.0 + 1e-4) + 1e-6;
@@ -289,7 +353,7 @@ pub fn fit_hierarchy(
             if samples.mean_square(Some(&node.samples)) <= bound {
                 continue;
             }
-            let patch = fit_detail(&signed, &field, &node, &samples.at)?;
+            let patch = fit_detail(data, field, &node, &samples.at)?;
             // Bring the samples the patch reaches up to date.
             let (plo, phi) = patch.support();
             for (x, v) in samples.at.iter().zip(samples.value.iter_mut()) {
@@ -319,16 +383,29 @@ pub fn fit_hierarchy(
         },
     )?;
     let rms = to_fraction(samples.mean_square(None));
-    Ok(HierarchicalFit {
-        field,
-        scale: signed.scale,
-        offset: signed.offset,
-        signed_by: signed.signed_by,
+    Ok(Refined {
         size,
         rms_base,
         rms,
         levels,
     })
+}
+
+/// Refuses an error bound that is not positive and finite, or a depth over [`MAX_DEPTH`].
+fn check_options(options: &HierarchyOptions) -> Result<(), CloudFitError> {
+    if !(options.error.is_finite() && options.error > 0.0) {
+        return Err(CloudFitError::Options(format!(
+            "error bound {}: must be above 0",
+            options.error
+        )));
+    }
+    if options.max_depth > MAX_DEPTH {
+        return Err(CloudFitError::Options(format!(
+            "max depth {}: at most {MAX_DEPTH}",
+            options.max_depth
+        )));
+    }
+    Ok(())
 }
 
 /// The C¹ window of a detail patch: 1 over `core_lo ..= core_hi`, falling to 0 over `fade`
@@ -346,12 +423,12 @@ fn window(x: Vec3, core_lo: Vec3, core_hi: Vec3, fade: f32) -> f32 {
 /// A detail patch for `node`: spacing `base / 2^depth`, over the node's core plus the fade
 /// plus one span, fitted (outer ring held at zero) to the windowed residual of `field`.
 fn fit_detail(
-    signed: &SignedCloud,
+    data: &Refinement<'_>,
     field: &MultiPatchField,
     node: &Node,
     at: &[Vec3],
 ) -> Result<BSplineLattice, CloudFitError> {
-    let h = signed.spacing / (1u32 << node.depth) as f32;
+    let h = data.spacing / (1u32 << node.depth) as f32;
     // The core: the node's cube cut to its samples' box grown by one base span (the residual
     // lives near the surface).
     let (slo, shi) =
@@ -361,7 +438,7 @@ fn fit_detail(
                 let p = at[i as usize];
                 (a.min(p), b.max(p))
             });
-    let grow = Vec3::splat(signed.spacing);
+    let grow = Vec3::splat(data.spacing);
     let core_lo = (slo - grow).max(node.lo);
     let core_hi = (shi + grow).min(node.lo + Vec3::splat(node.side));
     let fade = FADE_SPANS * h;
@@ -385,20 +462,14 @@ fn fit_detail(
         })
         .collect();
     let inner = [dims[0] - 2, dims[1] - 2, dims[2] - 2];
-    refit_box(
-        &mut lattice,
-        [1, 1, 1],
-        inner,
-        signed.samples_per_span,
-        |x| {
-            let w = window(x, core_lo, core_hi, fade);
-            if w == 0.0 {
-                return 0.0;
-            }
-            let current: f32 = near.iter().map(|l| l.value(x)).sum();
-            w * (signed.density(x) - current)
-        },
-    )?;
+    refit_box(&mut lattice, [1, 1, 1], inner, data.samples_per_span, |x| {
+        let w = window(x, core_lo, core_hi, fade);
+        if w == 0.0 {
+            return 0.0;
+        }
+        let current: f32 = near.iter().map(|l| l.value(x)).sum();
+        w * ((data.target)(x) - current)
+    })?;
     Ok(lattice)
 }
 

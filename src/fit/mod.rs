@@ -16,4 +16,7 @@ pub use cloud::{
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
-pub use volume::{Sample, Volume, VolumeError, VolumeFit, fit_volume, read_nrrd, read_raw};
+pub use volume::{
+    Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
+    read_nrrd, read_raw,
+};
