@@ -32,7 +32,9 @@
 //!    second's window is 1), so the overlap is neither counted twice nor left out.
 //!
 //! The detail patches have identity maps (`T_i = I`): each lattice carries its own origin and
-//! spacing in field units.
+//! spacing in field units. Steps 3–4 are [`refine`], over any target density and error
+//! samples: volumes use it too ([`super::volume::fit_volume_hierarchy`], with the voxels near
+//! the iso-surface as samples).
 
 use glam::{Affine3A, Vec3};
 
