@@ -134,9 +134,10 @@ pub struct ImportArgs {
     /// outside in; narrower concavities are bridged.
     #[arg(long, default_value_t = crate::fit::cloud::DEFAULT_GAP_SPANS, value_name = "SPANS")]
     pub gap: f32,
-    /// A point cloud's error bound, in percent of the object's size (its box's longest
-    /// side): an octree node whose points lie farther than this from the fitted surface (root
-    /// mean square) gets a finer detail patch (Hua & Qin §5).
+    /// The error bound, in percent of the object's size (its box's longest side; a volume's
+    /// longest side): an octree node whose points (or voxels near the surface) lie farther
+    /// than this from the fitted surface, root mean square, gets a finer detail patch (Hua &
+    /// Qin §5).
     #[arg(long, default_value_t = crate::fit::hierarchy::DEFAULT_ERROR * 100.0, value_name = "PERCENT")]
     pub error: f32,
     /// The deepest level of detail patches (0 to 6; 0 fits the base lattice alone). Level

@@ -376,14 +376,6 @@ pub fn refine(
         }
         refined = kept;
     }
-    go_on(
-        progress,
-        FitProgress::Detail {
-            depth: options.max_depth,
-            done: 0,
-            of: 0,
-        },
-    )?;
     let rms = to_fraction(samples.mean_square(None));
     Ok(Refined {
         size,
