@@ -5,8 +5,7 @@
 //!    ([`super::cloud`]); it is patch 0 of the [`MultiPatchField`].
 //! 2. **Error samples.** Each point gives three samples, as in the paper (one on the surface,
 //!    one inside and one outside, half a base knot span along the normal of the plane that
-//!    signs it), each with the
-//!    density the clay should have there. A node's error is the root mean square of
+//!    signs it), each with the density the clay should have there. A node's error is the root mean square of
 //!    `(F − target) · width` over its samples: with the profile's slope `1 / width`, that is
 //!    how far the surface lies from where the data puts it, in field units. The bound is
 //!    given as a fraction of the object's size (the longest side of the cloud's box), so the
@@ -25,8 +24,9 @@
 //!    coefficients is held at zero. The patch is a cubic B-spline whose coefficients beyond
 //!    its lattice count as zero, so each term is C² over all of space and so is their sum:
 //!    there is no seam at a leaf boundary, the value, gradient and curvature are continuous
-//!    there. The window makes each detail fade out exactly at its own border, so a patch adds
-//!    nothing beyond its fade (no overshoot where the fit has no samples). Neighbouring
+//!    there. The window makes each detail fade out at its own border: its target is zero
+//!    over the lattice's last span, and with the outer ring zero the patch is exactly zero
+//!    from one span beyond its lattice on (no overshoot where the fit has no samples). Neighbouring
 //!    leaves overlap in their fades; because each patch is fitted to the residual of all the
 //!    earlier ones, the second takes what the first left (`w₁ + w₂ − w₁w₂ = 1` wherever the
 //!    second's window is 1), so the overlap is neither counted twice nor left out.
