@@ -80,8 +80,11 @@ fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
     );
     assert!(said.contains("9000 points"), "{said}");
     let loaded = load_session(&session).expect("the session loads");
-    assert_eq!(loaded.clay.density.patches.len(), 1);
     assert_eq!(loaded.clay.density.patches[0].lattice.dims, [32; 3]);
+    assert!(
+        said.contains("depth 1:"),
+        "the octree's first level is reported: {said}"
+    );
     let (v, f, euler, closed) = obj_topology(&mesh);
     assert!(v > 1000 && f > 2000, "{v} vertices, {f} faces");
     assert!(closed, "the fitted surface is closed");
@@ -101,8 +104,38 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         "ply\nformat binary_little_endian 1.0\nelement vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
     )
     .unwrap();
+    let nan = dir.path().join("nan.xyz");
+    std::fs::write(&nan, "0 0 0\n1 1 1\n2 nan 2\n").unwrap();
+    let nan_voxel = dir.path().join("nan.raw");
+    let mut voxels: Vec<u8> = Vec::new();
+    for n in 0..8 {
+        let v = if n == 5 { f32::NAN } else { n as f32 };
+        voxels.extend(v.to_le_bytes());
+    }
+    std::fs::write(&nan_voxel, &voxels).unwrap();
+    let stl = dir.path().join("huge.stl");
+    let mut header = vec![0u8; 80];
+    header.extend(4_000_000_000u32.to_le_bytes());
+    std::fs::write(&stl, &header).unwrap();
     let out_ok = dir.path().join("out.dclay");
+    let volume_args = |path: &'static str| -> Vec<&'static std::ffi::OsStr> {
+        ["--iso", "1", "--sample", "f32", "--dims", path]
+            .iter()
+            .map(|s| std::ffi::OsStr::new(*s))
+            .collect()
+    };
+    let mut nan_volume = vec![nan_voxel.as_os_str()];
+    nan_volume.extend(volume_args("2,2,2"));
+    let mut huge_volume = vec![nan_voxel.as_os_str()];
+    huge_volume.extend(volume_args("100000,100000,100000"));
     let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (
+            vec![nan.as_os_str()],
+            "nan.xyz:3: `nan` is not a finite number",
+        ),
+        (nan_volume, "voxel 5 is NaN"),
+        (huge_volume, "dimensions [100000, 100000, 100000]"),
+        (vec![stl.as_os_str()], "huge.stl"),
         (vec![bad.as_os_str()], "bad.xyz:2: `x` is not a number"),
         (vec![empty.as_os_str()], "empty.xyz: no points"),
         (vec![huge.as_os_str()], "4000000000 vertices declared"),
@@ -127,6 +160,8 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         ("--out", "x.txt", "ends in .dclay"),
         ("--resolution", "4", "resolution 4"),
         ("--gap", "5", "gap 5 spans"),
+        ("--error", "0", "error bound 0"),
+        ("--max-depth", "9", "max depth 9"),
     ] {
         let mut cmd = Command::new(BIN);
         cmd.arg("import").arg(&torus);
@@ -334,4 +369,124 @@ fn a_mesh_over_the_memory_budget_is_refused_before_anything_is_written() {
     assert!(err.contains("memory budget of 1.0 MiB"), "{err}");
     assert!(err.contains("--resolution"), "{err}");
     assert!(!session.exists() && !mesh.exists());
+}
+
+#[test]
+fn ctrl_c_during_a_fit_exits_130_and_writes_nothing() {
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    // A binary PLY of 1.5M points on a sphere: the signing alone takes a while.
+    let input = dir.path().join("big.ply");
+    let count = 1_500_000usize;
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {count}\nproperty float x\n\
+         property float y\nproperty float z\nend_header\n"
+    )
+    .into_bytes();
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    for i in 0..count {
+        let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
+        let r = (1.0 - y * y).sqrt();
+        for c in [
+            r * (golden * i as f32).cos(),
+            y,
+            r * (golden * i as f32).sin(),
+        ] {
+            bytes.extend(c.to_le_bytes());
+        }
+    }
+    std::fs::write(&input, bytes).unwrap();
+    let (session, mesh) = (dir.path().join("big.dclay"), dir.path().join("big.obj"));
+    let mut child = Command::new(BIN)
+        .arg("import")
+        .arg(&input)
+        .arg("--out")
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&mesh)
+        .args(["--resolution", "96"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The first line is said once the file is read, just before the fit starts.
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    assert!(line.contains("1500000 points"), "{line}");
+    let sent = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    assert!(!session.exists() && !mesh.exists(), "nothing written");
+    let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .filter(|n| n != "big.ply")
+        .collect();
+    assert!(
+        leftovers.is_empty(),
+        "no temporary files left: {leftovers:?}"
+    );
+}
+
+#[test]
+fn a_tight_error_bound_adds_detail_patches_at_finer_spacings_to_the_session() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cube.obj");
+    // A cube's sharp edges are more than a 32³ base can hold at a tenth of a percent.
+    std::fs::write(
+        &input,
+        "v 0 0 0\nv 20 0 0\nv 20 20 0\nv 0 20 0\nv 0 0 20\nv 20 0 20\nv 20 20 20\nv 0 20 20\n\
+         f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n",
+    )
+    .unwrap();
+    let run = |depth: &str, name: &str| {
+        let (session, mesh) = (
+            dir.path().join(format!("{name}.dclay")),
+            dir.path().join(format!("{name}.obj")),
+        );
+        let out = Command::new(BIN)
+            .arg("import")
+            .arg(&input)
+            .arg("--out")
+            .arg(&session)
+            .arg("--mesh")
+            .arg(&mesh)
+            .args(["--error", "0.1", "--max-depth", depth])
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{said}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (load_session(&session).unwrap(), obj_topology(&mesh), said)
+    };
+    let (flat, _, _) = run("0", "flat");
+    assert_eq!(
+        flat.clay.density.patches.len(),
+        1,
+        "depth 0 is the base alone"
+    );
+    let (deep, (_, _, euler, closed), said) = run("2", "deep");
+    assert!(deep.clay.density.patches.len() > 1, "{said}");
+    assert!(said.contains("depth 1:"), "{said}");
+    let base = deep.clay.base().spacing;
+    for p in &deep.clay.density.patches[1..] {
+        let ratio = base / p.lattice.spacing;
+        assert!(
+            (ratio - 2.0).abs() < 1e-4 || (ratio - 4.0).abs() < 1e-4,
+            "a detail patch at 1/{ratio} of the base spacing"
+        );
+    }
+    assert!(closed, "the summed surface is closed");
+    assert_eq!(euler, 2);
 }

@@ -137,10 +137,21 @@ pub struct ImportArgs {
     /// Coefficients per axis of the fitted clay (12 to 256; the object spans this less eight).
     #[arg(long, default_value_t = 32, value_name = "N")]
     pub resolution: usize,
-    /// Without normals: the widest gap between neighbouring points that still closes the
-    /// surface, in knot spans (above 0, below 2).
+    /// Holes in a point cloud narrower than twice this, in knot spans, are capped (0.5 to
+    /// 3.5): the outside is found by a flood that cannot pass them. Wider holes let the
+    /// outside in; narrower concavities are bridged.
     #[arg(long, default_value_t = crate::fit::cloud::DEFAULT_GAP_SPANS, value_name = "SPANS")]
     pub gap: f32,
+    /// The error bound, in percent of the object's size (its box's longest side; a volume's
+    /// longest side): an octree node whose points (or voxels near the surface) lie farther
+    /// than this from the fitted surface, root mean square, gets a finer detail patch (Hua &
+    /// Qin §5).
+    #[arg(long, default_value_t = crate::fit::hierarchy::DEFAULT_ERROR * 100.0, value_name = "PERCENT")]
+    pub error: f32,
+    /// The deepest level of detail patches (0 to 6; 0 fits the base lattice alone). Level
+    /// `d` has half the knot spacing of level `d − 1`.
+    #[arg(long, default_value_t = crate::fit::hierarchy::DEFAULT_MAX_DEPTH, value_name = "D")]
+    pub max_depth: u32,
     /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,

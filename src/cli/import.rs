@@ -1,15 +1,24 @@
 //! `dynaclay import`: a point cloud or a volume becomes a session whose clay is fitted to it.
+//!
+//! A cloud is fitted hierarchically (a base lattice and detail patches, [`fit_hierarchy`]);
+//! a volume on one lattice. Long fits show a progress bar on a terminal (stderr). Ctrl-C
+//! during the fit stops it between stages or patches and exits 130 with nothing written;
+//! the session and the mesh are only written after the fit, each through the atomic writer
+//! (a temporary file renamed into place), so no half-written file is ever left.
 
+use std::io::IsTerminal;
 use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 
 use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::run::CliError;
 use crate::dynamics::Material;
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 use crate::fit::{
-    CloudFitError, CloudFitOptions, Sample, SignedBy, Volume, fit_point_cloud, fit_volume,
-    read_nrrd, read_points, read_raw,
+    CloudFitError, CloudFitOptions, FitProgress, HierarchyOptions, Sample, SignedBy, Volume,
+    fit_hierarchy, fit_volume_hierarchy, read_nrrd, read_points, read_raw,
 };
 use crate::io::{MaterialFields, Session, SessionMeta, save_session};
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
@@ -40,9 +49,12 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
-    let lattice = match ext.as_deref() {
-        Some("raw" | "nrrd") => import_volume(args, ext.as_deref() == Some("nrrd"))?,
-        _ => import_cloud(args)?,
+    watch_for_ctrl_c();
+    let clay = match ext.as_deref() {
+        Some("raw" | "nrrd") => {
+            clay_from_field(import_volume(args, ext.as_deref() == Some("nrrd"))?)
+        }
+        _ => clay_from_field(import_cloud(args)?),
     };
     let name = args
         .input
@@ -51,7 +63,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         .unwrap_or("import")
         .to_owned();
     let session = Session {
-        clay: Clay::single(lattice),
+        clay,
         material: MaterialFields {
             uniform: Material::PLASTIC,
             grids: Vec::new(),
@@ -85,6 +97,10 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         }
         _ => None,
     };
+    // The last moment Ctrl-C is heard: from here on the outputs are written whole.
+    if INTERRUPTED.load(Ordering::Relaxed) {
+        return Err(interrupted());
+    }
     save_session(&args.out, &session)
         .map_err(|e| CliError::Output(format!("{}: {e}", args.out.display())))?;
     say!("wrote {}", args.out.display());
@@ -94,16 +110,70 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Reads and fits a point cloud; reports how far its points lie from the fitted surface.
-fn import_cloud(args: &ImportArgs) -> Result<BSplineLattice, CliError> {
+/// The clay of a fitted multi-patch field: its density is the field, with no paint and no pins.
+fn clay_from_field(field: MultiPatchField) -> Clay {
+    Clay {
+        density: field,
+        colour: None,
+        constraints: Vec::new(),
+    }
+}
+
+/// Set by the Ctrl-C handler; the fit's progress callback and the last step before writing
+/// read it. Relaxed: it is a lone flag, nothing is published through it.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// Installs the Ctrl-C handler that sets [`INTERRUPTED`] (once per process; when a handler
+/// cannot be installed, Ctrl-C ends the process as usual, which still writes nothing half).
+fn watch_for_ctrl_c() {
+    static INSTALLED: std::sync::Once = std::sync::Once::new();
+    INSTALLED.call_once(|| {
+        let _ = ctrlc::set_handler(|| INTERRUPTED.store(true, Ordering::Relaxed));
+    });
+}
+
+fn interrupted() -> CliError {
+    CliError::Interrupted("Ctrl-C during the fit; nothing was written".into())
+}
+
+/// A progress display on stderr when it is a terminal, silent otherwise.
+fn progress_bar() -> indicatif::ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.enable_steady_tick(Duration::from_millis(120));
+    bar
+}
+
+/// Shows `stage` on `bar`; `false` (stop) once Ctrl-C was pressed.
+fn show_progress(bar: &indicatif::ProgressBar, stage: FitProgress) -> bool {
+    match stage {
+        FitProgress::Signing => bar.set_message("signing the points"),
+        FitProgress::Base => bar.set_message("fitting the base lattice"),
+        FitProgress::Detail { depth, done, of } => {
+            bar.set_message(format!("depth {depth}: detail patch {} of {of}", done + 1));
+        }
+    }
+    !INTERRUPTED.load(Ordering::Relaxed)
+}
+
+/// Reads a point cloud and fits it hierarchically; reports the levels and how far the
+/// points lie from the fitted surface.
+fn import_cloud(args: &ImportArgs) -> Result<MultiPatchField, CliError> {
     let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
-    let options = CloudFitOptions {
-        resolution: args.resolution,
-        gap_spans: args.gap,
-        ..CloudFitOptions::default()
+    let options = HierarchyOptions {
+        base: CloudFitOptions {
+            resolution: args.resolution,
+            gap_spans: args.gap,
+            ..CloudFitOptions::default()
+        },
+        error: args.error / 100.0,
+        max_depth: args.max_depth,
     };
     say!(
-        "dynaclay import: {} points{} from {}, fitting a {}³ clay",
+        "dynaclay import: {} points{} from {}, fitting a {}³ clay with detail patches down to \
+         depth {} where the error is above {}% of its size",
         cloud.points.len(),
         if cloud.normals.is_some() {
             " with normals"
@@ -111,35 +181,53 @@ fn import_cloud(args: &ImportArgs) -> Result<BSplineLattice, CliError> {
             ""
         },
         args.input.display(),
-        options.resolution
+        options.base.resolution,
+        options.max_depth,
+        args.error
     );
-    let fit = fit_point_cloud(&cloud, &options).map_err(|e| match e {
+    let bar = progress_bar();
+    let fit = fit_hierarchy(&cloud, &options, &mut |stage| show_progress(&bar, stage));
+    bar.finish_and_clear();
+    let fit = fit.map_err(|e| match e {
         CloudFitError::Options(m) => CliError::Usage(m),
+        CloudFitError::Interrupted => interrupted(),
         other => CliError::Output(format!("{}: {other}", args.input.display())),
     })?;
-    // How far the points lie from the fitted surface, to first order: |s − iso| / |∇s|.
+    for level in &fit.levels {
+        say!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth,
+            level.refined,
+            level.nodes
+        );
+    }
+    // How far the points lie from the fitted surface, to first order: |F − iso| / |∇F|.
     let (mut sum, mut worst) = (0.0f64, 0.0f32);
     for &p in &cloud.points {
-        let (v, g) = fit.lattice.value_and_gradient(fit.to_field(p));
-        let d = (v - fit.lattice.iso).abs() / g.length().max(1e-6);
+        let (v, g) = fit.field.value_and_gradient(fit.to_field(p));
+        let d = (v - fit.field.iso()).abs() / g.length().max(1e-6);
         sum += f64::from(d);
         worst = worst.max(d);
     }
-    let spans = |d: f32| d / fit.lattice.spacing;
+    let percent = |d: f32| 100.0 * d / fit.size;
     say!(
-        "signed by {}; points lie {:.3} spans from the surface on average, {:.3} at most",
+        "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
+         points lie {:.3}% of the size from the surface on average, {:.3}% at most",
         match fit.signed_by {
             SignedBy::Normals => "the normals",
             SignedBy::Tagging => "flood tagging",
         },
-        spans((sum / cloud.points.len() as f64) as f32),
-        spans(worst)
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base,
+        percent((sum / cloud.points.len() as f64) as f32),
+        percent(worst)
     );
-    Ok(fit.lattice)
+    Ok(fit.field)
 }
 
-/// Reads and fits a volume at `args.iso`.
-fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliError> {
+/// Reads and fits a volume at `args.iso`, hierarchically as a cloud is.
+fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<MultiPatchField, CliError> {
     let iso = args.iso.ok_or_else(|| {
         CliError::Usage("a volume needs --iso V: the intensity of its surface".into())
     })?;
@@ -166,13 +254,42 @@ fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<BSplineLattice, CliErr
         args.input.display(),
         args.resolution
     );
-    let fit = fit_volume(&volume, iso, args.resolution, crate::engine::CLAY_SPACING).map_err(
-        |e| match e {
-            CloudFitError::Options(m) => CliError::Usage(m),
-            other => CliError::Output(format!("{}: {other}", args.input.display())),
-        },
-    )?;
-    Ok(fit.lattice)
+    let options = HierarchyOptions {
+        error: args.error / 100.0,
+        max_depth: args.max_depth,
+        ..HierarchyOptions::default()
+    };
+    let bar = progress_bar();
+    let fit = fit_volume_hierarchy(
+        &volume,
+        iso,
+        args.resolution,
+        crate::engine::CLAY_SPACING,
+        &options,
+        &mut |stage| show_progress(&bar, stage),
+    );
+    bar.finish_and_clear();
+    let fit = fit.map_err(|e| match e {
+        CloudFitError::Options(m) => CliError::Usage(m),
+        CloudFitError::Interrupted => interrupted(),
+        other => CliError::Output(format!("{}: {other}", args.input.display())),
+    })?;
+    for level in &fit.levels {
+        say!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth,
+            level.refined,
+            level.nodes
+        );
+    }
+    say!(
+        "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
+         base alone)",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base
+    );
+    Ok(fit.field)
 }
 
 fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {

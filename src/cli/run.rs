@@ -61,6 +61,10 @@ pub enum CliError {
     /// `dynaclay rbf` failed (exit 2 for bad input, 1 otherwise).
     #[error("rbf: {0}")]
     Rbf(super::rbf::RbfCommandError),
+    /// Ctrl-C stopped the command before it wrote anything (exit 130, the shell's code for
+    /// SIGINT; see [`CliError::INTERRUPTED_EXIT`]).
+    #[error("interrupted: {0}")]
+    Interrupted(String),
 }
 
 /// A render failure with its file; no adapter at all is said as a skip, not a failure.
@@ -81,6 +85,10 @@ impl CliError {
     /// the end of the run (closing it): the sculpt is safe, the hardware needs a look.
     pub const DEVICE_FAULT_EXIT: i32 = 5;
 
+    /// Exit status when Ctrl-C stopped a command (`dynaclay import` during a fit): 128 + 2,
+    /// what a shell reports for a process ended by SIGINT.
+    pub const INTERRUPTED_EXIT: i32 = 130;
+
     /// The process exit code for this error.
     #[must_use]
     pub fn exit_code(&self) -> i32 {
@@ -91,6 +99,7 @@ impl CliError {
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
             Self::Rbf(e) => e.exit_code(),
+            Self::Interrupted(_) => Self::INTERRUPTED_EXIT,
         }
     }
 }

@@ -8,21 +8,27 @@
 //!    grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point gets its
 //!    distance to the nearest point (each point visits the nodes around it: no search
 //!    structure, `O(points · band nodes)`).
-//! 3. **Sign.** Nodes farther than the gap `τ` from every point are flooded from the grid's
-//!    boundary: the exterior, as in the tagging of Zhao, Osher & Fedkiw (2001). Gaps in the
-//!    cloud narrower than `2τ` are closed; wider holes let the flood in. Each point needs an
-//!    outward normal: the file's, or else the direction of least variance of its neighbours
-//!    (principal components) turned toward the exterior (the side nearer the flooded region).
-//!    A band node's signed distance is its distance to its nearest point's tangent plane,
-//!    smooth across the surface (the distance to the nearest point alone would dimple between
-//!    points); beyond the band, flooded nodes are outside and the rest inside.
+//! 3. **Sign.** The exterior is found by closing, after the tagging of Zhao, Osher & Fedkiw
+//!    (2001): the grid nodes farther than the gap `τ` from every point (an exact distance
+//!    transform) are flooded from the grid's boundary, so the flood cannot pass a hole
+//!    narrower than `2τ`; the flooded region is then grown back by `τ`. The growth stops
+//!    short of the points and reaches into a hole as far as a ball of radius `τ` rolled over
+//!    it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
+//!    letting the outside in. Each point needs an outward normal: the file's, or else the
+//!    direction of least variance of its neighbours (principal components) turned toward the
+//!    exterior (the side nearer the grown region). A node within the band takes its signed
+//!    distance to its nearest point's tangent plane, smooth across the surface (the distance
+//!    to the nearest point alone would dimple between points), which also spans a hole's
+//!    rim with the rim's tangent planes: the hole is closed by a smooth cap that continues
+//!    the surface around it (Hua & Qin Fig. 6; on a convex surface the rim's planes meet a
+//!    little above the missing part, 0.06 of the tube's radius over a hole 1.4 radii wide in
+//!    the test). Beyond the band, exterior nodes are outside and the rest inside.
 //! 4. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
 //!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
 //!
-//! Hua & Qin fit an octree of patches (§5) and Guo & Qin sign two off-surface samples per
-//! point; this module fits one level on a densely signed grid. The hierarchical refinement
-//! is not here yet.
+//! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
+//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`].
 
 use std::collections::VecDeque;
 
@@ -36,7 +42,10 @@ pub const MARGIN_SPANS: f32 = 4.0;
 /// How far from a point distances are computed, knot spans.
 pub const BAND_SPANS: f32 = 2.0;
 /// The gap the sign tagging closes by default, knot spans (holes narrower than twice this).
-pub const DEFAULT_GAP_SPANS: f32 = 1.5;
+pub const DEFAULT_GAP_SPANS: f32 = 2.5;
+/// The widest gap: the flood starts from the grid's boundary, [`MARGIN_SPANS`] from the
+/// object, and needs room to start.
+pub const MAX_GAP_SPANS: f32 = MARGIN_SPANS - 0.5;
 
 /// How to fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -104,9 +113,13 @@ pub enum CloudFitError {
     /// The least-squares fit failed.
     #[error("fit: {0}")]
     Fit(#[from] FitError),
+    /// The caller asked the fit to stop (Ctrl-C).
+    #[error("interrupted")]
+    Interrupted,
 }
 
-/// Fits a clay to `cloud` (see the module docs).
+/// Fits a clay to `cloud` on one lattice (see the module docs): [`sign_cloud`], then a
+/// least-squares fit of [`SignedCloud::density`] over the whole lattice.
 ///
 /// # Errors
 /// [`CloudFitError`] for bad options, a cloud without extent, or a failed fit.
@@ -114,6 +127,128 @@ pub fn fit_point_cloud(
     cloud: &PointCloud,
     options: &CloudFitOptions,
 ) -> Result<CloudFit, CloudFitError> {
+    let signed = sign_cloud(cloud, options)?;
+    let lattice = signed.fit_base()?;
+    Ok(CloudFit {
+        lattice,
+        scale: signed.scale,
+        offset: signed.offset,
+        signed_by: signed.signed_by,
+    })
+}
+
+/// A cloud placed in the lattice's space and signed: every node of the signing grid knows
+/// its nearest point within the band (or, beyond it, whether it is outside), and every point
+/// its outward normal. [`SignedCloud::signed_distance`] answers anywhere in the lattice.
+pub struct SignedCloud {
+    /// The points, field units.
+    pub points: Vec<Vec3>,
+    /// Their unit outward normals; zero for a point no node takes its plane from (normals
+    /// are estimated only where they are used).
+    pub normals: Vec<Vec3>,
+    grid: SignGrid,
+    /// Per node: its nearest point within the band, or [`NO_POINT`].
+    nearest: Vec<u32>,
+    /// Per node: outside the closed surface (used beyond the band).
+    exterior: Vec<bool>,
+    /// The density profile's width, field units (two knot spans of the base lattice).
+    pub width: f32,
+    /// The base lattice's resolution and spacing.
+    pub resolution: usize,
+    /// Knot spacing of the base lattice, field units.
+    pub spacing: f32,
+    /// Samples per knot span of the base fit.
+    pub samples_per_span: usize,
+    /// Field units per file unit.
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+    /// How the signs were found.
+    pub signed_by: SignedBy,
+}
+
+/// A node with no point within the band.
+const NO_POINT: u32 = u32::MAX;
+
+impl SignedCloud {
+    /// Signed distance from `x` (field units) to the surface, positive outside: within the
+    /// band, the distance to the tangent plane of the point nearest `x` among the nearest
+    /// points of the eight grid nodes around it (exact for a plane, smooth across the
+    /// surface; at a node, its own nearest point); beyond the band, twice the profile's width
+    /// with the side the tagging found.
+    #[must_use]
+    pub fn signed_distance(&self, x: Vec3) -> f32 {
+        match self.nearest_point(x) {
+            Some(p) => (x - self.points[p]).dot(self.normals[p]),
+            None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
+            None => -2.0 * self.width,
+        }
+    }
+
+    /// The point nearest `x` among the nearest points of the eight nodes around it.
+    fn nearest_point(&self, x: Vec3) -> Option<usize> {
+        let u = x / self.grid.h;
+        let [mx, my, mz] = self.grid.dims;
+        let corner = |a: f32, m: usize| (a.floor().max(0.0) as usize).min(m - 1);
+        let (i0, j0, k0) = (corner(u.x, mx), corner(u.y, my), corner(u.z, mz));
+        let mut best = (f32::INFINITY, None);
+        for c in 0..8 {
+            let i = (i0 + (c & 1)).min(mx - 1);
+            let j = (j0 + ((c >> 1) & 1)).min(my - 1);
+            let k = (k0 + ((c >> 2) & 1)).min(mz - 1);
+            let p = self.nearest[self.grid.index(i, j, k)];
+            if p != NO_POINT {
+                let d = (x - self.points[p as usize]).length_squared();
+                if d < best.0 {
+                    best = (d, Some(p as usize));
+                }
+            }
+        }
+        best.1
+    }
+
+    /// The unit outward normal of the plane that signs `x`, or `None` beyond the band.
+    #[must_use]
+    pub fn normal_near(&self, x: Vec3) -> Option<Vec3> {
+        self.nearest_point(x).map(|p| self.normals[p])
+    }
+
+    /// The density the clay is fitted to at `x`: the profile of the signed distance,
+    /// `clamp(0.5 − d / width, 0, 1)`, the clay's iso-level 0.5 on the surface.
+    #[must_use]
+    pub fn density(&self, x: Vec3) -> f32 {
+        density_profile(self.signed_distance(x), self.width)
+    }
+
+    /// The base lattice, fitted by least squares to [`SignedCloud::density`] (its samples lie
+    /// exactly on the signing grid's nodes).
+    ///
+    /// # Errors
+    /// [`CloudFitError::Fit`] if the fit fails.
+    pub fn fit_base(&self) -> Result<BSplineLattice, CloudFitError> {
+        let n = self.resolution;
+        let mut lattice =
+            BSplineLattice::zeros([n; 3], self.spacing, Vec3::ZERO).map_err(|_| {
+                CloudFitError::Options(format!(
+                    "a {n}³ lattice at spacing {} is not valid",
+                    self.spacing
+                ))
+            })?;
+        fit_lattice(&mut lattice, self.samples_per_span, |x| self.density(x))?;
+        Ok(lattice)
+    }
+}
+
+/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–3 of the module
+/// docs).
+///
+/// # Errors
+/// [`CloudFitError::Options`] for bad options, [`CloudFitError::Degenerate`] for a cloud
+/// without extent.
+pub fn sign_cloud(
+    cloud: &PointCloud,
+    options: &CloudFitOptions,
+) -> Result<SignedCloud, CloudFitError> {
     let n = options.resolution;
     let sps = options.samples_per_span;
     if !(12..=256).contains(&n) {
@@ -126,9 +261,10 @@ pub fn fit_point_cloud(
             "samples per span {sps}: must be 1 to 4"
         )));
     }
-    if !(options.gap_spans > 0.0 && options.gap_spans < BAND_SPANS) {
+    if !(options.gap_spans >= 0.5 && options.gap_spans <= MAX_GAP_SPANS) {
         return Err(CloudFitError::Options(format!(
-            "gap {} spans: must be above 0 and below the band's {BAND_SPANS}",
+            "gap {} spans: must be 0.5 to {MAX_GAP_SPANS} (the empty margin around the object \
+             less half a span)",
             options.gap_spans
         )));
     }
@@ -151,16 +287,20 @@ pub fn fit_point_cloud(
 
     let grid = SignGrid::new(n, spacing, sps);
     let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
-    let gap = options.gap_spans * spacing;
-    let exterior = grid.flood_exterior(&dist, gap);
+    let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
     let given = cloud
         .normals
         .as_ref()
         .filter(|ns| ns.len() == points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
-    let to_exterior = grid.distance_to(&exterior);
     let (normals, signed_by) = match given {
-        Some(ns) => (ns.clone(), SignedBy::Normals),
+        Some(ns) => (
+            ns.iter()
+                .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+                .collect(),
+            SignedBy::Normals,
+        ),
         None => {
+            let to_exterior = grid.distance_to(&exterior);
             // Each point's normal: the least-variance direction of its neighbours within the
             // band, turned toward the flooded exterior.
             let side = |p: Vec3, n: Vec3| {
@@ -168,37 +308,35 @@ pub fn fit_point_cloud(
                 to_exterior[grid.nearest_node(p - n * probe)]
                     - to_exterior[grid.nearest_node(p + n * probe)]
             };
+            // Only the points some node takes its plane from need a normal (a dense cloud
+            // has many more points than band nodes).
+            let mut wanted = vec![false; points.len()];
+            for (&p, d) in nearest.iter().zip(&dist) {
+                if d.is_finite() {
+                    wanted[p as usize] = true;
+                }
+            }
             (
-                estimate_normals(&points, grid.h, BAND_SPANS * spacing, side),
+                estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
                 SignedBy::Tagging,
             )
         }
     };
-    let width = 2.0 * spacing;
-    let far = 2.0 * width;
-    // Signed distance, positive outside: in the band, the distance from the node to its
-    // nearest point's tangent plane (smooth across the surface, where the distance to the
-    // nearest point would dimple between points); beyond it, the flood's verdict.
-    let density: Vec<f32> = (0..grid.count())
-        .map(|i| {
-            let signed = if dist[i].is_finite() {
-                let p = nearest[i] as usize;
-                (grid.position(i) - points[p]).dot(normals[p])
-            } else if exterior[i] {
-                far
-            } else {
-                -far
-            };
-            density_profile(signed, width)
-        })
+    let nearest = nearest
+        .into_iter()
+        .zip(&dist)
+        .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
-
-    let mut lattice = BSplineLattice::zeros([n; 3], spacing, Vec3::ZERO).map_err(|_| {
-        CloudFitError::Options(format!("a {n}³ lattice at spacing {spacing} is not valid"))
-    })?;
-    fit_lattice(&mut lattice, sps, |x| density[grid.nearest_node(x)])?;
-    Ok(CloudFit {
-        lattice,
+    Ok(SignedCloud {
+        points,
+        normals,
+        grid,
+        nearest,
+        exterior,
+        width: 2.0 * spacing,
+        resolution: n,
+        spacing,
+        samples_per_span: sps,
         scale,
         offset,
         signed_by,
@@ -234,6 +372,7 @@ impl SignGrid {
         [index % mx, (index / mx) % my, index / (mx * my)]
     }
 
+    #[cfg(test)]
     fn position(&self, index: usize) -> Vec3 {
         let [i, j, k] = self.coords(index);
         Vec3::new(i as f32, j as f32, k as f32) * self.h
@@ -271,11 +410,27 @@ impl SignGrid {
         (dist, nearest)
     }
 
-    /// The nodes farther than `gap` from every point that connect to the grid's boundary
-    /// through such nodes (6-connected flood).
-    fn flood_exterior(&self, dist: &[f32], gap: f32) -> Vec<bool> {
+    /// The exterior by closing: the nodes farther than `gap` from every point that connect
+    /// to the grid's boundary through such nodes (a 6-connected flood that cannot pass a hole
+    /// narrower than `2 · gap`), grown back by `gap` (every node within `gap` of the flooded
+    /// region). The growth stops short of the points, so they stay inside, and it reaches
+    /// into a hole as far as a ball of radius `gap` rolled over it: the hole is capped.
+    /// Distances are between grid nodes (each point marks its nearest node).
+    fn close_and_flood(&self, points: &[Vec3], gap: f32) -> Vec<bool> {
+        let mut occupied = vec![false; self.count()];
+        for &p in points {
+            occupied[self.nearest_node(p)] = true;
+        }
+        let to_points = self.distance_to(&occupied);
+        let flooded = self.flood(|at| to_points[at] > gap);
+        let to_flooded = self.distance_to(&flooded);
+        to_flooded.iter().map(|&d| d <= gap).collect()
+    }
+
+    /// The nodes where `open` holds that connect to the grid's boundary through such nodes
+    /// (6-connected flood).
+    fn flood(&self, open: impl Fn(usize) -> bool) -> Vec<bool> {
         let [mx, my, mz] = self.dims;
-        let open = |at: usize| dist[at] > gap;
         let mut outside = vec![false; self.count()];
         let mut queue = VecDeque::new();
         for k in 0..mz {
@@ -417,6 +572,8 @@ fn squared_distance_1d(f: &[f32], out: &mut [f32], hull: &mut [usize], bounds: &
 
 /// Neighbours a normal is estimated from, at least (the search widens until it has them).
 const MIN_NEIGHBOURS: usize = 12;
+/// Points a cell of the neighbour search offers, at most (an even subset of a denser cell).
+const MAX_CELL_NEIGHBOURS: usize = 24;
 
 /// Unit normals of `points`: for each, the direction of least variance of its neighbours
 /// (principal components of their covariance), pointing where `side(p, n)` is positive
@@ -426,6 +583,7 @@ const MIN_NEIGHBOURS: usize = 12;
 /// from the x axis, turned the same way.
 fn estimate_normals(
     points: &[Vec3],
+    wanted: &[bool],
     cell: f32,
     radius: f32,
     side: impl Fn(Vec3, Vec3) -> f32,
@@ -436,11 +594,24 @@ fn estimate_normals(
     for (i, &p) in points.iter().enumerate() {
         buckets.entry(cell_of(p)).or_default().push(i as u32);
     }
+    // A dense cell offers an even subset of its points as neighbours: a plane is well
+    // estimated from a few dozen, and the cost stays bounded where a scan piles points up.
+    for bucket in buckets.values_mut() {
+        if bucket.len() > MAX_CELL_NEIGHBOURS {
+            let stride = bucket.len().div_ceil(MAX_CELL_NEIGHBOURS);
+            let kept: Vec<u32> = bucket.iter().copied().step_by(stride).collect();
+            *bucket = kept;
+        }
+    }
     let widest = (radius / cell).ceil().max(1.0) as i32;
     let mut near = Vec::new();
     points
         .iter()
-        .map(|&p| {
+        .zip(wanted)
+        .map(|(&p, &wanted)| {
+            if !wanted {
+                return Vec3::ZERO;
+            }
             let c = cell_of(p);
             let mut ring = 1;
             loop {
@@ -506,7 +677,12 @@ fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
         if len.is_nan() || len <= 0.0 {
             break;
         }
-        v = w / len;
+        let next = w / len;
+        let settled = (next - v).length_squared() < 1e-12;
+        v = next;
+        if settled {
+            break;
+        }
     }
     v.as_vec3()
 }
@@ -663,7 +839,7 @@ mod tests {
                 ..CloudFitOptions::default()
             },
             CloudFitOptions {
-                gap_spans: 3.0,
+                gap_spans: 5.0,
                 ..CloudFitOptions::default()
             },
         ] {

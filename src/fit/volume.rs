@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 
 use super::cloud::{CloudFitError, MARGIN_SPANS};
-use crate::field::{BSplineLattice, density_profile, fit_lattice};
+use super::hierarchy::{FitProgress, HierarchyOptions, LevelReport, Refinement, refine};
+use crate::field::{BSplineLattice, MultiPatchField, density_profile, fit_lattice};
 use crate::io::bounded_read::{BoundedReadError, read_regular_file};
 
 /// The most voxels a volume may hold.
@@ -138,7 +139,12 @@ fn decode(
 /// # Errors
 /// [`VolumeError`] naming the file: unreadable, or a byte count that does not match.
 pub fn read_raw(path: &Path, dims: [usize; 3], sample: Sample) -> Result<Volume, VolumeError> {
-    let cap = voxel_count(dims).map_or(0, |n| n * sample.bytes()) as u64;
+    // Absurd dimensions are refused before the file is read or anything allocated.
+    let count = voxel_count(dims).ok_or_else(|| VolumeError::Data {
+        file: path.to_path_buf(),
+        what: format!("dimensions {dims:?}: each at least 2, at most {MAX_VOXELS} voxels in all"),
+    })?;
+    let cap = (count * sample.bytes()) as u64;
     let bytes = read_regular_file(path, cap.max(1)).map_err(|error| VolumeError::Read {
         file: path.to_path_buf(),
         error,
@@ -335,19 +341,58 @@ pub fn fit_volume(
             "iso {iso}: the volume's intensities run from {lo} to {hi}; choose a value between"
         )));
     }
-    let longest = (volume.dims.iter().max().copied().unwrap_or(2) - 1) as f32;
-    let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
-    let scale = span_total * spacing / longest;
-    let size = Vec3::new(
-        (volume.dims[0] - 1) as f32,
-        (volume.dims[1] - 1) as f32,
-        (volume.dims[2] - 1) as f32,
-    );
-    let offset = Vec3::splat((resolution - 1) as f32 * spacing * 0.5) - size * 0.5 * scale;
-    let width = 2.0 * spacing;
-    let target = |x: Vec3| {
-        let u = (x - offset) / scale;
-        let inside_volume = u.cmpge(Vec3::ZERO).all() && u.cmple(size).all();
+    let target = VolumeTarget::new(volume, iso, resolution, spacing);
+    let mut lattice = BSplineLattice::zeros([resolution; 3], spacing, Vec3::ZERO)
+        .map_err(|e| CloudFitError::Options(e.to_string()))?;
+    fit_lattice(&mut lattice, 2, |x| target.density(x))?;
+    Ok(VolumeFit {
+        lattice,
+        scale: target.scale,
+        offset: target.offset,
+    })
+}
+
+/// Where a volume lies in the lattice and the density its clay is fitted to.
+struct VolumeTarget<'a> {
+    volume: &'a Volume,
+    iso: f32,
+    /// Field units per voxel.
+    scale: f32,
+    /// Field position of voxel (0, 0, 0).
+    offset: Vec3,
+    /// The volume's extent, voxels.
+    size: Vec3,
+    /// The density profile's width, field units.
+    width: f32,
+}
+
+impl<'a> VolumeTarget<'a> {
+    fn new(volume: &'a Volume, iso: f32, resolution: usize, spacing: f32) -> Self {
+        let longest = (volume.dims.iter().max().copied().unwrap_or(2) - 1) as f32;
+        let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
+        let scale = span_total * spacing / longest;
+        let size = Vec3::new(
+            (volume.dims[0] - 1) as f32,
+            (volume.dims[1] - 1) as f32,
+            (volume.dims[2] - 1) as f32,
+        );
+        let offset = Vec3::splat((resolution - 1) as f32 * spacing * 0.5) - size * 0.5 * scale;
+        Self {
+            volume,
+            iso,
+            scale,
+            offset,
+            size,
+            width: 2.0 * spacing,
+        }
+    }
+
+    /// The density at field point `x`: the profile of the intensity's signed distance to
+    /// first order, empty beyond the scan.
+    fn density(&self, x: Vec3) -> f32 {
+        let (volume, iso, width) = (self.volume, self.iso, self.width);
+        let u = (x - self.offset) / self.scale;
+        let inside_volume = u.cmpge(Vec3::ZERO).all() && u.cmple(self.size).all();
         if !inside_volume {
             // Beyond the scan: empty.
             return density_profile(width, width);
@@ -358,7 +403,7 @@ pub fn fit_volume(
             volume.sample(u + Vec3::X * h) - volume.sample(u - Vec3::X * h),
             volume.sample(u + Vec3::Y * h) - volume.sample(u - Vec3::Y * h),
             volume.sample(u + Vec3::Z * h) - volume.sample(u - Vec3::Z * h),
-        ) / (2.0 * h * scale);
+        ) / (2.0 * h * self.scale);
         let slope = g.length();
         let signed = if slope > 1e-12 {
             (iso - v) / slope
@@ -368,14 +413,81 @@ pub fn fit_volume(
             width
         };
         density_profile(signed, width)
+    }
+}
+
+/// Voxels whose density lies on the profile's ramp give the hierarchy's error samples, at
+/// most this many (an even subset of more).
+const MAX_VOLUME_SAMPLES: usize = 600_000;
+
+/// A volume fitted hierarchically: the base of [`fit_volume`] plus the octree of detail
+/// patches of [`super::hierarchy`], refined where the fit misses the voxels near the surface.
+#[derive(Clone, Debug)]
+pub struct VolumeHierarchy {
+    /// The base (patch 0) and the detail patches, identity maps; iso-level 0.5.
+    pub field: MultiPatchField,
+    /// Field units per voxel.
+    pub scale: f32,
+    /// Field position of voxel (0, 0, 0).
+    pub offset: Vec3,
+    /// RMS distance error at the samples, base alone and with every patch, fraction of the
+    /// volume's size.
+    pub rms_base: f32,
+    /// See [`VolumeHierarchy::rms_base`].
+    pub rms: f32,
+    /// Per depth: nodes checked and refined.
+    pub levels: Vec<LevelReport>,
+}
+
+/// [`fit_volume`], then detail patches where the error at the voxels near the surface (those
+/// whose density lies on the profile's ramp) is above `options.error` (a fraction of the
+/// volume's longest side), down to `options.max_depth` (`options.base` is not used: the
+/// resolution is `resolution`). `progress` as for [`super::fit_hierarchy`].
+///
+/// # Errors
+/// As [`fit_volume`] and [`super::hierarchy::refine`].
+pub fn fit_volume_hierarchy(
+    volume: &Volume,
+    iso: f32,
+    resolution: usize,
+    spacing: f32,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<VolumeHierarchy, CloudFitError> {
+    if !progress(FitProgress::Base) {
+        return Err(CloudFitError::Interrupted);
+    }
+    let base = fit_volume(volume, iso, resolution, spacing)?;
+    let target = VolumeTarget::new(volume, iso, resolution, spacing);
+    let [nx, ny, nz] = volume.dims;
+    let near: Vec<Vec3> = (0..nz)
+        .flat_map(|k| (0..ny).flat_map(move |j| (0..nx).map(move |i| (i, j, k))))
+        .map(|(i, j, k)| target.offset + Vec3::new(i as f32, j as f32, k as f32) * target.scale)
+        .filter(|&x| {
+            let d = target.density(x);
+            d > 0.02 && d < 0.98
+        })
+        .collect();
+    let stride = near.len().div_ceil(MAX_VOLUME_SAMPLES).max(1);
+    let at: Vec<Vec3> = near.into_iter().step_by(stride).collect();
+    let mut field = MultiPatchField::new(base.lattice);
+    let density = |x: Vec3| target.density(x);
+    let data = Refinement {
+        target: &density,
+        spacing,
+        width: target.width,
+        samples_per_span: 2,
+        lo: target.offset,
+        hi: target.offset + target.size * target.scale,
     };
-    let mut lattice = BSplineLattice::zeros([resolution; 3], spacing, Vec3::ZERO)
-        .map_err(|e| CloudFitError::Options(e.to_string()))?;
-    fit_lattice(&mut lattice, 2, target)?;
-    Ok(VolumeFit {
-        lattice,
-        scale,
-        offset,
+    let refined = refine(&mut field, &data, at, options, progress)?;
+    Ok(VolumeHierarchy {
+        field,
+        scale: target.scale,
+        offset: target.offset,
+        rms_base: refined.rms_base,
+        rms: refined.rms,
+        levels: refined.levels,
     })
 }
 
