@@ -69,10 +69,12 @@ pub struct GraphicsStage {
 
 impl GraphicsStage {
     /// Builds the stage and meshes `field` in full; `cells_per_span` sets the marching-cubes
-    /// resolution (cells per knot span); paint arrives on `colours`.
+    /// resolution (cells per knot span); paint arrives on `colours`, new patch layouts on
+    /// `layouts`.
     ///
     /// # Errors
     /// When the sampling grid cannot be made for the lattice.
+    #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
     pub fn new(
         field: MultiPatchField,
         layouts: LayoutPort,

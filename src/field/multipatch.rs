@@ -222,24 +222,6 @@ impl MultiPatchField {
             .fold(f32::INFINITY, f32::min)
     }
 
-    /// The patch with the finest spacing whose support holds `x` well inside (one knot span
-    /// from its border, where its own detail lives); the base when no detail patch does.
-    #[must_use]
-    pub fn finest_patch_at(&self, x: Vec3) -> usize {
-        let mut best = (0, f32::INFINITY);
-        for (n, p) in self.patches.iter().enumerate() {
-            let u = p.world_to_patch.transform_point3(x);
-            let (lo, hi) = p.lattice.support();
-            let h = p.lattice.spacing;
-            let inside = u.cmpge(lo + Vec3::splat(h)).all() && u.cmple(hi - Vec3::splat(h)).all();
-            let spacing = p.world_spacing();
-            if (n == 0 || inside) && spacing < best.1 {
-                best = (n, spacing);
-            }
-        }
-        best.0
-    }
-
     /// Add a patch with its own map; returns its index.
     pub fn push(&mut self, lattice: BSplineLattice, world_to_patch: Affine3A) -> usize {
         self.patches.push(Patch {
