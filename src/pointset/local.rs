@@ -415,8 +415,16 @@ mod tests {
             s.weight = 0.2 + (m % 7) as f32 * 0.13;
         }
         let (centre, half, ridge) = (p0 + Vec3::new(0.01, 0.0, -0.02), 0.12, 1e-3);
-        let got = fit_local(centre, half, p0, n, &samples, ridge, &mut FitScratch::default())
-            .unwrap();
+        let got = fit_local(
+            centre,
+            half,
+            p0,
+            n,
+            &samples,
+            ridge,
+            &mut FitScratch::default(),
+        )
+        .unwrap();
         let field = LocalField::zero(centre, half);
         let mut a = vec![vec![0.0f64; LOCAL_COUNT + 1]; LOCAL_COUNT];
         let mut total = 0.0;
@@ -456,7 +464,10 @@ mod tests {
         }
         for (c, v) in got.coeffs.iter().enumerate() {
             let want = a[c][LOCAL_COUNT] / a[c][c];
-            assert!((f64::from(*v) - want).abs() < 1e-3, "coefficient {c}: {v} vs {want}");
+            assert!(
+                (f64::from(*v) - want).abs() < 1e-3,
+                "coefficient {c}: {v} vs {want}"
+            );
         }
     }
 
