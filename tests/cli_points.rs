@@ -84,3 +84,101 @@ fn points_refuses_a_bad_output_name_and_a_bad_pull() {
         assert_eq!(status.code(), Some(2), "{extra:?}");
     }
 }
+
+/// A `points` script step builds the surface of a cloud beside the engine, pulls it and writes
+/// PLY with outward normals; the clay run goes on as usual.
+#[test]
+fn script_points_step_pulls_and_writes_ply() {
+    let dir = tempfile::tempdir().unwrap();
+    write_sphere_xyz(&dir.path().join("ball.xyz"), 1500);
+    let script = dir.path().join("points.toml");
+    std::fs::write(
+        &script,
+        r#"version = 1
+seconds = 0.5
+
+[clay]
+shape = "block"
+resolution = 16
+
+[[step]]
+do = "points"
+input = "ball.xyz"
+pull = [[0.7, 0.0, 0.0]]
+steps = 1500
+out = "ball_pulled.ply"
+"#,
+    )
+    .unwrap();
+    let out = Command::new(BIN)
+        .args(["run", "--lockstep", "--script"])
+        .arg(&script)
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("script step 1: points: 1500 points from"),
+        "{stdout}"
+    );
+    let cloud = read_points(&dir.path().join("ball_pulled.ply")).unwrap();
+    let normals = cloud.normals.expect("normals written");
+    assert!(cloud.points.len() > 1500, "points inserted on the tip");
+    let mut tip = 0.0f32;
+    for (p, n) in cloud.points.iter().zip(&normals) {
+        assert!(p.normalize().dot(*n) > 0.0, "normal {n} at {p}");
+        tip = tip.max(p.x);
+    }
+    assert!(tip > 0.6, "tip at {tip}");
+    assert!(dir.path().join("out/session.dclay").exists());
+}
+
+/// Bad `points` steps are refused before the run, with their step and key (exit 2).
+#[test]
+fn bad_points_steps_are_refused_with_their_key() {
+    let dir = tempfile::tempdir().unwrap();
+    write_sphere_xyz(&dir.path().join("ball.xyz"), 200);
+    let script = dir.path().join("bad.toml");
+    for (step, says) in [
+        (
+            "do = \"points\"\ninput = \"ball.xyz\"\nout = \"b.xyz\"",
+            "must end in .ply",
+        ),
+        (
+            "do = \"points\"\ninput = \"missing.xyz\"\nout = \"b.ply\"",
+            "is not a file",
+        ),
+        (
+            "do = \"points\"\ninput = \"ball.xyz\"\nsteps = 0\nout = \"b.ply\"",
+            "steps = 0 must be between 1 and",
+        ),
+        (
+            "do = \"points\"\ninput = \"ball.xyz\"\nout = \"../b.ply\"",
+            "--allow-outside",
+        ),
+    ] {
+        std::fs::write(
+            &script,
+            format!("version = 1\nseconds = 0.5\n\n[[step]]\n{step}\n"),
+        )
+        .unwrap();
+        let out = Command::new(BIN)
+            .args(["run", "--lockstep", "--script"])
+            .arg(&script)
+            .arg("--out")
+            .arg(dir.path().join("out"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{step}: {stderr}");
+        assert!(stderr.contains(says), "{step}: {stderr}");
+        assert!(stderr.contains("step 1"), "{step}: {stderr}");
+    }
+    assert!(!dir.path().join("b.ply").exists());
+}

@@ -6,20 +6,12 @@ use glam::Vec3;
 
 use super::args::PointsArgs;
 use super::run::CliError;
-use crate::dynamics::{Distribution, Material, ToolForce, start_on_surface};
 use crate::fit::read_points;
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
-use crate::pointset::{
-    PointSet, PointSetOptions, PointSetSculpt, SamplingOptions, SculptOptions, resample,
-    write_point_ply,
-};
+use crate::pointset::{PointSet, PointSetOptions, write_point_ply};
 
 /// Most mesh cells per axis.
 const MAX_MESH_CELLS: u32 = 512;
-/// Steps between two resamplings during a pull.
-const RESAMPLE_EVERY: u32 = 25;
-/// Density force per unit of force integral (field units are world units here).
-const PULL_GAIN: f32 = 5e6;
 
 /// What `dynaclay points` made.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,53 +103,14 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     })
 }
 
-/// Drags the surface point nearest to `target` there: a sculpting region around both, the
-/// dynamics for `steps` steps, resampling every [`RESAMPLE_EVERY`].
+/// Drags the surface point nearest to `target` there ([`crate::pointset::pull`]).
 fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
-    let fail = |e: crate::pointset::PointSetError| CliError::Output(format!("--pull: {e}"));
-    let nearest = set
-        .points
-        .iter()
-        .copied()
-        .min_by(|a, b| {
-            (*a - target)
-                .length_squared()
-                .total_cmp(&(*b - target).length_squared())
-        })
-        .ok_or_else(|| CliError::Usage("--pull: no points".into()))?;
-    let h = set.spacing_m;
-    let reach = (target - nearest).length();
-    let margin = Vec3::splat(reach + 6.0 * h);
-    let (lo, hi) = (nearest.min(target) - margin, nearest.max(target) + margin);
-    let mut opts = SculptOptions::for_spacing(h);
-    opts.material = Material {
-        yield_density: 0.0,
-        ..Material::PLASTIC
-    };
-    let mut sculpt = PointSetSculpt::new(set, lo, hi, &opts).map_err(fail)?;
-    let sampling = SamplingOptions::for_target(h);
-    let radius = (reach * 0.75).max(3.0 * h);
-    for step in 0..steps {
-        let start = start_on_surface(&sculpt.lattice, nearest, target);
-        let force = ToolForce {
-            start,
-            end: target,
-            distribution: Distribution::Gaussian,
-            radius,
-            gain: PULL_GAIN,
-        };
-        sculpt.step(set, &[force]).map_err(fail)?;
-        if step % RESAMPLE_EVERY == RESAMPLE_EVERY - 1 {
-            resample(set, Some(sculpt.grid_box()), &sampling).map_err(fail)?;
-            sculpt.enlist(set);
-        }
-    }
-    resample(set, Some(sculpt.grid_box()), &sampling).map_err(fail)?;
-    set.reindex().map_err(fail)?;
+    let report = crate::pointset::pull(set, target, steps)
+        .map_err(|e| CliError::Output(format!("--pull: {e}")))?;
     say!(
         "pull to {target}: {} points in the region, {} points in all",
-        sculpt.member_count(),
-        set.len()
+        report.in_region,
+        report.points
     );
     Ok(())
 }

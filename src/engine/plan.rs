@@ -8,7 +8,7 @@
 //! run, so a lockstep run is exactly reproducible):
 //!
 //! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `constrain`,
-//!   `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`) takes no script time. It is sent when the clock reaches the end of everything
+//!   `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`, `points`) takes no script time. It is sent when the clock reaches the end of everything
 //!   before it — after the previous stroke has ended with the hand back at hover — and the
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
@@ -141,6 +141,14 @@ pub enum PlannedAction {
         options: crate::rbf::ExportOptions,
         out: std::path::PathBuf,
     },
+    /// Build a point-set surface from a cloud, pull it, and write it as PLY (beside the
+    /// engine; the clay is not touched). Paths are joined to the script's folder.
+    Points {
+        input: std::path::PathBuf,
+        pulls: Vec<Vec3>,
+        steps: u32,
+        out: std::path::PathBuf,
+    },
 }
 
 impl PlannedAction {
@@ -151,6 +159,7 @@ impl PlannedAction {
         match self {
             Self::Save(path) => Some(("save", path)),
             Self::Rbf { out, .. } => Some(("rbf", out)),
+            Self::Points { out, .. } => Some(("points", out)),
             Self::Particles { out, .. } => out.as_deref().map(|p| ("particles", p)),
             _ => None,
         }
@@ -427,6 +436,23 @@ impl ScriptPlan {
                     let count = particles.map_or(particle_count, |n| n as usize);
                     event(PlannedAction::Rbf {
                         options: export_options(count, *steps, *seed, *offset, *max_centres),
+                        out: base_dir.join(out),
+                    });
+                }
+                ScriptStep::Points {
+                    input,
+                    pull,
+                    steps,
+                    out,
+                } => {
+                    let input = base_dir.join(input);
+                    if !input.is_file() {
+                        return Err(fail(format!("input: {} is not a file", input.display())));
+                    }
+                    event(PlannedAction::Points {
+                        input,
+                        pulls: pull.iter().map(|p| Vec3::from(*p)).collect(),
+                        steps: steps.unwrap_or(crate::io::DEFAULT_POINTS_PULL_STEPS),
                         out: base_dir.join(out),
                     });
                 }

@@ -10,7 +10,9 @@ use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 use super::command::{Command, Reply};
 use super::plan::{PlannedAction, PlannedEvent, ScriptPlan};
 use super::tool_sample::ToolSample;
+use crate::fit::read_points;
 use crate::io::{ScriptError, Session};
+use crate::pointset::{PointSet, PointSetOptions, pull, write_point_ply};
 use crate::rbf::{
     ExportOptions, clay_to_rbf, flatten_clay, settle_particles, write_particles, write_rbf,
 };
@@ -26,6 +28,34 @@ enum ExportJob {
         options: ExportOptions,
         out: std::path::PathBuf,
     },
+}
+
+/// A `points` step: a point-set surface built from a cloud, pulled, and written as PLY. It
+/// needs no copy of the clay, so its thread starts when the step is sent.
+fn points_job(
+    input: &std::path::Path,
+    pulls: &[glam::Vec3],
+    steps: u32,
+    out: &std::path::Path,
+) -> Result<String, String> {
+    let cloud = read_points(input).map_err(|e| format!("points: {e}"))?;
+    let (mut set, times) = PointSet::build(&cloud, &PointSetOptions::default())
+        .map_err(|e| format!("points: {}: {e}", input.display()))?;
+    let mut note = format!(
+        "points: {} points from {}, built in {:.3} s",
+        set.len(),
+        input.display(),
+        times.total_ns() as f64 * 1e-9
+    );
+    for &target in pulls {
+        let report =
+            pull(&mut set, target, steps).map_err(|e| format!("points: pull to {target}: {e}"))?;
+        note += &format!("; pulled to {target} ({} points)", report.points);
+    }
+    write_point_ply(out, &set.points, &set.normals, &set.colours)
+        .map_err(|e| format!("points: {e}"))?;
+    note += &format!("; wrote {}", out.display());
+    Ok(note)
 }
 
 /// Where a `particles` or `rbf` step is: waiting for the engine's copy of the session, or
@@ -82,7 +112,7 @@ pub struct ScriptDriver {
     )>,
     /// Outcomes worth telling the user (pins: which points were moved onto the surface).
     telling: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
-    /// `particles` and `rbf` steps not finished: (step, state).
+    /// `particles`, `rbf` and `points` steps not finished: (step, state).
     exports: Vec<(usize, ExportState)>,
     notes: Vec<(usize, String)>,
     failures: Vec<ScriptError>,
@@ -240,6 +270,15 @@ impl ScriptDriver {
             PlannedAction::Rbf { options, out } => {
                 self.export(step, ExportJob::Rbf { options, out })
             }
+            PlannedAction::Points {
+                input,
+                pulls,
+                steps,
+                out,
+            } => {
+                self.spawn_job(step, move || points_job(&input, &pulls, steps, &out));
+                Vec::new()
+            }
         };
         for cmd in batch {
             if commands.send(cmd).is_err() {
@@ -255,6 +294,24 @@ impl ScriptDriver {
         let (tx, rx) = bounded(1);
         self.exports.push((step, ExportState::Waiting(job, rx)));
         vec![Command::Snapshot { reply: tx }]
+    }
+
+    /// Runs `job` on a thread of its own; its outcome is gathered with the exports'.
+    fn spawn_job(
+        &mut self,
+        step: usize,
+        job: impl FnOnce() -> Result<String, String> + Send + 'static,
+    ) {
+        let (tx, done) = bounded(1);
+        let spawned = std::thread::Builder::new()
+            .name(format!("script step {step}"))
+            .spawn(move || {
+                let _ = tx.send(job());
+            });
+        match spawned {
+            Ok(_) => self.exports.push((step, ExportState::Running(done))),
+            Err(e) => self.fail(step, format!("cannot start its thread: {e}")),
+        }
     }
 
     /// Starts the exports whose copy arrived, and gathers the finished ones. With `block`,
@@ -317,12 +374,14 @@ impl ScriptDriver {
         }
     }
 
-    /// Waits for every `particles` and `rbf` step sent so far to finish (their files written
+    /// Waits for every `particles`, `rbf` and `points` step sent so far to finish (their files written
     /// or their failures recorded). Call it once the engine has stopped: a copy it never
     /// made is not waited for.
     pub fn wait_for_exports(&mut self) {
         if !self.exports.is_empty() {
-            dynaclay_loops::assert_not_in_tick("a script waiting for its particles and rbf steps");
+            dynaclay_loops::assert_not_in_tick(
+                "a script waiting for its particles, rbf and points steps",
+            );
         }
         self.collect_exports(true);
     }

@@ -17,8 +17,8 @@ pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{
-    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DeprecatedKey, ForceToolSpec, PinKind,
-    RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, ShapeSpec, load_script,
-    parse_script, pin_request, poses,
+    AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
+    ForceToolSpec, MAX_POINTS_PULL_STEPS, PinKind, RENAMED_KEYS, SCRIPT_VERSION, Script,
+    ScriptError, ScriptStep, ShapeSpec, load_script, parse_script, pin_request, poses,
 };
 pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};

@@ -647,6 +647,19 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         seed: Option<u64>,
     },
+    /// Build a point-set surface (Guo & Qin) from the point cloud `input` (XYZ, PLY, OBJ or
+    /// STL, relative to the script's folder), pull it toward each point of `pull` in turn for
+    /// `steps` simulation steps each (default 2000), and write it to `out` (`.ply` with
+    /// normals, relative to the script's folder). Takes no script time and leaves the clay
+    /// alone: it runs on a thread of its own.
+    Points {
+        input: PathBuf,
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        pull: Vec<[f32; 3]>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        steps: Option<u32>,
+        out: PathBuf,
+    },
     /// Remove pin `index` (counted from 0 in the order pinned), or every pin when absent (one
     /// undo step).
     Unconstrain {
@@ -1180,6 +1193,10 @@ fn seconds_shown(key: &'static str, shown: &str, v: f32) -> Result<(), StepFault
 pub const MAX_PARTICLES: u32 = 100_000;
 /// Most particle steps a `particles` or `rbf` step may ask for.
 pub const MAX_PARTICLE_STEPS: u32 = 100_000;
+/// Most simulation steps per pull of a `points` step.
+pub const MAX_POINTS_PULL_STEPS: u32 = 1_000_000;
+/// Simulation steps per pull of a `points` step that names none.
+pub const DEFAULT_POINTS_PULL_STEPS: u32 = 2000;
 /// Most centres one dense RBF solve may take (`max_centres`).
 pub const MAX_RBF_CENTRES: u32 = 6000;
 
@@ -1431,6 +1448,36 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                 Some(path) if path.as_os_str().is_empty() => {
                     Err(fault("out", "out must name a file"))
                 }
+                _ => Ok(()),
+            }
+        }
+        ScriptStep::Points {
+            input,
+            pull,
+            steps,
+            out,
+        } => {
+            if input.as_os_str().is_empty() {
+                return Err(fault("input", "input must name a point cloud file"));
+            }
+            if out
+                .extension()
+                .and_then(|e| e.to_str())
+                .map(str::to_ascii_lowercase)
+                .as_deref()
+                != Some("ply")
+            {
+                return Err(fault(
+                    "out",
+                    format!("out = {:?} must end in .ply", out.display().to_string()),
+                ));
+            }
+            check_points("pull", pull, false)?;
+            match steps {
+                Some(k) if !(1..=MAX_POINTS_PULL_STEPS).contains(k) => Err(fault(
+                    "steps",
+                    format!("steps = {k} must be between 1 and {MAX_POINTS_PULL_STEPS}"),
+                )),
                 _ => Ok(()),
             }
         }

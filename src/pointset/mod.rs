@@ -12,6 +12,7 @@ mod error;
 mod local;
 mod normals;
 mod ply;
+mod pull;
 mod sampling;
 mod sculpt;
 mod surface;
@@ -21,6 +22,7 @@ pub use error::PointSetError;
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
 pub use normals::{orient_over_mst, plane_normal};
 pub use ply::{encode_point_ply, write_point_ply};
+pub use pull::{PULL_GAIN, PullReport, RESAMPLE_EVERY, pull};
 pub use sampling::{
     SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings, resample,
 };

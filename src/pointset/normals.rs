@@ -8,9 +8,6 @@
 //! whose normal is turned to `+z`: on a closed surface the highest point's outward normal
 //! points up, so the whole part comes out facing outward.
 
-use std::cmp::Ordering;
-use std::collections::BinaryHeap;
-
 use glam::{Mat3, Vec3};
 
 /// The unit normal of the least-squares plane through `points` (unsigned), or `None` for
@@ -85,32 +82,108 @@ fn smallest_eigenvector(m: Mat3) -> Option<Vec3> {
     (big.length_squared() > 0.0).then(|| big.normalize().any_orthonormal_vector())
 }
 
-#[derive(Clone, Copy, PartialEq)]
-struct Edge {
-    cost: f32,
-    to: u32,
-    from: u32,
+/// A binary min-heap of vertices keyed by their cheapest edge into the tree, on flat arrays
+/// with decrease-key (Prim's algorithm in its eager form): each vertex sits in the heap at
+/// most once, so the heap never holds more than the tree's frontier.
+struct FrontierHeap {
+    /// Vertices, heap-ordered by `key`.
+    heap: Vec<u32>,
+    /// Each vertex's place in `heap`, or `u32::MAX` when it is not there.
+    place: Vec<u32>,
+    /// Each vertex's cheapest known edge cost into the tree.
+    key: Vec<f32>,
 }
 
-impl Eq for Edge {}
-
-impl Ord for Edge {
-    fn cmp(&self, other: &Self) -> Ordering {
-        // Min-heap on cost.
-        other.cost.total_cmp(&self.cost)
+impl FrontierHeap {
+    fn new(n: usize) -> Self {
+        Self {
+            heap: Vec::with_capacity(n.min(1 << 16)),
+            place: vec![u32::MAX; n],
+            key: vec![f32::INFINITY; n],
+        }
     }
-}
 
-impl PartialOrd for Edge {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
+    /// Lowers `v`'s key to `cost` (inserting it if absent); `false` when `cost` is no lower.
+    fn offer(&mut self, v: u32, cost: f32) -> bool {
+        if cost >= self.key[v as usize] {
+            return false;
+        }
+        self.key[v as usize] = cost;
+        let at = match self.place[v as usize] {
+            u32::MAX => {
+                self.heap.push(v);
+                self.heap.len() - 1
+            }
+            p => p as usize,
+        };
+        self.sift_up(at);
+        true
+    }
+
+    fn pop(&mut self) -> Option<u32> {
+        let top = *self.heap.first()?;
+        let last = self.heap.pop()?;
+        self.place[top as usize] = u32::MAX;
+        if !self.heap.is_empty() {
+            self.heap[0] = last;
+            self.place[last as usize] = 0;
+            self.sift_down(0);
+        }
+        Some(top)
+    }
+
+    fn sift_up(&mut self, mut at: usize) {
+        let v = self.heap[at];
+        let kv = self.key[v as usize];
+        while at > 0 {
+            let up = (at - 1) / 2;
+            let u = self.heap[up];
+            if self.key[u as usize] <= kv {
+                break;
+            }
+            self.heap[at] = u;
+            self.place[u as usize] = at as u32;
+            at = up;
+        }
+        self.heap[at] = v;
+        self.place[v as usize] = at as u32;
+    }
+
+    fn sift_down(&mut self, mut at: usize) {
+        let v = self.heap[at];
+        let kv = self.key[v as usize];
+        let len = self.heap.len();
+        loop {
+            let left = 2 * at + 1;
+            if left >= len {
+                break;
+            }
+            let right = left + 1;
+            let child = if right < len
+                && self.key[self.heap[right] as usize] < self.key[self.heap[left] as usize]
+            {
+                right
+            } else {
+                left
+            };
+            let c = self.heap[child];
+            if self.key[c as usize] >= kv {
+                break;
+            }
+            self.heap[at] = c;
+            self.place[c as usize] = at as u32;
+            at = child;
+        }
+        self.heap[at] = v;
+        self.place[v as usize] = at as u32;
     }
 }
 
 /// Flips normals in place so neighbours agree, by Prim's minimal spanning tree over the
 /// neighbour lists (`k` indices per point, flat: point `i`'s are `neighbours[i k .. (i + 1) k]`;
 /// they need not be symmetric, each is used both ways). Each connected part is rooted at its
-/// highest point, turned to face `+z`.
+/// highest point, turned to face `+z`. The frontier is an indexed binary heap with
+/// decrease-key, so each point enters it once rather than once per edge.
 ///
 /// # Panics
 /// When `neighbours` is not `k` entries per point or names a point that does not exist.
@@ -138,11 +211,13 @@ pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[u32]
             fill[j as usize] += 1;
         }
     }
+    drop(fill);
+    // The root of each part: the highest point not yet reached.
     let mut order: Vec<u32> = (0..n as u32).collect();
     order.sort_unstable_by(|&a, &b| points[b as usize].z.total_cmp(&points[a as usize].z));
     let mut done = vec![false; n];
-    let mut heap = BinaryHeap::with_capacity(4 * k);
-    let around = |i: u32| &adj[start[i as usize] as usize..start[i as usize + 1] as usize];
+    let mut from = vec![u32::MAX; n];
+    let mut frontier = FrontierHeap::new(n);
     for &root in &order {
         if done[root as usize] {
             continue;
@@ -150,33 +225,24 @@ pub fn orient_over_mst(points: &[Vec3], normals: &mut [Vec3], neighbours: &[u32]
         if normals[root as usize].z < 0.0 {
             normals[root as usize] = -normals[root as usize];
         }
-        done[root as usize] = true;
-        push_edges(root, normals, around(root), &done, &mut heap);
-        while let Some(Edge { to, from, .. }) = heap.pop() {
-            if done[to as usize] {
-                continue;
+        let mut next = Some(root);
+        while let Some(v) = next {
+            let vi = v as usize;
+            done[vi] = true;
+            let f = from[vi];
+            if f != u32::MAX && normals[vi].dot(normals[f as usize]) < 0.0 {
+                normals[vi] = -normals[vi];
             }
-            done[to as usize] = true;
-            if normals[to as usize].dot(normals[from as usize]) < 0.0 {
-                normals[to as usize] = -normals[to as usize];
+            let nv = normals[vi];
+            for &to in &adj[start[vi] as usize..start[vi + 1] as usize] {
+                if !done[to as usize] {
+                    let cost = 1.0 - nv.dot(normals[to as usize]).abs();
+                    if frontier.offer(to, cost) {
+                        from[to as usize] = v;
+                    }
+                }
             }
-            push_edges(to, normals, around(to), &done, &mut heap);
-        }
-    }
-}
-
-fn push_edges(
-    from: u32,
-    normals: &[Vec3],
-    around: &[u32],
-    done: &[bool],
-    heap: &mut BinaryHeap<Edge>,
-) {
-    let nf = normals[from as usize];
-    for &to in around {
-        if !done[to as usize] {
-            let cost = 1.0 - nf.dot(normals[to as usize]).abs();
-            heap.push(Edge { cost, to, from });
+            next = frontier.pop();
         }
     }
 }

@@ -386,5 +386,6 @@ fn step_name(step: &ScriptStep) -> &'static str {
         ScriptStep::Refine { .. } => "refine",
         ScriptStep::Particles { .. } => "particles",
         ScriptStep::Rbf { .. } => "rbf",
+        ScriptStep::Points { .. } => "points",
     }
 }
