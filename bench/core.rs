@@ -1,6 +1,8 @@
 //! Core benchmarks: one simulation step at Hua & Qin Table 1 sizes and beyond (32³ and 64³
-//! also split over two threads), one field evaluation with gradient, one 4-point force
-//! integral, and the lane-blocked Gram solve against the plain line-by-line sweep.
+//! also split over two threads), the engine's 11³/21³ step on a single patch against the same
+//! step on a detail patch of a two-level clay (eq. (3): the forces integrated over the sum),
+//! one field evaluation with gradient, one 4-point force integral, and the lane-blocked Gram
+//! solve against the plain line-by-line sweep.
 //!
 //! Run: `cargo bench --bench core -- --warm-up-time 1 --measurement-time 3`.
 //! Optimistic where noted: the step benches keep one tool force active on a sphere; a step
@@ -16,7 +18,8 @@ use dynaclay::dynamics::{
     Distribution, Material, RegionState, Simulator, StepParams, ToolForce, force_integral,
 };
 use dynaclay::field::{
-    BSplineLattice, CoeffBox, KronScratch, Primitive, RegionSnapshot, lattice_from_primitive,
+    BSplineLattice, CoeffBox, KronScratch, MultiPatchField, OtherPatches, Primitive,
+    RegionSnapshot, lattice_from_primitive,
 };
 use glam::Vec3;
 
@@ -88,6 +91,56 @@ fn step(c: &mut Criterion) {
     group.finish();
 }
 
+/// The engine's region (11³ coefficients, two mass points per span) stepped on a single
+/// patch, and on a level-1 detail patch of a two-level clay whose base is the same sphere: the
+/// step's own work is the same shape; the difference is the forces' line integrals over the
+/// sum of both patches.
+fn step_layered(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step_two_level");
+    let (n, m) = (11, 21);
+    let (mut lattice, mut state, force) = setup(n, m);
+    let mut sim = Simulator::new(StepParams::default());
+    let mut snap = RegionSnapshot::default();
+    let mut failures = 0u64;
+    group.bench_function("single_patch/11^3/21^3", |b| {
+        b.iter(|| {
+            let r = sim.step(&mut state, &mut lattice, &[force], &mut snap);
+            failures += u64::from(black_box(r.is_err()));
+        });
+    });
+    assert_eq!(failures, 0, "single patch: {failures} timed steps failed");
+
+    let (base, _, force) = setup(n, m);
+    let mut clay = MultiPatchField::new(base);
+    let at = force.start;
+    let half = Vec3::splat(8.0 * clay.base().spacing);
+    let detail = clay.refine(at - half, at + half, 1).expect("detail patch");
+    let dims = clay.patches[detail].lattice.dims;
+    let region = CoeffBox {
+        min: dims.map(|d| (d - n) / 2),
+        max: dims.map(|d| (d - n) / 2 + n - 1),
+    };
+    let mut state = RegionState::new(
+        &clay.patches[detail].lattice,
+        region,
+        [m; 3],
+        Material::PLASTIC.for_volume_ratio(0.125),
+    )
+    .expect("region on the detail patch");
+    let mut sim = Simulator::new(StepParams::default());
+    let mut failures = 0u64;
+    group.bench_function("detail_patch/11^3/21^3", |b| {
+        b.iter(|| {
+            let (lattice, others): (&mut BSplineLattice, OtherPatches<'_>) =
+                clay.split_patch_mut(detail).expect("the detail patch");
+            let r = sim.step_layered(&mut state, lattice, others, &[force], None, &mut snap);
+            failures += u64::from(black_box(r.is_err()));
+        });
+    });
+    assert_eq!(failures, 0, "detail patch: {failures} timed steps failed");
+    group.finish();
+}
+
 fn solve(c: &mut Criterion) {
     let mut group = c.benchmark_group("solve_gram");
     for n in [15, 32, 64] {
@@ -148,5 +201,5 @@ fn evaluate(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, step, solve, evaluate);
+criterion_group!(benches, step, step_layered, solve, evaluate);
 criterion_main!(benches);
