@@ -62,7 +62,7 @@ impl Default for ImportSettings {
 pub enum ImportError {
     /// The extension names no importable format.
     #[error(
-        "{}: not an importable file (point clouds .ply .xyz, meshes .obj .stl, volumes .nrrd .raw)",
+        "{}: unknown format (import reads point clouds .ply .xyz, meshes .obj .stl, volumes .nrrd .raw)",
         file.display()
     )]
     UnknownFormat {
