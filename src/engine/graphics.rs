@@ -78,6 +78,7 @@ impl GraphicsStage {
     ///
     /// # Errors
     /// When the sampling grid cannot be made for the lattice.
+    #[allow(clippy::too_many_arguments)] // the stage's channel ends, each its own
     pub fn new(
         field: MultiPatchField,
         layouts: LayoutPort,

@@ -237,7 +237,7 @@ fn fit_volume_file(
                 .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
                     (lo.min(v), hi.max(v))
                 });
-            if !(hi > lo) {
+            if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
                 return Err(ImportError::FlatVolume {
                     file: path.to_path_buf(),
                 });
