@@ -233,6 +233,10 @@ impl SculptApp {
                 if let Some(map) = self.view.workspace_map {
                     self.pointer.set_map(map);
                 }
+                // The new clay's box until its meshes arrive and frame it closely.
+                if let Some(b) = self.view.clay_box {
+                    self.camera.frame_box(b.min, b.max);
+                }
             }
             if self.material_loads_seen != Some(self.view.sessions_loaded) {
                 self.material = self.view.material;
