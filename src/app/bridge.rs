@@ -14,6 +14,13 @@
 //! The device panel's connect and disconnect reach [`Engine::replace_device`] and
 //! [`Engine::disconnect_device`] from the bridge thread: the device is opened and the old one
 //! closed there, and the haptic loop switches between two ticks without stopping.
+//!
+//! Load reads a session, or fits a point cloud, mesh or volume as `dynaclay import` does
+//! ([`crate::fit::import_session`]), here on the bridge thread. A clay whose patch layout
+//! differs from the running one cannot enter the running loops (their copies are laid out
+//! for it), so the bridge stops the engine ([`Engine::stop_keeping_parts`]: the device and
+//! this sink come back), writes the replaced clay to [`RestartSettings::keep_replaced_at`] and
+//! starts a new engine on the loaded clay with the same device.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
