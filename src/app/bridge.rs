@@ -14,6 +14,13 @@
 //! The device panel's connect and disconnect reach [`Engine::replace_device`] and
 //! [`Engine::disconnect_device`] from the bridge thread: the device is opened and the old one
 //! closed there, and the haptic loop switches between two ticks without stopping.
+//!
+//! Load reads a session, or fits a point cloud, mesh or volume as `dynaclay import` does
+//! ([`crate::fit::import_session`]), here on the bridge thread. A clay whose patch layout
+//! differs from the running one cannot enter the running loops (their copies are laid out
+//! for it), so the bridge stops the engine ([`Engine::stop_keeping_parts`]: the device and
+//! this sink come back), writes the replaced clay to [`RestartSettings::keep_replaced_at`] and
+//! starts a new engine on the loaded clay with the same device.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -33,8 +40,13 @@ use super::launch::MakeDeviceError;
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
-use crate::engine::{Command, Engine, EngineError, EngineReport, MeshSink, PushTool};
+use crate::engine::{
+    Command, CommandError, Engine, EngineConfig, EngineError, EngineReport, LoadRefused, MeshSink,
+    PushTool, StartOptions,
+};
 use crate::field::MultiPatchField;
+use crate::fit::{FitProgress, ImportError, ImportSettings, import_session};
+use crate::io::{Autosave, AutosavePolicy, Session, load_session, save_session};
 use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
@@ -160,6 +172,14 @@ impl MeshSink for GuiMeshSink {
     fn field(&mut self, field: &MultiPatchField) {
         self.field.publish_clone_of(field);
     }
+
+    /// The engine restarts on another clay: its bricks go, and the app sees no meshes until
+    /// the new graphics loop publishes its own.
+    fn restart(&mut self) {
+        self.bricks.clear();
+        self.colour = None;
+        self.publish();
+    }
 }
 
 /// A running bridge; stopping it stops the engine.
@@ -186,7 +206,8 @@ impl EngineBridge {
 /// Starts the engine with a mesh sink that feeds `endpoint`, and a bridge thread that serves
 /// the app's commands. `start` receives the sink and starts the engine (the caller chooses
 /// clay, device and configuration); `device` describes the opened device for the panel;
-/// `opener` makes the devices the panel connects later.
+/// `opener` makes the devices the panel connects later; `restart` says how to start again on
+/// a loaded clay whose patch layout differs from the running one.
 ///
 /// # Errors
 /// Whatever `start` returns.
@@ -194,6 +215,7 @@ pub fn start_bridge(
     endpoint: EngineEndpoint,
     device: DeviceInfo,
     opener: DeviceOpener,
+    restart: Option<RestartSettings>,
     start: impl FnOnce(Box<dyn MeshSink>) -> Result<Engine, EngineError>,
 ) -> Result<EngineBridge, EngineError> {
     let EngineEndpoint {
@@ -210,7 +232,10 @@ pub fn start_bridge(
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let mut bridge = Bridge {
-        engine,
+        engine: Some(engine),
+        restart,
+        restarts: 0,
+        new_clay: None,
         commands,
         events,
         view,
@@ -231,11 +256,18 @@ pub fn start_bridge(
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
         .spawn(move || {
-            while !flag.load(Ordering::Relaxed) && bridge.engine.is_alive() {
+            while !flag.load(Ordering::Relaxed)
+                && bridge.engine.as_ref().is_some_and(Engine::is_alive)
+            {
                 bridge.serve();
                 std::thread::sleep(BRIDGE_PERIOD);
             }
-            bridge.engine.stop()
+            match bridge.engine.take() {
+                Some(engine) => engine.stop(),
+                None => Err(EngineError::Lost(
+                    "engine (its restart on a loaded clay failed)",
+                )),
+            }
         })
         .map_err(|source| {
             EngineError::Loop(dynaclay_loops::LoopError::Spawn {
@@ -246,8 +278,32 @@ pub fn start_bridge(
     Ok(EngineBridge { stop, thread })
 }
 
+/// How the bridge restarts the engine on a loaded clay whose patch layout differs from the
+/// running one (the loops hold copies laid out for the running clay, so such a clay needs a
+/// new engine).
+#[derive(Clone, Debug)]
+pub struct RestartSettings {
+    /// The running engine's configuration: the new one keeps its rates, real-time priority,
+    /// staleness limits and safety settings, with the workspace map and force scale fitted
+    /// to the new clay ([`EngineConfig::for_clay`]).
+    pub config: EngineConfig,
+    /// The session path autosave writes its recovery file next to, for the new engine.
+    pub autosave: Option<PathBuf>,
+    /// Where the replaced clay is written before the new one starts, so no work is lost.
+    pub keep_replaced_at: PathBuf,
+}
+
+/// A load the simulation has not answered yet; `session` is kept to restart on when the
+/// simulation refuses it for its layout.
+struct PendingLoad {
+    reply: Receiver<Result<String, CommandError>>,
+    session: Option<Box<Session>>,
+    source: PathBuf,
+}
+
 struct Bridge {
-    engine: Engine,
+    /// The running engine (`None` only after a restart failed; the bridge then stops).
+    engine: Option<Engine>,
     commands: Receiver<EngineCommand>,
     events: Sender<EngineEvent>,
     view: SnapshotWriter<EngineView>,
@@ -259,7 +315,13 @@ struct Bridge {
     opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
-    loads: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
+    loads: Vec<PendingLoad>,
+    /// How the engine restarts on a clay of another layout (`None`: such loads are refused).
+    restart: Option<RestartSettings>,
+    /// Restarts so far (see [`EngineView::restarts`]).
+    restarts: u64,
+    /// The clay's box and workspace map since the last restart.
+    new_clay: Option<(WorldBox, crate::engine::WorkspaceMap)>,
     /// Answers to pin and unpin commands.
     pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// Answers to "refine here" not yet shown.
@@ -309,32 +371,61 @@ fn forward_replies<T, E: std::fmt::Display>(
 }
 
 impl Bridge {
+    /// The running engine. Only called while one runs: the serve loop stops at once when a
+    /// failed restart left none.
+    fn engine(&self) -> &Engine {
+        self.engine
+            .as_ref()
+            .expect("the bridge serves only while an engine runs")
+    }
+
+    fn engine_mut(&mut self) -> &mut Engine {
+        self.engine
+            .as_mut()
+            .expect("the bridge serves only while an engine runs")
+    }
+
     fn serve(&mut self) {
-        while let Ok(cmd) = self.commands.try_recv() {
+        while self.engine.is_some()
+            && let Ok(cmd) = self.commands.try_recv()
+        {
             self.apply(cmd);
+        }
+        if self.engine.is_none() {
+            return;
         }
         forward_replies(&mut self.saves, &self.events, "save", |p| {
             format!("wrote {}", p.display())
         });
-        forward_replies(&mut self.loads, &self.events, "load", |summary| summary);
+        self.poll_loads();
+        if self.engine.is_none() {
+            return;
+        }
         forward_replies(&mut self.pin_replies, &self.events, "pins", |detail| detail);
         forward_replies(&mut self.refine_replies, &self.events, "refine", |detail| {
             detail
         });
         // Nothing to show before the simulation's first step (its material is not known yet).
-        let Some(status) = self.engine.sim_status() else {
+        let Some(status) = self.engine_mut().sim_status() else {
             return;
         };
         self.poll_pins(status.pins_revision);
-        let tool = self.engine.latest_tool();
-        let counters = self.engine.counters().snapshot();
-        let loops = self.engine.loop_stats().map(|(_, stats)| stats);
-        let force_limit_n = self.engine.force_limit().applied_n();
+        let engine = self.engine_mut();
+        let tool = engine.latest_tool();
+        let counters = engine.counters().snapshot();
+        let loops = engine.loop_stats().map(|(_, stats)| stats);
+        let force_limit_n = engine.force_limit().applied_n();
+        let (restarts, new_clay) = (self.restarts, self.new_clay);
         let device = &self.device;
         let connected = self.connected;
         let radius = self.tool_radius;
         let (pin_lines, pin_marks) = (&self.pin_lines, &self.pin_marks);
         self.view.write_with(|v| {
+            v.restarts = restarts;
+            if let Some((clay_box, map)) = new_clay {
+                v.clay_box = Some(clay_box);
+                v.workspace_map = Some(map);
+            }
             v.pins.clone_from(pin_lines);
             v.pin_marks.clone_from(pin_marks);
             v.loops = loops;
@@ -367,10 +458,242 @@ impl Bridge {
         });
     }
 
+    /// Serves the Load button: a session is read here, an importable file (point cloud, mesh,
+    /// volume) is fitted here as `dynaclay import` fits it (its report and progress go to the
+    /// log); the result is offered to the running simulation, and a refusal for its layout
+    /// restarts the engine on it (see [`Bridge::poll_loads`]).
+    fn load(&mut self, path: &Path) {
+        let session = if crate::fit::is_importable(path) {
+            match self.import(path) {
+                Ok(s) => s,
+                Err(error) => return self.fail("load", error),
+            }
+        } else {
+            match load_session(path) {
+                Ok(s) => s,
+                Err(e) => return self.fail("load", CommandError::Read(e).to_string()),
+            }
+        };
+        self.offer(session, path, true);
+    }
+
+    /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its
+    /// mid-range intensity), telling the log each stage and report line.
+    fn import(&self, path: &Path) -> Result<Session, String> {
+        let events = &self.events;
+        let say = |detail: String| {
+            let _ = events.send(EngineEvent::Done {
+                what: "load".into(),
+                detail,
+            });
+        };
+        say(format!("importing {}", path.display()));
+        let settings = ImportSettings {
+            midrange_iso: true,
+            ..ImportSettings::default()
+        };
+        let mut last_depth = None;
+        let session = import_session(
+            path,
+            &settings,
+            &mut |stage| {
+                match stage {
+                    FitProgress::Signing => say("signing the points".into()),
+                    FitProgress::Base => say("fitting the base lattice".into()),
+                    FitProgress::Detail { depth, of, .. } => {
+                        if last_depth != Some(depth) {
+                            last_depth = Some(depth);
+                            say(format!("depth {depth}: fitting {of} detail patches"));
+                        }
+                    }
+                }
+                true
+            },
+            &mut |line| say(line),
+        );
+        session.map_err(|e| match e {
+            ImportError::NeedsDims => format!(
+                "{}: a raw volume does not say its dimensions; run `dynaclay import {} --dims \
+                 X,Y,Z --iso V --out SESSION.dclay` and load the session",
+                path.display(),
+                path.display()
+            ),
+            other => format!("{}: {other}", path.display()),
+        })
+    }
+
+    /// Offers `session` to the running simulation; with `retry`, a refusal for its layout
+    /// restarts the engine on it.
+    fn offer(&mut self, session: Session, source: &Path, retry: bool) {
+        let (tx, rx) = bounded(1);
+        let kept = (retry && self.restart.is_some()).then(|| Box::new(session.clone()));
+        let sent = self.engine().commands().send(Command::Load {
+            session: Box::new(session),
+            source: source.to_path_buf(),
+            reply: Some(tx),
+        });
+        if sent.is_err() {
+            return self.fail("load", CommandError::Stopped.to_string());
+        }
+        self.loads.push(PendingLoad {
+            reply: rx,
+            session: kept,
+            source: source.to_path_buf(),
+        });
+    }
+
+    /// Forwards the simulation's answers to loads; a session refused because its patch
+    /// layout differs from the running clay's starts a new engine on it.
+    fn poll_loads(&mut self) {
+        let mut restart = None;
+        let events = &self.events;
+        self.loads.retain_mut(|pending| {
+            let answer = match pending.reply.try_recv() {
+                Ok(answer) => answer,
+                Err(crossbeam::channel::TryRecvError::Empty) => return true,
+                Err(crossbeam::channel::TryRecvError::Disconnected) => Err(CommandError::Stopped),
+            };
+            let event = match answer {
+                Ok(detail) => EngineEvent::Done {
+                    what: "load".into(),
+                    detail,
+                },
+                Err(CommandError::Load(
+                    LoadRefused::PatchLayout { .. } | LoadRefused::LatticeMismatch { .. },
+                )) if pending.session.is_some() && restart.is_none() => {
+                    restart = pending.session.take().map(|s| (s, pending.source.clone()));
+                    return false;
+                }
+                Err(error) => EngineEvent::Failed {
+                    what: "load".into(),
+                    error: error.to_string(),
+                },
+            };
+            let _ = events.send(event);
+            false
+        });
+        if let Some((session, source)) = restart {
+            self.restart_on(*session, &source);
+        }
+    }
+
+    /// Stops the engine (its device closed, the replaced clay written to
+    /// [`RestartSettings::keep_replaced_at`]) and starts a new one on `session`'s clay with
+    /// the same device, force limit and haptic gain; the session's paint, pins and material
+    /// are then installed by a load, as at launch.
+    fn restart_on(&mut self, session: Session, source: &Path) {
+        let what = "load";
+        let Some(settings) = self.restart.clone() else {
+            return self.fail(what, "the engine cannot restart here".into());
+        };
+        if !self.connected {
+            return self.fail(
+                what,
+                format!(
+                    "{}: its clay needs a new engine, which starts with the device: connect one \
+                     first",
+                    source.display()
+                ),
+            );
+        }
+        let density = session.clay.density.clone();
+        if !density.patches[0].is_identity() {
+            return self.fail(
+                what,
+                format!("{}: the session's base patch is mapped", source.display()),
+            );
+        }
+        let old = settings.config;
+        let mut config = EngineConfig::for_clay(&density, &self.device);
+        config.haptic_rate_hz = old.haptic_rate_hz;
+        config.sim_rate_hz = old.sim_rate_hz;
+        config.graphics_rate_hz = old.graphics_rate_hz;
+        config.haptic_rt_priority = old.haptic_rt_priority;
+        config.stale_fresh = old.stale_fresh;
+        config.stale_limit = old.stale_limit;
+        config.safety = old.safety;
+        config.sim.material = session.material.uniform;
+        let Some(engine) = self.engine.take() else {
+            return;
+        };
+        let force_limit_n = engine.force_limit().requested_n();
+        let gain = engine.haptic_gain().get();
+        let stopped = match engine.stop_keeping_parts() {
+            Ok(s) => s,
+            Err(e) => return self.fail(what, format!("stopping the engine: {e}")),
+        };
+        let kept = match save_session(&settings.keep_replaced_at, &stopped.report.session) {
+            Ok(()) => format!(
+                "the replaced clay, unsaved work included, is in {}",
+                settings.keep_replaced_at.display()
+            ),
+            Err(e) => format!("the replaced clay could not be kept: {e}"),
+        };
+        let Some(device) = stopped.device else {
+            return self.fail(what, "the device left with the old engine".into());
+        };
+        let autosave = settings
+            .autosave
+            .as_ref()
+            .map(|p| Autosave::new(p, AutosavePolicy::default(), std::time::Instant::now()));
+        let started = Engine::start_with(
+            &config,
+            density.clone(),
+            device,
+            stopped.sink,
+            StartOptions {
+                autosave,
+                schedule: None,
+            },
+        );
+        let engine = match started {
+            Ok(engine) => engine,
+            Err(e) => {
+                return self.fail(
+                    what,
+                    format!(
+                        "the engine could not start on {}: {e}; {kept}",
+                        source.display()
+                    ),
+                );
+            }
+        };
+        let _ = engine.force_limit().request(force_limit_n);
+        let _ = engine.haptic_gain().set(gain);
+        self.engine = Some(engine);
+        self.restarts += 1;
+        let base = density.base();
+        let top = base.node_position(base.dims[0] - 1, base.dims[1] - 1, base.dims[2] - 1);
+        self.new_clay = Some((
+            WorldBox {
+                min: base.origin,
+                max: top,
+            },
+            config.map,
+        ));
+        self.pins_seen = None;
+        self.pins_list = None;
+        self.pin_lines.clear();
+        self.pin_marks.clear();
+        let _ = self.events.send(EngineEvent::Done {
+            what: what.into(),
+            detail: format!(
+                "{} has another clay layout ({}×{}×{} coefficients, {} patch(es)): restarted \
+                 the engine on it with the same device; {kept}",
+                source.display(),
+                base.dims[0],
+                base.dims[1],
+                base.dims[2],
+                density.patches.len()
+            ),
+        });
+        self.offer(session, source, false);
+    }
+
     /// Makes the device `spec` names and switches the running engine to it (the force limit
     /// asked for applies from its first tick); the old device is closed here.
     fn connect(&mut self, what: &str, spec: &DeviceSpec, max_force_n: f32) {
-        if let Err(e) = self.engine.force_limit().request(max_force_n) {
+        if let Err(e) = self.engine().force_limit().request(max_force_n) {
             self.fail(what, e.to_string());
             return;
         }
@@ -381,7 +704,7 @@ impl Bridge {
                 return;
             }
         };
-        match self.engine.replace_device(device, SWAP_TIMEOUT) {
+        match self.engine().replace_device(device, SWAP_TIMEOUT) {
             Ok(report) => {
                 let Some(connected) = report.connected else {
                     self.fail(
@@ -412,7 +735,7 @@ impl Bridge {
         if self.pins_seen != Some(revision) && self.pins_list.is_none() {
             let (tx, rx) = bounded(1);
             if self
-                .engine
+                .engine()
                 .commands()
                 .send(Command::ListPins { reply: tx })
                 .is_ok()
@@ -448,7 +771,7 @@ impl Bridge {
     }
 
     fn send(&self, what: &str, cmd: Command) {
-        if self.engine.commands().send(cmd).is_err() {
+        if self.engine().commands().send(cmd).is_err() {
             self.fail(what, "the simulation loop has stopped".into());
         }
     }
@@ -529,13 +852,9 @@ impl Bridge {
                 };
                 let _ = self.events.send(ev);
             }
-            EngineCommand::Load { path } => match self.engine.request_load(&path) {
-                // The simulation answers between two steps; serve() forwards it.
-                Ok(rx) => self.loads.push(rx),
-                Err(error) => self.fail(what, error.to_string()),
-            },
+            EngineCommand::Load { path } => self.load(&path),
             EngineCommand::SetMaxForce { max_force_n } => {
-                match self.engine.force_limit().request(max_force_n) {
+                match self.engine().force_limit().request(max_force_n) {
                     Ok(()) => {
                         let device_max = self.device.max_force_n;
                         let detail = if max_force_n > device_max {
@@ -553,7 +872,7 @@ impl Bridge {
                     Err(error) => self.fail(what, error.to_string()),
                 }
             }
-            EngineCommand::SetHapticGain { gain } => match self.engine.haptic_gain().set(gain) {
+            EngineCommand::SetHapticGain { gain } => match self.engine().haptic_gain().set(gain) {
                 Ok(()) => {
                     let _ = self.events.send(EngineEvent::Done {
                         what: what.into(),
@@ -565,21 +884,23 @@ impl Bridge {
             EngineCommand::ConnectDevice { spec, max_force_n } => {
                 self.connect(what, &spec, max_force_n);
             }
-            EngineCommand::DisconnectDevice => match self.engine.disconnect_device(SWAP_TIMEOUT) {
-                Ok(report) => {
-                    // The panel keeps the last device's description, shown as disconnected.
-                    self.connected = false;
-                    let detail = match &report.replaced {
-                        Some(replaced) => closed_detail(&replaced.name, &report.close),
-                        None => "no device was connected".into(),
-                    };
-                    let _ = self.events.send(EngineEvent::Done {
-                        what: what.into(),
-                        detail,
-                    });
+            EngineCommand::DisconnectDevice => {
+                match self.engine().disconnect_device(SWAP_TIMEOUT) {
+                    Ok(report) => {
+                        // The panel keeps the last device's description, shown as disconnected.
+                        self.connected = false;
+                        let detail = match &report.replaced {
+                            Some(replaced) => closed_detail(&replaced.name, &report.close),
+                            None => "no device was connected".into(),
+                        };
+                        let _ = self.events.send(EngineEvent::Done {
+                            what: what.into(),
+                            detail,
+                        });
+                    }
+                    Err(e) => self.fail(what, e.to_string()),
                 }
-                Err(e) => self.fail(what, e.to_string()),
-            },
+            }
         }
     }
 }
@@ -722,7 +1043,7 @@ mod tests {
         let device: Box<dyn HapticDevice> =
             Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
         let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
+        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
             Engine::start(&config, field.clone(), device, sink)
         })
         .unwrap();
@@ -803,7 +1124,7 @@ mod tests {
         std::fs::write(&corrupt, &bytes).unwrap();
 
         let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
+        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
             Engine::start(&config, field.clone(), device, sink)
         })
         .unwrap();
@@ -909,6 +1230,165 @@ mod tests {
         assert_eq!(report.safety.clamped, 0, "the tool never touched the clay");
     }
 
+    /// Loads that need another engine: a session on another lattice restarts the engine on
+    /// it (the replaced clay kept on disk, the view reporting the new clay's box), an
+    /// imported point cloud is fitted on the bridge thread and restarts it again, and bad
+    /// files are refused with their name, leaving the running clay as it was.
+    #[test]
+    fn loads_of_another_layout_restart_the_engine_and_imports_are_fitted() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let dir = tempfile::tempdir().unwrap();
+        let small = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 10,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let other = dir.path().join("small.dclay");
+        save_session(
+            &other,
+            &Session {
+                clay: Clay::single(small.clone()),
+                material: MaterialFields {
+                    uniform: Material::ELASTIC,
+                    grids: Vec::new(),
+                },
+                ..Session::default()
+            },
+        )
+        .unwrap();
+        let kept = dir.path().join("sculpt.replaced.dclay");
+        let restart = RestartSettings {
+            config,
+            autosave: None,
+            keep_replaced_at: kept.clone(),
+        };
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), Some(restart), |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        wait_for(&mut link, &mut events, "the first view", |v, _| {
+            v.device.state == DeviceLinkState::Connected
+        });
+
+        link.send(EngineCommand::Load {
+            path: other.clone(),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the restart", |v, _| {
+            v.restarts == 1 && v.sessions_loaded == 1
+        });
+        assert!(
+            events.iter().any(|e| matches!(e, EngineEvent::Done { what, detail }
+                if what == "load" && detail.contains("restarted the engine") && detail.contains("sculpt.replaced.dclay"))),
+            "{events:?}"
+        );
+        let view = link.view().value.clone();
+        let top = small.node_position(small.dims[0] - 1, small.dims[1] - 1, small.dims[2] - 1);
+        assert_eq!(
+            view.clay_box,
+            Some(WorldBox {
+                min: small.origin,
+                max: top
+            })
+        );
+        assert_eq!(view.material, Material::ELASTIC, "the session's material");
+        assert!(view.workspace_map.is_some());
+        let replaced = crate::io::load_session(&kept).unwrap();
+        assert_eq!(
+            replaced.clay.density.base(),
+            &field,
+            "the replaced clay is kept"
+        );
+        let start = Instant::now();
+        while triangles(&mut link) == 0 && start.elapsed() < Duration::from_secs(10) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(triangles(&mut link) > 0, "the new clay is meshed");
+
+        // Bad files: named in the log, the clay unchanged.
+        events.clear();
+        let bad = dir.path().join("bad.ply");
+        std::fs::write(
+            &bad,
+            "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
+        )
+        .unwrap();
+        link.send(EngineCommand::Load { path: bad }).unwrap();
+        link.send(EngineCommand::Load {
+            path: dir.path().join("missing.xyz"),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "two refusals", |_, ev| {
+            ev.iter()
+                .filter(|e| matches!(e, EngineEvent::Failed { .. }))
+                .count()
+                == 2
+        });
+        let failures: Vec<&String> = events
+            .iter()
+            .filter_map(|e| match e {
+                EngineEvent::Failed { error, .. } => Some(error),
+                EngineEvent::Done { .. } => None,
+            })
+            .collect();
+        assert!(failures[0].contains("bad.ply"), "{failures:?}");
+        assert!(failures[1].contains("missing.xyz"), "{failures:?}");
+        assert_eq!(link.view().value.restarts, 1, "nothing restarted");
+
+        // A point cloud is fitted on the bridge thread, with its report in the log.
+        events.clear();
+        let cloud = dir.path().join("ball.xyz");
+        let mut text = String::new();
+        let n = 400;
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        for i in 0..n {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - y * y).sqrt();
+            let t = golden * i as f32;
+            let (x, z) = (r * t.cos(), r * t.sin());
+            text.push_str(&format!("{x} {y} {z} {x} {y} {z}\n"));
+        }
+        std::fs::write(&cloud, text).unwrap();
+        link.send(EngineCommand::Load { path: cloud }).unwrap();
+        let start = Instant::now();
+        loop {
+            while let Some(ev) = link.try_event() {
+                events.push(ev);
+            }
+            if link.view().value.restarts == 2 && link.view().value.sessions_loaded == 1 {
+                break;
+            }
+            // A generous bound only against a hang; nothing is timed.
+            assert!(start.elapsed() < Duration::from_secs(120), "{events:?}");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        assert!(
+            events.iter().any(|e| matches!(e, EngineEvent::Done { detail, .. } if detail.contains("400 points with normals"))),
+            "{events:?}"
+        );
+        assert!(
+            events.iter().any(|e| matches!(e, EngineEvent::Done { detail, .. } if detail.contains("fitting the base lattice"))),
+            "{events:?}"
+        );
+        let report = bridge.stop().unwrap();
+        assert_eq!(report.session.clay.density.base().dims, [32, 32, 32]);
+        assert_eq!(report.session.meta.name, "ball");
+    }
+
     /// An opener that makes nothing (for tests that never use the device panel).
     fn no_devices() -> DeviceOpener {
         Box::new(|spec: &DeviceSpec| {
@@ -956,7 +1436,7 @@ mod tests {
             .into()),
         });
         let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, opener, |sink| {
+        let bridge = start_bridge(endpoint, info, opener, None, |sink| {
             Engine::start(&config, field.clone(), device, sink)
         })
         .unwrap();

@@ -522,6 +522,49 @@ fn sliders_take_the_material_of_a_loaded_session_but_keep_user_changes_otherwise
 }
 
 #[test]
+fn an_engine_restarted_on_another_clay_is_framed_and_given_the_tool_and_its_material() {
+    let (mut h, mut end) = harness();
+    h.run();
+    let mut view = EngineView {
+        material: Material::PLASTIC,
+        ..EngineView::default()
+    };
+    end.view.publish_clone_of(&view);
+    h.run();
+    drain(&end);
+    let before = h.state().camera.target;
+    let (min, max) = (glam::Vec3::splat(10.0), glam::Vec3::splat(12.0));
+    view.restarts = 1;
+    view.clay_box = Some(super::view::WorldBox { min, max });
+    view.material = Material::ELASTIC;
+    end.view.publish_clone_of(&view);
+    end.events
+        .send(EngineEvent::Done {
+            what: "load".into(),
+            detail: "big.dclay has another clay layout: restarted the engine on it".into(),
+        })
+        .unwrap();
+    h.run();
+    let target = h.state().camera.target;
+    assert!(
+        (target - glam::Vec3::splat(11.0)).length() < 1e-4,
+        "framed the new clay: {before} -> {target}"
+    );
+    assert_eq!(
+        h.state().material,
+        Material::ELASTIC,
+        "the new session's material"
+    );
+    let sent = drain(&end);
+    assert!(
+        sent.iter()
+            .any(|c| matches!(c, EngineCommand::SelectTool(_))),
+        "the tool in use reaches the new engine: {sent:?}"
+    );
+    h.get_by_label("load: big.dclay has another clay layout: restarted the engine on it");
+}
+
+#[test]
 fn a_refused_load_is_shown_with_its_reason() {
     let (mut h, end) = harness();
     h.run();

@@ -10,7 +10,7 @@ use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceInfo, HapticDevice, RecordingDevice, SimArmConfig, SimulatedArm};
 use dynaclay_loops::{busy_fraction, cpu_jiffies, run_probes};
 
-use super::bridge::{DeviceOpener, start_bridge};
+use super::bridge::{DeviceOpener, RestartSettings, start_bridge};
 use super::link::engine_link;
 use super::pointer_tool::PointerTool;
 use super::probe_panel::{ProbeOutcome, ProbeSettings};
@@ -52,8 +52,7 @@ pub struct GuiArgs {
     /// Record the device's samples to this file (`--record FILE`); the engine reads the
     /// recording like any device, so the session replays bit for bit through the lockstep engine.
     pub record: Option<PathBuf>,
-    /// A session file to start from (the engine keeps its lattice for the whole run, so
-    /// later loads must match it).
+    /// A session file to start from (a later Load of another lattice restarts the engine).
     pub session: Option<PathBuf>,
     /// Start from the recovery file autosave left for the session (`--recover`).
     pub recover: bool,
@@ -179,7 +178,14 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         rt_priority: config.haptic_rt_priority,
     };
     let probe_at_start = probe_before_engine(probe_settings);
-    let bridge = start_bridge(endpoint, info.clone(), opener, |sink| {
+    // A loaded clay of another layout restarts the engine with these settings; the replaced
+    // clay is written next to the session first.
+    let restart = RestartSettings {
+        config,
+        autosave: Some(session_path.clone()),
+        keep_replaced_at: session_path.with_extension("replaced.dclay"),
+    };
+    let bridge = start_bridge(endpoint, info.clone(), opener, Some(restart), |sink| {
         Engine::start_with(
             &config,
             field,

@@ -19,7 +19,9 @@ mod state;
 mod view;
 mod viewport;
 
-pub use bridge::{ChunkExportError, EngineBridge, GuiMeshSink, export_chunks, start_bridge};
+pub use bridge::{
+    ChunkExportError, EngineBridge, GuiMeshSink, RestartSettings, export_chunks, start_bridge,
+};
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };

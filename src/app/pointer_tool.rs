@@ -63,6 +63,13 @@ impl PointerTool {
         }
     }
 
+    /// Follows an engine restarted on another clay, mapped by `map`.
+    pub fn set_map(&mut self, map: WorkspaceMap) {
+        if self.handle.is_some() {
+            self.map = Some(map);
+        }
+    }
+
     /// Whether a pointer device is connected to this tool.
     #[must_use]
     pub fn is_connected(&self) -> bool {

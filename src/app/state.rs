@@ -115,6 +115,8 @@ pub struct SculptApp {
     key_stroke: bool,
     /// Mesh version last framed by the camera (frames once when the first meshes arrive).
     framed: bool,
+    /// The engine restarts seen (a Load of another clay layout): each frames the new clay.
+    restarts_seen: u64,
     /// The mouse or pen as the sculpting tool (inert without a pointer device).
     pub pointer: PointerTool,
     /// Whether the held left drag sculpts (it began on the clay without Alt or Shift); a left
@@ -220,6 +222,22 @@ impl SculptApp {
         let version = snap.version;
         if version != 0 {
             self.view.clone_from(&snap.value);
+            if self.view.restarts != self.restarts_seen {
+                // A new engine on another clay: frame it when its meshes come, aim the
+                // pointer through its workspace map, take the loaded session's material and
+                // give it the tool in use.
+                self.restarts_seen = self.view.restarts;
+                self.framed = false;
+                self.material_loads_seen = None;
+                self.tool_pending = true;
+                if let Some(map) = self.view.workspace_map {
+                    self.pointer.set_map(map);
+                }
+                // The new clay's box until its meshes arrive and frame it closely.
+                if let Some(b) = self.view.clay_box {
+                    self.camera.frame_box(b.min, b.max);
+                }
+            }
             if self.material_loads_seen != Some(self.view.sessions_loaded) {
                 self.material = self.view.material;
                 self.material_loads_seen = Some(self.view.sessions_loaded);

@@ -123,6 +123,13 @@ pub struct EngineView {
     /// Where each pin is, field coordinates: one point for a point or normal pin, the
     /// polyline of a curve pin (drawn over the view).
     pub pin_marks: Vec<Vec<Vec3>>,
+    /// Times the engine restarted on a loaded clay of another layout (the app frames the
+    /// new clay and re-maps its pointer when this changes).
+    pub restarts: u64,
+    /// The base lattice's box since the last restart (`None` before one).
+    pub clay_box: Option<WorldBox>,
+    /// The field → device map since the last restart (`None` before one).
+    pub workspace_map: Option<crate::engine::WorkspaceMap>,
 }
 
 impl Default for EngineView {
@@ -143,6 +150,9 @@ impl Default for EngineView {
             sessions_loaded: 0,
             pins: Vec::new(),
             pin_marks: Vec::new(),
+            restarts: 0,
+            clay_box: None,
+            workspace_map: None,
         }
     }
 }

@@ -14,15 +14,9 @@ use std::time::Duration;
 use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::run::CliError;
-use crate::dynamics::Material;
-use crate::field::MultiPatchField;
-use crate::fit::{
-    CloudFitError, CloudFitOptions, FitProgress, HierarchyOptions, Sample, SignedBy, Volume,
-    fit_hierarchy, fit_volume_hierarchy, read_nrrd, read_points, read_raw,
-};
-use crate::io::{MaterialFields, Session, SessionMeta, save_session};
+use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, fit_file, imported_session};
+use crate::io::save_session;
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
-use crate::tools::Clay;
 
 /// Reads `args.input`, fits a clay to it, writes the session (and the mesh when asked).
 ///
@@ -44,37 +38,47 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             args.out.display()
         )));
     }
-    let ext = args
-        .input
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
     watch_for_ctrl_c();
-    let clay = match ext.as_deref() {
-        Some("raw" | "nrrd") => {
-            clay_from_field(import_volume(args, ext.as_deref() == Some("nrrd"))?)
-        }
-        _ => clay_from_field(import_cloud(args)?),
+    let settings = ImportSettings {
+        resolution: args.resolution,
+        gap_spans: args.gap,
+        error_percent: args.error,
+        max_depth: args.max_depth,
+        iso: args.iso,
+        midrange_iso: false,
+        raw: args.dims.map(|dims| {
+            let sample = match args.sample {
+                RawSample::U8 => Sample::U8,
+                RawSample::U16 => Sample::U16,
+                RawSample::I16 => Sample::I16,
+                RawSample::F32 => Sample::F32,
+            };
+            (dims, sample)
+        }),
     };
-    let name = args
-        .input
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .unwrap_or("import")
-        .to_owned();
-    let session = Session {
-        clay,
-        material: MaterialFields {
-            uniform: Material::PLASTIC,
-            grids: Vec::new(),
+    let bar = progress_bar();
+    let mut first = true;
+    let field = fit_file(
+        &args.input,
+        &settings,
+        &mut |stage| show_progress(&bar, stage),
+        &mut |line| {
+            bar.suspend(|| {
+                if std::mem::take(&mut first) {
+                    say!("dynaclay import: {line}");
+                } else {
+                    say!("{line}");
+                }
+            });
         },
-        tools: Vec::new(),
-        meta: SessionMeta {
-            name,
-            created_unix_s: super::run::unix_now_s(),
-            ..SessionMeta::default()
-        },
-    };
+    );
+    bar.finish_and_clear();
+    let field = field.map_err(|e| match e {
+        ImportError::Interrupted => interrupted(),
+        ImportError::Fit { .. } => CliError::Output(e.to_string()),
+        other => CliError::Usage(other.to_string()),
+    })?;
+    let session = imported_session(field, &args.input, super::run::unix_now_s());
     // The mesh is made (within the memory budget) before anything is written, so a refused
     // mesh leaves no half-finished import.
     let mesh = match (&args.mesh, mesh_format) {
@@ -108,15 +112,6 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         write_fitted_mesh(&mesh, path, format)?;
     }
     Ok(())
-}
-
-/// The clay of a fitted multi-patch field: its density is the field, with no paint and no pins.
-fn clay_from_field(field: MultiPatchField) -> Clay {
-    Clay {
-        density: field,
-        colour: None,
-        constraints: Vec::new(),
-    }
 }
 
 /// Set by the Ctrl-C handler; the fit's progress callback and the last step before writing
@@ -156,140 +151,6 @@ fn show_progress(bar: &indicatif::ProgressBar, stage: FitProgress) -> bool {
         }
     }
     !INTERRUPTED.load(Ordering::Relaxed)
-}
-
-/// Reads a point cloud and fits it hierarchically; reports the levels and how far the
-/// points lie from the fitted surface.
-fn import_cloud(args: &ImportArgs) -> Result<MultiPatchField, CliError> {
-    let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
-    let options = HierarchyOptions {
-        base: CloudFitOptions {
-            resolution: args.resolution,
-            gap_spans: args.gap,
-            ..CloudFitOptions::default()
-        },
-        error: args.error / 100.0,
-        max_depth: args.max_depth,
-    };
-    say!(
-        "dynaclay import: {} points{} from {}, fitting a {}³ clay with detail patches down to \
-         depth {} where the error is above {}% of its size",
-        cloud.points.len(),
-        if cloud.normals.is_some() {
-            " with normals"
-        } else {
-            ""
-        },
-        args.input.display(),
-        options.base.resolution,
-        options.max_depth,
-        args.error
-    );
-    let bar = progress_bar();
-    let fit = fit_hierarchy(&cloud, &options, &mut |stage| show_progress(&bar, stage));
-    bar.finish_and_clear();
-    let fit = fit.map_err(|e| match e {
-        CloudFitError::Options(m) => CliError::Usage(m),
-        CloudFitError::Interrupted => interrupted(),
-        other => CliError::Output(format!("{}: {other}", args.input.display())),
-    })?;
-    for level in &fit.levels {
-        say!(
-            "depth {}: {} of {} octree nodes refined",
-            level.depth,
-            level.refined,
-            level.nodes
-        );
-    }
-    // How far the points lie from the fitted surface, to first order: |F − iso| / |∇F|.
-    let (mut sum, mut worst) = (0.0f64, 0.0f32);
-    for &p in &cloud.points {
-        let (v, g) = fit.field.value_and_gradient(fit.to_field(p));
-        let d = (v - fit.field.iso()).abs() / g.length().max(1e-6);
-        sum += f64::from(d);
-        worst = worst.max(d);
-    }
-    let percent = |d: f32| 100.0 * d / fit.size;
-    say!(
-        "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
-         points lie {:.3}% of the size from the surface on average, {:.3}% at most",
-        match fit.signed_by {
-            SignedBy::Normals => "the normals",
-            SignedBy::Tagging => "flood tagging",
-        },
-        fit.field.patches.len(),
-        100.0 * fit.rms,
-        100.0 * fit.rms_base,
-        percent((sum / cloud.points.len() as f64) as f32),
-        percent(worst)
-    );
-    Ok(fit.field)
-}
-
-/// Reads and fits a volume at `args.iso`, hierarchically as a cloud is.
-fn import_volume(args: &ImportArgs, nrrd: bool) -> Result<MultiPatchField, CliError> {
-    let iso = args.iso.ok_or_else(|| {
-        CliError::Usage("a volume needs --iso V: the intensity of its surface".into())
-    })?;
-    let volume: Volume = if nrrd {
-        read_nrrd(&args.input)
-    } else {
-        let dims = args.dims.ok_or_else(|| {
-            CliError::Usage("a raw volume needs --dims X,Y,Z (voxels per axis)".into())
-        })?;
-        let sample = match args.sample {
-            RawSample::U8 => Sample::U8,
-            RawSample::U16 => Sample::U16,
-            RawSample::I16 => Sample::I16,
-            RawSample::F32 => Sample::F32,
-        };
-        read_raw(&args.input, dims, sample)
-    }
-    .map_err(|e| CliError::Usage(e.to_string()))?;
-    say!(
-        "dynaclay import: a {}×{}×{} volume from {}, surface at {iso}, fitting a {}³ clay",
-        volume.dims[0],
-        volume.dims[1],
-        volume.dims[2],
-        args.input.display(),
-        args.resolution
-    );
-    let options = HierarchyOptions {
-        error: args.error / 100.0,
-        max_depth: args.max_depth,
-        ..HierarchyOptions::default()
-    };
-    let bar = progress_bar();
-    let fit = fit_volume_hierarchy(
-        &volume,
-        iso,
-        args.resolution,
-        crate::engine::CLAY_SPACING,
-        &options,
-        &mut |stage| show_progress(&bar, stage),
-    );
-    bar.finish_and_clear();
-    let fit = fit.map_err(|e| match e {
-        CloudFitError::Options(m) => CliError::Usage(m),
-        CloudFitError::Interrupted => interrupted(),
-        other => CliError::Output(format!("{}: {other}", args.input.display())),
-    })?;
-    for level in &fit.levels {
-        say!(
-            "depth {}: {} of {} octree nodes refined",
-            level.depth,
-            level.refined,
-            level.nodes
-        );
-    }
-    say!(
-        "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
-         base alone)",
-        fit.field.patches.len(),
-        100.0 * fit.rms,
-        100.0 * fit.rms_base
-    );
-    Ok(fit.field)
 }
 
 fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {

@@ -30,6 +30,11 @@ pub trait MeshSink: Send {
     /// start); a sink that picks on the clay (the GUI's pointer) keeps a copy. The default
     /// ignores it.
     fn field(&mut self, _field: &MultiPatchField) {}
+
+    /// Called before the sink is handed to an engine on another clay (see
+    /// [`super::Engine::stop_keeping_parts`]): the bricks it holds belong to the old clay and
+    /// are forgotten. The default holds nothing.
+    fn restart(&mut self) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -146,6 +151,12 @@ impl GraphicsStage {
     #[must_use]
     pub fn octree(&self) -> &BrickOctree {
         &self.octree
+    }
+
+    /// The sink, handed back when the engine stops to start again on another clay.
+    #[must_use]
+    pub fn into_sink(self) -> Box<dyn MeshSink> {
+        self.sink
     }
 }
 

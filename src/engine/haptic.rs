@@ -151,6 +151,12 @@ impl HapticStage {
         &self.device
     }
 
+    /// The device, out of its safety filter (to start another engine with it).
+    #[must_use]
+    pub fn into_device(self) -> Box<dyn HapticDevice> {
+        self.device.into_inner()
+    }
+
     /// The device, mutably (to close it at the end).
     pub fn device_mut(&mut self) -> &mut SafetyFilter<Box<dyn HapticDevice>> {
         &mut self.device

@@ -55,7 +55,7 @@ pub use simulation::{
     Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
 };
 pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
-pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions};
+pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions, StoppedEngine};
 pub use tool_sample::ToolSample;
 pub use update::{ChangedBox, FieldUpdate};
 pub use wiring::{Stages, build};

@@ -132,6 +132,17 @@ pub struct EngineReport {
     pub device_close_error: Option<dynaclay_devices::DeviceError>,
 }
 
+/// A stopped engine's report and the parts a new engine can start with
+/// ([`Engine::stop_keeping_parts`]).
+pub struct StoppedEngine {
+    /// What [`Engine::stop`] hands back.
+    pub report: EngineReport,
+    /// The device, closed (`None` when none was connected).
+    pub device: Option<Box<dyn HapticDevice>>,
+    /// The mesh sink, holding no bricks.
+    pub sink: Box<dyn MeshSink>,
+}
+
 impl Engine {
     /// Opens `device` and starts the three loops around `field`.
     ///
@@ -468,7 +479,17 @@ impl Engine {
     ///
     /// # Errors
     /// When a loop panicked or the device fails to close.
-    pub fn stop(mut self) -> Result<EngineReport, EngineError> {
+    pub fn stop(self) -> Result<EngineReport, EngineError> {
+        self.stop_keeping_parts().map(|parts| parts.report)
+    }
+
+    /// [`Engine::stop`], handing back what a new engine on another clay can start with: the
+    /// device (closed, zero force commanded; `None` when none was connected) and the mesh
+    /// sink, told to forget its bricks ([`MeshSink::restart`]).
+    ///
+    /// # Errors
+    /// As [`Engine::stop`].
+    pub fn stop_keeping_parts(mut self) -> Result<StoppedEngine, EngineError> {
         dynaclay_loops::assert_not_in_tick("Engine::stop joining the loops");
         let sim = self.sim.stop_and_join()?;
         let graphics = self.graphics.stop_and_join()?;
@@ -500,15 +521,24 @@ impl Engine {
             Some(h) => h.join().map_err(|_| EngineError::Lost("io"))?,
             None => IoReport::default(),
         };
-        Ok(EngineReport {
-            session,
-            haptic_field: haptic_stage.field().clone(),
-            octree: graphics_stage.octree().clone(),
-            loops: vec![haptic, sim, graphics],
-            counters: self.counters.snapshot(),
-            safety,
-            io,
-            device_close_error,
+        let haptic_field = haptic_stage.field().clone();
+        let octree = graphics_stage.octree().clone();
+        let connected = haptic_stage.is_connected();
+        let mut sink = graphics_stage.into_sink();
+        sink.restart();
+        Ok(StoppedEngine {
+            report: EngineReport {
+                session,
+                haptic_field,
+                octree,
+                loops: vec![haptic, sim, graphics],
+                counters: self.counters.snapshot(),
+                safety,
+                io,
+                device_close_error,
+            },
+            device: connected.then(|| haptic_stage.into_device()),
+            sink,
         })
     }
 }

@@ -3,10 +3,11 @@
 //! files become a clay fitted by least squares ([`cloud`], [`volume::fit_volume`]); a cloud's
 //! fit is refined by an octree of detail patches where the error is above a bound
 //! ([`hierarchy`], Hua & Qin §5).
-//! `dynaclay import` is the command that uses them.
+//! [`import`] is the one import that `dynaclay import` and the GUI's Load both call.
 
 pub mod cloud;
 pub mod hierarchy;
+pub mod import;
 pub mod mesh;
 pub mod points;
 pub mod volume;
@@ -15,6 +16,10 @@ pub use cloud::{
     CloudFit, CloudFitError, CloudFitOptions, SignedBy, SignedCloud, fit_point_cloud, sign_cloud,
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
+pub use import::{
+    IMPORT_EXTENSIONS, ImportError, ImportSettings, fit_file, import_session, imported_session,
+    is_importable,
+};
 pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
