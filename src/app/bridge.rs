@@ -38,12 +38,17 @@ use crate::field::MultiPatchField;
 use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
+use crate::particles::ParticleFollower;
 use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
 
 /// How often the bridge drains commands and publishes the view.
 const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
+
+/// Particle steps per update of the clay (and per idle update while they settle), a fixed
+/// budget on the graphics loop.
+const PARTICLE_STEPS_PER_UPDATE: usize = 2;
 
 /// How long a device switch waits for the haptic loop to take the new device.
 const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
@@ -202,10 +207,20 @@ pub fn start_bridge(
         view,
         meshes,
         field,
+        particles,
         repaint,
     } = endpoint;
     let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
     let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
+    // Off until the app turns the particles on: then the follower takes its fixed budget of
+    // steps on each new copy of the clay (and a bounded number of idle updates after it).
+    let sink = ParticleFollower::with_handles(
+        sink,
+        particles.view,
+        particles.count,
+        particles.on,
+        PARTICLE_STEPS_PER_UPDATE,
+    );
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -668,6 +683,7 @@ mod tests {
     use crate::field::BSplineLattice;
     use crate::io::{ClayShape, ClaySpec, MaterialFields, Session, save_session};
     use crate::mesh::{MeshStats, SampleGrid};
+    use crate::particles::ParticleFollower;
     use crate::tools::Clay;
 
     /// Polls `link` until `done` holds for its view (or panics after a few seconds), taking

@@ -30,6 +30,11 @@ pub trait MeshSink: Send {
     /// start); a sink that picks on the clay (the GUI's pointer) keeps a copy. The default
     /// ignores it.
     fn field(&mut self, _field: &MultiPatchField) {}
+
+    /// Called with the graphics loop's field copy on a tick that applied no patch; a sink
+    /// with work of its own to finish (particles settling on a still clay) does a bounded
+    /// piece of it here. The default does nothing.
+    fn idle(&mut self, _field: &MultiPatchField) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -117,12 +122,14 @@ impl GraphicsStage {
         if stamped.value.layout != self.layout
             || stamped.version == self.ack.load(Ordering::Relaxed)
         {
+            self.sink.idle(&self.field);
             return 0;
         }
         let changed = stamped.value.apply_to(&mut self.field);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
         self.ack.store(stamped.version, Ordering::Release);
         let Some((lo, hi)) = changed else {
+            self.sink.idle(&self.field);
             return 0;
         };
         let report = self.octree.refresh_box(&*self.field, lo, hi);
