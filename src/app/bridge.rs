@@ -683,7 +683,6 @@ mod tests {
     use crate::field::BSplineLattice;
     use crate::io::{ClayShape, ClaySpec, MaterialFields, Session, save_session};
     use crate::mesh::{MeshStats, SampleGrid};
-    use crate::particles::ParticleFollower;
     use crate::tools::Clay;
 
     /// Polls `link` until `done` holds for its view (or panics after a few seconds), taking
@@ -716,6 +715,73 @@ mod tests {
             .iter()
             .map(|c| c.indices.len() / 3)
             .sum()
+    }
+
+    /// Particles through the running engine: off, none are published; switched on over a
+    /// still clay, the graphics loop's idle updates seed and settle them on the surface; a new
+    /// `N` is reached; switched off, they are dropped.
+    #[test]
+    fn particles_switched_on_settle_on_a_still_clay_and_go_when_switched_off() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let wait_particles =
+            |link: &mut super::super::EngineLink, what: &str, done: &dyn Fn(usize) -> bool| {
+                let start = Instant::now();
+                loop {
+                    let n = link.particles().value.positions.len();
+                    if done(n) {
+                        return;
+                    }
+                    assert!(
+                        start.elapsed() < Duration::from_secs(20),
+                        "timed out waiting for {what}: {n} particles"
+                    );
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            };
+        wait_for(&mut link, &mut Vec::new(), "the first meshes", |_, _| true);
+        assert!(
+            link.particles().value.positions.is_empty(),
+            "off by default"
+        );
+
+        link.set_particle_count(300);
+        link.set_particles_on(true);
+        wait_particles(&mut link, "300 particles", &|n| n.abs_diff(300) <= 6);
+        let view = link.particles().value.clone();
+        assert_eq!(view.normals.len(), view.positions.len());
+        assert_eq!(view.radii.len(), view.positions.len());
+        for p in &view.positions {
+            let (value, gradient) = crate::particles::ImplicitSurface::eval(&field, *p);
+            let distance = value.abs() / gradient.length();
+            assert!(
+                distance < 0.1 * field.spacing,
+                "{p}: {distance} off the surface"
+            );
+        }
+        assert!(view.radii.iter().all(|r| *r > 0.0 && r.is_finite()));
+
+        link.set_particle_count(150);
+        wait_particles(&mut link, "150 particles", &|n| n.abs_diff(150) <= 4);
+
+        link.set_particles_on(false);
+        wait_particles(&mut link, "no particles", &|n| n == 0);
+        bridge.stop().unwrap();
     }
 
     /// Pins through the running engine: a pin's answer comes back as an event and the list
