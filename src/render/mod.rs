@@ -34,7 +34,7 @@ pub use options::{
     BoxOverlay, EnvironmentMode, ForceOverlay, Light, SceneOptions, Shading, ToolOverlay, ToolStyle,
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
-pub use particles::{DISC_SCALE, PARTICLE_DISC_COLOR, ParticleDisc, particle_discs};
+pub use particles::{DISC_LIFT, DISC_SCALE, PARTICLE_DISC_COLOR, ParticleDisc, particle_discs};
 pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;
 

@@ -12,6 +12,10 @@ pub const PARTICLE_DISC_COLOR: [f32; 3] = [0.02, 0.60, 0.08];
 /// so half-radius discs show each one without covering the clay.
 pub const DISC_SCALE: f32 = 0.5;
 
+/// How far a disc sits off the surface along its normal, as a fraction of its radius (the
+/// shader's `LIFT`), so the clay does not hide it.
+pub const DISC_LIFT: f32 = 0.25;
+
 /// One disc: centre, unit normal and radius in world units (the instance layout of
 /// `shaders/particles.wgsl`).
 #[repr(C)]
