@@ -1008,8 +1008,10 @@ fn the_particles_switch_and_n_reach_the_followers_handles() {
     assert!(drain(&end).is_empty());
 
     // The view's particles are reported under the panel.
-    let mut view = crate::particles::ParticleView::default();
-    view.positions = vec![glam::Vec3::ZERO; 3];
+    let view = crate::particles::ParticleView {
+        positions: vec![glam::Vec3::ZERO; 3],
+        ..crate::particles::ParticleView::default()
+    };
     end.particles.view.publish_clone_of(&view);
     h.run();
     h.get_by_label("3 particles on the clay");
