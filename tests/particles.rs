@@ -340,3 +340,51 @@ fn a_follower_tracks_the_clay_and_the_count_a_viewer_sets() {
     assert!((count as f32 - 250.0).abs() <= 5.0, "count {count}");
     assert!(follower.last_error().is_none());
 }
+
+/// The follower's switch and idle updates: off, it places nothing and publishes an empty view;
+/// on over a still clay, idle updates seed and settle the particles, a bounded number after
+/// each change; off again, they are dropped.
+#[test]
+fn a_switched_follower_settles_on_idle_updates_and_stops() {
+    use dynaclay::engine::{HeadlessSink, MeshSink};
+    use dynaclay::particles::ParticleFollower;
+    use std::sync::atomic::Ordering;
+
+    let clay = dynaclay::field::MultiPatchField::new(sphere());
+    let (mut follower, mut view) = ParticleFollower::new(HeadlessSink::default(), 300, 2).unwrap();
+    follower.set_settle_updates(5);
+    let on = follower.switch_handle();
+    on.store(false, Ordering::Relaxed);
+    follower.field(&clay);
+    follower.idle(&clay);
+    assert!(follower.particles().is_empty());
+    assert!(view.latest().value.positions.is_empty());
+    let quiet = view.latest().version;
+    for _ in 0..3 {
+        follower.idle(&clay);
+    }
+    assert_eq!(view.latest().version, quiet, "off and idle: no work");
+
+    on.store(true, Ordering::Relaxed);
+    for _ in 0..20 {
+        follower.idle(&clay);
+    }
+    let seen = view.latest();
+    assert_eq!(
+        seen.version,
+        quiet + 5,
+        "five idle updates after switching on"
+    );
+    assert!(seen.value.positions.len().abs_diff(300) <= 6);
+
+    follower.count_handle().store(200, Ordering::Relaxed);
+    for _ in 0..20 {
+        follower.idle(&clay);
+    }
+    assert_eq!(view.latest().version, quiet + 10, "five more after a new N");
+
+    on.store(false, Ordering::Relaxed);
+    follower.idle(&clay);
+    assert!(view.latest().value.positions.is_empty());
+    assert!(follower.particles().is_empty());
+}

@@ -50,12 +50,17 @@ use crate::io::{Autosave, AutosavePolicy, Session, load_session, save_session};
 use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
+use crate::particles::ParticleFollower;
 use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
 
 /// How often the bridge drains commands and publishes the view.
 const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
+
+/// Particle steps per update of the clay (and per idle update while they settle), a fixed
+/// budget on the graphics loop.
+const PARTICLE_STEPS_PER_UPDATE: usize = 2;
 
 /// How long a device switch waits for the haptic loop to take the new device.
 const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
@@ -224,10 +229,20 @@ pub fn start_bridge(
         view,
         meshes,
         field,
+        particles,
         repaint,
     } = endpoint;
     let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
     let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
+    // Off until the app turns the particles on: then the follower takes its fixed budget of
+    // steps on each new copy of the clay (and a bounded number of idle updates after it).
+    let sink = ParticleFollower::with_handles(
+        sink,
+        particles.view,
+        particles.count,
+        particles.on,
+        PARTICLE_STEPS_PER_UPDATE,
+    );
     let engine = start(Box::new(sink))?;
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
@@ -1021,6 +1036,73 @@ mod tests {
             .iter()
             .map(|c| c.indices.len() / 3)
             .sum()
+    }
+
+    /// Particles through the running engine: off, none are published; switched on over a
+    /// still clay, the graphics loop's idle updates seed and settle them on the surface; a new
+    /// `N` is reached; switched off, they are dropped.
+    #[test]
+    fn particles_switched_on_settle_on_a_still_clay_and_go_when_switched_off() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let wait_particles =
+            |link: &mut super::super::EngineLink, what: &str, done: &dyn Fn(usize) -> bool| {
+                let start = Instant::now();
+                loop {
+                    let n = link.particles().value.positions.len();
+                    if done(n) {
+                        return;
+                    }
+                    assert!(
+                        start.elapsed() < Duration::from_secs(20),
+                        "timed out waiting for {what}: {n} particles"
+                    );
+                    std::thread::sleep(Duration::from_millis(5));
+                }
+            };
+        wait_for(&mut link, &mut Vec::new(), "the first meshes", |_, _| true);
+        assert!(
+            link.particles().value.positions.is_empty(),
+            "off by default"
+        );
+
+        link.set_particle_count(300);
+        link.set_particles_on(true);
+        wait_particles(&mut link, "300 particles", &|n| n.abs_diff(300) <= 6);
+        let view = link.particles().value.clone();
+        assert_eq!(view.normals.len(), view.positions.len());
+        assert_eq!(view.radii.len(), view.positions.len());
+        for p in &view.positions {
+            let (value, gradient) = crate::particles::ImplicitSurface::eval(&field, *p);
+            let distance = value.abs() / gradient.length();
+            assert!(
+                distance < 0.1 * field.spacing,
+                "{p}: {distance} off the surface"
+            );
+        }
+        assert!(view.radii.iter().all(|r| *r > 0.0 && r.is_finite()));
+
+        link.set_particle_count(150);
+        wait_particles(&mut link, "150 particles", &|n| n.abs_diff(150) <= 4);
+
+        link.set_particles_on(false);
+        wait_particles(&mut link, "no particles", &|n| n == 0);
+        bridge.stop().unwrap();
     }
 
     /// Pins through the running engine: a pin's answer comes back as an event and the list

@@ -1025,3 +1025,42 @@ fn the_app_draws_its_view_on_a_gpu_with_the_fault_log_installed() {
     let faults = h.state().gpu_faults.clone().expect("installed");
     assert_eq!(faults.error_count(), 0);
 }
+
+#[test]
+fn the_particles_switch_and_n_reach_the_followers_handles() {
+    use std::sync::atomic::Ordering;
+
+    let (mut h, mut end) = harness();
+    h.run();
+    drain(&end);
+    let (count, on) = (
+        std::sync::Arc::clone(&end.particles.count),
+        std::sync::Arc::clone(&end.particles.on),
+    );
+    assert!(!on.load(Ordering::Relaxed), "off by default");
+
+    h.get_by_role_and_label(Role::CheckBox, "Particles").click();
+    h.run();
+    assert!(on.load(Ordering::Relaxed));
+
+    h.get_by_role_and_label(Role::Slider, "Particles N")
+        .set_value_accesskit(5000.0);
+    h.run();
+    assert_eq!(count.load(Ordering::Relaxed), 5000);
+    // Neither reaches the engine as a command.
+    assert!(drain(&end).is_empty());
+
+    // The view's particles are reported under the panel.
+    let view = crate::particles::ParticleView {
+        positions: vec![glam::Vec3::ZERO; 3],
+        ..crate::particles::ParticleView::default()
+    };
+    end.particles.view.publish_clone_of(&view);
+    h.run();
+    h.get_by_label("3 particles on the clay");
+
+    h.get_by_role_and_label(Role::CheckBox, "Particles").click();
+    h.run();
+    assert!(!on.load(Ordering::Relaxed));
+    assert_eq!(count.load(Ordering::Relaxed), 5000, "N is kept while off");
+}

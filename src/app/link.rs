@@ -9,6 +9,7 @@
 //! context lock: call it from the graphics loop or other non-real-time threads only (the app
 //! polls the view at display rate anyway).
 
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use crossbeam::channel::{self, Receiver, Sender, TrySendError};
@@ -18,6 +19,10 @@ use super::command::{EngineCommand, EngineEvent};
 use super::meshes::MeshSet;
 use super::view::EngineView;
 use crate::field::{BSplineLattice, MultiPatchField};
+use crate::particles::ParticleView;
+
+/// The particle count a new link asks for.
+pub const DEFAULT_PARTICLES: usize = 2000;
 
 /// Commands that may queue before [`EngineLink::send`] reports the engine as not keeping up.
 pub const COMMAND_QUEUE_LEN: usize = 1024;
@@ -70,7 +75,18 @@ pub struct EngineLink {
     view: SnapshotReader<EngineView>,
     meshes: SnapshotReader<MeshSet>,
     field: SnapshotReader<MultiPatchField>,
+    particles: SnapshotReader<ParticleView>,
+    particle_count: Arc<AtomicUsize>,
+    particles_on: Arc<AtomicBool>,
     repaint: RepaintSignal,
+}
+
+/// The engine's end of the particles on the clay: the view it publishes and the count and
+/// switch the app sets (see [`crate::particles::ParticleFollower::with_handles`]).
+pub struct ParticleEndpoint {
+    pub view: SnapshotWriter<ParticleView>,
+    pub count: Arc<AtomicUsize>,
+    pub on: Arc<AtomicBool>,
 }
 
 /// The engine's end: drain `commands` between steps, publish `view` and `meshes`, report
@@ -82,6 +98,8 @@ pub struct EngineEndpoint {
     pub meshes: SnapshotWriter<MeshSet>,
     /// The graphics loop's copy of the clay, for picking under the pointer.
     pub field: SnapshotWriter<MultiPatchField>,
+    /// The particles shown on the clay (off until the app turns them on).
+    pub particles: ParticleEndpoint,
     pub repaint: RepaintSignal,
 }
 
@@ -102,6 +120,9 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
     let (view_tx, view_rx) = snapshot_channel(&EngineView::default());
     let (mesh_tx, mesh_rx) = snapshot_channel(&MeshSet::new());
     let (field_tx, field_rx) = snapshot_channel(&no_clay());
+    let (particles_tx, particles_rx) = snapshot_channel(&ParticleView::default());
+    let particle_count = Arc::new(AtomicUsize::new(DEFAULT_PARTICLES));
+    let particles_on = Arc::new(AtomicBool::new(false));
     let repaint = RepaintSignal::default();
     (
         EngineLink {
@@ -110,6 +131,9 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             view: view_rx,
             meshes: mesh_rx,
             field: field_rx,
+            particles: particles_rx,
+            particle_count: Arc::clone(&particle_count),
+            particles_on: Arc::clone(&particles_on),
             repaint: repaint.clone(),
         },
         EngineEndpoint {
@@ -118,6 +142,11 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             view: view_tx,
             meshes: mesh_tx,
             field: field_tx,
+            particles: ParticleEndpoint {
+                view: particles_tx,
+                count: particle_count,
+                on: particles_on,
+            },
             repaint,
         },
     )
@@ -166,6 +195,41 @@ impl EngineLink {
     /// The newest published copy of the clay (wait-free).
     pub fn field(&mut self) -> &Stamped<MultiPatchField> {
         self.field.latest()
+    }
+
+    /// The newest published particles (wait-free; empty while they are off).
+    pub fn particles(&mut self) -> &Stamped<ParticleView> {
+        self.particles.latest()
+    }
+
+    /// The newest meshes, and the newest particles when they are on (both wait-free), for
+    /// one frame of the 3D view.
+    pub fn scene(&mut self) -> (&Stamped<MeshSet>, Option<&Stamped<ParticleView>>) {
+        let on = self.particles_on();
+        (self.meshes.latest(), on.then(|| self.particles.latest()))
+    }
+
+    /// Turns the particles on the clay on or off (the graphics loop picks it up at its next
+    /// update; off, it drops them and stops the work).
+    pub fn set_particles_on(&self, on: bool) {
+        self.particles_on.store(on, Ordering::Relaxed);
+    }
+
+    /// Whether the particles are on.
+    #[must_use]
+    pub fn particles_on(&self) -> bool {
+        self.particles_on.load(Ordering::Relaxed)
+    }
+
+    /// Asks for `count` particles (0 is ignored by the follower).
+    pub fn set_particle_count(&self, count: usize) {
+        self.particle_count.store(count, Ordering::Relaxed);
+    }
+
+    /// The particle count asked for.
+    #[must_use]
+    pub fn particle_count(&self) -> usize {
+        self.particle_count.load(Ordering::Relaxed)
     }
 
     /// The signal the engine uses to wake the app.

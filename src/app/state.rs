@@ -136,6 +136,9 @@ pub struct SculptApp {
     pub pins: PinPanel,
 }
 
+/// The particle counts the panel offers.
+const PARTICLE_RANGE: std::ops::RangeInclusive<usize> = 100..=20_000;
+
 /// Brush radius factor per `[` or `]` press.
 const BRUSH_STEP: f32 = 1.15;
 /// Strength factor per scroll point with Shift held (one notch of about 50 points: ×1.22).
@@ -349,6 +352,9 @@ impl SculptApp {
                                 self.send(command);
                             }
                         });
+                    egui::CollapsingHeader::new("Particles on the clay")
+                        .default_open(true)
+                        .show(ui, |ui| self.particles_ui(ui));
                     egui::CollapsingHeader::new("Device")
                         .default_open(true)
                         .show(ui, |ui| self.device_ui(ui));
@@ -587,6 +593,34 @@ impl SculptApp {
         }
     }
 
+    /// The particles on the clay: the switch and `N`, stored straight into the graphics loop's
+    /// follower through the link (no command, no wait).
+    fn particles_ui(&mut self, ui: &mut egui::Ui) {
+        let mut on = self.link.particles_on();
+        if ui
+            .checkbox(&mut on, "Particles")
+            .on_hover_text("Show the constrained particles as discs on the clay")
+            .changed()
+        {
+            self.link.set_particles_on(on);
+        }
+        let mut n = self.link.particle_count();
+        if ui
+            .add(
+                egui::Slider::new(&mut n, PARTICLE_RANGE)
+                    .logarithmic(true)
+                    .text("Particles N"),
+            )
+            .changed()
+        {
+            self.link.set_particle_count(n);
+        }
+        if on {
+            let shown = self.link.particles().value.positions.len();
+            ui.weak(format!("{shown} particles on the clay"));
+        }
+    }
+
     fn display_ui(&mut self, ui: &mut egui::Ui) {
         use crate::render::EnvironmentMode as E;
         let d = &mut self.display;
@@ -644,7 +678,7 @@ impl SculptApp {
             ui.ctx().request_repaint();
         }
         let options = self.scene_options();
-        let meshes = self.link.meshes();
+        let (meshes, particles) = self.link.scene();
         let mesh_version = meshes.version;
         let chunks: Vec<MeshChunk<'_>> = meshes.value.iter().map(|c| c.as_chunk()).collect();
         let bounds = bounds_of(&chunks);
@@ -698,6 +732,19 @@ impl SculptApp {
         let Some(scene) = self.scene.as_mut() else {
             return;
         };
+        // Off, the view holds no discs and nothing is read or uploaded (key 0).
+        if let Some(particles) = particles {
+            let p = &particles.value;
+            scene.set_particles(
+                rs,
+                particles.version + 1,
+                &p.positions,
+                &p.normals,
+                &p.radii,
+            );
+        } else {
+            scene.set_particles(rs, 0, &[], &[], &[]);
+        }
         let texture = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
         let problem = scene.problem();
         if let Some(texture) = texture {

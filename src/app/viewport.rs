@@ -12,11 +12,11 @@
 //! engine, the sculpt and the rest of the window carry on. A refused size keeps the last
 //! size's image; a refused mesh is not retried until the engine publishes a new one.
 
-use glam::Vec2;
+use glam::{Vec2, Vec3};
 
 use crate::render::{
-    Camera, MeshChunk, OFFSCREEN_FORMAT, RenderError, SceneOptions, SceneRenderer, Trackball,
-    guarded_on, supported_sample_count,
+    Camera, MeshChunk, OFFSCREEN_FORMAT, ParticleDisc, RenderError, SceneOptions, SceneRenderer,
+    Trackball, guarded_on, particle_discs, supported_sample_count,
 };
 
 use super::camera_input::{drag_pan, drag_rotate, scroll_zoom};
@@ -27,6 +27,7 @@ struct RenderedKey {
     camera: Camera,
     options: SceneOptions,
     mesh_version: u64,
+    particles: u64,
     size: (u32, u32),
 }
 
@@ -43,6 +44,12 @@ pub struct SceneView {
     mesh_refused: Option<(u64, RenderError)>,
     /// Why the last frame could not be recorded.
     frame_failed: Option<RenderError>,
+    /// Why the GPU refused the last particle discs (none are drawn then).
+    particles_refused: Option<RenderError>,
+    /// The particle key whose discs are on the GPU (0: none).
+    particles: u64,
+    /// Discs being uploaded (kept to reuse its allocation).
+    discs: Vec<ParticleDisc>,
 }
 
 impl SceneView {
@@ -78,7 +85,37 @@ impl SceneView {
             size_refused: None,
             mesh_refused: None,
             frame_failed: None,
+            particles_refused: None,
+            particles: 0,
+            discs: Vec::new(),
         })
+    }
+
+    /// Puts the particles under `key` on the GPU as discs, unless that key is already there
+    /// (`key` 0 with empty slices: no particles). A buffer the GPU refuses leaves no discs and
+    /// becomes the frame's problem.
+    pub fn set_particles(
+        &mut self,
+        rs: &egui_wgpu::RenderState,
+        key: u64,
+        positions: &[Vec3],
+        normals: &[Vec3],
+        radii: &[f32],
+    ) {
+        if key == self.particles {
+            return;
+        }
+        self.particles = key;
+        particle_discs(&mut self.discs, positions, normals, radii);
+        let (renderer, discs) = (&mut self.renderer, &self.discs);
+        if let Err(e) = guarded_on(&rs.device, "the particle discs", || {
+            renderer.set_particles(&rs.device, &rs.queue, discs);
+        }) {
+            self.renderer.set_particles(&rs.device, &rs.queue, &[]);
+            self.particles_refused = Some(e);
+        } else {
+            self.particles_refused = None;
+        }
     }
 
     /// Renders the scene at `width × height` if anything changed; returns the texture to show,
@@ -98,6 +135,7 @@ impl SceneView {
             camera: *camera,
             options: *options,
             mesh_version,
+            particles: self.particles,
             size: self.renderer.size(),
         };
         if self.last == Some(key) {
@@ -181,6 +219,9 @@ impl SceneView {
     pub fn problem(&self) -> Option<String> {
         if let Some(e) = &self.frame_failed {
             return Some(format!("cannot draw the 3D view: {e}"));
+        }
+        if let Some(e) = &self.particles_refused {
+            return Some(format!("cannot show the particles: {e}"));
         }
         if let Some((_, e)) = &self.mesh_refused {
             return Some(format!(

@@ -35,6 +35,11 @@ pub trait MeshSink: Send {
     /// [`super::Engine::stop_keeping_parts`]): the bricks it holds belong to the old clay and
     /// are forgotten. The default holds nothing.
     fn restart(&mut self) {}
+
+    /// Called with the graphics loop's field copy on a tick that applied no patch; a sink
+    /// with work of its own to finish (particles settling on a still clay) does a bounded
+    /// piece of it here. The default does nothing.
+    fn idle(&mut self, _field: &MultiPatchField) {}
 }
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -124,12 +129,14 @@ impl GraphicsStage {
         if stamped.value.layout != self.layout
             || stamped.version == self.ack.load(Ordering::Relaxed)
         {
+            self.sink.idle(&self.field);
             return 0;
         }
         let changed = stamped.value.apply_to(&mut self.field);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
         self.ack.store(stamped.version, Ordering::Release);
         let Some((lo, hi)) = changed else {
+            self.sink.idle(&self.field);
             return 0;
         };
         let report = self.octree.refresh_box(&*self.field, lo, hi);

@@ -12,6 +12,7 @@ mod image;
 mod offscreen;
 mod options;
 mod overlay;
+mod particles;
 mod renderer;
 mod trackball;
 
@@ -33,6 +34,7 @@ pub use options::{
     BoxOverlay, EnvironmentMode, ForceOverlay, Light, SceneOptions, Shading, ToolOverlay, ToolStyle,
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
+pub use particles::{DISC_LIFT, DISC_SCALE, PARTICLE_DISC_COLOR, ParticleDisc, particle_discs};
 pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;
 

@@ -16,6 +16,7 @@ use super::error::RenderError;
 use super::gpu_chunks::SyncReport;
 use super::image::Image;
 use super::options::SceneOptions;
+use super::particles::ParticleDisc;
 use super::renderer::{SceneRenderer, supported_sample_count};
 
 /// Colour format of offscreen frames: 8-bit sRGB, what PNG viewers expect.
@@ -96,6 +97,17 @@ impl OffscreenRenderer {
         Ok(self.gpu.guarded("the mesh buffers", |device, queue| {
             renderer.sync_chunks(device, queue, chunks)
         })??)
+    }
+
+    /// Replaces the particle discs drawn over the clay.
+    ///
+    /// # Errors
+    /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] when the GPU refuses the buffer.
+    pub fn set_particles(&mut self, discs: &[ParticleDisc]) -> Result<(), RenderError> {
+        let renderer = &mut self.renderer;
+        self.gpu.guarded("the particle discs", |device, queue| {
+            renderer.set_particles(device, queue, discs);
+        })
     }
 
     /// Renders the synced chunks and reads the frame back.

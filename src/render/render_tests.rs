@@ -769,3 +769,120 @@ fn a_resize_over_the_texture_limit_is_refused_and_keeps_the_old_target() {
     assert_eq!(r.size(), (32, 24));
     gpu.check_faults("the test").unwrap();
 }
+
+/// Whether a pixel has the particle discs' colour (a saturated green the grey clay and the
+/// black background never take).
+fn is_disc_colour(p: [u8; 4]) -> bool {
+    let want = PARTICLE_DISC_COLOR.map(linear_to_srgb8);
+    p[..3].iter().zip(want).all(|(&x, y)| x.abs_diff(y) <= 24)
+}
+
+/// Pixel position of world point `p`.
+fn to_pixel(camera: &Camera, p: Vec3) -> Vec2 {
+    let ndc = camera
+        .view_projection(W as f32 / H as f32)
+        .project_point3(p);
+    Vec2::new(
+        (ndc.x + 1.0) * 0.5 * W as f32,
+        (1.0 - ndc.y) * 0.5 * H as f32,
+    )
+}
+
+#[test]
+fn particle_discs_appear_where_the_particles_are_and_the_clay_hides_those_behind_it() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let chunks = sphere_chunks(Vec3::ZERO, 1.0, 64, 32);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    let options = plain_options();
+    let count = |img: &Image| {
+        img.rgba8
+            .chunks_exact(4)
+            .filter(|p| is_disc_colour([p[0], p[1], p[2], p[3]]))
+            .count()
+    };
+    let bare = r.render(&camera, &options).unwrap();
+    assert_eq!(count(&bare), 0, "no disc colour without particles");
+
+    // Particles on the unit sphere: three facing the camera, one on the far side.
+    let toward = camera.eye().normalize();
+    let side = toward.any_orthonormal_vector();
+    let front = [
+        toward,
+        (toward + 0.5 * side).normalize(),
+        (toward - 0.5 * side).normalize(),
+    ];
+    // Behind the clay, off the line of the front ones so no front disc covers its pixel.
+    let back = (-toward + 0.6 * toward.cross(side)).normalize();
+    let radius = 0.4;
+    let mut positions: Vec<Vec3> = front.to_vec();
+    positions.push(back);
+    let normals = positions.clone();
+    let radii = vec![radius; positions.len()];
+    let mut discs = Vec::new();
+    particle_discs(&mut discs, &positions, &normals, &radii);
+    assert_eq!(discs.len(), 4);
+    r.set_particles(&discs).unwrap();
+    assert_eq!(r.renderer().particle_count(), 4);
+    let img = r.render(&camera, &options).unwrap();
+
+    // Each front disc covers its particle's pixel, and about the disc's projected area is
+    // green around it (its inner 85% is green, the rim darker): the disc's radius in pixels
+    // is measured along its edge that faces the camera square on.
+    let rd = radius * DISC_SCALE;
+    let lifted = |p: Vec3| p * (1.0 + DISC_LIFT * rd);
+    let centres: Vec<Vec2> = front
+        .iter()
+        .map(|p| to_pixel(&camera, lifted(*p)))
+        .collect();
+    let disc_pxs: Vec<f32> = front
+        .iter()
+        .map(|p| {
+            let t = p
+                .cross(toward)
+                .try_normalize()
+                .unwrap_or(side.cross(toward));
+            to_pixel(&camera, lifted(*p) + t * rd).distance(to_pixel(&camera, lifted(*p)))
+        })
+        .collect();
+    let disc_px = disc_pxs.iter().copied().fold(0.0, f32::max);
+    for ((p, c), r_px) in front.iter().zip(&centres).zip(&disc_pxs) {
+        let disc_px = *r_px;
+        let pixel = img.pixel(c.x as u32, c.y as u32).unwrap();
+        assert!(is_disc_colour(pixel), "{p} at {c}: {pixel:?}");
+        let near = img
+            .rgba8
+            .chunks_exact(4)
+            .enumerate()
+            .filter(|(i, px)| {
+                let at = Vec2::new((*i as u32 % W) as f32, (*i as u32 / W) as f32);
+                at.distance(*c) <= disc_px + 2.0 && is_disc_colour([px[0], px[1], px[2], px[3]])
+            })
+            .count() as f32;
+        let foreshortened = p.dot(toward);
+        let expected = std::f32::consts::PI * (0.85 * disc_px).powi(2) * foreshortened;
+        assert!(
+            near > 0.6 * expected && near < 1.6 * expected,
+            "{p}: {near} green pixels, about {expected} expected"
+        );
+    }
+    // No green far from the front discs: the one behind the clay is hidden.
+    let hidden = to_pixel(&camera, back);
+    assert!(!is_disc_colour(
+        img.pixel(hidden.x as u32, hidden.y as u32).unwrap()
+    ));
+    let stray = img
+        .rgba8
+        .chunks_exact(4)
+        .enumerate()
+        .filter(|(i, px)| {
+            let at = Vec2::new((*i as u32 % W) as f32, (*i as u32 / W) as f32);
+            is_disc_colour([px[0], px[1], px[2], px[3]])
+                && centres.iter().all(|c| at.distance(*c) > disc_px + 2.0)
+        })
+        .count();
+    assert_eq!(stray, 0, "disc colour away from every visible particle");
+
+    r.set_particles(&[]).unwrap();
+    assert_eq!(count(&r.render(&camera, &options).unwrap()), 0);
+}

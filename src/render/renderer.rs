@@ -23,6 +23,7 @@ use super::faults::guarded_on;
 use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
+use super::particles::{DISC_ATTRIBUTES, DiscBuffer, ParticleDisc};
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -218,6 +219,8 @@ pub struct SceneRenderer {
     mesh_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
     tool_pipeline: wgpu::RenderPipeline,
+    disc_pipeline: wgpu::RenderPipeline,
+    discs: DiscBuffer,
     chunks: ChunkBuffers,
     overlay: OverlayGeometry,
     overlay_lines: DynamicBuffer,
@@ -384,6 +387,52 @@ impl SceneRenderer {
             false,
             Some(wgpu::BlendState::ALPHA_BLENDING),
         );
+        let disc_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("particles.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/particles.wgsl").into()),
+        });
+        let disc_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("particle discs"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &disc_shader,
+                entry_point: Some("vs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: size_of::<ParticleDisc>() as u64,
+                    step_mode: wgpu::VertexStepMode::Instance,
+                    attributes: &DISC_ATTRIBUTES,
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState {
+                count: samples,
+                ..Default::default()
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: &disc_shader,
+                entry_point: Some("fs_main"),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
         let env_view =
             upload_environment(device, queue, &EnvironmentMap::studio(ENVIRONMENT_SIZE_PX));
         let bind_group =
@@ -399,6 +448,8 @@ impl SceneRenderer {
             mesh_pipeline,
             line_pipeline,
             tool_pipeline,
+            disc_pipeline,
+            discs: DiscBuffer::default(),
             chunks: ChunkBuffers::default(),
             overlay: OverlayGeometry::default(),
             overlay_lines: DynamicBuffer {
@@ -480,8 +531,24 @@ impl SceneRenderer {
         self.chunks.sync(device, queue, chunks)
     }
 
-    /// Records one frame into `encoder`: clear, the clay, overlay lines, then the see-through
-    /// tool, all into [`Self::target`]. The caller submits the encoder.
+    /// Replaces the particle discs drawn over the clay (empty: none, and no draw call).
+    pub fn set_particles(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        discs: &[ParticleDisc],
+    ) {
+        self.discs.write(device, queue, discs);
+    }
+
+    /// Particle discs drawn per frame.
+    #[must_use]
+    pub fn particle_count(&self) -> usize {
+        self.discs.count as usize
+    }
+
+    /// Records one frame into `encoder`: clear, the clay, the particle discs, overlay lines,
+    /// then the see-through tool, all into [`Self::target`]. The caller submits the encoder.
     pub fn render(
         &mut self,
         device: &wgpu::Device,
@@ -543,6 +610,11 @@ impl SceneRenderer {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.mesh_pipeline);
         self.chunks.draw(&mut pass);
+        if let (Some(buffer), count @ 1..) = (&self.discs.buffer, self.discs.count) {
+            pass.set_pipeline(&self.disc_pipeline);
+            pass.set_vertex_buffer(0, buffer.slice(..));
+            pass.draw(0..6, 0..count);
+        }
         for (pipeline, geometry) in [
             (&self.line_pipeline, &self.overlay_lines),
             (&self.tool_pipeline, &self.overlay_triangles),
