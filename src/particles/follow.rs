@@ -245,7 +245,7 @@ impl<S: MeshSink> MeshSink for ParticleFollower<S> {
     /// seeded afresh on the new one.
     fn restart(&mut self) {
         self.inner.restart();
-        if let Ok(fresh) = ParticleSystem::new(self.system.params().clone()) {
+        if let Ok(fresh) = ParticleSystem::new(*self.system.params()) {
             self.system = fresh;
         }
         self.idle_left = self.settle_updates;
