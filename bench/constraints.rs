@@ -17,7 +17,7 @@ use dynaclay::dynamics::{
     RegionState, Simulator, StepParams, ToolForce, project_onto_surface,
 };
 use dynaclay::field::{
-    BSplineLattice, CoeffBox, Primitive, RegionSnapshot, lattice_from_primitive,
+    BSplineLattice, CoeffBox, MultiPatchField, Primitive, RegionSnapshot, lattice_from_primitive,
 };
 use glam::Vec3;
 
@@ -53,6 +53,7 @@ fn setup(n: usize) -> (BSplineLattice, RegionState, ToolForce) {
 
 /// `count` point pins spread over the sphere (a Fibonacci lattice), each on the surface.
 fn pins(lattice: &BSplineLattice, count: usize) -> Vec<ConstraintRow> {
+    let clay = MultiPatchField::new(lattice.clone());
     let golden = std::f32::consts::PI * (3.0 - 5.0_f32.sqrt());
     (0..count)
         .flat_map(|i| {
@@ -61,7 +62,7 @@ fn pins(lattice: &BSplineLattice, count: usize) -> Vec<ConstraintRow> {
             let a = golden * i as f32;
             let dir = Vec3::new(r * a.cos(), y, r * a.sin());
             let near = CENTRE + dir * RADIUS;
-            let at = project_onto_surface(lattice, near, 0.1).expect("surface near the sphere");
+            let at = project_onto_surface(&clay, near, 0.1).expect("surface near the sphere");
             Constraint::Point { at }.rows(lattice).expect("rows")
         })
         .collect()

@@ -56,10 +56,24 @@ do = "save"
 path = "free.dclay"
 "#;
 
-#[test]
-fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
+/// What a run of a pinning script gave.
+struct PinnedRun {
+    dir: tempfile::TempDir,
+    /// Where the engine pinned (the projection of the script's point).
+    pin: Vec3,
+    /// The largest |F(pin) − c₀| of the clay (the sum of its patches) during the pinned push.
+    worst: f32,
+    /// Steps checked.
+    checked: usize,
+    notes: Vec<(usize, String)>,
+}
+
+/// Runs `script_text` (a `constrain` step as step `constrain_step`, the first `undo` as step
+/// `undo_step`) in the lockstep engine, checking the pinned point on every step between the
+/// pin's answer and the first undo.
+fn run_pinned(script_text: &str, constrain_step: usize, undo_step: usize) -> PinnedRun {
     let dir = tempfile::tempdir().unwrap();
-    let script = parse_script(SCRIPT, "pins.toml").unwrap();
+    let script = parse_script(script_text, "pins.toml").unwrap();
     let plan = ScriptPlan::new(&script, "pins.toml", dir.path(), &[], Material::PLASTIC).unwrap();
     let field = build_clay(&plan.clay).unwrap();
     let arm_config = SimArmConfig::default();
@@ -75,37 +89,64 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
         64,
     )
     .unwrap();
-    // Where the engine will pin: the same projection on the same starting clay.
-    let (expected, _) =
-        resolve_pin(run.field(), &PinRequest::Point(Vec3::new(0.95, 1.74, 0.8))).unwrap();
-    let [Constraint::Point { at: pin }] = expected[..] else {
-        panic!("{expected:?}");
-    };
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
     let (mut checked, mut worst) = (0, 0.0_f32);
+    let mut pin = None;
     for _ in 0..(plan.seconds * 1000.0) as usize {
         let sample = run.latest_tool();
         driver.dispatch(&sample, &commands);
         run.step();
         // During the pinned push: from the pin's answer until the first undo is sent.
-        let pinned = !driver.notes().is_empty();
-        let undone = !driver.unsent_steps().contains(&4);
+        let pinned = driver
+            .notes()
+            .iter()
+            .any(|(step, _)| *step == constrain_step);
+        let undone = !driver.unsent_steps().contains(&undo_step);
         if pinned && !undone {
-            let l = run.field();
-            worst = worst.max((l.value(pin) - l.iso).abs());
+            // Where the engine pinned: the clay's pin as it holds it now.
+            let at = *pin.get_or_insert_with(|| {
+                let (expected, _) = resolve_pin(
+                    run.density(),
+                    &PinRequest::Point(Vec3::new(0.95, 1.74, 0.8)),
+                )
+                .unwrap();
+                let [Constraint::Point { at }] = expected[..] else {
+                    panic!("{expected:?}");
+                };
+                at
+            });
+            let clay = run.density();
+            worst = worst.max((clay.value(at) - clay.iso()).abs());
             checked += 1;
         }
     }
+    assert!(driver.is_done(), "steps left: {:?}", driver.unsent_steps());
+    run.finish().unwrap();
+    assert!(driver.failures().is_empty(), "{:?}", driver.failures());
+    PinnedRun {
+        dir,
+        pin: pin.expect("the pin was answered"),
+        worst,
+        checked,
+        notes: driver.notes().to_vec(),
+    }
+}
+
+#[test]
+fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
+    let PinnedRun {
+        dir,
+        pin,
+        worst,
+        checked,
+        notes,
+    } = run_pinned(SCRIPT, 1, 4);
     assert!(checked > 1000, "checked {checked} steps");
     assert!(
         worst < 1e-4,
         "the pinned point left the surface by {worst} during the push"
     );
-    assert!(driver.is_done(), "steps left: {:?}", driver.unsent_steps());
-    run.finish().unwrap();
-    assert!(driver.failures().is_empty(), "{:?}", driver.failures());
-    let notes = driver.notes().to_vec();
     assert_eq!(notes.len(), 1, "{notes:?}");
     assert_eq!(notes[0].0, 1);
     assert!(
@@ -142,5 +183,60 @@ fn a_pinned_point_holds_through_a_push_and_undo_removes_the_pin() {
         "without the pin the push dents the point: {} vs iso {}",
         lf.value(at),
         lf.iso
+    );
+}
+
+/// [`SCRIPT`] after refining a box around the pin and the stroke one level (the push then
+/// moves the detail patch, and the pin must hold the sum of the two patches).
+fn detail_script() -> String {
+    SCRIPT.replacen(
+        "[[step]]\ndo = \"constrain\"",
+        "[[step]]\ndo = \"refine\"\nmin = [0.45, 1.3, 0.45]\nmax = [1.45, 1.95, 1.15]\nlevel = 1\n\n\
+         [[step]]\ndo = \"constrain\"",
+        1,
+    )
+}
+
+#[test]
+fn a_pin_inside_a_detail_patch_holds_the_sum_while_the_push_moves_that_patch() {
+    let script = detail_script();
+    assert!(script.contains("do = \"refine\""));
+    let PinnedRun {
+        dir,
+        pin,
+        worst,
+        checked,
+        ..
+    } = run_pinned(&script, 2, 5);
+    assert!(checked > 1000, "checked {checked} steps");
+    assert!(
+        worst < 1e-4,
+        "the pinned point left the surface of the sum by {worst} during the push"
+    );
+
+    let pinned = load_session(&dir.path().join("pinned.dclay")).unwrap();
+    let clay = &pinned.clay.density;
+    assert_eq!(clay.patches.len(), 2, "the base and the detail patch");
+    // The push was simulated on the detail patch: it holds the dent.
+    let detail = &clay.patches[1].lattice;
+    let moved = detail.coeffs.iter().fold(0.0_f32, |m, c| m.max(c.abs()));
+    assert!(moved > 1e-2, "the detail patch did not move ({moved})");
+    assert!(
+        (clay.value(pin) - clay.iso()).abs() < 1e-4,
+        "the pinned point is {} off the surface of the sum after the push",
+        clay.value(pin) - clay.iso()
+    );
+    let beside = Vec3::new(1.1, pin.y - 0.03, 0.8);
+    assert!(clay.value(beside) < clay.iso(), "no dent beside the pin");
+
+    // Without the pin, the same push on the same detail patch dents the point.
+    let free = load_session(&dir.path().join("free.dclay")).unwrap();
+    let clay = &free.clay.density;
+    assert_eq!(clay.patches.len(), 2);
+    assert!(
+        clay.iso() - clay.value(pin) > 0.05,
+        "without the pin the push dents the point: {} vs iso {}",
+        clay.value(pin),
+        clay.iso()
     );
 }

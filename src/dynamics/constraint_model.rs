@@ -16,10 +16,10 @@
 //! kind. Building rows allocates; it runs when constraints change or a region is made, never
 //! in the haptic loop.
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::field::{BSplineLattice, cubic_weights_and_derivatives};
+use crate::field::{BSplineLattice, MultiPatchField, OtherPatches, cubic_weights_and_derivatives};
 
 /// Point samples per knot span along a curve constraint.
 pub const CURVE_SAMPLES_PER_SPAN: f32 = 2.0;
@@ -79,6 +79,14 @@ pub enum ConstraintError {
         at: Vec3,
         /// How far along the gradient the search went, world units.
         searched: f32,
+    },
+    /// The clay has no patch with this index.
+    #[error("the clay has no patch {patch} (it has {patches})")]
+    NoSuchPatch {
+        /// The patch asked for.
+        patch: usize,
+        /// Patches on the clay.
+        patches: usize,
     },
     /// The gradient vanishes at the point (no normal to keep).
     #[error("the field has no gradient at {at} (no normal to keep)")]
@@ -205,23 +213,25 @@ fn stencil(lattice: &BSplineLattice, x: Vec3) -> Vec<(usize, f32, Vec3)> {
     out
 }
 
-/// The point nearest `at` along the field's gradient line where `s = c0`: a bracket is
-/// searched outward along `±∇s` up to `reach` world units, then bisected.
+/// The point nearest `at` along the gradient line of the clay `field` (the sum of its patches)
+/// where `F = c₀`: a bracket is searched outward along `±∇F` up to `reach` world units, in
+/// steps of a quarter of the finest knot span, then bisected.
 ///
 /// # Errors
-/// When `at` is not finite or outside the lattice, or no crossing lies within `reach`.
+/// When `at` is not finite or outside the clay, or no crossing lies within `reach`.
 pub fn project_onto_surface(
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
     at: Vec3,
     reach: f32,
 ) -> Result<Vec3, ConstraintError> {
-    check_inside(lattice, "the point", at)?;
-    let f = |x: Vec3| lattice.value(x) - lattice.iso;
+    check_inside_clay(field, "the point", at)?;
+    let iso = field.iso();
+    let f = |x: Vec3| field.value(x) - iso;
     let f0 = f(at);
     if f0 == 0.0 {
         return Ok(at);
     }
-    let g = lattice.gradient(at);
+    let g = field.value_and_gradient(at).1;
     if !g.is_finite() || g.length_squared() <= 0.0 {
         return Err(ConstraintError::NoSurfaceNear {
             at,
@@ -230,7 +240,7 @@ pub fn project_onto_surface(
     }
     // Inside (f > 0) the surface lies down the gradient; outside, up it.
     let dir = g.normalize() * if f0 > 0.0 { -1.0 } else { 1.0 };
-    let step = 0.25 * lattice.spacing;
+    let step = 0.25 * field.finest_spacing();
     let mut near = at;
     let mut travelled = 0.0;
     while travelled < reach {
@@ -246,7 +256,7 @@ pub fn project_onto_surface(
                     b = m;
                 }
             }
-            // The end with the smaller |s − c0|.
+            // The end with the smaller |F − c0|.
             return Ok(if f(a).abs() < f(b).abs() { a } else { b });
         }
         near = next;
@@ -257,14 +267,30 @@ pub fn project_onto_surface(
     })
 }
 
+/// Checks that `at` is finite and inside the clay's support (every patch's, in world
+/// coordinates).
+fn check_inside_clay(
+    field: &MultiPatchField,
+    what: &'static str,
+    at: Vec3,
+) -> Result<(), ConstraintError> {
+    check_finite(what, at)?;
+    let (lo, hi) = field.support();
+    if at.cmplt(lo).any() || at.cmpgt(hi).any() {
+        return Err(ConstraintError::OutsideLattice { what, at });
+    }
+    Ok(())
+}
+
 impl Constraint {
-    /// A normal constraint at `at` keeping the gradient direction the field has there now.
+    /// A normal constraint at `at` keeping the direction the clay's gradient (of the sum of
+    /// its patches) has there now.
     ///
     /// # Errors
-    /// When `at` is outside the lattice or the gradient vanishes there.
-    pub fn normal_here(lattice: &BSplineLattice, at: Vec3) -> Result<Self, ConstraintError> {
-        check_inside(lattice, "the normal's point", at)?;
-        let g = lattice.gradient(at);
+    /// When `at` is outside the clay or the gradient vanishes there.
+    pub fn normal_here(field: &MultiPatchField, at: Vec3) -> Result<Self, ConstraintError> {
+        check_inside_clay(field, "the normal's point", at)?;
+        let g = field.value_and_gradient(at).1;
         if !g.is_finite() || g.length() <= 1e-6 {
             return Err(ConstraintError::FlatField { at });
         }
@@ -357,43 +383,144 @@ impl Constraint {
         }
     }
 
-    /// The linear rows this constraint stands for on `lattice`'s coefficients.
+    /// The linear rows this constraint stands for on `lattice`'s coefficients (the clay is
+    /// that one lattice).
     ///
     /// # Errors
     /// When the constraint is invalid or one of its points lies outside the lattice.
     pub fn rows(&self, lattice: &BSplineLattice) -> Result<Vec<ConstraintRow>, ConstraintError> {
+        self.patch_rows(lattice, &PatchFrame::alone(lattice))
+    }
+
+    /// The rows this constraint stands for on the coefficients of patch `patch` of the clay
+    /// `field`, whose surface is that of the sum `F(x) = Σ sᵢ(Tᵢ x) = c₀` (Hua & Qin
+    /// eq. (3)). The other patches stay fixed while this one moves, so each row holds the
+    /// sum: a point row keeps `s(T x) = c₀ − (the others at x)`, a normal row keeps the
+    /// tangential part of `∇F` zero with `∇ s(T x) = Tᵀ ∇s`. Curves are sampled at the base
+    /// patch's spacing on every patch. A point outside a detail patch's support gives no row
+    /// (that patch cannot move the surface there); on the base patch it is an error.
+    ///
+    /// # Errors
+    /// When the constraint is invalid, `patch` does not exist, or (base patch) a point lies
+    /// outside the lattice.
+    pub fn rows_on_patch(
+        &self,
+        field: &MultiPatchField,
+        patch: usize,
+    ) -> Result<Vec<ConstraintRow>, ConstraintError> {
+        let Some(this) = field.patches.get(patch) else {
+            return Err(ConstraintError::NoSuchPatch {
+                patch,
+                patches: field.patches.len(),
+            });
+        };
+        let frame = PatchFrame {
+            world_to_patch: this.world_to_patch,
+            others: OtherPatches {
+                before: &field.patches[..patch],
+                after: &field.patches[patch + 1..],
+            },
+            iso: field.iso(),
+            sample_spacing: field.base().spacing,
+            outside_is_error: patch == 0,
+        };
+        self.patch_rows(&this.lattice, &frame)
+    }
+
+    /// The rows on `lattice`, placed in the clay by `frame`.
+    fn patch_rows(
+        &self,
+        lattice: &BSplineLattice,
+        frame: &PatchFrame<'_>,
+    ) -> Result<Vec<ConstraintRow>, ConstraintError> {
         self.validate()?;
         let mut rows = Vec::new();
+        // `None`: the point lies outside a detail patch (no row).
+        let place = |what: &'static str, x: Vec3| -> Result<Option<Vec3>, ConstraintError> {
+            let u = frame.world_to_patch.transform_point3(x);
+            match check_inside(lattice, what, u) {
+                Ok(()) => Ok(Some(u)),
+                Err(_) if !frame.outside_is_error => Ok(None),
+                Err(e) => Err(e),
+            }
+        };
         match self {
             Self::Point { .. } | Self::Curve { .. } => {
-                for x in self.sample_points(lattice.spacing)? {
-                    check_inside(lattice, "a pinned point", x)?;
+                for x in self.sample_points(frame.sample_spacing)? {
+                    let Some(u) = place("a pinned point", x)? else {
+                        continue;
+                    };
+                    let others = if frame.others.is_empty() {
+                        0.0
+                    } else {
+                        frame.others.value(x)
+                    };
                     let row = ConstraintRow {
-                        terms: stencil(lattice, x)
+                        terms: stencil(lattice, u)
                             .into_iter()
                             .map(|(i, w, _)| (i, w))
                             .collect(),
-                        target: lattice.iso,
+                        target: frame.iso - others,
                     };
                     rows.extend(row.normalised());
                 }
             }
             Self::Normal { at, normal } => {
-                check_inside(lattice, "the normal's point", *at)?;
+                let Some(u) = place("the normal's point", *at)? else {
+                    return Ok(rows);
+                };
                 let n = normal.normalize();
                 let t1 = n.any_orthonormal_vector();
                 let t2 = n.cross(t1);
-                let taps = stencil(lattice, *at);
+                let taps = stencil(lattice, u);
+                let others_gradient = if frame.others.is_empty() {
+                    Vec3::ZERO
+                } else {
+                    frame.others.value_and_gradient(*at).1
+                };
+                let jacobian = frame.world_to_patch.matrix3;
                 for t in [t1, t2] {
+                    // t · (Jᵀ g) = (J t) · g for each tap's patch gradient g.
+                    let along = Vec3::from(jacobian * t);
                     let row = ConstraintRow {
-                        terms: taps.iter().map(|&(i, _, g)| (i, t.dot(g))).collect(),
-                        target: 0.0,
+                        terms: taps.iter().map(|&(i, _, g)| (i, along.dot(g))).collect(),
+                        target: -t.dot(others_gradient),
                     };
                     rows.extend(row.normalised());
                 }
             }
         }
         Ok(rows)
+    }
+}
+
+/// Where a patch sits in the clay, for its constraint rows.
+struct PatchFrame<'a> {
+    /// World coordinates to the patch's lattice coordinates.
+    world_to_patch: Affine3A,
+    /// The clay's other patches (fixed while this one moves).
+    others: OtherPatches<'a>,
+    /// The clay's iso-value.
+    iso: f32,
+    /// Spacing at which curves are sampled, world units.
+    sample_spacing: f32,
+    /// Whether a point outside the lattice is an error (else it gives no row).
+    outside_is_error: bool,
+}
+
+impl PatchFrame<'_> {
+    /// A clay that is `lattice` alone.
+    fn alone(lattice: &BSplineLattice) -> Self {
+        PatchFrame {
+            world_to_patch: Affine3A::IDENTITY,
+            others: OtherPatches {
+                before: &[],
+                after: &[],
+            },
+            iso: lattice.iso,
+            sample_spacing: lattice.spacing,
+            outside_is_error: true,
+        }
     }
 }
 
@@ -412,6 +539,118 @@ mod tests {
         lattice_from_primitive([20, 20, 20], 0.1, Vec3::ZERO, &s, 0.2, 2).unwrap()
     }
 
+    /// The sphere plus a detail patch with a bump in it, under a rotated, scaled map that
+    /// puts `x` at the middle of the patch.
+    fn sphere_with_detail(x: Vec3) -> MultiPatchField {
+        let mut field = MultiPatchField::new(sphere());
+        let mut detail = BSplineLattice::zeros([14; 3], 0.05, Vec3::ZERO).unwrap();
+        for (i, c) in detail.coeffs.iter_mut().enumerate() {
+            let (x, y, z) = (i % 14, (i / 14) % 14, i / 196);
+            *c = 0.3 * ((x as f32 * 0.7).sin() * (y as f32 * 0.4).cos() + 0.1 * z as f32);
+        }
+        let turn = glam::Quat::from_rotation_y(0.4);
+        let map = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(0.9),
+            turn,
+            Vec3::splat(0.33) - turn * (0.9 * x),
+        );
+        field.push(detail, map);
+        field
+    }
+
+    #[test]
+    fn rows_on_a_patch_hold_the_sum_of_the_patches() {
+        let x = CENTRE + Vec3::new(0.37, 0.05, -0.1);
+        let field = sphere_with_detail(x);
+        let inside = field.patches[1].world_to_patch.transform_point3(x);
+        assert!(inside.cmpgt(Vec3::splat(0.2)).all() && inside.cmplt(Vec3::splat(0.5)).all());
+        for patch in [0, 1] {
+            let own = &field.patches[patch].lattice;
+            let rows = Constraint::Point { at: x }
+                .rows_on_patch(&field, patch)
+                .unwrap();
+            assert_eq!(rows.len(), 1);
+            // residual · |w| = F(x) − c₀ with the others fixed, on either patch (w: the
+            // stencil's weights before the row was made unit length).
+            let u = field.patches[patch].world_to_patch.transform_point3(x);
+            let weights: f32 = stencil(own, u).iter().map(|t| t.1 * t.1).sum();
+            let r = rows[0].residual(own);
+            assert!(
+                ((field.value(x) - field.iso()) - r * weights.sqrt()).abs() < 1e-4,
+                "patch {patch}: {r}"
+            );
+            let unit: f32 = rows[0].terms.iter().map(|t| t.1 * t.1).sum();
+            assert!((unit - 1.0).abs() < 1e-5);
+
+            // A normal row is met by the sum's own normal and is violated by a turned one.
+            let here = Constraint::normal_here(&field, x).unwrap();
+            for row in here.rows_on_patch(&field, patch).unwrap() {
+                assert!(
+                    row.residual(own).abs() < 1e-4,
+                    "patch {patch}: {}",
+                    row.residual(own)
+                );
+            }
+            let g = field.value_and_gradient(x).1;
+            let tilted = Constraint::Normal {
+                at: x,
+                normal: g.normalize().any_orthonormal_vector(),
+            };
+            let worst = tilted
+                .rows_on_patch(&field, patch)
+                .unwrap()
+                .iter()
+                .map(|r| r.residual(own).abs())
+                .fold(0.0, f32::max);
+            assert!(
+                worst > 0.1 * g.length() / 1.0f32.max(g.length()),
+                "patch {patch}: {worst}"
+            );
+        }
+        // The one-patch clay gives exactly the lattice's rows.
+        let alone = MultiPatchField::new(sphere());
+        assert_eq!(
+            Constraint::Point { at: x }
+                .rows_on_patch(&alone, 0)
+                .unwrap(),
+            Constraint::Point { at: x }.rows(&sphere()).unwrap()
+        );
+        // Off the detail patch: no row there, an error on the base.
+        let far = Vec3::new(0.2, 1.7, 1.8);
+        assert!(
+            field.patches[1]
+                .world_to_patch
+                .transform_point3(far)
+                .cmplt(Vec3::ZERO)
+                .any()
+                || field.patches[1]
+                    .world_to_patch
+                    .transform_point3(far)
+                    .cmpgt(Vec3::splat(0.65))
+                    .any()
+        );
+        assert!(
+            Constraint::Point { at: far }
+                .rows_on_patch(&field, 1)
+                .unwrap()
+                .is_empty()
+        );
+        assert!(
+            Constraint::Point {
+                at: Vec3::splat(50.0)
+            }
+            .rows_on_patch(&field, 0)
+            .is_err()
+        );
+        assert!(matches!(
+            Constraint::Point { at: x }.rows_on_patch(&field, 2),
+            Err(ConstraintError::NoSuchPatch {
+                patch: 2,
+                patches: 2
+            })
+        ));
+    }
+
     #[test]
     fn a_point_row_evaluates_the_field_and_a_normal_row_the_tangential_gradient() {
         let lattice = sphere();
@@ -424,7 +663,7 @@ mod tests {
         assert_eq!(r.signum(), (lattice.value(x) - lattice.iso).signum());
         let n: f32 = rows[0].terms.iter().map(|t| t.1 * t.1).sum();
         assert!((n - 1.0).abs() < 1e-5);
-        let normal = Constraint::normal_here(&lattice, x).unwrap();
+        let normal = Constraint::normal_here(&MultiPatchField::new(lattice.clone()), x).unwrap();
         let rows = normal.rows(&lattice).unwrap();
         assert_eq!(rows.len(), 2);
         for row in &rows {
@@ -451,17 +690,18 @@ mod tests {
     #[test]
     fn projection_lands_on_the_surface_from_inside_and_outside() {
         let lattice = sphere();
+        let clay = MultiPatchField::new(lattice.clone());
         for r in [0.3, 0.5] {
-            let p = project_onto_surface(&lattice, CENTRE + Vec3::new(r, 0.0, 0.0), 0.5).unwrap();
+            let p = project_onto_surface(&clay, CENTRE + Vec3::new(r, 0.0, 0.0), 0.5).unwrap();
             assert!((lattice.value(p) - lattice.iso).abs() < 1e-5);
             assert!((p.y - CENTRE.y).abs() < 0.02, "moved along the normal: {p}");
         }
         assert!(matches!(
-            project_onto_surface(&lattice, Vec3::splat(f32::NAN), 0.5),
+            project_onto_surface(&clay, Vec3::splat(f32::NAN), 0.5),
             Err(ConstraintError::NonFinite { .. })
         ));
         assert!(matches!(
-            project_onto_surface(&lattice, Vec3::splat(50.0), 0.5),
+            project_onto_surface(&clay, Vec3::splat(50.0), 0.5),
             Err(ConstraintError::OutsideLattice { .. })
         ));
     }

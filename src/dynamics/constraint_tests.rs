@@ -4,7 +4,9 @@
 use glam::Vec3;
 
 use super::*;
-use crate::field::{BSplineLattice, CoeffBox, Primitive, RegionSnapshot, lattice_from_primitive};
+use crate::field::{
+    BSplineLattice, CoeffBox, MultiPatchField, Primitive, RegionSnapshot, lattice_from_primitive,
+};
 
 const CENTRE: Vec3 = Vec3::new(0.95, 0.95, 0.95);
 const RADIUS: f32 = 0.4;
@@ -173,7 +175,7 @@ fn a_pinned_curve_holds_between_and_at_its_samples() {
 fn a_pinned_normal_turns_less_than_half_a_degree() {
     let lattice = sphere();
     let at = on_surface(&lattice, Vec3::new(1.0, 0.1, 0.0));
-    let normal = Constraint::normal_here(&lattice, at).unwrap();
+    let normal = Constraint::normal_here(&MultiPatchField::new(lattice.clone()), at).unwrap();
     let before = lattice.gradient(at).normalize();
     let angle = |l: &BSplineLattice| {
         before
@@ -204,7 +206,7 @@ fn projection_and_reduced_paths_give_the_same_result_on_a_shared_case() {
         .map(|at| Constraint::Point { at })
         .collect();
     let at = on_surface(&lattice, Vec3::new(1.0, 0.1, 0.1));
-    constraints.push(Constraint::normal_here(&lattice, at).unwrap());
+    constraints.push(Constraint::normal_here(&MultiPatchField::new(lattice.clone()), at).unwrap());
     let (projected, rp) = run(&constraints, ConstraintPath::Projection, 600, |_| {});
     let (reduced, rr) = run(&constraints, ConstraintPath::Reduced, 600, |_| {});
     assert!(
@@ -329,7 +331,7 @@ fn the_benchmark_case_at_test_size_holds_every_pin() {
             let r = (1.0 - y * y).sqrt();
             let a = golden * i as f32;
             let near = centre + Vec3::new(r * a.cos(), y, r * a.sin()) * radius;
-            project_onto_surface(&lattice, near, 0.1).unwrap()
+            project_onto_surface(&MultiPatchField::new(lattice.clone()), near, 0.1).unwrap()
         })
         .collect();
     let rows = rows_of(

@@ -425,8 +425,8 @@ impl SimulationStage {
                 (true, true) => &self.mirrored_forces,
             };
             // The region's patch moves; the other patches take part in the forces. Pins hold
-            // the base patch's surface (see `constrain.rs`).
-            let pins = (self.region_patch == 0).then_some(&mut self.region_pins);
+            // the surface of the sum on whichever patch moves (see `constrain.rs`).
+            let pins = Some(&mut self.region_pins);
             let stepped =
                 self.clay
                     .density

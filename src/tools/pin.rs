@@ -15,7 +15,7 @@ use crate::dynamics::{
     Constraint, ConstraintPath, ConstraintReport, ConstraintRow, ConstraintSolver, MAX_CONSTRAINTS,
     RegionState, project_onto_surface,
 };
-use crate::field::BSplineLattice;
+use crate::field::MultiPatchField;
 
 /// How far a point may be moved onto the surface, in knot spans.
 pub const PROJECT_REACH_SPANS: f32 = 4.0;
@@ -70,15 +70,21 @@ fn at_point(point: Option<usize>) -> impl Fn(ConstraintError) -> PinError {
     move |source| PinError::Point { point, source }
 }
 
-/// Moves `at` onto the surface of `lattice`; returns the point and how far it moved.
-fn onto_surface(lattice: &BSplineLattice, at: Vec3) -> Result<(Vec3, f32), ConstraintError> {
-    let reach = PROJECT_REACH_SPANS * lattice.spacing;
-    let on = project_onto_surface(lattice, at, reach)?;
+/// Moves `at` onto the clay's surface (of the sum of its patches); returns the point and how
+/// far it moved.
+fn onto_surface(field: &MultiPatchField, at: Vec3) -> Result<(Vec3, f32), ConstraintError> {
+    let reach = PROJECT_REACH_SPANS * field.base().spacing;
+    let on = project_onto_surface(field, at, reach)?;
     Ok((on, (on - at).length()))
 }
 
-fn moved_note(notes: &mut Vec<String>, at: Vec3, on: Vec3, by: f32, lattice: &BSplineLattice) {
-    if (lattice.value(at) - lattice.iso).abs() > ON_SURFACE_TOLERANCE {
+/// Whether `at` lies off the clay's surface.
+fn is_off_surface(field: &MultiPatchField, at: Vec3) -> bool {
+    (field.value(at) - field.iso()).abs() > ON_SURFACE_TOLERANCE
+}
+
+fn moved_note(notes: &mut Vec<String>, at: Vec3, on: Vec3, by: f32, field: &MultiPatchField) {
+    if is_off_surface(field, at) {
         notes.push(format!(
             "[{:.4}, {:.4}, {:.4}] was off the surface; projected {by:.4} onto it at [{:.4}, {:.4}, {:.4}]",
             at.x, at.y, at.z, on.x, on.y, on.z
@@ -86,27 +92,27 @@ fn moved_note(notes: &mut Vec<String>, at: Vec3, on: Vec3, by: f32, lattice: &BS
     }
 }
 
-/// The constraints `request` stands for on `lattice`, and a message saying what was pinned
+/// The constraints `request` stands for on the clay `field`, and a message saying what was pinned
 /// (and which points were moved onto the surface first).
 ///
 /// # Errors
 /// [`PinError::Point`] naming the point when it is not finite, outside the clay, or has no
 /// surface within reach, or when a curve has fewer than 2 points or too many samples.
 pub fn resolve_pin(
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
     request: &PinRequest,
 ) -> Result<(Vec<Constraint>, String), PinError> {
     let mut notes = Vec::new();
     let pins = match request {
         PinRequest::Point(at) => {
-            let (on, by) = onto_surface(lattice, *at).map_err(at_point(None))?;
-            moved_note(&mut notes, *at, on, by, lattice);
+            let (on, by) = onto_surface(field, *at).map_err(at_point(None))?;
+            moved_note(&mut notes, *at, on, by, field);
             vec![Constraint::Point { at: on }]
         }
         PinRequest::Normal(at) => {
-            let (on, by) = onto_surface(lattice, *at).map_err(at_point(None))?;
-            moved_note(&mut notes, *at, on, by, lattice);
-            let normal = Constraint::normal_here(lattice, on).map_err(at_point(None))?;
+            let (on, by) = onto_surface(field, *at).map_err(at_point(None))?;
+            moved_note(&mut notes, *at, on, by, field);
+            let normal = Constraint::normal_here(field, on).map_err(at_point(None))?;
             vec![normal, Constraint::Point { at: on }]
         }
         PinRequest::Curve(points) => {
@@ -120,8 +126,8 @@ pub fn resolve_pin(
             let mut moved = 0;
             let mut furthest = 0.0_f32;
             for (i, &p) in points.iter().enumerate() {
-                let (on, by) = onto_surface(lattice, p).map_err(at_point(Some(i)))?;
-                if (lattice.value(p) - lattice.iso).abs() > ON_SURFACE_TOLERANCE {
+                let (on, by) = onto_surface(field, p).map_err(at_point(Some(i)))?;
+                if is_off_surface(field, p) {
                     moved += 1;
                     furthest = furthest.max(by);
                 }
@@ -135,7 +141,7 @@ pub fn resolve_pin(
             }
             let curve = Constraint::Curve { points: on_curve };
             // Checks the sample count and that every sample lies in the clay.
-            curve.rows(lattice).map_err(at_point(None))?;
+            curve.rows_on_patch(field, 0).map_err(at_point(None))?;
             vec![curve]
         }
     };
@@ -152,37 +158,36 @@ pub fn resolve_pin(
     Ok((pins, message))
 }
 
-/// Pins `request` on `clay` (on its first patch); returns what was pinned with the new pins
-/// listed. The caller records the undo step (`StepRecorder::touch_constraints` first).
+/// Pins `request` on `clay` (on the surface of the sum of its patches); returns what was
+/// pinned with the new pins listed. The caller records the undo step
+/// (`StepRecorder::touch_constraints` first).
 ///
 /// # Errors
 /// As [`resolve_pin`]; [`PinError::NoPatch`], or [`PinError::Full`] when the clay's list is
 /// full.
 pub fn add_pins(clay: &mut Clay, request: &PinRequest) -> Result<String, PinError> {
-    let lattice = &clay
-        .density
-        .patches
-        .first()
-        .ok_or(PinError::NoPatch)?
-        .lattice;
-    let (pins, message) = resolve_pin(lattice, request)?;
+    if clay.density.patches.is_empty() {
+        return Err(PinError::NoPatch);
+    }
+    let (pins, message) = resolve_pin(&clay.density, request)?;
     check_room(clay.constraints.len(), pins.len())?;
     let first = clay.constraints.len();
     clay.constraints.extend(pins);
     let listed: Vec<String> = (first..clay.constraints.len())
         .map(|i| describe_pin(i, &clay.constraints[i]))
         .collect();
-    let check = describe_report(&check_pins(clay.base(), &clay.constraints));
+    let check = describe_report(&check_pins(&clay.density, &clay.constraints));
     Ok(format!("{message} ({}); {check}", listed.join("; ")))
 }
 
-/// How well every pin of `pins` can be held together on `lattice` (rank and residual of all
-/// their rows over the whole lattice).
+/// How well every pin of `pins` can be held together on the clay `field`'s base patch (rank
+/// and residual of all their rows over the whole base lattice, the detail patches fixed).
 #[must_use]
-pub fn check_pins(lattice: &BSplineLattice, pins: &[Constraint]) -> ConstraintReport {
+pub fn check_pins(field: &MultiPatchField, pins: &[Constraint]) -> ConstraintReport {
+    let lattice = field.base();
     let rows: Vec<ConstraintRow> = pins
         .iter()
-        .filter_map(|p| p.rows(lattice).ok())
+        .filter_map(|p| p.rows_on_patch(field, 0).ok())
         .flatten()
         .collect();
     ConstraintSolver::on_box(
@@ -245,21 +250,26 @@ pub fn check_room(existing: usize, count: usize) -> Result<(), PinError> {
     Ok(())
 }
 
-/// The constraint stage for `region` from `pins` on `lattice`. Pins that no longer make rows
-/// (a point outside the lattice) are left out and counted in the second value.
+/// The constraint stage for `region`, a region of patch `patch` of the clay `field`, from
+/// `pins` (each holding the sum of the patches, see [`Constraint::rows_on_patch`]). Pins that
+/// make no rows (a point outside the clay) are left out and counted in the second value.
 #[must_use]
 pub fn solver_for(
     pins: &[Constraint],
-    lattice: &BSplineLattice,
+    field: &MultiPatchField,
+    patch: usize,
     region: &RegionState,
 ) -> (ConstraintSolver, usize) {
+    let Some(lattice) = field.patches.get(patch).map(|p| &p.lattice) else {
+        return (ConstraintSolver::empty(), pins.len());
+    };
     if pins.is_empty() {
         return (ConstraintSolver::empty(), 0);
     }
     let mut rows: Vec<ConstraintRow> = Vec::new();
     let mut skipped = 0;
     for pin in pins {
-        match pin.rows(lattice) {
+        match pin.rows_on_patch(field, patch) {
             Ok(r) => rows.extend(r),
             Err(_) => skipped += 1,
         }

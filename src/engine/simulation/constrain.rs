@@ -43,11 +43,20 @@ impl SimulationStage {
     }
 
     /// Rebuilds the live region's constraint stage from the clay's pins (after the region
-    /// was made or reloaded). Pins that no longer make rows (outside the lattice) cannot be
-    /// held; they stay in the list so that saving loses nothing.
+    /// was made or reloaded), on whichever patch the region moves: the pins hold the sum of
+    /// the patches there. Pins that make no rows (outside the clay) cannot be held; they
+    /// stay in the list so that saving loses nothing.
     pub(super) fn rebuild_pins(&mut self) {
         self.region_pins = match &self.region {
-            Some(region) => solver_for(&self.clay.constraints, self.clay.base(), region).0,
+            Some(region) => {
+                solver_for(
+                    &self.clay.constraints,
+                    &self.clay.density,
+                    self.region_patch,
+                    region,
+                )
+                .0
+            }
             None => ConstraintSolver::empty(),
         };
     }
