@@ -481,7 +481,7 @@ impl Constraint {
                 let jacobian = frame.world_to_patch.matrix3;
                 for t in [t1, t2] {
                     // t · (Jᵀ g) = (J t) · g for each tap's patch gradient g.
-                    let along = Vec3::from(jacobian * t);
+                    let along = jacobian * t;
                     let row = ConstraintRow {
                         terms: taps.iter().map(|&(i, _, g)| (i, along.dot(g))).collect(),
                         target: -t.dot(others_gradient),
