@@ -269,7 +269,7 @@ fn curvature_bias_reaches_the_density_ratio_asked() {
         system.seed_random(&field, n, 5).unwrap();
         system.settle(&field, 300);
         assert!((system.len() as f32 - n as f32).abs() <= 0.02 * n as f32);
-        let wanted = system.wanted_density();
+        let wanted: Vec<f32> = system.wanted_density().collect();
         let beyond = |p: Vec3| {
             ((p - centre).abs() - Vec3::splat(flat))
                 .to_array()

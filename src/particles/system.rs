@@ -141,6 +141,8 @@ pub struct ParticleSystem {
     curvature: Vec<f32>,
     raw_curvature: Vec<f32>,
     sorted: Vec<f32>,
+    splitting: Vec<bool>,
+    order: Vec<u32>,
     /// `ln sᵢ` of the scale above (with curvature bias).
     ln_scale: Vec<f32>,
     new_index: Vec<u32>,
@@ -188,6 +190,8 @@ impl ParticleSystem {
             curvature: Vec::new(),
             raw_curvature: Vec::new(),
             sorted: Vec::new(),
+            splitting: Vec::new(),
+            order: Vec::new(),
             ln_scale: Vec::new(),
             new_index: Vec::new(),
         })
@@ -230,13 +234,18 @@ impl ParticleSystem {
 
     /// Each particle's wanted density relative to the flattest parts: 1 without curvature
     /// bias, up to `curvature_ratio` where the surface is most curved (as of the last step).
+    /// Allocates nothing (the follower calls it for every published view).
     #[must_use]
-    pub fn wanted_density(&self) -> Vec<f32> {
-        if self.scale.len() == self.positions.len() {
-            self.scale.iter().map(|s| (s * s).recip()).collect()
-        } else {
-            vec![1.0; self.positions.len()]
-        }
+    pub fn wanted_density(&self) -> impl ExactSizeIterator<Item = f32> + '_ {
+        let fresh = self.scale.len() == self.positions.len();
+        (0..self.positions.len()).map(move |i| {
+            if fresh {
+                let s = self.scale[i];
+                (s * s).recip()
+            } else {
+                1.0
+            }
+        })
     }
 
     /// Number of particles.
@@ -623,16 +632,20 @@ impl ParticleSystem {
         if !(ratio.is_finite() && ratio > 1.0) {
             return 0;
         }
-        let mut splitting = vec![false; n];
+        self.splitting.clear();
+        self.splitting.resize(n, false);
         for &c in &self.candidates {
-            splitting[c as usize] = true;
+            self.splitting[c as usize] = true;
         }
         let sigmas = &self.sigmas;
         let key = |i: u32| sigmas[i as usize];
-        let mut order: Vec<u32> = (0..n as u32)
-            .filter(|&i| self.keep[i as usize] && !splitting[i as usize])
-            .collect();
-        order.sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)));
+        let (keep, splitting) = (&self.keep, &self.splitting);
+        self.order.clear();
+        self.order
+            .extend((0..n as u32).filter(|&i| keep[i as usize] && !splitting[i as usize]));
+        self.order
+            .sort_unstable_by(|&a, &b| key(a).total_cmp(&key(b)));
+        let order = &self.order;
         let max_swaps = n / 100 + 1;
         let mut swaps = 0;
         while swaps < max_swaps && 2 * swaps + 1 < order.len() {
