@@ -307,6 +307,54 @@ fn curvature_bias_reaches_the_density_ratio_asked() {
     }
 }
 
+/// The density reached against the density asked on a capsule: a cylinder of curvature norm
+/// `1/r` between two hemispheres of `√2/r`, each several particle spacings across. Density is
+/// particles per unit area over the two caps together (a sphere of radius `r`) against the
+/// side (a cylinder of length `2L`); a particle is on a cap where it lies beyond the side's
+/// ends.
+#[test]
+fn curvature_bias_reaches_the_density_ratio_asked_on_a_capsule() {
+    let (centre, half_length, r) = (Vec3::splat(1.2), 0.4f32, 0.45f32);
+    let mut field = BSplineLattice::zeros([25; 3], SPACING, Vec3::ZERO).unwrap();
+    fit_lattice(&mut field, 2, |x| {
+        let d = x - centre;
+        let axis = Vec3::new(0.0, 0.0, d.z.clamp(-half_length, half_length));
+        density_profile((d - axis).length() - r, 2.0 * SPACING)
+    })
+    .unwrap();
+    let cap_area = 4.0 * std::f32::consts::PI * r * r;
+    let side_area = 2.0 * std::f32::consts::PI * r * (2.0 * half_length);
+    let n = 900;
+    for ratio in [2.0f32, 4.0] {
+        let mut params = ParticleParams::new(n);
+        params.curvature_ratio = ratio;
+        let mut system = ParticleSystem::new(params).unwrap();
+        system.seed_random(&field, n, 7).unwrap();
+        system.settle(&field, 300);
+        assert!((system.len() as f32 - n as f32).abs() <= 0.02 * n as f32);
+        let (mut caps, mut side) = ((0usize, 0.0f32), (0usize, 0.0f32));
+        for (p, w) in system.positions().iter().zip(system.wanted_density()) {
+            if (p.z - centre.z).abs() > half_length {
+                caps = (caps.0 + 1, caps.1 + w);
+            } else {
+                side = (side.0 + 1, side.1 + w);
+            }
+        }
+        assert!(caps.0 >= 10 && side.0 >= 10, "{caps:?} {side:?}");
+        let asked = (caps.1 / caps.0 as f32) / (side.1 / side.0 as f32);
+        let reached = (caps.0 as f32 / cap_area) / (side.0 as f32 / side_area);
+        eprintln!(
+            "capsule, curvature ratio {ratio}: caps/side density asked {asked:.2}, reached \
+             {reached:.2} ({} cap and {} side particles)",
+            caps.0, side.0
+        );
+        assert!(
+            reached >= 0.9 * asked && reached <= 1.1 * asked,
+            "capsule, ratio {ratio}: asked {asked:.2}, reached {reached:.2}"
+        );
+    }
+}
+
 /// Particles following the clay in the graphics loop: each field update takes a fixed budget
 /// of steps and publishes the particles wait-free; a grown clay is followed, and a new `N`
 /// set through the handle is reached.
