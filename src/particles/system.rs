@@ -419,7 +419,11 @@ impl ParticleSystem {
             self.scale.resize(self.positions.len(), 1.0);
         }
         self.ln_scale.clear();
-        self.ln_scale.extend(self.scale.iter().map(|s| s.ln()));
+        let ratio = self.params.curvature_ratio;
+        if ratio.is_finite() && ratio > 1.0 {
+            // Read by `repel` for the gradient of the metric (only with bias).
+            self.ln_scale.extend(self.scale.iter().map(|s| s.ln()));
+        }
         let reach = 3.0 * self.query_radius();
         self.pds.build(&self.positions, lo, hi, reach);
     }
