@@ -1,12 +1,18 @@
 //! Constrained particles on a 64³ sphere clay (radius 1.575, area ≈ 31 world units²):
 //! the PDS against naive all-pairs neighbour search in the same run.
 //!
-//! Two groups:
-//! - `particles_step`: one step of N = 1k and 10k particles already spread over the surface
-//!   (PDS and all-pairs; the steps are identical, `tests/particles.rs` checks it).
+//! Three groups:
+//! - `particles_step`: one step of N = 1k, 10k and 20k particles already spread over the
+//!   surface (PDS at every N; all-pairs at 1k and 10k — at 20k one all-pairs step takes about
+//!   four times the 10k one, which this shared machine cannot afford in every run; the steps
+//!   are identical, `tests/particles.rs` checks it), and the PDS step with curvature ratio 4.
 //! - `particles_settle`: a random start (seeded, points projected onto the surface) settled by
-//!   `SETTLE_STEPS` steps plus the final projection, PDS and (at 1k) all-pairs. Seeding is
-//!   outside the timing; each iteration clones the seeded system.
+//!   `SETTLE_STEPS` steps plus the final projection, PDS at 1k, 10k and 20k and (at 1k)
+//!   all-pairs. Seeding is outside the timing; each iteration clones the seeded system.
+//! - `particles_follow`: one update of the [`ParticleFollower`] as the graphics loop calls it
+//!   on a changed clay (`FOLLOW_STEPS` steps, the projection, and the publication of positions,
+//!   normals and radii), at N = 1k, 10k and 20k (the GUI's slider goes to 20 000), on particles
+//!   already settled by earlier updates.
 //!
 //! Before timing, the run prints how many steps a random start needs until the
 //! nearest-neighbour coefficient of variation falls below 0.15 (random points: ≈ 0.52), so
@@ -17,15 +23,22 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use dynaclay::engine::build_clay;
-use dynaclay::field::BSplineLattice;
+use dynaclay::engine::{HeadlessSink, build_clay};
+use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::io::{ClayShape, ClaySpec};
 use dynaclay::particles::{
-    NeighbourSearch, ParticleParams, ParticleSystem, nearest_neighbour_distances,
+    NeighbourSearch, ParticleFollower, ParticleParams, ParticleSystem, nearest_neighbour_distances,
 };
 
 /// Steps in the timed settle.
 const SETTLE_STEPS: usize = 10;
+
+/// Steps per follower update: the GUI's budget (`PARTICLE_STEPS_PER_UPDATE` in
+/// `src/app/bridge.rs`).
+const FOLLOW_STEPS: usize = 2;
+
+/// The particle counts timed; 20 000 is the top of the GUI's slider.
+const COUNTS: [usize; 3] = [1_000, 10_000, 20_000];
 
 fn clay() -> BSplineLattice {
     build_clay(&ClaySpec {
@@ -55,7 +68,7 @@ fn nn_cv(s: &ParticleSystem) -> f32 {
 fn convergence(field: &BSplineLattice) {
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("particles: 64³ sphere clay; load average {}", load.trim());
-    for n in [1_000usize, 10_000] {
+    for n in COUNTS {
         let mut s = seeded(field, n);
         let cv0 = nn_cv(&s);
         let mut reached = None;
@@ -89,13 +102,18 @@ fn bench(c: &mut Criterion) {
     let mut group = c.benchmark_group("particles_step");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(5));
-    for n in [1_000usize, 10_000] {
+    for n in COUNTS {
         let mut spread = seeded(&field, n);
         spread.settle(&field, 40);
-        for (name, search) in [
-            ("pds", NeighbourSearch::Pds),
-            ("all_pairs", NeighbourSearch::AllPairs),
-        ] {
+        let searches: &[(&str, NeighbourSearch)] = if n <= 10_000 {
+            &[
+                ("pds", NeighbourSearch::Pds),
+                ("all_pairs", NeighbourSearch::AllPairs),
+            ]
+        } else {
+            &[("pds", NeighbourSearch::Pds)]
+        };
+        for &(name, search) in searches {
             let mut s = spread.clone();
             s.set_search(search);
             group.bench_function(BenchmarkId::new(name, n), |b| {
@@ -107,13 +125,27 @@ fn bench(c: &mut Criterion) {
                 });
             });
         }
+        // With curvature bias (ratio 4): the curvature, its smoothing and the pull added.
+        let mut params = ParticleParams::new(n);
+        params.curvature_ratio = 4.0;
+        let mut s = ParticleSystem::new(params).expect("n > 0");
+        s.from_positions(spread.positions(), spread.sigmas()[0]);
+        s.settle(&field, 20);
+        group.bench_function(BenchmarkId::new("pds_curvature_ratio_4", n), |b| {
+            b.iter(|| {
+                black_box(
+                    s.step(&field, ParticleSystem::DEFAULT_DT)
+                        .expect("valid dt"),
+                );
+            });
+        });
     }
     group.finish();
 
     let mut group = c.benchmark_group("particles_settle");
     group.sample_size(10);
     group.measurement_time(Duration::from_secs(8));
-    for n in [1_000usize, 10_000] {
+    for n in COUNTS {
         let start = seeded(&field, n);
         let searches: &[(&str, NeighbourSearch)] = if n <= 1_000 {
             &[
@@ -136,6 +168,23 @@ fn bench(c: &mut Criterion) {
                 );
             });
         }
+    }
+    group.finish();
+
+    let clay = MultiPatchField::new(field.clone());
+    let mut group = c.benchmark_group("particles_follow");
+    group.sample_size(10);
+    group.measurement_time(Duration::from_secs(5));
+    for n in COUNTS {
+        let (mut follower, _view) =
+            ParticleFollower::new(HeadlessSink::default(), n, FOLLOW_STEPS).expect("n > 0");
+        // The first update seeds; twenty more settle (40 steps), as after a pause in sculpting.
+        for _ in 0..21 {
+            follower.follow(&clay);
+        }
+        group.bench_function(BenchmarkId::new("update", n), |b| {
+            b.iter(|| follower.follow(black_box(&clay)));
+        });
     }
     group.finish();
 }

@@ -211,13 +211,12 @@ impl<S: MeshSink> ParticleFollower<S> {
                     .iter()
                     .map(|p| -field.eval(*p).1.normalize_or_zero()),
             );
-            let density = system.wanted_density();
             view.radii.clear();
             view.radii.extend(
                 system
                     .sigmas()
                     .iter()
-                    .zip(&density)
+                    .zip(system.wanted_density())
                     .map(|(s, d)| s / d.sqrt()),
             );
             view.updates = updates;
