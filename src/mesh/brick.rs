@@ -383,11 +383,8 @@ fn push_vertex<F: ScalarField + ?Sized>(
     v1: f32,
     mesh: &mut BrickMesh,
 ) {
-    // v0 != v1: exactly one of them is above the iso-level. A NaN sample (never above the
-    // iso-level) puts the vertex at the edge's inside end.
-    let t = ((field.iso() - v0) / (v1 - v0))
-        .max(T_MARGIN)
-        .min(1.0 - T_MARGIN);
+    // v0 != v1: exactly one of them is above the iso-level.
+    let t = ((field.iso() - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
     let (a0, a1) = (
         grid.coordinate(axis, corner[axis]),
         grid.coordinate(axis, corner[axis] + 1),
