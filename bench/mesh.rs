@@ -4,6 +4,7 @@
 //! box, and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
+//! (`threads_(sphere|gyroid)_256` compares one thread with two in the same run).
 //!
 //! Fairness notes. Every contender samples the same closure at the same points `i / n`
 //! (both `isosurface` releases also march one extra layer of cells past z = 1, ~1/n more
@@ -27,7 +28,7 @@ use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
 use dynaclay::field::BSplineLattice;
-use dynaclay::mesh::{BrickOctree, FnField, SampleGrid};
+use dynaclay::mesh::{BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 use glam::Vec3;
@@ -160,6 +161,17 @@ fn full_extraction(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("dynaclay/welded", n), |b| {
                 b.iter(|| black_box(BrickOctree::build(grid, &field).weld()))
             });
+            // The tree and the welded mesh kept and refilled, as fast-surface-nets' buffer is.
+            group.bench_function(BenchmarkId::new("dynaclay/welded_kept", n), |b| {
+                let mut tree = BrickOctree::build(grid, &field);
+                let mut out = TriMesh::default();
+                let mut scratch = WeldScratch::default();
+                b.iter(|| {
+                    tree.rebuild(&field);
+                    tree.weld_into(&mut out, &mut scratch);
+                    black_box(out.triangles.len())
+                })
+            });
             group.bench_function(BenchmarkId::new("dynaclay/bricks_2_threads", n), |b| {
                 b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2)))
             });
@@ -289,6 +301,40 @@ fn sphere_lattice(n: usize, radius_spans: f32) -> BSplineLattice {
         }
     }
     lattice
+}
+
+/// One thread against two in the same run: a kept tree rebuilt (the bricks) and then
+/// welded into a kept mesh (the weld runs on one thread either way), sphere and gyroid at
+/// 256³. On a machine with fewer than two idle cores the ratio says nothing.
+fn threads(c: &mut Criterion) {
+    let n = 256u32;
+    let grid = SampleGrid::new(Vec3::ZERO, 1.0 / n as f32, [n; 3]).unwrap();
+    for shape in [Shape3::Sphere, Shape3::Gyroid] {
+        let field = FnField {
+            value: move |p| shape.value(p),
+            gradient: move |p| shape.gradient(p),
+            iso: 0.0,
+            lipschitz: None,
+        };
+        let mut group = c.benchmark_group(format!("threads_{}_{n}", shape.name()));
+        group.sample_size(10);
+        let mut tree = BrickOctree::build(grid, &field);
+        let mut out = TriMesh::default();
+        let mut scratch = WeldScratch::default();
+        for threads in [1usize, 2] {
+            group.bench_function(BenchmarkId::new("rebuild", threads), |b| {
+                b.iter(|| black_box(tree.rebuild_with_threads(&field, threads)))
+            });
+            group.bench_function(BenchmarkId::new("rebuild_and_weld", threads), |b| {
+                b.iter(|| {
+                    tree.rebuild_with_threads(&field, threads);
+                    tree.weld_into(&mut out, &mut scratch);
+                    black_box(out.triangles.len())
+                })
+            });
+        }
+        group.finish();
+    }
 }
 
 fn local_remesh(c: &mut Criterion) {
@@ -424,5 +470,6 @@ fn main() {
     let mut c = Criterion::default().configure_from_args();
     local_remesh(&mut c);
     full_extraction(&mut c);
+    threads(&mut c);
     c.final_summary();
 }

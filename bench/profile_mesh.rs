@@ -2,13 +2,16 @@
 //! REPS` builds the `N³` sphere or gyroid of `bench/mesh.rs` (the same closures, no Lipschitz
 //! bound) REPS times and prints the best time of the build, of the weld, and of sampling the
 //! closure alone at every grid point (the least any extractor of these samples pays), with
-//! the mesh's counts. Meant for `perf record` and quick same-session comparisons:
+//! the mesh's counts; then the same extraction into kept buffers (a rebuild of a kept tree
+//! and a weld into a kept mesh), as fast-surface-nets runs with its kept buffer. Meant for
+//! `perf record` and quick same-session comparisons (`PROFILE_KEPT_ONLY=1` times only the
+//! kept rebuild and weld, for a profile of them alone):
 //! `cargo build --release --bench profile_mesh`, then
 //! `perf record target/release/deps/profile_mesh-* gyroid 128 1 20`.
 use std::hint::black_box;
 use std::time::Instant;
 
-use dynaclay::mesh::{BrickOctree, FnField, SampleGrid};
+use dynaclay::mesh::{BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 use glam::Vec3;
@@ -79,8 +82,28 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         iso: 0.0,
         lipschitz: None,
     };
-    let tree = BrickOctree::build_with_threads(grid, &field, threads);
+    let mut tree = BrickOctree::build_with_threads(grid, &field, threads);
     let mesh = tree.weld();
+    // Kept buffers: the tree rebuilt in place, welded into a kept mesh.
+    let mut out = TriMesh::default();
+    let mut scratch = WeldScratch::default();
+    let rebuild = best(reps, || {
+        black_box(tree.rebuild_with_threads(&field, threads));
+    });
+    let weld_into = best(reps, || {
+        tree.weld_into(&mut out, &mut scratch);
+        black_box(out.triangles.len());
+    });
+    assert_eq!(out, mesh, "the kept buffers give the same mesh");
+    let kept = (rebuild.0 + weld_into.0, rebuild.1 + weld_into.1);
+    println!(
+        "{name} {n}^3, {threads} thread(s), kept buffers, wall / CPU: rebuild {:.2} / {:.2} ms, \
+         weld_into {:.2} / {:.2} ms, welded {:.2} / {:.2} ms",
+        rebuild.0, rebuild.1, weld_into.0, weld_into.1, kept.0, kept.1
+    );
+    if std::env::var_os("PROFILE_KEPT_ONLY").is_some() {
+        return;
+    }
     let build = best(reps, || {
         black_box(BrickOctree::build_with_threads(grid, &field, threads));
     });
@@ -120,6 +143,11 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         welded.1,
         peer.0 / welded.0,
         peer.1 / welded.1
+    );
+    println!(
+        "  kept buffers: {:.2}x the peer by wall time, {:.2}x by CPU time",
+        peer.0 / kept.0,
+        peer.1 / kept.1
     );
     println!(
         "{name} {n}^3, {threads} thread(s), wall / CPU: build {:.2} / {:.2} ms, weld {:.2} / \

@@ -92,22 +92,46 @@ impl BrickMesh {
         self.indices.clear();
     }
 
-    fn shrink(&mut self) {
-        self.positions.shrink_to_fit();
-        self.normals.shrink_to_fit();
-        self.edge_ids.shrink_to_fit();
-        self.indices.shrink_to_fit();
+    /// Gives back room beyond twice what each buffer holds (plus a little), so a brick
+    /// whose mesh shrank does not keep its largest mesh's memory.
+    pub(crate) fn trim(&mut self) {
+        fn trim<T>(v: &mut Vec<T>) {
+            if v.capacity() > 2 * v.len() + 16 {
+                v.shrink_to(v.len());
+            }
+        }
+        trim(&mut self.positions);
+        trim(&mut self.normals);
+        trim(&mut self.edge_ids);
+        trim(&mut self.indices);
+    }
+
+    /// Makes this mesh a copy of `other` in its own buffers: no allocation when they are
+    /// large enough, and never more than twice the room the copy needs (plus a little).
+    pub(crate) fn copy_from(&mut self, other: &Self) {
+        fn copy<T: Copy>(to: &mut Vec<T>, from: &[T]) {
+            to.clear();
+            if to.capacity() > 2 * from.len() + 16 {
+                to.shrink_to(from.len());
+            }
+            to.extend_from_slice(from);
+        }
+        copy(&mut self.positions, &other.positions);
+        copy(&mut self.normals, &other.normals);
+        copy(&mut self.edge_ids, &other.edge_ids);
+        copy(&mut self.indices, &other.indices);
     }
 }
 
 /// Working memory for meshing bricks; keep one and reuse it.
 #[derive(Clone, Debug)]
 pub struct BrickScratch {
-    /// Vertex index per (axis, local start sample), `u32::MAX` when not yet made.
+    /// Vertex index per (axis, local start sample), `u32::MAX` when not yet made (the
+    /// normals' pass resets every slot it reads, so all are `u32::MAX` between bricks).
     slots: Vec<u32>,
-    /// The slots the last marched brick filled (reset before the next).
-    made: Vec<u32>,
     pub(crate) samples: Vec<f32>,
+    /// Per row of samples (index `y + 9z`), bit `x` set where the sample is inside.
+    rows: [u16; BRICK_SAMPLES * BRICK_SAMPLES],
     /// The samples not taken from a neighbour's face, densely, before they are spread.
     dense: Vec<f32>,
     pub(crate) field: Vec<f32>,
@@ -118,8 +142,8 @@ impl Default for BrickScratch {
     fn default() -> Self {
         Self {
             slots: vec![u32::MAX; 3 * BRICK_SAMPLE_COUNT],
-            made: Vec::new(),
             samples: vec![0.0; BRICK_SAMPLE_COUNT],
+            rows: [0; BRICK_SAMPLES * BRICK_SAMPLES],
             dense: Vec::with_capacity(BRICK_SAMPLE_COUNT),
             field: Vec::new(),
             mesh: BrickMesh::default(),
@@ -184,6 +208,7 @@ pub(crate) fn sample_brick_sharing<F: ScalarField + ?Sized>(
     let start: [u32; 3] = std::array::from_fn(|a| first[a] + lo[a] as u32);
     let BrickScratch {
         samples,
+        rows,
         dense,
         field: field_scratch,
         ..
@@ -220,17 +245,23 @@ pub(crate) fn sample_brick_sharing<F: ScalarField + ?Sized>(
             }
         }
     }
+    // The inside bits, a row at a time, and how many of the brick's samples are inside.
     let iso = field.iso();
-    let mut inside = 0usize;
+    for (bits, row) in rows.iter_mut().zip(samples.chunks_exact(S)) {
+        let mut m = 0u16;
+        for (x, &v) in row.iter().enumerate() {
+            m |= u16::from(v > iso) << x;
+        }
+        *bits = m;
+    }
+    let extent = (1u16 << counts[0]) - 1;
+    let mut inside = 0;
     for k in 0..counts[2] {
-        for j in 0..counts[1] {
-            let row = S * (j + S * k);
-            for &v in &samples[row..row + counts[0]] {
-                inside += usize::from(v > iso);
-            }
+        for &bits in &rows[S * k..S * k + counts[1]] {
+            inside += (bits & extent).count_ones();
         }
     }
-    inside != 0 && inside != counts[0] * counts[1] * counts[2]
+    inside != 0 && inside as usize != counts[0] * counts[1] * counts[2]
 }
 
 /// Copies the upper face across `axis` of the brick sampled in `scratch` into `face`.
@@ -242,19 +273,6 @@ pub(crate) fn upper_face(scratch: &BrickScratch, axis: usize, face: &mut Face) {
         }
     }
 }
-
-/// Spreads a column's four inside bits (bit `y + 2z` for the samples at `(y, z)` of the
-/// cell's near or far x) onto the case bits of the cell's corners at x = 0 (bits 0, 2, 4, 6);
-/// the corners at x = 1 are the same shifted by one.
-const SPREAD: [u8; 16] = {
-    let mut t = [0u8; 16];
-    let mut q = 0;
-    while q < 16 {
-        t[q] = ((q & 1) | (q & 2) << 1 | (q & 4) << 2 | (q & 8) << 3) as u8;
-        q += 1;
-    }
-    t
-};
 
 /// Per cube edge: its vertex slot relative to the cell's first sample (`axis · 9³` plus the
 /// edge's start sample in the brick's layout).
@@ -273,9 +291,11 @@ const EDGE_SLOT: [usize; 12] = {
 
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
 ///
-/// Each sample's inside bit is taken once; a cell's case comes from the four bits of the
-/// column of samples at each of its two x positions, and cells all inside or all outside
-/// are passed over before any table is read.
+/// Each sample's inside bit is taken once, when the brick is sampled, into a bit mask per
+/// row of samples; the four rows around a row of cells give, with a few bit operations, the
+/// cells that are neither all inside nor all outside, and only those are visited (in
+/// order of x). Vertex positions are made as the cells meet them; their normals
+/// afterwards, line by line of the grid (see [`vertex_normals`]).
 pub fn march_brick<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
@@ -285,49 +305,40 @@ pub fn march_brick<F: ScalarField + ?Sized>(
     const S: usize = BRICK_SAMPLES;
     const STRIDE: [usize; 3] = [1, S, S * S];
     let (first, cells) = brick_extent(grid, coord);
-    let iso = field.iso();
     let BrickScratch {
         slots,
-        made,
         samples,
+        rows,
         mesh,
         ..
     } = scratch;
-    // Only the slots the last brick filled are reset.
-    for &slot in made.iter() {
-        slots[slot as usize] = u32::MAX;
-    }
-    made.clear();
     mesh.clear();
-    let mut inside = [0u8; BRICK_SAMPLE_COUNT];
-    for (b, &v) in inside.iter_mut().zip(samples.iter()) {
-        *b = u8::from(v > iso);
-    }
+    // Per axis, per line of edges along it (indexed by the other two local coordinates, the
+    // lower fastest), a bit per edge that holds a vertex.
+    let mut lines = [[0u16; S * S]; 3];
     let [cx, cy, cz] = cells.map(|c| c as usize);
-    let mut column = [0u8; S];
+    let cell_mask = (1u32 << cx) - 1;
     for z in 0..cz {
         for y in 0..cy {
             let row = S * (y + S * z);
-            let mut any = 0u8;
-            let mut all = 1u8;
-            for (x, q) in column[..=cx].iter_mut().enumerate() {
-                let at = row + x;
-                *q = inside[at]
-                    | inside[at + S] << 1
-                    | inside[at + S * S] << 2
-                    | inside[at + S + S * S] << 3;
-                any |= *q;
-                all &= u8::from(*q == 15);
-            }
-            if any == 0 || all == 1 {
-                continue;
-            }
-            for x in 0..cx {
-                let case =
-                    usize::from(SPREAD[column[x] as usize] | SPREAD[column[x + 1] as usize] << 1);
-                if case == 0 || case == 255 {
-                    continue;
-                }
+            // Inside bits of the corners: (y, z), (y + 1, z), (y, z + 1), (y + 1, z + 1).
+            let r = [
+                u32::from(rows[y + S * z]),
+                u32::from(rows[y + 1 + S * z]),
+                u32::from(rows[y + S * (z + 1)]),
+                u32::from(rows[y + 1 + S * (z + 1)]),
+            ];
+            let any = r[0] | r[1] | r[2] | r[3];
+            let all = r[0] & r[1] & r[2] & r[3];
+            let mut mixed = (any | any >> 1) & !(all & all >> 1) & cell_mask;
+            while mixed != 0 {
+                let x = mixed.trailing_zeros() as usize;
+                mixed &= mixed - 1;
+                // Corner `dx + 2dy + 4dz` is bit `dx` of row `dy + 2dz`.
+                let case = ((r[0] >> x) & 3
+                    | ((r[1] >> x) & 3) << 2
+                    | ((r[2] >> x) & 3) << 4
+                    | ((r[3] >> x) & 3) << 6) as usize;
                 let base = row + x;
                 let tris = &CASES[case];
                 for tri in &tris.edges[..tris.count as usize] {
@@ -336,18 +347,20 @@ pub fn march_brick<F: ScalarField + ?Sized>(
                         let slot = &mut slots[at];
                         if *slot == u32::MAX {
                             *slot = mesh.positions.len() as u32;
-                            made.push(at as u32);
-                            let axis = EDGE_AXIS[e as usize];
+                            let axis = EDGE_AXIS[e as usize] as usize;
                             let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
                             let start =
                                 base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
-                            let corner = [
-                                first[0] + (x as u32 + o[0]),
-                                first[1] + (y as u32 + o[1]),
-                                first[2] + (z as u32 + o[2]),
-                            ];
+                            let local = [x as u32 + o[0], y as u32 + o[1], z as u32 + o[2]];
+                            let corner: [u32; 3] = std::array::from_fn(|a| first[a] + local[a]);
+                            let (along, u, w) = match axis {
+                                0 => (local[0], local[1], local[2]),
+                                1 => (local[1], local[0], local[2]),
+                                _ => (local[2], local[0], local[1]),
+                            };
+                            lines[axis][(u + S as u32 * w) as usize] |= 1 << along;
                             let v0 = samples[start];
-                            let v1 = samples[start + STRIDE[axis as usize]];
+                            let v1 = samples[start + STRIDE[axis]];
                             push_vertex(field, grid, corner, axis, v0, v1, mesh);
                         }
                         mesh.indices.push(*slot);
@@ -356,71 +369,166 @@ pub fn march_brick<F: ScalarField + ?Sized>(
             }
         }
     }
+    vertex_normals(field, grid, first, &lines, slots, samples, mesh);
 }
 
-/// Adds the vertex where the surface crosses the edge from sample `corner` along `axis`.
+/// Adds the vertex where the surface crosses the edge from sample `corner` along `axis`
+/// (its normal is made later, by [`vertex_normals`]).
 fn push_vertex<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     corner: [u32; 3],
-    axis: u8,
+    axis: usize,
     v0: f32,
     v1: f32,
     mesh: &mut BrickMesh,
 ) {
-    let mut end = corner;
-    end[axis as usize] += 1;
-    let (p0, p1) = (grid.point(corner), grid.point(end));
     // v0 != v1: exactly one of them is above the iso-level.
     let t = ((field.iso() - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
-    let p = p0 + (p1 - p0) * t;
-    let gradient = field.gradient(p);
-    let length = gradient.length();
-    let normal = if length > 1e-20 && length.is_finite() {
-        -gradient / length
-    } else {
-        // Flat field: fall back to the edge direction, from the inside end to the outside.
-        let mut n = Vec3::ZERO;
-        n[axis as usize] = if v0 > v1 { 1.0 } else { -1.0 };
-        n
-    };
+    let (a0, a1) = (
+        grid.coordinate(axis, corner[axis]),
+        grid.coordinate(axis, corner[axis] + 1),
+    );
+    // Off the edge's axis the vertex has the sample's own coordinates, so the normals' pass
+    // can make them line by line and get the same bits.
+    let mut p = grid.point(corner);
+    p[axis] = a0 + (a1 - a0) * t;
     mesh.positions.push(p);
-    mesh.normals.push(normal);
-    mesh.edge_ids.push(edge_id(corner, axis));
+    mesh.edge_ids.push(edge_id(corner, axis as u8));
 }
 
-/// Samples and meshes one brick; returns its samples and mesh, or `None` when the surface
-/// does not cross it.
-pub(crate) fn build_brick<F: ScalarField + ?Sized>(
+/// The unit outward normal `−∇s / |∇s|` of every vertex of the brick just marched, asked of
+/// the field along each line of edges in turn: for all the vertices on one line, two of the
+/// three coordinates are the same, and the lines of one plane share one more, so a field
+/// whose gradient works each coordinate out apart (as an analytic closure, inlined, does)
+/// computes those parts once per line or plane, not once per vertex. A flat field (zero or
+/// non-finite gradient) gets the edge's direction, from its inside end to its outside end.
+fn vertex_normals<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
-    coord: [u32; 3],
-    scratch: &mut BrickScratch,
-) -> Option<(Box<[f32]>, BrickMesh)> {
-    if !sample_brick(field, grid, coord, scratch) {
-        return None;
+    first: [u32; 3],
+    lines: &[[u16; BRICK_SAMPLES * BRICK_SAMPLES]; 3],
+    slots: &mut [u32],
+    samples: &[f32],
+    mesh: &mut BrickMesh,
+) {
+    const S: usize = BRICK_SAMPLES;
+    let BrickMesh {
+        positions, normals, ..
+    } = mesh;
+    normals.clear();
+    normals.resize(positions.len(), Vec3::ZERO);
+    let coordinates: [[f32; S]; 3] =
+        std::array::from_fn(|a| std::array::from_fn(|i| grid.coordinate(a, first[a] + i as u32)));
+    normals_along::<0, F>(
+        field,
+        &coordinates,
+        &lines[0],
+        slots,
+        samples,
+        positions,
+        normals,
+    );
+    normals_along::<1, F>(
+        field,
+        &coordinates,
+        &lines[1],
+        slots,
+        samples,
+        positions,
+        normals,
+    );
+    normals_along::<2, F>(
+        field,
+        &coordinates,
+        &lines[2],
+        slots,
+        samples,
+        positions,
+        normals,
+    );
+}
+
+/// [`vertex_normals`] of the vertices on edges along `AXIS` (a constant, so that the point
+/// handed to the field is built from registers and its fixed parts are seen to be fixed).
+fn normals_along<const AXIS: usize, F: ScalarField + ?Sized>(
+    field: &F,
+    coordinates: &[[f32; BRICK_SAMPLES]; 3],
+    lines: &[u16; BRICK_SAMPLES * BRICK_SAMPLES],
+    slots: &mut [u32],
+    samples: &[f32],
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+) {
+    const S: usize = BRICK_SAMPLES;
+    // The other two axes: `w` outer (one per plane), `u` inner (one per line).
+    let (u_axis, w_axis) = match AXIS {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let stride = [1, S, S * S][AXIS];
+    for (w, plane) in lines.chunks_exact(S).enumerate() {
+        if plane.iter().all(|&m| m == 0) {
+            continue;
+        }
+        let wc = coordinates[w_axis][w];
+        for (u, &mask) in plane.iter().enumerate() {
+            let uc = coordinates[u_axis][u];
+            let mut m = mask;
+            while m != 0 {
+                let along = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let start = match AXIS {
+                    0 => along + S * (u + S * w),
+                    1 => u + S * (along + S * w),
+                    _ => u + S * (w + S * along),
+                };
+                let v = std::mem::replace(&mut slots[AXIS * BRICK_SAMPLE_COUNT + start], u32::MAX)
+                    as usize;
+                let a = positions[v][AXIS];
+                let p = match AXIS {
+                    0 => Vec3::new(a, uc, wc),
+                    1 => Vec3::new(uc, a, wc),
+                    _ => Vec3::new(uc, wc, a),
+                };
+                let gradient = field.gradient(p);
+                let length = gradient.length();
+                normals[v] = if length > 1e-20 && length.is_finite() {
+                    -gradient / length
+                } else {
+                    let mut n = Vec3::ZERO;
+                    n[AXIS] = if samples[start] > samples[start + stride] {
+                        1.0
+                    } else {
+                        -1.0
+                    };
+                    n
+                };
+            }
+        }
     }
-    Some(mesh_sampled_brick(field, grid, coord, scratch))
-}
-
-/// Meshes the brick whose samples are in `scratch` and returns copies of its samples and
-/// mesh, sized to fit.
-pub(crate) fn mesh_sampled_brick<F: ScalarField + ?Sized>(
-    field: &F,
-    grid: &SampleGrid,
-    coord: [u32; 3],
-    scratch: &mut BrickScratch,
-) -> (Box<[f32]>, BrickMesh) {
-    march_brick(field, grid, coord, scratch);
-    let mut mesh = scratch.mesh.clone();
-    mesh.shrink();
-    (scratch.samples.clone().into_boxed_slice(), mesh)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::mesh::source::FnField;
+
+    /// Samples and meshes one brick; its samples and mesh, or `None` when the surface does
+    /// not cross it.
+    fn build_brick<F: ScalarField + ?Sized>(
+        field: &F,
+        grid: &SampleGrid,
+        coord: [u32; 3],
+        scratch: &mut BrickScratch,
+    ) -> Option<(Vec<f32>, BrickMesh)> {
+        if !sample_brick(field, grid, coord, scratch) {
+            return None;
+        }
+        march_brick(field, grid, coord, scratch);
+        Some((scratch.samples.clone(), scratch.mesh.clone()))
+    }
 
     #[test]
     fn edge_ids_round_trip() {

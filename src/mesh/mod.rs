@@ -17,7 +17,9 @@
 //!   drop those in [`RefreshReport::removed`].
 //! - Export: [`BrickOctree::weld`] (or [`weld_pieces`] over copies of brick meshes, as the
 //!   app's published chunks are) to a [`TriMesh`], then [`write_mesh`]; [`MeshStats::of`]
-//!   for counts, area, volume and topology.
+//!   for counts, area, volume and topology. A caller that re-extracts often keeps the tree
+//!   (a [`BrickOctree::rebuild`] refills the stored bricks' buffers) and welds with
+//!   [`BrickOctree::weld_into`] into a kept mesh.
 
 mod brick;
 mod distance;
@@ -38,7 +40,9 @@ pub use distance::{Hausdorff, hausdorff, point_triangle_distance};
 pub use error::GridError;
 pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;
-pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, weld_pieces};
+pub use octree::{
+    Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, WeldScratch, weld_pieces,
+};
 pub use source::{FnField, MAX_BLOCK, ScalarField};
 pub use stats::MeshStats;
 pub use tables::{

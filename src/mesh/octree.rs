@@ -16,15 +16,16 @@
 //!
 //! Not real-time: this runs on the graphics thread and allocates.
 
+use std::collections::btree_map::Entry;
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use glam::Vec3;
 
 use super::brick::{
-    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, build_brick,
-    edge_from_id, mesh_sampled_brick, sample_brick_sharing, upper_face,
+    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, edge_from_id,
+    march_brick, sample_brick, sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -42,6 +43,50 @@ pub struct Brick {
     pub mesh: BrickMesh,
     /// The octree generation in which this brick's mesh was last rebuilt.
     pub version: u64,
+}
+
+impl Brick {
+    /// A brick with no samples and no mesh yet.
+    fn empty(coord: [u32; 3]) -> Self {
+        Self {
+            coord,
+            samples: Box::default(),
+            mesh: BrickMesh::default(),
+            version: 0,
+        }
+    }
+
+    /// Meshes this brick, whose samples were just taken into `scratch`, and keeps its
+    /// samples and mesh, marked rebuilt in `generation`. A stored brick is meshed in its own
+    /// buffers (lent to the scratch for the march) and its samples' buffer is swapped with
+    /// the scratch's (the next brick sampled overwrites every sample there); a new brick gets
+    /// buffers the size of its mesh.
+    fn remesh<F: ScalarField + ?Sized>(
+        &mut self,
+        field: &F,
+        grid: &SampleGrid,
+        scratch: &mut BrickScratch,
+        generation: u64,
+    ) {
+        let reuse = self.mesh.positions.capacity() > 0;
+        if reuse {
+            std::mem::swap(&mut self.mesh, &mut scratch.mesh);
+        }
+        march_brick(field, grid, self.coord, scratch);
+        if reuse {
+            std::mem::swap(&mut self.mesh, &mut scratch.mesh);
+            self.mesh.trim();
+        } else {
+            self.mesh.copy_from(&scratch.mesh);
+        }
+        if self.samples.len() == scratch.samples.len() {
+            let old = std::mem::take(&mut self.samples).into_vec();
+            self.samples = std::mem::replace(&mut scratch.samples, old).into_boxed_slice();
+        } else {
+            self.samples = scratch.samples.as_slice().into();
+        }
+        self.version = generation;
+    }
 }
 
 /// What a build or refresh changed, for a renderer that uploads only dirty bricks.
@@ -143,15 +188,13 @@ impl BrickOctree {
     /// Re-meshes everything (every brick of the result carries the new generation).
     ///
     /// The descent lists the bricks to sample; they are then built with x fastest, then y,
-    /// then z, each taking the faces it shares with the bricks below it from them, and stored
-    /// in the descent's order. Every new brick is held until all are built, so a rebuild
-    /// briefly holds the old and the new meshes.
+    /// then z, each taking the faces it shares with the bricks below it from them. A brick
+    /// that is stored already is rebuilt in its own buffers (no allocation when its mesh
+    /// fits them), so rebuilding a tree costs less than building a new one.
     pub fn rebuild<F: ScalarField + ?Sized>(&mut self, field: &F) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, leaves| {
-            let order = brick_order(leaves);
-            let next = AtomicUsize::new(0);
-            let built = build_runs(field, grid, counts, leaves, &order, order.len(), &next);
-            in_list_order(leaves.len(), [built])
+        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
+            let mut all = Some(bricks);
+            build_runs(field, grid, counts, generation, || all.take());
         })
     }
 
@@ -170,28 +213,29 @@ impl BrickOctree {
     /// [`BrickOctree::rebuild`] with the bricks split over `threads` threads; the result
     /// (bricks, meshes and report) is identical. The descent runs first on the caller and
     /// lists the bricks to sample; the threads then build them, taking runs of the build
-    /// order in turn (four runs per thread); the results are stored in the descent's
-    /// order.
+    /// order in turn (four runs per thread).
     pub fn rebuild_with_threads<F: ScalarField + Sync + ?Sized>(
         &mut self,
         field: &F,
         threads: usize,
     ) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, leaves| {
-            build_bricks_parallel(field, grid, counts, leaves, threads)
+        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
+            build_bricks_parallel(field, grid, counts, generation, bricks, threads);
         })
     }
 
-    /// The rebuild, with the listed bricks built by `build` (in the list's order). The
-    /// result is that of the descent of [`BrickOctree::visit`] from the root.
+    /// The rebuild, with the listed bricks (in build order, see [`brick_order`]) built by
+    /// `build`, which gives each brick it finds crossed by the surface the new generation.
+    /// The result is that of the descent of [`BrickOctree::visit`] from the root.
     fn rebuild_on<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
-        build: impl FnOnce(&F, &SampleGrid, [u32; 3], &[[u32; 3]]) -> Vec<BuiltBrick>,
+        build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [&mut Brick]),
     ) -> RefreshReport {
         self.generation += 1;
+        let generation = self.generation;
         let mut report = RefreshReport {
-            generation: self.generation,
+            generation,
             ..RefreshReport::default()
         };
         let last = self.brick_counts.map(|c| c - 1);
@@ -204,16 +248,63 @@ impl BrickOctree {
                 PlanStep::Cull { .. } => None,
             })
             .collect();
-        let built = build(field, &self.grid, self.brick_counts, &leaves);
-        let mut built = built.into_iter();
+        // Every brick to sample gets an entry (the stored one, whose buffers are reused, or
+        // an empty one); the entries are then lent to the builders in build order.
+        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(leaves.len());
+        let mut existed = vec![false; leaves.len()];
+        for (i, &node) in leaves.iter().enumerate() {
+            let key = morton(node);
+            keyed.push((key, i as u32));
+            match self.bricks.entry(key) {
+                Entry::Occupied(_) => existed[i] = true,
+                Entry::Vacant(v) => {
+                    v.insert(Brick::empty(node));
+                }
+            }
+        }
+        keyed.sort_unstable();
+        let mut lent: Vec<Option<&mut Brick>> = Vec::with_capacity(leaves.len());
+        lent.resize_with(leaves.len(), || None);
+        let mut wanted = keyed.iter().peekable();
+        for (key, brick) in &mut self.bricks {
+            if let Some(&&(k, i)) = wanted.peek()
+                && k == *key
+            {
+                lent[i as usize] = Some(brick);
+                wanted.next();
+            }
+        }
+        let mut in_order: Vec<&mut Brick> = brick_order(&leaves)
+            .iter()
+            .filter_map(|&i| lent[i as usize].take())
+            .collect();
+        debug_assert_eq!(in_order.len(), leaves.len());
+        let grid = self.grid;
+        build(field, &grid, self.brick_counts, generation, &mut in_order);
+        drop(in_order);
+        drop(lent);
+        let mut leaf = 0;
         for step in plan {
             match step {
                 PlanStep::Cull { node, size, lo, hi } => {
                     self.remove_range(node, size, (lo, hi), &mut report);
                 }
                 PlanStep::Leaf(node) => {
-                    let result = built.next().flatten();
-                    self.store(node, result, &mut report);
+                    report.bricks_sampled += 1;
+                    let key = morton(node);
+                    if self
+                        .bricks
+                        .get(&key)
+                        .is_some_and(|b| b.version == generation)
+                    {
+                        report.changed.push(node);
+                    } else {
+                        self.bricks.remove(&key);
+                        if existed[leaf] {
+                            report.removed.push(node);
+                        }
+                    }
+                    leaf += 1;
                 }
             }
         }
@@ -270,36 +361,6 @@ impl BrickOctree {
             let margin = 1e-5 * iso.abs().max(1.0);
             vmax < iso - margin || vmin > iso + margin
         })
-    }
-
-    /// Stores brick `node` as built (or removes it when the surface does not cross it).
-    fn store(
-        &mut self,
-        node: [u32; 3],
-        built: Option<(Box<[f32]>, BrickMesh)>,
-        report: &mut RefreshReport,
-    ) {
-        report.bricks_sampled += 1;
-        let key = morton(node);
-        match built {
-            Some((samples, mesh)) => {
-                self.bricks.insert(
-                    key,
-                    Brick {
-                        coord: node,
-                        samples,
-                        mesh,
-                        version: self.generation,
-                    },
-                );
-                report.changed.push(node);
-            }
-            None => {
-                if self.bricks.remove(&key).is_some() {
-                    report.removed.push(node);
-                }
-            }
-        }
     }
 
     /// Re-meshes the bricks that hold a sample strictly inside the world box `min..max` (those
@@ -413,8 +474,17 @@ impl BrickOctree {
             return;
         }
         if size == 1 {
-            let built = build_brick(field, &self.grid, node, &mut self.scratch);
-            self.store(node, built, report);
+            report.bricks_sampled += 1;
+            let key = morton(node);
+            if sample_brick(field, &self.grid, node, &mut self.scratch) {
+                self.bricks
+                    .entry(key)
+                    .or_insert_with(|| Brick::empty(node))
+                    .remesh(field, &self.grid, &mut self.scratch, self.generation);
+                report.changed.push(node);
+            } else if self.bricks.remove(&key).is_some() {
+                report.removed.push(node);
+            }
             return;
         }
         let half = size / 2;
@@ -521,22 +591,39 @@ impl BrickOctree {
     /// place in the brick, searched by halves): no hashing, and the lists stay in cache.
     #[must_use]
     pub fn weld(&self) -> TriMesh {
+        let mut out = TriMesh::default();
+        self.weld_into(&mut out, &mut WeldScratch::default());
+        out
+    }
+
+    /// [`BrickOctree::weld`] into `out` (its contents replaced), with the working memory in
+    /// `scratch`: keep both and weld again after each rebuild, and after the first time the
+    /// weld allocates nothing unless the mesh grew. `out` ends exactly as `weld` makes it.
+    pub fn weld_into(&self, out: &mut TriMesh, scratch: &mut WeldScratch) {
         const S: u32 = BRICK_SAMPLES as u32;
         let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
         let triangles = self.triangle_count();
-        let mut out = TriMesh {
-            positions: Vec::with_capacity(vertices),
-            normals: Vec::with_capacity(vertices),
-            triangles: Vec::with_capacity(triangles),
-        };
-        let keys: Vec<u64> = self.bricks.keys().copied().collect();
+        out.positions.clear();
+        out.normals.clear();
+        out.triangles.clear();
+        out.positions.reserve(vertices);
+        out.normals.reserve(vertices);
+        out.triangles.reserve(triangles);
+        let WeldScratch {
+            keys,
+            kept,
+            kept_range,
+            stray,
+            local,
+        } = scratch;
+        keys.clear();
+        keys.extend(self.bricks.keys().copied());
         // Per brick (in Morton order), its upper-face vertices: (place in the brick, index).
-        let mut kept: Vec<(u16, u32)> = Vec::with_capacity(vertices / 2);
-        let mut kept_range: Vec<(u32, u32)> = Vec::with_capacity(keys.len());
+        kept.clear();
+        kept_range.clear();
         // Vertices whose owner brick is missing or did not keep them (never, for a tree this
         // octree built; kept so that welding stays by edge id whatever the bricks hold).
-        let mut stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>> = HashMap::default();
-        let mut local = Vec::new();
+        stray.clear();
         for brick in self.bricks.values() {
             let m = &brick.mesh;
             let base = brick.coord.map(|c| c * BRICK_CELLS);
@@ -607,7 +694,6 @@ impl BrickOctree {
                 ]
             }));
         }
-        out
     }
 
     /// The bricks welded by [`weld_pieces`], the weld the app's export uses (the reference
@@ -621,6 +707,16 @@ impl BrickOctree {
             .collect();
         weld_pieces(&pieces)
     }
+}
+
+/// Working memory of [`BrickOctree::weld_into`]; keep one and reuse it.
+#[derive(Clone, Debug, Default)]
+pub struct WeldScratch {
+    keys: Vec<u64>,
+    kept: Vec<(u16, u32)>,
+    kept_range: Vec<(u32, u32)>,
+    stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
+    local: Vec<u32>,
 }
 
 /// One brick's mesh as [`weld_pieces`] reads it: per vertex a position, a normal (as [`Vec3`]
@@ -764,13 +860,6 @@ enum PlanStep {
     Leaf([u32; 3]),
 }
 
-/// What building one brick gives: its samples and mesh, or `None` when the surface does not
-/// cross it.
-type BuiltBrick = Option<(Box<[f32]>, BrickMesh)>;
-
-/// Bricks built by one thread: their indices in the list and what was built.
-type Built = Vec<(usize, BuiltBrick)>;
-
 /// Most entries in a per-row or per-layer table of faces (16384 faces, 5.5 MB: a 1024² grid
 /// of cells per layer); larger grids share fewer faces.
 const MAX_FACE_TABLE: usize = 1 << 14;
@@ -880,76 +969,61 @@ fn brick_order(leaves: &[[u32; 3]]) -> Vec<u32> {
     order
 }
 
-/// One thread's share of a build: runs of `run` bricks of `order`, taken in turn from the
-/// shared counter `next` (no lock) until none is left. Within a run, each brick takes the
-/// faces it shares with the bricks below it from them (about one sample per cell instead
-/// of 1.42).
-fn build_runs<F: ScalarField + ?Sized>(
+/// One thread's share of a build: the runs of the build order that `next_run` hands out,
+/// until it has none left. Within a run, each brick takes the faces it shares with the bricks
+/// below it from them (about one sample per cell instead of 1.42); a brick the surface
+/// crosses is filled and given `generation`, the others are left as they were.
+fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
-    leaves: &[[u32; 3]],
-    order: &[u32],
-    run: usize,
-    next: &AtomicUsize,
-) -> Built {
+    generation: u64,
+    mut next_run: impl FnMut() -> Option<&'a mut [&'b mut Brick]>,
+) {
     let mut scratch = BrickScratch::default();
     let mut cache = FaceCache::new(counts);
-    let mut out: Built = Vec::new();
-    loop {
-        let start = next.fetch_add(run, Ordering::Relaxed);
-        if start >= order.len() {
-            return out;
-        }
-        for &i in &order[start..(start + run).min(order.len())] {
-            let node = leaves[i as usize];
+    while let Some(run) = next_run() {
+        for brick in run.iter_mut() {
+            let node = brick.coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);
-            let built = crossed.then(|| mesh_sampled_brick(field, grid, node, &mut scratch));
-            out.push((i as usize, built));
+            if crossed {
+                brick.remesh(field, grid, &mut scratch, generation);
+            }
         }
     }
 }
 
-/// The threads' results put back in the list's order.
-fn in_list_order(len: usize, parts: impl IntoIterator<Item = Built>) -> Vec<BuiltBrick> {
-    let mut results: Vec<BuiltBrick> = Vec::with_capacity(len);
-    results.resize_with(len, || None);
-    for (i, built) in parts.into_iter().flatten() {
-        results[i] = built;
-    }
-    results
-}
-
-/// Builds the bricks `leaves` on `threads` threads (the caller and `threads − 1` more), a
-/// few runs of [`brick_order`] per thread; the results come back in the list's order. A
-/// brick's samples and mesh depend only on the brick and the field, so the split changes
-/// nothing in the result.
+/// Builds `bricks` (in build order) on `threads` threads (the caller and `threads − 1`
+/// more), which take runs of the order in turn, a few per thread. A brick's samples and
+/// mesh depend only on the brick and the field, so the split changes nothing in the result.
 fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
-    leaves: &[[u32; 3]],
+    generation: u64,
+    bricks: &mut [&mut Brick],
     threads: usize,
-) -> Vec<BuiltBrick> {
+) {
     let threads = threads.max(1);
-    let order = brick_order(leaves);
     let runs = if threads == 1 { 1 } else { threads * 4 };
-    let run = order.len().div_ceil(runs).max(1);
-    let next = AtomicUsize::new(0);
-    let work = || build_runs(field, grid, counts, leaves, &order, run, &next);
-    let parts: Vec<Built> = std::thread::scope(|scope| {
+    let run = bricks.len().div_ceil(runs).max(1);
+    // One uncontended lock per run handed out, none per brick.
+    let queue = Mutex::new(bricks.chunks_mut(run));
+    let work = || {
+        build_runs(field, grid, counts, generation, || {
+            queue.lock().unwrap_or_else(PoisonError::into_inner).next()
+        });
+    };
+    std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
-        let mut parts = vec![work()];
+        work();
         for h in helpers {
-            match h.join() {
-                Ok(part) => parts.push(part),
-                Err(panic) => std::panic::resume_unwind(panic),
+            if let Err(panic) = h.join() {
+                std::panic::resume_unwind(panic);
             }
         }
-        parts
     });
-    in_list_order(leaves.len(), parts)
 }
 
 /// Interleaves the low 21 bits of each coordinate (x lowest).
@@ -1293,6 +1367,102 @@ mod tests {
         for (x, y) in one.bricks().zip(many.bricks()) {
             assert_eq!(x.samples, y.samples);
             assert_eq!(x.version, y.version);
+        }
+    }
+
+    /// Every brick's coordinate, samples, positions, normals, edge ids and triangles, floats
+    /// as their bits (so `-0.0` and `0.0`, or two NaNs, are told apart).
+    #[allow(clippy::type_complexity)]
+    fn brick_bits(tree: &BrickOctree) -> Vec<([u32; 3], Vec<u32>, Vec<u32>, Vec<u64>, Vec<u32>)> {
+        let floats = |v: &[Vec3]| {
+            v.iter()
+                .flat_map(|p| p.to_array().map(f32::to_bits))
+                .collect()
+        };
+        tree.bricks()
+            .map(|b| {
+                let m = &b.mesh;
+                let mut vertices: Vec<u32> = floats(&m.positions);
+                vertices.extend(floats(&m.normals).iter());
+                (
+                    b.coord,
+                    b.samples.iter().map(|s| s.to_bits()).collect(),
+                    vertices,
+                    m.edge_ids.clone(),
+                    m.indices.clone(),
+                )
+            })
+            .collect()
+    }
+
+    fn mesh_bits(mesh: &TriMesh) -> (Vec<u32>, Vec<[u32; 3]>) {
+        let mut floats: Vec<u32> = Vec::new();
+        for p in mesh.positions.iter().chain(&mesh.normals) {
+            floats.extend(p.to_array().map(f32::to_bits));
+        }
+        (floats, mesh.triangles.clone())
+    }
+
+    #[test]
+    fn two_threads_and_kept_buffers_equal_a_fresh_one_thread_build_bit_for_bit() {
+        // Two dense surfaces with partial bricks at the far faces; the second moves the
+        // surface everywhere, so bricks appear, go, and change their meshes' sizes.
+        fn wave(w: f32, iso: f32) -> FnField<impl Fn(Vec3) -> f32, impl Fn(Vec3) -> Vec3> {
+            FnField {
+                value: move |p: Vec3| {
+                    (w * p.x).sin() * (w * p.y).cos()
+                        + (w * p.y).sin() * (w * p.z).cos()
+                        + (w * p.z).sin() * (w * p.x).cos()
+                },
+                gradient: move |p: Vec3| {
+                    let (sx, cx) = (w * p.x).sin_cos();
+                    let (sy, cy) = (w * p.y).sin_cos();
+                    let (sz, cz) = (w * p.z).sin_cos();
+                    w * Vec3::new(cx * cy - sz * sx, cy * cz - sx * sy, cz * cx - sy * sz)
+                },
+                iso,
+                lipschitz: None,
+            }
+        }
+        let (a, b) = (wave(9.0, 0.1), wave(6.5, 0.9));
+        let grid = SampleGrid::new(Vec3::splat(-0.2), 1.0 / 29.0, [45, 37, 41]).unwrap();
+        let fresh_a = BrickOctree::build(grid, &a);
+        let fresh_b = BrickOctree::build(grid, &b);
+        let weld_a = mesh_bits(&fresh_a.weld());
+        let weld_b = mesh_bits(&fresh_b.weld());
+        assert!(fresh_a.triangle_count() > 5000 && fresh_b.triangle_count() > 1000);
+        assert_ne!(fresh_a.brick_count(), fresh_b.brick_count());
+        let two = BrickOctree::build_with_threads(grid, &a, 2);
+        assert_eq!(brick_bits(&two), brick_bits(&fresh_a));
+        // One tree and one welded mesh kept through rebuilds from one surface to the other.
+        let mut kept = BrickOctree::build(grid, &a);
+        let mut out = TriMesh::default();
+        let mut scratch = WeldScratch::default();
+        kept.weld_into(&mut out, &mut scratch);
+        assert_eq!(mesh_bits(&out), weld_a);
+        for (field, fresh, weld, threads) in [
+            (&b, &fresh_b, &weld_b, 2),
+            (&a, &fresh_a, &weld_a, 2),
+            (&b, &fresh_b, &weld_b, 1),
+            (&a, &fresh_a, &weld_a, 3),
+        ] {
+            let before: Vec<[u32; 3]> = kept.bricks().map(|x| x.coord).collect();
+            let report = if threads == 1 {
+                kept.rebuild(field)
+            } else {
+                kept.rebuild_with_threads(field, threads)
+            };
+            assert_eq!(brick_bits(&kept), brick_bits(fresh), "{threads} threads");
+            assert!(kept.bricks().all(|x| x.version == report.generation));
+            let now: Vec<[u32; 3]> = kept.bricks().map(|x| x.coord).collect();
+            let mut gone: Vec<[u32; 3]> = before.into_iter().filter(|c| !now.contains(c)).collect();
+            let mut removed = report.removed.clone();
+            gone.sort_unstable();
+            removed.sort_unstable();
+            assert_eq!(removed, gone);
+            assert_eq!(report.changed.len(), now.len());
+            kept.weld_into(&mut out, &mut scratch);
+            assert_eq!(&mesh_bits(&out), weld);
         }
     }
 
