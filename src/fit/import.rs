@@ -23,7 +23,10 @@ use super::hierarchy::{
 use super::mesh::{read_mesh, sample_triangles};
 use super::points::{PointCloud, PointsError, read_points};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
-use super::volume::{Sample, Volume, VolumeError, fit_volume_hierarchy, read_nrrd, read_raw};
+use super::volume::{
+    Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
+    read_raw,
+};
 use super::watertight::{MeshCheck, check_closed};
 use crate::dynamics::Material;
 use crate::field::MultiPatchField;
@@ -288,10 +291,10 @@ fn distance_to_surface(
 }
 
 /// The signed-distance grid [`fit_import`] uses for a closed mesh whose box is `lo..hi`, and
-/// whether [`MAX_SDF_VOXELS`] made it coarser than asked. Its voxel is half the finest detail
-/// patch's spacing (`base spacing / 2^max_depth`) and at most twice the error bound (both
-/// relative to the mesh's size, which the base lattice spans less its margin); its band is one
-/// base knot span (the density ramp's half width) plus two voxels.
+/// whether [`MAX_SDF_VOXELS`] made it coarser than asked. The mesh is placed as a cloud is
+/// (its longest side spans the base lattice less its margin); the voxel is half the finest
+/// detail patch's spacing (`base spacing / 2^max_depth`), and the band one base knot span
+/// (the density ramp's half width) plus two voxels.
 ///
 /// # Errors
 /// [`ImportError::Options`] for a resolution out of 12..=256, or a box too thin or empty for
@@ -309,20 +312,12 @@ pub fn closed_mesh_grid(
     }
     let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
     let depth = settings.max_depth.min(MAX_DEPTH);
-    let from_depth = 2.0 * span_total * (1u32 << depth) as f32;
-    let error = settings.error_percent / 100.0;
-    let from_error = if error > 0.0 { 0.5 / error } else { 0.0 };
-    let mut across = from_depth.max(from_error).ceil().min(4096.0) as usize;
+    let mut across = (2.0 * span_total * (1u32 << depth) as f32).ceil() as usize;
     let extent = hi - lo;
     let size = extent.max_element().max(f32::MIN_POSITIVE);
     let mut capped = false;
     loop {
-        // The band follows the grid's longest side (which the band's margin widens).
-        let mut band = 0.0f32;
-        for _ in 0..4 {
-            let longest = across as f32 + 2.0 * (band.ceil() + 2.0);
-            band = longest / span_total + 2.0;
-        }
+        let band = across as f32 / span_total + 2.0;
         let margin = 2.0 * (band.ceil() + 2.0) + 1.0;
         let voxels: f64 = (0..3)
             .map(|a| f64::from((extent[a] / size * across as f32).ceil() + margin))
@@ -333,12 +328,6 @@ pub fn closed_mesh_grid(
         }
         capped = true;
         across = across * 9 / 10;
-        if across < 16 {
-            return Err(ImportError::Options(format!(
-                "the mesh's box {extent} is too thin for a signed-distance grid of at most \
-                 {MAX_SDF_VOXELS} voxels"
-            )));
-        }
     }
 }
 
@@ -428,9 +417,10 @@ fn fit_mesh_file(
         max_depth: settings.max_depth,
         ..HierarchyOptions::default()
     };
-    let fit = fit_volume_hierarchy(
+    let fit = fit_volume_hierarchy_within(
         &sdf.volume,
         0.0,
+        [grid.to_voxel(lo), grid.to_voxel(hi)],
         settings.resolution,
         crate::engine::CLAY_SPACING,
         &options,
@@ -449,8 +439,8 @@ fn fit_mesh_file(
     let (mean, worst) = distance_to_surface(&fit.field, &mesh.positions, |p| p * scale + offset);
     let size = (hi - lo).max_element() * scale;
     note(format!(
-        "{} patches; RMS error near the surface {:.3}% of the grid's size ({:.3}% with the \
-         base alone); the mesh's vertices lie {:.3}% of the size from the surface on average, \
+        "{} patches; RMS error near the surface {:.3}% of the size ({:.3}% with the base \
+         alone); the mesh's vertices lie {:.3}% of the size from the surface on average, \
          {:.3}% at most",
         fit.field.patches.len(),
         100.0 * fit.rms,

@@ -27,6 +27,6 @@ pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SignedDistance, signed_distance};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
-    read_nrrd, read_raw,
+    fit_volume_hierarchy_within, fit_volume_within, read_nrrd, read_raw,
 };
 pub use watertight::{MeshCheck, WeldedMesh, check_closed, weld};
