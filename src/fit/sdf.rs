@@ -53,7 +53,7 @@ impl SdfGrid {
     /// [`MAX_SDF_VOXELS`].
     pub fn around(lo: Vec3, hi: Vec3, across: usize, band_voxels: f32) -> Result<Self, String> {
         let size = (hi - lo).max_element();
-        if !(size.is_finite() && size > 0.0) || !lo.is_finite() {
+        if !(size.is_finite() && size > 0.0 && lo.is_finite()) {
             return Err(format!("the mesh's box {lo}..{hi} has no size"));
         }
         let voxel = size / across.max(1) as f32;

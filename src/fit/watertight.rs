@@ -135,14 +135,13 @@ pub fn weld(vertices: &[Vec3], triangles: &[[u32; 3]]) -> (WeldedMesh, usize) {
         'search: for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(list) = cells.get(&(c + glam::I64Vec3::new(dx, dy, dz))) {
-                        if let Some(&w) = list
+                    if let Some(list) = cells.get(&(c + glam::I64Vec3::new(dx, dy, dz)))
+                        && let Some(&w) = list
                             .iter()
                             .find(|&&w| positions[w as usize].distance(p) <= tolerance)
-                        {
-                            found = Some(w);
-                            break 'search;
-                        }
+                    {
+                        found = Some(w);
+                        break 'search;
                     }
                 }
             }
