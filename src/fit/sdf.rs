@@ -5,7 +5,8 @@
 //! keeps, per voxel, the smallest exact point-to-triangle distance
 //! ([`crate::mesh::point_triangle_distance`], the closest point by face, edge and vertex
 //! regions); a voxel whose distance to the triangle's box is already above its best skips the
-//! exact test. Voxels beyond the band keep the band's width: the fit only reads the distance
+//! exact test, and each row of the box is cut to the part within the band of the triangle's
+//! box. Voxels beyond the band keep the band's width: the fit only reads the distance
 //! on its density ramp, which the band covers, and the sign everywhere else.
 //!
 //! **Sign.** Rays along each of the three axes through every row of voxel centres count the
@@ -162,8 +163,21 @@ fn distances(
             top(grid.dims[2]),
         ));
         for k in from.z as usize..=to.z as usize {
+            let gap_z = (lo.z - k as f32).max(k as f32 - hi.z).max(0.0);
             for j in from.y as usize..=to.y as usize {
-                for i in from.x as usize..=to.x as usize {
+                // Only the part of the row within the band of the triangle's box.
+                let gap_y = (lo.y - j as f32).max(j as f32 - hi.y).max(0.0);
+                let reach_sq = band * band - gap_y * gap_y - gap_z * gap_z;
+                if reach_sq <= 0.0 {
+                    continue;
+                }
+                let reach = reach_sq.sqrt();
+                let first = (lo.x - reach).ceil().max(from.x) as usize;
+                let last = (hi.x + reach).floor().min(to.x);
+                if last < first as f32 {
+                    continue;
+                }
+                for i in first..=last as usize {
                     let p = Vec3::new(i as f32, j as f32, k as f32);
                     let slot = &mut best[grid.index(i, j, k)];
                     // The distance to the triangle's box bounds its distance from below.
