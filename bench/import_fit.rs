@@ -9,18 +9,220 @@
 //!    each size through `/proc/self/clear_refs`, so it is the peak of that size's fits. Each
 //!    fit is checked: a fit whose points lie off its surface fails the run.
 //! 2. **Fit time against the error bound**: the sharp box at 100k points, depth 3.
-//! 3. **Evaluation**: the value of a single 32³ patch against a two-level clay (the same base
+//! 3. **Closed meshes** (`-- mesh` runs this part alone): a torus of about 20k and 200k
+//!    triangles and an icosphere of 20k and 82k, written as binary STL and imported with the
+//!    default settings through the signed-distance path: the time to weld and check the mesh
+//!    and to build its signed-distance grid, and the whole import (read, check, grid, volume fit). The fitted
+//!    surface is checked against the mesh's vertices.
+//! 4. **Evaluation**: the value of a single 32³ patch against a two-level clay (the same base
 //!    plus detail patches from the sharp-box fit), per point at random places in the object's
 //!    box, and over a simulation step's worth of samples (the mass grid of a 12-span local
 //!    region at two samples per span, 25³ points, as `dynamics` samples it).
 
+use std::collections::HashMap;
 use std::time::Instant;
 
 use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::fit::{
-    CloudFitOptions, HierarchicalFit, HierarchyOptions, PointCloud, fit_hierarchy,
+    CloudFitOptions, FitPath, HierarchicalFit, HierarchyOptions, ImportSettings, PointCloud,
+    check_closed, closed_mesh_grid, fit_hierarchy, fit_import, signed_distance,
 };
 use glam::Vec3;
+
+type Mesh = (Vec<Vec3>, Vec<[u32; 3]>);
+
+/// A torus (ring 3, tube 1) of `around` × `across` quads, wound outward.
+fn torus_mesh(around: u32, across: u32) -> Mesh {
+    let tau = std::f32::consts::TAU;
+    let mut v = Vec::new();
+    for i in 0..around {
+        let a = tau * i as f32 / around as f32;
+        for j in 0..across {
+            let b = tau * j as f32 / across as f32;
+            let r = 3.0 + b.cos();
+            v.push(Vec3::new(r * a.cos(), b.sin(), r * a.sin()));
+        }
+    }
+    let at = |i: u32, j: u32| (i % around) * across + (j % across);
+    let mut t = Vec::new();
+    for i in 0..around {
+        for j in 0..across {
+            let (p, q, r, s) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            t.push([p, r, q]);
+            t.push([p, s, r]);
+        }
+    }
+    (v, t)
+}
+
+/// A unit icosphere: an icosahedron subdivided `levels` times (20 · 4^levels triangles).
+fn icosphere_mesh(levels: u32) -> Mesh {
+    let g = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut v: Vec<Vec3> = [
+        (-1.0, g, 0.0),
+        (1.0, g, 0.0),
+        (-1.0, -g, 0.0),
+        (1.0, -g, 0.0),
+        (0.0, -1.0, g),
+        (0.0, 1.0, g),
+        (0.0, -1.0, -g),
+        (0.0, 1.0, -g),
+        (g, 0.0, -1.0),
+        (g, 0.0, 1.0),
+        (-g, 0.0, -1.0),
+        (-g, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut t: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+        let mut next = Vec::with_capacity(4 * t.len());
+        for tri in &t {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                m[k] = *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                    v.push((v[a as usize] + v[b as usize]).normalize());
+                    (v.len() - 1) as u32
+                });
+            }
+            next.extend([
+                [tri[0], m[0], m[2]],
+                [tri[1], m[1], m[0]],
+                [tri[2], m[2], m[1]],
+                m,
+            ]);
+        }
+        t = next;
+    }
+    (v, t)
+}
+
+fn binary_stl((v, t): &Mesh) -> Vec<u8> {
+    let mut bytes = vec![0u8; 80];
+    bytes.extend_from_slice(&(t.len() as u32).to_le_bytes());
+    for tri in t {
+        bytes.extend_from_slice(&[0u8; 12]);
+        for &i in tri {
+            for c in v[i as usize].to_array() {
+                bytes.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        bytes.extend_from_slice(&[0u8; 2]);
+    }
+    bytes
+}
+
+/// Closed meshes through the signed-distance path, default import settings.
+fn closed_meshes() {
+    let settings = ImportSettings::default();
+    println!(
+        "\nclosed meshes (binary STL), default settings: {}³ base, error bound {}%, depth {}",
+        settings.resolution, settings.error_percent, settings.max_depth
+    );
+    println!(
+        "| mesh | triangles | grid | weld + check | signed-distance grid | whole import (median of 3) | peak RSS | patches | mean / worst vertex distance (% of size) |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let dir = std::env::temp_dir().join(format!("dynaclay-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    let cases: [(&str, Mesh); 4] = [
+        ("torus", torus_mesh(142, 71)),
+        ("torus", torus_mesh(448, 224)),
+        ("icosphere", icosphere_mesh(5)),
+        ("icosphere", icosphere_mesh(6)),
+    ];
+    for (name, mesh) in &cases {
+        let path = dir.join(format!("{name}.stl"));
+        std::fs::write(&path, binary_stl(mesh)).expect("the STL is written");
+        reset_peak();
+        let mut times = Vec::new();
+        let mut fit = None;
+        for _ in 0..3 {
+            let start = Instant::now();
+            let f =
+                fit_import(&path, &settings, &mut |_| true, &mut |_| {}).expect("the import runs");
+            times.push(start.elapsed().as_secs_f64());
+            fit = Some(f);
+        }
+        let peak = peak_mib();
+        times.sort_by(f64::total_cmp);
+        let fit = fit.expect("one run");
+        assert!(
+            matches!(fit.path, FitPath::ClosedMesh(_)),
+            "{name}: {:?}",
+            fit.path
+        );
+        // Weld + check, and the grid, timed on their own with the import's grid.
+        let start = Instant::now();
+        let (welded, check) = check_closed(&mesh.0, &mesh.1);
+        let check_s = start.elapsed().as_secs_f64();
+        assert!(check.is_closed());
+        let (lo, hi) = welded
+            .positions
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+                (a.min(p), b.max(p))
+            });
+        let (grid, _) = closed_mesh_grid(&settings, lo, hi).expect("the grid fits");
+        let mut grid_times = Vec::new();
+        for _ in 0..3 {
+            let start = Instant::now();
+            let sdf = signed_distance(&welded, &grid, &mut || false).expect("not stopped");
+            grid_times.push(start.elapsed().as_secs_f64());
+            std::hint::black_box(sdf.inside);
+        }
+        grid_times.sort_by(f64::total_cmp);
+        // The mesh's vertices against the fitted surface, to first order.
+        let size = (hi - lo).max_element() * fit.scale;
+        let (mut sum, mut worst) = (0.0f64, 0.0f32);
+        for &p in &mesh.0 {
+            let (v, g) = fit.field.value_and_gradient(fit.to_field(p));
+            let d = (v - fit.field.iso()).abs() / g.length().max(1e-6) / size * 100.0;
+            sum += f64::from(d);
+            worst = worst.max(d);
+        }
+        let mean = sum / mesh.0.len() as f64;
+        assert!(
+            mean < 0.5 && worst < 1.0,
+            "{name}: the vertices lie {mean}% (worst {worst}%) of the size off the surface"
+        );
+        println!(
+            "| {name} | {} | {}×{}×{} | {check_s:.3} s | {:.3} s | {:.3} s | {peak:.0} MiB | {} | {mean:.3}% / {worst:.3}% |",
+            mesh.1.len(),
+            grid.dims[0],
+            grid.dims[1],
+            grid.dims[2],
+            grid_times[1],
+            times[1],
+            fit.field.patches.len()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
 
 fn ball(count: usize) -> PointCloud {
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
@@ -252,6 +454,12 @@ fn main() {
     let quick = std::env::args().any(|a| a == "quick");
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("import_fit: load average {}", load.trim());
+    if std::env::args().any(|a| a == "mesh") {
+        closed_meshes();
+        let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+        println!("load average after: {}", load.trim());
+        return;
+    }
     counts_table(
         "ball without normals, default options",
         ball,
@@ -296,5 +504,6 @@ fn main() {
             fit.rms_base * 100.0
         );
     }
+    closed_meshes();
     evaluation(quick);
 }

@@ -3,18 +3,31 @@
 //! dimensions given, `.raw`), fitted hierarchically ([`fit_hierarchy`],
 //! [`fit_volume_hierarchy`]) and made into a session whose clay is the fitted field.
 //!
+//! A mesh takes one of two paths ([`FitPath`]): a closed one (every edge shared by two
+//! triangles, after welding, [`super::watertight`]) is fitted from its signed distance on a grid
+//! ([`super::sdf`]) by the volume fit; an open one is sampled into a point cloud and fitted as
+//! a scan. The log names the path and, for an open mesh, why it is open.
+//!
 //! The caller watches the fit through two callbacks: `progress` sees each stage (and stops the
 //! fit by answering `false`), `note` receives one line per report (what was read, the levels,
 //! the error reached), so the CLI prints them and the GUI shows them in its log.
 
 use std::path::Path;
 
-use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, SignedBy};
+use glam::Vec3;
+
+use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, MARGIN_SPANS, SignedBy};
 use super::hierarchy::{
-    DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, fit_hierarchy,
+    DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, MAX_DEPTH, fit_hierarchy,
 };
-use super::points::{PointsError, read_points};
-use super::volume::{Sample, Volume, VolumeError, fit_volume_hierarchy, read_nrrd, read_raw};
+use super::mesh::{read_mesh, sample_triangles};
+use super::points::{PointCloud, PointsError, read_points};
+use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
+use super::volume::{
+    Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
+    read_raw,
+};
+use super::watertight::{MeshCheck, check_closed};
 use crate::dynamics::Material;
 use crate::field::MultiPatchField;
 use crate::io::{MaterialFields, Session, SessionMeta};
@@ -115,6 +128,40 @@ fn extension(path: &Path) -> Option<String> {
         .map(str::to_ascii_lowercase)
 }
 
+/// Which way a file was fitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitPath {
+    /// A point cloud file, fitted as a scan.
+    Cloud,
+    /// An open mesh (see the check), sampled into a point cloud and fitted as a scan.
+    OpenMesh(MeshCheck),
+    /// A closed mesh, fitted from its signed distance on a grid.
+    ClosedMesh(MeshCheck),
+    /// A volume, fitted at its iso-surface.
+    Volume,
+}
+
+/// A fitted clay, the path that made it, and where the file went in the clay.
+#[derive(Clone, Debug)]
+pub struct ImportedFit {
+    /// The base (patch 0) and the detail patches.
+    pub field: MultiPatchField,
+    /// How the file was fitted.
+    pub path: FitPath,
+    /// Field units per file unit (a volume's file unit is its voxel).
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+}
+
+impl ImportedFit {
+    /// A file-unit point in field units.
+    #[must_use]
+    pub fn to_field(&self, p: Vec3) -> Vec3 {
+        p * self.scale + self.offset
+    }
+}
+
 /// Reads `path` and fits a multi-patch clay to it; `progress` sees each stage (answer `false`
 /// to stop), `note` receives the report lines.
 ///
@@ -127,11 +174,26 @@ pub fn fit_file(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<MultiPatchField, ImportError> {
+    fit_import(path, settings, progress, note).map(|fit| fit.field)
+}
+
+/// [`fit_file`], also telling which path the fit took and where the file lies in the clay.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn fit_import(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
     match extension(path).as_deref() {
         Some("nrrd") => fit_volume_file(path, settings, true, progress, note),
         Some("raw") => fit_volume_file(path, settings, false, progress, note),
-        Some("ply" | "xyz" | "txt" | "pts" | "obj" | "stl") => {
-            fit_cloud_file(path, settings, progress, note)
+        Some("obj" | "stl") => fit_mesh_file(path, settings, progress, note),
+        Some("ply" | "xyz" | "txt" | "pts") => {
+            let cloud = read_points(path)?;
+            fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)
         }
         _ => Err(ImportError::UnknownFormat {
             file: path.to_path_buf(),
@@ -150,13 +212,14 @@ fn fit_error(path: &Path, e: CloudFitError) -> ImportError {
     }
 }
 
-fn fit_cloud_file(
+fn fit_cloud(
     path: &Path,
+    cloud: &PointCloud,
+    kind: FitPath,
     settings: &ImportSettings,
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
-) -> Result<MultiPatchField, ImportError> {
-    let cloud = read_points(path)?;
+) -> Result<ImportedFit, ImportError> {
     let options = HierarchyOptions {
         base: CloudFitOptions {
             resolution: settings.resolution,
@@ -180,21 +243,14 @@ fn fit_cloud_file(
         options.max_depth,
         settings.error_percent
     ));
-    let fit = fit_hierarchy(&cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
     for level in &fit.levels {
         note(format!(
             "depth {}: {} of {} octree nodes refined",
             level.depth, level.refined, level.nodes
         ));
     }
-    // How far the points lie from the fitted surface, to first order: |F − iso| / |∇F|.
-    let (mut sum, mut worst) = (0.0f64, 0.0f32);
-    for &p in &cloud.points {
-        let (v, g) = fit.field.value_and_gradient(fit.to_field(p));
-        let d = (v - fit.field.iso()).abs() / g.length().max(1e-6);
-        sum += f64::from(d);
-        worst = worst.max(d);
-    }
+    let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
@@ -206,10 +262,198 @@ fn fit_cloud_file(
         fit.field.patches.len(),
         100.0 * fit.rms,
         100.0 * fit.rms_base,
-        percent((sum / cloud.points.len() as f64) as f32),
+        percent(mean),
         percent(worst)
     ));
-    Ok(fit.field)
+    Ok(ImportedFit {
+        field: fit.field,
+        path: kind,
+        scale: fit.scale,
+        offset: fit.offset,
+    })
+}
+
+/// How far `points` (mapped to field units by `to_field`) lie from the fitted surface, to
+/// first order (`|F − iso| / |∇F|`), field units: mean and worst.
+fn distance_to_surface(
+    field: &MultiPatchField,
+    points: &[Vec3],
+    to_field: impl Fn(Vec3) -> Vec3,
+) -> (f32, f32) {
+    let (mut sum, mut worst) = (0.0f64, 0.0f32);
+    for &p in points {
+        let (v, g) = field.value_and_gradient(to_field(p));
+        let d = (v - field.iso()).abs() / g.length().max(1e-6);
+        sum += f64::from(d);
+        worst = worst.max(d);
+    }
+    ((sum / points.len().max(1) as f64) as f32, worst)
+}
+
+/// The signed-distance grid [`fit_import`] uses for a closed mesh whose box is `lo..hi`, and
+/// whether [`MAX_SDF_VOXELS`] made it coarser than asked. The mesh is placed as a cloud is
+/// (its longest side spans the base lattice less its margin); the voxel is half the finest
+/// detail patch's spacing (`base spacing / 2^max_depth`), and the band one base knot span
+/// (the density ramp's half width) plus two voxels.
+///
+/// # Errors
+/// [`ImportError::Options`] for a resolution out of 12..=256, or a box too thin or empty for
+/// a grid.
+pub fn closed_mesh_grid(
+    settings: &ImportSettings,
+    lo: Vec3,
+    hi: Vec3,
+) -> Result<(SdfGrid, bool), ImportError> {
+    let resolution = settings.resolution;
+    if !(12..=256).contains(&resolution) {
+        return Err(ImportError::Options(format!(
+            "resolution {resolution}: must be 12 to 256 coefficients"
+        )));
+    }
+    let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
+    let depth = settings.max_depth.min(MAX_DEPTH);
+    let mut across = (2.0 * span_total * (1u32 << depth) as f32).ceil() as usize;
+    let extent = hi - lo;
+    let size = extent.max_element().max(f32::MIN_POSITIVE);
+    let mut capped = false;
+    loop {
+        let band = across as f32 / span_total + 2.0;
+        let margin = 2.0 * (band.ceil() + 2.0) + 1.0;
+        let voxels: f64 = (0..3)
+            .map(|a| f64::from((extent[a] / size * across as f32).ceil() + margin))
+            .product();
+        if voxels <= MAX_SDF_VOXELS as f64 {
+            let grid = SdfGrid::around(lo, hi, across, band).map_err(ImportError::Options)?;
+            return Ok((grid, capped));
+        }
+        capped = true;
+        across = across * 9 / 10;
+    }
+}
+
+fn fit_mesh_file(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
+    let (vertices, triangles) = read_mesh(path)?;
+    if triangles.is_empty() {
+        return Err(PointsError::Empty {
+            file: path.to_path_buf(),
+        }
+        .into());
+    }
+    let (mesh, check) = check_closed(&vertices, &triangles);
+    note(format!(
+        "{} triangles from {}: {}",
+        triangles.len(),
+        path.display(),
+        check.describe()
+    ));
+    let as_cloud = |why: &str,
+                    progress: &mut dyn FnMut(FitProgress) -> bool,
+                    note: &mut dyn FnMut(String)|
+     -> Result<ImportedFit, ImportError> {
+        note(format!(
+            "{why}: fitting it as a point cloud sampled from its triangles"
+        ));
+        let cloud = sample_triangles(&vertices, &triangles, path)?;
+        fit_cloud(
+            path,
+            &cloud,
+            FitPath::OpenMesh(check),
+            settings,
+            progress,
+            note,
+        )
+    };
+    if !check.is_closed() {
+        return as_cloud("open", progress, note);
+    }
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let (grid, capped) = closed_mesh_grid(settings, lo, hi)?;
+    let across = ((hi - lo).max_element() / grid.voxel).round();
+    note(format!(
+        "closed: fitting its signed distance on a {}×{}×{} grid ({} voxels across, exact within \
+         {:.1} voxels of the surface, signed by the winding number along three axes){}",
+        grid.dims[0],
+        grid.dims[1],
+        grid.dims[2],
+        across,
+        grid.band_voxels,
+        if capped {
+            format!(
+                "; the grid is limited to {MAX_SDF_VOXELS} voxels, so detail below {:.3}% of \
+                 the size is not resolved",
+                100.0 / across
+            )
+        } else {
+            String::new()
+        }
+    ));
+    if !progress(FitProgress::Signing) {
+        return Err(ImportError::Interrupted);
+    }
+    let sdf = signed_distance(&mesh, &grid, &mut || !progress(FitProgress::Signing))
+        .ok_or(ImportError::Interrupted)?;
+    if sdf.flipped {
+        note("its faces wind inward (negative enclosed volume): the sign is flipped".into());
+    }
+    if sdf.inside == 0 {
+        return as_cloud(
+            "no voxel lies inside the mesh (thinner than a voxel)",
+            progress,
+            note,
+        );
+    }
+    let options = HierarchyOptions {
+        error: settings.error_percent / 100.0,
+        max_depth: settings.max_depth,
+        ..HierarchyOptions::default()
+    };
+    let fit = fit_volume_hierarchy_within(
+        &sdf.volume,
+        0.0,
+        [grid.to_voxel(lo), grid.to_voxel(hi)],
+        settings.resolution,
+        crate::engine::CLAY_SPACING,
+        &options,
+        progress,
+    )
+    .map_err(|e| fit_error(path, e))?;
+    for level in &fit.levels {
+        note(format!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth, level.refined, level.nodes
+        ));
+    }
+    // file → voxel → field.
+    let scale = fit.scale / grid.voxel;
+    let offset = fit.offset - grid.origin * scale;
+    let (mean, worst) = distance_to_surface(&fit.field, &mesh.positions, |p| p * scale + offset);
+    let size = (hi - lo).max_element() * scale;
+    note(format!(
+        "{} patches; RMS error near the surface {:.3}% of the size ({:.3}% with the base \
+         alone); the mesh's vertices lie {:.3}% of the size from the surface on average, \
+         {:.3}% at most",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base,
+        100.0 * mean / size,
+        100.0 * worst / size
+    ));
+    Ok(ImportedFit {
+        field: fit.field,
+        path: FitPath::ClosedMesh(check),
+        scale,
+        offset,
+    })
 }
 
 fn fit_volume_file(
@@ -218,7 +462,7 @@ fn fit_volume_file(
     nrrd: bool,
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
-) -> Result<MultiPatchField, ImportError> {
+) -> Result<ImportedFit, ImportError> {
     if settings.iso.is_none() && !settings.midrange_iso {
         return Err(ImportError::NeedsIso);
     }
@@ -285,7 +529,12 @@ fn fit_volume_file(
         100.0 * fit.rms,
         100.0 * fit.rms_base
     ));
-    Ok(fit.field)
+    Ok(ImportedFit {
+        field: fit.field,
+        path: FitPath::Volume,
+        scale: fit.scale,
+        offset: fit.offset,
+    })
 }
 
 /// The session of a fitted clay imported from `path`: the field as its density (no paint, no

@@ -1,7 +1,8 @@
-//! Triangle meshes (OBJ, binary or ASCII STL) as point clouds: each triangle is sampled
-//! evenly at a spacing tied to the mesh's size, so a mesh is fitted like a scan. The samples
-//! carry no normals: a mesh's winding is often inconsistent, and the cloud fit estimates and
-//! orients normals itself, which also serves open meshes.
+//! Triangle meshes (OBJ, binary or ASCII STL): read, and, for an open mesh, sampled into a
+//! point cloud: each triangle is sampled evenly at a spacing tied to the mesh's size, so the
+//! mesh is fitted like a scan. The samples carry no normals: an open mesh's winding is often
+//! inconsistent, and the cloud fit estimates and orients normals itself. (A closed mesh is
+//! fitted from its signed distance instead: [`super::watertight`], [`super::sdf`].)
 //!
 //! Bad input is refused with the file and the line (OBJ, ASCII STL) or byte (binary STL);
 //! counts are checked against the file's length and the sample total against
@@ -11,10 +12,49 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::points::{PointCloud, PointsError};
+use super::points::{MAX_POINT_FILE_BYTES, PointCloud, PointsError};
+use crate::io::bounded_read::read_regular_file;
 
 /// Samples along the mesh's longest side (the sampling spacing is its size over this).
 pub const SAMPLES_ACROSS: f32 = 256.0;
+
+/// Reads the mesh at `path` (`.obj` or `.stl`, by its extension): its vertices and triangles.
+///
+/// # Errors
+/// [`PointsError`] naming the file and the line or byte; [`PointsError::UnknownFormat`] for
+/// another extension.
+pub fn read_mesh(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), PointsError> {
+    let file = path.to_path_buf();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if !matches!(ext.as_deref(), Some("obj" | "stl")) {
+        return Err(PointsError::UnknownFormat { file });
+    }
+    let bytes =
+        read_regular_file(path, MAX_POINT_FILE_BYTES).map_err(|error| PointsError::Read {
+            file: file.clone(),
+            error,
+        })?;
+    parse_mesh(&bytes, &file)
+}
+
+/// Parses `bytes` as the mesh format `file`'s extension names (`.stl`, otherwise OBJ).
+///
+/// # Errors
+/// As [`parse_obj`] and [`parse_stl`].
+pub fn parse_mesh(bytes: &[u8], file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), PointsError> {
+    let stl = file
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("stl"));
+    if stl {
+        parse_stl(bytes, file)
+    } else {
+        parse_obj(bytes, file)
+    }
+}
 
 /// Parses an OBJ file's vertices and faces (polygons are fanned into triangles; `v/vt/vn`
 /// references and negative indices are read; other statements are skipped).

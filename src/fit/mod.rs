@@ -1,5 +1,6 @@
-//! Bringing real objects in: point clouds ([`points`]), meshes sampled into clouds ([`mesh`])
-//! and volumes ([`volume`]) read from
+//! Bringing real objects in: point clouds ([`points`]), meshes ([`mesh`]: closed ones
+//! ([`watertight`]) by their signed distance ([`sdf`]), open ones sampled into clouds) and
+//! volumes ([`volume`]) read from
 //! files become a clay fitted by least squares ([`cloud`], [`volume::fit_volume`]); a cloud's
 //! fit is refined by an octree of detail patches where the error is above a bound
 //! ([`hierarchy`], Hua & Qin §5).
@@ -10,18 +11,22 @@ pub mod hierarchy;
 pub mod import;
 pub mod mesh;
 pub mod points;
+pub mod sdf;
 pub mod volume;
+pub mod watertight;
 
 pub use cloud::{
     CloudFit, CloudFitError, CloudFitOptions, SignedBy, SignedCloud, fit_point_cloud, sign_cloud,
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use import::{
-    IMPORT_EXTENSIONS, ImportError, ImportSettings, fit_file, import_session, imported_session,
-    is_importable,
+    FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedFit, closed_mesh_grid,
+    fit_file, fit_import, import_session, imported_session, is_importable,
 };
 pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
+pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SignedDistance, signed_distance};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
-    read_nrrd, read_raw,
+    fit_volume_hierarchy_within, fit_volume_within, read_nrrd, read_raw,
 };
+pub use watertight::{MeshCheck, WeldedMesh, check_closed, weld};

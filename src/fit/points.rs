@@ -97,12 +97,8 @@ pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
     };
     let cloud = match ext.as_deref() {
         Some("ply") => parse_ply(&bytes, &file)?,
-        Some("obj") => {
-            let (vertices, triangles) = super::mesh::parse_obj(&bytes, &file)?;
-            super::mesh::sample_triangles(&vertices, &triangles, &file)?
-        }
-        Some("stl") => {
-            let (vertices, triangles) = super::mesh::parse_stl(&bytes, &file)?;
+        Some("obj" | "stl") => {
+            let (vertices, triangles) = super::mesh::parse_mesh(&bytes, &file)?;
             super::mesh::sample_triangles(&vertices, &triangles, &file)?
         }
         _ => parse_xyz(&bytes, &file)?,

@@ -325,6 +325,29 @@ pub fn fit_volume(
     resolution: usize,
     spacing: f32,
 ) -> Result<VolumeFit, CloudFitError> {
+    fit_volume_within(volume, iso, whole(volume), resolution, spacing)
+}
+
+/// The whole volume's box, voxel coordinates.
+fn whole(volume: &Volume) -> [Vec3; 2] {
+    let [x, y, z] = volume.dims.map(|d| d.max(1) as f32 - 1.0);
+    [Vec3::ZERO, Vec3::new(x, y, z)]
+}
+
+/// [`fit_volume`], with the object in the box `object` (voxel coordinates, inside the
+/// volume) instead of the whole volume: that box is placed as a cloud's is (its longest side
+/// spans the lattice less [`MARGIN_SPANS`] on each side), and the rest of the volume around
+/// it is fitted too where the lattice reaches.
+///
+/// # Errors
+/// As [`fit_volume`].
+pub fn fit_volume_within(
+    volume: &Volume,
+    iso: f32,
+    object: [Vec3; 2],
+    resolution: usize,
+    spacing: f32,
+) -> Result<VolumeFit, CloudFitError> {
     if !(12..=256).contains(&resolution) {
         return Err(CloudFitError::Options(format!(
             "resolution {resolution}: must be 12 to 256 coefficients"
@@ -341,7 +364,7 @@ pub fn fit_volume(
             "iso {iso}: the volume's intensities run from {lo} to {hi}; choose a value between"
         )));
     }
-    let target = VolumeTarget::new(volume, iso, resolution, spacing);
+    let target = VolumeTarget::new(volume, iso, object, resolution, spacing);
     let mut lattice = BSplineLattice::zeros([resolution; 3], spacing, Vec3::ZERO)
         .map_err(|e| CloudFitError::Options(e.to_string()))?;
     fit_lattice(&mut lattice, 2, |x| target.density(x))?;
@@ -367,8 +390,14 @@ struct VolumeTarget<'a> {
 }
 
 impl<'a> VolumeTarget<'a> {
-    fn new(volume: &'a Volume, iso: f32, resolution: usize, spacing: f32) -> Self {
-        let longest = (volume.dims.iter().max().copied().unwrap_or(2) - 1) as f32;
+    fn new(
+        volume: &'a Volume,
+        iso: f32,
+        object: [Vec3; 2],
+        resolution: usize,
+        spacing: f32,
+    ) -> Self {
+        let longest = (object[1] - object[0]).max_element().max(f32::MIN_POSITIVE);
         let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
         let scale = span_total * spacing / longest;
         let size = Vec3::new(
@@ -376,7 +405,8 @@ impl<'a> VolumeTarget<'a> {
             (volume.dims[1] - 1) as f32,
             (volume.dims[2] - 1) as f32,
         );
-        let offset = Vec3::splat((resolution - 1) as f32 * spacing * 0.5) - size * 0.5 * scale;
+        let offset = Vec3::splat((resolution - 1) as f32 * spacing * 0.5)
+            - (object[0] + object[1]) * 0.5 * scale;
         Self {
             volume,
             iso,
@@ -454,11 +484,37 @@ pub fn fit_volume_hierarchy(
     options: &HierarchyOptions,
     progress: &mut dyn FnMut(FitProgress) -> bool,
 ) -> Result<VolumeHierarchy, CloudFitError> {
+    fit_volume_hierarchy_within(
+        volume,
+        iso,
+        whole(volume),
+        resolution,
+        spacing,
+        options,
+        progress,
+    )
+}
+
+/// [`fit_volume_hierarchy`] with the object in the box `object` (voxel coordinates), placed
+/// as in [`fit_volume_within`]; the error bound and the reported errors are fractions of that
+/// box's longest side, and the octree's root is its bounding cube.
+///
+/// # Errors
+/// As [`fit_volume_hierarchy`].
+pub fn fit_volume_hierarchy_within(
+    volume: &Volume,
+    iso: f32,
+    object: [Vec3; 2],
+    resolution: usize,
+    spacing: f32,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<VolumeHierarchy, CloudFitError> {
     if !progress(FitProgress::Base) {
         return Err(CloudFitError::Interrupted);
     }
-    let base = fit_volume(volume, iso, resolution, spacing)?;
-    let target = VolumeTarget::new(volume, iso, resolution, spacing);
+    let base = fit_volume_within(volume, iso, object, resolution, spacing)?;
+    let target = VolumeTarget::new(volume, iso, object, resolution, spacing);
     let [nx, ny, nz] = volume.dims;
     let near: Vec<Vec3> = (0..nz)
         .flat_map(|k| (0..ny).flat_map(move |j| (0..nx).map(move |i| (i, j, k))))
@@ -477,8 +533,8 @@ pub fn fit_volume_hierarchy(
         spacing,
         width: target.width,
         samples_per_span: 2,
-        lo: target.offset,
-        hi: target.offset + target.size * target.scale,
+        lo: target.offset + object[0] * target.scale,
+        hi: target.offset + object[1] * target.scale,
     };
     let refined = refine(&mut field, &data, at, options, progress)?;
     Ok(VolumeHierarchy {

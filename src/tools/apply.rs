@@ -11,7 +11,7 @@
 use std::cell::Cell;
 use std::ops::Range;
 
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 
 use super::action::{ActionError, ToolAction};
 use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
@@ -620,8 +620,19 @@ fn paint(
     let patch = clay.base();
     let half = tool.shape.influence_half_extents(tool.falloff_fu);
     let (lo, hi) = pose.world_bounds(half);
-    // The clay's density near the tool, for the soft painter's presence weight.
-    let density = coeff_box_around(patch, lo, hi, 0).map(|b| sub_lattice(patch, &b, 5));
+    // The clay's density near the tool, for the soft painter's presence weight: the sum of
+    // every patch there (a detail patch adds clay the base does not hold), each copied over
+    // the tool's box with its map.
+    let density: Vec<(BSplineLattice, Affine3A)> = clay
+        .density
+        .patches
+        .iter()
+        .filter_map(|p| {
+            let (plo, phi) = p.patch_box_of(lo, hi);
+            coeff_box_around(&p.lattice, plo, phi, 0)
+                .map(|b| (sub_lattice(&p.lattice, &b, 5), p.world_to_patch))
+        })
+        .collect();
     let iso = patch.iso;
     if clay.colour.is_none() {
         let colour = ColourField::matching(patch).map_err(|e| ToolError::Colour(e.to_string()))?;
@@ -652,7 +663,10 @@ fn paint(
             }
             counts.computed.set(counts.computed.get() + 1);
             let t = tool.shape.density(local, tool.falloff_fu);
-            let clay_here = density.as_ref().map_or(0.0, |d| d.value(x));
+            let clay_here: f32 = density
+                .iter()
+                .map(|(d, to_patch)| d.value(to_patch.transform_point3(x)))
+                .sum();
             let w = tool.action.paint_weight(clay_here, t, iso, dt_s);
             if w == 0.0 {
                 return old;
@@ -1217,6 +1231,40 @@ mod tests {
         )
         .unwrap();
         assert!(clay.colour.as_ref().unwrap().rgba(air).w < 0.01);
+    }
+
+    #[test]
+    fn the_soft_painter_finds_the_clay_a_detail_patch_holds() {
+        // The base is empty; a detail patch alone holds clay around the centre.
+        let mut clay = empty();
+        let at = centre();
+        let n = clay
+            .density
+            .refine(at - Vec3::splat(0.5), at + Vec3::splat(0.5), 1)
+            .unwrap();
+        for c in &mut clay.density.patches[n].lattice.coeffs {
+            *c = 1.0;
+        }
+        assert!(clay.density.patches[0].lattice.value(at) < 1e-6);
+        assert!(clay.density.value(at) > clay.density.iso());
+        let soft = tool(
+            ToolShape::Sphere { radius_fu: 0.25 },
+            ToolAction::SoftPaint {
+                rgb: [0.0, 0.0, 1.0],
+                rate_per_s: 1.0,
+            },
+        );
+        apply_tool(
+            &mut clay,
+            &soft,
+            &ToolPose::at(at),
+            1.0,
+            &ApplyOptions::default(),
+            None,
+        )
+        .unwrap();
+        let here = clay.colour.as_ref().unwrap().rgba(at);
+        assert!(here.w > 0.9 && here.z > 0.9, "{here}");
     }
 
     #[test]
