@@ -32,6 +32,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 mod commands;
+mod compact;
 mod constrain;
 mod publication;
 mod session_io;
@@ -57,8 +58,8 @@ use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepPa
 use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
-    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolPose, ToolReport,
-    apply_csg, apply_emboss, apply_stroke, apply_tool,
+    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
+    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool,
 };
 
 /// Settings of the simulation stage.
@@ -193,6 +194,13 @@ pub struct SimulationStage {
     schedule: Option<ScheduleLog>,
     /// Commands applied since the last step (noted with the next step).
     commands_since_step: u32,
+    /// The compact RBF clay, when on (see `compact.rs`).
+    compact: Option<super::compact_rbf::CompactState>,
+    /// Bumped by every committed step, undo, redo, load and refine: which clay a
+    /// re-interpolation was computed from.
+    clay_revision: u64,
+    /// Whether the stroke being recorded is made with a contact tool.
+    stroke_is_contact: bool,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -281,6 +289,9 @@ impl SimulationStage {
             carried: CarriedSections::default(),
             schedule: None,
             commands_since_step: 0,
+            compact: None,
+            clay_revision: 0,
+            stroke_is_contact: false,
         }
     }
 
@@ -362,6 +373,7 @@ impl SimulationStage {
             // A new stroke is a new undo step.
             self.commit_recorder();
             self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
+            self.stroke_is_contact = self.tool.choice().is_contact();
             self.tool.end_stroke();
         } else if !active && self.was_active {
             self.tool.end_stroke();
@@ -594,17 +606,24 @@ impl SimulationStage {
 
     fn commit_recorder(&mut self) {
         if let Some(rec) = self.recorder.take() {
-            self.commit(rec);
+            let changed = self.commit(rec);
+            if std::mem::take(&mut self.stroke_is_contact) && changed {
+                self.contact_committed();
+            }
         }
     }
 
-    /// Records a finished step and tells the I/O thread (autosave counts strokes).
-    fn commit(&mut self, rec: StepRecorder) {
-        if self.history.commit(rec, &self.clay)
-            && let Some(io) = &self.io
-        {
-            let _ = io.send(IoJob::Committed);
+    /// Records a finished step and tells the I/O thread (autosave counts strokes); returns
+    /// whether the step changed the clay.
+    fn commit(&mut self, rec: StepRecorder) -> bool {
+        let changed = self.history.commit(rec, &self.clay);
+        if changed {
+            self.clay_revision += 1;
+            if let Some(io) = &self.io {
+                let _ = io.send(IoJob::Committed);
+            }
         }
+        changed
     }
 
     /// Ends a held or settling stroke now: the region retires and the stroke's step is

@@ -647,6 +647,12 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         seed: Option<u64>,
     },
+    /// Hold the clay as a compact RBF from here on (Zhang et al. §5.4): `particles` particles
+    /// (the RBF has three centres per particle; 8 to 1000), or `particles = 0` to stop. The
+    /// clay is interpolated when the step is reached, then again after every contact stroke
+    /// and contact `tool` step (each time one undo step), beside the engine. Takes no script
+    /// time.
+    CompactRbf { particles: u32 },
     /// Build a point-set surface (Guo & Qin) from the point cloud `input` (XYZ, PLY, OBJ or
     /// STL, relative to the script's folder), pull it toward each point of `pull` in turn for
     /// `steps` simulation steps each (default 2000), and write it to `out` (`.ply` with
@@ -1513,6 +1519,20 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                 ));
             }
             Ok(())
+        }
+        ScriptStep::CompactRbf { particles } => {
+            let (lo, hi) = (
+                crate::rbf::CompactSettings::MIN_PARTICLES,
+                crate::rbf::CompactSettings::MAX_PARTICLES,
+            );
+            if *particles == 0 || (lo..=hi).contains(&(*particles as usize)) {
+                Ok(())
+            } else {
+                Err(fault(
+                    "particles",
+                    format!("particles = {particles} must be 0 (off) or between {lo} and {hi}"),
+                ))
+            }
         }
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }
