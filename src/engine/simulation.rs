@@ -875,3 +875,106 @@ mod tests {
         );
     }
 }
+
+#[cfg(test)]
+mod compact_tests {
+    use std::time::Instant;
+
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+
+    use super::super::{CompactRbfLink, EngineConfig, HeadlessSink, Stages, build, build_clay};
+    use super::*;
+    use crate::io::{ClayShape, ClaySpec};
+    use crate::rbf::CompactSettings;
+    use crate::tools::{ContactParams, GeometricTool, ToolShape};
+
+    fn stages() -> Stages {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap()
+    }
+
+    fn dent(at: Vec3) -> Command {
+        Command::ApplyTool {
+            tool: GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: 0.2 },
+                action: ToolAction::Contact(ContactParams {
+                    alpha: -1.0,
+                    rate_per_s: 2.0,
+                }),
+                falloff_fu: 0.1,
+            },
+            poses: vec![ToolPose::at(at)],
+            duration_s: 0.3,
+            patch: 0,
+            reply: None,
+        }
+    }
+
+    fn tick(s: &mut Stages) {
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+        let sample = s.samples.latest().value;
+        s.sim.step(&sample);
+    }
+
+    #[test]
+    fn a_contact_step_made_while_a_reinterpolation_runs_is_reinterpolated_on_the_newer_clay() {
+        let mut s = stages();
+        let link = CompactRbfLink::spawn(CompactSettings::new(120)).unwrap();
+        let top = Vec3::new(0.65, 0.65 + 0.325, 0.65);
+        // Both in one batch: the dent lands while I⁰ is being computed from the clay before it.
+        s.commands
+            .send(Command::SetCompactRbf(Some(Box::new(link))))
+            .unwrap();
+        s.commands.send(dent(top)).unwrap();
+        tick(&mut s);
+        assert!(s.sim.compact_status().busy);
+        assert_eq!(s.sim.undo_len(), 1, "the dent");
+        s.sim.settle_compact();
+        let status = s.sim.compact_status();
+        assert_eq!(
+            (status.applied, status.superseded, status.failed),
+            (1, 1, 0),
+            "{status:?}"
+        );
+        assert_eq!(status.centres, Some(360));
+        assert!(!status.busy);
+        // The applied RBF holds the dent: it is the clay's fit, one more undo step.
+        assert_eq!(s.sim.undo_len(), 2);
+        let fit = s.sim.compact_rbf().unwrap().to_clay(2).unwrap();
+        assert_eq!(fit.coeffs, s.sim.lattice().coeffs);
+        assert!(s.sim.lattice().value(top - Vec3::Y * 0.05) < s.sim.lattice().iso);
+
+        // Undo takes the re-interpolation back; an answer is not asked for again.
+        let fitted = s.sim.lattice().clone();
+        s.commands.send(Command::Undo).unwrap();
+        tick(&mut s);
+        assert_ne!(s.sim.lattice().coeffs, fitted.coeffs);
+        assert!(!s.sim.compact_in_flight());
+        assert_eq!(s.sim.redo_len(), 1);
+
+        // Off: the worker is dropped; further contact steps are plain edits.
+        s.commands.send(Command::SetCompactRbf(None)).unwrap();
+        s.commands.send(dent(Vec3::new(0.65, 0.325, 0.65))).unwrap();
+        tick(&mut s);
+        assert_eq!(
+            s.sim.compact_status(),
+            super::super::CompactStatus::default()
+        );
+        assert!(!s.sim.compact_in_flight());
+    }
+}
