@@ -16,6 +16,11 @@
 //! stopped moving), when the next stroke starts, or before any command that edits the clay —
 //! so every change belongs to exactly one step and undo restores the field bit for bit.
 //!
+//! Compact RBF clay (Zhang et al. §5.4, `compact.rs`): when on, each committed contact stroke
+//! or contact tool step sends a copy of the base patch to a worker thread; its answer (the
+//! RBF's fit onto the lattice) is polled between steps and written as one more undo step, or
+//! dropped and re-asked on the newer clay when the clay changed meanwhile.
+//!
 //! Detail patches (Hua & Qin eq. (3)): the region a stroke touches is simulated on the patch
 //! in world coordinates that holds the most detail at the tool (the finest one whose support
 //! holds the tip well inside); the other patches stay fixed and take part through the sum, in
