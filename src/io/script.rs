@@ -1547,6 +1547,25 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_compact_rbf_step_takes_0_or_a_count_one_solve_holds() {
+        let step =
+            |n: u32| format!("version = 1\n\n[[step]]\ndo = \"compact_rbf\"\nparticles = {n}\n");
+        for n in [0, 8, 400, 1000] {
+            let script = parse_script(&step(n), "c.toml").unwrap();
+            assert_eq!(script.steps, vec![ScriptStep::CompactRbf { particles: n }]);
+        }
+        for n in [3, 1001] {
+            let shown = parse_script(&step(n), "c.toml").unwrap_err().to_string();
+            assert!(
+                shown.contains(&format!(
+                    "particles = {n} must be 0 (off) or between 8 and 1000"
+                )),
+                "{shown}"
+            );
+        }
+    }
+
+    #[test]
     fn unbounded_values_are_refused_with_their_line() {
         let stroke = |field: &str| {
             format!("version = 1\n\n[[step]]\ndo = \"stroke\"\npath = [[0.1, 0.2, 0.3]]\n{field}\n")
