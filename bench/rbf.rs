@@ -6,7 +6,11 @@
 //! dense LU in f64 (`⅔ (k+4)³` flops), timed once per size after the particles are settled
 //! (the setup is outside the timing); evaluation is timed over 10 000 points near the surface,
 //! median of five passes. Not criterion: one 5k solve takes about a minute on this machine.
-//! Run with `cargo bench --bench rbf`.
+//! Run with `cargo bench --bench rbf`; `cargo bench --bench rbf -- compact` runs only the
+//! second part: the compact RBF clay's per-stroke re-interpolation (Zhang et al. §5.4) at the
+//! default `N` = 400 on the default 24³ block, after a contact dent of the engine's tool: warm
+//! particle steps, the 1200-centre solve and the fit of `I` onto the lattice, median of five
+//! strokes, with the process's CPU time per stroke (`/proc/self/stat`).
 
 use std::hint::black_box;
 use std::time::Instant;
@@ -14,7 +18,10 @@ use std::time::Instant;
 use dynaclay::engine::build_clay;
 use dynaclay::io::{ClayShape, ClaySpec};
 use dynaclay::particles::{ParticleParams, ParticleSystem};
-use dynaclay::rbf::{RbfOptions, fit_surface};
+use dynaclay::rbf::{CompactClay, CompactSettings, RbfOptions, fit_surface};
+use dynaclay::tools::{
+    ApplyOptions, Clay, ContactParams, GeometricTool, ToolAction, ToolPose, ToolShape, apply_tool,
+};
 use glam::Vec3;
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -22,7 +29,83 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// CPU time of this process (all threads, user and system), seconds, from `/proc/self/stat`
+/// (10 ms ticks).
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised name; utime and stime are the 14th and 15th overall.
+    let rest = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
+}
+
+/// The compact RBF clay's cost per stroke at the default `N`.
+fn compact() {
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    let settings = CompactSettings::default();
+    println!(
+        "\ncompact RBF clay: default 24³ block, N = {}; load average {}",
+        settings.particles,
+        load.trim()
+    );
+    let lattice = build_clay(&ClaySpec::default()).expect("the clay fits");
+    let mut compact = CompactClay::new(settings).expect("the default N");
+    let t = Instant::now();
+    let first = compact.reinterpolate(&lattice).expect("I⁰");
+    println!(
+        "I⁰ (seeded, {} settle steps): {:.2} s, {} centres",
+        settings.settle_steps,
+        t.elapsed().as_secs_f64(),
+        first.report.centres
+    );
+    let mut clay = Clay::single(first.lattice);
+    let tool = GeometricTool {
+        shape: ToolShape::Sphere { radius_fu: 0.2 },
+        action: ToolAction::Contact(ContactParams {
+            alpha: -1.0,
+            rate_per_s: 2.0,
+        }),
+        falloff_fu: 0.1,
+    };
+    let (mut wall, mut cpu, mut steps) = (Vec::new(), Vec::new(), Vec::new());
+    // The block's top face is at y = 1.725; dents along it.
+    for k in 0..5 {
+        let at = Vec3::new(0.8 + 0.15 * k as f32, 1.725, 1.15);
+        apply_tool(
+            &mut clay,
+            &tool,
+            &ToolPose::at(at),
+            0.3,
+            &ApplyOptions::default(),
+            None,
+        )
+        .expect("the dent");
+        let (t, c) = (Instant::now(), cpu_seconds());
+        let r = compact.reinterpolate(clay.base()).expect("re-interpolated");
+        wall.push(t.elapsed().as_secs_f64());
+        cpu.push(cpu_seconds().zip(c).map_or(f64::NAN, |(b, a)| b - a));
+        steps.push(r.particle_steps);
+        assert_eq!(r.report.centres, first.report.centres);
+        clay = Clay::single(r.lattice);
+    }
+    println!("| N | centres | per stroke (median of 5) | CPU per stroke | particle steps |");
+    println!("| --- | --- | --- | --- | --- |");
+    println!(
+        "| {} | {} | {:.2} s | {:.2} s | {:?} |",
+        settings.particles,
+        first.report.centres,
+        median(wall),
+        median(cpu),
+        steps
+    );
+}
+
 fn main() {
+    compact();
+    if std::env::args().any(|a| a == "compact") {
+        return;
+    }
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("rbf: 64³ sphere clay; load average {}", load.trim());
     let field = build_clay(&ClaySpec {

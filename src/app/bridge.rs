@@ -41,8 +41,8 @@ use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
 use crate::engine::{
-    Command, CommandError, Engine, EngineConfig, EngineError, EngineReport, LoadRefused, MeshSink,
-    PushTool, StartOptions,
+    Command, CommandError, CompactRbfLink, Engine, EngineConfig, EngineError, EngineReport,
+    LoadRefused, MeshSink, PushTool, StartOptions,
 };
 use crate::field::MultiPatchField;
 use crate::fit::{FitProgress, ImportError, ImportSettings, import_session};
@@ -51,6 +51,7 @@ use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
 use crate::particles::ParticleFollower;
+use crate::rbf::CompactSettings;
 use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -259,6 +260,7 @@ pub fn start_bridge(
         connected: true,
         opener,
         tool_radius: PushTool::default().radius_fu,
+        compact_particles: None,
         saves: Vec::new(),
         loads: Vec::new(),
         pin_replies: Vec::new(),
@@ -335,6 +337,9 @@ struct Bridge {
     restart: Option<RestartSettings>,
     /// Restarts so far (see [`EngineView::restarts`]).
     restarts: u64,
+    /// The compact RBF clay's particle count while the app has it on (given again to an
+    /// engine restarted on another clay).
+    compact_particles: Option<usize>,
     /// The clay's box and workspace map since the last restart.
     new_clay: Option<(WorldBox, crate::engine::WorkspaceMap)>,
     /// Answers to pin and unpin commands.
@@ -450,6 +455,7 @@ impl Bridge {
             v.sessions_loaded = status.sessions_loaded;
             v.region = status.region.map(|(min, max)| WorldBox { min, max });
             v.sim_time_s = status.sim_time_s;
+            v.compact = status.compact;
             v.tool_position = tool.tip;
             v.tool_radius = radius;
             v.force_n = if tool.device_force_n.is_finite() {
@@ -677,6 +683,9 @@ impl Bridge {
         let _ = engine.haptic_gain().set(gain);
         self.engine = Some(engine);
         self.restarts += 1;
+        if let Some(n) = self.compact_particles {
+            self.set_compact("compact RBF clay", Some(n));
+        }
         let base = density.base();
         let top = base.node_position(base.dims[0] - 1, base.dims[1] - 1, base.dims[2] - 1);
         self.new_clay = Some((
@@ -791,6 +800,21 @@ impl Bridge {
         }
     }
 
+    /// Starts a compact RBF worker of `particles` particles (on this thread, never a loop) and
+    /// hands it to the engine, or switches the mode off.
+    fn set_compact(&mut self, what: &str, particles: Option<usize>) {
+        self.compact_particles = particles;
+        let link = match particles.map(|n| CompactRbfLink::spawn(CompactSettings::new(n))) {
+            None => None,
+            Some(Ok(link)) => Some(Box::new(link)),
+            Some(Err(e)) => {
+                self.compact_particles = None;
+                return self.fail(what, e.to_string());
+            }
+        };
+        self.send(what, Command::SetCompactRbf(link));
+    }
+
     fn apply(&mut self, cmd: EngineCommand) {
         let what = cmd.name();
         match cmd {
@@ -805,6 +829,7 @@ impl Bridge {
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
             EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),
+            EngineCommand::SetCompactRbf { particles } => self.set_compact(what, particles),
             EngineCommand::Undo => self.send(what, Command::Undo),
             EngineCommand::Redo => self.send(what, Command::Redo),
             EngineCommand::Pin(request) => {
@@ -1036,6 +1061,61 @@ mod tests {
             .iter()
             .map(|c| c.indices.len() / 3)
             .sum()
+    }
+
+    /// The compact RBF switch through the bridge reaches the running engine: its worker
+    /// interpolates the clay (one undo step, 3N centres shown in the view); switched off,
+    /// the view says so.
+    #[test]
+    fn the_compact_rbf_switch_reaches_the_engine_and_its_worker() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(&field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (mut link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        let mut events = Vec::new();
+        wait_for(&mut link, &mut events, "the first status", |_, _| true);
+        link.send(EngineCommand::SetCompactRbf {
+            particles: Some(60),
+        })
+        .unwrap();
+        wait_for(&mut link, &mut events, "the first interpolation", |v, _| {
+            v.compact.applied >= 1
+        });
+        let v = link.view().value.clone();
+        assert!(v.compact.on);
+        assert_eq!(v.compact.particles, 60);
+        assert_eq!(v.compact.centres, Some(180));
+        assert_eq!(v.compact.failed, 0);
+        assert!(v.compact.last_s > 0.0);
+        wait_for(&mut link, &mut events, "its undo step", |v, _| {
+            v.undo_steps == 1
+        });
+
+        link.send(EngineCommand::SetCompactRbf { particles: None })
+            .unwrap();
+        wait_for(&mut link, &mut events, "the switch off", |v, _| {
+            !v.compact.on
+        });
+        assert!(
+            !events
+                .iter()
+                .any(|e| matches!(e, EngineEvent::Failed { .. })),
+            "{events:?}"
+        );
+        bridge.stop().unwrap();
     }
 
     /// Particles through the running engine: off, none are published; switched on over a

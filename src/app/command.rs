@@ -106,6 +106,11 @@ pub enum EngineCommand {
     SetHapticGain {
         gain: f32,
     },
+    /// Hold the clay as a compact RBF of `particles` particles (Zhang et al. §5.4: the clay is
+    /// re-interpolated after each contact stroke), or stop with `None`.
+    SetCompactRbf {
+        particles: Option<usize>,
+    },
 }
 
 impl EngineCommand {
@@ -130,6 +135,7 @@ impl EngineCommand {
             Self::DisconnectDevice => "disconnect device",
             Self::SetMaxForce { .. } => "set max force",
             Self::SetHapticGain { .. } => "set haptic gain",
+            Self::SetCompactRbf { .. } => "compact RBF clay",
         }
     }
 }

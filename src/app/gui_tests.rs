@@ -440,6 +440,47 @@ fn the_latency_panel_draws_histograms_and_timelines_from_the_loops_bins() {
 }
 
 #[test]
+fn the_compact_rbf_switch_sends_its_count_and_the_view_shows_centres_and_time() {
+    let (mut h, mut end) = harness();
+    h.run();
+    drain(&end);
+    h.get_by_label("Compact RBF clay (400 particles)").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetCompactRbf {
+            particles: Some(400)
+        }]
+    );
+    end.view.publish_clone_of(&EngineView {
+        compact: compact_status(),
+        ..EngineView::default()
+    });
+    h.run();
+    h.get_by_label("1200 centres; last re-interpolation 0.42 s; 3 applied, 0 failed");
+    h.get_by_label("Compact RBF clay (400 particles)").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetCompactRbf { particles: None }]
+    );
+}
+
+fn compact_status() -> crate::engine::CompactStatus {
+    crate::engine::CompactStatus {
+        on: true,
+        particles: 400,
+        centres: Some(1200),
+        busy: false,
+        applied: 3,
+        superseded: 0,
+        failed: 0,
+        last_s: 0.42,
+        last_residual_fu: 1e-6,
+    }
+}
+
+#[test]
 fn undo_and_redo_counts_are_shown() {
     let (mut h, mut end) = harness();
     h.run();

@@ -134,10 +134,18 @@ pub struct SculptApp {
     pub(crate) refine_at: Option<glam::Vec3>,
     /// Pinning with the mouse, and the list of the clay's pins.
     pub pins: PinPanel,
+    /// The "Compact RBF clay" switch.
+    pub compact_on: bool,
+    /// Its particle count `N` (0 until [`SculptApp::new`] sets the default).
+    pub compact_particles: usize,
 }
 
 /// The particle counts the panel offers.
 const PARTICLE_RANGE: std::ops::RangeInclusive<usize> = 100..=20_000;
+
+/// The particle counts the compact RBF clay takes.
+const COMPACT_RANGE: std::ops::RangeInclusive<usize> =
+    crate::rbf::CompactSettings::MIN_PARTICLES..=crate::rbf::CompactSettings::MAX_PARTICLES;
 
 /// Brush radius factor per `[` or `]` press.
 const BRUSH_STEP: f32 = 1.15;
@@ -184,6 +192,7 @@ impl SculptApp {
         Self {
             link,
             tool_pending: true,
+            compact_particles: crate::rbf::CompactSettings::DEFAULT_PARTICLES,
             ..Self::default()
         }
     }
@@ -354,7 +363,10 @@ impl SculptApp {
                         });
                     egui::CollapsingHeader::new("Particles on the clay")
                         .default_open(true)
-                        .show(ui, |ui| self.particles_ui(ui));
+                        .show(ui, |ui| {
+                            self.particles_ui(ui);
+                            self.compact_ui(ui);
+                        });
                     egui::CollapsingHeader::new("Device")
                         .default_open(true)
                         .show(ui, |ui| self.device_ui(ui));
@@ -618,6 +630,43 @@ impl SculptApp {
         if on {
             let shown = self.link.particles().value.positions.len();
             ui.weak(format!("{shown} particles on the clay"));
+        }
+    }
+
+    /// The compact RBF clay (Zhang et al. §5.4): the switch and `N` go to the engine as a
+    /// command; the centre count and the last re-interpolation's time come back in the view.
+    fn compact_ui(&mut self, ui: &mut egui::Ui) {
+        let before = (self.compact_on, self.compact_particles);
+        ui.checkbox(
+            &mut self.compact_on,
+            format!("Compact RBF clay ({} particles)", self.compact_particles),
+        )
+        .on_hover_text(
+            "Hold the clay as an RBF of 3N centres: after each contact stroke the particles \
+             resample it and the RBF is interpolated again (one undo step), so its size stays \
+             fixed",
+        );
+        ui.add(
+            egui::Slider::new(&mut self.compact_particles, COMPACT_RANGE)
+                .logarithmic(true)
+                .text("Compact N"),
+        );
+        let changed = (self.compact_on, self.compact_particles) != before;
+        // A new N restarts the mode only when it is on.
+        if changed && (self.compact_on || before.0) {
+            let particles = self.compact_on.then_some(self.compact_particles);
+            self.send(EngineCommand::SetCompactRbf { particles });
+        }
+        let c = self.view.compact;
+        if c.on {
+            let centres = c
+                .centres
+                .map_or_else(|| "no RBF yet".to_owned(), |k| format!("{k} centres"));
+            let busy = if c.busy { ", re-interpolating" } else { "" };
+            ui.weak(format!(
+                "{centres}; last re-interpolation {:.2} s{busy}; {} applied, {} failed",
+                c.last_s, c.applied, c.failed
+            ));
         }
     }
 

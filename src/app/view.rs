@@ -130,6 +130,8 @@ pub struct EngineView {
     pub clay_box: Option<WorldBox>,
     /// The field → device map since the last restart (`None` before one).
     pub workspace_map: Option<crate::engine::WorkspaceMap>,
+    /// The compact RBF clay: on or off, centres, the last re-interpolation's time.
+    pub compact: crate::engine::CompactStatus,
 }
 
 impl Default for EngineView {
@@ -153,6 +155,7 @@ impl Default for EngineView {
             restarts: 0,
             clay_box: None,
             workspace_map: None,
+            compact: crate::engine::CompactStatus::default(),
         }
     }
 }

@@ -93,6 +93,13 @@ impl ToolChoice {
         }
     }
 
+    /// Whether this is a geometric tool with the contact action (Zhang's `h = f + β·g`): the
+    /// strokes the compact RBF clay re-interpolates after.
+    #[must_use]
+    pub fn is_contact(&self) -> bool {
+        matches!(self, Self::Geometric(g) if matches!(g.action, ToolAction::Contact(_)))
+    }
+
     /// The spread radius of the push or of a force tool, field units (`None` for a tool
     /// without one: the point grab and the geometric tools).
     #[must_use]
@@ -193,6 +200,10 @@ pub enum Command {
         /// Where the list goes.
         reply: Sender<Vec<crate::dynamics::Constraint>>,
     },
+    /// Hold the clay as a compact RBF (Zhang et al. §5.4) with the worker behind the link, or
+    /// stop with `None`: the clay is interpolated at once, then again after every contact
+    /// stroke or contact tool step, each time as one undo step (a held stroke ends first).
+    SetCompactRbf(Option<Box<super::CompactRbfLink>>),
     /// Undo the latest stroke or tool step (one stroke is one step); nothing to undo is not
     /// an error.
     Undo,

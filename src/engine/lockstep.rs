@@ -103,6 +103,9 @@ impl Lockstep {
             let sample = self.stages.samples.latest().value;
             self.stages.sim.step(&sample);
         }
+        // Outside the ticks: a re-interpolation asked for by these steps is in before the
+        // next sample, however fast the worker is, so the run stays deterministic.
+        self.stages.sim.wait_compact();
         self.ticks += 1;
         if self.ticks.is_multiple_of(self.graphics_every) {
             let _tick = dynaclay_loops::enter_tick();
@@ -165,6 +168,7 @@ impl Lockstep {
 /// (a failure is reported in the report, the session handed back all the same).
 pub(super) fn end_single_thread_run(stages: &mut Stages, io: &mut IoWorker) -> LockstepReport {
     stages.sim.finish();
+    stages.sim.settle_compact();
     stages.sim.publish_now();
     stages.graphics.tick();
     stages.haptic.sync_field();

@@ -4,6 +4,7 @@
 //! (the one format of [`crate::io::Script`]) through the engine.
 
 mod command;
+mod compact_rbf;
 mod config;
 mod counters;
 mod device_swap;
@@ -29,6 +30,7 @@ mod wiring;
 mod workspace;
 
 pub use command::{Command, PushTool, Reply, ToolChoice};
+pub use compact_rbf::{CompactRbfLink, CompactStartError, CompactStatus};
 pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
 pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{

@@ -141,6 +141,8 @@ pub enum PlannedAction {
         options: crate::rbf::ExportOptions,
         out: std::path::PathBuf,
     },
+    /// Hold the clay as a compact RBF with these settings from now on, or stop (`None`).
+    CompactRbf(Option<crate::rbf::CompactSettings>),
     /// Build a point-set surface from a cloud, pull it, and write it as PLY (beside the
     /// engine; the clay is not touched). Paths are joined to the script's folder.
     Points {
@@ -438,6 +440,11 @@ impl ScriptPlan {
                         options: export_options(count, *steps, *seed, *offset, *max_centres),
                         out: base_dir.join(out),
                     });
+                }
+                ScriptStep::CompactRbf { particles } => {
+                    let settings = (*particles > 0)
+                        .then(|| crate::rbf::CompactSettings::new(*particles as usize));
+                    event(PlannedAction::CompactRbf(settings));
                 }
                 ScriptStep::Points {
                     input,

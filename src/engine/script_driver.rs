@@ -8,6 +8,7 @@
 use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 
 use super::command::{Command, Reply};
+use super::compact_rbf::CompactRbfLink;
 use super::plan::{PlannedAction, PlannedEvent, ScriptPlan};
 use super::tool_sample::ToolSample;
 use crate::fit::read_points;
@@ -270,6 +271,14 @@ impl ScriptDriver {
             PlannedAction::Rbf { options, out } => {
                 self.export(step, ExportJob::Rbf { options, out })
             }
+            PlannedAction::CompactRbf(settings) => match settings.map(CompactRbfLink::spawn) {
+                None => vec![Command::SetCompactRbf(None)],
+                Some(Ok(link)) => vec![Command::SetCompactRbf(Some(Box::new(link)))],
+                Some(Err(e)) => {
+                    self.fail(step, format!("compact_rbf: {e}"));
+                    return;
+                }
+            },
             PlannedAction::Points {
                 input,
                 pulls,

@@ -30,4 +30,6 @@ pub struct SimStatus {
     /// Bumped whenever the clay's pins may have changed (pin, unpin, undo, redo, load): an
     /// observer showing the pins asks for the list again ([`super::Command::ListPins`]).
     pub pins_revision: u64,
+    /// The compact RBF clay: on or off, its centre count, the last re-interpolation's time.
+    pub compact: super::CompactStatus,
 }

@@ -16,6 +16,11 @@
 //! stopped moving), when the next stroke starts, or before any command that edits the clay —
 //! so every change belongs to exactly one step and undo restores the field bit for bit.
 //!
+//! Compact RBF clay (Zhang et al. §5.4, `compact.rs`): when on, each committed contact stroke
+//! or contact tool step sends a copy of the base patch to a worker thread; its answer (the
+//! RBF's fit onto the lattice) is polled between steps and written as one more undo step, or
+//! dropped and re-asked on the newer clay when the clay changed meanwhile.
+//!
 //! Detail patches (Hua & Qin eq. (3)): the region a stroke touches is simulated on the patch
 //! in world coordinates that holds the most detail at the tool (the finest one whose support
 //! holds the tip well inside); the other patches stay fixed and take part through the sum, in
@@ -32,6 +37,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 mod commands;
+mod compact;
 mod constrain;
 mod publication;
 mod session_io;
@@ -57,8 +63,8 @@ use crate::dynamics::{ConstraintSolver, Material, RegionState, Simulator, StepPa
 use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around};
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
-    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolPose, ToolReport,
-    apply_csg, apply_emboss, apply_stroke, apply_tool,
+    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
+    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool,
 };
 
 /// Settings of the simulation stage.
@@ -193,6 +199,13 @@ pub struct SimulationStage {
     schedule: Option<ScheduleLog>,
     /// Commands applied since the last step (noted with the next step).
     commands_since_step: u32,
+    /// The compact RBF clay, when on (see `compact.rs`).
+    compact: Option<super::compact_rbf::CompactState>,
+    /// Bumped by every committed step, undo, redo, load and refine: which clay a
+    /// re-interpolation was computed from.
+    clay_revision: u64,
+    /// Whether the stroke being recorded is made with a contact tool.
+    stroke_is_contact: bool,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -281,6 +294,9 @@ impl SimulationStage {
             carried: CarriedSections::default(),
             schedule: None,
             commands_since_step: 0,
+            compact: None,
+            clay_revision: 0,
+            stroke_is_contact: false,
         }
     }
 
@@ -362,6 +378,7 @@ impl SimulationStage {
             // A new stroke is a new undo step.
             self.commit_recorder();
             self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
+            self.stroke_is_contact = self.tool.choice().is_contact();
             self.tool.end_stroke();
         } else if !active && self.was_active {
             self.tool.end_stroke();
@@ -594,17 +611,24 @@ impl SimulationStage {
 
     fn commit_recorder(&mut self) {
         if let Some(rec) = self.recorder.take() {
-            self.commit(rec);
+            let changed = self.commit(rec);
+            if std::mem::take(&mut self.stroke_is_contact) && changed {
+                self.contact_committed();
+            }
         }
     }
 
-    /// Records a finished step and tells the I/O thread (autosave counts strokes).
-    fn commit(&mut self, rec: StepRecorder) {
-        if self.history.commit(rec, &self.clay)
-            && let Some(io) = &self.io
-        {
-            let _ = io.send(IoJob::Committed);
+    /// Records a finished step and tells the I/O thread (autosave counts strokes); returns
+    /// whether the step changed the clay.
+    fn commit(&mut self, rec: StepRecorder) -> bool {
+        let changed = self.history.commit(rec, &self.clay);
+        if changed {
+            self.clay_revision += 1;
+            if let Some(io) = &self.io {
+                let _ = io.send(IoJob::Committed);
+            }
         }
+        changed
     }
 
     /// Ends a held or settling stroke now: the region retires and the stroke's step is
@@ -854,5 +878,108 @@ mod tests {
             )
             .is_ok()
         );
+    }
+}
+
+#[cfg(test)]
+mod compact_tests {
+    use std::time::Instant;
+
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+
+    use super::super::{CompactRbfLink, EngineConfig, HeadlessSink, Stages, build, build_clay};
+    use super::*;
+    use crate::io::{ClayShape, ClaySpec};
+    use crate::rbf::CompactSettings;
+    use crate::tools::{ContactParams, GeometricTool, ToolShape};
+
+    fn stages() -> Stages {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 14,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap()
+    }
+
+    fn dent(at: Vec3) -> Command {
+        Command::ApplyTool {
+            tool: GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: 0.2 },
+                action: ToolAction::Contact(ContactParams {
+                    alpha: -1.0,
+                    rate_per_s: 2.0,
+                }),
+                falloff_fu: 0.1,
+            },
+            poses: vec![ToolPose::at(at)],
+            duration_s: 0.3,
+            patch: 0,
+            reply: None,
+        }
+    }
+
+    fn tick(s: &mut Stages) {
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+        let sample = s.samples.latest().value;
+        s.sim.step(&sample);
+    }
+
+    #[test]
+    fn a_contact_step_made_while_a_reinterpolation_runs_is_reinterpolated_on_the_newer_clay() {
+        let mut s = stages();
+        let link = CompactRbfLink::spawn(CompactSettings::new(120)).unwrap();
+        let top = Vec3::new(0.65, 0.65 + 0.325, 0.65);
+        // Both in one batch: the dent lands while I⁰ is being computed from the clay before it.
+        s.commands
+            .send(Command::SetCompactRbf(Some(Box::new(link))))
+            .unwrap();
+        s.commands.send(dent(top)).unwrap();
+        tick(&mut s);
+        assert!(s.sim.compact_status().busy);
+        assert_eq!(s.sim.undo_len(), 1, "the dent");
+        s.sim.settle_compact();
+        let status = s.sim.compact_status();
+        assert_eq!(
+            (status.applied, status.superseded, status.failed),
+            (1, 1, 0),
+            "{status:?}"
+        );
+        assert_eq!(status.centres, Some(360));
+        assert!(!status.busy);
+        // The applied RBF holds the dent: it is the clay's fit, one more undo step.
+        assert_eq!(s.sim.undo_len(), 2);
+        let fit = s.sim.compact_rbf().unwrap().to_clay(2).unwrap();
+        assert_eq!(fit.coeffs, s.sim.lattice().coeffs);
+        assert!(s.sim.lattice().value(top - Vec3::Y * 0.05) < s.sim.lattice().iso);
+
+        // Undo takes the re-interpolation back; an answer is not asked for again.
+        let fitted = s.sim.lattice().clone();
+        s.commands.send(Command::Undo).unwrap();
+        tick(&mut s);
+        assert_ne!(s.sim.lattice().coeffs, fitted.coeffs);
+        assert!(!s.sim.compact_in_flight());
+        assert_eq!(s.sim.redo_len(), 1);
+
+        // Off: the worker is dropped; further contact steps are plain edits.
+        s.commands.send(Command::SetCompactRbf(None)).unwrap();
+        s.commands.send(dent(Vec3::new(0.65, 0.325, 0.65))).unwrap();
+        tick(&mut s);
+        assert_eq!(
+            s.sim.compact_status(),
+            super::super::CompactStatus::default()
+        );
+        assert!(!s.sim.compact_in_flight());
     }
 }

@@ -507,6 +507,9 @@ impl Engine {
             .recv()
             .map_err(|_| EngineError::Lost("haptic"))?;
         sim_stage.finish();
+        // The loops have stopped: a compact RBF re-interpolation still running is waited for
+        // and applied, so the session handed back holds every stroke's.
+        sim_stage.settle_compact();
         sim_stage.publish_now();
         graphics_stage.tick();
         haptic_stage.sync_field();

@@ -647,6 +647,12 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         seed: Option<u64>,
     },
+    /// Hold the clay as a compact RBF from here on (Zhang et al. §5.4): `particles` particles
+    /// (the RBF has three centres per particle; 8 to 1000), or `particles = 0` to stop. The
+    /// clay is interpolated when the step is reached, then again after every contact stroke
+    /// and contact `tool` step (each time one undo step), beside the engine. Takes no script
+    /// time.
+    CompactRbf { particles: u32 },
     /// Build a point-set surface (Guo & Qin) from the point cloud `input` (XYZ, PLY, OBJ or
     /// STL, relative to the script's folder), pull it toward each point of `pull` in turn for
     /// `steps` simulation steps each (default 2000), and write it to `out` (`.ply` with
@@ -1514,6 +1520,20 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             }
             Ok(())
         }
+        ScriptStep::CompactRbf { particles } => {
+            let (lo, hi) = (
+                crate::rbf::CompactSettings::MIN_PARTICLES,
+                crate::rbf::CompactSettings::MAX_PARTICLES,
+            );
+            if *particles == 0 || (lo..=hi).contains(&(*particles as usize)) {
+                Ok(())
+            } else {
+                Err(fault(
+                    "particles",
+                    format!("particles = {particles} must be 0 (off) or between {lo} and {hi}"),
+                ))
+            }
+        }
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }
@@ -1525,6 +1545,25 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_compact_rbf_step_takes_0_or_a_count_one_solve_holds() {
+        let step =
+            |n: u32| format!("version = 1\n\n[[step]]\ndo = \"compact_rbf\"\nparticles = {n}\n");
+        for n in [0, 8, 400, 1000] {
+            let script = parse_script(&step(n), "c.toml").unwrap();
+            assert_eq!(script.steps, vec![ScriptStep::CompactRbf { particles: n }]);
+        }
+        for n in [3, 1001] {
+            let shown = parse_script(&step(n), "c.toml").unwrap_err().to_string();
+            assert!(
+                shown.contains(&format!(
+                    "particles = {n} must be 0 (off) or between 8 and 1000"
+                )),
+                "{shown}"
+            );
+        }
+    }
 
     #[test]
     fn unbounded_values_are_refused_with_their_line() {

@@ -386,6 +386,7 @@ fn step_name(step: &ScriptStep) -> &'static str {
         ScriptStep::Refine { .. } => "refine",
         ScriptStep::Particles { .. } => "particles",
         ScriptStep::Rbf { .. } => "rbf",
+        ScriptStep::CompactRbf { .. } => "compact_rbf",
         ScriptStep::Points { .. } => "points",
     }
 }

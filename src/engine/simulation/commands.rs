@@ -12,6 +12,7 @@ impl SimulationStage {
     /// Applies up to `limit` queued commands in arrival order (non-blocking) and returns how
     /// many it applied; a replay applies exactly the recorded number before each step.
     pub fn apply_commands_at_most(&mut self, limit: u32) -> u32 {
+        self.poll_compact();
         let mut applied = 0;
         while applied < limit {
             let Ok(cmd) = self.commands.try_recv() else {
@@ -78,8 +79,12 @@ impl SimulationStage {
                 );
                 self.colour_dirty |= tool.action.paints();
                 // Whatever was applied before a failure stays undoable.
-                self.commit(rec);
-                self.edited(result, tool.action.name(), reply)
+                let changed = self.commit(rec);
+                let ok = self.edited(result, tool.action.name(), reply);
+                if changed && matches!(tool.action, ToolAction::Contact(_)) {
+                    self.contact_committed();
+                }
+                ok
             }
             Command::Csg {
                 op,
@@ -128,6 +133,7 @@ impl SimulationStage {
                 self.end_stroke_now();
                 let result = self.refine(lo, hi, level);
                 let ok = result.is_ok();
+                self.clay_revision += 1;
                 if let Some(r) = reply {
                     let _ = r.send(result);
                 }
@@ -142,7 +148,14 @@ impl SimulationStage {
                 };
                 self.mark_all_changed();
                 self.colour_dirty = true;
+                self.clay_revision += 1;
+                self.cancel_compact();
                 done.is_ok()
+            }
+            Command::SetCompactRbf(link) => {
+                self.end_stroke_now();
+                self.set_compact(link.map(|l| *l));
+                true
             }
             Command::Constrain { request, reply } => {
                 let result = self.pin(&request).map_err(CommandError::from);
@@ -165,6 +178,8 @@ impl SimulationStage {
             } => {
                 let result = self.load(*session, &source);
                 let ok = result.is_ok();
+                self.clay_revision += 1;
+                self.cancel_compact();
                 if let Some(r) = reply {
                     let _ = r.send(result.map_err(CommandError::from));
                 }

@@ -124,6 +124,7 @@ impl SimulationStage {
             sim_step: self.steps,
             sim_time_s: self.sim_time_s,
             pins_revision: self.pins_revision,
+            compact: self.compact_status(),
         };
         self.status.publish();
     }
