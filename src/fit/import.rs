@@ -9,11 +9,13 @@
 
 use std::path::Path;
 
+use glam::Vec3;
+
 use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, SignedBy};
 use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, fit_hierarchy,
 };
-use super::points::{PointsError, read_points};
+use super::points::{PointCloud, PointsError, read_points_with_colours};
 use super::volume::{Sample, Volume, VolumeError, fit_volume_hierarchy, read_nrrd, read_raw};
 use crate::dynamics::Material;
 use crate::field::MultiPatchField;
@@ -131,7 +133,7 @@ pub fn fit_file(
         Some("nrrd") => fit_volume_file(path, settings, true, progress, note),
         Some("raw") => fit_volume_file(path, settings, false, progress, note),
         Some("ply" | "xyz" | "txt" | "pts" | "obj" | "stl") => {
-            fit_cloud_file(path, settings, progress, note)
+            fit_cloud_file(path, settings, progress, note).map(|c| c.field)
         }
         _ => Err(ImportError::UnknownFormat {
             file: path.to_path_buf(),
@@ -150,13 +152,68 @@ fn fit_error(path: &Path, e: CloudFitError) -> ImportError {
     }
 }
 
+/// A point cloud fitted by [`import_cloud`]: the field, the cloud as read, and the map from
+/// the file's units to the field's.
+#[derive(Clone, Debug)]
+pub struct ImportedCloud {
+    /// The fitted clay.
+    pub field: MultiPatchField,
+    /// The points as read, in the file's units.
+    pub cloud: PointCloud,
+    /// The points' colours, when the file has them.
+    pub colours: Option<Vec<[u8; 3]>>,
+    /// Field units per file unit.
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+}
+
+impl ImportedCloud {
+    /// The cloud in field units (normals unchanged: the map is a uniform scale and a shift).
+    #[must_use]
+    pub fn cloud_in_field_units(&self) -> PointCloud {
+        PointCloud {
+            points: self
+                .cloud
+                .points
+                .iter()
+                .map(|&p| p * self.scale + self.offset)
+                .collect(),
+            normals: self.cloud.normals.clone(),
+        }
+    }
+}
+
+/// Fits a point-cloud file (`.ply`, `.xyz`, `.txt`, `.pts`, or a mesh's vertices) as
+/// [`fit_file`] does, keeping the cloud and the map into field units.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn import_cloud(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedCloud, ImportError> {
+    fit_cloud_file(path, settings, progress, note)
+}
+
+/// Whether `path` names a point-cloud file by its extension (`.ply`, `.xyz`, `.txt`, `.pts`).
+#[must_use]
+pub fn is_point_cloud(path: &Path) -> bool {
+    matches!(
+        extension(path).as_deref(),
+        Some("ply" | "xyz" | "txt" | "pts")
+    )
+}
+
 fn fit_cloud_file(
     path: &Path,
     settings: &ImportSettings,
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
-) -> Result<MultiPatchField, ImportError> {
-    let cloud = read_points(path)?;
+) -> Result<ImportedCloud, ImportError> {
+    let (cloud, colours) = read_points_with_colours(path)?;
     let options = HierarchyOptions {
         base: CloudFitOptions {
             resolution: settings.resolution,
@@ -209,7 +266,13 @@ fn fit_cloud_file(
         percent((sum / cloud.points.len() as f64) as f32),
         percent(worst)
     ));
-    Ok(fit.field)
+    Ok(ImportedCloud {
+        field: fit.field,
+        cloud,
+        colours,
+        scale: fit.scale,
+        offset: fit.offset,
+    })
 }
 
 fn fit_volume_file(

@@ -17,10 +17,10 @@ pub use cloud::{
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use import::{
-    IMPORT_EXTENSIONS, ImportError, ImportSettings, fit_file, import_session, imported_session,
-    is_importable,
+    IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud, fit_file, import_cloud,
+    import_session, imported_session, is_importable, is_point_cloud,
 };
-pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
+pub use points::{MAX_POINTS, PointCloud, PointsError, read_points, read_points_with_colours};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
     read_nrrd, read_raw,
