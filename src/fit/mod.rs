@@ -20,7 +20,9 @@ pub use import::{
     IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud, fit_file, import_cloud,
     import_session, imported_session, is_importable, is_point_cloud,
 };
-pub use points::{MAX_POINTS, PointCloud, PointsError, read_points, read_points_with_colours};
+pub use points::{
+    MAX_POINTS, PointCloud, PointColours, PointsError, read_points, read_points_with_colours,
+};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
     read_nrrd, read_raw,

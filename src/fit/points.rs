@@ -27,6 +27,9 @@ pub struct PointCloud {
     pub normals: Option<Vec<Vec3>>,
 }
 
+/// One 8-bit sRGB colour per point.
+pub type PointColours = Vec<[u8; 3]>;
+
 /// Why a point file was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum PointsError {
@@ -91,7 +94,7 @@ pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
 /// As [`read_points`].
 pub fn read_points_with_colours(
     path: &Path,
-) -> Result<(PointCloud, Option<Vec<[u8; 3]>>), PointsError> {
+) -> Result<(PointCloud, Option<PointColours>), PointsError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -247,7 +250,7 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
 pub fn parse_ply_with_colours(
     bytes: &[u8],
     file: &Path,
-) -> Result<(PointCloud, Option<Vec<[u8; 3]>>), PointsError> {
+) -> Result<(PointCloud, Option<PointColours>), PointsError> {
     let line_err = |line: usize, what: String| PointsError::Line {
         file: file.to_path_buf(),
         line,
