@@ -15,17 +15,19 @@
 //! neighbour is closer than `0.7 h` goes; where a point's tangent-plane Voronoi cell reaches
 //! farther than `0.72 h` a point is put at its farthest vertex and projected onto the clay;
 //! the two keep the spacing within a factor 1.5 of `h` (see [`super::sampling`]). Unlike
-//! [`super::resample`], an update makes at most [`FollowOptions::max_changes`] insertions and
-//! removals, scans from where the last update stopped, and never grows the set past
-//! [`FollowOptions::max_points`]: the work of one update is bounded by the point cap, so a
+//! [`super::resample`], an update scans at most [`FollowOptions::scan_per_update`] points (from
+//! where the last one stopped, round robin), makes at most [`FollowOptions::max_changes`]
+//! insertions and removals, and never grows the set past [`FollowOptions::max_points`]; a point
+//! already on the zero set costs one evaluation of the clay. So the work of one update is
+//! bounded (one k-d tree, the window's queries, the projection of every point), and a
 //! stretched clay is resampled over several updates, never in one long pause.
 //!
 //! The haptic loop never waits on it: the work runs on the graphics thread on the copy that
 //! loop already keeps, new point sets arrive through a channel read with `try_recv`, and
 //! publication is a wait-free buffer swap. After each change of the clay the follower takes
 //! up to [`PointSetFollower::SETTLE_UPDATES`] more updates on the graphics loop's idle ticks,
-//! until the points are settled (nothing inserted or removed and no point moved more than
-//! [`SETTLED_MOVE_SPANS`] spacings).
+//! until the points are settled (a whole round of scans inserted and removed nothing, and no
+//! point moved more than [`SETTLED_MOVE_SPANS`] spacings).
 //!
 //! Each point's splat radius ([`PointSetView::radii`]) is the distance to the farthest vertex
 //! of its tangent-plane Voronoi cell, clamped to `0.5 h ..= 1.5 h`: a disc of that radius
@@ -70,6 +72,8 @@ pub struct FollowOptions {
     pub max_changes: usize,
     /// The set never grows past this many points.
     pub max_points: usize,
+    /// Points scanned for sampling and splat radii per update (round robin), at most.
+    pub scan_per_update: usize,
     /// Insert where the largest empty disc's radius exceeds this many `h`.
     pub insert_above: f32,
     /// Remove where the nearest neighbour is closer than this many `h`.
@@ -78,8 +82,8 @@ pub struct FollowOptions {
 
 impl FollowOptions {
     /// The defaults for a target spacing `h` and a set of `points` points: two Newton steps,
-    /// 256 changes per update, at most four times the points (and at least 1000), and the
-    /// thresholds of [`super::SamplingOptions::for_target`].
+    /// 256 changes and 4096 points scanned per update, at most four times the points (and at
+    /// least 1000), and the thresholds of [`super::SamplingOptions::for_target`].
     #[must_use]
     pub fn for_spacing(target_m: f32, points: usize) -> Self {
         let sampling = super::SamplingOptions::for_target(target_m);
@@ -88,6 +92,7 @@ impl FollowOptions {
             newton_steps: 2,
             max_changes: 256,
             max_points: (4 * points).max(1000),
+            scan_per_update: 4096,
             insert_above: sampling.insert_above,
             remove_below: sampling.remove_below,
         }
@@ -145,8 +150,9 @@ pub struct FollowReport {
     pub moved_max_m: f32,
     pub inserted: usize,
     pub removed: usize,
-    /// Whether the points are settled (nothing changed, nothing moved more than
-    /// [`SETTLED_MOVE_SPANS`] spacings).
+    /// Whether the points are settled: scans over the whole set since the last change
+    /// inserted and removed nothing, and nothing moved more than [`SETTLED_MOVE_SPANS`]
+    /// spacings.
     pub settled: bool,
 }
 
@@ -158,8 +164,10 @@ pub struct PointFollower {
     colours: Vec<[u8; 3]>,
     radii: Vec<f32>,
     options: FollowOptions,
-    /// Where the next insertion scan starts.
+    /// Where the next scan starts.
     cursor: usize,
+    /// Points scanned since the last change (settled once it covers the set).
+    clean_scanned: usize,
     gone: Vec<bool>,
     sites: Vec<Vec2>,
     added: Vec<Vec3>,
@@ -228,6 +236,7 @@ impl PointFollower {
             colours,
             options,
             cursor: 0,
+            clean_scanned: 0,
             gone: Vec::new(),
             sites: Vec::with_capacity(NEIGHBOURS + 8),
             added: Vec::new(),
@@ -265,8 +274,10 @@ impl PointFollower {
         &self.options
     }
 
-    /// One update on `field`: every point onto the zero set (eq. 9), then at most
-    /// [`FollowOptions::max_changes`] removals and insertions (§4.3), and the splat radii.
+    /// One update on `field`: every point onto the zero set (eq. 9), then a scan of the next
+    /// [`FollowOptions::scan_per_update`] points (round robin) that removes crowded
+    /// neighbours, inserts points where the surface stretched (at most
+    /// [`FollowOptions::max_changes`] changes in all) and refreshes their splat radii.
     ///
     /// # Errors
     /// [`PointSetError::Index`] when the k-d tree cannot be built.
@@ -275,11 +286,18 @@ impl PointFollower {
         let mut report = FollowReport::default();
         let mut budget = self.options.max_changes;
 
-        // Eq. (9): onto the zero set along the normal; points the clay lost are removed.
+        // Eq. (9): onto the zero set along the normal; points the clay lost are removed. A
+        // point already on it (to a ten-thousandth of the spacing) costs one evaluation.
         self.gone.clear();
         self.gone.resize(self.positions.len(), false);
         for i in 0..self.positions.len() {
             let p = self.positions[i];
+            let (s, g) = sample(field, p);
+            let gl = g.length();
+            if gl > 1e-10 && s.is_finite() && s.abs() <= 1e-4 * h * gl {
+                self.normals[i] = -g / gl;
+                continue;
+            }
             match project(field, p, self.options.newton_steps, MAX_STEP_SPANS * h) {
                 Some((x, off, n)) if off <= LOST_SPANS * h => {
                     report.moved_max_m = report.moved_max_m.max((x - p).length());
@@ -295,45 +313,22 @@ impl PointFollower {
         }
         report.removed += self.compact();
 
-        // Removal of crowded points.
-        if self.positions.len() > 1 && budget > 0 {
-            let tree = self.tree()?;
-            let r = self.options.remove_below * h;
-            self.gone.clear();
-            self.gone.resize(self.positions.len(), false);
-            'scan: for i in 0..self.positions.len() {
-                if self.gone[i] {
-                    continue;
-                }
-                let close = tree
-                    .query(&self.coords[i])
-                    .within::<SquaredEuclidean<f32>>(r * r)
-                    .unsorted()
-                    .execute();
-                for c in close {
-                    let j = c.item as usize;
-                    if j > i && !self.gone[j] {
-                        self.gone[j] = true;
-                        budget -= 1;
-                        if budget == 0 {
-                            break 'scan;
-                        }
-                    }
-                }
-            }
-            report.removed += self.compact();
-        }
-
-        // Insertion where the surface stretched, and every point's splat radius.
+        // One pass over the window: crowded neighbours go, stretched cells get a point.
         let count = self.positions.len();
+        let window = self.options.scan_per_update.clamp(1, count.max(1));
         if count > 0 {
             let tree = self.tree()?;
             let want = NonZero::new(NEIGHBOURS + 1).unwrap_or(NonZero::<usize>::MIN);
+            let crowd = (self.options.remove_below * h).powi(2);
+            self.gone.clear();
+            self.gone.resize(count, false);
             self.added.clear();
             let start = self.cursor % count;
-            let mut next_cursor = start;
-            for step in 0..count {
+            for step in 0..window {
                 let i = (start + step) % count;
+                if self.gone[i] {
+                    continue;
+                }
                 let p = self.positions[i];
                 let n = self.normals[i];
                 let t1 = n.any_orthonormal_vector();
@@ -345,10 +340,16 @@ impl PointFollower {
                     .execute();
                 for r in found {
                     let j = r.item as usize;
-                    if j != i && r.distance < 9.0 * h * h {
-                        let d = self.positions[j] - p;
-                        self.sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
+                    if j == i || self.gone[j] || r.distance >= 9.0 * h * h {
+                        continue;
                     }
+                    if r.distance < crowd && budget > 0 {
+                        self.gone[j] = true;
+                        budget -= 1;
+                        continue;
+                    }
+                    let d = self.positions[j] - p;
+                    self.sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                 }
                 for &q in &self.added {
                     let d = q - p;
@@ -359,7 +360,7 @@ impl PointFollower {
                 let v = farthest_voronoi_vertex(&self.sites, 3.0 * h);
                 let r = v.length();
                 self.radii[i] = r.clamp(0.5 * h, 1.5 * h);
-                let room = budget > 0 && self.positions.len() < self.options.max_points;
+                let room = budget > 0 && count + self.added.len() < self.options.max_points;
                 if r <= self.options.insert_above * h || !room {
                     continue;
                 }
@@ -384,13 +385,20 @@ impl PointFollower {
                 self.added.push(y);
                 report.inserted += 1;
                 budget -= 1;
-                next_cursor = i + 1;
             }
-            self.cursor = next_cursor;
+            self.cursor = (start + window) % count;
+            self.gone.resize(self.positions.len(), false);
+            report.removed += self.compact();
         }
-        report.settled = report.inserted == 0
-            && report.removed == 0
-            && report.moved_max_m <= SETTLED_MOVE_SPANS * h;
+        let changed = report.inserted > 0
+            || report.removed > 0
+            || report.moved_max_m > SETTLED_MOVE_SPANS * h;
+        self.clean_scanned = if changed {
+            0
+        } else {
+            self.clean_scanned + window
+        };
+        report.settled = !changed && self.clean_scanned >= self.positions.len();
         Ok(report)
     }
 
@@ -644,6 +652,16 @@ mod tests {
     /// per update), and once settled the spacing is within 1.5× of the target everywhere.
     #[test]
     fn points_follow_a_push_onto_the_new_zero_set_and_keep_their_spacing() {
+        follow_a_push(None);
+    }
+
+    /// The same with a scan window of 300 points: more updates, the same end.
+    #[test]
+    fn a_small_scan_window_reaches_the_same_spacing_over_more_updates() {
+        follow_a_push(Some(300));
+    }
+
+    fn follow_a_push(window: Option<usize>) {
         let cloud = sphere_points(1500);
         let (set, _) = PointSet::build(&cloud, &PointSetOptions::default()).unwrap();
         let h = set.spacing_m;
@@ -651,15 +669,18 @@ mod tests {
         let after = radial_clay(pushed);
         let mut points = FollowedPoints::of_set(&set);
         points.colours[0] = [255, 0, 0];
-        let options = points.options.unwrap();
+        let mut options = points.options.unwrap();
         assert_eq!(options.target_m, h);
+        if let Some(w) = window {
+            options.scan_per_update = w;
+        }
         let mut f = PointFollower::new(points, options).unwrap();
 
         let first = f.update(&before).unwrap();
         assert!(first.moved_max_m < 0.1 * h, "{first:?}");
 
         let (mut inserted, mut removed, mut settled) = (0, 0, false);
-        for _ in 0..200 {
+        for _ in 0..400 {
             let r = f.update(&after).unwrap();
             assert!(
                 r.inserted + r.removed <= options.max_changes,
