@@ -449,8 +449,10 @@ pub struct PointSetFollower<S: MeshSink> {
 }
 
 impl<S: MeshSink> PointSetFollower<S> {
-    /// Idle updates taken after each change of the clay, at most.
-    pub const SETTLE_UPDATES: usize = 30;
+    /// Idle updates taken after each change of the clay, at most (each bounded; they stop
+    /// as soon as the points are settled). A large push on 36k points takes a few hundred
+    /// updates to resample, as the window comes round to the stretched part.
+    pub const SETTLE_UPDATES: usize = 600;
 
     /// Follows the point sets that arrive on `incoming` (none at first), publishing on
     /// `writer`.
