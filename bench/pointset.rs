@@ -10,14 +10,22 @@
 //!   (eq. 9); the median over 200 steps after 20 to warm up. The paper's figure includes the
 //!   whole update; ours are given apart and together.
 //!
+//! - The live follower (no table in the paper): a point set on a clay lattice follows it in
+//!   the GUI's graphics loop (`PointFollower::update`: eq. 9 as Newton steps on the clay, then
+//!   at most 256 insertions or removals); one update on a still clay, and the updates after a
+//!   push until the points settle.
+//!
 //! Optimistic where: the clouds are clean spheres (no noise, no duplicates), and the update
 //! runs on one thread with the region already set up.
 
 use std::time::Instant;
 
 use dynaclay::dynamics::{Distribution, Material, ToolForce, surface_point_on_ray};
+use dynaclay::field::{BSplineLattice, MultiPatchField, fit_lattice};
 use dynaclay::fit::PointCloud;
-use dynaclay::pointset::{PointSet, PointSetOptions, PointSetSculpt, SculptOptions};
+use dynaclay::pointset::{
+    FollowedPoints, PointFollower, PointSet, PointSetOptions, PointSetSculpt, SculptOptions,
+};
 use glam::Vec3;
 
 fn sphere(count: usize, radius: f32) -> PointCloud {
@@ -175,4 +183,65 @@ fn main() {
     );
     construction();
     update();
+    follow();
+}
+
+/// A clay lattice over `± 2` (35³ coefficients) whose surface is `|x| = radius(x / |x|)`.
+fn radial_clay(radius: impl Fn(Vec3) -> f32) -> MultiPatchField {
+    let spacing = 0.125;
+    let mut lattice =
+        BSplineLattice::zeros([35; 3], spacing, Vec3::splat(-2.0 - spacing)).expect("lattice");
+    fit_lattice(&mut lattice, 2, |x| {
+        let dir = x.try_normalize().unwrap_or(Vec3::X);
+        (0.5 - (x.length() - radius(dir)) / 0.3).clamp(0.0, 1.0)
+    })
+    .expect("fit");
+    lattice.iso = 0.5;
+    MultiPatchField::from(lattice)
+}
+
+fn follow() {
+    println!("\n### The live follower (graphics loop), unit sphere on a 35³ clay lattice\n");
+    println!(
+        "| points | still clay, per update (median of 20) | after a push: updates to settle | \
+         slowest update | inserted | points after |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- |");
+    let still = radial_clay(|_| 1.0);
+    let pushed = radial_clay(|d| 1.0 + 0.35 * (-(d - Vec3::X).length_squared() / 0.25).exp());
+    for count in [4348usize, 35_947] {
+        let (set, _) =
+            PointSet::build(&sphere(count, 1.0), &PointSetOptions::default()).expect("builds");
+        let points = FollowedPoints::of_set(&set);
+        let options = points.options.expect("options");
+        let mut f = PointFollower::new(points, options).expect("follower");
+        for _ in 0..50 {
+            if f.update(&still).expect("update").settled {
+                break;
+            }
+        }
+        let mut times = Vec::new();
+        for _ in 0..20 {
+            let t = Instant::now();
+            f.update(&still).expect("update");
+            times.push(t.elapsed().as_secs_f64());
+        }
+        let (mut updates, mut slowest, mut inserted) = (0, 0.0f64, 0);
+        for _ in 0..500 {
+            let t = Instant::now();
+            let r = f.update(&pushed).expect("update");
+            slowest = slowest.max(t.elapsed().as_secs_f64());
+            updates += 1;
+            inserted += r.inserted;
+            if r.settled {
+                break;
+            }
+        }
+        println!(
+            "| {count} | {:.2} ms | {updates} | {:.2} ms | {inserted} | {} |",
+            median(times) * 1e3,
+            slowest * 1e3,
+            f.positions().len()
+        );
+    }
 }

@@ -45,13 +45,17 @@ use crate::engine::{
     LoadRefused, MeshSink, PushTool, StartOptions,
 };
 use crate::field::MultiPatchField;
-use crate::fit::{FitProgress, ImportError, ImportSettings, import_session};
+use crate::fit::{
+    FitProgress, ImportError, ImportSettings, import_cloud, import_session, imported_session,
+    is_point_cloud,
+};
 use crate::io::{Autosave, AutosavePolicy, Session, load_session, save_session};
 use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
 use crate::particles::ParticleFollower;
 use crate::rbf::CompactSettings;
+use crate::pointset::{FollowedPoints, PointSet, PointSetFollower, PointSetOptions};
 use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
@@ -62,6 +66,9 @@ const BRIDGE_PERIOD: Duration = Duration::from_millis(10);
 /// Particle steps per update of the clay (and per idle update while they settle), a fixed
 /// budget on the graphics loop.
 const PARTICLE_STEPS_PER_UPDATE: usize = 2;
+
+/// Point sets handed to the graphics loop and not yet taken, at most (it takes the newest).
+const POINT_SETS_QUEUED: usize = 4;
 
 /// How long a device switch waits for the haptic loop to take the new device.
 const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
@@ -231,10 +238,15 @@ pub fn start_bridge(
         meshes,
         field,
         particles,
+        points,
         repaint,
     } = endpoint;
     let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
     let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
+    // No point set until a point cloud is loaded: then the bridge hands its points over and
+    // they follow each new copy of the clay on the graphics loop.
+    let (points_tx, points_rx) = bounded(POINT_SETS_QUEUED);
+    let sink = PointSetFollower::new(sink, points_rx, points);
     // Off until the app turns the particles on: then the follower takes its fixed budget of
     // steps on each new copy of the clay (and a bounded number of idle updates after it).
     let sink = ParticleFollower::with_handles(
@@ -269,6 +281,7 @@ pub fn start_bridge(
         pins_list: None,
         pin_lines: Vec::new(),
         pin_marks: Vec::new(),
+        points: points_tx,
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -316,6 +329,9 @@ struct PendingLoad {
     reply: Receiver<Result<String, CommandError>>,
     session: Option<Box<Session>>,
     source: PathBuf,
+    /// The loaded point set, handed to the graphics loop once the clay is in (`None`: the
+    /// load brings none, and the points shown so far go).
+    points: Option<Box<FollowedPoints>>,
 }
 
 struct Bridge {
@@ -354,6 +370,8 @@ struct Bridge {
     pin_lines: Vec<String>,
     /// Where the pins are (see [`EngineView::pin_marks`]).
     pin_marks: Vec<Vec<Vec3>>,
+    /// Point sets for the graphics loop's follower (`None`: drop the points).
+    points: Sender<Option<Box<FollowedPoints>>>,
 }
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
@@ -484,6 +502,12 @@ impl Bridge {
     /// log); the result is offered to the running simulation, and a refusal for its layout
     /// restarts the engine on it (see [`Bridge::poll_loads`]).
     fn load(&mut self, path: &Path) {
+        if is_point_cloud(path) {
+            return match self.import_points(path) {
+                Ok((session, points)) => self.offer(session, path, true, points),
+                Err(error) => self.fail("load", error),
+            };
+        }
         let session = if crate::fit::is_importable(path) {
             match self.import(path) {
                 Ok(s) => s,
@@ -495,7 +519,70 @@ impl Bridge {
                 Err(e) => return self.fail("load", CommandError::Read(e).to_string()),
             }
         };
-        self.offer(session, path, true);
+        self.offer(session, path, true, None);
+    }
+
+    /// Fits a point cloud as [`Bridge::import`] does and builds its point-set surface (Guo &
+    /// Qin §3) in the clay's units, here on the bridge thread: the clay is the fit, and the
+    /// points, with their normals (oriented over a spanning tree when the file has none),
+    /// follow it. A cloud whose point set cannot be built still loads its clay (the log says
+    /// why it has no points).
+    fn import_points(&self, path: &Path) -> Result<(Session, Option<Box<FollowedPoints>>), String> {
+        let events = &self.events;
+        let say = |detail: String| {
+            let _ = events.send(EngineEvent::Done {
+                what: "load".into(),
+                detail,
+            });
+        };
+        say(format!("importing {}", path.display()));
+        let mut last_depth = None;
+        let imported = import_cloud(
+            path,
+            &ImportSettings::default(),
+            &mut |stage| {
+                match stage {
+                    FitProgress::Signing => say("signing the points".into()),
+                    FitProgress::Base => say("fitting the base lattice".into()),
+                    FitProgress::Detail { depth, of, .. } => {
+                        if last_depth != Some(depth) {
+                            last_depth = Some(depth);
+                            say(format!("depth {depth}: fitting {of} detail patches"));
+                        }
+                    }
+                }
+                true
+            },
+            &mut |line| say(line),
+        )
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+        let cloud = imported.cloud_in_field_units();
+        let points = match PointSet::build(&cloud, &PointSetOptions::default()) {
+            Ok((mut set, times)) => {
+                if let Some(colours) = imported.colours.as_ref().filter(|c| c.len() == set.len()) {
+                    set.colours.clone_from(colours);
+                }
+                say(format!(
+                    "point set: {} points, spacing {:.4}, built in {:.0} ms; shown as splats \
+                     following the clay",
+                    set.len(),
+                    set.spacing_m,
+                    times.total_ns() as f64 / 1e6
+                ));
+                Some(Box::new(FollowedPoints::of_set(&set)))
+            }
+            Err(e) => {
+                self.fail(
+                    "load",
+                    format!("{}: no point set ({e}); the clay loads", path.display()),
+                );
+                None
+            }
+        };
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::SystemTime::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        Ok((imported_session(imported.fit.field, path, now), points))
     }
 
     /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its
@@ -545,7 +632,13 @@ impl Bridge {
 
     /// Offers `session` to the running simulation; with `retry`, a refusal for its layout
     /// restarts the engine on it.
-    fn offer(&mut self, session: Session, source: &Path, retry: bool) {
+    fn offer(
+        &mut self,
+        session: Session,
+        source: &Path,
+        retry: bool,
+        points: Option<Box<FollowedPoints>>,
+    ) {
         let (tx, rx) = bounded(1);
         let kept = (retry && self.restart.is_some()).then(|| Box::new(session.clone()));
         let sent = self.engine().commands().send(Command::Load {
@@ -560,6 +653,7 @@ impl Bridge {
             reply: rx,
             session: kept,
             source: source.to_path_buf(),
+            points,
         });
     }
 
@@ -568,6 +662,7 @@ impl Bridge {
     fn poll_loads(&mut self) {
         let mut restart = None;
         let events = &self.events;
+        let points = &self.points;
         self.loads.retain_mut(|pending| {
             let answer = match pending.reply.try_recv() {
                 Ok(answer) => answer,
@@ -575,14 +670,22 @@ impl Bridge {
                 Err(crossbeam::channel::TryRecvError::Disconnected) => Err(CommandError::Stopped),
             };
             let event = match answer {
-                Ok(detail) => EngineEvent::Done {
-                    what: "load".into(),
-                    detail,
-                },
+                Ok(detail) => {
+                    // The clay is in: its points (or none) follow it from now on. A full
+                    // queue means the graphics loop stalled; it takes the newest when back.
+                    let _ = points.try_send(pending.points.take());
+                    EngineEvent::Done {
+                        what: "load".into(),
+                        detail,
+                    }
+                }
                 Err(CommandError::Load(
                     LoadRefused::PatchLayout { .. } | LoadRefused::LatticeMismatch { .. },
                 )) if pending.session.is_some() && restart.is_none() => {
-                    restart = pending.session.take().map(|s| (s, pending.source.clone()));
+                    restart = pending
+                        .session
+                        .take()
+                        .map(|s| (s, pending.source.clone(), pending.points.take()));
                     return false;
                 }
                 Err(error) => EngineEvent::Failed {
@@ -593,8 +696,8 @@ impl Bridge {
             let _ = events.send(event);
             false
         });
-        if let Some((session, source)) = restart {
-            self.restart_on(*session, &source);
+        if let Some((session, source, points)) = restart {
+            self.restart_on(*session, &source, points);
         }
     }
 
@@ -602,7 +705,7 @@ impl Bridge {
     /// [`RestartSettings::keep_replaced_at`]) and starts a new one on `session`'s clay with
     /// the same device, force limit and haptic gain; the session's paint, pins and material
     /// are then installed by a load, as at launch.
-    fn restart_on(&mut self, session: Session, source: &Path) {
+    fn restart_on(&mut self, session: Session, source: &Path, points: Option<Box<FollowedPoints>>) {
         let what = "load";
         let Some(settings) = self.restart.clone() else {
             return self.fail(what, "the engine cannot restart here".into());
@@ -711,7 +814,7 @@ impl Bridge {
                 density.patches.len()
             ),
         });
-        self.offer(session, source, false);
+        self.offer(session, source, false, points);
     }
 
     /// Makes the device `spec` names and switches the running engine to it (the force limit

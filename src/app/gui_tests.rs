@@ -1105,3 +1105,141 @@ fn the_particles_switch_and_n_reach_the_followers_handles() {
     assert!(!on.load(Ordering::Relaxed));
     assert_eq!(count.load(Ordering::Relaxed), 5000, "N is kept while off");
 }
+
+/// A point cloud loaded in the running app: the bridge fits the clay and builds the point
+/// set, the graphics loop's follower publishes its points, and the panel's Splats / Mesh
+/// switch decides what the renderer gets (splats and no mesh, or the mesh and no splats).
+#[test]
+fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
+    use std::time::{Duration, Instant};
+
+    use dynaclay_devices::{DeviceError, HapticDevice, SimArmConfig, SimulatedArm, Trajectory};
+
+    use super::bridge::{RestartSettings, start_bridge};
+    use super::state::PointsDisplay;
+    use crate::engine::{Engine, EngineConfig, build_clay};
+    use crate::io::{ClayShape, ClaySpec};
+
+    let field = build_clay(&ClaySpec {
+        shape: ClayShape::Sphere,
+        resolution: 12,
+        ..ClaySpec::default()
+    })
+    .unwrap();
+    let arm = SimArmConfig::default();
+    let info = arm.info.clone();
+    let mut config = EngineConfig::for_field(&field, &info);
+    config.haptic_rt_priority = None;
+    let device: Box<dyn HapticDevice> = Box::new(SimulatedArm::new(
+        arm,
+        Trajectory::hold(glam::Vec3::splat(-0.09)),
+    ));
+    let dir = tempfile::tempdir().unwrap();
+    let restart = RestartSettings {
+        config,
+        autosave: None,
+        keep_replaced_at: dir.path().join("replaced.dclay"),
+    };
+
+    // 600 points on a sphere with normals, half of them red, as binary PLY.
+    let n = 600;
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let points: Vec<glam::Vec3> = (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - y * y).sqrt();
+            let t = golden * i as f32;
+            glam::Vec3::new(r * t.cos(), y, r * t.sin()) * 2.0
+        })
+        .collect();
+    let normals: Vec<glam::Vec3> = points.iter().map(|p| p.normalize()).collect();
+    let colours: Vec<[u8; 3]> = (0..n)
+        .map(|i| {
+            if i % 2 == 0 {
+                [220, 30, 30]
+            } else {
+                [200, 200, 200]
+            }
+        })
+        .collect();
+    let ply = dir.path().join("ball.ply");
+    crate::pointset::write_point_ply(&ply, &points, &normals, &colours).unwrap();
+
+    let (link, endpoint) = engine_link();
+    let opener: super::bridge::DeviceOpener = Box::new(|spec: &DeviceSpec| {
+        Err(DeviceError::NotFound {
+            what: format!("{spec} in this test"),
+        }
+        .into())
+    });
+    let bridge = start_bridge(endpoint, info, opener, Some(restart), |sink| {
+        Engine::start(&config, field.clone(), device, sink)
+    })
+    .unwrap();
+    let mut app = SculptApp::new(link);
+    app.files.session = ply.display().to_string();
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1400.0, 1000.0))
+        .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
+    h.run();
+    assert!(
+        h.query_by_role_and_label(Role::RadioButton, "Splats")
+            .is_none(),
+        "no point-set switch before a point set is loaded"
+    );
+    h.get_by_label("Load").click();
+    h.run();
+
+    // A generous bound only against a hang; nothing is timed.
+    let start = Instant::now();
+    let loaded = |h: &mut Harness<'static, SculptApp>| {
+        let p = &h.state_mut().link.points().value;
+        p.loaded && !p.positions.is_empty()
+    };
+    while !loaded(&mut h) {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no point set; log {:?}",
+            h.state().log
+        );
+        std::thread::sleep(Duration::from_millis(20));
+        h.run();
+    }
+    let view = h.state_mut().link.points().value.clone();
+    assert_eq!(view.positions.len(), view.radii.len());
+    assert!(view.colours.contains(&[220, 30, 30]), "the file's colours");
+    assert!(view.spacing_m > 0.0);
+    assert!(
+        h.state()
+            .log
+            .iter()
+            .any(|l| l.contains("point set: 600 points")),
+        "{:?}",
+        h.state().log
+    );
+
+    // Splats by default: the renderer gets splats and no mesh.
+    h.run();
+    assert_eq!(h.state().display.points_as, PointsDisplay::Splats);
+    let input = h.state().scene_input;
+    assert!(input.splats > 0 && input.chunks == 0, "{input:?}");
+
+    // Mesh: the clay's chunks, no splats (once the new engine's meshes arrive).
+    h.get_by_role_and_label(Role::RadioButton, "Mesh").click();
+    h.run();
+    assert_eq!(h.state().display.points_as, PointsDisplay::Mesh);
+    let start = Instant::now();
+    while h.state().scene_input.chunks == 0 {
+        assert!(start.elapsed() < Duration::from_secs(120), "no mesh");
+        std::thread::sleep(Duration::from_millis(20));
+        h.run();
+    }
+    assert_eq!(h.state().scene_input.splats, 0);
+
+    h.get_by_role_and_label(Role::RadioButton, "Splats").click();
+    h.run();
+    let input = h.state().scene_input;
+    assert!(input.splats > 0 && input.chunks == 0, "{input:?}");
+    drop(h);
+    bridge.stop().unwrap();
+}

@@ -20,6 +20,7 @@ use super::meshes::MeshSet;
 use super::view::EngineView;
 use crate::field::{BSplineLattice, MultiPatchField};
 use crate::particles::ParticleView;
+use crate::pointset::PointSetView;
 
 /// The particle count a new link asks for.
 pub const DEFAULT_PARTICLES: usize = 2000;
@@ -78,6 +79,7 @@ pub struct EngineLink {
     particles: SnapshotReader<ParticleView>,
     particle_count: Arc<AtomicUsize>,
     particles_on: Arc<AtomicBool>,
+    points: SnapshotReader<PointSetView>,
     repaint: RepaintSignal,
 }
 
@@ -100,6 +102,8 @@ pub struct EngineEndpoint {
     pub field: SnapshotWriter<MultiPatchField>,
     /// The particles shown on the clay (off until the app turns them on).
     pub particles: ParticleEndpoint,
+    /// The loaded point set as it follows the clay (see [`crate::pointset::PointSetFollower`]).
+    pub points: SnapshotWriter<PointSetView>,
     pub repaint: RepaintSignal,
 }
 
@@ -123,6 +127,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
     let (particles_tx, particles_rx) = snapshot_channel(&ParticleView::default());
     let particle_count = Arc::new(AtomicUsize::new(DEFAULT_PARTICLES));
     let particles_on = Arc::new(AtomicBool::new(false));
+    let (points_tx, points_rx) = snapshot_channel(&PointSetView::default());
     let repaint = RepaintSignal::default();
     (
         EngineLink {
@@ -134,6 +139,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             particles: particles_rx,
             particle_count: Arc::clone(&particle_count),
             particles_on: Arc::clone(&particles_on),
+            points: points_rx,
             repaint: repaint.clone(),
         },
         EngineEndpoint {
@@ -147,6 +153,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
                 count: particle_count,
                 on: particles_on,
             },
+            points: points_tx,
             repaint,
         },
     )
@@ -230,6 +237,11 @@ impl EngineLink {
     #[must_use]
     pub fn particle_count(&self) -> usize {
         self.particle_count.load(Ordering::Relaxed)
+    }
+
+    /// The newest published point set (wait-free; not loaded until a point cloud is).
+    pub fn points(&mut self) -> &Stamped<PointSetView> {
+        self.points.latest()
     }
 
     /// The signal the engine uses to wake the app.

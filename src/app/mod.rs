@@ -39,7 +39,7 @@ pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
 pub use run::{GuiError, GuiOptions, run_gui};
-pub use state::{DisplaySettings, FilePaths, SculptApp};
+pub use state::{DisplaySettings, FilePaths, PointsDisplay, SceneInput, SculptApp};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
 pub use viewport::SceneView;
 

@@ -12,8 +12,8 @@ use std::time::{Duration, Instant};
 use crate::dynamics::Material;
 use crate::mesh::MeshFormat;
 use crate::render::{
-    BoxOverlay, Camera, ForceOverlay, MeshChunk, SceneOptions, Shading, ToolOverlay, ToolStyle,
-    Trackball, bounds_of,
+    BoxOverlay, Camera, Disc, ForceOverlay, MeshChunk, SceneOptions, Shading, ToolOverlay,
+    ToolStyle, Trackball, bounds_of, particle_discs, splat_discs,
 };
 
 use super::camera_input::SpaceMouseCamera;
@@ -28,7 +28,11 @@ use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
 use super::probe_panel::ProbePanel;
 use super::view::{EngineView, WorldBox};
-use super::viewport::{SceneView, camera_input};
+use super::viewport::{DiscKey, SceneView, camera_input};
+
+/// Set in the mesh version handed to the view while splats hide the mesh, so the view drops
+/// the chunks and takes them again when the mesh comes back.
+const HIDDEN_MESH_VERSION: u64 = 1 << 63;
 
 /// Lines kept in the message log.
 const LOG_LEN: usize = 50;
@@ -45,6 +49,29 @@ pub struct DisplaySettings {
     pub force_arrow_per_n: f32,
     pub show_workspace: bool,
     pub show_region: bool,
+    /// How a loaded point set is shown.
+    pub points_as: PointsDisplay,
+}
+
+/// How a loaded point set is shown: its points as splats, or the clay they follow meshed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PointsDisplay {
+    /// Oriented discs in each point's colour, sized by the local spacing; the mesh is hidden.
+    #[default]
+    Splats,
+    /// The clay's mesh (the surface the points follow); no splats.
+    Mesh,
+}
+
+/// What the last frame handed the renderer (also set without a GPU, where nothing is drawn).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SceneInput {
+    /// Mesh chunks drawn.
+    pub chunks: usize,
+    /// Point-set splats drawn.
+    pub splats: usize,
+    /// Particle discs drawn.
+    pub particles: usize,
 }
 
 impl Default for DisplaySettings {
@@ -56,6 +83,7 @@ impl Default for DisplaySettings {
             force_arrow_per_n: 0.05,
             show_workspace: true,
             show_region: true,
+            points_as: PointsDisplay::Splats,
         }
     }
 }
@@ -138,6 +166,11 @@ pub struct SculptApp {
     pub compact_on: bool,
     /// Its particle count `N` (0 until [`SculptApp::new`] sets the default).
     pub compact_particles: usize,
+    /// What the last frame handed the renderer.
+    pub scene_input: SceneInput,
+    /// The discs of the last frame (particles and splats), rebuilt when their key changes.
+    discs: Vec<Disc>,
+    disc_key: DiscKey,
 }
 
 /// The particle counts the panel offers.
@@ -367,6 +400,11 @@ impl SculptApp {
                             self.particles_ui(ui);
                             self.compact_ui(ui);
                         });
+                    if self.link.points().value.loaded {
+                        egui::CollapsingHeader::new("Point set")
+                            .default_open(true)
+                            .show(ui, |ui| self.points_ui(ui));
+                    }
                     egui::CollapsingHeader::new("Device")
                         .default_open(true)
                         .show(ui, |ui| self.device_ui(ui));
@@ -670,6 +708,20 @@ impl SculptApp {
         }
     }
 
+    /// A loaded point set: splats or the meshed clay, and how many points follow it.
+    fn points_ui(&mut self, ui: &mut egui::Ui) {
+        let d = &mut self.display;
+        ui.horizontal(|ui| {
+            ui.radio_value(&mut d.points_as, PointsDisplay::Splats, "Splats")
+                .on_hover_text("The points as oriented discs in their colours");
+            ui.radio_value(&mut d.points_as, PointsDisplay::Mesh, "Mesh")
+                .on_hover_text("The clay the points follow, meshed");
+        });
+        let p = &self.link.points().value;
+        let state = if p.settled { "settled" } else { "following" };
+        ui.weak(format!("{} points, {state}", p.positions.len()));
+    }
+
     fn display_ui(&mut self, ui: &mut egui::Ui) {
         use crate::render::EnvironmentMode as E;
         let d = &mut self.display;
@@ -727,10 +779,20 @@ impl SculptApp {
             ui.ctx().request_repaint();
         }
         let options = self.scene_options();
-        let (meshes, particles) = self.link.scene();
-        let mesh_version = meshes.version;
-        let chunks: Vec<MeshChunk<'_>> = meshes.value.iter().map(|c| c.as_chunk()).collect();
+        self.update_discs();
+        let splats_only =
+            self.display.points_as == PointsDisplay::Splats && self.disc_key.points != 0;
+        let (meshes, _) = self.link.scene();
+        let mut chunks: Vec<MeshChunk<'_>> = meshes.value.iter().map(|c| c.as_chunk()).collect();
         let bounds = bounds_of(&chunks);
+        // Splats replace the mesh: its chunks leave the GPU under a version of their own.
+        let mesh_version = if splats_only {
+            chunks.clear();
+            meshes.version | HIDDEN_MESH_VERSION
+        } else {
+            meshes.version
+        };
+        self.scene_input.chunks = chunks.len();
         let frame_now = response.double_clicked() || (!self.framed && bounds.is_some());
         if frame_now && let Some((lo, hi)) = bounds {
             self.camera.frame_box(lo, hi);
@@ -781,19 +843,7 @@ impl SculptApp {
         let Some(scene) = self.scene.as_mut() else {
             return;
         };
-        // Off, the view holds no discs and nothing is read or uploaded (key 0).
-        if let Some(particles) = particles {
-            let p = &particles.value;
-            scene.set_particles(
-                rs,
-                particles.version + 1,
-                &p.positions,
-                &p.normals,
-                &p.radii,
-            );
-        } else {
-            scene.set_particles(rs, 0, &[], &[], &[]);
-        }
+        scene.set_discs(rs, self.disc_key, &self.discs);
         let texture = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
         let problem = scene.problem();
         if let Some(texture) = texture {
@@ -816,6 +866,46 @@ impl SculptApp {
                 ui.visuals().warn_fg_color,
             );
         }
+    }
+
+    /// Rebuilds this frame's discs when the particles, the point set or the display mode
+    /// changed: the particles when they are on, the splats when a point set is loaded and
+    /// shown as splats.
+    fn update_discs(&mut self) {
+        let splats = self.display.points_as == PointsDisplay::Splats;
+        let (_, particles) = self.link.scene();
+        let particles_key = particles.map_or(0, |p| p.version + 1);
+        let points = self.link.points();
+        let points_key = if points.value.loaded && splats {
+            points.version + 1
+        } else {
+            0
+        };
+        let key = DiscKey {
+            particles: particles_key,
+            points: points_key,
+        };
+        if key == self.disc_key {
+            return;
+        }
+        self.disc_key = key;
+        self.discs.clear();
+        if points_key != 0 {
+            let p = &self.link.points().value;
+            splat_discs(
+                &mut self.discs,
+                &p.positions,
+                &p.normals,
+                &p.colours,
+                &p.radii,
+            );
+        }
+        self.scene_input.splats = self.discs.len();
+        if let (_, Some(particles)) = self.link.scene() {
+            let p = &particles.value;
+            particle_discs(&mut self.discs, &p.positions, &p.normals, &p.radii);
+        }
+        self.scene_input.particles = self.discs.len() - self.scene_input.splats;
     }
 
     /// The 3D view's problem, if it has one (a refused size or mesh, a failed frame, or a

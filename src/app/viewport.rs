@@ -12,11 +12,11 @@
 //! engine, the sculpt and the rest of the window carry on. A refused size keeps the last
 //! size's image; a refused mesh is not retried until the engine publishes a new one.
 
-use glam::{Vec2, Vec3};
+use glam::Vec2;
 
 use crate::render::{
-    Camera, MeshChunk, OFFSCREEN_FORMAT, ParticleDisc, RenderError, SceneOptions, SceneRenderer,
-    Trackball, guarded_on, particle_discs, supported_sample_count,
+    Camera, Disc, MeshChunk, OFFSCREEN_FORMAT, RenderError, SceneOptions, SceneRenderer, Trackball,
+    guarded_on, supported_sample_count,
 };
 
 use super::camera_input::{drag_pan, drag_rotate, scroll_zoom};
@@ -27,8 +27,16 @@ struct RenderedKey {
     camera: Camera,
     options: SceneOptions,
     mesh_version: u64,
-    particles: u64,
+    discs: DiscKey,
     size: (u32, u32),
+}
+
+/// Which discs are on the GPU: the particles' and the point set's publication versions (0:
+/// none of that kind).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DiscKey {
+    pub particles: u64,
+    pub points: u64,
 }
 
 /// The GPU side of the view.
@@ -44,12 +52,10 @@ pub struct SceneView {
     mesh_refused: Option<(u64, RenderError)>,
     /// Why the last frame could not be recorded.
     frame_failed: Option<RenderError>,
-    /// Why the GPU refused the last particle discs (none are drawn then).
-    particles_refused: Option<RenderError>,
-    /// The particle key whose discs are on the GPU (0: none).
-    particles: u64,
-    /// Discs being uploaded (kept to reuse its allocation).
-    discs: Vec<ParticleDisc>,
+    /// Why the GPU refused the last discs (none are drawn then).
+    discs_refused: Option<RenderError>,
+    /// The key whose discs are on the GPU.
+    discs: DiscKey,
 }
 
 impl SceneView {
@@ -85,36 +91,27 @@ impl SceneView {
             size_refused: None,
             mesh_refused: None,
             frame_failed: None,
-            particles_refused: None,
-            particles: 0,
-            discs: Vec::new(),
+            discs_refused: None,
+            discs: DiscKey::default(),
         })
     }
 
-    /// Puts the particles under `key` on the GPU as discs, unless that key is already there
-    /// (`key` 0 with empty slices: no particles). A buffer the GPU refuses leaves no discs and
-    /// becomes the frame's problem.
-    pub fn set_particles(
-        &mut self,
-        rs: &egui_wgpu::RenderState,
-        key: u64,
-        positions: &[Vec3],
-        normals: &[Vec3],
-        radii: &[f32],
-    ) {
-        if key == self.particles {
+    /// Puts the discs (particles, point-set splats) under `key` on the GPU, unless that key
+    /// is already there. A buffer the GPU refuses leaves no discs and becomes the frame's
+    /// problem.
+    pub fn set_discs(&mut self, rs: &egui_wgpu::RenderState, key: DiscKey, discs: &[Disc]) {
+        if key == self.discs {
             return;
         }
-        self.particles = key;
-        particle_discs(&mut self.discs, positions, normals, radii);
-        let (renderer, discs) = (&mut self.renderer, &self.discs);
-        if let Err(e) = guarded_on(&rs.device, "the particle discs", || {
-            renderer.set_particles(&rs.device, &rs.queue, discs);
+        self.discs = key;
+        let renderer = &mut self.renderer;
+        if let Err(e) = guarded_on(&rs.device, "the discs", || {
+            renderer.set_discs(&rs.device, &rs.queue, discs);
         }) {
-            self.renderer.set_particles(&rs.device, &rs.queue, &[]);
-            self.particles_refused = Some(e);
+            self.renderer.set_discs(&rs.device, &rs.queue, &[]);
+            self.discs_refused = Some(e);
         } else {
-            self.particles_refused = None;
+            self.discs_refused = None;
         }
     }
 
@@ -135,7 +132,7 @@ impl SceneView {
             camera: *camera,
             options: *options,
             mesh_version,
-            particles: self.particles,
+            discs: self.discs,
             size: self.renderer.size(),
         };
         if self.last == Some(key) {
@@ -220,8 +217,8 @@ impl SceneView {
         if let Some(e) = &self.frame_failed {
             return Some(format!("cannot draw the 3D view: {e}"));
         }
-        if let Some(e) = &self.particles_refused {
-            return Some(format!("cannot show the particles: {e}"));
+        if let Some(e) = &self.discs_refused {
+            return Some(format!("cannot show the particles or points: {e}"));
         }
         if let Some((_, e)) = &self.mesh_refused {
             return Some(format!(

@@ -21,7 +21,7 @@ use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, MAX_DEPTH, fit_hierarchy,
 };
 use super::mesh::{read_mesh, sample_triangles};
-use super::points::{PointCloud, PointsError, read_points};
+use super::points::{PointCloud, PointColours, PointsError, read_points_with_colours};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
 use super::volume::{
     Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
@@ -192,13 +192,68 @@ pub fn fit_import(
         Some("raw") => fit_volume_file(path, settings, false, progress, note),
         Some("obj" | "stl") => fit_mesh_file(path, settings, progress, note),
         Some("ply" | "xyz" | "txt" | "pts") => {
-            let cloud = read_points(path)?;
-            fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)
+            import_cloud(path, settings, progress, note).map(|imported| imported.fit)
         }
         _ => Err(ImportError::UnknownFormat {
             file: path.to_path_buf(),
         }),
     }
+}
+
+/// A point-cloud file fitted by [`import_cloud`]: the fit and the cloud as read.
+#[derive(Clone, Debug)]
+pub struct ImportedCloud {
+    /// The fitted clay and where the file lies in it.
+    pub fit: ImportedFit,
+    /// The points as read, in the file's units.
+    pub cloud: PointCloud,
+    /// The points' colours, when the file has them.
+    pub colours: Option<PointColours>,
+}
+
+impl ImportedCloud {
+    /// The cloud in field units (normals unchanged: the map is a uniform scale and a shift).
+    #[must_use]
+    pub fn cloud_in_field_units(&self) -> PointCloud {
+        PointCloud {
+            points: self
+                .cloud
+                .points
+                .iter()
+                .map(|&p| self.fit.to_field(p))
+                .collect(),
+            normals: self.cloud.normals.clone(),
+        }
+    }
+}
+
+/// Fits a point-cloud file (`.ply`, `.xyz`, `.txt`, `.pts`) as [`fit_file`] does, keeping the
+/// cloud, its colours and the map into field units.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn import_cloud(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedCloud, ImportError> {
+    let (cloud, colours) = read_points_with_colours(path)?;
+    let fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
+    Ok(ImportedCloud {
+        fit,
+        cloud,
+        colours,
+    })
+}
+
+/// Whether `path` names a point-cloud file by its extension (`.ply`, `.xyz`, `.txt`, `.pts`).
+#[must_use]
+pub fn is_point_cloud(path: &Path) -> bool {
+    matches!(
+        extension(path).as_deref(),
+        Some("ply" | "xyz" | "txt" | "pts")
+    )
 }
 
 fn fit_error(path: &Path, e: CloudFitError) -> ImportError {

@@ -20,10 +20,13 @@ pub use cloud::{
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use import::{
-    FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedFit, closed_mesh_grid,
-    fit_file, fit_import, import_session, imported_session, is_importable,
+    FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud, ImportedFit,
+    closed_mesh_grid, fit_file, fit_import, import_cloud, import_session, imported_session,
+    is_importable, is_point_cloud,
 };
-pub use points::{MAX_POINTS, PointCloud, PointsError, read_points};
+pub use points::{
+    MAX_POINTS, PointCloud, PointColours, PointsError, read_points, read_points_with_colours,
+};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SignedDistance, signed_distance};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,

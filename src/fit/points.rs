@@ -27,6 +27,9 @@ pub struct PointCloud {
     pub normals: Option<Vec<Vec3>>,
 }
 
+/// One 8-bit sRGB colour per point.
+pub type PointColours = Vec<[u8; 3]>;
+
 /// Why a point file was refused.
 #[derive(Debug, thiserror::Error)]
 pub enum PointsError {
@@ -81,6 +84,17 @@ pub enum PointsError {
 /// # Errors
 /// [`PointsError`] naming the file and, where it applies, the line or byte.
 pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
+    read_points_with_colours(path).map(|(cloud, _)| cloud)
+}
+
+/// [`read_points`], with the points' colours when the file has them (a PLY file with `red`,
+/// `green` and `blue` vertex properties).
+///
+/// # Errors
+/// As [`read_points`].
+pub fn read_points_with_colours(
+    path: &Path,
+) -> Result<(PointCloud, Option<PointColours>), PointsError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -95,8 +109,13 @@ pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
         }
         _ => return Err(PointsError::UnknownFormat { file }),
     };
+    let mut colours = None;
     let cloud = match ext.as_deref() {
-        Some("ply") => parse_ply(&bytes, &file)?,
+        Some("ply") => {
+            let (cloud, c) = parse_ply_with_colours(&bytes, &file)?;
+            colours = c;
+            cloud
+        }
         Some("obj" | "stl") => {
             let (vertices, triangles) = super::mesh::parse_mesh(&bytes, &file)?;
             super::mesh::sample_triangles(&vertices, &triangles, &file)?
@@ -106,7 +125,7 @@ pub fn read_points(path: &Path) -> Result<PointCloud, PointsError> {
     if cloud.points.is_empty() {
         return Err(PointsError::Empty { file });
     }
-    Ok(cloud)
+    Ok((cloud, colours))
 }
 
 /// Parses XYZ text: per line three coordinates, or six (position then normal); blank lines and
@@ -216,6 +235,18 @@ struct PlyElement {
 /// # Errors
 /// [`PointsError::Line`] for a malformed header, [`PointsError::Byte`] for malformed data.
 pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
+    parse_ply_with_colours(bytes, file).map(|(cloud, _)| cloud)
+}
+
+/// [`parse_ply`], with each vertex's colour when the vertices have `red`, `green` and `blue`
+/// (integer types are taken as 0–255, float types as 0–1).
+///
+/// # Errors
+/// As [`parse_ply`].
+pub fn parse_ply_with_colours(
+    bytes: &[u8],
+    file: &Path,
+) -> Result<(PointCloud, Option<PointColours>), PointsError> {
     let line_err = |line: usize, what: String| PointsError::Line {
         file: file.to_path_buf(),
         line,
@@ -307,6 +338,23 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
         (Some(a), Some(b), Some(c)) => Some([a, b, c]),
         _ => None,
     };
+    let colour_columns = match (column("red"), column("green"), column("blue")) {
+        (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+        _ => None,
+    };
+    // A float channel is 0..1, an integer one 0..255.
+    let colour_scale: [f64; 3] = colour_columns.map_or([1.0; 3], |cols| {
+        cols.map(|c| {
+            if matches!(
+                vertex.properties[c].1.as_str(),
+                "float" | "float32" | "double" | "float64"
+            ) {
+                255.0
+            } else {
+                1.0
+            }
+        })
+    });
     let count = vertex.count;
     if count > MAX_POINTS {
         return Err(line_err(
@@ -339,6 +387,21 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
     }
     let mut points = Vec::with_capacity(count);
     let mut normals = normal_columns.map(|_| Vec::with_capacity(count));
+    let mut colours: Option<Vec<[u8; 3]>> = colour_columns.map(|_| Vec::with_capacity(count));
+    let mut push_colour = |row: &[f64]| {
+        if let (Some(cols), Some(out)) = (colour_columns, colours.as_mut()) {
+            let mut c = [0u8; 3];
+            for a in 0..3 {
+                let v = row[cols[a]] * colour_scale[a];
+                c[a] = if v.is_finite() {
+                    v.round().clamp(0.0, 255.0) as u8
+                } else {
+                    0
+                };
+            }
+            out.push(c);
+        }
+    };
     let mut row = vec![0.0f64; vertex.properties.len()];
     match format {
         PlyFormat::Ascii => {
@@ -376,6 +439,7 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
                     normals.as_mut(),
                 )
                 .map_err(|what| line_err(here, what))?;
+                push_colour(&row);
             }
         }
         PlyFormat::BinaryLittle | PlyFormat::BinaryBig => {
@@ -399,10 +463,11 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
                     offset: at + v * row_bytes,
                     what: format!("vertex {v}: {what}"),
                 })?;
+                push_colour(&row);
             }
         }
     }
-    Ok(PointCloud { points, normals })
+    Ok((PointCloud { points, normals }, colours))
 }
 
 /// Appends one vertex row; refuses non-finite positions.

@@ -4,11 +4,16 @@
 //! grid (§4), points are inserted and removed as the surface stretches (§4.3), and booleans
 //! keep their intersection curve sharp by keeping two patches (§5.1, Table 1).
 //!
+//! [`PointSetFollower`] keeps a point set on the live engine's clay: on the graphics loop, the
+//! points follow each new copy of the clay by eq. (9) with bounded dynamic sampling, and a
+//! viewer draws them as splats.
+//!
 //! Nothing here runs on the haptic thread: construction, sampling and booleans allocate; the
 //! per-step update of [`PointSetSculpt`] allocates nothing after its set-up.
 
 mod boolean;
 mod error;
+mod follow;
 mod local;
 mod normals;
 mod ply;
@@ -19,6 +24,10 @@ mod surface;
 
 pub use boolean::{BooleanOp, SharpBoolean};
 pub use error::PointSetError;
+pub use follow::{
+    FollowOptions, FollowReport, FollowedPoints, LOST_SPANS, MAX_STEP_SPANS, PointFollower,
+    PointSetFollower, PointSetView, SETTLED_MOVE_SPANS,
+};
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
 pub use normals::{orient_over_mst, plane_normal};
 pub use ply::{encode_point_ply, write_point_ply};

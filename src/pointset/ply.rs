@@ -59,10 +59,10 @@ pub fn write_point_ply(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fit::points::parse_ply;
+    use crate::fit::points::{parse_ply, parse_ply_with_colours};
 
     #[test]
-    fn the_readers_read_back_positions_and_normals() {
+    fn the_readers_read_back_positions_normals_and_colours() {
         let points = vec![Vec3::new(1.0, 2.0, 3.0), Vec3::new(-0.5, 0.25, 8.0)];
         let normals = vec![Vec3::X, Vec3::new(0.0, 0.6, 0.8)];
         let colours = vec![[1, 2, 3], [200, 100, 50]];
@@ -71,5 +71,17 @@ mod tests {
         let back = parse_ply(&bytes, Path::new("t.ply")).unwrap();
         assert_eq!(back.points, points);
         assert_eq!(back.normals.unwrap(), normals);
+        let (_, back) = parse_ply_with_colours(&bytes, Path::new("t.ply")).unwrap();
+        assert_eq!(back, Some(colours));
+        // Float channels are 0..1; no colour properties, no colours.
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                    property float z\nproperty float red\nproperty float green\n\
+                    property float blue\nend_header\n0 0 0 1 0.5 0\n";
+        let (_, back) = parse_ply_with_colours(text.as_bytes(), Path::new("f.ply")).unwrap();
+        assert_eq!(back, Some(vec![[255, 128, 0]]));
+        let text = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n\
+                    property float z\nend_header\n0 0 0\n";
+        let (_, back) = parse_ply_with_colours(text.as_bytes(), Path::new("g.ply")).unwrap();
+        assert_eq!(back, None);
     }
 }

@@ -543,6 +543,28 @@ pub(crate) mod tests {
         );
     }
 
+    /// The neighbour lists, normals and fits split over threads give the very same surface as
+    /// one thread: each point's work reads only shared inputs and writes only its own slot.
+    #[test]
+    fn threads_build_the_same_surface_bit_for_bit() {
+        let cloud = sphere_cloud(Vec3::ZERO, 0.5, 3000);
+        let one = PointSetOptions {
+            threads: 1,
+            ..PointSetOptions::default()
+        };
+        let (a, _) = PointSet::build(&cloud, &one).unwrap();
+        for threads in [2, 3] {
+            let (b, _) = PointSet::build(&cloud, &PointSetOptions { threads, ..one }).unwrap();
+            assert_eq!(a.spacing_m.to_bits(), b.spacing_m.to_bits());
+            assert_eq!(a.normals, b.normals, "{threads} threads");
+            assert_eq!(a.fields, b.fields, "{threads} threads");
+        }
+        assert_eq!(
+            nearest_neighbours(&cloud.points, 10, 1).unwrap(),
+            nearest_neighbours(&cloud.points, 10, 2).unwrap()
+        );
+    }
+
     #[test]
     fn too_few_points_are_refused() {
         let cloud = sphere_cloud(Vec3::ZERO, 1.0, 5);

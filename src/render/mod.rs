@@ -3,6 +3,7 @@
 mod camera;
 mod chunk;
 mod context;
+mod discs;
 mod environment;
 mod error;
 mod faults;
@@ -12,13 +13,16 @@ mod image;
 mod offscreen;
 mod options;
 mod overlay;
-mod particles;
 mod renderer;
 mod trackball;
 
 pub use camera::{Camera, NamedView, UnknownView};
 pub use chunk::{ChunkError, MeshChunk, bounds_of};
 pub use context::{AdapterSummary, GpuContext, REQUIRE_GPU_ENV, gpu_required};
+pub use discs::{
+    DISC_LIFT, DISC_SCALE, Disc, PARTICLE_DISC_COLOR, PARTICLE_RIM, particle_discs, splat_discs,
+    srgb8_to_linear,
+};
 pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
 pub use error::RenderError;
 pub use faults::{GpuFaultLog, PRINTED_ERRORS, guarded_on};
@@ -34,7 +38,6 @@ pub use options::{
     BoxOverlay, EnvironmentMode, ForceOverlay, Light, SceneOptions, Shading, ToolOverlay, ToolStyle,
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
-pub use particles::{DISC_LIFT, DISC_SCALE, PARTICLE_DISC_COLOR, ParticleDisc, particle_discs};
 pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;
 

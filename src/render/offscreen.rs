@@ -12,11 +12,11 @@ use glam::Vec3;
 use super::camera::{Camera, NamedView};
 use super::chunk::{MeshChunk, bounds_of};
 use super::context::{AdapterSummary, GpuContext};
+use super::discs::Disc;
 use super::error::RenderError;
 use super::gpu_chunks::SyncReport;
 use super::image::Image;
 use super::options::SceneOptions;
-use super::particles::ParticleDisc;
 use super::renderer::{SceneRenderer, supported_sample_count};
 
 /// Colour format of offscreen frames: 8-bit sRGB, what PNG viewers expect.
@@ -99,14 +99,14 @@ impl OffscreenRenderer {
         })??)
     }
 
-    /// Replaces the particle discs drawn over the clay.
+    /// Replaces the discs (particles, point-set splats) drawn with the clay.
     ///
     /// # Errors
     /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] when the GPU refuses the buffer.
-    pub fn set_particles(&mut self, discs: &[ParticleDisc]) -> Result<(), RenderError> {
+    pub fn set_discs(&mut self, discs: &[Disc]) -> Result<(), RenderError> {
         let renderer = &mut self.renderer;
-        self.gpu.guarded("the particle discs", |device, queue| {
-            renderer.set_particles(device, queue, discs);
+        self.gpu.guarded("the discs", |device, queue| {
+            renderer.set_discs(device, queue, discs);
         })
     }
 

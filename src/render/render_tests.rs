@@ -822,8 +822,8 @@ fn particle_discs_appear_where_the_particles_are_and_the_clay_hides_those_behind
     let mut discs = Vec::new();
     particle_discs(&mut discs, &positions, &normals, &radii);
     assert_eq!(discs.len(), 4);
-    r.set_particles(&discs).unwrap();
-    assert_eq!(r.renderer().particle_count(), 4);
+    r.set_discs(&discs).unwrap();
+    assert_eq!(r.renderer().disc_count(), 4);
     let img = r.render(&camera, &options).unwrap();
 
     // Each front disc covers its particle's pixel, and about the disc's projected area is
@@ -883,6 +883,80 @@ fn particle_discs_appear_where_the_particles_are_and_the_clay_hides_those_behind
         .count();
     assert_eq!(stray, 0, "disc colour away from every visible particle");
 
-    r.set_particles(&[]).unwrap();
+    r.set_discs(&[]).unwrap();
     assert_eq!(count(&r.render(&camera, &options).unwrap()), 0);
+}
+
+/// Point-set splats alone (no mesh): discs in each point's own colour cover the sphere's
+/// disk without holes, red where the points project left of the centre and blue right of
+/// it, and nothing is drawn outside the sphere.
+#[test]
+fn point_set_splats_cover_the_surface_in_their_colours() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let camera = front_camera(3.5);
+    let options = plain_options();
+    let n = 3000;
+    let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let positions: Vec<Vec3> = (0..n)
+        .map(|i| {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let s = (1.0 - y * y).sqrt();
+            let t = golden * i as f32;
+            Vec3::new(s * t.cos(), y, s * t.sin())
+        })
+        .collect();
+    // The mean spacing of n points on the unit sphere, about √(4π / n).
+    let spacing = (4.0 * std::f32::consts::PI / n as f32).sqrt();
+    let centre_x = W as f32 / 2.0;
+    let colours: Vec<[u8; 3]> = positions
+        .iter()
+        .map(|&p| {
+            if to_pixel(&camera, p).x < centre_x {
+                [255, 0, 0]
+            } else {
+                [0, 0, 255]
+            }
+        })
+        .collect();
+    let mut discs = Vec::new();
+    splat_discs(
+        &mut discs,
+        &positions,
+        &positions,
+        &colours,
+        &vec![spacing; n],
+    );
+    r.set_discs(&discs).unwrap();
+    assert_eq!(r.renderer().disc_count(), n);
+    let img = r.render(&camera, &options).unwrap();
+
+    let rho = analytic_disk_radius_px(&camera, 1.0, H);
+    let (cx, cy) = (W as f32 / 2.0, H as f32 / 2.0);
+    let red = |p: [u8; 4]| p[0] > 40 && p[0] > 3 * p[1].max(p[2]);
+    let blue = |p: [u8; 4]| p[2] > 40 && p[2] > 3 * p[0].max(p[1]);
+    let (mut inside, mut wrong, mut outside_lit) = (0, 0, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let (dx, dy) = (x as f32 + 0.5 - cx, y as f32 + 0.5 - cy);
+            let d = (dx * dx + dy * dy).sqrt();
+            let p = img.pixel(x, y).unwrap();
+            if d < 0.9 * rho && dx.abs() > 0.1 * rho {
+                inside += 1;
+                let ok = if dx < 0.0 { red(p) } else { blue(p) };
+                if !ok {
+                    wrong += 1;
+                }
+            } else if d > 1.1 * rho && luminance(p) > 8.0 {
+                outside_lit += 1;
+            }
+        }
+    }
+    assert!(inside > 1000, "{inside} pixels inside");
+    assert!(
+        wrong * 100 <= inside,
+        "{wrong} of {inside} pixels inside the disk lack their splat's colour"
+    );
+    assert_eq!(outside_lit, 0, "nothing outside the sphere");
+    r.set_discs(&[]).unwrap();
+    assert_eq!(r.renderer().disc_count(), 0);
 }

@@ -17,13 +17,13 @@ use glam::Mat4;
 
 use super::camera::Camera;
 use super::chunk::{ChunkError, MeshChunk};
+use super::discs::{DISC_ATTRIBUTES, Disc, DiscBuffer};
 use super::environment::EnvironmentMap;
 use super::error::RenderError;
 use super::faults::guarded_on;
 use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
-use super::particles::{DISC_ATTRIBUTES, DiscBuffer, ParticleDisc};
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -388,18 +388,18 @@ impl SceneRenderer {
             Some(wgpu::BlendState::ALPHA_BLENDING),
         );
         let disc_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("particles.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/particles.wgsl").into()),
+            label: Some("discs.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/discs.wgsl").into()),
         });
         let disc_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("particle discs"),
+            label: Some("discs"),
             layout: Some(&layout),
             vertex: wgpu::VertexState {
                 module: &disc_shader,
                 entry_point: Some("vs_main"),
                 compilation_options: wgpu::PipelineCompilationOptions::default(),
                 buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: size_of::<ParticleDisc>() as u64,
+                    array_stride: size_of::<Disc>() as u64,
                     step_mode: wgpu::VertexStepMode::Instance,
                     attributes: &DISC_ATTRIBUTES,
                 })],
@@ -531,23 +531,19 @@ impl SceneRenderer {
         self.chunks.sync(device, queue, chunks)
     }
 
-    /// Replaces the particle discs drawn over the clay (empty: none, and no draw call).
-    pub fn set_particles(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        discs: &[ParticleDisc],
-    ) {
+    /// Replaces the discs (particles, point-set splats) drawn with the clay (empty: none, and
+    /// no draw call).
+    pub fn set_discs(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, discs: &[Disc]) {
         self.discs.write(device, queue, discs);
     }
 
-    /// Particle discs drawn per frame.
+    /// Discs drawn per frame.
     #[must_use]
-    pub fn particle_count(&self) -> usize {
+    pub fn disc_count(&self) -> usize {
         self.discs.count as usize
     }
 
-    /// Records one frame into `encoder`: clear, the clay, the particle discs, overlay lines,
+    /// Records one frame into `encoder`: clear, the clay, the discs, overlay lines,
     /// then the see-through tool, all into [`Self::target`]. The caller submits the encoder.
     pub fn render(
         &mut self,

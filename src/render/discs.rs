@@ -1,0 +1,196 @@
+//! Oriented discs drawn over (or instead of) the clay: one instanced quad per [`Disc`], drawn
+//! by `shaders/discs.wgsl`, which lays each quad in the plane its normal defines and cuts it
+//! to a disc. Two kinds of points use it, each with its own colour, rim, lift and shading:
+//!
+//! - particles on the clay ([`particle_discs`]): small unlit green discs with a dark rim,
+//!   lifted a little off the surface so the clay does not hide them;
+//! - point-set splats ([`splat_discs`]): discs in each point's own colour, lit by the
+//!   scene's lights, sitting on the surface and large enough to cover it without holes.
+
+use glam::Vec3;
+
+/// The particles' disc colour (linear RGB), a green that neither the clay nor the overlays
+/// use.
+pub const PARTICLE_DISC_COLOR: [f32; 3] = [0.02, 0.60, 0.08];
+
+/// Disc radius as a fraction of the particle's radius: particles sit about one radius apart,
+/// so half-radius discs show each one without covering the clay.
+pub const DISC_SCALE: f32 = 0.5;
+
+/// How far a particle's disc sits off the surface along its normal, as a fraction of its
+/// radius, so the clay does not hide it.
+pub const DISC_LIFT: f32 = 0.25;
+
+/// Where a particle disc's darker rim starts, as a fraction of the squared radius.
+pub const PARTICLE_RIM: f32 = 0.72;
+
+/// One disc (the instance layout of `shaders/discs.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Disc {
+    /// Centre, world units.
+    pub centre: [f32; 3],
+    /// Unit normal (the disc's orientation).
+    pub normal: [f32; 3],
+    /// Radius, world units.
+    pub radius: f32,
+    /// Offset along the normal, as a fraction of the radius.
+    pub lift: f32,
+    /// Linear RGB.
+    pub colour: [f32; 3],
+    /// Squared-radius fraction beyond which the disc is drawn darker (1 or more: no rim).
+    pub rim: f32,
+    /// 0: unlit (the colour as is); 1: lit by the scene's lights like the clay.
+    pub shade: f32,
+}
+
+pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 7] = wgpu::vertex_attr_array![
+    0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Float32, 4 => Float32x3,
+    5 => Float32, 6 => Float32
+];
+
+fn usable(p: Vec3, n: Vec3, r: f32) -> bool {
+    p.is_finite() && n.is_finite() && r.is_finite() && r > 0.0
+}
+
+/// Appends one disc per particle (radius [`DISC_SCALE`] times the particle's), skipping
+/// particles with a non-finite position or radius; the three slices are read up to the
+/// shortest.
+pub fn particle_discs(out: &mut Vec<Disc>, positions: &[Vec3], normals: &[Vec3], radii: &[f32]) {
+    out.extend(
+        positions
+            .iter()
+            .zip(normals)
+            .zip(radii)
+            .filter(|((p, n), r)| usable(**p, **n, **r))
+            .map(|((p, n), r)| Disc {
+                centre: p.to_array(),
+                normal: n.to_array(),
+                radius: r * DISC_SCALE,
+                lift: DISC_LIFT,
+                colour: PARTICLE_DISC_COLOR,
+                rim: PARTICLE_RIM,
+                shade: 0.0,
+            }),
+    );
+}
+
+/// An 8-bit sRGB channel in linear light.
+#[must_use]
+pub fn srgb8_to_linear(c: u8) -> f32 {
+    let c = f32::from(c) / 255.0;
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Appends one splat per point: its colour (8-bit sRGB), its normal and its radius, lit, no
+/// rim, on the surface; points with a non-finite position or radius are skipped. The four
+/// slices are read up to the shortest.
+pub fn splat_discs(
+    out: &mut Vec<Disc>,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    colours: &[[u8; 3]],
+    radii: &[f32],
+) {
+    out.extend(
+        positions
+            .iter()
+            .zip(normals)
+            .zip(colours)
+            .zip(radii)
+            .filter(|(((p, n), _), r)| usable(**p, **n, **r))
+            .map(|(((p, n), c), r)| Disc {
+                centre: p.to_array(),
+                normal: n.to_array(),
+                radius: *r,
+                lift: 0.0,
+                colour: c.map(srgb8_to_linear),
+                rim: 2.0,
+                shade: 1.0,
+            }),
+    );
+}
+
+/// A growable GPU instance buffer of discs.
+#[derive(Default)]
+pub(crate) struct DiscBuffer {
+    pub(crate) buffer: Option<wgpu::Buffer>,
+    pub(crate) count: u32,
+}
+
+impl DiscBuffer {
+    /// Uploads `discs` (grows the buffer to twice the need when it does not fit).
+    pub(crate) fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, discs: &[Disc]) {
+        self.count = u32::try_from(discs.len()).unwrap_or(0);
+        if discs.is_empty() {
+            return;
+        }
+        let bytes: &[u8] = bytemuck::cast_slice(discs);
+        let fits = self
+            .buffer
+            .as_ref()
+            .is_some_and(|b| b.size() >= bytes.len() as u64);
+        if !fits {
+            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("discs"),
+                size: (bytes.len() as u64 * 2).next_multiple_of(4),
+                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        if let Some(b) = &self.buffer {
+            queue.write_buffer(b, 0, bytes);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bytemuck::Zeroable;
+
+    #[test]
+    fn discs_take_half_the_radius_and_skip_bad_particles() {
+        let mut out = Vec::new();
+        particle_discs(
+            &mut out,
+            &[Vec3::X, Vec3::splat(f32::NAN), Vec3::Y],
+            &[Vec3::Z, Vec3::Z, Vec3::Z],
+            &[0.2, 0.2, 0.4],
+        );
+        assert_eq!(out.len(), 2);
+        assert_eq!(out[0].centre, [1.0, 0.0, 0.0]);
+        assert!((out[1].radius - 0.4 * DISC_SCALE).abs() < 1e-7);
+        assert_eq!(out[0].colour, PARTICLE_DISC_COLOR);
+    }
+
+    #[test]
+    fn splats_keep_their_colour_radius_and_normal_and_append() {
+        let mut out = vec![Disc::zeroed()];
+        splat_discs(
+            &mut out,
+            &[Vec3::X, Vec3::Y, Vec3::splat(f32::INFINITY)],
+            &[Vec3::Z, Vec3::X, Vec3::Z],
+            &[[255, 0, 0], [0, 128, 255], [1, 2, 3]],
+            &[0.1, 0.2, 0.3],
+        );
+        assert_eq!(
+            out.len(),
+            3,
+            "appended after the one there, the bad one skipped"
+        );
+        assert_eq!(out[1].colour, [1.0, 0.0, 0.0]);
+        assert!(
+            (out[2].colour[1] - 0.2158).abs() < 1e-3,
+            "{:?}",
+            out[2].colour
+        );
+        assert_eq!(out[2].normal, [1.0, 0.0, 0.0]);
+        assert_eq!(out[2].radius, 0.2);
+        assert!(out[1].rim > 1.0 && out[1].shade == 1.0 && out[1].lift == 0.0);
+    }
+}
