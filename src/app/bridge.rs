@@ -54,8 +54,8 @@ use crate::mesh::{
     BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
 };
 use crate::particles::ParticleFollower;
-use crate::rbf::CompactSettings;
 use crate::pointset::{FollowedPoints, PointSet, PointSetFollower, PointSetOptions};
+use crate::rbf::CompactSettings;
 use crate::render::ChunkError;
 use crate::render::paint_colors;
 use crate::tools::ColourField;
