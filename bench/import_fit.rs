@@ -19,7 +19,6 @@
 //!    box, and over a simulation step's worth of samples (the mass grid of a 12-span local
 //!    region at two samples per span, 25³ points, as `dynamics` samples it).
 
-use std::collections::HashMap;
 use std::time::Instant;
 
 use dynaclay::field::{BSplineLattice, MultiPatchField};
@@ -29,112 +28,12 @@ use dynaclay::fit::{
 };
 use glam::Vec3;
 
-type Mesh = (Vec<Vec3>, Vec<[u32; 3]>);
+// The bench uses the shapes and binary STL only.
+#[allow(dead_code)]
+#[path = "../tests/support/meshes.rs"]
+mod meshes;
 
-/// A torus (ring 3, tube 1) of `around` × `across` quads, wound outward.
-fn torus_mesh(around: u32, across: u32) -> Mesh {
-    let tau = std::f32::consts::TAU;
-    let mut v = Vec::new();
-    for i in 0..around {
-        let a = tau * i as f32 / around as f32;
-        for j in 0..across {
-            let b = tau * j as f32 / across as f32;
-            let r = 3.0 + b.cos();
-            v.push(Vec3::new(r * a.cos(), b.sin(), r * a.sin()));
-        }
-    }
-    let at = |i: u32, j: u32| (i % around) * across + (j % across);
-    let mut t = Vec::new();
-    for i in 0..around {
-        for j in 0..across {
-            let (p, q, r, s) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            t.push([p, r, q]);
-            t.push([p, s, r]);
-        }
-    }
-    (v, t)
-}
-
-/// A unit icosphere: an icosahedron subdivided `levels` times (20 · 4^levels triangles).
-fn icosphere_mesh(levels: u32) -> Mesh {
-    let g = (1.0 + 5f32.sqrt()) / 2.0;
-    let mut v: Vec<Vec3> = [
-        (-1.0, g, 0.0),
-        (1.0, g, 0.0),
-        (-1.0, -g, 0.0),
-        (1.0, -g, 0.0),
-        (0.0, -1.0, g),
-        (0.0, 1.0, g),
-        (0.0, -1.0, -g),
-        (0.0, 1.0, -g),
-        (g, 0.0, -1.0),
-        (g, 0.0, 1.0),
-        (-g, 0.0, -1.0),
-        (-g, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
-    .collect();
-    let mut t: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(4 * t.len());
-        for tri in &t {
-            let mut m = [0u32; 3];
-            for k in 0..3 {
-                let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                m[k] = *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                    v.push((v[a as usize] + v[b as usize]).normalize());
-                    (v.len() - 1) as u32
-                });
-            }
-            next.extend([
-                [tri[0], m[0], m[2]],
-                [tri[1], m[1], m[0]],
-                [tri[2], m[2], m[1]],
-                m,
-            ]);
-        }
-        t = next;
-    }
-    (v, t)
-}
-
-fn binary_stl((v, t): &Mesh) -> Vec<u8> {
-    let mut bytes = vec![0u8; 80];
-    bytes.extend_from_slice(&(t.len() as u32).to_le_bytes());
-    for tri in t {
-        bytes.extend_from_slice(&[0u8; 12]);
-        for &i in tri {
-            for c in v[i as usize].to_array() {
-                bytes.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        bytes.extend_from_slice(&[0u8; 2]);
-    }
-    bytes
-}
+use meshes::{binary_stl, icosphere, torus};
 
 /// Closed meshes through the signed-distance path, default import settings.
 fn closed_meshes() {
@@ -149,11 +48,11 @@ fn closed_meshes() {
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let dir = std::env::temp_dir().join(format!("dynaclay-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("a temporary folder");
-    let cases: [(&str, Mesh); 4] = [
-        ("torus", torus_mesh(142, 71)),
-        ("torus", torus_mesh(448, 224)),
-        ("icosphere", icosphere_mesh(5)),
-        ("icosphere", icosphere_mesh(6)),
+    let cases: [(&str, meshes::Mesh); 4] = [
+        ("torus", torus(3.0, 1.0, 142, 71)),
+        ("torus", torus(3.0, 1.0, 448, 224)),
+        ("icosphere", icosphere(5)),
+        ("icosphere", icosphere(6)),
     ];
     for (name, mesh) in &cases {
         let path = dir.join(format!("{name}.stl"));

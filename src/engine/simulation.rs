@@ -660,14 +660,19 @@ mod tests {
     use crate::io::{ClayShape, ClaySpec};
 
     fn stages() -> Stages {
+        stages_on_sphere(12)
+    }
+
+    /// The stages on a sphere clay of `resolution`³ coefficients, the tool waiting at a
+    /// workspace corner, away from the clay.
+    pub(super) fn stages_on_sphere(resolution: usize) -> Stages {
         let field = build_clay(&ClaySpec {
             shape: ClayShape::Sphere,
-            resolution: 12,
+            resolution,
             ..ClaySpec::default()
         })
         .unwrap();
         let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        // The tool waits at a workspace corner, away from the clay.
         let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
         build(
             &config,
@@ -885,31 +890,13 @@ mod tests {
 mod compact_tests {
     use std::time::Instant;
 
-    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
-
-    use super::super::{CompactRbfLink, EngineConfig, HeadlessSink, Stages, build, build_clay};
+    use super::super::{CompactRbfLink, Stages};
     use super::*;
-    use crate::io::{ClayShape, ClaySpec};
     use crate::rbf::CompactSettings;
     use crate::tools::{ContactParams, GeometricTool, ToolShape};
 
     fn stages() -> Stages {
-        let field = build_clay(&ClaySpec {
-            shape: ClayShape::Sphere,
-            resolution: 14,
-            ..ClaySpec::default()
-        })
-        .unwrap();
-        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
-        build(
-            &config,
-            field,
-            Box::new(arm),
-            Box::new(HeadlessSink::default()),
-            true,
-        )
-        .unwrap()
+        super::tests::stages_on_sphere(14)
     }
 
     fn dent(at: Vec3) -> Command {

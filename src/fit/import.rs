@@ -18,7 +18,8 @@ use glam::Vec3;
 
 use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, MARGIN_SPANS, SignedBy};
 use super::hierarchy::{
-    DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, MAX_DEPTH, fit_hierarchy,
+    DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
+    fit_hierarchy,
 };
 use super::mesh::{read_mesh, sample_triangles};
 use super::points::{PointCloud, PointColours, PointsError, read_points_with_colours};
@@ -256,6 +257,16 @@ pub fn is_point_cloud(path: &Path) -> bool {
     )
 }
 
+/// One report line per octree depth: how many nodes were refined.
+fn note_levels(levels: &[LevelReport], note: &mut dyn FnMut(String)) {
+    for level in levels {
+        note(format!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth, level.refined, level.nodes
+        ));
+    }
+}
+
 fn fit_error(path: &Path, e: CloudFitError) -> ImportError {
     match e {
         CloudFitError::Options(m) => ImportError::Options(m),
@@ -299,12 +310,7 @@ fn fit_cloud(
         settings.error_percent
     ));
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
-    for level in &fit.levels {
-        note(format!(
-            "depth {}: {} of {} octree nodes refined",
-            level.depth, level.refined, level.nodes
-        ));
-    }
+    note_levels(&fit.levels, note);
     let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;
     note(format!(
@@ -482,12 +488,7 @@ fn fit_mesh_file(
         progress,
     )
     .map_err(|e| fit_error(path, e))?;
-    for level in &fit.levels {
-        note(format!(
-            "depth {}: {} of {} octree nodes refined",
-            level.depth, level.refined, level.nodes
-        ));
-    }
+    note_levels(&fit.levels, note);
     // file → voxel → field.
     let scale = fit.scale / grid.voxel;
     let offset = fit.offset - grid.origin * scale;
@@ -571,12 +572,7 @@ fn fit_volume_file(
         progress,
     )
     .map_err(|e| fit_error(path, e))?;
-    for level in &fit.levels {
-        note(format!(
-            "depth {}: {} of {} octree nodes refined",
-            level.depth, level.refined, level.nodes
-        ));
-    }
+    note_levels(&fit.levels, note);
     note(format!(
         "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
          base alone)",

@@ -115,39 +115,6 @@ pub fn splat_discs(
     );
 }
 
-/// A growable GPU instance buffer of discs.
-#[derive(Default)]
-pub(crate) struct DiscBuffer {
-    pub(crate) buffer: Option<wgpu::Buffer>,
-    pub(crate) count: u32,
-}
-
-impl DiscBuffer {
-    /// Uploads `discs` (grows the buffer to twice the need when it does not fit).
-    pub(crate) fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, discs: &[Disc]) {
-        self.count = u32::try_from(discs.len()).unwrap_or(0);
-        if discs.is_empty() {
-            return;
-        }
-        let bytes: &[u8] = bytemuck::cast_slice(discs);
-        let fits = self
-            .buffer
-            .as_ref()
-            .is_some_and(|b| b.size() >= bytes.len() as u64);
-        if !fits {
-            self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("discs"),
-                size: (bytes.len() as u64 * 2).next_multiple_of(4),
-                usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }));
-        }
-        if let Some(b) = &self.buffer {
-            queue.write_buffer(b, 0, bytes);
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

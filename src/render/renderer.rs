@@ -17,7 +17,7 @@ use glam::Mat4;
 
 use super::camera::Camera;
 use super::chunk::{ChunkError, MeshChunk};
-use super::discs::{DISC_ATTRIBUTES, Disc, DiscBuffer};
+use super::discs::{DISC_ATTRIBUTES, Disc};
 use super::environment::EnvironmentMap;
 use super::error::RenderError;
 use super::faults::guarded_on;
@@ -105,14 +105,24 @@ impl FrameUniforms {
     }
 }
 
-/// A growable GPU vertex buffer for per-frame overlay geometry.
+/// A growable GPU vertex buffer rewritten each frame (overlay geometry, disc instances): it
+/// grows to twice the need when the data does not fit, and is otherwise reused.
 struct DynamicBuffer {
+    label: &'static str,
     buffer: Option<wgpu::Buffer>,
     count: u32,
 }
 
 impl DynamicBuffer {
-    fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, data: &[OverlayVertex]) {
+    const fn new(label: &'static str) -> Self {
+        Self {
+            label,
+            buffer: None,
+            count: 0,
+        }
+    }
+
+    fn write<T: bytemuck::Pod>(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, data: &[T]) {
         self.count = u32::try_from(data.len()).unwrap_or(0);
         if data.is_empty() {
             return;
@@ -124,7 +134,7 @@ impl DynamicBuffer {
             .is_some_and(|b| b.size() >= bytes.len() as u64);
         if !fits {
             self.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("overlay vertices"),
+                label: Some(self.label),
                 size: (bytes.len() as u64 * 2).next_multiple_of(4),
                 usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
@@ -220,7 +230,7 @@ pub struct SceneRenderer {
     line_pipeline: wgpu::RenderPipeline,
     tool_pipeline: wgpu::RenderPipeline,
     disc_pipeline: wgpu::RenderPipeline,
-    discs: DiscBuffer,
+    discs: DynamicBuffer,
     chunks: ChunkBuffers,
     overlay: OverlayGeometry,
     overlay_lines: DynamicBuffer,
@@ -449,17 +459,11 @@ impl SceneRenderer {
             line_pipeline,
             tool_pipeline,
             disc_pipeline,
-            discs: DiscBuffer::default(),
+            discs: DynamicBuffer::new("discs"),
             chunks: ChunkBuffers::default(),
             overlay: OverlayGeometry::default(),
-            overlay_lines: DynamicBuffer {
-                buffer: None,
-                count: 0,
-            },
-            overlay_triangles: DynamicBuffer {
-                buffer: None,
-                count: 0,
-            },
+            overlay_lines: DynamicBuffer::new("overlay lines"),
+            overlay_triangles: DynamicBuffer::new("overlay triangles"),
         }
     }
 
