@@ -13,7 +13,7 @@
 //! shared by two bricks is computed identically (same samples, same position, same normal) by
 //! both, and welding by id gives a watertight mesh with no duplicates.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -391,8 +391,15 @@ fn push_vertex<F: ScalarField + ?Sized>(
     );
     // Off the edge's axis the vertex has the sample's own coordinates, so the normals' pass
     // can make them line by line and get the same bits.
-    let mut p = grid.point(corner);
-    p[axis] = a0 + (a1 - a0) * t;
+    // (Built from registers, not by writing one lane of a point in memory and reading it
+    // back whole, which stalls the store's forwarding.)
+    let q = grid.point(corner);
+    let c = a0 + (a1 - a0) * t;
+    let p = match axis {
+        0 => Vec3::new(c, q.y, q.z),
+        1 => Vec3::new(q.x, c, q.z),
+        _ => Vec3::new(q.x, q.y, c),
+    };
     mesh.positions.push(p);
     mesh.edge_ids.push(edge_id(corner, axis as u8));
 }
@@ -495,7 +502,8 @@ fn normals_along<const AXIS: usize, F: ScalarField + ?Sized>(
                 let gradient = field.gradient(p);
                 let length = gradient.length();
                 normals[v] = if length > 1e-20 && length.is_finite() {
-                    -gradient / length
+                    // One packed division for the three lanes (the same bits as three).
+                    Vec3::from(-Vec3A::from(gradient) / length)
                 } else {
                     let mut n = Vec3::ZERO;
                     n[AXIS] = if samples[start] > samples[start + stride] {
