@@ -182,3 +182,88 @@ fn bad_points_steps_are_refused_with_their_key() {
     }
     assert!(!dir.path().join("b.ply").exists());
 }
+
+/// An 8 × 4 checkerboard PNG of `px`-pixel squares, white where `(column + row)` is even.
+fn write_checkerboard_png(path: &Path, px: u32) {
+    let image = image::GrayImage::from_fn(8 * px, 4 * px, |x, y| {
+        image::Luma([if (x / px + y / px) % 2 == 0 { 255 } else { 0 }])
+    });
+    image.save(path).unwrap();
+}
+
+#[test]
+fn points_embosses_and_engraves_an_image_along_the_normals() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("ball.xyz");
+    write_sphere_xyz(&input, 3000);
+    let board = dir.path().join("board.png");
+    write_checkerboard_png(&board, 8);
+    let radii = |extra: &[&str]| -> Vec<f32> {
+        let out = dir.path().join("out.ply");
+        let run = Command::new(BIN)
+            .args(["points"])
+            .arg(&input)
+            .arg("--out")
+            .arg(&out)
+            .arg("--emboss")
+            .arg(&board)
+            .args(["--depth", "0.05"])
+            .args(extra)
+            .output()
+            .unwrap();
+        let said = format!(
+            "{}{}",
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr)
+        );
+        assert!(run.status.success(), "{said}");
+        assert!(said.contains("points moved"), "{said}");
+        read_points(&out)
+            .unwrap()
+            .points
+            .iter()
+            .map(|p| p.length())
+            .collect()
+    };
+    // Embossed: the white half of the points out by the depth, the black half where it was.
+    let up = radii(&[]);
+    let raised = up.iter().filter(|r| (**r - 0.55).abs() < 0.005).count();
+    let kept = up.iter().filter(|r| (**r - 0.5).abs() < 0.005).count();
+    assert!(
+        raised > up.len() / 4 && kept > up.len() / 4,
+        "{raised} raised, {kept} kept of {}",
+        up.len()
+    );
+    assert!(
+        up.iter().all(|r| *r > 0.495 && *r < 0.555),
+        "radii {:?}",
+        up.iter()
+            .fold((9.0f32, 0.0f32), |(a, b), r| (a.min(*r), b.max(*r)))
+    );
+    // Engraved: the white half sunk instead.
+    let down = radii(&["--engrave", "--projection", "cylindrical"]);
+    let sunk = down.iter().filter(|r| (**r - 0.45).abs() < 0.005).count();
+    assert!(sunk > down.len() / 5, "{sunk} sunk of {}", down.len());
+
+    // Bad input: a missing image names itself; a depth without an image is refused.
+    let missing = Command::new(BIN)
+        .args(["points"])
+        .arg(&input)
+        .arg("--out")
+        .arg(dir.path().join("x.ply"))
+        .arg("--emboss")
+        .arg(dir.path().join("none.png"))
+        .output()
+        .unwrap();
+    assert_eq!(missing.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("none.png"));
+    let orphan = Command::new(BIN)
+        .args(["points"])
+        .arg(&input)
+        .arg("--out")
+        .arg(dir.path().join("x.ply"))
+        .args(["--depth", "0.05"])
+        .output()
+        .unwrap();
+    assert_eq!(orphan.status.code(), Some(2));
+}

@@ -187,6 +187,34 @@ pub struct PointsArgs {
     #[arg(long, default_value_t = 10, value_name = "K",
           value_parser = clap::value_parser!(u32).range(4..=64))]
     pub neighbours: u32,
+    /// Emboss this image (PNG or JPEG) onto the surface after the pulls (Guo & Qin §5.1):
+    /// each point moves along its normal by the image's brightness times `--depth`, and the
+    /// surface is rebuilt from the moved points.
+    #[arg(long, value_name = "IMAGE")]
+    pub emboss: Option<PathBuf>,
+    /// The relief's depth for `--emboss`, field units (default: two point spacings).
+    #[arg(long, value_name = "D", value_parser = parse_positive, requires = "emboss")]
+    pub depth: Option<f32>,
+    /// Engrave (sink the bright parts) instead of raising them.
+    #[arg(long, requires = "emboss")]
+    pub engrave: bool,
+    /// How `--emboss` lays the image on the surface, about the centre of the points' box:
+    /// `spherical` (the image's top at +y), `cylindrical` (wrapped around the y axis, the
+    /// image's centre facing +z, as tall as the box) or `planar` (projected from +z onto the
+    /// faces turned toward it, as wide as the box).
+    #[arg(long, value_enum, default_value_t = EmbossProjection::Spherical, requires = "emboss")]
+    pub projection: EmbossProjection,
+}
+
+/// How `dynaclay points --emboss` lays its image on the surface.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum EmbossProjection {
+    /// Longitude and latitude about the centre, the top at +y.
+    Spherical,
+    /// Around the y axis through the centre.
+    Cylindrical,
+    /// From +z.
+    Planar,
 }
 
 fn parse_point(s: &str) -> Result<[f32; 3], String> {

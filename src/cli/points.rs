@@ -1,14 +1,18 @@
 //! `dynaclay points`: a point cloud becomes a point-set surface (Guo & Qin), is optionally
 //! pulled by the density-spring dynamics with dynamic sampling, and is written as PLY with
-//! normals (and, when asked, the blended surface as a mesh).
+//! normals (and, when asked, the blended surface as a mesh); an image can be embossed or
+//! engraved onto it first.
+
+use std::path::Path;
 
 use glam::Vec3;
 
-use super::args::PointsArgs;
+use super::args::{EmbossProjection, PointsArgs};
 use super::run::CliError;
 use crate::fit::read_points;
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
 use crate::pointset::{PointSet, PointSetOptions, write_point_ply};
+use crate::tools::{EmbossParams, Projection, Relief};
 
 /// Most mesh cells per axis.
 const MAX_MESH_CELLS: u32 = 512;
@@ -71,6 +75,9 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     for target in &args.pull {
         pull(&mut set, Vec3::from(*target), args.steps)?;
     }
+    if let Some(image) = &args.emboss {
+        set = emboss_image(&set, image, args, &options)?;
+    }
     if let (Some(path), Some(format)) = (&args.mesh, mesh_format) {
         let (lo, hi) = set.bounds();
         let cell = 0.75 * set.spacing_m;
@@ -101,6 +108,54 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
         spacing_m: set.spacing_m,
         build_s,
     })
+}
+
+/// Embosses `image` onto `set` as `args` say (`--depth`, `--engrave`, `--projection`).
+fn emboss_image(
+    set: &PointSet,
+    image: &Path,
+    args: &PointsArgs,
+    options: &PointSetOptions,
+) -> Result<PointSet, CliError> {
+    let relief = Relief::load(image).map_err(|e| CliError::Usage(format!("--emboss: {e}")))?;
+    let (lo, hi) = set.points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    );
+    let centre = 0.5 * (lo + hi);
+    let projection = match args.projection {
+        EmbossProjection::Spherical => Projection::Spherical {
+            centre,
+            up: Vec3::Y,
+        },
+        EmbossProjection::Cylindrical => Projection::Cylindrical {
+            centre,
+            axis: Vec3::Y,
+            up: Vec3::Z,
+            height: (hi - lo).y.max(set.spacing_m),
+        },
+        EmbossProjection::Planar => Projection::Planar {
+            centre,
+            axis: Vec3::Z,
+            up: Vec3::Y,
+            size: (hi - lo).max_element().max(set.spacing_m),
+        },
+    };
+    let params = EmbossParams {
+        projection,
+        depth: args.depth.unwrap_or(2.0 * set.spacing_m),
+        engrave: args.engrave,
+    };
+    let (embossed, report) = crate::pointset::emboss(set, &relief, &params, options)
+        .map_err(|e| CliError::Usage(format!("--emboss {}: {e}", image.display())))?;
+    say!(
+        "{} {}: {} points moved, by at most {:.4}",
+        if args.engrave { "engraved" } else { "embossed" },
+        image.display(),
+        report.moved,
+        report.largest
+    );
+    Ok(embossed)
 }
 
 /// Drags the surface point nearest to `target` there ([`crate::pointset::pull`]).

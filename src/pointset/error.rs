@@ -35,6 +35,9 @@ pub enum PointSetError {
     /// The sculpting region could not be set up.
     #[error("sculpting region: {0}")]
     Region(String),
+    /// An emboss's parameters are invalid (the message names the parameter).
+    #[error("emboss: {0}")]
+    Emboss(String),
     /// A simulation step was refused.
     #[error("simulation step: {0}")]
     Step(#[from] crate::dynamics::StepError),

@@ -2,7 +2,8 @@
 //! small trivariate B-spline distance field (§3), the fields blend into one global field
 //! (eq. 5), the global field gets the density-spring dynamics of Hua & Qin on a mass-spring
 //! grid (§4), points are inserted and removed as the surface stretches (§4.3), and booleans
-//! keep their intersection curve sharp by keeping two patches (§5.1, Table 1).
+//! keep their intersection curve sharp by keeping two patches (§5.1, Table 1), and images are
+//! embossed or engraved onto the points (§5.1).
 //!
 //! [`PointSetFollower`] keeps a point set on the live engine's clay: on the graphics loop, the
 //! points follow each new copy of the clay by eq. (9) with bounded dynamic sampling, and a
@@ -12,6 +13,7 @@
 //! per-step update of [`PointSetSculpt`] allocates nothing after its set-up.
 
 mod boolean;
+mod emboss;
 mod error;
 mod follow;
 mod local;
@@ -23,6 +25,7 @@ mod sculpt;
 mod surface;
 
 pub use boolean::{BooleanOp, SharpBoolean};
+pub use emboss::{EmbossReport, emboss};
 pub use error::PointSetError;
 pub use follow::{
     FollowOptions, FollowReport, FollowedPoints, LOST_SPANS, MAX_STEP_SPANS, PointFollower,

@@ -275,6 +275,21 @@ impl EmbossParams {
         Ok(())
     }
 
+    /// The displacement of the surface point `x` with outward unit normal `normal` along
+    /// that normal, field units: `±depth · brightness · weight` (positive outward when
+    /// embossing, inward when engraving), 0 where the image does not reach.
+    #[must_use]
+    pub fn displacement(&self, relief: &Relief, x: Vec3, normal: Vec3) -> f32 {
+        let Some((s, t, weight)) = self.project(x, normal) else {
+            return 0.0;
+        };
+        let Some(h) = relief.sample(s, t) else {
+            return 0.0;
+        };
+        let sign = if self.engrave { -1.0 } else { 1.0 };
+        sign * self.depth * h * weight
+    }
+
     /// The image coordinates of `x` on a surface with outward normal `normal`, and the
     /// weight of the relief there (0 to 1); `None` where the image does not reach.
     fn project(&self, x: Vec3, normal: Vec3) -> Option<(f32, f32, f32)> {
@@ -374,7 +389,6 @@ pub fn apply_emboss(
     let edited = &before.patches[usize::from(patch)];
     let others = |x: Vec3| before.value(x) - edited.value(x);
     let iso = before.iso();
-    let sign = if params.engrave { -1.0 } else { 1.0 };
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
@@ -390,13 +404,7 @@ pub fn apply_emboss(
         if gradient.length() < 1e-3 * (iso.abs() + 1.0) / spacing {
             return old;
         }
-        let Some((s, t, weight)) = params.project(x, normal) else {
-            return old;
-        };
-        let Some(h) = relief.sample(s, t) else {
-            return old;
-        };
-        let d = sign * params.depth * h * weight;
+        let d = params.displacement(relief, x, normal);
         if d == 0.0 {
             return old;
         }
