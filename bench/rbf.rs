@@ -8,8 +8,8 @@
 //! median of five passes. Not criterion: one 5k solve takes about a minute on this machine.
 //! Run with `cargo bench --bench rbf`; `cargo bench --bench rbf -- compact` runs only the
 //! second part: the compact RBF clay's per-stroke re-interpolation (Zhang et al. §5.4) at the
-//! default `N` = 400 on the default 24³ block, after a contact dent of the engine's tool: warm
-//! particle steps, the 1200-centre solve and the fit of `I` onto the lattice, median of five
+//! default `N` = 600 on the default 24³ block, after a contact dent of the engine's tool: warm
+//! particle steps, the 1800-centre solve and the fit of `I` onto the lattice, median of five
 //! strokes, with the process's CPU time per stroke (`/proc/self/stat`).
 
 use std::hint::black_box;

@@ -444,12 +444,12 @@ fn the_compact_rbf_switch_sends_its_count_and_the_view_shows_centres_and_time() 
     let (mut h, mut end) = harness();
     h.run();
     drain(&end);
-    h.get_by_label("Compact RBF clay (400 particles)").click();
+    h.get_by_label("Compact RBF clay (600 particles)").click();
     h.run();
     assert_eq!(
         drain(&end),
         vec![EngineCommand::SetCompactRbf {
-            particles: Some(400)
+            particles: Some(600)
         }]
     );
     end.view.publish_clone_of(&EngineView {
@@ -457,8 +457,8 @@ fn the_compact_rbf_switch_sends_its_count_and_the_view_shows_centres_and_time() 
         ..EngineView::default()
     });
     h.run();
-    h.get_by_label("1200 centres; last re-interpolation 0.42 s; 3 applied, 0 failed");
-    h.get_by_label("Compact RBF clay (400 particles)").click();
+    h.get_by_label("1800 centres; last re-interpolation 0.42 s; 3 applied, 0 failed");
+    h.get_by_label("Compact RBF clay (600 particles)").click();
     h.run();
     assert_eq!(
         drain(&end),
@@ -469,8 +469,8 @@ fn the_compact_rbf_switch_sends_its_count_and_the_view_shows_centres_and_time() 
 fn compact_status() -> crate::engine::CompactStatus {
     crate::engine::CompactStatus {
         on: true,
-        particles: 400,
-        centres: Some(1200),
+        particles: 600,
+        centres: Some(1800),
         busy: false,
         applied: 3,
         superseded: 0,
