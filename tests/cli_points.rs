@@ -186,7 +186,11 @@ fn bad_points_steps_are_refused_with_their_key() {
 /// An 8 × 4 checkerboard PNG of `px`-pixel squares, white where `(column + row)` is even.
 fn write_checkerboard_png(path: &Path, px: u32) {
     let image = image::GrayImage::from_fn(8 * px, 4 * px, |x, y| {
-        image::Luma([if (x / px + y / px) % 2 == 0 { 255 } else { 0 }])
+        image::Luma([if (x / px + y / px).is_multiple_of(2) {
+            255
+        } else {
+            0
+        }])
     });
     image.save(path).unwrap();
 }
