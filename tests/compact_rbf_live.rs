@@ -4,15 +4,17 @@
 //! is one undo step, and the surface stays within 1% of the diagonal (Hausdorff on meshes,
 //! both ways) of the same strokes on the plain B-spline clay.
 
-use dynaclay::dynamics::Material;
-use dynaclay::engine::{
-    EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
-};
+use std::path::Path;
+
+use dynaclay::engine::ScriptDriver;
 use dynaclay::field::BSplineLattice;
-use dynaclay::io::parse_script;
 use dynaclay::mesh::{BrickOctree, SampleGrid, hausdorff};
-use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use glam::Vec3;
+
+#[path = "support/lockstep.rs"]
+mod lockstep;
+
+use lockstep::{Scripted, scripted};
 
 /// Particles of the compact clay (three centres each).
 /// Particles of the compact clay (three centres each). Measured on this test (worst of both
@@ -65,29 +67,7 @@ struct Run {
 
 fn run(compact: bool) -> Run {
     let text = script(compact);
-    let script = parse_script(&text, "compact.toml").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "compact.toml",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
-    let field = build_clay(&plan.clay).unwrap();
-    let arm_config = SimArmConfig::default();
-    let mut config = EngineConfig::for_field(&field, &arm_config.info);
-    config.haptic_rt_priority = None;
-    config.safety.soft_start_s = 0.1;
-    let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
-    let mut run = Lockstep::new(
-        &config,
-        field,
-        Box::new(arm),
-        Box::new(HeadlessSink::default()),
-        64,
-    )
-    .unwrap();
+    let Scripted { plan, mut run, .. } = scripted(&text, "compact.toml", Path::new("."));
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
     let ticks = (plan.seconds * 1000.0) as usize;

@@ -9,12 +9,16 @@
 
 use std::collections::HashMap;
 
-use dynaclay::field::MultiPatchField;
 use dynaclay::fit::{
     HierarchicalFit, HierarchyOptions, PointCloud, fit_hierarchy, fit_volume, fit_volume_hierarchy,
 };
-use dynaclay::mesh::{BrickOctree, SampleGrid, TriMesh};
+use dynaclay::mesh::TriMesh;
 use glam::Vec3;
+
+#[path = "support/topology.rs"]
+mod topology;
+
+use topology::{mesh_of, topology};
 
 /// A shape with an exact signed distance (positive outside), in file units.
 #[derive(Clone, Copy, Debug)]
@@ -118,27 +122,6 @@ fn add_noise(points: &mut [Vec3], amount: f32, rng: &mut Rng) {
     for p in points {
         *p += Vec3::new(rng.signed(), rng.signed(), rng.signed()) * 0.5 * amount;
     }
-}
-
-fn mesh_of(field: &MultiPatchField) -> TriMesh {
-    let base = &field.patches[0].lattice;
-    let (lo, hi) = base.support();
-    let grid = SampleGrid::covering(lo, hi, base.spacing / 3.0).unwrap();
-    BrickOctree::build(grid, field).weld()
-}
-
-/// Whether every edge has two faces, and `V − E + F`.
-fn topology(mesh: &TriMesh) -> (bool, i64) {
-    let mut edges = HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
-        }
-    }
-    let closed = edges.values().all(|&n| n == 2);
-    let euler = mesh.positions.len() as i64 - edges.len() as i64 + mesh.triangles.len() as i64;
-    (closed, euler)
 }
 
 /// Distance from `p` to the triangle `a b c`.

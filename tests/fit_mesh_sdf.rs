@@ -6,13 +6,16 @@
 //! and takes the same path; a sphere wound inward is signed the right way round; a sphere
 //! with a cap of triangles removed takes the cloud path, and the log says why.
 
-use std::collections::HashMap;
 use std::path::Path;
 
-use dynaclay::field::MultiPatchField;
 use dynaclay::fit::{FitPath, ImportSettings, ImportedFit, fit_import};
-use dynaclay::mesh::{BrickOctree, SampleGrid, TriMesh, hausdorff};
+use dynaclay::mesh::{TriMesh, hausdorff};
 use glam::Vec3;
+
+#[path = "support/topology.rs"]
+mod topology;
+
+use topology::{mesh_of, topology};
 
 #[path = "support/meshes.rs"]
 mod meshes;
@@ -26,27 +29,6 @@ fn import(path: &Path, settings: &ImportSettings) -> (ImportedFit, Vec<String>) 
         println!("{line}");
     }
     (fit, notes)
-}
-
-fn mesh_of(field: &MultiPatchField) -> TriMesh {
-    let base = &field.patches[0].lattice;
-    let (lo, hi) = base.support();
-    let grid = SampleGrid::covering(lo, hi, base.spacing / 3.0).unwrap();
-    BrickOctree::build(grid, field).weld()
-}
-
-/// Whether every edge has two faces, and `V − E + F`.
-fn topology(mesh: &TriMesh) -> (bool, i64) {
-    let mut edges = HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_insert(0u32) += 1;
-        }
-    }
-    let closed = edges.values().all(|&n| n == 2);
-    let euler = mesh.positions.len() as i64 - edges.len() as i64 + mesh.triangles.len() as i64;
-    (closed, euler)
 }
 
 /// Checks that `fit` took the signed-distance path and that its zero set is closed with

@@ -3,14 +3,16 @@
 //! stroke dents the top right through it, the pinned point stays on the surface; undo removes
 //! the stroke and then the pin, and the same push without the pin dents the point.
 
-use dynaclay::dynamics::{Constraint, Material};
-use dynaclay::engine::{
-    EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
-};
-use dynaclay::io::{load_session, parse_script};
+use dynaclay::dynamics::Constraint;
+use dynaclay::engine::ScriptDriver;
+use dynaclay::io::load_session;
 use dynaclay::tools::{PinRequest, resolve_pin};
-use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use glam::Vec3;
+
+#[path = "support/lockstep.rs"]
+mod lockstep;
+
+use lockstep::{Scripted, scripted};
 
 /// The default block (resolution 24) has its top face near y = 1.725.
 const SCRIPT: &str = r#"
@@ -73,22 +75,7 @@ struct PinnedRun {
 /// pin's answer and the first undo.
 fn run_pinned(script_text: &str, constrain_step: usize, undo_step: usize) -> PinnedRun {
     let dir = tempfile::tempdir().unwrap();
-    let script = parse_script(script_text, "pins.toml").unwrap();
-    let plan = ScriptPlan::new(&script, "pins.toml", dir.path(), &[], Material::PLASTIC).unwrap();
-    let field = build_clay(&plan.clay).unwrap();
-    let arm_config = SimArmConfig::default();
-    let mut config = EngineConfig::for_field(&field, &arm_config.info);
-    config.haptic_rt_priority = None;
-    config.safety.soft_start_s = 0.1;
-    let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
-    let mut run = Lockstep::new(
-        &config,
-        field,
-        Box::new(arm),
-        Box::new(HeadlessSink::default()),
-        64,
-    )
-    .unwrap();
+    let Scripted { plan, mut run, .. } = scripted(script_text, "pins.toml", dir.path());
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
     let (mut checked, mut worst) = (0, 0.0_f32);

@@ -4,14 +4,15 @@
 
 use std::path::Path;
 
-use dynaclay::dynamics::Material;
-use dynaclay::engine::{
-    EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
-};
+use dynaclay::engine::ScriptDriver;
 use dynaclay::field::BSplineLattice;
-use dynaclay::io::{Autosave, find_recovery, load_session, parse_script};
-use dynaclay_devices::{SimArmConfig, SimulatedArm};
+use dynaclay::io::{Autosave, find_recovery, load_session};
 use glam::Vec3;
+
+#[path = "support/lockstep.rs"]
+mod lockstep;
+
+use lockstep::{Scripted, scripted};
 
 /// The default block (resolution 24) spans [0.575, 1.725] on each axis.
 const SCRIPT: &str = r#"
@@ -131,22 +132,11 @@ fn load(dir: &Path, name: &str) -> BSplineLattice {
 #[test]
 fn a_scripted_run_sculpts_pushes_pulls_and_undoes_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let script = parse_script(SCRIPT, "run.toml").unwrap();
-    let plan = ScriptPlan::new(&script, "run.toml", dir.path(), &[], Material::PLASTIC).unwrap();
-    let field = build_clay(&plan.clay).unwrap();
-    let arm_config = SimArmConfig::default();
-    let mut config = EngineConfig::for_field(&field, &arm_config.info);
-    config.haptic_rt_priority = None;
-    config.safety.soft_start_s = 0.1;
-    let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
-    let mut run = Lockstep::new(
-        &config,
-        field,
-        Box::new(arm),
-        Box::new(HeadlessSink::default()),
-        64,
-    )
-    .unwrap();
+    let Scripted {
+        script,
+        plan,
+        mut run,
+    } = scripted(SCRIPT, "run.toml", dir.path());
     let session_path = dir.path().join("session.dclay");
     run.set_autosave(Autosave::new(
         &session_path,
