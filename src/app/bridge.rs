@@ -1177,17 +1177,7 @@ mod tests {
             ..ClaySpec::default()
         })
         .unwrap();
-        let arm = SimArmConfig::default();
-        let info = arm.info.clone();
-        let mut config = EngineConfig::for_field(&field, &info);
-        config.haptic_rt_priority = None;
-        let device: Box<dyn HapticDevice> =
-            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
-        let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
-            Engine::start(&config, field.clone(), device, sink)
-        })
-        .unwrap();
+        let (mut link, bridge) = bridge_on(&field);
         let mut events = Vec::new();
         wait_for(&mut link, &mut events, "the first status", |_, _| true);
         link.send(EngineCommand::SetCompactRbf {
@@ -1232,17 +1222,7 @@ mod tests {
             ..ClaySpec::default()
         })
         .unwrap();
-        let arm = SimArmConfig::default();
-        let info = arm.info.clone();
-        let mut config = EngineConfig::for_field(&field, &info);
-        config.haptic_rt_priority = None;
-        let device: Box<dyn HapticDevice> =
-            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
-        let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
-            Engine::start(&config, field.clone(), device, sink)
-        })
-        .unwrap();
+        let (mut link, bridge) = bridge_on(&field);
         let wait_particles =
             |link: &mut super::super::EngineLink, what: &str, done: &dyn Fn(usize) -> bool| {
                 let start = Instant::now();
@@ -1301,17 +1281,7 @@ mod tests {
         let centre = crate::engine::clay_centre(&field);
         let on = crate::dynamics::surface_point_on_ray(&field, centre, Vec3::X, 2.0, 0.01)
             .expect("the sphere has a surface along +x");
-        let arm = SimArmConfig::default();
-        let info = arm.info.clone();
-        let mut config = EngineConfig::for_field(&field, &info);
-        config.haptic_rt_priority = None;
-        let device: Box<dyn HapticDevice> =
-            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
-        let (mut link, endpoint) = super::super::engine_link();
-        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
-            Engine::start(&config, field.clone(), device, sink)
-        })
-        .unwrap();
+        let (mut link, bridge) = bridge_on(&field);
         let mut events = Vec::new();
         link.send(EngineCommand::Pin(crate::tools::PinRequest::Point(on)))
             .unwrap();
@@ -1655,6 +1625,23 @@ mod tests {
     }
 
     /// An opener that makes nothing (for tests that never use the device panel).
+    /// A bridge over a running engine on `field`, the simulated arm waiting at a workspace
+    /// corner, away from the clay; no real-time priority.
+    fn bridge_on(field: &BSplineLattice) -> (super::super::EngineLink, EngineBridge) {
+        let arm = SimArmConfig::default();
+        let info = arm.info.clone();
+        let mut config = EngineConfig::for_field(field, &info);
+        config.haptic_rt_priority = None;
+        let device: Box<dyn HapticDevice> =
+            Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
+        let (link, endpoint) = super::super::engine_link();
+        let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
+            Engine::start(&config, field.clone(), device, sink)
+        })
+        .unwrap();
+        (link, bridge)
+    }
+
     fn no_devices() -> DeviceOpener {
         Box::new(|spec: &DeviceSpec| {
             Err(DeviceError::NotFound {
