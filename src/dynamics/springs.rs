@@ -13,7 +13,7 @@
 
 use std::ops::Range;
 
-use crate::field::SharedOut;
+use crate::field::{SharedOut, wide_lanes};
 
 use super::material::Neighbourhood;
 
@@ -103,6 +103,48 @@ pub(crate) fn padded_row(mx: usize) -> usize {
 /// # Safety
 /// No other thread may access the rows of `planes` in `e_pad` and `k_pad` meanwhile.
 pub(crate) unsafe fn six_pads(
+    dims: [usize; 3],
+    d: &[f32],
+    rest: &[f32],
+    stiffness: &[f32],
+    planes: Range<usize>,
+    e_pad: &SharedOut<'_>,
+    k_pad: Option<&SharedOut<'_>>,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_lanes() {
+        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
+        return unsafe { six_pads_avx2(dims, d, rest, stiffness, planes, e_pad, k_pad) };
+    }
+    // SAFETY: the caller's contract.
+    unsafe { six_pads_body(dims, d, rest, stiffness, planes, e_pad, k_pad) }
+}
+
+/// [`six_pads`] built for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2; otherwise as [`six_pads`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn six_pads_avx2(
+    dims: [usize; 3],
+    d: &[f32],
+    rest: &[f32],
+    stiffness: &[f32],
+    planes: Range<usize>,
+    e_pad: &SharedOut<'_>,
+    k_pad: Option<&SharedOut<'_>>,
+) {
+    // SAFETY: the caller's contract.
+    unsafe { six_pads_body(dims, d, rest, stiffness, planes, e_pad, k_pad) }
+}
+
+/// The body of [`six_pads`], inlined into each build.
+///
+/// # Safety
+/// As [`six_pads`].
+#[inline(always)]
+unsafe fn six_pads_body(
     dims: [usize; 3],
     d: &[f32],
     rest: &[f32],
@@ -269,6 +311,42 @@ fn six_point(
 /// # Safety
 /// No other thread may access the rows of `planes` in `force` meanwhile.
 pub(crate) unsafe fn six_forces(
+    inp: &SixInputs<'_>,
+    planes: Range<usize>,
+    force: &SharedOut<'_>,
+    base: usize,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_lanes() {
+        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
+        return unsafe { six_forces_avx2(inp, planes, force, base) };
+    }
+    // SAFETY: the caller's contract.
+    unsafe { six_forces_body(inp, planes, force, base) }
+}
+
+/// [`six_forces`] built for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2; otherwise as [`six_forces`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn six_forces_avx2(
+    inp: &SixInputs<'_>,
+    planes: Range<usize>,
+    force: &SharedOut<'_>,
+    base: usize,
+) {
+    // SAFETY: the caller's contract.
+    unsafe { six_forces_body(inp, planes, force, base) }
+}
+
+/// The body of [`six_forces`], inlined into each build.
+///
+/// # Safety
+/// As [`six_forces`].
+#[inline(always)]
+unsafe fn six_forces_body(
     inp: &SixInputs<'_>,
     planes: Range<usize>,
     force: &SharedOut<'_>,

@@ -25,6 +25,23 @@ pub const LANES: usize = 8;
 /// One block row: the same position on [`LANES`] lines.
 pub(crate) type Lanes = [f32; LANES];
 
+/// Whether this CPU runs the 256-bit (AVX2) builds of the sweeps. A block row of [`LANES`]
+/// values is then one register instead of two; the lane operations and their order are the
+/// same (no fused multiply-add: Rust never contracts a multiply and an add), so the results are
+/// bit-identical to the SSE2 build's. Detected once and cached by the standard library.
+#[inline]
+#[must_use]
+pub(crate) fn wide_lanes() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
 /// Zero rows kept before and after the solve's rows so its recurrence needs no edge cases.
 const PAD: usize = 3;
 
@@ -116,6 +133,7 @@ impl<'a> SharedOut<'a> {
     ///
     /// # Panics
     /// When `range` is out of bounds.
+    #[inline]
     pub(crate) fn sub(&self, range: Range<usize>) -> SharedOut<'_> {
         assert!(
             range.start <= range.end && range.end <= self.len,
@@ -136,6 +154,7 @@ impl<'a> SharedOut<'a> {
     ///
     /// # Panics
     /// When `range` is out of bounds.
+    #[inline]
     #[allow(clippy::mut_from_ref)] // the contract above is what makes this sound
     pub(crate) unsafe fn slice_mut(&self, range: Range<usize>) -> &mut [f32] {
         assert!(
@@ -153,6 +172,7 @@ impl<'a> SharedOut<'a> {
     ///
     /// # Panics
     /// When `range` is out of bounds.
+    #[inline]
     pub(crate) unsafe fn slice(&self, range: Range<usize>) -> &[f32] {
         assert!(
             range.start <= range.end && range.end <= self.len,
@@ -183,41 +203,57 @@ impl Emit for SharedOut<'_> {
     }
 }
 
-/// Block buffers for the sweeps of one thread, reused across calls (zeroed once).
+/// Lanes of the widest block row a sweep uses: [`WIDE_BLOCKS`] blocks side by side.
+const MAX_WIDTH: usize = 2 * LANES;
+
+/// Blocks the AVX2 build of a projection sweeps side by side. One block is one 256-bit
+/// register there, and the Gram solve's recurrence (a multiply, a subtract and the scaling per
+/// row) would leave the arithmetic units waiting on its latency; two independent blocks per
+/// row halve that wait. (The SSE2 build already holds a block in two registers and gains
+/// nothing from more: see `bench/RESULTS.md`.)
+pub(crate) const WIDE_BLOCKS: usize = 2;
+
+/// Block buffers for the sweeps of one thread, reused across calls (zeroed once): room for
+/// block rows up to [`MAX_WIDTH`] lanes, viewed at the width a sweep uses.
 pub(crate) struct Blocks<'a> {
-    input: &'a mut [Lanes],
-    mid: &'a mut [Lanes],
+    input: &'a mut [f32],
+    mid: &'a mut [f32],
 }
 
 impl Blocks<'_> {
-    /// Whether the buffers hold an axis of `rows` values.
-    fn fits(&self, rows: usize) -> bool {
-        self.input.len().min(self.mid.len()) >= rows + 2 * PAD
+    /// Whether the buffers hold an axis of `rows` values in block rows of `W` lanes.
+    fn fits<const W: usize>(&self, rows: usize) -> bool {
+        self.input.len().min(self.mid.len()) / W >= rows + 2 * PAD
+    }
+
+    /// The buffers as block rows of `W` lanes.
+    fn rows<const W: usize>(&mut self) -> (&mut [[f32; W]], &mut [[f32; W]]) {
+        (self.input.as_chunks_mut().0, self.mid.as_chunks_mut().0)
     }
 }
 
 /// Run `f` with block buffers for axes up to `rows` long (on the stack up to 258, else
 /// allocated).
 pub(crate) fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut Blocks<'_>) -> R) -> R {
-    const TINY: usize = 24;
-    const SMALL: usize = 72;
-    const LARGE: usize = 264;
-    let rows = rows + 2 * PAD;
+    const TINY: usize = 24 * MAX_WIDTH;
+    const SMALL: usize = 72 * MAX_WIDTH;
+    const LARGE: usize = 264 * MAX_WIDTH;
+    let len = (rows + 2 * PAD) * MAX_WIDTH;
     // Sized tiers: the buffers are zeroed once per call.
-    if rows <= TINY {
-        let (mut a, mut b) = ([[0.0; LANES]; TINY], [[0.0; LANES]; TINY]);
+    if len <= TINY {
+        let (mut a, mut b) = ([0.0; TINY], [0.0; TINY]);
         f(&mut Blocks {
             input: &mut a,
             mid: &mut b,
         })
-    } else if rows <= SMALL {
-        let (mut a, mut b) = ([[0.0; LANES]; SMALL], [[0.0; LANES]; SMALL]);
+    } else if len <= SMALL {
+        let (mut a, mut b) = ([0.0; SMALL], [0.0; SMALL]);
         f(&mut Blocks {
             input: &mut a,
             mid: &mut b,
         })
-    } else if rows <= LARGE {
-        let (mut a, mut b) = ([[0.0; LANES]; LARGE], [[0.0; LANES]; LARGE]);
+    } else if len <= LARGE {
+        let (mut a, mut b) = ([0.0; LARGE], [0.0; LARGE]);
         f(&mut Blocks {
             input: &mut a,
             mid: &mut b,
@@ -225,21 +261,25 @@ pub(crate) fn with_blocks<R>(rows: usize, f: impl FnOnce(&mut Blocks<'_>) -> R) 
     } else {
         // Axes this long are far beyond interactive sizes; allocating is acceptable there.
         f(&mut Blocks {
-            input: &mut vec![[0.0; LANES]; rows],
-            mid: &mut vec![[0.0; LANES]; rows],
+            input: &mut vec![0.0; len],
+            mid: &mut vec![0.0; len],
         })
     }
 }
 
 /// `out[o] = Σ_t w[o][t] · input[start[o] + t]` with a compile-time tap count.
 #[inline(always)]
-fn gather_fixed<const T: usize>(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
+fn gather_fixed<const T: usize, const W: usize>(
+    band: &Band,
+    input: &[[f32; W]],
+    out: &mut [[f32; W]],
+) {
     let weights = band.weights.chunks_exact(T);
     for ((dst, &s), w) in out.iter_mut().zip(&band.start).zip(weights) {
-        let rows: &[Lanes; T] = input[s..s + T].try_into().expect("window in range");
-        let mut acc = [0.0; LANES];
+        let rows: &[[f32; W]; T] = input[s..s + T].try_into().expect("window in range");
+        let mut acc = [0.0; W];
         for t in 0..T {
-            for l in 0..LANES {
+            for l in 0..W {
                 acc[l] += w[t] * rows[t][l];
             }
         }
@@ -247,22 +287,23 @@ fn gather_fixed<const T: usize>(band: &Band, input: &[Lanes], out: &mut [Lanes])
     }
 }
 
-fn gather_block(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
+#[inline(always)]
+fn gather_block<const W: usize>(band: &Band, input: &[[f32; W]], out: &mut [[f32; W]]) {
     let out = &mut out[..band.outputs];
     match band.taps {
-        3 => gather_fixed::<3>(band, input, out),
-        4 => gather_fixed::<4>(band, input, out),
+        3 => gather_fixed::<3, W>(band, input, out),
+        4 => gather_fixed::<4, W>(band, input, out),
         // `Bᵀ` with two mass points per knot span (the engine's regions).
-        7 => gather_fixed::<7>(band, input, out),
+        7 => gather_fixed::<7, W>(band, input, out),
         taps => {
             for ((dst, &s), w) in out
                 .iter_mut()
                 .zip(&band.start)
                 .zip(band.weights.chunks_exact(taps))
             {
-                let mut acc = [0.0; LANES];
+                let mut acc = [0.0; W];
                 for (wt, row) in w.iter().zip(&input[s..s + taps]) {
-                    for l in 0..LANES {
+                    for l in 0..W {
                         acc[l] += wt * row[l];
                     }
                 }
@@ -272,18 +313,41 @@ fn gather_block(band: &Band, input: &[Lanes], out: &mut [Lanes]) {
     }
 }
 
+/// `mid[PAD..PAD + n] = (BᵀB)⁻¹ (scale · Bᵀ input)` for block rows of `W` lanes: the
+/// `Project` step of [`run_block`].
+#[inline(always)]
+fn project_block<'m, const W: usize>(
+    band: &Band,
+    solve: &SolvePlan,
+    scale: f32,
+    input: &[[f32; W]],
+    mid: &'m mut [[f32; W]],
+) -> &'m [[f32; W]] {
+    let n = band.outputs;
+    mid[..PAD].fill([0.0; W]);
+    mid[PAD + n..n + 2 * PAD].fill([0.0; W]);
+    gather_block(band, input, &mut mid[PAD..]);
+    solve_block(solve, scale, mid);
+    &mid[PAD..PAD + n]
+}
+
 /// `x[PAD..PAD + n] ← (L Lᵀ)⁻¹ (scale · x[PAD..PAD + n])`; the `PAD` rows on either side must
 /// be zero (they stand for the missing neighbours at the ends).
-fn solve_block(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
+#[inline(always)]
+fn solve_block<const W: usize>(plan: &SolvePlan, scale: f32, x: &mut [[f32; W]]) {
     if scale == 1.0 {
-        solve_block_scaled::<false>(plan, scale, x);
+        solve_block_scaled::<false, W>(plan, scale, x);
     } else {
-        solve_block_scaled::<true>(plan, scale, x);
+        solve_block_scaled::<true, W>(plan, scale, x);
     }
 }
 
 #[inline(always)]
-fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut [Lanes]) {
+fn solve_block_scaled<const SCALED: bool, const W: usize>(
+    plan: &SolvePlan,
+    scale: f32,
+    x: &mut [[f32; W]],
+) {
     let n = plan.len();
     let x = &mut x[..n + 2 * PAD];
     // The last three rows solved are carried in registers (a store and reload per row would
@@ -292,8 +356,8 @@ fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut 
     let (mut a0, mut a1, mut a2) = (x[0], x[1], x[2]);
     for (o, (l, &inv)) in plan.lower.iter().zip(&plan.inv_diag).enumerate() {
         let b = &mut x[o + PAD];
-        let mut v = [0.0; LANES];
-        for e in 0..LANES {
+        let mut v = [0.0; W];
+        for e in 0..W {
             let b = if SCALED { scale * b[e] } else { b[e] };
             v[e] = ((b - l[2] * a0[e]) - l[1] * a1[e] - l[0] * a2[e]) * inv;
         }
@@ -303,8 +367,8 @@ fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut 
     let (mut c1, mut c2, mut c3) = (x[n + PAD], x[n + PAD + 1], x[n + PAD + 2]);
     for (o, (u, &inv)) in plan.upper.iter().zip(&plan.inv_diag).enumerate().rev() {
         let w = &mut x[o + PAD];
-        let mut v = [0.0; LANES];
-        for e in 0..LANES {
+        let mut v = [0.0; W];
+        for e in 0..W {
             v[e] = ((w[e] - u[2] * c3[e]) - u[1] * c2[e] - u[0] * c1[e]) * inv;
         }
         *w = v;
@@ -314,6 +378,7 @@ fn solve_block_scaled<const SCALED: bool>(plan: &SolvePlan, scale: f32, x: &mut 
 
 /// `mid[PAD..PAD + n] = B⁻¹ (scale · input[..n])` by the tridiagonal `L U` sweeps; the row
 /// before `PAD` must be zero.
+#[inline(always)]
 fn inverse_block(lu: &TriLu, scale: f32, input: &[Lanes], mid: &mut [Lanes]) {
     let n = lu.len();
     let mid = &mut mid[PAD - 1..PAD + n + 1];
@@ -339,20 +404,14 @@ fn inverse_block(lu: &TriLu, scale: f32, input: &[Lanes], mid: &mut [Lanes]) {
 
 /// Compute one block: `input` holds the op's input rows; returns the output rows (inside
 /// `mid`).
+#[inline(always)]
 fn run_block<'m>(op: &AxisOp<'_>, input: &[Lanes], mid: &'m mut [Lanes]) -> &'m [Lanes] {
     match *op {
         AxisOp::Apply(band) => {
             gather_block(band, input, mid);
             &mid[..band.outputs]
         }
-        AxisOp::Project { band, solve, scale } => {
-            let n = band.outputs;
-            mid[..PAD].fill([0.0; LANES]);
-            mid[PAD + n..n + 2 * PAD].fill([0.0; LANES]);
-            gather_block(band, input, &mut mid[PAD..]);
-            solve_block(solve, scale, mid);
-            &mid[PAD..PAD + n]
-        }
+        AxisOp::Project { band, solve, scale } => project_block(band, solve, scale, input, mid),
         AxisOp::Inverse { lu, scale } => {
             let n = lu.len();
             mid[PAD - 1] = [0.0; LANES];
@@ -411,9 +470,79 @@ pub(crate) unsafe fn sweep_strided_with(
     cols: Range<usize>,
     out: &impl Emit,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_lanes() {
+        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
+        return unsafe { sweep_strided_avx2(blocks, op, src, inner, outer, cols, out) };
+    }
+    // SAFETY: the caller's contract.
+    unsafe { sweep_strided_body::<LANES>(blocks, op, src, inner, outer, cols, out) }
+}
+
+/// [`sweep_strided_with`] built for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2; otherwise as [`sweep_strided`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sweep_strided_avx2(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    inner: usize,
+    outer: Range<usize>,
+    cols: Range<usize>,
+    out: &impl Emit,
+) {
+    // SAFETY: the caller's contract.
+    unsafe {
+        sweep_strided_body::<{ WIDE_BLOCKS * LANES }>(blocks, op, src, inner, outer, cols, out)
+    }
+}
+
+/// The body of [`sweep_strided_with`], inlined into each build.
+///
+/// # Safety
+/// As [`sweep_strided`].
+#[inline(always)]
+unsafe fn sweep_strided_body<const WIDE: usize>(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    inner: usize,
+    outer: Range<usize>,
+    cols: Range<usize>,
+    out: &impl Emit,
+) {
     let (ri, ro) = (op.rows_in(), op.rows_out());
-    assert!(blocks.fits(ri.max(ro)), "block buffers too small");
-    let (input, mid) = (&mut *blocks.input, &mut *blocks.mid);
+    assert!(
+        blocks.fits::<WIDE>(ri.max(ro)) && blocks.fits::<LANES>(ri.max(ro)),
+        "block buffers too small"
+    );
+    if let AxisOp::Project { band, solve, scale } = *op
+        && WIDE > LANES
+        && inner >= WIDE
+        && cols.len() >= WIDE
+    {
+        // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]), read straight from the
+        // source rows.
+        let (_, mid) = blocks.rows::<WIDE>();
+        for b in outer {
+            let (sb, db) = (b * ri * inner, b * ro * inner);
+            let src = &src[sb..sb + ri * inner];
+            let mut c = cols.start;
+            while c < cols.end {
+                // The last group overlaps the one before it: the source is not the
+                // destination, and every lane runs the same operations, so the rewritten
+                // columns get the same values.
+                c = c.min(cols.end - WIDE);
+                direct_project((band, solve, scale), src, inner, c, db, mid, out);
+                c += WIDE;
+            }
+        }
+        return;
+    }
+    let (input, mid) = blocks.rows::<LANES>();
     {
         for b in outer {
             let (sb, db) = (b * ri * inner, b * ro * inner);
@@ -705,6 +834,79 @@ fn direct_inverse(
     }
 }
 
+/// `scale · (BᵀB)⁻¹ Bᵀ` on columns `c..c + W` of one block, `Bᵀ` gathered straight from the
+/// source rows into `mid` (the same sums in the same order as [`gather_block`]).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)] // one block's coordinates and buffers
+fn direct_project<const W: usize>(
+    (band, solve, scale): (&Band, &SolvePlan, f32),
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    mid: &mut [[f32; W]],
+    out: &impl Emit,
+) {
+    let n = band.outputs;
+    mid[..PAD].fill([0.0; W]);
+    mid[PAD + n..n + 2 * PAD].fill([0.0; W]);
+    let src = &src[c..];
+    let rows = &mut mid[PAD..PAD + n];
+    match band.taps {
+        3 => direct_gather_fixed::<3, W>(band, src, inner, rows),
+        4 => direct_gather_fixed::<4, W>(band, src, inner, rows),
+        7 => direct_gather_fixed::<7, W>(band, src, inner, rows),
+        taps => {
+            for ((dst, &s), w) in rows
+                .iter_mut()
+                .zip(&band.start)
+                .zip(band.weights.chunks_exact(taps))
+            {
+                let mut acc = [0.0; W];
+                for (t, &wt) in w.iter().enumerate() {
+                    let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
+                    for l in 0..W {
+                        acc[l] += wt * row[l];
+                    }
+                }
+                *dst = acc;
+            }
+        }
+    }
+    solve_block(solve, scale, mid);
+    for (r, row) in mid[PAD..PAD + n].iter().enumerate() {
+        let off = db + r * inner + c;
+        for (h, lanes) in row.as_chunks::<LANES>().0.iter().enumerate() {
+            emit_row(out, off + h * LANES, lanes, 0);
+        }
+    }
+}
+
+/// [`gather_fixed`] with the input rows read at a stride of `inner` from `src`.
+#[inline(always)]
+fn direct_gather_fixed<const T: usize, const W: usize>(
+    band: &Band,
+    src: &[f32],
+    inner: usize,
+    out: &mut [[f32; W]],
+) {
+    for ((dst, &s), w) in out
+        .iter_mut()
+        .zip(&band.start)
+        .zip(band.weights.chunks_exact(T))
+    {
+        let w: &[f32; T] = w.try_into().expect("T weights");
+        let mut acc = [0.0; W];
+        for t in 0..T {
+            let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
+            for l in 0..W {
+                acc[l] += w[t] * row[l];
+            }
+        }
+        *dst = acc;
+    }
+}
+
 /// One block of a strided pass: columns `c..c + w` of block `(sb, db)` (source and
 /// destination offsets), emitting lanes `skip..w`.
 #[inline(always)]
@@ -785,11 +987,73 @@ pub(crate) unsafe fn sweep_x_with(
     lines: Range<usize>,
     out: &SharedOut<'_>,
 ) {
+    #[cfg(target_arch = "x86_64")]
+    if wide_lanes() {
+        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
+        return unsafe { sweep_x_avx2(blocks, op, src, lines, out) };
+    }
+    // SAFETY: the caller's contract.
+    unsafe { sweep_x_body::<LANES>(blocks, op, src, lines, out) }
+}
+
+/// [`sweep_x_with`] built for AVX2.
+///
+/// # Safety
+/// The CPU must have AVX2; otherwise as [`sweep_x`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn sweep_x_avx2(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    lines: Range<usize>,
+    out: &SharedOut<'_>,
+) {
+    // SAFETY: the caller's contract.
+    unsafe { sweep_x_body::<{ WIDE_BLOCKS * LANES }>(blocks, op, src, lines, out) }
+}
+
+/// The body of [`sweep_x_with`], inlined into each build.
+///
+/// # Safety
+/// As [`sweep_x`].
+#[inline(always)]
+unsafe fn sweep_x_body<const WIDE: usize>(
+    blocks: &mut Blocks<'_>,
+    op: &AxisOp<'_>,
+    src: &[f32],
+    lines: Range<usize>,
+    out: &SharedOut<'_>,
+) {
     let (ri, ro) = (op.rows_in(), op.rows_out());
-    assert!(blocks.fits(ri.max(ro)), "block buffers too small");
-    let (input, mid) = (&mut *blocks.input, &mut *blocks.mid);
+    assert!(
+        blocks.fits::<WIDE>(ri.max(ro)) && blocks.fits::<LANES>(ri.max(ro)),
+        "block buffers too small"
+    );
+    let mut g = lines.start;
+    if let AxisOp::Project { band, solve, scale } = *op
+        && WIDE > LANES
+        && lines.len() >= WIDE
     {
-        let mut g = lines.start;
+        // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]).
+        let (input, mid) = blocks.rows::<WIDE>();
+        while g < lines.end {
+            // The last group overlaps the one before it: the source is not the destination,
+            // and every lane runs the same operations, so the rewritten lines get the same
+            // values.
+            g = g.min(lines.end - WIDE);
+            transpose_in(&src[g * ri..(g + WIDE) * ri], ri, &mut input[..ri]);
+            let res = project_block(band, solve, scale, input, mid);
+            // SAFETY: these lines are in `lines`, which the caller's contract gives to this
+            // call alone.
+            let dst = unsafe { out.slice_mut(g * ro..(g + WIDE) * ro) };
+            transpose_out(res, ro, dst);
+            g += WIDE;
+        }
+        return;
+    }
+    let (input, mid) = blocks.rows::<LANES>();
+    {
         while g < lines.end {
             if lines.end - g < LANES && lines.len() >= LANES {
                 // A short tail: redo the last full group instead (the source is not the
@@ -825,15 +1089,15 @@ pub(crate) unsafe fn sweep_x_with(
     }
 }
 
-/// `block[r][l] = group[l · len + r]` for `LANES` lines of `len` values, in 4 × 4 tiles
+/// `block[r][l] = group[l · len + r]` for `W` lines (a multiple of 4) of `len` values, in 4 × 4 tiles
 /// (which LLVM turns into register shuffles).
 #[inline(always)]
-fn transpose_in(group: &[f32], len: usize, block: &mut [Lanes]) {
-    let lines: [&[f32]; LANES] = std::array::from_fn(|l| &group[l * len..(l + 1) * len]);
+fn transpose_in<const W: usize>(group: &[f32], len: usize, block: &mut [[f32; W]]) {
+    let lines: [&[f32]; W] = std::array::from_fn(|l| &group[l * len..(l + 1) * len]);
     let full = len / 4 * 4;
     for r0 in (0..full).step_by(4) {
-        let rows: &mut [Lanes; 4] = (&mut block[r0..r0 + 4]).try_into().expect("four rows");
-        for h in 0..LANES / 4 {
+        let rows: &mut [[f32; W]; 4] = (&mut block[r0..r0 + 4]).try_into().expect("four rows");
+        for h in 0..W / 4 {
             let a: [[f32; 4]; 4] =
                 std::array::from_fn(|l| lines[4 * h + l][r0..r0 + 4].try_into().expect("four"));
             for (i, row) in rows.iter_mut().enumerate() {
@@ -842,7 +1106,7 @@ fn transpose_in(group: &[f32], len: usize, block: &mut [Lanes]) {
         }
     }
     for (r, row) in block[full..len].iter_mut().enumerate() {
-        for l in 0..LANES {
+        for l in 0..W {
             row[l] = lines[l][full + r];
         }
     }
@@ -850,15 +1114,15 @@ fn transpose_in(group: &[f32], len: usize, block: &mut [Lanes]) {
 
 /// `group[l · len + r] = block[r][l]`: the inverse of [`transpose_in`].
 #[inline(always)]
-fn transpose_out(block: &[Lanes], len: usize, group: &mut [f32]) {
-    let mut lines: [&mut [f32]; LANES] = {
+fn transpose_out<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f32]) {
+    let mut lines: [&mut [f32]; W] = {
         let mut it = group.chunks_exact_mut(len);
-        std::array::from_fn(|_| it.next().expect("eight lines"))
+        std::array::from_fn(|_| it.next().expect("W lines"))
     };
     let full = len / 4 * 4;
     for r0 in (0..full).step_by(4) {
-        let rows: &[Lanes; 4] = block[r0..r0 + 4].try_into().expect("four rows");
-        for h in 0..LANES / 4 {
+        let rows: &[[f32; W]; 4] = block[r0..r0 + 4].try_into().expect("four rows");
+        for h in 0..W / 4 {
             for i in 0..4 {
                 let l = 4 * h + i;
                 lines[l][r0..r0 + 4]
@@ -887,4 +1151,119 @@ pub(crate) fn split_range(len: usize, parts: usize, i: usize, align: usize) -> R
         aligned.min(len)
     };
     cut(i)..cut(i + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::axis::AxisBasis;
+    use super::super::kron::KroneckerBasis;
+    use super::*;
+
+    fn basis(n: usize, m: usize) -> KroneckerBasis {
+        let du = (n - 1) as f64 / (m - 1) as f64;
+        let axis = || AxisBasis::uniform(0.0, n, 0.0, du, m);
+        KroneckerBasis::new([axis(), axis(), axis()]).unwrap()
+    }
+
+    fn pseudo(len: usize, seed: u32) -> Vec<f32> {
+        (0..len)
+            .map(|i| (((i as u32).wrapping_mul(2654435761) ^ seed) % 1000) as f32 / 500.0 - 1.0)
+            .collect()
+    }
+
+    fn bits(v: &[f32]) -> Vec<u32> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    /// The x pass over `lines` by the narrow body and by the dispatched build (the wide blocks
+    /// and, where the CPU has it, AVX2), and by the wide body without AVX2.
+    fn x_pass_all_ways(op: &AxisOp<'_>, src: &[f32], lines: Range<usize>, len: usize) {
+        let rows = op.rows_in().max(op.rows_out());
+        let mut outs = [vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+        with_blocks(rows, |b| {
+            let [o0, o1, o2] = &mut outs;
+            // SAFETY: one thread; the source is another buffer.
+            unsafe {
+                sweep_x_body::<LANES>(b, op, src, lines.clone(), &SharedOut::new(o0));
+                sweep_x_with(b, op, src, lines.clone(), &SharedOut::new(o1));
+                sweep_x_body::<{ 2 * LANES }>(b, op, src, lines.clone(), &SharedOut::new(o2));
+            }
+        });
+        assert_eq!(bits(&outs[0]), bits(&outs[1]), "x pass, lines {lines:?}");
+        assert_eq!(bits(&outs[0]), bits(&outs[2]), "x pass, lines {lines:?}");
+    }
+
+    /// The same for a strided pass over `cols` of every block.
+    fn strided_all_ways(
+        op: &AxisOp<'_>,
+        src: &[f32],
+        inner: usize,
+        outer: usize,
+        cols: Range<usize>,
+    ) {
+        let rows = op.rows_in().max(op.rows_out());
+        let len = outer * op.rows_out() * inner;
+        let mut outs = [vec![0.0; len], vec![0.0; len], vec![0.0; len]];
+        with_blocks(rows, |b| {
+            let [o0, o1, o2] = &mut outs;
+            let c = cols.clone();
+            // SAFETY: one thread; the source is another buffer.
+            unsafe {
+                sweep_strided_body::<LANES>(
+                    b,
+                    op,
+                    src,
+                    inner,
+                    0..outer,
+                    c.clone(),
+                    &SharedOut::new(o0),
+                );
+                sweep_strided_with(b, op, src, inner, 0..outer, c.clone(), &SharedOut::new(o1));
+                sweep_strided_body::<{ 2 * LANES }>(
+                    b,
+                    op,
+                    src,
+                    inner,
+                    0..outer,
+                    c,
+                    &SharedOut::new(o2),
+                );
+            }
+        });
+        assert_eq!(
+            bits(&outs[0]),
+            bits(&outs[1]),
+            "strided pass, inner {inner}, cols {cols:?}"
+        );
+        assert_eq!(
+            bits(&outs[0]),
+            bits(&outs[2]),
+            "strided pass, inner {inner}, cols {cols:?}"
+        );
+    }
+
+    #[test]
+    fn wide_blocks_and_the_avx2_build_give_bit_identical_sweeps() {
+        for (n, m) in [(16, 31), (11, 21), (5, 9), (8, 8), (20, 39)] {
+            let k = basis(n, m);
+            for op in [k.op_project(0, 1.0), k.op_project(2, 0.37), k.op_apply(0)] {
+                let (ri, ro) = (op.rows_in(), op.rows_out());
+                for count in [1, 7, 16, 31, 40, 97] {
+                    let src = pseudo(count * ri, count as u32);
+                    for lines in [0..count, count / 3..count, 0..count - count / 4] {
+                        x_pass_all_ways(&op, &src, lines, count * ro);
+                    }
+                }
+                for inner in [3, 8, 11, 16, 31, 47, 256] {
+                    let outer = 2;
+                    let src = pseudo(outer * ri * inner, inner as u32);
+                    for cols in [0..inner, inner / 3..inner, 0..inner - inner / 4] {
+                        if !cols.is_empty() {
+                            strided_all_ways(&op, &src, inner, outer, cols);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
