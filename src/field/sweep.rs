@@ -542,6 +542,36 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
         }
         return;
     }
+    if let AxisOp::Apply(band) = *op
+        && WIDE > LANES
+        && inner >= WIDE
+        && cols.len() >= WIDE
+    {
+        // `WIDE` columns at once, read straight from the source rows.
+        for b in outer {
+            let (sb, db) = (b * ri * inner, b * ro * inner);
+            let src = &src[sb..sb + ri * inner];
+            let mut c = cols.start;
+            while c < cols.end {
+                // The last group overlaps the one before it, as above.
+                c = c.min(cols.end - WIDE);
+                match band.taps {
+                    3 => direct_apply_w::<3, WIDE>(band, src, inner, c, db, out),
+                    4 => direct_apply_w::<4, WIDE>(band, src, inner, c, db, out),
+                    _ => {
+                        // Other widths keep the narrow blocks.
+                        let mut n = c;
+                        while n < c + WIDE {
+                            direct_apply(band, src, inner, n, db, 0, out);
+                            n += LANES;
+                        }
+                    }
+                }
+                c += WIDE;
+            }
+        }
+        return;
+    }
     let (input, mid) = blocks.rows::<LANES>();
     {
         for b in outer {
@@ -747,6 +777,38 @@ fn direct_apply_wide<const T: usize>(
         let off = db + o * inner + c;
         emit_row(out, off, &a0, 0);
         emit_row(out, off + LANES, &a1, 0);
+    }
+}
+
+/// [`direct_apply_fixed`] on `W` columns (`c..c + W`), emitted a block row at a time.
+#[inline(always)]
+fn direct_apply_w<const T: usize, const W: usize>(
+    band: &Band,
+    src: &[f32],
+    inner: usize,
+    c: usize,
+    db: usize,
+    out: &impl Emit,
+) {
+    let src = &src[c..];
+    for (o, (&s, w)) in band
+        .start
+        .iter()
+        .zip(band.weights.chunks_exact(T))
+        .enumerate()
+    {
+        let w: &[f32; T] = w.try_into().expect("T weights");
+        let mut acc = [0.0; W];
+        for t in 0..T {
+            let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
+            for l in 0..W {
+                acc[l] += w[t] * row[l];
+            }
+        }
+        let off = db + o * inner + c;
+        for (h, lanes) in acc.as_chunks::<LANES>().0.iter().enumerate() {
+            emit_row(out, off + h * LANES, lanes, 0);
+        }
     }
 }
 
