@@ -1093,23 +1093,36 @@ unsafe fn sweep_x_body<const WIDE: usize>(
         "block buffers too small"
     );
     let mut g = lines.start;
-    if let AxisOp::Project { band, solve, scale } = *op
-        && WIDE > LANES
+    if WIDE > LANES
         && lines.len() >= WIDE
+        && matches!(op, AxisOp::Project { .. } | AxisOp::Apply(_))
     {
-        // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]).
+        // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]), transposed with AVX
+        // shuffles: only the AVX2 build sweeps wide blocks.
+        assert!(wide_lanes(), "wide blocks need AVX2");
         let (input, mid) = blocks.rows::<WIDE>();
         while g < lines.end {
             // The last group overlaps the one before it: the source is not the destination,
             // and every lane runs the same operations, so the rewritten lines get the same
             // values.
             g = g.min(lines.end - WIDE);
-            transpose_in(&src[g * ri..(g + WIDE) * ri], ri, &mut input[..ri]);
-            let res = project_block(band, solve, scale, input, mid);
+            // SAFETY: the CPU has AVX2 (asserted above).
+            unsafe { transpose_in_avx(&src[g * ri..(g + WIDE) * ri], ri, &mut input[..ri]) };
+            let res: &[[f32; WIDE]] = match *op {
+                AxisOp::Project { band, solve, scale } => {
+                    project_block(band, solve, scale, input, mid)
+                }
+                AxisOp::Apply(band) => {
+                    gather_block(band, input, mid);
+                    &mid[..ro]
+                }
+                _ => unreachable!("matched above"),
+            };
             // SAFETY: these lines are in `lines`, which the caller's contract gives to this
             // call alone.
             let dst = unsafe { out.slice_mut(g * ro..(g + WIDE) * ro) };
-            transpose_out(res, ro, dst);
+            // SAFETY: as above.
+            unsafe { transpose_out_avx(res, ro, dst) };
             g += WIDE;
         }
         return;
@@ -1199,6 +1212,133 @@ fn transpose_out<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f3
     }
 }
 
+/// `block[r][l] = group[l · len + r]` for `W` lines (a multiple of 8) of `len` values, in
+/// 8 × 8 tiles of AVX shuffles (rows short of a whole tile at the end are redone by a tile
+/// that overlaps the one before it; below 8 rows, one value at a time).
+///
+/// # Safety
+/// The CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn transpose_in_avx<const W: usize>(group: &[f32], len: usize, block: &mut [[f32; W]]) {
+    assert!(W % 8 == 0 && group.len() >= W * len && block.len() >= len);
+    if len < 8 {
+        for (r, row) in block[..len].iter_mut().enumerate() {
+            for (l, v) in row.iter_mut().enumerate() {
+                *v = group[l * len + r];
+            }
+        }
+        return;
+    }
+    for h in 0..W / 8 {
+        let mut r0 = 0;
+        while r0 < len {
+            let r = r0.min(len - 8);
+            // SAFETY: line `8h + i` holds `len` values from `(8h + i) · len`, and `r + 8 <=
+            // len`; block rows `r..r + 8` exist (`len <= block.len()`), lanes `8h..8h + 8`
+            // inside `W`; the CPU has AVX by the caller's contract.
+            unsafe {
+                let p = group.as_ptr().add(8 * h * len + r);
+                let rows = std::array::from_fn(|i| p.add(i * len));
+                let t = transpose8(rows);
+                for (i, v) in t.into_iter().enumerate() {
+                    std::arch::x86_64::_mm256_storeu_ps(block[r + i].as_mut_ptr().add(8 * h), v);
+                }
+            }
+            r0 += 8;
+        }
+    }
+}
+
+/// `group[l · len + r] = block[r][l]`: the inverse of [`transpose_in_avx`].
+///
+/// # Safety
+/// The CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn transpose_out_avx<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f32]) {
+    assert!(W % 8 == 0 && group.len() >= W * len && block.len() >= len);
+    if len < 8 {
+        for (r, row) in block[..len].iter().enumerate() {
+            for (l, &v) in row.iter().enumerate() {
+                group[l * len + r] = v;
+            }
+        }
+        return;
+    }
+    for h in 0..W / 8 {
+        let mut r0 = 0;
+        while r0 < len {
+            let r = r0.min(len - 8);
+            // SAFETY: as in `transpose_in_avx`, with the roles of the two sides swapped.
+            unsafe {
+                let rows = std::array::from_fn(|i| block[r + i].as_ptr().add(8 * h));
+                let t = transpose8(rows);
+                let p = group.as_mut_ptr().add(8 * h * len + r);
+                for (i, v) in t.into_iter().enumerate() {
+                    std::arch::x86_64::_mm256_storeu_ps(p.add(i * len), v);
+                }
+            }
+            r0 += 8;
+        }
+    }
+}
+
+/// The 8 × 8 transpose of the eight rows of 8 values at `rows`.
+///
+/// # Safety
+/// Each pointer must be valid for 8 reads; the CPU must have AVX.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn transpose8(rows: [*const f32; 8]) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::{
+        _mm256_loadu_ps, _mm256_permute2f128_ps, _mm256_shuffle_ps, _mm256_unpackhi_ps,
+        _mm256_unpacklo_ps,
+    };
+    // SAFETY: the caller's contract.
+    unsafe {
+        let r = rows.map(|p| _mm256_loadu_ps(p));
+        let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+        let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+        let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+        let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+        let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+        let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+        let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+        let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+        let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+        let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+        let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+        let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+        let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+        let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+        let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+        let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+        [
+            _mm256_permute2f128_ps::<0x20>(u0, u4),
+            _mm256_permute2f128_ps::<0x20>(u1, u5),
+            _mm256_permute2f128_ps::<0x20>(u2, u6),
+            _mm256_permute2f128_ps::<0x20>(u3, u7),
+            _mm256_permute2f128_ps::<0x31>(u0, u4),
+            _mm256_permute2f128_ps::<0x31>(u1, u5),
+            _mm256_permute2f128_ps::<0x31>(u2, u6),
+            _mm256_permute2f128_ps::<0x31>(u3, u7),
+        ]
+    }
+}
+
+/// Without x86-64 no build sweeps wide blocks; this keeps the generic body compiling.
+#[cfg(not(target_arch = "x86_64"))]
+unsafe fn transpose_in_avx<const W: usize>(group: &[f32], len: usize, block: &mut [[f32; W]]) {
+    transpose_in(group, len, block);
+}
+
+/// See [`transpose_in_avx`].
+#[cfg(not(target_arch = "x86_64"))]
+unsafe fn transpose_out_avx<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f32]) {
+    transpose_out(block, len, group);
+}
+
 /// Split `0..len` into `parts` near-equal ranges (the `i`-th of them), cut on multiples of
 /// `align` where possible.
 #[must_use]
@@ -1248,7 +1388,11 @@ mod tests {
             unsafe {
                 sweep_x_body::<LANES>(b, op, src, lines.clone(), &SharedOut::new(o0));
                 sweep_x_with(b, op, src, lines.clone(), &SharedOut::new(o1));
-                sweep_x_body::<{ 2 * LANES }>(b, op, src, lines.clone(), &SharedOut::new(o2));
+                if wide_lanes() {
+                    sweep_x_body::<{ 2 * LANES }>(b, op, src, lines.clone(), &SharedOut::new(o2));
+                } else {
+                    sweep_x_body::<LANES>(b, op, src, lines.clone(), &SharedOut::new(o2));
+                }
             }
         });
         assert_eq!(bits(&outs[0]), bits(&outs[1]), "x pass, lines {lines:?}");
