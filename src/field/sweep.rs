@@ -1221,7 +1221,7 @@ fn transpose_out<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f3
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 unsafe fn transpose_in_avx<const W: usize>(group: &[f32], len: usize, block: &mut [[f32; W]]) {
-    assert!(W % 8 == 0 && group.len() >= W * len && block.len() >= len);
+    assert!(W.is_multiple_of(8) && group.len() >= W * len && block.len() >= len);
     if len < 8 {
         for (r, row) in block[..len].iter_mut().enumerate() {
             for (l, v) in row.iter_mut().enumerate() {
@@ -1257,7 +1257,7 @@ unsafe fn transpose_in_avx<const W: usize>(group: &[f32], len: usize, block: &mu
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 unsafe fn transpose_out_avx<const W: usize>(block: &[[f32; W]], len: usize, group: &mut [f32]) {
-    assert!(W % 8 == 0 && group.len() >= W * len && block.len() >= len);
+    assert!(W.is_multiple_of(8) && group.len() >= W * len && block.len() >= len);
     if len < 8 {
         for (r, row) in block[..len].iter().enumerate() {
             for (l, &v) in row.iter().enumerate() {
