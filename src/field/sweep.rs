@@ -13,6 +13,12 @@
 //! Each call works on caller-chosen ranges (planes, columns, lines) and writes through an
 //! [`Emit`], which is how two threads share one output array. Block buffers live on the stack
 //! (axes up to 250 long) and are allocated only for longer axes.
+//!
+//! Where the CPU has AVX2 the sweeps run a second build of the same code ([`wide_lanes`]): a
+//! block row is then one 256-bit register, the projections sweep two blocks side by side (so
+//! the Gram solve's recurrence advances two independent chains), and the x passes transpose
+//! in 8 × 8 AVX shuffle tiles. Every lane still runs the same operations in the same order, so
+//! both builds and every blocking give bit-identical results.
 
 use std::marker::PhantomData;
 use std::ops::Range;
