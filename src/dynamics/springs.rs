@@ -527,6 +527,12 @@ mod tests {
             for (i, (g, w)) in got.iter().zip(&want).enumerate() {
                 assert!((g - w).abs() < 1e-5, "{dims:?} point {i}: {g} vs {w}");
             }
+            // The portable build gives the same bits as the one chosen for this CPU.
+            let mut portable = vec![f32::NAN; n];
+            // SAFETY: one thread.
+            unsafe { six_forces_body(&inputs, 0..dims[2], &SharedOut::new(&mut portable), 0) };
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&portable), bits(&got), "{dims:?}");
         }
     }
 }
