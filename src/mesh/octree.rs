@@ -16,7 +16,6 @@
 //!
 //! Not real-time: this runs on the graphics thread and allocates.
 
-use std::collections::btree_map::Entry;
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::{Mutex, PoisonError};
@@ -192,9 +191,9 @@ impl BrickOctree {
     /// that is stored already is rebuilt in its own buffers (no allocation when its mesh
     /// fits them), so rebuilding a tree costs less than building a new one.
     pub fn rebuild<F: ScalarField + ?Sized>(&mut self, field: &F) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
-            let mut all = Some(bricks);
-            build_runs(field, grid, counts, generation, || all.take());
+        self.rebuild_on(field, |field, grid, counts, generation, jobs| {
+            let mut all = Some(jobs);
+            build_runs(field, grid, counts, generation, || all.take())
         })
     }
 
@@ -213,24 +212,30 @@ impl BrickOctree {
     /// [`BrickOctree::rebuild`] with the bricks split over `threads` threads; the result
     /// (bricks, meshes and report) is identical. The descent runs first on the caller and
     /// lists the bricks to sample; the threads then build them, taking runs of the build
-    /// order in turn (four runs per thread).
+    /// order in turn.
     pub fn rebuild_with_threads<F: ScalarField + Sync + ?Sized>(
         &mut self,
         field: &F,
         threads: usize,
     ) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
-            build_bricks_parallel(field, grid, counts, generation, bricks, threads);
+        self.rebuild_on(field, |field, grid, counts, generation, jobs| {
+            build_bricks_parallel(field, grid, counts, generation, jobs, threads)
         })
     }
 
-    /// The rebuild, with the listed bricks (in build order, see [`brick_order`]) built by
-    /// `build`, which gives each brick it finds crossed by the surface the new generation.
-    /// The result is that of the descent of [`BrickOctree::visit`] from the root.
+    /// The rebuild, with the bricks to sample (in build order, see [`build_order`]) built by
+    /// `build`, which marks each brick it finds crossed by the surface, rebuilds a stored
+    /// one in place and returns the new ones. The result is that of the descent of
+    /// [`BrickOctree::visit`] from the root.
+    ///
+    /// Only the bricks the surface crosses are kept in the tree: a brick to sample that is
+    /// not stored is made only once the builder finds the surface in it, so the many empty
+    /// bricks of a build without bounds cost the tree nothing (the part of a rebuild that
+    /// runs on the caller alone stays small, and two threads gain close to twice).
     fn rebuild_on<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
-        build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [&mut Brick]),
+        build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [BrickJob<'_>]) -> Vec<Brick>,
     ) -> RefreshReport {
         self.generation += 1;
         let generation = self.generation;
@@ -248,41 +253,47 @@ impl BrickOctree {
                 PlanStep::Cull { .. } => None,
             })
             .collect();
-        // Every brick to sample gets an entry (the stored one, whose buffers are reused, or
-        // an empty one); the entries are then lent to the builders in build order.
-        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(leaves.len());
-        let mut existed = vec![false; leaves.len()];
-        for (i, &node) in leaves.iter().enumerate() {
-            let key = morton(node);
-            keyed.push((key, i as u32));
-            match self.bricks.entry(key) {
-                Entry::Occupied(_) => existed[i] = true,
-                Entry::Vacant(v) => {
-                    v.insert(Brick::empty(node));
-                }
-            }
-        }
+        // The stored bricks among the leaves, lent to the builders: one merge of the
+        // leaves' keys with the tree's, both in key order (the descent meets its leaves in
+        // Morton order, and sorting keys already in order costs one pass).
+        let mut keyed: Vec<(u64, u32)> = leaves
+            .iter()
+            .enumerate()
+            .map(|(i, &node)| (morton(node), i as u32))
+            .collect();
         keyed.sort_unstable();
         let mut lent: Vec<Option<&mut Brick>> = Vec::with_capacity(leaves.len());
         lent.resize_with(leaves.len(), || None);
-        let mut wanted = keyed.iter().peekable();
-        for (key, brick) in &mut self.bricks {
-            if let Some(&&(k, i)) = wanted.peek()
-                && k == *key
-            {
-                lent[i as usize] = Some(brick);
-                wanted.next();
+        if let (Some(&(first, _)), Some(&(end, _))) = (keyed.first(), keyed.last()) {
+            let mut wanted = keyed.iter().peekable();
+            for (key, brick) in self.bricks.range_mut(first..=end) {
+                while wanted.next_if(|&&(k, _)| k < *key).is_some() {}
+                if let Some(&(_, i)) = wanted.next_if(|&&(k, _)| k == *key) {
+                    lent[i as usize] = Some(brick);
+                }
             }
         }
-        let mut in_order: Vec<&mut Brick> = brick_order(&leaves)
-            .iter()
-            .filter_map(|&i| lent[i as usize].take())
+        let mut jobs: Vec<BrickJob<'_>> = build_order(&leaves, self.brick_counts)
+            .into_iter()
+            .map(|i| BrickJob {
+                coord: leaves[i as usize],
+                stored: lent[i as usize].take(),
+                leaf: i,
+                crossed: false,
+            })
             .collect();
-        debug_assert_eq!(in_order.len(), leaves.len());
         let grid = self.grid;
-        build(field, &grid, self.brick_counts, generation, &mut in_order);
-        drop(in_order);
+        let fresh = build(field, &grid, self.brick_counts, generation, &mut jobs);
+        // Per leaf: crossed (kept with the new generation), and whether it was stored.
+        let mut outcome = vec![(false, false); leaves.len()];
+        for job in &jobs {
+            outcome[job.leaf as usize] = (job.crossed, job.stored.is_some());
+        }
+        drop(jobs);
         drop(lent);
+        for brick in fresh {
+            self.bricks.insert(morton(brick.coord), brick);
+        }
         let mut leaf = 0;
         for step in plan {
             match step {
@@ -291,18 +302,12 @@ impl BrickOctree {
                 }
                 PlanStep::Leaf(node) => {
                     report.bricks_sampled += 1;
-                    let key = morton(node);
-                    if self
-                        .bricks
-                        .get(&key)
-                        .is_some_and(|b| b.version == generation)
-                    {
+                    let (crossed, stored) = outcome[leaf];
+                    if crossed {
                         report.changed.push(node);
-                    } else {
-                        self.bricks.remove(&key);
-                        if existed[leaf] {
-                            report.removed.push(node);
-                        }
+                    } else if stored {
+                        self.bricks.remove(&morton(node));
+                        report.removed.push(node);
                     }
                     leaf += 1;
                 }
@@ -958,9 +963,34 @@ impl FaceCache {
     }
 }
 
+/// One brick to sample in a rebuild, as the builders get it.
+struct BrickJob<'a> {
+    coord: [u32; 3],
+    /// The stored brick, rebuilt in its own buffers, or `None` for a brick not in the tree.
+    stored: Option<&'a mut Brick>,
+    /// Its index among the descent's leaves.
+    leaf: u32,
+    /// Set by the builder: the surface crosses the brick (it now carries the generation).
+    crossed: bool,
+}
+
 /// The bricks of `leaves` (indices into it) with x fastest, then y, then z: the order in
-/// which each brick follows the bricks below it.
-fn brick_order(leaves: &[[u32; 3]]) -> Vec<u32> {
+/// which each brick follows the bricks below it. Leaves are distinct bricks of a grid of
+/// `counts` bricks; when they fill a good part of it they are placed by a scan of the grid
+/// (linear), otherwise sorted.
+fn build_order(leaves: &[[u32; 3]], counts: [u32; 3]) -> Vec<u32> {
+    let cells = counts.iter().map(|&c| c as usize).product::<usize>();
+    let linear = |c: [u32; 3]| {
+        c[0] as usize + counts[0] as usize * (c[1] as usize + counts[1] as usize * c[2] as usize)
+    };
+    if cells <= 8 * leaves.len() {
+        let mut at = vec![u32::MAX; cells];
+        for (i, &c) in leaves.iter().enumerate() {
+            at[linear(c)] = i as u32;
+        }
+        at.retain(|&i| i != u32::MAX);
+        return at;
+    }
     let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
     order.sort_unstable_by_key(|&i| {
         let c = leaves[i as usize];
@@ -971,59 +1001,73 @@ fn brick_order(leaves: &[[u32; 3]]) -> Vec<u32> {
 
 /// One thread's share of a build: the runs of the build order that `next_run` hands out,
 /// until it has none left. Within a run, each brick takes the faces it shares with the bricks
-/// below it from them (about one sample per cell instead of 1.42); a brick the surface
-/// crosses is filled and given `generation`, the others are left as they were.
+/// below it from them (about one sample per cell instead of 1.42). A brick the surface
+/// crosses is marked, and filled with the generation: a stored one in place, a new one made
+/// and returned; the others are left as they were.
 fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
     generation: u64,
-    mut next_run: impl FnMut() -> Option<&'a mut [&'b mut Brick]>,
-) {
+    mut next_run: impl FnMut() -> Option<&'a mut [BrickJob<'b>]>,
+) -> Vec<Brick> {
     let mut scratch = BrickScratch::default();
     let mut cache = FaceCache::new(counts);
+    let mut fresh = Vec::new();
     while let Some(run) = next_run() {
-        for brick in run.iter_mut() {
-            let node = brick.coord;
+        for job in run.iter_mut() {
+            let node = job.coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);
+            job.crossed = crossed;
             if crossed {
-                brick.remesh(field, grid, &mut scratch, generation);
+                match job.stored.as_deref_mut() {
+                    Some(brick) => brick.remesh(field, grid, &mut scratch, generation),
+                    None => {
+                        let mut brick = Brick::empty(node);
+                        brick.remesh(field, grid, &mut scratch, generation);
+                        fresh.push(brick);
+                    }
+                }
             }
         }
     }
+    fresh
 }
 
-/// Builds `bricks` (in build order) on `threads` threads (the caller and `threads − 1`
-/// more), which take runs of the order in turn, a few per thread. A brick's samples and
-/// mesh depend only on the brick and the field, so the split changes nothing in the result.
+/// Builds `jobs` (in build order) on `threads` threads (the caller and `threads − 1`
+/// more), which take runs of the order in turn, a few per thread, and returns the new
+/// bricks. A brick's samples and mesh depend only on the brick and the field, so the split
+/// changes nothing in the result.
 fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
     generation: u64,
-    bricks: &mut [&mut Brick],
+    jobs: &mut [BrickJob<'_>],
     threads: usize,
-) {
+) -> Vec<Brick> {
     let threads = threads.max(1);
     let runs = if threads == 1 { 1 } else { threads * 4 };
-    let run = bricks.len().div_ceil(runs).max(1);
+    let run = jobs.len().div_ceil(runs).max(1);
     // One uncontended lock per run handed out, none per brick.
-    let queue = Mutex::new(bricks.chunks_mut(run));
+    let queue = Mutex::new(jobs.chunks_mut(run));
     let work = || {
         build_runs(field, grid, counts, generation, || {
             queue.lock().unwrap_or_else(PoisonError::into_inner).next()
-        });
+        })
     };
     std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
-        work();
+        let mut fresh = work();
         for h in helpers {
-            if let Err(panic) = h.join() {
-                std::panic::resume_unwind(panic);
+            match h.join() {
+                Ok(more) => fresh.extend(more),
+                Err(panic) => std::panic::resume_unwind(panic),
             }
         }
-    });
+        fresh
+    })
 }
 
 /// Interleaves the low 21 bits of each coordinate (x lowest).
@@ -1540,6 +1584,25 @@ mod tests {
         assert!(memory.total_bytes() < 200_000_000, "{memory:?}");
         assert!(tree.brick_count() < 64 * 64 * 64 / 8);
         assert!(tree.triangle_count() > 1_000_000);
+    }
+
+    #[test]
+    fn build_order_is_z_then_y_then_x_for_dense_and_sparse_leaves() {
+        let counts = [5, 7, 6];
+        let all: Vec<[u32; 3]> = (0..6)
+            .flat_map(|z| (0..7).flat_map(move |y| (0..5).map(move |x| [x, y, z])))
+            .collect();
+        // Leaves in Morton order, as the descent lists them; every third brick (placed by
+        // a scan of the grid) and every eleventh (sorted).
+        for keep_every in [1usize, 3, 11] {
+            let mut leaves: Vec<[u32; 3]> = all.iter().copied().step_by(keep_every).collect();
+            leaves.sort_unstable_by_key(|&c| morton(c));
+            let order = build_order(&leaves, counts);
+            let in_order: Vec<[u32; 3]> = order.iter().map(|&i| leaves[i as usize]).collect();
+            let mut expected = leaves.clone();
+            expected.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
+            assert_eq!(in_order, expected, "every {keep_every}th brick");
+        }
     }
 
     #[test]
