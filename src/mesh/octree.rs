@@ -253,35 +253,7 @@ impl BrickOctree {
                 PlanStep::Cull { .. } => None,
             })
             .collect();
-        // The stored bricks among the leaves, lent to the builders: one merge of the
-        // leaves' keys with the tree's, both in key order (the descent meets its leaves in
-        // Morton order, and sorting keys already in order costs one pass).
-        let mut keyed: Vec<(u64, u32)> = leaves
-            .iter()
-            .enumerate()
-            .map(|(i, &node)| (morton(node), i as u32))
-            .collect();
-        keyed.sort_unstable();
-        let mut lent: Vec<Option<&mut Brick>> = Vec::with_capacity(leaves.len());
-        lent.resize_with(leaves.len(), || None);
-        if let (Some(&(first, _)), Some(&(end, _))) = (keyed.first(), keyed.last()) {
-            let mut wanted = keyed.iter().peekable();
-            for (key, brick) in self.bricks.range_mut(first..=end) {
-                while wanted.next_if(|&&(k, _)| k < *key).is_some() {}
-                if let Some(&(_, i)) = wanted.next_if(|&&(k, _)| k == *key) {
-                    lent[i as usize] = Some(brick);
-                }
-            }
-        }
-        let mut jobs: Vec<BrickJob<'_>> = build_order(&leaves, self.brick_counts)
-            .into_iter()
-            .map(|i| BrickJob {
-                coord: leaves[i as usize],
-                stored: lent[i as usize].take(),
-                leaf: i,
-                crossed: false,
-            })
-            .collect();
+        let mut jobs = lend_in_build_order(&leaves, self.brick_counts, &mut self.bricks);
         let grid = self.grid;
         let fresh = build(field, &grid, self.brick_counts, generation, &mut jobs);
         // Per leaf: crossed (kept with the new generation), and whether it was stored.
@@ -290,7 +262,6 @@ impl BrickOctree {
             outcome[job.leaf as usize] = (job.crossed, job.stored.is_some());
         }
         drop(jobs);
-        drop(lent);
         for brick in fresh {
             self.bricks.insert(morton(brick.coord), brick);
         }
@@ -974,22 +945,71 @@ struct BrickJob<'a> {
     crossed: bool,
 }
 
-/// The bricks of `leaves` (indices into it) with x fastest, then y, then z: the order in
-/// which each brick follows the bricks below it. Leaves are distinct bricks of a grid of
-/// `counts` bricks; when they fill a good part of it they are placed by a scan of the grid
-/// (linear), otherwise sorted.
-fn build_order(leaves: &[[u32; 3]], counts: [u32; 3]) -> Vec<u32> {
-    let cells = counts.iter().map(|&c| c as usize).product::<usize>();
-    let linear = |c: [u32; 3]| {
-        c[0] as usize + counts[0] as usize * (c[1] as usize + counts[1] as usize * c[2] as usize)
+/// The jobs of a rebuild: the bricks of `leaves` (distinct bricks of a grid of `counts`
+/// bricks, listed by the descent in Morton order) with x fastest, then y, then z, which is
+/// the order in which each brick follows the bricks below it, each lent its stored brick
+/// from `bricks` where there is one.
+///
+/// When the leaves fill a good part of the grid (a field without bounds samples every
+/// brick) they are placed by one scan of the grid and the stored bricks found by their
+/// place in it; otherwise the leaves are sorted and the stored ones found by one merge of
+/// keys. Either way this is a small part of a rebuild, which matters because it runs on
+/// the caller alone while the other threads wait.
+fn lend_in_build_order<'a>(
+    leaves: &[[u32; 3]],
+    counts: [u32; 3],
+    bricks: &'a mut BTreeMap<u64, Brick>,
+) -> Vec<BrickJob<'a>> {
+    let job = |leaf: usize| BrickJob {
+        coord: leaves[leaf],
+        stored: None,
+        leaf: leaf as u32,
+        crossed: false,
     };
+    let cells = counts.iter().map(|&c| c as usize).product::<usize>();
     if cells <= 8 * leaves.len() {
+        let linear = |c: [u32; 3]| {
+            c[0] as usize
+                + counts[0] as usize * (c[1] as usize + counts[1] as usize * c[2] as usize)
+        };
         let mut at = vec![u32::MAX; cells];
         for (i, &c) in leaves.iter().enumerate() {
             at[linear(c)] = i as u32;
         }
-        at.retain(|&i| i != u32::MAX);
-        return at;
+        // Job index per cell, then the stored bricks lent by their cell.
+        let mut jobs = Vec::with_capacity(leaves.len());
+        for slot in &mut at {
+            if *slot != u32::MAX {
+                jobs.push(job(*slot as usize));
+                *slot = (jobs.len() - 1) as u32;
+            }
+        }
+        for brick in bricks.values_mut() {
+            if let Some(&j) = at.get(linear(brick.coord))
+                && j != u32::MAX
+            {
+                jobs[j as usize].stored = Some(brick);
+            }
+        }
+        return jobs;
+    }
+    let mut keyed: Vec<(u64, u32)> = leaves
+        .iter()
+        .enumerate()
+        .map(|(i, &node)| (morton(node), i as u32))
+        .collect();
+    // Already in order from the descent: one pass.
+    keyed.sort_unstable();
+    let mut lent: Vec<Option<&'a mut Brick>> = Vec::with_capacity(leaves.len());
+    lent.resize_with(leaves.len(), || None);
+    if let (Some(&(first, _)), Some(&(end, _))) = (keyed.first(), keyed.last()) {
+        let mut wanted = keyed.iter().peekable();
+        for (key, brick) in bricks.range_mut(first..=end) {
+            while wanted.next_if(|&&(k, _)| k < *key).is_some() {}
+            if let Some(&(_, i)) = wanted.next_if(|&&(k, _)| k == *key) {
+                lent[i as usize] = Some(brick);
+            }
+        }
     }
     let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
     order.sort_unstable_by_key(|&i| {
@@ -997,6 +1017,12 @@ fn build_order(leaves: &[[u32; 3]], counts: [u32; 3]) -> Vec<u32> {
         (c[2], c[1], c[0])
     });
     order
+        .into_iter()
+        .map(|i| BrickJob {
+            stored: lent[i as usize].take(),
+            ..job(i as usize)
+        })
+        .collect()
 }
 
 /// One thread's share of a build: the runs of the build order that `next_run` hands out,
@@ -1587,21 +1613,38 @@ mod tests {
     }
 
     #[test]
-    fn build_order_is_z_then_y_then_x_for_dense_and_sparse_leaves() {
+    fn jobs_run_z_then_y_then_x_and_lend_the_stored_bricks_for_dense_and_sparse_leaves() {
         let counts = [5, 7, 6];
         let all: Vec<[u32; 3]> = (0..6)
             .flat_map(|z| (0..7).flat_map(move |y| (0..5).map(move |x| [x, y, z])))
             .collect();
-        // Leaves in Morton order, as the descent lists them; every third brick (placed by
-        // a scan of the grid) and every eleventh (sorted).
+        // Every brick and every third (placed by a scan of the grid), every eleventh
+        // (sorted); leaves in Morton order, as the descent lists them. Every fourth brick
+        // of the grid is stored.
+        let mut bricks: BTreeMap<u64, Brick> = all
+            .iter()
+            .step_by(4)
+            .map(|&c| (morton(c), Brick::empty(c)))
+            .collect();
         for keep_every in [1usize, 3, 11] {
             let mut leaves: Vec<[u32; 3]> = all.iter().copied().step_by(keep_every).collect();
             leaves.sort_unstable_by_key(|&c| morton(c));
-            let order = build_order(&leaves, counts);
-            let in_order: Vec<[u32; 3]> = order.iter().map(|&i| leaves[i as usize]).collect();
+            let stored: Vec<bool> = leaves
+                .iter()
+                .map(|&c| bricks.contains_key(&morton(c)))
+                .collect();
+            let jobs = lend_in_build_order(&leaves, counts, &mut bricks);
             let mut expected = leaves.clone();
             expected.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
-            assert_eq!(in_order, expected, "every {keep_every}th brick");
+            let coords: Vec<[u32; 3]> = jobs.iter().map(|j| j.coord).collect();
+            assert_eq!(coords, expected, "every {keep_every}th brick");
+            for job in &jobs {
+                assert_eq!(leaves[job.leaf as usize], job.coord);
+                assert_eq!(job.stored.is_some(), stored[job.leaf as usize]);
+                if let Some(brick) = &job.stored {
+                    assert_eq!(brick.coord, job.coord);
+                }
+            }
         }
     }
 
