@@ -131,6 +131,7 @@ pub struct BrickOctree {
     root_size: u32,
     generation: u64,
     scratch: BrickScratch,
+    rebuild_scratch: RebuildScratch,
 }
 
 impl BrickOctree {
@@ -151,6 +152,7 @@ impl BrickOctree {
             root_size,
             generation: 0,
             scratch: BrickScratch::default(),
+            rebuild_scratch: RebuildScratch::default(),
         }
     }
 
@@ -223,15 +225,16 @@ impl BrickOctree {
         })
     }
 
-    /// The rebuild, with the bricks to sample (in build order, see [`build_order`]) built by
-    /// `build`, which marks each brick it finds crossed by the surface, rebuilds a stored
-    /// one in place and returns the new ones. The result is that of the descent of
+    /// The rebuild, with the bricks to sample (in build order, see [`lend_in_build_order`])
+    /// built by `build`, which marks each brick it finds crossed by the surface, rebuilds a
+    /// stored one in place and returns the new ones. The result is that of the descent of
     /// [`BrickOctree::visit`] from the root.
     ///
     /// Only the bricks the surface crosses are kept in the tree: a brick to sample that is
     /// not stored is made only once the builder finds the surface in it, so the many empty
-    /// bricks of a build without bounds cost the tree nothing (the part of a rebuild that
-    /// runs on the caller alone stays small, and two threads gain close to twice).
+    /// bricks of a build without bounds cost the tree nothing. What runs on the caller alone
+    /// (the descent, the lending, the bookkeeping after) is kept small, in buffers kept
+    /// between rebuilds, since the other threads wait for it.
     fn rebuild_on<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
@@ -243,21 +246,23 @@ impl BrickOctree {
             generation,
             ..RefreshReport::default()
         };
+        let mut scratch = std::mem::take(&mut self.rebuild_scratch);
+        let RebuildScratch {
+            leaves,
+            culls,
+            outcome,
+            cells,
+        } = &mut scratch;
+        leaves.clear();
+        culls.clear();
         let last = self.brick_counts.map(|c| c - 1);
-        let mut plan = Vec::new();
-        self.plan(field, [0; 3], self.root_size, ([0; 3], last), &mut plan);
-        let leaves: Vec<[u32; 3]> = plan
-            .iter()
-            .filter_map(|s| match *s {
-                PlanStep::Leaf(node) => Some(node),
-                PlanStep::Cull { .. } => None,
-            })
-            .collect();
-        let mut jobs = lend_in_build_order(&leaves, self.brick_counts, &mut self.bricks);
+        self.plan(field, [0; 3], self.root_size, ([0; 3], last), leaves, culls);
+        let mut jobs = lend_in_build_order(leaves, self.brick_counts, &mut self.bricks, cells);
         let grid = self.grid;
         let fresh = build(field, &grid, self.brick_counts, generation, &mut jobs);
         // Per leaf: crossed (kept with the new generation), and whether it was stored.
-        let mut outcome = vec![(false, false); leaves.len()];
+        outcome.clear();
+        outcome.resize(leaves.len(), (false, false));
         for job in &jobs {
             outcome[job.leaf as usize] = (job.crossed, job.stored.is_some());
         }
@@ -265,37 +270,39 @@ impl BrickOctree {
         for brick in fresh {
             self.bricks.insert(morton(brick.coord), brick);
         }
-        let mut leaf = 0;
-        for step in plan {
-            match step {
-                PlanStep::Cull { node, size, lo, hi } => {
-                    self.remove_range(node, size, (lo, hi), &mut report);
-                }
-                PlanStep::Leaf(node) => {
-                    report.bricks_sampled += 1;
-                    let (crossed, stored) = outcome[leaf];
-                    if crossed {
-                        report.changed.push(node);
-                    } else if stored {
-                        self.bricks.remove(&morton(node));
-                        report.removed.push(node);
-                    }
-                    leaf += 1;
-                }
+        // Removals in the order of the descent: each culled node after the leaves met
+        // before it.
+        let mut culls_left = culls.iter().peekable();
+        for (leaf, (&node, &(crossed, stored))) in leaves.iter().zip(outcome.iter()).enumerate() {
+            while let Some(cull) = culls_left.next_if(|c| c.leaves_before as usize <= leaf) {
+                self.remove_range(cull.node, cull.size, (cull.lo, cull.hi), &mut report);
+            }
+            report.bricks_sampled += 1;
+            if crossed {
+                report.changed.push(node);
+            } else if stored {
+                self.bricks.remove(&morton(node));
+                report.removed.push(node);
             }
         }
+        for cull in culls_left {
+            self.remove_range(cull.node, cull.size, (cull.lo, cull.hi), &mut report);
+        }
+        self.rebuild_scratch = scratch;
         report
     }
 
     /// The descent of [`BrickOctree::visit`] from the root without building anything: the
-    /// culled nodes and the bricks to sample, in the order `visit` meets them.
+    /// bricks to sample and the culled nodes, in the order `visit` meets them (the leaves
+    /// in Morton order).
     fn plan<F: ScalarField + ?Sized>(
         &self,
         field: &F,
         node: [u32; 3],
         size: u32,
         query: ([u32; 3], [u32; 3]),
-        plan: &mut Vec<PlanStep>,
+        leaves: &mut Vec<[u32; 3]>,
+        culls: &mut Vec<CulledNode>,
     ) {
         let lo: [u32; 3] = std::array::from_fn(|a| node[a].max(query.0[a]));
         let hi: [u32; 3] = std::array::from_fn(|a| {
@@ -307,11 +314,17 @@ impl BrickOctree {
             return;
         }
         if self.culled(field, node, size) {
-            plan.push(PlanStep::Cull { node, size, lo, hi });
+            culls.push(CulledNode {
+                node,
+                size,
+                lo,
+                hi,
+                leaves_before: leaves.len() as u32,
+            });
             return;
         }
         if size == 1 {
-            plan.push(PlanStep::Leaf(node));
+            leaves.push(node);
             return;
         }
         let half = size / 2;
@@ -321,7 +334,7 @@ impl BrickOctree {
                 node[1] + ((child >> 1) & 1) * half,
                 node[2] + ((child >> 2) & 1) * half,
             ];
-            self.plan(field, c, half, query, plan);
+            self.plan(field, c, half, query, leaves, culls);
         }
     }
 
@@ -553,7 +566,8 @@ impl BrickOctree {
         usage.structure_bytes = self.bricks.len() * entry * 3 / 2
             + size_of::<Self>()
             + 3 * super::BRICK_SAMPLE_COUNT * size_of::<u32>()
-            + super::BRICK_SAMPLE_COUNT * size_of::<f32>();
+            + super::BRICK_SAMPLE_COUNT * size_of::<f32>()
+            + self.rebuild_scratch.heap_bytes();
         usage
     }
 
@@ -823,17 +837,36 @@ impl<F: ScalarField + ?Sized> CountWalk<'_, F> {
     }
 }
 
-/// One step of a descent: a culled node (its stored bricks in `lo ..= hi` go), or a brick to
-/// sample and mesh.
+/// A node the descent culled: its stored bricks in `lo ..= hi` go.
 #[derive(Clone, Copy, Debug)]
-enum PlanStep {
-    Cull {
-        node: [u32; 3],
-        size: u32,
-        lo: [u32; 3],
-        hi: [u32; 3],
-    },
-    Leaf([u32; 3]),
+struct CulledNode {
+    node: [u32; 3],
+    size: u32,
+    lo: [u32; 3],
+    hi: [u32; 3],
+    /// How many bricks to sample the descent met before this node.
+    leaves_before: u32,
+}
+
+/// The buffers of a rebuild's serial part, kept between rebuilds.
+#[derive(Clone, Debug, Default)]
+struct RebuildScratch {
+    /// The bricks to sample, in the order of the descent.
+    leaves: Vec<[u32; 3]>,
+    culls: Vec<CulledNode>,
+    /// Per leaf: crossed by the surface, and stored before the rebuild.
+    outcome: Vec<(bool, bool)>,
+    /// Per cell of the brick grid, for lending by place (see [`lend_in_build_order`]).
+    cells: Vec<u32>,
+}
+
+impl RebuildScratch {
+    fn heap_bytes(&self) -> usize {
+        self.leaves.capacity() * size_of::<[u32; 3]>()
+            + self.culls.capacity() * size_of::<CulledNode>()
+            + self.outcome.capacity() * size_of::<(bool, bool)>()
+            + self.cells.capacity() * size_of::<u32>()
+    }
 }
 
 /// Most entries in a per-row or per-layer table of faces (16384 faces, 5.5 MB: a 1024² grid
@@ -959,6 +992,7 @@ fn lend_in_build_order<'a>(
     leaves: &[[u32; 3]],
     counts: [u32; 3],
     bricks: &'a mut BTreeMap<u64, Brick>,
+    at: &mut Vec<u32>,
 ) -> Vec<BrickJob<'a>> {
     let job = |leaf: usize| BrickJob {
         coord: leaves[leaf],
@@ -972,13 +1006,14 @@ fn lend_in_build_order<'a>(
             c[0] as usize
                 + counts[0] as usize * (c[1] as usize + counts[1] as usize * c[2] as usize)
         };
-        let mut at = vec![u32::MAX; cells];
+        at.clear();
+        at.resize(cells, u32::MAX);
         for (i, &c) in leaves.iter().enumerate() {
             at[linear(c)] = i as u32;
         }
         // Job index per cell, then the stored bricks lent by their cell.
         let mut jobs = Vec::with_capacity(leaves.len());
-        for slot in &mut at {
+        for slot in at.iter_mut() {
             if *slot != u32::MAX {
                 jobs.push(job(*slot as usize));
                 *slot = (jobs.len() - 1) as u32;
@@ -1633,7 +1668,7 @@ mod tests {
                 .iter()
                 .map(|&c| bricks.contains_key(&morton(c)))
                 .collect();
-            let jobs = lend_in_build_order(&leaves, counts, &mut bricks);
+            let jobs = lend_in_build_order(&leaves, counts, &mut bricks, &mut Vec::new());
             let mut expected = leaves.clone();
             expected.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
             let coords: Vec<[u32; 3]> = jobs.iter().map(|j| j.coord).collect();
