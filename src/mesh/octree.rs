@@ -16,7 +16,6 @@
 //!
 //! Not real-time: this runs on the graphics thread and allocates.
 
-use std::collections::btree_map::Entry;
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::{Mutex, PoisonError};
@@ -132,6 +131,7 @@ pub struct BrickOctree {
     root_size: u32,
     generation: u64,
     scratch: BrickScratch,
+    rebuild_scratch: RebuildScratch,
 }
 
 impl BrickOctree {
@@ -152,6 +152,7 @@ impl BrickOctree {
             root_size,
             generation: 0,
             scratch: BrickScratch::default(),
+            rebuild_scratch: RebuildScratch::default(),
         }
     }
 
@@ -192,9 +193,9 @@ impl BrickOctree {
     /// that is stored already is rebuilt in its own buffers (no allocation when its mesh
     /// fits them), so rebuilding a tree costs less than building a new one.
     pub fn rebuild<F: ScalarField + ?Sized>(&mut self, field: &F) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
-            let mut all = Some(bricks);
-            build_runs(field, grid, counts, generation, || all.take());
+        self.rebuild_on(field, |field, grid, counts, generation, jobs| {
+            let mut all = Some(jobs);
+            build_runs(field, grid, counts, generation, || all.take())
         })
     }
 
@@ -213,24 +214,31 @@ impl BrickOctree {
     /// [`BrickOctree::rebuild`] with the bricks split over `threads` threads; the result
     /// (bricks, meshes and report) is identical. The descent runs first on the caller and
     /// lists the bricks to sample; the threads then build them, taking runs of the build
-    /// order in turn (four runs per thread).
+    /// order in turn.
     pub fn rebuild_with_threads<F: ScalarField + Sync + ?Sized>(
         &mut self,
         field: &F,
         threads: usize,
     ) -> RefreshReport {
-        self.rebuild_on(field, |field, grid, counts, generation, bricks| {
-            build_bricks_parallel(field, grid, counts, generation, bricks, threads);
+        self.rebuild_on(field, |field, grid, counts, generation, jobs| {
+            build_bricks_parallel(field, grid, counts, generation, jobs, threads)
         })
     }
 
-    /// The rebuild, with the listed bricks (in build order, see [`brick_order`]) built by
-    /// `build`, which gives each brick it finds crossed by the surface the new generation.
-    /// The result is that of the descent of [`BrickOctree::visit`] from the root.
+    /// The rebuild, with the bricks to sample (in build order, see [`lend_in_build_order`])
+    /// built by `build`, which marks each brick it finds crossed by the surface, rebuilds a
+    /// stored one in place and returns the new ones. The result is that of the descent of
+    /// [`BrickOctree::visit`] from the root.
+    ///
+    /// Only the bricks the surface crosses are kept in the tree: a brick to sample that is
+    /// not stored is made only once the builder finds the surface in it, so the many empty
+    /// bricks of a build without bounds cost the tree nothing. What runs on the caller alone
+    /// (the descent, the lending, the bookkeeping after) is kept small, in buffers kept
+    /// between rebuilds, since the other threads wait for it.
     fn rebuild_on<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
-        build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [&mut Brick]),
+        build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [BrickJob<'_>]) -> Vec<Brick>,
     ) -> RefreshReport {
         self.generation += 1;
         let generation = self.generation;
@@ -238,88 +246,63 @@ impl BrickOctree {
             generation,
             ..RefreshReport::default()
         };
+        let mut scratch = std::mem::take(&mut self.rebuild_scratch);
+        let RebuildScratch {
+            leaves,
+            culls,
+            outcome,
+            cells,
+        } = &mut scratch;
+        leaves.clear();
+        culls.clear();
         let last = self.brick_counts.map(|c| c - 1);
-        let mut plan = Vec::new();
-        self.plan(field, [0; 3], self.root_size, ([0; 3], last), &mut plan);
-        let leaves: Vec<[u32; 3]> = plan
-            .iter()
-            .filter_map(|s| match *s {
-                PlanStep::Leaf(node) => Some(node),
-                PlanStep::Cull { .. } => None,
-            })
-            .collect();
-        // Every brick to sample gets an entry (the stored one, whose buffers are reused, or
-        // an empty one); the entries are then lent to the builders in build order.
-        let mut keyed: Vec<(u64, u32)> = Vec::with_capacity(leaves.len());
-        let mut existed = vec![false; leaves.len()];
-        for (i, &node) in leaves.iter().enumerate() {
-            let key = morton(node);
-            keyed.push((key, i as u32));
-            match self.bricks.entry(key) {
-                Entry::Occupied(_) => existed[i] = true,
-                Entry::Vacant(v) => {
-                    v.insert(Brick::empty(node));
-                }
-            }
-        }
-        keyed.sort_unstable();
-        let mut lent: Vec<Option<&mut Brick>> = Vec::with_capacity(leaves.len());
-        lent.resize_with(leaves.len(), || None);
-        let mut wanted = keyed.iter().peekable();
-        for (key, brick) in &mut self.bricks {
-            if let Some(&&(k, i)) = wanted.peek()
-                && k == *key
-            {
-                lent[i as usize] = Some(brick);
-                wanted.next();
-            }
-        }
-        let mut in_order: Vec<&mut Brick> = brick_order(&leaves)
-            .iter()
-            .filter_map(|&i| lent[i as usize].take())
-            .collect();
-        debug_assert_eq!(in_order.len(), leaves.len());
+        self.plan(field, [0; 3], self.root_size, ([0; 3], last), leaves, culls);
+        let mut jobs = lend_in_build_order(leaves, self.brick_counts, &mut self.bricks, cells);
         let grid = self.grid;
-        build(field, &grid, self.brick_counts, generation, &mut in_order);
-        drop(in_order);
-        drop(lent);
-        let mut leaf = 0;
-        for step in plan {
-            match step {
-                PlanStep::Cull { node, size, lo, hi } => {
-                    self.remove_range(node, size, (lo, hi), &mut report);
-                }
-                PlanStep::Leaf(node) => {
-                    report.bricks_sampled += 1;
-                    let key = morton(node);
-                    if self
-                        .bricks
-                        .get(&key)
-                        .is_some_and(|b| b.version == generation)
-                    {
-                        report.changed.push(node);
-                    } else {
-                        self.bricks.remove(&key);
-                        if existed[leaf] {
-                            report.removed.push(node);
-                        }
-                    }
-                    leaf += 1;
-                }
+        let fresh = build(field, &grid, self.brick_counts, generation, &mut jobs);
+        // Per leaf: crossed (kept with the new generation), and whether it was stored.
+        outcome.clear();
+        outcome.resize(leaves.len(), (false, false));
+        for job in &jobs {
+            outcome[job.leaf as usize] = (job.crossed, job.stored.is_some());
+        }
+        drop(jobs);
+        for brick in fresh {
+            self.bricks.insert(morton(brick.coord), brick);
+        }
+        // Removals in the order of the descent: each culled node after the leaves met
+        // before it.
+        let mut culls_left = culls.iter().peekable();
+        for (leaf, (&node, &(crossed, stored))) in leaves.iter().zip(outcome.iter()).enumerate() {
+            while let Some(cull) = culls_left.next_if(|c| c.leaves_before as usize <= leaf) {
+                self.remove_range(cull.node, cull.size, (cull.lo, cull.hi), &mut report);
+            }
+            report.bricks_sampled += 1;
+            if crossed {
+                report.changed.push(node);
+            } else if stored {
+                self.bricks.remove(&morton(node));
+                report.removed.push(node);
             }
         }
+        for cull in culls_left {
+            self.remove_range(cull.node, cull.size, (cull.lo, cull.hi), &mut report);
+        }
+        self.rebuild_scratch = scratch;
         report
     }
 
     /// The descent of [`BrickOctree::visit`] from the root without building anything: the
-    /// culled nodes and the bricks to sample, in the order `visit` meets them.
+    /// bricks to sample and the culled nodes, in the order `visit` meets them (the leaves
+    /// in Morton order).
     fn plan<F: ScalarField + ?Sized>(
         &self,
         field: &F,
         node: [u32; 3],
         size: u32,
         query: ([u32; 3], [u32; 3]),
-        plan: &mut Vec<PlanStep>,
+        leaves: &mut Vec<[u32; 3]>,
+        culls: &mut Vec<CulledNode>,
     ) {
         let lo: [u32; 3] = std::array::from_fn(|a| node[a].max(query.0[a]));
         let hi: [u32; 3] = std::array::from_fn(|a| {
@@ -331,11 +314,17 @@ impl BrickOctree {
             return;
         }
         if self.culled(field, node, size) {
-            plan.push(PlanStep::Cull { node, size, lo, hi });
+            culls.push(CulledNode {
+                node,
+                size,
+                lo,
+                hi,
+                leaves_before: leaves.len() as u32,
+            });
             return;
         }
         if size == 1 {
-            plan.push(PlanStep::Leaf(node));
+            leaves.push(node);
             return;
         }
         let half = size / 2;
@@ -345,7 +334,7 @@ impl BrickOctree {
                 node[1] + ((child >> 1) & 1) * half,
                 node[2] + ((child >> 2) & 1) * half,
             ];
-            self.plan(field, c, half, query, plan);
+            self.plan(field, c, half, query, leaves, culls);
         }
     }
 
@@ -577,7 +566,8 @@ impl BrickOctree {
         usage.structure_bytes = self.bricks.len() * entry * 3 / 2
             + size_of::<Self>()
             + 3 * super::BRICK_SAMPLE_COUNT * size_of::<u32>()
-            + super::BRICK_SAMPLE_COUNT * size_of::<f32>();
+            + super::BRICK_SAMPLE_COUNT * size_of::<f32>()
+            + self.rebuild_scratch.heap_bytes();
         usage
     }
 
@@ -847,17 +837,36 @@ impl<F: ScalarField + ?Sized> CountWalk<'_, F> {
     }
 }
 
-/// One step of a descent: a culled node (its stored bricks in `lo ..= hi` go), or a brick to
-/// sample and mesh.
+/// A node the descent culled: its stored bricks in `lo ..= hi` go.
 #[derive(Clone, Copy, Debug)]
-enum PlanStep {
-    Cull {
-        node: [u32; 3],
-        size: u32,
-        lo: [u32; 3],
-        hi: [u32; 3],
-    },
-    Leaf([u32; 3]),
+struct CulledNode {
+    node: [u32; 3],
+    size: u32,
+    lo: [u32; 3],
+    hi: [u32; 3],
+    /// How many bricks to sample the descent met before this node.
+    leaves_before: u32,
+}
+
+/// The buffers of a rebuild's serial part, kept between rebuilds.
+#[derive(Clone, Debug, Default)]
+struct RebuildScratch {
+    /// The bricks to sample, in the order of the descent.
+    leaves: Vec<[u32; 3]>,
+    culls: Vec<CulledNode>,
+    /// Per leaf: crossed by the surface, and stored before the rebuild.
+    outcome: Vec<(bool, bool)>,
+    /// Per cell of the brick grid, for lending by place (see [`lend_in_build_order`]).
+    cells: Vec<u32>,
+}
+
+impl RebuildScratch {
+    fn heap_bytes(&self) -> usize {
+        self.leaves.capacity() * size_of::<[u32; 3]>()
+            + self.culls.capacity() * size_of::<CulledNode>()
+            + self.outcome.capacity() * size_of::<(bool, bool)>()
+            + self.cells.capacity() * size_of::<u32>()
+    }
 }
 
 /// Most entries in a per-row or per-layer table of faces (16384 faces, 5.5 MB: a 1024² grid
@@ -958,72 +967,168 @@ impl FaceCache {
     }
 }
 
-/// The bricks of `leaves` (indices into it) with x fastest, then y, then z: the order in
-/// which each brick follows the bricks below it.
-fn brick_order(leaves: &[[u32; 3]]) -> Vec<u32> {
+/// One brick to sample in a rebuild, as the builders get it.
+struct BrickJob<'a> {
+    coord: [u32; 3],
+    /// The stored brick, rebuilt in its own buffers, or `None` for a brick not in the tree.
+    stored: Option<&'a mut Brick>,
+    /// Its index among the descent's leaves.
+    leaf: u32,
+    /// Set by the builder: the surface crosses the brick (it now carries the generation).
+    crossed: bool,
+}
+
+/// The jobs of a rebuild: the bricks of `leaves` (distinct bricks of a grid of `counts`
+/// bricks, listed by the descent in Morton order) with x fastest, then y, then z, which is
+/// the order in which each brick follows the bricks below it, each lent its stored brick
+/// from `bricks` where there is one.
+///
+/// When the leaves fill a good part of the grid (a field without bounds samples every
+/// brick) they are placed by one scan of the grid and the stored bricks found by their
+/// place in it; otherwise the leaves are sorted and the stored ones found by one merge of
+/// keys. Either way this is a small part of a rebuild, which matters because it runs on
+/// the caller alone while the other threads wait.
+fn lend_in_build_order<'a>(
+    leaves: &[[u32; 3]],
+    counts: [u32; 3],
+    bricks: &'a mut BTreeMap<u64, Brick>,
+    at: &mut Vec<u32>,
+) -> Vec<BrickJob<'a>> {
+    let job = |leaf: usize| BrickJob {
+        coord: leaves[leaf],
+        stored: None,
+        leaf: leaf as u32,
+        crossed: false,
+    };
+    let cells = counts.iter().map(|&c| c as usize).product::<usize>();
+    if cells <= 8 * leaves.len() {
+        let linear = |c: [u32; 3]| {
+            c[0] as usize
+                + counts[0] as usize * (c[1] as usize + counts[1] as usize * c[2] as usize)
+        };
+        at.clear();
+        at.resize(cells, u32::MAX);
+        for (i, &c) in leaves.iter().enumerate() {
+            at[linear(c)] = i as u32;
+        }
+        // Job index per cell, then the stored bricks lent by their cell.
+        let mut jobs = Vec::with_capacity(leaves.len());
+        for slot in at.iter_mut() {
+            if *slot != u32::MAX {
+                jobs.push(job(*slot as usize));
+                *slot = (jobs.len() - 1) as u32;
+            }
+        }
+        for brick in bricks.values_mut() {
+            if let Some(&j) = at.get(linear(brick.coord))
+                && j != u32::MAX
+            {
+                jobs[j as usize].stored = Some(brick);
+            }
+        }
+        return jobs;
+    }
+    let mut keyed: Vec<(u64, u32)> = leaves
+        .iter()
+        .enumerate()
+        .map(|(i, &node)| (morton(node), i as u32))
+        .collect();
+    // Already in order from the descent: one pass.
+    keyed.sort_unstable();
+    let mut lent: Vec<Option<&'a mut Brick>> = Vec::with_capacity(leaves.len());
+    lent.resize_with(leaves.len(), || None);
+    if let (Some(&(first, _)), Some(&(end, _))) = (keyed.first(), keyed.last()) {
+        let mut wanted = keyed.iter().peekable();
+        for (key, brick) in bricks.range_mut(first..=end) {
+            while wanted.next_if(|&&(k, _)| k < *key).is_some() {}
+            if let Some(&(_, i)) = wanted.next_if(|&&(k, _)| k == *key) {
+                lent[i as usize] = Some(brick);
+            }
+        }
+    }
     let mut order: Vec<u32> = (0..leaves.len() as u32).collect();
     order.sort_unstable_by_key(|&i| {
         let c = leaves[i as usize];
         (c[2], c[1], c[0])
     });
     order
+        .into_iter()
+        .map(|i| BrickJob {
+            stored: lent[i as usize].take(),
+            ..job(i as usize)
+        })
+        .collect()
 }
 
 /// One thread's share of a build: the runs of the build order that `next_run` hands out,
 /// until it has none left. Within a run, each brick takes the faces it shares with the bricks
-/// below it from them (about one sample per cell instead of 1.42); a brick the surface
-/// crosses is filled and given `generation`, the others are left as they were.
+/// below it from them (about one sample per cell instead of 1.42). A brick the surface
+/// crosses is marked, and filled with the generation: a stored one in place, a new one made
+/// and returned; the others are left as they were.
 fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
     generation: u64,
-    mut next_run: impl FnMut() -> Option<&'a mut [&'b mut Brick]>,
-) {
+    mut next_run: impl FnMut() -> Option<&'a mut [BrickJob<'b>]>,
+) -> Vec<Brick> {
     let mut scratch = BrickScratch::default();
     let mut cache = FaceCache::new(counts);
+    let mut fresh = Vec::new();
     while let Some(run) = next_run() {
-        for brick in run.iter_mut() {
-            let node = brick.coord;
+        for job in run.iter_mut() {
+            let node = job.coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);
+            job.crossed = crossed;
             if crossed {
-                brick.remesh(field, grid, &mut scratch, generation);
+                match job.stored.as_deref_mut() {
+                    Some(brick) => brick.remesh(field, grid, &mut scratch, generation),
+                    None => {
+                        let mut brick = Brick::empty(node);
+                        brick.remesh(field, grid, &mut scratch, generation);
+                        fresh.push(brick);
+                    }
+                }
             }
         }
     }
+    fresh
 }
 
-/// Builds `bricks` (in build order) on `threads` threads (the caller and `threads − 1`
-/// more), which take runs of the order in turn, a few per thread. A brick's samples and
-/// mesh depend only on the brick and the field, so the split changes nothing in the result.
+/// Builds `jobs` (in build order) on `threads` threads (the caller and `threads − 1`
+/// more), which take runs of the order in turn, a few per thread, and returns the new
+/// bricks. A brick's samples and mesh depend only on the brick and the field, so the split
+/// changes nothing in the result.
 fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     counts: [u32; 3],
     generation: u64,
-    bricks: &mut [&mut Brick],
+    jobs: &mut [BrickJob<'_>],
     threads: usize,
-) {
+) -> Vec<Brick> {
     let threads = threads.max(1);
     let runs = if threads == 1 { 1 } else { threads * 4 };
-    let run = bricks.len().div_ceil(runs).max(1);
+    let run = jobs.len().div_ceil(runs).max(1);
     // One uncontended lock per run handed out, none per brick.
-    let queue = Mutex::new(bricks.chunks_mut(run));
+    let queue = Mutex::new(jobs.chunks_mut(run));
     let work = || {
         build_runs(field, grid, counts, generation, || {
             queue.lock().unwrap_or_else(PoisonError::into_inner).next()
-        });
+        })
     };
     std::thread::scope(|scope| {
         let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
-        work();
+        let mut fresh = work();
         for h in helpers {
-            if let Err(panic) = h.join() {
-                std::panic::resume_unwind(panic);
+            match h.join() {
+                Ok(more) => fresh.extend(more),
+                Err(panic) => std::panic::resume_unwind(panic),
             }
         }
-    });
+        fresh
+    })
 }
 
 /// Interleaves the low 21 bits of each coordinate (x lowest).
@@ -1540,6 +1645,42 @@ mod tests {
         assert!(memory.total_bytes() < 200_000_000, "{memory:?}");
         assert!(tree.brick_count() < 64 * 64 * 64 / 8);
         assert!(tree.triangle_count() > 1_000_000);
+    }
+
+    #[test]
+    fn jobs_run_z_then_y_then_x_and_lend_the_stored_bricks_for_dense_and_sparse_leaves() {
+        let counts = [5, 7, 6];
+        let all: Vec<[u32; 3]> = (0..6)
+            .flat_map(|z| (0..7).flat_map(move |y| (0..5).map(move |x| [x, y, z])))
+            .collect();
+        // Every brick and every third (placed by a scan of the grid), every eleventh
+        // (sorted); leaves in Morton order, as the descent lists them. Every fourth brick
+        // of the grid is stored.
+        let mut bricks: BTreeMap<u64, Brick> = all
+            .iter()
+            .step_by(4)
+            .map(|&c| (morton(c), Brick::empty(c)))
+            .collect();
+        for keep_every in [1usize, 3, 11] {
+            let mut leaves: Vec<[u32; 3]> = all.iter().copied().step_by(keep_every).collect();
+            leaves.sort_unstable_by_key(|&c| morton(c));
+            let stored: Vec<bool> = leaves
+                .iter()
+                .map(|&c| bricks.contains_key(&morton(c)))
+                .collect();
+            let jobs = lend_in_build_order(&leaves, counts, &mut bricks, &mut Vec::new());
+            let mut expected = leaves.clone();
+            expected.sort_unstable_by_key(|c| (c[2], c[1], c[0]));
+            let coords: Vec<[u32; 3]> = jobs.iter().map(|j| j.coord).collect();
+            assert_eq!(coords, expected, "every {keep_every}th brick");
+            for job in &jobs {
+                assert_eq!(leaves[job.leaf as usize], job.coord);
+                assert_eq!(job.stored.is_some(), stored[job.leaf as usize]);
+                if let Some(brick) = &job.stored {
+                    assert_eq!(brick.coord, job.coord);
+                }
+            }
+        }
     }
 
     #[test]
