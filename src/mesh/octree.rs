@@ -25,7 +25,7 @@ use glam::Vec3;
 
 use super::brick::{
     BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, edge_from_id,
-    march_brick, sample_brick, sample_brick_sharing, upper_face,
+    march_brick, prefetch_slice, sample_brick, sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -624,14 +624,27 @@ impl BrickOctree {
         // Vertices whose owner brick is missing or did not keep them (never, for a tree this
         // octree built; kept so that welding stays by edge id whatever the bricks hold).
         stray.clear();
+        // The brick after the one being welded, whose buffers are asked into the cache
+        // meanwhile (see `BrickMesh::prefetch`).
+        let mut ahead = self.bricks.values().skip(1);
+        // The welded vertices are written straight into the room reserved above, `welded` of
+        // them so far, and the lengths set once at the end (no length kept up to date in
+        // memory for each vertex).
+        let mut welded = 0usize;
+        let positions_room = &mut out.positions.spare_capacity_mut()[..vertices];
+        let normals_room = &mut out.normals.spare_capacity_mut()[..vertices];
         for brick in self.bricks.values() {
+            if let Some(next) = ahead.next() {
+                next.mesh.prefetch();
+            }
             let m = &brick.mesh;
             let base = brick.coord.map(|c| c * BRICK_CELLS);
             // The ordinals of the bricks below, by mask of axes (looked up when first needed).
             let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
             let kept_start = kept.len();
             local.clear();
-            for (v, &id) in m.edge_ids.iter().enumerate() {
+            local.resize(m.edge_ids.len(), 0);
+            for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
                 let (corner, axis) = edge_from_id(id);
                 let axis = axis as usize;
                 let mut lower = 0usize;
@@ -646,9 +659,10 @@ impl BrickOctree {
                     }
                 }
                 let index = if lower == 0 {
-                    let next = out.positions.len() as u32;
-                    out.positions.push(m.positions[v]);
-                    out.normals.push(m.normals[v]);
+                    let next = welded as u32;
+                    positions_room[welded].write(m.positions[v]);
+                    normals_room[welded].write(m.normals[v]);
+                    welded += 1;
                     if upper {
                         let l = [0, 1, 2].map(|a| corner[a] - base[a]);
                         let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
@@ -673,19 +687,22 @@ impl BrickOctree {
                             .map(|i| list[i].1)
                     });
                     found.unwrap_or_else(|| {
-                        let next = out.positions.len() as u32;
+                        let next = welded as u32;
                         let index = *stray.entry(id).or_insert(next);
                         if index == next {
-                            out.positions.push(m.positions[v]);
-                            out.normals.push(m.normals[v]);
+                            positions_room[welded].write(m.positions[v]);
+                            normals_room[welded].write(m.normals[v]);
+                            welded += 1;
                         }
                         index
                     })
                 };
-                local.push(index);
+                *local = index;
             }
             kept[kept_start..].sort_unstable_by_key(|e| e.0);
             kept_range.push((kept_start as u32, kept.len() as u32));
+            // (Through a slice, whose length stays in a register while triangles are written.)
+            let local = local.as_slice();
             out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
                 [
                     local[t[0] as usize],
@@ -693,6 +710,13 @@ impl BrickOctree {
                     local[t[2] as usize],
                 ]
             }));
+        }
+        // SAFETY: the first `welded` entries of both vectors' room were written above, one
+        // after another (`welded` never passes `vertices`, the room reserved: the rooms are
+        // indexed with bounds checks).
+        unsafe {
+            out.positions.set_len(welded);
+            out.normals.set_len(welded);
         }
     }
 
@@ -983,7 +1007,15 @@ fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     let mut scratch = BrickScratch::default();
     let mut cache = FaceCache::new(counts);
     while let Some(run) = next_run() {
-        for brick in run.iter_mut() {
+        for at in 0..run.len() {
+            // Ask the cache for what this brick's remesh and the next brick will write: this
+            // brick's samples (the next brick is sampled into them once this one keeps the
+            // scratch's) and the next brick's mesh (see `BrickMesh::prefetch`).
+            prefetch_slice(&run[at].samples);
+            if let Some(next) = run.get(at + 1) {
+                next.mesh.prefetch();
+            }
+            let brick = &mut run[at];
             let node = brick.coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);

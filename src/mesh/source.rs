@@ -57,6 +57,46 @@ pub trait ScalarField {
         }
     }
 
+    /// [`ScalarField::sample_block`] into a block with gaps: sample `(i, j, k)` goes to
+    /// `out[i + strides[0] · j + strides[1] · k]` (the entries between are left as they
+    /// are), each with the same bits as `sample_block` gives it. `dense` is more working
+    /// memory the caller keeps: the default samples the block densely there and copies it
+    /// row by row; a field that can write each row in place overrides it.
+    ///
+    /// # Panics
+    /// When `out` is too short for the last sample, or the strides let rows overlap.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_block_strided(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        strides: [usize; 2],
+        scratch: &mut Vec<f32>,
+        dense: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        assert!(
+            strides[0] >= cx && strides[1] >= strides[0] * cy,
+            "rows of a strided block must not overlap"
+        );
+        if strides == [cx, cx * cy] {
+            self.sample_block(grid, first, counts, out, scratch);
+            return;
+        }
+        dense.clear();
+        dense.resize(cx * cy * cz, 0.0);
+        self.sample_block(grid, first, counts, dense, scratch);
+        for k in 0..cz {
+            for j in 0..cy {
+                let from = cx * (j + cy * k);
+                let to = strides[0] * j + strides[1] * k;
+                out[to..to + cx].copy_from_slice(&dense[from..from + cx]);
+            }
+        }
+    }
+
     /// Lower and upper bounds on the value over the box `min..=max`, or `None` when unknown.
     /// Used only to skip boxes that cannot contain the surface; a bound must never be tighter
     /// than the true range.
@@ -125,6 +165,43 @@ where
         for &z in zs {
             for &y in ys {
                 let Some(row) = rows.next() else { return };
+                for (o, &x) in row.iter_mut().zip(xs) {
+                    *o = (self.value)(Vec3::new(x, y, z));
+                }
+            }
+        }
+    }
+
+    /// Each row written in place, with the same coordinates and closure calls as
+    /// [`FnField::sample_block`] (so the same bits), without a dense block to copy from.
+    fn sample_block_strided(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        strides: [usize; 2],
+        scratch: &mut Vec<f32>,
+        _dense: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        assert!(
+            strides[0] >= cx && strides[1] >= strides[0] * cy,
+            "rows of a strided block must not overlap"
+        );
+        if cx == 0 || cy == 0 || cz == 0 {
+            return;
+        }
+        scratch.clear();
+        scratch.extend((0..cx).map(|i| grid.coordinate(0, first[0] + i as u32)));
+        scratch.extend((0..cy).map(|j| grid.coordinate(1, first[1] + j as u32)));
+        scratch.extend((0..cz).map(|k| grid.coordinate(2, first[2] + k as u32)));
+        let (xs, rest) = scratch.split_at(cx);
+        let (ys, zs) = rest.split_at(cy);
+        for (k, &z) in zs.iter().enumerate() {
+            for (j, &y) in ys.iter().enumerate() {
+                let at = strides[0] * j + strides[1] * k;
+                let row = &mut out[at..at + cx];
                 for (o, &x) in row.iter_mut().zip(xs) {
                     *o = (self.value)(Vec3::new(x, y, z));
                 }
