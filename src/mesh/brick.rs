@@ -13,7 +13,7 @@
 //! shared by two bricks is computed identically (same samples, same position, same normal) by
 //! both, and welding by id gives a watertight mesh with no duplicates.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -177,8 +177,9 @@ pub struct BrickScratch {
     dense: Vec<f32>,
     /// The vertex indices of the brick being marched, before they are copied to its mesh.
     triangles: Vec<u32>,
-    /// The field's gradient at each vertex of the brick being marched.
-    gradients: Vec<Vec3>,
+    /// The field's gradient at each vertex of the brick being marched, a coordinate at a
+    /// time (all x, all y, all z), then the gradients' lengths.
+    gradients: Vec<f32>,
     pub(crate) field: Vec<f32>,
     pub(crate) mesh: BrickMesh,
 }
@@ -353,7 +354,7 @@ const EDGE_LINE: [usize; 12] = {
 };
 
 /// Most vertex indices one brick's triangles can hold (five triangles in every cell).
-const MAX_BRICK_INDICES: usize = 3 * MAX_CASE_TRIANGLES * (BRICK_CELLS as usize).pow(3);
+pub(crate) const MAX_BRICK_INDICES: usize = 3 * MAX_CASE_TRIANGLES * (BRICK_CELLS as usize).pow(3);
 
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
 ///
@@ -468,7 +469,7 @@ fn vertex_normals<F: ScalarField + ?Sized>(
     vertices: usize,
     slots: &mut [u32],
     samples: &[f32],
-    gradients: &mut Vec<Vec3>,
+    gradients: &mut Vec<f32>,
     mesh: &mut BrickMesh,
 ) {
     const S: usize = BRICK_SAMPLES;
@@ -482,25 +483,47 @@ fn vertex_normals<F: ScalarField + ?Sized>(
     normals.resize(vertices, Vec3::ZERO);
     edge_ids.resize(vertices, 0);
     gradients.clear();
-    gradients.resize(vertices, Vec3::ZERO);
+    gradients.resize(4 * vertices, 0.0);
+    let (gx, rest) = gradients.split_at_mut(vertices);
+    let (gy, rest) = rest.split_at_mut(vertices);
+    let (gz, lengths) = rest.split_at_mut(vertices);
     let coordinates: [[f32; S]; 3] =
         std::array::from_fn(|a| std::array::from_fn(|i| grid.coordinate(a, first[a] + i as u32)));
     let out = VertexOut {
         positions,
         normals,
         edge_ids,
-        gradients,
+        gradients: [gx, gy, gz],
     };
     let out = normals_along::<0, F>(field, first, &coordinates, &lines[0], slots, samples, out);
     let out = normals_along::<1, F>(field, first, &coordinates, &lines[1], slots, samples, out);
     let out = normals_along::<2, F>(field, first, &coordinates, &lines[2], slots, samples, out);
-    // The normals from the gradients, in a loop of their own: the square roots and divisions
-    // of many vertices overlap, instead of each waiting behind its vertex's field call.
-    for (n, g) in out.normals.iter_mut().zip(out.gradients.iter()) {
-        let length = g.length();
-        if length > 1e-20 && length.is_finite() {
-            // One packed division for the three lanes (the same bits as three).
-            *n = Vec3::from(-Vec3A::from(*g) / length);
+    // The normals from the gradients, in loops of their own, a coordinate at a time: the
+    // compiler packs several vertices into each square root and division (the same bits as
+    // `Vec3::length` and `-g / length` give one vertex), and none waits behind its vertex's
+    // field call.
+    let VertexOut {
+        normals,
+        gradients: [gx, gy, gz],
+        ..
+    } = out;
+    for (((x, y), z), length) in gx
+        .iter_mut()
+        .zip(gy.iter_mut())
+        .zip(gz.iter_mut())
+        .zip(lengths.iter_mut())
+    {
+        let l = ((*x * *x) + (*y * *y) + (*z * *z)).sqrt();
+        *length = l;
+        (*x, *y, *z) = (-*x / l, -*y / l, -*z / l);
+    }
+    for ((n, &l), ((&x, &y), &z)) in normals
+        .iter_mut()
+        .zip(lengths.iter())
+        .zip(gx.iter().zip(gy.iter()).zip(gz.iter()))
+    {
+        if l > 1e-20 && l.is_finite() {
+            *n = Vec3::new(x, y, z);
         }
     }
 }
@@ -511,7 +534,7 @@ struct VertexOut<'a> {
     positions: &'a mut [Vec3],
     normals: &'a mut [Vec3],
     edge_ids: &'a mut [u64],
-    gradients: &'a mut [Vec3],
+    gradients: [&'a mut [f32]; 3],
 }
 
 /// [`vertex_normals`] of the vertices on edges along `AXIS` (a constant, so that the point
@@ -571,7 +594,8 @@ fn normals_along<'a, const AXIS: usize, F: ScalarField + ?Sized>(
                 positions[v] = p;
                 let corner: [u32; 3] = std::array::from_fn(|k| first[k] + local[k] as u32);
                 edge_ids[v] = edge_id(corner, AXIS as u8);
-                gradients[v] = field.gradient(p);
+                let g = field.gradient(p);
+                (gradients[0][v], gradients[1][v], gradients[2][v]) = (g.x, g.y, g.z);
                 let mut flat = Vec3::ZERO;
                 flat[AXIS] = if v0 > v1 { 1.0 } else { -1.0 };
                 normals[v] = flat;
