@@ -24,8 +24,9 @@ use std::sync::{Mutex, PoisonError};
 use glam::Vec3;
 
 use super::brick::{
-    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, edge_from_id,
-    march_brick, prefetch_slice, sample_brick, sample_brick_sharing, upper_face,
+    BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, Face,
+    MAX_BRICK_INDICES, brick_extent, edge_from_id, march_brick, prefetch_slice, sample_brick,
+    sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -577,7 +578,8 @@ impl BrickOctree {
         usage.structure_bytes = self.bricks.len() * entry * 3 / 2
             + size_of::<Self>()
             + 3 * super::BRICK_SAMPLE_COUNT * size_of::<u32>()
-            + super::BRICK_SAMPLE_COUNT * size_of::<f32>();
+            + super::BRICK_SAMPLE_COUNT * size_of::<f32>()
+            + MAX_BRICK_INDICES * size_of::<u32>();
         usage
     }
 
@@ -612,15 +614,16 @@ impl BrickOctree {
         let WeldScratch {
             keys,
             kept,
-            kept_range,
+            kept_faces,
             stray,
             local,
         } = scratch;
         keys.clear();
         keys.extend(self.bricks.keys().copied());
-        // Per brick (in Morton order), its upper-face vertices: (place in the brick, index).
+        // Per brick (in Morton order), its upper-face vertices: which places hold one, and
+        // their indices in the order of the places.
         kept.clear();
-        kept_range.clear();
+        kept_faces.clear();
         // Vertices whose owner brick is missing or did not keep them (never, for a tree this
         // octree built; kept so that welding stays by edge id whatever the bricks hold).
         stray.clear();
@@ -641,7 +644,9 @@ impl BrickOctree {
             let base = brick.coord.map(|c| c * BRICK_CELLS);
             // The ordinals of the bricks below, by mask of axes (looked up when first needed).
             let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
-            let kept_start = kept.len();
+            // This brick's upper-face vertices, by their number among the upper-face places.
+            let mut upper_bits = [0u64; UPPER_WORDS];
+            let mut upper_index = [0u32; 64 * UPPER_WORDS];
             local.clear();
             local.resize(m.edge_ids.len(), 0);
             for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
@@ -666,7 +671,10 @@ impl BrickOctree {
                     if upper {
                         let l = [0, 1, 2].map(|a| corner[a] - base[a]);
                         let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
-                        kept.push((place as u16, next));
+                        if let Some(slot) = upper_slot(place) {
+                            upper_bits[slot / 64] |= 1 << (slot % 64);
+                            upper_index[slot] = next;
+                        }
                     }
                     next
                 } else {
@@ -678,13 +686,18 @@ impl BrickOctree {
                         keys.binary_search(&morton(c)).ok().map(|o| (o, c))
                     });
                     let found = owner.and_then(|(o, oc)| {
-                        let (start, end) = kept_range[o];
-                        let list = &kept[start as usize..end as usize];
+                        let faces = &kept_faces[o];
                         let l: [u32; 3] = std::array::from_fn(|a| corner[a] - oc[a] * BRICK_CELLS);
-                        let place = (axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2])) as u16;
-                        list.binary_search_by_key(&place, |e| e.0)
-                            .ok()
-                            .map(|i| list[i].1)
+                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
+                        let slot = upper_slot(place)?;
+                        let word = faces.bits[slot / 64];
+                        let bit = slot % 64;
+                        // Kept when its bit is set; its rank among the set bits is its entry.
+                        (word >> bit & 1 == 1).then(|| {
+                            let rank = usize::from(faces.before[slot / 64])
+                                + (word & ((1 << bit) - 1)).count_ones() as usize;
+                            kept[faces.first as usize + rank]
+                        })
                     });
                     found.unwrap_or_else(|| {
                         let next = welded as u32;
@@ -699,8 +712,22 @@ impl BrickOctree {
                 };
                 *local = index;
             }
-            kept[kept_start..].sort_unstable_by_key(|e| e.0);
-            kept_range.push((kept_start as u32, kept.len() as u32));
+            let mut faces = KeptFaces {
+                bits: upper_bits,
+                before: [0; UPPER_WORDS],
+                first: kept.len() as u32,
+            };
+            let mut count = 0u16;
+            for (w, &word) in upper_bits.iter().enumerate() {
+                faces.before[w] = count;
+                count += word.count_ones() as u16;
+                let mut m = word;
+                while m != 0 {
+                    kept.push(upper_index[64 * w + m.trailing_zeros() as usize]);
+                    m &= m - 1;
+                }
+            }
+            kept_faces.push(faces);
             // (Through a slice, whose length stays in a register while triangles are written.)
             let local = local.as_slice();
             out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
@@ -733,12 +760,59 @@ impl BrickOctree {
     }
 }
 
+/// Words of a bit per place on a brick's upper faces (see [`upper_slot`]).
+const UPPER_WORDS: usize = 8;
+
+/// Per place in a brick (`axis · 9³ + x + 9y + 81z`: the axis and start sample of an edge),
+/// its number among the places on the brick's upper faces (an edge off its own axis at the
+/// far end of the brick), or `u16::MAX` for a place not on them.
+static UPPER_SLOTS: [u16; 3 * BRICK_SAMPLE_COUNT] = {
+    const S: usize = BRICK_SAMPLES;
+    let mut table = [u16::MAX; 3 * BRICK_SAMPLE_COUNT];
+    let mut next = 0u16;
+    let mut place = 0;
+    while place < 3 * BRICK_SAMPLE_COUNT {
+        let axis = place / BRICK_SAMPLE_COUNT;
+        let l = [place % S, place / S % S, place / (S * S) % S];
+        let mut a = 0;
+        let mut upper = false;
+        while a < 3 {
+            upper |= a != axis && l[a] == S - 1;
+            a += 1;
+        }
+        if upper {
+            table[place] = next;
+            next += 1;
+        }
+        place += 1;
+    }
+    assert!(next as usize <= 64 * UPPER_WORDS);
+    table
+};
+
+/// The number of `place` among a brick's upper-face places ([`UPPER_SLOTS`]), if it is one.
+#[inline]
+fn upper_slot(place: u32) -> Option<usize> {
+    let slot = *UPPER_SLOTS.get(place as usize)?;
+    (slot != u16::MAX).then_some(usize::from(slot))
+}
+
+/// One brick's kept upper-face vertices in [`WeldScratch`]: a bit per upper-face place that
+/// holds one, and where their indices start; the `n`-th set bit's index is entry `first + n`.
+#[derive(Clone, Copy, Debug)]
+struct KeptFaces {
+    bits: [u64; UPPER_WORDS],
+    /// Per word of `bits`, the set bits in the words before it.
+    before: [u16; UPPER_WORDS],
+    first: u32,
+}
+
 /// Working memory of [`BrickOctree::weld_into`]; keep one and reuse it.
 #[derive(Clone, Debug, Default)]
 pub struct WeldScratch {
     keys: Vec<u64>,
-    kept: Vec<(u16, u32)>,
-    kept_range: Vec<(u32, u32)>,
+    kept: Vec<u32>,
+    kept_faces: Vec<KeptFaces>,
     stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
     local: Vec<u32>,
 }
