@@ -637,8 +637,12 @@ impl BrickOctree {
         let positions_room = &mut out.positions.spare_capacity_mut()[..vertices];
         let normals_room = &mut out.normals.spare_capacity_mut()[..vertices];
         for brick in self.bricks.values() {
-            if let Some(next) = ahead.next() {
-                next.mesh.prefetch();
+            let next = ahead.next();
+            // The next brick's vertices now, its triangles before this brick's (two halves).
+            if let Some(next) = next {
+                prefetch_slice(&next.mesh.edge_ids);
+                prefetch_slice(&next.mesh.positions);
+                prefetch_slice(&next.mesh.normals);
             }
             let m = &brick.mesh;
             let base = brick.coord.map(|c| c * BRICK_CELLS);
@@ -728,6 +732,9 @@ impl BrickOctree {
                 }
             }
             kept_faces.push(faces);
+            if let Some(next) = next {
+                prefetch_slice(&next.mesh.indices);
+            }
             // (Through a slice, whose length stays in a register while triangles are written.)
             let local = local.as_slice();
             out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
@@ -1084,15 +1091,16 @@ fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
         for at in 0..run.len() {
             // Ask the cache for what this brick's remesh and the next brick will write: this
             // brick's samples (the next brick is sampled into them once this one keeps the
-            // scratch's) and the next brick's mesh (see `BrickMesh::prefetch`).
+            // scratch's), now, and the next brick's mesh once this brick is sampled, so the
+            // requests come in two halves, not all at once (see `BrickMesh::prefetch`).
             prefetch_slice(&run[at].samples);
+            let node = run[at].coord;
+            let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
+            cache.keep(node, grid, &scratch);
             if let Some(next) = run.get(at + 1) {
                 next.mesh.prefetch();
             }
             let brick = &mut run[at];
-            let node = brick.coord;
-            let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
-            cache.keep(node, grid, &scratch);
             if crossed {
                 brick.remesh(field, grid, &mut scratch, generation);
             }
