@@ -85,13 +85,6 @@ impl BrickMesh {
             + self.indices.capacity() * size_of::<u32>()
     }
 
-    fn clear(&mut self) {
-        self.positions.clear();
-        self.normals.clear();
-        self.edge_ids.clear();
-        self.indices.clear();
-    }
-
     /// Asks the processor to start bringing this mesh's buffers into its cache, ahead of
     /// their use (only a hint; nothing at all on targets without a prefetch instruction).
     /// A weld or a rebuild walks thousands of bricks whose meshes are a few kilobytes each,
@@ -382,7 +375,10 @@ pub fn march_brick<F: ScalarField + ?Sized>(
         mesh,
         ..
     } = scratch;
-    mesh.clear();
+    // Only the triangles are cleared: the per-vertex buffers are resized to the vertex count
+    // later, and every vertex's entries written then, so the bytes a buffer held before (a
+    // kept brick's last mesh) need no zeroing first.
+    mesh.indices.clear();
     let (slots, samples) = (slots.as_mut_slice(), samples.as_slice());
     // Per axis, per line of edges along it (indexed by the other two local coordinates, the
     // lower fastest), a bit per edge that holds a vertex.
@@ -482,7 +478,6 @@ fn vertex_normals<F: ScalarField + ?Sized>(
     positions.resize(vertices, Vec3::ZERO);
     normals.resize(vertices, Vec3::ZERO);
     edge_ids.resize(vertices, 0);
-    gradients.clear();
     gradients.resize(4 * vertices, 0.0);
     let (gx, rest) = gradients.split_at_mut(vertices);
     let (gy, rest) = rest.split_at_mut(vertices);

@@ -651,7 +651,7 @@ impl BrickOctree {
             // This brick's upper-face vertices, by their number among the upper-face places.
             let mut upper_bits = [0u64; UPPER_WORDS];
             let mut upper_index = [0u32; 64 * UPPER_WORDS];
-            local.clear();
+            // (Every entry is written below; no need to zero it first.)
             local.resize(m.edge_ids.len(), 0);
             for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
                 let (corner, axis) = edge_from_id(id);
