@@ -570,6 +570,51 @@ mod tests {
     }
 
     #[test]
+    fn strided_blocks_hold_the_dense_blocks_bits_and_leave_the_gaps() {
+        let f = FnField {
+            value: |p: Vec3| (3.1 * p.x).sin() * (2.3 * p.y).cos() + p.z * p.z,
+            gradient: |_| Vec3::ZERO,
+            iso: 0.0,
+            lipschitz: None,
+        };
+        let l = bumpy_lattice();
+        let grid = SampleGrid::new(Vec3::new(-0.4, 0.1, 0.3), 0.07, [20, 20, 20]).unwrap();
+        let (first, counts, strides) = ([3, 1, 4], [5, 3, 4], [7, 29]);
+        let len = strides[1] * counts[2];
+        let mut scratch = Vec::new();
+        let mut dense_scratch = Vec::new();
+        let fields: [&dyn ScalarField; 2] = [&f, &l];
+        for field in fields {
+            let mut dense = vec![0.0; counts.iter().product()];
+            field.sample_block(&grid, first, counts, &mut dense, &mut scratch);
+            let mut out = vec![-7.0f32; len];
+            field.sample_block_strided(
+                &grid,
+                first,
+                counts,
+                &mut out,
+                strides,
+                &mut scratch,
+                &mut dense_scratch,
+            );
+            let mut written = vec![false; len];
+            for k in 0..counts[2] {
+                for j in 0..counts[1] {
+                    for i in 0..counts[0] {
+                        let at = i + strides[0] * j + strides[1] * k;
+                        let d = dense[i + counts[0] * (j + counts[1] * k)];
+                        assert_eq!(out[at].to_bits(), d.to_bits(), "sample {i} {j} {k}");
+                        written[at] = true;
+                    }
+                }
+            }
+            for (v, w) in out.iter().zip(&written) {
+                assert!(*w || *v == -7.0, "an entry between the rows was written");
+            }
+        }
+    }
+
+    #[test]
     fn lipschitz_bounds_contain_values() {
         let f = FnField {
             value: |p: Vec3| p.length(),
