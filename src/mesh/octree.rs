@@ -613,13 +613,32 @@ impl BrickOctree {
         out.triangles.reserve(triangles);
         let WeldScratch {
             keys,
+            ordinals,
             kept,
             kept_faces,
             stray,
             local,
         } = scratch;
+        // A brick's ordinal in Morton order by its coordinate: a table over the grid of bricks
+        // where that is small enough, else a search among the keys.
+        let [nx, ny, nz] = self.brick_counts.map(|c| c as usize);
+        let table = nx
+            .checked_mul(ny)
+            .and_then(|n| n.checked_mul(nz))
+            .is_some_and(|n| n <= MAX_ORDINAL_TABLE);
         keys.clear();
-        keys.extend(self.bricks.keys().copied());
+        ordinals.clear();
+        if table {
+            ordinals.resize(nx * ny * nz, u32::MAX);
+            for (o, b) in self.bricks.values().enumerate() {
+                let c = b.coord.map(|c| c as usize);
+                if c[0] < nx && c[1] < ny && c[2] < nz {
+                    ordinals[c[0] + nx * (c[1] + ny * c[2])] = o as u32;
+                }
+            }
+        } else {
+            keys.extend(self.bricks.keys().copied());
+        }
         // Per brick (in Morton order), its upper-face vertices: which places hold one, and
         // their indices in the order of the places.
         kept.clear();
@@ -687,7 +706,16 @@ impl BrickOctree {
                         for (a, c) in c.iter_mut().enumerate() {
                             *c -= ((lower >> a) & 1) as u32;
                         }
-                        keys.binary_search(&morton(c)).ok().map(|o| (o, c))
+                        let o = if table {
+                            let at = c[0] as usize + nx * (c[1] as usize + ny * c[2] as usize);
+                            ordinals
+                                .get(at)
+                                .filter(|&&o| o != u32::MAX)
+                                .map(|&o| o as usize)
+                        } else {
+                            keys.binary_search(&morton(c)).ok()
+                        };
+                        o.map(|o| (o, c))
                     });
                     let found = owner.and_then(|(o, oc)| {
                         let faces = &kept_faces[o];
@@ -767,6 +795,10 @@ impl BrickOctree {
     }
 }
 
+/// Most entries in the weld's table of brick ordinals by coordinate (4 MB; a larger grid of
+/// bricks searches the keys instead).
+const MAX_ORDINAL_TABLE: usize = 1 << 20;
+
 /// Words of a bit per place on a brick's upper faces (see [`upper_slot`]).
 const UPPER_WORDS: usize = 8;
 
@@ -818,6 +850,7 @@ struct KeptFaces {
 #[derive(Clone, Debug, Default)]
 pub struct WeldScratch {
     keys: Vec<u64>,
+    ordinals: Vec<u32>,
     kept: Vec<u32>,
     kept_faces: Vec<KeptFaces>,
     stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
