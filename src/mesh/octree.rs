@@ -1448,6 +1448,14 @@ mod tests {
         let grid = SampleGrid::for_lattice(&lattice, 3).unwrap();
         let tree = BrickOctree::build(grid, &lattice);
         assert_eq!(tree.weld(), tree.weld_by_hash());
+        // More bricks in the grid than the weld's table of ordinals holds: the bricks below
+        // are searched among the keys.
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0, [1040; 3]).unwrap();
+        assert!(1040usize.div_ceil(BRICK_CELLS as usize).pow(3) > MAX_ORDINAL_TABLE);
+        let ball = sphere_fn(Vec3::new(501.3, 498.7, 500.2), 23.0);
+        let tree = BrickOctree::build(grid, &ball);
+        assert!(tree.brick_count() > 50);
+        assert_eq!(tree.weld(), tree.weld_by_hash());
         // A dense surface that meets every brick face, and partial bricks at the far faces.
         const W: f32 = 9.0;
         let gyroid = FnField {
