@@ -13,11 +13,11 @@
 //! shared by two bricks is computed identically (same samples, same position, same normal) by
 //! both, and welding by id gives a watertight mesh with no duplicates.
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
 use super::grid::SampleGrid;
 use super::source::ScalarField;
-use super::tables::{CASES, CORNER_OFFSETS, EDGE_AXIS, EDGE_CORNERS};
+use super::tables::{CASES, CORNER_OFFSETS, EDGE_AXIS, EDGE_CORNERS, MAX_CASE_TRIANGLES};
 
 /// Cells per brick along each axis.
 pub const BRICK_CELLS: u32 = 8;
@@ -85,11 +85,17 @@ impl BrickMesh {
             + self.indices.capacity() * size_of::<u32>()
     }
 
-    fn clear(&mut self) {
-        self.positions.clear();
-        self.normals.clear();
-        self.edge_ids.clear();
-        self.indices.clear();
+    /// Asks the processor to start bringing this mesh's buffers into its cache, ahead of
+    /// their use (only a hint; nothing at all on targets without a prefetch instruction).
+    /// A weld or a rebuild walks thousands of bricks whose meshes are a few kilobytes each,
+    /// every buffer its own allocation: too short for the hardware to see a stream, so
+    /// without the hint each brick's first touches of each buffer wait on memory.
+    #[inline]
+    pub(crate) fn prefetch(&self) {
+        prefetch_slice(&self.positions);
+        prefetch_slice(&self.normals);
+        prefetch_slice(&self.edge_ids);
+        prefetch_slice(&self.indices);
     }
 
     /// Gives back room beyond twice what each buffer holds (plus a little), so a brick
@@ -123,6 +129,33 @@ impl BrickMesh {
     }
 }
 
+/// [`BrickMesh::prefetch`] of any slice: a hint per cache line it spans.
+#[inline]
+pub(crate) fn prefetch_slice<T>(items: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        const LINE: usize = 64;
+        let bytes = size_of_val(items);
+        if bytes == 0 {
+            return;
+        }
+        let start = items.as_ptr().cast::<i8>();
+        let mut offset = 0;
+        while offset < bytes {
+            // SAFETY: a prefetch only hints at the cache; it never faults and changes no
+            // memory, and the address lies inside `items`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(offset)) };
+            offset += LINE;
+        }
+        // The last line, which the steps above miss when `items` does not start on a line.
+        // SAFETY: as above; the last byte of `items`.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(start.wrapping_add(bytes - 1)) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = items;
+}
+
 /// Working memory for meshing bricks; keep one and reuse it.
 #[derive(Clone, Debug)]
 pub struct BrickScratch {
@@ -132,8 +165,14 @@ pub struct BrickScratch {
     pub(crate) samples: Vec<f32>,
     /// Per row of samples (index `y + 9z`), bit `x` set where the sample is inside.
     rows: [u16; BRICK_SAMPLES * BRICK_SAMPLES],
-    /// The samples not taken from a neighbour's face, densely, before they are spread.
+    /// The samples not taken from a neighbour's face, densely, before they are spread (for a
+    /// field that samples only dense blocks).
     dense: Vec<f32>,
+    /// The vertex indices of the brick being marched, before they are copied to its mesh.
+    triangles: Vec<u32>,
+    /// The field's gradient at each vertex of the brick being marched, a coordinate at a
+    /// time (all x, all y, all z), then the gradients' lengths.
+    gradients: Vec<f32>,
     pub(crate) field: Vec<f32>,
     pub(crate) mesh: BrickMesh,
 }
@@ -144,7 +183,9 @@ impl Default for BrickScratch {
             slots: vec![u32::MAX; 3 * BRICK_SAMPLE_COUNT],
             samples: vec![0.0; BRICK_SAMPLE_COUNT],
             rows: [0; BRICK_SAMPLES * BRICK_SAMPLES],
-            dense: Vec::with_capacity(BRICK_SAMPLE_COUNT),
+            dense: Vec::new(),
+            triangles: vec![0; MAX_BRICK_INDICES],
+            gradients: Vec::new(),
             field: Vec::new(),
             mesh: BrickMesh::default(),
         }
@@ -213,35 +254,33 @@ pub(crate) fn sample_brick_sharing<F: ScalarField + ?Sized>(
         field: field_scratch,
         ..
     } = scratch;
-    if lo == [0; 3] && counts == [S; 3] {
-        field.sample_block(grid, start, sub, samples, field_scratch);
-    } else {
-        let n = sub[0] * sub[1] * sub[2];
-        dense.clear();
-        dense.resize(n, 0.0);
-        field.sample_block(grid, start, sub, dense, field_scratch);
-        if counts != [S; 3] {
-            // Entries beyond a partial brick's extent: zero, whatever was sampled before.
-            samples.fill(0.0);
-        }
-        for k in 0..sub[2] {
-            for j in 0..sub[1] {
-                let from = sub[0] * (j + sub[1] * k);
-                let to = lo[0] + S * (lo[1] + j + S * (lo[2] + k));
-                samples[to..to + sub[0]].copy_from_slice(&dense[from..from + sub[0]]);
-            }
-        }
-        for (axis, face) in near.iter().enumerate() {
-            let Some(face) = face else { continue };
-            let (a_axis, b_axis) = match axis {
-                0 => (1, 2),
-                1 => (0, 2),
-                _ => (0, 1),
-            };
-            for b in 0..counts[b_axis] {
-                for a in 0..counts[a_axis] {
-                    samples[face_index(axis, 0, a, b)] = face[a + S * b];
-                }
+    // (Slices, not vectors, in the loops below: their lengths stay in registers while
+    // samples are written.)
+    let samples = samples.as_mut_slice();
+    if counts != [S; 3] {
+        // Entries beyond a partial brick's extent: zero, whatever was sampled before.
+        samples.fill(0.0);
+    }
+    let offset = lo[0] + S * (lo[1] + S * lo[2]);
+    field.sample_block_strided(
+        grid,
+        start,
+        sub,
+        &mut samples[offset..],
+        [S, S * S],
+        field_scratch,
+        dense,
+    );
+    for (axis, face) in near.iter().enumerate() {
+        let Some(face) = face else { continue };
+        let (a_axis, b_axis) = match axis {
+            0 => (1, 2),
+            1 => (0, 2),
+            _ => (0, 1),
+        };
+        for b in 0..counts[b_axis] {
+            for a in 0..counts[a_axis] {
+                samples[face_index(axis, 0, a, b)] = face[a + S * b];
             }
         }
     }
@@ -289,13 +328,36 @@ const EDGE_SLOT: [usize; 12] = {
     t
 };
 
+/// Per cube edge: its line of edges (see [`march_brick`]'s `lines`) relative to the line of
+/// the same axis through the cell's first sample.
+const EDGE_LINE: [usize; 12] = {
+    let mut t = [0usize; 12];
+    let mut e = 0;
+    while e < 12 {
+        let o = CORNER_OFFSETS[EDGE_CORNERS[e][0] as usize];
+        let (u, w) = match EDGE_AXIS[e] {
+            0 => (o[1], o[2]),
+            1 => (o[0], o[2]),
+            _ => (o[0], o[1]),
+        };
+        t[e] = u as usize + BRICK_SAMPLES * w as usize;
+        e += 1;
+    }
+    t
+};
+
+/// Most vertex indices one brick's triangles can hold (five triangles in every cell).
+pub(crate) const MAX_BRICK_INDICES: usize = 3 * MAX_CASE_TRIANGLES * (BRICK_CELLS as usize).pow(3);
+
 /// Marching cubes over the brick sampled by [`sample_brick`], into `scratch.mesh`.
 ///
 /// Each sample's inside bit is taken once, when the brick is sampled, into a bit mask per
 /// row of samples; the four rows around a row of cells give, with a few bit operations, the
 /// cells that are neither all inside nor all outside, and only those are visited (in
-/// order of x). Vertex positions are made as the cells meet them; their normals
-/// afterwards, line by line of the grid (see [`vertex_normals`]).
+/// order of x). The cells only number their vertices (in the order they first meet them)
+/// and write their triangles; each vertex's position, edge id and normal are made
+/// afterwards, line by line of the grid (see [`vertex_normals`]), where the divisions of
+/// many vertices overlap instead of stalling the cell loop.
 pub fn march_brick<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
@@ -303,21 +365,29 @@ pub fn march_brick<F: ScalarField + ?Sized>(
     scratch: &mut BrickScratch,
 ) {
     const S: usize = BRICK_SAMPLES;
-    const STRIDE: [usize; 3] = [1, S, S * S];
     let (first, cells) = brick_extent(grid, coord);
     let BrickScratch {
         slots,
         samples,
         rows,
+        triangles,
+        gradients,
         mesh,
         ..
     } = scratch;
-    mesh.clear();
+    // Only the triangles are cleared: the per-vertex buffers are resized to the vertex count
+    // later, and every vertex's entries written then, so the bytes a buffer held before (a
+    // kept brick's last mesh) need no zeroing first.
+    mesh.indices.clear();
+    let (slots, samples) = (slots.as_mut_slice(), samples.as_slice());
     // Per axis, per line of edges along it (indexed by the other two local coordinates, the
     // lower fastest), a bit per edge that holds a vertex.
     let mut lines = [[0u16; S * S]; 3];
     let [cx, cy, cz] = cells.map(|c| c as usize);
     let cell_mask = (1u32 << cx) - 1;
+    let triangles = &mut triangles[..MAX_BRICK_INDICES];
+    let mut n_indices = 0usize;
+    let mut n_vertices = 0u32;
     for z in 0..cz {
         for y in 0..cy {
             let row = S * (y + S * z);
@@ -340,133 +410,139 @@ pub fn march_brick<F: ScalarField + ?Sized>(
                     | ((r[2] >> x) & 3) << 4
                     | ((r[3] >> x) & 3) << 6) as usize;
                 let base = row + x;
+                // The cell's lines per axis, and its place along them.
+                let line = [y + S * z, x + S * z, x + S * y];
+                let along = [x, y, z];
                 let tris = &CASES[case];
                 for tri in &tris.edges[..tris.count as usize] {
                     for &e in tri {
-                        let at = base + EDGE_SLOT[e as usize];
-                        let slot = &mut slots[at];
+                        let e = e as usize;
+                        let slot = &mut slots[base + EDGE_SLOT[e]];
                         if *slot == u32::MAX {
-                            *slot = mesh.positions.len() as u32;
-                            let axis = EDGE_AXIS[e as usize] as usize;
-                            let o = CORNER_OFFSETS[EDGE_CORNERS[e as usize][0] as usize];
-                            let start =
-                                base + o[0] as usize + S * (o[1] as usize + S * o[2] as usize);
-                            let local = [x as u32 + o[0], y as u32 + o[1], z as u32 + o[2]];
-                            let corner: [u32; 3] = std::array::from_fn(|a| first[a] + local[a]);
-                            let (along, u, w) = match axis {
-                                0 => (local[0], local[1], local[2]),
-                                1 => (local[1], local[0], local[2]),
-                                _ => (local[2], local[0], local[1]),
-                            };
-                            lines[axis][(u + S as u32 * w) as usize] |= 1 << along;
-                            let v0 = samples[start];
-                            let v1 = samples[start + STRIDE[axis]];
-                            push_vertex(field, grid, corner, axis, v0, v1, mesh);
+                            *slot = n_vertices;
+                            n_vertices += 1;
+                            let axis = EDGE_AXIS[e] as usize;
+                            lines[axis][line[axis] + EDGE_LINE[e]] |= 1 << along[axis];
                         }
-                        mesh.indices.push(*slot);
+                        triangles[n_indices] = *slot;
+                        n_indices += 1;
                     }
                 }
             }
         }
     }
-    vertex_normals(field, grid, first, &lines, slots, samples, mesh);
-}
-
-/// Adds the vertex where the surface crosses the edge from sample `corner` along `axis`
-/// (its normal is made later, by [`vertex_normals`]).
-fn push_vertex<F: ScalarField + ?Sized>(
-    field: &F,
-    grid: &SampleGrid,
-    corner: [u32; 3],
-    axis: usize,
-    v0: f32,
-    v1: f32,
-    mesh: &mut BrickMesh,
-) {
-    // v0 != v1: exactly one of them is above the iso-level.
-    let t = ((field.iso() - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
-    let (a0, a1) = (
-        grid.coordinate(axis, corner[axis]),
-        grid.coordinate(axis, corner[axis] + 1),
+    mesh.indices.extend_from_slice(&triangles[..n_indices]);
+    vertex_normals(
+        field,
+        grid,
+        first,
+        &lines,
+        n_vertices as usize,
+        slots,
+        samples,
+        gradients,
+        mesh,
     );
-    // Off the edge's axis the vertex has the sample's own coordinates, so the normals' pass
-    // can make them line by line and get the same bits.
-    // (Built from registers, not by writing one lane of a point in memory and reading it
-    // back whole, which stalls the store's forwarding.)
-    let q = grid.point(corner);
-    let c = a0 + (a1 - a0) * t;
-    let p = match axis {
-        0 => Vec3::new(c, q.y, q.z),
-        1 => Vec3::new(q.x, c, q.z),
-        _ => Vec3::new(q.x, q.y, c),
-    };
-    mesh.positions.push(p);
-    mesh.edge_ids.push(edge_id(corner, axis as u8));
 }
 
-/// The unit outward normal `−∇s / |∇s|` of every vertex of the brick just marched, asked of
-/// the field along each line of edges in turn: for all the vertices on one line, two of the
-/// three coordinates are the same, and the lines of one plane share one more, so a field
-/// whose gradient works each coordinate out apart (as an analytic closure, inlined, does)
-/// computes those parts once per line or plane, not once per vertex. A flat field (zero or
-/// non-finite gradient) gets the edge's direction, from its inside end to its outside end.
+/// The position, edge id and unit outward normal `−∇s / |∇s|` of every vertex of the brick
+/// just marched, made along each line of edges in turn: for all the vertices on one line,
+/// two of the three coordinates are the same, and the lines of one plane share one more, so
+/// a field whose gradient works each coordinate out apart (as an analytic closure, inlined,
+/// does) computes those parts once per line or plane, not once per vertex. A flat field
+/// (zero or non-finite gradient) gets the edge's direction, from its inside end to its
+/// outside end.
+///
+/// A vertex lies where the samples' linear interpolation crosses the iso-level, its
+/// parameter kept [`T_MARGIN`] from the edge's ends; off the edge's axis it has the samples'
+/// own coordinates (the same expression as [`SampleGrid::point`], so the same bits).
+#[allow(clippy::too_many_arguments)]
 fn vertex_normals<F: ScalarField + ?Sized>(
     field: &F,
     grid: &SampleGrid,
     first: [u32; 3],
     lines: &[[u16; BRICK_SAMPLES * BRICK_SAMPLES]; 3],
+    vertices: usize,
     slots: &mut [u32],
     samples: &[f32],
+    gradients: &mut Vec<f32>,
     mesh: &mut BrickMesh,
 ) {
     const S: usize = BRICK_SAMPLES;
     let BrickMesh {
-        positions, normals, ..
+        positions,
+        normals,
+        edge_ids,
+        ..
     } = mesh;
-    normals.clear();
-    normals.resize(positions.len(), Vec3::ZERO);
+    positions.resize(vertices, Vec3::ZERO);
+    normals.resize(vertices, Vec3::ZERO);
+    edge_ids.resize(vertices, 0);
+    gradients.resize(4 * vertices, 0.0);
+    let (gx, rest) = gradients.split_at_mut(vertices);
+    let (gy, rest) = rest.split_at_mut(vertices);
+    let (gz, lengths) = rest.split_at_mut(vertices);
     let coordinates: [[f32; S]; 3] =
         std::array::from_fn(|a| std::array::from_fn(|i| grid.coordinate(a, first[a] + i as u32)));
-    normals_along::<0, F>(
-        field,
-        &coordinates,
-        &lines[0],
-        slots,
-        samples,
+    let out = VertexOut {
         positions,
         normals,
-    );
-    normals_along::<1, F>(
-        field,
-        &coordinates,
-        &lines[1],
-        slots,
-        samples,
-        positions,
+        edge_ids,
+        gradients: [gx, gy, gz],
+    };
+    let out = normals_along::<0, F>(field, first, &coordinates, &lines[0], slots, samples, out);
+    let out = normals_along::<1, F>(field, first, &coordinates, &lines[1], slots, samples, out);
+    let out = normals_along::<2, F>(field, first, &coordinates, &lines[2], slots, samples, out);
+    // The normals from the gradients, in loops of their own, a coordinate at a time: the
+    // compiler packs several vertices into each square root and division (the same bits as
+    // `Vec3::length` and `-g / length` give one vertex), and none waits behind its vertex's
+    // field call.
+    let VertexOut {
         normals,
-    );
-    normals_along::<2, F>(
-        field,
-        &coordinates,
-        &lines[2],
-        slots,
-        samples,
-        positions,
-        normals,
-    );
+        gradients: [gx, gy, gz],
+        ..
+    } = out;
+    for (((x, y), z), length) in gx
+        .iter_mut()
+        .zip(gy.iter_mut())
+        .zip(gz.iter_mut())
+        .zip(lengths.iter_mut())
+    {
+        let l = ((*x * *x) + (*y * *y) + (*z * *z)).sqrt();
+        *length = l;
+        (*x, *y, *z) = (-*x / l, -*y / l, -*z / l);
+    }
+    for ((n, &l), ((&x, &y), &z)) in normals
+        .iter_mut()
+        .zip(lengths.iter())
+        .zip(gx.iter().zip(gy.iter()).zip(gz.iter()))
+    {
+        if l > 1e-20 && l.is_finite() {
+            *n = Vec3::new(x, y, z);
+        }
+    }
+}
+
+/// The per-vertex buffers [`normals_along`] fills (`normals` with the flat field's normal,
+/// kept where the gradient is zero or not finite).
+struct VertexOut<'a> {
+    positions: &'a mut [Vec3],
+    normals: &'a mut [Vec3],
+    edge_ids: &'a mut [u64],
+    gradients: [&'a mut [f32]; 3],
 }
 
 /// [`vertex_normals`] of the vertices on edges along `AXIS` (a constant, so that the point
 /// handed to the field is built from registers and its fixed parts are seen to be fixed).
-fn normals_along<const AXIS: usize, F: ScalarField + ?Sized>(
+fn normals_along<'a, const AXIS: usize, F: ScalarField + ?Sized>(
     field: &F,
+    first: [u32; 3],
     coordinates: &[[f32; BRICK_SAMPLES]; 3],
     lines: &[u16; BRICK_SAMPLES * BRICK_SAMPLES],
     slots: &mut [u32],
     samples: &[f32],
-    positions: &[Vec3],
-    normals: &mut [Vec3],
-) {
+    out: VertexOut<'a>,
+) -> VertexOut<'a> {
     const S: usize = BRICK_SAMPLES;
     // The other two axes: `w` outer (one per plane), `u` inner (one per line).
     let (u_axis, w_axis) = match AXIS {
@@ -475,6 +551,14 @@ fn normals_along<const AXIS: usize, F: ScalarField + ?Sized>(
         _ => (0, 1),
     };
     let stride = [1, S, S * S][AXIS];
+    let iso = field.iso();
+    let VertexOut {
+        positions,
+        normals,
+        edge_ids,
+        gradients,
+    } = out;
+    let slots = &mut slots[AXIS * BRICK_SAMPLE_COUNT..(AXIS + 1) * BRICK_SAMPLE_COUNT];
     for (w, plane) in lines.chunks_exact(S).enumerate() {
         if plane.iter().all(|&m| m == 0) {
             continue;
@@ -486,35 +570,38 @@ fn normals_along<const AXIS: usize, F: ScalarField + ?Sized>(
             while m != 0 {
                 let along = m.trailing_zeros() as usize;
                 m &= m - 1;
-                let start = match AXIS {
-                    0 => along + S * (u + S * w),
-                    1 => u + S * (along + S * w),
-                    _ => u + S * (w + S * along),
+                let (start, local) = match AXIS {
+                    0 => (along + S * (u + S * w), [along, u, w]),
+                    1 => (u + S * (along + S * w), [u, along, w]),
+                    _ => (u + S * (w + S * along), [u, w, along]),
                 };
-                let v = std::mem::replace(&mut slots[AXIS * BRICK_SAMPLE_COUNT + start], u32::MAX)
-                    as usize;
-                let a = positions[v][AXIS];
+                let v = std::mem::replace(&mut slots[start], u32::MAX) as usize;
+                let (v0, v1) = (samples[start], samples[start + stride]);
+                // v0 != v1: exactly one of them is above the iso-level.
+                let t = ((iso - v0) / (v1 - v0)).clamp(T_MARGIN, 1.0 - T_MARGIN);
+                let (a0, a1) = (coordinates[AXIS][along], coordinates[AXIS][along + 1]);
+                let a = a0 + (a1 - a0) * t;
                 let p = match AXIS {
                     0 => Vec3::new(a, uc, wc),
                     1 => Vec3::new(uc, a, wc),
                     _ => Vec3::new(uc, wc, a),
                 };
-                let gradient = field.gradient(p);
-                let length = gradient.length();
-                normals[v] = if length > 1e-20 && length.is_finite() {
-                    // One packed division for the three lanes (the same bits as three).
-                    Vec3::from(-Vec3A::from(gradient) / length)
-                } else {
-                    let mut n = Vec3::ZERO;
-                    n[AXIS] = if samples[start] > samples[start + stride] {
-                        1.0
-                    } else {
-                        -1.0
-                    };
-                    n
-                };
+                positions[v] = p;
+                let corner: [u32; 3] = std::array::from_fn(|k| first[k] + local[k] as u32);
+                edge_ids[v] = edge_id(corner, AXIS as u8);
+                let g = field.gradient(p);
+                (gradients[0][v], gradients[1][v], gradients[2][v]) = (g.x, g.y, g.z);
+                let mut flat = Vec3::ZERO;
+                flat[AXIS] = if v0 > v1 { 1.0 } else { -1.0 };
+                normals[v] = flat;
             }
         }
+    }
+    VertexOut {
+        positions,
+        normals,
+        edge_ids,
+        gradients,
     }
 }
 

@@ -23,8 +23,9 @@ use std::sync::{Mutex, PoisonError};
 use glam::Vec3;
 
 use super::brick::{
-    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, brick_extent, edge_from_id,
-    march_brick, sample_brick, sample_brick_sharing, upper_face,
+    BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, Face,
+    MAX_BRICK_INDICES, brick_extent, edge_from_id, march_brick, prefetch_slice, sample_brick,
+    sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -567,6 +568,7 @@ impl BrickOctree {
             + size_of::<Self>()
             + 3 * super::BRICK_SAMPLE_COUNT * size_of::<u32>()
             + super::BRICK_SAMPLE_COUNT * size_of::<f32>()
+            + MAX_BRICK_INDICES * size_of::<u32>()
             + self.rebuild_scratch.heap_bytes();
         usage
     }
@@ -601,27 +603,66 @@ impl BrickOctree {
         out.triangles.reserve(triangles);
         let WeldScratch {
             keys,
+            ordinals,
             kept,
-            kept_range,
+            kept_faces,
             stray,
             local,
         } = scratch;
+        // A brick's ordinal in Morton order by its coordinate: a table over the grid of bricks
+        // where that is small enough, else a search among the keys.
+        let [nx, ny, nz] = self.brick_counts.map(|c| c as usize);
+        let table = nx
+            .checked_mul(ny)
+            .and_then(|n| n.checked_mul(nz))
+            .is_some_and(|n| n <= MAX_ORDINAL_TABLE);
         keys.clear();
-        keys.extend(self.bricks.keys().copied());
-        // Per brick (in Morton order), its upper-face vertices: (place in the brick, index).
+        ordinals.clear();
+        if table {
+            ordinals.resize(nx * ny * nz, u32::MAX);
+            for (o, b) in self.bricks.values().enumerate() {
+                let c = b.coord.map(|c| c as usize);
+                if c[0] < nx && c[1] < ny && c[2] < nz {
+                    ordinals[c[0] + nx * (c[1] + ny * c[2])] = o as u32;
+                }
+            }
+        } else {
+            keys.extend(self.bricks.keys().copied());
+        }
+        // Per brick (in Morton order), its upper-face vertices: which places hold one, and
+        // their indices in the order of the places.
         kept.clear();
-        kept_range.clear();
+        kept_faces.clear();
         // Vertices whose owner brick is missing or did not keep them (never, for a tree this
         // octree built; kept so that welding stays by edge id whatever the bricks hold).
         stray.clear();
+        // The brick after the one being welded, whose buffers are asked into the cache
+        // meanwhile (see `BrickMesh::prefetch`).
+        let mut ahead = self.bricks.values().skip(1);
+        // The welded vertices are written straight into the room reserved above, `welded` of
+        // them so far, and the lengths set once at the end (no length kept up to date in
+        // memory for each vertex).
+        let mut welded = 0usize;
+        let positions_room = &mut out.positions.spare_capacity_mut()[..vertices];
+        let normals_room = &mut out.normals.spare_capacity_mut()[..vertices];
         for brick in self.bricks.values() {
+            let next = ahead.next();
+            // The next brick's vertices now, its triangles before this brick's (two halves).
+            if let Some(next) = next {
+                prefetch_slice(&next.mesh.edge_ids);
+                prefetch_slice(&next.mesh.positions);
+                prefetch_slice(&next.mesh.normals);
+            }
             let m = &brick.mesh;
             let base = brick.coord.map(|c| c * BRICK_CELLS);
             // The ordinals of the bricks below, by mask of axes (looked up when first needed).
             let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
-            let kept_start = kept.len();
-            local.clear();
-            for (v, &id) in m.edge_ids.iter().enumerate() {
+            // This brick's upper-face vertices, by their number among the upper-face places.
+            let mut upper_bits = [0u64; UPPER_WORDS];
+            let mut upper_index = [0u32; 64 * UPPER_WORDS];
+            // (Every entry is written below; no need to zero it first.)
+            local.resize(m.edge_ids.len(), 0);
+            for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
                 let (corner, axis) = edge_from_id(id);
                 let axis = axis as usize;
                 let mut lower = 0usize;
@@ -636,13 +677,17 @@ impl BrickOctree {
                     }
                 }
                 let index = if lower == 0 {
-                    let next = out.positions.len() as u32;
-                    out.positions.push(m.positions[v]);
-                    out.normals.push(m.normals[v]);
+                    let next = welded as u32;
+                    positions_room[welded].write(m.positions[v]);
+                    normals_room[welded].write(m.normals[v]);
+                    welded += 1;
                     if upper {
                         let l = [0, 1, 2].map(|a| corner[a] - base[a]);
                         let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
-                        kept.push((place as u16, next));
+                        if let Some(slot) = upper_slot(place) {
+                            upper_bits[slot / 64] |= 1 << (slot % 64);
+                            upper_index[slot] = next;
+                        }
                     }
                     next
                 } else {
@@ -651,31 +696,65 @@ impl BrickOctree {
                         for (a, c) in c.iter_mut().enumerate() {
                             *c -= ((lower >> a) & 1) as u32;
                         }
-                        keys.binary_search(&morton(c)).ok().map(|o| (o, c))
+                        let o = if table {
+                            let at = c[0] as usize + nx * (c[1] as usize + ny * c[2] as usize);
+                            ordinals
+                                .get(at)
+                                .filter(|&&o| o != u32::MAX)
+                                .map(|&o| o as usize)
+                        } else {
+                            keys.binary_search(&morton(c)).ok()
+                        };
+                        o.map(|o| (o, c))
                     });
                     let found = owner.and_then(|(o, oc)| {
-                        let (start, end) = kept_range[o];
-                        let list = &kept[start as usize..end as usize];
+                        let faces = &kept_faces[o];
                         let l: [u32; 3] = std::array::from_fn(|a| corner[a] - oc[a] * BRICK_CELLS);
-                        let place = (axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2])) as u16;
-                        list.binary_search_by_key(&place, |e| e.0)
-                            .ok()
-                            .map(|i| list[i].1)
+                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
+                        let slot = upper_slot(place)?;
+                        let word = faces.bits[slot / 64];
+                        let bit = slot % 64;
+                        // Kept when its bit is set; its rank among the set bits is its entry.
+                        (word >> bit & 1 == 1).then(|| {
+                            let rank = usize::from(faces.before[slot / 64])
+                                + (word & ((1 << bit) - 1)).count_ones() as usize;
+                            kept[faces.first as usize + rank]
+                        })
                     });
                     found.unwrap_or_else(|| {
-                        let next = out.positions.len() as u32;
+                        let next = welded as u32;
                         let index = *stray.entry(id).or_insert(next);
                         if index == next {
-                            out.positions.push(m.positions[v]);
-                            out.normals.push(m.normals[v]);
+                            positions_room[welded].write(m.positions[v]);
+                            normals_room[welded].write(m.normals[v]);
+                            welded += 1;
                         }
                         index
                     })
                 };
-                local.push(index);
+                *local = index;
             }
-            kept[kept_start..].sort_unstable_by_key(|e| e.0);
-            kept_range.push((kept_start as u32, kept.len() as u32));
+            let mut faces = KeptFaces {
+                bits: upper_bits,
+                before: [0; UPPER_WORDS],
+                first: kept.len() as u32,
+            };
+            let mut count = 0u16;
+            for (w, &word) in upper_bits.iter().enumerate() {
+                faces.before[w] = count;
+                count += word.count_ones() as u16;
+                let mut m = word;
+                while m != 0 {
+                    kept.push(upper_index[64 * w + m.trailing_zeros() as usize]);
+                    m &= m - 1;
+                }
+            }
+            kept_faces.push(faces);
+            if let Some(next) = next {
+                prefetch_slice(&next.mesh.indices);
+            }
+            // (Through a slice, whose length stays in a register while triangles are written.)
+            let local = local.as_slice();
             out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
                 [
                     local[t[0] as usize],
@@ -683,6 +762,13 @@ impl BrickOctree {
                     local[t[2] as usize],
                 ]
             }));
+        }
+        // SAFETY: the first `welded` entries of both vectors' room were written above, one
+        // after another (`welded` never passes `vertices`, the room reserved: the rooms are
+        // indexed with bounds checks).
+        unsafe {
+            out.positions.set_len(welded);
+            out.normals.set_len(welded);
         }
     }
 
@@ -699,12 +785,64 @@ impl BrickOctree {
     }
 }
 
+/// Most entries in the weld's table of brick ordinals by coordinate (4 MB; a larger grid of
+/// bricks searches the keys instead).
+const MAX_ORDINAL_TABLE: usize = 1 << 20;
+
+/// Words of a bit per place on a brick's upper faces (see [`upper_slot`]).
+const UPPER_WORDS: usize = 8;
+
+/// Per place in a brick (`axis · 9³ + x + 9y + 81z`: the axis and start sample of an edge),
+/// its number among the places on the brick's upper faces (an edge off its own axis at the
+/// far end of the brick), or `u16::MAX` for a place not on them.
+static UPPER_SLOTS: [u16; 3 * BRICK_SAMPLE_COUNT] = {
+    const S: usize = BRICK_SAMPLES;
+    let mut table = [u16::MAX; 3 * BRICK_SAMPLE_COUNT];
+    let mut next = 0u16;
+    let mut place = 0;
+    while place < 3 * BRICK_SAMPLE_COUNT {
+        let axis = place / BRICK_SAMPLE_COUNT;
+        let l = [place % S, place / S % S, place / (S * S) % S];
+        let mut a = 0;
+        let mut upper = false;
+        while a < 3 {
+            upper |= a != axis && l[a] == S - 1;
+            a += 1;
+        }
+        if upper {
+            table[place] = next;
+            next += 1;
+        }
+        place += 1;
+    }
+    assert!(next as usize <= 64 * UPPER_WORDS);
+    table
+};
+
+/// The number of `place` among a brick's upper-face places ([`UPPER_SLOTS`]), if it is one.
+#[inline]
+fn upper_slot(place: u32) -> Option<usize> {
+    let slot = *UPPER_SLOTS.get(place as usize)?;
+    (slot != u16::MAX).then_some(usize::from(slot))
+}
+
+/// One brick's kept upper-face vertices in [`WeldScratch`]: a bit per upper-face place that
+/// holds one, and where their indices start; the `n`-th set bit's index is entry `first + n`.
+#[derive(Clone, Copy, Debug)]
+struct KeptFaces {
+    bits: [u64; UPPER_WORDS],
+    /// Per word of `bits`, the set bits in the words before it.
+    before: [u16; UPPER_WORDS],
+    first: u32,
+}
+
 /// Working memory of [`BrickOctree::weld_into`]; keep one and reuse it.
 #[derive(Clone, Debug, Default)]
 pub struct WeldScratch {
     keys: Vec<u64>,
-    kept: Vec<(u16, u32)>,
-    kept_range: Vec<(u32, u32)>,
+    ordinals: Vec<u32>,
+    kept: Vec<u32>,
+    kept_faces: Vec<KeptFaces>,
     stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
     local: Vec<u32>,
 }
@@ -1076,10 +1214,25 @@ fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     let mut cache = FaceCache::new(counts);
     let mut fresh = Vec::new();
     while let Some(run) = next_run() {
-        for job in run.iter_mut() {
-            let node = job.coord;
+        for at in 0..run.len() {
+            // Ask the cache for what this brick's remesh and the next brick will write: a
+            // stored brick's samples (the next brick is sampled into them once this one keeps
+            // the scratch's), now, and the next stored brick's mesh once this brick is
+            // sampled, so the requests come in two halves, not all at once (see
+            // `BrickMesh::prefetch`). A new brick has nothing to fetch.
+            if let Some(brick) = &run[at].stored {
+                prefetch_slice(&brick.samples);
+            }
+            let node = run[at].coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);
+            if let Some(BrickJob {
+                stored: Some(next), ..
+            }) = run.get(at + 1)
+            {
+                next.mesh.prefetch();
+            }
+            let job = &mut run[at];
             job.crossed = crossed;
             if crossed {
                 match job.stored.as_deref_mut() {
@@ -1405,6 +1558,14 @@ mod tests {
         let (lattice, _, _) = sphere_lattice(12.0);
         let grid = SampleGrid::for_lattice(&lattice, 3).unwrap();
         let tree = BrickOctree::build(grid, &lattice);
+        assert_eq!(tree.weld(), tree.weld_by_hash());
+        // More bricks in the grid than the weld's table of ordinals holds: the bricks below
+        // are searched among the keys.
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0, [1040; 3]).unwrap();
+        assert!(1040usize.div_ceil(BRICK_CELLS as usize).pow(3) > MAX_ORDINAL_TABLE);
+        let ball = sphere_fn(Vec3::new(501.3, 498.7, 500.2), 23.0);
+        let tree = BrickOctree::build(grid, &ball);
+        assert!(tree.brick_count() > 50);
         assert_eq!(tree.weld(), tree.weld_by_hash());
         // A dense surface that meets every brick face, and partial bricks at the far faces.
         const W: f32 = 9.0;

@@ -57,6 +57,46 @@ pub trait ScalarField {
         }
     }
 
+    /// [`ScalarField::sample_block`] into a block with gaps: sample `(i, j, k)` goes to
+    /// `out[i + strides[0] · j + strides[1] · k]` (the entries between are left as they
+    /// are), each with the same bits as `sample_block` gives it. `dense` is more working
+    /// memory the caller keeps: the default samples the block densely there and copies it
+    /// row by row; a field that can write each row in place overrides it.
+    ///
+    /// # Panics
+    /// When `out` is too short for the last sample, or the strides let rows overlap.
+    #[allow(clippy::too_many_arguments)]
+    fn sample_block_strided(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        strides: [usize; 2],
+        scratch: &mut Vec<f32>,
+        dense: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        assert!(
+            strides[0] >= cx && strides[1] >= strides[0] * cy,
+            "rows of a strided block must not overlap"
+        );
+        if strides == [cx, cx * cy] {
+            self.sample_block(grid, first, counts, out, scratch);
+            return;
+        }
+        dense.clear();
+        dense.resize(cx * cy * cz, 0.0);
+        self.sample_block(grid, first, counts, dense, scratch);
+        for k in 0..cz {
+            for j in 0..cy {
+                let from = cx * (j + cy * k);
+                let to = strides[0] * j + strides[1] * k;
+                out[to..to + cx].copy_from_slice(&dense[from..from + cx]);
+            }
+        }
+    }
+
     /// Lower and upper bounds on the value over the box `min..=max`, or `None` when unknown.
     /// Used only to skip boxes that cannot contain the surface; a bound must never be tighter
     /// than the true range.
@@ -125,6 +165,43 @@ where
         for &z in zs {
             for &y in ys {
                 let Some(row) = rows.next() else { return };
+                for (o, &x) in row.iter_mut().zip(xs) {
+                    *o = (self.value)(Vec3::new(x, y, z));
+                }
+            }
+        }
+    }
+
+    /// Each row written in place, with the same coordinates and closure calls as
+    /// [`FnField::sample_block`] (so the same bits), without a dense block to copy from.
+    fn sample_block_strided(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        strides: [usize; 2],
+        scratch: &mut Vec<f32>,
+        _dense: &mut Vec<f32>,
+    ) {
+        let [cx, cy, cz] = counts;
+        assert!(
+            strides[0] >= cx && strides[1] >= strides[0] * cy,
+            "rows of a strided block must not overlap"
+        );
+        if cx == 0 || cy == 0 || cz == 0 {
+            return;
+        }
+        scratch.clear();
+        scratch.extend((0..cx).map(|i| grid.coordinate(0, first[0] + i as u32)));
+        scratch.extend((0..cy).map(|j| grid.coordinate(1, first[1] + j as u32)));
+        scratch.extend((0..cz).map(|k| grid.coordinate(2, first[2] + k as u32)));
+        let (xs, rest) = scratch.split_at(cx);
+        let (ys, zs) = rest.split_at(cy);
+        for (k, &z) in zs.iter().enumerate() {
+            for (j, &y) in ys.iter().enumerate() {
+                let at = strides[0] * j + strides[1] * k;
+                let row = &mut out[at..at + cx];
                 for (o, &x) in row.iter_mut().zip(xs) {
                     *o = (self.value)(Vec3::new(x, y, z));
                 }
@@ -490,6 +567,51 @@ mod tests {
             l.bounds(Vec3::splat(50.0), Vec3::splat(51.0)),
             Some((0.0, 0.0))
         );
+    }
+
+    #[test]
+    fn strided_blocks_hold_the_dense_blocks_bits_and_leave_the_gaps() {
+        let f = FnField {
+            value: |p: Vec3| (3.1 * p.x).sin() * (2.3 * p.y).cos() + p.z * p.z,
+            gradient: |_| Vec3::ZERO,
+            iso: 0.0,
+            lipschitz: None,
+        };
+        let l = bumpy_lattice();
+        let grid = SampleGrid::new(Vec3::new(-0.4, 0.1, 0.3), 0.07, [20, 20, 20]).unwrap();
+        let (first, counts, strides) = ([3, 1, 4], [5, 3, 4], [7, 29]);
+        let len = strides[1] * counts[2];
+        let mut scratch = Vec::new();
+        let mut dense_scratch = Vec::new();
+        let fields: [&dyn ScalarField; 2] = [&f, &l];
+        for field in fields {
+            let mut dense = vec![0.0; counts.iter().product()];
+            field.sample_block(&grid, first, counts, &mut dense, &mut scratch);
+            let mut out = vec![-7.0f32; len];
+            field.sample_block_strided(
+                &grid,
+                first,
+                counts,
+                &mut out,
+                strides,
+                &mut scratch,
+                &mut dense_scratch,
+            );
+            let mut written = vec![false; len];
+            for k in 0..counts[2] {
+                for j in 0..counts[1] {
+                    for i in 0..counts[0] {
+                        let at = i + strides[0] * j + strides[1] * k;
+                        let d = dense[i + counts[0] * (j + counts[1] * k)];
+                        assert_eq!(out[at].to_bits(), d.to_bits(), "sample {i} {j} {k}");
+                        written[at] = true;
+                    }
+                }
+            }
+            for (v, w) in out.iter().zip(&written) {
+                assert!(*w || *v == -7.0, "an entry between the rows was written");
+            }
+        }
     }
 
     #[test]
