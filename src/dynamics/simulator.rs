@@ -101,20 +101,29 @@ pub struct Simulator {
 /// between passes cost more than the second core gives (32³ mass points: 330 µs on two
 /// threads against 202 µs on one, measured quietly).
 const MIN_POINTS_FOR_TWO: usize = 40_000;
-/// Steps timed when choosing (alternately one and two threads).
+/// Steps timed when choosing: a block on one thread, then a block on two.
 const PROBE_STEPS: u32 = 16;
+/// Steps at the start of each probe block that are not counted. Right after a switch a
+/// step runs on caches the other count left (one thread finds half the region in the other
+/// core's cache, two threads find it all in one), so it tells little about the count it
+/// tries; blocks of steady steps time what the region will then run. (Same session, 32³/63³
+/// on two threads, three runs of 300 steps each: 270–273 µs chosen by blocks, 278–316 µs
+/// chosen by alternating steps.)
+const PROBE_WARMUP: u32 = 2;
 /// Steps between two choices for the same region size.
 const REPROBE_EVERY: u32 = 4096;
 /// Two threads are chosen only when their fastest probe step is at least this much faster
 /// than one thread's (5%): where the two are about even, the timing noise of a few steps
-/// would otherwise pick the slower count about half the time (32³/63³ on a VM whose second
-/// core hands work over slowly: 479 µs on two threads against 463 µs on one), and one
-/// thread also leaves the other core to the rest of the engine.
+/// would otherwise pick the slower count about half the time, and one thread also leaves
+/// the other core to the rest of the engine. (In one window on the 2-core VM, while the
+/// second core handed work over slowly, 32³/63³ ran at 479 µs on two threads against
+/// 463 µs on one.)
 const TWO_THREADS_GAIN: f64 = 0.95;
 
 /// Whether the next step runs on one thread or two, chosen per region size by timing: the
-/// fastest of a few steps on each (two threads only when clearly faster, see
-/// [`TWO_THREADS_GAIN`]), re-checked every [`REPROBE_EVERY`] steps. Both give
+/// fastest of a block of steps on each, once warm (see [`PROBE_WARMUP`]), with two threads
+/// only when clearly faster (see [`TWO_THREADS_GAIN`]); re-checked every
+/// [`REPROBE_EVERY`] steps. Both give
 /// bit-identical results, so the choice changes only the time.
 #[derive(Debug, Default)]
 struct ThreadChoice {
@@ -152,7 +161,7 @@ impl ThreadChoice {
             self.steps_since_probe = 0;
         }
         if self.probe_left > 0 {
-            self.two = self.probe_left.is_multiple_of(2);
+            self.two = self.probe_left <= PROBE_STEPS / 2;
         }
         !self.two
     }
@@ -166,8 +175,11 @@ impl ThreadChoice {
             self.steps_since_probe = self.steps_since_probe.saturating_add(1);
             return;
         }
-        let best = &mut self.best_ns[usize::from(self.two)];
-        *best = (*best).min(ns);
+        let into_block = (PROBE_STEPS - self.probe_left) % (PROBE_STEPS / 2);
+        if into_block >= PROBE_WARMUP {
+            let best = &mut self.best_ns[usize::from(self.two)];
+            *best = (*best).min(ns);
+        }
         self.probe_left -= 1;
         if self.probe_left == 0 {
             self.two = (self.best_ns[1] as f64) < TWO_THREADS_GAIN * self.best_ns[0] as f64;
@@ -1188,7 +1200,7 @@ mod tests {
         assert!(c.solo(1000, true, false), "a small region runs alone");
         assert!(!c.solo(1000, true, true), "unless splitting is forced");
         assert!(c.solo(1_000_000, false, false), "no helper, one thread");
-        // A large region: alternate while probing, then keep the faster count.
+        // A large region: a block on each count while probing, then keep the faster.
         for fast_two in [true, false] {
             let mut c = ThreadChoice::default();
             let mut seen = [0, 0];
@@ -1212,6 +1224,22 @@ mod tests {
         assert!(
             c.solo(100_000, true, false),
             "two threads must be clearly faster"
+        );
+        // The first steps of each block (cold from the other count) are not counted.
+        let mut c = ThreadChoice::default();
+        for i in 0..PROBE_STEPS {
+            let solo = c.solo(100_000, true, false);
+            let warm = i % (PROBE_STEPS / 2) >= PROBE_WARMUP;
+            c.record(match (solo, warm) {
+                (true, false) => 5_000,
+                (true, true) => 1_000,
+                (false, false) => 500,
+                (false, true) => 2_000,
+            });
+        }
+        assert!(
+            c.solo(100_000, true, false),
+            "a cold first step must not decide"
         );
         // The choice is timed again after REPROBE_EVERY steps.
         let mut c = ThreadChoice::default();
