@@ -562,8 +562,8 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
                 // The last group overlaps the one before it, as above.
                 c = c.min(cols.end - WIDE);
                 match band.taps {
-                    3 => direct_apply_w::<3, WIDE>(band, src, inner, c, db, out),
-                    4 => direct_apply_w::<4, WIDE>(band, src, inner, c, db, out),
+                    3 => direct_apply_fixed::<3, WIDE>(band, src, inner, c, db, 0, out),
+                    4 => direct_apply_fixed::<4, WIDE>(band, src, inner, c, db, 0, out),
                     _ => {
                         // Other widths keep the narrow blocks.
                         let mut n = c;
@@ -592,20 +592,18 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
                         // keeps long strides (the z pass) friendly to the prefetcher.
                         match *op {
                             AxisOp::Apply(band) if band.taps == 3 => {
-                                direct_apply_wide::<3>(band, src, inner, c, db, out);
+                                direct_apply_fixed::<3, { 2 * LANES }>(
+                                    band, src, inner, c, db, 0, out,
+                                );
                                 c += 2 * LANES;
                                 continue;
                             }
                             AxisOp::Inverse { lu, scale } => {
-                                direct_inverse_wide(
-                                    lu,
-                                    scale,
-                                    src,
-                                    inner,
-                                    c,
-                                    db,
-                                    [mid, input],
-                                    out,
+                                // One buffer of rows twice as wide: the blocks
+                                // hold room for them (see [`MAX_WIDTH`]).
+                                let mid2 = mid.as_flattened_mut().as_chunks_mut().0;
+                                direct_inverse::<{ 2 * LANES }>(
+                                    lu, scale, src, inner, c, db, 0, mid2, out,
                                 );
                                 c += 2 * LANES;
                                 continue;
@@ -690,6 +688,16 @@ fn emit_row(out: &impl Emit, off: usize, row: &Lanes, skip: usize) {
     }
 }
 
+/// [`emit_row`] for a row of `W` lanes (a multiple of [`LANES`]), a block row at a time,
+/// emitting lanes `skip..W`.
+#[inline(always)]
+fn emit_rows<const W: usize>(out: &impl Emit, off: usize, row: &[f32; W], skip: usize) {
+    for (h, lanes) in row.as_chunks::<LANES>().0.iter().enumerate() {
+        let skip = skip.saturating_sub(h * LANES).min(LANES);
+        emit_row(out, off + h * LANES, lanes, skip);
+    }
+}
+
 /// `B` on columns `c..c + LANES` of one block, read straight from the source rows.
 #[inline(always)]
 fn direct_apply(
@@ -702,8 +710,8 @@ fn direct_apply(
     out: &impl Emit,
 ) {
     match band.taps {
-        3 => direct_apply_fixed::<3>(band, src, inner, c, db, skip, out),
-        4 => direct_apply_fixed::<4>(band, src, inner, c, db, skip, out),
+        3 => direct_apply_fixed::<3, LANES>(band, src, inner, c, db, skip, out),
+        4 => direct_apply_fixed::<4, LANES>(band, src, inner, c, db, skip, out),
         taps => {
             for (o, (&s, w)) in band
                 .start
@@ -724,76 +732,17 @@ fn direct_apply(
     }
 }
 
+/// `B` with `T` taps on columns `c..c + W` of one block (`W` a multiple of [`LANES`]), read
+/// straight from the source rows, emitting lanes `skip..W` a block row at a time.
 #[inline(always)]
-fn direct_apply_fixed<const T: usize>(
+#[allow(clippy::too_many_arguments)] // one block's coordinates
+fn direct_apply_fixed<const T: usize, const W: usize>(
     band: &Band,
     src: &[f32],
     inner: usize,
     c: usize,
     db: usize,
     skip: usize,
-    out: &impl Emit,
-) {
-    let src = &src[c..];
-    for (o, (&s, w)) in band
-        .start
-        .iter()
-        .zip(band.weights.chunks_exact(T))
-        .enumerate()
-    {
-        let w: &[f32; T] = w.try_into().expect("T weights");
-        let mut acc = [0.0; LANES];
-        for (t, &wt) in w.iter().enumerate() {
-            let row = row_at(src, (s + t) * inner);
-            for l in 0..LANES {
-                acc[l] += wt * row[l];
-            }
-        }
-        emit_row(out, db + o * inner + c, &acc, skip);
-    }
-}
-
-/// [`direct_apply_fixed`] on two neighbouring blocks (columns `c..c + 2 · LANES`).
-#[inline(always)]
-fn direct_apply_wide<const T: usize>(
-    band: &Band,
-    src: &[f32],
-    inner: usize,
-    c: usize,
-    db: usize,
-    out: &impl Emit,
-) {
-    let src = &src[c..];
-    for (o, (&s, w)) in band
-        .start
-        .iter()
-        .zip(band.weights.chunks_exact(T))
-        .enumerate()
-    {
-        let w: &[f32; T] = w.try_into().expect("T weights");
-        let (mut a0, mut a1) = ([0.0; LANES], [0.0; LANES]);
-        for (t, &wt) in w.iter().enumerate() {
-            let off = (s + t) * inner;
-            let (r0, r1) = (row_at(src, off), row_at(src, off + LANES));
-            for l in 0..LANES {
-                a0[l] += wt * r0[l];
-                a1[l] += wt * r1[l];
-            }
-        }
-        let off = db + o * inner + c;
-        emit_row(out, off, &a0, 0);
-        emit_row(out, off + LANES, &a1, 0);
-    }
-}
-
-/// [`direct_apply_fixed`] on `W` columns (`c..c + W`), emitted a block row at a time.
-#[inline(always)]
-fn direct_apply_w<const T: usize, const W: usize>(
-    band: &Band,
-    src: &[f32],
-    inner: usize,
-    c: usize,
-    db: usize,
     out: &impl Emit,
 ) {
     let src = &src[c..];
@@ -811,63 +760,15 @@ fn direct_apply_w<const T: usize, const W: usize>(
                 acc[l] += w[t] * row[l];
             }
         }
-        let off = db + o * inner + c;
-        for (h, lanes) in acc.as_chunks::<LANES>().0.iter().enumerate() {
-            emit_row(out, off + h * LANES, lanes, 0);
-        }
+        emit_rows(out, db + o * inner + c, &acc, skip);
     }
 }
 
-/// [`direct_inverse`] on two neighbouring blocks (columns `c..c + 2 · LANES`), with one
-/// buffer per block.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)] // one block pair's coordinates and buffers
-fn direct_inverse_wide(
-    lu: &TriLu,
-    scale: f32,
-    src: &[f32],
-    inner: usize,
-    c: usize,
-    db: usize,
-    [m0, m1]: [&mut [Lanes]; 2],
-    out: &impl Emit,
-) {
-    let n = lu.len();
-    let (m0, m1) = (&mut m0[..n], &mut m1[..n]);
-    let (mut p0, mut p1) = ([0.0; LANES], [0.0; LANES]);
-    for (o, ((y0, y1), &l)) in m0.iter_mut().zip(m1.iter_mut()).zip(&lu.lower).enumerate() {
-        let off = o * inner + c;
-        let (b0, b1) = (row_at(src, off), row_at(src, off + LANES));
-        for e in 0..LANES {
-            p0[e] = scale * b0[e] - l * p0[e];
-            p1[e] = scale * b1[e] - l * p1[e];
-        }
-        *y0 = p0;
-        *y1 = p1;
-    }
-    let (mut q0, mut q1) = ([0.0; LANES], [0.0; LANES]);
-    for (o, (((y0, y1), &u), &inv)) in m0
-        .iter()
-        .zip(m1.iter())
-        .zip(&lu.upper)
-        .zip(&lu.inv_diag)
-        .enumerate()
-        .rev()
-    {
-        for e in 0..LANES {
-            q0[e] = (y0[e] - u * q0[e]) * inv;
-            q1[e] = (y1[e] - u * q1[e]) * inv;
-        }
-        let off = db + o * inner + c;
-        emit_row(out, off, &q0, 0);
-        emit_row(out, off + LANES, &q1, 0);
-    }
-}
-
-/// `scale · B⁻¹` on columns `c..c + LANES` of one block, read straight from the source rows.
+/// `scale · B⁻¹` on columns `c..c + W` of one block (`W` a multiple of [`LANES`]), read
+/// straight from the source rows, emitting lanes `skip..W`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)] // one block's coordinates and buffers
-fn direct_inverse(
+fn direct_inverse<const W: usize>(
     lu: &TriLu,
     scale: f32,
     src: &[f32],
@@ -875,19 +776,19 @@ fn direct_inverse(
     c: usize,
     db: usize,
     skip: usize,
-    mid: &mut [Lanes],
+    mid: &mut [[f32; W]],
     out: &impl Emit,
 ) {
     let n = lu.len();
-    let mut prev = [0.0; LANES];
+    let mut prev = [0.0; W];
     for (o, (y, &l)) in mid[..n].iter_mut().zip(&lu.lower).enumerate() {
-        let b = row_at(src, o * inner + c);
-        for e in 0..LANES {
+        let b: &[f32; W] = src[o * inner + c..][..W].try_into().expect("W");
+        for e in 0..W {
             prev[e] = scale * b[e] - l * prev[e];
         }
         *y = prev;
     }
-    let mut next = [0.0; LANES];
+    let mut next = [0.0; W];
     for (o, ((y, &u), &inv)) in mid[..n]
         .iter()
         .zip(&lu.upper)
@@ -895,10 +796,10 @@ fn direct_inverse(
         .enumerate()
         .rev()
     {
-        for e in 0..LANES {
+        for e in 0..W {
             next[e] = (y[e] - u * next[e]) * inv;
         }
-        emit_row(out, db + o * inner + c, &next, skip);
+        emit_rows(out, db + o * inner + c, &next, skip);
     }
 }
 
@@ -943,10 +844,7 @@ fn direct_project<const W: usize>(
     }
     solve_block(solve, scale, mid);
     for (r, row) in mid[PAD..PAD + n].iter().enumerate() {
-        let off = db + r * inner + c;
-        for (h, lanes) in row.as_chunks::<LANES>().0.iter().enumerate() {
-            emit_row(out, off + h * LANES, lanes, 0);
-        }
+        emit_rows(out, db + r * inner + c, row, 0);
     }
 }
 
