@@ -13,7 +13,7 @@
 
 use std::ops::Range;
 
-use crate::field::{SharedOut, wide_lanes};
+use crate::field::{SharedOut, avx2_dispatch};
 
 use super::material::Neighbourhood;
 
@@ -98,45 +98,22 @@ pub(crate) fn padded_row(mx: usize) -> usize {
     mx + 2
 }
 
-/// Fill the padded copies of `e = d − rest` and the stiffness for the rows of `planes`.
-///
-/// # Safety
-/// No other thread may access the rows of `planes` in `e_pad` and `k_pad` meanwhile.
-pub(crate) unsafe fn six_pads(
-    dims: [usize; 3],
-    d: &[f32],
-    rest: &[f32],
-    stiffness: &[f32],
-    planes: Range<usize>,
-    e_pad: &SharedOut<'_>,
-    k_pad: Option<&SharedOut<'_>>,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if wide_lanes() {
-        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
-        return unsafe { six_pads_avx2(dims, d, rest, stiffness, planes, e_pad, k_pad) };
-    }
-    // SAFETY: the caller's contract.
-    unsafe { six_pads_body(dims, d, rest, stiffness, planes, e_pad, k_pad) }
-}
-
-/// [`six_pads`] built for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2; otherwise as [`six_pads`].
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn six_pads_avx2(
-    dims: [usize; 3],
-    d: &[f32],
-    rest: &[f32],
-    stiffness: &[f32],
-    planes: Range<usize>,
-    e_pad: &SharedOut<'_>,
-    k_pad: Option<&SharedOut<'_>>,
-) {
-    // SAFETY: the caller's contract.
-    unsafe { six_pads_body(dims, d, rest, stiffness, planes, e_pad, k_pad) }
+avx2_dispatch! {
+    /// Fill the padded copies of `e = d − rest` and the stiffness for the rows of `planes`.
+    ///
+    /// # Safety
+    /// No other thread may access the rows of `planes` in `e_pad` and `k_pad` meanwhile.
+    pub(crate) unsafe fn six_pads(
+        dims: [usize; 3],
+        d: &[f32],
+        rest: &[f32],
+        stiffness: &[f32],
+        planes: Range<usize>,
+        e_pad: &SharedOut<'_>,
+        k_pad: Option<&SharedOut<'_>>,
+    );
+    portable: six_pads_body;
+    six_pads_avx2: six_pads_body;
 }
 
 /// The body of [`six_pads`], inlined into each build.
@@ -305,40 +282,20 @@ fn six_point(
     out[i] = ext[i] + 0.5 * acc - g[i] * v[i];
 }
 
-/// `force = external + springs − damping · ḋ` for the rows of `planes`. The point at flat
-/// index `i` is written at `i − base` of `force` (a buffer that holds only some planes).
-///
-/// # Safety
-/// No other thread may access the rows of `planes` in `force` meanwhile.
-pub(crate) unsafe fn six_forces(
-    inp: &SixInputs<'_>,
-    planes: Range<usize>,
-    force: &SharedOut<'_>,
-    base: usize,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if wide_lanes() {
-        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
-        return unsafe { six_forces_avx2(inp, planes, force, base) };
-    }
-    // SAFETY: the caller's contract.
-    unsafe { six_forces_body(inp, planes, force, base) }
-}
-
-/// [`six_forces`] built for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2; otherwise as [`six_forces`].
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn six_forces_avx2(
-    inp: &SixInputs<'_>,
-    planes: Range<usize>,
-    force: &SharedOut<'_>,
-    base: usize,
-) {
-    // SAFETY: the caller's contract.
-    unsafe { six_forces_body(inp, planes, force, base) }
+avx2_dispatch! {
+    /// `force = external + springs − damping · ḋ` for the rows of `planes`. The point at flat
+    /// index `i` is written at `i − base` of `force` (a buffer that holds only some planes).
+    ///
+    /// # Safety
+    /// No other thread may access the rows of `planes` in `force` meanwhile.
+    pub(crate) unsafe fn six_forces(
+        inp: &SixInputs<'_>,
+        planes: Range<usize>,
+        force: &SharedOut<'_>,
+        base: usize,
+    );
+    portable: six_forces_body;
+    six_forces_avx2: six_forces_body;
 }
 
 /// The body of [`six_forces`], inlined into each build.

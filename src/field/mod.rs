@@ -31,6 +31,6 @@ pub use refit::{
 };
 pub use snapshot::{RegionSnapshot, SnapshotError};
 pub(crate) use sweep::{
-    AxisOp, SharedOut, split_range, sweep_strided, sweep_strided_with, sweep_x_with, wide_lanes,
-    with_blocks,
+    AxisOp, SharedOut, avx2_dispatch, split_range, sweep_strided, sweep_strided_with, sweep_x_with,
+    wide_lanes, with_blocks,
 };

@@ -48,6 +48,43 @@ pub(crate) fn wide_lanes() -> bool {
     }
 }
 
+/// Declares the `unsafe fn $name` with the docs given (its `# Safety` contract among them),
+/// which runs `$portable` or, where [`wide_lanes`] says the CPU has AVX2, `$avx2_body` inside
+/// `$avx2`: a twin built with `#[target_feature(enable = "avx2")]`, whose contract is
+/// `$name`'s plus AVX2. Both bodies should be `#[inline(always)]`, so each build compiles
+/// its own copy of the loops.
+macro_rules! avx2_dispatch {
+    (
+        $(#[$meta:meta])*
+        $vis:vis unsafe fn $name:ident($($arg:ident: $ty:ty),* $(,)?);
+        portable: $portable:expr;
+        $avx2:ident: $avx2_body:expr;
+    ) => {
+        $(#[$meta])*
+        $vis unsafe fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::field::wide_lanes() {
+                // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
+                return unsafe { $avx2($($arg),*) };
+            }
+            // SAFETY: the caller's contract.
+            unsafe { $portable($($arg),*) }
+        }
+
+        #[doc = concat!("[`", stringify!($name), "`] built for AVX2.")]
+        ///
+        /// # Safety
+        #[doc = concat!("The CPU must have AVX2; otherwise as [`", stringify!($name), "`].")]
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        unsafe fn $avx2($($arg: $ty),*) {
+            // SAFETY: the caller's contract.
+            unsafe { $avx2_body($($arg),*) }
+        }
+    };
+}
+pub(crate) use avx2_dispatch;
+
 /// Zero rows kept before and after the solve's rows so its recurrence needs no edge cases.
 const PAD: usize = 3;
 
@@ -460,50 +497,25 @@ pub(crate) unsafe fn sweep_strided(
     });
 }
 
-/// [`sweep_strided`] with the caller's block buffers.
-///
-/// # Safety
-/// As [`sweep_strided`].
-///
-/// # Panics
-/// When `src` is too short for the ranges or the buffers too small for the axis.
-pub(crate) unsafe fn sweep_strided_with(
-    blocks: &mut Blocks<'_>,
-    op: &AxisOp<'_>,
-    src: &[f32],
-    inner: usize,
-    outer: Range<usize>,
-    cols: Range<usize>,
-    out: &impl Emit,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if wide_lanes() {
-        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
-        return unsafe { sweep_strided_avx2(blocks, op, src, inner, outer, cols, out) };
-    }
-    // SAFETY: the caller's contract.
-    unsafe { sweep_strided_body::<LANES>(blocks, op, src, inner, outer, cols, out) }
-}
-
-/// [`sweep_strided_with`] built for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2; otherwise as [`sweep_strided`].
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn sweep_strided_avx2(
-    blocks: &mut Blocks<'_>,
-    op: &AxisOp<'_>,
-    src: &[f32],
-    inner: usize,
-    outer: Range<usize>,
-    cols: Range<usize>,
-    out: &impl Emit,
-) {
-    // SAFETY: the caller's contract.
-    unsafe {
-        sweep_strided_body::<{ WIDE_BLOCKS * LANES }>(blocks, op, src, inner, outer, cols, out)
-    }
+avx2_dispatch! {
+    /// [`sweep_strided`] with the caller's block buffers.
+    ///
+    /// # Safety
+    /// As [`sweep_strided`].
+    ///
+    /// # Panics
+    /// When `src` is too short for the ranges or the buffers too small for the axis.
+    pub(crate) unsafe fn sweep_strided_with(
+        blocks: &mut Blocks<'_>,
+        op: &AxisOp<'_>,
+        src: &[f32],
+        inner: usize,
+        outer: Range<usize>,
+        cols: Range<usize>,
+        out: &impl Emit,
+    );
+    portable: sweep_strided_body::<LANES>;
+    sweep_strided_avx2: sweep_strided_body::<{ WIDE_BLOCKS * LANES }>;
 }
 
 /// The body of [`sweep_strided_with`], inlined into each build.
@@ -939,44 +951,23 @@ pub(crate) unsafe fn sweep_x(
     });
 }
 
-/// [`sweep_x`] with the caller's block buffers.
-///
-/// # Safety
-/// As [`sweep_x`].
-///
-/// # Panics
-/// When `src` is too short for the range or the buffers too small for the axis.
-pub(crate) unsafe fn sweep_x_with(
-    blocks: &mut Blocks<'_>,
-    op: &AxisOp<'_>,
-    src: &[f32],
-    lines: Range<usize>,
-    out: &SharedOut<'_>,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if wide_lanes() {
-        // SAFETY: the CPU has AVX2 (checked); the rest is the caller's contract.
-        return unsafe { sweep_x_avx2(blocks, op, src, lines, out) };
-    }
-    // SAFETY: the caller's contract.
-    unsafe { sweep_x_body::<LANES>(blocks, op, src, lines, out) }
-}
-
-/// [`sweep_x_with`] built for AVX2.
-///
-/// # Safety
-/// The CPU must have AVX2; otherwise as [`sweep_x`].
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn sweep_x_avx2(
-    blocks: &mut Blocks<'_>,
-    op: &AxisOp<'_>,
-    src: &[f32],
-    lines: Range<usize>,
-    out: &SharedOut<'_>,
-) {
-    // SAFETY: the caller's contract.
-    unsafe { sweep_x_body::<{ WIDE_BLOCKS * LANES }>(blocks, op, src, lines, out) }
+avx2_dispatch! {
+    /// [`sweep_x`] with the caller's block buffers.
+    ///
+    /// # Safety
+    /// As [`sweep_x`].
+    ///
+    /// # Panics
+    /// When `src` is too short for the range or the buffers too small for the axis.
+    pub(crate) unsafe fn sweep_x_with(
+        blocks: &mut Blocks<'_>,
+        op: &AxisOp<'_>,
+        src: &[f32],
+        lines: Range<usize>,
+        out: &SharedOut<'_>,
+    );
+    portable: sweep_x_body::<LANES>;
+    sweep_x_avx2: sweep_x_body::<{ WIDE_BLOCKS * LANES }>;
 }
 
 /// The body of [`sweep_x_with`], inlined into each build.
