@@ -684,11 +684,6 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
 }
 
 #[inline(always)]
-fn row_at(src: &[f32], off: usize) -> &Lanes {
-    src[off..off + LANES].try_into().expect("a block row")
-}
-
-#[inline(always)]
 fn emit_row(out: &impl Emit, off: usize, row: &Lanes, skip: usize) {
     // SAFETY: the caller hands each (block, column) range to one thread.
     unsafe {
@@ -710,6 +705,20 @@ fn emit_rows<const W: usize>(out: &impl Emit, off: usize, row: &[f32; W], skip: 
     }
 }
 
+/// `Σ_t w[t] · src[(s + t) · inner..][..W]`: one output row of a band, its input rows read
+/// at a stride of `inner` (a fixed tap count when `w` comes from an array).
+#[inline(always)]
+fn tap_sum<const W: usize>(w: &[f32], src: &[f32], s: usize, inner: usize) -> [f32; W] {
+    let mut acc = [0.0; W];
+    for (t, &wt) in w.iter().enumerate() {
+        let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
+        for l in 0..W {
+            acc[l] += wt * row[l];
+        }
+    }
+    acc
+}
+
 /// `B` on columns `c..c + LANES` of one block, read straight from the source rows.
 #[inline(always)]
 fn direct_apply(
@@ -725,19 +734,14 @@ fn direct_apply(
         3 => direct_apply_fixed::<3, LANES>(band, src, inner, c, db, skip, out),
         4 => direct_apply_fixed::<4, LANES>(band, src, inner, c, db, skip, out),
         taps => {
+            let src = &src[c..];
             for (o, (&s, w)) in band
                 .start
                 .iter()
                 .zip(band.weights.chunks_exact(taps))
                 .enumerate()
             {
-                let mut acc = [0.0; LANES];
-                for (t, &wt) in w.iter().enumerate() {
-                    let row = row_at(src, (s + t) * inner + c);
-                    for l in 0..LANES {
-                        acc[l] += wt * row[l];
-                    }
-                }
+                let acc: Lanes = tap_sum(w, src, s, inner);
                 emit_row(out, db + o * inner + c, &acc, skip);
             }
         }
@@ -765,13 +769,7 @@ fn direct_apply_fixed<const T: usize, const W: usize>(
         .enumerate()
     {
         let w: &[f32; T] = w.try_into().expect("T weights");
-        let mut acc = [0.0; W];
-        for t in 0..T {
-            let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
-            for l in 0..W {
-                acc[l] += w[t] * row[l];
-            }
-        }
+        let acc: [f32; W] = tap_sum(w, src, s, inner);
         emit_rows(out, db + o * inner + c, &acc, skip);
     }
 }
@@ -843,14 +841,7 @@ fn direct_project<const W: usize>(
                 .zip(&band.start)
                 .zip(band.weights.chunks_exact(taps))
             {
-                let mut acc = [0.0; W];
-                for (t, &wt) in w.iter().enumerate() {
-                    let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
-                    for l in 0..W {
-                        acc[l] += wt * row[l];
-                    }
-                }
-                *dst = acc;
+                *dst = tap_sum(w, src, s, inner);
             }
         }
     }
@@ -874,14 +865,7 @@ fn direct_gather_fixed<const T: usize, const W: usize>(
         .zip(band.weights.chunks_exact(T))
     {
         let w: &[f32; T] = w.try_into().expect("T weights");
-        let mut acc = [0.0; W];
-        for t in 0..T {
-            let row: &[f32; W] = src[(s + t) * inner..][..W].try_into().expect("W");
-            for l in 0..W {
-                acc[l] += w[t] * row[l];
-            }
-        }
-        *dst = acc;
+        *dst = tap_sum(w, src, s, inner);
     }
 }
 
