@@ -537,10 +537,10 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
         blocks.fits::<WIDE>(ri.max(ro)) && blocks.fits::<LANES>(ri.max(ro)),
         "block buffers too small"
     );
-    if let AxisOp::Project { band, solve, scale } = *op
-        && WIDE > LANES
+    if WIDE > LANES
         && inner >= WIDE
         && cols.len() >= WIDE
+        && matches!(op, AxisOp::Project { .. } | AxisOp::Apply(_))
     {
         // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]), read straight from the
         // source rows.
@@ -554,36 +554,23 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
                 // destination, and every lane runs the same operations, so the rewritten
                 // columns get the same values.
                 c = c.min(cols.end - WIDE);
-                direct_project((band, solve, scale), src, inner, c, db, mid, out);
-                c += WIDE;
-            }
-        }
-        return;
-    }
-    if let AxisOp::Apply(band) = *op
-        && WIDE > LANES
-        && inner >= WIDE
-        && cols.len() >= WIDE
-    {
-        // `WIDE` columns at once, read straight from the source rows.
-        for b in outer {
-            let (sb, db) = (b * ri * inner, b * ro * inner);
-            let src = &src[sb..sb + ri * inner];
-            let mut c = cols.start;
-            while c < cols.end {
-                // The last group overlaps the one before it, as above.
-                c = c.min(cols.end - WIDE);
-                match band.taps {
-                    3 => direct_apply_fixed::<3, WIDE>(band, src, inner, c, db, 0, out),
-                    4 => direct_apply_fixed::<4, WIDE>(band, src, inner, c, db, 0, out),
-                    _ => {
-                        // Other widths keep the narrow blocks.
-                        let mut n = c;
-                        while n < c + WIDE {
-                            direct_apply(band, src, inner, n, db, 0, out);
-                            n += LANES;
-                        }
+                match *op {
+                    AxisOp::Project { band, solve, scale } => {
+                        direct_project((band, solve, scale), src, inner, c, db, mid, out);
                     }
+                    AxisOp::Apply(band) => match band.taps {
+                        3 => direct_apply_fixed::<3, WIDE>(band, src, inner, c, db, 0, out),
+                        4 => direct_apply_fixed::<4, WIDE>(band, src, inner, c, db, 0, out),
+                        _ => {
+                            // Other widths keep the narrow blocks.
+                            let mut n = c;
+                            while n < c + WIDE {
+                                direct_apply(band, src, inner, n, db, 0, out);
+                                n += LANES;
+                            }
+                        }
+                    },
+                    _ => unreachable!("matched above"),
                 }
                 c += WIDE;
             }
