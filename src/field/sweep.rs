@@ -537,45 +537,35 @@ unsafe fn sweep_strided_body<const WIDE: usize>(
         blocks.fits::<WIDE>(ri.max(ro)) && blocks.fits::<LANES>(ri.max(ro)),
         "block buffers too small"
     );
-    if WIDE > LANES
-        && inner >= WIDE
-        && cols.len() >= WIDE
-        && matches!(op, AxisOp::Project { .. } | AxisOp::Apply(_))
-    {
+    if WIDE > LANES && inner >= WIDE && cols.len() >= WIDE {
         // `WIDE / LANES` blocks side by side (see [`WIDE_BLOCKS`]), read straight from the
         // source rows.
-        let (_, mid) = blocks.rows::<WIDE>();
-        for b in outer {
-            let (sb, db) = (b * ri * inner, b * ro * inner);
-            let src = &src[sb..sb + ri * inner];
-            let mut c = cols.start;
-            while c < cols.end {
-                // The last group overlaps the one before it: the source is not the
-                // destination, and every lane runs the same operations, so the rewritten
-                // columns get the same values.
-                c = c.min(cols.end - WIDE);
-                match *op {
-                    AxisOp::Project { band, solve, scale } => {
-                        direct_project((band, solve, scale), src, inner, c, db, mid, out);
-                    }
-                    AxisOp::Apply(band) => match band.taps {
-                        3 => direct_apply_fixed::<3, WIDE>(band, src, inner, c, db, 0, out),
-                        4 => direct_apply_fixed::<4, WIDE>(band, src, inner, c, db, 0, out),
-                        _ => {
-                            // Other widths keep the narrow blocks.
-                            let mut n = c;
-                            while n < c + WIDE {
-                                direct_apply(band, src, inner, n, db, 0, out);
-                                n += LANES;
-                            }
-                        }
-                    },
-                    _ => unreachable!("matched above"),
-                }
-                c += WIDE;
+        let shape = (ri, ro, inner);
+        match *op {
+            AxisOp::Project { band, solve, scale } => {
+                let (_, mid) = blocks.rows::<WIDE>();
+                column_groups::<WIDE>(src, shape, outer, cols, |src, c, db| {
+                    direct_project((band, solve, scale), src, inner, c, db, mid, out);
+                });
+                return;
             }
+            AxisOp::Apply(band) => {
+                column_groups::<WIDE>(src, shape, outer, cols, |src, c, db| match band.taps {
+                    3 => direct_apply_fixed::<3, WIDE>(band, src, inner, c, db, 0, out),
+                    4 => direct_apply_fixed::<4, WIDE>(band, src, inner, c, db, 0, out),
+                    _ => {
+                        // Other widths keep the narrow blocks.
+                        let mut n = c;
+                        while n < c + WIDE {
+                            direct_apply(band, src, inner, n, db, 0, out);
+                            n += LANES;
+                        }
+                    }
+                });
+                return;
+            }
+            _ => {}
         }
-        return;
     }
     let (input, mid) = blocks.rows::<LANES>();
     {
@@ -678,6 +668,31 @@ fn emit_row(out: &impl Emit, off: usize, row: &Lanes, skip: usize) {
             out.emit_lanes(off, row);
         } else {
             out.emit(off + skip, &row[skip..]);
+        }
+    }
+}
+
+/// `f(block_src, c, db)` for each group of `W` columns `c..c + W` in `cols` of each block in
+/// `outer`, where `block_src` is the block's source rows and `db` its destination offset
+/// (`shape` is `(rows_in, rows_out, inner)`). The last group overlaps the one before it: the
+/// source is not the destination, and every lane runs the same operations, so the rewritten
+/// columns get the same values.
+#[inline(always)]
+fn column_groups<const W: usize>(
+    src: &[f32],
+    (ri, ro, inner): (usize, usize, usize),
+    outer: Range<usize>,
+    cols: Range<usize>,
+    mut f: impl FnMut(&[f32], usize, usize),
+) {
+    for b in outer {
+        let (sb, db) = (b * ri * inner, b * ro * inner);
+        let src = &src[sb..sb + ri * inner];
+        let mut c = cols.start;
+        while c < cols.end {
+            c = c.min(cols.end - W);
+            f(src, c, db);
+            c += W;
         }
     }
 }
