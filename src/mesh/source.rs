@@ -77,10 +77,7 @@ pub trait ScalarField {
         dense: &mut Vec<f32>,
     ) {
         let [cx, cy, cz] = counts;
-        assert!(
-            strides[0] >= cx && strides[1] >= strides[0] * cy,
-            "rows of a strided block must not overlap"
-        );
+        assert_rows_apart(counts, strides);
         if strides == [cx, cx * cy] {
             self.sample_block(grid, first, counts, out, scratch);
             return;
@@ -154,22 +151,8 @@ where
         out: &mut [f32],
         scratch: &mut Vec<f32>,
     ) {
-        let [cx, cy, cz] = counts;
-        scratch.clear();
-        scratch.extend((0..cx).map(|i| grid.coordinate(0, first[0] + i as u32)));
-        scratch.extend((0..cy).map(|j| grid.coordinate(1, first[1] + j as u32)));
-        scratch.extend((0..cz).map(|k| grid.coordinate(2, first[2] + k as u32)));
-        let (xs, rest) = scratch.split_at(cx);
-        let (ys, zs) = rest.split_at(cy);
-        let mut rows = out[..cx * cy * cz].chunks_exact_mut(cx.max(1));
-        for &z in zs {
-            for &y in ys {
-                let Some(row) = rows.next() else { return };
-                for (o, &x) in row.iter_mut().zip(xs) {
-                    *o = (self.value)(Vec3::new(x, y, z));
-                }
-            }
-        }
+        let [cx, cy, _] = counts;
+        self.sample_rows(grid, first, counts, out, [cx, cx * cy], scratch);
     }
 
     /// Each row written in place, with the same coordinates and closure calls as
@@ -184,11 +167,36 @@ where
         scratch: &mut Vec<f32>,
         _dense: &mut Vec<f32>,
     ) {
+        assert_rows_apart(counts, strides);
+        self.sample_rows(grid, first, counts, out, strides, scratch);
+    }
+
+    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
+        let l = self.lipschitz?;
+        let centre = (min + max) * 0.5;
+        let v = (self.value)(centre);
+        let reach = l * (max - min).length() * 0.5;
+        Some((v - reach, v + reach))
+    }
+}
+
+impl<V, G> FnField<V, G>
+where
+    V: Fn(Vec3) -> f32,
+{
+    /// The closure at the samples `first + (i, j, k)`, sample `(i, j, k)` written to
+    /// `out[i + strides[0] · j + strides[1] · k]`, each row in place; each axis's
+    /// coordinates are worked out once per block, in `scratch`.
+    fn sample_rows(
+        &self,
+        grid: &SampleGrid,
+        first: [u32; 3],
+        counts: [usize; 3],
+        out: &mut [f32],
+        strides: [usize; 2],
+        scratch: &mut Vec<f32>,
+    ) {
         let [cx, cy, cz] = counts;
-        assert!(
-            strides[0] >= cx && strides[1] >= strides[0] * cy,
-            "rows of a strided block must not overlap"
-        );
         if cx == 0 || cy == 0 || cz == 0 {
             return;
         }
@@ -208,14 +216,15 @@ where
             }
         }
     }
+}
 
-    fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
-        let l = self.lipschitz?;
-        let centre = (min + max) * 0.5;
-        let v = (self.value)(centre);
-        let reach = l * (max - min).length() * 0.5;
-        Some((v - reach, v + reach))
-    }
+/// Panics unless the rows of a block of `counts` samples laid out with `strides` (see
+/// [`ScalarField::sample_block_strided`]) stay apart.
+fn assert_rows_apart(counts: [usize; 3], strides: [usize; 2]) {
+    assert!(
+        strides[0] >= counts[0] && strides[1] >= strides[0] * counts[1],
+        "rows of a strided block must not overlap"
+    );
 }
 
 impl ScalarField for BSplineLattice {
