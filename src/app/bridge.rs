@@ -522,37 +522,26 @@ impl Bridge {
         self.offer(session, path, true, None);
     }
 
+    /// Tells the log one line of a load in progress.
+    fn say_load(&self, detail: String) {
+        let _ = self.events.send(EngineEvent::Done {
+            what: "load".into(),
+            detail,
+        });
+    }
+
     /// Fits a point cloud as [`Bridge::import`] does and builds its point-set surface (Guo &
     /// Qin §3) in the clay's units, here on the bridge thread: the clay is the fit, and the
     /// points, with their normals (oriented over a spanning tree when the file has none),
     /// follow it. A cloud whose point set cannot be built still loads its clay (the log says
     /// why it has no points).
     fn import_points(&self, path: &Path) -> Result<(Session, Option<Box<FollowedPoints>>), String> {
-        let events = &self.events;
-        let say = |detail: String| {
-            let _ = events.send(EngineEvent::Done {
-                what: "load".into(),
-                detail,
-            });
-        };
+        let say = |detail: String| self.say_load(detail);
         say(format!("importing {}", path.display()));
-        let mut last_depth = None;
         let imported = import_cloud(
             path,
             &ImportSettings::default(),
-            &mut |stage| {
-                match stage {
-                    FitProgress::Signing => say("signing the points".into()),
-                    FitProgress::Base => say("fitting the base lattice".into()),
-                    FitProgress::Detail { depth, of, .. } => {
-                        if last_depth != Some(depth) {
-                            last_depth = Some(depth);
-                            say(format!("depth {depth}: fitting {of} detail patches"));
-                        }
-                    }
-                }
-                true
-            },
+            &mut fit_stage_reporter(&say),
             &mut |line| say(line),
         )
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -588,35 +577,16 @@ impl Bridge {
     /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its
     /// mid-range intensity), telling the log each stage and report line.
     fn import(&self, path: &Path) -> Result<Session, String> {
-        let events = &self.events;
-        let say = |detail: String| {
-            let _ = events.send(EngineEvent::Done {
-                what: "load".into(),
-                detail,
-            });
-        };
+        let say = |detail: String| self.say_load(detail);
         say(format!("importing {}", path.display()));
         let settings = ImportSettings {
             midrange_iso: true,
             ..ImportSettings::default()
         };
-        let mut last_depth = None;
         let session = import_session(
             path,
             &settings,
-            &mut |stage| {
-                match stage {
-                    FitProgress::Signing => say("signing the points".into()),
-                    FitProgress::Base => say("fitting the base lattice".into()),
-                    FitProgress::Detail { depth, of, .. } => {
-                        if last_depth != Some(depth) {
-                            last_depth = Some(depth);
-                            say(format!("depth {depth}: fitting {of} detail patches"));
-                        }
-                    }
-                }
-                true
-            },
+            &mut fit_stage_reporter(&say),
             &mut |line| say(line),
         );
         session.map_err(|e| match e {
@@ -1045,6 +1015,25 @@ impl Bridge {
                 }
             }
         }
+    }
+}
+
+/// A fit's progress callback that tells `say` each stage: signing, the base lattice, and each
+/// depth of detail patches once. It never cancels the fit.
+fn fit_stage_reporter(say: &impl Fn(String)) -> impl FnMut(FitProgress) -> bool + '_ {
+    let mut last_depth = None;
+    move |stage| {
+        match stage {
+            FitProgress::Signing => say("signing the points".into()),
+            FitProgress::Base => say("fitting the base lattice".into()),
+            FitProgress::Detail { depth, of, .. } => {
+                if last_depth != Some(depth) {
+                    last_depth = Some(depth);
+                    say(format!("depth {depth}: fitting {of} detail patches"));
+                }
+            }
+        }
+        true
     }
 }
 
