@@ -21,7 +21,7 @@ use std::sync::{Arc, Mutex};
 use dynaclay::dynamics::Distribution;
 use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ToolChoice};
 use dynaclay::field::BSplineLattice;
-use dynaclay::haptics::ShapingConfig;
+use dynaclay::haptics::{FadeOut, ShapingConfig};
 use dynaclay::tools::ForceTool;
 use dynaclay_devices::record::{Record, Recording, RecordingDevice};
 use dynaclay_devices::{
@@ -213,9 +213,10 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
     let sign = along.iter().sum::<f32>().signum();
     let steady_sign_flips = along.iter().filter(|&&f| f * sign < -1e-3).count();
     let steady_high_share = high_frequency_share(&along, rate_hz, 100.0);
-    // Free: outside, no tool acting and no button for the last cross-fade (a released stroke
-    // fades out over `blend_s`).
-    let settle = (ShapingConfig::DEFAULT_BLEND_S * rate_hz).ceil() as usize + 1;
+    // Free: outside, no tool acting and no button for the last fade (a released stroke's
+    // force fades out over at most `FadeOut::LONGEST_S`).
+    let settle =
+        (ShapingConfig::DEFAULT_BLEND_S.max(FadeOut::LONGEST_S) * rate_hz).ceil() as usize + 1;
     let free_max_n = ticks
         .iter()
         .enumerate()
@@ -615,4 +616,107 @@ fn a_five_millimetre_press_into_the_default_clay_feels_like_firm_clay() {
         "a 5 mm press feels {felt} N, not firm clay"
     );
     assert!(peak <= max_n, "peak {peak} N over the device's {max_n} N");
+}
+
+/// A hand that comes down onto the top at `x = −x_m` to `press_m` below it, slides along x to
+/// `+x_m` at `speed_m_per_s` with no button held, and lifts off.
+fn slide_trajectory(press_m: f32, x_m: f32, speed_m_per_s: f32) -> (Trajectory, f64, f64) {
+    let down = 0.6;
+    let slide_from = 0.8;
+    let slide_to = slide_from + f64::from(2.0 * x_m / speed_m_per_s);
+    let at = |t: f64, x: f32, y: f32| Waypoint::with_buttons(t, Vec3::new(x, TOP_Y_M + y, 0.0), 0);
+    let w = vec![
+        at(0.0, -x_m, 0.03),
+        at(0.3, -x_m, 0.01),
+        at(down, -x_m, -press_m),
+        at(slide_from, -x_m, -press_m),
+        at(slide_to, x_m, -press_m),
+        at(slide_to + 0.4, x_m, 0.02),
+    ];
+    (
+        Trajectory::new(w, Interpolation::Linear).unwrap(),
+        slide_from + 0.2,
+        slide_to - 0.05,
+    )
+}
+
+/// Sliding along the top with no button held (issue: the proxy stuck, then slipped all the
+/// way to the kinetic trail, a 0.4–0.5 N step every few ticks): in steady sliding contact no
+/// tick changes the force by more than 7% of its size plus 0.02 N (the force JND is about
+/// 7%), and friction is still felt (a tangential force against the motion).
+#[test]
+fn sliding_along_the_clay_feels_smooth_friction_not_a_ratchet() {
+    let rate_hz = 1000.0;
+    for press_m in [0.012f32, 0.016] {
+        let (trajectory, from_s, to_s) = slide_trajectory(press_m, 0.02, 0.022);
+        let ticks = ((to_s + 0.6) * f64::from(rate_hz)) as usize;
+        let t = record(None, trajectory, SimArmConfig::default(), ticks);
+        let steady =
+            &t[(from_s * f64::from(rate_hz)) as usize..(to_s * f64::from(rate_hz)) as usize];
+        assert!(
+            steady.iter().all(|k| k.touching),
+            "{press_m}: the tip slides in contact"
+        );
+        let mut worst = (0.0f32, 0usize);
+        for (i, w) in steady.windows(2).enumerate() {
+            let step = (w[1].force_n - w[0].force_n).length();
+            let allowed = 0.07 * w[0].force_n.length().max(w[1].force_n.length()) + 0.02;
+            if step - allowed > worst.0 {
+                worst = (step - allowed, i);
+            }
+        }
+        let mean = steady.iter().map(|k| k.force_n).sum::<Vec3>() / steady.len() as f32;
+        if std::env::var("DEBUG_SLIDE").is_ok() {
+            for k in &steady[worst.1.saturating_sub(40)..(worst.1 + 10).min(steady.len())] {
+                eprintln!("{:?}", k.force_n);
+            }
+        }
+        eprintln!(
+            "slide {} mm deep: mean force {mean} N, worst excess {:.4} N at tick {}",
+            press_m * 1e3,
+            worst.0,
+            worst.1
+        );
+        assert!(
+            worst.0 <= 0.0,
+            "{press_m}: a tick's force step exceeds 7% + 0.02 N by {} N: {} → {}",
+            worst.0,
+            steady[worst.1].force_n,
+            steady[worst.1 + 1].force_n
+        );
+        assert!((3.0..=6.0).contains(&mean.y), "{press_m}: pressing {mean}");
+        assert!(
+            mean.x < -0.1 * mean.y,
+            "{press_m}: friction is felt against the motion: {mean}"
+        );
+    }
+}
+
+/// A push stroke released while the tool is still in the clay (the built-in run's end): the
+/// sculpting force fades out from wherever it was; no tick around the release drops by more
+/// than 7% of the force plus 0.02 N.
+#[test]
+fn a_released_stroke_fades_out_without_a_drop() {
+    // Mid-hold, where the push is felt (about 0.2 N at that instant).
+    let release_s = 1.5;
+    let t = record(
+        Some(ToolChoice::default()),
+        press_trajectory(0.01, 0.0, Some((0.35, release_s))),
+        SimArmConfig::default(),
+        2400,
+    );
+    let at = (release_s * 1000.0) as usize;
+    let before = t[at - 5].force_n.length();
+    assert!(
+        before > 0.15,
+        "the push is felt before the release: {before} N"
+    );
+    let window = &t[at - 20..at + 150];
+    for w in window.windows(2) {
+        let (a, b) = (w[0].force_n, w[1].force_n);
+        assert!(
+            (b - a).length() <= 0.07 * a.length().max(b.length()) + 0.02,
+            "a step at the release: {a} → {b} N"
+        );
+    }
 }

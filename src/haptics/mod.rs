@@ -22,4 +22,4 @@ pub use sculpt::{
     FELT_TARGETS, FeltTool, MAX_FELT_VECTORS, MAX_STROKE_POINTS, MAX_TOOL_VECTORS, SculptForce,
     SculptReaction, StrokeGeometry,
 };
-pub use shaping::{Blend, ForceShaper, ShapingConfig};
+pub use shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};

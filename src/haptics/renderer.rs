@@ -36,7 +36,7 @@ use glam::Vec3;
 use super::passivity::{PassivityConfig, PassivityController};
 use super::proxy::{ProxyConfig, SurfaceProxy, Touch};
 use super::sculpt::{FeltTool, SculptReaction, StrokeGeometry};
-use super::shaping::{Blend, ForceShaper, ShapingConfig};
+use super::shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
 use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
 use crate::field::MultiPatchField;
 
@@ -176,6 +176,12 @@ pub struct ForceRenderer {
     passivity: PassivityController,
     touch_blend: Blend,
     sculpt_blend: Blend,
+    /// The sculpting force after its source stopped (stroke end, tool switch), fading out.
+    sculpt_fade: FadeOut,
+    /// The sculpting force sent on the last tick its source was on, newtons.
+    last_sculpt_n: Vec3,
+    /// Whether the sculpting source was on at the last tick.
+    sculpt_was_on: bool,
     last_tool: FeltTool,
     /// A tool switch fades the sculpting force out before the new tool fades in.
     switching: bool,
@@ -198,6 +204,9 @@ impl ForceRenderer {
             passivity: PassivityController::new(config.passivity),
             touch_blend: Blend::default(),
             sculpt_blend: Blend::default(),
+            sculpt_fade: FadeOut::default(),
+            last_sculpt_n: Vec3::ZERO,
+            sculpt_was_on: false,
             last_tool: FeltTool::default(),
             switching: false,
             was_stroke: false,
@@ -228,6 +237,9 @@ impl ForceRenderer {
         self.passivity.reset();
         self.touch_blend.reset();
         self.sculpt_blend.reset();
+        self.sculpt_fade.reset();
+        self.last_sculpt_n = Vec3::ZERO;
+        self.sculpt_was_on = false;
     }
 
     /// Renders one tick.
@@ -238,7 +250,7 @@ impl ForceRenderer {
             self.proxy.bury_if_inside(input.field, input.tip);
         }
         self.was_stroke = input.stroke_active;
-        let touch = self.proxy.update(input.field, input.tip);
+        let touch = self.proxy.update(input.field, input.tip, dt);
         if !input.stroke_active {
             self.push_axis = None;
         } else if self.push_axis.is_none() && touch.touching {
@@ -305,7 +317,21 @@ impl ForceRenderer {
         } else {
             0.0
         };
-        let target = (touch_n * wt + sculpt_n * ws) * fade;
+        // The sculpting source: cross-faded in over `blend_s`; when it stops, the force it last
+        // gave is let go through the fade-out (from wherever it was, never in one tick).
+        let sculpt_part = if sculpt_on {
+            let residue = self.sculpt_fade.advance(dt);
+            let part = residue * (1.0 - ws) + sculpt_n * ws;
+            self.last_sculpt_n = part;
+            part
+        } else {
+            if self.sculpt_was_on {
+                self.sculpt_fade.hold(self.last_sculpt_n);
+            }
+            self.sculpt_fade.advance(dt)
+        };
+        self.sculpt_was_on = sculpt_on;
+        let target = (touch_n * wt + sculpt_part) * fade;
 
         // Shaping, then passivity: the damper while in deficit, in contact only (free space
         // stays free). The damper is added to the shaped force, not to its target: it answers

@@ -8,6 +8,12 @@
 //!   while the source is active and toward 0 while it is not, at `1 / blend_s` per second. A
 //!   stroke that starts or ends, a tool switch, or a tip entering a stroke already inside the
 //!   clay cross-fade over `blend_s` instead of switching in one tick.
+//! - **Fading out.** A source that stops (a stroke released, a tool switched) keeps the force
+//!   it last gave and lets it go through [`FadeOut`]: each millisecond the force shrinks by
+//!   [`FadeOut::RELATIVE_PER_MS`] of itself plus [`FadeOut::ABSOLUTE_N_PER_MS`], so no tick's
+//!   step exceeds 7% of the force plus 0.02 N (about the just-noticeable difference of force)
+//!   and any force up to 10 N is gone within [`FadeOut::LONGEST_S`]. A linear cross-fade of
+//!   `blend_s` would step by `F / (blend_s · rate)` each tick: 0.1 N at 2 N, felt as a drop.
 //! - **Rate limit.** The output moves toward the blended target by at most
 //!   `max_rate_n_per_s · dt` per tick (a vector step), with `dt` the device time since the
 //!   last tick, capped at `max_step_s` so a pause never credits a jump.
@@ -71,6 +77,47 @@ impl Blend {
     /// Drops to zero at once (only where the output is also zeroed: a fault).
     pub fn reset(&mut self) {
         self.weight = 0.0;
+    }
+}
+
+/// A stopped source's force, let go no faster than the hand can tell (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FadeOut {
+    held_n: Vec3,
+}
+
+impl FadeOut {
+    /// Share of the held force let go per millisecond.
+    pub const RELATIVE_PER_MS: f32 = 0.06;
+    /// Force let go per millisecond besides, newtons: the tail ends instead of decaying forever.
+    pub const ABSOLUTE_N_PER_MS: f32 = 0.015;
+    /// The longest fade, from 10 N: `ln(1 + 0.06 · 10 / 0.015) / 0.06` ms, about 62 ms.
+    pub const LONGEST_S: f32 = 0.062;
+
+    /// Holds `force_n` (non-finite counts as zero) to be faded from now on.
+    pub fn hold(&mut self, force_n: Vec3) {
+        self.held_n = if force_n.is_finite() {
+            force_n
+        } else {
+            Vec3::ZERO
+        };
+    }
+
+    /// Lets the held force go for `dt_s` seconds and returns what remains.
+    pub fn advance(&mut self, dt_s: f32) -> Vec3 {
+        let held = self.held_n.length();
+        if held <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let ms = (dt_s * 1e3).max(0.0);
+        let left = (held - (Self::RELATIVE_PER_MS * held + Self::ABSOLUTE_N_PER_MS) * ms).max(0.0);
+        self.held_n *= left / held;
+        self.held_n
+    }
+
+    /// Drops the held force at once (only where the output is also zeroed: a fault).
+    pub fn reset(&mut self) {
+        self.held_n = Vec3::ZERO;
     }
 }
 
@@ -179,6 +226,32 @@ mod tests {
             0.0,
             "a repeated sample credits nothing"
         );
+    }
+
+    #[test]
+    fn a_fade_out_never_steps_past_the_force_jnd_and_ends_in_time() {
+        for from in [0.39f32, 2.0, 10.0] {
+            for dt in [0.001f32, 0.00025] {
+                let mut f = FadeOut::default();
+                f.hold(Vec3::new(0.0, from, 0.0));
+                let mut last = from;
+                let mut t = 0.0;
+                while last > 0.0 {
+                    let now = f.advance(dt).y;
+                    assert!(
+                        last - now <= 0.07 * last + 0.02,
+                        "{from} N at {dt} s: {last} → {now}"
+                    );
+                    assert!(now <= last && now >= 0.0);
+                    last = now;
+                    t += dt;
+                }
+                assert!(t <= FadeOut::LONGEST_S + dt, "{from} N took {t} s");
+            }
+        }
+        let mut f = FadeOut::default();
+        f.hold(Vec3::NAN);
+        assert_eq!(f.advance(0.001), Vec3::ZERO);
     }
 
     #[test]
