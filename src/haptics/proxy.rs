@@ -12,16 +12,9 @@
 //! - While the tip stays inside, the proxy is first re-seated on the surface as it is now (the
 //!   clay may have moved under it: it moves toward the tip until it meets the surface, or out
 //!   along the normal if the surface grew over it), then slides toward the tip's projection on
-//!   the tangent plane, with friction (a cone, below). A few Newton steps along the gradient
-//!   put the slid proxy back on the surface.
-//! - **Friction cone.** The proxy sticks while the tip's tangential offset is within the cone,
-//!   `μ · depth`. When the tip leaves the cone the proxy slips to the cone's *edge* (it trails
-//!   the tip by `μ · depth`), never to the frictionless point. `μ` is the static coefficient
-//!   while the proxy sticks and relaxes toward the kinetic one over `slip_settle_s` of sliding
-//!   (and back over the same time once it sticks again), so the tangential force never steps:
-//!   in steady sliding it changes by at most `(μ_s − μ_k) · dt / slip_settle_s` of the normal
-//!   force per tick. (A proxy that slipped to the kinetic trail at once dropped the tangential
-//!   force by `(μ_s − μ_k) · F_n`, 0.5 N at 5 N, then stuck again: a ratchet felt as a buzz.)
+//!   the tangent plane. Coulomb friction holds it while the tangential offset is within
+//!   `static_friction` times the depth, and a sliding proxy trails by `kinetic_friction` times
+//!   the depth. A few Newton steps along the gradient put the slid proxy back on the surface.
 //! - A tip that is inside the clay without having entered through the surface (a run that
 //!   starts inside, a stroke released deep in the clay) is "buried": nothing is rendered until
 //!   it leaves, so the hand is never kicked out of the clay.
@@ -46,23 +39,9 @@ pub struct ProxyConfig {
     /// Static friction coefficient: the proxy sticks while the tangential offset is at most
     /// this times the depth.
     pub static_friction: f32,
-    /// Kinetic friction coefficient: a proxy that has slid for `slip_settle_s` trails the
-    /// tip's projection by this times the depth.
+    /// Kinetic friction coefficient: a sliding proxy trails the tip's projection by this
+    /// times the depth.
     pub kinetic_friction: f32,
-    /// Time over which the cone's coefficient moves between the static and the kinetic one,
-    /// seconds of device time (sliding lowers it, sticking raises it back).
-    #[serde(default = "ProxyConfig::default_slip_settle_s")]
-    pub slip_settle_s: f32,
-}
-
-impl ProxyConfig {
-    /// Default settling time of the friction cone: 50 ms, so at 1 kHz the tangential force
-    /// moves by at most 0.2% of the normal force per tick as the cone settles.
-    pub const DEFAULT_SLIP_SETTLE_S: f32 = 0.05;
-
-    fn default_slip_settle_s() -> f32 {
-        Self::DEFAULT_SLIP_SETTLE_S
-    }
 }
 
 impl Default for ProxyConfig {
@@ -71,7 +50,6 @@ impl Default for ProxyConfig {
         Self {
             static_friction: 0.25,
             kinetic_friction: 0.15,
-            slip_settle_s: Self::DEFAULT_SLIP_SETTLE_S,
         }
     }
 }
@@ -111,8 +89,6 @@ pub struct SurfaceProxy {
     touching: bool,
     /// The tip is inside without having entered through the surface.
     buried: bool,
-    /// The friction cone's coefficient now, between the kinetic and the static one.
-    cone: f32,
 }
 
 impl SurfaceProxy {
@@ -124,7 +100,6 @@ impl SurfaceProxy {
             proxy: None,
             touching: false,
             buried: false,
-            cone: config.static_friction,
         }
     }
 
@@ -133,7 +108,6 @@ impl SurfaceProxy {
     pub fn release(&mut self) {
         self.proxy = None;
         self.touching = false;
-        self.cone = self.config.static_friction;
     }
 
     /// Buries a tip that is inside the clay now (a stroke ended with the tool in the clay:
@@ -152,9 +126,8 @@ impl SurfaceProxy {
         self.touching
     }
 
-    /// Moves the proxy for the tip at `tip` on `field`, `dt_s` seconds of device time after
-    /// the previous update, and returns the touch.
-    pub fn update(&mut self, field: &MultiPatchField, tip: Vec3, dt_s: f32) -> Touch {
+    /// Moves the proxy for the tip at `tip` on `field` and returns the touch.
+    pub fn update(&mut self, field: &MultiPatchField, tip: Vec3) -> Touch {
         if !tip.is_finite() {
             self.release();
             return Touch::free(tip);
@@ -164,7 +137,6 @@ impl SurfaceProxy {
             self.proxy = Some(tip);
             self.touching = false;
             self.buried = false;
-            self.cone = self.config.static_friction;
             return Touch::free(tip);
         }
         if self.buried {
@@ -194,7 +166,7 @@ impl SurfaceProxy {
         let proxy = if normal == Vec3::ZERO {
             seated
         } else {
-            self.slide(field, seated, normal, tip, dt_s)
+            self.slide(field, seated, normal, tip)
         };
         let normal = if normal == Vec3::ZERO {
             (proxy - tip).normalize_or_zero()
@@ -211,45 +183,21 @@ impl SurfaceProxy {
         }
     }
 
-    /// The proxy after sliding from `seated` toward the tip's projection on the tangent plane
-    /// to the friction cone's edge, put back on the surface. Moves the cone's coefficient
-    /// toward the kinetic one while sliding, and back toward the static one while stuck.
-    fn slide(
-        &mut self,
-        field: &MultiPatchField,
-        seated: Vec3,
-        normal: Vec3,
-        tip: Vec3,
-        dt_s: f32,
-    ) -> Vec3 {
-        let ProxyConfig {
-            static_friction,
-            kinetic_friction,
-            slip_settle_s,
-        } = self.config;
-        let (narrow, wide) = (
-            kinetic_friction.min(static_friction),
-            static_friction.max(kinetic_friction),
-        );
-        let settle = if slip_settle_s > 0.0 && dt_s.is_finite() {
-            (wide - narrow) * (dt_s.max(0.0) / slip_settle_s)
-        } else {
-            wide - narrow
-        };
+    /// The proxy after sliding from `seated` toward the tip's projection on the tangent plane,
+    /// with friction, put back on the surface.
+    fn slide(&self, field: &MultiPatchField, seated: Vec3, normal: Vec3, tip: Vec3) -> Vec3 {
         let offset = tip - seated;
         let along = offset.dot(normal);
         let depth = (-along).max(0.0);
         let tangential = offset - normal * along;
         let reach = tangential.length();
-        let edge = self.cone * depth;
-        if reach <= edge || reach <= 0.0 {
-            // Stuck: the cone widens back toward the static one.
-            self.cone = (self.cone + settle).min(wide);
+        if reach <= self.config.static_friction * depth || reach <= 0.0 {
             return seated;
         }
-        // Slipping: to the cone's edge, and the cone narrows toward the kinetic one.
-        self.cone = (self.cone - settle).max(narrow);
-        let travel = reach - edge;
+        let travel = reach - self.config.kinetic_friction * depth;
+        if travel <= 0.0 {
+            return seated;
+        }
         let candidate = seated + tangential * (travel / reach);
         let projected = newton_to_surface(field, candidate, field.finest_spacing());
         if !projected.is_finite() {
@@ -321,9 +269,6 @@ mod tests {
     use super::*;
     use crate::field::{Primitive, lattice_from_primitive};
 
-    /// One haptic tick at 1 kHz, seconds.
-    const TICK_S: f32 = 0.001;
-
     /// Solid below y = 1.0.
     fn slab() -> MultiPatchField {
         MultiPatchField::new(
@@ -346,10 +291,10 @@ mod tests {
     fn the_proxy_stops_at_the_surface_and_the_tip_goes_on() {
         let field = slab();
         let mut p = SurfaceProxy::new(ProxyConfig::default());
-        assert!(!p.update(&field, Vec3::new(1.3, 1.2, 1.3), TICK_S).touching);
+        assert!(!p.update(&field, Vec3::new(1.3, 1.2, 1.3)).touching);
         for depth in [0.02, 0.05, 0.1, 0.3] {
             let tip = Vec3::new(1.3, 1.0 - depth, 1.3);
-            let t = p.update(&field, tip, TICK_S);
+            let t = p.update(&field, tip);
             assert!(t.touching);
             assert!((t.proxy.y - 1.0).abs() < 0.01, "proxy at {}", t.proxy);
             assert!(field.value(t.proxy) <= field.iso() + 1e-6, "never inside");
@@ -361,59 +306,41 @@ mod tests {
             assert!(t.normal.y > 0.99);
         }
         // Leaving frees it at once.
-        assert!(!p.update(&field, Vec3::new(1.3, 1.1, 1.3), TICK_S).touching);
+        assert!(!p.update(&field, Vec3::new(1.3, 1.1, 1.3)).touching);
     }
 
     #[test]
-    fn friction_holds_small_tangential_offsets_and_a_slide_trails_at_the_cones_edge() {
+    fn friction_holds_small_tangential_offsets_and_a_slide_trails_the_tip() {
         let field = slab();
         let mut p = SurfaceProxy::new(ProxyConfig::default());
-        p.update(&field, Vec3::new(1.3, 1.2, 1.3), TICK_S);
-        let first = p.update(&field, Vec3::new(1.3, 0.9, 1.3), TICK_S).proxy;
+        p.update(&field, Vec3::new(1.3, 1.2, 1.3));
+        let first = p.update(&field, Vec3::new(1.3, 0.9, 1.3)).proxy;
         // 0.1 deep, 0.02 sideways: within static friction (0.25 · 0.1).
-        let held = p.update(&field, Vec3::new(1.32, 0.9, 1.3), TICK_S).proxy;
+        let held = p.update(&field, Vec3::new(1.32, 0.9, 1.3)).proxy;
         assert!(held.distance(first) < 1e-4, "stuck: {first} → {held}");
-        // 0.2 sideways: slips to the static cone's edge (trails by 0.25 · 0.1), not further.
-        let slid = p.update(&field, Vec3::new(1.5, 0.9, 1.3), TICK_S).proxy;
+        // 0.2 sideways: slides, trailing by kinetic friction · depth.
+        let slid = p.update(&field, Vec3::new(1.5, 0.9, 1.3)).proxy;
         let trail = 1.5 - slid.x;
-        assert!((trail - 0.025).abs() < 0.004, "first slip trails {trail}");
+        assert!((trail - 0.015).abs() < 0.006, "trail {trail}");
         assert!((slid.y - 1.0).abs() < 0.01, "stays on the surface: {slid}");
-        // Sliding on at 1 mm per tick: the trail narrows smoothly to the kinetic cone
-        // (0.15 · 0.1) over the settling time, never by more than the settling rate per tick.
-        let mut last_trail = trail;
-        let mut x = 1.5;
-        for _ in 0..100 {
-            x += 0.001;
-            let t = p.update(&field, Vec3::new(x, 0.9, 1.3), TICK_S);
-            let trail = x - t.proxy.x;
-            assert!(
-                (trail - last_trail).abs() < 0.001,
-                "trail steps {last_trail} → {trail}"
-            );
-            last_trail = trail;
-        }
-        assert!(
-            (last_trail - 0.015).abs() < 0.004,
-            "kinetic trail {last_trail}"
-        );
     }
 
     #[test]
     fn a_tip_that_starts_inside_is_buried_until_it_leaves() {
         let field = slab();
         let mut p = SurfaceProxy::new(ProxyConfig::default());
-        assert!(!p.update(&field, Vec3::new(1.3, 0.5, 1.3), TICK_S).touching);
-        assert!(!p.update(&field, Vec3::new(1.3, 0.8, 1.3), TICK_S).touching);
-        assert!(!p.update(&field, Vec3::new(1.3, 1.1, 1.3), TICK_S).touching);
-        assert!(p.update(&field, Vec3::new(1.3, 0.95, 1.3), TICK_S).touching);
+        assert!(!p.update(&field, Vec3::new(1.3, 0.5, 1.3)).touching);
+        assert!(!p.update(&field, Vec3::new(1.3, 0.8, 1.3)).touching);
+        assert!(!p.update(&field, Vec3::new(1.3, 1.1, 1.3)).touching);
+        assert!(p.update(&field, Vec3::new(1.3, 0.95, 1.3)).touching);
     }
 
     #[test]
     fn a_surface_that_recedes_takes_the_proxy_with_it() {
         let field = slab();
         let mut p = SurfaceProxy::new(ProxyConfig::default());
-        p.update(&field, Vec3::new(1.3, 1.2, 1.3), TICK_S);
-        p.update(&field, Vec3::new(1.3, 0.8, 1.3), TICK_S);
+        p.update(&field, Vec3::new(1.3, 1.2, 1.3));
+        p.update(&field, Vec3::new(1.3, 0.8, 1.3));
         // The same slab, 0.1 lower: the proxy follows down toward the tip.
         let lower = MultiPatchField::new(
             lattice_from_primitive(
@@ -429,10 +356,10 @@ mod tests {
             )
             .unwrap(),
         );
-        let t = p.update(&lower, Vec3::new(1.3, 0.8, 1.3), TICK_S);
+        let t = p.update(&lower, Vec3::new(1.3, 0.8, 1.3));
         assert!(t.touching && (t.proxy.y - 0.9).abs() < 0.01, "{}", t.proxy);
         // And grows back over it: the proxy steps out.
-        let t = p.update(&field, Vec3::new(1.3, 0.8, 1.3), TICK_S);
+        let t = p.update(&field, Vec3::new(1.3, 0.8, 1.3));
         assert!(t.touching && (t.proxy.y - 1.0).abs() < 0.01, "{}", t.proxy);
     }
 }

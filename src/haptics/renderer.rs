@@ -250,7 +250,7 @@ impl ForceRenderer {
             self.proxy.bury_if_inside(input.field, input.tip);
         }
         self.was_stroke = input.stroke_active;
-        let touch = self.proxy.update(input.field, input.tip, dt);
+        let touch = self.proxy.update(input.field, input.tip);
         if !input.stroke_active {
             self.push_axis = None;
         } else if self.push_axis.is_none() && touch.touching {
