@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::simulation::SimConfig;
 use super::workspace::WorkspaceMap;
-use crate::field::{BSplineLattice, FitError, MultiPatchField, Primitive, lattice_from_primitive};
+use crate::field::{BSplineLattice, FitError, MultiPatchField, Primitive, band_limited_lattice};
 use crate::haptics::{HapticConfig, calibrated_force_scale};
 use crate::io::{ClayShape, ClaySpec};
 
@@ -117,7 +117,7 @@ pub fn build_clay(spec: &ClaySpec) -> Result<BSplineLattice, FitError> {
             radius: extent * 0.25,
         },
     };
-    lattice_from_primitive(
+    band_limited_lattice(
         [n; 3],
         CLAY_SPACING,
         Vec3::ZERO,
