@@ -330,7 +330,11 @@ mod tests {
             let r = 0.5 * (a + b);
             assert!((r - 0.575).abs() < 1e-3, "radius {r} along {dir}");
         }
-        assert!((l.value(Vec3::splat(1.15)) - 1.0).abs() < 1e-3);
+        // The fit of a C² profile ripples a little inside (1.0018 here), where the fit of the
+        // clamped step rang by several percent.
+        let inside = l.value(Vec3::splat(1.15));
+        assert!((inside - 1.0).abs() < 0.01, "{inside} at the centre");
         assert!(l.value(Vec3::splat(0.05)).abs() < 1e-3);
     }
 }
+
