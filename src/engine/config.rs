@@ -99,7 +99,9 @@ impl EngineConfig {
 }
 
 /// The starting clay of `spec`: a lattice of `resolution³` coefficients at [`CLAY_SPACING`],
-/// holding a fitted block (the middle half of the lattice) or sphere.
+/// holding a block (the middle half of the lattice, its edges and corners rounded over about
+/// 1.7 knot spans) or a sphere (radius a quarter of the lattice), with the smooth density step
+/// of [`band_limited_lattice`] (ramp width two spans): flat faces, no ridges, no ringing.
 ///
 /// # Errors
 /// When the fit fails (it does not for valid specs).

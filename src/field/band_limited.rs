@@ -21,8 +21,9 @@
 //!   the profiles are 1 — two knot spans or so from every edge — the field is a function of the
 //!   third coordinate alone: the face is flat to rounding. No profile exceeds 1, so nothing
 //!   rises above a face's plane anywhere: no ridge, no knob. Where two profiles fall below 1
-//!   the surface `px · py = 1/2` rounds the edge, convexly, over about a knot span (radius
-//!   about one span on the diagonal); where three do, the corner, the same at all eight.
+//!   the surface `px · py = 1/2` rounds the edge convexly; where three do, the corner, the same
+//!   at all eight. For the default width the edges and corners sit where a box rounded with a
+//!   radius of about 1.7 knot spans has them (`tests/starting_clay.rs` measures it).
 //! - **Any other primitive** ([`band_limited_lattice`]) is the least-squares fit of the smooth
 //!   profile of its signed distance: a C² target (a ball's is C² everywhere near its surface),
 //!   which the fit follows to a small fraction of a span without ringing.
@@ -337,4 +338,3 @@ mod tests {
         assert!(l.value(Vec3::splat(0.05)).abs() < 1e-3);
     }
 }
-
