@@ -7,7 +7,7 @@ use glam::Vec3;
 
 use super::simulation::SimConfig;
 use super::workspace::WorkspaceMap;
-use crate::field::{BSplineLattice, FitError, MultiPatchField, Primitive, lattice_from_primitive};
+use crate::field::{BSplineLattice, FitError, MultiPatchField, Primitive, band_limited_lattice};
 use crate::haptics::{HapticConfig, calibrated_force_scale};
 use crate::io::{ClayShape, ClaySpec};
 
@@ -99,7 +99,9 @@ impl EngineConfig {
 }
 
 /// The starting clay of `spec`: a lattice of `resolution³` coefficients at [`CLAY_SPACING`],
-/// holding a fitted block (the middle half of the lattice) or sphere.
+/// holding a block (the middle half of the lattice, its edges and corners rounded over about
+/// 1.7 knot spans) or a sphere (radius a quarter of the lattice), with the smooth density step
+/// of [`band_limited_lattice`] (ramp width two spans): flat faces, no ridges, no ringing.
 ///
 /// # Errors
 /// When the fit fails (it does not for valid specs).
@@ -117,7 +119,7 @@ pub fn build_clay(spec: &ClaySpec) -> Result<BSplineLattice, FitError> {
             radius: extent * 0.25,
         },
     };
-    lattice_from_primitive(
+    band_limited_lattice(
         [n; 3],
         CLAY_SPACING,
         Vec3::ZERO,

@@ -2,6 +2,7 @@
 
 mod axis;
 mod band;
+mod band_limited;
 mod basis;
 mod kron;
 mod lattice;
@@ -14,6 +15,7 @@ mod snapshot;
 mod sweep;
 
 pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
+pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 pub(crate) use kron::PassShape;
 pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
