@@ -17,6 +17,7 @@ mod force;
 mod history;
 mod pin;
 mod shape;
+mod stroke;
 
 pub use action::{ActionError, ToolAction};
 pub use apply::{
@@ -37,3 +38,4 @@ pub use pin::{
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
+pub use stroke::{MAX_SEGMENT_APPLICATIONS, MAX_STROKE_POSES, lerp, resample_stroke, steps_along};
