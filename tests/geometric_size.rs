@@ -4,7 +4,9 @@
 //! step is (a command to the lockstep engine), leaves a dent or a bead whose depth (height)
 //! and widths along x and z at half that depth, measured on the exported mesh, are within 10%
 //! of the analytic shape's (the top face minus, or plus, the tool's solid). Each case is
-//! undone before the next, so all start from the same block.
+//! undone before the next, so all start from the same block. The tools keep the palette's
+//! default band (`falloff_fu = 0.05`, half a knot span). Each case's figures are printed
+//! (`--nocapture`); the README's table quotes them.
 
 #[path = "support/exported_mesh.rs"]
 mod exported_mesh;
@@ -250,5 +252,28 @@ fn sized_geometric_tools_land_within_ten_percent_of_a_capsule() {
         radius_fu: 0.15,
         half_height_fu: 0.15,
     }));
+    assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
+}
+
+/// Remove and union spheres from one knot span's radius (the default block's spacing is 0.1)
+/// to three: the lattice holds the shape within 10% over the whole range.
+#[test]
+fn remove_and_union_spheres_land_within_ten_percent_from_one_knot_span_up() {
+    let at = Vec3::new(MID.x, TOP_Y, MID.y);
+    let mut cases = Vec::new();
+    for r in [0.1, 0.15, 0.3] {
+        for (action, kind) in [
+            (ToolAction::Remove, Kind::Carve),
+            (ToolAction::Union, Kind::Deposit),
+        ] {
+            let tool = GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: r },
+                action,
+                falloff_fu: 0.05,
+            };
+            cases.push((tool, at, 0.0, kind));
+        }
+    }
+    let (_, worst) = run_cases(&cases);
     assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
 }

@@ -6,6 +6,10 @@
 //! `ToolPalette::default`) and a geometric tool (remove, sphere). The same samples handed over
 //! as jumps (each frame's move played in one tick, as the device did before it interpolated)
 //! leave separate pockets under the push: the measure tells a groove from pockets.
+//!
+//! The hand rests one frame at the end of the line before it lets go: the push's dynamics
+//! take a few tenths of a second to reach their depth, so without the rest the groove's last
+//! tenth is shallower whatever the frame rate (the force law's response, not the frames').
 
 #[path = "support/exported_mesh.rs"]
 mod exported_mesh;
@@ -26,8 +30,8 @@ const X1: f32 = 1.45;
 const Z: f32 = 1.15;
 /// Samples a second, and haptic ticks (1 ms) between two.
 const FRAME_TICKS: usize = 500;
-/// Frames along the line (2 s of drag).
-const DRAG_FRAMES: usize = 4;
+/// Frames along the line (1.5 s of drag, 0.2 apart: a brisk drag in a slow window).
+const DRAG_FRAMES: usize = 3;
 
 /// Runs one 2 Hz drag with `tool` whose tip runs `tip_depth` below the top; frames are played
 /// over at most `max_segment_us`. Returns the clay before and after.
@@ -65,6 +69,8 @@ fn drag(
         let x = X0 + (X1 - X0) * k as f32 / DRAG_FRAMES as f32;
         frames.push((Vec3::new(x, tip_y, Z), true));
     }
+    // Rest there a frame, let go.
+    frames.push((Vec3::new(X1, tip_y, Z), true));
     frames.push((Vec3::new(X1, tip_y, Z), false));
     frames.push((Vec3::new(X1, hover, Z), false));
     let ticks = (frames.len() + 2) * FRAME_TICKS;
