@@ -21,7 +21,7 @@ const PRESS: Vec3 = Vec3::new(1.15, TOP_Y, 1.15);
 fn press(refine: u32) -> (MultiPatchField, f32, usize) {
     let start = build_clay(&ClaySpec::default()).unwrap();
     let spacing = start.spacing;
-    let pointer = PointerConfig::default();
+    let pointer = PointerConfig::stepped(1_000);
     let mut config = EngineConfig::for_field(&start, &pointer.info());
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.05;

@@ -5,7 +5,8 @@
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
-//! tool's vectors, their starts found again on the surface).
+//! tool's vectors, their starts found again on the surface); and through a pointer stroke fed
+//! at 2 Hz, whose path the pointer device interpolates on the haptic thread.
 
 mod common;
 
@@ -302,4 +303,56 @@ fn force_tool_strokes_tick_without_allocating() {
             tool.name()
         );
     }
+}
+
+#[test]
+fn a_pointer_stroke_ticks_without_allocating() {
+    use dynaclay_devices::pointer::{PointerConfig, pointer_device};
+
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let pointer = PointerConfig::stepped(1_000);
+    let mut config = dynaclay::engine::EngineConfig::for_field(&s.field, &pointer.info());
+    config.haptic_rt_priority = None;
+    config.safety.soft_start_s = 0.1;
+    let (device, mut handle) = pointer_device(pointer);
+    let mut stages = build(
+        &config,
+        s.field,
+        Box::new(device),
+        Box::new(HeadlessSink::default()),
+        true,
+    )
+    .expect("stages build");
+    // Two frames a second: hover, press in, drag along the block's top (y = 1.425), let go.
+    let frames = [
+        (Vec3::new(0.75, 1.6, 0.95), false),
+        (Vec3::new(0.75, 1.2, 0.95), true),
+        (Vec3::new(0.95, 1.2, 0.95), true),
+        (Vec3::new(1.15, 1.2, 0.95), true),
+        (Vec3::new(1.15, 1.2, 0.95), false),
+    ];
+    let before = allocs_in_tick();
+    let mut contact = 0;
+    for tick in 0..3_000 {
+        // The app's side, outside the guard.
+        if tick % 500 == 0
+            && let Some(&(p, pressed)) = frames.get(tick / 500)
+        {
+            handle.set(config.map.to_device(p), pressed);
+        }
+        IN_TICK.with(|f| f.set(true));
+        let out = stages.haptic.tick(Instant::now());
+        IN_TICK.with(|f| f.set(false));
+        if out.sample.in_contact {
+            contact += 1;
+        }
+        stages.sim.apply_commands();
+        let sample = stages.samples.latest().value;
+        stages.sim.step(&sample);
+    }
+    assert!(
+        contact > 500,
+        "the stroke pushed the clay ({contact} ticks)"
+    );
+    assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
 }

@@ -64,7 +64,7 @@ fn a_recorded_pointer_session_replays_bit_for_bit() {
     let path = dir.path().join("pointer.rec");
     let s = common::setup(common::PUSH_SCRIPT, vec![]);
     let start = s.field.clone();
-    let pointer = PointerConfig::default();
+    let pointer = PointerConfig::stepped(1_000);
     let mut config = dynaclay::engine::EngineConfig::for_field(&start, &pointer.info());
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.1;

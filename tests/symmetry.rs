@@ -14,7 +14,7 @@ fn a_mirrored_stroke_changes_both_sides_alike_and_undoes_as_one_step() {
     let start = build_clay(&ClaySpec::default()).unwrap();
     let centre = clay_centre(&start);
     let flip = Vec3::new(-1.0, 1.0, 1.0);
-    let pointer = PointerConfig::default();
+    let pointer = PointerConfig::stepped(1_000);
     let mut config = EngineConfig::for_field(&start, &pointer.info());
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.05;

@@ -665,7 +665,8 @@ fn a_left_drag_over_the_clay_sculpts_under_the_pointer_and_nowhere_else() {
 
     let field = build_clay(&ClaySpec::default()).unwrap();
     let start = field.clone();
-    let pointer = PointerConfig::default();
+    // The device's clock steps 1 ms a haptic tick: the run does not depend on wall time.
+    let pointer = PointerConfig::stepped(1_000);
     let mut config = EngineConfig::for_field(&field, &pointer.info());
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.05;

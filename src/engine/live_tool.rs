@@ -1,6 +1,6 @@
 //! The held tool during a live stroke, on the simulation thread: turns each tool sample into
 //! this step's force vectors (push and force tools) or decides when a geometric tool is
-//! applied at the tip and for how long a dwell.
+//! applied along the tip's path and for how long a dwell.
 //!
 //! Not real-time, but steady: the force buffer is allocated once, so a step with a force tool
 //! allocates only when a chisel or squirt plans a new penetration target. Every decision
@@ -15,7 +15,8 @@ use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::MultiPatchField;
 use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry};
 use crate::tools::{
-    ForceInput, ForceTool, PenetrationTarget, nearest_solid_point, plan_penetration,
+    ForceInput, ForceTool, MAX_SEGMENT_APPLICATIONS, PenetrationTarget, lerp, nearest_solid_point,
+    plan_penetration, steps_along,
 };
 
 /// Most force vectors one step applies (an area tool's tracks, a curve's samples).
@@ -36,8 +37,36 @@ pub struct LiveTool {
     /// Chisel and squirt targets planned so far in this stroke.
     targets: Vec<PenetrationTarget>,
     last_planned: Option<Vec3>,
-    /// Device time of the last geometric application in this stroke, microseconds.
-    last_apply_us: Option<u64>,
+    /// Device time and tip of the last geometric application in this stroke.
+    last_apply: Option<(u64, Vec3)>,
+}
+
+/// A held geometric tool's applications due this step: `count` points evenly spaced along the
+/// segment from the previous application (`from`, not applied again) to the tip (`to`, the
+/// last point), each for `dwell_s` seconds (the dwell since the previous application, split
+/// evenly), so that the stroke's groove or bead is continuous.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GeometricDue {
+    /// The previous application's point (the tip, on a stroke's first application).
+    pub from: Vec3,
+    /// The tip.
+    pub to: Vec3,
+    /// Applications along the segment, 1 to [`MAX_SEGMENT_APPLICATIONS`].
+    pub count: u32,
+    /// Dwell of each application, seconds.
+    pub dwell_s: f32,
+}
+
+impl GeometricDue {
+    /// The `i`-th point (`0..count`), the last at the tip.
+    #[must_use]
+    pub fn point(&self, i: u32) -> Vec3 {
+        lerp(
+            self.from,
+            self.to,
+            (i + 1) as f32 / self.count.max(1) as f32,
+        )
+    }
 }
 
 impl LiveTool {
@@ -58,7 +87,7 @@ impl LiveTool {
             grab: None,
             targets: Vec::with_capacity(MAX_TARGETS),
             last_planned: None,
-            last_apply_us: None,
+            last_apply: None,
         }
     }
 
@@ -100,7 +129,7 @@ impl LiveTool {
         self.grab = None;
         self.targets.clear();
         self.last_planned = None;
-        self.last_apply_us = None;
+        self.last_apply = None;
         self.len = 0;
     }
 
@@ -157,25 +186,42 @@ impl LiveTool {
         }
     }
 
-    /// For a geometric tool during a held stroke: whether to apply it this step and with which
-    /// dwell time, seconds. Applications are at least `interval_us` of device time apart (a
-    /// local refit costs milliseconds); the dwell is the device time since the previous
-    /// application (capped at `4 · interval_us`), and `interval_us` for the first.
-    pub fn geometric_due(&mut self, sample: &ToolSample, interval_us: u64) -> Option<f32> {
-        if !matches!(self.choice, ToolChoice::Geometric(_))
-            || !sample.stroke_active
-            || !sample.tip.is_finite()
-        {
+    /// For a geometric tool during a held stroke: whether to apply it this step, where and
+    /// with which dwell. Applications are at least `interval_us` of device time apart (a
+    /// local refit costs milliseconds); each covers the path from the previous one to the tip
+    /// with points at most the shape's [`stroke_spacing_fu`] apart (a quarter of its radius;
+    /// at most [`MAX_SEGMENT_APPLICATIONS`] of them, wider for a faster tip), splitting the
+    /// dwell, which is the device time since the previous application (capped at
+    /// `4 · interval_us`; `interval_us` for the stroke's first, at the tip alone).
+    ///
+    /// [`stroke_spacing_fu`]: crate::tools::ToolShape::stroke_spacing_fu
+    pub fn geometric_due(&mut self, sample: &ToolSample, interval_us: u64) -> Option<GeometricDue> {
+        let ToolChoice::Geometric(tool) = &self.choice else {
+            return None;
+        };
+        if !sample.stroke_active || !sample.tip.is_finite() {
             return None;
         }
-        let now = sample.device_time_us;
-        let dwell_us = match self.last_apply_us {
-            None => interval_us,
-            Some(t) if now >= t.saturating_add(interval_us) => (now - t).min(4 * interval_us),
+        let (now, tip) = (sample.device_time_us, sample.tip);
+        let (dwell_us, from) = match self.last_apply {
+            None => (interval_us, tip),
+            Some((t, at)) if now >= t.saturating_add(interval_us) => {
+                ((now - t).min(4 * interval_us), at)
+            }
             Some(_) => return None,
         };
-        self.last_apply_us = Some(now);
-        Some(dwell_us as f32 / 1e6)
+        let count = steps_along(
+            from.distance(tip),
+            tool.shape.stroke_spacing_fu(),
+            MAX_SEGMENT_APPLICATIONS,
+        );
+        self.last_apply = Some((now, tip));
+        Some(GeometricDue {
+            from,
+            to: tip,
+            count,
+            dwell_s: dwell_us as f32 / 1e6 / count as f32,
+        })
     }
 }
 
@@ -324,11 +370,18 @@ mod tests {
             falloff_fu: 0.05,
         }));
         let at = |t| sample(Vec3::ONE, true, t);
-        assert_eq!(live.geometric_due(&at(0), 10_000), Some(0.01));
+        let due = |d: Option<GeometricDue>| d.map(|d| (d.count, d.dwell_s));
+        assert_eq!(due(live.geometric_due(&at(0), 10_000)), Some((1, 0.01)));
         assert_eq!(live.geometric_due(&at(5_000), 10_000), None);
-        assert_eq!(live.geometric_due(&at(12_000), 10_000), Some(0.012));
+        assert_eq!(
+            due(live.geometric_due(&at(12_000), 10_000)),
+            Some((1, 0.012))
+        );
         // A long gap is capped.
-        assert_eq!(live.geometric_due(&at(1_000_000), 10_000), Some(0.04));
+        assert_eq!(
+            due(live.geometric_due(&at(1_000_000), 10_000)),
+            Some((1, 0.04))
+        );
         assert_eq!(
             live.geometric_due(&sample(Vec3::ONE, false, 2_000_000), 10_000),
             None
@@ -336,5 +389,43 @@ mod tests {
         // The push tool never applies geometry.
         live.set(ToolChoice::default());
         assert_eq!(live.geometric_due(&at(3_000_000), 10_000), None);
+    }
+
+    /// A tip that moved 0.1 since the last application (radius 0.1: spacing 0.025) is
+    /// covered by four applications ending at the tip, the dwell split between them; a tip
+    /// that jumped far is covered by the bounded count.
+    #[test]
+    fn a_moved_tip_is_reached_by_applications_a_quarter_radius_apart() {
+        let mut live = LiveTool::new(ToolChoice::Geometric(GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.1 },
+            action: ToolAction::Remove,
+            falloff_fu: 0.05,
+        }));
+        let a = Vec3::new(1.0, 1.0, 1.0);
+        let first = live.geometric_due(&sample(a, true, 0), 10_000).unwrap();
+        assert_eq!((first.count, first.point(0)), (1, a));
+        let b = a + Vec3::X * 0.1;
+        let due = live
+            .geometric_due(&sample(b, true, 20_000), 10_000)
+            .unwrap();
+        assert_eq!(due.count, 4);
+        assert!((due.dwell_s - 0.005).abs() < 1e-7);
+        let points: Vec<Vec3> = (0..due.count).map(|i| due.point(i)).collect();
+        assert_eq!(points[3], b);
+        let mut last = a;
+        for p in points {
+            assert!(p.distance(last) <= 0.025 + 1e-6 && p.x > last.x);
+            last = p;
+        }
+        let far = live
+            .geometric_due(&sample(b + Vec3::X * 5.0, true, 30_000), 10_000)
+            .unwrap();
+        assert_eq!(far.count, MAX_SEGMENT_APPLICATIONS);
+        // A new stroke starts at its own tip.
+        live.end_stroke();
+        let again = live
+            .geometric_due(&sample(a, true, 40_000), 10_000)
+            .unwrap();
+        assert_eq!((again.count, again.from), (1, a));
     }
 }

@@ -44,7 +44,7 @@ pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
 pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
-pub use live_tool::{LiveTool, MAX_FORCES, MAX_TARGETS};
+pub use live_tool::{GeometricDue, LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,

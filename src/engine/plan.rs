@@ -37,7 +37,9 @@ use crate::io::{
     ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
     parse_script, pin_request, poses,
 };
-use crate::tools::{Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose};
+use crate::tools::{
+    Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
+};
 
 /// Time the hand takes from hover to the path and back, seconds.
 pub const APPROACH_S: f64 = 0.3;
@@ -343,12 +345,13 @@ impl ScriptPlan {
                         .resolve(|name| lookup(name).map(|t| &t.shape))
                         .map_err(fail)?;
                     event(PlannedAction::ApplyTool {
+                        // Along the positions' path, a quarter of the tool's size apart.
+                        poses: resample_stroke(&poses(positions, *rotation), &shape),
                         tool: GeometricTool {
                             shape,
                             action: *action,
                             falloff_fu: *falloff_fu,
                         },
-                        poses: poses(positions, *rotation),
                         duration_s: *duration_s,
                         patch: *patch,
                     });
@@ -366,7 +369,7 @@ impl ScriptPlan {
                             action: preset.action,
                             falloff_fu: preset.falloff_fu,
                         },
-                        poses: poses(positions, None),
+                        poses: resample_stroke(&poses(positions, None), &preset.shape),
                         duration_s: *duration_s,
                         patch: 0,
                     });

@@ -389,11 +389,14 @@ impl SimulationStage {
         }
         self.was_active = active;
 
-        if let Some(dwell_s) = self
+        if let Some(due) = self
             .tool
             .geometric_due(sample, self.config.geometric_interval_us)
         {
-            self.apply_held_geometric(sample.tip, dwell_s);
+            // Along the tip's path since the last application: a continuous groove.
+            for i in 0..due.count {
+                self.apply_held_geometric(due.point(i), due.dwell_s);
+            }
         }
 
         // The patch that would hold this step's region: its mass points set the step.

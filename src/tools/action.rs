@@ -11,11 +11,15 @@ use super::deform::{ContactParams, StampParams};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ToolAction {
-    /// Toothpaste: `f + min(1, rate·dt)·t`, clamped to 1.
+    /// Toothpaste: `f + min(1, rate·dt)·t`, up to the tool's potential `t` (where that is
+    /// above the clay): a held tool fills its own shape and no more, like a union reached
+    /// progressively (Ferley's deposit grows without bound, so a bead would land wider the
+    /// longer it dwells).
     Add { deposit_rate_per_s: f32 },
     /// Carve the tool's shape out: `min(f, 1 − t)` (CSG difference with the tool).
     Remove,
-    /// Progressive eraser: `f − min(1, rate·dt)·t`, clamped to 0.
+    /// Progressive eraser: `f − min(1, rate·dt)·t`, down to `1 − t` (where that is below the
+    /// clay): a held tool empties its own shape and no more, a remove reached progressively.
     SoftRemove { rate_per_s: f32 },
     /// Paint the tool's colour where the tool reaches (full coverage inside the tool).
     Paint { rgb: [f32; 3] },
@@ -137,18 +141,20 @@ impl ToolAction {
         let amount = |rate: f32| (rate * dt_s).clamp(0.0, 1.0);
         match *self {
             Self::Add { deposit_rate_per_s } => (clay + amount(deposit_rate_per_s) * tool)
+                .min(tool.max(clay))
                 .min(1.0)
                 .max(clay),
             Self::Remove => clay.min(1.0 - tool),
-            Self::SoftRemove { rate_per_s } => {
-                (clay - amount(rate_per_s) * tool).max(0.0).min(clay)
-            }
+            Self::SoftRemove { rate_per_s } => (clay - amount(rate_per_s) * tool)
+                .max((1.0 - tool).min(clay))
+                .max(0.0)
+                .min(clay),
             Self::Paint { .. } | Self::SoftPaint { .. } => clay,
             Self::Smooth { rate_per_s, .. } => {
                 let w = amount(rate_per_s) * (2.0 * tool).min(1.0);
                 clay + w * (blurred - clay)
             }
-            Self::Stamp(p) => p.apply(clay, tool, dt_s),
+            Self::Stamp(p) => p.apply(clay, tool, iso, dt_s),
             Self::Contact(c) => c.apply(clay, tool, iso, dt_s),
             Self::Union => clay.max(tool),
             Self::Intersection => clay.min(tool),
@@ -216,6 +222,11 @@ mod tests {
         assert_eq!(add.density(0.7, 0.0, 0.0, 0.5, 1.0), 0.7);
         let erase = ToolAction::SoftRemove { rate_per_s: 1.0 };
         assert!((erase.density(0.8, 0.5, 0.0, 0.5, 0.2) - 0.7).abs() < 1e-6);
+        // Held long, they stop at the tool's shape: a union, a remove.
+        assert_eq!(add.density(0.1, 0.3, 0.0, 0.5, 10.0), 0.3);
+        assert_eq!(add.density(0.6, 0.3, 0.0, 0.5, 10.0), 0.6);
+        assert_eq!(erase.density(0.9, 0.3, 0.0, 0.5, 10.0), 0.7);
+        assert_eq!(erase.density(0.2, 0.3, 0.0, 0.5, 10.0), 0.2);
         let smooth = ToolAction::Smooth {
             rate_per_s: 1.0,
             kernel_fu: 0.1,

@@ -131,10 +131,17 @@ impl StampParams {
     /// kept within `[0, 1]`. Only the stamp's own change is limited: a density the fit left a
     /// little outside the range is not pulled back where the stamp does nothing, so two short
     /// applications do what one long one does.
+    ///
+    /// The bulge (`def > 0`) raises only clay that is there: it is weighted by the clay's
+    /// presence, zero below a quarter of the iso-level `iso` and one from the iso-level up
+    /// ([`presence`]), so the stamp pushes up a rim beside its print and never builds a shell of
+    /// new material around the tool in empty space.
     #[inline]
     #[must_use]
-    pub fn apply(&self, clay: f32, tool: f32, dt_s: f32) -> f32 {
-        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * self.def(1.0 - tool))
+    pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
+        let def = self.def(1.0 - tool);
+        let weight = if def > 0.0 { presence(clay, iso) } else { 1.0 };
+        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * def * weight)
     }
 }
 
@@ -179,6 +186,15 @@ impl ContactParams {
     }
 }
 
+/// How much clay is at a point of density `clay`, from 0 (below a quarter of the iso-level:
+/// empty space, and the fit's ripple there) to 1 (from the iso-level up), linear between.
+#[inline]
+#[must_use]
+pub fn presence(clay: f32, iso: f32) -> f32 {
+    let floor = 0.25 * iso;
+    ((clay - floor) / (iso - floor).max(f32::EPSILON)).clamp(0.0, 1.0)
+}
+
 /// `clay + change`, with the change cut so that the result stays in `[0, 1]` when the clay
 /// was; the clay itself is not clamped (zero change leaves it bit-identical).
 #[inline]
@@ -211,6 +227,25 @@ mod tests {
         assert!((derivative(&p, p.s) + p.k).abs() < 1e-2);
         assert!(derivative(&p, p.s + p.m).abs() < 1e-2);
         assert!(derivative(&p, 1e-3).abs() < 5e-2);
+    }
+
+    /// Inside the tool the stamp carves; just outside it raises the clay that is there into a
+    /// rim, and nothing where there is no clay (a shell around the tool in empty space).
+    #[test]
+    fn the_stamp_raises_a_rim_only_where_there_is_clay() {
+        let p = StampParams::default();
+        let (iso, dt) = (0.5, 0.01);
+        assert!(p.apply(0.9, 0.9, iso, dt) < 0.9, "carves inside the tool");
+        // Just outside the tool's surface: def > 0.
+        let t = 0.4;
+        assert!(p.def(1.0 - t) > 0.0);
+        assert!(p.apply(0.6, t, iso, dt) > 0.6, "a rim in the clay");
+        assert_eq!(p.apply(0.0, t, iso, dt), 0.0, "nothing in empty space");
+        assert_eq!(p.apply(0.01, t, iso, 100.0), 0.01, "nor in the fit's ripple");
+        assert!(p.apply(0.3, t, iso, dt) > 0.3, "the clay's outer band rises");
+        assert_eq!(presence(0.125, iso), 0.0);
+        assert_eq!(presence(0.5, iso), 1.0);
+        assert!((presence(0.3125, iso) - 0.5).abs() < 1e-6);
     }
 
     #[test]

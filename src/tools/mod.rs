@@ -17,10 +17,12 @@ mod force;
 mod history;
 mod pin;
 mod shape;
+mod stroke;
 
 pub use action::{ActionError, ToolAction};
 pub use apply::{
-    ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
+    ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg,
+    apply_stroke, apply_tool, effective_falloff_fu,
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
@@ -37,3 +39,4 @@ pub use pin::{
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
+pub use stroke::{MAX_SEGMENT_APPLICATIONS, MAX_STROKE_POSES, lerp, resample_stroke, steps_along};

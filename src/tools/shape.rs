@@ -221,6 +221,14 @@ impl ToolShape {
         Some(solid + falloff_fu)
     }
 
+    /// Largest spacing of a stroke's applications along its path, field units: a quarter of
+    /// the shape's smallest half extent (a quarter of a sphere's or capsule's radius), so
+    /// that successive applications overlap into one continuous groove or bead.
+    #[must_use]
+    pub fn stroke_spacing_fu(&self) -> f32 {
+        0.25 * self.half_extents().min_element()
+    }
+
     /// Half extents of the local box outside which the density is exactly zero.
     #[must_use]
     pub fn influence_half_extents(&self, falloff_fu: f32) -> Vec3 {

@@ -1,0 +1,279 @@
+//! Geometric tools land at the size asked: each action that carves or deposits a shape (add,
+//! remove, soft remove after enough dwell, union, difference, stamp), with a sphere, a box and
+//! a capsule, applied once at the middle of the default block's top face as a script's `tool`
+//! step is (a command to the lockstep engine), leaves a dent or a bead whose depth (height)
+//! and widths along x and z at half that depth, measured on the exported mesh, are within 10%
+//! of the analytic shape's (the top face minus, or plus, the tool's solid). Each case is
+//! undone before the next, so all start from the same block. The tools keep the palette's
+//! default band (`falloff_fu = 0.05`, half a knot span). Each case's figures are printed
+//! (`--nocapture`); the README's table quotes them.
+
+#[path = "support/exported_mesh.rs"]
+mod exported_mesh;
+
+use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, build_clay};
+use dynaclay::io::ClaySpec;
+use dynaclay::tools::{GeometricTool, StampParams, ToolAction, ToolPose, ToolShape};
+use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+use exported_mesh::{Exported, export};
+use glam::{Vec2, Vec3};
+
+/// The default block's top face (y) and its middle (x, z).
+const TOP_Y: f32 = 1.725;
+const MID: Vec2 = Vec2::new(1.15, 1.15);
+/// Largest relative error allowed in depth and widths.
+const TOLERANCE: f32 = 0.10;
+
+/// Whether an action carves into the clay or deposits on it.
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Kind {
+    Carve,
+    Deposit,
+}
+
+/// The tool's solid along the vertical line through `(dx, dz)` from its centre (no
+/// rotation): the half-height of its chord there, if the line meets it.
+fn half_chord(shape: &ToolShape, dx: f32, dz: f32) -> Option<f32> {
+    match *shape {
+        ToolShape::Sphere { radius_fu } => {
+            let rho2 = dx * dx + dz * dz;
+            (rho2 < radius_fu * radius_fu).then(|| (radius_fu * radius_fu - rho2).sqrt())
+        }
+        ToolShape::Box { half_extents_fu: h } => (dx.abs() < h.x && dz.abs() < h.z).then_some(h.y),
+        ToolShape::Capsule {
+            radius_fu,
+            half_height_fu,
+        } => {
+            // Axis along z.
+            let along = dz - dz.clamp(-half_height_fu, half_height_fu);
+            let rho2 = dx * dx + along * along;
+            (rho2 < radius_fu * radius_fu).then(|| (radius_fu * radius_fu - rho2).sqrt())
+        }
+        _ => unreachable!("analytic shapes only"),
+    }
+}
+
+/// The analytic top surface after the tool at `centre` carved or deposited its solid.
+fn expected_top(shape: &ToolShape, centre: Vec3, kind: Kind, x: f32, z: f32) -> f32 {
+    match (half_chord(shape, x - centre.x, z - centre.z), kind) {
+        (Some(c), Kind::Carve) => TOP_Y.min(centre.y - c),
+        (Some(c), Kind::Deposit) => TOP_Y.max(centre.y + c),
+        (None, _) => TOP_Y,
+    }
+}
+
+/// Depth (carve) or height (deposit) of a profile at its middle, and its width where it
+/// crosses half of that: `heights` are (distance along the line, surface height) pairs.
+fn depth_and_width(heights: &[(f32, f32)], kind: Kind) -> (f32, f32) {
+    let change = |y: f32| match kind {
+        Kind::Carve => TOP_Y - y,
+        Kind::Deposit => y - TOP_Y,
+    };
+    let mid = heights.len() / 2;
+    let depth = change(heights[mid].1);
+    let half = 0.5 * depth;
+    // Walk out from the middle to where the change falls below half (interpolated).
+    let crossing = |range: &mut dyn Iterator<Item = usize>| -> f32 {
+        let mut prev = mid;
+        for i in range {
+            let (a, b) = (change(heights[prev].1), change(heights[i].1));
+            if b < half {
+                let s = (a - half) / (a - b);
+                return heights[prev].0 + s * (heights[i].0 - heights[prev].0);
+            }
+            prev = i;
+        }
+        heights[prev].0
+    };
+    let right = crossing(&mut (mid + 1..heights.len()));
+    let left = crossing(&mut (0..mid).rev());
+    (depth, right - left)
+}
+
+/// One case's measured and expected depth and widths (x, z).
+struct Measured {
+    got: [f32; 3],
+    want: [f32; 3],
+}
+
+impl Measured {
+    fn worst_error(&self) -> f32 {
+        (0..3)
+            .map(|i| (self.got[i] - self.want[i]).abs() / self.want[i])
+            .fold(0.0, f32::max)
+    }
+}
+
+/// Measures the dent or bead of `tool` at `centre` on `after`'s exported mesh, against the
+/// analytic surface measured the same way.
+fn measure(mesh: &Exported, tool: &GeometricTool, centre: Vec3, kind: Kind) -> Measured {
+    let reach = tool.shape.half_extents().max_element() + 0.15;
+    let n = 400;
+    let line = |axis: Vec2| -> [(Vec2, Vec2); 1] { [(MID - axis * reach, MID + axis * reach)] };
+    let mut got = [0.0; 3];
+    let mut want = [0.0; 3];
+    for (k, axis) in [Vec2::X, Vec2::Y].into_iter().enumerate() {
+        let [(from, to)] = line(axis);
+        let along = |p: Vec2| (p - from).dot(axis);
+        let measured: Vec<(f32, f32)> = mesh
+            .profile(from, to, n)
+            .into_iter()
+            .map(|(p, y)| (along(p), y))
+            .collect();
+        let analytic: Vec<(f32, f32)> = (0..=n)
+            .map(|i| {
+                let p = from.lerp(to, i as f32 / n as f32);
+                (along(p), expected_top(&tool.shape, centre, kind, p.x, p.y))
+            })
+            .collect();
+        let (d, w) = depth_and_width(&measured, kind);
+        let (dw, ww) = depth_and_width(&analytic, kind);
+        got[0] = d;
+        want[0] = dw;
+        got[1 + k] = w;
+        want[1 + k] = ww;
+    }
+    Measured { got, want }
+}
+
+/// Applies each `(tool, centre, dwell)` to the default block in the lockstep engine, measures
+/// it on the exported mesh and undoes it; returns one line per case and the worst error.
+fn run_cases(cases: &[(GeometricTool, Vec3, f32, Kind)]) -> (Vec<String>, f32) {
+    let start = build_clay(&ClaySpec::default()).unwrap();
+    let arm_config = SimArmConfig::default();
+    let mut config = EngineConfig::for_field(&start, &arm_config.info);
+    config.haptic_rt_priority = None;
+    // The arm rests far above the clay: the tool steps alone change it.
+    let arm = SimulatedArm::new(arm_config, Trajectory::hold(Vec3::new(0.0, 0.09, 0.0)));
+    let mut run = Lockstep::new(
+        &config,
+        start.clone(),
+        Box::new(arm),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+    let commands = run.commands();
+    let dir = tempfile::tempdir().unwrap();
+    let mut lines = Vec::new();
+    let mut worst = 0.0f32;
+    for (i, (tool, centre, dwell_s, kind)) in cases.iter().enumerate() {
+        let (tx, rx) = crossbeam::channel::bounded(1);
+        commands
+            .send(Command::ApplyTool {
+                tool: tool.clone(),
+                poses: vec![ToolPose::at(*centre)],
+                duration_s: *dwell_s,
+                patch: 0,
+                reply: Some(tx),
+            })
+            .unwrap();
+        run.step();
+        rx.try_recv().unwrap().unwrap();
+        let mesh = export(run.density(), dir.path(), &format!("case{i}.obj"));
+        let m = measure(&mesh, tool, *centre, *kind);
+        let error = m.worst_error();
+        worst = worst.max(error);
+        lines.push(format!(
+            "{:<10} {:<40} depth {:.4} (want {:.4}), width x {:.4} ({:.4}), z {:.4} ({:.4}): worst {:.1}%",
+            tool.action.name(),
+            format!("{:?}", tool.shape),
+            m.got[0],
+            m.want[0],
+            m.got[1],
+            m.want[1],
+            m.got[2],
+            m.want[2],
+            100.0 * error
+        ));
+        commands.send(Command::Undo).unwrap();
+        run.step();
+        assert_eq!(run.field().coeffs, start.coeffs, "undo restores the block");
+    }
+    for l in &lines {
+        eprintln!("{l}");
+    }
+    (lines, worst)
+}
+
+/// Every sized action with `shape`, centred on the top face.
+fn cases_for(shape: ToolShape) -> Vec<(GeometricTool, Vec3, f32, Kind)> {
+    let tool = |action| GeometricTool {
+        shape: shape.clone(),
+        action,
+        falloff_fu: 0.05,
+    };
+    let at = Vec3::new(MID.x, TOP_Y, MID.y);
+    vec![
+        (tool(ToolAction::Remove), at, 0.0, Kind::Carve),
+        (tool(ToolAction::Difference), at, 0.0, Kind::Carve),
+        // Soft remove at its default rate, held four times as long as one whole removal.
+        (
+            tool(ToolAction::SoftRemove { rate_per_s: 2.0 }),
+            at,
+            2.0,
+            Kind::Carve,
+        ),
+        (
+            tool(ToolAction::Stamp(StampParams::default())),
+            at,
+            1.0,
+            Kind::Carve,
+        ),
+        (tool(ToolAction::Union), at, 0.0, Kind::Deposit),
+        (
+            tool(ToolAction::Add {
+                deposit_rate_per_s: 2.0,
+            }),
+            at,
+            2.0,
+            Kind::Deposit,
+        ),
+    ]
+}
+
+#[test]
+fn sized_geometric_tools_land_within_ten_percent_of_a_sphere() {
+    let (_, worst) = run_cases(&cases_for(ToolShape::Sphere { radius_fu: 0.2 }));
+    assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
+}
+
+#[test]
+fn sized_geometric_tools_land_within_ten_percent_of_a_box() {
+    let (_, worst) = run_cases(&cases_for(ToolShape::Box {
+        half_extents_fu: Vec3::new(0.2, 0.12, 0.15),
+    }));
+    assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
+}
+
+#[test]
+fn sized_geometric_tools_land_within_ten_percent_of_a_capsule() {
+    let (_, worst) = run_cases(&cases_for(ToolShape::Capsule {
+        radius_fu: 0.15,
+        half_height_fu: 0.15,
+    }));
+    assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
+}
+
+/// Remove and union spheres from one knot span's radius (the default block's spacing is 0.1)
+/// to three: the lattice holds the shape within 10% over the whole range.
+#[test]
+fn remove_and_union_spheres_land_within_ten_percent_from_one_knot_span_up() {
+    let at = Vec3::new(MID.x, TOP_Y, MID.y);
+    let mut cases = Vec::new();
+    for r in [0.1, 0.15, 0.3] {
+        for (action, kind) in [
+            (ToolAction::Remove, Kind::Carve),
+            (ToolAction::Union, Kind::Deposit),
+        ] {
+            let tool = GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: r },
+                action,
+                falloff_fu: 0.05,
+            };
+            cases.push((tool, at, 0.0, kind));
+        }
+    }
+    let (_, worst) = run_cases(&cases);
+    assert!(worst <= TOLERANCE, "worst error {:.1}%", 100.0 * worst);
+}
