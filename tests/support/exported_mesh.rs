@@ -46,11 +46,6 @@ pub fn export(field: &MultiPatchField, dir: &Path, name: &str) -> Exported {
 }
 
 impl Exported {
-    /// The highest point where the vertical line through `(x, z)` meets the surface.
-    pub fn top_at(&self, x: f32, z: f32) -> Option<f32> {
-        top_among(&self.vertices, &self.triangles, Vec2::new(x, z))
-    }
-
     /// The surface's height along the line from `from` to `to` (xz), at `n + 1` points.
     pub fn profile(&self, from: Vec2, to: Vec2, n: usize) -> Vec<(Vec2, f32)> {
         // Only the triangles whose shadow's box meets the line's box can be hit.
