@@ -81,6 +81,15 @@ impl ToolAction {
         matches!(self, Self::Intersection)
     }
 
+    /// Whether the action shapes the clay within the tool's falloff band itself (the stamp's
+    /// rim and the contact tool's deformation are functions of the band's potential), so the
+    /// band is the user's setting and is not widened to the lattice's floor
+    /// ([`crate::tools::MIN_FALLOFF_SPANS`]).
+    #[must_use]
+    pub fn shapes_its_band(&self) -> bool {
+        matches!(self, Self::Stamp(_) | Self::Contact(_))
+    }
+
     /// Checks rates, colours and stamp parameters.
     ///
     /// # Errors

@@ -156,7 +156,11 @@ pub fn apply_tool(
         return paint(clay, tool, pose, dt_s, options, recorder);
     }
     let lattice = clay.field(id).expect("checked above");
-    let falloff = effective_falloff_fu(tool.falloff_fu, lattice.spacing);
+    let falloff = if tool.action.shapes_its_band() {
+        tool.falloff_fu
+    } else {
+        effective_falloff_fu(tool.falloff_fu, lattice.spacing)
+    };
     let half = tool.shape.influence_half_extents(falloff);
     let (mut lo, mut hi) = pose.world_bounds(half);
     if tool.action.acts_outside_tool() {
@@ -1115,15 +1119,19 @@ mod tests {
             action: ToolAction::Stamp(StampParams::default()),
             falloff_fu: 4.0 * H,
         };
-        apply_tool(
-            &mut clay,
-            &t,
-            &ToolPose::at(at),
-            0.01,
-            &ApplyOptions::default(),
-            None,
-        )
-        .unwrap();
+        // Three whole prints: the rim grows from the surface outward (a rise is weighted by
+        // the clay's presence), a little more with each.
+        for _ in 0..3 {
+            apply_tool(
+                &mut clay,
+                &t,
+                &ToolPose::at(at),
+                0.01,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
         let l = &clay.density.patches[0].lattice;
         // The print: the tool's hemisphere is hollowed out of the slab.
         for depth in [0.1, 0.2, r - 2.0 * H] {
@@ -1453,8 +1461,10 @@ mod tests {
                 .iter()
                 .zip(&twice)
                 .fold(0.0_f32, |m, (a, b)| m.max((a - b).abs()));
+            // Within 3% of the peak: the stamp's rise is weighted by the clay's presence,
+            // which the first half already changed (a second-order difference).
             assert!(
-                worst <= 0.01 * peak,
+                worst <= 0.03 * peak,
                 "{name}: twice as long differs from two halves by {worst} (peak {peak})"
             );
             // And the change grows with the dwell.

@@ -241,8 +241,15 @@ mod tests {
         assert!(p.def(1.0 - t) > 0.0);
         assert!(p.apply(0.6, t, iso, dt) > 0.6, "a rim in the clay");
         assert_eq!(p.apply(0.0, t, iso, dt), 0.0, "nothing in empty space");
-        assert_eq!(p.apply(0.01, t, iso, 100.0), 0.01, "nor in the fit's ripple");
-        assert!(p.apply(0.3, t, iso, dt) > 0.3, "the clay's outer band rises");
+        assert_eq!(
+            p.apply(0.01, t, iso, 100.0),
+            0.01,
+            "nor in the fit's ripple"
+        );
+        assert!(
+            p.apply(0.3, t, iso, dt) > 0.3,
+            "the clay's outer band rises"
+        );
         assert_eq!(presence(0.125, iso), 0.0);
         assert_eq!(presence(0.5, iso), 1.0);
         assert!((presence(0.3125, iso) - 0.5).abs() < 1e-6);

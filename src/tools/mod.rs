@@ -21,8 +21,8 @@ mod stroke;
 
 pub use action::{ActionError, ToolAction};
 pub use apply::{
-    ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg,
-    apply_stroke, apply_tool, effective_falloff_fu,
+    ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg, apply_stroke,
+    apply_tool, effective_falloff_fu,
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
