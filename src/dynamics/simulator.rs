@@ -334,7 +334,7 @@ impl Simulator {
         self.gather_forces_over(state, lattice, others, forces);
         times.gather_forces_ns = elapsed_ns(t);
 
-        let fused = self.params.neighbourhood == Neighbourhood::Six
+        let fused = state.neighbourhood == Neighbourhood::Six
             && self.params.solver == AccelSolver::Auto
             && state.mass_is_uniform();
         let solved = if fused {
@@ -529,7 +529,7 @@ impl Simulator {
     /// springs toward the rest densities, and damping `−γ ḋ`.
     pub fn spring_forces(&mut self, state: &RegionState) {
         self.ensure_scratch(state);
-        if self.params.neighbourhood == Neighbourhood::Six {
+        if state.neighbourhood == Neighbourhood::Six {
             let fields = SpringFields {
                 dims: state.grid.dims,
                 d: &state.d,
@@ -555,7 +555,7 @@ impl Simulator {
             &state.d,
             &state.rest,
             &state.stiffness,
-            self.params.neighbourhood,
+            state.neighbourhood,
             &mut self.e,
             &mut self.force,
         );
@@ -1298,10 +1298,44 @@ mod tests {
 
     #[test]
     fn two_threads_give_bit_identical_steps() {
-        for (mass_dims, integrator, neighbourhood) in [
-            ([15, 15, 15], Integrator::SemiImplicit, Neighbourhood::Six),
-            ([8, 8, 8], Integrator::SemiImplicit, Neighbourhood::Six),
-            ([11, 9, 13], Integrator::Explicit, Neighbourhood::Eighteen),
+        // `painted`: mass, damping and stiffness vary over the region (a painted material).
+        for (mass_dims, integrator, neighbourhood, painted) in [
+            (
+                [15, 15, 15],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                false,
+            ),
+            (
+                [8, 8, 8],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                false,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::Explicit,
+                Neighbourhood::Eighteen,
+                false,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::SemiImplicit,
+                Neighbourhood::TwentySix,
+                false,
+            ),
+            (
+                [15, 15, 15],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                true,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::SemiImplicit,
+                Neighbourhood::TwentySix,
+                true,
+            ),
         ] {
             let mut runs = Vec::new();
             for threads in [1, 2] {
@@ -1310,12 +1344,22 @@ mod tests {
                     min: [10, 6, 6],
                     max: [17, 13, 13],
                 };
-                let mut state =
-                    RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+                let material = Material {
+                    neighbourhood,
+                    ..Material::PLASTIC
+                };
+                let mut state = RegionState::new(&lattice, b, mass_dims, material).unwrap();
+                if painted {
+                    for n in 0..state.mass.len() {
+                        let f = 1.0 + (n % 7) as f32 / 7.0;
+                        state.mass[n] *= f;
+                        state.damping[n] *= 2.0 - f;
+                        state.stiffness[n] *= f * f;
+                    }
+                }
                 let mut sim = Simulator::new(StepParams {
                     threads,
                     integrator,
-                    neighbourhood,
                     resync_every: 7,
                     ..StepParams::default()
                 });
