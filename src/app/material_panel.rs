@@ -20,9 +20,9 @@ pub const PAINT_RADIUS_RANGE: std::ops::RangeInclusive<f32> = 0.02..=2.0;
 /// The label of a neighbourhood in the selector.
 fn neighbourhood_label(nb: Neighbourhood) -> &'static str {
     match nb {
-        Neighbourhood::Six => "6 (faces)",
-        Neighbourhood::Eighteen => "18 (faces, edges)",
-        Neighbourhood::TwentySix => "26 (faces, edges, corners)",
+        Neighbourhood::Six => "6 neighbours",
+        Neighbourhood::Eighteen => "18 neighbours",
+        Neighbourhood::TwentySix => "26 neighbours",
     }
 }
 
@@ -48,19 +48,6 @@ pub fn material_ui(ui: &mut egui::Ui, material: &mut Material) -> bool {
         egui::Slider::new(&mut material.plasticity_per_s, PLASTICITY_RANGE).text("Plasticity /s"),
     );
     ui.add(egui::Slider::new(&mut material.yield_density, YIELD_RANGE).text("Yield density"));
-    egui::ComboBox::from_label("Springs")
-        .selected_text(neighbourhood_label(material.neighbourhood))
-        .show_ui(ui, |ui| {
-            for nb in Neighbourhood::ALL {
-                ui.selectable_value(&mut material.neighbourhood, nb, neighbourhood_label(nb));
-            }
-        })
-        .response
-        .on_hover_text(
-            "Which neighbours each density spring joins. The stiffness is normalised, so a \
-             broad push meets the same material; 18 and 26 spread a small press more evenly \
-             in every direction (new strokes)",
-        );
     ui.horizontal(|ui| {
         if ui.button("Elastic").clicked() {
             *material = Material {
@@ -74,6 +61,18 @@ pub fn material_ui(ui: &mut egui::Ui, material: &mut Material) -> bool {
                 ..Material::PLASTIC
             };
         }
+        egui::ComboBox::from_label("Springs")
+            .selected_text(neighbourhood_label(material.neighbourhood))
+            .show_ui(ui, |ui| {
+                for nb in Neighbourhood::ALL {
+                    ui.selectable_value(&mut material.neighbourhood, nb, neighbourhood_label(nb));
+                }
+            })
+            .response
+            .on_hover_text(
+                "Which neighbours each density spring joins. The stiffness is normalised, so a \
+                 broad push meets the same material (new strokes)",
+            );
     });
     *material != before
 }
@@ -151,11 +150,19 @@ impl MaterialBrush {
         self.last.is_some()
     }
 
-    /// Draws the brush's controls; `here` is the last surface point the brush was on. Returns
-    /// a command when a button asks for one.
+    /// Draws the brush's section (closed at first); `here` is the last surface point the
+    /// brush was on. Returns a command when a button asks for one.
     pub fn ui(&mut self, ui: &mut egui::Ui, here: Option<Vec3>) -> Option<EngineCommand> {
+        egui::CollapsingHeader::new("Paint material")
+            .default_open(false)
+            .show(ui, |ui| self.controls(ui, here))
+            .body_returned
+            .flatten()
+    }
+
+    /// The brush's controls, inside its section.
+    fn controls(&mut self, ui: &mut egui::Ui, here: Option<Vec3>) -> Option<EngineCommand> {
         let mut command = None;
-        ui.separator();
         ui.checkbox(&mut self.active, "Paint material with the brush")
             .on_hover_text(
                 "A left drag on the clay paints the ticked values instead of sculpting; the \
@@ -167,25 +174,40 @@ impl MaterialBrush {
                 .text("Paint radius"),
         );
         let defaults = Material::PLASTIC;
-        let rows: [(&str, &mut Option<f32>, f32, std::ops::RangeInclusive<f32>); 3] = [
-            ("Paint mass", &mut self.mass, defaults.mass, MASS_RANGE),
+        type Row<'a> = (
+            &'a str,
+            &'a str,
+            &'a mut Option<f32>,
+            f32,
+            std::ops::RangeInclusive<f32>,
+        );
+        let rows: [Row<'_>; 3] = [
+            (
+                "Paint mass",
+                "mass",
+                &mut self.mass,
+                defaults.mass,
+                MASS_RANGE,
+            ),
             (
                 "Paint damping",
+                "damping",
                 &mut self.damping,
                 defaults.damping,
                 DAMPING_RANGE,
             ),
             (
                 "Paint stiffness",
+                "stiffness",
                 &mut self.stiffness,
                 defaults.stiffness,
                 STIFFNESS_RANGE,
             ),
         ];
-        for (label, value, default, range) in rows {
+        for (label, unit, value, default, range) in rows {
             ui.horizontal(|ui| {
                 let mut on = value.is_some();
-                if ui.checkbox(&mut on, "").changed() {
+                if ui.checkbox(&mut on, label).changed() {
                     *value = on.then_some(default);
                 }
                 let mut v = value.unwrap_or(default);
@@ -193,7 +215,7 @@ impl MaterialBrush {
                     on,
                     egui::Slider::new(&mut v, range)
                         .logarithmic(true)
-                        .text(label),
+                        .text(unit),
                 );
                 if slider.changed() && on {
                     *value = Some(v);

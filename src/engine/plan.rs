@@ -7,8 +7,9 @@
 //! Steps run in file order against one script clock (seconds; the device's clock during a
 //! run, so a lockstep run is exactly reproducible):
 //!
-//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `paint_material`, `constrain`,
-//!   `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`, `points`) takes no script time. It is sent when the clock reaches the end of everything
+//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `paint_material`,
+//!   `constrain`, `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`, `points`) takes
+//!   no script time. It is sent when the clock reaches the end of everything
 //!   before it — after the previous stroke has ended with the hand back at hover — and the
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.

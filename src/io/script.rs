@@ -1976,6 +1976,97 @@ start_s = 3.0
     }
 
     #[test]
+    fn material_steps_take_a_neighbourhood_and_paints_a_ball_or_a_box() {
+        let step = |keys: &str| format!("version = 1\n\n[[step]]\n{keys}\n");
+        let s = parse_script(&step("do = \"material\"\nneighbourhood = 26"), "m.toml").unwrap();
+        let m = s.steps[0].updated_material(Material::PLASTIC);
+        assert_eq!(m.neighbourhood, Neighbourhood::TwentySix);
+        assert_eq!(m.stiffness, Material::PLASTIC.stiffness);
+        let err =
+            parse_script(&step("do = \"material\"\nneighbourhood = 12"), "m.toml").unwrap_err();
+        assert!(
+            err.to_string().contains("6, 18 or 26") && err.line == Some(5),
+            "{err}"
+        );
+
+        let paint = |keys: &str| step(&format!("do = \"paint_material\"\n{keys}"));
+        let s = parse_script(
+            &paint("centre = [1.0, 1.5, 1.0]\nradius_fu = 0.2\nstiffness = 5000.0"),
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(
+            paint_request(&s.steps[0]).unwrap(),
+            Some(MaterialPaint {
+                region: PaintRegion::Sphere {
+                    centre: Vec3::new(1.0, 1.5, 1.0),
+                    radius_fu: 0.2
+                },
+                mass: None,
+                damping: None,
+                stiffness: Some(5000.0),
+            })
+        );
+        let s = parse_script(
+            &paint("min = [0.0, 0.0, 0.0]\nmax = [1.0, 2.0, 3.0]\nmass = 4.0\ndamping = 0.0"),
+            "p.toml",
+        )
+        .unwrap();
+        let p = paint_request(&s.steps[0]).unwrap().unwrap();
+        assert_eq!(
+            (p.mass, p.damping, p.stiffness),
+            (Some(4.0), Some(0.0), None)
+        );
+        assert!(matches!(p.region, PaintRegion::Box { .. }));
+        // Round trip through the serde types.
+        let text = toml::to_string(&s).unwrap();
+        assert_eq!(parse_script(&text, "again").unwrap(), s);
+        let bad = [
+            ("stiffness = 5.0", "needs a ball"),
+            (
+                "centre = [1.0, 1.0, 1.0]\nstiffness = 5.0",
+                "also needs radius_fu",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nmass = 1.0",
+                "not both",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.0\nmass = 1.0",
+                "radius_fu = 0",
+            ),
+            (
+                "min = [0.0, 2.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nmass = 1.0",
+                "empty",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nmass = 0.0",
+                "mass must be positive",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nstiffness = -1.0",
+                "stiffness = -1",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2",
+                "at least one of",
+            ),
+            (
+                "centre = [1.0, nan, 1.0]\nradius_fu = 0.2\nmass = 1.0",
+                "not finite",
+            ),
+        ];
+        for (keys, expected) in bad {
+            let err = parse_script(&paint(keys), "paint.toml").unwrap_err();
+            let shown = err.to_string();
+            assert!(
+                shown.contains(expected) && shown.contains("paint.toml") && err.line.is_some(),
+                "{keys}: {shown}"
+            );
+        }
+    }
+
+    #[test]
     fn old_metre_keys_read_as_field_unit_keys_with_a_note_per_key() {
         let new = "version = 1\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"capsule\", radius_fu = 0.05, half_height_fu = 0.1 }\naction = { kind = \"smooth\", rate_per_s = 1.0, kernel_fu = 0.1 }\npositions = [[0, 0, 0]]\nfalloff_fu = 0.02\n\n[[step]]\ndo = \"stroke\"\ntool = { kind = \"chisel\", depth_fu = 0.03, radius_fu = 0.05, gain = 1e6 }\npath = [[1, 1, 1]]\nhover_fu = 0.2\n";
         let old = new.replace("_fu", "_m");
