@@ -899,6 +899,10 @@ impl Bridge {
                 self.send(what, Command::SetTool(choice));
             }
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
+            EngineCommand::PaintMaterial(paint) => {
+                self.send(what, Command::PaintMaterial { paint, reply: None });
+            }
+            EngineCommand::ClearMaterialPaint => self.send(what, Command::ClearMaterialPaint),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
             EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),

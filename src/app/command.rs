@@ -57,6 +57,10 @@ pub enum EngineCommand {
     SelectTool(ToolChoice),
     /// Replace the material of the simulated region.
     SetMaterial(Material),
+    /// Paint mass, damping or stiffness into a region of the clay.
+    PaintMaterial(crate::dynamics::MaterialPaint),
+    /// Remove the painted material: the uniform material applies everywhere.
+    ClearMaterialPaint,
     /// Start applying the tool (as if the device button went down).
     StrokeStart,
     /// Stop applying the tool; the stroke becomes one undo step.
@@ -120,6 +124,8 @@ impl EngineCommand {
         match self {
             Self::SelectTool(_) => "select tool",
             Self::SetMaterial(_) => "set material",
+            Self::PaintMaterial(_) => "paint material",
+            Self::ClearMaterialPaint => "clear painted material",
             Self::StrokeStart => "stroke start",
             Self::StrokeStop => "stroke stop",
             Self::SetSymmetry(_) => "symmetry",

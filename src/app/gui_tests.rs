@@ -113,6 +113,65 @@ fn moving_a_material_slider_sets_the_engine_material() {
 }
 
 #[test]
+fn the_springs_selector_sends_the_material_with_its_neighbourhood() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    h.get_by_role_and_label(Role::ComboBox, "Springs").click();
+    h.run();
+    h.get_by_label("26 neighbours").click();
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::SetMaterial(m)] = sent.as_slice() else {
+        panic!("expected one SetMaterial, got {sent:?}");
+    };
+    assert_eq!(m.neighbourhood, crate::dynamics::Neighbourhood::TwentySix);
+    assert_eq!(
+        m.stiffness,
+        Material::default().stiffness,
+        "other fields unchanged"
+    );
+}
+
+#[test]
+fn the_material_brush_paints_around_the_last_brush_point_and_clears() {
+    let (mut h, end) = harness();
+    h.run();
+    drain(&end);
+    h.get_by_label("Paint material").click();
+    h.run();
+    // Before the brush was on the clay there is nowhere to paint: the button is disabled.
+    h.get_by_label("Paint here").click();
+    h.run();
+    assert!(drain(&end).is_empty());
+    let at = glam::Vec3::new(1.0, 1.7, 1.1);
+    h.state_mut().refine_at = Some(at);
+    h.run();
+    h.get_by_label("Paint here").click();
+    h.run();
+    let sent = drain(&end);
+    let [EngineCommand::PaintMaterial(paint)] = sent.as_slice() else {
+        panic!("expected one PaintMaterial, got {sent:?}");
+    };
+    assert_eq!(
+        paint.region,
+        crate::dynamics::PaintRegion::Sphere {
+            centre: at,
+            radius_fu: 0.2
+        }
+    );
+    assert_eq!(paint.stiffness, Some(5.0 * Material::PLASTIC.stiffness));
+    assert_eq!((paint.mass, paint.damping), (None, None));
+    h.get_by_label("Clear painted material").click();
+    h.run();
+    let sent = drain(&end);
+    assert!(
+        matches!(sent.as_slice(), [EngineCommand::ClearMaterialPaint]),
+        "{sent:?}"
+    );
+}
+
+#[test]
 fn refine_here_asks_for_a_detail_patch_around_the_last_brush_point() {
     let (mut h, end) = harness();
     h.run();

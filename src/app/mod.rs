@@ -32,7 +32,7 @@ pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };
-pub use material_panel::material_ui;
+pub use material_panel::{MaterialBrush, material_ui};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use palette::{ActionKind, ForceSettings, PaletteEntry, ShapeKind, ToolPalette, entry_label};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};

@@ -22,7 +22,7 @@ use super::device_panel::haptic_gain_slider;
 use super::device_panel::{DeviceAction, DevicePanel};
 use super::latency::LatencyHistory;
 use super::link::EngineLink;
-use super::material_panel::material_ui;
+use super::material_panel::{MaterialBrush, material_ui};
 use super::palette::ToolPalette;
 use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
@@ -113,6 +113,8 @@ pub struct SculptApp {
     pub palette: ToolPalette,
     /// The material the sliders show and the engine was last sent.
     pub material: Material,
+    /// Painting material onto the clay with the brush.
+    pub material_brush: MaterialBrush,
     pub device: DevicePanel,
     pub display: DisplaySettings,
     pub files: FilePaths,
@@ -381,6 +383,9 @@ impl SculptApp {
                         .default_open(true)
                         .show(ui, |ui| {
                             material_changed = material_ui(ui, &mut self.material);
+                            if let Some(command) = self.material_brush.ui(ui, self.refine_at) {
+                                self.send(command);
+                            }
                             // The one haptic gain, shown here and in the device panel.
                             if haptic_gain_slider(ui, &mut self.device.haptic_gain) {
                                 let gain = self.device.haptic_gain;
@@ -974,6 +979,10 @@ impl SculptApp {
             self.pin_input(response, pos, pressed, down, modifiers);
             return;
         }
+        if self.material_brush.active {
+            self.material_paint_input(response, pos, pressed, down);
+            return;
+        }
         if !self.pointer.is_connected() {
             self.sculpt_drag = false;
             return;
@@ -1035,6 +1044,39 @@ impl SculptApp {
         let rim = to_screen(pose.surface + right * radius);
         let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
         self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// With the material brush on, a left drag that starts on the clay paints material along
+    /// its path instead of sculpting (a press beside the clay orbits).
+    fn material_paint_input(
+        &mut self,
+        response: &egui::Response,
+        pos: Option<egui::Pos2>,
+        pressed: bool,
+        down: bool,
+    ) {
+        self.pointer.release();
+        let rect = response.rect;
+        let field = &self.link.field().value;
+        let hit = pos.filter(|p| rect.contains(*p)).and_then(|p| {
+            let size = rect.size().max(egui::vec2(1.0, 1.0));
+            let ndc = glam::Vec2::new(
+                2.0 * (p.x - rect.min.x) / size.x - 1.0,
+                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+            );
+            let (origin, direction) = self.camera.ray_through(ndc, size.x / size.y);
+            crate::field::pick_surface(field, crate::field::Ray { origin, direction })
+                .map(|h| h.point)
+        });
+        if let Some(at) = hit {
+            self.refine_at = Some(at);
+        }
+        let starts = pressed && response.hovered() && hit.is_some();
+        let held = down && (self.material_brush.painting() || starts);
+        if let Some(paint) = self.material_brush.pointer(hit, held) {
+            self.send(EngineCommand::PaintMaterial(paint));
+        }
+        self.sculpt_drag = self.material_brush.painting();
     }
 
     /// With pin mode on, the left button pins instead of sculpting: a click on the clay pins

@@ -15,6 +15,10 @@ pub struct Material {
     pub plasticity_per_s: f32,
     /// Density deviation from rest below which no plastic drift happens.
     pub yield_density: f32,
+    /// Which grid neighbours the density springs join (6, 18 or 26); the stiffness is
+    /// normalised per neighbourhood so that all three resist a smooth deformation alike (see
+    /// [`Neighbourhood::weight`]).
+    pub neighbourhood: Neighbourhood,
 }
 
 impl Material {
@@ -40,6 +44,7 @@ impl Material {
         stiffness: 1000.0,
         plasticity_per_s: 0.0,
         yield_density: 0.0,
+        neighbourhood: Neighbourhood::Six,
     };
 
     /// Soft clay: dents stay. The yield is low enough that a light stroke already leaves its
@@ -85,15 +90,76 @@ impl Default for Material {
 }
 
 /// Which grid neighbours a density spring joins.
+///
+/// A spring joins a mass point to a neighbour at offset `o` (each component −1, 0 or 1) at
+/// distance `L = √order · h`, where `order` (1, 2 or 3: face, edge or corner) counts the
+/// non-zero components and `h` is the mass-point spacing. Its force acts on the density axis
+/// only (Hua & Qin §4.1): `k w ((d_j − d_i) − (r_j − r_i))`, with the rest densities `r`
+/// holding the spring's rest length along that axis.
+///
+/// The weight `w` ([`Neighbourhood::weight`]) scales each spring by its rest length and
+/// normalises the stencil: a spring measures the density's slope along its own direction,
+/// `Δd / L`, and the springs of a point together stand for the energy `½ ρ |∇d|²`, which is
+/// the mean of the squared slopes over the stencil's directions (for any of the three cubic
+/// stencils the squared slopes sum to `N/3 · |∇d|²` over its `N` directions). That gives
+/// `w = (6/N) (h/L)² = 6 / (N · order)`: 1 for the six face springs (today's stencil), and
+/// 1/3, 1/6 (faces, edges) for 18 and 3/13, 3/26, 1/13 for 26. So a smooth deformation
+/// (long compared to `h`) meets the same restoring force `ρ h² ∇²d` whatever the
+/// neighbourhood — one stiffness means the same material — while the larger stencils
+/// resolve short, oblique deformations more evenly in every direction (the 18-neighbour
+/// stencil is isotropic to fourth order).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Neighbourhood {
     /// Face neighbours.
     #[default]
     Six,
-    /// Face and edge neighbours (edge springs weighted 1/√2).
+    /// Face and edge neighbours.
     Eighteen,
-    /// Face, edge and corner neighbours (corner springs weighted 1/√3).
+    /// Face, edge and corner neighbours.
     TwentySix,
+}
+
+impl Neighbourhood {
+    /// The three neighbourhoods, smallest first.
+    pub const ALL: [Self; 3] = [Self::Six, Self::Eighteen, Self::TwentySix];
+
+    /// Number of springs at an interior mass point: 6, 18 or 26.
+    #[must_use]
+    pub const fn count(self) -> u32 {
+        match self {
+            Self::Six => 6,
+            Self::Eighteen => 18,
+            Self::TwentySix => 26,
+        }
+    }
+
+    /// The neighbourhood with `count` springs, if it is 6, 18 or 26.
+    #[must_use]
+    pub const fn from_count(count: u32) -> Option<Self> {
+        match count {
+            6 => Some(Self::Six),
+            18 => Some(Self::Eighteen),
+            26 => Some(Self::TwentySix),
+            _ => None,
+        }
+    }
+
+    /// Highest order of neighbour joined: 1 (faces), 2 (edges) or 3 (corners).
+    #[must_use]
+    pub const fn max_order(self) -> u32 {
+        match self {
+            Self::Six => 1,
+            Self::Eighteen => 2,
+            Self::TwentySix => 3,
+        }
+    }
+
+    /// Weight of a spring to a neighbour of `order` (1 face, 2 edge, 3 corner): `6 / (N ·
+    /// order)` (see the type's docs); exactly 1 for the six-neighbour face springs.
+    #[must_use]
+    pub fn weight(self, order: u32) -> f32 {
+        6.0 / (self.count() as f32 * order as f32)
+    }
 }
 
 /// How `(AᵀMA)⁻¹` is applied.
@@ -134,8 +200,6 @@ pub struct StepParams {
     pub growth: f32,
     /// A step that would make any coefficient larger than this in magnitude is refused.
     pub max_abs_coeff: f32,
-    /// Spring neighbourhood.
-    pub neighbourhood: Neighbourhood,
     /// Acceleration solver.
     pub solver: AccelSolver,
     /// Euler variant.
@@ -164,7 +228,6 @@ impl Default for StepParams {
             calm_steps_to_grow: 20,
             growth: 1.25,
             max_abs_coeff: 1e6,
-            neighbourhood: Neighbourhood::Six,
             solver: AccelSolver::Auto,
             integrator: Integrator::SemiImplicit,
             cg_tolerance: 1e-5,

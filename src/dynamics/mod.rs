@@ -8,6 +8,7 @@ mod constraint_tests;
 mod counters;
 mod force;
 mod material;
+mod material_grid;
 mod passes;
 mod region;
 mod simulator;
@@ -27,5 +28,9 @@ pub use force::{
     force_integral, gauss_legendre_unit, reaction_force, start_on_surface, surface_point_on_ray,
 };
 pub use material::{AccelSolver, Integrator, Material, Neighbourhood, StepParams};
+pub use material_grid::{
+    MaterialGrid, MaterialGridError, MaterialPaint, MaterialParam, PaintRegion, apply_grids,
+    paint_grids,
+};
 pub use region::{RegionError, RegionState};
 pub use simulator::{Simulator, StepError, StepReport};

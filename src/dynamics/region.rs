@@ -8,7 +8,8 @@
 
 use crate::field::{BSplineLattice, CoeffBox, KronError, KronScratch, KroneckerBasis, MassGrid};
 
-use super::material::Material;
+use super::material::{Material, Neighbourhood};
+use super::springs::offsets;
 
 /// Why a region could not be set up.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -63,6 +64,9 @@ pub struct RegionState {
     pub damping: Vec<f32>,
     /// Spring stiffness per mass point (a spring uses the mean of its two ends).
     pub stiffness: Vec<f32>,
+    /// Which neighbours the density springs join (from the material the region was made
+    /// with).
+    pub neighbourhood: Neighbourhood,
     /// Plastic drift rate, per second.
     pub plasticity_per_s: f32,
     /// Yield threshold of the plastic drift.
@@ -124,6 +128,7 @@ impl RegionState {
             mass: vec![material.mass; count],
             damping: vec![material.damping; count],
             stiffness: vec![material.stiffness; count],
+            neighbourhood: material.neighbourhood,
             plasticity_per_s: material.plasticity_per_s,
             yield_density: material.yield_density,
             dt_s: 0.0,
@@ -208,36 +213,30 @@ impl RegionState {
         tail.iter().all(|&m| m == first)
     }
 
-    /// Elastic energy `½ Σ k (Δe)²` over the springs (6-neighbourhood, anchors included) plus
-    /// kinetic energy `½ Σ μ ḋ²`, where `e = d − rest`. For tests and diagnostics.
+    /// Elastic energy `½ Σ w k (Δe)²` over the springs of the region's neighbourhood (anchors
+    /// included) plus kinetic energy `½ Σ μ ḋ²`, where `e = d − rest`. For tests and
+    /// diagnostics.
     #[must_use]
     pub fn energy(&self) -> f64 {
         let m = self.grid.dims;
-        let e = |i: usize, j: usize, k: usize| {
-            let n = self.point_index(i, j, k);
-            f64::from(self.d[n] - self.rest[n])
-        };
         let mut elastic = 0.0;
         for k in 0..m[2] {
             for j in 0..m[1] {
                 for i in 0..m[0] {
                     let n = self.point_index(i, j, k);
                     let kk = f64::from(self.stiffness[n]);
-                    let here = e(i, j, k);
-                    let c = [i, j, k];
-                    for axis in 0..3 {
-                        // Spring to the + neighbour, or an anchor at either face.
-                        if c[axis] + 1 < m[axis] {
-                            let mut o = c;
-                            o[axis] += 1;
-                            let kn = f64::from(self.stiffness[self.point_index(o[0], o[1], o[2])]);
-                            let diff = e(o[0], o[1], o[2]) - here;
-                            elastic += 0.25 * (kk + kn) * diff * diff;
+                    let here = f64::from(self.d[n] - self.rest[n]);
+                    for (o, w) in offsets(self.neighbourhood) {
+                        let w = f64::from(w);
+                        let q = [i as i64 + o[0], j as i64 + o[1], k as i64 + o[2]];
+                        if (0..3).all(|a| q[a] >= 0 && q[a] < m[a] as i64) {
+                            // Each spring is seen from both ends: half its energy each time.
+                            let nq = self.point_index(q[0] as usize, q[1] as usize, q[2] as usize);
+                            let kn = f64::from(self.stiffness[nq]);
+                            let diff = f64::from(self.d[nq] - self.rest[nq]) - here;
+                            elastic += 0.125 * w * (kk + kn) * diff * diff;
                         } else {
-                            elastic += 0.5 * kk * here * here;
-                        }
-                        if c[axis] == 0 {
-                            elastic += 0.5 * kk * here * here;
+                            elastic += 0.5 * w * kk * here * here;
                         }
                     }
                 }

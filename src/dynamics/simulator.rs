@@ -334,7 +334,7 @@ impl Simulator {
         self.gather_forces_over(state, lattice, others, forces);
         times.gather_forces_ns = elapsed_ns(t);
 
-        let fused = self.params.neighbourhood == Neighbourhood::Six
+        let fused = state.neighbourhood == Neighbourhood::Six
             && self.params.solver == AccelSolver::Auto
             && state.mass_is_uniform();
         let solved = if fused {
@@ -529,7 +529,7 @@ impl Simulator {
     /// springs toward the rest densities, and damping `−γ ḋ`.
     pub fn spring_forces(&mut self, state: &RegionState) {
         self.ensure_scratch(state);
-        if self.params.neighbourhood == Neighbourhood::Six {
+        if state.neighbourhood == Neighbourhood::Six {
             let fields = SpringFields {
                 dims: state.grid.dims,
                 d: &state.d,
@@ -555,7 +555,7 @@ impl Simulator {
             &state.d,
             &state.rest,
             &state.stiffness,
-            self.params.neighbourhood,
+            state.neighbourhood,
             &mut self.e,
             &mut self.force,
         );
@@ -1194,6 +1194,103 @@ mod tests {
         assert!(res < 1e-4 * norm, "residual {res} of {norm}");
     }
 
+    /// Gaussian elimination with partial pivoting on a dense `n × n` system (row-major).
+    fn dense_solve(mut a: Vec<f64>, mut b: Vec<f64>, n: usize) -> Vec<f64> {
+        for c in 0..n {
+            let p = (c..n)
+                .max_by(|&x, &y| a[x * n + c].abs().total_cmp(&a[y * n + c].abs()))
+                .unwrap();
+            for k in 0..n {
+                a.swap(c * n + k, p * n + k);
+            }
+            b.swap(c, p);
+            for r in c + 1..n {
+                let f = a[r * n + c] / a[c * n + c];
+                for k in c..n {
+                    a[r * n + k] -= f * a[c * n + k];
+                }
+                b[r] -= f * b[c];
+            }
+        }
+        let mut x = vec![0.0; n];
+        for r in (0..n).rev() {
+            let s: f64 = (r + 1..n).map(|k| a[r * n + k] * x[k]).sum();
+            x[r] = (b[r] - s) / a[r * n + r];
+        }
+        x
+    }
+
+    /// A painted mass (a heavy half ten times the light one) makes `AᵀMA` non-Kronecker: the
+    /// conjugate gradients preconditioned by the mean-mass Kronecker inverse converge, within
+    /// the default tolerance and iteration cap, to the direct dense solve.
+    #[test]
+    fn conjugate_gradient_converges_to_the_direct_solve_for_a_painted_mass() {
+        let lattice = sphere();
+        let b = CoeffBox {
+            min: [10, 6, 6],
+            max: [13, 9, 9],
+        };
+        let mut state = RegionState::new(&lattice, b, [7, 7, 7], Material::ELASTIC).unwrap();
+        for k in 0..7 {
+            for j in 0..7 {
+                for i in 0..7 {
+                    let n = state.point_index(i, j, k);
+                    state.mass[n] = if i < 3 { 10.0 } else { 1.0 };
+                }
+            }
+        }
+        for (n, d) in state.d.iter_mut().enumerate() {
+            *d += 0.05 * ((n * 7 % 11) as f32 / 11.0 - 0.5);
+        }
+        let params = StepParams::default();
+        let mut sim = Simulator::new(params);
+        sim.ensure_scratch(&state);
+        let force = grab(&lattice, CENTRE + Vec3::new(0.3, -0.1, -0.1), GAIN);
+        sim.gather_forces(&state, &lattice, force.as_slice());
+        sim.spring_forces(&state);
+        let (_, iterations) = sim.solve_accel(&state).unwrap();
+        assert!(
+            iterations > 0 && iterations < params.cg_max_iterations,
+            "{iterations} iterations"
+        );
+        let cg = sim.last_accel().to_vec();
+
+        // The dense system, column by column from the same operators, solved in f64.
+        let n = state.p.len();
+        let mut ks = KronScratch::for_basis(&state.basis);
+        let mut tmp = vec![0.0; state.d.len()];
+        let (mut unit, mut col) = (vec![0.0_f32; n], vec![0.0_f32; n]);
+        let mut h = vec![0.0_f64; n * n];
+        for c in 0..n {
+            unit.fill(0.0);
+            unit[c] = 1.0;
+            Simulator::apply_h(
+                &state.basis,
+                &state.mass,
+                &unit,
+                &mut col,
+                &mut tmp,
+                &mut ks,
+            );
+            for r in 0..n {
+                h[r * n + c] = f64::from(col[r]);
+            }
+        }
+        let mut rhs = vec![0.0_f32; n];
+        state.basis.apply_transpose(&sim.force, &mut rhs, &mut ks);
+        let direct = dense_solve(h, rhs.iter().map(|&v| f64::from(v)).collect(), n);
+        let scale = direct.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        let worst = cg
+            .iter()
+            .zip(&direct)
+            .fold(0.0_f64, |m, (&a, &b)| m.max((f64::from(a) - b).abs()));
+        assert!(scale > 0.0);
+        assert!(
+            worst < 1e-3 * scale,
+            "CG off the direct solve by {worst} of {scale} after {iterations} iterations"
+        );
+    }
+
     #[test]
     fn small_regions_step_on_one_thread_and_large_ones_on_the_faster_count() {
         let mut c = ThreadChoice::default();
@@ -1298,10 +1395,44 @@ mod tests {
 
     #[test]
     fn two_threads_give_bit_identical_steps() {
-        for (mass_dims, integrator, neighbourhood) in [
-            ([15, 15, 15], Integrator::SemiImplicit, Neighbourhood::Six),
-            ([8, 8, 8], Integrator::SemiImplicit, Neighbourhood::Six),
-            ([11, 9, 13], Integrator::Explicit, Neighbourhood::Eighteen),
+        // `painted`: mass, damping and stiffness vary over the region (a painted material).
+        for (mass_dims, integrator, neighbourhood, painted) in [
+            (
+                [15, 15, 15],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                false,
+            ),
+            (
+                [8, 8, 8],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                false,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::Explicit,
+                Neighbourhood::Eighteen,
+                false,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::SemiImplicit,
+                Neighbourhood::TwentySix,
+                false,
+            ),
+            (
+                [15, 15, 15],
+                Integrator::SemiImplicit,
+                Neighbourhood::Six,
+                true,
+            ),
+            (
+                [11, 9, 13],
+                Integrator::SemiImplicit,
+                Neighbourhood::TwentySix,
+                true,
+            ),
         ] {
             let mut runs = Vec::new();
             for threads in [1, 2] {
@@ -1310,12 +1441,22 @@ mod tests {
                     min: [10, 6, 6],
                     max: [17, 13, 13],
                 };
-                let mut state =
-                    RegionState::new(&lattice, b, mass_dims, Material::PLASTIC).unwrap();
+                let material = Material {
+                    neighbourhood,
+                    ..Material::PLASTIC
+                };
+                let mut state = RegionState::new(&lattice, b, mass_dims, material).unwrap();
+                if painted {
+                    for n in 0..state.mass.len() {
+                        let f = 1.0 + (n % 7) as f32 / 7.0;
+                        state.mass[n] *= f;
+                        state.damping[n] *= 2.0 - f;
+                        state.stiffness[n] *= f * f;
+                    }
+                }
                 let mut sim = Simulator::new(StepParams {
                     threads,
                     integrator,
-                    neighbourhood,
                     resync_every: 7,
                     ..StepParams::default()
                 });

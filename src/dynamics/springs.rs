@@ -1,8 +1,8 @@
 //! Density-spring forces on a mass grid: a spring between neighbours `i`, `j` pulls with
 //! `k_ij ((d_j − d_i) − (r_j − r_i))` along the density axis only, with `k_ij` the mean of the
-//! two points' stiffness times the neighbourhood weight (1, 1/√2, 1/√3 for face, edge and
-//! corner springs). A neighbour outside the grid is fixed at its rest density, so the spring
-//! to it pulls with `k_i (r_i − d_i)`. Each spring is evaluated from both ends, row by row, so
+//! two points' stiffness times the spring's weight ([`Neighbourhood::weight`]: scaled by its
+//! rest length and normalised over the stencil). A neighbour outside the grid is fixed at its
+//! rest density, so the spring to it pulls with `w k_i (r_i − d_i)`. Each spring is evaluated from both ends, row by row, so
 //! the inner loops are contiguous and vectorise.
 //!
 //! The six-neighbour springs (the default) have a fused kernel: one pass over the rows that
@@ -20,18 +20,14 @@ use super::material::Neighbourhood;
 /// Lanes of the fused kernel.
 const W: usize = 8;
 
-/// Offsets of the neighbourhood with their weights.
-fn offsets(nb: Neighbourhood) -> impl Iterator<Item = ([i64; 3], f32)> {
-    let max_order = match nb {
-        Neighbourhood::Six => 1,
-        Neighbourhood::Eighteen => 2,
-        Neighbourhood::TwentySix => 3,
-    };
+/// Offsets of the neighbourhood with their weights ([`Neighbourhood::weight`]).
+pub(crate) fn offsets(nb: Neighbourhood) -> impl Iterator<Item = ([i64; 3], f32)> {
+    let max_order = i64::from(nb.max_order());
     (-1..=1_i64).flat_map(move |z| {
         (-1..=1_i64).flat_map(move |y| {
             (-1..=1_i64).filter_map(move |x| {
                 let order = x.abs() + y.abs() + z.abs();
-                (order >= 1 && order <= max_order).then(|| ([x, y, z], 1.0 / (order as f32).sqrt()))
+                (order >= 1 && order <= max_order).then(|| ([x, y, z], nb.weight(order as u32)))
             })
         })
     })
@@ -381,6 +377,64 @@ mod tests {
         assert_eq!(offsets(Neighbourhood::Six).count(), 6);
         assert_eq!(offsets(Neighbourhood::Eighteen).count(), 18);
         assert_eq!(offsets(Neighbourhood::TwentySix).count(), 26);
+        for nb in Neighbourhood::ALL {
+            assert_eq!(offsets(nb).count(), nb.count() as usize);
+            assert_eq!(Neighbourhood::from_count(nb.count()), Some(nb));
+        }
+        assert_eq!(Neighbourhood::from_count(12), None);
+        // The face springs of the six-neighbour stencil keep weight 1 exactly (the fused
+        // kernel and every stored result assume it).
+        assert!(offsets(Neighbourhood::Six).all(|(_, w)| w == 1.0));
+    }
+
+    /// The normalisation: every stencil has the same second moment `Σ w o oᵀ = 2 I`, so a
+    /// smooth deformation `e` meets the same spring force `Σ w (e(x + o) − e(x)) = ∇²e` (in
+    /// units of `h²`); a linear `e` meets none; and the 18-neighbour stencil is isotropic to
+    /// fourth order (`Σ w (o·u)⁴` the same along an axis and a diagonal).
+    #[test]
+    fn every_stencil_resists_a_smooth_deformation_alike() {
+        for nb in Neighbourhood::ALL {
+            let mut m2 = [[0.0_f64; 3]; 3];
+            let mut first = [0.0_f64; 3];
+            for (o, w) in offsets(nb) {
+                for a in 0..3 {
+                    first[a] += f64::from(w) * o[a] as f64;
+                    for b in 0..3 {
+                        m2[a][b] += f64::from(w) * (o[a] * o[b]) as f64;
+                    }
+                }
+            }
+            for a in 0..3 {
+                assert!(first[a].abs() < 1e-6, "{nb:?}");
+                for b in 0..3 {
+                    let want = if a == b { 2.0 } else { 0.0 };
+                    assert!(
+                        (m2[a][b] - want).abs() < 1e-6,
+                        "{nb:?} {a}{b}: {}",
+                        m2[a][b]
+                    );
+                }
+            }
+        }
+        let fourth = |nb: Neighbourhood, u: [f64; 3]| -> f64 {
+            offsets(nb)
+                .map(|(o, w)| {
+                    let d: f64 = (0..3).map(|a| o[a] as f64 * u[a]).sum();
+                    f64::from(w) * d.powi(4)
+                })
+                .sum()
+        };
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let ratio = |nb| fourth(nb, [s, s, 0.0]) / fourth(nb, [1.0, 0.0, 0.0]);
+        assert!((ratio(Neighbourhood::Eighteen) - 1.0).abs() < 1e-6);
+        // The six-neighbour stencil is half as stiff along a diagonal at fourth order; the
+        // 26-neighbour one is closer to even.
+        assert!((ratio(Neighbourhood::Six) - 0.5).abs() < 1e-6);
+        let r26 = ratio(Neighbourhood::TwentySix);
+        assert!(
+            (r26 - 1.0).abs() < (ratio(Neighbourhood::Six) - 1.0).abs(),
+            "{r26}"
+        );
     }
 
     #[test]
@@ -390,11 +444,7 @@ mod tests {
         let d: Vec<f32> = (0..n).map(|i| ((i * 7) % 5) as f32 * 0.1).collect();
         let rest: Vec<f32> = (0..n).map(|i| ((i * 3) % 4) as f32 * 0.05).collect();
         let stiff: Vec<f32> = (0..n).map(|i| 1.0 + (i % 3) as f32).collect();
-        for nb in [
-            Neighbourhood::Six,
-            Neighbourhood::Eighteen,
-            Neighbourhood::TwentySix,
-        ] {
+        for nb in Neighbourhood::ALL {
             let mut e = vec![0.0; n];
             let mut f = vec![0.0; n];
             add_spring_forces(dims, &d, &rest, &stiff, nb, &mut e, &mut f);

@@ -172,6 +172,9 @@ pub enum CommandError {
     /// A detail patch could not be added (nothing changed).
     #[error("refine: {0}")]
     Refine(#[from] crate::field::DetailError),
+    /// A material paint was refused (nothing changed).
+    #[error(transparent)]
+    Material(#[from] crate::dynamics::MaterialGridError),
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,

@@ -7,8 +7,9 @@
 //! Steps run in file order against one script clock (seconds; the device's clock during a
 //! run, so a lockstep run is exactly reproducible):
 //!
-//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `constrain`,
-//!   `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`, `points`) takes no script time. It is sent when the clock reaches the end of everything
+//! - A step that is not a stroke (`tool`, `preset`, `csg`, `material`, `paint_material`,
+//!   `constrain`, `unconstrain`, `undo`, `redo`, `save`, `particles`, `rbf`, `points`) takes
+//!   no script time. It is sent when the clock reaches the end of everything
 //!   before it — after the previous stroke has ended with the hand back at hover — and the
 //!   simulation applies it between two steps, in file order, before the next stroke starts.
 //!   Tool steps dwell for their own `duration_s` of tool time, not script time.
@@ -35,7 +36,7 @@ use super::workspace::WorkspaceMap;
 use crate::dynamics::Material;
 use crate::io::{
     ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
-    parse_script, pin_request, poses,
+    paint_request, parse_script, pin_request, poses,
 };
 use crate::tools::{
     Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
@@ -98,6 +99,8 @@ pub enum PlannedAction {
     SetTool(ToolChoice),
     /// Use this material from now on.
     SetMaterial(Material),
+    /// Paint mass, damping or stiffness into a region.
+    PaintMaterial(crate::dynamics::MaterialPaint),
     /// A geometric tool step.
     ApplyTool {
         tool: GeometricTool,
@@ -386,6 +389,11 @@ impl ScriptPlan {
                 ScriptStep::Material { .. } => {
                     material = step.updated_material(material);
                     event(PlannedAction::SetMaterial(material));
+                }
+                ScriptStep::PaintMaterial { .. } => {
+                    if let Some(paint) = paint_request(step).map_err(|f| fail(f.message))? {
+                        event(PlannedAction::PaintMaterial(paint));
+                    }
                 }
                 ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),
                 ScriptStep::Refine { min, max, level } => event(PlannedAction::Refine {

@@ -205,6 +205,9 @@ impl ScriptDriver {
         let batch: Vec<Command> = match event.action {
             PlannedAction::SetTool(t) => vec![Command::SetTool(t)],
             PlannedAction::SetMaterial(m) => vec![Command::SetMaterial(m)],
+            PlannedAction::PaintMaterial(paint) => {
+                vec![Command::PaintMaterial { paint, reply: None }]
+            }
             PlannedAction::ApplyTool {
                 tool,
                 poses,

@@ -39,6 +39,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod commands;
 mod compact;
 mod constrain;
+mod material;
 mod publication;
 mod session_io;
 
@@ -155,6 +156,12 @@ pub struct SimulationStage {
     region: Option<RegionState>,
     /// The density patch the region simulates (its lattice is the one stepped).
     region_patch: usize,
+    /// The uniform material the live region was made with (before its patch's volume
+    /// ratio), under the painted grids.
+    region_material: Material,
+    /// The painted material: grids of mass, damping and stiffness over the base patch (see
+    /// `material.rs`), applied to every region's mass points.
+    material_grids: Vec<crate::io::MaterialGrid>,
     /// The clay's pins as the live region holds them (see `constrain.rs`).
     region_pins: ConstraintSolver,
     /// Bumped by every command that may change the clay's pins (see [`SimStatus`]).
@@ -266,6 +273,8 @@ impl SimulationStage {
             simulator: Simulator::new(config.step),
             region: None,
             region_patch: 0,
+            region_material: config.material,
+            material_grids: Vec::new(),
             region_pins: ConstraintSolver::empty(),
             pins_revision: 0,
             idle_steps: 0,
@@ -586,15 +595,12 @@ impl SimulationStage {
         let s = self.config.samples_per_span.max(1);
         let mass_dims = [(n[0] - 1) * s + 1, (n[1] - 1) * s + 1, (n[2] - 1) * s + 1];
         let lattice = &self.clay.density.patches[patch].lattice;
-        // A detail patch's mass points hold less clay than the base's.
-        let ratio = (lattice.spacing / self.clay.base().spacing).powi(3);
-        let material = if patch == 0 {
-            self.config.material
-        } else {
-            self.config.material.for_volume_ratio(ratio)
-        };
-        match RegionState::new(lattice, b, mass_dims, material) {
-            Ok(state) => self.region = Some(state),
+        self.region_material = self.config.material;
+        match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
+            Ok(mut state) => {
+                self.apply_painted_material(&mut state);
+                self.region = Some(state);
+            }
             Err(_) => self.counters.command_errors(1),
         }
         self.rebuild_pins();

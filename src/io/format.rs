@@ -12,7 +12,9 @@
 //! Sections in order: `META` (JSON metadata), one `PTCH` per patch (a lattice), `MATL`
 //! (material: mass, damping, stiffness, plasticity, yield, then named grids), `COLR` (four lattices, only when the clay has colour), `TOOL` (the tool
 //! library), `PINS` (the clay's geometric constraints as a JSON list, only when it has some;
-//! files without it read as having none), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
+//! files without it read as having none), `SPRG` (the material's spring neighbourhood as a
+//! `u32`: 18 or 26, only when it is not the six-neighbour default; files without it read as
+//! six), `END ` (empty). A lattice is dims `3 × u32`, spacing `f32`, origin `3 × f32`,
 //! iso `f32`, coefficient count `u64`, coefficients `f32`. Sections with unknown tags are
 //! checked and skipped, so later minor additions stay readable.
 //!
@@ -26,7 +28,7 @@ use glam::{Affine3A, Vec3};
 
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
-use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material};
+use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material, Neighbourhood};
 use crate::field::{BSplineLattice, Patch};
 use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
 
@@ -42,6 +44,7 @@ const MATERIAL: [u8; 4] = *b"MATL";
 const COLOUR: [u8; 4] = *b"COLR";
 const TOOLS: [u8; 4] = *b"TOOL";
 const PINS: [u8; 4] = *b"PINS";
+const SPRINGS: [u8; 4] = *b"SPRG";
 const END: [u8; 4] = *b"END ";
 
 /// Serialises a session.
@@ -128,6 +131,13 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
             Ok(())
         })?;
     }
+    let neighbourhood = session.material.uniform.neighbourhood;
+    if neighbourhood != Neighbourhood::Six {
+        section(&mut out, SPRINGS, &mut |o| {
+            o.extend_from_slice(&neighbourhood.count().to_le_bytes());
+            Ok(())
+        })?;
+    }
     section(&mut out, END, &mut |_| Ok(()))?;
     out[12..16].copy_from_slice(&count.to_le_bytes());
     let crc = crc32fast::hash(&out[..20]);
@@ -199,6 +209,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
     let mut session = Session::default();
     let mut meta_seen = false;
     let mut material_seen = false;
+    let mut neighbourhood = Neighbourhood::Six;
     let mut ended = false;
     let mut pos = HEADER_LEN;
     for index in 0..count {
@@ -274,11 +285,21 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
             }
             TOOLS => session.tools = decode_tools(&mut r)?,
             PINS => session.clay.constraints = decode_pins(&r)?,
+            SPRINGS => {
+                let count = r.u32()?;
+                let Some(nb) = Neighbourhood::from_count(count) else {
+                    r.at = 0;
+                    return Err(r.error(&format!(
+                        "spring neighbourhood {count}; it must be 6, 18 or 26"
+                    )));
+                };
+                neighbourhood = nb;
+            }
             END => ended = true,
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
         }
-        if matches!(tag, PATCH | MATERIAL | COLOUR | TOOLS | END) {
+        if matches!(tag, PATCH | MATERIAL | COLOUR | TOOLS | SPRINGS | END) {
             r.finish()?;
         }
         pos = end + 4;
@@ -297,6 +318,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
     if !meta_seen || !material_seen {
         return Err(malformed(path, "header", 0, "missing META or MATL section"));
     }
+    session.material.uniform.neighbourhood = neighbourhood;
     Ok(session)
 }
 
@@ -421,6 +443,8 @@ fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
             stiffness: r.f32()?,
             plasticity_per_s: r.f32()?,
             yield_density: r.f32()?,
+            // From the `SPRG` section, when there is one.
+            neighbourhood: Neighbourhood::Six,
         },
         grids: Vec::new(),
     };
@@ -444,8 +468,14 @@ fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
                 "material grid {name}: {len} values for dims {dims:?}"
             )));
         }
+        let values_at = r.at;
         let values = r.f32s(len)?;
-        m.grids.push(MaterialGrid { name, dims, values });
+        let grid = MaterialGrid { name, dims, values };
+        if let Err(e) = grid.validate() {
+            r.at = values_at;
+            return Err(r.error(&e.to_string()));
+        }
+        m.grids.push(grid);
     }
     Ok(m)
 }
@@ -933,6 +963,31 @@ mod tests {
             err.contains("PINS") && err.contains("constraint 0"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn the_spring_neighbourhood_round_trips_and_old_files_read_as_six() {
+        let mut session = sample_session();
+        let path = Path::new("springs.dclay");
+        // Six (the default): no SPRG section, the bytes older builds wrote.
+        let six = encode(&session).unwrap();
+        assert!(!six.windows(4).any(|w| w == SPRINGS));
+        let back = decode(&six, path).unwrap();
+        assert_eq!(back.material.uniform.neighbourhood, Neighbourhood::Six);
+        for nb in [Neighbourhood::Eighteen, Neighbourhood::TwentySix] {
+            session.material.uniform.neighbourhood = nb;
+            let bytes = encode(&session).unwrap();
+            assert!(bytes.windows(4).any(|w| w == SPRINGS));
+            assert_eq!(decode(&bytes, path).unwrap(), session);
+        }
+        // A count that is no neighbourhood is refused, naming the section.
+        let mut bytes = encode(&session).unwrap();
+        let at = bytes.windows(4).position(|w| w == SPRINGS).unwrap();
+        bytes[at + 12..at + 16].copy_from_slice(&12_u32.to_le_bytes());
+        let crc = crc32fast::hash(&bytes[at..at + 16]);
+        bytes[at + 16..at + 20].copy_from_slice(&crc.to_le_bytes());
+        let err = decode(&bytes, path).unwrap_err().to_string();
+        assert!(err.contains("SPRG") && err.contains("12"), "{err}");
     }
 
     #[test]

@@ -40,7 +40,10 @@ use std::path::PathBuf;
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::dynamics::{Distribution, MAX_CONSTRAINTS, MAX_CURVE_POINTS, Material};
+use crate::dynamics::{
+    Distribution, MAX_CONSTRAINTS, MAX_CURVE_POINTS, Material, MaterialPaint, Neighbourhood,
+    PaintRegion,
+};
 use crate::tools::{ForceTool, PinRequest, ToolAction, ToolPose, ToolShape};
 
 /// The version of the script format this build reads.
@@ -567,6 +570,29 @@ pub enum ScriptStep {
         plasticity_per_s: Option<f32>,
         #[serde(default)]
         yield_density: Option<f32>,
+        /// Which grid neighbours the density springs join: 6, 18 or 26.
+        #[serde(default)]
+        neighbourhood: Option<u32>,
+    },
+    /// Paint mass, damping or stiffness into a region of the clay: a ball (`centre`,
+    /// `radius_fu`) or a box (`min`, `max`), field coordinates. Values absent keep what is
+    /// there; the simulation uses the painted values where they are (Hua & Qin's material
+    /// distributions). Takes no script time; not an undo step.
+    PaintMaterial {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        centre: Option<[f32; 3]>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        radius_fu: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        min: Option<[f32; 3]>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        max: Option<[f32; 3]>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        mass: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        damping: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        stiffness: Option<f32>,
     },
     /// CSG with the clay of another session file (relative to the script's folder).
     Csg {
@@ -746,6 +772,98 @@ pub fn pin_request(
     }
 }
 
+/// The paint a `paint_material` step asks for.
+///
+/// # Errors
+/// When the region is not exactly one of a ball (`centre` and `radius_fu`) or a box (`min`
+/// and `max`), is not finite or is empty, or when no value is given or a value is out of
+/// range (mass positive; damping and stiffness zero or more).
+pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFault> {
+    let ScriptStep::PaintMaterial {
+        centre,
+        radius_fu,
+        min,
+        max,
+        mass,
+        damping,
+        stiffness,
+    } = *step
+    else {
+        return Ok(None);
+    };
+    let region = match (centre, radius_fu, min, max) {
+        (Some(centre), Some(radius_fu), None, None) => {
+            check_points("centre", &[centre], true)?;
+            if !(radius_fu.is_finite() && radius_fu > 0.0) {
+                return Err(fault(
+                    "radius_fu",
+                    format!("radius_fu = {radius_fu} must be finite and positive"),
+                ));
+            }
+            PaintRegion::Sphere {
+                centre: Vec3::from_array(centre),
+                radius_fu,
+            }
+        }
+        (None, None, Some(min), Some(max)) => {
+            check_points("min", &[min], true)?;
+            check_points("max", &[max], true)?;
+            if (0..3).any(|a| min[a] > max[a]) {
+                return Err(fault(
+                    "max",
+                    format!("the box {min:?}..{max:?} is empty: max must not be below min"),
+                ));
+            }
+            PaintRegion::Box {
+                min: Vec3::from_array(min),
+                max: Vec3::from_array(max),
+            }
+        }
+        (Some(_), None, _, _) => {
+            return Err(fault("centre", "centre: a ball also needs radius_fu"));
+        }
+        (None, Some(_), _, _) => {
+            return Err(fault("radius_fu", "radius_fu: a ball also needs centre"));
+        }
+        (Some(_), Some(_), _, _) => {
+            return Err(fault(
+                "min",
+                "min, max: give a ball (centre, radius_fu) or a box (min, max), not both",
+            ));
+        }
+        (None, None, _, _) => {
+            return Err(fault(
+                "do",
+                "paint_material needs a ball (centre, radius_fu) or a box (min, max)",
+            ));
+        }
+    };
+    for (name, v) in [
+        ("mass", mass),
+        ("damping", damping),
+        ("stiffness", stiffness),
+    ] {
+        if let Some(v) = v {
+            finite(name, v)?;
+        }
+    }
+    if mass.is_some_and(|m| m <= 0.0) {
+        return Err(fault("mass", "mass must be positive"));
+    }
+    if mass.is_none() && damping.is_none() && stiffness.is_none() {
+        return Err(fault(
+            "do",
+            "paint_material needs at least one of mass, damping, stiffness",
+        ));
+    }
+    Ok(Some(MaterialPaint {
+        region,
+        mass,
+        damping,
+        stiffness,
+    }))
+}
+
 impl ShapeSpec {
     /// The tool shape; `freeform` looks up `preset` with `library` (name → shape).
     ///
@@ -816,12 +934,17 @@ impl ScriptStep {
                 stiffness,
                 plasticity_per_s,
                 yield_density,
+                neighbourhood,
             } => Material {
                 mass: mass.unwrap_or(m.mass),
                 damping: damping.unwrap_or(m.damping),
                 stiffness: stiffness.unwrap_or(m.stiffness),
                 plasticity_per_s: plasticity_per_s.unwrap_or(m.plasticity_per_s),
                 yield_density: yield_density.unwrap_or(m.yield_density),
+                // Checked to be 6, 18 or 26 when the script was parsed.
+                neighbourhood: neighbourhood
+                    .and_then(Neighbourhood::from_count)
+                    .unwrap_or(m.neighbourhood),
             },
             _ => m,
         }
@@ -1373,7 +1496,16 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             stiffness,
             plasticity_per_s,
             yield_density,
+            neighbourhood,
         } => {
+            if let Some(n) = neighbourhood
+                && Neighbourhood::from_count(*n).is_none()
+            {
+                return Err(fault(
+                    "neighbourhood",
+                    format!("neighbourhood = {n}: the springs join 6, 18 or 26 neighbours"),
+                ));
+            }
             for (name, v) in [
                 ("mass", mass),
                 ("damping", damping),
@@ -1390,6 +1522,7 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             }
             Ok(())
         }
+        ScriptStep::PaintMaterial { .. } => paint_request(step).map(|_| ()),
         ScriptStep::Undo { count } | ScriptStep::Redo { count } if *count > MAX_UNDO_COUNT => {
             Err(fault(
                 "count",
@@ -1840,6 +1973,97 @@ start_s = 3.0
         )
         .unwrap_err();
         assert_eq!(err.line, Some(5), "{err}");
+    }
+
+    #[test]
+    fn material_steps_take_a_neighbourhood_and_paints_a_ball_or_a_box() {
+        let step = |keys: &str| format!("version = 1\n\n[[step]]\n{keys}\n");
+        let s = parse_script(&step("do = \"material\"\nneighbourhood = 26"), "m.toml").unwrap();
+        let m = s.steps[0].updated_material(Material::PLASTIC);
+        assert_eq!(m.neighbourhood, Neighbourhood::TwentySix);
+        assert_eq!(m.stiffness, Material::PLASTIC.stiffness);
+        let err =
+            parse_script(&step("do = \"material\"\nneighbourhood = 12"), "m.toml").unwrap_err();
+        assert!(
+            err.to_string().contains("6, 18 or 26") && err.line == Some(5),
+            "{err}"
+        );
+
+        let paint = |keys: &str| step(&format!("do = \"paint_material\"\n{keys}"));
+        let s = parse_script(
+            &paint("centre = [1.0, 1.5, 1.0]\nradius_fu = 0.2\nstiffness = 5000.0"),
+            "p.toml",
+        )
+        .unwrap();
+        assert_eq!(
+            paint_request(&s.steps[0]).unwrap(),
+            Some(MaterialPaint {
+                region: PaintRegion::Sphere {
+                    centre: Vec3::new(1.0, 1.5, 1.0),
+                    radius_fu: 0.2
+                },
+                mass: None,
+                damping: None,
+                stiffness: Some(5000.0),
+            })
+        );
+        let s = parse_script(
+            &paint("min = [0.0, 0.0, 0.0]\nmax = [1.0, 2.0, 3.0]\nmass = 4.0\ndamping = 0.0"),
+            "p.toml",
+        )
+        .unwrap();
+        let p = paint_request(&s.steps[0]).unwrap().unwrap();
+        assert_eq!(
+            (p.mass, p.damping, p.stiffness),
+            (Some(4.0), Some(0.0), None)
+        );
+        assert!(matches!(p.region, PaintRegion::Box { .. }));
+        // Round trip through the serde types.
+        let text = toml::to_string(&s).unwrap();
+        assert_eq!(parse_script(&text, "again").unwrap(), s);
+        let bad = [
+            ("stiffness = 5.0", "needs a ball"),
+            (
+                "centre = [1.0, 1.0, 1.0]\nstiffness = 5.0",
+                "also needs radius_fu",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nmass = 1.0",
+                "not both",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.0\nmass = 1.0",
+                "radius_fu = 0",
+            ),
+            (
+                "min = [0.0, 2.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nmass = 1.0",
+                "empty",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nmass = 0.0",
+                "mass must be positive",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nstiffness = -1.0",
+                "stiffness = -1",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2",
+                "at least one of",
+            ),
+            (
+                "centre = [1.0, nan, 1.0]\nradius_fu = 0.2\nmass = 1.0",
+                "not finite",
+            ),
+        ];
+        for (keys, expected) in bad {
+            let err = parse_script(&paint(keys), "paint.toml").unwrap_err();
+            let shown = err.to_string();
+            assert!(
+                shown.contains(expected) && shown.contains("paint.toml") && err.line.is_some(),
+                "{keys}: {shown}"
+            );
+        }
     }
 
     #[test]

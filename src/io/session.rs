@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::dynamics::Material;
+pub use crate::dynamics::MaterialGrid;
 use crate::tools::{Clay, ToolAction, ToolShape};
 
 /// Descriptive metadata stored with a session.
@@ -19,22 +20,14 @@ pub struct SessionMeta {
     pub writer: String,
 }
 
-/// One spatially varying material parameter, sampled on a grid (x fastest).
-#[derive(Clone, Debug, PartialEq)]
-pub struct MaterialGrid {
-    /// Which parameter: `stiffness`, `damping`, `mass` or `plasticity`.
-    pub name: String,
-    pub dims: [usize; 3],
-    pub values: Vec<f32>,
-}
-
-/// The material: uniform defaults for the density-spring dynamics, optionally overridden by
-/// per-mass-point grids.
+/// The material: uniform defaults for the density-spring dynamics (and the springs'
+/// neighbourhood), overridden where grids of mass, damping or stiffness are painted (the
+/// simulation applies them at its mass points; see [`MaterialGrid`]).
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct MaterialFields {
     /// The region's uniform material (mass, damping, stiffness, plasticity, yield).
     pub uniform: Material,
-    /// Spatially varying overrides.
+    /// Spatially varying overrides over the base patch.
     pub grids: Vec<MaterialGrid>,
 }
 

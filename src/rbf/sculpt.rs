@@ -376,6 +376,7 @@ fn step_name(step: &ScriptStep) -> &'static str {
         ScriptStep::Preset { .. } => "preset",
         ScriptStep::Stroke { .. } => "stroke",
         ScriptStep::Material { .. } => "material",
+        ScriptStep::PaintMaterial { .. } => "paint_material",
         ScriptStep::Csg { .. } => "csg",
         ScriptStep::Undo { .. } => "undo",
         ScriptStep::Redo { .. } => "redo",

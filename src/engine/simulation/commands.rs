@@ -42,6 +42,20 @@ impl SimulationStage {
                 self.config.material = m;
                 true
             }
+            Command::PaintMaterial { paint, reply } => {
+                let result = self.paint_material(&paint);
+                let ok = result.is_ok();
+                if let Some(r) = reply {
+                    let _ = r.send(result);
+                }
+                ok
+            }
+            Command::ClearMaterialPaint => {
+                self.material_grids
+                    .retain(|g| !g.param().is_some_and(|p| p.is_simulated()));
+                self.refresh_region_material();
+                true
+            }
             Command::StrokeStart => {
                 self.stroke_armed = true;
                 true

@@ -4,12 +4,10 @@
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
 
-/// What a loaded session holds besides its clay and its uniform material: the engine
-/// simulates a uniform material, and keeps the rest untouched so that saving loses nothing.
+/// What a loaded session holds besides its clay and its material: the engine keeps it
+/// untouched so that saving loses nothing.
 #[derive(Clone, Debug, Default)]
 pub(super) struct CarriedSections {
-    /// Spatially varying material grids (not applied by the simulation).
-    pub(super) material_grids: Vec<crate::io::MaterialGrid>,
     /// The tool library.
     pub(super) tools: Vec<crate::io::ToolPreset>,
     /// Name, creation time and writer of the session.
@@ -17,24 +15,24 @@ pub(super) struct CarriedSections {
 }
 
 impl SimulationStage {
-    /// The session as it stands: the clay (every density patch, its paint and pins) and the
-    /// uniform material, with every part of the loaded session the engine does not simulate
-    /// (material grids, tool library, metadata) carried through unchanged.
+    /// The session as it stands: the clay (every density patch, its paint and pins), the
+    /// uniform material and the painted material grids, with every part of the loaded session
+    /// the engine does not use (tool library, metadata) carried through unchanged.
     #[must_use]
     pub fn session(&self) -> Session {
         Session {
             clay: self.clay.clone(),
             material: MaterialFields {
                 uniform: self.config.material,
-                grids: self.carried.material_grids.clone(),
+                grids: self.material_grids.clone(),
             },
             tools: self.carried.tools.clone(),
             meta: self.carried.meta.clone(),
         }
     }
 
-    /// Installs `session` (read from `source`): the clay and the uniform material replace
-    /// the current ones, the active region is dropped, the undo history is cleared (its
+    /// Installs `session` (read from `source`): the clay, the uniform material and the
+    /// painted material grids replace the current ones, the active region is dropped, the undo history is cleared (its
     /// steps are differences against the replaced clay, meaningless on the new one) and the
     /// whole field is marked changed so both readers receive all of it. A stroke held across
     /// the load continues on the new clay as a new stroke (a new undo step).
@@ -48,7 +46,12 @@ impl SimulationStage {
         source: &std::path::Path,
     ) -> Result<String, LoadRefused> {
         check_loadable(&self.clay.density, &session, source)?;
-        let ignored_grids = session.material.grids.len();
+        let painted = session
+            .material
+            .grids
+            .iter()
+            .filter(|g| g.param().is_some_and(|p| p.is_simulated()))
+            .count();
         // The stroke in progress ends on the old clay (its step is dropped with the history).
         self.end_stroke_now();
         self.history.clear();
@@ -59,11 +62,8 @@ impl SimulationStage {
             meta,
         } = session;
         let patches = clay.density.patches.len();
-        self.carried = CarriedSections {
-            material_grids: material.grids,
-            tools,
-            meta,
-        };
+        self.carried = CarriedSections { tools, meta };
+        self.material_grids = material.grids;
         self.clay = clay;
 
         self.colour_dirty = true;
@@ -78,10 +78,8 @@ impl SimulationStage {
             d[1],
             d[2]
         );
-        if ignored_grids > 0 {
-            summary.push_str(&format!(
-                "; {ignored_grids} material grid(s) kept but not applied (the engine simulates a uniform material)"
-            ));
+        if painted > 0 {
+            summary.push_str(&format!("; {painted} painted material grid(s)"));
         }
         if patches > 1 {
             summary.push_str(&format!("; {patches} density patches"));
