@@ -404,15 +404,11 @@ mod tests {
                     }
                 }
             }
-            for a in 0..3 {
+            for (a, row) in m2.iter().enumerate() {
                 assert!(first[a].abs() < 1e-6, "{nb:?}");
-                for b in 0..3 {
+                for (b, &moment) in row.iter().enumerate() {
                     let want = if a == b { 2.0 } else { 0.0 };
-                    assert!(
-                        (m2[a][b] - want).abs() < 1e-6,
-                        "{nb:?} {a}{b}: {}",
-                        m2[a][b]
-                    );
+                    assert!((moment - want).abs() < 1e-6, "{nb:?} {a}{b}: {moment}");
                 }
             }
         }
