@@ -1056,18 +1056,7 @@ impl SculptApp {
         down: bool,
     ) {
         self.pointer.release();
-        let rect = response.rect;
-        let field = &self.link.field().value;
-        let hit = pos.filter(|p| rect.contains(*p)).and_then(|p| {
-            let size = rect.size().max(egui::vec2(1.0, 1.0));
-            let ndc = glam::Vec2::new(
-                2.0 * (p.x - rect.min.x) / size.x - 1.0,
-                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
-            );
-            let (origin, direction) = self.camera.ray_through(ndc, size.x / size.y);
-            crate::field::pick_surface(field, crate::field::Ray { origin, direction })
-                .map(|h| h.point)
-        });
+        let hit = self.clay_hit(response.rect, pos);
         if let Some(at) = hit {
             self.refine_at = Some(at);
         }
@@ -1077,6 +1066,23 @@ impl SculptApp {
             self.send(EngineCommand::PaintMaterial(paint));
         }
         self.sculpt_drag = self.material_brush.painting();
+    }
+
+    /// The clay surface point under the screen point `pos` of the view `rect`, if the ray
+    /// through it meets the clay.
+    fn clay_hit(&mut self, rect: egui::Rect, pos: Option<egui::Pos2>) -> Option<glam::Vec3> {
+        let p = pos.filter(|p| rect.contains(*p))?;
+        let size = rect.size().max(egui::vec2(1.0, 1.0));
+        let ndc = glam::Vec2::new(
+            2.0 * (p.x - rect.min.x) / size.x - 1.0,
+            1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+        );
+        let (origin, direction) = self.camera.ray_through(ndc, size.x / size.y);
+        crate::field::pick_surface(
+            &self.link.field().value,
+            crate::field::Ray { origin, direction },
+        )
+        .map(|h| h.point)
     }
 
     /// With pin mode on, the left button pins instead of sculpting: a click on the clay pins
@@ -1090,19 +1096,8 @@ impl SculptApp {
         modifiers: egui::Modifiers,
     ) {
         self.pointer.release();
-        let rect = response.rect;
-        let field = &self.link.field().value;
-        let spacing = field.finest_spacing();
-        let hit = pos.filter(|p| rect.contains(*p)).and_then(|p| {
-            let size = rect.size().max(egui::vec2(1.0, 1.0));
-            let ndc = glam::Vec2::new(
-                2.0 * (p.x - rect.min.x) / size.x - 1.0,
-                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
-            );
-            let (origin, direction) = self.camera.ray_through(ndc, size.x / size.y);
-            crate::field::pick_surface(field, crate::field::Ray { origin, direction })
-                .map(|h| h.point)
-        });
+        let spacing = self.link.field().value.finest_spacing();
+        let hit = self.clay_hit(response.rect, pos);
         // A gesture starts only with a press on the clay; a press beside it orbits.
         let starts = pressed && response.hovered() && hit.is_some();
         let held = down && (self.pins.tracing() || starts);
