@@ -15,8 +15,7 @@ use crate::io::{ClayShape, ClaySpec};
 /// calibration gives for the default block on the simulated arm).
 pub const DEFAULT_FORCE_N_PER_UNIT: f32 = 300.0;
 
-/// Knot spacing of the starting clay, field units.
-pub const CLAY_SPACING: f32 = 0.1;
+pub use crate::field::CLAY_SPACING;
 
 /// Everything the engine needs besides the device and the starting field.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -1,5 +1,8 @@
 //! The implicit solid: a uniform cubic B-spline field and the operators on it.
 
+/// Knot spacing of the starting clay and of imported clays, field units.
+pub const CLAY_SPACING: f32 = 0.1;
+
 mod axis;
 mod band;
 mod band_limited;

@@ -64,7 +64,7 @@ impl Default for CloudFitOptions {
     fn default() -> Self {
         Self {
             resolution: 32,
-            spacing: crate::engine::CLAY_SPACING,
+            spacing: crate::field::CLAY_SPACING,
             samples_per_span: 2,
             gap_spans: DEFAULT_GAP_SPANS,
         }

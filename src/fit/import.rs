@@ -483,7 +483,7 @@ fn fit_mesh_file(
         0.0,
         [grid.to_voxel(lo), grid.to_voxel(hi)],
         settings.resolution,
-        crate::engine::CLAY_SPACING,
+        crate::field::CLAY_SPACING,
         &options,
         progress,
     )
@@ -567,7 +567,7 @@ fn fit_volume_file(
         &volume,
         iso,
         settings.resolution,
-        crate::engine::CLAY_SPACING,
+        crate::field::CLAY_SPACING,
         &options,
         progress,
     )

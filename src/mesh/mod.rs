@@ -27,6 +27,7 @@ mod error;
 mod export;
 mod grid;
 mod octree;
+mod sink;
 mod source;
 mod stats;
 mod tables;
@@ -43,6 +44,7 @@ pub use grid::SampleGrid;
 pub use octree::{
     Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, WeldScratch, weld_pieces,
 };
+pub use sink::MeshSink;
 pub use source::{FnField, MAX_BLOCK, ScalarField};
 pub use stats::MeshStats;
 pub use tables::{

@@ -23,9 +23,8 @@ use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
 use super::system::{ParticleError, ParticleParams, ParticleSystem};
-use crate::engine::MeshSink;
 use crate::field::MultiPatchField;
-use crate::mesh::{BrickOctree, RefreshReport};
+use crate::mesh::{BrickOctree, MeshSink, RefreshReport};
 use crate::particles::ImplicitSurface;
 use crate::tools::ColourField;
 

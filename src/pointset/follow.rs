@@ -46,9 +46,8 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use super::error::PointSetError;
 use super::sampling::farthest_voronoi_vertex;
 use super::surface::PointSet;
-use crate::engine::MeshSink;
 use crate::field::MultiPatchField;
-use crate::mesh::{BrickOctree, RefreshReport};
+use crate::mesh::{BrickOctree, MeshSink, RefreshReport};
 use crate::tools::ColourField;
 
 /// Longest Newton step, in target spacings (a step that would go farther is cut short).
