@@ -86,6 +86,11 @@ pub enum EngineCommand {
     Load {
         path: PathBuf,
     },
+    /// The user's answer to the engine's question whether a step may remove more than half
+    /// the clay ([`crate::engine::RemovalQuestion`]).
+    AnswerRemoval {
+        yes: bool,
+    },
     /// Write the welded surface mesh to `path`; the format follows the extension.
     Export {
         path: PathBuf,
@@ -130,6 +135,7 @@ impl EngineCommand {
             Self::Unpin { .. } => "unpin",
             Self::Save { .. } => "save",
             Self::Load { .. } => "load",
+            Self::AnswerRemoval { .. } => "answer removal",
             Self::Export { .. } => "export",
             Self::ConnectDevice { .. } => "connect device",
             Self::DisconnectDevice => "disconnect device",

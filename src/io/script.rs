@@ -78,6 +78,10 @@ pub struct Script {
     /// a run prints each as a warning.
     #[serde(skip)]
     pub deprecated: Vec<DeprecatedKey>,
+    /// The line each step's table starts on (0 where unknown), for messages about a step
+    /// while the script runs.
+    #[serde(skip)]
+    pub step_lines: Vec<usize>,
 }
 
 /// Keys the format renamed when lengths on the clay got their true unit, as (old name, name
@@ -980,6 +984,9 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             key,
             replacement,
         })
+        .collect();
+    script.step_lines = (0..script.steps.len())
+        .map(|n| spans.step_line(n).unwrap_or(0))
         .collect();
     Ok(script)
 }

@@ -130,11 +130,14 @@ impl StampParams {
     /// The stamped clay density at a point after a dwell of `dt_s`: `f + rate · dt · def(1 − t)`,
     /// kept within `[0, 1]`. Only the stamp's own change is limited: a density the fit left a
     /// little outside the range is not pulled back where the stamp does nothing, so two short
-    /// applications do what one long one does.
+    /// applications do what one long one does. The bulge pushes clay aside and creates none:
+    /// a rise is weighted by the clay's [`presence`] at the point (iso-level `iso`), so it
+    /// grows from the surface and never in the air over the tool.
     #[inline]
     #[must_use]
-    pub fn apply(&self, clay: f32, tool: f32, dt_s: f32) -> f32 {
-        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * self.def(1.0 - tool))
+    pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
+        let change = self.rate_per_s * dt_s.max(0.0) * self.def(1.0 - tool);
+        limited_change(clay, pushed_aside(change, clay, iso))
     }
 }
 
@@ -144,8 +147,9 @@ impl StampParams {
 /// region) `β = 1`; outside, `β = t / c`, which meets the inside with matching value (0) and
 /// slope (`α`), so the surface is C¹ across the tool boundary; it fades to zero with the
 /// tool's potential. α < 0 dents the clay and raises a rim around the dent; α > 0 bulges it.
-/// The deformation applies only where there is clay (`f > 0`), so the tool never creates
-/// material in empty space.
+/// The deformation moves clay and creates none: a rise is weighted by the clay's
+/// [`presence`], so material grows only from the surface outward, never as a speck in the air
+/// where the fit's density is a little above zero (one connected clay at every α).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ContactParams {
     /// Strength and sign: negative dents, positive bulges.
@@ -156,6 +160,11 @@ pub struct ContactParams {
 }
 
 impl ContactParams {
+    /// The strongest contact a tool takes, either way: at `|α| = 3` one whole application
+    /// already moves a density by up to 1.5, more than its whole range, so a stronger α only
+    /// makes the tool faster than its rate says.
+    pub const MAX_ALPHA: f32 = 3.0;
+
     /// Contact deformation of strength `alpha` at the default rate.
     #[must_use]
     pub fn with_alpha(alpha: f32) -> Self {
@@ -170,12 +179,37 @@ impl ContactParams {
     #[inline]
     #[must_use]
     pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
-        if clay <= 0.0 || tool <= 0.0 {
+        if tool <= 0.0 {
             return clay;
         }
         let g = self.alpha * (tool - iso);
         let beta = if tool >= iso { 1.0 } else { tool / iso };
-        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * beta * g)
+        let change = self.rate_per_s * dt_s.max(0.0) * beta * g;
+        limited_change(clay, pushed_aside(change, clay, iso))
+    }
+}
+
+/// How much clay is at a point of density `clay` for a deformation to push aside, in
+/// `[0, 1]`: 0 up to half the iso-level (air, and the fit's small values around the clay), 1
+/// from the iso-level on (the clay), a smooth step between. Only the thin shell just outside
+/// the surface lies between, and every point of it is next to the clay, so a rise weighted
+/// by it grows the surface outward and cannot start an island.
+#[inline]
+#[must_use]
+pub fn presence(clay: f32, iso: f32) -> f32 {
+    let half = 0.5 * iso.max(f32::EPSILON);
+    let x = ((clay - half) / half).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// A deformation's `change` at a point of density `clay`: a fall as it is, a rise weighted by
+/// the clay's [`presence`] (deformations push clay aside; they do not create it).
+#[inline]
+fn pushed_aside(change: f32, clay: f32, iso: f32) -> f32 {
+    if change > 0.0 {
+        change * presence(clay, iso)
+    } else {
+        change
     }
 }
 
@@ -257,6 +291,30 @@ mod tests {
         .validate()
         .unwrap_err();
         assert!(e.0.starts_with("k ="));
+    }
+
+    #[test]
+    fn deformations_push_clay_aside_and_never_grow_it_in_the_air() {
+        let iso = 0.5;
+        let dent = ContactParams::with_alpha(-ContactParams::MAX_ALPHA);
+        let bulge = ContactParams::with_alpha(ContactParams::MAX_ALPHA);
+        let stamp = StampParams::default();
+        // Where the stamp's bulge peaks (v = s + m).
+        let t_bulge = 1.0 - (stamp.s + stamp.m);
+        // Air and the fit's small density around the clay, held for ten seconds in the rim of
+        // a dent, inside a bulge and in a stamp's bulge: nothing grows.
+        for f in [0.0, 0.05, 0.2, 0.25] {
+            assert_eq!(dent.apply(f, 0.25, iso, 10.0), f, "rim at {f}");
+            assert_eq!(bulge.apply(f, 0.9, iso, 10.0), f, "bulge at {f}");
+            assert_eq!(stamp.apply(f, t_bulge, iso, 10.0), f, "stamp at {f}");
+        }
+        // At the surface they rise as before.
+        assert!(dent.apply(0.45, 0.25, iso, 0.01) > 0.45);
+        assert!(bulge.apply(0.45, 0.9, iso, 0.01) > 0.45);
+        assert!(stamp.apply(0.45, t_bulge, iso, 0.01) > 0.45);
+        assert_eq!(presence(0.25, iso), 0.0);
+        assert_eq!(presence(0.5, iso), 1.0);
+        assert!(presence(0.4, iso) > presence(0.3, iso));
     }
 
     #[test]

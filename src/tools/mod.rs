@@ -16,14 +16,17 @@ mod emboss;
 mod force;
 mod history;
 mod pin;
+mod removal;
 mod shape;
 
-pub use action::{ActionError, ToolAction};
+pub use action::{ActionError, INTERSECTION_IS_CSG, ToolAction};
 pub use apply::{
     ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
-pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
+pub use deform::{
+    ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, presence,
+};
 pub use emboss::{
     EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
 };
@@ -35,5 +38,9 @@ pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, Step
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
+};
+pub use removal::{
+    MOST_REMOVED_UNASKED, VolumeChange, clay_volume_fu3, csg_volume_change, removed_fraction,
+    tool_volume_change,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
