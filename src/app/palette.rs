@@ -179,13 +179,15 @@ impl ForceSettings {
     }
 }
 
-/// The stamp's default: Ferley's shape (Fig. 12) with a bulge a knot span high, printed five
-/// times a second, so a stroke leaves the tool's print and a low rim beside it (a stamp
-/// printed a hundred times a second heaps its bulges into a wall).
+/// The stamp's default: Ferley's shape (Fig. 12) with a low bulge (`n` 0.15) whose fall runs
+/// out to the edge of the falloff band (`s + m + r = 1`), printed five times a second, so a
+/// stroke leaves the tool's print and a low, smooth rim beside it (a stamp printed a hundred
+/// times a second heaps its bulges into a wall, and a bulge cut short at the band rings in the
+/// refit).
 pub const DEFAULT_STAMP: StampParams = StampParams {
     s: 0.5,
-    m: 0.15,
-    r: 0.25,
+    m: 0.2,
+    r: 0.3,
     k: -2.0,
     n: 0.15,
     rate_per_s: 5.0,
@@ -202,8 +204,8 @@ impl Default for ToolPalette {
     /// Defaults that visibly work in the window (`tests/palette_defaults.rs` walks them on the
     /// default block): the pointer presses the tip 1.5 knot spans into the clay, so a brush of
     /// radius 0.25 (2.5 spans) reaches a knot span above the surface to add and 4 spans down
-    /// to carve, and a falloff of one knot span (a band two spans wide) is smooth enough for
-    /// the local refit to follow without ringing.
+    /// to carve, and a falloff of two knot spans (a band four spans wide, as the starting clay
+    /// is fitted) is smooth enough for the local refit to follow without ringing.
     fn default() -> Self {
         Self {
             // The threaded engine applies force tools; start with the one it supports fully.
@@ -212,7 +214,7 @@ impl Default for ToolPalette {
             radius_fu: 0.25,
             extents_fu: Vec3::new(0.25, 0.15, 0.15),
             half_height_fu: 0.25,
-            falloff_fu: 0.1,
+            falloff_fu: 0.2,
             deposit_rate_per_s: 8.0,
             remove_rate_per_s: 8.0,
             paint_rgb: [0.8, 0.2, 0.15],

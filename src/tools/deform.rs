@@ -136,8 +136,11 @@ impl StampParams {
     #[inline]
     #[must_use]
     pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
-        let change = self.rate_per_s * dt_s.max(0.0) * self.def(1.0 - tool);
-        limited_change(clay, pushed_aside(change, clay, iso))
+        let v = 1.0 - tool;
+        let change = self.rate_per_s * dt_s.max(0.0) * self.def(v);
+        let in_tool = v <= self.s;
+        let new = limited_change(clay, pushed_aside(change, clay, iso, in_tool));
+        no_sharper_than_the_tool(new, clay, tool, in_tool)
     }
 }
 
@@ -147,9 +150,11 @@ impl StampParams {
 /// region) `β = 1`; outside, `β = t / c`, which meets the inside with matching value (0) and
 /// slope (`α`), so the surface is C¹ across the tool boundary; it fades to zero with the
 /// tool's potential. α < 0 dents the clay and raises a rim around the dent; α > 0 bulges it.
-/// The deformation moves clay and creates none: a rise is weighted by the clay's
-/// [`presence`], so material grows only from the surface outward, never as a speck in the air
-/// where the fit's density is a little above zero (one connected clay at every α).
+/// The deformation moves the surface and neither creates nor cuts clay: a rise is weighted by
+/// the clay's [`presence`], so material grows only from the surface outward, never as a speck
+/// in the air where the fit's density is a little above zero; a fall outside the tool (a
+/// bulge's moat) is weighted by the clay's [`exposure`], so it wears the surface in and never
+/// cuts a shell that would set the bulge loose (one connected clay at every α).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ContactParams {
     /// Strength and sign: negative dents, positive bulges.
@@ -185,7 +190,9 @@ impl ContactParams {
         let g = self.alpha * (tool - iso);
         let beta = if tool >= iso { 1.0 } else { tool / iso };
         let change = self.rate_per_s * dt_s.max(0.0) * beta * g;
-        limited_change(clay, pushed_aside(change, clay, iso))
+        let in_tool = tool >= iso;
+        let new = limited_change(clay, pushed_aside(change, clay, iso, in_tool));
+        no_sharper_than_the_tool(new, clay, tool, in_tool)
     }
 }
 
@@ -202,14 +209,46 @@ pub fn presence(clay: f32, iso: f32) -> f32 {
     x * x * (3.0 - 2.0 * x)
 }
 
-/// A deformation's `change` at a point of density `clay`: a fall as it is, a rise weighted by
-/// the clay's [`presence`] (deformations push clay aside; they do not create it).
+/// How open a point of density `clay` is to the outside, in `[0, 1]`: 1 up to the
+/// iso-level, 0 from halfway between it and full density on (deep in the clay), a smooth
+/// step between. The mirror of [`presence`]: a fall weighted by it wears the surface in from
+/// outside and cannot cut a shell through the inside of the clay.
 #[inline]
-fn pushed_aside(change: f32, clay: f32, iso: f32) -> f32 {
+#[must_use]
+pub fn exposure(clay: f32, iso: f32) -> f32 {
+    let half = 0.5 * (1.0 - iso).max(f32::EPSILON);
+    let x = ((iso + half - clay) / half).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// A deformation's `change` at a point of density `clay`: a rise weighted by the clay's
+/// [`presence`] (deformations push clay aside; they do not create it in the air); a fall
+/// inside the tool (`in_tool`: the print, the dent) as it is, and outside it (the moat of a
+/// bulge, a stamp's dip) weighted by its [`exposure`], so the skirt around the tool moves the
+/// surface and never cuts the clay under it loose.
+#[inline]
+fn pushed_aside(change: f32, clay: f32, iso: f32, in_tool: bool) -> f32 {
     if change > 0.0 {
         change * presence(clay, iso)
-    } else {
+    } else if in_tool {
         change
+    } else {
+        change * exposure(clay, iso)
+    }
+}
+
+/// Inside the tool (`in_tool`), a deformation's `new` density kept between what removing the
+/// tool's shape and adding it would leave: never below `min(clay, 1 − tool)` nor above
+/// `max(clay, tool)`. Held or dragged, a print or a dent tends to the tool's own shape, whose
+/// potential falls over the whole falloff band, instead of a step the refit would ring on.
+#[inline]
+fn no_sharper_than_the_tool(new: f32, clay: f32, tool: f32, in_tool: bool) -> f32 {
+    if !in_tool || new == clay {
+        new
+    } else if new < clay {
+        new.max(clay.min(1.0 - tool))
+    } else {
+        new.min(clay.max(tool))
     }
 }
 
@@ -308,11 +347,25 @@ mod tests {
             assert_eq!(bulge.apply(f, 0.9, iso, 10.0), f, "bulge at {f}");
             assert_eq!(stamp.apply(f, t_bulge, iso, 10.0), f, "stamp at {f}");
         }
+        // The moat around a bulge wears the surface in and never cuts deep inside the clay.
+        for f in [0.75, 0.9, 1.0] {
+            assert_eq!(bulge.apply(f, 0.25, iso, 10.0), f, "moat at {f}");
+        }
+        assert!(bulge.apply(0.55, 0.25, iso, 0.01) < 0.55);
+        // A dent inside the tool goes as deep as the tool, and no sharper: held for ten
+        // seconds it leaves what removing the tool's shape leaves, and a bulge what adding it
+        // leaves.
+        assert_eq!(dent.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
+        assert_eq!(dent.apply(1.0, 0.55, iso, 10.0), 1.0 - 0.55);
+        assert_eq!(bulge.apply(0.45, 0.8, iso, 10.0), 0.8);
+        assert_eq!(stamp.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
         // At the surface they rise as before.
         assert!(dent.apply(0.45, 0.25, iso, 0.01) > 0.45);
         assert!(bulge.apply(0.45, 0.9, iso, 0.01) > 0.45);
         assert!(stamp.apply(0.45, t_bulge, iso, 0.01) > 0.45);
         assert_eq!(presence(0.25, iso), 0.0);
+        assert_eq!(exposure(0.75, iso), 0.0);
+        assert_eq!(exposure(0.5, iso), 1.0);
         assert_eq!(presence(0.5, iso), 1.0);
         assert!(presence(0.4, iso) > presence(0.3, iso));
     }

@@ -25,7 +25,7 @@ pub use apply::{
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{
-    ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, presence,
+    ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
 pub use emboss::{
     EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
