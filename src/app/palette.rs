@@ -533,7 +533,7 @@ mod tests {
         assert_eq!(
             t.action,
             ToolAction::Smooth {
-                rate_per_s: 4.0,
+                rate_per_s: ToolPalette::default().smooth_rate_per_s,
                 kernel_fu: 0.123
             }
         );

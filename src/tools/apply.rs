@@ -1091,15 +1091,19 @@ mod tests {
             action: ToolAction::Stamp(StampParams::default()),
             falloff_fu: 4.0 * H,
         };
-        apply_tool(
-            &mut clay,
-            &t,
-            &ToolPose::at(at),
-            0.01,
-            &ApplyOptions::default(),
-            None,
-        )
-        .unwrap();
+        // Three whole prints: the rim grows from the surface outward (a rise is weighted by
+        // the clay's presence), a little more with each.
+        for _ in 0..3 {
+            apply_tool(
+                &mut clay,
+                &t,
+                &ToolPose::at(at),
+                0.01,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
         let l = &clay.density.patches[0].lattice;
         // The print: the tool's hemisphere is hollowed out of the slab.
         for depth in [0.1, 0.2, r - 2.0 * H] {
@@ -1151,17 +1155,21 @@ mod tests {
             "core untouched"
         );
 
+        // A bulge grows from the surface outward, a little with each whole application: ten
+        // take it a knot span out.
         let mut bulge = clay_of(sphere);
         let t = tool(small, ToolAction::Contact(ContactParams::with_alpha(3.0)));
-        apply_tool(
-            &mut bulge,
-            &t,
-            &ToolPose::at(surface),
-            0.01,
-            &ApplyOptions::default(),
-            None,
-        )
-        .unwrap();
+        for _ in 0..10 {
+            apply_tool(
+                &mut bulge,
+                &t,
+                &ToolPose::at(surface),
+                0.01,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
         assert!(
             bulge.density.patches[0]
                 .lattice
@@ -1429,8 +1437,11 @@ mod tests {
                 .iter()
                 .zip(&twice)
                 .fold(0.0_f32, |m, (a, b)| m.max((a - b).abs()));
+            // Within 3% of the peak: a rise is weighted by the clay's presence and a fall
+            // outside the tool by its exposure, which the first half already changed (a
+            // second-order difference).
             assert!(
-                worst <= 0.01 * peak,
+                worst <= 0.03 * peak,
                 "{name}: twice as long differs from two halves by {worst} (peak {peak})"
             );
             // And the change grows with the dwell.
