@@ -209,6 +209,12 @@ impl ContactParams {
 #[inline]
 #[must_use]
 pub fn presence(clay: f32, iso: f32) -> f32 {
+    static V: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+    let v = *V.get_or_init(|| std::env::var("DC_V").ok().and_then(|v| v.parse().ok()).unwrap_or(0));
+    if v >= 1 {
+        let x = (clay / iso.max(f32::EPSILON)).clamp(0.0, 1.0);
+        return x * x * (3.0 - 2.0 * x);
+    }
     let half = 0.5 * iso.max(f32::EPSILON);
     let x = ((clay - half) / half).clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
@@ -221,6 +227,12 @@ pub fn presence(clay: f32, iso: f32) -> f32 {
 #[inline]
 #[must_use]
 pub fn exposure(clay: f32, iso: f32) -> f32 {
+    static V: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+    let v = *V.get_or_init(|| std::env::var("DC_V").ok().and_then(|v| v.parse().ok()).unwrap_or(0));
+    if v >= 2 {
+        let x = ((1.0 - clay) / (1.0 - iso).max(f32::EPSILON)).clamp(0.0, 1.0);
+        return x * x * (3.0 - 2.0 * x);
+    }
     let half = 0.5 * (1.0 - iso).max(f32::EPSILON);
     let x = ((iso + half - clay) / half).clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
