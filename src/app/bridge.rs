@@ -474,6 +474,7 @@ impl Bridge {
             v.region = status.region.map(|(min, max)| WorldBox { min, max });
             v.sim_time_s = status.sim_time_s;
             v.compact = status.compact;
+            v.removal_question = status.removal_question;
             v.tool_position = tool.tip;
             v.tool_radius = radius;
             v.force_n = if tool.device_force_n.is_finite() {
@@ -970,6 +971,9 @@ impl Bridge {
                 let _ = self.events.send(ev);
             }
             EngineCommand::Load { path } => self.load(&path),
+            EngineCommand::AnswerRemoval { yes } => {
+                self.send(what, Command::AnswerRemoval(yes));
+            }
             EngineCommand::SetMaxForce { max_force_n } => {
                 match self.engine().force_limit().request(max_force_n) {
                     Ok(()) => {

@@ -90,6 +90,11 @@ pub enum EngineCommand {
     Load {
         path: PathBuf,
     },
+    /// The user's answer to the engine's question whether a step may remove more than half
+    /// the clay ([`crate::engine::RemovalQuestion`]).
+    AnswerRemoval {
+        yes: bool,
+    },
     /// Write the welded surface mesh to `path`; the format follows the extension.
     Export {
         path: PathBuf,
@@ -136,6 +141,7 @@ impl EngineCommand {
             Self::Unpin { .. } => "unpin",
             Self::Save { .. } => "save",
             Self::Load { .. } => "load",
+            Self::AnswerRemoval { .. } => "answer removal",
             Self::Export { .. } => "export",
             Self::ConnectDevice { .. } => "connect device",
             Self::DisconnectDevice => "disconnect device",

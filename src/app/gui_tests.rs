@@ -1303,3 +1303,49 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
     drop(h);
     bridge.stop().unwrap();
 }
+
+#[test]
+fn a_step_that_would_remove_most_of_the_clay_is_asked_about_first() {
+    use crate::engine::RemovalQuestion;
+    let (mut h, mut end) = harness();
+    h.run();
+    drain(&end);
+    // The engine holds a CSG intersection for what it would remove, and asks.
+    let asked = RemovalQuestion {
+        what: "intersection",
+        percent: 87.0,
+        stroke: false,
+    };
+    end.view.publish_clone_of(&EngineView {
+        removal_question: Some(asked),
+        ..EngineView::default()
+    });
+    h.run();
+    h.get_by_label("This intersection step would remove about 87% of the clay's volume.");
+    h.get_by_label("Remove it").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::AnswerRemoval { yes: true }]
+    );
+    // Answered: not asked again while the engine still shows the question.
+    h.run();
+    assert!(h.query_by_label("Remove it").is_none());
+    // A held stroke's question: keeping the clay says no.
+    end.view.publish_clone_of(&EngineView {
+        removal_question: Some(RemovalQuestion {
+            what: "remove",
+            percent: 55.0,
+            stroke: true,
+        }),
+        ..EngineView::default()
+    });
+    h.run();
+    h.get_by_label("This remove stroke would remove about 55% of the clay's volume.");
+    h.get_by_label("Keep the clay").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::AnswerRemoval { yes: false }]
+    );
+}

@@ -166,6 +166,8 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
     if let Some(m) = material {
         config.sim.material = m;
     }
+    // The window asks before any one step removes more than half the clay.
+    config.sim.removal_guard = crate::engine::RemovalGuard::Ask;
     let (link, endpoint) = engine_link();
     // The device panel opens devices for the same clay while the engine runs.
     let opener_field = field.clone();

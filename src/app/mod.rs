@@ -14,6 +14,7 @@ mod palette;
 mod pin_panel;
 mod pointer_tool;
 mod probe_panel;
+mod removal_dialog;
 mod run;
 mod state;
 mod view;
@@ -38,6 +39,7 @@ pub use palette::{ActionKind, ForceSettings, PaletteEntry, ShapeKind, ToolPalett
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
+pub use removal_dialog::RemovalDialog;
 pub use run::{GuiError, GuiOptions, run_gui};
 pub use state::{DisplaySettings, FilePaths, PointsDisplay, SceneInput, SculptApp};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};

@@ -22,12 +22,13 @@ pub enum ActionKind {
     Stamp,
     Contact,
     Union,
-    Intersection,
     Difference,
 }
 
 impl ActionKind {
-    pub const ALL: [ActionKind; 11] = [
+    /// Every brush. Intersection is not one: it is CSG with another clay (the window's
+    /// "CSG with a session"), since as a brush it would delete the whole clay outside the tool.
+    pub const ALL: [ActionKind; 10] = [
         Self::Add,
         Self::Remove,
         Self::SoftRemove,
@@ -37,7 +38,6 @@ impl ActionKind {
         Self::Stamp,
         Self::Contact,
         Self::Union,
-        Self::Intersection,
         Self::Difference,
     ];
 }
@@ -100,6 +100,8 @@ pub struct ToolPalette {
     pub smooth_kernel_fu: f32,
     pub stamp: StampParams,
     pub contact_alpha: f32,
+    /// Whole contact applications per second of dwell.
+    pub contact_rate_per_s: f32,
     /// The force tools' settings (each force entry reads the ones it uses).
     pub force: ForceSettings,
 }
@@ -177,24 +179,51 @@ impl ForceSettings {
     }
 }
 
+/// The stamp's default: Ferley's shape (Fig. 12) with a low bulge (`n` 0.15) whose fall runs
+/// out to the edge of the falloff band (`s + m + r = 1`), printed five times a second, so a
+/// stroke leaves the tool's print and a low, smooth rim beside it (a stamp printed a hundred
+/// times a second heaps its bulges into a wall, and a bulge cut short at the band rings in the
+/// refit).
+pub const DEFAULT_STAMP: StampParams = StampParams {
+    s: 0.5,
+    m: 0.2,
+    r: 0.3,
+    k: -2.0,
+    n: 0.15,
+    rate_per_s: 5.0,
+};
+
+/// The contact tool's default strength: a dent with a rim.
+pub const DEFAULT_CONTACT_ALPHA: f32 = -1.0;
+
+/// The contact tool's default rate, whole applications per second of dwell: enough that a
+/// one-second stroke dents to the tool's surface, few enough that the rim stays low.
+pub const DEFAULT_CONTACT_RATE_PER_S: f32 = 5.0;
+
 impl Default for ToolPalette {
+    /// Defaults that visibly work in the window (`tests/palette_defaults.rs` walks them on the
+    /// default block): the pointer presses the tip 1.5 knot spans into the clay, so a brush of
+    /// radius 0.25 (2.5 spans) reaches a knot span above the surface to add and 4 spans down
+    /// to carve, and a falloff of two knot spans (a band four spans wide, as the starting clay
+    /// is fitted) is smooth enough for the local refit to follow without ringing.
     fn default() -> Self {
         Self {
             // The threaded engine applies force tools; start with the one it supports fully.
             selected: PaletteEntry::Force(ForceMode::PointGrab),
             shape: ShapeKind::Sphere,
-            radius_fu: 0.1,
-            extents_fu: Vec3::new(0.1, 0.06, 0.06),
-            half_height_fu: 0.1,
-            falloff_fu: 0.05,
-            deposit_rate_per_s: 2.0,
-            remove_rate_per_s: 2.0,
+            radius_fu: 0.25,
+            extents_fu: Vec3::new(0.25, 0.15, 0.15),
+            half_height_fu: 0.25,
+            falloff_fu: 0.2,
+            deposit_rate_per_s: 8.0,
+            remove_rate_per_s: 8.0,
             paint_rgb: [0.8, 0.2, 0.15],
-            paint_rate_per_s: 2.0,
-            smooth_rate_per_s: 4.0,
-            smooth_kernel_fu: 0.05,
-            stamp: StampParams::default(),
-            contact_alpha: -0.5,
+            paint_rate_per_s: 8.0,
+            smooth_rate_per_s: 10.0,
+            smooth_kernel_fu: 0.15,
+            stamp: DEFAULT_STAMP,
+            contact_alpha: DEFAULT_CONTACT_ALPHA,
+            contact_rate_per_s: DEFAULT_CONTACT_RATE_PER_S,
             force: ForceSettings::default(),
         }
     }
@@ -214,7 +243,6 @@ pub fn entry_label(entry: PaletteEntry) -> &'static str {
             ActionKind::Stamp => "Stamp",
             ActionKind::Contact => "Contact",
             ActionKind::Union => "Union",
-            ActionKind::Intersection => "Intersection",
             ActionKind::Difference => "Difference",
         },
         PaletteEntry::Force(m) => match m {
@@ -277,10 +305,9 @@ impl ToolPalette {
             ActionKind::Stamp => ToolAction::Stamp(self.stamp),
             ActionKind::Contact => ToolAction::Contact(ContactParams {
                 alpha: self.contact_alpha,
-                rate_per_s: crate::tools::DEFAULT_DEFORM_RATE_PER_S,
+                rate_per_s: self.contact_rate_per_s,
             }),
             ActionKind::Union => ToolAction::Union,
-            ActionKind::Intersection => ToolAction::Intersection,
             ActionKind::Difference => ToolAction::Difference,
         }
     }
@@ -395,20 +422,28 @@ impl ToolPalette {
                 ui.add(egui::Slider::new(&mut p.r, 0.01..=0.5).text("r (bulge fall)"));
                 ui.add(egui::Slider::new(&mut p.k, -6.0..=6.0).text("k (−slope at s)"));
                 ui.add(egui::Slider::new(&mut p.n, 0.0..=1.0).text("n (bulge height)"));
+                ui.add(
+                    egui::Slider::new(&mut p.rate_per_s, 0.1..=100.0)
+                        .logarithmic(true)
+                        .text("Stamps /s"),
+                );
                 if let Err(e) = p.validate() {
                     ui.colored_label(ui.visuals().warn_fg_color, e.to_string());
                 }
             }
             ActionKind::Contact => {
+                let max = ContactParams::MAX_ALPHA;
                 ui.add(
-                    egui::Slider::new(&mut self.contact_alpha, -2.0..=2.0)
+                    egui::Slider::new(&mut self.contact_alpha, -max..=max)
                         .text("α (dent < 0 < bulge)"),
                 );
+                ui.add(
+                    egui::Slider::new(&mut self.contact_rate_per_s, 0.1..=100.0)
+                        .logarithmic(true)
+                        .text("Contacts /s"),
+                );
             }
-            ActionKind::Remove
-            | ActionKind::Union
-            | ActionKind::Intersection
-            | ActionKind::Difference => {}
+            ActionKind::Remove | ActionKind::Union | ActionKind::Difference => {}
         }
     }
 
@@ -498,7 +533,7 @@ mod tests {
         assert_eq!(
             t.action,
             ToolAction::Smooth {
-                rate_per_s: 4.0,
+                rate_per_s: ToolPalette::default().smooth_rate_per_s,
                 kernel_fu: 0.123
             }
         );

@@ -164,6 +164,8 @@ pub struct SculptApp {
     pub(crate) refine_at: Option<glam::Vec3>,
     /// Pinning with the mouse, and the list of the clay's pins.
     pub pins: PinPanel,
+    /// The question before a step removes more than half the clay.
+    pub removal: super::removal_dialog::RemovalDialog,
     /// The "Compact RBF clay" switch.
     pub compact_on: bool,
     /// Its particle count `N` (0 until [`SculptApp::new`] sets the default).
@@ -434,6 +436,10 @@ impl SculptApp {
                     });
             });
         self.flush_settings(tool_changed, material_changed);
+        let question = self.view.removal_question;
+        if let Some(answer) = self.removal.show(ui.ctx(), question) {
+            self.send(answer);
+        }
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, gpu));
         ui.ctx().request_repaint_after(POLL_PERIOD);
     }
@@ -496,6 +502,8 @@ impl SculptApp {
             &mut p.remove_rate_per_s,
             &mut p.smooth_rate_per_s,
             &mut p.paint_rate_per_s,
+            &mut p.stamp.rate_per_s,
+            &mut p.contact_rate_per_s,
         ] {
             *rate = (*rate * factor).clamp(1.0e-3, 1.0e3);
         }

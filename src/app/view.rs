@@ -132,6 +132,8 @@ pub struct EngineView {
     pub workspace_map: Option<crate::engine::WorkspaceMap>,
     /// The compact RBF clay: on or off, centres, the last re-interpolation's time.
     pub compact: crate::engine::CompactStatus,
+    /// A step held until the user says it may remove more than half the clay.
+    pub removal_question: Option<crate::engine::RemovalQuestion>,
 }
 
 impl Default for EngineView {
@@ -156,6 +158,7 @@ impl Default for EngineView {
             clay_box: None,
             workspace_map: None,
             compact: crate::engine::CompactStatus::default(),
+            removal_question: None,
         }
     }
 }

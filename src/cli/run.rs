@@ -506,6 +506,9 @@ fn finish_run(
     if !unsent.is_empty() {
         say!("note: script steps {unsent:?} were not reached");
     }
+    for w in driver.warnings() {
+        eprintln!("dynaclay: warning: {w}");
+    }
     for (step, note) in driver.notes() {
         say!("script step {step}: {note}");
     }

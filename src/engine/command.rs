@@ -115,6 +115,19 @@ impl ToolChoice {
 /// Where a command's outcome goes: `Ok` with a short account, or what went wrong.
 pub type Reply = Sender<Result<String, super::CommandError>>;
 
+/// What a tool or CSG step did: a short account, and the share of the clay's volume it was
+/// estimated to remove before it was applied (see [`super::RemovalGuard`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EditOutcome {
+    /// The account (`"remove: 1200 samples visited, 300 dirtied"`).
+    pub note: String,
+    /// Net share of the clay's volume removed, 0 to 1 (0 for a step that adds).
+    pub removed_fraction: f32,
+}
+
+/// Where a tool or CSG step's outcome goes.
+pub type EditReply = Sender<Result<EditOutcome, super::CommandError>>;
+
 /// A request to the simulation thread. Each is applied between two steps, in order.
 #[derive(Debug)]
 pub enum Command {
@@ -154,7 +167,7 @@ pub enum Command {
         /// Which density patch.
         patch: u16,
         /// Where the outcome goes.
-        reply: Option<Reply>,
+        reply: Option<EditReply>,
     },
     /// CSG between the clay and another clay (one undo step): `op` is
     /// [`ToolAction::Union`], [`ToolAction::Intersection`] or [`ToolAction::Difference`].
@@ -166,8 +179,17 @@ pub enum Command {
         /// Which density patch.
         patch: u16,
         /// Where the outcome goes.
-        reply: Option<Reply>,
+        reply: Option<EditReply>,
     },
+    /// The user's answer to the published [`super::RemovalQuestion`]. With `true` the held
+    /// step goes ahead: a held tool or CSG step is applied now, a held stroke goes on (a
+    /// stroke already over lets the next stroke over the limit through). With `false` the
+    /// question is dropped, a held tool or CSG step is answered
+    /// [`super::CommandError::WouldRemoveMost`], and nothing is applied.
+    AnswerRemoval(bool),
+    /// Where each stroke that removed more than [`super::MOST_REMOVED_UNASKED`] of the clay is
+    /// reported when it ends ([`super::RemovalGuard::Warn`] mode; a script driver's warnings).
+    ReportRemovals(Sender<super::StrokeRemoval>),
     /// Emboss (or engrave) an image onto the clay (one undo step).
     Emboss {
         /// The image's brightness (loaded by the caller).

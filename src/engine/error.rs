@@ -160,6 +160,17 @@ pub enum CommandError {
         /// What went wrong.
         error: ToolError,
     },
+    /// The step would remove more than [`super::MOST_REMOVED_UNASKED`] of the clay and the
+    /// user said no ([`super::RemovalGuard::Ask`]): nothing changed.
+    #[error(
+        "{what} would remove {percent:.0}% of the clay's volume: not applied (the user kept the clay)"
+    )]
+    WouldRemoveMost {
+        /// The tool or operation.
+        what: String,
+        /// The share it would remove, percent.
+        percent: f32,
+    },
     /// The session could not be read.
     #[error(transparent)]
     Read(#[from] SessionError),

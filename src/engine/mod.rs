@@ -18,6 +18,7 @@ mod layout;
 mod live_tool;
 mod lockstep;
 mod plan;
+mod removal_guard;
 mod replay;
 mod script_driver;
 mod sim_status;
@@ -29,7 +30,7 @@ mod update;
 mod wiring;
 mod workspace;
 
-pub use command::{Command, PushTool, Reply, ToolChoice};
+pub use command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 pub use compact_rbf::{CompactRbfLink, CompactStartError, CompactStatus};
 pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
 pub use counters::{CounterSnapshot, EngineCounters};
@@ -50,6 +51,7 @@ pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,
     ScriptPlan, TRAVEL_S, builtin_script,
 };
+pub use removal_guard::{MOST_REMOVED_UNASKED, RemovalGuard, RemovalQuestion, StrokeRemoval};
 pub use replay::{ReplayMismatch, ScheduledReplay};
 pub use script_driver::ScriptDriver;
 pub use sim_status::SimStatus;

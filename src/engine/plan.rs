@@ -234,6 +234,8 @@ pub struct ScriptPlan {
     pub events: Vec<PlannedEvent>,
     /// Strokes in time order.
     pub strokes: Vec<PlannedStroke>,
+    /// The line each step starts on in the script (0 where unknown), by 0-based step.
+    pub step_lines: Vec<usize>,
 }
 
 impl ScriptPlan {
@@ -366,6 +368,10 @@ impl ScriptPlan {
                 } => {
                     let preset = lookup(name)
                         .ok_or_else(|| fail(format!("no tool preset named {name:?}")))?;
+                    preset
+                        .action
+                        .validate()
+                        .map_err(|e| fail(format!("tool preset {name:?}: {}", e.0)))?;
                     event(PlannedAction::ApplyTool {
                         tool: GeometricTool {
                             shape: preset.shape.clone(),
@@ -488,7 +494,17 @@ impl ScriptPlan {
             end_s: clock,
             events,
             strokes,
+            step_lines: script.step_lines.clone(),
         })
+    }
+
+    /// The line 1-based step `step` starts on, when known.
+    #[must_use]
+    pub fn step_line(&self, step: usize) -> Option<usize> {
+        step.checked_sub(1)
+            .and_then(|n| self.step_lines.get(n))
+            .copied()
+            .filter(|&l| l > 0)
     }
 
     /// The built-in default script, laid out.

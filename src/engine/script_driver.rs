@@ -7,9 +7,10 @@
 
 use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 
-use super::command::{Command, Reply};
+use super::command::{Command, EditOutcome, Reply};
 use super::compact_rbf::CompactRbfLink;
-use super::plan::{PlannedAction, PlannedEvent, ScriptPlan};
+use super::plan::{PlannedAction, PlannedEvent, PlannedStroke, ScriptPlan};
+use super::removal_guard::{MOST_REMOVED_UNASKED, StrokeRemoval};
 use super::tool_sample::ToolSample;
 use crate::fit::read_points;
 use crate::io::{ScriptError, Session};
@@ -107,6 +108,18 @@ pub struct ScriptDriver {
     origin_us: Option<u64>,
     /// Outcomes still to come: (step, receiver).
     waiting: Vec<(usize, Receiver<Result<String, super::CommandError>>)>,
+    /// Tool and CSG outcomes still to come: (step, receiver).
+    edits: Vec<(usize, Receiver<Result<EditOutcome, super::CommandError>>)>,
+    /// Strokes that removed more than half the clay, as the simulation reports them; the
+    /// sender goes to the simulation with the first dispatch.
+    removals: Receiver<StrokeRemoval>,
+    removals_to: Option<crossbeam::channel::Sender<StrokeRemoval>>,
+    /// The plan's strokes (their steps and times), to find a reported stroke's step.
+    strokes: Vec<PlannedStroke>,
+    /// The line each step starts on, by 0-based step (0: unknown).
+    step_lines: Vec<usize>,
+    /// Steps that removed more than half the clay.
+    warnings: Vec<ScriptError>,
     saves: Vec<(
         usize,
         Receiver<Result<std::path::PathBuf, super::SaveError>>,
@@ -126,12 +139,20 @@ impl ScriptDriver {
     pub fn new(plan: &ScriptPlan) -> Self {
         let mut events = plan.events.clone().into_iter();
         let next = events.next();
+        // One report per stroke at most: room for every stroke the plan has.
+        let (removals_to, removals) = bounded(plan.strokes.len().max(1));
         Self {
             file: plan.file.clone(),
             events,
             next,
             origin_us: None,
             waiting: Vec::new(),
+            edits: Vec::new(),
+            removals,
+            removals_to: Some(removals_to),
+            strokes: plan.strokes.clone(),
+            step_lines: plan.step_lines.clone(),
+            warnings: Vec::new(),
             saves: Vec::new(),
             telling: Vec::new(),
             exports: Vec::new(),
@@ -153,6 +174,10 @@ impl ScriptDriver {
     pub fn dispatch(&mut self, sample: &ToolSample, commands: &Sender<Command>) -> usize {
         if sample.tick == 0 {
             return 0;
+        }
+        if let Some(to) = self.removals_to.take() {
+            // Before any stroke or step: every stroke over the limit is reported.
+            let _ = commands.send(Command::ReportRemovals(to));
         }
         let now = self.clock_s(sample.device_time_us);
         let mut n = 0;
@@ -202,6 +227,11 @@ impl ScriptDriver {
             self.waiting.push((step, rx));
             tx
         };
+        let mut edit_reply = || {
+            let (tx, rx) = bounded(1);
+            self.edits.push((step, rx));
+            tx
+        };
         let batch: Vec<Command> = match event.action {
             PlannedAction::SetTool(t) => vec![Command::SetTool(t)],
             PlannedAction::SetMaterial(m) => vec![Command::SetMaterial(m)],
@@ -218,13 +248,13 @@ impl ScriptDriver {
                 poses,
                 duration_s,
                 patch,
-                reply: Some(reply()),
+                reply: Some(edit_reply()),
             }],
             PlannedAction::Csg { op, other, patch } => vec![Command::Csg {
                 op,
                 other,
                 patch,
-                reply: Some(reply()),
+                reply: Some(edit_reply()),
             }],
             PlannedAction::Emboss {
                 relief,
@@ -417,6 +447,56 @@ impl ScriptDriver {
             }
             Err(TryRecvError::Empty) => true,
         });
+        let mut large = Vec::new();
+        self.edits.retain(|(step, rx)| match rx.try_recv() {
+            Ok(Ok(outcome)) => {
+                if outcome.removed_fraction > MOST_REMOVED_UNASKED {
+                    large.push((
+                        *step,
+                        format!(
+                            "this step removed about {:.0}% of the clay's volume (more than half) \
+                             [{}]",
+                            100.0 * outcome.removed_fraction,
+                            outcome.note
+                        ),
+                    ));
+                }
+                false
+            }
+            Ok(Err(e)) => {
+                failed.push((*step, e.to_string()));
+                false
+            }
+            Err(TryRecvError::Disconnected) => false,
+            Err(TryRecvError::Empty) => true,
+        });
+        while let Ok(r) = self.removals.try_recv() {
+            let t = self.clock_s(r.started_us);
+            // The stroke that had begun by then (its buttons go down after it leaves hover).
+            let step = self
+                .strokes
+                .iter()
+                .rev()
+                .find(|s| s.start_s <= t + 1e-6)
+                .map_or(0, |s| s.step);
+            large.push((
+                step,
+                format!(
+                    "the {} stroke removed about {:.0}% of the clay's volume (more than half)",
+                    r.what, r.percent
+                ),
+            ));
+        }
+        for (step, message) in large {
+            let line = self.line_of(step);
+            self.warnings.push(ScriptError {
+                file: self.file.clone(),
+                line,
+                column: None,
+                step: (step > 0).then_some(step),
+                message,
+            });
+        }
         let mut told = Vec::new();
         self.telling.retain(|(step, rx)| match rx.try_recv() {
             Ok(Ok(note)) => {
@@ -442,6 +522,22 @@ impl ScriptDriver {
     pub fn notes(&mut self) -> &[(usize, String)] {
         self.collect();
         &self.notes
+    }
+
+    /// The steps that removed more than half the clay's volume (a tool or CSG step, or a
+    /// stroke), each as file, line and step with what it removed, in the order they were
+    /// reported. A run prints each as a warning.
+    pub fn warnings(&mut self) -> &[ScriptError] {
+        self.collect();
+        &self.warnings
+    }
+
+    /// The line 1-based `step` starts on, when known.
+    fn line_of(&self, step: usize) -> Option<usize> {
+        step.checked_sub(1)
+            .and_then(|n| self.step_lines.get(n))
+            .copied()
+            .filter(|&l| l > 0)
     }
 
     fn fail(&mut self, step: usize, message: String) {

@@ -1,5 +1,6 @@
 //! What the simulation publishes about itself for observers (the GUI, tests): undo and redo
-//! depth, the material in effect, the simulated region and how many sessions were loaded.
+//! depth, the material in effect, the simulated region, how many sessions were loaded, and
+//! a step waiting for the user's yes.
 //!
 //! Guarantee: plain `Copy` data published once per simulation step through a triple buffer
 //! (wait-free, no allocation after set-up); observers read the newest copy without ever
@@ -32,4 +33,7 @@ pub struct SimStatus {
     pub pins_revision: u64,
     /// The compact RBF clay: on or off, its centre count, the last re-interpolation's time.
     pub compact: super::CompactStatus,
+    /// A step held until the user says it may remove more than half the clay
+    /// ([`super::RemovalGuard::Ask`]).
+    pub removal_question: Option<super::RemovalQuestion>,
 }

@@ -41,6 +41,7 @@ mod compact;
 mod constrain;
 mod material;
 mod publication;
+mod removal;
 mod session_io;
 
 use session_io::CarriedSections;
@@ -51,7 +52,7 @@ use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
-use super::command::{Command, PushTool, Reply, ToolChoice};
+use super::command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
 use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
 use super::layout::LayoutSender;
@@ -65,7 +66,8 @@ use crate::field::{BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, co
 use crate::io::{MaterialFields, Session};
 use crate::tools::{
     ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
-    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool,
+    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
+    tool_volume_change,
 };
 
 /// Settings of the simulation stage.
@@ -88,6 +90,9 @@ pub struct SimConfig {
     pub history_budget_bytes: usize,
     /// Least device time between two applications of a held geometric tool, microseconds.
     pub geometric_interval_us: u64,
+    /// What a step that would remove more than half the clay does: applied and reported
+    /// (scripts), or held until the user answers (the window).
+    pub removal_guard: super::RemovalGuard,
 }
 
 impl Default for SimConfig {
@@ -101,6 +106,7 @@ impl Default for SimConfig {
             retire_after_steps: 400,
             history_budget_bytes: crate::tools::DEFAULT_BUDGET_BYTES,
             geometric_interval_us: 10_000,
+            removal_guard: super::RemovalGuard::Warn,
         }
     }
 }
@@ -213,6 +219,8 @@ pub struct SimulationStage {
     clay_revision: u64,
     /// Whether the stroke being recorded is made with a contact tool.
     stroke_is_contact: bool,
+    /// The guard against steps that remove most of the clay (see `removal.rs`).
+    removal: removal::RemovalState,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -306,6 +314,7 @@ impl SimulationStage {
             compact: None,
             clay_revision: 0,
             stroke_is_contact: false,
+            removal: removal::RemovalState::default(),
         }
     }
 
@@ -352,6 +361,13 @@ impl SimulationStage {
         &self.clay
     }
 
+    /// The step held until the user says it may remove more than half the clay, if any
+    /// (as [`SimStatus::removal_question`] publishes it).
+    #[must_use]
+    pub fn removal_question(&self) -> Option<super::RemovalQuestion> {
+        self.removal.question
+    }
+
     /// Undo steps available.
     #[must_use]
     pub fn undo_len(&self) -> usize {
@@ -389,8 +405,11 @@ impl SimulationStage {
             self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
             self.stroke_is_contact = self.tool.choice().is_contact();
             self.tool.end_stroke();
+            self.removal
+                .stroke_started(self.tool.choice(), &self.clay, sample.device_time_us);
         } else if !active && self.was_active {
             self.tool.end_stroke();
+            self.removal.stroke_ended(self.config.removal_guard);
             if self.region.is_none() {
                 // Nothing keeps moving: the stroke's step is complete.
                 self.commit_recorder();
@@ -521,10 +540,15 @@ impl SimulationStage {
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
         };
+        let pose = ToolPose::at(tip);
+        let guard = self.config.removal_guard;
+        if !self.removal.admits(guard, &self.clay, tool, &pose, dwell_s) {
+            return;
+        }
         let result = apply_tool(
             &mut self.clay,
             tool,
-            &ToolPose::at(tip),
+            &pose,
             dwell_s,
             &ApplyOptions::default(),
             self.recorder.as_mut(),
@@ -643,6 +667,9 @@ impl SimulationStage {
     /// Ends a held or settling stroke now: the region retires and the stroke's step is
     /// committed; a stroke still held continues as a new stroke from the next step.
     fn end_stroke_now(&mut self) {
+        if self.was_active {
+            self.removal.stroke_ended(self.config.removal_guard);
+        }
         self.was_active = false;
         self.retire_region();
         self.commit_recorder();
@@ -651,6 +678,9 @@ impl SimulationStage {
 
     /// Ends the session: retires the region and records the last stroke's undo step.
     pub fn finish(&mut self) {
+        if self.was_active {
+            self.removal.stroke_ended(self.config.removal_guard);
+        }
         self.was_active = false;
         self.retire_region();
     }

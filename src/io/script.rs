@@ -81,6 +81,10 @@ pub struct Script {
     /// a run prints each as a warning.
     #[serde(skip)]
     pub deprecated: Vec<DeprecatedKey>,
+    /// The line each step's table starts on (0 where unknown), for messages about a step
+    /// while the script runs.
+    #[serde(skip)]
+    pub step_lines: Vec<usize>,
 }
 
 /// Keys the format renamed when lengths on the clay got their true unit, as (old name, name
@@ -1104,6 +1108,9 @@ pub fn parse_script(text: &str, file: &str) -> Result<Script, ScriptError> {
             replacement,
         })
         .collect();
+    script.step_lines = (0..script.steps.len())
+        .map(|n| spans.step_line(n).unwrap_or(0))
+        .collect();
     Ok(script)
 }
 
@@ -1808,9 +1815,17 @@ path = "out.dclay"
         assert_eq!(s.steps[7], ScriptStep::Redo { count: 1 });
         let m = s.steps[4].updated_material(Material::ELASTIC);
         assert_eq!((m.stiffness, m.plasticity_per_s, m.mass), (500.0, 4.0, 1.0));
-        // Round trip through the serde types.
+        // Round trip through the serde types (where each step is written is not carried).
         let text = toml::to_string(&s).unwrap();
-        assert_eq!(parse_script(&text, "again").unwrap(), s);
+        let again = parse_script(&text, "again").unwrap();
+        assert_eq!(again.steps.len(), again.step_lines.len());
+        assert_eq!(
+            Script {
+                step_lines: s.step_lines.clone(),
+                ..again
+            },
+            s
+        );
     }
 
     #[test]
@@ -1897,8 +1912,15 @@ start_s = 3.0
         assert_eq!(s.clay.as_ref().unwrap().shape, ClayShape::Sphere);
         assert_eq!(s.autosave.unwrap().every_strokes, 1);
         assert_eq!(s.seconds, Some(2.5));
+        assert_eq!(s.step_lines, vec![10, 16], "each step's table starts there");
         let text = toml::to_string(&s).unwrap();
-        assert_eq!(parse_script(&text, "again").unwrap(), s);
+        assert_eq!(
+            Script {
+                step_lines: s.step_lines.clone(),
+                ..parse_script(&text, "again").unwrap()
+            },
+            s
+        );
 
         let stroke = |body: &str| format!("version = 1\n[[step]]\ndo = \"stroke\"\n{body}");
         for (body, field, line) in [

@@ -38,11 +38,18 @@ pub enum ToolAction {
     Contact(ContactParams),
     /// Guo & Qin Table 1: clay ∪ tool (`max(f, t)`).
     Union,
-    /// Clay ∩ tool (`min(f, t)`); clears everything the tool does not cover in its reach.
+    /// Clay ∩ other clay (`min(f, t)`): a CSG operation with another sculpt only
+    /// ([`super::apply_csg`]). As a brush it would clear the whole clay outside the tool, so
+    /// [`ToolAction::validate`] refuses it for a tool.
     Intersection,
     /// Clay − tool (`min(f, 2·iso − t)`).
     Difference,
 }
+
+/// Why an intersection is refused as a tool's action, and what to use instead.
+pub const INTERSECTION_IS_CSG: &str = "intersection is a CSG operation with another clay, not a \
+     brush (as a brush it would delete the whole clay outside the tool): use a `csg` step \
+     (op = \"intersection\", with = \"other.dclay\"), or CSG with a session in the window";
 
 /// Why an action's parameters were rejected.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -74,26 +81,23 @@ impl ToolAction {
         matches!(self, Self::Paint { .. } | Self::SoftPaint { .. })
     }
 
-    /// Whether the action changes the clay where the tool's potential is zero (intersection
-    /// clears the clay there, so it must reach the whole clay, not only the tool's box).
-    #[must_use]
-    pub fn acts_outside_tool(&self) -> bool {
-        matches!(self, Self::Intersection)
-    }
-
     /// Whether the action shapes the clay within the tool's falloff band itself (the stamp's
-    /// rim and the contact tool's deformation are functions of the band's potential), so the
-    /// band is the user's setting and is not widened to the lattice's floor
-    /// ([`crate::tools::MIN_FALLOFF_SPANS`]).
+    /// rim and the contact deformation are functions of the band's potential, and the RBF
+    /// clay evaluates the contact with the user's band as it is), so the band is the user's
+    /// setting and is not widened to the lattice's floor ([`crate::tools::MIN_FALLOFF_SPANS`]).
+    /// Widened, a stamp's print shrinks: a box print 0.12 deep came out 0.089 (0.100 with the
+    /// user's half-span band).
     #[must_use]
     pub fn shapes_its_band(&self) -> bool {
         matches!(self, Self::Stamp(_) | Self::Contact(_))
     }
 
-    /// Checks rates, colours and stamp parameters.
+    /// Checks rates, colours and stamp parameters, and that the action is one a tool may
+    /// hold: intersection is a CSG operation with another clay, never a brush.
     ///
     /// # Errors
-    /// Names the parameter that is out of range.
+    /// Names the parameter that is out of range, or says what to use instead of an
+    /// intersection brush.
     pub fn validate(&self) -> Result<(), ActionError> {
         let rate = |name: &str, v: f32| {
             if v.is_finite() && v > 0.0 {
@@ -127,16 +131,20 @@ impl ToolAction {
                 rate("rate_per_s", *rate_per_s)
             }
             Self::Stamp(p) => p.validate().map_err(|e| ActionError(e.0)),
-            Self::Contact(c) if !c.alpha.is_finite() => Err(ActionError(format!(
-                "alpha must be finite, got {}",
-                c.alpha
-            ))),
+            Self::Contact(c) if !(c.alpha.abs() <= ContactParams::MAX_ALPHA) => {
+                Err(ActionError(format!(
+                    "alpha = {} must be between -{max} and {max}",
+                    c.alpha,
+                    max = ContactParams::MAX_ALPHA
+                )))
+            }
             Self::Contact(c) if !(c.rate_per_s.is_finite() && c.rate_per_s > 0.0) => {
                 Err(ActionError(format!(
                     "rate_per_s must be positive and finite, got {}",
                     c.rate_per_s
                 )))
             }
+            Self::Intersection => Err(ActionError(INTERSECTION_IS_CSG.into())),
             _ => Ok(()),
         }
     }
@@ -242,6 +250,14 @@ mod tests {
         };
         assert_eq!(smooth.density(1.0, 1.0, 0.5, 0.5, 1.0), 0.5);
         assert_eq!(smooth.density(1.0, 0.0, 0.5, 0.5, 1.0), 1.0);
+    }
+
+    #[test]
+    fn intersection_is_refused_as_a_brush_and_says_what_to_use() {
+        let e = ToolAction::Intersection.validate().unwrap_err();
+        assert!(e.0.contains("csg") && e.0.contains("not a brush"), "{e}");
+        assert!(ToolAction::Union.validate().is_ok());
+        assert!(ToolAction::Difference.validate().is_ok());
     }
 
     #[test]

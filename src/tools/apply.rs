@@ -163,9 +163,6 @@ pub fn apply_tool(
     };
     let half = tool.shape.influence_half_extents(falloff);
     let (mut lo, mut hi) = pose.world_bounds(half);
-    if tool.action.acts_outside_tool() {
-        (lo, hi) = lattice.support();
-    }
     if let ToolAction::Smooth { kernel_fu, .. } = tool.action {
         // The average reads one kernel width beyond the tool.
         let reach = kernel_fu.max(lattice.spacing);
@@ -194,7 +191,6 @@ pub fn apply_tool(
     // The world-aligned box around the tool's own: samples outside it are left as they were
     // without transforming them (most of a refit box's margin).
     let (world_lo, world_hi) = pose.world_bounds(half);
-    let acts_outside = tool.action.acts_outside_tool();
     let reach = Reach {
         to_local,
         world_lo,
@@ -210,7 +206,6 @@ pub fn apply_tool(
     let rows = ToolRows {
         others: &others,
         reach: &reach,
-        acts_outside,
         before: before.as_ref(),
         blur_h,
         action: tool.action,
@@ -278,7 +273,6 @@ struct ToolRows<'a> {
     /// The clay's other patches (their sum offsets the rule).
     others: &'a OtherPatches<'a>,
     reach: &'a Reach,
-    acts_outside: bool,
     /// The clay before the edit, for smoothing's blur.
     before: Option<&'a BSplineLattice>,
     /// Smoothing's blur step.
@@ -303,7 +297,7 @@ impl ToolRows<'_> {
         let (to_local, half) = (reach.to_local, reach.half);
         // The rule at one sample with potential `t` (zero outside the tool's box).
         let rule = |x: Vec3, t: f32, old: f32| -> f32 {
-            if t == 0.0 && !self.acts_outside {
+            if t == 0.0 {
                 return old;
             }
             if self.others.is_empty() {
@@ -325,22 +319,6 @@ impl ToolRows<'_> {
         let edit_row = |row: SampleRow<'_>| {
             let SampleRow { xs, y, z, values } = row;
             visited += xs.len();
-            if self.acts_outside {
-                for (&xc, v) in xs.iter().zip(values.iter_mut()) {
-                    let x = Vec3::new(xc, y, z);
-                    let local = to_local.transform_point3(x);
-                    let t = if local.abs().cmple(half).all() {
-                        density(local)
-                    } else {
-                        0.0
-                    };
-                    computed += 1;
-                    let new = rule(x, t, *v);
-                    dirtied += usize::from(new != *v);
-                    *v = new;
-                }
-                return;
-            }
             let (boxed, live) = reach.spans(xs, y, z);
             // The samples in the tool's local box form one run of the row: each local
             // coordinate is a rounded affine function of x, monotone, so each slab of the
@@ -515,7 +493,8 @@ pub fn apply_csg(
             patch: options.patch,
         });
     };
-    let region = if action.acts_outside_tool() {
+    // Intersection clears the clay wherever the other clay is not: the whole patch.
+    let region = if action == ToolAction::Intersection {
         Some(CoeffBox::whole(lattice.dims))
     } else {
         other
@@ -990,7 +969,7 @@ mod tests {
     }
 
     #[test]
-    fn csg_with_a_shape_matches_the_analytic_classification() {
+    fn union_and_difference_with_a_shape_match_the_analytic_classification() {
         let sphere = Primitive::Sphere {
             centre: centre(),
             radius: 0.6,
@@ -1002,11 +981,26 @@ mod tests {
             let q = (x - centre() - offset).abs() - half;
             q.max(Vec3::ZERO).length() + q.max_element().min(0.0)
         };
-        for action in [
-            ToolAction::Union,
+        // Intersection is CSG with another clay only: as a brush it is refused, the clay
+        // untouched.
+        let mut clay = clay_of(sphere);
+        let brush = tool(
+            ToolShape::Box {
+                half_extents_fu: half,
+            },
             ToolAction::Intersection,
-            ToolAction::Difference,
-        ] {
+        );
+        let refused = apply_tool(
+            &mut clay,
+            &brush,
+            &ToolPose::at(centre() + offset),
+            0.0,
+            &ApplyOptions::default(),
+            None,
+        );
+        assert!(matches!(refused, Err(ToolError::Action(_))), "{refused:?}");
+        assert_eq!(clay, clay_of(sphere));
+        for action in [ToolAction::Union, ToolAction::Difference] {
             let mut clay = clay_of(sphere);
             let t = tool(
                 ToolShape::Box {
@@ -1183,17 +1177,21 @@ mod tests {
             "core untouched"
         );
 
+        // A bulge grows from the surface outward, a little with each whole application: ten
+        // take it a knot span out.
         let mut bulge = clay_of(sphere);
         let t = tool(small, ToolAction::Contact(ContactParams::with_alpha(3.0)));
-        apply_tool(
-            &mut bulge,
-            &t,
-            &ToolPose::at(surface),
-            0.01,
-            &ApplyOptions::default(),
-            None,
-        )
-        .unwrap();
+        for _ in 0..10 {
+            apply_tool(
+                &mut bulge,
+                &t,
+                &ToolPose::at(surface),
+                0.01,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
         assert!(
             bulge.density.patches[0]
                 .lattice
@@ -1461,8 +1459,9 @@ mod tests {
                 .iter()
                 .zip(&twice)
                 .fold(0.0_f32, |m, (a, b)| m.max((a - b).abs()));
-            // Within 3% of the peak: the stamp's rise is weighted by the clay's presence,
-            // which the first half already changed (a second-order difference).
+            // Within 3% of the peak: a rise is weighted by the clay's presence and a fall
+            // outside the tool by its exposure, which the first half already changed (a
+            // second-order difference).
             assert!(
                 worst <= 0.03 * peak,
                 "{name}: twice as long differs from two halves by {worst} (peak {peak})"

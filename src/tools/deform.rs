@@ -130,18 +130,17 @@ impl StampParams {
     /// The stamped clay density at a point after a dwell of `dt_s`: `f + rate · dt · def(1 − t)`,
     /// kept within `[0, 1]`. Only the stamp's own change is limited: a density the fit left a
     /// little outside the range is not pulled back where the stamp does nothing, so two short
-    /// applications do what one long one does.
-    ///
-    /// The bulge (`def > 0`) raises only clay that is there: it is weighted by the clay's
-    /// presence, zero below a quarter of the iso-level `iso` and one from the iso-level up
-    /// ([`presence`]), so the stamp pushes up a rim beside its print and never builds a shell of
-    /// new material around the tool in empty space.
+    /// applications do what one long one does. The bulge pushes clay aside and creates none:
+    /// a rise is weighted by the clay's [`presence`] at the point (iso-level `iso`), so it
+    /// grows from the surface and never in the air over the tool.
     #[inline]
     #[must_use]
     pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
-        let def = self.def(1.0 - tool);
-        let weight = if def > 0.0 { presence(clay, iso) } else { 1.0 };
-        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * def * weight)
+        let v = 1.0 - tool;
+        let change = self.rate_per_s * dt_s.max(0.0) * self.def(v);
+        let in_tool = v <= self.s;
+        let new = limited_change(clay, pushed_aside(change, clay, iso, in_tool));
+        no_sharper_than_the_tool(new, clay, tool, in_tool)
     }
 }
 
@@ -151,8 +150,11 @@ impl StampParams {
 /// region) `β = 1`; outside, `β = t / c`, which meets the inside with matching value (0) and
 /// slope (`α`), so the surface is C¹ across the tool boundary; it fades to zero with the
 /// tool's potential. α < 0 dents the clay and raises a rim around the dent; α > 0 bulges it.
-/// The deformation applies only where there is clay (`f > 0`), so the tool never creates
-/// material in empty space.
+/// The deformation moves the surface and neither creates nor cuts clay: a rise is weighted by
+/// the clay's [`presence`], so material grows only from the surface outward, never as a speck
+/// in the air where the fit's density is a little above zero; a fall outside the tool (a
+/// bulge's moat) is weighted by the clay's [`exposure`], so it wears the surface in and never
+/// cuts a shell that would set the bulge loose (one connected clay at every α).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ContactParams {
     /// Strength and sign: negative dents, positive bulges.
@@ -163,6 +165,11 @@ pub struct ContactParams {
 }
 
 impl ContactParams {
+    /// The strongest contact a tool takes, either way: at `|α| = 3` one whole application
+    /// already moves a density by up to 1.5, more than its whole range, so a stronger α only
+    /// makes the tool faster than its rate says.
+    pub const MAX_ALPHA: f32 = 3.0;
+
     /// Contact deformation of strength `alpha` at the default rate.
     #[must_use]
     pub fn with_alpha(alpha: f32) -> Self {
@@ -177,22 +184,89 @@ impl ContactParams {
     #[inline]
     #[must_use]
     pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
-        if clay <= 0.0 || tool <= 0.0 {
+        if tool <= 0.0 {
             return clay;
         }
         let g = self.alpha * (tool - iso);
         let beta = if tool >= iso { 1.0 } else { tool / iso };
-        limited_change(clay, self.rate_per_s * dt_s.max(0.0) * beta * g)
+        let change = self.rate_per_s * dt_s.max(0.0) * beta * g;
+        let in_tool = tool >= iso;
+        static EXP: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+        let exp = *EXP.get_or_init(|| {
+            std::env::var("DC_EXP").ok().and_then(|v| v.parse().ok()).unwrap_or(0)
+        });
+        let pushed = if exp & 1 == 0 { pushed_aside(change, clay, iso, in_tool) } else { change };
+        let new = limited_change(clay, pushed);
+        if exp & 2 == 0 { no_sharper_than_the_tool(new, clay, tool, in_tool) } else { new }
     }
 }
 
-/// How much clay is at a point of density `clay`, from 0 (below a quarter of the iso-level:
-/// empty space, and the fit's ripple there) to 1 (from the iso-level up), linear between.
+/// How much clay is at a point of density `clay` for a deformation to push aside, in
+/// `[0, 1]`: 0 up to half the iso-level (air, and the fit's small values around the clay), 1
+/// from the iso-level on (the clay), a smooth step between. Only the thin shell just outside
+/// the surface lies between, and every point of it is next to the clay, so a rise weighted
+/// by it grows the surface outward and cannot start an island.
 #[inline]
 #[must_use]
 pub fn presence(clay: f32, iso: f32) -> f32 {
-    let floor = 0.25 * iso;
-    ((clay - floor) / (iso - floor).max(f32::EPSILON)).clamp(0.0, 1.0)
+    static V: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+    let v = *V.get_or_init(|| std::env::var("DC_V").ok().and_then(|v| v.parse().ok()).unwrap_or(0));
+    if v >= 1 {
+        let x = (clay / iso.max(f32::EPSILON)).clamp(0.0, 1.0);
+        return x * x * (3.0 - 2.0 * x);
+    }
+    let half = 0.5 * iso.max(f32::EPSILON);
+    let x = ((clay - half) / half).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// How open a point of density `clay` is to the outside, in `[0, 1]`: 1 up to the
+/// iso-level, 0 from halfway between it and full density on (deep in the clay), a smooth
+/// step between. The mirror of [`presence`]: a fall weighted by it wears the surface in from
+/// outside and cannot cut a shell through the inside of the clay.
+#[inline]
+#[must_use]
+pub fn exposure(clay: f32, iso: f32) -> f32 {
+    static V: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+    let v = *V.get_or_init(|| std::env::var("DC_V").ok().and_then(|v| v.parse().ok()).unwrap_or(0));
+    if v >= 2 {
+        let x = ((1.0 - clay) / (1.0 - iso).max(f32::EPSILON)).clamp(0.0, 1.0);
+        return x * x * (3.0 - 2.0 * x);
+    }
+    let half = 0.5 * (1.0 - iso).max(f32::EPSILON);
+    let x = ((iso + half - clay) / half).clamp(0.0, 1.0);
+    x * x * (3.0 - 2.0 * x)
+}
+
+/// A deformation's `change` at a point of density `clay`: a rise weighted by the clay's
+/// [`presence`] (deformations push clay aside; they do not create it in the air); a fall
+/// inside the tool (`in_tool`: the print, the dent) as it is, and outside it (the moat of a
+/// bulge, a stamp's dip) weighted by its [`exposure`], so the skirt around the tool moves the
+/// surface and never cuts the clay under it loose.
+#[inline]
+fn pushed_aside(change: f32, clay: f32, iso: f32, in_tool: bool) -> f32 {
+    if change > 0.0 {
+        change * presence(clay, iso)
+    } else if in_tool {
+        change
+    } else {
+        change * exposure(clay, iso)
+    }
+}
+
+/// Inside the tool (`in_tool`), a deformation's `new` density kept between what removing the
+/// tool's shape and adding it would leave: never below `min(clay, 1 − tool)` nor above
+/// `max(clay, tool)`. Held or dragged, a print or a dent tends to the tool's own shape, whose
+/// potential falls over the whole falloff band, instead of a step the refit would ring on.
+#[inline]
+fn no_sharper_than_the_tool(new: f32, clay: f32, tool: f32, in_tool: bool) -> f32 {
+    if !in_tool || new == clay {
+        new
+    } else if new < clay {
+        new.max(clay.min(1.0 - tool))
+    } else {
+        new.min(clay.max(tool))
+    }
 }
 
 /// `clay + change`, with the change cut so that the result stays in `[0, 1]` when the clay
@@ -250,9 +324,9 @@ mod tests {
             p.apply(0.3, t, iso, dt) > 0.3,
             "the clay's outer band rises"
         );
-        assert_eq!(presence(0.125, iso), 0.0);
+        assert_eq!(presence(0.25, iso), 0.0);
         assert_eq!(presence(0.5, iso), 1.0);
-        assert!((presence(0.3125, iso) - 0.5).abs() < 1e-6);
+        assert!((presence(0.375, iso) - 0.5).abs() < 1e-6);
     }
 
     #[test]
@@ -299,6 +373,44 @@ mod tests {
         .validate()
         .unwrap_err();
         assert!(e.0.starts_with("k ="));
+    }
+
+    #[test]
+    fn deformations_push_clay_aside_and_never_grow_it_in_the_air() {
+        let iso = 0.5;
+        let dent = ContactParams::with_alpha(-ContactParams::MAX_ALPHA);
+        let bulge = ContactParams::with_alpha(ContactParams::MAX_ALPHA);
+        let stamp = StampParams::default();
+        // Where the stamp's bulge peaks (v = s + m).
+        let t_bulge = 1.0 - (stamp.s + stamp.m);
+        // Air and the fit's small density around the clay, held for ten seconds in the rim of
+        // a dent, inside a bulge and in a stamp's bulge: nothing grows.
+        for f in [0.0, 0.05, 0.2, 0.25] {
+            assert_eq!(dent.apply(f, 0.25, iso, 10.0), f, "rim at {f}");
+            assert_eq!(bulge.apply(f, 0.9, iso, 10.0), f, "bulge at {f}");
+            assert_eq!(stamp.apply(f, t_bulge, iso, 10.0), f, "stamp at {f}");
+        }
+        // The moat around a bulge wears the surface in and never cuts deep inside the clay.
+        for f in [0.75, 0.9, 1.0] {
+            assert_eq!(bulge.apply(f, 0.25, iso, 10.0), f, "moat at {f}");
+        }
+        assert!(bulge.apply(0.55, 0.25, iso, 0.01) < 0.55);
+        // A dent inside the tool goes as deep as the tool, and no sharper: held for ten
+        // seconds it leaves what removing the tool's shape leaves, and a bulge what adding it
+        // leaves.
+        assert_eq!(dent.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
+        assert_eq!(dent.apply(1.0, 0.55, iso, 10.0), 1.0 - 0.55);
+        assert_eq!(bulge.apply(0.45, 0.8, iso, 10.0), 0.8);
+        assert_eq!(stamp.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
+        // At the surface they rise as before.
+        assert!(dent.apply(0.45, 0.25, iso, 0.01) > 0.45);
+        assert!(bulge.apply(0.45, 0.9, iso, 0.01) > 0.45);
+        assert!(stamp.apply(0.45, t_bulge, iso, 0.01) > 0.45);
+        assert_eq!(presence(0.25, iso), 0.0);
+        assert_eq!(exposure(0.75, iso), 0.0);
+        assert_eq!(exposure(0.5, iso), 1.0);
+        assert_eq!(presence(0.5, iso), 1.0);
+        assert!(presence(0.4, iso) > presence(0.3, iso));
     }
 
     #[test]

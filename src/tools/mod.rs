@@ -16,16 +16,19 @@ mod emboss;
 mod force;
 mod history;
 mod pin;
+mod removal;
 mod shape;
 mod stroke;
 
-pub use action::{ActionError, ToolAction};
+pub use action::{ActionError, INTERSECTION_IS_CSG, ToolAction};
 pub use apply::{
     ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg, apply_stroke,
     apply_tool, effective_falloff_fu,
 };
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
-pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
+pub use deform::{
+    ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
+};
 pub use emboss::{
     EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
 };
@@ -37,6 +40,10 @@ pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, Step
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
+};
+pub use removal::{
+    MOST_REMOVED_UNASKED, VolumeChange, clay_volume_fu3, csg_volume_change, removed_fraction,
+    tool_volume_change,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
 pub use stroke::{MAX_SEGMENT_APPLICATIONS, MAX_STROKE_POSES, lerp, resample_stroke, steps_along};

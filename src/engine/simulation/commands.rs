@@ -78,6 +78,31 @@ impl SimulationStage {
                 reply,
             } => {
                 self.end_stroke_now();
+                // A tool that will be refused needs no estimate: its error says why.
+                let share = if tool.validate().is_ok() {
+                    let each_s = duration_s / poses.len().max(1) as f32;
+                    let change = tool_volume_change(&self.clay, &tool, &poses, each_s, patch);
+                    let guard = self.config.removal_guard;
+                    match self
+                        .removal
+                        .admits_step(guard, &self.clay, tool.action.name(), change)
+                    {
+                        Ok(share) => share,
+                        Err(refused) => {
+                            let step = Command::ApplyTool {
+                                tool,
+                                poses,
+                                duration_s,
+                                patch,
+                                reply,
+                            };
+                            self.removal.hold(step, refused);
+                            return false;
+                        }
+                    }
+                } else {
+                    0.0
+                };
                 let mut rec = StepRecorder::new(tool.action.name());
                 let options = ApplyOptions {
                     patch,
@@ -94,7 +119,7 @@ impl SimulationStage {
                 self.colour_dirty |= tool.action.paints();
                 // Whatever was applied before a failure stays undoable.
                 let changed = self.commit(rec);
-                let ok = self.edited(result, tool.action.name(), reply);
+                let ok = self.edited(result, tool.action.name(), share, reply);
                 if changed && matches!(tool.action, ToolAction::Contact(_)) {
                     self.contact_committed();
                 }
@@ -107,6 +132,24 @@ impl SimulationStage {
                 reply,
             } => {
                 self.end_stroke_now();
+                let change = csg_volume_change(&self.clay, &other, op, patch);
+                let guard = self.config.removal_guard;
+                let share = match self
+                    .removal
+                    .admits_step(guard, &self.clay, op.name(), change)
+                {
+                    Ok(share) => share,
+                    Err(refused) => {
+                        let step = Command::Csg {
+                            op,
+                            other,
+                            patch,
+                            reply,
+                        };
+                        self.removal.hold(step, refused);
+                        return false;
+                    }
+                };
                 let mut rec = StepRecorder::new(format!("csg {}", op.name()));
                 let options = ApplyOptions {
                     patch,
@@ -116,7 +159,16 @@ impl SimulationStage {
                 // The other clay's paint may come along.
                 self.colour_dirty = true;
                 self.commit(rec);
-                self.edited(result, op.name(), reply)
+                self.edited(result, op.name(), share, reply)
+            }
+            Command::AnswerRemoval(yes) => match self.removal.answer(yes) {
+                // The yes lets the held step through now.
+                Some(step) => self.apply(step),
+                None => true,
+            },
+            Command::ReportRemovals(to) => {
+                self.removal.report_to(to);
+                true
             }
             Command::Emboss {
                 relief,
@@ -136,7 +188,7 @@ impl SimulationStage {
                     Some(&mut rec),
                 );
                 self.commit(rec);
-                self.edited(result, what, reply)
+                self.embossed(result, what, reply)
             }
             Command::Refine {
                 lo,
@@ -217,14 +269,49 @@ impl SimulationStage {
         }
     }
 
-    /// Publishes a tool or CSG edit's box and answers `reply`; returns whether it succeeded.
+    /// Publishes a tool or CSG edit's box and answers `reply` with its account and the share
+    /// of the clay it was estimated to remove; returns whether it succeeded.
     fn edited(
+        &mut self,
+        result: Result<ToolReport, crate::tools::ToolError>,
+        what: &str,
+        removed_fraction: f32,
+        reply: Option<EditReply>,
+    ) -> bool {
+        let answer = self.edit_answer(result, what).map(|note| EditOutcome {
+            note,
+            removed_fraction,
+        });
+        let ok = answer.is_ok();
+        if let Some(r) = reply {
+            let _ = r.send(answer);
+        }
+        ok
+    }
+
+    /// Publishes an emboss's box and answers `reply`; returns whether it succeeded.
+    fn embossed(
         &mut self,
         result: Result<ToolReport, crate::tools::ToolError>,
         what: &str,
         reply: Option<Reply>,
     ) -> bool {
-        let answer = match result {
+        let answer = self.edit_answer(result, what);
+        let ok = answer.is_ok();
+        if let Some(r) = reply {
+            let _ = r.send(answer);
+        }
+        ok
+    }
+
+    /// Publishes an edit's box (every patch after a failure, which may have applied some
+    /// poses) and says what it did.
+    fn edit_answer(
+        &mut self,
+        result: Result<ToolReport, crate::tools::ToolError>,
+        what: &str,
+    ) -> Result<String, CommandError> {
+        match result {
             Ok(report) => {
                 if let Some(b) = report.coeff_box {
                     self.mark_changed(usize::from(report.patch), b);
@@ -242,12 +329,7 @@ impl SimulationStage {
                     error,
                 })
             }
-        };
-        let ok = answer.is_ok();
-        if let Some(r) = reply {
-            let _ = r.send(answer);
         }
-        ok
     }
 
     /// Adds a detail patch (see [`Command::Refine`]) and hands the new layout to the readers;

@@ -125,6 +125,7 @@ impl SimulationStage {
             sim_time_s: self.sim_time_s,
             pins_revision: self.pins_revision,
             compact: self.compact_status(),
+            removal_question: self.removal.question,
         };
         self.status.publish();
     }
