@@ -172,6 +172,9 @@ pub enum CommandError {
     /// A detail patch could not be added (nothing changed).
     #[error("refine: {0}")]
     Refine(#[from] crate::field::DetailError),
+    /// A tool of the library could not be made or used (nothing changed).
+    #[error(transparent)]
+    Library(#[from] super::LibraryError),
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,

@@ -39,6 +39,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod commands;
 mod compact;
 mod constrain;
+mod library;
 mod publication;
 mod session_io;
 

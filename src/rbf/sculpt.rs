@@ -377,6 +377,7 @@ fn step_name(step: &ScriptStep) -> &'static str {
         ScriptStep::Stroke { .. } => "stroke",
         ScriptStep::Material { .. } => "material",
         ScriptStep::Csg { .. } => "csg",
+        ScriptStep::MakeTool { .. } => "make_tool",
         ScriptStep::Undo { .. } => "undo",
         ScriptStep::Redo { .. } => "redo",
         ScriptStep::Save { .. } => "save",

@@ -10,6 +10,7 @@
 
 mod action;
 mod apply;
+mod capture;
 mod clay;
 mod deform;
 mod emboss;
@@ -22,6 +23,7 @@ pub use action::{ActionError, ToolAction};
 pub use apply::{
     ApplyOptions, GeometricTool, ToolError, ToolReport, apply_csg, apply_stroke, apply_tool,
 };
+pub use capture::{CaptureError, MAX_CAPTURE_DIMS, Selection, capture_tool};
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError};
 pub use emboss::{
