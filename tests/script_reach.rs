@@ -200,7 +200,7 @@ selection = { kind = "box", min = [1.0, 1.0, 1.0], max = [1.0, 2.0, 2.0] }
 fn cavity(vertices: &[Vec3], centre: Vec3, radius: f32) -> (f32, f32, usize) {
     let wall: Vec<f32> = vertices
         .iter()
-        .filter(|v| v.y < TOP - 0.05 && (v.x - centre.x).hypot(v.z - centre.z) < radius + 0.1)
+        .filter(|v| v.y < TOP - 0.05 && v.distance(centre) < radius + 0.15)
         .map(|v| v.distance(centre))
         .collect();
     let mean = wall.iter().sum::<f32>() / wall.len().max(1) as f32;

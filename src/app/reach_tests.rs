@@ -134,6 +134,7 @@ fn a_tool_made_from_the_selection_is_stored_and_held_as_the_freeform_shape() {
     assert!(drain(&end).is_empty());
     let at = Vec3::new(1.15, TOP, 1.15);
     h.state_mut().refine_at = Some(at);
+    h.state_mut().camera = Camera::named(NamedView::Front, LO, HI);
     h.run();
     h.get_by_label("Make tool from selection").click();
     h.run();
@@ -423,9 +424,10 @@ fn a_csg_difference_from_the_panel_leaves_a_spherical_cavity_of_its_radius() {
         rx.try_recv().unwrap().unwrap();
         let after = exported_vertices(engine.field(), "csg.obj");
         // The cavity's wall: vertices below the top face near the centre.
+        // (the block's bottom face lies 1.15 below: nearer than 0.45 is the cavity's)
         let wall: Vec<f32> = after
             .iter()
-            .filter(|v| v.y < TOP - 0.05 && (v.x - centre.x).hypot(v.z - centre.z) < 0.4)
+            .filter(|v| v.y < TOP - 0.05 && v.distance(centre) < radius + 0.15)
             .map(|v| v.distance(centre))
             .collect();
         assert!(wall.len() > 50, "{} wall vertices", wall.len());
@@ -570,6 +572,8 @@ fn the_windows_curve_and_bend_move_the_clay_by_the_cursors_displacement() {
             .commands()
             .send(Command::SetTool(palette.choice()))
             .unwrap();
+        let probe = Vec3::new(1.15, TOP + 0.05, z);
+        let probe_before = engine.field().value(probe);
         // Where the stroke takes hold: the curve's middle, or the bend's far end.
         let grab = match mode {
             ForceMode::Curve => Vec3::new(1.15, TOP, z),
@@ -604,6 +608,11 @@ fn the_windows_curve_and_bend_move_the_clay_by_the_cursors_displacement() {
             grab + Vec3::Y * 0.3,
             false,
             300,
+        );
+        eprintln!(
+            "{mode:?}: the field 0.05 above the top went {probe_before} → {}; tool {:?}",
+            engine.field().value(probe),
+            engine.sim().tool().name()
         );
         let before = exported_vertices(&start, "before.obj");
         let after = exported_vertices(engine.field(), "after.obj");
@@ -666,8 +675,10 @@ fn a_tool_made_in_the_window_reproduces_its_bump_elsewhere_and_is_kept_in_the_se
     // The brush at the bump's top: the selection box (half size 0.25) around it.
     let mut panel = LibraryPanel::default();
     panel.half_fu = 0.25;
-    let mut palette = ToolPalette::default();
-    palette.selected = PaletteEntry::Geometric(super::palette::ActionKind::Union);
+    let mut palette = ToolPalette {
+        selected: PaletteEntry::Geometric(super::palette::ActionKind::Union),
+        ..ToolPalette::default()
+    };
     let brush = a + Vec3::Y * 0.1;
     let add = panel
         .make_tool(engine.density(), brush, &mut palette)

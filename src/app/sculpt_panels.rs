@@ -79,7 +79,8 @@ impl SculptApp {
             && let Some(p) = hit
             && self.force_path.click(p, &mut self.palette)
         {
-            self.mark_tool_changed();
+            // Sent now: this frame's settings went out before the view took the click.
+            self.resend_tool();
         }
         true
     }

@@ -1104,9 +1104,9 @@ impl SculptApp {
         .map(|h| h.point)
     }
 
-    /// Sends the palette's tool again at the end of this frame.
-    pub(super) fn mark_tool_changed(&mut self) {
-        self.tool_pending = true;
+    /// Sends the palette's tool now (and again next frame if the queue refuses it).
+    pub(super) fn resend_tool(&mut self) {
+        self.flush_settings(true, false);
     }
 
     /// With pin mode on, the left button pins instead of sculpting: a click on the clay pins
