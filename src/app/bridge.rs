@@ -277,6 +277,7 @@ pub fn start_bridge(
         loads: Vec::new(),
         pin_replies: Vec::new(),
         refine_replies: Vec::new(),
+        edit_replies: Vec::new(),
         pins_seen: None,
         pins_list: None,
         pin_lines: Vec::new(),
@@ -332,6 +333,8 @@ struct PendingLoad {
     /// The loaded point set, handed to the graphics loop once the clay is in (`None`: the
     /// load brings none, and the points shown so far go).
     points: Option<Box<FollowedPoints>>,
+    /// The session's tool library, handed to the app once the clay is in.
+    tools: Vec<crate::io::ToolPreset>,
 }
 
 struct Bridge {
@@ -362,6 +365,8 @@ struct Bridge {
     pin_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
     /// Answers to "refine here" not yet shown.
     refine_replies: Vec<Receiver<Result<String, crate::engine::CommandError>>>,
+    /// Answers to the library, CSG and emboss edits not yet shown.
+    edit_replies: super::edit_requests::PendingEdits,
     /// The pins revision last asked about, and the list asked for.
     pins_seen: Option<u64>,
     pins_list: Option<Receiver<Vec<crate::dynamics::Constraint>>>,
@@ -443,6 +448,7 @@ impl Bridge {
         forward_replies(&mut self.refine_replies, &self.events, "refine", |detail| {
             detail
         });
+        super::edit_requests::forward_edits(&mut self.edit_replies, &self.events);
         // Nothing to show before the simulation's first step (its material is not known yet).
         let Some(status) = self.engine_mut().sim_status() else {
             return;
@@ -612,6 +618,7 @@ impl Bridge {
     ) {
         let (tx, rx) = bounded(1);
         let kept = (retry && self.restart.is_some()).then(|| Box::new(session.clone()));
+        let tools = session.tools.clone();
         let sent = self.engine().commands().send(Command::Load {
             session: Box::new(session),
             source: source.to_path_buf(),
@@ -625,6 +632,7 @@ impl Bridge {
             session: kept,
             source: source.to_path_buf(),
             points,
+            tools,
         });
     }
 
@@ -645,6 +653,7 @@ impl Bridge {
                     // The clay is in: its points (or none) follow it from now on. A full
                     // queue means the graphics loop stalled; it takes the newest when back.
                     let _ = points.try_send(pending.points.take());
+                    let _ = events.send(EngineEvent::Library(std::mem::take(&mut pending.tools)));
                     EngineEvent::Done {
                         what: "load".into(),
                         detail,
@@ -973,6 +982,19 @@ impl Bridge {
             EngineCommand::Load { path } => self.load(&path),
             EngineCommand::AnswerRemoval { yes } => {
                 self.send(what, Command::AnswerRemoval(yes));
+            }
+            edit @ (EngineCommand::AddTool(_)
+            | EngineCommand::Csg { .. }
+            | EngineCommand::Emboss { .. }) => {
+                let (tx, rx) = bounded(1);
+                match super::edit_requests::edit_command(edit, tx) {
+                    Some(Ok(cmd)) => {
+                        self.edit_replies.push((what, rx));
+                        self.send(what, cmd);
+                    }
+                    Some(Err(error)) => self.fail(what, error),
+                    None => {}
+                }
             }
             EngineCommand::SetMaxForce { max_force_n } => {
                 match self.engine().force_limit().request(max_force_n) {
@@ -1574,7 +1596,7 @@ mod tests {
             .iter()
             .filter_map(|e| match e {
                 EngineEvent::Failed { error, .. } => Some(error),
-                EngineEvent::Done { .. } => None,
+                EngineEvent::Done { .. } | EngineEvent::Library(_) => None,
             })
             .collect();
         assert!(failures[0].contains("bad.ply"), "{failures:?}");

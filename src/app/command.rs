@@ -25,16 +25,24 @@ pub enum ForceMode {
     Squirt,
     /// Pulls the surface toward the cursor (bending and drawing out).
     Pull,
+    /// Every point of a user curve moves with the cursor's displacement from where the
+    /// stroke began (the curve: the last stroke's path or points clicked on the clay).
+    Curve,
+    /// Bends about a pivot (clicked on the clay): the clay between the pivot and where the
+    /// stroke took hold turns with the cursor.
+    Bend,
 }
 
 impl ForceMode {
     /// Every mode, in palette order.
-    pub const ALL: [ForceMode; 5] = [
+    pub const ALL: [ForceMode; 7] = [
         Self::PointGrab,
         Self::Area,
         Self::Chisel,
         Self::Squirt,
         Self::Pull,
+        Self::Curve,
+        Self::Bend,
     ];
 
     /// Label for menus.
@@ -46,6 +54,8 @@ impl ForceMode {
             Self::Chisel => "chisel",
             Self::Squirt => "squirt",
             Self::Pull => "pull",
+            Self::Curve => "curve",
+            Self::Bend => "bend",
         }
     }
 }
@@ -115,6 +125,24 @@ pub enum EngineCommand {
     SetHapticGain {
         gain: f32,
     },
+    /// CSG (Guo & Qin Table 1) of the clay with `operand`: `op` is [`ToolAction::Union`],
+    /// [`ToolAction::Intersection`] or [`ToolAction::Difference`] (one undo step).
+    ///
+    /// [`ToolAction::Union`]: crate::tools::ToolAction::Union
+    /// [`ToolAction::Intersection`]: crate::tools::ToolAction::Intersection
+    /// [`ToolAction::Difference`]: crate::tools::ToolAction::Difference
+    Csg {
+        op: crate::tools::ToolAction,
+        operand: CsgOperand,
+    },
+    /// Emboss (or engrave) the image at `image` (PNG or JPEG) onto the clay (one undo step).
+    Emboss {
+        image: PathBuf,
+        params: crate::tools::EmbossParams,
+    },
+    /// Store a tool made from the sculpt in the session's library (replacing one of the same
+    /// name); it is saved with the session.
+    AddTool(Box<crate::io::ToolPreset>),
     /// Hold the clay as a compact RBF of `particles` particles (Zhang et al. §5.4: the clay is
     /// re-interpolated after each contact stroke), or stop with `None`.
     SetCompactRbf {
@@ -148,16 +176,35 @@ impl EngineCommand {
             Self::SetMaxForce { .. } => "set max force",
             Self::SetHapticGain { .. } => "set haptic gain",
             Self::SetCompactRbf { .. } => "compact RBF clay",
+            Self::AddTool(_) => "make tool",
+            Self::Csg { .. } => "csg",
+            Self::Emboss { .. } => "emboss",
         }
     }
 }
 
+/// The other operand of a CSG operation.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CsgOperand {
+    /// The clay of a session file, in its own field coordinates (read on the bridge thread).
+    Session(PathBuf),
+    /// An analytic solid at a pose, its potential falling over `falloff_fu` on each side of
+    /// its surface.
+    Solid {
+        shape: crate::tools::ToolShape,
+        pose: crate::tools::ToolPose,
+        falloff_fu: f32,
+    },
+}
+
 /// The engine's answer to a command that can fail or takes a while (save, load, export,
 /// connect), shown in the app's status line and log.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum EngineEvent {
     /// `what` finished; `detail` says what happened (for example the path written).
     Done { what: String, detail: String },
     /// `what` failed with `error` (the error's own message, naming file and field).
     Failed { what: String, error: String },
+    /// A session was loaded: its tool library, for the library panel and the palette.
+    Library(Vec<crate::io::ToolPreset>),
 }

@@ -4,9 +4,14 @@
 mod bridge;
 mod camera_input;
 mod command;
+mod csg_panel;
 mod device_panel;
+mod edit_requests;
+mod emboss_panel;
+mod force_path_panel;
 mod latency;
 mod launch;
+mod library_panel;
 mod link;
 mod material_panel;
 mod meshes;
@@ -16,6 +21,7 @@ mod pointer_tool;
 mod probe_panel;
 mod removal_dialog;
 mod run;
+mod sculpt_panels;
 mod state;
 mod view;
 mod viewport;
@@ -26,18 +32,24 @@ pub use bridge::{
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
 };
-pub use command::{EngineCommand, EngineEvent, ForceMode};
+pub use command::{CsgOperand, EngineCommand, EngineEvent, ForceMode};
+pub use csg_panel::{CSG_OPS, CsgPanel, OperandKind, SolidKind};
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
+pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
+pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args};
+pub use library_panel::{LibraryPanel, SelectionKind, freeform_ui};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
 };
 pub use material_panel::{MaterialBrush, material_ui};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
-pub use palette::{ActionKind, ForceSettings, PaletteEntry, ShapeKind, ToolPalette, entry_label};
+pub use palette::{
+    ActionKind, ForceSettings, FreeformChoice, PaletteEntry, ShapeKind, ToolPalette, entry_label,
+};
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
-pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose};
+pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose, raising_choice};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
 pub use removal_dialog::RemovalDialog;
 pub use run::{GuiError, GuiOptions, run_gui};
@@ -47,3 +59,5 @@ pub use viewport::SceneView;
 
 #[cfg(test)]
 mod gui_tests;
+#[cfg(test)]
+mod reach_tests;

@@ -42,7 +42,8 @@ impl ActionKind {
     ];
 }
 
-/// The analytic tool shapes offered (a freeform tool needs a sculpted session: not here yet).
+/// The tool shapes offered: the analytic ones, and a freeform tool made from the sculpt (see
+/// [`super::LibraryPanel`]), offered once the library holds one.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ShapeKind {
     Sphere,
@@ -50,6 +51,7 @@ pub enum ShapeKind {
     Box,
     Cylinder,
     Capsule,
+    Freeform,
 }
 
 impl ShapeKind {
@@ -69,6 +71,7 @@ impl ShapeKind {
             Self::Box => "box",
             Self::Cylinder => "cylinder",
             Self::Capsule => "capsule",
+            Self::Freeform => "freeform",
         }
     }
 }
@@ -104,6 +107,21 @@ pub struct ToolPalette {
     pub contact_rate_per_s: f32,
     /// The force tools' settings (each force entry reads the ones it uses).
     pub force: ForceSettings,
+    /// The library tool the freeform shape uses (`None` until one is made or chosen).
+    pub freeform: Option<FreeformChoice>,
+    /// The curve tool's user curve, field coordinates (see [`super::ForcePathPanel`]).
+    pub curve_fu: Vec<Vec3>,
+    /// The bend's pivot, field coordinates (`None` until one is picked).
+    pub pivot_fu: Option<Vec3>,
+}
+
+/// The library tool in the palette's freeform shape: its name and shape (its scale included).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeformChoice {
+    /// The library tool's name.
+    pub name: String,
+    /// Its shape.
+    pub tool: crate::tools::FreeformTool,
 }
 
 /// The settings the force entries share; [`ToolPalette::choice`] makes the engine's tool from
@@ -118,6 +136,8 @@ pub struct ForceSettings {
     pub gain: f32,
     /// Penetration depth of the chisel and squirt, field units.
     pub depth_fu: f32,
+    /// Samples along the bend's arm (pivot to grab).
+    pub bend_samples: u32,
 }
 
 impl Default for ForceSettings {
@@ -128,6 +148,7 @@ impl Default for ForceSettings {
             radius_fu: push.radius_fu,
             gain: push.gain,
             depth_fu: 0.02,
+            bend_samples: 12,
         }
     }
 }
@@ -143,6 +164,7 @@ impl ForceSettings {
             radius_fu,
             gain,
             depth_fu,
+            bend_samples,
         } = *self;
         match mode {
             ForceMode::PointGrab => ToolChoice::Push(PushTool {
@@ -171,6 +193,13 @@ impl ForceSettings {
             .into(),
             ForceMode::Pull => ForceTool::Pull {
                 distribution,
+                radius_fu,
+                gain,
+            }
+            .into(),
+            ForceMode::Curve => ForceTool::Curve { radius_fu, gain }.into(),
+            ForceMode::Bend => ForceTool::Bend {
+                samples: bend_samples,
                 radius_fu,
                 gain,
             }
@@ -225,6 +254,9 @@ impl Default for ToolPalette {
             contact_alpha: DEFAULT_CONTACT_ALPHA,
             contact_rate_per_s: DEFAULT_CONTACT_RATE_PER_S,
             force: ForceSettings::default(),
+            freeform: None,
+            curve_fu: Vec::new(),
+            pivot_fu: None,
         }
     }
 }
@@ -251,6 +283,8 @@ pub fn entry_label(entry: PaletteEntry) -> &'static str {
             ForceMode::Chisel => "Chisel",
             ForceMode::Squirt => "Squirt",
             ForceMode::Pull => "Pull",
+            ForceMode::Curve => "Curve",
+            ForceMode::Bend => "Bend",
         },
     }
 }
@@ -276,6 +310,13 @@ impl ToolPalette {
             ShapeKind::Capsule => ToolShape::Capsule {
                 radius_fu: self.radius_fu,
                 half_height_fu: self.half_height_fu,
+            },
+            // Without a library tool the freeform entry is not offered; a sphere stands in.
+            ShapeKind::Freeform => match &self.freeform {
+                Some(f) => ToolShape::Freeform(f.tool.clone()),
+                None => ToolShape::Sphere {
+                    radius_fu: self.radius_fu,
+                },
             },
         }
     }
@@ -321,7 +362,18 @@ impl ToolPalette {
                 action: self.action(kind),
                 falloff_fu: self.falloff_fu,
             }),
-            PaletteEntry::Force(mode) => self.force.choice(mode),
+            PaletteEntry::Force(mode) => {
+                let mut choice = self.force.choice(mode);
+                if let ToolChoice::Force { curve, pivot, .. } = &mut choice {
+                    match mode {
+                        ForceMode::Curve => curve.clone_from(&self.curve_fu),
+                        // Without a picked pivot the bend turns about the clay's origin.
+                        ForceMode::Bend => *pivot = self.pivot_fu.unwrap_or(Vec3::ZERO),
+                        _ => {}
+                    }
+                }
+                choice
+            }
         }
     }
 
@@ -357,6 +409,9 @@ impl ToolPalette {
                 for s in ShapeKind::ALL {
                     ui.selectable_value(&mut self.shape, s, s.name());
                 }
+                if self.freeform.is_some() {
+                    ui.selectable_value(&mut self.shape, ShapeKind::Freeform, "freeform");
+                }
             });
         match self.shape {
             ShapeKind::Sphere => {
@@ -377,6 +432,7 @@ impl ToolPalette {
                     egui::Slider::new(&mut self.half_height_fu, 0.005..=1.0).text("Half height"),
                 );
             }
+            ShapeKind::Freeform => super::library_panel::freeform_ui(ui, &mut self.freeform),
         }
         ui.add(egui::Slider::new(&mut self.falloff_fu, 0.001..=0.5).text("Falloff"));
         match kind {
@@ -464,6 +520,12 @@ impl ToolPalette {
         );
         if matches!(mode, ForceMode::Chisel | ForceMode::Squirt) {
             ui.add(egui::Slider::new(&mut f.depth_fu, 0.001..=0.2).text("Depth"));
+        }
+        if mode == ForceMode::Bend {
+            ui.add(egui::Slider::new(&mut f.bend_samples, 1..=64).text("Bend samples"));
+        }
+        if matches!(mode, ForceMode::Curve | ForceMode::Bend) {
+            super::force_path_panel::summary_ui(ui, mode, &self.curve_fu, self.pivot_fu);
         }
     }
 }

@@ -5,6 +5,11 @@
 //! hand-over ([`PointerHandle::set`]). While a stroke is held the pick is made on the clay as
 //! it was when the stroke began, so a drag carves a groove of the set depth instead of digging
 //! deeper every frame as the clay gives way.
+//!
+//! The press depth is signed: below zero the pressing tip is held that far *above* the
+//! surface, and the point grab pulls the clay out toward it ([`raising_choice`]), so a mouse
+//! raises clay as well as pressing it in. A pulling stroke's first frame puts the tip on the
+//! surface, where the tool takes hold, and the following frames lift it.
 
 use glam::{Vec2, Vec3};
 
@@ -16,7 +21,8 @@ use crate::render::Camera;
 
 /// Depth step per scroll point with the depth modifier held, as a fraction of the depth range.
 const DEPTH_PER_SCROLL_POINT: f32 = 0.002;
-/// Deepest the tip goes below the surface, knot spans.
+/// Deepest the tip goes below the surface (and, for a negative depth, highest above it),
+/// knot spans.
 pub const MAX_DEPTH_SPANS: f32 = 4.0;
 
 /// Where the tool is this frame, field coordinates.
@@ -41,7 +47,8 @@ pub struct PointerTool {
     handle: Option<PointerHandle>,
     /// Field → device map of the engine the handle feeds.
     map: Option<WorkspaceMap>,
-    /// How far below the surface a pressing tip goes, knot spans.
+    /// How far below the surface a pressing tip goes, knot spans; negative: how far above it
+    /// a pulling tip is held.
     pub depth_spans: f32,
     /// The clay as it was when the held stroke began.
     stroke_field: Option<MultiPatchField>,
@@ -82,17 +89,20 @@ impl PointerTool {
         self.handle.as_ref().map(PointerHandle::last)
     }
 
-    /// Changes the press depth for a scroll of `scroll_points` (up: deeper).
+    /// Changes the press depth for a scroll of `scroll_points` (up: deeper; through zero to
+    /// a pull above the surface).
     pub fn scroll_depth(&mut self, scroll_points: f32) {
         if scroll_points.is_finite() {
             self.depth_spans = (self.depth_spans
                 + scroll_points * DEPTH_PER_SCROLL_POINT * MAX_DEPTH_SPANS)
-                .clamp(0.0, MAX_DEPTH_SPANS);
+                .clamp(-MAX_DEPTH_SPANS, MAX_DEPTH_SPANS);
         }
     }
 
     /// Aims the tool along the view ray under `pointer_ndc` and hands the tip to the device.
     /// `pressing` holds a stroke; `pressure` (0..1, a pen's) scales the depth, 1 for a mouse.
+    /// A negative depth holds the pressing tip above the surface (on it in the stroke's first
+    /// frame, so the tool takes hold there).
     pub fn aim(
         &mut self,
         field: &MultiPatchField,
@@ -102,7 +112,8 @@ impl PointerTool {
         pressing: bool,
         pressure: f32,
     ) -> TipPose {
-        if pressing && self.stroke_field.is_none() {
+        let first_pressed = pressing && self.stroke_field.is_none();
+        if first_pressed {
             self.stroke_field = Some(field.clone());
         } else if !pressing {
             self.stroke_field = None;
@@ -113,7 +124,11 @@ impl PointerTool {
         let pose = match pick_surface(picked_on, Ray { origin, direction }) {
             Some(hit) => {
                 self.last_distance = Some(hit.distance);
-                let depth = self.depth_spans * field.finest_spacing() * pressure.clamp(0.0, 1.0);
+                let mut depth =
+                    self.depth_spans * field.finest_spacing() * pressure.clamp(0.0, 1.0);
+                if first_pressed && depth < 0.0 {
+                    depth = 0.0;
+                }
                 let tip = if pressing {
                     hit.point - hit.normal * depth
                 } else {
@@ -159,6 +174,27 @@ impl PointerTool {
                 handle.set(last.position_m, false);
             }
         }
+    }
+}
+
+/// The tool a stroke uses at a press depth below zero (`raising`): the point grab's contact
+/// push cannot reach a tip above the surface, so it becomes the pull (the same spread and
+/// gain) that draws the clay out toward the tip; every other tool is unchanged (the area and
+/// force tools already pull toward a tip above the surface, and the chisel and squirt keep
+/// their own depth).
+#[must_use]
+pub fn raising_choice(
+    choice: crate::engine::ToolChoice,
+    raising: bool,
+) -> crate::engine::ToolChoice {
+    match choice {
+        crate::engine::ToolChoice::Push(push) if raising => crate::tools::ForceTool::Pull {
+            distribution: push.distribution,
+            radius_fu: push.radius_fu,
+            gain: push.gain,
+        }
+        .into(),
+        other => other,
     }
 }
 
@@ -229,5 +265,46 @@ mod tests {
         assert_eq!(tool.depth_spans, MAX_DEPTH_SPANS);
         tool.scroll_depth(f32::NAN);
         assert_eq!(tool.depth_spans, MAX_DEPTH_SPANS);
+        tool.scroll_depth(-1.0e6);
+        assert_eq!(tool.depth_spans, -MAX_DEPTH_SPANS);
+    }
+
+    #[test]
+    fn a_negative_depth_holds_the_pressing_tip_above_the_surface_after_the_first_frame() {
+        let field = ball();
+        let config = PointerConfig::default();
+        let (_device, handle) = pointer_device(config);
+        let map = WorkspaceMap::fitting(
+            config.workspace_min_m,
+            config.workspace_max_m,
+            Vec3::ZERO,
+            Vec3::splat(3.2),
+            30.0,
+        );
+        let mut tool = PointerTool::new(handle, map);
+        tool.depth_spans = -1.5;
+        let camera = Camera::named(NamedView::Front, Vec3::splat(0.6), Vec3::splat(2.6));
+        let first = tool.aim(&field, &camera, Vec2::ZERO, 1.0, true, 1.0);
+        assert!(
+            (first.tip - first.surface).length() < 1e-6,
+            "first frame on the surface"
+        );
+        let lifted = tool.aim(&field, &camera, Vec2::ZERO, 1.0, true, 1.0);
+        let height = (lifted.tip - lifted.surface).dot(lifted.normal);
+        assert!(
+            (height - 0.3).abs() < 1e-4,
+            "held 1.5 spans above: {height}"
+        );
+        assert!(field.value(lifted.tip) < field.iso());
+        // The point grab pulls out at a negative depth; other tools stay.
+        let push = crate::engine::ToolChoice::default();
+        assert!(matches!(
+            raising_choice(push.clone(), true),
+            crate::engine::ToolChoice::Force {
+                tool: crate::tools::ForceTool::Pull { .. },
+                ..
+            }
+        ));
+        assert_eq!(raising_choice(push.clone(), false), push);
     }
 }

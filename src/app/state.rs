@@ -18,9 +18,13 @@ use crate::render::{
 
 use super::camera_input::SpaceMouseCamera;
 use super::command::{EngineCommand, EngineEvent};
+use super::csg_panel::CsgPanel;
 use super::device_panel::haptic_gain_slider;
 use super::device_panel::{DeviceAction, DevicePanel};
+use super::emboss_panel::EmbossPanel;
+use super::force_path_panel::ForcePathPanel;
 use super::latency::LatencyHistory;
+use super::library_panel::LibraryPanel;
 use super::link::EngineLink;
 use super::material_panel::{MaterialBrush, material_ui};
 use super::palette::ToolPalette;
@@ -160,8 +164,22 @@ pub struct SculptApp {
     pub symmetry: crate::engine::Symmetry,
     /// This frame's brush cursor: centre, radius in points and tint, painted over the scene.
     brush_cursor: Option<(egui::Pos2, f32, egui::Color32)>,
-    /// The last surface point the brush was on, where "Refine here" adds a detail patch.
+    /// The last surface point the brush was on, where "Refine here" adds a detail patch (and
+    /// the tool library's selection, a CSG solid and an embossed image are placed).
     pub(crate) refine_at: Option<glam::Vec3>,
+    /// The clay's outward normal at `refine_at`.
+    pub(super) brush_normal: Option<glam::Vec3>,
+    /// The tool library: tools made from the sculpt.
+    pub library: LibraryPanel,
+    /// The curve and the pivot of the curve and bend tools.
+    pub force_path: ForcePathPanel,
+    /// CSG with a session file or a solid.
+    pub csg: CsgPanel,
+    /// Embossing an image.
+    pub emboss: EmbossPanel,
+    /// Whether the tool last sent pulls outward for a negative press depth (see
+    /// [`super::pointer_tool::raising_choice`]).
+    raising_sent: bool,
     /// Pinning with the mouse, and the list of the clay's pins.
     pub pins: PinPanel,
     /// The question before a step removes more than half the clay.
@@ -264,6 +282,12 @@ impl SculptApp {
             let line = match ev {
                 EngineEvent::Done { what, detail } => format!("{what}: {detail}"),
                 EngineEvent::Failed { what, error } => format!("{what} failed: {error}"),
+                EngineEvent::Library(tools) => {
+                    let line = format!("library: {} tools", tools.len());
+                    self.library.set_tools(tools, &mut self.palette);
+                    self.tool_pending = true;
+                    line
+                }
             };
             self.note(line);
         }
@@ -311,9 +335,12 @@ impl SculptApp {
             // Changed before the engine's first view: keep the user's choice.
             self.material_loads_seen = Some(self.view.sessions_loaded);
         }
+        let raising = self.pointer.depth_spans < 0.0;
+        self.tool_pending |= raising != self.raising_sent;
         if self.tool_pending {
-            let choice = self.palette.choice();
+            let choice = super::pointer_tool::raising_choice(self.palette.choice(), raising);
             self.tool_pending = !self.send(EngineCommand::SelectTool(choice));
+            self.raising_sent = raising;
         }
         if self.material_pending {
             self.material_pending = !self.send(EngineCommand::SetMaterial(self.material));
@@ -381,6 +408,7 @@ impl SculptApp {
                     egui::CollapsingHeader::new("Pointer")
                         .default_open(true)
                         .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
+                    tool_changed |= self.sculpt_sections(ui);
                     egui::CollapsingHeader::new("Material")
                         .default_open(true)
                         .show(ui, |ui| {
@@ -519,9 +547,13 @@ impl SculptApp {
         ui.add(
             egui::Slider::new(
                 &mut self.pointer.depth_spans,
-                0.0..=super::pointer_tool::MAX_DEPTH_SPANS,
+                -super::pointer_tool::MAX_DEPTH_SPANS..=super::pointer_tool::MAX_DEPTH_SPANS,
             )
             .text("Press depth (spans)"),
+        )
+        .on_hover_text(
+            "How far below the surface a stroke presses; below zero the tip is held above the \
+             surface and the stroke pulls the clay out toward it",
         );
         let changed = ui
             .add(
@@ -542,7 +574,7 @@ impl SculptApp {
         });
         ui.label("Left drag on the clay: stroke · Alt+left or left off the clay: orbit");
         ui.label("Right, middle or Shift+left: pan · wheel: zoom");
-        ui.label("Ctrl+wheel: depth · Shift+wheel: strength · [ ]: brush size");
+        ui.label("Ctrl+wheel: depth (below 0: pull out) · Shift+wheel: strength · [ ]: brush size");
         changed
     }
 
@@ -814,6 +846,7 @@ impl SculptApp {
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
             self.paint_pins(ui, rect);
+            self.paint_sculpt_marks(ui, rect);
             self.paint_brush_cursor(ui, rect);
             return;
         };
@@ -863,6 +896,7 @@ impl SculptApp {
             let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
             image.paint_at(ui, rect);
             self.paint_pins(ui, rect);
+            self.paint_sculpt_marks(ui, rect);
             self.paint_brush_cursor(ui, rect);
         }
         if let Some(problem) = problem {
@@ -983,6 +1017,15 @@ impl SculptApp {
             modifiers = m;
         }
         self.brush_cursor = None;
+        if self.force_path.picking() {
+            let hit = self.clay_hit(response.rect, pos);
+            let starts = pressed && response.hovered() && hit.is_some();
+            self.pointer.release();
+            self.path_pick_input(hit, starts);
+            // A press on the clay picks; one beside it orbits.
+            self.sculpt_drag = starts || (self.sculpt_drag && down);
+            return;
+        }
         if self.pins.active {
             self.pin_input(response, pos, pressed, down, modifiers);
             return;
@@ -1008,6 +1051,9 @@ impl SculptApp {
         }
         if !down {
             self.sculpt_drag = false;
+        }
+        if !self.sculpt_drag {
+            self.force_path.end_recording();
         }
         let rect = response.rect;
         let over = pos.filter(|p| rect.contains(*p));
@@ -1036,7 +1082,12 @@ impl SculptApp {
         if !pose.on_clay {
             return;
         }
+        if self.sculpt_drag {
+            let spacing = self.link.field().value.finest_spacing();
+            self.force_path.record(pose.surface, spacing);
+        }
         self.refine_at = Some(pose.surface);
+        self.brush_normal = Some(pose.normal);
         // The brush cursor: the tool's footprint on the surface, tinted by the tool.
         let radius = self.brush_radius();
         let aspect = size.x / size.y;
@@ -1091,6 +1142,11 @@ impl SculptApp {
             crate::field::Ray { origin, direction },
         )
         .map(|h| h.point)
+    }
+
+    /// Sends the palette's tool now (and again next frame if the queue refuses it).
+    pub(super) fn resend_tool(&mut self) {
+        self.flush_settings(true, false);
     }
 
     /// With pin mode on, the left button pins instead of sculpting: a click on the clay pins

@@ -190,6 +190,51 @@ pub enum Command {
     /// Where each stroke that removed more than [`super::MOST_REMOVED_UNASKED`] of the clay is
     /// reported when it ends ([`super::RemovalGuard::Warn`] mode; a script driver's warnings).
     ReportRemovals(Sender<super::StrokeRemoval>),
+    /// Make a freeform tool of the clay inside `selection` and store it in the session's
+    /// library as `name` (replacing one of that name), with `action` and `falloff_fu` as its
+    /// defaults. The clay is unchanged (not an undo step).
+    MakeTool {
+        /// The preset's name.
+        name: String,
+        /// Where the clay to capture is.
+        selection: crate::tools::Selection,
+        /// The preset's action.
+        action: ToolAction,
+        /// The preset's falloff band, field units.
+        falloff_fu: f32,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Store `preset` in the session's library (replacing one of the same name), as the
+    /// window does with a tool it made from the clay it shows.
+    AddTool {
+        /// The preset.
+        preset: Box<crate::io::ToolPreset>,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Apply a tool of the library, looked up when the command is applied, at each pose in
+    /// turn (one undo step), as [`Command::ApplyTool`] does.
+    ApplyLibraryTool {
+        /// Which preset, and what changes.
+        tool: super::LibraryTool,
+        /// Where it is applied, field coordinates.
+        poses: Vec<ToolPose>,
+        /// Total dwell time, seconds.
+        duration_s: f32,
+        /// Which density patch.
+        patch: u16,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
+    /// Hold a tool of the library, looked up when the command is applied, as a geometric
+    /// stroke tool (as [`Command::SetTool`] does; a held stroke ends first).
+    SetLibraryTool {
+        /// Which preset, and what changes.
+        tool: super::LibraryTool,
+        /// Where the outcome goes.
+        reply: Option<Reply>,
+    },
     /// Emboss (or engrave) an image onto the clay (one undo step).
     Emboss {
         /// The image's brightness (loaded by the caller).

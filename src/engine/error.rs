@@ -186,6 +186,9 @@ pub enum CommandError {
     /// A material paint was refused (nothing changed).
     #[error(transparent)]
     Material(#[from] crate::dynamics::MaterialGridError),
+    /// A tool of the library could not be made or used (nothing changed).
+    #[error(transparent)]
+    Library(#[from] super::LibraryError),
     /// The simulation loop is no longer running.
     #[error("the simulation loop has stopped")]
     Stopped,

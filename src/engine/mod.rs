@@ -25,6 +25,7 @@ mod sim_status;
 mod simulation;
 mod symmetry;
 mod threaded;
+mod tool_library;
 mod tool_sample;
 mod update;
 mod wiring;
@@ -60,6 +61,9 @@ pub use simulation::{
 };
 pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
 pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions, StoppedEngine};
+pub use tool_library::{
+    LibraryError, LibraryTool, check_name, describe_preset, make_preset, store_preset,
+};
 pub use tool_sample::ToolSample;
 pub use update::{ChangedBox, FieldUpdate};
 pub use wiring::{Stages, build};

@@ -32,11 +32,12 @@ use dynaclay_devices::{Interpolation, Trajectory, Waypoint};
 use glam::Vec3;
 
 use super::command::{PushTool, ToolChoice};
+use super::tool_library::LibraryTool;
 use super::workspace::WorkspaceMap;
 use crate::dynamics::Material;
 use crate::io::{
-    ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ToolPreset, load_session,
-    paint_request, parse_script, pin_request, poses,
+    ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ShapeSpec, ToolPreset,
+    load_session, paint_request, parse_script, pin_request, poses,
 };
 use crate::tools::{
     Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
@@ -85,6 +86,38 @@ fn export_options(
     }
 }
 
+/// When a stroke starts: at `start_s` (at least [`SETTLE_S`] after `clock`, the end of the
+/// previous step) or [`TRAVEL_S`] after `clock`.
+fn stroke_start(start_s: Option<f64>, clock: f64) -> Result<f64, String> {
+    match start_s {
+        Some(s) if s < clock + SETTLE_S => Err(format!(
+            "start_s = {s} is too early: the previous step ends at {clock:.3} s and a stroke \
+             needs {SETTLE_S} s after it"
+        )),
+        Some(s) => Ok(s),
+        None => Ok(clock + TRAVEL_S),
+    }
+}
+
+/// When the tip reaches each point of a stroke's path, seconds from the path's start:
+/// `times_s` if given, else evenly over `duration_s` (1 s by default).
+fn path_times(path: &[[f32; 3]], duration_s: Option<f32>, times_s: &[f32]) -> Vec<f64> {
+    if !times_s.is_empty() {
+        return times_s.iter().map(|t| f64::from(*t)).collect();
+    }
+    let d = f64::from(duration_s.unwrap_or(1.0));
+    let k = path.len();
+    (0..k)
+        .map(|i| {
+            if k > 1 {
+                d * i as f64 / (k - 1) as f64
+            } else {
+                d
+            }
+        })
+        .collect()
+}
+
 /// The built-in default script.
 #[must_use]
 pub fn builtin_script() -> Script {
@@ -108,6 +141,23 @@ pub enum PlannedAction {
         duration_s: f32,
         patch: u16,
     },
+    /// Make a freeform tool of the clay inside a selection and store it in the library.
+    MakeTool {
+        name: String,
+        selection: crate::tools::Selection,
+        action: ToolAction,
+        falloff_fu: f32,
+    },
+    /// A geometric tool step with a tool an earlier `make_tool` step made (looked up when it
+    /// runs).
+    ApplyLibraryTool {
+        tool: super::LibraryTool,
+        poses: Vec<ToolPose>,
+        duration_s: f32,
+        patch: u16,
+    },
+    /// Hold a tool an earlier `make_tool` step made for the following strokes.
+    SetLibraryTool(super::LibraryTool),
     /// CSG with a loaded clay.
     Csg {
         op: ToolAction,
@@ -258,6 +308,9 @@ impl ScriptPlan {
         let mut strokes = Vec::new();
         let mut clock = 0.0_f64;
         let mut held: Option<ToolChoice> = None;
+        // Tools made by `make_tool` steps so far: steps naming them are resolved when they
+        // run, against the library as it is then.
+        let mut made: Vec<String> = Vec::new();
         // The count `rbf` steps use when they name none: the last `particles` step's.
         let mut particle_count = crate::rbf::ExportOptions::default().particles;
         for (n, step) in script.steps.iter().enumerate() {
@@ -291,6 +344,25 @@ impl ScriptPlan {
                     curve,
                     pivot,
                 } => {
+                    if let (Some(ShapeSpec::Freeform { preset, scale }), Some(action)) =
+                        (shape, action)
+                        && made.contains(preset)
+                    {
+                        event(PlannedAction::SetLibraryTool(LibraryTool {
+                            name: preset.clone(),
+                            scale: Vec3::from_array(*scale),
+                            action: Some(*action),
+                            falloff_fu: Some(*falloff_fu),
+                        }));
+                        held = None;
+                        let start = stroke_start(*start_s, clock).map_err(fail)?;
+                        let times = path_times(path, *duration_s, times_s);
+                        let stroke =
+                            stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, false);
+                        clock = stroke.end_s;
+                        strokes.push(stroke);
+                        continue;
+                    }
                     let choice = match (tool, shape, action) {
                         (_, Some(shape), Some(action)) => ToolChoice::Geometric(GeometricTool {
                             shape: shape
@@ -305,32 +377,9 @@ impl ScriptPlan {
                     if held.as_ref() != Some(&choice) {
                         event(PlannedAction::SetTool(choice.clone()));
                     }
-                    let start = match start_s {
-                        Some(s) if *s < clock + SETTLE_S => {
-                            return Err(fail(format!(
-                                "start_s = {s} is too early: the previous step ends at \
-                                 {clock:.3} s and a stroke needs {SETTLE_S} s after it"
-                            )));
-                        }
-                        Some(s) => *s,
-                        None => clock + TRAVEL_S,
-                    };
+                    let start = stroke_start(*start_s, clock).map_err(fail)?;
                     let push = matches!(choice, ToolChoice::Push(_));
-                    let times: Vec<f64> = if times_s.is_empty() {
-                        let d = f64::from(duration_s.unwrap_or(1.0));
-                        let k = path.len();
-                        (0..k)
-                            .map(|i| {
-                                if k > 1 {
-                                    d * i as f64 / (k - 1) as f64
-                                } else {
-                                    d
-                                }
-                            })
-                            .collect()
-                    } else {
-                        times_s.iter().map(|t| f64::from(*t)).collect()
-                    };
+                    let times = path_times(path, *duration_s, times_s);
                     let stroke =
                         stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, push);
                     clock = stroke.end_s;
@@ -346,6 +395,22 @@ impl ScriptPlan {
                     duration_s,
                     patch,
                 } => {
+                    if let ShapeSpec::Freeform { preset, scale } = shape
+                        && made.contains(preset)
+                    {
+                        event(PlannedAction::ApplyLibraryTool {
+                            tool: LibraryTool {
+                                name: preset.clone(),
+                                scale: Vec3::from_array(*scale),
+                                action: Some(*action),
+                                falloff_fu: Some(*falloff_fu),
+                            },
+                            poses: poses(positions, *rotation),
+                            duration_s: *duration_s,
+                            patch: *patch,
+                        });
+                        continue;
+                    }
                     let shape = shape
                         .resolve(|name| lookup(name).map(|t| &t.shape))
                         .map_err(fail)?;
@@ -366,6 +431,20 @@ impl ScriptPlan {
                     positions,
                     duration_s,
                 } => {
+                    if made.contains(name) {
+                        event(PlannedAction::ApplyLibraryTool {
+                            tool: LibraryTool {
+                                name: name.clone(),
+                                scale: Vec3::ONE,
+                                action: None,
+                                falloff_fu: None,
+                            },
+                            poses: poses(positions, None),
+                            duration_s: *duration_s,
+                            patch: 0,
+                        });
+                        continue;
+                    }
                     let preset = lookup(name)
                         .ok_or_else(|| fail(format!("no tool preset named {name:?}")))?;
                     preset
@@ -382,6 +461,22 @@ impl ScriptPlan {
                         duration_s: *duration_s,
                         patch: 0,
                     });
+                }
+                ScriptStep::MakeTool {
+                    name,
+                    selection,
+                    action,
+                    falloff_fu,
+                } => {
+                    event(PlannedAction::MakeTool {
+                        name: name.clone(),
+                        selection: selection.selection(),
+                        action: *action,
+                        falloff_fu: *falloff_fu,
+                    });
+                    if !made.contains(name) {
+                        made.push(name.clone());
+                    }
                 }
                 ScriptStep::Csg { op, with, patch } => {
                     let path = base_dir.join(with);

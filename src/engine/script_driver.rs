@@ -250,6 +250,38 @@ impl ScriptDriver {
                 patch,
                 reply: Some(edit_reply()),
             }],
+            PlannedAction::MakeTool {
+                name,
+                selection,
+                action,
+                falloff_fu,
+            } => {
+                let (tx, rx) = bounded(1);
+                self.telling.push((step, rx));
+                vec![Command::MakeTool {
+                    name,
+                    selection,
+                    action,
+                    falloff_fu,
+                    reply: Some(tx),
+                }]
+            }
+            PlannedAction::ApplyLibraryTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+            } => vec![Command::ApplyLibraryTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+                reply: Some(reply()),
+            }],
+            PlannedAction::SetLibraryTool(tool) => vec![Command::SetLibraryTool {
+                tool,
+                reply: Some(reply()),
+            }],
             PlannedAction::Csg { op, other, patch } => vec![Command::Csg {
                 op,
                 other,

@@ -40,6 +40,7 @@ mod commands;
 mod compact;
 mod constrain;
 mod material;
+mod library;
 mod publication;
 mod removal;
 mod session_io;

@@ -19,7 +19,9 @@ pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
     ForceToolSpec, MAX_POINTS_PULL_STEPS, PinKind, RENAMED_KEYS, SCRIPT_VERSION, Script,
-    ScriptError, ScriptStep, ShapeSpec, load_script, paint_request, parse_script, pin_request,
-    poses,
+    ScriptError, ScriptStep, SelectionSpec, ShapeSpec, load_script, paint_request, parse_script,
+    pin_request, poses,
 };
-pub use session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
+pub use session::{
+    MAX_TOOL_NAME_BYTES, MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset,
+};

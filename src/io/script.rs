@@ -499,6 +499,44 @@ fn default_hover() -> f32 {
     0.35
 }
 
+/// Where a `make_tool` step takes the clay from, field coordinates.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SelectionSpec {
+    /// The box `min ..= max` (axis-aligned).
+    Box { min: [f32; 3], max: [f32; 3] },
+    /// The ball of `radius_fu` about `centre`.
+    Ball {
+        centre: [f32; 3],
+        #[serde(alias = "radius_m")]
+        radius_fu: f32,
+    },
+}
+
+impl SelectionSpec {
+    /// The tools' selection.
+    #[must_use]
+    pub fn selection(&self) -> crate::tools::Selection {
+        match *self {
+            Self::Box { min, max } => {
+                let (lo, hi) = (Vec3::from_array(min), Vec3::from_array(max));
+                crate::tools::Selection::Box {
+                    centre: 0.5 * (lo + hi),
+                    half_extents_fu: 0.5 * (hi - lo),
+                }
+            }
+            Self::Ball { centre, radius_fu } => crate::tools::Selection::Ball {
+                centre: Vec3::from_array(centre),
+                radius_fu,
+            },
+        }
+    }
+}
+
+fn default_union() -> ToolAction {
+    ToolAction::Union
+}
+
 /// One step of a script. Each tool application or stroke is one undo step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "do", rename_all = "snake_case", deny_unknown_fields)]
@@ -561,6 +599,19 @@ pub enum ScriptStep {
         /// The pivot of a bend.
         #[serde(default, skip_serializing_if = "Option::is_none")]
         pivot: Option<[f32; 3]>,
+    },
+    /// Make a freeform tool of the clay inside `selection` as it is when the step runs, and
+    /// keep it in the session's library as `name` (saved with the session; a tool of that
+    /// name is replaced). Later `tool`, `stroke` and `preset` steps use it by name. The clay
+    /// does not change.
+    MakeTool {
+        name: String,
+        selection: SelectionSpec,
+        /// The action a `preset` step applies it with (default `union`).
+        #[serde(default = "default_union")]
+        action: ToolAction,
+        #[serde(default = "default_falloff", alias = "falloff_m")]
+        falloff_fu: f32,
     },
     /// Change the uniform material; absent fields keep their values.
     Material {
@@ -1673,6 +1724,50 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                     format!("particles = {particles} must be 0 (off) or between {lo} and {hi}"),
                 ))
             }
+        }
+        ScriptStep::MakeTool {
+            name,
+            selection,
+            action,
+            falloff_fu,
+        } => {
+            if name.is_empty() || name.len() > super::MAX_TOOL_NAME_BYTES {
+                return Err(fault(
+                    "name",
+                    format!(
+                        "name must be 1 to {} bytes, got {}",
+                        super::MAX_TOOL_NAME_BYTES,
+                        name.len()
+                    ),
+                ));
+            }
+            match selection {
+                SelectionSpec::Box { min, max } => {
+                    check_points("selection", &[*min, *max], true)?;
+                    if (0..3).any(|a| min[a] >= max[a]) {
+                        return Err(fault(
+                            "selection",
+                            format!(
+                                "selection: the box {min:?}..{max:?} is empty: max must exceed \
+                                 min on every axis"
+                            ),
+                        ));
+                    }
+                }
+                SelectionSpec::Ball { centre, radius_fu } => {
+                    check_points("selection", &[*centre], true)?;
+                    if !(radius_fu.is_finite() && *radius_fu > 0.0) {
+                        return Err(fault(
+                            "selection",
+                            format!("selection: radius_fu = {radius_fu} must be positive"),
+                        ));
+                    }
+                }
+            }
+            finite("falloff_fu", *falloff_fu)?;
+            action
+                .validate()
+                .map_err(|e| fault("action", format!("action: {}", e.0)))
         }
         ScriptStep::Csg { .. }
         | ScriptStep::Unconstrain { .. }

@@ -31,6 +31,9 @@ pub struct MaterialFields {
     pub grids: Vec<MaterialGrid>,
 }
 
+/// The longest name a tool of the library may have, bytes.
+pub const MAX_TOOL_NAME_BYTES: usize = 128;
+
 /// A named tool in the session's library.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ToolPreset {

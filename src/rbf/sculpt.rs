@@ -378,6 +378,7 @@ fn step_name(step: &ScriptStep) -> &'static str {
         ScriptStep::Material { .. } => "material",
         ScriptStep::PaintMaterial { .. } => "paint_material",
         ScriptStep::Csg { .. } => "csg",
+        ScriptStep::MakeTool { .. } => "make_tool",
         ScriptStep::Undo { .. } => "undo",
         ScriptStep::Redo { .. } => "redo",
         ScriptStep::Save { .. } => "save",

@@ -10,6 +10,7 @@
 
 mod action;
 mod apply;
+mod capture;
 mod clay;
 mod deform;
 mod emboss;
@@ -25,6 +26,7 @@ pub use apply::{
     ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg, apply_stroke,
     apply_tool, effective_falloff_fu,
 };
+pub use capture::{CaptureError, MAX_CAPTURE_DIMS, Selection, capture_tool};
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,

@@ -263,7 +263,7 @@ impl ToolShape {
 
 /// Maps a freeform field so that its own iso-level lands on one half, clamped to `[0, 1]`.
 #[inline]
-fn remap_iso(value: f32, iso: f32) -> f32 {
+pub(super) fn remap_iso(value: f32, iso: f32) -> f32 {
     let v = value.clamp(0.0, 1.0);
     if !(iso > 0.0 && iso < 1.0) {
         return v;

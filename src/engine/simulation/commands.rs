@@ -170,6 +170,50 @@ impl SimulationStage {
                 self.removal.report_to(to);
                 true
             }
+            Command::MakeTool {
+                name,
+                selection,
+                action,
+                falloff_fu,
+                reply,
+            } => {
+                let result = self.make_tool(&name, &selection, action, falloff_fu);
+                answer(reply, result)
+            }
+            Command::AddTool { preset, reply } => {
+                let line = self.add_tool(*preset);
+                answer(reply, Ok(line))
+            }
+            Command::ApplyLibraryTool {
+                tool,
+                poses,
+                duration_s,
+                patch,
+                reply,
+            } => match self.library_tool(&tool) {
+                Ok(tool) => self.apply(Command::ApplyTool {
+                    tool,
+                    poses,
+                    duration_s,
+                    patch,
+                    reply,
+                }),
+                Err(e) => answer(reply, Err(e)),
+            },
+            Command::SetLibraryTool { tool: named, reply } => match self.library_tool(&named) {
+                Ok(tool) => {
+                    // A held stroke ends with the tool it was made with.
+                    self.end_stroke_now();
+                    let line = format!(
+                        "holding library tool {:?} ({})",
+                        named.name,
+                        tool.action.name()
+                    );
+                    self.tool.set(ToolChoice::Geometric(tool));
+                    answer(reply, Ok(line))
+                }
+                Err(e) => answer(reply, Err(e)),
+            },
             Command::Emboss {
                 relief,
                 params,
@@ -350,4 +394,13 @@ impl SimulationStage {
             l.dims[0], l.dims[1], l.dims[2], l.spacing
         ))
     }
+}
+
+/// Sends `result` on `reply` (if any); returns whether it succeeded.
+fn answer(reply: Option<Reply>, result: Result<String, CommandError>) -> bool {
+    let ok = result.is_ok();
+    if let Some(r) = reply {
+        let _ = r.send(result);
+    }
+    ok
 }
