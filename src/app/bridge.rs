@@ -985,17 +985,14 @@ impl Bridge {
             }
             edit @ (EngineCommand::AddTool(_)
             | EngineCommand::Csg { .. }
-            | EngineCommand::Emboss { .. }) => {
-                let (tx, rx) = bounded(1);
-                match super::edit_requests::edit_command(edit, tx) {
-                    Some(Ok(cmd)) => {
-                        self.edit_replies.push((what, rx));
-                        self.send(what, cmd);
-                    }
-                    Some(Err(error)) => self.fail(what, error),
-                    None => {}
+            | EngineCommand::Emboss { .. }) => match super::edit_requests::edit_command(edit) {
+                Some(Ok((cmd, pending))) => {
+                    self.edit_replies.push((what, pending));
+                    self.send(what, cmd);
                 }
-            }
+                Some(Err(error)) => self.fail(what, error),
+                None => {}
+            },
             EngineCommand::SetMaxForce { max_force_n } => {
                 match self.engine().force_limit().request(max_force_n) {
                     Ok(()) => {

@@ -129,9 +129,9 @@ impl CsgPanel {
         ui.horizontal(|ui| {
             for op in CSG_OPS {
                 let label = match op {
-                    ToolAction::Union => "Clay ∪ operand",
-                    ToolAction::Difference => "Clay − operand",
-                    _ => "Clay ∩ operand",
+                    ToolAction::Union => "Union with operand",
+                    ToolAction::Difference => "Subtract operand",
+                    _ => "Intersect with operand",
                 };
                 ui.radio_value(&mut self.op, op, label);
             }

@@ -3,60 +3,108 @@
 //! embossed image — turned into the engine's commands on the bridge thread (files are read
 //! here, never on a loop), and their answers forwarded to the app's log.
 
-use crossbeam::channel::{Receiver, Sender, TryRecvError};
+use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 
 use super::command::{CsgOperand, EngineCommand, EngineEvent};
-use crate::engine::{Command, CommandError, Reply};
+use crate::engine::{Command, CommandError, EditOutcome};
 use crate::io::load_session;
-use crate::tools::{GeometricTool, Relief};
+use crate::tools::{GeometricTool, Relief, solid_clay};
 
-/// Answers still to come: (what, receiver).
-pub type PendingEdits = Vec<(&'static str, Receiver<Result<String, CommandError>>)>;
+/// Where an edit's answer will come: a tool for the library or an emboss answers a line, a
+/// CSG the step's outcome.
+#[derive(Debug)]
+pub enum PendingReply {
+    /// [`Command::AddTool`]'s or [`Command::Emboss`]'s answer.
+    Line(Receiver<Result<String, CommandError>>),
+    /// [`Command::Csg`]'s answer.
+    Edit(Receiver<Result<EditOutcome, CommandError>>),
+}
 
-/// The engine command for an edit request, answering on `reply`; `None` when `request` is not
-/// one of the edits here ([`EngineCommand::AddTool`], [`EngineCommand::Csg`],
-/// [`EngineCommand::Emboss`]).
+impl PendingReply {
+    /// The answer if it came: `Some(Ok(line))`, `Some(Err(why))`, or `None` while waiting;
+    /// a hung-up channel is an error.
+    pub fn try_answer(&self) -> Option<Result<String, String>> {
+        fn take<T>(
+            rx: &Receiver<Result<T, CommandError>>,
+            line: impl Fn(T) -> String,
+        ) -> Option<Result<String, String>> {
+            match rx.try_recv() {
+                Ok(Ok(answer)) => Some(Ok(line(answer))),
+                Ok(Err(error)) => Some(Err(error.to_string())),
+                Err(TryRecvError::Empty) => None,
+                Err(TryRecvError::Disconnected) => {
+                    Some(Err("the engine stopped before answering".into()))
+                }
+            }
+        }
+        match self {
+            Self::Line(rx) => take(rx, |line| line),
+            Self::Edit(rx) => take(rx, |outcome| outcome.note),
+        }
+    }
+}
+
+/// Answers still to come: (what, where).
+pub type PendingEdits = Vec<(&'static str, PendingReply)>;
+
+/// The engine command for an edit request and where its answer will come; `None` when
+/// `request` is not one of the edits here ([`EngineCommand::AddTool`], [`EngineCommand::Csg`],
+/// [`EngineCommand::Emboss`]). A solid operand becomes a clay of its own
+/// ([`solid_clay`]), so CSG with a solid is CSG with another clay, intersection included.
 ///
 /// # Errors
 /// (inside the `Some`) Why the request could not become a command: a session or image that
-/// does not read, named with its path.
-pub fn edit_command(request: EngineCommand, reply: Reply) -> Option<Result<Command, String>> {
+/// does not read, named with its path; a solid too large to make into a clay.
+pub fn edit_command(request: EngineCommand) -> Option<Result<(Command, PendingReply), String>> {
+    let (line_tx, line_rx) = bounded(1);
+    let (edit_tx, edit_rx) = bounded(1);
+    let edit = |cmd: Command| (cmd, PendingReply::Edit(edit_rx));
     Some(match request {
-        EngineCommand::AddTool(preset) => Ok(Command::AddTool {
-            preset,
-            reply: Some(reply),
-        }),
-        EngineCommand::Csg { op, operand } => match operand {
-            CsgOperand::Session(path) => load_session(&path)
-                .map(|session| Command::Csg {
-                    op,
-                    other: Box::new(session.clay),
-                    patch: 0,
-                    reply: Some(reply),
-                })
-                .map_err(|e| format!("{}: {e}", path.display())),
-            CsgOperand::Solid {
-                shape,
-                pose,
-                falloff_fu,
-            } => Ok(Command::ApplyTool {
-                tool: GeometricTool {
+        EngineCommand::AddTool(preset) => Ok((
+            Command::AddTool {
+                preset,
+                reply: Some(line_tx),
+            },
+            PendingReply::Line(line_rx),
+        )),
+        EngineCommand::Csg { op, operand } => {
+            let other = match operand {
+                CsgOperand::Session(path) => load_session(&path)
+                    .map(|session| session.clay)
+                    .map_err(|e| format!("{}: {e}", path.display())),
+                CsgOperand::Solid {
                     shape,
-                    action: op,
+                    pose,
                     falloff_fu,
-                },
-                poses: vec![pose],
-                duration_s: 0.0,
-                patch: 0,
-                reply: Some(reply),
-            }),
-        },
+                } => {
+                    let solid = GeometricTool {
+                        shape,
+                        action: op,
+                        falloff_fu,
+                    };
+                    solid_clay(&solid, &pose).map_err(|e| e.to_string())
+                }
+            };
+            other.map(|other| {
+                edit(Command::Csg {
+                    op,
+                    other: Box::new(other),
+                    patch: 0,
+                    reply: Some(edit_tx),
+                })
+            })
+        }
         EngineCommand::Emboss { image, params } => Relief::load(&image)
-            .map(|relief| Command::Emboss {
-                relief: std::sync::Arc::new(relief),
-                params,
-                patch: 0,
-                reply: Some(reply),
+            .map(|relief| {
+                (
+                    Command::Emboss {
+                        relief: std::sync::Arc::new(relief),
+                        params,
+                        patch: 0,
+                        reply: Some(line_tx),
+                    },
+                    PendingReply::Line(line_rx),
+                )
             })
             .map_err(|e| e.to_string()),
         _ => return None,
@@ -66,20 +114,16 @@ pub fn edit_command(request: EngineCommand, reply: Reply) -> Option<Result<Comma
 /// Forwards each answer that arrived as an event named by its edit, and forgets the channels
 /// that answered or hung up.
 pub fn forward_edits(pending: &mut PendingEdits, events: &Sender<EngineEvent>) {
-    pending.retain(|(what, rx)| {
-        let event = match rx.try_recv() {
-            Ok(Ok(detail)) => EngineEvent::Done {
+    pending.retain(|(what, reply)| {
+        let event = match reply.try_answer() {
+            None => return true,
+            Some(Ok(detail)) => EngineEvent::Done {
                 what: (*what).into(),
                 detail,
             },
-            Ok(Err(error)) => EngineEvent::Failed {
+            Some(Err(error)) => EngineEvent::Failed {
                 what: (*what).into(),
-                error: error.to_string(),
-            },
-            Err(TryRecvError::Empty) => return true,
-            Err(TryRecvError::Disconnected) => EngineEvent::Failed {
-                what: (*what).into(),
-                error: "the engine stopped before answering".into(),
+                error,
             },
         };
         let _ = events.send(event);
@@ -91,31 +135,30 @@ pub fn forward_edits(pending: &mut PendingEdits, events: &Sender<EngineEvent>) {
 mod tests {
     use super::*;
     use crate::tools::{ToolAction, ToolPose, ToolShape};
-    use crossbeam::channel::bounded;
     use glam::Vec3;
 
     #[test]
     fn edits_become_engine_commands_and_unreadable_files_are_named() {
-        let (tx, _rx) = bounded(1);
         let solid = EngineCommand::Csg {
-            op: ToolAction::Difference,
+            op: ToolAction::Intersection,
             operand: CsgOperand::Solid {
                 shape: ToolShape::Sphere { radius_fu: 0.2 },
                 pose: ToolPose::at(Vec3::ONE),
                 falloff_fu: 0.05,
             },
         };
-        let Some(Ok(Command::ApplyTool { tool, poses, .. })) = edit_command(solid, tx.clone())
+        let Some(Ok((Command::Csg { op, other, .. }, PendingReply::Edit(_)))) = edit_command(solid)
         else {
-            panic!("a solid operand is a tool application");
+            panic!("a solid operand is CSG with the solid's clay");
         };
-        assert_eq!(tool.action, ToolAction::Difference);
-        assert_eq!(poses, vec![ToolPose::at(Vec3::ONE)]);
+        assert_eq!(op, ToolAction::Intersection);
+        assert!((other.base().value(Vec3::ONE) - 1.0).abs() < 0.02);
+        assert!((other.base().value(Vec3::ONE + Vec3::X * 0.2) - 0.5).abs() < 0.02);
         let missing = EngineCommand::Csg {
             op: ToolAction::Union,
             operand: CsgOperand::Session("/nonexistent/other.dclay".into()),
         };
-        let Some(Err(e)) = edit_command(missing, tx.clone()) else {
+        let Some(Err(e)) = edit_command(missing) else {
             panic!("a missing session is refused");
         };
         assert!(e.contains("/nonexistent/other.dclay"), "{e}");
@@ -130,10 +173,10 @@ mod tests {
                 engrave: false,
             },
         };
-        let Some(Err(e)) = edit_command(image, tx.clone()) else {
+        let Some(Err(e)) = edit_command(image) else {
             panic!("a missing image is refused");
         };
         assert!(e.contains("logo.png"), "{e}");
-        assert!(edit_command(EngineCommand::Undo, tx).is_none());
+        assert!(edit_command(EngineCommand::Undo).is_none());
     }
 }

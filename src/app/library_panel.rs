@@ -201,7 +201,7 @@ impl LibraryPanel {
                 let used = palette.shape == ShapeKind::Freeform
                     && palette.freeform.as_ref().is_some_and(|f| f.name == t.name);
                 ui.label(if used {
-                    format!("● {}", t.name)
+                    format!("* {}", t.name)
                 } else {
                     t.name.clone()
                 });

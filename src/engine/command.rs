@@ -225,7 +225,7 @@ pub enum Command {
         /// Which density patch.
         patch: u16,
         /// Where the outcome goes.
-        reply: Option<Reply>,
+        reply: Option<EditReply>,
     },
     /// Hold a tool of the library, looked up when the command is applied, as a geometric
     /// stroke tool (as [`Command::SetTool`] does; a held stroke ends first).

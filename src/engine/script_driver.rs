@@ -276,7 +276,7 @@ impl ScriptDriver {
                 poses,
                 duration_s,
                 patch,
-                reply: Some(reply()),
+                reply: Some(edit_reply()),
             }],
             PlannedAction::SetLibraryTool(tool) => vec![Command::SetLibraryTool {
                 tool,

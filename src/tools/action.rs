@@ -131,7 +131,7 @@ impl ToolAction {
                 rate("rate_per_s", *rate_per_s)
             }
             Self::Stamp(p) => p.validate().map_err(|e| ActionError(e.0)),
-            Self::Contact(c) if !(c.alpha.abs() <= ContactParams::MAX_ALPHA) => {
+            Self::Contact(c) if c.alpha.is_nan() || c.alpha.abs() > ContactParams::MAX_ALPHA => {
                 Err(ActionError(format!(
                     "alpha = {} must be between -{max} and {max}",
                     c.alpha,

@@ -19,6 +19,7 @@ mod history;
 mod pin;
 mod removal;
 mod shape;
+mod solid;
 mod stroke;
 
 pub use action::{ActionError, INTERSECTION_IS_CSG, ToolAction};
@@ -48,4 +49,5 @@ pub use removal::{
     tool_volume_change,
 };
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
+pub use solid::{MAX_SOLID_KNOTS, SolidClayError, solid_clay, solid_spacing_fu};
 pub use stroke::{MAX_SEGMENT_APPLICATIONS, MAX_STROKE_POSES, lerp, resample_stroke, steps_along};

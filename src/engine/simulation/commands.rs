@@ -397,7 +397,10 @@ impl SimulationStage {
 }
 
 /// Sends `result` on `reply` (if any); returns whether it succeeded.
-fn answer(reply: Option<Reply>, result: Result<String, CommandError>) -> bool {
+fn answer<T>(
+    reply: Option<crossbeam::channel::Sender<Result<T, CommandError>>>,
+    result: Result<T, CommandError>,
+) -> bool {
     let ok = result.is_ok();
     if let Some(r) = reply {
         let _ = r.send(result);
