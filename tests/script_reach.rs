@@ -1,7 +1,8 @@
 //! Script steps that reach the papers' remaining tools, run in the lockstep engine and measured
 //! on the exported mesh: a tool made from the sculpt (`make_tool`, Ferley §4.1.2) used by later
 //! `tool`, `preset` and `stroke` steps and kept in the saved session, and sharp CSG (Guo & Qin
-//! Table 1) with another session's clay (`csg`) and with a solid (`tool` with a CSG action).
+//! Table 1) with another session's clay and with a solid (`csg`, intersection included), and
+//! with a solid by a `tool` step with a CSG action.
 
 use std::path::Path;
 
@@ -298,5 +299,62 @@ fn csg_differences_with_a_session_and_with_a_solid_leave_spherical_cavities() {
         assert!(n > 50, "{what}: {n} wall vertices");
         assert!((mean - r).abs() < 0.05 * r, "{what}: radius {mean}");
         assert!(worst < 0.1 * r, "{what}: worst {worst}");
+    }
+}
+
+#[test]
+fn an_intersection_with_a_solid_from_a_script_keeps_the_clay_inside_it() {
+    // The block ∩ a ball of radius 0.4 inside it: the ball.
+    let dir = tempfile::tempdir().unwrap();
+    let centre = Vec3::new(1.15, 1.15, 1.15);
+    let radius = 0.4;
+    let text = "version = 1\nseconds = 0.5\n\n[clay]\nshape = \"block\"\nresolution = 24\n\n\
+                [[step]]\ndo = \"csg\"\nop = \"intersection\"\n\
+                shape = { kind = \"sphere\", radius_fu = 0.4 }\nposition = [1.15, 1.15, 1.15]\n\
+                falloff_fu = 0.1\n";
+    let (session, _) = run_script(text, dir.path());
+    let v = exported_vertices(
+        &session.clay.density.patches[0].lattice,
+        dir.path(),
+        "ball.obj",
+    );
+    let distances: Vec<f32> = v.iter().map(|p| p.distance(centre)).collect();
+    let mean = distances.iter().sum::<f32>() / distances.len() as f32;
+    let worst = distances
+        .iter()
+        .map(|d| (d - radius).abs())
+        .fold(0.0f32, f32::max);
+    eprintln!(
+        "block ∩ ball of radius {radius}: {} vertices, mean radius {mean:.4}, worst {worst:.4}",
+        v.len()
+    );
+    assert!(v.len() > 500, "{} vertices", v.len());
+    assert!((mean - radius).abs() < 0.02 * radius, "mean radius {mean}");
+    assert!(worst < 0.05 * radius, "worst {worst}");
+}
+
+#[test]
+fn a_csg_step_names_what_it_lacks_or_has_twice() {
+    let head = "version = 1\n\n[[step]]\ndo = \"csg\"\nop = \"intersection\"\n";
+    for (body, key) in [
+        ("", "with"),
+        (
+            "shape = { kind = \"sphere\", radius_fu = 0.4 }\n",
+            "position",
+        ),
+        (
+            "with = \"a.dclay\"\nshape = { kind = \"sphere\", radius_fu = 0.4 }\n\
+             position = [1, 1, 1]\n",
+            "with",
+        ),
+        (
+            "shape = { kind = \"sphere\", radius_fu = 0.4 }\nposition = [1, 1, 1]\n\
+             falloff_fu = 0\n",
+            "falloff_fu",
+        ),
+    ] {
+        let e = dynaclay::io::parse_script(&format!("{head}{body}"), "csg.toml").unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("csg.toml") && text.contains(key), "{text}");
     }
 }

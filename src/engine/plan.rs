@@ -41,6 +41,7 @@ use crate::io::{
 };
 use crate::tools::{
     Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
+    solid_clay,
 };
 
 /// Time the hand takes from hover to the path and back, seconds.
@@ -478,12 +479,39 @@ impl ScriptPlan {
                         made.push(name.clone());
                     }
                 }
-                ScriptStep::Csg { op, with, patch } => {
-                    let path = base_dir.join(with);
-                    let other = load_session(&path).map_err(|e| fail(format!("with: {e}")))?;
+                ScriptStep::Csg {
+                    op,
+                    with,
+                    shape,
+                    position,
+                    rotation,
+                    falloff_fu,
+                    patch,
+                } => {
+                    let other = match (with, shape, position) {
+                        (Some(with), _, _) => {
+                            let path = base_dir.join(with);
+                            load_session(&path)
+                                .map_err(|e| fail(format!("with: {e}")))?
+                                .clay
+                        }
+                        (None, Some(shape), Some(position)) => {
+                            let shape = shape
+                                .resolve(|name| lookup(name).map(|t| &t.shape))
+                                .map_err(fail)?;
+                            let solid = GeometricTool {
+                                shape,
+                                action: csg_action(*op),
+                                falloff_fu: *falloff_fu,
+                            };
+                            let pose = poses(&[*position], *rotation)[0];
+                            solid_clay(&solid, &pose).map_err(|e| fail(format!("shape: {e}")))?
+                        }
+                        _ => return Err(fail("a csg step needs `with` or a solid".into())),
+                    };
                     event(PlannedAction::Csg {
                         op: csg_action(*op),
-                        other: Box::new(other.clay),
+                        other: Box::new(other),
                         patch: *patch,
                     });
                 }

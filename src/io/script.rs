@@ -468,7 +468,7 @@ impl ProjectionSpec {
     }
 }
 
-/// CSG operations between the clay and another session file.
+/// CSG operations between the clay and another clay (a session file's or a solid's).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum CsgSpec {
@@ -649,10 +649,23 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         stiffness: Option<f32>,
     },
-    /// CSG with the clay of another session file (relative to the script's folder).
+    /// CSG with another clay: the clay of a session file (`with`, relative to the script's
+    /// folder) or a solid (`shape` centred at `position`, turned by `rotation`, its potential
+    /// falling over `falloff_fu` on each side of its surface). Exactly one of `with` and
+    /// `shape`.
     Csg {
         op: CsgSpec,
-        with: PathBuf,
+        #[serde(default)]
+        with: Option<PathBuf>,
+        #[serde(default)]
+        shape: Option<ShapeSpec>,
+        #[serde(default)]
+        position: Option<[f32; 3]>,
+        /// Quaternion `[x, y, z, w]`; identity when absent.
+        #[serde(default)]
+        rotation: Option<[f32; 4]>,
+        #[serde(default = "default_falloff", alias = "falloff_m")]
+        falloff_fu: f32,
         #[serde(default)]
         patch: u16,
     },
@@ -1769,8 +1782,36 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                 .validate()
                 .map_err(|e| fault("action", format!("action: {}", e.0)))
         }
-        ScriptStep::Csg { .. }
-        | ScriptStep::Unconstrain { .. }
+        ScriptStep::Csg {
+            with,
+            shape,
+            position,
+            falloff_fu,
+            ..
+        } => match (with, shape, position) {
+            (Some(_), None, None) => Ok(()),
+            (None, Some(_), Some(p)) => {
+                check_points("position", &[*p], true)?;
+                if falloff_fu.is_finite() && *falloff_fu > 0.0 {
+                    Ok(())
+                } else {
+                    Err(fault(
+                        "falloff_fu",
+                        format!("falloff_fu = {falloff_fu} must be positive for a solid"),
+                    ))
+                }
+            }
+            (None, Some(_), None) => Err(fault(
+                "position",
+                "a csg step with a solid `shape` needs its `position`",
+            )),
+            _ => Err(fault(
+                "with",
+                "a csg step takes either `with` (a session file) or `shape` and `position` \
+                 (a solid), not both and not neither",
+            )),
+        },
+        ScriptStep::Unconstrain { .. }
         | ScriptStep::Undo { .. }
         | ScriptStep::Redo { .. }
         | ScriptStep::Save { .. } => Ok(()),
