@@ -10,7 +10,7 @@ use dynaclay::engine::ScriptDriver;
 use dynaclay::field::MultiPatchField;
 use dynaclay::field::{BSplineLattice, Primitive, lattice_from_primitive};
 use dynaclay::io::{Session, load_session, save_session};
-use dynaclay::mesh::{BrickOctree, MeshFormat, SampleGrid, TriMesh, hausdorff, write_mesh};
+use dynaclay::mesh::{TriMesh, hausdorff};
 use dynaclay::tools::{Clay, ToolShape};
 use glam::Vec3;
 
@@ -44,19 +44,7 @@ fn run_script(text: &str, dir: &Path) -> (Session, Vec<(usize, String)>) {
 
 /// `field`'s mesh written as OBJ and read back: its vertex positions.
 fn exported_vertices(field: &BSplineLattice, dir: &Path, name: &str) -> Vec<Vec3> {
-    let mut octree = BrickOctree::new(SampleGrid::for_lattice(field, 4).unwrap());
-    octree.rebuild(field);
-    let path = dir.join(name);
-    write_mesh(&path, &octree.weld(), MeshFormat::Obj).unwrap();
-    std::fs::read_to_string(&path)
-        .unwrap()
-        .lines()
-        .filter_map(|l| l.strip_prefix("v "))
-        .map(|l| {
-            let v: Vec<f32> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            Vec3::new(v[0], v[1], v[2])
-        })
-        .collect()
+    export(&MultiPatchField::new(field.clone()), dir, name).vertices
 }
 
 /// Highest vertex within `r` of the vertical line through (x, z).
