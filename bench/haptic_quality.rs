@@ -121,11 +121,13 @@ fn run(
                         field_per_m: map.field_per_m,
                         force_n_per_unit: map.force_n_per_unit,
                         stroke_active: false,
-                        tool: FeltTool::Geometric,
+                        tool: FeltTool::Geometric(None),
                         stroke: &stroke,
                         fade: 1.0,
                         saturation_n: max_n,
                         sent_n: sent,
+                        rotation: glam::Quat::IDENTITY,
+                        tool_contact: true,
                     })
                     .force_n
             }

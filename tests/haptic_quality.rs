@@ -607,6 +607,8 @@ fn a_five_millimetre_press_into_the_default_clay_feels_like_firm_clay() {
                 fade: 1.0,
                 saturation_n: max_n,
                 sent_n: felt,
+                rotation: glam::Quat::IDENTITY,
+                tool_contact: true,
             })
             .force_n;
         peak = peak.max(felt.length());

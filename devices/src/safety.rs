@@ -123,6 +123,8 @@ pub struct SafetyFilter<D: HapticDevice = Box<dyn HapticDevice>> {
     /// The device's own bound from its info, newtons, cached so a new configured bound is
     /// applied without asking the device (whose info may allocate).
     device_limit_n: f32,
+    /// Whether the device outputs force ([`DeviceInfo::has_force`]), cached with the bound.
+    has_force: bool,
     enabled: bool,
     /// A device error was seen and no successful read has followed yet.
     fault_latched: bool,
@@ -147,12 +149,14 @@ impl<D: HapticDevice> SafetyFilter<D> {
     /// Wraps `device` with `config`.
     #[must_use]
     pub fn with_config(device: D, config: SafetyConfig) -> Self {
-        let device_limit_n = device_limit(&device.info());
+        let info = device.info();
+        let device_limit_n = device_limit(&info);
         Self {
             device,
             config,
             limit_n: effective_limit(&config, device_limit_n),
             device_limit_n,
+            has_force: info.has_force,
             enabled: false,
             fault_latched: false,
             ramp_start_us: None,
@@ -191,6 +195,13 @@ impl<D: HapticDevice> SafetyFilter<D> {
     #[must_use]
     pub fn max_force_n(&self) -> f32 {
         self.limit_n
+    }
+
+    /// Whether the device outputs force (from its info at construction or the last open,
+    /// so asking allocates nothing).
+    #[must_use]
+    pub fn has_force(&self) -> bool {
+        self.has_force
     }
 
     /// The force most recently sent to the device, newtons.
@@ -348,7 +359,9 @@ impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
     /// enables forces with a soft start.
     fn open(&mut self) -> Result<(), DeviceError> {
         self.device.open()?;
-        self.device_limit_n = device_limit(&self.device.info());
+        let info = self.device.info();
+        self.device_limit_n = device_limit(&info);
+        self.has_force = info.has_force;
         self.limit_n = effective_limit(&self.config, self.device_limit_n);
         self.counters = SafetyCounters::default();
         self.fault_latched = false;

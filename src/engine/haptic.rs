@@ -22,7 +22,7 @@ use std::time::Instant;
 use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_devices::{HapticDevice, SafetyFilter};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Staleness};
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use super::counters::EngineCounters;
 use super::device_swap::{DeviceHandover, DeviceSwapPort};
@@ -251,6 +251,12 @@ impl HapticStage {
             self.counters.stale_ticks(1);
         }
         let tip = self.map.to_field(state.position_m);
+        // The workspace map scales and shifts; it does not turn, so the device's orientation is
+        // the tool's in field coordinates.
+        let rotation = state
+            .orientation
+            .filter(|q| q.is_finite() && q.length_squared() > 0.5)
+            .map_or(Quat::IDENTITY, Quat::normalize);
         let stroke_active = state.button(0) || self.stroke_armed;
         self.apply_force_limit();
         self.renderer.set_haptic_gain(self.haptic_gain.get());
@@ -268,6 +274,8 @@ impl HapticStage {
             fade,
             saturation_n: self.device.max_force_n(),
             sent_n: self.device.output_force_n(),
+            rotation,
+            tool_contact: self.device.has_force(),
         });
         let in_contact = felt.touch.touching || felt.sculpting;
         if in_contact {
@@ -301,6 +309,9 @@ impl HapticStage {
             device_time_us: state.timestamp_us,
             device_fault,
             tick: self.tick,
+            rotation,
+            acting_at: felt.acting_at,
+            press: felt.press,
         };
         self.publish(sample, now);
         HapticOutcome {

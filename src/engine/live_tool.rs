@@ -13,7 +13,7 @@ use super::command::{PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
 use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::MultiPatchField;
-use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry};
+use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry, ToolShell};
 use crate::tools::{
     ForceInput, ForceTool, MAX_SEGMENT_APPLICATIONS, PenetrationTarget, lerp, nearest_solid_point,
     plan_penetration, steps_along,
@@ -29,6 +29,8 @@ pub const MAX_TARGETS: usize = MAX_STROKE_POINTS;
 #[derive(Debug)]
 pub struct LiveTool {
     choice: ToolChoice,
+    /// The held tool as the haptic loop renders it (a geometric tool's shell is built once).
+    felt: FeltTool,
     /// Force vectors of the current step (first `len` valid).
     forces: Vec<ToolForce>,
     len: usize,
@@ -37,8 +39,16 @@ pub struct LiveTool {
     /// Chisel and squirt targets planned so far in this stroke.
     targets: Vec<PenetrationTarget>,
     last_planned: Option<Vec3>,
-    /// Device time and tip of the last geometric application in this stroke.
+    /// Device time and point of the last geometric application in this stroke.
     last_apply: Option<(u64, Vec3)>,
+}
+
+fn felt_tool_of(choice: &ToolChoice) -> FeltTool {
+    match choice {
+        ToolChoice::Push(_) => FeltTool::Push,
+        ToolChoice::Force { tool, .. } => FeltTool::Force(*tool),
+        ToolChoice::Geometric(tool) => FeltTool::Geometric(ToolShell::of(&tool.shape)),
+    }
 }
 
 /// A held geometric tool's applications due this step: `count` points evenly spaced along the
@@ -49,12 +59,15 @@ pub struct LiveTool {
 pub struct GeometricDue {
     /// The previous application's point (the tip, on a stroke's first application).
     pub from: Vec3,
-    /// The tip.
+    /// The acting point (the tip, or the resting tool pressed toward it).
     pub to: Vec3,
     /// Applications along the segment, 1 to [`MAX_SEGMENT_APPLICATIONS`].
     pub count: u32,
-    /// Dwell of each application, seconds.
+    /// Dwell of each application, seconds (the device time, scaled by how hard the hand
+    /// presses the resting tool).
     pub dwell_s: f32,
+    /// The tool's orientation.
+    pub rotation: glam::Quat,
 }
 
 impl GeometricDue {
@@ -81,6 +94,7 @@ impl LiveTool {
             gain: 0.0,
         };
         Self {
+            felt: felt_tool_of(&choice),
             choice,
             forces: vec![idle; MAX_FORCES],
             len: 0,
@@ -99,6 +113,7 @@ impl LiveTool {
 
     /// Replaces the tool (and forgets the stroke state).
     pub fn set(&mut self, choice: ToolChoice) {
+        self.felt = felt_tool_of(&choice);
         self.choice = choice;
         self.end_stroke();
     }
@@ -106,11 +121,7 @@ impl LiveTool {
     /// The held tool as the haptic loop renders it.
     #[must_use]
     pub fn felt_tool(&self) -> FeltTool {
-        match &self.choice {
-            ToolChoice::Push(_) => FeltTool::Push,
-            ToolChoice::Force { tool, .. } => FeltTool::Force(*tool),
-            ToolChoice::Geometric(_) => FeltTool::Geometric,
-        }
+        self.felt
     }
 
     /// Writes the stroke's anchor, pivot, curve and targets into `out`, for the haptic loop
@@ -187,7 +198,9 @@ impl LiveTool {
     }
 
     /// For a geometric tool during a held stroke: whether to apply it this step, where and
-    /// with which dwell. Applications are at least `interval_us` of device time apart (a
+    /// with which dwell. The tool acts at the sample's acting point (the tip, or the resting
+    /// tool as far toward the tip as the hand presses) and not at all while it only rests on
+    /// the clay (press 0). Applications are at least `interval_us` of device time apart (a
     /// local refit costs milliseconds); each covers the path from the previous one to the tip
     /// with points at most the shape's [`stroke_spacing_fu`] apart (a quarter of its radius;
     /// at most [`MAX_SEGMENT_APPLICATIONS`] of them, wider for a faster tip), splitting the
@@ -199,28 +212,41 @@ impl LiveTool {
         let ToolChoice::Geometric(tool) = &self.choice else {
             return None;
         };
-        if !sample.stroke_active || !sample.tip.is_finite() {
+        let at = sample.acting_point();
+        if !sample.stroke_active || !at.is_finite() {
             return None;
         }
-        let (now, tip) = (sample.device_time_us, sample.tip);
+        let press = if sample.press.is_finite() {
+            sample.press.clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        if press <= 0.0 {
+            // The tool rests on the clay: nothing acts, and the next press starts a new run of
+            // applications where it is (not a line from where the last one ended).
+            self.last_apply = None;
+            return None;
+        }
+        let now = sample.device_time_us;
         let (dwell_us, from) = match self.last_apply {
-            None => (interval_us, tip),
-            Some((t, at)) if now >= t.saturating_add(interval_us) => {
-                ((now - t).min(4 * interval_us), at)
+            None => (interval_us, at),
+            Some((t, last)) if now >= t.saturating_add(interval_us) => {
+                ((now - t).min(4 * interval_us), last)
             }
             Some(_) => return None,
         };
         let count = steps_along(
-            from.distance(tip),
+            from.distance(at),
             tool.shape.stroke_spacing_fu(),
             MAX_SEGMENT_APPLICATIONS,
         );
-        self.last_apply = Some((now, tip));
+        self.last_apply = Some((now, at));
         Some(GeometricDue {
             from,
-            to: tip,
+            to: at,
             count,
-            dwell_s: dwell_us as f32 / 1e6 / count as f32,
+            dwell_s: press * dwell_us as f32 / 1e6 / count as f32,
+            rotation: sample.rotation,
         })
     }
 }

@@ -51,7 +51,7 @@ pub use session_io::check_loadable;
 use crossbeam::channel::{Receiver, Sender};
 use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use super::command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
@@ -424,7 +424,7 @@ impl SimulationStage {
         {
             // Along the tip's path since the last application: a continuous groove.
             for i in 0..due.count {
-                self.apply_held_geometric(due.point(i), due.dwell_s);
+                self.apply_held_geometric(due.point(i), due.rotation, due.dwell_s);
             }
         }
 
@@ -523,25 +523,30 @@ impl SimulationStage {
         }
     }
 
-    /// Applies the held geometric tool at `tip` and at its mirrored copies (one stroke, one
-    /// undo step).
-    fn apply_held_geometric(&mut self, tip: Vec3, dwell_s: f32) {
-        self.apply_held_geometric_at(tip, dwell_s);
+    /// Applies the held geometric tool at `at`, turned by `rotation`, and at its mirrored
+    /// copies (one stroke, one undo step; a mirrored copy keeps the rotation, so a turned
+    /// tool that is not symmetric about the mirror plane is not mirrored exactly).
+    fn apply_held_geometric(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
+        self.apply_held_geometric_at(at, rotation, dwell_s);
         if self.symmetry.any() {
             let centre = clay_centre(self.clay.base());
-            for image in self.symmetry.images(tip, centre) {
-                self.apply_held_geometric_at(image, dwell_s);
+            for image in self.symmetry.images(at, centre) {
+                self.apply_held_geometric_at(image, rotation, dwell_s);
             }
         }
     }
 
-    /// Applies the held geometric tool at `tip` for `dwell_s` (recorded in the stroke's step),
-    /// reloads the dynamics region it may have changed and marks the box for publication.
-    fn apply_held_geometric_at(&mut self, tip: Vec3, dwell_s: f32) {
+    /// Applies the held geometric tool at `at`, turned by `rotation`, for `dwell_s` (recorded
+    /// in the stroke's step), reloads the dynamics region it may have changed and marks the
+    /// box for publication.
+    fn apply_held_geometric_at(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
         };
-        let pose = ToolPose::at(tip);
+        let pose = ToolPose {
+            position_fu: at,
+            rotation,
+        };
         let guard = self.config.removal_guard;
         if !self.removal.admits(guard, &self.clay, tool, &pose, dwell_s) {
             return;

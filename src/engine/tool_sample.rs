@@ -1,7 +1,7 @@
 //! What the haptic loop tells the simulation each tick: where the tool is and which force
 //! vector it is applying.
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 /// The latest tool state, published by the haptic loop through a triple buffer (plain data).
 ///
@@ -34,6 +34,25 @@ pub struct ToolSample {
     pub device_fault: bool,
     /// The haptic tick that produced this sample.
     pub tick: u64,
+    /// The tool's orientation in field coordinates (the device's, for one that senses it).
+    #[serde(default = "identity")]
+    pub rotation: Quat,
+    /// Where a geometric tool acts, field coordinates: `None` at the tip. With tool-shaped
+    /// contact, the resting tool moved toward the tip as far as the hand presses.
+    #[serde(default)]
+    pub acting_at: Option<Vec3>,
+    /// How hard the hand presses the resting tool, 0 (resting: the tool does nothing) to 1
+    /// (pressing firmly: the tool acts at its full rate); 1 without tool-shaped contact.
+    #[serde(default = "full_press")]
+    pub press: f32,
+}
+
+fn identity() -> Quat {
+    Quat::IDENTITY
+}
+
+fn full_press() -> f32 {
+    1.0
 }
 
 impl ToolSample {
@@ -49,7 +68,16 @@ impl ToolSample {
         device_time_us: 0,
         device_fault: false,
         tick: 0,
+        rotation: Quat::IDENTITY,
+        acting_at: None,
+        press: 1.0,
     };
+
+    /// Where a geometric tool acts (see [`ToolSample::acting_at`]).
+    #[must_use]
+    pub fn acting_point(&self) -> Vec3 {
+        self.acting_at.unwrap_or(self.tip)
+    }
 }
 
 impl Default for ToolSample {

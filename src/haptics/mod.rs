@@ -1,4 +1,4 @@
-//! What the hand feels: touch through a surface proxy, the sculpting reaction of every force
+//! What the hand feels: touch through a surface proxy or the held tool's shape, the sculpting reaction of every force
 //! tool (Hua & Qin §7.2.2), smooth saturation and cross-fades, a passivity observer with its
 //! damper, and one shaping stage with a stated rate limit before the device's safety filter.
 //!
@@ -11,11 +11,13 @@ mod proxy;
 mod renderer;
 mod sculpt;
 mod shaping;
+mod shell;
 
 pub use passivity::{MAX_SENSOR_DELAY_TICKS, PassivityConfig, PassivityController};
 pub use proxy::{MAX_PROXY_PROBES, ProxyConfig, SurfaceProxy, Touch};
 pub use renderer::{
     CALIBRATION_DEPTH_M, CALIBRATION_FORCE_N, Felt, FeltInput, ForceRenderer, HapticConfig,
+    ToolPressConfig,
     calibrated_force_scale, saturate, spring_energy_j,
 };
 pub use sculpt::{
@@ -23,3 +25,4 @@ pub use sculpt::{
     SculptReaction, StrokeGeometry,
 };
 pub use shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
+pub use shell::{MAX_SHAPE_PROBES, SHELL_POINTS, ShapeProxy, ShapeTouch, ToolShell, press_fraction};

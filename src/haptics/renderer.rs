@@ -31,12 +31,13 @@
 //!    oscillation), and the sum passes the rate limit once more, so no step the hand feels
 //!    exceeds the stated rate; the safety filter's slew limit after it is the backstop.
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use super::passivity::{PassivityConfig, PassivityController};
 use super::proxy::{ProxyConfig, SurfaceProxy, Touch};
 use super::sculpt::{FeltTool, SculptReaction, StrokeGeometry};
 use super::shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
+use super::shell::{ShapeProxy, ToolShell, press_fraction};
 use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
 use crate::field::MultiPatchField;
 
@@ -65,6 +66,31 @@ pub struct HapticConfig {
     /// Multiplies the calibrated sculpting force (1: pressing 5 mm into the fresh clay feels
     /// [`CALIBRATION_FORCE_N`]).
     pub haptic_gain: f32,
+    /// How a geometric tool resting on the clay answers the hand's press.
+    #[serde(default)]
+    pub tool_press: ToolPressConfig,
+}
+
+/// How a geometric tool resting on the clay answers the hand's press (tool-shaped contact):
+/// below `rest_n` it rests and changes nothing; from there it acts ever further toward the
+/// tip and at an ever higher rate, fully at `firm_n`.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ToolPressConfig {
+    /// The force up to which the tool only rests on the clay, newtons.
+    pub rest_n: f32,
+    /// The force at which the tool acts fully (at the tip, at its full rate), newtons.
+    pub firm_n: f32,
+}
+
+impl Default for ToolPressConfig {
+    fn default() -> Self {
+        // Resting a hand's weight on a desktop arm is well under half a newton; 3 N is a firm
+        // press that such an arm holds for minutes.
+        Self {
+            rest_n: 0.3,
+            firm_n: 3.0,
+        }
+    }
 }
 
 /// The sculpting force that a 5 mm press into the fresh clay gives at haptic gain 1, newtons:
@@ -94,6 +120,7 @@ impl HapticConfig {
             touch_stiffness_n_per_m: max_stiffness_n_per_m.max(0.0),
             touch_damping_n_s_per_m: TOUCH_DAMPING_SHARE * damping,
             haptic_gain: 1.0,
+            tool_press: ToolPressConfig::default(),
         }
     }
 }
@@ -147,6 +174,11 @@ pub struct FeltInput<'a> {
     pub saturation_n: f32,
     /// The force sent to the device over the interval that ends now, newtons.
     pub sent_n: Vec3,
+    /// The tool's orientation, field coordinates.
+    pub rotation: Quat,
+    /// Whether the device renders force: a geometric tool is then felt with its whole shape
+    /// and acts as far as the hand presses; without force it acts at the tip.
+    pub tool_contact: bool,
 }
 
 /// What a tick rendered.
@@ -162,6 +194,11 @@ pub struct Felt {
     pub sculpting: bool,
     /// The passivity observer's energy, joules.
     pub energy_j: f32,
+    /// Where a geometric tool acts: `None` at the tip; with tool-shaped contact, the resting
+    /// tool moved toward the tip by the press.
+    pub acting_at: Option<Vec3>,
+    /// How hard the hand presses the resting tool, 0 to 1 (1 without tool-shaped contact).
+    pub press: f32,
 }
 
 /// The haptic renderer's state (see the module docs).
@@ -169,6 +206,8 @@ pub struct Felt {
 pub struct ForceRenderer {
     config: HapticConfig,
     proxy: SurfaceProxy,
+    /// The held geometric tool, resting on the clay with its shape.
+    shape_proxy: ShapeProxy,
     sculpt: SculptReaction,
     shaper: ForceShaper,
     /// The rate limit on the sum sent (shaped force plus passivity damper).
@@ -198,6 +237,7 @@ impl ForceRenderer {
     pub fn new(config: HapticConfig) -> Self {
         Self {
             proxy: SurfaceProxy::new(config.proxy),
+            shape_proxy: ShapeProxy::default(),
             sculpt: SculptReaction::default(),
             shaper: ForceShaper::new(config.shaping),
             output_limit: ForceShaper::new(config.shaping),
@@ -232,6 +272,7 @@ impl ForceRenderer {
     /// sent zero already).
     pub fn reset(&mut self) {
         self.proxy.release();
+        self.shape_proxy.release();
         self.shaper.reset();
         self.output_limit.reset();
         self.passivity.reset();
@@ -246,11 +287,26 @@ impl ForceRenderer {
     pub fn render(&mut self, input: &FeltInput) -> Felt {
         let dt = self.shaper.elapsed_s(input.time_us);
         self.passivity.observe(input.position_m, input.sent_n, dt);
-        if self.was_stroke && !input.stroke_active {
+        let shell = match input.tool {
+            FeltTool::Geometric(Some(shell)) if input.tool_contact => Some(shell),
+            _ => None,
+        };
+        if self.was_stroke && !input.stroke_active && shell.is_none() {
             self.proxy.bury_if_inside(input.field, input.tip);
         }
         self.was_stroke = input.stroke_active;
-        let touch = self.proxy.update(input.field, input.tip);
+        // One proxy at a time; the other forgets its contact, so switching tools inside the
+        // clay buries the new one instead of kicking the hand out.
+        let touch = match &shell {
+            Some(shell) => {
+                self.proxy.release();
+                self.shape_touch(input, shell)
+            }
+            None => {
+                self.shape_proxy.release();
+                self.proxy.update(input.field, input.tip)
+            }
+        };
         if !input.stroke_active {
             self.push_axis = None;
         } else if self.push_axis.is_none() && touch.touching {
@@ -306,12 +362,15 @@ impl ForceRenderer {
         }
         let blend_s = self.config.shaping.blend_s;
         let sculpt_on =
-            input.stroke_active && !self.switching && !matches!(input.tool, FeltTool::Geometric);
+            input.stroke_active && !self.switching && !matches!(input.tool, FeltTool::Geometric(_));
         let ws = self.sculpt_blend.advance(sculpt_on, dt, blend_s);
         if self.switching && ws == 0.0 {
             self.switching = false;
         }
-        let wt = self.touch_blend.advance(!input.stroke_active, dt, blend_s);
+        // A tool felt with its shape rests on the clay during its strokes too.
+        let wt = self
+            .touch_blend
+            .advance(!input.stroke_active || shell.is_some(), dt, blend_s);
         let fade = if input.fade.is_finite() {
             input.fade.clamp(0.0, 1.0)
         } else {
@@ -359,12 +418,41 @@ impl ForceRenderer {
         // The damper's share passes the same rate limit as the rest, on the sum: no step the
         // hand feels is larger than the stated rate, whatever its source.
         let force_n = self.output_limit.shape(force_n, dt);
+        // The resting tool acts as far toward the tip as the hand presses past the surface.
+        let (acting_at, press) = match shell {
+            Some(_) if touch.touching => {
+                let press_n = touch.depth / per_m * self.config.touch_stiffness_n_per_m;
+                let press = press_fraction(
+                    press_n,
+                    self.config.tool_press.rest_n,
+                    self.config.tool_press.firm_n,
+                );
+                (Some(touch.proxy + (input.tip - touch.proxy) * press), press)
+            }
+            _ => (None, 1.0),
+        };
         Felt {
             force_n,
             touch,
             vector,
             sculpting,
             energy_j: self.passivity.energy_j(),
+            acting_at,
+            press,
+        }
+    }
+
+    /// The held geometric tool's contact, as a touch: the spring runs from the tip to the
+    /// tool's centre where it rests on the clay.
+    fn shape_touch(&mut self, input: &FeltInput, shell: &ToolShell) -> Touch {
+        let t = self
+            .shape_proxy
+            .update(input.field, shell, input.rotation, input.tip);
+        Touch {
+            touching: t.touching,
+            proxy: t.proxy,
+            normal: t.normal,
+            depth: t.depth,
         }
     }
 }
@@ -478,6 +566,8 @@ mod tests {
             fade: 1.0,
             saturation_n: 8.0,
             sent_n: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            tool_contact: true,
         }
     }
 

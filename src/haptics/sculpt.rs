@@ -36,16 +36,23 @@ pub const FELT_TARGETS: usize = 8;
 pub const MAX_STROKE_POINTS: usize = 256;
 
 /// What the haptic loop must know of the held tool (plain data).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FeltTool {
-    /// A geometric tool: the clay is touched between strokes; a stroke carves and renders no
-    /// force.
-    #[default]
-    Geometric,
+    /// A geometric tool. With its shell, a device that renders force feels the clay against
+    /// the tool's whole shape, between strokes and while the tool acts, and the tool acts as
+    /// far as the hand presses ([`super::ShapeProxy`]); without one (or on a device without
+    /// force) the clay is touched at the tip between strokes and a stroke acts at the tip.
+    Geometric(Option<super::ToolShell>),
     /// The contact push: the force vector runs from the touch proxy to the tip.
     Push,
     /// A force tool of the dynamics.
     Force(ForceTool),
+}
+
+impl Default for FeltTool {
+    fn default() -> Self {
+        Self::Geometric(None)
+    }
 }
 
 /// The held stroke as the simulation fixed it: the anchor where a force tool took hold, the
