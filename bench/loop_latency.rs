@@ -92,6 +92,7 @@ fn full_engine(config: &LoopConfig, duration: Duration) -> Result<LoopReport, St
     let field = build_clay(&plan.clay).map_err(|e| e.to_string())?;
     let arm_config = SimArmConfig::default();
     let mut engine_config = EngineConfig::for_field(&field, &arm_config.info);
+    engine_config.haptics.tool_contact = plan.tool_contact;
     engine_config.haptic_rate_hz = config.rate_hz;
     engine_config.haptic_rt_priority = config.rt_priority;
     let trajectory = plan

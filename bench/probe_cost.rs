@@ -185,6 +185,7 @@ fn phase(
     let field = build_clay(&plan.clay).map_err(|e| e.to_string())?;
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
+    config.haptics.tool_contact = plan.tool_contact;
     config.haptic_rate_hz = 1000.0;
     config.haptic_rt_priority = rt_priority;
     let trajectory = plan.trajectory(&config.map).map_err(|e| e.to_string())?;

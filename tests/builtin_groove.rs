@@ -62,6 +62,7 @@ fn the_builtin_run_leaves_a_groove_along_its_path_and_nothing_elsewhere() {
     let field = build_clay(&plan.clay).unwrap();
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
+    config.haptics.tool_contact = plan.tool_contact;
     config.haptic_rt_priority = None;
     // The material `dynaclay run` starts a new sculpt with.
     config.sim.material = MaterialFields::default().uniform;

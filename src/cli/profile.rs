@@ -111,6 +111,7 @@ fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptic_rate_hz = args.rate_hz;
+    config.haptics.tool_contact = plan.tool_contact;
     if !args.rt {
         config.haptic_rt_priority = None;
     }

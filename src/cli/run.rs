@@ -231,6 +231,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     };
     let mut config = EngineConfig::for_clay(&field, &info);
     config.sim.material = start.material.uniform;
+    config.haptics.tool_contact = plan.tool_contact;
     if !args.rt {
         config.haptic_rt_priority = None;
     }
@@ -534,7 +535,7 @@ fn run_scheduled_replay(
 ) -> Result<RunOutputs, CliError> {
     let info = replay.info();
     let field = start.clay.density.clone();
-    let config = single_thread_config(&field, &info, start);
+    let config = single_thread_config(&field, &info, start, plan);
     let mut replay = ScheduledReplay::new(
         &config,
         field,
@@ -571,9 +572,11 @@ fn single_thread_config(
     field: &crate::field::MultiPatchField,
     info: &dynaclay_devices::DeviceInfo,
     start: &Session,
+    plan: &ScriptPlan,
 ) -> EngineConfig {
     let mut config = EngineConfig::for_clay(field, info);
     config.sim.material = start.material.uniform;
+    config.haptics.tool_contact = plan.tool_contact;
     config
 }
 
@@ -610,7 +613,7 @@ fn run_lockstep(
 ) -> Result<RunOutputs, CliError> {
     let info = device.info();
     let field = start.clay.density.clone();
-    let config = single_thread_config(&field, &info, start);
+    let config = single_thread_config(&field, &info, start, plan);
     let mut lockstep = Lockstep::new(
         &config,
         field,

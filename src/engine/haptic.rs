@@ -310,7 +310,7 @@ impl HapticStage {
             device_fault,
             tick: self.tick,
             rotation,
-            acting_at: felt.acting_at,
+            resting_at: felt.resting_at,
             press: felt.press,
         };
         self.publish(sample, now);
@@ -463,6 +463,7 @@ hover_fu = 0.3
         let arm = SimArmConfig::default();
         let device_max_n = arm.info.max_force_n;
         let mut config = EngineConfig::for_field(&field, &arm.info);
+        config.haptics.tool_contact = plan.tool_contact;
         config.safety.soft_start_s = 0.0;
         let trajectory = plan.trajectory(&config.map).unwrap();
         let device = Box::new(SimulatedArm::new(arm, trajectory));

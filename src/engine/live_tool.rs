@@ -25,6 +25,11 @@ pub const MAX_FORCES: usize = crate::haptics::MAX_TOOL_VECTORS;
 /// Most penetration targets one chisel or squirt stroke plans.
 pub const MAX_TARGETS: usize = MAX_STROKE_POINTS;
 
+/// How fast a firmly pressed resting tool sinks into the clay, in its own smallest half
+/// extents per second (a sphere of radius 0.25 sinks 0.25 field units a second): slow enough
+/// that the hand follows the cut and feels it, fast enough that a firm press carves at once.
+pub const FIRM_SINK_SIZES_PER_S: f32 = 1.0;
+
 /// The tool and its per-stroke state.
 #[derive(Debug)]
 pub struct LiveTool {
@@ -212,8 +217,7 @@ impl LiveTool {
         let ToolChoice::Geometric(tool) = &self.choice else {
             return None;
         };
-        let at = sample.acting_point();
-        if !sample.stroke_active || !at.is_finite() {
+        if !sample.stroke_active || !sample.tip.is_finite() {
             return None;
         }
         let press = if sample.press.is_finite() {
@@ -222,18 +226,45 @@ impl LiveTool {
             0.0
         };
         if press <= 0.0 {
-            // The tool rests on the clay: nothing acts, and the next press starts a new run of
-            // applications where it is (not a line from where the last one ended).
+            // The tool rests on the clay or touches nothing: nothing acts, and the next press
+            // starts a new run of applications where it is (not a line from where the last one
+            // ended).
             self.last_apply = None;
             return None;
         }
         let now = sample.device_time_us;
-        let (dwell_us, from) = match self.last_apply {
-            None => (interval_us, at),
-            Some((t, last)) if now >= t.saturating_add(interval_us) => {
-                ((now - t).min(4 * interval_us), last)
-            }
+        let dwell_us = match self.last_apply {
+            None => interval_us,
+            Some((t, _)) if now >= t.saturating_add(interval_us) => (now - t).min(4 * interval_us),
             Some(_) => return None,
+        };
+        let at = match sample.resting_at {
+            // A resting tool's cut runs ahead of it toward the tip, faster the harder the hand
+            // presses: the lead grows by the sink of this dwell, up to the tip and at most a
+            // stroke spacing ahead of where the tool rests (a refit carries small changes over
+            // a few applications, so the lead, not each application, sets the pace).
+            Some(rest) if rest.is_finite() => {
+                let toward = sample.tip - rest;
+                let reach = toward.length();
+                let dir = toward.normalize_or_zero();
+                let lead = self
+                    .last_apply
+                    .map_or(0.0, |(_, last)| (last - rest).dot(dir).max(0.0));
+                let sink_fu = press
+                    * FIRM_SINK_SIZES_PER_S
+                    * tool.shape.half_extents().min_element()
+                    * dwell_us as f32
+                    / 1e6;
+                let lead = (lead + sink_fu)
+                    .min(reach)
+                    .min(tool.shape.stroke_spacing_fu());
+                rest + dir * lead
+            }
+            _ => sample.tip,
+        };
+        let from = match self.last_apply {
+            Some((_, last)) => last,
+            None => at,
         };
         let count = steps_along(
             from.distance(at),

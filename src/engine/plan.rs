@@ -273,6 +273,9 @@ impl HandWaypoint {
 /// A script laid out on the script clock.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScriptPlan {
+    /// Whether geometric tools rest on the clay with their shape (the script's
+    /// `tool_contact`; see [`crate::haptics::HapticConfig::tool_contact`]).
+    pub tool_contact: bool,
     /// The script's name in messages (its path, or `<built-in>`).
     pub file: String,
     /// The starting clay.
@@ -618,6 +621,7 @@ impl ScriptPlan {
             events,
             strokes,
             step_lines: script.step_lines.clone(),
+            tool_contact: script.tool_contact,
         })
     }
 

@@ -37,12 +37,14 @@ pub struct ToolSample {
     /// The tool's orientation in field coordinates (the device's, for one that senses it).
     #[serde(default = "identity")]
     pub rotation: Quat,
-    /// Where a geometric tool acts, field coordinates: `None` at the tip. With tool-shaped
-    /// contact, the resting tool moved toward the tip as far as the hand presses.
+    /// With tool-shaped contact (a device that renders force), the geometric tool's centre
+    /// where it rests on the clay, field coordinates; the tool acts from there toward the tip
+    /// as the hand presses. `None`: the tool acts at the tip (by its press), or it touches
+    /// nothing.
     #[serde(default)]
-    pub acting_at: Option<Vec3>,
-    /// How hard the hand presses the resting tool, 0 (resting: the tool does nothing) to 1
-    /// (pressing firmly: the tool acts at its full rate); 1 without tool-shaped contact.
+    pub resting_at: Option<Vec3>,
+    /// How hard the hand presses the resting tool: 0 (it rests, or touches nothing: the tool
+    /// does nothing) to 1 (firmly: its full rate); 1 without tool-shaped contact.
     #[serde(default = "full_press")]
     pub press: f32,
 }
@@ -69,15 +71,9 @@ impl ToolSample {
         device_fault: false,
         tick: 0,
         rotation: Quat::IDENTITY,
-        acting_at: None,
+        resting_at: None,
         press: 1.0,
     };
-
-    /// Where a geometric tool acts (see [`ToolSample::acting_at`]).
-    #[must_use]
-    pub fn acting_point(&self) -> Vec3 {
-        self.acting_at.unwrap_or(self.tip)
-    }
 }
 
 impl Default for ToolSample {

@@ -69,6 +69,16 @@ pub struct HapticConfig {
     /// How a geometric tool resting on the clay answers the hand's press.
     #[serde(default)]
     pub tool_press: ToolPressConfig,
+    /// Whether a geometric tool on a device that renders force is felt with its whole shape
+    /// and acts as far as the hand presses (tool-shaped contact); off, it acts at the tip and
+    /// renders no force during its strokes (a script's strokes, whose path says where the
+    /// tool acts).
+    #[serde(default = "tool_contact_on")]
+    pub tool_contact: bool,
+}
+
+fn tool_contact_on() -> bool {
+    true
 }
 
 /// How a geometric tool resting on the clay answers the hand's press (tool-shaped contact):
@@ -84,11 +94,12 @@ pub struct ToolPressConfig {
 
 impl Default for ToolPressConfig {
     fn default() -> Self {
-        // Resting a hand's weight on a desktop arm is well under half a newton; 3 N is a firm
-        // press that such an arm holds for minutes.
+        // A hand resting on a desktop arm leans with up to about half a newton, and setting
+        // the tool down at a few centimetres a second adds as much again for a moment; 4 N is
+        // a firm press that such an arm holds for minutes.
         Self {
-            rest_n: 0.3,
-            firm_n: 3.0,
+            rest_n: 1.0,
+            firm_n: 4.0,
         }
     }
 }
@@ -121,6 +132,7 @@ impl HapticConfig {
             touch_damping_n_s_per_m: TOUCH_DAMPING_SHARE * damping,
             haptic_gain: 1.0,
             tool_press: ToolPressConfig::default(),
+            tool_contact: true,
         }
     }
 }
@@ -194,10 +206,11 @@ pub struct Felt {
     pub sculpting: bool,
     /// The passivity observer's energy, joules.
     pub energy_j: f32,
-    /// Where a geometric tool acts: `None` at the tip; with tool-shaped contact, the resting
-    /// tool moved toward the tip by the press.
-    pub acting_at: Option<Vec3>,
-    /// How hard the hand presses the resting tool, 0 to 1 (1 without tool-shaped contact).
+    /// With tool-shaped contact, the held geometric tool's centre where it rests on the clay.
+    pub resting_at: Option<Vec3>,
+    /// How hard the hand presses the resting tool, 0 (resting, or touching nothing: the tool
+    /// does nothing) to 1 (firmly: full rate); 1 without tool-shaped contact (the tool acts at
+    /// the tip).
     pub press: f32,
 }
 
@@ -288,7 +301,9 @@ impl ForceRenderer {
         let dt = self.shaper.elapsed_s(input.time_us);
         self.passivity.observe(input.position_m, input.sent_n, dt);
         let shell = match input.tool {
-            FeltTool::Geometric(Some(shell)) if input.tool_contact => Some(shell),
+            FeltTool::Geometric(Some(shell)) if input.tool_contact && self.config.tool_contact => {
+                Some(shell)
+            }
             _ => None,
         };
         if self.was_stroke && !input.stroke_active && shell.is_none() {
@@ -418,8 +433,10 @@ impl ForceRenderer {
         // The damper's share passes the same rate limit as the rest, on the sum: no step the
         // hand feels is larger than the stated rate, whatever its source.
         let force_n = self.output_limit.shape(force_n, dt);
-        // The resting tool acts as far toward the tip as the hand presses past the surface.
-        let (acting_at, press) = match shell {
+        // The tool acts only where it rests on the clay, at a rate that grows with how hard the
+        // hand presses past the surface; a tool felt with its shape that touches nothing acts
+        // nowhere.
+        let (resting_at, press) = match shell {
             Some(_) if touch.touching => {
                 let press_n = touch.depth / per_m * self.config.touch_stiffness_n_per_m;
                 let press = press_fraction(
@@ -427,9 +444,10 @@ impl ForceRenderer {
                     self.config.tool_press.rest_n,
                     self.config.tool_press.firm_n,
                 );
-                (Some(touch.proxy + (input.tip - touch.proxy) * press), press)
+                (Some(touch.proxy), press)
             }
-            _ => (None, 1.0),
+            Some(_) => (None, 0.0),
+            None => (None, 1.0),
         };
         Felt {
             force_n,
@@ -437,7 +455,7 @@ impl ForceRenderer {
             vector,
             sculpting,
             energy_j: self.passivity.energy_j(),
-            acting_at,
+            resting_at,
             press,
         }
     }

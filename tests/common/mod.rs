@@ -54,6 +54,9 @@ pub fn setup(script_text: &str, faults: Vec<Fault>) -> Setup {
     config.haptic_rt_priority = None;
     // A short soft start: the tests run for about two seconds.
     config.safety.soft_start_s = 0.1;
+    // As a script run: the tool acts where the path puts it (unless the script asks for
+    // tool-shaped contact).
+    config.haptics.tool_contact = plan.tool_contact;
     let trajectory = plan.trajectory(&config.map).expect("trajectory");
     let arm = SimulatedArm::new(arm_config, trajectory);
     Setup {

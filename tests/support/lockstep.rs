@@ -29,6 +29,8 @@ pub fn scripted(text: &str, name: &str, dir: &Path) -> Scripted {
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.1;
+    // As a script run: the tool acts where the path puts it.
+    config.haptics.tool_contact = plan.tool_contact;
     let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
     let run = Lockstep::new(
         &config,
