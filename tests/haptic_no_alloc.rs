@@ -5,8 +5,9 @@
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
-//! tool's vectors, their starts found again on the surface); and through a pointer stroke fed
-//! at 2 Hz, whose path the pointer device interpolates on the haptic thread.
+//! tool's vectors, their starts found again on the surface); through a carve with tool-shaped
+//! contact (the tool's point shell resting on the clay, the press measured); and through a
+//! pointer stroke fed at 2 Hz, whose path the pointer device interpolates on the haptic thread.
 
 mod common;
 
@@ -17,7 +18,7 @@ use std::time::Instant;
 use dynaclay::dynamics::Distribution;
 use dynaclay::engine::{Command, DeviceHandover, HeadlessSink, ToolChoice, build};
 use dynaclay::io::Session;
-use dynaclay::tools::ForceTool;
+use dynaclay::tools::{ForceTool, GeometricTool, ToolAction, ToolShape};
 use dynaclay_devices::{
     HapticDevice, Interpolation, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
 };
@@ -303,6 +304,62 @@ fn force_tool_strokes_tick_without_allocating() {
             tool.name()
         );
     }
+}
+
+#[test]
+fn a_carve_with_tool_shaped_contact_ticks_without_allocating() {
+    let top_y_m = 0.05;
+    let mut s = common::setup(common::PUSH_SCRIPT, vec![]);
+    s.config.haptics.tool_contact = true;
+    // The largest preset box, turned, down onto the top and pressed firmly while held.
+    let path = vec![
+        Waypoint::with_buttons(0.0, Vec3::new(0.0, top_y_m + 0.06, 0.0), 0),
+        Waypoint::with_buttons(0.3, Vec3::new(0.0, top_y_m + 0.02, 0.0), 0),
+        Waypoint::with_buttons(0.5, Vec3::new(0.0, top_y_m + 0.01, 0.0), 1),
+        Waypoint::with_buttons(1.0, Vec3::new(0.01, top_y_m + 0.01, 0.0), 1),
+        Waypoint::with_buttons(1.3, Vec3::new(0.01, top_y_m + 0.06, 0.0), 0),
+    ];
+    let trajectory = Trajectory::new(path, Interpolation::Smooth).unwrap();
+    let arm = SimulatedArm::new(SimArmConfig::default(), trajectory);
+    let mut stages = build(
+        &s.config,
+        s.field,
+        Box::new(arm),
+        Box::new(HeadlessSink::default()),
+        true,
+    )
+    .expect("stages build");
+    stages
+        .commands
+        .send(Command::SetTool(ToolChoice::Geometric(GeometricTool {
+            shape: ToolShape::Box {
+                half_extents_fu: Vec3::new(0.3, 0.1, 0.2),
+            },
+            action: ToolAction::Remove,
+            falloff_fu: 0.2,
+        })))
+        .unwrap();
+    let before = allocs_in_tick();
+    let (mut resting, mut carving) = (0, 0);
+    for _ in 0..1300 {
+        IN_TICK.with(|f| f.set(true));
+        let out = stages.haptic.tick(Instant::now());
+        IN_TICK.with(|f| f.set(false));
+        if out.sample.resting_at.is_some() {
+            resting += 1;
+            if out.sample.stroke_active && out.sample.press > 0.0 {
+                carving += 1;
+            }
+        }
+        stages.sim.apply_commands();
+        let sample = stages.samples.latest().value;
+        stages.sim.step(&sample);
+    }
+    assert!(
+        resting > 300 && carving > 100,
+        "the tool rested ({resting}) and carved ({carving})"
+    );
+    assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
 }
 
 #[test]
