@@ -1,7 +1,10 @@
 //! Haptic quality benchmark: how stiff the clay can feel before the arm buzzes, how smooth and
 //! how passive it is, and how late the force follows the tip — the touch renderer
-//! (`dynaclay::haptics::ForceRenderer`: proxy, shaping, passivity) side by side with a plain
-//! penalty wall (`F = k · depth · n`, nothing else) on the same simulated arm.
+//! (`dynaclay::haptics::ForceRenderer`: proxy, shaping, passivity), the same renderer with
+//! tool-shaped contact (the palette's default sphere, radius 0.25, resting on the clay with
+//! its point shell), and a plain penalty wall (`F = k · depth · n`, nothing else) on the same
+//! simulated arm; then the renderer's tick cost with each contact, the largest tool the
+//! palette makes (a sphere of radius 1) included.
 //!
 //! Usage: `cargo bench --bench haptic_quality` (no arguments). Deterministic: the simulated
 //! arm runs on its own clock, so the figures do not depend on the machine's load.
@@ -17,12 +20,19 @@
 //! - at the device's rated stiffness (3 kN/m): ripple, energy balance, and the force latency,
 //!   the lag in ticks that best aligns the force with the reported depth during the hold.
 //!
+//! With tool-shaped contact the hand's path is lifted by the tool's reach below its centre, so
+//! the tool rests on the face where the point rests in the other runs.
+//!
+//! Tick cost: the wall-clock time of `ForceRenderer::render` on each tick of the hold at 1 kHz
+//! and 3 kN/m, p50 and p99 (this one is timed, so it depends on the machine's load).
+//!
 //! Where it is optimistic: a flat face and a point-mass arm; real arms have structural modes.
 //! Where it is pessimistic: the grip's damping is low for a human hand.
 
 use dynaclay::engine::{CLAY_SPACING, EngineConfig, build_clay};
 use dynaclay::field::MultiPatchField;
-use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry};
+use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry, ToolShell};
+use dynaclay::tools::ToolShape;
 use dynaclay::io::{ClayShape, ClaySpec};
 use dynaclay_devices::{
     Fault, FaultKind, HapticDevice, Interpolation, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
@@ -35,7 +45,34 @@ const TOP_Y_M: f32 = 0.05;
 #[derive(Clone, Copy, PartialEq)]
 enum Renderer {
     Proxy,
+    /// The renderer with a geometric tool of this shell resting on the clay.
+    Tool(ToolShell),
     PenaltyWall,
+}
+
+impl Renderer {
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Proxy => "proxy + shaping + passivity",
+            Self::Tool(_) => "tool-shaped contact (sphere r 0.25)",
+            Self::PenaltyWall => "plain penalty wall",
+        }
+    }
+
+    /// How far the hand's path is lifted, device metres: the tool's reach below its centre.
+    fn lift_m(&self, field_per_m: f32) -> f32 {
+        match self {
+            Self::Tool(shell) => {
+                let low = shell.points().iter().map(|p| p.y).fold(0.0, f32::min);
+                -low / field_per_m
+            }
+            _ => 0.0,
+        }
+    }
+}
+
+fn sphere_shell(radius_fu: f32) -> ToolShell {
+    ToolShell::of(&ToolShape::Sphere { radius_fu }).expect("a sphere has a shell")
 }
 
 struct Run {
@@ -44,6 +81,8 @@ struct Run {
     absorbed_j: f64,
     peak_j: f64,
     latency_ticks: i32,
+    /// Render time per tick over the hold, microseconds, sorted.
+    tick_us: Vec<f64>,
 }
 
 impl Run {
@@ -52,21 +91,22 @@ impl Run {
     }
 }
 
-fn trajectory() -> Trajectory {
+fn trajectory(lift_m: f32) -> Trajectory {
+    let top = TOP_Y_M + lift_m;
     let mut w = vec![
-        Waypoint::new(0.0, Vec3::new(0.0, TOP_Y_M + 0.03, 0.0)),
-        Waypoint::new(0.3, Vec3::new(0.0, TOP_Y_M + 0.01, 0.0)),
-        Waypoint::new(0.6, Vec3::new(0.0, TOP_Y_M - 0.01, 0.0)),
+        Waypoint::new(0.0, Vec3::new(0.0, top + 0.03, 0.0)),
+        Waypoint::new(0.3, Vec3::new(0.0, top + 0.01, 0.0)),
+        Waypoint::new(0.6, Vec3::new(0.0, top - 0.01, 0.0)),
     ];
     for i in 0..10 {
         let x = if i % 2 == 0 { 0.001 } else { -0.001 };
         w.push(Waypoint::new(
             0.7 + 0.125 * f64::from(i),
-            Vec3::new(x, TOP_Y_M - 0.01, 0.0),
+            Vec3::new(x, top - 0.01, 0.0),
         ));
     }
-    w.push(Waypoint::new(2.2, Vec3::new(0.0, TOP_Y_M + 0.03, 0.0)));
-    w.push(Waypoint::new(2.6, Vec3::new(0.0, TOP_Y_M + 0.04, 0.0)));
+    w.push(Waypoint::new(2.2, Vec3::new(0.0, top + 0.03, 0.0)));
+    w.push(Waypoint::new(2.6, Vec3::new(0.0, top + 0.04, 0.0)));
     Trajectory::new(w, Interpolation::Smooth).expect("trajectory")
 }
 
@@ -89,7 +129,8 @@ fn run(
         ..SimArmConfig::default()
     };
     let max_n = arm_config.info.max_force_n;
-    let mut arm = SimulatedArm::new(arm_config, trajectory());
+    let lift_m = renderer.lift_m(config.map.field_per_m);
+    let mut arm = SimulatedArm::new(arm_config, trajectory(lift_m));
     arm.open().expect("arm opens");
     let mut haptics = config.haptics;
     haptics.touch_stiffness_n_per_m = stiffness_n_per_m;
@@ -102,6 +143,7 @@ fn run(
     let mut last_x = arm.effector_position_m();
     let mut sent = Vec3::ZERO;
     let (mut forces, mut depths) = (Vec::new(), Vec::new());
+    let mut tick_us = Vec::with_capacity(hold.len());
     for tick in 0..ticks {
         let state = arm.read().expect("arm reads");
         // True work at the port over the interval that just ended.
@@ -110,8 +152,13 @@ fn run(
         peak = peak.max(absorbed);
         last_x = x;
         let force = match renderer {
-            Renderer::Proxy => {
-                proxy
+            Renderer::Proxy | Renderer::Tool(_) => {
+                let tool = match renderer {
+                    Renderer::Tool(shell) => FeltTool::Geometric(Some(shell)),
+                    _ => FeltTool::Geometric(None),
+                };
+                let started = std::time::Instant::now();
+                let felt = proxy
                     .render(&FeltInput {
                         field,
                         tip: map.to_field(state.position_m),
@@ -121,7 +168,7 @@ fn run(
                         field_per_m: map.field_per_m,
                         force_n_per_unit: map.force_n_per_unit,
                         stroke_active: false,
-                        tool: FeltTool::Geometric(None),
+                        tool,
                         stroke: &stroke,
                         fade: 1.0,
                         saturation_n: max_n,
@@ -129,7 +176,11 @@ fn run(
                         rotation: glam::Quat::IDENTITY,
                         tool_contact: true,
                     })
-                    .force_n
+                    .force_n;
+                if hold.contains(&tick) {
+                    tick_us.push(started.elapsed().as_secs_f64() * 1e6);
+                }
+                felt
             }
             Renderer::PenaltyWall => {
                 let depth = (TOP_Y_M - state.position_m.y).max(0.0);
@@ -141,7 +192,7 @@ fn run(
         sent = force;
         if hold.contains(&tick) {
             forces.push(force.y);
-            depths.push(TOP_Y_M - state.position_m.y);
+            depths.push(TOP_Y_M + lift_m - state.position_m.y);
         }
     }
     let mean_n = forces.iter().sum::<f32>() / forces.len() as f32;
@@ -159,6 +210,10 @@ fn run(
         absorbed_j: absorbed,
         peak_j: peak,
         latency_ticks: best_lag(&depths, &forces),
+        tick_us: {
+            tick_us.sort_by(f64::total_cmp);
+            tick_us
+        },
     }
 }
 
@@ -202,10 +257,14 @@ fn main() {
     );
     println!("| --- | --- | --- | --- | --- | --- |");
     for (rate, step_us) in [("1 kHz", 1000u64), ("4 kHz", 250)] {
-        let mut highest = [0.0f32; 2];
-        for (slot, renderer) in [Renderer::Proxy, Renderer::PenaltyWall]
-            .into_iter()
-            .enumerate()
+        let mut highest = [0.0f32; 3];
+        for (slot, renderer) in [
+            Renderer::Proxy,
+            Renderer::Tool(sphere_shell(0.25)),
+            Renderer::PenaltyWall,
+        ]
+        .into_iter()
+        .enumerate()
         {
             let mut k = 250.0f32;
             let mut sweep = String::new();
@@ -226,10 +285,7 @@ fn main() {
             let at = run(&density, &config, renderer, 3000.0, step_us);
             println!(
                 "| {rate} | {} | {:.0} N/m | {:.2}% of {:.2} N | {:+.3} / {:.2} mJ | {} ticks |",
-                match renderer {
-                    Renderer::Proxy => "proxy + shaping + passivity",
-                    Renderer::PenaltyWall => "plain penalty wall",
-                },
+                renderer.name(),
                 highest[slot],
                 at.ripple * 100.0,
                 at.mean_n,
@@ -238,11 +294,45 @@ fn main() {
                 at.latency_ticks
             );
         }
-        let ratio = if highest[1] > 0.0 {
-            format!("{:.1}×", highest[0] / highest[1])
-        } else {
-            "the wall is never stable".to_owned()
-        };
-        println!("| {rate} | ratio proxy / wall | {ratio} | | | |");
+        for (slot, what) in [(0, "proxy"), (1, "tool-shaped contact")] {
+            let ratio = if highest[2] > 0.0 {
+                format!("{:.1}×", highest[slot] / highest[2])
+            } else {
+                "the wall is never stable".to_owned()
+            };
+            println!("| {rate} | ratio {what} / wall | {ratio} | | | |");
+        }
+    }
+
+    println!();
+    println!("Render tick cost at 1 kHz, 3 kN/m, over the hold (timed on this machine):");
+    println!("| contact | p50 | p99 | max |");
+    println!("| --- | --- | --- | --- |");
+    for (what, renderer) in [
+        ("point proxy", Renderer::Proxy),
+        ("sphere r 0.25 (palette default)", Renderer::Tool(sphere_shell(0.25))),
+        ("sphere r 1 (largest the palette makes)", Renderer::Tool(sphere_shell(1.0))),
+        (
+            "box 0.25 × 0.15 × 0.15 (palette default box)",
+            Renderer::Tool(
+                ToolShell::of(&ToolShape::Box {
+                    half_extents_fu: Vec3::new(0.25, 0.15, 0.15),
+                })
+                .expect("a box has a shell"),
+            ),
+        ),
+    ] {
+        let r = run(&density, &config, renderer, 3000.0, 1000);
+        let at = |q: f64| r.tick_us[((r.tick_us.len() - 1) as f64 * q).round() as usize];
+        assert!(
+            r.mean_n > 0.1 && !r.tick_us.is_empty(),
+            "{what}: the hold was in contact"
+        );
+        println!(
+            "| {what} | {:.1} µs | {:.1} µs | {:.1} µs |",
+            at(0.5),
+            at(0.99),
+            r.tick_us.last().copied().unwrap_or(0.0)
+        );
     }
 }

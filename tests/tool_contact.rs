@@ -14,7 +14,8 @@ use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::tools::{GeometricTool, ToolAction, ToolShape};
 use dynaclay_devices::record::{Record, Recording, RecordingDevice};
 use dynaclay_devices::{
-    DeviceState, Interpolation, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
+    DeviceState, Fault, FaultKind, Interpolation, SimArmConfig, SimulatedArm, Trajectory,
+    Waypoint,
 };
 use glam::Vec3;
 
@@ -261,12 +262,16 @@ fn sliding_the_tool_along_the_clay_is_smooth_and_every_press_is_passive() {
         Waypoint::new(2.4, at + Vec3::new(0.015, rest_m + 0.03, 0.0)),
     ];
     let trajectory = Trajectory::new(w, Interpolation::Smooth).unwrap();
-    let (ticks, _) = session(
-        sphere(ToolAction::Remove),
-        trajectory,
-        SimArmConfig::default(),
-        2600,
-    );
+    // The position is reported with 5 µm of noise (a few encoder counts).
+    let arm = SimArmConfig {
+        faults: vec![Fault {
+            start_s: 0.0,
+            duration_s: f64::INFINITY,
+            kind: FaultKind::Noise { std_m: 5e-6 },
+        }],
+        ..SimArmConfig::default()
+    };
+    let (ticks, _) = session(sphere(ToolAction::Remove), trajectory, arm, 2600);
     // Steady sliding: 0.8–1.6 s.
     let sliding = &ticks[800..1600];
     assert!(sliding.iter().all(|t| t.touching), "the tool stays on the clay");

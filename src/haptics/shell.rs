@@ -40,9 +40,13 @@ const SWEEPS: usize = 2;
 /// Shell points within this many knot spans of the surface take part in a step's constraints
 /// (so that a correction does not push a neighbour in).
 const NEAR_SPANS: f32 = 0.25;
+/// Shell points whose density is this far below the iso-value are more than a knot span from
+/// the surface (the clay's ramp rises 1/2 over two spans; a tool's edit makes it no
+/// shallower than half that): their gradient is not needed.
+const FAR_BELOW_ISO: f32 = 0.25;
 /// Upper bound on field evaluations in one [`ShapeProxy::update`]: the clear test at the tip,
-/// then every shell point at each step.
-pub const MAX_SHAPE_PROBES: usize = SHELL_POINTS * (1 + SHAPE_STEPS);
+/// then every shell point's value at each step, and its gradient where it is near the clay.
+pub const MAX_SHAPE_PROBES: usize = SHELL_POINTS * (1 + 2 * SHAPE_STEPS);
 
 /// A tool's surface as a point shell in its local frame (field units). Plain data.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -203,11 +207,17 @@ impl ShapeProxy {
         let max_step = STEP_SPANS * spacing;
         let near = NEAR_SPANS * spacing;
         let mut constraints = [(Vec3::ZERO, 0.0_f32); SHELL_POINTS];
+        let mut at_tip = 0;
         for _ in 0..SHAPE_STEPS {
-            let target = centre + (tip - centre).clamp_length_max(max_step);
+            let reach = tip - centre;
+            let target = centre + reach.clamp_length_max(max_step);
             let mut count = 0;
             for q in &shell.points {
-                let (s, g) = field.value_and_gradient(target + rotation * *q);
+                let p = target + rotation * *q;
+                if field.value(p) < iso - FAR_BELOW_ISO {
+                    continue;
+                }
+                let (s, g) = field.value_and_gradient(p);
                 let g_len = g.length();
                 if !(g_len > 1e-6 && s.is_finite()) {
                     continue;
@@ -232,6 +242,14 @@ impl ShapeProxy {
                 break;
             }
             centre = next;
+            // Once a step could reach the tip, one more step re-linearises there and a third
+            // would repeat it.
+            if reach.length() <= max_step {
+                at_tip += 1;
+                if at_tip == 2 {
+                    break;
+                }
+            }
         }
         self.centre = Some(centre);
         let offset = centre - tip;
