@@ -11,7 +11,8 @@
 //! 8 N·s/m) at 1 and 4 kHz, with the position reported on time or one read late and with 1, 5
 //! or 8 µm of noise (108 cases), and checks passivity at the device port: over a
 //! press–release cycle the device does no more work on the hand than the hand did on it, within
-//! 1% of the peak energy.
+//! 1% of the peak energy. A third test runs the same sweep with tool-shaped contact (a sphere
+//! resting on the clay with its point shell).
 
 mod common;
 
@@ -482,12 +483,22 @@ impl HapticDevice for DelayedArm {
     }
 }
 
+/// The held tool of a passivity sweep: the default push (touch at a point) or a geometric
+/// tool resting on the clay with its shape, the hand's path lifted by the tool's reach below
+/// its centre (device metres) so that it presses as deep.
+#[derive(Clone)]
+struct SweepTool {
+    tool: Option<ToolChoice>,
+    lift_m: f32,
+}
+
 /// One press–release with the arm's grip `hand_stiffness`/`hand_damping`, its position
 /// reported with `noise_m` of noise and `delay` reads late, at `step_us` per tick: the port's
 /// (net absorbed, peak absorbed, peak force).
 fn press_release(
     field: &BSplineLattice,
     config: &EngineConfig,
+    tool: &SweepTool,
     step_us: u64,
     grip: (f32, f32),
     noise_m: f32,
@@ -506,7 +517,7 @@ fn press_release(
     };
     let port = Arc::new(Mutex::new(Port::default()));
     let device = DelayedArm {
-        arm: SimulatedArm::new(arm, press_trajectory(0.01, 0.0, None)),
+        arm: SimulatedArm::new(arm, press_trajectory(0.01 - tool.lift_m, 0.0, None)),
         delay: VecDeque::new(),
         ticks_of_delay: delay,
         port: Arc::clone(&port),
@@ -519,6 +530,9 @@ fn press_release(
         1_000_000,
     )
     .unwrap();
+    if let Some(tool) = &tool.tool {
+        ls.commands().send(Command::SetTool(tool.clone())).unwrap();
+    }
     let ticks = (3.4e6 / step_us as f64) as usize;
     for _ in 0..ticks {
         ls.step();
@@ -532,8 +546,43 @@ fn press_release(
 fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() {
     let (field, mut config, _) = clay();
     config.safety.soft_start_s = 0.0;
-    // Every grip, on time and one read late (a USB frame); each with 1, 5 and 8 µm of position
-    // noise (a few encoder counts).
+    passivity_sweep(
+        &field,
+        &config,
+        &SweepTool {
+            tool: None,
+            lift_m: 0.0,
+        },
+    );
+}
+
+/// The same sweep with tool-shaped contact: the palette's default sphere (radius 0.25) resting
+/// on the clay with its point shell.
+#[test]
+fn tool_shaped_contact_is_passive_across_grips_rates_and_a_noisy_delayed_signal() {
+    use dynaclay::tools::{GeometricTool, ToolAction, ToolShape};
+    let (field, mut config, _) = clay();
+    config.safety.soft_start_s = 0.0;
+    config.haptics.tool_contact = true;
+    let radius_fu = 0.25;
+    passivity_sweep(
+        &field,
+        &config,
+        &SweepTool {
+            tool: Some(ToolChoice::Geometric(GeometricTool {
+                shape: ToolShape::Sphere { radius_fu },
+                action: ToolAction::Remove,
+                falloff_fu: 0.2,
+            })),
+            lift_m: radius_fu / config.map.field_per_m,
+        },
+    );
+}
+
+/// Every grip, on time and one read late (a USB frame); each with 1, 5 and 8 µm of position
+/// noise (a few encoder counts); over each press–release the device gives back at most 1% of
+/// the peak energy more than it took.
+fn passivity_sweep(field: &BSplineLattice, config: &EngineConfig, tool: &SweepTool) {
     let mut cases = Vec::new();
     for step_us in [1000u64, 250] {
         for stiffness in [100.0f32, 300.0, 1000.0] {
@@ -550,7 +599,7 @@ fn press_and_release_is_passive_across_grips_rates_and_a_noisy_delayed_signal() 
         .flat_map(|case| [1e-6f32, 5e-6, 8e-6].map(|noise| (case, noise)))
     {
         let (absorbed, peak, peak_force_n) =
-            press_release(&field, &config, step_us, grip, noise_m, delay);
+            press_release(field, config, tool, step_us, grip, noise_m, delay);
         let what = format!(
             "{} Hz, grip {} N/m {} N·s/m, delay {delay}, noise {} µm",
             1_000_000 / step_us,
