@@ -32,8 +32,8 @@
 use dynaclay::engine::{CLAY_SPACING, EngineConfig, build_clay};
 use dynaclay::field::MultiPatchField;
 use dynaclay::haptics::{FeltInput, FeltTool, ForceRenderer, StrokeGeometry, ToolShell};
-use dynaclay::tools::ToolShape;
 use dynaclay::io::{ClayShape, ClaySpec};
+use dynaclay::tools::ToolShape;
 use dynaclay_devices::{
     Fault, FaultKind, HapticDevice, Interpolation, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
 };
@@ -42,6 +42,7 @@ use glam::Vec3;
 /// The top face of the default block, device metres.
 const TOP_Y_M: f32 = 0.05;
 
+#[allow(clippy::large_enum_variant)] // a plain copyable value per run
 #[derive(Clone, Copy, PartialEq)]
 enum Renderer {
     Proxy,
@@ -310,8 +311,14 @@ fn main() {
     println!("| --- | --- | --- | --- |");
     for (what, renderer) in [
         ("point proxy", Renderer::Proxy),
-        ("sphere r 0.25 (palette default)", Renderer::Tool(sphere_shell(0.25))),
-        ("sphere r 1 (largest the palette makes)", Renderer::Tool(sphere_shell(1.0))),
+        (
+            "sphere r 0.25 (palette default)",
+            Renderer::Tool(sphere_shell(0.25)),
+        ),
+        (
+            "sphere r 1 (largest the palette makes)",
+            Renderer::Tool(sphere_shell(1.0)),
+        ),
         (
             "box 0.25 × 0.15 × 0.15 (palette default box)",
             Renderer::Tool(

@@ -14,8 +14,7 @@ use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::tools::{GeometricTool, ToolAction, ToolShape};
 use dynaclay_devices::record::{Record, Recording, RecordingDevice};
 use dynaclay_devices::{
-    DeviceState, Fault, FaultKind, Interpolation, SimArmConfig, SimulatedArm, Trajectory,
-    Waypoint,
+    DeviceState, Fault, FaultKind, Interpolation, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
 };
 use glam::Vec3;
 
@@ -148,7 +147,12 @@ fn resting_height_m(config: &EngineConfig, top: Vec3) -> f32 {
 fn work_on_hand_j(ticks: &[Tick]) -> f64 {
     ticks
         .windows(2)
-        .map(|w| f64::from(w[0].force_n.dot(w[1].state.position_m - w[0].state.position_m)))
+        .map(|w| {
+            f64::from(
+                w[0].force_n
+                    .dot(w[1].state.position_m - w[0].state.position_m),
+            )
+        })
         .sum()
 }
 
@@ -192,14 +196,20 @@ fn a_carve_is_felt_while_it_removes_and_stops_where_the_hand_stops() {
             press_m * 1e3,
             acting.len()
         );
-        assert!(weakest >= 0.5, "the carve is felt: {weakest} N at its weakest");
+        assert!(
+            weakest >= 0.5,
+            "the carve is felt: {weakest} N at its weakest"
+        );
         assert!(
             (depth - expected).abs() <= 0.1 * expected + 0.002,
             "cut {depth} fu deep for a press of {expected} fu"
         );
         depths.push(depth);
     }
-    assert!(depths[1] > 2.0 * depths[0], "a harder press carves deeper: {depths:?}");
+    assert!(
+        depths[1] > 2.0 * depths[0],
+        "a harder press carves deeper: {depths:?}"
+    );
 }
 
 #[test]
@@ -224,7 +234,10 @@ fn resting_lightly_on_the_clay_changes_nothing() {
             3500,
         );
         let held: Vec<&Tick> = ticks.iter().filter(|t| t.stroke && t.touching).collect();
-        assert!(held.len() > 2000, "the tool rested on the clay during the stroke");
+        assert!(
+            held.len() > 2000,
+            "the tool rested on the clay during the stroke"
+        );
         let mean = held.iter().map(|t| t.force_n.length()).sum::<f32>() / held.len() as f32;
         let pressed = held.iter().filter(|t| t.press > 0.0).count();
         let peak = held.iter().map(|t| t.force_n.length()).fold(0.0, f32::max);
@@ -239,8 +252,15 @@ fn resting_lightly_on_the_clay_changes_nothing() {
         assert!(pressed == 0, "nothing acts while resting");
         let field = MultiPatchField::new(field.clone());
         let change = (top_at(&clay, top) - top_at(&field, top)).abs();
-        eprintln!("{}: rests with {mean:.3} N, top moved {change:.5} fu", action.name());
-        assert!(change < 1e-4, "{}: the top moved {change} fu", action.name());
+        eprintln!(
+            "{}: rests with {mean:.3} N, top moved {change:.5} fu",
+            action.name()
+        );
+        assert!(
+            change < 1e-4,
+            "{}: the top moved {change} fu",
+            action.name()
+        );
     }
 }
 
@@ -274,7 +294,10 @@ fn sliding_the_tool_along_the_clay_is_smooth_and_every_press_is_passive() {
     let (ticks, _) = session(sphere(ToolAction::Remove), trajectory, arm, 2600);
     // Steady sliding: 0.8–1.6 s.
     let sliding = &ticks[800..1600];
-    assert!(sliding.iter().all(|t| t.touching), "the tool stays on the clay");
+    assert!(
+        sliding.iter().all(|t| t.touching),
+        "the tool stays on the clay"
+    );
     let mut worst = 0.0_f32;
     for w in sliding.windows(2) {
         let step = (w[1].force_n - w[0].force_n).length();

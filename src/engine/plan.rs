@@ -29,7 +29,7 @@
 use std::path::Path;
 
 use dynaclay_devices::{Interpolation, Trajectory, Waypoint};
-use glam::Vec3;
+use glam::{Quat, Vec3};
 
 use super::command::{PushTool, ToolChoice};
 use super::tool_library::LibraryTool;
@@ -258,14 +258,17 @@ pub struct HandWaypoint {
     pub position_fu: Vec3,
     /// Buttons held from this waypoint until the next (bit 0: the stroke button).
     pub buttons: u32,
+    /// The hand's orientation (`None`: unturned; a script's `rotations`).
+    pub rotation: Option<Quat>,
 }
 
 impl HandWaypoint {
-    fn new(time_s: f64, position_fu: Vec3, buttons: u32) -> Self {
+    fn new(time_s: f64, position_fu: Vec3, buttons: u32, rotation: Option<Quat>) -> Self {
         Self {
             time_s,
             position_fu,
             buttons,
+            rotation,
         }
     }
 }
@@ -340,6 +343,7 @@ impl ScriptPlan {
                     action,
                     falloff_fu,
                     path,
+                    rotations,
                     duration_s,
                     times_s,
                     start_s,
@@ -348,6 +352,12 @@ impl ScriptPlan {
                     curve,
                     pivot,
                 } => {
+                    let hand = StrokePath {
+                        path,
+                        rotations,
+                        hover_fu: *hover_fu,
+                        buttons: *buttons,
+                    };
                     if let (Some(ShapeSpec::Freeform { preset, scale }), Some(action)) =
                         (shape, action)
                         && made.contains(preset)
@@ -361,8 +371,7 @@ impl ScriptPlan {
                         held = None;
                         let start = stroke_start(*start_s, clock).map_err(fail)?;
                         let times = path_times(path, *duration_s, times_s);
-                        let stroke =
-                            stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, false);
+                        let stroke = stroke_waypoints(at, start, &hand, &times, false);
                         clock = stroke.end_s;
                         strokes.push(stroke);
                         continue;
@@ -384,8 +393,7 @@ impl ScriptPlan {
                     let start = stroke_start(*start_s, clock).map_err(fail)?;
                     let push = matches!(choice, ToolChoice::Push(_));
                     let times = path_times(path, *duration_s, times_s);
-                    let stroke =
-                        stroke_waypoints(at, start, path, &times, *hover_fu, *buttons, push);
+                    let stroke = stroke_waypoints(at, start, &hand, &times, push);
                     clock = stroke.end_s;
                     strokes.push(stroke);
                     held = Some(choice);
@@ -664,11 +672,13 @@ impl ScriptPlan {
         let mut w = vec![Waypoint::new(0.0, map.to_device(first))];
         for s in &self.strokes {
             for p in &s.waypoints {
-                w.push(Waypoint::with_buttons(
-                    p.time_s,
-                    map.to_device(p.position_fu),
-                    p.buttons,
-                ));
+                let waypoint =
+                    Waypoint::with_buttons(p.time_s, map.to_device(p.position_fu), p.buttons);
+                // The workspace map does not turn: the hand's rotation is the tool's.
+                w.push(match p.rotation {
+                    Some(q) => waypoint.turned(q),
+                    None => waypoint,
+                });
             }
         }
         Trajectory::new(w, Interpolation::Smooth).map_err(|e| ScriptError {
@@ -708,23 +718,41 @@ fn csg_action(op: CsgSpec) -> ToolAction {
     op.into()
 }
 
+/// One stroke's hand path as the script gives it.
+struct StrokePath<'a> {
+    path: &'a [[f32; 3]],
+    /// One quaternion per path point, or none.
+    rotations: &'a [[f32; 4]],
+    hover_fu: f32,
+    buttons: u32,
+}
+
+impl StrokePath<'_> {
+    /// The hand's orientation at path point `i` (`None` when the stroke is unturned).
+    fn rotation(&self, i: usize) -> Option<Quat> {
+        self.rotations
+            .get(i)
+            .map(|q| Quat::from_array(*q).normalize())
+    }
+}
+
 /// The waypoints of one stroke (field coordinates, absolute script times).
 fn stroke_waypoints(
     step: usize,
     start: f64,
-    path: &[[f32; 3]],
+    hand: &StrokePath,
     times: &[f64],
-    hover_fu: f32,
-    buttons: u32,
     push: bool,
 ) -> PlannedStroke {
-    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hover_fu;
+    let (path, buttons) = (hand.path, hand.buttons);
+    let up = |p: [f32; 3]| Vec3::from_array(p) + Vec3::Y * hand.hover_fu;
     let down = start + APPROACH_S;
     let last = path.len() - 1;
     let mut w = vec![HandWaypoint::new(
         start,
         up(path[0]),
         if push { buttons } else { 0 },
+        hand.rotation(0),
     )];
     for (i, (p, t)) in path.iter().zip(times).enumerate() {
         // Released from the last path point on.
@@ -733,17 +761,32 @@ fn stroke_waypoints(
         } else {
             buttons
         };
-        w.push(HandWaypoint::new(down + t, Vec3::from_array(*p), held));
+        w.push(HandWaypoint::new(
+            down + t,
+            Vec3::from_array(*p),
+            held,
+            hand.rotation(i),
+        ));
     }
     if path.len() == 1 {
         // A single point is held for the whole duration (its one time is the duration).
         let hold = times[0].max(1e-3);
         w[1].time_s = down;
-        w.push(HandWaypoint::new(down + hold, Vec3::from_array(path[0]), 0));
+        w.push(HandWaypoint::new(
+            down + hold,
+            Vec3::from_array(path[0]),
+            0,
+            hand.rotation(0),
+        ));
     }
     let path_end = w.last().map_or(down, |l| l.time_s);
     let end = path_end + APPROACH_S;
-    w.push(HandWaypoint::new(end, up(path[last]), 0));
+    w.push(HandWaypoint::new(
+        end,
+        up(path[last]),
+        0,
+        hand.rotation(last),
+    ));
     PlannedStroke {
         step,
         start_s: start,

@@ -17,12 +17,13 @@ pub use passivity::{MAX_SENSOR_DELAY_TICKS, PassivityConfig, PassivityController
 pub use proxy::{MAX_PROXY_PROBES, ProxyConfig, SurfaceProxy, Touch};
 pub use renderer::{
     CALIBRATION_DEPTH_M, CALIBRATION_FORCE_N, Felt, FeltInput, ForceRenderer, HapticConfig,
-    ToolPressConfig,
-    calibrated_force_scale, saturate, spring_energy_j,
+    ToolPressConfig, calibrated_force_scale, saturate, spring_energy_j,
 };
 pub use sculpt::{
     FELT_TARGETS, FeltTool, MAX_FELT_VECTORS, MAX_STROKE_POINTS, MAX_TOOL_VECTORS, SculptForce,
     SculptReaction, StrokeGeometry,
 };
 pub use shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
-pub use shell::{MAX_SHAPE_PROBES, SHELL_POINTS, ShapeProxy, ShapeTouch, ToolShell, press_fraction};
+pub use shell::{
+    MAX_SHAPE_PROBES, SHELL_POINTS, ShapeProxy, ShapeTouch, ToolShell, press_fraction,
+};

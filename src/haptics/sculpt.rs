@@ -36,6 +36,9 @@ pub const FELT_TARGETS: usize = 8;
 pub const MAX_STROKE_POINTS: usize = 256;
 
 /// What the haptic loop must know of the held tool (plain data).
+// The haptic tick copies the held tool out of each field update: inline, a copy allocates
+// nothing (a boxed shell would allocate on the haptic thread).
+#[allow(clippy::large_enum_variant)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FeltTool {
     /// A geometric tool. With its shell, a device that renders force feels the clay against

@@ -346,7 +346,10 @@ mod tests {
         let shell = ToolShell::of(&ToolShape::Sphere { radius_fu: 0.25 }).unwrap();
         let mut p = ShapeProxy::default();
         let x = Vec3::new(1.3, 0.0, 1.3);
-        assert!(!p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.5).touching);
+        assert!(
+            !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.5)
+                .touching
+        );
         let mut last = ShapeTouch::free(x);
         // Down at 0.01 a tick to 0.2 below where the sphere first meets the clay.
         for i in 0..=45 {
@@ -358,13 +361,23 @@ mod tests {
         // The sphere's bottom rests on y = 1 (the fitted surface is within a few thousandths).
         let bottom = lowest_point(&shell, Quat::IDENTITY, last.proxy);
         assert!((bottom - 1.0).abs() < 0.01, "bottom at {bottom}");
-        assert!((last.depth - (1.25 - tip_y)).abs() < 0.01, "depth {}", last.depth);
+        assert!(
+            (last.depth - (1.25 - tip_y)).abs() < 0.01,
+            "depth {}",
+            last.depth
+        );
         assert!(last.normal.y > 0.99, "{}", last.normal);
         for q in shell.points() {
-            assert!(field.value(last.proxy + *q) <= field.iso() + 0.02, "shell in clay");
+            assert!(
+                field.value(last.proxy + *q) <= field.iso() + 0.02,
+                "shell in clay"
+            );
         }
         // Lifting clear frees it at once.
-        assert!(!p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.4).touching);
+        assert!(
+            !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.4)
+                .touching
+        );
     }
 
     #[test]
@@ -413,7 +426,12 @@ mod tests {
             last = p.update(&field, &shell, Quat::IDENTITY, tip);
         }
         assert!(last.touching);
-        assert!((last.proxy.x - tip.x).abs() < 0.01, "{} vs {}", last.proxy, tip);
+        assert!(
+            (last.proxy.x - tip.x).abs() < 0.01,
+            "{} vs {}",
+            last.proxy,
+            tip
+        );
         assert!((last.proxy.y - 1.2).abs() < 0.01, "{}", last.proxy);
     }
 
@@ -423,10 +441,22 @@ mod tests {
         let shell = ToolShell::of(&ToolShape::Sphere { radius_fu: 0.2 }).unwrap();
         let mut p = ShapeProxy::default();
         let x = Vec3::new(1.3, 0.0, 1.3);
-        assert!(!p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 0.9).touching);
-        assert!(!p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.1).touching);
-        assert!(!p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.3).touching);
-        assert!(p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.15).touching);
+        assert!(
+            !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 0.9)
+                .touching
+        );
+        assert!(
+            !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.1)
+                .touching
+        );
+        assert!(
+            !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.3)
+                .touching
+        );
+        assert!(
+            p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.15)
+                .touching
+        );
     }
 
     #[test]

@@ -583,6 +583,10 @@ pub enum ScriptStep {
         falloff_fu: f32,
         /// Tip targets, field coordinates.
         path: Vec<[f32; 3]>,
+        /// The hand's orientation at each path point, quaternions `[x, y, z, w]` (one per
+        /// point; none: unturned). A geometric tool turns with the hand.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        rotations: Vec<[f32; 4]>,
         /// Time along the path (default 1 s, or the last of `times_s`).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         duration_s: Option<f32>,
@@ -1446,6 +1450,22 @@ fn check_points(name: &'static str, points: &[[f32; 3]], need_one: bool) -> Resu
     }
 }
 
+/// A quaternion `[x, y, z, w]` that turns something: finite and not near zero (it is
+/// normalised when used).
+fn check_rotation(key: &'static str, shown: &str, q: [f32; 4]) -> Result<(), StepFault> {
+    let norm_sq: f32 = q.iter().map(|c| c * c).sum();
+    if q.iter().all(|c| c.is_finite()) && norm_sq > 0.25 && norm_sq.is_finite() {
+        Ok(())
+    } else {
+        Err(fault(
+            key,
+            format!(
+                "{shown} = {q:?} is not a rotation (a finite quaternion [x, y, z, w] of length 1)"
+            ),
+        ))
+    }
+}
+
 fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
     match step {
         ScriptStep::Tool {
@@ -1453,10 +1473,14 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             action,
             positions,
             falloff_fu,
+            rotation,
             duration_s,
             ..
         } => {
             check_points("positions", positions, true)?;
+            if let Some(q) = rotation {
+                check_rotation("rotation", "rotation", *q)?;
+            }
             seconds("duration_s", *duration_s)?;
             finite("falloff_fu", *falloff_fu)?;
             action
@@ -1484,6 +1508,7 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             action,
             falloff_fu,
             path,
+            rotations,
             duration_s,
             times_s,
             start_s,
@@ -1493,6 +1518,21 @@ fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             ..
         } => {
             check_points("path", path, true)?;
+            if !rotations.is_empty() {
+                if rotations.len() != path.len() {
+                    return Err(fault(
+                        "rotations",
+                        format!(
+                            "rotations has {} entries but path has {} points",
+                            rotations.len(),
+                            path.len()
+                        ),
+                    ));
+                }
+                for (i, q) in rotations.iter().enumerate() {
+                    check_rotation("rotations", &format!("rotations[{i}]"), *q)?;
+                }
+            }
             check_points("curve", curve, false)?;
             if let Some(d) = duration_s {
                 seconds("duration_s", *d)?;

@@ -287,8 +287,14 @@ impl SimulatedArm {
 }
 
 impl HapticDevice for SimulatedArm {
+    /// The configured description; an arm whose trajectory turns the hand senses orientation.
     fn info(&self) -> DeviceInfo {
-        self.config.info.clone()
+        let mut info = self.config.info.clone();
+        info.has_orientation |= self.trajectory.has_orientation();
+        if info.has_orientation {
+            info.dof = info.dof.max(6);
+        }
+        info
     }
 
     /// Opens the arm at simulated time zero, effector at rest at the script's start and the
@@ -358,7 +364,8 @@ impl HapticDevice for SimulatedArm {
         self.counters.samples += 1;
         let sample = DeviceState {
             position_m,
-            orientation: None,
+            // The grip holds the handle's rotation rigidly: the effector turns with the hand.
+            orientation: hand.orientation,
             velocity_m_per_s,
             buttons: hand.buttons,
             timestamp_us: self.time_us,

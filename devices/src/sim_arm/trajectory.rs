@@ -4,7 +4,7 @@
 //! waypoints, so the simulated arm can call it on the haptic path. Construction validates the
 //! script and reports the first bad waypoint by index.
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 /// One scripted point of the hand's path.
@@ -18,6 +18,10 @@ pub struct Waypoint {
     /// bit 0 means "stroke active").
     #[serde(default)]
     pub buttons: u32,
+    /// The hand's orientation here (device frame), for an arm that senses rotation; a
+    /// trajectory with none reports no orientation.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub orientation: Option<Quat>,
 }
 
 impl Waypoint {
@@ -28,6 +32,7 @@ impl Waypoint {
             time_s,
             position_m,
             buttons: 0,
+            orientation: None,
         }
     }
 
@@ -38,6 +43,16 @@ impl Waypoint {
             time_s,
             position_m,
             buttons,
+            orientation: None,
+        }
+    }
+
+    /// This waypoint with the hand turned to `orientation`.
+    #[must_use]
+    pub fn turned(self, orientation: Quat) -> Self {
+        Self {
+            orientation: Some(orientation),
+            ..self
         }
     }
 }
@@ -64,6 +79,9 @@ pub struct HandSample {
     pub velocity_m_per_s: Vec3,
     /// Buttons held.
     pub buttons: u32,
+    /// Hand orientation (`None` when the trajectory gives none): the shortest rotation between
+    /// waypoints at the segment's fraction of time; a waypoint without one is unturned.
+    pub orientation: Option<Quat>,
 }
 
 /// A script that is not a valid trajectory.
@@ -122,6 +140,14 @@ impl Trajectory {
                     what: "position is not finite",
                 });
             }
+            if let Some(q) = w.orientation
+                && !(q.is_finite() && q.length_squared() > 0.25)
+            {
+                return Err(TrajectoryError {
+                    index,
+                    what: "orientation is not a finite, non-zero quaternion",
+                });
+            }
             if index > 0 && w.time_s <= waypoints[index - 1].time_s {
                 return Err(TrajectoryError {
                     index,
@@ -130,6 +156,14 @@ impl Trajectory {
             }
         }
         let tangents_m_per_s = tangents(&waypoints);
+        let turned = waypoints.iter().any(|w| w.orientation.is_some());
+        let waypoints = waypoints
+            .into_iter()
+            .map(|w| Waypoint {
+                orientation: turned.then(|| w.orientation.map_or(Quat::IDENTITY, Quat::normalize)),
+                ..w
+            })
+            .collect();
         Ok(Self {
             waypoints,
             tangents_m_per_s,
@@ -160,6 +194,12 @@ impl Trajectory {
         self.interpolation
     }
 
+    /// Whether the waypoints turn the hand (an arm following it senses orientation).
+    #[must_use]
+    pub fn has_orientation(&self) -> bool {
+        self.waypoints.iter().any(|w| w.orientation.is_some())
+    }
+
     /// Time of the last waypoint, seconds.
     #[must_use]
     pub fn duration_s(&self) -> f64 {
@@ -178,6 +218,7 @@ impl Trajectory {
                 position_m: first.position_m,
                 velocity_m_per_s: Vec3::ZERO,
                 buttons: first.buttons,
+                orientation: first.orientation,
             };
         }
         if time_s >= last.time_s {
@@ -185,6 +226,7 @@ impl Trajectory {
                 position_m: last.position_m,
                 velocity_m_per_s: Vec3::ZERO,
                 buttons: last.buttons,
+                orientation: last.orientation,
             };
         }
         // Segment i runs from w[i] to w[i + 1]; first.time_s < time_s < last.time_s.
@@ -211,6 +253,10 @@ impl Trajectory {
             position_m,
             velocity_m_per_s,
             buttons: a.buttons,
+            orientation: a
+                .orientation
+                .zip(b.orientation)
+                .map(|(qa, qb)| qa.slerp(qb, u)),
         }
     }
 }
