@@ -214,10 +214,15 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
     let sign = along.iter().sum::<f32>().signum();
     let steady_sign_flips = along.iter().filter(|&&f| f * sign < -1e-3).count();
     let steady_high_share = high_frequency_share(&along, rate_hz, 100.0);
-    // Free: outside, no tool acting and no button for the last fade (a released stroke's
-    // force fades out over at most `FadeOut::LONGEST_S`).
-    let settle =
-        (ShapingConfig::DEFAULT_BLEND_S.max(FadeOut::LONGEST_S) * rate_hz).ceil() as usize + 1;
+    // Free: outside, no tool acting, no button and no contact for the last fade (a released
+    // stroke's force, and the passivity damper of a contact that ended, fade out over at most
+    // `FadeOut::LONGEST_S` and 0.1 s).
+    let settle = (ShapingConfig::DEFAULT_BLEND_S
+        .max(FadeOut::LONGEST_S)
+        .max(0.1)
+        * rate_hz)
+        .ceil() as usize
+        + 1;
     let free_max_n = ticks
         .iter()
         .enumerate()
@@ -226,7 +231,7 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
                 && !t.in_contact
                 && ticks[i.saturating_sub(settle)..=*i]
                     .iter()
-                    .all(|p| p.buttons == 0)
+                    .all(|p| p.buttons == 0 && !p.touching && !p.in_contact)
         })
         .map(|(_, t)| t.force_n.length())
         .fold(0.0, f32::max);
@@ -744,4 +749,60 @@ fn sliding_along_the_clay_is_smooth_and_friction_is_felt() {
         "friction leans against the slide: {mean}"
     );
     assert!(worst <= 1.0, "a step {worst} times the allowed");
+}
+
+/// Every end fades: on the built-in run (the default script's push strokes, as `dynaclay run`
+/// plays them), for 150 ms after each stroke ends the force never falls by more than 7% of
+/// itself plus 0.02 N in a tick, and a force that goes to zero goes from under 0.0215 N (the
+/// rule's own floor) — the passivity damper at the end of a contact included.
+#[test]
+fn the_builtin_run_lets_every_end_fade() {
+    use dynaclay::engine::{ScriptDriver, ScriptPlan, build_clay};
+    let plan = ScriptPlan::builtin();
+    let field = build_clay(&plan.clay).unwrap();
+    let arm_config = SimArmConfig::default();
+    let mut config = EngineConfig::for_field(&field, &arm_config.info);
+    config.haptics.tool_contact = plan.tool_contact;
+    config.haptic_rt_priority = None;
+    let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
+    let mut run = Lockstep::new(
+        &config,
+        field,
+        Box::new(arm),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+    let mut driver = ScriptDriver::new(&plan);
+    let commands = run.commands();
+    let (mut last, mut was_stroke, mut since_end) = (Vec3::ZERO, false, usize::MAX);
+    let (mut drops, mut peak, mut ends) = (Vec::new(), 0.0_f32, 0);
+    for tick in 0..(plan.seconds * 1000.0) as usize {
+        let sample = run.latest_tool();
+        driver.dispatch(&sample, &commands);
+        let out = run.step();
+        let now = out.sample.device_force_n;
+        peak = peak.max(now.length());
+        if was_stroke && !out.sample.stroke_active {
+            since_end = 0;
+            ends += 1;
+        }
+        was_stroke = out.sample.stroke_active;
+        let fell = last.length() - now.length();
+        let allowed = 0.07 * last.length() + 0.02;
+        if fell > allowed && (since_end < 150 || now == Vec3::ZERO) {
+            drops.push(format!("tick {tick}: {last} → {now} N"));
+        }
+        since_end = since_end.saturating_add(1);
+        last = now;
+    }
+    eprintln!(
+        "built-in run: peak {peak:.2} N, {ends} stroke ends, {} drops",
+        drops.len()
+    );
+    assert!(
+        peak > 0.3 && ends > 0,
+        "the run is felt: {peak} N, {ends} ends"
+    );
+    assert!(drops.is_empty(), "{drops:#?}");
 }

@@ -125,21 +125,33 @@ impl PassivityController {
     /// damped before the release hands the stored energy back. Zero while there is no deficit.
     #[must_use]
     pub fn damping_n(&self, dt_s: f32, stored_j: f32) -> Vec3 {
-        // Speed within the sensor's noise floor is not damped: a damper driven by noise would
-        // itself put energy into the hand.
+        -self.damped_velocity_m_per_s() * self.damping_n_s_per_m(dt_s, stored_j)
+    }
+
+    /// The damping coefficient that spends the current deficit over `dt_s` at the port's
+    /// velocity (see [`Self::damping_n`]), newton-seconds per metre, at most the configured
+    /// bound; zero while there is no deficit or the port is still.
+    #[must_use]
+    pub fn damping_n_s_per_m(&self, dt_s: f32, stored_j: f32) -> f32 {
+        let v2 = self.damped_velocity_m_per_s().length_squared();
+        let deficit = stored_j.max(0.0) - self.energy_j();
+        if !self.config.enabled || deficit.is_nan() || deficit <= 0.0 || dt_s <= 0.0 || v2 < 1e-10 {
+            return 0.0;
+        }
+        (deficit / (v2 * dt_s)).min(self.config.max_damping_n_s_per_m)
+    }
+
+    /// The velocity a damper acts on: the observer's, less its noise floor (speed within the
+    /// sensor's noise is not damped: a damper driven by noise would itself put energy into
+    /// the hand), metres per second.
+    #[must_use]
+    pub fn damped_velocity_m_per_s(&self) -> Vec3 {
         let speed = self.velocity_m_per_s.length();
         let above = speed - self.config.velocity_deadband_m_per_s;
         if above.is_nan() || above <= 0.0 {
             return Vec3::ZERO;
         }
-        let v = self.velocity_m_per_s * (above / speed);
-        let v2 = v.length_squared();
-        let deficit = stored_j.max(0.0) - self.energy_j();
-        if !self.config.enabled || deficit.is_nan() || deficit <= 0.0 || dt_s <= 0.0 || v2 < 1e-10 {
-            return Vec3::ZERO;
-        }
-        let alpha = (deficit / (v2 * dt_s)).min(self.config.max_damping_n_s_per_m);
-        -v * alpha
+        self.velocity_m_per_s * (above / speed)
     }
 
     /// Between contacts (no force is rendered): drops any credit, so energy the hand put into

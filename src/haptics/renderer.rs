@@ -26,10 +26,13 @@
 //!    the sculpting force fades out and nothing kicks the hand.
 //! 4. **Shaping.** The sum passes the rate limit ([`super::ForceShaper`]).
 //! 5. **Passivity.** The observer's damper is added whenever the hand has put in less energy
-//!    than the rendering stores ([`super::PassivityController`]). It is added to the shaped
-//!    force (not to its target, where the first rate limit would hold it back half an
-//!    oscillation), and the sum passes the rate limit once more, so no step the hand feels
-//!    exceeds the stated rate; the safety filter's slew limit after it is the backstop.
+//!    than the rendering stores ([`super::PassivityController`]). It is viscous (`−c · v`), its
+//!    coefficient rising to the observer's at once and let go by at most the fade rule's share
+//!    per millisecond, so a spent deficit or a contact's end fades it out instead of dropping
+//!    it. It is added to the shaped force (not to its target, where the first rate limit would
+//!    hold it back half an oscillation), and the sum passes the rate limit once more, so no
+//!    step the hand feels exceeds the stated rate; the safety filter's slew limit after it is
+//!    the backstop.
 
 use glam::{Quat, Vec3};
 
@@ -237,6 +240,9 @@ pub struct ForceRenderer {
     last_tool: FeltTool,
     /// A tool switch fades the sculpting force out before the new tool fades in.
     switching: bool,
+    /// The passivity damper's coefficient as applied, newton-seconds per metre: it rises to
+    /// the observer's at once and falls by at most the fade rule's share per millisecond.
+    damping_n_s_per_m: f32,
     /// Whether the previous tick held a stroke.
     was_stroke: bool,
     /// The push's direction for the held stroke: the outward normal where the tip first
@@ -262,6 +268,7 @@ impl ForceRenderer {
             sculpt_was_on: false,
             last_tool: FeltTool::default(),
             switching: false,
+            damping_n_s_per_m: 0.0,
             was_stroke: false,
             push_axis: None,
             config,
@@ -294,6 +301,7 @@ impl ForceRenderer {
         self.sculpt_fade.reset();
         self.last_sculpt_n = Vec3::ZERO;
         self.sculpt_was_on = false;
+        self.damping_n_s_per_m = 0.0;
     }
 
     /// Renders one tick.
@@ -411,9 +419,9 @@ impl ForceRenderer {
         // stays free). The damper is added to the shaped force, not to its target: it answers
         // an oscillation within the tick instead of queueing behind the source's rate limit.
         let shaped = self.shaper.shape(target, dt);
-        let force_n = if target == Vec3::ZERO && shaped == Vec3::ZERO {
+        let wanted_n_s_per_m = if target == Vec3::ZERO && shaped == Vec3::ZERO {
             self.passivity.between_contacts();
-            shaped
+            0.0
         } else {
             // What the touch spring stores and will give back on the way out: the work to
             // press it to its depth, `∫ F_max tanh(k x / F_max) dx`.
@@ -427,9 +435,23 @@ impl ForceRenderer {
             } else {
                 0.0
             };
-            let damper = self.passivity.damping_n(dt, stored_j);
-            shaped + damper.clamp_length_max(input.saturation_n.max(0.0))
+            self.passivity.damping_n_s_per_m(dt, stored_j)
         };
+        // The damper is viscous, `−c · v` on the port's velocity now, so whatever its
+        // coefficient it only takes energy. The coefficient rises to what the observer asks at
+        // once (an oscillation is answered within the tick) and is let go by at most the fade
+        // rule's share per millisecond, so neither a spent deficit nor the end of a contact
+        // drops the force in one tick (the hand leaving the clay feels the drag fade out over
+        // some 50 ms).
+        let let_go = (1.0 - FadeOut::RELATIVE_PER_MS * dt * 1e3).max(0.0);
+        self.damping_n_s_per_m = wanted_n_s_per_m.max(self.damping_n_s_per_m * let_go);
+        let velocity = self.passivity.damped_velocity_m_per_s();
+        if self.damping_n_s_per_m * velocity.length() < FadeOut::ABSOLUTE_N_PER_MS {
+            // Under the rule's floor: let go of what is left.
+            self.damping_n_s_per_m = wanted_n_s_per_m;
+        }
+        let damper = -velocity * self.damping_n_s_per_m;
+        let force_n = shaped + damper.clamp_length_max(input.saturation_n.max(0.0));
         // The damper's share passes the same rate limit as the rest, on the sum: no step the
         // hand feels is larger than the stated rate, whatever its source.
         let force_n = self.output_limit.shape(force_n, dt);
