@@ -313,3 +313,70 @@ fn sliding_the_tool_along_the_clay_is_smooth_and_every_press_is_passive() {
     eprintln!("work of the device on the hand: {:.4} mJ", given * 1e3);
     assert!(given <= 1e-5, "the device gave {given} J to the hand");
 }
+
+/// A tool switch while the hand presses on the clay: the contact starts afresh with the new
+/// tool (buried while it is in the clay), and the old contact's force is let go through the
+/// fade-out — no tick falls by more than 7% of the force plus 0.02 N.
+#[test]
+fn a_tool_switch_while_pressing_lets_the_force_go_without_a_drop() {
+    let (field, config, top) = block();
+    let rest_m = resting_height_m(&config, top);
+    let centre_m = config.map.to_device(top);
+    let at = Vec3::new(centre_m.x, 0.0, centre_m.z);
+    // The hand presses 10 mm past where the held tool meets the clay: the sphere's centre
+    // rests a radius above the top, a point rests on it.
+    let press = |rest_m: f32| {
+        let down = at + Vec3::Y * (rest_m - 0.01);
+        let w = vec![
+            Waypoint::new(0.0, at + Vec3::Y * (rest_m + 0.02)),
+            Waypoint::new(0.4, down),
+            Waypoint::new(0.5, down),
+            Waypoint::new(2.5, down),
+        ];
+        Trajectory::new(w, Interpolation::Smooth).unwrap()
+    };
+    for (first, then, trajectory) in [
+        (
+            sphere(ToolAction::Remove),
+            ToolChoice::default(),
+            press(rest_m),
+        ),
+        (
+            ToolChoice::default(),
+            sphere(ToolAction::Remove),
+            press(centre_m.y),
+        ),
+    ] {
+        let arm = SimulatedArm::new(SimArmConfig::default(), trajectory.clone());
+        let mut ls = Lockstep::new(
+            &config,
+            field.clone(),
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            64,
+        )
+        .unwrap();
+        ls.commands().send(Command::SetTool(first.clone())).unwrap();
+        let (mut last, mut worst, mut before) = (Vec3::ZERO, 0.0_f32, 0.0_f32);
+        for tick in 0..1400 {
+            if tick == 1000 {
+                before = last.length();
+                ls.commands().send(Command::SetTool(then.clone())).unwrap();
+            }
+            let now = ls.step().sample.device_force_n;
+            if tick >= 1000 {
+                let fell = last.length() - now.length();
+                worst = worst.max(fell / (0.07 * last.length() + 0.02));
+            }
+            last = now;
+        }
+        ls.finish().unwrap();
+        eprintln!(
+            "{} → {}: pressing {before:.2} N at the switch, largest fall {worst:.3} of the rule",
+            first.name(),
+            then.name()
+        );
+        assert!(before > 1.0, "pressing at the switch: {before} N");
+        assert!(worst <= 1.0, "a fall {worst} times the rule");
+    }
+}

@@ -224,6 +224,12 @@ pub struct ForceRenderer {
     proxy: SurfaceProxy,
     /// The held geometric tool, resting on the clay with its shape.
     shape_proxy: ShapeProxy,
+    /// Whether the last tick touched through the tool's shape (else at a point).
+    shaped_touch: bool,
+    /// The touch force of the contact model left behind by a tool switch, fading out.
+    touch_fade: FadeOut,
+    /// The touch force sent on the last tick (blended), newtons.
+    last_touch_n: Vec3,
     sculpt: SculptReaction,
     shaper: ForceShaper,
     /// The rate limit on the sum sent (shaped force plus passivity damper).
@@ -257,6 +263,9 @@ impl ForceRenderer {
         Self {
             proxy: SurfaceProxy::new(config.proxy),
             shape_proxy: ShapeProxy::default(),
+            shaped_touch: false,
+            touch_fade: FadeOut::default(),
+            last_touch_n: Vec3::ZERO,
             sculpt: SculptReaction::default(),
             shaper: ForceShaper::new(config.shaping),
             output_limit: ForceShaper::new(config.shaping),
@@ -293,6 +302,8 @@ impl ForceRenderer {
     pub fn reset(&mut self) {
         self.proxy.release();
         self.shape_proxy.release();
+        self.touch_fade.reset();
+        self.last_touch_n = Vec3::ZERO;
         self.shaper.reset();
         self.output_limit.reset();
         self.passivity.reset();
@@ -413,7 +424,16 @@ impl ForceRenderer {
             self.sculpt_fade.advance(dt)
         };
         self.sculpt_was_on = sculpt_on;
-        let target = (touch_n * wt + sculpt_part) * fade;
+        // A tool switch that changes how the clay is touched (at a point, or with the tool's
+        // shape) starts the new contact afresh (buried while in the clay); the old one's force
+        // is let go through the fade-out, not dropped.
+        if shell.is_some() != self.shaped_touch {
+            self.shaped_touch = shell.is_some();
+            self.touch_fade.hold(self.last_touch_n);
+        }
+        let touch_part = touch_n * wt + self.touch_fade.advance(dt);
+        self.last_touch_n = touch_part;
+        let target = (touch_part + sculpt_part) * fade;
 
         // Shaping, then passivity: the damper while in deficit, in contact only (free space
         // stays free). The damper is added to the shaped force, not to its target: it answers
