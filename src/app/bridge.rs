@@ -481,7 +481,9 @@ impl Bridge {
             v.sim_time_s = status.sim_time_s;
             v.compact = status.compact;
             v.removal_question = status.removal_question;
-            v.tool_position = tool.tip;
+            // A tool felt with its shape is drawn where it rests on the clay (the hand's
+            // device may be pressed past it), so the clay is where the tool is drawn.
+            v.tool_position = tool.resting_at.unwrap_or(tool.tip);
             v.tool_radius = radius;
             v.force_n = if tool.device_force_n.is_finite() {
                 tool.device_force_n
