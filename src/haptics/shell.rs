@@ -55,8 +55,10 @@ pub struct ToolShell {
 }
 
 impl ToolShell {
-    /// The shell of `shape` (local frame), or `None` when the shape has no extent (a freeform
-    /// tool whose lattice holds no solid along some direction is sampled at its centre there).
+    /// The shell of `shape` (local frame): along each direction, where the ray from the
+    /// tool's centre first leaves its shape (so a shape that is not star-shaped about its
+    /// centre is sampled on its outer hull only as far as those rays see it). `None` when the
+    /// shape has no extent or its centre is not inside it (a freeform tool hollow there).
     #[must_use]
     pub fn of(shape: &ToolShape) -> Option<Self> {
         let reach = 1.5 * shape.half_extents().length();
@@ -338,6 +340,42 @@ mod tests {
         // The box's corners are in the shell.
         let shell = ToolShell::of(&shapes[2]).unwrap();
         assert!((shell.radius_fu() - Vec3::new(0.3, 0.05, 0.1).length()).abs() < 1e-3);
+    }
+
+    /// A freeform tool (a sculpt scaled two to one) is sampled where its own surface is: an
+    /// ellipsoid of radii (2r, r, r) within a tenth of a knot span of the sculpt.
+    #[test]
+    fn a_freeform_shell_lies_on_the_sculpt_it_was_made_from() {
+        let (h, r) = (0.05_f32, 0.2_f32);
+        let sculpt = lattice_from_primitive(
+            [16, 16, 16],
+            h,
+            Vec3::ZERO,
+            &Primitive::Sphere {
+                centre: Vec3::splat(7.5 * h),
+                radius: r,
+            },
+            2.0 * h,
+            2,
+        )
+        .unwrap();
+        let shape = ToolShape::Freeform(crate::tools::FreeformTool {
+            lattice: sculpt,
+            scale: Vec3::new(2.0, 1.0, 1.0),
+        });
+        let shell = ToolShell::of(&shape).unwrap();
+        for p in shell.points() {
+            let on_ellipsoid = (*p / Vec3::new(2.0 * r, r, r)).length();
+            assert!(
+                (on_ellipsoid - 1.0).abs() < 0.1 * h / r,
+                "{p}: {on_ellipsoid}"
+            );
+        }
+        assert!(
+            (shell.radius_fu() - 2.0 * r).abs() < 0.1 * h,
+            "{}",
+            shell.radius_fu()
+        );
     }
 
     #[test]
