@@ -55,10 +55,11 @@ pub struct ToolShell {
 }
 
 impl ToolShell {
-    /// The shell of `shape` (local frame): along each direction, where the ray from the
-    /// tool's centre first leaves its shape (so a shape that is not star-shaped about its
-    /// centre is sampled on its outer hull only as far as those rays see it). `None` when the
-    /// shape has no extent or its centre is not inside it (a freeform tool hollow there).
+    /// The shell of `shape` (local frame): along each direction, a point where the ray from
+    /// the tool's centre crosses its surface, found by bisection between the centre and a
+    /// point beyond the shape (for a shape that is star-shaped about its centre, its surface
+    /// point in that direction; for another, one of the crossings). `None` when the shape has
+    /// no extent or its centre is not inside it (a freeform tool hollow there).
     #[must_use]
     pub fn of(shape: &ToolShape) -> Option<Self> {
         let reach = 1.5 * shape.half_extents().length();
