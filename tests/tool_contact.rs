@@ -314,6 +314,18 @@ fn sliding_the_tool_along_the_clay_is_smooth_and_every_press_is_passive() {
     assert!(given <= 1e-5, "the device gave {given} J to the hand");
 }
 
+/// A tool's name with its size, for messages.
+fn tool_label(tool: &ToolChoice) -> String {
+    match tool {
+        ToolChoice::Geometric(GeometricTool {
+            shape: ToolShape::Sphere { radius_fu },
+            action,
+            ..
+        }) => format!("{} sphere r {radius_fu}", action.name()),
+        other => other.name().to_owned(),
+    }
+}
+
 /// A tool switch while the hand presses on the clay: the contact starts afresh with the new
 /// tool (buried while it is in the clay), and the old contact's force is let go through the
 /// fade-out — no tick falls by more than 7% of the force plus 0.02 N.
@@ -346,6 +358,16 @@ fn a_tool_switch_while_pressing_lets_the_force_go_without_a_drop() {
             sphere(ToolAction::Remove),
             press(centre_m.y),
         ),
+        // To a smaller sphere, which the pressed hand holds clear of the clay.
+        (
+            sphere(ToolAction::Remove),
+            ToolChoice::Geometric(GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: 0.1 },
+                action: ToolAction::Remove,
+                falloff_fu: 0.2,
+            }),
+            press(rest_m),
+        ),
     ] {
         let arm = SimulatedArm::new(SimArmConfig::default(), trajectory.clone());
         let mut ls = Lockstep::new(
@@ -373,8 +395,8 @@ fn a_tool_switch_while_pressing_lets_the_force_go_without_a_drop() {
         ls.finish().unwrap();
         eprintln!(
             "{} → {}: pressing {before:.2} N at the switch, largest fall {worst:.3} of the rule",
-            first.name(),
-            then.name()
+            tool_label(&first),
+            tool_label(&then)
         );
         assert!(before > 1.0, "pressing at the switch: {before} N");
         assert!(worst <= 1.0, "a fall {worst} times the rule");

@@ -224,8 +224,8 @@ pub struct ForceRenderer {
     proxy: SurfaceProxy,
     /// The held geometric tool, resting on the clay with its shape.
     shape_proxy: ShapeProxy,
-    /// Whether the last tick touched through the tool's shape (else at a point).
-    shaped_touch: bool,
+    /// The shell the last tick touched with (`None`: at a point).
+    touch_shell: Option<ToolShell>,
     /// The touch force of the contact model left behind by a tool switch, fading out.
     touch_fade: FadeOut,
     /// The touch force sent on the last tick (blended), newtons.
@@ -263,7 +263,7 @@ impl ForceRenderer {
         Self {
             proxy: SurfaceProxy::new(config.proxy),
             shape_proxy: ShapeProxy::default(),
-            shaped_touch: false,
+            touch_shell: None,
             touch_fade: FadeOut::default(),
             last_touch_n: Vec3::ZERO,
             sculpt: SculptReaction::default(),
@@ -331,6 +331,10 @@ impl ForceRenderer {
         self.was_stroke = input.stroke_active;
         // One proxy at a time; the other forgets its contact, so switching tools inside the
         // clay buries the new one instead of kicking the hand out.
+        if shell.is_some() && shell != self.touch_shell {
+            // Another shape: its contact starts afresh.
+            self.shape_proxy.release();
+        }
         let touch = match &shell {
             Some(shell) => {
                 self.proxy.release();
@@ -424,11 +428,11 @@ impl ForceRenderer {
             self.sculpt_fade.advance(dt)
         };
         self.sculpt_was_on = sculpt_on;
-        // A tool switch that changes how the clay is touched (at a point, or with the tool's
-        // shape) starts the new contact afresh (buried while in the clay); the old one's force
-        // is let go through the fade-out, not dropped.
-        if shell.is_some() != self.shaped_touch {
-            self.shaped_touch = shell.is_some();
+        // A tool switch that changes how the clay is touched (at a point, or with another
+        // shape) started the new contact afresh (buried while in the clay, see above); the old
+        // one's force is let go through the fade-out, not dropped.
+        if shell != self.touch_shell {
+            self.touch_shell = shell;
             self.touch_fade.hold(self.last_touch_n);
         }
         let touch_part = touch_n * wt + self.touch_fade.advance(dt);
