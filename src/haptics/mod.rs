@@ -12,6 +12,8 @@ mod renderer;
 mod sculpt;
 mod shaping;
 mod shell;
+#[cfg(test)]
+mod test_clay;
 
 pub use passivity::{MAX_SENSOR_DELAY_TICKS, PassivityConfig, PassivityController};
 pub use proxy::{MAX_PROXY_PROBES, ProxyConfig, SurfaceProxy, Touch};

@@ -292,24 +292,7 @@ fn newton_to_surface(field: &MultiPatchField, mut x: Vec3, max_step: f32) -> Vec
 mod tests {
     use super::*;
     use crate::field::{Primitive, lattice_from_primitive};
-
-    /// Solid below y = 1.0.
-    fn slab() -> MultiPatchField {
-        MultiPatchField::new(
-            lattice_from_primitive(
-                [14, 14, 14],
-                0.2,
-                Vec3::ZERO,
-                &Primitive::Box {
-                    centre: Vec3::new(1.3, 0.5, 1.3),
-                    half_extents: Vec3::new(2.0, 0.5, 2.0),
-                },
-                0.4,
-                2,
-            )
-            .unwrap(),
-        )
-    }
+    use crate::haptics::test_clay::slab;
 
     #[test]
     fn the_proxy_stops_at_the_surface_and_the_tip_goes_on() {

@@ -589,25 +589,7 @@ pub fn saturate(v: Vec3, limit: f32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::field::{Primitive, lattice_from_primitive};
-
-    /// Solid below y = 1.0.
-    fn slab() -> MultiPatchField {
-        MultiPatchField::new(
-            lattice_from_primitive(
-                [14, 14, 14],
-                0.2,
-                Vec3::ZERO,
-                &Primitive::Box {
-                    centre: Vec3::new(1.3, 0.5, 1.3),
-                    half_extents: Vec3::new(2.0, 0.5, 2.0),
-                },
-                0.4,
-                2,
-            )
-            .unwrap(),
-        )
-    }
+    use crate::haptics::test_clay::slab;
 
     fn input<'a>(
         field: &'a MultiPatchField,
