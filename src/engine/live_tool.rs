@@ -203,9 +203,11 @@ impl LiveTool {
     }
 
     /// For a geometric tool during a held stroke: whether to apply it this step, where and
-    /// with which dwell. The tool acts at the sample's acting point (the tip, or the resting
-    /// tool as far toward the tip as the hand presses) and not at all while it only rests on
-    /// the clay (press 0). Applications are at least `interval_us` of device time apart (a
+    /// with which dwell. Without tool-shaped contact the tool acts at the tip. With it, the
+    /// tool acts ahead of where it rests (`resting_at`): the cut's lead toward the tip grows by
+    /// the press times [`FIRM_SINK_SIZES_PER_S`] of the tool's size per second of dwell, up to
+    /// the tip and a stroke spacing, and the dwell is scaled by the press; nothing acts while
+    /// it only rests on the clay (press 0). Applications are at least `interval_us` of device time apart (a
     /// local refit costs milliseconds); each covers the path from the previous one to the tip
     /// with points at most the shape's [`stroke_spacing_fu`] apart (a quarter of its radius;
     /// at most [`MAX_SEGMENT_APPLICATIONS`] of them, wider for a faster tip), splitting the

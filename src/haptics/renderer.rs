@@ -73,9 +73,9 @@ pub struct HapticConfig {
     #[serde(default)]
     pub tool_press: ToolPressConfig,
     /// Whether a geometric tool on a device that renders force is felt with its whole shape
-    /// and acts as far as the hand presses (tool-shaped contact); off, it acts at the tip and
-    /// renders no force during its strokes (a script's strokes, whose path says where the
-    /// tool acts).
+    /// and acts where it rests, at a rate the hand's press sets (tool-shaped contact); off, it
+    /// acts at the tip and renders no force during its strokes (a script's strokes, whose path
+    /// says where the tool acts).
     #[serde(default = "tool_contact_on")]
     pub tool_contact: bool,
 }
@@ -85,13 +85,13 @@ fn tool_contact_on() -> bool {
 }
 
 /// How a geometric tool resting on the clay answers the hand's press (tool-shaped contact):
-/// below `rest_n` it rests and changes nothing; from there it acts ever further toward the
-/// tip and at an ever higher rate, fully at `firm_n`.
+/// below `rest_n` it rests and changes nothing; from there its cut runs ahead of it toward the
+/// tip ever faster (and a rate action's dwell grows), at the full rate from `firm_n`.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolPressConfig {
     /// The force up to which the tool only rests on the clay, newtons.
     pub rest_n: f32,
-    /// The force at which the tool acts fully (at the tip, at its full rate), newtons.
+    /// The force from which the tool acts at its full rate, newtons.
     pub firm_n: f32,
 }
 
@@ -192,7 +192,7 @@ pub struct FeltInput<'a> {
     /// The tool's orientation, field coordinates.
     pub rotation: Quat,
     /// Whether the device renders force: a geometric tool is then felt with its whole shape
-    /// and acts as far as the hand presses; without force it acts at the tip.
+    /// and acts where it rests as the hand presses; without force it acts at the tip.
     pub tool_contact: bool,
 }
 

@@ -42,9 +42,10 @@ pub const MAX_STROKE_POINTS: usize = 256;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FeltTool {
     /// A geometric tool. With its shell, a device that renders force feels the clay against
-    /// the tool's whole shape, between strokes and while the tool acts, and the tool acts as
-    /// far as the hand presses ([`super::ShapeProxy`]); without one (or on a device without
-    /// force) the clay is touched at the tip between strokes and a stroke acts at the tip.
+    /// the tool's whole shape, between strokes and while the tool acts, and the tool acts
+    /// where it rests as the hand presses ([`super::ShapeProxy`]); without one (or on a device
+    /// without force) the clay is touched at the tip between strokes and a stroke acts at the
+    /// tip.
     Geometric(Option<super::ToolShell>),
     /// The contact push: the force vector runs from the touch proxy to the tip.
     Push,

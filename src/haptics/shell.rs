@@ -20,9 +20,10 @@
 //!   step removes.
 //! - A tool that reaches clay without having come to it from outside (a tool switched to
 //!   inside the clay) is "buried": nothing is rendered until the shell at the tip is clear.
-//! - The hand feels a spring from the tip to the proxy (the renderer's touch force) and the
-//!   tool acts on the clay from the proxy, as far toward the tip as the hand presses
-//!   ([`press_fraction`]).
+//! - The hand feels a spring from the tip to the proxy (the renderer's touch force). The tool
+//!   acts on the clay only from where it rests, at a rate set by how hard the hand presses
+//!   ([`press_fraction`]; the simulation runs the cut ahead of the resting tool toward the
+//!   tip).
 
 use glam::{Quat, Vec3};
 

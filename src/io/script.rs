@@ -76,9 +76,9 @@ pub struct Script {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub autosave: Option<AutosaveSpec>,
     /// Whether a geometric tool on a device that renders force rests on the clay with its
-    /// shape and acts as far as the hand presses (as in the window), instead of acting where
-    /// each stroke's path puts the tip (the default: a script's path says where the tool
-    /// acts).
+    /// shape and acts where it rests as the hand presses (as in the window), instead of
+    /// acting where each stroke's path puts the tip (the default: a script's path says where
+    /// the tool acts).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub tool_contact: bool,
     #[serde(default, rename = "step")]
