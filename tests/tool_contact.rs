@@ -4,9 +4,12 @@
 //! stops; sliding is smooth and every press–release is passive.
 //!
 //! The forces are the ones written to the device, read back from each session's recording; the
-//! clay is measured on the simulation's field at the end.
+//! clay is measured on its exported mesh (meshed, welded, written as OBJ and read back).
 
 mod common;
+
+#[path = "support/exported_mesh.rs"]
+mod exported_mesh;
 
 use dynaclay::dynamics::surface_point_on_ray;
 use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ToolChoice};
@@ -16,7 +19,7 @@ use dynaclay_devices::record::{Record, Recording, RecordingDevice};
 use dynaclay_devices::{
     DeviceState, Fault, FaultKind, Interpolation, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
 };
-use glam::Vec3;
+use glam::{Vec3, Vec3Swizzles};
 
 /// The palette's default sphere (radius 0.25, falloff 0.2) with `action`.
 fn sphere(action: ToolAction) -> ToolChoice {
@@ -43,10 +46,11 @@ fn block() -> (BSplineLattice, EngineConfig, Vec3) {
     (s.field, config, top)
 }
 
-/// The clay's top at `(x, z)` of `at`, searched up from half a unit below `at`.
+/// The exported clay's top over `(x, z)` of `at`.
 fn top_at(field: &MultiPatchField, at: Vec3) -> f32 {
-    let from = at - Vec3::Y * 0.5;
-    surface_point_on_ray(field, from, Vec3::Y, 1.0, 0.005).map_or(f32::NAN, |p| p.y)
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = exported_mesh::export(field, dir.path(), "clay.obj");
+    mesh.profile(at.xz(), at.xz() + glam::Vec2::X * 1e-3, 1)[0].1
 }
 
 /// One tick of a session.

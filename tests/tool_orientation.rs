@@ -1,20 +1,23 @@
 //! A turned hand turns the tool: a script stroke's `rotations` reach the simulated arm, which
 //! reports them, and the engine applies the geometric tool turned. A long box drawn along its
 //! length cuts a narrow groove; the same box turned a quarter turn about the vertical cuts a
-//! wide one. Measured on the simulation's field after the run.
+//! wide one. Measured on the exported mesh (meshed, welded, written as OBJ and read back).
 
-use dynaclay::dynamics::surface_point_on_ray;
 use dynaclay::engine::ScriptDriver;
 use dynaclay::field::MultiPatchField;
-use glam::Vec3;
+use glam::Vec2;
 
 #[path = "support/lockstep.rs"]
 mod lockstep;
 
+#[path = "support/exported_mesh.rs"]
+mod exported_mesh;
+
 use lockstep::{Scripted, scripted};
 
-/// A box 0.6 long (x), 0.2 wide and 0.2 high drawn along x over the block's top, 0.1 deep;
-/// `rotations` is spliced in as the stroke's `rotations` line (or nothing).
+/// A box 0.6 long (x), 0.2 wide and 0.2 high drawn along x through the block's top (at
+/// 1.425: the box's bottom is 0.175 below it, its top 0.025 above); `rotations` is spliced in
+/// as the stroke's `rotations` line (or nothing).
 fn script(rotations: &str) -> String {
     format!(
         r#"
@@ -29,7 +32,7 @@ do = "stroke"
 shape = {{ kind = "box", half_extents_fu = [0.3, 0.1, 0.1] }}
 action = {{ kind = "remove" }}
 falloff_fu = 0.15
-path = [[0.6, 1.3, 0.95], [1.3, 1.3, 0.95]]
+path = [[0.6, 1.35, 0.95], [1.3, 1.35, 0.95]]
 {rotations}
 duration_s = 1.5
 hover_fu = 0.4
@@ -53,28 +56,28 @@ fn run(text: &str) -> MultiPatchField {
     run.density().clone()
 }
 
-/// The clay's top at `(x, z)`.
-fn top(field: &MultiPatchField, x: f32, z: f32) -> f32 {
-    surface_point_on_ray(field, Vec3::new(x, 0.8, z), Vec3::Y, 1.0, 0.005).map_or(f32::NAN, |p| p.y)
+/// The exported clay's top along z at x 0.95, from z 0.55 to 1.35 in steps of 0.005.
+fn tops_across(field: &MultiPatchField) -> Vec<f32> {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = exported_mesh::export(field, dir.path(), "clay.obj");
+    mesh.profile(Vec2::new(0.95, 0.55), Vec2::new(0.95, 1.35), 160)
+        .into_iter()
+        .map(|(_, y)| y)
+        .collect()
 }
 
-/// The groove's width across the path at its middle (x 0.95, z 0.95): the run of z around the
-/// path over which the top is more than 0.05 below the untouched top.
+/// The groove's width across the path at its middle (x 0.95, z 0.95, index 80 of
+/// [`tops_across`]): the run of z around the path over which the top is more than 0.05 below
+/// the untouched top.
 fn groove_width(field: &MultiPatchField, untouched: f32) -> f32 {
-    let (x, z0, step) = (0.95, 0.95, 0.005);
-    let cut = |z: f32| top(field, x, z) < untouched - 0.05;
-    let reach = |dir: f32| {
-        let mut k = 0;
-        while k < 200 && cut(z0 + dir * step * (k + 1) as f32) {
-            k += 1;
-        }
-        k as f32 * step
-    };
-    if cut(z0) {
-        reach(1.0) + reach(-1.0)
-    } else {
-        0.0
+    let tops = tops_across(field);
+    let cut = |i: usize| tops[i] < untouched - 0.05;
+    if !cut(80) {
+        return 0.0;
     }
+    let up = (81..tops.len()).take_while(|&i| cut(i)).count();
+    let down = (0..80).rev().take_while(|&i| cut(i)).count();
+    (up + down) as f32 * 0.005
 }
 
 #[test]
@@ -82,7 +85,7 @@ fn a_quarter_turned_box_cuts_a_groove_as_wide_as_it_is_long() {
     let untouched = {
         let dir = tempfile::tempdir().unwrap();
         let s = scripted(&script(""), "plain.toml", dir.path());
-        top(s.run.density(), 0.95, 0.95)
+        tops_across(s.run.density())[80]
     };
     let along = run(&script(""));
     // A quarter turn about y: the box's length now runs across the path (along z).
