@@ -26,6 +26,4 @@ pub use sculpt::{
     SculptReaction, StrokeGeometry,
 };
 pub use shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
-pub use shell::{
-    MAX_SHAPE_PROBES, SHELL_POINTS, ShapeProxy, ShapeTouch, ToolShell, press_fraction,
-};
+pub use shell::{MAX_SHAPE_PROBES, SHELL_POINTS, ShapeProxy, ToolShell, press_fraction};

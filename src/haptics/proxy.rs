@@ -63,14 +63,17 @@ impl Default for ProxyConfig {
     }
 }
 
-/// What the proxy found this tick (field coordinates).
+/// What a proxy found this tick (field coordinates): this surface proxy, or the held tool's
+/// shape resting on the clay ([`super::ShapeProxy`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Touch {
-    /// Whether the tip is inside the clay with the proxy on its surface.
+    /// Whether the proxy is held off the tip by the clay.
     pub touching: bool,
-    /// The proxy: on the surface while touching, else the tip.
+    /// The proxy (a point on the surface, or the resting tool's centre) while touching, else
+    /// the tip.
     pub proxy: Vec3,
-    /// Outward unit normal at the proxy (zero when not touching).
+    /// Unit vector from the tip's side out toward the proxy: the outward normal at a surface
+    /// proxy (zero when not touching).
     pub normal: Vec3,
     /// Depth of the tip below the proxy along the normal, field units (≥ 0).
     pub depth: f32,

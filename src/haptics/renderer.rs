@@ -509,15 +509,8 @@ impl ForceRenderer {
     /// The held geometric tool's contact, as a touch: the spring runs from the tip to the
     /// tool's centre where it rests on the clay.
     fn shape_touch(&mut self, input: &FeltInput, shell: &ToolShell) -> Touch {
-        let t = self
-            .shape_proxy
-            .update(input.field, shell, input.rotation, input.tip);
-        Touch {
-            touching: t.touching,
-            proxy: t.proxy,
-            normal: t.normal,
-            depth: t.depth,
-        }
+        self.shape_proxy
+            .update(input.field, shell, input.rotation, input.tip)
     }
 }
 

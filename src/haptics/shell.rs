@@ -27,6 +27,7 @@
 
 use glam::{Quat, Vec3};
 
+use super::proxy::Touch;
 use crate::field::MultiPatchField;
 use crate::tools::ToolShape;
 
@@ -132,32 +133,6 @@ fn shell_direction(i: usize, half_extents: Vec3) -> Vec3 {
     (Vec3::new(r * phi.cos(), r * phi.sin(), z) * half_extents).normalize()
 }
 
-/// What the tool-shaped proxy found this tick (field coordinates).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShapeTouch {
-    /// Whether the tool rests on the clay (the proxy is held off the tip).
-    pub touching: bool,
-    /// The tool's centre where it rests (the tip while not touching).
-    pub proxy: Vec3,
-    /// Unit vector from the tip to the proxy (zero when not touching).
-    pub normal: Vec3,
-    /// Distance from the tip to the proxy, field units.
-    pub depth: f32,
-}
-
-impl ShapeTouch {
-    /// Not touching, proxy at `tip`.
-    #[must_use]
-    pub fn free(tip: Vec3) -> Self {
-        Self {
-            touching: false,
-            proxy: tip,
-            normal: Vec3::ZERO,
-            depth: 0.0,
-        }
-    }
-}
-
 /// The tool-shaped proxy's state from tick to tick (see the module docs).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ShapeProxy {
@@ -180,7 +155,7 @@ impl ShapeProxy {
         shell: &ToolShell,
         rotation: Quat,
         tip: Vec3,
-    ) -> ShapeTouch {
+    ) -> Touch {
         let rotation = if rotation.is_finite() && rotation.length_squared() > 0.5 {
             rotation.normalize()
         } else {
@@ -188,7 +163,7 @@ impl ShapeProxy {
         };
         if !tip.is_finite() {
             self.release();
-            return ShapeTouch::free(tip);
+            return Touch::free(tip);
         }
         let iso = field.iso();
         let clear = shell
@@ -198,14 +173,14 @@ impl ShapeProxy {
         if clear {
             self.centre = Some(tip);
             self.buried = false;
-            return ShapeTouch::free(tip);
+            return Touch::free(tip);
         }
         if self.buried {
-            return ShapeTouch::free(tip);
+            return Touch::free(tip);
         }
         let Some(mut centre) = self.centre else {
             self.buried = true;
-            return ShapeTouch::free(tip);
+            return Touch::free(tip);
         };
         let spacing = field.finest_spacing();
         let max_step = STEP_SPANS * spacing;
@@ -258,7 +233,7 @@ impl ShapeProxy {
         self.centre = Some(centre);
         let offset = centre - tip;
         let depth = offset.length();
-        ShapeTouch {
+        Touch {
             touching: depth > 0.0,
             proxy: centre,
             normal: if depth > 0.0 {
@@ -373,7 +348,7 @@ mod tests {
             !p.update(&field, &shell, Quat::IDENTITY, x + Vec3::Y * 1.5)
                 .touching
         );
-        let mut last = ShapeTouch::free(x);
+        let mut last = Touch::free(x);
         // Down at 0.01 a tick to 0.2 below where the sphere first meets the clay.
         for i in 0..=45 {
             let tip = x + Vec3::Y * (1.5 - 0.01 * i as f32);
@@ -416,7 +391,7 @@ mod tests {
         for (rotation, low) in [(Quat::IDENTITY, 0.2), (corner_down, half.length())] {
             let mut p = ShapeProxy::default();
             let x = Vec3::new(1.3, 0.0, 1.3);
-            let mut last = ShapeTouch::free(x);
+            let mut last = Touch::free(x);
             for i in 0..=60 {
                 let tip = x + Vec3::Y * (1.8 - 0.01 * i as f32);
                 last = p.update(&field, &shell, rotation, tip);
@@ -443,7 +418,7 @@ mod tests {
             p.update(&field, &shell, Quat::IDENTITY, tip);
         }
         // Slide sideways 0.5 at 0.005 a tick, 0.2 deep: the proxy follows over the tip.
-        let mut last = ShapeTouch::free(tip);
+        let mut last = Touch::free(tip);
         for _ in 0..100 {
             tip.x += 0.005;
             last = p.update(&field, &shell, Quat::IDENTITY, tip);
