@@ -35,10 +35,23 @@ pub struct LiveTool {
     grab: Option<Vec3>,
     /// Chisel and squirt targets planned so far in this stroke.
     targets: Vec<PenetrationTarget>,
+    /// The clay as it was when a chisel or squirt stroke began: its targets are planned on
+    /// it, so the stroke's own spread ahead of the tip does not deepen the next target.
+    plan_field: Option<MultiPatchField>,
     last_planned: Option<Vec3>,
     /// Device time of the last geometric application in this stroke, microseconds.
     last_apply_us: Option<u64>,
+    /// The tip at the last step of the held stroke.
+    last_tip: Vec3,
+    /// Steps the released stroke's targets still act (see [`SETTLE_STEPS`]).
+    settle_left: u32,
 }
+
+/// Steps a released stroke's targets (chisel, squirt, the push's path) keep acting, so the
+/// clay comes to rest at them rather than wherever the stroke's end left it moving: the
+/// targets the tip passed last have had the least time. Each target's force vanishes as the
+/// surface reaches it, so a target already reached adds nothing.
+pub const SETTLE_STEPS: u32 = 400;
 
 impl LiveTool {
     /// Holds `choice`, no stroke in progress.
@@ -57,8 +70,11 @@ impl LiveTool {
             len: 0,
             grab: None,
             targets: Vec::with_capacity(MAX_TARGETS),
+            plan_field: None,
             last_planned: None,
             last_apply_us: None,
+            last_tip: Vec3::ZERO,
+            settle_left: 0,
         }
     }
 
@@ -95,8 +111,26 @@ impl LiveTool {
         }
     }
 
+    /// The stroke's button was released: a tool with targets lets them act for
+    /// [`SETTLE_STEPS`] more steps; any other tool's stroke ends now.
+    pub fn release(&mut self) {
+        let settles = match &self.choice {
+            ToolChoice::Push(_) => true,
+            ToolChoice::Force { tool, .. } => {
+                matches!(tool, ForceTool::Chisel { .. } | ForceTool::Squirt { .. })
+            }
+            ToolChoice::Geometric(_) => false,
+        };
+        if settles && !self.targets.is_empty() {
+            self.settle_left = SETTLE_STEPS;
+        } else {
+            self.end_stroke();
+        }
+    }
+
     /// Forgets the stroke's grab point, targets and timing.
     pub fn end_stroke(&mut self) {
+        self.settle_left = 0;
         self.grab = None;
         self.targets.clear();
         self.last_planned = None;
@@ -128,6 +162,14 @@ impl LiveTool {
     /// stroke or a push out of contact gives none.
     pub fn update_forces(&mut self, sample: &ToolSample, field: &MultiPatchField, mass_step: f32) {
         self.len = 0;
+        let settling = !sample.stroke_active && self.settle_left > 0;
+        if settling {
+            self.settle_left -= 1;
+            if self.settle_left == 0 {
+                self.end_stroke();
+                return;
+            }
+        }
         match &self.choice {
             ToolChoice::Push(push) => {
                 let push_on = sample.in_contact
@@ -137,17 +179,30 @@ impl LiveTool {
                 if push_on {
                     self.forces[0] = push_force(push, sample);
                     self.len = 1;
+                    note_push_target(&mut self.targets, &mut self.last_planned, sample, mass_step);
+                }
+                if sample.stroke_active || settling {
+                    self.len +=
+                        push_path_forces(push, &self.targets, field, &mut self.forces[self.len..]);
                 }
             }
             ToolChoice::Force { tool, curve, pivot } => {
-                if sample.stroke_active && sample.tip.is_finite() {
+                let tip = if settling {
+                    // The released stroke's targets only: the tip stays where it was
+                    // released, so nothing new is planned.
+                    Some(self.last_tip)
+                } else {
+                    (sample.stroke_active && sample.tip.is_finite()).then_some(sample.tip)
+                };
+                if let Some(tip) = tip {
+                    self.last_tip = tip;
                     self.len = force_tool_step(
                         (*tool, curve, *pivot),
-                        sample.tip,
+                        tip,
                         field,
                         mass_step,
                         &mut self.grab,
-                        &mut self.targets,
+                        (&mut self.targets, &mut self.plan_field),
                         &mut self.last_planned,
                         &mut self.forces,
                     );
@@ -189,6 +244,77 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
     }
 }
 
+/// Notes the push's tip as a target of the stroke's path when it has moved half a mass step
+/// since the last one (the vector's end, along the vector's axis).
+fn note_push_target(
+    targets: &mut Vec<PenetrationTarget>,
+    last_planned: &mut Option<Vec3>,
+    sample: &ToolSample,
+    mass_step: f32,
+) {
+    let axis = (sample.force_from - sample.force_to).normalize_or_zero();
+    let tip = sample.force_to;
+    let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
+    if axis == Vec3::ZERO || !moved {
+        return;
+    }
+    *last_planned = Some(tip);
+    // The groove is the union of where the tip went: over one place (within a quarter mass
+    // step across the axis) only the deepest tip position is a target, so a shallower one
+    // never fills the groove back up to itself.
+    let same_place = |t: &PenetrationTarget| {
+        let d = t.target - tip;
+        (d - axis * d.dot(axis)).length() < 0.25 * mass_step
+    };
+    if targets
+        .iter()
+        .any(|t| same_place(t) && (t.target - tip).dot(axis) <= 0.0)
+    {
+        return;
+    }
+    targets.retain(|t| !same_place(t));
+    if targets.len() < MAX_TARGETS {
+        targets.push(PenetrationTarget {
+            target: tip,
+            normal: axis,
+            depth_fu: 0.0,
+        });
+    }
+}
+
+/// The push's path targets: for each tip position of the held stroke, a force vector from
+/// the surface above it (along the push's axis there) down to it, spread over one knot span.
+/// The live vector carves with the push's full spread where the tip is; these finish and hold
+/// the groove's bottom at the tip's path behind it (each vanishes as the surface reaches its
+/// target and reverses if the surface passes it), so the groove rests where the tip went.
+/// Writes at most `out.len()` vectors and returns how many.
+fn push_path_forces(
+    push: &PushTool,
+    targets: &[PenetrationTarget],
+    field: &MultiPatchField,
+    out: &mut [ToolForce],
+) -> usize {
+    let spacing = field.finest_spacing();
+    let reach = PUSH_PATH_REACH_SPANS * spacing;
+    let mut n = 0;
+    for (t, f) in targets.iter().zip(out.iter_mut()) {
+        let above = t.target + t.normal * reach;
+        *f = ToolForce {
+            start: start_on_surface(field, above, t.target),
+            end: t.target,
+            distribution: crate::dynamics::Distribution::Gaussian,
+            radius: spacing,
+            gain: push.gain,
+        };
+        n += 1;
+    }
+    n
+}
+
+/// How far above a push path target its vector starts looking for the surface, knot spans
+/// (as far as the haptic loop looks above the tip).
+const PUSH_PATH_REACH_SPANS: f32 = 6.0;
+
 /// One step of a force tool: sets the grab point (first tick in reach of the solid), plans
 /// chisel and squirt targets along the tip's path, and writes the tool's force vectors, each
 /// starting on the surface as it is now ([`start_on_surface`], the rule the haptic loop feels
@@ -200,7 +326,7 @@ fn force_tool_step(
     field: &MultiPatchField,
     mass_step: f32,
     grab: &mut Option<Vec3>,
-    targets: &mut Vec<PenetrationTarget>,
+    (targets, plan_field): (&mut Vec<PenetrationTarget>, &mut Option<MultiPatchField>),
     last_planned: &mut Option<Vec3>,
     out: &mut [ToolForce],
 ) -> usize {
@@ -210,6 +336,14 @@ fn force_tool_step(
         _ => None,
     };
     if grab.is_none() {
+        if penetration.is_some() {
+            // The clay at the stroke's start, kept for planning (reusing the last copy's
+            // memory when the shape matches).
+            match plan_field {
+                Some(copy) => copy.clone_from(field),
+                None => *plan_field = Some(field.clone()),
+            }
+        }
         *grab = match tool {
             // These move with the cursor's displacement from where the stroke began.
             ForceTool::Curve { .. } | ForceTool::Chisel { .. } | ForceTool::Squirt { .. } => {
@@ -225,7 +359,8 @@ fn force_tool_step(
     if let Some((depth_fu, squirt)) = penetration {
         let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
         if moved && targets.len() < MAX_TARGETS {
-            targets.extend(plan_penetration(field, &[tip], depth_fu, squirt));
+            let planned_on = plan_field.as_ref().unwrap_or(field);
+            targets.extend(plan_penetration(planned_on, &[tip], depth_fu, squirt));
             *last_planned = Some(tip);
         }
     }

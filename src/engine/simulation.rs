@@ -381,7 +381,7 @@ impl SimulationStage {
             self.stroke_is_contact = self.tool.choice().is_contact();
             self.tool.end_stroke();
         } else if !active && self.was_active {
-            self.tool.end_stroke();
+            self.tool.release();
             if self.region.is_none() {
                 // Nothing keeps moving: the stroke's step is complete.
                 self.commit_recorder();
