@@ -153,6 +153,7 @@ pub struct StepParams {
     /// gain can carry the surface past a target in one step (the closed loop brings it back
     /// from there) and keeps the step from halving to nothing under such a gain; at the
     /// default 1/25 span per 1 ms step the surface may still travel 40 knot spans a second.
+    /// `f32::INFINITY` turns the cap off.
     pub max_coast_step_spans: f32,
     /// Threads a step's passes may be split over: 1, or 2 (one persistent helper thread;
     /// larger values count as 2). With 2, a region runs on two threads only where that is

@@ -422,6 +422,20 @@ impl Simulator {
 
     /// Stage 1: `f_ext` at the mass points from the force vectors, each spread by its `β`.
     /// It replaces the external forces of the previous step.
+    ///
+    /// Each vector is a closed loop on the surface's position, so the clay comes to rest
+    /// where the surface reaches the vector's end and does not pass it:
+    /// - eq. (6) is taken on the coast field `s + τ ṡ` (where the clay would stop if every
+    ///   force ended now; `dynamics::coast`), the start re-found on its surface, so the force
+    ///   vanishes as that surface reaches the end and reverses once it has passed;
+    /// - below one knot span the integral's lever `l` is held at one span, so the force falls
+    ///   to zero linearly, not quadratically, and still moves the last stretch against the
+    ///   clay's elastic stress;
+    /// - a mass point's share is gated by how far its column (the line through it along the
+    ///   vector) still is from the plane through the end (`TargetBound`), so the spread does
+    ///   not keep carving or raising places already at the target;
+    /// - a vector's share on its most loaded point moves that point's coast density by at
+    ///   most `StepParams::max_coast_step_spans` of surface travel per step, whatever the gain.
     pub fn gather_forces(
         &mut self,
         state: &RegionState,
@@ -991,7 +1005,7 @@ impl TargetBound {
         }
         let on_plane = x - (x - self.end).dot(self.dir) * self.dir;
         let room = -self.sign * (field.value(on_plane) - self.iso);
-        (room / self.band).clamp(-1.0, 1.0)
+        (room / self.band).clamp(0.0, 1.0)
     }
 }
 
@@ -1218,7 +1232,11 @@ mod tests {
     fn huge_force_halves_the_step_and_the_state_stays_finite() {
         let mut lattice = sphere();
         let mut state = region(&lattice, Material::ELASTIC);
-        let params = StepParams::default();
+        // With the coast cap off, so the force really is huge (the cap's own test is below).
+        let params = StepParams {
+            max_coast_step_spans: f32::INFINITY,
+            ..StepParams::default()
+        };
         let mut sim = Simulator::new(params);
         let mut snap = RegionSnapshot::default();
         let cursor = CENTRE + Vec3::X * (RADIUS + 0.2);
@@ -1260,6 +1278,39 @@ mod tests {
         };
         let _ = sim.step(&mut state, &mut lattice, &[bad], &mut snap);
         assert!(state.p.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_huge_gain_is_capped_to_a_bounded_travel_per_step_and_the_step_keeps_its_size() {
+        let mut lattice = sphere();
+        let mut state = region(&lattice, CREEP);
+        let params = StepParams::default();
+        let mut sim = Simulator::new(params);
+        let mut snap = RegionSnapshot::default();
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
+        let mut last = surface_radius(&lattice, Vec3::X);
+        let mut most = 0.0_f32;
+        for _ in 0..300 {
+            let tf = grab(&lattice, cursor, 1e15).unwrap();
+            sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                .unwrap();
+            let r = surface_radius(&lattice, Vec3::X);
+            most = most.max((r - last).abs());
+            last = r;
+        }
+        assert_eq!(sim.counters.halvings, 0, "the step halved");
+        assert_eq!(state.dt_s, params.dt_max_s);
+        // The surface moves at most a few times the cap's travel in one step (the cap bounds
+        // the coast surface; the clay follows it), and it reaches the cursor, not past it.
+        assert!(
+            most <= 4.0 * params.max_coast_step_spans * lattice.spacing,
+            "moved {most} in one step"
+        );
+        let reached = last - RADIUS;
+        assert!(
+            (reached - 0.15).abs() < 0.015,
+            "surface at {reached} for 0.15"
+        );
     }
 
     #[test]

@@ -2,10 +2,18 @@
 //! this step's force vectors (push and force tools) or decides when a geometric tool is
 //! applied at the tip and for how long a dwell.
 //!
+//! Where a stroke must land is kept as targets, each the end of a force vector that the
+//! simulation drives the surface to and holds it at (see `Simulator::gather_forces`): a
+//! chisel's or squirt's targets, planned along the tip's path on the clay as it was when the
+//! stroke began (so the stroke's own spread ahead of the tip does not deepen the next one);
+//! the push's path (and a grab's or pull's pressed into the clay), the deepest tip position
+//! over each place, so the groove rests where the tip went. When the button is released the
+//! stroke's targets (or the cursor where it was released) act for [`SETTLE_STEPS`] more steps.
+//!
 //! Not real-time, but steady: the force buffer is allocated once, so a step with a force tool
-//! allocates only when a chisel or squirt plans a new penetration target. Every decision
-//! depends on the tool samples (device time, tip, buttons), never on wall time, so a lockstep
-//! run is reproducible bit for bit.
+//! allocates only when a chisel or squirt stroke starts (a copy of the clay to plan on) or
+//! plans a new penetration target. Every decision depends on the tool samples (device time,
+//! tip, buttons), never on wall time, so a lockstep run is reproducible bit for bit.
 
 use glam::Vec3;
 
@@ -15,7 +23,8 @@ use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::MultiPatchField;
 use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry};
 use crate::tools::{
-    ForceInput, ForceTool, PenetrationTarget, nearest_solid_point, plan_penetration,
+    ForceInput, ForceTool, PenetrationTarget, anchor_normal, hold_weight, nearest_solid_point,
+    plan_penetration_along,
 };
 
 /// Most force vectors one step applies (an area tool's tracks, a curve's samples).
@@ -33,6 +42,11 @@ pub struct LiveTool {
     len: usize,
     /// Where a force stroke grabbed the clay.
     grab: Option<Vec3>,
+    /// The clay's outward normal where the stroke took hold (zero before).
+    normal: Vec3,
+    /// Whether the stroke's tip has been pressed well into the clay (a grab or pull then
+    /// keeps its path as targets, as the push does).
+    pressing: bool,
     /// Chisel and squirt targets planned so far in this stroke.
     targets: Vec<PenetrationTarget>,
     /// The clay as it was when a chisel or squirt stroke began: its targets are planned on
@@ -47,10 +61,11 @@ pub struct LiveTool {
     settle_left: u32,
 }
 
-/// Steps a released stroke's targets (chisel, squirt, the push's path) keep acting, so the
-/// clay comes to rest at them rather than wherever the stroke's end left it moving: the
-/// targets the tip passed last have had the least time. Each target's force vanishes as the
-/// surface reaches it, so a target already reached adds nothing.
+/// Steps a released stroke keeps acting — the push's path targets, a chisel's or squirt's
+/// targets, a force tool held at the cursor where it was released — so the clay comes to rest
+/// at them rather than wherever the stroke's end left it moving (the targets the tip passed
+/// last have had the least time). Each force vanishes as the surface reaches its target, so
+/// a target already reached adds nothing.
 pub const SETTLE_STEPS: u32 = 400;
 
 impl LiveTool {
@@ -69,6 +84,8 @@ impl LiveTool {
             forces: vec![idle; MAX_FORCES],
             len: 0,
             grab: None,
+            normal: Vec3::ZERO,
+            pressing: false,
             targets: Vec::with_capacity(MAX_TARGETS),
             plan_field: None,
             last_planned: None,
@@ -106,22 +123,22 @@ impl LiveTool {
         match &self.choice {
             ToolChoice::Force { curve, pivot, .. } => {
                 out.set(self.grab, *pivot, curve, &self.targets);
+                out.normal = self.normal;
             }
             _ => out.clear(),
         }
     }
 
-    /// The stroke's button was released: a tool with targets lets them act for
-    /// [`SETTLE_STEPS`] more steps; any other tool's stroke ends now.
+    /// The stroke's button was released: a push with path targets, or a force tool that took
+    /// hold, keeps acting for [`SETTLE_STEPS`] more steps (toward where it was released); any
+    /// other stroke ends now.
     pub fn release(&mut self) {
         let settles = match &self.choice {
-            ToolChoice::Push(_) => true,
-            ToolChoice::Force { tool, .. } => {
-                matches!(tool, ForceTool::Chisel { .. } | ForceTool::Squirt { .. })
-            }
+            ToolChoice::Push(_) => !self.targets.is_empty(),
+            ToolChoice::Force { .. } => self.grab.is_some(),
             ToolChoice::Geometric(_) => false,
         };
-        if settles && !self.targets.is_empty() {
+        if settles {
             self.settle_left = SETTLE_STEPS;
         } else {
             self.end_stroke();
@@ -132,6 +149,8 @@ impl LiveTool {
     pub fn end_stroke(&mut self) {
         self.settle_left = 0;
         self.grab = None;
+        self.normal = Vec3::ZERO;
+        self.pressing = false;
         self.targets.clear();
         self.last_planned = None;
         self.last_apply_us = None;
@@ -179,11 +198,21 @@ impl LiveTool {
                 if push_on {
                     self.forces[0] = push_force(push, sample);
                     self.len = 1;
-                    note_push_target(&mut self.targets, &mut self.last_planned, sample, mass_step);
+                    let axis = (sample.force_from - sample.force_to).normalize_or_zero();
+                    note_push_target(
+                        &mut self.targets,
+                        &mut self.last_planned,
+                        (sample.force_to, axis),
+                        mass_step,
+                    );
                 }
                 if sample.stroke_active || settling {
-                    self.len +=
-                        push_path_forces(push, &self.targets, field, &mut self.forces[self.len..]);
+                    self.len += push_path_forces(
+                        push.gain,
+                        &self.targets,
+                        field,
+                        &mut self.forces[self.len..],
+                    );
                 }
             }
             ToolChoice::Force { tool, curve, pivot } => {
@@ -201,7 +230,7 @@ impl LiveTool {
                         tip,
                         field,
                         mass_step,
-                        &mut self.grab,
+                        (&mut self.grab, &mut self.normal, &mut self.pressing),
                         (&mut self.targets, &mut self.plan_field),
                         &mut self.last_planned,
                         &mut self.forces,
@@ -244,16 +273,15 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
     }
 }
 
-/// Notes the push's tip as a target of the stroke's path when it has moved half a mass step
-/// since the last one (the vector's end, along the vector's axis).
+/// Notes the pressing tip (the push's, or a grab's or pull's cursor pressed into the clay) as a
+/// target of the stroke's path along the outward `axis` when it has moved half a mass step
+/// since the last one.
 fn note_push_target(
     targets: &mut Vec<PenetrationTarget>,
     last_planned: &mut Option<Vec3>,
-    sample: &ToolSample,
+    (tip, axis): (Vec3, Vec3),
     mass_step: f32,
 ) {
-    let axis = (sample.force_from - sample.force_to).normalize_or_zero();
-    let tip = sample.force_to;
     let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
     if axis == Vec3::ZERO || !moved {
         return;
@@ -282,14 +310,14 @@ fn note_push_target(
     }
 }
 
-/// The push's path targets: for each tip position of the held stroke, a force vector from
+/// The pressing path's targets: for each tip position of the held stroke, a force vector from
 /// the surface above it (along the push's axis there) down to it, spread over one knot span.
 /// The live vector carves with the push's full spread where the tip is; these finish and hold
 /// the groove's bottom at the tip's path behind it (each vanishes as the surface reaches its
 /// target and reverses if the surface passes it), so the groove rests where the tip went.
 /// Writes at most `out.len()` vectors and returns how many.
 fn push_path_forces(
-    push: &PushTool,
+    gain: f32,
     targets: &[PenetrationTarget],
     field: &MultiPatchField,
     out: &mut [ToolForce],
@@ -304,7 +332,7 @@ fn push_path_forces(
             end: t.target,
             distribution: crate::dynamics::Distribution::Gaussian,
             radius: spacing,
-            gain: push.gain,
+            gain,
         };
         n += 1;
     }
@@ -325,7 +353,7 @@ fn force_tool_step(
     tip: Vec3,
     field: &MultiPatchField,
     mass_step: f32,
-    grab: &mut Option<Vec3>,
+    (grab, normal, pressing): (&mut Option<Vec3>, &mut Vec3, &mut bool),
     (targets, plan_field): (&mut Vec<PenetrationTarget>, &mut Option<MultiPatchField>),
     last_planned: &mut Option<Vec3>,
     out: &mut [ToolForce],
@@ -352,15 +380,28 @@ fn force_tool_step(
             // These hold the nearest mass point of the solid within two knot spans.
             _ => nearest_solid_point(field, tip, 2.0 * field.finest_spacing(), mass_step),
         };
+        if let Some(g) = *grab {
+            *normal = anchor_normal(field, g);
+        }
     }
     let Some(grab) = *grab else {
         return 0;
     };
+    // A stroke presses once its tip has been well inside the clay (as the window's pointer
+    // presses it, a knot span and a half), never while it stays at the surface (where a pull
+    // starts) or is drawn out.
+    *pressing |= hold_weight(field, tip) >= 1.0;
     if let Some((depth_fu, squirt)) = penetration {
         let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
         if moved && targets.len() < MAX_TARGETS {
             let planned_on = plan_field.as_ref().unwrap_or(field);
-            targets.extend(plan_penetration(planned_on, &[tip], depth_fu, squirt));
+            targets.extend(plan_penetration_along(
+                planned_on,
+                &[tip],
+                depth_fu,
+                squirt,
+                *normal,
+            ));
             *last_planned = Some(tip);
         }
     }
@@ -370,10 +411,24 @@ fn force_tool_step(
         pivot,
         path: curve,
         targets,
+        normal: *normal,
     };
-    let n = tool.forces(field, &input, out);
+    let mut n = tool.forces(field, &input, out);
     for f in &mut out[..n] {
         f.start = start_on_surface(field, f.start, f.end);
+    }
+    // A grab or pull pressed into the clay pushes the surface down to the cursor (see
+    // `ForceTool::forces`): like the push, a stroke that took hold pressed in keeps its path
+    // as targets, so the groove rests where the cursor went. (A pull from the surface keeps
+    // none: a cursor it has drawn the clay out past is braked, not a place to hold.)
+    if matches!(tool, ForceTool::PointGrab { .. } | ForceTool::Pull { .. })
+        && *normal != Vec3::ZERO
+        && *pressing
+    {
+        if field.is_inside(tip) {
+            note_push_target(targets, last_planned, (tip, *normal), mass_step);
+        }
+        n += push_path_forces(tool.gain(), targets, field, &mut out[n..]);
     }
     n
 }
