@@ -477,7 +477,10 @@ mod tests {
             &MultiPatchField::new(lattice.clone()),
             0.05,
         );
-        let grab = live.forces()[0].start;
+        // The grab is the stroke's anchor (the cursor on the surface pulls nothing yet).
+        let mut geometry = StrokeGeometry::default();
+        live.stroke_geometry(&mut geometry);
+        let grab = geometry.anchor.unwrap();
         assert!(lattice.is_inside(grab) && grab.distance(pole) <= 0.2 + 1e-4);
         let out = pole + Vec3::X * 0.2;
         live.update_forces(
@@ -493,7 +496,6 @@ mod tests {
         assert!(start.x >= grab.x - 1e-4);
         let (lo, hi) = live.force_bounds().unwrap();
         assert!(lo.x <= start.x && hi.x >= out.x);
-        let mut geometry = StrokeGeometry::default();
         live.stroke_geometry(&mut geometry);
         assert_eq!(geometry.anchor, Some(grab));
         assert!(matches!(live.felt_tool(), FeltTool::Force(_)));
