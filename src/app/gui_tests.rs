@@ -240,6 +240,9 @@ fn connecting_the_device_sends_the_parsed_spec_and_limit() {
     let (mut h, end) = harness();
     h.run();
     drain(&end);
+    // The device section sits below the sculpting sections: bring it into view first.
+    h.get_by_label("Connect").scroll_to_me();
+    h.run();
     h.get_by_label("Connect").click();
     h.run();
     assert_eq!(
@@ -1285,6 +1288,9 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
     assert!(input.splats > 0 && input.chunks == 0, "{input:?}");
 
     // Mesh: the clay's chunks, no splats (once the new engine's meshes arrive).
+    h.get_by_role_and_label(Role::RadioButton, "Mesh")
+        .scroll_to_me();
+    h.run();
     h.get_by_role_and_label(Role::RadioButton, "Mesh").click();
     h.run();
     assert_eq!(h.state().display.points_as, PointsDisplay::Mesh);

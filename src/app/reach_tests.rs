@@ -138,6 +138,8 @@ fn a_tool_made_from_the_selection_is_stored_and_held_as_the_freeform_shape() {
     end.field.publish_clone_of(&MultiPatchField::new(block()));
     h.run();
     drain(&end);
+    h.get_by_label("Tool library").click();
+    h.run();
     // No brush point yet: the button is disabled.
     h.get_by_label("Make tool from selection").click();
     h.run();

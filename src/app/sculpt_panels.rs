@@ -13,7 +13,7 @@ impl SculptApp {
     pub(super) fn sculpt_sections(&mut self, ui: &mut egui::Ui) -> bool {
         let mut tool_changed = false;
         egui::CollapsingHeader::new("Tool library")
-            .default_open(true)
+            .default_open(false)
             .show(ui, |ui| {
                 let field = &self.link.field().value;
                 let mut failed = None;
