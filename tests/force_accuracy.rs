@@ -368,6 +368,9 @@ fn default_visibly_works(mode: ForceMode, script_tool: &str) {
             raise,
             raise - settings.depth_fu - overshoot_rule(settings.depth_fu),
         ),
+        ForceMode::Curve | ForceMode::Bend => {
+            panic!("{mode:?} acts on a curve or about a pivot the user picks first")
+        }
     };
     println!(
         "{mode:?} at its defaults: cut {cut:.4}, raised {raise:.4}, lowest top {lowest:.4} \
