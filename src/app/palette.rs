@@ -147,7 +147,7 @@ impl Default for ForceSettings {
             distribution: push.distribution,
             radius_fu: push.radius_fu,
             gain: push.gain,
-            depth_fu: 0.02,
+            depth_fu: 0.1,
             bend_samples: 12,
         }
     }

@@ -211,6 +211,14 @@ pub struct StepParams {
     /// Densities are recomputed from the coefficients (instead of updated incrementally)
     /// every this many steps, to bound f32 drift.
     pub resync_every: u32,
+    /// Largest travel of the coast surface (where the clay would come to rest, see
+    /// `dynamics::coast`) that one step's tool forces may cause, knot spans: each force
+    /// vector's share on its most loaded mass point is capped so. It bounds how far a huge
+    /// gain can carry the surface past a target in one step (the closed loop brings it back
+    /// from there) and keeps the step from halving to nothing under such a gain; at the
+    /// default 1/25 span per 1 ms step the surface may still travel 40 knot spans a second.
+    /// `f32::INFINITY` turns the cap off.
+    pub max_coast_step_spans: f32,
     /// Threads a step's passes may be split over: 1, or 2 (one persistent helper thread;
     /// larger values count as 2). With 2, a region runs on two threads only where that is
     /// faster: never below 40 000 mass points, and above that as timing a few steps of each
@@ -233,6 +241,7 @@ impl Default for StepParams {
             cg_tolerance: 1e-5,
             cg_max_iterations: 60,
             resync_every: 256,
+            max_coast_step_spans: 0.04,
             threads: 1,
         }
     }

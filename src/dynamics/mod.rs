@@ -1,6 +1,7 @@
 //! Density-spring dynamics of the implicit solid (Hua & Qin §4, §6, §7.2–§7.3): material,
 //! force mapping, the simulated region, geometric constraints and the stepping pipeline.
 
+mod coast;
 mod constraint_model;
 mod constraint_solver;
 #[cfg(test)]
@@ -15,6 +16,9 @@ mod simulator;
 mod springs;
 mod team;
 
+pub use coast::{
+    COAST_REACH_SPANS, CoastField, MAX_COAST_S, RegionVelocity, coast_time_s, start_on_coast,
+};
 pub use constraint_model::{
     CURVE_SAMPLES_PER_SPAN, Constraint, ConstraintError, ConstraintRow, MAX_CONSTRAINTS,
     MAX_CURVE_POINTS, MAX_CURVE_SAMPLES, project_onto_surface,

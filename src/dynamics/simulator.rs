@@ -14,6 +14,7 @@ use crate::field::{BSplineLattice, KronScratch, OtherPatches, RegionSnapshot};
 use crate::mesh::ScalarField;
 use glam::Vec3;
 
+use super::coast::{COAST_REACH_SPANS, CoastField, RegionVelocity, coast_time_s, start_on_coast};
 use super::constraint_solver::ConstraintSolver;
 use super::counters::{StageTimes, StepCounters};
 use super::force::{ToolForce, force_integral};
@@ -96,6 +97,10 @@ pub struct Simulator {
     /// Split every step over the helper when there is one, whatever the size (tests).
     always_split: bool,
 }
+
+/// Shortest lever of a force vector's integral in the simulation, knot spans (see
+/// `gather_forces_over`).
+const MIN_LEVER_SPANS: f32 = 1.0;
 
 /// Regions smaller than this many mass points always step on one thread: the hand-offs
 /// between passes cost more than the second core gives (32³ mass points: 330 µs on two
@@ -417,6 +422,20 @@ impl Simulator {
 
     /// Stage 1: `f_ext` at the mass points from the force vectors, each spread by its `β`.
     /// It replaces the external forces of the previous step.
+    ///
+    /// Each vector is a closed loop on the surface's position, so the clay comes to rest
+    /// where the surface reaches the vector's end and does not pass it:
+    /// - eq. (6) is taken on the coast field `s + τ ṡ` (where the clay would stop if every
+    ///   force ended now; `dynamics::coast`), the start re-found on its surface, so the force
+    ///   vanishes as that surface reaches the end and reverses once it has passed;
+    /// - below one knot span the integral's lever `l` is held at one span, so the force falls
+    ///   to zero linearly, not quadratically, and still moves the last stretch against the
+    ///   clay's elastic stress;
+    /// - a mass point's share is gated by how far its column (the line through it along the
+    ///   vector) still is from the plane through the end (`TargetBound`), so the spread does
+    ///   not keep carving or raising places already at the target;
+    /// - a vector's share on its most loaded point moves that point's coast density by at
+    ///   most `StepParams::max_coast_step_spans` of surface travel per step, whatever the gain.
     pub fn gather_forces(
         &mut self,
         state: &RegionState,
@@ -443,13 +462,61 @@ impl Simulator {
         self.external_dirty = 0..0;
         let grid = &state.grid;
         let m = grid.dims;
+        if forces.is_empty() {
+            return;
+        }
+        // Eq. (6) on the coast field (see `coast.rs`): each vector's start re-found on the
+        // surface the clay is coasting to, so the force vanishes as that surface reaches the
+        // vector's end and reverses once it has passed.
+        let velocity = RegionVelocity {
+            origin: lattice.origin,
+            spacing: lattice.spacing,
+            coeffs: state.coeff_box(),
+            p_dot: &state.p_dot,
+        };
+        let tau_s = coast_time_s(&state.mass, &state.damping);
+        let reach = COAST_REACH_SPANS * lattice.spacing;
+        // Force on one mass point that moves its coast density by one unit of density in one
+        // step (`Δ(d + τ ḋ) ≈ (τ + Δt) Δt F / μ`), times the largest surface travel per step.
+        let dt = if state.dt_s > 0.0 {
+            state.dt_s
+        } else {
+            self.params.dt_max_s
+        };
+        let mean_mass = state.mass.iter().sum::<f32>() / state.mass.len().max(1) as f32;
+        let coast_cap =
+            self.params.max_coast_step_spans * lattice.spacing * mean_mass / ((tau_s + dt) * dt);
+        let among = PatchAmongOthers { lattice, others };
+        let coast_alone = CoastField {
+            field: lattice,
+            velocity,
+            tau_s,
+        };
+        let coast_among = CoastField {
+            field: &among,
+            velocity,
+            tau_s,
+        };
+        let coast: &dyn ScalarField = if others.is_empty() {
+            &coast_alone
+        } else {
+            &coast_among
+        };
         for tf in forces {
-            let integral = if others.is_empty() {
-                force_integral(lattice, tf.start, tf.end)
+            let start = start_on_coast(coast, tf.start, tf.end, reach);
+            let tf = &ToolForce { start, ..*tf };
+            // Eq. (6)'s `l · ∫(s − iso)` vanishes quadratically as the surface reaches the
+            // end, too weakly to move the last stretch against the clay's elastic stress
+            // (the plastic preset keeps up to its yield density of it): below one knot span
+            // the lever `l` is held at one span, so the force falls to zero linearly there.
+            let l = (tf.end - start).length();
+            let lever = if l > 0.0 {
+                (MIN_LEVER_SPANS * lattice.spacing / l).max(1.0)
             } else {
-                force_integral(&PatchAmongOthers { lattice, others }, tf.start, tf.end)
+                1.0
             };
-            let f = integral * tf.gain;
+            let f = force_integral(coast, start, tf.end) * lever * tf.gain;
+            let bound = TargetBound::new(coast, tf, f, lattice.spacing);
             let ok = f.is_finite() && tf.radius.is_finite() && tf.radius > 0.0;
             if !ok {
                 self.counters.rejected_forces += 1;
@@ -484,25 +551,41 @@ impl Simulator {
             }
             // Two passes over the box: the weights and their total, then the scaled forces
             // from the weights kept in the first (the box has at most one weight per point).
+            // Each weight is gated by the room its point has left (see `TargetBound`), and the
+            // force goes to the points that can still move the surface.
             let mut total = 0.0_f32;
+            let mut peak = 0.0_f32;
             let mut at_weight = 0;
             for k in range[2].0..=range[2].1 {
                 for j in range[1].0..=range[1].1 {
                     for i in range[0].0..=range[0].1 {
                         let x = grid.position(lattice, i, j, k);
-                        let w = tf.distribution.weight(x, tf.start, tf.end, tf.radius);
+                        let mut w = tf.distribution.weight(x, tf.start, tf.end, tf.radius);
+                        if w != 0.0 {
+                            // The total is of the ungated weights: a gate only takes force
+                            // away from a column, never piles it onto the others.
+                            total += w;
+                            w *= bound.room(coast, x);
+                            peak = peak.max(w.abs());
+                        }
                         self.weights[at_weight] = w;
                         at_weight += 1;
-                        if w != 0.0 {
-                            total += w;
-                        }
                     }
                 }
             }
             if total <= 0.0 {
                 continue;
             }
-            let scale = f / total;
+            // The step's share of the force on its most loaded point moves that point's coast
+            // density by at most `max_coast_step_spans` knot spans of surface travel: no
+            // gain carries the coast surface past a target in one step, and the step keeps
+            // its size instead of halving down to nothing under a huge gain.
+            let most = coast_cap * bound.slope;
+            let scale = if (f / total).abs() * peak > most {
+                most / peak * f.signum()
+            } else {
+                f / total
+            };
             let mut weights = self.weights.iter();
             for k in range[2].0..=range[2].1 {
                 for j in range[1].0..=range[1].1 {
@@ -865,6 +948,67 @@ fn dot(a: &[f32], b: &[f32]) -> f64 {
         .sum()
 }
 
+/// The bound a force vector sets on the mass points it spreads over: the surface must not
+/// pass the plane through the vector's end perpendicular to it. A mass point's share is
+/// scaled by how far the coast surface of its column (the line through it along the vector)
+/// still is from that plane, read as the coast density where the column meets the plane:
+/// while that point is on the near side of the surface the column may still move, and its
+/// share fades to zero over the last tenth of a knot span of travel. Without it the spread
+/// `β` keeps carving (or raising) columns whose own target is already reached: a push groove
+/// sank below the tip's path behind the tip, a chisel cut where its neighbours' spread
+/// reached. A whole column shares one factor, so the gated force stays as smooth as `β` and
+/// its projection onto the spline does not spill past the plane.
+#[derive(Clone, Copy, Debug)]
+struct TargetBound {
+    end: Vec3,
+    /// Unit vector along the force vector; zero for no bound.
+    dir: Vec3,
+    sign: f32,
+    iso: f32,
+    /// Density over which a column's share fades.
+    band: f32,
+    /// The density ramp across the surface, per world unit.
+    slope: f32,
+}
+
+impl TargetBound {
+    fn new(field: &dyn ScalarField, tf: &ToolForce, f: f32, spacing: f32) -> Self {
+        let dir = (tf.end - tf.start).normalize_or_zero();
+        // The density ramp across the surface: as measured where the vector starts, and never
+        // flatter than the iso-level over two knot spans.
+        let floor = field.iso() / (2.0 * spacing);
+        let measured = field.value_and_gradient(tf.start).1.length();
+        let slope = if measured.is_finite() {
+            measured.max(floor)
+        } else {
+            floor
+        };
+        Self {
+            end: tf.end,
+            dir: if f.is_finite() && f != 0.0 {
+                dir
+            } else {
+                Vec3::ZERO
+            },
+            sign: f.signum(),
+            iso: field.iso(),
+            band: 0.02 * spacing * slope,
+            slope,
+        }
+    }
+
+    /// The share (0 to 1) the mass point at `x` may still take, on the coast field `field`.
+    #[inline]
+    fn room(&self, field: &dyn ScalarField, x: Vec3) -> f32 {
+        if self.dir == Vec3::ZERO {
+            return 1.0;
+        }
+        let on_plane = x - (x - self.end).dot(self.dir) * self.dir;
+        let room = -self.sign * (field.value(on_plane) - self.iso);
+        (room / self.band).clamp(0.0, 1.0)
+    }
+}
+
 /// One patch's lattice with the fixed patches around it: the clay's density as the force
 /// integrals read it while the patch is simulated.
 struct PatchAmongOthers<'a> {
@@ -1088,7 +1232,11 @@ mod tests {
     fn huge_force_halves_the_step_and_the_state_stays_finite() {
         let mut lattice = sphere();
         let mut state = region(&lattice, Material::ELASTIC);
-        let params = StepParams::default();
+        // With the coast cap off, so the force really is huge (the cap's own test is below).
+        let params = StepParams {
+            max_coast_step_spans: f32::INFINITY,
+            ..StepParams::default()
+        };
         let mut sim = Simulator::new(params);
         let mut snap = RegionSnapshot::default();
         let cursor = CENTRE + Vec3::X * (RADIUS + 0.2);
@@ -1130,6 +1278,39 @@ mod tests {
         };
         let _ = sim.step(&mut state, &mut lattice, &[bad], &mut snap);
         assert!(state.p.iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn a_huge_gain_is_capped_to_a_bounded_travel_per_step_and_the_step_keeps_its_size() {
+        let mut lattice = sphere();
+        let mut state = region(&lattice, CREEP);
+        let params = StepParams::default();
+        let mut sim = Simulator::new(params);
+        let mut snap = RegionSnapshot::default();
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
+        let mut last = surface_radius(&lattice, Vec3::X);
+        let mut most = 0.0_f32;
+        for _ in 0..300 {
+            let tf = grab(&lattice, cursor, 1e15).unwrap();
+            sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                .unwrap();
+            let r = surface_radius(&lattice, Vec3::X);
+            most = most.max((r - last).abs());
+            last = r;
+        }
+        assert_eq!(sim.counters.halvings, 0, "the step halved");
+        assert_eq!(state.dt_s, params.dt_max_s);
+        // The surface moves at most a few times the cap's travel in one step (the cap bounds
+        // the coast surface; the clay follows it), and it reaches the cursor, not past it.
+        assert!(
+            most <= 4.0 * params.max_coast_step_spans * lattice.spacing,
+            "moved {most} in one step"
+        );
+        let reached = last - RADIUS;
+        assert!(
+            (reached - 0.15).abs() < 0.015,
+            "surface at {reached} for 0.15"
+        );
     }
 
     #[test]

@@ -2,10 +2,18 @@
 //! this step's force vectors (push and force tools) or decides when a geometric tool is
 //! applied along the tip's path and for how long a dwell.
 //!
+//! Where a stroke must land is kept as targets, each the end of a force vector that the
+//! simulation drives the surface to and holds it at (see `Simulator::gather_forces`): a
+//! chisel's or squirt's targets, planned along the tip's path on the clay as it was when the
+//! stroke began (so the stroke's own spread ahead of the tip does not deepen the next one);
+//! the push's path (and a grab's or pull's pressed into the clay), the deepest tip position
+//! over each place, so the groove rests where the tip went. When the button is released the
+//! stroke's targets (or the cursor where it was released) act for [`SETTLE_STEPS`] more steps.
+//!
 //! Not real-time, but steady: the force buffer is allocated once, so a step with a force tool
-//! allocates only when a chisel or squirt plans a new penetration target. Every decision
-//! depends on the tool samples (device time, tip, buttons), never on wall time, so a lockstep
-//! run is reproducible bit for bit.
+//! allocates only when a chisel or squirt stroke starts (a copy of the clay to plan on) or
+//! plans a new penetration target. Every decision depends on the tool samples (device time,
+//! tip, buttons), never on wall time, so a lockstep run is reproducible bit for bit.
 
 use glam::Vec3;
 
@@ -15,8 +23,8 @@ use crate::dynamics::{ToolForce, start_on_surface};
 use crate::field::MultiPatchField;
 use crate::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry, ToolShell};
 use crate::tools::{
-    ForceInput, ForceTool, MAX_SEGMENT_APPLICATIONS, PenetrationTarget, lerp, nearest_solid_point,
-    plan_penetration, steps_along,
+    ForceInput, ForceTool, MAX_SEGMENT_APPLICATIONS, PenetrationTarget, anchor_normal, hold_weight,
+    lerp, nearest_solid_point, plan_penetration_along, steps_along,
 };
 
 /// Most force vectors one step applies (an area tool's tracks, a curve's samples).
@@ -41,11 +49,23 @@ pub struct LiveTool {
     len: usize,
     /// Where a force stroke grabbed the clay.
     grab: Option<Vec3>,
+    /// The clay's outward normal where the stroke took hold (zero before).
+    normal: Vec3,
+    /// Whether the stroke's tip has been pressed well into the clay (a grab or pull then
+    /// keeps its path as targets, as the push does).
+    pressing: bool,
     /// Chisel and squirt targets planned so far in this stroke.
     targets: Vec<PenetrationTarget>,
+    /// The clay as it was when a chisel or squirt stroke began: its targets are planned on
+    /// it, so the stroke's own spread ahead of the tip does not deepen the next target.
+    plan_field: Option<MultiPatchField>,
     last_planned: Option<Vec3>,
     /// Device time and point of the last geometric application in this stroke.
     last_apply: Option<(u64, Vec3)>,
+    /// The tip at the last step of the held stroke.
+    last_tip: Vec3,
+    /// Steps the released stroke's targets still act (see [`SETTLE_STEPS`]).
+    settle_left: u32,
 }
 
 fn felt_tool_of(choice: &ToolChoice) -> FeltTool {
@@ -87,6 +107,13 @@ impl GeometricDue {
     }
 }
 
+/// Steps a released stroke keeps acting — the push's path targets, a chisel's or squirt's
+/// targets, a force tool held at the cursor where it was released — so the clay comes to rest
+/// at them rather than wherever the stroke's end left it moving (the targets the tip passed
+/// last have had the least time). Each force vanishes as the surface reaches its target, so
+/// a target already reached adds nothing.
+pub const SETTLE_STEPS: u32 = 400;
+
 impl LiveTool {
     /// Holds `choice`, no stroke in progress.
     #[must_use]
@@ -104,9 +131,14 @@ impl LiveTool {
             forces: vec![idle; MAX_FORCES],
             len: 0,
             grab: None,
+            normal: Vec3::ZERO,
+            pressing: false,
             targets: Vec::with_capacity(MAX_TARGETS),
+            plan_field: None,
             last_planned: None,
             last_apply: None,
+            last_tip: Vec3::ZERO,
+            settle_left: 0,
         }
     }
 
@@ -135,14 +167,34 @@ impl LiveTool {
         match &self.choice {
             ToolChoice::Force { curve, pivot, .. } => {
                 out.set(self.grab, *pivot, curve, &self.targets);
+                out.normal = self.normal;
             }
             _ => out.clear(),
         }
     }
 
+    /// The stroke's button was released: a push with path targets, or a force tool that took
+    /// hold, keeps acting for [`SETTLE_STEPS`] more steps (toward where it was released); any
+    /// other stroke ends now.
+    pub fn release(&mut self) {
+        let settles = match &self.choice {
+            ToolChoice::Push(_) => !self.targets.is_empty(),
+            ToolChoice::Force { .. } => self.grab.is_some(),
+            ToolChoice::Geometric(_) => false,
+        };
+        if settles {
+            self.settle_left = SETTLE_STEPS;
+        } else {
+            self.end_stroke();
+        }
+    }
+
     /// Forgets the stroke's grab point, targets and timing.
     pub fn end_stroke(&mut self) {
+        self.settle_left = 0;
         self.grab = None;
+        self.normal = Vec3::ZERO;
+        self.pressing = false;
         self.targets.clear();
         self.last_planned = None;
         self.last_apply = None;
@@ -173,6 +225,14 @@ impl LiveTool {
     /// stroke or a push out of contact gives none.
     pub fn update_forces(&mut self, sample: &ToolSample, field: &MultiPatchField, mass_step: f32) {
         self.len = 0;
+        let settling = !sample.stroke_active && self.settle_left > 0;
+        if settling {
+            self.settle_left -= 1;
+            if self.settle_left == 0 {
+                self.end_stroke();
+                return;
+            }
+        }
         match &self.choice {
             ToolChoice::Push(push) => {
                 let push_on = sample.in_contact
@@ -182,17 +242,40 @@ impl LiveTool {
                 if push_on {
                     self.forces[0] = push_force(push, sample);
                     self.len = 1;
+                    let axis = (sample.force_from - sample.force_to).normalize_or_zero();
+                    note_push_target(
+                        &mut self.targets,
+                        &mut self.last_planned,
+                        (sample.force_to, axis),
+                        mass_step,
+                    );
+                }
+                if sample.stroke_active || settling {
+                    self.len += push_path_forces(
+                        push.gain,
+                        &self.targets,
+                        field,
+                        &mut self.forces[self.len..],
+                    );
                 }
             }
             ToolChoice::Force { tool, curve, pivot } => {
-                if sample.stroke_active && sample.tip.is_finite() {
+                let tip = if settling {
+                    // The released stroke's targets only: the tip stays where it was
+                    // released, so nothing new is planned.
+                    Some(self.last_tip)
+                } else {
+                    (sample.stroke_active && sample.tip.is_finite()).then_some(sample.tip)
+                };
+                if let Some(tip) = tip {
+                    self.last_tip = tip;
                     self.len = force_tool_step(
                         (*tool, curve, *pivot),
-                        sample.tip,
+                        tip,
                         field,
                         mass_step,
-                        &mut self.grab,
-                        &mut self.targets,
+                        (&mut self.grab, &mut self.normal, &mut self.pressing),
+                        (&mut self.targets, &mut self.plan_field),
                         &mut self.last_planned,
                         &mut self.forces,
                     );
@@ -294,6 +377,76 @@ fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
     }
 }
 
+/// Notes the pressing tip (the push's, or a grab's or pull's cursor pressed into the clay) as a
+/// target of the stroke's path along the outward `axis` when it has moved half a mass step
+/// since the last one.
+fn note_push_target(
+    targets: &mut Vec<PenetrationTarget>,
+    last_planned: &mut Option<Vec3>,
+    (tip, axis): (Vec3, Vec3),
+    mass_step: f32,
+) {
+    let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
+    if axis == Vec3::ZERO || !moved {
+        return;
+    }
+    *last_planned = Some(tip);
+    // The groove is the union of where the tip went: over one place (within a quarter mass
+    // step across the axis) only the deepest tip position is a target, so a shallower one
+    // never fills the groove back up to itself.
+    let same_place = |t: &PenetrationTarget| {
+        let d = t.target - tip;
+        (d - axis * d.dot(axis)).length() < 0.25 * mass_step
+    };
+    if targets
+        .iter()
+        .any(|t| same_place(t) && (t.target - tip).dot(axis) <= 0.0)
+    {
+        return;
+    }
+    targets.retain(|t| !same_place(t));
+    if targets.len() < MAX_TARGETS {
+        targets.push(PenetrationTarget {
+            target: tip,
+            normal: axis,
+            depth_fu: 0.0,
+        });
+    }
+}
+
+/// The pressing path's targets: for each tip position of the held stroke, a force vector from
+/// the surface above it (along the push's axis there) down to it, spread over one knot span.
+/// The live vector carves with the push's full spread where the tip is; these finish and hold
+/// the groove's bottom at the tip's path behind it (each vanishes as the surface reaches its
+/// target and reverses if the surface passes it), so the groove rests where the tip went.
+/// Writes at most `out.len()` vectors and returns how many.
+fn push_path_forces(
+    gain: f32,
+    targets: &[PenetrationTarget],
+    field: &MultiPatchField,
+    out: &mut [ToolForce],
+) -> usize {
+    let spacing = field.finest_spacing();
+    let reach = PUSH_PATH_REACH_SPANS * spacing;
+    let mut n = 0;
+    for (t, f) in targets.iter().zip(out.iter_mut()) {
+        let above = t.target + t.normal * reach;
+        *f = ToolForce {
+            start: start_on_surface(field, above, t.target),
+            end: t.target,
+            distribution: crate::dynamics::Distribution::Gaussian,
+            radius: spacing,
+            gain,
+        };
+        n += 1;
+    }
+    n
+}
+
+/// How far above a push path target its vector starts looking for the surface, knot spans
+/// (as far as the haptic loop looks above the tip).
+const PUSH_PATH_REACH_SPANS: f32 = 6.0;
+
 /// One step of a force tool: sets the grab point (first tick in reach of the solid), plans
 /// chisel and squirt targets along the tip's path, and writes the tool's force vectors, each
 /// starting on the surface as it is now ([`start_on_surface`], the rule the haptic loop feels
@@ -304,8 +457,8 @@ fn force_tool_step(
     tip: Vec3,
     field: &MultiPatchField,
     mass_step: f32,
-    grab: &mut Option<Vec3>,
-    targets: &mut Vec<PenetrationTarget>,
+    (grab, normal, pressing): (&mut Option<Vec3>, &mut Vec3, &mut bool),
+    (targets, plan_field): (&mut Vec<PenetrationTarget>, &mut Option<MultiPatchField>),
     last_planned: &mut Option<Vec3>,
     out: &mut [ToolForce],
 ) -> usize {
@@ -315,6 +468,14 @@ fn force_tool_step(
         _ => None,
     };
     if grab.is_none() {
+        if penetration.is_some() {
+            // The clay at the stroke's start, kept for planning (reusing the last copy's
+            // memory when the shape matches).
+            match plan_field {
+                Some(copy) => copy.clone_from(field),
+                None => *plan_field = Some(field.clone()),
+            }
+        }
         *grab = match tool {
             // These move with the cursor's displacement from where the stroke began.
             ForceTool::Curve { .. } | ForceTool::Chisel { .. } | ForceTool::Squirt { .. } => {
@@ -323,14 +484,28 @@ fn force_tool_step(
             // These hold the nearest mass point of the solid within two knot spans.
             _ => nearest_solid_point(field, tip, 2.0 * field.finest_spacing(), mass_step),
         };
+        if let Some(g) = *grab {
+            *normal = anchor_normal(field, g);
+        }
     }
     let Some(grab) = *grab else {
         return 0;
     };
+    // A stroke presses once its tip has been well inside the clay (as the window's pointer
+    // presses it, a knot span and a half), never while it stays at the surface (where a pull
+    // starts) or is drawn out.
+    *pressing |= hold_weight(field, tip) >= 1.0;
     if let Some((depth_fu, squirt)) = penetration {
         let moved = last_planned.is_none_or(|p| p.distance(tip) >= 0.5 * mass_step);
         if moved && targets.len() < MAX_TARGETS {
-            targets.extend(plan_penetration(field, &[tip], depth_fu, squirt));
+            let planned_on = plan_field.as_ref().unwrap_or(field);
+            targets.extend(plan_penetration_along(
+                planned_on,
+                &[tip],
+                depth_fu,
+                squirt,
+                *normal,
+            ));
             *last_planned = Some(tip);
         }
     }
@@ -340,10 +515,24 @@ fn force_tool_step(
         pivot,
         path: curve,
         targets,
+        normal: *normal,
     };
-    let n = tool.forces(field, &input, out);
+    let mut n = tool.forces(field, &input, out);
     for f in &mut out[..n] {
         f.start = start_on_surface(field, f.start, f.end);
+    }
+    // A grab or pull pressed into the clay pushes the surface down to the cursor (see
+    // `ForceTool::forces`): like the push, a stroke that took hold pressed in keeps its path
+    // as targets, so the groove rests where the cursor went. (A pull from the surface keeps
+    // none: a cursor it has drawn the clay out past is braked, not a place to hold.)
+    if matches!(tool, ForceTool::PointGrab { .. } | ForceTool::Pull { .. })
+        && *normal != Vec3::ZERO
+        && *pressing
+    {
+        if field.is_inside(tip) {
+            note_push_target(targets, last_planned, (tip, *normal), mass_step);
+        }
+        n += push_path_forces(tool.gain(), targets, field, &mut out[n..]);
     }
     n
 }
@@ -392,7 +581,10 @@ mod tests {
             &MultiPatchField::new(lattice.clone()),
             0.05,
         );
-        let grab = live.forces()[0].start;
+        // The grab is the stroke's anchor (the cursor on the surface pulls nothing yet).
+        let mut geometry = StrokeGeometry::default();
+        live.stroke_geometry(&mut geometry);
+        let grab = geometry.anchor.unwrap();
         assert!(lattice.is_inside(grab) && grab.distance(pole) <= 0.2 + 1e-4);
         let out = pole + Vec3::X * 0.2;
         live.update_forces(
@@ -408,7 +600,6 @@ mod tests {
         assert!(start.x >= grab.x - 1e-4);
         let (lo, hi) = live.force_bounds().unwrap();
         assert!(lo.x <= start.x && hi.x >= out.x);
-        let mut geometry = StrokeGeometry::default();
         live.stroke_geometry(&mut geometry);
         assert_eq!(geometry.anchor, Some(grab));
         assert!(matches!(live.felt_tool(), FeltTool::Force(_)));

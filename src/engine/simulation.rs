@@ -409,7 +409,7 @@ impl SimulationStage {
             self.removal
                 .stroke_started(self.tool.choice(), &self.clay, sample.device_time_us);
         } else if !active && self.was_active {
-            self.tool.end_stroke();
+            self.tool.release();
             self.removal.stroke_ended(self.config.removal_guard);
             if self.region.is_none() {
                 // Nothing keeps moving: the stroke's step is complete.

@@ -72,6 +72,8 @@ pub struct StrokeGeometry {
     pub curve: Vec<Vec3>,
     /// The chisel or squirt targets planned so far (at most [`MAX_STROKE_POINTS`]).
     pub targets: Vec<PenetrationTarget>,
+    /// The clay's outward normal where the stroke took hold (zero when unknown).
+    pub normal: Vec3,
 }
 
 impl Default for StrokeGeometry {
@@ -81,6 +83,7 @@ impl Default for StrokeGeometry {
             pivot: Vec3::ZERO,
             curve: Vec::with_capacity(MAX_STROKE_POINTS),
             targets: Vec::with_capacity(MAX_STROKE_POINTS),
+            normal: Vec3::ZERO,
         }
     }
 }
@@ -91,6 +94,7 @@ impl StrokeGeometry {
     pub fn copy_from(&mut self, other: &StrokeGeometry) {
         self.anchor = other.anchor;
         self.pivot = other.pivot;
+        self.normal = other.normal;
         self.curve.clear();
         let n = other.curve.len().min(self.curve.capacity());
         self.curve.extend_from_slice(&other.curve[..n]);
@@ -121,6 +125,7 @@ impl StrokeGeometry {
     /// No stroke.
     pub fn clear(&mut self) {
         self.anchor = None;
+        self.normal = Vec3::ZERO;
         self.curve.clear();
         self.targets.clear();
     }
@@ -186,6 +191,7 @@ impl SculptReaction {
             pivot: stroke.pivot,
             path: &stroke.curve,
             targets,
+            normal: stroke.normal,
         };
         let n = tool.forces(field, &input, &mut self.vectors);
         if n == 0 {

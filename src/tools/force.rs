@@ -1,6 +1,13 @@
 //! Force-based tools (Hua & Qin §7.2): each turns the user's input for one tick into force
 //! vectors ([`ToolForce`]) that the dynamics integrates (eq. 6) and spreads over mass points.
 //!
+//! Every vector ends where the tool wants the surface (the cursor, a track's end, a chisel's
+//! target) and the simulation drives the surface there and stops it there (a closed loop on
+//! the surface position: `dynamics::coast` and `Simulator::gather_forces`). A grab, pull or
+//! area tool whose cursor is pressed into the clay (as the window's pointer presses) brings
+//! the surface down to the cursor along the clay's normal where the stroke took hold; held
+//! outside the clay, it draws the surface out toward the cursor.
+//!
 //! Real-time contract: [`ForceTool::forces`] allocates nothing, takes no lock and does bounded
 //! work (at most `out.len()` force vectors, each found with a bounded ray search), so the
 //! engine may call it on the haptic or the simulation thread every tick. Paths and curves are
@@ -15,10 +22,14 @@ use crate::field::MultiPatchField;
 /// Which force tool, with its parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ForceTool {
-    /// Grab the nearest mass point in the solid and drag it toward the cursor.
+    /// Grab the nearest mass point in the solid and drag it toward the cursor (or, with the
+    /// cursor pressed into the clay, bring the surface down to it).
     PointGrab { gain: f32 },
     /// Grab a patch of mass points: parallel tracks over a disc of `radius_fu` around the
-    /// grabbed point, each weighted by `distribution`'s profile at its offset.
+    /// grabbed point, across the clay's normal there, each weighted by `distribution`'s
+    /// profile at its offset; every track ends at the cursor's offset, so the patch comes to
+    /// the cursor's level (drawn out, or pressed down) and the surface stays a height field
+    /// over the disc.
     Area {
         distribution: Distribution,
         radius_fu: f32,
@@ -69,6 +80,41 @@ pub struct ForceInput<'a> {
     pub path: &'a [Vec3],
     /// The fixed targets of a chisel or squirt stroke, from [`plan_penetration`].
     pub targets: &'a [PenetrationTarget],
+    /// Outward unit normal of the clay where the stroke took hold ([`anchor_normal`] at the
+    /// grab); zero when unknown. The grab, pull and area tools use it when the cursor is
+    /// pressed into the clay: the surface then comes down to the cursor along it.
+    pub normal: Vec3,
+}
+
+/// How far above a cursor pressed into the clay the grab, pull and area tools look for the
+/// surface that must come down to it, knot spans.
+pub const PRESS_REACH_SPANS: f32 = 6.0;
+
+/// The outward unit normal of the clay at `x` for a stroke that takes hold there: the
+/// direction the density falls fastest, or — where the density is flat (deep inside) — the
+/// axis direction along which the clay ends soonest (within [`PRESS_REACH_SPANS`] knot spans);
+/// zero when neither is found. Bounded: at most `1 + 6 · 12` field evaluations.
+#[must_use]
+pub fn anchor_normal(field: &MultiPatchField, x: Vec3) -> Vec3 {
+    let (_, g) = field.value_and_gradient(x);
+    // A gradient worth trusting: at least a tenth of the iso-level per knot span.
+    let spacing = field.finest_spacing();
+    if g.is_finite() && g.length() * spacing > 0.1 * field.iso() {
+        return (-g).normalize_or_zero();
+    }
+    const STEPS: u32 = 12;
+    let reach = PRESS_REACH_SPANS * spacing;
+    let mut best: Option<(u32, Vec3)> = None;
+    for dir in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z] {
+        let exit =
+            (1..=STEPS).find(|&i| !field.is_inside(x + dir * (reach * i as f32 / STEPS as f32)));
+        if let Some(i) = exit
+            && best.is_none_or(|(b, _)| i < b)
+        {
+            best = Some((i, dir));
+        }
+    }
+    best.map_or(Vec3::ZERO, |(_, d)| d)
 }
 
 /// Where a chisel or squirt stroke wants the surface: `depth` along the normal from where the
@@ -92,10 +138,27 @@ pub fn plan_penetration(
     depth_fu: f32,
     squirt: bool,
 ) -> Vec<PenetrationTarget> {
+    plan_penetration_along(field, path, depth_fu, squirt, Vec3::ZERO)
+}
+
+/// [`plan_penetration`] for a stroke that took hold with the outward normal `along` (zero:
+/// unknown): each sample is moved onto the surface along that line first — a tip pressed
+/// deep into the clay, where the density is flat and has no gradient to follow, still finds
+/// the surface above it — and by the gradient where the line meets no surface within
+/// [`PRESS_REACH_SPANS`] knot spans.
+#[must_use]
+pub fn plan_penetration_along(
+    field: &MultiPatchField,
+    path: &[Vec3],
+    depth_fu: f32,
+    squirt: bool,
+    along: Vec3,
+) -> Vec<PenetrationTarget> {
     let sign = if squirt { 1.0 } else { -1.0 };
     path.iter()
         .filter_map(|&p| {
-            let x0 = project_to_surface(field, p);
+            let x0 =
+                surface_on_line(field, p, along).unwrap_or_else(|| project_to_surface(field, p));
             let normal = outward_normal(field, x0);
             (normal != Vec3::ZERO).then_some(PenetrationTarget {
                 target: x0 + sign * depth_fu * normal,
@@ -104,6 +167,37 @@ pub fn plan_penetration(
             })
         })
         .collect()
+}
+
+/// The surface crossing on the line through `p` along the unit vector `n`, within
+/// [`PRESS_REACH_SPANS`] knot spans: outward from a point inside the clay, inward from one
+/// outside. `None` for a zero `n` or no crossing. Bounded: 24 + 20 evaluations.
+fn surface_on_line(field: &MultiPatchField, p: Vec3, n: Vec3) -> Option<Vec3> {
+    if n == Vec3::ZERO || !p.is_finite() {
+        return None;
+    }
+    let reach = PRESS_REACH_SPANS * field.finest_spacing();
+    let inside = field.is_inside(p);
+    let dir = if inside { n } else { -n };
+    const STEPS: u32 = 24;
+    let mut near = 0.0_f32;
+    for i in 1..=STEPS {
+        let t = reach * i as f32 / STEPS as f32;
+        if field.is_inside(p + dir * t) != inside {
+            let mut far = t;
+            for _ in 0..20 {
+                let mid = 0.5 * (near + far);
+                if field.is_inside(p + dir * mid) == inside {
+                    near = mid;
+                } else {
+                    far = mid;
+                }
+            }
+            return Some(p + dir * (0.5 * (near + far)));
+        }
+        near = t;
+    }
+    None
 }
 
 /// The surface crossing on the line `target + λ·normal`, `λ ∈ [−2·depth, 2·depth]`, nearest
@@ -327,11 +421,22 @@ impl ForceTool {
             }
         };
         let drag = input.cursor - input.grab;
+        let reach = PRESS_REACH_SPANS * spacing;
+        // A vector's start for a cursor (or a track's end) `end` held from `from`: with the
+        // cursor pressed into the clay the surface comes down to it along the stroke's normal
+        // (the vector starts above it, a push); otherwise from the grab toward the cursor.
+        let pressed = |from: Vec3, end: Vec3| {
+            if input.normal != Vec3::ZERO && field.is_inside(end) {
+                end + input.normal * reach
+            } else {
+                from
+            }
+        };
         match *self {
             Self::PointGrab { gain } => {
                 // Half a knot span: the spread reaches the grabbed mass point only.
                 push(ToolForce {
-                    start: input.grab,
+                    start: pressed(input.grab, input.cursor),
                     end: input.cursor,
                     distribution: Distribution::Constant,
                     radius: 0.5 * spacing,
@@ -343,7 +448,7 @@ impl ForceTool {
                 radius_fu,
                 gain,
             } => push(ToolForce {
-                start: input.grab,
+                start: pressed(input.grab, input.cursor),
                 end: input.cursor,
                 distribution,
                 radius: radius_fu,
@@ -355,8 +460,23 @@ impl ForceTool {
                 tracks,
                 gain,
             } => {
-                // A disc of track offsets perpendicular to the drag.
-                let axis = drag.normalize_or(Vec3::Z);
+                // A disc of track offsets across the stroke's normal (the clay's tangent plane
+                // where it took hold), or across the drag when the normal is unknown. Across
+                // the normal every track ends at the cursor's depth: a drag along the clay
+                // moves a patch of surface to the cursor's level, never a wall of tracks
+                // reaching under the surface (which hollowed it into an overhang).
+                let axis = if input.normal == Vec3::ZERO {
+                    drag.normalize_or(Vec3::Z)
+                } else {
+                    input.normal
+                };
+                // Where a track is held: a knot span below its start along the normal, so a
+                // patch carved down to the grab's depth still holds its tracks.
+                let hold_depth = if input.normal == Vec3::ZERO {
+                    Vec3::ZERO
+                } else {
+                    input.normal * spacing
+                };
                 let (u, v) = axis.any_orthonormal_pair();
                 let t = tracks.max(1) as i32;
                 let pitch = 2.0 * radius_fu / t as f32;
@@ -370,12 +490,12 @@ impl ForceTool {
                         // would otherwise jump from the short re-found one to the whole
                         // segment in open air).
                         let w = distribution.weight(o, Vec3::ZERO, Vec3::ZERO, radius_fu)
-                            * hold_weight(field, input.grab + o);
+                            * hold_weight(field, input.grab + o - hold_depth);
                         if w <= 0.0 {
                             continue;
                         }
                         push(ToolForce {
-                            start: input.grab + o,
+                            start: pressed(input.grab + o, input.cursor + o),
                             end: input.cursor + o,
                             distribution: Distribution::Constant,
                             radius: 0.5 * pitch.max(spacing),
@@ -476,6 +596,7 @@ mod tests {
             pivot: Vec3::ZERO,
             path: &[],
             targets,
+            normal: Vec3::ZERO,
         }
     }
 
@@ -661,6 +782,7 @@ mod tests {
             pivot: Vec3::ZERO,
             path: &curve,
             targets: &[],
+            normal: Vec3::ZERO,
         };
         assert_eq!(tool.forces(&l, &i, &mut out), 3);
         for (f, p) in out.iter().zip(curve) {
@@ -679,6 +801,7 @@ mod tests {
             pivot: Vec3::ZERO,
             path: &[],
             targets: &[],
+            normal: Vec3::ZERO,
         };
         assert_eq!(bend.forces(&l, &i, &mut out), 4);
         for (k, f) in out[..4].iter().enumerate() {

@@ -36,8 +36,9 @@ pub use emboss::{
     EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
 };
 pub use force::{
-    ForceInput, ForceTool, ForceToolError, PenetrationTarget, nearest_solid_point, outward_normal,
-    plan_penetration, project_to_surface,
+    ForceInput, ForceTool, ForceToolError, PRESS_REACH_SPANS, PenetrationTarget, anchor_normal,
+    hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,
+    project_to_surface,
 };
 pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use pin::{
