@@ -18,8 +18,9 @@
 //!   in the palette's colour, and a knot span beyond the brush's reach less than a tenth is.
 //!
 //! Force entries are driven the same way; their depth is set by the force tools' own defaults.
-//! Point grab and pull are walked; area, chisel and squirt do not yet reach a third of the
-//! radius at their defaults (see `the_walk_covers_every_palette_entry`).
+//! Point grab and pull are walked here; area, chisel and squirt at their defaults are walked in
+//! `tests/force_accuracy.rs` (`the_*_default_visibly_works`), which also checks that area keeps
+//! the surface a height field.
 
 #[path = "support/window_stroke.rs"]
 mod window_stroke;
@@ -242,11 +243,9 @@ fn the_walk_covers_every_palette_entry() {
     ];
     assert_eq!(ActionKind::ALL.len(), walked.len());
     assert!(ActionKind::ALL.iter().all(|a| walked.contains(a)));
-    // Of the seven force modes, point grab and pull are walked. Area, chisel and squirt are
-    // not: at their defaults a one-second stroke moves the top by 0.005, 0.033 and 0.036,
-    // short of a third of the radius (0.083), until the force tools come to rest at their
-    // targets (the README's "What does not land yet"). Curve and bend act on a curve or about
-    // a pivot the user picks first; with one they are measured in `app::reach_tests`.
+    // Of the seven force modes, point grab and pull are walked here; area, chisel and squirt
+    // in `tests/force_accuracy.rs`. Curve and bend act on a curve or about a pivot the user
+    // picks first; with one they are measured in `app::reach_tests`.
     assert_eq!(ForceMode::ALL.len(), 7);
 }
 

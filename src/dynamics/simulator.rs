@@ -96,6 +96,9 @@ pub struct Simulator {
     choice: ThreadChoice,
     /// Split every step over the helper when there is one, whatever the size (tests).
     always_split: bool,
+    /// The force integral below which a force vector moves nothing (see
+    /// [`Simulator::set_force_yield`]).
+    force_yield: f32,
 }
 
 /// Shortest lever of a force vector's integral in the simulation, knot spans (see
@@ -210,6 +213,19 @@ impl Simulator {
             params,
             ..Self::default()
         }
+    }
+
+    /// Sets the clay's yield under the tool forces: each vector's eq. (6) integral (field
+    /// units) gives way only by what exceeds `integral` (`sign(I) · max(|I| − y, 0)`), so the
+    /// clay comes to rest where the integral has fallen to `y`, short of the vector's end, and
+    /// the hand that keeps pressing feels `y` at the felt scale. Zero (the default, and any
+    /// negative or non-finite value): the clay goes all the way to the vector's end.
+    pub fn set_force_yield(&mut self, integral: f32) {
+        self.force_yield = if integral.is_finite() {
+            integral.max(0.0)
+        } else {
+            0.0
+        };
     }
 
     fn ensure_scratch(&mut self, state: &RegionState) {
@@ -474,7 +490,7 @@ impl Simulator {
             coeffs: state.coeff_box(),
             p_dot: &state.p_dot,
         };
-        let tau_s = coast_time_s(&state.mass, &state.damping);
+        let tau_s = coast_time_s(&state.mass, &state.damping, &state.stiffness);
         let reach = COAST_REACH_SPANS * lattice.spacing;
         // Force on one mass point that moves its coast density by one unit of density in one
         // step (`Δ(d + τ ḋ) ≈ (τ + Δt) Δt F / μ`), times the largest surface travel per step.
@@ -515,7 +531,12 @@ impl Simulator {
             } else {
                 1.0
             };
-            let f = force_integral(coast, start, tf.end) * lever * tf.gain;
+            // The clay yields only to what exceeds its yield (see `set_force_yield`).
+            let integral = force_integral(coast, start, tf.end);
+            let yielded = (integral.abs() - self.force_yield)
+                .max(0.0)
+                .copysign(integral);
+            let f = yielded * lever * tf.gain;
             let bound = TargetBound::new(coast, tf, f, lattice.spacing);
             let ok = f.is_finite() && tf.radius.is_finite() && tf.radius > 0.0;
             if !ok {

@@ -312,6 +312,7 @@ impl HapticStage {
             rotation,
             resting_at: felt.resting_at,
             press: felt.press,
+            force_yield: felt.force_yield,
         };
         self.publish(sample, now);
         HapticOutcome {

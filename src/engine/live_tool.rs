@@ -8,7 +8,8 @@
 //! stroke began (so the stroke's own spread ahead of the tip does not deepen the next one);
 //! the push's path (and a grab's or pull's pressed into the clay), the deepest tip position
 //! over each place, so the groove rests where the tip went. When the button is released the
-//! stroke's targets (or the cursor where it was released) act for [`SETTLE_STEPS`] more steps.
+//! stroke's targets (or the cursor where it was released) act for [`SETTLE_STEPS`] more steps
+//! ([`PLANNED_SETTLE_STEPS`] for a chisel's or squirt's).
 //!
 //! Not real-time, but steady: the force buffer is allocated once, so a step with a force tool
 //! allocates only when a chisel or squirt stroke starts (a copy of the clay to plan on) or
@@ -107,12 +108,17 @@ impl GeometricDue {
     }
 }
 
-/// Steps a released stroke keeps acting — the push's path targets, a chisel's or squirt's
-/// targets, a force tool held at the cursor where it was released — so the clay comes to rest
-/// at them rather than wherever the stroke's end left it moving (the targets the tip passed
-/// last have had the least time). Each force vanishes as the surface reaches its target, so
-/// a target already reached adds nothing.
+/// Steps a released stroke keeps acting — the push's path targets, a force tool held at the
+/// cursor where it was released — so the clay comes to rest at them rather than wherever the
+/// stroke's end left it moving (the targets the tip passed last have had the least time).
+/// Each force vanishes as the surface reaches its target, so a target already reached adds
+/// nothing. Short: the hand has let go, and elastic clay should spring back soon after.
 pub const SETTLE_STEPS: u32 = 400;
+
+/// Steps a released chisel or squirt stroke keeps acting: its targets are where its control
+/// says the clay goes, whatever the hand does, so the last ones get as long as the middle
+/// ones had (at 400 steps a chisel's last stretch came out 11% short).
+pub const PLANNED_SETTLE_STEPS: u32 = 800;
 
 impl LiveTool {
     /// Holds `choice`, no stroke in progress.
@@ -174,16 +180,19 @@ impl LiveTool {
     }
 
     /// The stroke's button was released: a push with path targets, or a force tool that took
-    /// hold, keeps acting for [`SETTLE_STEPS`] more steps (toward where it was released); any
-    /// other stroke ends now.
+    /// hold, keeps acting for [`SETTLE_STEPS`] more steps (toward where it was released; a
+    /// chisel or squirt for [`PLANNED_SETTLE_STEPS`]); any other stroke ends now.
     pub fn release(&mut self) {
-        let settles = match &self.choice {
-            ToolChoice::Push(_) => !self.targets.is_empty(),
-            ToolChoice::Force { .. } => self.grab.is_some(),
-            ToolChoice::Geometric(_) => false,
+        let settle_steps = match &self.choice {
+            ToolChoice::Push(_) if !self.targets.is_empty() => SETTLE_STEPS,
+            ToolChoice::Force { tool, .. } if self.grab.is_some() => match tool {
+                ForceTool::Chisel { .. } | ForceTool::Squirt { .. } => PLANNED_SETTLE_STEPS,
+                _ => SETTLE_STEPS,
+            },
+            _ => 0,
         };
-        if settles {
-            self.settle_left = SETTLE_STEPS;
+        if settle_steps > 0 {
+            self.settle_left = settle_steps;
         } else {
             self.end_stroke();
         }
@@ -240,7 +249,7 @@ impl LiveTool {
                     && sample.force_to.is_finite()
                     && sample.force_from != sample.force_to;
                 if push_on {
-                    self.forces[0] = push_force(push, sample);
+                    self.forces[0] = push_force(push, sample, mass_step);
                     self.len = 1;
                     let axis = (sample.force_from - sample.force_to).normalize_or_zero();
                     note_push_target(
@@ -367,12 +376,18 @@ impl LiveTool {
     }
 }
 
-fn push_force(push: &PushTool, sample: &ToolSample) -> ToolForce {
+/// The narrowest spread of the push, mass steps of the patch it moves (a knot span and a
+/// half at two mass points per span): a narrower spread holds too few mass points for the
+/// spline to follow, and the surface stalls short of the tip.
+const MIN_PUSH_SPREAD_MASS_STEPS: f32 = 3.0;
+
+/// The push's live force vector, spread over at least [`MIN_PUSH_SPREAD_MASS_STEPS`].
+fn push_force(push: &PushTool, sample: &ToolSample, mass_step: f32) -> ToolForce {
     ToolForce {
         start: sample.force_from,
         end: sample.force_to,
         distribution: push.distribution,
-        radius: push.radius_fu,
+        radius: push.radius_fu.max(MIN_PUSH_SPREAD_MASS_STEPS * mass_step),
         gain: push.gain,
     }
 }
@@ -429,10 +444,21 @@ fn push_path_forces(
     let spacing = field.finest_spacing();
     let reach = PUSH_PATH_REACH_SPANS * spacing;
     let mut n = 0;
-    for (t, f) in targets.iter().zip(out.iter_mut()) {
+    for t in targets {
+        if n == out.len() {
+            break;
+        }
         let above = t.target + t.normal * reach;
-        *f = ToolForce {
-            start: start_on_surface(field, above, t.target),
+        let start = start_on_surface(field, above, t.target);
+        if start == above && field.is_inside(t.target) {
+            // No surface within reach above the target: the live spread has not brought the
+            // groove near it yet, or something holds the clay there (a pin over the tip's
+            // path). It waits; a target pressed against a pin would only stir the clay
+            // around the pin and hold back the groove beyond it.
+            continue;
+        }
+        out[n] = ToolForce {
+            start,
             end: t.target,
             distribution: crate::dynamics::Distribution::Gaussian,
             radius: spacing,
@@ -443,9 +469,10 @@ fn push_path_forces(
     n
 }
 
-/// How far above a push path target its vector starts looking for the surface, knot spans
-/// (as far as the haptic loop looks above the tip).
-const PUSH_PATH_REACH_SPANS: f32 = 6.0;
+/// How far above a push path target its vector looks for the surface, knot spans: the target
+/// finishes and holds the last stretch of the groove that the live spread leaves (it leaves
+/// the groove within a span or so of the tip's path), not the whole depth.
+const PUSH_PATH_REACH_SPANS: f32 = 2.0;
 
 /// One step of a force tool: sets the grab point (first tick in reach of the solid), plans
 /// chisel and squirt targets along the tip's path, and writes the tool's force vectors, each

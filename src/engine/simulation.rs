@@ -473,6 +473,7 @@ impl SimulationStage {
                 (true, false) => self.tool.forces(),
                 (true, true) => &self.mirrored_forces,
             };
+            self.simulator.set_force_yield(sample.force_yield);
             // The region's patch moves; the other patches take part in the forces. Pins hold
             // the surface of the sum on whichever patch moves (see `constrain.rs`).
             let pins = Some(&mut self.region_pins);

@@ -47,6 +47,10 @@ pub struct ToolSample {
     /// does nothing) to 1 (firmly: its full rate); 1 without tool-shaped contact.
     #[serde(default = "full_press")]
     pub press: f32,
+    /// The force integral (field units) below which the push and the force tools do not move
+    /// the clay: the clay's yield under the hand's press on a device that renders force
+    /// (`haptics::ToolPressConfig::yield_n`); 0 otherwise.
+    pub force_yield: f32,
 }
 
 fn identity() -> Quat {
@@ -73,6 +77,7 @@ impl ToolSample {
         rotation: Quat::IDENTITY,
         resting_at: None,
         press: 1.0,
+        force_yield: 0.0,
     };
 }
 

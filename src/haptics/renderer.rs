@@ -43,6 +43,7 @@ use super::shaping::{Blend, FadeOut, ForceShaper, ShapingConfig};
 use super::shell::{ShapeProxy, ToolShell, press_fraction};
 use crate::dynamics::{force_integral, reaction_force, surface_point_on_ray};
 use crate::field::MultiPatchField;
+use crate::tools::ForceTool;
 
 /// Depth over which the touch damper fades in, metres: short, because a light touch (1 N on a
 /// 3 kN/m wall is 0.3 mm deep) needs the damper's full share to stay passive on a late
@@ -93,6 +94,16 @@ pub struct ToolPressConfig {
     pub rest_n: f32,
     /// The force from which the tool acts at its full rate, newtons.
     pub firm_n: f32,
+    /// The clay's yield under the push and the force tools, newtons: the clay gives way to
+    /// them only while the hand presses harder than this, so a held press is felt at this
+    /// force and the clay stops where the sculpting force has fallen to it (the press's
+    /// elastic part, short of the tip).
+    #[serde(default = "default_yield_n")]
+    pub yield_n: f32,
+}
+
+fn default_yield_n() -> f32 {
+    ToolPressConfig::default().yield_n
 }
 
 impl Default for ToolPressConfig {
@@ -100,9 +111,12 @@ impl Default for ToolPressConfig {
         // A hand resting on a desktop arm leans with up to about half a newton, and setting
         // the tool down at a few centimetres a second adds as much again for a moment; 4 N is
         // a firm press that such an arm holds for minutes.
+        // Half a newton of yield: a held press is felt clearly above the hand's own lean, and
+        // the clay stops some 2 mm of device travel short of the tip at the calibrated scale.
         Self {
             rest_n: 1.0,
             firm_n: 4.0,
+            yield_n: 0.5,
         }
     }
 }
@@ -215,6 +229,11 @@ pub struct Felt {
     /// does nothing) to 1 (firmly: full rate); 1 without tool-shaped contact (the tool acts at
     /// the tip).
     pub press: f32,
+    /// With force rendered, the force integral (field units, as eq. (6) gives it) below which
+    /// the push and the force tools do not move the clay: [`ToolPressConfig::yield_n`] over
+    /// the felt scale. Zero without force (a script's or a pointer's path says where the clay
+    /// goes, and it goes there).
+    pub force_yield: f32,
 }
 
 /// The haptic renderer's state (see the module docs).
@@ -495,6 +514,16 @@ impl ForceRenderer {
             Some(_) => (None, 0.0),
             None => (None, 1.0),
         };
+        let force_yield = if input.tool_contact
+            && self.config.tool_contact
+            && yields_to_the_press(&input.tool)
+            && scale > 0.0
+        {
+            let y = self.config.tool_press.yield_n / scale;
+            if y.is_finite() { y.max(0.0) } else { 0.0 }
+        } else {
+            0.0
+        };
         Felt {
             force_n,
             touch,
@@ -503,6 +532,7 @@ impl ForceRenderer {
             energy_j: self.passivity.energy_j(),
             resting_at,
             press,
+            force_yield,
         }
     }
 
@@ -511,6 +541,19 @@ impl ForceRenderer {
     fn shape_touch(&mut self, input: &FeltInput, shell: &ToolShell) -> Touch {
         self.shape_proxy
             .update(input.field, shell, input.rotation, input.tip)
+    }
+}
+
+/// Whether the clay yields to `tool` only under the hand's press (with force rendered): the
+/// push and the force tools that bring the surface to the cursor. A chisel or squirt is not:
+/// its depth is set by its control, so the clay goes to it whatever the press.
+fn yields_to_the_press(tool: &FeltTool) -> bool {
+    match tool {
+        FeltTool::Push => true,
+        FeltTool::Force(tool) => {
+            !matches!(tool, ForceTool::Chisel { .. } | ForceTool::Squirt { .. })
+        }
+        FeltTool::Geometric(_) => false,
     }
 }
 
