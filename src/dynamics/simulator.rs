@@ -1335,6 +1335,50 @@ mod tests {
     }
 
     #[test]
+    fn a_yield_stops_the_clay_where_the_integral_has_fallen_to_it() {
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
+        let run = |yield_integral: f32| {
+            let mut lattice = sphere();
+            let mut state = region(&lattice, CREEP);
+            let mut sim = Simulator::new(StepParams::default());
+            sim.set_force_yield(yield_integral);
+            let mut snap = RegionSnapshot::default();
+            for _ in 0..1500 {
+                let tf = grab(&lattice, cursor, GAIN).unwrap();
+                sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                    .unwrap();
+            }
+            lattice
+        };
+        let free = run(0.0);
+        let reached = surface_radius(&free, Vec3::X) - RADIUS;
+        assert!((reached - 0.15).abs() < 0.015, "without a yield: {reached}");
+        // A yield of a quarter of the starting integral: the pull stops where what is left of
+        // its integral has fallen to it, short of the cursor.
+        let start = sphere();
+        let x0 = surface_point_on_ray(&start, CENTRE, Vec3::X, 0.9, 0.01).unwrap();
+        let y = 0.25 * force_integral(&start, x0, cursor).abs();
+        let held = run(y);
+        let stopped = surface_radius(&held, Vec3::X);
+        let left = force_integral(&held, CENTRE + Vec3::X * stopped, cursor).abs();
+        assert!(
+            stopped - RADIUS > 0.02 && stopped - RADIUS < reached - 0.02,
+            "with a yield the surface stopped {} out (free: {reached})",
+            stopped - RADIUS
+        );
+        assert!(
+            (left - y).abs() < 0.25 * y,
+            "the integral left, {left}, is not the yield, {y}"
+        );
+        // Negative and non-finite yields mean none.
+        let mut sim = Simulator::new(StepParams::default());
+        sim.set_force_yield(-1.0);
+        assert_eq!(sim.force_yield, 0.0);
+        sim.set_force_yield(f32::NAN);
+        assert_eq!(sim.force_yield, 0.0);
+    }
+
+    #[test]
     fn conjugate_gradient_agrees_with_the_kronecker_inverse_for_uniform_mass() {
         let lattice = sphere();
         let mut state = region(&lattice, Material::ELASTIC);
