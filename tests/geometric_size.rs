@@ -8,9 +8,10 @@
 //! default band (`falloff_fu = 0.05`, half a knot span). Each case's figures are printed
 //! (`--nocapture`); the README's table quotes them.
 //!
-//! The stamp is not held to the tool's size: at Ferley's default profile its print comes out
-//! 16% (sphere) to 24% (capsule) narrower and shallower than the tool, the rim it raises beside
-//! the print pulling the fitted wall in. The README lists it among what does not land yet.
+//! The stamp is not held to the tool's size: at Ferley's default profile and the palette's
+//! half-span band its print comes out 8.6% (sphere of 0.2) to 28% (sphere of one knot span)
+//! narrower or shallower than the tool; without its rim it is no better, so the refit of the
+//! print's wall is what shrinks it. The README lists it among what does not land yet.
 
 #[path = "support/exported_mesh.rs"]
 mod exported_mesh;

@@ -99,6 +99,8 @@ pub struct Simulator {
     /// The force integral below which a force vector moves nothing (see
     /// [`Simulator::set_force_yield`]).
     force_yield: f32,
+    /// One force vector's share per column of its box (see `TargetBound`), NaN until read.
+    column_room: Vec<f32>,
 }
 
 /// Shortest lever of a force vector's integral in the simulation, knot spans (see
@@ -577,6 +579,18 @@ impl Simulator {
             let mut total = 0.0_f32;
             let mut peak = 0.0_f32;
             let mut at_weight = 0;
+            // Each column's share is read once (one coast evaluation per grid line through
+            // the box, not per mass point: 121 instead of 1331 for the default push).
+            let axis = bound.column_axis();
+            let (across_a, across_b) = match axis {
+                Some(0) => (1, 2),
+                Some(1) => (0, 2),
+                _ => (0, 1),
+            };
+            let width_a = range[across_a].1 - range[across_a].0 + 1;
+            let columns = width_a * (range[across_b].1 - range[across_b].0 + 1);
+            self.column_room.clear();
+            self.column_room.resize(columns, f32::NAN);
             for k in range[2].0..=range[2].1 {
                 for j in range[1].0..=range[1].1 {
                     for i in range[0].0..=range[0].1 {
@@ -586,7 +600,16 @@ impl Simulator {
                             // The total is of the ungated weights: a gate only takes force
                             // away from a column, never piles it onto the others.
                             total += w;
-                            w *= bound.room(coast, x);
+                            if let Some(axis) = axis {
+                                let at = [i, j, k];
+                                let column = (at[across_a] - range[across_a].0)
+                                    + width_a * (at[across_b] - range[across_b].0);
+                                let room = &mut self.column_room[column];
+                                if room.is_nan() {
+                                    *room = bound.room(coast, x, axis);
+                                }
+                                w *= *room;
+                            }
                             peak = peak.max(w.abs());
                         }
                         self.weights[at_weight] = w;
@@ -971,14 +994,16 @@ fn dot(a: &[f32], b: &[f32]) -> f64 {
 
 /// The bound a force vector sets on the mass points it spreads over: the surface must not
 /// pass the plane through the vector's end perpendicular to it. A mass point's share is
-/// scaled by how far the coast surface of its column (the line through it along the vector)
+/// scaled by how far the coast surface of its column (the grid line through it nearest the vector, below)
 /// still is from that plane, read as the coast density where the column meets the plane:
 /// while that point is on the near side of the surface the column may still move, and its
 /// share fades to zero over the last tenth of a knot span of travel. Without it the spread
 /// `β` keeps carving (or raising) columns whose own target is already reached: a push groove
 /// sank below the tip's path behind the tip, a chisel cut where its neighbours' spread
 /// reached. A whole column shares one factor, so the gated force stays as smooth as `β` and
-/// its projection onto the spline does not spill past the plane.
+/// its projection onto the spline does not spill past the plane. The columns are the mass
+/// grid's lines along the axis nearest the vector (exactly the vector's own lines for a push
+/// along an axis), so each is read once per step.
 #[derive(Clone, Copy, Debug)]
 struct TargetBound {
     end: Vec3,
@@ -1018,13 +1043,29 @@ impl TargetBound {
         }
     }
 
-    /// The share (0 to 1) the mass point at `x` may still take, on the coast field `field`.
-    #[inline]
-    fn room(&self, field: &dyn ScalarField, x: Vec3) -> f32 {
+    /// The mass grid's axis nearest the vector's direction: its columns are the grid lines
+    /// along it (`None` for no bound).
+    fn column_axis(&self) -> Option<usize> {
         if self.dir == Vec3::ZERO {
-            return 1.0;
+            return None;
         }
-        let on_plane = x - (x - self.end).dot(self.dir) * self.dir;
+        let a = self.dir.abs();
+        Some(if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        })
+    }
+
+    /// The share (0 to 1) the column through the mass point at `x` along the grid axis `axis`
+    /// ([`TargetBound::column_axis`]) may still take, on the coast field `field`: read where
+    /// that grid line meets the plane.
+    #[inline]
+    fn room(&self, field: &dyn ScalarField, x: Vec3, axis: usize) -> f32 {
+        let along = Vec3::AXES[axis];
+        let on_plane = x - along * ((x - self.end).dot(self.dir) / self.dir[axis]);
         let room = -self.sign * (field.value(on_plane) - self.iso);
         (room / self.band).clamp(0.0, 1.0)
     }
