@@ -34,7 +34,7 @@ use glam::Vec3;
 use crate::field::{CoeffBox, cubic_weights, cubic_weights_and_derivatives};
 use crate::mesh::ScalarField;
 
-use super::force::{REFIND_BISECT_STEPS, REFIND_MARCH_STEPS};
+use super::force::first_change;
 
 /// Longest coast time used, seconds. A material with (almost) no damping would coast for
 /// ever; its braking still uses at most this horizon.
@@ -248,7 +248,8 @@ impl<F: ScalarField + ?Sized> ScalarField for CoastField<'_, F> {
 /// does not cross, the first crossing beyond `end` along the vector within
 /// `max(|end − start|, reach)`, so a surface that has passed the end (or will) turns the
 /// vector into a push back; otherwise `start`. Bounded work: at most
-/// `2 · (`[`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`]`) + 1` evaluations of `field`.
+/// `2 · (`[`REFIND_MARCH_STEPS`](super::force::REFIND_MARCH_STEPS)` + `
+/// [`REFIND_BISECT_STEPS`](super::force::REFIND_BISECT_STEPS)`) + 1` evaluations of `field`.
 #[must_use]
 pub fn start_on_coast<F: ScalarField + ?Sized>(
     field: &F,
@@ -259,48 +260,19 @@ pub fn start_on_coast<F: ScalarField + ?Sized>(
     if !(start.is_finite() && end.is_finite()) {
         return start;
     }
-    let inside = |x: Vec3| field.value(x) > field.iso();
-    let end_inside = inside(end);
-    if let Some(x) = first_change(&inside, end, start - end, end_inside) {
+    let end_inside = field.value(end) > field.iso();
+    if let Some(x) = first_change(field, end, start - end, end_inside) {
         return x;
     }
     let v = end - start;
     let l = v.length();
     if l > 0.0 && l.is_finite() {
         let far = v * (l.max(reach) / l);
-        if let Some(x) = first_change(&inside, end, far, end_inside) {
+        if let Some(x) = first_change(field, end, far, end_inside) {
             return x;
         }
     }
     start
-}
-
-/// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
-/// `from_inside`, refined by bisection.
-fn first_change(
-    inside: &impl Fn(Vec3) -> bool,
-    from: Vec3,
-    span: Vec3,
-    from_inside: bool,
-) -> Option<Vec3> {
-    let mut near = 0.0_f32;
-    for i in 1..=REFIND_MARCH_STEPS {
-        let t = i as f32 / REFIND_MARCH_STEPS as f32;
-        if inside(from + span * t) != from_inside {
-            let mut far = t;
-            for _ in 0..REFIND_BISECT_STEPS {
-                let mid = 0.5 * (near + far);
-                if inside(from + span * mid) == from_inside {
-                    near = mid;
-                } else {
-                    far = mid;
-                }
-            }
-            return Some(from + span * (0.5 * (near + far)));
-        }
-        near = t;
-    }
-    None
 }
 
 #[cfg(test)]

@@ -112,7 +112,8 @@ pub fn start_on_surface<F: ScalarField + ?Sized>(lattice: &F, start: Vec3, end: 
 
 /// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
 /// `from_inside`, refined by bisection; `None` when there is none at the march's resolution.
-fn first_change<F: ScalarField + ?Sized>(
+/// At most [`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`] evaluations.
+pub(super) fn first_change<F: ScalarField + ?Sized>(
     lattice: &F,
     from: Vec3,
     span: Vec3,
