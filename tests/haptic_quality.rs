@@ -255,6 +255,7 @@ struct Quality {
     max_step_n: f32,
     steady_sign_flips: usize,
     steady_high_share: f32,
+    steady_step_share: f32,
     free_max_n: f32,
     steady_mean_n: Vec3,
 }
@@ -273,6 +274,12 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
     let sign = along.iter().sum::<f32>().signum();
     let steady_sign_flips = along.iter().filter(|&&f| f * sign < -1e-3).count();
     let steady_high_share = high_frequency_share(&along, rate_hz, 100.0);
+    // The largest tick-to-tick change in steady contact, as a share of "7% of the force plus
+    // 0.02 N" (the fade rule every change of a steady force is held to).
+    let steady_step_share = steady
+        .windows(2)
+        .map(|w| (w[1].force_n - w[0].force_n).length() / (0.07 * w[0].force_n.length() + 0.02))
+        .fold(0.0, f32::max);
     // Free: outside, no tool acting, no button and no contact for the last fade (a released
     // stroke's force, and the passivity damper of a contact that ended, fade out over at most
     // `FadeOut::LONGEST_S` and 0.1 s).
@@ -299,6 +306,7 @@ fn quality(ticks: &[Tick], rate_hz: f32, normal: Vec3) -> Quality {
         max_step_n,
         steady_sign_flips,
         steady_high_share,
+        steady_step_share,
         free_max_n,
         steady_mean_n,
     }
@@ -310,8 +318,18 @@ fn force_tool(tool: ForceTool) -> Option<ToolChoice> {
 
 fn check(name: &str, q: &Quality, limit_step_n: f32) {
     eprintln!(
-        "{name}: max step {:.3} N, steady mean {:.3} N, flips {}, >100 Hz {:.4}, free max {:.5} N",
-        q.max_step_n, q.steady_mean_n, q.steady_sign_flips, q.steady_high_share, q.free_max_n
+        "{name}: max step {:.3} N, steady mean {:.3} N, flips {}, >100 Hz {:.4}, steady step {:.2} of the rule, free max {:.5} N",
+        q.max_step_n,
+        q.steady_mean_n,
+        q.steady_sign_flips,
+        q.steady_high_share,
+        q.steady_step_share,
+        q.free_max_n
+    );
+    assert!(
+        q.steady_step_share <= 1.0,
+        "{name}: a steady-contact tick changed the force by {} of 7% of it plus 0.02 N",
+        q.steady_step_share
     );
     assert!(
         q.max_step_n <= limit_step_n + 1e-4,
