@@ -67,7 +67,7 @@ pub enum EngineCommand {
     SelectTool(ToolChoice),
     /// Replace the material of the simulated region.
     SetMaterial(Material),
-    /// Paint mass, damping or stiffness into a region of the clay.
+    /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay.
     PaintMaterial(crate::dynamics::MaterialPaint),
     /// Remove the painted material: the uniform material applies everywhere.
     ClearMaterialPaint,

@@ -1,7 +1,7 @@
 //! Material sliders: mass, damping, stiffness and plasticity of the density springs
 //! (Hua & Qin eq. 5), the springs' neighbourhood (6, 18 or 26), the elastic and plastic
-//! presets, and the material brush that paints mass, damping or stiffness onto the clay
-//! (Hua & Qin's material distributions).
+//! presets, and the material brush that paints mass, damping, stiffness or plasticity onto
+//! the clay (Hua & Qin's material distributions).
 
 use glam::Vec3;
 
@@ -92,6 +92,9 @@ pub struct MaterialBrush {
     pub damping: Option<f32>,
     /// Stiffness painted, when `Some`.
     pub stiffness: Option<f32>,
+    /// Plastic drift rate painted (per second), when `Some`: 0 keeps a spot springy in
+    /// plastic clay, a rate above 0 lets a spot of elastic clay keep its dents.
+    pub plasticity_per_s: Option<f32>,
     /// Where the drag last painted (`None` between drags).
     last: Option<Vec3>,
 }
@@ -105,6 +108,7 @@ impl Default for MaterialBrush {
             mass: None,
             damping: None,
             stiffness: Some(5.0 * Material::PLASTIC.stiffness),
+            plasticity_per_s: None,
             last: None,
         }
     }
@@ -122,6 +126,7 @@ impl MaterialBrush {
             mass: self.mass,
             damping: self.damping,
             stiffness: self.stiffness,
+            plasticity_per_s: self.plasticity_per_s,
         };
         paint.validate().is_ok().then_some(paint)
     }
@@ -181,7 +186,7 @@ impl MaterialBrush {
             f32,
             std::ops::RangeInclusive<f32>,
         );
-        let rows: [Row<'_>; 3] = [
+        let rows: [Row<'_>; 4] = [
             (
                 "Paint mass",
                 "mass",
@@ -202,6 +207,14 @@ impl MaterialBrush {
                 &mut self.stiffness,
                 defaults.stiffness,
                 STIFFNESS_RANGE,
+            ),
+            (
+                "Paint plasticity",
+                "plasticity /s",
+                &mut self.plasticity_per_s,
+                // Ticked, it first paints a springy spot (no drift) into the plastic clay.
+                0.0,
+                PLASTICITY_RANGE,
             ),
         ];
         for (label, unit, value, default, range) in rows {

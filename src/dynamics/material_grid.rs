@@ -1,6 +1,7 @@
 //! Material painted over the clay: Hua & Qin's spatially varying mass `μ(u, v, w)`, damping
-//! `γ(u, v, w)` and stiffness `ρ(u, v, w)` (§4.1), each held as a grid of values, and the
-//! region's mass points given the values of the grids where they sit.
+//! `γ(u, v, w)` and stiffness `ρ(u, v, w)` (§4.1), and the plastic drift rate beside them,
+//! each held as a grid of values, and the region's mass points given the values of the grids
+//! where they sit.
 //!
 //! A grid of `g` samples along an axis spans the base patch's coefficient nodes along it:
 //! sample `s` sits at lattice coordinate `s (n − 1) / (g − 1)` of a base lattice with `n`
@@ -40,14 +41,14 @@ pub enum MaterialParam {
     /// Spring stiffness per mass point (`ρ`; a spring takes the mean of its ends); zero or
     /// more.
     Stiffness,
-    /// Plastic drift rate; carried in sessions, not simulated per point (the region's
-    /// uniform rate applies).
+    /// Plastic drift rate of the rest densities, per second; zero or more (zero: the clay
+    /// springs back there).
     Plasticity,
 }
 
 impl MaterialParam {
-    /// The parameters the simulation applies per mass point.
-    pub const SIMULATED: [Self; 3] = [Self::Mass, Self::Damping, Self::Stiffness];
+    /// The parameters the simulation applies per mass point: all four.
+    pub const SIMULATED: [Self; 4] = [Self::Mass, Self::Damping, Self::Stiffness, Self::Plasticity];
 
     /// The grid name of this parameter.
     #[must_use]
@@ -63,15 +64,14 @@ impl MaterialParam {
     /// The parameter a grid called `name` holds, if it is one of the four.
     #[must_use]
     pub fn from_name(name: &str) -> Option<Self> {
-        [Self::Mass, Self::Damping, Self::Stiffness, Self::Plasticity]
-            .into_iter()
-            .find(|p| p.name() == name)
+        Self::SIMULATED.into_iter().find(|p| p.name() == name)
     }
 
-    /// Whether the simulation applies this parameter per mass point (mass, damping and
-    /// stiffness).
+    /// Whether a mass point's value of this parameter scales with the volume it holds
+    /// (mass, damping and stiffness, as [`Material::for_volume_ratio`]); a drift rate does
+    /// not.
     #[must_use]
-    pub const fn is_simulated(self) -> bool {
+    pub const fn scales_with_volume(self) -> bool {
         !matches!(self, Self::Plasticity)
     }
 
@@ -332,6 +332,8 @@ pub struct MaterialPaint {
     pub damping: Option<f32>,
     /// Stiffness there.
     pub stiffness: Option<f32>,
+    /// Plastic drift rate there, per second.
+    pub plasticity_per_s: Option<f32>,
 }
 
 impl MaterialPaint {
@@ -342,7 +344,7 @@ impl MaterialPaint {
             MaterialParam::Mass => self.mass,
             MaterialParam::Damping => self.damping,
             MaterialParam::Stiffness => self.stiffness,
-            MaterialParam::Plasticity => None,
+            MaterialParam::Plasticity => self.plasticity_per_s,
         }
     }
 
@@ -368,7 +370,7 @@ impl MaterialPaint {
             .all(|&p| self.value(p).is_none())
         {
             return Err(MaterialGridError::Region(
-                "nothing to paint: give mass, damping or stiffness",
+                "nothing to paint: give mass, damping, stiffness or plasticity",
             ));
         }
         Ok(())
@@ -411,10 +413,11 @@ pub fn paint_grids(
     Ok(set)
 }
 
-/// Gives the mass points of `state` the values of `grids` where they sit: for each of mass,
-/// damping and stiffness that has a valid grid (the first of its name), every mass point takes
-/// the grid's value at its world position times `volume_ratio` (the volume a mass point of
-/// the region's patch holds against one of the base's, as [`Material::for_volume_ratio`]).
+/// Gives the mass points of `state` the values of `grids` where they sit: for each parameter
+/// that has a valid grid (the first of its name), every mass point takes the grid's value at
+/// its world position, times `volume_ratio` for mass, damping and stiffness (the volume a
+/// mass point of the region's patch holds against one of the base's, as
+/// [`Material::for_volume_ratio`]; a drift rate is the same at any volume).
 /// `lattice` is the patch the region is on (in world coordinates), `base` the base patch the
 /// grids span. Parameters without a grid keep their values. Returns whether any grid applied.
 pub fn apply_grids(
@@ -439,7 +442,12 @@ pub fn apply_grids(
             MaterialParam::Mass => &mut state.mass,
             MaterialParam::Damping => &mut state.damping,
             MaterialParam::Stiffness => &mut state.stiffness,
-            MaterialParam::Plasticity => continue,
+            MaterialParam::Plasticity => &mut state.plasticity_per_s,
+        };
+        let scale = if p.scales_with_volume() {
+            volume_ratio
+        } else {
+            1.0
         };
         for k in 0..mz {
             for j in 0..my {
@@ -447,7 +455,7 @@ pub fn apply_grids(
                     let x = grid_of_points.position(lattice, i, j, k);
                     let v = grid.sample(base, x);
                     // Exact for a ratio of 1 (`v · 1 = v`).
-                    field[i + mx * (j + my * k)] = v * volume_ratio;
+                    field[i + mx * (j + my * k)] = v * scale;
                 }
             }
         }
@@ -507,6 +515,7 @@ mod tests {
             mass: None,
             damping: None,
             stiffness: Some(5000.0),
+            plasticity_per_s: None,
         };
         let set = paint_grids(&mut grids, &base, &Material::PLASTIC, &paint).unwrap();
         // Nodes at x = 0.5 .. 0.9 (five columns) of 9 × 7.

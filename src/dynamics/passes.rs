@@ -386,10 +386,14 @@ pub(crate) struct Densities<'a> {
     pub rest: &'a mut [f32],
 }
 
-/// Plastic drift `rest += rate · excess`, `excess = dev − clamp(dev, −yield, yield)`.
+/// Plastic drift over one step: `rest += min(rate · dt, 1) · excess` at each mass point, with
+/// `excess = dev − clamp(dev, −yield, yield)` and `rate` the mass point's own drift rate.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(crate) struct Plastic {
-    pub rate: f32,
+pub(crate) struct Plastic<'a> {
+    /// Drift rate per mass point, per second (indexed like the densities).
+    pub rate_per_s: &'a [f32],
+    /// The step, seconds.
+    pub dt_s: f32,
     pub yield_density: f32,
 }
 
@@ -400,20 +404,23 @@ struct DensityOut<'a> {
     rest: SharedOut<'a>,
 }
 
-/// One rest density after the plastic drift toward `d` (written as selects so it vectorises).
+/// One rest density after the plastic drift toward `d` with the step's drift fraction
+/// `share` (written as selects so it vectorises).
 #[inline(always)]
-fn drifted(d: f32, rest: f32, pl: Plastic) -> f32 {
-    let y = pl.yield_density;
+fn drifted(d: f32, rest: f32, share: f32, yield_density: f32) -> f32 {
+    let y = yield_density;
     let dev = d - rest;
     let upper = if dev > y { y } else { dev };
     let clamped = if upper < -y { -y } else { upper };
-    rest + pl.rate * (dev - clamped)
+    rest + share * (dev - clamped)
 }
 
-/// Apply the plastic drift of the rest densities toward `d`.
-pub(crate) fn plastic_drift(d: &[f32], rest: &mut [f32], pl: Plastic) {
-    for (r, &d) in rest.iter_mut().zip(d) {
-        *r = drifted(d, *r, pl);
+/// Apply the plastic drift of the rest densities toward `d`; `rate_per_s` holds the drift
+/// rates of the same mass points (all three slices are the same points, in order).
+pub(crate) fn plastic_drift(d: &[f32], rest: &mut [f32], rate_per_s: &[f32], pl: &Plastic<'_>) {
+    for ((r, &d), &rate) in rest.iter_mut().zip(d).zip(rate_per_s) {
+        let share = (rate * pl.dt_s).min(1.0);
+        *r = drifted(d, *r, share, pl.yield_density);
     }
 }
 
@@ -425,7 +432,7 @@ pub(crate) fn integrate(
     basis: &KroneckerBasis,
     dt: f32,
     integrator: Integrator,
-    plastic: Option<Plastic>,
+    plastic: Option<Plastic<'_>>,
     (p, p_dot, accel): (&mut [f32], &mut [f32], &[f32]),
     scratch: ChainScratch<'_>,
     dens: Densities<'_>,
@@ -514,6 +521,7 @@ pub(crate) fn integrate(
         // read only after the barrier.
         unsafe { sweep_strided(&ops[2], t2, sz.inner, 0..1, cols.clone(), &out.d_dot) };
         for seg in segments() {
+            let seg_start = seg.start;
             // SAFETY: these columns belong to this part alone.
             let (dd, d, rest) = unsafe {
                 (
@@ -527,8 +535,8 @@ pub(crate) fn integrate(
                     *d += dt * v;
                 }
             }
-            if let Some(pl) = plastic {
-                plastic_drift(d, rest, pl);
+            if let Some(pl) = &plastic {
+                plastic_drift(d, rest, &pl.rate_per_s[seg_start..seg_start + d.len()], pl);
             }
         }
     });

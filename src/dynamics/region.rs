@@ -38,8 +38,8 @@ pub enum RegionError {
 }
 
 /// The state of the simulated region: coefficients and their velocity, densities, rest
-/// densities, and the per-mass-point material fields (editable; `mass`, `damping`, `stiffness`
-/// are indexed like the densities, x fastest).
+/// densities, and the per-mass-point material fields (editable; `mass`, `damping`,
+/// `stiffness` and `plasticity_per_s` are indexed like the densities, x fastest).
 #[derive(Clone, Debug)]
 pub struct RegionState {
     /// The mass grid (and the coefficient box it spans).
@@ -67,8 +67,8 @@ pub struct RegionState {
     /// Which neighbours the density springs join (from the material the region was made
     /// with).
     pub neighbourhood: Neighbourhood,
-    /// Plastic drift rate, per second.
-    pub plasticity_per_s: f32,
+    /// Plastic drift rate per mass point, per second.
+    pub plasticity_per_s: Vec<f32>,
     /// Yield threshold of the plastic drift.
     pub yield_density: f32,
     /// Current adaptive time step, seconds (0 until the first step).
@@ -129,7 +129,7 @@ impl RegionState {
             damping: vec![material.damping; count],
             stiffness: vec![material.stiffness; count],
             neighbourhood: material.neighbourhood,
-            plasticity_per_s: material.plasticity_per_s,
+            plasticity_per_s: vec![material.plasticity_per_s; count],
             yield_density: material.yield_density,
             dt_s: 0.0,
             time_s: 0.0,

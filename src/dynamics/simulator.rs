@@ -929,9 +929,14 @@ impl Simulator {
 
         state.steps_since_resync += 1;
         let resync = state.steps_since_resync >= p.resync_every;
-        let plastic = (state.plasticity_per_s > 0.0).then(|| Plastic {
-            rate: (state.plasticity_per_s * dt).min(1.0),
-            yield_density: state.yield_density.max(0.0),
+        // Mass points painted with no drift leave the rest densities as they are; a region with
+        // none that drifts skips the drift altogether.
+        let drifts = state.plasticity_per_s.iter().any(|&r| r > 0.0);
+        let yield_density = state.yield_density.max(0.0);
+        let plastic = (drifts && !resync).then_some(Plastic {
+            rate_per_s: &state.plasticity_per_s,
+            dt_s: dt,
+            yield_density,
         });
         passes::integrate(
             &mut self.team,
@@ -939,7 +944,7 @@ impl Simulator {
             dt,
             p.integrator,
             // On a resync step the drift waits for the recomputed densities.
-            if resync { None } else { plastic },
+            plastic,
             (&mut state.p, &mut state.p_dot, &self.accel),
             ChainScratch {
                 t1: &mut self.t1,
@@ -953,8 +958,13 @@ impl Simulator {
         );
         if resync {
             state.resync_densities_with(&mut self.kron);
-            if let Some(pl) = plastic {
-                plastic_drift(&state.d, &mut state.rest, pl);
+            if drifts {
+                let pl = Plastic {
+                    rate_per_s: &state.plasticity_per_s,
+                    dt_s: dt,
+                    yield_density,
+                };
+                plastic_drift(&state.d, &mut state.rest, pl.rate_per_s, &pl);
             }
         }
         state.time_s += f64::from(dt);

@@ -135,7 +135,7 @@ pub enum Command {
     SetTool(ToolChoice),
     /// Use this material for regions created from now on.
     SetMaterial(Material),
-    /// Paint mass, damping or stiffness into a region of the clay (the session's material
+    /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay (the session's material
     /// grids; a parameter without a grid gets one, filled with the uniform material's value).
     /// The live region takes the new values at once; regions made later take them too. Not
     /// an undo step: the clay's shape is unchanged.
@@ -145,7 +145,7 @@ pub enum Command {
         /// Where the outcome goes.
         reply: Option<Reply>,
     },
-    /// Remove every painted mass, damping and stiffness grid: the uniform material applies
+    /// Remove every painted material grid: the uniform material applies
     /// everywhere again (the live region at once).
     ClearMaterialPaint,
     /// Arm a stroke (as if button 0 were held) until [`Command::StrokeStop`].

@@ -133,7 +133,7 @@ pub enum PlannedAction {
     SetTool(ToolChoice),
     /// Use this material from now on.
     SetMaterial(Material),
-    /// Paint mass, damping or stiffness into a region.
+    /// Paint mass, damping, stiffness or plastic drift rate into a region.
     PaintMaterial(crate::dynamics::MaterialPaint),
     /// A geometric tool step.
     ApplyTool {

@@ -166,7 +166,7 @@ pub struct SimulationStage {
     /// The uniform material the live region was made with (before its patch's volume
     /// ratio), under the painted grids.
     region_material: Material,
-    /// The painted material: grids of mass, damping and stiffness over the base patch (see
+    /// The painted material: grids of mass, damping, stiffness and drift rate over the base patch (see
     /// `material.rs`), applied to every region's mass points.
     material_grids: Vec<crate::io::MaterialGrid>,
     /// The clay's pins as the live region holds them (see `constrain.rs`).

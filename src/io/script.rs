@@ -639,7 +639,8 @@ pub enum ScriptStep {
         #[serde(default)]
         neighbourhood: Option<u32>,
     },
-    /// Paint mass, damping or stiffness into a region of the clay: a ball (`centre`,
+    /// Paint mass, damping, stiffness or plastic drift rate (`plasticity_per_s`) into a
+    /// region of the clay: a ball (`centre`,
     /// `radius_fu`) or a box (`min`, `max`), field coordinates. Values absent keep what is
     /// there; the simulation uses the painted values where they are (Hua & Qin's material
     /// distributions). Takes no script time; not an undo step.
@@ -658,6 +659,8 @@ pub enum ScriptStep {
         damping: Option<f32>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
         stiffness: Option<f32>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        plasticity_per_s: Option<f32>,
     },
     /// CSG with another clay: the clay of a session file (`with`, relative to the script's
     /// folder) or a solid (`shape` centred at `position`, turned by `rotation`, its potential
@@ -855,7 +858,7 @@ pub fn pin_request(
 /// # Errors
 /// When the region is not exactly one of a ball (`centre` and `radius_fu`) or a box (`min`
 /// and `max`), is not finite or is empty, or when no value is given or a value is out of
-/// range (mass positive; damping and stiffness zero or more).
+/// range (mass positive; damping, stiffness and plasticity zero or more).
 pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFault> {
     let ScriptStep::PaintMaterial {
         centre,
@@ -865,6 +868,7 @@ pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFau
         mass,
         damping,
         stiffness,
+        plasticity_per_s,
     } = *step
     else {
         return Ok(None);
@@ -920,6 +924,7 @@ pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFau
         ("mass", mass),
         ("damping", damping),
         ("stiffness", stiffness),
+        ("plasticity_per_s", plasticity_per_s),
     ] {
         if let Some(v) = v {
             finite(name, v)?;
@@ -928,10 +933,10 @@ pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFau
     if mass.is_some_and(|m| m <= 0.0) {
         return Err(fault("mass", "mass must be positive"));
     }
-    if mass.is_none() && damping.is_none() && stiffness.is_none() {
+    if mass.is_none() && damping.is_none() && stiffness.is_none() && plasticity_per_s.is_none() {
         return Err(fault(
             "do",
-            "paint_material needs at least one of mass, damping, stiffness",
+            "paint_material needs at least one of mass, damping, stiffness, plasticity_per_s",
         ));
     }
     Ok(Some(MaterialPaint {
@@ -939,6 +944,7 @@ pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFau
         mass,
         damping,
         stiffness,
+        plasticity_per_s,
     }))
 }
 
@@ -2209,6 +2215,7 @@ start_s = 3.0
                 mass: None,
                 damping: None,
                 stiffness: Some(5000.0),
+                plasticity_per_s: None,
             })
         );
         let s = parse_script(
@@ -2218,9 +2225,16 @@ start_s = 3.0
         .unwrap();
         let p = paint_request(&s.steps[0]).unwrap().unwrap();
         assert_eq!(
-            (p.mass, p.damping, p.stiffness),
-            (Some(4.0), Some(0.0), None)
+            (p.mass, p.damping, p.stiffness, p.plasticity_per_s),
+            (Some(4.0), Some(0.0), None, None)
         );
+        let s = parse_script(
+            &paint("min = [0.0, 0.0, 0.0]\nmax = [1.0, 2.0, 3.0]\nplasticity_per_s = 0.0"),
+            "p.toml",
+        )
+        .unwrap();
+        let p = paint_request(&s.steps[0]).unwrap().unwrap();
+        assert_eq!((p.mass, p.plasticity_per_s), (None, Some(0.0)));
         assert!(matches!(p.region, PaintRegion::Box { .. }));
         // Round trip through the serde types.
         let text = toml::to_string(&s).unwrap();
@@ -2250,6 +2264,10 @@ start_s = 3.0
             (
                 "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nstiffness = -1.0",
                 "stiffness = -1",
+            ),
+            (
+                "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2\nplasticity_per_s = -2.0",
+                "plasticity_per_s = -2 must be finite and non-negative",
             ),
             (
                 "centre = [1.0, 1.0, 1.0]\nradius_fu = 0.2",

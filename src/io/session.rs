@@ -21,8 +21,8 @@ pub struct SessionMeta {
 }
 
 /// The material: uniform defaults for the density-spring dynamics (and the springs'
-/// neighbourhood), overridden where grids of mass, damping or stiffness are painted (the
-/// simulation applies them at its mass points; see [`MaterialGrid`]).
+/// neighbourhood), overridden where grids of mass, damping, stiffness or plasticity are
+/// painted (the simulation applies them at its mass points; see [`MaterialGrid`]).
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct MaterialFields {
     /// The region's uniform material (mass, damping, stiffness, plasticity, yield).

@@ -51,8 +51,7 @@ impl SimulationStage {
                 ok
             }
             Command::ClearMaterialPaint => {
-                self.material_grids
-                    .retain(|g| !g.param().is_some_and(|p| p.is_simulated()));
+                self.material_grids.retain(|g| g.param().is_none());
                 self.refresh_region_material();
                 true
             }

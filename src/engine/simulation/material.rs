@@ -1,5 +1,5 @@
-//! The painted material in the running stage: grids of mass, damping and stiffness over the
-//! base patch (Hua & Qin §4.1), painted by commands and applied to the mass points of every
+//! The painted material in the running stage: grids of mass, damping, stiffness and plastic
+//! drift rate over the base patch (Hua & Qin §4.1), painted by commands and applied to the mass points of every
 //! region the stage makes, and to the live region when they change.
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
@@ -44,7 +44,7 @@ impl SimulationStage {
         );
     }
 
-    /// The live region's mass, damping and stiffness made again from its uniform material
+    /// The live region's mass, damping, stiffness and drift rate made again from its uniform material
     /// and the painted grids (after a paint or a clear).
     pub(super) fn refresh_region_material(&mut self) {
         let Some(mut state) = self.region.take() else {
@@ -54,6 +54,7 @@ impl SimulationStage {
         state.mass.fill(m.mass);
         state.damping.fill(m.damping);
         state.stiffness.fill(m.stiffness);
+        state.plasticity_per_s.fill(m.plasticity_per_s);
         self.apply_painted_material(&mut state);
         self.region = Some(state);
     }

@@ -50,7 +50,7 @@ impl SimulationStage {
             .material
             .grids
             .iter()
-            .filter(|g| g.param().is_some_and(|p| p.is_simulated()))
+            .filter(|g| g.param().is_some())
             .count();
         // The stroke in progress ends on the old clay (its step is dropped with the history).
         self.end_stroke_now();
