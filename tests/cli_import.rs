@@ -157,7 +157,7 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
     let torus = dir.path().join("t.xyz");
     write_torus_xyz(&torus);
     for (flag, value, want) in [
-        ("--out", "x.txt", "ends in .dclay"),
+        ("--out", "x.txt", "written as .dclay"),
         ("--resolution", "4", "resolution 4"),
         ("--gap", "5", "gap 5 spans"),
         ("--error", "0", "error bound 0"),

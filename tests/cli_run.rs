@@ -500,8 +500,16 @@ fn script_saves_stay_in_their_folders_and_never_replace_other_files() {
     let refused = run("notes.txt", &[]);
     assert_eq!(refused.status.code(), Some(2));
     let err = String::from_utf8_lossy(&refused.stderr);
-    assert!(err.contains("not a dynaclay session"), "{err}");
+    assert!(err.contains("a session is written as .dclay"), "{err}");
     assert_eq!(std::fs::read_to_string(&precious).unwrap(), "precious");
+    // Nor is a .dclay this program did not write.
+    let foreign = scripts.join("foreign.dclay");
+    std::fs::write(&foreign, "precious").unwrap();
+    let refused = run("foreign.dclay", &[]);
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("not a session this program wrote"), "{err}");
+    assert_eq!(std::fs::read_to_string(&foreign).unwrap(), "precious");
 }
 
 #[test]

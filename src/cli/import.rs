@@ -15,7 +15,7 @@ use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::run::CliError;
 use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, fit_file, imported_session};
-use crate::io::save_session;
+use crate::io::{OutputKind, OutputRule, save_session};
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
 
 /// Reads `args.input`, fits a clay to it, writes the session (and the mesh when asked).
@@ -32,11 +32,12 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         })?),
         None => None,
     };
-    if args.out.extension().and_then(|e| e.to_str()) != Some("dclay") {
-        return Err(CliError::Usage(format!(
-            "--out {}: a session file ends in .dclay",
-            args.out.display()
-        )));
+    let rule = OutputRule::new().input("INPUT", &args.input);
+    rule.check("--out", &args.out, OutputKind::Session)
+        .map_err(CliError::OutputRefused)?;
+    if let Some(mesh) = &args.mesh {
+        rule.check("--mesh", mesh, OutputKind::Mesh)
+            .map_err(CliError::OutputRefused)?;
     }
     watch_for_ctrl_c();
     let settings = ImportSettings {

@@ -10,6 +10,7 @@ use glam::Vec3;
 use super::args::{EmbossProjection, PointsArgs};
 use super::run::CliError;
 use crate::fit::read_points;
+use crate::io::{OutputKind, OutputRule};
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
 use crate::pointset::{PointSet, PointSetOptions, write_point_ply};
 use crate::tools::{EmbossParams, Projection, Relief};
@@ -35,18 +36,17 @@ pub struct PointsOutcome {
 /// # Errors
 /// A bad argument or unreadable input (exit 2), a failed build, sculpt or write (exit 1).
 pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
-    if args
-        .out
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .as_deref()
-        != Some("ply")
-    {
-        return Err(CliError::Usage(format!(
-            "--out {}: the points are written as .ply",
-            args.out.display()
-        )));
+    let mut rule = OutputRule::new().input("INPUT", &args.input);
+    if let Some(image) = &args.emboss {
+        rule = rule.input("--emboss", image);
+    }
+    rule.check("--out", &args.out, OutputKind::PointSet)
+        .map_err(CliError::OutputRefused)?;
+    if let Some(mesh) = &args.mesh {
+        // Both may be .ply: the mesh must not take the points' file either.
+        rule.input("--out", &args.out)
+            .check("--mesh", mesh, OutputKind::Mesh)
+            .map_err(CliError::OutputRefused)?;
     }
     let mesh_format = match &args.mesh {
         Some(path) => Some(MeshFormat::from_path(path).ok_or_else(|| {

@@ -1,11 +1,9 @@
 //! `dynaclay rbf`: sample a session's clay with constrained particles and write the compact
 //! RBF that interpolates them (Zhang et al. §5.3); optionally import it back as a clay.
 
-use std::path::Path;
-
 use super::args::RbfArgs;
 use crate::field::FitError;
-use crate::io::load_script;
+use crate::io::{OutputKind, OutputRefused, OutputRule, load_script};
 use crate::io::{Session, SessionError, load_session, save_session};
 use crate::particles::ParticleError;
 use crate::rbf::{
@@ -41,6 +39,9 @@ pub enum RbfCommandError {
     /// Writing the imported clay as a session failed (exit 1).
     #[error("writing the imported clay: {0}")]
     Save(#[source] SessionError),
+    /// An output breaks the output rule; refused before any work (exit 2).
+    #[error("{0}")]
+    OutputRefused(#[from] OutputRefused),
 }
 
 impl From<ExportError> for RbfCommandError {
@@ -61,6 +62,7 @@ impl RbfCommandError {
         match self {
             Self::Usage(_)
             | Self::Session(_)
+            | Self::OutputRefused(_)
             | Self::Particles(_)
             | Self::Sculpt(RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. }) => 2,
             Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) | Self::Sculpt(_) => 1,
@@ -79,25 +81,18 @@ pub struct RbfOutcome {
     pub max_residual: f64,
 }
 
-fn check_extension(path: &Path, ext: &str, flag: &str) -> Result<(), RbfCommandError> {
-    if path.extension().and_then(|e| e.to_str()) == Some(ext) {
-        Ok(())
-    } else {
-        Err(RbfCommandError::Usage(format!(
-            "{flag} {}: the file must end in .{ext}",
-            path.display()
-        )))
-    }
-}
-
 /// Runs `dynaclay rbf`.
 ///
 /// # Errors
 /// [`RbfCommandError`] naming what failed.
 pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
-    check_extension(&args.out, "rbf", "--out")?;
+    let mut rule = OutputRule::new().input("SESSION", &args.session);
+    if let Some(script) = &args.sculpt {
+        rule = rule.input("--sculpt", script);
+    }
+    rule.check("--out", &args.out, OutputKind::Rbf)?;
     if let Some(clay) = &args.clay {
-        check_extension(clay, "dclay", "--clay")?;
+        rule.check("--clay", clay, OutputKind::Session)?;
     }
     let session = load_session(&args.session).map_err(RbfCommandError::Session)?;
     let options = ExportOptions {

@@ -4,7 +4,7 @@ use super::args::RenderArgs;
 use super::budget::MemoryBudget;
 use super::run::CliError;
 use super::sculpt::{describe_outcome, mesh_clay, render_sculpt};
-use crate::io::load_session;
+use crate::io::{OutputKind, OutputRule, load_session};
 use crate::render::RenderOutcome;
 
 /// Loads the session, meshes its clay and writes the PNG.
@@ -16,6 +16,10 @@ use crate::render::RenderOutcome;
 /// rendering fails (exit 1) or there is no GPU adapter (exit
 /// [`CliError::NO_ADAPTER_EXIT`]); [`CliError::Output`] when the clay cannot be meshed.
 pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
+    OutputRule::new()
+        .input("SESSION", &args.session)
+        .check("--out", &args.out, OutputKind::Image)
+        .map_err(CliError::OutputRefused)?;
     let budget = MemoryBudget::from_flag(args.memory_budget_mib);
     budget
         .check_image(args.image.width, args.image.height)

@@ -18,7 +18,8 @@ use crate::engine::{
 };
 use crate::io::SessionError;
 use crate::io::{
-    Autosave, MaterialFields, ScriptError, Session, load_script, load_session, recovery_to_use,
+    Autosave, MaterialFields, OutputKind, OutputRule, Script, ScriptError, Session, load_script,
+    load_session, recovery_to_use,
 };
 use crate::render::RenderError;
 
@@ -61,6 +62,10 @@ pub enum CliError {
     /// `dynaclay rbf` failed (exit 2 for bad input, 1 otherwise).
     #[error("rbf: {0}")]
     Rbf(super::rbf::RbfCommandError),
+    /// An output breaks the output rule (an input, the script, a file of another kind, a
+    /// link, or outside the allowed folders); refused before any work (exit 2).
+    #[error("{0}")]
+    OutputRefused(crate::io::OutputRefused),
     /// Ctrl-C stopped the command before it wrote anything (exit 130, the shell's code for
     /// SIGINT; see [`CliError::INTERRUPTED_EXIT`]).
     #[error("interrupted: {0}")]
@@ -93,7 +98,11 @@ impl CliError {
     #[must_use]
     pub fn exit_code(&self) -> i32 {
         match self {
-            Self::Usage(_) | Self::Script(_) | Self::Session(_) | Self::OverBudget(_) => 2,
+            Self::Usage(_)
+            | Self::Script(_)
+            | Self::Session(_)
+            | Self::OverBudget(_)
+            | Self::OutputRefused(_) => 2,
             Self::Device(_) => 3,
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
@@ -150,9 +159,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         start.material.uniform,
     )
     .map_err(CliError::Script)?;
-    if !args.allow_outside {
-        check_save_folders(&plan, &base_dir, &args.out)?;
-    }
+    check_run_outputs(args, &script, &plan, &base_dir, &spec)?;
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.density.clone();
     if args.out.exists() && !args.out.is_dir() {
@@ -376,47 +383,50 @@ fn starting_session(
     }
 }
 
-/// `path` with `.` and `..` resolved lexically (no file-system access, so the check below
-/// holds for paths that do not exist yet), made absolute against the current directory.
-fn lexical_absolute(path: &Path) -> PathBuf {
-    use std::path::Component;
-    let joined = if path.is_absolute() {
-        path.to_path_buf()
-    } else {
-        std::env::current_dir().unwrap_or_default().join(path)
-    };
-    let mut out = PathBuf::new();
-    for c in joined.components() {
-        match c {
-            Component::ParentDir => {
-                out.pop();
-            }
-            Component::CurDir => {}
-            other => out.push(other),
-        }
+/// Checks every file the run writes against the output rule before anything runs: the
+/// script's `save`, `particles`, `rbf` and `points` steps, `--record` and `--png`. None may be
+/// the script, a file the script or the device reads, or a file of another kind; the steps'
+/// real paths stay in the script's folder and the output directory unless `--allow-outside`.
+fn check_run_outputs(
+    args: &RunArgs,
+    script: &Script,
+    plan: &ScriptPlan,
+    script_dir: &Path,
+    spec: &DeviceSpec,
+) -> Result<(), CliError> {
+    let mut rule = OutputRule::new();
+    if let Some(path) = &args.script {
+        rule = rule.input("SCRIPT", path);
     }
-    out
-}
-
-/// Refuses a script whose `save`, `particles` or `rbf` steps would write outside the script's folder and the
-/// output directory (`--allow-outside` lifts this).
-fn check_save_folders(plan: &ScriptPlan, script_dir: &Path, out: &Path) -> Result<(), CliError> {
-    let allowed = [lexical_absolute(script_dir), lexical_absolute(out)];
+    for (what, path) in script.input_files(script_dir) {
+        rule = rule.input(what, &path);
+    }
+    if let DeviceSpec::Replay { file } = spec {
+        rule = rule.input("--device replay", file);
+    }
+    if let Some(path) = &args.record {
+        rule = rule.input("--record", path);
+    }
+    if let Some(Some(path)) = &args.png {
+        rule.check("--png", path, OutputKind::Image)
+            .map_err(CliError::OutputRefused)?;
+    }
+    let steps_rule = if args.allow_outside {
+        rule
+    } else {
+        rule.within(script_dir).within(&args.out)
+    };
     for event in &plan.events {
-        if let Some((kind, path)) = event.action.output() {
-            let target = lexical_absolute(path);
-            if !allowed.iter().any(|dir| target.starts_with(dir)) {
-                return Err(CliError::Script(ScriptError {
+        if let Some((kind, path, output)) = event.action.output() {
+            steps_rule.check(kind, path, output).map_err(|e| {
+                CliError::Script(ScriptError {
                     file: plan.file.clone(),
-                    line: None,
+                    line: plan.step_line(event.step),
                     column: None,
                     step: Some(event.step),
-                    message: format!(
-                        "{kind}: {} is outside the script's folder and the output directory; pass --allow-outside to write there",
-                        path.display()
-                    ),
-                }));
-            }
+                    message: e.to_string(),
+                })
+            })?;
         }
     }
     Ok(())

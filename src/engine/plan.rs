@@ -211,14 +211,17 @@ pub enum PlannedAction {
 
 impl PlannedAction {
     /// The file this action writes, if any, with its step's name (`save`, `particles` with
-    /// `out`, `rbf`).
+    /// `out`, `rbf`, `points`) and what it writes there.
     #[must_use]
-    pub fn output(&self) -> Option<(&'static str, &Path)> {
+    pub fn output(&self) -> Option<(&'static str, &Path, crate::io::OutputKind)> {
+        use crate::io::OutputKind;
         match self {
-            Self::Save(path) => Some(("save", path)),
-            Self::Rbf { out, .. } => Some(("rbf", out)),
-            Self::Points { out, .. } => Some(("points", out)),
-            Self::Particles { out, .. } => out.as_deref().map(|p| ("particles", p)),
+            Self::Save(path) => Some(("save", path, OutputKind::Session)),
+            Self::Rbf { out, .. } => Some(("rbf", out, OutputKind::Rbf)),
+            Self::Points { out, .. } => Some(("points", out, OutputKind::PointSet)),
+            Self::Particles { out, .. } => out
+                .as_deref()
+                .map(|p| ("particles", p, OutputKind::Particles)),
             _ => None,
         }
     }

@@ -5,6 +5,7 @@ mod atomic;
 mod autosave;
 mod error;
 mod format;
+mod output_rule;
 mod script;
 mod session;
 
@@ -16,6 +17,7 @@ pub use autosave::{
 pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
+pub use output_rule::{OutputKind, OutputRefused, OutputRule, real_path};
 pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
     ForceToolSpec, MAX_POINTS_PULL_STEPS, PinKind, RENAMED_KEYS, SCRIPT_VERSION, Script,

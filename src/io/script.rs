@@ -121,6 +121,30 @@ pub struct DeprecatedKey {
     pub replacement: &'static str,
 }
 
+impl Script {
+    /// The files the script reads, each with what names it (`[clay] session`, or the step
+    /// number and key), joined to the script's folder `base_dir` as the steps join them.
+    #[must_use]
+    pub fn input_files(&self, base_dir: &std::path::Path) -> Vec<(String, PathBuf)> {
+        let mut inputs = Vec::new();
+        if let Some(session) = self.clay.as_ref().and_then(|c| c.session.as_ref()) {
+            inputs.push(("[clay] session".to_owned(), base_dir.join(session)));
+        }
+        for (i, step) in self.steps.iter().enumerate() {
+            let (key, path) = match step {
+                ScriptStep::Csg {
+                    with: Some(path), ..
+                } => ("with", path),
+                ScriptStep::Emboss { image, .. } => ("image", image),
+                ScriptStep::Points { input, .. } => ("input", input),
+                _ => continue,
+            };
+            inputs.push((format!("step {} {key}", i + 1), base_dir.join(path)));
+        }
+        inputs
+    }
+}
+
 impl std::fmt::Display for DeprecatedKey {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
