@@ -39,6 +39,22 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         rule.check("--mesh", mesh, OutputKind::Mesh)
             .map_err(CliError::OutputRefused)?;
     }
+    // A fit takes seconds to minutes: an output that cannot be written is said first.
+    for (flag, path) in
+        std::iter::once(("--out", &args.out)).chain(args.mesh.iter().map(|m| ("--mesh", m)))
+    {
+        let folder = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        if !folder.is_dir() {
+            return Err(CliError::Usage(format!(
+                "{flag} {}: the folder {} does not exist",
+                path.display(),
+                folder.display()
+            )));
+        }
+    }
     watch_for_ctrl_c();
     let settings = ImportSettings {
         resolution: args.resolution,

@@ -160,6 +160,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     )
     .map_err(CliError::Script)?;
     check_run_outputs(args, &script, &plan, &base_dir, &spec)?;
+    plan.check_budget(&start.clay).map_err(CliError::Script)?;
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.density.clone();
     if args.out.exists() && !args.out.is_dir() {

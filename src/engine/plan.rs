@@ -636,6 +636,68 @@ impl ScriptPlan {
         })
     }
 
+    /// Checks that the script cannot take the clay `clay` past its budgets, before anything
+    /// runs: every `refine` step together with the patches already there stays within
+    /// [`MAX_PATCHES`](crate::field::MAX_PATCHES) patches and
+    /// [`MAX_CLAY_COEFFS`](crate::field::MAX_CLAY_COEFFS) coefficients (each step counted at
+    /// the size it asks for, as if none were undone), and every `constrain` step together
+    /// with the pins already there within [`MAX_CONSTRAINTS`](crate::dynamics::MAX_CONSTRAINTS).
+    /// A `refine` step whose box or level is refused anyway is not counted (it adds nothing).
+    ///
+    /// # Errors
+    /// The step that first goes over, with what it would reach.
+    pub fn check_budget(&self, clay: &crate::tools::Clay) -> Result<(), ScriptError> {
+        use crate::dynamics::MAX_CONSTRAINTS;
+        use crate::field::{MAX_CLAY_COEFFS, MAX_PATCHES};
+        let mut patches = clay.density.patches.len();
+        let mut coefficients = clay.density.coefficient_count();
+        let mut pins = clay.constraints.len();
+        for e in &self.events {
+            let over = match &e.action {
+                PlannedAction::Refine { lo, hi, level } => {
+                    let Ok(n) = clay.density.detail_coefficients(*lo, *hi, *level) else {
+                        continue;
+                    };
+                    patches += 1;
+                    coefficients = coefficients.saturating_add(n);
+                    if patches > MAX_PATCHES {
+                        Some(format!(
+                            "refine: the script's refine steps would give the clay {patches} \
+                             patches; a clay holds at most {MAX_PATCHES}"
+                        ))
+                    } else if coefficients > MAX_CLAY_COEFFS {
+                        Some(format!(
+                            "refine: the script's refine steps would give the clay \
+                             {coefficients} coefficients; a clay holds at most {MAX_CLAY_COEFFS}"
+                        ))
+                    } else {
+                        None
+                    }
+                }
+                PlannedAction::Constrain(_) => {
+                    pins += 1;
+                    (pins > MAX_CONSTRAINTS).then(|| {
+                        format!(
+                            "constrain: the script's constrain steps would pin {pins} places; a \
+                             clay holds at most {MAX_CONSTRAINTS} pins"
+                        )
+                    })
+                }
+                _ => None,
+            };
+            if let Some(message) = over {
+                return Err(ScriptError {
+                    file: self.file.clone(),
+                    line: self.step_line(e.step),
+                    column: None,
+                    step: Some(e.step),
+                    message,
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// The line 1-based step `step` starts on, when known.
     #[must_use]
     pub fn step_line(&self, step: usize) -> Option<usize> {

@@ -25,8 +25,8 @@ pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
 pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid};
 pub use multipatch::{
-    DetailError, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES, MultiPatchField, OtherPatches,
-    Patch,
+    DetailError, MAX_CLAY_COEFFS, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES,
+    MultiPatchField, OtherPatches, Patch,
 };
 pub use pick::{BISECTION_STEPS, MARCH_STEP_SPANS, Ray, SurfaceHit, pick_surface};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};

@@ -18,6 +18,10 @@ pub const MAX_PATCHES: usize = 256;
 pub const MAX_DETAIL_LEVEL: u32 = 4;
 /// Most coefficients one detail patch may hold (64 MiB of `f32`).
 pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
+/// Most coefficients a whole clay may hold, all its patches together (256 MiB of `f32`: the
+/// largest import's base, 256³, and three more of its size in detail). Refining, importing
+/// and reading a session all stay within it.
+pub const MAX_CLAY_COEFFS: usize = 64 << 20;
 
 /// Why a detail patch could not be added.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -52,6 +56,46 @@ pub enum DetailError {
         /// Coefficients the patch would hold.
         coefficients: usize,
     },
+    /// The clay would hold more than [`MAX_CLAY_COEFFS`] coefficients with the patch.
+    #[error(
+        "the clay would hold {total} coefficients with this patch, more than {MAX_CLAY_COEFFS}; refine a smaller box or a lower level"
+    )]
+    ClayTooLarge {
+        /// Coefficients of the clay with the patch.
+        total: usize,
+    },
+}
+
+/// The coefficients of a detail patch over `lo ..= hi` at `level` on `base`, with the box
+/// clipped to the base's support; checks the level, the box and the patch's size.
+fn detail_size(
+    base: &Patch,
+    lo: Vec3,
+    hi: Vec3,
+    level: u32,
+) -> Result<(usize, Vec3, Vec3), DetailError> {
+    if !(1..=MAX_DETAIL_LEVEL).contains(&level) {
+        return Err(DetailError::Level { level });
+    }
+    let (slo, shi) = base.world_support();
+    let (clo, chi) = (lo.max(slo), hi.min(shi));
+    if !(lo.is_finite() && hi.is_finite()) || clo.cmpge(chi).any() {
+        return Err(DetailError::Box {
+            lo: lo.to_array(),
+            hi: hi.to_array(),
+        });
+    }
+    let spacing = base.lattice.spacing / (1_u32 << level) as f32;
+    let coefficients = ((chi - clo) / spacing)
+        .to_array()
+        .iter()
+        .map(|e| e.ceil() as usize + 3)
+        .try_fold(1_usize, |acc, n| acc.checked_mul(n.max(4)))
+        .unwrap_or(usize::MAX);
+    if coefficients > MAX_DETAIL_COEFFS {
+        return Err(DetailError::TooLarge { coefficients });
+    }
+    Ok((coefficients, clo, chi))
 }
 
 /// One patch: a lattice and the map from world space into the lattice's space.
@@ -223,6 +267,27 @@ impl MultiPatchField {
     }
 
     /// Add a patch with its own map; returns its index.
+    /// Coefficients of every patch together.
+    #[must_use]
+    pub fn coefficient_count(&self) -> usize {
+        self.patches.iter().map(|p| p.lattice.coeffs.len()).sum()
+    }
+
+    /// Coefficients a [`MultiPatchField::refine`] of `lo ..= hi` at `level` would add, checked
+    /// as the refine checks them (the box, the level and one patch's size), without adding it.
+    ///
+    /// # Errors
+    /// As [`MultiPatchField::refine`], but for the patch count and the clay's total.
+    pub fn detail_coefficients(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+        level: u32,
+    ) -> Result<usize, DetailError> {
+        let base = self.patches.first().ok_or(DetailError::NoBase)?;
+        detail_size(base, lo, hi, level).map(|(n, _, _)| n)
+    }
+
     pub fn push(&mut self, lattice: BSplineLattice, world_to_patch: Affine3A) -> usize {
         self.patches.push(Patch {
             lattice,
@@ -261,29 +326,13 @@ impl MultiPatchField {
         let Some(base) = self.patches.first() else {
             return Err(DetailError::NoBase);
         };
-        if !(1..=MAX_DETAIL_LEVEL).contains(&level) {
-            return Err(DetailError::Level { level });
-        }
         if self.patches.len() >= MAX_PATCHES {
             return Err(DetailError::TooManyPatches);
         }
-        let (slo, shi) = base.world_support();
-        let (clo, chi) = (lo.max(slo), hi.min(shi));
-        if !(lo.is_finite() && hi.is_finite()) || clo.cmpge(chi).any() {
-            return Err(DetailError::Box {
-                lo: lo.to_array(),
-                hi: hi.to_array(),
-            });
-        }
-        let spacing = base.lattice.spacing / (1_u32 << level) as f32;
-        let coefficients = ((chi - clo) / spacing)
-            .to_array()
-            .iter()
-            .map(|e| e.ceil() as usize + 3)
-            .try_fold(1_usize, |acc, n| acc.checked_mul(n.max(4)))
-            .unwrap_or(usize::MAX);
-        if coefficients > MAX_DETAIL_COEFFS {
-            return Err(DetailError::TooLarge { coefficients });
+        let (coefficients, clo, chi) = detail_size(base, lo, hi, level)?;
+        let total = self.coefficient_count().saturating_add(coefficients);
+        if total > MAX_CLAY_COEFFS {
+            return Err(DetailError::ClayTooLarge { total });
         }
         let iso = base.lattice.iso;
         let n = self

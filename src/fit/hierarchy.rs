@@ -40,7 +40,7 @@ use glam::{Affine3A, Vec3};
 
 use super::cloud::{CloudFitError, CloudFitOptions, SignedBy, sign_cloud};
 use super::points::PointCloud;
-use crate::field::{BSplineLattice, MultiPatchField, refit_box};
+use crate::field::{BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, MultiPatchField, refit_box};
 
 /// Points used for the error samples, at most (an even subset of a larger cloud).
 pub const MAX_ERROR_POINTS: usize = 200_000;
@@ -127,6 +127,9 @@ pub struct HierarchicalFit {
     pub rms: f32,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
+    /// Whether the clay's budget stopped the refinement short of the bound (see
+    /// [`Refined::over_budget`]).
+    pub over_budget: bool,
 }
 
 impl HierarchicalFit {
@@ -261,6 +264,7 @@ pub fn fit_hierarchy(
         rms_base: refined.rms_base,
         rms: refined.rms,
         levels: refined.levels,
+        over_budget: refined.over_budget,
     })
 }
 
@@ -292,6 +296,10 @@ pub struct Refined {
     pub rms: f32,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
+    /// Whether the clay's budget ([`MAX_PATCHES`] patches, [`MAX_CLAY_COEFFS`]
+    /// coefficients) stopped the refinement with nodes still over the bound (the worst nodes
+    /// of each depth are refined first).
+    pub over_budget: bool,
 }
 
 /// Steps 3–4 of the module docs: adds detail patches to `field` (whose patch 0 is the fitted
@@ -334,6 +342,7 @@ pub fn refine(
     };
     let mut levels = Vec::new();
     let mut refined = vec![root];
+    let mut over_budget = false;
     for depth in 1..=options.max_depth {
         let mut checked = 0;
         let mut to_refine = Vec::new();
@@ -347,15 +356,29 @@ pub fn refine(
                 }
             }
         }
-        let of = to_refine.len();
+        // The worst first, so that a budget reached spends its patches where they matter most.
+        let mut errors: Vec<(f64, Node)> = to_refine
+            .into_iter()
+            .map(|n| (samples.mean_square(Some(&n.samples)), n))
+            .collect();
+        errors.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let of = errors.len();
         let mut kept = Vec::with_capacity(of);
-        for (done, node) in to_refine.into_iter().enumerate() {
+        for (done, (_, node)) in errors.into_iter().enumerate() {
             go_on(progress, FitProgress::Detail { depth, done, of })?;
             // Earlier patches at this depth may already have brought it under the bound.
             if samples.mean_square(Some(&node.samples)) <= bound {
                 continue;
             }
+            if field.patches.len() >= MAX_PATCHES {
+                over_budget = true;
+                break;
+            }
             let patch = fit_detail(data, field, &node, &samples.at)?;
+            if field.coefficient_count() + patch.coeffs.len() > MAX_CLAY_COEFFS {
+                over_budget = true;
+                break;
+            }
             // Bring the samples the patch reaches up to date.
             let (plo, phi) = patch.support();
             for (x, v) in samples.at.iter().zip(samples.value.iter_mut()) {
@@ -371,7 +394,7 @@ pub fn refine(
             nodes: checked,
             refined: kept.len(),
         });
-        if kept.is_empty() {
+        if kept.is_empty() || over_budget {
             break;
         }
         refined = kept;
@@ -382,6 +405,7 @@ pub fn refine(
         rms_base,
         rms,
         levels,
+        over_budget,
     })
 }
 

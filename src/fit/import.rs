@@ -257,12 +257,20 @@ pub fn is_point_cloud(path: &Path) -> bool {
     )
 }
 
-/// One report line per octree depth: how many nodes were refined.
-fn note_levels(levels: &[LevelReport], note: &mut dyn FnMut(String)) {
+/// One report line per octree depth: how many nodes were refined; and one more when the
+/// clay's budget stopped the refinement.
+fn note_levels(levels: &[LevelReport], over_budget: bool, note: &mut dyn FnMut(String)) {
     for level in levels {
         note(format!(
             "depth {}: {} of {} octree nodes refined",
             level.depth, level.refined, level.nodes
+        ));
+    }
+    if over_budget {
+        note(format!(
+            "warning: the clay's budget ({} patches, {} coefficients) stopped the detail with              nodes still over the error bound (the worst were refined first); raise --error or              lower --max-depth",
+            crate::field::MAX_PATCHES,
+            crate::field::MAX_CLAY_COEFFS
         ));
     }
 }
@@ -310,7 +318,7 @@ fn fit_cloud(
         settings.error_percent
     ));
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
-    note_levels(&fit.levels, note);
+    note_levels(&fit.levels, fit.over_budget, note);
     let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;
     note(format!(
@@ -488,7 +496,7 @@ fn fit_mesh_file(
         progress,
     )
     .map_err(|e| fit_error(path, e))?;
-    note_levels(&fit.levels, note);
+    note_levels(&fit.levels, fit.over_budget, note);
     // file → voxel → field.
     let scale = fit.scale / grid.voxel;
     let offset = fit.offset - grid.origin * scale;
@@ -572,7 +580,7 @@ fn fit_volume_file(
         progress,
     )
     .map_err(|e| fit_error(path, e))?;
-    note_levels(&fit.levels, note);
+    note_levels(&fit.levels, fit.over_budget, note);
     note(format!(
         "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
          base alone)",

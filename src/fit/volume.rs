@@ -467,6 +467,8 @@ pub struct VolumeHierarchy {
     pub rms: f32,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
+    /// Whether the clay's budget stopped the refinement short of the bound.
+    pub over_budget: bool,
 }
 
 /// [`fit_volume`], then detail patches where the error at the voxels near the surface (those
@@ -544,6 +546,7 @@ pub fn fit_volume_hierarchy_within(
         rms_base: refined.rms_base,
         rms: refined.rms,
         levels: refined.levels,
+        over_budget: refined.over_budget,
     })
 }
 

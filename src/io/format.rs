@@ -29,7 +29,7 @@ use glam::{Affine3A, Vec3};
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
 use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material, Neighbourhood};
-use crate::field::{BSplineLattice, Patch};
+use crate::field::{BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, Patch};
 use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
 
 /// The first eight bytes of every session file.
@@ -40,6 +40,8 @@ const HEADER_LEN: usize = 24;
 
 const META: [u8; 4] = *b"META";
 const PATCH: [u8; 4] = *b"PTCH";
+/// The most a patch's map may scale space, either way (by a column of it or of its inverse).
+pub const MAX_MAP_SCALE: f32 = 1e3;
 const MATERIAL: [u8; 4] = *b"MATL";
 const COLOUR: [u8; 4] = *b"COLR";
 const TOOLS: [u8; 4] = *b"TOOL";
@@ -260,7 +262,18 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 meta_seen = true;
             }
             PATCH => {
+                if session.clay.density.patches.len() >= MAX_PATCHES {
+                    return Err(r.error(&format!(
+                        "more than {MAX_PATCHES} patches; a clay holds at most {MAX_PATCHES}"
+                    )));
+                }
                 let lattice = r.lattice()?;
+                let total = session.clay.density.coefficient_count() + lattice.coeffs.len();
+                if total > MAX_CLAY_COEFFS {
+                    return Err(r.error(&format!(
+                        "the clay holds {total} coefficients with this patch; at most {MAX_CLAY_COEFFS}"
+                    )));
+                }
                 let world_to_patch = if version >= 2 {
                     r.map()?
                 } else {
@@ -682,6 +695,12 @@ impl Reader<'_> {
             self.at = start;
             return Err(self.error("lattice origin or iso-level is not finite"));
         }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            self.at = start;
+            return Err(self.error(&format!(
+                "lattice spacing {spacing}: must be finite and above 0"
+            )));
+        }
         if let Some(i) = coeffs.iter().position(|c| !c.is_finite()) {
             // Point at the value itself.
             self.at = values_at + 4 * i;
@@ -711,6 +730,20 @@ impl Reader<'_> {
             self.at = start;
             return Err(self.error(&format!(
                 "the patch's map to patch space is not finite and invertible (determinant {det})"
+            )));
+        }
+        // A patch is drawn and simulated on grids sized in world space: a map that shrinks or
+        // stretches it by more than MAX_MAP_SCALE would size them beyond any machine.
+        let inverse = map.matrix3.inverse();
+        let stretch = [map.matrix3, inverse]
+            .iter()
+            .flat_map(|m| [m.x_axis, m.y_axis, m.z_axis])
+            .map(|c| c.length())
+            .fold(0.0_f32, f32::max);
+        if stretch > MAX_MAP_SCALE {
+            self.at = start;
+            return Err(self.error(&format!(
+                "the patch's map scales by {stretch:.3e}; at most {MAX_MAP_SCALE} either way"
             )));
         }
         Ok(map)

@@ -1,0 +1,189 @@
+//! One budget for the whole clay, from the command line: patches (at most 256), coefficients
+//! and pins are counted before the work starts, whether they come from a script's steps, an
+//! import's detail or a session file, and going over exits 2 naming the step or the file.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use dynaclay::field::{BSplineLattice, MAX_PATCHES};
+use dynaclay::io::{Session, save_session};
+use dynaclay::tools::Clay;
+use glam::{Affine3A, Vec3};
+
+const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+
+fn dynaclay(dir: &Path, args: &[&str]) -> Output {
+    Command::new(BIN)
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A script of the default block with `count` copies of `step` (TOML keys after `do`).
+fn script_of(dir: &Path, step: &str, count: usize) {
+    let mut text =
+        String::from("version = 1\nseconds = 0.1\n\n[clay]\nshape = \"block\"\nresolution = 24\n");
+    for _ in 0..count {
+        text += &format!("\n[[step]]\n{step}\n");
+    }
+    std::fs::write(dir.join("s.toml"), text).unwrap();
+}
+
+#[test]
+fn refine_steps_past_the_patch_budget_are_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    // The hostile case: 300 refines at level 3 over a 24³ clay.
+    script_of(
+        dir.path(),
+        "do = \"refine\"\nmin = [0.6, 0.6, 0.6]\nmax = [1.7, 1.7, 1.7]\nlevel = 3",
+        300,
+    );
+    let out = dynaclay(
+        dir.path(),
+        &["run", "--script", "s.toml", "--lockstep", "--out", "run"],
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("s.toml") && err.contains("refine"), "{err}");
+    assert!(
+        err.contains("coefficients") || err.contains("patches"),
+        "{err}"
+    );
+    assert!(!dir.path().join("run").exists(), "the run started");
+    // Small refines past the patch count, too.
+    script_of(
+        dir.path(),
+        "do = \"refine\"\nmin = [1.0, 1.0, 1.0]\nmax = [1.1, 1.1, 1.1]\nlevel = 1",
+        MAX_PATCHES,
+    );
+    let out = dynaclay(
+        dir.path(),
+        &["run", "--script", "s.toml", "--lockstep", "--out", "run"],
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("257 patches") && err.contains(&format!("step {}", MAX_PATCHES)),
+        "{err}"
+    );
+}
+
+#[test]
+fn constrain_steps_past_the_pin_budget_are_refused_before_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    script_of(
+        dir.path(),
+        "do = \"constrain\"\nkind = \"point\"\nat = [1.15, 1.73, 1.15]",
+        4097,
+    );
+    let out = dynaclay(
+        dir.path(),
+        &["run", "--script", "s.toml", "--lockstep", "--out", "run"],
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("4097") && err.contains("4096 pins"), "{err}");
+    assert!(!dir.path().join("run").exists(), "the run started");
+}
+
+/// A session of a 12³ base and `details` 4³ patches (each with `map`).
+fn session_with(path: &Path, details: usize, spacing: f32, map: Affine3A) {
+    let mut clay = Clay::single(BSplineLattice::zeros([12; 3], 0.1, Vec3::ZERO).unwrap());
+    for _ in 0..details {
+        let mut l = BSplineLattice::zeros([4; 3], 0.1, Vec3::splat(0.3)).unwrap();
+        l.spacing = spacing;
+        clay.density.push(l, map);
+    }
+    let session = Session {
+        clay,
+        ..Session::default()
+    };
+    save_session(path, &session).unwrap();
+}
+
+#[test]
+fn a_session_past_the_budget_or_with_a_wild_patch_is_refused_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, details, spacing, map, want) in [
+        (
+            "many.dclay",
+            10_000,
+            0.1,
+            Affine3A::IDENTITY,
+            "more than 256 patches",
+        ),
+        (
+            "spacing.dclay",
+            1,
+            f32::INFINITY,
+            Affine3A::IDENTITY,
+            "spacing inf",
+        ),
+        (
+            "scaled.dclay",
+            1,
+            0.1,
+            Affine3A::from_scale(Vec3::splat(1e4)),
+            "scales by",
+        ),
+    ] {
+        session_with(&dir.path().join(name), details, spacing, map);
+        let out = dynaclay(dir.path(), &["render", name, "--out", "x.png"]);
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(want), "{name}: {err}");
+        assert!(!dir.path().join("x.png").exists());
+    }
+    // Exactly at the budget it reads.
+    session_with(
+        &dir.path().join("full.dclay"),
+        MAX_PATCHES - 1,
+        0.1,
+        Affine3A::IDENTITY,
+    );
+    let read = dynaclay::io::load_session(&dir.path().join("full.dclay")).unwrap();
+    assert_eq!(read.clay.density.patches.len(), MAX_PATCHES);
+}
+
+#[test]
+fn an_import_asking_for_endless_detail_stays_within_the_patch_budget_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    // A bumpy sphere of 6000 points, which no error bound of 1e-7 % is met on.
+    let mut text = String::new();
+    for i in 0..6000 {
+        let y = 1.0 - 2.0 * (i as f32 + 0.5) / 6000.0;
+        let r = (1.0 - y * y).sqrt();
+        let phi = i as f32 * 2.399_963;
+        let bump = 1.0 + 0.05 * (7.0 * phi).sin() * (5.0 * y).cos();
+        let p = Vec3::new(r * phi.cos(), y, r * phi.sin()) * bump;
+        text += &format!("{} {} {}\n", p.x, p.y, p.z);
+    }
+    std::fs::write(dir.path().join("bumpy.xyz"), text).unwrap();
+    let out = dynaclay(
+        dir.path(),
+        &[
+            "import",
+            "bumpy.xyz",
+            "--out",
+            "b.dclay",
+            "--resolution",
+            "16",
+            "--error",
+            "1e-7",
+            "--max-depth",
+            "4",
+        ],
+    );
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(said.contains("the clay's budget"), "{said}");
+    let session = dynaclay::io::load_session(&dir.path().join("b.dclay")).unwrap();
+    let patches = session.clay.density.patches.len();
+    println!("{patches} patches");
+    assert!(patches <= MAX_PATCHES && patches > 100, "{patches}");
+}
