@@ -893,6 +893,71 @@ falloff_fu = 0.1
         field(&session("live")),
         "the final session"
     );
+
+    // The same recording tampered with (its checksums made valid again): the schedule is
+    // checked whole before anything replays, and a replay that cannot be exact is refused
+    // naming the file and the record, or runs in lockstep when asked and says so last.
+    use dynaclay_devices::record::{Record, Recording, ScheduleNote};
+    let recording = Recording::parse(&std::fs::read(&rec).unwrap()).unwrap();
+    let is_tick = |r: &Record| matches!(r, Record::Schedule(ScheduleNote::Tick { .. }));
+    let ticks: Vec<usize> = (0..recording.records.len())
+        .filter(|&i| is_tick(&recording.records[i]))
+        .collect();
+    assert!(ticks.len() > 100, "{} ticks", ticks.len());
+    let mut cut = recording.clone();
+    let half = ticks[ticks.len() / 2];
+    let mut index = 0;
+    cut.records.retain(|r| {
+        index += 1;
+        index <= half || !is_tick(r)
+    });
+    let mut swapped = recording.clone();
+    swapped.records.swap(ticks[10], ticks[11]);
+    let mut absurd = recording.clone();
+    let last_step = absurd
+        .records
+        .iter()
+        .rposition(|r| matches!(r, Record::Schedule(ScheduleNote::Step { .. })))
+        .unwrap();
+    if let Record::Schedule(ScheduleNote::Step { sample_tick, .. }) = &mut absurd.records[last_step]
+    {
+        *sample_tick = 1 << 40;
+    }
+    let mut none = recording.clone();
+    none.records.retain(|r| !matches!(r, Record::Schedule(_)));
+    for (name, bad, want) in [
+        ("cut.rec", &cut, "the schedule holds"),
+        ("swapped.rec", &swapped, &*format!("record {}", ticks[10])),
+        ("absurd.rec", &absurd, "1099511627776"),
+        ("none.rec", &none, "holds no schedule"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bad.to_bytes(64)).unwrap();
+        let device = format!("replay:{}", path.display());
+        let o = Command::new(BIN)
+            .args(["run", "--no-rt", "--script"])
+            .arg(&script)
+            .args(["--device", &device, "--out"])
+            .arg(dir.path().join("refused"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains(want) && err.contains("--lockstep"),
+            "{name}: {err}"
+        );
+        assert!(
+            !dir.path().join("refused").exists(),
+            "{name}: the run started"
+        );
+        let said = run(&["--device", &device, "--lockstep"], "lockstep");
+        let last = said.lines().last().unwrap_or_default();
+        assert!(
+            last.contains("replayed in lockstep") && last.contains(want),
+            "{name}: {said}"
+        );
+    }
 }
 
 /// A script's emboss step raises the clay's top under the image's white half by the depth and

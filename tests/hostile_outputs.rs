@@ -87,7 +87,10 @@ fn import_never_writes_its_mesh_over_its_input() {
     );
     refused(&out, &["--mesh"]);
     // An output folder that does not exist is said before the fit, not after it.
-    let out = dynaclay(dir.path(), &["import", "in.ply", "--out", "missing/o.dclay"]);
+    let out = dynaclay(
+        dir.path(),
+        &["import", "in.ply", "--out", "missing/o.dclay"],
+    );
     refused(&out, &["--out", "missing", "does not exist"]);
     assert_eq!(snapshot(dir.path()), before);
 }

@@ -13,5 +13,6 @@ pub use error::RecordError;
 pub use format::{FORMAT_VERSION, Record, Recording, ScheduleNote, WriteSummary};
 pub use recorder::{RecorderConfig, RecordingDevice, ScheduleLog};
 pub use replay::{
-    RecordedSchedule, RecordedStep, RecordedTick, ReplayDevice, ReplayDivergence, ScheduleGap,
+    RecordedSchedule, RecordedStep, RecordedTick, ReplayDevice, ReplayDivergence, SampleProblem,
+    ScheduleGap,
 };

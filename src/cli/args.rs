@@ -272,7 +272,9 @@ pub struct RunArgs {
     pub stl: bool,
     /// Run the loops in lockstep on the device's clock instead of in real time: one device
     /// sample, one simulation step, as fast as the machine goes; the same script always gives
-    /// the same sculpt, bit for bit (simulated arm only; a replay is always in lockstep).
+    /// the same sculpt, bit for bit (simulated arm, or a replay: its samples in lockstep
+    /// instead of as its recorded schedule says, which a recording without a usable schedule
+    /// needs).
     #[arg(long)]
     pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).
@@ -430,7 +432,9 @@ pub struct ProfileArgs {
     pub compare: Option<Vec<PathBuf>>,
     /// Run the loops in lockstep on the device's clock instead of in real time: one device
     /// sample, one simulation step, as fast as the machine goes; the same script always gives
-    /// the same sculpt, bit for bit (simulated arm only; a replay is always in lockstep).
+    /// the same sculpt, bit for bit (simulated arm, or a replay: its samples in lockstep
+    /// instead of as its recorded schedule says, which a recording without a usable schedule
+    /// needs).
     #[arg(long)]
     pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant, SystemTime};
 
 use crossbeam::channel::RecvTimeoutError;
 
-use dynaclay_devices::record::{RecordingDevice, ReplayDevice};
+use dynaclay_devices::record::{RecordingDevice, ReplayDevice, ScheduleGap};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
 
@@ -163,6 +163,13 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     plan.check_budget(&start.clay).map_err(CliError::Script)?;
     let seconds = args.seconds.unwrap_or(plan.seconds);
     let field = start.clay.density.clone();
+    // A replay is checked whole before anything is made: exact (as scheduled) unless lockstep
+    // is asked for, and a schedule that cannot drive an exact replay refused unless lockstep
+    // is asked for (`gap` says why it is not used).
+    let mut replay = match &spec {
+        DeviceSpec::Replay { file } => Some(checked_replay(file, args.lockstep)?),
+        _ => None,
+    };
     if args.out.exists() && !args.out.is_dir() {
         return Err(CliError::Usage(format!(
             "--out {}: exists and is not a directory; --out names the folder the run writes into",
@@ -202,20 +209,30 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             let trajectory = plan.trajectory(&map).map_err(CliError::Script)?;
             (Box::new(SimulatedArm::new(arm_config, trajectory)), info)
         }
-        DeviceSpec::Replay { file } => {
-            let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
-            if replay.schedule().is_ok() {
-                return run_scheduled_replay(args, &plan, &start, &session_path, replay);
-            }
-            let samples = replay.read_count();
-            return run_lockstep(
+        DeviceSpec::Replay { .. } => {
+            let (device, how) = replay.take().expect("loaded above for a replay");
+            let unused = match how {
+                ReplayUse::Scheduled => {
+                    return run_scheduled_replay(args, &plan, &start, &session_path, device);
+                }
+                ReplayUse::Lockstep { unused } => unused,
+            };
+            let samples = device.read_count();
+            let outputs = run_lockstep(
                 args,
                 &plan,
                 &start,
                 &session_path,
-                Box::new(replay),
+                Box::new(device),
                 samples,
-            );
+            )?;
+            match unused {
+                None => {
+                    say!("replayed in lockstep, as asked (the recording's schedule was not used)");
+                }
+                Some(gap) => say!("replayed in lockstep, as asked, not as scheduled: {gap}"),
+            }
+            return Ok(outputs);
         }
         hw => {
             let d = dynaclay_devices::open::build_driver(
@@ -534,9 +551,39 @@ fn finish_run(
     }
 }
 
-/// Replays a recorded threaded run with its schedule: every haptic tick sees the snapshot and
-/// fade it saw, every step takes the sample and commands it took, so the final field is the
-/// recorded run's bit for bit (given the same script and starting session).
+/// How a recording is replayed.
+enum ReplayUse {
+    /// As its schedule says: exact.
+    Scheduled,
+    /// In lockstep, as asked; `unused` says why the schedule could not have been used, if it
+    /// could not.
+    Lockstep { unused: Option<ScheduleGap> },
+}
+
+/// Loads the recording at `file` and checks its schedule whole, before anything runs.
+///
+/// # Errors
+/// [`CliError::Device`] for a file that cannot be read; [`CliError::Usage`] (exit 2) for a
+/// schedule that cannot drive an exact replay when lockstep was not asked for, naming the
+/// file and the record.
+fn checked_replay(file: &Path, lockstep: bool) -> Result<(ReplayDevice, ReplayUse), CliError> {
+    let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
+    let how = match (replay.schedule(), lockstep) {
+        (Ok(_), false) => ReplayUse::Scheduled,
+        (Ok(_), true) => ReplayUse::Lockstep { unused: None },
+        (Err(gap), true) => ReplayUse::Lockstep { unused: Some(gap) },
+        (Err(gap), false) => {
+            return Err(CliError::Usage(format!(
+                "--device replay:{}: {gap}; the replay could not be exact. Pass --lockstep to \
+                 replay its samples in lockstep (exact for a recording of a --lockstep run; a \
+                 threaded run's hand motion, not its field)",
+                file.display()
+            )));
+        }
+    };
+    Ok((replay, how))
+}
+
 fn run_scheduled_replay(
     args: &RunArgs,
     plan: &ScriptPlan,

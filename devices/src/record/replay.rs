@@ -65,7 +65,9 @@ pub enum ScheduleGap {
     #[error("the recorder dropped {0} record(s), so the schedule is incomplete")]
     Dropped(u64),
     /// Tick or step numbers do not follow each other.
-    #[error("{what} {found} follows {expected_before} (the schedule is out of order)")]
+    #[error(
+        "record {record}: {what} {found} follows {expected_before} (the schedule is out of order)"
+    )]
     OutOfOrder {
         /// "tick" or "step".
         what: &'static str,
@@ -73,6 +75,51 @@ pub enum ScheduleGap {
         found: u64,
         /// The number before it.
         expected_before: u64,
+        /// The record (0-based, in file order).
+        record: usize,
+    },
+    /// A simulation step took the sample of a tick the schedule does not hold, or of an
+    /// earlier tick than the step before it.
+    #[error(
+        "record {record}: simulation step {step} took the sample of haptic tick {sample_tick}, but {why}"
+    )]
+    BadSample {
+        /// The step.
+        step: u64,
+        /// The tick it names.
+        sample_tick: u64,
+        /// What is wrong with it.
+        why: SampleProblem,
+        /// The record (0-based, in file order).
+        record: usize,
+    },
+    /// The schedule holds fewer (or more) ticks than the recording holds device reads: part of
+    /// it is missing, and a replay would stop short or run past the reads.
+    #[error(
+        "the schedule holds {ticks} haptic ticks for {reads} device reads (one tick per read; the last read may lack its tick), so part of it is missing"
+    )]
+    Incomplete {
+        /// Ticks in the schedule.
+        ticks: u64,
+        /// Reads in the recording.
+        reads: u64,
+    },
+}
+
+/// What is wrong with the tick a recorded step names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum SampleProblem {
+    /// The schedule holds fewer ticks.
+    #[error("the schedule holds {ticks} ticks")]
+    PastTheEnd {
+        /// Ticks in the schedule.
+        ticks: u64,
+    },
+    /// The step before took a later tick's sample (samples only move forward).
+    #[error("the step before took tick {before}")]
+    Backwards {
+        /// The tick the step before took.
+        before: u64,
     },
 }
 
@@ -123,7 +170,9 @@ impl ReplayDevice {
         let mut writes = Vec::new();
         let mut schedule = RecordedSchedule::default();
         let mut order: Result<(), ScheduleGap> = Ok(());
-        for record in recording.records {
+        // The record of the last step note, to name it when its tick is past the end.
+        let mut last_step_record = 0;
+        for (index, record) in recording.records.into_iter().enumerate() {
             match record {
                 Record::Read(result) => reads.push(result),
                 Record::Write { force_n, result } => writes.push((force_n, result)),
@@ -138,6 +187,7 @@ impl ReplayDevice {
                             what: "tick",
                             found: tick,
                             expected_before: before,
+                            record: index,
                         });
                     }
                     schedule.ticks.push(RecordedTick {
@@ -150,20 +200,55 @@ impl ReplayDevice {
                     sample_tick,
                     commands,
                 }) => {
-                    let index = schedule.steps.len() as u64;
-                    if order.is_ok() && step != index {
+                    let at = schedule.steps.len() as u64;
+                    if order.is_ok() && step != at {
                         order = Err(ScheduleGap::OutOfOrder {
                             what: "step",
                             found: step,
-                            expected_before: index.wrapping_sub(1),
+                            expected_before: at.wrapping_sub(1),
+                            record: index,
                         });
                     }
+                    if let Some(before) = schedule.steps.last().map(|s| s.sample_tick)
+                        && order.is_ok()
+                        && sample_tick < before
+                    {
+                        order = Err(ScheduleGap::BadSample {
+                            step,
+                            sample_tick,
+                            why: SampleProblem::Backwards { before },
+                            record: index,
+                        });
+                    }
+                    last_step_record = index;
                     schedule.steps.push(RecordedStep {
                         sample_tick,
                         commands,
                     });
                 }
             }
+        }
+        let ticks = schedule.ticks.len() as u64;
+        // Checked whole before any of it is replayed: every step's tick is in the schedule
+        // (ticks are in order, so the last step's is the largest), and there is a tick for
+        // every read.
+        if order.is_ok()
+            && let Some(last) = schedule.steps.last()
+            && last.sample_tick > ticks
+        {
+            order = Err(ScheduleGap::BadSample {
+                step: schedule.steps.len() as u64 - 1,
+                sample_tick: last.sample_tick,
+                why: SampleProblem::PastTheEnd { ticks },
+                record: last_step_record,
+            });
+        }
+        let reads_count = reads.len() as u64;
+        if order.is_ok() && !(ticks == reads_count || ticks + 1 == reads_count) {
+            order = Err(ScheduleGap::Incomplete {
+                ticks,
+                reads: reads_count,
+            });
         }
         let schedule = if schedule.ticks.is_empty() && schedule.steps.is_empty() {
             Err(ScheduleGap::Absent)
