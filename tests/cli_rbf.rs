@@ -294,7 +294,8 @@ fn sculpt_applies_contact_steps_to_the_rbf_and_refuses_others() {
     let stderr = String::from_utf8_lossy(&refused.stderr);
     assert_eq!(refused.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("step 2: the RBF clay takes contact tools only, not the remove action"),
+        stderr.contains("step 2: the RBF clay takes contact tools only, not the remove action")
+            && stderr.contains("edits.toml"),
         "{stderr}"
     );
     assert!(!out.exists());

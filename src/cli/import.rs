@@ -92,6 +92,11 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     bar.finish_and_clear();
     let field = field.map_err(|e| match e {
         ImportError::Interrupted => interrupted(),
+        // A cloud without extent is bad input, not a failed fit.
+        ImportError::Fit {
+            source: crate::fit::CloudFitError::Degenerate,
+            ..
+        } => CliError::Usage(e.to_string()),
         ImportError::Fit { .. } => CliError::Output(e.to_string()),
         other => CliError::Usage(other.to_string()),
     })?;

@@ -15,6 +15,10 @@ use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
 use crate::pointset::{PointSet, PointSetOptions, write_point_ply};
 use crate::tools::{EmbossParams, Projection, Relief};
 
+/// How far a `--pull` target may lie from the points' box, in sizes of the box (its longest
+/// side).
+const MAX_PULL_REACH: f32 = 1.0;
+
 /// Most mesh cells per axis.
 const MAX_MESH_CELLS: u32 = 512;
 
@@ -72,6 +76,24 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
         set.spacing_m,
         build_s
     );
+    // A pull reaches at most MAX_PULL_REACH of the cloud's sizes from its box, checked for
+    // every pull before the first.
+    let (lo, hi) = set.bounds();
+    let size = (hi - lo).max_element();
+    for target in &args.pull {
+        let target = Vec3::from(*target);
+        let away = (target.clamp(lo, hi) - target).length();
+        if !(target.is_finite() && away <= MAX_PULL_REACH * size) {
+            return Err(CliError::Usage(format!(
+                "--pull {},{},{}: lies {away:.3e} from the points' box, past the {MAX_PULL_REACH} \
+                 box sizes ({:.3e}) a pull reaches",
+                target.x,
+                target.y,
+                target.z,
+                MAX_PULL_REACH * size
+            )));
+        }
+    }
     for target in &args.pull {
         pull(&mut set, Vec3::from(*target), args.steps)?;
     }
@@ -160,8 +182,12 @@ fn emboss_image(
 
 /// Drags the surface point nearest to `target` there ([`crate::pointset::pull`]).
 fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
-    let report = crate::pointset::pull(set, target, steps)
-        .map_err(|e| CliError::Output(format!("--pull: {e}")))?;
+    let report = crate::pointset::pull(set, target, steps).map_err(|e| match e {
+        crate::pointset::PointSetError::PullTooFar { .. } => {
+            CliError::Usage(format!("--pull {},{},{}: {e}", target.x, target.y, target.z))
+        }
+        e => CliError::Output(format!("--pull: {e}")),
+    })?;
     say!(
         "pull to {target}: {} points in the region, {} points in all",
         report.in_region,

@@ -39,6 +39,15 @@ pub enum RbfCommandError {
     /// Writing the imported clay as a session failed (exit 1).
     #[error("writing the imported clay: {0}")]
     Save(#[source] SessionError),
+    /// A step of the `--sculpt` script failed (exit 2 for a step the RBF cannot take, 1
+    /// otherwise).
+    #[error("{}: {source}", script.display())]
+    SculptScript {
+        /// The script.
+        script: std::path::PathBuf,
+        /// What failed.
+        source: RbfSculptError,
+    },
     /// An output breaks the output rule; refused before any work (exit 2).
     #[error("{0}")]
     OutputRefused(#[from] OutputRefused),
@@ -64,11 +73,23 @@ impl RbfCommandError {
             | Self::Session(_)
             | Self::OutputRefused(_)
             | Self::Particles(_)
-            | Self::Sculpt(RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. }) => 2,
-            Self::Flatten(_) | Self::Fit(_) | Self::File(_) | Self::Save(_) | Self::Sculpt(_) => 1,
+            | Self::Sculpt(RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. })
+            | Self::SculptScript {
+                source: RbfSculptError::NotContact { .. } | RbfSculptError::BadTool { .. },
+                ..
+            } => 2,
+            Self::Flatten(_)
+            | Self::Fit(_)
+            | Self::File(_)
+            | Self::Save(_)
+            | Self::Sculpt(_)
+            | Self::SculptScript { .. } => 1,
         }
     }
 }
+
+/// The largest `--offset`, in knot spans of the clay's base patch.
+const MAX_OFFSET_SPANS: f32 = 4.0;
 
 /// What `dynaclay rbf` produced.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,6 +116,22 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
         rule.check("--clay", clay, OutputKind::Session)?;
     }
     let session = load_session(&args.session).map_err(RbfCommandError::Session)?;
+    let Some(base) = session.clay.density.patches.first() else {
+        return Err(RbfCommandError::Usage(format!(
+            "{}: the session holds no density patch",
+            args.session.display()
+        )));
+    };
+    // The constraint points sit this far inside and outside the surface: past a few knot
+    // spans they leave the clay's features (and, far past, its box) behind.
+    let max_offset = MAX_OFFSET_SPANS * base.lattice.spacing;
+    if let Some(offset) = args.offset
+        && offset > max_offset
+    {
+        return Err(RbfCommandError::Usage(format!(
+            "--offset {offset}: at most {MAX_OFFSET_SPANS} knot spans of the clay ({max_offset})"
+        )));
+    }
     let options = ExportOptions {
         particles: args.particles as usize,
         steps: args.steps as usize,
@@ -121,7 +158,12 @@ pub fn rbf(args: &RbfArgs) -> Result<RbfOutcome, RbfCommandError> {
                 ..RbfOptions::with_offset(offset)
             };
             let mut sculpt = RbfSculpt::from_clay(&lattice, options.particles, options.steps, fit)?;
-            let actions = sculpt.run_script(&script, &session.tools)?;
+            let actions = sculpt
+                .run_script(&script, &session.tools)
+                .map_err(|source| RbfCommandError::SculptScript {
+                    script: path.clone(),
+                    source,
+                })?;
             say!(
                 "rbf: {actions} contact actions applied to the clay as the RBF ({} centres)",
                 sculpt.rbf().len()

@@ -29,7 +29,20 @@ pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
         .check_input(&args.session, 2)
         .map_err(CliError::OverBudget)?;
     let session = load_session(&args.session).map_err(CliError::Session)?;
-    let octree = mesh_clay(&session.clay, args.cells_per_span, &budget)?;
+    if session.clay.density.patches.is_empty() {
+        return Err(CliError::Usage(format!(
+            "{}: the session holds no density patch; there is nothing to render",
+            args.session.display()
+        )));
+    }
+    let octree = mesh_clay(&session.clay, args.cells_per_span, &budget).map_err(|e| match e {
+        CliError::Output(m) => CliError::Output(format!("{}: {m}", args.session.display())),
+        CliError::OverBudget(mut o) => {
+            o.what = format!("{}: {}", args.session.display(), o.what);
+            CliError::OverBudget(o)
+        }
+        other => other,
+    })?;
     let outcome = render_sculpt(
         &octree,
         session.clay.colour.as_ref(),

@@ -43,7 +43,8 @@ pub fn mesh_clay(
             "meshing the clay: the session has no density patch".to_owned(),
         ));
     }
-    if several {
+    {
+        // One grid spans every patch at the finest spacing (one patch: its own).
         let (lo, hi) = density.support();
         let spacing = density.finest_spacing();
         let widest = ((hi - lo) / (spacing / cells_per_span.max(1) as f32)).max_element();

@@ -268,7 +268,9 @@ fn note_levels(levels: &[LevelReport], over_budget: bool, note: &mut dyn FnMut(S
     }
     if over_budget {
         note(format!(
-            "warning: the clay's budget ({} patches, {} coefficients) stopped the detail with              nodes still over the error bound (the worst were refined first); raise --error or              lower --max-depth",
+            "warning: the clay's budget ({} patches, {} coefficients) stopped the detail with \
+             nodes still over the error bound (the worst were refined first); raise --error or \
+             lower --max-depth",
             crate::field::MAX_PATCHES,
             crate::field::MAX_CLAY_COEFFS
         ));

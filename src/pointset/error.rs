@@ -35,6 +35,22 @@ pub enum PointSetError {
     /// The sculpting region could not be set up.
     #[error("sculpting region: {0}")]
     Region(String),
+    /// A pull's target lies so far from the surface that its sculpting region would hold
+    /// more than [`MAX_PULL_REGION_NODES`](super::pull::MAX_PULL_REGION_NODES) lattice nodes;
+    /// refused before anything is allocated.
+    #[error(
+        "the pull reaches {reach:.3e} from the surface: its sculpting region would hold {nodes:.3e} lattice nodes of spacing {spacing:.3e}, past the {max} a pull may use; pull nearer the surface"
+    )]
+    PullTooFar {
+        /// Distance from the nearest surface point to the target.
+        reach: f32,
+        /// Lattice nodes the region would hold.
+        nodes: f64,
+        /// The lattice spacing (the point spacing).
+        spacing: f32,
+        /// The most allowed.
+        max: usize,
+    },
     /// An emboss's parameters are invalid (the message names the parameter).
     #[error("emboss: {0}")]
     Emboss(String),

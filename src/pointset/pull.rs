@@ -25,6 +25,10 @@ pub struct PullReport {
     pub points: usize,
 }
 
+/// The most lattice nodes a pull's sculpting region may hold (128³: about 2 GB of
+/// simulation state at most).
+pub const MAX_PULL_REGION_NODES: usize = 1 << 21;
+
 /// Drags the surface point nearest to `target` there: a sculpting region around both, the
 /// dynamics for `steps` steps (plastic clay that does not yield back), resampling every
 /// [`RESAMPLE_EVERY`] steps and once at the end.
@@ -46,6 +50,20 @@ pub fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<PullReport, 
     let reach = (target - nearest).length();
     let margin = Vec3::splat(reach + 6.0 * h);
     let (lo, hi) = (nearest.min(target) - margin, nearest.max(target) + margin);
+    // The region's lattice has a node per point spacing: bounded before it is made.
+    let nodes = ((hi - lo) / h + Vec3::splat(4.0))
+        .to_array()
+        .iter()
+        .map(|&n| f64::from(n))
+        .product::<f64>();
+    if !(nodes.is_finite() && nodes <= MAX_PULL_REGION_NODES as f64) {
+        return Err(PointSetError::PullTooFar {
+            reach,
+            nodes,
+            spacing: h,
+            max: MAX_PULL_REGION_NODES,
+        });
+    }
     let mut opts = SculptOptions::for_spacing(h);
     opts.material = Material {
         yield_density: 0.0,
