@@ -1,4 +1,4 @@
-//! The long fuzz run over sessions, scripts and recordings: the mutations and checks of
+//! The long fuzz run over sessions, scripts, recordings and point clouds: the mutations and checks of
 //! `tests/fuzz/mod.rs`, a million cases or more, outside CI.
 //!
 //! ```text
@@ -6,7 +6,7 @@
 //! DYNACLAY_FUZZ_CASES=3000000 cargo bench --bench fuzz_inputs
 //! ```
 //!
-//! The cases are split evenly over the three formats, each format on its own thread. A
+//! The cases are split evenly over the four formats, each format on its own thread. A
 //! failing case is shrunk by proptest and printed, and the run exits 1. The summary gives the
 //! cases and time per format, for bench/RESULTS.md.
 
@@ -51,8 +51,8 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(1_000_000);
-    let per = total.div_ceil(3);
-    println!("fuzz_inputs: {per} cases per format ({} in all)", 3 * per);
+    let per = total.div_ceil(4);
+    println!("fuzz_inputs: {per} cases per format ({} in all)", 4 * per);
     let started = Instant::now();
     let sessions = std::thread::spawn(move || {
         run("sessions", per, 1, &fuzz::session_case(), |b| {
@@ -69,11 +69,17 @@ fn main() {
             fuzz::check_recording(b)
         })
     });
+    let clouds = std::thread::spawn(move || {
+        run("clouds", per, 4, &fuzz::cloud_case(), |(form, b)| {
+            fuzz::check_cloud(*form, b)
+        })
+    });
     let mut failed = false;
     for (format, (name, handle)) in [
         ("sessions", sessions),
         ("scripts", scripts),
         ("recordings", recordings),
+        ("clouds", clouds),
     ]
     .into_iter()
     .enumerate()
@@ -97,7 +103,7 @@ fn main() {
     }
     println!(
         "fuzz_inputs: {} cases in {:.1} s wall",
-        3 * per,
+        4 * per,
         started.elapsed().as_secs_f64()
     );
     if failed {

@@ -1,4 +1,6 @@
-//! Malformed session files, scripts and recordings are refused with a typed error, never a
+//! Malformed session files (of format 2: mapped patches, material grids, pins), scripts,
+//! recordings (with the engine's schedule) and point clouds (XYZ, ASCII and binary PLY) are
+//! refused with a typed error, never a
 //! panic, and parsing one never takes more heap than a bound on its size (see
 //! `tests/fuzz/mod.rs` for the mutations and the bound). 256 cases per format here; the long
 //! run of a million or more is `cargo bench --bench fuzz_inputs` (figures in bench/RESULTS.md).
@@ -23,7 +25,17 @@ fn the_fixtures_themselves_parse() {
         "checksums recomputed as the writer made them"
     );
     let parsed = dynaclay_devices::Recording::parse(&rec).unwrap();
-    assert_eq!(parsed.records.len(), 300);
+    // 150 reads, 150 writes, 150 ticks and 75 steps.
+    assert_eq!(parsed.records.len(), 525);
+    let replay = dynaclay_devices::ReplayDevice::from_recording(parsed);
+    assert_eq!(replay.schedule().unwrap().steps.len(), 75);
+    let session = dynaclay::io::decode(&bytes, std::path::Path::new("fixture.dclay")).unwrap();
+    assert_eq!(session.clay.density.patches.len(), 2);
+    assert_eq!(session.material.grids.len(), 2);
+    assert_eq!(session.clay.constraints.len(), 3);
+    for form in 0..3 {
+        fuzz::check_cloud(form, &fuzz::valid_cloud_bytes(form)).unwrap();
+    }
     fuzz::check_script(dynaclay::engine::DEFAULT_SCRIPT).unwrap();
 }
 
@@ -50,5 +62,10 @@ proptest! {
     #[test]
     fn damaged_recordings_are_refused_or_replayed(bytes in fuzz::recording_case()) {
         fuzz::check_recording(&bytes)?;
+    }
+
+    #[test]
+    fn damaged_point_clouds_are_refused_or_read_whole((form, bytes) in fuzz::cloud_case()) {
+        fuzz::check_cloud(form, &bytes)?;
     }
 }

@@ -183,9 +183,10 @@ fn emboss_image(
 /// Drags the surface point nearest to `target` there ([`crate::pointset::pull`]).
 fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
     let report = crate::pointset::pull(set, target, steps).map_err(|e| match e {
-        crate::pointset::PointSetError::PullTooFar { .. } => {
-            CliError::Usage(format!("--pull {},{},{}: {e}", target.x, target.y, target.z))
-        }
+        crate::pointset::PointSetError::PullTooFar { .. } => CliError::Usage(format!(
+            "--pull {},{},{}: {e}",
+            target.x, target.y, target.z
+        )),
         e => CliError::Output(format!("--pull: {e}")),
     })?;
     say!(

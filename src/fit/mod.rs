@@ -25,7 +25,8 @@ pub use import::{
     is_importable, is_point_cloud,
 };
 pub use points::{
-    MAX_POINTS, PointCloud, PointColours, PointsError, read_points, read_points_with_colours,
+    MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz, read_points,
+    read_points_with_colours,
 };
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SignedDistance, signed_distance};
 pub use volume::{

@@ -21,11 +21,15 @@ use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use dynaclay::dynamics::Material;
+use dynaclay::dynamics::{Constraint, MaterialGrid};
 use dynaclay::engine::{DEFAULT_SCRIPT, ScriptPlan};
 use dynaclay::field::BSplineLattice;
+use dynaclay::fit::{parse_ply, parse_xyz};
+use dynaclay::io::MaterialFields;
 use dynaclay::io::{Session, ToolPreset, decode, encode, parse_script};
 use dynaclay::tools::{Clay, ColourField, ToolAction, ToolShape};
-use dynaclay_devices::record::format::{BlockWriter, encode_read, encode_write};
+use dynaclay_devices::record::ScheduleNote;
+use dynaclay_devices::record::format::{BlockWriter, encode_read, encode_schedule, encode_write};
 use dynaclay_devices::{DeviceState, Recording, ReplayDevice, SimArmConfig};
 use glam::{Quat, Vec3};
 use proptest::prelude::*;
@@ -112,7 +116,12 @@ pub fn heap_bound(input_len: usize) -> u64 {
 
 /// Cases each check accepted (parsed `Ok`), by format: sessions, scripts, recordings. The
 /// rest were refused with a typed error.
-pub static ACCEPTED: [AtomicU64; 3] = [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)];
+pub static ACCEPTED: [AtomicU64; 4] = [
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+];
 
 fn accepted(format: usize) {
     // NOTE: Relaxed: a statistic, read once after the runner threads are joined.
@@ -264,7 +273,9 @@ pub fn mutate_text(text: &str, mutations: &[Mutation]) -> String {
 // ---------------------------------------------------------------------------------------
 // Sessions.
 
-/// A small session with every section: a patch, colour, material and a tool.
+/// A small session of format 2 with every section: a base patch and a detail patch under a
+/// turned map, colour, a material with painted stiffness and plasticity grids, pins of
+/// each kind and a tool.
 #[must_use]
 pub fn valid_session_bytes() -> Vec<u8> {
     let mut lattice = BSplineLattice::zeros([4, 5, 4], 0.25, Vec3::new(0.5, -1.0, 0.0)).unwrap();
@@ -273,11 +284,49 @@ pub fn valid_session_bytes() -> Vec<u8> {
     }
     let mut colour = ColourField::matching(&lattice).unwrap();
     colour.channels[3].coeffs.fill(0.5);
+    let mut density = dynaclay::field::MultiPatchField::new(lattice);
+    let mut detail = BSplineLattice::zeros([4, 4, 4], 0.125, Vec3::new(0.6, -0.9, 0.1)).unwrap();
+    detail.coeffs[21] = 0.25;
+    density.push(
+        detail,
+        glam::Affine3A::from_rotation_translation(
+            Quat::from_rotation_z(0.3),
+            Vec3::new(0.1, 0.0, -0.2),
+        ),
+    );
     let session = Session {
         clay: Clay {
-            density: dynaclay::field::MultiPatchField::new(lattice),
+            density,
             colour: Some(colour),
-            constraints: Vec::new(),
+            constraints: vec![
+                Constraint::Point {
+                    at: Vec3::new(0.6, -0.5, 0.3),
+                },
+                Constraint::Curve {
+                    points: vec![Vec3::new(0.6, -0.5, 0.3), Vec3::new(0.9, -0.5, 0.3)],
+                },
+                Constraint::Normal {
+                    at: Vec3::new(0.7, -0.4, 0.2),
+                    normal: Vec3::Y,
+                },
+            ],
+        },
+        material: MaterialFields {
+            uniform: Material::PLASTIC,
+            grids: vec![
+                MaterialGrid {
+                    name: "stiffness".into(),
+                    dims: [2, 2, 2],
+                    values: vec![
+                        900.0, 1000.0, 1100.0, 1200.0, 1300.0, 1400.0, 1500.0, 1600.0,
+                    ],
+                },
+                MaterialGrid {
+                    name: "plasticity".into(),
+                    dims: [1, 2, 1],
+                    values: vec![0.0, 8.0],
+                },
+            ],
         },
         tools: vec![ToolPreset {
             name: "blob".into(),
@@ -413,7 +462,8 @@ pub fn check_script(text: &str) -> Result<(), TestCaseError> {
 // ---------------------------------------------------------------------------------------
 // Recordings.
 
-/// A recording of 300 reads and writes in blocks of 64, with one error of each kind.
+/// A recording of 150 reads and 150 writes in blocks of 64, with one error of each kind, and the
+/// engine's schedule beside them (a tick per read, a step every other tick).
 #[must_use]
 pub fn valid_recording_bytes() -> Vec<u8> {
     let info = SimArmConfig::default().info;
@@ -436,8 +486,23 @@ pub fn valid_recording_bytes() -> Vec<u8> {
         let force = Vec3::new(t, -t, 0.5);
         w.push(&encode_write(force, &Ok(()), i + 1, i * 1000))
             .expect("write");
+        w.push(&encode_schedule(&ScheduleNote::Tick {
+            tick: i + 1,
+            snapshot_version: Some(i / 2),
+            fade: 1.0,
+        }))
+        .expect("tick");
+        if i % 2 == 0 {
+            w.push(&encode_schedule(&ScheduleNote::Step {
+                step: i / 2,
+                sample_tick: i,
+                commands: u32::from(i == 0),
+            }))
+            .expect("step");
+        }
     }
-    w.finish(3).expect("end").0
+    // No drops, so a whole schedule is what the mutations start from.
+    w.finish(0).expect("end").0
 }
 
 /// Recomputes the header's, every block's and the end marker's CRC (layout at the top of
@@ -501,6 +566,11 @@ pub fn check_recording(bytes: &[u8]) -> Result<(), TestCaseError> {
     let (outcome, peak) = peak_heap_during(|| {
         Recording::parse(bytes).map(|r| {
             let replay = ReplayDevice::from_recording(r);
+            // A schedule that is accepted is whole: every step's sample is in it.
+            if let Ok(schedule) = replay.schedule() {
+                let ticks = schedule.ticks.len() as u64;
+                assert!(schedule.steps.iter().all(|s| s.sample_tick <= ticks));
+            }
             replay.read_count()
         })
     });
@@ -512,6 +582,102 @@ pub fn check_recording(bytes: &[u8]) -> Result<(), TestCaseError> {
     match outcome {
         Err(e) => prop_assert!(!e.to_string().is_empty()),
         Ok(_) => accepted(2),
+    }
+    Ok(())
+}
+
+// ---------------------------------------------------------------------------------------
+// Point clouds.
+
+/// A small cloud in each text and binary form the importer reads: XYZ with normals, ASCII
+/// PLY and binary little-endian PLY, with normals and colours.
+#[must_use]
+pub fn valid_cloud_bytes(form: u8) -> Vec<u8> {
+    let points: Vec<[f32; 6]> = (0..40)
+        .map(|i| {
+            let t = i as f32 * 0.37;
+            [t.sin(), t.cos(), t * 0.1, t.sin(), t.cos(), 0.0]
+        })
+        .collect();
+    match form % 3 {
+        0 => points
+            .iter()
+            .map(|p| format!("{} {} {} {} {} {}\n", p[0], p[1], p[2], p[3], p[4], p[5]))
+            .collect::<String>()
+            .into_bytes(),
+        1 => {
+            let mut text = format!(
+                "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\n\
+                 property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+                 property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+                points.len()
+            );
+            for p in &points {
+                text += &format!(
+                    "{} {} {} {} {} {} 200 100 50\n",
+                    p[0], p[1], p[2], p[3], p[4], p[5]
+                );
+            }
+            text.into_bytes()
+        }
+        _ => {
+            let mut bytes = format!(
+                "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\n\
+                 property float y\nproperty float z\nproperty float nx\nproperty float ny\n\
+                 property float nz\nend_header\n",
+                points.len()
+            )
+            .into_bytes();
+            for p in &points {
+                for v in p {
+                    bytes.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            bytes
+        }
+    }
+}
+
+/// A damaged point cloud: one of the three forms, mutated.
+pub fn cloud_case() -> impl Strategy<Value = (u8, Vec<u8>)> {
+    (mutations(), 0u8..3).prop_map(|(m, form)| {
+        let mut bytes = valid_cloud_bytes(form);
+        mutate_bytes(&mut bytes, &m);
+        (form, bytes)
+    })
+}
+
+/// Parses a damaged cloud as its form says: an error naming the file, or a cloud whose
+/// points (and normals, when it has them) are all finite; within the heap bound.
+///
+/// # Errors
+/// A failed check.
+pub fn check_cloud(form: u8, bytes: &[u8]) -> Result<(), TestCaseError> {
+    let file = Path::new("damaged.ply");
+    let (parsed, peak) = peak_heap_during(|| {
+        if form % 3 == 0 {
+            parse_xyz(bytes, file)
+        } else {
+            parse_ply(bytes, file)
+        }
+    });
+    prop_assert!(
+        peak <= heap_bound(bytes.len()),
+        "parsing {} bytes took {peak} bytes of heap",
+        bytes.len()
+    );
+    match parsed {
+        Err(e) => {
+            let text = e.to_string();
+            prop_assert!(
+                text.contains("damaged.ply"),
+                "the error names the file: {text}"
+            );
+        }
+        Ok(cloud) => {
+            prop_assert!(cloud.points.iter().all(|p| p.is_finite()));
+            accepted(3);
+        }
     }
     Ok(())
 }
