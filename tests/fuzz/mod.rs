@@ -655,7 +655,7 @@ pub fn cloud_case() -> impl Strategy<Value = (u8, Vec<u8>)> {
 pub fn check_cloud(form: u8, bytes: &[u8]) -> Result<(), TestCaseError> {
     let file = Path::new("damaged.ply");
     let (parsed, peak) = peak_heap_during(|| {
-        if form % 3 == 0 {
+        if form.is_multiple_of(3) {
             parse_xyz(bytes, file)
         } else {
             parse_ply(bytes, file)
