@@ -1,7 +1,10 @@
 //! Faults: a stalled simulation fades the force to zero within the staleness limit while the
 //! haptic loop keeps ticking; a device disconnect sends zero force, keeps the engine alive and
 //! shows in the counters. Both run on an injected clock or in lockstep: no wall-clock rate or
-//! slack is assumed, so they pass on a machine under any load.
+//! slack is assumed, so they pass on a machine under any load. A panic injected into the
+//! graphics loop (through its mesh sink) or the haptic loop (through the device) stops every
+//! loop, closes the device when its loop survived, and hands back the session; these wait for
+//! the loop to die, an event, and assume no rate.
 
 mod common;
 
@@ -201,4 +204,148 @@ fn a_lockstep_run_whose_device_fails_to_close_still_hands_back_the_sculpt() {
         report.session.clay.density.patches[0].lattice.dims,
         field.dims
     );
+}
+
+/// What a [`Watched`] device saw.
+#[derive(Default)]
+struct Seen {
+    reads: u64,
+    last_force_n: Option<glam::Vec3>,
+    closed: bool,
+}
+
+/// The simulated arm, watched: it counts reads, keeps the last force and whether it was
+/// closed, and panics on read number `panic_at_read` (the fault injected into the haptic
+/// loop).
+struct Watched {
+    arm: dynaclay_devices::SimulatedArm,
+    seen: std::sync::Arc<std::sync::Mutex<Seen>>,
+    panic_at_read: Option<u64>,
+}
+
+impl dynaclay_devices::HapticDevice for Watched {
+    fn info(&self) -> dynaclay_devices::DeviceInfo {
+        self.arm.info()
+    }
+    fn open(&mut self) -> Result<(), dynaclay_devices::DeviceError> {
+        self.arm.open()
+    }
+    fn close(&mut self) -> Result<(), dynaclay_devices::DeviceError> {
+        self.seen.lock().unwrap().closed = true;
+        self.arm.close()
+    }
+    fn is_open(&self) -> bool {
+        self.arm.is_open()
+    }
+    fn read(&mut self) -> Result<dynaclay_devices::DeviceState, dynaclay_devices::DeviceError> {
+        let reads = {
+            let mut seen = self.seen.lock().unwrap();
+            seen.reads += 1;
+            seen.reads
+        };
+        assert!(
+            Some(reads) != self.panic_at_read,
+            "injected: the haptic loop panics"
+        );
+        self.arm.read()
+    }
+    fn write_force(&mut self, force_n: glam::Vec3) -> Result<(), dynaclay_devices::DeviceError> {
+        self.seen.lock().unwrap().last_force_n = Some(force_n);
+        self.arm.write_force(force_n)
+    }
+}
+
+/// A mesh sink that panics on its `panic_at`-th update (the fault injected into the graphics
+/// loop).
+struct PanickingSink {
+    updates: u32,
+    panic_at: u32,
+}
+
+impl dynaclay::mesh::MeshSink for PanickingSink {
+    fn update(&mut self, _: &dynaclay::mesh::BrickOctree, _: &dynaclay::mesh::RefreshReport) {
+        self.updates += 1;
+        assert!(
+            self.updates != self.panic_at,
+            "injected: the graphics loop panics"
+        );
+    }
+}
+
+/// Starts the threaded engine on the push script with `device` and `sink`, waits until a
+/// loop has ended (the injected panic), and stops it. Waiting is for an event, not a rate.
+fn run_until_a_loop_dies(
+    panic_at_read: Option<u64>,
+    sink: Box<dyn dynaclay::mesh::MeshSink>,
+) -> (
+    dynaclay::engine::EngineError,
+    std::sync::Arc<std::sync::Mutex<Seen>>,
+) {
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Seen::default()));
+    let device = Box::new(Watched {
+        arm: s.arm,
+        seen: seen.clone(),
+        panic_at_read,
+    });
+    let engine = Engine::start(&s.config, s.field, device, sink).expect("engine starts");
+    // A failsafe only: the injected panic comes within the first second of device reads.
+    let give_up = Instant::now() + Duration::from_secs(120);
+    while engine.is_alive() {
+        assert!(Instant::now() < give_up, "no loop died");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let Err(e) = engine.stop() else {
+        panic!("a stop after a loop panicked reported success")
+    };
+    (e, seen)
+}
+
+#[test]
+fn a_panic_in_the_graphics_loop_stops_every_loop_closes_the_device_and_keeps_the_session() {
+    let (e, seen) = run_until_a_loop_dies(
+        None,
+        Box::new(PanickingSink {
+            updates: 0,
+            panic_at: 3,
+        }),
+    );
+    let text = e.to_string();
+    let dynaclay::engine::EngineError::LoopsFailed {
+        failed,
+        device_closed,
+        session,
+    } = e
+    else {
+        panic!("{text}")
+    };
+    assert!(
+        failed.contains("graphics") && !failed.contains("haptic"),
+        "{text}"
+    );
+    assert!(device_closed, "{text}");
+    let seen = seen.lock().unwrap();
+    assert!(seen.closed, "the device was closed");
+    let session = session.expect("the simulation handed back its session");
+    assert!(!session.clay.density.patches.is_empty());
+    assert!(
+        text.contains("zero force") && text.contains("session kept"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_panic_in_the_haptic_loop_stops_every_loop_and_keeps_the_session() {
+    let (e, seen) = run_until_a_loop_dies(Some(200), Box::new(HeadlessSink::default()));
+    let text = e.to_string();
+    let dynaclay::engine::EngineError::LoopsFailed {
+        failed, session, ..
+    } = e
+    else {
+        panic!("{text}")
+    };
+    assert!(failed.contains("haptic"), "{text}");
+    assert!(session.is_some(), "{text}");
+    // The haptic loop is gone: no read after the injected one.
+    assert_eq!(seen.lock().unwrap().reads, 200);
 }

@@ -316,7 +316,9 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     }
     drop(commands);
     let cpu_busy = watch.as_ref().and_then(PlatformWatch::loops_stopping);
-    let report = engine.stop().map_err(CliError::Engine)?;
+    let report = engine
+        .stop()
+        .map_err(|e| keep_session_of_failed_run(e, &session_path))?;
     let summaries = report.loops.iter().map(|r| r.summary()).collect();
     let judged = watch.and_then(|w| {
         w.after(summaries, rt, cpu_busy)
@@ -548,6 +550,30 @@ fn finish_run(
     match failures.into_iter().next() {
         Some(first) => Err(CliError::Script(first)),
         None => Ok(()),
+    }
+}
+
+/// A run whose loops failed: the session the simulation handed back is written where
+/// `--recover` finds it (the autosave's recovery file beside `session_path`), and the error
+/// says so.
+fn keep_session_of_failed_run(e: EngineError, session_path: &Path) -> CliError {
+    let EngineError::LoopsFailed {
+        session: Some(session),
+        ..
+    } = &e
+    else {
+        return CliError::Engine(e);
+    };
+    let recovery = crate::io::recovery_path_for(session_path);
+    match crate::io::save_session(&recovery, session) {
+        Ok(()) => CliError::Output(format!(
+            "engine error: {e}; the sculpt is in {} (run again with --recover to go on from it)",
+            recovery.display()
+        )),
+        Err(save) => CliError::Output(format!(
+            "engine error: {e}; and the session could not be kept in {}: {save}",
+            recovery.display()
+        )),
     }
 }
 

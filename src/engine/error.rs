@@ -35,6 +35,21 @@ pub enum EngineError {
     /// A replay could not follow its recording's schedule.
     #[error("replay: {0}")]
     Replay(#[from] super::replay::ReplayMismatch),
+    /// One or more loops failed (panicked or lost their state) while running; every loop was
+    /// stopped. The session is the simulation's, when its loop was not one that failed.
+    #[error(
+        "{failed}; every loop was stopped{}{}",
+        if *device_closed { ", the device closed with zero force" } else { ", the device was lost with its loop" },
+        if session.is_some() { ", the session kept" } else { ", the session lost (the last autosave holds it)" }
+    )]
+    LoopsFailed {
+        /// Which loops failed, and how.
+        failed: String,
+        /// Whether the device was closed (zero force commanded) by its haptic stage.
+        device_closed: bool,
+        /// The simulation's session, when its stage came back.
+        session: Option<Box<crate::io::Session>>,
+    },
 }
 
 /// Why a running device switch did not happen.

@@ -491,21 +491,51 @@ impl Engine {
     /// As [`Engine::stop`].
     pub fn stop_keeping_parts(mut self) -> Result<StoppedEngine, EngineError> {
         dynaclay_loops::assert_not_in_tick("Engine::stop joining the loops");
-        let sim = self.sim.stop_and_join()?;
-        let graphics = self.graphics.stop_and_join()?;
-        let haptic = self.haptic.stop_and_join()?;
-        let mut sim_stage = self
-            .sim_back
-            .recv()
-            .map_err(|_| EngineError::Lost("simulation"))?;
-        let mut graphics_stage = self
-            .graphics_back
-            .recv()
-            .map_err(|_| EngineError::Lost("graphics"))?;
-        let mut haptic_stage = self
-            .haptic_back
-            .recv()
-            .map_err(|_| EngineError::Lost("haptic"))?;
+        // Every loop is stopped and joined even when one of them failed, so none is left
+        // running (the haptic one holding the device); the stages that came back are then
+        // wound down as far as they can be.
+        let sim = self.sim.stop_and_join();
+        let graphics = self.graphics.stop_and_join();
+        let haptic = self.haptic.stop_and_join();
+        // The threads are joined: a stage is in its channel or was lost with its thread.
+        let sim_stage = self.sim_back.try_recv().ok();
+        let graphics_stage = self.graphics_back.try_recv().ok();
+        let haptic_stage = self.haptic_back.try_recv().ok();
+        let failed: Vec<String> = [
+            ("simulation", sim.as_ref().err(), sim_stage.is_none()),
+            (
+                "graphics",
+                graphics.as_ref().err(),
+                graphics_stage.is_none(),
+            ),
+            ("haptic", haptic.as_ref().err(), haptic_stage.is_none()),
+        ]
+        .into_iter()
+        .filter(|(_, err, lost)| err.is_some() || *lost)
+        .map(|(name, err, _)| match err {
+            Some(e) => format!("the {name} loop: {e}"),
+            None => format!("the {name} loop ended without handing back its state"),
+        })
+        .collect();
+        let (sim, graphics, haptic, mut sim_stage, mut graphics_stage, mut haptic_stage) = match (
+            sim,
+            graphics,
+            haptic,
+            sim_stage,
+            graphics_stage,
+            haptic_stage,
+        ) {
+            (Ok(s), Ok(g), Ok(h), Some(ss), Some(gs), Some(hs)) => (s, g, h, ss, gs, hs),
+            (_, _, _, sim_stage, _, haptic_stage) => {
+                return Err(wind_down_after_failure(
+                    failed.join("; "),
+                    sim_stage,
+                    haptic_stage,
+                    self.commands,
+                    self.io.take(),
+                ));
+            }
+        };
         sim_stage.finish();
         // The loops have stopped: a compact RBF re-interpolation still running is waited for
         // and applied, so the session handed back holds every stroke's.
@@ -543,5 +573,33 @@ impl Engine {
             device: connected.then(|| haptic_stage.into_device()),
             sink,
         })
+    }
+}
+
+/// After a loop failed: the haptic stage, if it came back, closes its device (zero force
+/// commanded); the simulation stage, if it came back, hands over its session; the I/O thread
+/// is let finish. The error names every loop that failed and carries the session.
+fn wind_down_after_failure(
+    failed: String,
+    sim_stage: Option<SimulationStage>,
+    haptic_stage: Option<HapticStage>,
+    commands: Sender<Command>,
+    io: Option<JoinHandle<IoReport>>,
+) -> EngineError {
+    let device_closed = haptic_stage.map(|mut h| h.device_mut().close());
+    let session = sim_stage.map(|mut s| {
+        s.finish();
+        s.settle_compact();
+        Box::new(s.session())
+    });
+    drop(commands);
+    // The I/O thread ends once every sender is gone; a panic there is already lost.
+    if let Some(io) = io {
+        let _ = io.join();
+    }
+    EngineError::LoopsFailed {
+        failed,
+        device_closed: device_closed.is_some_and(|r| r.is_ok()),
+        session,
     }
 }
