@@ -123,3 +123,39 @@ fn a_session_with_nothing_to_draw_or_too_much_is_an_input_error_naming_it() {
         assert!(!dir.path().join("x.png").exists());
     }
 }
+
+/// Reads the positions back from the binary PLY `points` writes.
+fn ply_positions(path: &Path) -> Vec<Vec3> {
+    let bytes = std::fs::read(path).unwrap();
+    dynaclay::fit::parse_ply(&bytes, path).unwrap().points
+}
+
+#[test]
+fn a_cloud_in_any_units_builds_its_surface_in_those_units() {
+    let dir = tempfile::tempdir().unwrap();
+    for scale in [1e-30_f32, 1e30] {
+        let mut text = String::new();
+        for i in 0..1500 {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / 1500.0;
+            let r = (1.0 - y * y).sqrt();
+            let phi = i as f32 * 2.399_963;
+            let p = Vec3::new(r * phi.cos(), y, r * phi.sin()) * scale;
+            text += &format!("{:e} {:e} {:e}\n", p.x, p.y, p.z);
+        }
+        std::fs::write(dir.path().join("s.xyz"), text).unwrap();
+        let out = dynaclay(dir.path(), &["points", "s.xyz", "--out", "p.ply"]);
+        assert!(
+            out.status.success(),
+            "{scale}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let points = ply_positions(&dir.path().join("p.ply"));
+        assert!(points.len() >= 1000, "{scale}: {} points", points.len());
+        // Every point on the sphere of radius `scale`, in the file's units.
+        let worst = points
+            .iter()
+            .map(|p| ((*p / scale).length() - 1.0).abs())
+            .fold(0.0_f32, f32::max);
+        assert!(worst < 0.01, "{scale}: off the sphere by {worst}");
+    }
+}

@@ -12,7 +12,7 @@ use super::run::CliError;
 use crate::fit::read_points;
 use crate::io::{OutputKind, OutputRule};
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
-use crate::pointset::{PointSet, PointSetOptions, write_point_ply};
+use crate::pointset::{PointSet, PointSetOptions, UnitFrame, write_point_ply};
 use crate::tools::{EmbossParams, Projection, Relief};
 
 /// How far a `--pull` target may lie from the points' box, in sizes of the box (its longest
@@ -66,14 +66,16 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
         neighbours: args.neighbours as usize,
         ..PointSetOptions::default()
     };
-    let (mut set, times) = PointSet::build(&cloud, &options)
+    // Built in the cloud's unit frame, so that any file units work; every output goes back.
+    let frame = UnitFrame::of(&cloud.points);
+    let (mut set, times) = PointSet::build(&frame.cloud_to_unit(&cloud), &options)
         .map_err(|e| CliError::Usage(format!("{}: {e}", args.input.display())))?;
     let build_s = times.total_ns() as f64 * 1e-9;
     say!(
-        "{}: {} points, spacing {:.4}, built in {:.3} s",
+        "{}: {} points, spacing {:.4e}, built in {:.3} s",
         args.input.display(),
         set.len(),
-        set.spacing_m,
+        set.spacing_m * frame.scale,
         build_s
     );
     // A pull reaches at most MAX_PULL_REACH of the cloud's sizes from its box, checked for
@@ -82,23 +84,25 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     let size = (hi - lo).max_element();
     for target in &args.pull {
         let target = Vec3::from(*target);
-        let away = (target.clamp(lo, hi) - target).length();
-        if !(target.is_finite() && away <= MAX_PULL_REACH * size) {
+        let unit = frame.to_unit(target);
+        let away = (unit.clamp(lo, hi) - unit).length();
+        if !(unit.is_finite() && away <= MAX_PULL_REACH * size) {
             return Err(CliError::Usage(format!(
-                "--pull {},{},{}: lies {away:.3e} from the points' box, past the {MAX_PULL_REACH} \
+                "--pull {},{},{}: lies {:.3e} from the points' box, past the {MAX_PULL_REACH} \
                  box sizes ({:.3e}) a pull reaches",
                 target.x,
                 target.y,
                 target.z,
-                MAX_PULL_REACH * size
+                away * frame.scale,
+                MAX_PULL_REACH * size * frame.scale
             )));
         }
     }
     for target in &args.pull {
-        pull(&mut set, Vec3::from(*target), args.steps)?;
+        pull(&mut set, &frame, Vec3::from(*target), args.steps)?;
     }
     if let Some(image) = &args.emboss {
-        set = emboss_image(&set, image, args, &options)?;
+        set = emboss_image(&set, &frame, image, args, &options)?;
     }
     if let (Some(path), Some(format)) = (&args.mesh, mesh_format) {
         let (lo, hi) = set.bounds();
@@ -117,17 +121,21 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
             [cells.x as u32, cells.y as u32, cells.z as u32],
         )
         .map_err(|e| CliError::Output(e.to_string()))?;
-        let mesh = BrickOctree::build(grid, &set).weld();
+        let mut mesh = BrickOctree::build(grid, &set).weld();
+        for v in &mut mesh.positions {
+            *v = frame.to_file(*v);
+        }
         write_mesh(path, &mesh, format).map_err(|e| CliError::Output(e.to_string()))?;
         say!("{}: {} triangles", path.display(), mesh.triangle_count());
     }
-    write_point_ply(&args.out, &set.points, &set.normals, &set.colours)
+    let points: Vec<Vec3> = set.points.iter().map(|&p| frame.to_file(p)).collect();
+    write_point_ply(&args.out, &points, &set.normals, &set.colours)
         .map_err(|e| CliError::Output(e.to_string()))?;
     say!("{}: {} points with normals", args.out.display(), set.len());
     Ok(PointsOutcome {
         read: cloud.points.len(),
         written: set.len(),
-        spacing_m: set.spacing_m,
+        spacing_m: set.spacing_m * frame.scale,
         build_s,
     })
 }
@@ -135,6 +143,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
 /// Embosses `image` onto `set` as `args` say (`--depth`, `--engrave`, `--projection`).
 fn emboss_image(
     set: &PointSet,
+    frame: &UnitFrame,
     image: &Path,
     args: &PointsArgs,
     options: &PointSetOptions,
@@ -165,7 +174,7 @@ fn emboss_image(
     };
     let params = EmbossParams {
         projection,
-        depth: args.depth.unwrap_or(2.0 * set.spacing_m),
+        depth: args.depth.map_or(2.0 * set.spacing_m, |d| d / frame.scale),
         engrave: args.engrave,
     };
     let (embossed, report) = crate::pointset::emboss(set, &relief, &params, options)
@@ -175,14 +184,14 @@ fn emboss_image(
         if args.engrave { "engraved" } else { "embossed" },
         image.display(),
         report.moved,
-        report.largest
+        report.largest * frame.scale
     );
     Ok(embossed)
 }
 
 /// Drags the surface point nearest to `target` there ([`crate::pointset::pull`]).
-fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<(), CliError> {
-    let report = crate::pointset::pull(set, target, steps).map_err(|e| match e {
+fn pull(set: &mut PointSet, frame: &UnitFrame, target: Vec3, steps: u32) -> Result<(), CliError> {
+    let report = crate::pointset::pull(set, frame.to_unit(target), steps).map_err(|e| match e {
         crate::pointset::PointSetError::PullTooFar { .. } => CliError::Usage(format!(
             "--pull {},{},{}: {e}",
             target.x, target.y, target.z

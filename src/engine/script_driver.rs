@@ -14,7 +14,7 @@ use super::removal_guard::{MOST_REMOVED_UNASKED, StrokeRemoval};
 use super::tool_sample::ToolSample;
 use crate::fit::read_points;
 use crate::io::{ScriptError, Session};
-use crate::pointset::{PointSet, PointSetOptions, pull, write_point_ply};
+use crate::pointset::{PointSet, PointSetOptions, UnitFrame, pull, write_point_ply};
 use crate::rbf::{
     ExportOptions, clay_to_rbf, flatten_clay, settle_particles, write_particles, write_rbf,
 };
@@ -41,8 +41,11 @@ fn points_job(
     out: &std::path::Path,
 ) -> Result<String, String> {
     let cloud = read_points(input).map_err(|e| format!("points: {e}"))?;
-    let (mut set, times) = PointSet::build(&cloud, &PointSetOptions::default())
-        .map_err(|e| format!("points: {}: {e}", input.display()))?;
+    // Built in the cloud's unit frame, so that any file units work; the output goes back.
+    let frame = UnitFrame::of(&cloud.points);
+    let (mut set, times) =
+        PointSet::build(&frame.cloud_to_unit(&cloud), &PointSetOptions::default())
+            .map_err(|e| format!("points: {}: {e}", input.display()))?;
     let mut note = format!(
         "points: {} points from {}, built in {:.3} s",
         set.len(),
@@ -50,11 +53,12 @@ fn points_job(
         times.total_ns() as f64 * 1e-9
     );
     for &target in pulls {
-        let report =
-            pull(&mut set, target, steps).map_err(|e| format!("points: pull to {target}: {e}"))?;
+        let report = pull(&mut set, frame.to_unit(target), steps)
+            .map_err(|e| format!("points: pull to {target}: {e}"))?;
         note += &format!("; pulled to {target} ({} points)", report.points);
     }
-    write_point_ply(out, &set.points, &set.normals, &set.colours)
+    let points: Vec<glam::Vec3> = set.points.iter().map(|&p| frame.to_file(p)).collect();
+    write_point_ply(out, &points, &set.normals, &set.colours)
         .map_err(|e| format!("points: {e}"))?;
     note += &format!("; wrote {}", out.display());
     Ok(note)

@@ -16,6 +16,7 @@ mod boolean;
 mod emboss;
 mod error;
 mod follow;
+mod frame;
 mod local;
 mod normals;
 mod ply;
@@ -31,6 +32,7 @@ pub use follow::{
     FollowOptions, FollowReport, FollowedPoints, LOST_SPANS, MAX_STEP_SPANS, PointFollower,
     PointSetFollower, PointSetView, SETTLED_MOVE_SPANS,
 };
+pub use frame::UnitFrame;
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
 pub use normals::{orient_over_mst, plane_normal};
 pub use ply::{encode_point_ply, write_point_ply};
