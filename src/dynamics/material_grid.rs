@@ -158,7 +158,8 @@ impl MaterialGrid {
         MaterialParam::from_name(&self.name)
     }
 
-    /// Checks the size, and every value of a grid of a known parameter.
+    /// Checks the size and every value: in range for a grid of a known parameter, finite for
+    /// one carried under another name.
     ///
     /// # Errors
     /// The first problem: a size that does not match, or a value out of range.
@@ -171,14 +172,15 @@ impl MaterialGrid {
                 len,
             });
         }
-        if let Some(p) = self.param()
-            && let Some(index) = self.values.iter().position(|&v| !p.accepts(v))
-        {
+        // A grid of a known parameter takes that parameter's values; one carried under another
+        // name, finite ones.
+        let accepts = |v: f32| self.param().map_or(v.is_finite(), |p| p.accepts(v));
+        if let Some(index) = self.values.iter().position(|&v| !accepts(v)) {
             return Err(MaterialGridError::Value {
                 name: self.name.clone(),
                 index,
                 value: self.values[index],
-                need: need(p),
+                need: self.param().map_or("finite", need),
             });
         }
         Ok(())
@@ -564,6 +566,21 @@ mod tests {
             e.contains("mass") && e.contains("-2") && e.contains("index 1"),
             "{e}"
         );
+        // A grid carried under another name still holds finite values, and no grid is empty.
+        let carried = MaterialGrid {
+            name: "roughness".into(),
+            dims: [2, 1, 1],
+            values: vec![0.5, f32::NAN],
+        };
+        assert!(carried.validate().unwrap_err().to_string().contains("finite"));
+        let empty = MaterialGrid {
+            name: "stiffness".into(),
+            dims: [0, 3, 3],
+            values: Vec::new(),
+        };
+        assert!(empty.validate().is_err());
+        let negative_rate = MaterialGrid::filled(MaterialParam::Plasticity, [1, 1, 1], -1.0);
+        assert!(negative_rate.validate().is_err());
     }
 
     #[test]
