@@ -3,8 +3,9 @@
 //! shows in the counters. Both run on an injected clock or in lockstep: no wall-clock rate or
 //! slack is assumed, so they pass on a machine under any load. A panic injected into the
 //! graphics loop (through its mesh sink) or the haptic loop (through the device) stops every
-//! loop, closes the device when its loop survived, and hands back the session; these wait for
-//! the loop to die, an event, and assume no rate.
+//! loop, closes the device when its loop survived, and hands back the session; so does one in
+//! the simulation loop or the I/O worker (the `fault-injection` hook, on in tests). These
+//! wait for the fault to have happened, an event, and assume no rate.
 
 mod common;
 
@@ -272,15 +273,22 @@ impl dynaclay::mesh::MeshSink for PanickingSink {
     }
 }
 
-/// Starts the threaded engine on the push script with `device` and `sink`, waits until a
-/// loop has ended (the injected panic), and stops it. Waiting is for an event, not a rate.
-fn run_until_a_loop_dies(
-    panic_at_read: Option<u64>,
-    sink: Box<dyn dynaclay::mesh::MeshSink>,
-) -> (
+/// What a faulted run gives back: the error and what the device saw.
+type Faulted = (
     dynaclay::engine::EngineError,
     std::sync::Arc<std::sync::Mutex<Seen>>,
-) {
+);
+
+/// Starts the threaded engine on the push script with the watched arm (panicking on read
+/// `panic_at_read`, if any) and `sink`, sends `inject` (a panic asked of the simulation loop
+/// or the I/O worker) once it runs, waits for the fault to have happened, and stops the
+/// engine. Waiting is for an event, not a rate.
+fn run_injected(
+    panic_at_read: Option<u64>,
+    sink: Box<dyn dynaclay::mesh::MeshSink>,
+    inject: Option<dynaclay::engine::PanicSite>,
+) -> Faulted {
+    use dynaclay::engine::{Command, PanicSite};
     let s = common::setup(common::PUSH_SCRIPT, vec![]);
     let seen = std::sync::Arc::new(std::sync::Mutex::new(Seen::default()));
     let device = Box::new(Watched {
@@ -289,16 +297,38 @@ fn run_until_a_loop_dies(
         panic_at_read,
     });
     let engine = Engine::start(&s.config, s.field, device, sink).expect("engine starts");
-    // A failsafe only: the injected panic comes within the first second of device reads.
+    // A failsafe only: every injected panic comes within the first second.
     let give_up = Instant::now() + Duration::from_secs(120);
-    while engine.is_alive() {
-        assert!(Instant::now() < give_up, "no loop died");
-        std::thread::sleep(Duration::from_millis(5));
+    if let Some(site) = inject {
+        engine.commands().send(Command::InjectPanic(site)).unwrap();
+    }
+    if inject == Some(PanicSite::Io) {
+        // The I/O worker is not a loop: it has taken the job once a save goes unanswered.
+        let probe = tempfile::tempdir().unwrap();
+        while engine
+            .save(&probe.path().join("probe.dclay"), Duration::from_secs(1))
+            .is_ok()
+        {
+            assert!(Instant::now() < give_up, "the I/O worker kept answering");
+        }
+    } else {
+        while engine.is_alive() {
+            assert!(Instant::now() < give_up, "no loop died");
+            std::thread::sleep(Duration::from_millis(5));
+        }
     }
     let Err(e) = engine.stop() else {
         panic!("a stop after a loop panicked reported success")
     };
     (e, seen)
+}
+
+/// [`run_injected`] with the fault in the device or the sink alone.
+fn run_until_a_loop_dies(
+    panic_at_read: Option<u64>,
+    sink: Box<dyn dynaclay::mesh::MeshSink>,
+) -> Faulted {
+    run_injected(panic_at_read, sink, None)
 }
 
 #[test]
@@ -346,6 +376,62 @@ fn a_panic_in_the_haptic_loop_stops_every_loop_and_keeps_the_session() {
     };
     assert!(failed.contains("haptic"), "{text}");
     assert!(session.is_some(), "{text}");
+    // The haptic stage is handed back as the panic unwinds, and closes the device.
+    assert!(seen.lock().unwrap().closed, "{text}");
     // The haptic loop is gone: no read after the injected one.
     assert_eq!(seen.lock().unwrap().reads, 200);
+}
+
+#[test]
+fn a_panic_in_the_simulation_loop_stops_every_loop_and_closes_the_device() {
+    let (e, seen) = run_injected(
+        None,
+        Box::new(HeadlessSink::default()),
+        Some(dynaclay::engine::PanicSite::Simulation),
+    );
+    let text = e.to_string();
+    let dynaclay::engine::EngineError::LoopsFailed {
+        failed,
+        device_closed,
+        session,
+    } = e
+    else {
+        panic!("{text}")
+    };
+    assert!(
+        failed.contains("simulation") && !failed.contains("haptic"),
+        "{text}"
+    );
+    assert!(device_closed && seen.lock().unwrap().closed, "{text}");
+    // The stage is handed back as the panic unwinds (it panicked between commands), so the
+    // sculpt up to the panic is kept.
+    assert!(
+        session.is_some_and(|s| !s.clay.density.patches.is_empty()),
+        "{text}"
+    );
+    assert!(text.contains("session kept"), "{text}");
+}
+
+#[test]
+fn a_panic_in_the_io_worker_still_closes_the_device_and_keeps_the_session() {
+    let (e, seen) = run_injected(
+        None,
+        Box::new(HeadlessSink::default()),
+        Some(dynaclay::engine::PanicSite::Io),
+    );
+    let text = e.to_string();
+    let dynaclay::engine::EngineError::LoopsFailed {
+        failed,
+        device_closed,
+        session,
+    } = e
+    else {
+        panic!("{text}")
+    };
+    assert!(failed.contains("I/O worker"), "{text}");
+    assert!(device_closed && seen.lock().unwrap().closed, "{text}");
+    assert!(
+        session.is_some_and(|s| !s.clay.density.patches.is_empty()),
+        "{text}"
+    );
 }

@@ -572,7 +572,13 @@ mod tests {
             dims: [2, 1, 1],
             values: vec![0.5, f32::NAN],
         };
-        assert!(carried.validate().unwrap_err().to_string().contains("finite"));
+        assert!(
+            carried
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("finite")
+        );
         let empty = MaterialGrid {
             name: "stiffness".into(),
             dims: [0, 3, 3],

@@ -131,12 +131,18 @@ pub type EditReply = Sender<Result<EditOutcome, super::CommandError>>;
 /// A request to the simulation thread. Each is applied between two steps, in order.
 #[derive(Debug)]
 pub enum Command {
+    /// Test-only (the `fault-injection` feature): makes the simulation loop or the I/O
+    /// worker panic where it takes this command, so that tests can prove a failed loop costs
+    /// neither the device nor the sculpt.
+    #[cfg(feature = "fault-injection")]
+    InjectPanic(PanicSite),
     /// Use this tool from the next step on (a held stroke ends first).
     SetTool(ToolChoice),
     /// Use this material for regions created from now on.
     SetMaterial(Material),
-    /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay (the session's material
-    /// grids; a parameter without a grid gets one, filled with the uniform material's value).
+    /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay (the
+    /// session's material grids; a parameter without a grid gets one, filled with the uniform
+    /// material's value).
     /// The live region takes the new values at once; regions made later take them too. Not
     /// an undo step: the clay's shape is unchanged.
     PaintMaterial {
@@ -316,4 +322,14 @@ pub enum Command {
         /// Optional result channel.
         reply: Option<Reply>,
     },
+}
+
+/// Where [`Command::InjectPanic`] makes the engine panic (test-only).
+#[cfg(feature = "fault-injection")]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PanicSite {
+    /// The simulation loop, as it applies the command.
+    Simulation,
+    /// The I/O worker, as it takes the job the simulation hands it.
+    Io,
 }

@@ -109,6 +109,8 @@ impl IoWorker {
                     a.note_stroke();
                 }
             }
+            #[cfg(feature = "fault-injection")]
+            IoJob::InjectPanic => panic!("injected: the I/O worker panics"),
         }
     }
 

@@ -31,6 +31,8 @@ mod update;
 mod wiring;
 mod workspace;
 
+#[cfg(feature = "fault-injection")]
+pub use command::PanicSite;
 pub use command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 pub use compact_rbf::{CompactRbfLink, CompactStartError, CompactStatus};
 pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};

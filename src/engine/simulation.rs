@@ -119,6 +119,9 @@ pub enum IoJob {
     Save(Box<SaveJob>),
     /// An undo step was committed (a stroke or a tool step ended): counts toward autosave.
     Committed,
+    /// Test-only (the `fault-injection` feature): the I/O worker panics on taking it.
+    #[cfg(feature = "fault-injection")]
+    InjectPanic,
 }
 
 /// A save the simulation thread hands to whoever does the file I/O.

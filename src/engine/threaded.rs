@@ -550,9 +550,19 @@ impl Engine {
         let session = sim_stage.session();
         drop(sim_stage);
         drop(self.commands);
-        let io = match self.io.take() {
-            Some(h) => h.join().map_err(|_| EngineError::Lost("io"))?,
+        let io = match self.io.take().map(JoinHandle::join) {
+            Some(Ok(report)) => report,
             None => IoReport::default(),
+            // Every loop has stopped and the device is closed: the session is handed back
+            // with the failure.
+            Some(Err(_)) => {
+                return Err(EngineError::LoopsFailed {
+                    failed: "the I/O worker panicked (saves and autosaves after it were lost)"
+                        .to_owned(),
+                    device_closed: device_close_error.is_none(),
+                    session: Some(Box::new(session)),
+                });
+            }
         };
         let haptic_field = haptic_stage.field().clone();
         let octree = graphics_stage.octree().clone();

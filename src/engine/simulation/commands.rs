@@ -32,6 +32,18 @@ impl SimulationStage {
     fn apply(&mut self, cmd: Command) -> bool {
         self.pins_revision += u64::from(constrain::may_change_pins(&cmd));
         match cmd {
+            #[cfg(feature = "fault-injection")]
+            Command::InjectPanic(site) => match site {
+                crate::engine::PanicSite::Simulation => {
+                    panic!("injected: the simulation loop panics")
+                }
+                crate::engine::PanicSite::Io => {
+                    if let Some(io) = &self.io {
+                        let _ = io.send(IoJob::InjectPanic);
+                    }
+                    true
+                }
+            },
             Command::SetTool(tool) => {
                 // A held stroke ends with the tool it was made with.
                 self.end_stroke_now();
