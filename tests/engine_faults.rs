@@ -435,3 +435,31 @@ fn a_panic_in_the_io_worker_still_closes_the_device_and_keeps_the_session() {
         "{text}"
     );
 }
+
+/// A start that fails after the haptic loop started (here the simulation loop's rate is
+/// refused) stops the haptic loop and closes the device: no thread is left holding it.
+#[test]
+fn a_start_that_fails_after_the_haptic_loop_started_leaves_no_loop_holding_the_device() {
+    let mut s = common::setup(common::PUSH_SCRIPT, vec![]);
+    s.config.sim_rate_hz = f64::NAN;
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Seen::default()));
+    let device = Box::new(Watched {
+        arm: s.arm,
+        seen: seen.clone(),
+        panic_at_read: None,
+    });
+    let Err(e) = Engine::start(
+        &s.config,
+        s.field,
+        device,
+        Box::new(HeadlessSink::default()),
+    ) else {
+        panic!("an engine with a NaN simulation rate started");
+    };
+    assert!(e.to_string().contains("rate_hz"), "{e}");
+    assert!(seen.lock().unwrap().closed, "the device was closed");
+    // The haptic loop was joined before the error came back: no read after it.
+    let reads = seen.lock().unwrap().reads;
+    std::thread::sleep(Duration::from_millis(20));
+    assert_eq!(seen.lock().unwrap().reads, reads);
+}

@@ -223,25 +223,31 @@ impl Engine {
         let sim_cfg = LoopConfig::new("simulation")
             .with_rate_hz(config.sim_rate_hz)
             .with_overrun(OverrunPolicy::Skip);
-        let sim = spawn_loop(sim_cfg, move |_| {
+        let sim = match spawn_loop(sim_cfg, move |_| {
             if let Some(stage) = sb.value.as_mut() {
                 stage.apply_commands();
                 let sample = samples.latest().value;
                 stage.step(&sample);
             }
             ControlFlow::Continue(())
-        })?;
+        }) {
+            Ok(sim) => sim,
+            Err(e) => return Err(stop_started_loops(e, [haptic], &haptic_back)),
+        };
 
         let (mut gb, graphics_back) = handback(stages.graphics);
         let gfx_cfg = LoopConfig::new("graphics")
             .with_rate_hz(config.graphics_rate_hz)
             .with_stats_every_ticks(60);
-        let graphics = spawn_loop(gfx_cfg, move |_| {
+        let graphics = match spawn_loop(gfx_cfg, move |_| {
             if let Some(stage) = gb.value.as_mut() {
                 stage.tick();
             }
             ControlFlow::Continue(())
-        })?;
+        }) {
+            Ok(graphics) => graphics,
+            Err(e) => return Err(stop_started_loops(e, [haptic, sim], &haptic_back)),
+        };
 
         Ok(Self {
             haptic,
@@ -584,6 +590,23 @@ impl Engine {
             sink,
         })
     }
+}
+
+/// A start that failed after some loops started: those are stopped and joined (the
+/// simulation first, the haptic loop last), and the haptic stage, handed back, closes its
+/// device (zero force commanded), so no thread is left holding it.
+fn stop_started_loops<const N: usize>(
+    error: dynaclay_loops::LoopError,
+    started: [LoopHandle; N],
+    haptic_back: &Receiver<HapticStage>,
+) -> EngineError {
+    for handle in started.into_iter().rev() {
+        let _ = handle.stop_and_join();
+    }
+    if let Ok(mut haptic) = haptic_back.try_recv() {
+        let _ = haptic.device_mut().close();
+    }
+    EngineError::Loop(error)
 }
 
 /// After a loop failed: the haptic stage, if it came back, closes its device (zero force
