@@ -3,26 +3,14 @@
 //! import's detail or a session file, and going over exits 2 naming the step or the file.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
 use dynaclay::field::{BSplineLattice, MAX_PATCHES};
-use dynaclay::io::{Session, save_session};
-use dynaclay::tools::Clay;
 use glam::{Affine3A, Vec3};
 
-const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+#[path = "support/cli.rs"]
+mod cli;
 
-fn dynaclay(dir: &Path, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
+use cli::{dynaclay, save_clay, stderr, zero_clay};
 
 /// A script of the default block with `count` copies of `step` (TOML keys after `do`).
 fn script_of(dir: &Path, step: &str, count: usize) {
@@ -93,17 +81,13 @@ fn constrain_steps_past_the_pin_budget_are_refused_before_the_run() {
 
 /// A session of a 12³ base and `details` 4³ patches (each with `map`).
 fn session_with(path: &Path, details: usize, spacing: f32, map: Affine3A) {
-    let mut clay = Clay::single(BSplineLattice::zeros([12; 3], 0.1, Vec3::ZERO).unwrap());
+    let mut clay = zero_clay([12; 3]);
     for _ in 0..details {
         let mut l = BSplineLattice::zeros([4; 3], 0.1, Vec3::splat(0.3)).unwrap();
         l.spacing = spacing;
         clay.density.push(l, map);
     }
-    let session = Session {
-        clay,
-        ..Session::default()
-    };
-    save_session(path, &session).unwrap();
+    save_clay(path, clay);
 }
 
 #[test]

@@ -323,6 +323,34 @@ fn run_injected(
     (e, seen)
 }
 
+/// The parts of an [`EngineError::LoopsFailed`](dynaclay::engine::EngineError), with its
+/// message.
+struct LoopsFailed {
+    failed: String,
+    device_closed: bool,
+    session: Option<Box<dynaclay::io::Session>>,
+    text: String,
+}
+
+/// `e` as a [`LoopsFailed`]; panics (failing the test) on any other error.
+fn loops_failed(e: dynaclay::engine::EngineError) -> LoopsFailed {
+    let text = e.to_string();
+    let dynaclay::engine::EngineError::LoopsFailed {
+        failed,
+        device_closed,
+        session,
+    } = e
+    else {
+        panic!("not a failure of the loops: {text}")
+    };
+    LoopsFailed {
+        failed,
+        device_closed,
+        session,
+        text,
+    }
+}
+
 /// [`run_injected`] with the fault in the device or the sink alone.
 fn run_until_a_loop_dies(
     panic_at_read: Option<u64>,
@@ -340,15 +368,12 @@ fn a_panic_in_the_graphics_loop_stops_every_loop_closes_the_device_and_keeps_the
             panic_at: 3,
         }),
     );
-    let text = e.to_string();
-    let dynaclay::engine::EngineError::LoopsFailed {
+    let LoopsFailed {
         failed,
         device_closed,
         session,
-    } = e
-    else {
-        panic!("{text}")
-    };
+        text,
+    } = loops_failed(e);
     assert!(
         failed.contains("graphics") && !failed.contains("haptic"),
         "{text}"
@@ -367,13 +392,12 @@ fn a_panic_in_the_graphics_loop_stops_every_loop_closes_the_device_and_keeps_the
 #[test]
 fn a_panic_in_the_haptic_loop_stops_every_loop_and_keeps_the_session() {
     let (e, seen) = run_until_a_loop_dies(Some(200), Box::new(HeadlessSink::default()));
-    let text = e.to_string();
-    let dynaclay::engine::EngineError::LoopsFailed {
-        failed, session, ..
-    } = e
-    else {
-        panic!("{text}")
-    };
+    let LoopsFailed {
+        failed,
+        session,
+        text,
+        ..
+    } = loops_failed(e);
     assert!(failed.contains("haptic"), "{text}");
     assert!(session.is_some(), "{text}");
     // The haptic stage is handed back as the panic unwinds, and closes the device.
@@ -389,15 +413,12 @@ fn a_panic_in_the_simulation_loop_stops_every_loop_and_closes_the_device() {
         Box::new(HeadlessSink::default()),
         Some(dynaclay::engine::PanicSite::Simulation),
     );
-    let text = e.to_string();
-    let dynaclay::engine::EngineError::LoopsFailed {
+    let LoopsFailed {
         failed,
         device_closed,
         session,
-    } = e
-    else {
-        panic!("{text}")
-    };
+        text,
+    } = loops_failed(e);
     assert!(
         failed.contains("simulation") && !failed.contains("haptic"),
         "{text}"
@@ -419,15 +440,12 @@ fn a_panic_in_the_io_worker_still_closes_the_device_and_keeps_the_session() {
         Box::new(HeadlessSink::default()),
         Some(dynaclay::engine::PanicSite::Io),
     );
-    let text = e.to_string();
-    let dynaclay::engine::EngineError::LoopsFailed {
+    let LoopsFailed {
         failed,
         device_closed,
         session,
-    } = e
-    else {
-        panic!("{text}")
-    };
+        text,
+    } = loops_failed(e);
     assert!(failed.contains("I/O worker"), "{text}");
     assert!(device_closed && seen.lock().unwrap().closed, "{text}");
     assert!(

@@ -4,32 +4,13 @@
 //! work, and writes nothing.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-use dynaclay::field::BSplineLattice;
-use dynaclay::io::{Session, save_session};
-use dynaclay::tools::Clay;
 use glam::Vec3;
 
-const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+#[path = "support/cli.rs"]
+mod cli;
 
-fn dynaclay(dir: &Path, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Asserts exit 2 with every one of `names` in the message; returns it.
-fn input_error(out: &Output, names: &[&str]) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    for n in names {
-        assert!(err.contains(n), "{n} not in: {err}");
-    }
-    err
-}
+use cli::{dynaclay, refused as input_error, save_clay, zero_clay};
 
 /// A Fibonacci sphere of `n` points and radius 1 as XYZ text.
 fn sphere_xyz(path: &Path, n: usize) {
@@ -96,20 +77,14 @@ fn a_pull_or_an_offset_far_past_the_clay_is_refused_before_the_work() {
     assert!(!dir.path().join("r.rbf").exists());
 }
 
-/// A session of one lattice of `dims` (zeros: no surface), or of none.
+/// A session of one zero lattice of `dims` (no surface), or of none.
 fn session_of(path: &Path, dims: Option<[usize; 3]>) {
-    let mut clay = Clay::single(BSplineLattice::zeros([4; 3], 0.1, Vec3::ZERO).unwrap());
+    let mut clay = zero_clay([4; 3]);
     match dims {
-        Some(d) => {
-            clay.density.patches[0].lattice = BSplineLattice::zeros(d, 0.1, Vec3::ZERO).unwrap()
-        }
+        Some(d) => clay = zero_clay(d),
         None => clay.density.patches.clear(),
     }
-    let session = Session {
-        clay,
-        ..Session::default()
-    };
-    save_session(path, &session).unwrap();
+    save_clay(path, clay);
 }
 
 #[test]

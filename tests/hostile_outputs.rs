@@ -4,9 +4,12 @@
 //! exit 2, naming the flag or step, and every file is left byte for byte as it was.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+#[path = "support/cli.rs"]
+mod cli;
+
+use cli::{dynaclay, refused};
 
 /// A PLY point cloud of a sphere (ASCII, with normals): a valid input for `import` and
 /// `points`.
@@ -24,24 +27,6 @@ fn sphere_cloud(path: &Path) {
         text += &format!("{x} {y} {z} {x} {y} {z}\n");
     }
     std::fs::write(path, text).unwrap();
-}
-
-fn dynaclay(dir: &Path, args: &[&str]) -> Output {
-    Command::new(BIN)
-        .current_dir(dir)
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// Asserts a refusal: exit 2, the message naming each of `names`.
-fn refused(out: &Output, names: &[&str]) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(2), "stderr: {err}");
-    for n in names {
-        assert!(err.contains(n), "{n} not in: {err}");
-    }
-    err
 }
 
 /// The bytes of every file in `dir` (recursively), to show nothing changed.
