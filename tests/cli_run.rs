@@ -653,7 +653,8 @@ fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
     // killing the process. The mesh and session fit; a 60 s recording (7.7 MB) does not.
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("rec.dcrec");
-    std::fs::write(&rec, "previous recording").unwrap();
+    // A previous recording (its magic, then anything): the only kind a recording replaces.
+    std::fs::write(&rec, b"DCLYREC\x1aprevious recording").unwrap();
     let mut cmd = Command::new(BIN);
     cmd.args(["run", "--lockstep", "--seconds", "60", "--record"])
         .arg(&rec)
@@ -683,7 +684,10 @@ fn a_recording_that_cannot_be_written_is_reported_and_the_run_exits_non_zero() {
     );
     // The previous recording is whole, no temporary file is left, and every other output is
     // there all the same.
-    assert_eq!(std::fs::read(&rec).unwrap(), b"previous recording");
+    assert_eq!(
+        std::fs::read(&rec).unwrap(),
+        b"DCLYREC\x1aprevious recording"
+    );
     let left: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -721,7 +725,8 @@ fn a_link_placed_at_an_output_name_is_neither_written_through_nor_replaced() {
 #[test]
 fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_one() {
     let dir = tempfile::tempdir().unwrap();
-    // `/dev/full` would take the bytes and fail them; it is refused before the run.
+    // `/dev/full` would take the bytes and fail them; it is refused before the run (exit 2,
+    // by the output rule).
     let out = Command::new(BIN)
         .args([
             "run",
@@ -736,9 +741,9 @@ fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_on
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("/dev/full"), "{stderr}");
-    assert!(stderr.contains("character device"), "{stderr}");
+    assert!(stderr.contains("not a regular file"), "{stderr}");
     // A folder that is a file: an error naming it.
     let blocker = dir.path().join("blocker");
     std::fs::write(&blocker, "keep").unwrap();
@@ -750,7 +755,7 @@ fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_on
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
     assert!(
         stderr.to_lowercase().contains("not a directory"),
         "{stderr}"
@@ -758,7 +763,7 @@ fn a_recording_onto_a_device_or_into_a_file_is_refused_and_keeps_the_previous_on
     assert_eq!(std::fs::read_to_string(&blocker).unwrap(), "keep");
     // A good recording replaces the previous one whole, and leaves no temporary file.
     let rec = dir.path().join("rec.dcrec");
-    std::fs::write(&rec, "previous").unwrap();
+    std::fs::write(&rec, b"DCLYREC\x1aprevious").unwrap();
     let out = Command::new(BIN)
         .args([
             "run",
@@ -903,7 +908,8 @@ falloff_fu = 0.1
     let ticks: Vec<usize> = (0..recording.records.len())
         .filter(|&i| is_tick(&recording.records[i]))
         .collect();
-    assert!(ticks.len() > 100, "{} ticks", ticks.len());
+    // Enough for the swap below, on however loaded a machine the live run ran.
+    assert!(ticks.len() >= 12, "{} ticks", ticks.len());
     let mut cut = recording.clone();
     let half = ticks[ticks.len() / 2];
     let mut index = 0;

@@ -303,10 +303,12 @@ fn run_injected(
         engine.commands().send(Command::InjectPanic(site)).unwrap();
     }
     if inject == Some(PanicSite::Io) {
-        // The I/O worker is not a loop: it has taken the job once a save goes unanswered.
+        // The I/O worker is not a loop: it has taken the job once a save goes unanswered. The
+        // save is queued behind the injected job, so a dead worker drops its reply at once; the
+        // long wait is a failsafe only.
         let probe = tempfile::tempdir().unwrap();
         while engine
-            .save(&probe.path().join("probe.dclay"), Duration::from_secs(1))
+            .save(&probe.path().join("probe.dclay"), Duration::from_secs(120))
             .is_ok()
         {
             assert!(Instant::now() < give_up, "the I/O worker kept answering");

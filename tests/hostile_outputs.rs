@@ -217,3 +217,55 @@ fn a_script_step_cannot_leave_its_folder_through_a_link() {
     );
     assert!(outside.path().join("p.xyz").is_file());
 }
+
+#[test]
+fn a_recording_never_replaces_another_kind_of_file_or_the_script() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "precious").unwrap();
+    std::fs::write(dir.path().join("s.toml"), "version = 1\nseconds = 0.2\n").unwrap();
+    let before = snapshot(dir.path());
+    for (record, names) in [
+        (
+            "notes.txt",
+            &["--record", "notes.txt", "device recording"][..],
+        ),
+        ("s.toml", &["--record", "s.toml"]),
+    ] {
+        let out = dynaclay(
+            dir.path(),
+            &[
+                "run",
+                "--script",
+                "s.toml",
+                "--lockstep",
+                "--out",
+                "run",
+                "--record",
+                record,
+            ],
+        );
+        refused(&out, names);
+    }
+    assert_eq!(snapshot(dir.path()), before);
+    // A recording it wrote it may replace.
+    for _ in 0..2 {
+        let out = dynaclay(
+            dir.path(),
+            &[
+                "run",
+                "--script",
+                "s.toml",
+                "--lockstep",
+                "--out",
+                "run",
+                "--record",
+                "r.rec",
+            ],
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+}

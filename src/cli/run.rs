@@ -425,6 +425,8 @@ fn check_run_outputs(
         rule = rule.input("--device replay", file);
     }
     if let Some(path) = &args.record {
+        rule.check("--record", path, OutputKind::Recording)
+            .map_err(CliError::OutputRefused)?;
         rule = rule.input("--record", path);
     }
     if let Some(Some(path)) = &args.png {

@@ -30,6 +30,8 @@ pub enum OutputKind {
     Rbf,
     /// A PNG image (`.png`).
     Image,
+    /// A device recording (`--record`; any extension).
+    Recording,
 }
 
 impl OutputKind {
@@ -43,10 +45,12 @@ impl OutputKind {
             Self::Particles => "particles",
             Self::Rbf => "an RBF",
             Self::Image => "a PNG image",
+            Self::Recording => "a device recording",
         }
     }
 
-    /// The extensions an output of this kind may have (lower case, without the dot).
+    /// The extensions an output of this kind may have (lower case, without the dot; none
+    /// listed: any).
     #[must_use]
     pub const fn extensions(self) -> &'static [&'static str] {
         match self {
@@ -56,6 +60,7 @@ impl OutputKind {
             Self::Particles => &["xyz"],
             Self::Rbf => &["rbf"],
             Self::Image => &["png"],
+            Self::Recording => &[],
         }
     }
 
@@ -66,6 +71,7 @@ impl OutputKind {
             Self::Session => head.starts_with(&super::format::MAGIC),
             Self::Rbf => head.starts_with(b"DCLYRBF\0"),
             Self::Image => head.starts_with(b"\x89PNG\r\n\x1a\n"),
+            Self::Recording => head.starts_with(&dynaclay_devices::record::format::MAGIC),
             Self::PointSet => {
                 head.starts_with(b"ply\n") && contains(head, b"comment dynaclay point set")
             }
@@ -200,7 +206,8 @@ impl OutputRule {
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
-        if !ext.is_some_and(|e| kind.extensions().contains(&e.as_str())) {
+        let any_extension = kind.extensions().is_empty();
+        if !any_extension && !ext.is_some_and(|e| kind.extensions().contains(&e.as_str())) {
             return Err(OutputRefused::Extension {
                 what,
                 path: path.to_path_buf(),
