@@ -85,8 +85,9 @@ impl ToolAction {
     /// rim and the contact deformation are functions of the band's potential, and the RBF
     /// clay evaluates the contact with the user's band as it is), so the band is the user's
     /// setting and is not widened to the lattice's floor ([`crate::tools::MIN_FALLOFF_SPANS`]).
-    /// Widened, a stamp's print shrinks: a box print 0.12 deep came out 0.089 (0.100 with the
-    /// user's half-span band).
+    /// Widened, a stamp's print shrinks (its wall is read at the band's three-quarter mark):
+    /// the stamp keeps the user's band for `def` and tends its print to the lattice's floor
+    /// band apart ([`crate::tools::StampParams::apply`]).
     #[must_use]
     pub fn shapes_its_band(&self) -> bool {
         matches!(self, Self::Stamp(_) | Self::Contact(_))
@@ -155,6 +156,22 @@ impl ToolAction {
     #[inline]
     #[must_use]
     pub fn density(&self, clay: f32, tool: f32, blurred: f32, iso: f32, dt_s: f32) -> f32 {
+        self.density_with_print(clay, tool, tool, blurred, iso, dt_s)
+    }
+
+    /// [`Self::density`] with the potential a stamp's print tends to (`print`) apart from the
+    /// one its deformation function reads (`tool`).
+    #[inline]
+    #[must_use]
+    pub fn density_with_print(
+        &self,
+        clay: f32,
+        tool: f32,
+        print: f32,
+        blurred: f32,
+        iso: f32,
+        dt_s: f32,
+    ) -> f32 {
         let amount = |rate: f32| (rate * dt_s).clamp(0.0, 1.0);
         match *self {
             Self::Add { deposit_rate_per_s } => (clay + amount(deposit_rate_per_s) * tool)
@@ -171,7 +188,7 @@ impl ToolAction {
                 let w = amount(rate_per_s) * (2.0 * tool).min(1.0);
                 clay + w * (blurred - clay)
             }
-            Self::Stamp(p) => p.apply(clay, tool, iso, dt_s),
+            Self::Stamp(p) => p.apply(clay, tool, print, iso, dt_s),
             Self::Contact(c) => c.apply(clay, tool, iso, dt_s),
             Self::Union => clay.max(tool),
             Self::Intersection => clay.min(tool),

@@ -161,7 +161,16 @@ pub fn apply_tool(
     } else {
         effective_falloff_fu(tool.falloff_fu, lattice.spacing)
     };
-    let half = tool.shape.influence_half_extents(falloff);
+    // The band a stamp's print tends to: the lattice's floor, as the carving actions use
+    // (`StampParams::apply`). Every other action reads one potential.
+    let print_falloff = if matches!(tool.action, ToolAction::Stamp(_)) {
+        effective_falloff_fu(tool.falloff_fu, lattice.spacing)
+    } else {
+        falloff
+    };
+    let half = tool
+        .shape
+        .influence_half_extents(falloff.max(print_falloff));
     let (mut lo, mut hi) = pose.world_bounds(half);
     if let ToolAction::Smooth { kernel_fu, .. } = tool.action {
         // The average reads one kernel width beyond the tool.
@@ -196,7 +205,7 @@ pub fn apply_tool(
         world_lo,
         world_hi,
         half,
-        zero_beyond: tool.shape.zero_beyond(falloff),
+        zero_beyond: tool.shape.zero_beyond(falloff.max(print_falloff)),
     };
     let blur_h = match tool.action {
         ToolAction::Smooth { kernel_fu, .. } => Some(kernel_fu.max(spacing)),
@@ -216,10 +225,32 @@ pub fn apply_tool(
         // The sphere's potential inlined into the row loop: the expressions of
         // `ToolShape::density` for a sphere, so the values are the same.
         ToolShape::Sphere { radius_fu } => rows.refit(lattice, region, options, |p: Vec3| {
-            density_from_distance(p.length() - radius_fu, falloff)
+            let d = p.length() - radius_fu;
+            let t = density_from_distance(d, falloff);
+            (
+                t,
+                if print_falloff == falloff {
+                    t
+                } else {
+                    density_from_distance(d, print_falloff)
+                },
+            )
         }),
         ref shape => rows.refit(lattice, region, options, |p: Vec3| {
-            shape.density(p, falloff)
+            if print_falloff == falloff {
+                let t = shape.density(p, falloff);
+                return (t, t);
+            }
+            match shape.signed_distance(p) {
+                Some(d) => (
+                    density_from_distance(d, falloff),
+                    density_from_distance(d, print_falloff),
+                ),
+                None => {
+                    let t = shape.density(p, falloff);
+                    (t, t)
+                }
+            }
         }),
     }?;
     Ok(ToolReport {
@@ -285,7 +316,7 @@ struct ToolRows<'a> {
 impl ToolRows<'_> {
     /// Refits `region` to the tool's rule with the potential `density` (local point to
     /// `[0, 1]`), row by row; returns Ferley's visited, computed and dirtied counts.
-    fn refit<D: Fn(Vec3) -> f32>(
+    fn refit<D: Fn(Vec3) -> (f32, f32)>(
         &self,
         lattice: &mut BSplineLattice,
         region: CoeffBox,
@@ -296,8 +327,8 @@ impl ToolRows<'_> {
         let reach = self.reach;
         let (to_local, half) = (reach.to_local, reach.half);
         // The rule at one sample with potential `t` (zero outside the tool's box).
-        let rule = |x: Vec3, t: f32, old: f32| -> f32 {
-            if t == 0.0 {
+        let rule = |x: Vec3, (t, print): (f32, f32), old: f32| -> f32 {
+            if t == 0.0 && print == 0.0 {
                 return old;
             }
             if self.others.is_empty() {
@@ -305,7 +336,9 @@ impl ToolRows<'_> {
                     (Some(h), Some(before)) => blur(before, x, h),
                     _ => 0.0,
                 };
-                return self.action.density(old, t, blurred, self.iso, self.dt_s);
+                return self
+                    .action
+                    .density_with_print(old, t, print, blurred, self.iso, self.dt_s);
             }
             let offset = self.others.value(x);
             let blurred = match (self.blur_h, self.before) {
@@ -313,7 +346,7 @@ impl ToolRows<'_> {
                 _ => 0.0,
             };
             self.action
-                .density(old + offset, t, blurred, self.iso, self.dt_s)
+                .density_with_print(old + offset, t, print, blurred, self.iso, self.dt_s)
                 - offset
         };
         let edit_row = |row: SampleRow<'_>| {

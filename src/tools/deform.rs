@@ -128,19 +128,42 @@ impl StampParams {
     }
 
     /// The stamped clay density at a point after a dwell of `dt_s`: `f + rate · dt · def(1 − t)`,
-    /// kept within `[0, 1]`. Only the stamp's own change is limited: a density the fit left a
-    /// little outside the range is not pulled back where the stamp does nothing, so two short
-    /// applications do what one long one does. The bulge pushes clay aside and creates none:
-    /// a rise is weighted by the clay's [`presence`] at the point (iso-level `iso`), so it
-    /// grows from the surface and never in the air over the tool.
+    /// kept within `[0, 1]`, with `t = tool` the potential over the user's band. Only the
+    /// stamp's own change is limited: a density the fit left a little outside the range is not
+    /// pulled back where the stamp does nothing, so two short applications do what one long
+    /// one does. The bulge pushes clay aside and creates none: a rise is weighted by the
+    /// clay's [`presence`] at the point (iso-level `iso`), so it grows from the surface and
+    /// never in the air over the tool.
+    ///
+    /// `print` is the tool's potential over the band the lattice can hold (the carving tools'
+    /// floor, [`crate::tools::MIN_FALLOFF_SPANS`] knot spans; equal to `tool` when the user's
+    /// band is wider). The print tends to what removing the tool over that band leaves,
+    /// `min(f, 1 − print)`, inside the tool and out: each whole application wears the clay
+    /// down to it (inside, on top of `def`'s carve), and the bulge rises no higher than it.
+    /// The print's wall is then as smooth as the clay's own, not a step of one half at the
+    /// tool's surface, which the refit shrank the print on (a sphere of one knot span's
+    /// radius printed 28% small, `tests/geometric_size.rs`). Where the lattice's band is the
+    /// wider, a rise is also scaled by how much of the lattice's band remains outside the
+    /// point against the user's, `(1 − 2·print) / (1 − 2·t)`: the bulge moves out of the
+    /// print's wall instead of ringing in it.
     #[inline]
     #[must_use]
-    pub fn apply(&self, clay: f32, tool: f32, iso: f32, dt_s: f32) -> f32 {
+    pub fn apply(&self, clay: f32, tool: f32, print: f32, iso: f32, dt_s: f32) -> f32 {
         let v = 1.0 - tool;
-        let change = self.rate_per_s * dt_s.max(0.0) * self.def(v);
+        let applications = self.rate_per_s * dt_s.max(0.0);
+        let change = applications * self.def(v);
         let in_tool = v <= self.s;
+        let wear = |d: f32| applications.min(1.0) * (d - d.min(1.0 - print)).max(0.0);
+        let change = if in_tool {
+            change.min(-wear(clay))
+        } else if change > 0.0 {
+            change * ((1.0 - 2.0 * print) / (1.0 - 2.0 * tool)).clamp(0.0, 1.0)
+        } else {
+            change
+        };
         let new = limited_change(clay, pushed_aside(change, clay, iso, in_tool));
-        no_sharper_than_the_tool(new, clay, tool, in_tool)
+        let new = if in_tool { new } else { new - wear(new) };
+        no_sharper_than_the_tool(new, clay, print, in_tool)
     }
 }
 
@@ -314,19 +337,23 @@ mod tests {
     fn the_stamp_raises_a_rim_only_where_there_is_clay() {
         let p = StampParams::default();
         let (iso, dt) = (0.5, 0.01);
-        assert!(p.apply(0.9, 0.9, iso, dt) < 0.9, "carves inside the tool");
-        // Just outside the tool's surface: def > 0.
-        let t = 0.4;
+        assert!(
+            p.apply(0.9, 0.9, 0.9, iso, dt) < 0.9,
+            "carves inside the tool"
+        );
+        // Outside the tool's surface, in the bulge: def > 0. (The rim rises no higher than
+        // `1 − print` there, the print's own wall: 0.8.)
+        let t = 0.2;
         assert!(p.def(1.0 - t) > 0.0);
-        assert!(p.apply(0.6, t, iso, dt) > 0.6, "a rim in the clay");
-        assert_eq!(p.apply(0.0, t, iso, dt), 0.0, "nothing in empty space");
+        assert!(p.apply(0.6, t, t, iso, dt) > 0.6, "a rim in the clay");
+        assert_eq!(p.apply(0.0, t, t, iso, dt), 0.0, "nothing in empty space");
         assert_eq!(
-            p.apply(0.01, t, iso, 100.0),
+            p.apply(0.01, t, t, iso, 100.0),
             0.01,
             "nor in the fit's ripple"
         );
         assert!(
-            p.apply(0.3, t, iso, dt) > 0.3,
+            p.apply(0.3, t, t, iso, dt) > 0.3,
             "the clay's outer band rises"
         );
         assert_eq!(presence(0.06, iso), 0.0);
@@ -393,7 +420,11 @@ mod tests {
         // bulging tool the clay grows to the tool's own shape and no further.
         for f in [0.0, 0.01, 0.05, 0.0625] {
             assert_eq!(dent.apply(f, 0.25, iso, 10.0), f, "rim at {f}");
-            assert_eq!(stamp.apply(f, t_bulge, iso, 10.0), f, "stamp at {f}");
+            assert_eq!(
+                stamp.apply(f, t_bulge, t_bulge, iso, 10.0),
+                f,
+                "stamp at {f}"
+            );
             assert_eq!(bulge.apply(f, 0.9, iso, 10.0), 0.9, "bulge at {f}");
         }
         // The moat around a bulge wears the surface in and never cuts deep inside the clay.
@@ -407,11 +438,11 @@ mod tests {
         assert_eq!(dent.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
         assert_eq!(dent.apply(1.0, 0.55, iso, 10.0), 1.0 - 0.55);
         assert_eq!(bulge.apply(0.45, 0.8, iso, 10.0), 0.8);
-        assert_eq!(stamp.apply(1.0, 0.9, iso, 10.0), 1.0 - 0.9);
+        assert_eq!(stamp.apply(1.0, 0.9, 0.9, iso, 10.0), 1.0 - 0.9);
         // At the surface they rise as before.
         assert!(dent.apply(0.45, 0.25, iso, 0.01) > 0.45);
         assert!(bulge.apply(0.45, 0.9, iso, 0.01) > 0.45);
-        assert!(stamp.apply(0.45, t_bulge, iso, 0.01) > 0.45);
+        assert!(stamp.apply(0.45, t_bulge, t_bulge, iso, 0.01) > 0.45);
         assert_eq!(presence(0.0625, iso), 0.0);
         assert_eq!(exposure(0.9375, iso), 0.0);
         assert_eq!(exposure(0.5, iso), 1.0);
