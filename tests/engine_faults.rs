@@ -483,3 +483,42 @@ fn a_start_that_fails_after_the_haptic_loop_started_leaves_no_loop_holding_the_d
     std::thread::sleep(Duration::from_millis(20));
     assert_eq!(seen.lock().unwrap().reads, reads);
 }
+
+/// An engine dropped without being stopped (an owner that returned early or panicked) stops
+/// every loop and closes the device before the drop returns: the haptic loop reads the arm no
+/// more, and the device was closed (its driver commands zero force on close).
+#[test]
+fn an_engine_dropped_without_stop_stops_its_loops_and_closes_the_device() {
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let seen = std::sync::Arc::new(std::sync::Mutex::new(Seen::default()));
+    let device = Box::new(Watched {
+        arm: s.arm,
+        seen: seen.clone(),
+        panic_at_read: None,
+    });
+    let engine = Engine::start(
+        &s.config,
+        s.field,
+        device,
+        Box::new(HeadlessSink::default()),
+    )
+    .expect("engine starts");
+    // Wait for the haptic loop to be running (an event; the deadline is a failsafe only).
+    let give_up = Instant::now() + Duration::from_secs(120);
+    while seen.lock().unwrap().reads < 10 {
+        assert!(
+            Instant::now() < give_up,
+            "the haptic loop never read the arm"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    drop(engine);
+    let reads = seen.lock().unwrap().reads;
+    assert!(seen.lock().unwrap().closed, "the device was closed");
+    std::thread::sleep(Duration::from_millis(20));
+    assert_eq!(
+        seen.lock().unwrap().reads,
+        reads,
+        "a loop still reads the arm"
+    );
+}

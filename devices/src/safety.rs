@@ -116,7 +116,9 @@ pub fn soft_start_gain(t: f32) -> f32 {
 /// # Ok::<(), Box<dyn std::error::Error>>(())
 /// ```
 pub struct SafetyFilter<D: HapticDevice = Box<dyn HapticDevice>> {
-    device: D,
+    /// Always `Some` while the filter lives: only [`SafetyFilter::into_inner`], which consumes
+    /// the filter, takes it out (a filter that implements `Drop` cannot move a field out).
+    device: Option<D>,
     config: SafetyConfig,
     /// Effective magnitude bound, newtons (min of config and device info), refreshed on open.
     limit_n: f32,
@@ -152,7 +154,7 @@ impl<D: HapticDevice> SafetyFilter<D> {
         let info = device.info();
         let device_limit_n = device_limit(&info);
         Self {
-            device,
+            device: Some(device),
             config,
             limit_n: effective_limit(&config, device_limit_n),
             device_limit_n,
@@ -176,19 +178,33 @@ impl<D: HapticDevice> SafetyFilter<D> {
     /// The wrapped device.
     #[must_use]
     pub fn device(&self) -> &D {
-        &self.device
+        self.dev()
     }
 
     /// The wrapped device, mutably. Forces written through this reference bypass the filter;
     /// use it for driver-specific settings only.
     pub fn device_mut(&mut self) -> &mut D {
-        &mut self.device
+        self.dev_mut()
     }
 
     /// Unwraps the device (without closing it).
     #[must_use]
-    pub fn into_inner(self) -> D {
+    pub fn into_inner(mut self) -> D {
         self.device
+            .take()
+            .unwrap_or_else(|| unreachable!("the device leaves the filter only here"))
+    }
+
+    fn dev(&self) -> &D {
+        self.device
+            .as_ref()
+            .unwrap_or_else(|| unreachable!("the device leaves the filter only with it"))
+    }
+
+    fn dev_mut(&mut self) -> &mut D {
+        self.device
+            .as_mut()
+            .unwrap_or_else(|| unreachable!("the device leaves the filter only with it"))
     }
 
     /// The effective force bound, newtons.
@@ -280,7 +296,7 @@ impl<D: HapticDevice> SafetyFilter<D> {
         self.output_n = Vec3::ZERO;
         // NOTE: the result is ignored on purpose: the device already failed once, and the
         // caller gets that first error.
-        let _ = self.device.write_force(Vec3::ZERO);
+        let _ = self.dev_mut().write_force(Vec3::ZERO);
     }
 
     /// Runs the checks on `requested_n` and returns what should be sent, updating counters
@@ -348,9 +364,26 @@ fn effective_limit(config: &SafetyConfig, device: f32) -> f32 {
     device.min(configured)
 }
 
+/// A filter dropped with its device still open closes it, commanding zero force first (every
+/// driver's `close` does), so no path that loses the filter (a loop handle or an engine
+/// dropped without being stopped, a thread unwinding) leaves the arm pushing with its last
+/// force. A close that fails here has nowhere to go; the device was told zero as far as it
+/// could be.
+impl<D: HapticDevice> Drop for SafetyFilter<D> {
+    fn drop(&mut self) {
+        if let Some(device) = self.device.as_mut()
+            && device.is_open()
+        {
+            self.output_n = Vec3::ZERO;
+            self.enabled = false;
+            let _ = device.close();
+        }
+    }
+}
+
 impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
     fn info(&self) -> DeviceInfo {
-        let mut info = self.device.info();
+        let mut info = self.dev().info();
         info.max_force_n = info.max_force_n.min(self.limit_n);
         info
     }
@@ -358,8 +391,8 @@ impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
     /// Opens the device, resets counters and the time base, and (with `enable_on_open`)
     /// enables forces with a soft start.
     fn open(&mut self) -> Result<(), DeviceError> {
-        self.device.open()?;
-        let info = self.device.info();
+        self.dev_mut().open()?;
+        let info = self.dev().info();
         self.device_limit_n = device_limit(&info);
         self.has_force = info.has_force;
         self.limit_n = effective_limit(&self.config, self.device_limit_n);
@@ -381,17 +414,17 @@ impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
         self.output_n = Vec3::ZERO;
         self.enabled = false;
         self.ramp_start_us = None;
-        self.device.close()
+        self.dev_mut().close()
     }
 
     fn is_open(&self) -> bool {
-        self.device.is_open()
+        self.dev().is_open()
     }
 
     /// Reads the device. An error latches the fault and sends zero at once; the first success
     /// after a fault clears it and begins a fresh soft start.
     fn read(&mut self) -> Result<DeviceState, DeviceError> {
-        match self.device.read() {
+        match self.dev_mut().read() {
             Ok(state) => {
                 if state.timestamp_us < self.now_us {
                     // The device clock restarted (reopened underneath us): restart the slew
@@ -425,7 +458,7 @@ impl<D: HapticDevice> HapticDevice for SafetyFilter<D> {
     /// once and until a read succeeds) and the error is returned.
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
         let out = self.filter(force_n);
-        match self.device.write_force(out) {
+        match self.dev_mut().write_force(out) {
             Ok(()) => {
                 self.output_n = out;
                 Ok(())
@@ -527,6 +560,66 @@ mod tests {
         f.read().unwrap();
         f.write_force(force).unwrap();
         f.output_force_n()
+    }
+
+    /// A device that notes, where its owner can see after the filter is gone, whether it is
+    /// still open and the last force it was sent.
+    struct Noted {
+        probe: Probe,
+        note: std::sync::Arc<std::sync::Mutex<(bool, Vec3)>>,
+    }
+
+    impl HapticDevice for Noted {
+        fn info(&self) -> DeviceInfo {
+            self.probe.info()
+        }
+        fn open(&mut self) -> Result<(), DeviceError> {
+            self.note.lock().unwrap().0 = true;
+            self.probe.open()
+        }
+        fn close(&mut self) -> Result<(), DeviceError> {
+            // As every driver's close: zero force first.
+            self.write_force(Vec3::ZERO)?;
+            self.note.lock().unwrap().0 = false;
+            self.probe.close()
+        }
+        fn is_open(&self) -> bool {
+            self.probe.is_open()
+        }
+        fn read(&mut self) -> Result<DeviceState, DeviceError> {
+            self.probe.read()
+        }
+        fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
+            self.note.lock().unwrap().1 = force_n;
+            self.probe.write_force(force_n)
+        }
+    }
+
+    /// Dropped while its device is open and pushing, the filter closes the device, which
+    /// leaves it at zero force; unwrapped with `into_inner`, the device stays open for its
+    /// new owner.
+    #[test]
+    fn a_dropped_filter_closes_its_open_device_and_into_inner_does_not() {
+        let note = std::sync::Arc::new(std::sync::Mutex::new((false, Vec3::ZERO)));
+        let device = || Noted {
+            probe: Probe::new(),
+            note: note.clone(),
+        };
+        let mut f = SafetyFilter::with_config(device(), no_ramp());
+        f.open().unwrap();
+        f.read().unwrap();
+        f.write_force(Vec3::X * 2.0).unwrap();
+        f.read().unwrap();
+        f.write_force(Vec3::X * 2.0).unwrap();
+        assert_eq!(*note.lock().unwrap(), (true, Vec3::X * 2.0));
+        drop(f);
+        assert_eq!(*note.lock().unwrap(), (false, Vec3::ZERO));
+
+        let mut f = SafetyFilter::with_config(device(), no_ramp());
+        f.open().unwrap();
+        let inner = f.into_inner();
+        assert!(inner.is_open());
+        assert!(note.lock().unwrap().0);
     }
 
     #[test]

@@ -489,7 +489,9 @@ pub struct LoopHandle {
     rt: RtOutcome,
     pin: PinOutcome,
     monitor: LoopMonitor,
-    thread: JoinHandle<LoopReport>,
+    /// Always `Some` until [`LoopHandle::join`] takes it (a type with `Drop` cannot move a
+    /// field out).
+    thread: Option<JoinHandle<LoopReport>>,
 }
 
 /// Starts `body` in a loop on a new thread named `config.name`, after raising its priority and
@@ -539,7 +541,7 @@ where
             rt,
             pin,
             monitor,
-            thread,
+            thread: Some(thread),
         }),
         Err(_) => Err(LoopError::Panicked {
             message: panic_message(thread.join().err()),
@@ -591,7 +593,7 @@ impl LoopHandle {
     /// True once the loop thread has ended (stopped, broke out or panicked).
     #[must_use]
     pub fn is_finished(&self) -> bool {
-        self.thread.is_finished()
+        self.thread.as_ref().is_none_or(JoinHandle::is_finished)
     }
 
     /// A summary from the latest published statistics, without stopping the loop. Wait-free
@@ -611,9 +613,13 @@ impl LoopHandle {
     ///
     /// # Errors
     /// [`LoopError::Panicked`] if the tick closure panicked.
-    pub fn join(self) -> Result<LoopReport, LoopError> {
-        self.thread.join().map_err(|p| LoopError::Panicked {
-            loop_name: self.name,
+    pub fn join(mut self) -> Result<LoopReport, LoopError> {
+        let thread = self
+            .thread
+            .take()
+            .unwrap_or_else(|| unreachable!("only join takes the thread, and it consumes"));
+        thread.join().map_err(|p| LoopError::Panicked {
+            loop_name: std::mem::take(&mut self.name),
             message: panic_message(Some(p)),
         })
     }
@@ -625,6 +631,21 @@ impl LoopHandle {
     pub fn stop_and_join(self) -> Result<LoopReport, LoopError> {
         self.stop();
         self.join()
+    }
+}
+
+/// A handle dropped without [`LoopHandle::join`] stops its loop and waits for the thread to
+/// end, so no loop outlives its owner (a loop's state, a device among it, is dropped on its
+/// own thread when that ends). The loop's report, or its panic, is discarded. A handle
+/// dropped on a loop thread (inside a tick) would wait there, which the blocking check
+/// flags.
+impl Drop for LoopHandle {
+    fn drop(&mut self) {
+        if let Some(thread) = self.thread.take() {
+            self.monitor.stop();
+            crate::blocking::assert_not_in_tick("dropping a LoopHandle joins its thread");
+            let _ = thread.join();
+        }
     }
 }
 
@@ -673,6 +694,35 @@ mod tests {
         assert_eq!(report.stop_reason, StopReason::BodyFinished);
         assert_eq!(report.recorder.ticks(), 50);
         assert_eq!(report.summary().stats.ticks, 50);
+    }
+
+    /// A handle dropped without join stops its loop and waits for the thread: the loop's
+    /// state (here a flag set when the closure is dropped, at the thread's end) is gone by the
+    /// time the drop returns.
+    #[test]
+    fn dropping_a_handle_stops_and_joins_its_loop() {
+        struct SetOnDrop(std::sync::Arc<std::sync::atomic::AtomicBool>);
+        impl Drop for SetOnDrop {
+            fn drop(&mut self) {
+                self.0.store(true, std::sync::atomic::Ordering::SeqCst);
+            }
+        }
+        let ended = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let guard = SetOnDrop(ended.clone());
+        let (tick_tx, tick_rx) = mpsc::channel();
+        let handle = spawn_loop(LoopConfig::new("t-drop"), move |_| {
+            let _ = &guard;
+            let _ = tick_tx.send(());
+            ControlFlow::Continue(())
+        })
+        .expect("spawn");
+        tick_rx.recv().expect("a first tick");
+        assert!(!ended.load(std::sync::atomic::Ordering::SeqCst));
+        drop(handle);
+        assert!(
+            ended.load(std::sync::atomic::Ordering::SeqCst),
+            "the loop's state outlived its handle"
+        );
     }
 
     #[test]
