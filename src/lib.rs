@@ -1,26 +1,27 @@
 //! dynaclay: a haptic volumetric sculpting engine.
 //!
-//! The clay is the level set `s(x) = c0` of a trivariate cubic B-spline (`field`), whose
-//! coefficients move under density-spring dynamics (`dynamics`) driven by forces that a
-//! force-feedback arm applies. Three fixed-rate loops (`engine`) — haptic, simulation and
-//! graphics — share state only through lock-free triple buffers from `dynaclay-loops`.
-//! Folders follow the data flow: field → dynamics → tools → haptics → mesh → io → engine → render
-//! → app.
+//! The workspace is layered, and Cargo enforces it (a crate can only use the ones below it):
+//!
+//! | crate | what it holds |
+//! | --- | --- |
+//! | `dynaclay-files` | the bounded reader and the one atomic writer |
+//! | `dynaclay-loops` | fixed-rate loops, triple buffers, latency recording |
+//! | `dynaclay-devices` | arms over HID and serial, the simulated arm, the safety filter, recordings |
+//! | `dynaclay-core` | the clay: field, dynamics, tools, haptic rendering, meshing, sessions and scripts |
+//! | `dynaclay-import` | fitting clouds and meshes, point-set surfaces, particles, the compact RBF |
+//! | `dynaclay-engine` | the three loops wired, commands, the lockstep engine, replay |
+//! | `dynaclay` (this crate) | the command line, the renderer and the window |
+//!
+//! The lower crates' modules are re-exported here under their old names
+//! (`dynaclay::field`, `dynaclay::engine`, …), so that a user of the library needs one
+//! dependency.
 
 #![deny(unsafe_op_in_unsafe_fn)]
-#![warn(clippy::undocumented_unsafe_blocks)]
+
+pub use dynaclay_core::{dynamics, field, haptics, io, mesh, tools};
+pub use dynaclay_engine as engine;
+pub use dynaclay_import::{fit, particles, pointset, rbf};
 
 pub mod app;
 pub mod cli;
-pub mod dynamics;
-pub mod engine;
-pub mod field;
-pub mod fit;
-pub mod haptics;
-pub mod io;
-pub mod mesh;
-pub mod particles;
-pub mod pointset;
-pub mod rbf;
 pub mod render;
-pub mod tools;

@@ -1,0 +1,228 @@
+//! The graphics stage: turns the newest field patch into re-meshed octree bricks and hands
+//! them to a [`MeshSink`] (the GUI renderer, or the headless counter).
+//!
+//! Not real-time: meshing allocates. It never blocks the other loops: it reads the newest
+//! patch wait-free and works on its own copy of the field.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use dynaclay_loops::SnapshotReader;
+
+use super::counters::EngineCounters;
+use super::layout::LayoutPort;
+use super::update::FieldUpdate;
+use dynaclay_core::field::MultiPatchField;
+pub use dynaclay_core::mesh::MeshSink;
+use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
+use dynaclay_core::tools::ColourField;
+
+/// A sink that only counts (headless runs export the final mesh separately).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct HeadlessSink {
+    /// Updates received.
+    pub updates: u64,
+    /// Bricks changed over all updates.
+    pub bricks_changed: u64,
+    /// Triangles in the latest mesh.
+    pub triangles: usize,
+}
+
+impl MeshSink for HeadlessSink {
+    fn update(&mut self, octree: &BrickOctree, report: &RefreshReport) {
+        self.updates += 1;
+        self.bricks_changed += report.changed.len() as u64 + report.removed.len() as u64;
+        self.triangles = octree.triangle_count();
+    }
+}
+
+/// The graphics loop's state.
+pub struct GraphicsStage {
+    /// Boxed so that a new layout moves in by pointer (see [`super::layout`]).
+    field: Box<MultiPatchField>,
+    /// The layout generation of `field`.
+    layout: u64,
+    layouts: LayoutPort,
+    octree: BrickOctree,
+    updates: SnapshotReader<FieldUpdate>,
+    /// The clay's paint, published by the simulation when it changes.
+    colours: SnapshotReader<Option<ColourField>>,
+    ack: Arc<AtomicU64>,
+    sink: Box<dyn MeshSink>,
+    counters: EngineCounters,
+}
+
+impl GraphicsStage {
+    /// Builds the stage and meshes `field` in full; `cells_per_span` sets the marching-cubes
+    /// resolution (cells per knot span); paint arrives on `colours`, new patch layouts on
+    /// `layouts`.
+    ///
+    /// # Errors
+    /// When the sampling grid cannot be made for the lattice.
+    #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
+    pub fn new(
+        field: MultiPatchField,
+        layouts: LayoutPort,
+        cells_per_span: u32,
+        updates: SnapshotReader<FieldUpdate>,
+        colours: SnapshotReader<Option<ColourField>>,
+        ack: Arc<AtomicU64>,
+        mut sink: Box<dyn MeshSink>,
+        counters: EngineCounters,
+    ) -> Result<Self, GridError> {
+        let grid = SampleGrid::for_field(&field, cells_per_span)?;
+        let mut octree = BrickOctree::new(grid);
+        let report = octree.rebuild(&field);
+        sink.update(&octree, &report);
+        sink.field(&field);
+        Ok(Self {
+            field: Box::new(field),
+            layout: 0,
+            layouts,
+            octree,
+            updates,
+            colours,
+            ack,
+            sink,
+            counters,
+        })
+    }
+
+    /// Applies the newest patch if there is one and re-meshes what it changed, after handing
+    /// the sink any new paint; returns the number of bricks re-meshed.
+    pub fn tick(&mut self) -> usize {
+        if let Some(paint) = self.colours.try_fresh() {
+            self.sink.paint(&self.octree, paint.value.as_ref());
+        }
+        if let Some(generation) = self.layouts.install(&mut self.field) {
+            // A new patch holds nothing yet: the field and its mesh are unchanged. The grid
+            // keeps the resolution the engine started with.
+            self.layout = generation;
+            self.sink.field(&self.field);
+        }
+        let stamped = self.updates.latest();
+        if stamped.value.layout != self.layout
+            || stamped.version == self.ack.load(Ordering::Relaxed)
+        {
+            self.sink.idle(&self.field);
+            return 0;
+        }
+        let changed = stamped.value.apply_to(&mut self.field);
+        // NOTE: Release pairs with the simulation's Acquire load of the ack.
+        self.ack.store(stamped.version, Ordering::Release);
+        let Some((lo, hi)) = changed else {
+            self.sink.idle(&self.field);
+            return 0;
+        };
+        let report = self.octree.refresh_box(&*self.field, lo, hi);
+        let n = report.changed.len() + report.removed.len();
+        self.counters.graphics_updates(1);
+        self.counters.bricks_remeshed(n as u64);
+        self.sink.update(&self.octree, &report);
+        self.sink.field(&self.field);
+        n
+    }
+
+    /// This stage's field copy.
+    #[must_use]
+    pub fn field(&self) -> &MultiPatchField {
+        &self.field
+    }
+
+    /// The octree.
+    #[must_use]
+    pub fn octree(&self) -> &BrickOctree {
+        &self.octree
+    }
+
+    /// The sink, handed back when the engine stops to start again on another clay.
+    #[must_use]
+    pub fn into_sink(self) -> Box<dyn MeshSink> {
+        self.sink
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+    use glam::Vec3;
+    use parking_lot::Mutex;
+
+    use super::super::{Command, EngineConfig, ToolSample, build, build_clay};
+    use super::*;
+    use dynaclay_core::io::{ClayShape, ClaySpec};
+    use dynaclay_core::tools::{GeometricTool, ToolAction, ToolPose, ToolShape};
+
+    /// Keeps the last paint handed over.
+    struct PaintSink(Arc<Mutex<Option<Option<ColourField>>>>);
+
+    impl MeshSink for PaintSink {
+        fn update(&mut self, _: &BrickOctree, _: &RefreshReport) {}
+        fn paint(&mut self, _: &BrickOctree, colour: Option<&ColourField>) {
+            *self.0.lock() = Some(colour.cloned());
+        }
+    }
+
+    /// A paint stroke applied by the simulation reaches the graphics loop's sink, and so does
+    /// its undo.
+    #[test]
+    fn paint_travels_from_the_simulation_to_the_sink_and_undo_takes_it_back() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let centre = Vec3::splat(11.0 * 0.1 * 0.5);
+        let surface = centre + Vec3::new(11.0 * 0.1 * 0.25, 0.0, 0.0);
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let seen = Arc::new(Mutex::new(None));
+        let mut s = build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(PaintSink(Arc::clone(&seen))),
+            true,
+        )
+        .unwrap();
+        let run = |s: &mut super::super::Stages| {
+            for _ in 0..40 {
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+                s.graphics.tick();
+            }
+        };
+        run(&mut s);
+        assert!(seen.lock().is_none(), "no paint, no call");
+
+        let tool = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.25 },
+            action: ToolAction::Paint {
+                rgb: [1.0, 0.0, 0.0],
+            },
+            falloff_fu: 0.2,
+        };
+        s.commands
+            .send(Command::ApplyTool {
+                tool,
+                poses: vec![ToolPose::at(surface)],
+                duration_s: 0.1,
+                patch: 0,
+                reply: None,
+            })
+            .unwrap();
+        run(&mut s);
+        let painted = seen.lock().clone().expect("paint handed over");
+        let rgba = painted.expect("the clay carries colour").rgba(surface);
+        assert!(rgba.w > 0.5 && rgba.x > 0.9, "red at the stroke: {rgba}");
+
+        s.commands.send(Command::Undo).unwrap();
+        run(&mut s);
+        let after = seen.lock().clone().expect("undo handed over");
+        let coverage = after.map_or(0.0, |c| c.rgba(surface).w);
+        assert!(coverage < 0.01, "undo took the paint off: {coverage}");
+    }
+}

@@ -1,0 +1,72 @@
+//! The three loops wired together: haptic (1 kHz), simulation and graphics, exchanging state
+//! only through lock-free triple buffers, plus the I/O worker (saves, autosave), a
+//! deterministic single-thread lockstep mode, and the layout and driver that play a script
+//! (the one format of [`dynaclay_core::io::Script`]) through the engine.
+
+mod command;
+mod compact_rbf;
+mod config;
+mod counters;
+mod device_swap;
+mod error;
+mod force_limit;
+mod graphics;
+mod haptic;
+mod haptic_gain;
+mod io_worker;
+mod layout;
+mod live_tool;
+mod lockstep;
+mod plan;
+mod removal_guard;
+mod replay;
+mod script_driver;
+mod sim_status;
+mod simulation;
+mod symmetry;
+mod threaded;
+mod tool_library;
+mod tool_sample;
+mod update;
+mod wiring;
+mod workspace;
+
+#[cfg(feature = "fault-injection")]
+pub use command::PanicSite;
+pub use command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
+pub use compact_rbf::{CompactRbfLink, CompactStartError, CompactStatus};
+pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
+pub use counters::{CounterSnapshot, EngineCounters};
+pub use device_swap::{
+    DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
+};
+pub use error::{
+    CommandError, EngineError, LatticeShape, LoadRefused, SaveError, SaveReply, SwapRefused,
+};
+pub use force_limit::{ForceLimit, InvalidForceLimit};
+pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
+pub use haptic::{HapticOutcome, HapticStage};
+pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
+pub use io_worker::{IoReport, IoWorker};
+pub use live_tool::{GeometricDue, LiveTool, MAX_FORCES, MAX_TARGETS};
+pub use lockstep::{Lockstep, LockstepReport};
+pub use plan::{
+    APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,
+    ScriptPlan, TRAVEL_S, builtin_script,
+};
+pub use removal_guard::{MOST_REMOVED_UNASKED, RemovalGuard, RemovalQuestion, StrokeRemoval};
+pub use replay::{ReplayMismatch, ScheduledReplay};
+pub use script_driver::ScriptDriver;
+pub use sim_status::SimStatus;
+pub use simulation::{
+    Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
+};
+pub use symmetry::{Symmetry, clay_centre, mirror, mirror_force};
+pub use threaded::{DeviceSwapReport, Engine, EngineReport, StartOptions, StoppedEngine};
+pub use tool_library::{
+    LibraryError, LibraryTool, check_name, describe_preset, make_preset, store_preset,
+};
+pub use tool_sample::ToolSample;
+pub use update::{ChangedBox, FieldUpdate};
+pub use wiring::{Stages, build};
+pub use workspace::WorkspaceMap;

@@ -1,0 +1,1025 @@
+//! The simulation stage: applies the held tool — the contact push's or a force tool's force
+//! vectors to the mass points of a local region around them, or a geometric tool at the tip —
+//! steps the density-spring dynamics, applies non-real-time commands (tool steps, CSG,
+//! undo/redo, material, saves) between steps, and publishes the field to the haptic and
+//! graphics loops.
+//!
+//! Not hard real-time: it allocates when a region is created or moved, when a geometric tool
+//! is applied, when a stroke's undo step is recorded, and when commands are applied; it never
+//! blocks on another loop and never does file I/O (saves go to the I/O thread). All decisions
+//! depend only on the tool samples, the commands and step counts — never on wall time — so a
+//! lockstep run is reproducible bit for bit.
+//!
+//! Undo rule: one stroke (button 0 down to up) is one undo step. Every write to the clay is
+//! preceded by a [`StepRecorder::touch`] of its box. A stroke's step is committed when the
+//! stroke ends if no dynamics region is alive; otherwise when the region retires (the clay has
+//! stopped moving), when the next stroke starts, or before any command that edits the clay —
+//! so every change belongs to exactly one step and undo restores the field bit for bit.
+//!
+//! Compact RBF clay (Zhang et al. §5.4, `compact.rs`): when on, each committed contact stroke
+//! or contact tool step sends a copy of the base patch to a worker thread; its answer (the
+//! RBF's fit onto the lattice) is polled between steps and written as one more undo step, or
+//! dropped and re-asked on the newer clay when the clay changed meanwhile.
+//!
+//! Detail patches (Hua & Qin eq. (3)): the region a stroke touches is simulated on the patch
+//! in world coordinates that holds the most detail at the tool (the finest one whose support
+//! holds the tip well inside); the other patches stay fixed and take part through the sum, in
+//! the tool's forces as in what the haptic loop feels and the graphics loop meshes.
+//!
+//! Publication rule: every step publishes to both readers a [`FieldUpdate`] whose boxes are the
+//! current region plus every box changed elsewhere (a retired region, an undo), per patch,
+//! that a reader has not acknowledged yet. Readers store the version they applied in their ack atomics; a
+//! changed box is dropped from the patch once both acks reach the first version that carried
+//! it. So a reader that skips versions (triple buffers keep only the newest) still converges
+//! to the simulation's field.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+mod commands;
+mod compact;
+mod constrain;
+mod library;
+mod material;
+mod publication;
+mod removal;
+mod session_io;
+
+use session_io::CarriedSections;
+pub use session_io::check_loadable;
+
+use crossbeam::channel::{Receiver, Sender};
+use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
+use glam::{Quat, Vec3};
+
+use super::command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
+use super::counters::EngineCounters;
+use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
+use super::layout::LayoutSender;
+use super::live_tool::LiveTool;
+use super::sim_status::SimStatus;
+use super::symmetry::{Symmetry, clay_centre, mirror_force};
+use super::tool_sample::ToolSample;
+use super::update::FieldUpdate;
+use dynaclay_core::dynamics::{
+    ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce,
+};
+use dynaclay_core::field::{
+    BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around,
+};
+use dynaclay_core::io::{MaterialFields, Session};
+use dynaclay_core::tools::{
+    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
+    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
+    tool_volume_change,
+};
+
+/// Settings of the simulation stage.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SimConfig {
+    /// Material of new regions.
+    pub material: Material,
+    /// Step parameters (time step, adaptivity).
+    pub step: StepParams,
+    /// The contact push held at the start (a [`Command::SetTool`] changes the tool).
+    pub tool: PushTool,
+    /// Half the edge of the simulated region around the tool, field units.
+    pub region_half: f32,
+    /// Mass points per knot span inside the region.
+    pub samples_per_span: usize,
+    /// Steps without contact after which the region is retired (and the stroke's undo step
+    /// is recorded).
+    pub retire_after_steps: u32,
+    /// Memory bound of the undo history, bytes.
+    pub history_budget_bytes: usize,
+    /// Least device time between two applications of a held geometric tool, microseconds.
+    pub geometric_interval_us: u64,
+    /// What a step that would remove more than half the clay does: applied and reported
+    /// (scripts), or held until the user answers (the window).
+    pub removal_guard: super::RemovalGuard,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            material: Material::PLASTIC,
+            step: StepParams::default(),
+            tool: PushTool::default(),
+            region_half: 0.5,
+            samples_per_span: 2,
+            retire_after_steps: 400,
+            history_budget_bytes: dynaclay_core::tools::DEFAULT_BUDGET_BYTES,
+            geometric_interval_us: 10_000,
+            removal_guard: super::RemovalGuard::Warn,
+        }
+    }
+}
+
+/// Work the simulation thread hands to the I/O thread.
+#[derive(Debug)]
+pub enum IoJob {
+    /// Write a session file (boxed: a session is large and autosave notes are frequent).
+    Save(Box<SaveJob>),
+    /// An undo step was committed (a stroke or a tool step ended): counts toward autosave.
+    Committed,
+    /// Test-only (the `fault-injection` feature): the I/O worker panics on taking it.
+    #[cfg(feature = "fault-injection")]
+    InjectPanic,
+}
+
+/// A save the simulation thread hands to whoever does the file I/O.
+#[derive(Debug)]
+pub struct SaveJob {
+    /// Destination.
+    pub path: std::path::PathBuf,
+    /// The session to write.
+    pub session: Session,
+    /// Where the result goes.
+    pub reply: Option<super::SaveReply>,
+}
+
+/// What one step did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SimOutcome {
+    /// Whether a region was stepped.
+    pub stepped: bool,
+    /// Whether a tool force was applied.
+    pub pushed: bool,
+    /// Whether the step was refused (non-finite values kept out).
+    pub rejected: bool,
+}
+
+/// The readers' end of the publication acks.
+#[derive(Clone, Debug, Default)]
+pub struct Acks {
+    /// Version last applied by the haptic loop.
+    pub haptic: Arc<AtomicU64>,
+    /// Version last applied by the graphics loop.
+    pub graphics: Arc<AtomicU64>,
+}
+
+/// The simulation's state: the authoritative clay, the active region, the history.
+pub struct SimulationStage {
+    config: SimConfig,
+    clay: Clay,
+    history: History,
+    recorder: Option<StepRecorder>,
+    tool: LiveTool,
+    simulator: Simulator,
+    region: Option<RegionState>,
+    /// The density patch the region simulates (its lattice is the one stepped).
+    region_patch: usize,
+    /// The uniform material the live region was made with (before its patch's volume
+    /// ratio), under the painted grids.
+    region_material: Material,
+    /// The painted material: grids of mass, damping, stiffness and drift rate over the base patch (see
+    /// `material.rs`), applied to every region's mass points.
+    material_grids: Vec<dynaclay_core::io::MaterialGrid>,
+    /// The clay's pins as the live region holds them (see `constrain.rs`).
+    region_pins: ConstraintSolver,
+    /// Bumped by every command that may change the clay's pins (see [`SimStatus`]).
+    pins_revision: u64,
+    idle_steps: u32,
+    stroke_armed: bool,
+    was_active: bool,
+    scratch: RegionSnapshot,
+    to_haptic: SnapshotWriter<FieldUpdate>,
+    to_graphics: SnapshotWriter<FieldUpdate>,
+    acks: Acks,
+    /// Per density patch, the box changed outside the region that a reader may not have yet.
+    pending: Vec<Option<CoeffBox>>,
+    /// The patch layout's generation (bumped when a detail patch is added).
+    layout_generation: u64,
+    /// Where new layouts go to the haptic and graphics loops (none in a bare stage).
+    layout_senders: Vec<LayoutSender>,
+    pending_since: u64,
+    commands: Receiver<Command>,
+    io: Option<Sender<IoJob>>,
+    counters: EngineCounters,
+    steps: u64,
+    sim_time_s: f64,
+    /// Observers' view of this stage, published every step.
+    status: SnapshotWriter<SimStatus>,
+    status_reader: Option<SnapshotReader<SimStatus>>,
+    sessions_loaded: u64,
+    /// The clay's paint for the graphics loop, published when it changed (see
+    /// [`COLOUR_PUBLISH_EVERY_STEPS`]).
+    colour: SnapshotWriter<Option<ColourField>>,
+    colour_reader: Option<SnapshotReader<Option<ColourField>>>,
+    colour_dirty: bool,
+    colour_published_step: u64,
+    /// Mirror planes strokes are copied across.
+    symmetry: Symmetry,
+    /// This step's tool forces with their mirrored copies (used only while mirroring).
+    mirrored_forces: Vec<ToolForce>,
+    /// The session's parts the engine does not simulate, carried unchanged from the loaded
+    /// session into every session it hands back.
+    carried: CarriedSections,
+    /// Where each step's schedule is noted while a recording runs (see [`ScheduleNote`]).
+    schedule: Option<ScheduleLog>,
+    /// Commands applied since the last step (noted with the next step).
+    commands_since_step: u32,
+    /// The compact RBF clay, when on (see `compact.rs`).
+    compact: Option<super::compact_rbf::CompactState>,
+    /// Bumped by every committed step, undo, redo, load and refine: which clay a
+    /// re-interpolation was computed from.
+    clay_revision: u64,
+    /// Whether the stroke being recorded is made with a contact tool.
+    stroke_is_contact: bool,
+    /// The guard against steps that remove most of the clay (see `removal.rs`).
+    removal: removal::RemovalState,
+}
+
+/// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
+/// patches: [`FieldUpdate`] names them by `u16`).
+fn density_id(patch: usize) -> FieldId {
+    FieldId::Density(u16::try_from(patch).unwrap_or(u16::MAX))
+}
+
+/// The bounding box of `forces` grown by their spread radii, if there are any.
+fn forces_bounds(forces: &[ToolForce]) -> Option<(Vec3, Vec3)> {
+    forces.iter().fold(None, |acc, f| {
+        let r = Vec3::splat(f.radius);
+        let (lo, hi) = (f.start.min(f.end) - r, f.start.max(f.end) + r);
+        Some(match acc {
+            Some((a, b)) => (a.min(lo), b.max(hi)),
+            None => (lo, hi),
+        })
+    })
+}
+
+impl SimulationStage {
+    /// Builds the stage over `field` (it becomes the clay's density).
+    #[allow(clippy::too_many_arguments)] // set-up only: each part is a distinct channel end
+    #[must_use]
+    pub fn new(
+        config: SimConfig,
+        field: MultiPatchField,
+        to_haptic: SnapshotWriter<FieldUpdate>,
+        to_graphics: SnapshotWriter<FieldUpdate>,
+        acks: Acks,
+        commands: Receiver<Command>,
+        io: Option<Sender<IoJob>>,
+        counters: EngineCounters,
+    ) -> Self {
+        let largest = field
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.len())
+            .max()
+            .unwrap_or(0);
+        let scratch = RegionSnapshot::with_capacity(largest);
+        let pending = vec![None; field.patches.len()];
+        let (status, status_reader) = snapshot_channel(&SimStatus::default());
+        let (colour, colour_reader) = snapshot_channel(&None);
+        Self {
+            config,
+            clay: Clay {
+                density: field,
+                colour: None,
+                constraints: Vec::new(),
+            },
+            history: History::new(config.history_budget_bytes),
+            recorder: None,
+            tool: LiveTool::new(ToolChoice::Push(config.tool)),
+            symmetry: Symmetry::OFF,
+            // Room for every force of the held tool and its seven mirrored copies.
+            mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
+            simulator: Simulator::new(config.step),
+            region: None,
+            region_patch: 0,
+            region_material: config.material,
+            material_grids: Vec::new(),
+            region_pins: ConstraintSolver::empty(),
+            pins_revision: 0,
+            idle_steps: 0,
+            stroke_armed: false,
+            was_active: false,
+            scratch,
+            to_haptic,
+            to_graphics,
+            acks,
+            pending,
+            layout_generation: 0,
+            layout_senders: Vec::new(),
+            pending_since: 0,
+            commands,
+            io,
+            counters,
+            steps: 0,
+            sim_time_s: 0.0,
+            status,
+            status_reader: Some(status_reader),
+            sessions_loaded: 0,
+            colour,
+            colour_reader: Some(colour_reader),
+            colour_dirty: false,
+            colour_published_step: 0,
+            carried: CarriedSections::default(),
+            schedule: None,
+            commands_since_step: 0,
+            compact: None,
+            clay_revision: 0,
+            stroke_is_contact: false,
+            removal: removal::RemovalState::default(),
+        }
+    }
+
+    /// Sends every new patch layout to the readers behind `senders` (the haptic and graphics
+    /// loops; see [`super::layout`]).
+    pub fn set_layout_senders(&mut self, senders: [LayoutSender; 2]) {
+        self.layout_senders = senders.into();
+    }
+
+    /// Notes every step's tool sample and command count into `log` from now on, so that a
+    /// replay can run the steps as this run did (see [`super::ScheduledReplay`]).
+    pub fn set_schedule_log(&mut self, log: ScheduleLog) {
+        self.schedule = Some(log);
+    }
+
+    /// Steps taken so far (the number the next step is noted with).
+    #[must_use]
+    pub fn steps_taken(&self) -> u64 {
+        self.steps
+    }
+
+    /// Version of the newest field snapshot published to the haptic loop (0 before the
+    /// first step).
+    #[must_use]
+    pub fn snapshot_version(&self) -> u64 {
+        self.to_haptic.version()
+    }
+
+    /// The authoritative field's base patch.
+    #[must_use]
+    pub fn lattice(&self) -> &BSplineLattice {
+        self.clay.base()
+    }
+
+    /// The authoritative field: the clay's density, every patch.
+    #[must_use]
+    pub fn field(&self) -> &MultiPatchField {
+        &self.clay.density
+    }
+
+    /// The clay (for saving at the end).
+    #[must_use]
+    pub fn clay(&self) -> &Clay {
+        &self.clay
+    }
+
+    /// The step held until the user says it may remove more than half the clay, if any
+    /// (as [`SimStatus::removal_question`] publishes it).
+    #[must_use]
+    pub fn removal_question(&self) -> Option<super::RemovalQuestion> {
+        self.removal.question
+    }
+
+    /// Undo steps available.
+    #[must_use]
+    pub fn undo_len(&self) -> usize {
+        self.history.undo_len()
+    }
+
+    /// Redo steps available.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.history.redo_len()
+    }
+
+    /// The tool held.
+    #[must_use]
+    pub fn tool(&self) -> &ToolChoice {
+        self.tool.choice()
+    }
+
+    /// One step under `sample`: stroke bookkeeping, the held tool, region upkeep, dynamics,
+    /// publication.
+    pub fn step(&mut self, sample: &ToolSample) -> SimOutcome {
+        if let Some(log) = &self.schedule {
+            log.note(&ScheduleNote::Step {
+                step: self.steps,
+                sample_tick: sample.tick,
+                commands: self.commands_since_step,
+            });
+        }
+        self.commands_since_step = 0;
+        let mut out = SimOutcome::default();
+        let active = sample.stroke_active;
+        if active && !self.was_active {
+            // A new stroke is a new undo step.
+            self.commit_recorder();
+            self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
+            self.stroke_is_contact = self.tool.choice().is_contact();
+            self.tool.end_stroke();
+            self.removal
+                .stroke_started(self.tool.choice(), &self.clay, sample.device_time_us);
+        } else if !active && self.was_active {
+            self.tool.release();
+            self.removal.stroke_ended(self.config.removal_guard);
+            if self.region.is_none() {
+                // Nothing keeps moving: the stroke's step is complete.
+                self.commit_recorder();
+            }
+        }
+        self.was_active = active;
+
+        if let Some(due) = self
+            .tool
+            .geometric_due(sample, self.config.geometric_interval_us)
+        {
+            // Along the tip's path since the last application: a continuous groove.
+            for i in 0..due.count {
+                self.apply_held_geometric(due.point(i), due.rotation, due.dwell_s);
+            }
+        }
+
+        // The patch that would hold this step's region: its mass points set the step.
+        let sculpted = self.sculpted_patch_at(sample.tip);
+        let spacing = self.clay.density.patches[sculpted].lattice.spacing;
+        let mass_step = spacing / self.config.samples_per_span.max(1) as f32;
+        self.tool
+            .update_forces(sample, &self.clay.density, mass_step);
+        let mirroring = self.symmetry.any() && !self.tool.forces().is_empty();
+        if mirroring {
+            self.mirror_forces();
+        }
+        let bounds = if mirroring {
+            forces_bounds(&self.mirrored_forces)
+        } else {
+            self.tool.force_bounds()
+        };
+        let push = match bounds {
+            Some((lo, hi)) => {
+                self.ensure_region(lo, hi);
+                self.idle_steps = 0;
+                true
+            }
+            None => {
+                if self.region.is_some() {
+                    self.idle_steps += 1;
+                    if self.idle_steps > self.config.retire_after_steps {
+                        self.retire_region();
+                    }
+                }
+                false
+            }
+        };
+
+        if let Some(region) = self.region.as_mut() {
+            if let Some(rec) = self.recorder.as_mut() {
+                rec.touch(
+                    &self.clay,
+                    density_id(self.region_patch),
+                    region.coeff_box(),
+                );
+            }
+            let forces: &[ToolForce] = match (push, mirroring) {
+                (false, _) => &[],
+                (true, false) => self.tool.forces(),
+                (true, true) => &self.mirrored_forces,
+            };
+            self.simulator.set_force_yield(sample.force_yield);
+            // The region's patch moves; the other patches take part in the forces. Pins hold
+            // the surface of the sum on whichever patch moves (see `constrain.rs`).
+            let pins = Some(&mut self.region_pins);
+            let stepped =
+                self.clay
+                    .density
+                    .split_patch_mut(self.region_patch)
+                    .map(|(lattice, others)| {
+                        self.simulator.step_layered(
+                            region,
+                            lattice,
+                            others,
+                            forces,
+                            pins,
+                            &mut self.scratch,
+                        )
+                    });
+            match stepped {
+                Some(Ok(report)) => {
+                    out.stepped = true;
+                    out.pushed = push;
+                    self.sim_time_s += f64::from(report.dt_s);
+                    self.counters.sim_substeps(u64::from(report.halvings) + 1);
+                }
+                // A step refused for a non-finite value, or a region whose patch is gone
+                // (never: regions retire before the layout changes).
+                Some(Err(_)) | None => {
+                    out.rejected = true;
+                    self.counters.sim_nonfinite_rejected(1);
+                }
+            }
+        }
+        self.steps += 1;
+        self.counters.sim_steps(1);
+        self.publish();
+        out
+    }
+
+    /// Fills `mirrored_forces` with this step's tool forces and their mirrored copies.
+    fn mirror_forces(&mut self) {
+        let centre = clay_centre(self.clay.base());
+        self.mirrored_forces.clear();
+        self.mirrored_forces.extend_from_slice(self.tool.forces());
+        for flip in self.symmetry.flips() {
+            for f in self.tool.forces() {
+                self.mirrored_forces.push(mirror_force(f, centre, flip));
+            }
+        }
+    }
+
+    /// Applies the held geometric tool at `at`, turned by `rotation`, and at its mirrored
+    /// copies (one stroke, one undo step; a mirrored copy keeps the rotation, so a turned
+    /// tool that is not symmetric about the mirror plane is not mirrored exactly).
+    fn apply_held_geometric(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
+        self.apply_held_geometric_at(at, rotation, dwell_s);
+        if self.symmetry.any() {
+            let centre = clay_centre(self.clay.base());
+            for image in self.symmetry.images(at, centre) {
+                self.apply_held_geometric_at(image, rotation, dwell_s);
+            }
+        }
+    }
+
+    /// Applies the held geometric tool at `at`, turned by `rotation`, for `dwell_s` (recorded
+    /// in the stroke's step), reloads the dynamics region it may have changed and marks the
+    /// box for publication.
+    fn apply_held_geometric_at(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
+        let ToolChoice::Geometric(tool) = self.tool.choice() else {
+            return;
+        };
+        let pose = ToolPose {
+            position_fu: at,
+            rotation,
+        };
+        let guard = self.config.removal_guard;
+        if !self.removal.admits(guard, &self.clay, tool, &pose, dwell_s) {
+            return;
+        }
+        let result = apply_tool(
+            &mut self.clay,
+            tool,
+            &pose,
+            dwell_s,
+            &ApplyOptions::default(),
+            self.recorder.as_mut(),
+        );
+        self.colour_dirty |= tool.action.paints();
+        match result {
+            Ok(report) => {
+                if let Some(b) = report.coeff_box {
+                    let edited = usize::from(report.patch);
+                    if let Some(region) = self.region.as_mut()
+                        && edited == self.region_patch
+                    {
+                        // The region's own copy of the coefficients is stale now.
+                        region.reload(&self.clay.density.patches[edited].lattice);
+                        self.rebuild_pins();
+                    }
+                    self.mark_changed(edited, b);
+                }
+            }
+            Err(_) => self.counters.command_errors(1),
+        }
+    }
+
+    /// The patch a region at `x` simulates: the finest patch in world coordinates whose
+    /// support holds `x` well inside, else the base.
+    fn sculpted_patch_at(&self, x: Vec3) -> usize {
+        let field = &self.clay.density;
+        let mut best = (0, f32::INFINITY);
+        for (n, p) in field.patches.iter().enumerate() {
+            if !p.is_identity() {
+                continue;
+            }
+            let (lo, hi) = p.lattice.support();
+            let margin = Vec3::splat(p.lattice.spacing);
+            let inside = x.cmpge(lo + margin).all() && x.cmple(hi - margin).all();
+            if (n == 0 || inside) && p.lattice.spacing < best.1 {
+                best = (n, p.lattice.spacing);
+            }
+        }
+        best.0
+    }
+
+    /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
+    /// on the patch that holds the most detail at its centre.
+    fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
+        let patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        let lattice = &self.clay.density.patches[patch].lattice;
+        let Some(needed) = coeff_box_around(lattice, lo, hi, 0) else {
+            return;
+        };
+        if let Some(region) = &self.region
+            && self.region_patch == patch
+        {
+            let b = region.coeff_box();
+            if b.contains_box(&needed) {
+                return;
+            }
+        }
+        let half = Vec3::splat(self.config.region_half);
+        let centre = (lo + hi) * 0.5;
+        let Some(around) = coeff_box_around(lattice, centre - half, centre + half, 0) else {
+            return;
+        };
+        let b = around.union(&needed);
+        self.retire_region();
+        self.region_patch = patch;
+        let n = b.dims();
+        let s = self.config.samples_per_span.max(1);
+        let mass_dims = [(n[0] - 1) * s + 1, (n[1] - 1) * s + 1, (n[2] - 1) * s + 1];
+        let lattice = &self.clay.density.patches[patch].lattice;
+        self.region_material = self.config.material;
+        match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
+            Ok(mut state) => {
+                self.apply_painted_material(&mut state);
+                self.region = Some(state);
+            }
+            Err(_) => self.counters.command_errors(1),
+        }
+        self.rebuild_pins();
+    }
+
+    /// Ends the active region: its final coefficients stay in the lattice and are published
+    /// until both readers have them; the stroke's undo step is recorded if no stroke is held.
+    fn retire_region(&mut self) {
+        if let Some(region) = self.region.take() {
+            self.mark_changed(self.region_patch, region.coeff_box());
+        }
+        self.idle_steps = 0;
+        if !self.was_active {
+            self.commit_recorder();
+        }
+    }
+
+    fn commit_recorder(&mut self) {
+        if let Some(rec) = self.recorder.take() {
+            let changed = self.commit(rec);
+            if std::mem::take(&mut self.stroke_is_contact) && changed {
+                self.contact_committed();
+            }
+        }
+    }
+
+    /// Records a finished step and tells the I/O thread (autosave counts strokes); returns
+    /// whether the step changed the clay.
+    fn commit(&mut self, rec: StepRecorder) -> bool {
+        let changed = self.history.commit(rec, &self.clay);
+        if changed {
+            self.clay_revision += 1;
+            if let Some(io) = &self.io {
+                let _ = io.send(IoJob::Committed);
+            }
+        }
+        changed
+    }
+
+    /// Ends a held or settling stroke now: the region retires and the stroke's step is
+    /// committed; a stroke still held continues as a new stroke from the next step.
+    fn end_stroke_now(&mut self) {
+        if self.was_active {
+            self.removal.stroke_ended(self.config.removal_guard);
+        }
+        self.was_active = false;
+        self.retire_region();
+        self.commit_recorder();
+        self.tool.end_stroke();
+    }
+
+    /// Ends the session: retires the region and records the last stroke's undo step.
+    pub fn finish(&mut self) {
+        if self.was_active {
+            self.removal.stroke_ended(self.config.removal_guard);
+        }
+        self.was_active = false;
+        self.retire_region();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+    use std::time::Instant;
+
+    use crossbeam::channel::bounded;
+    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
+
+    use super::super::{EngineConfig, HeadlessSink, Stages, build, build_clay};
+    use super::*;
+    use dynaclay_core::io::{ClayShape, ClaySpec};
+
+    fn stages() -> Stages {
+        stages_on_sphere(12)
+    }
+
+    /// The stages on a sphere clay of `resolution`³ coefficients, the tool waiting at a
+    /// workspace corner, away from the clay.
+    pub(super) fn stages_on_sphere(resolution: usize) -> Stages {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap()
+    }
+
+    /// One undo step made by hand: raise a few coefficients.
+    fn record_an_edit(sim: &mut SimulationStage) {
+        let b = CoeffBox {
+            min: [2; 3],
+            max: [4; 3],
+        };
+        let mut rec = StepRecorder::new("edit");
+        rec.touch(&sim.clay, FieldId::Density(0), b);
+        let idx = sim.clay.density.patches[0].lattice.index(3, 3, 3);
+        sim.clay.density.patches[0].lattice.coeffs[idx] += 0.25;
+        assert!(sim.history.commit(rec, &sim.clay));
+        sim.mark_changed(0, b);
+    }
+
+    fn session_with(lattice: BSplineLattice, material: Material) -> Session {
+        Session {
+            clay: Clay::single(lattice),
+            material: MaterialFields {
+                uniform: material,
+                grids: Vec::new(),
+            },
+            ..Session::default()
+        }
+    }
+
+    fn run_ticks(s: &mut Stages, n: usize) {
+        for _ in 0..n {
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            let sample = s.samples.latest().value;
+            s.sim.step(&sample);
+            s.graphics.tick();
+        }
+    }
+
+    #[test]
+    fn loading_replaces_the_clay_in_every_loop_and_clears_history() {
+        let mut s = stages();
+        let mut status = s.sim.take_status_reader().unwrap();
+        assert!(s.sim.take_status_reader().is_none(), "one observer end");
+        record_an_edit(&mut s.sim);
+        run_ticks(&mut s, 3);
+        assert_eq!(status.latest().value.undo_steps, 1);
+        let triangles_before = s.graphics.octree().triangle_count();
+
+        // A different sculpt on the same lattice: a slab carved off the top.
+        let mut loaded = s.sim.lattice().clone();
+        let d = loaded.dims;
+        for k in d[2] / 2..d[2] {
+            for j in 0..d[1] {
+                for i in 0..d[0] {
+                    let idx = loaded.index(i, j, k);
+                    loaded.coeffs[idx] = 0.0;
+                }
+            }
+        }
+        let (tx, rx) = bounded(1);
+        s.commands
+            .send(Command::Load {
+                session: Box::new(session_with(loaded.clone(), Material::ELASTIC)),
+                source: "carved.dclay".into(),
+                reply: Some(tx),
+            })
+            .unwrap();
+        run_ticks(&mut s, 3);
+        let summary = rx.try_recv().unwrap().unwrap();
+        assert!(summary.contains("carved.dclay"), "{summary}");
+        assert_eq!(s.sim.lattice(), &loaded);
+        assert_eq!(s.haptic.field().base(), &loaded, "haptic copy republished");
+        assert_eq!(
+            s.graphics.field().base(),
+            &loaded,
+            "graphics copy republished"
+        );
+        let triangles_after = s.graphics.octree().triangle_count();
+        assert!(
+            triangles_after < triangles_before,
+            "meshes follow: {triangles_before} -> {triangles_after} triangles"
+        );
+        let st = status.latest().value;
+        assert_eq!((st.undo_steps, st.redo_steps), (0, 0), "history cleared");
+        assert_eq!(st.material, Material::ELASTIC);
+        assert_eq!(st.sessions_loaded, 1);
+    }
+
+    #[test]
+    fn a_loaded_session_comes_back_whole_paint_patches_grids_tools_and_metadata() {
+        let mut s = stages();
+        let running = s.sim.lattice().clone();
+        let mut colour = dynaclay_core::tools::ColourField::matching(&running).unwrap();
+        colour.channels[2].coeffs[11] = 0.5;
+        let full = Session {
+            clay: Clay {
+                density: MultiPatchField::new(running),
+                colour: Some(colour),
+                constraints: Vec::new(),
+            },
+            material: MaterialFields {
+                uniform: Material::PLASTIC,
+                grids: vec![dynaclay_core::io::MaterialGrid {
+                    name: "damping".into(),
+                    dims: [1, 1, 2],
+                    values: vec![0.5, 1.5],
+                }],
+            },
+            tools: vec![dynaclay_core::io::ToolPreset {
+                name: "ball".into(),
+                shape: dynaclay_core::tools::ToolShape::Sphere { radius_fu: 0.1 },
+                action: dynaclay_core::tools::ToolAction::Add {
+                    deposit_rate_per_s: 2.0,
+                },
+                falloff_fu: 0.02,
+            }],
+            meta: dynaclay_core::io::SessionMeta {
+                name: "whole".into(),
+                created_unix_s: 10,
+                saved_unix_s: 20,
+                writer: "dynaclay test".into(),
+            },
+        };
+        s.sim.load(full.clone(), Path::new("full.dclay")).unwrap();
+        run_ticks(&mut s, 3);
+        assert_eq!(s.sim.session(), full);
+    }
+
+    #[test]
+    fn a_session_that_does_not_fit_is_refused_and_changes_nothing() {
+        let mut s = stages();
+        let mut status = s.sim.take_status_reader().unwrap();
+        record_an_edit(&mut s.sim);
+        run_ticks(&mut s, 2);
+        let before = s.sim.lattice().clone();
+        let material = s.sim.config.material;
+
+        let mut smaller = build_clay(&ClaySpec {
+            shape: ClayShape::Block,
+            resolution: 10,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let mut nan = before.clone();
+        nan.coeffs[7] = f32::NAN;
+        let mut none = session_with(before.clone(), Material::ELASTIC);
+        none.clay.density.patches.clear();
+        let mut two = session_with(before.clone(), Material::ELASTIC);
+        two.clay
+            .density
+            .patches
+            .push(dynaclay_core::field::Patch::identity(before.clone()));
+        smaller.iso = before.iso;
+        let cases = [
+            (
+                session_with(smaller, Material::ELASTIC),
+                "differs",
+                "LatticeMismatch",
+            ),
+            (
+                session_with(nan, Material::ELASTIC),
+                "coefficient 7",
+                "NonFinite",
+            ),
+            (none, "no density patch", "NoPatch"),
+            (two, "laid out", "PatchLayout"),
+        ];
+        for (session, expected, kind) in cases {
+            let (tx, rx) = bounded(1);
+            s.commands
+                .send(Command::Load {
+                    session: Box::new(session),
+                    source: "other.dclay".into(),
+                    reply: Some(tx),
+                })
+                .unwrap();
+            run_ticks(&mut s, 2);
+            let err = rx.try_recv().unwrap().unwrap_err();
+            let CommandError::Load(refused) = &err else {
+                panic!("a load refusal: {err:?}");
+            };
+            assert!(format!("{refused:?}").starts_with(kind), "{refused:?}");
+            let shown = err.to_string();
+            assert!(
+                shown.contains("other.dclay") && shown.contains(expected),
+                "{shown}"
+            );
+        }
+        assert_eq!(s.sim.lattice(), &before);
+        assert_eq!(s.haptic.field().base(), &before);
+        assert_eq!(s.sim.config.material, material);
+        let st = status.latest().value;
+        assert_eq!((st.undo_steps, st.sessions_loaded), (1, 0));
+        assert_eq!(s.counters.snapshot().command_errors, 4);
+        assert!(
+            check_loadable(
+                &MultiPatchField::new(before.clone()),
+                &session_with(before.clone(), material),
+                Path::new("x")
+            )
+            .is_ok()
+        );
+    }
+}
+
+#[cfg(test)]
+mod compact_tests {
+    use std::time::Instant;
+
+    use super::super::{CompactRbfLink, Stages};
+    use super::*;
+    use dynaclay_core::tools::{ContactParams, GeometricTool, ToolShape};
+    use dynaclay_import::rbf::CompactSettings;
+
+    fn stages() -> Stages {
+        super::tests::stages_on_sphere(14)
+    }
+
+    fn dent(at: Vec3) -> Command {
+        Command::ApplyTool {
+            tool: GeometricTool {
+                shape: ToolShape::Sphere { radius_fu: 0.2 },
+                action: ToolAction::Contact(ContactParams {
+                    alpha: -1.0,
+                    rate_per_s: 2.0,
+                }),
+                falloff_fu: 0.1,
+            },
+            poses: vec![ToolPose::at(at)],
+            duration_s: 0.3,
+            patch: 0,
+            reply: None,
+        }
+    }
+
+    fn tick(s: &mut Stages) {
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+        let sample = s.samples.latest().value;
+        s.sim.step(&sample);
+    }
+
+    #[test]
+    fn a_contact_step_made_while_a_reinterpolation_runs_is_reinterpolated_on_the_newer_clay() {
+        let mut s = stages();
+        let link = CompactRbfLink::spawn(CompactSettings::new(120)).unwrap();
+        let top = Vec3::new(0.65, 0.65 + 0.325, 0.65);
+        // Both in one batch: the dent lands while I⁰ is being computed from the clay before it.
+        s.commands
+            .send(Command::SetCompactRbf(Some(Box::new(link))))
+            .unwrap();
+        s.commands.send(dent(top)).unwrap();
+        tick(&mut s);
+        assert!(s.sim.compact_status().busy);
+        assert_eq!(s.sim.undo_len(), 1, "the dent");
+        s.sim.settle_compact();
+        let status = s.sim.compact_status();
+        assert_eq!(
+            (status.applied, status.superseded, status.failed),
+            (1, 1, 0),
+            "{status:?}"
+        );
+        assert_eq!(status.centres, Some(360));
+        assert!(!status.busy);
+        // The applied RBF holds the dent: it is the clay's fit, one more undo step.
+        assert_eq!(s.sim.undo_len(), 2);
+        let fit = s.sim.compact_rbf().unwrap().to_clay(2).unwrap();
+        assert_eq!(fit.coeffs, s.sim.lattice().coeffs);
+        assert!(s.sim.lattice().value(top - Vec3::Y * 0.05) < s.sim.lattice().iso);
+
+        // Undo takes the re-interpolation back; an answer is not asked for again.
+        let fitted = s.sim.lattice().clone();
+        s.commands.send(Command::Undo).unwrap();
+        tick(&mut s);
+        assert_ne!(s.sim.lattice().coeffs, fitted.coeffs);
+        assert!(!s.sim.compact_in_flight());
+        assert_eq!(s.sim.redo_len(), 1);
+
+        // Off: the worker is dropped; further contact steps are plain edits.
+        s.commands.send(Command::SetCompactRbf(None)).unwrap();
+        s.commands.send(dent(Vec3::new(0.65, 0.325, 0.65))).unwrap();
+        tick(&mut s);
+        assert_eq!(
+            s.sim.compact_status(),
+            super::super::CompactStatus::default()
+        );
+        assert!(!s.sim.compact_in_flight());
+    }
+}

@@ -1,0 +1,149 @@
+//! Sessions in and out of the running stage: the session it hands back (with every section it
+//! carries unchanged), loading a session between two steps, and whether a session fits.
+
+#[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
+use super::*;
+
+/// What a loaded session holds besides its clay and its material: the engine keeps it
+/// untouched so that saving loses nothing.
+#[derive(Clone, Debug, Default)]
+pub(super) struct CarriedSections {
+    /// The tool library.
+    pub(super) tools: Vec<dynaclay_core::io::ToolPreset>,
+    /// Name, creation time and writer of the session.
+    pub(super) meta: dynaclay_core::io::SessionMeta,
+}
+
+impl SimulationStage {
+    /// The session as it stands: the clay (every density patch, its paint and pins), the
+    /// uniform material and the painted material grids, with every part of the loaded session
+    /// the engine does not use (tool library, metadata) carried through unchanged.
+    #[must_use]
+    pub fn session(&self) -> Session {
+        Session {
+            clay: self.clay.clone(),
+            material: MaterialFields {
+                uniform: self.config.material,
+                grids: self.material_grids.clone(),
+            },
+            tools: self.carried.tools.clone(),
+            meta: self.carried.meta.clone(),
+        }
+    }
+
+    /// Installs `session` (read from `source`): the clay, the uniform material and the
+    /// painted material grids replace the current ones, the active region is dropped, the undo history is cleared (its
+    /// steps are differences against the replaced clay, meaningless on the new one) and the
+    /// whole field is marked changed so both readers receive all of it. A stroke held across
+    /// the load continues on the new clay as a new stroke (a new undo step).
+    ///
+    /// # Errors
+    /// When the session does not fit the running engine (see [`check_loadable`]); nothing
+    /// changes then.
+    pub fn load(
+        &mut self,
+        session: Session,
+        source: &std::path::Path,
+    ) -> Result<String, LoadRefused> {
+        check_loadable(&self.clay.density, &session, source)?;
+        let painted = session
+            .material
+            .grids
+            .iter()
+            .filter(|g| g.param().is_some())
+            .count();
+        // The stroke in progress ends on the old clay (its step is dropped with the history).
+        self.end_stroke_now();
+        self.history.clear();
+        let Session {
+            clay,
+            material,
+            tools,
+            meta,
+        } = session;
+        let patches = clay.density.patches.len();
+        self.carried = CarriedSections { tools, meta };
+        self.material_grids = material.grids;
+        self.clay = clay;
+
+        self.colour_dirty = true;
+        self.config.material = material.uniform;
+        self.mark_all_changed();
+        self.sessions_loaded += 1;
+        let d = self.lattice().dims;
+        let mut summary = format!(
+            "loaded {} ({}×{}×{} coefficients); undo history cleared",
+            source.display(),
+            d[0],
+            d[1],
+            d[2]
+        );
+        if painted > 0 {
+            summary.push_str(&format!("; {painted} painted material grid(s)"));
+        }
+        if patches > 1 {
+            summary.push_str(&format!("; {patches} density patches"));
+        }
+        Ok(summary)
+    }
+}
+
+/// Whether `session` can replace the clay of an engine running on `running`: the haptic and
+/// graphics loops hold copies laid out for that field (allocated once, so the haptic tick
+/// never allocates), so the session's density must have as many patches, each with the same
+/// lattice dimensions, spacing, origin and iso-level and the same map, and finite
+/// coefficients. The base patch must be in world coordinates.
+///
+/// # Errors
+/// The first mismatch, naming `source`.
+pub fn check_loadable(
+    running: &MultiPatchField,
+    session: &Session,
+    source: &std::path::Path,
+) -> Result<(), LoadRefused> {
+    let file = || source.to_path_buf();
+    let theirs = &session.clay.density.patches;
+    let Some(base) = theirs.first() else {
+        return Err(LoadRefused::NoPatch { file: file() });
+    };
+    if !base.is_identity() {
+        return Err(LoadRefused::MappedBase { file: file() });
+    }
+    let layout = || LoadRefused::PatchLayout {
+        file: file(),
+        session: theirs.len(),
+        running: running.patches.len(),
+    };
+    if theirs.len() != running.patches.len() {
+        return Err(layout());
+    }
+    for (ours, patch) in running.patches.iter().zip(theirs) {
+        let (a, b) = (
+            LatticeShape::of(&ours.lattice),
+            LatticeShape::of(&patch.lattice),
+        );
+        if a != b {
+            return Err(LoadRefused::LatticeMismatch {
+                file: file(),
+                session: b,
+                running: a,
+            });
+        }
+        if ours.world_to_patch != patch.world_to_patch {
+            return Err(layout());
+        }
+    }
+    let mut offset = 0;
+    for patch in theirs {
+        let coeffs = &patch.lattice.coeffs;
+        if let Some(index) = coeffs.iter().position(|c| !c.is_finite()) {
+            return Err(LoadRefused::NonFinite {
+                file: file(),
+                index: offset + index,
+                value: coeffs[index],
+            });
+        }
+        offset += coeffs.len();
+    }
+    Ok(())
+}

@@ -1,0 +1,328 @@
+//! The simulation's published state: boxes of coefficients (at most one per density patch) with
+//! their current values, plus the stroke and step status the other loops need.
+//!
+//! Guarantee: [`FieldUpdate::capture`], [`FieldUpdate::copy_into`] and
+//! [`FieldUpdate::apply_to`] never allocate once the update was built with
+//! [`FieldUpdate::with_capacity_for`] for the field it carries (room for every coefficient of
+//! every patch, and a box per patch), and do work linear in the boxes' coefficient count,
+//! which is bounded by the field's size. They are safe on the haptic path. The stroke
+//! geometry has a fixed capacity ([`dynaclay_core::haptics::MAX_STROKE_POINTS`]) and is copied with
+//! [`StrokeGeometry::copy_from`], which never allocates.
+
+use glam::Vec3;
+
+use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField};
+use dynaclay_core::haptics::{FeltTool, StrokeGeometry};
+use dynaclay_core::mesh::BrickOctree;
+
+/// One box of coefficients carried by a [`FieldUpdate`]: which density patch, and where.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChangedBox {
+    /// Index of the density patch (eq. (3)'s `i`).
+    pub patch: u16,
+    /// The coefficient box (inclusive), within the patch's lattice.
+    pub coeff_box: CoeffBox,
+}
+
+/// Boxes of coefficients copied out of the simulation's field (the payload of the triple
+/// buffers from the simulation to the haptic and graphics loops).
+///
+/// Readers keep a full copy of the field and patch these boxes into it. The boxes are always
+/// the whole simulated region plus every coefficient changed elsewhere that some reader may
+/// not have seen yet (see the simulation stage), so a reader that skips versions still ends up
+/// with the simulation's field.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FieldUpdate {
+    /// The boxes carried, at most one per patch, in the order their coefficients follow.
+    pub boxes: Vec<ChangedBox>,
+    /// The boxes' coefficients, box after box, x fastest within a box.
+    pub coeffs: Vec<f32>,
+    /// Whether a stroke was armed by command (in addition to the device's button 0).
+    pub stroke_armed: bool,
+    /// The held tool, as the haptic loop renders it.
+    pub tool: FeltTool,
+    /// The held stroke's anchor, pivot, curve and targets (fixed capacity: the haptic loop
+    /// copies it without allocating).
+    pub stroke: StrokeGeometry,
+    /// Simulated time at publication, seconds.
+    pub sim_time_s: f64,
+    /// Simulation steps taken when this was published.
+    pub sim_step: u64,
+    /// The patch layout the boxes belong to (see [`super::layout`]): a reader applies them
+    /// only to a copy of this generation.
+    pub layout: u64,
+}
+
+impl FieldUpdate {
+    /// An empty update with room for every coefficient of every patch of `field`, so later
+    /// captures of any boxes never allocate.
+    #[must_use]
+    pub fn with_capacity_for(field: &MultiPatchField) -> Self {
+        let total = field.patches.iter().map(|p| p.lattice.coeffs.len()).sum();
+        Self {
+            boxes: Vec::with_capacity(field.patches.len()),
+            coeffs: Vec::with_capacity(total),
+            stroke_armed: false,
+            tool: FeltTool::Push,
+            stroke: StrokeGeometry::default(),
+            sim_time_s: 0.0,
+            sim_step: 0,
+            layout: 0,
+        }
+    }
+
+    /// Forgets the boxes carried.
+    pub fn clear(&mut self) {
+        self.boxes.clear();
+        self.coeffs.clear();
+    }
+
+    /// Adds `coeff_box` of patch `patch` of `field` to the boxes carried. A box that does not
+    /// fit the lattice is clamped to it; one outside it, or of a patch that does not exist,
+    /// adds nothing. Does not allocate when the update has capacity for the field and carries
+    /// at most one box per patch.
+    pub fn capture(&mut self, field: &MultiPatchField, patch: usize, coeff_box: CoeffBox) {
+        let (Some(p), Ok(index)) = (field.patches.get(patch), u16::try_from(patch)) else {
+            return;
+        };
+        let lattice = &p.lattice;
+        let Some(b) = coeff_box.clipped(lattice.dims) else {
+            return;
+        };
+        for k in b.min[2]..=b.max[2] {
+            for j in b.min[1]..=b.max[1] {
+                let row = lattice.index(b.min[0], j, k);
+                let len = b.max[0] + 1 - b.min[0];
+                self.coeffs
+                    .extend_from_slice(&lattice.coeffs[row..row + len]);
+            }
+        }
+        self.boxes.push(ChangedBox {
+            patch: index,
+            coeff_box: b,
+        });
+    }
+
+    /// Whether every box names a patch of `field` and fits its lattice, and the coefficients
+    /// add up.
+    fn fits(&self, field: &MultiPatchField) -> bool {
+        let mut total = 0;
+        for b in &self.boxes {
+            let Some(p) = field.patches.get(usize::from(b.patch)) else {
+                return false;
+            };
+            if !b.coeff_box.fits(p.lattice.dims) {
+                return false;
+            }
+            total += b.coeff_box.count();
+        }
+        total == self.coeffs.len()
+    }
+
+    /// Writes the carried coefficients into `field` without tracking what changed: a row copy
+    /// per line of each box, for the haptic path, which needs the values but not the changed
+    /// box (the per-coefficient comparison in [`FieldUpdate::apply_to`] is the bulk of its
+    /// cost). Returns whether the update fitted; one that does not changes nothing.
+    pub fn copy_into(&self, field: &mut MultiPatchField) -> bool {
+        if self.boxes.is_empty() || !self.fits(field) {
+            return false;
+        }
+        let mut rest = self.coeffs.as_slice();
+        for b in &self.boxes {
+            let lattice = &mut field.patches[usize::from(b.patch)].lattice;
+            let (mine, after) = rest.split_at(b.coeff_box.count());
+            copy_box(mine, b.coeff_box, lattice);
+            rest = after;
+        }
+        true
+    }
+
+    /// Writes the carried coefficients into `field` and returns the world box outside which
+    /// the field did not change (the reach of the coefficients whose value actually changed,
+    /// `None` if none did). An update that does not fit the field changes nothing and returns
+    /// `None`.
+    pub fn apply_to(&self, field: &mut MultiPatchField) -> Option<(Vec3, Vec3)> {
+        if !self.fits(field) {
+            return None;
+        }
+        let mut world: Option<(Vec3, Vec3)> = None;
+        let mut rest = self.coeffs.as_slice();
+        for b in &self.boxes {
+            let patch = &mut field.patches[usize::from(b.patch)];
+            let (mine, after) = rest.split_at(b.coeff_box.count());
+            rest = after;
+            let Some(changed) = apply_box(mine, b.coeff_box, &mut patch.lattice) else {
+                continue;
+            };
+            let (lo, hi) =
+                BrickOctree::coefficient_change_box(&patch.lattice, changed.min, changed.max);
+            let (lo, hi) = patch.world_box_of(lo, hi);
+            world = Some(world.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
+        }
+        world
+    }
+}
+
+/// Copies `coeffs` (the box's values, x fastest) into `lattice`; the caller checked the fit.
+fn copy_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) {
+    let len = b.max[0] + 1 - b.min[0];
+    let mut rows = coeffs.chunks_exact(len);
+    for k in b.min[2]..=b.max[2] {
+        for j in b.min[1]..=b.max[1] {
+            let row = lattice.index(b.min[0], j, k);
+            // The caller's length check guarantees one chunk per row.
+            if let Some(from) = rows.next() {
+                lattice.coeffs[row..row + len].copy_from_slice(from);
+            }
+        }
+    }
+}
+
+/// Writes `coeffs` into `lattice` and returns the box of coefficients whose value changed;
+/// the caller checked the fit.
+fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Option<CoeffBox> {
+    let mut changed: Option<CoeffBox> = None;
+    let len = b.max[0] + 1 - b.min[0];
+    let mut src = 0;
+    for k in b.min[2]..=b.max[2] {
+        for j in b.min[1]..=b.max[1] {
+            let row = lattice.index(b.min[0], j, k);
+            let dst = &mut lattice.coeffs[row..row + len];
+            let from = &coeffs[src..src + len];
+            for (i, (d, s)) in dst.iter_mut().zip(from).enumerate() {
+                // Bit comparison: a changed NaN payload or signed zero still counts.
+                if d.to_bits() != s.to_bits() {
+                    *d = *s;
+                    let p = [b.min[0] + i, j, k];
+                    changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
+                }
+            }
+            src += len;
+        }
+    }
+    changed
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{Affine3A, Vec3};
+
+    use super::*;
+    use dynaclay_core::field::Patch;
+
+    fn lattice(seed: f32) -> BSplineLattice {
+        let mut l = BSplineLattice::zeros([6, 5, 7], 0.5, Vec3::ZERO).unwrap();
+        for (i, c) in l.coeffs.iter_mut().enumerate() {
+            *c = (i as f32 * 0.37 + seed).sin();
+        }
+        l
+    }
+
+    /// A base patch and a finer detail patch shifted by a map.
+    fn two_patches(seed: f32) -> MultiPatchField {
+        let mut field = MultiPatchField::new(lattice(seed));
+        let mut detail = BSplineLattice::zeros([5, 5, 5], 0.25, Vec3::ONE).unwrap();
+        for (i, c) in detail.coeffs.iter_mut().enumerate() {
+            *c = (i as f32 * 0.11 + seed).cos();
+        }
+        field.patches.push(Patch {
+            lattice: detail,
+            world_to_patch: Affine3A::from_translation(Vec3::new(0.5, 0.0, 0.0)),
+        });
+        field
+    }
+
+    #[test]
+    fn capture_then_apply_copies_the_boxes_and_reports_the_changed_world_box() {
+        let src = two_patches(1.0);
+        let mut dst = two_patches(1.0);
+        let b = CoeffBox {
+            min: [1, 1, 2],
+            max: [3, 4, 4],
+        };
+        let mut update = FieldUpdate::with_capacity_for(&src);
+        update.capture(&src, 0, b);
+        update.capture(&src, 1, b);
+        assert_eq!(update.coeffs.len(), 2 * b.count());
+        assert_eq!(
+            update.apply_to(&mut dst),
+            None,
+            "identical field: nothing changed"
+        );
+
+        let mut moved = src.clone();
+        let detail = &mut moved.patches[1].lattice;
+        let idx = detail.index(2, 3, 4);
+        detail.coeffs[idx] += 1.0;
+        let cap = update.coeffs.capacity();
+        update.clear();
+        update.capture(&moved, 0, b);
+        update.capture(&moved, 1, b);
+        assert_eq!(update.coeffs.capacity(), cap, "no reallocation");
+        let (lo, hi) = update.apply_to(&mut dst).unwrap();
+        assert_eq!(dst, moved);
+        // The changed coefficient's reach, mapped back to world space (x shifted by −0.5).
+        let node = moved.patches[1].lattice.node_position(2, 3, 4) - Vec3::new(0.5, 0.0, 0.0);
+        assert!((lo - (node - Vec3::splat(0.5))).length() < 1e-6, "{lo}");
+        assert!((hi - (node + Vec3::splat(0.5))).length() < 1e-6, "{hi}");
+    }
+
+    #[test]
+    fn copy_into_writes_the_same_field_as_apply_to() {
+        let mut moved = two_patches(1.0);
+        for c in &mut moved.patches[0].lattice.coeffs[40..90] {
+            *c = -*c;
+        }
+        for c in &mut moved.patches[1].lattice.coeffs[10..30] {
+            *c = -*c;
+        }
+        let b = CoeffBox {
+            min: [0, 1, 1],
+            max: [4, 3, 4],
+        };
+        let mut update = FieldUpdate::with_capacity_for(&moved);
+        update.capture(&moved, 1, b);
+        update.capture(&moved, 0, b);
+        let mut by_apply = two_patches(1.0);
+        let mut by_copy = two_patches(1.0);
+        assert!(update.apply_to(&mut by_apply).is_some());
+        assert!(update.copy_into(&mut by_copy));
+        assert_eq!(by_copy, by_apply);
+        assert_ne!(by_copy, two_patches(1.0), "the update changed something");
+    }
+
+    #[test]
+    fn bad_updates_change_nothing() {
+        let src = two_patches(0.0);
+        let mut dst = two_patches(2.0);
+        let before = dst.clone();
+        let mut update = FieldUpdate::with_capacity_for(&src);
+        let b = CoeffBox {
+            min: [0; 3],
+            max: [1, 1, 1],
+        };
+        update.capture(&src, 0, b);
+        update.capture(&src, 1, b);
+        update.coeffs.pop();
+        assert_eq!(update.apply_to(&mut dst), None);
+        assert!(!update.copy_into(&mut dst));
+        assert_eq!(dst, before);
+        // A field with fewer patches than the update names.
+        update.coeffs.push(0.0);
+        let mut one = MultiPatchField::new(lattice(2.0));
+        let one_before = one.clone();
+        assert!(!update.copy_into(&mut one));
+        assert_eq!(one, one_before);
+        update.clear();
+        update.capture(
+            &src,
+            0,
+            CoeffBox {
+                min: [9, 0, 0],
+                max: [9, 1, 1],
+            },
+        );
+        update.capture(&src, 7, b);
+        assert!(update.boxes.is_empty());
+    }
+}

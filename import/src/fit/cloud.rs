@@ -1,0 +1,860 @@
+//! A clay fitted to a point cloud, on one lattice.
+//!
+//! 1. **Placement.** The cloud is scaled and centred so that its longest side spans the
+//!    lattice less a margin of [`MARGIN_SPANS`] knot spans on each side (room for the density
+//!    transition and the B-spline support); [`CloudFit::to_field`] maps file units to field
+//!    units.
+//! 2. **Distance.** On the fit's sample grid (`samples_per_span` points per knot span, the
+//!    grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point gets its
+//!    distance to the nearest point (each point visits the nodes around it: no search
+//!    structure, `O(points · band nodes)`).
+//! 3. **Sign.** The exterior is found by closing, after the tagging of Zhao, Osher & Fedkiw
+//!    (2001): the grid nodes farther than the gap `τ` from every point (an exact distance
+//!    transform) are flooded from the grid's boundary, so the flood cannot pass a hole
+//!    narrower than `2τ`; the flooded region is then grown back by `τ`. The growth stops
+//!    short of the points and reaches into a hole as far as a ball of radius `τ` rolled over
+//!    it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
+//!    letting the outside in. Each point needs an outward normal: the file's, or else the
+//!    direction of least variance of its neighbours (principal components) turned toward the
+//!    exterior (the side nearer the grown region). A node within the band takes its signed
+//!    distance to its nearest point's tangent plane, smooth across the surface (the distance
+//!    to the nearest point alone would dimple between points), which also spans a hole's
+//!    rim with the rim's tangent planes: the hole is closed by a smooth cap that continues
+//!    the surface around it (Hua & Qin Fig. 6; on a convex surface the rim's planes meet a
+//!    little above the missing part, 0.06 of the tube's radius over a hole 1.4 radii wide in
+//!    the test). Beyond the band, exterior nodes are outside and the rest inside.
+//! 4. **Fit.** The signed distances become the clay's density profile
+//!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
+//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
+//!
+//! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
+//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`].
+
+use std::collections::VecDeque;
+
+use glam::Vec3;
+
+use super::points::PointCloud;
+use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
+
+/// Empty knot spans kept around the object on each side.
+pub const MARGIN_SPANS: f32 = 4.0;
+/// How far from a point distances are computed, knot spans.
+pub const BAND_SPANS: f32 = 2.0;
+/// The gap the sign tagging closes by default, knot spans (holes narrower than twice this).
+pub const DEFAULT_GAP_SPANS: f32 = 2.5;
+/// The widest gap: the flood starts from the grid's boundary, [`MARGIN_SPANS`] from the
+/// object, and needs room to start.
+pub const MAX_GAP_SPANS: f32 = MARGIN_SPANS - 0.5;
+
+/// How to fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CloudFitOptions {
+    /// Coefficients per axis of the (cubic) lattice.
+    pub resolution: usize,
+    /// Knot spacing, field units.
+    pub spacing: f32,
+    /// Samples per knot span of the fit (and of the signing grid).
+    pub samples_per_span: usize,
+    /// The gap `τ` of the sign tagging, knot spans.
+    pub gap_spans: f32,
+}
+
+impl Default for CloudFitOptions {
+    fn default() -> Self {
+        Self {
+            resolution: 32,
+            spacing: dynaclay_core::field::CLAY_SPACING,
+            samples_per_span: 2,
+            gap_spans: DEFAULT_GAP_SPANS,
+        }
+    }
+}
+
+/// A fitted clay and where the cloud went.
+#[derive(Clone, Debug)]
+pub struct CloudFit {
+    /// The fitted lattice (iso-level 0.5).
+    pub lattice: BSplineLattice,
+    /// Field units per file unit.
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+    /// How the signs were found.
+    pub signed_by: SignedBy,
+}
+
+impl CloudFit {
+    /// A file-unit point in field units.
+    #[must_use]
+    pub fn to_field(&self, p: Vec3) -> Vec3 {
+        p * self.scale + self.offset
+    }
+}
+
+/// Where the inside/outside decision came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SignedBy {
+    /// The cloud's oriented normals.
+    Normals,
+    /// Flood tagging from the grid's boundary.
+    Tagging,
+}
+
+/// Why a cloud could not be fitted.
+#[derive(Debug, thiserror::Error)]
+pub enum CloudFitError {
+    /// The options are out of range.
+    #[error("{0}")]
+    Options(String),
+    /// All points coincide: nothing to fit.
+    #[error("the points all lie at one place; a cloud needs extent")]
+    Degenerate,
+    /// The least-squares fit failed.
+    #[error("fit: {0}")]
+    Fit(#[from] FitError),
+    /// The caller asked the fit to stop (Ctrl-C).
+    #[error("interrupted")]
+    Interrupted,
+}
+
+/// Fits a clay to `cloud` on one lattice (see the module docs): [`sign_cloud`], then a
+/// least-squares fit of [`SignedCloud::density`] over the whole lattice.
+///
+/// # Errors
+/// [`CloudFitError`] for bad options, a cloud without extent, or a failed fit.
+pub fn fit_point_cloud(
+    cloud: &PointCloud,
+    options: &CloudFitOptions,
+) -> Result<CloudFit, CloudFitError> {
+    let signed = sign_cloud(cloud, options)?;
+    let lattice = signed.fit_base()?;
+    Ok(CloudFit {
+        lattice,
+        scale: signed.scale,
+        offset: signed.offset,
+        signed_by: signed.signed_by,
+    })
+}
+
+/// A cloud placed in the lattice's space and signed: every node of the signing grid knows
+/// its nearest point within the band (or, beyond it, whether it is outside), and every point
+/// its outward normal. [`SignedCloud::signed_distance`] answers anywhere in the lattice.
+pub struct SignedCloud {
+    /// The points, field units.
+    pub points: Vec<Vec3>,
+    /// Their unit outward normals; zero for a point no node takes its plane from (normals
+    /// are estimated only where they are used).
+    pub normals: Vec<Vec3>,
+    grid: SignGrid,
+    /// Per node: its nearest point within the band, or [`NO_POINT`].
+    nearest: Vec<u32>,
+    /// Per node: outside the closed surface (used beyond the band).
+    exterior: Vec<bool>,
+    /// The density profile's width, field units (two knot spans of the base lattice).
+    pub width: f32,
+    /// The base lattice's resolution and spacing.
+    pub resolution: usize,
+    /// Knot spacing of the base lattice, field units.
+    pub spacing: f32,
+    /// Samples per knot span of the base fit.
+    pub samples_per_span: usize,
+    /// Field units per file unit.
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+    /// How the signs were found.
+    pub signed_by: SignedBy,
+}
+
+/// A node with no point within the band.
+const NO_POINT: u32 = u32::MAX;
+
+impl SignedCloud {
+    /// Signed distance from `x` (field units) to the surface, positive outside: within the
+    /// band, the distance to the tangent plane of the point nearest `x` among the nearest
+    /// points of the eight grid nodes around it (exact for a plane, smooth across the
+    /// surface; at a node, its own nearest point); beyond the band, twice the profile's width
+    /// with the side the tagging found.
+    #[must_use]
+    pub fn signed_distance(&self, x: Vec3) -> f32 {
+        match self.nearest_point(x) {
+            Some(p) => (x - self.points[p]).dot(self.normals[p]),
+            None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
+            None => -2.0 * self.width,
+        }
+    }
+
+    /// The point nearest `x` among the nearest points of the eight nodes around it.
+    fn nearest_point(&self, x: Vec3) -> Option<usize> {
+        let u = x / self.grid.h;
+        let [mx, my, mz] = self.grid.dims;
+        let corner = |a: f32, m: usize| (a.floor().max(0.0) as usize).min(m - 1);
+        let (i0, j0, k0) = (corner(u.x, mx), corner(u.y, my), corner(u.z, mz));
+        let mut best = (f32::INFINITY, None);
+        for c in 0..8 {
+            let i = (i0 + (c & 1)).min(mx - 1);
+            let j = (j0 + ((c >> 1) & 1)).min(my - 1);
+            let k = (k0 + ((c >> 2) & 1)).min(mz - 1);
+            let p = self.nearest[self.grid.index(i, j, k)];
+            if p != NO_POINT {
+                let d = (x - self.points[p as usize]).length_squared();
+                if d < best.0 {
+                    best = (d, Some(p as usize));
+                }
+            }
+        }
+        best.1
+    }
+
+    /// The unit outward normal of the plane that signs `x`, or `None` beyond the band.
+    #[must_use]
+    pub fn normal_near(&self, x: Vec3) -> Option<Vec3> {
+        self.nearest_point(x).map(|p| self.normals[p])
+    }
+
+    /// The density the clay is fitted to at `x`: the profile of the signed distance,
+    /// `clamp(0.5 − d / width, 0, 1)`, the clay's iso-level 0.5 on the surface.
+    #[must_use]
+    pub fn density(&self, x: Vec3) -> f32 {
+        density_profile(self.signed_distance(x), self.width)
+    }
+
+    /// The base lattice, fitted by least squares to [`SignedCloud::density`] (its samples lie
+    /// exactly on the signing grid's nodes).
+    ///
+    /// # Errors
+    /// [`CloudFitError::Fit`] if the fit fails.
+    pub fn fit_base(&self) -> Result<BSplineLattice, CloudFitError> {
+        let n = self.resolution;
+        let mut lattice =
+            BSplineLattice::zeros([n; 3], self.spacing, Vec3::ZERO).map_err(|_| {
+                CloudFitError::Options(format!(
+                    "a {n}³ lattice at spacing {} is not valid",
+                    self.spacing
+                ))
+            })?;
+        fit_lattice(&mut lattice, self.samples_per_span, |x| self.density(x))?;
+        Ok(lattice)
+    }
+}
+
+/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–3 of the module
+/// docs).
+///
+/// # Errors
+/// [`CloudFitError::Options`] for bad options, [`CloudFitError::Degenerate`] for a cloud
+/// without extent.
+pub fn sign_cloud(
+    cloud: &PointCloud,
+    options: &CloudFitOptions,
+) -> Result<SignedCloud, CloudFitError> {
+    let n = options.resolution;
+    let sps = options.samples_per_span;
+    if !(12..=256).contains(&n) {
+        return Err(CloudFitError::Options(format!(
+            "resolution {n}: must be 12 to 256 coefficients"
+        )));
+    }
+    if !(1..=4).contains(&sps) {
+        return Err(CloudFitError::Options(format!(
+            "samples per span {sps}: must be 1 to 4"
+        )));
+    }
+    if !(options.gap_spans >= 0.5 && options.gap_spans <= MAX_GAP_SPANS) {
+        return Err(CloudFitError::Options(format!(
+            "gap {} spans: must be 0.5 to {MAX_GAP_SPANS} (the empty margin around the object \
+             less half a span)",
+            options.gap_spans
+        )));
+    }
+    let spacing = options.spacing;
+    let (lo, hi) = cloud
+        .points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let extent = (hi - lo).max_element();
+    if !extent.is_finite() || extent <= 0.0 {
+        return Err(CloudFitError::Degenerate);
+    }
+    let span_total = (n - 1) as f32 - 2.0 * MARGIN_SPANS;
+    let scale = span_total * spacing / extent;
+    let centre_field = Vec3::splat((n - 1) as f32 * spacing * 0.5);
+    let offset = centre_field - (lo + hi) * 0.5 * scale;
+    let points: Vec<Vec3> = cloud.points.iter().map(|&p| p * scale + offset).collect();
+
+    let grid = SignGrid::new(n, spacing, sps);
+    let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
+    let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
+    let given = cloud
+        .normals
+        .as_ref()
+        .filter(|ns| ns.len() == points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
+    let (normals, signed_by) = match given {
+        Some(ns) => (
+            ns.iter()
+                .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+                .collect(),
+            SignedBy::Normals,
+        ),
+        None => {
+            let to_exterior = grid.distance_to(&exterior);
+            // Each point's normal: the least-variance direction of its neighbours within the
+            // band, turned toward the flooded exterior.
+            let side = |p: Vec3, n: Vec3| {
+                let probe = 2.0 * grid.h;
+                to_exterior[grid.nearest_node(p - n * probe)]
+                    - to_exterior[grid.nearest_node(p + n * probe)]
+            };
+            // Only the points some node takes its plane from need a normal (a dense cloud
+            // has many more points than band nodes).
+            let mut wanted = vec![false; points.len()];
+            for (&p, d) in nearest.iter().zip(&dist) {
+                if d.is_finite() {
+                    wanted[p as usize] = true;
+                }
+            }
+            (
+                estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
+                SignedBy::Tagging,
+            )
+        }
+    };
+    let nearest = nearest
+        .into_iter()
+        .zip(&dist)
+        .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
+        .collect();
+    Ok(SignedCloud {
+        points,
+        normals,
+        grid,
+        nearest,
+        exterior,
+        width: 2.0 * spacing,
+        resolution: n,
+        spacing,
+        samples_per_span: sps,
+        scale,
+        offset,
+        signed_by,
+    })
+}
+
+/// The signing grid: the fit's sample grid over the whole lattice.
+struct SignGrid {
+    dims: [usize; 3],
+    /// Node spacing, field units.
+    h: f32,
+}
+
+impl SignGrid {
+    fn new(resolution: usize, spacing: f32, samples_per_span: usize) -> Self {
+        let m = (resolution - 1) * samples_per_span + 1;
+        Self {
+            dims: [m; 3],
+            h: spacing / samples_per_span as f32,
+        }
+    }
+
+    fn count(&self) -> usize {
+        self.dims.iter().product()
+    }
+
+    fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    fn coords(&self, index: usize) -> [usize; 3] {
+        let [mx, my, _] = self.dims;
+        [index % mx, (index / mx) % my, index / (mx * my)]
+    }
+
+    #[cfg(test)]
+    fn position(&self, index: usize) -> Vec3 {
+        let [i, j, k] = self.coords(index);
+        Vec3::new(i as f32, j as f32, k as f32) * self.h
+    }
+
+    /// The node at (or nearest to) field point `x`: the fit samples exactly at the nodes.
+    fn nearest_node(&self, x: Vec3) -> usize {
+        let c = |a: usize| ((x[a] / self.h).round().max(0.0) as usize).min(self.dims[a] - 1);
+        self.index(c(0), c(1), c(2))
+    }
+
+    /// Distance from each node within `band` of a point to its nearest point (infinite
+    /// elsewhere), and that point's index.
+    fn band_distances(&self, points: &[Vec3], band: f32) -> (Vec<f32>, Vec<u32>) {
+        let mut dist = vec![f32::INFINITY; self.count()];
+        let mut nearest = vec![0u32; self.count()];
+        let reach = (band / self.h).ceil() as i64;
+        for (p_index, &p) in points.iter().enumerate() {
+            let c = (p / self.h).round();
+            let lo = |a: usize| (c[a] as i64 - reach).max(0) as usize;
+            let hi = |a: usize| ((c[a] as i64 + reach).max(0) as usize).min(self.dims[a] - 1);
+            for k in lo(2)..=hi(2) {
+                for j in lo(1)..=hi(1) {
+                    for i in lo(0)..=hi(0) {
+                        let at = self.index(i, j, k);
+                        let d = (Vec3::new(i as f32, j as f32, k as f32) * self.h - p).length();
+                        if d <= band && d < dist[at] {
+                            dist[at] = d;
+                            nearest[at] = p_index as u32;
+                        }
+                    }
+                }
+            }
+        }
+        (dist, nearest)
+    }
+
+    /// The exterior by closing: the nodes farther than `gap` from every point that connect
+    /// to the grid's boundary through such nodes (a 6-connected flood that cannot pass a hole
+    /// narrower than `2 · gap`), grown back by `gap` (every node within `gap` of the flooded
+    /// region). The growth stops short of the points, so they stay inside, and it reaches
+    /// into a hole as far as a ball of radius `gap` rolled over it: the hole is capped.
+    /// Distances are between grid nodes (each point marks its nearest node).
+    fn close_and_flood(&self, points: &[Vec3], gap: f32) -> Vec<bool> {
+        let mut occupied = vec![false; self.count()];
+        for &p in points {
+            occupied[self.nearest_node(p)] = true;
+        }
+        let to_points = self.distance_to(&occupied);
+        let flooded = self.flood(|at| to_points[at] > gap);
+        let to_flooded = self.distance_to(&flooded);
+        to_flooded.iter().map(|&d| d <= gap).collect()
+    }
+
+    /// The nodes where `open` holds that connect to the grid's boundary through such nodes
+    /// (6-connected flood).
+    fn flood(&self, open: impl Fn(usize) -> bool) -> Vec<bool> {
+        let [mx, my, mz] = self.dims;
+        let mut outside = vec![false; self.count()];
+        let mut queue = VecDeque::new();
+        for k in 0..mz {
+            for j in 0..my {
+                for i in 0..mx {
+                    let on_face =
+                        i == 0 || j == 0 || k == 0 || i == mx - 1 || j == my - 1 || k == mz - 1;
+                    let at = self.index(i, j, k);
+                    if on_face && open(at) {
+                        outside[at] = true;
+                        queue.push_back(at);
+                    }
+                }
+            }
+        }
+        while let Some(at) = queue.pop_front() {
+            let [i, j, k] = self.coords(at);
+            let mut visit = |ni: usize, nj: usize, nk: usize| {
+                let n = self.index(ni, nj, nk);
+                if !outside[n] && open(n) {
+                    outside[n] = true;
+                    queue.push_back(n);
+                }
+            };
+            if i > 0 {
+                visit(i - 1, j, k);
+            }
+            if i + 1 < mx {
+                visit(i + 1, j, k);
+            }
+            if j > 0 {
+                visit(i, j - 1, k);
+            }
+            if j + 1 < my {
+                visit(i, j + 1, k);
+            }
+            if k > 0 {
+                visit(i, j, k - 1);
+            }
+            if k + 1 < mz {
+                visit(i, j, k + 1);
+            }
+        }
+        outside
+    }
+
+    /// Euclidean distance from each node to the nearest node of `set` (infinite when `set` is
+    /// empty): the exact squared-distance transform of Felzenszwalb & Huttenlocher, one pass
+    /// per axis.
+    fn distance_to(&self, set: &[bool]) -> Vec<f32> {
+        let [mx, my, mz] = self.dims;
+        let mut sq: Vec<f32> = set
+            .iter()
+            .map(|&s| if s { 0.0 } else { f32::INFINITY })
+            .collect();
+        let longest = mx.max(my).max(mz);
+        let mut line = vec![0.0f32; longest];
+        let mut out = vec![0.0f32; longest];
+        let mut hull = vec![0usize; longest];
+        let mut bounds = vec![0.0f32; longest + 1];
+        for axis in 0..3 {
+            let len = self.dims[axis];
+            let (stride, others): (usize, Vec<usize>) = match axis {
+                0 => (1, (0..my * mz).map(|r| r * mx).collect()),
+                1 => (
+                    mx,
+                    (0..mz)
+                        .flat_map(|k| (0..mx).map(move |i| i + mx * my * k))
+                        .collect(),
+                ),
+                _ => (mx * my, (0..mx * my).collect()),
+            };
+            for start in others {
+                for (t, v) in line[..len].iter_mut().enumerate() {
+                    *v = sq[start + t * stride];
+                }
+                squared_distance_1d(&line[..len], &mut out[..len], &mut hull, &mut bounds);
+                for (t, v) in out[..len].iter().enumerate() {
+                    sq[start + t * stride] = *v;
+                }
+            }
+        }
+        sq.iter().map(|d| d.sqrt() * self.h).collect()
+    }
+}
+
+/// The 1-D squared distance transform `out[q] = min_p (q − p)² + f[p]` (lower envelope of
+/// parabolas); infinite entries of `f` are no source.
+fn squared_distance_1d(f: &[f32], out: &mut [f32], hull: &mut [usize], bounds: &mut [f32]) {
+    let n = f.len();
+    let mut k = 0usize;
+    let mut any = false;
+    for q in 0..n {
+        if !f[q].is_finite() {
+            continue;
+        }
+        if !any {
+            hull[0] = q;
+            bounds[0] = f32::NEG_INFINITY;
+            bounds[1] = f32::INFINITY;
+            any = true;
+            continue;
+        }
+        loop {
+            let p = hull[k];
+            let s = ((f[q] + (q * q) as f32) - (f[p] + (p * p) as f32)) / (2.0 * (q - p) as f32);
+            if s <= bounds[k] && k > 0 {
+                k -= 1;
+                continue;
+            }
+            if s <= bounds[k] {
+                // The new parabola is lower everywhere the first one ruled.
+                hull[0] = q;
+                bounds[0] = f32::NEG_INFINITY;
+                bounds[1] = f32::INFINITY;
+                break;
+            }
+            k += 1;
+            hull[k] = q;
+            bounds[k] = s;
+            bounds[k + 1] = f32::INFINITY;
+            break;
+        }
+    }
+    if !any {
+        out.fill(f32::INFINITY);
+        return;
+    }
+    let mut k = 0;
+    for (q, o) in out.iter_mut().enumerate() {
+        while bounds[k + 1] < q as f32 {
+            k += 1;
+        }
+        let p = hull[k];
+        let d = q as f32 - p as f32;
+        *o = d * d + f[p];
+    }
+}
+
+/// Neighbours a normal is estimated from, at least (the search widens until it has them).
+const MIN_NEIGHBOURS: usize = 12;
+/// Points a cell of the neighbour search offers, at most (an even subset of a denser cell).
+const MAX_CELL_NEIGHBOURS: usize = 24;
+
+/// Unit normals of `points`: for each, the direction of least variance of its neighbours
+/// (principal components of their covariance), pointing where `side(p, n)` is positive
+/// (flipped otherwise). The neighbours are the points within one `cell` of it, or within two,
+/// four … cells up to `radius` until there are [`MIN_NEIGHBOURS`]: a dense cloud looks close,
+/// a sparse one looks wider. A point with fewer than three neighbours within `radius` starts
+/// from the x axis, turned the same way.
+fn estimate_normals(
+    points: &[Vec3],
+    wanted: &[bool],
+    cell: f32,
+    radius: f32,
+    side: impl Fn(Vec3, Vec3) -> f32,
+) -> Vec<Vec3> {
+    use std::collections::HashMap;
+    let cell_of = |p: Vec3| (p / cell).floor().as_ivec3();
+    let mut buckets: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
+    for (i, &p) in points.iter().enumerate() {
+        buckets.entry(cell_of(p)).or_default().push(i as u32);
+    }
+    // A dense cell offers an even subset of its points as neighbours: a plane is well
+    // estimated from a few dozen, and the cost stays bounded where a scan piles points up.
+    for bucket in buckets.values_mut() {
+        if bucket.len() > MAX_CELL_NEIGHBOURS {
+            let stride = bucket.len().div_ceil(MAX_CELL_NEIGHBOURS);
+            let kept: Vec<u32> = bucket.iter().copied().step_by(stride).collect();
+            *bucket = kept;
+        }
+    }
+    let widest = (radius / cell).ceil().max(1.0) as i32;
+    let mut near = Vec::new();
+    points
+        .iter()
+        .zip(wanted)
+        .map(|(&p, &wanted)| {
+            if !wanted {
+                return Vec3::ZERO;
+            }
+            let c = cell_of(p);
+            let mut ring = 1;
+            loop {
+                near.clear();
+                let r2 = (ring as f32 * cell).powi(2);
+                for dz in -ring..=ring {
+                    for dy in -ring..=ring {
+                        for dx in -ring..=ring {
+                            if let Some(b) = buckets.get(&(c + glam::IVec3::new(dx, dy, dz))) {
+                                near.extend(
+                                    b.iter()
+                                        .map(|&j| points[j as usize])
+                                        .filter(|q| (*q - p).length_squared() <= r2)
+                                        .map(Vec3::as_dvec3),
+                                );
+                            }
+                        }
+                    }
+                }
+                if near.len() >= MIN_NEIGHBOURS || ring >= widest {
+                    break;
+                }
+                ring = (ring * 2).min(widest);
+            }
+            let n = if near.len() >= 3 {
+                let mean = near.iter().sum::<glam::DVec3>() / near.len() as f64;
+                let mut cov = [[0.0f64; 3]; 3];
+                for q in &near {
+                    let d = *q - mean;
+                    for (a, row) in cov.iter_mut().enumerate() {
+                        for (b, c) in row.iter_mut().enumerate() {
+                            *c += d[a] * d[b];
+                        }
+                    }
+                }
+                least_variance_direction(cov)
+            } else {
+                Vec3::X
+            };
+            let n = if side(p, n) >= 0.0 { n } else { -n };
+            n.try_normalize().unwrap_or(Vec3::Y)
+        })
+        .collect()
+}
+
+/// The eigenvector of the symmetric `cov` with the smallest eigenvalue: power iteration on
+/// `trace · I − cov`, whose largest eigenvalue it is, started near the axis of least variance.
+fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
+    let trace = cov[0][0] + cov[1][1] + cov[2][2];
+    let start = (0..3)
+        .min_by(|&a, &b| cov[a][a].total_cmp(&cov[b][b]))
+        .unwrap_or(0);
+    // A nudge off the axis, in case the axis is orthogonal to the answer.
+    let mut v = glam::DVec3::splat(1e-3);
+    v[start] = 1.0;
+    for _ in 0..60 {
+        let w = glam::DVec3::new(
+            trace * v.x - (cov[0][0] * v.x + cov[0][1] * v.y + cov[0][2] * v.z),
+            trace * v.y - (cov[1][0] * v.x + cov[1][1] * v.y + cov[1][2] * v.z),
+            trace * v.z - (cov[2][0] * v.x + cov[2][1] * v.y + cov[2][2] * v.z),
+        );
+        let len = w.length();
+        if len.is_nan() || len <= 0.0 {
+            break;
+        }
+        let next = w / len;
+        let settled = (next - v).length_squared() < 1e-12;
+        v = next;
+        if settled {
+            break;
+        }
+    }
+    v.as_vec3()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `count` points spread evenly over a sphere of `radius` (a Fibonacci lattice), with
+    /// outward normals.
+    pub(crate) fn sphere_cloud(count: usize, radius: f32) -> PointCloud {
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        for i in 0..count {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
+            let r = (1.0 - y * y).sqrt();
+            let n = Vec3::new(
+                r * (golden * i as f32).cos(),
+                y,
+                r * (golden * i as f32).sin(),
+            );
+            points.push(n * radius);
+            normals.push(n);
+        }
+        PointCloud {
+            points,
+            normals: Some(normals),
+        }
+    }
+
+    /// The fitted surface's distance from the centre along `dir`, by bisection.
+    fn radius_along(lattice: &BSplineLattice, centre: Vec3, dir: Vec3, reach: f32) -> f32 {
+        let (mut a, mut b) = (0.0, reach);
+        assert!(lattice.value(centre) > lattice.iso, "the centre is inside");
+        for _ in 0..40 {
+            let m = 0.5 * (a + b);
+            if lattice.value(centre + dir * m) > lattice.iso {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        0.5 * (a + b)
+    }
+
+    fn worst_radius_error(fit: &CloudFit, radius_file: f32) -> f32 {
+        let centre = fit.to_field(Vec3::ZERO);
+        let truth = radius_file * fit.scale;
+        let mut worst = 0.0f32;
+        for s in 0..200 {
+            let dir = sphere_cloud(200, 1.0).points[s];
+            let r = radius_along(&fit.lattice, centre, dir, 2.0 * truth);
+            worst = worst.max((r - truth).abs());
+        }
+        worst / (2.0 * truth)
+    }
+
+    #[test]
+    fn a_sphere_cloud_fits_within_one_percent_of_its_size_with_and_without_normals() {
+        let cloud = sphere_cloud(4000, 3.0);
+        let with = fit_point_cloud(&cloud, &CloudFitOptions::default()).unwrap();
+        assert_eq!(with.signed_by, SignedBy::Normals);
+        let e = worst_radius_error(&with, 3.0);
+        assert!(e < 0.01, "with normals: {:.3}% of the diameter", e * 100.0);
+
+        let bare = PointCloud {
+            points: cloud.points.clone(),
+            normals: None,
+        };
+        let without = fit_point_cloud(&bare, &CloudFitOptions::default()).unwrap();
+        assert_eq!(without.signed_by, SignedBy::Tagging);
+        let e = worst_radius_error(&without, 3.0);
+        assert!(e < 0.01, "tagged: {:.3}% of the diameter", e * 100.0);
+    }
+
+    #[test]
+    fn a_torus_cloud_keeps_its_hole_and_noise_does_not_break_the_fit() {
+        // Torus: tube radius 1, ring radius 3, 6000 points, 1% noise (of its size), no normals.
+        let mut points = Vec::new();
+        let mut seed = 12345u32;
+        let mut noise = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+        };
+        for i in 0..120 {
+            for j in 0..50 {
+                let (u, v) = (
+                    i as f32 / 120.0 * std::f32::consts::TAU,
+                    j as f32 / 50.0 * std::f32::consts::TAU,
+                );
+                let ring = Vec3::new(u.cos(), 0.0, u.sin());
+                let p = ring * (3.0 + v.cos()) + Vec3::Y * v.sin();
+                let jitter = Vec3::new(noise(), noise(), noise()) * 0.08;
+                points.push(p + jitter);
+            }
+        }
+        let fit = fit_point_cloud(
+            &PointCloud {
+                points,
+                normals: None,
+            },
+            &CloudFitOptions::default(),
+        )
+        .unwrap();
+        let l = &fit.lattice;
+        assert!(
+            l.value(fit.to_field(Vec3::ZERO)) < l.iso,
+            "the hole is open"
+        );
+        for u in [0.0f32, 1.0, 2.0, 4.0, 5.5] {
+            let tube = Vec3::new(u.cos(), 0.0, u.sin()) * 3.0;
+            assert!(
+                l.value(fit.to_field(tube)) > l.iso,
+                "the tube is solid at {u}"
+            );
+            let beyond = Vec3::new(u.cos(), 0.0, u.sin()) * 4.4;
+            assert!(l.value(fit.to_field(beyond)) < l.iso, "outside at {u}");
+        }
+    }
+
+    #[test]
+    fn the_distance_transform_is_exact_on_a_few_sources() {
+        let grid = SignGrid::new(6, 0.1, 2);
+        let mut set = vec![false; grid.count()];
+        let sources = [
+            grid.index(0, 0, 0),
+            grid.index(7, 3, 9),
+            grid.index(10, 10, 2),
+        ];
+        for &s in &sources {
+            set[s] = true;
+        }
+        let d = grid.distance_to(&set);
+        for (at, got) in d.iter().enumerate() {
+            let want = sources
+                .iter()
+                .map(|&s| (grid.position(at) - grid.position(s)).length())
+                .fold(f32::INFINITY, f32::min);
+            assert!((got - want).abs() < 1e-5, "node {at}: {got} vs {want}");
+        }
+        assert!(grid.distance_to(&vec![false; grid.count()])[0].is_infinite());
+    }
+
+    #[test]
+    fn bad_options_and_a_point_are_refused() {
+        let cloud = sphere_cloud(100, 1.0);
+        for options in [
+            CloudFitOptions {
+                resolution: 4,
+                ..CloudFitOptions::default()
+            },
+            CloudFitOptions {
+                samples_per_span: 0,
+                ..CloudFitOptions::default()
+            },
+            CloudFitOptions {
+                gap_spans: 5.0,
+                ..CloudFitOptions::default()
+            },
+        ] {
+            assert!(matches!(
+                fit_point_cloud(&cloud, &options),
+                Err(CloudFitError::Options(_))
+            ));
+        }
+        let point = PointCloud {
+            points: vec![Vec3::ONE; 3],
+            normals: None,
+        };
+        assert!(matches!(
+            fit_point_cloud(&point, &CloudFitOptions::default()),
+            Err(CloudFitError::Degenerate)
+        ));
+    }
+}

@@ -1,0 +1,669 @@
+//! Hierarchical fitting of a point cloud (Hua & Qin §5): a base lattice plus an octree of
+//! finer detail patches, summed as the multi-patch field of eq. (3).
+//!
+//! 1. **Base.** The cloud is signed and the base lattice fitted to its density profile
+//!    ([`super::cloud`]); it is patch 0 of the [`MultiPatchField`].
+//! 2. **Error samples.** Each point gives three samples, as in the paper (one on the surface,
+//!    one inside and one outside, half a base knot span along the normal of the plane that
+//!    signs it), each with the density the clay should have there. A node's error is the root mean square of
+//!    `(F − target) · width` over its samples: with the profile's slope `1 / width`, that is
+//!    how far the surface lies from where the data puts it, in field units. The bound is
+//!    given as a fraction of the object's size (the longest side of the cloud's box), so the
+//!    same `--error` means the same on any scan. Above [`MAX_ERROR_POINTS`] points, an even
+//!    subset of the points gives the samples.
+//! 3. **Octree.** The root is the cloud's bounding cube. Its eight children, and the children
+//!    of every node that was refined, are visited one depth at a time; a node whose error
+//!    exceeds the bound (and that holds at least [`MIN_NODE_SAMPLES`] samples) gets a detail
+//!    patch at `base spacing / 2^depth` over its part of the cloud, fitted by least squares
+//!    (`field::refit_box`, the Kronecker machinery) to the residual of every patch fitted so
+//!    far, and is subdivided in turn, down to the depth limit.
+//! 4. **Blending.** A detail patch fits `w(x) · (target − F)`, where the window `w` is 1 over
+//!    the node's core (its cube, cut to its samples' box grown by one base span) and falls to
+//!    0 over [`FADE_SPANS`] of the patch's spans beyond it with the C¹ smoothstep
+//!    `3t² − 2t³`; the lattice reaches one span past the fade, and its outermost ring of
+//!    coefficients is held at zero. The patch is a cubic B-spline whose coefficients beyond
+//!    its lattice count as zero, so each term is C² over all of space and so is their sum:
+//!    there is no seam at a leaf boundary, the value, gradient and curvature are continuous
+//!    there. The window makes each detail fade out at its own border: its target is zero
+//!    over the lattice's last span, and with the outer ring zero the patch is exactly zero
+//!    from one span beyond its lattice on (no overshoot where the fit has no samples). Neighbouring
+//!    leaves overlap in their fades; because each patch is fitted to the residual of all the
+//!    earlier ones, the second takes what the first left (`w₁ + w₂ − w₁w₂ = 1` wherever the
+//!    second's window is 1), so the overlap is neither counted twice nor left out.
+//!
+//! The detail patches have identity maps (`T_i = I`): each lattice carries its own origin and
+//! spacing in field units. Steps 3–4 are [`refine`], over any target density and error
+//! samples: volumes use it too ([`super::volume::fit_volume_hierarchy`], with the voxels near
+//! the iso-surface as samples).
+
+use glam::{Affine3A, Vec3};
+
+use super::cloud::{CloudFitError, CloudFitOptions, SignedBy, sign_cloud};
+use super::points::PointCloud;
+use dynaclay_core::field::{
+    BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, MultiPatchField, refit_box,
+};
+
+/// Points used for the error samples, at most (an even subset of a larger cloud).
+pub const MAX_ERROR_POINTS: usize = 200_000;
+/// A node with fewer error samples is not refined (too little data to judge it).
+pub const MIN_NODE_SAMPLES: usize = 24;
+/// Detail spans over which a detail patch's window falls from 1 to 0.
+pub const FADE_SPANS: f32 = 2.0;
+/// The deepest octree level a fit may ask for (`base spacing / 2^6`).
+pub const MAX_DEPTH: u32 = 6;
+/// The default error bound: RMS distance, as a fraction of the object's size. Above the
+/// scatter of a scan with 1% noise (about 0.3% RMS), so noise alone does not spawn patches
+/// that would follow it.
+pub const DEFAULT_ERROR: f32 = 0.005;
+/// The default depth limit.
+pub const DEFAULT_MAX_DEPTH: u32 = 2;
+
+/// How to fit the hierarchy.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HierarchyOptions {
+    /// The base lattice and the signing.
+    pub base: CloudFitOptions,
+    /// The bound on a node's RMS distance error, as a fraction of the object's size.
+    pub error: f32,
+    /// The deepest level of detail patches (0: the base alone).
+    pub max_depth: u32,
+}
+
+impl Default for HierarchyOptions {
+    fn default() -> Self {
+        Self {
+            base: CloudFitOptions::default(),
+            error: DEFAULT_ERROR,
+            max_depth: DEFAULT_MAX_DEPTH,
+        }
+    }
+}
+
+/// What the fit is doing, for a progress display.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitProgress {
+    /// Placing and signing the cloud.
+    Signing,
+    /// Fitting the base lattice.
+    Base,
+    /// Fitting detail patches at `depth`: `done` of the `of` nodes refined at this depth.
+    Detail {
+        /// The octree depth.
+        depth: u32,
+        /// Patches fitted at this depth so far.
+        done: usize,
+        /// Patches to fit at this depth.
+        of: usize,
+    },
+}
+
+/// One depth of the octree, after its patches were fitted.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LevelReport {
+    /// The depth (1 = the root's children).
+    pub depth: u32,
+    /// Nodes whose error was checked.
+    pub nodes: usize,
+    /// Nodes refined (one detail patch each).
+    pub refined: usize,
+}
+
+/// A fitted multi-patch clay and where the cloud went.
+#[derive(Clone, Debug)]
+pub struct HierarchicalFit {
+    /// The base (patch 0) and the detail patches, all with identity maps; iso-level 0.5.
+    pub field: MultiPatchField,
+    /// Field units per file unit.
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+    /// How the signs were found.
+    pub signed_by: SignedBy,
+    /// The object's size (its box's longest side), field units.
+    pub size: f32,
+    /// The RMS distance error over all samples with the base alone and with every patch,
+    /// as fractions of the size.
+    pub rms_base: f32,
+    /// See [`HierarchicalFit::rms_base`].
+    pub rms: f32,
+    /// Per depth: nodes checked and refined.
+    pub levels: Vec<LevelReport>,
+    /// Whether the clay's budget stopped the refinement short of the bound (see
+    /// [`Refined::over_budget`]).
+    pub over_budget: bool,
+}
+
+impl HierarchicalFit {
+    /// A file-unit point in field units.
+    #[must_use]
+    pub fn to_field(&self, p: Vec3) -> Vec3 {
+        p * self.scale + self.offset
+    }
+}
+
+/// The error samples: positions, targets and the current field's value at each.
+struct Samples {
+    at: Vec<Vec3>,
+    target: Vec<f32>,
+    value: Vec<f32>,
+}
+
+impl Samples {
+    fn new(at: Vec<Vec3>, target: &dyn Fn(Vec3) -> f32, field: &MultiPatchField) -> Self {
+        let target = at.iter().map(|&x| target(x)).collect();
+        let value = at.iter().map(|&x| field.value(x)).collect();
+        Self { at, target, value }
+    }
+
+    /// Mean of the squared density error over `indices` (all samples when `None`).
+    fn mean_square(&self, indices: Option<&[u32]>) -> f64 {
+        let sq = |i: usize| f64::from(self.value[i] - self.target[i]).powi(2);
+        match indices {
+            Some(ix) if !ix.is_empty() => {
+                ix.iter().map(|&i| sq(i as usize)).sum::<f64>() / ix.len() as f64
+            }
+            Some(_) => 0.0,
+            None if self.at.is_empty() => 0.0,
+            None => (0..self.at.len()).map(sq).sum::<f64>() / self.at.len() as f64,
+        }
+    }
+}
+
+/// An octree node: a cube and the error samples inside it.
+struct Node {
+    lo: Vec3,
+    side: f32,
+    depth: u32,
+    samples: Vec<u32>,
+}
+
+impl Node {
+    fn children(&self, at: &[Vec3]) -> [Node; 8] {
+        let half = 0.5 * self.side;
+        let mut kids: [Node; 8] = std::array::from_fn(|c| Node {
+            lo: self.lo
+                + Vec3::new(
+                    (c & 1) as f32 * half,
+                    ((c >> 1) & 1) as f32 * half,
+                    ((c >> 2) & 1) as f32 * half,
+                ),
+            side: half,
+            depth: self.depth + 1,
+            samples: Vec::new(),
+        });
+        let mid = self.lo + Vec3::splat(half);
+        for &i in &self.samples {
+            let p = at[i as usize];
+            let c = usize::from(p.x >= mid.x)
+                | usize::from(p.y >= mid.y) << 1
+                | usize::from(p.z >= mid.z) << 2;
+            kids[c].samples.push(i);
+        }
+        kids
+    }
+}
+
+/// Fits a base lattice and the octree of detail patches to `cloud` (see the module docs).
+/// `progress` hears each stage and each patch; when it returns `false` the fit stops with
+/// [`CloudFitError::Interrupted`].
+///
+/// # Errors
+/// [`CloudFitError::Options`] for bad options (an error bound that is not positive and
+/// finite, a depth over [`MAX_DEPTH`], or a bad base), [`CloudFitError::Degenerate`] for a
+/// cloud without extent, [`CloudFitError::Fit`] for a failed fit,
+/// [`CloudFitError::Interrupted`] when `progress` asked to stop.
+pub fn fit_hierarchy(
+    cloud: &PointCloud,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<HierarchicalFit, CloudFitError> {
+    check_options(options)?;
+    let go_on = |progress: &mut dyn FnMut(FitProgress) -> bool, stage| {
+        if progress(stage) {
+            Ok(())
+        } else {
+            Err(CloudFitError::Interrupted)
+        }
+    };
+    go_on(progress, FitProgress::Signing)?;
+    let signed = sign_cloud(cloud, &options.base)?;
+    go_on(progress, FitProgress::Base)?;
+    let base = signed.fit_base()?;
+    let mut field = MultiPatchField::new(base);
+
+    let (lo, hi) = signed
+        .points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    // Three error samples per point (an even subset of a large cloud): on the surface, and
+    // half a base span outside and inside along the plane that signs it.
+    let stride = signed.points.len().div_ceil(MAX_ERROR_POINTS).max(1);
+    let offset = 0.5 * signed.spacing;
+    let mut at = Vec::with_capacity(3 * signed.points.len() / stride + 3);
+    for &p in signed.points.iter().step_by(stride) {
+        let n = signed.normal_near(p).unwrap_or(Vec3::ZERO);
+        at.extend([p, p + n * offset, p - n * offset]);
+    }
+    let density = |x: Vec3| signed.density(x);
+    let data = Refinement {
+        target: &density,
+        spacing: signed.spacing,
+        width: signed.width,
+        samples_per_span: signed.samples_per_span,
+        lo,
+        hi,
+    };
+    let refined = refine(&mut field, &data, at, options, progress)?;
+    Ok(HierarchicalFit {
+        field,
+        scale: signed.scale,
+        offset: signed.offset,
+        signed_by: signed.signed_by,
+        size: refined.size,
+        rms_base: refined.rms_base,
+        rms: refined.rms,
+        levels: refined.levels,
+        over_budget: refined.over_budget,
+    })
+}
+
+/// What the octree refines against: the density to fit (`target`, the clay's iso-level 0.5
+/// on the surface, slope `1 / width` across it), the base lattice's spacing and samples per
+/// span, and the data's box `lo ..= hi` (field units; the root cube and the size).
+pub struct Refinement<'a> {
+    /// The density the clay should have at a field point.
+    pub target: &'a dyn Fn(Vec3) -> f32,
+    /// The base lattice's knot spacing, field units.
+    pub spacing: f32,
+    /// The density profile's width, field units.
+    pub width: f32,
+    /// Samples per knot span of each detail fit.
+    pub samples_per_span: usize,
+    /// The data's box, field units.
+    pub lo: Vec3,
+    /// See [`Refinement::lo`].
+    pub hi: Vec3,
+}
+
+/// The outcome of [`refine`].
+pub struct Refined {
+    /// The data's size (its box's longest side), field units.
+    pub size: f32,
+    /// RMS distance error over the samples with the base alone, fraction of the size.
+    pub rms_base: f32,
+    /// RMS distance error with every patch, fraction of the size.
+    pub rms: f32,
+    /// Per depth: nodes checked and refined.
+    pub levels: Vec<LevelReport>,
+    /// Whether the clay's budget ([`MAX_PATCHES`] patches, [`MAX_CLAY_COEFFS`]
+    /// coefficients) stopped the refinement with nodes still over the bound (the worst nodes
+    /// of each depth are refined first).
+    pub over_budget: bool,
+}
+
+/// Steps 3–4 of the module docs: adds detail patches to `field` (whose patch 0 is the fitted
+/// base) where the error at the samples `at` is above `options.error`, down to
+/// `options.max_depth`.
+///
+/// # Errors
+/// [`CloudFitError::Options`] for a bad bound or depth, [`CloudFitError::Fit`] for a failed
+/// fit, [`CloudFitError::Interrupted`] when `progress` asked to stop.
+pub fn refine(
+    field: &mut MultiPatchField,
+    data: &Refinement<'_>,
+    at: Vec<Vec3>,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<Refined, CloudFitError> {
+    check_options(options)?;
+    let go_on = |progress: &mut dyn FnMut(FitProgress) -> bool, stage| {
+        if progress(stage) {
+            Ok(())
+        } else {
+            Err(CloudFitError::Interrupted)
+        }
+    };
+    let (lo, hi) = (data.lo, data.hi);
+    let size = (hi - lo).max_element().max(f32::MIN_POSITIVE);
+    let mut samples = Samples::new(at, data.target, field);
+    // The bound on the mean square density error: (distance / width)².
+    let bound = f64::from(options.error * size / data.width).powi(2);
+    let to_fraction = |ms: f64| (ms.sqrt() as f32) * data.width / size;
+    let rms_base = to_fraction(samples.mean_square(None));
+    // The root: the cloud's bounding cube, centred on its box, a hair larger so that every
+    // point falls inside.
+    let side = size * (1.0 + 1e-4) + 1e-6;
+    let root = Node {
+        lo: (lo + hi) * 0.5 - Vec3::splat(0.5 * side),
+        side,
+        depth: 0,
+        samples: (0..samples.at.len() as u32).collect(),
+    };
+    let mut levels = Vec::new();
+    let mut refined = vec![root];
+    let mut over_budget = false;
+    for depth in 1..=options.max_depth {
+        let mut checked = 0;
+        let mut to_refine = Vec::new();
+        for node in &refined {
+            for child in node.children(&samples.at) {
+                checked += 1;
+                if child.samples.len() >= MIN_NODE_SAMPLES
+                    && samples.mean_square(Some(&child.samples)) > bound
+                {
+                    to_refine.push(child);
+                }
+            }
+        }
+        // The worst first, so that a budget reached spends its patches where they matter most.
+        let mut errors: Vec<(f64, Node)> = to_refine
+            .into_iter()
+            .map(|n| (samples.mean_square(Some(&n.samples)), n))
+            .collect();
+        errors.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let of = errors.len();
+        let mut kept = Vec::with_capacity(of);
+        for (done, (_, node)) in errors.into_iter().enumerate() {
+            go_on(progress, FitProgress::Detail { depth, done, of })?;
+            // Earlier patches at this depth may already have brought it under the bound.
+            if samples.mean_square(Some(&node.samples)) <= bound {
+                continue;
+            }
+            if field.patches.len() >= MAX_PATCHES {
+                over_budget = true;
+                break;
+            }
+            let patch = fit_detail(data, field, &node, &samples.at)?;
+            if field.coefficient_count() + patch.coeffs.len() > MAX_CLAY_COEFFS {
+                over_budget = true;
+                break;
+            }
+            // Bring the samples the patch reaches up to date.
+            let (plo, phi) = patch.support();
+            for (x, v) in samples.at.iter().zip(samples.value.iter_mut()) {
+                if x.cmpge(plo).all() && x.cmple(phi).all() {
+                    *v += patch.value(*x);
+                }
+            }
+            field.push(patch, Affine3A::IDENTITY);
+            kept.push(node);
+        }
+        levels.push(LevelReport {
+            depth,
+            nodes: checked,
+            refined: kept.len(),
+        });
+        if kept.is_empty() || over_budget {
+            break;
+        }
+        refined = kept;
+    }
+    let rms = to_fraction(samples.mean_square(None));
+    Ok(Refined {
+        size,
+        rms_base,
+        rms,
+        levels,
+        over_budget,
+    })
+}
+
+/// Refuses an error bound that is not positive and finite, or a depth over [`MAX_DEPTH`].
+fn check_options(options: &HierarchyOptions) -> Result<(), CloudFitError> {
+    if !(options.error.is_finite() && options.error > 0.0) {
+        return Err(CloudFitError::Options(format!(
+            "error bound {}: must be above 0",
+            options.error
+        )));
+    }
+    if options.max_depth > MAX_DEPTH {
+        return Err(CloudFitError::Options(format!(
+            "max depth {}: at most {MAX_DEPTH}",
+            options.max_depth
+        )));
+    }
+    Ok(())
+}
+
+/// The C¹ window of a detail patch: 1 over `core_lo ..= core_hi`, falling to 0 over `fade`
+/// beyond it with `3t² − 2t³` per axis (the product of the three).
+fn window(x: Vec3, core_lo: Vec3, core_hi: Vec3, fade: f32) -> f32 {
+    let mut w = 1.0;
+    for a in 0..3 {
+        let outside = (core_lo[a] - x[a]).max(x[a] - core_hi[a]).max(0.0);
+        let t = (1.0 - outside / fade).clamp(0.0, 1.0);
+        w *= t * t * (3.0 - 2.0 * t);
+    }
+    w
+}
+
+/// A detail patch for `node`: spacing `base / 2^depth`, over the node's core plus the fade
+/// plus one span, fitted (outer ring held at zero) to the windowed residual of `field`.
+fn fit_detail(
+    data: &Refinement<'_>,
+    field: &MultiPatchField,
+    node: &Node,
+    at: &[Vec3],
+) -> Result<BSplineLattice, CloudFitError> {
+    let h = data.spacing / (1u32 << node.depth) as f32;
+    // The core: the node's cube cut to its samples' box grown by one base span (the residual
+    // lives near the surface).
+    let (slo, shi) =
+        node.samples
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &i| {
+                let p = at[i as usize];
+                (a.min(p), b.max(p))
+            });
+    let grow = Vec3::splat(data.spacing);
+    let core_lo = (slo - grow).max(node.lo);
+    let core_hi = (shi + grow).min(node.lo + Vec3::splat(node.side));
+    let fade = FADE_SPANS * h;
+    let pad = fade + h;
+    let origin = core_lo - Vec3::splat(pad);
+    let extent = core_hi - core_lo + Vec3::splat(2.0 * pad);
+    let dims = [0, 1, 2].map(|a| ((extent[a] / h).ceil() as usize + 1).max(4));
+    let mut lattice = BSplineLattice::zeros(dims, h, origin).map_err(|e| {
+        CloudFitError::Options(format!("a detail patch of {dims:?} at spacing {h}: {e}"))
+    })?;
+    lattice.iso = field.iso();
+    // Only the patches that reach this one take part in the residual.
+    let (lo, hi) = lattice.support();
+    let near: Vec<&BSplineLattice> = field
+        .patches
+        .iter()
+        .map(|p| &p.lattice)
+        .filter(|l| {
+            let (a, b) = l.support();
+            a.cmple(hi).all() && b.cmpge(lo).all()
+        })
+        .collect();
+    let inner = [dims[0] - 2, dims[1] - 2, dims[2] - 2];
+    refit_box(&mut lattice, [1, 1, 1], inner, data.samples_per_span, |x| {
+        let w = window(x, core_lo, core_hi, fade);
+        if w == 0.0 {
+            return 0.0;
+        }
+        let current: f32 = near.iter().map(|l| l.value(x)).sum();
+        w * ((data.target)(x) - current)
+    })?;
+    Ok(lattice)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `count` points on a box of half extents `half` with edges rounded by `round`: random
+    /// points projected onto the surface along the distance's gradient.
+    fn rounded_box(count: usize, half: Vec3, round: f32) -> PointCloud {
+        let sdf = |p: Vec3| {
+            let q = p.abs() - (half - Vec3::splat(round));
+            q.max(Vec3::ZERO).length() + q.max_element().min(0.0) - round
+        };
+        let mut seed = 0x2545_f491_u32;
+        let mut unit = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32 * 2.0 - 1.0
+        };
+        let mut points = Vec::with_capacity(count);
+        while points.len() < count {
+            let mut p = Vec3::new(unit(), unit(), unit()) * half * 1.2;
+            for _ in 0..4 {
+                let h = 1e-3;
+                let g = Vec3::new(
+                    sdf(p + Vec3::X * h) - sdf(p - Vec3::X * h),
+                    sdf(p + Vec3::Y * h) - sdf(p - Vec3::Y * h),
+                    sdf(p + Vec3::Z * h) - sdf(p - Vec3::Z * h),
+                )
+                .normalize_or_zero();
+                p -= g * sdf(p);
+            }
+            if sdf(p).abs() < 1e-4 {
+                points.push(p);
+            }
+        }
+        PointCloud {
+            points,
+            normals: None,
+        }
+    }
+
+    fn sharp_box() -> PointCloud {
+        rounded_box(20_000, Vec3::new(1.0, 0.7, 0.5), 0.03)
+    }
+
+    fn tight() -> HierarchyOptions {
+        HierarchyOptions {
+            error: 0.0015,
+            max_depth: 2,
+            ..HierarchyOptions::default()
+        }
+    }
+
+    #[test]
+    fn fine_features_get_detail_patches_at_half_the_spacing_that_lower_the_error() {
+        let fit = fit_hierarchy(&sharp_box(), &tight(), &mut |_| true).unwrap();
+        let base = &fit.field.patches[0].lattice;
+        assert!(fit.field.patches.len() > 1, "{:?}", fit.levels);
+        assert!(fit.levels[0].refined > 0);
+        assert!(
+            fit.rms < 0.8 * fit.rms_base,
+            "{} -> {}",
+            fit.rms_base,
+            fit.rms
+        );
+        for p in &fit.field.patches[1..] {
+            assert_eq!(p.world_to_patch, Affine3A::IDENTITY);
+            let ratio = base.spacing / p.lattice.spacing;
+            assert!(
+                (ratio - 2.0).abs() < 1e-4 || (ratio - 4.0).abs() < 1e-4,
+                "{ratio}"
+            );
+        }
+        // Depth 0 is the base alone.
+        let flat = HierarchyOptions {
+            max_depth: 0,
+            ..tight()
+        };
+        let alone = fit_hierarchy(&sharp_box(), &flat, &mut |_| true).unwrap();
+        assert_eq!(alone.field.patches.len(), 1);
+        assert!((alone.rms - fit.rms_base).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_sum_is_smooth_across_every_detail_patch_border() {
+        let fit = fit_hierarchy(&sharp_box(), &tight(), &mut |_| true).unwrap();
+        let f = &fit.field;
+        let base_h = f.patches[0].lattice.spacing;
+        // The typical gradient: the profile's slope.
+        let slope = 1.0 / (2.0 * base_h);
+        let mut crossings = 0;
+        for p in &f.patches[1..] {
+            let l = &p.lattice;
+            let [nx, ny, nz] = l.dims;
+            // The outer ring of coefficients is zero: the patch fades out inside its lattice.
+            for k in 0..nz {
+                for j in 0..ny {
+                    for i in 0..nx {
+                        if i == 0 || j == 0 || k == 0 || i == nx - 1 || j == ny - 1 || k == nz - 1 {
+                            assert_eq!(l.coeffs[l.index(i, j, k)], 0.0);
+                        }
+                    }
+                }
+            }
+            // Across each face of its support and of its window's edge, the value and the
+            // gradient of the sum do not jump.
+            let (lo, hi) = l.support();
+            let mid = (lo + hi) * 0.5;
+            let eps = 1e-3 * l.spacing;
+            for a in 0..3 {
+                for face in [
+                    lo[a],
+                    hi[a],
+                    lo[a] + 2.0 * l.spacing,
+                    hi[a] - 2.0 * l.spacing,
+                ] {
+                    for s in 0..5 {
+                        let mut x = mid + (hi - lo) * 0.15 * (s as f32 - 2.0);
+                        x[a] = face;
+                        let mut d = Vec3::ZERO;
+                        d[a] = eps;
+                        let (v0, g0) = f.value_and_gradient(x - d);
+                        let (v1, g1) = f.value_and_gradient(x + d);
+                        assert!(
+                            (v1 - v0).abs() < 4.0 * eps * slope + 1e-5,
+                            "value jumps at {x}"
+                        );
+                        assert!(
+                            (g1 - g0).length() < 0.02 * slope,
+                            "gradient jumps at {x}: {g0} vs {g1}"
+                        );
+                        crossings += 1;
+                    }
+                }
+            }
+        }
+        assert!(crossings > 0);
+    }
+
+    #[test]
+    fn the_fit_stops_when_asked_and_bad_options_are_refused() {
+        let cloud = sharp_box();
+        for stop_at in [0, 1, 2] {
+            let mut calls = 0;
+            let r = fit_hierarchy(&cloud, &tight(), &mut |_| {
+                calls += 1;
+                calls <= stop_at
+            });
+            assert!(
+                matches!(r, Err(CloudFitError::Interrupted)),
+                "stop at {stop_at}"
+            );
+        }
+        for options in [
+            HierarchyOptions {
+                error: 0.0,
+                ..tight()
+            },
+            HierarchyOptions {
+                error: f32::NAN,
+                ..tight()
+            },
+            HierarchyOptions {
+                max_depth: MAX_DEPTH + 1,
+                ..tight()
+            },
+        ] {
+            assert!(matches!(
+                fit_hierarchy(&cloud, &options, &mut |_| true),
+                Err(CloudFitError::Options(_))
+            ));
+        }
+    }
+}

@@ -1,0 +1,732 @@
+//! One import for `dynaclay import` and the GUI's Load: a file is read by its extension (point
+//! clouds `.ply`/`.xyz`/`.txt`/`.pts`, meshes `.obj`/`.stl`, volumes `.nrrd` and, with their
+//! dimensions given, `.raw`), fitted hierarchically ([`fit_hierarchy`],
+//! [`fit_volume_hierarchy`]) and made into a session whose clay is the fitted field.
+//!
+//! A mesh takes one of two paths ([`FitPath`]): a closed one (every edge shared by two
+//! triangles, after welding, [`super::watertight`]) is fitted from its signed distance on a grid
+//! ([`super::sdf`]) by the volume fit; an open one is sampled into a point cloud and fitted as
+//! a scan. The log names the path and, for an open mesh, why it is open.
+//!
+//! The caller watches the fit through two callbacks: `progress` sees each stage (and stops the
+//! fit by answering `false`), `note` receives one line per report (what was read, the levels,
+//! the error reached), so the CLI prints them and the GUI shows them in its log.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, MARGIN_SPANS, SignedBy};
+use super::hierarchy::{
+    DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
+    fit_hierarchy,
+};
+use super::mesh::{read_mesh, sample_triangles};
+use super::points::{PointCloud, PointColours, PointsError, read_points_with_colours};
+use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
+use super::volume::{
+    Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
+    read_raw,
+};
+use super::watertight::{MeshCheck, check_closed};
+use dynaclay_core::dynamics::Material;
+use dynaclay_core::field::MultiPatchField;
+use dynaclay_core::io::{MaterialFields, Session, SessionMeta};
+use dynaclay_core::tools::Clay;
+
+/// The extensions [`fit_file`] reads (lower case).
+pub const IMPORT_EXTENSIONS: [&str; 8] = ["ply", "xyz", "txt", "pts", "obj", "stl", "nrrd", "raw"];
+
+/// How a file is fitted. [`ImportSettings::default`] is `dynaclay import`'s defaults.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImportSettings {
+    /// Knots per axis of the base lattice.
+    pub resolution: usize,
+    /// Gap bridged by the tagging of unoriented clouds, in knot spans.
+    pub gap_spans: f32,
+    /// Error bound of the hierarchy, percent of the object's size.
+    pub error_percent: f32,
+    /// Deepest octree level of detail patches.
+    pub max_depth: u32,
+    /// A volume's surface intensity.
+    pub iso: Option<f32>,
+    /// Without [`ImportSettings::iso`]: fit a volume at the middle of its intensity range
+    /// (the GUI) instead of refusing it (the CLI, which asks for `--iso`).
+    pub midrange_iso: bool,
+    /// A raw volume's voxels per axis and sample type (a raw file says neither).
+    pub raw: Option<([usize; 3], Sample)>,
+}
+
+impl Default for ImportSettings {
+    fn default() -> Self {
+        Self {
+            resolution: 32,
+            gap_spans: DEFAULT_GAP_SPANS,
+            error_percent: DEFAULT_ERROR * 100.0,
+            max_depth: DEFAULT_MAX_DEPTH,
+            iso: None,
+            midrange_iso: false,
+            raw: None,
+        }
+    }
+}
+
+/// Why a file was not imported.
+#[derive(Debug, thiserror::Error)]
+pub enum ImportError {
+    /// The extension names no importable format.
+    #[error(
+        "{}: unknown format (import reads point clouds .ply .xyz, meshes .obj .stl, volumes .nrrd .raw)",
+        file.display()
+    )]
+    UnknownFormat {
+        /// The file.
+        file: std::path::PathBuf,
+    },
+    /// A volume without a surface intensity.
+    #[error("a volume needs --iso V: the intensity of its surface")]
+    NeedsIso,
+    /// A raw volume without its dimensions.
+    #[error("a raw volume needs --dims X,Y,Z (voxels per axis)")]
+    NeedsDims,
+    /// A volume whose intensities are all equal has no surface.
+    #[error("{}: every voxel has the same intensity: no surface to fit", file.display())]
+    FlatVolume {
+        /// The file.
+        file: std::path::PathBuf,
+    },
+    /// The point, mesh or cloud file is bad (the error names the file and where).
+    #[error(transparent)]
+    Points(#[from] PointsError),
+    /// The volume file is bad (the error names the file and where).
+    #[error(transparent)]
+    Volume(#[from] VolumeError),
+    /// Settings out of range.
+    #[error("{0}")]
+    Options(String),
+    /// The fit failed.
+    #[error("{}: {source}", file.display())]
+    Fit {
+        /// The file.
+        file: std::path::PathBuf,
+        /// Why.
+        source: CloudFitError,
+    },
+    /// `progress` asked the fit to stop.
+    #[error("the fit was stopped; nothing was imported")]
+    Interrupted,
+}
+
+/// Whether `path`'s extension is one [`fit_file`] reads.
+#[must_use]
+pub fn is_importable(path: &Path) -> bool {
+    extension(path).is_some_and(|e| IMPORT_EXTENSIONS.contains(&e.as_str()))
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+}
+
+/// Which way a file was fitted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitPath {
+    /// A point cloud file, fitted as a scan.
+    Cloud,
+    /// An open mesh (see the check), sampled into a point cloud and fitted as a scan.
+    OpenMesh(MeshCheck),
+    /// A closed mesh, fitted from its signed distance on a grid.
+    ClosedMesh(MeshCheck),
+    /// A volume, fitted at its iso-surface.
+    Volume,
+}
+
+/// A fitted clay, the path that made it, and where the file went in the clay.
+#[derive(Clone, Debug)]
+pub struct ImportedFit {
+    /// The base (patch 0) and the detail patches.
+    pub field: MultiPatchField,
+    /// How the file was fitted.
+    pub path: FitPath,
+    /// Field units per file unit (a volume's file unit is its voxel).
+    pub scale: f32,
+    /// Field position of the file's origin: `field = file · scale + offset`.
+    pub offset: Vec3,
+}
+
+impl ImportedFit {
+    /// A file-unit point in field units.
+    #[must_use]
+    pub fn to_field(&self, p: Vec3) -> Vec3 {
+        p * self.scale + self.offset
+    }
+}
+
+/// Reads `path` and fits a multi-patch clay to it; `progress` sees each stage (answer `false`
+/// to stop), `note` receives the report lines.
+///
+/// # Errors
+/// See [`ImportError`]: an unknown extension, a bad file, missing volume settings, a failed
+/// or stopped fit.
+pub fn fit_file(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<MultiPatchField, ImportError> {
+    fit_import(path, settings, progress, note).map(|fit| fit.field)
+}
+
+/// [`fit_file`], also telling which path the fit took and where the file lies in the clay.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn fit_import(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
+    match extension(path).as_deref() {
+        Some("nrrd") => fit_volume_file(path, settings, true, progress, note),
+        Some("raw") => fit_volume_file(path, settings, false, progress, note),
+        Some("obj" | "stl") => fit_mesh_file(path, settings, progress, note),
+        Some("ply" | "xyz" | "txt" | "pts") => {
+            import_cloud(path, settings, progress, note).map(|imported| imported.fit)
+        }
+        _ => Err(ImportError::UnknownFormat {
+            file: path.to_path_buf(),
+        }),
+    }
+}
+
+/// A point-cloud file fitted by [`import_cloud`]: the fit and the cloud as read.
+#[derive(Clone, Debug)]
+pub struct ImportedCloud {
+    /// The fitted clay and where the file lies in it.
+    pub fit: ImportedFit,
+    /// The points as read, in the file's units.
+    pub cloud: PointCloud,
+    /// The points' colours, when the file has them.
+    pub colours: Option<PointColours>,
+}
+
+impl ImportedCloud {
+    /// The cloud in field units (normals unchanged: the map is a uniform scale and a shift).
+    #[must_use]
+    pub fn cloud_in_field_units(&self) -> PointCloud {
+        PointCloud {
+            points: self
+                .cloud
+                .points
+                .iter()
+                .map(|&p| self.fit.to_field(p))
+                .collect(),
+            normals: self.cloud.normals.clone(),
+        }
+    }
+}
+
+/// Fits a point-cloud file (`.ply`, `.xyz`, `.txt`, `.pts`) as [`fit_file`] does, keeping the
+/// cloud, its colours and the map into field units.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn import_cloud(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedCloud, ImportError> {
+    let (cloud, colours) = read_points_with_colours(path)?;
+    let fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
+    Ok(ImportedCloud {
+        fit,
+        cloud,
+        colours,
+    })
+}
+
+/// Whether `path` names a point-cloud file by its extension (`.ply`, `.xyz`, `.txt`, `.pts`).
+#[must_use]
+pub fn is_point_cloud(path: &Path) -> bool {
+    matches!(
+        extension(path).as_deref(),
+        Some("ply" | "xyz" | "txt" | "pts")
+    )
+}
+
+/// One report line per octree depth: how many nodes were refined; and one more when the
+/// clay's budget stopped the refinement.
+fn note_levels(levels: &[LevelReport], over_budget: bool, note: &mut dyn FnMut(String)) {
+    for level in levels {
+        note(format!(
+            "depth {}: {} of {} octree nodes refined",
+            level.depth, level.refined, level.nodes
+        ));
+    }
+    if over_budget {
+        note(format!(
+            "warning: the clay's budget ({} patches, {} coefficients) stopped the detail with \
+             nodes still over the error bound (the worst were refined first); raise --error or \
+             lower --max-depth",
+            dynaclay_core::field::MAX_PATCHES,
+            dynaclay_core::field::MAX_CLAY_COEFFS
+        ));
+    }
+}
+
+fn fit_error(path: &Path, e: CloudFitError) -> ImportError {
+    match e {
+        CloudFitError::Options(m) => ImportError::Options(m),
+        CloudFitError::Interrupted => ImportError::Interrupted,
+        source => ImportError::Fit {
+            file: path.to_path_buf(),
+            source,
+        },
+    }
+}
+
+fn fit_cloud(
+    path: &Path,
+    cloud: &PointCloud,
+    kind: FitPath,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
+    let options = HierarchyOptions {
+        base: CloudFitOptions {
+            resolution: settings.resolution,
+            gap_spans: settings.gap_spans,
+            ..CloudFitOptions::default()
+        },
+        error: settings.error_percent / 100.0,
+        max_depth: settings.max_depth,
+    };
+    note(format!(
+        "{} points{} from {}, fitting a {}³ clay with detail patches down to depth {} where \
+         the error is above {}% of its size",
+        cloud.points.len(),
+        if cloud.normals.is_some() {
+            " with normals"
+        } else {
+            ""
+        },
+        path.display(),
+        options.base.resolution,
+        options.max_depth,
+        settings.error_percent
+    ));
+    let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    note_levels(&fit.levels, fit.over_budget, note);
+    let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
+    let percent = |d: f32| 100.0 * d / fit.size;
+    note(format!(
+        "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
+         points lie {:.3}% of the size from the surface on average, {:.3}% at most",
+        match fit.signed_by {
+            SignedBy::Normals => "the normals",
+            SignedBy::Tagging => "flood tagging",
+        },
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base,
+        percent(mean),
+        percent(worst)
+    ));
+    Ok(ImportedFit {
+        field: fit.field,
+        path: kind,
+        scale: fit.scale,
+        offset: fit.offset,
+    })
+}
+
+/// How far `points` (mapped to field units by `to_field`) lie from the fitted surface, to
+/// first order (`|F − iso| / |∇F|`), field units: mean and worst.
+fn distance_to_surface(
+    field: &MultiPatchField,
+    points: &[Vec3],
+    to_field: impl Fn(Vec3) -> Vec3,
+) -> (f32, f32) {
+    let (mut sum, mut worst) = (0.0f64, 0.0f32);
+    for &p in points {
+        let (v, g) = field.value_and_gradient(to_field(p));
+        let d = (v - field.iso()).abs() / g.length().max(1e-6);
+        sum += f64::from(d);
+        worst = worst.max(d);
+    }
+    ((sum / points.len().max(1) as f64) as f32, worst)
+}
+
+/// The signed-distance grid [`fit_import`] uses for a closed mesh whose box is `lo..hi`, and
+/// whether [`MAX_SDF_VOXELS`] made it coarser than asked. The mesh is placed as a cloud is
+/// (its longest side spans the base lattice less its margin); the voxel is half the finest
+/// detail patch's spacing (`base spacing / 2^max_depth`), and the band one base knot span
+/// (the density ramp's half width) plus two voxels.
+///
+/// # Errors
+/// [`ImportError::Options`] for a resolution out of 12..=256, or a box too thin or empty for
+/// a grid.
+pub fn closed_mesh_grid(
+    settings: &ImportSettings,
+    lo: Vec3,
+    hi: Vec3,
+) -> Result<(SdfGrid, bool), ImportError> {
+    let resolution = settings.resolution;
+    if !(12..=256).contains(&resolution) {
+        return Err(ImportError::Options(format!(
+            "resolution {resolution}: must be 12 to 256 coefficients"
+        )));
+    }
+    let span_total = (resolution - 1) as f32 - 2.0 * MARGIN_SPANS;
+    let depth = settings.max_depth.min(MAX_DEPTH);
+    let mut across = (2.0 * span_total * (1u32 << depth) as f32).ceil() as usize;
+    let extent = hi - lo;
+    let size = extent.max_element().max(f32::MIN_POSITIVE);
+    let mut capped = false;
+    loop {
+        let band = across as f32 / span_total + 2.0;
+        let margin = 2.0 * (band.ceil() + 2.0) + 1.0;
+        let voxels: f64 = (0..3)
+            .map(|a| f64::from((extent[a] / size * across as f32).ceil() + margin))
+            .product();
+        if voxels <= MAX_SDF_VOXELS as f64 {
+            let grid = SdfGrid::around(lo, hi, across, band).map_err(ImportError::Options)?;
+            return Ok((grid, capped));
+        }
+        capped = true;
+        across = across * 9 / 10;
+    }
+}
+
+fn fit_mesh_file(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
+    let (vertices, triangles) = read_mesh(path)?;
+    if triangles.is_empty() {
+        return Err(PointsError::Empty {
+            file: path.to_path_buf(),
+        }
+        .into());
+    }
+    let (mesh, check) = check_closed(&vertices, &triangles);
+    note(format!(
+        "{} triangles from {}: {}",
+        triangles.len(),
+        path.display(),
+        check.describe()
+    ));
+    let as_cloud = |why: &str,
+                    progress: &mut dyn FnMut(FitProgress) -> bool,
+                    note: &mut dyn FnMut(String)|
+     -> Result<ImportedFit, ImportError> {
+        note(format!(
+            "{why}: fitting it as a point cloud sampled from its triangles"
+        ));
+        let cloud = sample_triangles(&vertices, &triangles, path)?;
+        fit_cloud(
+            path,
+            &cloud,
+            FitPath::OpenMesh(check),
+            settings,
+            progress,
+            note,
+        )
+    };
+    if !check.is_closed() {
+        return as_cloud("open", progress, note);
+    }
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let (grid, capped) = closed_mesh_grid(settings, lo, hi)?;
+    let across = ((hi - lo).max_element() / grid.voxel).round();
+    note(format!(
+        "closed: fitting its signed distance on a {}×{}×{} grid ({} voxels across, exact within \
+         {:.1} voxels of the surface, signed by the winding number along three axes){}",
+        grid.dims[0],
+        grid.dims[1],
+        grid.dims[2],
+        across,
+        grid.band_voxels,
+        if capped {
+            format!(
+                "; the grid is limited to {MAX_SDF_VOXELS} voxels, so detail below {:.3}% of \
+                 the size is not resolved",
+                100.0 / across
+            )
+        } else {
+            String::new()
+        }
+    ));
+    if !progress(FitProgress::Signing) {
+        return Err(ImportError::Interrupted);
+    }
+    let sdf = signed_distance(&mesh, &grid, &mut || !progress(FitProgress::Signing))
+        .ok_or(ImportError::Interrupted)?;
+    if sdf.flipped {
+        note("its faces wind inward (negative enclosed volume): the sign is flipped".into());
+    }
+    if sdf.inside == 0 {
+        return as_cloud(
+            "no voxel lies inside the mesh (thinner than a voxel)",
+            progress,
+            note,
+        );
+    }
+    let options = HierarchyOptions {
+        error: settings.error_percent / 100.0,
+        max_depth: settings.max_depth,
+        ..HierarchyOptions::default()
+    };
+    let fit = fit_volume_hierarchy_within(
+        &sdf.volume,
+        0.0,
+        [grid.to_voxel(lo), grid.to_voxel(hi)],
+        settings.resolution,
+        dynaclay_core::field::CLAY_SPACING,
+        &options,
+        progress,
+    )
+    .map_err(|e| fit_error(path, e))?;
+    note_levels(&fit.levels, fit.over_budget, note);
+    // file → voxel → field.
+    let scale = fit.scale / grid.voxel;
+    let offset = fit.offset - grid.origin * scale;
+    let (mean, worst) = distance_to_surface(&fit.field, &mesh.positions, |p| p * scale + offset);
+    let size = (hi - lo).max_element() * scale;
+    note(format!(
+        "{} patches; RMS error near the surface {:.3}% of the size ({:.3}% with the base \
+         alone); the mesh's vertices lie {:.3}% of the size from the surface on average, \
+         {:.3}% at most",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base,
+        100.0 * mean / size,
+        100.0 * worst / size
+    ));
+    Ok(ImportedFit {
+        field: fit.field,
+        path: FitPath::ClosedMesh(check),
+        scale,
+        offset,
+    })
+}
+
+fn fit_volume_file(
+    path: &Path,
+    settings: &ImportSettings,
+    nrrd: bool,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<ImportedFit, ImportError> {
+    if settings.iso.is_none() && !settings.midrange_iso {
+        return Err(ImportError::NeedsIso);
+    }
+    let volume: Volume = if nrrd {
+        read_nrrd(path)?
+    } else {
+        let (dims, sample) = settings.raw.ok_or(ImportError::NeedsDims)?;
+        read_raw(path, dims, sample)?
+    };
+    let iso = match settings.iso {
+        Some(iso) => iso,
+        None => {
+            let (lo, hi) = volume
+                .values
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &v| {
+                    (lo.min(v), hi.max(v))
+                });
+            if hi.partial_cmp(&lo) != Some(std::cmp::Ordering::Greater) {
+                return Err(ImportError::FlatVolume {
+                    file: path.to_path_buf(),
+                });
+            }
+            let iso = 0.5 * (lo + hi);
+            note(format!(
+                "surface at the middle of the intensities {lo}..{hi}: {iso} (`dynaclay import \
+                 --iso V` chooses another)"
+            ));
+            iso
+        }
+    };
+    note(format!(
+        "a {}×{}×{} volume from {}, surface at {iso}, fitting a {}³ clay",
+        volume.dims[0],
+        volume.dims[1],
+        volume.dims[2],
+        path.display(),
+        settings.resolution
+    ));
+    let options = HierarchyOptions {
+        error: settings.error_percent / 100.0,
+        max_depth: settings.max_depth,
+        ..HierarchyOptions::default()
+    };
+    let fit = fit_volume_hierarchy(
+        &volume,
+        iso,
+        settings.resolution,
+        dynaclay_core::field::CLAY_SPACING,
+        &options,
+        progress,
+    )
+    .map_err(|e| fit_error(path, e))?;
+    note_levels(&fit.levels, fit.over_budget, note);
+    note(format!(
+        "{} patches; RMS error near the surface {:.3}% of the volume's size ({:.3}% with the \
+         base alone)",
+        fit.field.patches.len(),
+        100.0 * fit.rms,
+        100.0 * fit.rms_base
+    ));
+    Ok(ImportedFit {
+        field: fit.field,
+        path: FitPath::Volume,
+        scale: fit.scale,
+        offset: fit.offset,
+    })
+}
+
+/// The session of a fitted clay imported from `path`: the field as its density (no paint, no
+/// pins), plastic, named after the file.
+#[must_use]
+pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64) -> Session {
+    let name = path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("import")
+        .to_owned();
+    Session {
+        clay: Clay {
+            density: field,
+            colour: None,
+            constraints: Vec::new(),
+        },
+        material: MaterialFields {
+            uniform: Material::PLASTIC,
+            grids: Vec::new(),
+        },
+        tools: Vec::new(),
+        meta: SessionMeta {
+            name,
+            created_unix_s,
+            ..SessionMeta::default()
+        },
+    }
+}
+
+/// [`fit_file`] and [`imported_session`] in one: the session `dynaclay import` would write.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn import_session(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<Session, ImportError> {
+    let field = fit_file(path, settings, progress, note)?;
+    let now = std::time::SystemTime::now()
+        .duration_since(std::time::SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    Ok(imported_session(field, path, now))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sphere of radius 1 sampled as an XYZ cloud with outward normals.
+    fn sphere_xyz(n: usize) -> String {
+        let mut text = String::new();
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        for i in 0..n {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / n as f32;
+            let r = (1.0 - y * y).sqrt();
+            let t = golden * i as f32;
+            let (x, z) = (r * t.cos(), r * t.sin());
+            text.push_str(&format!("{x} {y} {z} {x} {y} {z}\n"));
+        }
+        text
+    }
+
+    #[test]
+    fn a_small_cloud_becomes_a_session_whose_clay_holds_its_surface() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ball.xyz");
+        std::fs::write(&path, sphere_xyz(600)).unwrap();
+        assert!(is_importable(&path));
+        let settings = ImportSettings {
+            resolution: 12,
+            max_depth: 0,
+            ..ImportSettings::default()
+        };
+        let (mut stages, mut notes) = (0, Vec::new());
+        let session = import_session(
+            &path,
+            &settings,
+            &mut |_| {
+                stages += 1;
+                true
+            },
+            &mut |line| notes.push(line),
+        )
+        .unwrap();
+        assert!(stages > 0, "progress is reported");
+        assert!(notes[0].contains("600 points with normals"), "{notes:?}");
+        assert_eq!(session.meta.name, "ball");
+        let base = session.clay.density.base();
+        assert_eq!(base.dims, [12, 12, 12]);
+        assert!(session.clay.density.patches[0].is_identity());
+        assert!(
+            session.clay.density.patches.iter().all(|p| p
+                .lattice
+                .coeffs
+                .iter()
+                .all(|c| c.is_finite()))
+        );
+    }
+
+    #[test]
+    fn bad_files_and_missing_settings_are_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let none = |_| true;
+        let mut quiet = |_| {};
+        let odd = dir.path().join("scan.abc");
+        std::fs::write(&odd, "1 2 3\n").unwrap();
+        let e = fit_file(&odd, &ImportSettings::default(), &mut { none }, &mut quiet).unwrap_err();
+        assert!(matches!(e, ImportError::UnknownFormat { .. }), "{e}");
+        assert!(e.to_string().contains("scan.abc"), "{e}");
+        let empty = dir.path().join("empty.ply");
+        std::fs::write(&empty, "not a ply\n").unwrap();
+        let e = fit_file(
+            &empty,
+            &ImportSettings::default(),
+            &mut { none },
+            &mut quiet,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("empty.ply"), "{e}");
+        let raw = dir.path().join("ct.raw");
+        std::fs::write(&raw, [0u8; 8]).unwrap();
+        let gui = ImportSettings {
+            midrange_iso: true,
+            ..ImportSettings::default()
+        };
+        let e = fit_file(&raw, &gui, &mut { none }, &mut quiet).unwrap_err();
+        assert!(matches!(e, ImportError::NeedsDims), "{e}");
+        let e = fit_file(&raw, &ImportSettings::default(), &mut { none }, &mut quiet).unwrap_err();
+        assert!(matches!(e, ImportError::NeedsIso), "{e}");
+    }
+}
