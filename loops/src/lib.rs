@@ -52,7 +52,9 @@ pub use blocking::{
 };
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 pub use live::{LOG_BINS, LogBins};
-pub use plot::{PlotError, latency_png, latency_svg, page_size, write_latency_svg};
+pub use plot::{
+    PlotError, latency_png, latency_svg, page_size, share_label, time_label, write_latency_svg,
+};
 pub use priority::{
     DEFAULT_RT_PRIORITY, PinOutcome, RtOutcome, current_schedule, pin_current_thread,
     request_realtime,

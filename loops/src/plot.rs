@@ -193,13 +193,18 @@ pub fn write_latency_svg(
     dynaclay_files::write_atomic(path, svg.as_bytes()).map_err(PlotError::Write)
 }
 
-/// A time in µs as a reader says it: "100 ns", "1 µs", "250 µs", "1 ms", "2.5 ms".
-fn time_label(us: f64) -> String {
+/// A time in µs as a reader says it, in the unit that keeps it between 1 and 1000, to one
+/// decimal that is dropped when it is zero: "100 ns", "1 µs", "250 µs", "1 ms", "2.5 ms"
+/// (2.96 ms reads "3 ms"). The one spelling of a time in the plots, the report and the
+/// window.
+#[must_use]
+pub fn time_label(us: f64) -> String {
     let trim = |v: f64| {
-        if (v - v.round()).abs() < 1e-6 {
-            format!("{v:.0}")
+        let tenths = (v * 10.0).round() / 10.0;
+        if tenths.fract() == 0.0 {
+            format!("{tenths:.0}")
         } else {
-            format!("{v:.1}")
+            format!("{tenths:.1}")
         }
     };
     if us >= 1000.0 {
@@ -212,7 +217,8 @@ fn time_label(us: f64) -> String {
 }
 
 /// A share of ticks as a percentage with as many decimals as it needs: "10%", "0.1%".
-fn share_label(share: f64) -> String {
+#[must_use]
+pub fn share_label(share: f64) -> String {
     let pc = share * 100.0;
     let decimals = if pc >= 1.0 {
         0
@@ -564,6 +570,8 @@ mod tests {
         assert_eq!(time_label(1000.0), "1 ms");
         assert_eq!(time_label(2500.0), "2.5 ms");
         assert_eq!(time_label(0.1), "100 ns");
+        assert_eq!(time_label(2960.0), "3 ms");
+        assert_eq!(time_label(2940.0), "2.9 ms");
         assert_eq!(decades(0.1, 5000.0), vec![0.1, 1.0, 10.0, 100.0, 1000.0]);
         assert_eq!(share_decades(0.0005, 3.0), vec![0.001, 0.01, 0.1, 1.0]);
         assert_eq!(share_label(0.25), "25%");

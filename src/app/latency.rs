@@ -13,7 +13,7 @@
 
 use std::collections::VecDeque;
 
-use dynaclay_loops::{LatencyStats, LogBins};
+use dynaclay_loops::{LatencyStats, LogBins, share_label, time_label};
 use egui_plot::{
     Axis, AxisHints, Bar, BarChart, GridInput, GridMark, HLine, HoverPosition, Line, Plot,
     PlotPoint, Points, VLine,
@@ -63,37 +63,6 @@ pub struct LatencyHistory {
     last_version: u64,
     /// Each loop's figures at its last sample (tick count, bins, misses).
     last_seen: [LatencyStats; 3],
-}
-
-/// A duration in µs as a reader says it: "100 ns", "1 µs", "250 µs", "1 ms", "2.5 ms".
-#[must_use]
-pub fn time_label(us: f64) -> String {
-    let trim = |v: f64| {
-        if (v - v.round()).abs() < 0.05 {
-            format!("{v:.0}")
-        } else {
-            format!("{v:.1}")
-        }
-    };
-    if us >= 1000.0 {
-        format!("{} ms", trim(us / 1000.0))
-    } else if us >= 1.0 {
-        format!("{} µs", trim(us))
-    } else {
-        format!("{} ns", trim(us * 1000.0))
-    }
-}
-
-/// A share of ticks as a percentage with as many decimals as it needs: "10%", "0.01%".
-#[must_use]
-pub fn share_label(share: f64) -> String {
-    let pc = share * 100.0;
-    let decimals = if pc >= 1.0 {
-        0
-    } else {
-        (-pc.log10()).ceil().clamp(1.0, 6.0) as usize
-    };
-    format!("{pc:.decimals$}%")
 }
 
 /// Where the pointer is, on a data point or not.
@@ -495,15 +464,5 @@ mod tests {
         assert!((bars[1].argument - 3.0).abs() < 0.2, "{}", bars[1].argument);
         assert!((bars[1].value + SHARE_FLOOR_LOG10 - (-3.0)).abs() < 1e-9);
         assert_eq!(bars[0].base_offset, Some(SHARE_FLOOR_LOG10));
-    }
-
-    #[test]
-    fn labels_read_in_units() {
-        assert_eq!(time_label(1.0), "1 µs");
-        assert_eq!(time_label(1000.0), "1 ms");
-        assert_eq!(time_label(0.1), "100 ns");
-        assert_eq!(time_label(2500.0), "2.5 ms");
-        assert_eq!(share_label(0.1), "10%");
-        assert_eq!(share_label(0.0001), "0.01%");
     }
 }
