@@ -2,7 +2,7 @@
 //! `ply-rs-bw` for PLY, `tobj` for OBJ and `stl_io` for STL.
 //!
 //! dynaclay keeps its own readers because they name the line or byte of a fault and bound
-//! every declared count by the file's length before allocating (see `README.md`, "Import");
+//! every declared count by the file's length before allocating (see the user guide's `docs/src/import.md`);
 //! these tests hold them to the reference crates on the same files, in every encoding the
 //! import accepts: PLY ASCII, binary little- and big-endian with float and double
 //! coordinates and extra properties; OBJ with `v/vt/vn` references, negative indices and

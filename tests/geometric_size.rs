@@ -6,7 +6,7 @@
 //! of the analytic shape's (the top face minus, or plus, the tool's solid). Each case is
 //! undone before the next, so all start from the same block. The tools keep the palette's
 //! default band (`falloff_fu = 0.05`, half a knot span). Each case's figures are printed
-//! (`--nocapture`); the README's table quotes them.
+//! (`--nocapture`); the user guide's accuracy chapter quotes them.
 //!
 //! The stamp is held to the same 10%, pressed once and held, on spheres from one knot span's
 //! radius to three, the box and the capsule, and keeps a rim (the last two tests).

@@ -437,7 +437,7 @@ fn touch_and_every_force_tool_feel_smooth_on_a_recorded_session() {
         check(name, &q, step_limit_n);
         // Their depth is set by their control, not by the press: the clay goes there on an
         // arm too, and as it keeps up with the stroke little is left to feel (the cut's drag
-        // is not rendered; the README says so). What the arm must give is the cut.
+        // is not rendered; the user guide says so). What the arm must give is the cut.
         let sign = if name == "squirt" { -1.0 } else { 1.0 };
         let cut = cut_along_slide(&before, &after, map).map(|c| sign * c);
         eprintln!(

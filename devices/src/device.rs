@@ -143,9 +143,9 @@ pub enum DeviceError {
         /// Which operation failed, e.g. `"write HID report"`.
         context: &'static str,
     },
-    /// The device node exists but this user may not open it (see the README's udev rules).
+    /// The device node exists but this user may not open it (see the udev rules in the user guide, `docs/src/devices.md`).
     #[error(
-        "permission denied opening {path} (install the udev rules from the README or add your user to the owning group)"
+        "permission denied opening {path} (install devices/udev/99-dynaclay.rules, as the user guide's Devices chapter says, or add your user to the owning group)"
     )]
     PermissionDenied {
         /// Path of the device node, e.g. `/dev/hidraw3`.

@@ -240,7 +240,7 @@ pub struct PassThrough {
 /// `dynaclay run`.
 #[derive(Debug, Args, Clone)]
 pub struct RunArgs {
-    /// Script: starting clay, strokes, tool steps, undo, saves (TOML; the README's "Script
+    /// Script: starting clay, strokes, tool steps, undo, saves (TOML; the user guide's "Script
     /// format"). Default: built in.
     #[arg(long, value_name = "FILE")]
     pub script: Option<PathBuf>,

@@ -3,7 +3,7 @@
 //! save, so any session can be scripted. `dynaclay run --script` plays it through the engine
 //! (strokes become the simulated arm's hand trajectory; see `engine::ScriptPlan` for the
 //! timeline; `dynaclay run --lockstep` plays it deterministically). This module holds the
-//! serde types and the parser, whose errors name the file, line, column and field. The README's "Script format" section is the user reference.
+//! serde types and the parser, whose errors name the file, line, column and field. The user guide's "Scripts" chapter (`docs/src/scripts.md`) is the user reference.
 //!
 //! ```toml
 //! version = 1
