@@ -1795,4 +1795,57 @@ mod tests {
         assert_eq!(lattice, before);
         assert_eq!(snap.version, 0);
     }
+
+    /// Two threads writing disjoint ranges of one step's buffers (the passes' `SharedOut`)
+    /// under Miri (`cargo +nightly miri test -p dynaclay-core --lib miri_`): a tiny region,
+    /// two mass points per knot span, two steps, bit-identical to one thread.
+    #[test]
+    fn miri_two_threads_step_a_tiny_region_as_one() {
+        // A ball written straight into the coefficients (a fit would cost Miri minutes).
+        let centre = Vec3::splat(0.45);
+        let mut start = BSplineLattice::zeros([10, 10, 10], 0.1, Vec3::ZERO).unwrap();
+        for k in 0..10 {
+            for j in 0..10 {
+                for i in 0..10 {
+                    let d = 0.3 - (start.node_position(i, j, k) - centre).length();
+                    let at = start.index(i, j, k);
+                    start.coeffs[at] = (0.5 + d / 0.6).clamp(0.0, 1.0);
+                }
+            }
+        }
+        let b = CoeffBox {
+            min: [6, 3, 3],
+            max: [8, 5, 5],
+        };
+        let mut runs = Vec::new();
+        for threads in [1, 2] {
+            let mut lattice = start.clone();
+            let mut state = RegionState::new(&lattice, b, [5, 5, 5], Material::PLASTIC).unwrap();
+            let mut sim = Simulator::new(StepParams {
+                threads,
+                ..StepParams::default()
+            });
+            sim.always_split = true;
+            let mut snap = RegionSnapshot::default();
+            let tool = ToolForce {
+                start: centre + Vec3::X * 0.3,
+                end: centre + Vec3::new(0.45, 0.02, 0.0),
+                distribution: Distribution::Constant,
+                radius: 0.12,
+                gain: GAIN,
+            };
+            for _ in 0..2 {
+                sim.step(&mut state, &mut lattice, &[tool], &mut snap)
+                    .unwrap();
+            }
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            runs.push((bits(&state.p), bits(&state.d), bits(&lattice.coeffs)));
+        }
+        assert!(runs[0] == runs[1], "one and two threads differ");
+        assert!(runs[0].2 != bits_of(&start), "the pull moved nothing");
+    }
+
+    fn bits_of(lattice: &BSplineLattice) -> Vec<u32> {
+        lattice.coeffs.iter().map(|x| x.to_bits()).collect()
+    }
 }

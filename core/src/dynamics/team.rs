@@ -302,4 +302,31 @@ mod tests {
         });
         assert_eq!(count.load(Ordering::Relaxed), 2);
     }
+
+    /// The team's hand-over (the job pointer, the spinning barrier) under Miri
+    /// (`cargo +nightly miri test -p dynaclay-core --lib miri_`): a few rounds, each half
+    /// seeing the other's write after the barrier, then a panicking half.
+    #[test]
+    fn miri_two_halves_hand_over_through_the_barrier() {
+        let mut team = Team::default();
+        team.resize(2);
+        let cells: Vec<AtomicUsize> = (0..2).map(|_| AtomicUsize::new(0)).collect();
+        for round in 1..4 {
+            team.run(&|part, barrier| {
+                cells[part].store(round, Ordering::Relaxed);
+                barrier.wait();
+                assert_eq!(cells[1 - part].load(Ordering::Relaxed), round);
+                barrier.wait();
+            });
+        }
+        let r = catch_unwind(AssertUnwindSafe(|| {
+            team.run(&|part, barrier| {
+                assert!(part == 0, "helper half fails");
+                barrier.wait();
+            });
+        }));
+        assert!(r.is_err());
+        team.resize(1);
+        assert_eq!(team.threads(), 1);
+    }
 }

@@ -1353,4 +1353,25 @@ mod tests {
             }
         }
     }
+
+    /// The sweeps' raw-pointer output (`SharedOut`) on sizes small enough for Miri
+    /// (`cargo +nightly miri test -p dynaclay-core --lib miri_`): every body, narrow and
+    /// wide, agrees on a few line counts and strides, with no access outside its buffer.
+    #[test]
+    fn miri_tiny_sweeps_agree_every_way() {
+        let k = basis(5, 9);
+        for op in [k.op_project(0, 1.0), k.op_apply(0)] {
+            let (ri, ro) = (op.rows_in(), op.rows_out());
+            for count in [1, 7] {
+                let src = pseudo(count * ri, count as u32);
+                x_pass_all_ways(&op, &src, 0..count, count * ro);
+                x_pass_all_ways(&op, &src, count / 3..count, count * ro);
+            }
+            for inner in [3, 11] {
+                let src = pseudo(2 * ri * inner, inner as u32);
+                strided_all_ways(&op, &src, inner, 2, 0..inner);
+                strided_all_ways(&op, &src, inner, 2, inner / 3..inner);
+            }
+        }
+    }
 }

@@ -1857,4 +1857,20 @@ mod tests {
         assert_eq!(morton([0, 0, 1]), 4);
         assert_eq!(morton([0x1f_ffff, 0, 0]), 0x1249_2492_4924_9249);
     }
+
+    /// The weld's `set_len` and the threaded build under Miri (`cargo +nightly miri test -p
+    /// dynaclay-core --lib miri_`): a small ball over a couple of bricks welds as the
+    /// reference weld does, and two threads build the same bricks as one.
+    #[test]
+    fn miri_a_small_ball_welds_and_builds_on_two_threads_as_on_one() {
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0, [12, 12, 12]).unwrap();
+        let ball = sphere_fn(Vec3::new(6.1, 5.7, 6.2), 3.3);
+        let tree = BrickOctree::build(grid, &ball);
+        assert!(tree.brick_count() >= 2);
+        let welded = tree.weld();
+        assert!(welded.triangle_count() > 50);
+        assert_eq!(welded, tree.weld_by_hash());
+        let many = BrickOctree::build_with_threads(grid, &ball, 2);
+        assert_same_bricks(&tree, &many);
+    }
 }
