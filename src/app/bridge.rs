@@ -564,7 +564,7 @@ impl Bridge {
                     "point set: {} points, spacing {:.4}, built in {:.0} ms; shown as splats \
                      following the clay",
                     set.len(),
-                    set.spacing_m,
+                    set.spacing_fu,
                     times.total_ns() as f64 / 1e6
                 ));
                 Some(Box::new(FollowedPoints::of_set(&set)))

@@ -1271,7 +1271,7 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
     let view = h.state_mut().link.points().value.clone();
     assert_eq!(view.positions.len(), view.radii.len());
     assert!(view.colours.contains(&[220, 30, 30]), "the file's colours");
-    assert!(view.spacing_m > 0.0);
+    assert!(view.spacing_fu > 0.0);
     assert!(
         h.state()
             .log

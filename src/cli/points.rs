@@ -30,7 +30,7 @@ pub struct PointsOutcome {
     /// Points written.
     pub written: usize,
     /// The sampling spacing.
-    pub spacing_m: f32,
+    pub spacing_file_units: f32,
     /// Construction time, seconds.
     pub build_s: f64,
 }
@@ -75,7 +75,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
         "{}: {} points, spacing {:.4e}, built in {:.3} s",
         args.input.display(),
         set.len(),
-        set.spacing_m * frame.scale,
+        set.spacing_fu * frame.scale,
         build_s
     );
     // A pull reaches at most MAX_PULL_REACH of the cloud's sizes from its box, checked for
@@ -106,7 +106,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     }
     if let (Some(path), Some(format)) = (&args.mesh, mesh_format) {
         let (lo, hi) = set.bounds();
-        let cell = 0.75 * set.spacing_m;
+        let cell = 0.75 * set.spacing_fu;
         let cells = ((hi - lo) / cell).ceil() + Vec3::splat(2.0);
         if cells.max_element() > MAX_MESH_CELLS as f32 {
             return Err(CliError::Usage(format!(
@@ -135,7 +135,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     Ok(PointsOutcome {
         read: cloud.points.len(),
         written: set.len(),
-        spacing_m: set.spacing_m * frame.scale,
+        spacing_file_units: set.spacing_fu * frame.scale,
         build_s,
     })
 }
@@ -163,18 +163,18 @@ fn emboss_image(
             centre,
             axis: Vec3::Y,
             up: Vec3::Z,
-            height: (hi - lo).y.max(set.spacing_m),
+            height: (hi - lo).y.max(set.spacing_fu),
         },
         EmbossProjection::Planar => Projection::Planar {
             centre,
             axis: Vec3::Z,
             up: Vec3::Y,
-            size: (hi - lo).max_element().max(set.spacing_m),
+            size: (hi - lo).max_element().max(set.spacing_fu),
         },
     };
     let params = EmbossParams {
         projection,
-        depth: args.depth.map_or(2.0 * set.spacing_m, |d| d / frame.scale),
+        depth: args.depth.map_or(2.0 * set.spacing_fu, |d| d / frame.scale),
         engrave: args.engrave,
     };
     let (embossed, report) = crate::pointset::emboss(set, &relief, &params, options)

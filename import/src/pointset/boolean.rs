@@ -60,7 +60,7 @@ fn subset(set: &PointSet, keep: &[bool], flip: bool) -> Result<PointSet, PointSe
         }
         fields.push(f);
     }
-    PointSet::from_parts(points, normals, colours, fields, set.spacing_m)
+    PointSet::from_parts(points, normals, colours, fields, set.spacing_fu)
 }
 
 impl SharpBoolean {

@@ -64,7 +64,7 @@ const NEIGHBOURS: usize = 16;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FollowOptions {
     /// Target spacing `h`, the clay's units.
-    pub target_m: f32,
+    pub target_fu: f32,
     /// Newton steps onto the zero set per point per update.
     pub newton_steps: usize,
     /// Insertions and removals per update, at most.
@@ -84,10 +84,10 @@ impl FollowOptions {
     /// 256 changes and 4096 points scanned per update, at most four times the points (and at
     /// least 1000), and the thresholds of [`super::SamplingOptions::for_target`].
     #[must_use]
-    pub fn for_spacing(target_m: f32, points: usize) -> Self {
-        let sampling = super::SamplingOptions::for_target(target_m);
+    pub fn for_spacing(target_fu: f32, points: usize) -> Self {
+        let sampling = super::SamplingOptions::for_target(target_fu);
         Self {
-            target_m,
+            target_fu,
             newton_steps: 2,
             max_changes: 256,
             max_points: (4 * points).max(1000),
@@ -117,7 +117,7 @@ impl FollowedPoints {
             positions: set.points.clone(),
             normals: set.normals.clone(),
             colours: set.colours.clone(),
-            options: Some(FollowOptions::for_spacing(set.spacing_m, set.len())),
+            options: Some(FollowOptions::for_spacing(set.spacing_fu, set.len())),
         }
     }
 }
@@ -135,7 +135,7 @@ pub struct PointSetView {
     /// Splat radii, the clay's units.
     pub radii: Vec<f32>,
     /// The target spacing `h`.
-    pub spacing_m: f32,
+    pub spacing_fu: f32,
     /// Updates taken on this set so far.
     pub updates: u64,
     /// Whether the last update left the points settled.
@@ -146,7 +146,7 @@ pub struct PointSetView {
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FollowReport {
     /// The longest move of a point onto the zero set, the clay's units.
-    pub moved_max_m: f32,
+    pub moved_max_fu: f32,
     pub inserted: usize,
     pub removed: usize,
     /// Whether the points are settled: scans over the whole set since the last change
@@ -216,10 +216,10 @@ impl PointFollower {
         if points.normals.len() != n || points.colours.len() != n {
             return Err(PointSetError::LengthMismatch);
         }
-        if !(options.target_m.is_finite() && options.target_m > 0.0) {
+        if !(options.target_fu.is_finite() && options.target_fu > 0.0) {
             return Err(PointSetError::Region(format!(
                 "target spacing {}",
-                options.target_m
+                options.target_fu
             )));
         }
         let mut positions = points.positions;
@@ -229,7 +229,7 @@ impl PointFollower {
         normals.truncate(options.max_points);
         colours.truncate(options.max_points);
         Ok(Self {
-            radii: vec![options.target_m; positions.len()],
+            radii: vec![options.target_fu; positions.len()],
             positions,
             normals,
             colours,
@@ -281,7 +281,7 @@ impl PointFollower {
     /// # Errors
     /// [`PointSetError::Index`] when the k-d tree cannot be built.
     pub fn update(&mut self, field: &MultiPatchField) -> Result<FollowReport, PointSetError> {
-        let h = self.options.target_m;
+        let h = self.options.target_fu;
         let mut report = FollowReport::default();
         let mut budget = self.options.max_changes;
 
@@ -299,7 +299,7 @@ impl PointFollower {
             }
             match project(field, p, self.options.newton_steps, MAX_STEP_SPANS * h) {
                 Some((x, off, n)) if off <= LOST_SPANS * h => {
-                    report.moved_max_m = report.moved_max_m.max((x - p).length());
+                    report.moved_max_fu = report.moved_max_fu.max((x - p).length());
                     self.positions[i] = x;
                     self.normals[i] = n;
                 }
@@ -391,7 +391,7 @@ impl PointFollower {
         }
         let changed = report.inserted > 0
             || report.removed > 0
-            || report.moved_max_m > SETTLED_MOVE_SPANS * h;
+            || report.moved_max_fu > SETTLED_MOVE_SPANS * h;
         self.clean_scanned = if changed {
             0
         } else {
@@ -543,13 +543,13 @@ impl<S: MeshSink> PointSetFollower<S> {
             view.loaded = follower.is_some();
             view.updates = updates;
             view.settled = settled;
-            view.spacing_m = 0.0;
+            view.spacing_fu = 0.0;
             if let Some(f) = follower {
                 view.positions.extend_from_slice(f.positions());
                 view.normals.extend_from_slice(f.normals());
                 view.colours.extend_from_slice(f.colours());
                 view.radii.extend_from_slice(f.radii());
-                view.spacing_m = f.options().target_m;
+                view.spacing_fu = f.options().target_fu;
             }
         });
     }
@@ -665,20 +665,20 @@ mod tests {
     fn follow_a_push(window: Option<usize>) {
         let cloud = sphere_points(1500);
         let (set, _) = PointSet::build(&cloud, &PointSetOptions::default()).unwrap();
-        let h = set.spacing_m;
+        let h = set.spacing_fu;
         let before = radial_clay(|_| 1.0);
         let after = radial_clay(pushed);
         let mut points = FollowedPoints::of_set(&set);
         points.colours[0] = [255, 0, 0];
         let mut options = points.options.unwrap();
-        assert_eq!(options.target_m, h);
+        assert_eq!(options.target_fu, h);
         if let Some(w) = window {
             options.scan_per_update = w;
         }
         let mut f = PointFollower::new(points, options).unwrap();
 
         let first = f.update(&before).unwrap();
-        assert!(first.moved_max_m < 0.1 * h, "{first:?}");
+        assert!(first.moved_max_fu < 0.1 * h, "{first:?}");
 
         let (mut inserted, mut removed, mut settled) = (0, 0, false);
         for _ in 0..400 {

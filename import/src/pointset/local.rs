@@ -35,13 +35,13 @@ pub const LOCAL_COUNT: usize = LOCAL_DIM * LOCAL_DIM * LOCAL_DIM;
 /// from the three node values (`p0 = d0`, `p1 = 2 d½ − (d0 + d1)/2`, `p2 = d1`).
 const B_INV: [[f32; 3]; 3] = [[1.0, 0.0, 0.0], [-0.5, 2.0, -0.5], [0.0, 0.0, 1.0]];
 
-/// A local trivariate field over the cube `centre ± half_m` (half edge `half_m`, world units).
+/// A local trivariate field over the cube `centre ± half_fu` (half edge `half_fu`, world units).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LocalField {
     /// Centre of the local domain.
     pub centre: Vec3,
     /// Half edge of the cube, world units.
-    pub half_m: f32,
+    pub half_fu: f32,
     /// Coefficients, `i + 3 j + 9 k` (x fastest).
     pub coeffs: [f32; LOCAL_COUNT],
 }
@@ -59,10 +59,10 @@ fn weights(u: f32) -> ([f32; 3], [f32; 3]) {
 impl LocalField {
     /// A field whose coefficients are all zero.
     #[must_use]
-    pub fn zero(centre: Vec3, half_m: f32) -> Self {
+    pub fn zero(centre: Vec3, half_fu: f32) -> Self {
         Self {
             centre,
-            half_m,
+            half_fu,
             coeffs: [0.0; LOCAL_COUNT],
         }
     }
@@ -71,14 +71,14 @@ impl LocalField {
     #[inline]
     #[must_use]
     pub fn to_param(&self, x: Vec3) -> Vec3 {
-        (x - self.centre) / (2.0 * self.half_m) + Vec3::splat(0.5)
+        (x - self.centre) / (2.0 * self.half_fu) + Vec3::splat(0.5)
     }
 
     /// World position of grid node `(i, j, k)`, each in `0..3` (the Greville points).
     #[inline]
     #[must_use]
     pub fn node(&self, i: usize, j: usize, k: usize) -> Vec3 {
-        let t = |n: usize| (n as f32 - 1.0) * self.half_m;
+        let t = |n: usize| (n as f32 - 1.0) * self.half_fu;
         self.centre + Vec3::new(t(i), t(j), t(k))
     }
 
@@ -132,7 +132,7 @@ impl LocalField {
                 g.z += dz[k] * wy[j] * a;
             }
         }
-        (s, g / (2.0 * self.half_m))
+        (s, g / (2.0 * self.half_fu))
     }
 
     /// Eq. (4) on the Greville grid: the coefficients whose field takes the values `d` at the
@@ -173,8 +173,8 @@ impl LocalField {
     /// The same surface over a new domain: this field sampled at the new cube's nodes and
     /// refitted there (eq. 4). Exact, since the basis reproduces quadratics.
     #[must_use]
-    pub fn recentred(&self, centre: Vec3, half_m: f32) -> Self {
-        let mut out = Self::zero(centre, half_m);
+    pub fn recentred(&self, centre: Vec3, half_fu: f32) -> Self {
+        let mut out = Self::zero(centre, half_fu);
         let nodes = out.nodes();
         let mut d = [0.0; LOCAL_COUNT];
         for (v, x) in d.iter_mut().zip(nodes) {
@@ -230,7 +230,7 @@ fn monomials(u: f32) -> ([f32; 5], [f32; 3]) {
 /// Binomials of the quadratic Bernstein basis.
 const BINOMIAL2: [f32; 3] = [1.0, 2.0, 1.0];
 
-/// Eq. (2)'s weighted least squares: the coefficients over `centre ± half_m` minimising
+/// Eq. (2)'s weighted least squares: the coefficients over `centre ± half_fu` minimising
 /// `Σ w (s(x) − d)²  +  ridge · Σ_c (p_c − plane(g_c))²`, where `plane(x) = −n·(x − point)` is
 /// the tangent-plane distance (positive inside) and `g_c` the Greville node of coefficient
 /// `c`. `ridge` is relative to the total sample weight. Returns `None` when the system is not
@@ -238,14 +238,14 @@ const BINOMIAL2: [f32; 3] = [1.0, 2.0, 1.0];
 #[must_use]
 pub fn fit_local(
     centre: Vec3,
-    half_m: f32,
+    half_fu: f32,
     point: Vec3,
     normal: Vec3,
     samples: &[FitSample],
     ridge: f32,
     scratch: &mut FitScratch,
 ) -> Option<LocalField> {
-    let mut field = LocalField::zero(centre, half_m);
+    let mut field = LocalField::zero(centre, half_fu);
     let m = &mut scratch.moments;
     *m = [0.0; 125];
     // Right-hand side without the binomials (`Σ w d u^i.. v^j.. w^k..`), `i + 3 j + 9 k`.

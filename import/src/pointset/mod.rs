@@ -9,6 +9,11 @@
 //! points follow each new copy of the clay by eq. (9) with bounded dynamic sampling, and a
 //! viewer draws them as splats.
 //!
+//! Units: every length here (spacings, half-widths, bands, reaches) is in the point set's
+//! own coordinates and carries `_fu`: field units when the set lies on the clay, and the
+//! cloud's unit frame ([`UnitFrame`]) while a file's cloud is built; `_m` is kept for the
+//! device's metres.
+//!
 //! Nothing here runs on the haptic thread: construction, sampling and booleans allocate; the
 //! per-step update of [`PointSetSculpt`] allocates nothing after its set-up.
 

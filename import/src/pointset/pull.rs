@@ -46,7 +46,7 @@ pub fn pull(set: &mut PointSet, target: Vec3, steps: u32) -> Result<PullReport, 
                 .total_cmp(&(*b - target).length_squared())
         })
         .ok_or(PointSetError::TooFewPoints { got: 0, need: 1 })?;
-    let h = set.spacing_m;
+    let h = set.spacing_fu;
     let reach = (target - nearest).length();
     let margin = Vec3::splat(reach + 6.0 * h);
     let (lo, hi) = (nearest.min(target) - margin, nearest.max(target) + margin);

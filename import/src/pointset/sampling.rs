@@ -36,7 +36,7 @@ use super::surface::PointSet;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SamplingOptions {
     /// Target spacing `h`, world units.
-    pub target_m: f32,
+    pub target_fu: f32,
     /// Insert where the largest empty disc's radius exceeds this many `h`.
     pub insert_above: f32,
     /// Remove where the nearest neighbour is closer than this many `h`.
@@ -48,9 +48,9 @@ pub struct SamplingOptions {
 impl SamplingOptions {
     /// The defaults for a target spacing.
     #[must_use]
-    pub fn for_target(target_m: f32) -> Self {
+    pub fn for_target(target_fu: f32) -> Self {
         Self {
-            target_m,
+            target_fu,
             insert_above: 0.72,
             remove_below: 0.7,
             max_passes: 8,
@@ -126,7 +126,7 @@ pub fn resample(
     options: &SamplingOptions,
 ) -> Result<(SamplingReport, Vec<Option<usize>>), PointSetError> {
     let inside = |p: Vec3| within.is_none_or(|(lo, hi)| p.cmpge(lo).all() && p.cmple(hi).all());
-    let h = options.target_m;
+    let h = options.target_fu;
     let mut report = SamplingReport::default();
     let mut origin: Vec<Option<usize>> = (0..set.len()).map(Some).collect();
 
@@ -232,7 +232,7 @@ pub fn resample(
             set.points.push(y);
             set.normals.push(normal);
             set.colours.push(set.colours[i]);
-            set.fields.push(parent.recentred(y, parent.half_m));
+            set.fields.push(parent.recentred(y, parent.half_fu));
             origin.push(None);
             added.push(y);
             report.inserted += 1;

@@ -69,11 +69,11 @@ impl Default for CornerBlend {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SculptOptions {
     /// Knot spacing of the region's lattice, world units.
-    pub spacing_m: f32,
+    pub spacing_fu: f32,
     /// Mass points per axis for each coefficient per axis.
     pub mass_per_span: usize,
-    /// The field is clamped to `± band_m` on the grid.
-    pub band_m: f32,
+    /// The field is clamped to `± band_fu` on the grid.
+    pub band_fu: f32,
     /// Material of the mass-spring grid.
     pub material: Material,
     /// Step parameters of the simulator.
@@ -88,9 +88,9 @@ impl SculptOptions {
     #[must_use]
     pub fn for_spacing(h: f32) -> Self {
         Self {
-            spacing_m: h,
+            spacing_fu: h,
             mass_per_span: 2,
-            band_m: 4.0 * h,
+            band_fu: 4.0 * h,
             material: Material::PLASTIC,
             params: StepParams::default(),
             blend: CornerBlend::default(),
@@ -150,7 +150,7 @@ impl PointSetSculpt {
         hi: Vec3,
         options: &SculptOptions,
     ) -> Result<Self, PointSetError> {
-        let g = options.spacing_m;
+        let g = options.spacing_fu;
         if !(g.is_finite() && g > 0.0 && lo.is_finite() && hi.is_finite() && hi.cmpgt(lo).all()) {
             return Err(PointSetError::Region(format!(
                 "box {lo}..{hi} with spacing {g}"
@@ -169,7 +169,7 @@ impl PointSetSculpt {
         }
         let mut lattice = BSplineLattice::zeros(dims, g, lo - Vec3::splat(g))
             .map_err(|e| PointSetError::Region(e.to_string()))?;
-        let band = options.band_m;
+        let band = options.band_fu;
         fit_lattice(&mut lattice, 2, |x| set.blend(x).0.clamp(-band, band))
             .map_err(|e| PointSetError::Region(e.to_string()))?;
         lattice.iso = 0.0;
@@ -241,7 +241,7 @@ impl PointSetSculpt {
 
     fn covers(&self, f: &LocalField) -> bool {
         let (lo, hi) = self.grid_box();
-        let h = Vec3::splat(f.half_m);
+        let h = Vec3::splat(f.half_fu);
         (f.centre - h).cmpge(lo).all() && (f.centre + h).cmple(hi).all()
     }
 
@@ -306,7 +306,7 @@ impl PointSetSculpt {
                 continue;
             }
             let mut dx = g * (-s / g2);
-            let limit = 0.5 * f.half_m;
+            let limit = 0.5 * f.half_fu;
             if dx.length() > limit {
                 dx = dx.normalize() * limit;
             }
@@ -316,8 +316,8 @@ impl PointSetSculpt {
             if let Some(n) = (-g).try_normalize() {
                 set.normals[i] = n;
             }
-            if (x - f.centre).abs().max_element() > 0.5 * f.half_m {
-                let moved = f.recentred(x, f.half_m);
+            if (x - f.centre).abs().max_element() > 0.5 * f.half_fu {
+                let moved = f.recentred(x, f.half_fu);
                 if self.covers(&moved) {
                     set.fields[i] = moved;
                     let base = self.blend_nodes(&moved);
@@ -336,7 +336,7 @@ impl PointSetSculpt {
         let mut w = [[[0.0f32; 2]; 3]; 3];
         for a in 0..3 {
             for (n, slot) in cell[a].iter_mut().enumerate() {
-                let x = f.centre[a] + (n as f32 - 1.0) * f.half_m;
+                let x = f.centre[a] + (n as f32 - 1.0) * f.half_fu;
                 let u = (x - self.grid_origin[a]) / self.grid_step[a];
                 let c = (u.floor().max(0.0) as usize).min(self.grid_dims[a] - 2);
                 let t = (u - c as f32).clamp(0.0, 1.0);
@@ -412,7 +412,7 @@ mod tests {
         let (mut worst, mut sum) = (0.0f32, 0.0f32);
         for m in sculpt.members() {
             let (v, g) = sculpt.lattice.value_and_gradient(set.points[m]);
-            let off = v.abs() / g.length().max(1e-6) / set.spacing_m;
+            let off = v.abs() / g.length().max(1e-6) / set.spacing_fu;
             worst = worst.max(off);
             sum += off;
         }
@@ -452,7 +452,7 @@ mod tests {
                 assert!((a - b).abs() < 1e-5, "{a} vs {b}");
             }
             // Only the fit's own residual at the point is taken up.
-            assert!((set.points[m] - points[m]).length() < 0.1 * set.spacing_m);
+            assert!((set.points[m] - points[m]).length() < 0.1 * set.spacing_fu);
         }
     }
 
@@ -478,7 +478,7 @@ mod tests {
         }
         let tip = surface_point_on_ray(&sculpt.lattice, ANCHOR, Vec3::X, 1.5, 0.01).unwrap();
         assert!(tip.x > 0.6, "grid surface reached {tip}");
-        let h = set.spacing_m;
+        let h = set.spacing_fu;
         let mut farthest = 0.0f32;
         let (worst, mean) = off_zero_set(&sculpt, &set);
         for m in sculpt.members() {
@@ -500,7 +500,7 @@ mod tests {
     fn dynamic_sampling_keeps_the_spacing_within_one_and_a_half_of_the_target_in_a_large_pull() {
         let cloud = sphere_cloud(Vec3::ZERO, 0.5, 1500);
         let (mut set, _) = PointSet::build(&cloud, &PointSetOptions::default()).unwrap();
-        let h = set.spacing_m;
+        let h = set.spacing_fu;
         let mut opts = SculptOptions::for_spacing(0.05);
         opts.material = CREEP;
         let mut sculpt = PointSetSculpt::new(

@@ -87,7 +87,7 @@ struct CentreIndex {
     /// Shared, so a clone of the point set shares the tree until either reindexes.
     tree: Option<Arc<ImmutableKdTree<f32, 3>>>,
     /// The largest support radius.
-    reach_m: f32,
+    reach_fu: f32,
 }
 
 /// A point-set surface: points, their normals and colours, and a local field per point.
@@ -102,7 +102,7 @@ pub struct PointSet {
     /// One local field per point.
     pub fields: Vec<LocalField>,
     /// The sampling spacing `h` (mean nearest-neighbour distance at construction).
-    pub spacing_m: f32,
+    pub spacing_fu: f32,
     index: CentreIndex,
 }
 
@@ -206,8 +206,8 @@ impl PointSet {
         let nearest: f64 = (0..points.len())
             .map(|i| f64::from((points[nbrs[i * k] as usize] - points[i]).length()))
             .sum();
-        let spacing_m = (nearest / points.len() as f64) as f32;
-        if !(spacing_m.is_finite() && spacing_m > 0.0) {
+        let spacing_fu = (nearest / points.len() as f64) as f32;
+        if !(spacing_fu.is_finite() && spacing_fu > 0.0) {
             return Err(PointSetError::Degenerate);
         }
 
@@ -250,7 +250,7 @@ impl PointSet {
                     list,
                     points,
                     &normals,
-                    spacing_m,
+                    spacing_fu,
                     options,
                     &mut samples,
                     &mut scratch,
@@ -273,7 +273,7 @@ impl PointSet {
             normals,
             colours: vec![DEFAULT_COLOUR; points.len()],
             fields,
-            spacing_m,
+            spacing_fu,
             index: CentreIndex::default(),
         };
         set.reindex()?;
@@ -290,7 +290,7 @@ impl PointSet {
         normals: Vec<Vec3>,
         colours: Vec<[u8; 3]>,
         fields: Vec<LocalField>,
-        spacing_m: f32,
+        spacing_fu: f32,
     ) -> Result<Self, PointSetError> {
         let n = points.len();
         if normals.len() != n || colours.len() != n || fields.len() != n {
@@ -301,7 +301,7 @@ impl PointSet {
             normals,
             colours,
             fields,
-            spacing_m,
+            spacing_fu,
             index: CentreIndex::default(),
         };
         set.reindex()?;
@@ -334,7 +334,7 @@ impl PointSet {
             .map_err(|e| PointSetError::Index(format!("{e:?}")))?;
         self.index = CentreIndex {
             tree: Some(Arc::new(tree)),
-            reach_m: self.fields.iter().map(|f| f.half_m).fold(0.0, f32::max),
+            reach_fu: self.fields.iter().map(|f| f.half_fu).fold(0.0, f32::max),
         };
         Ok(())
     }
@@ -345,8 +345,8 @@ impl PointSet {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for f in &self.fields {
-            lo = lo.min(f.centre - Vec3::splat(f.half_m));
-            hi = hi.max(f.centre + Vec3::splat(f.half_m));
+            lo = lo.min(f.centre - Vec3::splat(f.half_fu));
+            hi = hi.max(f.centre + Vec3::splat(f.half_fu));
         }
         (lo, hi)
     }
@@ -358,7 +358,7 @@ impl PointSet {
             return (-1.0, Vec3::ZERO);
         };
         let q = as_array(x);
-        let reach = self.index.reach_m;
+        let reach = self.index.reach_fu;
         let found = tree
             .query(&q)
             .within::<SquaredEuclidean<f32>>(reach * reach)
@@ -370,7 +370,7 @@ impl PointSet {
             let f = &self.fields[r.item as usize];
             let d = x - f.centre;
             let dist = r.distance.sqrt();
-            let t = dist / f.half_m;
+            let t = dist / f.half_fu;
             if t >= 1.0 {
                 continue;
             }
@@ -379,7 +379,7 @@ impl PointSet {
             // dφ/dt = −20 t (1 − t)³.
             let dw = -20.0 * t * om * om * om;
             let gw_i = if dist > 0.0 {
-                d * (dw / (dist * f.half_m))
+                d * (dw / (dist * f.half_fu))
             } else {
                 Vec3::ZERO
             };
@@ -431,7 +431,7 @@ pub(crate) fn fit_point(
     neighbours: &[u32],
     points: &[Vec3],
     normals: &[Vec3],
-    spacing_m: f32,
+    spacing_fu: f32,
     options: &PointSetOptions,
     samples: &mut Vec<FitSample>,
     scratch: &mut FitScratch,
@@ -441,9 +441,9 @@ pub(crate) fn fit_point(
         .iter()
         .map(|&j| (points[j as usize] - p).length())
         .fold(0.0f32, f32::max);
-    let half = (far * options.domain_scale).max(spacing_m);
+    let half = (far * options.domain_scale).max(spacing_fu);
     let eps = options.off_surface * half;
-    let inv_h2 = 1.0 / (spacing_m * spacing_m);
+    let inv_h2 = 1.0 / (spacing_fu * spacing_fu);
     samples.clear();
     for j in std::iter::once(i as u32).chain(neighbours.iter().copied()) {
         let (pj, nj) = (points[j as usize], normals[j as usize]);
@@ -555,7 +555,7 @@ pub(crate) mod tests {
         let (a, _) = PointSet::build(&cloud, &one).unwrap();
         for threads in [2, 3] {
             let (b, _) = PointSet::build(&cloud, &PointSetOptions { threads, ..one }).unwrap();
-            assert_eq!(a.spacing_m.to_bits(), b.spacing_m.to_bits());
+            assert_eq!(a.spacing_fu.to_bits(), b.spacing_fu.to_bits());
             assert_eq!(a.normals, b.normals, "{threads} threads");
             assert_eq!(a.fields, b.fields, "{threads} threads");
         }
