@@ -153,10 +153,15 @@ impl EmbossPanel {
             .clicked();
         let brush = brush.filter(|_| clicked)?;
         let params = self.params(brush, clay_centre);
-        Some(params.validate().map(|()| EngineCommand::Emboss {
-            image: std::path::PathBuf::from(self.image.trim()),
-            params,
-        }))
+        Some(
+            params
+                .validate()
+                .map(|()| EngineCommand::Emboss {
+                    image: std::path::PathBuf::from(self.image.trim()),
+                    params,
+                })
+                .map_err(|e| e.to_string()),
+        )
     }
 }
 

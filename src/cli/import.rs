@@ -128,7 +128,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         return Err(interrupted());
     }
     save_session(&args.out, &session)
-        .map_err(|e| CliError::Output(format!("{}: {e}", args.out.display())))?;
+        .map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     say!("wrote {}", args.out.display());
     if let Some((path, format, mesh)) = mesh {
         write_fitted_mesh(&mesh, path, format)?;
@@ -176,8 +176,7 @@ fn show_progress(bar: &indicatif::ProgressBar, stage: FitProgress) -> bool {
 }
 
 fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {
-    write_mesh(path, mesh, format)
-        .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?;
+    write_mesh(path, mesh, format).map_err(|e| CliError::output(path.display().to_string(), e))?;
     say!(
         "wrote {} ({} vertices, {} triangles)",
         path.display(),

@@ -70,8 +70,8 @@ impl RunOutputs {
     }
 }
 
-fn out_err(path: &Path, e: impl std::fmt::Display) -> CliError {
-    CliError::Output(format!("{}: {e}", path.display()))
+fn out_err(path: &Path, e: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> CliError {
+    CliError::output(path.display().to_string(), e)
 }
 
 /// Writes the meshes and the session of a lockstep (replay) run, then the PNG if asked; a

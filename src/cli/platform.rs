@@ -36,8 +36,7 @@ pub struct PlatformJudged {
 }
 
 fn probe(rate_hz: f64, each: Duration, rt: Option<i32>) -> Result<ProbeRun, CliError> {
-    run_probes(rate_hz, each, rt)
-        .map_err(|e| CliError::Output(format!("cannot run the platform probe: {e}")))
+    run_probes(rate_hz, each, rt).map_err(|e| CliError::output("cannot run the platform probe", e))
 }
 
 impl PlatformWatch {

@@ -196,7 +196,7 @@ fn pull(set: &mut PointSet, frame: &UnitFrame, target: Vec3, steps: u32) -> Resu
             "--pull {},{},{}: {e}",
             target.x, target.y, target.z
         )),
-        e => CliError::Output(format!("--pull: {e}")),
+        e => CliError::output("--pull", e),
     })?;
     say!(
         "pull to {target}: {} points in the region, {} points in all",

@@ -88,7 +88,7 @@ impl Hogs {
                         );
                     }
                 })
-                .map_err(|e| CliError::Output(format!("cannot start a CPU hog: {e}")))?;
+                .map_err(|e| CliError::output("cannot start a CPU hog", e))?;
             hogs.threads.push(thread);
         }
         Ok(hogs)
@@ -106,8 +106,7 @@ impl Drop for Hogs {
 
 fn run_profile(args: &ProfileArgs) -> Result<(), CliError> {
     let plan = ScriptPlan::builtin();
-    let field =
-        build_clay(&plan.clay).map_err(|e| CliError::Output(format!("clay fit failed: {e}")))?;
+    let field = build_clay(&plan.clay).map_err(|e| CliError::output("clay fit failed", e))?;
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptic_rate_hz = args.rate_hz;
@@ -179,8 +178,9 @@ fn write_profile_files(
     recorders: &[(&str, &LatencyRecorder)],
     probe: &LatencyRecorder,
 ) -> Result<Vec<std::path::PathBuf>, CliError> {
-    let err =
-        |p: &Path, e: &dyn std::fmt::Display| CliError::Output(format!("{}: {e}", p.display()));
+    let err = |p: &Path, e: &dyn std::fmt::Display| {
+        CliError::output(p.display().to_string(), e.to_string())
+    };
     std::fs::create_dir_all(dir).map_err(|e| err(dir, &e))?;
     let json_path = dir.join("latency.json");
     let json = doc.to_json().map_err(|e| err(&json_path, &e))?;

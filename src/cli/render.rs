@@ -37,6 +37,10 @@ pub fn render(args: &RenderArgs) -> Result<RenderOutcome, CliError> {
     }
     let octree = mesh_clay(&session.clay, args.cells_per_span, &budget).map_err(|e| match e {
         CliError::Output(m) => CliError::Output(format!("{}: {m}", args.session.display())),
+        CliError::OutputFailed { context, source } => CliError::OutputFailed {
+            context: format!("{}: {context}", args.session.display()),
+            source,
+        },
         CliError::OverBudget(mut o) => {
             o.what = format!("{}: {}", args.session.display(), o.what);
             CliError::OverBudget(o)

@@ -39,12 +39,29 @@ pub enum CliError {
     /// The device could not be made or opened (exit 3).
     #[error("device error: {0}")]
     Device(String),
+    /// The device could not be made or opened (exit 3), with the error that said so.
+    #[error("device error: {context}: {source}")]
+    DeviceFailed {
+        /// What was being done (the device spec, the recording).
+        context: String,
+        /// Why it failed.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// The engine failed (exit 1).
     #[error("engine error: {0}")]
     Engine(EngineError),
     /// An output could not be written, or the starting clay could not be built (exit 1).
     #[error("output error: {0}")]
     Output(String),
+    /// An output could not be written, or the starting clay could not be built (exit 1),
+    /// with the error that said so.
+    #[error("output error: {context}: {source}")]
+    OutputFailed {
+        /// What was being done (the file, the step).
+        context: String,
+        /// Why it failed.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// A session file could not be read (exit 2).
     #[error("cannot read session: {0}")]
     Session(SessionError),
@@ -82,6 +99,27 @@ fn render_message(e: &RenderError, path: &Path) -> String {
 }
 
 impl CliError {
+    /// [`CliError::OutputFailed`]: `context` (what was being done) failed with `source`.
+    pub fn output(
+        context: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> Self {
+        Self::OutputFailed {
+            context: context.into(),
+            source: source.into(),
+        }
+    }
+
+    /// [`CliError::DeviceFailed`]: `context` (the device or recording) failed with `source`.
+    pub fn device(
+        context: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> Self {
+        Self::DeviceFailed {
+            context: context.into(),
+            source: source.into(),
+        }
+    }
     /// Exit status of `dynaclay render` when the machine has no GPU adapter: distinct from a
     /// failure (1) and a bad argument (2), so scripts can tell "cannot render here" apart.
     pub const NO_ADAPTER_EXIT: i32 = 4;
@@ -103,10 +141,10 @@ impl CliError {
             | Self::Session(_)
             | Self::OverBudget(_)
             | Self::OutputRefused(_) => 2,
-            Self::Device(_) => 3,
+            Self::Device(_) | Self::DeviceFailed { .. } => 3,
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
-            Self::Engine(_) | Self::Output(_) | Self::Render(..) => 1,
+            Self::Engine(_) | Self::Output(_) | Self::OutputFailed { .. } | Self::Render(..) => 1,
             Self::Rbf(e) => e.exit_code(),
             Self::Interrupted(_) => Self::INTERRUPTED_EXIT,
         }
@@ -177,7 +215,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         )));
     }
     std::fs::create_dir_all(&args.out)
-        .map_err(|e| CliError::Output(format!("{}: cannot create: {e}", args.out.display())))?;
+        .map_err(|e| CliError::output(format!("{}: cannot create", args.out.display()), e))?;
 
     if args.lockstep && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. }) {
         return Err(CliError::Usage(format!(
@@ -196,7 +234,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             let device: Box<dyn HapticDevice> = match &args.record {
                 Some(path) => Box::new(
                     RecordingDevice::create(arm, path)
-                        .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?,
+                        .map_err(|e| CliError::output(path.display().to_string(), e))?,
                 ),
                 None => Box::new(arm),
             };
@@ -239,7 +277,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
                 hw,
                 &dynaclay_devices::open::DriverOptions::from_env(),
             )
-            .map_err(|e| CliError::Device(e.to_string()))?;
+            .map_err(|e| CliError::device(args.device.clone(), e))?;
             let info = d.info();
             (d, info)
         }
@@ -248,7 +286,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let (device, schedule): (Box<dyn HapticDevice>, _) = match &args.record {
         Some(path) => {
             let recorder = RecordingDevice::create(device, path)
-                .map_err(|e| CliError::Output(format!("{}: {e}", path.display())))?;
+                .map_err(|e| CliError::output(path.display().to_string(), e))?;
             let log = recorder.schedule_log();
             (Box::new(recorder), Some(log))
         }
@@ -287,7 +325,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         },
     )
     .map_err(|e| match e {
-        EngineError::Device(d) => CliError::Device(format!("{} ({})", d, args.device)),
+        EngineError::Device(d) => CliError::device(args.device.clone(), d),
         other => CliError::Engine(other),
     })?;
     let installed = install_session(&engine.commands(), &start, &session_path);
@@ -364,8 +402,7 @@ fn starting_session(
         recovery_to_use(session_path, recover).map_err(|e| CliError::Usage(e.to_string()))?;
     match found {
         Some(r) => {
-            let session =
-                load_session(&r.path).map_err(|e| CliError::Output(format!("--recover: {e}")))?;
+            let session = load_session(&r.path).map_err(|e| CliError::output("--recover", e))?;
             if session.clay.density.patches.is_empty() {
                 return Err(CliError::Output(format!(
                     "--recover: {} holds no clay",
@@ -392,8 +429,8 @@ fn starting_session(
                 say!("dynaclay run: starting from {}", path.display());
                 return Ok(session);
             }
-            let clay = build_clay(&spec)
-                .map_err(|e| CliError::Output(format!("starting clay: fit failed: {e}")))?;
+            let clay =
+                build_clay(&spec).map_err(|e| CliError::output("starting clay: fit failed", e))?;
             Ok(Session {
                 clay: crate::tools::Clay::single(clay),
                 material: MaterialFields::default(),
@@ -490,7 +527,7 @@ fn installed_or_stop(
 ) -> Result<(), CliError> {
     match reply {
         Ok(Ok(_)) => Ok(()),
-        Ok(Err(e)) => Err(CliError::Output(format!("starting session: {e}"))),
+        Ok(Err(e)) => Err(CliError::output("starting session", e)),
         Err(_) => Err(CliError::Output(format!(
             "starting session {}: the engine did not take it",
             session_path.display()
@@ -591,11 +628,12 @@ enum ReplayUse {
 /// Loads the recording at `file` and checks its schedule whole, before anything runs.
 ///
 /// # Errors
-/// [`CliError::Device`] for a file that cannot be read; [`CliError::Usage`] (exit 2) for a
+/// [`CliError::DeviceFailed`] for a file that cannot be read; [`CliError::Usage`] (exit 2) for a
 /// schedule that cannot drive an exact replay when lockstep was not asked for, naming the
 /// file and the record.
 fn checked_replay(file: &Path, lockstep: bool) -> Result<(ReplayDevice, ReplayUse), CliError> {
-    let replay = ReplayDevice::load(file).map_err(|e| CliError::Device(e.to_string()))?;
+    let replay = ReplayDevice::load(file)
+        .map_err(|e| CliError::device(format!("replaying {}", file.display()), e))?;
     let how = match (replay.schedule(), lockstep) {
         (Ok(_), false) => ReplayUse::Scheduled,
         (Ok(_), true) => ReplayUse::Lockstep { unused: None },

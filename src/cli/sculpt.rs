@@ -30,7 +30,7 @@ pub fn mesh_clay(
     cells_per_span: u32,
     budget: &MemoryBudget,
 ) -> Result<BrickOctree, CliError> {
-    let fail = |e: &dyn std::fmt::Display| CliError::Output(format!("meshing the clay: {e}"));
+    let fail = |e: &dyn std::fmt::Display| CliError::output("meshing the clay", e.to_string());
     let density = &clay.density;
     let several = density.patches.len() > 1;
     let hint = if several {

@@ -56,13 +56,26 @@ impl Material {
     };
 }
 
+/// A material constant out of range: which, its value, and what it must be.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("material {name} = {value} must be finite and {need}")]
+pub struct MaterialError {
+    /// The constant's name (`mass`, `damping`, `stiffness`, `plasticity_per_s`,
+    /// `yield_density`).
+    pub name: &'static str,
+    /// Its value.
+    pub value: f32,
+    /// What it must be: "positive" or "zero or more".
+    pub need: &'static str,
+}
+
 impl Material {
     /// Checks that the constants can drive a step: all finite, mass positive, the others zero
     /// or more.
     ///
     /// # Errors
     /// Names the first constant out of range and its value.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), MaterialError> {
         let fields = [
             ("mass", self.mass, false),
             ("damping", self.damping, true),
@@ -74,7 +87,11 @@ impl Material {
             let ok = v.is_finite() && (v > 0.0 || (zero_ok && v == 0.0));
             if !ok {
                 let need = if zero_ok { "zero or more" } else { "positive" };
-                return Err(format!("material {name} = {v} must be finite and {need}"));
+                return Err(MaterialError {
+                    name,
+                    value: v,
+                    need,
+                });
             }
         }
         Ok(())
@@ -259,16 +276,34 @@ mod tests {
             mass: 0.0,
             ..Material::ELASTIC
         };
-        assert!(no_mass.validate().unwrap_err().contains("mass = 0"));
+        assert!(
+            no_mass
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("mass = 0")
+        );
         let nan_damping = Material {
             damping: f32::NAN,
             ..Material::ELASTIC
         };
-        assert!(nan_damping.validate().unwrap_err().contains("damping"));
+        assert!(
+            nan_damping
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("damping")
+        );
         let negative = Material {
             yield_density: -0.1,
             ..Material::PLASTIC
         };
-        assert!(negative.validate().unwrap_err().contains("yield_density"));
+        assert!(
+            negative
+                .validate()
+                .unwrap_err()
+                .to_string()
+                .contains("yield_density")
+        );
     }
 }

@@ -31,7 +31,7 @@ pub use force::{
     Distribution, GAUSS_NODES, GAUSS_WEIGHTS, REFIND_BISECT_STEPS, REFIND_MARCH_STEPS, ToolForce,
     force_integral, gauss_legendre_unit, reaction_force, start_on_surface, surface_point_on_ray,
 };
-pub use material::{AccelSolver, Integrator, Material, Neighbourhood, StepParams};
+pub use material::{AccelSolver, Integrator, Material, MaterialError, Neighbourhood, StepParams};
 pub use material_grid::{
     MaterialGrid, MaterialGridError, MaterialPaint, MaterialParam, PaintRegion, apply_grids,
     paint_grids,

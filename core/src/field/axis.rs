@@ -84,7 +84,7 @@ impl AxisBasis {
     ///
     /// # Errors
     /// When `BᵀB` is not positive definite (fewer useful samples than coefficients).
-    pub fn gram_cholesky(&self) -> Result<BandedCholesky, String> {
+    pub fn gram_cholesky(&self) -> Result<BandedCholesky, NotPositiveDefinite> {
         let n = self.cols;
         // gram[a][k] = G[a][a - k] for k in 0..4 (lower band, k = 0 the diagonal).
         let mut gram = vec![[0.0_f64; 4]; n];
@@ -98,6 +98,17 @@ impl AxisBasis {
         }
         BandedCholesky::factor(&gram)
     }
+}
+
+/// A band matrix that has no Cholesky factor: the pivot of row `row` came out `pivot`, not
+/// positive (a Gram matrix with fewer useful samples than coefficients, or a NaN in it).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error("Gram matrix is not positive definite at pivot {row} (value {pivot})")]
+pub struct NotPositiveDefinite {
+    /// The row whose pivot failed.
+    pub row: usize,
+    /// Its value (zero, negative or NaN).
+    pub pivot: f64,
 }
 
 /// Cholesky factor `L` (lower, half-bandwidth 3) of a symmetric positive definite band matrix.
@@ -114,7 +125,7 @@ impl BandedCholesky {
     ///
     /// # Errors
     /// When a pivot is not positive (the matrix is not positive definite).
-    pub fn factor(band: &[[f64; 4]]) -> Result<Self, String> {
+    pub fn factor(band: &[[f64; 4]]) -> Result<Self, NotPositiveDefinite> {
         let n = band.len();
         let mut l = vec![[0.0_f64; 4]; n]; // l[i][k] = L[i][i-k]
         for i in 0..n {
@@ -137,9 +148,7 @@ impl BandedCholesky {
             let d = band[i][0] - l[i][1..].iter().map(|v| v * v).sum::<f64>();
             // Also rejects NaN.
             if d.is_nan() || d <= 0.0 {
-                return Err(format!(
-                    "Gram matrix is not positive definite at pivot {i} (value {d})"
-                ));
+                return Err(NotPositiveDefinite { row: i, pivot: d });
             }
             l[i][0] = d.sqrt();
         }

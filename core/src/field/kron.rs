@@ -10,19 +10,19 @@
 //! says so; scratch space is passed in. [`apply_axes`] keeps the plain row-by-row passes for
 //! one-off operators built without Gram factors.
 
-use super::axis::{AxisBasis, BandedCholesky};
+use super::axis::{AxisBasis, BandedCholesky, NotPositiveDefinite};
 use super::band::{Band, SolvePlan, TriLu};
 pub use super::sweep::LANES;
 use super::sweep::{AxisOp, SharedOut, sweep_strided, sweep_x};
 
 /// Why an operator could not be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("axis {axis}: {message}")]
+#[error("axis {axis}: {source}")]
 pub struct KronError {
     /// Which axis (0 = x, 1 = y, 2 = z).
     pub axis: usize,
-    /// What went wrong.
-    pub message: String,
+    /// The axis's Gram matrix has no Cholesky factor.
+    pub source: NotPositiveDefinite,
 }
 
 /// `A = Bx ⊗ By ⊗ Bz` with the Cholesky factors of the three Gram matrices.
@@ -88,7 +88,7 @@ impl KroneckerBasis {
         for (axis, b) in axes.iter().enumerate() {
             chol.push(
                 b.gram_cholesky()
-                    .map_err(|message| KronError { axis, message })?,
+                    .map_err(|source| KronError { axis, source })?,
             );
         }
         let [cx, cy, cz]: [BandedCholesky; 3] = chol.try_into().expect("three axes");

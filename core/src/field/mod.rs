@@ -17,7 +17,7 @@ mod refit;
 mod snapshot;
 mod sweep;
 
-pub use axis::{AxisBasis, BandedCholesky, centred_cubic};
+pub use axis::{AxisBasis, BandedCholesky, NotPositiveDefinite, centred_cubic};
 pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 pub(crate) use kron::PassShape;

@@ -463,7 +463,7 @@ fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
     };
     if let Err(e) = m.uniform.validate() {
         r.at = start;
-        return Err(r.error(&e));
+        return Err(r.error(&e.to_string()));
     }
     let count = r.u32()?;
     for _ in 0..count {

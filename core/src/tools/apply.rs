@@ -103,6 +103,9 @@ pub enum ToolError {
     /// The refit failed (e.g. a non-finite target).
     #[error("refit failed: {0}")]
     Fit(FitError),
+    /// An emboss's parameters are invalid.
+    #[error("{0}")]
+    Emboss(#[from] super::emboss::EmbossParamsError),
 }
 
 impl From<FitError> for ToolError {

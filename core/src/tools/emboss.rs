@@ -230,27 +230,44 @@ fn frame(axis: Vec3, up: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
     Some((a, u, a.cross(u)))
 }
 
+/// Why emboss parameters were refused (named as in the script).
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum EmbossParamsError {
+    /// A length (`depth`, a planar `size`, a cylindrical `height`) is not positive and finite.
+    #[error("{name} = {value} must be positive")]
+    NotPositive {
+        /// The parameter.
+        name: &'static str,
+        /// Its value.
+        value: f32,
+    },
+    /// A planar or cylindrical projection's frame.
+    #[error("axis and up must be finite, non-zero and not parallel")]
+    BadAxes,
+    /// A spherical projection's `up` (or its centre).
+    #[error("up must be finite and non-zero")]
+    BadUp,
+}
+
 impl EmbossParams {
     /// Checks the parameters.
     ///
     /// # Errors
     /// The first invalid one, named as in the script.
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.depth.is_finite() && self.depth > 0.0) {
-            return Err(format!("depth = {} must be positive", self.depth));
-        }
-        let positive = |name: &str, v: f32| {
-            if v.is_finite() && v > 0.0 {
+    pub fn validate(&self) -> Result<(), EmbossParamsError> {
+        let positive = |name: &'static str, value: f32| {
+            if value.is_finite() && value > 0.0 {
                 Ok(())
             } else {
-                Err(format!("{name} = {v} must be positive"))
+                Err(EmbossParamsError::NotPositive { name, value })
             }
         };
+        positive("depth", self.depth)?;
         let axes = |centre: Vec3, axis: Vec3, up: Vec3| {
             if centre.is_finite() && frame(axis, up).is_some() {
                 Ok(())
             } else {
-                Err("axis and up must be finite, non-zero and not parallel".to_string())
+                Err(EmbossParamsError::BadAxes)
             }
         };
         match self.projection {
@@ -268,7 +285,7 @@ impl EmbossParams {
             } => positive("height", height).and(axes(centre, axis, up))?,
             Projection::Spherical { centre, up } => {
                 if !centre.is_finite() || up.try_normalize().is_none() {
-                    return Err("up must be finite and non-zero".to_string());
+                    return Err(EmbossParamsError::BadUp);
                 }
             }
         }
@@ -349,9 +366,7 @@ pub fn apply_emboss(
     samples_per_span: usize,
     recorder: Option<&mut StepRecorder>,
 ) -> Result<ToolReport, ToolError> {
-    params
-        .validate()
-        .map_err(|m| ToolError::Action(super::action::ActionError(m)))?;
+    params.validate()?;
     let id = FieldId::Density(patch);
     let Some(lattice) = clay.field(id) else {
         return Err(ToolError::NoPatch { patch });
@@ -555,7 +570,7 @@ mod tests {
         let e = apply_emboss(&mut clay, &half_white(), &params, 0, 2, None).unwrap_err();
         assert!(e.to_string().contains("not parallel"), "{e}");
         params.depth = -1.0;
-        assert!(params.validate().unwrap_err().contains("depth"));
+        assert!(params.validate().unwrap_err().to_string().contains("depth"));
         let e = Relief::decode(b"not an image", "x.png").unwrap_err();
         assert!(e.to_string().starts_with("x.png: not a readable"), "{e}");
     }

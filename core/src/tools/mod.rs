@@ -33,7 +33,8 @@ pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
 pub use emboss::{
-    EmbossParams, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection, Relief, apply_emboss,
+    EmbossParams, EmbossParamsError, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection,
+    Relief, apply_emboss,
 };
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PRESS_REACH_SPANS, PenetrationTarget, anchor_normal,

@@ -104,6 +104,9 @@ pub enum ImportError {
     /// Settings out of range.
     #[error("{0}")]
     Options(String),
+    /// A closed mesh's signed-distance grid could not be laid out.
+    #[error("{0}")]
+    SdfGrid(#[from] super::sdf::SdfGridError),
     /// The fit failed.
     #[error("{}: {source}", file.display())]
     Fit {
@@ -394,7 +397,7 @@ pub fn closed_mesh_grid(
             .map(|a| f64::from((extent[a] / size * across as f32).ceil() + margin))
             .product();
         if voxels <= MAX_SDF_VOXELS as f64 {
-            let grid = SdfGrid::around(lo, hi, across, band).map_err(ImportError::Options)?;
+            let grid = SdfGrid::around(lo, hi, across, band)?;
             return Ok((grid, capped));
         }
         capped = true;

@@ -28,7 +28,7 @@ pub use points::{
     MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz, read_points,
     read_points_with_colours,
 };
-pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SignedDistance, signed_distance};
+pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
     fit_volume_hierarchy_within, fit_volume_within, read_nrrd, read_raw,

@@ -44,18 +44,46 @@ pub struct SdfGrid {
     pub band_voxels: f32,
 }
 
+/// Why a signed-distance grid could not be laid out.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum SdfGridError {
+    /// The mesh's box is empty or not finite.
+    #[error("the mesh's box {lo}..{hi} has no size")]
+    NoSize {
+        /// The box's corners.
+        lo: Vec3,
+        hi: Vec3,
+    },
+    /// The grid would hold more than [`MAX_SDF_VOXELS`] voxels.
+    #[error(
+        "a signed-distance grid of {}×{}×{} voxels is more than {MAX_SDF_VOXELS}",
+        dims[0],
+        dims[1],
+        dims[2]
+    )]
+    TooLarge {
+        /// Voxels per axis.
+        dims: [usize; 3],
+    },
+}
+
 impl SdfGrid {
     /// A grid over the box `lo..hi` with `across` voxels along its longest side, `band_voxels`
     /// of band, and a margin of the band plus two voxels on every side (so the band never
     /// meets the grid's edge).
     ///
     /// # Errors
-    /// A message when the box is empty or not finite, or the grid would pass
+    /// [`SdfGridError`] when the box is empty or not finite, or the grid would pass
     /// [`MAX_SDF_VOXELS`].
-    pub fn around(lo: Vec3, hi: Vec3, across: usize, band_voxels: f32) -> Result<Self, String> {
+    pub fn around(
+        lo: Vec3,
+        hi: Vec3,
+        across: usize,
+        band_voxels: f32,
+    ) -> Result<Self, SdfGridError> {
         let size = (hi - lo).max_element();
         if !(size.is_finite() && size > 0.0 && lo.is_finite()) {
-            return Err(format!("the mesh's box {lo}..{hi} has no size"));
+            return Err(SdfGridError::NoSize { lo, hi });
         }
         let voxel = size / across.max(1) as f32;
         let margin = band_voxels.ceil() + 2.0;
@@ -67,10 +95,7 @@ impl SdfGrid {
             .try_fold(1usize, |a, &d| a.checked_mul(d))
             .unwrap_or(usize::MAX);
         if total > MAX_SDF_VOXELS {
-            return Err(format!(
-                "a signed-distance grid of {}×{}×{} voxels is more than {MAX_SDF_VOXELS}",
-                dims[0], dims[1], dims[2]
-            ));
+            return Err(SdfGridError::TooLarge { dims });
         }
         Ok(Self {
             origin,
@@ -392,8 +417,10 @@ mod tests {
     #[test]
     fn grids_over_the_limit_or_without_size_are_refused() {
         let e = SdfGrid::around(Vec3::ZERO, Vec3::ONE, 100_000, 4.0).unwrap_err();
-        assert!(e.contains("more than"), "{e}");
+        assert!(matches!(e, SdfGridError::TooLarge { .. }), "{e}");
+        assert!(e.to_string().contains("more than"), "{e}");
         let e = SdfGrid::around(Vec3::ONE, Vec3::ONE, 64, 4.0).unwrap_err();
-        assert!(e.contains("no size"), "{e}");
+        assert!(matches!(e, SdfGridError::NoSize { .. }), "{e}");
+        assert!(e.to_string().contains("no size"), "{e}");
     }
 }

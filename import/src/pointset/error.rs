@@ -51,9 +51,9 @@ pub enum PointSetError {
         /// The most allowed.
         max: usize,
     },
-    /// An emboss's parameters are invalid (the message names the parameter).
+    /// An emboss's parameters are invalid (the error names the parameter).
     #[error("emboss: {0}")]
-    Emboss(String),
+    Emboss(#[from] dynaclay_core::tools::EmbossParamsError),
     /// A simulation step was refused.
     #[error("simulation step: {0}")]
     Step(#[from] dynaclay_core::dynamics::StepError),
