@@ -358,7 +358,7 @@ impl RbfSculpt {
                 other => {
                     return Err(RbfSculptError::NotContact {
                         step: at,
-                        what: format!("do = {:?}", step_name(other)),
+                        what: format!("do = {:?}", other.name()),
                     });
                 }
             };
@@ -366,29 +366,5 @@ impl RbfSculpt {
             actions += poses.len();
         }
         Ok(actions)
-    }
-}
-
-/// The `do = …` name of a step.
-fn step_name(step: &ScriptStep) -> &'static str {
-    match step {
-        ScriptStep::Tool { .. } => "tool",
-        ScriptStep::Preset { .. } => "preset",
-        ScriptStep::Stroke { .. } => "stroke",
-        ScriptStep::Material { .. } => "material",
-        ScriptStep::PaintMaterial { .. } => "paint_material",
-        ScriptStep::Csg { .. } => "csg",
-        ScriptStep::MakeTool { .. } => "make_tool",
-        ScriptStep::Undo { .. } => "undo",
-        ScriptStep::Redo { .. } => "redo",
-        ScriptStep::Save { .. } => "save",
-        ScriptStep::Emboss { .. } => "emboss",
-        ScriptStep::Constrain { .. } => "constrain",
-        ScriptStep::Unconstrain { .. } => "unconstrain",
-        ScriptStep::Refine { .. } => "refine",
-        ScriptStep::Particles { .. } => "particles",
-        ScriptStep::Rbf { .. } => "rbf",
-        ScriptStep::CompactRbf { .. } => "compact_rbf",
-        ScriptStep::Points { .. } => "points",
     }
 }

@@ -880,6 +880,31 @@ pub fn poses(positions: &[[f32; 3]], rotation: Option<[f32; 4]>) -> Vec<ToolPose
 }
 
 impl ScriptStep {
+    /// The step's `do = …` name, as a script writes it.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            ScriptStep::Tool { .. } => "tool",
+            ScriptStep::Preset { .. } => "preset",
+            ScriptStep::Stroke { .. } => "stroke",
+            ScriptStep::Material { .. } => "material",
+            ScriptStep::PaintMaterial { .. } => "paint_material",
+            ScriptStep::Csg { .. } => "csg",
+            ScriptStep::MakeTool { .. } => "make_tool",
+            ScriptStep::Undo { .. } => "undo",
+            ScriptStep::Redo { .. } => "redo",
+            ScriptStep::Save { .. } => "save",
+            ScriptStep::Emboss { .. } => "emboss",
+            ScriptStep::Constrain { .. } => "constrain",
+            ScriptStep::Unconstrain { .. } => "unconstrain",
+            ScriptStep::Refine { .. } => "refine",
+            ScriptStep::Particles { .. } => "particles",
+            ScriptStep::Rbf { .. } => "rbf",
+            ScriptStep::CompactRbf { .. } => "compact_rbf",
+            ScriptStep::Points { .. } => "points",
+        }
+    }
+
     /// The material after this step's changes (for `material` steps; others return `m`).
     #[must_use]
     pub fn updated_material(&self, m: Material) -> Material {

@@ -447,3 +447,14 @@ fn old_metre_keys_read_as_field_unit_keys_with_a_note_per_key() {
     let e = parse_script(&bad, "old.toml").unwrap_err();
     assert_eq!(e.line, Some(12), "{e}");
 }
+
+/// Each step's `name()` is the `do = …` key serde writes for it.
+#[test]
+fn a_steps_name_is_its_do_key() {
+    let s = parse_script(EXAMPLE, "ex.toml").unwrap();
+    for step in &s.steps {
+        let text = toml::to_string(step).unwrap();
+        let written = format!("do = \"{}\"", step.name());
+        assert!(text.contains(&written), "{written} not in\n{text}");
+    }
+}
