@@ -553,7 +553,7 @@ impl ScriptPlan {
                     engrave,
                     patch,
                 } => {
-                    let relief = Relief::load(&base_dir.join(image))
+                    let relief = dynaclay_core::io::load_relief(&base_dir.join(image))
                         .map_err(|e| fail(format!("image: {e}")))?;
                     event(PlannedAction::Emboss {
                         relief: std::sync::Arc::new(relief),

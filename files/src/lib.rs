@@ -12,10 +12,14 @@
 //! block and `/dev/zero` never ends), and a file longer than the caller's cap is refused before
 //! any of it is read, so the memory a read takes is bounded by the cap.
 //!
+//! Binary inputs, once read, are decoded through one bounds-checked cursor ([`ByteCursor`]).
+//!
 //! Nothing here runs on a real-time path: these functions allocate and block on the disk.
 
 pub mod bounded_read;
+mod cursor;
 mod write;
 
 pub use bounded_read::{BoundedReadError, read_regular_file};
+pub use cursor::{ByteCursor, ShortRead};
 pub use write::{AtomicFile, WriteError, check_target, write_atomic, write_atomic_with};

@@ -8,7 +8,7 @@ use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
 use super::command::{CsgOperand, EngineCommand, EngineEvent};
 use crate::engine::{Command, CommandError, EditOutcome};
 use crate::io::load_session;
-use crate::tools::{GeometricTool, Relief, solid_clay};
+use crate::tools::{GeometricTool, solid_clay};
 
 /// Where an edit's answer will come: a tool for the library or an emboss answers a line, a
 /// CSG the step's outcome.
@@ -94,7 +94,7 @@ pub fn edit_command(request: EngineCommand) -> Option<Result<(Command, PendingRe
                 })
             })
         }
-        EngineCommand::Emboss { image, params } => Relief::load(&image)
+        EngineCommand::Emboss { image, params } => crate::io::load_relief(&image)
             .map(|relief| {
                 (
                     Command::Emboss {

@@ -13,7 +13,7 @@ use crate::fit::read_points;
 use crate::io::{OutputKind, OutputRule};
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
 use crate::pointset::{PointSet, PointSetOptions, UnitFrame, write_point_ply};
-use crate::tools::{EmbossParams, Projection, Relief};
+use crate::tools::{EmbossParams, Projection};
 
 /// How far a `--pull` target may lie from the points' box, in sizes of the box (its longest
 /// side).
@@ -148,7 +148,8 @@ fn emboss_image(
     args: &PointsArgs,
     options: &PointSetOptions,
 ) -> Result<PointSet, CliError> {
-    let relief = Relief::load(image).map_err(|e| CliError::Usage(format!("--emboss: {e}")))?;
+    let relief =
+        crate::io::load_relief(image).map_err(|e| CliError::Usage(format!("--emboss: {e}")))?;
     let (lo, hi) = set.points.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),

@@ -24,6 +24,7 @@
 
 use std::path::Path;
 
+use dynaclay_files::ByteCursor;
 use glam::{Affine3A, Vec3};
 
 use super::error::SessionError;
@@ -249,15 +250,14 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
             return Err(malformed(path, &name, pos, "section after END"));
         }
         let mut r = Reader {
-            bytes: &bytes[pos + 12..end],
-            at: 0,
+            cursor: ByteCursor::new(&bytes[pos + 12..end]),
             base: pos + 12,
             section: &name,
             path,
         };
         match tag {
             META => {
-                session.meta = serde_json::from_slice::<SessionMeta>(r.bytes)
+                session.meta = serde_json::from_slice::<SessionMeta>(r.cursor.bytes())
                     .map_err(|e| r.error(&format!("metadata JSON: {e}")))?;
                 meta_seen = true;
             }
@@ -301,7 +301,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
             SPRINGS => {
                 let count = r.u32()?;
                 let Some(nb) = Neighbourhood::from_count(count) else {
-                    r.at = 0;
+                    r.cursor.rewind_to(0);
                     return Err(r.error(&format!(
                         "spring neighbourhood {count}; it must be 6, 18 or 26"
                     )));
@@ -337,8 +337,8 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
 
 /// The `PINS` section: a JSON list of constraints, each checked, at most [`MAX_CONSTRAINTS`].
 fn decode_pins(r: &Reader) -> Result<Vec<Constraint>, SessionError> {
-    let pins: Vec<Constraint> =
-        serde_json::from_slice(r.bytes).map_err(|e| r.error(&format!("constraints JSON: {e}")))?;
+    let pins: Vec<Constraint> = serde_json::from_slice(r.cursor.bytes())
+        .map_err(|e| r.error(&format!("constraints JSON: {e}")))?;
     if pins.len() > MAX_CONSTRAINTS {
         return Err(r.error(&format!(
             "{} constraints; at most {MAX_CONSTRAINTS} are allowed",
@@ -448,7 +448,7 @@ fn encode_material(m: &MaterialFields) -> Result<Vec<u8>, SessionError> {
 }
 
 fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
-    let start = r.at;
+    let start = r.cursor.at();
     let mut m = MaterialFields {
         uniform: Material {
             mass: r.f32()?,
@@ -462,30 +462,30 @@ fn decode_material(r: &mut Reader) -> Result<MaterialFields, SessionError> {
         grids: Vec::new(),
     };
     if let Err(e) = m.uniform.validate() {
-        r.at = start;
+        r.cursor.rewind_to(start);
         return Err(r.error(&e.to_string()));
     }
     let count = r.u32()?;
     for _ in 0..count {
         let name = r.string()?;
         let dims = [r.u32()? as usize, r.u32()? as usize, r.u32()? as usize];
-        let at = r.at;
+        let at = r.cursor.at();
         let len = r.u64()?;
         if Some(len)
             != dims
                 .iter()
                 .try_fold(1_u64, |acc, &d| acc.checked_mul(d as u64))
         {
-            r.at = at;
+            r.cursor.rewind_to(at);
             return Err(r.error(&format!(
                 "material grid {name}: {len} values for dims {dims:?}"
             )));
         }
-        let values_at = r.at;
+        let values_at = r.cursor.at();
         let values = r.f32s(len)?;
         let grid = MaterialGrid { name, dims, values };
         if let Err(e) = grid.validate() {
-            r.at = values_at;
+            r.cursor.rewind_to(values_at);
             return Err(r.error(&e.to_string()));
         }
         m.grids.push(grid);
@@ -539,14 +539,14 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
     let mut tools = Vec::new();
     for _ in 0..count {
         let name = r.string()?;
-        let at = r.at;
+        let at = r.cursor.at();
         let action_json = r.string()?;
         let action: ToolAction = serde_json::from_str(&action_json).map_err(|e| {
-            r.at = at;
+            r.cursor.rewind_to(at);
             r.error(&format!("tool {name}: action: {e}"))
         })?;
         let falloff_fu = r.f32()?;
-        let at = r.at;
+        let at = r.cursor.at();
         let tag = r.u8()?;
         let shape = match tag {
             SPHERE => ToolShape::Sphere {
@@ -574,12 +574,12 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
                 })
             }
             other => {
-                r.at = at;
+                r.cursor.rewind_to(at);
                 return Err(r.error(&format!("tool {name}: unknown shape tag {other}")));
             }
         };
         if let Err(e) = shape.validate() {
-            r.at = at;
+            r.cursor.rewind_to(at);
             return Err(r.error(&format!("tool {name}: {e}")));
         }
         tools.push(ToolPreset {
@@ -594,8 +594,7 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
 
 /// A bounds-checked cursor over one section's payload; errors carry absolute byte offsets.
 struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
+    cursor: ByteCursor<'a>,
     base: usize,
     section: &'a str,
     path: &'a Path,
@@ -603,19 +602,21 @@ struct Reader<'a> {
 
 impl Reader<'_> {
     fn error(&self, detail: &str) -> SessionError {
-        malformed(self.path, self.section, self.base + self.at, detail)
+        malformed(
+            self.path,
+            self.section,
+            self.base + self.cursor.at(),
+            detail,
+        )
     }
 
     fn take(&mut self, n: usize) -> Result<&[u8], SessionError> {
-        if self.bytes.len() - self.at < n {
-            return Err(self.error(&format!(
+        self.cursor.take(n).map_err(|short| {
+            self.error(&format!(
                 "needs {n} more bytes, the section has {} left",
-                self.bytes.len() - self.at
-            )));
-        }
-        let s = &self.bytes[self.at..self.at + n];
-        self.at += n;
-        Ok(s)
+                short.available
+            ))
+        })
     }
 
     fn u8(&mut self) -> Result<u8, SessionError> {
@@ -663,16 +664,16 @@ impl Reader<'_> {
 
     fn string(&mut self) -> Result<String, SessionError> {
         let len = self.u32()? as usize;
-        let at = self.at;
+        let at = self.cursor.at();
         let raw = self.take(len)?.to_vec();
         String::from_utf8(raw).map_err(|e| {
-            self.at = at;
+            self.cursor.rewind_to(at);
             self.error(&format!("text is not UTF-8: {e}"))
         })
     }
 
     fn lattice(&mut self) -> Result<BSplineLattice, SessionError> {
-        let start = self.at;
+        let start = self.cursor.at();
         let dims = [
             self.u32()? as usize,
             self.u32()? as usize,
@@ -686,31 +687,31 @@ impl Reader<'_> {
             .iter()
             .try_fold(1_u64, |acc, &d| acc.checked_mul(d as u64));
         if Some(count) != expected {
-            self.at = start;
+            self.cursor.rewind_to(start);
             return Err(self.error(&format!("lattice {dims:?} holds {count} coefficients")));
         }
-        let values_at = self.at;
+        let values_at = self.cursor.at();
         let coeffs = self.f32s(count)?;
         if !(origin.is_finite() && iso.is_finite()) {
-            self.at = start;
+            self.cursor.rewind_to(start);
             return Err(self.error("lattice origin or iso-level is not finite"));
         }
         if !(spacing.is_finite() && spacing > 0.0) {
-            self.at = start;
+            self.cursor.rewind_to(start);
             return Err(self.error(&format!(
                 "lattice spacing {spacing}: must be finite and above 0"
             )));
         }
         if let Some(i) = coeffs.iter().position(|c| !c.is_finite()) {
             // Point at the value itself.
-            self.at = values_at + 4 * i;
+            self.cursor.rewind_to(values_at + 4 * i);
             return Err(self.error(&format!(
                 "lattice coefficient {i} is {}, not a finite number",
                 coeffs[i]
             )));
         }
         let mut l = BSplineLattice::from_coeffs(dims, spacing, origin, coeffs).map_err(|e| {
-            self.at = start;
+            self.cursor.rewind_to(start);
             self.error(&format!("lattice: {e}"))
         })?;
         l.iso = iso;
@@ -719,7 +720,7 @@ impl Reader<'_> {
 
     /// A patch map `T_i` (see [`put_map`]): finite and invertible, with a finite inverse.
     fn map(&mut self) -> Result<Affine3A, SessionError> {
-        let start = self.at;
+        let start = self.cursor.at();
         let mut cols = [0.0_f32; 12];
         for c in &mut cols {
             *c = self.f32()?;
@@ -727,7 +728,7 @@ impl Reader<'_> {
         let map = Affine3A::from_cols_array(&cols);
         let det = map.matrix3.determinant();
         if !(map.is_finite() && det.is_finite() && det.abs() > 1e-12 && map.inverse().is_finite()) {
-            self.at = start;
+            self.cursor.rewind_to(start);
             return Err(self.error(&format!(
                 "the patch's map to patch space is not finite and invertible (determinant {det})"
             )));
@@ -741,7 +742,7 @@ impl Reader<'_> {
             .map(|c| c.length())
             .fold(0.0_f32, f32::max);
         if stretch > MAX_MAP_SCALE {
-            self.at = start;
+            self.cursor.rewind_to(start);
             return Err(self.error(&format!(
                 "the patch's map scales by {stretch:.3e}; at most {MAX_MAP_SCALE} either way"
             )));
@@ -751,12 +752,12 @@ impl Reader<'_> {
 
     /// Every byte of the payload must have been read.
     fn finish(&self) -> Result<(), SessionError> {
-        if self.at == self.bytes.len() {
+        if self.cursor.remaining() == 0 {
             Ok(())
         } else {
             Err(self.error(&format!(
                 "{} unread bytes at the end of the section",
-                self.bytes.len() - self.at
+                self.cursor.remaining()
             )))
         }
     }

@@ -6,6 +6,7 @@ mod autosave;
 mod error;
 mod format;
 mod output_rule;
+mod relief;
 mod script;
 mod session;
 
@@ -18,6 +19,7 @@ pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
 pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
 pub use output_rule::{OutputKind, OutputRefused, OutputRule, real_path};
+pub use relief::load_relief;
 pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
     ForceToolSpec, MAX_COMPACT_PARTICLES, MAX_POINTS_PULL_STEPS, MIN_COMPACT_PARTICLES, PinKind,

@@ -13,8 +13,6 @@
 //! Bounded input: an image is read through the size cap [`MAX_IMAGE_BYTES`] and its pixel
 //! count is checked against [`MAX_IMAGE_PIXELS`] before it is decoded.
 
-use std::path::Path;
-
 use glam::Vec3;
 
 use super::apply::{ToolError, ToolReport};
@@ -36,7 +34,7 @@ pub enum ImageError {
         /// The file.
         path: String,
         /// Why.
-        source: crate::io::bounded_read::BoundedReadError,
+        source: dynaclay_files::BoundedReadError,
     },
     /// The bytes are not a PNG or JPEG image this build decodes.
     #[error("{path}: not a readable PNG or JPEG image: {reason}")]
@@ -93,25 +91,12 @@ impl Relief {
         }
     }
 
-    /// Reads a PNG or JPEG file as its luma (Rec. 709 weights on the decoded RGB).
+    /// Decodes PNG or JPEG `bytes` as their luma (Rec. 709 weights on the decoded RGB);
+    /// `name` names them in errors. Reading the file is the caller's (`io::load_relief`):
+    /// the tools decode what they are given and read no file.
     ///
     /// # Errors
-    /// An unreadable, oversized or undecodable file, naming it.
-    pub fn load(path: &Path) -> Result<Self, ImageError> {
-        let name = path.display().to_string();
-        let bytes = crate::io::bounded_read::read_regular_file(path, MAX_IMAGE_BYTES).map_err(
-            |source| ImageError::Read {
-                path: name.clone(),
-                source,
-            },
-        )?;
-        Self::decode(&bytes, &name)
-    }
-
-    /// Decodes PNG or JPEG `bytes`; `name` names them in errors.
-    ///
-    /// # Errors
-    /// As [`Relief::load`].
+    /// An oversized or undecodable image, naming it.
     pub fn decode(bytes: &[u8], name: &str) -> Result<Self, ImageError> {
         let decode_error = |e: image::ImageError| ImageError::Decode {
             path: name.to_string(),

@@ -37,6 +37,7 @@
 
 use std::io::{self, Write};
 
+use dynaclay_files::ByteCursor;
 use glam::{Quat, Vec3};
 
 use super::error::RecordError;
@@ -604,31 +605,30 @@ pub struct WriteSummary {
 // ---------------------------------------------------------------------------------------
 // Parsing.
 
-/// A bounds-checked cursor that turns every short read into a `Truncated` error.
+/// The shared bounds-checked cursor, with the block being read: every short read is a
+/// `Truncated` error naming the offset, the block and what was being read.
 struct Cursor<'a> {
-    bytes: &'a [u8],
-    at: usize,
+    bytes: ByteCursor<'a>,
     block: Option<u32>,
 }
 
 impl<'a> Cursor<'a> {
+    fn at(&self) -> usize {
+        self.bytes.at()
+    }
+
     fn remaining(&self) -> usize {
-        self.bytes.len() - self.at
+        self.bytes.remaining()
     }
 
     fn take(&mut self, n: usize, what: &'static str) -> Result<&'a [u8], RecordError> {
-        if self.remaining() < n {
-            return Err(RecordError::Truncated {
-                offset: self.at as u64,
-                block: self.block,
-                what,
-                needed: n as u64,
-                available: self.remaining() as u64,
-            });
-        }
-        let s = &self.bytes[self.at..self.at + n];
-        self.at += n;
-        Ok(s)
+        self.bytes.take(n).map_err(|short| RecordError::Truncated {
+            offset: short.offset as u64,
+            block: self.block,
+            what,
+            needed: short.needed as u64,
+            available: short.available as u64,
+        })
     }
 
     fn malformed(&self, at: usize, what: &'static str) -> RecordError {
@@ -686,8 +686,7 @@ impl Recording {
     /// counts as truncated.
     pub fn parse(bytes: &[u8]) -> Result<Self, RecordError> {
         let mut c = Cursor {
-            bytes,
-            at: 0,
+            bytes: ByteCursor::new(bytes),
             block: None,
         };
         let magic = c
@@ -696,7 +695,7 @@ impl Recording {
         if magic != MAGIC {
             return Err(RecordError::BadMagic);
         }
-        let version_at = c.at;
+        let version_at = c.at();
         let version = c.take(2, "format version")?;
         let version = u16::from_le_bytes([version[0], version[1]]);
         if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&version) {
@@ -706,9 +705,9 @@ impl Recording {
             });
         }
         let len = get_u32(c.take(4, "header length")?, 0) as usize;
-        let info_at = c.at;
+        let info_at = c.at();
         let body = c.take(len, "device info")?;
-        let crc_at = c.at;
+        let crc_at = c.at();
         let stored = get_u32(c.take(4, "header checksum")?, 0);
         let computed = crc32fast::hash(&bytes[version_at..crc_at]);
         if stored != computed {
@@ -725,7 +724,7 @@ impl Recording {
         let mut blocks: u32 = 0;
         loop {
             c.block = Some(blocks);
-            let start = c.at;
+            let start = c.at();
             if c.remaining() == 0 {
                 return Err(RecordError::Truncated {
                     offset: start as u64,
@@ -756,7 +755,7 @@ impl Recording {
                     return Err(c.malformed(start + 8, "end marker record count disagrees"));
                 }
                 if c.remaining() != 0 {
-                    return Err(c.malformed(c.at, "bytes after the end marker"));
+                    return Err(c.malformed(c.at(), "bytes after the end marker"));
                 }
                 return Ok(Self {
                     info,
@@ -781,7 +780,7 @@ impl Recording {
             if payload_len != count as usize * RECORD_SIZE {
                 return Err(c.malformed(start + 12, "block length disagrees with record count"));
             }
-            let payload_at = c.at;
+            let payload_at = c.at();
             let payload = c.take(payload_len, "block payload")?;
             let mut crc = crc32fast::Hasher::new();
             crc.update(&head[..12]);
