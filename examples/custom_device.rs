@@ -103,7 +103,14 @@ impl HapticDevice for Poker {
     }
 }
 
-fn main() -> Result<(), Box<dyn Error>> {
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("custom_device: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn Error>> {
     let clay = build_clay(&ClaySpec::default())?;
     let probe = Poker {
         start_m: Vec3::ZERO,

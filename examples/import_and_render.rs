@@ -19,6 +19,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use dynaclay::fit::{ImportSettings, fit_import};
+use dynaclay::io::{OutputKind, OutputRule};
 use dynaclay::mesh::{BrickOctree, SampleGrid};
 use dynaclay::render::{
     NamedView, SceneOptions, chunk_views, gpu_required, octree_chunks, render_to_png, scene_camera,
@@ -29,11 +30,20 @@ use glam::Vec3;
 const R: f32 = 1.0;
 const TUBE: f32 = 0.4;
 
-fn main() -> Result<(), Box<dyn Error>> {
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("import_and_render: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn Error>> {
     let out = match std::env::args_os().nth(1) {
         Some(path) => PathBuf::from(path),
         None => std::env::temp_dir().join(format!("dynaclay-torus-{}.png", std::process::id())),
     };
+    // As every dynaclay output: an image file, never over a file of another kind, checked first.
+    OutputRule::new().check("OUT.png", &out, OutputKind::Image)?;
     let work = std::env::temp_dir().join(format!("dynaclay-example-{}", std::process::id()));
     std::fs::create_dir_all(&work)?;
     let cloud_path = work.join("torus.xyz");

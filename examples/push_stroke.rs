@@ -8,14 +8,15 @@
 //! cargo run --release --example push_stroke [OUT.obj]
 //! ```
 //!
-//! Without `OUT.obj` the mesh goes to a new file in the system's temporary folder.
+//! Without `OUT.obj` the mesh goes to a new file in the system's temporary folder. `OUT.obj`
+//! may replace only a mesh this program wrote (the output rule every command follows).
 
 use std::error::Error;
 use std::path::PathBuf;
 
 use dynaclay::dynamics::Material;
 use dynaclay::engine::{EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay};
-use dynaclay::io::parse_script;
+use dynaclay::io::{OutputKind, OutputRule, parse_script};
 use dynaclay::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
 
@@ -35,11 +36,20 @@ duration_s = 1.0
 hover_fu = 0.3
 "#;
 
-fn main() -> Result<(), Box<dyn Error>> {
+fn main() {
+    if let Err(e) = run() {
+        eprintln!("push_stroke: {e}");
+        std::process::exit(1);
+    }
+}
+
+fn run() -> Result<(), Box<dyn Error>> {
     let out = match std::env::args_os().nth(1) {
         Some(path) => PathBuf::from(path),
         None => std::env::temp_dir().join(format!("dynaclay-push-{}.obj", std::process::id())),
     };
+    // As every dynaclay output: a mesh file, never over a file of another kind, checked first.
+    OutputRule::new().check("OUT.obj", &out, OutputKind::Mesh)?;
 
     // The script lays out the clay and the arm's path.
     let script = parse_script(SCRIPT, "push_stroke")?;
