@@ -31,8 +31,8 @@
 
 use glam::Vec3;
 
+use crate::field::ImplicitField;
 use crate::field::{CoeffBox, cubic_weights, cubic_weights_and_derivatives};
-use crate::mesh::ScalarField;
 
 use super::force::first_change;
 
@@ -227,7 +227,7 @@ pub struct CoastField<'a, F: ?Sized> {
     pub tau_s: f32,
 }
 
-impl<F: ScalarField + ?Sized> ScalarField for CoastField<'_, F> {
+impl<F: ImplicitField + ?Sized> ImplicitField for CoastField<'_, F> {
     fn iso(&self) -> f32 {
         self.field.iso()
     }
@@ -251,7 +251,7 @@ impl<F: ScalarField + ?Sized> ScalarField for CoastField<'_, F> {
 /// `2 · (`[`REFIND_MARCH_STEPS`](super::force::REFIND_MARCH_STEPS)` + `
 /// [`REFIND_BISECT_STEPS`](super::force::REFIND_BISECT_STEPS)`) + 1` evaluations of `field`.
 #[must_use]
-pub fn start_on_coast<F: ScalarField + ?Sized>(
+pub fn start_on_coast<F: ImplicitField + ?Sized>(
     field: &F,
     start: Vec3,
     end: Vec3,

@@ -15,7 +15,7 @@
 
 use glam::Vec3;
 
-use crate::mesh::ScalarField;
+use crate::field::ImplicitField;
 
 /// Gauss–Legendre nodes on `[−1, 1]`, ascending.
 pub const GAUSS_NODES: [f32; 4] = [-0.861_136_3, -0.339_981_04, 0.339_981_04, 0.861_136_3];
@@ -38,7 +38,7 @@ pub fn gauss_legendre_unit(g: impl Fn(f32) -> f32) -> f32 {
 /// degenerate or non-finite vector.
 #[inline]
 #[must_use]
-pub fn force_integral<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> f32 {
+pub fn force_integral<F: ImplicitField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> f32 {
     let v = x1 - x0;
     let l = v.length();
     if !(l.is_finite() && l > 0.0) {
@@ -56,7 +56,7 @@ pub fn force_integral<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) 
 /// ([`crate::haptics`]).
 #[inline]
 #[must_use]
-pub fn reaction_force<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> Vec3 {
+pub fn reaction_force<F: ImplicitField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) -> Vec3 {
     let v = x1 - x0;
     let l = v.length();
     if !(l.is_finite() && l > 0.0) {
@@ -70,7 +70,7 @@ pub fn reaction_force<F: ScalarField + ?Sized>(lattice: &F, x0: Vec3, x1: Vec3) 
 /// Marching steps of [`start_on_surface`].
 /// Whether `x` is inside the solid of `field`.
 #[inline]
-fn is_inside<F: ScalarField + ?Sized>(field: &F, x: Vec3) -> bool {
+fn is_inside<F: ImplicitField + ?Sized>(field: &F, x: Vec3) -> bool {
     field.value(x) > field.iso()
 }
 
@@ -96,7 +96,7 @@ pub const REFIND_BISECT_STEPS: u32 = 8;
 /// `2 · (`[`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`]`) + 1` field evaluations;
 /// allocates nothing.
 #[must_use]
-pub fn start_on_surface<F: ScalarField + ?Sized>(lattice: &F, start: Vec3, end: Vec3) -> Vec3 {
+pub fn start_on_surface<F: ImplicitField + ?Sized>(lattice: &F, start: Vec3, end: Vec3) -> Vec3 {
     if !(start.is_finite() && end.is_finite()) {
         return start;
     }
@@ -113,7 +113,7 @@ pub fn start_on_surface<F: ScalarField + ?Sized>(lattice: &F, start: Vec3, end: 
 /// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
 /// `from_inside`, refined by bisection; `None` when there is none at the march's resolution.
 /// At most [`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`] evaluations.
-pub(super) fn first_change<F: ScalarField + ?Sized>(
+pub(super) fn first_change<F: ImplicitField + ?Sized>(
     lattice: &F,
     from: Vec3,
     span: Vec3,
@@ -144,7 +144,7 @@ pub(super) fn first_change<F: ScalarField + ?Sized>(
 /// bisection. `None` when `anchor` is outside the solid or the solid does not end within
 /// `max_len`. Bounded work: at most `max_len / step + 24` field evaluations; allocates nothing.
 #[must_use]
-pub fn surface_point_on_ray<F: ScalarField + ?Sized>(
+pub fn surface_point_on_ray<F: ImplicitField + ?Sized>(
     lattice: &F,
     anchor: Vec3,
     toward: Vec3,

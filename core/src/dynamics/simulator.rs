@@ -10,8 +10,8 @@
 
 use std::time::Instant;
 
+use crate::field::ImplicitField;
 use crate::field::{BSplineLattice, KronScratch, OtherPatches, RegionSnapshot};
-use crate::mesh::ScalarField;
 use glam::Vec3;
 
 use super::coast::{COAST_REACH_SPANS, CoastField, RegionVelocity, coast_time_s, start_on_coast};
@@ -515,7 +515,7 @@ impl Simulator {
             velocity,
             tau_s,
         };
-        let coast: &dyn ScalarField = if others.is_empty() {
+        let coast: &dyn ImplicitField = if others.is_empty() {
             &coast_alone
         } else {
             &coast_among
@@ -1028,7 +1028,7 @@ struct TargetBound {
 }
 
 impl TargetBound {
-    fn new(field: &dyn ScalarField, tf: &ToolForce, f: f32, spacing: f32) -> Self {
+    fn new(field: &dyn ImplicitField, tf: &ToolForce, f: f32, spacing: f32) -> Self {
         let dir = (tf.end - tf.start).normalize_or_zero();
         // The density ramp across the surface: as measured where the vector starts, and never
         // flatter than the iso-level over two knot spans.
@@ -1073,7 +1073,7 @@ impl TargetBound {
     /// ([`TargetBound::column_axis`]) may still take, on the coast field `field`: read where
     /// that grid line meets the plane.
     #[inline]
-    fn room(&self, field: &dyn ScalarField, x: Vec3, axis: usize) -> f32 {
+    fn room(&self, field: &dyn ImplicitField, x: Vec3, axis: usize) -> f32 {
         let along = Vec3::AXES[axis];
         let on_plane = x - along * ((x - self.end).dot(self.dir) / self.dir[axis]);
         let room = -self.sign * (field.value(on_plane) - self.iso);
@@ -1088,7 +1088,7 @@ struct PatchAmongOthers<'a> {
     others: OtherPatches<'a>,
 }
 
-impl ScalarField for PatchAmongOthers<'_> {
+impl ImplicitField for PatchAmongOthers<'_> {
     fn iso(&self) -> f32 {
         self.lattice.iso
     }

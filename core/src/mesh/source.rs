@@ -9,27 +9,11 @@
 use glam::Vec3;
 
 use super::grid::SampleGrid;
-use crate::field::{BSplineLattice, MultiPatchField, cubic_weights};
+use crate::field::{BSplineLattice, ImplicitField, MultiPatchField, cubic_weights};
 
-/// A scalar field whose solid is where the value is greater than [`ScalarField::iso`].
-pub trait ScalarField {
-    /// The iso-level of the surface.
-    fn iso(&self) -> f32;
-
-    /// Value at a world point.
-    fn value(&self, p: Vec3) -> f32;
-
-    /// Value and gradient (per world unit) at a world point.
-    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3);
-
-    /// Gradient (per world unit) at a world point: the gradient of
-    /// [`ScalarField::value_and_gradient`], bit for bit. The mesher asks only for this at
-    /// each vertex; a field that gets it for less than value and gradient overrides it.
-    #[inline]
-    fn gradient(&self, p: Vec3) -> Vec3 {
-        self.value_and_gradient(p).1
-    }
-
+/// A field the mesher can sample: point queries ([`ImplicitField`]) and whole blocks of grid
+/// samples, with the bit-for-bit contract above.
+pub trait ScalarField: ImplicitField {
     /// Values at the grid samples `first + (i, j, k)` for `i < counts[0]` etc., written x
     /// fastest into `out[..counts product]`. `scratch` is working memory the caller keeps.
     ///
@@ -115,7 +99,7 @@ pub struct FnField<V, G> {
     pub lipschitz: Option<f32>,
 }
 
-impl<V, G> ScalarField for FnField<V, G>
+impl<V, G> ImplicitField for FnField<V, G>
 where
     V: Fn(Vec3) -> f32,
     G: Fn(Vec3) -> Vec3,
@@ -140,7 +124,13 @@ where
     fn gradient(&self, p: Vec3) -> Vec3 {
         (self.gradient)(p)
     }
+}
 
+impl<V, G> ScalarField for FnField<V, G>
+where
+    V: Fn(Vec3) -> f32,
+    G: Fn(Vec3) -> Vec3,
+{
     /// The closure at each sample, with each axis's coordinates worked out once per block
     /// (the same expression as [`SampleGrid::point`], so the same bits).
     fn sample_block(
@@ -228,23 +218,6 @@ fn assert_rows_apart(counts: [usize; 3], strides: [usize; 2]) {
 }
 
 impl ScalarField for BSplineLattice {
-    #[inline]
-    fn iso(&self) -> f32 {
-        self.iso
-    }
-
-    #[inline]
-    fn value(&self, p: Vec3) -> f32 {
-        BSplineLattice::value(self, p)
-    }
-
-    /// The lattice's own evaluation (with its interior fast path): one summation order for
-    /// the mesher, the haptic loop and the tools.
-    #[inline]
-    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
-        BSplineLattice::value_and_gradient(self, p)
-    }
-
     /// Tensor-product evaluation: one pass per axis over the block's coefficients, about 6×
     /// fewer operations than evaluating each sample's 4×4×4 stencil.
     fn sample_block(
@@ -406,23 +379,7 @@ impl ScalarField for BSplineLattice {
 /// Most samples per axis in one tensor-product pass on a lattice (larger blocks are split).
 pub const MAX_BLOCK: usize = 64;
 
-/// The clay's density, `Σ s_i(T_i x)` (Hua & Qin eq. (3)), at the base patch's iso-level.
 impl ScalarField for MultiPatchField {
-    #[inline]
-    fn iso(&self) -> f32 {
-        MultiPatchField::iso(self)
-    }
-
-    #[inline]
-    fn value(&self, p: Vec3) -> f32 {
-        MultiPatchField::value(self, p)
-    }
-
-    #[inline]
-    fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
-        MultiPatchField::value_and_gradient(self, p)
-    }
-
     /// Each patch's block in a fixed order, summed: a patch in world coordinates uses the
     /// lattice's tensor-product pass, a mapped one its per-sample value. Either gives a sample
     /// the same bits in any block, and so does the sum.

@@ -21,6 +21,7 @@ use glam::Vec3;
 
 use super::error::PointSetError;
 use super::surface::PointSet;
+use dynaclay_core::field::ImplicitField;
 use dynaclay_core::mesh::ScalarField;
 
 /// A boolean operation of Table 1.
@@ -111,7 +112,7 @@ impl SharpBoolean {
     }
 }
 
-impl ScalarField for SharpBoolean {
+impl ImplicitField for SharpBoolean {
     fn iso(&self) -> f32 {
         0.0
     }
@@ -124,6 +125,9 @@ impl ScalarField for SharpBoolean {
         self.combined(p)
     }
 }
+
+/// Meshed by per-sample queries (the trait's default block sampling).
+impl ScalarField for SharpBoolean {}
 
 #[cfg(test)]
 mod tests {

@@ -381,7 +381,7 @@ mod tests {
     use crate::pointset::surface::tests::sphere_cloud;
     use crate::pointset::{PointSet, PointSetOptions, SamplingOptions, nearest_spacings, resample};
     use dynaclay_core::dynamics::{Distribution, surface_point_on_ray};
-    use dynaclay_core::mesh::ScalarField;
+    use dynaclay_core::field::ImplicitField;
 
     /// Fully plastic: the springs give way until the force is spent.
     pub(crate) const CREEP: Material = Material {

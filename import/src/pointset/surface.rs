@@ -30,6 +30,7 @@ use super::error::PointSetError;
 use super::local::{FitSample, FitScratch, LocalField, fit_local};
 use super::normals::{orient_over_mst, plane_normal};
 use crate::fit::PointCloud;
+use dynaclay_core::field::ImplicitField;
 use dynaclay_core::mesh::ScalarField;
 
 /// Below this total blending weight the nearest point's signed distance fills in.
@@ -467,7 +468,7 @@ pub(crate) fn fit_point(
     fit_local(p, half, p, normals[i], samples, options.ridge, scratch)
 }
 
-impl ScalarField for PointSet {
+impl ImplicitField for PointSet {
     fn iso(&self) -> f32 {
         0.0
     }
@@ -480,6 +481,9 @@ impl ScalarField for PointSet {
         self.blend(p)
     }
 }
+
+/// Meshed by per-sample queries (the trait's default block sampling).
+impl ScalarField for PointSet {}
 
 #[cfg(test)]
 pub(crate) mod tests {

@@ -5,7 +5,7 @@
 use glam::{DVec3, Vec3};
 
 use super::fit::Rbf;
-use dynaclay_core::field::BSplineLattice;
+use dynaclay_core::field::{BSplineLattice, ImplicitField};
 use dynaclay_core::mesh::{
     BrickOctree, GridError, Hausdorff, SampleGrid, ScalarField, TriMesh, hausdorff,
 };
@@ -29,7 +29,7 @@ impl Rbf {
 }
 
 /// The zero set of `I` (solid where `I > 0`, like the clay above its iso-level).
-impl ScalarField for Rbf {
+impl ImplicitField for Rbf {
     fn iso(&self) -> f32 {
         0.0
     }
@@ -42,7 +42,9 @@ impl ScalarField for Rbf {
         let x = p.as_dvec3();
         (Rbf::value(self, x) as f32, Rbf::gradient(self, x).as_vec3())
     }
+}
 
+impl ScalarField for Rbf {
     /// `I(m) ± ρ · max |∇I|` over the box's circumscribed ball, widened by a relative 10⁻⁵
     /// for the rounding of the samples to `f32`.
     fn bounds(&self, min: Vec3, max: Vec3) -> Option<(f32, f32)> {
