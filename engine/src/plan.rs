@@ -559,7 +559,7 @@ impl ScriptPlan {
                         relief: std::sync::Arc::new(relief),
                         params: EmbossParams {
                             projection: projection.projection(),
-                            depth: *depth,
+                            depth_fu: *depth,
                             engrave: *engrave,
                         },
                         patch: *patch,

@@ -169,7 +169,7 @@ mod tests {
                     centre: Vec3::ONE,
                     up: Vec3::Y,
                 },
-                depth: 0.05,
+                depth_fu: 0.05,
                 engrave: false,
             },
         };

@@ -75,7 +75,7 @@ impl EmbossPanel {
                     centre: brush.at,
                     axis: brush.normal,
                     up,
-                    size: self.size_fu,
+                    size_fu: self.size_fu,
                 }
             }
             ProjectionKind::Cylindrical => {
@@ -89,7 +89,7 @@ impl EmbossPanel {
                     } else {
                         Vec3::Z
                     },
-                    height: self.size_fu,
+                    height_fu: self.size_fu,
                 }
             }
             ProjectionKind::Spherical => Projection::Spherical {
@@ -99,7 +99,7 @@ impl EmbossPanel {
         };
         EmbossParams {
             projection,
-            depth: self.depth_fu,
+            depth_fu: self.depth_fu,
             engrave: self.engrave,
         }
     }
@@ -183,7 +183,7 @@ mod tests {
             centre: c,
             axis,
             up,
-            size,
+            size_fu: size,
         } = p.projection
         else {
             panic!("planar expected");

@@ -164,18 +164,18 @@ fn emboss_image(
             centre,
             axis: Vec3::Y,
             up: Vec3::Z,
-            height: (hi - lo).y.max(set.spacing_fu),
+            height_fu: (hi - lo).y.max(set.spacing_fu),
         },
         EmbossProjection::Planar => Projection::Planar {
             centre,
             axis: Vec3::Z,
             up: Vec3::Y,
-            size: (hi - lo).max_element().max(set.spacing_fu),
+            size_fu: (hi - lo).max_element().max(set.spacing_fu),
         },
     };
     let params = EmbossParams {
         projection,
-        depth: args.depth.map_or(2.0 * set.spacing_fu, |d| d / frame.scale),
+        depth_fu: args.depth.map_or(2.0 * set.spacing_fu, |d| d / frame.scale),
         engrave: args.engrave,
     };
     let (embossed, report) = crate::pointset::emboss(set, &relief, &params, options)

@@ -17,25 +17,25 @@ mod emboss;
 mod force;
 mod history;
 mod pin;
+mod projection;
+mod relief;
 mod removal;
+mod report;
 mod shape;
 mod solid;
 mod stroke;
 
 pub use action::{ActionError, INTERSECTION_IS_CSG, ToolAction};
 pub use apply::{
-    ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, ToolError, ToolReport, apply_csg, apply_stroke,
-    apply_tool, effective_falloff_fu,
+    ApplyOptions, GeometricTool, MIN_FALLOFF_SPANS, apply_csg, apply_stroke, apply_tool,
+    effective_falloff_fu,
 };
 pub use capture::{CaptureError, MAX_CAPTURE_DIMS, Selection, capture_tool};
 pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
-pub use emboss::{
-    EmbossParams, EmbossParamsError, ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Projection,
-    Relief, apply_emboss,
-};
+pub use emboss::apply_emboss;
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PRESS_REACH_SPANS, PenetrationTarget, anchor_normal,
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,
@@ -46,10 +46,13 @@ pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
 };
+pub use projection::{EmbossParams, EmbossParamsError, Projection};
+pub use relief::{ImageError, MAX_IMAGE_BYTES, MAX_IMAGE_PIXELS, Relief};
 pub use removal::{
     MOST_REMOVED_UNASKED, VolumeChange, clay_volume_fu3, csg_volume_change, removed_fraction,
     tool_volume_change,
 };
+pub use report::{ToolError, ToolReport};
 pub use shape::{FreeformTool, ShapeError, ToolPose, ToolShape, density_from_distance};
 pub use solid::{MAX_SOLID_KNOTS, SolidClayError, solid_clay, solid_spacing_fu};
 pub use stroke::{MAX_SEGMENT_APPLICATIONS, MAX_STROKE_POSES, lerp, resample_stroke, steps_along};

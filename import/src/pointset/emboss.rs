@@ -128,7 +128,7 @@ mod tests {
                 centre: Vec3::ZERO,
                 up: Vec3::Y,
             },
-            depth,
+            depth_fu: depth,
             engrave: false,
         };
         let board = checkerboard(16);
@@ -187,7 +187,7 @@ mod tests {
                 centre: Vec3::ZERO,
                 up: Vec3::Y,
             },
-            depth: -1.0,
+            depth_fu: -1.0,
             engrave: false,
         };
         let e = emboss(&set, &checkerboard(2), &params, &PointSetOptions::default())

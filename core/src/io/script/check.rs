@@ -331,7 +331,7 @@ pub(super) fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             }
             crate::tools::EmbossParams {
                 projection: projection.projection(),
-                depth: *depth,
+                depth_fu: *depth,
                 engrave: *engrave,
             }
             .validate()

@@ -325,7 +325,7 @@ impl ProjectionSpec {
                 centre: centre.into(),
                 axis: axis.into(),
                 up: up.into(),
-                size,
+                size_fu: size,
             },
             Self::Cylindrical {
                 centre,
@@ -336,7 +336,7 @@ impl ProjectionSpec {
                 centre: centre.into(),
                 axis: axis.into(),
                 up: up.into(),
-                height,
+                height_fu: height,
             },
             Self::Spherical { centre, up } => Projection::Spherical {
                 centre: centre.into(),
