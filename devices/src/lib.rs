@@ -30,6 +30,7 @@ pub mod enumerate;
 pub mod falcon;
 pub mod hid_arm;
 pub mod kinematics;
+mod kinematics_error;
 pub mod link_health;
 pub mod open;
 pub mod pointer;
