@@ -18,7 +18,7 @@ use hidapi::{HidApi, HidDevice};
 
 use crate::codec::{cartesian, woodenhaptics as wh};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-use crate::enumerate::{Access, access};
+pub use crate::hid_link::open_hid;
 use crate::kinematics::ArmModel;
 use crate::link_health::LinkHealth;
 use crate::profile::{DeviceProfile, Protocol};
@@ -26,46 +26,6 @@ use crate::velocity::VelocityEstimator;
 
 /// Largest number of queued reports one `read` drains.
 const MAX_REPORTS_PER_READ: usize = 64;
-
-/// Opens the first HID device whose IDs are in `ids`, checking permissions first.
-///
-/// # Errors
-/// [`DeviceError::NotFound`] naming `what`, [`DeviceError::PermissionDenied`] with the hidraw
-/// path, or [`DeviceError::Io`].
-pub fn open_hid(
-    ids: &[(u16, u16)],
-    what: &str,
-) -> Result<(HidApi, HidDevice, String), DeviceError> {
-    let api = HidApi::new().map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "HID enumeration",
-    })?;
-    let found = api
-        .device_list()
-        .find(|d| ids.contains(&(d.vendor_id(), d.product_id())))
-        .map(|d| d.path().to_owned());
-    let Some(path) = found else {
-        return Err(DeviceError::NotFound {
-            what: what.to_string(),
-        });
-    };
-    let path_s = path.to_string_lossy().into_owned();
-    if access(&path_s) == Access::Denied {
-        return Err(DeviceError::PermissionDenied { path: path_s });
-    }
-    let dev = api.open_path(&path).map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "open HID device",
-    })?;
-    dev.set_blocking_mode(false).map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "HID non-blocking mode",
-    })?;
-    Ok((api, dev, path_s))
-}
 
 /// WoodenHaptics base frame → dynaclay device frame.
 #[must_use]
