@@ -24,6 +24,7 @@ pub use sim_arm::{
 };
 
 // Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
+pub mod arm_link;
 pub mod codec;
 pub mod delta;
 pub mod enumerate;
