@@ -13,7 +13,7 @@
 
 use glam::{DMat3, DVec3};
 
-use crate::kinematics::KinematicsError;
+use crate::kinematics_error::KinematicsError;
 use crate::profile::Geometry;
 
 /// Newton iterations allowed in [`Delta::forward`].

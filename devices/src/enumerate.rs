@@ -5,9 +5,9 @@
 //! serialport's sysfs scan. Access is checked with `access(2)` on the device node, so nothing
 //! is opened (opening a tty would toggle DTR and reset some boards). Not for the haptic path.
 
-use std::ffi::CString;
 use std::fmt::Write as _;
 
+pub use crate::node_access::{Access, access};
 use crate::spacemouse::SPACEMOUSE_IDS;
 
 /// USB IDs of the Novint Falcon's FTDI bridge.
@@ -24,17 +24,6 @@ pub enum Transport {
     Hid,
     /// A tty.
     Serial,
-}
-
-/// Whether this user may open a node.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Access {
-    /// Readable and writable.
-    Ok,
-    /// The node exists but is not readable and writable by this user.
-    Denied,
-    /// The node is not there (enumeration raced an unplug) or the path is not a file path.
-    Missing,
 }
 
 /// One connected device.
@@ -54,24 +43,6 @@ pub struct Connected {
     pub spec: Option<String>,
     /// Permission to open the node.
     pub access: Access,
-}
-
-/// Checks whether this user may read and write `path`, without opening it.
-#[must_use]
-pub fn access(path: &str) -> Access {
-    let Ok(c) = CString::new(path) else {
-        return Access::Missing;
-    };
-    // SAFETY: `c` is a valid NUL-terminated string that outlives the call; access(2) only
-    // reads it.
-    let rw = unsafe { libc::access(c.as_ptr(), libc::R_OK | libc::W_OK) };
-    if rw == 0 {
-        Access::Ok
-    } else if std::path::Path::new(path).exists() {
-        Access::Denied
-    } else {
-        Access::Missing
-    }
 }
 
 /// The `--device` spec for a supported USB device.
@@ -233,14 +204,6 @@ mod tests {
             supported_spec(Transport::Serial, 0x0403, 0x6001, "/dev/ttyUSB0"),
             None
         );
-    }
-
-    #[test]
-    fn access_tells_denied_from_missing() {
-        assert_eq!(access("/nonexistent/hidraw9"), Access::Missing);
-        assert_eq!(access("bad\0path"), Access::Missing);
-        let f = tempfile::NamedTempFile::new().unwrap();
-        assert_eq!(access(f.path().to_str().unwrap()), Access::Ok);
     }
 
     #[test]

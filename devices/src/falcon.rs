@@ -18,16 +18,17 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
+pub use crate::arm_link::LinkStats;
+use crate::arm_link::{ArmSession, SerialStream, arm_model};
+use crate::codec::CodecError;
 use crate::codec::falcon::{
     self as fc, BOOT_BAUD, FIRMWARE_BAUD, FalconCommand, FalconReader, FalconStatus, LED_GREEN,
     LED_RED, ReadEvent, STREAM_BAUD,
 };
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-use crate::kinematics::ArmModel;
-use crate::link_health::LinkHealth;
+use crate::kinematics::{ArmModel, Linkage};
 use crate::profile::DeviceProfile;
-use crate::serial_link::{BaudPolicy, SerialLink};
-use crate::velocity::VelocityEstimator;
+use crate::serial_link::{BaudPolicy, READ_BUF, SerialLink};
 
 /// Bootloader handshake sent at [`BOOT_BAUD`].
 pub const BOOT_HELLO: [u8; 3] = [0x0a, 0x43, 0x0d];
@@ -76,38 +77,17 @@ impl Default for FalconOptions {
     }
 }
 
-/// Counters of what the link has seen since `open`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct LinkStats {
-    /// Frames sent.
-    pub sent: u64,
-    /// Valid frames received.
-    pub received: u64,
-    /// Malformed frames received.
-    pub bad_frames: u64,
-    /// Bytes skipped outside frames.
-    pub skipped_bytes: u64,
-    /// Firmware upload attempts in the last `open`.
-    pub firmware_attempts: u32,
-}
-
 /// A Novint Falcon on a serial port.
 pub struct Falcon {
     path: String,
     profile: DeviceProfile,
     model: ArmModel,
     opts: FalconOptions,
-    link: Option<SerialLink>,
-    health: LinkHealth,
+    stream: SerialStream,
+    session: ArmSession,
     reader: FalconReader,
     cmd: FalconCommand,
-    sent_since_read: bool,
     status: FalconStatus,
-    state: DeviceState,
-    velocity: VelocityEstimator,
-    t0: Instant,
-    rx_bytes: u64,
-    stats: LinkStats,
 }
 
 /// Uploads a firmware image through the Falcon bootloader once (no retries).
@@ -147,10 +127,10 @@ pub fn upload_firmware(
     link.set_baud(STREAM_BAUD)
 }
 
-fn codec_fault(e: &crate::codec::CodecError) -> &'static str {
+fn codec_fault(e: &CodecError) -> &'static str {
     match e {
-        crate::codec::CodecError::TooShort { .. } => "Falcon frame cut short",
-        crate::codec::CodecError::BadByte { field, .. } => field,
+        CodecError::TooShort { .. } => "Falcon frame cut short",
+        CodecError::BadByte { field, .. } => field,
         _ => "malformed Falcon frame",
     }
 }
@@ -174,28 +154,18 @@ impl Falcon {
         profile: DeviceProfile,
         opts: FalconOptions,
     ) -> Result<Self, DeviceError> {
-        let model = ArmModel::from_profile(&profile).map_err(|e| DeviceError::Config {
-            origin: profile.name.clone(),
-            message: e.to_string(),
-        })?;
+        let model = arm_model(&profile)?;
         let now = Instant::now();
-        let health = LinkHealth::new(opts.stale_after, now);
         Ok(Self {
             path: path.to_string(),
             profile,
             model,
+            stream: SerialStream::new(opts.stale_after, now),
+            session: ArmSession::new(now),
             opts,
-            link: None,
-            health,
             reader: FalconReader::new(),
             cmd: FalconCommand::default(),
-            sent_since_read: false,
             status: FalconStatus::default(),
-            state: DeviceState::ZERO,
-            velocity: VelocityEstimator::default(),
-            t0: now,
-            rx_bytes: 0,
-            stats: LinkStats::default(),
         })
     }
 
@@ -208,7 +178,7 @@ impl Falcon {
     /// Link counters since `open`.
     #[must_use]
     pub fn link_stats(&self) -> LinkStats {
-        self.stats
+        self.stream.stats
     }
 
     /// The last decoded status (encoders, buttons, homed flags).
@@ -218,45 +188,34 @@ impl Falcon {
     }
 
     fn send(&mut self) -> Result<(), DeviceError> {
-        let frame = fc::encode_command(&self.cmd);
-        let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
-        match link.write_all(&frame) {
-            Ok(()) => {
-                self.stats.sent += 1;
-                Ok(())
-            }
-            Err(e) => Err(self.health.note(e)),
-        }
+        self.stream.write_frame(&fc::encode_command(&self.cmd))
     }
 
     /// Reads what is queued (waiting up to `wait` for the first byte); returns whether a valid
     /// frame arrived and the first fault seen.
     fn pump(&mut self, wait: Duration) -> Result<(bool, Option<DeviceError>), DeviceError> {
-        let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
-        let bytes = match link.read_available(wait) {
-            Ok(b) => b,
-            Err(e) => return Err(self.health.note(e)),
-        };
+        let mut chunk = [0u8; READ_BUF];
+        let received = self.stream.read_chunk(wait, &mut chunk)?;
         let mut fresh = false;
         let mut fault = None;
-        for (i, &b) in bytes.iter().enumerate() {
-            let offset = (self.rx_bytes as usize).wrapping_add(i);
+        for (i, &b) in chunk[..received.len].iter().enumerate() {
+            let offset = received.first_offset.wrapping_add(i);
             match self.reader.push(b) {
                 ReadEvent::Pending => {}
                 ReadEvent::Frame(s) => {
                     self.status = s;
                     fresh = true;
-                    self.stats.received += 1;
+                    self.stream.stats.received += 1;
                 }
                 ReadEvent::Skipped(_) => {
-                    self.stats.skipped_bytes += 1;
+                    self.stream.stats.skipped_bytes += 1;
                     fault.get_or_insert(DeviceError::Protocol {
                         what: "byte outside a Falcon frame",
                         offset,
                     });
                 }
                 ReadEvent::Bad(e) => {
-                    self.stats.bad_frames += 1;
+                    self.stream.stats.bad_frames += 1;
                     fault.get_or_insert(DeviceError::Protocol {
                         what: codec_fault(&e),
                         offset,
@@ -264,7 +223,6 @@ impl Falcon {
                 }
             }
         }
-        self.rx_bytes += bytes.len() as u64;
         Ok((fresh, fault))
     }
 
@@ -311,14 +269,12 @@ impl Falcon {
         }
         let mut last = DeviceError::Timeout { waited_us: 0 };
         for attempt in 1..=self.opts.firmware_retries.max(1) {
-            self.stats.firmware_attempts = attempt;
-            let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
+            self.stream.stats.firmware_attempts = attempt;
+            let link = self.stream.link_mut()?;
             match upload_firmware(link, &image, self.opts.handshake_timeout) {
                 Ok(()) => {
                     self.reader.reset();
-                    if let Some(l) = self.link.as_mut() {
-                        l.clear_input();
-                    }
+                    self.stream.clear_input();
                     if self.firmware_answers()? {
                         return Ok(());
                     }
@@ -358,24 +314,18 @@ impl Falcon {
     }
 
     fn open_inner(&mut self) -> Result<(), DeviceError> {
-        self.link = Some(SerialLink::open(
+        self.stream.open(
             &self.path,
             STREAM_BAUD,
             self.opts.baud_policy,
-            Duration::from_millis(5),
-        )?);
-        self.health.restart(Instant::now());
+            Instant::now(),
+        )?;
         self.reader.reset();
-        self.stats = LinkStats::default();
-        self.rx_bytes = 0;
         self.cmd = FalconCommand {
             motor: [0; 3],
             leds: LED_GREEN,
             homing: false,
         };
-        if let Some(l) = self.link.as_mut() {
-            l.clear_input();
-        }
         if !self.firmware_answers()? {
             self.load_firmware()?;
         }
@@ -383,11 +333,9 @@ impl Falcon {
             self.home()?;
         }
         self.model.reset();
-        self.velocity.reset();
-        self.t0 = Instant::now();
-        self.health.restart(self.t0);
-        self.state = DeviceState::ZERO;
-        self.sent_since_read = false;
+        let now = Instant::now();
+        self.session.start(now);
+        self.stream.live_from(now);
         Ok(())
     }
 }
@@ -395,25 +343,22 @@ impl Falcon {
 impl HapticDevice for Falcon {
     fn info(&self) -> DeviceInfo {
         let center = match self.model.linkage {
-            crate::kinematics::Linkage::Delta(d) => d.home_guess_m.as_vec3(),
-            crate::kinematics::Linkage::Serial(_) => Vec3::ZERO,
+            Linkage::Delta(d) => d.home_guess_m.as_vec3(),
+            Linkage::Serial(_) => Vec3::ZERO,
         };
         self.profile.device_info(center, 4, 1000.0)
     }
 
     fn open(&mut self) -> Result<(), DeviceError> {
-        if self.link.is_some() && !self.health.is_dead() {
+        if self.stream.is_live() {
             return Ok(());
         }
-        let r = self.open_inner();
-        if r.is_err() {
-            self.link = None;
-        }
-        r
+        let set_up = self.open_inner();
+        self.stream.opened(set_up)
     }
 
     fn close(&mut self) -> Result<(), DeviceError> {
-        let r = if self.link.is_some() && !self.health.is_dead() {
+        let zero_force = if self.stream.is_live() {
             self.cmd = FalconCommand {
                 motor: [0; 3],
                 leds: 0,
@@ -423,68 +368,46 @@ impl HapticDevice for Falcon {
         } else {
             Ok(())
         };
-        self.link = None;
-        self.health.restart(Instant::now());
-        match r {
-            Err(DeviceError::Disconnected) => Ok(()),
-            other => other,
-        }
+        self.stream.close(zero_force, Instant::now())
     }
 
     fn is_open(&self) -> bool {
-        self.link.is_some()
+        self.stream.is_open()
     }
 
     fn read(&mut self) -> Result<DeviceState, DeviceError> {
-        if self.link.is_none() {
-            return Err(DeviceError::NotOpen);
-        }
-        self.health.alive()?;
-        if !self.sent_since_read {
+        self.stream.ready()?;
+        if self.session.keep_alive_due() {
             // Keep the stream flowing: the firmware answers one frame per command.
             self.send()?;
         }
-        self.sent_since_read = false;
         let (fresh, fault) = self.pump(self.opts.reply_wait)?;
         let now = Instant::now();
         if fresh {
-            self.health.frame(now);
+            self.stream.frame_received(now);
             // Keep the last good position if the solve fails (a glitch near a singularity).
             if let Ok(p) = self.model.update(self.status.encoders) {
-                let t_us = now.duration_since(self.t0).as_micros() as u64;
-                let p = p.as_vec3();
-                self.state = DeviceState {
-                    position_m: p,
-                    orientation: None,
-                    velocity_m_per_s: self.velocity.update(p, t_us),
-                    buttons: u32::from(self.status.buttons),
-                    timestamp_us: t_us,
-                    sequence: self.state.sequence + 1,
-                };
+                let t_us = self.session.elapsed_us(now);
+                self.session
+                    .sample(p.as_vec3(), u32::from(self.status.buttons), t_us);
             }
         }
         if let Some(f) = fault {
             return Err(f);
         }
-        let link = &mut self.link;
-        self.health.check(now, || {
-            link.as_mut().is_some_and(|l| l.probe_hangup().is_err())
-        })?;
-        Ok(self.state)
+        self.stream.check(now)?;
+        Ok(self.session.state())
     }
 
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
-        if self.link.is_none() {
-            return Err(DeviceError::NotOpen);
-        }
-        self.health.alive()?;
+        self.stream.ready()?;
         let f = if force_n.is_finite() {
             force_n.as_dvec3()
         } else {
             DVec3::ZERO
         };
         self.cmd.motor = self.model.commands_for_force(f);
-        self.sent_since_read = true;
+        self.session.force_written();
         self.send()
     }
 }

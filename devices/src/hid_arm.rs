@@ -16,56 +16,16 @@ use std::time::{Duration, Instant};
 use glam::{DVec3, Vec3};
 use hidapi::{HidApi, HidDevice};
 
+use crate::arm_link::{ArmSession, arm_model, cartesian_force_mn, close_result, limited_force_n};
 use crate::codec::{cartesian, woodenhaptics as wh};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-use crate::enumerate::{Access, access};
+pub use crate::hid_link::open_hid;
 use crate::kinematics::ArmModel;
 use crate::link_health::LinkHealth;
 use crate::profile::{DeviceProfile, Protocol};
-use crate::velocity::VelocityEstimator;
 
 /// Largest number of queued reports one `read` drains.
 const MAX_REPORTS_PER_READ: usize = 64;
-
-/// Opens the first HID device whose IDs are in `ids`, checking permissions first.
-///
-/// # Errors
-/// [`DeviceError::NotFound`] naming `what`, [`DeviceError::PermissionDenied`] with the hidraw
-/// path, or [`DeviceError::Io`].
-pub fn open_hid(
-    ids: &[(u16, u16)],
-    what: &str,
-) -> Result<(HidApi, HidDevice, String), DeviceError> {
-    let api = HidApi::new().map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "HID enumeration",
-    })?;
-    let found = api
-        .device_list()
-        .find(|d| ids.contains(&(d.vendor_id(), d.product_id())))
-        .map(|d| d.path().to_owned());
-    let Some(path) = found else {
-        return Err(DeviceError::NotFound {
-            what: what.to_string(),
-        });
-    };
-    let path_s = path.to_string_lossy().into_owned();
-    if access(&path_s) == Access::Denied {
-        return Err(DeviceError::PermissionDenied { path: path_s });
-    }
-    let dev = api.open_path(&path).map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "open HID device",
-    })?;
-    dev.set_blocking_mode(false).map_err(|_| DeviceError::Io {
-        kind: std::io::ErrorKind::Other,
-        os_code: None,
-        context: "HID non-blocking mode",
-    })?;
-    Ok((api, dev, path_s))
-}
 
 /// WoodenHaptics base frame → dynaclay device frame.
 #[must_use]
@@ -87,10 +47,7 @@ pub struct HidArm {
     dev: Option<HidDevice>,
     command: [u8; wh::OUTPUT_LEN],
     seq: u8,
-    sent_since_read: bool,
-    state: DeviceState,
-    velocity: VelocityEstimator,
-    t0: Instant,
+    session: ArmSession,
     /// No input report for 100 ms makes `read` fail with a timeout (a failed HID read is a
     /// disconnect at once, so the link is never probed).
     health: LinkHealth,
@@ -103,14 +60,7 @@ impl HidArm {
     /// [`DeviceError::Config`] when the profile's protocol is not a HID one.
     pub fn new(profile: DeviceProfile) -> Result<Self, DeviceError> {
         let model = match profile.protocol {
-            Protocol::Woodenhaptics => {
-                Some(
-                    ArmModel::from_profile(&profile).map_err(|e| DeviceError::Config {
-                        origin: profile.name.clone(),
-                        message: e.to_string(),
-                    })?,
-                )
-            }
+            Protocol::Woodenhaptics => Some(arm_model(&profile)?),
             Protocol::CartesianHid => None,
             other => {
                 return Err(DeviceError::Config {
@@ -129,10 +79,7 @@ impl HidArm {
             dev: None,
             command: [0; wh::OUTPUT_LEN],
             seq: 0,
-            sent_since_read: false,
-            state: DeviceState::ZERO,
-            velocity: VelocityEstimator::default(),
-            t0: now,
+            session: ArmSession::new(now),
             health: LinkHealth::new(Duration::from_millis(100), now),
         })
     }
@@ -140,23 +87,16 @@ impl HidArm {
     /// The output report for a force (pure; exposed for tests and recording).
     #[must_use]
     pub fn command_for_force(&mut self, force_n: Vec3) -> [u8; wh::OUTPUT_LEN] {
-        let f = if force_n.is_finite() {
-            force_n.clamp_length_max(self.profile.max_force_n)
-        } else {
-            Vec3::ZERO
-        };
+        let max_force_n = self.profile.max_force_n;
         match &self.model {
             Some(m) => wh::encode_command(&wh::WhCommand::Drive {
-                currents_ma: m.commands_for_force(device_to_wh(f)),
+                currents_ma: m
+                    .commands_for_force(device_to_wh(limited_force_n(force_n, max_force_n))),
             }),
             None => {
                 self.seq = self.seq.wrapping_add(1);
-                let mn = (f * 1000.0)
-                    .round()
-                    .to_array()
-                    .map(|v| v.clamp(f32::from(i16::MIN), f32::from(i16::MAX)) as i16);
                 cartesian::encode_command(&cartesian::CartesianCommand {
-                    force_mn: mn,
+                    force_mn: cartesian_force_mn(force_n, max_force_n),
                     flags: cartesian::FLAG_ENABLE,
                     seq: self.seq,
                 })
@@ -199,14 +139,7 @@ impl HidArm {
                 )
             }
         };
-        self.state = DeviceState {
-            position_m: p,
-            orientation: None,
-            velocity_m_per_s: self.velocity.update(p, t_us),
-            buttons,
-            timestamp_us: t_us,
-            sequence: self.state.sequence + 1,
-        };
+        self.session.sample(p, buttons, t_us);
         Ok(())
     }
 
@@ -242,10 +175,9 @@ impl HapticDevice for HidArm {
         if let Some(m) = self.model.as_mut() {
             m.reset();
         }
-        self.velocity.reset();
-        self.state = DeviceState::ZERO;
-        self.t0 = Instant::now();
-        self.health.restart(self.t0);
+        let now = Instant::now();
+        self.session.start(now);
+        self.health.restart(now);
         self.command = self.command_for_force(Vec3::ZERO);
         self.send()
     }
@@ -259,10 +191,7 @@ impl HapticDevice for HidArm {
         };
         self.dev = None;
         self.api = None;
-        match r {
-            Err(DeviceError::Disconnected) => Ok(()),
-            other => other,
-        }
+        close_result(r)
     }
 
     fn is_open(&self) -> bool {
@@ -273,11 +202,10 @@ impl HapticDevice for HidArm {
         if self.dev.is_none() {
             return Err(DeviceError::NotOpen);
         }
-        if !self.sent_since_read {
+        if self.session.keep_alive_due() {
             // Feed the firmware's 0.5 s watchdog even when the engine only reads.
             self.send()?;
         }
-        self.sent_since_read = false;
         let mut buf = [0u8; 64];
         let mut newest = [0u8; 64];
         let mut newest_len = None;
@@ -292,12 +220,12 @@ impl HapticDevice for HidArm {
         }
         let now = Instant::now();
         if let Some(n) = newest_len {
-            self.apply_report(&newest[..n], now.duration_since(self.t0).as_micros() as u64)?;
+            self.apply_report(&newest[..n], self.session.elapsed_us(now))?;
             self.health.frame(now);
         } else {
             self.health.check(now, || false)?;
         }
-        Ok(self.state)
+        Ok(self.session.state())
     }
 
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
@@ -305,7 +233,7 @@ impl HapticDevice for HidArm {
             return Err(DeviceError::NotOpen);
         }
         self.command = self.command_for_force(force_n);
-        self.sent_since_read = true;
+        self.session.force_written();
         self.send()
     }
 }
@@ -340,11 +268,11 @@ mod tests {
         });
         arm.apply_report(&report, 1000).unwrap();
         assert!(
-            (arm.state.position_m - wh_to_device(target)).length() < 1e-3,
+            (arm.session.state().position_m - wh_to_device(target)).length() < 1e-3,
             "{}",
-            arm.state.position_m
+            arm.session.state().position_m
         );
-        assert_eq!(arm.state.sequence, 1);
+        assert_eq!(arm.session.state().sequence, 1);
         // A force along the device's +z pushes the tool toward the user (WoodenHaptics +x).
         let cmd = arm.command_for_force(Vec3::new(0.0, 0.0, 2.0));
         let wh::WhCommand::Drive { currents_ma } = wh::decode_command(&cmd).unwrap() else {
@@ -382,8 +310,8 @@ mod tests {
             seq: 0,
         });
         arm.apply_report(&r, 10).unwrap();
-        assert!((arm.state.position_m - Vec3::new(0.001, 0.002, -0.003)).length() < 1e-9);
-        assert_eq!(arm.state.buttons, 5);
+        assert!((arm.session.state().position_m - Vec3::new(0.001, 0.002, -0.003)).length() < 1e-9);
+        assert_eq!(arm.session.state().buttons, 5);
         let c =
             cartesian::decode_command(&arm.command_for_force(Vec3::new(100.0, 0.0, 0.0))).unwrap();
         assert_eq!(c.force_mn, [5000, 0, 0], "clamped to the profile's 5 N");

@@ -24,13 +24,17 @@ pub use sim_arm::{
 };
 
 // Hardware drivers, their protocol codecs, kinematics, profiles, enumeration and device specs.
+pub mod arm_link;
 pub mod codec;
 pub mod delta;
 pub mod enumerate;
 pub mod falcon;
 pub mod hid_arm;
+pub mod hid_link;
 pub mod kinematics;
+mod kinematics_error;
 pub mod link_health;
+mod node_access;
 pub mod open;
 pub mod pointer;
 pub mod pose_input;

@@ -11,14 +11,12 @@ use std::time::{Duration, Instant};
 
 use glam::Vec3;
 
+use crate::arm_link::{ArmSession, LinkStats, SerialStream, cartesian_force_mn};
 use crate::codec::CodecError;
 use crate::codec::frame::{self, DeviceMsg, FrameEvent, FrameReader, HostMsg, MAX_FRAME, VERSION};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-use crate::falcon::LinkStats;
-use crate::link_health::LinkHealth;
 use crate::profile::DeviceProfile;
-use crate::serial_link::{BaudPolicy, SerialLink};
-use crate::velocity::VelocityEstimator;
+use crate::serial_link::{BaudPolicy, READ_BUF};
 
 /// Default line rate (USB CDC ports ignore it).
 pub const DEFAULT_BAUD: u32 = 1_000_000;
@@ -61,18 +59,12 @@ pub struct SerialArm {
     path: String,
     profile: DeviceProfile,
     opts: SerialArmOptions,
-    link: Option<SerialLink>,
-    health: LinkHealth,
+    stream: SerialStream,
+    session: ArmSession,
     reader: FrameReader,
     force_mn: [i16; 3],
     seq: u16,
-    sent_since_read: bool,
-    state: DeviceState,
     device_max_force_n: f32,
-    velocity: VelocityEstimator,
-    t0: Instant,
-    rx_bytes: u64,
-    stats: LinkStats,
     homed: bool,
 }
 
@@ -90,24 +82,17 @@ impl SerialArm {
     #[must_use]
     pub fn new(path: &str, profile: DeviceProfile, opts: SerialArmOptions) -> Self {
         let now = Instant::now();
-        let health = LinkHealth::new(opts.stale_after, now);
         let device_max_force_n = profile.max_force_n;
         Self {
             path: path.to_string(),
             profile,
+            stream: SerialStream::new(opts.stale_after, now),
+            session: ArmSession::new(now),
             opts,
-            link: None,
-            health,
             reader: FrameReader::new(),
             force_mn: [0; 3],
             seq: 0,
-            sent_since_read: false,
-            state: DeviceState::ZERO,
             device_max_force_n,
-            velocity: VelocityEstimator::default(),
-            t0: now,
-            rx_bytes: 0,
-            stats: LinkStats::default(),
             homed: false,
         }
     }
@@ -120,7 +105,7 @@ impl SerialArm {
     /// Link counters since `open`.
     #[must_use]
     pub fn link_stats(&self) -> LinkStats {
-        self.stats
+        self.stream.stats
     }
 
     /// Whether the device reported homed in its last state (or HOME_DONE succeeded).
@@ -135,14 +120,7 @@ impl SerialArm {
             what: "frame encoding",
             offset: 0,
         })?;
-        let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
-        match link.write_all(&buf[..n]) {
-            Ok(()) => {
-                self.stats.sent += 1;
-                Ok(())
-            }
-            Err(e) => Err(self.health.note(e)),
-        }
+        self.stream.write_frame(&buf[..n])
     }
 
     fn send_force(&mut self) -> Result<(), DeviceError> {
@@ -159,33 +137,24 @@ impl SerialArm {
         wait: Duration,
         on_msg: &mut dyn FnMut(&mut Self, DeviceMsg),
     ) -> Result<Option<DeviceError>, DeviceError> {
-        let mut chunk = [0u8; crate::serial_link::READ_BUF];
-        let n = {
-            let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
-            match link.read_available(wait) {
-                Ok(b) => {
-                    chunk[..b.len()].copy_from_slice(b);
-                    b.len()
-                }
-                Err(e) => return Err(self.health.note(e)),
-            }
-        };
+        let mut chunk = [0u8; READ_BUF];
+        let received = self.stream.read_chunk(wait, &mut chunk)?;
         let mut fault = None;
-        for (i, &b) in chunk[..n].iter().enumerate() {
-            let offset = (self.rx_bytes as usize).wrapping_add(i);
+        for (i, &b) in chunk[..received.len].iter().enumerate() {
+            let offset = received.first_offset.wrapping_add(i);
             let mut ev = Some(self.reader.push(b));
             while let Some(e) = ev {
                 match e {
                     FrameEvent::Pending => {}
                     FrameEvent::Skipped(_) => {
-                        self.stats.skipped_bytes += 1;
+                        self.stream.stats.skipped_bytes += 1;
                         fault.get_or_insert(DeviceError::Protocol {
                             what: "byte outside a frame",
                             offset,
                         });
                     }
                     FrameEvent::Bad(err) => {
-                        self.stats.bad_frames += 1;
+                        self.stream.stats.bad_frames += 1;
                         fault.get_or_insert(DeviceError::Protocol {
                             what: fault_name(&err),
                             offset,
@@ -194,11 +163,11 @@ impl SerialArm {
                     FrameEvent::Frame { kind, .. } => {
                         match DeviceMsg::decode(kind, self.reader.payload()) {
                             Ok(m) => {
-                                self.stats.received += 1;
+                                self.stream.stats.received += 1;
                                 on_msg(self, m);
                             }
                             Err(err) => {
-                                self.stats.bad_frames += 1;
+                                self.stream.stats.bad_frames += 1;
                                 fault.get_or_insert(DeviceError::Protocol {
                                     what: fault_name(&err),
                                     offset,
@@ -210,7 +179,6 @@ impl SerialArm {
                 ev = self.reader.drain();
             }
         }
-        self.rx_bytes += n as u64;
         Ok(fault)
     }
 
@@ -228,18 +196,13 @@ impl SerialArm {
     }
 
     fn open_inner(&mut self) -> Result<(), DeviceError> {
-        let mut link = SerialLink::open(
+        self.stream.open(
             &self.path,
             self.opts.baud,
             self.opts.baud_policy,
-            Duration::from_millis(5),
+            Instant::now(),
         )?;
-        link.clear_input();
-        self.link = Some(link);
-        self.health.restart(Instant::now());
         self.reader.reset();
-        self.stats = LinkStats::default();
-        self.rx_bytes = 0;
         self.force_mn = [0; 3];
         let mut version = None;
         for _ in 0..3 {
@@ -306,11 +269,9 @@ impl SerialArm {
                 }
             }
         }
-        self.velocity.reset();
-        self.t0 = Instant::now();
-        self.health.restart(self.t0);
-        self.state = DeviceState::ZERO;
-        self.sent_since_read = false;
+        let now = Instant::now();
+        self.session.start(now);
+        self.stream.live_from(now);
         Ok(())
     }
 
@@ -323,22 +284,15 @@ impl SerialArm {
         } = m
         {
             let now = Instant::now();
-            let t_us = now.duration_since(self.t0).as_micros() as u64;
+            let t_us = self.session.elapsed_us(now);
             let p = Vec3::new(
                 position_um[0] as f32,
                 position_um[1] as f32,
                 position_um[2] as f32,
             ) * 1e-6;
             self.homed = status & frame::status::HOMED != 0;
-            self.health.frame(now);
-            self.state = DeviceState {
-                position_m: p,
-                orientation: None,
-                velocity_m_per_s: self.velocity.update(p, t_us),
-                buttons: u32::from(buttons),
-                timestamp_us: t_us,
-                sequence: self.state.sequence + 1,
-            };
+            self.stream.frame_received(now);
+            self.session.sample(p, u32::from(buttons), t_us);
         }
     }
 }
@@ -351,70 +305,44 @@ impl HapticDevice for SerialArm {
     }
 
     fn open(&mut self) -> Result<(), DeviceError> {
-        if self.link.is_some() && !self.health.is_dead() {
+        if self.stream.is_live() {
             return Ok(());
         }
-        let r = self.open_inner();
-        if r.is_err() {
-            self.link = None;
-        }
-        r
+        let set_up = self.open_inner();
+        self.stream.opened(set_up)
     }
 
     fn close(&mut self) -> Result<(), DeviceError> {
-        let r = if self.link.is_some() && !self.health.is_dead() {
+        let zero_force = if self.stream.is_live() {
             self.force_mn = [0; 3];
             self.send_force()
         } else {
             Ok(())
         };
-        self.link = None;
-        self.health.restart(Instant::now());
-        match r {
-            Err(DeviceError::Disconnected) => Ok(()),
-            other => other,
-        }
+        self.stream.close(zero_force, Instant::now())
     }
 
     fn is_open(&self) -> bool {
-        self.link.is_some()
+        self.stream.is_open()
     }
 
     fn read(&mut self) -> Result<DeviceState, DeviceError> {
-        if self.link.is_none() {
-            return Err(DeviceError::NotOpen);
-        }
-        self.health.alive()?;
-        if !self.sent_since_read {
+        self.stream.ready()?;
+        if self.session.keep_alive_due() {
             self.send_force()?;
         }
-        self.sent_since_read = false;
         let fault = self.pump(self.opts.reply_wait, &mut |s, m| s.on_state(m))?;
         if let Some(f) = fault {
             return Err(f);
         }
-        let link = &mut self.link;
-        self.health.check(Instant::now(), || {
-            link.as_mut().is_some_and(|l| l.probe_hangup().is_err())
-        })?;
-        Ok(self.state)
+        self.stream.check(Instant::now())?;
+        Ok(self.session.state())
     }
 
     fn write_force(&mut self, force_n: Vec3) -> Result<(), DeviceError> {
-        if self.link.is_none() {
-            return Err(DeviceError::NotOpen);
-        }
-        self.health.alive()?;
-        let f = if force_n.is_finite() {
-            force_n.clamp_length_max(self.device_max_force_n)
-        } else {
-            Vec3::ZERO
-        };
-        self.force_mn = (f * 1000.0)
-            .round()
-            .to_array()
-            .map(|v| v.clamp(f32::from(i16::MIN), f32::from(i16::MAX)) as i16);
-        self.sent_since_read = true;
+        self.stream.ready()?;
+        self.force_mn = cartesian_force_mn(force_n, self.device_max_force_n);
+        self.session.force_written();
         self.send_force()
     }
 }

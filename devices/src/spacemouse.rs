@@ -14,7 +14,7 @@ use hidapi::{HidApi, HidDevice};
 use crate::codec::CodecError;
 use crate::codec::spacemouse::{SpaceMouseReport, decode_report};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
-use crate::hid_arm::open_hid;
+use crate::hid_link::open_hid;
 use crate::pose_input::{PoseInputConfig, PoseIntegrator};
 
 /// USB IDs handled as SpaceMice: the Logitech-era (0x046d) and 3Dconnexion (0x256f) families.

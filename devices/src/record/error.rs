@@ -22,12 +22,13 @@ pub enum RecordError {
     BadMagic,
     /// The file is a recording of a format version this build cannot read.
     #[error(
-        "recording format version {found} is not supported (this build reads versions {oldest} to {supported})",
-        oldest = super::format::OLDEST_READ_VERSION
+        "recording format version {found} is not supported (this build reads versions {oldest} to {supported})"
     )]
     UnsupportedVersion {
         /// Version found in the header.
         found: u16,
+        /// The oldest version this build reads.
+        oldest: u16,
         /// Version this build reads and writes.
         supported: u16,
     },

@@ -701,6 +701,7 @@ impl Recording {
         if !(OLDEST_READ_VERSION..=FORMAT_VERSION).contains(&version) {
             return Err(RecordError::UnsupportedVersion {
                 found: version,
+                oldest: OLDEST_READ_VERSION,
                 supported: FORMAT_VERSION,
             });
         }
@@ -1012,10 +1013,12 @@ mod tests {
             e,
             RecordError::UnsupportedVersion {
                 found: 3,
+                oldest: 1,
                 supported: 2
             }
         ));
         assert!(e.to_string().contains("version 3"), "{e}");
+        assert!(e.to_string().contains("reads versions 1 to 2"), "{e}");
         bytes[8] = 0;
         assert!(matches!(
             Recording::parse(&bytes),
