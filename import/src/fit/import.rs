@@ -22,7 +22,8 @@ use super::hierarchy::{
     fit_hierarchy,
 };
 use super::mesh::{read_mesh, sample_triangles};
-use super::points::{PointCloud, PointColours, PointsError, read_points_with_colours};
+use super::point_file::read_points_with_colours;
+use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
 use super::volume::{
     Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,

@@ -10,6 +10,7 @@ pub mod cloud;
 pub mod hierarchy;
 pub mod import;
 pub mod mesh;
+pub mod point_file;
 pub mod points;
 pub mod sdf;
 pub mod volume;
@@ -24,10 +25,8 @@ pub use import::{
     closed_mesh_grid, fit_file, fit_import, import_cloud, import_session, imported_session,
     is_importable, is_point_cloud,
 };
-pub use points::{
-    MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz, read_points,
-    read_points_with_colours,
-};
+pub use point_file::{read_points, read_points_with_colours};
+pub use points::{MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
