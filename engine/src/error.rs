@@ -7,6 +7,7 @@ use std::time::Duration;
 use glam::Vec3;
 
 use dynaclay_devices::DeviceError;
+use dynaclay_devices::record::ScheduleGap;
 use dynaclay_loops::LoopError;
 
 use dynaclay_core::field::BSplineLattice;
@@ -34,7 +35,7 @@ pub enum EngineError {
     DeviceSwap(SwapRefused),
     /// A replay could not follow its recording's schedule.
     #[error("replay: {0}")]
-    Replay(#[from] super::replay::ReplayMismatch),
+    Replay(#[from] ReplayMismatch),
     /// One or more loops failed (panicked or lost their state) while running; every loop was
     /// stopped. The session is the simulation's, when its loop was not one that failed.
     #[error(
@@ -236,3 +237,47 @@ pub enum SaveError {
 
 /// Where a save's outcome goes: the path written, or why not.
 pub type SaveReply = crossbeam::channel::Sender<Result<PathBuf, SaveError>>;
+
+/// Where a replay and its recorded schedule part.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ReplayMismatch {
+    /// The recording cannot drive an exact replay.
+    #[error("{0}")]
+    NoSchedule(ScheduleGap),
+    /// A tick fetched a snapshot version the recorded steps never publish.
+    #[error(
+        "haptic tick {tick} fetched field snapshot {recorded} in the recorded run, but the replay's simulation is at {replayed} after every recorded step it could take"
+    )]
+    Snapshot {
+        /// The tick (1, 2, …).
+        tick: u64,
+        /// The version the recorded tick fetched.
+        recorded: u64,
+        /// The version the replay reached.
+        replayed: u64,
+    },
+    /// A step took a tool sample from a tick that has not run yet.
+    #[error(
+        "simulation step {step} took the tool sample of haptic tick {sample_tick}, which the replay has not reached (tick {ticks})"
+    )]
+    FutureSample {
+        /// The step (0, 1, …).
+        step: u64,
+        /// The tick whose sample it took.
+        sample_tick: u64,
+        /// Ticks replayed so far.
+        ticks: u64,
+    },
+    /// Fewer commands were sent than the recorded run applied before a step.
+    #[error(
+        "simulation step {step} applied {recorded} command(s) in the recorded run, but only {sent} had been sent by then in the replay (replay with the script and starting session the run was recorded with)"
+    )]
+    Commands {
+        /// The step (0, 1, …).
+        step: u64,
+        /// Commands the recorded step applied.
+        recorded: u32,
+        /// Commands available in the replay.
+        sent: u32,
+    },
+}

@@ -41,7 +41,8 @@ pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,
 };
 pub use error::{
-    CommandError, EngineError, LatticeShape, LoadRefused, SaveError, SaveReply, SwapRefused,
+    CommandError, EngineError, LatticeShape, LoadRefused, ReplayMismatch, SaveError, SaveReply,
+    SwapRefused,
 };
 pub use force_limit::{ForceLimit, InvalidForceLimit};
 pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
@@ -55,7 +56,7 @@ pub use plan::{
     ScriptPlan, TRAVEL_S, builtin_script,
 };
 pub use removal_guard::{MOST_REMOVED_UNASKED, RemovalGuard, RemovalQuestion, StrokeRemoval};
-pub use replay::{ReplayMismatch, ScheduledReplay};
+pub use replay::ScheduledReplay;
 pub use script_driver::ScriptDriver;
 pub use sim_status::SimStatus;
 pub use simulation::{

@@ -24,11 +24,11 @@
 use std::time::Instant;
 
 use crossbeam::channel::Sender;
-use dynaclay_devices::record::{RecordedSchedule, ReplayDevice, ScheduleGap};
+use dynaclay_devices::record::{RecordedSchedule, ReplayDevice};
 
 use super::command::Command;
 use super::config::EngineConfig;
-use super::error::EngineError;
+use super::error::{EngineError, ReplayMismatch};
 use super::graphics::MeshSink;
 use super::haptic::HapticOutcome;
 use super::io_worker::IoWorker;
@@ -36,50 +36,6 @@ use super::lockstep::LockstepReport;
 use super::tool_sample::ToolSample;
 use super::wiring::{Stages, build};
 use dynaclay_core::field::{BSplineLattice, MultiPatchField};
-
-/// Where a replay and its recorded schedule part.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum ReplayMismatch {
-    /// The recording cannot drive an exact replay.
-    #[error("{0}")]
-    NoSchedule(ScheduleGap),
-    /// A tick fetched a snapshot version the recorded steps never publish.
-    #[error(
-        "haptic tick {tick} fetched field snapshot {recorded} in the recorded run, but the replay's simulation is at {replayed} after every recorded step it could take"
-    )]
-    Snapshot {
-        /// The tick (1, 2, …).
-        tick: u64,
-        /// The version the recorded tick fetched.
-        recorded: u64,
-        /// The version the replay reached.
-        replayed: u64,
-    },
-    /// A step took a tool sample from a tick that has not run yet.
-    #[error(
-        "simulation step {step} took the tool sample of haptic tick {sample_tick}, which the replay has not reached (tick {ticks})"
-    )]
-    FutureSample {
-        /// The step (0, 1, …).
-        step: u64,
-        /// The tick whose sample it took.
-        sample_tick: u64,
-        /// Ticks replayed so far.
-        ticks: u64,
-    },
-    /// Fewer commands were sent than the recorded run applied before a step.
-    #[error(
-        "simulation step {step} applied {recorded} command(s) in the recorded run, but only {sent} had been sent by then in the replay (replay with the script and starting session the run was recorded with)"
-    )]
-    Commands {
-        /// The step (0, 1, …).
-        step: u64,
-        /// Commands the recorded step applied.
-        recorded: u32,
-        /// Commands available in the replay.
-        sent: u32,
-    },
-}
 
 /// A replay of a recorded threaded run, one recorded haptic tick at a time.
 pub struct ScheduledReplay {
