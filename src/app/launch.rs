@@ -7,14 +7,16 @@ use std::time::{Duration, Instant};
 
 use dynaclay_devices::pointer::{PointerConfig, pointer_device};
 use dynaclay_devices::spec::DeviceSpec;
-use dynaclay_devices::{DeviceInfo, HapticDevice, RecordingDevice, SimArmConfig, SimulatedArm};
+use dynaclay_devices::{HapticDevice, RecordingDevice};
 use dynaclay_loops::{busy_fraction, cpu_jiffies, run_probes};
 
 use super::bridge::{DeviceOpener, RestartSettings, start_bridge};
+use super::device_maker::{MakeDeviceError, make_device};
 use super::link::engine_link;
 use super::pointer_tool::PointerTool;
 use super::probe_panel::{ProbeOutcome, ProbeSettings};
 use super::run::{GuiOptions, run_gui};
+use super::state::DEFAULT_SESSION;
 use crate::engine::{Engine, EngineConfig, ScriptPlan, StartOptions, build_clay};
 use crate::field::MultiPatchField;
 use crate::io::{Autosave, AutosavePolicy, load_session, recovery_to_use};
@@ -57,9 +59,6 @@ pub struct GuiArgs {
     /// Start from the recovery file autosave left for the session (`--recover`).
     pub recover: bool,
 }
-
-/// The session file the window saves to and autosaves next to when none is named.
-pub const DEFAULT_SESSION: &str = "sculpt.dclay";
 
 /// Parses `dynaclay gui`'s arguments: an optional session path, `--device` and `--recover`.
 ///
@@ -233,60 +232,6 @@ fn probe_before_engine(settings: ProbeSettings) -> Option<ProbeOutcome> {
         .zip(cpu_jiffies())
         .and_then(|(b, a)| busy_fraction(b, a));
     Some(ProbeOutcome::before_engine(&run.summary(), busy))
-}
-
-/// Why [`make_device`] made no device.
-#[derive(Debug, thiserror::Error)]
-pub enum MakeDeviceError {
-    /// The mouse is the window's own device, made with the window.
-    #[error(
-        "the mouse is the window's own device: start with `dynaclay gui` (or `--device mouse`) to sculpt with it"
-    )]
-    PointerIsTheWindow,
-    /// Recordings are replayed by `dynaclay run`.
-    #[error("{}: use `dynaclay run --device replay:FILE` to replay recordings", file.display())]
-    Replay {
-        /// The recording named.
-        file: PathBuf,
-    },
-    /// The simulated arm's script does not map onto the clay.
-    #[error(transparent)]
-    Script(#[from] crate::io::ScriptError),
-    /// The driver could not be made.
-    #[error(transparent)]
-    Device(#[from] dynaclay_devices::DeviceError),
-}
-
-/// Makes the device `spec` names, for the clay `field`: the simulated arm follows `script`'s
-/// strokes mapped onto that clay (so the view moves); a hardware spec gets its driver. A
-/// replay is refused here: recordings are replayed by `dynaclay run`.
-///
-/// # Errors
-/// The driver's or the script's error, or the refusal of the mouse or a replay.
-pub fn make_device(
-    spec: &DeviceSpec,
-    field: &MultiPatchField,
-    script: &ScriptPlan,
-) -> Result<(Box<dyn HapticDevice>, DeviceInfo), MakeDeviceError> {
-    match spec {
-        DeviceSpec::Sim => {
-            let arm = SimArmConfig::default();
-            let info = arm.info.clone();
-            let map = EngineConfig::for_clay(field, &info).map;
-            let trajectory = script.trajectory(&map)?;
-            Ok((Box::new(SimulatedArm::new(arm, trajectory)), info))
-        }
-        DeviceSpec::Pointer => Err(MakeDeviceError::PointerIsTheWindow),
-        DeviceSpec::Replay { file } => Err(MakeDeviceError::Replay { file: file.clone() }),
-        hw => {
-            let d = dynaclay_devices::open::build_driver(
-                hw,
-                &dynaclay_devices::open::DriverOptions::from_env(),
-            )?;
-            let info = d.info();
-            Ok((d, info))
-        }
-    }
 }
 
 #[cfg(test)]

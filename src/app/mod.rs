@@ -5,6 +5,7 @@ mod bridge;
 mod camera_input;
 mod command;
 mod csg_panel;
+mod device_maker;
 mod device_panel;
 mod edit_requests;
 mod emboss_panel;
@@ -16,6 +17,7 @@ mod link;
 mod material_panel;
 mod meshes;
 mod palette;
+mod palette_panel;
 mod pin_panel;
 mod pointer_tool;
 mod probe_panel;
@@ -34,11 +36,12 @@ pub use camera_input::{
 };
 pub use command::{CsgOperand, EngineCommand, EngineEvent, ForceMode};
 pub use csg_panel::{CSG_OPS, CsgPanel, OperandKind, SolidKind};
+pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
-pub use launch::{GuiArgs, LaunchError, MakeDeviceError, gui_main, parse_gui_args};
+pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
 pub use library_panel::{LibraryPanel, SelectionKind, freeform_ui};
 pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,

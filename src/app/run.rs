@@ -23,7 +23,7 @@ impl Default for GuiOptions {
         Self {
             title: "dynaclay".into(),
             window_size_pt: [1400.0, 900.0],
-            session_path: super::launch::DEFAULT_SESSION.into(),
+            session_path: super::state::DEFAULT_SESSION.into(),
             probe_settings: super::probe_panel::ProbeSettings::default(),
             probe_at_start: None,
         }

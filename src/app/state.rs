@@ -34,6 +34,9 @@ use super::probe_panel::ProbePanel;
 use super::view::{EngineView, WorldBox};
 use super::viewport::{DiscKey, SceneView, camera_input};
 
+/// The session file the window saves to and autosaves next to when none is named.
+pub const DEFAULT_SESSION: &str = "sculpt.dclay";
+
 /// Set in the mesh version handed to the view while splats hide the mesh, so the view drops
 /// the chunks and takes them again when the mesh comes back.
 const HIDDEN_MESH_VERSION: u64 = 1 << 63;
@@ -102,7 +105,7 @@ pub struct FilePaths {
 impl Default for FilePaths {
     fn default() -> Self {
         Self {
-            session: super::launch::DEFAULT_SESSION.into(),
+            session: DEFAULT_SESSION.into(),
             export: "sculpt.obj".into(),
         }
     }

@@ -1,6 +1,6 @@
 //! `dynaclay devices`: what is connected, and what cannot be opened.
 
-use super::run::CliError;
+use super::error::CliError;
 
 /// Prints the connected devices and any permission notes.
 ///

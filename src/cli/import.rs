@@ -13,7 +13,7 @@ use std::time::Duration;
 
 use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
-use super::run::CliError;
+use super::error::CliError;
 use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, fit_file, imported_session};
 use crate::io::{OutputKind, OutputRule, save_session};
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
@@ -100,7 +100,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         ImportError::Fit { .. } => CliError::Output(e.to_string()),
         other => CliError::Usage(other.to_string()),
     })?;
-    let session = imported_session(field, &args.input, super::run::unix_now_s());
+    let session = imported_session(field, &args.input, crate::io::unix_now_s());
     // The mesh is made (within the memory budget) before anything is written, so a refused
     // mesh leaves no half-finished import.
     let mesh = match (&args.mesh, mesh_format) {

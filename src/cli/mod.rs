@@ -20,6 +20,7 @@ macro_rules! say_raw {
 mod args;
 pub mod budget;
 mod devices;
+mod error;
 mod import;
 mod outputs;
 mod platform;
@@ -33,13 +34,14 @@ mod sculpt;
 pub use args::{
     Cli, Commands, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode,
 };
+pub use error::CliError;
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
 pub use platform::{PlatformJudged, PlatformWatch};
 pub use points::{PointsOutcome, points};
 pub use profile::profile;
 pub use rbf::{RbfCommandError, RbfOutcome, rbf};
 pub use render::render;
-pub use run::{CliError, run};
+pub use run::run;
 pub use sculpt::{describe_outcome, mesh_clay, render_sculpt};
 
 /// Runs the parsed command line; returns the process exit code.

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use dynaclay_loops::{LoopSummary, ProfileDoc, latency_png, latency_svg, profile_report};
 
 use super::args::ImageArgs;
+use super::error::CliError;
 use super::platform::PlatformJudged;
-use super::run::CliError;
 use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
 use crate::io::{Session, save_session, write_atomic};
@@ -156,7 +156,7 @@ fn write_field_outputs(
 
     let session_path = dir.join("session.dclay");
     let mut session = session.clone();
-    session.meta.saved_unix_s = super::run::unix_now_s();
+    session.meta.saved_unix_s = crate::io::unix_now_s();
     crate::io::check_replaceable(&session_path).map_err(|e| CliError::Output(e.to_string()))?;
     save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);

@@ -9,7 +9,7 @@ use dynaclay_loops::{
     read_platform_facts, run_probes, verdict,
 };
 
-use super::run::CliError;
+use super::error::CliError;
 
 /// The rates the readiness verdict judges, Hz.
 pub const JUDGED_RATES_HZ: [f64; 2] = [1000.0, 4000.0];

@@ -8,7 +8,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::args::{EmbossProjection, PointsArgs};
-use super::run::CliError;
+use super::error::CliError;
 use crate::fit::read_points;
 use crate::io::{OutputKind, OutputRule};
 use crate::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};

@@ -13,8 +13,8 @@ use dynaclay_loops::{
 };
 
 use super::args::ProfileArgs;
+use super::error::CliError;
 use super::platform::PlatformWatch;
-use super::run::CliError;
 use crate::engine::{Engine, EngineConfig, HeadlessSink, ScriptPlan, build_clay};
 use crate::io::bounded_read::read_regular_file;
 

@@ -2,7 +2,7 @@
 
 use super::args::RenderArgs;
 use super::budget::MemoryBudget;
-use super::run::CliError;
+use super::error::CliError;
 use super::sculpt::{describe_outcome, mesh_clay, render_sculpt};
 use crate::io::{OutputKind, OutputRule, load_session};
 use crate::render::RenderOutcome;

@@ -9,7 +9,7 @@ use std::path::Path;
 
 use super::args::ImageArgs;
 use super::budget::{MESH_BYTES_PER_BRICK, MemoryBudget, OverBudget};
-use super::run::CliError;
+use super::error::CliError;
 use crate::mesh::{BrickOctree, SampleGrid};
 use crate::render::{
     RenderError, RenderOutcome, chunk_views, octree_chunks, render_to_png, scene_camera,

@@ -27,5 +27,5 @@ pub use script::{
     load_script, paint_request, parse_script, pin_request, poses,
 };
 pub use session::{
-    MAX_TOOL_NAME_BYTES, MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset,
+    MAX_TOOL_NAME_BYTES, MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset, unix_now_s,
 };

@@ -20,6 +20,15 @@ pub struct SessionMeta {
     pub writer: String,
 }
 
+/// Seconds since the Unix epoch now (0 on a clock set before 1970): the stamp for
+/// [`SessionMeta::created_unix_s`] and [`SessionMeta::saved_unix_s`].
+#[must_use]
+pub fn unix_now_s() -> u64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs())
+}
+
 /// The material: uniform defaults for the density-spring dynamics (and the springs'
 /// neighbourhood), overridden where grids of mass, damping, stiffness or plasticity are
 /// painted (the simulation applies them at its mass points; see [`MaterialGrid`]).

@@ -641,10 +641,11 @@ pub fn import_session(
     note: &mut dyn FnMut(String),
 ) -> Result<Session, ImportError> {
     let field = fit_file(path, settings, progress, note)?;
-    let now = std::time::SystemTime::now()
-        .duration_since(std::time::SystemTime::UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs());
-    Ok(imported_session(field, path, now))
+    Ok(imported_session(
+        field,
+        path,
+        dynaclay_core::io::unix_now_s(),
+    ))
 }
 
 #[cfg(test)]

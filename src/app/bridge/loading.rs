@@ -78,10 +78,10 @@ impl Bridge {
                 None
             }
         };
-        let now = std::time::SystemTime::now()
-            .duration_since(std::time::SystemTime::UNIX_EPOCH)
-            .map_or(0, |d| d.as_secs());
-        Ok((imported_session(imported.fit.field, path, now), points))
+        Ok((
+            imported_session(imported.fit.field, path, crate::io::unix_now_s()),
+            points,
+        ))
     }
 
     /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its

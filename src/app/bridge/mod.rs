@@ -36,7 +36,7 @@ use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::Vec3;
 
 use super::command::{EngineCommand, EngineEvent};
-use super::launch::MakeDeviceError;
+use super::device_maker::MakeDeviceError;
 use super::link::{EngineEndpoint, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
