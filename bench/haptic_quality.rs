@@ -167,7 +167,7 @@ fn run(
                         velocity_m_per_s: state.velocity_m_per_s,
                         time_us: state.timestamp_us,
                         field_per_m: map.field_per_m,
-                        force_n_per_unit: map.force_n_per_unit,
+                        force_n_per_reaction: map.force_n_per_reaction,
                         stroke_active: false,
                         tool,
                         stroke: &stroke,

@@ -141,7 +141,7 @@ fn run() -> Result<(), Box<dyn Error>> {
             println!(
                 "{:>5} ms  {:>12.4}   {:>10.3}",
                 tick,
-                sample.tip.y,
+                sample.tip_fu.y,
                 sample.device_force_n.length()
             );
         }

@@ -159,7 +159,7 @@ fn devices_switch_disconnect_and_reconnect_while_the_haptic_loop_keeps_ticking()
     engine.commands().send(Command::StrokeStop).unwrap();
     let at_second = map.to_field(Vec3::new(0.05, 0.0, 0.0));
     wait_for(&mut engine, "the second arm's position", |t| {
-        t.tip.distance(at_second) < 0.05 && !t.device_fault
+        t.tip_fu.distance(at_second) < 0.05 && !t.device_fault
     });
 
     // A device that will not open: an error, and the second arm stays in use.
@@ -199,7 +199,7 @@ fn devices_switch_disconnect_and_reconnect_while_the_haptic_loop_keeps_ticking()
     assert_eq!(report.replaced, None, "nothing was connected");
     let at_third = map.to_field(Vec3::new(0.0, 0.05, 0.0));
     wait_for(&mut engine, "the third arm's position", |t| {
-        t.tip.distance(at_third) < 0.05
+        t.tip_fu.distance(at_third) < 0.05
     });
 
     let done = engine.stop().expect("engine stops");

@@ -29,7 +29,7 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
     for _ in 0..1600 {
         let t = engine.step().sample;
         assert!(
-            t.tip.is_finite() && t.device_force_n.is_finite(),
+            t.tip_fu.is_finite() && t.device_force_n.is_finite(),
             "NaN in {t:?}"
         );
         peak_n = peak_n.max(t.device_force_n.length());
@@ -38,7 +38,7 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
             contact_samples += 1;
             // The push goes in: the reaction points from the tip back toward the surface
             // point the vector starts from, and never drives the tool deeper.
-            let back = t.force_from - t.force_to;
+            let back = t.force_from_fu - t.force_to_fu;
             if f.dot(back) > 0.0 && f.y >= -0.1 * f.length() {
                 opposing += 1;
             }

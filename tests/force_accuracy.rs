@@ -127,7 +127,7 @@ fn run(text: &str, tool: Option<ToolChoice>) -> Outcome {
             println!(
                 "t {} tip {:.3} active {} top@1.15 {h:.4}",
                 samples.len(),
-                sample.tip,
+                sample.tip_fu,
                 sample.stroke_active
             );
         }
@@ -243,8 +243,8 @@ fn the_builtin_push_groove_rests_at_the_tips_path() {
         let tip = o
             .samples
             .iter()
-            .filter(|s| s.in_contact && (s.tip.x - x).abs() <= 0.5 * SPAN)
-            .map(|s| s.tip.y)
+            .filter(|s| s.in_contact && (s.tip_fu.x - x).abs() <= 0.5 * SPAN)
+            .map(|s| s.tip_fu.y)
             .fold(f32::INFINITY, f32::min);
         let (top0, bottom) = (top(&o.before, x, Z), top(&o.after, x, Z));
         let depth = top0 - tip;
@@ -286,7 +286,7 @@ fn pull_up(tool: &str, height: f32) -> (f32, f32) {
         .iter()
         .rev()
         .find(|s| s.stroke_active)
-        .map(|s| s.tip)
+        .map(|s| s.tip_fu)
         .unwrap();
     let risen = top(&o.after, held.x, held.z) - top(&o.before, held.x, held.z);
     (risen, held.y - top_y)
@@ -355,7 +355,7 @@ fn default_visibly_works(mode: ForceMode, script_tool: &str) {
                 .samples
                 .iter()
                 .filter(|s| s.stroke_active)
-                .map(|s| s.tip.y)
+                .map(|s| s.tip_fu.y)
                 .fold(f32::INFINITY, f32::min);
             let depth = 1.725 - tip;
             (cut, (tip - lowest) - overshoot_rule(depth))

@@ -741,7 +741,7 @@ fn a_five_millimetre_press_into_the_default_clay_feels_like_firm_clay() {
                 velocity_m_per_s: Vec3::ZERO,
                 time_us: tick * 1000,
                 field_per_m: map.field_per_m,
-                force_n_per_unit: map.force_n_per_unit,
+                force_n_per_reaction: map.force_n_per_reaction,
                 stroke_active: tick >= 600,
                 tool: FeltTool::Push,
                 stroke: &stroke,

@@ -77,7 +77,7 @@ impl EngineConfig {
             DEFAULT_FORCE_N_PER_UNIT,
         );
         if let Some(scale) = calibrated_force_scale(density, map.field_per_m) {
-            map.force_n_per_unit = scale;
+            map.force_n_per_reaction = scale;
         }
         Self {
             haptic_rate_hz: 1000.0,

@@ -267,7 +267,7 @@ impl HapticStage {
             velocity_m_per_s: state.velocity_m_per_s,
             time_us: state.timestamp_us,
             field_per_m: self.map.field_per_m,
-            force_n_per_unit: self.map.force_n_per_unit,
+            force_n_per_reaction: self.map.force_n_per_reaction,
             stroke_active,
             tool: self.tool,
             stroke: &self.stroke,
@@ -298,9 +298,9 @@ impl HapticStage {
         self.counters.note_force(out.length());
         let (force_from, force_to) = felt.vector.unwrap_or((tip, tip));
         let sample = ToolSample {
-            tip,
-            force_from,
-            force_to,
+            tip_fu: tip,
+            force_from_fu: force_from,
+            force_to_fu: force_to,
             stroke_active,
             // A stale field must not keep pushing the clay either.
             in_contact: felt.sculpting && fade > 0.0,

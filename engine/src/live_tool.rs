@@ -245,17 +245,17 @@ impl LiveTool {
         match &self.choice {
             ToolChoice::Push(push) => {
                 let push_on = sample.in_contact
-                    && sample.force_from.is_finite()
-                    && sample.force_to.is_finite()
-                    && sample.force_from != sample.force_to;
+                    && sample.force_from_fu.is_finite()
+                    && sample.force_to_fu.is_finite()
+                    && sample.force_from_fu != sample.force_to_fu;
                 if push_on {
                     self.forces[0] = push_force(push, sample, mass_step);
                     self.len = 1;
-                    let axis = (sample.force_from - sample.force_to).normalize_or_zero();
+                    let axis = (sample.force_from_fu - sample.force_to_fu).normalize_or_zero();
                     note_push_target(
                         &mut self.targets,
                         &mut self.last_planned,
-                        (sample.force_to, axis),
+                        (sample.force_to_fu, axis),
                         mass_step,
                     );
                 }
@@ -274,7 +274,7 @@ impl LiveTool {
                     // released, so nothing new is planned.
                     Some(self.last_tip)
                 } else {
-                    (sample.stroke_active && sample.tip.is_finite()).then_some(sample.tip)
+                    (sample.stroke_active && sample.tip_fu.is_finite()).then_some(sample.tip_fu)
                 };
                 if let Some(tip) = tip {
                     self.last_tip = tip;
@@ -311,7 +311,7 @@ impl LiveTool {
         let ToolChoice::Geometric(tool) = &self.choice else {
             return None;
         };
-        if !sample.stroke_active || !sample.tip.is_finite() {
+        if !sample.stroke_active || !sample.tip_fu.is_finite() {
             return None;
         }
         let press = if sample.press.is_finite() {
@@ -338,7 +338,7 @@ impl LiveTool {
             // stroke spacing ahead of where the tool rests (a refit carries small changes over
             // a few applications, so the lead, not each application, sets the pace).
             Some(rest) if rest.is_finite() => {
-                let toward = sample.tip - rest;
+                let toward = sample.tip_fu - rest;
                 let reach = toward.length();
                 let dir = toward.normalize_or_zero();
                 let lead = self
@@ -354,7 +354,7 @@ impl LiveTool {
                     .min(tool.shape.stroke_spacing_fu());
                 rest + dir * lead
             }
-            _ => sample.tip,
+            _ => sample.tip_fu,
         };
         let from = match self.last_apply {
             Some((_, last)) => last,
@@ -384,8 +384,8 @@ const MIN_PUSH_SPREAD_MASS_STEPS: f32 = 3.0;
 /// The push's live force vector, spread over at least [`MIN_PUSH_SPREAD_MASS_STEPS`].
 fn push_force(push: &PushTool, sample: &ToolSample, mass_step: f32) -> ToolForce {
     ToolForce {
-        start: sample.force_from,
-        end: sample.force_to,
+        start: sample.force_from_fu,
+        end: sample.force_to_fu,
         distribution: push.distribution,
         radius: push.radius_fu.max(MIN_PUSH_SPREAD_MASS_STEPS * mass_step),
         gain: push.gain,
@@ -593,9 +593,9 @@ mod tests {
 
     fn sample(tip: Vec3, active: bool, time_us: u64) -> ToolSample {
         ToolSample {
-            tip,
-            force_from: tip,
-            force_to: tip,
+            tip_fu: tip,
+            force_from_fu: tip,
+            force_to_fu: tip,
             stroke_active: active,
             device_time_us: time_us,
             ..ToolSample::IDLE

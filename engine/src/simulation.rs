@@ -436,7 +436,7 @@ impl SimulationStage {
         }
 
         // The patch that would hold this step's region: its mass points set the step.
-        let sculpted = self.sculpted_patch_at(sample.tip);
+        let sculpted = self.sculpted_patch_at(sample.tip_fu);
         let spacing = self.clay.density.patches[sculpted].lattice.spacing;
         let mass_step = spacing / self.config.samples_per_span.max(1) as f32;
         self.tool

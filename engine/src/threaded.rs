@@ -84,7 +84,7 @@ pub struct Engine {
     /// workspace is mapped around it) and the force scale.
     safety: SafetyConfig,
     field_box: (Vec3, Vec3),
-    force_n_per_unit: f32,
+    force_n_per_reaction: f32,
 }
 
 /// What an engine starts with besides its clay and device.
@@ -266,7 +266,7 @@ impl Engine {
             device_swaps: stages.device_swaps,
             safety: config.safety,
             field_box,
-            force_n_per_unit: config.map.force_n_per_unit,
+            force_n_per_reaction: config.map.force_n_per_reaction,
         })
     }
 
@@ -296,7 +296,7 @@ impl Engine {
             info.workspace_max_m,
             lo,
             hi,
-            self.force_n_per_unit,
+            self.force_n_per_reaction,
         );
         self.swap(
             DeviceHandover {
@@ -316,7 +316,7 @@ impl Engine {
     /// As [`Engine::replace_device`].
     pub fn disconnect_device(&self, timeout: Duration) -> Result<DeviceSwapReport, EngineError> {
         let (lo, hi) = self.field_box;
-        let map = WorkspaceMap::fitting(lo, hi, lo, hi, self.force_n_per_unit);
+        let map = WorkspaceMap::fitting(lo, hi, lo, hi, self.force_n_per_reaction);
         self.swap(DeviceHandover::parked(map), timeout)
     }
 

@@ -6,18 +6,21 @@ use glam::{Quat, Vec3};
 /// The latest tool state, published by the haptic loop through a triple buffer (plain data).
 ///
 /// Positions are in field coordinates. While `in_contact` with the push tool, the tool applies
-/// the force vector from `force_from` (the touch proxy, on the clay's surface) to `force_to`
+/// the force vector from `force_from_fu` (the touch proxy, on the clay's surface) to `force_to_fu`
 /// (the tool tip); the simulation maps it onto the mass points with Hua & Qin's eq. (6)
 /// evaluated on its own, newest field. With a force tool the pair is the first vector the
 /// haptic loop felt (for display); the simulation makes the tool's vectors itself.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ToolSample {
     /// Tool tip, field coordinates.
-    pub tip: Vec3,
+    #[serde(alias = "tip")]
+    pub tip_fu: Vec3,
     /// Start of the force vector (the surface point the push started from), field coordinates.
-    pub force_from: Vec3,
+    #[serde(alias = "force_from")]
+    pub force_from_fu: Vec3,
     /// End of the force vector (the tip), field coordinates.
-    pub force_to: Vec3,
+    #[serde(alias = "force_to")]
+    pub force_to_fu: Vec3,
     /// Whether the user holds the stroke (button 0, or a stroke armed by command).
     pub stroke_active: bool,
     /// Whether the held tool is acting on the clay this tick (a stroke is active and the push
@@ -64,9 +67,9 @@ fn full_press() -> f32 {
 impl ToolSample {
     /// No tool, no stroke, time zero.
     pub const IDLE: Self = Self {
-        tip: Vec3::ZERO,
-        force_from: Vec3::ZERO,
-        force_to: Vec3::ZERO,
+        tip_fu: Vec3::ZERO,
+        force_from_fu: Vec3::ZERO,
+        force_to_fu: Vec3::ZERO,
         stroke_active: false,
         in_contact: false,
         touching: false,

@@ -9,7 +9,7 @@ use glam::Vec3;
 /// An isotropic affine map: `field = field_centre + (device_m − device_centre_m) · field_per_m`.
 ///
 /// Forces scale separately: a reaction computed in field units (density × length, Hua & Qin
-/// eq. 6) becomes `reaction · force_n_per_unit` newtons in the device frame. Both frames share
+/// eq. 6) becomes `reaction · force_n_per_reaction` newtons in the device frame. Both frames share
 /// their axes (right-handed, +y up), so directions carry over unchanged.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct WorkspaceMap {
@@ -19,8 +19,9 @@ pub struct WorkspaceMap {
     pub field_centre: Vec3,
     /// Field units per metre of device motion (positive).
     pub field_per_m: f32,
-    /// Newtons at the device per unit of reaction force in field units.
-    pub force_n_per_unit: f32,
+    /// Newtons at the device per unit of reaction force (density × field unit).
+    #[serde(alias = "force_n_per_unit")]
+    pub force_n_per_reaction: f32,
 }
 
 impl WorkspaceMap {
@@ -33,7 +34,7 @@ impl WorkspaceMap {
         max_m: Vec3,
         field_min: Vec3,
         field_max: Vec3,
-        force_n_per_unit: f32,
+        force_n_per_reaction: f32,
     ) -> Self {
         let device_half = ((max_m - min_m) * 0.5).min_element().max(1e-6);
         let field_half = ((field_max - field_min) * 0.5).max_element().max(1e-6);
@@ -41,7 +42,7 @@ impl WorkspaceMap {
             device_centre_m: (min_m + max_m) * 0.5,
             field_centre: (field_min + field_max) * 0.5,
             field_per_m: field_half / device_half,
-            force_n_per_unit,
+            force_n_per_reaction,
         }
     }
 
@@ -63,7 +64,7 @@ impl WorkspaceMap {
     #[inline]
     #[must_use]
     pub fn force_to_device(&self, reaction: Vec3) -> Vec3 {
-        reaction * self.force_n_per_unit
+        reaction * self.force_n_per_reaction
     }
 }
 

@@ -190,7 +190,7 @@ pub struct FeltInput<'a> {
     /// Field units per device metre.
     pub field_per_m: f32,
     /// Newtons per unit of reaction at haptic gain 1.
-    pub force_n_per_unit: f32,
+    pub force_n_per_reaction: f32,
     /// Whether a stroke is held.
     pub stroke_active: bool,
     /// The held tool.
@@ -396,7 +396,7 @@ impl ForceRenderer {
         } else {
             (Vec3::ZERO, None, false)
         };
-        let scale = input.force_n_per_unit * self.config.haptic_gain;
+        let scale = input.force_n_per_reaction * self.config.haptic_gain;
         let sculpt_n = saturate(reaction * scale, input.saturation_n);
 
         // Touch, newtons.
@@ -641,7 +641,7 @@ mod tests {
             velocity_m_per_s: Vec3::ZERO,
             time_us: t_us,
             field_per_m: 10.0,
-            force_n_per_unit: 300.0,
+            force_n_per_reaction: 300.0,
             stroke_active: active,
             tool: FeltTool::Push,
             stroke,

@@ -375,7 +375,7 @@ impl Bridge {
             v.removal_question = status.removal_question;
             // A tool felt with its shape is drawn where it rests on the clay (the hand's
             // device may be pressed past it), so the clay is where the tool is drawn.
-            v.tool_position = tool.resting_at.unwrap_or(tool.tip);
+            v.tool_position = tool.resting_at.unwrap_or(tool.tip_fu);
             v.tool_radius = radius;
             v.force_n = if tool.device_force_n.is_finite() {
                 tool.device_force_n
