@@ -12,12 +12,17 @@ pub enum CliError {
     /// A bad argument (exit 2).
     #[error("{0}")]
     Usage(String),
+    /// A bad input file or argument (exit 2), with the error that said so.
+    #[error("{context}: {source}")]
+    BadInput {
+        /// What was read (the file, the option).
+        context: String,
+        /// Why it was refused.
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     /// A bad script (exit 2).
     #[error("script error: {0}")]
     Script(ScriptError),
-    /// The device could not be made or opened (exit 3).
-    #[error("device error: {0}")]
-    Device(String),
     /// The device could not be made or opened (exit 3), with the error that said so.
     #[error("device error: {context}: {source}")]
     DeviceFailed {
@@ -29,7 +34,8 @@ pub enum CliError {
     /// The engine failed (exit 1).
     #[error("engine error: {0}")]
     Engine(EngineError),
-    /// An output could not be written, or the starting clay could not be built (exit 1).
+    /// An output could not be made, or the starting clay could not be built (exit 1), for a
+    /// reason found here (no error underneath).
     #[error("output error: {0}")]
     Output(String),
     /// An output could not be written, or the starting clay could not be built (exit 1),
@@ -89,6 +95,17 @@ impl CliError {
         }
     }
 
+    /// [`CliError::BadInput`]: `context` (the file or option) was refused with `source`.
+    pub fn bad_input(
+        context: impl Into<String>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync>>,
+    ) -> Self {
+        Self::BadInput {
+            context: context.into(),
+            source: source.into(),
+        }
+    }
+
     /// [`CliError::DeviceFailed`]: `context` (the device or recording) failed with `source`.
     pub fn device(
         context: impl Into<String>,
@@ -116,11 +133,12 @@ impl CliError {
     pub fn exit_code(&self) -> i32 {
         match self {
             Self::Usage(_)
+            | Self::BadInput { .. }
             | Self::Script(_)
             | Self::Session(_)
             | Self::OverBudget(_)
             | Self::OutputRefused(_) => 2,
-            Self::Device(_) | Self::DeviceFailed { .. } => 3,
+            Self::DeviceFailed { .. } => 3,
             Self::DeviceFault(_) => Self::DEVICE_FAULT_EXIT,
             Self::Render(e, _) if e.is_no_adapter() => Self::NO_ADAPTER_EXIT,
             Self::Engine(_) | Self::Output(_) | Self::OutputFailed { .. } | Self::Render(..) => 1,

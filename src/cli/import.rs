@@ -96,9 +96,9 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         ImportError::Fit {
             source: crate::fit::CloudFitError::Degenerate,
             ..
-        } => CliError::Usage(e.to_string()),
-        ImportError::Fit { .. } => CliError::Output(e.to_string()),
-        other => CliError::Usage(other.to_string()),
+        } => CliError::bad_input("import", e),
+        ImportError::Fit { .. } => CliError::output("import", e),
+        other => CliError::bad_input("import", other),
     })?;
     let session = imported_session(field, &args.input, crate::io::unix_now_s());
     // The mesh is made (within the memory budget) before anything is written, so a refused

@@ -52,11 +52,11 @@ pub fn dispatch(cli: Cli) -> i32 {
         Commands::Profile(a) => profile(&a),
         Commands::Devices => devices::list(),
         Commands::Gui(a) => crate::app::gui_main(&a.rest).map_err(|e| match e {
-            crate::app::LaunchError::Usage(_) => CliError::Usage(e.to_string()),
+            crate::app::LaunchError::Usage(_) => CliError::bad_input("gui", e),
             crate::app::LaunchError::Device(_) | crate::app::LaunchError::Start { .. } => {
-                CliError::Device(e.to_string())
+                CliError::device("gui", e)
             }
-            crate::app::LaunchError::Failed(_) => CliError::Output(e.to_string()),
+            crate::app::LaunchError::Failed(_) => CliError::output("gui", e),
             crate::app::LaunchError::Session(s) => CliError::Session(s),
         }),
         Commands::Render(a) => render(&a).map(|_| ()),

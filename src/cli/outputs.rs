@@ -157,7 +157,8 @@ fn write_field_outputs(
     let session_path = dir.join("session.dclay");
     let mut session = session.clone();
     session.meta.saved_unix_s = crate::io::unix_now_s();
-    crate::io::check_replaceable(&session_path).map_err(|e| CliError::Output(e.to_string()))?;
+    crate::io::check_replaceable(&session_path)
+        .map_err(|e| CliError::output(session_path.display().to_string(), e))?;
     save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
     files.push(session_path);
     Ok((stats, octree))

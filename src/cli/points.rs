@@ -61,7 +61,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
         })?),
         None => None,
     };
-    let cloud = read_points(&args.input).map_err(|e| CliError::Usage(e.to_string()))?;
+    let cloud = read_points(&args.input).map_err(|e| CliError::bad_input("points", e))?;
     let options = PointSetOptions {
         neighbours: args.neighbours as usize,
         ..PointSetOptions::default()
@@ -69,7 +69,7 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
     // Built in the cloud's unit frame, so that any file units work; every output goes back.
     let frame = UnitFrame::of(&cloud.points);
     let (mut set, times) = PointSet::build(&frame.cloud_to_unit(&cloud), &options)
-        .map_err(|e| CliError::Usage(format!("{}: {e}", args.input.display())))?;
+        .map_err(|e| CliError::bad_input(args.input.display().to_string(), e))?;
     let build_s = times.total_ns() as f64 * 1e-9;
     say!(
         "{}: {} points, spacing {:.4e}, built in {:.3} s",
@@ -120,17 +120,18 @@ pub fn points(args: &PointsArgs) -> Result<PointsOutcome, CliError> {
             cell,
             [cells.x as u32, cells.y as u32, cells.z as u32],
         )
-        .map_err(|e| CliError::Output(e.to_string()))?;
+        .map_err(|e| CliError::output("the point set's sampling grid", e))?;
         let mut mesh = BrickOctree::build(grid, &set).weld();
         for v in &mut mesh.positions {
             *v = frame.to_file(*v);
         }
-        write_mesh(path, &mesh, format).map_err(|e| CliError::Output(e.to_string()))?;
+        write_mesh(path, &mesh, format)
+            .map_err(|e| CliError::output(path.display().to_string(), e))?;
         say!("{}: {} triangles", path.display(), mesh.triangle_count());
     }
     let points: Vec<Vec3> = set.points.iter().map(|&p| frame.to_file(p)).collect();
     write_point_ply(&args.out, &points, &set.normals, &set.colours)
-        .map_err(|e| CliError::Output(e.to_string()))?;
+        .map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     say!("{}: {} points with normals", args.out.display(), set.len());
     Ok(PointsOutcome {
         read: cloud.points.len(),
@@ -148,8 +149,7 @@ fn emboss_image(
     args: &PointsArgs,
     options: &PointSetOptions,
 ) -> Result<PointSet, CliError> {
-    let relief =
-        crate::io::load_relief(image).map_err(|e| CliError::Usage(format!("--emboss: {e}")))?;
+    let relief = crate::io::load_relief(image).map_err(|e| CliError::bad_input("--emboss", e))?;
     let (lo, hi) = set.points.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
         |(lo, hi), &p| (lo.min(p), hi.max(p)),
@@ -179,7 +179,7 @@ fn emboss_image(
         engrave: args.engrave,
     };
     let (embossed, report) = crate::pointset::emboss(set, &relief, &params, options)
-        .map_err(|e| CliError::Usage(format!("--emboss {}: {e}", image.display())))?;
+        .map_err(|e| CliError::bad_input(format!("--emboss {}", image.display()), e))?;
     say!(
         "{} {}: {} points moved, by at most {:.4}",
         if args.engrave { "engraved" } else { "embossed" },

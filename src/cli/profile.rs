@@ -39,10 +39,10 @@ pub fn profile(args: &ProfileArgs) -> Result<(), CliError> {
 
 fn read_doc(path: &Path) -> Result<ProfileDoc, CliError> {
     let bytes = read_regular_file(path, MAX_PROFILE_JSON_BYTES)
-        .map_err(|e| CliError::Usage(format!("{}: {e}", path.display())))?;
+        .map_err(|e| CliError::bad_input(path.display().to_string(), e))?;
     let text = String::from_utf8(bytes)
-        .map_err(|e| CliError::Usage(format!("{}: not UTF-8: {e}", path.display())))?;
-    ProfileDoc::from_json(&text).map_err(|e| CliError::Usage(format!("{}: {e}", path.display())))
+        .map_err(|e| CliError::bad_input(format!("{}: not UTF-8", path.display()), e))?;
+    ProfileDoc::from_json(&text).map_err(|e| CliError::bad_input(path.display().to_string(), e))
 }
 
 /// The per-figure ratio table of `b` to `a`, with a heading naming both files.

@@ -61,7 +61,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     let spec: DeviceSpec = args
         .device
         .parse()
-        .map_err(|e: dynaclay_devices::spec::SpecError| CliError::Usage(e.to_string()))?;
+        .map_err(|e: dynaclay_devices::spec::SpecError| CliError::bad_input("--device", e))?;
     let session_path = args.out.join(SESSION_FILE);
     let start = starting_session(args.recover, &script, &base_dir, &session_path)?;
     let plan = ScriptPlan::new(
@@ -274,7 +274,7 @@ fn starting_session(
     session_path: &Path,
 ) -> Result<Session, CliError> {
     let found =
-        recovery_to_use(session_path, recover).map_err(|e| CliError::Usage(e.to_string()))?;
+        recovery_to_use(session_path, recover).map_err(|e| CliError::bad_input("--recover", e))?;
     match found {
         Some(r) => {
             let session = load_session(&r.path).map_err(|e| CliError::output("--recover", e))?;
@@ -435,7 +435,7 @@ fn finish_run(
     let mut autosave = Autosave::new(session_path, Default::default(), Instant::now());
     autosave
         .discard(Instant::now())
-        .map_err(|e| CliError::Output(e.to_string()))?;
+        .map_err(|e| CliError::output("discarding the recovery file", e))?;
     for e in &io.errors {
         eprintln!("dynaclay: autosave or save failed: {e}");
     }
@@ -473,14 +473,20 @@ fn keep_session_of_failed_run(e: EngineError, session_path: &Path) -> CliError {
     };
     let recovery = crate::io::recovery_path_for(session_path);
     match crate::io::save_session(&recovery, session) {
-        Ok(()) => CliError::Output(format!(
-            "engine error: {e}; the sculpt is in {} (run again with --recover to go on from it)",
-            recovery.display()
-        )),
-        Err(save) => CliError::Output(format!(
-            "engine error: {e}; and the session could not be kept in {}: {save}",
-            recovery.display()
-        )),
+        Ok(()) => CliError::output(
+            format!(
+                "the sculpt is kept in {} (run again with --recover to go on from it)",
+                recovery.display()
+            ),
+            e,
+        ),
+        Err(save) => CliError::output(
+            format!(
+                "the engine failed ({e}), and the sculpt could not be kept in {}",
+                recovery.display()
+            ),
+            save,
+        ),
     }
 }
 
