@@ -87,14 +87,27 @@ fn export_options(
     }
 }
 
+/// A stroke asked to start before the previous step has settled.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+#[error(
+    "start_s = {start_s} is too early: the previous step ends at {previous_end_s:.3} s and a \
+     stroke needs {SETTLE_S} s after it"
+)]
+struct StartTooEarly {
+    /// The stroke's `start_s`, script seconds.
+    start_s: f64,
+    /// When the previous step ends, script seconds.
+    previous_end_s: f64,
+}
+
 /// When a stroke starts: at `start_s` (at least [`SETTLE_S`] after `clock`, the end of the
 /// previous step) or [`TRAVEL_S`] after `clock`.
-fn stroke_start(start_s: Option<f64>, clock: f64) -> Result<f64, String> {
+fn stroke_start(start_s: Option<f64>, clock: f64) -> Result<f64, StartTooEarly> {
     match start_s {
-        Some(s) if s < clock + SETTLE_S => Err(format!(
-            "start_s = {s} is too early: the previous step ends at {clock:.3} s and a stroke \
-             needs {SETTLE_S} s after it"
-        )),
+        Some(s) if s < clock + SETTLE_S => Err(StartTooEarly {
+            start_s: s,
+            previous_end_s: clock,
+        }),
         Some(s) => Ok(s),
         None => Ok(clock + TRAVEL_S),
     }
@@ -372,7 +385,7 @@ impl ScriptPlan {
                             falloff_fu: Some(*falloff_fu),
                         }));
                         held = None;
-                        let start = stroke_start(*start_s, clock).map_err(fail)?;
+                        let start = stroke_start(*start_s, clock).map_err(|e| fail(e.to_string()))?;
                         let times = path_times(path, *duration_s, times_s);
                         let stroke = stroke_waypoints(at, start, &hand, &times, false);
                         clock = stroke.end_s;
@@ -393,7 +406,7 @@ impl ScriptPlan {
                     if held.as_ref() != Some(&choice) {
                         event(PlannedAction::SetTool(choice.clone()));
                     }
-                    let start = stroke_start(*start_s, clock).map_err(fail)?;
+                    let start = stroke_start(*start_s, clock).map_err(|e| fail(e.to_string()))?;
                     let push = matches!(choice, ToolChoice::Push(_));
                     let times = path_times(path, *duration_s, times_s);
                     let stroke = stroke_waypoints(at, start, &hand, &times, push);

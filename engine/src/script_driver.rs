@@ -5,7 +5,10 @@
 //! the first sample seen), so the simulated arm's strokes and the commands between them stay
 //! in the order the plan defines, in the threaded engine and — exactly — in lockstep.
 
+use std::path::PathBuf;
+
 use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
+use glam::Vec3;
 
 use super::command::{Command, EditOutcome, Reply};
 use super::compact_rbf::CompactRbfLink;
@@ -13,11 +16,55 @@ use super::plan::{PlannedAction, PlannedEvent, PlannedStroke, ScriptPlan};
 use super::removal_guard::{MOST_REMOVED_UNASKED, StrokeRemoval};
 use super::tool_sample::ToolSample;
 use dynaclay_core::io::{ScriptError, Session};
-use dynaclay_import::fit::read_points;
-use dynaclay_import::pointset::{PointSet, PointSetOptions, UnitFrame, pull, write_point_ply};
-use dynaclay_import::rbf::{
-    ExportOptions, clay_to_rbf, flatten_clay, settle_particles, write_particles, write_rbf,
+use dynaclay_files::WriteError;
+use dynaclay_import::fit::{PointsError, read_points};
+use dynaclay_import::particles::ParticleError;
+use dynaclay_import::pointset::{
+    PointSet, PointSetError, PointSetOptions, UnitFrame, pull, write_point_ply,
 };
+use dynaclay_import::rbf::{
+    ExportError, ExportOptions, RbfFileError, clay_to_rbf, flatten_clay, settle_particles,
+    write_particles, write_rbf,
+};
+
+/// Why a `points`, `particles` or `rbf` step's job failed.
+#[derive(Debug, thiserror::Error)]
+enum StepJobError {
+    /// The point file could not be read.
+    #[error("points: {0}")]
+    ReadPoints(#[source] PointsError),
+    /// The point-set surface could not be built from the cloud.
+    #[error("points: {input}: {source}")]
+    BuildPoints {
+        /// The point file.
+        input: PathBuf,
+        /// Why.
+        source: PointSetError,
+    },
+    /// A pull of the point set failed.
+    #[error("points: pull to {target}: {source}")]
+    Pull {
+        /// Where the pull went, the file's coordinates.
+        target: Vec3,
+        /// Why.
+        source: PointSetError,
+    },
+    /// The pulled points could not be written.
+    #[error("points: {0}")]
+    WritePoints(#[source] WriteError),
+    /// The clay could not be flattened or interpolated.
+    #[error("{0}")]
+    Export(#[source] ExportError),
+    /// The particles would not settle.
+    #[error("particles: {0}")]
+    Settle(#[source] ParticleError),
+    /// The particles could not be written.
+    #[error("particles: {0}")]
+    WriteParticles(#[source] WriteError),
+    /// The RBF could not be written.
+    #[error("rbf: {0}")]
+    WriteRbf(#[source] RbfFileError),
+}
 
 /// A `particles` or `rbf` step: what it computes from the clay's copy.
 #[derive(Debug)]
@@ -39,13 +86,16 @@ fn points_job(
     pulls: &[glam::Vec3],
     steps: u32,
     out: &std::path::Path,
-) -> Result<String, String> {
-    let cloud = read_points(input).map_err(|e| format!("points: {e}"))?;
+) -> Result<String, StepJobError> {
+    let cloud = read_points(input).map_err(StepJobError::ReadPoints)?;
     // Built in the cloud's unit frame, so that any file units work; the output goes back.
     let frame = UnitFrame::of(&cloud.points);
     let (mut set, times) =
         PointSet::build(&frame.cloud_to_unit(&cloud), &PointSetOptions::default())
-            .map_err(|e| format!("points: {}: {e}", input.display()))?;
+            .map_err(|source| StepJobError::BuildPoints {
+                input: input.to_path_buf(),
+                source,
+            })?;
     let mut note = format!(
         "points: {} points from {}, built in {:.3} s",
         set.len(),
@@ -54,12 +104,12 @@ fn points_job(
     );
     for &target in pulls {
         let report = pull(&mut set, frame.to_unit(target), steps)
-            .map_err(|e| format!("points: pull to {target}: {e}"))?;
+            .map_err(|source| StepJobError::Pull { target, source })?;
         note += &format!("; pulled to {target} ({} points)", report.points);
     }
     let points: Vec<glam::Vec3> = set.points.iter().map(|&p| frame.to_file(p)).collect();
     write_point_ply(out, &points, &set.normals, &set.colours)
-        .map_err(|e| format!("points: {e}"))?;
+        .map_err(StepJobError::WritePoints)?;
     note += &format!("; wrote {}", out.display());
     Ok(note)
 }
@@ -68,28 +118,28 @@ fn points_job(
 /// running on a thread of its own (never on a loop: sampling and solving take seconds).
 enum ExportState {
     Waiting(ExportJob, Receiver<Session>),
-    Running(Receiver<Result<String, String>>),
+    Running(Receiver<Result<String, StepJobError>>),
 }
 
 impl ExportJob {
     /// Samples (and interpolates) `session`'s clay and writes the result; the note to tell.
-    fn run(self, session: &Session) -> Result<String, String> {
+    fn run(self, session: &Session) -> Result<String, StepJobError> {
         match self {
             Self::Particles { options, out } => {
-                let lattice = flatten_clay(&session.clay).map_err(|e| e.to_string())?;
+                let lattice = flatten_clay(&session.clay).map_err(StepJobError::Export)?;
                 let particles =
-                    settle_particles(&lattice, &options).map_err(|e| format!("particles: {e}"))?;
+                    settle_particles(&lattice, &options).map_err(StepJobError::Settle)?;
                 let mut note = format!("{} particles settled", particles.len());
                 if let Some(out) = out {
                     write_particles(&out, &lattice, particles.positions())
-                        .map_err(|e| format!("particles: {e}"))?;
+                        .map_err(StepJobError::WriteParticles)?;
                     note += &format!("; wrote {}", out.display());
                 }
                 Ok(note)
             }
             Self::Rbf { options, out } => {
-                let fitted = clay_to_rbf(&session.clay, &options).map_err(|e| e.to_string())?;
-                write_rbf(&out, &fitted.file).map_err(|e| format!("rbf: {e}"))?;
+                let fitted = clay_to_rbf(&session.clay, &options).map_err(StepJobError::Export)?;
+                write_rbf(&out, &fitted.file).map_err(StepJobError::WriteRbf)?;
                 Ok(format!(
                     "rbf: {} particles, {} centres of {} constraints, largest residual {:.2e}; \
                      wrote {}",
@@ -378,7 +428,7 @@ impl ScriptDriver {
     fn spawn_job(
         &mut self,
         step: usize,
-        job: impl FnOnce() -> Result<String, String> + Send + 'static,
+        job: impl FnOnce() -> Result<String, StepJobError> + Send + 'static,
     ) {
         let (tx, done) = bounded(1);
         let spawned = std::thread::Builder::new()
@@ -439,7 +489,7 @@ impl ScriptDriver {
             };
             match outcome {
                 Ok(Ok(note)) => told.push((step, note)),
-                Ok(Err(e)) => failed.push((step, e)),
+                Ok(Err(e)) => failed.push((step, e.to_string())),
                 Err(TryRecvError::Empty) => self.exports.push((step, ExportState::Running(done))),
                 Err(TryRecvError::Disconnected) => {
                     failed.push((step, "its thread stopped without an answer".into()));
