@@ -385,7 +385,8 @@ impl ScriptPlan {
                             falloff_fu: Some(*falloff_fu),
                         }));
                         held = None;
-                        let start = stroke_start(*start_s, clock).map_err(|e| fail(e.to_string()))?;
+                        let start =
+                            stroke_start(*start_s, clock).map_err(|e| fail(e.to_string()))?;
                         let times = path_times(path, *duration_s, times_s);
                         let stroke = stroke_waypoints(at, start, &hand, &times, false);
                         clock = stroke.end_s;
@@ -396,7 +397,7 @@ impl ScriptPlan {
                         (_, Some(shape), Some(action)) => ToolChoice::Geometric(GeometricTool {
                             shape: shape
                                 .resolve(|name| lookup(name).map(|t| &t.shape))
-                                .map_err(fail)?,
+                                .map_err(|e| fail(e.to_string()))?,
                             action: *action,
                             falloff_fu: *falloff_fu,
                         }),
@@ -441,7 +442,7 @@ impl ScriptPlan {
                     }
                     let shape = shape
                         .resolve(|name| lookup(name).map(|t| &t.shape))
-                        .map_err(fail)?;
+                        .map_err(|e| fail(e.to_string()))?;
                     event(PlannedAction::ApplyTool {
                         // Along the positions' path, a quarter of the tool's size apart.
                         poses: resample_stroke(&poses(positions, *rotation), &shape),
@@ -525,7 +526,7 @@ impl ScriptPlan {
                         (None, Some(shape), Some(position)) => {
                             let shape = shape
                                 .resolve(|name| lookup(name).map(|t| &t.shape))
-                                .map_err(fail)?;
+                                .map_err(|e| fail(e.to_string()))?;
                             let solid = GeometricTool {
                                 shape,
                                 action: csg_action(*op),

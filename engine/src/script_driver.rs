@@ -91,11 +91,12 @@ fn points_job(
     // Built in the cloud's unit frame, so that any file units work; the output goes back.
     let frame = UnitFrame::of(&cloud.points);
     let (mut set, times) =
-        PointSet::build(&frame.cloud_to_unit(&cloud), &PointSetOptions::default())
-            .map_err(|source| StepJobError::BuildPoints {
+        PointSet::build(&frame.cloud_to_unit(&cloud), &PointSetOptions::default()).map_err(
+            |source| StepJobError::BuildPoints {
                 input: input.to_path_buf(),
                 source,
-            })?;
+            },
+        )?;
     let mut note = format!(
         "points: {} points from {}, built in {:.3} s",
         set.len(),
@@ -108,8 +109,7 @@ fn points_job(
         note += &format!("; pulled to {target} ({} points)", report.points);
     }
     let points: Vec<glam::Vec3> = set.points.iter().map(|&p| frame.to_file(p)).collect();
-    write_point_ply(out, &points, &set.normals, &set.colours)
-        .map_err(StepJobError::WritePoints)?;
+    write_point_ply(out, &points, &set.normals, &set.colours).map_err(StepJobError::WritePoints)?;
     note += &format!("; wrote {}", out.display());
     Ok(note)
 }

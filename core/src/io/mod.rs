@@ -23,8 +23,8 @@ pub use relief::load_relief;
 pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
     ForceToolSpec, MAX_COMPACT_PARTICLES, MAX_POINTS_PULL_STEPS, MIN_COMPACT_PARTICLES, PinKind,
-    RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, SelectionSpec, ShapeSpec,
-    load_script, paint_request, parse_script, pin_request, poses,
+    PresetError, RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, SelectionSpec,
+    ShapeSpec, load_script, paint_request, parse_script, pin_request, poses,
 };
 pub use session::{
     MAX_TOOL_NAME_BYTES, MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset, unix_now_s,

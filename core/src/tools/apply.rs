@@ -609,7 +609,7 @@ fn paint(
         .collect();
     let iso = patch.iso;
     if clay.colour.is_none() {
-        let colour = ColourField::matching(patch).map_err(|e| ToolError::Colour(e.to_string()))?;
+        let colour = ColourField::matching(patch).map_err(ToolError::Colour)?;
         clay.colour = Some(colour);
     }
     let rgb = tool.action.rgb().unwrap_or([0.0; 3]);

@@ -7,7 +7,7 @@ use super::action::ActionError;
 use super::clay::CoeffBox;
 use super::projection::EmbossParamsError;
 use super::shape::ShapeError;
-use crate::field::FitError;
+use crate::field::{FitError, LatticeError};
 
 /// What an application touched.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -58,7 +58,7 @@ pub enum ToolError {
     NoPatch { patch: u16 },
     /// A painting action needs a colour field, and its geometry was invalid.
     #[error("colour field: {0}")]
-    Colour(String),
+    Colour(LatticeError),
     /// The refit failed (e.g. a non-finite target).
     #[error("refit failed: {0}")]
     Fit(FitError),

@@ -331,7 +331,7 @@ impl RbfSculpt {
                 } => {
                     let shape = shape
                         .resolve(|name| library.iter().find(|t| t.name == name).map(|t| &t.shape))
-                        .map_err(bad)?;
+                        .map_err(|e| bad(e.to_string()))?;
                     let tool = GeometricTool {
                         shape,
                         action: *action,

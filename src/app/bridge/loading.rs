@@ -3,6 +3,30 @@
 
 use super::*;
 
+/// Why the window could not fit a file it was asked to load.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum ImportFailed {
+    /// A raw volume names no dimensions; the command line can give them.
+    #[error(
+        "{}: a raw volume does not say its dimensions; run `dynaclay import {} --dims X,Y,Z \
+         --iso V --out SESSION.dclay` and load the session",
+        path.display(),
+        path.display()
+    )]
+    NeedsDims {
+        /// The volume.
+        path: PathBuf,
+    },
+    /// The fit failed.
+    #[error("{}: {source}", path.display())]
+    Fit {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: ImportError,
+    },
+}
+
 impl Bridge {
     /// Serves the Load button: a session is read here, an importable file (point cloud, mesh,
     /// volume) is fitted here as `dynaclay import` fits it (its report and progress go to the
@@ -12,13 +36,13 @@ impl Bridge {
         if is_point_cloud(path) {
             return match self.import_points(path) {
                 Ok((session, points)) => self.offer(session, path, true, points),
-                Err(error) => self.fail("load", error),
+                Err(error) => self.fail("load", error.to_string()),
             };
         }
         let session = if crate::fit::is_importable(path) {
             match self.import(path) {
                 Ok(s) => s,
-                Err(error) => return self.fail("load", error),
+                Err(error) => return self.fail("load", error.to_string()),
             }
         } else {
             match load_session(path) {
@@ -45,7 +69,7 @@ impl Bridge {
     pub(super) fn import_points(
         &self,
         path: &Path,
-    ) -> Result<(Session, Option<Box<FollowedPoints>>), String> {
+    ) -> Result<(Session, Option<Box<FollowedPoints>>), ImportFailed> {
         let say = |detail: String| self.say_load(detail);
         say(format!("importing {}", path.display()));
         let imported = import_cloud(
@@ -54,7 +78,10 @@ impl Bridge {
             &mut fit_stage_reporter(&say),
             &mut |line| say(line),
         )
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+        .map_err(|source| ImportFailed::Fit {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let cloud = imported.cloud_in_field_units();
         let points = match PointSet::build(&cloud, &PointSetOptions::default()) {
             Ok((mut set, times)) => {
@@ -86,7 +113,7 @@ impl Bridge {
 
     /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its
     /// mid-range intensity), telling the log each stage and report line.
-    pub(super) fn import(&self, path: &Path) -> Result<Session, String> {
+    pub(super) fn import(&self, path: &Path) -> Result<Session, ImportFailed> {
         let say = |detail: String| self.say_load(detail);
         say(format!("importing {}", path.display()));
         let settings = ImportSettings {
@@ -100,13 +127,13 @@ impl Bridge {
             &mut |line| say(line),
         );
         session.map_err(|e| match e {
-            ImportError::NeedsDims => format!(
-                "{}: a raw volume does not say its dimensions; run `dynaclay import {} --dims \
-                 X,Y,Z --iso V --out SESSION.dclay` and load the session",
-                path.display(),
-                path.display()
-            ),
-            other => format!("{}: {other}", path.display()),
+            ImportError::NeedsDims => ImportFailed::NeedsDims {
+                path: path.to_path_buf(),
+            },
+            source => ImportFailed::Fit {
+                path: path.to_path_buf(),
+                source,
+            },
         })
     }
 

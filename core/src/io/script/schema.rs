@@ -267,9 +267,9 @@ impl ForceToolSpec {
     ///
     /// # Errors
     /// Names the parameter.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ForceToolError> {
         match (self, self.force_tool()) {
-            (_, Some(tool)) => tool.validate().map_err(|e| e.0),
+            (_, Some(tool)) => tool.validate(),
             (
                 Self::Push {
                     radius_fu, gain, ..
@@ -278,7 +278,9 @@ impl ForceToolSpec {
             ) => {
                 for (name, v) in [("radius_fu", *radius_fu), ("gain", *gain)] {
                     if !(v.is_finite() && v > 0.0) {
-                        return Err(format!("{name} must be positive and finite, got {v}"));
+                        return Err(ForceToolError(format!(
+                            "{name} must be positive and finite, got {v}"
+                        )));
                     }
                 }
                 Ok(())
@@ -820,15 +822,32 @@ pub fn paint_request(step: &ScriptStep) -> Result<Option<MaterialPaint>, StepFau
     }))
 }
 
+/// Why a `freeform` shape's preset could not be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum PresetError {
+    /// The library has no tool of this name.
+    #[error("no tool preset named {name:?}")]
+    Missing {
+        /// The name asked for.
+        name: String,
+    },
+    /// The library's tool of this name is not a freeform shape.
+    #[error("tool preset {name:?} is not a freeform shape")]
+    NotFreeform {
+        /// The name asked for.
+        name: String,
+    },
+}
+
 impl ShapeSpec {
     /// The tool shape; `freeform` looks up `preset` with `library` (name → shape).
     ///
     /// # Errors
-    /// When the preset does not exist.
+    /// When the preset does not exist or is not a freeform shape.
     pub fn resolve<'a>(
         &self,
         library: impl Fn(&str) -> Option<&'a ToolShape>,
-    ) -> Result<ToolShape, String> {
+    ) -> Result<ToolShape, PresetError> {
         Ok(match self {
             Self::Sphere { radius_fu } => ToolShape::Sphere {
                 radius_fu: *radius_fu,
@@ -859,8 +878,16 @@ impl ShapeSpec {
                     f.scale *= Vec3::from_array(*scale);
                     ToolShape::Freeform(f)
                 }
-                Some(_) => return Err(format!("tool preset {preset:?} is not a freeform shape")),
-                None => return Err(format!("no tool preset named {preset:?}")),
+                Some(_) => {
+                    return Err(PresetError::NotFreeform {
+                        name: preset.clone(),
+                    });
+                }
+                None => {
+                    return Err(PresetError::Missing {
+                        name: preset.clone(),
+                    });
+                }
             },
         })
     }
