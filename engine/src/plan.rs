@@ -36,8 +36,8 @@ use super::tool_library::LibraryTool;
 use super::workspace::WorkspaceMap;
 use dynaclay_core::dynamics::Material;
 use dynaclay_core::io::{
-    ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ShapeSpec, ToolPreset,
-    load_session, paint_request, parse_script, pin_request, poses,
+    ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ShapeSpec, StepTool,
+    ToolPreset, load_session, paint_request, parse_script, pin_request, poses,
 };
 use dynaclay_core::tools::{
     Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
@@ -415,80 +415,47 @@ impl ScriptPlan {
                     strokes.push(stroke);
                     held = Some(choice);
                 }
-                ScriptStep::Tool {
-                    shape,
-                    action,
-                    positions,
-                    falloff_fu,
-                    rotation,
-                    duration_s,
-                    patch,
-                } => {
-                    if let ShapeSpec::Freeform { preset, scale } = shape
-                        && made.contains(preset)
+                ScriptStep::Tool { .. } | ScriptStep::Preset { .. } => {
+                    let Some(tool_step) = step.tool_step() else {
+                        continue;
+                    };
+                    if let Some((name, scale)) = tool_step.library_tool()
+                        && made.iter().any(|m| m == name)
                     {
+                        // A tool the script made itself: the engine looks it up when it runs.
+                        let (action, falloff_fu) = match tool_step.tool {
+                            StepTool::Given {
+                                action, falloff_fu, ..
+                            } => (Some(action), Some(falloff_fu)),
+                            StepTool::Preset { .. } => (None, None),
+                        };
                         event(PlannedAction::ApplyLibraryTool {
                             tool: LibraryTool {
-                                name: preset.clone(),
-                                scale: Vec3::from_array(*scale),
-                                action: Some(*action),
-                                falloff_fu: Some(*falloff_fu),
+                                name: name.to_owned(),
+                                scale,
+                                action,
+                                falloff_fu,
                             },
-                            poses: poses(positions, *rotation),
-                            duration_s: *duration_s,
-                            patch: *patch,
+                            poses: tool_step.poses.clone(),
+                            duration_s: tool_step.duration_s,
+                            patch: tool_step.patch,
                         });
                         continue;
                     }
-                    let shape = shape
-                        .resolve(|name| lookup(name).map(|t| &t.shape))
+                    let tool = tool_step
+                        .geometric_tool(lookup)
                         .map_err(|e| fail(e.to_string()))?;
+                    if let StepTool::Preset { name } = tool_step.tool {
+                        tool.action
+                            .validate()
+                            .map_err(|e| fail(format!("tool preset {name:?}: {}", e.0)))?;
+                    }
                     event(PlannedAction::ApplyTool {
                         // Along the positions' path, a quarter of the tool's size apart.
-                        poses: resample_stroke(&poses(positions, *rotation), &shape),
-                        tool: GeometricTool {
-                            shape,
-                            action: *action,
-                            falloff_fu: *falloff_fu,
-                        },
-                        duration_s: *duration_s,
-                        patch: *patch,
-                    });
-                }
-                ScriptStep::Preset {
-                    name,
-                    positions,
-                    duration_s,
-                } => {
-                    if made.contains(name) {
-                        event(PlannedAction::ApplyLibraryTool {
-                            tool: LibraryTool {
-                                name: name.clone(),
-                                scale: Vec3::ONE,
-                                action: None,
-                                falloff_fu: None,
-                            },
-                            poses: poses(positions, None),
-                            duration_s: *duration_s,
-                            patch: 0,
-                        });
-                        continue;
-                    }
-                    let preset = lookup(name)
-                        .ok_or_else(|| fail(format!("no tool preset named {name:?}")))?;
-                    preset
-                        .action
-                        .validate()
-                        .map_err(|e| fail(format!("tool preset {name:?}: {}", e.0)))?;
-                    event(PlannedAction::ApplyTool {
-                        tool: GeometricTool {
-                            shape: preset.shape.clone(),
-                            action: preset.action,
-                            falloff_fu: preset.falloff_fu,
-                        },
-                        poses: resample_stroke(&poses(positions, None), &preset.shape),
-                        duration_s: *duration_s,
-                        patch: 0,
+                        poses: resample_stroke(&tool_step.poses, &tool.shape),
+                        tool,
+                        duration_s: tool_step.duration_s,
+                        patch: tool_step.patch,
                     });
                 }
                 ScriptStep::MakeTool {
@@ -560,24 +527,16 @@ impl ScriptPlan {
                 }),
                 ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
                 ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),
-                ScriptStep::Emboss {
-                    image,
-                    projection,
-                    depth,
-                    engrave,
-                    patch,
-                } => {
+                ScriptStep::Emboss { image, patch, .. } => {
                     let relief = dynaclay_core::io::load_relief(&base_dir.join(image))
                         .map_err(|e| fail(format!("image: {e}")))?;
-                    event(PlannedAction::Emboss {
-                        relief: std::sync::Arc::new(relief),
-                        params: EmbossParams {
-                            projection: projection.projection(),
-                            depth_fu: *depth,
-                            engrave: *engrave,
-                        },
-                        patch: *patch,
-                    });
+                    if let Some(params) = step.emboss_params() {
+                        event(PlannedAction::Emboss {
+                            relief: std::sync::Arc::new(relief),
+                            params,
+                            patch: *patch,
+                        });
+                    }
                 }
                 ScriptStep::Constrain { kind, at, points } => {
                     let request = pin_request(*kind, *at, points).map_err(|f| fail(f.message))?;

@@ -14,7 +14,7 @@ use super::file::RbfFile;
 use super::fit::{Rbf, RbfError, RbfFitReport, RbfOptions, fit_surface};
 use crate::particles::{ImplicitSurface, ParticleError, ParticleParams, ParticleSystem};
 use dynaclay_core::field::{BSplineLattice, Primitive};
-use dynaclay_core::io::{Script, ScriptStep, ToolPreset, poses};
+use dynaclay_core::io::{Script, ToolPreset};
 use dynaclay_core::tools::{ContactParams, GeometricTool, ToolAction, ToolPose};
 
 /// Why the RBF sculpt could not start or take an action.
@@ -319,49 +319,16 @@ impl RbfSculpt {
         for (n, step) in script.steps.iter().enumerate() {
             let at = n + 1;
             let bad = |message: String| RbfSculptError::BadTool { step: at, message };
-            let (tool, poses, duration_s) = match step {
-                ScriptStep::Tool {
-                    shape,
-                    action,
-                    positions,
-                    falloff_fu,
-                    rotation,
-                    duration_s,
-                    ..
-                } => {
-                    let shape = shape
-                        .resolve(|name| library.iter().find(|t| t.name == name).map(|t| &t.shape))
-                        .map_err(|e| bad(e.to_string()))?;
-                    let tool = GeometricTool {
-                        shape,
-                        action: *action,
-                        falloff_fu: *falloff_fu,
-                    };
-                    (tool, poses(positions, *rotation), *duration_s)
-                }
-                ScriptStep::Preset {
-                    name,
-                    positions,
-                    duration_s,
-                } => {
-                    let preset = library
-                        .iter()
-                        .find(|t| &t.name == name)
-                        .ok_or_else(|| bad(format!("no tool preset named {name:?}")))?;
-                    let tool = GeometricTool {
-                        shape: preset.shape.clone(),
-                        action: preset.action,
-                        falloff_fu: preset.falloff_fu,
-                    };
-                    (tool, poses(positions, None), *duration_s)
-                }
-                other => {
-                    return Err(RbfSculptError::NotContact {
-                        step: at,
-                        what: format!("do = {:?}", other.name()),
-                    });
-                }
+            let Some(tool_step) = step.tool_step() else {
+                return Err(RbfSculptError::NotContact {
+                    step: at,
+                    what: format!("do = {:?}", step.name()),
+                });
             };
+            let tool = tool_step
+                .geometric_tool(|name| library.iter().find(|t| t.name == name))
+                .map_err(|e| bad(e.to_string()))?;
+            let (poses, duration_s) = (tool_step.poses, tool_step.duration_s);
             self.apply_step(at, &tool, &poses, duration_s)?;
             actions += poses.len();
         }

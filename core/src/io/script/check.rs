@@ -320,22 +320,15 @@ pub(super) fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                 format!("index = {i} must be between 0 and {}", MAX_CONSTRAINTS - 1),
             ))
         }
-        ScriptStep::Emboss {
-            projection,
-            depth,
-            engrave,
-            ..
-        } => {
+        ScriptStep::Emboss { depth, .. } => {
             if !(depth.is_finite() && *depth > 0.0) {
                 return Err(fault("depth", format!("depth = {depth} must be positive")));
             }
-            crate::tools::EmbossParams {
-                projection: projection.projection(),
-                depth_fu: *depth,
-                engrave: *engrave,
-            }
-            .validate()
-            .map_err(|m| fault("projection", format!("projection: {m}")))
+            step.emboss_params().map_or(Ok(()), |params| {
+                params
+                    .validate()
+                    .map_err(|m| fault("projection", format!("projection: {m}")))
+            })
         }
         ScriptStep::Refine { min, max, level } => {
             for (name, corner) in [("min", min), ("max", max)] {

@@ -49,12 +49,14 @@ use crate::tools::{ForceTool, ForceToolError, PinRequest, ToolAction, ToolPose, 
 mod check;
 mod parse;
 mod schema;
+mod steps;
 #[cfg(test)]
 mod tests;
 
 pub use check::*;
 pub use parse::*;
 pub use schema::*;
+pub use steps::{StepTool, ToolStep, ToolStepError};
 
 /// The version of the script format this build reads.
 pub const SCRIPT_VERSION: u32 = 1;
