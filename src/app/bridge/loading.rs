@@ -22,8 +22,8 @@ pub(super) enum ImportFailed {
     Fit {
         /// The file.
         path: PathBuf,
-        /// Why.
-        source: ImportError,
+        /// Why (boxed: an import error is large).
+        source: Box<ImportError>,
     },
 }
 
@@ -80,7 +80,7 @@ impl Bridge {
         )
         .map_err(|source| ImportFailed::Fit {
             path: path.to_path_buf(),
-            source,
+            source: Box::new(source),
         })?;
         let cloud = imported.cloud_in_field_units();
         let points = match PointSet::build(&cloud, &PointSetOptions::default()) {
@@ -132,7 +132,7 @@ impl Bridge {
             },
             source => ImportFailed::Fit {
                 path: path.to_path_buf(),
-                source,
+                source: Box::new(source),
             },
         })
     }
