@@ -2,7 +2,7 @@
 //!
 //! [`RecordingDevice`] wraps a device and logs every read and write without blocking the
 //! haptic loop; [`ReplayDevice`] plays a file back call by call, deterministically; the
-//! [`format`] module is the pure codec between them (documented layout, fuzzed parser).
+//! [`format`](mod@format) module is the pure codec between them (documented layout, fuzzed parser).
 
 mod error;
 pub mod format;
@@ -13,6 +13,6 @@ pub use error::RecordError;
 pub use format::{FORMAT_VERSION, Record, Recording, ScheduleNote, WriteSummary};
 pub use recorder::{RecorderConfig, RecordingDevice, ScheduleLog};
 pub use replay::{
-    RecordedSchedule, RecordedStep, RecordedTick, ReplayDevice, ReplayDivergence, SampleProblem,
-    ScheduleGap,
+    MAX_RECORDING_BYTES, RecordedSchedule, RecordedStep, RecordedTick, ReplayDevice,
+    ReplayDivergence, SampleProblem, ScheduleGap,
 };

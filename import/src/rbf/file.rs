@@ -28,6 +28,7 @@ use super::fit::Rbf;
 use dynaclay_core::field::{BSplineLattice, FitError, LatticeError, density_profile, fit_lattice};
 use dynaclay_core::io::bounded_read::{BoundedReadError, read_regular_file};
 use dynaclay_core::io::{SessionError, write_atomic};
+use dynaclay_files::{ByteCursor, ShortRead};
 
 /// The file's first eight bytes.
 pub const MAGIC: [u8; 8] = *b"DCLYRBF\0";
@@ -164,17 +165,26 @@ pub fn encode(file: &RbfFile) -> Result<Vec<u8>, RbfFileError> {
 /// [`RbfFileError::Invalid`].
 pub fn decode(bytes: &[u8], path: &Path) -> Result<RbfFile, RbfFileError> {
     let path_buf = || path.to_path_buf();
-    if bytes.len() < 12 || bytes[..8] != MAGIC {
+    let mut cursor = ByteCursor::new(bytes);
+    let not_rbf = |_: ShortRead| RbfFileError::NotRbf { path: path_buf() };
+    if cursor.array::<8>().map_err(not_rbf)? != MAGIC {
         return Err(RbfFileError::NotRbf { path: path_buf() });
     }
-    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
-    let version = u32_at(8);
+    let version = cursor.u32().map_err(not_rbf)?;
     if version != VERSION {
         return Err(RbfFileError::UnsupportedVersion {
             path: path_buf(),
             found: version,
         });
     }
+    let short = |centres: usize, expected: usize| {
+        move |_: ShortRead| RbfFileError::Truncated {
+            path: path_buf(),
+            len: bytes.len(),
+            centres,
+            expected,
+        }
+    };
     if bytes.len() < HEADER + 4 {
         return Err(RbfFileError::Truncated {
             path: path_buf(),
@@ -183,7 +193,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<RbfFile, RbfFileError> {
             expected: HEADER + 4,
         });
     }
-    let k = u32_at(12) as usize;
+    let k = cursor.u32().map_err(short(0, HEADER + 4))? as usize;
     if k > MAX_CENTRES {
         return Err(RbfFileError::TooManyCentres { centres: k });
     }
@@ -196,24 +206,31 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<RbfFile, RbfFileError> {
             expected,
         });
     }
-    let body = &bytes[..expected - 4];
-    if crc32fast::hash(body) != u32_at(expected - 4) {
+    let (body, stored_crc) = bytes.split_at(expected - 4);
+    let stored_crc = ByteCursor::new(stored_crc)
+        .u32()
+        .map_err(short(k, expected))?;
+    if crc32fast::hash(body) != stored_crc {
         return Err(RbfFileError::Checksum { path: path_buf() });
     }
-    let f32_at = |at: usize| f32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
-    let f64_at = |at: usize| f64::from_le_bytes(bytes[at..at + 8].try_into().expect("8 bytes"));
+    // The length is checked: what follows cannot run short (a short read would still be an
+    // error, not a panic).
+    let short = short(k, expected);
     let invalid = |what| RbfFileError::Invalid {
         path: path_buf(),
         what,
     };
-    let dims = [
-        u32_at(16) as usize,
-        u32_at(20) as usize,
-        u32_at(24) as usize,
-    ];
-    let spacing = f32_at(28);
-    let origin = Vec3::new(f32_at(32), f32_at(36), f32_at(40));
-    let iso = f32_at(44);
+    let mut dims = [0usize; 3];
+    for d in &mut dims {
+        *d = cursor.u32().map_err(short)? as usize;
+    }
+    let spacing = cursor.f32().map_err(short)?;
+    let origin = Vec3::new(
+        cursor.f32().map_err(short)?,
+        cursor.f32().map_err(short)?,
+        cursor.f32().map_err(short)?,
+    );
+    let iso = cursor.f32().map_err(short)?;
     // Lattices larger than 512 per axis are refused: importing one would allocate gigabytes.
     if dims.iter().any(|&d| !(4..=512).contains(&d)) {
         return Err(invalid("lattice size"));
@@ -222,16 +239,23 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<RbfFile, RbfFileError> {
     if !spacing_ok || !origin.is_finite() || !iso.is_finite() {
         return Err(invalid("lattice geometry"));
     }
-    let poly = [f64_at(48), f64_at(56), f64_at(64), f64_at(72)];
+    let mut poly = [0.0f64; 4];
+    for p in &mut poly {
+        *p = cursor.f64().map_err(short)?;
+    }
     if poly.iter().any(|p| !p.is_finite()) {
         return Err(invalid("polynomial"));
     }
+    debug_assert_eq!(cursor.at(), HEADER);
     let mut centres = Vec::with_capacity(k);
     let mut weights = Vec::with_capacity(k);
-    for i in 0..k {
-        let at = HEADER + PER_CENTRE * i;
-        let c = DVec3::new(f64_at(at), f64_at(at + 8), f64_at(at + 16));
-        let w = f64_at(at + 24);
+    for _ in 0..k {
+        let c = DVec3::new(
+            cursor.f64().map_err(short)?,
+            cursor.f64().map_err(short)?,
+            cursor.f64().map_err(short)?,
+        );
+        let w = cursor.f64().map_err(short)?;
         if !(c.is_finite() && w.is_finite()) {
             return Err(invalid("centre"));
         }
