@@ -257,3 +257,42 @@ fn damaged_files_are_refused_with_reasons() {
         Err(RbfFileError::Read { .. })
     ));
 }
+
+#[test]
+fn every_cut_of_a_file_is_refused_as_short_and_never_read_past() {
+    let file = RbfFile {
+        rbf: Rbf {
+            centres: vec![DVec3::ZERO, DVec3::X, DVec3::Y],
+            weights: vec![1.0, -1.0, 0.5],
+            poly: [0.1, 0.0, 0.0, 1.0],
+        },
+        dims: [8, 8, 8],
+        spacing: 0.1,
+        origin: Vec3::ZERO,
+        iso: 0.5,
+    };
+    let bytes = encode(&file).unwrap();
+    let path = std::path::Path::new("cut.rbf");
+    for len in 0..bytes.len() {
+        let refused = decode(&bytes[..len], path).unwrap_err();
+        if len < 12 {
+            // Too short to hold the magic and the version.
+            assert!(
+                matches!(refused, RbfFileError::NotRbf { .. }),
+                "{len}: {refused}"
+            );
+        } else {
+            assert!(
+                matches!(refused, RbfFileError::Truncated { len: l, .. } if l == len),
+                "{len}: {refused}"
+            );
+        }
+    }
+    // One byte more than the file says is refused too.
+    let mut longer = bytes.clone();
+    longer.push(0);
+    assert!(matches!(
+        decode(&longer, path),
+        Err(RbfFileError::Truncated { .. })
+    ));
+}
