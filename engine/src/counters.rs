@@ -32,6 +32,8 @@ struct Inner {
     graphics_updates: AtomicU64,
     bricks_remeshed: AtomicU64,
     peak_force_milli_n: AtomicU64,
+    clay_growths: AtomicU64,
+    auto_refines: AtomicU64,
 }
 
 /// A plain copy of the counters at one moment.
@@ -70,6 +72,12 @@ pub struct CounterSnapshot {
     pub bricks_remeshed: u64,
     /// Largest force magnitude sent to the device, millinewtons.
     pub peak_force_milli_n: u64,
+    /// Times the base patch grew to take an edit past its box.
+    #[serde(default)]
+    pub clay_growths: u64,
+    /// Detail patches added under a fine brush without being asked.
+    #[serde(default)]
+    pub auto_refines: u64,
 }
 
 macro_rules! bump {
@@ -107,6 +115,8 @@ impl EngineCounters {
         command_errors,
         graphics_updates,
         bricks_remeshed,
+        clay_growths,
+        auto_refines,
     );
 
     /// Raises the recorded peak force to `force_n` if larger.
@@ -148,6 +158,8 @@ impl EngineCounters {
             graphics_updates: r(&i.graphics_updates),
             bricks_remeshed: r(&i.bricks_remeshed),
             peak_force_milli_n: r(&i.peak_force_milli_n),
+            clay_growths: r(&i.clay_growths),
+            auto_refines: r(&i.auto_refines),
         }
     }
 }

@@ -13,6 +13,7 @@ use super::counters::EngineCounters;
 use super::layout::LayoutPort;
 use super::update::FieldUpdate;
 use dynaclay_core::field::MultiPatchField;
+use glam::Vec3;
 pub use dynaclay_core::mesh::MeshSink;
 use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
 use dynaclay_core::tools::ColourField;
@@ -95,9 +96,13 @@ impl GraphicsStage {
             self.sink.paint(&self.octree, paint.value.as_ref());
         }
         if let Some(generation) = self.layouts.install(&mut self.field) {
-            // A new patch holds nothing yet: the field and its mesh are unchanged. The grid
-            // keeps the resolution the engine started with.
+            // A new patch holds nothing yet and a grown base holds empty space where it grew:
+            // the field is unchanged. The grid keeps the resolution the engine started with
+            // and grows with the clay.
             self.layout = generation;
+            if !self.grid_covers_the_clay() {
+                self.regrid();
+            }
             self.sink.field(&self.field);
         }
         let stamped = self.updates.latest();
@@ -121,6 +126,36 @@ impl GraphicsStage {
         self.sink.update(&self.octree, &report);
         self.sink.field(&self.field);
         n
+    }
+
+    /// Whether the octree's grid still holds the support of every patch of the field.
+    fn grid_covers_the_clay(&self) -> bool {
+        let grid = self.octree.grid();
+        let (lo, hi) = self.field.support();
+        // A quarter cell of slack: the rounding of the corners' sums, never a brick.
+        let slack = Vec3::splat(0.25 * grid.cell_size);
+        let far = grid.point(grid.cells);
+        lo.cmpge(grid.origin - slack).all() && hi.cmple(far + slack).all()
+    }
+
+    /// Meshes the clay afresh on a grid of the same cell size over its grown support, and
+    /// tells the sink that every old brick went and every new one came (brick coordinates
+    /// are counted from the grid's corner, which moved).
+    fn regrid(&mut self) {
+        let cell = self.octree.grid().cell_size;
+        let (lo, hi) = self.field.support();
+        let Ok(grid) = SampleGrid::covering(lo, hi, cell) else {
+            // A clay too large for a grid keeps the old one (and its clipped mesh).
+            return;
+        };
+        let removed: Vec<[u32; 3]> = self.octree.bricks().map(|b| b.coord).collect();
+        self.octree = BrickOctree::new(grid);
+        let mut report = self.octree.rebuild(&*self.field);
+        report.removed = removed;
+        self.counters.graphics_updates(1);
+        self.counters
+            .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
+        self.sink.update(&self.octree, &report);
     }
 
     /// This stage's field copy.

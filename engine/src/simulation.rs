@@ -39,6 +39,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 mod commands;
 mod compact;
 mod constrain;
+mod detail;
+mod growth;
 mod library;
 mod material;
 mod publication;
@@ -98,6 +100,9 @@ pub struct SimConfig {
     /// What a step that would remove more than half the clay does: applied and reported
     /// (scripts), or held until the user answers (the window).
     pub removal_guard: super::RemovalGuard,
+    /// Whether a geometric brush narrower than three knot spans of the patch under it adds a
+    /// detail patch under itself first (see `simulation/detail.rs`).
+    pub auto_detail: bool,
 }
 
 impl Default for SimConfig {
@@ -112,6 +117,7 @@ impl Default for SimConfig {
             history_budget_bytes: dynaclay_core::tools::DEFAULT_BUDGET_BYTES,
             geometric_interval_us: 10_000,
             removal_guard: super::RemovalGuard::Warn,
+            auto_detail: true,
         }
     }
 }
@@ -559,12 +565,28 @@ impl SimulationStage {
         if !self.removal.admits(guard, &self.clay, tool, &pose, dwell_s) {
             return;
         }
+        let grows = tool
+            .action
+            .can_add_clay()
+            .then(|| tool.influence_box(&pose, self.clay.base().spacing));
+        let (width, paints) = (detail::brush_width_fu(tool), tool.action.paints());
+        if let Some((lo, hi)) = grows {
+            self.make_room(lo, hi);
+        }
+        let patch = self.patch_for_brush_width(width, paints, at, at);
+        let options = ApplyOptions {
+            patch,
+            ..ApplyOptions::default()
+        };
+        let ToolChoice::Geometric(tool) = self.tool.choice() else {
+            return;
+        };
         let result = apply_tool(
             &mut self.clay,
             tool,
             &pose,
             dwell_s,
-            &ApplyOptions::default(),
+            &options,
             self.recorder.as_mut(),
         );
         self.colour_dirty |= tool.action.paints();
@@ -608,7 +630,10 @@ impl SimulationStage {
     /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
     /// on the patch that holds the most detail at its centre.
     fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
-        let patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        let mut patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        if patch == 0 && self.make_room(lo, hi) {
+            patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        }
         let lattice = &self.clay.density.patches[patch].lattice;
         let Some(needed) = coeff_box_around(lattice, lo, hi, 0) else {
             return;

@@ -152,6 +152,43 @@ impl MaterialGrid {
         }
     }
 
+    /// This grid over `old_base` carried onto `grown_base`, the same base grown by whole
+    /// coefficients (see `Clay::grow`): the grid keeps its sample spacing in knot spans, so a
+    /// grid of one sample per coefficient keeps one per coefficient, and every new sample takes
+    /// the value the old grid gives at its world position (a sample beyond the old box takes
+    /// the nearest edge value: the material there is the material next to it).
+    ///
+    /// # Panics
+    /// When the grid does not hold `dims` values (see [`MaterialGrid::validate`]).
+    #[must_use]
+    pub fn grown(&self, old_base: &BSplineLattice, grown_base: &BSplineLattice) -> Self {
+        let dims: [usize; 3] = std::array::from_fn(|a| {
+            let (g, n, m) = (self.dims[a], old_base.dims[a], grown_base.dims[a]);
+            if g == n {
+                m
+            } else if g <= 1 || n <= 1 {
+                g
+            } else {
+                let ratio = (g - 1) as f64 / (n - 1) as f64;
+                1 + ((m - 1) as f64 * ratio).round() as usize
+            }
+        });
+        let mut grown = Self {
+            name: self.name.clone(),
+            dims,
+            values: Vec::with_capacity(dims.iter().product()),
+        };
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let x = grown.position(grown_base, [i, j, k]);
+                    grown.values.push(self.sample(old_base, x));
+                }
+            }
+        }
+        grown
+    }
+
     /// The parameter the grid holds, if its name is one of the four.
     #[must_use]
     pub fn param(&self) -> Option<MaterialParam> {

@@ -81,6 +81,41 @@ impl BSplineLattice {
         })
     }
 
+    /// This lattice with `low[a]` zero coefficients added before and `high[a]` after it along
+    /// each axis `a`, its origin moved so that every kept coefficient stays on its world node.
+    /// The field is unchanged everywhere (coefficients beyond a lattice count as zero) up to
+    /// the rounding of the moved origin; only its extent grows.
+    ///
+    /// # Errors
+    /// [`LatticeError::WrongLength`] when the grown lattice's size overflows `usize`.
+    pub fn padded(&self, low: [usize; 3], high: [usize; 3]) -> Result<Self, LatticeError> {
+        let dims: [usize; 3] = std::array::from_fn(|a| self.dims[a] + low[a] + high[a]);
+        let count = dims
+            .iter()
+            .try_fold(1_usize, |acc, &n| acc.checked_mul(n))
+            .ok_or(LatticeError::WrongLength {
+                expected: usize::MAX,
+                got: self.coeffs.len(),
+            })?;
+        let mut coeffs = vec![0.0; count];
+        for k in 0..self.dims[2] {
+            for j in 0..self.dims[1] {
+                let from = self.index(0, j, k);
+                let to = low[0] + dims[0] * (j + low[1] + dims[1] * (k + low[2]));
+                coeffs[to..to + self.dims[0]]
+                    .copy_from_slice(&self.coeffs[from..from + self.dims[0]]);
+            }
+        }
+        let shift = Vec3::new(low[0] as f32, low[1] as f32, low[2] as f32);
+        Ok(Self {
+            dims,
+            spacing: self.spacing,
+            origin: self.origin - self.spacing * shift,
+            iso: self.iso,
+            coeffs,
+        })
+    }
+
     /// Linear index of coefficient `(i, j, k)`.
     #[inline]
     #[must_use]

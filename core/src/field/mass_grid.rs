@@ -64,6 +64,16 @@ impl CoeffBox {
         self.union(&Self::point(p))
     }
 
+    /// This box moved by `offset` coefficients along each axis (onto a lattice grown by
+    /// `offset` before its first coefficient).
+    #[must_use]
+    pub fn shifted(&self, offset: [usize; 3]) -> Self {
+        Self {
+            min: std::array::from_fn(|a| self.min[a] + offset[a]),
+            max: std::array::from_fn(|a| self.max[a] + offset[a]),
+        }
+    }
+
     /// The smallest box holding both.
     #[must_use]
     pub fn union(&self, other: &Self) -> Self {

@@ -14,8 +14,9 @@ use super::refit::{FitError, fit_lattice};
 
 /// Most density patches a clay holds (a base and its details).
 pub const MAX_PATCHES: usize = 256;
-/// Finest detail level over the base: spacing down to 1/16 of the base's.
-pub const MAX_DETAIL_LEVEL: u32 = 4;
+/// Finest detail level over the base: spacing down to 1/64 of the base's (a brush of 1/256 of
+/// a 24-coefficient clay's box still covers three knot spans of it).
+pub const MAX_DETAIL_LEVEL: u32 = 6;
 /// Most coefficients one detail patch may hold (64 MiB of `f32`).
 pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
 /// Most coefficients a whole clay may hold, all its patches together (256 MiB of `f32`: the

@@ -75,6 +75,16 @@ impl ToolAction {
         }
     }
 
+    /// Whether the action can put clay where there was none (so an application past the
+    /// clay's box should grow the clay first, see [`crate::tools::Clay::grow_to_cover`]).
+    #[must_use]
+    pub fn can_add_clay(&self) -> bool {
+        matches!(
+            self,
+            Self::Add { .. } | Self::Smooth { .. } | Self::Stamp(_) | Self::Contact(_) | Self::Union
+        )
+    }
+
     /// Whether the action writes the colour field rather than the density.
     #[must_use]
     pub fn paints(&self) -> bool {

@@ -70,6 +70,50 @@ impl GeometricTool {
     }
 }
 
+impl GeometricTool {
+    /// The falloff band the tool shapes with on a lattice of knot spacing `spacing_fu`: the
+    /// user's band for the actions that shape their own, else widened to the lattice's floor.
+    #[must_use]
+    pub fn band_fu(&self, spacing_fu: f32) -> f32 {
+        if self.action.shapes_its_band() {
+            self.falloff_fu
+        } else {
+            effective_falloff_fu(self.falloff_fu, spacing_fu)
+        }
+    }
+
+    /// The band a stamp's print tends to: the lattice's floor, as the carving actions use
+    /// (`StampParams::apply`). Every other action reads one potential, [`Self::band_fu`].
+    #[must_use]
+    pub fn print_band_fu(&self, spacing_fu: f32) -> f32 {
+        if matches!(self.action, ToolAction::Stamp(_)) {
+            effective_falloff_fu(self.falloff_fu, spacing_fu)
+        } else {
+            self.band_fu(spacing_fu)
+        }
+    }
+
+    /// The world box an application at `pose` reads and writes on a lattice of knot spacing
+    /// `spacing_fu`: the shape with its band (a stamp's print band too) and, for smoothing,
+    /// one kernel width around it.
+    #[must_use]
+    pub fn influence_box(&self, pose: &ToolPose, spacing_fu: f32) -> (Vec3, Vec3) {
+        let falloff = self.band_fu(spacing_fu);
+        let print_falloff = self.print_band_fu(spacing_fu);
+        let half = self
+            .shape
+            .influence_half_extents(falloff.max(print_falloff));
+        let (mut lo, mut hi) = pose.world_bounds(half);
+        if let ToolAction::Smooth { kernel_fu, .. } = self.action {
+            // The average reads one kernel width beyond the tool.
+            let reach = kernel_fu.max(spacing_fu);
+            lo -= Vec3::splat(reach);
+            hi += Vec3::splat(reach);
+        }
+        (lo, hi)
+    }
+}
+
 /// Applies `tool` at `pose` for a dwell of `dt_s` seconds, refitting the touched coefficients.
 /// When `recorder` is given, the touched region is remembered first so the application can
 /// be undone.
@@ -96,28 +140,12 @@ pub fn apply_tool(
         return paint(clay, tool, pose, dt_s, options, recorder);
     }
     let lattice = clay.field(id).expect("checked above");
-    let falloff = if tool.action.shapes_its_band() {
-        tool.falloff_fu
-    } else {
-        effective_falloff_fu(tool.falloff_fu, lattice.spacing)
-    };
-    // The band a stamp's print tends to: the lattice's floor, as the carving actions use
-    // (`StampParams::apply`). Every other action reads one potential.
-    let print_falloff = if matches!(tool.action, ToolAction::Stamp(_)) {
-        effective_falloff_fu(tool.falloff_fu, lattice.spacing)
-    } else {
-        falloff
-    };
+    let falloff = tool.band_fu(lattice.spacing);
+    let print_falloff = tool.print_band_fu(lattice.spacing);
     let half = tool
         .shape
         .influence_half_extents(falloff.max(print_falloff));
-    let (mut lo, mut hi) = pose.world_bounds(half);
-    if let ToolAction::Smooth { kernel_fu, .. } = tool.action {
-        // The average reads one kernel width beyond the tool.
-        let reach = kernel_fu.max(lattice.spacing);
-        lo -= Vec3::splat(reach);
-        hi += Vec3::splat(reach);
-    }
+    let (lo, hi) = tool.influence_box(pose, lattice.spacing);
     let Some(region) = coeff_box_around(lattice, lo, hi, 0) else {
         return Ok(ToolReport::default());
     };

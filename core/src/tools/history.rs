@@ -10,6 +10,7 @@
 use std::collections::{BTreeMap, VecDeque};
 
 use super::clay::{Clay, CoeffBox, FieldId};
+use super::growth::Growth;
 use crate::dynamics::Constraint;
 
 /// Edge length (in coefficients) of the bricks that deltas are stored in.
@@ -139,6 +140,20 @@ impl Step {
     }
 }
 
+/// The coefficients of brick `brick` (unclipped).
+fn brick_box(brick: [usize; 3]) -> CoeffBox {
+    CoeffBox {
+        min: brick.map(|b| b * BRICK),
+        max: brick.map(|b| (b + 1) * BRICK - 1),
+    }
+}
+
+/// Whether a delta or saved brick of `field`, recorded on a lattice of `dims`, moves when
+/// the clay grows by `growth`.
+fn moves_with(field: FieldId, dims: [usize; 3], growth: &Growth) -> bool {
+    matches!(field, FieldId::Density(0) | FieldId::Colour(_)) && dims == growth.old_dims
+}
+
 /// Visits the rows of `region` in a lattice of `dims` as (first linear index, length).
 fn for_each_row(dims: [usize; 3], region: &CoeffBox, mut f: impl FnMut(usize, usize)) {
     let len = region.max[0] + 1 - region.min[0];
@@ -220,15 +235,7 @@ impl StepRecorder {
                     if self.old.contains_key(&key) {
                         continue;
                     }
-                    let Some(brick) = (CoeffBox {
-                        min: [bi * BRICK, bj * BRICK, bk * BRICK],
-                        max: [
-                            (bi + 1) * BRICK - 1,
-                            (bj + 1) * BRICK - 1,
-                            (bk + 1) * BRICK - 1,
-                        ],
-                    })
-                    .clipped(dims) else {
+                    let Some(brick) = brick_box([bi, bj, bk]).clipped(dims) else {
                         continue;
                     };
                     let mut bits = Vec::with_capacity(brick.count());
@@ -267,6 +274,44 @@ impl StepRecorder {
                 self.touch(clay, id, full);
             }
         }
+    }
+
+    /// Moves the remembered bricks onto the grown base and colour field (see
+    /// [`super::Growth`]), so that a stroke that grew the clay stays one step.
+    pub fn regrid(&mut self, growth: &Growth) {
+        let bricks = growth.pad.map(|p| p / BRICK);
+        self.old = std::mem::take(&mut self.old)
+            .into_iter()
+            .map(|((field, brick), mut saved)| {
+                if !moves_with(field, saved.dims, growth) {
+                    return ((field, brick), saved);
+                }
+                let brick: [usize; 3] = std::array::from_fn(|a| brick[a] + bricks[a]);
+                let moved = saved.region.shifted(growth.pad);
+                // A brick clipped at the old lattice's far side is whole (or less clipped) on
+                // the grown one: its new coefficients were empty space, zero before the step.
+                let whole = brick_box(brick)
+                    .clipped(growth.new_dims)
+                    .expect("a moved brick lies inside the grown lattice");
+                let mut bits = Vec::with_capacity(whole.count());
+                let mut old_rows = saved.bits.chunks_exact(moved.dims()[0]);
+                for k in whole.min[2]..=whole.max[2] {
+                    for j in whole.min[1]..=whole.max[1] {
+                        let kept = (moved.min[1]..=moved.max[1]).contains(&j)
+                            && (moved.min[2]..=moved.max[2]).contains(&k);
+                        let row = if kept { old_rows.next() } else { None };
+                        for i in whole.min[0]..=whole.max[0] {
+                            let at = i.checked_sub(moved.min[0]);
+                            bits.push(row.and_then(|r| r.get(at?)).copied().unwrap_or(0));
+                        }
+                    }
+                }
+                saved.region = whole;
+                saved.dims = growth.new_dims;
+                saved.bits = bits;
+                ((field, brick), saved)
+            })
+            .collect();
     }
 
     /// The union of the touched bricks of `field` (`None` if none).
@@ -429,6 +474,21 @@ impl History {
         Ok(Some(label))
     }
 
+    /// Moves every recorded delta of the base and the colour field onto the grown lattices
+    /// (see [`super::Growth`]): the added coefficients are empty space that no step changed,
+    /// so every step still undoes and redoes bit for bit after the clay grew. The growth
+    /// itself is not a step: undo gives back the shape, the room stays.
+    pub fn regrid(&mut self, growth: &Growth) {
+        for step in self.undo.iter_mut().chain(self.redo.iter_mut()) {
+            for d in &mut step.deltas {
+                if moves_with(d.field, d.dims, growth) {
+                    d.region = d.region.shifted(growth.pad);
+                    d.dims = growth.new_dims;
+                }
+            }
+        }
+    }
+
     /// Steps that can be undone.
     #[must_use]
     pub fn undo_len(&self) -> usize {
@@ -485,6 +545,47 @@ mod tests {
             l.coeffs[i] = value
         });
         history.commit(rec, clay);
+    }
+
+    #[test]
+    fn steps_before_and_a_stroke_across_a_growth_undo_and_redo_bit_for_bit_on_the_grown_clay() {
+        let mut clay = clay();
+        let mut history = History::default();
+        let start = clay.clone();
+        edit(&mut clay, &mut history, CoeffBox { min: [2, 2, 2], max: [9, 5, 4] }, 2.0);
+        let after_first = clay.clone();
+        // A stroke touches a box, the clay grows under it, and the stroke goes on.
+        let mut rec = StepRecorder::new("stroke");
+        let early = CoeffBox { min: [10, 3, 1], max: [17, 8, 6] };
+        rec.touch(&clay, FieldId::Density(0), early);
+        let at = clay.base().index(12, 4, 3);
+        clay.base_mut().coeffs[at] = -1.0;
+        let growth = clay.grow([8, 0, 8]).unwrap();
+        history.regrid(&growth);
+        rec.regrid(&growth);
+        let late = early.shifted(growth.pad);
+        rec.touch(&clay, FieldId::Density(0), late);
+        let at = clay.base().index(late.min[0] + 5, late.min[1] + 2, late.min[2] + 1);
+        clay.base_mut().coeffs[at] = 7.0;
+        // Past the old far side, in a brick that was clipped there before the growth.
+        let beyond = CoeffBox { min: [29, 4, 9], max: [30, 5, 10] };
+        rec.touch(&clay, FieldId::Density(0), beyond);
+        let at = clay.base().index(30, 5, 10);
+        clay.base_mut().coeffs[at] = 5.0;
+        history.commit(rec, &clay);
+        let done = clay.clone();
+        // Undo the stroke: the grown clay holds the first edit's coefficients again.
+        history.undo(&mut clay).unwrap();
+        let mut grown_first = after_first.clone();
+        grown_first.grow([8, 0, 8]).unwrap();
+        assert_eq!(clay.base().coeffs, grown_first.base().coeffs);
+        history.undo(&mut clay).unwrap();
+        let mut grown_start = start.clone();
+        grown_start.grow([8, 0, 8]).unwrap();
+        assert_eq!(clay.base().coeffs, grown_start.base().coeffs);
+        history.redo(&mut clay).unwrap();
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay.base().coeffs, done.base().coeffs);
     }
 
     #[test]

@@ -15,6 +15,7 @@ mod clay;
 mod deform;
 mod emboss;
 mod force;
+mod growth;
 mod history;
 mod pin;
 mod projection;
@@ -41,6 +42,7 @@ pub use force::{
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,
     project_to_surface,
 };
+pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
 pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,

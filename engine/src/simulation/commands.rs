@@ -114,6 +114,13 @@ impl SimulationStage {
                 } else {
                     0.0
                 };
+                self.make_room_for_tool(&tool, &poses, patch);
+                // A script's tool on the base (the default) gets the detail its brush needs.
+                let patch = if patch == 0 {
+                    self.patch_for_brush(&tool, &poses)
+                } else {
+                    patch
+                };
                 let mut rec = StepRecorder::new(tool.action.name());
                 let options = ApplyOptions {
                     patch,
@@ -392,13 +399,7 @@ impl SimulationStage {
     fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<String, CommandError> {
         let n = self.clay.density.refine(lo, hi, level)?;
         self.pending.push(None);
-        self.layout_generation += 1;
-        for sender in &self.layout_senders {
-            sender.offer(&self.clay.density, self.layout_generation);
-        }
-        // Readers skip updates until their copy has the new layout; everything is published
-        // again so that none is lost in between.
-        self.mark_all_changed();
+        self.publish_layout();
         let l = &self.clay.density.patches[n].lattice;
         Ok(format!(
             "refine: detail patch {n}, {}×{}×{} coefficients at knot spacing {} (level {level})",

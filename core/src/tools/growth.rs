@@ -1,0 +1,253 @@
+//! Room wherever the clay goes: before an edit reaches past the base patch, the base grows by
+//! whole bricks of zero coefficients (empty space), so a pull or an added lump extends the clay
+//! beyond the box it started in instead of being clipped flat against it.
+//!
+//! Growth is symmetric per axis (the same number of coefficients before and after), so the
+//! lattice's centre — the mirror plane of symmetric sculpting — stays where it was, and it adds
+//! a multiple of [`BRICK`] coefficients per side, so the undo history's brick deltas keep their
+//! brick alignment when they are moved onto the grown lattice ([`super::History::regrid`]).
+//! The colour field grows with the base; material grids are carried over by their owner
+//! ([`crate::dynamics::MaterialGrid::grown`]).
+//!
+//! Budget: the grown clay is checked against [`MAX_CLAY_COEFFS`] before anything is allocated.
+//! The base stays dense: memory grows with the volume the clay has reached, not yet with its
+//! surface alone.
+
+use glam::Vec3;
+
+use super::clay::{Clay, FieldId};
+use super::history::BRICK;
+use crate::field::{BSplineLattice, LatticeError, MAX_CLAY_COEFFS};
+
+/// How many knot spans an edit's box must stay inside the base patch's coefficients: the
+/// cubic stencil reaches two nodes past a point, and a spring region's neighbours one more.
+pub const GROWTH_MARGIN_SPANS: f32 = 4.0;
+
+/// Why the clay could not grow to take an edit.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum GrowthError {
+    /// The edit's box is not finite.
+    #[error("the box {lo:?}..{hi:?} to grow the clay to is not finite")]
+    NotFinite {
+        /// The box's low corner.
+        lo: [f32; 3],
+        /// The box's high corner.
+        hi: [f32; 3],
+    },
+    /// The grown clay would exceed the coefficient budget.
+    #[error(
+        "growing the clay to {dims:?} base coefficients would make {total} coefficients in all, more than {MAX_CLAY_COEFFS}; the edit stays clipped to the clay's box"
+    )]
+    ClayTooLarge {
+        /// The grown base's dimensions (saturated when they overflow).
+        dims: [usize; 3],
+        /// Coefficients of the grown clay, every patch and the colour field.
+        total: usize,
+    },
+    /// The grown lattice could not be made.
+    #[error("the grown base lattice: {0}")]
+    Lattice(#[from] LatticeError),
+}
+
+/// How the base patch grew: `pad[a]` coefficients were added before and after it along axis
+/// `a`. Everything that indexes the base's (and the colour field's) coefficients moves by
+/// `pad`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Growth {
+    /// Coefficients added on each side, per axis (a multiple of [`BRICK`]).
+    pub pad: [usize; 3],
+    /// The base's dimensions before.
+    pub old_dims: [usize; 3],
+    /// The base's dimensions after.
+    pub new_dims: [usize; 3],
+}
+
+impl Growth {
+    /// The fields whose coefficients moved: the base density and, when the clay is painted,
+    /// the four colour channels.
+    #[must_use]
+    pub fn fields(&self, painted: bool) -> impl Iterator<Item = FieldId> + use<> {
+        let colours = if painted { 0..4 } else { 0..0 };
+        std::iter::once(FieldId::Density(0)).chain(colours.map(FieldId::Colour))
+    }
+}
+
+/// The padding per side the base `lattice` needs so that the world box `lo..=hi` lies
+/// [`GROWTH_MARGIN_SPANS`] inside its nodes, rounded up to whole bricks (`None` when it
+/// already does).
+///
+/// # Errors
+/// [`GrowthError::NotFinite`] for a box that is not finite.
+pub fn padding_to_cover(
+    lattice: &BSplineLattice,
+    lo: Vec3,
+    hi: Vec3,
+) -> Result<Option<[usize; 3]>, GrowthError> {
+    if !(lo.is_finite() && hi.is_finite()) {
+        return Err(GrowthError::NotFinite {
+            lo: lo.to_array(),
+            hi: hi.to_array(),
+        });
+    }
+    let (ulo, uhi) = (lattice.to_lattice(lo), lattice.to_lattice(hi));
+    let mut pad = [0_usize; 3];
+    for a in 0..3 {
+        let last = (lattice.dims[a] - 1) as f32;
+        let short = (GROWTH_MARGIN_SPANS - ulo[a].min(uhi[a]))
+            .max(ulo[a].max(uhi[a]) - (last - GROWTH_MARGIN_SPANS))
+            .max(0.0);
+        if short > 0.0 {
+            // Saturating: an absurd box asks for more than any budget and is refused there.
+            let spans = short.ceil().min(1e9) as usize;
+            pad[a] = spans.div_ceil(BRICK) * BRICK;
+        }
+    }
+    Ok((pad != [0; 3]).then_some(pad))
+}
+
+impl Clay {
+    /// Grows the base patch (and the colour field) so that the world box `lo..=hi` lies well
+    /// inside it (see [`padding_to_cover`]); returns how it grew, or `None` when it already
+    /// did. The density is unchanged (new coefficients are empty space).
+    ///
+    /// # Errors
+    /// [`GrowthError`] when the box is not finite or the grown clay would exceed
+    /// [`MAX_CLAY_COEFFS`]; the clay is unchanged then.
+    pub fn grow_to_cover(&mut self, lo: Vec3, hi: Vec3) -> Result<Option<Growth>, GrowthError> {
+        match padding_to_cover(self.base(), lo, hi)? {
+            Some(pad) => self.grow(pad).map(Some),
+            None => Ok(None),
+        }
+    }
+
+    /// Adds `pad[a]` zero coefficients on both sides of axis `a` to the base patch and the
+    /// colour field.
+    ///
+    /// # Errors
+    /// As [`Clay::grow_to_cover`].
+    pub fn grow(&mut self, pad: [usize; 3]) -> Result<Growth, GrowthError> {
+        let old_dims = self.base().dims;
+        let new_dims: [usize; 3] =
+            std::array::from_fn(|a| old_dims[a].saturating_add(pad[a].saturating_mul(2)));
+        let base_count = new_dims
+            .iter()
+            .fold(1_usize, |acc, &n| acc.saturating_mul(n));
+        let details = self.density.coefficient_count() - self.base().coeffs.len();
+        let colour = if self.colour.is_some() { 4 } else { 0 };
+        let total = base_count
+            .saturating_mul(1 + colour)
+            .saturating_add(details);
+        if total > MAX_CLAY_COEFFS {
+            return Err(GrowthError::ClayTooLarge {
+                dims: new_dims,
+                total,
+            });
+        }
+        let base = self.base().padded(pad, pad)?;
+        let colour = match &self.colour {
+            Some(c) => {
+                let mut channels = c.channels.clone();
+                for channel in &mut channels {
+                    *channel = channel.padded(pad, pad)?;
+                }
+                Some(channels)
+            }
+            None => None,
+        };
+        *self.base_mut() = base;
+        if let (Some(field), Some(channels)) = (self.colour.as_mut(), colour) {
+            field.channels = channels;
+        }
+        Ok(Growth {
+            pad,
+            old_dims,
+            new_dims,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tools::ColourField;
+
+    fn ball(n: usize) -> BSplineLattice {
+        let spacing = 1.0 / (n - 3) as f32;
+        let mut l = BSplineLattice::zeros([n; 3], spacing, Vec3::splat(-spacing)).unwrap();
+        let centre = Vec3::splat(0.5);
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let d = (l.node_position(i, j, k) - centre).length();
+                    let idx = l.index(i, j, k);
+                    l.coeffs[idx] = (1.0 - d / 0.35).clamp(0.0, 1.0);
+                }
+            }
+        }
+        l
+    }
+
+    #[test]
+    fn a_box_inside_needs_no_growth_and_one_past_the_side_grows_by_whole_bricks() {
+        let l = ball(20);
+        assert_eq!(
+            padding_to_cover(&l, Vec3::splat(0.3), Vec3::splat(0.7)).unwrap(),
+            None
+        );
+        // 0.2 field units past the high x side: about 3.4 spans + the margin.
+        let pad = padding_to_cover(&l, Vec3::splat(0.5), Vec3::new(1.2, 0.5, 0.5))
+            .unwrap()
+            .unwrap();
+        assert_eq!(pad[1], 0);
+        assert_eq!(pad[2], 0);
+        assert!(pad[0] >= 8 && pad[0] % BRICK == 0, "{pad:?}");
+        let grown = l.padded(pad, pad).unwrap();
+        assert!(grown.to_lattice(Vec3::new(1.2, 0.5, 0.5)).x <= (grown.dims[0] - 1) as f32 - 4.0);
+    }
+
+    #[test]
+    fn growing_keeps_the_density_and_the_centre_and_moves_the_paint_with_it() {
+        let mut clay = Clay::single(ball(20));
+        let mut colour = ColourField::matching(clay.base()).unwrap();
+        for (n, c) in colour.channels[0].coeffs.iter_mut().enumerate() {
+            *c = (n % 7) as f32 / 7.0;
+        }
+        clay.colour = Some(colour);
+        let before = clay.clone();
+        let centre = |l: &BSplineLattice| {
+            let (lo, hi) = l.support();
+            (lo + hi) * 0.5
+        };
+        let growth = clay
+            .grow_to_cover(Vec3::splat(-0.6), Vec3::splat(0.5))
+            .unwrap()
+            .unwrap();
+        assert_eq!(growth.old_dims, [20; 3]);
+        assert!(growth.new_dims.iter().all(|&n| n > 20));
+        assert!((centre(clay.base()) - centre(before.base())).length() < 1e-5);
+        for s in 0..200 {
+            let t = s as f32 / 199.0;
+            let x = Vec3::new(-0.3 + 1.6 * t, 0.5 + 0.3 * (7.0 * t).sin(), 0.45);
+            let (a, b) = (before.density.value(x), clay.density.value(x));
+            assert!((a - b).abs() < 1e-5, "{a} vs {b} at {x}");
+            let (pa, pb) = (
+                before.colour.as_ref().unwrap().rgba(x),
+                clay.colour.as_ref().unwrap().rgba(x),
+            );
+            assert!((pa - pb).abs().max_element() < 1e-5);
+        }
+        assert!(clay.colour.as_ref().unwrap().is_consistent());
+        assert_eq!(clay.colour.as_ref().unwrap().channels[0].dims, growth.new_dims);
+    }
+
+    #[test]
+    fn growth_past_the_budget_and_a_box_at_infinity_are_refused_and_change_nothing() {
+        let mut clay = Clay::single(ball(20));
+        let before = clay.clone();
+        let far = clay.grow_to_cover(Vec3::ZERO, Vec3::new(1e6, 0.5, 0.5));
+        assert!(matches!(far, Err(GrowthError::ClayTooLarge { .. })), "{far:?}");
+        let nan = clay.grow_to_cover(Vec3::ZERO, Vec3::new(f32::NAN, 0.5, 0.5));
+        assert!(matches!(nan, Err(GrowthError::NotFinite { .. })));
+        assert_eq!(clay, before);
+    }
+}

@@ -1,0 +1,186 @@
+//! Detail where the brush is fine: before a geometric tool is applied, a brush narrower than
+//! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
+//! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. The new
+//! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
+//! copy in wait-free, between ticks).
+//!
+//! Each automatic patch is a cube of [`AUTO_DETAIL_HALF_WIDTHS`] brush widths around the
+//! brush (at least [`AUTO_DETAIL_MIN_HALF_SPANS`] of its own spans), so a stroke that moves on
+//! adds a patch each time it leaves the last one; the clay's patch and coefficient budgets
+//! bound them ([`dynaclay_core::field::MAX_PATCHES`], [`dynaclay_core::field::MAX_CLAY_COEFFS`]):
+//! past them the brush sculpts on the finest patch there is.
+
+#[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
+use super::*;
+use dynaclay_core::field::MAX_DETAIL_LEVEL;
+use dynaclay_core::tools::GeometricTool;
+
+/// Knot spans of the patch it sculpts that a brush's width (twice its smallest half extent)
+/// must cover; a narrower brush refines under itself first.
+pub const BRUSH_WIDTH_SPANS: f32 = 3.0;
+
+/// Half the edge of an automatic detail patch, in brush widths.
+pub const AUTO_DETAIL_HALF_WIDTHS: f32 = 4.0;
+
+/// Least half edge of an automatic detail patch, in its own knot spans.
+pub const AUTO_DETAIL_MIN_HALF_SPANS: f32 = 8.0;
+
+/// The detail level (each level halves the base's knot spacing) at which a brush of width
+/// `width_fu` covers [`BRUSH_WIDTH_SPANS`] spans, on a base of knot spacing `base_spacing_fu`;
+/// at most [`MAX_DETAIL_LEVEL`], and 0 when the base is fine enough.
+#[must_use]
+pub fn level_for_brush(width_fu: f32, base_spacing_fu: f32) -> u32 {
+    if !(width_fu.is_finite() && width_fu > 0.0) {
+        return 0;
+    }
+    let ratio = BRUSH_WIDTH_SPANS * base_spacing_fu / width_fu;
+    if ratio <= 1.0 {
+        return 0;
+    }
+    (ratio.log2().ceil() as u32).min(MAX_DETAIL_LEVEL)
+}
+
+/// A brush's width: twice the smallest half extent of its shape.
+#[must_use]
+pub fn brush_width_fu(tool: &GeometricTool) -> f32 {
+    2.0 * tool.shape.half_extents().min_element()
+}
+
+impl SimulationStage {
+    /// The density patch `tool` applied at the brush positions `poses` edits: a detail patch
+    /// fine enough for the brush, added first over the positions' box when the clay has none
+    /// there (see the module's docs); paint goes on the base, which the colour field covers.
+    pub(super) fn patch_for_brush(&mut self, tool: &GeometricTool, poses: &[ToolPose]) -> u16 {
+        let Some((lo, hi)) = poses
+            .iter()
+            .map(|p| (p.position_fu, p.position_fu))
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
+        else {
+            return 0;
+        };
+        self.patch_for_brush_width(brush_width_fu(tool), tool.action.paints(), lo, hi)
+    }
+
+    /// [`Self::patch_for_brush`] for a brush of width `width` whose centre stays in
+    /// `lo..=hi`.
+    pub(super) fn patch_for_brush_width(
+        &mut self,
+        width: f32,
+        paints: bool,
+        lo: Vec3,
+        hi: Vec3,
+    ) -> u16 {
+        let under = self.sculpted_patch_at((lo + hi) * 0.5);
+        let base_spacing = self.clay.base().spacing;
+        let level = level_for_brush(width, base_spacing);
+        let wanted = base_spacing / (1_u32 << level) as f32;
+        let have = self.clay.density.patches[under].lattice.spacing;
+        let covered = {
+            let (plo, phi) = self.clay.density.patches[under].lattice.support();
+            let margin = Vec3::splat(2.0 * have + width);
+            lo.cmpge(plo + margin).all() && hi.cmple(phi - margin).all()
+        };
+        if !self.config.auto_detail || paints || level == 0 || (have <= wanted * 1.001 && covered) {
+            return u16::try_from(under).unwrap_or(0);
+        }
+        let half = (AUTO_DETAIL_HALF_WIDTHS * width).max(AUTO_DETAIL_MIN_HALF_SPANS * wanted);
+        let half = Vec3::splat(half);
+        match self.clay.density.refine(lo - half, hi + half, level) {
+            Ok(n) => {
+                self.pending.push(None);
+                self.clay_revision += 1;
+                self.counters.auto_refines(1);
+                self.publish_layout();
+                u16::try_from(n).unwrap_or(0)
+            }
+            // Past the budgets: the finest patch there is.
+            Err(_) => u16::try_from(under).unwrap_or(0),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Instant;
+
+    use super::*;
+    use dynaclay_core::tools::ToolShape;
+
+    /// The width of the outside of `field` along z through `at`, sampled every 0.0005.
+    fn outside_width(field: &MultiPatchField, at: Vec3) -> f32 {
+        let step = 0.0005;
+        (-400..=400)
+            .filter(|&n| !field.is_inside(at + Vec3::Z * (n as f32 * step)))
+            .count() as f32
+            * step
+    }
+
+    /// Carves a ball of `radius_fu` centred on the sphere clay's top along a short x stroke;
+    /// returns the groove's width half a radius below the top, the chord's width there, the
+    /// patches the clay holds after and the automatic refines counted.
+    fn carve_top(radius_fu: f32, auto: bool) -> (f32, f32, usize, u64) {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let lattice = s.sim.lattice().clone();
+        let centre = (lattice.origin + lattice.node_position(11, 11, 11)) * 0.5;
+        let mut top = centre;
+        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
+            top.y += 0.0005;
+        }
+        let poses: Vec<ToolPose> = (0..=20)
+            .map(|n| ToolPose::at(top + Vec3::X * (-0.05 + 0.005 * n as f32)))
+            .collect();
+        s.sim.config.auto_detail = auto;
+        s.commands
+            .send(Command::ApplyTool {
+                tool: GeometricTool {
+                    shape: ToolShape::Sphere { radius_fu },
+                    action: ToolAction::Remove,
+                    falloff_fu: 0.25 * radius_fu,
+                },
+                poses,
+                duration_s: 1.0,
+                patch: 0,
+                reply: None,
+            })
+            .unwrap();
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+        let below = top - Vec3::Y * (0.5 * radius_fu);
+        let width = outside_width(&s.sim.clay.density, below);
+        let chord = 2.0 * (radius_fu * radius_fu - (0.5 * radius_fu).powi(2)).sqrt();
+        (
+            width,
+            chord,
+            s.sim.clay.density.patches.len(),
+            s.counters.snapshot().auto_refines,
+        )
+    }
+
+    #[test]
+    fn a_fine_brush_refines_under_itself_and_carves_a_groove_of_its_own_width() {
+        // The base's knot spacing is 0.1: a ball of radius 0.02 (width 0.04) needs level 3.
+        let (width, chord, patches, refines) = carve_top(0.02, true);
+        assert_eq!((patches, refines), (2, 1));
+        assert!(
+            (width - chord).abs() <= 0.25 * chord,
+            "groove {width} against the ball's chord {chord}"
+        );
+        let (coarse, _, patches, refines) = carve_top(0.02, false);
+        assert_eq!((patches, refines), (1, 0));
+        assert!(
+            (coarse - chord).abs() > (width - chord).abs(),
+            "on the base alone the groove is {coarse} wide"
+        );
+    }
+
+    #[test]
+    fn a_brush_of_three_spans_needs_no_detail_and_each_halving_adds_a_level() {
+        assert_eq!(level_for_brush(0.3, 0.1), 0);
+        assert_eq!(level_for_brush(0.29, 0.1), 1);
+        assert_eq!(level_for_brush(0.15, 0.1), 1);
+        assert_eq!(level_for_brush(0.14, 0.1), 2);
+        assert_eq!(level_for_brush(0.0001, 0.1), MAX_DETAIL_LEVEL);
+        assert_eq!(level_for_brush(0.0, 0.1), 0);
+        assert_eq!(level_for_brush(f32::NAN, 0.1), 0);
+    }
+}

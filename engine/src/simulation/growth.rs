@@ -1,0 +1,238 @@
+//! Room for the clay in the running stage: before a stroke's region or a tool that can add
+//! clay reaches past the base patch, the base grows (see `dynaclay_core::tools::Clay::grow`) and
+//! the new layout goes to the haptic and graphics loops, as a refine's does.
+//!
+//! What moves with the base: the colour field (in the clay), the undo history and the stroke
+//! being recorded (their deltas move onto the grown lattice, so undo stays exact), the painted
+//! material grids (carried over sample by sample). The live region retires first: its
+//! coefficient box indexes the old lattice; the next step makes a new one on the grown base.
+
+#[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
+use super::*;
+use dynaclay_core::tools::{BRICK, GeometricTool, padding_to_cover};
+
+impl SimulationStage {
+    /// Grows the base patch so that the world box `lo..=hi` lies well inside it; returns
+    /// whether it grew. A box past the clay's coefficient budget leaves the clay as it is (the
+    /// edit is clipped, as before) and counts a command error.
+    pub(super) fn make_room(&mut self, lo: Vec3, hi: Vec3) -> bool {
+        let pad = match padding_to_cover(self.clay.base(), lo, hi) {
+            Ok(Some(pad)) => pad,
+            Ok(None) => return false,
+            Err(_) => {
+                self.counters.command_errors(1);
+                return false;
+            }
+        };
+        // Whole bricks at a time, and at least an eighth of the clay per side: a pull that
+        // keeps going grows the clay a few times, not at every step.
+        let pad = std::array::from_fn(|a| {
+            let eighth = self.clay.base().dims[a] / 8;
+            pad[a].max(if pad[a] > 0 {
+                eighth.div_ceil(BRICK) * BRICK
+            } else {
+                0
+            })
+        });
+        let old_base = (!self.material_grids.is_empty()).then(|| self.clay.base().clone());
+        // The region indexes the old lattice: it retires (its coefficients are in the clay).
+        self.retire_region();
+        let growth = match self.clay.grow(pad) {
+            Ok(growth) => growth,
+            Err(_) => {
+                self.counters.command_errors(1);
+                return false;
+            }
+        };
+        self.history.regrid(&growth);
+        if let Some(rec) = self.recorder.as_mut() {
+            rec.regrid(&growth);
+        }
+        if let Some(old) = old_base {
+            let grown = self.clay.base();
+            for grid in &mut self.material_grids {
+                *grid = grid.grown(&old, grown);
+            }
+        }
+        self.pending[0] = None;
+        self.colour_dirty |= self.clay.colour.is_some();
+        self.cancel_compact();
+        self.clay_revision += 1;
+        self.counters.clay_growths(1);
+        self.publish_layout();
+        true
+    }
+
+    /// [`Self::make_room`] for a geometric tool applied at `poses` on density patch `patch`:
+    /// only a tool that can add clay, on the base, grows it.
+    pub(super) fn make_room_for_tool(
+        &mut self,
+        tool: &GeometricTool,
+        poses: &[ToolPose],
+        patch: u16,
+    ) -> bool {
+        if patch != 0 || !tool.action.can_add_clay() || poses.is_empty() {
+            return false;
+        }
+        let spacing = self.clay.base().spacing;
+        let (lo, hi) = poses
+            .iter()
+            .map(|pose| tool.influence_box(pose, spacing))
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
+            .expect("poses is not empty");
+        self.make_room(lo, hi)
+    }
+
+    /// Hands the clay's current patch layout to the haptic and graphics loops; every
+    /// coefficient is published again, so that no change is lost while a reader still holds
+    /// the old layout (readers skip updates until their copy has the new one).
+    pub(super) fn publish_layout(&mut self) {
+        self.layout_generation += 1;
+        for sender in &self.layout_senders {
+            sender.offer(&self.clay.density, self.layout_generation);
+        }
+        self.mark_all_changed();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Instant;
+
+    use super::super::super::Stages;
+    use super::*;
+    use dynaclay_core::mesh::{BrickOctree, SampleGrid};
+    use dynaclay_core::tools::{GeometricTool, ToolShape};
+
+    fn add_ball(radius_fu: f32) -> GeometricTool {
+        GeometricTool {
+            shape: ToolShape::Sphere { radius_fu },
+            action: ToolAction::Add {
+                deposit_rate_per_s: 4.0,
+            },
+            falloff_fu: 0.1,
+        }
+    }
+
+    fn tick(s: &mut Stages, sample: &ToolSample) {
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+        s.sim.step(sample);
+        s.graphics.tick();
+    }
+
+    /// The largest x of the clay's surface as the graphics loop meshed it.
+    fn meshed_max_x(s: &Stages) -> f32 {
+        s.graphics
+            .octree()
+            .weld()
+            .positions
+            .iter()
+            .map(|p| p.x)
+            .fold(f32::NEG_INFINITY, f32::max)
+    }
+
+    /// The largest x of the surface of `field`, meshed afresh at 4 cells per span.
+    fn surface_max_x(field: &MultiPatchField) -> f32 {
+        let grid = SampleGrid::for_field(field, 4).unwrap();
+        BrickOctree::build(grid, field)
+            .weld()
+            .positions
+            .iter()
+            .map(|p| p.x)
+            .fold(f32::NEG_INFINITY, f32::max)
+    }
+
+    #[test]
+    fn a_lump_added_past_the_box_grows_the_clay_in_every_loop_and_undo_keeps_the_room() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let old = s.sim.lattice().clone();
+        let last = old.node_position(11, 11, 11);
+        let centre = (old.origin + last) * 0.5;
+        // Half a radius past the last node: clipped flat before the clay could grow.
+        let at = Vec3::new(last.x + 0.15, centre.y, centre.z);
+        let (tx, rx) = crossbeam::channel::bounded(1);
+        s.commands
+            .send(Command::ApplyTool {
+                tool: add_ball(0.3),
+                poses: vec![ToolPose::at(at)],
+                duration_s: 1.0,
+                patch: 0,
+                reply: Some(tx),
+            })
+            .unwrap();
+        for _ in 0..4 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        rx.try_recv().unwrap().unwrap();
+        let grown = s.sim.lattice().clone();
+        assert!(grown.dims.iter().all(|&n| n >= 12) && grown.dims[0] > 12, "{:?}", grown.dims);
+        assert_eq!(s.counters.snapshot().clay_growths, 1);
+        assert!(s.sim.clay.density.is_inside(at), "the lump is there");
+        // Every loop holds the grown layout, and the mesh reaches past the old box.
+        assert_eq!(s.haptic.field().base().dims, grown.dims);
+        assert_eq!(s.graphics.field().base().dims, grown.dims);
+        let (_, old_hi) = old.support();
+        assert!(meshed_max_x(&s) > old_hi.x, "{} vs {}", meshed_max_x(&s), old_hi.x);
+        assert!(
+            (meshed_max_x(&s) - surface_max_x(&s.sim.clay.density)).abs() < 0.05,
+            "the loop's mesh is the clay's"
+        );
+        // Undo takes the lump away on the grown lattice; redo brings it back bit for bit.
+        s.commands.send(Command::Undo).unwrap();
+        tick(&mut s, &ToolSample::IDLE);
+        assert!(!s.sim.clay.density.is_inside(at));
+        assert_eq!(s.sim.lattice().dims, grown.dims, "the room stays");
+        s.commands.send(Command::Redo).unwrap();
+        tick(&mut s, &ToolSample::IDLE);
+        assert_eq!(s.sim.lattice(), &grown);
+    }
+
+    #[test]
+    fn a_held_add_stroke_dragged_out_of_the_box_extends_the_clay_as_one_undo_step() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let old = s.sim.lattice().clone();
+        let before = s.sim.clay.density.clone();
+        let last = old.node_position(11, 11, 11);
+        let centre = (old.origin + last) * 0.5;
+        s.commands
+            .send(Command::SetTool(ToolChoice::Geometric(add_ball(0.2))))
+            .unwrap();
+        // From the sphere's surface out along +x, 0.8 past the last node, over 2 s.
+        let from = centre.x + 0.2;
+        let to = last.x + 0.8;
+        let steps = 2000_u64;
+        for n in 0..=steps + 50 {
+            let t = (n.min(steps)) as f32 / steps as f32;
+            let tip = Vec3::new(from + (to - from) * t, centre.y, centre.z);
+            let sample = ToolSample {
+                tip_fu: tip,
+                force_from_fu: tip,
+                force_to_fu: tip,
+                stroke_active: n < steps,
+                device_time_us: n * 1000,
+                tick: n,
+                ..ToolSample::IDLE
+            };
+            tick(&mut s, &sample);
+        }
+        let (_, old_hi) = old.support();
+        let reach = surface_max_x(&s.sim.clay.density);
+        assert!(
+            reach > to,
+            "the bead follows the tip past the box: surface to x = {reach}, tip to {to}, old box to {}",
+            old_hi.x
+        );
+        assert!(s.counters.snapshot().clay_growths >= 1);
+        assert!(meshed_max_x(&s) > old_hi.x);
+        // One stroke, one undo step, which gives back the sphere.
+        s.commands.send(Command::Undo).unwrap();
+        tick(&mut s, &ToolSample::IDLE);
+        let back = surface_max_x(&s.sim.clay.density);
+        assert!(
+            (back - surface_max_x(&before)).abs() < 0.02,
+            "undo gives back the sphere: {back} vs {}",
+            surface_max_x(&before)
+        );
+    }
+}
