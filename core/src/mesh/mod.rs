@@ -21,6 +21,7 @@
 //!   (a [`BrickOctree::rebuild`] refills the stored bricks' buffers) and welds with
 //!   [`BrickOctree::weld_into`] into a kept mesh.
 
+mod adaptive;
 mod brick;
 mod distance;
 mod error;
@@ -33,6 +34,9 @@ mod stats;
 mod tables;
 mod trimesh;
 
+pub use adaptive::{
+    AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
+};
 pub use brick::{
     BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
     edge_from_id, edge_id, march_brick, sample_brick,
