@@ -229,7 +229,7 @@ impl Tree {
         // support (where the field is exactly zero).
         let span = ((hi - lo).max_element() / unit + 2.0).max(1.0);
         let levels = span.log2().ceil().max(0.0);
-        if !(levels <= MAX_ADAPTIVE_DEPTH as f32) {
+        if levels.is_nan() || levels > MAX_ADAPTIVE_DEPTH as f32 {
             return Err(AdaptiveMeshError::TooDeep {
                 levels: if levels.is_finite() {
                     levels as u32

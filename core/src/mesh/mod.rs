@@ -20,6 +20,9 @@
 //!   for counts, area, volume and topology. A caller that re-extracts often keeps the tree
 //!   (a [`BrickOctree::rebuild`] refills the stored bricks' buffers) and welds with
 //!   [`BrickOctree::weld_into`] into a kept mesh.
+//! - Multi-resolution export: [`mesh_adaptive`] dual-contours a
+//!   [`crate::field::MultiPatchField`] on an octree whose cells follow the finest patch over
+//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first).
 
 mod adaptive;
 mod brick;
