@@ -16,22 +16,23 @@
 //! normals `−∇F/|∇F|` from the analytic gradient); it is welded by construction, one vertex
 //! per leaf that the surface crosses. Each vertex lies in its leaf's box.
 //!
+//! Why there are no cracks between levels: polygons are not made per cell, as marching cubes
+//! makes them, but per *minimal edge*: an edge of a leaf that no smaller leaf splits. The
+//! recursive `cellProc`/`faceProc`/`edgeProc` traversal visits every minimal edge exactly
+//! once, with the four leaves around it; where its two end samples differ in sign it joins
+//! those leaves' vertices into one quad (a triangle where one larger leaf fills two of the four
+//! places). A polygon edge joins the vertices of two leaves that share a face, and it belongs
+//! to the polygons of the sign-changing minimal edges around that face; the face's corner
+//! samples are shared by both leaves, whatever their sizes, so where the surface crosses the
+//! face once there are exactly two such edges and two polygons on it. Nothing is made from
+//! one side of a seam alone, so a change of level leaves no T-junction and no hole.
+//!
 //! Not guaranteed: a 2-manifold everywhere. As in the original method, one vertex per leaf
 //! cannot keep apart two sheets that pass through one leaf: where a leaf face is ambiguous
 //! (its corners alternate in sign around it, as where a saddle of the surface lies on the
 //! face) the two leaves' vertices are joined by an edge of four triangles. The mesh stays
 //! closed and oriented there. Splitting such vertices (manifold dual contouring, Schaefer,
 //! Ju & Warren 2007) is not done.
-//!
-//! Why there are no cracks between levels: polygons are not made per cell, as marching cubes
-//! makes them, but per *minimal edge*: an edge of a leaf that no smaller leaf splits. The
-//! recursive `cellProc`/`faceProc`/`edgeProc` traversal visits every minimal edge exactly
-//! once, with the four leaves around it; where its two end samples differ in sign it joins
-//! those leaves' vertices into one quad (a triangle where one larger leaf fills two of the four
-//! places). Every polygon edge is shared by exactly the polygons of the two minimal edges that
-//! bound the face between its two leaves, whatever the leaves' sizes, so the surface has no
-//! boundary at a change of level: there is no T-junction to patch because no polygon is ever
-//! made from one side of a seam alone.
 //!
 //! Not real-time: it allocates (in proportion to its leaves, within
 //! [`AdaptiveMeshOptions::max_cells`]) and samples the field point by point.
