@@ -20,7 +20,11 @@
 //!   for counts, area, volume and topology. A caller that re-extracts often keeps the tree
 //!   (a [`BrickOctree::rebuild`] refills the stored bricks' buffers) and welds with
 //!   [`BrickOctree::weld_into`] into a kept mesh.
+//! - Multi-resolution export: [`mesh_adaptive`] dual-contours a
+//!   [`crate::field::MultiPatchField`] on an octree whose cells follow the finest patch over
+//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first).
 
+mod adaptive;
 mod brick;
 mod distance;
 mod error;
@@ -33,6 +37,9 @@ mod stats;
 mod tables;
 mod trimesh;
 
+pub use adaptive::{
+    AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
+};
 pub use brick::{
     BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
     edge_from_id, edge_id, march_brick, sample_brick,

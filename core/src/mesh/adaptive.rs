@@ -1,0 +1,978 @@
+//! A multi-resolution mesher for the multi-patch field: each region is meshed at the finest
+//! knot spacing of the patches that cover it, by octree dual contouring (Ju, Losasso,
+//! Schaefer & Warren 2002, "Dual Contouring of Hermite Data").
+//!
+//! The octree's root is a cube around [`MultiPatchField::support`] with a margin of one
+//! finest cell. A node is split while the field may cross the iso-level inside it (by
+//! [`ScalarField::bounds`]; a node the bound shows wholly inside or outside stays a leaf) and
+//! its edge is longer than the target at the node: the smallest `world spacing /
+//! cells_per_span` of the patches whose support meets it. Every leaf's edge is the root's
+//! divided by a power of two, so every leaf corner lies on the integer lattice of the finest
+//! cell; corner samples are keyed by those integer coordinates and taken once, so two leaves
+//! that share a corner see the same value.
+//!
+//! Guarantees: the mesh is closed (the root's boundary counts as outside, whatever the
+//! iso-level) and consistently oriented (triangles counter-clockwise seen from outside,
+//! normals `−∇F/|∇F|` from the analytic gradient); it is welded by construction, one vertex
+//! per leaf that the surface crosses. Each vertex lies in its leaf's box.
+//!
+//! Why there are no cracks between levels: polygons are not made per cell, as marching cubes
+//! makes them, but per *minimal edge*: an edge of a leaf that no smaller leaf splits. The
+//! recursive `cellProc`/`faceProc`/`edgeProc` traversal visits every minimal edge exactly
+//! once, with the four leaves around it; where its two end samples differ in sign it joins
+//! those leaves' vertices into one quad (a triangle where one larger leaf fills two of the four
+//! places). A polygon edge joins the vertices of two leaves that share a face, and it belongs
+//! to the polygons of the sign-changing minimal edges around that face; the face's corner
+//! samples are shared by both leaves, whatever their sizes, so where the surface crosses the
+//! face once there are exactly two such edges and two polygons on it. Nothing is made from
+//! one side of a seam alone, so a change of level leaves no T-junction and no hole.
+//!
+//! Not guaranteed: a 2-manifold everywhere. As in the original method, one vertex per leaf
+//! cannot keep apart two sheets that pass through one leaf: where a leaf face is ambiguous
+//! (its corners alternate in sign around it, as where a saddle of the surface lies on the
+//! face) the two leaves' vertices are joined by an edge of four triangles. The mesh stays
+//! closed and oriented there. Splitting such vertices (manifold dual contouring, Schaefer,
+//! Ju & Warren 2007) is not done.
+//!
+//! Not real-time: it allocates (in proportion to its leaves, within
+//! [`AdaptiveMeshOptions::max_cells`]) and samples the field point by point.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::source::ScalarField;
+use super::trimesh::TriMesh;
+use crate::field::MultiPatchField;
+
+/// Most levels below the root: corner coordinates then fit in 21 bits per axis.
+pub const MAX_ADAPTIVE_DEPTH: u32 = 20;
+
+/// How finely [`mesh_adaptive`] meshes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct AdaptiveMeshOptions {
+    /// Cells per knot span of the finest patch covering a region; at least 2.
+    pub cells_per_span: u32,
+    /// Most leaf cells the octree may hold; the mesher refuses with
+    /// [`AdaptiveMeshError::OverBudget`] before it would split beyond this.
+    pub max_cells: usize,
+}
+
+impl Default for AdaptiveMeshOptions {
+    /// Two cells per span, at most 4 Mi leaves.
+    fn default() -> Self {
+        Self {
+            cells_per_span: 2,
+            max_cells: 1 << 22,
+        }
+    }
+}
+
+/// Why an adaptive mesh could not be made.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum AdaptiveMeshError {
+    /// `cells_per_span` was below 2.
+    #[error("cells per span must be at least 2, not {cells_per_span}")]
+    CellsPerSpan {
+        /// The value asked for.
+        cells_per_span: u32,
+    },
+    /// The field has no patch to mesh.
+    #[error("the field has no patch to mesh")]
+    EmptyField,
+    /// A patch's support or knot spacing is not a finite positive size.
+    #[error("the field's support or knot spacing is not finite and positive")]
+    BadField,
+    /// The octree would need more than [`AdaptiveMeshOptions::max_cells`] leaves.
+    #[error(
+        "meshing needs more than {limit} leaf cells (refused at {leaves}); raise the budget or lower cells per span"
+    )]
+    OverBudget {
+        /// The budget.
+        limit: usize,
+        /// Leaves the octree would have held after the refused split.
+        leaves: usize,
+    },
+    /// The finest cell is too small for the field's extent.
+    #[error(
+        "the field spans {levels} octree levels of its finest cell, more than {MAX_ADAPTIVE_DEPTH}"
+    )]
+    TooDeep {
+        /// Levels the root would need.
+        levels: u32,
+    },
+}
+
+/// Builds the adaptive octree of `field` and dual-contours it into one welded mesh.
+///
+/// # Errors
+/// [`AdaptiveMeshError`] on bad options, a field without patches or with a non-finite
+/// support, a root deeper than [`MAX_ADAPTIVE_DEPTH`] levels, or more leaves than
+/// `options.max_cells` (checked before each split, so nothing is allocated beyond it).
+pub fn mesh_adaptive(
+    field: &MultiPatchField,
+    options: &AdaptiveMeshOptions,
+) -> Result<TriMesh, AdaptiveMeshError> {
+    extract(field, options).map(|e| e.mesh)
+}
+
+/// The number of leaf cells [`mesh_adaptive`] would build for `field`, without sampling
+/// the field at any corner or meshing; costs the bound queries of the octree's descent and
+/// the tree's nodes.
+///
+/// # Errors
+/// As [`mesh_adaptive`] (so over the budget, [`AdaptiveMeshError::OverBudget`]).
+pub fn adaptive_cell_count(
+    field: &MultiPatchField,
+    options: &AdaptiveMeshOptions,
+) -> Result<usize, AdaptiveMeshError> {
+    Tree::build(field, options).map(|t| t.leaves)
+}
+
+/// What an extraction produced: the mesh and, per vertex, the edge of its leaf.
+#[derive(Clone, Debug, Default)]
+struct Extraction {
+    mesh: TriMesh,
+    /// World edge length of the leaf each vertex belongs to.
+    vertex_cells: Vec<f32>,
+}
+
+fn extract(
+    field: &MultiPatchField,
+    options: &AdaptiveMeshOptions,
+) -> Result<Extraction, AdaptiveMeshError> {
+    let tree = Tree::build(field, options)?;
+    let mut contour = Contour {
+        field,
+        iso: field.iso(),
+        vertex_of: vec![NO_VERTEX; tree.nodes.len()],
+        tree,
+        corners: HashMap::new(),
+        out: Extraction::default(),
+    };
+    contour.cell_proc(0);
+    contour.finish_normals();
+    Ok(contour.out)
+}
+
+/// A leaf without a vertex (yet).
+const NO_VERTEX: u32 = u32::MAX;
+
+/// The four places around an edge along axis `a`, as bits along the axes `a + 1` and `a + 2`
+/// (cyclically): counter-clockwise seen from `+a`.
+const AROUND: [[usize; 2]; 4] = [[0, 0], [1, 0], [1, 1], [0, 1]];
+
+/// An octree node: a cube of `size` finest cells from integer corner `min`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    min: [u32; 3],
+    size: u32,
+    /// Index of the first of eight consecutive children (child `c` holds bit `a` of `c` as
+    /// its half along axis `a`); 0 for a leaf (the root is no one's child).
+    children: u32,
+}
+
+impl Node {
+    fn is_leaf(&self) -> bool {
+        self.children == 0
+    }
+
+    /// Integer coordinates of corner `c` (bit `a` of `c`: low or high along axis `a`).
+    fn corner(&self, c: usize) -> [u32; 3] {
+        std::array::from_fn(|a| self.min[a] + self.size * ((c >> a) & 1) as u32)
+    }
+}
+
+/// The octree and the frame that maps its integer lattice to world space.
+struct Tree {
+    nodes: Vec<Node>,
+    leaves: usize,
+    /// World position of integer corner (0, 0, 0).
+    origin: Vec3,
+    /// World edge of one finest cell.
+    unit: f32,
+    /// The root's edge, in finest cells (`2^depth`).
+    root_size: u32,
+}
+
+impl Tree {
+    fn build(
+        field: &MultiPatchField,
+        options: &AdaptiveMeshOptions,
+    ) -> Result<Self, AdaptiveMeshError> {
+        if options.cells_per_span < 2 {
+            return Err(AdaptiveMeshError::CellsPerSpan {
+                cells_per_span: options.cells_per_span,
+            });
+        }
+        if field.patches.is_empty() {
+            return Err(AdaptiveMeshError::EmptyField);
+        }
+        let per_span = options.cells_per_span as f32;
+        // Each patch's world support and target cell.
+        let targets: Vec<(Vec3, Vec3, f32)> = field
+            .patches
+            .iter()
+            .map(|p| {
+                let (lo, hi) = p.world_support();
+                (lo, hi, p.world_spacing() / per_span)
+            })
+            .collect();
+        let usable = |&(lo, hi, t): &(Vec3, Vec3, f32)| {
+            lo.is_finite() && hi.is_finite() && lo.cmple(hi).all() && t.is_finite() && t > 0.0
+        };
+        if !targets.iter().all(usable) {
+            return Err(AdaptiveMeshError::BadField);
+        }
+        let unit = targets.iter().map(|t| t.2).fold(f32::INFINITY, f32::min);
+        let (lo, hi) = field.support();
+        // A margin of one finest cell on every side, so the root's boundary is beyond every
+        // support (where the field is exactly zero).
+        let span = ((hi - lo).max_element() / unit + 2.0).max(1.0);
+        let levels = span.log2().ceil().max(0.0);
+        if levels.is_nan() || levels > MAX_ADAPTIVE_DEPTH as f32 {
+            return Err(AdaptiveMeshError::TooDeep {
+                levels: if levels.is_finite() {
+                    levels as u32
+                } else {
+                    u32::MAX
+                },
+            });
+        }
+        let root_size = 1_u32 << levels as u32;
+        let origin = lo - Vec3::splat(unit);
+        if options.max_cells < 1 {
+            return Err(AdaptiveMeshError::OverBudget {
+                limit: options.max_cells,
+                leaves: 1,
+            });
+        }
+        let mut tree = Self {
+            nodes: vec![Node {
+                min: [0; 3],
+                size: root_size,
+                children: 0,
+            }],
+            leaves: 1,
+            origin,
+            unit,
+            root_size,
+        };
+        let iso = field.iso();
+        let mut stack = vec![0_usize];
+        while let Some(n) = stack.pop() {
+            let node = tree.nodes[n];
+            if node.size == 1 {
+                continue;
+            }
+            let (lo, hi) = tree.world_box(&node);
+            let edge = node.size as f32;
+            // The finest target among the patches whose support meets the node, in cells.
+            let target = targets
+                .iter()
+                .filter(|(slo, shi, _)| lo.cmplt(*shi).all() && hi.cmpgt(*slo).all())
+                .map(|t| t.2 / unit)
+                .fold(f32::INFINITY, f32::min);
+            // A little slack so a target that is a power of two times the finest cell, up to
+            // rounding, is met exactly rather than split once more.
+            if edge <= target * (1.0 + 1e-4) {
+                continue;
+            }
+            // A node on the root's boundary holds corners forced outside (see
+            // `Contour::corner_value`), whatever the field's value there.
+            let on_boundary = node.min.contains(&0) || node.corner(7).contains(&root_size);
+            let may_cross = match ScalarField::bounds(field, lo, hi) {
+                Some((vmin, vmax)) => (vmin <= iso || on_boundary) && vmax > iso,
+                None => true,
+            };
+            if !may_cross {
+                continue;
+            }
+            if tree.leaves + 7 > options.max_cells {
+                return Err(AdaptiveMeshError::OverBudget {
+                    limit: options.max_cells,
+                    leaves: tree.leaves + 7,
+                });
+            }
+            let first = tree.nodes.len();
+            let half = node.size / 2;
+            tree.nodes[n].children = first as u32;
+            for c in 0..8 {
+                let min = std::array::from_fn(|a| node.min[a] + half * ((c >> a) & 1) as u32);
+                tree.nodes.push(Node {
+                    min,
+                    size: half,
+                    children: 0,
+                });
+                stack.push(first + c);
+            }
+            tree.leaves += 7;
+        }
+        Ok(tree)
+    }
+
+    /// World position of an integer corner.
+    fn point(&self, p: [u32; 3]) -> Vec3 {
+        self.origin + self.unit * Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
+    }
+
+    /// World box of a node.
+    fn world_box(&self, node: &Node) -> (Vec3, Vec3) {
+        (self.point(node.min), self.point(node.corner(7)))
+    }
+
+    /// `n` itself when it is a leaf, else its child `c`.
+    fn child_or_leaf(&self, n: u32, c: usize) -> u32 {
+        let node = &self.nodes[n as usize];
+        if node.is_leaf() {
+            n
+        } else {
+            node.children + c as u32
+        }
+    }
+}
+
+/// Dual contouring over a built tree.
+struct Contour<'a> {
+    field: &'a MultiPatchField,
+    iso: f32,
+    tree: Tree,
+    /// Field value per integer corner (packed 21 bits per axis), sampled once.
+    corners: HashMap<u64, f32>,
+    /// Vertex index per node (leaves only), [`NO_VERTEX`] until made.
+    vertex_of: Vec<u32>,
+    out: Extraction,
+}
+
+impl Contour<'_> {
+    /// The field at an integer corner; on the root's boundary no more than the iso-level, so
+    /// everything outside the root counts as outside.
+    fn corner_value(&mut self, p: [u32; 3]) -> f32 {
+        let key = u64::from(p[0]) | (u64::from(p[1]) << 21) | (u64::from(p[2]) << 42);
+        if let Some(&v) = self.corners.get(&key) {
+            return v;
+        }
+        let mut v = self.field.value(self.tree.point(p));
+        if p.iter().any(|&c| c == 0 || c == self.tree.root_size) {
+            v = v.min(self.iso);
+        }
+        self.corners.insert(key, v);
+        v
+    }
+
+    fn inside(&self, v: f32) -> bool {
+        v > self.iso
+    }
+
+    /// The vertex of leaf `n`, made on first use: the mass point of the crossings on the
+    /// leaf's twelve edges (its centre when none crosses: the surface enters it only through
+    /// smaller neighbours' edges), then two Newton steps toward `F = iso` along the gradient,
+    /// each clamped to the leaf's box.
+    fn vertex(&mut self, n: u32) -> u32 {
+        if self.vertex_of[n as usize] != NO_VERTEX {
+            return self.vertex_of[n as usize];
+        }
+        let node = self.tree.nodes[n as usize];
+        let values: [f32; 8] = std::array::from_fn(|c| self.corner_value(node.corner(c)));
+        let (lo, hi) = self.tree.world_box(&node);
+        let (mut sum, mut count) = (Vec3::ZERO, 0_u32);
+        for a in 0..3 {
+            for c in (0..8).filter(|c| c & (1 << a) == 0) {
+                let (v0, v1) = (values[c], values[c | 1 << a]);
+                if self.inside(v0) != self.inside(v1) {
+                    let t = ((self.iso - v0) / (v1 - v0)).clamp(0.0, 1.0);
+                    let p0 = self.tree.point(node.corner(c));
+                    let p1 = self.tree.point(node.corner(c | 1 << a));
+                    sum += p0 + (p1 - p0) * t;
+                    count += 1;
+                }
+            }
+        }
+        let mut x = if count > 0 {
+            sum / count as f32
+        } else {
+            (lo + hi) * 0.5
+        };
+        for _ in 0..2 {
+            let (v, g) = self.field.value_and_gradient(x);
+            let g2 = g.length_squared();
+            if g2 > 1e-20 && g2.is_finite() {
+                x = (x - g * ((v - self.iso) / g2)).clamp(lo, hi);
+            }
+        }
+        let normal = -self.field.value_and_gradient(x).1.normalize_or_zero();
+        let index = self.out.mesh.positions.len() as u32;
+        self.out.mesh.positions.push(x);
+        self.out.mesh.normals.push(normal);
+        self.out
+            .vertex_cells
+            .push(node.size as f32 * self.tree.unit);
+        self.vertex_of[n as usize] = index;
+        index
+    }
+
+    /// All minimal edges inside node `n`.
+    fn cell_proc(&mut self, n: u32) {
+        let node = self.tree.nodes[n as usize];
+        if node.is_leaf() {
+            return;
+        }
+        let child = |c: usize| node.children + c as u32;
+        for c in 0..8 {
+            self.cell_proc(child(c));
+        }
+        for a in 0..3 {
+            for c in (0..8).filter(|c| c & (1 << a) == 0) {
+                self.face_proc([child(c), child(c | 1 << a)], a);
+            }
+        }
+        for a in 0..3 {
+            let (p, r) = ((a + 1) % 3, (a + 2) % 3);
+            for h in 0..2 {
+                let cells = AROUND.map(|[qp, qr]| child(qp << p | qr << r | h << a));
+                self.edge_proc(cells, a);
+            }
+        }
+    }
+
+    /// All minimal edges on the face between `pair[0]` (below along axis `a`) and `pair[1]`.
+    fn face_proc(&mut self, pair: [u32; 2], a: usize) {
+        let [low, high] = pair;
+        if self.tree.nodes[low as usize].is_leaf() && self.tree.nodes[high as usize].is_leaf() {
+            return;
+        }
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        for qb in 0..2 {
+            for qc in 0..2 {
+                let side = qb << b | qc << c;
+                let pair = [
+                    self.tree.child_or_leaf(low, side | 1 << a),
+                    self.tree.child_or_leaf(high, side),
+                ];
+                self.face_proc(pair, a);
+            }
+        }
+        // The four edges inside the face: along `e`, through the face's middle along `f`.
+        for e in [b, c] {
+            let f = 3 - a - e;
+            let (p, r) = ((e + 1) % 3, (e + 2) % 3);
+            for h in 0..2 {
+                let cells = AROUND.map(|[qp, qr]| {
+                    let mut bit = [0_usize; 3];
+                    bit[p] = qp;
+                    bit[r] = qr;
+                    let node = if bit[a] == 0 { low } else { high };
+                    self.tree
+                        .child_or_leaf(node, (1 - bit[a]) << a | bit[f] << f | h << e)
+                });
+                self.edge_proc(cells, e);
+            }
+        }
+    }
+
+    /// All minimal edges along the edge (axis `a`) that `cells` surround, in [`AROUND`] order.
+    fn edge_proc(&mut self, cells: [u32; 4], a: usize) {
+        if cells.iter().all(|&n| self.tree.nodes[n as usize].is_leaf()) {
+            self.minimal_edge(cells, a);
+            return;
+        }
+        let (p, r) = ((a + 1) % 3, (a + 2) % 3);
+        for h in 0..2 {
+            let mut sub = cells;
+            for (q, [qp, qr]) in AROUND.into_iter().enumerate() {
+                sub[q] = self
+                    .tree
+                    .child_or_leaf(cells[q], (1 - qp) << p | (1 - qr) << r | h << a);
+            }
+            self.edge_proc(sub, a);
+        }
+    }
+
+    /// The polygon of a minimal edge: the edge of the smallest of the four leaves around it.
+    fn minimal_edge(&mut self, cells: [u32; 4], a: usize) {
+        let (q, &smallest) = cells
+            .iter()
+            .enumerate()
+            .min_by_key(|(_, n)| self.tree.nodes[**n as usize].size)
+            .expect("four cells");
+        let node = self.tree.nodes[smallest as usize];
+        let (p, r) = ((a + 1) % 3, (a + 2) % 3);
+        let [qp, qr] = AROUND[q];
+        let base = (1 - qp) << p | (1 - qr) << r;
+        let v0 = self.corner_value(node.corner(base));
+        let v1 = self.corner_value(node.corner(base | 1 << a));
+        let (in0, in1) = (self.inside(v0), self.inside(v1));
+        if in0 == in1 {
+            return;
+        }
+        let mut ids = cells.map(|n| self.vertex(n));
+        // AROUND runs counter-clockwise seen from +a; the outside is toward +a when the low
+        // end is inside.
+        if !in0 {
+            ids.reverse();
+        }
+        self.polygon(ids);
+    }
+
+    /// Emits the quad `ids` (counter-clockwise seen from outside) split along its shorter
+    /// diagonal, or the triangle left when one leaf fills two neighbouring places.
+    fn polygon(&mut self, ids: [u32; 4]) {
+        let mut distinct = [0_u32; 4];
+        let mut n = 0;
+        for (k, &id) in ids.iter().enumerate() {
+            if id != ids[(k + 3) % 4] {
+                distinct[n] = id;
+                n += 1;
+            }
+        }
+        let tris = &mut self.out.mesh.triangles;
+        match n {
+            3 => tris.push([distinct[0], distinct[1], distinct[2]]),
+            4 => {
+                let at = |i: u32| self.out.mesh.positions[i as usize];
+                let [i0, i1, i2, i3] = distinct;
+                if at(i0).distance_squared(at(i2)) <= at(i1).distance_squared(at(i3)) {
+                    tris.push([i0, i1, i2]);
+                    tris.push([i0, i2, i3]);
+                } else {
+                    tris.push([i1, i2, i3]);
+                    tris.push([i1, i3, i0]);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// Vertices where the gradient vanished take the area-weighted normal of their
+    /// triangles (or +z when they have none).
+    fn finish_normals(&mut self) {
+        let mesh = &mut self.out.mesh;
+        let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
+        if !flat.contains(&true) {
+            return;
+        }
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+            let cross = (b - a).cross(c - a);
+            for &i in t {
+                if flat[i as usize] {
+                    mesh.normals[i as usize] += cross;
+                }
+            }
+        }
+        for (n, &f) in mesh.normals.iter_mut().zip(&flat) {
+            if f {
+                *n = n.try_normalize().unwrap_or(Vec3::Z);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::collections::HashMap;
+    use std::f64::consts::PI;
+
+    use glam::Vec3;
+
+    use super::super::{BrickOctree, MeshStats, SampleGrid, hausdorff};
+    use super::*;
+    use crate::field::{BSplineLattice, fit_lattice};
+
+    /// Base knot spacing of the test fields.
+    const SPACING: f32 = 0.1;
+
+    /// A smooth density of the solid at signed distance `d` (positive inside): one half on the
+    /// surface, 0 and 1 a few spans away.
+    fn density(d: f32) -> f32 {
+        0.5 + 0.5 * (d / (3.0 * SPACING)).tanh()
+    }
+
+    /// A base lattice fitted to `target` over the cube `-half ..= half` (plus padding).
+    fn fitted_base(half: f32, target: impl Fn(Vec3) -> f32) -> MultiPatchField {
+        let reach = half + 6.0 * SPACING;
+        let n = (2.0 * reach / SPACING).ceil() as usize + 1;
+        let mut lattice =
+            BSplineLattice::zeros([n; 3], SPACING, Vec3::splat(-reach)).expect("lattice");
+        fit_lattice(&mut lattice, 2, target).expect("fit");
+        MultiPatchField::new(lattice)
+    }
+
+    fn sphere(radius: f32) -> impl Fn(Vec3) -> f32 {
+        move |x: Vec3| density(radius - x.length())
+    }
+
+    /// Sorted, deduplicated cell sizes.
+    fn sizes(cells: &[f32]) -> Vec<f32> {
+        let mut s = cells.to_vec();
+        s.sort_by(f32::total_cmp);
+        s.dedup();
+        s
+    }
+
+    /// Connected components of the triangles (through shared vertices).
+    fn components(mesh: &TriMesh) -> usize {
+        let mut parent: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                parent[i as usize] = parent[parent[i as usize] as usize];
+                i = parent[i as usize];
+            }
+            i
+        }
+        for t in &mesh.triangles {
+            for k in 1..3 {
+                let (a, b) = (root(&mut parent, t[0]), root(&mut parent, t[k]));
+                parent[a as usize] = b;
+            }
+        }
+        let mut roots: Vec<u32> = mesh
+            .triangles
+            .iter()
+            .map(|t| root(&mut parent, t[0]))
+            .collect();
+        roots.sort_unstable();
+        roots.dedup();
+        roots.len()
+    }
+
+    /// Asserts a closed, edge-manifold, consistently oriented mesh of one piece facing out.
+    fn closed(mesh: &TriMesh) -> MeshStats {
+        assert!(mesh.is_well_formed());
+        let s = MeshStats::of(mesh);
+        assert_eq!(s.boundary_edges, 0, "{s:?}");
+        assert_eq!(s.non_manifold_edges, 0, "{s:?}");
+        assert_eq!(s.misoriented_edges, 0, "{s:?}");
+        assert!(s.volume > 0.0, "{s:?}");
+        assert_eq!(components(mesh), 1);
+        s
+    }
+
+    /// Largest `|F − iso| / |∇F| / cell` over the vertices: each vertex's distance to the
+    /// field's surface (first order) in units of its own leaf's edge.
+    fn worst_surface_offset(field: &MultiPatchField, e: &Extraction) -> f32 {
+        e.mesh
+            .positions
+            .iter()
+            .zip(&e.vertex_cells)
+            .map(|(&x, &cell)| {
+                let (v, g) = field.value_and_gradient(x);
+                (v - field.iso()).abs() / g.length() / cell
+            })
+            .fold(0.0, f32::max)
+    }
+
+    fn options(cells_per_span: u32) -> AdaptiveMeshOptions {
+        AdaptiveMeshOptions {
+            cells_per_span,
+            max_cells: 4_000_000,
+        }
+    }
+
+    #[test]
+    fn adaptive_single_level_sphere_is_closed_and_on_the_sphere() {
+        let radius = 0.5;
+        let field = fitted_base(radius, sphere(radius));
+        let e = extract(&field, &options(2)).unwrap();
+        let s = closed(&e.mesh);
+        assert_eq!(s.euler_characteristic, 2, "{s:?}");
+        let cell = SPACING / 2.0;
+        assert_eq!(sizes(&e.vertex_cells), vec![cell]);
+        let worst = e
+            .mesh
+            .positions
+            .iter()
+            .map(|p| (p.length() - radius).abs())
+            .fold(0.0, f32::max);
+        let r = f64::from(radius);
+        let area_err = (s.area / (4.0 * PI * r * r) - 1.0).abs();
+        let volume_err = (s.volume / (4.0 / 3.0 * PI * r * r * r) - 1.0).abs();
+        println!(
+            "single level: {} vertices, {} triangles, worst |r - R| = {worst:.5} (cell {cell}), \
+             area error {:.3}%, volume error {:.3}%",
+            s.vertices,
+            s.triangles,
+            100.0 * area_err,
+            100.0 * volume_err
+        );
+        assert!(worst <= 0.5 * cell, "{worst}");
+        assert!(
+            area_err < 0.03 && volume_err < 0.03,
+            "{area_err} {volume_err}"
+        );
+        for (p, n) in e.mesh.positions.iter().zip(&e.mesh.normals) {
+            assert!(n.dot(p.normalize()) > 0.98);
+        }
+        assert_eq!(
+            adaptive_cell_count(&field, &options(2)).unwrap(),
+            Tree::build(&field, &options(2)).unwrap().leaves
+        );
+    }
+
+    /// A Gaussian bump of `height` and width `sigma` centred at `at`.
+    fn bump(x: Vec3, at: Vec3, height: f32, sigma: f32) -> f32 {
+        height * (-(x - at).length_squared() / (sigma * sigma)).exp()
+    }
+
+    /// The three-level field: a sphere of radius 0.5 at the origin, a level-1 patch over the
+    /// +x half's cap with a bump of width 0.06 in it, and nested in that a level-2 patch
+    /// around the +x pole with a bump of width 0.03 (finer than level 1's spans). Every
+    /// patch's box crosses the surface.
+    fn three_levels() -> MultiPatchField {
+        let radius = 0.5;
+        let mut field = fitted_base(radius, sphere(radius));
+        let p1 = radius * Vec3::new(1.0, -0.6, 0.3).normalize();
+        let p2 = radius * Vec3::new(1.0, 0.05, 0.05).normalize();
+        let target =
+            move |x: Vec3| sphere(radius)(x) + bump(x, p1, 0.08, 0.06) + bump(x, p2, 0.08, 0.03);
+        let l1 = field
+            .refine(Vec3::new(0.0, -0.45, -0.45), Vec3::new(0.8, 0.45, 0.45), 1)
+            .unwrap();
+        field.fit_detail(l1, 2, target).unwrap();
+        let l2 = field
+            .refine(Vec3::new(0.3, -0.15, -0.15), Vec3::new(0.7, 0.15, 0.15), 2)
+            .unwrap();
+        field.fit_detail(l2, 2, target).unwrap();
+        field
+    }
+
+    #[test]
+    fn adaptive_three_levels_are_closed_graded_and_match_the_finest_mesh() {
+        let field = three_levels();
+        let e = extract(&field, &options(2)).unwrap();
+        let s = closed(&e.mesh);
+        assert_eq!(s.euler_characteristic, 2, "{s:?}");
+        let (base, mid, fine) = (SPACING / 2.0, SPACING / 4.0, SPACING / 8.0);
+        assert_eq!(sizes(&e.vertex_cells), vec![fine, mid, base]);
+
+        // Each region is meshed at its own patch's cell, and the vertex density per area
+        // grows about fourfold per level.
+        let in_fine = |p: Vec3| p.x >= 0.3 && p.x <= 0.7 && p.y.abs() <= 0.15 && p.z.abs() <= 0.15;
+        let in_mid = |p: Vec3| {
+            p.x >= 0.05
+                && p.x <= 0.75
+                && p.y.abs() <= 0.4
+                && p.z.abs() <= 0.4
+                && !(p.x > 0.18 && p.y.abs() < 0.27 && p.z.abs() < 0.27)
+        };
+        let in_base = |p: Vec3| p.x < -0.25;
+        let regions: [(&dyn Fn(Vec3) -> bool, f32); 3] =
+            [(&in_base, base), (&in_mid, mid), (&in_fine, fine)];
+        let mut density = [0.0_f64; 3];
+        for (r, (inside, cell)) in regions.iter().enumerate() {
+            let mut vertices = 0;
+            for (p, c) in e.mesh.positions.iter().zip(&e.vertex_cells) {
+                if inside(*p) {
+                    assert_eq!(c, cell, "vertex at {p} in region {r}");
+                    vertices += 1;
+                }
+            }
+            let area: f64 = e
+                .mesh
+                .triangles
+                .iter()
+                .map(|t| t.map(|i| e.mesh.positions[i as usize]))
+                .filter(|[a, b, c]| inside((*a + *b + *c) / 3.0))
+                .map(|[a, b, c]| 0.5 * f64::from((b - a).cross(c - a).length()))
+                .sum();
+            assert!(vertices > 50, "region {r}: {vertices} vertices");
+            density[r] = f64::from(vertices) / area;
+        }
+        let ratios = [density[1] / density[0], density[2] / density[1]];
+        println!("vertices per unit area (base, level 1, level 2): {density:?}, ratios {ratios:?}");
+        // Four per level, give or take the surface's slant to the grid: a face square to an
+        // axis (the fine region, around the +x pole) takes fewer vertices per area than a
+        // slanted one (most of the base region).
+        for ratio in ratios {
+            assert!((2.5..6.0).contains(&ratio), "{ratios:?}");
+        }
+
+        let worst = worst_surface_offset(&field, &e);
+        println!("worst vertex offset from the field's surface: {worst:.2e} of its cell");
+        assert!(worst <= 0.5, "{worst}");
+
+        // Against marching cubes at the finest cell everywhere: the seams add no gap.
+        let (lo, hi) = field.support();
+        let grid = SampleGrid::covering(lo, hi, fine).unwrap();
+        let reference = BrickOctree::build(grid, &field).weld();
+        let h = hausdorff(&e.mesh, &reference).unwrap();
+        println!(
+            "adaptive {} vertices, {} triangles; finest marching cubes {} vertices; \
+             hausdorff adaptive->finest {:.5} (mean {:.6}), finest->adaptive {:.5} (mean {:.6}), \
+             finest cell {fine}",
+            s.vertices,
+            s.triangles,
+            reference.vertex_count(),
+            h.a_to_b,
+            h.mean_a_to_b,
+            h.b_to_a,
+            h.mean_b_to_a
+        );
+        assert!(h.a_to_b <= fine && h.b_to_a <= fine, "{h:?}");
+        assert!(
+            s.vertices * 3 < reference.vertex_count(),
+            "adaptive saved little"
+        );
+    }
+
+    #[test]
+    fn adaptive_torus_has_euler_characteristic_zero_on_two_levels() {
+        let (major, minor) = (0.6_f32, 0.25_f32);
+        let torus = move |x: Vec3| density(minor - (x.x.hypot(x.y) - major).hypot(x.z));
+        let mut field = fitted_base(major + minor, torus);
+        let d = field
+            .refine(Vec3::new(0.0, -1.0, -1.0), Vec3::new(1.0, 1.0, 1.0), 1)
+            .unwrap();
+        field.fit_detail(d, 2, torus).unwrap();
+        let e = extract(&field, &options(2)).unwrap();
+        let s = closed(&e.mesh);
+        println!("torus: {s:?}");
+        assert_eq!(s.euler_characteristic, 0, "{s:?}");
+        assert_eq!(sizes(&e.vertex_cells), vec![SPACING / 4.0, SPACING / 2.0]);
+        assert!(worst_surface_offset(&field, &e) <= 0.5);
+        let volume = 2.0 * PI * PI * f64::from(major) * f64::from(minor).powi(2);
+        assert!(
+            (s.volume / volume - 1.0).abs() < 0.05,
+            "{} vs {volume}",
+            s.volume
+        );
+    }
+
+    #[test]
+    fn adaptive_budget_is_checked_before_the_tree_grows() {
+        let field = fitted_base(0.5, sphere(0.5));
+        let needed = adaptive_cell_count(&field, &options(2)).unwrap();
+        let tight = AdaptiveMeshOptions {
+            cells_per_span: 2,
+            max_cells: needed - 1,
+        };
+        match mesh_adaptive(&field, &tight) {
+            Err(AdaptiveMeshError::OverBudget { limit, leaves }) => {
+                assert_eq!(limit, needed - 1);
+                // Refused at the first split that would pass the budget: at most one split's
+                // seven new leaves beyond it.
+                assert!(leaves > limit && leaves <= limit + 7, "{leaves}");
+            }
+            other => panic!("{other:?}"),
+        }
+        let exact = AdaptiveMeshOptions {
+            max_cells: needed,
+            ..tight
+        };
+        assert!(mesh_adaptive(&field, &exact).is_ok());
+
+        // A budget far below what 4096 cells per span would need (about 10^11 leaves) is
+        // refused after a few thousand leaves, not after allocating them.
+        let absurd = AdaptiveMeshOptions {
+            cells_per_span: 4096,
+            max_cells: 10_000,
+        };
+        assert!(matches!(
+            mesh_adaptive(&field, &absurd),
+            Err(AdaptiveMeshError::OverBudget { limit: 10_000, leaves }) if leaves <= 10_007
+        ));
+        assert!(matches!(
+            adaptive_cell_count(
+                &field,
+                &AdaptiveMeshOptions {
+                    max_cells: 0,
+                    ..tight
+                }
+            ),
+            Err(AdaptiveMeshError::OverBudget {
+                limit: 0,
+                leaves: 1
+            })
+        ));
+        assert_eq!(
+            mesh_adaptive(
+                &field,
+                &AdaptiveMeshOptions {
+                    cells_per_span: 1,
+                    ..tight
+                }
+            ),
+            Err(AdaptiveMeshError::CellsPerSpan { cells_per_span: 1 })
+        );
+        assert_eq!(
+            mesh_adaptive(&MultiPatchField::default(), &options(2)),
+            Err(AdaptiveMeshError::EmptyField)
+        );
+    }
+
+    #[test]
+    fn adaptive_seam_through_the_surface_stays_closed_and_oriented() {
+        // A level-2 patch whose box ends halfway up the sphere (z = 0.05), fitted to a
+        // ripple that is still at full strength there: the detail fades out within the
+        // patch's last spans, across the surface, next to base cells four times larger.
+        let radius = 0.5;
+        let mut field = fitted_base(radius, sphere(radius));
+        let d = field
+            .refine(Vec3::new(-0.1, -0.7, -0.7), Vec3::new(0.7, 0.7, 0.05), 2)
+            .unwrap();
+        let ripple =
+            move |x: Vec3| sphere(radius)(x) + 0.04 * (40.0 * x.x).sin() * (40.0 * x.y).sin();
+        field.fit_detail(d, 2, ripple).unwrap();
+        let e = extract(&field, &options(2)).unwrap();
+        let mesh = &e.mesh;
+        assert!(mesh.is_well_formed());
+        let s = MeshStats::of(mesh);
+        println!("seam through the surface: {s:?}");
+        assert_eq!(s.boundary_edges, 0, "{s:?}");
+        assert_eq!(s.misoriented_edges, 0, "{s:?}");
+        assert!(s.volume > 0.0, "{s:?}");
+        assert_eq!(components(mesh), 1);
+        // Finest and base cells, and at the seam the cells a split base leaf leaves outside
+        // the detail's support.
+        let found = sizes(&e.vertex_cells);
+        assert_eq!(found.first(), Some(&(SPACING / 8.0)), "{found:?}");
+        assert_eq!(found.last(), Some(&(SPACING / 2.0)), "{found:?}");
+        assert!(worst_surface_offset(&field, &e) <= 0.5);
+        // Both sides of the seam are meshed: vertices of both sizes above and below it.
+        let (low_z, high_z): (Vec<_>, Vec<_>) = mesh
+            .positions
+            .iter()
+            .zip(&e.vertex_cells)
+            .partition(|(p, _)| p.z < 0.05);
+        assert!(low_z.iter().any(|&(_, &c)| c == SPACING / 8.0));
+        assert!(high_z.iter().any(|&(_, &c)| c == SPACING / 2.0));
+        // One vertex per leaf cannot separate two sheets through one leaf: at the ripple's
+        // saddles a leaf face can be ambiguous (corners alternating in sign) and its edge is
+        // then used by four triangles. None of those lies at a seam: every triangle on such
+        // an edge has all three vertices in leaves of one size.
+        let mut uses: HashMap<(u32, u32), Vec<[u32; 3]>> = HashMap::new();
+        for t in &mesh.triangles {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                uses.entry((a.min(b), a.max(b))).or_default().push(*t);
+            }
+        }
+        let mut shared = 0;
+        for triangles in uses.values().filter(|t| t.len() > 2) {
+            shared += 1;
+            for t in triangles {
+                let cells = t.map(|i| e.vertex_cells[i as usize]);
+                assert!(cells.iter().all(|&c| c == cells[0]), "{t:?}: {cells:?}");
+            }
+        }
+        assert_eq!(shared, s.non_manifold_edges);
+        println!("edges on four triangles (ambiguous faces, none at a seam): {shared}");
+    }
+
+    #[test]
+    fn adaptive_outside_the_root_counts_as_outside_even_below_zero_iso() {
+        // With a negative iso-level, the zero field beyond the supports would be inside; the
+        // root's boundary is forced outside so the mesh still closes (around the root).
+        let mut field = fitted_base(0.3, sphere(0.3));
+        field.base_mut().iso = -0.25;
+        let e = extract(&field, &options(2)).unwrap();
+        let s = closed(&e.mesh);
+        assert_eq!(s.euler_characteristic, 2, "{s:?}");
+        assert!(
+            e.mesh
+                .normals
+                .iter()
+                .all(|n| (n.length() - 1.0).abs() < 1e-4)
+        );
+    }
+}
