@@ -13,10 +13,10 @@ use super::counters::EngineCounters;
 use super::layout::LayoutPort;
 use super::update::FieldUpdate;
 use dynaclay_core::field::MultiPatchField;
-use glam::Vec3;
 pub use dynaclay_core::mesh::MeshSink;
 use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
 use dynaclay_core::tools::ColourField;
+use glam::Vec3;
 
 /// A sink that only counts (headless runs export the final mesh separately).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -81,7 +81,11 @@ impl ToolAction {
     pub fn can_add_clay(&self) -> bool {
         matches!(
             self,
-            Self::Add { .. } | Self::Smooth { .. } | Self::Stamp(_) | Self::Contact(_) | Self::Union
+            Self::Add { .. }
+                | Self::Smooth { .. }
+                | Self::Stamp(_)
+                | Self::Contact(_)
+                | Self::Union
         )
     }
 

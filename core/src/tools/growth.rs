@@ -15,7 +15,7 @@
 
 use glam::Vec3;
 
-use super::clay::{Clay, FieldId};
+use super::clay::Clay;
 use super::history::BRICK;
 use crate::field::{BSplineLattice, LatticeError, MAX_CLAY_COEFFS};
 
@@ -60,16 +60,6 @@ pub struct Growth {
     pub old_dims: [usize; 3],
     /// The base's dimensions after.
     pub new_dims: [usize; 3],
-}
-
-impl Growth {
-    /// The fields whose coefficients moved: the base density and, when the clay is painted,
-    /// the four colour channels.
-    #[must_use]
-    pub fn fields(&self, painted: bool) -> impl Iterator<Item = FieldId> + use<> {
-        let colours = if painted { 0..4 } else { 0..0 };
-        std::iter::once(FieldId::Density(0)).chain(colours.map(FieldId::Colour))
-    }
 }
 
 /// The padding per side the base `lattice` needs so that the world box `lo..=hi` lies
@@ -200,7 +190,7 @@ mod tests {
             .unwrap();
         assert_eq!(pad[1], 0);
         assert_eq!(pad[2], 0);
-        assert!(pad[0] >= 8 && pad[0] % BRICK == 0, "{pad:?}");
+        assert!(pad[0] >= 8 && pad[0].is_multiple_of(BRICK), "{pad:?}");
         let grown = l.padded(pad, pad).unwrap();
         assert!(grown.to_lattice(Vec3::new(1.2, 0.5, 0.5)).x <= (grown.dims[0] - 1) as f32 - 4.0);
     }
@@ -237,7 +227,10 @@ mod tests {
             assert!((pa - pb).abs().max_element() < 1e-5);
         }
         assert!(clay.colour.as_ref().unwrap().is_consistent());
-        assert_eq!(clay.colour.as_ref().unwrap().channels[0].dims, growth.new_dims);
+        assert_eq!(
+            clay.colour.as_ref().unwrap().channels[0].dims,
+            growth.new_dims
+        );
     }
 
     #[test]
@@ -245,7 +238,10 @@ mod tests {
         let mut clay = Clay::single(ball(20));
         let before = clay.clone();
         let far = clay.grow_to_cover(Vec3::ZERO, Vec3::new(1e6, 0.5, 0.5));
-        assert!(matches!(far, Err(GrowthError::ClayTooLarge { .. })), "{far:?}");
+        assert!(
+            matches!(far, Err(GrowthError::ClayTooLarge { .. })),
+            "{far:?}"
+        );
         let nan = clay.grow_to_cover(Vec3::ZERO, Vec3::new(f32::NAN, 0.5, 0.5));
         assert!(matches!(nan, Err(GrowthError::NotFinite { .. })));
         assert_eq!(clay, before);

@@ -552,11 +552,22 @@ mod tests {
         let mut clay = clay();
         let mut history = History::default();
         let start = clay.clone();
-        edit(&mut clay, &mut history, CoeffBox { min: [2, 2, 2], max: [9, 5, 4] }, 2.0);
+        edit(
+            &mut clay,
+            &mut history,
+            CoeffBox {
+                min: [2, 2, 2],
+                max: [9, 5, 4],
+            },
+            2.0,
+        );
         let after_first = clay.clone();
         // A stroke touches a box, the clay grows under it, and the stroke goes on.
         let mut rec = StepRecorder::new("stroke");
-        let early = CoeffBox { min: [10, 3, 1], max: [17, 8, 6] };
+        let early = CoeffBox {
+            min: [10, 3, 1],
+            max: [17, 8, 6],
+        };
         rec.touch(&clay, FieldId::Density(0), early);
         let at = clay.base().index(12, 4, 3);
         clay.base_mut().coeffs[at] = -1.0;
@@ -565,10 +576,15 @@ mod tests {
         rec.regrid(&growth);
         let late = early.shifted(growth.pad);
         rec.touch(&clay, FieldId::Density(0), late);
-        let at = clay.base().index(late.min[0] + 5, late.min[1] + 2, late.min[2] + 1);
+        let at = clay
+            .base()
+            .index(late.min[0] + 5, late.min[1] + 2, late.min[2] + 1);
         clay.base_mut().coeffs[at] = 7.0;
         // Past the old far side, in a brick that was clipped there before the growth.
-        let beyond = CoeffBox { min: [29, 4, 9], max: [30, 5, 10] };
+        let beyond = CoeffBox {
+            min: [29, 4, 9],
+            max: [30, 5, 10],
+        };
         rec.touch(&clay, FieldId::Density(0), beyond);
         let at = clay.base().index(30, 5, 10);
         clay.base_mut().coeffs[at] = 5.0;

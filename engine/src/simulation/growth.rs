@@ -166,14 +166,23 @@ mod tests {
         }
         rx.try_recv().unwrap().unwrap();
         let grown = s.sim.lattice().clone();
-        assert!(grown.dims.iter().all(|&n| n >= 12) && grown.dims[0] > 12, "{:?}", grown.dims);
+        assert!(
+            grown.dims.iter().all(|&n| n >= 12) && grown.dims[0] > 12,
+            "{:?}",
+            grown.dims
+        );
         assert_eq!(s.counters.snapshot().clay_growths, 1);
         assert!(s.sim.clay.density.is_inside(at), "the lump is there");
         // Every loop holds the grown layout, and the mesh reaches past the old box.
         assert_eq!(s.haptic.field().base().dims, grown.dims);
         assert_eq!(s.graphics.field().base().dims, grown.dims);
         let (_, old_hi) = old.support();
-        assert!(meshed_max_x(&s) > old_hi.x, "{} vs {}", meshed_max_x(&s), old_hi.x);
+        assert!(
+            meshed_max_x(&s) > old_hi.x,
+            "{} vs {}",
+            meshed_max_x(&s),
+            old_hi.x
+        );
         assert!(
             (meshed_max_x(&s) - surface_max_x(&s.sim.clay.density)).abs() < 0.05,
             "the loop's mesh is the clay's"
