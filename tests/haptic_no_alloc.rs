@@ -1,7 +1,8 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
 //! patches, the safety filter, a force-limit change, a whole-field republication after a
-//! session load, a new patch layout after a refinement, and a device switch and a disconnect
+//! session load, a new patch layout after a refinement, after the clay grew past its box and
+//! after a fine brush refined under itself, and a device switch and a disconnect
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
@@ -149,6 +150,54 @@ fn haptic_tick_allocates_nothing() {
                 })
                 .unwrap();
         }
+        if i == 800 {
+            // A lump added past the clay's box grows the base: a new layout, every coefficient
+            // published again.
+            let base = stages.sim.lattice();
+            let last = base.node_position(base.dims[0] - 1, base.dims[1] - 1, base.dims[2] - 1);
+            let middle = (base.origin + last) * 0.5;
+            stages
+                .commands
+                .send(Command::ApplyTool {
+                    tool: GeometricTool {
+                        shape: ToolShape::Sphere { radius_fu: 0.3 },
+                        action: ToolAction::Add {
+                            deposit_rate_per_s: 4.0,
+                        },
+                        falloff_fu: 0.1,
+                    },
+                    poses: vec![dynaclay::tools::ToolPose::at(Vec3::new(
+                        last.x + 0.15,
+                        middle.y,
+                        middle.z,
+                    ))],
+                    duration_s: 1.0,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+        }
+        if i == 850 {
+            // A brush of a fifth of a knot span refines under itself: another layout.
+            let base = stages.sim.lattice();
+            let middle = base.node_position(base.dims[0] / 2, base.dims[1] / 2, base.dims[2] / 2);
+            stages
+                .commands
+                .send(Command::ApplyTool {
+                    tool: GeometricTool {
+                        shape: ToolShape::Sphere {
+                            radius_fu: 0.1 * base.spacing,
+                        },
+                        action: ToolAction::Remove,
+                        falloff_fu: 0.05 * base.spacing,
+                    },
+                    poses: vec![dynaclay::tools::ToolPose::at(middle)],
+                    duration_s: 0.1,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+        }
         if i == 999 {
             applied_before_swap = limit.applied_n();
         }
@@ -220,10 +269,21 @@ fn haptic_tick_allocates_nothing() {
         "the original arm, then the second, came back"
     );
     assert!(!stages.haptic.is_connected(), "parked by the disconnect");
+    let counters = stages.counters.snapshot();
+    assert_eq!(
+        (counters.clay_growths, counters.auto_refines),
+        (1, 1),
+        "the clay grew once and refined under the fine brush once"
+    );
     assert_eq!(
         stages.haptic.field().patches.len(),
-        2,
-        "the tick installed the refined layout"
+        3,
+        "the tick installed the refined layouts"
+    );
+    assert_eq!(
+        stages.haptic.field().base().dims,
+        stages.sim.lattice().dims,
+        "the tick installed the grown layout"
     );
     assert_eq!(limit.applied_n(), 0.0, "no device, no force");
     assert_eq!(stages.counters.snapshot().device_swaps, 2);

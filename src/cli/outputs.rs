@@ -12,7 +12,9 @@ use super::platform::PlatformJudged;
 use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
 use crate::io::{Session, save_session, write_atomic};
-use crate::mesh::{BrickOctree, MeshFormat, MeshStats, SampleGrid, write_mesh};
+use crate::mesh::{
+    AdaptiveMeshOptions, BrickOctree, MeshFormat, MeshStats, SampleGrid, mesh_adaptive, write_mesh,
+};
 use crate::render::RenderOutcome;
 
 /// The optional outputs of a run, besides `sculpt.obj`, the session and the latency reports.
@@ -135,11 +137,19 @@ fn write_field_outputs(
 ) -> Result<(MeshStats, BrickOctree), CliError> {
     let density = &session.clay.density;
     // Mesh the final field afresh (every patch, summed): the export is exactly the
-    // simulation's last state.
+    // simulation's last state. The octree (for the picture) follows one grid; a clay with
+    // patches finer than that grid is exported from the adaptive mesh, each level at its own
+    // spacing.
     let grid =
         SampleGrid::for_field(density, config.cells_per_span).map_err(|e| out_err(dir, e))?;
     let octree = BrickOctree::build(grid, density);
-    let mesh = octree.weld();
+    let mesh = if density.finest_spacing() < SampleGrid::uniform_spacing(density) {
+        // Two cells per span of each level: the dual vertices sit on the surface (projected
+        // along the gradient), so the coarse levels stay true at two.
+        mesh_adaptive(density, &AdaptiveMeshOptions::default()).map_err(|e| out_err(dir, e))?
+    } else {
+        octree.weld()
+    };
     let stats = MeshStats::of(&mesh);
     let mut formats = vec![("sculpt.obj", MeshFormat::Obj)];
     if extras.ply {

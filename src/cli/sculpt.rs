@@ -44,9 +44,9 @@ pub fn mesh_clay(
         ));
     }
     {
-        // One grid spans every patch at the finest spacing (one patch: its own).
+        // One grid spans every patch at the finest spacing it follows (one patch: its own).
         let (lo, hi) = density.support();
-        let spacing = density.finest_spacing();
+        let spacing = SampleGrid::uniform_spacing(density);
         let widest = ((hi - lo) / (spacing / cells_per_span.max(1) as f32)).max_element();
         if widest.is_finite() && widest > SampleGrid::MAX_CELLS as f32 {
             return Err(CliError::OverBudget(OverBudget {

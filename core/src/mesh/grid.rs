@@ -91,9 +91,26 @@ impl SampleGrid {
         Self::new(min, lattice.spacing / cells_per_span as f32, cells)
     }
 
+    /// Most halvings of the base's knot spacing a uniform grid over a whole multi-patch field
+    /// follows (see [`SampleGrid::for_field`]).
+    pub const UNIFORM_LEVELS: u32 = 2;
+
+    /// The knot spacing a uniform grid over `field` follows: its finest, but no finer than
+    /// [`SampleGrid::UNIFORM_LEVELS`] halvings of the base patch's (infinite without patches).
+    #[must_use]
+    pub fn uniform_spacing(field: &MultiPatchField) -> f32 {
+        let floor = field.patches.first().map_or(0.0, |base| {
+            base.world_spacing() / (1 << Self::UNIFORM_LEVELS) as f32
+        });
+        field.finest_spacing().max(floor)
+    }
+
     /// A grid over the support of every patch of a multi-patch field at its finest spacing,
-    /// with `cells_per_span` cells per finest knot span; a field of one patch in world
-    /// coordinates gets exactly [`SampleGrid::for_lattice`]'s grid.
+    /// with `cells_per_span` cells per finest knot span, but no finer than
+    /// [`SampleGrid::UNIFORM_LEVELS`] halvings of the base's spacing: one grid over the whole
+    /// clay at a deep level's spacing would cost the whole surface at that level
+    /// ([`super::mesh_adaptive`] meshes each level at its own spacing). A field of one patch in
+    /// world coordinates gets exactly [`SampleGrid::for_lattice`]'s grid.
     ///
     /// # Errors
     /// When the field has no patch, `cells_per_span` is zero, or the grid would exceed
@@ -107,7 +124,11 @@ impl SampleGrid {
                     return Err(GridError::BadCellCount { cells: [0; 3] });
                 }
                 let (min, max) = field.support();
-                Self::covering(min, max, field.finest_spacing() / cells_per_span as f32)
+                Self::covering(
+                    min,
+                    max,
+                    Self::uniform_spacing(field) / cells_per_span as f32,
+                )
             }
         }
     }
