@@ -19,9 +19,11 @@ use super::clay::Clay;
 use super::history::BRICK;
 use crate::field::{BSplineLattice, LatticeError, MAX_CLAY_COEFFS};
 
-/// How many knot spans an edit's box must stay inside the base patch's coefficients: the
-/// cubic stencil reaches two nodes past a point, and a spring region's neighbours one more.
-pub const GROWTH_MARGIN_SPANS: f32 = 4.0;
+/// How many knot spans an edit's box must stay inside the base patch's first and last
+/// nodes: a point's cubic stencil reaches one node below and two above it, so a box kept 1.5
+/// spans inside is written wholly by the lattice's own coefficients (none beyond it, which
+/// count as zero and would clip the edit flat).
+pub const GROWTH_MARGIN_SPANS: f32 = 1.5;
 
 /// Why the clay could not grow to take an edit.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -184,7 +186,7 @@ mod tests {
             padding_to_cover(&l, Vec3::splat(0.3), Vec3::splat(0.7)).unwrap(),
             None
         );
-        // 0.2 field units past the high x side: about 3.4 spans + the margin.
+        // 0.2 field units past the high x side: about 3.4 spans and the margin.
         let pad = padding_to_cover(&l, Vec3::splat(0.5), Vec3::new(1.2, 0.5, 0.5))
             .unwrap()
             .unwrap();
@@ -192,7 +194,10 @@ mod tests {
         assert_eq!(pad[2], 0);
         assert!(pad[0] >= 8 && pad[0].is_multiple_of(BRICK), "{pad:?}");
         let grown = l.padded(pad, pad).unwrap();
-        assert!(grown.to_lattice(Vec3::new(1.2, 0.5, 0.5)).x <= (grown.dims[0] - 1) as f32 - 4.0);
+        assert!(
+            grown.to_lattice(Vec3::new(1.2, 0.5, 0.5)).x
+                <= (grown.dims[0] - 1) as f32 - GROWTH_MARGIN_SPANS
+        );
     }
 
     #[test]

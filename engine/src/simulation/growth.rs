@@ -198,6 +198,49 @@ mod tests {
     }
 
     #[test]
+    fn a_grown_and_refined_clay_saves_and_loads_whole() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let last = s.sim.lattice().node_position(11, 11, 11);
+        let centre = (s.sim.lattice().origin + last) * 0.5;
+        for (tool, at) in [
+            // Past the box: the clay grows.
+            (add_ball(0.3), Vec3::new(last.x + 0.15, centre.y, centre.z)),
+            // A fine brush: a detail patch under it.
+            (
+                GeometricTool {
+                    shape: ToolShape::Sphere { radius_fu: 0.02 },
+                    action: ToolAction::Remove,
+                    falloff_fu: 0.005,
+                },
+                centre + Vec3::Y * 0.27,
+            ),
+        ] {
+            s.commands
+                .send(Command::ApplyTool {
+                    tool,
+                    poses: vec![ToolPose::at(at)],
+                    duration_s: 1.0,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+        }
+        tick(&mut s, &ToolSample::IDLE);
+        let counters = s.counters.snapshot();
+        assert_eq!((counters.clay_growths, counters.auto_refines), (1, 1));
+        let session = s.sim.session();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("grown.dclay");
+        dynaclay_core::io::save_session(&path, &session).unwrap();
+        let back = dynaclay_core::io::load_session(&path).unwrap();
+        assert_eq!(
+            back.clay, session.clay,
+            "every patch, the grown base and the detail"
+        );
+        assert_eq!(back.clay.density.patches.len(), 2);
+    }
+
+    #[test]
     fn a_held_add_stroke_dragged_out_of_the_box_extends_the_clay_as_one_undo_step() {
         let mut s = super::super::tests::stages_on_sphere(12);
         let old = s.sim.lattice().clone();
