@@ -10,6 +10,10 @@ use crate::dynamics::Constraint;
 pub use crate::field::CoeffBox;
 use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
 
+/// Edge length (in coefficients) of the bricks the clay's coefficients are counted in: undo
+/// deltas are stored per brick, and the clay grows by whole bricks.
+pub const BRICK: usize = 8;
+
 /// Which coefficient lattice of a [`Clay`] an edit or an undo delta refers to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum FieldId {

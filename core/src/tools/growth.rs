@@ -15,8 +15,7 @@
 
 use glam::Vec3;
 
-use super::clay::Clay;
-use super::history::BRICK;
+use super::clay::{BRICK, Clay};
 use crate::field::{BSplineLattice, LatticeError, MAX_CLAY_COEFFS};
 
 /// How many knot spans an edit's box must stay inside the base patch's first and last

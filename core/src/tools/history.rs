@@ -9,12 +9,9 @@
 
 use std::collections::{BTreeMap, VecDeque};
 
-use super::clay::{Clay, CoeffBox, FieldId};
+use super::clay::{BRICK, Clay, CoeffBox, FieldId};
 use super::growth::Growth;
 use crate::dynamics::Constraint;
-
-/// Edge length (in coefficients) of the bricks that deltas are stored in.
-pub const BRICK: usize = 8;
 
 /// Default memory bound of the history: 256 MiB.
 pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;

@@ -32,7 +32,7 @@ pub use apply::{
     effective_falloff_fu,
 };
 pub use capture::{CaptureError, MAX_CAPTURE_DIMS, Selection, capture_tool};
-pub use clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
+pub use clay::{BRICK, Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
@@ -43,7 +43,7 @@ pub use force::{
     project_to_surface,
 };
 pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
-pub use history::{BRICK, DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
+pub use history::{DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
