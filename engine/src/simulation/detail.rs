@@ -1,4 +1,5 @@
-//! Detail where the brush is fine: before a geometric tool is applied, a brush narrower than
+//! Detail where the brush is fine: before a script's or a command's geometric tool step is
+//! applied on the base, a brush narrower than
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
 //! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. The new
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
@@ -42,7 +43,7 @@ pub fn level_for_brush(width_fu: f32, base_spacing_fu: f32) -> u32 {
 
 /// A brush's width: twice the smallest half extent of its shape.
 #[must_use]
-pub fn brush_width_fu(tool: &GeometricTool) -> f32 {
+fn brush_width_fu(tool: &GeometricTool) -> f32 {
     2.0 * tool.shape.half_extents().min_element()
 }
 
@@ -61,27 +62,38 @@ impl SimulationStage {
         self.patch_for_brush_width(brush_width_fu(tool), tool.action.paints(), lo, hi)
     }
 
+    /// The finest detail patch in world coordinates, of knot spacing `wanted` or finer, that
+    /// holds a brush of width `width` at every point of `lo..=hi` with two of its spans to
+    /// spare (so the brush's band is written wholly by its coefficients).
+    fn patch_covering(&self, lo: Vec3, hi: Vec3, width: f32, wanted: f32) -> Option<usize> {
+        self.clay
+            .density
+            .patches
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, p)| p.is_identity() && p.lattice.spacing <= wanted * 1.001)
+            .filter(|(_, p)| {
+                let (plo, phi) = p.lattice.support();
+                let margin = Vec3::splat(2.0 * p.lattice.spacing + width);
+                lo.cmpge(plo + margin).all() && hi.cmple(phi - margin).all()
+            })
+            .min_by(|(_, a), (_, b)| a.lattice.spacing.total_cmp(&b.lattice.spacing))
+            .map(|(n, _)| n)
+    }
+
     /// [`Self::patch_for_brush`] for a brush of width `width` whose centre stays in
     /// `lo..=hi`.
-    pub(super) fn patch_for_brush_width(
-        &mut self,
-        width: f32,
-        paints: bool,
-        lo: Vec3,
-        hi: Vec3,
-    ) -> u16 {
-        let under = self.sculpted_patch_at((lo + hi) * 0.5);
+    fn patch_for_brush_width(&mut self, width: f32, paints: bool, lo: Vec3, hi: Vec3) -> u16 {
         let base_spacing = self.clay.base().spacing;
         let level = level_for_brush(width, base_spacing);
+        if !self.config.auto_detail || paints || level == 0 {
+            // A brush the base resolves edits the base, as before.
+            return 0;
+        }
         let wanted = base_spacing / (1_u32 << level) as f32;
-        let have = self.clay.density.patches[under].lattice.spacing;
-        let covered = {
-            let (plo, phi) = self.clay.density.patches[under].lattice.support();
-            let margin = Vec3::splat(2.0 * have + width);
-            lo.cmpge(plo + margin).all() && hi.cmple(phi - margin).all()
-        };
-        if !self.config.auto_detail || paints || level == 0 || (have <= wanted * 1.001 && covered) {
-            return u16::try_from(under).unwrap_or(0);
+        if let Some(n) = self.patch_covering(lo, hi, width, wanted) {
+            return u16::try_from(n).unwrap_or(0);
         }
         let half = (AUTO_DETAIL_HALF_WIDTHS * width).max(AUTO_DETAIL_MIN_HALF_SPANS * wanted);
         let half = Vec3::splat(half);
@@ -93,8 +105,10 @@ impl SimulationStage {
                 self.publish_layout();
                 u16::try_from(n).unwrap_or(0)
             }
-            // Past the budgets: the finest patch there is.
-            Err(_) => u16::try_from(under).unwrap_or(0),
+            // Past the budgets: the finest patch that holds the brush, else the base.
+            Err(_) => self
+                .patch_covering(lo, hi, width, f32::INFINITY)
+                .map_or(0, |n| u16::try_from(n).unwrap_or(0)),
         }
     }
 }
