@@ -9,6 +9,12 @@ use std::process::Command;
 
 use glam::Vec3;
 
+#[path = "support/exported_mesh.rs"]
+#[allow(dead_code)] // shared: this test reads a run's file and probes crossings, not profiles
+mod exported_mesh;
+
+use exported_mesh::{Exported, read_obj};
+
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
 
 /// The default block: a 24³ lattice of knot spacing 0.1 from the origin (2.3 across); the
@@ -17,8 +23,8 @@ const SIZE: f32 = 2.3;
 const TOP_Y: f32 = 1.725;
 const MID: f32 = 1.15;
 
-/// Runs `script` in lockstep into `dir/out`; returns the exported mesh (vertices, triangles).
-fn run(dir: &Path, script: &str) -> (Vec<Vec3>, Vec<[usize; 3]>) {
+/// Runs `script` in lockstep into `dir/out`; returns the exported mesh read back.
+fn run(dir: &Path, script: &str) -> Exported {
     let path = dir.join("script.toml");
     std::fs::write(&path, script).unwrap();
     let out = dir.join("out");
@@ -34,47 +40,7 @@ fn run(dir: &Path, script: &str) -> (Vec<Vec3>, Vec<[usize; 3]>) {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
-    let text = std::fs::read_to_string(out.join("sculpt.obj")).unwrap();
-    let numbers = |l: &str| -> Vec<f32> {
-        l.split_whitespace()
-            .map(|x| x.split('/').next().unwrap().parse().unwrap())
-            .collect()
-    };
-    let mut vertices = Vec::new();
-    let mut triangles = Vec::new();
-    for line in text.lines() {
-        if let Some(v) = line.strip_prefix("v ") {
-            let v = numbers(v);
-            vertices.push(Vec3::new(v[0], v[1], v[2]));
-        } else if let Some(f) = line.strip_prefix("f ") {
-            let f = numbers(f);
-            triangles.push([f[0] as usize - 1, f[1] as usize - 1, f[2] as usize - 1]);
-        }
-    }
-    (vertices, triangles)
-}
-
-/// Where the line `from + t · dir` crosses the triangles (Möller–Trumbore), as `t`s.
-fn crossings(vertices: &[Vec3], triangles: &[[usize; 3]], from: Vec3, dir: Vec3) -> Vec<f32> {
-    let mut out = Vec::new();
-    for t in triangles {
-        let [a, b, c] = t.map(|i| vertices[i]);
-        let (e1, e2) = (b - a, c - a);
-        let p = dir.cross(e2);
-        let det = e1.dot(p);
-        if det.abs() < 1e-12 {
-            continue;
-        }
-        let s = from - a;
-        let u = s.dot(p) / det;
-        let q = s.cross(e1);
-        let v = dir.dot(q) / det;
-        if u < 0.0 || v < 0.0 || u + v > 1.0 {
-            continue;
-        }
-        out.push(e2.dot(q) / det);
-    }
-    out
+    read_obj(&out.join("sculpt.obj"))
 }
 
 #[test]
@@ -91,11 +57,11 @@ fn a_brush_of_a_256th_of_the_clay_carves_a_groove_of_its_width_on_the_exported_m
         positions.join(", "),
         0.25 * radius
     );
-    let (vertices, triangles) = run(dir.path(), &script);
+    let mesh = run(dir.path(), &script);
     // Across the groove half a radius below the top, in the stroke's middle.
     let depth = 0.5 * radius;
     let from = Vec3::new(MID, TOP_Y - depth, MID);
-    let hits = crossings(&vertices, &triangles, from, Vec3::Z);
+    let hits = mesh.crossings(from, Vec3::Z);
     let right = hits
         .iter()
         .copied()
@@ -111,7 +77,7 @@ fn a_brush_of_a_256th_of_the_clay_carves_a_groove_of_its_width_on_the_exported_m
     eprintln!(
         "brush {:.5} wide: groove {groove:.5} on sculpt.obj ({} triangles), chord {chord:.5}, {:+.1}%",
         2.0 * radius,
-        triangles.len(),
+        mesh.triangles.len(),
         100.0 * (groove - chord) / chord
     );
     assert!(
@@ -133,7 +99,8 @@ fn an_add_stroke_past_the_box_extends_the_exported_clay_beyond_it_rounded() {
          duration_s = 6.0\nfalloff_fu = 0.05\n",
         positions.join(", ")
     );
-    let (vertices, _) = run(dir.path(), &script);
+    let mesh = run(dir.path(), &script);
+    let vertices = &mesh.vertices;
     let reach = vertices
         .iter()
         .map(|v| v.x)

@@ -12,6 +12,7 @@
 //! radius to three, the box and the capsule, and keeps a rim (the last two tests).
 
 #[path = "support/exported_mesh.rs"]
+#[allow(dead_code)] // shared: this test probes profiles, not crossings
 mod exported_mesh;
 
 use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, build_clay};

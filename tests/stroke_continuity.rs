@@ -16,6 +16,7 @@
 //! law's response, not the frames'): resting one frame left the end 11% below the mean.
 
 #[path = "support/exported_mesh.rs"]
+#[allow(dead_code)] // shared: this test probes profiles, not crossings
 mod exported_mesh;
 
 use dynaclay::app::ToolPalette;

@@ -9,6 +9,7 @@
 mod common;
 
 #[path = "support/exported_mesh.rs"]
+#[allow(dead_code)] // shared: this test probes profiles, not crossings
 mod exported_mesh;
 
 use dynaclay::dynamics::surface_point_on_ray;

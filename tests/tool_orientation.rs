@@ -11,6 +11,7 @@ use glam::Vec2;
 mod lockstep;
 
 #[path = "support/exported_mesh.rs"]
+#[allow(dead_code)] // shared: this test probes profiles, not crossings
 mod exported_mesh;
 
 use lockstep::{Scripted, scripted};

@@ -21,7 +21,13 @@ pub fn export(field: &MultiPatchField, dir: &Path, name: &str) -> Exported {
     let mesh = BrickOctree::build(grid, field).weld();
     let path = dir.join(name);
     write_mesh(&path, &mesh, MeshFormat::Obj).unwrap();
-    let text = std::fs::read_to_string(&path).unwrap();
+    read_obj(&path)
+}
+
+/// Reads an OBJ file the exporter wrote (vertices and triangles).
+pub fn read_obj(path: &Path) -> Exported {
+    let name = path.display();
+    let text = std::fs::read_to_string(path).unwrap();
     let numbers = |l: &str| -> Vec<f32> {
         l.split_whitespace()
             .map(|x| x.split('/').next().unwrap().parse().unwrap())
@@ -46,6 +52,29 @@ pub fn export(field: &MultiPatchField, dir: &Path, name: &str) -> Exported {
 }
 
 impl Exported {
+    /// Where the line `from + t · dir` crosses the triangles (Möller–Trumbore), as `t`s.
+    pub fn crossings(&self, from: Vec3, dir: Vec3) -> Vec<f32> {
+        let mut out = Vec::new();
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.vertices[i]);
+            let (e1, e2) = (b - a, c - a);
+            let p = dir.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let s = from - a;
+            let u = s.dot(p) / det;
+            let q = s.cross(e1);
+            let v = dir.dot(q) / det;
+            if u < 0.0 || v < 0.0 || u + v > 1.0 {
+                continue;
+            }
+            out.push(e2.dot(q) / det);
+        }
+        out
+    }
+
     /// The surface's height along the line from `from` to `to` (xz), at `n + 1` points.
     pub fn profile(&self, from: Vec2, to: Vec2, n: usize) -> Vec<(Vec2, f32)> {
         // Only the triangles whose shadow's box meets the line's box can be hit.

@@ -117,12 +117,8 @@ impl SimulationStage {
 mod tests {
     use std::time::Instant;
 
-    use super::super::super::{EngineConfig, HeadlessSink, build, build_clay};
     use super::*;
-    use dynaclay_core::io::ClaySpec;
-    use dynaclay_core::mesh::{AdaptiveMeshOptions, MeshStats, TriMesh, mesh_adaptive};
     use dynaclay_core::tools::ToolShape;
-    use dynaclay_devices::{SimArmConfig, SimulatedArm, Trajectory};
 
     /// The width of the outside of `field` along z around `at` (which is outside): from `at`
     /// both ways to the first inside sample, every 0.0005.
@@ -176,99 +172,6 @@ mod tests {
             s.sim.clay.density.patches.len(),
             s.counters.snapshot().auto_refines,
         )
-    }
-
-    /// Where the line `from + t · dir` crosses `mesh`'s triangles (Möller–Trumbore), as `t`s.
-    fn crossings(mesh: &TriMesh, from: Vec3, dir: Vec3) -> Vec<f32> {
-        let mut out = Vec::new();
-        for t in &mesh.triangles {
-            let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-            let (e1, e2) = (b - a, c - a);
-            let p = dir.cross(e2);
-            let det = e1.dot(p);
-            if det.abs() < 1e-12 {
-                continue;
-            }
-            let s = from - a;
-            let u = s.dot(p) / det;
-            let q = s.cross(e1);
-            let v = dir.dot(q) / det;
-            if u < 0.0 || v < 0.0 || u + v > 1.0 {
-                continue;
-            }
-            out.push(e2.dot(q) / det);
-        }
-        out
-    }
-
-    #[test]
-    fn a_brush_of_a_256th_of_the_clay_carves_its_own_width_on_the_meshed_result() {
-        // The default clay: a block in a 24³ lattice, 2.3 field units across.
-        let field = build_clay(&ClaySpec::default()).unwrap();
-        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
-        let mut s = build(
-            &config,
-            field.clone(),
-            Box::new(arm),
-            Box::new(HeadlessSink::default()),
-            true,
-        )
-        .unwrap();
-        let size = (field.dims[0] - 1) as f32 * field.spacing;
-        let width = size / 256.0;
-        let radius = 0.5 * width;
-        let centre = Vec3::splat(0.5 * size);
-        let mut top = centre;
-        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
-            top.y += 0.0005;
-        }
-        let poses: Vec<ToolPose> = (0..=16)
-            .map(|n| ToolPose::at(top + Vec3::X * (-0.02 + 0.0025 * n as f32)))
-            .collect();
-        s.commands
-            .send(Command::ApplyTool {
-                tool: GeometricTool {
-                    shape: ToolShape::Sphere { radius_fu: radius },
-                    action: ToolAction::Remove,
-                    falloff_fu: 0.25 * radius,
-                },
-                poses,
-                duration_s: 1.0,
-                patch: 0,
-                reply: None,
-            })
-            .unwrap();
-        s.sim.apply_commands();
-        assert_eq!(s.counters.snapshot().auto_refines, 1, "no manual refine");
-        let mesh = mesh_adaptive(&s.sim.clay.density, &AdaptiveMeshOptions::default()).unwrap();
-        let stats = MeshStats::of(&mesh);
-        assert_eq!(stats.boundary_edges, 0);
-        // Across the groove, half a radius below the top, in the stroke's middle.
-        let depth = 0.5 * radius;
-        let from = top - Vec3::Y * depth;
-        let hits = crossings(&mesh, from, Vec3::Z);
-        let right = hits
-            .iter()
-            .copied()
-            .filter(|&t| t > 0.0)
-            .fold(f32::INFINITY, f32::min);
-        let left = hits
-            .iter()
-            .copied()
-            .filter(|&t| t < 0.0)
-            .fold(f32::NEG_INFINITY, f32::max);
-        let groove = right - left;
-        let chord = 2.0 * (radius * radius - depth * depth).sqrt();
-        eprintln!(
-            "brush {width:.5} wide: groove {groove:.5} on the mesh ({} triangles), chord {chord:.5}, {:+.1}%",
-            mesh.triangle_count(),
-            100.0 * (groove - chord) / chord
-        );
-        assert!(
-            (groove - chord).abs() <= 0.25 * chord,
-            "groove {groove} against the brush's chord {chord}"
-        );
     }
 
     #[test]
