@@ -259,6 +259,7 @@ impl Tree {
             root_size,
         };
         let iso = field.iso();
+        let slopes: Vec<(Vec3, Vec3, f32)> = field.patches.iter().map(patch_slope).collect();
         let mut stack = vec![0_usize];
         while let Some(n) = stack.pop() {
             let node = tree.nodes[n];
@@ -285,7 +286,7 @@ impl Tree {
                 Some((vmin, vmax)) => (vmin <= iso || on_boundary) && vmax > iso,
                 None => true,
             };
-            if !may_cross {
+            if !may_cross || (!on_boundary && far_from_iso(field, &slopes, lo, hi, iso)) {
                 continue;
             }
             if tree.leaves + 7 > options.max_cells {
@@ -566,6 +567,56 @@ impl Contour<'_> {
             }
         }
     }
+}
+
+/// A patch's world support and a bound on its slope there: a cubic B-spline's derivative
+/// along an axis is a quadratic B-spline of the coefficient differences over the spacing, so
+/// `|∇s| ≤ √3 · max |Δc| / spacing` (in world units through the patch's map), the differences
+/// taken with the zeros beyond the lattice too.
+fn patch_slope(patch: &crate::field::Patch) -> (Vec3, Vec3, f32) {
+    let l = &patch.lattice;
+    let [nx, ny, nz] = l.dims;
+    let mut steepest = 0.0_f32;
+    for (n, &c) in l.coeffs.iter().enumerate() {
+        let (i, j, k) = (n % nx, (n / nx) % ny, n / (nx * ny));
+        // Beyond the lattice the coefficients count as zero: a border coefficient is a step
+        // of its own size.
+        if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
+            steepest = steepest.max(c.abs());
+        }
+        if i + 1 < nx {
+            steepest = steepest.max((l.coeffs[n + 1] - c).abs());
+        }
+        if j + 1 < ny {
+            steepest = steepest.max((l.coeffs[n + nx] - c).abs());
+        }
+        if let Some(&above) = l.coeffs.get(n + nx * ny) {
+            steepest = steepest.max((above - c).abs());
+        }
+    }
+    let (lo, hi) = patch.world_support();
+    (lo, hi, 3.0_f32.sqrt() * steepest / patch.world_spacing())
+}
+
+/// Whether the field's value at the box's centre is further from `iso` than the patches
+/// meeting the box can climb within it (so the surface cannot cross the box): a test that
+/// holds where the convex-hull bound is loose, inside a detail patch whose coefficients cancel
+/// the base's.
+fn far_from_iso(
+    field: &MultiPatchField,
+    slopes: &[(Vec3, Vec3, f32)],
+    lo: Vec3,
+    hi: Vec3,
+    iso: f32,
+) -> bool {
+    let slope: f32 = slopes
+        .iter()
+        .filter(|(slo, shi, _)| lo.cmplt(*shi).all() && hi.cmpgt(*slo).all())
+        .map(|s| s.2)
+        .sum();
+    let reach = slope * 0.5 * (hi - lo).length();
+    let centre = 0.5 * (lo + hi);
+    (field.value(centre) - iso).abs() > reach
 }
 
 #[cfg(test)]
