@@ -268,11 +268,14 @@ impl Tree {
             }
             let (lo, hi) = tree.world_box(&node);
             let edge = node.size as f32;
-            // The finest target among the patches whose support meets the node, in cells.
+            // The finest target among the patches that hold detail in the node, in cells.
             let target = targets
                 .iter()
-                .filter(|(slo, shi, _)| lo.cmplt(*shi).all() && hi.cmpgt(*slo).all())
-                .map(|t| t.2 / unit)
+                .zip(&field.patches)
+                .enumerate()
+                .filter(|(_, ((slo, shi, _), _))| lo.cmplt(*shi).all() && hi.cmpgt(*slo).all())
+                .filter(|(n, (_, patch))| *n == 0 || holds_detail(patch, lo, hi))
+                .map(|(_, (t, _))| t.2 / unit)
                 .fold(f32::INFINITY, f32::min);
             // A little slack so a target that is a power of two times the finest cell, up to
             // rounding, is met exactly rather than split once more.
@@ -569,6 +572,24 @@ impl Contour<'_> {
     }
 }
 
+/// Largest contribution, in density units, below which a detail patch counts as holding
+/// nothing over a box (it moves the surface by less than a thousandth of a knot span's worth
+/// of density): such a box is meshed at the coarser levels' size.
+pub const DETAIL_EPSILON: f32 = 1e-3;
+
+/// Whether detail patch `patch` may add more than [`DETAIL_EPSILON`] anywhere in the world box
+/// `lo..=hi` (its convex-hull bound there; a patch with a map, whose bound is not taken, always
+/// may).
+fn holds_detail(patch: &crate::field::Patch, lo: Vec3, hi: Vec3) -> bool {
+    if !patch.is_identity() {
+        return true;
+    }
+    match ScalarField::bounds(&patch.lattice, lo, hi) {
+        Some((vmin, vmax)) => vmin < -DETAIL_EPSILON || vmax > DETAIL_EPSILON,
+        None => true,
+    }
+}
+
 /// A patch's world support and a bound on its slope there: a cubic B-spline's derivative
 /// along an axis is a quadratic B-spline of the coefficient differences over the spacing, so
 /// `|∇s| ≤ √3 · max |Δc| / spacing` (in world units through the patch's map), the differences
@@ -796,8 +817,9 @@ mod tests {
         let (base, mid, fine) = (SPACING / 2.0, SPACING / 4.0, SPACING / 8.0);
         assert_eq!(sizes(&e.vertex_cells), vec![fine, mid, base]);
 
-        // Each region is meshed at its own patch's cell, and the vertex density per area
-        // grows about fourfold per level.
+        // Each region is meshed at its own patch's cell where the patch holds detail (a
+        // corner of a patch whose fit left it below `DETAIL_EPSILON` keeps the coarser cell),
+        // and the vertex density per area grows about fourfold per level.
         let in_fine = |p: Vec3| p.x >= 0.3 && p.x <= 0.7 && p.y.abs() <= 0.15 && p.z.abs() <= 0.15;
         let in_mid = |p: Vec3| {
             p.x >= 0.05
@@ -811,23 +833,43 @@ mod tests {
             [(&in_base, base), (&in_mid, mid), (&in_fine, fine)];
         let mut density = [0.0_f64; 3];
         for (r, (inside, cell)) in regions.iter().enumerate() {
-            let mut vertices = 0;
+            // Where the region's own patch adds more than ten times `DETAIL_EPSILON`, every
+            // vertex is at the region's cell; elsewhere it may be coarser, never finer.
+            let holds = |p: Vec3| r == 0 || field.patches[r].value(p).abs() > 10.0 * DETAIL_EPSILON;
+            let own_cell = |p: Vec3, c: f32| inside(p) && c == *cell;
+            let (mut vertices, mut own) = (0_u32, 0_u32);
             for (p, c) in e.mesh.positions.iter().zip(&e.vertex_cells) {
                 if inside(*p) {
-                    assert_eq!(c, cell, "vertex at {p} in region {r}");
+                    assert!(
+                        *c >= *cell && *c <= base,
+                        "vertex at {p} in region {r}: {c}"
+                    );
+                    if holds(*p) {
+                        assert_eq!(
+                            c, cell,
+                            "vertex at {p} in region {r}, where its patch holds detail"
+                        );
+                    }
                     vertices += 1;
+                    own += u32::from(c == cell);
                 }
             }
+            println!("region {r}: {own} of {vertices} vertices at its own cell {cell}");
+            // The density of vertices per area over the triangles at the region's own cell.
             let area: f64 = e
                 .mesh
                 .triangles
                 .iter()
+                .filter(|t| {
+                    t.iter().all(|&i| {
+                        own_cell(e.mesh.positions[i as usize], e.vertex_cells[i as usize])
+                    })
+                })
                 .map(|t| t.map(|i| e.mesh.positions[i as usize]))
-                .filter(|[a, b, c]| inside((*a + *b + *c) / 3.0))
                 .map(|[a, b, c]| 0.5 * f64::from((b - a).cross(c - a).length()))
                 .sum();
-            assert!(vertices > 50, "region {r}: {vertices} vertices");
-            density[r] = f64::from(vertices) / area;
+            assert!(own > 50, "region {r}: {own} vertices at its own cell");
+            density[r] = f64::from(own) / area;
         }
         let ratios = [density[1] / density[0], density[2] / density[1]];
         println!("vertices per unit area (base, level 1, level 2): {density:?}, ratios {ratios:?}");
