@@ -13,7 +13,8 @@ use super::sculpt::{describe_outcome, render_sculpt};
 use crate::engine::{EngineConfig, EngineReport, LockstepReport};
 use crate::io::{Session, save_session, write_atomic};
 use crate::mesh::{
-    AdaptiveMeshOptions, BrickOctree, MeshFormat, MeshStats, SampleGrid, mesh_adaptive, write_mesh,
+    AdaptiveMeshError, AdaptiveMeshOptions, BrickOctree, MeshFormat, MeshStats, SampleGrid,
+    mesh_adaptive, write_mesh,
 };
 use crate::render::RenderOutcome;
 
@@ -135,6 +136,15 @@ fn write_field_outputs(
     extras: &ExtraOutputs,
     files: &mut Vec<PathBuf>,
 ) -> Result<(MeshStats, BrickOctree), CliError> {
+    // The session first: a mesh that cannot be made never costs the sculpt.
+    let session_path = dir.join("session.dclay");
+    let mut session = session.clone();
+    session.meta.saved_unix_s = crate::io::unix_now_s();
+    crate::io::check_replaceable(&session_path)
+        .map_err(|e| CliError::output(session_path.display().to_string(), e))?;
+    save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
+    files.push(session_path);
+
     let density = &session.clay.density;
     // Mesh the final field afresh (every patch, summed): the export is exactly the
     // simulation's last state. The octree (for the picture) follows one grid; a clay with
@@ -146,7 +156,19 @@ fn write_field_outputs(
     let mesh = if density.finest_spacing() < SampleGrid::uniform_spacing(density) {
         // Two cells per span of each level: the dual vertices sit on the surface (projected
         // along the gradient), so the coarse levels stay true at two.
-        mesh_adaptive(density, &AdaptiveMeshOptions::default()).map_err(|e| out_err(dir, e))?
+        match mesh_adaptive(density, &AdaptiveMeshOptions::default()) {
+            Ok(mesh) => mesh,
+            Err(e @ AdaptiveMeshError::OverBudget { .. }) => {
+                // The mesh still comes out, on the one grid, and says what it lost.
+                eprintln!(
+                    "dynaclay: warning: {e}; exporting on one grid {} levels below the base \
+                     instead (finer detail is drawn at that grid's size)",
+                    SampleGrid::UNIFORM_LEVELS
+                );
+                octree.weld()
+            }
+            Err(e) => return Err(out_err(dir, e)),
+        }
     } else {
         octree.weld()
     };
@@ -164,13 +186,6 @@ fn write_field_outputs(
         files.push(path);
     }
 
-    let session_path = dir.join("session.dclay");
-    let mut session = session.clone();
-    session.meta.saved_unix_s = crate::io::unix_now_s();
-    crate::io::check_replaceable(&session_path)
-        .map_err(|e| CliError::output(session_path.display().to_string(), e))?;
-    save_session(&session_path, &session).map_err(|e| out_err(&session_path, e))?;
-    files.push(session_path);
     Ok((stats, octree))
 }
 
