@@ -1,8 +1,8 @@
 //! Detail where the brush is fine and room where the clay goes, judged on what a run exports:
 //! a script's remove brush of 1/256 of the default clay's size, with no refine step, carves a
 //! groove whose width on `sculpt.obj` is within 25% of the brush's chord; and an add stroke
-//! that leaves the starting box extends the exported clay past it, rounded (no flat face where
-//! the box was).
+//! or a pull stroke of the simulated arm that leaves the starting box extends the exported clay
+//! past it, rounded (no flat face where the box was).
 
 use std::path::Path;
 use std::process::Command;
@@ -128,5 +128,44 @@ fn an_add_stroke_past_the_box_extends_the_exported_clay_beyond_it_rounded() {
     assert!(
         end < middle,
         "the end is rounded: {end} near the tip against {middle} further in"
+    );
+}
+
+#[test]
+fn a_pull_stroke_of_the_arm_past_the_box_extends_the_exported_clay_beyond_it_rounded() {
+    let dir = tempfile::tempdir().unwrap();
+    // The arm grabs the block's +x face and pulls out past the lattice's last node (x = 2.3)
+    // to the arm's end stop, room the workspace keeps around the clay.
+    let script = "version = 1\nseconds = 6\n[[step]]\ndo = \"stroke\"\n\
+         tool = { kind = \"pull\", beta = \"gaussian\", radius_fu = 0.3, gain = 2e6 }\n\
+         path = [[1.72, 1.15, 1.15], [2.2, 1.15, 1.15], [2.7, 1.15, 1.15]]\n\
+         duration_s = 3.0\nhover_fu = 0.05\n";
+    let mesh = run(dir.path(), script);
+    let vertices = &mesh.vertices;
+    let reach = vertices
+        .iter()
+        .map(|v| v.x)
+        .fold(f32::NEG_INFINITY, f32::max);
+    let last_node_x = SIZE;
+    assert!(
+        reach > last_node_x + 0.15,
+        "the pulled clay reaches x = {reach}; the starting lattice's last node is at {last_node_x}"
+    );
+    // Rounded: the pulled arm narrows toward its tip (a flat clipping face would keep its
+    // width to the end).
+    let height_at = |x: f32| {
+        let ys: Vec<f32> = vertices
+            .iter()
+            .filter(|v| (v.x - x).abs() < 0.01)
+            .map(|v| v.y)
+            .collect();
+        ys.iter().copied().fold(f32::NEG_INFINITY, f32::max)
+            - ys.iter().copied().fold(f32::INFINITY, f32::min)
+    };
+    let (middle, end) = (height_at(last_node_x), height_at(reach - 0.01));
+    eprintln!("pulled clay reaches x = {reach:.3}; height {middle:.3} at x = 2.3, {end:.3} at its tip");
+    assert!(
+        end < 0.5 * middle,
+        "the tip is rounded: {end} at the tip against {middle} at the old box"
     );
 }

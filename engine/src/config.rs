@@ -6,7 +6,7 @@ use dynaclay_devices::{DeviceInfo, SafetyConfig};
 use glam::Vec3;
 
 use super::simulation::SimConfig;
-use super::workspace::WorkspaceMap;
+use super::workspace::{WorkspaceMap, reach_box};
 use dynaclay_core::field::{
     BSplineLattice, FitError, MultiPatchField, Primitive, band_limited_lattice,
 };
@@ -51,7 +51,8 @@ pub struct EngineConfig {
 impl EngineConfig {
     /// Defaults for `field` driven by a device with `info`: 1 kHz haptic, 1 kHz simulation,
     /// 60 Hz graphics, SCHED_FIFO 80 asked for, staleness fade from 50 to 100 ms, the device
-    /// workspace mapped around the lattice (see [`WorkspaceMap::fitting`]), touch as stiff as
+    /// workspace mapped around the lattice and room past it ([`reach_box`],
+    /// [`WorkspaceMap::fitting`]), touch as stiff as
     /// the device allows, and the sculpting force calibrated on `field` so that pressing 5 mm
     /// into its top feels 2 N at haptic gain 1 ([`calibrated_force_scale`];
     /// [`DEFAULT_FORCE_N_PER_UNIT`] when the field has no top to press).
@@ -61,14 +62,10 @@ impl EngineConfig {
     }
 
     /// [`EngineConfig::for_field`] for a clay of several patches: the workspace is mapped
-    /// around the base patch's lattice and the force is calibrated on the whole density.
+    /// around the base patch's lattice ([`reach_box`]) and the force is calibrated on the whole density.
     #[must_use]
     pub fn for_clay(density: &MultiPatchField, info: &DeviceInfo) -> Self {
-        let field = density.base();
-        let (lo, hi) = (
-            field.origin,
-            field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
-        );
+        let (lo, hi) = reach_box(density.base());
         let mut map = WorkspaceMap::fitting(
             info.workspace_min_m,
             info.workspace_max_m,

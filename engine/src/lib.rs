@@ -70,4 +70,4 @@ pub use tool_library::{
 pub use tool_sample::ToolSample;
 pub use update::{ChangedBox, FieldUpdate};
 pub use wiring::{Stages, build};
-pub use workspace::WorkspaceMap;
+pub use workspace::{REACH_MARGIN, WorkspaceMap, reach_box};

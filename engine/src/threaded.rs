@@ -32,7 +32,7 @@ use super::io_worker::{IoReport, IoWorker};
 use super::sim_status::SimStatus;
 use super::simulation::SimulationStage;
 use super::wiring::build;
-use super::workspace::WorkspaceMap;
+use super::workspace::{WorkspaceMap, reach_box};
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::io::{Autosave, Session, load_session};
 use dynaclay_core::mesh::BrickOctree;
@@ -173,11 +173,7 @@ impl Engine {
     ) -> Result<Self, EngineError> {
         let StartOptions { autosave, schedule } = options;
         let density = field.into();
-        let field = density.base();
-        let field_box = (
-            field.origin,
-            field.node_position(field.dims[0] - 1, field.dims[1] - 1, field.dims[2] - 1),
-        );
+        let field_box = reach_box(density.base());
         let mut stages = build(config, density, device, sink, false)?;
         if let Some(log) = schedule {
             stages.haptic.set_schedule_log(log.clone());

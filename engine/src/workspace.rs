@@ -4,7 +4,27 @@
 //! (device → field for the tool tip, field → device for forces) and by the script loader
 //! (field → device for the simulated hand's waypoints), so both agree exactly.
 
+use dynaclay_core::field::BSplineLattice;
 use glam::Vec3;
+
+/// Room the device reaches around the clay's starting lattice, per side, as a fraction of the
+/// lattice's size: the hand can pull or add clay past the box the clay started in (the clay
+/// grows under it), instead of meeting the arm's end stops at the box's faces.
+pub const REACH_MARGIN: f32 = 0.125;
+
+/// The field box a device's workspace is fitted around (see [`WorkspaceMap::fitting`]): the
+/// nodes of `lattice` and [`REACH_MARGIN`] of its size beyond them on every side.
+#[must_use]
+pub fn reach_box(lattice: &BSplineLattice) -> (Vec3, Vec3) {
+    let lo = lattice.origin;
+    let hi = lattice.node_position(
+        lattice.dims[0] - 1,
+        lattice.dims[1] - 1,
+        lattice.dims[2] - 1,
+    );
+    let margin = (hi - lo) * REACH_MARGIN;
+    (lo - margin, hi + margin)
+}
 
 /// An isotropic affine map: `field = field_centre + (device_m − device_centre_m) · field_per_m`.
 ///
@@ -90,5 +110,13 @@ mod tests {
         let p = Vec3::new(0.3, 1.7, 0.9);
         assert!(map.to_field(map.to_device(p)).abs_diff_eq(p, 1e-5));
         assert_eq!(map.force_to_device(Vec3::X), Vec3::new(3.0, 0.0, 0.0));
+    }
+
+    #[test]
+    fn the_reach_box_holds_the_lattice_and_room_past_every_face() {
+        let lattice = BSplineLattice::zeros([9, 9, 9], 0.25, Vec3::new(1.0, 2.0, 3.0)).unwrap();
+        let (lo, hi) = reach_box(&lattice);
+        assert!(lo.abs_diff_eq(Vec3::new(0.75, 1.75, 2.75), 1e-6), "{lo}");
+        assert!(hi.abs_diff_eq(Vec3::new(3.25, 4.25, 5.25), 1e-6), "{hi}");
     }
 }

@@ -101,8 +101,9 @@ mod tests {
 
     use super::super::super::Stages;
     use super::*;
+    use dynaclay_core::dynamics::Distribution;
     use dynaclay_core::mesh::{BrickOctree, SampleGrid};
-    use dynaclay_core::tools::{GeometricTool, ToolShape};
+    use dynaclay_core::tools::{ForceTool, GeometricTool, ToolShape};
 
     fn add_ball(radius_fu: f32) -> GeometricTool {
         GeometricTool {
@@ -285,6 +286,60 @@ mod tests {
             (back - surface_max_x(&before)).abs() < 0.02,
             "undo gives back the sphere: {back} vs {}",
             surface_max_x(&before)
+        );
+    }
+    #[test]
+    fn a_pull_stroke_dragged_out_of_the_box_extends_the_clay_past_it() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let old = s.sim.lattice().clone();
+        let last = old.node_position(11, 11, 11);
+        let centre = (old.origin + last) * 0.5;
+        let mut surface = centre;
+        while s.sim.clay.density.is_inside(surface + Vec3::X * 0.005) {
+            surface.x += 0.005;
+        }
+        s.commands
+            .send(Command::SetTool(ToolChoice::Force {
+                tool: ForceTool::Pull {
+                    distribution: Distribution::Gaussian,
+                    radius_fu: 0.2,
+                    gain: 2.0e6,
+                },
+                curve: Vec::new(),
+                pivot: Vec3::ZERO,
+            }))
+            .unwrap();
+        // From the sphere's surface out along +x, 0.5 past the last node, over 3 s.
+        let from = surface.x;
+        let to = last.x + 0.5;
+        let steps = 3000_u64;
+        for n in 0..=steps + 500 {
+            let t = (n.min(steps)) as f32 / steps as f32;
+            let tip = Vec3::new(from + (to - from) * t, centre.y, centre.z);
+            let sample = ToolSample {
+                tip_fu: tip,
+                force_from_fu: tip,
+                force_to_fu: tip,
+                stroke_active: n < steps,
+                device_time_us: n * 1000,
+                tick: n,
+                ..ToolSample::IDLE
+            };
+            tick(&mut s, &sample);
+        }
+        let (_, old_hi) = old.support();
+        let reach = surface_max_x(&s.sim.clay.density);
+        eprintln!(
+            "pulled from x = {from}: surface to x = {reach}, tip to {to}, last node {}, old support {}, growths {}",
+            last.x,
+            old_hi.x,
+            s.counters.snapshot().clay_growths
+        );
+        assert!(s.counters.snapshot().clay_growths >= 1);
+        assert!(
+            reach > last.x + 0.2,
+            "the pulled clay leaves the box: surface to x = {reach}, last node {}",
+            last.x
         );
     }
 }
