@@ -163,7 +163,9 @@ fn a_pull_stroke_of_the_arm_past_the_box_extends_the_exported_clay_beyond_it_rou
             - ys.iter().copied().fold(f32::INFINITY, f32::min)
     };
     let (middle, end) = (height_at(last_node_x), height_at(reach - 0.01));
-    eprintln!("pulled clay reaches x = {reach:.3}; height {middle:.3} at x = 2.3, {end:.3} at its tip");
+    eprintln!(
+        "pulled clay reaches x = {reach:.3}; height {middle:.3} at x = 2.3, {end:.3} at its tip"
+    );
     assert!(
         end < 0.5 * middle,
         "the tip is rounded: {end} at the tip against {middle} at the old box"

@@ -10,7 +10,14 @@ use glam::Vec3;
 
 #[test]
 fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
-    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    // The push of the shared script, 0.2 below the top instead of 0.125: 17 mm below the top
+    // at the hand, a firm press.
+    let script = common::PUSH_SCRIPT.replace(
+        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
+        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
+    );
+    assert_ne!(script, common::PUSH_SCRIPT, "the path was deepened");
+    let s = common::setup(&script, vec![]);
     let before = s.field.clone();
     let iso = before.iso;
     let max_force_n = s.arm.config().info.max_force_n;
@@ -66,10 +73,11 @@ fn simulated_arm_push_leaves_a_dent_and_feels_a_bounded_opposing_force() {
         report.counters
     );
 
-    // A groove along the middle of the path: the field 9.5 mm under the old top (3 mm above
-    // the hand's path) dropped below the iso-level.
+    // A groove along the middle of the path: the field 0.05 above the hand's path (the
+    // effector stops short of the hand where the forces balance) dropped below the iso-level,
+    // 0.125 under the old top.
     let path = common::path_points(&s.script);
-    let middle = path[1..6].iter().map(|p| *p + Vec3::Y * 0.03);
+    let middle = path[1..6].iter().map(|p| *p + Vec3::Y * 0.05);
     for p in middle {
         assert!(before.value(p) > iso, "clay was there at {p}");
         assert!(after.value(p) < iso, "no dent at {p}: {}", after.value(p));

@@ -292,7 +292,6 @@ fn haptic_tick_allocates_nothing() {
 
 #[test]
 fn force_tool_strokes_tick_without_allocating() {
-    let top_y_m = 0.05;
     let gain = 2.0e6;
     for tool in [
         ForceTool::Area {
@@ -313,6 +312,7 @@ fn force_tool_strokes_tick_without_allocating() {
         },
     ] {
         let s = common::setup(common::PUSH_SCRIPT, vec![]);
+        let top_y_m = common::block_top_y_m(&s.config);
         // Down onto the top, take hold, drag up and sideways while held, let go.
         let path = vec![
             Waypoint::with_buttons(0.0, Vec3::new(0.0, top_y_m + 0.02, 0.0), 0),
@@ -368,15 +368,17 @@ fn force_tool_strokes_tick_without_allocating() {
 
 #[test]
 fn a_carve_with_tool_shaped_contact_ticks_without_allocating() {
-    let top_y_m = 0.05;
     let mut s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let top_y_m = common::block_top_y_m(&s.config);
     s.config.haptics.tool_contact = true;
-    // The largest preset box, turned, down onto the top and pressed firmly while held.
+    // The largest preset box, turned, down onto the top and pressed firmly while held: the
+    // hand 5 mm deeper than the box's half height (0.1) above the top.
+    let press_y_m = top_y_m + 0.1 / s.config.map.field_per_m - 0.005;
     let path = vec![
         Waypoint::with_buttons(0.0, Vec3::new(0.0, top_y_m + 0.06, 0.0), 0),
         Waypoint::with_buttons(0.3, Vec3::new(0.0, top_y_m + 0.02, 0.0), 0),
-        Waypoint::with_buttons(0.5, Vec3::new(0.0, top_y_m + 0.01, 0.0), 1),
-        Waypoint::with_buttons(1.0, Vec3::new(0.01, top_y_m + 0.01, 0.0), 1),
+        Waypoint::with_buttons(0.5, Vec3::new(0.0, press_y_m, 0.0), 1),
+        Waypoint::with_buttons(1.0, Vec3::new(0.01, press_y_m, 0.0), 1),
         Waypoint::with_buttons(1.3, Vec3::new(0.01, top_y_m + 0.06, 0.0), 0),
     ];
     let trajectory = Trajectory::new(path, Interpolation::Smooth).unwrap();

@@ -569,22 +569,25 @@ impl SimulationStage {
             .action
             .can_add_clay()
             .then(|| tool.influence_box(&pose, self.clay.base().spacing));
+        // A brush finer than the base gets its detail patch (world boxes: growth keeps them).
+        let detail = self.detail_for_brush(tool, std::slice::from_ref(&pose));
         if let Some((lo, hi)) = grows {
             self.make_room(lo, hi);
         }
+        let patch = detail.map_or(0, |detail| self.patch_for_detail(detail));
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
         };
-        // The held tool edits the base: a held stroke's applications refitted one after
-        // another on a detail patch cut shallower than on the base in the tests (a turned box
-        // left a skin over its groove), so automatic detail is for a script's and a command's
-        // tool steps until that is understood.
+        let options = ApplyOptions {
+            patch,
+            ..ApplyOptions::default()
+        };
         let result = apply_tool(
             &mut self.clay,
             tool,
             &pose,
             dwell_s,
-            &ApplyOptions::default(),
+            &options,
             self.recorder.as_mut(),
         );
         self.colour_dirty |= tool.action.paints();

@@ -68,6 +68,16 @@ pub fn setup(script_text: &str, faults: Vec<Fault>) -> Setup {
     }
 }
 
+/// The top face of the 20³ block of [`PUSH_SCRIPT`] (the block fills the lattice's middle
+/// half: its top is at three quarters of 19 knot spans of 0.1), field units.
+pub const BLOCK_TOP_FU: f32 = 1.425;
+
+/// The height of the block's top in the device's frame, metres, through `config`'s workspace
+/// map (which keeps room around the clay, so it is not the workspace's own three quarters).
+pub fn block_top_y_m(config: &EngineConfig) -> f32 {
+    config.map.to_device(Vec3::new(0.0, BLOCK_TOP_FU, 0.0)).y
+}
+
 /// Boxed device for the engine.
 pub fn boxed(arm: SimulatedArm) -> Box<dyn HapticDevice> {
     Box::new(arm)

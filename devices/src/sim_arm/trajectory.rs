@@ -64,8 +64,10 @@ pub enum Interpolation {
     /// Straight segments at constant speed (velocity jumps at waypoints).
     Linear,
     /// A cubic Hermite spline through the waypoints with Catmull–Rom tangents scaled for
-    /// uneven timing, and zero velocity at the first and last waypoint: continuous velocity,
-    /// like a real hand.
+    /// uneven timing, limited per axis so that the hand never overshoots a waypoint (monotone
+    /// between waypoints on every axis, after Fritsch & Carlson), and zero velocity at the
+    /// first and last waypoint: continuous velocity, like a real hand, and a stroke that comes
+    /// down onto a level path stays on it instead of dipping under it.
     #[default]
     Smooth,
 }
@@ -261,17 +263,35 @@ impl Trajectory {
     }
 }
 
-/// Catmull–Rom tangents for uneven timing; zero at both ends so the hand starts and stops at
-/// rest.
+/// Catmull–Rom tangents for uneven timing, limited per axis (Fritsch & Carlson) so that each
+/// segment is monotone on every axis: zero where the axis turns back or rests at a waypoint,
+/// and at most three times either neighbouring segment's slope; zero at both ends so the hand
+/// starts and stops at rest.
 fn tangents(w: &[Waypoint]) -> Vec<Vec3> {
+    let slope = |i: usize| {
+        let dt = (w[i + 1].time_s - w[i].time_s) as f32;
+        (w[i + 1].position_m - w[i].position_m) / dt
+    };
     (0..w.len())
         .map(|i| {
             if i == 0 || i + 1 == w.len() {
-                Vec3::ZERO
-            } else {
-                let dt = (w[i + 1].time_s - w[i - 1].time_s) as f32;
-                (w[i + 1].position_m - w[i - 1].position_m) / dt
+                return Vec3::ZERO;
             }
+            let dt = (w[i + 1].time_s - w[i - 1].time_s) as f32;
+            let catmull_rom = (w[i + 1].position_m - w[i - 1].position_m) / dt;
+            let (before, after) = (slope(i - 1), slope(i));
+            let limited = |m: f32, a: f32, b: f32| {
+                if a * b <= 0.0 {
+                    0.0
+                } else {
+                    m.signum() * m.abs().min(3.0 * a.abs()).min(3.0 * b.abs())
+                }
+            };
+            Vec3::new(
+                limited(catmull_rom.x, before.x, after.x),
+                limited(catmull_rom.y, before.y, after.y),
+                limited(catmull_rom.z, before.z, after.z),
+            )
         })
         .collect()
 }
@@ -308,6 +328,40 @@ mod tests {
             interp,
         )
         .unwrap()
+    }
+
+    #[test]
+    fn a_stroke_that_comes_down_onto_a_level_path_stays_on_it() {
+        // Down from a hover onto a level path, along it, and back up: the hand never dips
+        // under the path's level nor rises over the hovers, and moves on between waypoints.
+        let t = Trajectory::new(
+            vec![
+                Waypoint::new(0.0, Vec3::new(0.0, 0.04, 0.0)),
+                Waypoint::with_buttons(0.4, Vec3::new(0.0, 0.0, 0.0), 1),
+                Waypoint::with_buttons(1.9, Vec3::new(0.07, 0.0, 0.0), 1),
+                Waypoint::new(2.3, Vec3::new(0.07, 0.04, 0.0)),
+            ],
+            Interpolation::Smooth,
+        )
+        .unwrap();
+        let mut last_x = f32::NEG_INFINITY;
+        for n in 0..=230 {
+            let p = t.sample(f64::from(n) * 0.01).position_m;
+            assert!(
+                (-1e-7..=0.04 + 1e-7).contains(&p.y),
+                "at {} s the hand is at y = {}",
+                f64::from(n) * 0.01,
+                p.y
+            );
+            assert!(
+                p.x >= last_x - 1e-7,
+                "x turned back at {} s",
+                f64::from(n) * 0.01
+            );
+            last_x = p.x;
+        }
+        // Still smooth: moving along the path in its middle.
+        assert!(t.sample(1.15).velocity_m_per_s.x > 0.03);
     }
 
     #[test]

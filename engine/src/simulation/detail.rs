@@ -5,9 +5,11 @@
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
 //! copy in wait-free, between ticks).
 //!
-//! Each automatic patch is a cube of [`AUTO_DETAIL_HALF_WIDTHS`] brush widths around the
-//! brush (at least [`AUTO_DETAIL_MIN_HALF_SPANS`] of its own spans), so a stroke that moves on
-//! adds a patch each time it leaves the last one; the clay's patch and coefficient budgets
+//! A patch is reused while it holds every application's influence box (the shape turned by
+//! its pose, with its band: an elongated brush reaches far past its width) with two of its
+//! spans to spare. Each automatic patch is that box and [`AUTO_DETAIL_ROOM_WIDTHS`] brush
+//! widths around it (at least [`AUTO_DETAIL_MIN_ROOM_SPANS`] of its own spans), so a stroke
+//! that moves on adds a patch each time it leaves the last one; the clay's patch and coefficient budgets
 //! bound them ([`dynaclay_core::field::MAX_PATCHES`], [`dynaclay_core::field::MAX_CLAY_COEFFS`]):
 //! past them the brush sculpts on the finest patch there is.
 
@@ -20,11 +22,13 @@ use dynaclay_core::tools::GeometricTool;
 /// must cover; a narrower brush refines under itself first.
 pub const BRUSH_WIDTH_SPANS: f32 = 3.0;
 
-/// Half the edge of an automatic detail patch, in brush widths.
-pub const AUTO_DETAIL_HALF_WIDTHS: f32 = 4.0;
+/// Room an automatic detail patch keeps around the brush's influence box, per side, in brush
+/// widths.
+pub const AUTO_DETAIL_ROOM_WIDTHS: f32 = 4.0;
 
-/// Least half edge of an automatic detail patch, in its own knot spans.
-pub const AUTO_DETAIL_MIN_HALF_SPANS: f32 = 8.0;
+/// Least room an automatic detail patch keeps around the brush's influence box, per side, in
+/// its own knot spans.
+pub const AUTO_DETAIL_MIN_ROOM_SPANS: f32 = 8.0;
 
 /// The detail level (each level halves the base's knot spacing) at which a brush of width
 /// `width_fu` covers [`BRUSH_WIDTH_SPANS`] spans, on a base of knot spacing `base_spacing_fu`;
@@ -41,6 +45,17 @@ pub fn level_for_brush(width_fu: f32, base_spacing_fu: f32) -> u32 {
     (ratio.log2().ceil() as u32).min(MAX_DETAIL_LEVEL)
 }
 
+/// The detail a brush needs: the level and knot spacing of its patch, the brush's width and the
+/// world box its applications read and write at that spacing.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BrushDetail {
+    level: u32,
+    spacing_fu: f32,
+    width_fu: f32,
+    lo: Vec3,
+    hi: Vec3,
+}
+
 /// A brush's width: twice the smallest half extent of its shape.
 #[must_use]
 fn brush_width_fu(tool: &GeometricTool) -> f32 {
@@ -48,56 +63,62 @@ fn brush_width_fu(tool: &GeometricTool) -> f32 {
 }
 
 impl SimulationStage {
-    /// The density patch `tool` applied at the brush positions `poses` edits: a detail patch
-    /// fine enough for the brush, added first over the positions' box when the clay has none
-    /// there (see the module's docs); paint goes on the base, which the colour field covers.
+    /// The density patch `tool` applied at the brush poses `poses` edits: a detail patch fine
+    /// enough for the brush, added first around the poses when the clay has none there that
+    /// holds every application's influence box (see the module's docs); paint goes on the
+    /// base, which the colour field covers.
     pub(super) fn patch_for_brush(&mut self, tool: &GeometricTool, poses: &[ToolPose]) -> u16 {
-        let Some((lo, hi)) = poses
-            .iter()
-            .map(|p| (p.position_fu, p.position_fu))
-            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
-        else {
-            return 0;
-        };
-        self.patch_for_brush_width(brush_width_fu(tool), tool.action.paints(), lo, hi)
-    }
-
-    /// The finest detail patch in world coordinates, of knot spacing `wanted` or finer, that
-    /// holds a brush of width `width` at every point of `lo..=hi` with two of its spans to
-    /// spare (so the brush's band is written wholly by its coefficients).
-    fn patch_covering(&self, lo: Vec3, hi: Vec3, width: f32, wanted: f32) -> Option<usize> {
-        self.clay
-            .density
-            .patches
-            .iter()
-            .enumerate()
-            .skip(1)
-            .filter(|(_, p)| p.is_identity() && p.lattice.spacing <= wanted * 1.001)
-            .filter(|(_, p)| {
-                let (plo, phi) = p.lattice.support();
-                let margin = Vec3::splat(2.0 * p.lattice.spacing + width);
-                lo.cmpge(plo + margin).all() && hi.cmple(phi - margin).all()
-            })
-            .min_by(|(_, a), (_, b)| a.lattice.spacing.total_cmp(&b.lattice.spacing))
-            .map(|(n, _)| n)
-    }
-
-    /// [`Self::patch_for_brush`] for a brush of width `width` whose centre stays in
-    /// `lo..=hi`.
-    fn patch_for_brush_width(&mut self, width: f32, paints: bool, lo: Vec3, hi: Vec3) -> u16 {
-        let base_spacing = self.clay.base().spacing;
-        let level = level_for_brush(width, base_spacing);
-        if !self.config.auto_detail || paints || level == 0 {
-            // A brush the base resolves edits the base, as before.
-            return 0;
+        match self.detail_for_brush(tool, poses) {
+            Some(detail) => self.patch_for_detail(detail),
+            None => 0,
         }
-        let wanted = base_spacing / (1_u32 << level) as f32;
-        if let Some(n) = self.patch_covering(lo, hi, width, wanted) {
+    }
+
+    /// The detail `tool` at `poses` needs, or `None` when the base resolves it (or automatic
+    /// detail is off, or the tool paints).
+    pub(super) fn detail_for_brush(
+        &self,
+        tool: &GeometricTool,
+        poses: &[ToolPose],
+    ) -> Option<BrushDetail> {
+        let base_spacing = self.clay.base().spacing;
+        let width_fu = brush_width_fu(tool);
+        let level = level_for_brush(width_fu, base_spacing);
+        if !self.config.auto_detail || tool.action.paints() || level == 0 {
+            return None;
+        }
+        let spacing_fu = base_spacing / (1_u32 << level) as f32;
+        // What the applications read and write on a patch of that spacing: the shape turned
+        // by each pose, with its band (an elongated brush reaches far past its width).
+        let (lo, hi) = poses
+            .iter()
+            .map(|pose| tool.influence_box(pose, spacing_fu))
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))?;
+        Some(BrushDetail {
+            level,
+            spacing_fu,
+            width_fu,
+            lo,
+            hi,
+        })
+    }
+
+    /// The patch that holds `detail`'s box at its spacing, added first when the clay has none.
+    pub(super) fn patch_for_detail(&mut self, detail: BrushDetail) -> u16 {
+        let BrushDetail {
+            level,
+            spacing_fu,
+            width_fu,
+            lo,
+            hi,
+        } = detail;
+        if let Some(n) = self.patch_covering(lo, hi, spacing_fu) {
             return u16::try_from(n).unwrap_or(0);
         }
-        let half = (AUTO_DETAIL_HALF_WIDTHS * width).max(AUTO_DETAIL_MIN_HALF_SPANS * wanted);
-        let half = Vec3::splat(half);
-        match self.clay.density.refine(lo - half, hi + half, level) {
+        let room =
+            (AUTO_DETAIL_ROOM_WIDTHS * width_fu).max(AUTO_DETAIL_MIN_ROOM_SPANS * spacing_fu);
+        let room = Vec3::splat(room);
+        match self.clay.density.refine(lo - room, hi + room, level) {
             Ok(n) => {
                 self.pending.push(None);
                 self.clay_revision += 1;
@@ -107,9 +128,29 @@ impl SimulationStage {
             }
             // Past the budgets: the finest patch that holds the brush, else the base.
             Err(_) => self
-                .patch_covering(lo, hi, width, f32::INFINITY)
+                .patch_covering(lo, hi, f32::INFINITY)
                 .map_or(0, |n| u16::try_from(n).unwrap_or(0)),
         }
+    }
+
+    /// The finest detail patch in world coordinates, of knot spacing `wanted` or finer, whose
+    /// coefficients hold the world box `lo..=hi` with two of its spans to spare (so every
+    /// sample an application writes is written wholly by its coefficients).
+    fn patch_covering(&self, lo: Vec3, hi: Vec3, wanted: f32) -> Option<usize> {
+        self.clay
+            .density
+            .patches
+            .iter()
+            .enumerate()
+            .skip(1)
+            .filter(|(_, p)| p.is_identity() && p.lattice.spacing <= wanted * 1.001)
+            .filter(|(_, p)| {
+                let (plo, phi) = p.lattice.support();
+                let margin = Vec3::splat(2.0 * p.lattice.spacing);
+                lo.cmpge(plo + margin).all() && hi.cmple(phi - margin).all()
+            })
+            .min_by(|(_, a), (_, b)| a.lattice.spacing.total_cmp(&b.lattice.spacing))
+            .map(|(n, _)| n)
     }
 }
 
