@@ -86,7 +86,10 @@ pub struct SimConfig {
     pub step: StepParams,
     /// The contact push held at the start (a [`Command::SetTool`] changes the tool).
     pub tool: PushTool,
-    /// Half the edge of the simulated region around the tool, field units.
+    /// Half the edge of the simulated region around the tool, field units, on the base; on a
+    /// detail patch it shrinks with the patch's knot spacing, so a region holds as many knot
+    /// spans (and its step costs as much) at every level. The region always holds the tool's
+    /// forces' reach besides.
     pub region_half: f32,
     /// Mass points per knot span inside the region.
     pub samples_per_span: usize,
@@ -647,7 +650,9 @@ impl SimulationStage {
                 return;
             }
         }
-        let half = Vec3::splat(self.config.region_half);
+        // As many knot spans of its own patch at every level: the step costs the same.
+        let half =
+            Vec3::splat(self.config.region_half * lattice.spacing / self.clay.base().spacing);
         let centre = (lo + hi) * 0.5;
         let Some(around) = coeff_box_around(lattice, centre - half, centre + half, 0) else {
             return;

@@ -303,4 +303,34 @@ mod tests {
             "undo refilled the groove"
         );
     }
+
+    #[test]
+    fn a_region_on_a_detail_patch_holds_as_many_knot_spans_as_on_the_base() {
+        // A lattice large enough that the base's region is not clipped by its box.
+        let mut s = super::super::tests::stages_on_sphere(32);
+        let lattice = s.sim.lattice().clone();
+        let centre = (lattice.origin + lattice.node_position(31, 31, 31)) * 0.5;
+        let top = centre + Vec3::Y * 0.3;
+        let reach = Vec3::splat(0.01);
+        s.sim.ensure_region(top - reach, top + reach);
+        let on_base = s.sim.region.as_ref().expect("a region").coeff_box().dims();
+        assert_eq!(s.sim.region_patch, 0);
+        s.sim.retire_region();
+        let n = s
+            .sim
+            .clay
+            .density
+            .refine(top - Vec3::splat(0.5), top + Vec3::splat(0.5), 2)
+            .unwrap();
+        s.sim.ensure_region(top - reach, top + reach);
+        assert_eq!(s.sim.region_patch, n, "the region is on the detail patch");
+        let on_detail = s.sim.region.as_ref().expect("a region").coeff_box().dims();
+        // Up to one coefficient either way, from where the box's ends fall on each lattice.
+        for a in 0..3 {
+            assert!(
+                on_detail[a].abs_diff(on_base[a]) <= 1,
+                "the same knot spans, so the same step: {on_detail:?} against {on_base:?}"
+            );
+        }
+    }
 }
