@@ -747,6 +747,40 @@ mod tests {
         stages_on_sphere(12)
     }
 
+    /// A held stroke in lockstep: the tip at `tip_at(t)` for `t` from 0 to 1 over `steps`
+    /// simulation steps (one per millisecond of device time), then `settle` more steps at the
+    /// end with the stroke released.
+    pub(super) fn drag_tip(s: &mut Stages, tip_at: impl Fn(f32) -> Vec3, steps: u64, settle: u64) {
+        for n in 0..=steps + settle {
+            let tip = tip_at(n.min(steps) as f32 / steps as f32);
+            let sample = ToolSample {
+                tip_fu: tip,
+                force_from_fu: tip,
+                force_to_fu: tip,
+                stroke_active: n < steps,
+                device_time_us: n * 1000,
+                tick: n,
+                ..ToolSample::IDLE
+            };
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            s.sim.step(&sample);
+            s.graphics.tick();
+        }
+    }
+
+    /// The top of the sphere clay of [`stages_on_sphere`] above its centre, to half a
+    /// thousandth.
+    pub(super) fn sphere_top(s: &Stages) -> Vec3 {
+        let lattice = s.sim.lattice();
+        let last = lattice.dims[0] - 1;
+        let mut top = (lattice.origin + lattice.node_position(last, last, last)) * 0.5;
+        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
+            top.y += 0.0005;
+        }
+        top
+    }
+
     /// The stages on a sphere clay of `resolution`³ coefficients, the tool waiting at a
     /// workspace corner, away from the clay.
     pub(super) fn stages_on_sphere(resolution: usize) -> Stages {

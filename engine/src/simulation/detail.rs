@@ -179,12 +179,7 @@ mod tests {
     /// patches the clay holds after and the automatic refines counted.
     fn carve_top(radius_fu: f32, auto: bool) -> (f32, f32, usize, u64) {
         let mut s = super::super::tests::stages_on_sphere(12);
-        let lattice = s.sim.lattice().clone();
-        let centre = (lattice.origin + lattice.node_position(11, 11, 11)) * 0.5;
-        let mut top = centre;
-        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
-            top.y += 0.0005;
-        }
+        let top = super::super::tests::sphere_top(&s);
         let poses: Vec<ToolPose> = (0..=20)
             .map(|n| ToolPose::at(top + Vec3::X * (-0.05 + 0.005 * n as f32)))
             .collect();
@@ -248,12 +243,7 @@ mod tests {
     fn a_held_fine_brush_refines_under_itself_and_carves_a_groove_of_its_own_width() {
         let radius_fu = 0.02;
         let mut s = super::super::tests::stages_on_sphere(12);
-        let lattice = s.sim.lattice().clone();
-        let centre = (lattice.origin + lattice.node_position(11, 11, 11)) * 0.5;
-        let mut top = centre;
-        while s.sim.clay.density.is_inside(top + Vec3::Y * 0.0005) {
-            top.y += 0.0005;
-        }
+        let top = super::super::tests::sphere_top(&s);
         s.commands
             .send(Command::SetTool(ToolChoice::Geometric(GeometricTool {
                 shape: ToolShape::Sphere { radius_fu },
@@ -262,23 +252,8 @@ mod tests {
             })))
             .unwrap();
         // Along x over the top, 0.1 in 0.5 s, then let go.
-        let steps = 500_u64;
-        for n in 0..=steps + 20 {
-            let t = n.min(steps) as f32 / steps as f32;
-            let tip = top + Vec3::X * (-0.05 + 0.1 * t);
-            let sample = ToolSample {
-                tip_fu: tip,
-                force_from_fu: tip,
-                force_to_fu: tip,
-                stroke_active: n < steps,
-                device_time_us: n * 1000,
-                tick: n,
-                ..ToolSample::IDLE
-            };
-            s.haptic.tick(Instant::now());
-            s.sim.apply_commands();
-            s.sim.step(&sample);
-        }
+        let along = |t: f32| top + Vec3::X * (-0.05 + 0.1 * t);
+        super::super::tests::drag_tip(&mut s, along, 500, 20);
         let refines = s.counters.snapshot().auto_refines;
         assert!(refines >= 1, "the held brush refined under itself");
         assert!(s.sim.clay.density.patches.len() > 1);

@@ -254,21 +254,8 @@ mod tests {
         // From the sphere's surface out along +x, 0.8 past the last node, over 2 s.
         let from = centre.x + 0.2;
         let to = last.x + 0.8;
-        let steps = 2000_u64;
-        for n in 0..=steps + 50 {
-            let t = (n.min(steps)) as f32 / steps as f32;
-            let tip = Vec3::new(from + (to - from) * t, centre.y, centre.z);
-            let sample = ToolSample {
-                tip_fu: tip,
-                force_from_fu: tip,
-                force_to_fu: tip,
-                stroke_active: n < steps,
-                device_time_us: n * 1000,
-                tick: n,
-                ..ToolSample::IDLE
-            };
-            tick(&mut s, &sample);
-        }
+        let along = |t: f32| Vec3::new(from + (to - from) * t, centre.y, centre.z);
+        super::super::tests::drag_tip(&mut s, along, 2000, 50);
         let (_, old_hi) = old.support();
         let reach = surface_max_x(&s.sim.clay.density);
         assert!(
@@ -312,21 +299,8 @@ mod tests {
         // From the sphere's surface out along +x, 0.5 past the last node, over 3 s.
         let from = surface.x;
         let to = last.x + 0.5;
-        let steps = 3000_u64;
-        for n in 0..=steps + 500 {
-            let t = (n.min(steps)) as f32 / steps as f32;
-            let tip = Vec3::new(from + (to - from) * t, centre.y, centre.z);
-            let sample = ToolSample {
-                tip_fu: tip,
-                force_from_fu: tip,
-                force_to_fu: tip,
-                stroke_active: n < steps,
-                device_time_us: n * 1000,
-                tick: n,
-                ..ToolSample::IDLE
-            };
-            tick(&mut s, &sample);
-        }
+        let along = |t: f32| Vec3::new(from + (to - from) * t, centre.y, centre.z);
+        super::super::tests::drag_tip(&mut s, along, 3000, 500);
         let (_, old_hi) = old.support();
         let reach = surface_max_x(&s.sim.clay.density);
         eprintln!(
