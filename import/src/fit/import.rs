@@ -5,8 +5,10 @@
 //!
 //! A mesh takes one of two paths ([`FitPath`]): a closed one (every edge shared by two
 //! triangles, after welding, [`super::watertight`]) is fitted from its signed distance on a grid
-//! ([`super::sdf`]) by the volume fit; an open one is sampled into a point cloud and fitted as
-//! a scan. The log names the path and, for an open mesh, why it is open.
+//! ([`super::sdf`]) by the volume fit; an open one whose holes are capped
+//! ([`super::holes`]: none wider than half its size) takes the same path, and any other is
+//! sampled into a point cloud and fitted as a scan. The log names the path and, for an open
+//! mesh, why it is open and what was capped.
 //!
 //! The caller watches the fit through two callbacks: `progress` sees each stage (and stops the
 //! fit by answering `false`), `note` receives one line per report (what was read, the levels,
@@ -21,6 +23,7 @@ use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
     fit_hierarchy,
 };
+use super::holes::cap_holes;
 use super::mesh::{read_mesh, sample_triangles};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
@@ -142,6 +145,9 @@ pub enum FitPath {
     OpenMesh(MeshCheck),
     /// A closed mesh, fitted from its signed distance on a grid.
     ClosedMesh(MeshCheck),
+    /// An open mesh whose holes were capped ([`super::holes`]), then fitted as a closed one;
+    /// the check is the mesh's as read.
+    CappedMesh(MeshCheck),
     /// A volume, fitted at its iso-surface.
     Volume,
 }
@@ -443,9 +449,30 @@ fn fit_mesh_file(
             note,
         )
     };
-    if !check.is_closed() {
-        return as_cloud("open", progress, note);
-    }
+    let (mesh, path_taken) = if check.is_closed() {
+        (mesh, FitPath::ClosedMesh(check))
+    } else {
+        match cap_holes(&mesh) {
+            Ok(capped) => {
+                let (closed, recheck) =
+                    check_closed(&capped.mesh.positions, &capped.mesh.triangles);
+                if !recheck.is_closed() {
+                    return as_cloud(
+                        "open, and capping its holes did not close it",
+                        progress,
+                        note,
+                    );
+                }
+                note(format!(
+                    "capped {} holes (the widest {:.1}% of its size) to fit it as a closed mesh",
+                    capped.holes,
+                    100.0 * capped.widest
+                ));
+                (closed, FitPath::CappedMesh(check))
+            }
+            Err(why) => return as_cloud(&format!("open ({why})"), progress, note),
+        }
+    };
     let (lo, hi) = mesh
         .positions
         .iter()
@@ -520,7 +547,7 @@ fn fit_mesh_file(
     ));
     Ok(ImportedFit {
         field: fit.field,
-        path: FitPath::ClosedMesh(check),
+        path: path_taken,
         scale,
         offset,
     })
