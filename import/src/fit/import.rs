@@ -25,6 +25,7 @@ use super::hierarchy::{
 };
 use super::holes::cap_holes;
 use super::mesh::{read_mesh, sample_triangles};
+use super::paint::{NEIGHBOURS, paint_from_cloud};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
@@ -36,7 +37,7 @@ use super::watertight::{MeshCheck, check_closed};
 use dynaclay_core::dynamics::Material;
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::io::{MaterialFields, Session, SessionMeta};
-use dynaclay_core::tools::Clay;
+use dynaclay_core::tools::{Clay, ColourField};
 
 /// The extensions [`fit_file`] reads (lower case).
 pub const IMPORT_EXTENSIONS: [&str; 8] = ["ply", "xyz", "txt", "pts", "obj", "stl", "nrrd", "raw"];
@@ -220,6 +221,9 @@ pub struct ImportedCloud {
     pub cloud: PointCloud,
     /// The points' colours, when the file has them.
     pub colours: Option<PointColours>,
+    /// The colours as the clay's paint ([`paint_from_cloud`]), when the file has colours and
+    /// they could be fitted.
+    pub paint: Option<ColourField>,
 }
 
 impl ImportedCloud {
@@ -251,11 +255,42 @@ pub fn import_cloud(
 ) -> Result<ImportedCloud, ImportError> {
     let (cloud, colours) = read_points_with_colours(path)?;
     let fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
-    Ok(ImportedCloud {
+    let mut imported = ImportedCloud {
         fit,
         cloud,
         colours,
-    })
+        paint: None,
+    };
+    if let Some(colours) = &imported.colours {
+        match paint_from_cloud(
+            imported.fit.field.base(),
+            &imported.cloud_in_field_units().points,
+            colours,
+        ) {
+            Ok(paint) => {
+                note(format!(
+                    "painted from the points' colours (each node from its {NEIGHBOURS} nearest \
+                     points)"
+                ));
+                imported.paint = Some(paint);
+            }
+            Err(e) => note(format!(
+                "warning: the points' colours were not made into paint ({e}); the clay is \
+                 unpainted"
+            )),
+        }
+    }
+    Ok(imported)
+}
+
+impl ImportedCloud {
+    /// The session of this import ([`imported_session`]), painted with [`ImportedCloud::paint`].
+    #[must_use]
+    pub fn into_session(self, path: &Path, created_unix_s: u64) -> Session {
+        let mut session = imported_session(self.fit.field, path, created_unix_s);
+        session.clay.colour = self.paint;
+        session
+    }
 }
 
 /// Whether `path` names a point-cloud file by its extension (`.ply`, `.xyz`, `.txt`, `.pts`).
@@ -630,7 +665,7 @@ fn fit_volume_file(
 }
 
 /// The session of a fitted clay imported from `path`: the field as its density (no paint, no
-/// pins), plastic, named after the file.
+/// pins; [`ImportedCloud::into_session`] adds a cloud's paint), plastic, named after the file.
 #[must_use]
 pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64) -> Session {
     let name = path
@@ -657,7 +692,8 @@ pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64
     }
 }
 
-/// [`fit_file`] and [`imported_session`] in one: the session `dynaclay import` would write.
+/// [`fit_file`] and [`imported_session`] in one: the session `dynaclay import` writes; a
+/// point cloud with colours comes painted ([`ImportedCloud::into_session`]).
 ///
 /// # Errors
 /// As [`fit_file`].
@@ -667,6 +703,10 @@ pub fn import_session(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<Session, ImportError> {
+    if is_point_cloud(path) {
+        let imported = import_cloud(path, settings, progress, note)?;
+        return Ok(imported.into_session(path, dynaclay_core::io::unix_now_s()));
+    }
     let field = fit_file(path, settings, progress, note)?;
     Ok(imported_session(
         field,

@@ -12,6 +12,7 @@ pub mod hierarchy;
 pub mod holes;
 pub mod import;
 pub mod mesh;
+pub mod paint;
 pub mod point_file;
 pub mod points;
 pub mod sdf;
@@ -28,6 +29,7 @@ pub use import::{
     closed_mesh_grid, fit_file, fit_import, import_cloud, import_session, imported_session,
     is_importable, is_point_cloud,
 };
+pub use paint::{PaintError, paint_from_cloud};
 pub use point_file::{read_points, read_points_with_colours};
 pub use points::{MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};
