@@ -499,8 +499,9 @@ fn fit_mesh_file(
                     );
                 }
                 note(format!(
-                    "capped {} holes (the widest {:.1}% of its size) to fit it as a closed mesh",
+                    "capped {} hole{} (the widest {:.1}% of its size) to fit it as a closed mesh",
                     capped.holes,
+                    if capped.holes == 1 { "" } else { "s" },
                     100.0 * capped.widest
                 ));
                 (closed, FitPath::CappedMesh(check))
