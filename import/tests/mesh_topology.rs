@@ -65,7 +65,7 @@ fn pieces(mesh: &TriMesh) -> Vec<(i64, bool)> {
         .values()
         .map(|&(v, e, f, closed)| (f, v - e + f, closed))
         .collect();
-    out.sort_by(|a, b| b.0.cmp(&a.0));
+    out.sort_by_key(|p| std::cmp::Reverse(p.0));
     out.into_iter()
         .map(|(_, chi, closed)| (chi, closed))
         .collect()
