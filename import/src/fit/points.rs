@@ -532,7 +532,7 @@ mod tests {
 
     #[test]
     fn ply_reads_ascii_and_binary_with_normals_in_any_order() {
-        let props = "property float nx\nproperty float x\nproperty float y\nproperty float z\nproperty float ny\nproperty float nz\nproperty uchar red\n";
+        let props = "property float nx\nproperty float x\nproperty float y\nproperty float z\nproperty float ny\nproperty float nz\nproperty uchar intensity\n";
         let mut ascii = ply_header("ascii", 2, props);
         ascii.extend_from_slice(b"1 0 0 0 0 0 7\n0 1 2 3 1 0 7\n");
         let c = parse_ply(&ascii, &file()).unwrap();
