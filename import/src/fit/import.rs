@@ -569,7 +569,8 @@ fn fit_mesh_file(
     // file → voxel → field.
     let scale = fit.scale / grid.voxel;
     let offset = fit.offset - grid.origin * scale;
-    let (mean, worst) = distance_to_surface(&fit.field, &mesh.positions, |p| p * scale + offset);
+    // The vertices as read: a cap's centre is no part of the mesh.
+    let (mean, worst) = distance_to_surface(&fit.field, &vertices, |p| p * scale + offset);
     let size = (hi - lo).max_element() * scale;
     note(format!(
         "{} patches; RMS error near the surface {:.3}% of the size ({:.3}% with the base \
