@@ -1,4 +1,5 @@
-//! `dynaclay import`: a point cloud or a volume becomes a session whose clay is fitted to it.
+//! `dynaclay import`: a point cloud, a mesh or a volume becomes a session whose clay is fitted
+//! to it (a cloud with colours comes painted with them).
 //!
 //! A cloud is fitted hierarchically (a base lattice and detail patches, [`fit_hierarchy`]);
 //! a volume on one lattice. Long fits show a progress bar on a terminal (stderr). Ctrl-C
@@ -14,7 +15,7 @@ use std::time::Duration;
 use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::error::CliError;
-use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, fit_file, imported_session};
+use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, import_session};
 use crate::io::{OutputKind, OutputRule, save_session};
 use crate::mesh::{MeshFormat, TriMesh, write_mesh};
 
@@ -75,7 +76,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     };
     let bar = progress_bar();
     let mut first = true;
-    let field = fit_file(
+    let session = import_session(
         &args.input,
         &settings,
         &mut |stage| show_progress(&bar, stage),
@@ -90,7 +91,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         },
     );
     bar.finish_and_clear();
-    let field = field.map_err(|e| match e {
+    let session = session.map_err(|e| match e {
         ImportError::Interrupted => interrupted(),
         // A cloud without extent is bad input, not a failed fit.
         ImportError::Fit {
@@ -100,7 +101,6 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         ImportError::Fit { .. } => CliError::output("import", e),
         other => CliError::bad_input("import", other),
     })?;
-    let session = imported_session(field, &args.input, crate::io::unix_now_s());
     // The mesh is made (within the memory budget) before anything is written, so a refused
     // mesh leaves no half-finished import.
     let mesh = match (&args.mesh, mesh_format) {

@@ -5,8 +5,10 @@
 //!
 //! A mesh takes one of two paths ([`FitPath`]): a closed one (every edge shared by two
 //! triangles, after welding, [`super::watertight`]) is fitted from its signed distance on a grid
-//! ([`super::sdf`]) by the volume fit; an open one is sampled into a point cloud and fitted as
-//! a scan. The log names the path and, for an open mesh, why it is open.
+//! ([`super::sdf`]) by the volume fit; an open one whose holes are capped
+//! ([`super::holes`]: none wider than half its size) takes the same path, and any other is
+//! sampled into a point cloud and fitted as a scan. The log names the path and, for an open
+//! mesh, why it is open and what was capped.
 //!
 //! The caller watches the fit through two callbacks: `progress` sees each stage (and stops the
 //! fit by answering `false`), `note` receives one line per report (what was read, the levels,
@@ -21,7 +23,9 @@ use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
     fit_hierarchy,
 };
+use super::holes::cap_holes;
 use super::mesh::{read_mesh, sample_triangles};
+use super::paint::{NEIGHBOURS, paint_from_cloud};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
@@ -33,7 +37,7 @@ use super::watertight::{MeshCheck, check_closed};
 use dynaclay_core::dynamics::Material;
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::io::{MaterialFields, Session, SessionMeta};
-use dynaclay_core::tools::Clay;
+use dynaclay_core::tools::{Clay, ColourField};
 
 /// The extensions [`fit_file`] reads (lower case).
 pub const IMPORT_EXTENSIONS: [&str; 8] = ["ply", "xyz", "txt", "pts", "obj", "stl", "nrrd", "raw"];
@@ -142,6 +146,9 @@ pub enum FitPath {
     OpenMesh(MeshCheck),
     /// A closed mesh, fitted from its signed distance on a grid.
     ClosedMesh(MeshCheck),
+    /// An open mesh whose holes were capped ([`super::holes`]), then fitted as a closed one;
+    /// the check is the mesh's as read.
+    CappedMesh(MeshCheck),
     /// A volume, fitted at its iso-surface.
     Volume,
 }
@@ -214,6 +221,9 @@ pub struct ImportedCloud {
     pub cloud: PointCloud,
     /// The points' colours, when the file has them.
     pub colours: Option<PointColours>,
+    /// The colours as the clay's paint ([`paint_from_cloud`]), when the file has colours and
+    /// they could be fitted.
+    pub paint: Option<ColourField>,
 }
 
 impl ImportedCloud {
@@ -245,11 +255,42 @@ pub fn import_cloud(
 ) -> Result<ImportedCloud, ImportError> {
     let (cloud, colours) = read_points_with_colours(path)?;
     let fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
-    Ok(ImportedCloud {
+    let mut imported = ImportedCloud {
         fit,
         cloud,
         colours,
-    })
+        paint: None,
+    };
+    if let Some(colours) = &imported.colours {
+        match paint_from_cloud(
+            imported.fit.field.base(),
+            &imported.cloud_in_field_units().points,
+            colours,
+        ) {
+            Ok(paint) => {
+                note(format!(
+                    "painted from the points' colours (each node from its {NEIGHBOURS} nearest \
+                     points)"
+                ));
+                imported.paint = Some(paint);
+            }
+            Err(e) => note(format!(
+                "warning: the points' colours were not made into paint ({e}); the clay is \
+                 unpainted"
+            )),
+        }
+    }
+    Ok(imported)
+}
+
+impl ImportedCloud {
+    /// The session of this import ([`imported_session`]), painted with [`ImportedCloud::paint`].
+    #[must_use]
+    pub fn into_session(self, path: &Path, created_unix_s: u64) -> Session {
+        let mut session = imported_session(self.fit.field, path, created_unix_s);
+        session.clay.colour = self.paint;
+        session
+    }
 }
 
 /// Whether `path` names a point-cloud file by its extension (`.ply`, `.xyz`, `.txt`, `.pts`).
@@ -443,9 +484,31 @@ fn fit_mesh_file(
             note,
         )
     };
-    if !check.is_closed() {
-        return as_cloud("open", progress, note);
-    }
+    let (mesh, path_taken) = if check.is_closed() {
+        (mesh, FitPath::ClosedMesh(check))
+    } else {
+        match cap_holes(&mesh) {
+            Ok(capped) => {
+                let (closed, recheck) =
+                    check_closed(&capped.mesh.positions, &capped.mesh.triangles);
+                if !recheck.is_closed() {
+                    return as_cloud(
+                        "open, and capping its holes did not close it",
+                        progress,
+                        note,
+                    );
+                }
+                note(format!(
+                    "capped {} hole{} (the widest {:.1}% of its size) to fit it as a closed mesh",
+                    capped.holes,
+                    if capped.holes == 1 { "" } else { "s" },
+                    100.0 * capped.widest
+                ));
+                (closed, FitPath::CappedMesh(check))
+            }
+            Err(why) => return as_cloud(&format!("open ({why})"), progress, note),
+        }
+    };
     let (lo, hi) = mesh
         .positions
         .iter()
@@ -506,7 +569,8 @@ fn fit_mesh_file(
     // file → voxel → field.
     let scale = fit.scale / grid.voxel;
     let offset = fit.offset - grid.origin * scale;
-    let (mean, worst) = distance_to_surface(&fit.field, &mesh.positions, |p| p * scale + offset);
+    // The vertices as read: a cap's centre is no part of the mesh.
+    let (mean, worst) = distance_to_surface(&fit.field, &vertices, |p| p * scale + offset);
     let size = (hi - lo).max_element() * scale;
     note(format!(
         "{} patches; RMS error near the surface {:.3}% of the size ({:.3}% with the base \
@@ -520,7 +584,7 @@ fn fit_mesh_file(
     ));
     Ok(ImportedFit {
         field: fit.field,
-        path: FitPath::ClosedMesh(check),
+        path: path_taken,
         scale,
         offset,
     })
@@ -603,7 +667,7 @@ fn fit_volume_file(
 }
 
 /// The session of a fitted clay imported from `path`: the field as its density (no paint, no
-/// pins), plastic, named after the file.
+/// pins; [`ImportedCloud::into_session`] adds a cloud's paint), plastic, named after the file.
 #[must_use]
 pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64) -> Session {
     let name = path
@@ -630,7 +694,8 @@ pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64
     }
 }
 
-/// [`fit_file`] and [`imported_session`] in one: the session `dynaclay import` would write.
+/// [`fit_file`] and [`imported_session`] in one: the session `dynaclay import` writes; a
+/// point cloud with colours comes painted ([`ImportedCloud::into_session`]).
 ///
 /// # Errors
 /// As [`fit_file`].
@@ -640,6 +705,10 @@ pub fn import_session(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<Session, ImportError> {
+    if is_point_cloud(path) {
+        let imported = import_cloud(path, settings, progress, note)?;
+        return Ok(imported.into_session(path, dynaclay_core::io::unix_now_s()));
+    }
     let field = fit_file(path, settings, progress, note)?;
     Ok(imported_session(
         field,

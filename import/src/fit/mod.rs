@@ -1,5 +1,6 @@
 //! Bringing real objects in: point clouds ([`points`]), meshes ([`mesh`]: closed ones
-//! ([`watertight`]) by their signed distance ([`sdf`]), open ones sampled into clouds) and
+//! ([`watertight`], or with their holes capped, [`holes`]) by their signed distance ([`sdf`]),
+//! other open ones sampled into clouds) and
 //! volumes ([`volume`]) read from
 //! files become a clay fitted by least squares ([`cloud`], [`volume::fit_volume`]); a cloud's
 //! fit is refined by an octree of detail patches where the error is above a bound
@@ -8,8 +9,10 @@
 
 pub mod cloud;
 pub mod hierarchy;
+pub mod holes;
 pub mod import;
 pub mod mesh;
+pub mod paint;
 pub mod point_file;
 pub mod points;
 pub mod sdf;
@@ -20,11 +23,13 @@ pub use cloud::{
     CloudFit, CloudFitError, CloudFitOptions, SignedBy, SignedCloud, fit_point_cloud, sign_cloud,
 };
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
+pub use holes::{CappedMesh, MAX_CAPPED_HOLE, UncappedHoles, cap_holes};
 pub use import::{
     FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud, ImportedFit,
     closed_mesh_grid, fit_file, fit_import, import_cloud, import_session, imported_session,
     is_importable, is_point_cloud,
 };
+pub use paint::{PaintError, paint_from_cloud};
 pub use point_file::{read_points, read_points_with_colours};
 pub use points::{MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};

@@ -189,7 +189,8 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
 }
 
 /// [`parse_ply`], with each vertex's colour when the vertices have `red`, `green` and `blue`
-/// (integer types are taken as 0–255, float types as 0–1).
+/// (integer types are taken as 0–255, float types as 0–1, both clamped; a value that is not
+/// finite reads as 0). Some but not all of the three is refused, naming the header line.
 ///
 /// # Errors
 /// As [`parse_ply`].
@@ -207,6 +208,8 @@ pub fn parse_ply_with_colours(
     let mut line_no = 0;
     let mut format = None;
     let mut elements: Vec<PlyElement> = Vec::new();
+    // The header line of the vertices' first colour property, to name in an error.
+    let mut colour_line = None;
     loop {
         let Some(len) = bytes[at..].iter().position(|&b| b == b'\n') else {
             return Err(line_err(
@@ -261,6 +264,9 @@ pub fn parse_ply_with_colours(
                 if ply_type_size(ty).is_none() {
                     return Err(line_err(line_no, format!("unknown property type `{ty}`")));
                 }
+                if e.name == "vertex" && matches!(*name, "red" | "green" | "blue") {
+                    colour_line.get_or_insert(line_no);
+                }
                 e.properties.push(((*name).to_owned(), (*ty).to_owned()));
             }
             ["end_header"] => break,
@@ -290,7 +296,21 @@ pub fn parse_ply_with_colours(
     };
     let colour_columns = match (column("red"), column("green"), column("blue")) {
         (Some(a), Some(b), Some(c)) => Some([a, b, c]),
-        _ => None,
+        (None, None, None) => None,
+        (r, g, b) => {
+            let has: Vec<&str> = [(r, "red"), (g, "green"), (b, "blue")]
+                .iter()
+                .filter_map(|&(c, name)| c.map(|_| name))
+                .collect();
+            return Err(line_err(
+                colour_line.unwrap_or(line_no),
+                format!(
+                    "vertex colours need red, green and blue together; these vertices have {} \
+                     only",
+                    has.join(" and ")
+                ),
+            ));
+        }
     };
     // A float channel is 0..1, an integer one 0..255.
     let colour_scale: [f64; 3] = colour_columns.map_or([1.0; 3], |cols| {
@@ -512,7 +532,7 @@ mod tests {
 
     #[test]
     fn ply_reads_ascii_and_binary_with_normals_in_any_order() {
-        let props = "property float nx\nproperty float x\nproperty float y\nproperty float z\nproperty float ny\nproperty float nz\nproperty uchar red\n";
+        let props = "property float nx\nproperty float x\nproperty float y\nproperty float z\nproperty float ny\nproperty float nz\nproperty uchar intensity\n";
         let mut ascii = ply_header("ascii", 2, props);
         ascii.extend_from_slice(b"1 0 0 0 0 0 7\n0 1 2 3 1 0 7\n");
         let c = parse_ply(&ascii, &file()).unwrap();

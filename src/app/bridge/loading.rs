@@ -105,10 +105,7 @@ impl Bridge {
                 None
             }
         };
-        Ok((
-            imported_session(imported.fit.field, path, crate::io::unix_now_s()),
-            points,
-        ))
+        Ok((imported.into_session(path, crate::io::unix_now_s()), points))
     }
 
     /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its

@@ -46,8 +46,7 @@ use crate::engine::{
 };
 use crate::field::MultiPatchField;
 use crate::fit::{
-    FitProgress, ImportError, ImportSettings, import_cloud, import_session, imported_session,
-    is_point_cloud,
+    FitProgress, ImportError, ImportSettings, import_cloud, import_session, is_point_cloud,
 };
 use crate::io::{Autosave, AutosavePolicy, Session, load_session, save_session};
 use crate::mesh::{
