@@ -25,7 +25,8 @@
 //!    when `POISSON_RECON` names its binary): distance to the clean model both ways, pieces
 //!    and genus, time and memory per point, and dynaclay's ratios to each peer, in one table.
 //!    The models come from `bench/models/get.sh` (or `DYNACLAY_MODELS`); see
-//!    `bench/support/peer_comparison.rs`.
+//!    `bench/support/peer_comparison.rs`. `POISSON_CRATE_DEPTH` lowers the crate's depth
+//!    (8 by default) and `POISSON_CRATE_SKIP` leaves it out, on machines where it is too slow.
 
 use std::time::Instant;
 

@@ -31,6 +31,17 @@ use super::models::{Mesh, OrientedCloud};
 /// Octree depth of both Poisson peers (a 256³ finest grid).
 pub const POISSON_DEPTH: usize = 8;
 
+/// The crate's depth: [`POISSON_DEPTH`], or `POISSON_CRATE_DEPTH` (1 to 10) where its run at
+/// depth 8 takes too long for the machine (it takes minutes per cloud on two cores).
+#[must_use]
+pub fn poisson_crate_depth() -> usize {
+    std::env::var("POISSON_CRATE_DEPTH")
+        .ok()
+        .and_then(|d| d.parse::<usize>().ok())
+        .filter(|d| (1..=10).contains(d))
+        .unwrap_or(POISSON_DEPTH)
+}
+
 /// What one reconstruction produced and cost.
 pub struct Reconstruction {
     pub mesh: Mesh,
@@ -78,7 +89,7 @@ pub fn dynaclay(ply: &Path) -> Result<Reconstruction, String> {
     })
 }
 
-/// The `poisson_reconstruction` crate at [`POISSON_DEPTH`], as its README calls it.
+/// The `poisson_reconstruction` crate at [`poisson_crate_depth`], as its README calls it.
 #[must_use]
 pub fn poisson_crate(cloud: &OrientedCloud) -> Reconstruction {
     let (mesh, seconds, peak) = measured(|| {
@@ -92,12 +103,13 @@ pub fn poisson_crate(cloud: &OrientedCloud) -> Reconstruction {
             .iter()
             .map(|n| Vector3::new(f64::from(n.x), f64::from(n.y), f64::from(n.z)))
             .collect();
+        let depth = poisson_crate_depth();
         let implicit = PoissonReconstruction::from_points_and_normals(
             &points,
             &normals,
             0.0,
-            POISSON_DEPTH - 1,
-            POISSON_DEPTH,
+            depth - 1,
+            depth,
             10,
         );
         let buffers = implicit.reconstruct_mesh_buffers();
@@ -146,11 +158,8 @@ pub fn find_poisson_recon() -> Result<PathBuf, String> {
         .ok_or_else(|| format!("PoissonRecon is not on the PATH and POISSON_RECON is unset; {how}"))
 }
 
-/// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back.
-#[expect(
-    clippy::zombie_processes,
-    reason = "the child is reaped by wait4 below, which also gives its own rusage"
-)]
+/// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back. The child is reaped
+/// by `wait4`, which also gives its own peak resident set.
 pub fn poisson_recon(binary: &Path, ply: &Path, out: &Path) -> Result<Reconstruction, String> {
     let start = Instant::now();
     let child = Command::new(binary)

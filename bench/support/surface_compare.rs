@@ -87,7 +87,7 @@ impl<'a> TriangleIndex<'a> {
     #[must_use]
     pub fn distance(&self, p: Vec3) -> f32 {
         let q = p.to_array();
-        let triangle_distance = |i: u64| -> f32 {
+        let triangle_distance = |i: u32| -> f32 {
             let [a, b, c] = self.mesh.corners(self.mesh.triangles[i as usize]);
             p.distance(closest_on_triangle(p, a, b, c))
         };
@@ -287,7 +287,7 @@ pub fn topology(mesh: &Mesh) -> Topology {
             pieces[piece].boundary_loops += 1;
         }
     }
-    pieces.sort_by(|a, b| b.triangles.cmp(&a.triangles));
+    pieces.sort_by_key(|p| std::cmp::Reverse(p.triangles));
     Topology {
         pieces,
         non_manifold_edges,
