@@ -18,6 +18,15 @@
 //!    plus detail patches from the sharp-box fit), per point at random places in the object's
 //!    box, and over a simulation step's worth of samples (the mass grid of a 12-span local
 //!    region at two samples per span, 25³ points, as `dynamics` samples it).
+//! 5. **Peers on public models** (`-- peers` runs this part alone): the scanned bunny, the
+//!    fandisk, the rocker arm and spot, each as a 50 000-point cloud with normals in three
+//!    variants (0.25% noise, 1% noise, 0.25% noise + 5% outliers), reconstructed by dynaclay
+//!    and by screened Poisson (the `poisson_reconstruction` crate, and Kazhdan's PoissonRecon
+//!    when `POISSON_RECON` names its binary): distance to the clean model both ways, pieces
+//!    and genus, time and memory per point, and dynaclay's ratios to each peer, in one table.
+//!    The models come from `bench/models/get.sh` (or `DYNACLAY_MODELS`); see
+//!    `bench/support/peer_comparison.rs`. `POISSON_CRATE_DEPTH` lowers the crate's depth
+//!    (8 by default) and `POISSON_CRATE_SKIP` leaves it out, on machines where it is too slow.
 
 use std::time::Instant;
 
@@ -34,6 +43,19 @@ use glam::Vec3;
 mod meshes;
 
 use meshes::{binary_stl, icosphere, torus};
+
+#[path = "support/memory.rs"]
+mod memory;
+#[path = "support/models.rs"]
+mod models;
+#[path = "support/peer_comparison.rs"]
+mod peer_comparison;
+#[path = "support/reconstructors.rs"]
+mod reconstructors;
+#[path = "support/surface_compare.rs"]
+mod surface_compare;
+
+use memory::{peak_bytes, reset_peak};
 
 /// Closed meshes through the signed-distance path, default import settings.
 fn closed_meshes() {
@@ -177,22 +199,9 @@ fn sharp_box(count: usize) -> PointCloud {
     }
 }
 
-/// Resets the peak resident set to the current one (Linux ≥ 4.0).
-fn reset_peak() {
-    let _ = std::fs::write("/proc/self/clear_refs", "5");
-}
-
 /// The peak resident set since the last reset, MiB.
 fn peak_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|kb| kb.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |kb| kb / 1024.0)
+    peak_bytes() / (1024.0 * 1024.0)
 }
 
 /// Mean and worst first-order distance of the points from the fitted surface, percent of the
@@ -353,6 +362,12 @@ fn main() {
     let quick = std::env::args().any(|a| a == "quick");
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!("import_fit: load average {}", load.trim());
+    if std::env::args().any(|a| a == "peers") {
+        peer_comparison::run(quick);
+        let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+        println!("load average after: {}", load.trim());
+        return;
+    }
     if std::env::args().any(|a| a == "mesh") {
         closed_meshes();
         let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
@@ -405,4 +420,5 @@ fn main() {
     }
     closed_meshes();
     evaluation(quick);
+    peer_comparison::run(quick);
 }

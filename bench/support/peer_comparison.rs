@@ -1,0 +1,282 @@
+//! dynaclay's import beside screened Poisson reconstruction on public models, in one table.
+//!
+//! Each model (see [`MODELS`]) is sampled as a 50 000-point cloud with normals in each of
+//! [`DISTURBANCES`] (seeded), written as a binary PLY, and reconstructed by dynaclay and by
+//! each peer that is present (see [`super::reconstructors`]). Every mesh is judged against the
+//! clean model ([`super::surface_compare`]): the distance from the reconstruction to the model
+//! and back, p50 and p99 as percent of the model's box diagonal; its pieces and the genus of
+//! the largest; the wall time; the peak memory per input point. The last columns are dynaclay
+//! over that peer, on the same cloud. A mesh that is empty fails the run at once; one that lies
+//! far from the model (p50 either way over [`FAR_OFF_PERCENT`]) is marked in its row and fails
+//! the run once the table is printed, so the other rows are still seen.
+
+use std::path::{Path, PathBuf};
+
+use super::models::{
+    DISTURBANCES, MODELS, Mesh, OrientedCloud, load_model, models_folder, sample_cloud, write_ply,
+};
+use super::reconstructors::{
+    POISSON_DEPTH, Reconstruction, dynaclay, find_poisson_recon, poisson_crate,
+    poisson_crate_depth, poisson_recon,
+};
+use super::surface_compare::{TriangleIndex, one_way_distances, quantile, topology};
+
+/// Points per cloud.
+pub const CLOUD_POINTS: usize = 50_000;
+
+/// A reconstruction whose median distance either way is above this (percent of the diagonal)
+/// is not a reconstruction of the model: the run fails.
+pub const FAR_OFF_PERCENT: f32 = 2.5;
+
+/// How a mesh compares with the model.
+#[derive(Clone, Copy, Debug)]
+struct Accuracy {
+    /// Reconstruction → model, percent of the diagonal.
+    to_model_p50: f32,
+    to_model_p99: f32,
+    /// Model → reconstruction, percent of the diagonal.
+    from_model_p50: f32,
+    from_model_p99: f32,
+}
+
+impl Accuracy {
+    /// The larger median of the two directions.
+    fn p50(&self) -> f32 {
+        self.to_model_p50.max(self.from_model_p50)
+    }
+
+    /// Why this is no reconstruction of the model, if it is not.
+    fn far_off(&self, label: &str) -> Option<String> {
+        (self.p50() > FAR_OFF_PERCENT).then(|| {
+            format!(
+                "{label}: the reconstruction lies far from the model (median distance {:.2}% \
+                 to it, {:.2}% from it, over {FAR_OFF_PERCENT}% of the diagonal)",
+                self.to_model_p50, self.from_model_p50
+            )
+        })
+    }
+
+    /// The larger 99th percentile of the two directions.
+    fn p99(&self) -> f32 {
+        self.to_model_p99.max(self.from_model_p99)
+    }
+}
+
+fn accuracy(
+    model: &Mesh,
+    model_index: &TriangleIndex<'_>,
+    mesh: &Mesh,
+    samples: usize,
+    label: &str,
+) -> Accuracy {
+    let index = TriangleIndex::new(mesh)
+        .unwrap_or_else(|| panic!("{label}: the reconstruction has no triangles"));
+    let percent = 100.0 / model.diagonal();
+    let mut to_model = one_way_distances(mesh, model_index, samples, 0x5eed_0001);
+    let mut from_model = one_way_distances(model, &index, samples, 0x5eed_0002);
+    assert!(
+        !to_model.is_empty(),
+        "{label}: the reconstruction has no area"
+    );
+    Accuracy {
+        to_model_p50: quantile(&mut to_model, 0.5) * percent,
+        to_model_p99: quantile(&mut to_model, 0.99) * percent,
+        from_model_p50: quantile(&mut from_model, 0.5) * percent,
+        from_model_p99: quantile(&mut from_model, 0.99) * percent,
+    }
+}
+
+/// How a peer turns a cloud (in memory, and its PLY file) into a mesh; `Err` when it fails.
+type PeerRun = Box<dyn Fn(&OrientedCloud, &Path) -> Result<Reconstruction, String>>;
+
+/// One peer: its name and how it runs.
+struct Peer {
+    name: &'static str,
+    run: PeerRun,
+}
+
+fn peers(scratch: &Path) -> Vec<Peer> {
+    let mut list = Vec::new();
+    match find_poisson_recon() {
+        Ok(binary) => {
+            let out = scratch.join("poissonrecon-mesh.ply");
+            println!("PoissonRecon: {}", binary.display());
+            list.push(Peer {
+                name: "PoissonRecon",
+                run: Box::new(move |_, ply| poisson_recon(&binary, ply, &out)),
+            });
+        }
+        Err(why) => println!("PoissonRecon peer missing, its rows are skipped: {why}"),
+    }
+    if std::env::var_os("POISSON_CRATE_SKIP").is_some() {
+        println!("poisson_reconstruction peer skipped: POISSON_CRATE_SKIP is set");
+    } else {
+        list.push(Peer {
+            name: "poisson_reconstruction 0.4",
+            run: Box::new(|cloud, _| Ok(poisson_crate(cloud))),
+        });
+    }
+    list
+}
+
+/// Prints the comparison; `quick` runs the first variant only, with fewer distance samples.
+pub fn run(quick: bool) {
+    let folder = models_folder();
+    let samples = if quick { 20_000 } else { 100_000 };
+    let variants = if quick {
+        &DISTURBANCES[..1]
+    } else {
+        &DISTURBANCES[..]
+    };
+    let scratch: PathBuf =
+        std::env::temp_dir().join(format!("dynaclay-peers-{}", std::process::id()));
+    std::fs::create_dir_all(&scratch).expect("a temporary folder");
+    println!(
+        "\npeers: {CLOUD_POINTS}-point clouds with normals from public models ({}), \
+         reconstructed by dynaclay import (default settings, meshed as --mesh exports) and by \
+         screened Poisson (PoissonRecon at depth {POISSON_DEPTH}, the crate at depth {}); distances over {samples} area-weighted \
+         samples each way, % of the model's box diagonal; one run each; {} CPUs",
+        folder.display(),
+        poisson_crate_depth(),
+        std::thread::available_parallelism().map_or(1, usize::from)
+    );
+    let peers = peers(&scratch);
+    println!(
+        "| model | cloud | method | time | peak RSS / point | rec→model p50 / p99 | model→rec p50 / p99 | pieces, genus of largest (holes) | dynaclay ÷ this: time | RSS/pt | p50 | p99 |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let mut missing = Vec::new();
+    let mut far_off = Vec::new();
+    for (m, &(stem, what)) in MODELS.iter().enumerate() {
+        let model = match load_model(&folder, stem) {
+            Ok(model) => model,
+            Err(why) => {
+                missing.push(why);
+                continue;
+            }
+        };
+        let model_index = TriangleIndex::new(&model).expect("the model has triangles");
+        println!(
+            "| {stem} ({what}) | – | clean model ({} triangles) | – | – | – | – | {} | | | | |",
+            model.triangles.len(),
+            topology(&model).summary()
+        );
+        for (v, &variant) in variants.iter().enumerate() {
+            let cloud = sample_cloud(&model, CLOUD_POINTS, variant, (m * 16 + v) as u64 + 1);
+            let ply = scratch.join(format!("{stem}-{v}.ply"));
+            write_ply(&cloud, &ply).expect("the cloud is written");
+            let per_point = |bytes: f64| bytes / cloud.points.len() as f64;
+            let label = |method: &str| format!("{stem}, {}, {method}", variant.name);
+            let ours = dynaclay(&ply).unwrap_or_else(|e| panic!("{}: {e}", label("dynaclay")));
+            let ours_accuracy = accuracy(
+                &model,
+                &model_index,
+                &ours.mesh,
+                samples,
+                &label("dynaclay"),
+            );
+            let ours_far_off = ours_accuracy.far_off(&label("dynaclay"));
+            let ours_name = if ours_far_off.is_some() {
+                "dynaclay **far off**"
+            } else {
+                "dynaclay"
+            };
+            far_off.extend(ours_far_off);
+            print_row(
+                stem,
+                variant.name,
+                ours_name,
+                &ours,
+                per_point(ours.peak_bytes),
+                &ours_accuracy,
+                None,
+            );
+            for peer in &peers {
+                match (peer.run)(&cloud, &ply) {
+                    Ok(theirs) => {
+                        let theirs_accuracy = accuracy(
+                            &model,
+                            &model_index,
+                            &theirs.mesh,
+                            samples,
+                            &label(peer.name),
+                        );
+                        let ratios = Ratios {
+                            time: ours.seconds / theirs.seconds,
+                            memory: ours.peak_bytes / theirs.peak_bytes,
+                            p50: ours_accuracy.p50() / theirs_accuracy.p50(),
+                            p99: ours_accuracy.p99() / theirs_accuracy.p99(),
+                        };
+                        let theirs_far_off = theirs_accuracy.far_off(&label(peer.name));
+                        let name = if theirs_far_off.is_some() {
+                            format!("{} **far off**", peer.name)
+                        } else {
+                            peer.name.to_owned()
+                        };
+                        far_off.extend(theirs_far_off);
+                        print_row(
+                            stem,
+                            variant.name,
+                            &name,
+                            &theirs,
+                            per_point(theirs.peak_bytes),
+                            &theirs_accuracy,
+                            Some(ratios),
+                        );
+                    }
+                    Err(why) => println!(
+                        "| {stem} | {} | {} | failed: {why} | | | | | | | | |",
+                        variant.name, peer.name
+                    ),
+                }
+            }
+        }
+    }
+    let _ = std::fs::remove_dir_all(&scratch);
+    for why in &missing {
+        println!("model missing, its rows are skipped: {why}");
+    }
+    assert!(
+        far_off.is_empty(),
+        "{} reconstructions far from their model:\n{}",
+        far_off.len(),
+        far_off.join("\n")
+    );
+}
+
+/// dynaclay's figure over the peer's.
+struct Ratios {
+    time: f64,
+    memory: f64,
+    p50: f32,
+    p99: f32,
+}
+
+fn print_row(
+    model: &str,
+    variant: &str,
+    method: &str,
+    result: &Reconstruction,
+    bytes_per_point: f64,
+    accuracy: &Accuracy,
+    ratios: Option<Ratios>,
+) {
+    let ratios = ratios.map_or_else(
+        || "– | – | – | –".to_owned(),
+        |r| {
+            format!(
+                "{:.2} | {:.2} | {:.2} | {:.2}",
+                r.time, r.memory, r.p50, r.p99
+            )
+        },
+    );
+    println!(
+        "| {model} | {variant} | {method} | {:.2} s | {bytes_per_point:.0} B | {:.3}% / {:.3}% | {:.3}% / {:.3}% | {} | {ratios} |",
+        result.seconds,
+        accuracy.to_model_p50,
+        accuracy.to_model_p99,
+        accuracy.from_model_p50,
+        accuracy.from_model_p99,
+        topology(&result.mesh).summary()
+    );
+}

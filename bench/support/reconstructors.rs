@@ -1,0 +1,247 @@
+//! The three ways a cloud becomes a mesh in the peer comparison, each timed from the cloud to
+//! the triangles, with the peak memory it added.
+//!
+//! * **dynaclay**: `dynaclay import cloud.ply` with its default settings (the PLY is read by
+//!   the import, as the command does), then the mesh `--mesh` exports: the clay meshed at 4
+//!   cells per knot span within the machine's default memory budget, welded.
+//! * **poisson_reconstruction** (crates.io): `from_points_and_normals` with the parameters of
+//!   its README and demo — screening 0 and 10 relaxation iterations, the density estimated one
+//!   level above the finest — at depth 8, then `reconstruct_mesh_buffers`. It is given the
+//!   points in memory (it reads no file).
+//! * **PoissonRecon** (Kazhdan): the binary named by `POISSON_RECON` (or `PoissonRecon` on the
+//!   `PATH`), run as `PoissonRecon --in cloud.ply --out mesh.ply --depth 8 --samplesPerNode 15`
+//!   (screened by default, point weight 2 × the B-spline degree). Its time includes reading
+//!   the cloud and writing the mesh; its memory is its own peak resident set (`wait4`), the
+//!   whole process rather than what it added.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+use dynaclay::cli::budget::MemoryBudget;
+use dynaclay::cli::mesh_clay;
+use dynaclay::fit::{ImportSettings, fit_import, imported_session};
+use glam::Vec3;
+use nalgebra033::{Point3, Vector3};
+use poisson_reconstruction::PoissonReconstruction;
+
+use super::memory::{peak_bytes, reset_peak, resident_bytes};
+use super::models::{Mesh, OrientedCloud};
+
+/// Octree depth of both Poisson peers (a 256³ finest grid).
+pub const POISSON_DEPTH: usize = 8;
+
+/// The crate's depth: [`POISSON_DEPTH`], or `POISSON_CRATE_DEPTH` (1 to 10) where its run at
+/// depth 8 takes too long for the machine (it takes minutes per cloud on two cores).
+#[must_use]
+pub fn poisson_crate_depth() -> usize {
+    std::env::var("POISSON_CRATE_DEPTH")
+        .ok()
+        .and_then(|d| d.parse::<usize>().ok())
+        .filter(|d| (1..=10).contains(d))
+        .unwrap_or(POISSON_DEPTH)
+}
+
+/// What one reconstruction produced and cost.
+pub struct Reconstruction {
+    pub mesh: Mesh,
+    /// Wall time from the cloud to the mesh, seconds.
+    pub seconds: f64,
+    /// Peak resident memory it needed, bytes (see the module docs for what is counted).
+    pub peak_bytes: f64,
+}
+
+/// Runs `work` with the peak resident set reset, returning its result, its wall time and the
+/// peak it added over the resident set at the start.
+fn measured<T>(work: impl FnOnce() -> T) -> (T, f64, f64) {
+    reset_peak();
+    let before = resident_bytes();
+    let start = Instant::now();
+    let out = work();
+    let seconds = start.elapsed().as_secs_f64();
+    (out, seconds, (peak_bytes() - before).max(0.0))
+}
+
+/// `dynaclay import <ply>` with the default settings, meshed as its `--mesh` export is.
+pub fn dynaclay(ply: &Path) -> Result<Reconstruction, String> {
+    let (result, seconds, peak) = measured(|| {
+        let fit = fit_import(ply, &ImportSettings::default(), &mut |_| true, &mut |_| {})
+            .map_err(|e| format!("dynaclay import: {e}"))?;
+        let (scale, offset) = (fit.scale, fit.offset);
+        let session = imported_session(fit.field, ply, 0);
+        let welded = mesh_clay(&session.clay, 4, &MemoryBudget::machine_default())
+            .map_err(|e| format!("dynaclay meshing: {e}"))?
+            .weld();
+        // Back from field units to the cloud's.
+        Ok::<_, String>(Mesh {
+            positions: welded
+                .positions
+                .iter()
+                .map(|&p| (p - offset) / scale)
+                .collect(),
+            triangles: welded.triangles,
+        })
+    });
+    Ok(Reconstruction {
+        mesh: result?,
+        seconds,
+        peak_bytes: peak,
+    })
+}
+
+/// The `poisson_reconstruction` crate at [`poisson_crate_depth`], as its README calls it.
+#[must_use]
+pub fn poisson_crate(cloud: &OrientedCloud) -> Reconstruction {
+    let (mesh, seconds, peak) = measured(|| {
+        let points: Vec<Point3<f64>> = cloud
+            .points
+            .iter()
+            .map(|p| Point3::new(f64::from(p.x), f64::from(p.y), f64::from(p.z)))
+            .collect();
+        let normals: Vec<Vector3<f64>> = cloud
+            .normals
+            .iter()
+            .map(|n| Vector3::new(f64::from(n.x), f64::from(n.y), f64::from(n.z)))
+            .collect();
+        let depth = poisson_crate_depth();
+        let implicit = PoissonReconstruction::from_points_and_normals(
+            &points,
+            &normals,
+            0.0,
+            depth - 1,
+            depth,
+            10,
+        );
+        let buffers = implicit.reconstruct_mesh_buffers();
+        Mesh {
+            positions: buffers
+                .vertices()
+                .iter()
+                .map(|p| Vec3::new(p.x as f32, p.y as f32, p.z as f32))
+                .collect(),
+            triangles: buffers
+                .indices()
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect(),
+        }
+    });
+    Reconstruction {
+        mesh,
+        seconds,
+        peak_bytes: peak,
+    }
+}
+
+/// The PoissonRecon binary: `POISSON_RECON`, else `PoissonRecon` found on the `PATH`; `Err`
+/// says how to build it.
+pub fn find_poisson_recon() -> Result<PathBuf, String> {
+    let how = "build it with `bench/peers/build_poissonrecon.sh <source>` from a clone of \
+               https://github.com/mkazhdan/PoissonRecon and set POISSON_RECON to the binary";
+    if let Some(path) = std::env::var_os("POISSON_RECON") {
+        let path = PathBuf::from(path);
+        return if path.is_file() {
+            Ok(path)
+        } else {
+            Err(format!(
+                "POISSON_RECON={} is not a file; {how}",
+                path.display()
+            ))
+        };
+    }
+    std::env::var_os("PATH")
+        .and_then(|paths| {
+            std::env::split_paths(&paths)
+                .map(|dir| dir.join("PoissonRecon"))
+                .find(|p| p.is_file())
+        })
+        .ok_or_else(|| format!("PoissonRecon is not on the PATH and POISSON_RECON is unset; {how}"))
+}
+
+/// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back. The child is reaped
+/// by `wait4`, which also gives its own peak resident set.
+pub fn poisson_recon(binary: &Path, ply: &Path, out: &Path) -> Result<Reconstruction, String> {
+    let start = Instant::now();
+    let child = Command::new(binary)
+        .arg("--in")
+        .arg(ply)
+        .arg("--out")
+        .arg(out)
+        .args([
+            "--depth",
+            &POISSON_DEPTH.to_string(),
+            "--samplesPerNode",
+            "15",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("{}: {e}", binary.display()))?;
+    let pid = i32::try_from(child.id()).map_err(|e| e.to_string())?;
+    let mut stderr = String::new();
+    if let Some(mut pipe) = child.stderr {
+        // Read to the end before waiting, so a chatty child never blocks on a full pipe.
+        let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
+    }
+    let mut status = 0;
+    // SAFETY: `rusage` is plain data that wait4 fills; zeroed is a valid value for it.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `pid` is our own unreaped child (std's `Child` was consumed above without
+    // waiting), and both out-pointers are valid for writes.
+    let reaped = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    let seconds = start.elapsed().as_secs_f64();
+    if reaped != pid {
+        return Err(format!("wait4: {}", std::io::Error::last_os_error()));
+    }
+    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
+        return Err(format!(
+            "{} failed (status {status}): {}",
+            binary.display(),
+            stderr.trim()
+        ));
+    }
+    Ok(Reconstruction {
+        mesh: read_ply_mesh(out)?,
+        seconds,
+        peak_bytes: usage.ru_maxrss as f64 * 1024.0,
+    })
+}
+
+/// A PLY triangle mesh (`vertex` with `x y z`, `face` with a `vertex_indices` list).
+fn read_ply_mesh(path: &Path) -> Result<Mesh, String> {
+    use ply_rs_bw::ply::{DefaultElement, Property};
+    let file = std::fs::File::open(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let ply = ply_rs_bw::parser::Parser::<DefaultElement>::new()
+        .read_ply(&mut std::io::BufReader::new(file))
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let scalar = |row: &DefaultElement, name: &str| match row.get(name) {
+        Some(Property::Float(v)) => Ok(*v),
+        Some(Property::Double(v)) => Ok(*v as f32),
+        other => Err(format!("{}: vertex {name} is {other:?}", path.display())),
+    };
+    let mut mesh = Mesh::default();
+    for row in ply.payload.get("vertex").map_or(&[][..], Vec::as_slice) {
+        mesh.positions.push(Vec3::new(
+            scalar(row, "x")?,
+            scalar(row, "y")?,
+            scalar(row, "z")?,
+        ));
+    }
+    for row in ply.payload.get("face").map_or(&[][..], Vec::as_slice) {
+        let corners: Vec<u32> = match row.get("vertex_indices") {
+            Some(Property::ListInt(v)) => v.iter().map(|&i| i as u32).collect(),
+            Some(Property::ListUInt(v)) => v.clone(),
+            other => return Err(format!("{}: face is {other:?}", path.display())),
+        };
+        if corners.iter().any(|&i| i as usize >= mesh.positions.len()) {
+            return Err(format!("{}: a face names a missing vertex", path.display()));
+        }
+        // A polygon as a fan (PoissonRecon writes triangles unless asked for polygons).
+        for k in 1..corners.len().saturating_sub(1) {
+            mesh.triangles
+                .push([corners[0], corners[k], corners[k + 1]]);
+        }
+    }
+    Ok(mesh)
+}
