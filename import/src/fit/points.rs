@@ -209,7 +209,6 @@ pub fn parse_ply_with_colours(
     let mut format = None;
     let mut elements: Vec<PlyElement> = Vec::new();
     // The header line of the vertices' first colour property, to name in an error.
-    let mut colour_line = None;
     loop {
         let Some(len) = bytes[at..].iter().position(|&b| b == b'\n') else {
             return Err(line_err(
@@ -264,9 +263,6 @@ pub fn parse_ply_with_colours(
                 if ply_type_size(ty).is_none() {
                     return Err(line_err(line_no, format!("unknown property type `{ty}`")));
                 }
-                if e.name == "vertex" && matches!(*name, "red" | "green" | "blue") {
-                    colour_line.get_or_insert(line_no);
-                }
                 e.properties.push(((*name).to_owned(), (*ty).to_owned()));
             }
             ["end_header"] => break,
@@ -294,23 +290,11 @@ pub fn parse_ply_with_colours(
         (Some(a), Some(b), Some(c)) => Some([a, b, c]),
         _ => None,
     };
+    // Colours only as red, green and blue together; one or two of them alone are other
+    // properties (a scalar named `red` is valid PLY), read past like any other.
     let colour_columns = match (column("red"), column("green"), column("blue")) {
         (Some(a), Some(b), Some(c)) => Some([a, b, c]),
-        (None, None, None) => None,
-        (r, g, b) => {
-            let has: Vec<&str> = [(r, "red"), (g, "green"), (b, "blue")]
-                .iter()
-                .filter_map(|&(c, name)| c.map(|_| name))
-                .collect();
-            return Err(line_err(
-                colour_line.unwrap_or(line_no),
-                format!(
-                    "vertex colours need red, green and blue together; these vertices have {} \
-                     only",
-                    has.join(" and ")
-                ),
-            ));
-        }
+        _ => None,
     };
     // A float channel is 0..1, an integer one 0..255.
     let colour_scale: [f64; 3] = colour_columns.map_or([1.0; 3], |cols| {
