@@ -34,6 +34,7 @@ use std::collections::VecDeque;
 
 use glam::Vec3;
 
+use super::consensus::{CELL_OFFER, Consensus, PointGrid, parallel_map, screen};
 use super::points::PointCloud;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
 
@@ -58,6 +59,9 @@ pub struct CloudFitOptions {
     pub samples_per_span: usize,
     /// The gap `τ` of the sign tagging, knot spans.
     pub gap_spans: f32,
+    /// The cloud's noise (standard deviation of its points across the surface) as a fraction
+    /// of the object's size (its box's longest side); estimated from the cloud when `None`.
+    pub noise: Option<f32>,
 }
 
 impl Default for CloudFitOptions {
@@ -67,6 +71,7 @@ impl Default for CloudFitOptions {
             spacing: dynaclay_core::field::CLAY_SPACING,
             samples_per_span: 2,
             gap_spans: DEFAULT_GAP_SPANS,
+            noise: None,
         }
     }
 }
@@ -139,18 +144,39 @@ pub fn fit_point_cloud(
 
 /// A cloud placed in the lattice's space and signed: every node of the signing grid knows
 /// its nearest point within the band (or, beyond it, whether it is outside), and every point
-/// its outward normal. [`SignedCloud::signed_distance`] answers anywhere in the lattice.
+/// its smoothed outward normal. [`SignedCloud::signed_distance`] answers anywhere in the
+/// lattice.
 pub struct SignedCloud {
-    /// The points, field units.
+    /// The points kept by the screening, field units.
     pub points: Vec<Vec3>,
-    /// Their unit outward normals; zero for a point no node takes its plane from (normals
-    /// are estimated only where they are used).
+    /// Their unit outward normals, smoothed over the bandwidth.
     pub normals: Vec<Vec3>,
+    /// Their confidence in `(0, 1]` (see [`super::consensus`]).
+    pub confidence: Vec<f32>,
+    /// Each point moved onto the smoothed surface along its normal: the plane a node far
+    /// from the points (beyond the bandwidth) takes its distance from.
+    anchors: Vec<Vec3>,
+    /// The points bucketed for the moving planes (cells of [`MOVING_REACH`] bandwidths).
+    near_points: PointGrid,
+    /// The Gaussian bandwidth of the moving planes, field units.
+    pub bandwidth: f32,
+    /// The noise level, field units (given or estimated).
+    pub noise: f32,
+    /// What the screening found (counts, noise, spacing; file units).
+    pub consensus: Consensus,
     grid: SignGrid,
     /// Per node: its nearest point within the band, or [`NO_POINT`].
     nearest: Vec<u32>,
     /// Per node: outside the closed surface (used beyond the band).
     exterior: Vec<bool>,
+    /// Per node: the side a removed piece was turned to (`+1` outside, `−1` inside), or 0.
+    forced: Vec<i8>,
+    /// Per node: the signed distance there (the fit samples at the nodes).
+    node_distance: Vec<f32>,
+    /// Pieces removed as too small, and cavities filled.
+    pub removed_pieces: usize,
+    /// See [`SignedCloud::removed_pieces`].
+    pub filled_cavities: usize,
     /// The density profile's width, field units (two knot spans of the base lattice).
     pub width: f32,
     /// The base lattice's resolution and spacing.
@@ -167,22 +193,58 @@ pub struct SignedCloud {
     pub signed_by: SignedBy,
 }
 
+/// The moving planes reach this many bandwidths (the Gaussian is `e⁻⁴` there).
+pub const MOVING_REACH: f32 = 2.0;
+/// The weight of the nearest point's plane beside the moving planes: it takes over only where
+/// no point lies within reach (over a hole, far from the cloud).
+const FALLBACK_WEIGHT: f32 = 1e-3;
+/// An enclosed piece (or cavity) of the signed grid smaller than this fraction of the largest
+/// piece is removed (filled): noise, not data.
+pub const MIN_PIECE_FRACTION: f32 = 0.01;
+
 /// A node with no point within the band.
 const NO_POINT: u32 = u32::MAX;
 
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
-    /// band, the distance to the tangent plane of the point nearest `x` among the nearest
-    /// points of the eight grid nodes around it (exact for a plane, smooth across the
-    /// surface; at a node, its own nearest point); beyond the band, twice the profile's width
-    /// with the side the tagging found.
+    /// band, the Gaussian-weighted mean of the distances to the neighbouring points' tangent
+    /// planes (each weighted by its confidence; an implicit moving least squares), which
+    /// falls back to the plane of the nearest point's anchor where no point is within reach;
+    /// beyond the band, twice the profile's width with the side the tagging found. A node of a
+    /// removed piece (or a filled cavity) answers the side it was turned to.
     #[must_use]
     pub fn signed_distance(&self, x: Vec3) -> f32 {
+        let node = self.grid.nearest_node(x);
+        match self.forced[node] {
+            1 => return 2.0 * self.width,
+            -1 => return -2.0 * self.width,
+            _ => {}
+        }
+        self.unforced_distance(x)
+    }
+
+    fn unforced_distance(&self, x: Vec3) -> f32 {
         match self.nearest_point(x) {
-            Some(p) => (x - self.points[p]).dot(self.normals[p]),
+            Some(p) => {
+                let fallback = (x - self.anchors[p]).dot(self.normals[p]);
+                let (weighted, weight) = self.moving_planes(x);
+                (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT)
+            }
             None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
             None => -2.0 * self.width,
         }
+    }
+
+    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach, `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`.
+    fn moving_planes(&self, x: Vec3) -> (f32, f32) {
+        moving_planes(
+            &self.near_points,
+            &self.points,
+            &self.normals,
+            &self.confidence,
+            self.bandwidth,
+            x,
+        )
     }
 
     /// The point nearest `x` among the nearest points of the eight nodes around it.
@@ -213,6 +275,19 @@ impl SignedCloud {
         self.nearest_point(x).map(|p| self.normals[p])
     }
 
+    /// The density at a node of the signing grid from the distance stored there, or at any
+    /// other point as [`SignedCloud::density`].
+    fn node_density(&self, x: Vec3) -> f32 {
+        let node = self.grid.nearest_node(x);
+        let [i, j, k] = self.grid.coords(node);
+        let at = Vec3::new(i as f32, j as f32, k as f32) * self.grid.h;
+        if (at - x).abs().max_element() <= 1e-4 * self.grid.h {
+            density_profile(self.node_distance[node], self.width)
+        } else {
+            self.density(x)
+        }
+    }
+
     /// The density the clay is fitted to at `x`: the profile of the signed distance,
     /// `clamp(0.5 − d / width, 0, 1)`, the clay's iso-level 0.5 on the surface.
     #[must_use]
@@ -234,12 +309,14 @@ impl SignedCloud {
                     self.spacing
                 ))
             })?;
-        fit_lattice(&mut lattice, self.samples_per_span, |x| self.density(x))?;
+        fit_lattice(&mut lattice, self.samples_per_span, |x| {
+            self.node_density(x)
+        })?;
         Ok(lattice)
     }
 }
 
-/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–3 of the module
+/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–4 of the module
 /// docs).
 ///
 /// # Errors
@@ -268,35 +345,62 @@ pub fn sign_cloud(
             options.gap_spans
         )));
     }
+    if let Some(noise) = options.noise
+        && !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise))
+    {
+        return Err(CloudFitError::Options(format!(
+            "noise {}% of the size: must be 0 to {}%",
+            noise * 100.0,
+            MAX_NOISE * 100.0
+        )));
+    }
     let spacing = options.spacing;
-    let (lo, hi) = cloud
-        .points
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
-            (a.min(p), b.max(p))
-        });
+    let (lo, hi) = bounds(cloud.points.iter().copied());
     let extent = (hi - lo).max_element();
     if !extent.is_finite() || extent <= 0.0 {
         return Err(CloudFitError::Degenerate);
     }
+    // Step 1: the points that agree on a surface, and the noise.
+    let mut consensus = screen(&cloud.points, extent, options.noise.map(|f| f * extent));
+    if consensus.kept() < (cloud.points.len() / 2).max(8) {
+        // Too few agree for the screening to be trusted (a tiny or very sparse cloud): keep
+        // every point at full confidence.
+        consensus.confidence.fill(1.0);
+        consensus.isolated = 0;
+        consensus.far = 0;
+    }
+    let kept: Vec<usize> = (0..cloud.points.len())
+        .filter(|&i| consensus.confidence[i] > 0.0)
+        .collect();
+    let (lo, hi) = bounds(kept.iter().map(|&i| cloud.points[i]));
+    let extent = (hi - lo).max_element();
+    if !extent.is_finite() || extent <= 0.0 {
+        return Err(CloudFitError::Degenerate);
+    }
+    // Step 2: placement.
     let span_total = (n - 1) as f32 - 2.0 * MARGIN_SPANS;
     let scale = span_total * spacing / extent;
     let centre_field = Vec3::splat((n - 1) as f32 * spacing * 0.5);
     let offset = centre_field - (lo + hi) * 0.5 * scale;
-    let points: Vec<Vec3> = cloud.points.iter().map(|&p| p * scale + offset).collect();
+    let points: Vec<Vec3> = kept
+        .iter()
+        .map(|&i| cloud.points[i] * scale + offset)
+        .collect();
+    let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
 
+    // Steps 3–4: band, exterior, normals.
     let grid = SignGrid::new(n, spacing, sps);
     let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
     let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
     let given = cloud
         .normals
         .as_ref()
-        .filter(|ns| ns.len() == points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
-    let (normals, signed_by) = match given {
+        .filter(|ns| ns.len() == cloud.points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
+    let (raw_normals, signed_by) = match given {
         Some(ns) => (
-            ns.iter()
-                .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
-                .collect(),
+            kept.iter()
+                .map(|&i| ns[i].try_normalize().unwrap_or(Vec3::Y))
+                .collect::<Vec<_>>(),
             SignedBy::Normals,
         ),
         None => {
@@ -308,31 +412,61 @@ pub fn sign_cloud(
                 to_exterior[grid.nearest_node(p - n * probe)]
                     - to_exterior[grid.nearest_node(p + n * probe)]
             };
-            // Only the points some node takes its plane from need a normal (a dense cloud
-            // has many more points than band nodes).
-            let mut wanted = vec![false; points.len()];
-            for (&p, d) in nearest.iter().zip(&dist) {
-                if d.is_finite() {
-                    wanted[p as usize] = true;
-                }
-            }
+            let wanted = vec![true; points.len()];
             (
                 estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
                 SignedBy::Tagging,
             )
         }
     };
-    let nearest = nearest
+    // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
+    let noise = consensus.noise * scale;
+    let bandwidth = (BANDWIDTH_SPACINGS * consensus.point_spacing * scale)
+        .max(BANDWIDTH_NOISES * noise)
+        .min(spacing);
+    let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * bandwidth, CELL_OFFER);
+    let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
+        let p = points[i];
+        let mut sum = Vec3::ZERO;
+        near_points.for_each_near(&points, p, MOVING_REACH * bandwidth, |j| {
+            let w =
+                confidence[j] * (-(points[j] - p).length_squared() / (bandwidth * bandwidth)).exp();
+            sum += raw_normals[j] * w;
+        });
+        sum.try_normalize().unwrap_or(raw_normals[i])
+    });
+    let anchors: Vec<Vec3> = parallel_map(points.len(), |i| {
+        let (p, normal) = (points[i], normals[i]);
+        let (weighted, weight) =
+            moving_planes(&near_points, &points, &normals, &confidence, bandwidth, p);
+        if weight > 0.0 {
+            p - normal * (weighted / weight)
+        } else {
+            p
+        }
+    });
+    let nearest: Vec<u32> = nearest
         .into_iter()
         .zip(&dist)
         .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
-    Ok(SignedCloud {
+    let count = grid.count();
+    let mut signed = SignedCloud {
         points,
         normals,
+        confidence,
+        anchors,
+        near_points,
+        bandwidth,
+        noise,
+        consensus,
         grid,
         nearest,
         exterior,
+        forced: vec![0; count],
+        node_distance: Vec::new(),
+        removed_pieces: 0,
+        filled_cavities: 0,
         width: 2.0 * spacing,
         resolution: n,
         spacing,
@@ -340,7 +474,135 @@ pub fn sign_cloud(
         scale,
         offset,
         signed_by,
+    };
+    // Step 6: the distance at every node, and the pieces too small to be data.
+    signed.node_distance = parallel_map(count, |at| {
+        let [i, j, k] = signed.grid.coords(at);
+        signed.unforced_distance(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
+    });
+    signed.remove_small_pieces();
+    Ok(signed)
+}
+
+/// The largest noise an import accepts, as a fraction of the object's size.
+pub const MAX_NOISE: f32 = 0.1;
+/// The moving planes' bandwidth, at least, in typical point spacings (about fifteen points
+/// under the Gaussian).
+pub const BANDWIDTH_SPACINGS: f32 = 1.5;
+/// The moving planes' bandwidth, at least, in noise levels (the mean of the neighbours'
+/// planes scatters far less than one point's).
+pub const BANDWIDTH_NOISES: f32 = 2.0;
+
+/// The box of `points`.
+fn bounds(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
+    points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| {
+        (a.min(p), b.max(p))
     })
+}
+
+/// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] bandwidths of
+/// `x`, `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`.
+fn moving_planes(
+    grid: &PointGrid,
+    points: &[Vec3],
+    normals: &[Vec3],
+    confidence: &[f32],
+    bandwidth: f32,
+    x: Vec3,
+) -> (f32, f32) {
+    let inverse = 1.0 / (bandwidth * bandwidth);
+    let (mut weighted, mut weight) = (0.0f32, 0.0f32);
+    grid.for_each_near(points, x, MOVING_REACH * bandwidth, |j| {
+        let d = x - points[j];
+        let w = confidence[j] * (-d.length_squared() * inverse).exp();
+        weighted += w * normals[j].dot(d);
+        weight += w;
+    });
+    (weighted, weight)
+}
+
+/// What the screening and the clean-up did, for the log.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Screening {
+    /// Points read.
+    pub points: usize,
+    /// Points dropped for having too few neighbours.
+    pub isolated: usize,
+    /// Points dropped for lying off their neighbours' plane.
+    pub far: usize,
+    /// The noise level (standard deviation across the surface), fraction of the object's
+    /// size.
+    pub noise: f32,
+    /// Whether the noise was given rather than estimated.
+    pub noise_given: bool,
+    /// The moving planes' bandwidth, fraction of the object's size.
+    pub bandwidth: f32,
+    /// Enclosed pieces removed as too small.
+    pub removed_pieces: usize,
+    /// Enclosed cavities filled as too small.
+    pub filled_cavities: usize,
+}
+
+impl SignedCloud {
+    /// The object's size (its box's longest side), field units.
+    #[must_use]
+    pub fn size(&self) -> f32 {
+        let (lo, hi) = bounds(self.points.iter().copied());
+        (hi - lo).max_element().max(f32::MIN_POSITIVE)
+    }
+
+    /// What the screening and the clean-up did.
+    #[must_use]
+    pub fn screening(&self) -> Screening {
+        let size = self.size();
+        Screening {
+            points: self.consensus.confidence.len(),
+            isolated: self.consensus.isolated,
+            far: self.consensus.far,
+            noise: self.noise / size,
+            noise_given: self.consensus.noise_given,
+            bandwidth: self.bandwidth / size,
+            removed_pieces: self.removed_pieces,
+            filled_cavities: self.filled_cavities,
+        }
+    }
+
+    /// Removes the enclosed pieces of the signed grid smaller than [`MIN_PIECE_FRACTION`] of
+    /// the largest (their nodes are turned outside) and fills the cavities as small (turned
+    /// inside): a blob or a bubble that size is noise the data does not support.
+    fn remove_small_pieces(&mut self) {
+        let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
+        let (pieces, piece_sizes) = self.grid.components(|at| inside[at]);
+        let Some(&largest) = piece_sizes.iter().max() else {
+            return;
+        };
+        let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
+        let (holes, hole_sizes) = self.grid.components(|at| !inside[at]);
+        let open = self.grid.boundary_components(&holes);
+        for at in 0..inside.len() {
+            if inside[at] {
+                if piece_sizes[pieces[at] as usize] < least {
+                    self.forced[at] = 1;
+                }
+            } else {
+                let h = holes[at] as usize;
+                if !open[h] && hole_sizes[h] < least {
+                    self.forced[at] = -1;
+                }
+            }
+        }
+        self.removed_pieces = piece_sizes.iter().filter(|&&s| s < least).count();
+        self.filled_cavities = hole_sizes
+            .iter()
+            .enumerate()
+            .filter(|&(h, &s)| !open[h] && s < least)
+            .count();
+        for (d, &f) in self.node_distance.iter_mut().zip(&self.forced) {
+            if f != 0 {
+                *d = f32::from(f) * 2.0 * self.width;
+            }
+        }
+    }
 }
 
 /// The signing grid: the fit's sample grid over the whole lattice.
@@ -475,6 +737,77 @@ impl SignGrid {
             }
         }
         outside
+    }
+
+    /// 6-connected components of the nodes where `member` holds: per node its component
+    /// (`u32::MAX` for a non-member), and each component's node count.
+    fn components(&self, member: impl Fn(usize) -> bool) -> (Vec<u32>, Vec<usize>) {
+        let [mx, my, mz] = self.dims;
+        let mut label = vec![u32::MAX; self.count()];
+        let mut sizes = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..self.count() {
+            if label[start] != u32::MAX || !member(start) {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            label[start] = id;
+            stack.push(start);
+            let mut size = 0;
+            while let Some(at) = stack.pop() {
+                size += 1;
+                let [i, j, k] = self.coords(at);
+                let mut visit = |n: usize| {
+                    if label[n] == u32::MAX && member(n) {
+                        label[n] = id;
+                        stack.push(n);
+                    }
+                };
+                if i > 0 {
+                    visit(at - 1);
+                }
+                if i + 1 < mx {
+                    visit(at + 1);
+                }
+                if j > 0 {
+                    visit(at - mx);
+                }
+                if j + 1 < my {
+                    visit(at + mx);
+                }
+                if k > 0 {
+                    visit(at - mx * my);
+                }
+                if k + 1 < mz {
+                    visit(at + mx * my);
+                }
+            }
+            sizes.push(size);
+        }
+        (label, sizes)
+    }
+
+    /// Per component of `label` (as [`SignGrid::components`] gives): whether it touches the
+    /// grid's boundary.
+    fn boundary_components(&self, label: &[u32]) -> Vec<bool> {
+        let [mx, my, mz] = self.dims;
+        let count = label
+            .iter()
+            .filter(|&&l| l != u32::MAX)
+            .map(|&l| l as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut open = vec![false; count];
+        for (at, &l) in label.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
+            }
+            let [i, j, k] = self.coords(at);
+            if i == 0 || j == 0 || k == 0 || i == mx - 1 || j == my - 1 || k == mz - 1 {
+                open[l as usize] = true;
+            }
+        }
+        open
     }
 
     /// Euclidean distance from each node to the nearest node of `set` (infinite when `set` is
@@ -659,7 +992,7 @@ fn estimate_normals(
 
 /// The eigenvector of the symmetric `cov` with the smallest eigenvalue: power iteration on
 /// `trace · I − cov`, whose largest eigenvalue it is, started near the axis of least variance.
-fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
+pub(crate) fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
     let trace = cov[0][0] + cov[1][1] + cov[2][2];
     let start = (0..3)
         .min_by(|&a, &b| cov[a][a].total_cmp(&cov[b][b]))

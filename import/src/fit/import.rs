@@ -49,6 +49,9 @@ pub struct ImportSettings {
     pub error_percent: f32,
     /// Deepest octree level of detail patches.
     pub max_depth: u32,
+    /// A point cloud's noise (standard deviation across the surface), percent of the
+    /// object's size; estimated from the cloud when `None`.
+    pub noise_percent: Option<f32>,
     /// A volume's surface intensity.
     pub iso: Option<f32>,
     /// Without [`ImportSettings::iso`]: fit a volume at the middle of its intensity range
@@ -65,6 +68,7 @@ impl Default for ImportSettings {
             gap_spans: DEFAULT_GAP_SPANS,
             error_percent: DEFAULT_ERROR * 100.0,
             max_depth: DEFAULT_MAX_DEPTH,
+            noise_percent: None,
             iso: None,
             midrange_iso: false,
             raw: None,
@@ -304,6 +308,7 @@ fn fit_cloud(
         base: CloudFitOptions {
             resolution: settings.resolution,
             gap_spans: settings.gap_spans,
+            noise: settings.noise_percent.map(|p| p / 100.0),
             ..CloudFitOptions::default()
         },
         error: settings.error_percent / 100.0,

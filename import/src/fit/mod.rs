@@ -7,6 +7,7 @@
 //! [`import`] is the one import that `dynaclay import` and the GUI's Load both call.
 
 pub mod cloud;
+pub mod consensus;
 pub mod hierarchy;
 pub mod import;
 pub mod mesh;
