@@ -227,6 +227,12 @@ impl SignedCloud {
         match self.nearest_point(x) {
             Some(p) => {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
+                // The nearest of the nodes' nearest points is within a node's diagonal of the
+                // nearest point: beyond reach by more than that, no point is within reach.
+                let beyond = MOVING_REACH * self.bandwidth + 1.8 * self.grid.h;
+                if (x - self.points[p]).length_squared() > beyond * beyond {
+                    return fallback;
+                }
                 let (weighted, weight) = self.moving_planes(x);
                 (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT)
             }
@@ -239,7 +245,6 @@ impl SignedCloud {
     fn moving_planes(&self, x: Vec3) -> (f32, f32) {
         moving_planes(
             &self.near_points,
-            &self.points,
             &self.normals,
             &self.confidence,
             self.bandwidth,
@@ -428,17 +433,25 @@ pub fn sign_cloud(
     let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
         let p = points[i];
         let mut sum = Vec3::ZERO;
-        near_points.for_each_near(&points, p, MOVING_REACH * bandwidth, |j| {
-            let w =
-                confidence[j] * (-(points[j] - p).length_squared() / (bandwidth * bandwidth)).exp();
+        near_points.for_each_near(p, MOVING_REACH * bandwidth, |j, q| {
+            let w = confidence[j] * (-(q - p).length_squared() / (bandwidth * bandwidth)).exp();
             sum += raw_normals[j] * w;
         });
         sum.try_normalize().unwrap_or(raw_normals[i])
     });
+    // Only the points some node takes its fallback plane from need an anchor.
+    let mut wanted = vec![false; points.len()];
+    for (&p, d) in nearest.iter().zip(&dist) {
+        if d.is_finite() {
+            wanted[p as usize] = true;
+        }
+    }
     let anchors: Vec<Vec3> = parallel_map(points.len(), |i| {
         let (p, normal) = (points[i], normals[i]);
-        let (weighted, weight) =
-            moving_planes(&near_points, &points, &normals, &confidence, bandwidth, p);
+        if !wanted[i] {
+            return p;
+        }
+        let (weighted, weight) = moving_planes(&near_points, &normals, &confidence, bandwidth, p);
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -504,7 +517,6 @@ fn bounds(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
 /// `x`, `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`.
 fn moving_planes(
     grid: &PointGrid,
-    points: &[Vec3],
     normals: &[Vec3],
     confidence: &[f32],
     bandwidth: f32,
@@ -512,8 +524,8 @@ fn moving_planes(
 ) -> (f32, f32) {
     let inverse = 1.0 / (bandwidth * bandwidth);
     let (mut weighted, mut weight) = (0.0f32, 0.0f32);
-    grid.for_each_near(points, x, MOVING_REACH * bandwidth, |j| {
-        let d = x - points[j];
+    grid.for_each_near(x, MOVING_REACH * bandwidth, |j, p| {
+        let d = x - p;
         let w = confidence[j] * (-d.length_squared() * inverse).exp();
         weighted += w * normals[j].dot(d);
         weight += w;

@@ -45,6 +45,8 @@ pub struct PointGrid {
     /// Per cell, where its points start in [`PointGrid::members`] (one more entry at the end).
     starts: Vec<u32>,
     members: Vec<u32>,
+    /// The members' positions, in the same order (a search reads them in sequence).
+    positions: Vec<Vec3>,
 }
 
 impl PointGrid {
@@ -119,12 +121,14 @@ impl PointGrid {
                 seen[c] += 1;
             }
         }
+        let positions = members.iter().map(|&i| points[i as usize]).collect();
         Self {
             origin: lo,
             cell,
             dims,
             starts: offered,
             members,
+            positions,
         }
     }
 
@@ -134,15 +138,9 @@ impl PointGrid {
         self.starts.windows(2).filter(|w| w[1] > w[0]).count()
     }
 
-    /// Calls `visit(index)` for every offered point within `radius` of `x` (points beyond
-    /// one cell of `x`'s may be missed: keep `radius` within the cell side asked for).
-    pub fn for_each_near(
-        &self,
-        points: &[Vec3],
-        x: Vec3,
-        radius: f32,
-        mut visit: impl FnMut(usize),
-    ) {
+    /// Calls `visit(index, position)` for every offered point within `radius` of `x` (points
+    /// beyond one cell of `x`'s may be missed: keep `radius` within the cell side asked for).
+    pub fn for_each_near(&self, x: Vec3, radius: f32, mut visit: impl FnMut(usize, Vec3)) {
         let c = ((x - self.origin) / self.cell).floor().as_ivec3();
         let r2 = radius * radius;
         let [dx_, dy_, dz_] = self.dims;
@@ -155,9 +153,9 @@ impl PointGrid {
                 }
                 let from = self.starts[(row + x0) as usize] as usize;
                 let to = self.starts[(row + x1 + 1) as usize] as usize;
-                for &j in &self.members[from..to] {
-                    if (points[j as usize] - x).length_squared() <= r2 {
-                        visit(j as usize);
+                for (&j, &p) in self.members[from..to].iter().zip(&self.positions[from..to]) {
+                    if (p - x).length_squared() <= r2 {
+                        visit(j as usize, p);
                     }
                 }
             }
@@ -366,7 +364,7 @@ fn fit_planes(points: &[Vec3], radius: f32) -> Vec<Option<(Plane, f32)>> {
     parallel_map(points.len(), |i| {
         let p = points[i];
         let mut near = Vec::with_capacity(2 * NEIGHBOURS as usize);
-        grid.for_each_near(points, p, radius, |j| {
+        grid.for_each_near(p, radius, |j, _| {
             if j != i {
                 near.push(j);
             }
