@@ -1,34 +1,49 @@
-//! A clay fitted to a point cloud, on one lattice.
+//! A clay fitted to a point cloud, on one lattice: the surface the points agree on, not their
+//! noise.
 //!
-//! 1. **Placement.** The cloud is scaled and centred so that its longest side spans the
-//!    lattice less a margin of [`MARGIN_SPANS`] knot spans on each side (room for the density
-//!    transition and the B-spline support); [`CloudFit::to_field`] maps file units to field
-//!    units.
-//! 2. **Distance.** On the fit's sample grid (`samples_per_span` points per knot span, the
-//!    grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point gets its
-//!    distance to the nearest point (each point visits the nodes around it: no search
-//!    structure, `O(points · band nodes)`).
-//! 3. **Sign.** The exterior is found by closing, after the tagging of Zhao, Osher & Fedkiw
-//!    (2001): the grid nodes farther than the gap `τ` from every point (an exact distance
-//!    transform) are flooded from the grid's boundary, so the flood cannot pass a hole
-//!    narrower than `2τ`; the flooded region is then grown back by `τ`. The growth stops
-//!    short of the points and reaches into a hole as far as a ball of radius `τ` rolled over
-//!    it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
-//!    letting the outside in. Each point needs an outward normal: the file's, or else the
-//!    direction of least variance of its neighbours (principal components) turned toward the
-//!    exterior (the side nearer the grown region). A node within the band takes its signed
-//!    distance to its nearest point's tangent plane, smooth across the surface (the distance
-//!    to the nearest point alone would dimple between points), which also spans a hole's
-//!    rim with the rim's tangent planes: the hole is closed by a smooth cap that continues
-//!    the surface around it (Hua & Qin Fig. 6; on a convex surface the rim's planes meet a
-//!    little above the missing part, 0.06 of the tube's radius over a hole 1.4 radii wide in
-//!    the test). Beyond the band, exterior nodes are outside and the rest inside.
-//! 4. **Fit.** The signed distances become the clay's density profile
+//! 1. **Screening.** Each point is compared with the plane its neighbours agree on
+//!    ([`super::consensus`]): isolated points and points off that plane by more than a few
+//!    local deviations are dropped (the log counts them), the rest get a confidence that
+//!    falls with their distance to it, and the noise level (the per-point scatter across the
+//!    surface) is estimated as the median of the neighbourhoods' RMS distances to their
+//!    planes, unless [`CloudFitOptions::noise`] gives it.
+//! 2. **Placement.** The kept points are scaled and centred so that their longest side spans
+//!    the lattice less a margin of [`MARGIN_SPANS`] knot spans on each side (room for the
+//!    density transition and the B-spline support); [`CloudFit::to_field`] maps file units to
+//!    field units.
+//! 3. **Band and exterior.** On the fit's sample grid (`samples_per_span` points per knot
+//!    span, the grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point
+//!    learns its nearest point. The exterior is found globally by closing, after the tagging
+//!    of Zhao, Osher & Fedkiw (2001): the grid nodes farther than the gap `τ` from every point
+//!    (an exact distance transform) are flooded from the grid's boundary, so the flood cannot
+//!    pass a hole narrower than `2τ`; the flooded region is then grown back by `τ`. The growth
+//!    stops short of the points and reaches into a hole as far as a ball of radius `τ` rolled
+//!    over it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
+//!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
+//! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
+//!    variance of its neighbours turned toward the exterior (the side nearer the grown
+//!    region); either is then averaged over its neighbours with the moving planes' Gaussian,
+//!    so one noisy or flipped normal cannot turn the side of the surface.
+//! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
+//!    of the distances to the neighbouring points' tangent planes, each weighted by its
+//!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ nᵢ·(x − pᵢ) / Σ wᵢ`,
+//!    `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`. The bandwidth `h` is set by the data: at least
+//!    [`BANDWIDTH_SPACINGS`] typical point spacings and [`BANDWIDTH_NOISES`] noise levels, at
+//!    most a knot span, so the mean runs over enough points that the noise averages out.
+//!    Where no point is within reach (over a hole, near the band's edge) the plane of the
+//!    nearest point's *anchor* (the point moved onto the smoothed surface) takes over, which
+//!    spans a hole's rim with the rim's smoothed tangent planes: the hole is closed by a
+//!    smooth cap that continues the surface around it (Hua & Qin Fig. 6).
+//! 6. **Pieces.** The signed grid's enclosed pieces smaller than [`MIN_PIECE_FRACTION`] of the
+//!    largest are turned outside, and its enclosed cavities as small are filled: a blob or a
+//!    bubble that size is noise, not data (the log counts them).
+//! 7. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
 //!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
-//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`].
+//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
+//! bound never below the noise level.
 
 use std::collections::VecDeque;
 

@@ -9,8 +9,10 @@
 //!    `(F − target) · width` over its samples: with the profile's slope `1 / width`, that is
 //!    how far the surface lies from where the data puts it, in field units. The bound is
 //!    given as a fraction of the object's size (the longest side of the cloud's box), so the
-//!    same `--error` means the same on any scan. Above [`MAX_ERROR_POINTS`] points, an even
-//!    subset of the points gives the samples.
+//!    same `--error` means the same on any scan. The bound is never below the cloud's noise
+//!    level (given, or estimated by [`super::consensus`]): the target is the smoothed surface,
+//!    and a residual below the noise is not structure a detail patch should follow. Above
+//!    [`MAX_ERROR_POINTS`] points, an even subset of the points gives the samples.
 //! 3. **Octree.** The root is the cloud's bounding cube. Its eight children, and the children
 //!    of every node that was refined, are visited one depth at a time; a node whose error
 //!    exceeds the bound (and that holds at least [`MIN_NODE_SAMPLES`] samples) gets a detail

@@ -329,6 +329,20 @@ fn fit_cloud(
         settings.error_percent
     ));
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    let s = fit.screening;
+    note(format!(
+        "dropped {} isolated points and {} off the surface their neighbours agree on; noise \
+         {:.3}% of the size ({}), smoothed over {:.3}%; error bound {:.3}%; removed {} small \
+         pieces, filled {} small cavities",
+        s.isolated,
+        s.far,
+        100.0 * s.noise,
+        if s.noise_given { "given" } else { "estimated" },
+        100.0 * s.bandwidth,
+        100.0 * fit.bound,
+        s.removed_pieces,
+        s.filled_cavities
+    ));
     note_levels(&fit.levels, fit.over_budget, note);
     let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;
