@@ -51,6 +51,7 @@ use glam::Vec3;
 
 use super::consensus::{CELL_OFFER, Consensus, PointGrid, parallel_map, screen};
 use super::points::PointCloud;
+use super::regularised::refit_regularised;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
 
 /// Empty knot spans kept around the object on each side.
@@ -188,6 +189,9 @@ pub struct SignedCloud {
     forced: Vec<i8>,
     /// Per node: the signed distance there (the fit samples at the nodes).
     node_distance: Vec<f32>,
+    /// Per node: how much the data holds it, in `(0, 1)` (the weight of its sample in the
+    /// regularised fit).
+    node_confidence: Vec<f32>,
     /// Pieces removed as too small, and cavities filled.
     pub removed_pieces: usize,
     /// See [`SignedCloud::removed_pieces`].
@@ -239,6 +243,12 @@ impl SignedCloud {
     }
 
     fn unforced_distance(&self, x: Vec3) -> f32 {
+        self.distance_and_support(x).0
+    }
+
+    /// The unforced signed distance at `x` and the moving planes' total weight there (how
+    /// much data holds it; 0 beyond their reach).
+    fn distance_and_support(&self, x: Vec3) -> (f32, f32) {
         match self.nearest_point(x) {
             Some(p) => {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
@@ -246,13 +256,16 @@ impl SignedCloud {
                 // nearest point: beyond reach by more than that, no point is within reach.
                 let beyond = MOVING_REACH * self.bandwidth + 1.8 * self.grid.h;
                 if (x - self.points[p]).length_squared() > beyond * beyond {
-                    return fallback;
+                    return (fallback, 0.0);
                 }
                 let (weighted, weight) = self.moving_planes(x);
-                (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT)
+                (
+                    (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
+                    weight,
+                )
             }
-            None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
-            None => -2.0 * self.width,
+            None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
+            None => (-2.0 * self.width, 0.0),
         }
     }
 
@@ -332,6 +345,18 @@ impl SignedCloud {
         fit_lattice(&mut lattice, self.samples_per_span, |x| {
             self.node_density(x)
         })?;
+        let targets: Vec<f32> = self
+            .node_distance
+            .iter()
+            .map(|&d| density_profile(d, self.width))
+            .collect();
+        refit_regularised(
+            &mut lattice,
+            self.samples_per_span,
+            &targets,
+            &self.node_confidence,
+            BENDING_WEIGHT,
+        );
         Ok(lattice)
     }
 }
@@ -493,6 +518,7 @@ pub fn sign_cloud(
         exterior,
         forced: vec![0; count],
         node_distance: Vec::new(),
+        node_confidence: Vec::new(),
         removed_pieces: 0,
         filled_cavities: 0,
         width: 2.0 * spacing,
@@ -504,13 +530,26 @@ pub fn sign_cloud(
         signed_by,
     };
     // Step 6: the distance at every node, and the pieces too small to be data.
-    signed.node_distance = parallel_map(count, |at| {
+    let at_nodes = parallel_map(count, |at| {
         let [i, j, k] = signed.grid.coords(at);
-        signed.unforced_distance(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
+        signed.distance_and_support(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
     });
+    signed.node_distance = at_nodes.iter().map(|&(d, _)| d).collect();
+    signed.node_confidence = at_nodes
+        .iter()
+        .map(|&(_, support)| UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0))
+        .collect();
     signed.remove_small_pieces();
     Ok(signed)
 }
+
+/// A sample's weight in the regularised fit where no point holds it (beyond the moving
+/// planes' reach: over a hole, far from the cloud); near the points it rises toward 1 with
+/// the planes' total weight `W` as `W / (W + 1)`.
+pub const UNHELD_WEIGHT: f32 = 0.1;
+/// The bending energy's weight `λ` in the regularised fit of the base lattice (see
+/// [`super::regularised`]).
+pub const BENDING_WEIGHT: f32 = 0.002;
 
 /// The largest noise an import accepts, as a fraction of the object's size.
 pub const MAX_NOISE: f32 = 0.1;
@@ -627,6 +666,11 @@ impl SignedCloud {
         for (d, &f) in self.node_distance.iter_mut().zip(&self.forced) {
             if f != 0 {
                 *d = f32::from(f) * 2.0 * self.width;
+            }
+        }
+        for (c, &f) in self.node_confidence.iter_mut().zip(&self.forced) {
+            if f != 0 {
+                *c = 1.0;
             }
         }
     }

@@ -13,6 +13,7 @@ pub mod import;
 pub mod mesh;
 pub mod point_file;
 pub mod points;
+pub mod regularised;
 pub mod sdf;
 pub mod volume;
 pub mod watertight;
