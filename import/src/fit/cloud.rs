@@ -356,6 +356,7 @@ impl SignedCloud {
             &targets,
             &self.node_confidence,
             BENDING_WEIGHT,
+            REGULARISED_STEPS,
         );
         Ok(lattice)
     }
@@ -550,6 +551,9 @@ pub const UNHELD_WEIGHT: f32 = 0.1;
 /// The bending energy's weight `λ` in the regularised fit of the base lattice (see
 /// [`super::regularised`]).
 pub const BENDING_WEIGHT: f32 = 0.002;
+/// Conjugate-gradient steps of the regularised fit, at most: it starts from the plain fit,
+/// which is near, and the steps are its main cost.
+pub const REGULARISED_STEPS: usize = 20;
 
 /// The largest noise an import accepts, as a fraction of the object's size.
 pub const MAX_NOISE: f32 = 0.1;

@@ -16,8 +16,6 @@
 
 use dynaclay_core::field::BSplineLattice;
 
-/// Conjugate-gradient iterations, at most.
-pub const MAX_ITERATIONS: usize = 20;
 /// The iterations stop when the residual falls below this fraction of the right-hand side.
 pub const TOLERANCE: f64 = 1e-5;
 
@@ -181,7 +179,7 @@ fn bending_diagonal(dims: [usize; 3]) -> Vec<f64> {
 /// Refits every coefficient of `lattice` (its current coefficients the starting guess) to
 /// `targets` with confidences `weights`, both given at the samples of the mass grid
 /// (`samples_per_span` per span, x fastest), with bending weight `lambda` (see the module
-/// docs). Returns the iterations run.
+/// docs), in at most `max_iterations` conjugate-gradient steps. Returns the steps run.
 ///
 /// # Panics
 /// When `targets` or `weights` do not hold one value per sample.
@@ -191,6 +189,7 @@ pub fn refit_regularised(
     targets: &[f32],
     weights: &[f32],
     lambda: f32,
+    max_iterations: usize,
 ) -> usize {
     let dims = lattice.dims;
     let bases = dims.map(|n| AxisBasis::new(n, samples_per_span));
@@ -228,7 +227,7 @@ pub fn refit_regularised(
     let mut p = z.clone();
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
     let mut iterations = 0;
-    while iterations < MAX_ITERATIONS {
+    while iterations < max_iterations {
         let norm_r = r.iter().map(|v| v * v).sum::<f64>().sqrt();
         if norm_r <= TOLERANCE * norm_b {
             break;
@@ -292,7 +291,7 @@ mod tests {
             .map(|(i, c)| c + ((i * 31) % 11) as f32 / 11.0 * 0.1 - 0.05)
             .collect();
         let mut fitted = BSplineLattice::from_coeffs(dims, 0.5, Vec3::ZERO, guess).unwrap();
-        let iterations = refit_regularised(&mut fitted, sps, &targets, &weights, 0.0);
+        let iterations = refit_regularised(&mut fitted, sps, &targets, &weights, 0.0, 400);
         assert!(iterations > 0);
         let mut at = 0;
         for k in 0..m[2] {
@@ -325,7 +324,7 @@ mod tests {
             }
         }
         let mut lattice = BSplineLattice::zeros(dims, 1.0, Vec3::ZERO).unwrap();
-        refit_regularised(&mut lattice, sps, &targets, &weights, 0.05);
+        refit_regularised(&mut lattice, sps, &targets, &weights, 0.05, 400);
         let at = |u: f32| lattice.value(Vec3::new(u, 2.0, 2.0));
         // (Against the lattice's low edge a ramp is only approximated.)
         assert!((at(3.0) - 0.3).abs() < 0.02, "held: {}", at(3.0));
