@@ -40,14 +40,13 @@ impl Rng {
 }
 
 /// Triangles bucketed on a grid for nearest-triangle queries.
-struct Nearest<'a> {
+struct Nearest {
     corners: Vec<[Vec3; 3]>,
     cell: f32,
     buckets: HashMap<glam::IVec3, Vec<u32>>,
-    _mesh: std::marker::PhantomData<&'a ()>,
 }
 
-impl Nearest<'_> {
+impl Nearest {
     fn new(corners: Vec<[Vec3; 3]>, cell: f32) -> Self {
         let key = |p: Vec3| (p / cell).floor().as_ivec3();
         let mut buckets: HashMap<glam::IVec3, Vec<u32>> = HashMap::new();
@@ -68,7 +67,6 @@ impl Nearest<'_> {
             corners,
             cell,
             buckets,
-            _mesh: std::marker::PhantomData,
         }
     }
 
@@ -133,7 +131,7 @@ fn pieces_and_genus(mesh: &TriMesh) -> (usize, i64, bool) {
     }
     let euler = n as i64 - edges.len() as i64 + mesh.triangles.len() as i64;
     let pieces = roots.len();
-    ((pieces), (2 * pieces as i64 - euler) / 2, closed)
+    (pieces, (2 * pieces as i64 - euler) / 2, closed)
 }
 
 fn main() {
@@ -178,7 +176,7 @@ fn main() {
             (a.min(p), b.max(p))
         });
     let diagonal = (hi - lo).length();
-    let mut rng = Rng(0x5eed_0f_c10d);
+    let mut rng = Rng(0x005e_ed0f_c10d);
     // Area-weighted sampling.
     let mut cumulative = Vec::with_capacity(corners.len());
     let mut area = 0.0f64;

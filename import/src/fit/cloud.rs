@@ -39,7 +39,12 @@
 //!    bubble that size is noise, not data (the log counts them).
 //! 7. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
-//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
+//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`), then
+//!    refitted by weighted, regularised least squares ([`super::regularised`]): each sample
+//!    weighs by how much the points hold it (the moving planes' total weight `W`, as
+//!    `W / (W + 1)`, and [`UNHELD_WEIGHT`] beyond their reach), beside a bending energy on the
+//!    coefficients ([`BENDING_WEIGHT`]), so the clay follows the data where it is dense and
+//!    stays smooth where it is not (over holes, far from the points).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
 //! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
@@ -649,15 +654,15 @@ impl SignedCloud {
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
         let (holes, hole_sizes) = self.grid.components(|at| !inside[at]);
         let open = self.grid.boundary_components(&holes);
-        for at in 0..inside.len() {
+        for (at, forced) in self.forced.iter_mut().enumerate() {
             if inside[at] {
                 if piece_sizes[pieces[at] as usize] < least {
-                    self.forced[at] = 1;
+                    *forced = 1;
                 }
             } else {
                 let h = holes[at] as usize;
                 if !open[h] && hole_sizes[h] < least {
-                    self.forced[at] = -1;
+                    *forced = -1;
                 }
             }
         }

@@ -99,7 +99,7 @@ impl PointGrid {
         for (i, &p) in points.iter().enumerate() {
             if keep(i) {
                 let c = index_of(p);
-                if seen[c] % strides[c] == 0 {
+                if seen[c].is_multiple_of(strides[c]) {
                     offered[c + 1] += 1;
                 }
                 seen[c] += 1;
@@ -114,7 +114,7 @@ impl PointGrid {
         for (i, &p) in points.iter().enumerate() {
             if keep(i) {
                 let c = index_of(p);
-                if seen[c] % strides[c] == 0 {
+                if seen[c].is_multiple_of(strides[c]) {
                     members[fill[c] as usize] = i as u32;
                     fill[c] += 1;
                 }
