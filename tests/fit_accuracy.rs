@@ -395,6 +395,8 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         rms: 0.0,
         levels: Vec::new(),
         over_budget: false,
+        screening: Default::default(),
+        bound: 0.0,
     };
     let truth = shape.sample(20_000, &mut Rng(5));
     let (there, back) = hausdorff(&as_hier, &mesh, shape, &truth);

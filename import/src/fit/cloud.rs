@@ -597,7 +597,7 @@ fn moving_planes(
 }
 
 /// What the screening and the clean-up did, for the log.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Screening {
     /// Points read.
     pub points: usize,
