@@ -13,7 +13,9 @@
 //!   (a robust estimate of the per-point scatter across the surface), unless the caller
 //!   gives it.
 //! - Every kept point gets a **confidence** in `(0, 1]` that falls with its distance to the
-//!   plane, `1 / (1 + (r / 2σ)²)`, so the fit leans on the points that agree.
+//!   plane, `1 / (1 + (r / 2σ)²)` with `σ` the same local scatter, so the fit leans on the
+//!   points that agree; on a clean cloud a point on a tight curve keeps its weight (its
+//!   distance to the plane is the curve's, not noise).
 //!
 //! The neighbour radius is set by the cloud's own density (about [`NEIGHBOURS`] points
 //! within it), widened to at least three noise levels so that the planes are not fitted to
@@ -28,6 +30,10 @@ pub const NEIGHBOURS: f32 = 30.0;
 pub const ISOLATED_FRACTION: f32 = 0.15;
 /// A point further from its neighbours' plane than this many local deviations is an outlier.
 pub const FAR_DEVIATIONS: f32 = 3.5;
+/// The smallest local scatter, as a fraction of the object's size: a few steps of `f32` at
+/// the coordinates' scale, so that the rounding of a clean cloud's coordinates is not taken
+/// for a deviation from the plane.
+pub const PRECISION: f32 = 1e-6;
 /// Points a cell of the neighbour search offers, at most.
 pub const CELL_OFFER: usize = 48;
 /// Points whose neighbourhoods give the noise estimate, at most (an even subset).
@@ -218,13 +224,15 @@ impl Consensus {
     }
 }
 
-/// A neighbourhood's plane: centroid, unit normal, RMS distance of the neighbours to it, and
-/// how many there were.
+/// A neighbourhood's plane: centroid, unit normal, RMS distance of the points it was fitted
+/// to, and how many neighbours the point had (all of them, not only the plane's inliers: a
+/// point beside a crease has its full share of neighbours even where the robust pass keeps
+/// only one side of the crease, and is not isolated).
 struct Plane {
     centre: Vec3,
     normal: Vec3,
     rms: f32,
-    count: usize,
+    neighbours: usize,
 }
 
 fn plane_of(points: &[Vec3], near: &[usize]) -> Option<Plane> {
@@ -246,7 +254,11 @@ fn plane_of(points: &[Vec3], near: &[usize]) -> Option<Plane> {
         .iter()
         .copied()
         .filter(|&j| (points[j] - first.centre).dot(first.normal).abs() <= keep);
-    Some(principal_plane(points, inliers).unwrap_or(first))
+    let refit = principal_plane(points, inliers).unwrap_or(first);
+    Some(Plane {
+        neighbours: near.len(),
+        ..refit
+    })
 }
 
 /// The least-squares plane through `near` (at least three points).
@@ -274,7 +286,7 @@ fn principal_plane(points: &[Vec3], near: impl Iterator<Item = usize> + Clone) -
         centre,
         normal,
         rms: (ss / count as f32).sqrt(),
-        count,
+        neighbours: count,
     })
 }
 
@@ -318,7 +330,7 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
     }
     let mut counts: Vec<usize> = planes
         .iter()
-        .map(|p| p.as_ref().map_or(0, |(p, _)| p.count))
+        .map(|p| p.as_ref().map_or(0, |(p, _)| p.neighbours))
         .collect();
     let mid = counts.len() / 2;
     let median = if counts.is_empty() {
@@ -331,13 +343,13 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
     let confidence = planes
         .iter()
         .map(|plane| match plane {
-            Some((plane, off)) if plane.count >= fewest => {
-                let local = sigma.max(plane.rms).max(f32::MIN_POSITIVE);
+            Some((plane, off)) if plane.neighbours >= fewest => {
+                let local = sigma.max(plane.rms).max(PRECISION * size);
                 if *off > FAR_DEVIATIONS * local {
                     far += 1;
                     0.0
                 } else {
-                    let t = off / (2.0 * sigma.max(f32::MIN_POSITIVE));
+                    let t = off / (2.0 * local);
                     1.0 / (1.0 + t * t)
                 }
             }

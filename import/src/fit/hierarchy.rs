@@ -560,7 +560,7 @@ mod tests {
 
     fn tight() -> HierarchyOptions {
         HierarchyOptions {
-            error: 0.0015,
+            error: 0.001,
             max_depth: 2,
             ..HierarchyOptions::default()
         }
