@@ -27,9 +27,16 @@
 //! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
 //!    of the distances to the neighbouring points' tangent planes, each weighted by its
 //!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ nᵢ·(x − pᵢ) / Σ wᵢ`,
-//!    `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`. The bandwidth `h` is set by the data: at least
-//!    [`BANDWIDTH_SPACINGS`] typical point spacings and [`BANDWIDTH_NOISES`] noise levels, at
-//!    most a knot span, so the mean runs over enough points that the noise averages out.
+//!    `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`. The typical bandwidth `h` is set by the data: at
+//!    least [`BANDWIDTH_SPACINGS`] typical point spacings and [`BANDWIDTH_NOISES`] noise
+//!    levels, at most a knot span, so the mean runs over enough points that the noise
+//!    averages out. Sampling is rarely even (a scanner, or a sampler that crowds the points
+//!    onto an edge and thins the faces beside it), so each point's plane has its own scale
+//!    from its local spacing `sᵢ` (from its [`LOCAL_NEIGHBOURS`]-th nearest point): its
+//!    bandwidth `hᵢ` widens from `h` (up to [`MAX_WIDENING`] times) where the points are over
+//!    [`WIDEN_FROM`] times sparser than the median, so a sparse area averages over its own
+//!    points rather than a dense feature's beside it, and its weight `aᵢ` is the area it
+//!    stands for, `(sᵢ / s̃)²` over the median, so a dense edge does not outvote a sparse face.
 //!    Where no point is within reach (over a hole, near the band's edge) the plane of the
 //!    nearest point's *anchor* (the point moved onto the smoothed surface) takes over, which
 //!    spans a hole's rim with the rim's smoothed tangent planes: the hole is closed by a
@@ -177,10 +184,17 @@ pub struct SignedCloud {
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
     /// from the points (beyond the bandwidth) takes its distance from.
     anchors: Vec<Vec3>,
-    /// The points bucketed for the moving planes (cells of [`MOVING_REACH`] bandwidths).
+    /// The points bucketed for the moving planes (cells of [`MOVING_REACH`] times the widest
+    /// point's bandwidth).
     near_points: PointGrid,
-    /// The Gaussian bandwidth of the moving planes, field units.
+    /// Per point: its plane's bandwidth and weight, set by the local spacing (see
+    /// [`LocalScale`]).
+    local: Vec<LocalScale>,
+    /// The Gaussian bandwidth of the moving planes where the cloud has its typical spacing,
+    /// field units (a point's own is between this and [`MAX_WIDENING`] times it).
     pub bandwidth: f32,
+    /// The widest point's bandwidth, field units.
+    widest: f32,
     /// The noise level, field units (given or estimated).
     pub noise: f32,
     /// What the screening found (counts, noise, spacing; file units).
@@ -259,7 +273,7 @@ impl SignedCloud {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
                 // The nearest of the nodes' nearest points is within a node's diagonal of the
                 // nearest point: beyond reach by more than that, no point is within reach.
-                let beyond = MOVING_REACH * self.bandwidth + 1.8 * self.grid.h;
+                let beyond = MOVING_REACH * self.widest + 1.8 * self.grid.h;
                 if (x - self.points[p]).length_squared() > beyond * beyond {
                     return (fallback, 0.0);
                 }
@@ -274,13 +288,15 @@ impl SignedCloud {
         }
     }
 
-    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach, `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`.
+    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach of `x`,
+    /// `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`.
     fn moving_planes(&self, x: Vec3) -> (f32, f32) {
         moving_planes(
             &self.near_points,
             &self.normals,
             &self.confidence,
-            self.bandwidth,
+            &self.local,
+            self.widest,
             x,
         )
     }
@@ -475,7 +491,10 @@ pub fn sign_cloud(
     let bandwidth = (BANDWIDTH_SPACINGS * consensus.point_spacing * scale)
         .max(BANDWIDTH_NOISES * noise)
         .min(spacing);
-    let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * bandwidth, CELL_OFFER);
+    let spacings = local_spacings(&points, MOVING_REACH * bandwidth);
+    let local = local_scales(&spacings, bandwidth);
+    let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
+    let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * widest, WIDE_CELL_OFFER);
     let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
         let p = points[i];
         let mut sum = Vec3::ZERO;
@@ -497,7 +516,8 @@ pub fn sign_cloud(
         if !wanted[i] {
             return p;
         }
-        let (weighted, weight) = moving_planes(&near_points, &normals, &confidence, bandwidth, p);
+        let (weighted, weight) =
+            moving_planes(&near_points, &normals, &confidence, &local, widest, p);
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -516,7 +536,9 @@ pub fn sign_cloud(
         confidence,
         anchors,
         near_points,
+        local,
         bandwidth,
+        widest,
         noise,
         consensus,
         grid,
@@ -576,22 +598,106 @@ fn bounds(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
     })
 }
 
-/// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] bandwidths of
-/// `x`, `wᵢ = cᵢ exp(−|x − pᵢ|² / h²)`.
+/// The neighbours whose distance sets a point's local spacing (the `k` of a k-nearest search).
+pub const LOCAL_NEIGHBOURS: usize = 8;
+/// A point's bandwidth, at most, in typical bandwidths: a sparsely sampled area averages over
+/// its own points out to this, rather than over a denser feature's beside it.
+pub const MAX_WIDENING: f32 = 2.0;
+/// A point's bandwidth widens only where its local spacing is over this many median
+/// spacings: a point on a hole's rim has half a disc of neighbours (its spacing about √2
+/// times the median) and keeps the typical bandwidth, so the rim's tangent planes do not
+/// reach further over the hole and flatten its cap.
+pub const WIDEN_FROM: f32 = 1.5;
+/// The weight a plane gets for the area its point stands for, at most, relative to a point
+/// at the typical spacing (and at least its inverse).
+pub const MAX_AREA_WEIGHT: f32 = 16.0;
+/// Points a cell of the moving planes' search offers, at most: its cells are up to
+/// [`MAX_WIDENING`] times wider each way than the screening's, so they hold more points.
+const WIDE_CELL_OFFER: usize = 4 * CELL_OFFER;
+
+/// A point's own scale in the moving planes.
+#[derive(Clone, Copy, Debug)]
+struct LocalScale {
+    /// The Gaussian bandwidth of its plane, field units.
+    bandwidth: f32,
+    /// Its plane's weight for the area it stands for: its local spacing² over the typical
+    /// spacing², so a densely sampled feature does not outvote a sparsely sampled one.
+    area: f32,
+}
+
+/// Each point's local spacing, field units: the area per point of the disc out to its
+/// [`LOCAL_NEIGHBOURS`]-th nearest other point, `d_k √(π / k)` (so that points on an even
+/// grid of step `s` get about `s`). Searched within `reach`: a point with fewer neighbours
+/// than that within it is given the spacing `reach` would give.
+fn local_spacings(points: &[Vec3], reach: f32) -> Vec<f32> {
+    let grid = PointGrid::new(points, |_| true, reach, WIDE_CELL_OFFER);
+    let per_point = (std::f32::consts::PI / LOCAL_NEIGHBOURS as f32).sqrt();
+    parallel_map(points.len(), |i| {
+        let p = points[i];
+        let mut near: Vec<f32> = Vec::with_capacity(4 * LOCAL_NEIGHBOURS);
+        grid.for_each_near(p, reach, |j, q| {
+            if j != i {
+                near.push((q - p).length_squared());
+            }
+        });
+        let kth = if near.len() >= LOCAL_NEIGHBOURS {
+            near.select_nth_unstable_by(LOCAL_NEIGHBOURS - 1, f32::total_cmp)
+                .1
+                .sqrt()
+        } else {
+            reach
+        };
+        kth * per_point
+    })
+}
+
+/// Each point's bandwidth and area weight from its local spacing `s` and the median spacing
+/// `s̃`: the bandwidth is the typical one `bandwidth` (never narrower, so the noise still
+/// averages out) times `s / (WIDEN_FROM · s̃)`, between 1 and [`MAX_WIDENING`]; the area
+/// weight is `(s / s̃)²`, within [`MAX_AREA_WEIGHT`] either way.
+fn local_scales(spacings: &[f32], bandwidth: f32) -> Vec<LocalScale> {
+    if spacings.is_empty() {
+        return Vec::new();
+    }
+    let mut sorted = spacings.to_vec();
+    let mid = sorted.len() / 2;
+    let typical = sorted
+        .select_nth_unstable_by(mid, f32::total_cmp)
+        .1
+        .max(f32::MIN_POSITIVE);
+    spacings
+        .iter()
+        .map(|&s| LocalScale {
+            bandwidth: bandwidth * (s / (WIDEN_FROM * typical)).clamp(1.0, MAX_WIDENING),
+            area: (s / typical)
+                .powi(2)
+                .clamp(1.0 / MAX_AREA_WEIGHT, MAX_AREA_WEIGHT),
+        })
+        .collect()
+}
+
+/// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
+/// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
+/// bandwidth); `widest` is the largest `hᵢ`.
 fn moving_planes(
     grid: &PointGrid,
     normals: &[Vec3],
     confidence: &[f32],
-    bandwidth: f32,
+    local: &[LocalScale],
+    widest: f32,
     x: Vec3,
 ) -> (f32, f32) {
-    let inverse = 1.0 / (bandwidth * bandwidth);
     let (mut weighted, mut weight) = (0.0f32, 0.0f32);
-    grid.for_each_near(x, MOVING_REACH * bandwidth, |j, p| {
+    grid.for_each_near(x, MOVING_REACH * widest, |j, p| {
         let d = x - p;
-        let w = confidence[j] * (-d.length_squared() * inverse).exp();
-        weighted += w * normals[j].dot(d);
-        weight += w;
+        let LocalScale { bandwidth, area } = local[j];
+        let reach = MOVING_REACH * bandwidth;
+        let squared = d.length_squared();
+        if squared <= reach * reach {
+            let w = confidence[j] * area * (-squared / (bandwidth * bandwidth)).exp();
+            weighted += w * normals[j].dot(d);
+            weight += w;
+        }
     });
     (weighted, weight)
 }

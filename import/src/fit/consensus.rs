@@ -5,6 +5,10 @@
 //!
 //! - **Isolated** points, with far fewer neighbours than the cloud's typical point (under
 //!   [`ISOLATED_FRACTION`] of the median count), are dropped: a stray return in empty space.
+//!   Where the noise is well under the neighbour radius, a point with few neighbours that
+//!   borders well-supported ones is not isolated but judged by the far test against both
+//!   its own neighbours' plane and its nearest well-supported neighbour's: a point of a
+//!   sparsely sampled area (a flat face beside a densely sampled edge) lies on them.
 //! - **Far** points, whose distance to their neighbours' plane is over [`FAR_DEVIATIONS`]
 //!   times the local scatter (the larger of the cloud's noise and the neighbours' own RMS
 //!   distance to the plane, so that a crease or a tight curve does not count as an
@@ -34,6 +38,10 @@ pub const FAR_DEVIATIONS: f32 = 3.5;
 /// the coordinates' scale, so that the rounding of a clean cloud's coordinates is not taken
 /// for a deviation from the plane.
 pub const PRECISION: f32 = 1e-6;
+/// A point with few neighbours is judged by its well-supported neighbours' plane only where
+/// [`FAR_DEVIATIONS`] noise levels are under this fraction of the neighbour radius (the far
+/// test can tell a stray just off the surface from a point on it).
+pub const RESCUE_RADII: f32 = 0.25;
 /// Points a cell of the neighbour search offers, at most.
 pub const CELL_OFFER: usize = 48;
 /// Points whose neighbourhoods give the noise estimate, at most (an even subset).
@@ -339,11 +347,12 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
         *counts.select_nth_unstable(mid).1
     };
     let fewest = ((median as f32 * ISOLATED_FRACTION).ceil() as usize).max(3);
+    let planes = bordering_support(points, planes, radius, fewest, sigma.max(PRECISION * size));
     let (mut isolated, mut far) = (0, 0);
     let confidence = planes
         .iter()
         .map(|plane| match plane {
-            Some((plane, off)) if plane.neighbours >= fewest => {
+            Some((plane, off)) => {
                 let local = sigma.max(plane.rms).max(PRECISION * size);
                 if *off > FAR_DEVIATIONS * local {
                     far += 1;
@@ -368,6 +377,60 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
         isolated,
         far,
     }
+}
+
+/// Per point: the plane it is judged by, or `None` where it is isolated. A point with at
+/// least `fewest` neighbours keeps its neighbours' plane and distance. One with fewer (but
+/// at least three, for a plane) that has a well-supported neighbour (one with `fewest` or
+/// more) within the radius is kept for the far test, its distance the larger of its
+/// deviations (over the local scatter) from its own neighbours' plane and from the nearest
+/// well-supported neighbour's plane, given in noise levels `sigma`: a genuine point of a
+/// sparsely sampled area (a flat face beside a densely sampled edge) lies among
+/// well-supported points and on their planes, while a stray in empty space has none about it.
+/// This holds only where the noise is well under the radius (see [`RESCUE_RADII`]).
+fn bordering_support(
+    points: &[Vec3],
+    planes: Vec<Option<(Plane, f32)>>,
+    radius: f32,
+    fewest: usize,
+    sigma: f32,
+) -> Vec<Option<(Plane, f32)>> {
+    let count = |i: usize| planes[i].as_ref().map_or(0, |(p, _)| p.neighbours);
+    // Where the noise is not well under the radius, a stray just off the surface has few
+    // neighbours and lies within the far test's reach of their planes, like a sparse genuine
+    // point: there, few neighbours mean isolated.
+    let resolves = FAR_DEVIATIONS * sigma <= RESCUE_RADII * radius;
+    let grid = PointGrid::new(points, |i| count(i) >= fewest, radius, CELL_OFFER);
+    let bordering = parallel_map(points.len(), |i| {
+        if count(i) >= fewest || !resolves {
+            return None;
+        }
+        let p = points[i];
+        let mut nearest = (f32::INFINITY, None);
+        grid.for_each_near(p, radius, |j, q| {
+            let d = (q - p).length_squared();
+            if j != i && d < nearest.0 {
+                nearest = (d, Some(j));
+            }
+        });
+        let (plane, _) = planes[nearest.1?].as_ref()?;
+        let off = (p - plane.centre).dot(plane.normal).abs();
+        Some((plane.rms, off))
+    });
+    planes
+        .into_iter()
+        .zip(bordering)
+        .map(|(own, bordering)| match (own, bordering) {
+            (Some(own), _) if own.0.neighbours >= fewest => Some(own),
+            // Judged by the larger of its deviations from the two planes.
+            (Some((plane, off)), Some((rms, off_bordering))) => {
+                let scale = |rms: f32| rms.max(sigma);
+                let worst = (off / scale(plane.rms)).max(off_bordering / scale(rms));
+                Some((Plane { rms: 0.0, ..plane }, worst * sigma))
+            }
+            _ => None,
+        })
+        .collect()
 }
 
 /// Each point's neighbours' plane (itself left out) and its distance to it.
