@@ -37,6 +37,9 @@
 //!    [`WIDEN_FROM`] times sparser than the median, so a sparse area averages over its own
 //!    points rather than a dense feature's beside it, and its weight `aᵢ` is the area it
 //!    stands for, `(sᵢ / s̃)²` over the median, so a dense edge does not outvote a sparse face.
+//!    This holds where the bandwidth is set by the spacing; where the noise sets it, the
+//!    spacing read in 3D measures the noise's thickness, not the sampling (a point far out
+//!    in the scatter would weigh more), and every point keeps `h` and weight 1.
 //!    Where no point is within reach (over a hole, near the band's edge) the plane of the
 //!    nearest point's *anchor* (the point moved onto the smoothed surface) takes over, which
 //!    spans a hole's rim with the rim's smoothed tangent planes: the hole is closed by a
@@ -491,8 +494,24 @@ pub fn sign_cloud(
     let bandwidth = (BANDWIDTH_SPACINGS * consensus.point_spacing * scale)
         .max(BANDWIDTH_NOISES * noise)
         .min(spacing);
-    let spacings = local_spacings(&points, MOVING_REACH * bandwidth);
-    let local = local_scales(&spacings, bandwidth);
+    // The local spacing is read in 3D: only where the noise is under the spacing (the
+    // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
+    // sampled rather than how thick the noise is.
+    let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * consensus.point_spacing * scale
+    {
+        local_scales(
+            &local_spacings(&points, MOVING_REACH * bandwidth),
+            bandwidth,
+        )
+    } else {
+        vec![
+            LocalScale {
+                bandwidth,
+                area: 1.0
+            };
+            points.len()
+        ]
+    };
     let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
     let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * widest, WIDE_CELL_OFFER);
     let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
