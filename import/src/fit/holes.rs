@@ -166,28 +166,7 @@ mod tests {
     /// A box of 1 × 1 × `depth` as 12 triangles, wound outward; its first two triangles are
     /// the face at z = 0.
     fn cuboid(depth: f32) -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let positions = (0..8)
-            .map(|i| {
-                Vec3::new(
-                    (i & 1) as f32,
-                    ((i >> 1) & 1) as f32,
-                    ((i >> 2) & 1) as f32 * depth,
-                )
-            })
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let triangles = quads
-            .iter()
-            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
-            .collect();
-        (positions, triangles)
+        crate::fit::test_boxes::box_mesh(Vec3::ZERO, Vec3::new(1.0, 1.0, depth))
     }
 
     #[test]

@@ -16,6 +16,8 @@ pub mod paint;
 pub mod point_file;
 pub mod points;
 pub mod sdf;
+#[cfg(test)]
+mod test_boxes;
 pub mod volume;
 pub mod watertight;
 

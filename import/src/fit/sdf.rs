@@ -352,31 +352,12 @@ mod tests {
 
     /// An axis-aligned box from `lo` to `hi` as 12 triangles, wound `outward` or inward.
     fn cuboid(lo: Vec3, hi: Vec3, outward: bool) -> WeldedMesh {
-        let corner = |i: usize| {
-            Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        };
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let mut triangles = Vec::new();
-        for q in quads {
-            for mut tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-                if !outward {
-                    tri.swap(1, 2);
-                }
-                triangles.push(tri);
+        let (positions, mut triangles) = crate::fit::test_boxes::box_mesh(lo, hi);
+        if !outward {
+            for tri in &mut triangles {
+                tri.swap(1, 2);
             }
         }
-        let positions: Vec<Vec3> = (0..8).map(corner).collect();
         let (mesh, check) = check_closed(&positions, &triangles);
         assert!(check.is_closed());
         mesh

@@ -282,24 +282,12 @@ mod tests {
     /// A unit cube, twelve triangles wound outward, with every corner repeated per triangle
     /// (as an STL stores it).
     fn cube_soup() -> (Vec<Vec3>, Vec<[u32; 3]>) {
-        let corners: Vec<Vec3> = (0..8)
-            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
+        let (corners, triangles) = crate::fit::test_boxes::box_mesh(Vec3::ZERO, Vec3::ONE);
         let (mut v, mut t) = (Vec::new(), Vec::new());
-        for q in quads {
-            for tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
-                let base = v.len() as u32;
-                v.extend(tri.map(|i| corners[i]));
-                t.push([base, base + 1, base + 2]);
-            }
+        for tri in triangles {
+            let base = v.len() as u32;
+            v.extend(tri.map(|i| corners[i as usize]));
+            t.push([base, base + 1, base + 2]);
         }
         (v, t)
     }
