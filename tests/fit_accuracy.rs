@@ -283,8 +283,8 @@ fn a_rounded_box_cloud_fits_within_one_percent_clean_noisy_and_holed() {
 
 #[test]
 fn detail_patches_bring_a_sharper_box_closer() {
-    // Edges rounded by 0.05, half a knot span: the base alone rounds them off; at a bound of
-    // 0.1% of the size the octree adds patches and the surface comes closer.
+    // Edges rounded by 0.05, half a knot span: the base alone rounds them off (about 0.1% of
+    // the size RMS); at a bound of 0.05% the octree adds patches and the surface comes closer.
     let shape = Shape::RoundedBox {
         half: Vec3::new(1.0, 0.7, 0.5),
         round: 0.05,
@@ -296,7 +296,7 @@ fn detail_patches_bring_a_sharper_box_closer() {
     };
     let base = check_with("sharper box, base", shape, points.clone(), 0.01, &flat);
     let tight = HierarchyOptions {
-        error: 0.001,
+        error: 0.0005,
         max_depth: 2,
         ..HierarchyOptions::default()
     };
@@ -395,6 +395,8 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         rms: 0.0,
         levels: Vec::new(),
         over_budget: false,
+        screening: Default::default(),
+        bound: 0.0,
     };
     let truth = shape.sample(20_000, &mut Rng(5));
     let (there, back) = hausdorff(&as_hier, &mesh, shape, &truth);

@@ -152,6 +152,11 @@ pub struct ImportArgs {
     /// `d` has half the knot spacing of level `d − 1`.
     #[arg(long, default_value_t = crate::fit::hierarchy::DEFAULT_MAX_DEPTH, value_name = "D")]
     pub max_depth: u32,
+    /// A point cloud's noise: the scatter of its points across the surface (standard
+    /// deviation), in percent of the object's size. Estimated from the cloud when not given;
+    /// the fit smooths at this scale and makes no detail patch finer than it.
+    #[arg(long, value_name = "PERCENT")]
+    pub noise: Option<f32>,
     /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,

@@ -62,6 +62,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         gap_spans: args.gap,
         error_percent: args.error,
         max_depth: args.max_depth,
+        noise_percent: args.noise,
         iso: args.iso,
         midrange_iso: false,
         raw: args.dims.map(|dims| {

@@ -1,40 +1,74 @@
-//! A clay fitted to a point cloud, on one lattice.
+//! A clay fitted to a point cloud, on one lattice: the surface the points agree on, not their
+//! noise.
 //!
-//! 1. **Placement.** The cloud is scaled and centred so that its longest side spans the
-//!    lattice less a margin of [`MARGIN_SPANS`] knot spans on each side (room for the density
-//!    transition and the B-spline support); [`CloudFit::to_field`] maps file units to field
-//!    units.
-//! 2. **Distance.** On the fit's sample grid (`samples_per_span` points per knot span, the
-//!    grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point gets its
-//!    distance to the nearest point (each point visits the nodes around it: no search
-//!    structure, `O(points · band nodes)`).
-//! 3. **Sign.** The exterior is found by closing, after the tagging of Zhao, Osher & Fedkiw
-//!    (2001): the grid nodes farther than the gap `τ` from every point (an exact distance
-//!    transform) are flooded from the grid's boundary, so the flood cannot pass a hole
-//!    narrower than `2τ`; the flooded region is then grown back by `τ`. The growth stops
-//!    short of the points and reaches into a hole as far as a ball of radius `τ` rolled over
-//!    it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
-//!    letting the outside in. Each point needs an outward normal: the file's, or else the
-//!    direction of least variance of its neighbours (principal components) turned toward the
-//!    exterior (the side nearer the grown region). A node within the band takes its signed
-//!    distance to its nearest point's tangent plane, smooth across the surface (the distance
-//!    to the nearest point alone would dimple between points), which also spans a hole's
-//!    rim with the rim's tangent planes: the hole is closed by a smooth cap that continues
-//!    the surface around it (Hua & Qin Fig. 6; on a convex surface the rim's planes meet a
-//!    little above the missing part, 0.06 of the tube's radius over a hole 1.4 radii wide in
-//!    the test). Beyond the band, exterior nodes are outside and the rest inside.
-//! 4. **Fit.** The signed distances become the clay's density profile
+//! 1. **Screening.** Each point is compared with the plane its neighbours agree on
+//!    ([`super::consensus`]): isolated points and points off that plane by more than a few
+//!    local deviations are dropped (the log counts them), the rest get a confidence that
+//!    falls with their distance to it, and the noise level (the per-point scatter across the
+//!    surface) is estimated as the median of the neighbourhoods' RMS distances to their
+//!    planes, unless [`CloudFitOptions::noise`] gives it.
+//! 2. **Placement.** The kept points are scaled and centred so that their longest side spans
+//!    the lattice less a margin of [`MARGIN_SPANS`] knot spans on each side (room for the
+//!    density transition and the B-spline support); [`CloudFit::to_field`] maps file units to
+//!    field units.
+//! 3. **Band and exterior.** On the fit's sample grid (`samples_per_span` points per knot
+//!    span, the grid `fit_lattice` samples), every node within [`BAND_SPANS`] spans of a point
+//!    learns its nearest point. The exterior is found globally by closing, after the tagging
+//!    of Zhao, Osher & Fedkiw (2001): the grid nodes farther than the gap `τ` from every point
+//!    (an exact distance transform) are flooded from the grid's boundary, so the flood cannot
+//!    pass a hole narrower than `2τ`; the flooded region is then grown back by `τ`. The growth
+//!    stops short of the points and reaches into a hole as far as a ball of radius `τ` rolled
+//!    over it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
+//!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
+//! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
+//!    variance of its neighbours turned toward the exterior (the side nearer the grown
+//!    region); either is then averaged over its neighbours with the moving planes' Gaussian,
+//!    so one noisy or flipped normal cannot turn the side of the surface.
+//! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
+//!    of the distances to the neighbouring points' tangent planes, each weighted by its
+//!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ nᵢ·(x − pᵢ) / Σ wᵢ`,
+//!    `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`. The typical bandwidth `h` is set by the data: at
+//!    least [`BANDWIDTH_SPACINGS`] typical point spacings and [`BANDWIDTH_NOISES`] noise
+//!    levels, at most a knot span, so the mean runs over enough points that the noise
+//!    averages out. Sampling is rarely even (a scanner, or a sampler that crowds the points
+//!    onto an edge and thins the faces beside it), so each point's plane has its own scale
+//!    from its local spacing `sᵢ` (from its [`LOCAL_NEIGHBOURS`]-th nearest point): its
+//!    bandwidth `hᵢ` widens from `h` (up to [`MAX_WIDENING`] times) where the points are over
+//!    [`WIDEN_FROM`] times sparser than the median, so a sparse area averages over its own
+//!    points rather than a dense feature's beside it, and its weight `aᵢ` is the area it
+//!    stands for, `(sᵢ / s̃)²` over the median, so a dense edge does not outvote a sparse face.
+//!    This holds where the bandwidth is set by the spacing; where the noise sets it, the
+//!    spacing read in 3D measures the noise's thickness, not the sampling (a point far out
+//!    in the scatter would weigh more), and every point keeps `h` and weight 1.
+//!    Where no point is within reach (over a hole, near the band's edge) the plane of the
+//!    nearest point's *anchor* (the point moved onto the smoothed surface) takes over, which
+//!    spans a hole's rim with the rim's smoothed tangent planes: the hole is closed by a
+//!    smooth cap that continues the surface around it (Hua & Qin Fig. 6).
+//! 6. **Pieces.** The signed grid's enclosed pieces smaller than [`MIN_PIECE_FRACTION`] of the
+//!    largest are turned outside, and its enclosed cavities as small are filled: a blob or a
+//!    bubble that size is noise, not data (the log counts them).
+//! 7. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
-//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`).
+//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`), then
+//!    refitted by weighted, regularised least squares ([`super::regularised`]): each sample
+//!    weighs by how much the points hold it (the moving planes' total weight `W`, as
+//!    `W / (W + 1)`, and [`UNHELD_WEIGHT`] beyond their reach), beside a bending energy on the
+//!    coefficients ([`BENDING_WEIGHT`]), so the clay follows the data where it is dense and
+//!    stays smooth where it is not (over holes, far from the points).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
-//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`].
+//! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
+//! bound never below the noise level.
 
 use std::collections::VecDeque;
 
 use glam::Vec3;
 
+use super::consensus::{
+    CELL_OFFER, Consensus, PointGrid, least_variance_direction, parallel_map, screen,
+};
 use super::points::PointCloud;
+use super::regularised::refit_regularised;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
 
 /// Empty knot spans kept around the object on each side.
@@ -58,6 +92,9 @@ pub struct CloudFitOptions {
     pub samples_per_span: usize,
     /// The gap `τ` of the sign tagging, knot spans.
     pub gap_spans: f32,
+    /// The cloud's noise (standard deviation of its points across the surface) as a fraction
+    /// of the object's size (its box's longest side); estimated from the cloud when `None`.
+    pub noise: Option<f32>,
 }
 
 impl Default for CloudFitOptions {
@@ -67,6 +104,7 @@ impl Default for CloudFitOptions {
             spacing: dynaclay_core::field::CLAY_SPACING,
             samples_per_span: 2,
             gap_spans: DEFAULT_GAP_SPANS,
+            noise: None,
         }
     }
 }
@@ -139,18 +177,49 @@ pub fn fit_point_cloud(
 
 /// A cloud placed in the lattice's space and signed: every node of the signing grid knows
 /// its nearest point within the band (or, beyond it, whether it is outside), and every point
-/// its outward normal. [`SignedCloud::signed_distance`] answers anywhere in the lattice.
+/// its smoothed outward normal. [`SignedCloud::signed_distance`] answers anywhere in the
+/// lattice.
 pub struct SignedCloud {
-    /// The points, field units.
+    /// The points kept by the screening, field units.
     pub points: Vec<Vec3>,
-    /// Their unit outward normals; zero for a point no node takes its plane from (normals
-    /// are estimated only where they are used).
+    /// Their unit outward normals, smoothed over the bandwidth.
     pub normals: Vec<Vec3>,
+    /// Their confidence in `(0, 1]` (see [`super::consensus`]).
+    pub confidence: Vec<f32>,
+    /// Each point moved onto the smoothed surface along its normal: the plane a node far
+    /// from the points (beyond the bandwidth) takes its distance from.
+    anchors: Vec<Vec3>,
+    /// The points bucketed for the moving planes (cells of [`MOVING_REACH`] times the widest
+    /// point's bandwidth).
+    near_points: PointGrid,
+    /// Per point: its plane's bandwidth and weight, set by the local spacing (see
+    /// [`LocalScale`]).
+    local: Vec<LocalScale>,
+    /// The Gaussian bandwidth of the moving planes where the cloud has its typical spacing,
+    /// field units (a point's own is between this and [`MAX_WIDENING`] times it).
+    pub bandwidth: f32,
+    /// The widest point's bandwidth, field units.
+    widest: f32,
+    /// The noise level, field units (given or estimated).
+    pub noise: f32,
+    /// What the screening found (counts, noise, spacing; file units).
+    pub consensus: Consensus,
     grid: SignGrid,
     /// Per node: its nearest point within the band, or [`NO_POINT`].
     nearest: Vec<u32>,
     /// Per node: outside the closed surface (used beyond the band).
     exterior: Vec<bool>,
+    /// Per node: the side a removed piece was turned to (`+1` outside, `−1` inside), or 0.
+    forced: Vec<i8>,
+    /// Per node: the signed distance there (the fit samples at the nodes).
+    node_distance: Vec<f32>,
+    /// Per node: how much the data holds it, in `(0, 1)` (the weight of its sample in the
+    /// regularised fit).
+    node_confidence: Vec<f32>,
+    /// Pieces removed as too small, and cavities filled.
+    pub removed_pieces: usize,
+    /// See [`SignedCloud::removed_pieces`].
+    pub filled_cavities: usize,
     /// The density profile's width, field units (two knot spans of the base lattice).
     pub width: f32,
     /// The base lattice's resolution and spacing.
@@ -167,22 +236,74 @@ pub struct SignedCloud {
     pub signed_by: SignedBy,
 }
 
+/// The moving planes reach this many bandwidths (the Gaussian is `e⁻⁴` there).
+pub const MOVING_REACH: f32 = 2.0;
+/// The weight of the nearest point's plane beside the moving planes: it takes over only where
+/// no point lies within reach (over a hole, far from the cloud).
+const FALLBACK_WEIGHT: f32 = 1e-3;
+/// An enclosed piece (or cavity) of the signed grid smaller than this fraction of the largest
+/// piece is removed (filled): noise, not data.
+pub const MIN_PIECE_FRACTION: f32 = 0.01;
+
 /// A node with no point within the band.
 const NO_POINT: u32 = u32::MAX;
 
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
-    /// band, the distance to the tangent plane of the point nearest `x` among the nearest
-    /// points of the eight grid nodes around it (exact for a plane, smooth across the
-    /// surface; at a node, its own nearest point); beyond the band, twice the profile's width
-    /// with the side the tagging found.
+    /// band, the Gaussian-weighted mean of the distances to the neighbouring points' tangent
+    /// planes (each weighted by its confidence; an implicit moving least squares), which
+    /// falls back to the plane of the nearest point's anchor where no point is within reach;
+    /// beyond the band, twice the profile's width with the side the tagging found. A node of a
+    /// removed piece (or a filled cavity) answers the side it was turned to.
     #[must_use]
     pub fn signed_distance(&self, x: Vec3) -> f32 {
-        match self.nearest_point(x) {
-            Some(p) => (x - self.points[p]).dot(self.normals[p]),
-            None if self.exterior[self.grid.nearest_node(x)] => 2.0 * self.width,
-            None => -2.0 * self.width,
+        let node = self.grid.nearest_node(x);
+        match self.forced[node] {
+            1 => return 2.0 * self.width,
+            -1 => return -2.0 * self.width,
+            _ => {}
         }
+        self.unforced_distance(x)
+    }
+
+    fn unforced_distance(&self, x: Vec3) -> f32 {
+        self.distance_and_support(x).0
+    }
+
+    /// The unforced signed distance at `x` and the moving planes' total weight there (how
+    /// much data holds it; 0 beyond their reach).
+    fn distance_and_support(&self, x: Vec3) -> (f32, f32) {
+        match self.nearest_point(x) {
+            Some(p) => {
+                let fallback = (x - self.anchors[p]).dot(self.normals[p]);
+                // The nearest of the nodes' nearest points is within a node's diagonal of the
+                // nearest point: beyond reach by more than that, no point is within reach.
+                let beyond = MOVING_REACH * self.widest + 1.8 * self.grid.h;
+                if (x - self.points[p]).length_squared() > beyond * beyond {
+                    return (fallback, 0.0);
+                }
+                let (weighted, weight) = self.moving_planes(x);
+                (
+                    (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
+                    weight,
+                )
+            }
+            None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
+            None => (-2.0 * self.width, 0.0),
+        }
+    }
+
+    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach of `x`,
+    /// `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`.
+    fn moving_planes(&self, x: Vec3) -> (f32, f32) {
+        moving_planes(
+            &self.near_points,
+            &self.normals,
+            &self.confidence,
+            &self.local,
+            self.widest,
+            x,
+        )
     }
 
     /// The point nearest `x` among the nearest points of the eight nodes around it.
@@ -213,6 +334,19 @@ impl SignedCloud {
         self.nearest_point(x).map(|p| self.normals[p])
     }
 
+    /// The density at a node of the signing grid from the distance stored there, or at any
+    /// other point as [`SignedCloud::density`].
+    fn node_density(&self, x: Vec3) -> f32 {
+        let node = self.grid.nearest_node(x);
+        let [i, j, k] = self.grid.coords(node);
+        let at = Vec3::new(i as f32, j as f32, k as f32) * self.grid.h;
+        if (at - x).abs().max_element() <= 1e-4 * self.grid.h {
+            density_profile(self.node_distance[node], self.width)
+        } else {
+            self.density(x)
+        }
+    }
+
     /// The density the clay is fitted to at `x`: the profile of the signed distance,
     /// `clamp(0.5 − d / width, 0, 1)`, the clay's iso-level 0.5 on the surface.
     #[must_use]
@@ -234,12 +368,27 @@ impl SignedCloud {
                     self.spacing
                 ))
             })?;
-        fit_lattice(&mut lattice, self.samples_per_span, |x| self.density(x))?;
+        fit_lattice(&mut lattice, self.samples_per_span, |x| {
+            self.node_density(x)
+        })?;
+        let targets: Vec<f32> = self
+            .node_distance
+            .iter()
+            .map(|&d| density_profile(d, self.width))
+            .collect();
+        refit_regularised(
+            &mut lattice,
+            self.samples_per_span,
+            &targets,
+            &self.node_confidence,
+            BENDING_WEIGHT,
+            REGULARISED_STEPS,
+        );
         Ok(lattice)
     }
 }
 
-/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–3 of the module
+/// Places `cloud` in an `options.resolution`³ lattice and signs it (steps 1–4 of the module
 /// docs).
 ///
 /// # Errors
@@ -268,35 +417,62 @@ pub fn sign_cloud(
             options.gap_spans
         )));
     }
+    if let Some(noise) = options.noise
+        && !(noise.is_finite() && (0.0..=MAX_NOISE).contains(&noise))
+    {
+        return Err(CloudFitError::Options(format!(
+            "noise {}% of the size: must be 0 to {}%",
+            noise * 100.0,
+            MAX_NOISE * 100.0
+        )));
+    }
     let spacing = options.spacing;
-    let (lo, hi) = cloud
-        .points
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
-            (a.min(p), b.max(p))
-        });
+    let (lo, hi) = bounds(cloud.points.iter().copied());
     let extent = (hi - lo).max_element();
     if !extent.is_finite() || extent <= 0.0 {
         return Err(CloudFitError::Degenerate);
     }
+    // Step 1: the points that agree on a surface, and the noise.
+    let mut consensus = screen(&cloud.points, extent, options.noise.map(|f| f * extent));
+    if consensus.kept() < (cloud.points.len() / 2).max(8) {
+        // Too few agree for the screening to be trusted (a tiny or very sparse cloud): keep
+        // every point at full confidence.
+        consensus.confidence.fill(1.0);
+        consensus.isolated = 0;
+        consensus.far = 0;
+    }
+    let kept: Vec<usize> = (0..cloud.points.len())
+        .filter(|&i| consensus.confidence[i] > 0.0)
+        .collect();
+    let (lo, hi) = bounds(kept.iter().map(|&i| cloud.points[i]));
+    let extent = (hi - lo).max_element();
+    if !extent.is_finite() || extent <= 0.0 {
+        return Err(CloudFitError::Degenerate);
+    }
+    // Step 2: placement.
     let span_total = (n - 1) as f32 - 2.0 * MARGIN_SPANS;
     let scale = span_total * spacing / extent;
     let centre_field = Vec3::splat((n - 1) as f32 * spacing * 0.5);
     let offset = centre_field - (lo + hi) * 0.5 * scale;
-    let points: Vec<Vec3> = cloud.points.iter().map(|&p| p * scale + offset).collect();
+    let points: Vec<Vec3> = kept
+        .iter()
+        .map(|&i| cloud.points[i] * scale + offset)
+        .collect();
+    let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
 
+    // Steps 3–4: band, exterior, normals.
     let grid = SignGrid::new(n, spacing, sps);
     let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
     let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
     let given = cloud
         .normals
         .as_ref()
-        .filter(|ns| ns.len() == points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
-    let (normals, signed_by) = match given {
+        .filter(|ns| ns.len() == cloud.points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
+    let (raw_normals, signed_by) = match given {
         Some(ns) => (
-            ns.iter()
-                .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
-                .collect(),
+            kept.iter()
+                .map(|&i| ns[i].try_normalize().unwrap_or(Vec3::Y))
+                .collect::<Vec<_>>(),
             SignedBy::Normals,
         ),
         None => {
@@ -308,31 +484,92 @@ pub fn sign_cloud(
                 to_exterior[grid.nearest_node(p - n * probe)]
                     - to_exterior[grid.nearest_node(p + n * probe)]
             };
-            // Only the points some node takes its plane from need a normal (a dense cloud
-            // has many more points than band nodes).
-            let mut wanted = vec![false; points.len()];
-            for (&p, d) in nearest.iter().zip(&dist) {
-                if d.is_finite() {
-                    wanted[p as usize] = true;
-                }
-            }
+            let wanted = vec![true; points.len()];
             (
                 estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
                 SignedBy::Tagging,
             )
         }
     };
-    let nearest = nearest
+    // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
+    let noise = consensus.noise * scale;
+    let bandwidth = (BANDWIDTH_SPACINGS * consensus.point_spacing * scale)
+        .max(BANDWIDTH_NOISES * noise)
+        .min(spacing);
+    // The local spacing is read in 3D: only where the noise is under the spacing (the
+    // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
+    // sampled rather than how thick the noise is.
+    let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * consensus.point_spacing * scale
+    {
+        local_scales(
+            &local_spacings(&points, MOVING_REACH * bandwidth),
+            bandwidth,
+        )
+    } else {
+        vec![
+            LocalScale {
+                bandwidth,
+                area: 1.0
+            };
+            points.len()
+        ]
+    };
+    let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
+    let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * widest, WIDE_CELL_OFFER);
+    let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
+        let p = points[i];
+        let mut sum = Vec3::ZERO;
+        near_points.for_each_near(p, MOVING_REACH * bandwidth, |j, q| {
+            let w = confidence[j] * (-(q - p).length_squared() / (bandwidth * bandwidth)).exp();
+            sum += raw_normals[j] * w;
+        });
+        sum.try_normalize().unwrap_or(raw_normals[i])
+    });
+    // Only the points some node takes its fallback plane from need an anchor.
+    let mut wanted = vec![false; points.len()];
+    for (&p, d) in nearest.iter().zip(&dist) {
+        if d.is_finite() {
+            wanted[p as usize] = true;
+        }
+    }
+    let anchors: Vec<Vec3> = parallel_map(points.len(), |i| {
+        let (p, normal) = (points[i], normals[i]);
+        if !wanted[i] {
+            return p;
+        }
+        let (weighted, weight) =
+            moving_planes(&near_points, &normals, &confidence, &local, widest, p);
+        if weight > 0.0 {
+            p - normal * (weighted / weight)
+        } else {
+            p
+        }
+    });
+    let nearest: Vec<u32> = nearest
         .into_iter()
         .zip(&dist)
         .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
-    Ok(SignedCloud {
+    let count = grid.count();
+    let mut signed = SignedCloud {
         points,
         normals,
+        confidence,
+        anchors,
+        near_points,
+        local,
+        bandwidth,
+        widest,
+        noise,
+        consensus,
         grid,
         nearest,
         exterior,
+        forced: vec![0; count],
+        node_distance: Vec::new(),
+        node_confidence: Vec::new(),
+        removed_pieces: 0,
+        filled_cavities: 0,
         width: 2.0 * spacing,
         resolution: n,
         spacing,
@@ -340,7 +577,239 @@ pub fn sign_cloud(
         scale,
         offset,
         signed_by,
+    };
+    // Step 6: the distance at every node, and the pieces too small to be data.
+    let at_nodes = parallel_map(count, |at| {
+        let [i, j, k] = signed.grid.coords(at);
+        signed.distance_and_support(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
+    });
+    signed.node_distance = at_nodes.iter().map(|&(d, _)| d).collect();
+    signed.node_confidence = at_nodes
+        .iter()
+        .map(|&(_, support)| UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0))
+        .collect();
+    signed.remove_small_pieces();
+    Ok(signed)
+}
+
+/// A sample's weight in the regularised fit where no point holds it (beyond the moving
+/// planes' reach: over a hole, far from the cloud); near the points it rises toward 1 with
+/// the planes' total weight `W` as `W / (W + 1)`.
+pub const UNHELD_WEIGHT: f32 = 0.1;
+/// The bending energy's weight `λ` in the regularised fit of the base lattice (see
+/// [`super::regularised`]).
+pub const BENDING_WEIGHT: f32 = 0.002;
+/// Conjugate-gradient steps of the regularised fit, at most: it starts from the plain fit,
+/// which is near, and the steps are its main cost.
+pub const REGULARISED_STEPS: usize = 20;
+
+/// The largest noise an import accepts, as a fraction of the object's size.
+pub const MAX_NOISE: f32 = 0.1;
+/// The moving planes' bandwidth, at least, in typical point spacings (about fifteen points
+/// under the Gaussian).
+pub const BANDWIDTH_SPACINGS: f32 = 1.5;
+/// The moving planes' bandwidth, at least, in noise levels (the mean of the neighbours'
+/// planes scatters far less than one point's).
+pub const BANDWIDTH_NOISES: f32 = 2.0;
+
+/// The box of `points`.
+fn bounds(points: impl Iterator<Item = Vec3>) -> (Vec3, Vec3) {
+    points.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), p| {
+        (a.min(p), b.max(p))
     })
+}
+
+/// The neighbours whose distance sets a point's local spacing (the `k` of a k-nearest search).
+pub const LOCAL_NEIGHBOURS: usize = 8;
+/// A point's bandwidth, at most, in typical bandwidths: a sparsely sampled area averages over
+/// its own points out to this, rather than over a denser feature's beside it.
+pub const MAX_WIDENING: f32 = 2.0;
+/// A point's bandwidth widens only where its local spacing is over this many median
+/// spacings: a point on a hole's rim has half a disc of neighbours (its spacing about √2
+/// times the median) and keeps the typical bandwidth, so the rim's tangent planes do not
+/// reach further over the hole and flatten its cap.
+pub const WIDEN_FROM: f32 = 1.5;
+/// The weight a plane gets for the area its point stands for, at most, relative to a point
+/// at the typical spacing (and at least its inverse).
+pub const MAX_AREA_WEIGHT: f32 = 16.0;
+/// Points a cell of the moving planes' search offers, at most: its cells are up to
+/// [`MAX_WIDENING`] times wider each way than the screening's, so they hold more points.
+const WIDE_CELL_OFFER: usize = 4 * CELL_OFFER;
+
+/// A point's own scale in the moving planes.
+#[derive(Clone, Copy, Debug)]
+struct LocalScale {
+    /// The Gaussian bandwidth of its plane, field units.
+    bandwidth: f32,
+    /// Its plane's weight for the area it stands for: its local spacing² over the typical
+    /// spacing², so a densely sampled feature does not outvote a sparsely sampled one.
+    area: f32,
+}
+
+/// Each point's local spacing, field units: the area per point of the disc out to its
+/// [`LOCAL_NEIGHBOURS`]-th nearest other point, `d_k √(π / k)` (so that points on an even
+/// grid of step `s` get about `s`). Searched within `reach`: a point with fewer neighbours
+/// than that within it is given the spacing `reach` would give.
+fn local_spacings(points: &[Vec3], reach: f32) -> Vec<f32> {
+    let grid = PointGrid::new(points, |_| true, reach, WIDE_CELL_OFFER);
+    let per_point = (std::f32::consts::PI / LOCAL_NEIGHBOURS as f32).sqrt();
+    parallel_map(points.len(), |i| {
+        let p = points[i];
+        let mut near: Vec<f32> = Vec::with_capacity(4 * LOCAL_NEIGHBOURS);
+        grid.for_each_near(p, reach, |j, q| {
+            if j != i {
+                near.push((q - p).length_squared());
+            }
+        });
+        let kth = if near.len() >= LOCAL_NEIGHBOURS {
+            near.select_nth_unstable_by(LOCAL_NEIGHBOURS - 1, f32::total_cmp)
+                .1
+                .sqrt()
+        } else {
+            reach
+        };
+        kth * per_point
+    })
+}
+
+/// Each point's bandwidth and area weight from its local spacing `s` and the median spacing
+/// `s̃`: the bandwidth is the typical one `bandwidth` (never narrower, so the noise still
+/// averages out) times `s / (WIDEN_FROM · s̃)`, between 1 and [`MAX_WIDENING`]; the area
+/// weight is `(s / s̃)²`, within [`MAX_AREA_WEIGHT`] either way.
+fn local_scales(spacings: &[f32], bandwidth: f32) -> Vec<LocalScale> {
+    if spacings.is_empty() {
+        return Vec::new();
+    }
+    let mut sorted = spacings.to_vec();
+    let mid = sorted.len() / 2;
+    let typical = sorted
+        .select_nth_unstable_by(mid, f32::total_cmp)
+        .1
+        .max(f32::MIN_POSITIVE);
+    spacings
+        .iter()
+        .map(|&s| LocalScale {
+            bandwidth: bandwidth * (s / (WIDEN_FROM * typical)).clamp(1.0, MAX_WIDENING),
+            area: (s / typical)
+                .powi(2)
+                .clamp(1.0 / MAX_AREA_WEIGHT, MAX_AREA_WEIGHT),
+        })
+        .collect()
+}
+
+/// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
+/// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
+/// bandwidth); `widest` is the largest `hᵢ`.
+fn moving_planes(
+    grid: &PointGrid,
+    normals: &[Vec3],
+    confidence: &[f32],
+    local: &[LocalScale],
+    widest: f32,
+    x: Vec3,
+) -> (f32, f32) {
+    let (mut weighted, mut weight) = (0.0f32, 0.0f32);
+    grid.for_each_near(x, MOVING_REACH * widest, |j, p| {
+        let d = x - p;
+        let LocalScale { bandwidth, area } = local[j];
+        let reach = MOVING_REACH * bandwidth;
+        let squared = d.length_squared();
+        if squared <= reach * reach {
+            let w = confidence[j] * area * (-squared / (bandwidth * bandwidth)).exp();
+            weighted += w * normals[j].dot(d);
+            weight += w;
+        }
+    });
+    (weighted, weight)
+}
+
+/// What the screening and the clean-up did, for the log.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Screening {
+    /// Points read.
+    pub points: usize,
+    /// Points dropped for having too few neighbours.
+    pub isolated: usize,
+    /// Points dropped for lying off their neighbours' plane.
+    pub far: usize,
+    /// The noise level (standard deviation across the surface), fraction of the object's
+    /// size.
+    pub noise: f32,
+    /// Whether the noise was given rather than estimated.
+    pub noise_given: bool,
+    /// The moving planes' bandwidth, fraction of the object's size.
+    pub bandwidth: f32,
+    /// Enclosed pieces removed as too small.
+    pub removed_pieces: usize,
+    /// Enclosed cavities filled as too small.
+    pub filled_cavities: usize,
+}
+
+impl SignedCloud {
+    /// The object's size (its box's longest side), field units.
+    #[must_use]
+    pub fn size(&self) -> f32 {
+        let (lo, hi) = bounds(self.points.iter().copied());
+        (hi - lo).max_element().max(f32::MIN_POSITIVE)
+    }
+
+    /// What the screening and the clean-up did.
+    #[must_use]
+    pub fn screening(&self) -> Screening {
+        let size = self.size();
+        Screening {
+            points: self.consensus.confidence.len(),
+            isolated: self.consensus.isolated,
+            far: self.consensus.far,
+            noise: self.noise / size,
+            noise_given: self.consensus.noise_given,
+            bandwidth: self.bandwidth / size,
+            removed_pieces: self.removed_pieces,
+            filled_cavities: self.filled_cavities,
+        }
+    }
+
+    /// Removes the enclosed pieces of the signed grid smaller than [`MIN_PIECE_FRACTION`] of
+    /// the largest (their nodes are turned outside) and fills the cavities as small (turned
+    /// inside): a blob or a bubble that size is noise the data does not support.
+    fn remove_small_pieces(&mut self) {
+        let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
+        let (pieces, piece_sizes) = self.grid.components(|at| inside[at]);
+        let Some(&largest) = piece_sizes.iter().max() else {
+            return;
+        };
+        let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
+        let (holes, hole_sizes) = self.grid.components(|at| !inside[at]);
+        let open = self.grid.boundary_components(&holes);
+        for (at, forced) in self.forced.iter_mut().enumerate() {
+            if inside[at] {
+                if piece_sizes[pieces[at] as usize] < least {
+                    *forced = 1;
+                }
+            } else {
+                let h = holes[at] as usize;
+                if !open[h] && hole_sizes[h] < least {
+                    *forced = -1;
+                }
+            }
+        }
+        self.removed_pieces = piece_sizes.iter().filter(|&&s| s < least).count();
+        self.filled_cavities = hole_sizes
+            .iter()
+            .enumerate()
+            .filter(|&(h, &s)| !open[h] && s < least)
+            .count();
+        for (d, &f) in self.node_distance.iter_mut().zip(&self.forced) {
+            if f != 0 {
+                *d = f32::from(f) * 2.0 * self.width;
+            }
+        }
+        for (c, &f) in self.node_confidence.iter_mut().zip(&self.forced) {
+            if f != 0 {
+                *c = 1.0;
+            }
+        }
+    }
 }
 
 /// The signing grid: the fit's sample grid over the whole lattice.
@@ -475,6 +944,77 @@ impl SignGrid {
             }
         }
         outside
+    }
+
+    /// 6-connected components of the nodes where `member` holds: per node its component
+    /// (`u32::MAX` for a non-member), and each component's node count.
+    fn components(&self, member: impl Fn(usize) -> bool) -> (Vec<u32>, Vec<usize>) {
+        let [mx, my, mz] = self.dims;
+        let mut label = vec![u32::MAX; self.count()];
+        let mut sizes = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..self.count() {
+            if label[start] != u32::MAX || !member(start) {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            label[start] = id;
+            stack.push(start);
+            let mut size = 0;
+            while let Some(at) = stack.pop() {
+                size += 1;
+                let [i, j, k] = self.coords(at);
+                let mut visit = |n: usize| {
+                    if label[n] == u32::MAX && member(n) {
+                        label[n] = id;
+                        stack.push(n);
+                    }
+                };
+                if i > 0 {
+                    visit(at - 1);
+                }
+                if i + 1 < mx {
+                    visit(at + 1);
+                }
+                if j > 0 {
+                    visit(at - mx);
+                }
+                if j + 1 < my {
+                    visit(at + mx);
+                }
+                if k > 0 {
+                    visit(at - mx * my);
+                }
+                if k + 1 < mz {
+                    visit(at + mx * my);
+                }
+            }
+            sizes.push(size);
+        }
+        (label, sizes)
+    }
+
+    /// Per component of `label` (as [`SignGrid::components`] gives): whether it touches the
+    /// grid's boundary.
+    fn boundary_components(&self, label: &[u32]) -> Vec<bool> {
+        let [mx, my, mz] = self.dims;
+        let count = label
+            .iter()
+            .filter(|&&l| l != u32::MAX)
+            .map(|&l| l as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let mut open = vec![false; count];
+        for (at, &l) in label.iter().enumerate() {
+            if l == u32::MAX {
+                continue;
+            }
+            let [i, j, k] = self.coords(at);
+            if i == 0 || j == 0 || k == 0 || i == mx - 1 || j == my - 1 || k == mz - 1 {
+                open[l as usize] = true;
+            }
+        }
+        open
     }
 
     /// Euclidean distance from each node to the nearest node of `set` (infinite when `set` is
@@ -655,36 +1195,6 @@ fn estimate_normals(
             n.try_normalize().unwrap_or(Vec3::Y)
         })
         .collect()
-}
-
-/// The eigenvector of the symmetric `cov` with the smallest eigenvalue: power iteration on
-/// `trace · I − cov`, whose largest eigenvalue it is, started near the axis of least variance.
-fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
-    let trace = cov[0][0] + cov[1][1] + cov[2][2];
-    let start = (0..3)
-        .min_by(|&a, &b| cov[a][a].total_cmp(&cov[b][b]))
-        .unwrap_or(0);
-    // A nudge off the axis, in case the axis is orthogonal to the answer.
-    let mut v = glam::DVec3::splat(1e-3);
-    v[start] = 1.0;
-    for _ in 0..60 {
-        let w = glam::DVec3::new(
-            trace * v.x - (cov[0][0] * v.x + cov[0][1] * v.y + cov[0][2] * v.z),
-            trace * v.y - (cov[1][0] * v.x + cov[1][1] * v.y + cov[1][2] * v.z),
-            trace * v.z - (cov[2][0] * v.x + cov[2][1] * v.y + cov[2][2] * v.z),
-        );
-        let len = w.length();
-        if len.is_nan() || len <= 0.0 {
-            break;
-        }
-        let next = w / len;
-        let settled = (next - v).length_squared() < 1e-12;
-        v = next;
-        if settled {
-            break;
-        }
-    }
-    v.as_vec3()
 }
 
 #[cfg(test)]

@@ -9,8 +9,10 @@
 //!    `(F − target) · width` over its samples: with the profile's slope `1 / width`, that is
 //!    how far the surface lies from where the data puts it, in field units. The bound is
 //!    given as a fraction of the object's size (the longest side of the cloud's box), so the
-//!    same `--error` means the same on any scan. Above [`MAX_ERROR_POINTS`] points, an even
-//!    subset of the points gives the samples.
+//!    same `--error` means the same on any scan. The bound is never below the cloud's noise
+//!    level (given, or estimated by [`super::consensus`]): the target is the smoothed surface,
+//!    and a residual below the noise is not structure a detail patch should follow. Above
+//!    [`MAX_ERROR_POINTS`] points, an even subset of the points gives the samples.
 //! 3. **Octree.** The root is the cloud's bounding cube. Its eight children, and the children
 //!    of every node that was refined, are visited one depth at a time; a node whose error
 //!    exceeds the bound (and that holds at least [`MIN_NODE_SAMPLES`] samples) gets a detail
@@ -38,7 +40,8 @@
 
 use glam::{Affine3A, Vec3};
 
-use super::cloud::{CloudFitError, CloudFitOptions, SignedBy, sign_cloud};
+use super::cloud::{CloudFitError, CloudFitOptions, Screening, SignedBy, sign_cloud};
+use super::consensus::parallel_map;
 use super::points::PointCloud;
 use dynaclay_core::field::{
     BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, MultiPatchField, refit_box,
@@ -132,6 +135,11 @@ pub struct HierarchicalFit {
     /// Whether the clay's budget stopped the refinement short of the bound (see
     /// [`Refined::over_budget`]).
     pub over_budget: bool,
+    /// What the screening of the points and the clean-up of the signs did.
+    pub screening: Screening,
+    /// The error bound the refinement used: the one asked for, or the noise level where
+    /// that is higher, fraction of the size.
+    pub bound: f32,
 }
 
 impl HierarchicalFit {
@@ -150,9 +158,9 @@ struct Samples {
 }
 
 impl Samples {
-    fn new(at: Vec<Vec3>, target: &dyn Fn(Vec3) -> f32, field: &MultiPatchField) -> Self {
-        let target = at.iter().map(|&x| target(x)).collect();
-        let value = at.iter().map(|&x| field.value(x)).collect();
+    fn new(at: Vec<Vec3>, target: &(dyn Fn(Vec3) -> f32 + Sync), field: &MultiPatchField) -> Self {
+        let target = parallel_map(at.len(), |i| target(at[i]));
+        let value = parallel_map(at.len(), |i| field.value(at[i]));
         Self { at, target, value }
     }
 
@@ -255,6 +263,7 @@ pub fn fit_hierarchy(
         samples_per_span: signed.samples_per_span,
         lo,
         hi,
+        noise: signed.noise,
     };
     let refined = refine(&mut field, &data, at, options, progress)?;
     Ok(HierarchicalFit {
@@ -267,6 +276,8 @@ pub fn fit_hierarchy(
         rms: refined.rms,
         levels: refined.levels,
         over_budget: refined.over_budget,
+        screening: signed.screening(),
+        bound: refined.bound,
     })
 }
 
@@ -275,7 +286,7 @@ pub fn fit_hierarchy(
 /// span, and the data's box `lo ..= hi` (field units; the root cube and the size).
 pub struct Refinement<'a> {
     /// The density the clay should have at a field point.
-    pub target: &'a dyn Fn(Vec3) -> f32,
+    pub target: &'a (dyn Fn(Vec3) -> f32 + Sync),
     /// The base lattice's knot spacing, field units.
     pub spacing: f32,
     /// The density profile's width, field units.
@@ -286,6 +297,9 @@ pub struct Refinement<'a> {
     pub lo: Vec3,
     /// See [`Refinement::lo`].
     pub hi: Vec3,
+    /// The data's noise (standard deviation across the surface), field units: the bound is
+    /// never below it, so no detail patch follows the noise (0 for noiseless data).
+    pub noise: f32,
 }
 
 /// The outcome of [`refine`].
@@ -298,6 +312,9 @@ pub struct Refined {
     pub rms: f32,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
+    /// The bound used: `options.error`, or the noise where that is higher, fraction of the
+    /// size.
+    pub bound: f32,
     /// Whether the clay's budget ([`MAX_PATCHES`] patches, [`MAX_CLAY_COEFFS`]
     /// coefficients) stopped the refinement with nodes still over the bound (the worst nodes
     /// of each depth are refined first).
@@ -329,8 +346,10 @@ pub fn refine(
     let (lo, hi) = (data.lo, data.hi);
     let size = (hi - lo).max_element().max(f32::MIN_POSITIVE);
     let mut samples = Samples::new(at, data.target, field);
-    // The bound on the mean square density error: (distance / width)².
-    let bound = f64::from(options.error * size / data.width).powi(2);
+    // The bound on the mean square density error: (distance / width)², the distance never
+    // below the noise.
+    let bound_fraction = options.error.max(data.noise / size);
+    let bound = f64::from(bound_fraction * size / data.width).powi(2);
     let to_fraction = |ms: f64| (ms.sqrt() as f32) * data.width / size;
     let rms_base = to_fraction(samples.mean_square(None));
     // The root: the cloud's bounding cube, centred on its box, a hair larger so that every
@@ -407,6 +426,7 @@ pub fn refine(
         rms_base,
         rms,
         levels,
+        bound: bound_fraction,
         over_budget,
     })
 }
@@ -540,7 +560,7 @@ mod tests {
 
     fn tight() -> HierarchyOptions {
         HierarchyOptions {
-            error: 0.0015,
+            error: 0.001,
             max_depth: 2,
             ..HierarchyOptions::default()
         }

@@ -53,6 +53,9 @@ pub struct ImportSettings {
     pub error_percent: f32,
     /// Deepest octree level of detail patches.
     pub max_depth: u32,
+    /// A point cloud's noise (standard deviation across the surface), percent of the
+    /// object's size; estimated from the cloud when `None`.
+    pub noise_percent: Option<f32>,
     /// A volume's surface intensity.
     pub iso: Option<f32>,
     /// Without [`ImportSettings::iso`]: fit a volume at the middle of its intensity range
@@ -69,6 +72,7 @@ impl Default for ImportSettings {
             gap_spans: DEFAULT_GAP_SPANS,
             error_percent: DEFAULT_ERROR * 100.0,
             max_depth: DEFAULT_MAX_DEPTH,
+            noise_percent: None,
             iso: None,
             midrange_iso: false,
             raw: None,
@@ -345,6 +349,7 @@ fn fit_cloud(
         base: CloudFitOptions {
             resolution: settings.resolution,
             gap_spans: settings.gap_spans,
+            noise: settings.noise_percent.map(|p| p / 100.0),
             ..CloudFitOptions::default()
         },
         error: settings.error_percent / 100.0,
@@ -365,6 +370,20 @@ fn fit_cloud(
         settings.error_percent
     ));
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    let s = fit.screening;
+    note(format!(
+        "dropped {} isolated points and {} off the surface their neighbours agree on; noise \
+         {:.3}% of the size ({}), smoothed over {:.3}%; error bound {:.3}%; removed {} small \
+         pieces, filled {} small cavities",
+        s.isolated,
+        s.far,
+        100.0 * s.noise,
+        if s.noise_given { "given" } else { "estimated" },
+        100.0 * s.bandwidth,
+        100.0 * fit.bound,
+        s.removed_pieces,
+        s.filled_cavities
+    ));
     note_levels(&fit.levels, fit.over_budget, note);
     let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;

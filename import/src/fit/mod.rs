@@ -8,6 +8,7 @@
 //! [`import`] is the one import that `dynaclay import` and the GUI's Load both call.
 
 pub mod cloud;
+pub mod consensus;
 pub mod hierarchy;
 pub mod holes;
 pub mod import;
@@ -15,6 +16,7 @@ pub mod mesh;
 pub mod paint;
 pub mod point_file;
 pub mod points;
+pub mod regularised;
 pub mod sdf;
 #[cfg(test)]
 mod test_boxes;

@@ -537,6 +537,7 @@ pub fn fit_volume_hierarchy_within(
         samples_per_span: 2,
         lo: target.offset + object[0] * target.scale,
         hi: target.offset + object[1] * target.scale,
+        noise: 0.0,
     };
     let refined = refine(&mut field, &data, at, options, progress)?;
     Ok(VolumeHierarchy {

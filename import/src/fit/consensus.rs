@@ -1,0 +1,548 @@
+//! Which points of a cloud agree on a surface, and how noisy they are.
+//!
+//! Each point is compared with the plane its neighbours agree on (principal components of
+//! the points within a radius of it, itself left out):
+//!
+//! - **Isolated** points, with far fewer neighbours than the cloud's typical point (under
+//!   [`ISOLATED_FRACTION`] of the median count), are dropped: a stray return in empty space.
+//!   Where the noise is well under the neighbour radius, a point with few neighbours that
+//!   borders well-supported ones is not isolated but judged by the far test against both
+//!   its own neighbours' plane and its nearest well-supported neighbour's: a point of a
+//!   sparsely sampled area (a flat face beside a densely sampled edge) lies on them.
+//! - **Far** points, whose distance to their neighbours' plane is over [`FAR_DEVIATIONS`]
+//!   times the local scatter (the larger of the cloud's noise and the neighbours' own RMS
+//!   distance to the plane, so that a crease or a tight curve does not count as an
+//!   outlier), are dropped: a return off the consensus surface.
+//! - The **noise level** is the median of the neighbourhoods' RMS distances to their planes
+//!   (a robust estimate of the per-point scatter across the surface), unless the caller
+//!   gives it.
+//! - Every kept point gets a **confidence** in `(0, 1]` that falls with its distance to the
+//!   plane, `1 / (1 + (r / 2σ)²)` with `σ` the same local scatter, so the fit leans on the
+//!   points that agree; on a clean cloud a point on a tight curve keeps its weight (its
+//!   distance to the plane is the curve's, not noise).
+//!
+//! The neighbour radius is set by the cloud's own density (about [`NEIGHBOURS`] points
+//! within it), widened to at least three noise levels so that the planes are not fitted to
+//! the scatter. A dense cell of the search offers an even subset of its points (at most
+//! [`CELL_OFFER`]), so the cost per point stays bounded on any cloud.
+
+use glam::{DVec3, IVec3, Vec3};
+
+/// The neighbours a plane is fitted to, aimed at.
+pub const NEIGHBOURS: f32 = 30.0;
+/// A point with fewer neighbours than this fraction of the median is isolated.
+pub const ISOLATED_FRACTION: f32 = 0.15;
+/// A point further from its neighbours' plane than this many local deviations is an outlier.
+pub const FAR_DEVIATIONS: f32 = 3.5;
+/// The smallest local scatter, as a fraction of the object's size: a few steps of `f32` at
+/// the coordinates' scale, so that the rounding of a clean cloud's coordinates is not taken
+/// for a deviation from the plane.
+pub const PRECISION: f32 = 1e-6;
+/// A point with few neighbours is judged by its well-supported neighbours' plane only where
+/// [`FAR_DEVIATIONS`] noise levels are under this fraction of the neighbour radius (the far
+/// test can tell a stray just off the surface from a point on it).
+pub const RESCUE_RADII: f32 = 0.25;
+/// Points a cell of the neighbour search offers, at most.
+pub const CELL_OFFER: usize = 48;
+/// Points whose neighbourhoods give the noise estimate, at most (an even subset).
+const NOISE_SAMPLES: usize = 20_000;
+
+/// The most cells a [`PointGrid`] lays out (its cells grow to stay within it).
+const MAX_GRID_CELLS: usize = 1 << 21;
+
+/// Points bucketed on a dense uniform grid over their box, for radius searches: each cell's
+/// points lie together in one array (compressed rows), so a search reads 27 short slices.
+pub struct PointGrid {
+    origin: Vec3,
+    cell: f32,
+    dims: [i32; 3],
+    /// Per cell, where its points start in [`PointGrid::members`] (one more entry at the end).
+    starts: Vec<u32>,
+    members: Vec<u32>,
+    /// The members' positions, in the same order (a search reads them in sequence).
+    positions: Vec<Vec3>,
+}
+
+impl PointGrid {
+    /// `points` (those where `keep` holds) bucketed in cubes of side `cell` at least (larger
+    /// when the box would need more than [`MAX_GRID_CELLS`]); each cell keeps an even subset
+    /// of at most `offer` of its points.
+    #[must_use]
+    pub fn new(points: &[Vec3], keep: impl Fn(usize) -> bool, cell: f32, offer: usize) -> Self {
+        let (lo, hi) = points
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| keep(i))
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), (_, &p)| {
+                (a.min(p), b.max(p))
+            });
+        let (lo, hi) = if lo.x.is_finite() {
+            (lo, hi)
+        } else {
+            (Vec3::ZERO, Vec3::ZERO)
+        };
+        let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
+        let mut cell = cell.max(extent.max_element() * 1e-6).max(f32::MIN_POSITIVE);
+        let dims_for = |cell: f32| (extent / cell).floor().as_ivec3() + IVec3::ONE;
+        while dims_for(cell).as_dvec3().element_product() > MAX_GRID_CELLS as f64 {
+            cell *= 1.25;
+        }
+        let d = dims_for(cell);
+        let dims = [d.x, d.y, d.z];
+        let cells = (d.x * d.y * d.z) as usize;
+        let index_of = |p: Vec3| {
+            let c = ((p - lo) / cell)
+                .floor()
+                .as_ivec3()
+                .clamp(IVec3::ZERO, d - IVec3::ONE);
+            (c.x + d.x * (c.y + d.y * c.z)) as usize
+        };
+        let mut counts = vec![0u32; cells + 1];
+        for (i, &p) in points.iter().enumerate() {
+            if keep(i) {
+                counts[index_of(p) + 1] += 1;
+            }
+        }
+        // Each cell offers at most `offer`: the points are taken with a stride.
+        let strides: Vec<u32> = counts[1..]
+            .iter()
+            .map(|&c| (c as usize).div_ceil(offer.max(1)).max(1) as u32)
+            .collect();
+        let mut seen = vec![0u32; cells];
+        let mut offered = vec![0u32; cells + 1];
+        for (i, &p) in points.iter().enumerate() {
+            if keep(i) {
+                let c = index_of(p);
+                if seen[c].is_multiple_of(strides[c]) {
+                    offered[c + 1] += 1;
+                }
+                seen[c] += 1;
+            }
+        }
+        for c in 0..cells {
+            offered[c + 1] += offered[c];
+        }
+        let mut members = vec![0u32; offered[cells] as usize];
+        let mut fill = offered.clone();
+        seen.fill(0);
+        for (i, &p) in points.iter().enumerate() {
+            if keep(i) {
+                let c = index_of(p);
+                if seen[c].is_multiple_of(strides[c]) {
+                    members[fill[c] as usize] = i as u32;
+                    fill[c] += 1;
+                }
+                seen[c] += 1;
+            }
+        }
+        let positions = members.iter().map(|&i| points[i as usize]).collect();
+        Self {
+            origin: lo,
+            cell,
+            dims,
+            starts: offered,
+            members,
+            positions,
+        }
+    }
+
+    /// Occupied cells.
+    #[must_use]
+    pub fn occupied(&self) -> usize {
+        self.starts.windows(2).filter(|w| w[1] > w[0]).count()
+    }
+
+    /// Calls `visit(index, position)` for every offered point within `radius` of `x` (points
+    /// beyond one cell of `x`'s may be missed: keep `radius` within the cell side asked for).
+    pub fn for_each_near(&self, x: Vec3, radius: f32, mut visit: impl FnMut(usize, Vec3)) {
+        let c = ((x - self.origin) / self.cell).floor().as_ivec3();
+        let r2 = radius * radius;
+        let [dx_, dy_, dz_] = self.dims;
+        for z in (c.z - 1).max(0)..=(c.z + 1).min(dz_ - 1) {
+            for y in (c.y - 1).max(0)..=(c.y + 1).min(dy_ - 1) {
+                let row = dx_ * (y + dy_ * z);
+                let (x0, x1) = ((c.x - 1).max(0), (c.x + 1).min(dx_ - 1));
+                if x0 > x1 {
+                    continue;
+                }
+                let from = self.starts[(row + x0) as usize] as usize;
+                let to = self.starts[(row + x1 + 1) as usize] as usize;
+                for (&j, &p) in self.members[from..to].iter().zip(&self.positions[from..to]) {
+                    if (p - x).length_squared() <= r2 {
+                        visit(j as usize, p);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `(0..count).map(f)`, split over the machine's cores in contiguous chunks (in order).
+pub(crate) fn parallel_map<T: Send>(count: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(count.div_ceil(4096).max(1));
+    if threads <= 1 {
+        return (0..count).map(f).collect();
+    }
+    let chunk = count.div_ceil(threads);
+    let f = &f;
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                scope.spawn(move || {
+                    (t * chunk..((t + 1) * chunk).min(count))
+                        .map(f)
+                        .collect::<Vec<T>>()
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect()
+    })
+}
+
+/// What [`screen`] found.
+#[derive(Clone, Debug)]
+pub struct Consensus {
+    /// Per point: kept (`> 0`, its confidence) or dropped (`0`).
+    pub confidence: Vec<f32>,
+    /// The noise level: per-point scatter across the surface (standard deviation), in the
+    /// points' units.
+    pub noise: f32,
+    /// Whether [`Consensus::noise`] was given rather than estimated.
+    pub noise_given: bool,
+    /// The typical distance between neighbouring points, in the points' units.
+    pub point_spacing: f32,
+    /// The neighbour radius the planes were fitted over.
+    pub radius: f32,
+    /// Points dropped for having too few neighbours.
+    pub isolated: usize,
+    /// Points dropped for lying off their neighbours' plane.
+    pub far: usize,
+}
+
+impl Consensus {
+    /// Points kept.
+    #[must_use]
+    pub fn kept(&self) -> usize {
+        self.confidence.iter().filter(|&&c| c > 0.0).count()
+    }
+}
+
+/// A neighbourhood's plane: centroid, unit normal, RMS distance of the points it was fitted
+/// to, and how many neighbours the point had (all of them, not only the plane's inliers: a
+/// point beside a crease has its full share of neighbours even where the robust pass keeps
+/// only one side of the crease, and is not isolated).
+struct Plane {
+    centre: Vec3,
+    normal: Vec3,
+    rms: f32,
+    neighbours: usize,
+}
+
+fn plane_of(points: &[Vec3], near: &[usize]) -> Option<Plane> {
+    let first = principal_plane(points, near.iter().copied())?;
+    // Robust second pass: refit to the neighbours within three robust deviations (the median
+    // absolute distance) of the first plane, so that a few strays among the neighbours do not
+    // tilt the plane or inflate its scatter.
+    let mut off: Vec<f32> = near
+        .iter()
+        .map(|&j| (points[j] - first.centre).dot(first.normal).abs())
+        .collect();
+    let mid = off.len() / 2;
+    let mad = *off.select_nth_unstable_by(mid, f32::total_cmp).1 * 1.4826;
+    let keep = 3.0 * mad.max(f32::MIN_POSITIVE);
+    if off[mid..].iter().all(|&d| d <= keep) {
+        return Some(first);
+    }
+    let inliers = near
+        .iter()
+        .copied()
+        .filter(|&j| (points[j] - first.centre).dot(first.normal).abs() <= keep);
+    let refit = principal_plane(points, inliers).unwrap_or(first);
+    Some(Plane {
+        neighbours: near.len(),
+        ..refit
+    })
+}
+
+/// The least-squares plane through `near` (at least three points).
+fn principal_plane(points: &[Vec3], near: impl Iterator<Item = usize> + Clone) -> Option<Plane> {
+    let count = near.clone().count();
+    if count < 3 {
+        return None;
+    }
+    let mean = near.clone().map(|j| points[j].as_dvec3()).sum::<DVec3>() / count as f64;
+    let mut cov = [[0.0f64; 3]; 3];
+    for j in near.clone() {
+        let d = points[j].as_dvec3() - mean;
+        for (a, row) in cov.iter_mut().enumerate() {
+            for (b, c) in row.iter_mut().enumerate() {
+                *c += d[a] * d[b];
+            }
+        }
+    }
+    let normal = least_variance_direction(cov)
+        .try_normalize()
+        .unwrap_or(Vec3::Y);
+    let centre = mean.as_vec3();
+    let ss: f32 = near.map(|j| (points[j] - centre).dot(normal).powi(2)).sum();
+    Some(Plane {
+        centre,
+        normal,
+        rms: (ss / count as f32).sqrt(),
+        neighbours: count,
+    })
+}
+
+/// Screens `points` (see the module docs). `size` is the object's size (its box's longest
+/// side) in the points' units; `noise` the scatter if known, same units.
+#[must_use]
+pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
+    let n = points.len();
+    // The typical spacing from how many cells of a coarse grid the cloud occupies: a surface
+    // crosses about area / cell² of them.
+    let coarse = size / 64.0;
+    let occupied = PointGrid::new(points, |_| true, coarse, 1).occupied();
+    let area = occupied as f32 * coarse * coarse;
+    let point_spacing = (area / n.max(1) as f32).sqrt();
+    let mut radius = (NEIGHBOURS / std::f32::consts::PI).sqrt() * point_spacing;
+    if let Some(s) = noise {
+        radius = radius.max(3.0 * s);
+    }
+    radius = radius.clamp(size * 1e-4, size / 8.0);
+    let mut planes = fit_planes(points, radius);
+    let estimate = |planes: &[Option<(Plane, f32)>]| {
+        let stride = n.div_ceil(NOISE_SAMPLES).max(1);
+        let mut rms: Vec<f32> = planes
+            .iter()
+            .step_by(stride)
+            .flatten()
+            .map(|(p, _)| p.rms)
+            .collect();
+        if rms.is_empty() {
+            return 0.0;
+        }
+        let mid = rms.len() / 2;
+        *rms.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
+    let mut sigma = noise.unwrap_or_else(|| estimate(&planes));
+    if noise.is_none() && radius < 3.0 * sigma && radius < size / 8.0 {
+        // The planes were fitted to the scatter: widen and estimate again.
+        radius = (3.0 * sigma).min(size / 8.0);
+        planes = fit_planes(points, radius);
+        sigma = estimate(&planes);
+    }
+    let mut counts: Vec<usize> = planes
+        .iter()
+        .map(|p| p.as_ref().map_or(0, |(p, _)| p.neighbours))
+        .collect();
+    let mid = counts.len() / 2;
+    let median = if counts.is_empty() {
+        0
+    } else {
+        *counts.select_nth_unstable(mid).1
+    };
+    let fewest = ((median as f32 * ISOLATED_FRACTION).ceil() as usize).max(3);
+    let planes = bordering_support(points, planes, radius, fewest, sigma.max(PRECISION * size));
+    let (mut isolated, mut far) = (0, 0);
+    let confidence = planes
+        .iter()
+        .map(|plane| match plane {
+            Some((plane, off)) => {
+                let local = sigma.max(plane.rms).max(PRECISION * size);
+                if *off > FAR_DEVIATIONS * local {
+                    far += 1;
+                    0.0
+                } else {
+                    let t = off / (2.0 * local);
+                    1.0 / (1.0 + t * t)
+                }
+            }
+            _ => {
+                isolated += 1;
+                0.0
+            }
+        })
+        .collect();
+    Consensus {
+        confidence,
+        noise: sigma,
+        noise_given: noise.is_some(),
+        point_spacing,
+        radius,
+        isolated,
+        far,
+    }
+}
+
+/// Per point: the plane it is judged by, or `None` where it is isolated. A point with at
+/// least `fewest` neighbours keeps its neighbours' plane and distance. One with fewer (but
+/// at least three, for a plane) that has a well-supported neighbour (one with `fewest` or
+/// more) within the radius is kept for the far test, its distance the larger of its
+/// deviations (over the local scatter) from its own neighbours' plane and from the nearest
+/// well-supported neighbour's plane, given in noise levels `sigma`: a genuine point of a
+/// sparsely sampled area (a flat face beside a densely sampled edge) lies among
+/// well-supported points and on their planes, while a stray in empty space has none about it.
+/// This holds only where the noise is well under the radius (see [`RESCUE_RADII`]).
+fn bordering_support(
+    points: &[Vec3],
+    planes: Vec<Option<(Plane, f32)>>,
+    radius: f32,
+    fewest: usize,
+    sigma: f32,
+) -> Vec<Option<(Plane, f32)>> {
+    let count = |i: usize| planes[i].as_ref().map_or(0, |(p, _)| p.neighbours);
+    // Where the noise is not well under the radius, a stray just off the surface has few
+    // neighbours and lies within the far test's reach of their planes, like a sparse genuine
+    // point: there, few neighbours mean isolated.
+    let resolves = FAR_DEVIATIONS * sigma <= RESCUE_RADII * radius;
+    let grid = PointGrid::new(points, |i| count(i) >= fewest, radius, CELL_OFFER);
+    let bordering = parallel_map(points.len(), |i| {
+        if count(i) >= fewest || !resolves {
+            return None;
+        }
+        let p = points[i];
+        let mut nearest = (f32::INFINITY, None);
+        grid.for_each_near(p, radius, |j, q| {
+            let d = (q - p).length_squared();
+            if j != i && d < nearest.0 {
+                nearest = (d, Some(j));
+            }
+        });
+        let (plane, _) = planes[nearest.1?].as_ref()?;
+        let off = (p - plane.centre).dot(plane.normal).abs();
+        Some((plane.rms, off))
+    });
+    planes
+        .into_iter()
+        .zip(bordering)
+        .map(|(own, bordering)| match (own, bordering) {
+            (Some(own), _) if own.0.neighbours >= fewest => Some(own),
+            // Judged by the larger of its deviations from the two planes.
+            (Some((plane, off)), Some((rms, off_bordering))) => {
+                let scale = |rms: f32| rms.max(sigma);
+                let worst = (off / scale(plane.rms)).max(off_bordering / scale(rms));
+                Some((Plane { rms: 0.0, ..plane }, worst * sigma))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// Each point's neighbours' plane (itself left out) and its distance to it.
+fn fit_planes(points: &[Vec3], radius: f32) -> Vec<Option<(Plane, f32)>> {
+    let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
+    parallel_map(points.len(), |i| {
+        let p = points[i];
+        let mut near = Vec::with_capacity(2 * NEIGHBOURS as usize);
+        grid.for_each_near(p, radius, |j, _| {
+            if j != i {
+                near.push(j);
+            }
+        });
+        plane_of(points, &near).map(|plane| {
+            let off = (p - plane.centre).dot(plane.normal).abs();
+            (plane, off)
+        })
+    })
+}
+
+/// The eigenvector of the symmetric `cov` with the smallest eigenvalue: power iteration on
+/// `trace · I − cov`, whose largest eigenvalue it is, started near the axis of least variance.
+pub(crate) fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
+    let trace = cov[0][0] + cov[1][1] + cov[2][2];
+    let start = (0..3)
+        .min_by(|&a, &b| cov[a][a].total_cmp(&cov[b][b]))
+        .unwrap_or(0);
+    // A nudge off the axis, in case the axis is orthogonal to the answer.
+    let mut v = glam::DVec3::splat(1e-3);
+    v[start] = 1.0;
+    for _ in 0..60 {
+        let w = glam::DVec3::new(
+            trace * v.x - (cov[0][0] * v.x + cov[0][1] * v.y + cov[0][2] * v.z),
+            trace * v.y - (cov[1][0] * v.x + cov[1][1] * v.y + cov[1][2] * v.z),
+            trace * v.z - (cov[2][0] * v.x + cov[2][1] * v.y + cov[2][2] * v.z),
+        );
+        let len = w.length();
+        if len.is_nan() || len <= 0.0 {
+            break;
+        }
+        let next = w / len;
+        let settled = (next - v).length_squared() < 1e-12;
+        v = next;
+        if settled {
+            break;
+        }
+    }
+    v.as_vec3()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A flat square of `side`² points at unit spacing, each lifted by a deterministic
+    /// pseudo-random height of standard deviation about `sigma`.
+    fn noisy_square(side: usize, sigma: f32) -> Vec<Vec3> {
+        let mut seed = 0x1234_5678_u64;
+        let mut gauss = || {
+            // Sum of twelve uniforms less six: close to a standard normal.
+            (0..12)
+                .map(|_| {
+                    seed = seed
+                        .wrapping_mul(6_364_136_223_846_793_005)
+                        .wrapping_add(1_442_695_040_888_963_407);
+                    (seed >> 40) as f32 / (1u64 << 24) as f32
+                })
+                .sum::<f32>()
+                - 6.0
+        };
+        let mut out = Vec::new();
+        for i in 0..side {
+            for j in 0..side {
+                out.push(Vec3::new(i as f32, j as f32, sigma * gauss()));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn the_noise_of_a_flat_cloud_is_estimated_within_a_fifth() {
+        for sigma in [0.05f32, 0.2, 0.5] {
+            let points = noisy_square(120, sigma);
+            let c = screen(&points, 120.0, None);
+            assert!(
+                (c.noise / sigma - 1.0).abs() < 0.2,
+                "σ {sigma}: estimated {}",
+                c.noise
+            );
+            assert!(c.far < points.len() / 200, "σ {sigma}: {} dropped", c.far);
+            assert_eq!(c.isolated, 0);
+        }
+    }
+
+    #[test]
+    fn strays_off_the_surface_and_in_empty_space_are_dropped() {
+        let mut points = noisy_square(100, 0.05);
+        let clean = points.len();
+        // Off the surface by 2 units, over its middle.
+        for i in 0..40 {
+            points.push(Vec3::new(20.0 + i as f32 * 1.5, 50.0, 2.0));
+        }
+        // Far away, one by one.
+        for i in 0..30 {
+            points.push(Vec3::new(i as f32 * 10.0, -300.0, 80.0 + i as f32));
+        }
+        let c = screen(&points, 300.0, None);
+        assert!(c.confidence[clean..].iter().all(|&w| w == 0.0));
+        assert!(c.far + c.isolated >= 70);
+        assert!(c.kept() > clean - clean / 200, "{} of {clean}", c.kept());
+        // A given noise level is used as given.
+        let given = screen(&points, 300.0, Some(0.1));
+        assert!(given.noise_given && given.noise == 0.1);
+    }
+}
