@@ -396,6 +396,7 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         levels: Vec::new(),
         over_budget: false,
         screening: Default::default(),
+        kept: Vec::new(),
         bound: 0.0,
     };
     let truth = shape.sample(20_000, &mut Rng(5));

@@ -8,7 +8,10 @@
 //! the largest; the wall time; the peak memory per input point. The last columns are dynaclay
 //! over that peer, on the same cloud. A mesh that is empty fails the run at once; one that lies
 //! far from the model (p50 either way over [`FAR_OFF_PERCENT`]) is marked in its row and fails
-//! the run once the table is printed, so the other rows are still seen.
+//! the run once the table is printed, so the other rows are still seen. The clouds are written
+//! to a temporary folder removed at the end, or to `PEERS_CLOUDS_DIR` when it is set, where
+//! they are kept (`{model}-{variant}.ply`, the variant's index in [`DISTURBANCES`]) to rerun
+//! one by hand.
 
 use std::path::{Path, PathBuf};
 
@@ -128,8 +131,10 @@ pub fn run(quick: bool) {
     } else {
         &DISTURBANCES[..]
     };
-    let scratch: PathBuf =
-        std::env::temp_dir().join(format!("dynaclay-peers-{}", std::process::id()));
+    let kept = std::env::var_os("PEERS_CLOUDS_DIR").map(PathBuf::from);
+    let scratch: PathBuf = kept.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("dynaclay-peers-{}", std::process::id()))
+    });
     std::fs::create_dir_all(&scratch).expect("a temporary folder");
     println!(
         "\npeers: {CLOUD_POINTS}-point clouds with normals from public models ({}), \
@@ -232,7 +237,9 @@ pub fn run(quick: bool) {
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&scratch);
+    if kept.is_none() {
+        let _ = std::fs::remove_dir_all(&scratch);
+    }
     for why in &missing {
         println!("model missing, its rows are skipped: {why}");
     }

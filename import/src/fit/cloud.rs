@@ -22,8 +22,11 @@
 //!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
 //! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
 //!    variance of its neighbours turned toward the exterior (the side nearer the grown
-//!    region); either is then averaged over its neighbours with the moving planes' Gaussian,
-//!    so one noisy or flipped normal cannot turn the side of the surface.
+//!    region). A given normal that its neighbours overrule (they agree among themselves and
+//!    it lies over 60° from their mean: a stray kept near the surface with a normal pointing
+//!    anywhere) takes their mean direction (the log counts them); then every normal is
+//!    averaged over its neighbours with the moving planes' Gaussian, so one noisy or flipped
+//!    normal cannot turn the side of the surface.
 //! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
 //!    of the distances to the neighbouring points' tangent planes, each weighted by its
 //!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ nᵢ·(x − pᵢ) / Σ wᵢ`,
@@ -184,6 +187,8 @@ pub struct SignedCloud {
     pub points: Vec<Vec3>,
     /// Their unit outward normals, smoothed over the bandwidth.
     pub normals: Vec<Vec3>,
+    /// Given normals overruled by their neighbours' (see [`overrule_stray_normals`]).
+    pub overruled_normals: usize,
     /// Their confidence in `(0, 1]` (see [`super::consensus`]).
     pub confidence: Vec<f32>,
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
@@ -516,6 +521,19 @@ pub fn sign_cloud(
     };
     let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
     let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * widest, WIDE_CELL_OFFER);
+    // A given normal its neighbours overrule (a stray that lies on the surface but points
+    // anywhere) takes theirs before the smoothing.
+    let (raw_normals, overruled_normals) = if signed_by == SignedBy::Normals {
+        overrule_stray_normals(
+            &near_points,
+            &points,
+            &raw_normals,
+            &confidence,
+            MOVING_REACH * bandwidth,
+        )
+    } else {
+        (raw_normals, 0)
+    };
     let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
         let p = points[i];
         let mut sum = Vec3::ZERO;
@@ -554,6 +572,7 @@ pub fn sign_cloud(
     let mut signed = SignedCloud {
         points,
         normals,
+        overruled_normals,
         confidence,
         anchors,
         near_points,
@@ -732,6 +751,8 @@ pub struct Screening {
     pub isolated: usize,
     /// Points dropped for lying off their neighbours' plane.
     pub far: usize,
+    /// Given normals overruled by their neighbours'.
+    pub overruled_normals: usize,
     /// The noise level (standard deviation across the surface), fraction of the object's
     /// size.
     pub noise: f32,
@@ -761,6 +782,7 @@ impl SignedCloud {
             points: self.consensus.confidence.len(),
             isolated: self.consensus.isolated,
             far: self.consensus.far,
+            overruled_normals: self.overruled_normals,
             noise: self.noise / size,
             noise_given: self.consensus.noise_given,
             bandwidth: self.bandwidth / size,
@@ -1115,6 +1137,48 @@ const MIN_NEIGHBOURS: usize = 12;
 /// Points a cell of the neighbour search offers, at most (an even subset of a denser cell).
 const MAX_CELL_NEIGHBOURS: usize = 24;
 
+/// A given normal is overruled when its neighbours agree among themselves (their resultant
+/// is at least this fraction of their total weight) ...
+pub const NEIGHBOURS_AGREE: f32 = 0.6;
+/// ... and it lies further than this cosine (60°) from their mean direction.
+pub const NORMAL_AGREEMENT: f32 = 0.5;
+
+/// The given normals `raw`, each one that its neighbours within `reach` overrule replaced by
+/// their confidence-weighted mean direction; and how many were. A stray that lies on the
+/// surface passes the screening (it is not off the plane), but its normal points anywhere,
+/// and one normal turned against its neighbours turns the nodes nearest to it inside out (a
+/// bubble on a stalk). Where the neighbours themselves disagree (both sides of a sheet thinner
+/// than `reach`), every normal is kept.
+fn overrule_stray_normals(
+    near_points: &PointGrid,
+    points: &[Vec3],
+    raw: &[Vec3],
+    confidence: &[f32],
+    reach: f32,
+) -> (Vec<Vec3>, usize) {
+    let agreed: Vec<Option<Vec3>> = parallel_map(points.len(), |i| {
+        let (mut resultant, mut weight) = (Vec3::ZERO, 0.0f32);
+        near_points.for_each_near(points[i], reach, |j, _| {
+            if j != i {
+                resultant += raw[j] * confidence[j];
+                weight += confidence[j];
+            }
+        });
+        let length = resultant.length();
+        let overruled = weight > 0.0
+            && length >= NEIGHBOURS_AGREE * weight
+            && raw[i].dot(resultant / length) < NORMAL_AGREEMENT;
+        overruled.then(|| resultant / length)
+    });
+    let count = agreed.iter().filter(|a| a.is_some()).count();
+    let normals = raw
+        .iter()
+        .zip(&agreed)
+        .map(|(&own, agreed)| agreed.unwrap_or(own))
+        .collect();
+    (normals, count)
+}
+
 /// Unit normals of `points`: for each, the direction of least variance of its neighbours
 /// (principal components of their covariance), pointing where `side(p, n)` is positive
 /// (flipped otherwise). The neighbours are the points within one `cell` of it, or within two,
@@ -1200,6 +1264,43 @@ fn estimate_normals(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A square grid of `side`² points at spacing 1 in the plane `z = height`, and their
+    /// normals, all `normal`.
+    fn sheet(side: usize, height: f32, normal: Vec3) -> (Vec<Vec3>, Vec<Vec3>) {
+        let points: Vec<Vec3> = (0..side * side)
+            .map(|k| Vec3::new((k % side) as f32, (k / side) as f32, height))
+            .collect();
+        let normals = vec![normal; points.len()];
+        (points, normals)
+    }
+
+    #[test]
+    fn a_stray_normal_on_a_flat_patch_is_overruled_and_a_thin_sheets_two_sides_are_kept() {
+        // A 20 × 20 patch facing +z; three points' normals point elsewhere: sideways,
+        // backwards, and 45° off (within the agreement, kept).
+        let (points, mut normals) = sheet(20, 0.0, Vec3::Z);
+        normals[205] = Vec3::X;
+        normals[210] = -Vec3::Z;
+        normals[215] = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let confidence = vec![1.0; points.len()];
+        let grid = PointGrid::new(&points, |_| true, 3.0, CELL_OFFER);
+        let (agreed, count) = overrule_stray_normals(&grid, &points, &normals, &confidence, 3.0);
+        assert_eq!(count, 2);
+        assert!(agreed[205].dot(Vec3::Z) > 0.99 && agreed[210].dot(Vec3::Z) > 0.99);
+        assert_eq!(agreed[215], normals[215]);
+        // Two sides of a sheet half a spacing thick, both within the reach: the neighbours of
+        // each point disagree among themselves, so no normal is overruled.
+        let (mut points, mut normals) = sheet(20, 0.0, -Vec3::Z);
+        let (top, up) = sheet(20, 0.5, Vec3::Z);
+        points.extend(top);
+        normals.extend(up);
+        let confidence = vec![1.0; points.len()];
+        let grid = PointGrid::new(&points, |_| true, 3.0, CELL_OFFER);
+        let (agreed, count) = overrule_stray_normals(&grid, &points, &normals, &confidence, 3.0);
+        assert_eq!(count, 0);
+        assert_eq!(agreed, normals);
+    }
 
     /// `count` points spread evenly over a sphere of `radius` (a Fibonacci lattice), with
     /// outward normals.

@@ -137,6 +137,8 @@ pub struct HierarchicalFit {
     pub over_budget: bool,
     /// What the screening of the points and the clean-up of the signs did.
     pub screening: Screening,
+    /// Per input point: whether the screening kept it (the fit follows only these).
+    pub kept: Vec<bool>,
     /// The error bound the refinement used: the one asked for, or the noise level where
     /// that is higher, fraction of the size.
     pub bound: f32,
@@ -277,6 +279,12 @@ pub fn fit_hierarchy(
         levels: refined.levels,
         over_budget: refined.over_budget,
         screening: signed.screening(),
+        kept: signed
+            .consensus
+            .confidence
+            .iter()
+            .map(|&c| c > 0.0)
+            .collect(),
         bound: refined.bound,
     })
 }

@@ -372,11 +372,12 @@ fn fit_cloud(
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
     let s = fit.screening;
     note(format!(
-        "dropped {} isolated points and {} off the surface their neighbours agree on; noise \
-         {:.3}% of the size ({}), smoothed over {:.3}%; error bound {:.3}%; removed {} small \
-         pieces, filled {} small cavities",
+        "dropped {} isolated points and {} off the surface their neighbours agree on; turned \
+         {} normals to agree with their neighbours'; noise {:.3}% of the size ({}), smoothed \
+         over {:.3}%; error bound {:.3}%; removed {} small pieces, filled {} small cavities",
         s.isolated,
         s.far,
+        s.overruled_normals,
         100.0 * s.noise,
         if s.noise_given { "given" } else { "estimated" },
         100.0 * s.bandwidth,
@@ -385,11 +386,17 @@ fn fit_cloud(
         s.filled_cavities
     ));
     note_levels(&fit.levels, fit.over_budget, note);
-    let (mean, worst) = distance_to_surface(&fit.field, &cloud.points, |p| fit.to_field(p));
+    let kept: Vec<Vec3> = cloud
+        .points
+        .iter()
+        .zip(&fit.kept)
+        .filter_map(|(&p, &kept)| kept.then_some(p))
+        .collect();
+    let (mean, worst) = distance_to_surface(&fit.field, &kept, |p| fit.to_field(p));
     let percent = |d: f32| 100.0 * d / fit.size;
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
-         points lie {:.3}% of the size from the surface on average, {:.3}% at most",
+         the {} points kept lie {:.3}% of the size from the surface on average, {:.3}% at most",
         match fit.signed_by {
             SignedBy::Normals => "the normals",
             SignedBy::Tagging => "flood tagging",
@@ -397,6 +404,7 @@ fn fit_cloud(
         fit.field.patches.len(),
         100.0 * fit.rms,
         100.0 * fit.rms_base,
+        kept.len(),
         percent(mean),
         percent(worst)
     ));
