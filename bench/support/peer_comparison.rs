@@ -172,7 +172,8 @@ pub fn run(quick: bool) {
             write_ply(&cloud, &ply).expect("the cloud is written");
             let per_point = |bytes: f64| bytes / cloud.points.len() as f64;
             let label = |method: &str| format!("{stem}, {}, {method}", variant.name);
-            let ours = dynaclay(&ply).unwrap_or_else(|e| panic!("{}: {e}", label("dynaclay")));
+            let ours =
+                dynaclay(&ply, &scratch).unwrap_or_else(|e| panic!("{}: {e}", label("dynaclay")));
             let ours_accuracy = accuracy(
                 &model,
                 &model_index,

@@ -1,9 +1,14 @@
 //! The three ways a cloud becomes a mesh in the peer comparison, each timed from the cloud to
 //! the triangles, with the peak memory it added.
 //!
-//! * **dynaclay**: `dynaclay import cloud.ply` with its default settings (the PLY is read by
-//!   the import, as the command does), then the mesh `--mesh` exports: the clay meshed at 4
-//!   cells per knot span within the machine's default memory budget, welded.
+//! * **dynaclay**: the command a user runs, `dynaclay import cloud.ply --out clay.dclay --mesh
+//!   mesh.ply` with its default settings (the clay meshed at 4 cells per knot span within the
+//!   machine's default memory budget, welded), as a child process: its time includes reading
+//!   the cloud and writing the session and the mesh, and its memory is its own peak resident
+//!   set (`wait4`), the whole process, as PoissonRecon's is. The command writes its mesh in the
+//!   clay's units, so the same fit is made again in this process (`fit::fit_import`, then
+//!   `cli::mesh_clay` as `--mesh` does) for the mesh in the cloud's units; that second run is
+//!   not timed.
 //! * **poisson_reconstruction** (crates.io): `from_points_and_normals` with the parameters of
 //!   its README and demo — screening 0 and 10 relaxation iterations, the density estimated one
 //!   level above the finest — at depth 8, then `reconstruct_mesh_buffers`. It is given the
@@ -62,30 +67,78 @@ fn measured<T>(work: impl FnOnce() -> T) -> (T, f64, f64) {
     (out, seconds, (peak_bytes() - before).max(0.0))
 }
 
-/// `dynaclay import <ply>` with the default settings, meshed as its `--mesh` export is.
-pub fn dynaclay(ply: &Path) -> Result<Reconstruction, String> {
-    let (result, seconds, peak) = measured(|| {
-        let fit = fit_import(ply, &ImportSettings::default(), &mut |_| true, &mut |_| {})
-            .map_err(|e| format!("dynaclay import: {e}"))?;
-        let (scale, offset) = (fit.scale, fit.offset);
-        let session = imported_session(fit.field, ply, 0);
-        let welded = mesh_clay(&session.clay, 4, &MemoryBudget::machine_default())
-            .map_err(|e| format!("dynaclay meshing: {e}"))?
-            .weld();
+/// Runs `command` to its end with its output discarded: its wall time, seconds, and its peak
+/// resident set, bytes (`wait4`'s `ru_maxrss`); or why it failed, with its stderr.
+fn run_child(mut command: Command) -> Result<(f64, f64), String> {
+    let name = format!("{:?}", command.get_program());
+    let start = Instant::now();
+    let child = command
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("{name}: {e}"))?;
+    let pid = i32::try_from(child.id()).map_err(|e| e.to_string())?;
+    let mut stderr = String::new();
+    if let Some(mut pipe) = child.stderr {
+        // Read to the end before waiting, so a chatty child never blocks on a full pipe.
+        let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
+    }
+    let mut status = 0;
+    // SAFETY: `rusage` is plain data that wait4 fills; zeroed is a valid value for it.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: `pid` is our own unreaped child (std's `Child` was consumed above without
+    // waiting), and both out-pointers are valid for writes.
+    let reaped = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    let seconds = start.elapsed().as_secs_f64();
+    if reaped != pid {
+        return Err(format!("wait4: {}", std::io::Error::last_os_error()));
+    }
+    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
+        return Err(format!(
+            "{name} failed (status {status}): {}",
+            stderr.trim()
+        ));
+    }
+    Ok((seconds, usage.ru_maxrss as f64 * 1024.0))
+}
+
+/// `dynaclay import <ply>` with the default settings and `--mesh`, run as a child process in
+/// `scratch` for its time and memory, and the same fit made here for its mesh in the cloud's
+/// units (see the module docs).
+pub fn dynaclay(ply: &Path, scratch: &Path) -> Result<Reconstruction, String> {
+    let (session, mesh) = (
+        scratch.join("dynaclay-clay.dclay"),
+        scratch.join("dynaclay-mesh.ply"),
+    );
+    let mut command = Command::new(env!("CARGO_BIN_EXE_dynaclay"));
+    command
+        .arg("import")
+        .arg(ply)
+        .arg("--out")
+        .arg(&session)
+        .arg("--mesh")
+        .arg(&mesh);
+    let (seconds, peak_bytes) = run_child(command)?;
+    let fit = fit_import(ply, &ImportSettings::default(), &mut |_| true, &mut |_| {})
+        .map_err(|e| format!("dynaclay import: {e}"))?;
+    let (scale, offset) = (fit.scale, fit.offset);
+    let session = imported_session(fit.field, ply, 0);
+    let welded = mesh_clay(&session.clay, 4, &MemoryBudget::machine_default())
+        .map_err(|e| format!("dynaclay meshing: {e}"))?
+        .weld();
+    Ok(Reconstruction {
         // Back from field units to the cloud's.
-        Ok::<_, String>(Mesh {
+        mesh: Mesh {
             positions: welded
                 .positions
                 .iter()
                 .map(|&p| (p - offset) / scale)
                 .collect(),
             triangles: welded.triangles,
-        })
-    });
-    Ok(Reconstruction {
-        mesh: result?,
+        },
         seconds,
-        peak_bytes: peak,
+        peak_bytes,
     })
 }
 
@@ -161,50 +214,18 @@ pub fn find_poisson_recon() -> Result<PathBuf, String> {
 /// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back. The child is reaped
 /// by `wait4`, which also gives its own peak resident set.
 pub fn poisson_recon(binary: &Path, ply: &Path, out: &Path) -> Result<Reconstruction, String> {
-    let start = Instant::now();
-    let child = Command::new(binary)
-        .arg("--in")
-        .arg(ply)
-        .arg("--out")
-        .arg(out)
-        .args([
-            "--depth",
-            &POISSON_DEPTH.to_string(),
-            "--samplesPerNode",
-            "15",
-        ])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("{}: {e}", binary.display()))?;
-    let pid = i32::try_from(child.id()).map_err(|e| e.to_string())?;
-    let mut stderr = String::new();
-    if let Some(mut pipe) = child.stderr {
-        // Read to the end before waiting, so a chatty child never blocks on a full pipe.
-        let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
-    }
-    let mut status = 0;
-    // SAFETY: `rusage` is plain data that wait4 fills; zeroed is a valid value for it.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: `pid` is our own unreaped child (std's `Child` was consumed above without
-    // waiting), and both out-pointers are valid for writes.
-    let reaped = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
-    let seconds = start.elapsed().as_secs_f64();
-    if reaped != pid {
-        return Err(format!("wait4: {}", std::io::Error::last_os_error()));
-    }
-    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
-        return Err(format!(
-            "{} failed (status {status}): {}",
-            binary.display(),
-            stderr.trim()
-        ));
-    }
+    let mut command = Command::new(binary);
+    command.arg("--in").arg(ply).arg("--out").arg(out).args([
+        "--depth",
+        &POISSON_DEPTH.to_string(),
+        "--samplesPerNode",
+        "15",
+    ]);
+    let (seconds, peak_bytes) = run_child(command)?;
     Ok(Reconstruction {
         mesh: read_ply_mesh(out)?,
         seconds,
-        peak_bytes: usage.ru_maxrss as f64 * 1024.0,
+        peak_bytes,
     })
 }
 
