@@ -110,6 +110,9 @@ pub struct LevelReport {
     pub nodes: usize,
     /// Nodes refined (one detail patch each).
     pub refined: usize,
+    /// Nodes whose patch was refused because it changed the topology of the clay where the
+    /// points do not show that change (see [`changes_topology_unsupported`]).
+    pub refused: usize,
 }
 
 /// A fitted multi-patch clay and where the cloud went.
@@ -393,6 +396,7 @@ pub fn refine(
         errors.sort_by(|a, b| b.0.total_cmp(&a.0));
         let of = errors.len();
         let mut kept = Vec::with_capacity(of);
+        let mut refused = 0;
         for (done, (_, node)) in errors.into_iter().enumerate() {
             go_on(progress, FitProgress::Detail { depth, done, of })?;
             // Earlier patches at this depth may already have brought it under the bound.
@@ -408,6 +412,10 @@ pub fn refine(
                 over_budget = true;
                 break;
             }
+            if changes_topology_unsupported(field, &patch, data.target) {
+                refused += 1;
+                continue;
+            }
             // Bring the samples the patch reaches up to date.
             let (plo, phi) = patch.support();
             for (x, v) in samples.at.iter().zip(samples.value.iter_mut()) {
@@ -422,6 +430,7 @@ pub fn refine(
             depth,
             nodes: checked,
             refined: kept.len(),
+            refused,
         });
         if kept.is_empty() || over_budget {
             break;
@@ -437,6 +446,95 @@ pub fn refine(
         bound: bound_fraction,
         over_budget,
     })
+}
+
+/// Most samples per axis of the topology check (its sample spacing grows past the patch's
+/// knot spacing on a larger patch).
+const TOPOLOGY_SAMPLES: usize = 64;
+
+/// Whether adding `patch` to `field` changes the topology of the solid over the patch's
+/// support (a piece, a handle or a cavity appears or goes) in a way the data's own density
+/// `target` does not show there: Hua & Qin's detail patches are meant to add relief, and a
+/// patch fitted where the error is high can also bridge two surfaces or pinch off a bubble
+/// that no point supports. The solid is sampled on a grid at the patch's knot spacing (at
+/// most [`TOPOLOGY_SAMPLES`] per axis) before, after, and by the target, and compared by the
+/// Euler characteristic of its voxels (pieces − handles + cavities, a change of any one of
+/// them changes it): a patch that changes it to anything but the target's is refused.
+fn changes_topology_unsupported(
+    field: &MultiPatchField,
+    patch: &BSplineLattice,
+    target: &(dyn Fn(Vec3) -> f32 + Sync),
+) -> bool {
+    let (lo, hi) = patch.support();
+    let extent = hi - lo;
+    let step = (extent.max_element() / TOPOLOGY_SAMPLES as f32).max(0.5 * patch.spacing);
+    let n = [0, 1, 2].map(|a| ((extent[a] / step).floor() as usize).clamp(1, TOPOLOGY_SAMPLES));
+    let count = n[0] * n[1] * n[2];
+    let centre = |i: usize| {
+        let (x, y, z) = (i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1]));
+        lo + (Vec3::new(x as f32, y as f32, z as f32) + 0.5) * step
+    };
+    let iso = field.iso();
+    let before_values = parallel_map(count, |i| field.value(centre(i)));
+    let before: Vec<bool> = before_values.iter().map(|&v| v > iso).collect();
+    let after: Vec<bool> = before_values
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| v + patch.value(centre(i)) > iso)
+        .collect();
+    let chi_before = voxel_euler_characteristic(&before, n);
+    let chi_after = voxel_euler_characteristic(&after, n);
+    if chi_after == chi_before {
+        return false;
+    }
+    let by_data: Vec<bool> = parallel_map(count, |i| target(centre(i)) > iso);
+    chi_after != voxel_euler_characteristic(&by_data, n)
+}
+
+/// The Euler characteristic `V − E + F − C` of the union of the closed unit cubes of the voxels
+/// marked in `inside` (`n[0] × n[1] × n[2]`, x fastest): a vertex, an edge or a face counts
+/// once if any voxel that shares it is inside.
+fn voxel_euler_characteristic(inside: &[bool], n: [usize; 3]) -> i64 {
+    let [nx, ny, nz] = n.map(|v| v as i64);
+    let voxel = |x: i64, y: i64, z: i64| {
+        x >= 0
+            && y >= 0
+            && z >= 0
+            && x < nx
+            && y < ny
+            && z < nz
+            && inside[(x + nx * (y + ny * z)) as usize]
+    };
+    // Whether any voxel of the 2 × 2 × 2 block with low corner `(x, y, z)`, restricted to the
+    // axes in `span` (the others fixed at their upper voxel), is inside.
+    let any = |x: i64, y: i64, z: i64, span: [bool; 3]| {
+        let range = |s: bool| if s { 0..=1 } else { 1..=1 };
+        range(span[0]).any(|dx| {
+            range(span[1])
+                .any(|dy| range(span[2]).any(|dz| voxel(x - 1 + dx, y - 1 + dy, z - 1 + dz)))
+        })
+    };
+    let mut chi = 0i64;
+    for z in 0..=nz {
+        for y in 0..=ny {
+            for x in 0..=nx {
+                // The lattice point (x, y, z) is the low corner of voxel (x, y, z); it, the
+                // three edges and three faces that start at it, and the voxel, each count once.
+                chi += i64::from(any(x, y, z, [true, true, true]));
+                // Edges along x, y, z from this point: shared by the voxels around them in
+                // the other two axes.
+                chi -= i64::from(any(x, y, z, [false, true, true]));
+                chi -= i64::from(any(x, y, z, [true, false, true]));
+                chi -= i64::from(any(x, y, z, [true, true, false]));
+                // Faces normal to x, y, z at this point: shared by the voxels on either side.
+                chi += i64::from(any(x, y, z, [true, false, false]));
+                chi += i64::from(any(x, y, z, [false, true, false]));
+                chi += i64::from(any(x, y, z, [false, false, true]));
+                chi -= i64::from(voxel(x, y, z));
+            }
+        }
+    }
+    chi
 }
 
 /// Refuses an error bound that is not positive and finite, or a depth over [`MAX_DEPTH`].
@@ -564,6 +662,47 @@ mod tests {
 
     fn sharp_box() -> PointCloud {
         rounded_box(20_000, Vec3::new(1.0, 0.7, 0.5), 0.03)
+    }
+
+    /// Voxels of an `n³` grid inside where `keep(x, y, z)` holds.
+    fn voxels(n: usize, keep: impl Fn(usize, usize, usize) -> bool) -> Vec<bool> {
+        (0..n * n * n)
+            .map(|i| keep(i % n, (i / n) % n, i / (n * n)))
+            .collect()
+    }
+
+    #[test]
+    fn the_voxel_euler_characteristic_counts_pieces_handles_and_cavities() {
+        let chi = |n: usize, keep: &dyn Fn(usize, usize, usize) -> bool| {
+            voxel_euler_characteristic(&voxels(n, keep), [n; 3])
+        };
+        assert_eq!(chi(4, &|_, _, _| false), 0, "empty");
+        assert_eq!(chi(4, &|x, y, z| (x, y, z) == (1, 1, 1)), 1, "one voxel");
+        assert_eq!(chi(4, &|_, _, _| true), 1, "a solid block");
+        assert_eq!(
+            chi(5, &|x, y, z| y == 2 && z == 2 && x != 2),
+            2,
+            "two pieces"
+        );
+        // Two voxels that share only a corner are one piece.
+        assert_eq!(
+            chi(4, &|x, y, z| (x, y, z) == (1, 1, 1)
+                || (x, y, z) == (2, 2, 2)),
+            1
+        );
+        // A square ring, one voxel thick: one piece with one handle.
+        let ring = |x: usize, y: usize, z: usize| {
+            z == 1 && (1..=3).contains(&x) && (1..=3).contains(&y) && (x, y) != (2, 2)
+        };
+        assert_eq!(chi(5, &ring), 0, "a ring");
+        // A hollow cube: one piece enclosing one cavity.
+        let shell = |x: usize, y: usize, z: usize| {
+            (1..=3).contains(&x)
+                && (1..=3).contains(&y)
+                && (1..=3).contains(&z)
+                && (x, y, z) != (2, 2, 2)
+        };
+        assert_eq!(chi(5, &shell), 2, "a shell");
     }
 
     fn tight() -> HierarchyOptions {

@@ -310,8 +310,16 @@ pub fn is_point_cloud(path: &Path) -> bool {
 /// clay's budget stopped the refinement.
 fn note_levels(levels: &[LevelReport], over_budget: bool, note: &mut dyn FnMut(String)) {
     for level in levels {
+        let refused = if level.refused > 0 {
+            format!(
+                "; {} patches refused: they changed the clay's topology where the points do not",
+                level.refused
+            )
+        } else {
+            String::new()
+        };
         note(format!(
-            "depth {}: {} of {} octree nodes refined",
+            "depth {}: {} of {} octree nodes refined{refused}",
             level.depth, level.refined, level.nodes
         ));
     }
