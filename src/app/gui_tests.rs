@@ -1235,7 +1235,11 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
         }
         .into())
     });
-    let bridge = start_bridge(endpoint, info, opener, Some(restart), |sink| {
+    let in_use = super::bridge::DeviceInUse {
+        spec: DeviceSpec::Sim,
+        info,
+    };
+    let bridge = start_bridge(endpoint, in_use, opener, Some(restart), |sink| {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();

@@ -81,6 +81,9 @@ pub struct DeviceStatus {
     pub has_force: bool,
     /// Largest force sent to the device since it was connected, newtons.
     pub peak_force_n: f32,
+    /// The spec of the device in use (as `--device` takes it), `None` before the engine says.
+    /// The one source for the device the panels show as in use.
+    pub spec: Option<dynaclay_devices::spec::DeviceSpec>,
 }
 
 /// An axis-aligned box in world units.
@@ -134,6 +137,55 @@ pub struct EngineView {
     pub compact: crate::engine::CompactStatus,
     /// A step held until the user says it may remove more than half the clay.
     pub removal_question: Option<crate::engine::RemovalQuestion>,
+}
+
+impl EngineView {
+    /// Whether `self` and `other` draw the same window: equal in everything but the loops'
+    /// latency figures and the simulated time, which change on every step even when nothing
+    /// on the screen would. The bridge wakes the app only when this is false.
+    #[must_use]
+    pub fn same_picture(&self, other: &Self) -> bool {
+        let Self {
+            tool_position,
+            tool_radius,
+            force_n,
+            stroke_active,
+            material,
+            undo_steps,
+            redo_steps,
+            device,
+            loops: _,
+            workspace,
+            region,
+            sim_time_s: _,
+            sessions_loaded,
+            pins,
+            pin_marks,
+            restarts,
+            clay_box,
+            workspace_map,
+            compact,
+            removal_question,
+        } = self;
+        *tool_position == other.tool_position
+            && *tool_radius == other.tool_radius
+            && *force_n == other.force_n
+            && *stroke_active == other.stroke_active
+            && *material == other.material
+            && *undo_steps == other.undo_steps
+            && *redo_steps == other.redo_steps
+            && *device == other.device
+            && *workspace == other.workspace
+            && *region == other.region
+            && *sessions_loaded == other.sessions_loaded
+            && *pins == other.pins
+            && *pin_marks == other.pin_marks
+            && *restarts == other.restarts
+            && *clay_box == other.clay_box
+            && *workspace_map == other.workspace_map
+            && *compact == other.compact
+            && *removal_question == other.removal_question
+    }
 }
 
 impl Default for EngineView {
