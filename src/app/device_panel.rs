@@ -120,7 +120,7 @@ impl DevicePanel {
     pub fn ui(&mut self, ui: &mut egui::Ui, status: &DeviceStatus) -> Option<DeviceAction> {
         self.follow(status);
         let mut action = None;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Status:");
             let colour = match status.state {
                 DeviceLinkState::Connected => egui::Color32::from_rgb(90, 200, 90),
@@ -168,7 +168,7 @@ impl DevicePanel {
                     ui.selectable_value(&mut self.kind, i, entry(i));
                 }
             });
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let label = ui.label("Port / profile / file");
             ui.text_edit_singleline(&mut self.argument)
                 .labelled_by(label.id);
@@ -191,7 +191,7 @@ impl DevicePanel {
                 gain: self.haptic_gain,
             });
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             if ui
                 .add_enabled(spec.is_ok(), egui::Button::new("Connect"))
                 .clicked()

@@ -219,7 +219,7 @@ impl MaterialBrush {
             ),
         ];
         for (label, unit, value, default, range) in rows {
-            ui.horizontal(|ui| {
+            ui.horizontal_wrapped(|ui| {
                 let mut on = value.is_some();
                 if ui.checkbox(&mut on, label).changed() {
                     *value = on.then_some(default);
@@ -236,7 +236,7 @@ impl MaterialBrush {
                 }
             });
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let paint = here.and_then(|at| self.paint_at(at));
             if ui
                 .add_enabled(paint.is_some(), egui::Button::new("Paint here"))

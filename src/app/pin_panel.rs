@@ -95,7 +95,7 @@ impl PinPanel {
         ui.checkbox(&mut self.active, "Pin with the mouse");
         ui.label("Click: point; Ctrl+click: normal; drag: curve");
         let mut command = None;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label(format!("{} pins", pins.len()));
             if ui
                 .add_enabled(!pins.is_empty(), egui::Button::new("Remove all pins"))
@@ -104,7 +104,7 @@ impl PinPanel {
                 command = Some(EngineCommand::Unpin { index: None });
             }
         });
-        egui::ScrollArea::vertical()
+        egui::ScrollArea::both()
             .id_salt("dynaclay pin list")
             .min_scrolled_height(list_height_pt)
             .max_height(list_height_pt)

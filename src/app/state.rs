@@ -550,7 +550,7 @@ impl SculptApp {
     }
 
     /// The status line: the last frame's time and the frame rate, the loops' rates, the
-    /// tool, the undo and redo steps, and what keeps the window polling.
+    /// tool, and what keeps the window polling.
     #[must_use]
     pub fn status_line(&self) -> String {
         use std::fmt::Write;
@@ -567,13 +567,7 @@ impl SculptApp {
                 let _ = write!(line, " {} {:.0} Hz", id.name(), stats.achieved_rate_hz);
             }
         }
-        let _ = write!(
-            line,
-            " · tool {} · {} undo · {} redo",
-            self.palette.choice().name(),
-            self.view.undo_steps,
-            self.view.redo_steps
-        );
+        let _ = write!(line, " · tool {}", self.palette.choice().name());
         let busy = self.in_flight.names();
         if !busy.is_empty() {
             let _ = write!(line, " · polling for {}", busy.join(", "));
@@ -601,14 +595,15 @@ impl SculptApp {
             .size_range(CONTROLS_WIDTH_RANGE_PT)
             .show(ui, |ui| {
                 // Not shrunk to the contents: the panel keeps its width, and the contents
-                // wrap to it.
-                egui::ScrollArea::vertical()
+                // wrap to it; a row that cannot wrap (a slider and its name) scrolls
+                // sideways rather than widen the panel.
+                egui::ScrollArea::both()
                     .auto_shrink([false, false])
                     .show(ui, |ui| {
                         egui::CollapsingHeader::new("Tools")
                             .default_open(true)
                             .show(ui, |ui| {
-                                egui::ScrollArea::vertical()
+                                egui::ScrollArea::both()
                                     .id_salt("dynaclay tool area")
                                     .min_scrolled_height(TOOL_AREA_PT)
                                     .max_height(TOOL_AREA_PT)
@@ -667,7 +662,7 @@ impl SculptApp {
             .size_range(LATENCY_WIDTH_RANGE_PT)
             .show(ui, |ui| {
                 // Not shrunk to the wrapped labels: the plots take the panel's width.
-                egui::ScrollArea::vertical()
+                egui::ScrollArea::both()
                     .auto_shrink([false, false])
                     .show(ui, |ui| {
                         ui.heading("Machine");
@@ -780,7 +775,7 @@ impl SculptApp {
                     .text("Strength"),
             )
             .changed();
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Mirror");
             let before = self.symmetry;
             ui.checkbox(&mut self.symmetry.x, "X");
@@ -813,6 +808,13 @@ impl SculptApp {
             {
                 self.send(EngineCommand::Redo);
             }
+            // A fixed width, so the bar does not shift as the counts grow.
+            ui.add_sized(
+                [110.0, ui.spacing().interact_size.y],
+                egui::Label::new(
+                    egui::RichText::new(format!("{undo_n} undo · {redo_n} redo")).weak(),
+                ),
+            );
             ui.separator();
             let refine = ui
                 .add_enabled(self.refine_at.is_some(), egui::Button::new("Refine here"))
@@ -976,7 +978,7 @@ impl SculptApp {
     /// A loaded point set: splats or the meshed clay, and how many points follow it.
     fn points_ui(&mut self, ui: &mut egui::Ui) {
         let d = &mut self.display;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.radio_value(&mut d.points_as, PointsDisplay::Splats, "Splats")
                 .on_hover_text("The points as oriented discs in their colours");
             ui.radio_value(&mut d.points_as, PointsDisplay::Mesh, "Mesh")
@@ -1007,7 +1009,7 @@ impl SculptApp {
                 .logarithmic(true)
                 .text("Shininess"),
         );
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Clay colour");
             ui.color_edit_button_rgb(&mut d.shading.material_color);
         });

@@ -230,6 +230,10 @@ fn mirror_planes_cross_the_clay_box_and_detail_patches_are_outlined() {
     }
     assert_eq!(h.state().scene_options().mirror_planes, planes);
 
+    // The camera on the clay, so every corner of the patch is in front of the eye.
+    h.state_mut()
+        .camera
+        .frame_box(glam::Vec3::ZERO, glam::Vec3::splat(11.0));
     let rect = h.state().viewport_rect.unwrap();
     let segments = h.state_mut().detail_marks_on_screen(rect);
     assert_eq!(segments.len(), 12, "one box of twelve edges");
