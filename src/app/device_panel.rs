@@ -63,6 +63,9 @@ impl Default for DevicePanel {
     }
 }
 
+/// The device list's width, points.
+const COMBO_WIDTH_PT: f32 = 190.0;
+
 /// Largest force limit the slider offers, newtons (drivers clamp further to their own maximum).
 pub const MAX_FORCE_LIMIT_N: f32 = 20.0;
 
@@ -161,18 +164,19 @@ impl DevicePanel {
                 label.to_owned()
             }
         };
+        // A fixed width and one line, so a long entry neither widens the panel nor grows tall.
         egui::ComboBox::from_label("Device")
+            .width(COMBO_WIDTH_PT)
+            .truncate()
             .selected_text(entry(self.kind))
             .show_ui(ui, |ui| {
                 for i in 0..SPEC_KINDS.len() {
                     ui.selectable_value(&mut self.kind, i, entry(i));
                 }
             });
-        ui.horizontal_wrapped(|ui| {
-            let label = ui.label("Port / profile / file");
-            ui.text_edit_singleline(&mut self.argument)
-                .labelled_by(label.id);
-        });
+        let label = ui.label("Port / profile / file");
+        ui.add(egui::TextEdit::singleline(&mut self.argument).desired_width(f32::INFINITY))
+            .labelled_by(label.id);
         let spec = self.spec();
         match &spec {
             Ok(s) => ui.weak(format!("--device {s}")),
