@@ -63,9 +63,6 @@ impl Default for DevicePanel {
     }
 }
 
-/// The device list's width, points.
-const COMBO_WIDTH_PT: f32 = 190.0;
-
 /// Largest force limit the slider offers, newtons (drivers clamp further to their own maximum).
 pub const MAX_FORCE_LIMIT_N: f32 = 20.0;
 
@@ -164,16 +161,20 @@ impl DevicePanel {
                 label.to_owned()
             }
         };
-        // A fixed width and one line, so a long entry neither widens the panel nor grows tall.
-        egui::ComboBox::from_label("Device")
-            .width(COMBO_WIDTH_PT)
+        // The name above the list, and the list one line across the panel, so a long entry
+        // neither widens the panel nor squeezes its name.
+        let name = ui.label("Device to connect");
+        egui::ComboBox::from_id_salt("dynaclay device kind")
+            .width(ui.available_width())
             .truncate()
             .selected_text(entry(self.kind))
             .show_ui(ui, |ui| {
                 for i in 0..SPEC_KINDS.len() {
                     ui.selectable_value(&mut self.kind, i, entry(i));
                 }
-            });
+            })
+            .response
+            .labelled_by(name.id);
         let label = ui.label("Port / profile / file");
         ui.add(egui::TextEdit::singleline(&mut self.argument).desired_width(f32::INFINITY))
             .labelled_by(label.id);
