@@ -214,3 +214,43 @@ impl Default for EngineView {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loop_figures_and_simulated_time_alone_do_not_change_the_picture() {
+        let shown = EngineView::default();
+        let mut next = shown.clone();
+        next.loops[LoopId::Haptic.index()].ticks = 1000;
+        next.loops[LoopId::Simulation.index()].achieved_rate_hz = 997.0;
+        next.sim_time_s = 12.5;
+        assert!(next.same_picture(&shown), "nothing on screen would change");
+        assert_ne!(next, shown, "though the views differ");
+
+        for changed in [
+            EngineView {
+                undo_steps: 1,
+                ..next.clone()
+            },
+            EngineView {
+                tool_position: Vec3::X,
+                ..next.clone()
+            },
+            EngineView {
+                pins: vec!["#0: point".into()],
+                ..next.clone()
+            },
+            EngineView {
+                device: DeviceStatus {
+                    spec: Some(dynaclay_devices::spec::DeviceSpec::Sim),
+                    ..DeviceStatus::default()
+                },
+                ..next.clone()
+            },
+        ] {
+            assert!(!changed.same_picture(&shown), "{changed:?}");
+        }
+    }
+}
