@@ -196,8 +196,9 @@ pub enum CommandError {
     /// A pin could not be made or removed (nothing changed).
     #[error(transparent)]
     Pin(#[from] dynaclay_core::tools::PinError),
-    /// A detail patch could not be added (nothing changed).
-    #[error("refine: {0}")]
+    /// A detail patch could not be added (nothing changed). Transparent: the caller names
+    /// the command, and the detail error already says what it refused.
+    #[error(transparent)]
     Refine(#[from] dynaclay_core::field::DetailError),
     /// A material paint was refused (nothing changed).
     #[error(transparent)]

@@ -126,7 +126,7 @@ impl CsgPanel {
     /// Draws the panel; `at` is the last brush point on the clay. Returns the command to send.
     pub fn ui(&mut self, ui: &mut egui::Ui, at: Option<Vec3>) -> Option<EngineCommand> {
         let before = self.op;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             for op in CSG_OPS {
                 let label = match op {
                     ToolAction::Union => "Union with operand",
@@ -139,7 +139,7 @@ impl CsgPanel {
         if self.op != before {
             self.confirming = false;
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("With");
             ui.radio_value(
                 &mut self.operand,
@@ -150,7 +150,7 @@ impl CsgPanel {
         });
         match self.operand {
             OperandKind::Solid => {
-                ui.horizontal(|ui| {
+                ui.horizontal_wrapped(|ui| {
                     ui.radio_value(&mut self.solid, SolidKind::Sphere, "Sphere");
                     ui.radio_value(&mut self.solid, SolidKind::Box, "Box");
                     ui.radio_value(&mut self.solid, SolidKind::Cylinder, "Cylinder");
@@ -179,7 +179,7 @@ impl CsgPanel {
                 };
             }
             OperandKind::Session => {
-                ui.horizontal(|ui| {
+                ui.horizontal_wrapped(|ui| {
                     let label = ui.label("File");
                     ui.add(egui::TextEdit::singleline(&mut self.session_path).desired_width(160.0))
                         .labelled_by(label.id);

@@ -3,6 +3,10 @@
 //!
 //! Specs are parsed by the devices crate's own parser, so the panel accepts exactly what
 //! `--device` accepts and shows the same error text.
+//!
+//! The device in use has one source: the engine's [`DeviceStatus`]. The status line names it,
+//! and the list starts on it (and returns to it whenever the engine switches), marked
+//! "in use"; choosing another entry only prepares the next Connect.
 
 use dynaclay_devices::enumerate::{self, Access, Connected};
 use dynaclay_devices::spec::{DeviceSpec, SpecError};
@@ -10,13 +14,14 @@ use dynaclay_devices::spec::{DeviceSpec, SpecError};
 use super::view::{DeviceLinkState, DeviceStatus};
 
 /// The kinds of spec, as the first word of the spec string.
-pub const SPEC_KINDS: [(&str, &str); 6] = [
+pub const SPEC_KINDS: [(&str, &str); 7] = [
     ("sim", "simulated arm"),
     ("hid", "HID arm (optional profile)"),
     ("serial", "serial arm (port, optional :profile)"),
     ("falcon", "Novint Falcon (port)"),
     ("spacemouse", "SpaceMouse (pose only)"),
     ("replay", "replay (recording file)"),
+    ("mouse", "mouse (the window's pointer)"),
 ];
 
 /// What the user asked the panel to do.
@@ -41,6 +46,8 @@ pub struct DevicePanel {
     pub haptic_gain: f32,
     /// Result of the last scan (`None`: not scanned yet).
     pub scanned: Option<(Vec<Connected>, Vec<String>)>,
+    /// The engine's device last taken into the list (see [`DevicePanel::follow`]).
+    in_use_seen: Option<DeviceSpec>,
 }
 
 impl Default for DevicePanel {
@@ -51,6 +58,7 @@ impl Default for DevicePanel {
             max_force_n: 3.0,
             haptic_gain: 1.0,
             scanned: None,
+            in_use_seen: None,
         }
     }
 }
@@ -90,17 +98,29 @@ impl DevicePanel {
 
     /// Fills kind and argument from a spec string (for example one found by a scan).
     pub fn set_spec_text(&mut self, text: &str) {
-        let (kind, arg) = text.split_once(':').unwrap_or((text, ""));
-        if let Some(i) = SPEC_KINDS.iter().position(|k| k.0 == kind) {
+        let (_, arg) = text.split_once(':').unwrap_or((text, ""));
+        if let Some(i) = kind_index(text) {
             self.kind = i;
             self.argument = arg.to_string();
         }
     }
 
+    /// Puts the list on the engine's device when the engine reports a device it had not
+    /// reported before (at start and after each switch); otherwise leaves the user's choice.
+    pub fn follow(&mut self, status: &DeviceStatus) {
+        if status.spec.is_some() && status.spec != self.in_use_seen {
+            self.in_use_seen.clone_from(&status.spec);
+            if let Some(spec) = &status.spec {
+                self.set_spec_text(&spec.to_string());
+            }
+        }
+    }
+
     /// Draws the panel; returns what the user asked for, if anything.
     pub fn ui(&mut self, ui: &mut egui::Ui, status: &DeviceStatus) -> Option<DeviceAction> {
+        self.follow(status);
         let mut action = None;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Status:");
             let colour = match status.state {
                 DeviceLinkState::Connected => egui::Color32::from_rgb(90, 200, 90),
@@ -113,6 +133,9 @@ impl DevicePanel {
                 ui.label(&status.name);
             }
         });
+        if let Some(spec) = &status.spec {
+            ui.weak(format!("in use: --device {spec}"));
+        }
         if status.state == DeviceLinkState::Connected {
             ui.label(format!(
                 "force limit {:.2} N (device max {:.2} N){}, peak {:.2} N",
@@ -126,18 +149,35 @@ impl DevicePanel {
                 status.peak_force_n
             ));
         }
-        egui::ComboBox::from_label("Device")
-            .selected_text(SPEC_KINDS.get(self.kind).map_or("sim", |k| k.1))
+        let in_use_kind = status
+            .spec
+            .as_ref()
+            .and_then(|s| kind_index(&s.to_string()));
+        let entry = |i: usize| {
+            let label = SPEC_KINDS.get(i).map_or("sim", |k| k.1);
+            if Some(i) == in_use_kind {
+                format!("{label} (in use)")
+            } else {
+                label.to_owned()
+            }
+        };
+        // The name above the list, and the list one line across the panel, so a long entry
+        // neither widens the panel nor squeezes its name.
+        let name = ui.label("Device to connect");
+        egui::ComboBox::from_id_salt("dynaclay device kind")
+            .width(ui.available_width())
+            .truncate()
+            .selected_text(entry(self.kind))
             .show_ui(ui, |ui| {
-                for (i, (_, label)) in SPEC_KINDS.iter().enumerate() {
-                    ui.selectable_value(&mut self.kind, i, *label);
+                for i in 0..SPEC_KINDS.len() {
+                    ui.selectable_value(&mut self.kind, i, entry(i));
                 }
-            });
-        ui.horizontal(|ui| {
-            let label = ui.label("Port / profile / file");
-            ui.text_edit_singleline(&mut self.argument)
-                .labelled_by(label.id);
-        });
+            })
+            .response
+            .labelled_by(name.id);
+        let label = ui.label("Port / profile / file");
+        ui.add(egui::TextEdit::singleline(&mut self.argument).desired_width(f32::INFINITY))
+            .labelled_by(label.id);
         let spec = self.spec();
         match &spec {
             Ok(s) => ui.weak(format!("--device {s}")),
@@ -156,7 +196,7 @@ impl DevicePanel {
                 gain: self.haptic_gain,
             });
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             if ui
                 .add_enabled(spec.is_ok(), egui::Button::new("Connect"))
                 .clicked()
@@ -211,6 +251,12 @@ impl DevicePanel {
     }
 }
 
+/// The index in [`SPEC_KINDS`] of a spec text's kind (its first word).
+fn kind_index(text: &str) -> Option<usize> {
+    let kind = text.split_once(':').map_or(text, |(k, _)| k);
+    SPEC_KINDS.iter().position(|k| k.0 == kind)
+}
+
 fn access_note(a: Access) -> &'static str {
     match a {
         Access::Ok => "",
@@ -239,5 +285,31 @@ mod tests {
             "falcon",
             "unknown kinds leave the panel unchanged"
         );
+    }
+
+    #[test]
+    fn the_list_follows_the_engines_device_once_per_switch() {
+        let mut p = DevicePanel::default();
+        let mut status = DeviceStatus {
+            state: DeviceLinkState::Connected,
+            spec: Some(DeviceSpec::Pointer),
+            ..DeviceStatus::default()
+        };
+        p.follow(&status);
+        assert_eq!(
+            p.spec(),
+            Ok(DeviceSpec::Pointer),
+            "starts on the device in use"
+        );
+        p.set_spec_text("serial:/dev/ttyUSB0");
+        p.follow(&status);
+        assert_eq!(
+            p.spec_text(),
+            "serial:/dev/ttyUSB0",
+            "the user's choice stays"
+        );
+        status.spec = Some(DeviceSpec::Sim);
+        p.follow(&status);
+        assert_eq!(p.spec(), Ok(DeviceSpec::Sim), "a switch is taken in");
     }
 }

@@ -3,7 +3,7 @@
 //! embossed image — turned into the engine's commands on the bridge thread (files are read
 //! here, never on a loop), and their answers forwarded to the app's log.
 
-use crossbeam::channel::{Receiver, Sender, TryRecvError, bounded};
+use crossbeam::channel::{Receiver, TryRecvError, bounded};
 
 use super::command::{CsgOperand, EngineCommand, EngineEvent};
 use crate::engine::{Command, CommandError, EditOutcome};
@@ -113,7 +113,7 @@ pub fn edit_command(request: EngineCommand) -> Option<Result<(Command, PendingRe
 
 /// Forwards each answer that arrived as an event named by its edit, and forgets the channels
 /// that answered or hung up.
-pub fn forward_edits(pending: &mut PendingEdits, events: &Sender<EngineEvent>) {
+pub fn forward_edits(pending: &mut PendingEdits, events: &super::link::EventSender) {
     pending.retain(|(what, reply)| {
         let event = match reply.try_answer() {
             None => return true,

@@ -112,12 +112,12 @@ impl EmbossPanel {
         brush: Option<BrushFrame>,
         clay_centre: Vec3,
     ) -> Option<Result<EngineCommand, String>> {
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let label = ui.label("Image");
             ui.add(egui::TextEdit::singleline(&mut self.image).desired_width(160.0))
                 .labelled_by(label.id);
         });
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.radio_value(&mut self.projection, ProjectionKind::Planar, "Planar");
             ui.radio_value(
                 &mut self.projection,

@@ -117,7 +117,7 @@ impl ForcePathPanel {
             palette.curve_fu.clone_from(&self.last_stroke);
             self.select(palette, ForceMode::Curve);
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let mut curve = self.pick == PathPick::CurvePoints;
             if ui
                 .toggle_value(&mut curve, "Click curve points")

@@ -506,6 +506,10 @@ fn the_compact_rbf_switch_sends_its_count_and_the_view_shows_centres_and_time() 
     let (mut h, mut end) = harness();
     h.run();
     drain(&end);
+    // The section sits below the tool area: bring it into view first.
+    h.get_by_label("Compact RBF clay (600 particles)")
+        .scroll_to_me();
+    h.run();
     h.get_by_label("Compact RBF clay (600 particles)").click();
     h.run();
     assert_eq!(
@@ -1143,6 +1147,10 @@ fn the_particles_switch_and_n_reach_the_followers_handles() {
     );
     assert!(!on.load(Ordering::Relaxed), "off by default");
 
+    // The section sits below the tool area: bring it into view first.
+    h.get_by_role_and_label(Role::CheckBox, "Particles")
+        .scroll_to_me();
+    h.run();
     h.get_by_role_and_label(Role::CheckBox, "Particles").click();
     h.run();
     assert!(on.load(Ordering::Relaxed));
@@ -1235,7 +1243,11 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
         }
         .into())
     });
-    let bridge = start_bridge(endpoint, info, opener, Some(restart), |sink| {
+    let in_use = super::bridge::DeviceInUse {
+        spec: DeviceSpec::Sim,
+        info,
+    };
+    let bridge = start_bridge(endpoint, in_use, opener, Some(restart), |sink| {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();

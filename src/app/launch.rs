@@ -10,7 +10,7 @@ use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, RecordingDevice};
 use dynaclay_loops::{busy_fraction, cpu_jiffies, run_probes};
 
-use super::bridge::{DeviceOpener, RestartSettings, start_bridge};
+use super::bridge::{DeviceInUse, DeviceOpener, RestartSettings, start_bridge};
 use super::device_maker::{MakeDeviceError, make_device};
 use super::link::engine_link;
 use super::pointer_tool::PointerTool;
@@ -186,7 +186,11 @@ pub fn gui_main(args: &[String]) -> Result<(), LaunchError> {
         autosave: Some(session_path.clone()),
         keep_replaced_at: session_path.with_extension("replaced.dclay"),
     };
-    let bridge = start_bridge(endpoint, info.clone(), opener, Some(restart), |sink| {
+    let in_use = DeviceInUse {
+        spec: spec.clone(),
+        info: info.clone(),
+    };
+    let bridge = start_bridge(endpoint, in_use, opener, Some(restart), |sink| {
         Engine::start_with(
             &config,
             field,

@@ -152,7 +152,7 @@ impl LibraryPanel {
     ) -> (Option<EngineCommand>, bool) {
         let mut command = None;
         let mut changed = false;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Selection");
             ui.radio_value(&mut self.kind, SelectionKind::Box, "Box");
             ui.radio_value(&mut self.kind, SelectionKind::Ball, "Ball");
@@ -173,7 +173,7 @@ impl LibraryPanel {
             )),
             None => ui.weak("move the pointer over the clay to place the selection"),
         };
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let label = ui.label("Name");
             ui.add(egui::TextEdit::singleline(&mut self.name).desired_width(120.0))
                 .labelled_by(label.id);
@@ -197,7 +197,7 @@ impl LibraryPanel {
         }
         let mut picked = None;
         for t in &self.tools {
-            ui.horizontal(|ui| {
+            ui.horizontal_wrapped(|ui| {
                 let used = palette.shape == ShapeKind::Freeform
                     && palette.freeform.as_ref().is_some_and(|f| f.name == t.name);
                 ui.label(if used {

@@ -13,6 +13,8 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
 
 use crossbeam::channel::{self, Receiver, Sender, TrySendError};
+
+pub use crossbeam::channel::SendError as EventSendError;
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 
 use super::command::{EngineCommand, EngineEvent};
@@ -58,6 +60,40 @@ impl std::fmt::Debug for RepaintSignal {
     }
 }
 
+/// The engine's sender of answers for the app's log: each answer also wakes the app, so a
+/// line (an import's progress, a save's outcome) shows without waiting for other input.
+/// Never blocks (the channel is unbounded); for non-real-time threads only, like
+/// [`RepaintSignal::request`].
+#[derive(Clone, Debug)]
+pub struct EventSender {
+    events: Sender<EngineEvent>,
+    repaint: RepaintSignal,
+}
+
+impl EventSender {
+    /// Queues `event` for the app and wakes it.
+    ///
+    /// # Errors
+    /// The event back when the app's end is gone.
+    pub fn send(&self, event: EngineEvent) -> Result<(), EventSendError<EngineEvent>> {
+        let sent = self.events.send(event);
+        self.repaint.request();
+        sent
+    }
+
+    /// Answers the app has not taken yet.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.events.len()
+    }
+
+    /// Whether the app has taken every answer.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.events.is_empty()
+    }
+}
+
 /// Why a command did not reach the engine.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SendError {
@@ -92,10 +128,12 @@ pub struct ParticleEndpoint {
 }
 
 /// The engine's end: drain `commands` between steps, publish `view` and `meshes`, report
-/// outcomes on `events`, and call `repaint.request()` after publishing meshes.
+/// outcomes on `events` (which wakes the app), and call `repaint.request()` after publishing
+/// meshes or a view that draws differently.
 pub struct EngineEndpoint {
     pub commands: Receiver<EngineCommand>,
-    pub events: Sender<EngineEvent>,
+    /// Answers for the app's log (each one wakes the app).
+    pub events: EventSender,
     pub view: SnapshotWriter<EngineView>,
     pub meshes: SnapshotWriter<MeshSet>,
     /// The graphics loop's copy of the clay, for picking under the pointer.
@@ -144,7 +182,10 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
         },
         EngineEndpoint {
             commands: cmd_rx,
-            events: ev_tx,
+            events: EventSender {
+                events: ev_tx,
+                repaint: repaint.clone(),
+            },
             view: view_tx,
             meshes: mesh_tx,
             field: field_tx,
@@ -292,6 +333,28 @@ mod tests {
         assert_eq!(err, SendError::NoEngine { command: "redo" });
         assert!(err.to_string().contains("no engine"));
         assert!(EngineLink::default().send(EngineCommand::Undo).is_err());
+    }
+
+    #[test]
+    fn each_answer_for_the_log_wakes_the_app() {
+        let (link, end) = engine_link();
+        let wakes = Arc::new(AtomicUsize::new(0));
+        let w = Arc::clone(&wakes);
+        link.repaint_signal().install(move || {
+            w.fetch_add(1, Ordering::Relaxed);
+        });
+        for n in 0..3 {
+            end.events
+                .send(EngineEvent::Done {
+                    what: "load".into(),
+                    detail: format!("line {n}"),
+                })
+                .unwrap();
+        }
+        assert_eq!(wakes.load(Ordering::Relaxed), 3);
+        assert_eq!(end.events.len(), 3);
+        while link.try_event().is_some() {}
+        assert!(end.events.is_empty());
     }
 
     #[test]

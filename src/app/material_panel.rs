@@ -48,18 +48,19 @@ pub fn material_ui(ui: &mut egui::Ui, material: &mut Material) -> bool {
         egui::Slider::new(&mut material.plasticity_per_s, PLASTICITY_RANGE).text("Plasticity /s"),
     );
     ui.add(egui::Slider::new(&mut material.yield_density, YIELD_RANGE).text("Yield density"));
-    ui.horizontal(|ui| {
-        if ui.button("Elastic").clicked() {
-            *material = Material {
+    ui.horizontal_wrapped(|ui| {
+        // Toggles: the preset the sliders match shows selected (neither after a slider moved).
+        for (preset, label) in [
+            (Material::ELASTIC, "Elastic"),
+            (Material::PLASTIC, "Plastic"),
+        ] {
+            let preset = Material {
                 neighbourhood: material.neighbourhood,
-                ..Material::ELASTIC
+                ..preset
             };
-        }
-        if ui.button("Plastic").clicked() {
-            *material = Material {
-                neighbourhood: material.neighbourhood,
-                ..Material::PLASTIC
-            };
+            if ui.selectable_label(*material == preset, label).clicked() {
+                *material = preset;
+            }
         }
         egui::ComboBox::from_label("Springs")
             .selected_text(neighbourhood_label(material.neighbourhood))
@@ -218,7 +219,7 @@ impl MaterialBrush {
             ),
         ];
         for (label, unit, value, default, range) in rows {
-            ui.horizontal(|ui| {
+            ui.horizontal_wrapped(|ui| {
                 let mut on = value.is_some();
                 if ui.checkbox(&mut on, label).changed() {
                     *value = on.then_some(default);
@@ -235,7 +236,7 @@ impl MaterialBrush {
                 }
             });
         }
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             let paint = here.and_then(|at| self.paint_at(at));
             if ui
                 .add_enabled(paint.is_some(), egui::Button::new("Paint here"))

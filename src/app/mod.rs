@@ -21,6 +21,7 @@ mod palette_panel;
 mod pin_panel;
 mod pointer_tool;
 mod probe_panel;
+mod redraw;
 mod removal_dialog;
 mod run;
 mod sculpt_panels;
@@ -29,7 +30,8 @@ mod view;
 mod viewport;
 
 pub use bridge::{
-    ChunkExportError, EngineBridge, GuiMeshSink, RestartSettings, export_chunks, start_bridge,
+    ChunkExportError, DeviceInUse, EngineBridge, GuiMeshSink, RestartSettings, export_chunks,
+    start_bridge,
 };
 pub use camera_input::{
     SpaceMouseCamera, camera_pose_config, drag_pan, drag_rotate, scroll_zoom, spacemouse_move,
@@ -44,7 +46,8 @@ pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
 pub use library_panel::{LibraryPanel, SelectionKind, freeform_ui};
 pub use link::{
-    COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, RepaintSignal, SendError, engine_link,
+    COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, EventSendError, EventSender, RepaintSignal,
+    SendError, engine_link,
 };
 pub use material_panel::{MaterialBrush, material_ui};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
@@ -54,9 +57,13 @@ pub use palette::{
 pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose, raising_choice};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
+pub use redraw::{FrameStats, InFlight, POLL_PERIOD};
 pub use removal_dialog::RemovalDialog;
 pub use run::{GuiError, GuiOptions, run_gui};
-pub use state::{DisplaySettings, FilePaths, PointsDisplay, SceneInput, SculptApp};
+pub use state::{
+    CONTROLS_WIDTH_PT, DisplaySettings, FilePaths, LATENCY_WIDTH_PT, PointsDisplay, SceneInput,
+    SculptApp, event_line,
+};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
 pub use viewport::SceneView;
 
@@ -64,3 +71,5 @@ pub use viewport::SceneView;
 mod gui_tests;
 #[cfg(test)]
 mod reach_tests;
+#[cfg(test)]
+mod window_tests;

@@ -82,7 +82,7 @@ impl ToolPalette {
                 );
             }
             ActionKind::Paint | ActionKind::SoftPaint => {
-                ui.horizontal(|ui| {
+                ui.horizontal_wrapped(|ui| {
                     ui.label("Colour");
                     ui.color_edit_button_rgb(&mut self.paint_rgb);
                 });

@@ -83,29 +83,47 @@ impl PinPanel {
     }
 
     /// The panel: the mode switch, the gestures, and the list of `pins` with a delete button
-    /// each. Returns the command a button asked for.
-    pub fn ui(&mut self, ui: &mut egui::Ui, pins: &[String]) -> Option<EngineCommand> {
+    /// each, in an area `list_height_pt` high that scrolls (so pins never move what is below
+    /// it); a line too long for the panel is cut short, whole on hover. Returns the command a
+    /// button asked for.
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        pins: &[String],
+        list_height_pt: f32,
+    ) -> Option<EngineCommand> {
         ui.checkbox(&mut self.active, "Pin with the mouse");
         ui.label("Click: point; Ctrl+click: normal; drag: curve");
         let mut command = None;
-        if pins.is_empty() {
-            ui.label("No pins");
-        }
-        for (i, line) in pins.iter().enumerate() {
-            ui.horizontal(|ui| {
-                if ui
-                    .small_button("Delete")
-                    .on_hover_text("Remove this pin")
-                    .clicked()
-                {
-                    command = Some(EngineCommand::Unpin { index: Some(i) });
+        ui.horizontal_wrapped(|ui| {
+            ui.label(format!("{} pins", pins.len()));
+            if ui
+                .add_enabled(!pins.is_empty(), egui::Button::new("Remove all pins"))
+                .clicked()
+            {
+                command = Some(EngineCommand::Unpin { index: None });
+            }
+        });
+        egui::ScrollArea::both()
+            .id_salt("dynaclay pin list")
+            .min_scrolled_height(list_height_pt)
+            .max_height(list_height_pt)
+            .auto_shrink([false, false])
+            .show(ui, |ui| {
+                for (i, line) in pins.iter().enumerate() {
+                    ui.horizontal(|ui| {
+                        if ui
+                            .small_button("Delete")
+                            .on_hover_text("Remove this pin")
+                            .clicked()
+                        {
+                            command = Some(EngineCommand::Unpin { index: Some(i) });
+                        }
+                        // Cut short, it shows whole on hover.
+                        ui.add(egui::Label::new(line).truncate());
+                    });
                 }
-                ui.label(line);
             });
-        }
-        if !pins.is_empty() && ui.button("Remove all pins").clicked() {
-            command = Some(EngineCommand::Unpin { index: None });
-        }
         command
     }
 }

@@ -3,17 +3,22 @@
 //!
 //! Each frame reads the engine's latest view and meshes without waiting, draws, and sends
 //! commands for what the user changed. Nothing here can stall the engine's loops (see
-//! [`super::link`]).
+//! [`super::link`]). A frame is drawn only when something asks for one (see
+//! [`super::redraw`]): an idle window draws nothing.
+//!
+//! The layout holds still: the side panels keep the width they start with (or the user drags
+//! them to) and their contents wrap or scroll rather than widen them; the tool settings and
+//! the pin list sit in areas of fixed height, so a new pin or another tool moves nothing.
 
 use std::collections::VecDeque;
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use crate::dynamics::Material;
 use crate::mesh::MeshFormat;
 use crate::render::{
-    BoxOverlay, Camera, Disc, ForceOverlay, MeshChunk, SceneOptions, Shading, ToolOverlay,
-    ToolStyle, Trackball, bounds_of, particle_discs, splat_discs,
+    BoxOverlay, Camera, Disc, ForceOverlay, MeshChunk, QuadOverlay, SceneOptions, Shading,
+    ToolOverlay, ToolStyle, Trackball, bounds_of, particle_discs, splat_discs,
 };
 
 use super::camera_input::SpaceMouseCamera;
@@ -31,6 +36,7 @@ use super::palette::ToolPalette;
 use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
 use super::probe_panel::ProbePanel;
+use super::redraw::{FrameStats, InFlight, PARTICLE_SETTLE_POLLS};
 use super::view::{EngineView, WorldBox};
 use super::viewport::{DiscKey, SceneView, camera_input};
 
@@ -43,8 +49,18 @@ const HIDDEN_MESH_VERSION: u64 = 1 << 63;
 
 /// Lines kept in the message log.
 const LOG_LEN: usize = 50;
-/// How often the app looks at the engine's view when nothing else wakes it.
-const POLL_PERIOD: Duration = Duration::from_millis(33);
+
+/// The controls panel's starting width, and the widths the user may drag it to, points.
+pub const CONTROLS_WIDTH_PT: f32 = 300.0;
+const CONTROLS_WIDTH_RANGE_PT: std::ops::RangeInclusive<f32> = 220.0..=560.0;
+/// The latency panel's starting width, and the widths the user may drag it to, points.
+pub const LATENCY_WIDTH_PT: f32 = 320.0;
+const LATENCY_WIDTH_RANGE_PT: std::ops::RangeInclusive<f32> = 220.0..=560.0;
+/// The height of the tool area (the tool buttons and the chosen tool's settings), points:
+/// fixed, so the sections below stay put whichever tool is chosen.
+const TOOL_AREA_PT: f32 = 330.0;
+/// The height of the pin list, points (it scrolls beyond).
+const PIN_LIST_PT: f32 = 120.0;
 
 /// How the scene is drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -56,6 +72,8 @@ pub struct DisplaySettings {
     pub force_arrow_per_n: f32,
     pub show_workspace: bool,
     pub show_region: bool,
+    /// Outline each detail patch (a refined box) over the view.
+    pub show_detail_patches: bool,
     /// How a loaded point set is shown.
     pub points_as: PointsDisplay,
 }
@@ -90,6 +108,7 @@ impl Default for DisplaySettings {
             force_arrow_per_n: 0.05,
             show_workspace: true,
             show_region: true,
+            show_detail_patches: true,
             points_as: PointsDisplay::Splats,
         }
     }
@@ -196,6 +215,21 @@ pub struct SculptApp {
     /// The discs of the last frame (particles and splats), rebuilt when their key changes.
     discs: Vec<Disc>,
     disc_key: DiscKey,
+    /// The status line's frame figures.
+    pub frames: FrameStats,
+    /// The previous frame's time as eframe measured it (set before each frame; `None` in
+    /// headless frames).
+    pub last_frame_s: Option<f32>,
+    /// What was in flight at the end of the last frame (the window polls while any is).
+    pub in_flight: InFlight,
+    /// The controls panel's rectangle in the last frame, points.
+    pub controls_rect: Option<egui::Rect>,
+    /// The base lattice's box (first to last node) of the clay last published, where the
+    /// mirror planes are drawn.
+    clay_box: Option<WorldBox>,
+    /// The particle view's version last seen, and the polls since it last changed.
+    particles_seen: u64,
+    particle_quiet_polls: u32,
 }
 
 /// The particle counts the panel offers.
@@ -283,8 +317,8 @@ impl SculptApp {
             .as_secs_f64();
         while let Some(ev) = self.link.try_event() {
             let line = match ev {
-                EngineEvent::Done { what, detail } => format!("{what}: {detail}"),
-                EngineEvent::Failed { what, error } => format!("{what} failed: {error}"),
+                EngineEvent::Done { what, detail } => event_line(&what, &detail, false),
+                EngineEvent::Failed { what, error } => event_line(&what, &error, true),
                 EngineEvent::Library(tools) => {
                     let line = format!("library: {} tools", tools.len());
                     self.library.set_tools(tools, &mut self.palette);
@@ -326,6 +360,11 @@ impl SculptApp {
                 self.force_limit_synced = true;
             }
         }
+        let base = self.link.field().value.base();
+        self.clay_box = Some(WorldBox {
+            min: base.origin,
+            max: base.node_position(base.dims[0] - 1, base.dims[1] - 1, base.dims[2] - 1),
+        });
         self.latency.record(version, t_s, &self.view.loops);
         self.probe.poll();
     }
@@ -384,80 +423,247 @@ impl SculptApp {
             }),
             workspace_box: boxed(v.workspace, d.show_workspace, [0.5, 0.5, 0.55, 1.0]),
             region_box: boxed(v.region, d.show_region, [0.3, 0.8, 0.4, 1.0]),
+            mirror_planes: self.mirror_planes(),
             ..SceneOptions::default()
         }
+    }
+
+    /// The mirror planes that are on (x, y, z), each through the clay's centre and across
+    /// its box, as see-through quads.
+    #[must_use]
+    pub fn mirror_planes(&self) -> [Option<QuadOverlay>; 3] {
+        let on = [self.symmetry.x, self.symmetry.y, self.symmetry.z];
+        let Some(WorldBox { min: lo, max: hi }) = self.clay_box.filter(|_| on.contains(&true))
+        else {
+            return [None; 3];
+        };
+        // The engine mirrors about the clay's centre (`crate::engine::clay_centre`).
+        let centre = (lo + hi) * 0.5;
+        let colours = [
+            [0.95, 0.35, 0.35, 0.18],
+            [0.35, 0.9, 0.4, 0.18],
+            [0.4, 0.55, 1.0, 0.18],
+        ];
+        std::array::from_fn(|axis| {
+            if !on[axis] {
+                return None;
+            }
+            // The plane's two in-plane axes, and its corners around the box's face.
+            let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+            let corner = |a: f32, b: f32| {
+                let mut p = glam::Vec3::ZERO;
+                p[axis] = centre[axis];
+                p[u] = a;
+                p[w] = b;
+                p
+            };
+            Some(QuadOverlay {
+                corners: [
+                    corner(lo[u], lo[w]),
+                    corner(hi[u], lo[w]),
+                    corner(hi[u], hi[w]),
+                    corner(lo[u], hi[w]),
+                ],
+                color: colours[axis],
+            })
+        })
+    }
+
+    /// The detail patches' boxes (every patch but the base) in screen points over the view
+    /// `rect`, as segments: twelve edges per patch, those with an end behind the eye left
+    /// out. Empty while the display does not show them.
+    #[must_use]
+    pub fn detail_marks_on_screen(&mut self, rect: egui::Rect) -> Vec<[egui::Pos2; 2]> {
+        if !self.display.show_detail_patches {
+            return Vec::new();
+        }
+        let size = rect.size().max(egui::vec2(1.0, 1.0));
+        let vp = self.camera.view_projection(size.x / size.y);
+        let to_screen = |x: glam::Vec3| {
+            let c = vp * x.extend(1.0);
+            (c.w > 0.0).then(|| {
+                egui::pos2(
+                    rect.min.x + (c.x / c.w + 1.0) * 0.5 * size.x,
+                    rect.min.y + (1.0 - c.y / c.w) * 0.5 * size.y,
+                )
+            })
+        };
+        let field = &self.link.field().value;
+        let mut segments = Vec::new();
+        for patch in field.patches.iter().skip(1) {
+            let (lo, hi) = patch.world_support();
+            let corner = |i: usize| {
+                glam::Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                )
+            };
+            // The twelve edges join corners whose indices differ in one bit.
+            for i in 0..8 {
+                for bit in [1, 2, 4] {
+                    if i & bit == 0
+                        && let (Some(a), Some(b)) =
+                            (to_screen(corner(i)), to_screen(corner(i | bit)))
+                    {
+                        segments.push([a, b]);
+                    }
+                }
+            }
+        }
+        segments
+    }
+
+    /// Outlines the detail patches over the scene image.
+    fn paint_detail_patches(&mut self, ui: &egui::Ui, rect: egui::Rect) {
+        let painter = ui.painter_at(rect);
+        let stroke = egui::Stroke::new(1.0, egui::Color32::from_rgb(120, 200, 230));
+        for [a, b] in self.detail_marks_on_screen(rect) {
+            painter.line_segment([a, b], stroke);
+        }
+    }
+
+    /// What is in flight now (see [`InFlight`]); notes whether the particles still move.
+    fn in_flight_now(&mut self) -> InFlight {
+        let particles = if self.link.particles_on() {
+            let version = self.link.particles().version;
+            if version == self.particles_seen {
+                self.particle_quiet_polls = self.particle_quiet_polls.saturating_add(1);
+            } else {
+                self.particles_seen = version;
+                self.particle_quiet_polls = 0;
+            }
+            self.particle_quiet_polls < PARTICLE_SETTLE_POLLS
+        } else {
+            // Switched on, they are watched until they have been still for a while.
+            self.particle_quiet_polls = 0;
+            false
+        };
+        let points = &self.link.points().value;
+        InFlight {
+            stroke: self.view.stroke_active || self.sculpt_drag || self.key_stroke,
+            probe: self.probe.is_running(),
+            points: points.loaded && !points.settled,
+            particles,
+            spacemouse: self.spacemouse.is_connected(),
+        }
+    }
+
+    /// The status line: the last frame's time and the frame rate, the loops' rates, the
+    /// tool, and what keeps the window polling.
+    #[must_use]
+    pub fn status_line(&self) -> String {
+        use std::fmt::Write;
+        let mut line = match self.frames.last_frame_ms() {
+            Some(ms) => format!("frame {ms:.1} ms"),
+            None => "frame –".to_owned(),
+        };
+        let _ = write!(line, " · {} frames/s · loops", self.frames.frames_per_s());
+        for id in super::view::LoopId::ALL {
+            let stats = &self.view.loops[id.index()];
+            if stats.ticks == 0 {
+                let _ = write!(line, " {} –", id.name());
+            } else {
+                let _ = write!(line, " {} {:.0} Hz", id.name(), stats.achieved_rate_hz);
+            }
+        }
+        let _ = write!(line, " · tool {}", self.palette.choice().name());
+        let busy = self.in_flight.names();
+        if !busy.is_empty() {
+            let _ = write!(line, " · polling for {}", busy.join(", "));
+        }
+        line
     }
 
     /// One frame of the whole app. `gpu` is eframe's wgpu state (`None` in headless tests:
     /// everything but the 3D image works).
     pub fn show(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
+        self.frames.record(Instant::now(), self.last_frame_s);
         self.poll_engine();
         self.keyboard(ui);
         egui::Panel::top("dynaclay top bar").show(ui, |ui| self.top_bar(ui));
         egui::Panel::bottom("dynaclay log").show(ui, |ui| {
-            ui.horizontal(|ui| {
-                ui.label(self.log.back().map_or("ready", String::as_str));
-            });
+            // One line each, cut short rather than wrapped, so the panel's height holds.
+            ui.add(egui::Label::new(self.log.back().map_or("ready", String::as_str)).truncate());
+            ui.add(egui::Label::new(egui::RichText::new(self.status_line()).weak()).truncate());
         });
         let mut tool_changed = false;
         let mut material_changed = false;
-        egui::Panel::left("dynaclay controls")
-            .default_size(300.0)
+        let controls = egui::Panel::left("dynaclay controls")
+            .resizable(true)
+            .default_size(CONTROLS_WIDTH_PT)
+            .size_range(CONTROLS_WIDTH_RANGE_PT)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| {
-                    egui::CollapsingHeader::new("Tools")
-                        .default_open(true)
-                        .show(ui, |ui| tool_changed = self.palette.ui(ui));
-                    egui::CollapsingHeader::new("Pointer")
-                        .default_open(true)
-                        .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
-                    tool_changed |= self.sculpt_sections(ui);
-                    egui::CollapsingHeader::new("Material")
-                        .default_open(true)
-                        .show(ui, |ui| {
-                            material_changed = material_ui(ui, &mut self.material);
-                            if let Some(command) = self.material_brush.ui(ui, self.refine_at) {
-                                self.send(command);
-                            }
-                            // The one haptic gain, shown here and in the device panel.
-                            if haptic_gain_slider(ui, &mut self.device.haptic_gain) {
-                                let gain = self.device.haptic_gain;
-                                self.send(EngineCommand::SetHapticGain { gain });
-                            }
-                        });
-                    egui::CollapsingHeader::new("Pins")
-                        .default_open(true)
-                        .show(ui, |ui| {
-                            if let Some(command) = self.pins.ui(ui, &self.view.pins) {
-                                self.send(command);
-                            }
-                        });
-                    egui::CollapsingHeader::new("Particles on the clay")
-                        .default_open(true)
-                        .show(ui, |ui| {
-                            self.particles_ui(ui);
-                            self.compact_ui(ui);
-                        });
-                    if self.link.points().value.loaded {
-                        egui::CollapsingHeader::new("Point set")
+                // Not shrunk to the contents: the panel keeps its width, and the contents
+                // wrap to it; a row that cannot wrap (a slider and its name) scrolls
+                // sideways rather than widen the panel.
+                egui::ScrollArea::both()
+                    .auto_shrink([false, false])
+                    .show(ui, |ui| {
+                        egui::CollapsingHeader::new("Tools")
                             .default_open(true)
-                            .show(ui, |ui| self.points_ui(ui));
-                    }
-                    egui::CollapsingHeader::new("Device")
-                        .default_open(true)
-                        .show(ui, |ui| self.device_ui(ui));
-                    egui::CollapsingHeader::new("Display")
-                        .default_open(false)
-                        .show(ui, |ui| self.display_ui(ui));
-                });
+                            .show(ui, |ui| {
+                                egui::ScrollArea::both()
+                                    .id_salt("dynaclay tool area")
+                                    .min_scrolled_height(TOOL_AREA_PT)
+                                    .max_height(TOOL_AREA_PT)
+                                    .auto_shrink([false, false])
+                                    .show(ui, |ui| tool_changed = self.palette.ui(ui));
+                            });
+                        egui::CollapsingHeader::new("Pointer")
+                            .default_open(true)
+                            .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
+                        tool_changed |= self.sculpt_sections(ui);
+                        egui::CollapsingHeader::new("Material")
+                            .default_open(true)
+                            .show(ui, |ui| {
+                                material_changed = material_ui(ui, &mut self.material);
+                                if let Some(command) = self.material_brush.ui(ui, self.refine_at) {
+                                    self.send(command);
+                                }
+                                // The one haptic gain, shown here and in the device panel.
+                                if haptic_gain_slider(ui, &mut self.device.haptic_gain) {
+                                    let gain = self.device.haptic_gain;
+                                    self.send(EngineCommand::SetHapticGain { gain });
+                                }
+                            });
+                        egui::CollapsingHeader::new("Pins")
+                            .default_open(true)
+                            .show(ui, |ui| {
+                                if let Some(command) =
+                                    self.pins.ui(ui, &self.view.pins, PIN_LIST_PT)
+                                {
+                                    self.send(command);
+                                }
+                            });
+                        egui::CollapsingHeader::new("Particles on the clay")
+                            .default_open(true)
+                            .show(ui, |ui| {
+                                self.particles_ui(ui);
+                                self.compact_ui(ui);
+                            });
+                        if self.link.points().value.loaded {
+                            egui::CollapsingHeader::new("Point set")
+                                .default_open(true)
+                                .show(ui, |ui| self.points_ui(ui));
+                        }
+                        egui::CollapsingHeader::new("Device")
+                            .default_open(true)
+                            .show(ui, |ui| self.device_ui(ui));
+                        egui::CollapsingHeader::new("Display")
+                            .default_open(false)
+                            .show(ui, |ui| self.display_ui(ui));
+                    });
             });
+        self.controls_rect = Some(controls.response.rect);
         egui::Panel::right("dynaclay latency")
-            .default_size(320.0)
-            .min_size(220.0)
+            .resizable(true)
+            .default_size(LATENCY_WIDTH_PT)
+            .size_range(LATENCY_WIDTH_RANGE_PT)
             .show(ui, |ui| {
                 // Not shrunk to the wrapped labels: the plots take the panel's width.
-                egui::ScrollArea::vertical()
-                    .auto_shrink([false, true])
+                egui::ScrollArea::both()
+                    .auto_shrink([false, false])
                     .show(ui, |ui| {
                         ui.heading("Machine");
                         self.probe.ui(ui);
@@ -472,7 +678,11 @@ impl SculptApp {
             self.send(answer);
         }
         egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, gpu));
-        ui.ctx().request_repaint_after(POLL_PERIOD);
+        // Everything else that changes wakes the window itself (input, the engine's signal).
+        self.in_flight = self.in_flight_now();
+        if let Some(after) = self.in_flight.poll_after() {
+            ui.ctx().request_repaint_after(after);
+        }
     }
 
     fn keyboard(&mut self, ui: &egui::Ui) {
@@ -565,7 +775,7 @@ impl SculptApp {
                     .text("Strength"),
             )
             .changed();
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Mirror");
             let before = self.symmetry;
             ui.checkbox(&mut self.symmetry.x, "X");
@@ -598,7 +808,13 @@ impl SculptApp {
             {
                 self.send(EngineCommand::Redo);
             }
-            ui.weak(format!("{undo_n} undo · {redo_n} redo"));
+            // A fixed width, so the bar does not shift as the counts grow.
+            ui.add_sized(
+                [110.0, ui.spacing().interact_size.y],
+                egui::Label::new(
+                    egui::RichText::new(format!("{undo_n} undo · {redo_n} redo")).weak(),
+                ),
+            );
             ui.separator();
             let refine = ui
                 .add_enabled(self.refine_at.is_some(), egui::Button::new("Refine here"))
@@ -649,7 +865,6 @@ impl SculptApp {
                     EngineCommand::StrokeStart
                 });
             }
-            ui.weak(format!("tool: {}", self.palette.choice().name()));
         });
     }
 
@@ -677,15 +892,19 @@ impl SculptApp {
             None => {}
         }
         ui.separator();
-        ui.horizontal(|ui| {
-            if self.spacemouse.is_connected() {
-                if ui.button("SpaceMouse camera off").clicked() {
-                    self.spacemouse.disconnect();
-                }
-            } else if ui.button("SpaceMouse camera").clicked() {
+        // A toggle: shown selected while the SpaceMouse drives the camera.
+        let camera_on = self.spacemouse.is_connected();
+        if ui
+            .selectable_label(camera_on, "SpaceMouse camera")
+            .on_hover_text("Fly the camera with a SpaceMouse")
+            .clicked()
+        {
+            if camera_on {
+                self.spacemouse.disconnect();
+            } else {
                 self.spacemouse.connect();
             }
-        });
+        }
         if !self.spacemouse.status.is_empty() {
             ui.weak(&self.spacemouse.status);
         }
@@ -759,7 +978,7 @@ impl SculptApp {
     /// A loaded point set: splats or the meshed clay, and how many points follow it.
     fn points_ui(&mut self, ui: &mut egui::Ui) {
         let d = &mut self.display;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.radio_value(&mut d.points_as, PointsDisplay::Splats, "Splats")
                 .on_hover_text("The points as oriented discs in their colours");
             ui.radio_value(&mut d.points_as, PointsDisplay::Mesh, "Mesh")
@@ -790,7 +1009,7 @@ impl SculptApp {
                 .logarithmic(true)
                 .text("Shininess"),
         );
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("Clay colour");
             ui.color_edit_button_rgb(&mut d.shading.material_color);
         });
@@ -809,6 +1028,8 @@ impl SculptApp {
         ui.checkbox(&mut d.show_force, "Force arrow");
         ui.checkbox(&mut d.show_workspace, "Workspace box");
         ui.checkbox(&mut d.show_region, "Simulated region box");
+        ui.checkbox(&mut d.show_detail_patches, "Show detail patches")
+            .on_hover_text("Outline each refined box (detail patch) of the clay");
     }
 
     fn viewport(&mut self, ui: &mut egui::Ui, gpu: Option<&egui_wgpu::RenderState>) {
@@ -848,6 +1069,7 @@ impl SculptApp {
         }
         let Some(rs) = gpu else {
             centred_note(ui, rect, "3D view needs a wgpu device (none in this run)");
+            self.paint_detail_patches(ui, rect);
             self.paint_pins(ui, rect);
             self.paint_sculpt_marks(ui, rect);
             self.paint_brush_cursor(ui, rect);
@@ -898,6 +1120,7 @@ impl SculptApp {
         if let Some(texture) = texture {
             let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
             image.paint_at(ui, rect);
+            self.paint_detail_patches(ui, rect);
             self.paint_pins(ui, rect);
             self.paint_sculpt_marks(ui, rect);
             self.paint_brush_cursor(ui, rect);
@@ -1248,6 +1471,22 @@ fn brush_tint(choice: &crate::engine::ToolChoice, pressing: bool) -> egui::Color
     egui::Color32::from_rgba_unmultiplied(r, g, b, alpha)
 }
 
+/// The log line of an engine answer, naming its command once: a detail or an error that
+/// already starts with the command's name (an error whose own message names what failed)
+/// is not prefixed with it again.
+#[must_use]
+pub fn event_line(what: &str, text: &str, failed: bool) -> String {
+    let rest = text
+        .strip_prefix(what)
+        .and_then(|r| r.strip_prefix(':').or_else(|| r.strip_prefix(' ')))
+        .map_or(text, str::trim_start);
+    if failed {
+        format!("{what} failed: {rest}")
+    } else {
+        format!("{what}: {rest}")
+    }
+}
+
 /// Text painted over the view; painted rather than a label widget so it never takes the
 /// pointer drags meant for the camera.
 fn centred_note(ui: &egui::Ui, rect: egui::Rect, text: &str) {
@@ -1262,6 +1501,7 @@ fn centred_note(ui: &egui::Ui, rect: egui::Rect, text: &str) {
 
 impl eframe::App for SculptApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        self.last_frame_s = frame.info().cpu_usage;
         let gpu = frame.wgpu_render_state().cloned();
         self.show(ui, gpu.as_ref());
     }

@@ -81,6 +81,9 @@ pub struct DeviceStatus {
     pub has_force: bool,
     /// Largest force sent to the device since it was connected, newtons.
     pub peak_force_n: f32,
+    /// The spec of the device in use (as `--device` takes it), `None` before the engine says.
+    /// The one source for the device the panels show as in use.
+    pub spec: Option<dynaclay_devices::spec::DeviceSpec>,
 }
 
 /// An axis-aligned box in world units.
@@ -136,6 +139,55 @@ pub struct EngineView {
     pub removal_question: Option<crate::engine::RemovalQuestion>,
 }
 
+impl EngineView {
+    /// Whether `self` and `other` draw the same window: equal in everything but the loops'
+    /// latency figures and the simulated time, which change on every step even when nothing
+    /// on the screen would. The bridge wakes the app only when this is false.
+    #[must_use]
+    pub fn same_picture(&self, other: &Self) -> bool {
+        let Self {
+            tool_position,
+            tool_radius,
+            force_n,
+            stroke_active,
+            material,
+            undo_steps,
+            redo_steps,
+            device,
+            loops: _,
+            workspace,
+            region,
+            sim_time_s: _,
+            sessions_loaded,
+            pins,
+            pin_marks,
+            restarts,
+            clay_box,
+            workspace_map,
+            compact,
+            removal_question,
+        } = self;
+        *tool_position == other.tool_position
+            && *tool_radius == other.tool_radius
+            && *force_n == other.force_n
+            && *stroke_active == other.stroke_active
+            && *material == other.material
+            && *undo_steps == other.undo_steps
+            && *redo_steps == other.redo_steps
+            && *device == other.device
+            && *workspace == other.workspace
+            && *region == other.region
+            && *sessions_loaded == other.sessions_loaded
+            && *pins == other.pins
+            && *pin_marks == other.pin_marks
+            && *restarts == other.restarts
+            && *clay_box == other.clay_box
+            && *workspace_map == other.workspace_map
+            && *compact == other.compact
+            && *removal_question == other.removal_question
+    }
+}
+
 impl Default for EngineView {
     fn default() -> Self {
         Self {
@@ -159,6 +211,46 @@ impl Default for EngineView {
             workspace_map: None,
             compact: crate::engine::CompactStatus::default(),
             removal_question: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn loop_figures_and_simulated_time_alone_do_not_change_the_picture() {
+        let shown = EngineView::default();
+        let mut next = shown.clone();
+        next.loops[LoopId::Haptic.index()].ticks = 1000;
+        next.loops[LoopId::Simulation.index()].achieved_rate_hz = 997.0;
+        next.sim_time_s = 12.5;
+        assert!(next.same_picture(&shown), "nothing on screen would change");
+        assert_ne!(next, shown, "though the views differ");
+
+        for changed in [
+            EngineView {
+                undo_steps: 1,
+                ..next.clone()
+            },
+            EngineView {
+                tool_position: Vec3::X,
+                ..next.clone()
+            },
+            EngineView {
+                pins: vec!["#0: point".into()],
+                ..next.clone()
+            },
+            EngineView {
+                device: DeviceStatus {
+                    spec: Some(dynaclay_devices::spec::DeviceSpec::Sim),
+                    ..DeviceStatus::default()
+                },
+                ..next.clone()
+            },
+        ] {
+            assert!(!changed.same_picture(&shown), "{changed:?}");
         }
     }
 }

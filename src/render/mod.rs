@@ -35,7 +35,8 @@ pub use offscreen::{
     OFFSCREEN_FORMAT, OffscreenRenderer, RenderOutcome, render_to_png, scene_camera,
 };
 pub use options::{
-    BoxOverlay, EnvironmentMode, ForceOverlay, Light, SceneOptions, Shading, ToolOverlay, ToolStyle,
+    BoxOverlay, EnvironmentMode, ForceOverlay, Light, QuadOverlay, SceneOptions, Shading,
+    ToolOverlay, ToolStyle,
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
 pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};

@@ -1,4 +1,5 @@
-//! What a frame shows besides the clay: shading settings and the overlays (tool, force, boxes).
+//! What a frame shows besides the clay: shading settings and the overlays (tool, force, boxes,
+//! mirror planes).
 //!
 //! Plain data, filled in by the app or the CLI each frame; the renderer never keeps a copy.
 //! Colours are linear RGBA; positions and lengths are in world units.
@@ -119,6 +120,15 @@ pub struct BoxOverlay {
     pub color: [f32; 4],
 }
 
+/// A flat quadrilateral drawn see-through with its outline (a mirror plane across the clay).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuadOverlay {
+    /// The corners in order around the quad.
+    pub corners: [Vec3; 4],
+    /// Linear RGBA of the fill; the outline takes the same colour opaque.
+    pub color: [f32; 4],
+}
+
 /// Everything a frame needs besides the meshes and the camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneOptions {
@@ -131,6 +141,8 @@ pub struct SceneOptions {
     pub workspace_box: Option<BoxOverlay>,
     /// The locally simulated region (Hua & Qin §7.3).
     pub region_box: Option<BoxOverlay>,
+    /// The mirror planes of strokes that are on (x, y, z), each across the clay's box.
+    pub mirror_planes: [Option<QuadOverlay>; 3],
 }
 
 impl Default for SceneOptions {
@@ -142,6 +154,7 @@ impl Default for SceneOptions {
             force: None,
             workspace_box: None,
             region_box: None,
+            mirror_planes: [None; 3],
         }
     }
 }

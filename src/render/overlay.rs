@@ -1,4 +1,5 @@
-//! CPU geometry for the overlays: box edges, the force arrow and the tool sphere.
+//! CPU geometry for the overlays: box edges, mirror planes, the force arrow and the tool
+//! sphere.
 //!
 //! Rebuilt every frame into reused vectors (no allocation once they have grown). Lines are
 //! vertex pairs for a line list; the transparent tool is a triangle list with normals. Overlays
@@ -6,7 +7,7 @@
 
 use glam::Vec3;
 
-use super::options::{BoxOverlay, ForceOverlay, SceneOptions, ToolOverlay, ToolStyle};
+use super::options::{BoxOverlay, ForceOverlay, QuadOverlay, SceneOptions, ToolOverlay, ToolStyle};
 
 /// One overlay vertex. A zero normal means "unlit" (lines).
 #[repr(C)]
@@ -41,6 +42,9 @@ impl OverlayGeometry {
             .flatten()
         {
             self.push_box(&b);
+        }
+        for q in options.mirror_planes.iter().flatten() {
+            self.push_quad(q);
         }
         if let Some(f) = options.force {
             self.push_arrow(&f);
@@ -93,6 +97,28 @@ impl OverlayGeometry {
                 if i & bit == 0 {
                     self.line(corner(i), corner(i | bit), b.color);
                 }
+            }
+        }
+    }
+
+    /// A see-through quad (both windings, so the culled pipeline shows it from either side)
+    /// and its outline, unlit.
+    fn push_quad(&mut self, q: &QuadOverlay) {
+        if !q.corners.iter().all(|c| c.is_finite()) {
+            return;
+        }
+        let [r, g, b, _] = q.color;
+        for i in 0..4 {
+            self.line(q.corners[i], q.corners[(i + 1) % 4], [r, g, b, 1.0]);
+        }
+        let [a, b2, c, d] = q.corners;
+        for triangle in [[a, b2, c], [a, c, d], [a, c, b2], [a, d, c]] {
+            for p in triangle {
+                self.triangles.push(OverlayVertex {
+                    position: p.into(),
+                    normal: [0.0; 3],
+                    color: q.color,
+                });
             }
         }
     }
@@ -320,5 +346,45 @@ mod tests {
             assert!((r - tip).abs() < 1e-5);
             assert_eq!(v.color[3], 1.0, "the tip is opaque");
         }
+    }
+
+    #[test]
+    fn a_mirror_plane_is_a_two_sided_unlit_quad_with_its_outline() {
+        let corners = [
+            Vec3::new(0.0, -1.0, -1.0),
+            Vec3::new(0.0, 1.0, -1.0),
+            Vec3::new(0.0, 1.0, 1.0),
+            Vec3::new(0.0, -1.0, 1.0),
+        ];
+        let mut g = OverlayGeometry::default();
+        g.rebuild(&SceneOptions {
+            mirror_planes: [
+                Some(QuadOverlay {
+                    corners,
+                    color: [0.4, 0.6, 1.0, 0.2],
+                }),
+                None,
+                None,
+            ],
+            ..SceneOptions::default()
+        });
+        assert_eq!(g.lines.len(), 8, "four outline edges");
+        assert!(g.lines.iter().all(|v| v.color[3] == 1.0));
+        assert_eq!(g.triangles.len(), 12, "two triangles each way round");
+        assert!(
+            g.triangles
+                .iter()
+                .all(|v| v.normal == [0.0; 3] && v.position[0] == 0.0)
+        );
+        // Each winding covers the quad once: signed areas along +x sum to +4 and -4.
+        let area = |t: &[OverlayVertex]| {
+            let p = |i: usize| Vec3::from(t[i].position);
+            0.5 * (p(1) - p(0)).cross(p(2) - p(0)).x
+        };
+        let areas: Vec<f32> = g.triangles.chunks(3).map(area).collect();
+        assert_eq!(areas[0] + areas[1], 4.0);
+        assert_eq!(areas[2] + areas[3], -4.0);
+        g.rebuild(&SceneOptions::default());
+        assert!(g.lines.is_empty() && g.triangles.is_empty());
     }
 }

@@ -27,6 +27,7 @@ impl Bridge {
                     return;
                 };
                 self.connected = true;
+                self.spec = Some(spec.clone());
                 let mut detail = format!("{} connected", connected.name);
                 if let Some(replaced) = &report.replaced {
                     detail = format!("{detail}; {}", closed_detail(&replaced.name, &report.close));

@@ -11,6 +11,11 @@
 //! tick reads, and reads sessions and writes exports itself, so no loop does disk I/O for
 //! the app.
 //!
+//! The app draws only when woken: the sink asks for a repaint after new meshes, and the
+//! bridge after an answer for the app or a view that draws differently
+//! ([`EngineView::same_picture`]: the loops' figures and the simulated time alone do not
+//! wake it), so an idle window costs no frames.
+//!
 //! The device panel's connect and disconnect reach [`Engine::replace_device`] and
 //! [`Engine::disconnect_device`] from the bridge thread: the device is opened and the old one
 //! closed there, and the haptic loop switches between two ticks without stopping.
@@ -37,7 +42,7 @@ use glam::Vec3;
 
 use super::command::{EngineCommand, EngineEvent};
 use super::device_maker::MakeDeviceError;
-use super::link::{EngineEndpoint, RepaintSignal};
+use super::link::{EngineEndpoint, EventSender, RepaintSignal};
 use super::meshes::{ChunkMesh, MeshSet};
 use super::view::{DeviceLinkState, EngineView, WorldBox};
 use crate::engine::{
@@ -82,6 +87,15 @@ const POINT_SETS_QUEUED: usize = 4;
 /// How long a device switch waits for the haptic loop to take the new device.
 const SWAP_TIMEOUT: Duration = Duration::from_secs(2);
 
+/// The device the engine starts with: the spec it was made from and what its driver says.
+#[derive(Clone, Debug)]
+pub struct DeviceInUse {
+    /// The spec as `--device` takes it (the panels show it as the device in use).
+    pub spec: DeviceSpec,
+    /// The driver's description.
+    pub info: DeviceInfo,
+}
+
 /// Makes (without opening) the device a spec names; the bridge opens it through the engine.
 pub type DeviceOpener =
     Box<dyn FnMut(&DeviceSpec) -> Result<Box<dyn HapticDevice>, MakeDeviceError> + Send>;
@@ -109,7 +123,8 @@ impl EngineBridge {
 
 /// Starts the engine with a mesh sink that feeds `endpoint`, and a bridge thread that serves
 /// the app's commands. `start` receives the sink and starts the engine (the caller chooses
-/// clay, device and configuration); `device` describes the opened device for the panel;
+/// clay, device and configuration); `device` names and describes the opened device for the
+/// panel;
 /// `opener` makes the devices the panel connects later; `restart` says how to start again on
 /// a loaded clay whose patch layout differs from the running one.
 ///
@@ -117,7 +132,7 @@ impl EngineBridge {
 /// Whatever `start` returns.
 pub fn start_bridge(
     endpoint: EngineEndpoint,
-    device: DeviceInfo,
+    device: DeviceInUse,
     opener: DeviceOpener,
     restart: Option<RestartSettings>,
     start: impl FnOnce(Box<dyn MeshSink>) -> Result<Engine, EngineError>,
@@ -133,7 +148,7 @@ pub fn start_bridge(
         repaint,
     } = endpoint;
     let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
-    let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint);
+    let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint.clone());
     // No point set until a point cloud is loaded: then the bridge hands its points over and
     // they follow each new copy of the clay on the graphics loop.
     let (points_tx, points_rx) = bounded(POINT_SETS_QUEUED);
@@ -159,8 +174,11 @@ pub fn start_bridge(
         events,
         view,
         exports,
-        device,
+        device: device.info,
+        spec: Some(device.spec),
         connected: true,
+        repaint,
+        shown: None,
         opener,
         tool_radius: PushTool::default().radius_fu,
         compact_particles: None,
@@ -232,13 +250,20 @@ struct Bridge {
     /// The running engine (`None` only after a restart failed; the bridge then stops).
     engine: Option<Engine>,
     commands: Receiver<EngineCommand>,
-    events: Sender<EngineEvent>,
+    events: EventSender,
     view: SnapshotWriter<EngineView>,
     /// The latest meshes, for exports (read wait-free).
     exports: SnapshotReader<MeshSet>,
     device: DeviceInfo,
+    /// The spec of the device in use, or of the last one after the panel's disconnect (the
+    /// view's state says which).
+    spec: Option<DeviceSpec>,
     /// Whether a device is connected (false after the panel's disconnect).
     connected: bool,
+    /// Wakes the app after an answer or a view that draws differently.
+    repaint: RepaintSignal,
+    /// The view the app was last woken for (`None`: never).
+    shown: Option<EngineView>,
     opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
@@ -274,7 +299,7 @@ struct Bridge {
 /// into its detail line) and forgets the channels that answered or hung up.
 fn forward_replies<T, E: std::fmt::Display>(
     pending: &mut Vec<Receiver<Result<T, E>>>,
-    events: &Sender<EngineEvent>,
+    events: &EventSender,
     what: &str,
     describe: impl Fn(T) -> String,
 ) {
@@ -352,7 +377,10 @@ impl Bridge {
         let force_limit_n = engine.force_limit().applied_n();
         let (restarts, new_clay) = (self.restarts, self.new_clay);
         let device = &self.device;
+        let spec = &self.spec;
         let connected = self.connected;
+        let shown = &mut self.shown;
+        let mut new_picture = false;
         let radius = self.tool_radius;
         let (pin_lines, pin_marks) = (&self.pin_lines, &self.pin_marks);
         self.view.write_with(|v| {
@@ -394,6 +422,18 @@ impl Bridge {
             v.device.device_max_force_n = device.max_force_n;
             v.device.has_force = device.has_force;
             v.device.peak_force_n = counters.peak_force_milli_n as f32 / 1000.0;
+            v.device.spec.clone_from(spec);
+            if !shown.as_ref().is_some_and(|s| s.same_picture(v)) {
+                new_picture = true;
+                match shown {
+                    Some(s) => s.clone_from(v),
+                    None => *shown = Some(v.clone()),
+                }
+            }
         });
+        // Answers for the log wake the app as they are sent (see `EventSender`).
+        if new_picture {
+            self.repaint.request();
+        }
     }
 }

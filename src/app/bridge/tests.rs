@@ -3,6 +3,14 @@ use std::time::Instant;
 use dynaclay_devices::{DeviceError, SimArmConfig, SimulatedArm, Trajectory};
 
 use super::*;
+
+/// The simulated arm as the device in use.
+fn sim_in_use(info: DeviceInfo) -> DeviceInUse {
+    DeviceInUse {
+        spec: DeviceSpec::Sim,
+        info,
+    }
+}
 use crate::dynamics::Material;
 use crate::engine::{EngineConfig, build_clay};
 use crate::field::BSplineLattice;
@@ -235,7 +243,7 @@ fn the_bridge_loads_sessions_sets_the_force_limit_and_publishes_loop_figures() {
     std::fs::write(&corrupt, &bytes).unwrap();
 
     let (mut link, endpoint) = super::super::engine_link();
-    let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
+    let bridge = start_bridge(endpoint, sim_in_use(info), no_devices(), None, |sink| {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();
@@ -388,9 +396,13 @@ fn loads_of_another_layout_restart_the_engine_and_imports_are_fitted() {
         keep_replaced_at: kept.clone(),
     };
     let (mut link, endpoint) = super::super::engine_link();
-    let bridge = start_bridge(endpoint, info, no_devices(), Some(restart), |sink| {
-        Engine::start(&config, field.clone(), device, sink)
-    })
+    let bridge = start_bridge(
+        endpoint,
+        sim_in_use(info),
+        no_devices(),
+        Some(restart),
+        |sink| Engine::start(&config, field.clone(), device, sink),
+    )
     .unwrap();
     let mut events = Vec::new();
     wait_for(&mut link, &mut events, "the first view", |v, _| {
@@ -513,7 +525,7 @@ fn bridge_on(field: &BSplineLattice) -> (super::super::EngineLink, EngineBridge)
     let device: Box<dyn HapticDevice> =
         Box::new(SimulatedArm::new(arm, Trajectory::hold(Vec3::splat(-0.09))));
     let (link, endpoint) = super::super::engine_link();
-    let bridge = start_bridge(endpoint, info, no_devices(), None, |sink| {
+    let bridge = start_bridge(endpoint, sim_in_use(info), no_devices(), None, |sink| {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();
@@ -566,7 +578,7 @@ fn the_panel_switches_disconnects_and_reconnects_devices() {
         .into()),
     });
     let (mut link, endpoint) = super::super::engine_link();
-    let bridge = start_bridge(endpoint, info, opener, None, |sink| {
+    let bridge = start_bridge(endpoint, sim_in_use(info), opener, None, |sink| {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();
