@@ -97,7 +97,13 @@ impl IoWorker {
                     .and_then(|()| Ok(save_session(&job.path, &job.session)?))
                     .map(|()| job.path.clone());
                 match &result {
-                    Ok(_) => self.report.saves += 1,
+                    Ok(path) => {
+                        self.report.saves += 1;
+                        // A save under a new name makes that the session being worked on.
+                        if let Some(a) = self.autosave.as_mut() {
+                            a.follow(path);
+                        }
+                    }
                     Err(e) => self.report.errors.push(e.to_string()),
                 }
                 if let Some(reply) = job.reply {
@@ -144,10 +150,10 @@ impl IoWorker {
 mod tests {
     use super::*;
     use crate::SaveJob;
-    use dynaclay_core::io::{AutosavePolicy, find_recovery, load_session};
+    use dynaclay_core::io::{AutosavePolicy, load_session, recovery_path_for};
 
     #[test]
-    fn saves_are_written_and_autosave_asks_the_simulation_for_a_copy() {
+    fn saves_are_written_and_autosave_asks_the_simulation_for_a_copy_beside_the_last_save() {
         let dir = tempfile::tempdir().unwrap();
         let (job_tx, job_rx) = crossbeam::channel::unbounded();
         let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
@@ -183,7 +189,10 @@ mod tests {
         assert!(!worker.poll(Instant::now()));
         assert_eq!(worker.report().autosaves, 1);
         assert_eq!(worker.report().saves, 1);
-        let found = find_recovery(&session_path).expect("recovery offered");
-        assert_eq!(load_session(&found.path).unwrap(), Session::default());
+        // The explicit save made `explicit.dclay` the session: its recovery file is written,
+        // none beside the session the autosave started with.
+        let recovery = recovery_path_for(&dir.path().join("explicit.dclay"));
+        assert_eq!(load_session(&recovery).unwrap(), Session::default());
+        assert!(!recovery_path_for(&session_path).exists());
     }
 }

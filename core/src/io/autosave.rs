@@ -135,6 +135,13 @@ impl Autosave {
         }
     }
 
+    /// Autosaves beside the session now at `session_path` (after it was saved under a new
+    /// name), so the recovery file always belongs to the session being worked on; the count
+    /// and the clock carry on.
+    pub fn follow(&mut self, session_path: &Path) {
+        self.recovery_path = recovery_path_for(session_path);
+    }
+
     /// Counts a committed stroke or tool action.
     pub fn note_stroke(&mut self) {
         self.strokes = self.strokes.saturating_add(1);
