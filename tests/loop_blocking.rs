@@ -34,6 +34,7 @@ fn lockstep_ticks_of_a_push_and_a_save_take_no_blocking_path() {
                 .commands()
                 .send(dynaclay::engine::Command::Save {
                     path: dir.path().join("mid.dclay"),
+                    as_session: false,
                     reply: None,
                 })
                 .expect("the simulation takes commands");

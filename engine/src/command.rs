@@ -306,6 +306,10 @@ pub enum Command {
     Save {
         /// Destination file.
         path: PathBuf,
+        /// Whether the file becomes the session being worked on, so autosave writes its
+        /// recovery file beside it from now on (a window's Save, possibly under a new name);
+        /// a script's save is a snapshot and leaves autosave where it was.
+        as_session: bool,
         /// Optional result channel.
         reply: Option<super::SaveReply>,
     },

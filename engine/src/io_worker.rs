@@ -99,8 +99,9 @@ impl IoWorker {
                 match &result {
                     Ok(path) => {
                         self.report.saves += 1;
-                        // A save under a new name makes that the session being worked on.
-                        if let Some(a) = self.autosave.as_mut() {
+                        if job.as_session
+                            && let Some(a) = self.autosave.as_mut()
+                        {
                             a.follow(path);
                         }
                     }
@@ -169,6 +170,7 @@ mod tests {
         job_tx
             .send(IoJob::Save(Box::new(SaveJob {
                 path: dir.path().join("explicit.dclay"),
+                as_session: true,
                 session: Session::default(),
                 reply: Some(reply_tx),
             })))

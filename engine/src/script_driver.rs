@@ -381,6 +381,7 @@ impl ScriptDriver {
                 self.saves.push((step, rx));
                 vec![Command::Save {
                     path,
+                    as_session: false,
                     reply: Some(tx),
                 }]
             }

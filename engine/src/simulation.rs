@@ -142,6 +142,8 @@ pub enum IoJob {
 pub struct SaveJob {
     /// Destination.
     pub path: std::path::PathBuf,
+    /// Whether autosave follows the file (see [`crate::Command::Save`]).
+    pub as_session: bool,
     /// The session to write.
     pub session: Session,
     /// Where the result goes.

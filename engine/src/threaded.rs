@@ -463,6 +463,7 @@ impl Engine {
         self.commands
             .send(Command::Save {
                 path: path.to_path_buf(),
+                as_session: false,
                 reply: Some(tx),
             })
             .map_err(|_| CommandError::Stopped)?;

@@ -313,10 +313,15 @@ impl SimulationStage {
                 }
                 ok
             }
-            Command::Save { path, reply } => match &self.io {
+            Command::Save {
+                path,
+                as_session,
+                reply,
+            } => match &self.io {
                 Some(io) => io
                     .send(IoJob::Save(Box::new(SaveJob {
                         path,
+                        as_session,
                         session: self.session(),
                         reply,
                     })))

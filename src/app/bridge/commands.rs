@@ -129,6 +129,7 @@ impl Bridge {
                     what,
                     Command::Save {
                         path,
+                        as_session: true,
                         reply: Some(tx),
                     },
                 );
