@@ -71,8 +71,11 @@ struct DhdApi {
 
 impl DhdApi {
     fn load(source: &LibrarySource) -> Result<Self, LibraryMissing> {
-        let library =
-            vendor_lib::load(VendorLibrary::ForceDimensionDhd, source, "dhdGetDeviceCount")?;
+        let library = vendor_lib::load(
+            VendorLibrary::ForceDimensionDhd,
+            source,
+            "dhdGetDeviceCount",
+        )?;
         let missing = |tried| LibraryMissing {
             library: VendorLibrary::ForceDimensionDhd,
             tried: vec![tried],
@@ -138,17 +141,13 @@ pub fn published_figures(system_type: c_int) -> Option<(&'static str, f32, f32, 
     Some(match system_type {
         DHD_DEVICE_OMEGA | DHD_DEVICE_OMEGA3 => ("omega.3", 12.0, 5000.0, 30.0, 0.075, 1),
         DHD_DEVICE_OMEGA33 | DHD_DEVICE_OMEGA33_LEFT => ("omega.6", 12.0, 5000.0, 30.0, 0.075, 1),
-        DHD_DEVICE_OMEGA331 | DHD_DEVICE_OMEGA331_LEFT => {
-            ("omega.7", 12.0, 5000.0, 30.0, 0.075, 1)
-        }
+        DHD_DEVICE_OMEGA331 | DHD_DEVICE_OMEGA331_LEFT => ("omega.7", 12.0, 5000.0, 30.0, 0.075, 1),
         DHD_DEVICE_3DOF | DHD_DEVICE_DELTA3 => ("delta.3", 20.0, 5000.0, 30.0, 0.15, 1),
         DHD_DEVICE_6DOF | DHD_DEVICE_6DOF_500 | DHD_DEVICE_DELTA6 => {
             ("delta.6", 20.0, 5000.0, 30.0, 0.15, 1)
         }
         DHD_DEVICE_FALCON => ("Novint Falcon", 8.0, 3000.0, 20.0, 0.04, 4),
-        DHD_DEVICE_SIGMA331 | DHD_DEVICE_SIGMA331_LEFT => {
-            ("sigma.7", 12.0, 4000.0, 30.0, 0.09, 1)
-        }
+        DHD_DEVICE_SIGMA331 | DHD_DEVICE_SIGMA331_LEFT => ("sigma.7", 12.0, 4000.0, 30.0, 0.09, 1),
         _ => return None,
     })
 }
@@ -297,14 +296,15 @@ impl HapticDevice for DhdArm {
         })?;
         // SAFETY: dhdOpenID takes a device index in 0..count.
         let id = unsafe { (api.open_id)(wanted) };
-        let id = c_char::try_from(id).ok().filter(|id| *id >= 0).ok_or_else(|| {
-            DeviceError::NotFound {
+        let id = c_char::try_from(id)
+            .ok()
+            .filter(|id| *id >= 0)
+            .ok_or_else(|| DeviceError::NotFound {
                 what: format!(
                     "Force Dimension device {index}: dhdOpenID failed ({})",
                     api.last_error_text()
                 ),
-            }
-        })?;
+            })?;
         // SAFETY: `id` is an open device's ID.
         let system_type = unsafe { (api.get_system_type)(id) };
         let info = info_for_system_type(system_type, api.system_name(id).as_deref());

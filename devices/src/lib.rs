@@ -45,5 +45,5 @@ pub mod serial_arm;
 pub mod serial_link;
 pub mod spacemouse;
 pub mod spec;
-pub mod vendor_lib;
 pub mod velocity;
+pub mod vendor_lib;

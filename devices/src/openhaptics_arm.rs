@@ -161,9 +161,7 @@ impl HdApi {
         let text = self.get_error_string.map(|f| unsafe { f(code) });
         match text {
             // SAFETY: a non-null return is a NUL-terminated static string.
-            Some(p) if !p.is_null() => unsafe { CStr::from_ptr(p) }
-                .to_string_lossy()
-                .into_owned(),
+            Some(p) if !p.is_null() => unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned(),
             _ => "no description".into(),
         }
     }

@@ -277,7 +277,10 @@ pub(crate) unsafe fn function<F: Copy>(
 ///
 /// # Safety
 /// As [`function`].
-pub(crate) unsafe fn optional_function<F: Copy>(lib: &LoadedLibrary, name: &'static str) -> Option<F> {
+pub(crate) unsafe fn optional_function<F: Copy>(
+    lib: &LoadedLibrary,
+    name: &'static str,
+) -> Option<F> {
     // SAFETY: as the caller promises for `function`.
     unsafe { function(lib, name) }.ok()
 }
@@ -298,14 +301,23 @@ mod tests {
     #[test]
     fn a_missing_library_names_the_library_each_candidate_and_the_cure() {
         let source = LibrarySource::Path("/nowhere/libdhd.so".into());
-        let e = load(VendorLibrary::ForceDimensionDhd, &source, "dhdGetDeviceCount")
-            .err()
-            .unwrap();
+        let e = load(
+            VendorLibrary::ForceDimensionDhd,
+            &source,
+            "dhdGetDeviceCount",
+        )
+        .err()
+        .unwrap();
         assert_eq!(e.library, VendorLibrary::ForceDimensionDhd);
         assert_eq!(e.tried.len(), 1);
         assert_eq!(e.tried[0].candidate, "/nowhere/libdhd.so");
         let text = e.to_string();
-        for needle in ["libdhd.so", "/nowhere/libdhd.so", "Force Dimension SDK", "DYNACLAY_DHD_LIB"] {
+        for needle in [
+            "libdhd.so",
+            "/nowhere/libdhd.so",
+            "Force Dimension SDK",
+            "DYNACLAY_DHD_LIB",
+        ] {
             assert!(text.contains(needle), "{needle} missing from: {text}");
         }
         assert!(
@@ -322,6 +334,9 @@ mod tests {
         let e = load(VendorLibrary::OpenHapticsHd, &source, "hdInitDevice")
             .err()
             .unwrap();
-        assert_eq!(e.tried[0].reason, "loaded, but it has no symbol `hdInitDevice`");
+        assert_eq!(
+            e.tried[0].reason,
+            "loaded, but it has no symbol `hdInitDevice`"
+        );
     }
 }

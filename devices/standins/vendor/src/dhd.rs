@@ -103,7 +103,9 @@ impl State {
 static STATE: Mutex<State> = Mutex::new(State::new());
 
 fn state() -> MutexGuard<'static, State> {
-    STATE.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    STATE
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// `int dhdGetDeviceCount()`.
@@ -199,7 +201,12 @@ pub extern "C" fn dhdGetComMode(id: c_char) -> c_int {
 /// # Safety
 /// The three pointers must each point to a writable double.
 #[unsafe(no_mangle)]
-pub unsafe extern "C" fn dhdGetPosition(px: *mut f64, py: *mut f64, pz: *mut f64, id: c_char) -> c_int {
+pub unsafe extern "C" fn dhdGetPosition(
+    px: *mut f64,
+    py: *mut f64,
+    pz: *mut f64,
+    id: c_char,
+) -> c_int {
     let mut s = state();
     if s.device(id).is_none() {
         return -1;

@@ -201,7 +201,9 @@ static SERVO_THREAD: Mutex<Option<JoinHandle<()>>> = Mutex::new(None);
 
 fn state() -> MutexGuard<'static, State> {
     // A test that panicked while holding the lock leaves plain data behind; keep going.
-    STATE.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    STATE
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// Runs every scheduled callback once, on the caller's thread, outside the state lock (the
