@@ -242,12 +242,15 @@ pub struct DhdArm {
 }
 
 impl DhdArm {
-    /// An arm (not opened yet); nothing is loaded until `open`.
+    /// An arm (not opened yet); nothing is loaded until `open`. Until then its info holds the
+    /// most conservative published limits (the model is known only once open).
     #[must_use]
     pub fn new(config: DhdConfig) -> Self {
+        let mut info = info_for_system_type(-1, None);
+        info.name = "Force Dimension arm (DHD)".into();
         Self {
             config,
-            info: info_for_system_type(-1, None),
+            info,
             session: None,
             loaded_from: None,
         }

@@ -337,6 +337,8 @@ struct HdSession {
     force_in: triple_buffer::Input<[f64; 3]>,
     shared: Arc<ServoShared>,
     period_us: u64,
+    /// Whether `hdStartScheduler` succeeded (a synchronous call needs a running scheduler).
+    scheduler_running: bool,
     shut_down: bool,
 }
 
@@ -357,11 +359,15 @@ impl HdSession {
         // call runs the frame on HD's servo thread and returns when it is done. After
         // hdStopScheduler returns, HD runs no callback, so the servo side may be freed.
         unsafe {
-            (self.api.schedule_synchronous)(
-                servo_tick_once,
-                self.servo_ptr(),
-                HD_DEFAULT_SCHEDULER_PRIORITY,
-            );
+            if self.scheduler_running {
+                (self.api.schedule_synchronous)(
+                    servo_tick_once,
+                    self.servo_ptr(),
+                    HD_DEFAULT_SCHEDULER_PRIORITY,
+                );
+            }
+            // `close` may run on another thread than `open`: name the device again.
+            (self.api.make_current_device)(self.hhd);
             (self.api.disable)(HD_FORCE_OUTPUT);
             (self.api.stop_scheduler)();
             (self.api.unschedule)(self.scheduled);
@@ -523,7 +529,7 @@ impl HapticDevice for OpenHapticsArm {
         let loaded_from = api.library.from.clone();
         // From here on the session owns the servo side: dropping it on any error below shuts
         // the scheduler down before freeing it.
-        let session = HdSession {
+        let mut session = HdSession {
             api,
             hhd,
             scheduled,
@@ -532,10 +538,12 @@ impl HapticDevice for OpenHapticsArm {
             force_in,
             shared,
             period_us,
+            scheduler_running: false,
             shut_down: false,
         };
         let error = session.api.error();
-        if error.error_code != HD_SUCCESS {
+        session.scheduler_running = error.error_code == HD_SUCCESS;
+        if !session.scheduler_running {
             return Err(DeviceError::Vendor {
                 library: LIBRARY,
                 code: error.error_code,

@@ -7,7 +7,13 @@
 //! The HD stand-in runs in manual mode: its servo ticks happen only when a test calls
 //! `standin_hd_tick`, so nothing here depends on wall-clock rates. The stand-in's state is
 //! process-wide, so the tests take turns through one lock.
+//!
+//! A counting global allocator (per thread) checks that the drivers' haptic-path calls and
+//! the HD servo frame allocate nothing; the stand-in library has its own allocator, so its
+//! bookkeeping is not counted.
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::ffi::{c_int, c_uint};
 use std::path::PathBuf;
 use std::sync::{Mutex, MutexGuard};
@@ -23,6 +29,37 @@ use glam::{DVec3, Vec3};
 use libloading::Library;
 
 const STANDIN_FILE: &str = "libdynaclay_vendor_standin.so";
+
+struct CountingAlloc;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+// SAFETY: forwards every call to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for CountingAlloc {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: same contract as the caller's.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        ALLOCATIONS.with(|c| c.set(c.get() + 1));
+        // SAFETY: same contract as the caller's.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: CountingAlloc = CountingAlloc;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(Cell::get)
+}
 
 /// The stand-in library beside this test executable (target/<profile>/deps or its parent).
 fn standin_path() -> PathBuf {
@@ -99,7 +136,7 @@ impl Standin {
         unsafe {
             (*self
                 .lib
-                .get::<unsafe extern "C" fn(u32) -> u64>(b"standin_hd_tick")
+                .get::<unsafe extern "C" fn(u32) -> u64>(b"standin_hd_tick\0")
                 .unwrap())(n)
         }
     }
@@ -126,6 +163,8 @@ impl Standin {
         }
     }
 
+    /// Calls hook `name`, which takes one unsigned int. A NUL-terminated `name` is looked up
+    /// without allocating.
     fn hd_u32(&self, name: &str, value: c_uint) {
         // SAFETY: the named hook takes one unsigned int.
         unsafe {
@@ -615,6 +654,36 @@ fn dhd_index_past_the_connected_devices_is_not_found() {
         other => panic!("expected NotFound, got {other:?}"),
     }
     assert_eq!(s.dhd_calls().open_devices, 0);
+}
+
+#[test]
+fn the_haptic_path_of_both_drivers_allocates_nothing_faults_included() {
+    let s = Standin::new();
+    let mut touch = filtered(s.touch(), 0.01);
+    touch.open().unwrap();
+    let mut dhd = filtered(s.dhd(0), 0.01);
+    dhd.open().unwrap();
+    // Warm up once (first-use paths of the test's own helpers), then count.
+    for dev in [&mut touch as &mut dyn HapticDevice, &mut dhd] {
+        dev.read().unwrap();
+        dev.write_force(Vec3::X * 0.1).unwrap();
+    }
+    s.hd_tick(1);
+    let before = allocations();
+    for k in 0..300 {
+        if k == 100 {
+            s.hd_u32("standin_hd_inject_fault\0", shd::HD_EXCEEDED_MAX_FORCE);
+            s.hd_u32("standin_dhd_fail_reads\0", 1);
+        }
+        for dev in [&mut touch as &mut dyn HapticDevice, &mut dhd] {
+            let _ = dev.read();
+            let _ = dev.write_force(Vec3::new(0.2, -0.1, 0.05));
+        }
+        s.hd_tick(1);
+    }
+    assert_eq!(allocations() - before, 0, "allocations on the haptic path");
+    assert_eq!(touch.counters().read_faults, 1);
+    assert_eq!(dhd.counters().read_faults, 1);
 }
 
 // ---------------------------------------------------------------------------------------

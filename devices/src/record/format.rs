@@ -20,7 +20,8 @@
 //!          20 bytes before it; nothing may follow
 //! record   kind u8 (1 read ok, 2 read error, 3 write ok, 4 write error) | flags u8
 //!          (1 = orientation present, 2 = OS error code present) | error_code u16
-//!          | buttons u32 (or OS error code) | timestamp_us u64 (or error detail)
+//!          | buttons u32 (or OS or vendor error code) | timestamp_us u64 (or error detail;
+//!          for a vendor-library error (code 11) the library: 0 OpenHaptics, 1 DHD, 2 other)
 //!          | sequence u64 | vec3 A (position or force, 3×f32) | vec3 B (velocity, 3×f32)
 //!          | quat (x, y, z, w as f32)
 //! tick     kind u8 = 5 | flags u8 (1 = a field snapshot was fetched) | 0u16 | fade f32
