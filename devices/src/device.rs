@@ -108,7 +108,7 @@ impl Default for DeviceState {
 /// What went wrong talking to a device.
 ///
 /// The variants a driver returns from `read`/`write_force` on the haptic path
-/// (`NotOpen`, `Disconnected`, `Timeout`, `Protocol`, `Io`, `EndOfRecording`) carry no heap
+/// (`NotOpen`, `Disconnected`, `Timeout`, `Protocol`, `Io`, `Vendor`, `EndOfRecording`) carry no heap
 /// data, so producing them allocates nothing. Variants with strings come from `open` and
 /// configuration only.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -170,6 +170,21 @@ pub enum DeviceError {
     Unsupported {
         /// The operation, e.g. `"orientation"`.
         what: &'static str,
+    },
+    /// A vendor library the driver loads at run time (OpenHaptics, Force Dimension) could not
+    /// be loaded: which library, every place it was looked for, and how to install it.
+    #[error(transparent)]
+    LibraryMissing(Box<crate::vendor_lib::LibraryMissing>),
+    /// A vendor library reported an error code on the haptic path (a device fault, a lost
+    /// connection); no heap data, so returning it allocates nothing.
+    #[error("{library} reported error {code:#06x} during {context}")]
+    Vendor {
+        /// Which library, e.g. `"OpenHaptics HD"`.
+        library: &'static str,
+        /// The library's error code (`HD_COMM_ERROR`, `DHD_ERROR_COM`, ...).
+        code: u32,
+        /// Which call or stage failed, e.g. `"servo frame"`.
+        context: &'static str,
     },
     /// A replayed recording has no more samples.
     #[error("recording ended after {samples} samples")]

@@ -3,12 +3,15 @@
 //!
 //! HID enumeration reads sysfs through hidapi (no permission needed); serial enumeration uses
 //! serialport's sysfs scan. Access is checked with `access(2)` on the device node, so nothing
-//! is opened (opening a tty would toggle DTR and reset some boards). Not for the haptic path.
+//! is opened (opening a tty would toggle DTR and reset some boards). Arms reached through a
+//! vendor library (OpenHaptics, Force Dimension) are not enumerated here; [`vendor_report`]
+//! says whether each library loads. Not for the haptic path.
 
 use std::fmt::Write as _;
 
 pub use crate::node_access::{Access, access};
 use crate::spacemouse::SPACEMOUSE_IDS;
+use crate::vendor_lib::{LibraryMissing, VendorLibrary};
 
 /// USB IDs of the Novint Falcon's FTDI bridge.
 pub const FALCON_ID: (u16, u16) = (0x0403, 0xcb48);
@@ -178,6 +181,41 @@ pub fn report(devices: &[Connected], notes: &[String]) -> String {
     s
 }
 
+/// Whether each vendor library loads from where its `--device` spec would look (loading it
+/// runs its initialisers; no device is opened).
+#[must_use]
+pub fn vendor_libraries() -> Vec<(VendorLibrary, Result<String, LibraryMissing>)> {
+    crate::vendor_lib::probe_all()
+}
+
+/// Human-readable lines for `dynaclay devices`: per vendor library, where it was found and the
+/// spec that uses it, or that it was not found, where it was looked for and how to install it.
+#[must_use]
+pub fn vendor_report(libraries: &[(VendorLibrary, Result<String, LibraryMissing>)]) -> String {
+    let mut s = String::new();
+    for (library, found) in libraries {
+        match found {
+            Ok(from) => {
+                let _ = writeln!(
+                    s,
+                    "vendor {}: found ({from}); arms through it: --device {}",
+                    library.label(),
+                    library.spec()
+                );
+            }
+            Err(missing) => {
+                let _ = writeln!(
+                    s,
+                    "vendor {}: not found; --device {} needs it ({missing})",
+                    library.label(),
+                    library.spec()
+                );
+            }
+        }
+    }
+    s
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -229,6 +267,55 @@ mod tests {
             "{r}"
         );
         assert!(report(&[], &["x".into()]).contains("No HID devices"));
+    }
+
+    #[test]
+    fn the_vendor_report_says_found_or_where_it_looked_and_how_to_install() {
+        use crate::vendor_lib::TriedCandidate;
+        let found = (
+            VendorLibrary::OpenHapticsHd,
+            Ok("/usr/lib/libHD.so".to_string()),
+        );
+        let missing = (
+            VendorLibrary::ForceDimensionDhd,
+            Err(LibraryMissing {
+                library: VendorLibrary::ForceDimensionDhd,
+                tried: vec![TriedCandidate {
+                    candidate: "libdhd.so".into(),
+                    reason: "cannot open shared object file".into(),
+                }],
+            }),
+        );
+        let r = vendor_report(&[found, missing]);
+        let lines: Vec<&str> = r.lines().collect();
+        assert_eq!(lines.len(), 2, "{r}");
+        assert!(
+            lines[0].contains("libHD.so")
+                && lines[0].contains("found (/usr/lib/libHD.so)")
+                && lines[0].contains("--device touch"),
+            "{r}"
+        );
+        assert!(
+            lines[1].contains("not found")
+                && lines[1].contains("--device dhd")
+                && lines[1].contains("cannot open shared object file")
+                && lines[1].contains("Force Dimension SDK"),
+            "{r}"
+        );
+    }
+
+    #[test]
+    fn this_machine_gets_one_vendor_line_per_library() {
+        let libs = vendor_libraries();
+        assert_eq!(libs.len(), VendorLibrary::ALL.len());
+        let r = vendor_report(&libs);
+        for (library, found) in &libs {
+            let line = r
+                .lines()
+                .find(|l| l.contains(library.label()))
+                .unwrap_or_else(|| panic!("{} missing from:\n{r}", library.label()));
+            assert_eq!(line.contains(": found ("), found.is_ok(), "{line}");
+        }
     }
 
     #[test]

@@ -8,13 +8,16 @@
 use std::path::PathBuf;
 
 use crate::device::{DeviceError, HapticDevice};
+use crate::dhd_arm::{DhdArm, DhdConfig};
 use crate::falcon::{Falcon, FalconOptions};
 use crate::hid_arm::HidArm;
+use crate::openhaptics_arm::{OpenHapticsArm, OpenHapticsConfig};
 use crate::pose_input::PoseInputConfig;
 use crate::profile::{DeviceProfile, Protocol};
 use crate::serial_arm::{SerialArm, SerialArmOptions};
 use crate::spacemouse::SpaceMouse;
 use crate::spec::DeviceSpec;
+use crate::vendor_lib::{LibrarySource, VendorLibrary};
 
 /// Environment variable naming the Falcon firmware file.
 pub const FALCON_FIRMWARE_ENV: &str = "DYNACLAY_FALCON_FIRMWARE";
@@ -28,14 +31,26 @@ pub struct DriverOptions {
     pub serial: SerialArmOptions,
     /// SpaceMouse pose settings.
     pub spacemouse: PoseInputConfig,
+    /// Where OpenHaptics' `libHD.so` comes from (`touch`, `phantom`).
+    pub hd_library: LibrarySource,
+    /// Where Force Dimension's `libdhd.so` comes from (`dhd`).
+    pub dhd_library: LibrarySource,
 }
 
 impl DriverOptions {
-    /// Defaults, with the Falcon firmware file taken from `DYNACLAY_FALCON_FIRMWARE` if set.
+    /// Defaults, with the Falcon firmware file taken from `DYNACLAY_FALCON_FIRMWARE` if set,
+    /// and the vendor libraries from `DYNACLAY_HD_LIB` and `DYNACLAY_DHD_LIB` if set (else
+    /// searched for where the vendors install them).
     #[must_use]
     pub fn from_env() -> Self {
         let mut o = Self::default();
         o.falcon.firmware = std::env::var_os(FALCON_FIRMWARE_ENV).map(PathBuf::from);
+        let explicit = |lib: VendorLibrary| match std::env::var_os(lib.env_var()) {
+            Some(p) if !p.is_empty() => LibrarySource::Path(PathBuf::from(p)),
+            _ => LibrarySource::Search,
+        };
+        o.hd_library = explicit(VendorLibrary::OpenHapticsHd);
+        o.dhd_library = explicit(VendorLibrary::ForceDimensionDhd);
         o
     }
 }
@@ -67,6 +82,16 @@ pub fn build_driver(
             what: "`mouse` as hardware: the window builds crate::pointer::PointerDevice",
         }),
         DeviceSpec::SpaceMouse => Ok(Box::new(SpaceMouse::new(opts.spacemouse))),
+        DeviceSpec::OpenHaptics { device } => {
+            Ok(Box::new(OpenHapticsArm::new(OpenHapticsConfig {
+                library: opts.hd_library.clone(),
+                device_name: device.clone(),
+            })))
+        }
+        DeviceSpec::Dhd { index } => Ok(Box::new(DhdArm::new(DhdConfig {
+            library: opts.dhd_library.clone(),
+            index: *index,
+        }))),
         DeviceSpec::Hid { profile } => {
             let p = load_profile(profile.as_deref().unwrap_or("woodenhaptics"))?;
             Ok(Box::new(HidArm::new(p)?))
@@ -114,6 +139,9 @@ mod tests {
             "serial:/dev/null:falcon",
             "falcon:/dev/null",
             "spacemouse",
+            "touch",
+            "phantom:PHANToM 1",
+            "dhd:1",
         ] {
             let spec: DeviceSpec = s.parse().unwrap();
             let d = build_driver(&spec, &o).unwrap_or_else(|e| panic!("{s}: {e}"));

@@ -1,5 +1,6 @@
 //! Device specs as typed on the command line (`--device`): `sim`, `hid[:PROFILE]`,
-//! `serial:PATH[:PROFILE]`, `falcon:PATH`, `spacemouse`, `mouse`, `replay:FILE`.
+//! `serial:PATH[:PROFILE]`, `falcon:PATH`, `touch[:NAME]` (alias `phantom[:NAME]`), `dhd[:N]`,
+//! `spacemouse`, `mouse`, `replay:FILE`.
 //!
 //! Parsing is pure and total: any string gives a [`DeviceSpec`] or a [`SpecError`] that quotes
 //! the input and says what was expected; it never panics.
@@ -7,6 +8,9 @@
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
+
+/// Largest device index `dhd:N` accepts (DHD numbers devices with a signed char).
+pub const MAX_DHD_INDEX: u8 = 127;
 
 /// Which device to open.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -30,6 +34,16 @@ pub enum DeviceSpec {
         /// Serial port path.
         path: PathBuf,
     },
+    /// A 3D Systems Touch / Phantom arm through OpenHaptics' HD library (`touch`, `phantom`).
+    OpenHaptics {
+        /// HD device configuration name (Touch_Setup's); `None` for the default device.
+        device: Option<String>,
+    },
+    /// A Force Dimension arm (or a Falcon) through the DHD library (`dhd[:N]`).
+    Dhd {
+        /// Which connected device, counting from 0.
+        index: u8,
+    },
     /// A 3Dconnexion SpaceMouse (pose input, no force).
     SpaceMouse,
     /// The window's mouse or pen (`mouse`): the app aims it at the clay (pose input, no force).
@@ -44,7 +58,7 @@ pub enum DeviceSpec {
 /// Why a device spec did not parse.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "invalid device `{input}`: {reason} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, spacemouse, mouse or replay:FILE)",
+    "invalid device `{input}`: {reason} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, touch[:NAME], phantom[:NAME], dhd[:N], spacemouse, mouse or replay:FILE)",
     input = input.escape_debug()
 )]
 pub struct SpecError {
@@ -100,6 +114,22 @@ impl FromStr for DeviceSpec {
                     }),
                 }
             }
+            "touch" | "phantom" => match rest {
+                None => Ok(Self::OpenHaptics { device: None }),
+                Some(n) => Ok(Self::OpenHaptics {
+                    device: Some(nonempty("device configuration name", Some(n))?),
+                }),
+            },
+            "dhd" => match rest {
+                None => Ok(Self::Dhd { index: 0 }),
+                Some(n) => match n.trim().parse::<u8>() {
+                    Ok(index) if index <= MAX_DHD_INDEX => Ok(Self::Dhd { index }),
+                    _ => Err(err(&format!(
+                        "`dhd` needs a device index from 0 to {MAX_DHD_INDEX} after the colon, not `{}`",
+                        n.escape_debug()
+                    ))),
+                },
+            },
             "falcon" => Ok(Self::Falcon {
                 path: PathBuf::from(nonempty("port path", rest)?),
             }),
@@ -130,6 +160,10 @@ impl fmt::Display for DeviceSpec {
                 profile: Some(p),
             } => write!(f, "serial:{}:{p}", path.display()),
             Self::Falcon { path } => write!(f, "falcon:{}", path.display()),
+            Self::OpenHaptics { device: None } => write!(f, "touch"),
+            Self::OpenHaptics { device: Some(n) } => write!(f, "touch:{n}"),
+            Self::Dhd { index: 0 } => write!(f, "dhd"),
+            Self::Dhd { index } => write!(f, "dhd:{index}"),
             Self::SpaceMouse => write!(f, "spacemouse"),
             Self::Pointer => write!(f, "mouse"),
             Self::Replay { file } => write!(f, "replay:{}", file.display()),
@@ -195,6 +229,10 @@ mod tests {
             "falcon:/dev/ttyUSB1",
             "spacemouse",
             "replay:f.rec",
+            "touch",
+            "touch:Default Device",
+            "dhd",
+            "dhd:2",
         ] {
             assert_eq!(p(s).unwrap().to_string(), s);
         }
@@ -212,5 +250,28 @@ mod tests {
         assert!(p("hid:").is_err());
         assert!(p("").is_err());
         assert!(p("replay:  ").is_err());
+        assert!(p("touch:").is_err());
+        let e = p("dhd:x").unwrap_err().to_string();
+        assert!(
+            e.contains("`dhd` needs a device index") && e.contains("`x`"),
+            "{e}"
+        );
+        assert!(p("dhd:128").is_err());
+        assert!(p("dhd:-1").is_err());
+    }
+
+    #[test]
+    fn vendor_arms_parse_with_their_aliases() {
+        assert_eq!(p("touch"), Ok(DeviceSpec::OpenHaptics { device: None }));
+        assert_eq!(p("Phantom"), Ok(DeviceSpec::OpenHaptics { device: None }));
+        assert_eq!(
+            p("phantom:PHANToM 1"),
+            Ok(DeviceSpec::OpenHaptics {
+                device: Some("PHANToM 1".into())
+            })
+        );
+        assert_eq!(p("dhd"), Ok(DeviceSpec::Dhd { index: 0 }));
+        assert_eq!(p("dhd:3"), Ok(DeviceSpec::Dhd { index: 3 }));
+        assert_eq!(p("dhd:0").unwrap().to_string(), "dhd");
     }
 }

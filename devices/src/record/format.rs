@@ -20,7 +20,8 @@
 //!          20 bytes before it; nothing may follow
 //! record   kind u8 (1 read ok, 2 read error, 3 write ok, 4 write error) | flags u8
 //!          (1 = orientation present, 2 = OS error code present) | error_code u16
-//!          | buttons u32 (or OS error code) | timestamp_us u64 (or error detail)
+//!          | buttons u32 (or OS or vendor error code) | timestamp_us u64 (or error detail;
+//!          for a vendor-library error (code 11) the library: 0 OpenHaptics, 1 DHD, 2 other)
 //!          | sequence u64 | vec3 A (position or force, 3×f32) | vec3 B (velocity, 3×f32)
 //!          | quat (x, y, z, w as f32)
 //! tick     kind u8 = 5 | flags u8 (1 = a field snapshot was fetched) | 0u16 | fade f32
@@ -146,6 +147,11 @@ pub const REPLAYED_PROTOCOL_ERROR: &str = "protocol error (replayed)";
 pub const REPLAYED_IO_CONTEXT: &str = "device I/O (replayed)";
 /// `what` of a replayed `Unsupported` error.
 pub const REPLAYED_UNSUPPORTED: &str = "an operation (replayed)";
+/// `library` of a replayed `Vendor` error, by its stored index; the last stands for any other.
+pub const REPLAYED_VENDOR_LIBRARIES: [&str; 3] =
+    ["OpenHaptics HD", "Force Dimension DHD", "a vendor library"];
+/// `context` of a replayed `Vendor` error.
+pub const REPLAYED_VENDOR_CONTEXT: &str = "a device call (replayed)";
 
 /// (code, flags, extra u32, detail u64) for an error.
 fn encode_error(err: &DeviceError) -> (u16, u8, u32, u64) {
@@ -166,6 +172,15 @@ fn encode_error(err: &DeviceError) -> (u16, u8, u32, u64) {
         DeviceError::NotFound { .. } => (8, 0, 0, 0),
         DeviceError::Config { .. } => (9, 0, 0, 0),
         DeviceError::Unsupported { .. } => (10, 0, 0, 0),
+        DeviceError::Vendor { library, code, .. } => {
+            let which = REPLAYED_VENDOR_LIBRARIES
+                .iter()
+                .position(|l| l == library)
+                .unwrap_or(REPLAYED_VENDOR_LIBRARIES.len() - 1) as u64;
+            (11, 0, *code, which)
+        }
+        // Only `open` returns it, which is never recorded; replayed as the not-found it is.
+        DeviceError::LibraryMissing(_) => (8, 0, 0, 0),
     }
 }
 
@@ -197,6 +212,11 @@ fn decode_error(code: u16, flags: u8, extra: u32, detail: u64) -> Option<DeviceE
         },
         10 => DeviceError::Unsupported {
             what: REPLAYED_UNSUPPORTED,
+        },
+        11 => DeviceError::Vendor {
+            library: REPLAYED_VENDOR_LIBRARIES.get(usize::try_from(detail).ok()?)?,
+            code: extra,
+            context: REPLAYED_VENDOR_CONTEXT,
         },
         _ => return None,
     })
@@ -899,6 +919,16 @@ mod tests {
                 context: REPLAYED_IO_CONTEXT,
             },
             DeviceError::EndOfRecording { samples: 99 },
+            DeviceError::Vendor {
+                library: REPLAYED_VENDOR_LIBRARIES[0],
+                code: 0x0302,
+                context: REPLAYED_VENDOR_CONTEXT,
+            },
+            DeviceError::Vendor {
+                library: REPLAYED_VENDOR_LIBRARIES[1],
+                code: 2,
+                context: REPLAYED_VENDOR_CONTEXT,
+            },
         ] {
             records.push(Record::Read(Err(e.clone())));
             records.push(Record::Write {
