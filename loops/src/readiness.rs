@@ -89,9 +89,11 @@ pub struct Threshold {
     pub why: &'static str,
 }
 
-/// Every threshold the verdict uses, and why. Recorded figures are from a 2-vCPU VM (the
-/// build machine, `dynaclay profile` and `cyclictest -m -p 90 -i 1000 -l 5000`, with and
-/// without a build running beside it); docs/src/profiling.md has the commands.
+/// Every threshold the verdict uses, and why. The recorded figures are from a 2-vCPU VM while
+/// other builds ran on it (load average 4 to 6), as root: `dynaclay profile --seconds 5` at
+/// 1 kHz (three runs, and one with `--load`) and at 4 kHz, and `cyclictest -m -p 90 -i 1000
+/// -l 5000` and `-i 250 -l 20000`; docs/src/profiling.md ("How the verdict judges") has the
+/// table of them.
 pub const THRESHOLDS: [Threshold; 15] = [
     Threshold {
         measure: Measure::RtRefused,
