@@ -989,7 +989,12 @@ mod tests {
         let stolen = f.stall_ms_per_s.expect("stolen");
         assert!((stolen - 12.6).abs() < 0.05, "{stolen}");
         let v = verdict(&f, 1000.0);
-        assert_eq!(v.grade, Grade::Pass, "{}", verdict_text(std::slice::from_ref(&v)));
+        assert_eq!(
+            v.grade,
+            Grade::Pass,
+            "{}",
+            verdict_text(std::slice::from_ref(&v))
+        );
         let text = verdict_text(&[v]);
         assert!(text.contains("met every deadline"), "{text}");
         assert!(!text.contains("fix:"), "{text}");
