@@ -48,6 +48,10 @@ fn profile_reports_probe_and_verdict_and_compares_its_own_json() {
     assert!(doc.probe_before.is_some() && doc.probe_after.is_some());
     assert_eq!(doc.readiness.len(), 2);
     assert_eq!(doc.facts.as_ref().and_then(|f| f.rt_granted), Some(false));
+    // The verdict took the stall probe's gaps by length and the haptic loop's own record.
+    let facts = doc.facts.as_ref().unwrap();
+    assert!(facts.stalls.is_some_and(|s| s.gap_counts.is_some()));
+    assert_eq!(facts.haptic_loop.map(|l| l.rate_hz), Some(1000.0));
     let md = std::fs::read_to_string(dir.join("latency.md")).unwrap();
     assert!(md.contains("## Readiness"));
     let svg = std::fs::read_to_string(dir.join("latency.svg")).unwrap();

@@ -60,12 +60,13 @@ pub use priority::{
     request_realtime,
 };
 pub use probe::{
-    DEFAULT_GAP_THRESHOLD, ProbeRun, ProbeSummary, StallCounter, StallStats, run_probes,
-    run_stall_probe, run_wakeup_probe,
+    DEFAULT_GAP_THRESHOLD, GAP_FLOORS_NS, GapCounts, ProbeRun, ProbeSummary, StallCounter,
+    StallStats, run_probes, run_stall_probe, run_wakeup_probe,
 };
 pub use readiness::{
-    FACT_FILE_CAP, Finding, Grade, PlatformFacts, Verdict, busy_fraction, cpu_jiffies,
-    read_fact_file, read_platform_facts, verdict, verdict_text,
+    FACT_FILE_CAP, Finding, Grade, LoopRecord, Measure, PlatformFacts, Problem, THRESHOLDS,
+    Threshold, Verdict, busy_fraction, cpu_jiffies, plain_summary, read_fact_file,
+    read_platform_facts, verdict, verdict_text,
 };
 pub use recorder::{
     LATE_1MS, LATE_2MS, LatencyRecorder, LatencyStats, MAX_RECORDABLE, Percentiles, TickTiming,

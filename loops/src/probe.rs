@@ -7,7 +7,10 @@
 //! - The stall probe ([`run_stall_probe`]) spins reading the clock; a gap between two readings
 //!   longer than a threshold is time taken away from it by the host (a stolen vCPU), by
 //!   interrupts or by a higher-priority thread. [`StallCounter`] does the counting and is
-//!   pure, so it is tested on made-up readings.
+//!   pure, so it is tested on made-up readings. Besides the sum and the longest gap it keeps
+//!   how many gaps reached each of the fixed lengths [`GAP_FLOORS_NS`] ([`GapCounts`], a fixed
+//!   array: counting a gap allocates nothing), because what endangers a deadline is a gap as
+//!   long as a good part of the period, not many short ones adding up.
 //!
 //! Not for the real-time path: each probe spawns a thread and runs for its whole duration.
 
@@ -20,6 +23,64 @@ use crate::recorder::{LatencyRecorder, LatencyStats, TickTiming};
 
 /// A gap between two clock readings longer than this counts as a stall.
 pub const DEFAULT_GAP_THRESHOLD: Duration = Duration::from_micros(20);
+
+/// The lengths the stall probe sorts gaps by, ns: 31.25 µs × {1, 1.5} × 2^k, k = 0..=9
+/// (31.25 µs to 24 ms). Every power-of-two fraction of the 1 kHz and 4 kHz periods from 1/8
+/// to 16 periods is one of them (1000 µs = 31.25 µs × 2^5, 250 µs = 31.25 µs × 2^3), so the
+/// verdict asks for those exactly; for another length it takes the floor just below, which
+/// counts a few shorter gaps too (at most 1.5 times shorter) and so errs towards caution.
+pub const GAP_FLOORS_NS: [u64; 20] = {
+    let mut floors = [0u64; 20];
+    let mut k = 0;
+    while k < 10 {
+        floors[2 * k] = 31_250 << k;
+        floors[2 * k + 1] = 46_875 << k;
+        k += 1;
+    }
+    floors
+};
+
+/// How many counted gaps fell between consecutive [`GAP_FLOORS_NS`]: `counts[i]` gaps were at
+/// least `GAP_FLOORS_NS[i]` and shorter than the next floor (the last bin is open-ended).
+/// Counted gaps shorter than the first floor are in none of them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GapCounts {
+    /// Gaps per bin.
+    pub counts: [u64; GAP_FLOORS_NS.len()],
+}
+
+impl GapCounts {
+    /// Counts one gap of `gap_ns`.
+    pub fn add(&mut self, gap_ns: u64) {
+        // NOTE: the floors are sorted, so the bin is the number of floors not above the gap.
+        let bins_reached = GAP_FLOORS_NS.partition_point(|&floor| floor <= gap_ns);
+        if let Some(bin) = bins_reached.checked_sub(1) {
+            self.counts[bin] += 1;
+        }
+    }
+
+    /// Gaps at least `floor_us` long, counted from the largest floor of [`GAP_FLOORS_NS`] not
+    /// above `floor_us` (so possibly a few shorter ones too: cautious). Below the first floor
+    /// it counts from the first floor.
+    #[must_use]
+    pub fn at_least(&self, floor_us: f64) -> u64 {
+        let floor_ns = (floor_us.max(0.0) * 1e3).round() as u64;
+        let first = GAP_FLOORS_NS
+            .partition_point(|&floor| floor <= floor_ns)
+            .saturating_sub(1);
+        self.counts[first..].iter().sum()
+    }
+
+    /// Both runs' gaps together.
+    #[must_use]
+    pub fn merged(&self, other: &Self) -> Self {
+        let mut counts = self.counts;
+        for (c, o) in counts.iter_mut().zip(other.counts) {
+            *c += o;
+        }
+        Self { counts }
+    }
+}
 
 /// What the stall probe saw: how often and for how long its CPU was taken away.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -34,6 +95,9 @@ pub struct StallStats {
     pub stolen_ms: f64,
     /// Longest gap, µs (0 when none was counted).
     pub max_gap_us: f64,
+    /// The counted gaps by length; `None` in records made before the probe sorted them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gap_counts: Option<GapCounts>,
 }
 
 impl StallStats {
@@ -56,6 +120,32 @@ impl StallStats {
             0.0
         }
     }
+
+    /// Gaps at least `floor_us` long per second of probing (see [`GapCounts::at_least`]);
+    /// `None` when the record has no [`GapCounts`] or no probing time.
+    #[must_use]
+    pub fn gaps_at_least_per_s(&self, floor_us: f64) -> Option<f64> {
+        let counts = self.gap_counts?;
+        (self.seconds > 0.0).then(|| counts.at_least(floor_us) as f64 / self.seconds)
+    }
+
+    /// Two probe runs taken as one: times, counts and bins added, the longer longest gap.
+    /// The gap threshold is the larger of the two (the runs normally share it).
+    #[must_use]
+    pub fn merged(&self, other: &Self) -> Self {
+        Self {
+            seconds: self.seconds + other.seconds,
+            gap_threshold_us: self.gap_threshold_us.max(other.gap_threshold_us),
+            gaps: self.gaps + other.gaps,
+            stolen_ms: self.stolen_ms + other.stolen_ms,
+            max_gap_us: self.max_gap_us.max(other.max_gap_us),
+            gap_counts: match (self.gap_counts, other.gap_counts) {
+                (Some(a), Some(b)) => Some(a.merged(&b)),
+                // One run without bins: the bins would undercount the runs' time.
+                _ => None,
+            },
+        }
+    }
 }
 
 /// Counts gaps in a sequence of clock readings (ns from any fixed origin).
@@ -67,6 +157,7 @@ pub struct StallCounter {
     gaps: u64,
     stolen_ns: u64,
     max_gap_ns: u64,
+    by_length: GapCounts,
 }
 
 impl StallCounter {
@@ -80,6 +171,7 @@ impl StallCounter {
             gaps: 0,
             stolen_ns: 0,
             max_gap_ns: 0,
+            by_length: GapCounts::default(),
         }
     }
 
@@ -91,6 +183,7 @@ impl StallCounter {
                 self.gaps += 1;
                 self.stolen_ns += gap;
                 self.max_gap_ns = self.max_gap_ns.max(gap);
+                self.by_length.add(gap);
             }
         } else {
             self.first_ns = Some(now_ns);
@@ -111,6 +204,7 @@ impl StallCounter {
             gaps: self.gaps,
             stolen_ms: self.stolen_ns as f64 / 1e6,
             max_gap_us: self.max_gap_ns as f64 / 1e3,
+            gap_counts: Some(self.by_length),
         }
     }
 }
@@ -324,6 +418,79 @@ mod tests {
     }
 
     #[test]
+    fn gaps_are_sorted_by_length_at_the_floors() {
+        let mut c = StallCounter::new(Duration::from_micros(20));
+        let mut t = 0u64;
+        c.observe(t);
+        // 25 µs (counted, below the first floor), 31.25 µs (first floor exactly), 134 µs,
+        // 250 µs, 999 µs, 1000 µs, 2 ms and 30 ms (past the last floor).
+        for gap in [
+            25_000, 31_250, 134_000, 250_000, 999_000, 1_000_000, 2_000_000, 30_000_000,
+        ] {
+            t += gap;
+            c.observe(t);
+        }
+        let s = c.stats();
+        assert_eq!(s.gaps, 8);
+        let counts = s.gap_counts.expect("bins");
+        assert_eq!(counts.counts.iter().sum::<u64>(), 7, "{counts:?}");
+        assert_eq!(counts.at_least(0.0), 7);
+        assert_eq!(counts.at_least(125.0), 6);
+        assert_eq!(counts.at_least(250.0), 5);
+        assert_eq!(counts.at_least(500.0), 4);
+        assert_eq!(counts.at_least(1000.0), 3);
+        assert_eq!(counts.at_least(2000.0), 2);
+        assert_eq!(counts.at_least(24_000.0), 1);
+        // 1.2 ms is no floor: counted from 1 ms, so the 1000 µs gap counts too (cautious).
+        assert_eq!(counts.at_least(1200.0), 3);
+        let per_s = s.gaps_at_least_per_s(1000.0).expect("rate");
+        assert!((per_s - 3.0 / s.seconds).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_floors_hold_the_fractions_of_1_and_4_khz_periods() {
+        for period_us in [1000u64, 250] {
+            for (num, den) in [(1, 8), (1, 4), (1, 2), (1, 1), (2, 1), (4, 1), (8, 1)] {
+                let ns = period_us * 1000 * num / den;
+                if ns >= GAP_FLOORS_NS[0] {
+                    assert!(GAP_FLOORS_NS.contains(&ns), "{ns} ns");
+                }
+            }
+        }
+        assert!(GAP_FLOORS_NS.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn merged_runs_add_up() {
+        let mut a = StallCounter::new(Duration::from_micros(20));
+        let mut b = a;
+        for (c, gap) in [(&mut a, 40_000u64), (&mut b, 600_000)] {
+            c.observe(0);
+            c.observe(gap);
+            c.observe(gap + 10_000);
+        }
+        let m = a.stats().merged(&b.stats());
+        assert_eq!(m.gaps, 2);
+        assert!((m.max_gap_us - 600.0).abs() < 1e-9);
+        assert!((m.seconds - (a.stats().seconds + b.stats().seconds)).abs() < 1e-12);
+        assert_eq!(m.gap_counts.expect("bins").at_least(500.0), 1);
+        let old = StallStats {
+            gap_counts: None,
+            ..b.stats()
+        };
+        assert_eq!(a.stats().merged(&old).gap_counts, None);
+    }
+
+    #[test]
+    fn stall_figures_without_bins_still_load() {
+        let old =
+            r#"{"seconds":0.2,"gap_threshold_us":20.0,"gaps":3,"stolen_ms":0.1,"max_gap_us":50.0}"#;
+        let s: StallStats = serde_json::from_str(old).expect("parse");
+        assert_eq!(s.gap_counts, None);
+        assert_eq!(s.gaps_at_least_per_s(100.0), None);
+    }
+
+    #[test]
     fn no_readings_give_zero_rates() {
         let s = StallCounter::new(DEFAULT_GAP_THRESHOLD).stats();
         assert_eq!(s.gaps, 0);
@@ -361,6 +528,7 @@ mod tests {
                 gaps: 3,
                 stolen_ms: 0.25,
                 max_gap_us: 120.0,
+                gap_counts: Some(GapCounts::default()),
             },
         };
         let json = serde_json::to_string(&run.summary()).expect("json");

@@ -4,6 +4,12 @@
 //! machine. [`read_platform_facts`] gathers the facts from `/proc` and `/sys` with bounded reads
 //! (each file at most [`FACT_FILE_CAP`] bytes); a missing or unreadable file leaves its fact
 //! `None`, shown as "unknown". Not for the real-time path (reads files, allocates).
+//!
+//! The verdict judges what endangers a deadline at the asked rate: stalls and wake-ups as long
+//! as a good part of the period, and how often they come, never the sum of short stalls. The
+//! haptic loop's own record, when there is one, outweighs the probes: a loop that met every
+//! deadline is never told its machine fails. Every threshold is a row of [`THRESHOLDS`], with
+//! the recorded figures that set it.
 
 use std::fmt;
 use std::io::Read;
@@ -11,18 +17,269 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::probe::StallStats;
+use crate::recorder::LatencyStats;
+
 /// The most bytes read from any one `/proc` or `/sys` file (they report size 0, so the cap is
 /// applied while reading).
 pub const FACT_FILE_CAP: u64 = 64 * 1024;
 
-/// Stolen time at or above this, ms per second, downgrades a verdict to marginal.
-const STALL_MARGINAL_MS_PER_S: f64 = 1.0;
-/// Stolen time at or above this, ms per second, fails a verdict.
-const STALL_FAIL_MS_PER_S: f64 = 10.0;
-/// CPUs busier than this, on average over the run, count as busy SMT siblings.
-const BUSY_FRACTION: f64 = 0.5;
+/// What one row of [`THRESHOLDS`] measures. Every measure but
+/// [`Measure::LoopMetEveryDeadline`] raises a finding to the row's grade when its value is
+/// above the row's `above`; values are in the unit each variant names.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Measure {
+    /// 1 when the haptic thread was refused real-time priority, else 0.
+    RtRefused,
+    /// 1 when a CPU frequency governor other than `performance` is in use, else 0.
+    GovernorNotPerformance,
+    /// 1 when no core is isolated, else 0.
+    NoIsolatedCore,
+    /// The CPUs' busy fraction over the run when SMT is on; 0 when SMT is off.
+    BusySmtSiblings,
+    /// Host-stall gaps at least `gap_periods` loop periods long, per second of probing.
+    StallGapsPerS {
+        /// The gap length counted, in loop periods.
+        gap_periods: f64,
+    },
+    /// The wake-up probe's p99.9 latency, in loop periods.
+    WakeupP999Periods,
+    /// The wake-up probe's largest latency, in loop periods.
+    WakeupMaxPeriods,
+    /// The haptic loop's own deadline misses as a share of its ticks (at the judged rate).
+    LoopMissShare,
+    /// Seconds the haptic loop ran at the judged rate with no deadline missed and no tick
+    /// skipped. Not a raise but a ceiling: above `above` seconds, the verdict is at most the
+    /// row's grade, whatever the probes say.
+    LoopMetEveryDeadline,
+}
 
-/// What is known about the machine; `None` is "unknown".
+/// A grade that needs fixing: the only grades a finding with a fix can have.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Problem {
+    /// Works, with occasional force glitches likely.
+    Marginal,
+    /// Not fit: ticks will be missed.
+    Fail,
+}
+
+impl From<Problem> for Grade {
+    fn from(p: Problem) -> Self {
+        match p {
+            Problem::Marginal => Self::Marginal,
+            Problem::Fail => Self::Fail,
+        }
+    }
+}
+
+/// One threshold of the verdict: at rates above `above_rate_hz`, a `measure` above `above`
+/// grades its finding `grade` (or, for [`Measure::LoopMetEveryDeadline`], caps the verdict at
+/// it).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Threshold {
+    /// What is measured.
+    pub measure: Measure,
+    /// The row applies to loop rates above this, Hz (0: every rate).
+    pub above_rate_hz: f64,
+    /// The measure's value must be above this, in the measure's unit.
+    pub above: f64,
+    /// The grade it gives.
+    pub grade: Problem,
+    /// Why this threshold, with the recorded figures behind it.
+    pub why: &'static str,
+}
+
+/// Every threshold the verdict uses, and why. The recorded figures are from a 2-vCPU VM while
+/// other builds ran on it (load average 4 to 6), as root: `dynaclay profile --seconds 5` at
+/// 1 kHz (three runs, and one with `--load`) and at 4 kHz, and `cyclictest -m -p 90 -i 1000
+/// -l 5000` and `-i 250 -l 20000`; docs/src/profiling.md ("How the verdict judges") has the
+/// table of them.
+pub const THRESHOLDS: [Threshold; 15] = [
+    Threshold {
+        measure: Measure::RtRefused,
+        above_rate_hz: 0.0,
+        above: 0.0,
+        grade: Problem::Marginal,
+        why: "without SCHED_FIFO every other thread competes with the haptic one; at 1 kHz \
+              the scheduler's slices (a few ms) already exceed the period now and then",
+    },
+    Threshold {
+        measure: Measure::RtRefused,
+        above_rate_hz: 2000.0,
+        above: 0.0,
+        grade: Problem::Fail,
+        why: "at 4 kHz the 250 µs period is shorter than one ordinary scheduler slice",
+    },
+    Threshold {
+        measure: Measure::GovernorNotPerformance,
+        above_rate_hz: 0.0,
+        above: 0.0,
+        grade: Problem::Marginal,
+        why: "a clock ramping up after each sleep adds tens of µs to every wake-up",
+    },
+    Threshold {
+        measure: Measure::NoIsolatedCore,
+        above_rate_hz: 2000.0,
+        above: 0.0,
+        grade: Problem::Marginal,
+        why: "at 4 kHz a shared core's interrupts and kernel threads take a good share of \
+              the 250 µs period; at 1 kHz the stall and wake-up figures tell whether they \
+              matter, so it is no finding there",
+    },
+    Threshold {
+        measure: Measure::BusySmtSiblings,
+        above_rate_hz: 2000.0,
+        above: 0.5,
+        grade: Problem::Marginal,
+        why: "a busy sibling slows the haptic core's compute by up to half; it matters when \
+              the period is short",
+    },
+    Threshold {
+        measure: Measure::StallGapsPerS { gap_periods: 1.0 },
+        above_rate_hz: 0.0,
+        above: 1.0,
+        grade: Problem::Fail,
+        why: "a gap of a whole period or more holds the loop past its next deadline wherever \
+              it lands: more than one a second is more than one missed tick a second. \
+              Recorded at 1 kHz: a run whose probes saw 2 and 3 gaps a second of 1 ms \
+              or more (longest 10.3 ms) had its loop miss 11 deadlines in 5037 ticks, 2.2 a \
+              second: the gap rate foretold the miss rate",
+    },
+    Threshold {
+        measure: Measure::StallGapsPerS { gap_periods: 1.0 },
+        above_rate_hz: 0.0,
+        above: 0.0,
+        grade: Problem::Marginal,
+        why: "any gap of a whole period is a tick missed when it comes; rarer than once a \
+              second it is an occasional force glitch. Recorded: one gap of 1 ms or more in two seconds of probing \
+              (53 ms long) beside a loop that missed 2 deadlines in 5035 ticks",
+    },
+    Threshold {
+        measure: Measure::StallGapsPerS { gap_periods: 0.5 },
+        above_rate_hz: 0.0,
+        above: 10.0,
+        grade: Problem::Marginal,
+        why: "a gap of half a period leaves the tick half its budget; ten a second make a \
+              miss likely whenever the tick's own work is long. The sum of short gaps is \
+              not judged: 12.6 ms/s in gaps of at most 134 µs cost a 1 kHz loop no deadline \
+              (period error max 79 µs). Recorded at 4 kHz: 36 gaps a second of 125 µs or more beside a loop that \
+              missed 63 deadlines in 20111 ticks; at 1 kHz, 24.3 ms/s stolen in gaps of at most \
+              198 µs, none of half the period",
+    },
+    Threshold {
+        measure: Measure::WakeupP999Periods,
+        above_rate_hz: 0.0,
+        above: 0.5,
+        grade: Problem::Fail,
+        why: "one wake-up in a thousand half a period late leaves too little of the period \
+              for the tick's work. Recorded: probe p99.9 of 278 to 1348 µs on the loaded VM, and every \
+              1 kHz loop there missed deadlines (2 to 11 in about 5000 ticks); cyclictest -i 1000 \
+              p99.9 378 µs on its best run",
+    },
+    Threshold {
+        measure: Measure::WakeupMaxPeriods,
+        above_rate_hz: 0.0,
+        above: 2.0,
+        grade: Problem::Fail,
+        why: "a wake-up two periods late misses a deadline whatever the tick does. \
+              Recorded: cyclictest max 2.8 to 3.5 ms at -i 1000 and 10.2 ms at -i 250; \
+              the 4 kHz loop beside such wake-ups missed 63 deadlines in 20111 ticks",
+    },
+    Threshold {
+        measure: Measure::WakeupP999Periods,
+        above_rate_hz: 0.0,
+        above: 0.1,
+        grade: Problem::Marginal,
+        why: "a tenth of the period lost one wake-up in a thousand is the margin a tick's \
+              work normally leaves",
+    },
+    Threshold {
+        measure: Measure::WakeupMaxPeriods,
+        above_rate_hz: 0.0,
+        above: 1.0,
+        grade: Problem::Marginal,
+        why: "a wake-up a whole period late is a missed deadline when it comes",
+    },
+    Threshold {
+        measure: Measure::LoopMissShare,
+        above_rate_hz: 0.0,
+        above: 1e-3,
+        grade: Problem::Fail,
+        why: "more than one tick in a thousand late is a force glitch every second at 1 kHz",
+    },
+    Threshold {
+        measure: Measure::LoopMissShare,
+        above_rate_hz: 0.0,
+        above: 0.0,
+        grade: Problem::Marginal,
+        why: "the loop itself missed a deadline: whatever the probes say, it happens here",
+    },
+    Threshold {
+        measure: Measure::LoopMetEveryDeadline,
+        above_rate_hz: 0.0,
+        above: 1.0,
+        grade: Problem::Marginal,
+        why: "the loop's own record outweighs the probes: a machine on which it met every \
+              deadline for over a second (a thousand ticks at 1 kHz) is at worst marginal \
+              for that rate. The probes still say how close it came",
+    },
+];
+
+/// The haptic loop's own record, from a run at one rate: the fact that outweighs the probes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct LoopRecord {
+    /// The rate the loop ran at, Hz.
+    pub rate_hz: f64,
+    /// Ticks recorded.
+    pub ticks: u64,
+    /// Seconds between the first and the last tick.
+    pub elapsed_s: f64,
+    /// Ticks whose work ended after the next tick was due.
+    pub deadline_misses: u64,
+    /// Ticks dropped after an overrun.
+    pub skipped_ticks: u64,
+    /// Period error p99.9, µs.
+    pub period_error_p999_us: f64,
+    /// Largest period error, µs.
+    pub period_error_max_us: f64,
+    /// Latest wake-up, µs after its scheduled time.
+    pub lateness_max_us: f64,
+    /// Longest tick body, µs.
+    pub compute_max_us: f64,
+}
+
+impl LoopRecord {
+    /// The record of a loop with `stats`.
+    #[must_use]
+    pub fn from_stats(stats: &LatencyStats) -> Self {
+        Self {
+            rate_hz: stats.nominal_rate_hz,
+            ticks: stats.ticks,
+            elapsed_s: stats.elapsed_s,
+            deadline_misses: stats.deadline_misses,
+            skipped_ticks: stats.skipped_ticks,
+            period_error_p999_us: stats.period_error.p999_us,
+            period_error_max_us: stats.period_error.max_us,
+            lateness_max_us: stats.lateness.max_us,
+            compute_max_us: stats.compute.max_us,
+        }
+    }
+
+    /// Whether the loop ran at `rate_hz` (to half a hertz).
+    #[must_use]
+    pub fn ran_at(&self, rate_hz: f64) -> bool {
+        (self.rate_hz - rate_hz).abs() < 0.5
+    }
+
+    /// Whether it missed no deadline and skipped no tick.
+    #[must_use]
+    pub fn met_every_deadline(&self) -> bool {
+        self.ticks > 0 && self.deadline_misses == 0 && self.skipped_ticks == 0
+    }
+}
+
+/// What is known about the machine; `None` is "unknown". Fields added after the first
+/// `latency.json` default to `None`, so older documents still load.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct PlatformFacts {
     /// Whether the haptic thread got real-time priority.
@@ -40,12 +297,20 @@ pub struct PlatformFacts {
     pub smt_active: Option<bool>,
     /// Fraction of all CPU time that was busy during the run (from `/proc/stat`).
     pub cpu_busy_fraction: Option<f64>,
-    /// Time taken away from the stall probe, ms per second (the worse probe run).
+    /// Time taken away from the stall probe, ms per second (the worse probe run). Shown, not
+    /// judged: many short gaps add up without endangering a deadline.
     pub stall_ms_per_s: Option<f64>,
     /// The wake-up probe's p99.9 latency, µs (the worse probe run).
     pub wakeup_p999_us: Option<f64>,
     /// The wake-up probe's largest latency, µs (the worse probe run).
     pub wakeup_max_us: Option<f64>,
+    /// The stall probe's figures, every probe run taken as one: the longest gap and the gaps
+    /// by length, which the verdict judges against the period.
+    #[serde(default)]
+    pub stalls: Option<StallStats>,
+    /// The haptic loop's own record, when it ran.
+    #[serde(default)]
+    pub haptic_loop: Option<LoopRecord>,
 }
 
 /// How far a reason goes against a rate.
@@ -70,15 +335,86 @@ impl fmt::Display for Grade {
     }
 }
 
-/// One reason behind a verdict.
+/// One reason behind a verdict. Only a [`Problem`] carries a fix: a passing finding (an
+/// advisory or an unknown fact) is built by [`Finding::advisory`], which takes none, and a
+/// passing finding read from JSON drops any fix it had.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "FindingRecord")]
 pub struct Finding {
-    /// How far it goes against the rate (`pass` for an advisory or unknown fact).
-    pub grade: Grade,
+    grade: Grade,
+    reason: String,
+    fix: String,
+}
+
+/// A finding as JSON holds it (`fix` empty when there is none).
+#[derive(Deserialize)]
+struct FindingRecord {
+    grade: Grade,
+    reason: String,
+    #[serde(default)]
+    fix: String,
+}
+
+impl From<FindingRecord> for Finding {
+    fn from(r: FindingRecord) -> Self {
+        Self {
+            grade: r.grade,
+            fix: if r.grade == Grade::Pass {
+                String::new()
+            } else {
+                r.fix
+            },
+            reason: r.reason,
+        }
+    }
+}
+
+impl Finding {
+    /// A finding that needs fixing.
+    #[must_use]
+    pub fn problem(grade: Problem, reason: impl Into<String>, fix: impl Into<String>) -> Self {
+        Self {
+            grade: grade.into(),
+            reason: reason.into(),
+            fix: fix.into(),
+        }
+    }
+
+    /// A passing finding: something worth knowing, or an unknown fact. It has no fix.
+    #[must_use]
+    pub fn advisory(reason: impl Into<String>) -> Self {
+        Self {
+            grade: Grade::Pass,
+            reason: reason.into(),
+            fix: String::new(),
+        }
+    }
+
+    /// How far it goes against the rate.
+    #[must_use]
+    pub fn grade(&self) -> Grade {
+        self.grade
+    }
+
     /// What was found.
-    pub reason: String,
-    /// How to fix it (empty when nothing needs fixing).
-    pub fix: String,
+    #[must_use]
+    pub fn reason(&self) -> &str {
+        &self.reason
+    }
+
+    /// How to fix it: `None` for a passing finding, never an empty fix.
+    #[must_use]
+    pub fn fix(&self) -> Option<&str> {
+        (self.grade != Grade::Pass && !self.fix.is_empty()).then_some(self.fix.as_str())
+    }
+
+    /// Caps a failing finding at marginal, saying why in its reason.
+    fn cap_at_marginal(&mut self, because: &str) {
+        if self.grade == Grade::Fail {
+            self.grade = Grade::Marginal;
+            self.reason = format!("{} ({because})", self.reason);
+        }
+    }
 }
 
 /// The verdict for one loop rate.
@@ -92,88 +428,106 @@ pub struct Verdict {
     pub findings: Vec<Finding>,
 }
 
-fn finding(grade: Grade, reason: impl Into<String>, fix: impl Into<String>) -> Finding {
-    Finding {
-        grade,
-        reason: reason.into(),
-        fix: fix.into(),
-    }
-}
-
 fn unknown(what: &str) -> Finding {
-    finding(Grade::Pass, format!("{what}: unknown"), "")
+    Finding::advisory(format!("{what}: unknown"))
 }
 
-/// Judges `facts` for a loop at `rate_hz`. Pure.
+/// The worst row of `measure`'s family that applies at `rate_hz` and that `value_of` puts
+/// above its threshold, with the value. `value_of` gives `None` for rows of other measures
+/// and for unknown values.
+fn worst_row(
+    rate_hz: f64,
+    value_of: impl Fn(&Measure) -> Option<f64>,
+) -> Option<(&'static Threshold, f64)> {
+    THRESHOLDS
+        .iter()
+        .filter(|t| rate_hz > t.above_rate_hz)
+        .filter_map(|t| value_of(&t.measure).map(|v| (t, v)))
+        .filter(|(t, v)| *v > t.above)
+        // NOTE: max_by_key keeps the last of equals; the table lists the worse rows first,
+        // so rev() makes the first worst row win.
+        .rev()
+        .max_by_key(|(t, _)| t.grade)
+}
+
+fn flag(b: bool) -> f64 {
+    if b { 1.0 } else { 0.0 }
+}
+
+/// Judges `facts` for a loop at `rate_hz`. Pure. Every threshold is a row of
+/// [`THRESHOLDS`]; when the haptic loop's own record shows it met every deadline at this rate
+/// for long enough, no finding fails (see [`Measure::LoopMetEveryDeadline`]).
 #[must_use]
 pub fn verdict(facts: &PlatformFacts, rate_hz: f64) -> Verdict {
     let period_us = 1e6 / rate_hz.max(1.0);
-    let fast = rate_hz > 2000.0;
     let mut findings = Vec::new();
 
     match facts.rt_granted {
-        Some(true) => {}
-        Some(false) => findings.push(finding(
-            if fast { Grade::Fail } else { Grade::Marginal },
-            "real-time priority not granted: any other thread can delay the haptic loop",
-            "run as root, grant CAP_SYS_NICE (sudo setcap cap_sys_nice+ep $(which dynaclay)), \
-             or add `<user> - rtprio 99` to /etc/security/limits.conf and log in again",
-        )),
+        Some(granted) => {
+            if let Some((row, _)) = worst_row(rate_hz, |m| {
+                (*m == Measure::RtRefused).then_some(flag(!granted))
+            }) {
+                findings.push(Finding::problem(
+                    row.grade,
+                    "real-time priority not granted: any other thread can delay the haptic loop",
+                    "run as root, grant CAP_SYS_NICE (sudo setcap cap_sys_nice+ep $(which \
+                     dynaclay)), or add `<user> - rtprio 99` to /etc/security/limits.conf and \
+                     log in again",
+                ));
+            }
+        }
         None => findings.push(unknown("real-time priority")),
     }
 
     match &facts.governors {
-        Some(g) if g.iter().all(|g| g == "performance") => {}
         Some(g) if g.is_empty() => findings.push(unknown("CPU frequency governor")),
-        Some(g) => findings.push(finding(
-            Grade::Marginal,
-            format!(
-                "CPU frequency governor is {} not performance: wake-ups pay for clock ramp-up",
-                g.join(", ")
-            ),
-            "sudo cpupower frequency-set -g performance (or write `performance` to \
-             /sys/devices/system/cpu/cpu*/cpufreq/scaling_governor)",
-        )),
+        Some(g) => {
+            let slow = g.iter().any(|g| g != "performance");
+            if let Some((row, _)) = worst_row(rate_hz, |m| {
+                (*m == Measure::GovernorNotPerformance).then_some(flag(slow))
+            }) {
+                findings.push(Finding::problem(
+                    row.grade,
+                    format!(
+                        "CPU frequency governor is {} not performance: wake-ups pay for clock \
+                         ramp-up",
+                        g.join(", ")
+                    ),
+                    "sudo cpupower frequency-set -g performance (or write `performance` to \
+                     /sys/devices/system/cpu/cpu*/cpufreq/scaling_governor)",
+                ));
+            }
+        }
         None => findings.push(unknown("CPU frequency governor")),
     }
 
     match facts.isolated_core {
-        Some(true) => {}
-        Some(false) => findings.push(finding(
-            if fast { Grade::Marginal } else { Grade::Pass },
-            "no isolated core: the haptic thread shares its core with everything else",
-            "boot with isolcpus=N nohz_full=N (one spare core) and pin the haptic loop to it",
-        )),
+        Some(isolated) => {
+            if let Some((row, _)) = worst_row(rate_hz, |m| {
+                (*m == Measure::NoIsolatedCore).then_some(flag(!isolated))
+            }) {
+                findings.push(Finding::problem(
+                    row.grade,
+                    "no isolated core: the haptic thread shares its core with everything else",
+                    "boot with isolcpus=N nohz_full=N (one spare core) and pin the haptic loop \
+                     to it",
+                ));
+            }
+        }
         None => findings.push(unknown("core isolation")),
     }
 
-    match facts.stall_ms_per_s {
-        Some(ms) if ms >= STALL_FAIL_MS_PER_S => findings.push(finding(
-            Grade::Fail,
-            format!("host stalls: {ms:.1} ms per second taken from a spinning thread"),
-            stall_fix(),
-        )),
-        Some(ms) if ms >= STALL_MARGINAL_MS_PER_S => findings.push(finding(
-            Grade::Marginal,
-            format!("host stalls: {ms:.1} ms per second taken from a spinning thread"),
-            stall_fix(),
-        )),
-        Some(_) => {}
-        None => findings.push(unknown("host stalls")),
-    }
+    stall_finding(facts, rate_hz, period_us, &mut findings);
 
     match (facts.wakeup_p999_us, facts.wakeup_max_us) {
         (Some(p999), Some(max)) => {
-            let grade = if p999 > period_us / 2.0 || max > 2.0 * period_us {
-                Grade::Fail
-            } else if p999 > period_us / 10.0 || max > period_us {
-                Grade::Marginal
-            } else {
-                Grade::Pass
-            };
-            if grade > Grade::Pass {
-                findings.push(finding(
-                    grade,
+            if let Some((row, _)) = worst_row(rate_hz, |m| match m {
+                Measure::WakeupP999Periods => Some(p999 / period_us),
+                Measure::WakeupMaxPeriods => Some(max / period_us),
+                _ => None,
+            }) {
+                findings.push(Finding::problem(
+                    row.grade,
                     format!(
                         "wake-up latency p99.9 {p999:.0} µs, max {max:.0} µs against a \
                          {period_us:.0} µs period"
@@ -187,31 +541,37 @@ pub fn verdict(facts: &PlatformFacts, rate_hz: f64) -> Verdict {
 
     match (facts.rt_runtime_us, facts.rt_period_us) {
         (Some(-1), _) => {}
-        (Some(runtime), period) => findings.push(finding(
-            Grade::Pass,
-            format!(
-                "RT throttling on: real-time threads get at most {runtime} µs per {} µs",
-                period.map_or_else(|| "unknown".to_string(), |p| p.to_string())
-            ),
-            "only a busy-waiting loop reaches it; to lift it: \
-             sudo sysctl kernel.sched_rt_runtime_us=-1",
-        )),
+        (Some(runtime), period) => findings.push(Finding::advisory(format!(
+            "RT throttling on: real-time threads get at most {runtime} µs per {} µs; only a \
+             busy-waiting loop reaches it (sudo sysctl kernel.sched_rt_runtime_us=-1 lifts it)",
+            period.map_or_else(|| "unknown".to_string(), |p| p.to_string())
+        ))),
         (None, _) => findings.push(unknown("RT throttling")),
     }
 
     match (facts.smt_active, facts.cpu_busy_fraction) {
-        (Some(true), Some(busy)) if busy > BUSY_FRACTION => findings.push(finding(
-            if fast { Grade::Marginal } else { Grade::Pass },
-            format!(
-                "SMT siblings busy: SMT is on and the CPUs were {:.0}% busy, so the haptic \
-                 core's sibling was likely busy",
-                busy * 100.0
-            ),
-            "turn SMT off (echo off | sudo tee /sys/devices/system/cpu/smt/control) or keep \
-             the haptic core's sibling idle",
-        )),
-        (Some(false), _) | (Some(true), Some(_)) => {}
+        (Some(false), _) => {}
+        (Some(true), Some(busy)) => {
+            if let Some((row, _)) = worst_row(rate_hz, |m| {
+                (*m == Measure::BusySmtSiblings).then_some(busy)
+            }) {
+                findings.push(Finding::problem(
+                    row.grade,
+                    format!(
+                        "SMT siblings busy: SMT is on and the CPUs were {:.0}% busy, so the \
+                         haptic core's sibling was likely busy",
+                        busy * 100.0
+                    ),
+                    "turn SMT off (echo off | sudo tee /sys/devices/system/cpu/smt/control) or \
+                     keep the haptic core's sibling idle",
+                ));
+            }
+        }
         (None, _) | (Some(true), None) => findings.push(unknown("SMT siblings")),
+    }
+
+    if let Some(record) = facts.haptic_loop.filter(|r| r.ran_at(rate_hz)) {
+        loop_findings(&record, rate_hz, period_us, &mut findings);
     }
 
     findings.sort_by_key(|f| std::cmp::Reverse(f.grade));
@@ -222,12 +582,141 @@ pub fn verdict(facts: &PlatformFacts, rate_hz: f64) -> Verdict {
     }
 }
 
+/// The host-stall finding: gaps as long as a good part of the period, per second.
+fn stall_finding(facts: &PlatformFacts, rate_hz: f64, period_us: f64, out: &mut Vec<Finding>) {
+    let Some(stalls) = facts.stalls else {
+        out.push(match facts.stall_ms_per_s {
+            Some(ms) => Finding::advisory(format!(
+                "host stalls: {ms:.1} ms per second, gap lengths not recorded (an older record)"
+            )),
+            None => unknown("host stalls"),
+        });
+        return;
+    };
+    let per_s_at_least = |gap_us: f64| {
+        stalls.gaps_at_least_per_s(gap_us).or(
+            // An older record without the gaps by length: none reached a length longer than
+            // its longest gap; otherwise unknown.
+            (stalls.max_gap_us < gap_us).then_some(0.0),
+        )
+    };
+    let worst = worst_row(rate_hz, |m| match m {
+        Measure::StallGapsPerS { gap_periods } => per_s_at_least(gap_periods * period_us),
+        _ => None,
+    });
+    if let Some((row, per_s)) = worst {
+        let Measure::StallGapsPerS { gap_periods } = row.measure else {
+            return;
+        };
+        out.push(Finding::problem(
+            row.grade,
+            format!(
+                "host stalls up to {:.0} µs: {per_s:.1} a second of {:.0} µs or more ({} of \
+                 the {period_us:.0} µs period)",
+                stalls.max_gap_us,
+                gap_periods * period_us,
+                period_fraction(gap_periods),
+            ),
+            stall_fix(),
+        ));
+    } else if stalls.gap_counts.is_none() && stalls.max_gap_us >= period_us * 0.5 {
+        out.push(Finding::advisory(format!(
+            "host stalls up to {:.0} µs, how often unknown (an older record)",
+            stalls.max_gap_us
+        )));
+    }
+}
+
+fn period_fraction(periods: f64) -> String {
+    if (periods - 1.0).abs() < 1e-9 {
+        "all".into()
+    } else if (periods - 0.5).abs() < 1e-9 {
+        "half".into()
+    } else {
+        format!("{periods:.2}×")
+    }
+}
+
+/// The haptic loop's own record at this rate: its misses, or that it met every deadline.
+fn loop_findings(record: &LoopRecord, rate_hz: f64, period_us: f64, out: &mut Vec<Finding>) {
+    let miss_share = if record.ticks > 0 {
+        record.deadline_misses as f64 / record.ticks as f64
+    } else {
+        0.0
+    };
+    if let Some((row, _)) = worst_row(rate_hz, |m| {
+        (*m == Measure::LoopMissShare).then_some(miss_share)
+    }) {
+        out.push(Finding::problem(
+            row.grade,
+            format!(
+                "the haptic loop missed {} deadline{} in {} ticks at {rate_hz:.0} Hz",
+                record.deadline_misses,
+                if record.deadline_misses == 1 { "" } else { "s" },
+                record.ticks
+            ),
+            "find the cause among the other reasons; if none shows, the tick's work is too \
+             long for the period (see compute in the loop table)",
+        ));
+        return;
+    }
+    let clean_s = if record.met_every_deadline() {
+        record.elapsed_s
+    } else {
+        0.0
+    };
+    let worst_wake_and_work_us = record.lateness_max_us + record.compute_max_us;
+    let margin = if worst_wake_and_work_us < period_us {
+        format!(
+            "margin at least {:.0} µs of the {period_us:.0} µs period (latest wake-up {:.0} µs, \
+             longest tick {:.0} µs)",
+            period_us - worst_wake_and_work_us,
+            record.lateness_max_us,
+            record.compute_max_us
+        )
+    } else {
+        format!(
+            "latest wake-up {:.0} µs and longest tick {:.0} µs, never in the same tick, \
+             against the {period_us:.0} µs period",
+            record.lateness_max_us, record.compute_max_us
+        )
+    };
+    let summary = format!(
+        "the haptic loop met every deadline: {} ticks over {:.1} s, period error p99.9 {:.0} \
+         µs, max {:.0} µs; {margin}",
+        record.ticks, record.elapsed_s, record.period_error_p999_us, record.period_error_max_us
+    );
+    match worst_row(rate_hz, |m| {
+        (*m == Measure::LoopMetEveryDeadline).then_some(clean_s)
+    }) {
+        Some((row, _)) if row.grade == Problem::Marginal => {
+            let capped = out.iter().any(|f| f.grade == Grade::Fail);
+            for f in out.iter_mut() {
+                f.cap_at_marginal("yet the haptic loop met every deadline");
+            }
+            out.push(if capped {
+                Finding::problem(
+                    Problem::Marginal,
+                    format!("{summary}, though the probes found the machine unfit"),
+                    "the other reasons' fixes widen the margin",
+                )
+            } else {
+                Finding::advisory(summary)
+            });
+        }
+        _ if record.met_every_deadline() => out.push(Finding::advisory(format!(
+            "{summary} (too short a run to outweigh the probes)"
+        ))),
+        _ => {}
+    }
+}
+
 fn stall_fix() -> &'static str {
     "on a VM, give it dedicated vCPUs (CPU pinning on the host, no overcommit); on bare metal, \
      look for SMIs or interrupt storms (irqbalance, BIOS power settings)"
 }
 
-/// The verdicts as text, one block per rate.
+/// The verdicts as text, one block per rate. Only a finding that needs fixing has a fix line.
 #[must_use]
 pub fn verdict_text(verdicts: &[Verdict]) -> String {
     use fmt::Write as _;
@@ -236,12 +725,48 @@ pub fn verdict_text(verdicts: &[Verdict]) -> String {
         let _ = writeln!(out, "{:.0} Hz: {}", v.rate_hz, v.grade);
         for f in &v.findings {
             let _ = writeln!(out, "  [{}] {}", f.grade, f.reason);
-            if !f.fix.is_empty() {
-                let _ = writeln!(out, "      fix: {}", f.fix);
+            if let Some(fix) = f.fix() {
+                let _ = writeln!(out, "      fix: {fix}");
             }
         }
     }
     out
+}
+
+/// The verdicts in one plain line: "this machine is fine for 1 kHz haptics", or the first
+/// rate it is not fit for and its worst reason ("not suited for 4 kHz: host stalls up to …").
+#[must_use]
+pub fn plain_summary(verdicts: &[Verdict]) -> String {
+    let khz = |v: &Verdict| {
+        let k = v.rate_hz / 1000.0;
+        if (k - k.round()).abs() < 1e-9 {
+            format!("{k:.0} kHz")
+        } else {
+            format!("{:.0} Hz", v.rate_hz)
+        }
+    };
+    let mut by_rate: Vec<&Verdict> = verdicts.iter().collect();
+    by_rate.sort_by(|a, b| a.rate_hz.total_cmp(&b.rate_hz));
+    let fine = by_rate
+        .iter()
+        .rev()
+        .find(|v| v.grade == Grade::Pass)
+        .map(|v| format!("this machine is fine for {} haptics", khz(v)));
+    let not_fine = by_rate.iter().find(|v| v.grade != Grade::Pass).map(|v| {
+        let what = if v.grade == Grade::Fail {
+            "not suited for"
+        } else {
+            "marginal for"
+        };
+        let why = v.findings.first().map_or("", |f| f.reason.as_str());
+        format!("{what} {}: {why}", khz(v))
+    });
+    match (fine, not_fine) {
+        (Some(a), Some(b)) => format!("{a}; {b}"),
+        (Some(a), None) => a,
+        (None, Some(b)) => b,
+        (None, None) => "not judged yet".into(),
+    }
 }
 
 /// Reads at most [`FACT_FILE_CAP`] bytes of a text file; `None` if it is missing or unreadable.
@@ -339,6 +864,24 @@ pub fn read_platform_facts() -> PlatformFacts {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::probe::GapCounts;
+
+    /// The stall probe's figures for `seconds` of spinning with `gaps_us` (each at least the
+    /// 20 µs threshold) taken away.
+    fn stalls(seconds: f64, gaps_us: &[u64]) -> StallStats {
+        let mut counts = GapCounts::default();
+        for &gap in gaps_us {
+            counts.add(gap * 1000);
+        }
+        StallStats {
+            seconds,
+            gap_threshold_us: 20.0,
+            gaps: gaps_us.len() as u64,
+            stolen_ms: gaps_us.iter().sum::<u64>() as f64 / 1e3,
+            max_gap_us: gaps_us.iter().copied().max().unwrap_or(0) as f64,
+            gap_counts: Some(counts),
+        }
+    }
 
     fn fit() -> PlatformFacts {
         PlatformFacts {
@@ -352,6 +895,23 @@ mod tests {
             stall_ms_per_s: Some(0.1),
             wakeup_p999_us: Some(20.0),
             wakeup_max_us: Some(60.0),
+            stalls: Some(stalls(1.0, &[25, 40])),
+            haptic_loop: None,
+        }
+    }
+
+    /// A haptic loop at `rate_hz` for `seconds` with `misses` deadline misses.
+    fn haptic(rate_hz: f64, seconds: f64, misses: u64) -> LoopRecord {
+        LoopRecord {
+            rate_hz,
+            ticks: (rate_hz * seconds) as u64,
+            elapsed_s: seconds,
+            deadline_misses: misses,
+            skipped_ticks: 0,
+            period_error_p999_us: 35.0,
+            period_error_max_us: 79.0,
+            lateness_max_us: 70.0,
+            compute_max_us: 40.0,
         }
     }
 
@@ -363,13 +923,14 @@ mod tests {
         verdict(f, rate)
             .findings
             .iter()
-            .map(|f| format!("{}|{}\n", f.reason, f.fix))
+            .map(|f| format!("{}|{}\n", f.reason(), f.fix().unwrap_or("")))
             .collect()
     }
 
     #[test]
     fn a_fit_machine_passes_both_rates_with_no_findings() {
         assert_eq!(grades(&fit()), (Grade::Pass, Grade::Pass));
+        assert!(verdict(&fit(), 1000.0).findings.is_empty());
         assert!(verdict(&fit(), 4000.0).findings.is_empty());
     }
 
@@ -401,19 +962,156 @@ mod tests {
             ..fit()
         };
         assert_eq!(grades(&f), (Grade::Pass, Grade::Marginal));
-        assert!(reasons(&f, 1000.0).contains("isolcpus"));
+        // At 1 kHz it is no finding at all: no "[pass] … fix: isolcpus".
+        assert!(!reasons(&f, 1000.0).contains("isolcpus"));
+        assert!(reasons(&f, 4000.0).contains("isolcpus"));
+    }
+
+    /// The reported run: 12.6 ms/s stolen in gaps of at most 134 µs, while the haptic loop
+    /// met every deadline (period error p99.9 35 µs, max 79 µs).
+    fn reported_case() -> PlatformFacts {
+        // 100 gaps of 126 µs (one of them 134 µs, one 118 µs): 12.6 ms in one second.
+        let mut gaps = vec![126u64; 98];
+        gaps.extend([134, 118]);
+        let stalls = stalls(1.0, &gaps);
+        PlatformFacts {
+            stall_ms_per_s: Some(stalls.stolen_ms_per_s()),
+            stalls: Some(stalls),
+            isolated_core: Some(false),
+            haptic_loop: Some(haptic(1000.0, 10.0, 0)),
+            ..fit()
+        }
     }
 
     #[test]
-    fn host_stalls_grade_by_ms_per_second() {
-        let at = |ms| PlatformFacts {
-            stall_ms_per_s: Some(ms),
+    fn many_short_stalls_do_not_fail_a_loop_that_met_every_deadline() {
+        let f = reported_case();
+        let stolen = f.stall_ms_per_s.expect("stolen");
+        assert!((stolen - 12.6).abs() < 0.05, "{stolen}");
+        let v = verdict(&f, 1000.0);
+        assert_eq!(
+            v.grade,
+            Grade::Pass,
+            "{}",
+            verdict_text(std::slice::from_ref(&v))
+        );
+        let text = verdict_text(&[v]);
+        assert!(text.contains("met every deadline"), "{text}");
+        assert!(!text.contains("fix:"), "{text}");
+        // The short stalls alone, without the loop's record, pass 1 kHz too.
+        let probes_only = PlatformFacts {
+            haptic_loop: None,
+            ..f.clone()
+        };
+        assert_eq!(verdict(&probes_only, 1000.0).grade, Grade::Pass);
+        // At 4 kHz, 134 µs is more than half the 250 µs period, a hundred times a second.
+        let v4 = verdict(&probes_only, 4000.0);
+        assert_eq!(v4.grade, Grade::Marginal);
+        assert!(
+            v4.findings.iter().any(|f| f
+                .reason()
+                .contains("host stalls up to 134 µs: 99.0 a second")),
+            "{:?}",
+            v4.findings
+        );
+    }
+
+    #[test]
+    fn a_loop_that_met_every_deadline_caps_failing_probes_at_marginal() {
+        // The probes alone fail 1 kHz (wake-ups 2.5 ms late, gaps of 2 ms).
+        let bad = PlatformFacts {
+            wakeup_p999_us: Some(581.0),
+            wakeup_max_us: Some(2500.0),
+            stalls: Some(stalls(1.0, &[2000, 2000, 2000, 2000, 2000])),
             ..fit()
         };
-        assert_eq!(grades(&at(0.5)), (Grade::Pass, Grade::Pass));
-        assert_eq!(grades(&at(3.0)), (Grade::Marginal, Grade::Marginal));
-        assert_eq!(grades(&at(25.0)), (Grade::Fail, Grade::Fail));
-        assert!(reasons(&at(25.0), 1000.0).contains("25.0 ms per second"));
+        assert_eq!(verdict(&bad, 1000.0).grade, Grade::Fail);
+        let clean = PlatformFacts {
+            haptic_loop: Some(haptic(1000.0, 10.0, 0)),
+            ..bad.clone()
+        };
+        let v = verdict(&clean, 1000.0);
+        assert_eq!(v.grade, Grade::Marginal);
+        assert!(v.findings.iter().all(|f| f.grade() < Grade::Fail));
+        let text = verdict_text(&[v]);
+        assert!(
+            text.contains("met every deadline: 10000 ticks over 10.0 s")
+                && text.contains("margin at least 890 µs of the 1000 µs period"),
+            "{text}"
+        );
+        assert!(
+            text.contains("yet the haptic loop met every deadline"),
+            "{text}"
+        );
+        // The record is of a 1 kHz run: it says nothing of 4 kHz.
+        assert_eq!(verdict(&clean, 4000.0).grade, Grade::Fail);
+        // A run too short to outweigh the probes does not cap them.
+        let short = PlatformFacts {
+            haptic_loop: Some(haptic(1000.0, 0.5, 0)),
+            ..bad
+        };
+        assert_eq!(verdict(&short, 1000.0).grade, Grade::Fail);
+        assert!(reasons(&short, 1000.0).contains("too short a run"));
+    }
+
+    #[test]
+    fn a_loop_that_missed_deadlines_is_judged_by_how_many() {
+        let few = PlatformFacts {
+            haptic_loop: Some(haptic(1000.0, 10.0, 3)),
+            ..fit()
+        };
+        assert_eq!(verdict(&few, 1000.0).grade, Grade::Marginal);
+        assert!(reasons(&few, 1000.0).contains("missed 3 deadlines in 10000 ticks"));
+        let many = PlatformFacts {
+            haptic_loop: Some(haptic(1000.0, 10.0, 11)),
+            ..fit()
+        };
+        assert_eq!(verdict(&many, 1000.0).grade, Grade::Fail);
+    }
+
+    #[test]
+    fn long_gaps_several_times_a_second_fail_1k() {
+        let f = PlatformFacts {
+            stalls: Some(stalls(1.0, &[2000, 2100, 1900, 2000, 2000])),
+            ..fit()
+        };
+        assert_eq!(grades(&f), (Grade::Fail, Grade::Fail));
+        let r = reasons(&f, 1000.0);
+        assert!(
+            r.contains("host stalls up to 2100 µs: 5.0 a second of 1000 µs or more"),
+            "{r}"
+        );
+        assert!(r.contains("dedicated vCPUs"), "{r}");
+        // One such gap in the run is an occasional glitch, not a failure.
+        let once = PlatformFacts {
+            stalls: Some(stalls(2.0, &[2000])),
+            ..fit()
+        };
+        assert_eq!(grades(&once), (Grade::Marginal, Grade::Marginal));
+    }
+
+    #[test]
+    fn gaps_are_judged_against_the_shorter_4k_period() {
+        // 300 µs gaps three times a second: under half the 1 kHz period, more than the whole
+        // 4 kHz period.
+        let f = PlatformFacts {
+            stalls: Some(stalls(1.0, &[300, 300, 300])),
+            ..fit()
+        };
+        assert_eq!(grades(&f), (Grade::Pass, Grade::Fail));
+        assert!(reasons(&f, 4000.0).contains("of 250 µs or more (all of the 250 µs period)"));
+        // 150 µs gaps twenty times a second: half the 4 kHz period, often.
+        let g = PlatformFacts {
+            stalls: Some(stalls(1.0, &[150; 20])),
+            ..fit()
+        };
+        assert_eq!(grades(&g), (Grade::Pass, Grade::Marginal));
+        // Five of them a second are fine at both rates.
+        let h = PlatformFacts {
+            stalls: Some(stalls(1.0, &[150; 5])),
+            ..fit()
+        };
+        assert_eq!(grades(&h), (Grade::Pass, Grade::Pass));
     }
 
     #[test]
@@ -434,7 +1132,174 @@ mod tests {
     }
 
     #[test]
-    fn rt_throttling_is_reported_with_its_fix() {
+    fn old_facts_without_the_new_fields_still_load_and_judge() {
+        let old = r#"{
+            "rt_granted": true, "governors": ["performance"], "isolated_core": false,
+            "rt_runtime_us": -1, "rt_period_us": 1000000, "smt_active": false,
+            "cpu_busy_fraction": 0.2, "stall_ms_per_s": 12.6,
+            "wakeup_p999_us": 30.0, "wakeup_max_us": 120.0
+        }"#;
+        let f: PlatformFacts = serde_json::from_str(old).expect("old facts load");
+        assert_eq!((f.stalls, f.haptic_loop), (None, None));
+        let v = verdict(&f, 1000.0);
+        // The stolen time alone is no reason to fail: it is reported, not judged.
+        assert_eq!(v.grade, Grade::Pass);
+        let text = verdict_text(&[v]);
+        assert!(
+            text.contains("host stalls: 12.6 ms per second, gap lengths not recorded"),
+            "{text}"
+        );
+        // An older verdict with a "[pass] … fix:" finding loads without the fix.
+        let finding: Finding = serde_json::from_str(
+            r#"{"grade": "pass", "reason": "no isolated core", "fix": "boot with isolcpus"}"#,
+        )
+        .expect("finding");
+        assert_eq!(finding.fix(), None);
+        let problem: Finding = serde_json::from_str(
+            r#"{"grade": "fail", "reason": "host stalls", "fix": "pin vCPUs"}"#,
+        )
+        .expect("finding");
+        assert_eq!(problem.fix(), Some("pin vCPUs"));
+    }
+
+    #[test]
+    fn old_stall_figures_without_bins_judge_by_the_longest_gap() {
+        let short = StallStats {
+            gap_counts: None,
+            ..stalls(1.0, &[134; 100])
+        };
+        let f = PlatformFacts {
+            stalls: Some(short),
+            ..fit()
+        };
+        // No gap reached half of 1 ms: nothing to say at 1 kHz.
+        assert_eq!(verdict(&f, 1000.0).grade, Grade::Pass);
+        assert!(verdict(&f, 1000.0).findings.is_empty());
+        // At 4 kHz how often is unknown: said, not graded.
+        let v4 = verdict(&f, 4000.0);
+        assert_eq!(v4.grade, Grade::Pass);
+        assert!(reasons(&f, 4000.0).contains("how often unknown"));
+    }
+
+    /// Every combination of the facts' states, at both rates: no passing finding has a fix,
+    /// and the text prints no fix under a pass.
+    #[test]
+    fn no_passing_finding_ever_carries_a_fix() {
+        let bools = [None, Some(false), Some(true)];
+        let stall_cases = [
+            None,
+            Some(stalls(1.0, &[25])),
+            Some(stalls(1.0, &[150; 20])),
+            Some(stalls(1.0, &[2000; 5])),
+            Some(StallStats {
+                gap_counts: None,
+                ..stalls(1.0, &[300])
+            }),
+        ];
+        let loops = [
+            None,
+            Some(haptic(1000.0, 10.0, 0)),
+            Some(haptic(1000.0, 0.5, 0)),
+            Some(haptic(4000.0, 10.0, 2)),
+        ];
+        let mut seen = [0usize; 3];
+        for rt in bools {
+            for isolated in bools {
+                for smt in bools {
+                    for stalls in &stall_cases {
+                        for haptic_loop in loops {
+                            for (governor, runtime, wake) in [
+                                (None, None, None),
+                                (Some("powersave"), Some(950_000), Some((581.0, 2500.0))),
+                                (Some("performance"), Some(-1), Some((20.0, 60.0))),
+                            ] {
+                                let f = PlatformFacts {
+                                    rt_granted: rt,
+                                    governors: governor.map(|g| vec![g.to_string()]),
+                                    isolated_core: isolated,
+                                    rt_runtime_us: runtime,
+                                    rt_period_us: Some(1_000_000),
+                                    smt_active: smt,
+                                    cpu_busy_fraction: Some(0.9),
+                                    stall_ms_per_s: Some(12.6),
+                                    wakeup_p999_us: wake.map(|w| w.0),
+                                    wakeup_max_us: wake.map(|w| w.1),
+                                    stalls: *stalls,
+                                    haptic_loop,
+                                };
+                                for rate in [1000.0, 4000.0] {
+                                    let v = verdict(&f, rate);
+                                    for finding in &v.findings {
+                                        seen[finding.grade() as usize] += 1;
+                                        if finding.grade() == Grade::Pass {
+                                            assert_eq!(finding.fix(), None, "{finding:?}");
+                                        } else {
+                                            assert!(finding.fix().is_some(), "{finding:?}");
+                                        }
+                                    }
+                                    let text = verdict_text(&[v]);
+                                    let lines: Vec<&str> = text.lines().collect();
+                                    for w in lines.windows(2) {
+                                        assert!(
+                                            !(w[0].contains("[pass]") && w[1].contains("fix:")),
+                                            "{text}"
+                                        );
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Every grade came up, so the rule was tried on each.
+        assert!(seen.iter().all(|&n| n > 0), "{seen:?}");
+    }
+
+    #[test]
+    fn every_threshold_says_why_with_its_figures() {
+        for t in &THRESHOLDS {
+            assert!(t.why.len() > 40, "{t:?}");
+            assert!(!t.why.contains("CALIBRATION"), "{t:?}");
+            assert!(t.above >= 0.0 && t.above_rate_hz >= 0.0, "{t:?}");
+        }
+        // The worse row of a family comes first, so it wins ties.
+        for (i, a) in THRESHOLDS.iter().enumerate() {
+            for b in &THRESHOLDS[i + 1..] {
+                if a.measure == b.measure && a.above_rate_hz == b.above_rate_hz {
+                    assert!(a.above >= b.above, "{a:?} before {b:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_plain_summary_names_the_first_rate_not_fit_and_why() {
+        let f = PlatformFacts {
+            stalls: Some(stalls(1.0, &[[200; 19].as_slice(), &[210]].concat())),
+            ..fit()
+        };
+        let line = plain_summary(&[verdict(&f, 1000.0), verdict(&f, 4000.0)]);
+        assert_eq!(
+            line,
+            "this machine is fine for 1 kHz haptics; marginal for 4 kHz: host stalls up to \
+             210 µs: 20.0 a second of 125 µs or more (half of the 250 µs period)"
+        );
+        let both = plain_summary(&[verdict(&fit(), 1000.0), verdict(&fit(), 4000.0)]);
+        assert_eq!(both, "this machine is fine for 4 kHz haptics");
+        let long = PlatformFacts {
+            stalls: Some(stalls(1.0, &[2000; 5])),
+            ..fit()
+        };
+        assert!(
+            plain_summary(&[verdict(&long, 4000.0), verdict(&long, 1000.0)])
+                .starts_with("not suited for 1 kHz: host stalls up to 2000 µs")
+        );
+        assert_eq!(plain_summary(&[]), "not judged yet");
+    }
+
+    #[test]
+    fn rt_throttling_is_reported_without_a_fix() {
         let f = PlatformFacts {
             rt_runtime_us: Some(950_000),
             ..fit()
@@ -445,6 +1310,12 @@ mod tests {
             "{r}"
         );
         assert_eq!(grades(&f), (Grade::Pass, Grade::Pass));
+        assert!(
+            verdict(&f, 1000.0)
+                .findings
+                .iter()
+                .all(|f| f.fix().is_none())
+        );
     }
 
     #[test]
@@ -483,13 +1354,13 @@ mod tests {
     fn findings_are_worst_first() {
         let f = PlatformFacts {
             rt_granted: Some(false),
-            stall_ms_per_s: Some(50.0),
+            stalls: Some(stalls(1.0, &[3000; 4])),
             rt_runtime_us: Some(950_000),
             ..fit()
         };
         let v = verdict(&f, 1000.0);
-        assert!(v.findings.windows(2).all(|w| w[0].grade >= w[1].grade));
-        assert_eq!(v.findings[0].grade, Grade::Fail);
+        assert!(v.findings.windows(2).all(|w| w[0].grade() >= w[1].grade()));
+        assert_eq!(v.findings[0].grade(), Grade::Fail);
     }
 
     #[test]

@@ -67,8 +67,8 @@ mod tests {
 
     use super::*;
     use crate::priority::{PinOutcome, RtOutcome};
-    use crate::probe::{ProbeRun, StallStats};
-    use crate::readiness::{PlatformFacts, verdict};
+    use crate::probe::{GapCounts, ProbeRun, StallStats};
+    use crate::readiness::{LoopRecord, PlatformFacts, verdict};
     use crate::recorder::{LatencyRecorder, TickTiming};
     use crate::summary::LoopSummary;
 
@@ -97,6 +97,11 @@ mod tests {
             pinning: PinOutcome::NotRequested,
             stats: synthetic_recorder(2).stats(),
         };
+        // Eleven gaps of 50 µs and one of 800 µs.
+        let mut gap_counts = GapCounts::default();
+        for gap_ns in [50_000; 11].into_iter().chain([800_000]) {
+            gap_counts.add(gap_ns);
+        }
         let probe = ProbeRun {
             wakeup_rt: RtOutcome::Granted { priority: 80 },
             wakeup: synthetic_recorder(1),
@@ -107,6 +112,7 @@ mod tests {
                 gaps: 12,
                 stolen_ms: 3.5,
                 max_gap_us: 800.0,
+                gap_counts: Some(gap_counts),
             },
         }
         .summary();
@@ -121,6 +127,8 @@ mod tests {
             stall_ms_per_s: Some(probe.stalls.stolen_ms_per_s()),
             wakeup_p999_us: Some(probe.wakeup.lateness.p999_us),
             wakeup_max_us: Some(probe.wakeup.lateness.max_us),
+            stalls: Some(probe.stalls),
+            haptic_loop: Some(LoopRecord::from_stats(&haptic.stats)),
         };
         let doc = ProfileDoc {
             loops: vec![haptic],
@@ -153,21 +161,17 @@ mod tests {
 
 ```text
 1000 Hz: marginal
-  [marginal] host stalls: 3.5 ms per second taken from a spinning thread
-      fix: on a VM, give it dedicated vCPUs (CPU pinning on the host, no overcommit); on bare metal, look for SMIs or interrupt storms (irqbalance, BIOS power settings)
-  [pass] no isolated core: the haptic thread shares its core with everything else
-      fix: boot with isolcpus=N nohz_full=N (one spare core) and pin the haptic loop to it
-  [pass] RT throttling on: real-time threads get at most 950000 µs per 1000000 µs
-      fix: only a busy-waiting loop reaches it; to lift it: sudo sysctl kernel.sched_rt_runtime_us=-1
+  [marginal] the haptic loop missed 1 deadline in 1000 ticks at 1000 Hz
+      fix: find the cause among the other reasons; if none shows, the tick's work is too long for the period (see compute in the loop table)
+  [pass] RT throttling on: real-time threads get at most 950000 µs per 1000000 µs; only a busy-waiting loop reaches it (sudo sysctl kernel.sched_rt_runtime_us=-1 lifts it)
 4000 Hz: fail
   [fail] wake-up latency p99.9 9 µs, max 900 µs against a 250 µs period
       fix: see the other reasons; a kernel with PREEMPT_RT shortens wake-ups
   [marginal] no isolated core: the haptic thread shares its core with everything else
       fix: boot with isolcpus=N nohz_full=N (one spare core) and pin the haptic loop to it
-  [marginal] host stalls: 3.5 ms per second taken from a spinning thread
+  [marginal] host stalls up to 800 µs: 1.0 a second of 250 µs or more (all of the 250 µs period)
       fix: on a VM, give it dedicated vCPUs (CPU pinning on the host, no overcommit); on bare metal, look for SMIs or interrupt storms (irqbalance, BIOS power settings)
-  [pass] RT throttling on: real-time threads get at most 950000 µs per 1000000 µs
-      fix: only a busy-waiting loop reaches it; to lift it: sudo sysctl kernel.sched_rt_runtime_us=-1
+  [pass] RT throttling on: real-time threads get at most 950000 µs per 1000000 µs; only a busy-waiting loop reaches it (sudo sysctl kernel.sched_rt_runtime_us=-1 lifts it)
 ```
 
 Facts: governors performance, isolated core no, sched_rt_runtime_us 950000, SMT off, CPUs busy 25%.

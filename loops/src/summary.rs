@@ -131,6 +131,7 @@ mod tests {
                 gaps: 7,
                 stolen_ms: 1.25,
                 max_gap_us: 400.0,
+                gap_counts: None,
             },
         };
         let facts = PlatformFacts {

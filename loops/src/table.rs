@@ -286,6 +286,7 @@ mod tests {
                 gaps: 40,
                 stolen_ms: 2.0 * scale,
                 max_gap_us: 300.0,
+                gap_counts: None,
             },
         }
     }

@@ -341,6 +341,12 @@ fn dragging_in_the_view_orbits_and_scrolling_zooms() {
     assert!(h.state().camera.distance < after.distance);
 }
 
+/// Opens the latency panel's details (closed at first): the probe's figures and the plots.
+fn open_latency_details(h: &mut Harness<'static, SculptApp>) {
+    h.get_by_label("details").click();
+    h.run();
+}
+
 fn loop_stats(ticks: u64, rate_hz: f64, p99_us: f64) -> LatencyStats {
     let mut s = LatencyStats {
         ticks,
@@ -359,6 +365,7 @@ fn loop_stats(ticks: u64, rate_hz: f64, p99_us: f64) -> LatencyStats {
 fn the_latency_panel_shows_each_loops_published_figures() {
     let (mut h, mut end) = harness();
     h.run();
+    open_latency_details(&mut h);
     assert_eq!(h.query_all_by_label("no figures yet").count(), 3);
 
     let view = EngineView {
@@ -398,6 +405,8 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
     // The app built for tests does not probe by itself.
     h.get_by_label("not probed yet");
     assert!(!h.state().probe.is_running());
+    open_latency_details(&mut h);
+    h.get_by_label("no probe figures yet");
 
     let mut wakeup = loop_stats(1000, 999.8, 4.0);
     wakeup.lateness.p99_us = 3.0;
@@ -413,6 +422,7 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
             gaps: 7,
             stolen_ms: 1.25,
             max_gap_us: 400.0,
+            gap_counts: None,
         },
     };
     h.state_mut()
@@ -457,9 +467,72 @@ fn the_machine_section_shows_the_probes_figures_and_the_verdict() {
 }
 
 #[test]
+fn the_latency_panel_is_one_plain_line_until_its_details_are_opened() {
+    let (mut h, mut end) = harness();
+    h.run();
+    // A probe at launch that saw 2 ms host stalls five times a second: alone, it fails 1 kHz.
+    let mut gap_counts = dynaclay_loops::GapCounts::default();
+    for _ in 0..5 {
+        gap_counts.add(2_000_000);
+    }
+    let stalls = dynaclay_loops::StallStats {
+        seconds: 1.0,
+        gap_threshold_us: 20.0,
+        gaps: 5,
+        stolen_ms: 10.0,
+        max_gap_us: 2000.0,
+        gap_counts: Some(gap_counts),
+    };
+    let mut wakeup = loop_stats(1000, 999.8, 4.0);
+    wakeup.lateness.p99_us = 3.0;
+    wakeup.lateness.p999_us = 30.0;
+    wakeup.lateness.max_us = 120.0;
+    let summary = dynaclay_loops::ProbeSummary {
+        wakeup_rt: dynaclay_loops::RtOutcome::Granted { priority: 80 },
+        wakeup,
+        stall_rt: dynaclay_loops::RtOutcome::Granted { priority: 80 },
+        stalls,
+    };
+    h.state_mut()
+        .probe
+        .finish(Ok(super::probe_panel::ProbeOutcome::before_engine(
+            &summary, None,
+        )));
+    h.run();
+    h.get_by_label_contains("not suited for 1 kHz: host stalls up to 2000 µs");
+    // The figures and the loops' plots wait behind "details".
+    assert!(h.query_by_label_contains("wake-up p99 ").is_none());
+    assert!(h.query_by_label("no figures yet").is_none());
+    assert!(h.query_by_label("Probe again").is_none());
+
+    // The haptic loop then meets every deadline for five seconds: its record outweighs the
+    // probe, and the line says so.
+    let mut haptic = loop_stats(5000, 1000.0, 12.0);
+    haptic.deadline_misses = 0;
+    haptic.elapsed_s = 5.0;
+    haptic.lateness.max_us = 70.0;
+    haptic.compute.max_us = 40.0;
+    let view = EngineView {
+        loops: [haptic, LatencyStats::default(), LatencyStats::default()],
+        ..EngineView::default()
+    };
+    end.view.publish_clone_of(&view);
+    h.run();
+    assert!(h.query_by_label_contains("not suited for 1 kHz").is_none());
+    h.get_by_label_contains("marginal for 1 kHz: ");
+
+    open_latency_details(&mut h);
+    h.get_by_label("wake-up p99 3.0 µs, p99.9 30.0 µs, max 120.0 µs");
+    h.get_by_label("Probe again");
+    h.get_by_label_contains("1000 Hz: marginal");
+    assert_eq!(h.query_all_by_label("no figures yet").count(), 2);
+}
+
+#[test]
 fn probe_again_runs_the_wake_up_probe_on_a_worker_and_shows_it() {
     let (mut h, _end) = harness();
     h.run();
+    open_latency_details(&mut h);
     h.get_by_label("Probe again").click();
     // Single frames: the spinner keeps asking for repaints while the probe runs.
     h.step();
@@ -482,6 +555,7 @@ fn probe_again_runs_the_wake_up_probe_on_a_worker_and_shows_it() {
 fn the_latency_panel_draws_histograms_and_timelines_from_the_loops_bins() {
     let (mut h, mut end) = harness();
     h.run();
+    open_latency_details(&mut h);
     let mut view = EngineView::default();
     for (i, stats) in view.loops.iter_mut().enumerate() {
         *stats = loop_stats(1000 * (i as u64 + 1), 999.0, 10.0);

@@ -11,13 +11,19 @@
 //!
 //! The frame never waits on a probe: a worker thread hands its result over a channel that the
 //! frame polls.
+//!
+//! The panel shows one plain line by default ("this machine is fine for 1 kHz haptics", or the
+//! first rate it is not fit for and why); the probe's figures, the verdicts' reasons and fixes
+//! and the loops' plots are under **details**. The verdict is drawn each frame from the
+//! probe's facts and the haptic loop's figures so far: a loop that has met every deadline is
+//! never told its machine fails (see `dynaclay_loops::THRESHOLDS`).
 
 use std::time::{Duration, Instant};
 
 use crossbeam::channel::{Receiver, TryRecvError, bounded};
 use dynaclay_loops::{
-    Grade, LatencyStats, ProbeSummary, RtOutcome, StallStats, Verdict, busy_fraction, cpu_jiffies,
-    read_platform_facts, run_wakeup_probe, verdict,
+    Grade, LatencyStats, LoopRecord, PlatformFacts, ProbeSummary, RtOutcome, StallStats, Verdict,
+    busy_fraction, cpu_jiffies, plain_summary, read_platform_facts, run_wakeup_probe, verdict,
 };
 
 /// The rates judged, Hz.
@@ -44,6 +50,9 @@ pub struct ProbeOutcome {
     pub stalls: Option<StallFigures>,
     /// Whether the wake-up probe ran beside the engine (else before it started).
     pub beside_engine: bool,
+    /// What the verdicts were drawn from (without the haptic loop's record).
+    pub facts: PlatformFacts,
+    /// The verdicts from the probe alone, one per judged rate.
     pub verdicts: Vec<Verdict>,
 }
 
@@ -129,6 +138,7 @@ pub fn judge(
     };
     facts.cpu_busy_fraction = cpu_busy;
     facts.stall_ms_per_s = stalls.map(|s| s.stats.stolen_ms_per_s());
+    facts.stalls = stalls.map(|s| s.stats);
     facts.wakeup_p999_us = Some(wakeup.lateness.p999_us);
     facts.wakeup_max_us = Some(wakeup.lateness.max_us);
     ProbeOutcome {
@@ -136,10 +146,31 @@ pub fn judge(
         wakeup,
         stalls,
         beside_engine,
-        verdicts: JUDGED_RATES_HZ
-            .iter()
-            .map(|&hz| verdict(&facts, hz))
-            .collect(),
+        verdicts: verdicts_for(&facts),
+        facts,
+    }
+}
+
+fn verdicts_for(facts: &PlatformFacts) -> Vec<Verdict> {
+    JUDGED_RATES_HZ
+        .iter()
+        .map(|&hz| verdict(facts, hz))
+        .collect()
+}
+
+impl ProbeOutcome {
+    /// The verdicts with the haptic loop's figures so far (`haptic`, no ticks: not running)
+    /// taken as the loop's own record.
+    #[must_use]
+    pub fn verdicts_with(&self, haptic: &LatencyStats) -> Vec<Verdict> {
+        if haptic.ticks == 0 {
+            return self.verdicts.clone();
+        }
+        let facts = PlatformFacts {
+            haptic_loop: Some(LoopRecord::from_stats(haptic)),
+            ..self.facts.clone()
+        };
+        verdicts_for(&facts)
     }
 }
 
@@ -221,28 +252,70 @@ impl ProbePanel {
         }
     }
 
-    /// The probe's figures, the verdicts with their reasons and fixes, and the button.
-    pub fn ui(&mut self, ui: &mut egui::Ui) {
-        ui.horizontal(|ui| {
+    /// One plain line with the verdict, and under **details** (closed at first) the probe's
+    /// figures, the verdicts with their reasons and fixes, the button, then `details_below`
+    /// (the loops' figures and plots). `haptic` is the haptic loop's figures so far.
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        haptic: &LatencyStats,
+        details_below: impl FnOnce(&mut egui::Ui),
+    ) {
+        let verdicts = self
+            .last
+            .as_ref()
+            .map(|(_, o)| o.verdicts_with(haptic))
+            .unwrap_or_default();
+        self.summary_line(ui, &verdicts);
+        egui::CollapsingHeader::new("details")
+            .id_salt("latency details")
+            .default_open(false)
+            .show(ui, |ui| {
+                ui.heading("Machine");
+                self.details_ui(ui, &verdicts);
+                ui.separator();
+                ui.heading("Loops");
+                details_below(ui);
+            });
+    }
+
+    /// The verdict in one plain line, coloured by the worst grade it names.
+    fn summary_line(&self, ui: &mut egui::Ui, verdicts: &[Verdict]) {
+        ui.horizontal_wrapped(|ui| {
             if let Some((since, _)) = &self.running {
                 ui.spinner();
                 ui.label(format!("probing… {:.1} s", since.elapsed().as_secs_f64()));
-            } else if ui
+            } else if verdicts.is_empty() {
+                ui.weak("not probed yet");
+            } else {
+                let grade = verdicts
+                    .iter()
+                    .map(|v| v.grade)
+                    .find(|&g| g != Grade::Pass)
+                    .unwrap_or(Grade::Pass);
+                ui.colored_label(grade_colour(grade), plain_summary(verdicts));
+            }
+        });
+        if let Some(e) = &self.error {
+            ui.colored_label(ui.visuals().error_fg_color, e);
+        }
+    }
+
+    /// The button, the probe's figures and the verdicts with their reasons and fixes.
+    fn details_ui(&mut self, ui: &mut egui::Ui, verdicts: &[Verdict]) {
+        if self.running.is_none()
+            && ui
                 .button("Probe again")
                 .on_hover_text(
                     "Half a second of a thread sleeping to deadlines at the haptic rate, one \
                      priority step below the haptic thread, beside the running engine.",
                 )
                 .clicked()
-            {
-                self.start();
-            }
-        });
-        if let Some(e) = &self.error {
-            ui.colored_label(ui.visuals().error_fg_color, e);
+        {
+            self.start();
         }
         let Some((at, outcome)) = &self.last else {
-            ui.weak("not probed yet");
+            ui.weak("no probe figures yet");
             return;
         };
         let w = &outcome.wakeup;
@@ -277,7 +350,7 @@ impl ProbePanel {
                 ui.weak("host stalls: not counted (counted only before the engine starts)");
             }
         }
-        for v in &outcome.verdicts {
+        for v in verdicts {
             let head = format!("{:.0} Hz: {}", v.rate_hz, v.grade);
             egui::CollapsingHeader::new(egui::RichText::new(head).color(grade_colour(v.grade)))
                 .id_salt(("readiness", v.rate_hz.to_bits()))
@@ -285,11 +358,11 @@ impl ProbePanel {
                 .show(ui, |ui| {
                     for f in &v.findings {
                         ui.horizontal_wrapped(|ui| {
-                            ui.colored_label(grade_colour(f.grade), format!("[{}]", f.grade));
-                            ui.label(&f.reason);
+                            ui.colored_label(grade_colour(f.grade()), format!("[{}]", f.grade()));
+                            ui.label(f.reason());
                         });
-                        if !f.fix.is_empty() {
-                            ui.weak(format!("fix: {}", f.fix));
+                        if let Some(fix) = f.fix() {
+                            ui.weak(format!("fix: {fix}"));
                         }
                     }
                 });

@@ -37,7 +37,7 @@ use super::pin_panel::PinPanel;
 use super::pointer_tool::PointerTool;
 use super::probe_panel::ProbePanel;
 use super::redraw::{FrameStats, InFlight, PARTICLE_SETTLE_POLLS};
-use super::view::{EngineView, WorldBox};
+use super::view::{EngineView, LoopId, WorldBox};
 use super::viewport::{DiscKey, SceneView, camera_input};
 
 /// The session file the window saves to and autosaves next to when none is named.
@@ -665,11 +665,8 @@ impl SculptApp {
                 egui::ScrollArea::both()
                     .auto_shrink([false, false])
                     .show(ui, |ui| {
-                        ui.heading("Machine");
-                        self.probe.ui(ui);
-                        ui.separator();
-                        ui.heading("Loops");
-                        self.latency.ui(ui);
+                        let haptic = &self.view.loops[LoopId::Haptic.index()];
+                        self.probe.ui(ui, haptic, |ui| self.latency.ui(ui));
                     });
             });
         self.flush_settings(tool_changed, material_changed);

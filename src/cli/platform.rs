@@ -5,8 +5,8 @@
 use std::time::Duration;
 
 use dynaclay_loops::{
-    LatencyRecorder, LoopSummary, ProbeRun, ProfileDoc, RtOutcome, busy_fraction, cpu_jiffies,
-    read_platform_facts, run_probes, verdict,
+    HAPTIC_LOOP, LatencyRecorder, LoopRecord, LoopSummary, ProbeRun, ProfileDoc, RtOutcome,
+    busy_fraction, cpu_jiffies, plain_summary, read_platform_facts, run_probes, verdict,
 };
 
 use super::error::CliError;
@@ -75,8 +75,9 @@ impl PlatformWatch {
     }
 
     /// Runs the probe again after the loops stopped and judges the machine from both runs,
-    /// whether the haptic loop got its real-time priority (`haptic_rt`) and how busy the CPUs
-    /// were (`cpu_busy`).
+    /// whether the haptic loop got its real-time priority (`haptic_rt`), how busy the CPUs
+    /// were (`cpu_busy`) and the haptic loop's own record in `loops` (a loop that met every
+    /// deadline is never judged to fail at its rate).
     ///
     /// # Errors
     /// [`CliError::Output`] when a probe thread cannot be started or panics.
@@ -97,6 +98,12 @@ impl PlatformWatch {
         facts.stall_ms_per_s = worst(|p| p.stalls.stolen_ms_per_s());
         facts.wakeup_p999_us = worst(|p| p.wakeup.lateness.p999_us);
         facts.wakeup_max_us = worst(|p| p.wakeup.lateness.max_us);
+        facts.stalls = Some(probes[0].stalls.merged(&probes[1].stalls));
+        // The loop's own record outweighs the probes in the verdict.
+        facts.haptic_loop = loops
+            .iter()
+            .find(|l| l.name == HAPTIC_LOOP && l.stats.ticks > 0)
+            .map(|l| LoopRecord::from_stats(&l.stats));
         let doc = ProfileDoc {
             loops,
             probe_before: Some(probes[0]),
@@ -127,7 +134,9 @@ impl PlatformJudged {
         }
     }
 
-    /// One line per judged rate: "readiness: 1000 Hz pass, 4000 Hz marginal".
+    /// One line: the grade per judged rate, then the verdict in plain words ("readiness:
+    /// 1000 Hz pass, 4000 Hz marginal: this machine is fine for 1 kHz haptics; marginal for
+    /// 4 kHz: host stalls up to …").
     #[must_use]
     pub fn headline(&self) -> String {
         let grades: Vec<String> = self
@@ -136,6 +145,10 @@ impl PlatformJudged {
             .iter()
             .map(|v| format!("{:.0} Hz {}", v.rate_hz, v.grade))
             .collect();
-        format!("readiness: {}", grades.join(", "))
+        format!(
+            "readiness: {}: {}",
+            grades.join(", "),
+            plain_summary(&self.doc.readiness)
+        )
     }
 }
