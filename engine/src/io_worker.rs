@@ -116,6 +116,11 @@ impl IoWorker {
                     a.note_stroke();
                 }
             }
+            IoJob::Follow(path) => {
+                if let Some(a) = self.autosave.as_mut() {
+                    a.follow(&path);
+                }
+            }
             #[cfg(feature = "fault-injection")]
             IoJob::InjectPanic => panic!("injected: the I/O worker panics"),
         }
@@ -152,6 +157,32 @@ mod tests {
     use super::*;
     use crate::SaveJob;
     use dynaclay_core::io::{AutosavePolicy, load_session, recovery_path_for};
+
+    #[test]
+    fn a_followed_session_gets_the_recovery_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let (job_tx, job_rx) = crossbeam::channel::unbounded();
+        let (cmd_tx, cmd_rx) = crossbeam::channel::unbounded();
+        let mut worker = IoWorker::new(job_rx, cmd_tx);
+        let policy = AutosavePolicy {
+            every_s: 0.0,
+            every_strokes: 1,
+        };
+        let first = dir.path().join("first.dclay");
+        worker.set_autosave(Autosave::new(&first, policy, Instant::now()));
+        let loaded = dir.path().join("loaded.dclay");
+        job_tx.send(IoJob::Follow(loaded.clone())).unwrap();
+        job_tx.send(IoJob::Committed).unwrap();
+        assert!(worker.poll(Instant::now()));
+        let Ok(Command::Snapshot { reply }) = cmd_rx.try_recv() else {
+            panic!("no snapshot asked for");
+        };
+        reply.send(Session::default()).unwrap();
+        assert!(worker.poll(Instant::now()));
+        assert_eq!(worker.report().autosaves, 1);
+        assert!(recovery_path_for(&loaded).exists());
+        assert!(!recovery_path_for(&first).exists());
+    }
 
     #[test]
     fn saves_are_written_and_autosave_asks_the_simulation_for_a_copy_beside_the_last_save() {

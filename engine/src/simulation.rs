@@ -132,6 +132,9 @@ pub enum IoJob {
     Save(Box<SaveJob>),
     /// An undo step was committed (a stroke or a tool step ended): counts toward autosave.
     Committed,
+    /// The session file at this path was loaded and is now the one being worked on: autosave
+    /// writes its recovery file beside it from now on.
+    Follow(std::path::PathBuf),
     /// Test-only (the `fault-injection` feature): the I/O worker panics on taking it.
     #[cfg(feature = "fault-injection")]
     InjectPanic,
@@ -887,6 +890,34 @@ mod tests {
         assert_eq!((st.undo_steps, st.redo_steps), (0, 0), "history cleared");
         assert_eq!(st.material, Material::ELASTIC);
         assert_eq!(st.sessions_loaded, 1);
+    }
+
+    #[test]
+    fn loading_a_session_file_moves_autosave_beside_it_and_an_imported_scan_does_not() {
+        let mut s = stages();
+        let (io_tx, io_rx) = crossbeam::channel::unbounded();
+        s.sim.io = Some(io_tx);
+        for source in ["elsewhere/next.dclay", "scan.ply"] {
+            let (tx, rx) = bounded(1);
+            let same = session_with(s.sim.lattice().clone(), Material::ELASTIC);
+            s.commands
+                .send(Command::Load {
+                    session: Box::new(same),
+                    source: source.into(),
+                    reply: Some(tx),
+                })
+                .unwrap();
+            run_ticks(&mut s, 2);
+            rx.try_recv().unwrap().unwrap();
+        }
+        let followed: Vec<std::path::PathBuf> = io_rx
+            .try_iter()
+            .filter_map(|job| match job {
+                IoJob::Follow(path) => Some(path),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(followed, [std::path::PathBuf::from("elsewhere/next.dclay")]);
     }
 
     #[test]

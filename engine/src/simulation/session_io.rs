@@ -70,6 +70,15 @@ impl SimulationStage {
         self.config.material = material.uniform;
         self.mark_all_changed();
         self.sessions_loaded += 1;
+        // A session file loaded is the session being worked on, so autosave follows it; an
+        // imported cloud, mesh or volume is not one, and autosave stays where it was.
+        let is_session_file = source
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("dclay"));
+        if is_session_file && let Some(io) = &self.io {
+            // The I/O thread gone means no autosave either: nothing to follow.
+            let _ = io.send(IoJob::Follow(source.to_path_buf()));
+        }
         let d = self.lattice().dims;
         let mut summary = format!(
             "loaded {} ({}×{}×{} coefficients); undo history cleared",
