@@ -119,7 +119,7 @@ impl DhdApi {
         // SAFETY: dhdErrorGetLastStr returns a static NUL-terminated string or null.
         let p = unsafe { (self.error_get_last_str)() };
         if p.is_null() {
-            return "no description".into();
+            return "the library gives no text for its last error".into();
         }
         // SAFETY: non-null and NUL-terminated, static in the library.
         unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()

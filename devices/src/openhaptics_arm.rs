@@ -155,14 +155,15 @@ impl HdApi {
         unsafe { (self.servo.get_error)() }
     }
 
-    /// HD's text for an error code, or a placeholder when the library has none.
+    /// HD's text for an error code; where the library gives none (no `hdGetErrorString`, or
+    /// a null answer), the code itself, so the message still names the error.
     fn error_text(&self, code: c_uint) -> String {
         // SAFETY: hdGetErrorString returns a static string or null for any code.
         let text = self.get_error_string.map(|f| unsafe { f(code) });
         match text {
             // SAFETY: a non-null return is a NUL-terminated static string.
             Some(p) if !p.is_null() => unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned(),
-            _ => "no description".into(),
+            _ => format!("HD error {code:#06x} (the library gives no text for it)"),
         }
     }
 
