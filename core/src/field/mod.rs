@@ -7,6 +7,7 @@ mod axis;
 mod band;
 mod band_limited;
 mod basis;
+mod coarsen;
 mod implicit;
 mod kron;
 mod lattice;
@@ -21,10 +22,14 @@ mod sweep;
 pub use axis::{AxisBasis, BandedCholesky, NotPositiveDefinite, centred_cubic};
 pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
+pub use coarsen::{
+    COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, apply_coarsening,
+    plan_coarsening,
+};
 pub use implicit::ImplicitField;
 pub(crate) use kron::PassShape;
 pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
-pub use lattice::{BSplineLattice, LatticeError};
+pub use lattice::{BSplineLattice, LatticeError, sub_lattice};
 pub use mass_grid::{CoeffBox, MassGrid};
 pub use multipatch::{
     DetailError, MAX_CLAY_COEFFS, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES,

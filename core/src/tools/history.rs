@@ -12,6 +12,7 @@ use std::collections::{BTreeMap, VecDeque};
 use super::clay::{BRICK, Clay, CoeffBox, FieldId};
 use super::growth::Growth;
 use crate::dynamics::Constraint;
+use crate::field::{CoarsenPlan, Patch, apply_coarsening};
 
 /// Default memory bound of the history: 256 MiB.
 pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;
@@ -48,6 +49,23 @@ pub struct Step {
     deltas: Vec<BrickDelta>,
     /// The clay's constraints before and after the step, when it changed them.
     pins: Option<Box<PinSwap>>,
+    /// Detail patches the step removed (folded into coarser ones), in the order removed.
+    removed: Vec<RemovedPatch>,
+}
+
+/// A detail patch a step removed: where it was and what it held before the step.
+#[derive(Clone, Debug, PartialEq)]
+struct RemovedPatch {
+    /// Its index in the layout it was removed from.
+    index: usize,
+    /// The patch as the step found it.
+    before: Patch,
+}
+
+impl RemovedPatch {
+    fn bytes(&self) -> usize {
+        std::mem::size_of::<Self>() + 4 * self.before.lattice.coeffs.len()
+    }
 }
 
 /// A change of the clay's constraint list (small: the lists are kept whole).
@@ -84,6 +102,7 @@ impl Step {
             + self.label.len()
             + self.deltas.iter().map(BrickDelta::bytes).sum::<usize>()
             + self.pins.as_ref().map_or(0, |p| p.bytes())
+            + self.removed.iter().map(RemovedPatch::bytes).sum::<usize>()
     }
 
     /// Number of coefficients the step changed bricks of (a brick counts whole).
@@ -92,9 +111,8 @@ impl Step {
         self.deltas.iter().map(|d| d.xor.len()).sum()
     }
 
-    /// XORs the step into the clay: applying it twice is a no-op, so it both undoes and redoes.
-    fn toggle(&self, clay: &mut Clay) -> Result<(), HistoryError> {
-        // Check every delta first so a failure changes nothing.
+    /// Checks that every delta fits the clay's fields as they are.
+    fn check_deltas(&self, clay: &Clay) -> Result<(), HistoryError> {
         for d in &self.deltas {
             let field = clay
                 .field(d.field)
@@ -112,6 +130,12 @@ impl Step {
                 });
             }
         }
+        Ok(())
+    }
+
+    /// XORs the deltas into the clay and swaps the pins: applying it twice is a no-op, so it
+    /// both undoes and redoes the coefficients (the caller checked the deltas).
+    fn toggle_deltas(&self, clay: &mut Clay) {
         for d in &self.deltas {
             let Some(field) = clay.field_mut(d.field) else {
                 continue;
@@ -133,6 +157,52 @@ impl Step {
                 p.after.clone()
             };
         }
+    }
+
+    /// Gives the clay back as the step found it: the deltas on the layout the step left, then
+    /// the removed patches back in their places.
+    fn undo(&self, clay: &mut Clay) -> Result<(), HistoryError> {
+        self.check_deltas(clay)?;
+        let mut len = clay.density.patches.len();
+        for r in self.removed.iter().rev() {
+            if r.index == 0 || r.index > len {
+                return Err(HistoryError::FieldMismatch {
+                    field: FieldId::Density(u16::try_from(r.index).unwrap_or(u16::MAX)),
+                    detail: format!("cannot put a removed patch back among {len} patches"),
+                });
+            }
+            len += 1;
+        }
+        self.toggle_deltas(clay);
+        for r in self.removed.iter().rev() {
+            clay.density.patches.insert(r.index, r.before.clone());
+        }
+        Ok(())
+    }
+
+    /// Does the step again on the clay as it found it: the patches it removed go first, then
+    /// the deltas apply on the layout it left.
+    fn redo(&self, clay: &mut Clay) -> Result<(), HistoryError> {
+        let mut taken = Vec::with_capacity(self.removed.len());
+        for r in &self.removed {
+            if r.index == 0 || r.index >= clay.density.patches.len() {
+                for (index, patch) in taken.into_iter().rev() {
+                    clay.density.patches.insert(index, patch);
+                }
+                return Err(HistoryError::FieldMismatch {
+                    field: FieldId::Density(u16::try_from(r.index).unwrap_or(u16::MAX)),
+                    detail: "the patch the step removed is not there".into(),
+                });
+            }
+            taken.push((r.index, clay.density.patches.remove(r.index)));
+        }
+        if let Err(e) = self.check_deltas(clay) {
+            for (index, patch) in taken.into_iter().rev() {
+                clay.density.patches.insert(index, patch);
+            }
+            return Err(e);
+        }
+        self.toggle_deltas(clay);
         Ok(())
     }
 }
@@ -185,6 +255,8 @@ pub struct StepRecorder {
     old: BTreeMap<(FieldId, [usize; 3]), SavedBrick>,
     /// The clay's constraints before the step, when the step may change them.
     pins_before: Option<Vec<Constraint>>,
+    /// Detail patches removed during the step, as it found them.
+    removed: Vec<RemovedPatch>,
 }
 
 /// The bits of one brick before a step.
@@ -203,6 +275,7 @@ impl StepRecorder {
             label: label.into(),
             old: BTreeMap::new(),
             pins_before: None,
+            removed: Vec::new(),
         }
     }
 
@@ -311,6 +384,52 @@ impl StepRecorder {
             .collect();
     }
 
+    /// Applies `plan` (a fold of a detail patch into a coarser one, see
+    /// [`crate::field::plan_coarsening`]) to `clay` as part of this step: the coarser patch's
+    /// rewritten coefficients become deltas, and the removed patch is kept whole as the step
+    /// found it, so undo puts it back bit for bit. Later patches move down one index, here as
+    /// in the clay.
+    pub fn coarsen(&mut self, clay: &mut Clay, plan: &CoarsenPlan) {
+        let index = plan.patch;
+        let id = FieldId::Density(u16::try_from(index).unwrap_or(u16::MAX));
+        if let Some((region, _)) = &plan.rewrite {
+            let into = FieldId::Density(u16::try_from(plan.into).unwrap_or(u16::MAX));
+            self.touch(clay, into, *region);
+        }
+        if let Some(lattice) = clay.field(id) {
+            let whole = CoeffBox::whole(lattice.dims);
+            self.touch(clay, id, whole);
+        }
+        let mut before = apply_coarsening(&mut clay.density, plan);
+        let dims = before.lattice.dims;
+        let mut remapped = BTreeMap::new();
+        for ((field, brick), saved) in std::mem::take(&mut self.old) {
+            match field {
+                FieldId::Density(n) if usize::from(n) == index => {
+                    // The bits as the step found them go back into the patch kept for undo.
+                    let mut bits = saved.bits.chunks_exact(saved.region.dims()[0]);
+                    for_each_row(dims, &saved.region, |start, len| {
+                        let row = bits.next().expect("one saved row per region row");
+                        for (c, &b) in before.lattice.coeffs[start..start + len]
+                            .iter_mut()
+                            .zip(row)
+                        {
+                            *c = f32::from_bits(b);
+                        }
+                    });
+                }
+                FieldId::Density(n) if usize::from(n) > index => {
+                    remapped.insert((FieldId::Density(n - 1), brick), saved);
+                }
+                _ => {
+                    remapped.insert((field, brick), saved);
+                }
+            }
+        }
+        self.old = remapped;
+        self.removed.push(RemovedPatch { index, before });
+    }
+
     /// The union of the touched bricks of `field` (`None` if none).
     #[must_use]
     pub fn touched_box(&self, field: FieldId) -> Option<CoeffBox> {
@@ -368,13 +487,14 @@ impl StepRecorder {
                     after: clay.constraints.clone(),
                 })
             });
-        if deltas.is_empty() && pins.is_none() {
+        if deltas.is_empty() && pins.is_none() && self.removed.is_empty() {
             return None;
         }
         Some(Step {
             label: self.label,
             deltas,
             pins,
+            removed: self.removed,
         })
     }
 }
@@ -445,7 +565,7 @@ impl History {
         let Some(step) = self.undo.pop_back() else {
             return Ok(None);
         };
-        if let Err(e) = step.toggle(clay) {
+        if let Err(e) = step.undo(clay) {
             self.undo.push_back(step);
             return Err(e);
         }
@@ -462,7 +582,7 @@ impl History {
         let Some(step) = self.redo.pop() else {
             return Ok(None);
         };
-        if let Err(e) = step.toggle(clay) {
+        if let Err(e) = step.redo(clay) {
             self.redo.push(step);
             return Err(e);
         }
@@ -542,6 +662,78 @@ mod tests {
             l.coeffs[i] = value
         });
         history.commit(rec, clay);
+    }
+
+    /// Sets every coefficient of density patch `n` to `value(index)`.
+    fn fill(clay: &mut Clay, n: usize, value: impl Fn(usize) -> f32) {
+        for (i, c) in clay.density.patches[n]
+            .lattice
+            .coeffs
+            .iter_mut()
+            .enumerate()
+        {
+            *c = value(i);
+        }
+    }
+
+    #[test]
+    fn a_step_that_folds_a_patch_away_undoes_and_redoes_bit_for_bit_with_the_layout() {
+        let mut clay = clay();
+        let z = Vec3::new(0.0, 0.0, 0.3);
+        for x in [0.5, 1.0] {
+            let lo = Vec3::new(x, 0.4, 0.0) + z;
+            clay.density
+                .refine(lo, lo + Vec3::new(0.3, 0.2, 0.05), 1)
+                .unwrap();
+        }
+        let start = clay.clone();
+        let mut history = History::default();
+        // A carve writes into both detail patches.
+        let mut rec = StepRecorder::new("carve");
+        for n in [1, 2] {
+            let whole = CoeffBox::whole(clay.density.patches[n].lattice.dims);
+            rec.touch(&clay, FieldId::Density(n as u16), whole);
+            fill(&mut clay, n, |i| (i % 5) as f32 * 0.01 * n as f32);
+        }
+        assert!(history.commit(rec, &clay));
+        let carved = clay.clone();
+        // A smoothing wipes patch 1, changes patch 2, and the wiped patch is folded into the
+        // base (whose box is rewritten); patch 2 moves to index 1 and is changed again.
+        let mut rec = StepRecorder::new("smooth");
+        let whole = CoeffBox::whole(clay.density.patches[1].lattice.dims);
+        rec.touch(&clay, FieldId::Density(1), whole);
+        fill(&mut clay, 1, |_| 0.0);
+        let whole2 = CoeffBox::whole(clay.density.patches[2].lattice.dims);
+        rec.touch(&clay, FieldId::Density(2), whole2);
+        fill(&mut clay, 2, |i| (i % 3) as f32 * 0.02);
+        let region = CoeffBox {
+            min: [4, 3, 1],
+            max: [9, 6, 3],
+        };
+        let plan = CoarsenPlan {
+            patch: 1,
+            into: 0,
+            rewrite: Some((region, vec![0.25; region.count()])),
+            displacement_fu: 0.0,
+        };
+        rec.coarsen(&mut clay, &plan);
+        assert_eq!(clay.density.patches.len(), 2);
+        fill(&mut clay, 1, |i| (i % 4) as f32 * 0.03);
+        assert!(history.commit(rec, &clay));
+        let smoothed = clay.clone();
+
+        history.undo(&mut clay).unwrap();
+        assert_eq!(
+            clay, carved,
+            "undo puts the folded patch back as the smoothing found it"
+        );
+        history.undo(&mut clay).unwrap();
+        assert_eq!(clay, start);
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay, carved);
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay, smoothed, "redo folds it away again");
+        assert!(history.used_bytes() >= 4 * carved.density.patches[1].lattice.coeffs.len());
     }
 
     #[test]
