@@ -34,6 +34,7 @@ struct Inner {
     peak_force_milli_n: AtomicU64,
     clay_growths: AtomicU64,
     auto_refines: AtomicU64,
+    auto_coarsenings: AtomicU64,
 }
 
 /// A plain copy of the counters at one moment.
@@ -78,6 +79,9 @@ pub struct CounterSnapshot {
     /// Detail patches added under a fine brush without being asked.
     #[serde(default)]
     pub auto_refines: u64,
+    /// Detail patches folded back into coarser ones once a step had wiped their detail.
+    #[serde(default)]
+    pub auto_coarsenings: u64,
 }
 
 macro_rules! bump {
@@ -117,6 +121,7 @@ impl EngineCounters {
         bricks_remeshed,
         clay_growths,
         auto_refines,
+        auto_coarsenings,
     );
 
     /// Raises the recorded peak force to `force_n` if larger.
@@ -160,6 +165,7 @@ impl EngineCounters {
             peak_force_milli_n: r(&i.peak_force_milli_n),
             clay_growths: r(&i.clay_growths),
             auto_refines: r(&i.auto_refines),
+            auto_coarsenings: r(&i.auto_coarsenings),
         }
     }
 }

@@ -577,43 +577,52 @@ impl SimulationStage {
             .action
             .can_add_clay()
             .then(|| tool.influence_box(&pose, self.clay.base().spacing));
-        // A brush finer than the base gets its detail patch (world boxes: growth keeps them).
+        // A smoothing over detail smooths every patch under it; a brush finer than the base
+        // gets its detail patch (world boxes: growth keeps them).
+        let smoothed = self.patches_smoothed(tool, std::slice::from_ref(&pose));
         let detail = self.detail_for_brush(tool, std::slice::from_ref(&pose));
         if let Some((lo, hi)) = grows {
             self.make_room(lo, hi);
         }
-        let patch = detail.map_or(0, |detail| self.patch_for_detail(detail));
-        let ToolChoice::Geometric(tool) = self.tool.choice() else {
-            return;
+        let (patches, own_term) = match (smoothed, detail) {
+            (Some(patches), _) => (patches, true),
+            (None, Some(detail)) => (vec![self.patch_for_detail(detail)], false),
+            (None, None) => (vec![0], false),
         };
-        let options = ApplyOptions {
-            patch,
-            ..ApplyOptions::default()
-        };
-        let result = apply_tool(
-            &mut self.clay,
-            tool,
-            &pose,
-            dwell_s,
-            &options,
-            self.recorder.as_mut(),
-        );
-        self.colour_dirty |= tool.action.paints();
-        match result {
-            Ok(report) => {
-                if let Some(b) = report.coeff_box {
-                    let edited = usize::from(report.patch);
-                    if let Some(region) = self.region.as_mut()
-                        && edited == self.region_patch
-                    {
-                        // The region's own copy of the coefficients is stale now.
-                        region.reload(&self.clay.density.patches[edited].lattice);
-                        self.rebuild_pins();
+        for patch in patches {
+            let ToolChoice::Geometric(tool) = self.tool.choice() else {
+                return;
+            };
+            let options = ApplyOptions {
+                patch,
+                own_term,
+                ..ApplyOptions::default()
+            };
+            let result = apply_tool(
+                &mut self.clay,
+                tool,
+                &pose,
+                dwell_s,
+                &options,
+                self.recorder.as_mut(),
+            );
+            self.colour_dirty |= tool.action.paints();
+            match result {
+                Ok(report) => {
+                    if let Some(b) = report.coeff_box {
+                        let edited = usize::from(report.patch);
+                        if let Some(region) = self.region.as_mut()
+                            && edited == self.region_patch
+                        {
+                            // The region's own copy of the coefficients is stale now.
+                            region.reload(&self.clay.density.patches[edited].lattice);
+                            self.rebuild_pins();
+                        }
+                        self.mark_changed(edited, b);
                     }
-                    self.mark_changed(edited, b);
                 }
+                Err(_) => self.counters.command_errors(1),
             }
-            Err(_) => self.counters.command_errors(1),
         }
     }
 
@@ -703,7 +712,8 @@ impl SimulationStage {
 
     /// Records a finished step and tells the I/O thread (autosave counts strokes); returns
     /// whether the step changed the clay.
-    fn commit(&mut self, rec: StepRecorder) -> bool {
+    fn commit(&mut self, mut rec: StepRecorder) -> bool {
+        self.coarsen_wiped_detail(&mut rec);
         let changed = self.history.commit(rec, &self.clay);
         if changed {
             self.clay_revision += 1;

@@ -40,6 +40,11 @@ pub struct ApplyOptions {
     pub patch: u16,
     /// Target samples per knot span in the local refit (2 is accurate for tool-sized edits).
     pub samples_per_span: usize,
+    /// Apply the tool to the patch's own term of eq. (3) as if it were the whole clay,
+    /// leaving the other patches out of the rule. For a linear action (a smoothing: the
+    /// blur of a sum is the sum of the blurs) applying it so to every patch under the brush
+    /// is the action on the whole clay, each level keeping what its own spacing carries.
+    pub own_term: bool,
 }
 
 impl Default for ApplyOptions {
@@ -47,6 +52,7 @@ impl Default for ApplyOptions {
         Self {
             patch: 0,
             samples_per_span: 2,
+            own_term: false,
         }
     }
 }
@@ -180,6 +186,11 @@ pub fn apply_tool(
         _ => None,
     };
     let (lattice, others) = split_patch(&mut clay.density, usize::from(options.patch));
+    let others = if options.own_term {
+        OtherPatches::NONE
+    } else {
+        others
+    };
     let rows = ToolRows {
         others: &others,
         reach: &reach,

@@ -115,25 +115,43 @@ impl SimulationStage {
                     0.0
                 };
                 self.make_room_for_tool(&tool, &poses, patch);
-                // A script's tool on the base (the default) gets the detail its brush needs.
-                let patch = if patch == 0 {
-                    self.patch_for_brush(&tool, &poses)
-                } else {
-                    patch
+                // A script's tool on the base (the default) gets the detail its brush needs; a
+                // smoothing over detail smooths every patch under it.
+                let (patches, own_term) = match (patch, self.patches_smoothed(&tool, &poses)) {
+                    (0, Some(patches)) => (patches, true),
+                    (0, None) => (vec![self.patch_for_brush(&tool, &poses)], false),
+                    (patch, _) => (vec![patch], false),
                 };
                 let mut rec = StepRecorder::new(tool.action.name());
-                let options = ApplyOptions {
-                    patch,
-                    ..ApplyOptions::default()
-                };
-                let result = apply_stroke(
-                    &mut self.clay,
-                    &tool,
-                    &poses,
-                    duration_s,
-                    &options,
-                    Some(&mut rec),
-                );
+                let mut result = None;
+                for patch in patches {
+                    let options = ApplyOptions {
+                        patch,
+                        own_term,
+                        ..ApplyOptions::default()
+                    };
+                    let applied = apply_stroke(
+                        &mut self.clay,
+                        &tool,
+                        &poses,
+                        duration_s,
+                        &options,
+                        Some(&mut rec),
+                    );
+                    // The first patch's result is the answer (a later failure replaces it);
+                    // every other patch's box is published here.
+                    match (&result, applied) {
+                        (None, first) => result = Some(first),
+                        (Some(_), Ok(report)) => {
+                            if let Some(b) = report.coeff_box {
+                                self.mark_changed(usize::from(report.patch), b);
+                            }
+                        }
+                        (Some(Ok(_)), Err(e)) => result = Some(Err(e)),
+                        (Some(Err(_)), Err(_)) => {}
+                    }
+                }
+                let result = result.unwrap_or_else(|| Ok(ToolReport::default()));
                 self.colour_dirty |= tool.action.paints();
                 // Whatever was applied before a failure stays undoable.
                 let changed = self.commit(rec);
@@ -269,11 +287,17 @@ impl SimulationStage {
             }
             Command::Undo | Command::Redo => {
                 self.end_stroke_now();
+                let patches = self.clay.density.patches.len();
                 let done = if matches!(cmd, Command::Undo) {
                     self.history.undo(&mut self.clay)
                 } else {
                     self.history.redo(&mut self.clay)
                 };
+                if self.clay.density.patches.len() != patches {
+                    // The step had folded a detail patch away: the layout changes back.
+                    self.pending = vec![None; self.clay.density.patches.len()];
+                    self.publish_layout();
+                }
                 self.mark_all_changed();
                 self.colour_dirty = true;
                 self.clay_revision += 1;

@@ -12,10 +12,17 @@
 //! that moves on adds a patch each time it leaves the last one; the clay's patch and coefficient budgets
 //! bound them ([`dynaclay_core::field::MAX_PATCHES`], [`dynaclay_core::field::MAX_CLAY_COEFFS`]):
 //! past them the brush sculpts on the finest patch there is.
+//!
+//! Detail goes away the same way: when a step ends (a stroke let go, a tool command, a
+//! script step), each detail patch it reached, and each that holds only zeros (left so by an
+//! undo), is folded into a coarser patch if the surface moves by at most a quarter of its
+//! knot span ([`dynaclay_core::field::plan_coarsening`]). The fold is part of the step, so
+//! undo gives the patch back. A smoothing wipes detail because it smooths every patch under it,
+//! each on its own term (see [`SimulationStage::patches_smoothed`]).
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
-use dynaclay_core::field::MAX_DETAIL_LEVEL;
+use dynaclay_core::field::{MAX_DETAIL_LEVEL, plan_coarsening};
 use dynaclay_core::tools::GeometricTool;
 
 /// Knot spans of the patch it sculpts that a brush's width (twice its smallest half extent)
@@ -72,6 +79,41 @@ impl SimulationStage {
             Some(detail) => self.patch_for_detail(detail),
             None => 0,
         }
+    }
+
+    /// The patches a smoothing at `poses` edits when detail lies under it: the base and every
+    /// detail patch its applications reach, each smoothed on its own term
+    /// ([`dynaclay_core::tools::ApplyOptions::own_term`]; the blur is linear, so together that is the blur of the
+    /// whole clay, and each level keeps what its spacing carries: a refit of the base alone
+    /// cannot take detail finer than its spans away). `None` for other tools, or when no
+    /// detail patch lies under the brush.
+    pub(super) fn patches_smoothed(
+        &self,
+        tool: &GeometricTool,
+        poses: &[ToolPose],
+    ) -> Option<Vec<u16>> {
+        if !matches!(tool.action, ToolAction::Smooth { .. }) {
+            return None;
+        }
+        // At the base's spacing the band is widest.
+        let spacing = self.clay.base().spacing;
+        let (lo, hi) = poses
+            .iter()
+            .map(|pose| tool.influence_box(pose, spacing))
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))?;
+        let patches: Vec<u16> = self
+            .clay
+            .density
+            .patches
+            .iter()
+            .enumerate()
+            .filter(|(n, p)| {
+                let (plo, phi) = p.world_support();
+                *n == 0 || (p.is_identity() && plo.cmple(hi).all() && phi.cmpge(lo).all())
+            })
+            .filter_map(|(n, _)| u16::try_from(n).ok())
+            .collect();
+        (patches.len() > 1).then_some(patches)
     }
 
     /// The detail `tool` at `poses` needs, or `None` when the base resolves it (or automatic
@@ -133,6 +175,48 @@ impl SimulationStage {
         }
     }
 
+    /// Folds away, as part of the step `rec` records, every detail patch whose detail the step
+    /// wiped (see the module's docs); the new layout goes to the loops when any was folded.
+    /// Nothing is folded while a region is being simulated (it holds a patch's index).
+    pub(super) fn coarsen_wiped_detail(&mut self, rec: &mut StepRecorder) {
+        if !self.config.auto_detail || self.region.is_some() {
+            return;
+        }
+        let reached = self.step_world_box(rec);
+        let mut folded = 0;
+        for n in (1..self.clay.density.patches.len()).rev() {
+            let patch = &self.clay.density.patches[n];
+            let (plo, phi) = patch.world_support();
+            let touched =
+                reached.is_some_and(|(lo, hi)| plo.cmple(hi).all() && phi.cmpge(lo).all());
+            if !touched && patch.lattice.coeffs.iter().any(|&c| c != 0.0) {
+                continue;
+            }
+            if let Ok(Some(plan)) = plan_coarsening(&self.clay.density, n) {
+                rec.coarsen(&mut self.clay, &plan);
+                folded += 1;
+            }
+        }
+        if folded > 0 {
+            self.pending = vec![None; self.clay.density.patches.len()];
+            self.clay_revision += 1;
+            self.counters.auto_coarsenings(folded);
+            self.publish_layout();
+        }
+    }
+
+    /// The world box around every density coefficient `rec` touched (`None` if none).
+    fn step_world_box(&self, rec: &StepRecorder) -> Option<(Vec3, Vec3)> {
+        (0..self.clay.density.patches.len())
+            .filter_map(|n| {
+                let b = rec.touched_box(density_id(n))?;
+                let patch = &self.clay.density.patches[n];
+                let (lo, hi) = b.world_support(&patch.lattice);
+                Some(patch.world_box_of(lo, hi))
+            })
+            .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
+    }
+
     /// The finest detail patch in world coordinates, of knot spacing `wanted` or finer, whose
     /// coefficients hold the world box `lo..=hi` with two of its spans to spare (so every
     /// sample an application writes is written wholly by its coefficients).
@@ -158,6 +242,7 @@ impl SimulationStage {
 mod tests {
     use std::time::Instant;
 
+    use super::super::super::Stages;
     use super::*;
     use dynaclay_core::tools::ToolShape;
 
@@ -226,6 +311,196 @@ mod tests {
             (coarse - chord).abs() > (width - chord).abs(),
             "on the base alone the groove is {coarse} wide"
         );
+    }
+
+    /// Sends a tool command over `poses` for `duration_s` and applies it.
+    fn apply(s: &mut Stages, tool: GeometricTool, poses: Vec<ToolPose>, duration_s: f32) {
+        s.commands
+            .send(Command::ApplyTool {
+                tool,
+                poses,
+                duration_s,
+                patch: 0,
+                reply: None,
+            })
+            .unwrap();
+        s.haptic.tick(Instant::now());
+        s.sim.apply_commands();
+    }
+
+    /// A ball of radius 0.02 carving a short groove along x over the top of the sphere clay
+    /// (a level-3 detail patch under it); returns the stages, the top and a point inside the
+    /// groove.
+    fn grooved_sphere() -> (Stages, Vec3, Vec3) {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let top = super::super::tests::sphere_top(&s);
+        let radius_fu = 0.02;
+        let poses = (0..=20)
+            .map(|n| ToolPose::at(top + Vec3::X * (-0.05 + 0.005 * n as f32)))
+            .collect();
+        let carve = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu },
+            action: ToolAction::Remove,
+            falloff_fu: 0.25 * radius_fu,
+        };
+        apply(&mut s, carve, poses, 1.0);
+        let in_groove = top - Vec3::Y * (0.5 * radius_fu);
+        assert!(
+            !s.sim.clay.density.is_inside(in_groove),
+            "the groove is cut"
+        );
+        assert_eq!(s.sim.clay.density.patches.len(), 2);
+        (s, top, in_groove)
+    }
+
+    /// The height of `field`'s surface above the point `(x, z)` near `top`, found from above.
+    fn surface_y(field: &MultiPatchField, top: Vec3, x: f32, z: f32) -> f32 {
+        let mut at = Vec3::new(top.x + x, top.y + 0.1, top.z + z);
+        while !field.is_inside(at) && at.y > top.y - 0.3 {
+            at.y -= 0.0002;
+        }
+        at.y
+    }
+
+    /// Asserts that `clay` holds the detail patches of `want` bit for bit and the same field
+    /// around the top (the base may have grown since, so its bits moved).
+    fn assert_same_clay(clay: &Clay, want: &Clay, top: Vec3, what: &str) {
+        let patches = |c: &Clay| c.density.patches.len();
+        assert_eq!(patches(clay), patches(want), "{what}: patch count");
+        for (n, (a, b)) in clay
+            .density
+            .patches
+            .iter()
+            .zip(&want.density.patches)
+            .enumerate()
+            .skip(1)
+        {
+            assert_eq!(
+                a.lattice.dims, b.lattice.dims,
+                "{what}: patch {n}'s dimensions"
+            );
+            let differ = a
+                .lattice
+                .coeffs
+                .iter()
+                .zip(&b.lattice.coeffs)
+                .filter(|(x, y)| x.to_bits() != y.to_bits())
+                .count();
+            assert_eq!(differ, 0, "{what}: coefficients of patch {n} differ");
+        }
+        for n in 0..1000 {
+            let f = Vec3::new((n % 10) as f32, (n / 10 % 10) as f32, (n / 100) as f32) / 9.0;
+            let x = top + (f - Vec3::splat(0.5)) * 0.3;
+            let (got, wanted) = (clay.density.value(x), want.density.value(x));
+            assert!(
+                (got - wanted).abs() < 1e-5,
+                "{what}: at {x} {got} against {wanted}"
+            );
+        }
+    }
+
+    /// A ball of radius 0.25 smoothing with a kernel of 1.5 base spans along x over `top`
+    /// for 3 s.
+    fn smooth_top(s: &mut Stages, top: Vec3) {
+        let smooth = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.25 },
+            action: ToolAction::Smooth {
+                rate_per_s: 20.0,
+                kernel_fu: 0.15,
+            },
+            falloff_fu: 0.05,
+        };
+        let poses = (0..=10)
+            .map(|n| ToolPose::at(top + Vec3::X * (-0.05 + 0.01 * n as f32)))
+            .collect();
+        apply(s, smooth, poses, 3.0);
+    }
+
+    #[test]
+    fn a_broad_smoothing_wipes_fine_detail_and_its_patch_folds_back_until_undone() {
+        let (mut s, top, in_groove) = grooved_sphere();
+        let carved = s.sim.clay.clone();
+        smooth_top(&mut s, top);
+        // The reference: the same smoothing on the clay that was never carved.
+        let mut reference = super::super::tests::stages_on_sphere(12);
+        smooth_top(&mut reference, top);
+        let field = &s.sim.clay.density;
+        let tolerance = 0.25 * 0.1 / 8.0;
+        for (x, z) in [
+            (0.0, 0.0),
+            (-0.03, 0.0),
+            (0.03, 0.0),
+            (0.0, 0.02),
+            (0.0, -0.02),
+        ] {
+            let (y, want) = (
+                surface_y(field, top, x, z),
+                surface_y(&reference.sim.clay.density, top, x, z),
+            );
+            eprintln!("surface at ({x}, {z}): {y:.4}, never carved {want:.4}");
+            assert!(
+                (y - want).abs() <= tolerance + 0.0005,
+                "at ({x}, {z}) the smoothed groove's surface is {y}, the smoothed clay's {want}"
+            );
+        }
+        assert!(!carved.density.is_inside(in_groove));
+        let smoothed = s.sim.clay.clone();
+        s.commands.send(Command::Undo).unwrap();
+        s.sim.apply_commands();
+        assert_same_clay(
+            &s.sim.clay,
+            &carved,
+            top,
+            "undo gives back the patch and the groove",
+        );
+        s.commands.send(Command::Redo).unwrap();
+        s.sim.apply_commands();
+        assert_same_clay(&s.sim.clay, &smoothed, top, "redo folds it again");
+    }
+
+    #[test]
+    fn a_smoothing_beside_the_detail_keeps_it() {
+        let (mut s, top, in_groove) = grooved_sphere();
+        let smooth = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.1 },
+            action: ToolAction::Smooth {
+                rate_per_s: 20.0,
+                kernel_fu: 0.15,
+            },
+            falloff_fu: 0.05,
+        };
+        // On the sphere's side, away from the groove on its top.
+        let side = top.with_y(top.y - 0.5) + Vec3::Z * 0.5;
+        apply(&mut s, smooth, vec![ToolPose::at(side)], 1.0);
+        assert_eq!(s.sim.clay.density.patches.len(), 2);
+        assert!(
+            !s.sim.clay.density.is_inside(in_groove),
+            "the groove is kept"
+        );
+        assert_eq!(s.counters.snapshot().auto_coarsenings, 0);
+    }
+
+    #[test]
+    fn a_patch_an_undo_left_empty_folds_away_at_the_next_step() {
+        let (mut s, top, _) = grooved_sphere();
+        s.commands.send(Command::Undo).unwrap();
+        s.sim.apply_commands();
+        assert_eq!(s.sim.clay.density.patches.len(), 2, "undo keeps the layout");
+        // Any next step, here a push elsewhere on the clay.
+        let add = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.2 },
+            action: ToolAction::Add {
+                deposit_rate_per_s: 1.0,
+            },
+            falloff_fu: 0.05,
+        };
+        apply(&mut s, add, vec![ToolPose::at(top - Vec3::Y * 1.0)], 0.2);
+        assert_eq!(s.sim.clay.density.patches.len(), 1);
+        assert_eq!(s.counters.snapshot().auto_coarsenings, 1);
+        // Undo of the add gives the empty patch back with it, as the step found the clay.
+        s.commands.send(Command::Undo).unwrap();
+        s.sim.apply_commands();
+        assert_eq!(s.sim.clay.density.patches.len(), 2);
     }
 
     #[test]
