@@ -11,8 +11,8 @@
 //! cannot make or cut clay). Candidates are tried coarsest first, so a fold goes as far down
 //! as the detail allows.
 
-use super::lattice::{BSplineLattice, sub_lattice};
-use super::mass_grid::CoeffBox;
+use super::lattice::BSplineLattice;
+use super::mass_grid::{CoeffBox, sub_lattice};
 use super::multipatch::MultiPatchField;
 use super::refit::{FitError, coeff_box_around, refit_box_edit};
 

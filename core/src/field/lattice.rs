@@ -3,7 +3,6 @@
 use glam::{Vec3, Vec4};
 
 use super::basis::{cubic_weights, cubic_weights_and_derivatives};
-use super::mass_grid::CoeffBox;
 
 /// Why a lattice could not be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -369,45 +368,6 @@ impl Stencil {
     fn axis(&self, axis: usize, tap: usize, n: usize) -> Option<usize> {
         let i = self.first[axis] + tap as i64;
         (i >= 0 && (i as usize) < n).then_some(i as usize)
-    }
-}
-
-/// A copy of the coefficients of `lattice` in `region` grown by `margin` on every side
-/// (clipped to the lattice, and to at least 4 per axis), as a lattice of its own placed at the
-/// same world position. Inside the world box of `region` grown by `margin − 2` knot spans it
-/// evaluates as `lattice` does (up to the rounding of its shifted origin); tools read the pre-edit clay from it while the
-/// original is being refitted.
-#[must_use]
-pub fn sub_lattice(lattice: &BSplineLattice, region: &CoeffBox, margin: usize) -> BSplineLattice {
-    let mut min = [0; 3];
-    let mut dims = [0; 3];
-    for a in 0..3 {
-        let n = lattice.dims[a];
-        let mut lo = region.min[a].saturating_sub(margin);
-        let mut hi = (region.max[a] + margin).min(n - 1);
-        while hi + 1 - lo < 4.min(n) {
-            if lo > 0 {
-                lo -= 1;
-            } else {
-                hi = (hi + 1).min(n - 1);
-            }
-        }
-        min[a] = lo;
-        dims[a] = hi + 1 - lo;
-    }
-    let mut coeffs = Vec::with_capacity(dims.iter().product());
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            let row = lattice.index(min[0], min[1] + j, min[2] + k);
-            coeffs.extend_from_slice(&lattice.coeffs[row..row + dims[0]]);
-        }
-    }
-    BSplineLattice {
-        dims,
-        spacing: lattice.spacing,
-        origin: lattice.node_position(min[0], min[1], min[2]),
-        iso: lattice.iso,
-        coeffs,
     }
 }
 

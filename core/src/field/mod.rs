@@ -29,8 +29,8 @@ pub use coarsen::{
 pub use implicit::ImplicitField;
 pub(crate) use kron::PassShape;
 pub use kron::{KronError, KronScratch, KroneckerBasis, LANES, apply_axes};
-pub use lattice::{BSplineLattice, LatticeError, sub_lattice};
-pub use mass_grid::{CoeffBox, MassGrid};
+pub use lattice::{BSplineLattice, LatticeError};
+pub use mass_grid::{CoeffBox, MassGrid, sub_lattice};
 pub use multipatch::{
     DetailError, MAX_CLAY_COEFFS, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES,
     MultiPatchField, OtherPatches, Patch,

@@ -14,9 +14,11 @@
 //! past them the brush sculpts on the finest patch there is.
 //!
 //! Detail goes away the same way: when a step ends (a stroke let go, a tool command, a
-//! script step), each detail patch it reached, and each that holds only zeros (left so by an
-//! undo), is folded into a coarser patch if the surface moves by at most a quarter of its
-//! knot span ([`dynaclay_core::field::plan_coarsening`]). The fold is part of the step, so
+//! script step), each detail patch it edited, and each holding detail that it reached (a
+//! removal on the base can leave a patch's detail far inside or outside the clay), is folded
+//! into a coarser patch if the surface moves by at most a quarter of its knot span
+//! ([`dynaclay_core::field::plan_coarsening`]). A patch nothing has written (a refine waiting
+//! for its first stroke, or an automatic patch an undo emptied) stays until a step edits it. The fold is part of the step, so
 //! undo gives the patch back. A smoothing wipes detail because it smooths every patch under it,
 //! each on its own term (see [`SimulationStage::patches_smoothed`]).
 
@@ -187,9 +189,12 @@ impl SimulationStage {
         for n in (1..self.clay.density.patches.len()).rev() {
             let patch = &self.clay.density.patches[n];
             let (plo, phi) = patch.world_support();
-            let touched =
+            let edited = rec.touched_box(density_id(n)).is_some();
+            let reached =
                 reached.is_some_and(|(lo, hi)| plo.cmple(hi).all() && phi.cmpge(lo).all());
-            if !touched && patch.lattice.coeffs.iter().any(|&c| c != 0.0) {
+            // A patch no step has written yet (a refine waiting for its first stroke) stays.
+            let holds_detail = || patch.lattice.coeffs.iter().any(|&c| c != 0.0);
+            if !(edited || (reached && holds_detail())) {
                 continue;
             }
             if let Ok(Some(plan)) = plan_coarsening(&self.clay.density, n) {
@@ -481,26 +486,27 @@ mod tests {
     }
 
     #[test]
-    fn a_patch_an_undo_left_empty_folds_away_at_the_next_step() {
+    fn a_refined_patch_waits_for_its_first_stroke_and_an_emptied_one_folds_when_edited() {
         let (mut s, top, _) = grooved_sphere();
         s.commands.send(Command::Undo).unwrap();
         s.sim.apply_commands();
         assert_eq!(s.sim.clay.density.patches.len(), 2, "undo keeps the layout");
-        // Any next step, here a push elsewhere on the clay.
+        // A step over the emptied patch that does not write it (an add on the base with a
+        // brush of several base spans) leaves it.
         let add = GeometricTool {
             shape: ToolShape::Sphere { radius_fu: 0.2 },
             action: ToolAction::Add {
-                deposit_rate_per_s: 1.0,
+                deposit_rate_per_s: 0.5,
             },
             falloff_fu: 0.05,
         };
-        apply(&mut s, add, vec![ToolPose::at(top - Vec3::Y * 1.0)], 0.2);
+        apply(&mut s, add, vec![ToolPose::at(top + Vec3::Y * 0.1)], 0.2);
+        assert_eq!(s.sim.clay.density.patches.len(), 2);
+        assert_eq!(s.counters.snapshot().auto_coarsenings, 0);
+        // A smoothing over it writes it and folds it (it holds nothing the base cannot).
+        smooth_top(&mut s, top);
         assert_eq!(s.sim.clay.density.patches.len(), 1);
         assert_eq!(s.counters.snapshot().auto_coarsenings, 1);
-        // Undo of the add gives the empty patch back with it, as the step found the clay.
-        s.commands.send(Command::Undo).unwrap();
-        s.sim.apply_commands();
-        assert_eq!(s.sim.clay.density.patches.len(), 2);
     }
 
     #[test]
