@@ -1140,7 +1140,8 @@ fn the_view_survives_a_size_and_a_mesh_the_gpu_refuses() {
         return;
     };
     let log = crate::render::GpuFaultLog::install(&rs.device, true);
-    let mut view = super::SceneView::new(&rs, 64, 48).expect("a small view");
+    let mut view = super::SceneView::new(&rs, crate::render::ProfileRequest::Auto, 64, 48)
+        .expect("a small view");
     let camera = Camera::default();
     let options = SceneOptions::default();
     let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
