@@ -12,8 +12,9 @@
 //!
 //! Part 2, the scene pass alone: the `SceneRenderer` with the three settings that matter on a
 //! software adapter (MSAA 4× and per-pixel shading, one sample per-pixel, one sample
-//! vertex-lit), so that what each saving buys is seen apart; and the upload of one changed
-//! brick against all bricks.
+//! vertex-lit), so that what each saving buys is seen apart; the same triangles merged into
+//! one chunk (what one draw call per brick costs); and the upload of one changed brick
+//! against all bricks.
 //!
 //! Scenes: the default clay as `dynaclay gui` starts it (the built-in script's clay, meshed
 //! at the engine's resolution, bricks as the graphics loop publishes them), and a sculpt of at
@@ -395,6 +396,7 @@ fn scene_frames(
     settings: FrameSettings,
     size: [u32; 2],
     frames: usize,
+    what: &str,
 ) {
     let (device, queue) = (&gpu.device, &gpu.queue);
     let mut renderer =
@@ -436,7 +438,7 @@ fn scene_frames(
     );
     let (median, fastest, slowest) = summary(&mut times);
     println!(
-        "  scene pass, {label:<22} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1})"
+        "  scene pass, {label:<22}{what:<22} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1})"
     );
 }
 
@@ -453,7 +455,8 @@ fn upload_frames(gpu: &GpuContext, meshes: &MeshSet, settings: FrameSettings, si
     let mut order: Vec<usize> = (0..owned.len()).collect();
     order.sort_by_key(|&i| owned[i].indices.len());
     let median = order[order.len() / 2];
-    let camera = Camera::named(NamedView::Iso, glam::Vec3::ZERO, glam::Vec3::ONE);
+    let (lo, hi) = bounds_of(&chunk_views(&owned)).expect("a non-empty mesh");
+    let camera = Camera::named(NamedView::Iso, lo, hi);
     let options = SceneOptions::default();
     let mut time = |owned: &mut [ChunkMesh], all: bool| {
         let mut times = Vec::new();
@@ -561,8 +564,29 @@ fn main() {
         ));
         println!("  3D view {}×{} pixels", view[0], view[1]);
         for settings in variants {
-            scene_frames(&gpu, meshes, settings, view, frames);
+            scene_frames(&gpu, meshes, settings, view, frames, "");
         }
+        // The same triangles as one chunk: what the per-brick draw calls cost.
+        let mut merged = ChunkMesh {
+            id: 1,
+            version: 1,
+            ..ChunkMesh::default()
+        };
+        for c in meshes.iter() {
+            let base = merged.positions.len() as u32;
+            merged.positions.extend_from_slice(&c.positions);
+            merged.normals.extend_from_slice(&c.normals);
+            merged.indices.extend(c.indices.iter().map(|i| i + base));
+        }
+        let merged = vec![Arc::new(merged)];
+        scene_frames(
+            &gpu,
+            &merged,
+            own.settings,
+            view,
+            frames,
+            " (one draw call)",
+        );
         upload_frames(&gpu, meshes, own.settings, view);
     }
     println!("load average after: {}", load_average());
