@@ -10,9 +10,9 @@
 //! CPU, and the camera orbits by 2° before each frame, so every frame re-renders the scene (as
 //! when orbiting). Every timed image is checked: the view must show clay-coloured pixels.
 //!
-//! Part 2, the scene pass alone: the `SceneRenderer` with the three settings that matter on a
+//! Part 2, the scene pass alone: the `SceneRenderer` with the settings that matter on a
 //! software adapter (MSAA 4× and per-pixel shading, one sample per-pixel, one sample
-//! vertex-lit), so that what each saving buys is seen apart; the same triangles merged into
+//! vertex-lit, and that with back faces culled), so that what each saving buys is seen apart; the same triangles merged into
 //! one chunk (what one draw call per brick costs); and the upload of one changed brick
 //! against all bricks.
 //!
@@ -429,16 +429,21 @@ fn scene_frames(
         }
     }
     let label = format!(
-        "MSAA {}, {}",
+        "MSAA {}, {}{}",
         settings.sample_count,
         match settings.shading {
             MeshShading::PerPixel => "per-pixel",
             MeshShading::VertexLit => "vertex-lit",
+        },
+        if settings.cull_back_faces {
+            ", culled"
+        } else {
+            ""
         }
     );
     let (median, fastest, slowest) = summary(&mut times);
     println!(
-        "  scene pass, {label:<22}{what:<22} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1})"
+        "  scene pass, {label:<28}{what:<18} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1})"
     );
 }
 
@@ -538,6 +543,11 @@ fn main() {
         FrameSettings {
             sample_count: 1,
             shading: MeshShading::PerPixel,
+            cull_back_faces: false,
+        },
+        FrameSettings {
+            cull_back_faces: false,
+            ..FrameSettings::SOFTWARE
         },
         FrameSettings::SOFTWARE,
     ];

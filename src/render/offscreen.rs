@@ -61,6 +61,7 @@ impl OffscreenRenderer {
         let settings = FrameSettings {
             sample_count: supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT),
             shading: MeshShading::PerPixel,
+            cull_back_faces: false,
         };
         Self::with_settings(gpu, settings, width, height)
     }

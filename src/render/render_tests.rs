@@ -972,7 +972,8 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
         soft.settings,
         FrameSettings {
             sample_count: 1,
-            shading: MeshShading::VertexLit
+            shading: MeshShading::VertexLit,
+            cull_back_faces: true,
         }
     );
     assert_eq!(soft.settings, FrameSettings::SOFTWARE);
@@ -982,7 +983,10 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
         line.contains("llvmpipe") && line.contains("software adapter"),
         "{line}"
     );
-    assert_eq!(soft.short(), "software render: no MSAA, vertex-lit");
+    assert_eq!(
+        soft.short(),
+        "software render: no MSAA, vertex-lit, back faces culled"
+    );
 
     for kind in [
         wgpu::DeviceType::DiscreteGpu,
@@ -997,7 +1001,8 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
             full.settings,
             FrameSettings {
                 sample_count: PREFERRED_SAMPLES,
-                shading: MeshShading::PerPixel
+                shading: MeshShading::PerPixel,
+                cull_back_faces: false,
             }
         );
         // Without multisampling support the full profile draws one sample.
@@ -1014,6 +1019,7 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
     let forced = ProfileChoice::from_info(&cpu, 4, ProfileRequest::Force(RenderProfile::Full));
     assert_eq!(forced.settings.sample_count, PREFERRED_SAMPLES);
     assert_eq!(forced.settings.shading, MeshShading::PerPixel);
+    assert!(!forced.settings.cull_back_faces);
     assert_eq!(forced.short(), "MSAA 4×, per-pixel shading");
 }
 
@@ -1167,5 +1173,65 @@ fn the_software_profile_draws_the_clay_vertex_lit_by_the_key_light() {
     assert!(
         red > covered / 16 && red < covered / 2,
         "{red} red pixels of {covered} covered"
+    );
+}
+
+#[test]
+fn the_software_profile_skips_triangles_seen_from_behind_and_without_culling_they_show() {
+    // One quad facing the camera, wound counter-clockwise (front), and one beside it wound
+    // clockwise (its back seen).
+    let positions = [
+        [-0.9, -0.4, 0.0],
+        [-0.1, -0.4, 0.0],
+        [-0.1, 0.4, 0.0],
+        [-0.9, 0.4, 0.0],
+        [0.1, -0.4, 0.0],
+        [0.9, -0.4, 0.0],
+        [0.9, 0.4, 0.0],
+        [0.1, 0.4, 0.0],
+    ];
+    let normals = [[0.0, 0.0, 1.0]; 8];
+    let indices = [0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6];
+    let chunk = MeshChunk {
+        id: 1,
+        version: 1,
+        positions: &positions,
+        normals: &normals,
+        colors: &[],
+        indices: &indices,
+    };
+    let camera = front_camera(3.0);
+    let options = plain_options();
+    let bg = options.background.map(linear_to_srgb8);
+    let covered = |settings: FrameSettings| {
+        let gpu = context()?;
+        let mut r = OffscreenRenderer::with_settings(gpu, settings, W, H).unwrap();
+        r.sync_chunks(&[chunk]).unwrap();
+        let img = r.render(&camera, &options).unwrap();
+        let side = |x0: u32, x1: u32| {
+            (0..H)
+                .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                .filter(|&(x, y)| differs(img.pixel(x, y).unwrap(), bg, 2))
+                .count()
+        };
+        Some((side(0, W / 2), side(W / 2, W)))
+    };
+    let Some((front, back)) = covered(FrameSettings::SOFTWARE) else {
+        return;
+    };
+    assert!(
+        front > 1000,
+        "the front-facing quad is drawn: {front} pixels"
+    );
+    assert_eq!(back, 0, "the back-facing quad is culled");
+    let both = FrameSettings {
+        cull_back_faces: false,
+        ..FrameSettings::SOFTWARE
+    };
+    let (front_again, back) = covered(both).unwrap();
+    assert_eq!(front_again, front);
+    assert!(
+        back.abs_diff(front) < front / 20,
+        "without culling both quads show: {front} and {back} pixels"
     );
 }

@@ -259,12 +259,13 @@ impl SceneRenderer {
         let settings = FrameSettings {
             sample_count,
             shading: MeshShading::PerPixel,
+            cull_back_faces: false,
         };
         Self::with_settings(device, queue, format, settings, width, height)
     }
 
-    /// As [`Self::new`], with the sample count and the mesh shading of `settings` (a
-    /// [`super::ProfileChoice`]'s, in the window).
+    /// As [`Self::new`], with the sample count, the mesh shading and the face culling of
+    /// `settings` (a [`super::ProfileChoice`]'s, in the window).
     #[must_use]
     pub fn with_settings(
         device: &wgpu::Device,
@@ -277,6 +278,7 @@ impl SceneRenderer {
         let FrameSettings {
             sample_count,
             shading,
+            cull_back_faces,
         } = settings;
         let samples = if sample_count > 1 {
             PREFERRED_SAMPLES
@@ -408,7 +410,7 @@ impl SceneRenderer {
             &mesh_shader,
             size_of::<MeshVertex>(),
             wgpu::PrimitiveTopology::TriangleList,
-            None,
+            cull_back_faces.then_some(wgpu::Face::Back),
             true,
             None,
         );
