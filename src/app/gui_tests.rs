@@ -1140,7 +1140,8 @@ fn the_view_survives_a_size_and_a_mesh_the_gpu_refuses() {
         return;
     };
     let log = crate::render::GpuFaultLog::install(&rs.device, true);
-    let mut view = super::SceneView::new(&rs, 64, 48).expect("a small view");
+    let mut view = super::SceneView::new(&rs, crate::render::ProfileRequest::Auto, 64, 48)
+        .expect("a small view");
     let camera = Camera::default();
     let options = SceneOptions::default();
     let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
@@ -1439,5 +1440,76 @@ fn a_step_that_would_remove_most_of_the_clay_is_asked_about_first() {
     assert_eq!(
         drain(&end),
         vec![EngineCommand::AnswerRemoval { yes: false }]
+    );
+}
+
+/// One frame of the whole app on `rs`, at 1000×700 points.
+fn gpu_frame(app: &mut SculptApp, ctx: &egui::Context, rs: &egui_wgpu::RenderState) {
+    let input = egui::RawInput {
+        screen_rect: Some(egui::Rect::from_min_size(
+            egui::Pos2::ZERO,
+            egui::vec2(1000.0, 700.0),
+        )),
+        ..Default::default()
+    };
+    let _ = ctx.run_ui(input, |ui| app.show(ui, Some(rs)));
+}
+
+#[test]
+fn the_render_profile_is_chosen_once_logged_and_shown_in_the_status_line() {
+    use crate::render::{ProfileChoice, ProfileRequest, RenderProfile};
+    let Some((gpu, rs)) = render_state() else {
+        return;
+    };
+    let ctx = egui::Context::default();
+    for (request, words) in [
+        (
+            ProfileRequest::Force(RenderProfile::Software),
+            "software render: no MSAA, vertex-lit",
+        ),
+        (
+            ProfileRequest::Force(RenderProfile::Full),
+            "per-pixel shading",
+        ),
+    ] {
+        let (link, _end) = engine_link();
+        let mut app = SculptApp::new(link);
+        app.render_request = request;
+        assert!(
+            !app.status_line().contains(words),
+            "no view yet: {}",
+            app.status_line()
+        );
+        gpu_frame(&mut app, &ctx, &rs);
+        gpu_frame(&mut app, &ctx, &rs);
+        let status = app.status_line();
+        assert!(status.contains(words), "{status}");
+        let said: Vec<&String> = app
+            .log
+            .iter()
+            .filter(|l| l.starts_with("render profile"))
+            .collect();
+        assert_eq!(said.len(), 1, "said once: {:?}", app.log);
+        let expected =
+            ProfileChoice::for_adapter(&gpu.adapter, crate::render::OFFSCREEN_FORMAT, request);
+        assert_eq!(*said[0], expected.to_string());
+        assert!(
+            said[0].contains("forced by DYNACLAY_RENDER_PROFILE"),
+            "{}",
+            said[0]
+        );
+    }
+    // Left to the adapter: the profile its device type calls for.
+    let (link, _end) = engine_link();
+    let mut app = SculptApp::new(link);
+    app.render_request = ProfileRequest::Auto;
+    gpu_frame(&mut app, &ctx, &rs);
+    let detected = RenderProfile::detect(gpu.adapter.get_info().device_type);
+    let software = app.status_line().contains("software render");
+    assert_eq!(
+        software,
+        detected == RenderProfile::Software,
+        "{}",
+        app.status_line()
     );
 }

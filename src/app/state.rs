@@ -153,6 +153,9 @@ pub struct SculptApp {
     /// A copy of the latest engine view.
     pub view: EngineView,
     scene: Option<SceneView>,
+    /// Which render profile the 3D view asks for: detected from the adapter unless
+    /// `DYNACLAY_RENDER_PROFILE` (read by [`Self::new`]) or a caller forces one.
+    pub render_request: crate::render::ProfileRequest,
     /// A view size at which the GPU refused to build the view, with why (retried on a new size).
     scene_refused: Option<((u32, u32), String)>,
     /// What the GUI device's fault callbacks saw (set by `run_gui` on eframe's device).
@@ -281,12 +284,17 @@ impl SculptApp {
     /// the first frame.
     #[must_use]
     pub fn new(link: EngineLink) -> Self {
-        Self {
+        let mut app = Self {
             link,
             tool_pending: true,
             compact_particles: crate::rbf::CompactSettings::DEFAULT_PARTICLES,
             ..Self::default()
+        };
+        match crate::render::ProfileRequest::from_env() {
+            Ok(request) => app.render_request = request,
+            Err(e) => app.note(format!("{e}; the profile follows the adapter")),
         }
+        app
     }
 
     /// Sends `command`; a failure goes to the log. Returns whether it was queued.
@@ -550,7 +558,7 @@ impl SculptApp {
     }
 
     /// The status line: the last frame's time and the frame rate, the loops' rates, the
-    /// tool, and what keeps the window polling.
+    /// render profile, the tool, and what keeps the window polling.
     #[must_use]
     pub fn status_line(&self) -> String {
         use std::fmt::Write;
@@ -566,6 +574,9 @@ impl SculptApp {
             } else {
                 let _ = write!(line, " {} {:.0} Hz", id.name(), stats.achieved_rate_hz);
             }
+        }
+        if let Some(scene) = &self.scene {
+            let _ = write!(line, " · {}", scene.profile().short());
         }
         let _ = write!(line, " · tool {}", self.palette.choice().name());
         let busy = self.in_flight.names();
@@ -1095,8 +1106,18 @@ impl SculptApp {
                 centred_note(ui, rect, why);
                 return;
             }
-            match SceneView::new(rs, size.0, size.1) {
+            match SceneView::new(rs, self.render_request, size.0, size.1) {
                 Ok(view) => {
+                    // Chosen once per view: said in the log and on stderr, and kept in the
+                    // status line.
+                    let line = view.profile().to_string();
+                    eprintln!("dynaclay: {line}");
+                    // The log directly: `self.note` would borrow all of `self`, and the
+                    // meshes' chunks still borrow the link.
+                    if self.log.len() == LOG_LEN {
+                        self.log.pop_front();
+                    }
+                    self.log.push_back(line);
                     self.scene = Some(view);
                     self.scene_refused = None;
                 }

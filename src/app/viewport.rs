@@ -15,8 +15,8 @@
 use glam::Vec2;
 
 use crate::render::{
-    Camera, Disc, MeshChunk, OFFSCREEN_FORMAT, RenderError, SceneOptions, SceneRenderer, Trackball,
-    guarded_on, supported_sample_count,
+    Camera, Disc, MeshChunk, OFFSCREEN_FORMAT, ProfileChoice, ProfileRequest, RenderError,
+    SceneOptions, SceneRenderer, Trackball, guarded_on,
 };
 
 use super::camera_input::{drag_pan, drag_rotate, scroll_zoom};
@@ -42,6 +42,8 @@ pub struct DiscKey {
 /// The GPU side of the view.
 pub struct SceneView {
     renderer: SceneRenderer,
+    /// The render profile chosen for eframe's adapter (no MSAA, vertex-lit on a software one).
+    profile: ProfileChoice,
     texture: egui::TextureId,
     last: Option<RenderedKey>,
     /// The mesh version whose chunks are on the GPU.
@@ -59,20 +61,26 @@ pub struct SceneView {
 }
 
 impl SceneView {
-    /// Builds the renderer on eframe's device (inside error scopes) and registers its target
-    /// with egui.
+    /// Chooses the render profile for eframe's adapter (`request` may force one), builds the
+    /// renderer for it on eframe's device (inside error scopes) and registers its target with
+    /// egui.
     ///
     /// # Errors
     /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] when the GPU refuses the pipelines
     /// or a `width × height` target.
-    pub fn new(rs: &egui_wgpu::RenderState, width: u32, height: u32) -> Result<Self, RenderError> {
-        let samples = supported_sample_count(&rs.adapter, OFFSCREEN_FORMAT);
+    pub fn new(
+        rs: &egui_wgpu::RenderState,
+        request: ProfileRequest,
+        width: u32,
+        height: u32,
+    ) -> Result<Self, RenderError> {
+        let profile = ProfileChoice::for_adapter(&rs.adapter, OFFSCREEN_FORMAT, request);
         let renderer = guarded_on(&rs.device, "the 3D view's textures", || {
-            SceneRenderer::new(
+            SceneRenderer::with_settings(
                 &rs.device,
                 &rs.queue,
                 OFFSCREEN_FORMAT,
-                samples,
+                profile.settings,
                 width,
                 height,
             )
@@ -85,6 +93,7 @@ impl SceneView {
         );
         Ok(Self {
             renderer,
+            profile,
             texture,
             last: None,
             synced: None,
@@ -228,6 +237,24 @@ impl SceneView {
         self.size_refused.as_ref().map(|((w, h), e)| {
             format!("cannot draw the view at {w}×{h}: {e}; make the window smaller")
         })
+    }
+
+    /// The render profile this view draws with.
+    #[must_use]
+    pub fn profile(&self) -> &ProfileChoice {
+        &self.profile
+    }
+
+    /// Triangles drawn per frame.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.renderer.triangle_count()
+    }
+
+    /// Upload totals of the view's mesh buffers (only changed bricks are uploaded).
+    #[must_use]
+    pub fn upload_stats(&self) -> crate::render::UploadStats {
+        self.renderer.upload_stats()
     }
 
     /// The target's size in pixels (the last size the GPU accepted).

@@ -172,6 +172,37 @@ mod tests {
         assert!((hi - Vec3::splat(1.6)).abs().max_element() < 0.05, "{hi}");
     }
 
+    /// The renderer's software profile culls back faces: every triangle the mesher makes must
+    /// be counter-clockwise seen from outside (its geometric normal along its vertex normals).
+    #[test]
+    fn octree_triangles_wind_counter_clockwise_seen_from_outside() {
+        let lattice = ball();
+        let octree = BrickOctree::build(SampleGrid::for_lattice(&lattice, 4).unwrap(), &lattice);
+        let (mut outward, mut inward) = (0, 0);
+        for chunk in octree_chunks(&octree, None) {
+            for tri in chunk.indices.chunks_exact(3) {
+                let [a, b, c] = [0, 1, 2].map(|k| Vec3::from(chunk.positions[tri[k] as usize]));
+                let n: Vec3 = [0, 1, 2]
+                    .map(|k| Vec3::from(chunk.normals[tri[k] as usize]))
+                    .into_iter()
+                    .sum();
+                let geometric = (b - a).cross(c - a);
+                if geometric.length_squared() < 1e-14 {
+                    continue;
+                }
+                if geometric.dot(n) > 0.0 {
+                    outward += 1;
+                } else {
+                    inward += 1;
+                }
+                // And outward from the ball's centre.
+                assert!(geometric.dot((a + b + c) / 3.0 - Vec3::ONE) > 0.0);
+            }
+        }
+        assert!(outward > 500, "{outward} triangles");
+        assert_eq!(inward, 0, "{inward} of {} wound inward", outward + inward);
+    }
+
     #[test]
     fn paint_is_sampled_per_vertex_and_unpainted_bricks_carry_no_colours() {
         let lattice = ball();

@@ -1,4 +1,5 @@
-//! The wgpu renderer: brick meshes, Blinn-Phong and environment shading, overlays, offscreen PNGs.
+//! The wgpu renderer: brick meshes, Blinn-Phong and environment shading (vertex-lit on software
+//! adapters), overlays, offscreen PNGs.
 
 mod camera;
 mod chunk;
@@ -13,6 +14,7 @@ mod image;
 mod offscreen;
 mod options;
 mod overlay;
+mod profile;
 mod renderer;
 mod trackball;
 
@@ -39,6 +41,10 @@ pub use options::{
     ToolOverlay, ToolStyle,
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
+pub use profile::{
+    FrameSettings, MeshShading, ProfileChoice, ProfileRequest, RENDER_PROFILE_ENV, RenderProfile,
+    UnknownProfile,
+};
 pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;
 

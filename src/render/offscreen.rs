@@ -17,6 +17,7 @@ use super::error::RenderError;
 use super::gpu_chunks::SyncReport;
 use super::image::Image;
 use super::options::SceneOptions;
+use super::profile::{FrameSettings, MeshShading};
 use super::renderer::{SceneRenderer, supported_sample_count};
 
 /// Colour format of offscreen frames: 8-bit sRGB, what PNG viewers expect.
@@ -57,14 +58,31 @@ impl OffscreenRenderer {
     /// [`RenderError::OutOfMemory`] (or another caught GPU error) when the target's textures
     /// cannot be made.
     pub fn with_context(gpu: GpuContext, width: u32, height: u32) -> Result<Self, RenderError> {
-        let samples = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
+        let settings = FrameSettings {
+            sample_count: supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT),
+            shading: MeshShading::PerPixel,
+            cull_back_faces: false,
+        };
+        Self::with_settings(gpu, settings, width, height)
+    }
+
+    /// Uses an existing context and draws with `settings` (a render profile's, say).
+    ///
+    /// # Errors
+    /// As [`Self::with_context`].
+    pub fn with_settings(
+        gpu: GpuContext,
+        settings: FrameSettings,
+        width: u32,
+        height: u32,
+    ) -> Result<Self, RenderError> {
         let max = gpu.device.limits().max_texture_dimension_2d.max(1);
         let renderer = gpu.guarded("the frame's textures", |device, queue| {
-            SceneRenderer::new(
+            SceneRenderer::with_settings(
                 device,
                 queue,
                 OFFSCREEN_FORMAT,
-                samples,
+                settings,
                 width.clamp(1, max),
                 height.clamp(1, max),
             )

@@ -960,3 +960,278 @@ fn point_set_splats_cover_the_surface_in_their_colours() {
     r.set_discs(&[]).unwrap();
     assert_eq!(r.renderer().disc_count(), 0);
 }
+
+#[test]
+fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
+    let mut cpu = wgpu::AdapterInfo::new(wgpu::DeviceType::Cpu, wgpu::Backend::Vulkan);
+    cpu.name = "llvmpipe (LLVM 15.0.7, 256 bits)".into();
+    // lavapipe does support 4× MSAA: the software profile declines it all the same.
+    let soft = ProfileChoice::from_info(&cpu, 4, ProfileRequest::Auto);
+    assert_eq!(soft.profile, RenderProfile::Software);
+    assert_eq!(
+        soft.settings,
+        FrameSettings {
+            sample_count: 1,
+            shading: MeshShading::VertexLit,
+            cull_back_faces: true,
+        }
+    );
+    assert_eq!(soft.settings, FrameSettings::SOFTWARE);
+    assert!(!soft.forced);
+    let line = soft.to_string();
+    assert!(
+        line.contains("llvmpipe") && line.contains("software adapter"),
+        "{line}"
+    );
+    assert_eq!(
+        soft.short(),
+        "software render: no MSAA, vertex-lit, back faces culled"
+    );
+
+    for kind in [
+        wgpu::DeviceType::DiscreteGpu,
+        wgpu::DeviceType::IntegratedGpu,
+        wgpu::DeviceType::VirtualGpu,
+        wgpu::DeviceType::Other,
+    ] {
+        let info = wgpu::AdapterInfo::new(kind, wgpu::Backend::Vulkan);
+        let full = ProfileChoice::from_info(&info, 4, ProfileRequest::Auto);
+        assert_eq!(full.profile, RenderProfile::Full, "{kind:?}");
+        assert_eq!(
+            full.settings,
+            FrameSettings {
+                sample_count: PREFERRED_SAMPLES,
+                shading: MeshShading::PerPixel,
+                cull_back_faces: false,
+            }
+        );
+        // Without multisampling support the full profile draws one sample.
+        let single = ProfileChoice::from_info(&info, 1, ProfileRequest::Auto);
+        assert_eq!(single.settings.sample_count, 1);
+        assert_eq!(single.settings.shading, MeshShading::PerPixel);
+    }
+
+    // Forced either way, and said so.
+    let gpu = wgpu::AdapterInfo::new(wgpu::DeviceType::DiscreteGpu, wgpu::Backend::Vulkan);
+    let forced = ProfileChoice::from_info(&gpu, 4, ProfileRequest::Force(RenderProfile::Software));
+    assert_eq!(forced.settings, FrameSettings::SOFTWARE);
+    assert!(forced.forced && forced.to_string().contains(RENDER_PROFILE_ENV));
+    let forced = ProfileChoice::from_info(&cpu, 4, ProfileRequest::Force(RenderProfile::Full));
+    assert_eq!(forced.settings.sample_count, PREFERRED_SAMPLES);
+    assert_eq!(forced.settings.shading, MeshShading::PerPixel);
+    assert!(!forced.settings.cull_back_faces);
+    assert_eq!(forced.short(), "MSAA 4×, per-pixel shading");
+}
+
+#[test]
+fn the_profile_override_parses_its_three_words_and_names_a_bad_one() {
+    assert_eq!("".parse(), Ok(ProfileRequest::Auto));
+    assert_eq!(" Auto ".parse(), Ok(ProfileRequest::Auto));
+    assert_eq!(
+        "software".parse(),
+        Ok(ProfileRequest::Force(RenderProfile::Software))
+    );
+    assert_eq!(
+        "FULL".parse(),
+        Ok(ProfileRequest::Force(RenderProfile::Full))
+    );
+    let bad = "fast".parse::<ProfileRequest>().unwrap_err();
+    assert_eq!(bad.value, "fast");
+    let message = bad.to_string();
+    assert!(
+        message.contains(RENDER_PROFILE_ENV) && message.contains("\"fast\""),
+        "{message}"
+    );
+}
+
+/// The vertex-lit pass's colour at a pixel: ambient plus the key light's diffuse term at the
+/// analytic sphere's normal (the fill light and the highlight are not part of it). `None` for
+/// background and silhouette-band pixels.
+fn vertex_lit_reference(
+    camera: &Camera,
+    options: &SceneOptions,
+    radius: f32,
+    x: u32,
+    y: u32,
+) -> Option<[u8; 3]> {
+    let inv = camera.view_projection(W as f32 / H as f32).inverse();
+    let ndc = Vec2::new(
+        (x as f32 + 0.5) / W as f32 * 2.0 - 1.0,
+        1.0 - (y as f32 + 0.5) / H as f32 * 2.0,
+    );
+    let eye = camera.eye();
+    let d = (inv.project_point3(ndc.extend(1.0)) - eye).normalize();
+    let b = eye.dot(d);
+    let disc = b * b - (eye.length_squared() - radius * radius);
+    if disc < 0.0 {
+        return None;
+    }
+    let n = (eye + d * (-b - disc.sqrt())).normalize();
+    if n.dot(-d) < 0.25 {
+        return None;
+    }
+    let s = &options.shading;
+    let albedo = Vec3::from(s.material_color);
+    let key = s.lights[0];
+    let l = camera
+        .view()
+        .inverse()
+        .transform_vector3(key.direction)
+        .normalize();
+    let lit = albedo * s.ambient + Vec3::from(key.color) * albedo * n.dot(l).max(0.0);
+    Some([
+        linear_to_srgb8(lit.x),
+        linear_to_srgb8(lit.y),
+        linear_to_srgb8(lit.z),
+    ])
+}
+
+#[test]
+fn the_software_profile_draws_the_clay_vertex_lit_by_the_key_light() {
+    let Some(gpu) = context() else { return };
+    let mut r = OffscreenRenderer::with_settings(gpu, FrameSettings::SOFTWARE, W, H).unwrap();
+    assert_eq!(r.renderer().sample_count(), 1);
+    assert_eq!(r.renderer().shading(), MeshShading::VertexLit);
+    let mut chunks = sphere_chunks(Vec3::ZERO, 1.0, 128, 64);
+    r.sync_chunks(&views(&chunks)).unwrap();
+    let camera = front_camera(3.5);
+    // A bright fill light from the lower right and a strong highlight: the vertex-lit pass
+    // must show neither.
+    let mut options = plain_options();
+    options.shading.lights[1] = Light {
+        direction: Vec3::new(0.6, -0.6, 0.5),
+        color: [1.0, 1.0, 1.0],
+    };
+    options.shading.specular = 1.0;
+    let img = r.render(&camera, &options).unwrap();
+
+    // Coverage: the analytic disk, within 3 %.
+    let bg = options.background.map(linear_to_srgb8);
+    let covered = img
+        .rgba8
+        .chunks_exact(4)
+        .filter(|p| differs([p[0], p[1], p[2], p[3]], bg, 2))
+        .count();
+    let measured = covered as f32 / (W * H) as f32;
+    let rho = analytic_disk_radius_px(&camera, 1.0, H);
+    let expected = std::f32::consts::PI * rho * rho / (W * H) as f32;
+    let rel = (measured - expected).abs() / expected;
+    assert!(
+        rel < 0.03,
+        "covered {measured:.4} vs analytic disk {expected:.4}"
+    );
+
+    // Shading follows the normal: the key light's side is bright, the far side is ambient.
+    let (cx, cy) = (W as f32 / 2.0, H as f32 / 2.0);
+    let sample = |dx: f32, dy: f32| {
+        luminance(
+            img.pixel((cx + dx * rho) as u32, (cy - dy * rho) as u32)
+                .unwrap(),
+        )
+    };
+    let lit = sample(-0.45, 0.45);
+    let unlit = sample(0.6, -0.6);
+    assert!(lit > unlit + 60.0, "lit {lit} vs unlit {unlit}");
+
+    // Against the per-vertex model on the analytic sphere: interpolation error only.
+    let mut errors = Vec::new();
+    for y in 0..H {
+        for x in 0..W {
+            if let Some(want) = vertex_lit_reference(&camera, &options, 1.0, x, y) {
+                let got = img.pixel(x, y).unwrap();
+                errors.push((0..3).map(|c| got[c].abs_diff(want[c])).max().unwrap_or(0));
+            }
+        }
+    }
+    assert!(errors.len() > 5000, "reference covers {}", errors.len());
+    errors.sort_unstable();
+    let mean = errors.iter().map(|&e| f64::from(e)).sum::<f64>() / errors.len() as f64;
+    let p99 = errors[errors.len() * 99 / 100];
+    assert!(mean < 2.0, "mean channel error {mean:.2} levels");
+    assert!(p99 <= 8, "99th percentile channel error {p99} levels");
+
+    // Paint still shows: the octant nearest the eye, painted red, turns its part of the disk
+    // red.
+    let facing = |c: &OwnedChunk| {
+        let sum: Vec3 = c.positions.iter().map(|&p| Vec3::from(p)).sum();
+        sum.dot(camera.eye()) / c.positions.len().max(1) as f32
+    };
+    let painted = chunks
+        .iter_mut()
+        .max_by(|a, b| facing(a).total_cmp(&facing(b)))
+        .unwrap();
+    painted.colors = vec![[1.0, 0.0, 0.0, 1.0]; painted.positions.len()];
+    painted.version += 1;
+    let report = r.sync_chunks(&views(&chunks)).unwrap();
+    assert_eq!(report.uploaded, 1, "only the repainted chunk is uploaded");
+    let img = r.render(&camera, &options).unwrap();
+    let red = img
+        .rgba8
+        .chunks_exact(4)
+        .filter(|p| p[0] > 60 && p[1] < 10 && p[2] < 10)
+        .count();
+    assert!(
+        red > covered / 16 && red < covered / 2,
+        "{red} red pixels of {covered} covered"
+    );
+}
+
+#[test]
+fn the_software_profile_skips_triangles_seen_from_behind_and_without_culling_they_show() {
+    // One quad facing the camera, wound counter-clockwise (front), and one beside it wound
+    // clockwise (its back seen).
+    let positions = [
+        [-0.9, -0.4, 0.0],
+        [-0.1, -0.4, 0.0],
+        [-0.1, 0.4, 0.0],
+        [-0.9, 0.4, 0.0],
+        [0.1, -0.4, 0.0],
+        [0.9, -0.4, 0.0],
+        [0.9, 0.4, 0.0],
+        [0.1, 0.4, 0.0],
+    ];
+    let normals = [[0.0, 0.0, 1.0]; 8];
+    let indices = [0, 1, 2, 0, 2, 3, 4, 6, 5, 4, 7, 6];
+    let chunk = MeshChunk {
+        id: 1,
+        version: 1,
+        positions: &positions,
+        normals: &normals,
+        colors: &[],
+        indices: &indices,
+    };
+    let camera = front_camera(3.0);
+    let options = plain_options();
+    let bg = options.background.map(linear_to_srgb8);
+    let covered = |settings: FrameSettings| {
+        let gpu = context()?;
+        let mut r = OffscreenRenderer::with_settings(gpu, settings, W, H).unwrap();
+        r.sync_chunks(&[chunk]).unwrap();
+        let img = r.render(&camera, &options).unwrap();
+        let side = |x0: u32, x1: u32| {
+            (0..H)
+                .flat_map(|y| (x0..x1).map(move |x| (x, y)))
+                .filter(|&(x, y)| differs(img.pixel(x, y).unwrap(), bg, 2))
+                .count()
+        };
+        Some((side(0, W / 2), side(W / 2, W)))
+    };
+    let Some((front, back)) = covered(FrameSettings::SOFTWARE) else {
+        return;
+    };
+    assert!(
+        front > 1000,
+        "the front-facing quad is drawn: {front} pixels"
+    );
+    assert_eq!(back, 0, "the back-facing quad is culled");
+    let both = FrameSettings {
+        cull_back_faces: false,
+        ..FrameSettings::SOFTWARE
+    };
+    let (front_again, back) = covered(both).unwrap();
+    assert_eq!(front_again, front);
+    assert!(
+        back.abs_diff(front) < front / 20,
+        "without culling both quads show: {front} and {back} pixels"
+    );
+}

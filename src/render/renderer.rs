@@ -6,7 +6,8 @@
 //! view as an egui texture). Rendering never blocks: it records into the caller's encoder.
 //!
 //! In an egui-wgpu app: create it with [`crate::render::OFFSCREEN_FORMAT`] (sRGB, as egui
-//! expects of user textures) and [`supported_sample_count`] for the app's adapter; call
+//! expects of user textures) and the settings [`crate::render::ProfileChoice::for_adapter`]
+//! gives for the app's adapter (no MSAA and vertex-lit shading on a software adapter); call
 //! `sync_chunks` and `render` from a paint callback's `prepare` (it gets the device, queue and
 //! egui's encoder); register [`SceneRenderer::target_view`] once with
 //! `egui_wgpu::Renderer::register_native_texture` and show it as an image; after a `resize`
@@ -24,6 +25,7 @@ use super::faults::guarded_on;
 use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
+use super::profile::{FrameSettings, MeshShading};
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -221,6 +223,7 @@ impl Targets {
 pub struct SceneRenderer {
     format: wgpu::TextureFormat,
     samples: u32,
+    shading: MeshShading,
     targets: Targets,
     uniforms: wgpu::Buffer,
     bind_group_layout: wgpu::BindGroupLayout,
@@ -243,7 +246,7 @@ const MESH_ATTRIBUTES: [wgpu::VertexAttribute; 3] =
 impl SceneRenderer {
     /// Builds pipelines and a `width × height` target (each clamped to at least 1) in `format`
     /// with `sample_count` samples per pixel (use [`supported_sample_count`]; any value other
-    /// than 1 is treated as 4).
+    /// than 1 is treated as 4), shaded per pixel ([`MeshShading::PerPixel`]).
     #[must_use]
     pub fn new(
         device: &wgpu::Device,
@@ -253,6 +256,30 @@ impl SceneRenderer {
         width: u32,
         height: u32,
     ) -> Self {
+        let settings = FrameSettings {
+            sample_count,
+            shading: MeshShading::PerPixel,
+            cull_back_faces: false,
+        };
+        Self::with_settings(device, queue, format, settings, width, height)
+    }
+
+    /// As [`Self::new`], with the sample count, the mesh shading and the face culling of
+    /// `settings` (a [`super::ProfileChoice`]'s, in the window).
+    #[must_use]
+    pub fn with_settings(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        format: wgpu::TextureFormat,
+        settings: FrameSettings,
+        width: u32,
+        height: u32,
+    ) -> Self {
+        let FrameSettings {
+            sample_count,
+            shading,
+            cull_back_faces,
+        } = settings;
         let samples = if sample_count > 1 {
             PREFERRED_SAMPLES
         } else {
@@ -309,9 +336,17 @@ impl SceneRenderer {
             bind_group_layouts: &[Some(&bind_group_layout)],
             immediate_size: 0,
         });
-        let mesh_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("mesh.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/mesh.wgsl").into()),
+        let mesh_shader = device.create_shader_module(match shading {
+            MeshShading::PerPixel => wgpu::ShaderModuleDescriptor {
+                label: Some("mesh.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/mesh.wgsl").into()),
+            },
+            MeshShading::VertexLit => wgpu::ShaderModuleDescriptor {
+                label: Some("mesh_vertex_lit.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(
+                    include_str!("../../shaders/mesh_vertex_lit.wgsl").into(),
+                ),
+            },
         });
         let overlay_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("overlay.wgsl"),
@@ -375,7 +410,7 @@ impl SceneRenderer {
             &mesh_shader,
             size_of::<MeshVertex>(),
             wgpu::PrimitiveTopology::TriangleList,
-            None,
+            cull_back_faces.then_some(wgpu::Face::Back),
             true,
             None,
         );
@@ -450,6 +485,7 @@ impl SceneRenderer {
         Self {
             format,
             samples,
+            shading,
             targets: Targets::new(device, format, samples, width, height),
             uniforms,
             bind_group_layout,
@@ -654,6 +690,12 @@ impl SceneRenderer {
     #[must_use]
     pub fn sample_count(&self) -> u32 {
         self.samples
+    }
+
+    /// How the mesh pass lights the clay.
+    #[must_use]
+    pub fn shading(&self) -> MeshShading {
+        self.shading
     }
 
     /// Upload totals of the chunk store.
