@@ -6,6 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::motion::MotionToPhotonSummary;
 use crate::priority::{PinOutcome, RtOutcome};
 use crate::probe::ProbeSummary;
 use crate::readiness::{PlatformFacts, Verdict};
@@ -43,6 +44,10 @@ pub struct ProfileDoc {
     /// The readiness verdicts, one per rate judged.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub readiness: Vec<Verdict>,
+    /// Motion to photon: hand → force, hand → first visible change and hand → settled shape
+    /// per stroke (runs that drove the engine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_to_photon: Option<MotionToPhotonSummary>,
 }
 
 impl ProfileDoc {
