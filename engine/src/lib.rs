@@ -56,7 +56,7 @@ pub use live_tool::{GeometricDue, LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use motion_to_photon::{
     ChangeStamp, FeltChange, MeshStamp, MotionToPhoton, SETTLED_COEFF_TOLERANCE, StagePath,
-    StrokeLatency, StrokeStamps,
+    StrokeLatency, StrokeStamps, summarize,
 };
 pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,

@@ -246,26 +246,34 @@ impl MotionToPhoton {
     /// frames.
     #[must_use]
     pub fn summary(&self, presenter: &str) -> MotionToPhotonSummary {
-        let changed: Vec<&StrokeLatency> = self
-            .strokes()
-            .filter(|s| s.first_change_tick.is_some())
-            .collect();
-        let ticks: Vec<f64> = changed
-            .iter()
-            .filter_map(|s| s.hand_to_force_ticks)
-            .map(|t| t as f64)
-            .collect();
-        let firsts: Vec<StagePath> = changed.iter().filter_map(|s| s.first_visible).collect();
-        let settled: Vec<StagePath> = changed.iter().filter_map(|s| s.settled).collect();
-        MotionToPhotonSummary {
-            presenter: presenter.to_string(),
-            strokes: changed.len() as u64,
-            hand_to_force_ticks: Spread::of(&ticks),
-            first_visible_ms: Spread::of(&totals(&firsts)),
-            settled_ms: Spread::of(&totals(&settled)),
-            first_visible_stages: stage_spreads(&firsts),
-            settled_stages: stage_spreads(&settled),
-        }
+        let strokes: Vec<StrokeLatency> = self.strokes().copied().collect();
+        summarize(&strokes, presenter)
+    }
+}
+
+/// The figures over every stroke of `strokes` that changed the clay (strokes of several runs
+/// may be pooled); `presenter` says what drew the frames.
+#[must_use]
+pub fn summarize(strokes: &[StrokeLatency], presenter: &str) -> MotionToPhotonSummary {
+    let changed: Vec<&StrokeLatency> = strokes
+        .iter()
+        .filter(|s| s.first_change_tick.is_some())
+        .collect();
+    let ticks: Vec<f64> = changed
+        .iter()
+        .filter_map(|s| s.hand_to_force_ticks)
+        .map(|t| t as f64)
+        .collect();
+    let firsts: Vec<StagePath> = changed.iter().filter_map(|s| s.first_visible).collect();
+    let settled: Vec<StagePath> = changed.iter().filter_map(|s| s.settled).collect();
+    MotionToPhotonSummary {
+        presenter: presenter.to_string(),
+        strokes: changed.len() as u64,
+        hand_to_force_ticks: Spread::of(&ticks),
+        first_visible_ms: Spread::of(&totals(&firsts)),
+        settled_ms: Spread::of(&totals(&settled)),
+        first_visible_stages: stage_spreads(&firsts),
+        settled_stages: stage_spreads(&settled),
     }
 }
 
