@@ -15,8 +15,12 @@
 //! Prints "skipped: no GPU adapter" and exits cleanly when there is none.
 //!
 //! ```text
-//! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--out DIR]
+//! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--size 1280x720]
+//!     [--msaa N] [--out DIR]
 //! ```
+//!
+//! `--size` and `--msaa` (1, or at most what the adapter supports; the window takes the
+//! most) show what the frame's own cost does to the figures.
 //!
 //! Optimistic where the window is not: no egui compositing or presentation after the scene is
 //! drawn, and one fixed camera. Pessimistic where it is: the frame waits for the GPU to finish.
@@ -43,9 +47,16 @@ const FRAME_SIZE: (u32, u32) = (1280, 720);
 /// How often the driver looks at the tool while waiting for a repaint (as `dynaclay run` does).
 const DISPATCH_PERIOD: Duration = Duration::from_millis(2);
 
+/// How long a run goes on past the script's end for its stroke to be known settled (the
+/// simulation names the settled shape when the stroke's region retires).
+const SETTLE_WAIT: Duration = Duration::from_secs(5);
+
 struct Args {
     runs: usize,
     display_hz: f64,
+    size: (u32, u32),
+    /// Multisampling asked for (`None`: the window's choice, the most the adapter supports).
+    msaa: Option<u32>,
     out: PathBuf,
 }
 
@@ -53,6 +64,8 @@ fn parse_args() -> Args {
     let mut args = Args {
         runs: 12,
         display_hz: 60.0,
+        size: FRAME_SIZE,
+        msaa: None,
         out: PathBuf::from("target/tmp/motion_to_photon"),
     };
     let mut it = std::env::args().skip(1);
@@ -66,6 +79,18 @@ fn parse_args() -> Args {
                     .unwrap_or(args.display_hz);
             }
             "--out" => args.out = it.next().map_or(args.out, PathBuf::from),
+            "--msaa" => args.msaa = it.next().and_then(|v| v.parse().ok()),
+            "--size" => {
+                let wh: Vec<u32> = it
+                    .next()
+                    .unwrap_or_default()
+                    .split('x')
+                    .filter_map(|v| v.parse().ok())
+                    .collect();
+                if let [w, h] = wh[..] {
+                    args.size = (w.max(1), h.max(1));
+                }
+            }
             // cargo bench passes --bench; criterion-style flags are not ours.
             _ => {}
         }
@@ -91,21 +116,25 @@ fn main() {
         }
         Err(e) => panic!("{e}"),
     };
-    let samples = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
+    let supported = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
+    let samples = args.msaa.map_or(supported, |m| m.clamp(1, supported));
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
         "adapter: {}; {}x{} MSAA {samples}x; display {} Hz; load average {}",
         gpu.summary,
-        FRAME_SIZE.0,
-        FRAME_SIZE.1,
+        args.size.0,
+        args.size.1,
         args.display_hz,
-        load.split_whitespace().take(3).collect::<Vec<_>>().join(" ")
+        load.split_whitespace()
+            .take(3)
+            .collect::<Vec<_>>()
+            .join(" ")
     );
     let plan = ScriptPlan::builtin();
     let mut strokes = Vec::new();
     let mut frame_ms = Vec::new();
     for run in 0..args.runs {
-        let figures = one_run(&gpu, samples, &plan, args.display_hz);
+        let figures = one_run(&gpu, samples, &plan, args.display_hz, args.size);
         let first = figures
             .strokes
             .iter()
@@ -132,8 +161,8 @@ fn main() {
         frame_ms.extend(figures.frame_ms);
     }
     let presenter = format!(
-        "offscreen scene renderer on {} ({} Hz display)",
-        gpu.summary, args.display_hz
+        "offscreen scene renderer on {}, {}x{} MSAA {samples}x ({} Hz display)",
+        gpu.summary, args.size.0, args.size.1, args.display_hz
     );
     let summary = summarize(&strokes, &presenter);
     let frames = Spread::of(&frame_ms);
@@ -157,7 +186,13 @@ fn main() {
 
 /// One fresh engine on the default clay playing the built-in stroke, its meshes drawn as the
 /// window draws them.
-fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, display_hz: f64) -> RunFigures {
+fn one_run(
+    gpu: &GpuContext,
+    samples: u32,
+    plan: &ScriptPlan,
+    display_hz: f64,
+    size: (u32, u32),
+) -> RunFigures {
     let field = build_clay(&plan.clay).expect("the built-in clay");
     let (lo, hi) = {
         let b = &field;
@@ -173,7 +208,8 @@ fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, display_hz: f64) -
     );
 
     let (meshes_tx, mut meshes) = snapshot_channel(&MeshSet::new());
-    let (field_tx, _field) = snapshot_channel(&dynaclay::field::MultiPatchField::from(field.clone()));
+    let (field_tx, _field) =
+        snapshot_channel(&dynaclay::field::MultiPatchField::from(field.clone()));
     let (exports_tx, _exports) = snapshot_channel(&MeshSet::new());
     let repaint = RepaintSignal::default();
     let (wake_tx, wake) = bounded::<()>(1);
@@ -188,14 +224,7 @@ fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, display_hz: f64) -
     let clock = engine.clock();
 
     let (device, queue) = (&gpu.device, &gpu.queue);
-    let mut renderer = SceneRenderer::new(
-        device,
-        queue,
-        OFFSCREEN_FORMAT,
-        samples,
-        FRAME_SIZE.0,
-        FRAME_SIZE.1,
-    );
+    let mut renderer = SceneRenderer::new(device, queue, OFFSCREEN_FORMAT, samples, size.0, size.1);
     let camera = Camera::named(NamedView::Iso, lo, hi);
     let options = SceneOptions::default();
     let refresh = (display_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / display_hz));
@@ -207,10 +236,18 @@ fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, display_hz: f64) -
     let mut wanted = false;
     let mut last_frame: Option<Instant> = None;
     let started = Instant::now();
-    while started.elapsed() < Duration::from_secs_f64(plan.seconds) && engine.is_alive() {
+    let script = Duration::from_secs_f64(plan.seconds);
+    let settled = |l: &MotionToPhoton| {
+        l.strokes().next().is_some() && l.strokes().all(|s| s.settled.is_some())
+    };
+    while engine.is_alive()
+        && (started.elapsed() < script
+            || (!settled(&ledger) && started.elapsed() < script + SETTLE_WAIT))
+    {
         let sample = engine.latest_tool();
         driver.dispatch(&sample, &commands);
         wanted |= wake.recv_timeout(DISPATCH_PERIOD).is_ok();
+        ledger.observe(&stamps.latest().value);
         if !wanted {
             continue;
         }

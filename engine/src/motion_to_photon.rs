@@ -167,13 +167,21 @@ impl MotionToPhoton {
         Self::default()
     }
 
-    /// Notes a frame finished at `frame_ns` that drew the meshes stamped `drawn`.
+    /// Notes a frame finished at `frame_ns` that drew the meshes stamped `drawn`, and what
+    /// `drawn` tells of the newest stroke.
     pub fn frame(&mut self, frame_ns: u64, drawn: &MeshStamp) {
         if self.frames.len() >= FRAMES_KEPT {
             self.frames.pop_front();
         }
         self.frames.push_back((drawn.snapshot_version, frame_ns));
-        let s = drawn.stroke;
+        self.observe(drawn);
+    }
+
+    /// Takes in what `latest` (the newest mesh stamp, drawn or not) tells of the newest
+    /// stroke, against the frames drawn so far: a stroke is known settled only some time after
+    /// the frame that drew its settled shape, and no frame may follow when nothing changes.
+    pub fn observe(&mut self, latest: &MeshStamp) {
+        let s = latest.stroke;
         if s.stroke == 0 {
             return;
         }
@@ -184,36 +192,42 @@ impl MotionToPhoton {
             // This stroke is finished already (its settled shape was drawn).
             return;
         }
+        let first_frame_at = |version: u64| {
+            self.frames
+                .iter()
+                .find(|(drawn, _)| *drawn >= version)
+                .map(|(_, at_ns)| *at_ns)
+        };
+        let first_visible = s.first_change.and_then(|fc| {
+            first_frame_at(fc.snapshot_version).map(|frame_ns| StagePath {
+                sample_ns: fc.sample_ns,
+                step_ns: fc.step_ns,
+                snapshot_ns: fc.snapshot_ns,
+                meshed_ns: latest.first_change_meshed_ns.unwrap_or(latest.meshed_ns),
+                frame_ns,
+            })
+        });
+        let settled = match (s.settled, s.last_change) {
+            (Some(settled), Some(last)) => {
+                first_frame_at(settled.snapshot_version).map(|frame_ns| StagePath {
+                    sample_ns: last.sample_ns,
+                    step_ns: settled.step_ns,
+                    snapshot_ns: settled.snapshot_ns,
+                    meshed_ns: latest.settled_meshed_ns.unwrap_or(latest.meshed_ns),
+                    frame_ns,
+                })
+            }
+            _ => None,
+        };
         let open = self.open.get_or_insert(StrokeLatency {
             stroke: s.stroke,
             ..StrokeLatency::default()
         });
         open.hand_to_force_ticks = open.hand_to_force_ticks.or(s.hand_to_force_ticks);
-        if let Some(fc) = s.first_change {
-            open.first_change_tick = Some(fc.sample_tick);
-            if open.first_visible.is_none() && drawn.snapshot_version >= fc.snapshot_version {
-                open.first_visible = Some(StagePath {
-                    sample_ns: fc.sample_ns,
-                    step_ns: fc.step_ns,
-                    snapshot_ns: fc.snapshot_ns,
-                    meshed_ns: drawn.first_change_meshed_ns.unwrap_or(drawn.meshed_ns),
-                    frame_ns,
-                });
-            }
-        }
-        if let (Some(settled), Some(last)) = (s.settled, s.last_change)
-            && let Some(&(_, at_ns)) = self
-                .frames
-                .iter()
-                .find(|(version, _)| *version >= settled.snapshot_version)
-        {
-            open.settled = Some(StagePath {
-                sample_ns: last.sample_ns,
-                step_ns: settled.step_ns,
-                snapshot_ns: settled.snapshot_ns,
-                meshed_ns: drawn.settled_meshed_ns.unwrap_or(drawn.meshed_ns),
-                frame_ns: at_ns,
-            });
+        open.first_change_tick = s.first_change.map(|fc| fc.sample_tick);
+        open.first_visible = open.first_visible.or(first_visible);
+        if settled.is_some() {
+            open.settled = settled;
             self.close();
         }
     }

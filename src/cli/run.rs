@@ -278,7 +278,8 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
 }
 
 /// What draws the frames of a headless run's motion-to-photon figures.
-const HEADLESS_PRESENTER: &str = "none (headless run: a change counts as shown when its meshes are ready)";
+const HEADLESS_PRESENTER: &str =
+    "none (headless run: a change counts as shown when its meshes are ready)";
 
 /// The optional outputs `args` ask for; `--png` with no file means `DIR/sculpt.png`.
 fn extras(args: &RunArgs) -> ExtraOutputs {
