@@ -140,6 +140,7 @@ mod tests {
             probe_after: None,
             readiness: vec![verdict(&facts, 1000.0), verdict(&facts, 4000.0)],
             facts: Some(facts),
+            motion_to_photon: None,
         };
         let text = profile_report(&doc);
         let expected = "\
