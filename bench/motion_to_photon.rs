@@ -16,11 +16,12 @@
 //!
 //! ```text
 //! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--size 1280x720]
-//!     [--msaa N] [--out DIR]
+//!     [--msaa N] [--graphics-hz HZ] [--out DIR]
 //! ```
 //!
 //! `--size` and `--msaa` (1, or at most what the adapter supports; the window takes the
-//! most) show what the frame's own cost does to the figures.
+//! most) show what the frame's own cost does to the figures; `--graphics-hz` what the
+//! graphics loop's period does.
 //!
 //! Optimistic where the window is not: no egui compositing or presentation after the scene is
 //! drawn, and one fixed camera. Pessimistic where it is: the frame waits for the GPU to finish.
@@ -57,6 +58,8 @@ struct Args {
     size: (u32, u32),
     /// Multisampling asked for (`None`: the window's choice, the most the adapter supports).
     msaa: Option<u32>,
+    /// The graphics loop's rate (`None`: the engine's default).
+    graphics_hz: Option<f64>,
     out: PathBuf,
 }
 
@@ -66,6 +69,7 @@ fn parse_args() -> Args {
         display_hz: 60.0,
         size: FRAME_SIZE,
         msaa: None,
+        graphics_hz: None,
         out: PathBuf::from("target/tmp/motion_to_photon"),
     };
     let mut it = std::env::args().skip(1);
@@ -80,6 +84,12 @@ fn parse_args() -> Args {
             }
             "--out" => args.out = it.next().map_or(args.out, PathBuf::from),
             "--msaa" => args.msaa = it.next().and_then(|v| v.parse().ok()),
+            "--graphics-hz" => {
+                args.graphics_hz = it
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|hz: &f64| hz.is_finite() && *hz > 0.0);
+            }
             "--size" => {
                 let wh: Vec<u32> = it
                     .next()
@@ -120,11 +130,15 @@ fn main() {
     let samples = args.msaa.map_or(supported, |m| m.clamp(1, supported));
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     println!(
-        "adapter: {}; {}x{} MSAA {samples}x; display {} Hz; load average {}",
+        "adapter: {}; {}x{} MSAA {samples}x; display {} Hz; graphics loop {}; load average {}",
         gpu.summary,
         args.size.0,
         args.size.1,
         args.display_hz,
+        args.graphics_hz.map_or_else(
+            || "at its default rate".to_string(),
+            |hz| format!("{hz} Hz")
+        ),
         load.split_whitespace()
             .take(3)
             .collect::<Vec<_>>()
@@ -134,7 +148,7 @@ fn main() {
     let mut strokes = Vec::new();
     let mut frame_ms = Vec::new();
     for run in 0..args.runs {
-        let figures = one_run(&gpu, samples, &plan, args.display_hz, args.size);
+        let figures = one_run(&gpu, samples, &plan, &args);
         let first = figures
             .strokes
             .iter()
@@ -186,13 +200,8 @@ fn main() {
 
 /// One fresh engine on the default clay playing the built-in stroke, its meshes drawn as the
 /// window draws them.
-fn one_run(
-    gpu: &GpuContext,
-    samples: u32,
-    plan: &ScriptPlan,
-    display_hz: f64,
-    size: (u32, u32),
-) -> RunFigures {
+fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, args: &Args) -> RunFigures {
+    let (display_hz, size) = (args.display_hz, args.size);
     let field = build_clay(&plan.clay).expect("the built-in clay");
     let (lo, hi) = {
         let b = &field;
@@ -202,6 +211,9 @@ fn one_run(
     let arm_config = SimArmConfig::default();
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptics.tool_contact = plan.tool_contact;
+    if let Some(hz) = args.graphics_hz {
+        config.graphics_rate_hz = hz;
+    }
     let arm = SimulatedArm::new(
         arm_config,
         plan.trajectory(&config.map).expect("the built-in path"),
