@@ -420,12 +420,11 @@ fn memory_child() {
     );
     println!(
         "  child: peak RSS {:.1} MB before the build (lattice and binary), {:.1} MB after it; \
-         the octree's own estimate {:.1} MB (samples {} B + meshes {} B + structure {} B); \
+         the octree's own estimate {:.1} MB (meshes {} B + structure {} B); \
          one-shot build {seconds:.2} s",
         peak_before as f64 / 1e6,
         peak_after_build as f64 / 1e6,
         m.total_bytes() as f64 / 1e6,
-        m.sample_bytes,
         m.mesh_bytes,
         m.structure_bytes,
     );

@@ -5,7 +5,8 @@
 //! the mesh's counts; then the same extraction into kept buffers (a rebuild of a kept tree
 //! and a weld into a kept mesh), as fast-surface-nets runs with its kept buffer. Meant for
 //! `perf record` and quick same-session comparisons (`PROFILE_KEPT_ONLY=1` times only the
-//! kept rebuild and weld, for a profile of them alone):
+//! kept rebuild and weld, for a profile of them alone; `PROFILE_FRESH_ONLY=1` only a new
+//! tree built and welded, as a first stroke meets it):
 //! `cargo build --release --bench profile_mesh`, then
 //! `perf record target/release/deps/profile_mesh-* gyroid 128 1 20`.
 use std::hint::black_box;
@@ -82,6 +83,17 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         iso: 0.0,
         lipschitz: None,
     };
+    if std::env::var_os("PROFILE_FRESH_ONLY").is_some() {
+        let fresh = best(reps, || {
+            black_box(BrickOctree::build_with_threads(grid, &field, threads).weld());
+        });
+        println!(
+            "{name} {n}^3, {threads} thread(s), fresh tree, build + weld, wall / CPU: {:.2} / \
+             {:.2} ms",
+            fresh.0, fresh.1
+        );
+        return;
+    }
     let mut tree = BrickOctree::build_with_threads(grid, &field, threads);
     let mesh = tree.weld();
     // Kept buffers: the tree rebuilt in place, welded into a kept mesh.
