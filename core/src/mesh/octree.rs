@@ -44,6 +44,10 @@ pub struct Brick {
     pub mesh: BrickMesh,
     /// The octree generation in which this brick's mesh was last rebuilt.
     pub version: u64,
+    /// How many of its vertices a weld takes from this brick rather than from a brick below
+    /// it (see [`super::weld`]), counted when it was meshed: a weld on several threads knows
+    /// where each brick's vertices go from these counts alone.
+    pub(super) owned_vertices: u32,
 }
 
 impl Brick {
@@ -53,6 +57,7 @@ impl Brick {
             coord,
             mesh: BrickMesh::default(),
             version: 0,
+            owned_vertices: 0,
         }
     }
 
@@ -78,6 +83,7 @@ impl Brick {
             self.mesh.copy_from(&scratch.mesh);
         }
         self.version = generation;
+        self.owned_vertices = scratch.owned_vertices;
     }
 }
 
@@ -1331,6 +1337,17 @@ mod tests {
         other.weld_into_with_threads(&mut out, &mut scratch, threads);
         tree.weld_into_with_threads(&mut out, &mut scratch, threads);
         assert_eq!(out, tree.weld_with_threads(threads));
+        // The threads' own weld, not the one-thread weld it gives way to on a stray vertex.
+        let bricks: Vec<&Brick> = tree.bricks().collect();
+        let mut direct = TriMesh::default();
+        assert!(weld_parallel(
+            &bricks,
+            tree.brick_counts,
+            &mut direct,
+            &mut scratch,
+            threads
+        ));
+        assert_eq!(direct, out);
         mesh_bits(&out)
     }
 

@@ -7,12 +7,12 @@
 //! words) and the kept indices in place order, so a vertex's entry is the rank of its bit.
 //! No hashing, no search, and the lists stay in cache.
 //!
-//! On several threads the weld runs in two passes over contiguous runs of the bricks (in
-//! Morton order), one run per thread: the first counts each brick's owned vertices and keeps
-//! its upper-face vertices' numbers among them; a prefix sum over the bricks (a few thousand
-//! additions, on the caller) gives each brick its first welded vertex and triangle; the
-//! second writes the vertices and triangles, each run into its own part of the mesh. The
-//! result is the one-thread weld's, bit for bit.
+//! On several threads each thread welds a contiguous run of the bricks (in Morton order)
+//! as the one thread welds them all, into its own part of the mesh: a prefix sum over the
+//! bricks' counts of owned vertices (taken when each brick was meshed; a few thousand
+//! additions on the caller) gives each brick its first welded vertex, and a vertex whose
+//! owner lies in an earlier run (a brick next to the run's start) counts that owner's
+//! vertices again to find its index. The result is the one-thread weld's, bit for bit.
 //!
 //! Allocates only when the mesh or the tree grew since the scratch's last weld (and, on
 //! several threads, a list of the bricks and the threads themselves).
@@ -173,7 +173,7 @@ pub struct WeldScratch {
     kept_faces: Vec<KeptFaces>,
     stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
     local: Vec<u32>,
-    /// Per brick: its owned vertices, then (after the prefix sum) its first welded vertex.
+    /// Per brick, its first welded vertex.
     vertex_base: Vec<u32>,
     /// Per run of bricks (one per thread): its bricks' kept entries and its vertex numbers.
     runs: Vec<RunScratch>,
@@ -182,10 +182,13 @@ pub struct WeldScratch {
 /// One thread's working memory in a weld on several threads.
 #[derive(Clone, Debug, Default)]
 struct RunScratch {
-    /// The kept upper-face vertices of the run's bricks, each as its number among its
-    /// brick's owned vertices.
+    /// The welded indices of the run's bricks' kept upper-face vertices.
     kept: Vec<u32>,
     local: Vec<u32>,
+    /// Owner bricks of earlier runs met so far, by ordinal (sorted), and their kept
+    /// upper-face vertices' welded indices.
+    earlier: Vec<(usize, KeptFaces)>,
+    earlier_kept: Vec<u32>,
 }
 
 /// A brick's ordinal in Morton order by its coordinate: a table over the grid of bricks
@@ -377,10 +380,11 @@ fn clear_and_reserve(out: &mut TriMesh, vertices: usize, triangles: usize) {
     out.triangles.reserve(triangles);
 }
 
-/// The weld on `threads` threads (the caller and `threads − 1` more, at least two), with the
-/// result of [`weld_serial`]. False, with `out` unspecified, when some vertex has no owner
-/// that kept it (never, for a tree the octree built): the caller then welds on one thread,
-/// which merges such vertices by edge id.
+/// The weld on `threads` threads (the caller and `threads − 1` more), with the result of
+/// [`weld_serial`]. False, with `out` unspecified, when some vertex has no owner that kept
+/// it (never, for a tree the octree built) or a brick's count of owned vertices does not
+/// match its mesh: the caller then welds on one thread, which merges such vertices by edge
+/// id.
 pub(super) fn weld_parallel(
     bricks: &[&Brick],
     counts: [u32; 3],
@@ -401,6 +405,16 @@ pub(super) fn weld_parallel(
         ..
     } = scratch;
     let ordinals = Ordinals::new(bricks.iter().copied(), counts, ordinals, keys);
+    // Each brick's first welded vertex, from the bricks' counts of owned vertices.
+    vertex_base.clear();
+    let mut welded = 0usize;
+    for b in bricks {
+        vertex_base.push(welded as u32);
+        welded += b.owned_vertices as usize;
+    }
+    if welded > vertices {
+        return false;
+    }
     // Runs of about equal vertex counts: run `r` is bricks `starts[r] .. starts[r + 1]`.
     let mut starts = Vec::with_capacity(threads + 1);
     starts.push(0);
@@ -414,36 +428,6 @@ pub(super) fn weld_parallel(
     while starts.len() <= threads {
         starts.push(bricks.len());
     }
-    runs.resize_with(threads, RunScratch::default);
-    kept_faces.clear();
-    kept_faces.resize(bricks.len(), KeptFaces::default());
-    vertex_base.clear();
-    vertex_base.resize(bricks.len(), 0);
-
-    // First pass: each brick's owned vertices and kept upper-face vertices.
-    {
-        let faces = split_runs(kept_faces, &starts);
-        let owned = split_runs(vertex_base, &starts);
-        let work = faces
-            .into_iter()
-            .zip(owned)
-            .zip(runs.iter_mut())
-            .enumerate()
-            .map(|(r, ((faces, owned), run))| {
-                let bricks = &bricks[starts[r]..starts[r + 1]];
-                move || count_owned(bricks, faces, owned, &mut run.kept)
-            });
-        run_on_threads(work);
-    }
-    // Each brick's first welded vertex, and each run's first vertex and triangle.
-    let mut next = 0u32;
-    for base in vertex_base.iter_mut() {
-        let owned = *base;
-        *base = next;
-        next += owned;
-    }
-    debug_assert!(next as usize <= vertices);
-    let welded = next as usize;
     let vertex_starts: Vec<usize> = starts
         .iter()
         .map(|&o| vertex_base.get(o).map_or(welded, |&v| v as usize))
@@ -457,12 +441,10 @@ pub(super) fn weld_parallel(
             .sum();
         triangle_starts.push(triangle_starts[r] + t);
     }
+    runs.resize_with(threads, RunScratch::default);
+    kept_faces.clear();
+    kept_faces.resize(bricks.len(), KeptFaces::default());
 
-    // Second pass: the vertices and triangles, each run into its own part of the mesh.
-    let mut locals: Vec<Vec<u32>> = runs
-        .iter_mut()
-        .map(|r| std::mem::take(&mut r.local))
-        .collect();
     let all_written = {
         let positions = split_runs(
             &mut out.positions.spare_capacity_mut()[..welded],
@@ -476,11 +458,10 @@ pub(super) fn weld_parallel(
             &mut out.triangles.spare_capacity_mut()[..triangles],
             &triangle_starts,
         );
+        let faces = split_runs(kept_faces, &starts);
         let shared = Shared {
             bricks,
             vertex_base,
-            kept_faces,
-            runs_kept: &runs.iter().map(|r| r.kept.as_slice()).collect::<Vec<_>>(),
             starts: &starts,
             ordinals: &ordinals,
         };
@@ -489,20 +470,18 @@ pub(super) fn weld_parallel(
             .into_iter()
             .zip(normals)
             .zip(tris)
-            .zip(locals.iter_mut())
+            .zip(faces)
+            .zip(runs.iter_mut())
             .enumerate()
-            .map(|(r, (((positions, normals), tris), local))| {
-                move || shared.write_run(r, positions, normals, tris, local)
+            .map(|(r, ((((positions, normals), tris), faces), run))| {
+                move || shared.weld_run(r, positions, normals, tris, faces, run)
             });
         run_on_threads(work).into_iter().all(|ok| ok)
     };
-    for (run, local) in runs.iter_mut().zip(locals) {
-        run.local = local;
-    }
     if !all_written {
         return false;
     }
-    // SAFETY: every run wrote every entry of its part of the rooms (`write_run` returned
+    // SAFETY: every run wrote every entry of its part of the rooms (`weld_run` returned
     // true): the parts cover the first `welded` vertices and `triangles` triangles, which
     // lie within the room reserved.
     unsafe {
@@ -545,67 +524,50 @@ fn run_on_threads<T: Send, F: FnOnce() -> T + Send>(jobs: impl Iterator<Item = F
     })
 }
 
-/// First pass over one run of bricks: per brick its owned vertices (into `owned`) and its
-/// kept upper-face vertices, numbered among its owned ones (into `faces` and `kept`).
-fn count_owned(bricks: &[&Brick], faces: &mut [KeptFaces], owned: &mut [u32], kept: &mut Vec<u32>) {
-    kept.clear();
-    for (at, ((brick, faces), owned)) in bricks.iter().zip(faces).zip(owned).enumerate() {
-        if let Some(next) = bricks.get(at + 1) {
-            prefetch_slice(&next.mesh.edge_ids);
-        }
-        let first = brick.coord.map(|c| c * BRICK_CELLS);
-        let mut upper_bits = [0u64; UPPER_WORDS];
-        let mut upper_index = [0u32; 64 * UPPER_WORDS];
-        let mut n = 0u32;
-        for &id in &brick.mesh.edge_ids {
-            let place = vertex_place(id, first);
-            if place.lower == 0 {
-                if place.upper
-                    && let Some(slot) = upper_slot(place.corner, place.axis, first)
-                {
-                    upper_bits[slot / 64] |= 1 << (slot % 64);
-                    upper_index[slot] = n;
-                }
-                n += 1;
-            }
-        }
-        *owned = n;
-        *faces = KeptFaces::keep(upper_bits, &upper_index, kept);
-    }
-}
-
-/// What every thread of the second pass reads.
+/// What every thread of a weld on several threads reads.
 struct Shared<'a> {
     bricks: &'a [&'a Brick],
     /// Per brick, its first welded vertex.
     vertex_base: &'a [u32],
-    kept_faces: &'a [KeptFaces],
-    /// Per run, its bricks' kept entries.
-    runs_kept: &'a [&'a [u32]],
     starts: &'a [usize],
     ordinals: &'a Ordinals<'a>,
 }
 
 impl Shared<'_> {
-    /// Second pass over run `r`: its owned vertices into `positions` and `normals` (the run's
-    /// part of the welded vertices) and its triangles into `tris`. False as soon as a vertex
-    /// has no owner that kept it.
-    fn write_run(
+    /// Welds run `r` as [`weld_serial`] welds all bricks: its owned vertices into `positions`
+    /// and `normals` (the run's part of the welded vertices, from the bricks' first welded
+    /// vertices) and its triangles into `tris`, its bricks' kept upper-face vertices into
+    /// `faces` and `run.kept`. A vertex whose owner lies in an earlier run finds its index
+    /// among the owner's vertices, counted again here (only bricks next to the run's start
+    /// are such owners). False as soon as a vertex has no owner that kept it or a brick's
+    /// owned vertices are not as many as it counted.
+    fn weld_run(
         &self,
         r: usize,
         positions: &mut [MaybeUninit<Vec3>],
         normals: &mut [MaybeUninit<Vec3>],
         tris: &mut [MaybeUninit<[u32; 3]>],
-        local: &mut Vec<u32>,
+        faces: &mut [KeptFaces],
+        run: &mut RunScratch,
     ) -> bool {
         let range = self.starts[r]..self.starts[r + 1];
         let Some(&run_first) = self.vertex_base.get(range.start) else {
             return true;
         };
+        let RunScratch {
+            kept,
+            local,
+            earlier,
+            earlier_kept,
+        } = run;
+        kept.clear();
+        earlier.clear();
+        earlier_kept.clear();
         let mut t = 0usize;
         for o in range.clone() {
             let brick = self.bricks[o];
-            if let Some(next) = self.bricks[..range.end].get(o + 1) {
+            let next_brick = self.bricks[..range.end].get(o + 1);
+            if let Some(next) = next_brick {
                 prefetch_slice(&next.mesh.edge_ids);
                 prefetch_slice(&next.mesh.positions);
                 prefetch_slice(&next.mesh.normals);
@@ -613,14 +575,25 @@ impl Shared<'_> {
             let m = &brick.mesh;
             let first = brick.coord.map(|c| c * BRICK_CELLS);
             let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
+            let mut upper_bits = [0u64; UPPER_WORDS];
+            let mut upper_index = [0u32; 64 * UPPER_WORDS];
             let mut next = self.vertex_base[o];
             local.resize(m.edge_ids.len(), 0);
             for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
                 let place = vertex_place(id, first);
                 *local = if place.lower == 0 {
                     let at = (next - run_first) as usize;
-                    positions[at].write(m.positions[v]);
-                    normals[at].write(m.normals[v]);
+                    let (Some(p), Some(n)) = (positions.get_mut(at), normals.get_mut(at)) else {
+                        return false;
+                    };
+                    p.write(m.positions[v]);
+                    n.write(m.normals[v]);
+                    if place.upper
+                        && let Some(slot) = upper_slot(place.corner, place.axis, first)
+                    {
+                        upper_bits[slot / 64] |= 1 << (slot % 64);
+                        upper_index[slot] = next;
+                    }
                     next += 1;
                     next - 1
                 } else {
@@ -629,21 +602,41 @@ impl Shared<'_> {
                     let Some((owner, owner_coord)) = owner else {
                         return false;
                     };
-                    let first = owner_coord.map(|c| c * BRICK_CELLS);
-                    let Some(at) = upper_slot(place.corner, place.axis, first)
-                        .and_then(|slot| self.kept_faces[owner].entry(slot))
-                    else {
+                    let owner_first = owner_coord.map(|c| c * BRICK_CELLS);
+                    let Some(slot) = upper_slot(place.corner, place.axis, owner_first) else {
                         return false;
                     };
-                    let run = self.starts.partition_point(|&s| s <= owner) - 1;
-                    self.vertex_base[owner] + self.runs_kept[run][at]
+                    let found = if owner >= range.start {
+                        faces[owner - range.start].entry(slot).map(|at| kept[at])
+                    } else {
+                        let at = match earlier.binary_search_by_key(&owner, |e| e.0) {
+                            Ok(at) => at,
+                            Err(at) => {
+                                let counted = self.keep_owned(owner, earlier_kept);
+                                earlier.insert(at, (owner, counted));
+                                at
+                            }
+                        };
+                        earlier[at].1.entry(slot).map(|at| earlier_kept[at])
+                    };
+                    let Some(index) = found else {
+                        return false;
+                    };
+                    index
                 };
             }
-            if let Some(next) = self.bricks[..range.end].get(o + 1) {
+            if next - self.vertex_base[o] != brick.owned_vertices {
+                return false;
+            }
+            faces[o - range.start] = KeptFaces::keep(upper_bits, &upper_index, kept);
+            if let Some(next) = next_brick {
                 prefetch_slice(&next.mesh.indices);
             }
             let local = local.as_slice();
-            for (room, i) in tris[t..].iter_mut().zip(m.indices.chunks_exact(3)) {
+            let Some(room) = tris.get_mut(t..t + m.triangle_count()) else {
+                return false;
+            };
+            for (room, i) in room.iter_mut().zip(m.indices.chunks_exact(3)) {
                 room.write([
                     local[i[0] as usize],
                     local[i[1] as usize],
@@ -652,7 +645,31 @@ impl Shared<'_> {
             }
             t += m.triangle_count();
         }
-        debug_assert_eq!(t, tris.len());
-        true
+        // (Each brick wrote as many vertices as it owns, from its first welded vertex on, so
+        // the run filled its part of the vertices.)
+        t == tris.len()
+    }
+
+    /// The kept upper-face vertices of brick `o` (of an earlier run) with their welded
+    /// indices, counted from its edge ids: its entries appended to `kept`.
+    fn keep_owned(&self, o: usize, kept: &mut Vec<u32>) -> KeptFaces {
+        let brick = self.bricks[o];
+        let first = brick.coord.map(|c| c * BRICK_CELLS);
+        let mut upper_bits = [0u64; UPPER_WORDS];
+        let mut upper_index = [0u32; 64 * UPPER_WORDS];
+        let mut next = self.vertex_base[o];
+        for &id in &brick.mesh.edge_ids {
+            let place = vertex_place(id, first);
+            if place.lower == 0 {
+                if place.upper
+                    && let Some(slot) = upper_slot(place.corner, place.axis, first)
+                {
+                    upper_bits[slot / 64] |= 1 << (slot % 64);
+                    upper_index[slot] = next;
+                }
+                next += 1;
+            }
+        }
+        KeptFaces::keep(upper_bits, &upper_index, kept)
     }
 }
