@@ -1487,6 +1487,7 @@ mod tests {
 
     /// Every brick's coordinate, positions, normals, edge ids and triangles, floats as their
     /// bits (so `-0.0` and `0.0`, or two NaNs, are told apart).
+    #[allow(clippy::type_complexity)]
     fn brick_bits(tree: &BrickOctree) -> Vec<([u32; 3], Vec<u32>, Vec<u64>, Vec<u32>)> {
         let floats = |v: &[Vec3]| {
             v.iter()
