@@ -1379,6 +1379,22 @@ mod tests {
                 assert_eq!(threaded_weld_bits(tree, threads), one, "{threads} threads");
             }
         }
+        // The closed surfaces welded on threads are closed: every edge in exactly two
+        // triangles, wound the same way.
+        for tree in [&sphere, &ball] {
+            let mesh = tree.weld_with_threads(3);
+            assert!(mesh.is_well_formed());
+            let stats = MeshStats::of(&mesh);
+            assert_eq!(
+                (
+                    stats.boundary_edges,
+                    stats.non_manifold_edges,
+                    stats.misoriented_edges
+                ),
+                (0, 0, 0),
+                "{stats:?}"
+            );
+        }
         // More threads than bricks, and an empty tree.
         let (tiny_lattice, _, _) = sphere_lattice(1.5);
         let tiny = BrickOctree::build(
