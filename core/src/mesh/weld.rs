@@ -15,7 +15,7 @@
 //! vertices again to find its index. The result is the one-thread weld's, bit for bit.
 //!
 //! Allocates only when the mesh or the tree grew since the scratch's last weld (and, on
-//! several threads, a list of the bricks and the threads themselves).
+//! several threads, the list of the bricks, a few per-thread lists and the threads).
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
