@@ -268,8 +268,8 @@ impl Link {
     /// Records a failed exchange as the session's fault; sends a last zero force when the
     /// socket may still take one.
     fn fail(&mut self, e: ExchangeError) {
+        use tungstenite::error::ProtocolError;
         match e {
-            ExchangeError::Lost(e) => self.lost(&e),
             ExchangeError::Silent(waited) => {
                 self.shared.set_fault(
                     fault::TIMEOUT,
@@ -283,13 +283,14 @@ impl Link {
                 self.shared.protocol_fault(&e);
                 self.last_zero();
             }
-        }
-    }
-
-    fn lost(&self, e: &tungstenite::Error) {
-        match e {
-            tungstenite::Error::Io(io)
-                if !matches!(
+            // The peer went away: nothing more can be sent.
+            ExchangeError::Lost(
+                e @ (tungstenite::Error::ConnectionClosed
+                | tungstenite::Error::AlreadyClosed
+                | tungstenite::Error::Protocol(ProtocolError::ResetWithoutClosingHandshake)),
+            ) => self.disconnected(&e),
+            ExchangeError::Lost(tungstenite::Error::Io(io))
+                if matches!(
                     io.kind(),
                     io::ErrorKind::BrokenPipe
                         | io::ErrorKind::ConnectionReset
@@ -298,6 +299,9 @@ impl Link {
                         | io::ErrorKind::NotConnected
                 ) =>
             {
+                self.disconnected(&io);
+            }
+            ExchangeError::Lost(tungstenite::Error::Io(io)) => {
                 self.shared.set_fault(
                     fault::IO,
                     0,
@@ -305,25 +309,37 @@ impl Link {
                     format!("Inverse Service socket: {io}"),
                 );
             }
-            tungstenite::Error::Protocol(p) => self.shared.set_fault(
-                fault::PROTOCOL,
-                (PROTOCOL_WHATS.len() - 1) as u32,
-                0,
-                format!("WebSocket protocol violation: {p}"),
-            ),
-            tungstenite::Error::Capacity(c) => self.shared.set_fault(
-                fault::PROTOCOL,
-                0,
-                MAX_MESSAGE_BYTES as u64,
-                format!("Inverse Service message refused: {c}"),
-            ),
-            other => self.shared.set_fault(
-                fault::DISCONNECTED,
-                0,
-                0,
-                format!("the Inverse Service closed the connection ({other})"),
-            ),
+            // A message that broke WebSocket framing or the size bound: the socket may still
+            // take a zero force.
+            ExchangeError::Lost(tungstenite::Error::Capacity(c)) => {
+                self.shared.set_fault(
+                    fault::PROTOCOL,
+                    0,
+                    MAX_MESSAGE_BYTES as u64,
+                    format!("Inverse Service message refused: {c}"),
+                );
+                self.last_zero();
+            }
+            ExchangeError::Lost(tungstenite::Error::Protocol(p)) => {
+                self.shared.set_fault(
+                    fault::PROTOCOL,
+                    (PROTOCOL_WHATS.len() - 1) as u32,
+                    0,
+                    format!("WebSocket protocol violation: {p}"),
+                );
+                self.last_zero();
+            }
+            ExchangeError::Lost(other) => self.disconnected(&other),
         }
+    }
+
+    fn disconnected(&self, why: &dyn std::fmt::Display) {
+        self.shared.set_fault(
+            fault::DISCONNECTED,
+            0,
+            0,
+            format!("the Inverse Service connection ended ({why})"),
+        );
     }
 
     /// One zero-force command, its reply awaited, then the socket closed; failures ignored

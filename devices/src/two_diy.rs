@@ -20,7 +20,8 @@
 //! scales by the plane.
 //!
 //! Safety: `open` resets the board, sets up motors and encoders, then sends zero torques and
-//! takes the reply as the first sample; `close` sends zero torques. A reply that breaks the
+//! takes the reply as the first sample; `close` sends zero torques and waits (at most
+//! `reply_wait`) for the board's reply before it lets the port go. A reply that breaks the
 //! protocol is reported once as [`DeviceError::Protocol`] (its bytes are skipped until the
 //! stream realigns); silence longer than [`TwoDiyOptions::stale_after`] is
 //! [`DeviceError::Timeout`]; a port that goes away is [`DeviceError::Disconnected`]. The safety
@@ -171,6 +172,8 @@ struct Link {
     replies: u64,
     last_reply: Instant,
     started: Instant,
+    /// The port went away: every call reports it until the device is opened again.
+    dead: bool,
 }
 
 /// A Haply 2DIY on a serial port.
@@ -247,6 +250,9 @@ impl TwoDiy {
 
     fn send_torques(&mut self) -> Result<(), DeviceError> {
         let link = self.link.as_mut().ok_or(DeviceError::NotOpen)?;
+        if link.dead {
+            return Err(DeviceError::Disconnected);
+        }
         let mut buf = [0u8; MAX_HOST_MESSAGE];
         // Board order is port order: port 1 drives joint 2, port 2 joint 1.
         let n = board::encode_torques(
@@ -255,7 +261,10 @@ impl TwoDiy {
             &mut buf,
         )
         .map_err(|e| codec_fault(&e, 0))?;
-        link.port.write_all(&buf[..n])?;
+        if let Err(e) = link.port.write_all(&buf[..n]) {
+            link.dead |= e == DeviceError::Disconnected;
+            return Err(e);
+        }
         link.commands += 1;
         Ok(())
     }
@@ -274,7 +283,17 @@ impl TwoDiy {
             } else {
                 Duration::ZERO
             };
-            let bytes = link.port.read_available(left)?;
+            let bytes = match link.port.read_available(left) {
+                Ok(b) => b,
+                // The port opened and worked, so a port that now refuses even to say how
+                // much is queued (a pseudo-terminal whose other end closed, a board that
+                // reset) is gone.
+                Err(DeviceError::Config { .. } | DeviceError::Disconnected) => {
+                    link.dead = true;
+                    return Err(DeviceError::Disconnected);
+                }
+                Err(e) => return Err(e),
+            };
             if bytes.is_empty() {
                 return Ok(fault);
             }
@@ -369,6 +388,7 @@ impl TwoDiy {
             replies: 0,
             last_reply: now,
             started: now,
+            dead: false,
         });
         self.torques_n_m = [0.0; 2];
         self.velocity.reset();
@@ -416,6 +436,11 @@ impl HapticDevice for TwoDiy {
         }
         self.torques_n_m = [0.0; 2];
         let r = self.send_torques();
+        if r.is_ok() {
+            // The board's reply says it took the zero before the port is let go (closing a
+            // port may drop what it has not sent yet).
+            let _ = self.pump(self.opts.reply_wait);
+        }
         self.link = None;
         match r {
             Err(DeviceError::Disconnected) => Ok(()),
@@ -428,8 +453,10 @@ impl HapticDevice for TwoDiy {
     }
 
     fn read(&mut self) -> Result<DeviceState, DeviceError> {
-        if self.link.is_none() {
-            return Err(DeviceError::NotOpen);
+        match &self.link {
+            None => return Err(DeviceError::NotOpen),
+            Some(l) if l.dead => return Err(DeviceError::Disconnected),
+            Some(_) => {}
         }
         if !self.written_since_read {
             self.send_torques()?;
