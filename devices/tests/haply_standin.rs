@@ -103,7 +103,7 @@ fn inverse3_reports_the_arm_in_the_device_frame_one_fresh_sample_per_exchange() 
         "{}",
         first.velocity_m_per_s
     );
-    assert_eq!(first.buttons, 0b001, "VerseGrip button a");
+    assert_eq!(first.buttons, 0b010, "VerseGrip button b");
     for k in 0..50u64 {
         let s = arm.read().unwrap();
         assert_eq!(s.sequence, first.sequence + k + 1);

@@ -150,7 +150,7 @@ fn state_message(hand: Vec3, velocity: Vec3, with_config: bool) -> String {
         ""
     };
     format!(
-        r#"{{"session_id": 1, "inverse3": [{{"device_id": "049D", {config} "state": {{"cursor_position": {{"x": {}, "y": {}, "z": {}}}, "cursor_velocity": {{"x": {}, "y": {}, "z": {}}}}}}}], "wireless_verse_grip": [{{"device_id": "0A1", "state": {{"buttons": {{"a": true, "b": false, "c": false}}}}}}]}}"#,
+        r#"{{"session_id": 1, "inverse3": [{{"device_id": "049D", {config} "state": {{"cursor_position": {{"x": {}, "y": {}, "z": {}}}, "cursor_velocity": {{"x": {}, "y": {}, "z": {}}}}}}}], "wireless_verse_grip": [{{"device_id": "0A1", "state": {{"buttons": {{"a": false, "b": true, "c": false}}}}}}]}}"#,
         p[0], p[1], p[2], v[0], v[1], v[2]
     )
 }
