@@ -294,8 +294,7 @@ pub fn two_diy_board(version: TwoDiyVersion, hand: Hand) -> Standin {
         while !s2.load(Ordering::SeqCst) {
             let n = master.read(&mut buf).unwrap_or(0);
             input.extend_from_slice(&buf[..n]);
-            loop {
-                let Some(&kind) = input.first() else { break };
+            while let Some(&kind) = input.first() {
                 let len = match kind {
                     hb::kind::RESET => 2,
                     hb::kind::SETUP => {
