@@ -233,3 +233,55 @@ fn a_two_diy_sculpts_its_plane_in_lockstep_and_a_disconnect_mid_stroke_keeps_the
         "the push reached the motors"
     );
 }
+
+/// `dynaclay run` with each Haply arm on the command line, in real time against its stand-in
+/// (the hand resting in the middle of the workspace): the run opens the arm through its spec,
+/// says which device it drove and writes the session. Nothing about rates is asserted.
+#[test]
+fn a_headless_run_drives_each_haply_arm_through_its_spec() {
+    let inverse3 = haply_standins::inverse3_service(Box::new(|_| {
+        Inverse3::published_info().workspace_center_m()
+    }));
+    let version = TwoDiyVersion::V3;
+    let board = haply_standins::two_diy_board(
+        version,
+        Box::new(move |_| TwoDiy::info_for(version).workspace_center_m()),
+    );
+    for spec in [
+        format!("inverse3:{}", inverse3.address),
+        format!("2diy:{}", board.address),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_dynaclay"))
+            .args([
+                "run",
+                "--seconds",
+                "0.3",
+                "--no-rt",
+                "--device",
+                &spec,
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            run.status.success(),
+            "{spec}: exit {:?}\nstdout: {stdout}\nstderr: {stderr}",
+            run.status.code()
+        );
+        assert!(
+            stdout.contains(&format!("device {spec}")),
+            "{spec}: {stdout}"
+        );
+        assert!(out.join("session.dclay").is_file(), "{spec}: no session");
+    }
+    // Each arm was opened with zero force and sent commands all through the run.
+    assert_eq!(inverse3.log().forces_n[0], Vec3::ZERO);
+    assert!(inverse3.exchanges() > 10, "{}", inverse3.exchanges());
+    assert_eq!(board.log().torques_n_m[0], [0.0, 0.0]);
+    assert!(board.exchanges() > 10, "{}", board.exchanges());
+}
