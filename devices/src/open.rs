@@ -11,12 +11,14 @@ use crate::device::{DeviceError, HapticDevice};
 use crate::dhd_arm::{DhdArm, DhdConfig};
 use crate::falcon::{Falcon, FalconOptions};
 use crate::hid_arm::HidArm;
+use crate::inverse3::{Inverse3, Inverse3Config};
 use crate::openhaptics_arm::{OpenHapticsArm, OpenHapticsConfig};
 use crate::pose_input::PoseInputConfig;
 use crate::profile::{DeviceProfile, Protocol};
 use crate::serial_arm::{SerialArm, SerialArmOptions};
 use crate::spacemouse::SpaceMouse;
 use crate::spec::DeviceSpec;
+use crate::two_diy::{TwoDiy, TwoDiyOptions};
 use crate::vendor_lib::{LibrarySource, VendorLibrary};
 
 /// Environment variable naming the Falcon firmware file.
@@ -92,6 +94,19 @@ pub fn build_driver(
             library: opts.dhd_library.clone(),
             index: *index,
         }))),
+        DeviceSpec::Inverse3 { url } => Ok(Box::new(Inverse3::new(Inverse3Config {
+            url: url
+                .clone()
+                .unwrap_or_else(|| crate::codec::haply_service::DEFAULT_SERVICE_URL.into()),
+            ..Inverse3Config::default()
+        }))),
+        DeviceSpec::TwoDiy { path, version } => Ok(Box::new(TwoDiy::new(
+            &path.to_string_lossy(),
+            TwoDiyOptions {
+                version: *version,
+                ..TwoDiyOptions::default()
+            },
+        ))),
         DeviceSpec::Hid { profile } => {
             let p = load_profile(profile.as_deref().unwrap_or("woodenhaptics"))?;
             Ok(Box::new(HidArm::new(p)?))
@@ -142,6 +157,10 @@ mod tests {
             "touch",
             "phantom:PHANToM 1",
             "dhd:1",
+            "inverse3",
+            "inverse3:ws://127.0.0.1:1",
+            "2diy:/dev/null",
+            "2diy:/dev/null:v2",
         ] {
             let spec: DeviceSpec = s.parse().unwrap();
             let d = build_driver(&spec, &o).unwrap_or_else(|e| panic!("{s}: {e}"));

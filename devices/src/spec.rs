@@ -1,6 +1,6 @@
 //! Device specs as typed on the command line (`--device`): `sim`, `hid[:PROFILE]`,
 //! `serial:PATH[:PROFILE]`, `falcon:PATH`, `touch[:NAME]` (alias `phantom[:NAME]`), `dhd[:N]`,
-//! `spacemouse`, `mouse`, `replay:FILE`.
+//! `inverse3[:URL]`, `2diy:PATH[:v2|v3]`, `spacemouse`, `mouse`, `replay:FILE`.
 //!
 //! Parsing is pure and total: any string gives a [`DeviceSpec`] or a [`SpecError`] that quotes
 //! the input and says what was expected; it never panics.
@@ -8,6 +8,8 @@
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
+
+use crate::two_diy::TwoDiyVersion;
 
 /// Largest device index `dhd:N` accepts (DHD numbers devices with a signed char).
 pub const MAX_DHD_INDEX: u8 = 127;
@@ -44,6 +46,18 @@ pub enum DeviceSpec {
         /// Which connected device, counting from 0.
         index: u8,
     },
+    /// A Haply Inverse3 through Haply's Inverse Service (`inverse3[:URL]`).
+    Inverse3 {
+        /// The service's WebSocket URL; `None` for its default, `ws://localhost:10001`.
+        url: Option<String>,
+    },
+    /// A Haply 2DIY on a serial port (`2diy:PATH[:v2|v3]`, third generation by default).
+    TwoDiy {
+        /// Serial port path.
+        path: PathBuf,
+        /// Which generation.
+        version: TwoDiyVersion,
+    },
     /// A 3Dconnexion SpaceMouse (pose input, no force).
     SpaceMouse,
     /// The window's mouse or pen (`mouse`): the app aims it at the clay (pose input, no force).
@@ -58,7 +72,7 @@ pub enum DeviceSpec {
 /// Why a device spec did not parse.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "invalid device `{input}`: {reason} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, touch[:NAME], phantom[:NAME], dhd[:N], spacemouse, mouse or replay:FILE)",
+    "invalid device `{input}`: {reason} (expected sim, hid[:PROFILE], serial:PATH[:PROFILE], falcon:PATH, touch[:NAME], phantom[:NAME], dhd[:N], inverse3[:URL], 2diy:PATH[:v2|v3], spacemouse, mouse or replay:FILE)",
     input = input.escape_debug()
 )]
 pub struct SpecError {
@@ -130,6 +144,37 @@ impl FromStr for DeviceSpec {
                     ))),
                 },
             },
+            "inverse3" => match rest {
+                None => Ok(Self::Inverse3 { url: None }),
+                Some(u) => {
+                    let u = nonempty("ws:// URL of the Inverse Service", Some(u))?;
+                    if u.starts_with("ws://") {
+                        Ok(Self::Inverse3 { url: Some(u) })
+                    } else {
+                        Err(err(&format!(
+                            "`inverse3` takes the Inverse Service's ws:// URL after the colon \
+                             (e.g. ws://localhost:10001), not `{}`",
+                            u.escape_debug()
+                        )))
+                    }
+                }
+            },
+            "2diy" => {
+                let rest = nonempty("port path", rest)?;
+                let (path, version) = match rest.rsplit_once(':') {
+                    Some((path, v)) if !path.is_empty() && v.eq_ignore_ascii_case("v2") => {
+                        (path, TwoDiyVersion::V2)
+                    }
+                    Some((path, v)) if !path.is_empty() && v.eq_ignore_ascii_case("v3") => {
+                        (path, TwoDiyVersion::V3)
+                    }
+                    _ => (rest.as_str(), TwoDiyVersion::V3),
+                };
+                Ok(Self::TwoDiy {
+                    path: PathBuf::from(path),
+                    version,
+                })
+            }
             "falcon" => Ok(Self::Falcon {
                 path: PathBuf::from(nonempty("port path", rest)?),
             }),
@@ -164,6 +209,15 @@ impl fmt::Display for DeviceSpec {
             Self::OpenHaptics { device: Some(n) } => write!(f, "touch:{n}"),
             Self::Dhd { index: 0 } => write!(f, "dhd"),
             Self::Dhd { index } => write!(f, "dhd:{index}"),
+            Self::Inverse3 { url: None } => write!(f, "inverse3"),
+            Self::Inverse3 { url: Some(u) } => write!(f, "inverse3:{u}"),
+            Self::TwoDiy {
+                path,
+                version: TwoDiyVersion::V3,
+            } => write!(f, "2diy:{}", path.display()),
+            Self::TwoDiy { path, version } => {
+                write!(f, "2diy:{}:{}", path.display(), version.label())
+            }
             Self::SpaceMouse => write!(f, "spacemouse"),
             Self::Pointer => write!(f, "mouse"),
             Self::Replay { file } => write!(f, "replay:{}", file.display()),
@@ -233,6 +287,10 @@ mod tests {
             "touch:Default Device",
             "dhd",
             "dhd:2",
+            "inverse3",
+            "inverse3:ws://127.0.0.1:10001",
+            "2diy:/dev/ttyACM0",
+            "2diy:/dev/ttyACM0:v2",
         ] {
             assert_eq!(p(s).unwrap().to_string(), s);
         }
@@ -258,6 +316,39 @@ mod tests {
         );
         assert!(p("dhd:128").is_err());
         assert!(p("dhd:-1").is_err());
+    }
+
+    #[test]
+    fn haply_arms_parse_with_their_url_port_and_generation() {
+        assert_eq!(p("inverse3"), Ok(DeviceSpec::Inverse3 { url: None }));
+        assert_eq!(
+            p("Inverse3:ws://localhost:10001"),
+            Ok(DeviceSpec::Inverse3 {
+                url: Some("ws://localhost:10001".into())
+            })
+        );
+        let e = p("inverse3:localhost:10001").unwrap_err().to_string();
+        assert!(
+            e.contains("ws:// URL") && e.contains("`localhost:10001`"),
+            "{e}"
+        );
+        assert!(p("inverse3:").is_err());
+        assert_eq!(
+            p("2diy:/dev/ttyACM0"),
+            Ok(DeviceSpec::TwoDiy {
+                path: "/dev/ttyACM0".into(),
+                version: TwoDiyVersion::V3
+            })
+        );
+        assert_eq!(
+            p("2DIY:/dev/ttyACM1:V2"),
+            Ok(DeviceSpec::TwoDiy {
+                path: "/dev/ttyACM1".into(),
+                version: TwoDiyVersion::V2
+            })
+        );
+        assert!(p("2diy").unwrap_err().reason.contains("port path"));
+        assert!(p("2diy:").is_err());
     }
 
     #[test]

@@ -2,7 +2,9 @@
 //! streaming readers resynchronise, and spec/profile parsing reports errors.
 
 use dynaclay_devices::codec::frame::{DeviceMsg, FrameEvent, FrameReader, HostMsg};
-use dynaclay_devices::codec::{cartesian, falcon, frame, spacemouse, woodenhaptics};
+use dynaclay_devices::codec::{
+    cartesian, falcon, frame, haply_board, haply_service, spacemouse, woodenhaptics,
+};
 use dynaclay_devices::profile::DeviceProfile;
 use dynaclay_devices::spec::DeviceSpec;
 use proptest::prelude::*;
@@ -68,6 +70,28 @@ proptest! {
         let text = String::from_utf8_lossy(&raw);
         let _ = DeviceProfile::from_toml(&text, std::path::Path::new("fuzz.toml"));
         let _ = DeviceProfile::from_toml(&s, std::path::Path::new("fuzz.toml"));
+    }
+
+    #[test]
+    fn haply_decoders_never_panic(
+        raw in proptest::collection::vec(any::<u8>(), 0..40),
+        text in "\\PC{0,200}",
+        n in 0usize..6,
+        x in any::<f64>(),
+    ) {
+        let mut angles = [0.0f32; 5];
+        let _ = haply_board::decode_angles(5, &raw, &mut angles[..n.min(5)]);
+        let _ = haply_service::parse_state(&text, None);
+        let _ = haply_service::parse_state(&String::from_utf8_lossy(&raw), Some("049D"));
+        // A well-formed message with any number where a coordinate goes.
+        let msg = format!(
+            r#"{{"inverse3":[{{"device_id":"049D","state":{{"cursor_position":{{"x":{x},"y":0,"z":0}},"cursor_velocity":{{"x":0,"y":0,"z":0}}}}}}]}}"#
+        );
+        match haply_service::parse_state(&msg, None) {
+            // serde_json's fast float parsing may round the last bit differently.
+            Ok(r) => prop_assert!((r.cursor_position_m[0] - x).abs() <= 1e-12 * x.abs()),
+            Err(e) => prop_assert!(!x.is_finite(), "{e}"),
+        }
     }
 
     #[test]
