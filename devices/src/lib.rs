@@ -27,6 +27,7 @@ pub use sim_arm::{
 pub mod arm_link;
 pub mod codec;
 pub mod delta;
+pub mod doctor;
 pub mod dhd_arm;
 pub mod enumerate;
 pub mod falcon;
