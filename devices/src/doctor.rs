@@ -184,6 +184,8 @@ pub struct DoctorReport {
     pub target_rate_hz: f64,
     /// Ticks run (one read and one zero-force command each).
     pub ticks: usize,
+    /// Tick slots skipped because the tick before ran past them.
+    pub missed_slots: usize,
     /// Reads that returned a state.
     pub reads_ok: usize,
     /// Reads whose sample was new (its sequence number moved on).
@@ -206,8 +208,8 @@ impl fmt::Display for DoctorReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "{}: {} ticks aiming at {:.0} Hz, zero force every tick",
-            self.device, self.ticks, self.target_rate_hz
+            "{}: {} ticks aiming at {:.0} Hz ({} slots missed), zero force every tick",
+            self.device, self.ticks, self.target_rate_hz, self.missed_slots
         )?;
         writeln!(
             f,
@@ -266,6 +268,7 @@ pub fn run<D: HapticDevice>(
         device: info.name,
         target_rate_hz,
         ticks: 0,
+        missed_slots: 0,
         reads_ok: 0,
         fresh_samples: 0,
         read_errors: 0,
@@ -277,12 +280,11 @@ pub fn run<D: HapticDevice>(
     };
     let mut last_sequence = None;
     let start_us = clock.now_us();
-    while report.ticks < capacity {
-        let deadline = start_us + (report.ticks as f64 * period_us).round() as u64;
-        if deadline >= start_us + config.duration_us {
-            break;
-        }
-        clock.wait_until_us(deadline);
+    let end_us = start_us + config.duration_us;
+    let deadline_of = |slot: u64| start_us + (slot as f64 * period_us).round() as u64;
+    let mut slot = 0u64;
+    while report.ticks < capacity && deadline_of(slot) < end_us {
+        clock.wait_until_us(deadline_of(slot));
         let t_us = clock.now_us();
         match filter.read() {
             Ok(state) => {
@@ -304,6 +306,15 @@ pub fn run<D: HapticDevice>(
             report.first_force_error.get_or_insert(e);
         }
         report.ticks += 1;
+        // A tick that overran its slot skips the slots it missed rather than bursting to
+        // catch up, as a fixed-rate loop does, so a slow device shows as a lower rate.
+        slot += 1;
+        let now_us = clock.now_us();
+        if now_us > deadline_of(slot) {
+            let behind = ((now_us - start_us) as f64 / period_us).ceil() as u64;
+            report.missed_slots += behind.saturating_sub(slot) as usize;
+            slot = slot.max(behind);
+        }
     }
     let _ = filter.close();
     report.read_periods = PeriodStats::from_timestamps_us(&read_times);
@@ -361,6 +372,67 @@ mod tests {
         assert_eq!(s.p999_us, 5000);
         assert_eq!(s.max_us, 5000);
         assert!(s.to_string().contains("max 5000"), "{s}");
+    }
+
+    /// A clock that moves only when waited on, plus `cost_us` per reading, so a tick can be
+    /// made to overrun its slot without depending on this machine's speed.
+    struct CostlyClock {
+        now_us: u64,
+        cost_us: u64,
+    }
+
+    impl TickClock for CostlyClock {
+        fn now_us(&mut self) -> u64 {
+            self.now_us += self.cost_us;
+            self.now_us
+        }
+
+        fn wait_until_us(&mut self, t_us: u64) {
+            self.now_us = self.now_us.max(t_us);
+        }
+    }
+
+    fn held_arm() -> crate::SimulatedArm {
+        crate::SimulatedArm::with_trajectory(crate::Trajectory::hold(Vec3::ZERO))
+    }
+
+    #[test]
+    fn a_loop_on_time_runs_one_tick_per_slot_at_the_asked_rate() {
+        let config = DoctorConfig {
+            duration_us: 100_000,
+            rate_hz: Some(1000.0),
+        };
+        let mut clock = CostlyClock {
+            now_us: 0,
+            cost_us: 0,
+        };
+        let (report, arm) = run(held_arm(), config, &mut clock);
+        let report = report.unwrap();
+        assert_eq!((report.ticks, report.missed_slots), (100, 0));
+        assert_eq!(report.reads_ok, 100);
+        assert_eq!(report.read_periods.unwrap().p99_us, 1000);
+        assert!(!arm.is_open(), "the doctor closes the device");
+    }
+
+    #[test]
+    fn ticks_that_overrun_skip_their_missed_slots_and_show_a_lower_rate() {
+        // Each clock reading costs 700 µs and a tick reads the clock twice: every tick overruns
+        // its 1 ms slot and the next one starts at the following slot boundary, 2 ms later.
+        let config = DoctorConfig {
+            duration_us: 100_000,
+            rate_hz: Some(1000.0),
+        };
+        let mut clock = CostlyClock {
+            now_us: 0,
+            cost_us: 700,
+        };
+        let (report, _) = run(held_arm(), config, &mut clock);
+        let report = report.unwrap();
+        assert_eq!(report.ticks + report.missed_slots, 100, "{report}");
+        assert!(report.missed_slots >= 45, "{report}");
+        let periods = report.read_periods.unwrap();
+        assert_eq!(periods.min_us, 2000, "no burst of catch-up ticks: {periods}");
+        assert!(periods.rate_hz < 600.0, "{periods}");
     }
 
     #[test]
