@@ -44,7 +44,14 @@ fn the_doctor_runs_the_simulated_arm_and_reports_rate_and_period_percentiles() {
         "{text}"
     );
     assert!(text.contains(", 0 failed"), "{text}");
-    for field in ["read rate:", "fresh-sample rate:", "p50", "p99", "max", "verdict:"] {
+    for field in [
+        "read rate:",
+        "fresh-sample rate:",
+        "p50",
+        "p99",
+        "max",
+        "verdict:",
+    ] {
         assert!(text.contains(field), "{field} missing from {text}");
     }
 }

@@ -203,7 +203,9 @@ fn the_doctor_without_the_vendor_library_says_which_library_and_how_to_install_i
     assert_eq!(out.status.code(), Some(3), "a device error");
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
-        text.contains("cannot open dhd") && text.contains("libdhd.so") && text.contains("Force Dimension SDK"),
+        text.contains("cannot open dhd")
+            && text.contains("libdhd.so")
+            && text.contains("Force Dimension SDK"),
         "{text}"
     );
 }

@@ -368,7 +368,10 @@ mod tests {
         }
         let s = PeriodStats::from_timestamps_us(&ts).unwrap();
         assert_eq!(s.p50_us, 1000);
-        assert_eq!(s.p99_us, 1000, "1 in 200 periods is beyond the 99th percentile");
+        assert_eq!(
+            s.p99_us, 1000,
+            "1 in 200 periods is beyond the 99th percentile"
+        );
         assert_eq!(s.p999_us, 5000);
         assert_eq!(s.max_us, 5000);
         assert!(s.to_string().contains("max 5000"), "{s}");
@@ -431,7 +434,10 @@ mod tests {
         assert_eq!(report.ticks + report.missed_slots, 100, "{report}");
         assert!(report.missed_slots >= 45, "{report}");
         let periods = report.read_periods.unwrap();
-        assert_eq!(periods.min_us, 2000, "no burst of catch-up ticks: {periods}");
+        assert_eq!(
+            periods.min_us, 2000,
+            "no burst of catch-up ticks: {periods}"
+        );
         assert!(periods.rate_hz < 600.0, "{periods}");
     }
 

@@ -17,8 +17,8 @@ use std::path::Path;
 use crate::ftdi_latency;
 pub use crate::node_access::{Access, access};
 use crate::node_holders::{Holder, holders_of};
-use crate::usb_ids::{NodeKind, Needs, SupportedUsb, lookup};
 pub use crate::usb_ids::{CARTESIAN_HID_ID, FALCON_ID, WOODENHAPTICS_ID};
+use crate::usb_ids::{Needs, NodeKind, SupportedUsb, lookup};
 use crate::vendor_lib::{LibraryMissing, VendorLibrary};
 
 /// The shipped udev rules (`devices/udev/70-dynaclay.rules`), printed by
@@ -120,11 +120,7 @@ pub struct Connected {
 
 /// The table entry for a device seen on `transport`, if its node is the one its driver opens.
 #[must_use]
-pub fn supported_entry(
-    transport: Transport,
-    vid: u16,
-    pid: u16,
-) -> Option<&'static SupportedUsb> {
+pub fn supported_entry(transport: Transport, vid: u16, pid: u16) -> Option<&'static SupportedUsb> {
     let entry = lookup(vid, pid)?;
     let opened_here = matches!(
         (transport, entry.node),
@@ -249,9 +245,12 @@ pub fn list_usb_at(sysfs_root: &Path) -> Vec<UsbDevice> {
         let hex = |name| sysfs_attr(&dir, name).and_then(|t| u16::from_str_radix(&t, 16).ok());
         let dec = |name| sysfs_attr(&dir, name).and_then(|t| t.parse::<u16>().ok());
         // Interfaces (`1-1:1.0`) have no idVendor; root hubs do and are kept (harmless).
-        if let (Some(vendor_id), Some(product_id), Some(bus), Some(device)) =
-            (hex("idVendor"), hex("idProduct"), dec("busnum"), dec("devnum"))
-        {
+        if let (Some(vendor_id), Some(product_id), Some(bus), Some(device)) = (
+            hex("idVendor"),
+            hex("idProduct"),
+            dec("busnum"),
+            dec("devnum"),
+        ) {
             out.push(UsbDevice {
                 bus,
                 device,
@@ -306,10 +305,10 @@ pub fn diagnose(devices: &mut [Connected]) {
             Access::Denied => d.problems.push(Problem::PermissionDenied),
             Access::Missing => d.problems.push(Problem::NodeMissing),
         }
-        if let Some(scan) = holders_of(Path::new(&d.path)) {
-            if !scan.holders.is_empty() {
-                d.problems.push(Problem::HeldBy(scan.holders));
-            }
+        if let Some(scan) = holders_of(Path::new(&d.path))
+            && !scan.holders.is_empty()
+        {
+            d.problems.push(Problem::HeldBy(scan.holders));
         }
         if (d.vendor_id, d.product_id) == FALCON_ID && d.transport == Transport::Serial {
             d.notes.push(falcon_latency_note(&d.path));
@@ -412,7 +411,10 @@ pub fn report(devices: &[Connected], notes: &[String]) -> String {
         );
         if d.spec.is_some() {
             if d.problems.is_empty() {
-                let _ = writeln!(s, "       can be opened: no problem found without opening it");
+                let _ = writeln!(
+                    s,
+                    "       can be opened: no problem found without opening it"
+                );
             }
             for p in &d.problems {
                 let _ = writeln!(s, "       cannot open: {p}");
@@ -570,9 +572,19 @@ mod tests {
         );
         assert!(lines[2].contains("--device hid:woodenhaptics"), "{r}");
         assert!(lines[3].contains("can be opened"), "{r}");
-        assert!(lines[4].contains("/dev/ttyS0") && !lines[4].contains("supported"), "{r}");
-        assert_eq!(lines.len(), 5, "an unsupported device gets no diagnosis: {r}");
-        assert!(!r.contains("udev"), "no permission problem, no install text: {r}");
+        assert!(
+            lines[4].contains("/dev/ttyS0") && !lines[4].contains("supported"),
+            "{r}"
+        );
+        assert_eq!(
+            lines.len(),
+            5,
+            "an unsupported device gets no diagnosis: {r}"
+        );
+        assert!(
+            !r.contains("udev"),
+            "no permission problem, no install text: {r}"
+        );
     }
 
     /// A sysfs stand-in with one USB device folder per `(name, vid, pid, bus, dev, product)`
@@ -652,7 +664,9 @@ mod tests {
         assert!(devices[1].problems.is_empty(), "libHD loads: {devices:?}");
         let r = report(&devices, &[]);
         assert!(
-            r.contains("--device dhd") && r.contains("libdhd.so") && r.contains("Force Dimension SDK"),
+            r.contains("--device dhd")
+                && r.contains("libdhd.so")
+                && r.contains("Force Dimension SDK"),
             "{r}"
         );
         assert!(r.contains("--device touch"), "{r}");
@@ -681,7 +695,10 @@ mod tests {
 
     #[test]
     fn the_shipped_rules_are_the_file_the_install_command_names() {
-        assert!(UDEV_RULES.contains("70-dynaclay.rules"), "the header names the file");
+        assert!(
+            UDEV_RULES.contains("70-dynaclay.rules"),
+            "the header names the file"
+        );
         assert!(UDEV_RULES_INSTALLED.ends_with("/70-dynaclay.rules"));
         assert!(UDEV_INSTALL_COMMAND.contains(UDEV_RULES_INSTALLED));
     }

@@ -125,7 +125,11 @@ pub fn upload_firmware(
         reply.copy_within(1.., 0);
         link.read_exact_within(&mut reply[BOOT_HELLO_REPLY.len() - 1..], timeout)?;
     }
-    if let Some(i) = reply.iter().zip(BOOT_HELLO_REPLY).position(|(a, b)| *a != b) {
+    if let Some(i) = reply
+        .iter()
+        .zip(BOOT_HELLO_REPLY)
+        .position(|(a, b)| *a != b)
+    {
         return Err(DeviceError::Protocol {
             what: "bootloader's handshake answer is not 0A 44 2C 0D",
             offset: i,

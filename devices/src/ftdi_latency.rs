@@ -77,7 +77,10 @@ impl std::fmt::Display for LatencyOutcome {
                 file,
                 was_ms,
                 now_ms,
-            } => write!(f, "FTDI latency timer: {now_ms} ms (was {was_ms} ms; {file})"),
+            } => write!(
+                f,
+                "FTDI latency timer: {now_ms} ms (was {was_ms} ms; {file})"
+            ),
             Self::NotSet(why) => write!(f, "FTDI latency timer: not set: {why}"),
         }
     }
@@ -138,10 +141,10 @@ pub fn set_latency_timer(sysfs_root: &Path, port: &Path, ms: u8) -> LatencyOutco
         Err(e) => return LatencyOutcome::NotSet(e),
     };
     let shown = file.display().to_string();
-    if was_ms != ms {
-        if let Err(e) = std::fs::write(&file, format!("{ms}\n")) {
-            return LatencyOutcome::NotSet(unset_by_write_error(&e, shown, was_ms, ms));
-        }
+    if was_ms != ms
+        && let Err(e) = std::fs::write(&file, format!("{ms}\n"))
+    {
+        return LatencyOutcome::NotSet(unset_by_write_error(&e, shown, was_ms, ms));
     }
     match read_latency_ms(&file) {
         Ok(now_ms) if now_ms == ms => LatencyOutcome::Set {
@@ -193,7 +196,14 @@ mod tests {
         let (dir, node) = fake_sysfs("16\n");
         let out = set_latency_timer(&dir.path().join("sys"), &node, 1);
         assert!(
-            matches!(out, LatencyOutcome::Set { was_ms: 16, now_ms: 1, .. }),
+            matches!(
+                out,
+                LatencyOutcome::Set {
+                    was_ms: 16,
+                    now_ms: 1,
+                    ..
+                }
+            ),
             "{out:?}"
         );
         let text = std::fs::read_to_string(dir.path().join("sys/ttyUSB0/latency_timer")).unwrap();
@@ -208,7 +218,14 @@ mod tests {
         std::os::unix::fs::symlink(&node, &link).unwrap();
         let out = set_latency_timer(&dir.path().join("sys"), &link, 1);
         assert!(
-            matches!(out, LatencyOutcome::Set { was_ms: 1, now_ms: 1, .. }),
+            matches!(
+                out,
+                LatencyOutcome::Set {
+                    was_ms: 1,
+                    now_ms: 1,
+                    ..
+                }
+            ),
             "{out:?}"
         );
     }
@@ -246,7 +263,9 @@ mod tests {
         );
         let text = why.to_string();
         assert!(
-            text.contains("reads 16 ms") && text.contains("udev rules") && text.contains("sudo tee"),
+            text.contains("reads 16 ms")
+                && text.contains("udev rules")
+                && text.contains("sudo tee"),
             "{text}"
         );
         let other = std::io::Error::other("device gone");

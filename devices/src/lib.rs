@@ -27,8 +27,8 @@ pub use sim_arm::{
 pub mod arm_link;
 pub mod codec;
 pub mod delta;
-pub mod doctor;
 pub mod dhd_arm;
+pub mod doctor;
 pub mod enumerate;
 pub mod falcon;
 pub mod ftdi_latency;

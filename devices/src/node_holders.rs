@@ -62,9 +62,8 @@ pub fn scan_for(proc_root: &Path, rdev: u64) -> HolderScan {
         };
         let holds = fds.flatten().take(MAX_FDS_PER_PROCESS).any(|fd| {
             // metadata follows the descriptor's link to the file it refers to.
-            std::fs::metadata(fd.path()).is_ok_and(|m| {
-                m.file_type().is_char_device() && m.rdev() == rdev
-            })
+            std::fs::metadata(fd.path())
+                .is_ok_and(|m| m.file_type().is_char_device() && m.rdev() == rdev)
         });
         if holds {
             let command = std::fs::read_to_string(entry.path().join("comm"))
@@ -97,10 +96,7 @@ mod tests {
         let name = follower.name().expect("the follower's path");
         let scan = holders_of(Path::new(&name)).expect("a pty is a character device");
         let me = std::process::id();
-        assert!(
-            scan.holders.iter().any(|h| h.pid == me),
-            "{name}: {scan:?}"
-        );
+        assert!(scan.holders.iter().any(|h| h.pid == me), "{name}: {scan:?}");
         drop((leader, follower));
     }
 

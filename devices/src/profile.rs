@@ -251,10 +251,10 @@ impl DeviceProfile {
             source: std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()),
         })?;
         let mut profile = Self::from_toml(&text, path)?;
-        if let Some(fw) = profile.firmware.as_mut() {
-            if fw.is_relative() {
-                *fw = path.parent().unwrap_or(Path::new("")).join(&*fw);
-            }
+        if let Some(fw) = profile.firmware.as_mut()
+            && fw.is_relative()
+        {
+            *fw = path.parent().unwrap_or(Path::new("")).join(&*fw);
         }
         Ok(profile)
     }

@@ -230,11 +230,12 @@ mod tests {
         assert_eq!(touch.spec, "touch");
         assert_eq!(lookup(0x2988, 0x0304).unwrap().spec, "touch");
         let fd = lookup(0x1451, 0x0402).unwrap();
+        assert_eq!(fd.needs, Needs::Library(VendorLibrary::ForceDimensionDhd));
         assert_eq!(
-            fd.needs,
-            Needs::Library(VendorLibrary::ForceDimensionDhd)
+            lookup(0x0403, 0x6001),
+            None,
+            "a plain FTDI cable is not a Falcon"
         );
-        assert_eq!(lookup(0x0403, 0x6001), None, "a plain FTDI cable is not a Falcon");
         assert_eq!(
             lookup(0x0403, 0xcb48).unwrap().spec_for("/dev/ttyUSB3"),
             "falcon:/dev/ttyUSB3"

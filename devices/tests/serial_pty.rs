@@ -41,6 +41,8 @@ struct Sim {
     commands: Arc<AtomicU64>,
     /// Commands with the homing-mode bit set (Falcon).
     homing_commands: Arc<AtomicU64>,
+    /// Commands with any motor command other than zero (Falcon).
+    nonzero_commands: Arc<AtomicU64>,
     last_force: Arc<Mutex<[i16; 3]>>,
     handle: Option<JoinHandle<()>>,
 }
@@ -98,7 +100,11 @@ fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
     spawn_falcon_answering(firmware_len, homing_ticks, HELLO_REPLY)
 }
 
-fn spawn_falcon_answering(firmware_len: usize, homing_ticks: u32, hello_reply: &'static [u8]) -> Sim {
+fn spawn_falcon_answering(
+    firmware_len: usize,
+    homing_ticks: u32,
+    hello_reply: &'static [u8],
+) -> Sim {
     let (mut master, path) = pty();
     let profile = DeviceProfile::built_in("falcon").unwrap();
     let delta = Delta::from_geometry(&profile.geometry).unwrap();
@@ -109,13 +115,15 @@ fn spawn_falcon_answering(firmware_len: usize, homing_ticks: u32, hello_reply: &
     let stop = Arc::new(AtomicBool::new(false));
     let commands = Arc::new(AtomicU64::new(0));
     let homing_commands = Arc::new(AtomicU64::new(0));
+    let nonzero_commands = Arc::new(AtomicU64::new(0));
     let last_force = Arc::new(Mutex::new([0i16; 3]));
-    let (f2, s2, c2, l2, h2) = (
+    let (f2, s2, c2, l2, h2, n2) = (
         fault.clone(),
         stop.clone(),
         commands.clone(),
         last_force.clone(),
         homing_commands.clone(),
+        nonzero_commands.clone(),
     );
     let handle = std::thread::spawn(move || {
         #[derive(PartialEq)]
@@ -179,6 +187,9 @@ fn spawn_falcon_answering(firmware_len: usize, homing_ticks: u32, hello_reply: &
                         window.clear();
                         c2.fetch_add(1, Ordering::SeqCst);
                         *l2.lock().unwrap() = cmd.motor;
+                        if cmd.motor != [0; 3] {
+                            n2.fetch_add(1, Ordering::SeqCst);
+                        }
                         if homing_bit {
                             homing_seen += 1;
                             h2.fetch_add(1, Ordering::SeqCst);
@@ -230,6 +241,7 @@ fn spawn_falcon_answering(firmware_len: usize, homing_ticks: u32, hello_reply: &
         stop,
         commands,
         homing_commands,
+        nonzero_commands,
         last_force,
         handle: Some(handle),
     }
@@ -335,6 +347,7 @@ fn spawn_cartesian(home_after: Duration) -> Sim {
         stop,
         commands,
         homing_commands: Arc::new(AtomicU64::new(0)),
+        nonzero_commands: Arc::new(AtomicU64::new(0)),
         last_force,
         handle: Some(handle),
     }
@@ -508,7 +521,8 @@ fn falcon_firmware_loads_when_the_handshake_answer_comes_after_a_zero() {
     std::fs::write(&fw, &image).unwrap();
     let sim = spawn_falcon_answering(image.len(), 3, HELLO_REPLY_AFTER_ZERO);
     let mut dev = Falcon::new(&sim.path, falcon_opts(Some(fw)));
-    dev.open().expect("firmware upload after a 00-prefixed handshake answer");
+    dev.open()
+        .expect("firmware upload after a 00-prefixed handshake answer");
     assert_eq!(dev.link_stats().firmware_attempts, 1);
     dev.close().unwrap();
 }
@@ -531,7 +545,10 @@ fn falcon_sets_the_ftdi_latency_timer_to_1_ms_or_says_why_not() {
     dev.close().unwrap();
     // With a sysfs stand-in holding the pty's latency timer at 16 ms, open sets it to 1.
     let sysfs = tempfile::tempdir().unwrap();
-    let name = std::path::Path::new(&sim.path).file_name().unwrap().to_owned();
+    let name = std::path::Path::new(&sim.path)
+        .file_name()
+        .unwrap()
+        .to_owned();
     let attr = sysfs.path().join(&name).join("latency_timer");
     std::fs::create_dir_all(attr.parent().unwrap()).unwrap();
     std::fs::write(&attr, "16\n").unwrap();
@@ -557,6 +574,34 @@ fn falcon_sets_the_ftdi_latency_timer_to_1_ms_or_says_why_not() {
     );
     assert_eq!(std::fs::read_to_string(&attr).unwrap().trim(), "1");
     dev.close().unwrap();
+}
+
+#[test]
+fn the_doctor_streams_a_falcon_on_a_pseudo_terminal_and_sends_only_zero_force() {
+    use dynaclay_devices::doctor::{self, DoctorConfig, WallClock};
+    let sim = spawn_falcon(0, 3);
+    let config = DoctorConfig {
+        duration_us: 200_000,
+        rate_hz: None,
+    };
+    let (report, falcon) = doctor::run(
+        Falcon::new(&sim.path, falcon_opts(None)),
+        config,
+        &mut WallClock::new(),
+    );
+    let report = report.expect("the stand-in Falcon opens");
+    // However fast this machine ran the loop: it ticked, every tick's command reached the
+    // firmware, and none of them moved a motor.
+    assert!(report.ticks > 0, "{report}");
+    assert!(report.reads_ok > 0, "{report}");
+    assert_eq!(report.force_errors, 0, "{report}");
+    assert!(
+        eventually(|| sim.commands.load(Ordering::SeqCst) >= report.ticks as u64),
+        "one command per tick at least: {report}"
+    );
+    assert_eq!(sim.nonzero_commands.load(Ordering::SeqCst), 0, "{report}");
+    assert!(!falcon.is_open(), "the doctor closes the port");
+    assert!(report.to_string().contains("Novint Falcon"), "{report}");
 }
 
 #[test]

@@ -53,9 +53,11 @@ fn udev_rules_grant_access_to_every_supported_device_on_its_node() {
 #[test]
 fn the_falcon_latency_timer_is_set_to_one_millisecond_at_plug_in() {
     assert!(
-        rules().iter().any(|l| l.contains("SUBSYSTEM==\"usb-serial\"")
-            && l.contains("ATTRS{idProduct}==\"cb48\"")
-            && l.contains("ATTR{latency_timer}=\"1\"")),
+        rules()
+            .iter()
+            .any(|l| l.contains("SUBSYSTEM==\"usb-serial\"")
+                && l.contains("ATTRS{idProduct}==\"cb48\"")
+                && l.contains("ATTR{latency_timer}=\"1\"")),
         "{UDEV_RULES}"
     );
 }

@@ -759,21 +759,30 @@ fn the_doctor_reads_a_dhd_arm_once_per_tick_and_commands_only_zero_force() {
     let calls = s.dhd_calls();
     assert_eq!(report.ticks, 2000);
     assert_eq!((report.reads_ok, report.read_errors), (2000, 0));
-    assert_eq!(report.fresh_samples, 2000, "every DHD read is a fresh exchange");
+    assert_eq!(
+        report.fresh_samples, 2000,
+        "every DHD read is a fresh exchange"
+    );
     assert_eq!(calls.position_reads, 2000, "one dhdGetPosition per tick");
     assert_eq!(
         calls.set_force_calls,
         1 + 2000 + 1,
         "zero at open, one zero command per tick, zero at close"
     );
-    assert_eq!(calls.nonzero_forces_output, 0, "nothing but zero reached the arm");
+    assert_eq!(
+        calls.nonzero_forces_output, 0,
+        "nothing but zero reached the arm"
+    );
     assert_eq!(calls.last_force_n, [0.0; 3]);
     assert_eq!(calls.open_devices, 0, "the doctor closes the arm");
     let periods = report.read_periods.expect("2000 reads give periods");
     assert_eq!((periods.p50_us, periods.max_us), (1000, 1000));
     assert!((periods.rate_hz - 1000.0).abs() < 1e-9, "{periods}");
     let text = report.to_string();
-    assert!(text.contains("2000 ok") && text.contains("1000.0 Hz"), "{text}");
+    assert!(
+        text.contains("2000 ok") && text.contains("1000.0 Hz"),
+        "{text}"
+    );
 }
 
 #[test]

@@ -174,7 +174,7 @@ fn verdict(report: &DoctorReport) -> String {
         )
     } else {
         format!(
-            "verdict: fresh samples at {:.0}% of {:.0} Hz with {} failed reads; the device or its link falls short",
+            "verdict: fresh samples at {:.0}% of {:.0} Hz with {} failed reads; the device, its link or this machine's scheduling falls short (`--doctor sim` answers at once, so its figures are the machine's alone)",
             share * 100.0,
             report.target_rate_hz,
             report.read_errors

@@ -32,7 +32,8 @@ mod run;
 mod sculpt;
 
 pub use args::{
-    Cli, Commands, DevicesArgs, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode,
+    Cli, Commands, DevicesArgs, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs,
+    ShadingMode,
 };
 pub use error::CliError;
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};

@@ -153,7 +153,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
                 options.falcon.firmware = Some(file.clone());
             }
             let d = dynaclay_devices::open::build_driver(hw, &options)
-            .map_err(|e| CliError::device(args.device.clone(), e))?;
+                .map_err(|e| CliError::device(args.device.clone(), e))?;
             let info = d.info();
             (d, info)
         }

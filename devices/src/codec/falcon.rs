@@ -364,7 +364,10 @@ mod tests {
         let mut f = encode_command(&FalconCommand::default());
         f[13] = b'Q';
         assert!(
-            matches!(decode_command(&f), Err(CodecError::BadByte { offset: 13, .. })),
+            matches!(
+                decode_command(&f),
+                Err(CodecError::BadByte { offset: 13, .. })
+            ),
             "a command's byte 13 is a nibble"
         );
         let mut f = encode_status(&FalconStatus::default());
