@@ -398,18 +398,18 @@ pub fn report(devices: &[Connected], notes: &[String]) -> String {
             Access::Denied => "  [permission denied]",
             Access::Missing => "  [node missing]",
         };
-        let supported = d
-            .spec
-            .as_deref()
-            .map(|spec| format!("  supported: --device {spec}"))
-            .unwrap_or_default();
+        let supported = match (&d.spec, lookup(d.vendor_id, d.product_id)) {
+            (Some(spec), _) => format!("  supported: --device {spec}"),
+            (None, Some(entry)) => format!("  supported: {}", entry.name),
+            (None, None) => String::new(),
+        };
         let _ = writeln!(
             s,
             "{kind} {ids} {:<16} {}{supported}{access}",
             d.path,
             d.product.as_deref().unwrap_or("")
         );
-        if d.spec.is_some() {
+        if d.spec.is_some() || !d.problems.is_empty() {
             if d.problems.is_empty() {
                 let _ = writeln!(
                     s,
@@ -637,6 +637,11 @@ mod tests {
             extra[1].problems[0].to_string().contains("ftdi_sio"),
             "{}",
             extra[1].problems[0]
+        );
+        let r = report(&extra, &[]);
+        assert!(
+            r.contains("supported: Novint Falcon") && r.contains("cannot open: no tty"),
+            "{r}"
         );
         assert!(list_usb_at(Path::new("/nonexistent/usb")).is_empty());
     }
