@@ -166,3 +166,46 @@ fn lockstep_is_refused_for_the_vendor_arms() {
         "{stderr}"
     );
 }
+
+#[test]
+fn the_doctor_opens_each_vendor_arm_through_its_stand_in_and_reports_its_reads() {
+    for (spec, var) in [("dhd", "DYNACLAY_DHD_LIB"), ("touch", "DYNACLAY_HD_LIB")] {
+        let out = dynaclay()
+            .env(var, standin_path())
+            .args(["devices", "--doctor", spec, "--seconds", "0.2"])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{spec}: {text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // Whatever rate this machine reached, the report names the period percentiles and
+        // no read failed.
+        assert!(text.contains("zero force every tick"), "{spec}: {text}");
+        assert!(text.contains(", 0 failed"), "{spec}: {text}");
+        assert!(
+            text.contains("read rate:") && text.contains("p99") && text.contains("verdict:"),
+            "{spec}: {text}"
+        );
+    }
+}
+
+#[test]
+fn the_doctor_without_the_vendor_library_says_which_library_and_how_to_install_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dynaclay()
+        .env("DYNACLAY_DHD_LIB", dir.path().join("libdhd.so"))
+        .args(["devices", "--doctor", "dhd"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(3), "a device error");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("cannot open dhd")
+            && text.contains("libdhd.so")
+            && text.contains("Force Dimension SDK"),
+        "{text}"
+    );
+}

@@ -145,7 +145,7 @@ pub enum DeviceError {
     },
     /// The device node exists but this user may not open it (see the udev rules in the user guide, `docs/src/devices.md`).
     #[error(
-        "permission denied opening {path} (install devices/udev/99-dynaclay.rules, as the user guide's Devices chapter says, or add your user to the owning group)"
+        "permission denied opening {path} (install the udev rules: `dynaclay devices` prints the command, or add your user to the owning group)"
     )]
     PermissionDenied {
         /// Path of the device node, e.g. `/dev/hidraw3`.

@@ -1,13 +1,20 @@
 //! Novint Falcon driver over its FTDI serial link: firmware upload, homing, 1 kHz streaming.
 //!
-//! `open` does the slow work: it opens the port at 1,456,312 baud, checks whether firmware
-//! answers, and if not (and a firmware file was given) runs the bootloader: 9600 baud
-//! handshake (`0A 43 0D` → 4 bytes), DTR low, 140,000 baud, `'A'` → 2 bytes, then the image in
-//! 62-byte chunks, each of which the bootloader echoes and we compare, retrying the whole load
-//! up to `firmware_retries` times. Then it homes (homing bit set, red LED, until all three
-//! homed flags are up) and turns the LED green. After that `read`/`write_force` are bounded and
-//! allocation-free: one 16-byte command out per tick (a keep-alive if the engine only reads),
-//! replies decoded by [`FalconReader`], encoders through the delta kinematics.
+//! `open` does the slow work: it opens the port at 1,456,312 baud, sets the FTDI latency timer
+//! to 1 ms ([`crate::ftdi_latency`]; at the default 16 ms a reply waits up to 16 ms and 1 kHz
+//! is out of reach), checks whether firmware answers, and if not (and a firmware file was
+//! given) runs the bootloader with the timer at 16 ms: 9600 baud handshake (`0A 43 0D` →
+//! `0A 44 2C 0D`, sometimes after a `00`), DTR low, 140,000 baud, `'A'` → `'A'`, then the
+//! image in 62-byte chunks, each of which the bootloader echoes and we compare, retrying the
+//! whole load up to `firmware_retries` times. Then it homes (homing bit set, red LED, until the
+//! homed flags of all three motors are up) and turns the LED green. After that
+//! `read`/`write_force` are bounded and allocation-free: one 16-byte command out per tick (a
+//! keep-alive if the engine only reads), replies decoded by [`FalconReader`], encoders through
+//! the delta kinematics.
+//!
+//! The handshake bytes, the latency timer settings and the homing bits follow libnifalcon's
+//! reverse-engineered protocol (`FalconCommLibUSB`, `FalconFirmwareNovintSDK`); see
+//! [`crate::codec::falcon`] for the frame layout.
 //!
 //! Baud changes: a pseudo-terminal has no real line rate and some refuse unusual rates, so
 //! [`BaudPolicy::Tolerant`] lets tests run the whole bootloader sequence over a PTY; real ports
@@ -26,18 +33,19 @@ use crate::codec::falcon::{
     LED_RED, ReadEvent, STREAM_BAUD,
 };
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
+use crate::ftdi_latency::{self, LatencyOutcome};
 use crate::kinematics::{ArmModel, Linkage};
 use crate::profile::DeviceProfile;
 use crate::serial_link::{BaudPolicy, READ_BUF, SerialLink};
 
 /// Bootloader handshake sent at [`BOOT_BAUD`].
 pub const BOOT_HELLO: [u8; 3] = [0x0a, 0x43, 0x0d];
-/// Bytes the bootloader answers to [`BOOT_HELLO`].
-pub const BOOT_HELLO_REPLY_LEN: usize = 4;
+/// The bootloader's answer to [`BOOT_HELLO`]; some hosts see a `00` before it.
+pub const BOOT_HELLO_REPLY: [u8; 4] = [0x0a, 0x44, 0x2c, 0x0d];
 /// Byte sent at [`FIRMWARE_BAUD`] to start the upload.
 pub const BOOT_START: u8 = b'A';
-/// Bytes the bootloader answers to [`BOOT_START`].
-pub const BOOT_START_REPLY_LEN: usize = 2;
+/// The bootloader's one-byte answer to [`BOOT_START`].
+pub const BOOT_START_REPLY: u8 = b'A';
 /// Upload chunk: a full-speed USB packet (64) minus the FTDI's two status bytes.
 pub const FIRMWARE_CHUNK: usize = 62;
 
@@ -60,6 +68,9 @@ pub struct FalconOptions {
     pub reply_wait: Duration,
     /// No valid frame for this long makes `read` fail with a timeout.
     pub stale_after: Duration,
+    /// Where the port's FTDI latency timer is found (`/sys/bus/usb-serial/devices`; a test
+    /// points it at a stand-in folder).
+    pub usb_serial_sysfs: PathBuf,
 }
 
 impl Default for FalconOptions {
@@ -73,6 +84,7 @@ impl Default for FalconOptions {
             handshake_timeout: Duration::from_millis(500),
             reply_wait: Duration::from_micros(400),
             stale_after: Duration::from_millis(50),
+            usb_serial_sysfs: PathBuf::from(ftdi_latency::USB_SERIAL_SYSFS),
         }
     }
 }
@@ -88,6 +100,7 @@ pub struct Falcon {
     reader: FalconReader,
     cmd: FalconCommand,
     status: FalconStatus,
+    latency: LatencyOutcome,
 }
 
 /// Uploads a firmware image through the Falcon bootloader once (no retries).
@@ -105,13 +118,34 @@ pub fn upload_firmware(
     link.set_lines(true, false)?;
     link.clear_input();
     link.write_all(&BOOT_HELLO)?;
-    let mut reply = [0u8; BOOT_HELLO_REPLY_LEN];
+    let mut reply = [0u8; BOOT_HELLO_REPLY.len()];
     link.read_exact_within(&mut reply, timeout)?;
+    if reply[0] == 0x00 {
+        // The answer came after a 00: drop it and read the answer's last byte.
+        reply.copy_within(1.., 0);
+        link.read_exact_within(&mut reply[BOOT_HELLO_REPLY.len() - 1..], timeout)?;
+    }
+    if let Some(i) = reply
+        .iter()
+        .zip(BOOT_HELLO_REPLY)
+        .position(|(a, b)| *a != b)
+    {
+        return Err(DeviceError::Protocol {
+            what: "bootloader's handshake answer is not 0A 44 2C 0D",
+            offset: i,
+        });
+    }
     link.set_lines(false, false)?;
     link.set_baud(FIRMWARE_BAUD)?;
     link.write_all(&[BOOT_START])?;
-    let mut reply = [0u8; BOOT_START_REPLY_LEN];
+    let mut reply = [0u8; 1];
     link.read_exact_within(&mut reply, timeout)?;
+    if reply[0] != BOOT_START_REPLY {
+        return Err(DeviceError::Protocol {
+            what: "bootloader's answer to 'A' is not 'A'",
+            offset: 0,
+        });
+    }
     let mut echo = [0u8; FIRMWARE_CHUNK];
     for (k, chunk) in image.chunks(FIRMWARE_CHUNK).enumerate() {
         link.write_all(chunk)?;
@@ -166,6 +200,7 @@ impl Falcon {
             reader: FalconReader::new(),
             cmd: FalconCommand::default(),
             status: FalconStatus::default(),
+            latency: LatencyOutcome::NotTried,
         })
     }
 
@@ -185,6 +220,20 @@ impl Falcon {
     #[must_use]
     pub fn status(&self) -> FalconStatus {
         self.status
+    }
+
+    /// What the last `open` did to the port's FTDI latency timer (set to 1 ms, or why not).
+    #[must_use]
+    pub fn latency_timer(&self) -> &LatencyOutcome {
+        &self.latency
+    }
+
+    fn set_latency(&mut self, ms: u8) {
+        self.latency = ftdi_latency::set_latency_timer(
+            &self.opts.usb_serial_sysfs,
+            std::path::Path::new(&self.path),
+            ms,
+        );
     }
 
     fn send(&mut self) -> Result<(), DeviceError> {
@@ -251,7 +300,7 @@ impl Falcon {
         let Some(file) = self.opts.firmware.clone() else {
             return Err(DeviceError::Config {
                 origin: format!("falcon:{}", self.path),
-                message: "no firmware answers on this port; give the Falcon firmware file (DYNACLAY_FALCON_FIRMWARE)".into(),
+                message: "firmware not loaded: no firmware answers on this port; name the Novint firmware file with --falcon-firmware FILE, DYNACLAY_FALCON_FIRMWARE or the profile's `firmware`".into(),
             });
         };
         // Falcon firmware images are tens of kilobytes; a FIFO or a device is refused at once.
@@ -267,11 +316,20 @@ impl Falcon {
                 message: "the firmware file is empty".into(),
             });
         }
+        // libnifalcon loads firmware with the timer at 16 ms ("firmware checks tend to fail"
+        // at 1 ms) and streams at 1 ms; the outcome kept is the streaming one.
+        self.set_latency(ftdi_latency::BOOTLOADER_LATENCY_MS);
+        let loaded = self.upload_with_retries(&image);
+        self.set_latency(ftdi_latency::STREAM_LATENCY_MS);
+        loaded
+    }
+
+    fn upload_with_retries(&mut self, image: &[u8]) -> Result<(), DeviceError> {
         let mut last = DeviceError::Timeout { waited_us: 0 };
         for attempt in 1..=self.opts.firmware_retries.max(1) {
             self.stream.stats.firmware_attempts = attempt;
             let link = self.stream.link_mut()?;
-            match upload_firmware(link, &image, self.opts.handshake_timeout) {
+            match upload_firmware(link, image, self.opts.handshake_timeout) {
                 Ok(()) => {
                     self.reader.reset();
                     self.stream.clear_input();
@@ -320,6 +378,7 @@ impl Falcon {
             self.opts.baud_policy,
             Instant::now(),
         )?;
+        self.set_latency(ftdi_latency::STREAM_LATENCY_MS);
         self.reader.reset();
         self.cmd = FalconCommand {
             motor: [0; 3],

@@ -123,11 +123,12 @@ pub fn build_driver(
                 Protocol::CartesianSerial => {
                     Ok(Box::new(SerialArm::new(&path, p, opts.serial.clone())))
                 }
-                Protocol::Falcon => Ok(Box::new(Falcon::with_profile(
-                    &path,
-                    p,
-                    opts.falcon.clone(),
-                )?)),
+                Protocol::Falcon => {
+                    // The command line's firmware file wins over the profile's.
+                    let mut falcon = opts.falcon.clone();
+                    falcon.firmware = falcon.firmware.or_else(|| p.firmware.clone());
+                    Ok(Box::new(Falcon::with_profile(&path, p, falcon)?))
+                }
                 other => Err(DeviceError::Config {
                     origin: name.to_string(),
                     message: format!(

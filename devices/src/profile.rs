@@ -138,6 +138,12 @@ pub struct DeviceProfile {
     pub motors: Option<Motors>,
     /// Geometry.
     pub geometry: Geometry,
+    /// Firmware image uploaded at `open` when none answers (the Falcon protocol: the user's own
+    /// copy of the Novint firmware). A relative path is taken from the profile file's folder.
+    /// Never guessed: without it (or `--falcon-firmware FILE`) a Falcon without firmware is an
+    /// error that says so.
+    #[serde(default)]
+    pub firmware: Option<PathBuf>,
 }
 
 /// The largest device profile file read, bytes.
@@ -244,7 +250,13 @@ impl DeviceProfile {
             path: path.to_path_buf(),
             source: std::io::Error::new(std::io::ErrorKind::InvalidData, e.utf8_error()),
         })?;
-        Self::from_toml(&text, path)
+        let mut profile = Self::from_toml(&text, path)?;
+        if let Some(fw) = profile.firmware.as_mut()
+            && fw.is_relative()
+        {
+            *fw = path.parent().unwrap_or(Path::new("")).join(&*fw);
+        }
+        Ok(profile)
     }
 
     /// The [`DeviceInfo`] of an arm driven by this profile: 3 DoF, force output, the
@@ -383,6 +395,19 @@ impl DeviceProfile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_profile_names_its_firmware_relative_to_its_own_folder_and_built_ins_name_none() {
+        assert_eq!(DeviceProfile::built_in("falcon").unwrap().firmware, None);
+        let dir = tempfile::tempdir().unwrap();
+        // A top-level key goes before the profile's tables.
+        let text = "firmware = \"fw/novint.bin\"\n".to_string()
+            + BUILT_IN.iter().find(|(n, _)| *n == "falcon").unwrap().1;
+        let file = dir.path().join("my-falcon.toml");
+        std::fs::write(&file, text).unwrap();
+        let p = DeviceProfile::load(file.to_str().unwrap()).unwrap();
+        assert_eq!(p.firmware, Some(dir.path().join("fw/novint.bin")));
+    }
 
     #[test]
     fn every_built_in_profile_loads() {

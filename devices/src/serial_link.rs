@@ -51,6 +51,13 @@ fn map_serial_error(e: &serialport::Error, path: &str) -> DeviceError {
         serialport::ErrorKind::Io(std::io::ErrorKind::NotFound) => DeviceError::NotFound {
             what: format!("serial port {path}"),
         },
+        // Another program opened the port exclusively (TIOCEXCL, as serialport and most
+        // serial programs do): EBUSY.
+        serialport::ErrorKind::Io(std::io::ErrorKind::ResourceBusy) => DeviceError::Io {
+            kind: std::io::ErrorKind::ResourceBusy,
+            os_code: None,
+            context: "open serial port: busy, another program holds it open exclusively",
+        },
         serialport::ErrorKind::InvalidInput => DeviceError::Config {
             origin: path.to_string(),
             message: e.description.clone(),
@@ -284,5 +291,30 @@ impl SerialLink {
             have += got;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_port_held_exclusively_elsewhere_opens_as_busy_not_as_a_bad_port() {
+        let e = serialport::Error::new(
+            serialport::ErrorKind::Io(std::io::ErrorKind::ResourceBusy),
+            "Device or resource busy",
+        );
+        let mapped = map_serial_error(&e, "/dev/ttyUSB0");
+        assert!(
+            matches!(
+                mapped,
+                DeviceError::Io {
+                    kind: std::io::ErrorKind::ResourceBusy,
+                    ..
+                }
+            ),
+            "{mapped:?}"
+        );
+        assert!(mapped.to_string().contains("another program"), "{mapped}");
     }
 }

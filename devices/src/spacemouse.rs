@@ -17,29 +17,8 @@ use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
 use crate::hid_link::open_hid;
 use crate::pose_input::{PoseInputConfig, PoseIntegrator};
 
-/// USB IDs handled as SpaceMice: the Logitech-era (0x046d) and 3Dconnexion (0x256f) families.
-pub const SPACEMOUSE_IDS: [(u16, u16); 20] = [
-    (0x046d, 0xc603), // SpaceMouse Plus XT
-    (0x046d, 0xc605), // CADman
-    (0x046d, 0xc606), // SpaceMouse Classic
-    (0x046d, 0xc621), // SpaceBall 5000
-    (0x046d, 0xc623), // SpaceTraveler
-    (0x046d, 0xc625), // SpacePilot
-    (0x046d, 0xc626), // SpaceNavigator
-    (0x046d, 0xc627), // SpaceExplorer
-    (0x046d, 0xc628), // SpaceNavigator for Notebooks
-    (0x046d, 0xc629), // SpacePilot Pro
-    (0x046d, 0xc62b), // SpaceMouse Pro
-    (0x046d, 0xc640), // NuLOOQ
-    (0x256f, 0xc62e), // SpaceMouse Wireless (cable)
-    (0x256f, 0xc62f), // SpaceMouse Wireless (receiver)
-    (0x256f, 0xc631), // SpaceMouse Pro Wireless (cable)
-    (0x256f, 0xc632), // SpaceMouse Pro Wireless (receiver)
-    (0x256f, 0xc633), // SpaceMouse Enterprise
-    (0x256f, 0xc635), // SpaceMouse Compact
-    (0x256f, 0xc636), // SpaceMouse Module
-    (0x256f, 0xc652), // Universal Receiver
-];
+/// USB IDs handled as SpaceMice (kept in the one table of supported USB devices).
+pub use crate::usb_ids::SPACEMOUSE_IDS;
 
 /// Largest number of queued reports one `read` drains.
 const MAX_REPORTS_PER_READ: usize = 64;

@@ -39,6 +39,10 @@ struct Sim {
     fault: Arc<AtomicU8>,
     stop: Arc<AtomicBool>,
     commands: Arc<AtomicU64>,
+    /// Commands with the homing-mode bit set (Falcon).
+    homing_commands: Arc<AtomicU64>,
+    /// Commands with any motor command other than zero (Falcon).
+    nonzero_commands: Arc<AtomicU64>,
     last_force: Arc<Mutex<[i16; 3]>>,
     handle: Option<JoinHandle<()>>,
 }
@@ -82,7 +86,25 @@ fn falcon_position(home: DVec3, t: f64) -> DVec3 {
     )
 }
 
+/// The bootloader's answer to the handshake as most hosts see it.
+const HELLO_REPLY: &[u8] = &[0x0a, 0x44, 0x2c, 0x0d];
+/// The same answer after a `00`, as libnifalcon sees it through libftdi.
+const HELLO_REPLY_AFTER_ZERO: &[u8] = &[0x00, 0x0a, 0x44, 0x2c, 0x0d];
+
+/// A simulated Falcon: stuck in the bootloader until `firmware_len` bytes are uploaded (0: its
+/// firmware already runs), then answering each command frame with one reply. Homing follows
+/// libnifalcon's reading of the Novint firmware: the command's byte 13 bit 0 asks for homing,
+/// and the reply's byte 13 (minus 0x41) carries the homed flags of motors 1, 2, 3 in bits 4,
+/// 5, 6; motor i+1 reports homed after `homing_ticks × (i+1) / 3` homing commands.
 fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
+    spawn_falcon_answering(firmware_len, homing_ticks, HELLO_REPLY)
+}
+
+fn spawn_falcon_answering(
+    firmware_len: usize,
+    homing_ticks: u32,
+    hello_reply: &'static [u8],
+) -> Sim {
     let (mut master, path) = pty();
     let profile = DeviceProfile::built_in("falcon").unwrap();
     let delta = Delta::from_geometry(&profile.geometry).unwrap();
@@ -92,12 +114,16 @@ fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
     let fault = Arc::new(AtomicU8::new(0));
     let stop = Arc::new(AtomicBool::new(false));
     let commands = Arc::new(AtomicU64::new(0));
+    let homing_commands = Arc::new(AtomicU64::new(0));
+    let nonzero_commands = Arc::new(AtomicU64::new(0));
     let last_force = Arc::new(Mutex::new([0i16; 3]));
-    let (f2, s2, c2, l2) = (
+    let (f2, s2, c2, l2, h2, n2) = (
         fault.clone(),
         stop.clone(),
         commands.clone(),
         last_force.clone(),
+        homing_commands.clone(),
+        nonzero_commands.clone(),
     );
     let handle = std::thread::spawn(move || {
         #[derive(PartialEq)]
@@ -124,14 +150,14 @@ fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
                     Stage::Boot => {
                         window.push(b);
                         if window.ends_with(&BOOT_HELLO) {
-                            let _ = master.write_all(&[0x0a, 0x44, 0x2c, 0x0d]);
+                            let _ = master.write_all(hello_reply);
                             stage = Stage::Start;
                             window.clear();
                         }
                     }
                     Stage::Start => {
                         if b == b'A' {
-                            let _ = master.write_all(&[0x13, 0x41]);
+                            let _ = master.write_all(b"A");
                             stage = Stage::Upload(0);
                         }
                     }
@@ -155,23 +181,36 @@ fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
                             window.clear();
                             continue;
                         };
+                        // The homing-mode bit, read from the raw byte.
+                        let homing_bit = (window[13] - 0x41) & 0x1 != 0;
+                        assert_eq!(homing_bit, cmd.homing);
                         window.clear();
                         c2.fetch_add(1, Ordering::SeqCst);
                         *l2.lock().unwrap() = cmd.motor;
-                        if cmd.homing {
+                        if cmd.motor != [0; 3] {
+                            n2.fetch_add(1, Ordering::SeqCst);
+                        }
+                        if homing_bit {
                             homing_seen += 1;
-                            if homing_seen >= homing_ticks {
-                                homed = 0x7;
+                            h2.fetch_add(1, Ordering::SeqCst);
+                            for motor in 0..3u32 {
+                                if homing_seen * 3 >= homing_ticks * (motor + 1) {
+                                    homed |= 1 << motor;
+                                }
                             }
                         }
                         let p = falcon_position(delta.home_guess_m, t0.elapsed().as_secs_f64());
                         let q = delta.inverse(p).unwrap();
                         let counts = joints.counts(q).map(|c| c.round() as i16);
-                        let frame = fc::encode_status(&FalconStatus {
+                        let mut frame = fc::encode_status(&FalconStatus {
                             encoders: counts,
                             buttons: 0,
-                            homed,
+                            homed: 0,
                         });
+                        // Homed flags in bits 4..6 of byte 13, written by hand (not through
+                        // the codec under test); byte 14 is not read, so fill it with noise.
+                        frame[13] = 0x41 + (homed << 4);
+                        frame[14] = b'~';
                         match f2.swap(fault::NONE, Ordering::SeqCst) {
                             fault::GARBAGE => {
                                 let _ = master.write_all(b"\x00\xffnoise");
@@ -201,6 +240,8 @@ fn spawn_falcon(firmware_len: usize, homing_ticks: u32) -> Sim {
         fault,
         stop,
         commands,
+        homing_commands,
+        nonzero_commands,
         last_force,
         handle: Some(handle),
     }
@@ -305,6 +346,8 @@ fn spawn_cartesian(home_after: Duration) -> Sim {
         fault,
         stop,
         commands,
+        homing_commands: Arc::new(AtomicU64::new(0)),
+        nonzero_commands: Arc::new(AtomicU64::new(0)),
         last_force,
         handle: Some(handle),
     }
@@ -447,6 +490,118 @@ fn falcon_loads_firmware_homes_and_streams_at_1khz() {
         "a pushing force reaches the motors"
     );
     dev.close().unwrap();
+}
+
+#[test]
+fn falcon_homing_waits_for_the_homed_flags_of_all_three_motors() {
+    // Motors 1 and 2 report homed well before motor 3: open must keep asking for homing until
+    // the reply's byte 13 carries all three flags (bits 4, 5, 6).
+    let sim = spawn_falcon(0, 90);
+    let mut dev = Falcon::new(&sim.path, falcon_opts(None));
+    dev.open().expect("homing completes");
+    assert_eq!(dev.status().homed, 0x7);
+    let asked = sim.homing_commands.load(Ordering::SeqCst);
+    assert!(
+        asked >= 90,
+        "open returned after {asked} homing commands, before motor 3 was homed (90)"
+    );
+    // Once homed, commands stop asking for homing.
+    let before = sim.homing_commands.load(Ordering::SeqCst);
+    let (fresh, errors) = stream_until(&mut dev, 20, Vec3::ZERO);
+    assert!(fresh >= 20 && errors == 0, "{fresh} fresh, {errors} errors");
+    assert_eq!(sim.homing_commands.load(Ordering::SeqCst), before);
+    dev.close().unwrap();
+}
+
+#[test]
+fn falcon_firmware_loads_when_the_handshake_answer_comes_after_a_zero() {
+    let image: Vec<u8> = (0..200u32).map(|i| (i * 13 + 1) as u8).collect();
+    let dir = tempfile::tempdir().unwrap();
+    let fw = dir.path().join("falcon_firmware.bin");
+    std::fs::write(&fw, &image).unwrap();
+    let sim = spawn_falcon_answering(image.len(), 3, HELLO_REPLY_AFTER_ZERO);
+    let mut dev = Falcon::new(&sim.path, falcon_opts(Some(fw)));
+    dev.open()
+        .expect("firmware upload after a 00-prefixed handshake answer");
+    assert_eq!(dev.link_stats().firmware_attempts, 1);
+    dev.close().unwrap();
+}
+
+#[test]
+fn falcon_sets_the_ftdi_latency_timer_to_1_ms_or_says_why_not() {
+    use dynaclay_devices::ftdi_latency::{LatencyOutcome, LatencyUnset};
+    // A pseudo-terminal is not a USB-serial port: the outcome says so, and the arm still runs.
+    let sim = spawn_falcon(0, 3);
+    let mut dev = Falcon::new(&sim.path, falcon_opts(None));
+    dev.open().expect("open");
+    assert!(
+        matches!(
+            dev.latency_timer(),
+            LatencyOutcome::NotSet(LatencyUnset::NotUsbSerial { .. })
+        ),
+        "{}",
+        dev.latency_timer()
+    );
+    dev.close().unwrap();
+    // With a sysfs stand-in holding the pty's latency timer at 16 ms, open sets it to 1.
+    let sysfs = tempfile::tempdir().unwrap();
+    let name = std::path::Path::new(&sim.path)
+        .file_name()
+        .unwrap()
+        .to_owned();
+    let attr = sysfs.path().join(&name).join("latency_timer");
+    std::fs::create_dir_all(attr.parent().unwrap()).unwrap();
+    std::fs::write(&attr, "16\n").unwrap();
+    let mut dev = Falcon::new(
+        &sim.path,
+        FalconOptions {
+            usb_serial_sysfs: sysfs.path().to_path_buf(),
+            ..falcon_opts(None)
+        },
+    );
+    dev.open().expect("open");
+    assert!(
+        matches!(
+            dev.latency_timer(),
+            LatencyOutcome::Set {
+                was_ms: 16,
+                now_ms: 1,
+                ..
+            }
+        ),
+        "{}",
+        dev.latency_timer()
+    );
+    assert_eq!(std::fs::read_to_string(&attr).unwrap().trim(), "1");
+    dev.close().unwrap();
+}
+
+#[test]
+fn the_doctor_streams_a_falcon_on_a_pseudo_terminal_and_sends_only_zero_force() {
+    use dynaclay_devices::doctor::{self, DoctorConfig, WallClock};
+    let sim = spawn_falcon(0, 3);
+    let config = DoctorConfig {
+        duration_us: 200_000,
+        rate_hz: None,
+    };
+    let (report, falcon) = doctor::run(
+        Falcon::new(&sim.path, falcon_opts(None)),
+        config,
+        &mut WallClock::new(),
+    );
+    let report = report.expect("the stand-in Falcon opens");
+    // However fast this machine ran the loop: it ticked, every tick's command reached the
+    // firmware, and none of them moved a motor.
+    assert!(report.ticks > 0, "{report}");
+    assert!(report.reads_ok > 0, "{report}");
+    assert_eq!(report.force_errors, 0, "{report}");
+    assert!(
+        eventually(|| sim.commands.load(Ordering::SeqCst) >= report.ticks as u64),
+        "one command per tick at least: {report}"
+    );
+    assert_eq!(sim.nonzero_commands.load(Ordering::SeqCst), 0, "{report}");
+    assert!(!falcon.is_open(), "the doctor closes the port");
+    assert!(report.to_string().contains("Novint Falcon"), "{report}");
 }
 
 #[test]

@@ -20,6 +20,7 @@ use std::path::PathBuf;
 use std::sync::{Mutex, MutexGuard};
 
 use dynaclay_devices::dhd_arm::{DhdArm, DhdConfig};
+use dynaclay_devices::doctor::{self, DoctorConfig, TickClock};
 use dynaclay_devices::open::{DriverOptions, build_driver};
 use dynaclay_devices::openhaptics_arm::{OpenHapticsArm, OpenHapticsConfig};
 use dynaclay_devices::spec::DeviceSpec;
@@ -726,4 +727,76 @@ fn the_standin_is_accepted_as_either_library_and_a_wrong_library_is_refused() {
     let mut dhd = s.dhd(0);
     dhd.open().unwrap();
     assert!(touch.is_open() && dhd.is_open());
+}
+
+/// A clock that moves only when the doctor's loop waits: each wait jumps to its deadline, so
+/// the tick count and every period follow from the duration and rate alone, not from how fast
+/// this machine runs.
+struct SteppedClock {
+    now_us: u64,
+}
+
+impl TickClock for SteppedClock {
+    fn now_us(&mut self) -> u64 {
+        self.now_us
+    }
+
+    fn wait_until_us(&mut self, t_us: u64) {
+        self.now_us = self.now_us.max(t_us);
+    }
+}
+
+#[test]
+fn the_doctor_reads_a_dhd_arm_once_per_tick_and_commands_only_zero_force() {
+    let s = Standin::new();
+    s.dhd_motion([0.0; 3], [1.0e-5, 0.0, 0.0]);
+    let config = DoctorConfig {
+        duration_us: 2_000_000,
+        rate_hz: Some(1000.0),
+    };
+    let (report, _arm) = doctor::run(s.dhd(0), config, &mut SteppedClock { now_us: 0 });
+    let report = report.expect("the stand-in opens");
+    let calls = s.dhd_calls();
+    assert_eq!(report.ticks, 2000);
+    assert_eq!((report.reads_ok, report.read_errors), (2000, 0));
+    assert_eq!(
+        report.fresh_samples, 2000,
+        "every DHD read is a fresh exchange"
+    );
+    assert_eq!(calls.position_reads, 2000, "one dhdGetPosition per tick");
+    assert_eq!(
+        calls.set_force_calls,
+        1 + 2000 + 1,
+        "zero at open, one zero command per tick, zero at close"
+    );
+    assert_eq!(
+        calls.nonzero_forces_output, 0,
+        "nothing but zero reached the arm"
+    );
+    assert_eq!(calls.last_force_n, [0.0; 3]);
+    assert_eq!(calls.open_devices, 0, "the doctor closes the arm");
+    let periods = report.read_periods.expect("2000 reads give periods");
+    assert_eq!((periods.p50_us, periods.max_us), (1000, 1000));
+    assert!((periods.rate_hz - 1000.0).abs() < 1e-9, "{periods}");
+    let text = report.to_string();
+    assert!(
+        text.contains("2000 ok") && text.contains("1000.0 Hz"),
+        "{text}"
+    );
+}
+
+#[test]
+fn the_doctor_reports_an_arm_that_does_not_open_and_runs_no_loop() {
+    let s = Standin::new();
+    s.dhd_devices(1, 33);
+    let (report, _arm) = doctor::run(
+        s.dhd(3),
+        DoctorConfig::default(),
+        &mut SteppedClock { now_us: 0 },
+    );
+    assert!(
+        matches!(report, Err(DeviceError::NotFound { .. })),
+        "{report:?}"
+    );
+    assert_eq!(s.dhd_calls().position_reads, 0);
 }

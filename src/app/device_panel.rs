@@ -216,9 +216,12 @@ impl DevicePanel {
             {
                 action = Some(DeviceAction::Disconnect);
             }
-            // Enumeration reads sysfs: only on request, never per frame.
+            // Enumeration reads sysfs and /proc and loads the vendor libraries: only on
+            // request, never per frame.
             if ui.button("Scan").clicked() {
-                self.scanned = Some(enumerate::list_all());
+                let (mut found, notes) = enumerate::list_all();
+                enumerate::diagnose_libraries(&mut found, &enumerate::vendor_libraries());
+                self.scanned = Some((found, notes));
             }
         });
         if let Some((found, notes)) = &self.scanned {
@@ -228,7 +231,12 @@ impl DevicePanel {
             }
             for d in found {
                 let name = d.product.as_deref().unwrap_or("unknown");
-                let text = format!("{} {} {}", d.path, name, access_note(d.access));
+                let mut text = format!("{} {} {}", d.path, name, access_note(d.access));
+                for p in &d.problems {
+                    if *p != enumerate::Problem::PermissionDenied {
+                        text.push_str(&format!(" (cannot open: {p})"));
+                    }
+                }
                 match &d.spec {
                     Some(spec) => {
                         if ui.link(format!("{text} → {spec}")).clicked() {

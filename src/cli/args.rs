@@ -25,8 +25,11 @@ pub enum Commands {
     /// the probe side by side and a readiness verdict for 1 kHz and 4 kHz; or compare two
     /// `latency.json` files.
     Profile(ProfileArgs),
-    /// List connected haptic devices (HID and serial) and permission problems.
-    Devices,
+    /// List connected haptic devices (every supported arm and SpaceMouse by USB ID, HID devices
+    /// and serial ports) and why each cannot be opened; or run a zero-force read loop on one
+    /// (`--doctor SPEC`) and report its rate and jitter.
+    #[command(after_help = DEVICES_AFTER_HELP)]
+    Devices(DevicesArgs),
     /// Render a session file to a PNG image, offscreen.
     #[command(after_help = RENDER_AFTER_HELP)]
     Render(RenderArgs),
@@ -42,6 +45,46 @@ pub enum Commands {
     /// Sample a session's clay with constrained particles and write the compact RBF that
     /// interpolates them (Zhang et al. §5.3): centres, weights and a linear polynomial.
     Rbf(RbfArgs),
+}
+
+/// `dynaclay devices`.
+#[derive(Debug, Args, Clone)]
+pub struct DevicesArgs {
+    /// Open the device SPEC names (a --device spec: sim, falcon:PATH, touch, dhd[:N],
+    /// hid[:PROFILE], serial:PATH[:PROFILE], spacemouse), run a zero-force read loop on it and
+    /// report the rate achieved and the percentiles of its period.
+    #[arg(long, value_name = "SPEC")]
+    pub doctor: Option<String>,
+    /// How long the doctor's loop runs, seconds.
+    #[arg(long, value_name = "N", default_value_t = 2.0, value_parser = parse_doctor_seconds,
+          requires = "doctor")]
+    pub seconds: f64,
+    /// The Novint Falcon firmware file, uploaded when no firmware answers (never guessed;
+    /// overrides DYNACLAY_FALCON_FIRMWARE and a profile's `firmware`).
+    #[arg(long, value_name = "FILE")]
+    pub falcon_firmware: Option<PathBuf>,
+    /// Print the udev rules that let this user open every supported device, and exit.
+    #[arg(long, conflicts_with = "doctor")]
+    pub udev_rules: bool,
+}
+
+const DEVICES_AFTER_HELP: &str = "\
+Examples:
+  dynaclay devices                               what is plugged in, and what stops it opening
+  dynaclay devices --udev-rules | sudo tee /etc/udev/rules.d/70-dynaclay.rules
+  dynaclay devices --doctor falcon:/dev/ttyUSB0 --falcon-firmware novint.bin
+  dynaclay devices --doctor sim --seconds 1";
+
+/// The doctor's duration: 0.05 to 60 seconds.
+fn parse_doctor_seconds(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    if v.is_finite() && (0.05..=60.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{s} is out of range: give 0.05 ≤ N ≤ 60 seconds"))
+    }
 }
 
 /// `dynaclay rbf`.
@@ -269,6 +312,10 @@ pub struct RunArgs {
     /// Record the device session (every read and force) to FILE, for `--device replay:FILE`.
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
+    /// The Novint Falcon firmware file, uploaded when no firmware answers (never guessed;
+    /// overrides DYNACLAY_FALCON_FIRMWARE and a profile's `firmware`).
+    #[arg(long, value_name = "FILE")]
+    pub falcon_firmware: Option<PathBuf>,
     /// Also write DIR/sculpt.ply.
     #[arg(long)]
     pub ply: bool,

@@ -32,7 +32,8 @@ mod run;
 mod sculpt;
 
 pub use args::{
-    Cli, Commands, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs, ShadingMode,
+    Cli, Commands, DevicesArgs, ImageArgs, PointsArgs, ProfileArgs, RbfArgs, RenderArgs, RunArgs,
+    ShadingMode,
 };
 pub use error::CliError;
 pub use outputs::{ExtraOutputs, RunOutputs, write_lockstep_outputs, write_outputs};
@@ -50,7 +51,7 @@ pub fn dispatch(cli: Cli) -> i32 {
     let result = match cli.command {
         Commands::Run(a) => run(&a).map(|_| ()),
         Commands::Profile(a) => profile(&a),
-        Commands::Devices => devices::list(),
+        Commands::Devices(a) => devices::devices(&a),
         Commands::Gui(a) => crate::app::gui_main(&a.rest).map_err(|e| match e {
             crate::app::LaunchError::Usage(_) => CliError::bad_input("gui", e),
             crate::app::LaunchError::Device(_) | crate::app::LaunchError::Start { .. } => {

@@ -148,11 +148,12 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             return Ok(outputs);
         }
         hw => {
-            let d = dynaclay_devices::open::build_driver(
-                hw,
-                &dynaclay_devices::open::DriverOptions::from_env(),
-            )
-            .map_err(|e| CliError::device(args.device.clone(), e))?;
+            let mut options = dynaclay_devices::open::DriverOptions::from_env();
+            if let Some(file) = &args.falcon_firmware {
+                options.falcon.firmware = Some(file.clone());
+            }
+            let d = dynaclay_devices::open::build_driver(hw, &options)
+                .map_err(|e| CliError::device(args.device.clone(), e))?;
             let info = d.info();
             (d, info)
         }

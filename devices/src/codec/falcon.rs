@@ -7,12 +7,14 @@
 //! | frame bytes | host → device | device → host |
 //! | --- | --- | --- |
 //! | 1..5, 5..9, 9..13 | motor commands 1, 2, 3 | encoder counts 1, 2, 3 |
-//! | 13 | LED bits (green 0x2, blue 0x4, red 0x8) OR homing-mode bit 0x1 | grip button bits |
-//! | 14 | reserved, 0 | homed flags (motor 1 = 0x1, 2 = 0x2, 3 = 0x4) |
+//! | 13 | LED bits (green 0x2, blue 0x4, red 0x8) OR homing-mode bit 0x1 | grip buttons (bits 0..3) OR homed flags (bits 4..6) |
+//! | 14 | 0 | unused (not read) |
 //!
-//! The layout follows libnifalcon's reading of the Novint firmware; where libnifalcon is unsure
-//! (which byte carries the homed flags) `devices/PROTOCOL.md` says what we chose. The USB link is
-//! an FTDI bridge at [`STREAM_BAUD`]; firmware is loaded at [`FIRMWARE_BAUD`] (see
+//! The layout is libnifalcon's reverse-engineered reading of the Novint SDK firmware
+//! (`FalconFirmwareNovintSDK`: the reply's byte 13 minus 0x41 carries the grip bits in its low
+//! nibble and the homed flags of motors 1, 2, 3 as bits 4, 5, 6, so that one byte ranges
+//! `0x41..=0xC0`; byte 14 of a reply is not read). The USB link is an FTDI bridge at
+//! [`STREAM_BAUD`]; firmware is loaded at [`FIRMWARE_BAUD`] (see
 //! [`crate::falcon`]). Nothing here allocates.
 
 use super::CodecError;
@@ -31,6 +33,10 @@ pub const START: u8 = b'<';
 pub const END: u8 = b'>';
 /// Offset added to each payload nibble.
 pub const NIBBLE_BASE: u8 = 0x41;
+/// Shift of the homed flags in a reply's byte 13 (after removing [`NIBBLE_BASE`]).
+pub const HOMED_SHIFT: u32 = 4;
+/// Frame offset of the byte carrying LEDs and homing (commands) or grip and homed (replies).
+pub const STATUS_BYTE: usize = 13;
 
 /// Homing-mode bit in command byte 13.
 pub const HOMING_MODE: u8 = 0x1;
@@ -61,7 +67,7 @@ pub struct FalconStatus {
     pub encoders: [i16; 3],
     /// Grip button bits (low nibble).
     pub buttons: u8,
-    /// Homed flags, bit i set once motor i+1 has been homed.
+    /// Homed flags, bit i set once motor i+1 has been homed (reply byte 13, bits 4..6).
     pub homed: u8,
 }
 
@@ -80,20 +86,29 @@ fn put_word(frame: &mut [u8; FRAME_LEN], at: usize, w: i16) {
     }
 }
 
-fn frame_with(words: [i16; 3], b13: u8, b14: u8) -> [u8; FRAME_LEN] {
+/// A frame with three words, `b13` (up to 0x7f) in byte 13 and 0 in byte 14.
+fn frame_with(words: [i16; 3], b13: u8) -> [u8; FRAME_LEN] {
     let mut f = [0u8; FRAME_LEN];
     f[0] = START;
     f[FRAME_LEN - 1] = END;
     for (i, w) in words.iter().enumerate() {
         put_word(&mut f, 1 + 4 * i, *w);
     }
-    f[13] = (b13 & 0xf) + NIBBLE_BASE;
-    f[14] = (b14 & 0xf) + NIBBLE_BASE;
+    f[STATUS_BYTE] = (b13 & 0x7f) + NIBBLE_BASE;
+    f[14] = NIBBLE_BASE;
     f
 }
 
-/// Checks framing and nibble range; returns the 14 nibbles.
-fn nibbles(frame: &[u8]) -> Result<[u8; 14], CodecError> {
+/// Which way a frame travels: replies carry a wider byte 13 and an unread byte 14.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Direction {
+    Command,
+    Reply,
+}
+
+/// Checks framing and payload ranges; returns the 14 payload values (byte minus 0x41; a
+/// reply's byte 13 up to 0x7f, its byte 14 always 0).
+fn payload(frame: &[u8], direction: Direction) -> Result<[u8; 14], CodecError> {
     if frame.len() < FRAME_LEN {
         return Err(CodecError::TooShort {
             what: WHAT,
@@ -126,12 +141,18 @@ fn nibbles(frame: &[u8]) -> Result<[u8; 14], CodecError> {
     }
     let mut n = [0u8; 14];
     for (i, slot) in n.iter_mut().enumerate() {
-        let b = frame[1 + i];
-        if !(NIBBLE_BASE..NIBBLE_BASE + 16).contains(&b) {
+        let offset = 1 + i;
+        let b = frame[offset];
+        let (span, field) = match (direction, offset) {
+            (Direction::Reply, STATUS_BYTE) => (0x80, "grip and homed byte (0x41..=0xC0)"),
+            (Direction::Reply, 14) => continue,
+            _ => (16, "payload nibble ('A'..='P')"),
+        };
+        if !(NIBBLE_BASE..NIBBLE_BASE + span).contains(&b) {
             return Err(CodecError::BadByte {
                 what: WHAT,
-                field: "payload nibble ('A'..='P')",
-                offset: 1 + i,
+                field,
+                offset,
                 value: b,
             });
         }
@@ -152,7 +173,7 @@ fn word(n: &[u8; 14], first: usize) -> i16 {
 #[must_use]
 pub fn encode_command(cmd: &FalconCommand) -> [u8; FRAME_LEN] {
     let b13 = (cmd.leds & (LED_GREEN | LED_BLUE | LED_RED)) | u8::from(cmd.homing);
-    frame_with(cmd.motor, b13, 0)
+    frame_with(cmd.motor, b13)
 }
 
 /// Decodes a host → device frame (what simulated firmware reads).
@@ -160,7 +181,7 @@ pub fn encode_command(cmd: &FalconCommand) -> [u8; FRAME_LEN] {
 /// # Errors
 /// [`CodecError`] naming the offset of a bad start, end or payload byte, or a wrong length.
 pub fn decode_command(frame: &[u8]) -> Result<FalconCommand, CodecError> {
-    let n = nibbles(frame)?;
+    let n = payload(frame, Direction::Command)?;
     Ok(FalconCommand {
         motor: [word(&n, 0), word(&n, 4), word(&n, 8)],
         leds: n[12] & (LED_GREEN | LED_BLUE | LED_RED),
@@ -171,7 +192,10 @@ pub fn decode_command(frame: &[u8]) -> Result<FalconCommand, CodecError> {
 /// Encodes a device → host frame (what simulated firmware sends).
 #[must_use]
 pub fn encode_status(status: &FalconStatus) -> [u8; FRAME_LEN] {
-    frame_with(status.encoders, status.buttons, status.homed & 0x7)
+    frame_with(
+        status.encoders,
+        (status.buttons & 0xf) | ((status.homed & 0x7) << HOMED_SHIFT),
+    )
 }
 
 /// Decodes a device → host frame.
@@ -179,11 +203,11 @@ pub fn encode_status(status: &FalconStatus) -> [u8; FRAME_LEN] {
 /// # Errors
 /// [`CodecError`] naming the offset of a bad start, end or payload byte, or a wrong length.
 pub fn decode_status(frame: &[u8]) -> Result<FalconStatus, CodecError> {
-    let n = nibbles(frame)?;
+    let n = payload(frame, Direction::Reply)?;
     Ok(FalconStatus {
         encoders: [word(&n, 0), word(&n, 4), word(&n, 8)],
-        buttons: n[12],
-        homed: n[13] & 0x7,
+        buttons: n[12] & 0xf,
+        homed: (n[12] >> HOMED_SHIFT) & 0x7,
     })
 }
 
@@ -276,6 +300,29 @@ mod tests {
     }
 
     #[test]
+    fn reply_byte_13_carries_grip_bits_low_and_homed_flags_in_bits_4_to_6() {
+        // libnifalcon: homing status = ((byte13 - 0x41) >> 4) & 7, grip = (byte13 - 0x41) & 0xf.
+        let mut f = encode_status(&FalconStatus::default());
+        f[13] = 0x41 + 0x70 + 0x5; // all three homed, grip buttons 0b0101
+        f[14] = b'z'; // not read
+        let s = decode_status(&f).unwrap();
+        assert_eq!(s.homed, 0x7);
+        assert_eq!(s.buttons, 0x5);
+        assert!(s.all_homed());
+        f[13] = 0x41 + 0x30; // motors 1 and 2 homed, no button
+        let s = decode_status(&f).unwrap();
+        assert_eq!((s.homed, s.buttons), (0x3, 0));
+        assert!(!s.all_homed());
+        let e = encode_status(&FalconStatus {
+            encoders: [0; 3],
+            buttons: 0x2,
+            homed: 0x4,
+        });
+        assert_eq!(e[13], 0x41 + 0x40 + 0x2);
+        assert_eq!(e[14], b'A');
+    }
+
+    #[test]
     fn frames_round_trip() {
         let c = FalconCommand {
             motor: [i16::MIN, 77, i16::MAX],
@@ -304,6 +351,25 @@ mod tests {
                 ..
             })
         ));
+        let mut f = encode_status(&FalconStatus::default());
+        f[13] = 0xC1;
+        assert!(matches!(
+            decode_status(&f),
+            Err(CodecError::BadByte {
+                offset: 13,
+                value: 0xC1,
+                ..
+            })
+        ));
+        let mut f = encode_command(&FalconCommand::default());
+        f[13] = b'Q';
+        assert!(
+            matches!(
+                decode_command(&f),
+                Err(CodecError::BadByte { offset: 13, .. })
+            ),
+            "a command's byte 13 is a nibble"
+        );
         let mut f = encode_status(&FalconStatus::default());
         f[15] = b'A';
         assert!(matches!(
