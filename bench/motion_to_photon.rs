@@ -65,6 +65,8 @@ struct Args {
     /// The render profile (`Auto`: as the window chooses, including what
     /// [`RENDER_PROFILE_ENV`](dynaclay::render::RENDER_PROFILE_ENV) forces).
     profile: ProfileRequest,
+    /// Whether `--profile` set [`Self::profile`] (rather than the environment).
+    profile_flag: bool,
     /// Samples per pixel (`None`: the profile's).
     msaa: Option<u32>,
     /// The graphics loop's rate (`None`: the engine's default).
@@ -78,6 +80,7 @@ fn parse_args() -> Args {
         display_hz: 60.0,
         size: None,
         profile: ProfileRequest::from_env().unwrap_or_else(|e| panic!("{e}")),
+        profile_flag: false,
         msaa: None,
         graphics_hz: None,
         out: PathBuf::from("target/tmp/motion_to_photon"),
@@ -97,6 +100,7 @@ fn parse_args() -> Args {
             "--profile" => {
                 let value = it.next().unwrap_or_default();
                 args.profile = value.parse().unwrap_or_else(|e| panic!("--profile: {e}"));
+                args.profile_flag = true;
             }
             "--graphics-hz" => {
                 args.graphics_hz = it
@@ -187,7 +191,16 @@ fn main() {
         }
     );
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
-    println!("{choice}");
+    if args.profile_flag {
+        println!(
+            "render profile {} forced by --profile on {}: {}",
+            choice.profile.name(),
+            choice.adapter_name,
+            choice.short()
+        );
+    } else {
+        println!("{choice}");
+    }
     println!(
         "adapter: {}; {frame_words}; {settings:?}; display {} Hz; graphics loop {}; load average {}",
         gpu.summary,
