@@ -2,9 +2,16 @@
 //! clay, played by the simulated arm through the threaded engine (haptic, simulation and
 //! graphics loops at their default rates), the window's mesh sink ([`GuiMeshSink`]) and the
 //! window's scene renderer drawing offscreen on whatever adapter [`GpuContext::headless`]
-//! finds (lavapipe without a GPU). A frame is drawn as the window draws one: when the sink asks
-//! for a repaint, no sooner than the display's next refresh (`--display-hz`, 60 by default;
-//! 0 draws at once). Its time is taken once the GPU finished it.
+//! finds (lavapipe without a GPU).
+//!
+//! The renderer is built as the window builds its 3D view's: with the render profile
+//! [`ProfileChoice`] picks for that adapter (on a software adapter one sample, vertex-lit,
+//! back faces culled; [`RENDER_PROFILE_ENV`](dynaclay::render::RENDER_PROFILE_ENV) forces
+//! one, as in the window), at the size of the 3D view in the window's default layout (the app
+//! laid out once, without a GPU, in a window of [`GuiOptions`]' default size at one pixel per
+//! point). A frame is drawn as the window draws one: when the sink asks for a repaint, no
+//! sooner than the display's next refresh (`--display-hz`, 60 by default; 0 draws at once).
+//! Its time is taken once the GPU finished it.
 //!
 //! Reports per stroke hand → force (haptic ticks), hand → first visible change and hand →
 //! settled shape (ms), as percentiles over the runs (one fresh engine and clay per run, so
@@ -15,12 +22,13 @@
 //! Prints "skipped: no GPU adapter" and exits cleanly when there is none.
 //!
 //! ```text
-//! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--size 1280x720]
-//!     [--msaa N] [--graphics-hz HZ] [--out DIR]
+//! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--profile P]
+//!     [--size WxH] [--msaa N] [--graphics-hz HZ] [--out DIR]
 //! ```
 //!
-//! `--size` and `--msaa` (1, or at most what the adapter supports; the window takes the
-//! most) show what the frame's own cost does to the figures; `--graphics-hz` what the
+//! `--profile` (`full`, `software` or `auto`) forces a render profile; `--size` replaces the
+//! view's size and `--msaa` the profile's sample count (at most what the adapter supports):
+//! they show what the frame's own cost does to the figures. `--graphics-hz` shows what the
 //! graphics loop's period does.
 //!
 //! Optimistic where the window is not: no egui compositing or presentation after the scene is
@@ -30,20 +38,17 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use crossbeam::channel::bounded;
-use dynaclay::app::{GuiMeshSink, MeshSet, RepaintSignal};
+use dynaclay::app::{GuiMeshSink, GuiOptions, MeshSet, RepaintSignal, SculptApp, engine_link};
 use dynaclay::engine::{
     Engine, EngineConfig, MotionToPhoton, ScriptDriver, ScriptPlan, StrokeLatency, build_clay,
     summarize,
 };
 use dynaclay::render::{
-    Camera, GpuContext, MeshChunk, NamedView, OFFSCREEN_FORMAT, SceneOptions, SceneRenderer,
-    supported_sample_count,
+    Camera, FrameSettings, GpuContext, MeshChunk, NamedView, OFFSCREEN_FORMAT, ProfileChoice,
+    ProfileRequest, SceneOptions, SceneRenderer, supported_sample_count,
 };
 use dynaclay_devices::{SimArmConfig, SimulatedArm};
 use dynaclay_loops::{ProfileDoc, Spread, motion_table, snapshot_channel};
-
-/// The offscreen frame's size: about a window's 3D view.
-const FRAME_SIZE: (u32, u32) = (1280, 720);
 
 /// How often the driver looks at the tool while waiting for a repaint (as `dynaclay run` does).
 const DISPATCH_PERIOD: Duration = Duration::from_millis(2);
@@ -55,8 +60,14 @@ const SETTLE_WAIT: Duration = Duration::from_secs(5);
 struct Args {
     runs: usize,
     display_hz: f64,
-    size: (u32, u32),
-    /// Multisampling asked for (`None`: the window's choice, the most the adapter supports).
+    /// The view's size (`None`: the window's default 3D view).
+    size: Option<(u32, u32)>,
+    /// The render profile (`Auto`: as the window chooses, including what
+    /// [`RENDER_PROFILE_ENV`](dynaclay::render::RENDER_PROFILE_ENV) forces).
+    profile: ProfileRequest,
+    /// Whether `--profile` set [`Self::profile`] (rather than the environment).
+    profile_flag: bool,
+    /// Samples per pixel (`None`: the profile's).
     msaa: Option<u32>,
     /// The graphics loop's rate (`None`: the engine's default).
     graphics_hz: Option<f64>,
@@ -67,7 +78,9 @@ fn parse_args() -> Args {
     let mut args = Args {
         runs: 12,
         display_hz: 60.0,
-        size: FRAME_SIZE,
+        size: None,
+        profile: ProfileRequest::from_env().unwrap_or_else(|e| panic!("{e}")),
+        profile_flag: false,
         msaa: None,
         graphics_hz: None,
         out: PathBuf::from("target/tmp/motion_to_photon"),
@@ -84,6 +97,11 @@ fn parse_args() -> Args {
             }
             "--out" => args.out = it.next().map_or(args.out, PathBuf::from),
             "--msaa" => args.msaa = it.next().and_then(|v| v.parse().ok()),
+            "--profile" => {
+                let value = it.next().unwrap_or_default();
+                args.profile = value.parse().unwrap_or_else(|e| panic!("--profile: {e}"));
+                args.profile_flag = true;
+            }
             "--graphics-hz" => {
                 args.graphics_hz = it
                     .next()
@@ -98,7 +116,7 @@ fn parse_args() -> Args {
                     .filter_map(|v| v.parse().ok())
                     .collect();
                 if let [w, h] = wh[..] {
-                    args.size = (w.max(1), h.max(1));
+                    args.size = Some((w.max(1), h.max(1)));
                 }
             }
             // cargo bench passes --bench; criterion-style flags are not ours.
@@ -107,6 +125,31 @@ fn parse_args() -> Args {
     }
     args.runs = args.runs.max(1);
     args
+}
+
+/// The 3D view's size in pixels when the window opens at its default size: the app laid out
+/// once (without a GPU, at one pixel per point) and its view's rectangle read back.
+fn default_view_size() -> (u32, u32) {
+    let [w, h] = GuiOptions::default().window_size_pt;
+    let (link, _end) = engine_link();
+    let mut app = SculptApp::new(link);
+    let ctx = egui::Context::default();
+    // The second pass lays out with the sizes the first measured, as a window's frames do.
+    for _ in 0..2 {
+        let input = egui::RawInput {
+            screen_rect: Some(egui::Rect::from_min_size(
+                egui::Pos2::ZERO,
+                egui::vec2(w, h),
+            )),
+            ..Default::default()
+        };
+        let _ = ctx.run_ui(input, |ui| app.show(ui, None));
+    }
+    let view = app.viewport_rect.expect("the app laid out its 3D view");
+    (
+        (view.width().round() as u32).max(1),
+        (view.height().round() as u32).max(1),
+    )
 }
 
 /// One run's strokes and frames.
@@ -127,13 +170,40 @@ fn main() {
         Err(e) => panic!("{e}"),
     };
     let supported = supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT);
-    let samples = args.msaa.map_or(supported, |m| m.clamp(1, supported));
+    let choice = ProfileChoice::for_adapter(&gpu.adapter, OFFSCREEN_FORMAT, args.profile);
+    let settings = FrameSettings {
+        sample_count: args
+            .msaa
+            .map_or(choice.settings.sample_count, |m| m.clamp(1, supported)),
+        ..choice.settings
+    };
+    let size = args.size.unwrap_or_else(default_view_size);
+    let frame_words = format!(
+        "{}x{} {} profile, MSAA {}x{}",
+        size.0,
+        size.1,
+        choice.profile.name(),
+        settings.sample_count,
+        if args.msaa.is_some() || args.size.is_some() {
+            " (overridden)"
+        } else {
+            ""
+        }
+    );
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    if args.profile_flag {
+        println!(
+            "render profile {} forced by --profile on {}: {}",
+            choice.profile.name(),
+            choice.adapter_name,
+            choice.short()
+        );
+    } else {
+        println!("{choice}");
+    }
     println!(
-        "adapter: {}; {}x{} MSAA {samples}x; display {} Hz; graphics loop {}; load average {}",
+        "adapter: {}; {frame_words}; {settings:?}; display {} Hz; graphics loop {}; load average {}",
         gpu.summary,
-        args.size.0,
-        args.size.1,
         args.display_hz,
         args.graphics_hz.map_or_else(
             || "at its default rate".to_string(),
@@ -148,7 +218,7 @@ fn main() {
     let mut strokes = Vec::new();
     let mut frame_ms = Vec::new();
     for run in 0..args.runs {
-        let figures = one_run(&gpu, samples, &plan, &args);
+        let figures = one_run(&gpu, settings, size, &plan, &args);
         let first = figures
             .strokes
             .iter()
@@ -175,8 +245,8 @@ fn main() {
         frame_ms.extend(figures.frame_ms);
     }
     let presenter = format!(
-        "offscreen scene renderer on {}, {}x{} MSAA {samples}x ({} Hz display)",
-        gpu.summary, args.size.0, args.size.1, args.display_hz
+        "offscreen scene renderer on {}, {frame_words} ({} Hz display)",
+        gpu.summary, args.display_hz
     );
     let summary = summarize(&strokes, &presenter);
     let frames = Spread::of(&frame_ms);
@@ -200,8 +270,14 @@ fn main() {
 
 /// One fresh engine on the default clay playing the built-in stroke, its meshes drawn as the
 /// window draws them.
-fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, args: &Args) -> RunFigures {
-    let (display_hz, size) = (args.display_hz, args.size);
+fn one_run(
+    gpu: &GpuContext,
+    settings: FrameSettings,
+    size: (u32, u32),
+    plan: &ScriptPlan,
+    args: &Args,
+) -> RunFigures {
+    let display_hz = args.display_hz;
     let field = build_clay(&plan.clay).expect("the built-in clay");
     let (lo, hi) = {
         let b = &field;
@@ -236,7 +312,8 @@ fn one_run(gpu: &GpuContext, samples: u32, plan: &ScriptPlan, args: &Args) -> Ru
     let clock = engine.clock();
 
     let (device, queue) = (&gpu.device, &gpu.queue);
-    let mut renderer = SceneRenderer::new(device, queue, OFFSCREEN_FORMAT, samples, size.0, size.1);
+    let mut renderer =
+        SceneRenderer::with_settings(device, queue, OFFSCREEN_FORMAT, settings, size.0, size.1);
     let camera = Camera::named(NamedView::Iso, lo, hi);
     let options = SceneOptions::default();
     let refresh = (display_hz > 0.0).then(|| Duration::from_secs_f64(1.0 / display_hz));
