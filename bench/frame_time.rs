@@ -5,7 +5,8 @@
 //! built on that adapter, so its 3D view renders through the same `SceneView`, renderer,
 //! pipelines and shaders as `dynaclay gui`, with the render profile the window would choose
 //! (and, for comparison, the full profile forced); then egui's own pass draws the whole window
-//! into a 1400×900 texture (the window's default size), which is copied out and mapped. A
+//! into a 1400×900 texture (the window's default size), cleared first to the app's clear colour
+//! as eframe clears the window, which is copied out and mapped. A
 //! frame is timed from the start of the app's update until the mapped image is back on the
 //! CPU, and the camera orbits by 2° before each frame, so every frame re-renders the scene (as
 //! when orbiting). Every timed image is checked: the view must show clay-coloured pixels.
