@@ -172,11 +172,24 @@ fn full_extraction(c: &mut Criterion) {
                     black_box(out.triangles.len())
                 })
             });
+            // A new tree each time (every brick's buffers allocated, the tree dropped), welded
+            // into a kept mesh: the tree's own cost, without the first touch of a new mesh's
+            // pages that `dynaclay/welded` also pays.
+            group.bench_function(BenchmarkId::new("dynaclay/fresh_tree_kept_mesh", n), |b| {
+                let mut out = TriMesh::default();
+                let mut scratch = WeldScratch::default();
+                b.iter(|| {
+                    BrickOctree::build(grid, &field).weld_into(&mut out, &mut scratch);
+                    black_box(out.triangles.len())
+                })
+            });
             group.bench_function(BenchmarkId::new("dynaclay/bricks_2_threads", n), |b| {
                 b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2)))
             });
             group.bench_function(BenchmarkId::new("dynaclay/welded_2_threads", n), |b| {
-                b.iter(|| black_box(BrickOctree::build_with_threads(grid, &field, 2).weld()))
+                b.iter(|| {
+                    black_box(BrickOctree::build_with_threads(grid, &field, 2).weld_with_threads(2))
+                })
             });
             if let Shape3::Sphere = shape {
                 let culled = FnField {
@@ -304,8 +317,9 @@ fn sphere_lattice(n: usize, radius_spans: f32) -> BSplineLattice {
 }
 
 /// One thread against two in the same run: a kept tree rebuilt (the bricks) and then
-/// welded into a kept mesh (the weld runs on one thread either way), sphere and gyroid at
-/// 256³. On a machine with fewer than two idle cores the ratio says nothing.
+/// welded into a kept mesh on as many threads (one thread: the one-pass weld; two: the
+/// two-pass weld over runs of bricks), sphere and gyroid at 256³. On a machine with fewer
+/// than two idle cores the ratio says nothing.
 fn threads(c: &mut Criterion) {
     let n = 256u32;
     let grid = SampleGrid::new(Vec3::ZERO, 1.0 / n as f32, [n; 3]).unwrap();
@@ -328,7 +342,7 @@ fn threads(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new("rebuild_and_weld", threads), |b| {
                 b.iter(|| {
                     tree.rebuild_with_threads(&field, threads);
-                    tree.weld_into(&mut out, &mut scratch);
+                    tree.weld_into_with_threads(&mut out, &mut scratch, threads);
                     black_box(out.triangles.len())
                 })
             });
@@ -420,12 +434,11 @@ fn memory_child() {
     );
     println!(
         "  child: peak RSS {:.1} MB before the build (lattice and binary), {:.1} MB after it; \
-         the octree's own estimate {:.1} MB (samples {} B + meshes {} B + structure {} B); \
+         the octree's own estimate {:.1} MB (meshes {} B + structure {} B); \
          one-shot build {seconds:.2} s",
         peak_before as f64 / 1e6,
         peak_after_build as f64 / 1e6,
         m.total_bytes() as f64 / 1e6,
-        m.sample_bytes,
         m.mesh_bytes,
         m.structure_bytes,
     );

@@ -1,11 +1,12 @@
 //! Profiling harness for extraction (not a criterion bench): `profile_mesh SHAPE N THREADS
 //! REPS` builds the `N³` sphere or gyroid of `bench/mesh.rs` (the same closures, no Lipschitz
-//! bound) REPS times and prints the best time of the build, of the weld, and of sampling the
-//! closure alone at every grid point (the least any extractor of these samples pays), with
-//! the mesh's counts; then the same extraction into kept buffers (a rebuild of a kept tree
+//! bound) REPS times on THREADS threads (the build and the weld) and prints the best time of
+//! the build, of the weld, and of sampling the closure alone at every grid point (the least
+//! any extractor of these samples pays), with the mesh's counts; then the same extraction into kept buffers (a rebuild of a kept tree
 //! and a weld into a kept mesh), as fast-surface-nets runs with its kept buffer. Meant for
 //! `perf record` and quick same-session comparisons (`PROFILE_KEPT_ONLY=1` times only the
-//! kept rebuild and weld, for a profile of them alone):
+//! kept rebuild and weld, for a profile of them alone; `PROFILE_FRESH_ONLY=1` only a new
+//! tree built and welded, into a new mesh and into a kept one):
 //! `cargo build --release --bench profile_mesh`, then
 //! `perf record target/release/deps/profile_mesh-* gyroid 128 1 20`.
 use std::hint::black_box;
@@ -82,8 +83,35 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         iso: 0.0,
         lipschitz: None,
     };
+    if std::env::var_os("PROFILE_FRESH_ONLY").is_some() {
+        let fresh = best(reps, || {
+            black_box(
+                BrickOctree::build_with_threads(grid, &field, threads).weld_with_threads(threads),
+            );
+        });
+        let (mut out, mut scratch) = (TriMesh::default(), WeldScratch::default());
+        let kept_mesh = best(reps, || {
+            BrickOctree::build_with_threads(grid, &field, threads).weld_into_with_threads(
+                &mut out,
+                &mut scratch,
+                threads,
+            );
+            black_box(out.triangles.len());
+        });
+        println!(
+            "{name} {n}^3, {threads} thread(s), fresh tree, build + weld, wall / CPU: {:.2} / \
+             {:.2} ms; welded into a kept mesh {:.2} / {:.2} ms",
+            fresh.0, fresh.1, kept_mesh.0, kept_mesh.1
+        );
+        return;
+    }
     let mut tree = BrickOctree::build_with_threads(grid, &field, threads);
     let mesh = tree.weld();
+    assert_eq!(
+        tree.weld_with_threads(threads),
+        mesh,
+        "the same mesh on any thread count"
+    );
     // Kept buffers: the tree rebuilt in place, welded into a kept mesh.
     let mut out = TriMesh::default();
     let mut scratch = WeldScratch::default();
@@ -91,7 +119,7 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         black_box(tree.rebuild_with_threads(&field, threads));
     });
     let weld_into = best(reps, || {
-        tree.weld_into(&mut out, &mut scratch);
+        tree.weld_into_with_threads(&mut out, &mut scratch, threads);
         black_box(out.triangles.len());
     });
     assert_eq!(out, mesh, "the kept buffers give the same mesh");
@@ -108,7 +136,7 @@ fn run<V: Fn(Vec3) -> f32 + Sync, G: Fn(Vec3) -> Vec3 + Sync>(
         black_box(BrickOctree::build_with_threads(grid, &field, threads));
     });
     let weld = best(reps, || {
-        black_box(tree.weld());
+        black_box(tree.weld_with_threads(threads));
     });
     let samples = best(reps, || {
         let mut sum = 0.0f32;

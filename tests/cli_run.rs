@@ -94,10 +94,18 @@ fn run_writes_meshes_session_and_latency_reports() {
     assert!(doc.probe_before.is_some() && doc.probe_after.is_some());
     let rates: Vec<f64> = doc.readiness.iter().map(|v| v.rate_hz).collect();
     assert_eq!(rates, [1000.0, 4000.0]);
+    // The built-in stroke reached the clay and its change was stamped to the meshes and felt
+    // (the figures themselves belong in bench/).
+    let motion = doc.motion_to_photon.expect("motion-to-photon figures");
+    assert_eq!(motion.strokes, 1, "{motion:?}");
+    assert_eq!(motion.first_visible_ms.count, 1, "{motion:?}");
+    assert_eq!(motion.hand_to_force_ticks.count, 1, "{motion:?}");
+    assert!(motion.presenter.contains("headless"), "{motion:?}");
     let md = std::fs::read_to_string(out.join("latency.md")).unwrap();
     for section in [
         "## Loops",
         "## Haptic loop beside the platform probe",
+        "## Motion to photon",
         "## Readiness",
     ] {
         assert!(md.contains(section), "missing {section} in\n{md}");

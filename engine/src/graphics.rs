@@ -3,11 +3,22 @@
 //!
 //! Not real-time: meshing allocates. It never blocks the other loops: it reads the newest
 //! patch wait-free and works on its own copy of the field.
+//!
+//! After handing the sink the meshes of a new snapshot it publishes a [`MeshStamp`] (which
+//! snapshot the meshes hold, when they were ready, the newest stroke's stamps). Published
+//! after the sink's meshes, so a frame that fetches the stamp first and the meshes second
+//! draws meshes at least as new as the stamp says: a change is never counted visible before
+//! a frame drew it.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use dynaclay_loops::SnapshotReader;
+use std::collections::VecDeque;
+
+use dynaclay_loops::{SnapshotReader, SnapshotWriter};
+
+use super::clock::EngineClock;
+use super::motion_to_photon::MeshStamp;
 
 use super::counters::EngineCounters;
 use super::layout::LayoutPort;
@@ -51,7 +62,20 @@ pub struct GraphicsStage {
     ack: Arc<AtomicU64>,
     sink: Box<dyn MeshSink>,
     counters: EngineCounters,
+    /// The engine's clock: when each snapshot's meshes were ready.
+    clock: EngineClock,
+    /// Where the stamp of the meshes handed over goes (to whoever draws frames).
+    stamps: SnapshotWriter<MeshStamp>,
+    /// The stamp published last.
+    stamp: MeshStamp,
+    /// (snapshot version, meshes ready) of the snapshots applied lately, oldest first: a
+    /// stroke's settled snapshot is named only after its meshes were made.
+    applied: VecDeque<(u64, u64)>,
 }
+
+/// Snapshots remembered to find when a settled shape's meshes were ready (at 60 Hz, a minute;
+/// a stroke is known settled well within a second of its meshes).
+const APPLIED_KEPT: usize = 3600;
 
 impl GraphicsStage {
     /// Builds the stage and meshes `field` in full; `cells_per_span` sets the marching-cubes
@@ -70,6 +94,8 @@ impl GraphicsStage {
         ack: Arc<AtomicU64>,
         mut sink: Box<dyn MeshSink>,
         counters: EngineCounters,
+        clock: EngineClock,
+        stamps: SnapshotWriter<MeshStamp>,
     ) -> Result<Self, GridError> {
         let grid = SampleGrid::for_field(&field, cells_per_span)?;
         let mut octree = BrickOctree::new(grid);
@@ -86,6 +112,10 @@ impl GraphicsStage {
             ack,
             sink,
             counters,
+            clock,
+            stamps,
+            stamp: MeshStamp::default(),
+            applied: VecDeque::with_capacity(APPLIED_KEPT),
         })
     }
 
@@ -113,10 +143,12 @@ impl GraphicsStage {
             return 0;
         }
         let changed = stamped.value.apply_to(&mut self.field);
+        let (version, strokes) = (stamped.version, stamped.value.stroke_stamps);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
-        self.ack.store(stamped.version, Ordering::Release);
+        self.ack.store(version, Ordering::Release);
         let Some((lo, hi)) = changed else {
             self.sink.idle(&self.field);
+            self.publish_stamp(version, strokes);
             return 0;
         };
         let report = self.octree.refresh_box(&*self.field, lo, hi);
@@ -125,7 +157,47 @@ impl GraphicsStage {
         self.counters.bricks_remeshed(n as u64);
         self.sink.update(&self.octree, &report);
         self.sink.field(&self.field);
+        self.publish_stamp(version, strokes);
         n
+    }
+
+    /// Publishes the stamp of the meshes of snapshot `version` just handed over, carrying
+    /// `strokes` (the snapshot's stroke stamps) with when their changes' meshes were ready.
+    fn publish_stamp(&mut self, version: u64, strokes: super::StrokeStamps) {
+        let now = self.clock.now_ns();
+        if self.applied.len() >= APPLIED_KEPT {
+            self.applied.pop_front();
+        }
+        self.applied.push_back((version, now));
+        let mut stamp = MeshStamp {
+            snapshot_version: version,
+            meshed_ns: now,
+            stroke: strokes,
+            ..MeshStamp::default()
+        };
+        if strokes.stroke == self.stamp.stroke.stroke {
+            stamp.first_change_meshed_ns = self.stamp.first_change_meshed_ns;
+            stamp.settled_meshed_ns = self.stamp.settled_meshed_ns;
+        }
+        let first_ready = |at: u64| {
+            self.applied
+                .iter()
+                .find(|(v, _)| *v >= at)
+                .map(|(_, ns)| *ns)
+        };
+        if stamp.first_change_meshed_ns.is_none()
+            && let Some(first) = strokes.first_change
+        {
+            stamp.first_change_meshed_ns = first_ready(first.snapshot_version);
+        }
+        if stamp.settled_meshed_ns.is_none()
+            && let Some(settled) = strokes.settled
+        {
+            stamp.settled_meshed_ns = first_ready(settled.snapshot_version);
+        }
+        self.stamp = stamp;
+        *self.stamps.back_mut() = stamp;
+        self.stamps.publish();
     }
 
     /// Whether the octree's grid still holds the support of every patch of the field.

@@ -24,11 +24,13 @@ use dynaclay_devices::{HapticDevice, SafetyFilter};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, Staleness};
 use glam::{Quat, Vec3};
 
+use super::clock::EngineClock;
 use super::counters::EngineCounters;
 use super::device_swap::{DeviceHandover, DeviceSwapPort};
 use super::force_limit::ForceLimit;
 use super::haptic_gain::HapticGain;
 use super::layout::LayoutPort;
+use super::motion_to_photon::FeltChange;
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
 use super::workspace::WorkspaceMap;
@@ -85,6 +87,10 @@ pub struct HapticStage {
     schedule: Option<ScheduleLog>,
     /// Version of the snapshot this tick fetched, if it fetched one.
     fetched: Option<u64>,
+    /// The engine's clock: when each tick read the device.
+    clock: EngineClock,
+    /// What this loop has felt of the newest stroke's first change.
+    felt: FeltChange,
 }
 
 impl HapticStage {
@@ -108,6 +114,7 @@ impl HapticStage {
         counters: EngineCounters,
         ack: std::sync::Arc<std::sync::atomic::AtomicU64>,
         swaps: DeviceSwapPort,
+        clock: EngineClock,
     ) -> Self {
         let requested = device.config().max_force_n;
         let force_limit = ForceLimit::new(requested, device.max_force_n());
@@ -136,6 +143,8 @@ impl HapticStage {
             connected: true,
             schedule: None,
             fetched: None,
+            clock,
+            felt: FeltChange::default(),
         }
     }
 
@@ -235,7 +244,9 @@ impl HapticStage {
             self.refresh_field(now);
             return self.publish_idle(false);
         }
-        let state = match self.device.read() {
+        let read = self.device.read();
+        let read_ns = self.clock.now_ns();
+        let state = match read {
             Ok(s) => s,
             Err(_) => {
                 // The filter latched the fault and sent zero already.
@@ -313,6 +324,8 @@ impl HapticStage {
             resting_at: felt.resting_at,
             press: felt.press,
             force_yield: felt.force_yield,
+            read_ns,
+            felt: self.felt,
         };
         self.publish(sample, now);
         HapticOutcome {
@@ -346,6 +359,18 @@ impl HapticStage {
             // An update for another layout waits until that layout's copy arrives.
             if stamped.value.layout == self.layout {
                 stamped.value.copy_into(&mut self.field);
+                // The first snapshot holding the newest stroke's first change: this tick's
+                // force is the first rendered on the clay that change made.
+                let strokes = stamped.value.stroke_stamps;
+                if let Some(first) = strokes.first_change
+                    && strokes.stroke != self.felt.stroke
+                    && version >= first.snapshot_version
+                {
+                    self.felt = FeltChange {
+                        stroke: strokes.stroke,
+                        ticks: self.tick.saturating_sub(first.sample_tick),
+                    };
+                }
                 // NOTE: Release pairs with the simulation's Acquire load: once it sees this
                 // version acknowledged, every coefficient of that update is in our copy.
                 self.ack
@@ -402,6 +427,7 @@ impl HapticStage {
             device_force_n: Vec3::ZERO,
             device_fault,
             tick: self.tick,
+            felt: self.felt,
             ..self.last
         };
         self.publish(sample, Instant::now());

@@ -3,6 +3,7 @@
 //! deterministic single-thread lockstep mode, and the layout and driver that play a script
 //! (the one format of [`dynaclay_core::io::Script`]) through the engine.
 
+mod clock;
 mod command;
 mod compact_rbf;
 mod config;
@@ -17,6 +18,7 @@ mod io_worker;
 mod layout;
 mod live_tool;
 mod lockstep;
+mod motion_to_photon;
 mod plan;
 mod removal_guard;
 mod replay;
@@ -31,6 +33,7 @@ mod update;
 mod wiring;
 mod workspace;
 
+pub use clock::EngineClock;
 #[cfg(feature = "fault-injection")]
 pub use command::PanicSite;
 pub use command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
@@ -51,6 +54,10 @@ pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
 pub use live_tool::{GeometricDue, LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
+pub use motion_to_photon::{
+    ChangeStamp, FeltChange, MeshStamp, MotionToPhoton, SETTLED_COEFF_TOLERANCE, StagePath,
+    StrokeLatency, StrokeStamps, summarize,
+};
 pub use plan::{
     APPROACH_S, DEFAULT_SCRIPT, HandWaypoint, PlannedAction, PlannedEvent, PlannedStroke, SETTLE_S,
     ScriptPlan, TRAVEL_S, builtin_script,

@@ -2,12 +2,18 @@
 //! simulation steps, then a graphics update. Used when driving from a replay file, so the same
 //! recording gives the same final field bit for bit (the simulation depends only on the tool
 //! samples, and the device's own clock drives the safety filter).
+//!
+//! The engine's clock is stepped: each sample sets it to the sample's haptic period times the
+//! samples taken before it, so every stamp of a lockstep run (see
+//! [`super::motion_to_photon`]) follows the schedule, not the machine. Whoever drives the run
+//! may move it further between samples ([`Lockstep::clock`]).
 
 use std::time::Instant;
 
 use crossbeam::channel::Sender;
 use dynaclay_devices::{HapticDevice, SafetyCounters};
 
+use super::clock::EngineClock;
 use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::{CounterSnapshot, EngineCounters};
@@ -15,6 +21,7 @@ use super::error::EngineError;
 use super::graphics::MeshSink;
 use super::haptic::HapticOutcome;
 use super::io_worker::{IoReport, IoWorker};
+use super::motion_to_photon::MeshStamp;
 use super::simulation::SimulationStage;
 use super::tool_sample::ToolSample;
 use super::wiring::{Stages, build};
@@ -29,6 +36,8 @@ pub struct Lockstep {
     steps_per_sample: u32,
     graphics_every: u64,
     ticks: u64,
+    /// The haptic period, nanoseconds of the stepped clock.
+    period_ns: u64,
 }
 
 /// What a finished lockstep run hands back.
@@ -68,6 +77,7 @@ impl Lockstep {
             steps_per_sample: config.lockstep_steps_per_sample.max(1),
             graphics_every: graphics_every.max(1),
             ticks: 0,
+            period_ns: period_ns(config.haptic_rate_hz),
         })
     }
 
@@ -93,6 +103,7 @@ impl Lockstep {
     /// The three loop bodies run as marked ticks, as on their own threads: a blocking path in
     /// one trips [`dynaclay_loops::assert_not_in_tick`] here too. The I/O poll is not a tick.
     pub fn step(&mut self) -> HapticOutcome {
+        self.stages.clock.set_ns(self.ticks * self.period_ns);
         let out = {
             let _tick = dynaclay_loops::enter_tick();
             self.stages.haptic.tick(Instant::now())
@@ -113,6 +124,17 @@ impl Lockstep {
         }
         self.io.poll(Instant::now());
         out
+    }
+
+    /// The run's stepped clock (every stage stamps with it; see [`super::motion_to_photon`]).
+    #[must_use]
+    pub fn clock(&self) -> &EngineClock {
+        &self.stages.clock
+    }
+
+    /// The stamp of the graphics stage's newest meshes (what a frame drawn now would show).
+    pub fn mesh_stamp(&mut self) -> MeshStamp {
+        self.stages.mesh_stamps.latest().value
     }
 
     /// The newest tool sample (for script drivers: its device time is the script clock).
@@ -163,6 +185,15 @@ impl Lockstep {
     }
 }
 
+/// The period of `rate_hz`, nanoseconds (1 ms for a rate that is not a positive number).
+fn period_ns(rate_hz: f64) -> u64 {
+    if rate_hz.is_finite() && rate_hz > 0.0 {
+        (1.0e9 / rate_hz).round() as u64
+    } else {
+        1_000_000
+    }
+}
+
 /// Ends a single-thread run (lockstep or replayed): the region retired and the last undo step
 /// recorded, a last publication and graphics update, the haptic copy synced, the device closed
 /// (a failure is reported in the report, the session handed back all the same).
@@ -182,5 +213,102 @@ pub(super) fn end_single_thread_run(stages: &mut Stages, io: &mut IoWorker) -> L
         octree: stages.graphics.octree().clone(),
         io: io.report().clone(),
         device_close_error,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use dynaclay_devices::{SimArmConfig, SimulatedArm};
+
+    use super::super::{HeadlessSink, MotionToPhoton, ScriptDriver, ScriptPlan, build_clay};
+    use super::*;
+
+    /// Samples between two graphics updates, and between two frames, in the run below: the
+    /// two never line up for long, so a change waits for both.
+    const GRAPHICS_EVERY: u64 = 16;
+    const FRAME_EVERY: u64 = 20;
+
+    /// The built-in stroke in lockstep, a frame "drawn" every [`FRAME_EVERY`] samples at the
+    /// stepped clock's time: every stamp is in order, the first visible change is the first
+    /// sample whose step changed the clay, drawn by the first frame after the first graphics
+    /// update after it, and the haptic loop felt it one tick later.
+    #[test]
+    fn the_builtin_stroke_is_stamped_in_order_and_its_first_change_is_its_first_pushing_sample() {
+        let plan = ScriptPlan::builtin();
+        let field = build_clay(&plan.clay).unwrap();
+        let arm_config = SimArmConfig::default();
+        let mut config = EngineConfig::for_field(&field, &arm_config.info);
+        config.haptics.tool_contact = plan.tool_contact;
+        let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
+        let mut run = Lockstep::new(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            GRAPHICS_EVERY,
+        )
+        .unwrap();
+        let mut driver = ScriptDriver::new(&plan);
+        let commands = run.commands();
+        let mut ledger = MotionToPhoton::new();
+        let mut before = run.density().clone();
+        // The first sample whose step changed the clay, found by comparing the fields.
+        let mut first_change: Option<(u64, u64)> = None;
+        let mut first_graphics_after: Option<u64> = None;
+        let mut first_frame_after: Option<u64> = None;
+        for _ in 0..(plan.seconds * 1000.0) as usize {
+            let sample = run.latest_tool();
+            driver.dispatch(&sample, &commands);
+            let out = run.step();
+            let now = run.clock().now_ns();
+            if first_change.is_none() && *run.density() != before {
+                first_change = Some((out.sample.tick, now));
+            }
+            before.clone_from(run.density());
+            if first_change.is_some()
+                && first_graphics_after.is_none()
+                && run.ticks().is_multiple_of(GRAPHICS_EVERY)
+            {
+                first_graphics_after = Some(now);
+            }
+            if run.ticks().is_multiple_of(FRAME_EVERY) {
+                let drawn = run.mesh_stamp();
+                ledger.frame(now, &drawn);
+                if first_graphics_after.is_some() && first_frame_after.is_none() {
+                    first_frame_after = Some(now);
+                }
+            }
+        }
+        let (change_tick, change_ns) = first_change.expect("the stroke changed the clay");
+        let strokes: Vec<_> = ledger.strokes().copied().collect();
+        assert_eq!(strokes.len(), 1, "one stroke: {strokes:?}");
+        let stroke = strokes[0];
+        assert_eq!(stroke.first_change_tick, Some(change_tick));
+        let first = stroke.first_visible.expect("the change was drawn");
+        assert!(first.is_ordered(), "{first:?}");
+        assert_eq!(
+            first.sample_ns, change_ns,
+            "read at the changing sample's tick"
+        );
+        assert_eq!(
+            first.step_ns, change_ns,
+            "one step per sample, at the sample's time"
+        );
+        assert_eq!(Some(first.meshed_ns), first_graphics_after);
+        assert_eq!(Some(first.frame_ns), first_frame_after);
+        assert!(first.frame_ns > first.sample_ns, "{first:?}");
+        assert_eq!(
+            stroke.hand_to_force_ticks,
+            Some(1),
+            "the next haptic tick applies the step's snapshot"
+        );
+        let settled = stroke
+            .settled
+            .expect("the clay settled before the run ended");
+        assert!(settled.is_ordered(), "{settled:?}");
+        assert!(settled.frame_ns >= first.frame_ns);
+        let m = ledger.summary("lockstep");
+        assert_eq!(m.strokes, 1);
+        assert_eq!(m.first_visible_ms.p50, first.total_ms());
     }
 }

@@ -46,6 +46,7 @@ mod material;
 mod publication;
 mod removal;
 mod session_io;
+mod stamps;
 
 use session_io::CarriedSections;
 pub use session_io::check_loadable;
@@ -55,6 +56,7 @@ use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
 use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
 use glam::{Quat, Vec3};
 
+use super::clock::EngineClock;
 use super::command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 use super::counters::EngineCounters;
 use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
@@ -243,6 +245,10 @@ pub struct SimulationStage {
     stroke_is_contact: bool,
     /// The guard against steps that remove most of the clay (see `removal.rs`).
     removal: removal::RemovalState,
+    /// The engine's clock: when each step began and each snapshot was published.
+    clock: EngineClock,
+    /// The newest stroke's way to the screen (see `stamps.rs`).
+    track: stamps::StrokeTrack,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -276,6 +282,7 @@ impl SimulationStage {
         commands: Receiver<Command>,
         io: Option<Sender<IoJob>>,
         counters: EngineCounters,
+        clock: EngineClock,
     ) -> Self {
         let largest = field
             .patches
@@ -337,6 +344,8 @@ impl SimulationStage {
             clay_revision: 0,
             stroke_is_contact: false,
             removal: removal::RemovalState::default(),
+            clock,
+            track: stamps::StrokeTrack::default(),
         }
     }
 
@@ -420,8 +429,15 @@ impl SimulationStage {
         }
         self.commands_since_step = 0;
         let mut out = SimOutcome::default();
+        self.track.step_began(
+            sample.tick,
+            sample.read_ns,
+            self.clock.now_ns(),
+            sample.felt,
+        );
         let active = sample.stroke_active;
         if active && !self.was_active {
+            self.track.stroke_started();
             // A new stroke is a new undo step.
             self.commit_recorder();
             self.recorder = Some(StepRecorder::new(self.tool.choice().name()));
@@ -435,6 +451,7 @@ impl SimulationStage {
             if self.region.is_none() {
                 // Nothing keeps moving: the stroke's step is complete.
                 self.commit_recorder();
+                self.track.settle();
             }
         }
         self.was_active = active;
@@ -446,6 +463,9 @@ impl SimulationStage {
             // Along the tip's path since the last application: a continuous groove.
             for i in 0..due.count {
                 self.apply_held_geometric(due.point(i), due.rotation, due.dwell_s);
+            }
+            if due.count > 0 {
+                self.track.changed_by_hand();
             }
         }
 
@@ -474,6 +494,7 @@ impl SimulationStage {
                 if self.region.is_some() {
                     self.idle_steps += 1;
                     if self.idle_steps > self.config.retire_after_steps {
+                        self.track.settle();
                         self.retire_region();
                     }
                 }
@@ -495,6 +516,10 @@ impl SimulationStage {
                 (true, true) => &self.mirrored_forces,
             };
             self.simulator.set_force_yield(sample.force_yield);
+            let (patch, region_box) = (self.region_patch, region.coeff_box());
+            if let Some(p) = self.clay.density.patches.get(patch) {
+                self.track.before_region_step(&p.lattice, patch, region_box);
+            }
             // The region's patch moves; the other patches take part in the forces. Pins hold
             // the surface of the sum on whichever patch moves (see `constrain.rs`).
             let pins = Some(&mut self.region_pins);
@@ -516,6 +541,14 @@ impl SimulationStage {
                 Some(Ok(report)) => {
                     out.stepped = true;
                     out.pushed = push;
+                    if push {
+                        self.track.changed_by_hand();
+                    }
+                    self.track.after_region_step(
+                        &self.clay.density.patches[patch].lattice,
+                        patch,
+                        region_box,
+                    );
                     self.sim_time_s += f64::from(report.dt_s);
                     self.counters.sim_substeps(u64::from(report.halvings) + 1);
                 }
@@ -731,6 +764,7 @@ impl SimulationStage {
             self.removal.stroke_ended(self.config.removal_guard);
         }
         self.was_active = false;
+        self.track.settle();
         self.retire_region();
         self.commit_recorder();
         self.tool.end_stroke();
@@ -738,6 +772,7 @@ impl SimulationStage {
 
     /// Ends the session: retires the region and records the last stroke's undo step.
     pub fn finish(&mut self) {
+        self.track.settle();
         if self.was_active {
             self.removal.stroke_ended(self.config.removal_guard);
         }

@@ -19,6 +19,7 @@ use glam::Vec3;
 
 use super::tool_sample::ToolSample;
 
+use super::clock::EngineClock;
 use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::{CounterSnapshot, EngineCounters};
@@ -29,6 +30,7 @@ use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
 use super::haptic_gain::HapticGain;
 use super::io_worker::{IoReport, IoWorker};
+use super::motion_to_photon::MeshStamp;
 use super::sim_status::SimStatus;
 use super::simulation::SimulationStage;
 use super::wiring::build;
@@ -85,6 +87,10 @@ pub struct Engine {
     safety: SafetyConfig,
     field_box: (Vec3, Vec3),
     force_n_per_reaction: f32,
+    /// The clock every loop stamps with.
+    clock: EngineClock,
+    /// The stamps of the graphics loop's meshes, until someone who draws frames takes them.
+    mesh_stamps: Option<SnapshotReader<MeshStamp>>,
 }
 
 /// What an engine starts with besides its clay and device.
@@ -188,6 +194,8 @@ impl Engine {
         let counters = stages.counters.clone();
         let commands = stages.commands.clone();
         let tool = stages.tool_monitor;
+        let clock = stages.clock.clone();
+        let mesh_stamps = Some(stages.mesh_stamps);
         let mut worker = IoWorker::new(stages.io_jobs, commands.clone());
         if let Some(a) = autosave {
             worker.set_autosave(a);
@@ -263,7 +271,22 @@ impl Engine {
             safety: config.safety,
             field_box,
             force_n_per_reaction: config.map.force_n_per_reaction,
+            clock,
+            mesh_stamps,
         })
+    }
+
+    /// The clock every loop of this engine stamps with (a frame's time must be read on it).
+    #[must_use]
+    pub fn clock(&self) -> EngineClock {
+        self.clock.clone()
+    }
+
+    /// The stamps of the graphics loop's meshes, for whoever draws frames (there is one; the
+    /// second call gets `None`). Fetch the stamp before the meshes: see
+    /// [`super::motion_to_photon`].
+    pub fn take_mesh_stamps(&mut self) -> Option<SnapshotReader<MeshStamp>> {
+        self.mesh_stamps.take()
     }
 
     /// Switches the haptic loop to `device` while everything keeps running: opens it here

@@ -3,6 +3,8 @@
 
 use glam::{Quat, Vec3};
 
+use super::motion_to_photon::FeltChange;
+
 /// The latest tool state, published by the haptic loop through a triple buffer (plain data).
 ///
 /// Positions are in field coordinates. While `in_contact` with the push tool, the tool applies
@@ -54,6 +56,13 @@ pub struct ToolSample {
     /// the clay: the clay's yield under the hand's press on a device that renders force
     /// (`haptics::ToolPressConfig::yield_n`); 0 otherwise.
     pub force_yield: f32,
+    /// When the haptic tick read the device, nanoseconds of the engine's clock (the hand's
+    /// time on the path to the screen, see [`super::motion_to_photon`]).
+    #[serde(default)]
+    pub read_ns: u64,
+    /// What the haptic loop has felt of the newest stroke's first change.
+    #[serde(default)]
+    pub felt: FeltChange,
 }
 
 fn identity() -> Quat {
@@ -81,6 +90,11 @@ impl ToolSample {
         resting_at: None,
         press: 1.0,
         force_yield: 0.0,
+        read_ns: 0,
+        felt: FeltChange {
+            stroke: 0,
+            ticks: 0,
+        },
     };
 }
 

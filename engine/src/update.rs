@@ -15,6 +15,8 @@ use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField};
 use dynaclay_core::haptics::{FeltTool, StrokeGeometry};
 use dynaclay_core::mesh::BrickOctree;
 
+use super::motion_to_photon::StrokeStamps;
+
 /// One box of coefficients carried by a [`FieldUpdate`]: which density patch, and where.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ChangedBox {
@@ -51,6 +53,8 @@ pub struct FieldUpdate {
     /// The patch layout the boxes belong to (see [`super::layout`]): a reader applies them
     /// only to a copy of this generation.
     pub layout: u64,
+    /// The newest stroke's way to the screen so far (see [`super::motion_to_photon`]).
+    pub stroke_stamps: StrokeStamps,
 }
 
 impl FieldUpdate {
@@ -68,6 +72,7 @@ impl FieldUpdate {
             sim_time_s: 0.0,
             sim_step: 0,
             layout: 0,
+            stroke_stamps: StrokeStamps::default(),
         }
     }
 

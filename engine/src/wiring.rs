@@ -7,6 +7,7 @@ use crossbeam::channel::{Receiver, Sender};
 use dynaclay_devices::{HapticDevice, SafetyFilter};
 use dynaclay_loops::{SnapshotReader, Staleness, snapshot_channel};
 
+use super::clock::EngineClock;
 use super::command::Command;
 use super::config::EngineConfig;
 use super::counters::EngineCounters;
@@ -15,6 +16,7 @@ use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
 use super::layout::layout_channel;
+use super::motion_to_photon::MeshStamp;
 use super::simulation::{Acks, IoJob, SimulationStage};
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
@@ -36,6 +38,12 @@ pub struct Stages {
     pub counters: EngineCounters,
     /// Where a replacement device is handed to the haptic stage while it runs.
     pub device_swaps: DeviceSwapRequest,
+    /// The clock every stage stamps with: stepped in a lockstep build (its driver moves it),
+    /// the wall clock otherwise.
+    pub clock: EngineClock,
+    /// Whoever draws frames: the stamp of the graphics loop's newest meshes (see
+    /// [`super::motion_to_photon`]).
+    pub mesh_stamps: SnapshotReader<MeshStamp>,
 }
 
 /// Opens `device` behind the safety filter and builds the stages around `field` (the clay's
@@ -66,6 +74,12 @@ pub fn build(
     let (device_swaps, swap_port) = device_swap_channel();
     let (haptic_layouts, haptic_layout_port) = layout_channel();
     let (graphics_layouts, graphics_layout_port) = layout_channel();
+    let clock = if lockstep {
+        EngineClock::stepped()
+    } else {
+        EngineClock::wall()
+    };
+    let (mesh_stamps_tx, mesh_stamps) = snapshot_channel(&MeshStamp::default());
     let staleness = if lockstep {
         Staleness::new(Duration::MAX, Duration::MAX)
     } else {
@@ -84,6 +98,7 @@ pub fn build(
         counters.clone(),
         acks.haptic.clone(),
         swap_port,
+        clock.clone(),
     );
     // The graphics stage is built after the simulation, whose paint channel it reads.
     let (graphics_field, graphics_ack) = (field.clone(), acks.graphics.clone());
@@ -96,6 +111,7 @@ pub fn build(
         cmd_rx,
         Some(io_tx),
         counters.clone(),
+        clock.clone(),
     );
     sim.set_layout_senders([haptic_layouts, graphics_layouts]);
     let colours = sim
@@ -110,6 +126,8 @@ pub fn build(
         graphics_ack,
         sink,
         counters.clone(),
+        clock.clone(),
+        mesh_stamps_tx,
     )?;
     Ok(Stages {
         haptic,
@@ -121,5 +139,7 @@ pub fn build(
         io_jobs: io_rx,
         counters,
         device_swaps,
+        clock,
+        mesh_stamps,
     })
 }

@@ -33,6 +33,7 @@ mod blocking;
 mod exchange;
 mod glyphs;
 mod live;
+mod motion;
 mod plot;
 mod priority;
 mod probe;
@@ -52,6 +53,7 @@ pub use blocking::{
 };
 pub use exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 pub use live::{LOG_BINS, LogBins};
+pub use motion::{MotionToPhotonSummary, Spread, StageSpreads, motion_table};
 pub use plot::{
     PlotError, latency_png, latency_svg, page_size, share_label, time_label, write_latency_svg,
 };

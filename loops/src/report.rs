@@ -29,6 +29,10 @@ pub fn profile_report(doc: &ProfileDoc) -> String {
             doc.probe_after.as_ref(),
         ));
     }
+    if let Some(m) = &doc.motion_to_photon {
+        out.push_str("\n## Motion to photon\n\n");
+        out.push_str(&crate::motion::motion_table(m));
+    }
     if !doc.readiness.is_empty() {
         out.push_str("\n## Readiness\n\n```text\n");
         out.push_str(&verdict_text(&doc.readiness));
@@ -136,6 +140,7 @@ mod tests {
             probe_after: None,
             readiness: vec![verdict(&facts, 1000.0), verdict(&facts, 4000.0)],
             facts: Some(facts),
+            motion_to_photon: None,
         };
         let text = profile_report(&doc);
         let expected = "\

@@ -6,6 +6,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::motion::MotionToPhotonSummary;
 use crate::priority::{PinOutcome, RtOutcome};
 use crate::probe::ProbeSummary;
 use crate::readiness::{PlatformFacts, Verdict};
@@ -43,6 +44,10 @@ pub struct ProfileDoc {
     /// The readiness verdicts, one per rate judged.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub readiness: Vec<Verdict>,
+    /// Motion to photon: hand → force, hand → first visible change and hand → settled shape
+    /// per stroke (runs that drove the engine).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_to_photon: Option<MotionToPhotonSummary>,
 }
 
 impl ProfileDoc {
@@ -146,9 +151,16 @@ mod tests {
             probe_after: Some(probe),
             readiness: vec![crate::readiness::verdict(&facts, 1000.0)],
             facts: Some(facts),
+            motion_to_photon: Some(crate::motion::MotionToPhotonSummary {
+                presenter: "test frames".into(),
+                strokes: 2,
+                first_visible_ms: crate::motion::Spread::of(&[12.5, 30.0]),
+                ..crate::motion::MotionToPhotonSummary::default()
+            }),
         };
         let json = doc.to_json().expect("json");
         assert!(json.contains("\"stolen_ms\": 1.25"), "{json}");
+        assert!(json.contains("\"first_visible_ms\""), "{json}");
         assert_eq!(ProfileDoc::from_json(&json).expect("parse"), doc);
         // A run's loops-only document is a valid profile document.
         let loops_only = summaries_to_json(&[sample()]).expect("json");

@@ -20,6 +20,7 @@ use dynaclay_loops::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel};
 use super::command::{EngineCommand, EngineEvent};
 use super::meshes::MeshSet;
 use super::view::EngineView;
+use crate::engine::{EngineClock, MeshStamp};
 use crate::field::{BSplineLattice, MultiPatchField};
 use crate::particles::ParticleView;
 use crate::pointset::PointSetView;
@@ -94,6 +95,15 @@ impl EventSender {
     }
 }
 
+/// A running engine's clock and the stamps of its graphics loop's meshes (see
+/// [`crate::engine::MotionToPhoton`]); each engine started behind the link sends its own.
+pub struct MeshStampSource {
+    /// The engine's clock: a frame's time is read on it.
+    pub clock: EngineClock,
+    /// The stamps, published by the graphics loop after the meshes they describe.
+    pub stamps: SnapshotReader<MeshStamp>,
+}
+
 /// Why a command did not reach the engine.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SendError {
@@ -117,6 +127,9 @@ pub struct EngineLink {
     particles_on: Arc<AtomicBool>,
     points: SnapshotReader<PointSetView>,
     repaint: RepaintSignal,
+    /// Where each new engine's stamps arrive, and the running one's.
+    stamp_sources: Receiver<MeshStampSource>,
+    stamp_source: Option<MeshStampSource>,
 }
 
 /// The engine's end of the particles on the clay: the view it publishes and the count and
@@ -143,6 +156,8 @@ pub struct EngineEndpoint {
     /// The loaded point set as it follows the clay (see [`crate::pointset::PointSetFollower`]).
     pub points: SnapshotWriter<PointSetView>,
     pub repaint: RepaintSignal,
+    /// Where each engine started sends its clock and mesh stamps.
+    pub mesh_stamps: Sender<MeshStampSource>,
 }
 
 /// The field shown before the engine publishes one: the smallest lattice, empty everywhere, so
@@ -167,6 +182,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
     let particles_on = Arc::new(AtomicBool::new(false));
     let (points_tx, points_rx) = snapshot_channel(&PointSetView::default());
     let repaint = RepaintSignal::default();
+    let (stamps_tx, stamps_rx) = channel::unbounded();
     (
         EngineLink {
             commands: cmd_tx,
@@ -179,6 +195,8 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             particles_on: Arc::clone(&particles_on),
             points: points_rx,
             repaint: repaint.clone(),
+            stamp_sources: stamps_rx,
+            stamp_source: None,
         },
         EngineEndpoint {
             commands: cmd_rx,
@@ -196,6 +214,7 @@ pub fn engine_link() -> (EngineLink, EngineEndpoint) {
             },
             points: points_tx,
             repaint,
+            mesh_stamps: stamps_tx,
         },
     )
 }
@@ -233,6 +252,25 @@ impl EngineLink {
     /// The newest published view (wait-free).
     pub fn view(&mut self) -> &Stamped<EngineView> {
         self.view.latest()
+    }
+
+    /// The stamp of the newest meshes, with whether the engine changed since the last call
+    /// (its clock and strokes start over); `None` before an engine sent its stamps.
+    /// Wait-free. Fetch it before the meshes: they are then at least as new as the stamp.
+    pub fn mesh_stamp(&mut self) -> Option<(MeshStamp, bool)> {
+        let mut new_engine = false;
+        while let Ok(source) = self.stamp_sources.try_recv() {
+            self.stamp_source = Some(source);
+            new_engine = true;
+        }
+        let source = self.stamp_source.as_mut()?;
+        Some((source.stamps.latest().value, new_engine))
+    }
+
+    /// The time now on the running engine's clock (`None` before an engine sent its stamps).
+    #[must_use]
+    pub fn engine_now_ns(&self) -> Option<u64> {
+        self.stamp_source.as_ref().map(|s| s.clock.now_ns())
     }
 
     /// The newest published meshes (wait-free).

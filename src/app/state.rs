@@ -220,6 +220,8 @@ pub struct SculptApp {
     disc_key: DiscKey,
     /// The status line's frame figures.
     pub frames: FrameStats,
+    /// Motion to photon: each frame with the mesh stamp it drew, per stroke.
+    pub motion: crate::engine::MotionToPhoton,
     /// The previous frame's time as eframe measured it (set before each frame; `None` in
     /// headless frames).
     pub last_frame_s: Option<f32>,
@@ -581,6 +583,22 @@ impl SculptApp {
             let _ = write!(line, " · {}", scene.profile().short());
         }
         let _ = write!(line, " · tool {}", self.palette.choice().name());
+        if let Some(stroke) = self.motion.latest()
+            && let Some(first) = stroke.first_visible
+        {
+            let _ = write!(line, " · stroke → screen {:.0} ms", first.total_ms());
+            if let Some(settled) = stroke.settled {
+                let _ = write!(line, ", settled {:.0} ms", settled.total_ms());
+            }
+            let all = self.motion.summary("window");
+            if all.first_visible_ms.count > 1 {
+                let _ = write!(
+                    line,
+                    " (p95 {:.0} ms over {} strokes)",
+                    all.first_visible_ms.p95, all.first_visible_ms.count
+                );
+            }
+        }
         let busy = self.in_flight.names();
         if !busy.is_empty() {
             let _ = write!(line, " · polling for {}", busy.join(", "));
@@ -1072,6 +1090,11 @@ impl SculptApp {
         self.update_discs();
         let splats_only =
             self.display.points_as == PointsDisplay::Splats && self.disc_key.points != 0;
+        // The stamp before the meshes: the meshes drawn are then at least as new as it says.
+        let drawn_stamp = self.link.mesh_stamp();
+        if drawn_stamp.is_some_and(|(_, new_engine)| new_engine) {
+            self.motion = crate::engine::MotionToPhoton::new();
+        }
         let (meshes, _) = self.link.scene();
         let mut chunks: Vec<MeshChunk<'_>> = meshes.value.iter().map(|c| c.as_chunk()).collect();
         let bounds = bounds_of(&chunks);
@@ -1147,6 +1170,13 @@ impl SculptApp {
         };
         scene.set_discs(rs, self.disc_key, &self.discs);
         let image = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
+        // The frame's time: its scene submitted to the GPU (egui composites and presents it
+        // after this update; that wait is not counted).
+        if image.is_some()
+            && let (Some((stamp, _)), Some(now_ns)) = (drawn_stamp, self.link.engine_now_ns())
+        {
+            self.motion.frame(now_ns, &stamp);
+        }
         let problem = scene.problem();
         if let Some(image) = image {
             image.paint_at(ui, rect);

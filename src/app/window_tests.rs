@@ -240,3 +240,39 @@ fn mirror_planes_cross_the_clay_box_and_detail_patches_are_outlined() {
     h.state_mut().display.show_detail_patches = false;
     assert!(h.state_mut().detail_marks_on_screen(rect).is_empty());
 }
+
+#[test]
+fn the_status_line_shows_the_last_strokes_time_from_hand_to_screen() {
+    use crate::engine::{ChangeStamp, MeshStamp, StrokeStamps};
+    let (mut h, _end) = harness();
+    h.run();
+    assert!(!h.state().status_line().contains("stroke → screen"));
+    // A stroke whose first change (read at 5 ms) was drawn by the frame at 29 ms, and whose
+    // shape was settled in the same snapshot.
+    let change = ChangeStamp {
+        sample_tick: 5,
+        sample_ns: 5_000_000,
+        step_ns: 5_200_000,
+        snapshot_version: 6,
+        snapshot_ns: 5_400_000,
+    };
+    let stamp = MeshStamp {
+        snapshot_version: 6,
+        meshed_ns: 12_000_000,
+        first_change_meshed_ns: Some(12_000_000),
+        settled_meshed_ns: Some(12_000_000),
+        stroke: StrokeStamps {
+            stroke: 1,
+            first_change: Some(change),
+            last_change: Some(change),
+            settled: Some(change),
+            hand_to_force_ticks: Some(1),
+        },
+    };
+    h.state_mut().motion.frame(29_000_000, &stamp);
+    let line = h.state().status_line();
+    assert!(
+        line.contains("stroke → screen 24 ms, settled 24 ms"),
+        "{line}"
+    );
+}

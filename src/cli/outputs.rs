@@ -192,7 +192,9 @@ fn write_field_outputs(
 /// Writes `sculpt.obj` (and `.ply`/`.stl`), `session.dclay`, `latency.json`, `latency.md`,
 /// `latency.svg` and `latency.png` into `dir`, then the PNG if asked. With `platform` (the
 /// probe run around the loops), `latency.json` and `latency.md` hold the probe beside the
-/// haptic loop and the readiness verdict, and the plots draw the probe over the loops. Every
+/// haptic loop and the readiness verdict, and the plots draw the probe over the loops; with
+/// `motion`, both hold the motion-to-photon figures (hand → force, first visible change,
+/// settled shape, per stroke). Every
 /// file goes through the one atomic writer ([`dynaclay_files::write_atomic`]): a full disk
 /// leaves the old file whole, and a link, device, FIFO or directory at an output's name is
 /// refused, never written through.
@@ -206,6 +208,7 @@ pub fn write_outputs(
     config: &EngineConfig,
     extras: &ExtraOutputs,
     platform: Option<&PlatformJudged>,
+    motion: Option<&dynaclay_loops::MotionToPhotonSummary>,
 ) -> Result<RunOutputs, CliError> {
     let mut files = Vec::new();
     let (stats, octree) = write_field_outputs(dir, &report.session, config, extras, &mut files)?;
@@ -220,6 +223,10 @@ pub fn write_outputs(
             loops: summaries.clone(),
             ..ProfileDoc::default()
         },
+    };
+    let doc = ProfileDoc {
+        motion_to_photon: motion.cloned(),
+        ..doc
     };
     let json_path = dir.join("latency.json");
     let json = doc.to_json().map_err(|e| out_err(&json_path, e))?;

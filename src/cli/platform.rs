@@ -113,6 +113,7 @@ impl PlatformWatch {
                 .map(|&hz| verdict(&facts, hz))
                 .collect(),
             facts: Some(facts),
+            motion_to_photon: None,
         };
         Ok(PlatformJudged {
             doc,

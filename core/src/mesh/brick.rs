@@ -175,6 +175,9 @@ pub struct BrickScratch {
     gradients: Vec<f32>,
     pub(crate) field: Vec<f32>,
     pub(crate) mesh: BrickMesh,
+    /// How many vertices of the brick just marched lie on none of its lower faces that have
+    /// a brick's room below them (see [`lower_face_vertices`]).
+    pub(crate) owned_vertices: u32,
 }
 
 impl Default for BrickScratch {
@@ -188,6 +191,7 @@ impl Default for BrickScratch {
             gradients: Vec::new(),
             field: Vec::new(),
             mesh: BrickMesh::default(),
+            owned_vertices: 0,
         }
     }
 }
@@ -373,6 +377,7 @@ pub fn march_brick<F: ScalarField + ?Sized>(
         triangles,
         gradients,
         mesh,
+        owned_vertices,
         ..
     } = scratch;
     // Only the triangles are cleared: the per-vertex buffers are resized to the vertex count
@@ -432,6 +437,7 @@ pub fn march_brick<F: ScalarField + ?Sized>(
         }
     }
     mesh.indices.extend_from_slice(&triangles[..n_indices]);
+    *owned_vertices = n_vertices - lower_face_vertices(first, &lines);
     vertex_normals(
         field,
         grid,
@@ -443,6 +449,32 @@ pub fn march_brick<F: ScalarField + ?Sized>(
         gradients,
         mesh,
     );
+}
+
+/// How many of a brick's vertices lie on one of its lower faces with a brick's room below it
+/// (not at the grid's own lower faces), from its lines of edges (see [`march_brick`]): a
+/// weld takes those vertices from the bricks below, so the others are the ones the brick
+/// owns. A line of edges along one axis lies on a lower face when its place across either
+/// other axis is the brick's first; `first` is the brick's first sample.
+fn lower_face_vertices(first: [u32; 3], lines: &[[u16; BRICK_SAMPLES * BRICK_SAMPLES]; 3]) -> u32 {
+    const S: usize = BRICK_SAMPLES;
+    let mut count = 0;
+    for (axis, lines) in lines.iter().enumerate() {
+        // The lines' place across `u_axis` is the lower index, across `w_axis` the upper.
+        let (u_axis, w_axis) = match axis {
+            0 => (1, 2),
+            1 => (0, 2),
+            _ => (0, 1),
+        };
+        for w in 0..S {
+            for u in 0..S {
+                if (u == 0 && first[u_axis] > 0) || (w == 0 && first[w_axis] > 0) {
+                    count += lines[u + S * w].count_ones();
+                }
+            }
+        }
+    }
+    count
 }
 
 /// The position, edge id and unit outward normal `−∇s / |∇s|` of every vertex of the brick

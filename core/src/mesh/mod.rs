@@ -36,6 +36,7 @@ mod source;
 mod stats;
 mod tables;
 mod trimesh;
+mod weld;
 
 pub use adaptive::{
     AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
@@ -48,9 +49,7 @@ pub use distance::{Hausdorff, hausdorff, point_triangle_distance};
 pub use error::GridError;
 pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;
-pub use octree::{
-    Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, WeldScratch, weld_pieces,
-};
+pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, weld_pieces};
 pub use sink::MeshSink;
 pub use source::{FnField, MAX_BLOCK, ScalarField};
 pub use stats::MeshStats;
@@ -58,3 +57,4 @@ pub use tables::{
     CASES, CORNER_OFFSETS, CaseTriangles, EDGE_AXIS, EDGE_CORNERS, MAX_CASE_TRIANGLES,
 };
 pub use trimesh::TriMesh;
+pub use weld::WeldScratch;

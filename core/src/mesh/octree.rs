@@ -23,44 +23,47 @@ use std::sync::{Mutex, PoisonError};
 use glam::Vec3;
 
 use super::brick::{
-    BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, Face,
-    MAX_BRICK_INDICES, brick_extent, edge_from_id, march_brick, prefetch_slice, sample_brick,
-    sample_brick_sharing, upper_face,
+    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, MAX_BRICK_INDICES, brick_extent,
+    edge_from_id, march_brick, sample_brick, sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
 use super::trimesh::TriMesh;
+use super::weld::{WeldScratch, weld_parallel, weld_serial};
 use crate::field::BSplineLattice;
 
-/// One stored brick: its corner samples and its mesh.
+/// One stored brick: its mesh.
+///
+/// Its corner samples are not kept: every refresh samples the bricks it re-meshes again
+/// (the field changed there), and nothing else reads them, so keeping them would only cost
+/// 2.9 KB, an allocation and a copy per brick.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Brick {
     /// Brick coordinate: the brick covers cells `coord · 8 .. coord · 8 + 8` per axis.
     pub coord: [u32; 3],
-    /// 9³ corner samples, x fastest (see [`super::BRICK_SAMPLES`]); entries beyond a partial
-    /// brick's extent are unspecified.
-    pub samples: Box<[f32]>,
     pub mesh: BrickMesh,
     /// The octree generation in which this brick's mesh was last rebuilt.
     pub version: u64,
+    /// How many of its vertices a weld takes from this brick rather than from a brick below
+    /// it (see [`super::weld`]), counted when it was meshed: a weld on several threads knows
+    /// where each brick's vertices go from these counts alone.
+    pub(super) owned_vertices: u32,
 }
 
 impl Brick {
-    /// A brick with no samples and no mesh yet.
+    /// A brick with no mesh yet.
     fn empty(coord: [u32; 3]) -> Self {
         Self {
             coord,
-            samples: Box::default(),
             mesh: BrickMesh::default(),
             version: 0,
+            owned_vertices: 0,
         }
     }
 
     /// Meshes this brick, whose samples were just taken into `scratch`, and keeps its
-    /// samples and mesh, marked rebuilt in `generation`. A stored brick is meshed in its own
-    /// buffers (lent to the scratch for the march) and its samples' buffer is swapped with
-    /// the scratch's (the next brick sampled overwrites every sample there); a new brick gets
-    /// buffers the size of its mesh.
+    /// mesh, marked rebuilt in `generation`. A stored brick is meshed in its own buffers
+    /// (lent to the scratch for the march); a new brick gets buffers the size of its mesh.
     fn remesh<F: ScalarField + ?Sized>(
         &mut self,
         field: &F,
@@ -79,13 +82,8 @@ impl Brick {
         } else {
             self.mesh.copy_from(&scratch.mesh);
         }
-        if self.samples.len() == scratch.samples.len() {
-            let old = std::mem::take(&mut self.samples).into_vec();
-            self.samples = std::mem::replace(&mut scratch.samples, old).into_boxed_slice();
-        } else {
-            self.samples = scratch.samples.as_slice().into();
-        }
         self.version = generation;
+        self.owned_vertices = scratch.owned_vertices;
     }
 }
 
@@ -105,8 +103,6 @@ pub struct RefreshReport {
 /// Memory held by an octree, in bytes.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MemoryUsage {
-    /// Stored corner samples.
-    pub sample_bytes: usize,
     /// Per-brick mesh buffers (capacity).
     pub mesh_bytes: usize,
     /// Tree nodes, brick headers and scratch (estimated for the B-tree's node slack).
@@ -117,7 +113,7 @@ impl MemoryUsage {
     /// Everything together.
     #[must_use]
     pub fn total_bytes(&self) -> usize {
-        self.sample_bytes + self.mesh_bytes + self.structure_bytes
+        self.mesh_bytes + self.structure_bytes
     }
 }
 
@@ -553,12 +549,11 @@ impl BrickOctree {
         self.bricks.values().map(|b| b.mesh.triangle_count()).sum()
     }
 
-    /// Memory held by samples, meshes and structure.
+    /// Memory held by meshes and structure.
     #[must_use]
     pub fn memory(&self) -> MemoryUsage {
         let mut usage = MemoryUsage::default();
         for b in self.bricks.values() {
-            usage.sample_bytes += b.samples.len() * size_of::<f32>();
             usage.mesh_bytes += b.mesh.heap_bytes();
         }
         // B-tree leaves hold up to 11 entries and are at least half full; count 1.5× the
@@ -575,12 +570,8 @@ impl BrickOctree {
 
     /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
     /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
-    ///
-    /// A vertex on a brick's face is shared by every brick that holds its edge; the first of
-    /// them in Morton order is the one with the least coordinates (Morton order grows with
-    /// each coordinate), so a brick owns the vertices not on its lower faces and finds the
-    /// others in the short list of upper-face vertices its owner kept (sorted by the edge's
-    /// place in the brick, searched by halves): no hashing, and the lists stay in cache.
+    /// How: see [`super::weld`] (each brick owns the vertices off its lower faces and finds
+    /// the others by rank among those its owner kept).
     #[must_use]
     pub fn weld(&self) -> TriMesh {
         let mut out = TriMesh::default();
@@ -588,188 +579,37 @@ impl BrickOctree {
         out
     }
 
+    /// [`BrickOctree::weld`] on `threads` threads (1 or more): the same mesh, bit for bit.
+    #[must_use]
+    pub fn weld_with_threads(&self, threads: usize) -> TriMesh {
+        let mut out = TriMesh::default();
+        self.weld_into_with_threads(&mut out, &mut WeldScratch::default(), threads);
+        out
+    }
+
     /// [`BrickOctree::weld`] into `out` (its contents replaced), with the working memory in
     /// `scratch`: keep both and weld again after each rebuild, and after the first time the
     /// weld allocates nothing unless the mesh grew. `out` ends exactly as `weld` makes it.
     pub fn weld_into(&self, out: &mut TriMesh, scratch: &mut WeldScratch) {
-        const S: u32 = BRICK_SAMPLES as u32;
-        let vertices: usize = self.bricks.values().map(|b| b.mesh.positions.len()).sum();
-        let triangles = self.triangle_count();
-        out.positions.clear();
-        out.normals.clear();
-        out.triangles.clear();
-        out.positions.reserve(vertices);
-        out.normals.reserve(vertices);
-        out.triangles.reserve(triangles);
-        let WeldScratch {
-            keys,
-            ordinals,
-            kept,
-            kept_faces,
-            stray,
-            local,
-        } = scratch;
-        // A brick's ordinal in Morton order by its coordinate: a table over the grid of bricks
-        // where that is small enough, else a search among the keys.
-        let [nx, ny, nz] = self.brick_counts.map(|c| c as usize);
-        let table = nx
-            .checked_mul(ny)
-            .and_then(|n| n.checked_mul(nz))
-            .is_some_and(|n| n <= MAX_ORDINAL_TABLE);
-        keys.clear();
-        ordinals.clear();
-        if table {
-            ordinals.resize(nx * ny * nz, u32::MAX);
-            for (o, b) in self.bricks.values().enumerate() {
-                let c = b.coord.map(|c| c as usize);
-                if c[0] < nx && c[1] < ny && c[2] < nz {
-                    ordinals[c[0] + nx * (c[1] + ny * c[2])] = o as u32;
-                }
+        weld_serial(self.bricks.values(), self.brick_counts, out, scratch);
+    }
+
+    /// [`BrickOctree::weld_into`] on `threads` threads (the caller and `threads − 1` more),
+    /// each welding a run of the bricks in two passes (see [`super::weld`]): `out` ends
+    /// exactly as `weld` makes it. One thread welds as `weld_into` does.
+    pub fn weld_into_with_threads(
+        &self,
+        out: &mut TriMesh,
+        scratch: &mut WeldScratch,
+        threads: usize,
+    ) {
+        if threads > 1 && self.bricks.len() > 1 {
+            let bricks: Vec<&Brick> = self.bricks.values().collect();
+            if weld_parallel(&bricks, self.brick_counts, out, scratch, threads) {
+                return;
             }
-        } else {
-            keys.extend(self.bricks.keys().copied());
         }
-        // Per brick (in Morton order), its upper-face vertices: which places hold one, and
-        // their indices in the order of the places.
-        kept.clear();
-        kept_faces.clear();
-        // Vertices whose owner brick is missing or did not keep them (never, for a tree this
-        // octree built; kept so that welding stays by edge id whatever the bricks hold).
-        stray.clear();
-        // The brick after the one being welded, whose buffers are asked into the cache
-        // meanwhile (see `BrickMesh::prefetch`).
-        let mut ahead = self.bricks.values().skip(1);
-        // The welded vertices are written straight into the room reserved above, `welded` of
-        // them so far, and the lengths set once at the end (no length kept up to date in
-        // memory for each vertex).
-        let mut welded = 0usize;
-        let positions_room = &mut out.positions.spare_capacity_mut()[..vertices];
-        let normals_room = &mut out.normals.spare_capacity_mut()[..vertices];
-        for brick in self.bricks.values() {
-            let next = ahead.next();
-            // The next brick's vertices now, its triangles before this brick's (two halves).
-            if let Some(next) = next {
-                prefetch_slice(&next.mesh.edge_ids);
-                prefetch_slice(&next.mesh.positions);
-                prefetch_slice(&next.mesh.normals);
-            }
-            let m = &brick.mesh;
-            let base = brick.coord.map(|c| c * BRICK_CELLS);
-            // The ordinals of the bricks below, by mask of axes (looked up when first needed).
-            let mut below = [None::<Option<(usize, [u32; 3])>>; 8];
-            // This brick's upper-face vertices, by their number among the upper-face places.
-            let mut upper_bits = [0u64; UPPER_WORDS];
-            let mut upper_index = [0u32; 64 * UPPER_WORDS];
-            // (Every entry is written below; no need to zero it first.)
-            local.resize(m.edge_ids.len(), 0);
-            for ((v, &id), local) in m.edge_ids.iter().enumerate().zip(local.iter_mut()) {
-                let (corner, axis) = edge_from_id(id);
-                let axis = axis as usize;
-                let mut lower = 0usize;
-                let mut upper = false;
-                for a in 0..3 {
-                    if a != axis && corner[a] % BRICK_CELLS == 0 {
-                        if corner[a] == base[a] {
-                            lower |= usize::from(corner[a] > 0) << a;
-                        } else {
-                            upper = true;
-                        }
-                    }
-                }
-                let index = if lower == 0 {
-                    let next = welded as u32;
-                    positions_room[welded].write(m.positions[v]);
-                    normals_room[welded].write(m.normals[v]);
-                    welded += 1;
-                    if upper {
-                        let l = [0, 1, 2].map(|a| corner[a] - base[a]);
-                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
-                        if let Some(slot) = upper_slot(place) {
-                            upper_bits[slot / 64] |= 1 << (slot % 64);
-                            upper_index[slot] = next;
-                        }
-                    }
-                    next
-                } else {
-                    let owner = *below[lower].get_or_insert_with(|| {
-                        let mut c = brick.coord;
-                        for (a, c) in c.iter_mut().enumerate() {
-                            *c -= ((lower >> a) & 1) as u32;
-                        }
-                        let o = if table {
-                            let at = c[0] as usize + nx * (c[1] as usize + ny * c[2] as usize);
-                            ordinals
-                                .get(at)
-                                .filter(|&&o| o != u32::MAX)
-                                .map(|&o| o as usize)
-                        } else {
-                            keys.binary_search(&morton(c)).ok()
-                        };
-                        o.map(|o| (o, c))
-                    });
-                    let found = owner.and_then(|(o, oc)| {
-                        let faces = &kept_faces[o];
-                        let l: [u32; 3] = std::array::from_fn(|a| corner[a] - oc[a] * BRICK_CELLS);
-                        let place = axis as u32 * S * S * S + l[0] + S * (l[1] + S * l[2]);
-                        let slot = upper_slot(place)?;
-                        let word = faces.bits[slot / 64];
-                        let bit = slot % 64;
-                        // Kept when its bit is set; its rank among the set bits is its entry.
-                        (word >> bit & 1 == 1).then(|| {
-                            let rank = usize::from(faces.before[slot / 64])
-                                + (word & ((1 << bit) - 1)).count_ones() as usize;
-                            kept[faces.first as usize + rank]
-                        })
-                    });
-                    found.unwrap_or_else(|| {
-                        let next = welded as u32;
-                        let index = *stray.entry(id).or_insert(next);
-                        if index == next {
-                            positions_room[welded].write(m.positions[v]);
-                            normals_room[welded].write(m.normals[v]);
-                            welded += 1;
-                        }
-                        index
-                    })
-                };
-                *local = index;
-            }
-            let mut faces = KeptFaces {
-                bits: upper_bits,
-                before: [0; UPPER_WORDS],
-                first: kept.len() as u32,
-            };
-            let mut count = 0u16;
-            for (w, &word) in upper_bits.iter().enumerate() {
-                faces.before[w] = count;
-                count += word.count_ones() as u16;
-                let mut m = word;
-                while m != 0 {
-                    kept.push(upper_index[64 * w + m.trailing_zeros() as usize]);
-                    m &= m - 1;
-                }
-            }
-            kept_faces.push(faces);
-            if let Some(next) = next {
-                prefetch_slice(&next.mesh.indices);
-            }
-            // (Through a slice, whose length stays in a register while triangles are written.)
-            let local = local.as_slice();
-            out.triangles.extend(m.indices.chunks_exact(3).map(|t| {
-                [
-                    local[t[0] as usize],
-                    local[t[1] as usize],
-                    local[t[2] as usize],
-                ]
-            }));
-        }
-        // SAFETY: the first `welded` entries of both vectors' room were written above, one
-        // after another (`welded` never passes `vertices`, the room reserved: the rooms are
-        // indexed with bounds checks).
-        unsafe {
-            out.positions.set_len(welded);
-            out.normals.set_len(welded);
-        }
+        self.weld_into(out, scratch);
     }
 
     /// The bricks welded by [`weld_pieces`], the weld the app's export uses (the reference
@@ -783,68 +623,6 @@ impl BrickOctree {
             .collect();
         weld_pieces(&pieces)
     }
-}
-
-/// Most entries in the weld's table of brick ordinals by coordinate (4 MB; a larger grid of
-/// bricks searches the keys instead).
-const MAX_ORDINAL_TABLE: usize = 1 << 20;
-
-/// Words of a bit per place on a brick's upper faces (see [`upper_slot`]).
-const UPPER_WORDS: usize = 8;
-
-/// Per place in a brick (`axis · 9³ + x + 9y + 81z`: the axis and start sample of an edge),
-/// its number among the places on the brick's upper faces (an edge off its own axis at the
-/// far end of the brick), or `u16::MAX` for a place not on them.
-static UPPER_SLOTS: [u16; 3 * BRICK_SAMPLE_COUNT] = {
-    const S: usize = BRICK_SAMPLES;
-    let mut table = [u16::MAX; 3 * BRICK_SAMPLE_COUNT];
-    let mut next = 0u16;
-    let mut place = 0;
-    while place < 3 * BRICK_SAMPLE_COUNT {
-        let axis = place / BRICK_SAMPLE_COUNT;
-        let l = [place % S, place / S % S, place / (S * S) % S];
-        let mut a = 0;
-        let mut upper = false;
-        while a < 3 {
-            upper |= a != axis && l[a] == S - 1;
-            a += 1;
-        }
-        if upper {
-            table[place] = next;
-            next += 1;
-        }
-        place += 1;
-    }
-    assert!(next as usize <= 64 * UPPER_WORDS);
-    table
-};
-
-/// The number of `place` among a brick's upper-face places ([`UPPER_SLOTS`]), if it is one.
-#[inline]
-fn upper_slot(place: u32) -> Option<usize> {
-    let slot = *UPPER_SLOTS.get(place as usize)?;
-    (slot != u16::MAX).then_some(usize::from(slot))
-}
-
-/// One brick's kept upper-face vertices in [`WeldScratch`]: a bit per upper-face place that
-/// holds one, and where their indices start; the `n`-th set bit's index is entry `first + n`.
-#[derive(Clone, Copy, Debug)]
-struct KeptFaces {
-    bits: [u64; UPPER_WORDS],
-    /// Per word of `bits`, the set bits in the words before it.
-    before: [u16; UPPER_WORDS],
-    first: u32,
-}
-
-/// Working memory of [`BrickOctree::weld_into`]; keep one and reuse it.
-#[derive(Clone, Debug, Default)]
-pub struct WeldScratch {
-    keys: Vec<u64>,
-    ordinals: Vec<u32>,
-    kept: Vec<u32>,
-    kept_faces: Vec<KeptFaces>,
-    stray: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
-    local: Vec<u32>,
 }
 
 /// One brick's mesh as [`weld_pieces`] reads it: per vertex a position, a normal (as [`Vec3`]
@@ -1215,14 +993,9 @@ fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     let mut fresh = Vec::new();
     while let Some(run) = next_run() {
         for at in 0..run.len() {
-            // Ask the cache for what this brick's remesh and the next brick will write: a
-            // stored brick's samples (the next brick is sampled into them once this one keeps
-            // the scratch's), now, and the next stored brick's mesh once this brick is
-            // sampled, so the requests come in two halves, not all at once (see
-            // `BrickMesh::prefetch`). A new brick has nothing to fetch.
-            if let Some(brick) = &run[at].stored {
-                prefetch_slice(&brick.samples);
-            }
+            // Once this brick is sampled, ask the cache for the next stored brick's mesh,
+            // which its remesh will write (see `BrickMesh::prefetch`). A new brick has
+            // nothing to fetch.
             let node = run[at].coord;
             let crossed = sample_brick_sharing(field, grid, node, cache.near(node), &mut scratch);
             cache.keep(node, grid, &scratch);
@@ -1287,7 +1060,7 @@ fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
 /// Interleaves the low 21 bits of each coordinate (x lowest).
 #[inline]
 #[must_use]
-fn morton(c: [u32; 3]) -> u64 {
+pub(super) fn morton(c: [u32; 3]) -> u64 {
     fn spread(v: u32) -> u64 {
         let mut x = u64::from(v) & 0x1f_ffff;
         x = (x | x << 32) & 0x1f_0000_0000_ffff;
@@ -1302,7 +1075,7 @@ fn morton(c: [u32; 3]) -> u64 {
 
 /// A fast mixing hash for edge ids (the weld's fallback and its test reference).
 #[derive(Default)]
-struct EdgeIdHasher(u64);
+pub(super) struct EdgeIdHasher(u64);
 
 impl Hasher for EdgeIdHasher {
     fn finish(&self) -> u64 {
@@ -1326,6 +1099,7 @@ impl Hasher for EdgeIdHasher {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::weld::MAX_ORDINAL_TABLE;
     use crate::mesh::{FnField, MeshStats};
     use std::f64::consts::PI;
 
@@ -1553,6 +1327,104 @@ mod tests {
         }
     }
 
+    /// The weld on `threads` threads, into a kept mesh and scratch that held another mesh
+    /// first, as bits.
+    fn threaded_weld_bits(tree: &BrickOctree, threads: usize) -> (Vec<u32>, Vec<[u32; 3]>) {
+        let (lattice, _, _) = sphere_lattice(5.0);
+        let other = BrickOctree::build(SampleGrid::for_lattice(&lattice, 2).unwrap(), &lattice);
+        let mut out = TriMesh::default();
+        let mut scratch = WeldScratch::default();
+        other.weld_into_with_threads(&mut out, &mut scratch, threads);
+        tree.weld_into_with_threads(&mut out, &mut scratch, threads);
+        assert_eq!(out, tree.weld_with_threads(threads));
+        // The threads' own weld, not the one-thread weld it gives way to on a stray vertex.
+        let bricks: Vec<&Brick> = tree.bricks().collect();
+        let mut direct = TriMesh::default();
+        assert!(weld_parallel(
+            &bricks,
+            tree.brick_counts,
+            &mut direct,
+            &mut scratch,
+            threads
+        ));
+        assert_eq!(direct, out);
+        mesh_bits(&out)
+    }
+
+    #[test]
+    fn weld_on_threads_equals_the_one_thread_weld_bit_for_bit() {
+        // A lattice sphere (sparse bricks), a ball in a grid too large for the table of
+        // ordinals (found among the keys), and a dense surface with partial bricks.
+        let (lattice, _, _) = sphere_lattice(12.0);
+        let sphere = BrickOctree::build(SampleGrid::for_lattice(&lattice, 3).unwrap(), &lattice);
+        let grid = SampleGrid::new(Vec3::ZERO, 1.0, [1040; 3]).unwrap();
+        let ball = BrickOctree::build(grid, &sphere_fn(Vec3::new(501.3, 498.7, 500.2), 23.0));
+        const W: f32 = 9.0;
+        let gyroid = FnField {
+            value: |p: Vec3| {
+                (W * p.x).sin() * (W * p.y).cos()
+                    + (W * p.y).sin() * (W * p.z).cos()
+                    + (W * p.z).sin() * (W * p.x).cos()
+            },
+            gradient: |p: Vec3| Vec3::new(p.y.cos(), p.z.sin(), 1.0 + p.x * p.x),
+            iso: 0.1,
+            lipschitz: None,
+        };
+        let grid = SampleGrid::new(Vec3::splat(-0.2), 1.0 / 29.0, [37, 45, 41]).unwrap();
+        let dense = BrickOctree::build(grid, &gyroid);
+        for tree in [&sphere, &ball, &dense] {
+            let one = mesh_bits(&tree.weld());
+            assert!(!one.1.is_empty());
+            for threads in [1, 2, 3, 7] {
+                assert_eq!(threaded_weld_bits(tree, threads), one, "{threads} threads");
+            }
+        }
+        // The closed surfaces welded on threads are closed: every edge in exactly two
+        // triangles, wound the same way.
+        for tree in [&sphere, &ball] {
+            let mesh = tree.weld_with_threads(3);
+            assert!(mesh.is_well_formed());
+            let stats = MeshStats::of(&mesh);
+            assert_eq!(
+                (
+                    stats.boundary_edges,
+                    stats.non_manifold_edges,
+                    stats.misoriented_edges
+                ),
+                (0, 0, 0),
+                "{stats:?}"
+            );
+        }
+        // More threads than bricks, and an empty tree.
+        let (tiny_lattice, _, _) = sphere_lattice(1.5);
+        let tiny = BrickOctree::build(
+            SampleGrid::for_lattice(&tiny_lattice, 1).unwrap(),
+            &tiny_lattice,
+        );
+        assert!(tiny.brick_count() < 16);
+        assert_eq!(tiny.weld_with_threads(16), tiny.weld());
+        let empty = BrickOctree::new(SampleGrid::new(Vec3::ZERO, 1.0, [20; 3]).unwrap());
+        assert_eq!(empty.weld_with_threads(2), TriMesh::default());
+    }
+
+    #[test]
+    fn weld_on_threads_merges_vertices_whose_owner_is_missing_by_edge_id() {
+        // Bricks taken out of the tree leave the bricks above them with lower-face vertices
+        // whose owner is gone: the weld on threads gives way to the one-thread weld, which
+        // merges them by edge id, as the reference weld does.
+        let (lattice, _, _) = sphere_lattice(12.0);
+        let mut tree = BrickOctree::build(SampleGrid::for_lattice(&lattice, 3).unwrap(), &lattice);
+        let keys: Vec<u64> = tree.bricks.keys().copied().collect();
+        for key in keys.iter().step_by(5) {
+            tree.bricks.remove(key);
+        }
+        let reference = tree.weld_by_hash();
+        assert_eq!(tree.weld(), reference);
+        for threads in [2, 3] {
+            assert_eq!(tree.weld_with_threads(threads), reference);
+        }
+    }
+
     #[test]
     fn weld_by_owner_equals_weld_by_hash() {
         let (lattice, _, _) = sphere_lattice(12.0);
@@ -1584,20 +1456,14 @@ mod tests {
         let welded = tree.weld();
         assert_eq!(welded, tree.weld_by_hash());
         assert!(welded.triangle_count() > 5000);
-        // The same bricks (samples included) as meshing each brick on its own.
+        // The same bricks as meshing each brick on its own.
         let mut alone = BrickOctree::new(grid);
         alone.refresh_box(&gyroid, Vec3::splat(-10.0), Vec3::splat(10.0));
         assert_same_bricks(&tree, &alone);
-        for (x, y) in tree.bricks().zip(alone.bricks()) {
-            assert_eq!(x.samples, y.samples);
-        }
         // Runs of the build order split over threads start without the faces below them.
         for threads in [2, 3] {
             let many = BrickOctree::build_with_threads(grid, &gyroid, threads);
             assert_same_bricks(&tree, &many);
-            for (x, y) in tree.bricks().zip(many.bricks()) {
-                assert_eq!(x.samples, y.samples);
-            }
         }
     }
 
@@ -1631,15 +1497,14 @@ mod tests {
         assert!(!a.removed.is_empty() || !a.changed.is_empty());
         assert_same_bricks(&one, &many);
         for (x, y) in one.bricks().zip(many.bricks()) {
-            assert_eq!(x.samples, y.samples);
             assert_eq!(x.version, y.version);
         }
     }
 
-    /// Every brick's coordinate, samples, positions, normals, edge ids and triangles, floats
-    /// as their bits (so `-0.0` and `0.0`, or two NaNs, are told apart).
+    /// Every brick's coordinate, positions, normals, edge ids and triangles, floats as their
+    /// bits (so `-0.0` and `0.0`, or two NaNs, are told apart).
     #[allow(clippy::type_complexity)]
-    fn brick_bits(tree: &BrickOctree) -> Vec<([u32; 3], Vec<u32>, Vec<u32>, Vec<u64>, Vec<u32>)> {
+    fn brick_bits(tree: &BrickOctree) -> Vec<([u32; 3], Vec<u32>, Vec<u64>, Vec<u32>)> {
         let floats = |v: &[Vec3]| {
             v.iter()
                 .flat_map(|p| p.to_array().map(f32::to_bits))
@@ -1650,13 +1515,7 @@ mod tests {
                 let m = &b.mesh;
                 let mut vertices: Vec<u32> = floats(&m.positions);
                 vertices.extend(floats(&m.normals).iter());
-                (
-                    b.coord,
-                    b.samples.iter().map(|s| s.to_bits()).collect(),
-                    vertices,
-                    m.edge_ids.clone(),
-                    m.indices.clone(),
-                )
+                (b.coord, vertices, m.edge_ids.clone(), m.indices.clone())
             })
             .collect()
     }

@@ -163,15 +163,15 @@ impl Step {
     /// the removed patches back in their places.
     fn undo(&self, clay: &mut Clay) -> Result<(), HistoryError> {
         self.check_deltas(clay)?;
-        let mut len = clay.density.patches.len();
-        for r in self.removed.iter().rev() {
+        // Each patch put back makes room for the next one's index.
+        let lens = clay.density.patches.len()..;
+        for (len, r) in lens.zip(self.removed.iter().rev()) {
             if r.index == 0 || r.index > len {
                 return Err(HistoryError::FieldMismatch {
                     field: FieldId::Density(u16::try_from(r.index).unwrap_or(u16::MAX)),
                     detail: format!("cannot put a removed patch back among {len} patches"),
                 });
             }
-            len += 1;
         }
         self.toggle_deltas(clay);
         for r in self.removed.iter().rev() {

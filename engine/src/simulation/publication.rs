@@ -65,6 +65,15 @@ impl SimulationStage {
             patch.sim_time_s = self.sim_time_s;
             patch.sim_step = self.steps;
             patch.layout = self.layout_generation;
+        }
+        // Stamped once the boxes are copied, just before the publication itself. NOTE: both
+        // writers publish once per call, so their versions stay equal: the version stamped
+        // here is the one each reader sees.
+        self.track
+            .published(self.to_graphics.version() + 1, self.clock.now_ns());
+        let stroke_stamps = self.track.stamps();
+        for w in [&mut self.to_haptic, &mut self.to_graphics] {
+            w.back_mut().stroke_stamps = stroke_stamps;
             w.publish();
         }
         self.counters.snapshots_published(1);

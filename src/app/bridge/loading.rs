@@ -282,7 +282,7 @@ impl Bridge {
                 schedule: None,
             },
         );
-        let engine = match started {
+        let mut engine = match started {
             Ok(engine) => engine,
             Err(e) => {
                 return self.fail(
@@ -294,6 +294,7 @@ impl Bridge {
                 );
             }
         };
+        super::send_stamps(&mut engine, &self.mesh_stamps);
         let _ = engine.force_limit().request(force_limit_n);
         let _ = engine.haptic_gain().set(gain);
         self.engine = Some(engine);

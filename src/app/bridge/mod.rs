@@ -146,6 +146,7 @@ pub fn start_bridge(
         particles,
         points,
         repaint,
+        mesh_stamps,
     } = endpoint;
     let (exports_tx, exports) = snapshot_channel(&MeshSet::new());
     let sink = GuiMeshSink::new(meshes, field, exports_tx, repaint.clone());
@@ -162,7 +163,8 @@ pub fn start_bridge(
         particles.on,
         PARTICLE_STEPS_PER_UPDATE,
     );
-    let engine = start(Box::new(sink))?;
+    let mut engine = start(Box::new(sink))?;
+    send_stamps(&mut engine, &mesh_stamps);
     let stop = Arc::new(AtomicBool::new(false));
     let flag = Arc::clone(&stop);
     let mut bridge = Bridge {
@@ -192,6 +194,7 @@ pub fn start_bridge(
         pin_lines: Vec::new(),
         pin_marks: Vec::new(),
         points: points_tx,
+        mesh_stamps,
     };
     let thread = std::thread::Builder::new()
         .name("dynaclay-gui-bridge".into())
@@ -293,10 +296,22 @@ struct Bridge {
     pin_marks: Vec<Vec<Vec3>>,
     /// Point sets for the graphics loop's follower (`None`: drop the points).
     points: Sender<Option<Box<FollowedPoints>>>,
+    /// Where each engine started sends the app its clock and mesh stamps.
+    mesh_stamps: Sender<super::link::MeshStampSource>,
 }
 
 /// Forwards each answer that arrived on `pending` as an event (`describe` turns a success
 /// into its detail line) and forgets the channels that answered or hung up.
+/// Hands the app `engine`'s clock and mesh stamps (a closed app end is nothing to report).
+fn send_stamps(engine: &mut Engine, to: &Sender<super::link::MeshStampSource>) {
+    if let Some(stamps) = engine.take_mesh_stamps() {
+        let _ = to.send(super::link::MeshStampSource {
+            clock: engine.clock(),
+            stamps,
+        });
+    }
+}
+
 fn forward_replies<T, E: std::fmt::Display>(
     pending: &mut Vec<Receiver<Result<T, E>>>,
     events: &EventSender,

@@ -22,8 +22,10 @@ pub struct GuiMeshSink {
 
 impl GuiMeshSink {
     /// A sink publishing on `meshes` (and on `exports` for the bridge thread's exports), unpainted until the
-    /// graphics stage hands it paint.
-    pub(super) fn new(
+    /// graphics stage hands it paint. (Public for the motion-to-photon benchmark, which draws
+    /// the window's meshes offscreen.)
+    #[must_use]
+    pub fn new(
         meshes: SnapshotWriter<MeshSet>,
         field: SnapshotWriter<MultiPatchField>,
         exports: SnapshotWriter<MeshSet>,
