@@ -5,7 +5,8 @@
 //! built on that adapter, so its 3D view renders through the same `SceneView`, renderer,
 //! pipelines and shaders as `dynaclay gui`, with the render profile the window would choose
 //! (and, for comparison, the full profile forced); then egui's own pass draws the whole window
-//! into a 1400×900 texture (the window's default size), which is copied out and mapped. A
+//! into a 1400×900 texture (the window's default size), cleared first to the app's clear colour
+//! as eframe clears the window, which is copied out and mapped. A
 //! frame is timed from the start of the app's update until the mapped image is back on the
 //! CPU, and the camera orbits by 2° before each frame, so every frame re-renders the scene (as
 //! when orbiting). Every timed image is checked: the view must show clay-coloured pixels.
@@ -30,7 +31,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use dynaclay::app::{ChunkMesh, EngineView, MeshSet, SculptApp, engine_link};
+use dynaclay::app::{ChunkMesh, EngineView, MeshSet, SculptApp, engine_link, window_clear_color};
 use dynaclay::engine::{EngineConfig, ScriptPlan, build_clay};
 use dynaclay::field::MultiPatchField;
 use dynaclay::mesh::{BrickOctree, SampleGrid};
@@ -270,6 +271,15 @@ fn window_frames(
         size_in_pixels: WINDOW,
         pixels_per_point: 1.0,
     };
+    // As eframe clears the window: to the app's clear colour (the panels' fill).
+    let clear = ctx.global_style().visuals.clone();
+    let clear = window_clear_color(&clear, WINDOW_FORMAT.is_srgb()).map(f64::from);
+    let clear = wgpu::Color {
+        r: clear[0],
+        g: clear[1],
+        b: clear[2],
+        a: clear[3],
+    };
     let frame = |app: &mut SculptApp| {
         let input = egui::RawInput {
             screen_rect: Some(egui::Rect::from_min_size(
@@ -309,7 +319,7 @@ fn window_frames(
                         depth_slice: None,
                         resolve_target: None,
                         ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                            load: wgpu::LoadOp::Clear(clear),
                             store: wgpu::StoreOp::Store,
                         },
                     })],

@@ -27,6 +27,7 @@ mod run;
 mod sculpt_panels;
 mod state;
 mod view;
+mod view_image;
 mod viewport;
 
 pub use bridge::{
@@ -62,9 +63,10 @@ pub use removal_dialog::RemovalDialog;
 pub use run::{GuiError, GuiOptions, run_gui};
 pub use state::{
     CONTROLS_WIDTH_PT, DisplaySettings, FilePaths, LATENCY_WIDTH_PT, PointsDisplay, SceneInput,
-    SculptApp, event_line,
+    SculptApp, event_line, window_clear_color,
 };
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
+pub use view_image::{ViewBlit, ViewImage};
 pub use viewport::SceneView;
 
 #[cfg(test)]

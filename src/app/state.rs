@@ -225,6 +225,8 @@ pub struct SculptApp {
     /// The previous frame's time as eframe measured it (set before each frame; `None` in
     /// headless frames).
     pub last_frame_s: Option<f32>,
+    /// Whether the window's surface is sRGB (its clear colour is then given linear).
+    srgb_window: bool,
     /// What was in flight at the end of the last frame (the window polls while any is).
     pub in_flight: InFlight,
     /// The controls panel's rectangle in the last frame, points.
@@ -610,15 +612,23 @@ impl SculptApp {
         self.frames.record(Instant::now(), self.last_frame_s);
         self.poll_engine();
         self.keyboard(ui);
-        egui::Panel::top("dynaclay top bar").show(ui, |ui| self.top_bar(ui));
-        egui::Panel::bottom("dynaclay log").show(ui, |ui| {
-            // One line each, cut short rather than wrapped, so the panel's height holds.
-            ui.add(egui::Label::new(self.log.back().map_or("ready", String::as_str)).truncate());
-            ui.add(egui::Label::new(egui::RichText::new(self.status_line()).weak()).truncate());
-        });
+        let side = unfilled(egui::Frame::side_top_panel(ui.style()));
+        egui::Panel::top("dynaclay top bar")
+            .frame(side)
+            .show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("dynaclay log")
+            .frame(side)
+            .show(ui, |ui| {
+                // One line each, cut short rather than wrapped, so the panel's height holds.
+                ui.add(
+                    egui::Label::new(self.log.back().map_or("ready", String::as_str)).truncate(),
+                );
+                ui.add(egui::Label::new(egui::RichText::new(self.status_line()).weak()).truncate());
+            });
         let mut tool_changed = false;
         let mut material_changed = false;
         let controls = egui::Panel::left("dynaclay controls")
+            .frame(side)
             .resizable(true)
             .default_size(CONTROLS_WIDTH_PT)
             .size_range(CONTROLS_WIDTH_RANGE_PT)
@@ -686,6 +696,7 @@ impl SculptApp {
             });
         self.controls_rect = Some(controls.response.rect);
         egui::Panel::right("dynaclay latency")
+            .frame(side)
             .resizable(true)
             .default_size(LATENCY_WIDTH_PT)
             .size_range(LATENCY_WIDTH_RANGE_PT)
@@ -703,7 +714,9 @@ impl SculptApp {
         if let Some(answer) = self.removal.show(ui.ctx(), question) {
             self.send(answer);
         }
-        egui::CentralPanel::default().show(ui, |ui| self.viewport(ui, gpu));
+        egui::CentralPanel::default()
+            .frame(unfilled(egui::Frame::central_panel(ui.style())))
+            .show(ui, |ui| self.viewport(ui, gpu));
         // Everything else that changes wakes the window itself (input, the engine's signal).
         self.in_flight = self.in_flight_now();
         if let Some(after) = self.in_flight.poll_after() {
@@ -1156,17 +1169,16 @@ impl SculptApp {
             return;
         };
         scene.set_discs(rs, self.disc_key, &self.discs);
-        let texture = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
+        let image = scene.draw(rs, size, &chunks, mesh_version, &self.camera, &options);
         // The frame's time: its scene submitted to the GPU (egui composites and presents it
         // after this update; that wait is not counted).
-        if texture.is_some()
+        if image.is_some()
             && let (Some((stamp, _)), Some(now_ns)) = (drawn_stamp, self.link.engine_now_ns())
         {
             self.motion.frame(now_ns, &stamp);
         }
         let problem = scene.problem();
-        if let Some(texture) = texture {
-            let image = egui::Image::new(egui::load::SizedTexture::new(texture, rect.size()));
+        if let Some(image) = image {
             image.paint_at(ui, rect);
             self.paint_detail_patches(ui, rect);
             self.paint_pins(ui, rect);
@@ -1547,10 +1559,36 @@ fn centred_note(ui: &egui::Ui, rect: egui::Rect, text: &str) {
     );
 }
 
+/// `frame` without its fill. The panels are not filled: the window is cleared to their fill
+/// colour instead ([`window_clear_color`]), so it looks the same, but egui's shader no longer
+/// runs over every pixel of the window. On a software adapter that shader is the frame's main
+/// cost (several times a plain textured quad per pixel on lavapipe), so each pixel it need not
+/// touch counts.
+fn unfilled(frame: egui::Frame) -> egui::Frame {
+    frame.fill(egui::Color32::TRANSPARENT)
+}
+
+/// The colour the window is cleared to before egui draws: the panels' fill (the panels
+/// themselves are not filled, see [`unfilled`]), in the gamma space of a `Unorm` target; for
+/// an sRGB target (`srgb_target`) it is given linear, as such a target expects.
+#[must_use]
+pub fn window_clear_color(visuals: &egui::Visuals, srgb_target: bool) -> [f32; 4] {
+    if srgb_target {
+        egui::Rgba::from(visuals.panel_fill).to_array()
+    } else {
+        visuals.panel_fill.to_normalized_gamma_f32()
+    }
+}
+
 impl eframe::App for SculptApp {
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        window_clear_color(visuals, self.srgb_window)
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         self.last_frame_s = frame.info().cpu_usage;
         let gpu = frame.wgpu_render_state().cloned();
+        self.srgb_window = gpu.as_ref().is_some_and(|rs| rs.target_format.is_srgb());
         self.show(ui, gpu.as_ref());
     }
 }

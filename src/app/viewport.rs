@@ -1,5 +1,7 @@
 //! The 3D view inside egui: a [`SceneRenderer`] drawing into its own texture on eframe's wgpu
-//! device, shown as an image, with the camera driven by the pointer on that image.
+//! device, copied into the window by a paint callback ([`ViewImage`]: egui's own image shader
+//! is several times dearer per pixel on a software adapter), with the camera driven by the
+//! pointer on that image.
 //!
 //! The scene is re-rendered only when the meshes, the camera, the overlays or the size
 //! changed. Its command buffer is submitted before egui's own, so the image shows this frame's
@@ -20,6 +22,7 @@ use crate::render::{
 };
 
 use super::camera_input::{drag_pan, drag_rotate, scroll_zoom};
+use super::view_image::{ViewBlit, ViewImage};
 
 /// What was last rendered, to skip identical frames.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -44,7 +47,10 @@ pub struct SceneView {
     renderer: SceneRenderer,
     /// The render profile chosen for eframe's adapter (no MSAA, vertex-lit on a software one).
     profile: ProfileChoice,
-    texture: egui::TextureId,
+    /// The pipeline copying the target into the window.
+    blit: ViewBlit,
+    /// The target's image, as painted into the window (rebuilt when the target is).
+    image: ViewImage,
     last: Option<RenderedKey>,
     /// The mesh version whose chunks are on the GPU.
     synced: Option<u64>,
@@ -62,8 +68,8 @@ pub struct SceneView {
 
 impl SceneView {
     /// Chooses the render profile for eframe's adapter (`request` may force one), builds the
-    /// renderer for it on eframe's device (inside error scopes) and registers its target with
-    /// egui.
+    /// renderer for it on eframe's device and the copy of its target into the window (inside
+    /// error scopes).
     ///
     /// # Errors
     /// [`RenderError::OutOfMemory`] or [`RenderError::Gpu`] when the GPU refuses the pipelines
@@ -85,16 +91,13 @@ impl SceneView {
                 height,
             )
         })?;
-        dynaclay_loops::assert_not_in_tick("the egui renderer's lock");
-        let texture = rs.renderer.write().register_native_texture(
-            &rs.device,
-            renderer.target_view(),
-            wgpu::FilterMode::Linear,
-        );
+        let blit = ViewBlit::new(&rs.device, rs.target_format)?;
+        let image = blit.image(&rs.device, renderer.target_view());
         Ok(Self {
             renderer,
             profile,
-            texture,
+            blit,
+            image,
             last: None,
             synced: None,
             size_refused: None,
@@ -124,7 +127,7 @@ impl SceneView {
         }
     }
 
-    /// Renders the scene at `width × height` if anything changed; returns the texture to show,
+    /// Renders the scene at `width × height` if anything changed; returns the image to paint,
     /// or `None` when no frame could be recorded. Whatever the GPU refused is kept in
     /// [`Self::problem`].
     pub fn draw(
@@ -135,7 +138,7 @@ impl SceneView {
         mesh_version: u64,
         camera: &Camera,
         options: &SceneOptions,
-    ) -> Option<egui::TextureId> {
+    ) -> Option<ViewImage> {
         self.resize(rs, size);
         let key = RenderedKey {
             camera: *camera,
@@ -145,7 +148,7 @@ impl SceneView {
             size: self.renderer.size(),
         };
         if self.last == Some(key) {
-            return self.frame_failed.is_none().then_some(self.texture);
+            return self.frame_failed.is_none().then(|| self.image.clone());
         }
         self.sync(rs, chunks, mesh_version);
         let renderer = &mut self.renderer;
@@ -161,7 +164,7 @@ impl SceneView {
         // Kept even on failure: the same frame is not retried until something changes.
         self.last = Some(key);
         self.frame_failed = recorded.err();
-        self.frame_failed.is_none().then_some(self.texture)
+        self.frame_failed.is_none().then(|| self.image.clone())
     }
 
     /// Resizes the target unless the GPU refuses; a refused size is remembered and the old
@@ -175,13 +178,7 @@ impl SceneView {
             Ok(changed) => {
                 self.size_refused = None;
                 if changed {
-                    dynaclay_loops::assert_not_in_tick("the egui renderer's lock");
-                    rs.renderer.write().update_egui_texture_from_wgpu_texture(
-                        &rs.device,
-                        self.renderer.target_view(),
-                        wgpu::FilterMode::Linear,
-                        self.texture,
-                    );
+                    self.image = self.blit.image(&rs.device, self.renderer.target_view());
                 }
             }
             Err(e) => self.size_refused = Some((size, e)),
