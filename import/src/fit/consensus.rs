@@ -298,17 +298,23 @@ fn principal_plane(points: &[Vec3], near: impl Iterator<Item = usize> + Clone) -
     })
 }
 
+/// The typical distance between neighbouring points of `points`, whose box's longest side is
+/// `size`: the surface crosses about `area / cell²` cells of a grid of 64 cells per side, so
+/// the occupied cells give the area, and the area per point the spacing.
+#[must_use]
+pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
+    let coarse = size / 64.0;
+    let occupied = PointGrid::new(points, |_| true, coarse, 1).occupied();
+    let area = occupied as f32 * coarse * coarse;
+    (area / points.len().max(1) as f32).sqrt()
+}
+
 /// Screens `points` (see the module docs). `size` is the object's size (its box's longest
 /// side) in the points' units; `noise` the scatter if known, same units.
 #[must_use]
 pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
     let n = points.len();
-    // The typical spacing from how many cells of a coarse grid the cloud occupies: a surface
-    // crosses about area / cell² of them.
-    let coarse = size / 64.0;
-    let occupied = PointGrid::new(points, |_| true, coarse, 1).occupied();
-    let area = occupied as f32 * coarse * coarse;
-    let point_spacing = (area / n.max(1) as f32).sqrt();
+    let point_spacing = typical_spacing(points, size);
     let mut radius = (NEIGHBOURS / std::f32::consts::PI).sqrt() * point_spacing;
     if let Some(s) = noise {
         radius = radius.max(3.0 * s);

@@ -29,6 +29,7 @@ use super::paint::{NEIGHBOURS, paint_from_cloud};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
+use super::thinning::thin_for_span;
 use super::volume::{
     Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
     read_raw,
@@ -377,6 +378,29 @@ fn fit_cloud(
         options.max_depth,
         settings.error_percent
     ));
+    // A scan denser than the finest knot span can use is thinned first (see `thinning`).
+    let size = cloud_size(&cloud.points);
+    // The base's spans cover the object less its margin (see `cloud::place`).
+    let base_spans = ((options.base.resolution.max(2) - 1) as f32 - 2.0 * MARGIN_SPANS).max(1.0);
+    let finest_span = size / base_spans / (1_u32 << options.max_depth.min(16)) as f32;
+    let thinned = match kind {
+        FitPath::Cloud => thin_for_span(cloud, finest_span),
+        _ => None,
+    };
+    let cloud = match &thinned {
+        Some((thin, done)) => {
+            note(format!(
+                "thinned to {} points (one in {}): the points lie {:.3}% of the size apart, \
+                 closer than the finest knot span can use ({:.3}% wanted)",
+                thin.points.len(),
+                done.stride,
+                100.0 * done.spacing_before / size,
+                100.0 * done.spacing_wanted / size
+            ));
+            thin
+        }
+        None => cloud,
+    };
     let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
     let s = fit.screening;
     note(format!(
@@ -422,6 +446,20 @@ fn fit_cloud(
         scale: fit.scale,
         offset: fit.offset,
     })
+}
+
+/// The longest side of the box around `points` (0 for none).
+fn cloud_size(points: &[Vec3]) -> f32 {
+    let (lo, hi) = points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    if lo.x.is_finite() {
+        (hi - lo).max_element()
+    } else {
+        0.0
+    }
 }
 
 /// How far `points` (mapped to field units by `to_field`) lie from the fitted surface, to

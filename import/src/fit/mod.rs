@@ -20,6 +20,7 @@ pub mod regularised;
 pub mod sdf;
 #[cfg(test)]
 mod test_boxes;
+pub mod thinning;
 pub mod volume;
 pub mod watertight;
 
