@@ -42,10 +42,10 @@ pub use options::{
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
 pub use profile::{
-    FrameSettings, MeshShading, ProfileChoice, ProfileRequest, RENDER_PROFILE_ENV, RenderProfile,
-    UnknownProfile,
+    FrameSettings, MeshShading, PREFERRED_SAMPLES, ProfileChoice, ProfileRequest,
+    RENDER_PROFILE_ENV, RenderProfile, UnknownProfile,
 };
-pub use renderer::{DEPTH_FORMAT, PREFERRED_SAMPLES, SceneRenderer, supported_sample_count};
+pub use renderer::{DEPTH_FORMAT, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;
 
 #[cfg(test)]

@@ -24,7 +24,8 @@
 use std::fmt;
 use std::str::FromStr;
 
-use super::renderer::PREFERRED_SAMPLES;
+/// Samples per pixel when the adapter allows it.
+pub const PREFERRED_SAMPLES: u32 = 4;
 
 /// Environment variable that forces a profile: `full`, `software`, or `auto` (the default).
 pub const RENDER_PROFILE_ENV: &str = "DYNACLAY_RENDER_PROFILE";

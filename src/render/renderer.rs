@@ -25,12 +25,10 @@ use super::faults::guarded_on;
 use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
-use super::profile::{FrameSettings, MeshShading};
+use super::profile::{FrameSettings, MeshShading, PREFERRED_SAMPLES};
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Samples per pixel when the adapter allows it.
-pub const PREFERRED_SAMPLES: u32 = 4;
 /// Edge length of the built-in environment sphere map.
 const ENVIRONMENT_SIZE_PX: u32 = 256;
 

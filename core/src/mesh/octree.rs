@@ -29,7 +29,6 @@ use super::brick::{
 use super::grid::SampleGrid;
 use super::source::ScalarField;
 use super::trimesh::TriMesh;
-use super::weld::{WeldScratch, weld_parallel, weld_serial};
 use crate::field::BSplineLattice;
 
 /// One stored brick: its mesh.
@@ -121,9 +120,9 @@ impl MemoryUsage {
 #[derive(Clone, Debug)]
 pub struct BrickOctree {
     grid: SampleGrid,
-    bricks: BTreeMap<u64, Brick>,
+    pub(super) bricks: BTreeMap<u64, Brick>,
     /// Bricks per axis (the last may be partial).
-    brick_counts: [u32; 3],
+    pub(super) brick_counts: [u32; 3],
     /// The root covers `root_size` bricks per axis (a power of two).
     root_size: u32,
     generation: u64,
@@ -566,50 +565,6 @@ impl BrickOctree {
             + MAX_BRICK_INDICES * size_of::<u32>()
             + self.rebuild_scratch.heap_bytes();
         usage
-    }
-
-    /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
-    /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
-    /// How: see [`super::weld`] (each brick owns the vertices off its lower faces and finds
-    /// the others by rank among those its owner kept).
-    #[must_use]
-    pub fn weld(&self) -> TriMesh {
-        let mut out = TriMesh::default();
-        self.weld_into(&mut out, &mut WeldScratch::default());
-        out
-    }
-
-    /// [`BrickOctree::weld`] on `threads` threads (1 or more): the same mesh, bit for bit.
-    #[must_use]
-    pub fn weld_with_threads(&self, threads: usize) -> TriMesh {
-        let mut out = TriMesh::default();
-        self.weld_into_with_threads(&mut out, &mut WeldScratch::default(), threads);
-        out
-    }
-
-    /// [`BrickOctree::weld`] into `out` (its contents replaced), with the working memory in
-    /// `scratch`: keep both and weld again after each rebuild, and after the first time the
-    /// weld allocates nothing unless the mesh grew. `out` ends exactly as `weld` makes it.
-    pub fn weld_into(&self, out: &mut TriMesh, scratch: &mut WeldScratch) {
-        weld_serial(self.bricks.values(), self.brick_counts, out, scratch);
-    }
-
-    /// [`BrickOctree::weld_into`] on `threads` threads (the caller and `threads − 1` more),
-    /// each welding a run of the bricks in two passes (see [`super::weld`]): `out` ends
-    /// exactly as `weld` makes it. One thread welds as `weld_into` does.
-    pub fn weld_into_with_threads(
-        &self,
-        out: &mut TriMesh,
-        scratch: &mut WeldScratch,
-        threads: usize,
-    ) {
-        if threads > 1 && self.bricks.len() > 1 {
-            let bricks: Vec<&Brick> = self.bricks.values().collect();
-            if weld_parallel(&bricks, self.brick_counts, out, scratch, threads) {
-                return;
-            }
-        }
-        self.weld_into(out, scratch);
     }
 
     /// The bricks welded by [`weld_pieces`], the weld the app's export uses (the reference
@@ -1099,7 +1054,7 @@ impl Hasher for EdgeIdHasher {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::weld::MAX_ORDINAL_TABLE;
+    use crate::mesh::weld::{MAX_ORDINAL_TABLE, WeldScratch, weld_parallel};
     use crate::mesh::{FnField, MeshStats};
     use std::f64::consts::PI;
 

@@ -24,7 +24,7 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 
 use super::brick::{BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, edge_from_id, prefetch_slice};
-use super::octree::{Brick, EdgeIdHasher, morton};
+use super::octree::{Brick, BrickOctree, EdgeIdHasher, morton};
 use super::trimesh::TriMesh;
 
 /// Most entries in the weld's table of brick ordinals by coordinate (4 MB; a larger grid of
@@ -671,5 +671,52 @@ impl Shared<'_> {
             }
         }
         KeptFaces::keep(upper_bits, &upper_index, kept)
+    }
+}
+
+/// The octree's welds (here, beside the weld they run, so the octree does not reach back).
+impl BrickOctree {
+    /// One welded mesh of all bricks: vertices shared between bricks merged by edge id, so
+    /// there are no duplicates. Vertex and triangle order follow the bricks' Morton order.
+    /// How: see [`super::weld`] (each brick owns the vertices off its lower faces and finds
+    /// the others by rank among those its owner kept).
+    #[must_use]
+    pub fn weld(&self) -> TriMesh {
+        let mut out = TriMesh::default();
+        self.weld_into(&mut out, &mut WeldScratch::default());
+        out
+    }
+
+    /// [`BrickOctree::weld`] on `threads` threads (1 or more): the same mesh, bit for bit.
+    #[must_use]
+    pub fn weld_with_threads(&self, threads: usize) -> TriMesh {
+        let mut out = TriMesh::default();
+        self.weld_into_with_threads(&mut out, &mut WeldScratch::default(), threads);
+        out
+    }
+
+    /// [`BrickOctree::weld`] into `out` (its contents replaced), with the working memory in
+    /// `scratch`: keep both and weld again after each rebuild, and after the first time the
+    /// weld allocates nothing unless the mesh grew. `out` ends exactly as `weld` makes it.
+    pub fn weld_into(&self, out: &mut TriMesh, scratch: &mut WeldScratch) {
+        weld_serial(self.bricks.values(), self.brick_counts, out, scratch);
+    }
+
+    /// [`BrickOctree::weld_into`] on `threads` threads (the caller and `threads − 1` more),
+    /// each welding a run of the bricks in two passes (see [`super::weld`]): `out` ends
+    /// exactly as `weld` makes it. One thread welds as `weld_into` does.
+    pub fn weld_into_with_threads(
+        &self,
+        out: &mut TriMesh,
+        scratch: &mut WeldScratch,
+        threads: usize,
+    ) {
+        if threads > 1 && self.bricks.len() > 1 {
+            let bricks: Vec<&Brick> = self.bricks.values().collect();
+            if weld_parallel(&bricks, self.brick_counts, out, scratch, threads) {
+                return;
+            }
+        }
+        self.weld_into(out, scratch);
     }
 }
