@@ -12,6 +12,10 @@
 //! to a temporary folder removed at the end, or to `PEERS_CLOUDS_DIR` when it is set, where
 //! they are kept (`{model}-{variant}.ply`, the variant's index in [`DISTURBANCES`]) to rerun
 //! one by hand.
+//!
+//! Two environment variables narrow or scale the run: `PEERS_POINTS` sets the points per cloud
+//! (default [`CLOUD_POINTS`], at most [`MAX_CLOUD_POINTS`]; e.g. a million, to judge the import's
+//! thinning of dense scans) and `PEERS_MODELS` a comma-separated list of model stems to keep.
 
 use std::path::{Path, PathBuf};
 
@@ -24,8 +28,48 @@ use super::reconstructors::{
 };
 use super::surface_compare::{TriangleIndex, one_way_distances, quantile, topology};
 
-/// Points per cloud.
+/// Points per cloud unless `PEERS_POINTS` says otherwise.
 pub const CLOUD_POINTS: usize = 50_000;
+
+/// The most points per cloud `PEERS_POINTS` may ask for (a cloud of this size in memory and on
+/// disk is about 150 MB, and each reconstruction is judged over the whole mesh).
+pub const MAX_CLOUD_POINTS: usize = 5_000_000;
+
+/// Points per cloud: `PEERS_POINTS` when set, [`CLOUD_POINTS`] otherwise.
+fn cloud_points() -> usize {
+    let Some(text) = std::env::var_os("PEERS_POINTS") else {
+        return CLOUD_POINTS;
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<usize>() {
+        Ok(points) if (1000..=MAX_CLOUD_POINTS).contains(&points) => points,
+        _ => panic!(
+            "PEERS_POINTS is {text:?}: expected a whole number of points from 1000 to \
+             {MAX_CLOUD_POINTS}"
+        ),
+    }
+}
+
+/// The models to run: every one of [`MODELS`], or those `PEERS_MODELS` names.
+fn chosen_models() -> Vec<(usize, &'static str, &'static str)> {
+    let all = MODELS
+        .iter()
+        .enumerate()
+        .map(|(m, &(stem, what))| (m, stem, what));
+    let Some(names) = std::env::var_os("PEERS_MODELS") else {
+        return all.collect();
+    };
+    let names = names.to_string_lossy().into_owned();
+    let wanted: Vec<&str> = names.split(',').map(str::trim).collect();
+    for name in &wanted {
+        assert!(
+            MODELS.iter().any(|&(stem, _)| stem == *name),
+            "PEERS_MODELS names {name:?}, which is not one of the models: {}",
+            MODELS.map(|(stem, _)| stem).join(", ")
+        );
+    }
+    all.filter(|(_, stem, _)| wanted.contains(stem)).collect()
+}
 
 /// A reconstruction whose median distance either way is above this (percent of the diagonal)
 /// is not a reconstruction of the model: the run fails.
@@ -126,6 +170,7 @@ fn peers(scratch: &Path) -> Vec<Peer> {
 pub fn run(quick: bool) {
     let folder = models_folder();
     let samples = if quick { 20_000 } else { 100_000 };
+    let points = cloud_points();
     let variants = if quick {
         &DISTURBANCES[..1]
     } else {
@@ -137,7 +182,7 @@ pub fn run(quick: bool) {
     });
     std::fs::create_dir_all(&scratch).expect("a temporary folder");
     println!(
-        "\npeers: {CLOUD_POINTS}-point clouds with normals from public models ({}), \
+        "\npeers: {points}-point clouds with normals from public models ({}), \
          reconstructed by dynaclay import (default settings, meshed as --mesh exports) and by \
          screened Poisson (PoissonRecon at depth {POISSON_DEPTH}, the crate at depth {}); distances over {samples} area-weighted \
          samples each way, % of the model's box diagonal; one run each; {} CPUs",
@@ -152,7 +197,7 @@ pub fn run(quick: bool) {
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut missing = Vec::new();
     let mut far_off = Vec::new();
-    for (m, &(stem, what)) in MODELS.iter().enumerate() {
+    for (m, stem, what) in chosen_models() {
         let model = match load_model(&folder, stem) {
             Ok(model) => model,
             Err(why) => {
@@ -167,7 +212,7 @@ pub fn run(quick: bool) {
             topology(&model).summary()
         );
         for (v, &variant) in variants.iter().enumerate() {
-            let cloud = sample_cloud(&model, CLOUD_POINTS, variant, (m * 16 + v) as u64 + 1);
+            let cloud = sample_cloud(&model, points, variant, (m * 16 + v) as u64 + 1);
             let ply = scratch.join(format!("{stem}-{v}.ply"));
             write_ply(&cloud, &ply).expect("the cloud is written");
             let per_point = |bytes: f64| bytes / cloud.points.len() as f64;
