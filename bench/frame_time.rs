@@ -439,7 +439,7 @@ fn scene_frames(
         }
     }
     let label = format!(
-        "MSAA {}, {}{}",
+        "MSAA {}, {}{}{}",
         settings.sample_count,
         match settings.shading {
             MeshShading::PerPixel => "per-pixel",
@@ -449,11 +449,18 @@ fn scene_frames(
             ", culled"
         } else {
             ""
+        },
+        if settings.coarse_far_bricks {
+            ", far coarse"
+        } else {
+            ""
         }
     );
+    let drawn = renderer.last_draw();
     let (median, fastest, slowest) = summary(&mut times);
     println!(
-        "  scene pass, {label:<28}{what:<18} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1})"
+        "  scene pass, {label:<40}{what:<18} median {median:7.1} ms  (fastest {fastest:.1}, slowest {slowest:.1}; {} triangles drawn, {} bricks coarse)",
+        drawn.triangles, drawn.coarse_chunks
     );
 }
 
@@ -554,9 +561,15 @@ fn main() {
             sample_count: 1,
             shading: MeshShading::PerPixel,
             cull_back_faces: false,
+            coarse_far_bricks: false,
         },
         FrameSettings {
             cull_back_faces: false,
+            coarse_far_bricks: false,
+            ..FrameSettings::SOFTWARE
+        },
+        FrameSettings {
+            coarse_far_bricks: false,
             ..FrameSettings::SOFTWARE
         },
         FrameSettings::SOFTWARE,

@@ -11,6 +11,7 @@ mod faults;
 mod from_mesh;
 mod gpu_chunks;
 mod image;
+mod lod;
 mod offscreen;
 mod options;
 mod overlay;
@@ -31,8 +32,12 @@ pub use faults::{GpuFaultLog, PRINTED_ERRORS, guarded_on};
 pub use from_mesh::{
     ChunkMesh, MIN_PAINT_COVERAGE, brick_id, chunk_views, octree_chunks, paint_colors,
 };
-pub use gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
+pub use gpu_chunks::{
+    COARSE_CLUSTER_EDGES, COARSE_MIN_TRIANGLES, ChunkBuffers, DrawReport, DrawView, LevelOfDetail,
+    MeshVertex, SyncReport, UploadStats,
+};
 pub use image::Image;
+pub use lod::{coarse_indices, mean_edge_length};
 pub use offscreen::{
     OFFSCREEN_FORMAT, OffscreenRenderer, RenderOutcome, render_to_png, scene_camera,
 };
@@ -42,8 +47,8 @@ pub use options::{
 };
 pub use overlay::{OverlayGeometry, OverlayVertex};
 pub use profile::{
-    FrameSettings, MeshShading, PREFERRED_SAMPLES, ProfileChoice, ProfileRequest,
-    RENDER_PROFILE_ENV, RenderProfile, UnknownProfile,
+    COARSE_BELOW_EDGE_PX, FrameSettings, MeshShading, PREFERRED_SAMPLES, ProfileChoice,
+    ProfileRequest, RENDER_PROFILE_ENV, RenderProfile, UnknownProfile,
 };
 pub use renderer::{DEPTH_FORMAT, SceneRenderer, supported_sample_count};
 pub use trackball::Trackball;

@@ -62,6 +62,7 @@ impl OffscreenRenderer {
             sample_count: supported_sample_count(&gpu.adapter, OFFSCREEN_FORMAT),
             shading: MeshShading::PerPixel,
             cull_back_faces: false,
+            coarse_far_bricks: false,
         };
         Self::with_settings(gpu, settings, width, height)
     }
@@ -115,6 +116,12 @@ impl OffscreenRenderer {
         Ok(self.gpu.guarded("the mesh buffers", |device, queue| {
             renderer.sync_chunks(device, queue, chunks)
         })??)
+    }
+
+    /// What the last frame drew; see [`SceneRenderer::last_draw`].
+    #[must_use]
+    pub fn last_draw(&self) -> super::DrawReport {
+        self.renderer.last_draw()
     }
 
     /// Replaces the discs (particles, point-set splats) drawn with the clay.

@@ -11,6 +11,11 @@
 //! - back faces culled: the mesher winds every triangle counter-clockwise seen from outside, so
 //!   on a closed clay only the far side goes. Where a sculpt is cut open at the lattice's border
 //!   its inside is not drawn (the opening shows what lies behind it).
+//! - far bricks coarse: a brick whose mean edge projects to fewer than
+//!   [`COARSE_BELOW_EDGE_PX`] pixels is drawn with its coarse index list (interior vertices
+//!   clustered on a grid of two edges, the border kept, `super::lod`), so a dense sculpt seen
+//!   whole costs about a third of its triangles; the coarse surface lies within a few pixels'
+//!   worth of the fine one, and bricks meet without cracks.
 //!
 //! Every other adapter draws [`RenderProfile::Full`]: 4× MSAA where the formats allow it,
 //! [`MeshShading::PerPixel`] (Blinn-Phong with both lights, and the environment layer), and
@@ -23,6 +28,10 @@
 
 use std::fmt;
 use std::str::FromStr;
+
+/// In the software profile, a brick whose mean edge projects to fewer pixels than this is
+/// drawn coarse (its coarse triangles then span about twice as many).
+pub const COARSE_BELOW_EDGE_PX: f32 = 3.0;
 
 /// Samples per pixel when the adapter allows it.
 pub const PREFERRED_SAMPLES: u32 = 4;
@@ -65,6 +74,7 @@ impl RenderProfile {
                 },
                 shading: MeshShading::PerPixel,
                 cull_back_faces: false,
+                coarse_far_bricks: false,
             },
             Self::Software => FrameSettings::SOFTWARE,
         }
@@ -100,14 +110,19 @@ pub struct FrameSettings {
     /// screen). On lavapipe this cuts the 500k-triangle sculpt's scene pass by about 2.5×
     /// (`bench/frame_time.rs`); the cost is that an opening in the clay shows no inside.
     pub cull_back_faces: bool,
+    /// Whether bricks far enough that their edges span under [`COARSE_BELOW_EDGE_PX`] pixels
+    /// are drawn with their coarse index lists.
+    pub coarse_far_bricks: bool,
 }
 
 impl FrameSettings {
-    /// The software profile's settings: no MSAA, vertex-lit, back faces culled.
+    /// The software profile's settings: no MSAA, vertex-lit, back faces culled, far bricks
+    /// coarse.
     pub const SOFTWARE: Self = Self {
         sample_count: 1,
         shading: MeshShading::VertexLit,
         cull_back_faces: true,
+        coarse_far_bricks: true,
     };
 }
 
@@ -220,7 +235,12 @@ impl ProfileChoice {
         } else {
             ""
         };
-        format!("{prefix}{samples}, {shading}{culling}")
+        let coarse = if self.settings.coarse_far_bricks {
+            ", far bricks coarse"
+        } else {
+            ""
+        };
+        format!("{prefix}{samples}, {shading}{culling}{coarse}")
     }
 }
 

@@ -974,6 +974,7 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
             sample_count: 1,
             shading: MeshShading::VertexLit,
             cull_back_faces: true,
+            coarse_far_bricks: true,
         }
     );
     assert_eq!(soft.settings, FrameSettings::SOFTWARE);
@@ -985,7 +986,7 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
     );
     assert_eq!(
         soft.short(),
-        "software render: no MSAA, vertex-lit, back faces culled"
+        "software render: no MSAA, vertex-lit, back faces culled, far bricks coarse"
     );
 
     for kind in [
@@ -1003,6 +1004,7 @@ fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
                 sample_count: PREFERRED_SAMPLES,
                 shading: MeshShading::PerPixel,
                 cull_back_faces: false,
+                coarse_far_bricks: false,
             }
         );
         // Without multisampling support the full profile draws one sample.
@@ -1233,5 +1235,101 @@ fn the_software_profile_skips_triangles_seen_from_behind_and_without_culling_the
     assert!(
         back.abs_diff(front) < front / 20,
         "without culling both quads show: {front} and {back} pixels"
+    );
+}
+
+#[test]
+fn far_bricks_are_drawn_coarse_without_holes_and_near_ones_in_full() {
+    // A ball meshed by the octree the engine uses, fine enough that its edges span under a
+    // pixel at distance 4: many bricks, in groups of 4 × 4 × 4.
+    let centre = Vec3::splat(1.2);
+    let mut lattice = crate::field::BSplineLattice::zeros([24; 3], 0.1, Vec3::ZERO).unwrap();
+    for k in 0..24 {
+        for j in 0..24 {
+            for i in 0..24 {
+                let d = (lattice.node_position(i, j, k) - centre).length() - 0.8;
+                let n = lattice.index(i, j, k);
+                lattice.coeffs[n] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+            }
+        }
+    }
+    let grid = crate::mesh::SampleGrid::for_lattice(&lattice, 8).unwrap();
+    let octree = crate::mesh::BrickOctree::build(grid, &lattice);
+    let meshes = octree_chunks(&octree, None);
+    let chunks = chunk_views(&meshes);
+    let fine_triangles: usize = chunks.iter().map(MeshChunk::triangle_count).sum();
+    assert!(chunks.len() > 64, "{} bricks", chunks.len());
+    let options = plain_options();
+    let bg = options.background.map(linear_to_srgb8);
+    let camera = |distance: f32| {
+        let mut c = front_camera(distance);
+        c.target = centre;
+        c
+    };
+    let draw = |settings: FrameSettings, distance: f32| {
+        let gpu = context()?;
+        let mut r = OffscreenRenderer::with_settings(gpu, settings, W, H).unwrap();
+        r.sync_chunks(&chunks).unwrap();
+        let img = r.render(&camera(distance), &options).unwrap();
+        Some((img, r.last_draw()))
+    };
+    let every_triangle = FrameSettings {
+        coarse_far_bricks: false,
+        ..FrameSettings::SOFTWARE
+    };
+    let Some((full, full_draw)) = draw(every_triangle, 4.0) else {
+        return;
+    };
+    let (coarse, coarse_draw) = draw(FrameSettings::SOFTWARE, 4.0).unwrap();
+    assert_eq!(full_draw.coarse_chunks, 0);
+    assert_eq!(full_draw.triangles, fine_triangles);
+    assert_eq!(full_draw.draw_calls, chunks.len());
+    assert!(
+        coarse_draw.coarse_chunks * 10 >= chunks.len() * 9,
+        "{} of {} bricks drawn coarse",
+        coarse_draw.coarse_chunks,
+        chunks.len()
+    );
+    assert!(
+        coarse_draw.draw_calls * 8 <= chunks.len(),
+        "{coarse_draw:?}"
+    );
+    assert!(
+        coarse_draw.triangles * 2 < fine_triangles,
+        "{} of {fine_triangles} triangles drawn",
+        coarse_draw.triangles
+    );
+    // The same disk: coverage within half a percent (a hole or a crack would uncover pixels),
+    // and the shading within a level on average.
+    let covered = |img: &Image| {
+        img.rgba8
+            .chunks_exact(4)
+            .filter(|p| differs([p[0], p[1], p[2], p[3]], bg, 2))
+            .count()
+    };
+    let (a, b) = (covered(&full), covered(&coarse));
+    assert!(a > 2000, "{a} pixels covered");
+    assert!(
+        a.abs_diff(b) * 200 <= a,
+        "{a} pixels covered in full, {b} coarse"
+    );
+    let mean_error = full
+        .rgba8
+        .iter()
+        .zip(&coarse.rgba8)
+        .map(|(&x, &y)| f64::from(x.abs_diff(y)))
+        .sum::<f64>()
+        / full.rgba8.len() as f64;
+    assert!(
+        mean_error < 1.0,
+        "mean channel error {mean_error:.3} levels"
+    );
+
+    // Up close the groups facing the eye are drawn in full.
+    let (_, near_draw) = draw(FrameSettings::SOFTWARE, 1.3).unwrap();
+    assert!(
+        near_draw.coarse_chunks < coarse_draw.coarse_chunks
+            && near_draw.triangles > coarse_draw.triangles,
+        "near {near_draw:?}, far {coarse_draw:?}"
     );
 }

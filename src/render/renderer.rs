@@ -22,10 +22,12 @@ use super::discs::{DISC_ATTRIBUTES, Disc};
 use super::environment::EnvironmentMap;
 use super::error::RenderError;
 use super::faults::guarded_on;
-use super::gpu_chunks::{ChunkBuffers, MeshVertex, SyncReport, UploadStats};
+use super::gpu_chunks::{
+    ChunkBuffers, DrawReport, DrawView, LevelOfDetail, MeshVertex, SyncReport, UploadStats,
+};
 use super::options::{EnvironmentMode, SceneOptions};
 use super::overlay::{OverlayGeometry, OverlayVertex};
-use super::profile::{FrameSettings, MeshShading, PREFERRED_SAMPLES};
+use super::profile::{COARSE_BELOW_EDGE_PX, FrameSettings, MeshShading, PREFERRED_SAMPLES};
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
@@ -233,6 +235,10 @@ pub struct SceneRenderer {
     disc_pipeline: wgpu::RenderPipeline,
     discs: DynamicBuffer,
     chunks: ChunkBuffers,
+    /// Far bricks' coarse lists, when the settings ask for them.
+    level_of_detail: Option<LevelOfDetail>,
+    /// What the last [`Self::render`] drew.
+    last_draw: DrawReport,
     overlay: OverlayGeometry,
     overlay_lines: DynamicBuffer,
     overlay_triangles: DynamicBuffer,
@@ -258,6 +264,7 @@ impl SceneRenderer {
             sample_count,
             shading: MeshShading::PerPixel,
             cull_back_faces: false,
+            coarse_far_bricks: false,
         };
         Self::with_settings(device, queue, format, settings, width, height)
     }
@@ -277,6 +284,7 @@ impl SceneRenderer {
             sample_count,
             shading,
             cull_back_faces,
+            coarse_far_bricks,
         } = settings;
         let samples = if sample_count > 1 {
             PREFERRED_SAMPLES
@@ -494,7 +502,15 @@ impl SceneRenderer {
             tool_pipeline,
             disc_pipeline,
             discs: DynamicBuffer::new("discs"),
-            chunks: ChunkBuffers::default(),
+            chunks: {
+                let mut chunks = ChunkBuffers::default();
+                chunks.set_build_coarse(coarse_far_bricks);
+                chunks
+            },
+            level_of_detail: coarse_far_bricks.then_some(LevelOfDetail {
+                coarse_below_edge_px: COARSE_BELOW_EDGE_PX,
+            }),
+            last_draw: DrawReport::default(),
             overlay: OverlayGeometry::default(),
             overlay_lines: DynamicBuffer::new("overlay lines"),
             overlay_triangles: DynamicBuffer::new("overlay triangles"),
@@ -643,7 +659,12 @@ impl SceneRenderer {
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.mesh_pipeline);
-        self.chunks.draw(&mut pass);
+        let view = DrawView {
+            eye: camera.eye().to_array(),
+            pixels_per_unit_at_unit_distance: self.targets.height as f32
+                / (2.0 * (0.5 * camera.fov_y_rad).tan()),
+        };
+        self.last_draw = self.chunks.draw(&mut pass, &view, self.level_of_detail);
         if let (Some(buffer), count @ 1..) = (&self.discs.buffer, self.discs.count) {
             pass.set_pipeline(&self.disc_pipeline);
             pass.set_vertex_buffer(0, buffer.slice(..));
@@ -659,6 +680,13 @@ impl SceneRenderer {
                 pass.draw(0..count, 0..1);
             }
         }
+    }
+
+    /// What the last [`Self::render`] drew: the triangles its draw calls named and how many
+    /// bricks were drawn coarse.
+    #[must_use]
+    pub fn last_draw(&self) -> DrawReport {
+        self.last_draw
     }
 
     /// The resolved colour texture (`RENDER_ATTACHMENT | TEXTURE_BINDING | COPY_SRC`).
