@@ -63,7 +63,7 @@ pub fn coarse_indices(
     out: &mut Vec<u32>,
 ) {
     out.clear();
-    if positions.is_empty() || !(cluster_size > 0.0) {
+    if positions.is_empty() || cluster_size.is_nan() || cluster_size <= 0.0 {
         out.extend_from_slice(indices);
         return;
     }
