@@ -1,8 +1,9 @@
 //! Core benchmarks: one simulation step at Hua & Qin Table 1 sizes and beyond (32³ and 64³
 //! also split over two threads), the engine's 11³/21³ step on a single patch against the same
 //! step on a detail patch of a two-level clay (eq. (3): the forces integrated over the sum),
-//! one field evaluation with gradient, one 4-point force integral, and the lane-blocked Gram
-//! solve against the plain line-by-line sweep.
+//! the same engine-shaped step on a detail patch at levels 1, 2 and 3 against the base (level
+//! 0) in one run (`step_levels`), one field evaluation with gradient, one 4-point force
+//! integral, and the lane-blocked Gram solve against the plain line-by-line sweep.
 //!
 //! Run: `cargo bench --bench core -- --warm-up-time 1 --measurement-time 3`.
 //! Optimistic where noted: the step benches keep one tool force active on a sphere; a step
@@ -141,6 +142,92 @@ fn step_layered(c: &mut Criterion) {
     group.finish();
 }
 
+/// The engine-shaped region (11³ coefficients, two mass points per knot span) on the base of a
+/// clay (level 0) and on a detail patch of it at levels 1, 2 and 3, in one run: the engine
+/// gives a region as many knot spans of its own patch at every level (so the step's own passes
+/// are the same shape), its material scaled by the mass point's volume. The tool force is
+/// timed two ways on each detail patch: scaled with the patch (radius two of its spans, as on
+/// the base: the same work but for the line integrals over the sum of the patches) and as a
+/// tool of fixed size meets it (radius two base spans, as `step_two_level`: its spread covers
+/// more of the finer mass points). Each detail patch is 20 of its knot spans across around the
+/// force, the region at its middle. Read the levels by their ratio to level 0 in the same run.
+fn step_levels(c: &mut Criterion) {
+    let mut group = c.benchmark_group("step_levels");
+    let (n, m) = (11, 21);
+    for level in 0..=3_u32 {
+        for scaled in [true, false] {
+            if level == 0 && !scaled {
+                // The same step as the scaled one.
+                continue;
+            }
+            let (base, _, base_force) = setup(n, m);
+            let base_spacing = base.spacing;
+            let mut clay = MultiPatchField::new(base);
+            let at = base_force.start;
+            let patch = if level == 0 {
+                0
+            } else {
+                let spacing = base_spacing / (1_u32 << level) as f32;
+                let half = Vec3::splat(10.0 * spacing);
+                clay.refine(at - half, at + half, level)
+                    .expect("detail patch")
+            };
+            let lattice = &clay.patches[patch].lattice;
+            let scale = lattice.spacing / base_spacing;
+            let force = if scaled {
+                ToolForce {
+                    end: at + (base_force.end - at) * scale,
+                    radius: base_force.radius * scale,
+                    ..base_force
+                }
+            } else {
+                base_force
+            };
+            let region = if level == 0 {
+                CoeffBox {
+                    min: [2; 3],
+                    max: [n + 1; 3],
+                }
+            } else {
+                let dims = lattice.dims;
+                CoeffBox {
+                    min: dims.map(|d| (d - n) / 2),
+                    max: dims.map(|d| (d - n) / 2 + n - 1),
+                }
+            };
+            let mut state = RegionState::new(
+                lattice,
+                region,
+                [m; 3],
+                Material::PLASTIC.for_volume_ratio(scale.powi(3)),
+            )
+            .expect("region");
+            let mut sim = Simulator::new(StepParams::default());
+            let mut snap = RegionSnapshot::default();
+            let mut failures = 0u64;
+            let id = format!(
+                "level_{level}/{n}^3/{m}^3/{}",
+                if scaled {
+                    "force_2_spans"
+                } else {
+                    "force_2_base_spans"
+                }
+            );
+            group.bench_function(&id, |b| {
+                b.iter(|| {
+                    let (lattice, others): (&mut BSplineLattice, OtherPatches<'_>) =
+                        clay.split_patch_mut(patch).expect("the patch");
+                    let r =
+                        sim.step_layered(&mut state, lattice, others, &[force], None, &mut snap);
+                    failures += u64::from(black_box(r.is_err()));
+                });
+            });
+            assert_eq!(failures, 0, "{id}: {failures} timed steps failed");
+        }
+    }
+    group.finish();
+}
+
 fn solve(c: &mut Criterion) {
     let mut group = c.benchmark_group("solve_gram");
     for n in [15, 32, 64] {
@@ -201,5 +288,5 @@ fn evaluate(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, step, step_layered, solve, evaluate);
+criterion_group!(benches, step, step_layered, step_levels, solve, evaluate);
 criterion_main!(benches);

@@ -1,8 +1,9 @@
 //! The haptic tick allocates nothing: a counting global allocator in this test binary counts
 //! allocations made on the ticking thread while a tick runs, through contact, new field
 //! patches, the safety filter, a force-limit change, a whole-field republication after a
-//! session load, a new patch layout after a refinement, after the clay grew past its box and
-//! after a fine brush refined under itself, and a device switch and a disconnect
+//! session load, a new patch layout after a refinement, after the clay grew past its box,
+//! after a fine brush refined under itself and after a broad smoothing wiped that detail and
+//! its patch folded back (a smaller layout), and a device switch and a disconnect
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
@@ -103,11 +104,13 @@ fn haptic_tick_allocates_nothing() {
     }
     let mut contact_ticks = 0;
     let mut patched_ticks = 0;
-    // At least 1400 ticks, and on until the swapper thread is done: it runs whenever the
+    // Where the fine brush carves (the smoothing wipes it there).
+    let mut fine_brush_at = None;
+    // At least 1600 ticks, and on until the swapper thread is done: it runs whenever the
     // machine lets it, and the ticks must be there to take what it offers.
     let mut i = 0u64;
     loop {
-        if i >= 1400
+        if i >= 1600
             && swapper
                 .as_ref()
                 .is_some_and(|h: &std::thread::JoinHandle<_>| h.is_finished())
@@ -181,6 +184,7 @@ fn haptic_tick_allocates_nothing() {
             // A brush of a fifth of a knot span refines under itself: another layout.
             let base = stages.sim.lattice();
             let middle = base.node_position(base.dims[0] / 2, base.dims[1] / 2, base.dims[2] / 2);
+            fine_brush_at = Some(middle);
             stages
                 .commands
                 .send(Command::ApplyTool {
@@ -193,6 +197,35 @@ fn haptic_tick_allocates_nothing() {
                     },
                     poses: vec![dynaclay::tools::ToolPose::at(middle)],
                     duration_s: 0.1,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+        }
+        if i == 1300 {
+            // After the script's stroke has let go (a fold waits for no region to be held): a
+            // broad smoothing over the fine brush's cavity wipes its detail; at the step's
+            // commit the detail patches under it fold back into the base, and the tick takes
+            // the smaller layout.
+            let at = fine_brush_at.expect("the fine brush was sent at tick 850");
+            assert_eq!(
+                stages.haptic.field().patches.len(),
+                3,
+                "before the fold, the tick holds the refined layouts"
+            );
+            stages
+                .commands
+                .send(Command::ApplyTool {
+                    tool: GeometricTool {
+                        shape: ToolShape::Sphere { radius_fu: 0.25 },
+                        action: ToolAction::Smooth {
+                            rate_per_s: 20.0,
+                            kernel_fu: 0.15,
+                        },
+                        falloff_fu: 0.05,
+                    },
+                    poses: vec![dynaclay::tools::ToolPose::at(at)],
+                    duration_s: 3.0,
                     patch: 0,
                     reply: None,
                 })
@@ -270,15 +303,26 @@ fn haptic_tick_allocates_nothing() {
     );
     assert!(!stages.haptic.is_connected(), "parked by the disconnect");
     let counters = stages.counters.snapshot();
+    eprintln!(
+        "growths {}, auto refines {}, auto coarsenings {}; patches in the tick at the end {}",
+        counters.clay_growths,
+        counters.auto_refines,
+        counters.auto_coarsenings,
+        stages.haptic.field().patches.len()
+    );
     assert_eq!(
         (counters.clay_growths, counters.auto_refines),
         (1, 1),
         "the clay grew once and refined under the fine brush once"
     );
     assert_eq!(
+        counters.auto_coarsenings, 2,
+        "the smoothing wiped both detail patches under it and both folded back"
+    );
+    assert_eq!(
         stages.haptic.field().patches.len(),
-        3,
-        "the tick installed the refined layouts"
+        1,
+        "the tick installed the folded layout"
     );
     assert_eq!(
         stages.haptic.field().base().dims,

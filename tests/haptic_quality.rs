@@ -962,3 +962,196 @@ fn a_pull_that_grows_the_clay_mid_stroke_feels_smooth_on_a_recorded_session() {
         "the pulled top left the starting box"
     );
 }
+
+/// A detail patch folds back under the touching hand: a fine ball (radius 0.02, a fifth of a
+/// knot span) carves a short groove on the block's top beside where the hand will press, before
+/// it arrives, and refines under itself (a level-3 patch around the groove that holds the
+/// press's place too). In steady contact a broad smoothing over the groove wipes it; at the
+/// smoothing's commit the patch folds into the base and the haptic loop takes the smaller
+/// layout while the hand presses on it. Across that tick no tick steps the force past the
+/// shaping stage's rate, nothing is felt outside, and over the whole press–release the device
+/// gives back no more work than the hand put in (within 1% of the peak energy, as in the
+/// passivity sweep), measured at the port of the true arm. (The steady-contact rule of 7% of
+/// the force plus 0.02 N a tick is not held: the smoothing under the hand breaks it by itself,
+/// fold or no fold; see the note in the test.)
+#[test]
+fn a_detail_patch_folding_under_the_touch_feels_smooth_and_passive_on_a_recorded_session() {
+    use dynaclay::tools::{GeometricTool, ToolAction, ToolPose, ToolShape};
+    let rate_hz = 1000.0;
+    let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
+    let ticks = 3400;
+    let (field, mut config, _) = clay();
+    config.safety.soft_start_s = 0.0;
+    config.haptics.tool_contact = true;
+    let map = config.map;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("fold.rec");
+    let port = Arc::new(Mutex::new(Port::default()));
+    let arm = DelayedArm {
+        arm: SimulatedArm::new(SimArmConfig::default(), press_trajectory(0.01, 0.0, None)),
+        delay: VecDeque::new(),
+        ticks_of_delay: 0,
+        port: Arc::clone(&port),
+    };
+    let device = RecordingDevice::create(arm, &path).unwrap();
+    let mut ls = Lockstep::new(
+        &config,
+        field,
+        Box::new(device),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+    // Where the hand presses, on the top (field units), and the groove's line beside it.
+    let press_at = map.to_field(Vec3::new(0.0, top_y_m(), 0.0));
+    let groove_at = press_at + Vec3::Z * GROOVE_OFFSET_FU;
+    let along = |n: usize, of: usize| groove_at + Vec3::X * (-0.05 + 0.1 * n as f32 / of as f32);
+    let fine = GeometricTool {
+        shape: ToolShape::Sphere { radius_fu: 0.02 },
+        action: ToolAction::Remove,
+        falloff_fu: 0.005,
+    };
+    let smooth = GeometricTool {
+        shape: ToolShape::Sphere {
+            radius_fu: SMOOTH_RADIUS_FU,
+        },
+        action: ToolAction::Smooth {
+            rate_per_s: 20.0,
+            kernel_fu: 0.15,
+        },
+        falloff_fu: 0.05,
+    };
+    let mut flags = Vec::with_capacity(ticks);
+    let mut patches = Vec::with_capacity(ticks);
+    for tick in 0..ticks {
+        let send = match tick {
+            // In the air, before the hand comes down.
+            100 => Some((
+                fine.clone(),
+                (0..=20).map(|n| ToolPose::at(along(n, 20))).collect(),
+                1.0,
+            )),
+            // In steady contact (0.8–1.7 s).
+            FOLD_SENT_TICK => Some((
+                smooth.clone(),
+                (0..=10).map(|n| ToolPose::at(along(n, 10))).collect(),
+                3.0,
+            )),
+            _ => None,
+        };
+        if let Some((tool, poses, duration_s)) = send {
+            ls.commands()
+                .send(Command::ApplyTool {
+                    tool,
+                    poses,
+                    duration_s,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+        }
+        let s = ls.step().sample;
+        flags.push((s.touching, s.in_contact));
+        patches.push(ls.haptic_density().patches.len());
+    }
+    let counters = ls.counters().snapshot();
+    ls.finish().unwrap();
+    let recording = Recording::parse(&std::fs::read(&path).unwrap()).unwrap();
+    assert_eq!(recording.dropped, 0);
+    let mut t = Vec::with_capacity(ticks);
+    let mut state: Option<DeviceState> = None;
+    for r in recording.records {
+        match r {
+            Record::Read(Ok(s)) => state = Some(s),
+            Record::Read(Err(e)) => panic!("read failed: {e}"),
+            Record::Write { force_n, .. } => {
+                let s = state.expect("a read before each write");
+                let (touching, in_contact) = flags[t.len()];
+                t.push(Tick {
+                    buttons: s.buttons,
+                    force_n,
+                    touching,
+                    in_contact,
+                });
+            }
+            Record::Schedule(_) => {}
+        }
+    }
+    assert_eq!(t.len(), ticks);
+    eprintln!(
+        "fold: refines {}, coarsenings {}, patches in the tick at most {}, at the end {}",
+        counters.auto_refines,
+        counters.auto_coarsenings,
+        patches.iter().max().copied().unwrap_or(0),
+        patches[ticks - 1]
+    );
+    // The tick that took the folded layout: the first with fewer patches than the one before.
+    let fold_tick = (1..ticks)
+        .find(|&n| patches[n] < patches[n - 1])
+        .expect("the haptic loop took a smaller layout");
+    let around = &t[fold_tick - 20..fold_tick + 20];
+    let fold_step_share = around
+        .windows(2)
+        .map(|w| (w[1].force_n - w[0].force_n).length() / (0.07 * w[0].force_n.length() + 0.02))
+        .fold(0.0, f32::max);
+    let q = quality(&t, rate_hz, Vec3::Y);
+    let p = port.lock().unwrap();
+    eprintln!(
+        "fold: refines {}, coarsenings {}, patches {} -> {} at tick {fold_tick} (sent at \
+         {FOLD_SENT_TICK}); force there {:.3} N, largest step within 20 ticks {:.2} of the \
+         rule; whole session: largest step {:.4} N (bound {step_limit_n} N), free max {:.5} N; \
+         port: peak force {:.2} N, peak energy {:.3} mJ, net absorbed {:.4} mJ",
+        counters.auto_refines,
+        counters.auto_coarsenings,
+        patches[fold_tick - 1],
+        patches[fold_tick],
+        t[fold_tick].force_n,
+        fold_step_share,
+        q.max_step_n,
+        q.free_max_n,
+        p.peak_force_n,
+        p.peak_j * 1e3,
+        p.absorbed_j * 1e3
+    );
+    assert_eq!(
+        (counters.auto_refines, counters.auto_coarsenings),
+        (1, 1),
+        "the fine ball refined under itself and the smoothing folded its patch"
+    );
+    assert_eq!((patches[fold_tick - 1], patches[fold_tick]), (2, 1));
+    assert!(
+        (800..1700).contains(&fold_tick),
+        "the fold reached the hand in steady contact (tick {fold_tick})"
+    );
+    // NOTE: the steady-contact rule of `check` (7% of the force plus 0.02 N a tick) is not
+    // held here: the smoothing itself, applied in one step under the hand, moves the surface
+    // there at once, and the same smoothing on a clay never carved (no patch, no fold) steps
+    // the force as much (25 times the rule, both). What the fold must keep is the shaping
+    // stage's rate bound, nothing felt outside, and passivity.
+    assert!(
+        q.max_step_n <= step_limit_n + 1e-4,
+        "a tick stepped the force by {} N, past the shaping stage's {step_limit_n} N",
+        q.max_step_n
+    );
+    assert!(q.free_max_n <= 1e-3, "{} N outside the clay", q.free_max_n);
+    assert!(
+        q.steady_mean_n.y > 1.0,
+        "touch is felt: {}",
+        q.steady_mean_n
+    );
+    assert!(p.peak_force_n > 0.5, "the press was felt");
+    assert!(
+        p.absorbed_j >= -0.01 * p.peak_j,
+        "the device gave back {} mJ more than it took (peak {} mJ)",
+        -p.absorbed_j * 1e3,
+        p.peak_j * 1e3
+    );
+}
+
+/// The fold test's groove: how far beside the press (along z) it runs, field units (within the
+/// reach of its detail patch, which then holds the press's place).
+const GROOVE_OFFSET_FU: f32 = 0.06;
+/// The fold test's smoothing: its ball's radius, field units.
+const SMOOTH_RADIUS_FU: f32 = 0.25;
+/// The tick the fold test sends its smoothing (1.2 s, in steady contact).
+const FOLD_SENT_TICK: usize = 1200;

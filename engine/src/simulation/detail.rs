@@ -203,6 +203,8 @@ impl SimulationStage {
             }
         }
         if folded > 0 {
+            // No region is live (see above): the last one's patch may be gone.
+            self.region_patch = 0;
             self.pending = vec![None; self.clay.density.patches.len()];
             self.clay_revision += 1;
             self.counters.auto_coarsenings(folded);

@@ -116,8 +116,10 @@ impl SimulationStage {
     }
 
     pub(super) fn publish_status(&mut self) {
-        let lattice = &self.clay.density.patches[self.region_patch].lattice;
+        // NOTE: the patch index is read only while a region is live: once it retired, a fold
+        // or an undo may have removed that patch since.
         let region = self.region.as_ref().map(|r| {
+            let lattice = &self.clay.density.patches[self.region_patch].lattice;
             let b = r.coeff_box();
             (
                 lattice.node_position(b.min[0], b.min[1], b.min[2]),
