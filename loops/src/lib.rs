@@ -86,5 +86,7 @@ pub use staleness::Staleness;
 pub use summary::{LoopSummary, ProfileDoc, summaries_from_json, summaries_to_json};
 pub use table::{compare_table, markdown_table, probe_table};
 pub use timeline::{FIRST_WINDOW, TIMELINE_WINDOWS, Timeline, TimelineWindow};
-pub use wake::{WakeBell, WakeDecision, WakeError, WakeSchedule, WakeWaiter, wake_bell};
+pub use wake::{
+    MAX_WAKE_RATE_HZ, WakeBell, WakeDecision, WakeError, WakeSchedule, WakeWaiter, wake_bell,
+};
 pub use watchdog::{Heartbeat, Liveness, Watchdog};

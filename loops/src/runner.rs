@@ -438,10 +438,12 @@ where
             break StopReason::StopRequested;
         }
         let scheduled = match woken.as_ref() {
-            Some((waiter, schedule)) => match waiter.wait_for_tick(schedule, &control.stop) {
-                Some(scheduled) => scheduled,
-                None => break StopReason::StopRequested,
-            },
+            Some((waiter, schedule)) => {
+                match waiter.wait_for_tick(schedule, || control.stop.is_stopped()) {
+                    Some(scheduled) => scheduled,
+                    None => break StopReason::StopRequested,
+                }
+            }
             None => interval.tick(),
         };
         let woke = Instant::now();

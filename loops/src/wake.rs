@@ -21,7 +21,9 @@ use std::sync::{Arc, OnceLock};
 use std::thread::Thread;
 use std::time::{Duration, Instant};
 
-use crate::runner::{MAX_RATE_HZ, StopFlag};
+/// The highest rate cap a bell takes: the highest rate a loop may run at (the runner's
+/// `MAX_RATE_HZ`; this module does not import the runner, which imports it).
+pub const MAX_WAKE_RATE_HZ: f64 = 100_000.0;
 
 /// A `rung_at_ns` that means "not rung since the last tick".
 const NOT_RUNG: u64 = u64::MAX;
@@ -29,8 +31,10 @@ const NOT_RUNG: u64 = u64::MAX;
 /// Errors from making a wake bell.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum WakeError {
-    /// The rate cap is not a finite rate in (0, [`MAX_RATE_HZ`]].
-    #[error("wake bell: `max_rate_hz` must be finite and in (0, {MAX_RATE_HZ}], got {max_rate_hz}")]
+    /// The rate cap is not a finite rate in (0, [`MAX_WAKE_RATE_HZ`]].
+    #[error(
+        "wake bell: `max_rate_hz` must be finite and in (0, {MAX_WAKE_RATE_HZ}], got {max_rate_hz}"
+    )]
     InvalidMaxRate {
         /// The rate asked for.
         max_rate_hz: f64,
@@ -69,9 +73,9 @@ pub struct WakeWaiter {
 ///
 /// # Errors
 /// [`WakeError::InvalidMaxRate`] when `max_rate_hz` is not finite or outside
-/// (0, [`MAX_RATE_HZ`]].
+/// (0, [`MAX_WAKE_RATE_HZ`]].
 pub fn wake_bell(max_rate_hz: f64) -> Result<(WakeBell, WakeWaiter), WakeError> {
-    if !(max_rate_hz.is_finite() && max_rate_hz > 0.0 && max_rate_hz <= MAX_RATE_HZ) {
+    if !(max_rate_hz.is_finite() && max_rate_hz > 0.0 && max_rate_hz <= MAX_WAKE_RATE_HZ) {
         return Err(WakeError::InvalidMaxRate { max_rate_hz });
     }
     let shared = Arc::new(Shared {
@@ -160,15 +164,15 @@ impl WakeWaiter {
     }
 
     /// Sleeps until the next tick is due by `schedule` (its deadline, or a ring the rate cap
-    /// allows) and returns when it was due; `None` once `stop` is set (its setter rings the
-    /// bell). Parks the thread; takes no lock, never allocates.
+    /// allows) and returns when it was due; `None` once `stopped` says so (whoever stops the
+    /// loop rings the bell). Parks the thread; takes no lock, never allocates.
     pub(crate) fn wait_for_tick(
         &self,
         schedule: &WakeSchedule,
-        stop: &StopFlag,
+        stopped: impl Fn() -> bool,
     ) -> Option<Instant> {
         loop {
-            if stop.is_stopped() {
+            if stopped() {
                 return None;
             }
             let now = Instant::now();
@@ -332,7 +336,8 @@ mod tests {
 
     #[test]
     fn bad_rate_caps_are_refused_with_the_rate() {
-        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, MAX_RATE_HZ * 2.0] {
+        assert_eq!(MAX_WAKE_RATE_HZ, crate::MAX_RATE_HZ);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, MAX_WAKE_RATE_HZ * 2.0] {
             match wake_bell(bad) {
                 Err(WakeError::InvalidMaxRate { max_rate_hz }) => {
                     assert!(max_rate_hz.to_bits() == bad.to_bits());
