@@ -375,7 +375,7 @@ mod tests {
             "{} re-meshes for {changing_samples} samples that changed the clay",
             counters.graphics_updates
         );
-        let full = BrickOctree::build(run.octree().grid().clone(), run.density());
+        let full = BrickOctree::build(*run.octree().grid(), run.density());
         let kept = run.octree();
         assert_eq!(kept.brick_count(), full.brick_count());
         for brick in full.bricks() {
