@@ -23,13 +23,16 @@
 //!
 //! ```text
 //! cargo bench --bench motion_to_photon -- [--runs 12] [--display-hz 60] [--profile P]
-//!     [--size WxH] [--msaa N] [--graphics-hz HZ] [--out DIR]
+//!     [--size WxH] [--msaa N] [--graphics-hz HZ] [--graphics-max-hz HZ] [--out DIR]
 //! ```
 //!
 //! `--profile` (`full`, `software` or `auto`) forces a render profile; `--size` replaces the
 //! view's size and `--msaa` the profile's sample count (at most what the adapter supports):
 //! they show what the frame's own cost does to the figures. `--graphics-hz` shows what the
-//! graphics loop's period does.
+//! graphics loop's period does, `--graphics-max-hz` what its cap on ticks woken by the
+//! simulation's publications does (set it to the period's rate to see the loop without
+//! early wake-ups). Each run also prints the graphics loop's re-meshes, the snapshots whose
+//! re-mesh it held back as too small to see, and the bricks it re-meshed.
 //!
 //! Optimistic where the window is not: no egui compositing or presentation after the scene is
 //! drawn, and one fixed camera. Pessimistic where it is: the frame waits for the GPU to finish.
@@ -40,8 +43,8 @@ use std::time::{Duration, Instant};
 use crossbeam::channel::bounded;
 use dynaclay::app::{GuiMeshSink, GuiOptions, MeshSet, RepaintSignal, SculptApp, engine_link};
 use dynaclay::engine::{
-    Engine, EngineConfig, MotionToPhoton, ScriptDriver, ScriptPlan, StrokeLatency, build_clay,
-    summarize,
+    CounterSnapshot, Engine, EngineConfig, MotionToPhoton, ScriptDriver, ScriptPlan, StrokeLatency,
+    build_clay, summarize,
 };
 use dynaclay::render::{
     Camera, FrameSettings, GpuContext, MeshChunk, NamedView, OFFSCREEN_FORMAT, ProfileChoice,
@@ -71,6 +74,8 @@ struct Args {
     msaa: Option<u32>,
     /// The graphics loop's rate (`None`: the engine's default).
     graphics_hz: Option<f64>,
+    /// The graphics loop's cap on woken ticks (`None`: the engine's default).
+    graphics_max_hz: Option<f64>,
     out: PathBuf,
 }
 
@@ -83,6 +88,7 @@ fn parse_args() -> Args {
         profile_flag: false,
         msaa: None,
         graphics_hz: None,
+        graphics_max_hz: None,
         out: PathBuf::from("target/tmp/motion_to_photon"),
     };
     let mut it = std::env::args().skip(1);
@@ -104,6 +110,12 @@ fn parse_args() -> Args {
             }
             "--graphics-hz" => {
                 args.graphics_hz = it
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|hz: &f64| hz.is_finite() && *hz > 0.0);
+            }
+            "--graphics-max-hz" => {
+                args.graphics_max_hz = it
                     .next()
                     .and_then(|v| v.parse().ok())
                     .filter(|hz: &f64| hz.is_finite() && *hz > 0.0);
@@ -157,6 +169,8 @@ struct RunFigures {
     strokes: Vec<StrokeLatency>,
     frame_ms: Vec<f64>,
     triangles: usize,
+    /// The engine's counters at the end of the run.
+    counters: CounterSnapshot,
 }
 
 fn main() {
@@ -202,13 +216,15 @@ fn main() {
         println!("{choice}");
     }
     println!(
-        "adapter: {}; {frame_words}; {settings:?}; display {} Hz; graphics loop {}; load average {}",
+        "adapter: {}; {frame_words}; {settings:?}; display {} Hz; graphics loop {}, woken up to {}; load average {}",
         gpu.summary,
         args.display_hz,
         args.graphics_hz.map_or_else(
             || "at its default rate".to_string(),
             |hz| format!("{hz} Hz")
         ),
+        args.graphics_max_hz
+            .map_or_else(|| "its default cap".to_string(), |hz| format!("{hz} Hz")),
         load.split_whitespace()
             .take(3)
             .collect::<Vec<_>>()
@@ -233,13 +249,16 @@ fn main() {
             .collect::<Vec<_>>();
         let frames = Spread::of(&figures.frame_ms);
         println!(
-            "run {run}: first visible {} ms, settled {} ms; {} frames (p50 {:.1} ms, max {:.1} ms), {} triangles",
+            "run {run}: first visible {} ms, settled {} ms; {} frames (p50 {:.1} ms, max {:.1} ms), {} triangles; graphics: {} re-meshes, {} held back, {} bricks",
             first.join(", "),
             settled.join(", "),
             frames.count,
             frames.p50,
             frames.max,
-            figures.triangles
+            figures.triangles,
+            figures.counters.graphics_updates,
+            figures.counters.graphics_deferred,
+            figures.counters.bricks_remeshed,
         );
         strokes.extend(figures.strokes);
         frame_ms.extend(figures.frame_ms);
@@ -289,6 +308,9 @@ fn one_run(
     config.haptics.tool_contact = plan.tool_contact;
     if let Some(hz) = args.graphics_hz {
         config.graphics_rate_hz = hz;
+    }
+    if let Some(hz) = args.graphics_max_hz {
+        config.graphics_max_rate_hz = hz;
     }
     let arm = SimulatedArm::new(
         arm_config,
@@ -369,10 +391,11 @@ fn one_run(
     }
     drop(commands);
     let triangles = renderer.triangle_count();
-    engine.stop().expect("the engine stops");
+    let report = engine.stop().expect("the engine stops");
     RunFigures {
         strokes: ledger.strokes().copied().collect(),
         frame_ms,
         triangles,
+        counters: report.counters,
     }
 }

@@ -26,8 +26,12 @@ pub struct EngineConfig {
     pub haptic_rate_hz: f64,
     /// Simulation loop rate, hertz (one step per tick).
     pub sim_rate_hz: f64,
-    /// Graphics loop rate, hertz.
+    /// Graphics loop rate, hertz: it ticks at least this often (paint, idle frames).
     pub graphics_rate_hz: f64,
+    /// The most graphics ticks a second that the simulation's publications may start: a
+    /// publication that changed the clay wakes the graphics loop at once, but never sooner
+    /// after its previous tick than one over this rate (so re-meshing never runs faster).
+    pub graphics_max_rate_hz: f64,
     /// SCHED_FIFO priority asked for the haptic thread (`None`: normal priority).
     pub haptic_rt_priority: Option<i32>,
     /// Field snapshots younger than this give full force.
@@ -50,7 +54,7 @@ pub struct EngineConfig {
 
 impl EngineConfig {
     /// Defaults for `field` driven by a device with `info`: 1 kHz haptic, 1 kHz simulation,
-    /// 60 Hz graphics, SCHED_FIFO 80 asked for, staleness fade from 50 to 100 ms, the device
+    /// 60 Hz graphics woken by publications up to 120 Hz, SCHED_FIFO 80 asked for, staleness fade from 50 to 100 ms, the device
     /// workspace mapped around the lattice and room past it ([`reach_box`],
     /// [`WorkspaceMap::fitting`]), touch as stiff as
     /// the device allows, and the sculpting force calibrated on `field` so that pressing 5 mm
@@ -80,6 +84,7 @@ impl EngineConfig {
             haptic_rate_hz: 1000.0,
             sim_rate_hz: 1000.0,
             graphics_rate_hz: 60.0,
+            graphics_max_rate_hz: 120.0,
             haptic_rt_priority: Some(dynaclay_loops::DEFAULT_RT_PRIORITY),
             stale_fresh: Duration::from_millis(50),
             stale_limit: Duration::from_millis(100),

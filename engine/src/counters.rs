@@ -31,6 +31,7 @@ struct Inner {
     command_errors: AtomicU64,
     graphics_updates: AtomicU64,
     bricks_remeshed: AtomicU64,
+    graphics_deferred: AtomicU64,
     peak_force_milli_n: AtomicU64,
     clay_growths: AtomicU64,
     auto_refines: AtomicU64,
@@ -71,6 +72,10 @@ pub struct CounterSnapshot {
     pub graphics_updates: u64,
     /// Octree bricks re-meshed by those updates.
     pub bricks_remeshed: u64,
+    /// Snapshots whose change the graphics loop applied but did not re-mesh yet: too small to
+    /// see (see [`crate::graphics`]).
+    #[serde(default)]
+    pub graphics_deferred: u64,
     /// Largest force magnitude sent to the device, millinewtons.
     pub peak_force_milli_n: u64,
     /// Times the base patch grew to take an edit past its box.
@@ -119,6 +124,7 @@ impl EngineCounters {
         command_errors,
         graphics_updates,
         bricks_remeshed,
+        graphics_deferred,
         clay_growths,
         auto_refines,
         auto_coarsenings,
@@ -162,6 +168,7 @@ impl EngineCounters {
             command_errors: r(&i.command_errors),
             graphics_updates: r(&i.graphics_updates),
             bricks_remeshed: r(&i.bricks_remeshed),
+            graphics_deferred: r(&i.graphics_deferred),
             peak_force_milli_n: r(&i.peak_force_milli_n),
             clay_growths: r(&i.clay_growths),
             auto_refines: r(&i.auto_refines),

@@ -8,7 +8,7 @@ use glam::Vec3;
 
 use dynaclay_devices::DeviceError;
 use dynaclay_devices::record::ScheduleGap;
-use dynaclay_loops::LoopError;
+use dynaclay_loops::{LoopError, WakeError};
 
 use dynaclay_core::field::BSplineLattice;
 use dynaclay_core::io::{ReplaceRefused, SessionError};
@@ -27,6 +27,9 @@ pub enum EngineError {
     /// A loop could not start, or panicked.
     #[error("loop: {0}")]
     Loop(#[from] LoopError),
+    /// The graphics loop's wake-up could not be made (its rate cap is out of range).
+    #[error("graphics wake-up: {0}")]
+    GraphicsWake(#[from] WakeError),
     /// A loop thread ended without handing its state back (it panicked).
     #[error("the {0} loop ended without handing back its state")]
     Lost(&'static str),

@@ -9,6 +9,16 @@
 //! after the sink's meshes, so a frame that fetches the stamp first and the meshes second
 //! draws meshes at least as new as the stamp says: a change is never counted visible before
 //! a frame drew it.
+//!
+//! Changes too small to see are not re-meshed at once: while the clay relaxes after a push,
+//! every snapshot moves the whole region's coefficients by a little, and re-meshing the
+//! region for each would take the frame's CPU for nothing a frame can show. A snapshot whose
+//! change, added to what is already held back, moves no coefficient by
+//! [`DEFERRED_COEFF_TOLERANCE`] or more is applied to the stage's field but not meshed (its
+//! stamp is not published either: the meshes still hold the older snapshot). The held-back
+//! box is re-meshed, exactly, as soon as the sum reaches the tolerance, a snapshot brings a
+//! stroke's first change or settled shape, or a snapshot brings no change (the motion has
+//! stopped): the meshes of a clay at rest are those of a full re-mesh.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -18,11 +28,11 @@ use std::collections::VecDeque;
 use dynaclay_loops::{SnapshotReader, SnapshotWriter};
 
 use super::clock::EngineClock;
-use super::motion_to_photon::MeshStamp;
+use super::motion_to_photon::{MeshStamp, SETTLED_COEFF_TOLERANCE};
 
 use super::counters::EngineCounters;
 use super::layout::LayoutPort;
-use super::update::FieldUpdate;
+use super::update::{AppliedChange, FieldUpdate};
 use dynaclay_core::field::MultiPatchField;
 pub use dynaclay_core::mesh::MeshSink;
 use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
@@ -48,6 +58,15 @@ impl MeshSink for HeadlessSink {
     }
 }
 
+/// How far, in coefficient units summed over snapshots, the clay may move before the graphics
+/// loop re-meshes it: a quarter of [`SETTLED_COEFF_TOLERANCE`] (a fiftieth of a mesh cell of
+/// surface motion on the default clay, see there), so held-back changes are far below what
+/// a frame shows and delay the drawing of a stroke's settled shape by at most a quarter of
+/// the motion that tolerance allows. A coefficient's change bounds the field's change
+/// everywhere, and the sum of each snapshot's largest change bounds the change of any one
+/// coefficient since the last re-mesh.
+pub const DEFERRED_COEFF_TOLERANCE: f32 = SETTLED_COEFF_TOLERANCE / 4.0;
+
 /// The graphics loop's state.
 pub struct GraphicsStage {
     /// Boxed so that a new layout moves in by pointer (see [`super::layout`]).
@@ -71,6 +90,19 @@ pub struct GraphicsStage {
     /// (snapshot version, meshes ready) of the snapshots applied lately, oldest first: a
     /// stroke's settled snapshot is named only after its meshes were made.
     applied: VecDeque<(u64, u64)>,
+    /// Changes applied to `field` but not re-meshed yet (see [`DEFERRED_COEFF_TOLERANCE`]).
+    held_back: Option<HeldBack>,
+}
+
+/// Changes applied to the graphics stage's field and not re-meshed yet.
+#[derive(Clone, Copy, Debug)]
+struct HeldBack {
+    /// Their box, with the sum of their snapshots' largest coefficient moves as
+    /// `largest_move`.
+    change: AppliedChange,
+    /// The newest snapshot among them, and its stroke stamps.
+    version: u64,
+    strokes: super::StrokeStamps,
 }
 
 /// Snapshots remembered to find when a settled shape's meshes were ready (at 60 Hz, a minute;
@@ -116,11 +148,13 @@ impl GraphicsStage {
             stamps,
             stamp: MeshStamp::default(),
             applied: VecDeque::with_capacity(APPLIED_KEPT),
+            held_back: None,
         })
     }
 
-    /// Applies the newest patch if there is one and re-meshes what it changed, after handing
-    /// the sink any new paint; returns the number of bricks re-meshed.
+    /// Applies the newest patch if there is one and re-meshes what it changed (unless too
+    /// small to see yet, see [`DEFERRED_COEFF_TOLERANCE`]), after handing the sink any new
+    /// paint; returns the number of bricks re-meshed.
     pub fn tick(&mut self) -> usize {
         if let Some(paint) = self.colours.try_fresh() {
             self.sink.paint(&self.octree, paint.value.as_ref());
@@ -139,19 +173,57 @@ impl GraphicsStage {
         if stamped.value.layout != self.layout
             || stamped.version == self.ack.load(Ordering::Relaxed)
         {
+            // No new snapshot: whatever was held back is meshed now.
+            if let Some(held) = self.held_back.take() {
+                return self.remesh(held.change, held.version, held.strokes);
+            }
             self.sink.idle(&self.field);
             return 0;
         }
-        let changed = stamped.value.apply_to(&mut self.field);
+        let change = stamped.value.apply_measured(&mut self.field);
         let (version, strokes) = (stamped.version, stamped.value.stroke_stamps);
         // NOTE: Release pairs with the simulation's Acquire load of the ack.
         self.ack.store(version, Ordering::Release);
-        let Some((lo, hi)) = changed else {
-            self.sink.idle(&self.field);
-            self.publish_stamp(version, strokes);
-            return 0;
+        let held = match (self.held_back.take(), change) {
+            (None, None) => {
+                self.sink.idle(&self.field);
+                self.publish_stamp(version, strokes);
+                return 0;
+            }
+            // The motion has stopped: the held-back change is meshed, exactly.
+            (Some(held), None) => return self.remesh(held.change, version, strokes),
+            (None, Some(change)) => change,
+            (Some(held), Some(change)) => AppliedChange {
+                largest_move: held.change.largest_move + change.largest_move,
+                ..held.change.union(&change)
+            },
         };
-        let report = self.octree.refresh_box(&*self.field, lo, hi);
+        // A stroke's first change and its settled shape are shown as soon as they come.
+        let news = strokes.stroke != self.stamp.stroke.stroke
+            || strokes.first_change != self.stamp.stroke.first_change
+            || strokes.settled != self.stamp.stroke.settled;
+        if held.largest_move < DEFERRED_COEFF_TOLERANCE && !news {
+            self.held_back = Some(HeldBack {
+                change: held,
+                version,
+                strokes,
+            });
+            self.counters.graphics_deferred(1);
+            self.sink.idle(&self.field);
+            return 0;
+        }
+        self.remesh(held, version, strokes)
+    }
+
+    /// Re-meshes the box of `change`, hands the sink the meshes and publishes their stamp as
+    /// those of snapshot `version` carrying `strokes`; returns the bricks re-meshed.
+    fn remesh(
+        &mut self,
+        change: AppliedChange,
+        version: u64,
+        strokes: super::StrokeStamps,
+    ) -> usize {
+        let report = self.octree.refresh_box(&*self.field, change.lo, change.hi);
         let n = report.changed.len() + report.removed.len();
         self.counters.graphics_updates(1);
         self.counters.bricks_remeshed(n as u64);
@@ -222,6 +294,8 @@ impl GraphicsStage {
         };
         let removed: Vec<[u32; 3]> = self.octree.bricks().map(|b| b.coord).collect();
         self.octree = BrickOctree::new(grid);
+        // Everything is meshed afresh, held-back changes with the rest.
+        self.held_back = None;
         let mut report = self.octree.rebuild(&*self.field);
         report.removed = removed;
         self.counters.graphics_updates(1);
@@ -270,6 +344,62 @@ mod tests {
         fn paint(&mut self, _: &BrickOctree, colour: Option<&ColourField>) {
             *self.0.lock() = Some(colour.cloned());
         }
+    }
+
+    /// A step that changes the clay rings the graphics loop's bell once it has published, and
+    /// the tick it starts re-meshes the change; steps that change nothing do not ring.
+    #[test]
+    fn a_publication_that_changes_the_clay_wakes_the_graphics_loop_to_remesh_it() {
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let centre = Vec3::splat(11.0 * 0.1 * 0.5);
+        let surface = centre + Vec3::new(11.0 * 0.1 * 0.25, 0.0, 0.0);
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let mut s = build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap();
+        let (bell, waiter) = dynaclay_loops::wake_bell(config.graphics_max_rate_hz).unwrap();
+        s.sim.set_graphics_wake(bell);
+        for _ in 0..20 {
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+        }
+        assert!(!waiter.is_rung(), "nothing changed, nothing rang");
+        assert_eq!(s.graphics.tick(), 0, "and nothing to re-mesh");
+
+        let tool = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.25 },
+            action: ToolAction::Remove,
+            falloff_fu: 0.1,
+        };
+        s.commands
+            .send(Command::ApplyTool {
+                tool,
+                poses: vec![ToolPose::at(surface)],
+                duration_s: 0.1,
+                patch: 0,
+                reply: None,
+            })
+            .unwrap();
+        for _ in 0..200 {
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+            if waiter.is_rung() {
+                break;
+            }
+        }
+        assert!(waiter.is_rung(), "the publication of the cut rang");
+        assert!(s.graphics.tick() > 0, "the woken tick re-meshed the cut");
     }
 
     /// A paint stroke applied by the simulation reaches the graphics loop's sink, and so does

@@ -48,7 +48,7 @@ pub use error::{
     SwapRefused,
 };
 pub use force_limit::{ForceLimit, InvalidForceLimit};
-pub use graphics::{GraphicsStage, HeadlessSink, MeshSink};
+pub use graphics::{DEFERRED_COEFF_TOLERANCE, GraphicsStage, HeadlessSink, MeshSink};
 pub use haptic::{HapticOutcome, HapticStage};
 pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
@@ -75,6 +75,6 @@ pub use tool_library::{
     LibraryError, LibraryTool, check_name, describe_preset, make_preset, store_preset,
 };
 pub use tool_sample::ToolSample;
-pub use update::{ChangedBox, FieldUpdate};
+pub use update::{AppliedChange, ChangedBox, FieldUpdate};
 pub use wiring::{Stages, build};
 pub use workspace::{REACH_MARGIN, WorkspaceMap, reach_box};

@@ -132,6 +132,12 @@ impl Lockstep {
         &self.stages.clock
     }
 
+    /// The graphics stage's octree: the meshes a frame drawn now would show.
+    #[must_use]
+    pub fn octree(&self) -> &BrickOctree {
+        self.stages.graphics.octree()
+    }
+
     /// The stamp of the graphics stage's newest meshes (what a frame drawn now would show).
     pub fn mesh_stamp(&mut self) -> MeshStamp {
         self.stages.mesh_stamps.latest().value
@@ -310,5 +316,77 @@ mod tests {
         let m = ledger.summary("lockstep");
         assert_eq!(m.strokes, 1);
         assert_eq!(m.first_visible_ms.p50, first.total_ms());
+    }
+
+    /// The built-in stroke in lockstep with a graphics update after every sample: while the
+    /// clay relaxes, snapshots whose change is too small to see are held back (the graphics
+    /// stage re-meshes fewer snapshots than changed the clay), and once the motion has
+    /// stopped the meshes are, brick for brick, those of a full re-mesh of the final clay.
+    #[test]
+    fn changes_too_small_to_see_are_held_back_and_the_clay_at_rest_is_meshed_exactly() {
+        let plan = ScriptPlan::builtin();
+        let field = build_clay(&plan.clay).unwrap();
+        let arm_config = SimArmConfig::default();
+        let mut config = EngineConfig::for_field(&field, &arm_config.info);
+        config.haptics.tool_contact = plan.tool_contact;
+        let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
+        let mut run = Lockstep::new(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            1,
+        )
+        .unwrap();
+        let mut driver = ScriptDriver::new(&plan);
+        let commands = run.commands();
+        let mut before = run.density().clone();
+        let mut changing_samples = 0u64;
+        let script_samples = (plan.seconds * 1000.0) as usize;
+        // The script, then until the stroke is known settled (its region retired), then a
+        // few samples more.
+        let mut settled_at: Option<usize> = None;
+        for i in 0..script_samples + 10_000 {
+            let sample = run.latest_tool();
+            driver.dispatch(&sample, &commands);
+            run.step();
+            if *run.density() != before {
+                changing_samples += 1;
+            }
+            before.clone_from(run.density());
+            if i >= script_samples
+                && settled_at.is_none()
+                && run.mesh_stamp().stroke.settled.is_some()
+            {
+                settled_at = Some(i);
+            }
+            if settled_at.is_some_and(|at| i >= at + 20) {
+                break;
+            }
+        }
+        assert!(settled_at.is_some(), "the stroke settled within the run");
+        let counters = run.counters().snapshot();
+        assert!(
+            counters.graphics_deferred > 0,
+            "some re-meshes were held back: {counters:?}"
+        );
+        assert!(
+            counters.graphics_updates < changing_samples,
+            "{} re-meshes for {changing_samples} samples that changed the clay",
+            counters.graphics_updates
+        );
+        let full = BrickOctree::build(*run.octree().grid(), run.density());
+        let kept = run.octree();
+        assert_eq!(kept.brick_count(), full.brick_count());
+        for brick in full.bricks() {
+            let mine = kept
+                .brick(brick.coord)
+                .unwrap_or_else(|| panic!("brick {:?} missing", brick.coord));
+            assert!(
+                mine.mesh == brick.mesh,
+                "brick {:?} differs from a full re-mesh",
+                brick.coord
+            );
+        }
     }
 }

@@ -53,7 +53,7 @@ pub use session_io::check_loadable;
 
 use crossbeam::channel::{Receiver, Sender};
 use dynaclay_devices::record::{ScheduleLog, ScheduleNote};
-use dynaclay_loops::{SnapshotReader, SnapshotWriter, snapshot_channel};
+use dynaclay_loops::{SnapshotReader, SnapshotWriter, WakeBell, snapshot_channel};
 use glam::{Quat, Vec3};
 
 use super::clock::EngineClock;
@@ -249,6 +249,11 @@ pub struct SimulationStage {
     clock: EngineClock,
     /// The newest stroke's way to the screen (see `stamps.rs`).
     track: stamps::StrokeTrack,
+    /// Rung when a publication carries a change, so the graphics loop re-meshes at once
+    /// instead of at its next period (none in a lockstep run, whose driver ticks graphics).
+    graphics_wake: Option<WakeBell>,
+    /// The clay changed since the last publication (a region step, a marked box).
+    changed_since_publish: bool,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -346,6 +351,8 @@ impl SimulationStage {
             removal: removal::RemovalState::default(),
             clock,
             track: stamps::StrokeTrack::default(),
+            graphics_wake: None,
+            changed_since_publish: false,
         }
     }
 
@@ -353,6 +360,12 @@ impl SimulationStage {
     /// loops; see [`super::layout`]).
     pub fn set_layout_senders(&mut self, senders: [LayoutSender; 2]) {
         self.layout_senders = senders.into();
+    }
+
+    /// Rings `bell` whenever a publication carries a change of the clay (a region step, a
+    /// stroke of a geometric tool, an undo, a load), so the graphics loop re-meshes at once.
+    pub fn set_graphics_wake(&mut self, bell: WakeBell) {
+        self.graphics_wake = Some(bell);
     }
 
     /// Notes every step's tool sample and command count into `log` from now on, so that a
@@ -540,6 +553,7 @@ impl SimulationStage {
             match stepped {
                 Some(Ok(report)) => {
                     out.stepped = true;
+                    self.changed_since_publish = true;
                     out.pushed = push;
                     if push {
                         self.track.changed_by_hand();

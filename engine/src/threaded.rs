@@ -13,7 +13,7 @@ use dynaclay_devices::{
 };
 use dynaclay_loops::{
     LatencyStats, LoopConfig, LoopHandle, LoopReport, OverrunPolicy, RtOutcome, SnapshotReader,
-    spawn_loop,
+    spawn_loop, spawn_woken_loop, wake_bell,
 };
 use glam::Vec3;
 
@@ -178,9 +178,12 @@ impl Engine {
         options: StartOptions,
     ) -> Result<Self, EngineError> {
         let StartOptions { autosave, schedule } = options;
+        // Before the device opens: a refused rate cap leaves nothing to close.
+        let (graphics_bell, graphics_waiter) = wake_bell(config.graphics_max_rate_hz)?;
         let density = field.into();
         let field_box = reach_box(density.base());
         let mut stages = build(config, density, device, sink, false)?;
+        stages.sim.set_graphics_wake(graphics_bell);
         if let Some(log) = schedule {
             stages.haptic.set_schedule_log(log.clone());
             stages.sim.set_schedule_log(log);
@@ -243,7 +246,8 @@ impl Engine {
         let gfx_cfg = LoopConfig::new("graphics")
             .with_rate_hz(config.graphics_rate_hz)
             .with_stats_every_ticks(60);
-        let graphics = match spawn_loop(gfx_cfg, move |_| {
+        // Woken by the simulation's publications of a change, no faster than the rate cap.
+        let graphics = match spawn_woken_loop(gfx_cfg, graphics_waiter, move |_| {
             if let Some(stage) = gb.value.as_mut() {
                 stage.tick();
             }

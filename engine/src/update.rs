@@ -147,24 +147,61 @@ impl FieldUpdate {
     /// `None` if none did). An update that does not fit the field changes nothing and returns
     /// `None`.
     pub fn apply_to(&self, field: &mut MultiPatchField) -> Option<(Vec3, Vec3)> {
+        self.apply_measured(field).map(|c| (c.lo, c.hi))
+    }
+
+    /// [`FieldUpdate::apply_to`], also measuring the largest change of any one coefficient.
+    pub fn apply_measured(&self, field: &mut MultiPatchField) -> Option<AppliedChange> {
         if !self.fits(field) {
             return None;
         }
-        let mut world: Option<(Vec3, Vec3)> = None;
+        let mut applied: Option<AppliedChange> = None;
         let mut rest = self.coeffs.as_slice();
         for b in &self.boxes {
             let patch = &mut field.patches[usize::from(b.patch)];
             let (mine, after) = rest.split_at(b.coeff_box.count());
             rest = after;
-            let Some(changed) = apply_box(mine, b.coeff_box, &mut patch.lattice) else {
+            let Some((changed, largest_move)) = apply_box(mine, b.coeff_box, &mut patch.lattice)
+            else {
                 continue;
             };
             let (lo, hi) =
                 BrickOctree::coefficient_change_box(&patch.lattice, changed.min, changed.max);
             let (lo, hi) = patch.world_box_of(lo, hi);
-            world = Some(world.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
+            let here = AppliedChange {
+                lo,
+                hi,
+                largest_move,
+            };
+            applied = Some(applied.map_or(here, |a| a.union(&here)));
         }
-        world
+        applied
+    }
+}
+
+/// What applying an update changed: the world box outside which the field did not change,
+/// and the largest change of a coefficient inside it (coefficient units; infinite when a
+/// value was or became non-finite). A coefficient's change bounds the change of the field's
+/// value anywhere (a B-spline value is a convex combination of coefficients).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AppliedChange {
+    /// The box's low corner, world units.
+    pub lo: Vec3,
+    /// The box's high corner, world units.
+    pub hi: Vec3,
+    /// The largest change of any one coefficient, coefficient units.
+    pub largest_move: f32,
+}
+
+impl AppliedChange {
+    /// Both changes: the box holding both boxes, the larger move.
+    #[must_use]
+    pub fn union(&self, other: &Self) -> Self {
+        Self {
+            lo: self.lo.min(other.lo),
+            hi: self.hi.max(other.hi),
+            largest_move: self.largest_move.max(other.largest_move),
+        }
     }
 }
 
@@ -183,10 +220,11 @@ fn copy_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) {
     }
 }
 
-/// Writes `coeffs` into `lattice` and returns the box of coefficients whose value changed;
-/// the caller checked the fit.
-fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Option<CoeffBox> {
+/// Writes `coeffs` into `lattice` and returns the box of coefficients whose value changed
+/// with the largest change (infinite for a non-finite value); the caller checked the fit.
+fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Option<(CoeffBox, f32)> {
     let mut changed: Option<CoeffBox> = None;
+    let mut largest = 0.0f32;
     let len = b.max[0] + 1 - b.min[0];
     let mut src = 0;
     for k in b.min[2]..=b.max[2] {
@@ -197,6 +235,12 @@ fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Optio
             for (i, (d, s)) in dst.iter_mut().zip(from).enumerate() {
                 // Bit comparison: a changed NaN payload or signed zero still counts.
                 if d.to_bits() != s.to_bits() {
+                    let moved = (*s - *d).abs();
+                    largest = largest.max(if moved.is_finite() {
+                        moved
+                    } else {
+                        f32::INFINITY
+                    });
                     *d = *s;
                     let p = [b.min[0] + i, j, k];
                     changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
@@ -205,7 +249,7 @@ fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Optio
             src += len;
         }
     }
-    changed
+    changed.map(|c| (c, largest))
 }
 
 #[cfg(test)]
@@ -235,6 +279,38 @@ mod tests {
             world_to_patch: Affine3A::from_translation(Vec3::new(0.5, 0.0, 0.0)),
         });
         field
+    }
+
+    /// The measured apply reports the largest change of any one coefficient over every
+    /// patch, and an infinite one for a value that became non-finite.
+    #[test]
+    fn apply_measured_reports_the_largest_coefficient_move() {
+        let src = two_patches(1.0);
+        let mut moved = src.clone();
+        moved.patches[0].lattice.coeffs[7] += 0.25;
+        moved.patches[1].lattice.coeffs[11] -= 0.5;
+        let capture = |field: &MultiPatchField| {
+            let mut update = FieldUpdate::with_capacity_for(field);
+            for (n, p) in field.patches.iter().enumerate() {
+                update.capture(field, n, CoeffBox::whole(p.lattice.dims));
+            }
+            update
+        };
+        let mut dst = src.clone();
+        let change = capture(&moved)
+            .apply_measured(&mut dst)
+            .expect("the field changed");
+        assert_eq!(dst, moved);
+        assert!(
+            (change.largest_move - 0.5).abs() < 1e-6,
+            "{}",
+            change.largest_move
+        );
+        assert_eq!(capture(&moved).apply_measured(&mut dst), None);
+
+        moved.patches[0].lattice.coeffs[3] = f32::NAN;
+        let change = capture(&moved).apply_measured(&mut dst).expect("changed");
+        assert_eq!(change.largest_move, f32::INFINITY);
     }
 
     #[test]

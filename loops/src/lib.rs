@@ -17,6 +17,8 @@
 //!   [`latency_svg`] / [`latency_png`].
 //! - [`assert_not_in_tick`]: the "a tick never blocks" rule, checked at every blocking point
 //!   (each tick is marked on its thread; see the `blocking` module's docs for the rule).
+//! - [`wake_bell`] + [`spawn_woken_loop`]: a loop that also ticks when another thread rings
+//!   its [`WakeBell`] (lock-free), no faster than a rate cap.
 //! - [`Staleness`] (fade factor from data age) and [`Watchdog`] (stalled-loop detection).
 //! - [`LogBins`]: coarse half-octave bins published with [`LatencyStats`] for live plots.
 //! - [`Timeline`]: a recorder's run over time in fixed memory, for the timeline plot.
@@ -45,6 +47,7 @@ mod staleness;
 mod summary;
 mod table;
 mod timeline;
+mod wake;
 mod watchdog;
 
 pub use blocking::{
@@ -77,10 +80,13 @@ pub use report::{HAPTIC_LOOP, profile_report};
 pub use runner::{
     LoopConfig, LoopControl, LoopError, LoopHandle, LoopMonitor, LoopReport, MAX_RATE_HZ,
     OverrunPolicy, StopFlag, StopReason, TickInfo, loop_control, run_loop, spawn_loop,
-    spawn_loop_with,
+    spawn_loop_with, spawn_woken_loop,
 };
 pub use staleness::Staleness;
 pub use summary::{LoopSummary, ProfileDoc, summaries_from_json, summaries_to_json};
 pub use table::{compare_table, markdown_table, probe_table};
 pub use timeline::{FIRST_WINDOW, TIMELINE_WINDOWS, Timeline, TimelineWindow};
+pub use wake::{
+    MAX_WAKE_RATE_HZ, WakeBell, WakeDecision, WakeError, WakeSchedule, WakeWaiter, wake_bell,
+};
 pub use watchdog::{Heartbeat, Liveness, Watchdog};

@@ -27,6 +27,7 @@ use crate::exchange::{SnapshotReader, SnapshotWriter, Stamped, snapshot_channel}
 use crate::priority::{PinOutcome, RtOutcome, pin_current_thread, request_realtime};
 use crate::recorder::{LatencyRecorder, LatencyStats, TickTiming};
 use crate::summary::LoopSummary;
+use crate::wake::{WakeBell, WakeSchedule, WakeWaiter};
 use crate::watchdog::{Heartbeat, Watchdog};
 
 /// Highest rate a loop may be configured for.
@@ -274,6 +275,8 @@ pub struct LoopMonitor {
     stop: StopFlag,
     heartbeat: Heartbeat,
     stats: SnapshotReader<LatencyStats>,
+    /// A woken loop's bell, rung on stop so a loop asleep towards a long period ends at once.
+    wake: Option<WakeBell>,
 }
 
 /// Makes a connected [`LoopControl`] / [`LoopMonitor`] pair (allocates; call at set-up).
@@ -292,14 +295,18 @@ pub fn loop_control() -> (LoopControl, LoopMonitor) {
             stop,
             heartbeat,
             stats: rx,
+            wake: None,
         },
     )
 }
 
 impl LoopMonitor {
-    /// Asks the loop to stop after its current tick.
+    /// Asks the loop to stop after its current tick (a woken loop asleep is woken to stop).
     pub fn stop(&self) {
         self.stop.stop();
+        if let Some(bell) = &self.wake {
+            bell.ring();
+        }
     }
 
     /// A clone of the loop's stop flag.
@@ -379,7 +386,7 @@ where
 {
     config.validate()?;
     let (rt, pin) = prepare_thread(config);
-    Ok(run_prepared(config.clone(), rt, pin, control, body))
+    Ok(run_prepared(config.clone(), rt, pin, control, body, None))
 }
 
 fn prepare_thread(config: &LoopConfig) -> (RtOutcome, PinOutcome) {
@@ -392,13 +399,15 @@ fn prepare_thread(config: &LoopConfig) -> (RtOutcome, PinOutcome) {
     (rt, pin)
 }
 
-/// The tick loop proper; `config` is validated.
+/// The tick loop proper; `config` is validated. With `wake`, ticks also start when its bell
+/// rings (see [`crate::wake`]) instead of only on the deadline grid.
 fn run_prepared<F>(
     config: LoopConfig,
     rt: RtOutcome,
     pin: PinOutcome,
     mut control: LoopControl,
     mut body: F,
+    wake: Option<WakeWaiter>,
 ) -> LoopReport
 where
     F: FnMut(&TickInfo) -> ControlFlow<()>,
@@ -416,6 +425,11 @@ where
         .with_missed_tick_behavior(config.overrun.missed_tick_behavior())
         .with_spin_sleeper(sleeper);
     let stats_every = u64::from(config.stats_every_ticks);
+    let mut woken = wake.map(|w| {
+        w.register_current_thread();
+        let schedule = WakeSchedule::new(period, w.min_interval());
+        (w, schedule)
+    });
 
     let mut index = 0u64;
     let mut prev: Option<(Instant, Instant)> = None; // (scheduled, woke) of the previous tick
@@ -423,9 +437,24 @@ where
         if control.stop.is_stopped() {
             break StopReason::StopRequested;
         }
-        let scheduled = interval.tick();
+        let scheduled = match woken.as_ref() {
+            Some((waiter, schedule)) => {
+                match waiter.wait_for_tick(schedule, || control.stop.is_stopped()) {
+                    Some(scheduled) => scheduled,
+                    None => break StopReason::StopRequested,
+                }
+            }
+            None => interval.tick(),
+        };
         let woke = Instant::now();
+        if let Some((_, schedule)) = woken.as_mut() {
+            schedule.ticked(woke);
+        }
         let (dt, skipped_before) = match prev {
+            // A woken loop has no grid and skips nothing.
+            Some((_, prev_woke)) if woken.is_some() => {
+                (woke.saturating_duration_since(prev_woke), 0)
+            }
             Some((prev_scheduled, prev_woke)) => {
                 // Deadlines sit on the grid start + k·period, so the gap in whole periods minus
                 // one is the number of ticks the skip policy dropped (0 under catch-up).
@@ -518,8 +547,38 @@ where
     M: FnOnce() -> F + Send + 'static,
     F: FnMut(&TickInfo) -> ControlFlow<()>,
 {
+    spawn_prepared(config, None, make_body)
+}
+
+/// As [`spawn_loop`], for a loop that also ticks when `wake`'s bell rings: a ring starts a
+/// tick at once, but never sooner after the previous tick than the waiter's rate cap; without
+/// a ring a tick is due one period after the previous one (see [`crate::wake`]).
+///
+/// # Errors
+/// As [`spawn_loop`].
+pub fn spawn_woken_loop<F>(
+    config: LoopConfig,
+    wake: WakeWaiter,
+    body: F,
+) -> Result<LoopHandle, LoopError>
+where
+    F: FnMut(&TickInfo) -> ControlFlow<()> + Send + 'static,
+{
+    spawn_prepared(config, Some(wake), move || body)
+}
+
+fn spawn_prepared<M, F>(
+    config: LoopConfig,
+    wake: Option<WakeWaiter>,
+    make_body: M,
+) -> Result<LoopHandle, LoopError>
+where
+    M: FnOnce() -> F + Send + 'static,
+    F: FnMut(&TickInfo) -> ControlFlow<()>,
+{
     config.validate()?;
-    let (control, monitor) = loop_control();
+    let (control, mut monitor) = loop_control();
+    monitor.wake = wake.as_ref().map(WakeWaiter::bell);
     let (ready_tx, ready_rx) = mpsc::sync_channel::<(RtOutcome, PinOutcome)>(1);
     let name = config.name.clone();
     let thread = std::thread::Builder::new()
@@ -529,7 +588,7 @@ where
             // The receiver only disappears if spawn_loop_with itself is gone; nothing to tell.
             let _ = ready_tx.send((rt, pin));
             let body = make_body();
-            run_prepared(config, rt, pin, control, body)
+            run_prepared(config, rt, pin, control, body, wake)
         })
         .map_err(|source| LoopError::Spawn {
             loop_name: name.clone(),
@@ -842,6 +901,32 @@ mod tests {
             assert!(stats.achieved_rate_hz <= rate_hz * 1.01, "{stats:?}");
             assert!((stats.nominal_rate_hz - rate_hz).abs() < 1e-6);
         }
+    }
+
+    /// A woken loop whose period is far longer than the test ticks once at its start and
+    /// then once per ring: every tick after the first is the bell's, none the period's. Its
+    /// stop ends it at once, asleep as it is.
+    #[test]
+    fn each_ring_starts_one_tick_without_waiting_for_the_period() {
+        let (bell, waiter) = crate::wake_bell(1000.0).expect("valid cap");
+        let (tick_tx, tick_rx) = mpsc::channel();
+        let handle = spawn_woken_loop(
+            LoopConfig::new("t-woken").with_rate_hz(0.001),
+            waiter,
+            move |t| {
+                let _ = tick_tx.send((t.index, t.skipped_before));
+                ControlFlow::Continue(())
+            },
+        )
+        .expect("spawn");
+        assert_eq!(tick_rx.recv().expect("the first tick"), (0, 0));
+        for index in 1..=3 {
+            bell.ring();
+            assert_eq!(tick_rx.recv().expect("a woken tick"), (index, 0));
+        }
+        let report = handle.stop_and_join().expect("join");
+        assert_eq!(report.stop_reason, StopReason::StopRequested);
+        assert_eq!(report.recorder.ticks(), 4, "no tick without a ring");
     }
 
     #[test]

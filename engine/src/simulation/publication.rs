@@ -14,6 +14,7 @@ impl SimulationStage {
     /// Records that box `b` of density patch `patch` changed outside the region's regular
     /// publication.
     pub(super) fn mark_changed(&mut self, patch: usize, b: CoeffBox) {
+        self.changed_since_publish = true;
         if let Some(pending) = self.pending.get_mut(patch) {
             *pending = Some(pending.map_or(b, |p| p.union(&b)));
             self.pending_since = self.to_haptic.version() + 1;
@@ -77,6 +78,12 @@ impl SimulationStage {
             w.publish();
         }
         self.counters.snapshots_published(1);
+        if std::mem::take(&mut self.changed_since_publish)
+            && let Some(bell) = &self.graphics_wake
+        {
+            // After the publication: the tick it starts finds this snapshot.
+            bell.ring();
+        }
         if self.colour_dirty
             && self.steps >= self.colour_published_step + COLOUR_PUBLISH_EVERY_STEPS
         {
