@@ -146,6 +146,7 @@ fn haptic_tick_allocates_nothing() {
                 .send(Command::Load {
                     session: Box::new(session),
                     source: "same-lattice.dclay".into(),
+                    keep_history: false,
                     reply: None,
                 })
                 .unwrap();
