@@ -972,7 +972,11 @@ mod tests {
 
         s.commands.send(Command::Undo).unwrap();
         run_ticks(&mut s, 3);
-        assert_eq!(s.sim.lattice(), &edited, "Undo brings the replaced clay back");
+        assert_eq!(
+            s.sim.lattice(),
+            &edited,
+            "Undo brings the replaced clay back"
+        );
         assert_eq!(
             s.graphics.field().base(),
             &edited,

@@ -64,7 +64,9 @@ impl FilePurpose {
     pub fn hint(self) -> &'static str {
         match self {
             Self::Open | Self::SaveAs => "a .dclay session",
-            Self::Import => "a .ply, .xyz, .txt or .pts cloud, an .obj or .stl mesh, a .nrrd volume",
+            Self::Import => {
+                "a .ply, .xyz, .txt or .pts cloud, an .obj or .stl mesh, a .nrrd volume"
+            }
             Self::Export => "an .obj, .ply or .stl mesh",
         }
     }

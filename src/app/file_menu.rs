@@ -220,9 +220,10 @@ impl FileMenu {
         }
         let mut chosen = None;
         for path in paths {
-            let name = path
-                .file_name()
-                .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into());
+            let name = path.file_name().map_or_else(
+                || path.display().to_string(),
+                |n| n.to_string_lossy().into(),
+            );
             if ui
                 .button(name)
                 .on_hover_text(path.display().to_string())
@@ -305,7 +306,10 @@ impl FileMenu {
             .collapsible(false)
             .resizable(false)
             .show(ctx, |ui| {
-                ui.label(format!("No file dialog: {why}. Type the path of {}.", purpose.hint()));
+                ui.label(format!(
+                    "No file dialog: {why}. Type the path of {}.",
+                    purpose.hint()
+                ));
                 let label = ui.label("Path");
                 let edit = ui
                     .add(egui::TextEdit::singleline(text).desired_width(360.0))

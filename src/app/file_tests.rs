@@ -84,11 +84,7 @@ fn run_until(
         if done(h.state_mut()) {
             return;
         }
-        assert!(
-            start.elapsed() < HANG,
-            "no {what}; log {:?}",
-            h.state().log
-        );
+        assert!(start.elapsed() < HANG, "no {what}; log {:?}", h.state().log);
         std::thread::sleep(Duration::from_millis(10));
     }
 }
@@ -103,7 +99,13 @@ fn type_text(h: &mut Harness<'static, SculptApp>, text: &str) {
     h.run();
     let field = h.get_by_role_and_label(Role::TextInput, "Path");
     assert!(field.is_focused(), "the box takes the keyboard as it shows");
-    field.type_text(text);
+    // Replace what the box starts with (Save As offers the session's own name).
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run();
+    h.key_press(egui::Key::Backspace);
+    h.run();
+    h.get_by_role_and_label(Role::TextInput, "Path")
+        .type_text(text);
     h.run();
     h.get_by_label("OK").click();
     h.run();
@@ -142,7 +144,9 @@ fn save_as_and_new_through_the_typed_path_write_the_session_and_autosave_follows
     spec.resolution = 10;
     spec.material = super::new_clay::MaterialPreset::Plastic;
     h.get_by_label("Create").click();
-    run_until(&mut h, "restart on the new clay", |app| app.view.restarts == 1);
+    run_until(&mut h, "restart on the new clay", |app| {
+        app.view.restarts == 1
+    });
     // The replaced clay (and from now on autosave) follows the session saved last, not the
     // one the window started with.
     assert!(
@@ -159,8 +163,7 @@ fn save_as_and_new_through_the_typed_path_write_the_session_and_autosave_follows
     let before = std::fs::metadata(&second_file).unwrap().modified().unwrap();
     h.get_by_label("Save").click();
     run_until(&mut h, "second save", |_| {
-        load_session(&second_file)
-            .is_ok_and(|s| s.clay.density.patches[0].lattice.dims == [10; 3])
+        load_session(&second_file).is_ok_and(|s| s.clay.density.patches[0].lattice.dims == [10; 3])
     });
     let saved = load_session(&second_file).unwrap();
     assert_eq!(saved.material.uniform, crate::dynamics::Material::PLASTIC);
@@ -190,7 +193,11 @@ fn replacing_a_clay_with_history_asks_first_and_honours_the_answer() {
     );
 
     h.state_mut().view.undo_steps = 3;
-    for (answer, keep) in [("Keep undo history", Some(true)), ("Drop undo history", Some(false)), ("Cancel", None)] {
+    for (answer, keep) in [
+        ("Keep undo history", Some(true)),
+        ("Drop undo history", Some(false)),
+        ("Cancel", None),
+    ] {
         h.state_mut().file_request(FileRequest::Open(other.clone()));
         h.run();
         assert!(
@@ -250,7 +257,13 @@ fn a_session_without_a_name_is_saved_through_save_as_and_a_loaded_cloud_never_bl
     // The box starts with the session's name (none here).
     type_text(&mut h, "x.obj");
     assert!(end.commands.try_iter().next().is_none());
-    assert!(h.state().log.back().unwrap().contains("Export writes meshes"));
+    assert!(
+        h.state()
+            .log
+            .back()
+            .unwrap()
+            .contains("Export writes meshes")
+    );
 
     // An imported cloud is not the session: Save still writes the session by its name.
     h.state_mut().files.session = Some("work.dclay".into());

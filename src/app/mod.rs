@@ -46,9 +46,9 @@ pub use command::{ClaySource, CsgOperand, EngineCommand, EngineEvent, ForceMode,
 pub use csg_panel::{CSG_OPS, CsgPanel, OperandKind, SolidKind};
 pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
+pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
 pub use file_dialog::{DIALOG_ENV, DialogBackend, FilePurpose, NativePick, PickState};
 pub use file_menu::{FileMenu, FileRequest};
-pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
@@ -58,8 +58,8 @@ pub use link::{
     SendError, engine_link,
 };
 pub use material_panel::{MaterialBrush, material_ui};
-pub use new_clay::{MaterialPreset, NewClay, NewClayError, RESOLUTION_RANGE};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
+pub use new_clay::{MaterialPreset, NewClay, NewClayError, RESOLUTION_RANGE};
 pub use palette::{
     ActionKind, ForceSettings, FreeformChoice, PaletteEntry, ShapeKind, ToolPalette, entry_label,
 };
@@ -67,7 +67,8 @@ pub use pin_panel::{CLICK_SPANS, CURVE_STEP_SPANS, MAX_TRACED_POINTS, PinPanel};
 pub use pointer_tool::{MAX_DEPTH_SPANS, PointerTool, TipPose, raising_choice};
 pub use probe_panel::{PROBE_EACH, ProbeOutcome, ProbePanel, ProbeSettings, StallFigures, judge};
 pub use recent_files::{
-    MAX_RECENT, MAX_RECENT_FILE_BYTES, RECENT_FILE_NAME, RecentFiles, RecentFilesError, settings_dir,
+    MAX_RECENT, MAX_RECENT_FILE_BYTES, RECENT_FILE_NAME, RecentFiles, RecentFilesError,
+    settings_dir,
 };
 pub use redraw::{FrameStats, InFlight, POLL_PERIOD};
 pub use removal_dialog::RemovalDialog;

@@ -197,6 +197,11 @@ mod tests {
             size: 0.01,
             ..NewClay::default()
         };
-        assert!(tiny.session("x", 0).unwrap_err().to_string().contains("size"));
+        assert!(
+            tiny.session("x", 0)
+                .unwrap_err()
+                .to_string()
+                .contains("size")
+        );
     }
 }

@@ -1050,7 +1050,11 @@ impl SculptApp {
                 ui.add(
                     egui::ProgressBar::new(progress.fraction)
                         .desired_width(160.0)
-                        .text(format!("{}: {}", short_name(&progress.source), progress.stage)),
+                        .text(format!(
+                            "{}: {}",
+                            short_name(&progress.source),
+                            progress.stage
+                        )),
                 );
             }
             ui.separator();

@@ -78,13 +78,11 @@ impl LoadReporter {
 
     /// Moves the progress bar to `fraction` of the load, doing `stage`.
     pub(super) fn progress(&self, fraction: f32, stage: impl Into<String>) {
-        let _ = self
-            .events
-            .send(EngineEvent::Progress(Some(LoadProgress {
-                source: self.source.clone(),
-                fraction: fraction.clamp(0.0, 1.0),
-                stage: stage.into(),
-            })));
+        let _ = self.events.send(EngineEvent::Progress(Some(LoadProgress {
+            source: self.source.clone(),
+            fraction: fraction.clamp(0.0, 1.0),
+            stage: stage.into(),
+        })));
     }
 
     fn cancelled(&self) -> bool {
@@ -95,7 +93,10 @@ impl LoadReporter {
 /// Reads, fits or builds the clay `source` names (a session is read, an importable file
 /// fitted as `dynaclay import` fits it, a new clay built), telling `report` each stage. Runs
 /// on the load worker, never on the bridge or a loop thread.
-pub(super) fn prepare(source: &ClaySource, report: &LoadReporter) -> Result<Prepared, ImportFailed> {
+pub(super) fn prepare(
+    source: &ClaySource,
+    report: &LoadReporter,
+) -> Result<Prepared, ImportFailed> {
     match source {
         ClaySource::New(spec) => {
             report.progress(0.0, "building the new clay");

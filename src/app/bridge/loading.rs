@@ -100,7 +100,8 @@ impl Bridge {
                     let _ = points.try_send(pending.points.take());
                     let _ = events.send(EngineEvent::Library(std::mem::take(&mut pending.tools)));
                     if pending.source.is_file() {
-                        let is_session = crate::app::replace_dialog::is_session_path(&pending.source);
+                        let is_session =
+                            crate::app::replace_dialog::is_session_path(&pending.source);
                         if is_session {
                             *session_path = Some(pending.source.clone());
                         }
