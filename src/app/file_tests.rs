@@ -11,7 +11,7 @@ use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{DeviceError, HapticDevice, SimArmConfig, SimulatedArm, Trajectory};
 use egui::accesskit::Role;
 use egui_kittest::Harness;
-use egui_kittest::kittest::Queryable;
+use egui_kittest::kittest::{NodeT, Queryable};
 
 use super::bridge::{DeviceInUse, DeviceOpener, EngineBridge, RestartSettings, start_bridge};
 use super::command::{ClaySource, EngineCommand};
@@ -311,8 +311,8 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
     h.get_by_label("Import…").click();
     h.run();
     type_path(&mut h, &ply);
-    // Frames go on while the worker fits: the app sees the progress bar's fractions as
-    // they come (each h.run() returns; the clay is not yet replaced).
+    // Frames go on while the worker fits (each h.run() returns at once: the app only reads
+    // what the worker sent).
     let mut fractions = Vec::new();
     let start = Instant::now();
     loop {
@@ -328,7 +328,8 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
         assert!(start.elapsed() < HANG, "no import; log {:?}", app.log);
         std::thread::sleep(Duration::from_millis(5));
     }
-    assert!(!fractions.is_empty(), "the frames ran while the fit did");
+    // Whether a frame fell inside the fit depends on scheduling, so only what frames saw is
+    // checked here; the bar itself is driven deterministically in the test below.
     assert!(
         fractions.windows(2).all(|w| w[1] >= w[0]),
         "the bar only moves on: {fractions:?}"
@@ -351,4 +352,42 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
     );
     drop(h);
     bridge.stop().unwrap();
+}
+
+#[test]
+fn the_progress_bar_follows_the_loads_events_and_holds_back_another_replacement() {
+    let (link, end) = engine_link();
+    let mut h = harness_for(SculptApp::new(link));
+    h.run();
+    let free = |h: &Harness<'static, SculptApp>, label: &str| {
+        !h.get_by_label(label).accesskit_node().is_disabled()
+    };
+    assert!(free(&h, "Import…") && free(&h, "New…") && free(&h, "Open…"));
+    for fraction in [0.0, 0.4, 0.9] {
+        end.events
+            .send(super::command::EngineEvent::Progress(Some(
+                super::command::LoadProgress {
+                    source: "/data/scan.ply".into(),
+                    fraction,
+                    stage: "fitting".into(),
+                },
+            )))
+            .unwrap();
+        h.run();
+        let shown = h.state().load_progress.as_ref().map(|p| p.fraction);
+        assert_eq!(shown, Some(fraction));
+        // Saving stays open; another replacement waits for this one.
+        assert!(free(&h, "Save"));
+        assert!(!free(&h, "Import…") && !free(&h, "New…") && !free(&h, "Open…"));
+        assert!(
+            h.state().log.iter().all(|l| !l.contains("fitting")),
+            "progress is not logged"
+        );
+    }
+    end.events
+        .send(super::command::EngineEvent::Progress(None))
+        .unwrap();
+    h.run();
+    assert!(h.state().load_progress.is_none());
+    assert!(free(&h, "Import…"));
 }
