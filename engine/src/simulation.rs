@@ -1052,7 +1052,9 @@ mod tests {
                 writer: "dynaclay test".into(),
             },
         };
-        s.sim.load(full.clone(), Path::new("full.dclay")).unwrap();
+        s.sim
+            .load(full.clone(), Path::new("full.dclay"), false)
+            .unwrap();
         run_ticks(&mut s, 3);
         assert_eq!(s.sim.session(), full);
     }
