@@ -149,6 +149,7 @@ fn haptic_tick_allocates_nothing() {
                 .send(Command::Load {
                     session: Box::new(session),
                     source: "same-lattice.dclay".into(),
+                    keep_history: false,
                     reply: None,
                 })
                 .unwrap();

@@ -315,14 +315,18 @@ pub enum Command {
     },
     /// Replace the clay and material with `session`, already read and validated from
     /// `source` by the sender (so the simulation thread does no disk I/O). The undo history
-    /// is cleared; the whole field is republished to the haptic and graphics loops. A session
-    /// whose lattice differs from the running one is refused and nothing changes; `reply`
-    /// gets a one-line summary or the reason.
+    /// is cleared, or with `keep_history` kept with the replacement as one more undo step;
+    /// the whole field is republished to the haptic and graphics loops. A session whose
+    /// lattice differs from the running one is refused and nothing changes; `reply` gets a
+    /// one-line summary (saying what became of the history) or the reason.
     Load {
         /// The session to install.
         session: Box<Session>,
         /// The file it came from (for messages).
         source: PathBuf,
+        /// Keep the replaced clay's undo history, the replacement being one undo step (so
+        /// Undo brings the replaced clay back); `false` clears it.
+        keep_history: bool,
         /// Optional result channel.
         reply: Option<Reply>,
     },

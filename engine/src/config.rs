@@ -109,17 +109,44 @@ impl EngineConfig {
 /// # Errors
 /// When the fit fails (it does not for valid specs).
 pub fn build_clay(spec: &ClaySpec) -> Result<BSplineLattice, FitError> {
-    let n = spec.resolution;
-    let extent = (n - 1) as f32 * CLAY_SPACING;
+    build_clay_sized(spec.shape, spec.resolution, DEFAULT_CLAY_SIZE)
+}
+
+/// The block's half side and the sphere's radius of the starting clay, as a fraction of the
+/// lattice's side ([`build_clay`]'s size).
+pub const DEFAULT_CLAY_SIZE: f32 = 0.25;
+
+/// The starting clays a window may ask for: their half side (or radius) as a fraction of
+/// the lattice's side. Below a tenth the shape is a few knot spans across at low
+/// resolutions; above 0.45 it touches the lattice's border band.
+pub const CLAY_SIZE_RANGE: std::ops::RangeInclusive<f32> = 0.1..=0.45;
+
+/// Like [`build_clay`], with the block's half side or the sphere's radius `size` times the
+/// lattice's side (`size` is clamped to [`CLAY_SIZE_RANGE`]); the "New clay" of the window.
+///
+/// # Errors
+/// When the fit fails (it does not for a resolution of 8 to 96).
+pub fn build_clay_sized(
+    shape: ClayShape,
+    resolution: usize,
+    size: f32,
+) -> Result<BSplineLattice, FitError> {
+    let n = resolution;
+    let extent = n.saturating_sub(1) as f32 * CLAY_SPACING;
     let centre = Vec3::splat(extent * 0.5);
-    let primitive = match spec.shape {
+    let size = if size.is_finite() {
+        size.clamp(*CLAY_SIZE_RANGE.start(), *CLAY_SIZE_RANGE.end())
+    } else {
+        DEFAULT_CLAY_SIZE
+    };
+    let primitive = match shape {
         ClayShape::Block => Primitive::Box {
             centre,
-            half_extents: Vec3::splat(extent * 0.25),
+            half_extents: Vec3::splat(extent * size),
         },
         ClayShape::Sphere => Primitive::Sphere {
             centre,
-            radius: extent * 0.25,
+            radius: extent * size,
         },
     };
     band_limited_lattice(

@@ -38,7 +38,10 @@ pub use clock::EngineClock;
 pub use command::PanicSite;
 pub use command::{Command, EditOutcome, EditReply, PushTool, Reply, ToolChoice};
 pub use compact_rbf::{CompactRbfLink, CompactStartError, CompactStatus};
-pub use config::{CLAY_SPACING, DEFAULT_FORCE_N_PER_UNIT, EngineConfig, build_clay};
+pub use config::{
+    CLAY_SIZE_RANGE, CLAY_SPACING, DEFAULT_CLAY_SIZE, DEFAULT_FORCE_N_PER_UNIT, EngineConfig,
+    build_clay, build_clay_sized,
+};
 pub use counters::{CounterSnapshot, EngineCounters};
 pub use device_swap::{
     DeviceHandover, DeviceSwapPort, DeviceSwapRequest, SwapFailure, device_swap_channel,

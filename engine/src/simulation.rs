@@ -927,6 +927,7 @@ mod tests {
             .send(Command::Load {
                 session: Box::new(session_with(loaded.clone(), Material::ELASTIC)),
                 source: "carved.dclay".into(),
+                keep_history: false,
                 reply: Some(tx),
             })
             .unwrap();
@@ -952,6 +953,56 @@ mod tests {
     }
 
     #[test]
+    fn a_load_that_keeps_history_is_one_undo_step_back_to_the_replaced_clay() {
+        let mut s = stages();
+        let mut status = s.sim.take_status_reader().unwrap();
+        record_an_edit(&mut s.sim);
+        run_ticks(&mut s, 3);
+        assert_eq!(status.latest().value.undo_steps, 1);
+        let edited = s.sim.lattice().clone();
+        let mut loaded = edited.clone();
+        let top = loaded.dims[2] - 1;
+        for j in 0..loaded.dims[1] {
+            for i in 0..loaded.dims[0] {
+                let idx = loaded.index(i, j, top);
+                loaded.coeffs[idx] = 0.0;
+            }
+        }
+        assert_ne!(loaded, edited);
+        let (tx, rx) = bounded(1);
+        s.commands
+            .send(Command::Load {
+                session: Box::new(session_with(loaded.clone(), Material::ELASTIC)),
+                source: "other.dclay".into(),
+                keep_history: true,
+                reply: Some(tx),
+            })
+            .unwrap();
+        run_ticks(&mut s, 3);
+        let summary = rx.try_recv().unwrap().unwrap();
+        assert!(summary.contains("undo history kept"), "{summary}");
+        assert_eq!(s.sim.lattice(), &loaded);
+        assert_eq!(status.latest().value.undo_steps, 2, "the edit and the load");
+
+        s.commands.send(Command::Undo).unwrap();
+        run_ticks(&mut s, 3);
+        assert_eq!(
+            s.sim.lattice(),
+            &edited,
+            "Undo brings the replaced clay back"
+        );
+        assert_eq!(
+            s.graphics.field().base(),
+            &edited,
+            "and republishes it to the loops"
+        );
+        s.commands.send(Command::Undo).unwrap();
+        run_ticks(&mut s, 3);
+        assert_ne!(s.sim.lattice(), &edited, "the edit before it still undoes");
+        assert_eq!(status.latest().value.undo_steps, 0);
+    }
+
+    #[test]
     fn loading_a_session_file_moves_autosave_beside_it_and_an_imported_scan_does_not() {
         let mut s = stages();
         let (io_tx, io_rx) = crossbeam::channel::unbounded();
@@ -963,6 +1014,7 @@ mod tests {
                 .send(Command::Load {
                     session: Box::new(same),
                     source: source.into(),
+                    keep_history: false,
                     reply: Some(tx),
                 })
                 .unwrap();
@@ -1014,7 +1066,9 @@ mod tests {
                 writer: "dynaclay test".into(),
             },
         };
-        s.sim.load(full.clone(), Path::new("full.dclay")).unwrap();
+        s.sim
+            .load(full.clone(), Path::new("full.dclay"), false)
+            .unwrap();
         run_ticks(&mut s, 3);
         assert_eq!(s.sim.session(), full);
     }
@@ -1064,6 +1118,7 @@ mod tests {
                 .send(Command::Load {
                     session: Box::new(session),
                     source: "other.dclay".into(),
+                    keep_history: false,
                     reply: Some(tx),
                 })
                 .unwrap();

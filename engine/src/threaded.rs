@@ -440,6 +440,7 @@ impl Engine {
             .send(Command::Load {
                 session: Box::new(session),
                 source: path.to_path_buf(),
+                keep_history: false,
                 reply: Some(tx),
             })
             .map_err(|_| CommandError::Stopped)?;

@@ -96,9 +96,18 @@ pub enum EngineCommand {
     Save {
         path: PathBuf,
     },
-    /// Replace the session with the one at `path`.
+    /// Replace the session with the one at `path` (a session is read, a point cloud, mesh or
+    /// volume fitted, in the background), dropping the undo history: the launch's load.
     Load {
         path: PathBuf,
+    },
+    /// Replace the clay with `with`, read or fitted in the background while the old clay
+    /// stays in use; with `keep_history` the old clay's undo history is kept and the
+    /// replacement is one more undo step (where the new clay has the running clay's layout;
+    /// a clay of another layout needs a new engine, and the history cannot follow it).
+    Replace {
+        with: ClaySource,
+        keep_history: bool,
     },
     /// The user's answer to the engine's question whether a step may remove more than half
     /// the clay ([`crate::engine::RemovalQuestion`]).
@@ -168,7 +177,7 @@ impl EngineCommand {
             Self::Refine { .. } => "refine",
             Self::Unpin { .. } => "unpin",
             Self::Save { .. } => "save",
-            Self::Load { .. } => "load",
+            Self::Load { .. } | Self::Replace { .. } => "load",
             Self::AnswerRemoval { .. } => "answer removal",
             Self::Export { .. } => "export",
             Self::ConnectDevice { .. } => "connect device",
@@ -181,6 +190,26 @@ impl EngineCommand {
             Self::Emboss { .. } => "emboss",
         }
     }
+}
+
+/// What a replacement clay is made from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClaySource {
+    /// A session file (`.dclay`), or a point cloud, mesh or volume to fit.
+    File(PathBuf),
+    /// A new clay of one of the starting shapes.
+    New(super::new_clay::NewClay),
+}
+
+/// How far a background load has come, for the window's progress bar.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadProgress {
+    /// The file read or fitted (or "new clay").
+    pub source: String,
+    /// Of the whole load, 0 to 1.
+    pub fraction: f32,
+    /// What it is doing now.
+    pub stage: String,
 }
 
 /// The other operand of a CSG operation.
@@ -207,4 +236,9 @@ pub enum EngineEvent {
     Failed { what: String, error: String },
     /// A session was loaded: its tool library, for the library panel and the palette.
     Library(Vec<crate::io::ToolPreset>),
+    /// A background load moved on (`Some`), or ended, well or not (`None`).
+    Progress(Option<LoadProgress>),
+    /// A file was opened or saved: `path` joins the recent files, and with `is_session`
+    /// it is now the session worked on (Save writes it, autosave writes beside it).
+    FileDone { path: PathBuf, is_session: bool },
 }

@@ -201,11 +201,11 @@ fn refine_here_asks_for_a_detail_patch_around_the_last_brush_point() {
 }
 
 #[test]
-fn file_and_history_buttons_send_their_commands() {
+fn history_buttons_and_save_send_their_commands() {
     let (mut h, end) = harness();
     h.run();
     drain(&end);
-    for label in ["Undo", "Redo", "Save", "Load", "Export"] {
+    for label in ["Undo", "Redo", "Save"] {
         h.get_by_label(label).click();
         h.run();
     }
@@ -218,21 +218,8 @@ fn file_and_history_buttons_send_their_commands() {
             EngineCommand::Save {
                 path: "sculpt.dclay".into()
             },
-            EngineCommand::Load {
-                path: "sculpt.dclay".into()
-            },
-            EngineCommand::Export {
-                path: "sculpt.obj".into()
-            },
         ]
     );
-
-    // An export path without a known mesh extension is refused in the app, with a reason.
-    h.state_mut().files.export = "sculpt.xyz".into();
-    h.get_by_label("Export").click();
-    h.run();
-    assert!(drain(&end).is_empty());
-    assert!(h.state().log.back().unwrap().contains(".obj, .ply or .stl"));
 }
 
 #[test]
@@ -1326,8 +1313,7 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
         Engine::start(&config, field.clone(), device, sink)
     })
     .unwrap();
-    let mut app = SculptApp::new(link);
-    app.files.session = ply.display().to_string();
+    let app = SculptApp::new(link);
     let mut h = Harness::builder()
         .with_size(egui::vec2(1400.0, 1000.0))
         .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
@@ -1337,7 +1323,8 @@ fn a_loaded_point_cloud_shows_as_splats_or_as_the_mesh() {
             .is_none(),
         "no point-set switch before a point set is loaded"
     );
-    h.get_by_label("Load").click();
+    h.state_mut()
+        .file_request(super::file_menu::FileRequest::Import(ply.clone()));
     h.run();
 
     // A generous bound only against a hang; nothing is timed.

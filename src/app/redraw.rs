@@ -40,13 +40,20 @@ pub struct InFlight {
     pub particles: bool,
     /// The SpaceMouse drives the camera (read at each frame).
     pub spacemouse: bool,
+    /// A native file dialog is open (its answer comes back without a wake-up).
+    pub file_dialog: bool,
 }
 
 impl InFlight {
     /// Whether anything is in flight.
     #[must_use]
     pub fn any(self) -> bool {
-        self.stroke || self.probe || self.points || self.particles || self.spacemouse
+        self.stroke
+            || self.probe
+            || self.points
+            || self.particles
+            || self.spacemouse
+            || self.file_dialog
     }
 
     /// When the window should look again without being woken: after [`POLL_PERIOD`] while
@@ -65,6 +72,7 @@ impl InFlight {
             (self.points, "point set"),
             (self.particles, "particles"),
             (self.spacemouse, "SpaceMouse"),
+            (self.file_dialog, "file dialog"),
         ]
         .into_iter()
         .filter_map(|(on, name)| on.then_some(name))

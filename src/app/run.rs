@@ -60,7 +60,15 @@ pub fn run_gui(
     if let Some(pointer) = pointer {
         app.pointer = pointer;
     }
-    app.files.session.clone_from(&options.session_path);
+    app.files.session = Some(options.session_path.clone().into());
+    app.file_menu.backend = super::file_dialog::DialogBackend::detect();
+    if let Some(dir) = super::recent_files::settings_dir() {
+        let (recent, error) = super::recent_files::RecentFiles::load_from(&dir);
+        app.file_menu.recent = recent;
+        if let Some(e) = error {
+            app.note(e.to_string());
+        }
+    }
     app.probe =
         super::probe_panel::ProbePanel::new(options.probe_settings, options.probe_at_start.clone());
     eframe::run_native(

@@ -114,18 +114,21 @@ impl Default for DisplaySettings {
     }
 }
 
-/// The session and export paths typed in the top bar.
+/// The session worked on and the last mesh exported.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FilePaths {
-    pub session: String,
-    pub export: String,
+    /// Where Save writes and autosave writes beside: the session opened or last saved
+    /// under a name (`None`: Save asks for a name).
+    pub session: Option<PathBuf>,
+    /// The last mesh exported.
+    pub export: Option<PathBuf>,
 }
 
 impl Default for FilePaths {
     fn default() -> Self {
         Self {
-            session: DEFAULT_SESSION.into(),
-            export: "sculpt.obj".into(),
+            session: Some(DEFAULT_SESSION.into()),
+            export: None,
         }
     }
 }
@@ -144,6 +147,12 @@ pub struct SculptApp {
     pub device: DevicePanel,
     pub display: DisplaySettings,
     pub files: FilePaths,
+    /// New, Open, Save, Save As, Import, Export and the recent files.
+    pub file_menu: super::file_menu::FileMenu,
+    /// The question before a replacement drops or keeps the undo history.
+    pub replace: super::replace_dialog::ReplaceDialog,
+    /// The background load's progress (`None`: no load runs).
+    pub load_progress: Option<super::command::LoadProgress>,
     pub latency: LatencyHistory,
     /// The platform probe and the readiness verdict.
     pub probe: ProbePanel,
@@ -336,6 +345,19 @@ impl SculptApp {
                     self.library.set_tools(tools, &mut self.palette);
                     self.tool_pending = true;
                     line
+                }
+                EngineEvent::Progress(progress) => {
+                    self.load_progress = progress;
+                    continue;
+                }
+                EngineEvent::FileDone { path, is_session } => {
+                    if let Err(e) = self.file_menu.recent.add(&path) {
+                        self.note(e.to_string());
+                    }
+                    if is_session {
+                        self.files.session = Some(path);
+                    }
+                    continue;
                 }
             };
             self.note(line);
@@ -558,6 +580,7 @@ impl SculptApp {
             points: points.loaded && !points.settled,
             particles,
             spacemouse: self.spacemouse.is_connected(),
+            file_dialog: self.file_menu.dialog_open(),
         }
     }
 
@@ -714,6 +737,14 @@ impl SculptApp {
         if let Some(answer) = self.removal.show(ui.ctx(), question) {
             self.send(answer);
         }
+        let chosen = self.file_menu.poll();
+        let asked = self.file_menu.windows(ui.ctx());
+        for request in [chosen, asked].into_iter().flatten() {
+            self.file_request(request);
+        }
+        if let Some(command) = self.replace.show(ui.ctx()) {
+            self.send(command);
+        }
         egui::CentralPanel::default()
             .frame(unfilled(egui::Frame::central_panel(ui.style())))
             .show(ui, |ui| self.viewport(ui, gpu));
@@ -721,6 +752,94 @@ impl SculptApp {
         self.in_flight = self.in_flight_now();
         if let Some(after) = self.in_flight.poll_after() {
             ui.ctx().request_repaint_after(after);
+        }
+    }
+
+    /// Carries out what the File controls asked: Save and Export go to the engine at once;
+    /// Open, Import and New replace the clay, after the question when it has a history.
+    pub fn file_request(&mut self, request: super::file_menu::FileRequest) {
+        use super::command::ClaySource;
+        use super::file_menu::FileRequest;
+        use super::replace_dialog::is_session_path;
+        let replacement = match request {
+            FileRequest::Save => {
+                match self.files.session.clone() {
+                    Some(path) => {
+                        self.send(EngineCommand::Save { path });
+                    }
+                    None => {
+                        if let Some(note) = self
+                            .file_menu
+                            .pick(super::file_dialog::FilePurpose::SaveAs, None)
+                        {
+                            self.note(note);
+                        }
+                    }
+                }
+                return;
+            }
+            FileRequest::SaveAs(path) => {
+                // A name without an extension is a session; another extension is refused
+                // (Save writes only sessions: a mesh is exported).
+                let path = if path.extension().is_none() {
+                    path.with_extension("dclay")
+                } else {
+                    path
+                };
+                if is_session_path(&path) {
+                    self.send(EngineCommand::Save { path });
+                } else {
+                    self.note(format!(
+                        "save: {} is not a session file: sessions end in .dclay (Export writes \
+                         meshes)",
+                        path.display()
+                    ));
+                }
+                return;
+            }
+            FileRequest::Export(path) => {
+                if MeshFormat::from_path(&path).is_some() {
+                    self.files.export = Some(path.clone());
+                    self.send(EngineCommand::Export { path });
+                } else {
+                    self.note(format!(
+                        "export: cannot tell the mesh format of {}: use .obj, .ply or .stl",
+                        path.display()
+                    ));
+                }
+                return;
+            }
+            FileRequest::Open(path) if !is_session_path(&path) => {
+                self.note(format!(
+                    "open: {} is not a session (.dclay); Import fits point clouds, meshes and \
+                     volumes",
+                    path.display()
+                ));
+                return;
+            }
+            FileRequest::Import(path) if is_session_path(&path) => {
+                self.note(format!(
+                    "import: {} is a session; Open it instead",
+                    path.display()
+                ));
+                return;
+            }
+            FileRequest::Import(path) if !crate::fit::is_importable(&path) => {
+                self.note(format!(
+                    "import: cannot read {}: import takes {}",
+                    path.display(),
+                    super::file_dialog::FilePurpose::Import.hint()
+                ));
+                return;
+            }
+            FileRequest::Open(path) | FileRequest::Import(path) => ClaySource::File(path),
+            FileRequest::New(spec) => ClaySource::New(spec),
+        };
+        if let Some(command) =
+            self.replace
+                .ask(replacement, self.view.undo_steps, self.view.redo_steps)
+        {
+            self.send(command);
         }
     }
 
@@ -748,6 +867,7 @@ impl SculptApp {
         if undo {
             self.send(EngineCommand::Undo);
         }
+        self.file_shortcuts(ui);
         if redo {
             self.send(EngineCommand::Redo);
         }
@@ -758,6 +878,52 @@ impl SculptApp {
             } else {
                 EngineCommand::StrokeStop
             });
+        }
+    }
+
+    /// The desktop's file shortcuts: Ctrl+N New, Ctrl+O Open, Ctrl+S Save, Ctrl+Shift+S
+    /// Save As, Ctrl+I Import, Ctrl+E Export.
+    fn file_shortcuts(&mut self, ui: &egui::Ui) {
+        use super::file_dialog::FilePurpose;
+        let (cmd, cmd_shift) = (
+            egui::Modifiers::COMMAND,
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        );
+        let (new, open, save_as, save, import, export) = ui.input_mut(|i| {
+            (
+                i.consume_key(cmd, egui::Key::N),
+                i.consume_key(cmd, egui::Key::O),
+                i.consume_key(cmd_shift, egui::Key::S),
+                i.consume_key(cmd, egui::Key::S),
+                i.consume_key(cmd, egui::Key::I),
+                i.consume_key(cmd, egui::Key::E),
+            )
+        });
+        if self.file_menu.is_picking() {
+            return;
+        }
+        let session = self.files.session.clone();
+        let purpose = if open {
+            Some(FilePurpose::Open)
+        } else if save_as {
+            Some(FilePurpose::SaveAs)
+        } else if import {
+            Some(FilePurpose::Import)
+        } else if export {
+            Some(FilePurpose::Export)
+        } else {
+            None
+        };
+        if let Some(purpose) = purpose
+            && let Some(note) = self.file_menu.pick(purpose, session.as_deref())
+        {
+            self.note(note);
+        }
+        if save {
+            self.file_request(super::file_menu::FileRequest::Save);
+        }
+        if new {
+            self.file_menu.open_new_dialog();
         }
     }
 
@@ -865,31 +1031,31 @@ impl SculptApp {
                 self.refine_here();
             }
             ui.separator();
-            let label = ui.label("Session");
-            ui.add(egui::TextEdit::singleline(&mut self.files.session).desired_width(160.0))
-                .labelled_by(label.id);
-            if ui.button("Save").clicked() {
-                let path = PathBuf::from(self.files.session.trim());
-                self.send(EngineCommand::Save { path });
+            let session = self.files.session.clone();
+            let busy = self.load_progress.is_some();
+            if let Some(request) = self.file_menu.bar_ui(ui, session.as_deref(), busy) {
+                self.file_request(request);
             }
-            if ui.button("Load").clicked() {
-                let path = PathBuf::from(self.files.session.trim());
-                self.send(EngineCommand::Load { path });
-            }
-            ui.separator();
-            let label = ui.label("Mesh");
-            ui.add(egui::TextEdit::singleline(&mut self.files.export).desired_width(160.0))
-                .labelled_by(label.id);
-            if ui.button("Export").clicked() {
-                let path = PathBuf::from(self.files.export.trim());
-                if MeshFormat::from_path(&path).is_some() {
-                    self.send(EngineCommand::Export { path });
-                } else {
-                    self.note(format!(
-                        "export: cannot tell the mesh format of {}: use .obj, .ply or .stl",
-                        path.display()
-                    ));
-                }
+            // The session's name: what Save writes (and autosave writes beside).
+            let name = session.as_deref().map_or_else(
+                || "unsaved".to_owned(),
+                |p| {
+                    p.file_name()
+                        .map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into())
+                },
+            );
+            ui.add(egui::Label::new(egui::RichText::new(name).weak()).truncate())
+                .on_hover_text(session.map_or_else(String::new, |p| p.display().to_string()));
+            if let Some(progress) = &self.load_progress {
+                ui.add(
+                    egui::ProgressBar::new(progress.fraction)
+                        .desired_width(160.0)
+                        .text(format!(
+                            "{}: {}",
+                            short_name(&progress.source),
+                            progress.stage
+                        )),
+                );
             }
             ui.separator();
             let active = self.view.stroke_active;
@@ -1529,6 +1695,13 @@ fn brush_tint(choice: &crate::engine::ToolChoice, pressing: bool) -> egui::Color
     };
     let alpha = if pressing { 255 } else { 170 };
     egui::Color32::from_rgba_unmultiplied(r, g, b, alpha)
+}
+
+/// The file name of `source` (a path), or `source` itself.
+fn short_name(source: &str) -> std::borrow::Cow<'_, str> {
+    std::path::Path::new(source)
+        .file_name()
+        .map_or(std::borrow::Cow::Borrowed(source), |n| n.to_string_lossy())
 }
 
 /// The log line of an engine answer, naming its command once: a detail or an error that

@@ -414,6 +414,7 @@ fn install_session(
     let _ = commands.send(crate::engine::Command::Load {
         session: Box::new(session),
         source: session_path.to_path_buf(),
+        keep_history: false,
         reply: Some(tx),
     });
     rx

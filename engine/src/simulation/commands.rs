@@ -326,9 +326,10 @@ impl SimulationStage {
             Command::Load {
                 session,
                 source,
+                keep_history,
                 reply,
             } => {
-                let result = self.load(*session, &source);
+                let result = self.load(*session, &source, keep_history);
                 let ok = result.is_ok();
                 self.clay_revision += 1;
                 self.cancel_compact();

@@ -32,10 +32,16 @@ impl SimulationStage {
     }
 
     /// Installs `session` (read from `source`): the clay, the uniform material and the
-    /// painted material grids replace the current ones, the active region is dropped, the undo history is cleared (its
-    /// steps are differences against the replaced clay, meaningless on the new one) and the
+    /// painted material grids replace the current ones, the active region is dropped and the
     /// whole field is marked changed so both readers receive all of it. A stroke held across
     /// the load continues on the new clay as a new stroke (a new undo step).
+    ///
+    /// The undo history is cleared, unless `keep_history` asks to keep it: the replacement is
+    /// then recorded as one more step (every coefficient and the pins, as XOR differences
+    /// against the replaced clay), so Undo brings the replaced clay back and the steps before
+    /// it still apply. The material is not part of a step: Undo restores the clay only. A
+    /// session whose paint (colour) is present where the running clay has none, or the other
+    /// way round, cannot be one step and clears the history; the summary says which happened.
     ///
     /// # Errors
     /// When the session does not fit the running engine (see [`check_loadable`]); nothing
@@ -44,6 +50,7 @@ impl SimulationStage {
         &mut self,
         session: Session,
         source: &std::path::Path,
+        keep_history: bool,
     ) -> Result<String, LoadRefused> {
         check_loadable(&self.clay.density, &session, source)?;
         let painted = session
@@ -54,7 +61,16 @@ impl SimulationStage {
             .count();
         // The stroke in progress ends on the old clay (its step is dropped with the history).
         self.end_stroke_now();
-        self.history.clear();
+        let same_paint_layout = self.clay.colour.is_some() == session.clay.colour.is_some();
+        let recorder = (keep_history && same_paint_layout).then(|| {
+            let mut rec = StepRecorder::new(format!("open {}", source.display()));
+            rec.touch_all(&self.clay);
+            rec.touch_constraints(&self.clay);
+            rec
+        });
+        if recorder.is_none() {
+            self.history.clear();
+        }
         let Session {
             clay,
             material,
@@ -66,6 +82,16 @@ impl SimulationStage {
         self.material_grids = material.grids;
         self.clay = clay;
 
+        let history_note = match recorder {
+            Some(rec) => {
+                self.history.commit(rec, &self.clay);
+                "undo history kept (Undo brings the replaced clay back)"
+            }
+            None if keep_history => {
+                "undo history cleared (the paint of one clay has no counterpart in the other)"
+            }
+            None => "undo history cleared",
+        };
         self.colour_dirty = true;
         self.config.material = material.uniform;
         self.mark_all_changed();
@@ -81,7 +107,7 @@ impl SimulationStage {
         }
         let d = self.lattice().dims;
         let mut summary = format!(
-            "loaded {} ({}×{}×{} coefficients); undo history cleared",
+            "loaded {} ({}×{}×{} coefficients); {history_note}",
             source.display(),
             d[0],
             d[1],

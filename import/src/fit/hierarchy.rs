@@ -101,6 +101,46 @@ pub enum FitProgress {
     },
 }
 
+impl FitProgress {
+    /// The share of the work before signing ends, of 1.
+    const SIGNED_SHARE: f32 = 0.1;
+    /// The share of the work done when the base lattice is fitted, of 1 (the detail depths
+    /// share the rest equally).
+    const BASE_SHARE: f32 = 0.4;
+
+    /// How far the fit has come, 0 to 1, for a progress bar, when the deepest level of
+    /// detail patches is `max_depth` ([`HierarchyOptions::max_depth`]): signing is the first
+    /// tenth, the base lattice the next three tenths, and each depth of detail patches an
+    /// equal share of the rest, through which `done` of `of` moves it. A stage's fraction is
+    /// where the stage begins; a depth deeper than `max_depth` counts as the last.
+    ///
+    /// # Examples
+    /// ```
+    /// use dynaclay_import::fit::FitProgress;
+    /// assert_eq!(FitProgress::Signing.fraction(2), 0.0);
+    /// let half_of_depth_2 = FitProgress::Detail { depth: 2, done: 5, of: 10 };
+    /// assert!((half_of_depth_2.fraction(2) - 0.85).abs() < 1e-6);
+    /// ```
+    #[must_use]
+    pub fn fraction(self, max_depth: u32) -> f32 {
+        match self {
+            Self::Signing => 0.0,
+            Self::Base => Self::SIGNED_SHARE,
+            Self::Detail { depth, done, of } => {
+                let depths = max_depth.max(1);
+                let depth = depth.clamp(1, depths);
+                let within = if of == 0 {
+                    1.0
+                } else {
+                    done.min(of) as f32 / of as f32
+                };
+                let share = (1.0 - Self::BASE_SHARE) / depths as f32;
+                Self::BASE_SHARE + share * ((depth - 1) as f32 + within)
+            }
+        }
+    }
+}
+
 /// One depth of the octree, after its patches were fitted.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LevelReport {

@@ -148,7 +148,10 @@ impl Bridge {
                 };
                 let _ = self.events.send(ev);
             }
-            EngineCommand::Load { path } => self.load(&path),
+            EngineCommand::Load { path } => {
+                self.load(crate::app::command::ClaySource::File(path), false);
+            }
+            EngineCommand::Replace { with, keep_history } => self.load(with, keep_history),
             EngineCommand::AnswerRemoval { yes } => {
                 self.send(what, Command::AnswerRemoval(yes));
             }

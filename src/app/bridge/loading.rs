@@ -1,137 +1,52 @@
-//! Loading on the bridge thread: sessions read, point clouds, meshes and volumes fitted,
-//! offered to the running simulation, and the engine restarted on a clay of another layout.
+//! Loading for the window: the clay the load worker read, fitted or built (see
+//! [`super::load_worker`]) offered to the running simulation from the bridge thread, and the
+//! engine restarted on a clay of another layout.
 
+use super::load_worker::LoadWorker;
 use super::*;
-
-/// Why the window could not fit a file it was asked to load.
-#[derive(Debug, thiserror::Error)]
-pub(super) enum ImportFailed {
-    /// A raw volume names no dimensions; the command line can give them.
-    #[error(
-        "{}: a raw volume does not say its dimensions; run `dynaclay import {} --dims X,Y,Z \
-         --iso V --out SESSION.dclay` and load the session",
-        path.display(),
-        path.display()
-    )]
-    NeedsDims {
-        /// The volume.
-        path: PathBuf,
-    },
-    /// The fit failed.
-    #[error("{}: {source}", path.display())]
-    Fit {
-        /// The file.
-        path: PathBuf,
-        /// Why (boxed: an import error is large).
-        source: Box<ImportError>,
-    },
-}
+use crate::app::command::ClaySource;
 
 impl Bridge {
-    /// Serves the Load button: a session is read here, an importable file (point cloud, mesh,
-    /// volume) is fitted here as `dynaclay import` fits it (its report and progress go to the
-    /// log); the result is offered to the running simulation, and a refusal for its layout
-    /// restarts the engine on it (see [`Bridge::poll_loads`]).
-    pub(super) fn load(&mut self, path: &Path) {
-        if is_point_cloud(path) {
-            return match self.import_points(path) {
-                Ok((session, points)) => self.offer(session, path, true, points),
-                Err(error) => self.fail("load", error.to_string()),
-            };
+    /// Serves Open, Import and New (and the launch's Load): the clay is read, fitted or built
+    /// on a worker thread while the old clay stays in use, then offered to the simulation by
+    /// [`Bridge::poll_load_worker`]. One load at a time: another while one runs is refused.
+    pub(super) fn load(&mut self, source: ClaySource, keep_history: bool) {
+        if let Some(running) = &self.load_worker {
+            return self.fail(
+                "load",
+                format!(
+                    "{} is still loading; wait for it before loading another clay",
+                    running.source()
+                ),
+            );
         }
-        let session = if crate::fit::is_importable(path) {
-            match self.import(path) {
-                Ok(s) => s,
-                Err(error) => return self.fail("load", error.to_string()),
-            }
-        } else {
-            match load_session(path) {
-                Ok(s) => s,
-                Err(e) => return self.fail("load", CommandError::Read(e).to_string()),
-            }
-        };
-        self.offer(session, path, true, None);
+        match LoadWorker::start(source, keep_history, self.events.clone()) {
+            Ok(worker) => self.load_worker = Some(worker),
+            Err(e) => self.fail("load", format!("cannot start the load: {e}")),
+        }
     }
 
-    /// Tells the log one line of a load in progress.
-    pub(super) fn say_load(&self, detail: String) {
-        let _ = self.events.send(EngineEvent::Done {
-            what: "load".into(),
-            detail,
-        });
-    }
-
-    /// Fits a point cloud as [`Bridge::import`] does and builds its point-set surface (Guo &
-    /// Qin §3) in the clay's units, here on the bridge thread: the clay is the fit, and the
-    /// points, with their normals (oriented over a spanning tree when the file has none),
-    /// follow it. A cloud whose point set cannot be built still loads its clay (the log says
-    /// why it has no points).
-    pub(super) fn import_points(
-        &self,
-        path: &Path,
-    ) -> Result<(Session, Option<Box<FollowedPoints>>), ImportFailed> {
-        let say = |detail: String| self.say_load(detail);
-        say(format!("importing {}", path.display()));
-        let imported = import_cloud(
-            path,
-            &ImportSettings::default(),
-            &mut fit_stage_reporter(&say),
-            &mut |line| say(line),
-        )
-        .map_err(|source| ImportFailed::Fit {
-            path: path.to_path_buf(),
-            source: Box::new(source),
-        })?;
-        let cloud = imported.cloud_in_field_units();
-        let points = match PointSet::build(&cloud, &PointSetOptions::default()) {
-            Ok((mut set, times)) => {
-                if let Some(colours) = imported.colours.as_ref().filter(|c| c.len() == set.len()) {
-                    set.colours.clone_from(colours);
-                }
-                say(format!(
-                    "point set: {} points, spacing {:.4}, built in {:.0} ms; shown as splats \
-                     following the clay",
-                    set.len(),
-                    set.spacing_fu,
-                    times.total_ns() as f64 / 1e6
-                ));
-                Some(Box::new(FollowedPoints::of_set(&set)))
-            }
-            Err(e) => {
-                self.fail(
-                    "load",
-                    format!("{}: no point set ({e}); the clay loads", path.display()),
-                );
-                None
-            }
+    /// Takes the load worker's clay when it is ready and offers it to the simulation.
+    pub(super) fn poll_load_worker(&mut self) {
+        let Some(worker) = self.load_worker.as_mut() else {
+            return;
         };
-        Ok((imported.into_session(path, crate::io::unix_now_s()), points))
-    }
-
-    /// Fits `path` with `dynaclay import`'s defaults (a volume without `--iso` at its
-    /// mid-range intensity), telling the log each stage and report line.
-    pub(super) fn import(&self, path: &Path) -> Result<Session, ImportFailed> {
-        let say = |detail: String| self.say_load(detail);
-        say(format!("importing {}", path.display()));
-        let settings = ImportSettings {
-            midrange_iso: true,
-            ..ImportSettings::default()
+        let Some(result) = worker.try_take() else {
+            return;
         };
-        let session = import_session(
-            path,
-            &settings,
-            &mut fit_stage_reporter(&say),
-            &mut |line| say(line),
-        );
-        session.map_err(|e| match e {
-            ImportError::NeedsDims => ImportFailed::NeedsDims {
-                path: path.to_path_buf(),
-            },
-            source => ImportFailed::Fit {
-                path: path.to_path_buf(),
-                source: Box::new(source),
-            },
-        })
+        let keep_history = worker.keep_history();
+        self.load_worker = None;
+        let _ = self.events.send(EngineEvent::Progress(None));
+        match result {
+            Ok(prepared) => self.offer(
+                prepared.session,
+                &prepared.source,
+                true,
+                prepared.points,
+                keep_history,
+            ),
+            Err(error) => self.fail("load", error.to_string()),
+        }
     }
 
     /// Offers `session` to the running simulation; with `retry`, a refusal for its layout
@@ -142,6 +57,7 @@ impl Bridge {
         source: &Path,
         retry: bool,
         points: Option<Box<FollowedPoints>>,
+        keep_history: bool,
     ) {
         let (tx, rx) = bounded(1);
         let kept = (retry && self.restart.is_some()).then(|| Box::new(session.clone()));
@@ -149,6 +65,7 @@ impl Bridge {
         let sent = self.engine().commands().send(Command::Load {
             session: Box::new(session),
             source: source.to_path_buf(),
+            keep_history,
             reply: Some(tx),
         });
         if sent.is_err() {
@@ -169,6 +86,7 @@ impl Bridge {
         let mut restart = None;
         let events = &self.events;
         let points = &self.points;
+        let session_path = &mut self.session_path;
         self.loads.retain_mut(|pending| {
             let answer = match pending.reply.try_recv() {
                 Ok(answer) => answer,
@@ -181,6 +99,17 @@ impl Bridge {
                     // queue means the graphics loop stalled; it takes the newest when back.
                     let _ = points.try_send(pending.points.take());
                     let _ = events.send(EngineEvent::Library(std::mem::take(&mut pending.tools)));
+                    if pending.source.is_file() {
+                        let is_session =
+                            crate::app::replace_dialog::is_session_path(&pending.source);
+                        if is_session {
+                            *session_path = Some(pending.source.clone());
+                        }
+                        let _ = events.send(EngineEvent::FileDone {
+                            path: pending.source.clone(),
+                            is_session,
+                        });
+                    }
                     EngineEvent::Done {
                         what: "load".into(),
                         detail,
@@ -258,18 +187,26 @@ impl Bridge {
             Ok(s) => s,
             Err(e) => return self.fail(what, format!("stopping the engine: {e}")),
         };
-        let kept = match save_session(&settings.keep_replaced_at, &stopped.report.session) {
+        // Autosave and the replaced clay follow the session worked on now (the last Save As
+        // or Open), not the one the window started with.
+        let (autosave_at, keep_replaced_at) = match &self.session_path {
+            Some(current) => (
+                Some(current.clone()),
+                current.with_extension("replaced.dclay"),
+            ),
+            None => (settings.autosave.clone(), settings.keep_replaced_at.clone()),
+        };
+        let kept = match save_session(&keep_replaced_at, &stopped.report.session) {
             Ok(()) => format!(
                 "the replaced clay, unsaved work included, is in {}",
-                settings.keep_replaced_at.display()
+                keep_replaced_at.display()
             ),
             Err(e) => format!("the replaced clay could not be kept: {e}"),
         };
         let Some(device) = stopped.device else {
             return self.fail(what, "the device left with the old engine".into());
         };
-        let autosave = settings
-            .autosave
+        let autosave = autosave_at
             .as_ref()
             .map(|p| Autosave::new(p, AutosavePolicy::default(), std::time::Instant::now()));
         let started = Engine::start_with(
@@ -327,25 +264,7 @@ impl Bridge {
                 density.patches.len()
             ),
         });
-        self.offer(session, source, false, points);
-    }
-}
-
-/// A fit's progress callback that tells `say` each stage: signing, the base lattice, and each
-/// depth of detail patches once. It never cancels the fit.
-pub(super) fn fit_stage_reporter(say: &impl Fn(String)) -> impl FnMut(FitProgress) -> bool + '_ {
-    let mut last_depth = None;
-    move |stage| {
-        match stage {
-            FitProgress::Signing => say("signing the points".into()),
-            FitProgress::Base => say("fitting the base lattice".into()),
-            FitProgress::Detail { depth, of, .. } => {
-                if last_depth != Some(depth) {
-                    last_depth = Some(depth);
-                    say(format!("depth {depth}: fitting {of} detail patches"));
-                }
-            }
-        }
-        true
+        // The new engine has no history to keep: the replaced clay is in the file above.
+        self.offer(session, source, false, points, false);
     }
 }

@@ -66,6 +66,7 @@ use crate::tools::ColourField;
 
 mod commands;
 mod devices;
+mod load_worker;
 mod loading;
 mod sink;
 #[cfg(test)]
@@ -186,6 +187,8 @@ pub fn start_bridge(
         compact_particles: None,
         saves: Vec::new(),
         loads: Vec::new(),
+        load_worker: None,
+        session_path: None,
         pin_replies: Vec::new(),
         refine_replies: Vec::new(),
         edit_replies: Vec::new(),
@@ -271,6 +274,11 @@ struct Bridge {
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
     loads: Vec<PendingLoad>,
+    /// The Open, Import or New being read, fitted or built (one at a time).
+    load_worker: Option<load_worker::LoadWorker>,
+    /// The session worked on since the last Save or Open of a session file (`None`: the one
+    /// the window started with): an engine restarted on another clay autosaves beside it.
+    session_path: Option<PathBuf>,
     /// How the engine restarts on a clay of another layout (`None`: such loads are refused).
     restart: Option<RestartSettings>,
     /// Restarts so far (see [`EngineView::restarts`]).
@@ -345,6 +353,39 @@ fn forward_replies<T, E: std::fmt::Display>(
 }
 
 impl Bridge {
+    /// Tells the app each save that finished; a saved session is the session worked on
+    /// from now on (the engine's autosave follows it too, see `Command::Save`).
+    fn forward_saves(&mut self) {
+        let events = &self.events;
+        let session_path = &mut self.session_path;
+        self.saves.retain(|rx| {
+            let event = match rx.try_recv() {
+                Ok(Ok(path)) => {
+                    *session_path = Some(path.clone());
+                    let _ = events.send(EngineEvent::FileDone {
+                        path: path.clone(),
+                        is_session: true,
+                    });
+                    EngineEvent::Done {
+                        what: "save".into(),
+                        detail: format!("wrote {}", path.display()),
+                    }
+                }
+                Ok(Err(error)) => EngineEvent::Failed {
+                    what: "save".into(),
+                    error: error.to_string(),
+                },
+                Err(crossbeam::channel::TryRecvError::Empty) => return true,
+                Err(crossbeam::channel::TryRecvError::Disconnected) => EngineEvent::Failed {
+                    what: "save".into(),
+                    error: "the engine stopped before answering".into(),
+                },
+            };
+            let _ = events.send(event);
+            false
+        });
+    }
+
     /// The running engine. Only called while one runs: the serve loop stops at once when a
     /// failed restart left none.
     fn engine(&self) -> &Engine {
@@ -368,9 +409,8 @@ impl Bridge {
         if self.engine.is_none() {
             return;
         }
-        forward_replies(&mut self.saves, &self.events, "save", |p| {
-            format!("wrote {}", p.display())
-        });
+        self.forward_saves();
+        self.poll_load_worker();
         self.poll_loads();
         if self.engine.is_none() {
             return;
