@@ -467,7 +467,10 @@ fn loads_of_another_layout_restart_the_engine_and_imports_are_fitted() {
         .iter()
         .filter_map(|e| match e {
             EngineEvent::Failed { error, .. } => Some(error),
-            EngineEvent::Done { .. } | EngineEvent::Library(_) => None,
+            EngineEvent::Done { .. }
+            | EngineEvent::Library(_)
+            | EngineEvent::Progress(_)
+            | EngineEvent::FileDone { .. } => None,
         })
         .collect();
     assert!(failures[0].contains("bad.ply"), "{failures:?}");
