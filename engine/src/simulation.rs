@@ -300,6 +300,7 @@ impl SimulationStage {
                 density: field,
                 colour: None,
                 constraints: Vec::new(),
+                mask: None,
             },
             history: History::new(config.history_budget_bytes),
             recorder: None,
@@ -976,6 +977,7 @@ mod tests {
                 density: MultiPatchField::new(running),
                 colour: Some(colour),
                 constraints: Vec::new(),
+                mask: None,
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,

@@ -807,6 +807,7 @@ mod tests {
                         normal: Vec3::Z,
                     },
                 ],
+                mask: None,
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,

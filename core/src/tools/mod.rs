@@ -17,6 +17,9 @@ mod emboss;
 mod force;
 mod growth;
 mod history;
+mod mask;
+#[cfg(test)]
+mod mask_tests;
 mod pin;
 mod projection;
 mod relief;
@@ -44,6 +47,10 @@ pub use force::{
 };
 pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
 pub use history::{DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
+pub use mask::{
+    FreezeMask, HeldRegion, MaskBrush, MaskError, MaskMode, MaskReport, clear_mask, ensure_mask,
+    hold_before_edit, invert_mask, paint_mask, region_holds,
+};
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,
