@@ -42,6 +42,7 @@ mod constrain;
 mod detail;
 mod growth;
 mod library;
+mod mask;
 mod material;
 mod publication;
 mod removal;
@@ -716,6 +717,7 @@ impl SimulationStage {
         match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
             Ok(mut state) => {
                 self.apply_painted_material(&mut state);
+                dynaclay_core::tools::region_holds(&self.clay, patch, b, &mut state.held);
                 self.region = Some(state);
             }
             Err(_) => self.counters.command_errors(1),

@@ -330,7 +330,10 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
         }
-        if matches!(tag, PATCH | MATERIAL | COLOUR | TOOLS | SPRINGS | MASK | END) {
+        if matches!(
+            tag,
+            PATCH | MATERIAL | COLOUR | TOOLS | SPRINGS | MASK | END
+        ) {
             r.finish()?;
         }
         pos = end + 4;
@@ -969,7 +972,7 @@ mod tests {
         bytes[20..24].copy_from_slice(&crc.to_le_bytes());
         let err = decode(&bytes, Path::new("new.dclay")).unwrap_err();
         assert!(
-            matches!(err, SessionError::UnsupportedVersion { found: 3, .. }),
+            matches!(err, SessionError::UnsupportedVersion { found, .. } if found == FORMAT_VERSION + 1),
             "{err}"
         );
     }

@@ -192,7 +192,7 @@ pub fn ensure_mask(clay: &mut Clay) -> Result<(), MaskError> {
                 for j in 0..l.dims[1] {
                     for i in 0..l.dims[0] {
                         let x = to_world.transform_point3(l.node_position(i, j, k));
-                        fresh.coeffs[l.index(i, j, k)] = base.value(x).clamp(0.0, 1.0);
+                        fresh.coeffs[l.index(i, j, k)] = snapped_hold(base.value(x));
                     }
                 }
             }
@@ -204,6 +204,20 @@ pub fn ensure_mask(clay: &mut Clay) -> Result<(), MaskError> {
         }
     }
     Ok(())
+}
+
+/// A hold sampled from a mask's B-spline, within `[0, 1]`, with the rounding of a sum of
+/// weights (`0.99999994` where every coefficient around is held) snapped to 0 or 1, so held
+/// clay stays exactly held on a new patch.
+fn snapped_hold(h: f32) -> f32 {
+    const ROUNDING: f32 = 1e-5;
+    if h >= 1.0 - ROUNDING {
+        1.0
+    } else if h <= ROUNDING {
+        0.0
+    } else {
+        h
+    }
 }
 
 /// One dab of `brush` at `centre_fu` (world): on every patch, each coefficient whose node lies
@@ -419,7 +433,11 @@ fn for_each_row(
 }
 
 /// Calls `f` with each x-row of `region` in `lattice`, mutably.
-fn for_each_row_mut(lattice: &mut BSplineLattice, region: &CoeffBox, mut f: impl FnMut(&mut [f32])) {
+fn for_each_row_mut(
+    lattice: &mut BSplineLattice,
+    region: &CoeffBox,
+    mut f: impl FnMut(&mut [f32]),
+) {
     let dims = lattice.dims;
     for k in region.min[2]..=region.max[2] {
         for j in region.min[1]..=region.max[1] {
@@ -467,4 +485,68 @@ pub fn hold_before_edit(
     }
     ensure_mask(clay)?;
     Ok(HeldRegion::capture(clay, patch, region))
+}
+
+/// One edit of the mask, as a command or a script step carries it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaskEdit {
+    /// Dabs of `brush` at each centre in turn (field units): one stroke.
+    Paint {
+        /// The brush.
+        brush: MaskBrush,
+        /// Where each dab lands, world field units.
+        centres_fu: Vec<Vec3>,
+    },
+    /// Every hold `m` becomes `1 − m`.
+    Invert,
+    /// Every hold becomes 0.
+    Clear,
+}
+
+impl MaskEdit {
+    /// Short name for menus and undo labels.
+    #[must_use]
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Paint {
+                brush:
+                    MaskBrush {
+                        mode: MaskMode::Freeze,
+                        ..
+                    },
+                ..
+            } => "mask",
+            Self::Paint { .. } => "unmask",
+            Self::Invert => "invert mask",
+            Self::Clear => "clear mask",
+        }
+    }
+
+    /// Applies the edit to `clay`, recorded in `recorder` when given.
+    ///
+    /// # Errors
+    /// [`MaskError`] for a bad brush or centre (checked before any dab lands).
+    pub fn apply(
+        &self,
+        clay: &mut Clay,
+        mut recorder: Option<&mut StepRecorder>,
+    ) -> Result<MaskReport, MaskError> {
+        match self {
+            Self::Paint { brush, centres_fu } => {
+                brush.validate()?;
+                if let Some(c) = centres_fu.iter().find(|c| !c.is_finite()) {
+                    return Err(MaskError::Centre {
+                        centre_fu: c.to_array(),
+                    });
+                }
+                let mut report = MaskReport::default();
+                for &c in centres_fu {
+                    report.changed += paint_mask(clay, brush, c, recorder.as_deref_mut())?.changed;
+                }
+                Ok(report)
+            }
+            Self::Invert => invert_mask(clay, recorder),
+            Self::Clear => clear_mask(clay, recorder),
+        }
+    }
 }

@@ -74,7 +74,10 @@ fn a_carve_leaves_masked_clay_bit_for_bit_and_cuts_the_free_clay() {
     let mut plain = bar();
     carve(&mut plain, FREE_AT);
     assert!(before.base().value(FREE_AT - Vec3::Z * 0.1) > l.iso);
-    assert!(l.value(FREE_AT - Vec3::Z * 0.1) < l.iso, "the free carve cut");
+    assert!(
+        l.value(FREE_AT - Vec3::Z * 0.1) < l.iso,
+        "the free carve cut"
+    );
     for x in around(FREE_AT) {
         assert!((l.value(x) - plain.base().value(x)).abs() < 1e-6, "at {x}");
     }
@@ -125,7 +128,10 @@ fn invert_holds_the_free_clay_and_clear_frees_everything() {
     carve(&mut clay, FREE_AT);
     carve(&mut clay, HELD_AT);
     for x in around(FREE_AT) {
-        assert_eq!(clay.base().value(x).to_bits(), before.base().value(x).to_bits());
+        assert_eq!(
+            clay.base().value(x).to_bits(),
+            before.base().value(x).to_bits()
+        );
     }
     assert!(clay.base().value(HELD_AT - Vec3::Z * 0.1) < clay.base().iso);
 
@@ -180,7 +186,10 @@ fn a_mask_stroke_undoes_and_redoes_bit_for_bit() {
     let painted = clay.mask.clone().unwrap();
     assert!(history.commit(rec, &clay));
     assert_eq!(history.undo(&mut clay).unwrap().as_deref(), Some("mask"));
-    assert!(!clay.mask.as_ref().unwrap().any(), "undo frees the clay again");
+    assert!(
+        !clay.mask.as_ref().unwrap().any(),
+        "undo frees the clay again"
+    );
     history.redo(&mut clay).unwrap();
     assert_eq!(clay.mask.as_ref().unwrap(), &painted);
     // An invert is one step too.
@@ -213,7 +222,11 @@ fn the_mask_grows_with_the_clay_and_follows_a_new_patch() {
     assert_eq!(detail.dims, clay.density.patches[1].lattice.dims);
     let centre = detail.to_lattice(HELD_AT).round();
     let at = detail.index(centre.x as usize, centre.y as usize, centre.z as usize);
-    assert!(detail.coeffs[at] > 0.999, "held over the detail: {}", detail.coeffs[at]);
+    assert!(
+        detail.coeffs[at] > 0.999,
+        "held over the detail: {}",
+        detail.coeffs[at]
+    );
     assert!(detail.coeffs.iter().all(|&h| (0.0..=1.0).contains(&h)));
 }
 
@@ -293,8 +306,13 @@ fn a_half_hold_slows_the_dynamics_to_about_half() {
     let free = bar();
     let steps = 6;
     let (moved_half, moved_free) = (pulled(&half, steps), pulled(&free, steps));
-    let rise = |l: &BSplineLattice| l.value(FREE_AT + Vec3::Z * 0.1) - free.base().value(FREE_AT + Vec3::Z * 0.1);
+    let rise = |l: &BSplineLattice| {
+        l.value(FREE_AT + Vec3::Z * 0.1) - free.base().value(FREE_AT + Vec3::Z * 0.1)
+    };
     let ratio = rise(&moved_half) / rise(&moved_free);
     assert!(rise(&moved_free) > 0.0);
-    assert!((0.35..0.65).contains(&ratio), "half hold moved {ratio} as far");
+    assert!(
+        (0.35..0.65).contains(&ratio),
+        "half hold moved {ratio} as far"
+    );
 }

@@ -48,8 +48,8 @@ pub use force::{
 pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
 pub use history::{DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use mask::{
-    FreezeMask, HeldRegion, MaskBrush, MaskError, MaskMode, MaskReport, clear_mask, ensure_mask,
-    hold_before_edit, invert_mask, paint_mask, region_holds,
+    FreezeMask, HeldRegion, MaskBrush, MaskEdit, MaskError, MaskMode, MaskReport, clear_mask,
+    ensure_mask, hold_before_edit, invert_mask, paint_mask, region_holds,
 };
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
