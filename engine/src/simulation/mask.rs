@@ -66,7 +66,10 @@ mod tests {
         let probes: Vec<Vec3> = (0..5)
             .map(|n| top - Vec3::Y * (0.005 + 0.01 * n as f32))
             .collect();
-        let before: Vec<f32> = probes.iter().map(|&x| s.sim.clay.density.value(x)).collect();
+        let before: Vec<f32> = probes
+            .iter()
+            .map(|&x| s.sim.clay.density.value(x))
+            .collect();
         let (steps, settle) = (500_u64, 50_u64);
         for n in 0..=steps + settle {
             let pressing = n < steps;
