@@ -6,7 +6,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::mask::FreezeMask;
+use super::freeze_mask::FreezeMask;
 use crate::dynamics::Constraint;
 use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
 pub use crate::field::{CoeffBox, sub_lattice};

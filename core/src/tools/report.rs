@@ -5,7 +5,7 @@ use glam::Vec3;
 
 use super::action::ActionError;
 use super::clay::CoeffBox;
-use super::mask::MaskError;
+use super::freeze_mask::MaskError;
 use super::projection::EmbossParamsError;
 use super::shape::ShapeError;
 use crate::field::{FitError, LatticeError};
