@@ -64,6 +64,7 @@ fn painted_ball_session(path: &Path) {
             density: dynaclay::field::MultiPatchField::new(lattice),
             colour: Some(colour),
             constraints: Vec::new(),
+            mask: None,
         },
         ..Session::default()
     };

@@ -379,6 +379,7 @@ fn session_with_every_section() -> dynaclay::io::Session {
             },
             colour: Some(colour),
             constraints: Vec::new(),
+            mask: None,
         },
         material: MaterialFields {
             uniform: Material::PLASTIC,

@@ -77,6 +77,7 @@ fn save(dir: &Path, name: &str, patches: Vec<BSplineLattice>) -> std::path::Path
             },
             colour: None,
             constraints: Vec::new(),
+            mask: None,
         },
         ..Session::default()
     };

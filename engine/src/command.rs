@@ -154,6 +154,14 @@ pub enum Command {
     /// Remove every painted material grid: the uniform material applies
     /// everywhere again (the live region at once).
     ClearMaterialPaint,
+    /// Paint, invert or clear the freeze mask (one undo step). The live region holds the new
+    /// mask at once.
+    Mask {
+        /// The edit.
+        edit: dynaclay_core::tools::MaskEdit,
+        /// Where the outcome goes.
+        reply: Option<Sender<Result<dynaclay_core::tools::MaskReport, super::CommandError>>>,
+    },
     /// Arm a stroke (as if button 0 were held) until [`Command::StrokeStop`].
     StrokeStart,
     /// Disarm a stroke armed by [`Command::StrokeStart`].

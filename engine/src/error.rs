@@ -196,6 +196,9 @@ pub enum CommandError {
     /// The session does not fit the running engine.
     #[error(transparent)]
     Load(#[from] LoadRefused),
+    /// The mask could not be edited (nothing changed).
+    #[error(transparent)]
+    Mask(#[from] dynaclay_core::tools::MaskError),
     /// A pin could not be made or removed (nothing changed).
     #[error(transparent)]
     Pin(#[from] dynaclay_core::tools::PinError),

@@ -37,7 +37,7 @@ use super::workspace::WorkspaceMap;
 use dynaclay_core::dynamics::Material;
 use dynaclay_core::io::{
     ClaySpec, CsgSpec, ForceToolSpec, Script, ScriptError, ScriptStep, ShapeSpec, StepTool,
-    ToolPreset, load_session, paint_request, parse_script, pin_request, poses,
+    ToolPreset, load_session, mask_request, paint_request, parse_script, pin_request, poses,
 };
 use dynaclay_core::tools::{
     Clay, EmbossParams, GeometricTool, PinRequest, Relief, ToolAction, ToolPose, resample_stroke,
@@ -148,6 +148,8 @@ pub enum PlannedAction {
     SetMaterial(Material),
     /// Paint mass, damping, stiffness or plastic drift rate into a region.
     PaintMaterial(dynaclay_core::dynamics::MaterialPaint),
+    /// Paint, invert or clear the freeze mask.
+    Mask(dynaclay_core::tools::MaskEdit),
     /// A geometric tool step.
     ApplyTool {
         tool: GeometricTool,
@@ -517,6 +519,11 @@ impl ScriptPlan {
                 ScriptStep::PaintMaterial { .. } => {
                     if let Some(paint) = paint_request(step).map_err(|f| fail(f.message))? {
                         event(PlannedAction::PaintMaterial(paint));
+                    }
+                }
+                ScriptStep::Mask { .. } | ScriptStep::MaskInvert | ScriptStep::MaskClear => {
+                    if let Some(edit) = mask_request(step).map_err(|f| fail(f.message))? {
+                        event(PlannedAction::Mask(edit));
                     }
                 }
                 ScriptStep::Undo { count } => event(PlannedAction::Undo(*count)),

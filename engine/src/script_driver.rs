@@ -292,6 +292,7 @@ impl ScriptDriver {
             PlannedAction::PaintMaterial(paint) => {
                 vec![Command::PaintMaterial { paint, reply: None }]
             }
+            PlannedAction::Mask(edit) => vec![Command::Mask { edit, reply: None }],
             PlannedAction::ApplyTool {
                 tool,
                 poses,

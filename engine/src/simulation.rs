@@ -42,6 +42,7 @@ mod constrain;
 mod detail;
 mod growth;
 mod library;
+mod mask;
 mod material;
 mod publication;
 mod removal;
@@ -305,6 +306,7 @@ impl SimulationStage {
                 density: field,
                 colour: None,
                 constraints: Vec::new(),
+                mask: None,
             },
             history: History::new(config.history_budget_bytes),
             recorder: None,
@@ -729,6 +731,7 @@ impl SimulationStage {
         match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
             Ok(mut state) => {
                 self.apply_painted_material(&mut state);
+                dynaclay_core::tools::region_holds(&self.clay, patch, b, &mut state.held);
                 self.region = Some(state);
             }
             Err(_) => self.counters.command_errors(1),
@@ -1042,6 +1045,7 @@ mod tests {
                 density: MultiPatchField::new(running),
                 colour: Some(colour),
                 constraints: Vec::new(),
+                mask: None,
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,

@@ -173,6 +173,7 @@ mod tests {
             },
             colour: None,
             constraints: Vec::new(),
+            mask: None,
         };
         let octree = mesh_clay(&clay, 4, &budget()).unwrap();
         let (lo, hi) = x_range(&octree);
@@ -241,6 +242,7 @@ mod tests {
             },
             colour: None,
             constraints: Vec::new(),
+            mask: None,
         };
         let err = mesh_clay(&clay, 4, &MemoryBudget::from_flag(Some(64))).unwrap_err();
         assert!(matches!(err, CliError::OverBudget(_)), "{err}");

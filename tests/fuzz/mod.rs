@@ -310,6 +310,7 @@ pub fn valid_session_bytes() -> Vec<u8> {
                     normal: Vec3::Y,
                 },
             ],
+            mask: None,
         },
         material: MaterialFields {
             uniform: Material::PLASTIC,

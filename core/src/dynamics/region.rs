@@ -81,6 +81,10 @@ pub struct RegionState {
     pub calm_steps: u32,
     /// Steps since the densities were last recomputed from the coefficients.
     pub steps_since_resync: u32,
+    /// How firmly the freeze mask holds each coefficient of the box, `0..=1`, indexed like
+    /// `p` (empty: nothing held). A held coefficient takes `1 − m` of its acceleration and a
+    /// fully held one does not move at all ([`crate::tools::region_holds`] fills it).
+    pub held: Vec<f32>,
 }
 
 impl RegionState {
@@ -136,6 +140,7 @@ impl RegionState {
             version: 0,
             calm_steps: 0,
             steps_since_resync: 0,
+            held: Vec::new(),
         };
         state.reload(lattice);
         Ok(state)

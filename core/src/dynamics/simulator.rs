@@ -408,6 +408,11 @@ impl Simulator {
             drift_ns = elapsed_ns(tc);
         }
         times.constrain_ns = constrain_ns + drift_ns;
+        // What the freeze mask holds takes its share of the acceleration only; a fully held
+        // coefficient stands still (bit for bit: zero velocity, zero acceleration).
+        if state.held.len() == state.p.len() {
+            hold_masked(&state.held, &mut self.accel, &mut state.p_dot);
+        }
         let integrated = self
             .integrate_with_dt(state, dt_s, max_accel)
             .map(|()| (dt_s, halvings));
@@ -992,6 +997,20 @@ impl Simulator {
     #[must_use]
     pub fn last_accel(&self) -> &[f32] {
         &self.accel
+    }
+}
+
+/// Scales each coefficient's acceleration by `1 − hold` and stops the fully held ones (their
+/// velocity zeroed), so a masked coefficient keeps its value and a half-held one moves about
+/// half as far from rest. Allocates nothing.
+fn hold_masked(held: &[f32], accel: &mut [f32], p_dot: &mut [f32]) {
+    for ((&m, a), v) in held.iter().zip(accel.iter_mut()).zip(p_dot.iter_mut()) {
+        if m >= 1.0 {
+            *a = 0.0;
+            *v = 0.0;
+        } else if m > 0.0 {
+            *a *= 1.0 - m;
+        }
     }
 }
 

@@ -21,6 +21,10 @@
 //! Version 2 adds each patch's map `T_i` (world → patch space, eq. (3)) after its lattice in
 //! `PTCH`: the linear part column by column, then the translation, 12 × `f32`. Version 1 files
 //! have no map and read with the identity.
+//!
+//! Version 3 adds `MASK` (after `SPRG`, only when the clay has a freeze mask): the patch count
+//! `u32`, then one lattice per patch, in patch order, each with its patch's dims and every hold
+//! within `[0, 1]`. Files of versions 1 and 2 read with no mask.
 
 use std::path::Path;
 
@@ -31,12 +35,12 @@ use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
 use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material, Neighbourhood};
 use crate::field::{BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, Patch};
-use crate::tools::{ColourField, FreeformTool, ToolAction, ToolShape};
+use crate::tools::{Clay, ColourField, FreeformTool, FreezeMask, ToolAction, ToolShape};
 
 /// The first eight bytes of every session file.
 pub const MAGIC: [u8; 8] = *b"DYNACLAY";
 /// The format version this build writes and the newest it reads.
-pub const FORMAT_VERSION: u32 = 2;
+pub const FORMAT_VERSION: u32 = 3;
 const HEADER_LEN: usize = 24;
 
 const META: [u8; 4] = *b"META";
@@ -48,6 +52,7 @@ const COLOUR: [u8; 4] = *b"COLR";
 const TOOLS: [u8; 4] = *b"TOOL";
 const PINS: [u8; 4] = *b"PINS";
 const SPRINGS: [u8; 4] = *b"SPRG";
+const MASK: [u8; 4] = *b"MASK";
 const END: [u8; 4] = *b"END ";
 
 /// Serialises a session.
@@ -138,6 +143,18 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
     if neighbourhood != Neighbourhood::Six {
         section(&mut out, SPRINGS, &mut |o| {
             o.extend_from_slice(&neighbourhood.count().to_le_bytes());
+            Ok(())
+        })?;
+    }
+    if let Some(mask) = session.clay.mask.as_ref().filter(|_| version >= 3) {
+        section(&mut out, MASK, &mut |o| {
+            let count = u32::try_from(mask.patches.len()).map_err(|_| SessionError::Invalid {
+                detail: format!("the mask covers {} patches", mask.patches.len()),
+            })?;
+            o.extend_from_slice(&count.to_le_bytes());
+            for (n, holds) in mask.patches.iter().enumerate() {
+                put_lattice(o, holds, &format!("mask over patch {n}"))?;
+            }
             Ok(())
         })?;
     }
@@ -308,11 +325,15 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 };
                 neighbourhood = nb;
             }
+            MASK => session.clay.mask = Some(decode_mask(&mut r, &session.clay)?),
             END => ended = true,
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
         }
-        if matches!(tag, PATCH | MATERIAL | COLOUR | TOOLS | SPRINGS | END) {
+        if matches!(
+            tag,
+            PATCH | MATERIAL | COLOUR | TOOLS | SPRINGS | MASK | END
+        ) {
             r.finish()?;
         }
         pos = end + 4;
@@ -333,6 +354,36 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
     }
     session.material.uniform.neighbourhood = neighbourhood;
     Ok(session)
+}
+
+/// The `MASK` section: one hold lattice per patch already read, each with its patch's dims and
+/// every hold within `[0, 1]`.
+fn decode_mask(r: &mut Reader, clay: &Clay) -> Result<FreezeMask, SessionError> {
+    let count = r.u32()? as usize;
+    let patches = clay.density.patches.len();
+    if count != patches {
+        r.cursor.rewind_to(0);
+        return Err(r.error(&format!(
+            "the mask covers {count} patches; the clay read so far has {patches}"
+        )));
+    }
+    let mut holds = Vec::with_capacity(count);
+    for (n, patch) in clay.density.patches.iter().enumerate() {
+        let lattice = r.lattice()?;
+        if lattice.dims != patch.lattice.dims {
+            return Err(r.error(&format!(
+                "the mask over patch {n} has dims {:?}; the patch has {:?}",
+                lattice.dims, patch.lattice.dims
+            )));
+        }
+        if let Some(bad) = lattice.coeffs.iter().find(|h| !(0.0..=1.0).contains(*h)) {
+            return Err(r.error(&format!(
+                "a hold of the mask over patch {n} is {bad}; holds lie within [0, 1]"
+            )));
+        }
+        holds.push(lattice);
+    }
+    Ok(FreezeMask { patches: holds })
 }
 
 /// The `PINS` section: a JSON list of constraints, each checked, at most [`MAX_CONSTRAINTS`].
@@ -807,6 +858,7 @@ mod tests {
                         normal: Vec3::Z,
                     },
                 ],
+                mask: None,
             },
             material: MaterialFields {
                 uniform: Material::PLASTIC,
@@ -920,7 +972,7 @@ mod tests {
         bytes[20..24].copy_from_slice(&crc.to_le_bytes());
         let err = decode(&bytes, Path::new("new.dclay")).unwrap_err();
         assert!(
-            matches!(err, SessionError::UnsupportedVersion { found: 3, .. }),
+            matches!(err, SessionError::UnsupportedVersion { found, .. } if found == FORMAT_VERSION + 1),
             "{err}"
         );
     }
@@ -1042,6 +1094,36 @@ mod tests {
             assert_eq!(old.lattice, new.lattice);
             assert_eq!(old.world_to_patch, Affine3A::IDENTITY);
         }
+    }
+
+    #[test]
+    fn a_freeze_mask_round_trips_and_older_files_read_with_none() {
+        let mut session = sample_session();
+        let mut mask = FreezeMask::matching(&session.clay.density).unwrap();
+        mask.patches[0].coeffs[7] = 1.0;
+        mask.patches[1].coeffs[3] = 0.25;
+        session.clay.mask = Some(mask);
+        let path = Path::new("mask.dclay");
+        let back = decode(&encode(&session).unwrap(), path).unwrap();
+        assert_eq!(back.clay.mask, session.clay.mask);
+        assert_eq!(back.clay.density, session.clay.density);
+        // A version 2 file holds no mask and reads without one.
+        let old = decode(&encode_version(&session, 2).unwrap(), path).unwrap();
+        assert!(old.clay.mask.is_none());
+        assert_eq!(old.clay.density, session.clay.density);
+        // A hold out of range is refused, naming the section and the patch.
+        session.clay.mask.as_mut().unwrap().patches[1].coeffs[3] = 1.5;
+        let err = decode(&encode(&session).unwrap(), path)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("MASK") && err.contains("patch 1"), "{err}");
+        // A mask that does not fit its patch is refused.
+        let mask = session.clay.mask.as_mut().unwrap();
+        mask.patches[1] = BSplineLattice::zeros([4, 4, 4], 0.1, Vec3::ZERO).unwrap();
+        let err = decode(&encode(&session).unwrap(), path)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("MASK") && err.contains("dims"), "{err}");
     }
 
     #[test]

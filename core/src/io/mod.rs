@@ -24,8 +24,8 @@ pub use script::{
     AutosaveSpec, BetaSpec, ClayShape, ClaySpec, CsgSpec, DEFAULT_POINTS_PULL_STEPS, DeprecatedKey,
     ForceToolSpec, MAX_COMPACT_PARTICLES, MAX_POINTS_PULL_STEPS, MIN_COMPACT_PARTICLES, PinKind,
     PresetError, RENAMED_KEYS, SCRIPT_VERSION, Script, ScriptError, ScriptStep, SelectionSpec,
-    ShapeSpec, StepTool, ToolStep, ToolStepError, load_script, paint_request, parse_script,
-    pin_request, poses,
+    ShapeSpec, StepTool, ToolStep, ToolStepError, load_script, mask_request, paint_request,
+    parse_script, pin_request, poses,
 };
 pub use session::{
     MAX_TOOL_NAME_BYTES, MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset, unix_now_s,

@@ -3,7 +3,8 @@
 //! every coefficient outside the affected box left bit-identical. Each application reports
 //! the box it refitted and Ferley's counts (§3.2): sample points *visited* (in the world-axis
 //! box), *computed* (in the tool's local box, so its potential was evaluated) and *dirtied*
-//! (whose value changed).
+//! (whose value changed). Coefficients the freeze mask holds keep their held share of the old
+//! value (`tools::mask`).
 //!
 //! Runs on the simulation or command thread: it allocates (a copy of the local region and the
 //! fit's scratch).
@@ -16,6 +17,7 @@ use glam::{Affine3A, Vec3};
 use super::action::{ActionError, ToolAction};
 use super::clay::{Clay, CoeffBox, ColourField, FieldId, sub_lattice};
 use super::history::StepRecorder;
+use super::mask::hold_before_edit;
 use super::report::{ToolError, ToolReport};
 use super::shape::{ToolPose, ToolShape, density_from_distance};
 use crate::field::{
@@ -168,6 +170,8 @@ pub fn apply_tool(
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
+    // What the freeze mask holds there gets its share of the old coefficients back after.
+    let held = hold_before_edit(clay, usize::from(options.patch), region)?;
     // `pose.to_local` with the rotation turned into a matrix once, not per sample.
     let to_local =
         glam::Affine3A::from_rotation_translation(pose.rotation, pose.position_fu).inverse();
@@ -232,6 +236,9 @@ pub fn apply_tool(
             }
         }),
     }?;
+    if let Some(held) = held {
+        held.restore(lattice);
+    }
     Ok(ToolReport {
         patch: options.patch,
         coeff_box: Some(region),
@@ -526,8 +533,9 @@ pub fn apply_csg(
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
-    let counts = Counts::default();
     let patch = usize::from(options.patch);
+    let held = hold_before_edit(clay, patch, region)?;
+    let counts = Counts::default();
     let (lattice, others) = split_patch(&mut clay.density, patch);
     let target = |x: Vec3, old: f32| {
         counts.visited.set(counts.visited.get() + 1);
@@ -551,6 +559,9 @@ pub fn apply_csg(
         options.samples_per_span,
         target,
     )?;
+    if let Some(held) = held {
+        held.restore(lattice);
+    }
     Ok(ToolReport {
         patch: options.patch,
         coeff_box: Some(region),

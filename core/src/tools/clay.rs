@@ -1,4 +1,4 @@
-//! The editable sculpt state: density patches and the optional colour field, addressed by
+//! The editable sculpt state: density patches, the optional colour field and freeze mask, addressed by
 //! [`FieldId`], with coefficient boxes ([`CoeffBox`], inclusive) naming the regions that an edit touched.
 //!
 //! Every tool, every force stroke and the undo history work on a [`Clay`]; the session file
@@ -6,6 +6,7 @@
 
 use glam::{Vec3, Vec4};
 
+use super::freeze_mask::FreezeMask;
 use crate::dynamics::Constraint;
 use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
 pub use crate::field::{CoeffBox, sub_lattice};
@@ -21,6 +22,8 @@ pub enum FieldId {
     Density(u16),
     /// Colour channel `0..4` (red, green, blue, coverage).
     Colour(u8),
+    /// The freeze mask's holds over density patch `n` ([`crate::tools::FreezeMask`]).
+    Mask(u16),
 }
 
 /// A colour carried with the clay: four B-spline lattices (red, green, blue, coverage) over
@@ -81,6 +84,8 @@ pub struct Clay {
     /// Geometric constraints (pins, Hua & Qin §7.3) the dynamics hold on the first patch.
     /// Changing them is an undo step like any edit.
     pub constraints: Vec<Constraint>,
+    /// The freeze mask every tool and the dynamics respect (`None`: nothing held).
+    pub mask: Option<FreezeMask>,
 }
 
 impl Clay {
@@ -91,6 +96,7 @@ impl Clay {
             density: MultiPatchField::new(patch),
             colour: None,
             constraints: Vec::new(),
+            mask: None,
         }
     }
 
@@ -100,6 +106,7 @@ impl Clay {
         match id {
             FieldId::Density(n) => self.density.patches.get(usize::from(n)).map(|p| &p.lattice),
             FieldId::Colour(c) => self.colour.as_ref()?.channels.get(usize::from(c)),
+            FieldId::Mask(n) => self.mask.as_ref()?.patches.get(usize::from(n)),
         }
     }
 
@@ -112,6 +119,7 @@ impl Clay {
                 .get_mut(usize::from(n))
                 .map(|p| &mut p.lattice),
             FieldId::Colour(c) => self.colour.as_mut()?.channels.get_mut(usize::from(c)),
+            FieldId::Mask(n) => self.mask.as_mut()?.patches.get_mut(usize::from(n)),
         }
     }
 

@@ -1,7 +1,8 @@
 //! Embossing and engraving an image onto the clay (Guo & Qin 2003, §5.1, on the B-spline
 //! clay): the image is projected onto the surface (planar, cylindrical or spherical), its
 //! brightness becomes a displacement along the surface normal (up to `depth`, outward to
-//! emboss, inward to engrave), and the lattice is refitted to the displaced field.
+//! emboss, inward to engrave), and the lattice is refitted to the displaced field (what the
+//! freeze mask holds keeps its share of the old coefficients).
 //!
 //! The displaced field is `F'(x) = F(x − d(x)·n(x))` with `n = −∇F/|∇F|` the outward normal
 //! (the clay is where `F` exceeds its iso-value) and `d(x) = ±depth·h(π(x))`, `h` the image's
@@ -17,6 +18,7 @@ use glam::Vec3;
 
 use super::clay::{Clay, FieldId};
 use super::history::StepRecorder;
+use super::mask::hold_before_edit;
 use super::projection::{EmbossParams, Projection, frame};
 use super::relief::Relief;
 use super::report::{ToolError, ToolReport};
@@ -77,6 +79,7 @@ pub fn apply_emboss(
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
+    let held = hold_before_edit(clay, usize::from(patch), region)?;
     let visited = std::cell::Cell::new(0usize);
     let dirtied = std::cell::Cell::new(0usize);
     let displaced = |x: Vec3, old: f32| {
@@ -98,6 +101,9 @@ pub fn apply_emboss(
     };
     let lattice = clay.field_mut(id).expect("checked above");
     refit_box_edit(lattice, region.min, region.max, samples_per_span, displaced)?;
+    if let Some(held) = held {
+        held.restore(lattice);
+    }
     let dirty_world = Some((
         lattice.node_position(region.min[0], region.min[1], region.min[2]),
         lattice.node_position(region.max[0], region.max[1], region.max[2]),

@@ -111,8 +111,8 @@ impl Clay {
         }
     }
 
-    /// Adds `pad[a]` zero coefficients on both sides of axis `a` to the base patch and the
-    /// colour field.
+    /// Adds `pad[a]` zero coefficients on both sides of axis `a` to the base patch, the
+    /// colour field and the base's mask.
     ///
     /// # Errors
     /// As [`Clay::grow_to_cover`].
@@ -125,8 +125,9 @@ impl Clay {
             .fold(1_usize, |acc, &n| acc.saturating_mul(n));
         let details = self.density.coefficient_count() - self.base().coeffs.len();
         let colour = if self.colour.is_some() { 4 } else { 0 };
+        let mask = usize::from(self.mask.is_some());
         let total = base_count
-            .saturating_mul(1 + colour)
+            .saturating_mul(1 + colour + mask)
             .saturating_add(details);
         if total > MAX_CLAY_COEFFS {
             return Err(GrowthError::ClayTooLarge {
@@ -145,9 +146,18 @@ impl Clay {
             }
             None => None,
         };
+        // The base's mask grows with it (the new coefficients are free); a mask that no
+        // longer fits the base is left for `ensure_mask` to remake.
+        let base_mask = match self.mask.as_ref().and_then(|m| m.patches.first()) {
+            Some(m) if m.dims == old_dims => Some(m.padded(pad, pad)?),
+            _ => None,
+        };
         *self.base_mut() = base;
         if let (Some(field), Some(channels)) = (self.colour.as_mut(), colour) {
             field.channels = channels;
+        }
+        if let (Some(mask), Some(grown)) = (self.mask.as_mut(), base_mask) {
+            mask.patches[0] = grown;
         }
         Ok(Growth {
             pad,

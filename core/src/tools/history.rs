@@ -1,7 +1,7 @@
 //! Undo and redo of tool actions and force strokes, one stroke being one step, stored as
 //! bitwise XOR deltas of the coefficient bricks the step touched.
 //!
-//! Guarantee: undoing a step restores every coefficient (density and colour) bit for bit, and
+//! Guarantee: undoing a step restores every coefficient (density, colour and mask) bit for bit, and
 //! redoing it restores the post-step bits, provided the clay was changed only through recorded
 //! steps in between. Memory is bounded by [`History::budget_bytes`]: when a new step would
 //! exceed it, the oldest steps are dropped first. Recording allocates (it copies the touched
@@ -218,7 +218,10 @@ fn brick_box(brick: [usize; 3]) -> CoeffBox {
 /// Whether a delta or saved brick of `field`, recorded on a lattice of `dims`, moves when
 /// the clay grows by `growth`.
 fn moves_with(field: FieldId, dims: [usize; 3], growth: &Growth) -> bool {
-    matches!(field, FieldId::Density(0) | FieldId::Colour(_)) && dims == growth.old_dims
+    matches!(
+        field,
+        FieldId::Density(0) | FieldId::Colour(_) | FieldId::Mask(0)
+    ) && dims == growth.old_dims
 }
 
 /// Visits the rows of `region` in a lattice of `dims` as (first linear index, length).
@@ -337,6 +340,9 @@ impl StepRecorder {
             .collect();
         if clay.colour.is_some() {
             ids.extend((0..4).map(FieldId::Colour));
+        }
+        if let Some(mask) = &clay.mask {
+            ids.extend((0..mask.patches.len()).map(|n| FieldId::Mask(n as u16)));
         }
         for id in ids {
             if let Some(l) = clay.field(id) {
@@ -995,6 +1001,7 @@ mod property {
                 colour: Some(ColourField::matching(&lattice).unwrap()),
                 density: crate::field::MultiPatchField::new(lattice),
                 constraints: Vec::new(),
+                mask: None,
             };
             let mut history = History::default();
             let mut timeline = vec![bits(&clay)];

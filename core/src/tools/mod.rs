@@ -15,8 +15,12 @@ mod clay;
 mod deform;
 mod emboss;
 mod force;
+mod freeze_mask;
 mod growth;
 mod history;
+mod mask;
+#[cfg(test)]
+mod mask_tests;
 mod pin;
 mod projection;
 mod relief;
@@ -42,8 +46,13 @@ pub use force::{
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,
     project_to_surface,
 };
+pub use freeze_mask::{FreezeMask, MaskError};
 pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
 pub use history::{DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
+pub use mask::{
+    HeldRegion, MaskBrush, MaskEdit, MaskMode, MaskReport, clear_mask, ensure_mask,
+    hold_before_edit, invert_mask, paint_mask, region_holds,
+};
 pub use pin::{
     ON_SURFACE_TOLERANCE, PROJECT_REACH_SPANS, PinError, PinRequest, add_pins, check_pins,
     check_room, describe_pin, describe_report, remove_pins, resolve_pin, solver_for,

@@ -5,6 +5,7 @@ use glam::Vec3;
 
 use super::action::ActionError;
 use super::clay::CoeffBox;
+use super::freeze_mask::MaskError;
 use super::projection::EmbossParamsError;
 use super::shape::ShapeError;
 use crate::field::{FitError, LatticeError};
@@ -62,6 +63,9 @@ pub enum ToolError {
     /// The refit failed (e.g. a non-finite target).
     #[error("refit failed: {0}")]
     Fit(FitError),
+    /// The freeze mask could not be fitted to the patch layout.
+    #[error("{0}")]
+    Mask(#[from] MaskError),
     /// An emboss's parameters are invalid.
     #[error("{0}")]
     Emboss(#[from] EmbossParamsError),

@@ -67,6 +67,14 @@ impl SimulationStage {
                 self.refresh_region_material();
                 true
             }
+            Command::Mask { edit, reply } => {
+                let result = self.edit_mask(&edit);
+                let ok = result.is_ok();
+                if let Some(r) = reply {
+                    let _ = r.send(result);
+                }
+                ok
+            }
             Command::StrokeStart => {
                 self.stroke_armed = true;
                 true

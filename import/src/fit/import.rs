@@ -753,6 +753,7 @@ pub fn imported_session(field: MultiPatchField, path: &Path, created_unix_s: u64
             density: field,
             colour: None,
             constraints: Vec::new(),
+            mask: None,
         },
         material: MaterialFields {
             uniform: Material::PLASTIC,

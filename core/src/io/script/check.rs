@@ -305,6 +305,9 @@ pub(super) fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
             Ok(())
         }
         ScriptStep::PaintMaterial { .. } => paint_request(step).map(|_| ()),
+        ScriptStep::Mask { .. } | ScriptStep::MaskInvert | ScriptStep::MaskClear => {
+            mask_request(step).map(|_| ())
+        }
         ScriptStep::Undo { count } | ScriptStep::Redo { count } if *count > MAX_UNDO_COUNT => {
             Err(fault(
                 "count",

@@ -536,6 +536,22 @@ pub enum ScriptStep {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         plasticity_per_s: Option<f32>,
     },
+    /// Paint the freeze mask: one dab of a soft round brush at each of `positions` (field
+    /// coordinates), `strength` (0 to 1, default 1) over the inner half of `radius_fu`, fading
+    /// to nothing at it; `free = true` unfreezes instead. Held clay moves under no tool and
+    /// not in the dynamics. One undo step; takes no script time.
+    Mask {
+        positions: Vec<[f32; 3]>,
+        radius_fu: f32,
+        #[serde(default = "full_strength")]
+        strength: f32,
+        #[serde(default)]
+        free: bool,
+    },
+    /// Invert the freeze mask (held clay becomes free, free clay held). One undo step.
+    MaskInvert,
+    /// Clear the freeze mask (every part free). One undo step.
+    MaskClear,
     /// CSG with another clay: the clay of a session file (`with`, relative to the script's
     /// folder) or a solid (`shape` centred at `position`, turned by `rotation`, its potential
     /// falling over `falloff_fu` on each side of its surface). Exactly one of `with` and
@@ -724,6 +740,49 @@ pub fn pin_request(
             "at",
             "at: a curve pin takes points = [[x, y, z], ...], not at",
         )),
+    }
+}
+
+/// Default mask strength: a dab freezes fully.
+fn full_strength() -> f32 {
+    1.0
+}
+
+/// The mask edit a `mask`, `mask_invert` or `mask_clear` step asks for.
+///
+/// # Errors
+/// When a position is not finite, there is none or too many, or the brush's radius or
+/// strength is out of range.
+pub fn mask_request(step: &ScriptStep) -> Result<Option<MaskEdit>, StepFault> {
+    match step {
+        ScriptStep::Mask {
+            positions,
+            radius_fu,
+            strength,
+            free,
+        } => {
+            check_points("positions", positions, true)?;
+            let brush = MaskBrush {
+                radius_fu: *radius_fu,
+                strength: *strength,
+                mode: if *free {
+                    MaskMode::Free
+                } else {
+                    MaskMode::Freeze
+                },
+            };
+            brush.validate().map_err(|e| match e {
+                MaskError::Strength { .. } => fault("strength", e.to_string()),
+                _ => fault("radius_fu", e.to_string()),
+            })?;
+            Ok(Some(MaskEdit::Paint {
+                brush,
+                centres_fu: positions.iter().map(|p| Vec3::from_array(*p)).collect(),
+            }))
+        }
+        ScriptStep::MaskInvert => Ok(Some(MaskEdit::Invert)),
+        ScriptStep::MaskClear => Ok(Some(MaskEdit::Clear)),
+        _ => Ok(None),
     }
 }
 
@@ -916,6 +975,9 @@ impl ScriptStep {
             ScriptStep::Stroke { .. } => "stroke",
             ScriptStep::Material { .. } => "material",
             ScriptStep::PaintMaterial { .. } => "paint_material",
+            ScriptStep::Mask { .. } => "mask",
+            ScriptStep::MaskInvert => "mask_invert",
+            ScriptStep::MaskClear => "mask_clear",
             ScriptStep::Csg { .. } => "csg",
             ScriptStep::MakeTool { .. } => "make_tool",
             ScriptStep::Undo { .. } => "undo",

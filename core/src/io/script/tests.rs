@@ -458,3 +458,68 @@ fn a_steps_name_is_its_do_key() {
         assert!(text.contains(&written), "{written} not in\n{text}");
     }
 }
+
+#[test]
+fn mask_steps_paint_invert_and_clear_and_bad_brushes_name_their_key() {
+    let step = |keys: &str| format!("version = 1\n\n[[step]]\n{keys}\n");
+    let text = [
+        "do = \"mask\"\npositions = [[1.0, 1.5, 1.0], [1.1, 1.5, 1.0]]\nradius_fu = 0.3",
+        "do = \"mask\"\npositions = [[1.0, 1.5, 1.0]]\nradius_fu = 0.2\nstrength = 0.5\nfree = true",
+        "do = \"mask_invert\"",
+        "do = \"mask_clear\"",
+    ]
+    .map(step)
+    .concat()
+    .replace("version = 1\n\n", "\n");
+    let s = parse_script(&format!("version = 1\n{text}"), "mask.toml").unwrap();
+    let edits: Vec<MaskEdit> = s
+        .steps
+        .iter()
+        .map(|st| mask_request(st).unwrap().unwrap())
+        .collect();
+    assert_eq!(
+        edits[0],
+        MaskEdit::Paint {
+            brush: MaskBrush {
+                radius_fu: 0.3,
+                strength: 1.0,
+                mode: MaskMode::Freeze
+            },
+            centres_fu: vec![Vec3::new(1.0, 1.5, 1.0), Vec3::new(1.1, 1.5, 1.0)],
+        }
+    );
+    assert_eq!(edits[0].name(), "mask");
+    let MaskEdit::Paint { brush, .. } = &edits[1] else {
+        panic!("a paint, got {:?}", edits[1]);
+    };
+    assert_eq!((brush.strength, brush.mode), (0.5, MaskMode::Free));
+    assert_eq!(edits[2..], [MaskEdit::Invert, MaskEdit::Clear]);
+    assert_eq!(
+        s.steps.iter().map(ScriptStep::name).collect::<Vec<_>>(),
+        ["mask", "mask", "mask_invert", "mask_clear"]
+    );
+    let again = toml::to_string(&s).unwrap();
+    assert_eq!(parse_script(&again, "again").unwrap().steps, s.steps);
+    for (keys, expected) in [
+        (
+            "positions = [[0.0, 0.0, 0.0]]\nradius_fu = 0.0",
+            "radius_fu = 0",
+        ),
+        (
+            "positions = [[0.0, 0.0, 0.0]]\nradius_fu = 0.1\nstrength = 2.0",
+            "strength = 2",
+        ),
+        ("positions = []\nradius_fu = 0.1", "at least one point"),
+        (
+            "positions = [[0.0, nan, 0.0]]\nradius_fu = 0.1",
+            "not finite",
+        ),
+    ] {
+        let err = parse_script(&step(&format!("do = \"mask\"\n{keys}")), "m.toml").unwrap_err();
+        let shown = err.to_string();
+        assert!(
+            shown.contains(expected) && err.line.is_some(),
+            "{keys}: {shown}"
+        );
+    }
+}
