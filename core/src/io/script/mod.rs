@@ -44,7 +44,9 @@ use crate::dynamics::{
     Distribution, MAX_CONSTRAINTS, MAX_CURVE_POINTS, Material, MaterialPaint, Neighbourhood,
     PaintRegion,
 };
-use crate::tools::{ForceTool, ForceToolError, PinRequest, ToolAction, ToolPose, ToolShape};
+use crate::tools::{
+    FalloffCurve, ForceTool, ForceToolError, PinRequest, ToolAction, ToolPose, ToolShape,
+};
 
 mod check;
 mod parse;
