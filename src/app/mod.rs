@@ -9,6 +9,7 @@ mod device_maker;
 mod device_panel;
 mod edit_requests;
 mod emboss_panel;
+mod falloff_curve_panel;
 mod force_path_panel;
 mod latency;
 mod launch;
@@ -26,6 +27,7 @@ mod removal_dialog;
 mod run;
 mod sculpt_panels;
 mod state;
+mod stroke_smoothing;
 mod view;
 mod view_image;
 mod viewport;
@@ -42,6 +44,7 @@ pub use csg_panel::{CSG_OPS, CsgPanel, OperandKind, SolidKind};
 pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
+pub use falloff_curve_panel::falloff_curve_ui;
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
 pub use latency::{HISTORY_LEN, LatencyHistory, LatencySample, histogram_bars};
 pub use launch::{GuiArgs, LaunchError, gui_main, parse_gui_args};
@@ -65,6 +68,7 @@ pub use state::{
     CONTROLS_WIDTH_PT, DisplaySettings, FilePaths, LATENCY_WIDTH_PT, PointsDisplay, SceneInput,
     SculptApp, event_line, window_clear_color,
 };
+pub use stroke_smoothing::{MAX_STRING_PT, StrokeSmoothing};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
 pub use view_image::{ViewBlit, ViewImage};
 pub use viewport::SceneView;

@@ -15,7 +15,11 @@
 //!
 //! Evaluation is pure and allocates nothing.
 
+use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
+
+use super::force::{PRESS_REACH_SPANS, anchor_normal};
+use crate::field::MultiPatchField;
 
 /// Most control points of a custom curve (enough for any profile a user draws by hand, few
 /// enough that the brush's distance stays cheap).
@@ -249,6 +253,47 @@ impl FalloffCurve {
             }
         }
     }
+}
+
+/// The turn that makes a profiled brush face the clay at `at` (its local z along the clay's
+/// outward normal there, [`anchor_normal`]), so that its profile is carved into the surface
+/// whichever face the stroke is on; no turn where no normal is found. A stroke takes it once,
+/// where it begins, and keeps it. Bounded work (see [`anchor_normal`]).
+#[must_use]
+pub fn facing_surface(field: &MultiPatchField, at: Vec3) -> Quat {
+    let normal = if field.is_inside(at) {
+        anchor_normal(field, at)
+    } else {
+        outside_normal(field, at)
+    };
+    if normal == Vec3::ZERO {
+        Quat::IDENTITY
+    } else {
+        Quat::from_rotation_arc(Vec3::Z, normal)
+    }
+}
+
+/// The clay's outward normal seen from `at` outside it: the density's rising direction where
+/// its gradient is worth trusting (within the clay's ramp), else the axis direction along
+/// which the clay is met soonest (within [`PRESS_REACH_SPANS`] knot spans), reversed; zero
+/// when neither is found. Bounded: at most `1 + 6 · 12` field evaluations.
+fn outside_normal(field: &MultiPatchField, at: Vec3) -> Vec3 {
+    let (_, gradient) = field.value_and_gradient(at);
+    let spacing = field.finest_spacing();
+    if gradient.is_finite() && gradient.length() * spacing > 0.1 * field.iso() {
+        return (-gradient).normalize_or_zero();
+    }
+    const STEPS: u32 = 12;
+    let reach = PRESS_REACH_SPANS * spacing;
+    [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z]
+        .into_iter()
+        .filter_map(|dir| {
+            (1..=STEPS)
+                .find(|&i| field.is_inside(at + dir * (reach * i as f32 / STEPS as f32)))
+                .map(|i| (i, dir))
+        })
+        .min_by_key(|&(i, _)| i)
+        .map_or(Vec3::ZERO, |(_, dir)| -dir)
 }
 
 /// The piecewise-linear line through `points` at `u` (held flat beyond the ends).

@@ -38,7 +38,7 @@ pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
 pub use emboss::apply_emboss;
-pub use falloff::{CurveError, FalloffCurve, MAX_FALLOFF_POINTS, PRESET_NODES};
+pub use falloff::{CurveError, FalloffCurve, MAX_FALLOFF_POINTS, PRESET_NODES, facing_surface};
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PRESS_REACH_SPANS, PenetrationTarget, anchor_normal,
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,

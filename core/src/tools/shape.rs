@@ -386,6 +386,35 @@ mod tests {
     }
 
     #[test]
+    fn the_sphere_curve_leaves_the_sphere_tool_as_it_was() {
+        let w = 0.05;
+        let round = ToolShape::round(0.3, FalloffCurve::Sphere);
+        assert_eq!(round, ToolShape::Sphere { radius_fu: 0.3 });
+        let profiled = ToolShape::Profiled {
+            radius_fu: 0.3,
+            curve: FalloffCurve::Sphere,
+        };
+        for i in 0..50 {
+            let p = Vec3::new(0.013 * i as f32, -0.007 * i as f32, 0.3 - 0.011 * i as f32);
+            assert_eq!(profiled.density(p, w), round.density(p, w), "{p}");
+        }
+        let sharp = ToolShape::round(0.3, FalloffCurve::Sharp);
+        assert!(matches!(sharp, ToolShape::Profiled { .. }));
+        // Its tip is on the axis at the full radius, its edge on the middle plane.
+        assert!((sharp.signed_distance(Vec3::new(0.0, 0.0, 0.3)).unwrap()).abs() < 1e-6);
+        assert!((sharp.signed_distance(Vec3::new(0.3, 0.0, 0.0)).unwrap()).abs() < 1e-6);
+        assert!(sharp.signed_distance(Vec3::new(0.15, 0.0, 0.1)).unwrap() > 0.0);
+        assert!(
+            ToolShape::round(
+                0.3,
+                FalloffCurve::Custom(vec![[0.0, 1.0], [0.5, 2.0], [1.0, 0.0]])
+            )
+            .validate()
+            .is_err()
+        );
+    }
+
+    #[test]
     fn ramp_is_c1_and_monotone() {
         let w = 0.1;
         let mut last = 1.0;
