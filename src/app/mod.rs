@@ -78,4 +78,6 @@ mod gui_tests;
 #[cfg(test)]
 mod reach_tests;
 #[cfg(test)]
+mod stroke_smoothing_tests;
+#[cfg(test)]
 mod window_tests;

@@ -1384,7 +1384,7 @@ impl SculptApp {
                     to_ndc(tail),
                     size.x / size.y,
                     true,
-                    1.0,
+                    self.pen_pressure.unwrap_or(1.0),
                 );
             }
             pointer_pt
