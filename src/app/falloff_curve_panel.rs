@@ -75,7 +75,7 @@ fn preview_ui(ui: &mut egui::Ui, curve: &mut FalloffCurve) {
                 egui::Rect::from_center_size(centre, egui::Vec2::splat(4.0 * HANDLE_RADIUS));
             let response = ui.interact(
                 handle,
-                ui.id().with(("falloff point", i)),
+                ui.make_persistent_id(("falloff point", i)),
                 egui::Sense::drag(),
             );
             if response.dragged() {
