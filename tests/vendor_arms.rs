@@ -1,14 +1,39 @@
-//! `dynaclay` with the vendor-library arms, end to end through the command line: a headless run
-//! with `--device touch` and `--device dhd` against the stand-in library
-//! (`libdynaclay_vendor_standin.so`, a dev-dependency built beside this test), the typed error
-//! when the library is missing, `dynaclay devices` reporting each library, and `--lockstep`
-//! refused for them.
+//! `dynaclay` with the vendor-library arms against the stand-in library
+//! (`libdynaclay_vendor_standin.so`, a dev-dependency built beside this test).
 //!
-//! The runs are real-time sessions (the stand-in's HD scheduler runs its own servo thread, as
-//! OpenHaptics does); the tests assert what the run produced and said, never rates or times.
+//! Lockstep sculpting sessions: the lockstep engine drives a Touch (HD, its servo run one
+//! synchronous frame per engine tick) and an omega.3 (DHD, one position read and one force
+//! command per tick) along the shared push script, the stand-in playing the script's hand one
+//! position per servo frame (HD) or position read (DHD), so the run depends on the calls and
+//! never on time. Both pass the simulated arm's checks: zero force at connect, force within the
+//! arm's bound, the soft-start ramp after a fault, zero force on every fault, a disconnect in
+//! the middle of the stroke that keeps the engine ticking and keeps the groove made before it;
+//! and the stand-in's record proves each tick's force reached the arm once, in order.
+//!
+//! End to end through the command line: a headless run with `--device touch` and `--device
+//! dhd`, in real time and `--lockstep`, the typed error when the library is missing, and
+//! `dynaclay devices` reporting each library. The real-time runs assert what the run produced
+//! and said, never rates or times.
 
+mod common;
+
+use std::ffi::{c_int, c_uint};
 use std::path::PathBuf;
 use std::process::Command;
+use std::sync::{Mutex, MutexGuard};
+
+use dynaclay::dynamics::Material;
+use dynaclay::engine::{
+    Command as EngineCommand, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay,
+};
+use dynaclay::io::parse_script;
+use dynaclay_devices::dhd_arm::{DhdArm, DhdConfig, device_to_dhd, dhd_to_device};
+use dynaclay_devices::openhaptics_arm::{HdServo, OpenHapticsArm, OpenHapticsConfig};
+use dynaclay_devices::vendor_lib::LibrarySource;
+use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
+use dynaclay_vendor_standin::{DhdCalls, HdCalls, dhd as sdhd, hd as shd};
+use glam::{DVec3, Vec3};
+use libloading::Library;
 
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
 const STANDIN_FILE: &str = "libdynaclay_vendor_standin.so";
@@ -150,19 +175,58 @@ fn devices_reports_each_vendor_library_found_or_not() {
     );
 }
 
+/// `dynaclay run --lockstep` with each vendor arm on its stand-in: the run says it ran in
+/// lockstep for the asked seconds of the arm's clock (one sample per servo tick) and writes
+/// the session.
 #[test]
-fn lockstep_is_refused_for_the_vendor_arms() {
+fn a_lockstep_run_sculpts_through_each_vendor_arm_on_the_standin() {
+    let standin = standin_path();
+    for (device, env) in [("touch", "DYNACLAY_HD_LIB"), ("dhd", "DYNACLAY_DHD_LIB")] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        let run = dynaclay()
+            .env(env, &standin)
+            .args([
+                "run",
+                "--lockstep",
+                "--seconds",
+                "0.3",
+                "--device",
+                device,
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&run.stdout);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            run.status.success(),
+            "{device}: exit {:?}\nstdout: {stdout}\nstderr: {stderr}",
+            run.status.code()
+        );
+        assert!(
+            stdout.contains(&format!("300 samples of {device} in lockstep")),
+            "{device}: {stdout}"
+        );
+        assert!(out.join("session.dclay").is_file(), "{device}: no session");
+    }
+}
+
+/// Lockstep needs a device that ticks on its own clock per read: a real-time-only arm is
+/// refused, naming the arms that can.
+#[test]
+fn lockstep_is_refused_for_an_arm_that_runs_in_real_time_only() {
     let dir = tempfile::tempdir().unwrap();
     let run = dynaclay()
-        .env("DYNACLAY_HD_LIB", standin_path())
-        .args(["run", "--lockstep", "--device", "touch", "--out"])
+        .args(["run", "--lockstep", "--device", "hid", "--out"])
         .arg(dir.path().join("out"))
         .output()
         .unwrap();
     assert_eq!(run.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(
-        stderr.contains("--lockstep") && stderr.contains("touch"),
+        stderr.contains("--lockstep") && stderr.contains("hid") && stderr.contains("touch"),
         "{stderr}"
     );
 }
@@ -207,5 +271,449 @@ fn the_doctor_without_the_vendor_library_says_which_library_and_how_to_install_i
             && text.contains("libdhd.so")
             && text.contains("Force Dimension SDK"),
         "{text}"
+    );
+}
+
+// ---- Lockstep sculpting sessions, in this process, against the loaded stand-in ----
+
+/// Ticks of a session (1 ms of the arm's clock each), the tick whose read fails once (the
+/// press is under way: 0.3 s into the stroke) and the tick from which the arm is gone (0.7 s,
+/// in the middle of the stroke, which runs from 0.1 s to 1.1 s).
+const TICKS: u64 = 1300;
+const FAULT_AT: u64 = 400;
+const DISCONNECT_AT: u64 = 700;
+/// The soft start of these sessions, seconds (100 ticks).
+const SOFT_START_S: f32 = 0.1;
+
+/// The stand-in's state is process-wide: the in-process sessions take turns.
+static TURN: Mutex<()> = Mutex::new(());
+
+/// Where the hand is at each call of the stand-in (device frame, metres), by call count.
+type HandPath = Box<dyn Fn(u64) -> Vec3 + Send>;
+static HAND: Mutex<Option<HandPath>> = Mutex::new(None);
+
+fn hand_at(k: u64) -> Vec3 {
+    let hand = HAND
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    hand.as_ref().map_or(Vec3::ZERO, |h| h(k))
+}
+
+/// The stand-in's HD hand: frame `k`'s position, millimetres (HD's frame is the device's).
+extern "C" fn hd_hand(frame: u64, position_mm: *mut f64) {
+    let p = (hand_at(frame).as_dvec3() * 1e3).to_array();
+    // SAFETY: the stand-in passes three writable doubles.
+    unsafe { std::ptr::copy_nonoverlapping(p.as_ptr(), position_mm, 3) };
+}
+
+/// The stand-in's DHD hand: read `k`'s position, metres, DHD's frame.
+extern "C" fn dhd_hand(read: u64, position_m: *mut f64) {
+    let p = device_to_dhd(hand_at(read));
+    // SAFETY: the stand-in passes three writable doubles.
+    unsafe { std::ptr::copy_nonoverlapping(p.as_ptr(), position_m, 3) };
+}
+
+/// The stand-in library's test hooks, called through the copy the drivers load (the loader
+/// hands back the one copy already loaded, so the state is shared).
+struct Hooks {
+    lib: Library,
+    path: PathBuf,
+    _turn: MutexGuard<'static, ()>,
+}
+
+impl Hooks {
+    /// Takes the turn, loads the stand-in and resets both APIs (HD in manual mode: no servo
+    /// thread; frames run only when the driver asks for one).
+    fn new() -> Self {
+        let turn = TURN
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let path = standin_path();
+        // SAFETY: the stand-in is this workspace's own test library; its initialisers are
+        // Rust's.
+        let lib = unsafe { Library::new(&path) }.expect("load the stand-in");
+        let hooks = Self {
+            lib,
+            path,
+            _turn: turn,
+        };
+        // SAFETY: each hook has the C signature given (devices/standins/vendor).
+        unsafe {
+            hooks.get::<unsafe extern "C" fn()>(b"standin_hd_reset")();
+            hooks.get::<unsafe extern "C" fn()>(b"standin_dhd_reset")();
+            hooks.get::<unsafe extern "C" fn(c_int)>(b"standin_hd_set_manual")(1);
+        }
+        hooks
+    }
+
+    /// Hook `name` as type `F`.
+    ///
+    /// # Safety
+    /// `F` must be the hook's C signature.
+    unsafe fn get<F: Copy>(&self, name: &[u8]) -> F {
+        // SAFETY: the caller vouches for the signature.
+        *unsafe { self.lib.get::<F>(name) }.expect("the stand-in exports its hooks")
+    }
+
+    fn hd_calls(&self) -> HdCalls {
+        let mut out = HdCalls::default();
+        // SAFETY: `void standin_hd_calls(HdCalls *)`, a writable record.
+        unsafe {
+            self.get::<unsafe extern "C" fn(*mut HdCalls)>(b"standin_hd_calls")(&raw mut out)
+        };
+        out
+    }
+
+    fn dhd_calls(&self) -> DhdCalls {
+        let mut out = DhdCalls::default();
+        // SAFETY: `void standin_dhd_calls(DhdCalls *)`, a writable record.
+        unsafe {
+            self.get::<unsafe extern "C" fn(*mut DhdCalls)>(b"standin_dhd_calls")(&raw mut out)
+        };
+        out
+    }
+
+    /// The forces the arm received (through `hook`: `standin_hd_forces` or
+    /// `standin_dhd_forces`), in the API's frame.
+    fn forces(&self, hook: &[u8]) -> Vec<[f64; 3]> {
+        let mut out = vec![[f64::NAN; 3]; shd::FORCE_LOG_CAPACITY];
+        // SAFETY: `size_t hook(double (*)[3], size_t)` with room for `capacity` entries.
+        let n = unsafe {
+            self.get::<unsafe extern "C" fn(*mut [f64; 3], usize) -> usize>(hook)(
+                out.as_mut_ptr(),
+                out.len(),
+            )
+        };
+        out.truncate(n);
+        out
+    }
+}
+
+/// How a session breaks the link: the tick whose read fails once, and the tick from which
+/// every read fails.
+trait StandinFaults {
+    /// Called before tick `tick`.
+    fn before_tick(&self, hooks: &Hooks, tick: u64);
+}
+
+struct Session {
+    /// Each tick's force as the engine reports it sent (device frame).
+    sent_per_tick: Vec<Vec3>,
+    faulted: Vec<bool>,
+    /// Path points 0.05 above the hand's path the tool passed before the disconnect: the
+    /// field there at the start, at the disconnect and at the end.
+    groove_before_disconnect: Vec<(Vec3, f32, f32, f32)>,
+    iso: f32,
+    far_change: f32,
+    read_faults: u64,
+}
+
+/// Runs the push script in lockstep through `device` (already open on the stand-in, `info`
+/// its figures), calling `faults` before each tick.
+fn sculpt(
+    info: &DeviceInfo,
+    device: Box<dyn HapticDevice>,
+    hooks: &Hooks,
+    faults: &dyn StandinFaults,
+) -> Session {
+    // The push of the shared script, 0.2 below the top: a firm press.
+    let text = common::PUSH_SCRIPT.replace(
+        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
+        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
+    );
+    let script = parse_script(&text, "test").unwrap();
+    let plan = ScriptPlan::new(
+        &script,
+        "test",
+        std::path::Path::new("."),
+        &[],
+        Material::PLASTIC,
+    )
+    .unwrap();
+    let field = build_clay(&plan.clay).unwrap();
+    let before = field.clone();
+    let mut config = EngineConfig::for_field(&field, info);
+    config.haptic_rt_priority = None;
+    config.safety.soft_start_s = SOFT_START_S;
+    config.haptics.tool_contact = plan.tool_contact;
+    let trajectory = plan.trajectory(&config.map).unwrap();
+    *HAND
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Box::new(move |k| {
+        trajectory.sample(k as f64 * 1e-3).position_m
+    }));
+    let mut engine = Lockstep::new(
+        &config,
+        field,
+        device,
+        Box::new(HeadlessSink::default()),
+        16,
+    )
+    .expect("the engine opens the arm");
+    // No stylus button pressed: the stroke is armed by command, as the window's stroke key does.
+    engine
+        .commands()
+        .send(EngineCommand::StrokeStart)
+        .expect("the simulation takes commands");
+    let mut sent_per_tick = Vec::new();
+    let mut faulted = Vec::new();
+    let mut at_disconnect = None;
+    for tick in 0..TICKS {
+        faults.before_tick(hooks, tick);
+        engine.step();
+        let t = engine.latest_tool();
+        if tick == 0 {
+            assert_eq!(t.device_force_n, Vec3::ZERO, "zero force at connect");
+        }
+        assert!(
+            t.device_force_n.length() <= info.max_force_n + 1e-4,
+            "tick {tick}: {} N over the arm's {} N",
+            t.device_force_n.length(),
+            info.max_force_n
+        );
+        if t.device_fault {
+            assert_eq!(
+                t.device_force_n,
+                Vec3::ZERO,
+                "tick {tick}: force during the fault"
+            );
+            assert!(!t.in_contact, "tick {tick}");
+        }
+        if tick == DISCONNECT_AT {
+            at_disconnect = Some(engine.field().clone());
+        }
+        sent_per_tick.push(t.device_force_n);
+        faulted.push(t.device_fault);
+    }
+    assert_eq!(engine.ticks(), TICKS, "the engine kept ticking");
+    let report = engine.finish().expect("the run ends with its session");
+    *HAND
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
+    let after = &report.session.clay.density.patches[0].lattice;
+    assert!(
+        after.coeffs.iter().all(|c| c.is_finite()),
+        "NaN in the field"
+    );
+    let at_disconnect: dynaclay::field::BSplineLattice =
+        at_disconnect.expect("ran to the disconnect");
+    // The groove along the part of the path the hand took well before the link went: at 0.7 s
+    // the hand was 0.6 along the stroke (x = 0.99); the points up to x = 0.9 are behind it.
+    let path = common::path_points(&script);
+    let groove_before_disconnect = path
+        .iter()
+        .take(4)
+        .skip(1)
+        .map(|p| {
+            let p = *p + Vec3::Y * 0.05;
+            (p, before.value(p), at_disconnect.value(p), after.value(p))
+        })
+        .collect();
+    let far = Vec3::new(0.95, 0.6, 0.95);
+    Session {
+        sent_per_tick,
+        faulted,
+        groove_before_disconnect,
+        iso: before.iso,
+        far_change: (after.value(far) - before.value(far)).abs(),
+        read_faults: report.counters.device_read_faults,
+    }
+}
+
+/// The engine-side checks both arms share: which ticks faulted, the soft start after the
+/// fault, the groove kept through the disconnect, nothing changed far away.
+fn check_session(name: &str, info: &DeviceInfo, s: &Session) {
+    // The one failed read, then every read from the disconnect on.
+    let expected: Vec<bool> = (0..TICKS)
+        .map(|t| t == FAULT_AT || t >= DISCONNECT_AT)
+        .collect();
+    assert_eq!(s.faulted, expected, "{name}: faulted ticks");
+    assert_eq!(s.read_faults, 1 + TICKS - DISCONNECT_AT, "{name}");
+    // The press was felt before the fault and again once the ramp was over...
+    let pressed = 0.25 * info.max_force_n;
+    let before_fault = s.sent_per_tick[FAULT_AT as usize - 1].length();
+    assert!(
+        before_fault > pressed,
+        "{name}: {before_fault} N before the fault"
+    );
+    let ramp_ticks = (SOFT_START_S * 1e3) as u64;
+    let after_ramp = s.sent_per_tick[(FAULT_AT + 1 + ramp_ticks + 20) as usize].length();
+    assert!(
+        after_ramp > pressed,
+        "{name}: {after_ramp} N after the ramp"
+    );
+    // ...and came back through the soft start: tick FAULT_AT + 1 + j is j ms into the ramp.
+    for j in 0..ramp_ticks {
+        let f = s.sent_per_tick[(FAULT_AT + 1 + j) as usize].length();
+        let bound = info.max_force_n * soft_start_gain((j + 1) as f32 / ramp_ticks as f32);
+        assert!(
+            f <= bound + 1e-4,
+            "{name}: {f} N at {j} ms into the ramp (bound {bound} N)"
+        );
+    }
+    assert_eq!(
+        s.sent_per_tick[FAULT_AT as usize + 1],
+        Vec3::ZERO,
+        "{name}: ramp starts at zero"
+    );
+    for (p, was, at_disconnect, at_end) in &s.groove_before_disconnect {
+        assert!(*was > s.iso, "{name}: clay was there at {p}");
+        assert!(
+            was - at_disconnect > 0.25 * (was - s.iso),
+            "{name}: no groove at {p} by the disconnect: {was} → {at_disconnect}"
+        );
+        assert!(
+            (at_end - at_disconnect).abs() < 0.05 && *at_end < was - 0.25 * (was - s.iso),
+            "{name}: the groove at {p} was not kept: {at_disconnect} at the disconnect, {at_end} at the end"
+        );
+    }
+    assert!(
+        s.far_change < 1e-3,
+        "{name}: changed far away ({})",
+        s.far_change
+    );
+}
+
+struct HdFaults;
+
+impl StandinFaults for HdFaults {
+    fn before_tick(&self, hooks: &Hooks, tick: u64) {
+        // Frame 0 is `open`'s first sample; tick t's read runs frame t + 1.
+        // SAFETY: the hooks' C signatures.
+        unsafe {
+            if tick == 0 {
+                hooks.get::<unsafe extern "C" fn(u64)>(b"standin_hd_fail_from_frame")(
+                    DISCONNECT_AT + 1,
+                );
+            }
+            if tick == FAULT_AT {
+                hooks.get::<unsafe extern "C" fn(c_uint)>(b"standin_hd_inject_fault")(
+                    shd::HD_DEVICE_FAULT,
+                );
+            }
+        }
+    }
+}
+
+struct DhdFaults;
+
+impl StandinFaults for DhdFaults {
+    fn before_tick(&self, hooks: &Hooks, tick: u64) {
+        // `open` reads nothing: tick t's read is read t.
+        // SAFETY: the hooks' C signatures.
+        unsafe {
+            if tick == 0 {
+                hooks.get::<unsafe extern "C" fn(u64)>(b"standin_dhd_disconnect_at")(DISCONNECT_AT);
+            }
+            if tick == FAULT_AT {
+                hooks.get::<unsafe extern "C" fn(u32)>(b"standin_dhd_fail_reads")(1);
+            }
+        }
+    }
+}
+
+#[test]
+fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_the_sculpt() {
+    let hooks = Hooks::new();
+    // SAFETY: `void standin_hd_set_hand(HdHand)`.
+    unsafe {
+        hooks.get::<unsafe extern "C" fn(Option<shd::HdHand>)>(b"standin_hd_set_hand")(Some(
+            hd_hand,
+        ));
+    }
+    let mut arm = OpenHapticsArm::new(OpenHapticsConfig {
+        library: LibrarySource::Path(hooks.path.clone()),
+        device_name: None,
+        servo: HdServo::Lockstep,
+    });
+    // Opened here for the figures the library reports (the engine's open is then a no-op).
+    arm.open().expect("the stand-in opens");
+    let info = arm.info();
+    let s = sculpt(&info, Box::new(arm), &hooks, &HdFaults);
+    check_session("touch", &info, &s);
+
+    // At the arm: no scheduled callback, one frame per tick (plus open's and close's), one
+    // force per frame, inside it.
+    let calls = hooks.hd_calls();
+    assert_eq!(calls.scheduled_callbacks, 0, "lockstep schedules nothing");
+    assert_eq!(
+        calls.ticks, 0,
+        "no servo tick ran besides the engine's frames"
+    );
+    assert_eq!(calls.frames, TICKS + 2, "{calls:?}");
+    assert_eq!(calls.set_force_calls, calls.frames, "{calls:?}");
+    assert_eq!(calls.max_set_force_per_frame, 1, "{calls:?}");
+    assert_eq!(calls.set_force_outside_frame, 0, "{calls:?}");
+    let forces = hooks.forces(b"standin_hd_forces");
+    assert_eq!(forces.len() as u64, calls.frames);
+    // Frame 0 (open) and frame 1 (tick 0, before anything was written) send zero; frame
+    // t + 2 sends what the engine sent in tick t, exactly, for every tick.
+    assert_eq!(forces[0], [0.0; 3], "zero force at connect");
+    assert_eq!(forces[1], [0.0; 3], "zero force at connect");
+    for (t, sent) in s.sent_per_tick.iter().enumerate() {
+        assert_eq!(forces[t + 2], sent.as_dvec3().to_array(), "tick {t}");
+    }
+    // Zero once each fault was read: the failed read's tick and every tick after the
+    // disconnect; and zero at close.
+    assert_eq!(forces[FAULT_AT as usize + 2], [0.0; 3]);
+    assert!(
+        forces[DISCONNECT_AT as usize + 2..]
+            .iter()
+            .all(|f| *f == [0.0; 3])
+    );
+    assert!(
+        forces.iter().any(|f| DVec3::from_array(*f).length() > 0.25),
+        "the push was felt"
+    );
+}
+
+#[test]
+fn an_omega_sculpts_in_lockstep_one_force_per_read_and_a_disconnect_keeps_the_sculpt() {
+    let hooks = Hooks::new();
+    // SAFETY: `void standin_dhd_set_hand(DhdHand)`.
+    unsafe {
+        hooks.get::<unsafe extern "C" fn(Option<sdhd::DhdHand>)>(b"standin_dhd_set_hand")(Some(
+            dhd_hand,
+        ));
+    }
+    let mut arm = DhdArm::new(DhdConfig {
+        library: LibrarySource::Path(hooks.path.clone()),
+        index: 0,
+    });
+    arm.open().expect("the stand-in opens");
+    let info = arm.info();
+    assert!(info.name.starts_with("omega.3"), "{}", info.name);
+    let s = sculpt(&info, Box::new(arm), &hooks, &DhdFaults);
+    check_session("omega.3", &info, &s);
+
+    // At the arm: one read per tick, never two forces between reads; the force commands the
+    // arm took are open's zero and one per tick until it was unplugged.
+    let calls = hooks.dhd_calls();
+    assert_eq!(calls.position_reads, TICKS, "{calls:?}");
+    assert_eq!(calls.max_set_force_per_read, 1, "{calls:?}");
+    assert_eq!(
+        calls.set_force_calls,
+        1 + TICKS + 1,
+        "open, each tick, close: {calls:?}"
+    );
+    let forces = hooks.forces(b"standin_dhd_forces");
+    assert_eq!(forces.len() as u64, 1 + DISCONNECT_AT);
+    assert_eq!(forces[0], [0.0; 3], "zero force at connect");
+    for (t, sent) in s
+        .sent_per_tick
+        .iter()
+        .take(DISCONNECT_AT as usize)
+        .enumerate()
+    {
+        assert_eq!(forces[t + 1], device_to_dhd(*sent), "tick {t}");
+    }
+    assert_eq!(
+        forces[FAULT_AT as usize + 1],
+        [0.0; 3],
+        "zero on the failed read"
+    );
+    assert!(
+        forces.iter().any(|f| dhd_to_device(*f).length() > 1.0),
+        "the push was felt"
     );
 }

@@ -182,6 +182,7 @@ impl Standin {
         OpenHapticsArm::new(OpenHapticsConfig {
             library: LibrarySource::Path(self.path.clone()),
             device_name: None,
+            ..OpenHapticsConfig::default()
         })
     }
 
@@ -715,6 +716,7 @@ fn the_standin_is_accepted_as_either_library_and_a_wrong_library_is_refused() {
     let mut wrong = OpenHapticsArm::new(OpenHapticsConfig {
         library: LibrarySource::Path("libc.so.6".into()),
         device_name: None,
+        ..OpenHapticsConfig::default()
     });
     match wrong.open().unwrap_err() {
         DeviceError::LibraryMissing(m) => {
