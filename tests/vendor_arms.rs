@@ -15,22 +15,20 @@
 //! `dynaclay devices` reporting each library. The real-time runs assert what the run produced
 //! and said, never rates or times.
 
+#[path = "support/arm_session.rs"]
+mod arm_session;
 mod common;
 
 use std::ffi::{c_int, c_uint};
 use std::path::PathBuf;
 use std::process::Command;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Mutex, MutexGuard, PoisonError};
 
-use dynaclay::dynamics::Material;
-use dynaclay::engine::{
-    Command as EngineCommand, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay,
-};
-use dynaclay::io::parse_script;
+use arm_session::{DISCONNECT_AT, FAULT_AT, HandPath, TICKS};
+use dynaclay_devices::HapticDevice;
 use dynaclay_devices::dhd_arm::{DhdArm, DhdConfig, device_to_dhd, dhd_to_device};
 use dynaclay_devices::openhaptics_arm::{HdServo, OpenHapticsArm, OpenHapticsConfig};
 use dynaclay_devices::vendor_lib::LibrarySource;
-use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
 use dynaclay_vendor_standin::{DhdCalls, HdCalls, dhd as sdhd, hd as shd};
 use glam::{DVec3, Vec3};
 use libloading::Library;
@@ -276,26 +274,14 @@ fn the_doctor_without_the_vendor_library_says_which_library_and_how_to_install_i
 
 // ---- Lockstep sculpting sessions, in this process, against the loaded stand-in ----
 
-/// Ticks of a session (1 ms of the arm's clock each), the tick whose read fails once (the
-/// press is under way: 0.3 s into the stroke) and the tick from which the arm is gone (0.7 s,
-/// in the middle of the stroke, which runs from 0.1 s to 1.1 s).
-const TICKS: u64 = 1300;
-const FAULT_AT: u64 = 400;
-const DISCONNECT_AT: u64 = 700;
-/// The soft start of these sessions, seconds (100 ticks).
-const SOFT_START_S: f32 = 0.1;
-
 /// The stand-in's state is process-wide: the in-process sessions take turns.
 static TURN: Mutex<()> = Mutex::new(());
 
-/// Where the hand is at each call of the stand-in (device frame, metres), by call count.
-type HandPath = Box<dyn Fn(u64) -> Vec3 + Send>;
+/// The hand the stand-in plays, by frame (HD) or read (DHD).
 static HAND: Mutex<Option<HandPath>> = Mutex::new(None);
 
 fn hand_at(k: u64) -> Vec3 {
-    let hand = HAND
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let hand = HAND.lock().unwrap_or_else(PoisonError::into_inner);
     hand.as_ref().map_or(Vec3::ZERO, |h| h(k))
 }
 
@@ -325,9 +311,7 @@ impl Hooks {
     /// Takes the turn, loads the stand-in and resets both APIs (HD in manual mode: no servo
     /// thread; frames run only when the driver asks for one).
     fn new() -> Self {
-        let turn = TURN
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let turn = TURN.lock().unwrap_or_else(PoisonError::into_inner);
         let path = standin_path();
         // SAFETY: the stand-in is this workspace's own test library; its initialisers are
         // Rust's.
@@ -368,12 +352,12 @@ impl Hooks {
         let mut out = DhdCalls::default();
         // SAFETY: `void standin_dhd_calls(DhdCalls *)`, a writable record.
         unsafe {
-            self.get::<unsafe extern "C" fn(*mut DhdCalls)>(b"standin_dhd_calls")(&raw mut out)
-        };
+            self.get::<unsafe extern "C" fn(*mut DhdCalls)>(b"standin_dhd_calls")(&raw mut out);
+        }
         out
     }
 
-    /// The forces the arm received (through `hook`: `standin_hd_forces` or
+    /// The forces the arm received, through `hook` (`standin_hd_forces` or
     /// `standin_dhd_forces`), in the API's frame.
     fn forces(&self, hook: &[u8]) -> Vec<[f64; 3]> {
         let mut out = vec![[f64::NAN; 3]; shd::FORCE_LOG_CAPACITY];
@@ -389,227 +373,16 @@ impl Hooks {
     }
 }
 
-/// How a session breaks the link: the tick whose read fails once, and the tick from which
-/// every read fails.
-trait StandinFaults {
-    /// Called before tick `tick`.
-    fn before_tick(&self, hooks: &Hooks, tick: u64);
-}
-
-struct Session {
-    /// Each tick's force as the engine reports it sent (device frame).
-    sent_per_tick: Vec<Vec3>,
-    faulted: Vec<bool>,
-    /// Path points 0.05 above the hand's path the tool passed before the disconnect: the
-    /// field there at the start, at the disconnect and at the end.
-    groove_before_disconnect: Vec<(Vec3, f32, f32, f32)>,
-    iso: f32,
-    far_change: f32,
-    read_faults: u64,
-}
-
-/// Runs the push script in lockstep through `device` (already open on the stand-in, `info`
-/// its figures), calling `faults` before each tick.
-fn sculpt(
-    info: &DeviceInfo,
-    device: Box<dyn HapticDevice>,
-    hooks: &Hooks,
-    faults: &dyn StandinFaults,
-) -> Session {
-    // The push of the shared script, 0.2 below the top: a firm press.
-    let text = common::PUSH_SCRIPT.replace(
-        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
-        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
-    );
-    let script = parse_script(&text, "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
-    let field = build_clay(&plan.clay).unwrap();
-    let before = field.clone();
-    let mut config = EngineConfig::for_field(&field, info);
-    config.haptic_rt_priority = None;
-    config.safety.soft_start_s = SOFT_START_S;
-    config.haptics.tool_contact = plan.tool_contact;
-    let trajectory = plan.trajectory(&config.map).unwrap();
-    *HAND
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(Box::new(move |k| {
-        trajectory.sample(k as f64 * 1e-3).position_m
-    }));
-    let mut engine = Lockstep::new(
-        &config,
-        field,
-        device,
-        Box::new(HeadlessSink::default()),
-        16,
-    )
-    .expect("the engine opens the arm");
-    // No stylus button pressed: the stroke is armed by command, as the window's stroke key does.
-    engine
-        .commands()
-        .send(EngineCommand::StrokeStart)
-        .expect("the simulation takes commands");
-    let mut sent_per_tick = Vec::new();
-    let mut faulted = Vec::new();
-    let mut at_disconnect = None;
-    for tick in 0..TICKS {
-        faults.before_tick(hooks, tick);
-        engine.step();
-        let t = engine.latest_tool();
-        if tick == 0 {
-            assert_eq!(t.device_force_n, Vec3::ZERO, "zero force at connect");
-        }
-        assert!(
-            t.device_force_n.length() <= info.max_force_n + 1e-4,
-            "tick {tick}: {} N over the arm's {} N",
-            t.device_force_n.length(),
-            info.max_force_n
-        );
-        if t.device_fault {
-            assert_eq!(
-                t.device_force_n,
-                Vec3::ZERO,
-                "tick {tick}: force during the fault"
-            );
-            assert!(!t.in_contact, "tick {tick}");
-        }
-        if tick == DISCONNECT_AT {
-            at_disconnect = Some(engine.field().clone());
-        }
-        sent_per_tick.push(t.device_force_n);
-        faulted.push(t.device_fault);
-    }
-    assert_eq!(engine.ticks(), TICKS, "the engine kept ticking");
-    let report = engine.finish().expect("the run ends with its session");
-    *HAND
-        .lock()
-        .unwrap_or_else(std::sync::PoisonError::into_inner) = None;
-    let after = &report.session.clay.density.patches[0].lattice;
-    assert!(
-        after.coeffs.iter().all(|c| c.is_finite()),
-        "NaN in the field"
-    );
-    let at_disconnect: dynaclay::field::BSplineLattice =
-        at_disconnect.expect("ran to the disconnect");
-    // The groove along the part of the path the hand took well before the link went: at 0.7 s
-    // the hand was 0.6 along the stroke (x = 0.99); the points up to x = 0.9 are behind it.
-    let path = common::path_points(&script);
-    let groove_before_disconnect = path
-        .iter()
-        .take(4)
-        .skip(1)
-        .map(|p| {
-            let p = *p + Vec3::Y * 0.05;
-            (p, before.value(p), at_disconnect.value(p), after.value(p))
-        })
-        .collect();
-    let far = Vec3::new(0.95, 0.6, 0.95);
-    Session {
-        sent_per_tick,
-        faulted,
-        groove_before_disconnect,
-        iso: before.iso,
-        far_change: (after.value(far) - before.value(far)).abs(),
-        read_faults: report.counters.device_read_faults,
+impl Drop for Hooks {
+    fn drop(&mut self) {
+        *HAND.lock().unwrap_or_else(PoisonError::into_inner) = None;
     }
 }
 
-/// The engine-side checks both arms share: which ticks faulted, the soft start after the
-/// fault, the groove kept through the disconnect, nothing changed far away.
-fn check_session(name: &str, info: &DeviceInfo, s: &Session) {
-    // The one failed read, then every read from the disconnect on.
-    let expected: Vec<bool> = (0..TICKS)
-        .map(|t| t == FAULT_AT || t >= DISCONNECT_AT)
-        .collect();
-    assert_eq!(s.faulted, expected, "{name}: faulted ticks");
-    assert_eq!(s.read_faults, 1 + TICKS - DISCONNECT_AT, "{name}");
-    // The press was felt before the fault and again once the ramp was over...
-    let pressed = 0.25 * info.max_force_n;
-    let before_fault = s.sent_per_tick[FAULT_AT as usize - 1].length();
-    assert!(
-        before_fault > pressed,
-        "{name}: {before_fault} N before the fault"
-    );
-    let ramp_ticks = (SOFT_START_S * 1e3) as u64;
-    let after_ramp = s.sent_per_tick[(FAULT_AT + 1 + ramp_ticks + 20) as usize].length();
-    assert!(
-        after_ramp > pressed,
-        "{name}: {after_ramp} N after the ramp"
-    );
-    // ...and came back through the soft start: tick FAULT_AT + 1 + j is j ms into the ramp.
-    for j in 0..ramp_ticks {
-        let f = s.sent_per_tick[(FAULT_AT + 1 + j) as usize].length();
-        let bound = info.max_force_n * soft_start_gain((j + 1) as f32 / ramp_ticks as f32);
-        assert!(
-            f <= bound + 1e-4,
-            "{name}: {f} N at {j} ms into the ramp (bound {bound} N)"
-        );
-    }
-    assert_eq!(
-        s.sent_per_tick[FAULT_AT as usize + 1],
-        Vec3::ZERO,
-        "{name}: ramp starts at zero"
-    );
-    for (p, was, at_disconnect, at_end) in &s.groove_before_disconnect {
-        assert!(*was > s.iso, "{name}: clay was there at {p}");
-        assert!(
-            was - at_disconnect > 0.25 * (was - s.iso),
-            "{name}: no groove at {p} by the disconnect: {was} → {at_disconnect}"
-        );
-        assert!(
-            (at_end - at_disconnect).abs() < 0.05 && *at_end < was - 0.25 * (was - s.iso),
-            "{name}: the groove at {p} was not kept: {at_disconnect} at the disconnect, {at_end} at the end"
-        );
-    }
-    assert!(
-        s.far_change < 1e-3,
-        "{name}: changed far away ({})",
-        s.far_change
-    );
-}
-
-struct HdFaults;
-
-impl StandinFaults for HdFaults {
-    fn before_tick(&self, hooks: &Hooks, tick: u64) {
-        // Frame 0 is `open`'s first sample; tick t's read runs frame t + 1.
-        // SAFETY: the hooks' C signatures.
-        unsafe {
-            if tick == 0 {
-                hooks.get::<unsafe extern "C" fn(u64)>(b"standin_hd_fail_from_frame")(
-                    DISCONNECT_AT + 1,
-                );
-            }
-            if tick == FAULT_AT {
-                hooks.get::<unsafe extern "C" fn(c_uint)>(b"standin_hd_inject_fault")(
-                    shd::HD_DEVICE_FAULT,
-                );
-            }
-        }
-    }
-}
-
-struct DhdFaults;
-
-impl StandinFaults for DhdFaults {
-    fn before_tick(&self, hooks: &Hooks, tick: u64) {
-        // `open` reads nothing: tick t's read is read t.
-        // SAFETY: the hooks' C signatures.
-        unsafe {
-            if tick == 0 {
-                hooks.get::<unsafe extern "C" fn(u64)>(b"standin_dhd_disconnect_at")(DISCONNECT_AT);
-            }
-            if tick == FAULT_AT {
-                hooks.get::<unsafe extern "C" fn(u32)>(b"standin_dhd_fail_reads")(1);
-            }
-        }
-    }
+/// Stores the session's hand for the stand-in and hands back the (open) arm.
+fn playing(hand: HandPath, arm: impl HapticDevice + 'static) -> Box<dyn HapticDevice> {
+    *HAND.lock().unwrap_or_else(PoisonError::into_inner) = Some(hand);
+    Box::new(arm)
 }
 
 #[test]
@@ -629,11 +402,36 @@ fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_t
     // Opened here for the figures the library reports (the engine's open is then a no-op).
     arm.open().expect("the stand-in opens");
     let info = arm.info();
-    let s = sculpt(&info, Box::new(arm), &hooks, &HdFaults);
-    check_session("touch", &info, &s);
+    // SAFETY (both hooks): `void standin_hd_fail_from_frame(uint64_t)`,
+    // `void standin_hd_inject_fault(unsigned)`.
+    let fail_from_frame =
+        unsafe { hooks.get::<unsafe extern "C" fn(u64)>(b"standin_hd_fail_from_frame") };
+    let inject_fault =
+        unsafe { hooks.get::<unsafe extern "C" fn(c_uint)>(b"standin_hd_inject_fault") };
+    let s = arm_session::sculpt(
+        &info,
+        |hand| playing(hand, arm),
+        |tick| {
+            // Frame 0 was `open`'s first sample; tick t's read runs frame t + 1.
+            // SAFETY: the hooks' signatures above.
+            unsafe {
+                if tick == 0 {
+                    fail_from_frame(DISCONNECT_AT + 1);
+                }
+                if tick == FAULT_AT {
+                    inject_fault(shd::HD_DEVICE_FAULT);
+                }
+            }
+        },
+    );
+    arm_session::check_session("touch", &info, &s);
+    // The servo clock is the tick count: the ramp was over 100 ticks after the fault, and
+    // the press was felt again.
+    let back = s.sent_per_tick[(FAULT_AT + 121) as usize].length();
+    assert!(back > 0.25 * info.max_force_n, "{back} N after the ramp");
 
-    // At the arm: no scheduled callback, one frame per tick (plus open's and close's), one
-    // force per frame, inside it.
+    // At the arm: no scheduled callback and no servo tick of its own; one frame per engine
+    // tick (plus open's and close's), one force per frame, inside it.
     let calls = hooks.hd_calls();
     assert_eq!(calls.scheduled_callbacks, 0, "lockstep schedules nothing");
     assert_eq!(
@@ -646,15 +444,15 @@ fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_t
     assert_eq!(calls.set_force_outside_frame, 0, "{calls:?}");
     let forces = hooks.forces(b"standin_hd_forces");
     assert_eq!(forces.len() as u64, calls.frames);
-    // Frame 0 (open) and frame 1 (tick 0, before anything was written) send zero; frame
-    // t + 2 sends what the engine sent in tick t, exactly, for every tick.
+    // Frame 0 (open) and frame 1 (tick 0's, before anything was written) send zero; frame
+    // t + 2 sends exactly what the engine sent in tick t, for every tick.
     assert_eq!(forces[0], [0.0; 3], "zero force at connect");
     assert_eq!(forces[1], [0.0; 3], "zero force at connect");
     for (t, sent) in s.sent_per_tick.iter().enumerate() {
         assert_eq!(forces[t + 2], sent.as_dvec3().to_array(), "tick {t}");
     }
-    // Zero once each fault was read: the failed read's tick and every tick after the
-    // disconnect; and zero at close.
+    // Zero from the frame after each fault was read: the failed read's tick, every tick
+    // after the disconnect, and close.
     assert_eq!(forces[FAULT_AT as usize + 2], [0.0; 3]);
     assert!(
         forces[DISCONNECT_AT as usize + 2..]
@@ -662,7 +460,9 @@ fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_t
             .all(|f| *f == [0.0; 3])
     );
     assert!(
-        forces.iter().any(|f| DVec3::from_array(*f).length() > 0.25),
+        forces
+            .iter()
+            .any(|f| DVec3::from_array(*f).length() > 0.25 * f64::from(info.max_force_n)),
         "the push was felt"
     );
 }
@@ -683,11 +483,33 @@ fn an_omega_sculpts_in_lockstep_one_force_per_read_and_a_disconnect_keeps_the_sc
     arm.open().expect("the stand-in opens");
     let info = arm.info();
     assert!(info.name.starts_with("omega.3"), "{}", info.name);
-    let s = sculpt(&info, Box::new(arm), &hooks, &DhdFaults);
-    check_session("omega.3", &info, &s);
+    // SAFETY (both hooks): `void standin_dhd_disconnect_at(uint64_t)`,
+    // `void standin_dhd_fail_reads(uint32_t)`.
+    let disconnect_at =
+        unsafe { hooks.get::<unsafe extern "C" fn(u64)>(b"standin_dhd_disconnect_at") };
+    let fail_reads = unsafe { hooks.get::<unsafe extern "C" fn(u32)>(b"standin_dhd_fail_reads") };
+    let s = arm_session::sculpt(
+        &info,
+        |hand| playing(hand, arm),
+        |tick| {
+            // `open` reads nothing: tick t's read is read t.
+            // SAFETY: the hooks' signatures above.
+            unsafe {
+                if tick == 0 {
+                    disconnect_at(DISCONNECT_AT);
+                }
+                if tick == FAULT_AT {
+                    fail_reads(1);
+                }
+            }
+        },
+    );
+    arm_session::check_session("omega.3", &info, &s);
+    let back = s.sent_per_tick[(FAULT_AT + 121) as usize].length();
+    assert!(back > 0.25 * info.max_force_n, "{back} N after the ramp");
 
-    // At the arm: one read per tick, never two forces between reads; the force commands the
-    // arm took are open's zero and one per tick until it was unplugged.
+    // At the arm: one read per tick, never two forces between reads; the forces the arm took
+    // are open's zero and one per tick until it was unplugged.
     let calls = hooks.dhd_calls();
     assert_eq!(calls.position_reads, TICKS, "{calls:?}");
     assert_eq!(calls.max_set_force_per_read, 1, "{calls:?}");
@@ -713,7 +535,9 @@ fn an_omega_sculpts_in_lockstep_one_force_per_read_and_a_disconnect_keeps_the_sc
         "zero on the failed read"
     );
     assert!(
-        forces.iter().any(|f| dhd_to_device(*f).length() > 1.0),
+        forces
+            .iter()
+            .any(|f| dhd_to_device(*f).length() > 0.25 * info.max_force_n),
         "the push was felt"
     );
 }
