@@ -402,10 +402,10 @@ fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_t
     // Opened here for the figures the library reports (the engine's open is then a no-op).
     arm.open().expect("the stand-in opens");
     let info = arm.info();
-    // SAFETY (both hooks): `void standin_hd_fail_from_frame(uint64_t)`,
-    // `void standin_hd_inject_fault(unsigned)`.
+    // SAFETY: `void standin_hd_fail_from_frame(uint64_t)`.
     let fail_from_frame =
         unsafe { hooks.get::<unsafe extern "C" fn(u64)>(b"standin_hd_fail_from_frame") };
+    // SAFETY: `void standin_hd_inject_fault(unsigned)`.
     let inject_fault =
         unsafe { hooks.get::<unsafe extern "C" fn(c_uint)>(b"standin_hd_inject_fault") };
     let s = arm_session::sculpt(
@@ -483,10 +483,10 @@ fn an_omega_sculpts_in_lockstep_one_force_per_read_and_a_disconnect_keeps_the_sc
     arm.open().expect("the stand-in opens");
     let info = arm.info();
     assert!(info.name.starts_with("omega.3"), "{}", info.name);
-    // SAFETY (both hooks): `void standin_dhd_disconnect_at(uint64_t)`,
-    // `void standin_dhd_fail_reads(uint32_t)`.
+    // SAFETY: `void standin_dhd_disconnect_at(uint64_t)`.
     let disconnect_at =
         unsafe { hooks.get::<unsafe extern "C" fn(u64)>(b"standin_dhd_disconnect_at") };
+    // SAFETY: `void standin_dhd_fail_reads(uint32_t)`.
     let fail_reads = unsafe { hooks.get::<unsafe extern "C" fn(u32)>(b"standin_dhd_fail_reads") };
     let s = arm_session::sculpt(
         &info,
