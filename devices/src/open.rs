@@ -12,7 +12,7 @@ use crate::dhd_arm::{DhdArm, DhdConfig};
 use crate::falcon::{Falcon, FalconOptions};
 use crate::hid_arm::HidArm;
 use crate::inverse3::{Inverse3, Inverse3Config};
-use crate::openhaptics_arm::{OpenHapticsArm, OpenHapticsConfig};
+use crate::openhaptics_arm::{HdServo, OpenHapticsArm, OpenHapticsConfig};
 use crate::pose_input::PoseInputConfig;
 use crate::profile::{DeviceProfile, Protocol};
 use crate::serial_arm::{SerialArm, SerialArmOptions};
@@ -37,6 +37,9 @@ pub struct DriverOptions {
     pub hd_library: LibrarySource,
     /// Where Force Dimension's `libdhd.so` comes from (`dhd`).
     pub dhd_library: LibrarySource,
+    /// Who runs HD's servo frames (`touch`, `phantom`): its scheduler, or the engine's
+    /// lockstep ticks (`dynaclay run --lockstep`).
+    pub hd_servo: HdServo,
 }
 
 impl DriverOptions {
@@ -88,6 +91,7 @@ pub fn build_driver(
             Ok(Box::new(OpenHapticsArm::new(OpenHapticsConfig {
                 library: opts.hd_library.clone(),
                 device_name: device.clone(),
+                servo: opts.hd_servo,
             })))
         }
         DeviceSpec::Dhd { index } => Ok(Box::new(DhdArm::new(DhdConfig {

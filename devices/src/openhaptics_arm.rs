@@ -12,6 +12,16 @@
 //! has written exactly once; a force written twice between ticks is sent once (the newer),
 //! and one not renewed is sent again, as HD expects a force every frame.
 //!
+//! In lockstep ([`HdServo::Lockstep`], `dynaclay run --lockstep`) nothing is scheduled to run
+//! every tick: `open` starts the scheduler with no asynchronous callback, and each `read` runs
+//! exactly one servo frame through `hdScheduleSynchronous` (HD's documented way to run a
+//! callback once in the servo thread and wait for it), so the engine's tick *is* the servo
+//! tick: one frame, one position read, one `HD_CURRENT_FORCE` per engine tick, the force being
+//! the one the engine wrote in its previous tick (the same one-frame delay as the scheduled
+//! mode). `read` then waits for that frame (at most one servo period on a real arm), which is
+//! what lockstep means: the engine runs on the device's clock. `write_force` stays a buffer
+//! write. The frame, the fault code and the zero-force rules are the scheduled mode's.
+//!
 //! Time is the servo's: a sample's timestamp is its tick count times the servo period (from
 //! `HD_UPDATE_RATE`), so the safety filter's slew limit runs on device time.
 //!
@@ -332,7 +342,8 @@ unsafe impl Send for ServoBox {}
 struct HdSession {
     api: HdApi,
     hhd: c_uint,
-    scheduled: c_ulong,
+    /// The every-tick callback's handle; `None` in lockstep, where `read` runs the frames.
+    scheduled: Option<c_ulong>,
     servo: ServoBox,
     pose_out: triple_buffer::Output<ServoSample>,
     force_in: triple_buffer::Input<[f64; 3]>,
@@ -371,7 +382,9 @@ impl HdSession {
             (self.api.make_current_device)(self.hhd);
             (self.api.disable)(HD_FORCE_OUTPUT);
             (self.api.stop_scheduler)();
-            (self.api.unschedule)(self.scheduled);
+            if let Some(handle) = self.scheduled {
+                (self.api.unschedule)(handle);
+            }
             (self.api.disable_device)(self.hhd);
         }
         let error = self.api.error();
@@ -402,6 +415,18 @@ impl Drop for HdSession {
     }
 }
 
+/// Who runs the servo frames of an [`OpenHapticsArm`] (see the module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum HdServo {
+    /// HD's scheduler runs a frame every servo tick on its own thread; the haptic loop
+    /// exchanges samples and forces with it through wait-free buffers (real-time runs).
+    #[default]
+    Scheduled,
+    /// Each `read` runs one frame through `hdScheduleSynchronous` and waits for it: one servo
+    /// frame per engine tick (lockstep runs).
+    Lockstep,
+}
+
 /// Settings of an [`OpenHapticsArm`].
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct OpenHapticsConfig {
@@ -410,6 +435,8 @@ pub struct OpenHapticsConfig {
     /// The HD device configuration name (as set up in Touch_Setup); `None` opens
     /// `HD_DEFAULT_DEVICE`.
     pub device_name: Option<String>,
+    /// Who runs the servo frames.
+    pub servo: HdServo,
 }
 
 /// A Touch or Phantom arm through OpenHaptics' HD API; see the module docs for who ticks.
@@ -520,10 +547,17 @@ impl HapticDevice for OpenHapticsArm {
         let user_data: *mut c_void = servo.0.as_ptr().cast();
         // SAFETY: the callback's contract holds: `user_data` stays valid until the session's
         // shut_down has stopped the scheduler, and HD calls it only on its servo thread.
+        // In lockstep nothing runs every tick: `read` runs each frame synchronously.
         let scheduled = unsafe {
             (api.enable)(HD_FORCE_OUTPUT);
-            let handle =
-                (api.schedule_asynchronous)(servo_tick, user_data, HD_MAX_SCHEDULER_PRIORITY);
+            let handle = match self.config.servo {
+                HdServo::Scheduled => Some((api.schedule_asynchronous)(
+                    servo_tick,
+                    user_data,
+                    HD_MAX_SCHEDULER_PRIORITY,
+                )),
+                HdServo::Lockstep => None,
+            };
             (api.start_scheduler)();
             handle
         };
@@ -578,9 +612,23 @@ impl HapticDevice for OpenHapticsArm {
     }
 
     /// The servo's latest sample; a servo fault is returned once as [`DeviceError::Vendor`].
-    /// Wait-free: one atomic load and a triple-buffer read.
+    /// Scheduled: wait-free, one atomic load and a triple-buffer read. Lockstep: first runs
+    /// one servo frame through `hdScheduleSynchronous` and waits for it (no allocation, no
+    /// lock of ours).
     fn read(&mut self) -> Result<DeviceState, DeviceError> {
         let s = self.session.as_mut().ok_or(DeviceError::NotOpen)?;
+        if s.scheduled.is_none() {
+            // SAFETY: as for the asynchronous callback: the servo side lives as long as the
+            // session, and the synchronous call returns after the frame ran on HD's servo
+            // thread, so nothing else touches it meanwhile.
+            unsafe {
+                (s.api.schedule_synchronous)(
+                    servo_tick_once,
+                    s.servo.0.as_ptr().cast(),
+                    HD_MAX_SCHEDULER_PRIORITY,
+                );
+            }
+        }
         let code = s.shared.fault_code.load(Ordering::Acquire);
         if code != HD_SUCCESS {
             s.force_in.write([0.0; 3]);

@@ -22,7 +22,7 @@ use std::sync::{Mutex, MutexGuard};
 use dynaclay_devices::dhd_arm::{DhdArm, DhdConfig};
 use dynaclay_devices::doctor::{self, DoctorConfig, TickClock};
 use dynaclay_devices::open::{DriverOptions, build_driver};
-use dynaclay_devices::openhaptics_arm::{OpenHapticsArm, OpenHapticsConfig};
+use dynaclay_devices::openhaptics_arm::{HdServo, OpenHapticsArm, OpenHapticsConfig};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::vendor_lib::{LibrarySource, VendorLibrary};
 use dynaclay_devices::{DeviceError, HapticDevice, SafetyConfig, SafetyFilter, soft_start_gain};
@@ -182,6 +182,7 @@ impl Standin {
         OpenHapticsArm::new(OpenHapticsConfig {
             library: LibrarySource::Path(self.path.clone()),
             device_name: None,
+            ..OpenHapticsConfig::default()
         })
     }
 
@@ -313,6 +314,63 @@ fn touch_force_reaches_the_arm_exactly_once_per_servo_tick_and_the_loop_never_dr
     let calls = s.hd_calls();
     assert_eq!(calls.set_force_calls, end.set_force_calls + 1);
     assert_eq!(calls.output_force_n, [0.0, f64::from(0.2f32), 0.0]);
+}
+
+#[test]
+fn touch_in_lockstep_runs_one_servo_frame_per_read_and_schedules_nothing() {
+    let s = Standin::new();
+    // A hand moving 0.5 mm per servo tick along x: only frames move it in lockstep.
+    s.hd_motion([0.0; 3], [0.5, 0.0, 0.0]);
+    let mut dev = filtered(
+        OpenHapticsArm::new(OpenHapticsConfig {
+            library: LibrarySource::Path(s.path.clone()),
+            device_name: None,
+            servo: HdServo::Lockstep,
+        }),
+        0.0,
+    );
+    dev.open().unwrap();
+    let opened = s.hd_calls();
+    assert_eq!(opened.scheduled_callbacks, 0, "nothing runs every tick");
+    assert_eq!(opened.frames, 1, "open's first sample");
+    assert_eq!(opened.output_force_n, [0.0; 3], "zero force on connect");
+    let ticks = 50u64;
+    let mut requests = Vec::new();
+    for k in 0..ticks {
+        let state = dev.read().unwrap();
+        // Read k ran frame k + 1, on a servo clock of those frames.
+        assert_eq!(state.sequence, k + 2, "tick {k}");
+        assert_eq!(state.timestamp_us, (k + 2) * 1000, "tick {k}");
+        assert_eq!(s.hd_calls().frames, k + 2, "one frame per read");
+        // Frame k + 1 sent what the previous tick wrote (zero before any write).
+        let expected = if k == 0 {
+            [0.0; 3]
+        } else {
+            f64s(requests[k as usize - 1])
+        };
+        assert_eq!(s.hd_calls().output_force_n, expected, "tick {k}");
+        let request = Vec3::new(0.1, -0.05, 0.002 * k as f32);
+        dev.write_force(request).unwrap();
+        requests.push(dev.output_force_n());
+    }
+    let end = s.hd_calls();
+    assert_eq!(end.ticks, 0, "the scheduler never ticked on its own");
+    assert_eq!(end.set_force_calls, end.frames);
+    assert_eq!(end.max_set_force_per_frame, 1);
+    assert_eq!(end.set_force_outside_frame, 0);
+    // A fault in a frame is that read's error; the frame after it sends zero.
+    s.hd_u32("standin_hd_inject_fault", shd::HD_COMM_ERROR);
+    assert!(matches!(dev.read(), Err(DeviceError::Vendor { .. })));
+    dev.read().unwrap();
+    assert_eq!(
+        s.hd_calls().output_force_n,
+        [0.0; 3],
+        "zero after the fault"
+    );
+    dev.close().unwrap();
+    let closed = s.hd_calls();
+    assert_eq!(closed.scheduler_running, 0);
+    assert_eq!(closed.output_force_n, [0.0; 3]);
 }
 
 #[test]
@@ -715,6 +773,7 @@ fn the_standin_is_accepted_as_either_library_and_a_wrong_library_is_refused() {
     let mut wrong = OpenHapticsArm::new(OpenHapticsConfig {
         library: LibrarySource::Path("libc.so.6".into()),
         device_name: None,
+        ..OpenHapticsConfig::default()
     });
     match wrong.open().unwrap_err() {
         DeviceError::LibraryMissing(m) => {

@@ -326,7 +326,8 @@ pub struct RunArgs {
     /// sample, one simulation step, as fast as the machine goes; the same script always gives
     /// the same sculpt, bit for bit (simulated arm, or a replay: its samples in lockstep
     /// instead of as its recorded schedule says, which a recording without a usable schedule
-    /// needs).
+    /// needs). With touch, phantom or dhd, one servo tick of the arm per step, for
+    /// `--seconds` of the arm's clock.
     #[arg(long)]
     pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).

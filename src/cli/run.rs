@@ -6,6 +6,7 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::RecvTimeoutError;
 
+use dynaclay_devices::openhaptics_arm::HdServo;
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice, ScheduleGap};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
@@ -92,9 +93,18 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
     std::fs::create_dir_all(&args.out)
         .map_err(|e| CliError::output(format!("{}: cannot create", args.out.display()), e))?;
 
-    if args.lockstep && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. }) {
+    // Lockstep needs a device whose every read is one fresh tick of its own clock: the
+    // simulated arm, a replay, and the vendor-library arms (HD's servo runs one frame per read;
+    // each DHD read is one exchange with the arm).
+    let vendor_arm = matches!(
+        spec,
+        DeviceSpec::OpenHaptics { .. } | DeviceSpec::Dhd { .. }
+    );
+    if args.lockstep && !vendor_arm && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. })
+    {
         return Err(CliError::Usage(format!(
-            "--lockstep runs the simulated arm on its own clock; device {} runs in real time",
+            "--lockstep runs the simulated arm, a replay, touch, phantom or dhd on the device's \
+             own clock; device {} runs in real time",
             args.device
         )));
     }
@@ -146,6 +156,26 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
                 Some(gap) => say!("replayed in lockstep, as asked, not as scheduled: {gap}"),
             }
             return Ok(outputs);
+        }
+        hw if args.lockstep => {
+            let mut options = dynaclay_devices::open::DriverOptions::from_env();
+            options.hd_servo = HdServo::Lockstep;
+            let device = dynaclay_devices::open::build_driver(hw, &options)
+                .map_err(|e| CliError::device(args.device.clone(), e))?;
+            // One sample per servo tick of the arm for the whole session (1 kHz where the arm
+            // does not say its rate before it is open).
+            let rate_hz = Some(f64::from(device.info().sample_rate_hz))
+                .filter(|r| r.is_finite() && *r > 0.0)
+                .unwrap_or(1000.0);
+            let samples = (seconds * rate_hz).ceil() as usize;
+            let device: Box<dyn HapticDevice> = match &args.record {
+                Some(path) => Box::new(
+                    RecordingDevice::create(device, path)
+                        .map_err(|e| CliError::output(path.display().to_string(), e))?,
+                ),
+                None => device,
+            };
+            return run_lockstep(args, &plan, &start, &session_path, device, samples);
         }
         hw => {
             let mut options = dynaclay_devices::open::DriverOptions::from_env();

@@ -22,6 +22,15 @@ pub const DHD_ERROR_NO_DEVICE_FOUND: c_int = 5;
 pub const DHD_ERROR_INVALID_INDEX: c_int = 15;
 /// Seconds the device clock advances per position sample.
 pub const SAMPLE_PERIOD_S: f64 = 0.001;
+/// Most forces [`standin_dhd_forces`] keeps (a minute of samples at 1 kHz); later ones are
+/// counted in [`DhdCalls::set_force_calls`] but not kept.
+pub const FORCE_LOG_CAPACITY: usize = 60_000;
+/// [`standin_dhd_disconnect_at`]'s "never".
+pub const NEVER: u64 = u64::MAX;
+
+/// A scripted hand for [`standin_dhd_set_hand`]: writes the arm's position (three doubles,
+/// metres, DHD frame) at position read `read` (counting from 0) to `position_m`.
+pub type DhdHand = extern "C" fn(read: u64, position_m: *mut f64);
 
 /// What the driver has done to the stand-in, read with [`standin_dhd_calls`].
 #[repr(C)]
@@ -55,6 +64,12 @@ struct State {
     position_m: [f64; 3],
     step_m_per_read: [f64; 3],
     buttons: c_uint,
+    hand: Option<DhdHand>,
+    /// From this position read on (counting from 0) the arm is gone: reads and force
+    /// commands fail with `DHD_ERROR_COM`.
+    disconnect_at_read: u64,
+    /// Forces accepted while force output was enabled, in order (bounded), DHD frame.
+    forces_n: Vec<[f64; 3]>,
     calls: DhdCalls,
 }
 
@@ -70,6 +85,9 @@ impl State {
             position_m: [0.0; 3],
             step_m_per_read: [0.0; 3],
             buttons: 0,
+            hand: None,
+            disconnect_at_read: NEVER,
+            forces_n: Vec::new(),
             calls: DhdCalls {
                 position_reads: 0,
                 set_force_calls: 0,
@@ -84,6 +102,10 @@ impl State {
     }
 
     /// The device `id` names (`-1`: the first open one), if it is open.
+    fn disconnected(&self) -> bool {
+        self.calls.position_reads > self.disconnect_at_read
+    }
+
     fn device(&mut self, id: c_char) -> Option<usize> {
         let index = if id < 0 {
             self.open.iter().position(|o| *o)
@@ -194,9 +216,10 @@ pub extern "C" fn dhdGetComMode(id: c_char) -> c_int {
     0
 }
 
-/// `int dhdGetPosition(double *px, double *py, double *pz, char ID)`: one fresh sample; the
-/// arm then steps along its scripted line. Fails (-1, `DHD_ERROR_COM`) while reads are set
-/// to fail with [`standin_dhd_fail_reads`].
+/// `int dhdGetPosition(double *px, double *py, double *pz, char ID)`: one fresh sample (where
+/// the scripted hand is, if there is one); the arm then steps along its scripted line. Fails
+/// (-1, `DHD_ERROR_COM`) while reads are set to fail with [`standin_dhd_fail_reads`], and
+/// for good once the arm is disconnected ([`standin_dhd_disconnect_at`]).
 ///
 /// # Safety
 /// The three pointers must each point to a writable double.
@@ -211,13 +234,23 @@ pub unsafe extern "C" fn dhdGetPosition(
     if s.device(id).is_none() {
         return -1;
     }
+    let read = s.calls.position_reads;
     s.calls.position_reads += 1;
     s.calls.max_set_force_per_read = s.calls.max_set_force_per_read.max(s.set_force_since_read);
     s.set_force_since_read = 0;
+    if s.disconnected() {
+        s.last_error = DHD_ERROR_COM;
+        return -1;
+    }
     if s.fail_reads > 0 {
         s.fail_reads -= 1;
         s.last_error = DHD_ERROR_COM;
         return -1;
+    }
+    if let Some(hand) = s.hand {
+        let mut p = s.position_m;
+        hand(read, p.as_mut_ptr());
+        s.position_m = p;
     }
     let p = s.position_m;
     let step = s.step_m_per_read;
@@ -233,7 +266,8 @@ pub unsafe extern "C" fn dhdGetPosition(
     0
 }
 
-/// `int dhdSetForce(double fx, double fy, double fz, char ID)`.
+/// `int dhdSetForce(double fx, double fy, double fz, char ID)`: fails (-1, `DHD_ERROR_COM`)
+/// once the arm is disconnected.
 #[unsafe(no_mangle)]
 pub extern "C" fn dhdSetForce(fx: f64, fy: f64, fz: f64, id: c_char) -> c_int {
     let mut s = state();
@@ -243,9 +277,18 @@ pub extern "C" fn dhdSetForce(fx: f64, fy: f64, fz: f64, id: c_char) -> c_int {
     s.calls.set_force_calls += 1;
     s.set_force_since_read += 1;
     s.calls.max_set_force_per_read = s.calls.max_set_force_per_read.max(s.set_force_since_read);
+    if s.disconnected() {
+        s.last_error = DHD_ERROR_COM;
+        return -1;
+    }
     s.calls.last_force_n = [fx, fy, fz];
-    if s.calls.force_enabled == 1 && [fx, fy, fz] != [0.0; 3] {
-        s.calls.nonzero_forces_output += 1;
+    if s.calls.force_enabled == 1 {
+        if s.forces_n.len() < FORCE_LOG_CAPACITY {
+            s.forces_n.push([fx, fy, fz]);
+        }
+        if [fx, fy, fz] != [0.0; 3] {
+            s.calls.nonzero_forces_output += 1;
+        }
     }
     0
 }
@@ -321,6 +364,37 @@ pub unsafe extern "C" fn standin_dhd_set_motion(position_m: *const f64, step_m: 
 #[unsafe(no_mangle)]
 pub extern "C" fn standin_dhd_set_buttons(buttons: c_uint) {
     state().buttons = buttons;
+}
+
+/// Test hook: the arm follows `hand` (null: stays where it is, or moves by
+/// [`standin_dhd_set_motion`]'s step), which places it at every position read. The hand is
+/// called with the stand-in's state locked: it must not call back into the library.
+#[unsafe(no_mangle)]
+pub extern "C" fn standin_dhd_set_hand(hand: Option<DhdHand>) {
+    state().hand = hand;
+}
+
+/// Test hook: the arm is unplugged at position read `read` (counting from 0): that read and
+/// every later one, and every force command after it, fail with `DHD_ERROR_COM`. [`NEVER`]
+/// plugs it back in.
+#[unsafe(no_mangle)]
+pub extern "C" fn standin_dhd_disconnect_at(read: u64) {
+    state().disconnect_at_read = read;
+}
+
+/// Test hook: copies up to `capacity` of the forces accepted with force output enabled
+/// (oldest first, newtons, DHD frame) to `out`; returns how many were kept in all (at most
+/// [`FORCE_LOG_CAPACITY`]).
+///
+/// # Safety
+/// `out` must point to `capacity` writable `[f64; 3]`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn standin_dhd_forces(out: *mut [f64; 3], capacity: usize) -> usize {
+    let s = state();
+    let n = s.forces_n.len().min(capacity);
+    // SAFETY: the caller provides `capacity` writable entries, and n <= capacity.
+    unsafe { std::ptr::copy_nonoverlapping(s.forces_n.as_ptr(), out, n) };
+    s.forces_n.len()
 }
 
 /// Test hook: the next `n` position reads fail with `DHD_ERROR_COM`.

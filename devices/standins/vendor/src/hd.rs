@@ -98,6 +98,17 @@ pub struct HdErrorInfo {
 /// `HDSchedulerCallback`.
 pub type HdSchedulerCallback = unsafe extern "C" fn(*mut c_void) -> c_uint;
 
+/// A scripted hand for [`standin_hd_set_hand`]: writes the arm's position (three doubles,
+/// millimetres) during frame `frame` (counting from 0) to `position_mm`.
+pub type HdHand = extern "C" fn(frame: u64, position_mm: *mut f64);
+
+/// Most forces [`standin_hd_forces`] keeps (a minute of servo frames at 1 kHz); later ones
+/// are counted in [`HdCalls::set_force_calls`] but not kept.
+pub const FORCE_LOG_CAPACITY: usize = 60_000;
+
+/// [`standin_hd_fail_from_frame`]'s "never".
+pub const NEVER: u64 = u64::MAX;
+
 /// What the driver has done to the stand-in, read with [`standin_hd_calls`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -148,6 +159,11 @@ struct State {
     position_mm: [f64; 3],
     step_mm_per_tick: [f64; 3],
     buttons: c_int,
+    hand: Option<HdHand>,
+    /// Every frame from this one on (counting from 0) ends with `HD_COMM_ERROR`.
+    fail_from_frame: u64,
+    /// The forces set inside frames with force output enabled, in order (bounded).
+    forces_n: Vec<[f64; 3]>,
     calls: HdCalls,
 }
 
@@ -166,6 +182,9 @@ impl State {
             position_mm: [0.0; 3],
             step_mm_per_tick: [0.0; 3],
             buttons: 0,
+            hand: None,
+            fail_from_frame: NEVER,
+            forces_n: Vec::new(),
             calls: HdCalls {
                 ticks: 0,
                 frames: 0,
@@ -271,7 +290,8 @@ pub extern "C" fn hdMakeCurrentDevice(hhd: c_uint) {
     }
 }
 
-/// `void hdBeginFrame(HHD hHD)`.
+/// `void hdBeginFrame(HHD hHD)`: with a scripted hand ([`standin_hd_set_hand`]), the arm
+/// moves to where the hand is in this frame.
 #[unsafe(no_mangle)]
 pub extern "C" fn hdBeginFrame(hhd: c_uint) {
     let mut s = state();
@@ -285,11 +305,17 @@ pub extern "C" fn hdBeginFrame(hhd: c_uint) {
     }
     s.in_frame = true;
     s.set_force_in_frame = 0;
+    if let Some(hand) = s.hand {
+        let mut p = s.position_mm;
+        hand(s.calls.frames, p.as_mut_ptr());
+        s.position_mm = p;
+    }
     s.calls.frames += 1;
 }
 
 /// `void hdEndFrame(HHD hHD)`: a fault injected with [`standin_hd_inject_fault`] is raised
-/// here, as a device error surfaces at the end of the servo frame it happened in.
+/// here, as a device error surfaces at the end of the servo frame it happened in; so is the
+/// communication error of every frame from [`standin_hd_fail_from_frame`]'s on.
 #[unsafe(no_mangle)]
 pub extern "C" fn hdEndFrame(_hhd: c_uint) {
     let mut s = state();
@@ -302,6 +328,10 @@ pub extern "C" fn hdEndFrame(_hhd: c_uint) {
     if s.pending_fault != HD_SUCCESS {
         let code = std::mem::replace(&mut s.pending_fault, HD_SUCCESS);
         s.error(code);
+    }
+    // `frames` already counts this frame.
+    if s.calls.frames > s.fail_from_frame {
+        s.error(HD_COMM_ERROR);
     }
 }
 
@@ -372,6 +402,9 @@ pub unsafe extern "C" fn hdSetDoublev(pname: c_uint, params: *const f64) {
     }
     s.set_force_in_frame += 1;
     if s.calls.force_output_enabled == 1 {
+        if s.forces_n.len() < FORCE_LOG_CAPACITY {
+            s.forces_n.push(force);
+        }
         s.calls.output_force_n = force;
         if force != [0.0; 3] {
             s.calls.nonzero_forces_output += 1;
@@ -583,6 +616,36 @@ pub unsafe extern "C" fn standin_hd_set_motion(position_mm: *const f64, step_mm:
 #[unsafe(no_mangle)]
 pub extern "C" fn standin_hd_set_buttons(buttons: c_int) {
     state().buttons = buttons;
+}
+
+/// Test hook: the arm follows `hand` (null: stays where it is, or moves by
+/// [`standin_hd_set_motion`]'s step), which places it at the start of every frame. The hand is
+/// called with the stand-in's state locked: it must not call back into the library.
+#[unsafe(no_mangle)]
+pub extern "C" fn standin_hd_set_hand(hand: Option<HdHand>) {
+    state().hand = hand;
+}
+
+/// Test hook: the arm is unplugged from frame `frame` on (counting from 0): that frame and
+/// every later one end with `HD_COMM_ERROR`. [`NEVER`] plugs it back in.
+#[unsafe(no_mangle)]
+pub extern "C" fn standin_hd_fail_from_frame(frame: u64) {
+    state().fail_from_frame = frame;
+}
+
+/// Test hook: copies up to `capacity` of the forces set in frames with force output enabled
+/// (oldest first, newtons, HD frame) to `out`; returns how many were kept in all (at most
+/// [`FORCE_LOG_CAPACITY`]).
+///
+/// # Safety
+/// `out` must point to `capacity` writable `[f64; 3]`.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn standin_hd_forces(out: *mut [f64; 3], capacity: usize) -> usize {
+    let s = state();
+    let n = s.forces_n.len().min(capacity);
+    // SAFETY: the caller provides `capacity` writable entries, and n <= capacity.
+    unsafe { std::ptr::copy_nonoverlapping(s.forces_n.as_ptr(), out, n) };
+    s.forces_n.len()
 }
 
 /// Test hook: the next servo frame ends with error `code` (e.g. `HD_COMM_ERROR`).
