@@ -45,8 +45,8 @@ use crate::dynamics::{
     PaintRegion,
 };
 use crate::tools::{
-    FalloffCurve, ForceTool, ForceToolError, MaskBrush, MaskEdit, MaskError, MaskMode, PinRequest,
-    ToolAction, ToolPose, ToolShape,
+    ForceTool, ForceToolError, MaskBrush, MaskEdit, MaskError, MaskMode, PinRequest, ToolAction,
+    ToolPose, ToolShape,
 };
 
 mod check;
