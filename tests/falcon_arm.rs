@@ -48,7 +48,6 @@ fn options(sysfs: &std::path::Path) -> FalconOptions {
 }
 
 #[test]
-#[ignore = "unfinished: the groove at x = 0.9 (nearest the tool at the disconnect) deepens by about 0.06 after it, over the 0.05 the check allows; not yet explained"]
 fn a_falcon_sculpts_in_lockstep_through_its_framing_and_a_disconnect_keeps_the_sculpt() {
     let sysfs = tempfile::tempdir().unwrap();
     let info = Falcon::new("unopened", options(sysfs.path())).info();

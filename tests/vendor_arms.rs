@@ -386,7 +386,7 @@ fn playing(hand: HandPath, arm: impl HapticDevice + 'static) -> Box<dyn HapticDe
 }
 
 #[test]
-#[ignore = "unfinished: the groove at x = 0.9 (nearest the tool at the disconnect) deepens by about 0.06 after it, over the 0.05 the check allows; not yet explained"]
+#[ignore = "unfinished: after the soft start that follows the failed read at tick 400 the force comes back to 13% of its level before the fault (0.0056 of 0.0435 N on the Touch, 0.0217 of 0.171 N on the omega.3), under the half this check asks; not yet explained"]
 fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_the_sculpt() {
     let hooks = Hooks::new();
     // SAFETY: `void standin_hd_set_hand(HdHand)`.
@@ -473,7 +473,7 @@ fn a_touch_sculpts_in_lockstep_one_servo_frame_per_tick_and_a_disconnect_keeps_t
 }
 
 #[test]
-#[ignore = "unfinished: the groove at x = 0.9 (nearest the tool at the disconnect) deepens by about 0.06 after it, over the 0.05 the check allows; not yet explained"]
+#[ignore = "unfinished: after the soft start that follows the failed read at tick 400 the force comes back to 13% of its level before the fault (0.0056 of 0.0435 N on the Touch, 0.0217 of 0.171 N on the omega.3), under the half this check asks; not yet explained"]
 fn an_omega_sculpts_in_lockstep_one_force_per_read_and_a_disconnect_keeps_the_sculpt() {
     let hooks = Hooks::new();
     // SAFETY: `void standin_dhd_set_hand(DhdHand)`.

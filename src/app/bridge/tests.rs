@@ -264,8 +264,14 @@ fn the_bridge_loads_sessions_sets_the_force_limit_and_publishes_loop_figures() {
     wait_for(&mut link, &mut events, "the load", |v, ev| {
         v.sessions_loaded == 1 && ev.iter().any(|e| matches!(e, EngineEvent::Done { .. }))
     });
-    // (a loaded session's tool library comes as its own event)
-    events.retain(|e| !matches!(e, EngineEvent::Library(_)));
+    // (a loaded session's tool library comes as its own event, and the background load
+    // reports its progress and the file it opened)
+    events.retain(|e| {
+        !matches!(
+            e,
+            EngineEvent::Library(_) | EngineEvent::Progress(_) | EngineEvent::FileDone { .. }
+        )
+    });
     assert!(
         matches!(&events[..], [EngineEvent::Done { what, detail }] if what == "load" && detail.contains("carved.dclay")),
         "{events:?}"
@@ -287,8 +293,10 @@ fn the_bridge_loads_sessions_sets_the_force_limit_and_publishes_loop_figures() {
     })
     .unwrap();
     wait_for(&mut link, &mut events, "the refusal", |_, ev| {
-        !ev.is_empty()
+        ev.iter().any(|e| matches!(e, EngineEvent::Failed { .. }))
     });
+    // (the background load reports its progress before it fails)
+    events.retain(|e| !matches!(e, EngineEvent::Progress(_)));
     let [EngineEvent::Failed { what, error }] = &events[..] else {
         panic!("expected one failure, got {events:?}");
     };
@@ -452,7 +460,11 @@ fn loads_of_another_layout_restart_the_engine_and_imports_are_fitted() {
         "ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n",
     )
     .unwrap();
+    // One load at a time: the second is sent once the first is refused.
     link.send(EngineCommand::Load { path: bad }).unwrap();
+    wait_for(&mut link, &mut events, "the first refusal", |_, ev| {
+        ev.iter().any(|e| matches!(e, EngineEvent::Failed { .. }))
+    });
     link.send(EngineCommand::Load {
         path: dir.path().join("missing.xyz"),
     })
