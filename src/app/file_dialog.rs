@@ -146,7 +146,7 @@ impl NativePick {
     ) -> std::io::Result<Self> {
         let mut dialog = rfd::FileDialog::new().set_title(purpose.title());
         for (name, extensions) in purpose.filters() {
-            dialog = dialog.add_filter(*name, *extensions);
+            dialog = dialog.add_filter(*name, extensions);
         }
         if let Some(folder) = folder {
             dialog = dialog.set_directory(folder);

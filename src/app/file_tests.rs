@@ -134,7 +134,10 @@ fn save_as_and_new_through_the_typed_path_write_the_session_and_autosave_follows
     });
     let saved = load_session(&second_file).unwrap();
     assert_eq!(saved.clay.density.patches[0].lattice.dims, [12; 3]);
-    assert_eq!(h.state().file_menu.recent.paths(), [second_file.clone()]);
+    assert_eq!(
+        h.state().file_menu.recent.paths(),
+        std::slice::from_ref(&second_file)
+    );
 
     // New: a plastic block at resolution 10 (another layout: a new engine on it).
     h.get_by_label("New…").click();
@@ -349,7 +352,10 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
         h.state().log
     );
     // The cloud joins the recent files; the session's name stays (Save is not the cloud's).
-    assert_eq!(h.state().file_menu.recent.paths(), [ply.clone()]);
+    assert_eq!(
+        h.state().file_menu.recent.paths(),
+        std::slice::from_ref(&ply)
+    );
     assert_eq!(
         h.state().files.session.as_deref(),
         Some(dir.path().join("first.dclay").as_path())

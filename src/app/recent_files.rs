@@ -220,7 +220,7 @@ mod tests {
         std::fs::remove_file(&gone).unwrap();
         let (shown, error) = list.shown();
         assert!(error.is_none());
-        assert_eq!(shown, [kept.clone()]);
+        assert_eq!(shown, std::slice::from_ref(&kept));
         let (again, _) = RecentFiles::load_from(dir.path());
         assert_eq!(again.paths(), [kept]);
     }
