@@ -239,7 +239,7 @@ impl DevicePanel {
                 }
                 match &d.spec {
                     Some(spec) => {
-                        if ui.link(format!("{text} → {spec}")).clicked() {
+                        if ui.link(format!("{text}: use {spec}")).clicked() {
                             pick = Some(spec.clone());
                         }
                     }

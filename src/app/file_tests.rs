@@ -360,6 +360,39 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
         h.state().files.session.as_deref(),
         Some(dir.path().join("first.dclay").as_path())
     );
+
+    // No output replaces the imported cloud, nor a file of another kind: Export onto the
+    // cloud and Save As onto a foreign file are refused with the reason, and both stay as
+    // they were.
+    assert_eq!(h.state().files.imported.as_deref(), Some(ply.as_path()));
+    let cloud_bytes = std::fs::read(&ply).unwrap();
+    h.state_mut().file_request(FileRequest::Export(ply.clone()));
+    h.run();
+    let logged = |h: &Harness<'static, SculptApp>, text: &str| {
+        h.state().log.iter().any(|line| line.contains(text))
+    };
+    assert!(
+        logged(&h, "an output never replaces an input"),
+        "export over the cloud: {:?}",
+        h.state().log
+    );
+    let foreign = dir.path().join("notes.dclay");
+    std::fs::write(&foreign, b"a user's own notes").unwrap();
+    h.state_mut()
+        .file_request(FileRequest::SaveAs(foreign.clone()));
+    h.run();
+    assert!(
+        logged(&h, "not a session this program wrote"),
+        "save as over a foreign file: {:?}",
+        h.state().log
+    );
+    // A new mesh name is written (the export goes to the engine's meshes).
+    let mesh = dir.path().join("ball-mesh.obj");
+    h.state_mut()
+        .file_request(FileRequest::Export(mesh.clone()));
+    run_until(&mut h, "export", |_| mesh.exists());
+    assert_eq!(std::fs::read(&ply).unwrap(), cloud_bytes);
+    assert_eq!(std::fs::read(&foreign).unwrap(), b"a user's own notes");
     drop(h);
     bridge.stop().unwrap();
 }

@@ -15,6 +15,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use crate::dynamics::Material;
+use crate::io::{OutputKind, OutputRule};
 use crate::mesh::MeshFormat;
 use crate::render::{
     BoxOverlay, Camera, Disc, ForceOverlay, MeshChunk, QuadOverlay, SceneOptions, Shading,
@@ -122,6 +123,9 @@ pub struct FilePaths {
     pub session: Option<PathBuf>,
     /// The last mesh exported.
     pub export: Option<PathBuf>,
+    /// The file the clay was last imported from (a point cloud, mesh or volume): Save As and
+    /// Export never replace it.
+    pub imported: Option<PathBuf>,
 }
 
 impl Default for FilePaths {
@@ -129,6 +133,7 @@ impl Default for FilePaths {
         Self {
             session: Some(DEFAULT_SESSION.into()),
             export: None,
+            imported: None,
         }
     }
 }
@@ -356,6 +361,8 @@ impl SculptApp {
                     }
                     if is_session {
                         self.files.session = Some(path);
+                    } else {
+                        self.files.imported = Some(path);
                     }
                     continue;
                 }
@@ -609,7 +616,8 @@ impl SculptApp {
         if let Some(stroke) = self.motion.latest()
             && let Some(first) = stroke.first_visible
         {
-            let _ = write!(line, " · stroke → screen {:.0} ms", first.total_ms());
+            // Plain words: the window's default font has no arrow glyphs.
+            let _ = write!(line, " · stroke to screen {:.0} ms", first.total_ms());
             if let Some(settled) = stroke.settled {
                 let _ = write!(line, ", settled {:.0} ms", settled.total_ms());
             }
@@ -755,6 +763,15 @@ impl SculptApp {
         }
     }
 
+    /// The rule the window's outputs obey: never the imported file, and only over a file of
+    /// their own kind that this program wrote.
+    fn output_rule(&self) -> OutputRule {
+        match &self.files.imported {
+            Some(path) => OutputRule::new().input("the imported file", path),
+            None => OutputRule::new(),
+        }
+    }
+
     /// Carries out what the File controls asked: Save and Export go to the engine at once;
     /// Open, Import and New replace the clay, after the question when it has a history.
     pub fn file_request(&mut self, request: super::file_menu::FileRequest) {
@@ -787,7 +804,12 @@ impl SculptApp {
                     path
                 };
                 if is_session_path(&path) {
-                    self.send(EngineCommand::Save { path });
+                    match self.output_rule().check("save", &path, OutputKind::Session) {
+                        Ok(()) => {
+                            self.send(EngineCommand::Save { path });
+                        }
+                        Err(refused) => self.note(refused.to_string()),
+                    }
                 } else {
                     self.note(format!(
                         "save: {} is not a session file: sessions end in .dclay (Export writes \
@@ -799,8 +821,13 @@ impl SculptApp {
             }
             FileRequest::Export(path) => {
                 if MeshFormat::from_path(&path).is_some() {
-                    self.files.export = Some(path.clone());
-                    self.send(EngineCommand::Export { path });
+                    match self.output_rule().check("export", &path, OutputKind::Mesh) {
+                        Ok(()) => {
+                            self.files.export = Some(path.clone());
+                            self.send(EngineCommand::Export { path });
+                        }
+                        Err(refused) => self.note(refused.to_string()),
+                    }
                 } else {
                     self.note(format!(
                         "export: cannot tell the mesh format of {}: use .obj, .ply or .stl",

@@ -246,7 +246,7 @@ fn the_status_line_shows_the_last_strokes_time_from_hand_to_screen() {
     use crate::engine::{ChangeStamp, MeshStamp, StrokeStamps};
     let (mut h, _end) = harness();
     h.run();
-    assert!(!h.state().status_line().contains("stroke → screen"));
+    assert!(!h.state().status_line().contains("stroke to screen"));
     // A stroke whose first change (read at 5 ms) was drawn by the frame at 29 ms, and whose
     // shape was settled in the same snapshot.
     let change = ChangeStamp {
@@ -272,7 +272,7 @@ fn the_status_line_shows_the_last_strokes_time_from_hand_to_screen() {
     h.state_mut().motion.frame(29_000_000, &stamp);
     let line = h.state().status_line();
     assert!(
-        line.contains("stroke → screen 24 ms, settled 24 ms"),
+        line.contains("stroke to screen 24 ms, settled 24 ms"),
         "{line}"
     );
 }
