@@ -345,6 +345,13 @@ fn an_import_runs_beside_the_frames_and_hands_its_clay_and_points_over() {
         shown.abs_diff(n) * 10 < n,
         "{shown} points shown of {n} imported"
     );
+    // The panel names both counts when they differ, the log's among them.
+    let panel = super::state::points_line(&h.state_mut().link.points().value);
+    assert!(
+        panel.contains(&format!("{shown} points"))
+            && (shown == n || panel.contains(&format!("the {n} loaded"))),
+        "panel line {panel:?} for {shown} shown of {n} loaded"
+    );
     let line = format!("point set: {n} points");
     assert!(
         h.state().log.iter().any(|l| l.contains(&line)),

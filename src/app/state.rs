@@ -1217,8 +1217,7 @@ impl SculptApp {
                 .on_hover_text("The clay the points follow, meshed");
         });
         let p = &self.link.points().value;
-        let state = if p.settled { "settled" } else { "following" };
-        ui.weak(format!("{} points, {state}", p.positions.len()));
+        ui.weak(points_line(p));
     }
 
     fn display_ui(&mut self, ui: &mut egui::Ui) {
@@ -1729,6 +1728,23 @@ fn short_name(source: &str) -> std::borrow::Cow<'_, str> {
     std::path::Path::new(source)
         .file_name()
         .map_or(std::borrow::Cow::Borrowed(source), |n| n.to_string_lossy())
+}
+
+/// The points panel's line: the points shown and, where the follower has resampled them to
+/// the clay's area, the count the load reported, so the panel and the log never name two
+/// counts without saying why.
+#[must_use]
+pub fn points_line(view: &crate::pointset::PointSetView) -> String {
+    let state = if view.settled { "settled" } else { "following" };
+    let shown = view.positions.len();
+    if shown == view.arrived {
+        format!("{shown} points, {state}")
+    } else {
+        format!(
+            "{shown} points, {state} (resampled to the clay from the {} loaded)",
+            view.arrived
+        )
+    }
 }
 
 /// The log line of an engine answer, naming its command once: a detail or an error that

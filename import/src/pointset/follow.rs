@@ -127,6 +127,10 @@ impl FollowedPoints {
 pub struct PointSetView {
     /// Whether a point set is loaded (its points may still be empty if the clay lost them).
     pub loaded: bool,
+    /// How many points the loaded set had when it arrived (the count the load reported); the
+    /// points followed since are resampled to the clay's area, so `positions` may hold more or
+    /// fewer.
+    pub arrived: usize,
     pub positions: Vec<Vec3>,
     /// Unit outward normals.
     pub normals: Vec<Vec3>,
@@ -438,6 +442,8 @@ pub struct PointSetFollower<S: MeshSink> {
     /// New point sets (`None`: drop the points), newest wins.
     incoming: Receiver<Option<Box<FollowedPoints>>>,
     follower: Option<PointFollower>,
+    /// How many points the followed set had when it arrived.
+    arrived: usize,
     writer: SnapshotWriter<PointSetView>,
     updates: u64,
     /// Idle updates still to take after the last change.
@@ -465,6 +471,7 @@ impl<S: MeshSink> PointSetFollower<S> {
             inner,
             incoming,
             follower: None,
+            arrived: 0,
             writer,
             updates: 0,
             idle_left: 0,
@@ -500,6 +507,7 @@ impl<S: MeshSink> PointSetFollower<S> {
         let Some(set) = newest else {
             return false;
         };
+        self.arrived = set.as_ref().map_or(0, |points| points.positions.len());
         self.follower = set.and_then(|points| {
             let options = points.options?;
             match PointFollower::new(*points, options) {
@@ -535,12 +543,14 @@ impl<S: MeshSink> PointSetFollower<S> {
 
     fn publish(&mut self) {
         let (follower, updates, settled) = (self.follower.as_ref(), self.updates, self.settled);
+        let arrived = if follower.is_some() { self.arrived } else { 0 };
         self.writer.write_with(|view| {
             view.positions.clear();
             view.normals.clear();
             view.colours.clear();
             view.radii.clear();
             view.loaded = follower.is_some();
+            view.arrived = arrived;
             view.updates = updates;
             view.settled = settled;
             view.spacing_fu = 0.0;
