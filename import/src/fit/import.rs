@@ -50,8 +50,9 @@ pub const DEFAULT_RESOLUTION: usize = 32;
 /// axis (see [`resolution_for_points`]).
 pub const REFERENCE_POINTS: usize = 50_000;
 /// Knots per axis of a cloud of [`REFERENCE_POINTS`] points: the finest lattice whose fit
-/// stays within 1.2 KB per point for the whole `dynaclay import` (about 1.07 KB measured on
-/// 50 000-point scans, against 0.71 KB at 32 knots and 1.3 KB at 44).
+/// stays within 1.2 KB per point (the fit and its mesh peaked at 0.9–1.0 KB per point on
+/// 50 000-point scans at 40 knots, 1.16 KB at 44, 0.55–0.63 KB at 32; `dynaclay import`
+/// adds its session and mesh writing, about 0.16 KB per point at 32 knots).
 pub const RESOLUTION_AT_REFERENCE: f32 = 40.0;
 /// The finest base lattice the point count alone chooses, knots per axis (finer is asked for
 /// with `--resolution`): its fit takes about twice the time of the 40-knot one.
@@ -64,8 +65,8 @@ pub const MAX_POINTS_RESOLUTION: usize = 48;
 ///
 /// Why the count: a denser scan holds the surface at a finer scale, and the base lattice is
 /// what rounds a small radius (a cubic B-spline cannot bend tighter than about a knot span);
-/// on a 50 000-point scan of a mechanical part the 32-knot lattice left the surface 2.2 times
-/// farther from the part (median) than screened Poisson, the 40-knot one 1.1 times.
+/// on a 50 000-point scan of a mechanical part the 32-knot lattice left the surface about 2.2
+/// times farther from the part (median) than screened Poisson, the 40-knot one about 1.1 times.
 ///
 /// # Examples
 /// ```
