@@ -51,8 +51,8 @@ pub const DEFAULT_RESOLUTION: usize = 32;
 pub const REFERENCE_POINTS: usize = 50_000;
 /// Knots per axis of a cloud of [`REFERENCE_POINTS`] points: the finest lattice whose fit
 /// stays within 1.2 KB per point (the fit and its mesh peaked at 0.9–1.0 KB per point on
-/// 50 000-point scans at 40 knots, 1.16 KB at 44, 0.55–0.63 KB at 32; `dynaclay import`
-/// adds its session and mesh writing, about 0.16 KB per point at 32 knots).
+/// 50 000-point scans at 40 knots, 1.16 KB at 44, 0.55–0.65 KB at 32; the whole
+/// `dynaclay import`, writing its session and mesh, at 1.0–1.07 KB at 40 knots).
 pub const RESOLUTION_AT_REFERENCE: f32 = 40.0;
 /// The finest base lattice the point count alone chooses, knots per axis (finer is asked for
 /// with `--resolution`): its fit takes about twice the time of the 40-knot one.
