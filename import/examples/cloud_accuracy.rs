@@ -18,6 +18,7 @@ use std::time::Instant;
 use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh, point_triangle_distance};
 use dynaclay_import::fit::{
     HierarchyOptions, ImportSettings, PointCloud, fit_hierarchy, mesh::read_mesh,
+    resolution_for_points,
 };
 use glam::Vec3;
 
@@ -147,7 +148,10 @@ fn main() {
             "--points" => count = value(i).parse().expect("--points N"),
             "--noise" => noise_percent = value(i).parse().expect("--noise P"),
             "--outliers" => outlier_percent = value(i).parse().expect("--outliers P"),
-            "--resolution" => settings.resolution = value(i).parse().expect("--resolution N"),
+            "--resolution" => {
+                settings.resolution = value(i).parse().expect("--resolution N");
+                settings.resolution_from_points = false;
+            }
             "--error" => settings.error_percent = value(i).parse().expect("--error P"),
             "--depth" => settings.max_depth = value(i).parse().expect("--depth N"),
             "--bare" => {
@@ -220,7 +224,12 @@ fn main() {
     };
     let options = HierarchyOptions {
         base: dynaclay_import::fit::CloudFitOptions {
-            resolution: settings.resolution,
+            // As the import chooses it (see `resolution_for_points`) unless given.
+            resolution: if settings.resolution_from_points {
+                resolution_for_points(count)
+            } else {
+                settings.resolution
+            },
             gap_spans: settings.gap_spans,
             ..Default::default()
         },

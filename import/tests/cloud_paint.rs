@@ -49,6 +49,7 @@ fn write_ply(path: &Path, points: &[Vec3], colour: Option<&dyn Fn(Vec3) -> [u8; 
 fn settings() -> ImportSettings {
     ImportSettings {
         resolution: 16,
+        resolution_from_points: false,
         max_depth: 0,
         ..ImportSettings::default()
     }

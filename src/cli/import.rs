@@ -58,7 +58,8 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     }
     watch_for_ctrl_c();
     let settings = ImportSettings {
-        resolution: args.resolution,
+        resolution: args.resolution.unwrap_or(crate::fit::DEFAULT_RESOLUTION),
+        resolution_from_points: args.resolution.is_none(),
         gap_spans: args.gap,
         error_percent: args.error,
         max_depth: args.max_depth,

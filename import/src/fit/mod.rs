@@ -30,9 +30,9 @@ pub use cloud::{
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use holes::{CappedMesh, MAX_CAPPED_HOLE, UncappedHoles, cap_holes};
 pub use import::{
-    FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud, ImportedFit,
-    closed_mesh_grid, fit_file, fit_import, import_cloud, import_session, imported_session,
-    is_importable, is_point_cloud,
+    DEFAULT_RESOLUTION, FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud,
+    ImportedFit, closed_mesh_grid, fit_file, fit_import, import_cloud, import_session,
+    imported_session, is_importable, is_point_cloud, resolution_for_points,
 };
 pub use paint::{PaintError, paint_from_cloud};
 pub use point_file::{read_points, read_points_with_colours};
