@@ -106,8 +106,8 @@ pub struct SimConfig {
     /// What a step that would remove more than half the clay does: applied and reported
     /// (scripts), or held until the user answers (the window).
     pub removal_guard: super::RemovalGuard,
-    /// Whether a geometric brush narrower than three knot spans of the patch under it adds a
-    /// detail patch under itself first (see `simulation/detail.rs`).
+    /// Whether a geometric brush, or a force tool's spread, narrower than three knot spans of
+    /// the patch under it adds a detail patch under itself first (see `simulation/detail.rs`).
     pub auto_detail: bool,
 }
 
@@ -484,6 +484,8 @@ impl SimulationStage {
             }
         }
 
+        // A force tool finer than the base refines under itself before its region is set up.
+        self.refine_under_force_tool(sample);
         // The patch that would hold this step's region: its mass points set the step.
         let sculpted = self.sculpted_patch_at(sample.tip_fu);
         let spacing = self.clay.density.patches[sculpted].lattice.spacing;
