@@ -1,8 +1,9 @@
 //! Detail where the brush is fine and room where the clay goes, judged on what a run exports:
 //! a script's remove brush of 1/256 of the default clay's size, with no refine step, carves a
 //! groove whose width on `sculpt.obj` is within 25% of the brush's chord; a push of the arm
-//! with a spread of a quarter knot span refines under itself and presses a groove of its
-//! spread's width (wider by far with automatic detail off); and an add stroke or a pull stroke
+//! with a spread of a quarter knot span refines under itself and presses a groove within 25%
+//! of the chord of a ball of its spread swept along the tip's path (over twice as wide with
+//! automatic detail off); and an add stroke or a pull stroke
 //! of the simulated arm that leaves the starting box extends the exported clay past it,
 //! rounded (no flat face where the box was).
 
@@ -155,10 +156,13 @@ fn groove_width(mesh: &Exported, x: f32, y: f32) -> f32 {
 
 #[test]
 fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
-    // A push whose constant spread (a capsule of radius 0.025 around its vector) is a quarter
-    // of the base's knot span, drawn along x at 0.03 below the top. Each surface column within
-    // the spread is driven down to the tip's depth and no other: the groove's ideal cross
-    // section is 0.05 wide (the spread's diameter) at every depth above the tip.
+    // A push whose constant spread (a capsule of radius 0.025 around its vector, from the
+    // surface above the tip down to the tip) is a quarter of the base's knot span, drawn along
+    // x at 0.03 below the top. A surface point is driven down toward the tip's depth while it
+    // lies within the spread of the vector; once the bottom has reached the tip the vector
+    // has shrunk to the tip, and what the spread still reaches is the ball of its radius
+    // around the tip: at rest the groove is the one that ball swept along the tip's path
+    // carves. Its cross section half way down is the ball's chord there.
     let (radius, depth) = (0.025_f32, 0.03_f32);
     let script = format!(
         "version = 1\nseconds = 2.5\n[[step]]\ndo = \"stroke\"\n\
@@ -169,11 +173,12 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
         MID + 0.1,
         y = TOP_Y - depth,
     );
-    let ideal = 2.0 * radius;
+    let half_depth = 0.5 * depth;
+    let ideal = 2.0 * (radius * radius - half_depth * half_depth).sqrt();
     let (fine, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, true);
     let (coarse, none) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, false);
     // Half way down, over the stroke's middle stretch.
-    let y = TOP_Y - 0.5 * depth;
+    let y = TOP_Y - half_depth;
     let widths = |mesh: &Exported| -> Vec<f32> {
         [-0.04, 0.0, 0.04]
             .iter()
@@ -182,8 +187,8 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
     };
     let (fine_widths, coarse_widths) = (widths(&fine), widths(&coarse));
     eprintln!(
-        "push of spread {ideal:.3}: groove {fine_widths:.4?} with detail ({refines} refines, \
-         {} triangles), {coarse_widths:.4?} on the base alone ({} triangles)",
+        "push of spread {radius}: groove {fine_widths:.4?} with detail ({refines} refines, \
+         {} triangles), {coarse_widths:.4?} on the base alone ({} triangles); chord {ideal:.4}",
         fine.triangles.len(),
         coarse.triangles.len()
     );
@@ -192,7 +197,7 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
     for w in &fine_widths {
         assert!(
             (w - ideal).abs() <= 0.25 * ideal,
-            "with detail the groove is {w} wide against the spread's {ideal}"
+            "with detail the groove is {w} wide against the chord {ideal}"
         );
     }
     for (f, c) in fine_widths.iter().zip(&coarse_widths) {
