@@ -30,8 +30,8 @@ use std::time::Instant;
 use criterion::{BenchmarkId, Criterion, Throughput};
 use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::mesh::{
-    AdaptiveMeshOptions, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch, adaptive_cell_count,
-    mesh_adaptive,
+    AdaptiveMeshOptions, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch,
+    adaptive_cell_count, mesh_adaptive,
 };
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
@@ -450,10 +450,7 @@ fn adaptive_remesh(c: &mut Criterion) {
         mesh_adaptive(&before, &options).unwrap(),
         mesh_adaptive(&after, &options).unwrap(),
     );
-    assert_ne!(
-        a.positions, b.positions,
-        "the stroke changed the mesh"
-    );
+    assert_ne!(a.positions, b.positions, "the stroke changed the mesh");
     println!(
         "three-level clay: {} patches, {leaves} leaves, {} triangles after the stroke",
         after.patches.len(),

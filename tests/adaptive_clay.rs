@@ -1,7 +1,8 @@
 //! Detail where the brush is fine and room where the clay goes, judged on what a run exports:
 //! a script's remove brush of 1/256 of the default clay's size, with no refine step, carves a
 //! groove whose width on `sculpt.obj` is within 25% of the brush's chord; a push of the arm
-//! with a spread of a quarter knot span refines under itself and presses a groove within 25%
+//! with a spread of a quarter knot span (automatic detail for force tools on) refines under
+//! itself and presses a groove within 25%
 //! of the chord of a ball of its spread swept along the tip's path (over twice as wide with
 //! automatic detail off); and an add stroke or a pull stroke
 //! of the simulated arm that leaves the starting box extends the exported clay past it,
@@ -97,7 +98,8 @@ fn a_brush_of_a_256th_of_the_clay_carves_a_groove_of_its_width_on_the_exported_m
 }
 
 /// Runs `script` in the lockstep engine as `dynaclay run --lockstep` does (the simulated arm
-/// on the script's path, no real-time priority), with automatic detail on or off, and writes
+/// on the script's path, no real-time priority), with automatic detail on (for force tools
+/// too, which the default leaves off) or off, and writes
 /// its outputs into `dir` as the run writes them; returns `sculpt.obj` read back and the
 /// automatic refines counted.
 fn run_with_detail(dir: &Path, script: &str, auto_detail: bool) -> (Exported, u64) {
@@ -109,6 +111,7 @@ fn run_with_detail(dir: &Path, script: &str, auto_detail: bool) -> (Exported, u6
     config.haptic_rt_priority = None;
     config.haptics.tool_contact = plan.tool_contact;
     config.sim.auto_detail = auto_detail;
+    config.sim.auto_detail_force = auto_detail;
     let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
     let mut run = Lockstep::new(
         &config,

@@ -7,7 +7,8 @@
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
-//! tool's vectors, their starts found again on the surface; the area's fine spread refines
+//! tool's vectors, their starts found again on the surface; with automatic detail for force
+//! tools on, the area's fine spread refines
 //! under itself during its stroke, a new layout the tick takes); through a carve with tool-shaped
 //! contact (the tool's point shell resting on the clay, the press measured); and through a
 //! pointer stroke fed at 2 Hz, whose path the pointer device interpolates on the haptic thread.
@@ -357,7 +358,9 @@ fn force_tool_strokes_tick_without_allocating() {
             gain,
         },
     ] {
-        let s = common::setup(common::PUSH_SCRIPT, vec![]);
+        let mut s = common::setup(common::PUSH_SCRIPT, vec![]);
+        // Force tools refine under themselves (off by default).
+        s.config.sim.auto_detail_force = true;
         let top_y_m = common::block_top_y_m(&s.config);
         // Down onto the top, take hold, drag up and sideways while held, let go.
         let path = vec![

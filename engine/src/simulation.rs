@@ -106,9 +106,16 @@ pub struct SimConfig {
     /// What a step that would remove more than half the clay does: applied and reported
     /// (scripts), or held until the user answers (the window).
     pub removal_guard: super::RemovalGuard,
-    /// Whether a geometric brush, or a force tool's spread, narrower than three knot spans of
-    /// the patch under it adds a detail patch under itself first (see `simulation/detail.rs`).
+    /// Whether a geometric brush narrower than three knot spans of the patch under it adds a
+    /// detail patch under itself first (see `simulation/detail.rs`).
     pub auto_detail: bool,
+    /// Whether a force tool's spread (the push's, a pull's...) narrower than three knot spans
+    /// also refines under itself before its region is set up (with `auto_detail` on). Off by
+    /// default: on a detail patch the dynamics do not yet keep the material's behaviour (an
+    /// elastic press springs back more slowly than its region lives, painted stiffness and
+    /// mass act weaker), and a chisel's or squirt's targets, planned along the whole stroke,
+    /// outrun the one patch its region lies on.
+    pub auto_detail_force: bool,
 }
 
 impl Default for SimConfig {
@@ -124,6 +131,7 @@ impl Default for SimConfig {
             geometric_interval_us: 10_000,
             removal_guard: super::RemovalGuard::Warn,
             auto_detail: true,
+            auto_detail_force: false,
         }
     }
 }

@@ -1,10 +1,11 @@
 //! Detail where the brush is fine: before a geometric tool is applied on the base (a script's
 //! or a command's tool step, or the held tool's application in a stroke), a brush narrower than
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
-//! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. A held
-//! force tool (the push, a pull, a grab of an area...) follows the same rule with twice its
-//! spread radius as its width: the patch is added before the step's region is set up, so the
-//! region is simulated on it and the forces spread over its mass points. The new
+//! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. With
+//! [`SimConfig::auto_detail_force`] on (off by default, see there), a held force tool (the
+//! push, a pull, a grab of an area...) follows the same rule with twice its spread radius as
+//! its width: the patch is added before the step's region is set up, so the region is
+//! simulated on it and the forces spread over its mass points. The new
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
 //! copy in wait-free, between ticks).
 //!
@@ -170,6 +171,9 @@ impl SimulationStage {
     /// stroke holds: a pull drawn out keeps its patch while it reaches both ends. A released
     /// stroke that settles keeps the patch it has.
     pub(super) fn refine_under_force_tool(&mut self, sample: &ToolSample) {
+        if !self.config.auto_detail_force {
+            return;
+        }
         let (radius_fu, ends) = match self.tool.choice() {
             ToolChoice::Push(push) if sample.in_contact => {
                 (push.radius_fu, [sample.force_from_fu, sample.force_to_fu])
@@ -619,6 +623,7 @@ mod tests {
     #[test]
     fn a_fine_pull_refines_under_itself_before_its_region_is_set_up() {
         let mut s = super::super::tests::stages_on_sphere(12);
+        s.sim.config.auto_detail_force = true;
         let top = super::super::tests::sphere_top(&s);
         // A spread of a fifth of the base's knot span (0.1): level 3.
         let radius_fu = 0.02;
@@ -663,9 +668,9 @@ mod tests {
                 .any(|&c| c != 0.0),
             "the pull moved the detail patch"
         );
-        // With automatic detail off, the same pull stays on the base.
+        // With automatic detail for force tools off (the default), the same pull stays on the
+        // base.
         let mut off = super::super::tests::stages_on_sphere(12);
-        off.sim.config.auto_detail = false;
         off.commands
             .send(Command::SetTool(s.sim.tool().clone()))
             .unwrap();
