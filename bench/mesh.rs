@@ -403,7 +403,7 @@ fn local_remesh(c: &mut Criterion) {
 /// A clay of three levels: the sphere of [`sphere_lattice`] (24³, radius 8 spans) with nested
 /// detail patches of levels 1, 2 and 3 around its +x pole, each holding a bump as wide as
 /// two of its own knot spans (so the multi-level mesher meshes each at its own spacing
-/// there); and the finest patch's coefficient on the surface at the pole, dented by a stroke
+/// there); and the finest patch's coefficients on the surface at the pole, dented by a stroke
 /// as fine as that patch. Returns the clay before and after the stroke.
 fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
     let base = sphere_lattice(24, 8.0);
@@ -423,7 +423,7 @@ fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
             for j in 0..ny {
                 for i in 0..nx {
                     let x = lattice.node_position(i, j, k);
-                    let bump = 0.08 * (-(x - pole).length_squared() / (width * width)).exp();
+                    let bump = 0.01 * (-(x - pole).length_squared() / (width * width)).exp();
                     let idx = lattice.index(i, j, k);
                     lattice.coeffs[idx] = bump;
                 }
@@ -434,8 +434,12 @@ fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
     let mut after = field;
     let lattice = &mut after.patches[finest].lattice;
     let node = ((pole - lattice.origin) / lattice.spacing).round();
-    let idx = lattice.index(node.x as usize, node.y as usize, node.z as usize);
-    lattice.coeffs[idx] -= 0.2;
+    // The bumps move the surface out by about a fifth of a base span at the pole: three
+    // nodes along +x from the pole hold it.
+    for step in 0..3 {
+        let idx = lattice.index(node.x as usize + step, node.y as usize, node.z as usize);
+        lattice.coeffs[idx] -= 0.05;
+    }
     (before, after)
 }
 
