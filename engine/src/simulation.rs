@@ -492,7 +492,8 @@ impl SimulationStage {
             }
         }
 
-        // A force tool finer than the base refines under itself before its region is set up.
+        // A force tool finer than the base refines under itself before its region is set up
+        // (when automatic detail for force tools is on).
         self.refine_under_force_tool(sample);
         // The patch that would hold this step's region: its mass points set the step.
         let sculpted = self.sculpted_patch_at(sample.tip_fu);

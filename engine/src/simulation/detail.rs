@@ -161,7 +161,8 @@ impl SimulationStage {
     }
 
     /// Before a step of a held force tool (the push, or a grab, pull, area, curve, chisel,
-    /// squirt or bend stroke) sets up its region: a tool whose spread is narrower than
+    /// squirt or bend stroke) sets up its region, with [`SimConfig::auto_detail_force`] on: a
+    /// tool whose spread is narrower than
     /// [`BRUSH_WIDTH_SPANS`] knot spans of the base gets a detail patch under itself first, by
     /// the rule a geometric brush follows, so the region is set up on that patch
     /// ([`SimulationStage::sculpted_patch_at`] picks the finest patch there) and this step's
