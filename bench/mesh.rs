@@ -1,7 +1,8 @@
 //! Meshing benchmarks: full extraction against the `isosurface` crate's marching cubes on the
 //! same samples (its 0.0.4 release, with and without normals, and the 0.1.0 alpha), and
 //! `fast-surface-nets` (a different algorithm, for reference), a local re-mesh of a tool-sized
-//! box, and the resident memory of building a sphere at 512³ (measured in a child process).
+//! box, a re-mesh by the multi-level mesher after a stroke-sized change on a three-level clay,
+//! and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
 //! (`threads_(sphere|gyroid)_256` compares one thread with two in the same run).
@@ -27,8 +28,11 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
-use dynaclay::field::BSplineLattice;
-use dynaclay::mesh::{BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch};
+use dynaclay::field::{BSplineLattice, MultiPatchField};
+use dynaclay::mesh::{
+    AdaptiveMeshOptions, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch,
+    adaptive_cell_count, mesh_adaptive,
+};
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
 use glam::Vec3;
@@ -396,6 +400,80 @@ fn local_remesh(c: &mut Criterion) {
     );
 }
 
+/// A clay of three levels: the sphere of [`sphere_lattice`] (24³, radius 8 spans) with nested
+/// detail patches of levels 1, 2 and 3 around its +x pole, each holding a bump as wide as
+/// two of its own knot spans (so the multi-level mesher meshes each at its own spacing
+/// there); and the finest patch's coefficients on the surface at the pole, dented by a stroke
+/// as fine as that patch. Returns the clay before and after the stroke.
+fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
+    let base = sphere_lattice(24, 8.0);
+    let centre = Vec3::splat(11.5);
+    let pole = centre + Vec3::X * 8.0;
+    let mut field = MultiPatchField::new(base);
+    let mut finest = 0;
+    for level in 1..=3_u32 {
+        let spacing = 1.0 / (1 << level) as f32;
+        // Each patch 6 base spans across at level 1, halving per level.
+        let half = Vec3::splat(3.0 / (1 << (level - 1)) as f32);
+        finest = field.refine(pole - half, pole + half, level).unwrap();
+        let lattice = &mut field.patches[finest].lattice;
+        let [nx, ny, nz] = lattice.dims;
+        let width = 2.0 * spacing;
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let x = lattice.node_position(i, j, k);
+                    let bump = 0.01 * (-(x - pole).length_squared() / (width * width)).exp();
+                    let idx = lattice.index(i, j, k);
+                    lattice.coeffs[idx] = bump;
+                }
+            }
+        }
+    }
+    let before = field.clone();
+    let mut after = field;
+    let lattice = &mut after.patches[finest].lattice;
+    let node = ((pole - lattice.origin) / lattice.spacing).round();
+    // The bumps move the surface out by about a fifth of a base span at the pole: three
+    // nodes along +x from the pole hold it.
+    for step in 0..3 {
+        let idx = lattice.index(node.x as usize + step, node.y as usize, node.z as usize);
+        lattice.coeffs[idx] -= 0.05;
+    }
+    (before, after)
+}
+
+/// The multi-level mesher after one stroke-sized change on a three-level clay: it meshes the
+/// whole clay again (the change box is a few cells of the finest level; everything else is
+/// the same as before).
+fn adaptive_remesh(c: &mut Criterion) {
+    let (before, after) = three_level_clay();
+    let options = AdaptiveMeshOptions::default();
+    let leaves = adaptive_cell_count(&after, &options).unwrap();
+    let (a, b) = (
+        mesh_adaptive(&before, &options).unwrap(),
+        mesh_adaptive(&after, &options).unwrap(),
+    );
+    assert_ne!(a.positions, b.positions, "the stroke changed the mesh");
+    println!(
+        "three-level clay: {} patches, {leaves} leaves, {} triangles after the stroke",
+        after.patches.len(),
+        b.triangles.len()
+    );
+    let mut group = c.benchmark_group("adaptive_remesh_three_levels");
+    group.sample_size(20);
+    let mut flip = false;
+    group.bench_function("dynaclay/whole_clay_after_stroke", |bench| {
+        bench.iter(|| {
+            // Alternate the stroke and its undo, as an edit and a re-mesh would.
+            flip = !flip;
+            let field = if flip { &after } else { &before };
+            black_box(mesh_adaptive(field, &options).unwrap())
+        })
+    });
+    group.finish();
+}
+
 /// Peak resident memory of this process so far (`VmHWM`), in bytes (Linux).
 fn peak_rss_bytes() -> usize {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
@@ -482,6 +560,7 @@ fn main() {
     memory_at_512();
     let mut c = Criterion::default().configure_from_args();
     local_remesh(&mut c);
+    adaptive_remesh(&mut c);
     full_extraction(&mut c);
     threads(&mut c);
     c.final_summary();

@@ -1,8 +1,12 @@
 //! Detail where the brush is fine and room where the clay goes, judged on what a run exports:
 //! a script's remove brush of 1/256 of the default clay's size, with no refine step, carves a
-//! groove whose width on `sculpt.obj` is within 25% of the brush's chord; and an add stroke
-//! or a pull stroke of the simulated arm that leaves the starting box extends the exported clay
-//! past it, rounded (no flat face where the box was).
+//! groove whose width on `sculpt.obj` is within 25% of the brush's chord; a push of the arm
+//! with a spread of a quarter knot span (automatic detail for force tools on) refines under
+//! itself and presses a groove within 25%
+//! of the chord of a ball of its spread swept along the tip's path (over twice as wide with
+//! automatic detail off); and an add stroke or a pull stroke
+//! of the simulated arm that leaves the starting box extends the exported clay past it,
+//! rounded (no flat face where the box was).
 
 use std::path::Path;
 use std::process::Command;
@@ -14,6 +18,13 @@ use glam::Vec3;
 mod exported_mesh;
 
 use exported_mesh::{Exported, read_obj};
+
+use dynaclay::dynamics::Material;
+use dynaclay::engine::{
+    EngineConfig, HeadlessSink, Lockstep, ScriptDriver, ScriptPlan, build_clay,
+};
+use dynaclay::io::parse_script;
+use dynaclay_devices::{SimArmConfig, SimulatedArm};
 
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
 
@@ -84,6 +95,120 @@ fn a_brush_of_a_256th_of_the_clay_carves_a_groove_of_its_width_on_the_exported_m
         (groove - chord).abs() <= 0.25 * chord,
         "groove {groove} against the brush's chord {chord}"
     );
+}
+
+/// Runs `script` in the lockstep engine as `dynaclay run --lockstep` does (the simulated arm
+/// on the script's path, no real-time priority), with automatic detail on (for force tools
+/// too, which the default leaves off) or off, and writes
+/// its outputs into `dir` as the run writes them; returns `sculpt.obj` read back and the
+/// automatic refines counted.
+fn run_with_detail(dir: &Path, script: &str, auto_detail: bool) -> (Exported, u64) {
+    let script = parse_script(script, "push.toml").unwrap();
+    let plan = ScriptPlan::new(&script, "push.toml", dir, &[], Material::PLASTIC).unwrap();
+    let field = build_clay(&plan.clay).unwrap();
+    let arm_config = SimArmConfig::default();
+    let mut config = EngineConfig::for_field(&field, &arm_config.info);
+    config.haptic_rt_priority = None;
+    config.haptics.tool_contact = plan.tool_contact;
+    config.sim.auto_detail = auto_detail;
+    config.sim.auto_detail_force = auto_detail;
+    let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
+    let mut run = Lockstep::new(
+        &config,
+        field,
+        Box::new(arm),
+        Box::new(HeadlessSink::default()),
+        64,
+    )
+    .unwrap();
+    let mut driver = ScriptDriver::new(&plan);
+    let commands = run.commands();
+    for _ in 0..(plan.seconds * 1000.0) as usize {
+        let sample = run.latest_tool();
+        driver.dispatch(&sample, &commands);
+        run.step();
+    }
+    assert!(driver.is_done());
+    let refines = run.counters().snapshot().auto_refines;
+    let report = run.finish().unwrap();
+    let extras = dynaclay::cli::ExtraOutputs {
+        ply: false,
+        stl: false,
+        png: None,
+    };
+    dynaclay::cli::write_lockstep_outputs(dir, &report, &config, &extras).unwrap();
+    (read_obj(&dir.join("sculpt.obj")), refines)
+}
+
+/// The width across z of the groove in `mesh` at height `y` over `(x, MID)`: between the
+/// nearest crossings either side.
+fn groove_width(mesh: &Exported, x: f32, y: f32) -> f32 {
+    let hits = mesh.crossings(Vec3::new(x, y, MID), Vec3::Z);
+    let right = hits
+        .iter()
+        .copied()
+        .filter(|&t| t > 0.0)
+        .fold(f32::INFINITY, f32::min);
+    let left = hits
+        .iter()
+        .copied()
+        .filter(|&t| t < 0.0)
+        .fold(f32::NEG_INFINITY, f32::max);
+    right - left
+}
+
+#[test]
+fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
+    // A push whose constant spread (a capsule of radius 0.025 around its vector, from the
+    // surface above the tip down to the tip) is a quarter of the base's knot span, drawn along
+    // x at 0.03 below the top. A surface point is driven down toward the tip's depth while it
+    // lies within the spread of the vector; once the bottom has reached the tip the vector
+    // has shrunk to the tip, and what the spread still reaches is the ball of its radius
+    // around the tip: at rest the groove is the one that ball swept along the tip's path
+    // carves. Its cross section half way down is the ball's chord there.
+    let (radius, depth) = (0.025_f32, 0.03_f32);
+    let script = format!(
+        "version = 1\nseconds = 2.5\n[[step]]\ndo = \"stroke\"\n\
+         tool = {{ kind = \"push\", beta = \"constant\", radius_fu = {radius}, gain = 2e6 }}\n\
+         path = [[{}, {y}, {MID}], [{}, {y}, {MID}]]\nstart_s = 0.1\nduration_s = 1.2\n\
+         hover_fu = 0.1\n",
+        MID - 0.1,
+        MID + 0.1,
+        y = TOP_Y - depth,
+    );
+    let half_depth = 0.5 * depth;
+    let ideal = 2.0 * (radius * radius - half_depth * half_depth).sqrt();
+    let (fine, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, true);
+    let (coarse, none) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, false);
+    // Half way down, over the stroke's middle stretch.
+    let y = TOP_Y - half_depth;
+    let widths = |mesh: &Exported| -> Vec<f32> {
+        [-0.04, 0.0, 0.04]
+            .iter()
+            .map(|dx| groove_width(mesh, MID + dx, y))
+            .collect()
+    };
+    let (fine_widths, coarse_widths) = (widths(&fine), widths(&coarse));
+    eprintln!(
+        "push of spread {radius}: groove {fine_widths:.4?} with detail ({refines} refines, \
+         {} triangles), {coarse_widths:.4?} on the base alone ({} triangles); chord {ideal:.4}",
+        fine.triangles.len(),
+        coarse.triangles.len()
+    );
+    assert!(refines >= 1, "the push refined under itself");
+    assert_eq!(none, 0, "automatic detail off adds no patch");
+    for w in &fine_widths {
+        assert!(
+            (w - ideal).abs() <= 0.25 * ideal,
+            "with detail the groove is {w} wide against the chord {ideal}"
+        );
+    }
+    for (f, c) in fine_widths.iter().zip(&coarse_widths) {
+        assert!(
+            !c.is_finite() || *c > 2.0 * f,
+            "on the base alone the groove is {c} wide, not much wider than {f}"
+        );
+    }
 }
 
 #[test]

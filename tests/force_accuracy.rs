@@ -15,8 +15,10 @@
 
 use dynaclay::app::{ForceMode, ForceSettings};
 use dynaclay::engine::{Command, ScriptDriver, ToolChoice, ToolSample};
-use dynaclay::field::BSplineLattice;
-use dynaclay::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
+use dynaclay::field::MultiPatchField;
+use dynaclay::mesh::{
+    AdaptiveMeshOptions, BrickOctree, MeshFormat, SampleGrid, mesh_adaptive, write_mesh,
+};
 use glam::Vec3;
 
 #[path = "support/lockstep.rs"]
@@ -37,12 +39,24 @@ struct Mesh {
     f: Vec<[usize; 3]>,
 }
 
-/// Writes `field`'s mesh as OBJ and reads it back.
-fn exported(field: &BSplineLattice, dir: &std::path::Path, name: &str) -> Mesh {
-    let mut octree = BrickOctree::new(SampleGrid::for_lattice(field, 4).unwrap());
-    octree.rebuild(field);
+/// Writes `field`'s welded mesh as OBJ into `dir` and reads it back: a clay of one patch meshed
+/// at four cells per knot span, one with detail patches by the multi-level mesher at four cells
+/// per span of each level (a fine force tool refines under itself).
+fn exported(field: &MultiPatchField, dir: &std::path::Path, name: &str) -> Mesh {
+    let mesh = if field.patches.len() == 1 {
+        let base = field.base();
+        let mut octree = BrickOctree::new(SampleGrid::for_lattice(base, 4).unwrap());
+        octree.rebuild(base);
+        octree.weld()
+    } else {
+        let options = AdaptiveMeshOptions {
+            cells_per_span: 4,
+            ..AdaptiveMeshOptions::default()
+        };
+        mesh_adaptive(field, &options).unwrap()
+    };
     let path = dir.join(name);
-    write_mesh(&path, &octree.weld(), MeshFormat::Obj).unwrap();
+    write_mesh(&path, &mesh, MeshFormat::Obj).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let (mut v, mut f) = (Vec::new(), Vec::new());
     for line in text.lines() {
@@ -101,7 +115,7 @@ struct Outcome {
 fn run(text: &str, tool: Option<ToolChoice>) -> Outcome {
     let dir = tempfile::tempdir().unwrap();
     let lockstep::Scripted { plan, mut run, .. } = lockstep::scripted(text, "stroke", dir.path());
-    let start = run.field().clone();
+    let start = run.density().clone();
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
     let mut tool = tool;
@@ -117,7 +131,7 @@ fn run(text: &str, tool: Option<ToolChoice>) -> Outcome {
         run.step();
         if std::env::var("TRACE").is_ok() && samples.len() % 50 == 0 {
             let h = dynaclay::dynamics::surface_point_on_ray(
-                run.field(),
+                run.density(),
                 Vec3::new(1.15, 1.0, Z),
                 Vec3::Y,
                 1.5,
@@ -133,9 +147,7 @@ fn run(text: &str, tool: Option<ToolChoice>) -> Outcome {
         }
     }
     assert!(driver.is_done());
-    let end = run.finish().unwrap().session.clay.density.patches[0]
-        .lattice
-        .clone();
+    let end = run.finish().unwrap().session.clay.density;
     Outcome {
         before: exported(&start, dir.path(), "before.obj"),
         after: exported(&end, dir.path(), "after.obj"),

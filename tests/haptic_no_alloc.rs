@@ -7,7 +7,9 @@
 //! while ticking (the ticks go on until the
 //! switching thread is done, however late the machine runs it); and through strokes of
 //! the force tools, whose reaction the tick integrates (the stroke geometry copied in, the
-//! tool's vectors, their starts found again on the surface); through a carve with tool-shaped
+//! tool's vectors, their starts found again on the surface; with automatic detail for force
+//! tools on, the area's fine spread refines
+//! under itself during its stroke, a new layout the tick takes); through a carve with tool-shaped
 //! contact (the tool's point shell resting on the clay, the press measured); and through a
 //! pointer stroke fed at 2 Hz, whose path the pointer device interpolates on the haptic thread.
 
@@ -356,7 +358,9 @@ fn force_tool_strokes_tick_without_allocating() {
             gain,
         },
     ] {
-        let s = common::setup(common::PUSH_SCRIPT, vec![]);
+        let mut s = common::setup(common::PUSH_SCRIPT, vec![]);
+        // Force tools refine under themselves (off by default).
+        s.config.sim.auto_detail_force = true;
         let top_y_m = common::block_top_y_m(&s.config);
         // Down onto the top, take hold, drag up and sideways while held, let go.
         let path = vec![
@@ -402,6 +406,24 @@ fn force_tool_strokes_tick_without_allocating() {
             "{}: the tool took hold ({holding})",
             tool.name()
         );
+        // A spread narrower than three knot spans of the base (the area's) refines under
+        // itself during the counted ticks: the tick takes the new layout.
+        let spacing = stages.sim.lattice().spacing;
+        let refines = stages.counters.snapshot().auto_refines;
+        let patches = stages.haptic.field().patches.len();
+        eprintln!(
+            "{}: {refines} automatic refines, {patches} patches in the tick",
+            tool.name()
+        );
+        if tool.radius_fu().is_some_and(|r| 2.0 * r < 3.0 * spacing) {
+            assert!(
+                refines >= 1 && patches > 1,
+                "{}: refined under itself ({refines}) and the tick took it ({patches} patches)",
+                tool.name()
+            );
+        } else {
+            assert_eq!((refines, patches), (0, 1), "{}", tool.name());
+        }
         assert_eq!(
             allocs_in_tick(),
             before,

@@ -6,8 +6,10 @@
 use std::path::Path;
 
 use dynaclay::engine::ScriptDriver;
-use dynaclay::field::BSplineLattice;
-use dynaclay::mesh::{BrickOctree, MeshFormat, SampleGrid, write_mesh};
+use dynaclay::field::MultiPatchField;
+use dynaclay::mesh::{
+    AdaptiveMeshOptions, BrickOctree, MeshFormat, SampleGrid, mesh_adaptive, write_mesh,
+};
 use glam::Vec3;
 
 #[path = "support/lockstep.rs"]
@@ -24,12 +26,24 @@ struct Mesh {
     triangles: Vec<[usize; 3]>,
 }
 
-/// Writes `field`'s welded mesh as OBJ into `dir` and reads it back.
-fn exported(field: &BSplineLattice, dir: &Path, name: &str) -> Mesh {
-    let mut octree = BrickOctree::new(SampleGrid::for_lattice(field, 4).unwrap());
-    octree.rebuild(field);
+/// Writes `field`'s welded mesh as OBJ into `dir` and reads it back: a clay of one patch meshed
+/// at four cells per knot span, one with detail patches by the multi-level mesher at four cells
+/// per span of each level (a fine force tool refines under itself).
+fn exported(field: &MultiPatchField, dir: &Path, name: &str) -> Mesh {
+    let mesh = if field.patches.len() == 1 {
+        let base = field.base();
+        let mut octree = BrickOctree::new(SampleGrid::for_lattice(base, 4).unwrap());
+        octree.rebuild(base);
+        octree.weld()
+    } else {
+        let options = AdaptiveMeshOptions {
+            cells_per_span: 4,
+            ..AdaptiveMeshOptions::default()
+        };
+        mesh_adaptive(field, &options).unwrap()
+    };
     let path = dir.join(name);
-    write_mesh(&path, &octree.weld(), MeshFormat::Obj).unwrap();
+    write_mesh(&path, &mesh, MeshFormat::Obj).unwrap();
     let text = std::fs::read_to_string(&path).unwrap();
     let mut mesh = Mesh {
         vertices: Vec::new(),
@@ -80,11 +94,11 @@ fn run_in(
     dir: &Path,
     script: &str,
     at_ticks: &[u64],
-) -> (BSplineLattice, Vec<BSplineLattice>, u64) {
+) -> (MultiPatchField, Vec<MultiPatchField>, u64) {
     let Scripted { plan, mut run, .. } = scripted(script, "material.toml", dir);
     let mut driver = ScriptDriver::new(&plan);
     let commands = run.commands();
-    let start = run.field().clone();
+    let start = run.density().clone();
     let mut taken = Vec::new();
     let ticks = (plan.seconds * 1000.0) as u64;
     for tick in 0..ticks {
@@ -92,17 +106,22 @@ fn run_in(
         driver.dispatch(&sample, &commands);
         run.step();
         if at_ticks.contains(&tick) {
-            taken.push(run.field().clone());
+            taken.push(run.density().clone());
         }
     }
     assert_eq!(taken.len(), at_ticks.len(), "ticks beyond the script's end");
-    assert!(run.field().coeffs.iter().all(|c| c.is_finite()));
+    assert!(
+        run.density()
+            .patches
+            .iter()
+            .all(|p| p.lattice.coeffs.iter().all(|c| c.is_finite()))
+    );
     let refused = run.counters().snapshot().sim_nonfinite_rejected;
     (start, taken, refused)
 }
 
 /// [`run_in`] in a fresh temporary folder.
-fn run(script: &str, at_ticks: &[u64]) -> (BSplineLattice, Vec<BSplineLattice>, u64) {
+fn run(script: &str, at_ticks: &[u64]) -> (MultiPatchField, Vec<MultiPatchField>, u64) {
     run_in(tempfile::tempdir().unwrap().path(), script, at_ticks)
 }
 
@@ -408,7 +427,12 @@ fn a_uniform_painted_material_gives_the_same_bits_as_none() {
     );
     let (start, none, _) = run(&two_presses(all, "", ""), &[2699]);
     let (_, painted, _) = run(&two_presses(all, &uniform, ""), &[2699]);
-    let bits = |l: &BSplineLattice| l.coeffs.iter().map(|c| c.to_bits()).collect::<Vec<_>>();
+    let bits = |f: &MultiPatchField| {
+        f.patches
+            .iter()
+            .flat_map(|p| p.lattice.coeffs.iter().map(|c| c.to_bits()))
+            .collect::<Vec<_>>()
+    };
     assert_eq!(bits(&none[0]), bits(&painted[0]));
     // And the presses did change the clay.
     assert_ne!(bits(&start), bits(&none[0]));

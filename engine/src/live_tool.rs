@@ -210,6 +210,13 @@ impl LiveTool {
         self.len = 0;
     }
 
+    /// Where the held force stroke took hold of the clay (`None` before it has, and for the
+    /// push and geometric tools).
+    #[must_use]
+    pub fn grab_point(&self) -> Option<Vec3> {
+        self.grab
+    }
+
     /// This step's force vectors, as computed by [`LiveTool::update_forces`].
     #[must_use]
     pub fn forces(&self) -> &[ToolForce] {

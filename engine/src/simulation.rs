@@ -109,6 +109,13 @@ pub struct SimConfig {
     /// Whether a geometric brush narrower than three knot spans of the patch under it adds a
     /// detail patch under itself first (see `simulation/detail.rs`).
     pub auto_detail: bool,
+    /// Whether a force tool's spread (the push's, a pull's...) narrower than three knot spans
+    /// also refines under itself before its region is set up (with `auto_detail` on). Off by
+    /// default: on a detail patch the dynamics do not yet keep the material's behaviour (an
+    /// elastic press springs back more slowly than its region lives, painted stiffness and
+    /// mass act weaker), and a chisel's or squirt's targets, planned along the whole stroke,
+    /// outrun the one patch its region lies on.
+    pub auto_detail_force: bool,
 }
 
 impl Default for SimConfig {
@@ -124,6 +131,7 @@ impl Default for SimConfig {
             geometric_interval_us: 10_000,
             removal_guard: super::RemovalGuard::Warn,
             auto_detail: true,
+            auto_detail_force: false,
         }
     }
 }
@@ -484,6 +492,9 @@ impl SimulationStage {
             }
         }
 
+        // A force tool finer than the base refines under itself before its region is set up
+        // (when automatic detail for force tools is on).
+        self.refine_under_force_tool(sample);
         // The patch that would hold this step's region: its mass points set the step.
         let sculpted = self.sculpted_patch_at(sample.tip_fu);
         let spacing = self.clay.density.patches[sculpted].lattice.spacing;

@@ -1,7 +1,11 @@
 //! Detail where the brush is fine: before a geometric tool is applied on the base (a script's
 //! or a command's tool step, or the held tool's application in a stroke), a brush narrower than
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
-//! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. The new
+//! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. With
+//! [`SimConfig::auto_detail_force`] on (off by default, see there), a held force tool (the
+//! push, a pull, a grab of an area...) follows the same rule with twice its spread radius as
+//! its width: the patch is added before the step's region is set up, so the region is
+//! simulated on it and the forces spread over its mass points. The new
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
 //! copy in wait-free, between ticks).
 //!
@@ -125,13 +129,11 @@ impl SimulationStage {
         tool: &GeometricTool,
         poses: &[ToolPose],
     ) -> Option<BrushDetail> {
-        let base_spacing = self.clay.base().spacing;
-        let width_fu = brush_width_fu(tool);
-        let level = level_for_brush(width_fu, base_spacing);
-        if !self.config.auto_detail || tool.action.paints() || level == 0 {
+        if tool.action.paints() {
             return None;
         }
-        let spacing_fu = base_spacing / (1_u32 << level) as f32;
+        let width_fu = brush_width_fu(tool);
+        let (level, spacing_fu) = self.detail_level(width_fu)?;
         // What the applications read and write on a patch of that spacing: the shape turned
         // by each pose, with its band (an elongated brush reaches far past its width).
         let (lo, hi) = poses
@@ -145,6 +147,63 @@ impl SimulationStage {
             lo,
             hi,
         })
+    }
+
+    /// The detail level a brush of width `width_fu` needs and that level's knot spacing, or
+    /// `None` when the base resolves it or automatic detail is off.
+    fn detail_level(&self, width_fu: f32) -> Option<(u32, f32)> {
+        let base_spacing = self.clay.base().spacing;
+        let level = level_for_brush(width_fu, base_spacing);
+        if !self.config.auto_detail || level == 0 {
+            return None;
+        }
+        Some((level, base_spacing / (1_u32 << level) as f32))
+    }
+
+    /// Before a step of a held force tool (the push, or a grab, pull, area, curve, chisel,
+    /// squirt or bend stroke) sets up its region, with [`SimConfig::auto_detail_force`] on: a
+    /// tool whose spread is narrower than
+    /// [`BRUSH_WIDTH_SPANS`] knot spans of the base gets a detail patch under itself first, by
+    /// the rule a geometric brush follows, so the region is set up on that patch
+    /// ([`SimulationStage::sculpted_patch_at`] picks the finest patch there) and this step's
+    /// forces are spread over its mass points. The width is twice the tool's spread radius
+    /// (the point grab has none and never refines). Under the tool means around the push's
+    /// vector (the surface above the tip to the tip), or around the cursor and the point the
+    /// stroke holds: a pull drawn out keeps its patch while it reaches both ends. A released
+    /// stroke that settles keeps the patch it has.
+    pub(super) fn refine_under_force_tool(&mut self, sample: &ToolSample) {
+        if !self.config.auto_detail_force {
+            return;
+        }
+        let (radius_fu, ends) = match self.tool.choice() {
+            ToolChoice::Push(push) if sample.in_contact => {
+                (push.radius_fu, [sample.force_from_fu, sample.force_to_fu])
+            }
+            ToolChoice::Force { tool, .. } if sample.stroke_active => {
+                let Some(radius_fu) = tool.radius_fu() else {
+                    return;
+                };
+                let held = self.tool.grab_point().unwrap_or(sample.tip_fu);
+                (radius_fu, [sample.tip_fu, held])
+            }
+            _ => return,
+        };
+        if !ends.iter().all(|e| e.is_finite()) {
+            return;
+        }
+        let width_fu = 2.0 * radius_fu;
+        let Some((level, spacing_fu)) = self.detail_level(width_fu) else {
+            return;
+        };
+        let reach = Vec3::splat(radius_fu);
+        let detail = BrushDetail {
+            level,
+            spacing_fu,
+            width_fu,
+            lo: ends[0].min(ends[1]) - reach,
+            hi: ends[0].max(ends[1]) + reach,
+        };
+        self.patch_for_detail(detail);
     }
 
     /// The patch that holds `detail`'s box at its spacing, added first when the clay has none.
@@ -560,6 +619,65 @@ mod tests {
             s.sim.clay.density.is_inside(below),
             "undo refilled the groove"
         );
+    }
+
+    #[test]
+    fn a_fine_pull_refines_under_itself_before_its_region_is_set_up() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        s.sim.config.auto_detail_force = true;
+        let top = super::super::tests::sphere_top(&s);
+        // A spread of a fifth of the base's knot span (0.1): level 3.
+        let radius_fu = 0.02;
+        s.commands
+            .send(Command::SetTool(ToolChoice::Force {
+                tool: dynaclay_core::tools::ForceTool::Pull {
+                    distribution: dynaclay_core::dynamics::Distribution::Gaussian,
+                    radius_fu,
+                    gain: 2.0e6,
+                },
+                curve: Vec::new(),
+                pivot: Vec3::ZERO,
+            }))
+            .unwrap();
+        // From the top straight up by a knot span over 0.2 s, held.
+        let up = |t: f32| top + Vec3::Y * (0.1 * t);
+        super::super::tests::drag_tip(&mut s, up, 200, 0);
+        let refines = s.counters.snapshot().auto_refines;
+        assert_eq!(refines, 1, "one patch under the pull");
+        let patch = &s.sim.clay.density.patches[1];
+        assert!(
+            (patch.lattice.spacing - 0.1 / 8.0).abs() < 1e-6,
+            "at the level its spread needs: {}",
+            patch.lattice.spacing
+        );
+        assert_eq!(s.sim.region_patch, 1, "the region is simulated on it");
+        assert_eq!(
+            s.haptic.field().patches.len(),
+            2,
+            "the haptic loop took the new layout"
+        );
+        // The pull drew the surface up above the old top, on the detail patch.
+        assert!(
+            s.sim.clay.density.is_inside(top + Vec3::Y * 0.01),
+            "the surface rose under the pull"
+        );
+        assert!(
+            s.sim.clay.density.patches[1]
+                .lattice
+                .coeffs
+                .iter()
+                .any(|&c| c != 0.0),
+            "the pull moved the detail patch"
+        );
+        // With automatic detail for force tools off (the default), the same pull stays on the
+        // base.
+        let mut off = super::super::tests::stages_on_sphere(12);
+        off.commands
+            .send(Command::SetTool(s.sim.tool().clone()))
+            .unwrap();
+        super::super::tests::drag_tip(&mut off, up, 200, 0);
+        assert_eq!(off.sim.clay.density.patches.len(), 1);
+        assert_eq!(off.counters.snapshot().auto_refines, 0);
     }
 
     #[test]
