@@ -474,6 +474,7 @@ impl HapticStage {
 mod tests {
     use std::time::Instant;
 
+    use super::STROKE_HELD_THROUGH_FAULTS;
     use dynaclay_devices::{Fault, FaultKind, SimArmConfig, SimulatedArm};
 
     use super::super::{EngineConfig, HeadlessSink, ScriptPlan, build, build_clay};
