@@ -15,9 +15,10 @@ use dynaclay::io::parse_script;
 use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
 use glam::Vec3;
 
-/// Ticks of a session, the tick whose read fails once (0.3 s into the stroke, which runs from
-/// 0.1 s to 1.1 s: the press is under way) and the tick from which the arm is gone (0.7 s, in
-/// the middle of the stroke).
+/// Ticks of a session, the tick whose read fails once (0.4 s: the hand leaves its hover at
+/// 0.1 s, has descended into the clay by 0.4 s and follows the path from there to 1.4 s, so
+/// the press is under way) and the tick from which the arm is gone (0.7 s, in the middle of
+/// the path).
 pub const TICKS: u64 = 1300;
 pub const FAULT_AT: u64 = 400;
 pub const DISCONNECT_AT: u64 = 700;
