@@ -715,6 +715,51 @@ fn the_haptic_path_of_both_drivers_allocates_nothing_faults_included() {
     assert_eq!(dhd.counters().read_faults, 1);
 }
 
+/// The lockstep read runs one servo frame through `hdScheduleSynchronous` on the haptic loop's
+/// own thread (the stand-in runs a synchronous callback on its caller's thread, as HD runs it
+/// while the caller waits), so the frame's work is counted here with the read's: neither
+/// allocates, on good ticks, on the faulted frame or on the ramp after it.
+#[test]
+fn the_lockstep_touch_read_and_its_servo_frame_allocate_nothing_faults_included() {
+    let s = Standin::new();
+    s.hd_motion([0.0; 3], [0.01, 0.0, 0.0]);
+    let mut touch = filtered(
+        OpenHapticsArm::new(OpenHapticsConfig {
+            library: LibrarySource::Path(s.path.clone()),
+            device_name: None,
+            servo: HdServo::Lockstep,
+        }),
+        0.01,
+    );
+    touch.open().unwrap();
+    // Warm up once (first-use paths of the test's own helpers), then count.
+    touch.read().unwrap();
+    touch.write_force(Vec3::X * 0.1).unwrap();
+    let frames_before = s.hd_calls().frames;
+    let ticks = 300u64;
+    let before = allocations();
+    for k in 0..ticks {
+        if k == 100 {
+            s.hd_u32("standin_hd_inject_fault\0", shd::HD_EXCEEDED_MAX_FORCE);
+        }
+        let _ = touch.read();
+        let _ = touch.write_force(Vec3::new(0.2, -0.1, 0.05));
+    }
+    let allocated = allocations() - before;
+    let calls = s.hd_calls();
+    assert_eq!(allocated, 0, "allocations on the lockstep read path");
+    // The reads counted above did run the frames, one each, with nothing scheduled.
+    assert_eq!(calls.frames - frames_before, ticks, "{calls:?}");
+    assert_eq!(calls.scheduled_callbacks, 0, "{calls:?}");
+    assert_eq!(calls.ticks, 0, "no servo tick besides the reads' frames");
+    assert_eq!(touch.counters().read_faults, 1);
+    assert_eq!(
+        touch.counters().soft_starts,
+        2,
+        "open's ramp and the fault's"
+    );
+}
+
 // ---------------------------------------------------------------------------------------
 // Missing libraries and the specs
 

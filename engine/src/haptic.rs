@@ -91,7 +91,16 @@ pub struct HapticStage {
     clock: EngineClock,
     /// What this loop has felt of the newest stroke's first change.
     felt: FeltChange,
+    /// Failed reads since the last good one: a stroke is held through at most
+    /// [`STROKE_HELD_THROUGH_FAULTS`] of them.
+    faults_in_a_row: u32,
 }
+
+/// Failed reads in a row through which a held stroke stays held (100 ms at 1 kHz). A read
+/// that fails says nothing of the buttons: a lost sample must not release the stroke and start
+/// another (a second undo step, the tool's grab and targets forgotten, the groove carved on
+/// differently than the unbroken stroke), while an arm that stays gone does end it.
+pub const STROKE_HELD_THROUGH_FAULTS: u32 = 100;
 
 impl HapticStage {
     /// Builds the stage around an opened device.
@@ -145,6 +154,7 @@ impl HapticStage {
             fetched: None,
             clock,
             felt: FeltChange::default(),
+            faults_in_a_row: 0,
         }
     }
 
@@ -247,11 +257,15 @@ impl HapticStage {
         let read = self.device.read();
         let read_ns = self.clock.now_ns();
         let state = match read {
-            Ok(s) => s,
+            Ok(s) => {
+                self.faults_in_a_row = 0;
+                s
+            }
             Err(_) => {
                 // The filter latched the fault and sent zero already.
                 self.counters.device_read_faults(1);
                 self.renderer.reset();
+                self.faults_in_a_row = self.faults_in_a_row.saturating_add(1);
                 return self.publish_idle(true);
             }
         };
@@ -398,6 +412,7 @@ impl HapticStage {
         std::mem::swap(&mut self.device, &mut new.device);
         std::mem::swap(&mut self.map, &mut new.map);
         std::mem::swap(&mut self.connected, &mut new.connected);
+        self.faults_in_a_row = 0;
         self.renderer.reset();
         // Re-apply the user's limit to the new filter at this tick.
         self.limit_seen = !self.force_limit.requested_bits();
@@ -419,9 +434,15 @@ impl HapticStage {
         }
     }
 
+    /// Publishes a tick with no contact and no force. A read fault holds a held stroke for
+    /// [`STROKE_HELD_THROUGH_FAULTS`] failed reads in a row (no contact meanwhile, so nothing
+    /// is pushed); idle without a device, the stroke ends.
     fn publish_idle(&mut self, device_fault: bool) -> HapticOutcome {
+        let held = device_fault
+            && self.last.stroke_active
+            && self.faults_in_a_row <= STROKE_HELD_THROUGH_FAULTS;
         let sample = ToolSample {
-            stroke_active: false,
+            stroke_active: held,
             in_contact: false,
             touching: false,
             device_force_n: Vec3::ZERO,
@@ -453,7 +474,8 @@ impl HapticStage {
 mod tests {
     use std::time::Instant;
 
-    use dynaclay_devices::{SimArmConfig, SimulatedArm};
+    use super::STROKE_HELD_THROUGH_FAULTS;
+    use dynaclay_devices::{Fault, FaultKind, SimArmConfig, SimulatedArm};
 
     use super::super::{EngineConfig, HeadlessSink, ScriptPlan, build, build_clay};
     use dynaclay_core::dynamics::Material;
@@ -537,5 +559,79 @@ hover_fu = 0.3
         stages.haptic.tick(Instant::now());
         assert_eq!(limit.applied_n(), device_max_n);
         assert_eq!(stages.haptic.device().max_force_n(), device_max_n);
+    }
+
+    /// A few failed reads mid-stroke hold the stroke (no contact, no force meanwhile); an arm
+    /// that stays silent ends it after [`STROKE_HELD_THROUGH_FAULTS`] failed reads.
+    #[test]
+    fn a_short_fault_holds_the_stroke_and_a_long_one_ends_it() {
+        let script = parse_script(PUSH, "test").unwrap();
+        let plan = ScriptPlan::new(
+            &script,
+            "test",
+            std::path::Path::new("."),
+            &[],
+            Material::PLASTIC,
+        )
+        .unwrap();
+        let field = build_clay(&plan.clay).unwrap();
+        // The stroke's button is held from 0.1 s to 1.4 s: 5 ms of silence at 0.6 s, and
+        // 300 ms from 0.9 s.
+        let arm = SimArmConfig {
+            faults: vec![
+                Fault::new(0.6, 0.005, FaultKind::Stall),
+                Fault::new(0.9, 0.3, FaultKind::Stall),
+            ],
+            ..SimArmConfig::default()
+        };
+        let mut config = EngineConfig::for_field(&field, &arm.info);
+        config.haptics.tool_contact = plan.tool_contact;
+        let trajectory = plan.trajectory(&config.map).unwrap();
+        let device = Box::new(SimulatedArm::new(arm, trajectory));
+        let mut stages = build(
+            &config,
+            field,
+            device,
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap();
+        // Per fault (in order): its faulted ticks, and how many of them held the stroke.
+        let mut faults: Vec<(u32, u32)> = Vec::new();
+        let mut was_fault = false;
+        let mut stroke_before_fault = Vec::new();
+        let mut last_stroke = false;
+        for _ in 0..1400 {
+            let out = stages.haptic.tick(Instant::now());
+            let s = out.sample;
+            if s.device_fault {
+                if !was_fault {
+                    faults.push((0, 0));
+                    stroke_before_fault.push(last_stroke);
+                }
+                let f = faults.last_mut().unwrap();
+                f.0 += 1;
+                f.1 += u32::from(s.stroke_active);
+                assert!(!s.in_contact, "no contact during a fault");
+                assert_eq!(s.device_force_n, glam::Vec3::ZERO, "zero during a fault");
+            }
+            was_fault = s.device_fault;
+            last_stroke = s.stroke_active;
+            stages.sim.apply_commands();
+            let sample = stages.samples.latest().value;
+            stages.sim.step(&sample);
+        }
+        assert_eq!(faults.len(), 2, "{faults:?}");
+        assert_eq!(stroke_before_fault, [true, true], "both came mid-stroke");
+        let (short, long) = (faults[0], faults[1]);
+        assert!(
+            short.0 >= 1 && short.1 == short.0,
+            "held through: {short:?}"
+        );
+        assert!(long.0 > STROKE_HELD_THROUGH_FAULTS + 1, "{long:?}");
+        assert_eq!(
+            long.1, STROKE_HELD_THROUGH_FAULTS,
+            "ended after the hold: {long:?}"
+        );
     }
 }

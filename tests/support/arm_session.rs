@@ -15,9 +15,10 @@ use dynaclay::io::parse_script;
 use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
 use glam::Vec3;
 
-/// Ticks of a session, the tick whose read fails once (0.3 s into the stroke, which runs from
-/// 0.1 s to 1.1 s: the press is under way) and the tick from which the arm is gone (0.7 s, in
-/// the middle of the stroke).
+/// Ticks of a session, the tick whose read fails once (0.4 s: the hand leaves its hover at
+/// 0.1 s, has descended into the clay by 0.4 s and follows the path from there to 1.4 s, so
+/// the press is under way) and the tick from which the arm is gone (0.7 s, in the middle of
+/// the path).
 pub const TICKS: u64 = 1300;
 pub const FAULT_AT: u64 = 400;
 pub const DISCONNECT_AT: u64 = 700;
@@ -222,3 +223,45 @@ pub fn check_session(name: &str, info: &DeviceInfo, s: &Session) {
         s.far_change
     );
 }
+
+/// Ticks after the failed read by which the soft start (100 ms: 100 ticks of the arm's 1 kHz
+/// clock) and the renderer's blend back in (20 ms) are over.
+// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
+#[allow(dead_code)]
+pub const RECOVERED_AFTER: u64 = 121;
+
+/// After the soft start that follows the failed read, the arm feels what the same session
+/// without that fault (`unbroken`) feels, tick by tick, up to the disconnect: one lost sample
+/// costs the press nothing once the ramp is over (the stroke is not ended and restarted, so
+/// the clay is carved on as without the fault).
+///
+/// The force before the fault is no reference: the fault comes as the descent ends, when the
+/// press is a passing peak (on the Touch 0.10 N 50 ms before, 0.043 N at the fault, and
+/// 0.025 N 120 ms later in a session with no fault at all), so only the unbroken session at
+/// the same tick says what the hand should feel.
+// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
+#[allow(dead_code)]
+pub fn check_return_after_fault(name: &str, s: &Session, unbroken: &Session) {
+    let window = (FAULT_AT + RECOVERED_AFTER) as usize..DISCONNECT_AT as usize;
+    let pressed = window
+        .clone()
+        .map(|t| unbroken.sent_per_tick[t].length())
+        .fold(0.0, f32::max);
+    assert!(
+        pressed > PRESSED_N,
+        "{name}: the unbroken session did not press after the ramp ({pressed} N at most)"
+    );
+    for t in window {
+        let (got, want) = (s.sent_per_tick[t], unbroken.sent_per_tick[t]);
+        assert!(
+            (got - want).length() <= RETURN_TOLERANCE * want.length() + 1e-4,
+            "{name}: tick {t}: {got} N after the fault's ramp, {want} N unbroken"
+        );
+    }
+}
+
+/// How far the force after the fault's ramp may stray from the unbroken session's, as a share
+/// of it (the failed read's tick pushes nothing, so the clay differs by one tick's push).
+// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
+#[allow(dead_code)]
+pub const RETURN_TOLERANCE: f32 = 0.05;
