@@ -76,8 +76,8 @@ use dynaclay_core::field::{
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
     ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
-    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
-    tool_volume_change,
+    ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
+    facing_surface, tool_volume_change,
 };
 
 /// Settings of the simulation stage.
@@ -200,6 +200,9 @@ pub struct SimulationStage {
     idle_steps: u32,
     stroke_armed: bool,
     was_active: bool,
+    /// The turn of a profiled brush for the held stroke: facing the clay where the stroke
+    /// began ([`dynaclay_core::tools::facing_surface`]); the hand's turn applies on top.
+    stroke_facing: Quat,
     scratch: RegionSnapshot,
     to_haptic: SnapshotWriter<FieldUpdate>,
     to_graphics: SnapshotWriter<FieldUpdate>,
@@ -324,6 +327,7 @@ impl SimulationStage {
             idle_steps: 0,
             stroke_armed: false,
             was_active: false,
+            stroke_facing: Quat::IDENTITY,
             scratch,
             to_haptic,
             to_graphics,
@@ -460,6 +464,12 @@ impl SimulationStage {
             self.tool.end_stroke();
             self.removal
                 .stroke_started(self.tool.choice(), &self.clay, sample.device_time_us);
+            self.stroke_facing = match self.tool.choice() {
+                ToolChoice::Geometric(tool) if matches!(tool.shape, ToolShape::Profiled { .. }) => {
+                    facing_surface(&self.clay.density, sample.tip_fu)
+                }
+                _ => Quat::IDENTITY,
+            };
         } else if !active && self.was_active {
             self.tool.release();
             self.removal.stroke_ended(self.config.removal_guard);
@@ -613,6 +623,12 @@ impl SimulationStage {
     fn apply_held_geometric_at(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
+        };
+        // A profiled brush faces the clay where the stroke began, turned by the hand from there.
+        let rotation = if matches!(tool.shape, ToolShape::Profiled { .. }) {
+            self.stroke_facing * rotation
+        } else {
+            rotation
         };
         let pose = ToolPose {
             position_fu: at,

@@ -190,6 +190,8 @@ pub struct SculptApp {
     /// Whether the held left drag sculpts (it began on the clay without Alt or Shift); a left
     /// drag that began off the clay, or with Alt, orbits.
     sculpt_drag: bool,
+    /// The lazy mouse of the pointer's strokes (off by default).
+    pub stroke_smoothing: super::stroke_smoothing::StrokeSmoothing,
     /// The 3D view's rectangle in the last frame, points.
     pub viewport_rect: Option<egui::Rect>,
     /// A pen's latest pressure, 0..1 (`None` for a mouse: full depth).
@@ -980,6 +982,15 @@ impl SculptApp {
                     .text("Strength"),
             )
             .changed();
+        ui.add(
+            egui::Slider::new(&mut self.stroke_smoothing.strength, 0.0..=1.0)
+                .text("Stroke smoothing"),
+        )
+        .on_hover_text(format!(
+            "Lazy mouse: the brush trails the pointer on a string up to {:.0} points long, \
+             so jitter shorter than the string never reaches the clay; 0 is off",
+            super::stroke_smoothing::MAX_STRING_PT
+        ));
         ui.horizontal_wrapped(|ui| {
             ui.label("Mirror");
             let before = self.symmetry;
@@ -1510,23 +1521,45 @@ impl SculptApp {
         let rect = response.rect;
         let over = pos.filter(|p| rect.contains(*p));
         let Some(p) = over.or(pos.filter(|_| self.sculpt_drag)) else {
+            self.stroke_smoothing.cancel();
             self.pointer.release();
             return;
         };
         let size = rect.size().max(egui::vec2(1.0, 1.0));
-        let ndc = glam::Vec2::new(
-            2.0 * (p.x - rect.min.x) / size.x - 1.0,
-            1.0 - 2.0 * (p.y - rect.min.y) / size.y,
-        );
+        let to_ndc = |p: glam::Vec2| {
+            glam::Vec2::new(
+                2.0 * (p.x - rect.min.x) / size.x - 1.0,
+                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+            )
+        };
+        let pointer_pt = glam::Vec2::new(p.x, p.y);
         let pressure = self
             .pen_pressure
             .filter(|_| self.sculpt_drag)
             .unwrap_or(1.0);
+        // The lazy mouse: a held stroke's brush trails the pointer on a string; when the
+        // stroke ends, the brush is drawn the rest of the way before it lifts.
+        let brush_pt = if self.sculpt_drag {
+            self.stroke_smoothing.follow(pointer_pt)
+        } else {
+            if let Some(tail) = self.stroke_smoothing.finish(pointer_pt) {
+                let field = &self.link.field().value;
+                self.pointer.aim(
+                    field,
+                    &self.camera,
+                    to_ndc(tail),
+                    size.x / size.y,
+                    true,
+                    self.pen_pressure.unwrap_or(1.0),
+                );
+            }
+            pointer_pt
+        };
         let field = &self.link.field().value;
         let pose = self.pointer.aim(
             field,
             &self.camera,
-            ndc,
+            to_ndc(brush_pt),
             size.x / size.y,
             self.sculpt_drag,
             pressure,
