@@ -2,8 +2,9 @@
 //! (radius 0.3, its centre drawn along the block's top) with the sharp, smooth and constant
 //! curves, measured across the groove on the exported mesh (meshed, welded, written as OBJ
 //! and read back) against each curve's analytic depth `R·c(|s|/R)` at a distance `s` from the
-//! path. The script runs through the lockstep engine, the brush facing the clay where its
-//! stroke begins (the block's top faces +y; the tool's own z is horizontal).
+//! path. The script runs through the lockstep engine, the brush facing the clay wherever it
+//! acts (the block's top faces +y; the tool's own z is horizontal). The path begins and ends
+//! just beyond the block's rounded edges, as a hand draws a groove across a face.
 
 use dynaclay::engine::ScriptDriver;
 use dynaclay::field::MultiPatchField;

@@ -17,6 +17,7 @@ mod latency;
 mod launch;
 mod library_panel;
 mod link;
+mod mask_panel;
 mod material_panel;
 mod meshes;
 mod new_clay;
@@ -50,6 +51,7 @@ pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
 pub use falloff_curve_panel::falloff_curve_ui;
+pub use mask_panel::{MASK_DAB_SPACING, MaskPanel};
 pub use file_dialog::{DIALOG_ENV, DialogBackend, FilePurpose, NativePick, PickState};
 pub use file_menu::{FileMenu, FileRequest};
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
@@ -90,6 +92,8 @@ pub use viewport::SceneView;
 mod file_tests;
 #[cfg(test)]
 mod gui_tests;
+#[cfg(test)]
+mod mask_tests;
 #[cfg(test)]
 mod reach_tests;
 #[cfg(test)]

@@ -144,6 +144,8 @@ pub struct SculptApp {
     pub material: Material,
     /// Painting material onto the clay with the brush.
     pub material_brush: MaterialBrush,
+    /// The Mask tool: painting, inverting and clearing the freeze mask.
+    pub mask: super::mask_panel::MaskPanel,
     pub device: DevicePanel,
     pub display: DisplaySettings,
     pub files: FilePaths,
@@ -677,6 +679,13 @@ impl SculptApp {
                         egui::CollapsingHeader::new("Pointer")
                             .default_open(true)
                             .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
+                        egui::CollapsingHeader::new("Mask")
+                            .default_open(true)
+                            .show(ui, |ui| {
+                                if let Some(command) = self.mask.ui(ui) {
+                                    self.send(command);
+                                }
+                            });
                         tool_changed |= self.sculpt_sections(ui);
                         egui::CollapsingHeader::new("Material")
                             .default_open(true)
@@ -1493,6 +1502,10 @@ impl SculptApp {
             self.pin_input(response, pos, pressed, down, modifiers);
             return;
         }
+        if self.mask.active {
+            self.mask_input(response, pos, pressed, down, modifiers);
+            return;
+        }
         if self.material_brush.active {
             self.material_paint_input(response, pos, pressed, down);
             return;
@@ -1588,6 +1601,32 @@ impl SculptApp {
         let rim = to_screen(pose.surface + right * radius);
         let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
         self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// With the Mask tool on, a left drag that starts on the clay paints the freeze mask along
+    /// its path with the brush's radius (Ctrl held: erases it) instead of sculpting; a press
+    /// beside the clay orbits.
+    fn mask_input(
+        &mut self,
+        response: &egui::Response,
+        pos: Option<egui::Pos2>,
+        pressed: bool,
+        down: bool,
+        modifiers: egui::Modifiers,
+    ) {
+        self.pointer.release();
+        let hit = self.clay_hit(response.rect, pos);
+        if let Some(at) = hit {
+            self.refine_at = Some(at);
+        }
+        let starts = pressed && response.hovered() && hit.is_some();
+        let held = down && (self.mask.painting() || starts);
+        let erase_held = modifiers.ctrl || modifiers.command;
+        let radius = self.brush_radius();
+        if let Some(edit) = self.mask.pointer(hit, held, radius, erase_held) {
+            self.send(EngineCommand::Mask(edit));
+        }
+        self.sculpt_drag = self.mask.painting();
     }
 
     /// With the material brush on, a left drag that starts on the clay paints material along

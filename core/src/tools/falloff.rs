@@ -257,8 +257,10 @@ impl FalloffCurve {
 
 /// The turn that makes a profiled brush face the clay at `at` (its local z along the clay's
 /// outward normal there, [`anchor_normal`]), so that its profile is carved into the surface
-/// whichever face the stroke is on; no turn where no normal is found. A stroke takes it once,
-/// where it begins, and keeps it. Bounded work (see [`anchor_normal`]).
+/// whichever face the stroke is on; no turn where no normal is found. A stroke takes it at
+/// each point where the brush acts, on the clay as it was when the stroke began: the brush
+/// follows the surface (a stroke begun over an edge still carves its profile into the face it
+/// runs along), and the groove it carves never turns it. Bounded work (see [`anchor_normal`]).
 #[must_use]
 pub fn facing_surface(field: &MultiPatchField, at: Vec3) -> Quat {
     let normal = if field.is_inside(at) {
