@@ -44,7 +44,7 @@ fn app_and_engine() -> (Harness<'static, SculptApp>, EngineEndpoint, Lockstep) {
         64,
     )
     .unwrap();
-    let (link, end) = engine_link();
+    let (link, mut end) = engine_link();
     let mut app = SculptApp::new(link);
     app.pointer = PointerTool::new(handle, config.map);
     let mut h = Harness::builder()
@@ -61,7 +61,7 @@ fn app_and_engine() -> (Harness<'static, SculptApp>, EngineEndpoint, Lockstep) {
 
 /// One frame: the app's commands go to the engine as the bridge sends them, the engine runs
 /// 20 steps, and the app sees the clay it left.
-fn frame(h: &mut Harness<'static, SculptApp>, end: &EngineEndpoint, engine: &mut Lockstep) {
+fn frame(h: &mut Harness<'static, SculptApp>, end: &mut EngineEndpoint, engine: &mut Lockstep) {
     h.step();
     let commands = engine.commands();
     for c in end.commands.try_iter() {
@@ -96,7 +96,7 @@ fn screen_of(h: &Harness<'static, SculptApp>, x: Vec3) -> egui::Pos2 {
 /// release and a few frames for the clay to settle.
 fn drag(
     h: &mut Harness<'static, SculptApp>,
-    end: &EngineEndpoint,
+    end: &mut EngineEndpoint,
     engine: &mut Lockstep,
     from: Vec3,
     to: Vec3,
@@ -137,7 +137,11 @@ fn engine_mask(engine: &Lockstep) -> FreezeMask {
 
 /// Paints the mask around `MASKED` with a brush of radius 0.3 through the Mask tool: a short
 /// drag on the clay, as a user masks a spot.
-fn mask_a_spot(h: &mut Harness<'static, SculptApp>, end: &EngineEndpoint, engine: &mut Lockstep) {
+fn mask_a_spot(
+    h: &mut Harness<'static, SculptApp>,
+    end: &mut EngineEndpoint,
+    engine: &mut Lockstep,
+) {
     h.state_mut().palette.radius_fu = 0.3;
     h.get_by_label("Paint mask with the brush").click();
     frame(h, end, engine);
@@ -157,9 +161,9 @@ fn mask_a_spot(h: &mut Harness<'static, SculptApp>, end: &EngineEndpoint, engine
 
 #[test]
 fn a_mask_painted_with_the_pointer_holds_the_clay_under_a_later_stroke() {
-    let (mut h, end, mut engine) = app_and_engine();
+    let (mut h, mut end, mut engine) = app_and_engine();
     let start = engine.field().clone();
-    mask_a_spot(&mut h, &end, &mut engine);
+    mask_a_spot(&mut h, &mut end, &mut engine);
     let mask = engine_mask(&engine);
     assert!(
         mask.value_at(MASKED) > 0.99,
@@ -173,8 +177,8 @@ fn a_mask_painted_with_the_pointer_holds_the_clay_under_a_later_stroke() {
     // A Remove stroke of a small ball across both points.
     h.state_mut().palette.radius_fu = 0.1;
     h.get_by_label("Remove").click();
-    frame(&mut h, &end, &mut engine);
-    drag(&mut h, &end, &mut engine, MASKED, FREE, 25);
+    frame(&mut h, &mut end, &mut engine);
+    drag(&mut h, &mut end, &mut engine, MASKED, FREE, 25);
     let after = engine.field().clone();
     let held = top_at(&after, MASKED) - top_at(&start, MASKED);
     let carved = top_at(&start, FREE) - top_at(&after, FREE);
@@ -188,11 +192,11 @@ fn a_mask_painted_with_the_pointer_holds_the_clay_under_a_later_stroke() {
 
 #[test]
 fn invert_and_clear_turn_the_engines_mask_over_and_empty_it() {
-    let (mut h, end, mut engine) = app_and_engine();
-    mask_a_spot(&mut h, &end, &mut engine);
+    let (mut h, mut end, mut engine) = app_and_engine();
+    mask_a_spot(&mut h, &mut end, &mut engine);
     let painted = engine_mask(&engine);
     h.get_by_label("Invert mask").click();
-    frame(&mut h, &end, &mut engine);
+    frame(&mut h, &mut end, &mut engine);
     let inverted = engine_mask(&engine);
     for (patch, (a, b)) in painted.patches.iter().zip(&inverted.patches).enumerate() {
         for (i, (&m, &n)) in a.coeffs.iter().zip(&b.coeffs).enumerate() {
@@ -205,11 +209,11 @@ fn invert_and_clear_turn_the_engines_mask_over_and_empty_it() {
     assert!(inverted.value_at(MASKED) < 0.01);
     assert!(inverted.value_at(FREE) > 0.99);
     h.get_by_label("Clear mask").click();
-    frame(&mut h, &end, &mut engine);
+    frame(&mut h, &mut end, &mut engine);
     let cleared = engine_mask(&engine);
     assert!(!cleared.any(), "nothing is held after Clear");
     // Each is one undo step: undo brings the inverted mask back.
     engine.commands().send(Command::Undo).unwrap();
-    frame(&mut h, &end, &mut engine);
+    frame(&mut h, &mut end, &mut engine);
     assert_eq!(engine_mask(&engine), inverted);
 }

@@ -32,7 +32,7 @@ fn zig_zag_drag(strength: f32) -> (Vec<Vec3>, Vec3) {
     let mut h = Harness::builder()
         .with_size(egui::vec2(1400.0, 1000.0))
         .build_ui_state(|ui, app: &mut SculptApp| app.show(ui, None), app);
-    end.field.publish_clone_of(&field);
+    end.field.publish_clone_of(&field.clone().into());
     h.run();
     // Looking down on the block's top face (y = 1.725; the block spans 0.575..1.725).
     let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
