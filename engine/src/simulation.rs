@@ -75,9 +75,9 @@ use dynaclay_core::field::{
 };
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
-    ApplyOptions, Clay, ColourField, FieldId, FreezeMask, History, StepRecorder, ToolAction, ToolPose,
-    ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
-    facing_surface, tool_volume_change,
+    ApplyOptions, Clay, ColourField, FieldId, FreezeMask, History, StepRecorder, ToolAction,
+    ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
+    csg_volume_change, facing_surface, tool_volume_change,
 };
 
 /// Settings of the simulation stage.

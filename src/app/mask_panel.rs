@@ -162,8 +162,7 @@ mod tests {
         assert!(panel.pointer(Some(start), false, r, false).is_none());
         assert!(!panel.painting());
         panel.erase = true;
-        let Some(MaskEdit::Paint { brush, .. }) = panel.pointer(Some(start), true, r, false)
-        else {
+        let Some(MaskEdit::Paint { brush, .. }) = panel.pointer(Some(start), true, r, false) else {
             panic!("a new drag dabs");
         };
         assert_eq!(brush.mode, MaskMode::Free);

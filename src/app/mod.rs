@@ -51,7 +51,6 @@ pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
 pub use falloff_curve_panel::falloff_curve_ui;
-pub use mask_panel::{MASK_DAB_SPACING, MaskPanel};
 pub use file_dialog::{DIALOG_ENV, DialogBackend, FilePurpose, NativePick, PickState};
 pub use file_menu::{FileMenu, FileRequest};
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
@@ -62,6 +61,7 @@ pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, EventSendError, EventSender, RepaintSignal,
     SendError, engine_link,
 };
+pub use mask_panel::{MASK_DAB_SPACING, MaskPanel};
 pub use material_panel::{MaterialBrush, material_ui};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use new_clay::{MaterialPreset, NewClay, NewClayError, RESOLUTION_RANGE};

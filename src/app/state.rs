@@ -1556,15 +1556,22 @@ impl SculptApp {
             self.stroke_smoothing.follow(pointer_pt)
         } else {
             if let Some(tail) = self.stroke_smoothing.finish(pointer_pt) {
+                // The tail is drawn pressed, and handed over twice: the second, still
+                // sample is a dwell at the tail's end, so the device presses there before the
+                // release that follows (a segment toward a released sample is played lifted).
                 let field = &self.link.field().value;
-                self.pointer.aim(
-                    field,
-                    &self.camera,
-                    to_ndc(tail),
-                    size.x / size.y,
-                    true,
-                    self.pen_pressure.unwrap_or(1.0),
-                );
+                for _ in 0..2 {
+                    self.pointer.aim(
+                        field,
+                        &self.camera,
+                        to_ndc(tail),
+                        size.x / size.y,
+                        true,
+                        self.pen_pressure.unwrap_or(1.0),
+                    );
+                }
+                response.ctx.request_repaint();
+                return;
             }
             pointer_pt
         };

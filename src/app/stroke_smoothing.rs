@@ -17,6 +17,11 @@ use glam::Vec2;
 /// String length at full strength, screen points.
 pub const MAX_STRING_PT: f32 = 80.0;
 
+/// How far the brush's heading turns toward the string's pull per pointer sample (a
+/// fraction): the brush keeps to its heading while the pointer swings from side to side
+/// within the string, and comes round to a real turn of the hand within a few samples.
+pub const HEADING_FOLLOW: f32 = 0.25;
+
 /// The lazy-mouse state of the window's pointer strokes.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StrokeSmoothing {
@@ -24,6 +29,8 @@ pub struct StrokeSmoothing {
     pub strength: f32,
     /// Where the brush is during a stroke (`None` between strokes).
     brush_pt: Option<Vec2>,
+    /// The direction the brush moves in (unit; zero until the string first pulls).
+    heading: Vec2,
 }
 
 impl StrokeSmoothing {
@@ -37,6 +44,7 @@ impl StrokeSmoothing {
                 strength.clamp(0.0, 1.0)
             },
             brush_pt: None,
+            heading: Vec2::ZERO,
         }
     }
 
@@ -57,15 +65,27 @@ impl StrokeSmoothing {
 
     /// The pointer is at `pointer_pt` while a stroke is held: returns where the brush is. The
     /// first call of a stroke puts the brush on the pointer.
+    ///
+    /// When the pointer pulls the string taut, the brush moves along its heading (which turns
+    /// [`HEADING_FOLLOW`] of the way toward the pull each sample) just far enough to bring the
+    /// pointer back to the string's length; where its heading cannot get there (a sharp turn
+    /// of the hand) it moves straight toward the pointer, as a plain lazy mouse does. Either
+    /// way the brush never falls more than the string's length behind.
     pub fn follow(&mut self, pointer_pt: Vec2) -> Vec2 {
+        let string = self.string_length_pt();
         let brush = match self.brush_pt {
             None => pointer_pt,
+            Some(_) if string <= 0.0 => pointer_pt,
             Some(brush) => {
-                let string = self.string_length_pt();
                 let pull = pointer_pt - brush;
                 let distance = pull.length();
                 if distance > string {
-                    pointer_pt - pull * (string / distance)
+                    let toward = pull / distance;
+                    self.heading = (self.heading + HEADING_FOLLOW * (toward - self.heading))
+                        .try_normalize()
+                        .unwrap_or(toward);
+                    along_heading(brush, self.heading, pointer_pt, string)
+                        .unwrap_or(pointer_pt - toward * string)
                 } else {
                     brush
                 }
@@ -81,13 +101,30 @@ impl StrokeSmoothing {
     pub fn finish(&mut self, pointer_pt: Vec2) -> Option<Vec2> {
         let lagging = self.brush_pt.filter(|b| *b != pointer_pt);
         self.brush_pt = None;
+        self.heading = Vec2::ZERO;
         lagging.map(|_| pointer_pt)
     }
 
     /// Forgets the stroke without finishing it (the pointer left the view).
     pub fn cancel(&mut self) {
         self.brush_pt = None;
+        self.heading = Vec2::ZERO;
     }
+}
+
+/// The nearest point ahead of `brush` along the unit `heading` that is `string` from
+/// `pointer`, if the line comes that close (`brush` is farther than `string` from `pointer`).
+fn along_heading(brush: Vec2, heading: Vec2, pointer: Vec2, string: f32) -> Option<Vec2> {
+    let to_pointer = pointer - brush;
+    let ahead = to_pointer.dot(heading);
+    let off_line_sq = to_pointer.length_squared() - ahead * ahead;
+    let reach_sq = string * string - off_line_sq;
+    if ahead <= 0.0 || reach_sq < 0.0 {
+        return None;
+    }
+    // The line meets the string's circle at `ahead ± √reach`; the brush stops at the first.
+    let step = ahead - reach_sq.sqrt();
+    (step >= 0.0).then(|| brush + heading * step)
 }
 
 #[cfg(test)]

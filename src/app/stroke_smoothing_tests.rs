@@ -25,7 +25,7 @@ fn zig_zag_drag(strength: f32) -> (Vec<Vec3>, Vec3) {
     let (mut device, handle): (PointerDevice, _) = pointer_device(pointer);
     device.open().unwrap();
 
-    let (link, end) = engine_link();
+    let (link, mut end) = engine_link();
     let mut app = SculptApp::new(link);
     app.pointer = PointerTool::new(handle, map);
     app.stroke_smoothing.strength = strength;

@@ -1422,7 +1422,10 @@ fn masked_clay_is_drawn_darker_and_the_rest_as_before() {
     ] {
         let (x, y) = to_px(corner);
         let (a, b) = (plain.pixel(x, y).unwrap(), masked.pixel(x, y).unwrap());
-        assert!(!differs(a, b, 1), "unmasked at {corner}: {b:?} against {a:?}");
+        assert!(
+            !differs(a, b, 1),
+            "unmasked at {corner}: {b:?} against {a:?}"
+        );
     }
     // Every pixel that changed is darker, and they lie within the dab's reach: its radius,
     // two knot spans more (a held coefficient's basis reaches that far) and a mesh cell.
@@ -1434,7 +1437,10 @@ fn masked_clay_is_drawn_darker_and_the_rest_as_before() {
         for x in 0..W {
             let (a, b) = (plain.pixel(x, y).unwrap(), masked.pixel(x, y).unwrap());
             if differs(a, b, 1) {
-                assert!(luminance(b) < luminance(a), "({x}, {y}) lighter: {b:?} vs {a:?}");
+                assert!(
+                    luminance(b) < luminance(a),
+                    "({x}, {y}) lighter: {b:?} vs {a:?}"
+                );
                 let d = (x as f32 - cx as f32).hypot(y as f32 - cy as f32);
                 assert!(d <= radius_px, "({x}, {y}) changed {d} px from the dab");
                 darker += 1;

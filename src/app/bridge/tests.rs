@@ -839,14 +839,14 @@ fn sink_tints_the_bricks_the_mask_covers() {
                 c.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-6),
                 "vertex at {p:?}: {c:?}, the tint of hold {hold} is {expected:?}"
             );
-            if (c[3] - MASK_TINT_OPACITY).abs() < 1e-6 {
+            if c[3] > 0.5 * MASK_TINT_OPACITY {
                 dark += 1;
             }
         }
     }
     assert!(
         tinted_bricks > 0 && kept > 0 && dark > 0,
-        "{tinted_bricks} tinted, {kept} kept, {dark} vertices fully masked"
+        "{tinted_bricks} tinted, {kept} kept, {dark} vertices over half masked"
     );
     sink.mask(&octree, None);
     let cleared = link.meshes().value.clone();
