@@ -361,7 +361,7 @@ mod tests {
     fn the_sphere_curves_distance_is_the_spheres_within_its_chord_error() {
         let r = 0.3;
         for (rho, z) in [(0.0, 0.1), (0.2, 0.1), (0.29, 0.0), (0.1, 0.5), (0.6, 0.2)] {
-            let exact = (rho * rho + z * z as f32).sqrt() - r;
+            let exact: f32 = f32::hypot(rho, z) - r;
             let d = FalloffCurve::Sphere.signed_distance(rho, z, r);
             assert!(
                 (d - exact).abs() < 0.005 * r,
