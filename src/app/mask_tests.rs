@@ -143,6 +143,9 @@ fn mask_a_spot(
     engine: &mut Lockstep,
 ) {
     h.state_mut().palette.radius_fu = 0.6;
+    // The Mask section starts closed (the panels below it keep their places).
+    h.get_by_label("Mask").click();
+    frame(h, end, engine);
     h.get_by_label("Paint mask with the brush").click();
     frame(h, end, engine);
     assert!(h.state().mask.active);

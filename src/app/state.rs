@@ -680,7 +680,7 @@ impl SculptApp {
                             .default_open(true)
                             .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
                         egui::CollapsingHeader::new("Mask")
-                            .default_open(true)
+                            .default_open(false)
                             .show(ui, |ui| {
                                 if let Some(command) = self.mask.ui(ui) {
                                     self.send(command);
