@@ -36,7 +36,7 @@ use super::update::{AppliedChange, FieldUpdate};
 use dynaclay_core::field::MultiPatchField;
 pub use dynaclay_core::mesh::MeshSink;
 use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
-use dynaclay_core::tools::ColourField;
+use dynaclay_core::tools::{ColourField, FreezeMask};
 use glam::Vec3;
 
 /// A sink that only counts (headless runs export the final mesh separately).
@@ -78,6 +78,9 @@ pub struct GraphicsStage {
     updates: SnapshotReader<FieldUpdate>,
     /// The clay's paint, published by the simulation when it changes.
     colours: SnapshotReader<Option<ColourField>>,
+    /// The clay's freeze mask, published by the simulation when it changes (none: the sink
+    /// is never told of a mask).
+    masks: Option<SnapshotReader<Option<FreezeMask>>>,
     ack: Arc<AtomicU64>,
     sink: Box<dyn MeshSink>,
     counters: EngineCounters,
@@ -141,6 +144,7 @@ impl GraphicsStage {
             octree,
             updates,
             colours,
+            masks: None,
             ack,
             sink,
             counters,
@@ -152,12 +156,21 @@ impl GraphicsStage {
         })
     }
 
+    /// Hands the sink the clay's freeze mask from `masks` whenever it changes (for a sink
+    /// that draws masked clay tinted).
+    pub fn set_mask_reader(&mut self, masks: SnapshotReader<Option<FreezeMask>>) {
+        self.masks = Some(masks);
+    }
+
     /// Applies the newest patch if there is one and re-meshes what it changed (unless too
     /// small to see yet, see [`DEFERRED_COEFF_TOLERANCE`]), after handing the sink any new
     /// paint; returns the number of bricks re-meshed.
     pub fn tick(&mut self) -> usize {
         if let Some(paint) = self.colours.try_fresh() {
             self.sink.paint(&self.octree, paint.value.as_ref());
+        }
+        if let Some(mask) = self.masks.as_mut().and_then(SnapshotReader::try_fresh) {
+            self.sink.mask(&self.octree, mask.value.as_ref());
         }
         if let Some(generation) = self.layouts.install(&mut self.field) {
             // A new patch holds nothing yet and a grown base holds empty space where it grew:

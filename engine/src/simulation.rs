@@ -75,9 +75,9 @@ use dynaclay_core::field::{
 };
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
-    ApplyOptions, Clay, ColourField, FieldId, History, StepRecorder, ToolAction, ToolPose,
-    ToolReport, apply_csg, apply_emboss, apply_stroke, apply_tool, csg_volume_change,
-    tool_volume_change,
+    ApplyOptions, Clay, ColourField, FieldId, FreezeMask, History, StepRecorder, ToolAction,
+    ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
+    csg_volume_change, facing_surface, tool_volume_change,
 };
 
 /// Settings of the simulation stage.
@@ -208,6 +208,12 @@ pub struct SimulationStage {
     idle_steps: u32,
     stroke_armed: bool,
     was_active: bool,
+    /// The clay as it was when the held stroke began, for a profiled brush: each application
+    /// faces this clay where it acts ([`dynaclay_core::tools::facing_surface`]), so the brush
+    /// follows the surface along the stroke while the groove it carves never turns it. Kept
+    /// between strokes (`stroke_clay_held` says whether it is this stroke's).
+    stroke_clay: Option<MultiPatchField>,
+    stroke_clay_held: bool,
     scratch: RegionSnapshot,
     to_haptic: SnapshotWriter<FieldUpdate>,
     to_graphics: SnapshotWriter<FieldUpdate>,
@@ -234,6 +240,11 @@ pub struct SimulationStage {
     colour_reader: Option<SnapshotReader<Option<ColourField>>>,
     colour_dirty: bool,
     colour_published_step: u64,
+    /// The clay's freeze mask for the graphics loop (drawn as a tint), published with the
+    /// next step after it changed (a mask edit, undo or redo, a new clay).
+    mask_out: SnapshotWriter<Option<FreezeMask>>,
+    mask_reader: Option<SnapshotReader<Option<FreezeMask>>>,
+    mask_dirty: bool,
     /// Mirror planes strokes are copied across.
     symmetry: Symmetry,
     /// This step's tool forces with their mirrored copies (used only while mirroring).
@@ -308,6 +319,7 @@ impl SimulationStage {
         let pending = vec![None; field.patches.len()];
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
         let (colour, colour_reader) = snapshot_channel(&None);
+        let (mask_out, mask_reader) = snapshot_channel(&None);
         Self {
             config,
             clay: Clay {
@@ -332,6 +344,8 @@ impl SimulationStage {
             idle_steps: 0,
             stroke_armed: false,
             was_active: false,
+            stroke_clay: None,
+            stroke_clay_held: false,
             scratch,
             to_haptic,
             to_graphics,
@@ -352,6 +366,9 @@ impl SimulationStage {
             colour_reader: Some(colour_reader),
             colour_dirty: false,
             colour_published_step: 0,
+            mask_out,
+            mask_reader: Some(mask_reader),
+            mask_dirty: false,
             carried: CarriedSections::default(),
             schedule: None,
             commands_since_step: 0,
@@ -468,6 +485,18 @@ impl SimulationStage {
             self.tool.end_stroke();
             self.removal
                 .stroke_started(self.tool.choice(), &self.clay, sample.device_time_us);
+            self.stroke_clay_held = matches!(
+                self.tool.choice(),
+                ToolChoice::Geometric(tool) if matches!(tool.shape, ToolShape::Profiled { .. })
+            );
+            if self.stroke_clay_held {
+                // NOTE: the simulation thread may allocate; this copy is made once a stroke,
+                // for profiled brushes only.
+                match &mut self.stroke_clay {
+                    Some(copy) => copy.clone_from(&self.clay.density),
+                    None => self.stroke_clay = Some(self.clay.density.clone()),
+                }
+            }
         } else if !active && self.was_active {
             self.tool.release();
             self.removal.stroke_ended(self.config.removal_guard);
@@ -624,6 +653,18 @@ impl SimulationStage {
     fn apply_held_geometric_at(&mut self, at: Vec3, rotation: Quat, dwell_s: f32) {
         let ToolChoice::Geometric(tool) = self.tool.choice() else {
             return;
+        };
+        // A profiled brush faces the clay where it acts (as the clay was when the stroke
+        // began), turned by the hand from there.
+        let rotation = if matches!(tool.shape, ToolShape::Profiled { .. }) {
+            let clay = self
+                .stroke_clay
+                .as_ref()
+                .filter(|_| self.stroke_clay_held)
+                .unwrap_or(&self.clay.density);
+            facing_surface(clay, at) * rotation
+        } else {
+            rotation
         };
         let pose = ToolPose {
             position_fu: at,

@@ -117,7 +117,10 @@ pub fn build(
     let colours = sim
         .take_colour_reader()
         .ok_or(EngineError::Lost("simulation paint"))?;
-    let graphics = GraphicsStage::new(
+    let masks = sim
+        .take_mask_reader()
+        .ok_or(EngineError::Lost("simulation mask"))?;
+    let mut graphics = GraphicsStage::new(
         graphics_field,
         graphics_layout_port,
         config.cells_per_span,
@@ -129,6 +132,7 @@ pub fn build(
         clock.clone(),
         mesh_stamps_tx,
     )?;
+    graphics.set_mask_reader(masks);
     Ok(Stages {
         haptic,
         sim,

@@ -71,6 +71,8 @@ pub enum EngineCommand {
     PaintMaterial(crate::dynamics::MaterialPaint),
     /// Remove the painted material: the uniform material applies everywhere.
     ClearMaterialPaint,
+    /// Paint, invert or clear the freeze mask (one undo step).
+    Mask(crate::tools::MaskEdit),
     /// Start applying the tool (as if the device button went down).
     StrokeStart,
     /// Stop applying the tool; the stroke becomes one undo step.
@@ -168,6 +170,7 @@ impl EngineCommand {
             Self::SetMaterial(_) => "set material",
             Self::PaintMaterial(_) => "paint material",
             Self::ClearMaterialPaint => "clear painted material",
+            Self::Mask(edit) => edit.name(),
             Self::StrokeStart => "stroke start",
             Self::StrokeStop => "stroke stop",
             Self::SetSymmetry(_) => "symmetry",

@@ -9,6 +9,7 @@ mod device_maker;
 mod device_panel;
 mod edit_requests;
 mod emboss_panel;
+mod falloff_curve_panel;
 mod file_dialog;
 mod file_menu;
 mod force_path_panel;
@@ -16,6 +17,7 @@ mod latency;
 mod launch;
 mod library_panel;
 mod link;
+mod mask_panel;
 mod material_panel;
 mod meshes;
 mod new_clay;
@@ -31,6 +33,7 @@ mod replace_dialog;
 mod run;
 mod sculpt_panels;
 mod state;
+mod stroke_smoothing;
 mod view;
 mod view_image;
 mod viewport;
@@ -47,6 +50,7 @@ pub use csg_panel::{CSG_OPS, CsgPanel, OperandKind, SolidKind};
 pub use device_maker::MakeDeviceError;
 pub use device_panel::{DeviceAction, DevicePanel, SPEC_KINDS};
 pub use emboss_panel::{BrushFrame, EmbossPanel, ProjectionKind};
+pub use falloff_curve_panel::falloff_curve_ui;
 pub use file_dialog::{DIALOG_ENV, DialogBackend, FilePurpose, NativePick, PickState};
 pub use file_menu::{FileMenu, FileRequest};
 pub use force_path_panel::{ForcePathPanel, MAX_CURVE_POINTS, PATH_STEP_SPANS, PathPick, thin};
@@ -57,6 +61,7 @@ pub use link::{
     COMMAND_QUEUE_LEN, EngineEndpoint, EngineLink, EventSendError, EventSender, RepaintSignal,
     SendError, engine_link,
 };
+pub use mask_panel::{MASK_DAB_SPACING, MaskPanel};
 pub use material_panel::{MaterialBrush, material_ui};
 pub use meshes::{ChunkMesh, MeshSet, brick_id};
 pub use new_clay::{MaterialPreset, NewClay, NewClayError, RESOLUTION_RANGE};
@@ -78,6 +83,7 @@ pub use state::{
     CONTROLS_WIDTH_PT, DisplaySettings, FilePaths, LATENCY_WIDTH_PT, PointsDisplay, SceneInput,
     SculptApp, event_line, window_clear_color,
 };
+pub use stroke_smoothing::{MAX_STRING_PT, StrokeSmoothing};
 pub use view::{DeviceLinkState, DeviceStatus, EngineView, LoopId, WorldBox};
 pub use view_image::{ViewBlit, ViewImage};
 pub use viewport::SceneView;
@@ -87,6 +93,10 @@ mod file_tests;
 #[cfg(test)]
 mod gui_tests;
 #[cfg(test)]
+mod mask_tests;
+#[cfg(test)]
 mod reach_tests;
+#[cfg(test)]
+mod stroke_smoothing_tests;
 #[cfg(test)]
 mod window_tests;

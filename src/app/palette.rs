@@ -8,7 +8,9 @@ use glam::Vec3;
 use super::command::ForceMode;
 use crate::dynamics::Distribution;
 use crate::engine::{PushTool, ToolChoice};
-use crate::tools::{ContactParams, ForceTool, GeometricTool, StampParams, ToolAction, ToolShape};
+use crate::tools::{
+    ContactParams, FalloffCurve, ForceTool, GeometricTool, StampParams, ToolAction, ToolShape,
+};
 
 /// The geometric actions, in palette order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -95,6 +97,8 @@ pub struct ToolPalette {
     /// Cylinder and capsule half height, field units.
     pub half_height_fu: f32,
     pub falloff_fu: f32,
+    /// The sphere brush's profile from centre to edge (the sphere curve: the sphere itself).
+    pub falloff_curve: FalloffCurve,
     pub deposit_rate_per_s: f32,
     pub remove_rate_per_s: f32,
     pub paint_rgb: [f32; 3],
@@ -244,6 +248,7 @@ impl Default for ToolPalette {
             extents_fu: Vec3::new(0.25, 0.15, 0.15),
             half_height_fu: 0.25,
             falloff_fu: 0.2,
+            falloff_curve: FalloffCurve::Sphere,
             deposit_rate_per_s: 8.0,
             remove_rate_per_s: 8.0,
             paint_rgb: [0.8, 0.2, 0.15],
@@ -294,9 +299,7 @@ impl ToolPalette {
     #[must_use]
     pub fn tool_shape(&self) -> ToolShape {
         match self.shape {
-            ShapeKind::Sphere => ToolShape::Sphere {
-                radius_fu: self.radius_fu,
-            },
+            ShapeKind::Sphere => ToolShape::round(self.radius_fu, self.falloff_curve.clone()),
             ShapeKind::Ellipsoid => ToolShape::Ellipsoid {
                 radii_fu: self.extents_fu,
             },

@@ -47,6 +47,7 @@ impl ToolPalette {
         match self.shape {
             ShapeKind::Sphere => {
                 ui.add(egui::Slider::new(&mut self.radius_fu, 0.005..=1.0).text("Radius"));
+                super::falloff_curve_panel::falloff_curve_ui(ui, &mut self.falloff_curve);
             }
             ShapeKind::Ellipsoid | ShapeKind::Box => {
                 for (v, label) in [

@@ -149,6 +149,8 @@ pub struct SculptApp {
     pub material: Material,
     /// Painting material onto the clay with the brush.
     pub material_brush: MaterialBrush,
+    /// The Mask tool: painting, inverting and clearing the freeze mask.
+    pub mask: super::mask_panel::MaskPanel,
     pub device: DevicePanel,
     pub display: DisplaySettings,
     pub files: FilePaths,
@@ -195,6 +197,8 @@ pub struct SculptApp {
     /// Whether the held left drag sculpts (it began on the clay without Alt or Shift); a left
     /// drag that began off the clay, or with Alt, orbits.
     sculpt_drag: bool,
+    /// The lazy mouse of the pointer's strokes (off by default).
+    pub stroke_smoothing: super::stroke_smoothing::StrokeSmoothing,
     /// The 3D view's rectangle in the last frame, points.
     pub viewport_rect: Option<egui::Rect>,
     /// A pen's latest pressure, 0..1 (`None` for a mouse: full depth).
@@ -683,6 +687,13 @@ impl SculptApp {
                         egui::CollapsingHeader::new("Pointer")
                             .default_open(true)
                             .show(ui, |ui| tool_changed |= self.pointer_ui(ui));
+                        egui::CollapsingHeader::new("Mask")
+                            .default_open(false)
+                            .show(ui, |ui| {
+                                if let Some(command) = self.mask.ui(ui) {
+                                    self.send(command);
+                                }
+                            });
                         tool_changed |= self.sculpt_sections(ui);
                         egui::CollapsingHeader::new("Material")
                             .default_open(true)
@@ -1007,6 +1018,15 @@ impl SculptApp {
                     .text("Strength"),
             )
             .changed();
+        ui.add(
+            egui::Slider::new(&mut self.stroke_smoothing.strength, 0.0..=1.0)
+                .text("Stroke smoothing"),
+        )
+        .on_hover_text(format!(
+            "Lazy mouse: the brush trails the pointer on a string up to {:.0} points long, \
+             so jitter shorter than the string never reaches the clay; 0 is off",
+            super::stroke_smoothing::MAX_STRING_PT
+        ));
         ui.horizontal_wrapped(|ui| {
             ui.label("Mirror");
             let before = self.symmetry;
@@ -1508,6 +1528,10 @@ impl SculptApp {
             self.pin_input(response, pos, pressed, down, modifiers);
             return;
         }
+        if self.mask.active {
+            self.mask_input(response, pos, pressed, down, modifiers);
+            return;
+        }
         if self.material_brush.active {
             self.material_paint_input(response, pos, pressed, down);
             return;
@@ -1536,23 +1560,52 @@ impl SculptApp {
         let rect = response.rect;
         let over = pos.filter(|p| rect.contains(*p));
         let Some(p) = over.or(pos.filter(|_| self.sculpt_drag)) else {
+            self.stroke_smoothing.cancel();
             self.pointer.release();
             return;
         };
         let size = rect.size().max(egui::vec2(1.0, 1.0));
-        let ndc = glam::Vec2::new(
-            2.0 * (p.x - rect.min.x) / size.x - 1.0,
-            1.0 - 2.0 * (p.y - rect.min.y) / size.y,
-        );
+        let to_ndc = |p: glam::Vec2| {
+            glam::Vec2::new(
+                2.0 * (p.x - rect.min.x) / size.x - 1.0,
+                1.0 - 2.0 * (p.y - rect.min.y) / size.y,
+            )
+        };
+        let pointer_pt = glam::Vec2::new(p.x, p.y);
         let pressure = self
             .pen_pressure
             .filter(|_| self.sculpt_drag)
             .unwrap_or(1.0);
+        // The lazy mouse: a held stroke's brush trails the pointer on a string; when the
+        // stroke ends, the brush is drawn the rest of the way before it lifts.
+        let brush_pt = if self.sculpt_drag {
+            self.stroke_smoothing.follow(pointer_pt)
+        } else {
+            if let Some(tail) = self.stroke_smoothing.finish(pointer_pt) {
+                // The tail is drawn pressed, and handed over twice: the second, still
+                // sample is a dwell at the tail's end, so the device presses there before the
+                // release that follows (a segment toward a released sample is played lifted).
+                let field = &self.link.field().value;
+                for _ in 0..2 {
+                    self.pointer.aim(
+                        field,
+                        &self.camera,
+                        to_ndc(tail),
+                        size.x / size.y,
+                        true,
+                        self.pen_pressure.unwrap_or(1.0),
+                    );
+                }
+                response.ctx.request_repaint();
+                return;
+            }
+            pointer_pt
+        };
         let field = &self.link.field().value;
         let pose = self.pointer.aim(
             field,
             &self.camera,
-            ndc,
+            to_ndc(brush_pt),
             size.x / size.y,
             self.sculpt_drag,
             pressure,
@@ -1581,6 +1634,32 @@ impl SculptApp {
         let rim = to_screen(pose.surface + right * radius);
         let tint = brush_tint(&self.palette.choice(), self.sculpt_drag);
         self.brush_cursor = Some((centre, (rim - centre).length(), tint));
+    }
+
+    /// With the Mask tool on, a left drag that starts on the clay paints the freeze mask along
+    /// its path with the brush's radius (Ctrl held: erases it) instead of sculpting; a press
+    /// beside the clay orbits.
+    fn mask_input(
+        &mut self,
+        response: &egui::Response,
+        pos: Option<egui::Pos2>,
+        pressed: bool,
+        down: bool,
+        modifiers: egui::Modifiers,
+    ) {
+        self.pointer.release();
+        let hit = self.clay_hit(response.rect, pos);
+        if let Some(at) = hit {
+            self.refine_at = Some(at);
+        }
+        let starts = pressed && response.hovered() && hit.is_some();
+        let held = down && (self.mask.painting() || starts);
+        let erase_held = modifiers.ctrl || modifiers.command;
+        let radius = self.brush_radius();
+        if let Some(edit) = self.mask.pointer(hit, held, radius, erase_held) {
+            self.send(EngineCommand::Mask(edit));
+        }
+        self.sculpt_drag = self.mask.painting();
     }
 
     /// With the material brush on, a left drag that starts on the clay paints material along

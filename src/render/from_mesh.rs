@@ -1,5 +1,12 @@
 //! The bridge from the mesher to the renderer: octree bricks become [`MeshChunk`]s, with the
-//! paint of the clay's colour field sampled at every vertex.
+//! paint of the clay's colour field sampled at every vertex, and the freeze mask laid over it
+//! as a dark tint.
+//!
+//! The mask's tint goes through the paint's own per-vertex colour: the shaders take
+//! `mix(clay, rgb, a)` as the albedo, and a tint of opacity `k` composited over paint `(p, a)`
+//! is again such a colour, `a' = k + a(1 − k)`, `rgb' = (k·T + a(1 − k)·p) / a'`; so the
+//! masked clay is drawn darker by exactly `mix(albedo, T, k)` with no extra attribute or shader
+//! work on either render profile.
 //!
 //! One owned [`ChunkMesh`] per brick, keyed by a stable [`brick_id`] and versioned by the
 //! octree generation that last rebuilt it, so a renderer re-uploads only bricks that changed.
@@ -7,13 +14,21 @@
 //! use the same conversion. Not real-time: it allocates one copy of each brick's mesh.
 
 use crate::mesh::{Brick, BrickMesh, BrickOctree};
-use crate::tools::ColourField;
+use crate::tools::{ColourField, FreezeMask};
 
 use super::chunk::MeshChunk;
 
 /// Paint coverage below which a vertex counts as unpainted; a brick whose vertices are all
 /// below it is handed over without colours (the renderer then skips the attribute).
 pub const MIN_PAINT_COVERAGE: f32 = 1.0 / 512.0;
+
+/// The colour masked clay is tinted toward (linear RGB): a dark slate, so masked clay reads
+/// as darker and a little cool under any paint, as sculpting apps draw their masks.
+pub const MASK_TINT_RGB: [f32; 3] = [0.05, 0.06, 0.09];
+
+/// How far fully masked clay is tinted toward [`MASK_TINT_RGB`] (a hold `m` tints by `m`
+/// times this): dark enough to see at a glance, light enough that the shape stays readable.
+pub const MASK_TINT_OPACITY: f32 = 0.6;
 
 /// A brick coordinate packed into a stable chunk id: 21 bits per axis, x lowest.
 ///
@@ -94,6 +109,51 @@ pub fn paint_colors(mesh: &BrickMesh, colour: &ColourField) -> Vec<[f32; 4]> {
         .positions
         .iter()
         .map(|&p| colour.rgba(p).to_array())
+        .collect();
+    if colors.iter().any(|c| c[3] >= MIN_PAINT_COVERAGE) {
+        colors
+    } else {
+        Vec::new()
+    }
+}
+
+/// `paint` (linear RGBA, coverage in alpha) with the mask's tint for a hold of `hold`
+/// composited over it (see the module's note).
+#[must_use]
+pub fn tinted(paint: [f32; 4], hold: f32) -> [f32; 4] {
+    let k = MASK_TINT_OPACITY * hold.clamp(0.0, 1.0);
+    let a = paint[3].clamp(0.0, 1.0);
+    let alpha = k + a * (1.0 - k);
+    if alpha <= 0.0 {
+        return paint;
+    }
+    let under = a * (1.0 - k);
+    let mix = |c: usize| (k * MASK_TINT_RGB[c] + under * paint[c]) / alpha;
+    [mix(0), mix(1), mix(2), alpha]
+}
+
+/// The colour of each vertex of `mesh`: the paint of `colour` ([`paint_colors`]) with the
+/// tint of `mask` over it ([`tinted`]); empty when neither leaves a vertex coloured (the
+/// renderer then skips the attribute). A mask costs one evaluation per vertex: a caller with
+/// a mask that holds nothing passes `None`.
+#[must_use]
+pub fn surface_colors(
+    mesh: &BrickMesh,
+    colour: Option<&ColourField>,
+    mask: Option<&FreezeMask>,
+) -> Vec<[f32; 4]> {
+    let paint = colour.map_or_else(Vec::new, |c| paint_colors(mesh, c));
+    let Some(mask) = mask else {
+        return paint;
+    };
+    let colors: Vec<[f32; 4]> = mesh
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| {
+            let under = paint.get(i).copied().unwrap_or([0.0; 4]);
+            tinted(under, mask.value_at(p))
+        })
         .collect();
     if colors.iter().any(|c| c[3] >= MIN_PAINT_COVERAGE) {
         colors

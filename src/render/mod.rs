@@ -30,7 +30,8 @@ pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
 pub use error::RenderError;
 pub use faults::{GpuFaultLog, PRINTED_ERRORS, guarded_on};
 pub use from_mesh::{
-    ChunkMesh, MIN_PAINT_COVERAGE, brick_id, chunk_views, octree_chunks, paint_colors,
+    ChunkMesh, MASK_TINT_OPACITY, MASK_TINT_RGB, MIN_PAINT_COVERAGE, brick_id, chunk_views,
+    octree_chunks, paint_colors, surface_colors, tinted,
 };
 pub use gpu_chunks::{
     COARSE_CLUSTER_EDGES, COARSE_MIN_TRIANGLES, ChunkBuffers, DrawReport, DrawView, LevelOfDetail,

@@ -1333,3 +1333,119 @@ fn far_bricks_are_drawn_coarse_without_holes_and_near_ones_in_full() {
         "near {near_draw:?}, far {coarse_draw:?}"
     );
 }
+
+/// The default block meshed as the window meshes it, each brick coloured by
+/// [`surface_colors`] under `mask` (no paint); a masked set's versions differ from an
+/// unmasked one's, so the renderer uploads its colours.
+fn block_chunks(
+    lattice: &crate::field::BSplineLattice,
+    mask: Option<&crate::tools::FreezeMask>,
+) -> Vec<OwnedChunk> {
+    let mut octree =
+        crate::mesh::BrickOctree::new(crate::mesh::SampleGrid::for_lattice(lattice, 2).unwrap());
+    octree.rebuild(lattice);
+    octree
+        .bricks()
+        .filter(|b| !b.mesh.indices.is_empty())
+        .map(|b| {
+            let chunk = ChunkMesh::from_brick(
+                b.coord,
+                b.version,
+                &b.mesh,
+                surface_colors(&b.mesh, None, mask),
+            );
+            OwnedChunk {
+                id: chunk.id,
+                version: chunk.version + if mask.is_some() { 1 << 32 } else { 0 },
+                positions: chunk.positions,
+                normals: chunk.normals,
+                colors: chunk.colors,
+                indices: chunk.indices,
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn masked_clay_is_drawn_darker_and_the_rest_as_before() {
+    use crate::tools::{Clay, MaskBrush, MaskEdit, MaskMode};
+    let Some(mut r) = offscreen(W, H) else { return };
+    let lattice = crate::engine::build_clay(&crate::io::ClaySpec::default()).unwrap();
+    // The block spans [0.575, 1.725]; a full-strength dab at the middle of its top.
+    let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
+    let dab = Vec3::new(1.15, 1.725, 1.15);
+    let mut clay = Clay::single(lattice.clone());
+    MaskEdit::Paint {
+        brush: MaskBrush {
+            radius_fu: 0.3,
+            strength: 1.0,
+            mode: MaskMode::Freeze,
+        },
+        centres_fu: vec![dab],
+    }
+    .apply(&mut clay, None)
+    .unwrap();
+    let mask = clay.mask.clone().expect("the dab made a mask");
+    let camera = Camera::named(NamedView::Top, lo, hi);
+    let o = plain_options();
+    let frame = |r: &mut OffscreenRenderer, chunks: &[OwnedChunk]| {
+        r.sync_chunks(&views(chunks)).unwrap();
+        r.render(&camera, &o).unwrap()
+    };
+    let plain = frame(&mut r, &block_chunks(&lattice, None));
+    let masked = frame(&mut r, &block_chunks(&lattice, Some(&mask)));
+    let vp = camera.view_projection(W as f32 / H as f32);
+    let to_px = |p: Vec3| {
+        let n = vp.project_point3(p);
+        (
+            ((n.x + 1.0) * 0.5 * W as f32) as u32,
+            ((1.0 - n.y) * 0.5 * H as f32) as u32,
+        )
+    };
+    // Under the dab's inner half the hold is full: the albedo is mixed MASK_TINT_OPACITY of
+    // the way to the tint, so the lit colour (linear) drops to about 0.45 of the plain one:
+    // below 0.8 of it in 8-bit sRGB, whatever the shading profile.
+    let (cx, cy) = to_px(dab);
+    let (before, after) = (plain.pixel(cx, cy).unwrap(), masked.pixel(cx, cy).unwrap());
+    eprintln!("under the mask: plain {before:?}, masked {after:?}");
+    assert!(luminance(before) > 40.0, "the top is lit: {before:?}");
+    assert!(
+        luminance(after) < 0.8 * luminance(before),
+        "masked clay is darker: {after:?} against {before:?}"
+    );
+    // Beyond the dab's radius the clay is drawn exactly as without a mask.
+    for corner in [
+        Vec3::new(0.7, 1.725, 0.7),
+        Vec3::new(1.6, 1.725, 0.7),
+        Vec3::new(0.7, 1.725, 1.6),
+        Vec3::new(1.6, 1.725, 1.6),
+    ] {
+        let (x, y) = to_px(corner);
+        let (a, b) = (plain.pixel(x, y).unwrap(), masked.pixel(x, y).unwrap());
+        assert!(
+            !differs(a, b, 1),
+            "unmasked at {corner}: {b:?} against {a:?}"
+        );
+    }
+    // Every pixel that changed is darker, and they lie within the dab's reach: its radius,
+    // two knot spans more (a held coefficient's basis reaches that far) and a mesh cell.
+    let reach = 0.3 + 2.5 * lattice.spacing;
+    let (rim_x, _) = to_px(dab + Vec3::X * reach);
+    let radius_px = rim_x.abs_diff(cx) as f32 + 2.0;
+    let mut darker = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let (a, b) = (plain.pixel(x, y).unwrap(), masked.pixel(x, y).unwrap());
+            if differs(a, b, 1) {
+                assert!(
+                    luminance(b) < luminance(a),
+                    "({x}, {y}) lighter: {b:?} vs {a:?}"
+                );
+                let d = (x as f32 - cx as f32).hypot(y as f32 - cy as f32);
+                assert!(d <= radius_px, "({x}, {y}) changed {d} px from the dab");
+                darker += 1;
+            }
+        }
+    }
+    assert!(darker > 50, "{darker} pixels tinted");
+}

@@ -551,6 +551,8 @@ const BOX: u8 = 2;
 const CYLINDER: u8 = 3;
 const CAPSULE: u8 = 4;
 const FREEFORM: u8 = 5;
+/// A round brush with a falloff curve: its radius, then the curve as a JSON string.
+const PROFILED: u8 = 6;
 
 fn encode_tools(tools: &[ToolPreset]) -> Result<Vec<u8>, SessionError> {
     let mut out = Vec::new();
@@ -575,9 +577,16 @@ fn encode_tools(tools: &[ToolPreset]) -> Result<Vec<u8>, SessionError> {
                 half_height_fu,
             } => (CAPSULE, vec![*radius_fu, *half_height_fu]),
             ToolShape::Freeform(f) => (FREEFORM, f.scale.to_array().to_vec()),
+            ToolShape::Profiled { radius_fu, .. } => (PROFILED, vec![*radius_fu]),
         };
         out.push(tag);
         put_f32s(&mut out, &params);
+        if let ToolShape::Profiled { curve, .. } = &t.shape {
+            let curve = serde_json::to_string(curve).map_err(|e| SessionError::Invalid {
+                detail: format!("tool {}: falloff curve: {e}", t.name),
+            })?;
+            put_str(&mut out, &curve);
+        }
         if let ToolShape::Freeform(f) = &t.shape {
             put_lattice(&mut out, &f.lattice, &format!("tool {}", t.name))?;
         }
@@ -623,6 +632,16 @@ fn decode_tools(r: &mut Reader) -> Result<Vec<ToolPreset>, SessionError> {
                     lattice: r.lattice()?,
                     scale,
                 })
+            }
+            PROFILED => {
+                let radius_fu = r.f32()?;
+                let curve_at = r.cursor.at();
+                let curve_json = r.string()?;
+                let curve = serde_json::from_str(&curve_json).map_err(|e| {
+                    r.cursor.rewind_to(curve_at);
+                    r.error(&format!("tool {name}: falloff curve: {e}"))
+                })?;
+                ToolShape::Profiled { radius_fu, curve }
             }
             other => {
                 r.cursor.rewind_to(at);
@@ -885,6 +904,19 @@ mod tests {
                     }),
                     action: ToolAction::Stamp(StampParams::default()),
                     falloff_fu: 0.0,
+                },
+                ToolPreset {
+                    name: "scraper".into(),
+                    shape: ToolShape::Profiled {
+                        radius_fu: 0.15,
+                        curve: crate::tools::FalloffCurve::Custom(vec![
+                            [0.0, 0.6],
+                            [0.8, 0.5],
+                            [1.0, 0.0],
+                        ]),
+                    },
+                    action: ToolAction::Remove,
+                    falloff_fu: 0.1,
                 },
             ],
             meta: SessionMeta {

@@ -4,7 +4,7 @@
 
 use super::{BrickOctree, RefreshReport};
 use crate::field::MultiPatchField;
-use crate::tools::ColourField;
+use crate::tools::{ColourField, FreezeMask};
 
 /// Receives the meshes after every update. Implemented by the GUI's renderer bridge and by
 /// the engine's headless sink.
@@ -15,6 +15,10 @@ pub trait MeshSink: Send {
     /// Called when the clay's paint changed (`None`: unpainted); the meshes did not. A sink
     /// that shows colour recolours its meshes; the default ignores paint.
     fn paint(&mut self, _octree: &BrickOctree, _colour: Option<&ColourField>) {}
+
+    /// Called when the clay's freeze mask changed (`None`: no mask); the meshes did not. A
+    /// sink that shows the mask re-tints its meshes; the default ignores it.
+    fn mask(&mut self, _octree: &BrickOctree, _mask: Option<&FreezeMask>) {}
 
     /// Called with the graphics loop's field copy after each applied patch (and once at the
     /// start); a sink that picks on the clay (the GUI's pointer) keeps a copy. The default

@@ -14,6 +14,7 @@ mod capture;
 mod clay;
 mod deform;
 mod emboss;
+mod falloff;
 mod force;
 mod freeze_mask;
 mod growth;
@@ -41,6 +42,7 @@ pub use deform::{
     ContactParams, DEFAULT_DEFORM_RATE_PER_S, StampParams, StampParamsError, exposure, presence,
 };
 pub use emboss::apply_emboss;
+pub use falloff::{CurveError, FalloffCurve, MAX_FALLOFF_POINTS, PRESET_NODES, facing_surface};
 pub use force::{
     ForceInput, ForceTool, ForceToolError, PRESS_REACH_SPANS, PenetrationTarget, anchor_normal,
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,

@@ -8,6 +8,7 @@
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+use super::falloff::FalloffCurve;
 use crate::field::BSplineLattice;
 
 /// Where a tool is: its centre in field units and its orientation.
@@ -61,12 +62,32 @@ pub struct FreeformTool {
 /// The shape of a geometric tool, in its local frame (cylinder and capsule axes run along z).
 #[derive(Clone, Debug, PartialEq)]
 pub enum ToolShape {
-    Sphere { radius_fu: f32 },
-    Ellipsoid { radii_fu: Vec3 },
-    Box { half_extents_fu: Vec3 },
-    Cylinder { radius_fu: f32, half_height_fu: f32 },
-    Capsule { radius_fu: f32, half_height_fu: f32 },
+    Sphere {
+        radius_fu: f32,
+    },
+    Ellipsoid {
+        radii_fu: Vec3,
+    },
+    Box {
+        half_extents_fu: Vec3,
+    },
+    Cylinder {
+        radius_fu: f32,
+        half_height_fu: f32,
+    },
+    Capsule {
+        radius_fu: f32,
+        half_height_fu: f32,
+    },
     Freeform(FreeformTool),
+    /// A round brush whose depth from its centre to its edge follows a falloff curve: the
+    /// solid `|z| ≤ radius·curve(ρ / radius)` about the local z axis ([`FalloffCurve`]).
+    /// Turn the tool so that z faces the clay. With the sphere curve it is the sphere,
+    /// evaluated exactly as [`ToolShape::Sphere`].
+    Profiled {
+        radius_fu: f32,
+        curve: FalloffCurve,
+    },
 }
 
 /// Why a tool shape cannot be used.
@@ -83,6 +104,29 @@ pub fn density_from_distance(distance_fu: f32, falloff_fu: f32) -> f32 {
 }
 
 impl ToolShape {
+    /// A round brush of `radius_fu` with `curve`: the sphere for the sphere curve (so the
+    /// default brush is the sphere tool, bit for bit), else [`ToolShape::Profiled`].
+    #[must_use]
+    pub fn round(radius_fu: f32, curve: FalloffCurve) -> Self {
+        if curve.is_sphere() {
+            Self::Sphere { radius_fu }
+        } else {
+            Self::Profiled { radius_fu, curve }
+        }
+    }
+
+    /// The falloff curve of a round brush (the sphere's for a sphere); `None` for the other
+    /// shapes, which carry their own profile.
+    #[must_use]
+    pub fn falloff_curve(&self) -> Option<&FalloffCurve> {
+        const SPHERE: FalloffCurve = FalloffCurve::Sphere;
+        match self {
+            Self::Sphere { .. } => Some(&SPHERE),
+            Self::Profiled { curve, .. } => Some(curve),
+            _ => None,
+        }
+    }
+
     /// Checks dimensions are positive and finite.
     ///
     /// # Errors
@@ -117,6 +161,10 @@ impl ToolShape {
                 positive("half_height_fu", *half_height_fu)
             }
             Self::Freeform(tool) => (0..3).try_for_each(|a| positive("scale", tool.scale[a])),
+            Self::Profiled { radius_fu, curve } => {
+                positive("radius_fu", *radius_fu)?;
+                curve.validate().map_err(|e| ShapeError(e.to_string()))
+            }
         }
     }
 
@@ -138,6 +186,9 @@ impl ToolShape {
             Self::Freeform(tool) => {
                 let (lo, hi) = tool.lattice.support();
                 0.5 * (hi - lo) * tool.scale
+            }
+            Self::Profiled { radius_fu, curve } => {
+                Vec3::new(*radius_fu, *radius_fu, radius_fu * curve.max_depth())
             }
         }
     }
@@ -179,6 +230,13 @@ impl ToolShape {
                 (p - Vec3::new(0.0, 0.0, p.z.clamp(-half_height_fu, *half_height_fu))).length()
                     - radius_fu
             }
+            Self::Profiled { radius_fu, curve } => {
+                if curve.is_sphere() {
+                    p.length() - radius_fu
+                } else {
+                    curve.signed_distance(p.truncate().length(), p.z, *radius_fu)
+                }
+            }
             Self::Freeform(_) => return None,
         })
     }
@@ -216,6 +274,7 @@ impl ToolShape {
                 radius_fu,
                 half_height_fu,
             } => radius_fu + half_height_fu,
+            Self::Profiled { radius_fu, curve } => radius_fu * curve.max_reach(),
             Self::Ellipsoid { .. } | Self::Freeform(_) => return None,
         };
         Some(solid + falloff_fu)
@@ -256,6 +315,9 @@ impl ToolShape {
                 radius_fu,
                 half_height_fu,
             } => PI * radius_fu * radius_fu * (2.0 * half_height_fu + 4.0 / 3.0 * radius_fu),
+            Self::Profiled { radius_fu, curve } => {
+                4.0 * PI * radius_fu.powi(3) * curve.first_moment()
+            }
             Self::Freeform(_) => return None,
         })
     }
@@ -321,6 +383,35 @@ mod tests {
             let far = shape.influence_half_extents(w) * 1.01;
             assert_eq!(shape.density(far, w), 0.0);
         }
+    }
+
+    #[test]
+    fn the_sphere_curve_leaves_the_sphere_tool_as_it_was() {
+        let w = 0.05;
+        let round = ToolShape::round(0.3, FalloffCurve::Sphere);
+        assert_eq!(round, ToolShape::Sphere { radius_fu: 0.3 });
+        let profiled = ToolShape::Profiled {
+            radius_fu: 0.3,
+            curve: FalloffCurve::Sphere,
+        };
+        for i in 0..50 {
+            let p = Vec3::new(0.013 * i as f32, -0.007 * i as f32, 0.3 - 0.011 * i as f32);
+            assert_eq!(profiled.density(p, w), round.density(p, w), "{p}");
+        }
+        let sharp = ToolShape::round(0.3, FalloffCurve::Sharp);
+        assert!(matches!(sharp, ToolShape::Profiled { .. }));
+        // Its tip is on the axis at the full radius, its edge on the middle plane.
+        assert!((sharp.signed_distance(Vec3::new(0.0, 0.0, 0.3)).unwrap()).abs() < 1e-6);
+        assert!((sharp.signed_distance(Vec3::new(0.3, 0.0, 0.0)).unwrap()).abs() < 1e-6);
+        assert!(sharp.signed_distance(Vec3::new(0.15, 0.0, 0.1)).unwrap() > 0.0);
+        assert!(
+            ToolShape::round(
+                0.3,
+                FalloffCurve::Custom(vec![[0.0, 1.0], [0.5, 2.0], [1.0, 0.0]])
+            )
+            .validate()
+            .is_err()
+        );
     }
 
     #[test]

@@ -308,6 +308,7 @@ impl SimulationStage {
                 }
                 self.mark_all_changed();
                 self.colour_dirty = true;
+                self.mask_dirty = true;
                 self.clay_revision += 1;
                 self.cancel_compact();
                 done.is_ok()

@@ -56,6 +56,7 @@ impl SimulationStage {
         }
         self.pending[0] = None;
         self.colour_dirty |= self.clay.colour.is_some();
+        self.mask_dirty |= self.clay.mask.is_some();
         self.cancel_compact();
         self.clay_revision += 1;
         self.counters.clay_growths(1);

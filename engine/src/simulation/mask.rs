@@ -18,6 +18,7 @@ impl SimulationStage {
         let report = edit.apply(&mut self.clay, Some(&mut rec));
         self.commit(rec);
         self.refresh_region_holds();
+        self.mask_dirty = true;
         Ok(report?)
     }
 

@@ -89,7 +89,18 @@ impl SimulationStage {
         {
             self.publish_colour();
         }
+        if self.mask_dirty {
+            self.publish_mask();
+        }
         self.publish_status();
+    }
+
+    /// Copies the clay's freeze mask into the mask buffer and publishes it (the simulation
+    /// loop may allocate; the haptic loop never sees this buffer).
+    pub(super) fn publish_mask(&mut self) {
+        let mask = &self.clay.mask;
+        self.mask_out.write_with(|m| m.clone_from(mask));
+        self.mask_dirty = false;
     }
 
     /// Copies the clay's paint into the colour buffer and publishes it (the simulation loop
@@ -108,12 +119,21 @@ impl SimulationStage {
         if self.colour_dirty {
             self.publish_colour();
         }
+        if self.mask_dirty {
+            self.publish_mask();
+        }
     }
 
     /// The graphics loop's end of the paint publications (there is one; the second call gets
     /// `None`).
     pub fn take_colour_reader(&mut self) -> Option<SnapshotReader<Option<ColourField>>> {
         self.colour_reader.take()
+    }
+
+    /// The graphics loop's end of the mask publications (there is one; the second call gets
+    /// `None`).
+    pub fn take_mask_reader(&mut self) -> Option<SnapshotReader<Option<FreezeMask>>> {
+        self.mask_reader.take()
     }
 
     /// The observers' end of this stage's [`SimStatus`] (there is one; the second call gets

@@ -93,6 +93,7 @@ impl SimulationStage {
             None => "undo history cleared",
         };
         self.colour_dirty = true;
+        self.mask_dirty = true;
         self.config.material = material.uniform;
         self.mark_all_changed();
         self.sessions_loaded += 1;

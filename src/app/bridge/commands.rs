@@ -81,6 +81,7 @@ impl Bridge {
                 self.send(what, Command::PaintMaterial { paint, reply: None });
             }
             EngineCommand::ClearMaterialPaint => self.send(what, Command::ClearMaterialPaint),
+            EngineCommand::Mask(edit) => self.send(what, Command::Mask { edit, reply: None }),
             EngineCommand::StrokeStart => self.send(what, Command::StrokeStart),
             EngineCommand::StrokeStop => self.send(what, Command::StrokeStop),
             EngineCommand::SetSymmetry(s) => self.send(what, Command::SetSymmetry(s)),

@@ -61,8 +61,8 @@ use crate::particles::ParticleFollower;
 use crate::pointset::{FollowedPoints, PointSet, PointSetFollower, PointSetOptions};
 use crate::rbf::CompactSettings;
 use crate::render::ChunkError;
-use crate::render::paint_colors;
-use crate::tools::ColourField;
+use crate::render::surface_colors;
+use crate::tools::{ColourField, FreezeMask};
 
 mod commands;
 mod devices;

@@ -13,6 +13,8 @@ pub struct GuiMeshSink {
     repaint: RepaintSignal,
     /// The clay's paint, as last handed over by the graphics stage.
     colour: Option<ColourField>,
+    /// The clay's freeze mask, as last handed over by the graphics stage (drawn as a tint).
+    mask: Option<FreezeMask>,
     /// The clay, for the app's pointer picking.
     field: SnapshotWriter<MultiPatchField>,
     /// Version for the next chunk made: the renderer re-uploads a chunk whose version
@@ -39,15 +41,13 @@ impl GuiMeshSink {
             exports,
             repaint,
             colour: None,
+            mask: None,
             next_version: 0,
         }
     }
 
     fn chunk(&mut self, coord: [u32; 3], mesh: &crate::mesh::BrickMesh) -> Arc<ChunkMesh> {
-        let colors = self
-            .colour
-            .as_ref()
-            .map_or_else(Vec::new, |c| paint_colors(mesh, c));
+        let colors = surface_colors(mesh, self.colour.as_ref(), self.mask.as_ref());
         self.next_version += 1;
         Arc::new(ChunkMesh::from_brick(
             coord,
@@ -55,6 +55,27 @@ impl GuiMeshSink {
             mesh,
             colors,
         ))
+    }
+
+    /// Recolours every brick whose colours (paint under the mask's tint) changed; the others
+    /// keep their chunk, so the renderer uploads only those.
+    fn recolour(&mut self, octree: &BrickOctree) {
+        let coords: Vec<[u32; 3]> = self.bricks.keys().copied().collect();
+        for c in coords {
+            let Some(b) = octree.brick(c) else { continue };
+            let colors = surface_colors(&b.mesh, self.colour.as_ref(), self.mask.as_ref());
+            if self
+                .bricks
+                .get(&c)
+                .is_some_and(|held| held.colors == colors)
+            {
+                continue;
+            }
+            self.next_version += 1;
+            let chunk = ChunkMesh::from_brick(c, self.next_version, &b.mesh, colors);
+            self.bricks.insert(c, Arc::new(chunk));
+        }
+        self.publish();
     }
 
     fn publish(&mut self) {
@@ -89,25 +110,14 @@ impl MeshSink for GuiMeshSink {
     /// renderer uploads only the repainted ones).
     fn paint(&mut self, octree: &BrickOctree, colour: Option<&ColourField>) {
         self.colour = colour.cloned();
-        let coords: Vec<[u32; 3]> = self.bricks.keys().copied().collect();
-        for c in coords {
-            let Some(b) = octree.brick(c) else { continue };
-            let colors = self
-                .colour
-                .as_ref()
-                .map_or_else(Vec::new, |p| paint_colors(&b.mesh, p));
-            if self
-                .bricks
-                .get(&c)
-                .is_some_and(|held| held.colors == colors)
-            {
-                continue;
-            }
-            self.next_version += 1;
-            let chunk = ChunkMesh::from_brick(c, self.next_version, &b.mesh, colors);
-            self.bricks.insert(c, Arc::new(chunk));
-        }
-        self.publish();
+        self.recolour(octree);
+    }
+
+    /// Re-tints every brick whose mask changed, like [`Self::paint`] (a mask that holds
+    /// nothing is no mask: no brick is tinted or evaluated).
+    fn mask(&mut self, octree: &BrickOctree, mask: Option<&FreezeMask>) {
+        self.mask = mask.filter(|m| m.any()).cloned();
+        self.recolour(octree);
     }
 
     fn field(&mut self, field: &MultiPatchField) {
@@ -119,6 +129,7 @@ impl MeshSink for GuiMeshSink {
     fn restart(&mut self) {
         self.bricks.clear();
         self.colour = None;
+        self.mask = None;
         self.publish();
     }
 }

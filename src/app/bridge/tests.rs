@@ -793,3 +793,62 @@ fn sink_recolours_the_bricks_paint_covers() {
     let cleared = link.meshes().value.clone();
     assert!(cleared.iter().all(|c| c.colors.is_empty()), "paint cleared");
 }
+
+/// The mask reaches the chunks as a tint: masking the low-x third darkens (and re-versions)
+/// the bricks it covers, over their paint, and leaves the others' chunks as they were; a
+/// cleared mask takes the tint off again.
+#[test]
+fn sink_tints_the_bricks_the_mask_covers() {
+    use crate::render::{MASK_TINT_OPACITY, tinted};
+    let (lattice, octree, report) = meshed_sphere();
+    let (mut link, end) = super::super::link::engine_link();
+    let mut sink = GuiMeshSink::new(
+        end.meshes,
+        end.field,
+        snapshot_channel(&MeshSet::new()).0,
+        end.repaint,
+    );
+    sink.update(&octree, &report);
+    let before = link.meshes().value.clone();
+    let mut mask = FreezeMask::matching(&lattice.clone().into()).unwrap();
+    let d = lattice.dims;
+    for k in 0..d[2] {
+        for j in 0..d[1] {
+            for i in 0..d[0] / 3 {
+                mask.patches[0].coeffs[lattice.index(i, j, k)] = 1.0;
+            }
+        }
+    }
+    sink.mask(&octree, Some(&mask));
+    let masked = link.meshes().value.clone();
+    assert_eq!(masked.len(), before.len(), "the same bricks");
+    let (mut tinted_bricks, mut kept, mut dark) = (0, 0, 0);
+    for chunk in &masked {
+        let old = before.iter().find(|c| c.id == chunk.id).unwrap();
+        if chunk.colors.is_empty() {
+            assert!(Arc::ptr_eq(chunk, old), "an unmasked brick keeps its chunk");
+            kept += 1;
+            continue;
+        }
+        assert_ne!(chunk.version, old.version, "a tinted brick is re-uploaded");
+        tinted_bricks += 1;
+        for (c, p) in chunk.colors.iter().zip(&chunk.positions) {
+            let hold = mask.value_at(glam::Vec3::from_array(*p));
+            let expected = tinted([0.0; 4], hold);
+            assert!(
+                c.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-6),
+                "vertex at {p:?}: {c:?}, the tint of hold {hold} is {expected:?}"
+            );
+            if c[3] > 0.5 * MASK_TINT_OPACITY {
+                dark += 1;
+            }
+        }
+    }
+    assert!(
+        tinted_bricks > 0 && kept > 0 && dark > 0,
+        "{tinted_bricks} tinted, {kept} kept, {dark} vertices over half masked"
+    );
+    sink.mask(&octree, None);
+    let cleared = link.meshes().value.clone();
+    assert!(cleared.iter().all(|c| c.colors.is_empty()), "tint cleared");
+}

@@ -45,8 +45,8 @@ use crate::dynamics::{
     PaintRegion,
 };
 use crate::tools::{
-    ForceTool, ForceToolError, MaskBrush, MaskEdit, MaskError, MaskMode, PinRequest, ToolAction,
-    ToolPose, ToolShape,
+    FalloffCurve, ForceTool, ForceToolError, MaskBrush, MaskEdit, MaskError, MaskMode, PinRequest,
+    ToolAction, ToolPose, ToolShape,
 };
 
 mod check;

@@ -70,9 +70,14 @@ impl From<AutosaveSpec> for crate::io::AutosavePolicy {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeSpec {
+    /// A round brush: a sphere, or with `curve` a brush whose depth from centre to edge
+    /// follows a falloff curve (`"smooth"`, `"sphere"`, `"root"`, `"sharp"`, `"linear"`,
+    /// `"constant"` or `{ custom = [[u, depth], …] }`), hanging along the tool's local z.
     Sphere {
         #[serde(alias = "radius_m")]
         radius_fu: f32,
+        #[serde(default, skip_serializing_if = "FalloffCurve::is_sphere")]
+        curve: FalloffCurve,
     },
     Ellipsoid {
         #[serde(alias = "radii_m")]
@@ -908,9 +913,7 @@ impl ShapeSpec {
         library: impl Fn(&str) -> Option<&'a ToolShape>,
     ) -> Result<ToolShape, PresetError> {
         Ok(match self {
-            Self::Sphere { radius_fu } => ToolShape::Sphere {
-                radius_fu: *radius_fu,
-            },
+            Self::Sphere { radius_fu, curve } => ToolShape::round(*radius_fu, curve.clone()),
             Self::Ellipsoid { radii_fu } => ToolShape::Ellipsoid {
                 radii_fu: Vec3::from_array(*radii_fu),
             },
