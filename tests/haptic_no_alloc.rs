@@ -24,7 +24,8 @@ use dynaclay::engine::{Command, DeviceHandover, HeadlessSink, ToolChoice, build}
 use dynaclay::io::Session;
 use dynaclay::tools::{ForceTool, GeometricTool, ToolAction, ToolShape};
 use dynaclay_devices::{
-    HapticDevice, Interpolation, SafetyFilter, SimArmConfig, SimulatedArm, Trajectory, Waypoint,
+    Fault, FaultKind, HapticDevice, Interpolation, SafetyFilter, SimArmConfig, SimulatedArm,
+    Trajectory, Waypoint,
 };
 use glam::Vec3;
 
@@ -487,6 +488,57 @@ fn a_carve_with_tool_shaped_contact_ticks_without_allocating() {
     assert!(
         resting > 300 && carving > 100,
         "the tool rested ({resting}) and carved ({carving})"
+    );
+    assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
+}
+
+/// Failed reads in the middle of a held stroke (a short stall the stroke is held through, and
+/// a long one that ends it) take no allocation either: the fault's zero force, the held stroke
+/// and its end all run in the counted ticks.
+#[test]
+fn failed_reads_mid_stroke_tick_without_allocating() {
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let top_y_m = common::block_top_y_m(&s.config);
+    let path = vec![
+        Waypoint::with_buttons(0.0, Vec3::new(0.0, top_y_m + 0.02, 0.0), 0),
+        Waypoint::with_buttons(0.3, Vec3::new(0.0, top_y_m - 0.002, 0.0), 1),
+        Waypoint::with_buttons(1.2, Vec3::new(0.01, top_y_m - 0.002, 0.0), 1),
+        Waypoint::with_buttons(1.4, Vec3::new(0.01, top_y_m + 0.02, 0.0), 0),
+    ];
+    let trajectory = Trajectory::new(path, Interpolation::Smooth).unwrap();
+    // The arm's own clock (one read per tick): 5 ms of silence at 0.5 s, 300 ms from 0.8 s.
+    let arm = SimArmConfig {
+        faults: vec![
+            Fault::new(0.5, 0.005, FaultKind::Stall),
+            Fault::new(0.8, 0.3, FaultKind::Stall),
+        ],
+        ..SimArmConfig::default()
+    };
+    let mut stages = build(
+        &s.config,
+        s.field,
+        Box::new(SimulatedArm::new(arm, trajectory)),
+        Box::new(HeadlessSink::default()),
+        true,
+    )
+    .expect("stages build");
+    let before = allocs_in_tick();
+    let (mut faulted, mut held_through_fault) = (0, 0);
+    for _ in 0..1500 {
+        IN_TICK.with(|f| f.set(true));
+        let out = stages.haptic.tick(Instant::now());
+        IN_TICK.with(|f| f.set(false));
+        if out.sample.device_fault {
+            faulted += 1;
+            held_through_fault += u32::from(out.sample.stroke_active);
+        }
+        stages.sim.apply_commands();
+        let sample = stages.samples.latest().value;
+        stages.sim.step(&sample);
+    }
+    assert!(
+        faulted > 100 && held_through_fault > 0,
+        "faulted ticks {faulted}, of them with the stroke held {held_through_fault}"
     );
     assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
 }
