@@ -29,7 +29,7 @@ use super::paint::{NEIGHBOURS, paint_from_cloud};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
-use super::thinning::thin_for_span;
+use super::thinning::{MAX_FITTED_POINTS, thin_for_span};
 use super::volume::{
     Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
     read_raw,
@@ -448,14 +448,27 @@ fn fit_cloud(
     };
     let cloud = match &thinned {
         Some((thin, done)) => {
-            note(format!(
-                "thinned to {} points (one in {}): the points lie {:.3}% of the size apart, \
-                 closer than the finest knot span can use ({:.3}% wanted)",
-                thin.points.len(),
-                done.stride,
-                100.0 * done.spacing_before / size,
-                100.0 * done.spacing_wanted / size
-            ));
+            note(if done.limited_by_count {
+                format!(
+                    "thinned to {} points (one in {}): a fit keeps at most {} points (the \
+                     points lie {:.3}% of the size apart; the finest knot span could use \
+                     {:.3}%)",
+                    thin.points.len(),
+                    done.stride,
+                    MAX_FITTED_POINTS,
+                    100.0 * done.spacing_before / size,
+                    100.0 * done.spacing_wanted / size
+                )
+            } else {
+                format!(
+                    "thinned to {} points (one in {}): the points lie {:.3}% of the size apart, \
+                     closer than the finest knot span can use ({:.3}% wanted)",
+                    thin.points.len(),
+                    done.stride,
+                    100.0 * done.spacing_before / size,
+                    100.0 * done.spacing_wanted / size
+                )
+            });
             thin
         }
         None => cloud,
