@@ -29,8 +29,14 @@
 //!    normal cannot turn the side of the surface.
 //! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
 //!    of the distances to the neighbouring points' tangent planes, each weighted by its
-//!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ nᵢ·(x − pᵢ) / Σ wᵢ`,
-//!    `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`. The typical bandwidth `h` is set by the data: at
+//!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ dᵢ(x) / Σ wᵢ`,
+//!    `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`. A plane alone is biased on a curved surface: the
+//!    surface bends away from each tangent plane by `κ t² / 2` at a tangential offset `t`,
+//!    so the mean of plane distances sets the zero level off the surface by about `κ h² / 2`
+//!    (outward on a convex part). Each point's distance is therefore taken to its osculating
+//!    sphere, `dᵢ(x) = nᵢ·v + κᵢ (|v|² − (nᵢ·v)²) / 2` with `v = x − pᵢ`, where `κᵢ` is the
+//!    point's mean curvature read from how its neighbours' smoothed normals turn
+//!    (`(nⱼ − nᵢ)·(pⱼ − pᵢ) = κ |pⱼ − pᵢ|²` on a sphere), bounded by [`MAX_CURVATURE_BANDWIDTHS`]. The typical bandwidth `h` is set by the data: at
 //!    least [`BANDWIDTH_SPACINGS`] typical point spacings and [`BANDWIDTH_NOISES`] noise
 //!    levels, at most a knot span, so the mean runs over enough points that the noise
 //!    averages out. Sampling is rarely even (a scanner, or a sampler that crowds the points
@@ -200,6 +206,9 @@ pub struct SignedCloud {
     /// Per point: its plane's bandwidth and weight, set by the local spacing (see
     /// [`LocalScale`]).
     local: Vec<LocalScale>,
+    /// Per point: the mean curvature of the surface there, 1 / field units, positive where
+    /// it is convex (see [`point_curvatures`]).
+    curvature: Vec<f32>,
     /// The Gaussian bandwidth of the moving planes where the cloud has its typical spacing,
     /// field units (a point's own is between this and [`MAX_WIDENING`] times it).
     pub bandwidth: f32,
@@ -306,6 +315,7 @@ impl SignedCloud {
             &self.normals,
             &self.confidence,
             &self.local,
+            &self.curvature,
             self.widest,
             x,
         )
@@ -543,6 +553,7 @@ pub fn sign_cloud(
         });
         sum.try_normalize().unwrap_or(raw_normals[i])
     });
+    let curvature = point_curvatures(&near_points, &points, &normals, &confidence, bandwidth);
     // Only the points some node takes its fallback plane from need an anchor.
     let mut wanted = vec![false; points.len()];
     for (&p, d) in nearest.iter().zip(&dist) {
@@ -555,8 +566,15 @@ pub fn sign_cloud(
         if !wanted[i] {
             return p;
         }
-        let (weighted, weight) =
-            moving_planes(&near_points, &normals, &confidence, &local, widest, p);
+        let (weighted, weight) = moving_planes(
+            &near_points,
+            &normals,
+            &confidence,
+            &local,
+            &curvature,
+            widest,
+            p,
+        );
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -577,6 +595,7 @@ pub fn sign_cloud(
         anchors,
         near_points,
         local,
+        curvature,
         bandwidth,
         widest,
         noise,
@@ -716,14 +735,52 @@ fn local_scales(spacings: &[f32], bandwidth: f32) -> Vec<LocalScale> {
         .collect()
 }
 
-/// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
+/// The most a point's curvature is trusted, times the inverse of the bandwidth: a feature
+/// tighter than the bandwidth (a sharp edge, a thin rod) is not resolved by the moving planes
+/// anyway, and a larger value would let the osculating sphere's correction outweigh the plane
+/// within reach (at most `κ (2h)² / 2 = h` here).
+pub const MAX_CURVATURE_BANDWIDTHS: f32 = 0.5;
+
+/// Per point: the surface's mean curvature there (1 / field units, positive where convex),
+/// from how the smoothed normals of its neighbours within reach of `bandwidth` turn:
+/// `κᵢ = Σ wⱼ (nⱼ − nᵢ)·(pⱼ − pᵢ) / Σ wⱼ |pⱼ − pᵢ|²` (exact on a sphere, where
+/// `nⱼ − nᵢ = (pⱼ − pᵢ) / R`; the noise across the surface hardly enters, as `nⱼ − nᵢ`
+/// lies nearly in the tangent plane), bounded by [`MAX_CURVATURE_BANDWIDTHS`] / `bandwidth`.
+fn point_curvatures(
+    grid: &PointGrid,
+    points: &[Vec3],
+    normals: &[Vec3],
+    confidence: &[f32],
+    bandwidth: f32,
+) -> Vec<f32> {
+    let bound = MAX_CURVATURE_BANDWIDTHS / bandwidth;
+    parallel_map(points.len(), |i| {
+        let (p, n) = (points[i], normals[i]);
+        let (mut turned, mut spread) = (0.0f32, 0.0f32);
+        grid.for_each_near(p, MOVING_REACH * bandwidth, |j, q| {
+            let d = q - p;
+            let w = confidence[j] * (-d.length_squared() / (bandwidth * bandwidth)).exp();
+            turned += w * (normals[j] - n).dot(d);
+            spread += w * d.length_squared();
+        });
+        if spread > 0.0 {
+            (turned / spread).clamp(-bound, bound)
+        } else {
+            0.0
+        }
+    })
+}
+
+/// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
 /// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
-/// bandwidth); `widest` is the largest `hᵢ`.
+/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); `widest`
+/// is the largest `hᵢ`.
 fn moving_planes(
     grid: &PointGrid,
     normals: &[Vec3],
     confidence: &[f32],
     local: &[LocalScale],
+    curvature: &[f32],
     widest: f32,
     x: Vec3,
 ) -> (f32, f32) {
@@ -735,7 +792,9 @@ fn moving_planes(
         let squared = d.length_squared();
         if squared <= reach * reach {
             let w = confidence[j] * area * (-squared / (bandwidth * bandwidth)).exp();
-            weighted += w * normals[j].dot(d);
+            let height = normals[j].dot(d);
+            let tangential = (squared - height * height).max(0.0);
+            weighted += w * (height + 0.5 * curvature[j] * tangential);
             weight += w;
         }
     });
@@ -1349,6 +1408,47 @@ mod tests {
             worst = worst.max((r - truth).abs());
         }
         worst / (2.0 * truth)
+    }
+
+    #[test]
+    fn on_a_curved_surface_the_moving_distance_is_not_biased_by_the_curvature() {
+        // A bandwidth of a knot span (set by a high noise level) on a sphere of radius 2.5
+        // spans: tangent planes alone would set the zero level h² / 2R, 8% of the radius,
+        // outside the sphere.
+        let radius = 3.0;
+        let options = CloudFitOptions {
+            resolution: 14,
+            noise: Some(0.08),
+            ..CloudFitOptions::default()
+        };
+        let signed = sign_cloud(&sphere_cloud(4000, radius), &options).unwrap();
+        let r = radius * signed.scale;
+        let h = signed.bandwidth;
+        let plane_bias = h * h / (2.0 * r);
+        assert!(
+            plane_bias > 0.01 * r,
+            "the bandwidth is wide enough to matter: {h} / {r}"
+        );
+        // Each point reads the sphere's curvature from its neighbours' normals.
+        let mut curvature = signed.curvature.clone();
+        let mid = curvature.len() / 2;
+        let median = *curvature.select_nth_unstable_by(mid, f32::total_cmp).1;
+        assert!(
+            (median * r - 1.0).abs() < 0.1,
+            "median curvature {median} against 1/R = {}",
+            1.0 / r
+        );
+        // On the true sphere, the signed distance is zero to well within the plane's bias.
+        let directions = sphere_cloud(200, 1.0).points;
+        let mean = directions
+            .iter()
+            .map(|&d| signed.signed_distance(signed.offset + d * r))
+            .sum::<f32>()
+            / directions.len() as f32;
+        assert!(
+            mean.abs() < 0.2 * plane_bias,
+            "mean distance on the sphere {mean}, a plane's bias {plane_bias}"
+        );
     }
 
     #[test]
