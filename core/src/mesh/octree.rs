@@ -1600,12 +1600,13 @@ mod tests {
             let fresh = BrickOctree::build(grid, field);
             let mut one_thread = kept.clone();
             let expected = one_thread.rebuild(field);
-            let mut order = Vec::new();
+            let (mut order, mut unit_count) = (Vec::new(), 0);
             let report = kept.rebuild_on(field, |field, grid, counts, generation, jobs| {
                 let unit = jobs.len().div_ceil(4 * 7);
                 let mut units: Vec<Option<&mut [BrickJob<'_>]>> =
                     jobs.chunks_mut(unit).map(Some).collect();
-                let split = WorkSplit::new(units.len(), 4);
+                unit_count = units.len();
+                let split = WorkSplit::new(unit_count, 4);
                 build_runs(field, grid, counts, generation, || {
                     let at = split.next(0)?;
                     order.push(at);
@@ -1613,7 +1614,10 @@ mod tests {
                 })
             });
             assert!(order.windows(2).any(|w| w[1] < w[0]), "{order:?}");
-            assert_eq!(order.len(), 4 * 7);
+            let mut sorted = order.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..unit_count).collect::<Vec<_>>());
+            assert!(unit_count > 20);
             assert_eq!(report, expected);
             assert!(!report.removed.is_empty());
             assert_eq!(brick_bits(&kept), brick_bits(&fresh));
