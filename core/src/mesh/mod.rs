@@ -37,6 +37,7 @@ mod stats;
 mod tables;
 mod trimesh;
 mod weld;
+mod work_split;
 
 pub use adaptive::{
     AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,

@@ -29,6 +29,7 @@ use super::brick::{
 use super::grid::SampleGrid;
 use super::source::ScalarField;
 use super::trimesh::TriMesh;
+use super::work_split::WorkSplit;
 use crate::field::BSplineLattice;
 
 /// One stored brick: its mesh.
@@ -209,8 +210,8 @@ impl BrickOctree {
 
     /// [`BrickOctree::rebuild`] with the bricks split over `threads` threads; the result
     /// (bricks, meshes and report) is identical. The descent runs first on the caller and
-    /// lists the bricks to sample; the threads then build them, taking runs of the build
-    /// order in turn.
+    /// lists the bricks to sample; the threads then build them, each along a stretch of the
+    /// build order, and one that runs out takes half of the largest stretch left.
     pub fn rebuild_with_threads<F: ScalarField + Sync + ?Sized>(
         &mut self,
         field: &F,
@@ -977,10 +978,22 @@ fn build_runs<'a, 'b: 'a, F: ScalarField + ?Sized>(
     fresh
 }
 
+/// How many units of the build order a rebuild on several threads hands out per thread
+/// (see [`build_bricks_parallel`]): enough that the threads finish within a small part of
+/// the build of each other.
+const BUILD_UNITS_PER_THREAD: usize = 64;
+
 /// Builds `jobs` (in build order) on `threads` threads (the caller and `threads − 1`
-/// more), which take runs of the order in turn, a few per thread, and returns the new
-/// bricks. A brick's samples and mesh depend only on the brick and the field, so the split
-/// changes nothing in the result.
+/// more) and returns the new bricks. A brick's samples and mesh depend only on the brick
+/// and the field, so the split changes nothing in the result.
+///
+/// The order is cut into units, [`BUILD_UNITS_PER_THREAD`] per thread, which a
+/// [`WorkSplit`] hands out: each thread builds one contiguous stretch of the order, so
+/// every brick but the first after a steal takes its lower faces from bricks its own thread
+/// built just before, and a thread that runs out takes the back half of the largest
+/// stretch left. The threads so finish together whether the surface (and with it the
+/// marching) lies evenly or mostly in one thread's stretch, and when the operating system
+/// holds one thread back.
 fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     field: &F,
     grid: &SampleGrid,
@@ -989,19 +1002,34 @@ fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     jobs: &mut [BrickJob<'_>],
     threads: usize,
 ) -> Vec<Brick> {
-    let threads = threads.max(1);
-    let runs = if threads == 1 { 1 } else { threads * 4 };
-    let run = jobs.len().div_ceil(runs).max(1);
-    // One uncontended lock per run handed out, none per brick.
-    let queue = Mutex::new(jobs.chunks_mut(run));
-    let work = || {
+    let threads = threads.clamp(1, jobs.len().max(1));
+    if threads == 1 {
+        let mut all = Some(jobs);
+        return build_runs(field, grid, counts, generation, || all.take());
+    }
+    let unit = jobs.len().div_ceil(threads * BUILD_UNITS_PER_THREAD);
+    // NOTE: a unit's lock is taken once, by the one thread the split handed the unit to,
+    // so it is never contended; it only moves the unit's jobs to that thread.
+    let units: Vec<Mutex<Option<&mut [BrickJob<'_>]>>> = jobs
+        .chunks_mut(unit)
+        .map(|unit| Mutex::new(Some(unit)))
+        .collect();
+    let split = WorkSplit::new(units.len(), threads);
+    let work = |thread: usize| {
         build_runs(field, grid, counts, generation, || {
-            queue.lock().unwrap_or_else(PoisonError::into_inner).next()
+            let unit = split.next(thread)?;
+            units[unit]
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner)
+                .take()
         })
     };
+    let work = &work;
     std::thread::scope(|scope| {
-        let helpers: Vec<_> = (1..threads).map(|_| scope.spawn(work)).collect();
-        let mut fresh = work();
+        let helpers: Vec<_> = (1..threads)
+            .map(|thread| scope.spawn(move || work(thread)))
+            .collect();
+        let mut fresh = work(0);
         for h in helpers {
             match h.join() {
                 Ok(more) => fresh.extend(more),
@@ -1543,6 +1571,57 @@ mod tests {
             assert_eq!(report.changed.len(), now.len());
             kept.weld_into(&mut out, &mut scratch);
             assert_eq!(&mesh_bits(&out), weld);
+        }
+    }
+
+    #[test]
+    fn bricks_built_in_stolen_stretches_equal_one_thread_bit_for_bit() {
+        // The order a thread of a rebuild on four threads takes the build order's units in
+        // when the other three never run: its own quarter, then back halves of the others'
+        // (each starting where the bricks below it were built by no one yet, or long ago,
+        // so the faces kept for them are stale). A kept tree rebuilt so, from a surface to
+        // another, holds the bricks of a fresh one-thread build, with the report of a
+        // one-thread rebuild.
+        const W: f32 = 8.0;
+        let wave = |iso: f32| FnField {
+            value: |p: Vec3| {
+                (W * p.x).sin() * (W * p.y).cos()
+                    + (W * p.y).sin() * (W * p.z).cos()
+                    + (W * p.z).sin() * (W * p.x).cos()
+            },
+            gradient: |p: Vec3| Vec3::new(p.y.cos(), p.z.sin(), 1.0 + p.x * p.x),
+            iso,
+            lipschitz: None,
+        };
+        let (a, b) = (wave(0.2), wave(-0.4));
+        let grid = SampleGrid::new(Vec3::splat(-0.2), 1.0 / 31.0, [43, 50, 39]).unwrap();
+        let mut kept = BrickOctree::build(grid, &a);
+        for field in [&b, &a] {
+            let fresh = BrickOctree::build(grid, field);
+            let mut one_thread = kept.clone();
+            let expected = one_thread.rebuild(field);
+            let (mut order, mut unit_count) = (Vec::new(), 0);
+            let report = kept.rebuild_on(field, |field, grid, counts, generation, jobs| {
+                let unit = jobs.len().div_ceil(4 * 7);
+                let mut units: Vec<Option<&mut [BrickJob<'_>]>> =
+                    jobs.chunks_mut(unit).map(Some).collect();
+                unit_count = units.len();
+                let split = WorkSplit::new(unit_count, 4);
+                build_runs(field, grid, counts, generation, || {
+                    let at = split.next(0)?;
+                    order.push(at);
+                    units[at].take()
+                })
+            });
+            assert!(order.windows(2).any(|w| w[1] < w[0]), "{order:?}");
+            let mut sorted = order.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..unit_count).collect::<Vec<_>>());
+            assert!(unit_count > 20);
+            assert_eq!(report, expected);
+            assert!(!report.removed.is_empty());
+            assert_eq!(brick_bits(&kept), brick_bits(&fresh));
+            assert_eq!(brick_bits(&kept), brick_bits(&one_thread));
         }
     }
 
