@@ -18,7 +18,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::hash::{BuildHasherDefault, Hasher};
-use std::sync::{Mutex, PoisonError};
+use std::sync::{Mutex, TryLockError};
 
 use glam::Vec3;
 
@@ -1008,8 +1008,9 @@ fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
         return build_runs(field, grid, counts, generation, || all.take());
     }
     let unit = jobs.len().div_ceil(threads * BUILD_UNITS_PER_THREAD);
-    // NOTE: a unit's lock is taken once, by the one thread the split handed the unit to,
-    // so it is never contended; it only moves the unit's jobs to that thread.
+    // NOTE: a unit's lock is tried once, by the one thread the split handed the unit to, so
+    // it is never contended and never waited on (`try_lock`); it only moves the unit's jobs
+    // to that thread.
     let units: Vec<Mutex<Option<&mut [BrickJob<'_>]>>> = jobs
         .chunks_mut(unit)
         .map(|unit| Mutex::new(Some(unit)))
@@ -1018,10 +1019,13 @@ fn build_bricks_parallel<F: ScalarField + Sync + ?Sized>(
     let work = |thread: usize| {
         build_runs(field, grid, counts, generation, || {
             let unit = split.next(thread)?;
-            units[unit]
-                .lock()
-                .unwrap_or_else(PoisonError::into_inner)
-                .take()
+            match units[unit].try_lock() {
+                Ok(mut slot) => slot.take(),
+                Err(TryLockError::Poisoned(poisoned)) => poisoned.into_inner().take(),
+                Err(TryLockError::WouldBlock) => {
+                    unreachable!("the split hands unit {unit} to one thread only")
+                }
+            }
         })
     };
     let work = &work;
