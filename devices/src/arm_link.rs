@@ -442,7 +442,11 @@ mod tests {
         let t0 = Instant::now();
         let mut host = ArmSession::new(t0);
         assert_eq!(host.reply_time_us(t0 + 7 * MS), 7000);
-        assert_eq!(host.reply_time_us(t0 + 7 * MS), 7000, "the time, not the count");
+        assert_eq!(
+            host.reply_time_us(t0 + 7 * MS),
+            7000,
+            "the time, not the count"
+        );
 
         let mut counted = ArmSession::with_clock(t0, SampleClock::LOCKSTEP_1KHZ);
         // However late or early the replies are decoded, the k-th is k ms after the start.

@@ -30,8 +30,8 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
-pub use crate::arm_link::{LinkStats, SampleClock};
 use crate::arm_link::{ArmSession, SerialStream, arm_model};
+pub use crate::arm_link::{LinkStats, SampleClock};
 use crate::codec::CodecError;
 use crate::codec::falcon::{
     self as fc, BOOT_BAUD, FIRMWARE_BAUD, FalconCommand, FalconReader, FalconStatus, LED_GREEN,
