@@ -1,10 +1,12 @@
-//! Device benchmarks: protocol codec encode/decode times, kinematics, and the serial round trip
-//! over a real pseudo-terminal pair at 1 kHz (p50/p99).
+//! Device benchmarks: protocol codec encode/decode times, kinematics, the serial round trip
+//! over a real pseudo-terminal pair at 1 kHz (p50/p99), and the device doctor's loop on a
+//! Falcon over a pseudo-terminal (the rate its read/write cycle achieves, and its jitter).
 //!
 //! Run: `cargo bench --bench devices` (short: `cargo bench --bench devices -- --warm-up-time 0.5
-//! --measurement-time 1`). The PTY latency part runs after criterion and prints its own
-//! percentiles; it is optimistic compared with real USB (no FTDI latency timer, no USB frame
-//! scheduling) and pessimistic on a loaded machine (the firmware thread competes for a core).
+//! --measurement-time 1`; `cargo bench --bench devices -- doctor` runs the doctor part alone).
+//! The PTY parts run after criterion and print their own percentiles; they are optimistic
+//! compared with real USB (no FTDI latency timer, no USB frame scheduling) and pessimistic on a
+//! loaded machine (the firmware thread competes for a core).
 
 use std::hint::black_box;
 use std::io::{Read, Write};
@@ -17,6 +19,7 @@ use dynaclay_devices::HapticDevice;
 use dynaclay_devices::codec::frame::{self, DeviceMsg, FrameEvent, FrameReader, HostMsg};
 use dynaclay_devices::codec::{cartesian, falcon, spacemouse, woodenhaptics};
 use dynaclay_devices::delta::Delta;
+use dynaclay_devices::doctor::{self, DoctorConfig, WallClock};
 use dynaclay_devices::falcon::{Falcon, FalconOptions};
 use dynaclay_devices::kinematics::ArmModel;
 use dynaclay_devices::profile::DeviceProfile;
@@ -292,10 +295,56 @@ fn pty_latency() {
     }
 }
 
+/// The device doctor's zero-force loop (`dynaclay devices --doctor falcon:PATH`, in process:
+/// the same `doctor::run`, the same wall clock, the driver's default options, as the command
+/// builds them without a firmware file) on a Falcon whose firmware is the echo thread on a
+/// pseudo-terminal. Each tick reads the reply to the previous tick's command and sends the
+/// next, so the fresh-sample rate is the rate the driver's read/write cycle sustains; the load
+/// average is printed before and after, since a second core's load shows in the tail.
+fn falcon_doctor() {
+    let seconds: f64 = std::env::var("DEVICES_DOCTOR_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .filter(|s: &f64| (0.05..=60.0).contains(s))
+        .unwrap_or(5.0);
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!("falcon_doctor: load average {}", load.trim());
+    let (master, slave) = TTYPort::pair().expect("pseudo-terminal pair");
+    let path = slave.name().unwrap();
+    drop(slave);
+    let stop = Arc::new(AtomicBool::new(false));
+    let fw = spawn_echo_firmware(master, false, stop.clone());
+    let config = DoctorConfig {
+        duration_us: (seconds * 1e6).round() as u64,
+        rate_hz: None,
+    };
+    let falcon = Falcon::new(&path, FalconOptions::default());
+    let (outcome, falcon) = doctor::run(falcon, config, &mut WallClock::new());
+    match outcome {
+        Ok(report) => print!("falcon_doctor: {report}"),
+        Err(e) => println!("falcon_doctor: cannot open the Falcon on {path}: {e}"),
+    }
+    println!("falcon_doctor: {}", falcon.latency_timer());
+    let stats = falcon.link_stats();
+    println!(
+        "falcon_doctor: link {} frames sent, {} received, {} malformed, {} stray bytes",
+        stats.sent, stats.received, stats.bad_frames, stats.skipped_bytes
+    );
+    let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
+    println!("falcon_doctor: load average after {}", load.trim());
+    stop.store(true, Ordering::Relaxed);
+    let _ = fw.join();
+}
+
 fn main() {
+    if std::env::args().any(|a| a == "doctor") {
+        falcon_doctor();
+        return;
+    }
     let mut c = Criterion::default().configure_from_args();
     codecs(&mut c);
     kinematics(&mut c);
     c.final_summary();
     pty_latency();
+    falcon_doctor();
 }

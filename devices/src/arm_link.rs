@@ -1,7 +1,8 @@
 //! The set-up every streaming arm driver shares, so each driver states only its wire protocol,
 //! its handshake and its kinematics: the link counters ([`LinkStats`]), one session's host-side
 //! bookkeeping (`ArmSession`: session clock, velocity filter, last state, keep-alive rule),
-//! the serial port with its health, counters and byte offsets (`SerialStream`), and the
+//! the serial port with its health, counters and byte offsets (`SerialStream`), where a
+//! sample's time stamp comes from ([`SampleClock`]), and the
 //! small rules the drivers agree on (building the arm model, clamping a Cartesian force,
 //! what closing reports).
 //!
@@ -10,6 +11,7 @@
 //! The session clock and the link health take the time as an argument, so their rules are
 //! tested on an injected clock.
 
+use std::num::NonZeroU32;
 use std::time::{Duration, Instant};
 
 use glam::Vec3;
@@ -37,6 +39,32 @@ pub struct LinkStats {
     pub skipped_bytes: u64,
     /// Firmware upload attempts in the last `open`.
     pub firmware_attempts: u32,
+}
+
+/// Where a streaming arm's samples take their time stamps (the device time the safety
+/// filter's soft start, the velocity filter and the haptic renderer run on) when the firmware's
+/// frames carry no clock of their own.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SampleClock {
+    /// The host's monotonic clock when the reply was decoded, counted from the end of `open`:
+    /// the time the sample really arrived, for real-time runs.
+    #[default]
+    Host,
+    /// The `k`-th reply after `open` is stamped `k × period_us`: the device's clock when the
+    /// firmware answers each command with exactly one frame and the engine sends one command
+    /// per tick (a lockstep run), so the stamps, and everything computed from them, depend on
+    /// the exchanges and never on how fast the machine ran them.
+    PerReply {
+        /// The time between two replies, microseconds (never zero, so time moves on).
+        period_us: NonZeroU32,
+    },
+}
+
+impl SampleClock {
+    /// One reply per millisecond: the clock of a lockstep run at the 1 kHz haptic rate.
+    pub const LOCKSTEP_1KHZ: Self = Self::PerReply {
+        period_us: NonZeroU32::new(1000).expect("1000 is not zero"),
+    };
 }
 
 /// The arm model a profile describes.
@@ -83,23 +111,36 @@ pub(crate) fn close_result(zero_force: Result<(), DeviceError>) -> Result<(), De
     }
 }
 
-/// The host side of one streaming session: when it started, the velocity filter, the last
-/// state handed out and whether the engine has written since the last read (when it has not,
-/// `read` sends a keep-alive so the firmware keeps streaming and its watchdog stays fed).
+/// The host side of one streaming session: when it started, how its samples are stamped
+/// ([`SampleClock`]) and how many replies it has stamped, the velocity filter, the last state
+/// handed out and whether the engine has written since the last read (when it has not, `read`
+/// sends a keep-alive so the firmware keeps streaming and its watchdog stays fed).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct ArmSession {
     started: Instant,
+    clock: SampleClock,
+    replies: u64,
     velocity: VelocityEstimator,
     state: DeviceState,
     written_since_read: bool,
 }
 
 impl ArmSession {
-    /// A session that has not streamed yet, its clock starting at `now`.
+    /// A session that has not streamed yet, its clock starting at `now`, stamping samples on
+    /// the host's clock.
     #[must_use]
     pub(crate) fn new(now: Instant) -> Self {
+        Self::with_clock(now, SampleClock::Host)
+    }
+
+    /// A session that has not streamed yet, its clock starting at `now`, stamping samples on
+    /// `clock`.
+    #[must_use]
+    pub(crate) fn with_clock(now: Instant, clock: SampleClock) -> Self {
         Self {
             started: now,
+            clock,
+            replies: 0,
             velocity: VelocityEstimator::default(),
             state: DeviceState::ZERO,
             written_since_read: false,
@@ -111,6 +152,7 @@ impl ArmSession {
     /// a keep-alive.
     pub(crate) fn start(&mut self, now: Instant) {
         self.started = now;
+        self.replies = 0;
         self.velocity.reset();
         self.state = DeviceState::ZERO;
         self.written_since_read = false;
@@ -120,6 +162,16 @@ impl ArmSession {
     #[must_use]
     pub(crate) fn elapsed_us(&self, now: Instant) -> u64 {
         now.duration_since(self.started).as_micros() as u64
+    }
+
+    /// Counts one reply decoded at `now` and returns its time stamp on the session's
+    /// [`SampleClock`], microseconds since the session started.
+    pub(crate) fn reply_time_us(&mut self, now: Instant) -> u64 {
+        self.replies += 1;
+        match self.clock {
+            SampleClock::Host => self.elapsed_us(now),
+            SampleClock::PerReply { period_us } => self.replies * u64::from(period_us.get()),
+        }
     }
 
     /// Takes a fresh sample at `t_us` on the session clock: the velocity comes from the filter
@@ -383,6 +435,33 @@ mod tests {
         // The velocity filter forgot the old session: one sample gives no velocity.
         assert_eq!(s.sample(Vec3::ONE, 0, 10).velocity_m_per_s, Vec3::ZERO);
         assert_eq!(s.state().sequence, 1);
+    }
+
+    #[test]
+    fn replies_are_stamped_by_the_host_clock_or_counted_one_period_apart() {
+        let t0 = Instant::now();
+        let mut host = ArmSession::new(t0);
+        assert_eq!(host.reply_time_us(t0 + 7 * MS), 7000);
+        assert_eq!(
+            host.reply_time_us(t0 + 7 * MS),
+            7000,
+            "the time, not the count"
+        );
+
+        let mut counted = ArmSession::with_clock(t0, SampleClock::LOCKSTEP_1KHZ);
+        // However late or early the replies are decoded, the k-th is k ms after the start.
+        assert_eq!(counted.reply_time_us(t0 + 40 * MS), 1000);
+        assert_eq!(counted.reply_time_us(t0), 2000);
+        assert_eq!(counted.reply_time_us(t0 + 3 * MS), 3000);
+        // A new session counts from zero again.
+        counted.start(t0 + 500 * MS);
+        assert_eq!(counted.reply_time_us(t0 + 900 * MS), 1000);
+        let slow = SampleClock::PerReply {
+            period_us: NonZeroU32::new(250).unwrap(),
+        };
+        let mut s = ArmSession::with_clock(t0, slow);
+        s.reply_time_us(t0);
+        assert_eq!(s.reply_time_us(t0), 500);
     }
 
     #[test]

@@ -16,6 +16,11 @@
 //! reverse-engineered protocol (`FalconCommLibUSB`, `FalconFirmwareNovintSDK`); see
 //! [`crate::codec::falcon`] for the frame layout.
 //!
+//! Time: the status frame carries no clock, so each sample is stamped on the host's clock when
+//! its reply is decoded ([`SampleClock::Host`]); a lockstep run counts the replies instead
+//! ([`SampleClock::LOCKSTEP_1KHZ`]: the firmware answers each command with one frame, one
+//! command per tick), so its soft start, velocities and forces do not depend on the machine.
+//!
 //! Baud changes: a pseudo-terminal has no real line rate and some refuse unusual rates, so
 //! [`BaudPolicy::Tolerant`] lets tests run the whole bootloader sequence over a PTY; real ports
 //! use [`BaudPolicy::Strict`].
@@ -25,8 +30,8 @@ use std::time::{Duration, Instant};
 
 use glam::{DVec3, Vec3};
 
-pub use crate::arm_link::LinkStats;
 use crate::arm_link::{ArmSession, SerialStream, arm_model};
+pub use crate::arm_link::{LinkStats, SampleClock};
 use crate::codec::CodecError;
 use crate::codec::falcon::{
     self as fc, BOOT_BAUD, FIRMWARE_BAUD, FalconCommand, FalconReader, FalconStatus, LED_GREEN,
@@ -71,6 +76,10 @@ pub struct FalconOptions {
     /// Where the port's FTDI latency timer is found (`/sys/bus/usb-serial/devices`; a test
     /// points it at a stand-in folder).
     pub usb_serial_sysfs: PathBuf,
+    /// Where the samples' time stamps come from (the status frame carries no time): the
+    /// host's clock in real time; [`SampleClock::LOCKSTEP_1KHZ`] in a lockstep run, where the
+    /// firmware's one reply per command is the device's clock.
+    pub sample_clock: SampleClock,
 }
 
 impl Default for FalconOptions {
@@ -85,6 +94,7 @@ impl Default for FalconOptions {
             reply_wait: Duration::from_micros(400),
             stale_after: Duration::from_millis(50),
             usb_serial_sysfs: PathBuf::from(ftdi_latency::USB_SERIAL_SYSFS),
+            sample_clock: SampleClock::Host,
         }
     }
 }
@@ -195,7 +205,7 @@ impl Falcon {
             profile,
             model,
             stream: SerialStream::new(opts.stale_after, now),
-            session: ArmSession::new(now),
+            session: ArmSession::with_clock(now, opts.sample_clock),
             opts,
             reader: FalconReader::new(),
             cmd: FalconCommand::default(),
@@ -444,9 +454,11 @@ impl HapticDevice for Falcon {
         let now = Instant::now();
         if fresh {
             self.stream.frame_received(now);
+            // Stamped whether or not the solve succeeds: a reply is a tick of the device's
+            // clock either way.
+            let t_us = self.session.reply_time_us(now);
             // Keep the last good position if the solve fails (a glitch near a singularity).
             if let Ok(p) = self.model.update(self.status.encoders) {
-                let t_us = self.session.elapsed_us(now);
                 self.session
                     .sample(p.as_vec3(), u32::from(self.status.buttons), t_us);
             }

@@ -226,8 +226,6 @@ pub fn check_session(name: &str, info: &DeviceInfo, s: &Session) {
 
 /// Ticks after the failed read by which the soft start (100 ms: 100 ticks of the arm's 1 kHz
 /// clock) and the renderer's blend back in (20 ms) are over.
-// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
-#[allow(dead_code)]
 pub const RECOVERED_AFTER: u64 = 121;
 
 /// After the soft start that follows the failed read, the arm feels what the same session
@@ -239,8 +237,6 @@ pub const RECOVERED_AFTER: u64 = 121;
 /// press is a passing peak (on the Touch 0.10 N 50 ms before, 0.043 N at the fault, and
 /// 0.025 N 120 ms later in a session with no fault at all), so only the unbroken session at
 /// the same tick says what the hand should feel.
-// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
-#[allow(dead_code)]
 pub fn check_return_after_fault(name: &str, s: &Session, unbroken: &Session) {
     let window = (FAULT_AT + RECOVERED_AFTER) as usize..DISCONNECT_AT as usize;
     let pressed = window
@@ -262,6 +258,4 @@ pub fn check_return_after_fault(name: &str, s: &Session, unbroken: &Session) {
 
 /// How far the force after the fault's ramp may stray from the unbroken session's, as a share
 /// of it (the failed read's tick pushes nothing, so the clay differs by one tick's push).
-// NOTE: the vendor arms' sessions compare with an unbroken run; the Falcon's does not yet.
-#[allow(dead_code)]
 pub const RETURN_TOLERANCE: f32 = 0.05;
