@@ -11,7 +11,8 @@
 //! coefficients painted held would let a tinted point move with the partly painted ones at the
 //! brush's soft edge. The hold applied is therefore the painted mask dilated by the basis
 //! support ([`HOLD_REACH_NODES`]): each coefficient is held at least as firmly as the most
-//! tinted point it moves, and a point tinted `m` moves at most `1 − m` of its free motion.
+//! tinted point it moves, so fully tinted clay keeps its bits and clay tinted `m` keeps at
+//! least `m` of its shape under an edit that moves its coefficients one way (a carve, a fill).
 
 use glam::Vec3;
 
@@ -105,15 +106,16 @@ impl FreezeMask {
     /// The holds that tools and dynamics apply over `region` of patch `patch` (whose lattice is
     /// `lattice`), x fastest, written into `out` (cleared first): each coefficient's hold is the
     /// largest painted hold within [`HOLD_REACH_NODES`] nodes of it along every axis (a box
-    /// dilation of the painted mask by the basis support). So a tinted point of the clay moves
-    /// at most `1 − tint` of its free motion, and a fully tinted one keeps its place bit for
-    /// bit. `out` is left empty when the mask does not fit the patch, the region does not fit
-    /// the lattice, or nothing there is held.
+    /// dilation of the painted mask by the basis support). So the field at a point tinted `t`
+    /// changes by at most `1 − t` of the blended size of its coefficients' free changes (for
+    /// an edit that moves them all one way, `1 − t` of its free change), and at a fully tinted
+    /// point not at all. `out` is left empty when the mask does not fit the patch, the region
+    /// does not fit the lattice, or nothing there is held.
     ///
     /// Computed from the painted holds each time (they change through paints, undo, growth and
-    /// loads alike), in three passes of a running window, one per axis, over the region grown
-    /// by the reach: `O(27 · region)` work and two scratch buffers of the region's size. For
-    /// the simulation thread's edits, never the haptic tick.
+    /// loads alike), as a window maximum seven nodes wide along x, then y, then z, over the
+    /// region grown by the reach: about `21 ×` the grown region's size in work and two scratch
+    /// buffers of about its size. For the simulation thread's edits, never the haptic tick.
     pub fn support_holds(
         &self,
         patch: usize,
@@ -147,14 +149,14 @@ impl FreezeMask {
         }
         // Along y: the region's rows, over the grown box's planes.
         let mut along_y = Vec::with_capacity(n[0] * n[1] * (hi[2] - lo[2] + 1));
-        let mut column = Vec::with_capacity(grown_y.max(hi[2] - lo[2] + 1));
         for k in 0..=hi[2] - lo[2] {
             let plane = &along_x[n[0] * grown_y * k..][..n[0] * grown_y];
             for j in region.min[1]..=region.max[1] {
+                let (from, to) = (j.saturating_sub(reach).max(lo[1]), (j + reach).min(hi[1]));
                 for i in 0..n[0] {
-                    column.clear();
-                    column.extend((0..grown_y).map(|y| plane[i + n[0] * y]));
-                    along_y.push(window_max(&column, j - lo[1], reach));
+                    along_y.push(
+                        (from..=to).fold(0.0, |m: f32, y| m.max(plane[i + n[0] * (y - lo[1])])),
+                    );
                 }
             }
         }
@@ -162,10 +164,11 @@ impl FreezeMask {
         out.reserve(region.count());
         let plane_len = n[0] * n[1];
         for k in region.min[2]..=region.max[2] {
+            let (from, to) = (k.saturating_sub(reach).max(lo[2]), (k + reach).min(hi[2]));
             for at in 0..plane_len {
-                column.clear();
-                column.extend((0..=hi[2] - lo[2]).map(|z| along_y[at + plane_len * z]));
-                out.push(window_max(&column, k - lo[2], reach));
+                out.push((from..=to).fold(0.0, |m: f32, z| {
+                    m.max(along_y[at + plane_len * (z - lo[2])])
+                }));
             }
         }
         if out.iter().all(|&h| h <= 0.0) {
