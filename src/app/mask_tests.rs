@@ -163,9 +163,6 @@ fn mask_a_spot(
 }
 
 #[test]
-#[ignore = "fails: under a full hold the top still moves 0.018 (of the 0.30 carved beside it) on \
-            the base patch, and 0.06 when the stroke makes a detail patch; the engine's hold is \
-            not exact yet"]
 fn a_mask_painted_with_the_pointer_holds_the_clay_under_a_later_stroke() {
     let (mut h, mut end, mut engine) = app_and_engine();
     let start = engine.density().clone();

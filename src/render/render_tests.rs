@@ -1449,3 +1449,155 @@ fn masked_clay_is_drawn_darker_and_the_rest_as_before() {
     }
     assert!(darker > 50, "{darker} pixels tinted");
 }
+
+/// The default block with a groove carved along x across the middle of its top (a Remove
+/// ball of radius 0.15 centred on the top at z = 1.15, from x = 0.75 to 1.55).
+fn grooved_block() -> crate::field::BSplineLattice {
+    use crate::tools::{ApplyOptions, Clay, GeometricTool, ToolAction, ToolPose, ToolShape};
+    let lattice = crate::engine::build_clay(&crate::io::ClaySpec::default()).unwrap();
+    let mut clay = Clay::single(lattice);
+    let ball = GeometricTool {
+        shape: ToolShape::Sphere { radius_fu: 0.15 },
+        action: ToolAction::Remove,
+        falloff_fu: 0.05,
+    };
+    for i in 0..=16 {
+        let pose = ToolPose {
+            position_fu: Vec3::new(0.75 + 0.05 * i as f32, GROOVE_TOP, GROOVE_Z),
+            rotation: glam::Quat::IDENTITY,
+        };
+        crate::tools::apply_tool(&mut clay, &ball, &pose, 0.5, &ApplyOptions::default(), None)
+            .unwrap();
+    }
+    clay.base().clone()
+}
+
+/// The default block's top and where the groove runs across it.
+const GROOVE_TOP: f32 = 1.725;
+const GROOVE_Z: f32 = 1.15;
+
+/// Luminance along the line across the groove at x = 1.15 on the top (z from 0.85 to 1.45,
+/// one sample per 0.01), in `img` seen by `camera`.
+fn across_groove(img: &Image, camera: &Camera) -> Vec<f32> {
+    let vp = camera.view_projection(W as f32 / H as f32);
+    (0..=60)
+        .map(|i| {
+            let n = vp.project_point3(Vec3::new(1.15, GROOVE_TOP, 0.85 + 0.01 * i as f32));
+            let (x, y) = ((n.x + 1.0) * 0.5 * W as f32, (1.0 - n.y) * 0.5 * H as f32);
+            luminance(img.pixel(x as u32, y as u32).unwrap())
+        })
+        .collect()
+}
+
+/// A sculpted groove reads as a groove in splats as in the mesh: points that sat on the
+/// block before it was carved follow the clay into the groove (as many updates as the
+/// window's follower takes), and their splats, drawn alone, shade the line across the groove
+/// as the mesh does: the wall turned from the light dark at the same place, and the whole
+/// profile, relative to the flat top, within 0.1 RMS of the mesh's.
+#[test]
+fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
+    use crate::pointset::{DEFAULT_COLOUR, FollowOptions, FollowedPoints, PointFollower};
+    let Some(mut r) = offscreen(W, H) else { return };
+    let flat = crate::engine::build_clay(&crate::io::ClaySpec::default()).unwrap();
+    let grooved = grooved_block();
+    let (lo, hi) = (Vec3::splat(0.575), Vec3::splat(1.725));
+    let mut camera = Camera::named(NamedView::Top, lo, hi);
+    camera.distance *= 0.6;
+    let o = plain_options();
+
+    r.sync_chunks(&views(&block_chunks(&grooved, None)))
+        .unwrap();
+    let mesh = r.render(&camera, &o).unwrap();
+
+    // The points: the flat block's mesh vertices, then followed onto the grooved clay.
+    let mut octree =
+        crate::mesh::BrickOctree::new(crate::mesh::SampleGrid::for_lattice(&flat, 2).unwrap());
+    octree.rebuild(&flat);
+    let (mut positions, mut normals) = (Vec::new(), Vec::new());
+    for b in octree.bricks() {
+        positions.extend_from_slice(&b.mesh.positions);
+        normals.extend_from_slice(&b.mesh.normals);
+    }
+    let n = positions.len();
+    let spacing = 0.5 * flat.spacing;
+    let points = FollowedPoints {
+        positions,
+        normals,
+        colours: vec![DEFAULT_COLOUR; n],
+        options: None,
+    };
+    let mut follower = PointFollower::new(points, FollowOptions::for_spacing(spacing, n)).unwrap();
+    let field = crate::field::MultiPatchField::from(grooved.clone());
+    // As many updates as the window's follower takes after a change, at most.
+    let mut last = None;
+    for _ in 0..crate::pointset::PointSetFollower::<crate::engine::HeadlessSink>::SETTLE_UPDATES {
+        let report = follower.update(&field).unwrap();
+        last = Some(report);
+        if report.settled {
+            break;
+        }
+    }
+    eprintln!(
+        "{} points after following: {last:?}",
+        follower.positions().len()
+    );
+    let mut discs = Vec::new();
+    splat_discs(
+        &mut discs,
+        follower.positions(),
+        follower.normals(),
+        follower.colours(),
+        follower.radii(),
+    );
+    r.sync_chunks(&[]).unwrap();
+    r.set_discs(&discs).unwrap();
+    let splats = r.render(&camera, &o).unwrap();
+    if let Ok(dir) = std::env::var("DYNACLAY_GROOVE_PNG") {
+        mesh.write_png(&std::path::Path::new(&dir).join("groove_mesh.png"))
+            .unwrap();
+        splats
+            .write_png(&std::path::Path::new(&dir).join("groove_splats.png"))
+            .unwrap();
+    }
+
+    let (m, s) = (
+        across_groove(&mesh, &camera),
+        across_groove(&splats, &camera),
+    );
+    eprintln!("across the groove, mesh: {m:?}\nsplats: {s:?}");
+    // Each profile relative to its own flat top (the splats have the points' colour, the mesh
+    // the clay's): the shading the groove's shape gives, whatever the albedo.
+    let top = |p: &[f32]| (p[..5].iter().sum::<f32>() + p[56..].iter().sum::<f32>()) / 10.0;
+    let relative = |p: &[f32]| -> Vec<f32> {
+        let t = top(p);
+        assert!(t > 40.0, "the top is lit ({t})");
+        p.iter().map(|&x| x / t).collect()
+    };
+    let (m, s) = (relative(&m), relative(&s));
+    let darkest = |p: &[f32]| {
+        p.iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(i, &x)| (i, x))
+            .unwrap()
+    };
+    let ((mesh_at, mesh_dark), (splat_at, splat_dark)) = (darkest(&m), darkest(&s));
+    let rms = (m.iter().zip(&s).map(|(a, b)| (a - b).powi(2)).sum::<f32>() / m.len() as f32).sqrt();
+    eprintln!(
+        "darkest: mesh {mesh_dark:.3} at {mesh_at}, splats {splat_dark:.3} at {splat_at}; \
+         RMS difference {rms:.3}"
+    );
+    assert!(
+        mesh_dark < 0.6,
+        "the mesh shades the groove's wall: {mesh_dark}"
+    );
+    assert!(
+        splat_dark < 0.6 && splat_at.abs_diff(mesh_at) <= 3,
+        "the splats shade the same wall: {splat_dark} at {splat_at}, the mesh {mesh_dark} at \
+         {mesh_at} (0.01 apart)"
+    );
+    assert!(
+        rms < 0.1,
+        "the splats' shading across the groove follows the mesh's within {rms}"
+    );
+}

@@ -3,11 +3,14 @@
 //!
 //! The mask lives on the coefficients that tools and dynamics move, so holding it is exact: a
 //! tool's refit or a dynamics step computes the free result, and each coefficient keeps
-//! `1 − m` of its change (`c = old + (1 − m)(new − old)`), so a fully masked coefficient keeps
-//! its bits and a half-masked one moves half as far. The mask of patch `n` is a lattice over the
-//! same nodes as patch `n` (one value per coefficient); as a B-spline its value at a point is a
-//! smooth blend of the nearby coefficients' holds (shown as a tint). The mask is addressed as
-//! [`FieldId::Mask`] so every edit of it is an undo step like any other.
+//! `1 − m` of its change (`c = old + (1 − m)(new − old)`), so a fully held coefficient keeps
+//! its bits and a half-held one moves half as far. The mask of patch `n` is a lattice over the
+//! same nodes as patch `n` (one painted value per coefficient); as a B-spline its value at a
+//! point is a smooth blend of the nearby coefficients' painted holds (shown as a tint). The
+//! hold `m` applied to a coefficient is the painted mask dilated by the basis support
+//! ([`FreezeMask::support_holds`]), so the clay under the tint holds as firmly as it is tinted,
+//! soft brush edge included. The mask is addressed as [`FieldId::Mask`] so every edit of it is
+//! an undo step like any other.
 //!
 //! Runs on the simulation or command thread; painting, inverting and clearing allocate only when
 //! the mask is first made.
@@ -293,20 +296,25 @@ pub struct HeldRegion {
 }
 
 impl HeldRegion {
-    /// Remembers `region` of patch `patch` before an edit when the clay's mask holds any of it;
-    /// `None` when nothing there is held (the edit then needs no restoring).
+    /// Remembers `region` of patch `patch` before an edit when the clay's mask holds any of it
+    /// (the holds of [`FreezeMask::support_holds`]); `None` when nothing there is held (the
+    /// edit then needs no restoring).
     #[must_use]
     pub fn capture(clay: &Clay, patch: usize, region: CoeffBox) -> Option<Self> {
         let lattice = &clay.density.patches.get(patch)?.lattice;
-        let mask = clay.mask.as_ref()?.for_patch(patch, lattice)?;
         let region = region.clipped(lattice.dims)?;
-        let mut holds = Vec::with_capacity(region.count());
+        let mut holds = Vec::new();
+        clay.mask
+            .as_ref()?
+            .support_holds(patch, lattice, region, &mut holds);
+        if holds.is_empty() {
+            return None;
+        }
         let mut before = Vec::with_capacity(region.count());
         for_each_row(lattice, &region, |row| {
-            holds.extend_from_slice(&mask.coeffs[row.clone()]);
             before.extend_from_slice(&lattice.coeffs[row]);
         });
-        holds.iter().any(|&h| h > 0.0).then_some(Self {
+        Some(Self {
             region,
             holds,
             before,
@@ -364,24 +372,15 @@ fn for_each_row_mut(
 }
 
 /// The holds of the region `region` of patch `patch` in the region's own order (x fastest),
-/// written into `out` (cleared first; left empty when nothing there is held). For a dynamics
-/// region ([`crate::dynamics::RegionState::held`]).
+/// as [`FreezeMask::support_holds`] gives them, written into `out` (cleared first; left empty
+/// when nothing there is held). For a dynamics region ([`crate::dynamics::RegionState::held`]).
 pub fn region_holds(clay: &Clay, patch: usize, region: CoeffBox, out: &mut Vec<f32>) {
     out.clear();
     let Some(lattice) = clay.density.patches.get(patch).map(|p| &p.lattice) else {
         return;
     };
-    let Some(mask) = clay.mask.as_ref().and_then(|m| m.for_patch(patch, lattice)) else {
-        return;
-    };
-    if !region.fits(lattice.dims) {
-        return;
-    }
-    for_each_row(lattice, &region, |row| {
-        out.extend_from_slice(&mask.coeffs[row]);
-    });
-    if out.iter().all(|&h| h <= 0.0) {
-        out.clear();
+    if let Some(mask) = clay.mask.as_ref() {
+        mask.support_holds(patch, lattice, region, out);
     }
 }
 

@@ -83,6 +83,71 @@ fn a_carve_leaves_masked_clay_bit_for_bit_and_cuts_the_free_clay() {
     }
 }
 
+/// Under a soft-edged mask one wide carve moves the clay at each point at most `1 − tint` of
+/// what the same carve moves it on the clay never masked (the carve only lowers coefficients,
+/// so that is the bound the dilated hold promises): fully tinted clay keeps its bits, the
+/// brush's soft edge holds as firmly as it is tinted, and clay the tint does not reach is cut.
+#[test]
+fn clay_under_a_soft_mask_moves_at_most_its_untinted_share() {
+    let mut clay = bar();
+    paint_mask(&mut clay, &hold_brush(1.0), HELD_AT, None).unwrap();
+    let mask = clay.mask.clone().unwrap();
+    let before = clay.base().clone();
+    let mut plain = bar();
+    // A ball from x = 1.3 to 2.9 on the top: under untinted, soft-edged and fully tinted clay.
+    let wide = GeometricTool {
+        shape: ToolShape::Sphere { radius_fu: 0.8 },
+        action: ToolAction::Remove,
+        falloff_fu: 0.1,
+    };
+    let pose = ToolPose {
+        position_fu: Vec3::new(2.1, 0.95, 1.5),
+        rotation: glam::Quat::IDENTITY,
+    };
+    for c in [&mut clay, &mut plain] {
+        apply_tool(c, &wide, &pose, 0.1, &ApplyOptions::default(), None).unwrap();
+    }
+    let (mut full, mut soft, mut cut) = (0, 0, 0);
+    for i in 0..=34 {
+        for j in 0..=6 {
+            for k in 0..=8 {
+                let x = Vec3::new(
+                    1.2 + 0.05 * i as f32,
+                    0.7 + 0.05 * j as f32,
+                    1.1 + 0.1 * k as f32,
+                );
+                let tint = mask.value_at(x);
+                let free = plain.base().value(x) - before.value(x);
+                let moved = clay.base().value(x) - before.value(x);
+                if free.abs() < 1e-3 {
+                    continue;
+                }
+                assert!(
+                    moved.abs() <= (1.0 - tint) * free.abs() + 1e-5,
+                    "at {x} tinted {tint}: moved {moved} of the free {free}"
+                );
+                if tint >= 1.0 {
+                    assert_eq!(moved, 0.0, "fully tinted clay moved at {x}");
+                    full += 1;
+                } else if tint > 0.05 {
+                    soft += 1;
+                } else if tint == 0.0 && moved.abs() >= 0.5 * free.abs() {
+                    cut += 1;
+                }
+            }
+        }
+    }
+    assert!(full > 20, "{full} fully tinted points the carve reached");
+    assert!(
+        soft > 20,
+        "{soft} points on the soft edge the carve reached"
+    );
+    assert!(
+        cut > 20,
+        "{cut} untinted points cut at least half as deep as the plain clay"
+    );
+}
+
 #[test]
 fn a_half_hold_moves_the_clay_half_as_far() {
     let mut clay = bar();
@@ -315,4 +380,59 @@ fn a_half_hold_slows_the_dynamics_to_about_half() {
         (0.35..0.65).contains(&ratio),
         "half hold moved {ratio} as far"
     );
+}
+
+/// One painted coefficient holds exactly the box of coefficients within
+/// [`HOLD_REACH_NODES`] nodes of it, whatever region
+/// is asked for (one reaching past the lattice's border included), and nothing else.
+#[test]
+fn one_painted_coefficient_holds_the_box_its_support_reaches() {
+    let clay = bar();
+    let mut mask = FreezeMask::matching(&clay.density).unwrap();
+    let l = clay.base();
+    let painted = [2_usize, 10, 9];
+    mask.patches[0].coeffs[l.index(painted[0], painted[1], painted[2])] = 0.75;
+    let reach = HOLD_REACH_NODES;
+    for region in [
+        CoeffBox {
+            min: [0, 0, 0],
+            max: [l.dims[0] - 1, l.dims[1] - 1, l.dims[2] - 1],
+        },
+        CoeffBox {
+            min: [0, 8, 11],
+            max: [7, 13, 19],
+        },
+    ] {
+        let mut holds = Vec::new();
+        mask.support_holds(0, l, region, &mut holds);
+        assert_eq!(holds.len(), region.count());
+        let mut at = 0;
+        for k in region.min[2]..=region.max[2] {
+            for j in region.min[1]..=region.max[1] {
+                for i in region.min[0]..=region.max[0] {
+                    let near = [i, j, k]
+                        .iter()
+                        .zip(&painted)
+                        .all(|(&a, &b)| a.abs_diff(b) <= reach);
+                    let want = if near { 0.75 } else { 0.0 };
+                    assert_eq!(holds[at], want, "({i}, {j}, {k}) in {region:?}");
+                    at += 1;
+                }
+            }
+        }
+    }
+    // A region the hold does not reach gets none, and a region off the lattice none either.
+    let mut holds = vec![1.0];
+    let far = CoeffBox {
+        min: [20, 0, 0],
+        max: [30, 5, 5],
+    };
+    mask.support_holds(0, l, far, &mut holds);
+    assert!(holds.is_empty());
+    let off = CoeffBox {
+        min: [40, 0, 0],
+        max: [50, 5, 5],
+    };
+    mask.support_holds(0, l, off, &mut holds);
+    assert!(holds.is_empty());
 }

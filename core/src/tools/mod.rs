@@ -48,7 +48,7 @@ pub use force::{
     hold_weight, nearest_solid_point, outward_normal, plan_penetration, plan_penetration_along,
     project_to_surface,
 };
-pub use freeze_mask::{FreezeMask, MaskError};
+pub use freeze_mask::{FreezeMask, HOLD_REACH_NODES, MaskError};
 pub use growth::{GROWTH_MARGIN_SPANS, Growth, GrowthError, padding_to_cover};
 pub use history::{DEFAULT_BUDGET_BYTES, History, HistoryError, Step, StepRecorder};
 pub use mask::{
