@@ -125,7 +125,7 @@ fn step_layered(c: &mut Criterion) {
         &clay.patches[detail].lattice,
         region,
         [m; 3],
-        Material::PLASTIC.for_spacing_ratio(0.5),
+        Material::PLASTIC.for_volume_ratio(0.125),
     )
     .expect("region on the detail patch");
     let mut sim = Simulator::new(StepParams::default());
@@ -199,7 +199,7 @@ fn step_levels(c: &mut Criterion) {
                 lattice,
                 region,
                 [m; 3],
-                Material::PLASTIC.for_spacing_ratio(scale),
+                Material::PLASTIC.for_volume_ratio(scale.powi(3)),
             )
             .expect("region");
             let mut sim = Simulator::new(StepParams::default());

@@ -111,10 +111,14 @@ pub struct SimConfig {
     pub auto_detail: bool,
     /// Whether a force tool's spread (the push's, a pull's...) narrower than three knot spans
     /// also refines under itself before its region is set up (with `auto_detail` on). Off by
-    /// default: on a detail patch the dynamics do not yet keep the material's behaviour (an
-    /// elastic press springs back more slowly than its region lives, painted stiffness and
-    /// mass act weaker), and a chisel's or squirt's targets, planned along the whole stroke,
-    /// outrun the one patch its region lies on.
+    /// default: on a detail patch the dynamics do not yet keep the material's behaviour. A
+    /// detail patch's mass points scale stiffness by their volume, as mass and damping,
+    /// which leaves the clay there softer against its inertia by the spacing ratio squared
+    /// (an elastic press springs back more slowly than its region lives; painted stiffness
+    /// and mass act weaker); scaling it by the spacing instead, as the springs' energy asks,
+    /// leaves a narrow press short of its tip, because each step's force on a mass point is
+    /// capped by a travel in knot spans of the patch, not of the base. A region moved under
+    /// a stroke also takes the clay as it is as its new rest shape.
     pub auto_detail_force: bool,
 }
 

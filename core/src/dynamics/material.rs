@@ -22,27 +22,17 @@ pub struct Material {
 }
 
 impl Material {
-    /// This material on mass points `spacing_ratio` times as far apart as the ones it was set
-    /// for (a detail patch one level finer has half the spacing), so the clay behaves the
-    /// same at any spacing. The material is a continuum (Hua & Qin §4.1: `μ`, `γ`, `ρ` are
-    /// functions over the volume), sampled at the mass points: mass and damping are per
-    /// volume, so a point's share scales with the volume it holds, `spacing_ratio³`; the
-    /// springs stand for the energy `½ ρ |∇d|²` over that volume (see [`Neighbourhood`]), and
-    /// a spring's `Δd` is the slope times the spacing, so a point's stiffness scales with
-    /// `spacing_ratio³ / spacing_ratio² = spacing_ratio`. A force spread over a region then
-    /// moves it alike at any spacing (its share per point scales with the volume too), and a
-    /// dent of a given size springs back in the same time whatever the spacing it is
-    /// simulated at: the restoring force per unit volume, `ρ ∇²d`, is the base's. (Scaling
-    /// the stiffness with the volume too left a detail patch `spacing_ratio²` times softer
-    /// against its mass and damping: an elastic dent on a patch two levels down sprang back
-    /// sixteen times slower than on the base.) Plasticity and yield are per density and stay.
+    /// This material on mass points holding `volume_ratio` times the volume of the ones it
+    /// was set for (a detail patch at half the spacing holds 1/8): mass, damping and stiffness
+    /// scale with the volume, so a force spread over a region moves it alike at any spacing
+    /// and the step's stability (`√(ρ/μ)`) is unchanged. Plasticity and yield are per density
+    /// and stay.
     #[must_use]
-    pub fn for_spacing_ratio(self, spacing_ratio: f32) -> Self {
-        let volume_ratio = spacing_ratio.powi(3);
+    pub fn for_volume_ratio(self, volume_ratio: f32) -> Self {
         Self {
             mass: self.mass * volume_ratio,
             damping: self.damping * volume_ratio,
-            stiffness: self.stiffness * spacing_ratio,
+            stiffness: self.stiffness * volume_ratio,
             ..self
         }
     }

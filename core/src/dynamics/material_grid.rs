@@ -67,18 +67,12 @@ impl MaterialParam {
         Self::SIMULATED.into_iter().find(|p| p.name() == name)
     }
 
-    /// The factor a mass point's value of this parameter takes on mass points
-    /// `spacing_ratio` times as far apart as the base's (as [`Material::for_spacing_ratio`]):
-    /// `spacing_ratio³` for mass and damping (per volume), `spacing_ratio` for stiffness (per
-    /// volume, over the square of the spacing a spring's `Δd` is measured across), 1 for a
-    /// drift rate. Exactly 1 for a ratio of 1.
+    /// Whether a mass point's value of this parameter scales with the volume it holds
+    /// (mass, damping and stiffness, as [`Material::for_volume_ratio`]); a drift rate does
+    /// not.
     #[must_use]
-    pub fn spacing_scale(self, spacing_ratio: f32) -> f32 {
-        match self {
-            Self::Mass | Self::Damping => spacing_ratio.powi(3),
-            Self::Stiffness => spacing_ratio,
-            Self::Plasticity => 1.0,
-        }
+    pub const fn scales_with_volume(self) -> bool {
+        !matches!(self, Self::Plasticity)
     }
 
     /// The uniform material's value of this parameter.
@@ -460,16 +454,16 @@ pub fn paint_grids(
 
 /// Gives the mass points of `state` the values of `grids` where they sit: for each parameter
 /// that has a valid grid (the first of its name), every mass point takes the grid's value at
-/// its world position, scaled for the spacing of the region's patch against the base's,
-/// `spacing_ratio` ([`MaterialParam::spacing_scale`], as [`Material::for_spacing_ratio`]: the
-/// clay behaves the same on a detail patch as on the base).
+/// its world position, times `volume_ratio` for mass, damping and stiffness (the volume a
+/// mass point of the region's patch holds against one of the base's, as
+/// [`Material::for_volume_ratio`]; a drift rate is the same at any volume).
 /// `lattice` is the patch the region is on (in world coordinates), `base` the base patch the
 /// grids span. Parameters without a grid keep their values. Returns whether any grid applied.
 pub fn apply_grids(
     grids: &[MaterialGrid],
     base: &BSplineLattice,
     lattice: &BSplineLattice,
-    spacing_ratio: f32,
+    volume_ratio: f32,
     state: &mut RegionState,
 ) -> bool {
     let mut any = false;
@@ -489,7 +483,11 @@ pub fn apply_grids(
             MaterialParam::Stiffness => &mut state.stiffness,
             MaterialParam::Plasticity => &mut state.plasticity_per_s,
         };
-        let scale = p.spacing_scale(spacing_ratio);
+        let scale = if p.scales_with_volume() {
+            volume_ratio
+        } else {
+            1.0
+        };
         for k in 0..mz {
             for j in 0..my {
                 for i in 0..mx {
@@ -629,7 +627,7 @@ mod tests {
     }
 
     #[test]
-    fn the_region_takes_the_grids_values_scaled_for_its_spacing() {
+    fn the_region_takes_the_grids_values_scaled_by_its_volume_ratio() {
         let lattice = base();
         let b = CoeffBox {
             min: [2, 2, 2],
@@ -648,19 +646,8 @@ mod tests {
             },
             4.0,
         );
-        let mut stiff = MaterialGrid::filled(MaterialParam::Stiffness, lattice.dims, 1000.0);
-        stiff.paint(
-            &lattice,
-            &PaintRegion::Box {
-                min: Vec3::splat(-10.0),
-                max: Vec3::new(0.85, 10.0, 10.0),
-            },
-            8000.0,
-        );
-        let grids = [heavy, stiff];
-        // Mass points at half the base's spacing: an eighth of the volume each, springs
-        // across half the distance.
-        assert!(apply_grids(&grids, &lattice, &lattice, 0.5, &mut state));
+        let grids = [heavy];
+        assert!(apply_grids(&grids, &lattice, &lattice, 0.125, &mut state));
         for k in 0..5 {
             for j in 0..7 {
                 for i in 0..9 {
@@ -668,14 +655,12 @@ mod tests {
                     let m = state.mass[state.point_index(i, j, k)];
                     let want = 0.125 * grids[0].sample(&lattice, x);
                     assert_eq!(m, want);
-                    let k = state.stiffness[state.point_index(i, j, k)];
-                    assert_eq!(k, 0.5 * grids[1].sample(&lattice, x));
                     if x.x <= 0.8 + 1e-4 {
-                        assert_eq!((m, k), (0.5, 4000.0));
+                        assert_eq!(m, 0.5);
                     }
                 }
             }
         }
-        assert_eq!(state.plasticity_per_s, before.plasticity_per_s);
+        assert_eq!(state.stiffness, before.stiffness);
     }
 }

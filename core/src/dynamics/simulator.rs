@@ -885,15 +885,13 @@ impl Simulator {
     }
 
     /// The adaptive step (§6): halved while `max_accel · Δt` exceeds the velocity-change
-    /// bound, grown back after calm steps, and never above the springs' stability limit
-    /// ([`stable_dt_s`]). Stored in `state.dt_s`; returns it and the halvings.
+    /// bound, grown back after calm steps. Stored in `state.dt_s`; returns it and the halvings.
     fn choose_dt(&mut self, state: &mut RegionState, max_accel: f32) -> (f32, u32) {
         let p = &self.params;
-        let dt_max = p.dt_max_s.min(stable_dt_s(state)).max(p.dt_min_s);
         let mut dt = if state.dt_s > 0.0 {
-            state.dt_s.clamp(p.dt_min_s, dt_max)
+            state.dt_s.clamp(p.dt_min_s, p.dt_max_s)
         } else {
-            dt_max
+            p.dt_max_s
         };
         let mut halvings = 0;
         while max_accel * dt > p.max_velocity_change && dt > p.dt_min_s {
@@ -904,8 +902,8 @@ impl Simulator {
             state.calm_steps = 0;
         } else if max_accel * dt < 0.25 * p.max_velocity_change {
             state.calm_steps += 1;
-            if state.calm_steps >= p.calm_steps_to_grow && dt < dt_max {
-                dt = (dt * p.growth).min(dt_max);
+            if state.calm_steps >= p.calm_steps_to_grow && dt < p.dt_max_s {
+                dt = (dt * p.growth).min(p.dt_max_s);
                 state.calm_steps = 0;
                 self.counters.growths += 1;
             }
@@ -1122,51 +1120,6 @@ impl ImplicitField for PatchAmongOthers<'_> {
         let (v, g) = self.lattice.value_and_gradient(p);
         let (ov, og) = self.others.value_and_gradient(p);
         (v + ov, g + og)
-    }
-}
-
-/// `v` folded by `f` from `init`, in eight lanes (the compiler keeps them in one vector
-/// register; a region holds tens of thousands of mass points and the step reads this every
-/// time).
-fn lane_fold(v: &[f32], init: f32, f: fn(f32, f32) -> f32) -> f32 {
-    let mut lanes = [init; 8];
-    let chunks = v.chunks_exact(8);
-    let tail = chunks.remainder().iter().fold(init, |a, &x| f(a, x));
-    for chunk in chunks {
-        for (lane, &x) in lanes.iter_mut().zip(chunk) {
-            *lane = f(*lane, x);
-        }
-    }
-    lanes.iter().fold(tail, |a, &x| f(a, x))
-}
-
-/// Fraction of the explicit step's stability limit `2 / ω_max` that [`stable_dt_s`] keeps
-/// to.
-pub(crate) const STABLE_STEP_FRACTION: f32 = 0.8;
-
-/// The largest time step, seconds, at which the density springs of `state` stay stable under
-/// the explicit integrators: [`STABLE_STEP_FRACTION`] of `2 / ω_max`, where `ω_max² ≤ 2 W
-/// max(ρ) / min(μ)` bounds the fastest mode of the springs (Gershgorin on the stiffness
-/// matrix, whose row sums are at most `2 W max(ρ)` for the stencil's total weight `W`, over the
-/// lightest point; the spline's coefficients span a subspace of the mass points' densities,
-/// so their fastest mode is no faster). Infinite without springs or mass.
-///
-/// On the base this is far above the 1 ms step (15 ms for the default clay); it binds on
-/// fine detail patches, whose mass points are closer and ring faster
-/// ([`super::Material::for_spacing_ratio`]: four levels down, 0.91 ms for the default clay),
-/// and under stiffness painted high there.
-#[must_use]
-pub(crate) fn stable_dt_s(state: &RegionState) -> f32 {
-    let total_weight: f32 = super::springs::offsets(state.neighbourhood)
-        .map(|(_, w)| w)
-        .sum();
-    let stiffest = lane_fold(&state.stiffness, 0.0, f32::max);
-    let lightest = lane_fold(&state.mass, f32::INFINITY, f32::min);
-    let omega_sq = 2.0 * total_weight * stiffest / lightest;
-    if omega_sq.is_finite() && omega_sq > 0.0 {
-        STABLE_STEP_FRACTION * 2.0 / omega_sq.sqrt()
-    } else {
-        f32::INFINITY
     }
 }
 
@@ -1909,41 +1862,6 @@ mod tests {
         }
         assert!(runs[0] == runs[1], "one and two threads differ");
         assert!(runs[0].2 != bits_of(&start), "the pull moved nothing");
-    }
-
-    /// Mass points five levels finer than the base (`Material::for_spacing_ratio(1/32)`)
-    /// ring faster than the 1 ms step can follow: the step stays under the springs' limit, so
-    /// a rough disturbance (every other coefficient of the region raised) dies away instead
-    /// of growing.
-    #[test]
-    fn a_fine_patch_material_steps_under_its_stability_limit_and_calms_down() {
-        let mut lattice = sphere();
-        let material = Material::ELASTIC.for_spacing_ratio(1.0 / 32.0);
-        let mut state = region(&lattice, material);
-        let limit = stable_dt_s(&state);
-        // 2 / ω_max with ω_max² = 12 ρ / μ, ρ = 1000 / 32, μ = 1 / 32768.
-        let want = STABLE_STEP_FRACTION * 2.0 / (12.0_f32 * 31.25 * 32768.0).sqrt();
-        assert!((limit - want).abs() < 1e-6 * want, "{limit} against {want}");
-        assert!(limit < 0.5e-3, "{limit}");
-        let n = state.coeff_box().dims();
-        for k in 0..n[2] {
-            for j in 0..n[1] {
-                for i in 0..n[0] {
-                    state.p[i + n[0] * (j + n[1] * k)] += 0.02 * ((i + j + k) % 2) as f32;
-                }
-            }
-        }
-        state.resync_densities_with(&mut KronScratch::for_basis(&state.basis));
-        let start = state.energy();
-        let mut sim = Simulator::new(StepParams::default());
-        let mut snap = RegionSnapshot::default();
-        for _ in 0..1000 {
-            let report = sim.step(&mut state, &mut lattice, &[], &mut snap).unwrap();
-            assert!(report.dt_s <= limit, "step {} over {limit}", report.dt_s);
-        }
-        let end = state.energy();
-        println!("energy {start:.3e} -> {end:.3e}, step limit {limit:.2e} s");
-        assert!(end.is_finite() && end < 0.5 * start, "{start} -> {end}");
     }
 
     fn bits_of(lattice: &BSplineLattice) -> Vec<u32> {

@@ -8,21 +8,20 @@ use dynaclay_core::dynamics::{MaterialPaint, apply_grids, paint_grids};
 
 impl SimulationStage {
     /// The uniform material of a region on density patch `patch`: the live region's material
-    /// scaled for the spacing of its mass points (a detail patch's are closer than the
-    /// base's; see [`Material::for_spacing_ratio`]), so the clay behaves alike on it.
+    /// scaled to the volume its mass points hold (a detail patch's hold less than the base's).
     pub(super) fn region_material_of(&self, patch: usize) -> Material {
         if patch == 0 {
             self.region_material
         } else {
             self.region_material
-                .for_spacing_ratio(self.spacing_ratio(patch))
+                .for_volume_ratio(self.volume_ratio(patch))
         }
     }
 
-    /// Knot spacing of `patch` against the base patch's.
-    fn spacing_ratio(&self, patch: usize) -> f32 {
+    /// Volume of a mass point of `patch` against one of the base patch.
+    fn volume_ratio(&self, patch: usize) -> f32 {
         let lattice = &self.clay.density.patches[patch].lattice;
-        lattice.spacing / self.clay.base().spacing
+        (lattice.spacing / self.clay.base().spacing).powi(3)
     }
 
     /// Gives `state` (a region on `self.region_patch`) the painted values where they are.
@@ -34,7 +33,7 @@ impl SimulationStage {
         let ratio = if patch == 0 {
             1.0
         } else {
-            self.spacing_ratio(patch)
+            self.volume_ratio(patch)
         };
         apply_grids(
             &self.material_grids,
