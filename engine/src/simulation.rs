@@ -116,9 +116,10 @@ pub struct SimConfig {
     /// which leaves the clay there softer against its inertia by the spacing ratio squared
     /// (an elastic press springs back more slowly than its region lives; painted stiffness
     /// and mass act weaker); scaling it by the spacing instead, as the springs' energy asks,
-    /// leaves a narrow press short of its tip, because each step's force on a mass point is
-    /// capped by a travel in knot spans of the patch, not of the base. A region moved under
-    /// a stroke also takes the clay as it is as its new rest shape.
+    /// left a narrow press short of its tip (most likely because each step's force on a mass
+    /// point is capped by a travel in knot spans of the patch, not of the base; measuring the
+    /// cap in the base's spans did not fix it). A region moved under a stroke also takes the
+    /// clay as it is as its new rest shape.
     pub auto_detail_force: bool,
 }
 
