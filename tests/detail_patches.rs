@@ -16,8 +16,8 @@ const TOP_Y: f32 = 1.725;
 const PRESS: Vec3 = Vec3::new(1.15, TOP_Y, 1.15);
 
 /// Runs a straight press into the top of the default block (with a narrow push tool), after
-/// refining a box around the press point `refine` levels deep (0: no refinement); returns the
-/// final density, the base spacing and the number of patches the haptic loop's copy holds.
+/// refining a box around the press point `refine` levels deep (0: no refinement; no automatic
+/// detail either way); returns the final density, the base spacing and the number of patches the haptic loop's copy holds.
 fn press(refine: u32) -> (MultiPatchField, f32, usize) {
     let start = build_clay(&ClaySpec::default()).unwrap();
     let spacing = start.spacing;
@@ -25,6 +25,9 @@ fn press(refine: u32) -> (MultiPatchField, f32, usize) {
     let mut config = EngineConfig::for_field(&start, &pointer.info());
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.05;
+    // The refinement compared is the one asked for: the narrow push would otherwise refine
+    // under itself (three levels down) in both runs.
+    config.sim.auto_detail_force = false;
     let (device, mut handle) = pointer_device(pointer);
     let mut run = Lockstep::new(
         &config,

@@ -111,10 +111,15 @@ pub struct SimConfig {
     pub auto_detail: bool,
     /// Whether a force tool's spread (the push's, a pull's...) narrower than three knot spans
     /// also refines under itself before its region is set up (with `auto_detail` on). Off by
-    /// default: on a detail patch the dynamics do not yet keep the material's behaviour (an
-    /// elastic press springs back more slowly than its region lives, painted stiffness and
-    /// mass act weaker), and a chisel's or squirt's targets, planned along the whole stroke,
-    /// outrun the one patch its region lies on.
+    /// default: on a detail patch the dynamics do not yet keep the material's behaviour. A
+    /// detail patch's mass points scale stiffness by their volume, as mass and damping,
+    /// which leaves the clay there softer against its inertia by the spacing ratio squared
+    /// (an elastic press springs back more slowly than its region lives; painted stiffness
+    /// and mass act weaker); scaling it by the spacing instead, as the springs' energy asks,
+    /// left a narrow press short of its tip (most likely because each step's force on a mass
+    /// point is capped by a travel in knot spans of the patch, not of the base; measuring the
+    /// cap in the base's spans did not fix it). A region moved under a stroke also takes the
+    /// clay as it is as its new rest shape.
     pub auto_detail_force: bool,
 }
 
@@ -746,12 +751,47 @@ impl SimulationStage {
         best.0
     }
 
+    /// The patch a region over the box `lo..hi` (the force vectors with their spread)
+    /// simulates: the finest patch at its centre ([`Self::sculpted_patch_at`]); among the
+    /// patches of that spacing that hold the centre, the live region's own when its support
+    /// holds the whole box with two of its spans to spare, else the newest that does. So a
+    /// stroke that has run off the patch it started on (a chisel's targets planned along its
+    /// whole path, each step's forces reaching back to its start) is simulated on the patch
+    /// added under all of it, and no force falls outside the region's mass points.
+    fn region_patch_for(&self, lo: Vec3, hi: Vec3) -> usize {
+        let centre = (lo + hi) * 0.5;
+        let finest = self.sculpted_patch_at(centre);
+        if finest == 0 {
+            return 0;
+        }
+        let patches = &self.clay.density.patches;
+        let spacing = patches[finest].lattice.spacing;
+        let holds_box = |n: usize| {
+            patches.get(n).is_some_and(|p| {
+                let (plo, phi) = p.lattice.support();
+                let margin = Vec3::splat(2.0 * p.lattice.spacing);
+                n > 0
+                    && p.is_identity()
+                    && p.lattice.spacing == spacing
+                    && lo.cmpge(plo + margin).all()
+                    && hi.cmple(phi - margin).all()
+            })
+        };
+        if self.region.is_some() && holds_box(self.region_patch) {
+            return self.region_patch;
+        }
+        (1..patches.len())
+            .rev()
+            .find(|&n| holds_box(n))
+            .unwrap_or(finest)
+    }
+
     /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
-    /// on the patch that holds the most detail at its centre.
+    /// on the patch [`Self::region_patch_for`] picks.
     fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
-        let mut patch = self.sculpted_patch_at((lo + hi) * 0.5);
+        let mut patch = self.region_patch_for(lo, hi);
         if patch == 0 && self.make_room(lo, hi) {
-            patch = self.sculpted_patch_at((lo + hi) * 0.5);
+            patch = self.region_patch_for(lo, hi);
         }
         let lattice = &self.clay.density.patches[patch].lattice;
         let Some(needed) = coeff_box_around(lattice, lo, hi, 0) else {

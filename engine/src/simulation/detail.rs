@@ -169,8 +169,11 @@ impl SimulationStage {
     /// forces are spread over its mass points. The width is twice the tool's spread radius
     /// (the point grab has none and never refines). Under the tool means around the push's
     /// vector (the surface above the tip to the tip), or around the cursor and the point the
-    /// stroke holds: a pull drawn out keeps its patch while it reaches both ends. A released
-    /// stroke that settles keeps the patch it has.
+    /// stroke holds: a pull drawn out keeps its patch while it reaches both ends; and around
+    /// the last step's forces, so a chisel's or squirt's targets planned along the whole
+    /// stroke lie on the patch its region is simulated on (see
+    /// [`SimulationStage::region_patch_for`]). A released stroke that settles keeps the patch
+    /// it has.
     pub(super) fn refine_under_force_tool(&mut self, sample: &ToolSample) {
         if !self.config.auto_detail_force {
             return;
@@ -196,12 +199,18 @@ impl SimulationStage {
             return;
         };
         let reach = Vec3::splat(radius_fu);
+        let (mut lo, mut hi) = (ends[0].min(ends[1]) - reach, ends[0].max(ends[1]) + reach);
+        // The last step's forces with their spread: a chisel's or squirt's targets along the
+        // whole stroke so far, below the path by their depth.
+        if let Some((flo, fhi)) = self.tool.force_bounds() {
+            (lo, hi) = (lo.min(flo), hi.max(fhi));
+        }
         let detail = BrushDetail {
             level,
             spacing_fu,
             width_fu,
-            lo: ends[0].min(ends[1]) - reach,
-            hi: ends[0].max(ends[1]) + reach,
+            lo,
+            hi,
         };
         self.patch_for_detail(detail);
     }
