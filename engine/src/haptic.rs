@@ -479,6 +479,7 @@ mod tests {
 
     use super::super::{EngineConfig, HeadlessSink, ScriptPlan, build, build_clay};
     use dynaclay_core::dynamics::Material;
+    use dynaclay_core::field::BSplineLattice;
     use dynaclay_core::io::parse_script;
 
     /// A push along the top of the block (the whole-engine tests' stroke).
@@ -497,8 +498,8 @@ duration_s = 1.0
 hover_fu = 0.3
 "#;
 
-    #[test]
-    fn a_force_limit_request_clamps_the_output_from_the_next_tick() {
+    /// The [`PUSH`] script's plan and its clay.
+    fn push_plan() -> (ScriptPlan, BSplineLattice) {
         let script = parse_script(PUSH, "test").unwrap();
         let plan = ScriptPlan::new(
             &script,
@@ -509,6 +510,12 @@ hover_fu = 0.3
         )
         .unwrap();
         let field = build_clay(&plan.clay).unwrap();
+        (plan, field)
+    }
+
+    #[test]
+    fn a_force_limit_request_clamps_the_output_from_the_next_tick() {
+        let (plan, field) = push_plan();
         let arm = SimArmConfig::default();
         let device_max_n = arm.info.max_force_n;
         let mut config = EngineConfig::for_field(&field, &arm.info);
@@ -565,16 +572,7 @@ hover_fu = 0.3
     /// that stays silent ends it after [`STROKE_HELD_THROUGH_FAULTS`] failed reads.
     #[test]
     fn a_short_fault_holds_the_stroke_and_a_long_one_ends_it() {
-        let script = parse_script(PUSH, "test").unwrap();
-        let plan = ScriptPlan::new(
-            &script,
-            "test",
-            std::path::Path::new("."),
-            &[],
-            Material::PLASTIC,
-        )
-        .unwrap();
-        let field = build_clay(&plan.clay).unwrap();
+        let (plan, field) = push_plan();
         // The stroke's button is held from 0.1 s to 1.4 s: 5 ms of silence at 0.6 s, and
         // 300 ms from 0.9 s.
         let arm = SimArmConfig {
