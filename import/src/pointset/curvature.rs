@@ -127,14 +127,16 @@ mod tests {
     use super::*;
     use dynaclay_core::field::{BSplineLattice, fit_lattice};
 
-    /// A ball of radius `r` around the origin: density `0.5 − (|x| − r) / 0.3` clamped to
-    /// `0..=1`, iso-level 0.5, fitted on a lattice over `± 2` with knots 0.125 apart.
+    /// A ball of radius `r` around the origin: density `0.5 − (|x|² − r²) / (1.6 r)`,
+    /// iso-level 0.5, fitted on a lattice over `± 2` with knots 0.125 apart. A quadratic is
+    /// in the cubic B-splines' space, so the fit is exact and its level sets are spheres (a
+    /// clamped profile's kinks, smoothed by the fit, bend the normals near them).
     fn ball(radius: f32) -> MultiPatchField {
         let spacing = 0.125;
         let mut lattice =
             BSplineLattice::zeros([35; 3], spacing, Vec3::splat(-2.0 - spacing)).unwrap();
         fit_lattice(&mut lattice, 2, |x| {
-            (0.5 - (x.length() - radius) / 0.3).clamp(0.0, 1.0)
+            0.5 - (x.length_squared() - radius * radius) / (1.6 * radius)
         })
         .unwrap();
         lattice.iso = 0.5;
