@@ -117,7 +117,8 @@ pub fn normal_gradient(
     }
     let jacobian = Mat3::from_cols(columns[0], columns[1], columns[2]);
     // Onto the tangent plane on both sides: the normal turns within it, along it.
-    let tangent = Mat3::IDENTITY - Mat3::from_cols(normal * normal.x, normal * normal.y, normal * normal.z);
+    let tangent =
+        Mat3::IDENTITY - Mat3::from_cols(normal * normal.x, normal * normal.y, normal * normal.z);
     let w = NormalGradient::from_matrix(tangent * jacobian * tangent);
     w.is_finite().then_some(w)
 }
@@ -163,9 +164,17 @@ mod tests {
                 * (1.0 / r);
             for c in 0..3 {
                 let d = (m.col(c) - expected.col(c)).length();
-                assert!(d < 0.08, "at {p}: column {c} {} vs {}", m.col(c), expected.col(c));
+                assert!(
+                    d < 0.08,
+                    "at {p}: column {c} {} vs {}",
+                    m.col(c),
+                    expected.col(c)
+                );
             }
-            assert!((m * dir).length() < 1e-3, "no turning along the normal at {p}");
+            assert!(
+                (m * dir).length() < 1e-3,
+                "no turning along the normal at {p}"
+            );
             let k = w.max_curvature_per_fu();
             assert!((1.0..1.6).contains(&k), "curvature bound {k} at {p}");
             let t = dir.any_orthonormal_vector() * 0.1;

@@ -973,7 +973,10 @@ mod tests {
                 "still once settled: {r:?}"
             );
         }
-        assert!(removed > 0 && inserted > 0, "the groove resampled the points");
+        assert!(
+            removed > 0 && inserted > 0,
+            "the groove resampled the points"
+        );
 
         // Every vertex of the grooved clay's mesh has a point within one spacing.
         let coords: Vec<[f32; 3]> = f.positions().iter().map(|p| p.to_array()).collect();
