@@ -14,7 +14,10 @@
 //! Dynamic sampling (§4.3) uses the rules of [`super::resample`]: a point whose nearest
 //! neighbour is closer than `0.7 h` goes; where a point's tangent-plane Voronoi cell reaches
 //! farther than `0.72 h` a point is put at its farthest vertex and projected onto the clay;
-//! the two keep the spacing within a factor 1.5 of `h` (see [`super::sampling`]). Unlike
+//! the two keep the spacing within a factor 1.5 of `h` (see [`super::sampling`]). A point is
+//! inserted only where it lands (after its projection) at least [`INSERT_CLEARANCE`] times
+//! the removal distance from every point, so no insertion is undone by the removal rule and
+//! the follower settles on a still clay, curved or not. Unlike
 //! [`super::resample`], an update scans at most [`FollowOptions::scan_per_update`] points (from
 //! where the last one stopped, round robin), makes at most [`FollowOptions::max_changes`]
 //! insertions and removals, and never grows the set past [`FollowOptions::max_points`]; a point
@@ -31,7 +34,14 @@
 //!
 //! Each point's splat radius ([`PointSetView::radii`]) is the distance to the farthest vertex
 //! of its tangent-plane Voronoi cell, clamped to `0.5 h ..= 1.5 h`: a disc of that radius
-//! covers its whole cell, so the splats of a well-sampled surface leave no holes.
+//! covers its whole cell, so the splats of a well-sampled surface leave no holes. Where the
+//! clay curves so tightly that half a spacing is more than [`DISC_CURVATURE_RADII`] of the
+//! curvature radius, the floor drops to that (a flat disc wider than it stands off the
+//! surface); the covering radius is never cut, a hole being worse. Each point also carries its normal's gradient
+//! ([`PointSetView::normal_gradients`], see [`super::curvature`]) so a renderer lights each
+//! pixel of a splat with the normal the surface has there, not the splat's one normal.
+//! Normals are taken from the clay's gradient at every update; a normal's gradient is
+//! refreshed whenever its point moves and whenever the scan passes it.
 
 // NOTE: index loops over parallel per-point arrays read clearer than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
@@ -43,6 +53,7 @@ use dynaclay_loops::SnapshotWriter;
 use glam::{Vec2, Vec3};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
+use super::curvature::{NormalGradient, normal_gradient};
 use super::error::PointSetError;
 use super::sampling::farthest_voronoi_vertex;
 use super::surface::PointSet;
@@ -59,6 +70,27 @@ pub const LOST_SPANS: f32 = 1.0;
 pub const SETTLED_MOVE_SPANS: f32 = 1e-3;
 /// Neighbours examined per point for sampling and splat radii.
 const NEIGHBOURS: usize = 16;
+/// The step of the central differences that give a point's normal gradient, in target
+/// spacings: small against the curvature radii a point set can show (a few spacings), large
+/// against the `f32` rounding of the clay's gradient.
+pub const CURVATURE_STEP_SPANS: f32 = 0.25;
+/// A splat's radius stays under this fraction of the local curvature radius (unless its
+/// cell needs more to be covered): a flat disc of radius `r` on a surface of curvature `κ`
+/// stands `κ r² / 2` off it at its rim, a tenth of its radius at half the curvature radius.
+pub const DISC_CURVATURE_RADII: f32 = 0.5;
+/// An inserted point keeps at least this many times the removal distance
+/// (`remove_below · h`) from every other point, so removal never takes back what insertion
+/// put: the empty disc that calls for a point is measured in the parent's tangent plane, and
+/// the point's projection onto a curved clay (a groove's wall) can land nearer than that to
+/// a neighbour; without this check the point is removed in the next scan and the same hole
+/// calls for it again, update after update. With it, no insertion makes a crowded pair, so
+/// on a still clay the removals stop once the pairs crowded before are gone and the
+/// insertions once no hole admits a point, and the follower settles. The 5% margin covers
+/// the Newton projection's residual moves (below `1e-4 h` on a still clay) and rounding.
+pub const INSERT_CLEARANCE: f32 = 1.05;
+/// Nearest points examined around a point about to be inserted (the clearance is under one
+/// spacing, so few points can lie within it).
+const CLEARANCE_NEIGHBOURS: usize = 8;
 
 /// How the points follow the clay.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -77,12 +109,17 @@ pub struct FollowOptions {
     pub insert_above: f32,
     /// Remove where the nearest neighbour is closer than this many `h`.
     pub remove_below: f32,
+    /// Insert only where the new point keeps this many times the removal distance from
+    /// every point ([`INSERT_CLEARANCE`]; 0 measures the empty disc alone, which thrashes
+    /// on curved clay).
+    pub insert_clearance: f32,
 }
 
 impl FollowOptions {
     /// The defaults for a target spacing `h` and a set of `points` points: two Newton steps,
     /// 256 changes and 4096 points scanned per update, at most four times the points (and at
-    /// least 1000), and the thresholds of [`super::SamplingOptions::for_target`].
+    /// least 1000), the thresholds of [`super::SamplingOptions::for_target`] and the
+    /// insertion clearance [`INSERT_CLEARANCE`].
     #[must_use]
     pub fn for_spacing(target_fu: f32, points: usize) -> Self {
         let sampling = super::SamplingOptions::for_target(target_fu);
@@ -94,6 +131,7 @@ impl FollowOptions {
             scan_per_update: 4096,
             insert_above: sampling.insert_above,
             remove_below: sampling.remove_below,
+            insert_clearance: INSERT_CLEARANCE,
         }
     }
 }
@@ -138,6 +176,8 @@ pub struct PointSetView {
     pub colours: Vec<[u8; 3]>,
     /// Splat radii, the clay's units.
     pub radii: Vec<f32>,
+    /// How each point's normal turns across its splat ([`super::curvature`]).
+    pub normal_gradients: Vec<NormalGradient>,
     /// The target spacing `h`.
     pub spacing_fu: f32,
     /// Updates taken on this set so far.
@@ -166,6 +206,7 @@ pub struct PointFollower {
     normals: Vec<Vec3>,
     colours: Vec<[u8; 3]>,
     radii: Vec<f32>,
+    normal_gradients: Vec<NormalGradient>,
     options: FollowOptions,
     /// Where the next scan starts.
     cursor: usize,
@@ -175,6 +216,22 @@ pub struct PointFollower {
     sites: Vec<Vec2>,
     added: Vec<Vec3>,
     coords: Vec<[f32; 3]>,
+}
+
+/// A splat's radius from its cell's covering radius `cell_fu` and the largest curvature
+/// there (per clay unit): the covering radius, raised to at least `0.5 h` where the clay is
+/// flat enough (a margin over neighbouring cells) but not past [`DISC_CURVATURE_RADII`]
+/// curvature radii, and at most `1.5 h`. Coverage comes first: the radius is never cut
+/// below the covering radius, so where the points are sparse for the curvature the discs
+/// stand off the surface rather than leave holes.
+fn splat_radius(cell_fu: f32, curvature_per_fu: f32, h: f32) -> f32 {
+    let bent = if curvature_per_fu > 0.0 {
+        DISC_CURVATURE_RADII / curvature_per_fu
+    } else {
+        f32::INFINITY
+    };
+    let floor = (0.5 * h).min(bent);
+    cell_fu.clamp(floor, (1.5 * h).max(floor))
 }
 
 /// `F − iso` and `∇F` of the clay.
@@ -234,6 +291,7 @@ impl PointFollower {
         colours.truncate(options.max_points);
         Ok(Self {
             radii: vec![options.target_fu; positions.len()],
+            normal_gradients: vec![NormalGradient::FLAT; positions.len()],
             positions,
             normals,
             colours,
@@ -271,6 +329,12 @@ impl PointFollower {
         &self.radii
     }
 
+    /// How each point's normal turns around it.
+    #[must_use]
+    pub fn normal_gradients(&self) -> &[NormalGradient] {
+        &self.normal_gradients
+    }
+
     /// The options.
     #[must_use]
     pub fn options(&self) -> &FollowOptions {
@@ -306,6 +370,9 @@ impl PointFollower {
                     report.moved_max_fu = report.moved_max_fu.max((x - p).length());
                     self.positions[i] = x;
                     self.normals[i] = n;
+                    self.normal_gradients[i] =
+                        normal_gradient(field, x, n, CURVATURE_STEP_SPANS * h)
+                            .unwrap_or(NormalGradient::FLAT);
                 }
                 _ if budget > 0 => {
                     self.gone[i] = true;
@@ -362,7 +429,10 @@ impl PointFollower {
                 }
                 let v = farthest_voronoi_vertex(&self.sites, 3.0 * h);
                 let r = v.length();
-                self.radii[i] = r.clamp(0.5 * h, 1.5 * h);
+                let w = normal_gradient(field, p, n, CURVATURE_STEP_SPANS * h)
+                    .unwrap_or(NormalGradient::FLAT);
+                self.normal_gradients[i] = w;
+                self.radii[i] = splat_radius(r, w.max_curvature_per_fu(), h);
                 let room = budget > 0 && count + self.added.len() < self.options.max_points;
                 if r <= self.options.insert_above * h || !room {
                     continue;
@@ -378,13 +448,27 @@ impl PointFollower {
                 ) else {
                     continue;
                 };
-                if off > 0.1 * h || (y - p).length() > 3.0 * h {
+                if off > 0.1 * h
+                    || (y - p).length() > 3.0 * h
+                    || self.crowds(
+                        &tree,
+                        y,
+                        (self.options.insert_clearance * self.options.remove_below * h).powi(2),
+                    )
+                {
                     continue;
                 }
+                let w = normal_gradient(field, y, normal, CURVATURE_STEP_SPANS * h)
+                    .unwrap_or(NormalGradient::FLAT);
                 self.positions.push(y);
                 self.normals.push(normal);
                 self.colours.push(self.colours[i]);
-                self.radii.push(self.options.insert_above * h);
+                self.radii.push(splat_radius(
+                    self.options.insert_above * h,
+                    w.max_curvature_per_fu(),
+                    h,
+                ));
+                self.normal_gradients.push(w);
                 self.added.push(y);
                 report.inserted += 1;
                 budget -= 1;
@@ -405,6 +489,22 @@ impl PointFollower {
         Ok(report)
     }
 
+    /// Whether a point at `y` would have a point (of `tree` and not marked gone, or added in
+    /// this pass) closer than `clearance_sq.sqrt()`.
+    fn crowds(&self, tree: &ImmutableKdTree<f32, 3>, y: Vec3, clearance_sq: f32) -> bool {
+        let want = NonZero::new(CLEARANCE_NEIGHBOURS).unwrap_or(NonZero::<usize>::MIN);
+        let near = tree
+            .query(&[y.x, y.y, y.z])
+            .nearest_n::<SquaredEuclidean<f32>>(want)
+            .execute();
+        near.iter()
+            .any(|r| r.distance < clearance_sq && !self.gone[r.item as usize])
+            || self
+                .added
+                .iter()
+                .any(|q| q.distance_squared(y) < clearance_sq)
+    }
+
     /// Drops the points marked in `gone`; returns how many went.
     fn compact(&mut self) -> usize {
         let before = self.positions.len();
@@ -415,6 +515,7 @@ impl PointFollower {
                 self.normals[w] = self.normals[i];
                 self.colours[w] = self.colours[i];
                 self.radii[w] = self.radii[i];
+                self.normal_gradients[w] = self.normal_gradients[i];
                 w += 1;
             }
         }
@@ -422,6 +523,7 @@ impl PointFollower {
         self.normals.truncate(w);
         self.colours.truncate(w);
         self.radii.truncate(w);
+        self.normal_gradients.truncate(w);
         self.gone.clear();
         before - w
     }
@@ -549,6 +651,7 @@ impl<S: MeshSink> PointSetFollower<S> {
             view.normals.clear();
             view.colours.clear();
             view.radii.clear();
+            view.normal_gradients.clear();
             view.loaded = follower.is_some();
             view.arrived = arrived;
             view.updates = updates;
@@ -559,6 +662,8 @@ impl<S: MeshSink> PointSetFollower<S> {
                 view.normals.extend_from_slice(f.normals());
                 view.colours.extend_from_slice(f.colours());
                 view.radii.extend_from_slice(f.radii());
+                view.normal_gradients
+                    .extend_from_slice(f.normal_gradients());
                 view.spacing_fu = f.options().target_fu;
             }
         });
@@ -741,6 +846,170 @@ mod tests {
         for &r in f.radii() {
             assert!((0.5 * h..=1.5 * h).contains(&r), "splat radius {r}");
         }
+    }
+
+    /// The starting block of the window (24³ knots 0.1 apart, half side 0.575 around 1.15),
+    /// before and after a groove is carved along x across the middle of its top: a Remove
+    /// ball of radius 0.15 centred on the top (y = 1.725) at z = 1.15, from x = 0.75 to 1.55.
+    fn flat_and_grooved_block() -> (BSplineLattice, BSplineLattice) {
+        use dynaclay_core::field::{Primitive, band_limited_lattice};
+        use dynaclay_core::tools::{
+            ApplyOptions, Clay, GeometricTool, ToolAction, ToolPose, ToolShape, apply_tool,
+        };
+        let spacing = 0.1;
+        let flat = band_limited_lattice(
+            [24; 3],
+            spacing,
+            Vec3::ZERO,
+            &Primitive::Box {
+                centre: Vec3::splat(1.15),
+                half_extents: Vec3::splat(0.575),
+            },
+            2.0 * spacing,
+            2,
+        )
+        .unwrap();
+        let mut clay = Clay::single(flat.clone());
+        let ball = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.15 },
+            action: ToolAction::Remove,
+            falloff_fu: 0.05,
+        };
+        for i in 0..=16 {
+            let pose = ToolPose {
+                position_fu: Vec3::new(0.75 + 0.05 * i as f32, 1.725, 1.15),
+                rotation: glam::Quat::IDENTITY,
+            };
+            apply_tool(&mut clay, &ball, &pose, 0.5, &ApplyOptions::default(), None).unwrap();
+        }
+        (flat, clay.base().clone())
+    }
+
+    /// The vertices of `lattice`'s mesh (two cells per knot span) and their normals.
+    fn mesh_vertices(lattice: &BSplineLattice) -> (Vec<Vec3>, Vec<Vec3>) {
+        use dynaclay_core::mesh::SampleGrid;
+        let mut octree = BrickOctree::new(SampleGrid::for_lattice(lattice, 2).unwrap());
+        octree.rebuild(lattice);
+        let (mut positions, mut normals) = (Vec::new(), Vec::new());
+        for b in octree.bricks() {
+            positions.extend_from_slice(&b.mesh.positions);
+            normals.extend_from_slice(&b.mesh.normals);
+        }
+        (positions, normals)
+    }
+
+    /// Points loaded on the block (its mesh vertices, target spacing half a knot span, as the
+    /// window loads them) follow a groove carved under them. The groove's walls are curved
+    /// (radius 0.15, three spacings): an inserted point projected onto them may land nearer
+    /// a neighbour than the removal distance. The follower must still settle within
+    /// `SETTLE_WITHIN` updates, stay still after (no insertion or removal in `STILL_FOR`
+    /// more), and cover the grooved clay: every vertex of its mesh within one spacing of a
+    /// point. Without the insertion clearance (the empty disc alone decides) the same points
+    /// never settle there.
+    #[test]
+    fn points_on_a_carved_groove_settle_and_cover_it() {
+        const SETTLE_WITHIN: usize = 300;
+        const STILL_FOR: usize = 30;
+        let (flat, grooved) = flat_and_grooved_block();
+        let (positions, normals) = mesh_vertices(&flat);
+        let n = positions.len();
+        let h = 0.5 * flat.spacing;
+        let points = FollowedPoints {
+            positions,
+            normals,
+            colours: vec![[200, 200, 200]; n],
+            options: None,
+        };
+        let field = MultiPatchField::from(grooved.clone());
+
+        let unguarded = FollowOptions {
+            insert_clearance: 0.0,
+            ..FollowOptions::for_spacing(h, n)
+        };
+        let mut f = PointFollower::new(points.clone(), unguarded).unwrap();
+        let (mut inserted, mut removed, mut last) = (0, 0, FollowReport::default());
+        for _ in 0..SETTLE_WITHIN {
+            last = f.update(&field).unwrap();
+            inserted += last.inserted;
+            removed += last.removed;
+            if last.settled {
+                break;
+            }
+        }
+        eprintln!(
+            "without the clearance: {inserted} inserted and {removed} removed in \
+             {SETTLE_WITHIN} updates, the last {last:?}"
+        );
+        assert!(
+            !last.settled,
+            "the empty disc alone thrashes on the groove: {last:?}"
+        );
+
+        let mut f = PointFollower::new(points, FollowOptions::for_spacing(h, n)).unwrap();
+        let (mut inserted, mut removed, mut settled_after) = (0, 0, None);
+        for k in 1..=SETTLE_WITHIN {
+            let r = f.update(&field).unwrap();
+            inserted += r.inserted;
+            removed += r.removed;
+            if r.settled {
+                settled_after = Some(k);
+                break;
+            }
+        }
+        let last = f.update(&field).unwrap();
+        eprintln!(
+            "{n} points on the block, {} on the grooved clay: settled after {settled_after:?} \
+             updates, {inserted} inserted and {removed} removed; then {last:?}",
+            f.positions().len()
+        );
+        assert!(
+            settled_after.is_some(),
+            "settled within {SETTLE_WITHIN} updates ({inserted} in, {removed} out; then {last:?})"
+        );
+        for _ in 0..STILL_FOR {
+            let r = f.update(&field).unwrap();
+            assert!(
+                r.inserted == 0 && r.removed == 0 && r.settled,
+                "still once settled: {r:?}"
+            );
+        }
+        assert!(
+            removed > 0 && inserted > 0,
+            "the groove resampled the points"
+        );
+
+        // Every vertex of the grooved clay's mesh has a point within one spacing.
+        let coords: Vec<[f32; 3]> = f.positions().iter().map(|p| p.to_array()).collect();
+        let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&coords).unwrap();
+        let (vertices, _) = mesh_vertices(&grooved);
+        let (mut worst, mut worst_at) = (0.0f32, Vec3::ZERO);
+        for v in &vertices {
+            let d = tree
+                .query(&v.to_array())
+                .nearest_one::<SquaredEuclidean<f32>>()
+                .execute()
+                .distance
+                .sqrt();
+            if d > worst {
+                (worst, worst_at) = (d, *v);
+            }
+        }
+        eprintln!(
+            "{} mesh vertices, the farthest {:.3} h from a point at {worst_at}",
+            vertices.len(),
+            worst / h
+        );
+        assert!(worst <= h, "a vertex {worst} from the points at {worst_at}");
+        let floor = f.positions().iter().map(|p| p.y).fold(f32::MAX, f32::min);
+        let in_groove = f
+            .positions()
+            .iter()
+            .filter(|p| (p.x - 1.15).abs() < 0.2 && (p.z - 1.15).abs() < 0.05 && p.y < 1.65)
+            .count();
+        assert!(
+            in_groove > 10 && floor < 0.6,
+            "points line the groove's floor ({in_groove}) and the block's base ({floor})"
+        );
     }
 
     /// A clay carved away under the points loses them, within the budget per update; a set

@@ -18,6 +18,7 @@
 //! per-step update of [`PointSetSculpt`] allocates nothing after its set-up.
 
 mod boolean;
+mod curvature;
 mod emboss;
 mod error;
 mod follow;
@@ -31,11 +32,13 @@ mod sculpt;
 mod surface;
 
 pub use boolean::{BooleanOp, SharpBoolean};
+pub use curvature::{NormalGradient, normal_gradient};
 pub use emboss::{EmbossReport, emboss};
 pub use error::PointSetError;
 pub use follow::{
-    FollowOptions, FollowReport, FollowedPoints, LOST_SPANS, MAX_STEP_SPANS, PointFollower,
-    PointSetFollower, PointSetView, SETTLED_MOVE_SPANS,
+    CURVATURE_STEP_SPANS, DISC_CURVATURE_RADII, FollowOptions, FollowReport, FollowedPoints,
+    INSERT_CLEARANCE, LOST_SPANS, MAX_STEP_SPANS, PointFollower, PointSetFollower, PointSetView,
+    SETTLED_MOVE_SPANS,
 };
 pub use frame::UnitFrame;
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
