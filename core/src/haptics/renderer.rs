@@ -770,7 +770,10 @@ mod tests {
 
     /// A renderer pressed 5 mm into the slab at 0.1 m/s and held in a push stroke for 100
     /// ticks, and the device time it reached.
-    fn pressed_in_a_stroke(field: &MultiPatchField, stroke: &StrokeGeometry) -> (ForceRenderer, u64) {
+    fn pressed_in_a_stroke(
+        field: &MultiPatchField,
+        stroke: &StrokeGeometry,
+    ) -> (ForceRenderer, u64) {
         let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
         let mut t = 0;
         for i in 0..300 {
@@ -810,7 +813,11 @@ mod tests {
         assert_eq!(first.energy_j, credit);
         let later = still(&mut r, &mut t, 0.95, 50);
         assert_eq!(later.energy_j, credit, "kept through the blend back in");
-        assert!(later.force_n.y > 0.1, "the press is felt again: {}", later.force_n);
+        assert!(
+            later.force_n.y > 0.1,
+            "the press is felt again: {}",
+            later.force_n
+        );
 
         // A new device forgets the account.
         r.reset();
