@@ -47,6 +47,34 @@ pub struct Session {
     pub read_faults: u64,
 }
 
+/// The sessions' script: the shared push script, its path 0.2 below the block's top (the
+/// tool presses on the clay along it).
+pub fn script_text() -> String {
+    super::common::PUSH_SCRIPT.replace(
+        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
+        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
+    )
+}
+
+/// The script's hand in the device frame of an arm described by `info`, as the engine maps
+/// the script's path onto it (the script's clay fitted into the arm's workspace): where it is
+/// at the stand-in's exchange `k`, 1 ms of script time each.
+pub fn script_hand(info: &DeviceInfo) -> HandPath {
+    let script = parse_script(&script_text(), "test").unwrap();
+    let plan = ScriptPlan::new(
+        &script,
+        "test",
+        std::path::Path::new("."),
+        &[],
+        Material::PLASTIC,
+    )
+    .unwrap();
+    let field = build_clay(&plan.clay).unwrap();
+    let map = EngineConfig::for_field(&field, info).map;
+    let trajectory = plan.trajectory(&map).unwrap();
+    Box::new(move |k| trajectory.sample(k as f64 * 1e-3).position_m)
+}
+
 /// Runs the push script in lockstep for [`TICKS`] ticks. `start` is handed the script's hand
 /// and returns the arm (its stand-in set to play that hand); `info` is the arm's figures;
 /// `before_tick` runs before each tick (to break the link on cue).
@@ -55,10 +83,7 @@ pub fn sculpt(
     start: impl FnOnce(HandPath) -> Box<dyn HapticDevice>,
     mut before_tick: impl FnMut(u64),
 ) -> Session {
-    let text = super::common::PUSH_SCRIPT.replace(
-        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
-        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
-    );
+    let text = script_text();
     let script = parse_script(&text, "test").unwrap();
     let plan = ScriptPlan::new(
         &script,
@@ -74,10 +99,7 @@ pub fn sculpt(
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = SOFT_START_S;
     config.haptics.tool_contact = plan.tool_contact;
-    let trajectory = plan.trajectory(&config.map).unwrap();
-    let device = start(Box::new(move |k| {
-        trajectory.sample(k as f64 * 1e-3).position_m
-    }));
+    let device = start(script_hand(info));
     let mut engine = Lockstep::new(
         &config,
         field,
