@@ -776,10 +776,16 @@ mod tests {
     ) -> (ForceRenderer, u64) {
         let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
         let mut t = 0;
+        let mut sent = Vec3::ZERO;
         for i in 0..300 {
             t += 1000;
             let y = (1.1 - 0.001 * i as f32).max(0.95);
-            let f = r.render(&input(field, stroke, y, t, i >= 200));
+            // The observer pairs each move with the force sent before it.
+            let f = r.render(&FeltInput {
+                sent_n: sent,
+                ..input(field, stroke, y, t, i >= 200)
+            });
+            sent = f.force_n;
             if i >= 230 {
                 assert!(f.sculpting, "tick {i}");
             }
