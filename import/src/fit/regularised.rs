@@ -54,11 +54,11 @@ impl AxisBasis {
                 let u = s as f64 / samples_per_span as f64;
                 let first = (u.floor() as i64 - 1).max(0) as usize;
                 let mut row = Vec::with_capacity(4);
-                for i in first..(first + 4).min(coeffs) {
+                for (i, column) in columns.iter_mut().enumerate().skip(first).take(4) {
                     let w = cubic(u - i as f64);
                     if w != 0.0 {
                         row.push((i, w));
-                        columns[i].push((s, w));
+                        column.push((s, w));
                     }
                 }
                 row
