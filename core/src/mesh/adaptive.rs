@@ -3,13 +3,14 @@
 //! Schaefer & Warren 2002, "Dual Contouring of Hermite Data").
 //!
 //! The octree's root is a cube around [`MultiPatchField::support`] with a margin of one
-//! finest cell. A node is split while the field may cross the iso-level inside it (by
-//! [`ScalarField::bounds`]; a node the bound shows wholly inside or outside stays a leaf) and
-//! its edge is longer than the target at the node: the smallest `world spacing /
-//! cells_per_span` of the patches whose support meets it. Every leaf's edge is the root's
-//! divided by a power of two, so every leaf corner lies on the integer lattice of the finest
-//! cell; corner samples are keyed by those integer coordinates and taken once, so two leaves
-//! that share a corner see the same value.
+//! finest cell. A node is split while the field may cross the iso-level inside it (by the
+//! convex-hull bound of [`super::ScalarField::bounds`], and a bound on the patches' slopes
+//! over the node; a node the bounds show wholly inside or outside stays a leaf) and its edge
+//! is longer than the target at the node: the smallest `world spacing / cells_per_span` of
+//! the patches whose support meets it. Every leaf's edge is the root's divided by a power of
+//! two, so every leaf corner lies on the integer lattice of the finest cell; corner samples
+//! are keyed by those integer coordinates and taken once, so two leaves that share a corner
+//! see the same value.
 //!
 //! Guarantees: the mesh is closed (the root's boundary counts as outside, whatever the
 //! iso-level) and consistently oriented (triangles counter-clockwise seen from outside,
@@ -54,7 +55,6 @@ use std::collections::HashMap;
 
 use glam::{Affine3A, Vec3};
 
-use super::source::ScalarField;
 use super::trimesh::TriMesh;
 use crate::field::{MultiPatchField, Patch};
 
@@ -979,16 +979,23 @@ impl Tree {
         }
         let (lo, hi) = self.world_box(node);
         let edge = node.size as f32;
-        // The finest target among the patches that hold detail in the node, in cells.
-        let target = self
-            .targets
-            .iter()
-            .zip(&field.patches)
-            .enumerate()
-            .filter(|(_, ((slo, shi, _), _))| lo.cmplt(*shi).all() && hi.cmpgt(*slo).all())
-            .filter(|(n, (_, patch))| *n == 0 || holds_detail(patch, lo, hi))
-            .map(|(_, (t, _))| t.2)
-            .fold(f32::INFINITY, f32::min);
+        // One read of each patch's coefficients over the node gives the finest target among
+        // the patches that hold detail in it (in cells), the field's convex-hull bound and a
+        // bound on its slope.
+        let mut target = f32::INFINITY;
+        let mut bounds = Some((0.0_f32, 0.0_f32));
+        let mut slope = 0.0_f32;
+        for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
+            let over = patch_over_box(patch, lo, hi);
+            let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
+            if meets && (n == 0 || over.holds_detail(patch)) {
+                target = target.min(*cells);
+            }
+            bounds = bounds
+                .zip(over.bounds)
+                .map(|((a, b), (c, d))| (a + c, b + d));
+            slope += over.slope;
+        }
         // A little slack so a target that is a power of two times the finest cell, up to
         // rounding, is met exactly rather than split once more.
         if edge <= target * (1.0 + 1e-4) {
@@ -998,11 +1005,19 @@ impl Tree {
         // `AdaptiveMesher::corner_value`), whatever the field's value there.
         let on_boundary = node.min.contains(&0) || node.corner(7).contains(&self.root_size);
         let iso = field.iso();
-        let may_cross = match ScalarField::bounds(field, lo, hi) {
+        let may_cross = match bounds {
             Some((vmin, vmax)) => (vmin <= iso || on_boundary) && vmax > iso,
             None => true,
         };
-        may_cross && (on_boundary || !far_from_iso(field, lo, hi, iso))
+        // Whether the field's value at the centre is further from `iso` than the patches can
+        // climb within the node (so the surface cannot cross it): a test that holds where the
+        // convex-hull bound is loose, inside a detail patch whose coefficients cancel the
+        // base's.
+        let far_from_iso = || {
+            let reach = slope * 0.5 * (hi - lo).length();
+            (field.value(0.5 * (lo + hi)) - iso).abs() > reach
+        };
+        may_cross && (on_boundary || !far_from_iso())
     }
 
     /// World position of an integer corner.
@@ -1031,42 +1046,69 @@ impl Tree {
 /// of density): such a box is meshed at the coarser levels' size.
 pub const DETAIL_EPSILON: f32 = 1e-3;
 
-/// Whether detail patch `patch` may add more than [`DETAIL_EPSILON`] anywhere in the world box
-/// `lo..=hi` (its convex-hull bound there; a patch with a map, whose bound is not taken, always
-/// may).
-fn holds_detail(patch: &Patch, lo: Vec3, hi: Vec3) -> bool {
-    if !patch.is_identity() {
-        return true;
-    }
-    match ScalarField::bounds(&patch.lattice, lo, hi) {
-        Some((vmin, vmax)) => vmin < -DETAIL_EPSILON || vmax > DETAIL_EPSILON,
-        None => true,
+/// What one read of a patch's coefficients over a world box bounds: the patch's term there
+/// and its slope.
+struct PatchOverBox {
+    /// The convex-hull bound of the term: it is a convex combination of the coefficients
+    /// whose support meets the box, those beyond the lattice counting as zero (the bound
+    /// [`super::ScalarField::bounds`] of the lattice takes); `None` where the box is not
+    /// finite in the patch's space.
+    bounds: Option<(f32, f32)>,
+    /// A bound on `|∇s|` over the box in world units: a cubic B-spline's derivative along an
+    /// axis is a quadratic B-spline of the coefficient differences over the spacing, so
+    /// `|∇s| ≤ √3 · max |Δc| / spacing`, the differences taken among the same coefficients
+    /// and with the zeros beyond the lattice at its border. Local, so that a change to a
+    /// patch's coefficients changes the bound only near the change.
+    slope: f32,
+}
+
+impl PatchOverBox {
+    /// Whether the patch may add more than [`DETAIL_EPSILON`] anywhere in the box (a patch
+    /// with a map, whose bound is taken over a larger box, always may).
+    fn holds_detail(&self, patch: &Patch) -> bool {
+        if !patch.is_identity() {
+            return true;
+        }
+        match self.bounds {
+            Some((vmin, vmax)) => vmin < -DETAIL_EPSILON || vmax > DETAIL_EPSILON,
+            None => true,
+        }
     }
 }
 
-/// A bound on the slope of `patch`'s term over the world box `lo..=hi`: a cubic B-spline's
-/// derivative along an axis is a quadratic B-spline of the coefficient differences over the
-/// spacing, so `|∇s| ≤ √3 · max |Δc| / spacing` (in world units through the patch's map), the
-/// differences taken among the coefficients whose support meets the box (those
-/// [`ScalarField::bounds`] reads), and with the zeros beyond the lattice at its border. Local,
-/// so that a change to a patch's coefficients changes the bound only near the change.
-fn patch_slope(patch: &Patch, lo: Vec3, hi: Vec3) -> f32 {
+/// Reads `patch`'s coefficients whose support meets the world box `lo..=hi` once, for both
+/// bounds of [`PatchOverBox`].
+fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
     let l = &patch.lattice;
     let (a, b) = patch.patch_box_of(lo, hi);
     let (ua, ub) = (l.to_lattice(a), l.to_lattice(b));
     if !(ua.is_finite() && ub.is_finite()) {
-        return f32::INFINITY;
+        return PatchOverBox {
+            bounds: None,
+            slope: f32::INFINITY,
+        };
     }
     let mut range = [(0_usize, 0_usize); 3];
+    let mut beyond = false;
     for axis in 0..3 {
         let n = l.dims[axis] as i64;
-        let first = (ua[axis].floor() as i64 - 1).max(0);
-        let last = (ub[axis].floor() as i64 + 2).min(n - 1);
+        let first = ua[axis].floor() as i64 - 1;
+        let last = ub[axis].floor() as i64 + 2;
+        beyond |= first < 0 || last >= n;
+        let (first, last) = (first.max(0), last.min(n - 1));
         if first > last {
-            return 0.0;
+            return PatchOverBox {
+                bounds: Some((0.0, 0.0)),
+                slope: 0.0,
+            };
         }
         range[axis] = (first as usize, last as usize);
     }
+    let (mut vmin, mut vmax) = if beyond {
+        (0.0_f32, 0.0_f32)
+    } else {
+        (f32::INFINITY, f32::NEG_INFINITY)
+    };
     let [nx, ny, nz] = l.dims;
     let mut steepest = 0.0_f32;
     for k in range[2].0..=range[2].1 {
@@ -1074,6 +1116,8 @@ fn patch_slope(patch: &Patch, lo: Vec3, hi: Vec3) -> f32 {
             for i in range[0].0..=range[0].1 {
                 let n = l.index(i, j, k);
                 let c = l.coeffs[n];
+                vmin = vmin.min(c);
+                vmax = vmax.max(c);
                 // Beyond the lattice the coefficients count as zero: a border coefficient is
                 // a step of its own size.
                 if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
@@ -1091,17 +1135,10 @@ fn patch_slope(patch: &Patch, lo: Vec3, hi: Vec3) -> f32 {
             }
         }
     }
-    3.0_f32.sqrt() * steepest / patch.world_spacing()
-}
-
-/// Whether the field's value at the box's centre is further from `iso` than the patches can
-/// climb within it (so the surface cannot cross the box): a test that holds where the
-/// convex-hull bound is loose, inside a detail patch whose coefficients cancel the base's.
-fn far_from_iso(field: &MultiPatchField, lo: Vec3, hi: Vec3, iso: f32) -> bool {
-    let slope: f32 = field.patches.iter().map(|p| patch_slope(p, lo, hi)).sum();
-    let reach = slope * 0.5 * (hi - lo).length();
-    let centre = 0.5 * (lo + hi);
-    (field.value(centre) - iso).abs() > reach
+    PatchOverBox {
+        bounds: Some((vmin, vmax)),
+        slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
+    }
 }
 
 #[cfg(test)]
@@ -1691,7 +1728,10 @@ mod tests {
             shrank |= report.leaves < previous;
             previous = report.leaves;
         }
-        assert!(grew && shrank, "the strokes did not both refine and coarsen the tree");
+        assert!(
+            grew && shrank,
+            "the strokes did not both refine and coarsen the tree"
+        );
     }
 
     #[test]
