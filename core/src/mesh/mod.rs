@@ -22,7 +22,9 @@
 //!   [`BrickOctree::weld_into`] into a kept mesh.
 //! - Multi-resolution export: [`mesh_adaptive`] dual-contours a
 //!   [`crate::field::MultiPatchField`] on an octree whose cells follow the finest patch over
-//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first).
+//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first);
+//!   an [`AdaptiveMesher`] keeps that mesh and, after a stroke, meshes again only the leaves
+//!   near the change ([`AdaptiveMesher::remesh_box`]).
 
 mod adaptive;
 mod brick;
@@ -41,7 +43,8 @@ mod weld;
 mod work_split;
 
 pub use adaptive::{
-    AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
+    AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, AdaptiveRemeshReport,
+    MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
 };
 pub use brick::{
     BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
