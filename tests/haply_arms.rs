@@ -6,15 +6,18 @@
 //! connect, force within the device's bound, a disconnect in the middle of the stroke that
 //! zeroes the force, keeps the engine ticking and keeps the sculpt made before it.
 
+// The shared session's script and hand; its lockstep session and checks serve the other arms.
+#[allow(dead_code)]
+#[path = "support/arm_session.rs"]
+mod arm_session;
 mod common;
 #[path = "../devices/tests/support/haply_standins.rs"]
 mod haply_standins;
 
 use std::time::Duration;
 
-use dynaclay::dynamics::Material;
-use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay};
-use dynaclay::io::parse_script;
+use arm_session::{push_plan, push_script, script_hand, script_text};
+use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, build_clay};
 use dynaclay_devices::inverse3::{Inverse3, Inverse3Config};
 use dynaclay_devices::record::{Record, Recording};
 use dynaclay_devices::two_diy::{SampleClock, TwoDiy, TwoDiyOptions, TwoDiyVersion};
@@ -42,33 +45,6 @@ struct Outcome {
     far_change: f32,
 }
 
-/// The push of the shared script, 0.2 below the top: a firm press.
-fn script_text() -> String {
-    common::PUSH_SCRIPT.replace(
-        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
-        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
-    )
-}
-
-/// The script's hand in the device frame of an arm described by `info`, as the engine maps the
-/// script's path onto it: where it is at the stand-in's exchange `k`, 1 ms of script time each.
-fn script_hand(info: &DeviceInfo) -> Hand {
-    let script = parse_script(&script_text(), "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
-    let field = build_clay(&plan.clay).unwrap();
-    let trajectory = plan
-        .trajectory(&EngineConfig::for_field(&field, info).map)
-        .unwrap();
-    Box::new(move |k| trajectory.sample(k as f64 * 1e-3).position_m)
-}
-
 /// Runs the push script through `device` (made from its stand-in) in lockstep, disconnecting
 /// the stand-in at [`DISCONNECT_AT`].
 fn sculpt(
@@ -76,15 +52,8 @@ fn sculpt(
     start: impl FnOnce(Hand) -> Standin,
     device: impl FnOnce(&Standin) -> Box<dyn HapticDevice>,
 ) -> Outcome {
-    let script = parse_script(&script_text(), "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
+    let script = push_script();
+    let plan = push_plan(&script);
     let field = build_clay(&plan.clay).unwrap();
     let before = field.clone();
     let mut config = EngineConfig::for_field(&field, info);

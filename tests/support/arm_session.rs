@@ -11,7 +11,7 @@
 use dynaclay::dynamics::Material;
 use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay};
 use dynaclay::field::BSplineLattice;
-use dynaclay::io::parse_script;
+use dynaclay::io::{Script, parse_script};
 use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
 use glam::Vec3;
 
@@ -56,19 +56,28 @@ pub fn script_text() -> String {
     )
 }
 
-/// The script's hand in the device frame of an arm described by `info`, as the engine maps
-/// the script's path onto it (the script's clay fitted into the arm's workspace): where it is
-/// at the stand-in's exchange `k`, 1 ms of script time each.
-pub fn script_hand(info: &DeviceInfo) -> HandPath {
-    let script = parse_script(&script_text(), "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
+/// The sessions' script, parsed.
+pub fn push_script() -> Script {
+    parse_script(&script_text(), "test").unwrap()
+}
+
+/// `script` planned on plastic clay, as the sessions run it.
+pub fn push_plan(script: &Script) -> ScriptPlan {
+    ScriptPlan::new(
+        script,
         "test",
         std::path::Path::new("."),
         &[],
         Material::PLASTIC,
     )
-    .unwrap();
+    .unwrap()
+}
+
+/// The script's hand in the device frame of an arm described by `info`, as the engine maps
+/// the script's path onto it (the script's clay fitted into the arm's workspace): where it is
+/// at the stand-in's exchange `k`, 1 ms of script time each.
+pub fn script_hand(info: &DeviceInfo) -> HandPath {
+    let plan = push_plan(&push_script());
     let field = build_clay(&plan.clay).unwrap();
     let map = EngineConfig::for_field(&field, info).map;
     let trajectory = plan.trajectory(&map).unwrap();
@@ -83,16 +92,8 @@ pub fn sculpt(
     start: impl FnOnce(HandPath) -> Box<dyn HapticDevice>,
     mut before_tick: impl FnMut(u64),
 ) -> Session {
-    let text = script_text();
-    let script = parse_script(&text, "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
+    let script = push_script();
+    let plan = push_plan(&script);
     let field = build_clay(&plan.clay).unwrap();
     let before = field.clone();
     let mut config = EngineConfig::for_field(&field, info);
