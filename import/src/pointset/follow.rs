@@ -56,7 +56,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::curvature::{NormalGradient, normal_gradient};
 use super::error::PointSetError;
-use super::sampling::farthest_voronoi_vertex;
+use super::sampling::{CLEARANCE_NEIGHBOURS, INSERT_CLEARANCE, farthest_voronoi_vertex};
 use super::surface::PointSet;
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::mesh::{BrickOctree, MeshSink, RefreshReport};
@@ -79,19 +79,6 @@ pub const CURVATURE_STEP_SPANS: f32 = 0.25;
 /// cell needs more to be covered): a flat disc of radius `r` on a surface of curvature `κ`
 /// stands `κ r² / 2` off it at its rim, a tenth of its radius at half the curvature radius.
 pub const DISC_CURVATURE_RADII: f32 = 0.5;
-/// An inserted point keeps at least this many times the removal distance
-/// (`remove_below · h`) from every other point, so removal never takes back what insertion
-/// put: the empty disc that calls for a point is measured in the parent's tangent plane, and
-/// the point's projection onto a curved clay (a groove's wall) can land nearer than that to
-/// a neighbour; without this check the point is removed in the next scan and the same hole
-/// calls for it again, update after update. With it, no insertion makes a crowded pair, so
-/// on a still clay the removals stop once the pairs crowded before are gone and the
-/// insertions once no hole admits a point, and the follower settles. The 5% margin covers
-/// the Newton projection's residual moves (below `1e-4 h` on a still clay) and rounding.
-pub const INSERT_CLEARANCE: f32 = 1.05;
-/// Nearest points examined around a point about to be inserted (the clearance is under one
-/// spacing, so few points can lie within it).
-const CLEARANCE_NEIGHBOURS: usize = 8;
 
 /// How the points follow the clay.
 #[derive(Clone, Copy, Debug, PartialEq)]

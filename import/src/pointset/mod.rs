@@ -37,8 +37,7 @@ pub use emboss::{EmbossReport, emboss};
 pub use error::PointSetError;
 pub use follow::{
     CURVATURE_STEP_SPANS, DISC_CURVATURE_RADII, FollowOptions, FollowReport, FollowedPoints,
-    INSERT_CLEARANCE, LOST_SPANS, MAX_STEP_SPANS, PointFollower, PointSetFollower, PointSetView,
-    SETTLED_MOVE_SPANS,
+    LOST_SPANS, MAX_STEP_SPANS, PointFollower, PointSetFollower, PointSetView, SETTLED_MOVE_SPANS,
 };
 pub use frame::UnitFrame;
 pub use local::{FitSample, FitScratch, LOCAL_COUNT, LOCAL_DIM, LocalField, fit_local};
@@ -46,7 +45,8 @@ pub use normals::{orient_over_mst, plane_normal};
 pub use ply::{encode_point_ply, write_point_ply};
 pub use pull::{PULL_GAIN, PullReport, RESAMPLE_EVERY, pull};
 pub use sampling::{
-    SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings, resample,
+    INSERT_CLEARANCE, SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings,
+    resample,
 };
 pub use sculpt::{CornerBlend, PointSetSculpt, SculptOptions, UpdateTimes};
 pub use surface::{
