@@ -1,12 +1,32 @@
 //! `dynaclay run` end to end in a temporary directory, and its error messages.
 
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Output};
 
 use dynaclay::io::load_session;
 use dynaclay::mesh::{BrickOctree, SampleGrid};
 
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
+
+/// Runs `dynaclay run` with `flags`, the script at `script`, the output folder `out` and
+/// `extra` arguments, and waits for it.
+fn run_script(
+    flags: &[&str],
+    script: impl AsRef<Path>,
+    out: impl AsRef<Path>,
+    extra: &[&str],
+) -> Output {
+    Command::new(BIN)
+        .arg("run")
+        .args(flags)
+        .arg("--script")
+        .arg(script.as_ref())
+        .arg("--out")
+        .arg(out.as_ref())
+        .args(extra)
+        .output()
+        .unwrap()
+}
 
 /// Parses an OBJ and checks every edge is shared by exactly two faces, in opposite directions.
 fn obj_is_closed(path: &Path) -> (usize, usize, bool) {
@@ -237,13 +257,7 @@ duration_s = 50.0
     // --recover starts from it: with a script of no steps the session comes out unchanged.
     let idle = dir.path().join("idle.toml");
     std::fs::write(&idle, "version = 1\nseconds = 0.5\n").unwrap();
-    let run = Command::new(BIN)
-        .args(["run", "--no-rt", "--recover", "--script"])
-        .arg(&idle)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = run_script(&["--no-rt", "--recover"], &idle, &out, &[]);
     assert!(
         run.status.success(),
         "{}",
@@ -415,13 +429,7 @@ fn recover_keeps_every_section_of_the_session_paint_included() {
     dynaclay::io::save_session(&out.join("session.dclay.recovery"), &saved).unwrap();
     let idle = dir.path().join("idle.toml");
     std::fs::write(&idle, "version = 1\nseconds = 0.3\n").unwrap();
-    let run = Command::new(BIN)
-        .args(["run", "--no-rt", "--recover", "--script"])
-        .arg(&idle)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = run_script(&["--no-rt", "--recover"], &idle, &out, &[]);
     assert!(
         run.status.success(),
         "{}",
@@ -446,13 +454,7 @@ fn a_run_writes_real_creation_and_save_times() {
     let out = dir.path().join("out");
     let idle = dir.path().join("idle.toml");
     std::fs::write(&idle, "version = 1\nseconds = 0.3\n").unwrap();
-    let run = Command::new(BIN)
-        .args(["run", "--no-rt", "--script"])
-        .arg(&idle)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let run = run_script(&["--no-rt"], &idle, &out, &[]);
     assert!(run.status.success());
     let back = load_session(&out.join("session.dclay")).unwrap();
     // 2020-01-01: any real clock is later.
@@ -477,14 +479,7 @@ fn script_saves_stay_in_their_folders_and_never_replace_other_files() {
             format!("version = 1\nseconds = 0.5\n\n[[step]]\ndo = \"save\"\npath = \"{save}\"\n"),
         )
         .unwrap();
-        Command::new(BIN)
-            .args(["run", "--no-rt", "--script"])
-            .arg(&script)
-            .arg("--out")
-            .arg(&out)
-            .args(extra)
-            .output()
-            .unwrap()
+        run_script(&["--no-rt"], &script, &out, extra)
     };
     // Outside the script's folder: refused before the run, nothing written.
     let outside = run("../escaped.dclay", &[]);
@@ -564,9 +559,6 @@ fn out_naming_a_file_says_it_is_not_a_directory() {
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
 }
 
-/// A `constrain` step through `dynaclay run`: the run says which point it moved onto the
-/// surface, the session keeps the pin, and an `unconstrain` of a pin that does not exist
-/// fails the run with the step and the reason.
 /// Scripts written before lengths on the clay were named in field units still run, and the
 /// run says which old key to rename on which line.
 #[test]
@@ -578,13 +570,7 @@ fn a_script_with_the_old_metre_keys_runs_and_warns_with_key_and_line() {
         "version = 1\nseconds = 0.5\n\n[[step]]\ndo = \"tool\"\nshape = { kind = \"sphere\", radius_m = 0.1 }\naction = { kind = \"remove\" }\npositions = [[1.15, 1.75, 1.15]]\nfalloff_m = 0.05\n",
     )
     .unwrap();
-    let out = Command::new(BIN)
-        .args(["run", "--lockstep", "--script"])
-        .arg(&script)
-        .arg("--out")
-        .arg(dir.path().join("out"))
-        .output()
-        .unwrap();
+    let out = run_script(&["--lockstep"], &script, dir.path().join("out"), &[]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let warnings: Vec<&str> = stderr
@@ -604,6 +590,9 @@ fn a_script_with_the_old_metre_keys_runs_and_warns_with_key_and_line() {
     );
 }
 
+/// A `constrain` step through `dynaclay run`: the run says which point it moved onto the
+/// surface, the session keeps the pin, and an `unconstrain` of a pin that does not exist
+/// fails the run with the step and the reason.
 #[test]
 fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
     let dir = tempfile::tempdir().unwrap();
@@ -613,13 +602,7 @@ fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
         "version = 1\nseconds = 1.0\n\n[[step]]\ndo = \"constrain\"\nkind = \"point\"\nat = [1.15, 1.75, 1.15]\n",
     )
     .unwrap();
-    let out = Command::new(BIN)
-        .args(["run", "--lockstep", "--script"])
-        .arg(&script)
-        .arg("--out")
-        .arg(dir.path().join("ok"))
-        .output()
-        .unwrap();
+    let out = run_script(&["--lockstep"], &script, dir.path().join("ok"), &[]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
@@ -639,13 +622,7 @@ fn a_run_pins_a_point_says_it_was_projected_and_saves_the_pin() {
         "version = 1\nseconds = 1.0\n\n[[step]]\ndo = \"unconstrain\"\nindex = 3\n",
     )
     .unwrap();
-    let out = Command::new(BIN)
-        .args(["run", "--lockstep", "--script"])
-        .arg(&script)
-        .arg("--out")
-        .arg(dir.path().join("bad"))
-        .output()
-        .unwrap();
+    let out = run_script(&["--lockstep"], &script, dir.path().join("bad"), &[]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success());
     assert!(
@@ -1027,13 +1004,12 @@ engrave = {engrave}
     };
     let run = |name: &str, text: String| {
         std::fs::write(dir.path().join(format!("{name}.toml")), text).unwrap();
-        Command::new(BIN)
-            .args(["run", "--lockstep", "--seconds", "0.2", "--script"])
-            .arg(dir.path().join(format!("{name}.toml")))
-            .arg("--out")
-            .arg(dir.path().join(name))
-            .output()
-            .unwrap()
+        run_script(
+            &["--lockstep", "--seconds", "0.2"],
+            dir.path().join(format!("{name}.toml")),
+            dir.path().join(name),
+            &[],
+        )
     };
     let clay_only = "version = 1\n\n[clay]\nshape = \"block\"\nresolution = 24\n";
     let plain = run("plain", clay_only.to_string());
