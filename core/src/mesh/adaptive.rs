@@ -1194,28 +1194,44 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
         (f32::INFINITY, f32::NEG_INFINITY)
     };
     let [nx, ny, nz] = l.dims;
+    let (i0, i1) = range[0];
     let mut steepest = 0.0_f32;
+    // NOTE: row by row over slices (no per-coefficient index or border test), with
+    // `larger`/`smaller` in place of `f32::max`/`min`: the same result here (the running
+    // values start finite and a NaN coefficient is passed over either way) as one compare
+    // and select, not a NaN check per coefficient. The split test is the local re-mesh's
+    // hot loop (`bench/mesh.rs` `adaptive_remesh`).
+    let largest_step = |m: f32, a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
+    };
     for k in range[2].0..=range[2].1 {
         for j in range[1].0..=range[1].1 {
-            for i in range[0].0..=range[0].1 {
-                let n = l.index(i, j, k);
-                let c = l.coeffs[n];
-                vmin = vmin.min(c);
-                vmax = vmax.max(c);
-                // Beyond the lattice the coefficients count as zero: a border coefficient is
-                // a step of its own size.
-                if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
-                    steepest = steepest.max(c.abs());
+            let start = l.index(i0, j, k);
+            let row = &l.coeffs[start..=start + (i1 - i0)];
+            for &c in row {
+                vmin = smaller(vmin, c);
+                vmax = larger(vmax, c);
+            }
+            // Beyond the lattice the coefficients count as zero: a border coefficient is a
+            // step of its own size.
+            if j == 0 || k == 0 || j + 1 == ny || k + 1 == nz {
+                steepest = row.iter().fold(steepest, |m, &c| larger(m, c.abs()));
+            } else {
+                if i0 == 0 {
+                    steepest = larger(steepest, row[0].abs());
                 }
-                if i < range[0].1 {
-                    steepest = steepest.max((l.coeffs[n + 1] - c).abs());
+                if i1 + 1 == nx {
+                    steepest = larger(steepest, row[row.len() - 1].abs());
                 }
-                if j < range[1].1 {
-                    steepest = steepest.max((l.coeffs[n + nx] - c).abs());
-                }
-                if k < range[2].1 {
-                    steepest = steepest.max((l.coeffs[n + nx * ny] - c).abs());
-                }
+            }
+            steepest = largest_step(steepest, row, &row[1..]);
+            if j < range[1].1 {
+                steepest = largest_step(steepest, row, &l.coeffs[start + nx..]);
+            }
+            if k < range[2].1 {
+                steepest = largest_step(steepest, row, &l.coeffs[start + nx * ny..]);
             }
         }
     }
@@ -1223,6 +1239,18 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
         bounds: Some((vmin, vmax)),
         slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
     }
+}
+
+/// `x` where it is greater than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn larger(m: f32, x: f32) -> f32 {
+    if x > m { x } else { m }
+}
+
+/// `x` where it is less than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn smaller(m: f32, x: f32) -> f32 {
+    if x < m { x } else { m }
 }
 
 #[cfg(test)]
