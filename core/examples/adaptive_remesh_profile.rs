@@ -40,7 +40,9 @@ fn three_level_clay() -> (MultiPatchField, MultiPatchField, (Vec3, Vec3)) {
     for level in 1..=3_u32 {
         let spacing = 1.0 / (1 << level) as f32;
         let half = Vec3::splat(3.0 / (1 << (level - 1)) as f32);
-        finest = field.refine(pole - half, pole + half, level).expect("refine");
+        finest = field
+            .refine(pole - half, pole + half, level)
+            .expect("refine");
         let lattice = &mut field.patches[finest].lattice;
         let [nx, ny, nz] = lattice.dims;
         let width = 2.0 * spacing;

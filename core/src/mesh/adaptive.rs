@@ -1014,7 +1014,9 @@ impl Tree {
             let smaller = part_lo != lo || part_hi != hi;
             if smaller
                 && part_lo.cmple(part_hi).all()
-                && self.split_inputs(field, (lo, hi), (part_lo, part_hi)).splits(self, field, node)
+                && self
+                    .split_inputs(field, (lo, hi), (part_lo, part_hi))
+                    .splits(self, field, node)
             {
                 return true;
             }
