@@ -55,10 +55,12 @@
 //! edited field.
 
 use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
 
 use glam::{Affine3A, Vec3};
 
 use super::manifold::split_non_manifold;
+use super::octree::EdgeIdHasher;
 use super::trimesh::TriMesh;
 use crate::field::{MultiPatchField, Patch};
 
@@ -189,8 +191,10 @@ pub struct AdaptiveMesher {
     /// What fixes the tree's frame: each patch's lattice shape and map, and the iso-level.
     frame: Vec<PatchFrame>,
     iso: f32,
-    /// Field value per integer corner (packed 21 bits per axis), sampled once.
-    corners: HashMap<u64, f32>,
+    /// Field value per integer corner (packed 21 bits per axis), sampled once. Keys are
+    /// mixed by SplitMix64's finaliser rather than SipHash: the table is looked up twice per
+    /// minimal edge and eight times per vertex.
+    corners: HashMap<u64, f32, BuildHasherDefault<EdgeIdHasher>>,
     /// Vertex slot per node (leaves only), [`NO_VERTEX`] until made.
     vertex_of: Vec<u32>,
     /// Per node: the re-mesh that created it (or collapsed it into a leaf).
@@ -300,7 +304,7 @@ impl AdaptiveMesher {
             tree,
             frame: field.patches.iter().map(PatchFrame::of).collect(),
             iso: field.iso(),
-            corners: HashMap::new(),
+            corners: HashMap::default(),
             vertex_of: vec![NO_VERTEX],
             touched: vec![0],
             generation: 0,
@@ -477,6 +481,13 @@ impl AdaptiveMesher {
         region: Option<&Region>,
     ) -> Result<usize, AdaptiveMeshError> {
         let mut revisited = 0;
+        // The region's world box: where the split tests of large nodes are decided.
+        let near = region.map(|r| {
+            let at = |p: [i64; 3]| {
+                self.tree.origin + self.tree.unit * Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
+            };
+            (at(r.lo), at(r.hi))
+        });
         // (node, new in this call)
         let mut stack = vec![(0_u32, region.is_none())];
         while let Some((n, fresh)) = stack.pop() {
@@ -484,7 +495,7 @@ impl AdaptiveMesher {
             if !fresh && !region.is_some_and(|r| r.meets(&node)) {
                 continue;
             }
-            let split = self.tree.should_split(field, &node);
+            let split = self.tree.should_split(field, &node, near);
             if split {
                 if node.is_leaf() {
                     self.forget_vertex(n);
@@ -954,7 +965,7 @@ impl Tree {
         let mut stack = vec![0_usize];
         while let Some(n) = stack.pop() {
             let node = tree.nodes[n];
-            if !tree.should_split(field, &node) {
+            if !tree.should_split(field, &node, None) {
                 continue;
             }
             if tree.leaves + 7 > options.max_cells {
@@ -983,54 +994,70 @@ impl Tree {
     /// Whether `node` splits: while the field may cross the iso-level inside it and its edge
     /// is longer than the finest target among the patches holding detail there. Reads the
     /// field inside the node's box only (so a change elsewhere never changes the answer).
-    fn should_split(&self, field: &MultiPatchField, node: &Node) -> bool {
+    ///
+    /// `near`, when given, is a world box where the answer is likely to be decided (a local
+    /// re-mesh's changed region): the coefficients over the part of the node inside it are
+    /// read first, and where they alone prove a split the rest are not read (see
+    /// [`SplitInputs::splits`]); otherwise the whole node is read.
+    fn should_split(
+        &self,
+        field: &MultiPatchField,
+        node: &Node,
+        near: Option<(Vec3, Vec3)>,
+    ) -> bool {
         if node.size == 1 {
             return false;
         }
         let (lo, hi) = self.world_box(node);
-        let edge = node.size as f32;
-        // One read of each patch's coefficients over the node gives the finest target among
-        // the patches that hold detail in it (in cells), the field's convex-hull bound and a
-        // bound on its slope.
-        let mut target = f32::INFINITY;
-        let mut bounds = Some((0.0_f32, 0.0_f32));
-        let mut slope = 0.0_f32;
-        for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
-            let over = patch_over_box(patch, lo, hi);
-            let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
-            if meets && (n == 0 || over.holds_detail(patch)) {
-                target = target.min(*cells);
+        if let Some((near_lo, near_hi)) = near {
+            let (part_lo, part_hi) = (lo.max(near_lo), hi.min(near_hi));
+            let smaller = part_lo != lo || part_hi != hi;
+            if smaller
+                && part_lo.cmple(part_hi).all()
+                && self
+                    .split_inputs(field, (lo, hi), (part_lo, part_hi))
+                    .splits(self, field, node)
+            {
+                return true;
             }
-            bounds = bounds
-                .zip(over.bounds)
-                .map(|((a, b), (c, d))| (a + c, b + d));
-            slope += over.slope;
         }
-        // A little slack so a target that is a power of two times the finest cell, up to
-        // rounding, is met exactly rather than split once more.
-        if edge <= target * (1.0 + 1e-4) {
-            return false;
-        }
-        // A node on the root's boundary holds corners forced outside (see
-        // `AdaptiveMesher::corner_value`), whatever the field's value there.
-        let on_boundary = node.min.contains(&0) || node.corner(7).contains(&self.root_size);
-        let iso = field.iso();
-        let may_cross = match bounds {
-            Some((vmin, vmax)) => (vmin <= iso || on_boundary) && vmax > iso,
-            None => true,
-        };
-        // Whether the field's value at the centre is further from `iso` than the patches can
-        // climb within the node (so the surface cannot cross it): a test that holds where the
-        // convex-hull bound is loose, inside a detail patch whose coefficients cancel the
-        // base's.
-        let far_from_iso = || {
-            let reach = slope * 0.5 * (hi - lo).length();
-            (field.value(0.5 * (lo + hi)) - iso).abs() > reach
-        };
-        may_cross && (on_boundary || !far_from_iso())
+        self.split_inputs(field, (lo, hi), (lo, hi))
+            .splits(self, field, node)
     }
 
-    /// World position of an integer corner.
+    /// The split test's inputs for the node with world box `node_box`, from the coefficients
+    /// whose support meets `read_box` (the node's box or a part of it).
+    fn split_inputs(
+        &self,
+        field: &MultiPatchField,
+        node_box: (Vec3, Vec3),
+        read_box: (Vec3, Vec3),
+    ) -> SplitInputs {
+        let (lo, hi) = node_box;
+        // One read of each patch's coefficients over the box gives the finest target among
+        // the patches that hold detail in it (in cells), the field's convex-hull bound and a
+        // bound on its slope.
+        let mut inputs = SplitInputs {
+            target_cells: f32::INFINITY,
+            bounds: Some((0.0, 0.0)),
+            slope: 0.0,
+        };
+        for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
+            let over = patch_over_box(patch, read_box.0, read_box.1);
+            let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
+            if meets && (n == 0 || over.holds_detail(patch)) {
+                inputs.target_cells = inputs.target_cells.min(*cells);
+            }
+            inputs.bounds = inputs
+                .bounds
+                .zip(over.bounds)
+                .map(|((a, b), (c, d))| (a + c, b + d));
+            inputs.slope += over.slope;
+        }
+        inputs
+    }
+
+    /// World position of an integer corner.    /// World position of an integer corner.
     fn point(&self, p: [u32; 3]) -> Vec3 {
         self.origin + self.unit * Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
     }
@@ -1048,6 +1075,55 @@ impl Tree {
         } else {
             node.children + c as u32
         }
+    }
+}
+
+/// What the split test reads from the patches' coefficients over a box.
+///
+/// Read over a part of a node's box (a subset of the coefficients the whole box reads) each
+/// input errs only one way: the finest target is no finer (a patch proven to hold detail
+/// over the part holds it over the node), the summed bound is no wider and the slope bound
+/// no larger. Every condition of [`SplitInputs::splits`] grows true with a finer target, a
+/// wider bound and a larger slope, so a split the part proves is the split the whole node's
+/// read gives; a part that does not prove one decides nothing.
+struct SplitInputs {
+    /// The finest target cell among the patches holding detail there, in finest cells.
+    target_cells: f32,
+    /// Sum of the patches' convex-hull bounds; `None` where a box is not finite in a
+    /// patch's space.
+    bounds: Option<(f32, f32)>,
+    /// Sum of the patches' slope bounds (world units).
+    slope: f32,
+}
+
+impl SplitInputs {
+    /// Whether `node` splits by these inputs: its edge is longer than the target and the
+    /// field may cross the iso-level in it.
+    fn splits(&self, tree: &Tree, field: &MultiPatchField, node: &Node) -> bool {
+        let edge = node.size as f32;
+        // A little slack so a target that is a power of two times the finest cell, up to
+        // rounding, is met exactly rather than split once more.
+        if edge <= self.target_cells * (1.0 + 1e-4) {
+            return false;
+        }
+        // A node on the root's boundary holds corners forced outside (see
+        // `AdaptiveMesher::corner_value`), whatever the field's value there.
+        let on_boundary = node.min.contains(&0) || node.corner(7).contains(&tree.root_size);
+        let iso = field.iso();
+        let may_cross = match self.bounds {
+            Some((vmin, vmax)) => (vmin <= iso || on_boundary) && vmax > iso,
+            None => true,
+        };
+        // Whether the field's value at the centre is further from `iso` than the patches can
+        // climb within the node (so the surface cannot cross it): a test that holds where the
+        // convex-hull bound is loose, inside a detail patch whose coefficients cancel the
+        // base's.
+        let far_from_iso = || {
+            let (lo, hi) = tree.world_box(node);
+            let reach = self.slope * 0.5 * (hi - lo).length();
+            (field.value(0.5 * (lo + hi)) - iso).abs() > reach
+        };
+        may_cross && (on_boundary || !far_from_iso())
     }
 }
 
@@ -1120,28 +1196,44 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
         (f32::INFINITY, f32::NEG_INFINITY)
     };
     let [nx, ny, nz] = l.dims;
+    let (i0, i1) = range[0];
     let mut steepest = 0.0_f32;
+    // NOTE: row by row over slices (no per-coefficient index or border test), with
+    // `larger`/`smaller` in place of `f32::max`/`min`: the same result here (the running
+    // values start finite and a NaN coefficient is passed over either way) as one compare
+    // and select, not a NaN check per coefficient. The split test is the local re-mesh's
+    // hot loop (`bench/mesh.rs` `adaptive_remesh`).
+    let largest_step = |m: f32, a: &[f32], b: &[f32]| {
+        a.iter()
+            .zip(b)
+            .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
+    };
     for k in range[2].0..=range[2].1 {
         for j in range[1].0..=range[1].1 {
-            for i in range[0].0..=range[0].1 {
-                let n = l.index(i, j, k);
-                let c = l.coeffs[n];
-                vmin = vmin.min(c);
-                vmax = vmax.max(c);
-                // Beyond the lattice the coefficients count as zero: a border coefficient is
-                // a step of its own size.
-                if i == 0 || j == 0 || k == 0 || i + 1 == nx || j + 1 == ny || k + 1 == nz {
-                    steepest = steepest.max(c.abs());
+            let start = l.index(i0, j, k);
+            let row = &l.coeffs[start..=start + (i1 - i0)];
+            for &c in row {
+                vmin = smaller(vmin, c);
+                vmax = larger(vmax, c);
+            }
+            // Beyond the lattice the coefficients count as zero: a border coefficient is a
+            // step of its own size.
+            if j == 0 || k == 0 || j + 1 == ny || k + 1 == nz {
+                steepest = row.iter().fold(steepest, |m, &c| larger(m, c.abs()));
+            } else {
+                if i0 == 0 {
+                    steepest = larger(steepest, row[0].abs());
                 }
-                if i < range[0].1 {
-                    steepest = steepest.max((l.coeffs[n + 1] - c).abs());
+                if i1 + 1 == nx {
+                    steepest = larger(steepest, row[row.len() - 1].abs());
                 }
-                if j < range[1].1 {
-                    steepest = steepest.max((l.coeffs[n + nx] - c).abs());
-                }
-                if k < range[2].1 {
-                    steepest = steepest.max((l.coeffs[n + nx * ny] - c).abs());
-                }
+            }
+            steepest = largest_step(steepest, row, &row[1..]);
+            if j < range[1].1 {
+                steepest = largest_step(steepest, row, &l.coeffs[start + nx..]);
+            }
+            if k < range[2].1 {
+                steepest = largest_step(steepest, row, &l.coeffs[start + nx * ny..]);
             }
         }
     }
@@ -1149,6 +1241,18 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
         bounds: Some((vmin, vmax)),
         slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
     }
+}
+
+/// `x` where it is greater than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn larger(m: f32, x: f32) -> f32 {
+    if x > m { x } else { m }
+}
+
+/// `x` where it is less than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn smaller(m: f32, x: f32) -> f32 {
+    if x < m { x } else { m }
 }
 
 #[cfg(test)]
