@@ -1057,7 +1057,7 @@ impl Tree {
         inputs
     }
 
-    /// World position of an integer corner.    /// World position of an integer corner.
+    /// World position of an integer corner.
     fn point(&self, p: [u32; 3]) -> Vec3 {
         self.origin + self.unit * Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
     }
