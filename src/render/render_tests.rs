@@ -925,6 +925,7 @@ fn point_set_splats_cover_the_surface_in_their_colours() {
         &positions,
         &colours,
         &vec![spacing; n],
+        &[],
     );
     r.set_discs(&discs).unwrap();
     assert_eq!(r.renderer().disc_count(), n);
@@ -1476,13 +1477,13 @@ fn grooved_block() -> crate::field::BSplineLattice {
 const GROOVE_TOP: f32 = 1.725;
 const GROOVE_Z: f32 = 1.15;
 
-/// Luminance along the line across the groove at x = 1.15 on the top (z from 0.85 to 1.45,
-/// one sample per 0.01), in `img` seen by `camera`.
-fn across_groove(img: &Image, camera: &Camera) -> Vec<f32> {
+/// Luminance along the line across the groove at `x` on the top (z from 0.85 to 1.45, one
+/// sample per 0.01), in `img` seen by `camera`.
+fn across_groove(img: &Image, camera: &Camera, x: f32) -> Vec<f32> {
     let vp = camera.view_projection(W as f32 / H as f32);
     (0..=60)
         .map(|i| {
-            let n = vp.project_point3(Vec3::new(1.15, GROOVE_TOP, 0.85 + 0.01 * i as f32));
+            let n = vp.project_point3(Vec3::new(x, GROOVE_TOP, 0.85 + 0.01 * i as f32));
             let (x, y) = ((n.x + 1.0) * 0.5 * W as f32, (1.0 - n.y) * 0.5 * H as f32);
             luminance(img.pixel(x as u32, y as u32).unwrap())
         })
@@ -1493,7 +1494,11 @@ fn across_groove(img: &Image, camera: &Camera) -> Vec<f32> {
 /// block before it was carved follow the clay into the groove (as many updates as the
 /// window's follower takes), and their splats, drawn alone, shade the line across the groove
 /// as the mesh does: the wall turned from the light dark at the same place, and the whole
-/// profile, relative to the flat top, within 0.1 RMS of the mesh's.
+/// profile, relative to the flat top, within 0.1 RMS of the mesh's. And without facets: over
+/// the groove's straight part, pixel by pixel, within 0.06 of the mesh's brightness at the
+/// 95th percentile (0.3 at most), sharp steps in at most 1% of the neighbouring samples, and
+/// no line varying more than 1.3 times the mesh's + 0.1 ([`GrooveFacets`]); the same splats
+/// lit flat, one normal each, fail these.
 #[test]
 fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
     use crate::pointset::{DEFAULT_COLOUR, FollowOptions, FollowedPoints, PointFollower};
@@ -1548,6 +1553,7 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
         follower.normals(),
         follower.colours(),
         follower.radii(),
+        follower.normal_gradients(),
     );
     r.sync_chunks(&[]).unwrap();
     r.set_discs(&discs).unwrap();
@@ -1561,8 +1567,8 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
     }
 
     let (m, s) = (
-        across_groove(&mesh, &camera),
-        across_groove(&splats, &camera),
+        across_groove(&mesh, &camera, 1.15),
+        across_groove(&splats, &camera, 1.15),
     );
     eprintln!("across the groove, mesh: {m:?}\nsplats: {s:?}");
     // Each profile relative to its own flat top (the splats have the points' colour, the mesh
@@ -1600,4 +1606,113 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
         rms < 0.1,
         "the splats' shading across the groove follows the mesh's within {rms}"
     );
+
+    // Facets, pixel by pixel over the groove's straight part.
+    let smooth = GrooveFacets::measure(&mesh, &splats, &camera);
+    eprintln!("splats lit with their normals' gradients: {smooth:?}");
+
+    // The same splats, each lit with its one normal (flat discs), are caught by the
+    // same measures: they are what the measures are for.
+    let mut flat_discs = Vec::new();
+    splat_discs(
+        &mut flat_discs,
+        follower.positions(),
+        follower.normals(),
+        follower.colours(),
+        follower.radii(),
+        &[],
+    );
+    r.set_discs(&flat_discs).unwrap();
+    let faceted = r.render(&camera, &o).unwrap();
+    if let Ok(dir) = std::env::var("DYNACLAY_GROOVE_PNG") {
+        faceted
+            .write_png(&std::path::Path::new(&dir).join("groove_flat_splats.png"))
+            .unwrap();
+    }
+    let flat_lit = GrooveFacets::measure(&mesh, &faceted, &camera);
+    eprintln!("splats lit flat: {flat_lit:?}");
+    assert!(
+        flat_lit.failures().is_some(),
+        "flat-lit splats show facets the measures catch: {flat_lit:?}"
+    );
+    if let Some(why) = smooth.failures() {
+        panic!("the splats shade the groove as the mesh does: {why}");
+    }
+}
+
+/// How much a splat image of the grooved block departs from the mesh image over the groove's
+/// straight part: 41 lines across it (x from 0.95 to 1.35, 0.01 apart), 61 samples each
+/// (z from 0.85 to 1.45), each image's brightness relative to its own flat top.
+#[derive(Debug)]
+struct GrooveFacets {
+    /// 95th percentile of the sample-by-sample difference, fractions of the top.
+    p95: f32,
+    /// The largest difference.
+    largest: f32,
+    /// Neighbouring samples whose difference exceeds the mesh's by more than 0.06 of the top
+    /// (a disc's edge), and the steps in all.
+    sharp_steps: usize,
+    steps: usize,
+    /// The largest ratio, over the lines, of the splats' total variation to 1.3 × the
+    /// mesh's + 0.1 (a faceted profile climbs and drops at every disc).
+    variation_ratio: f32,
+}
+
+impl GrooveFacets {
+    fn measure(mesh: &Image, splats: &Image, camera: &Camera) -> Self {
+        let relative = |p: Vec<f32>| -> Vec<f32> {
+            let t = (p[..5].iter().sum::<f32>() + p[56..].iter().sum::<f32>()) / 10.0;
+            assert!(t > 40.0, "the top is lit ({t})");
+            p.iter().map(|&x| x / t).collect()
+        };
+        let variation = |p: &[f32]| p.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>();
+        let (mut differences, mut sharp_steps, mut steps) = (Vec::new(), 0, 0);
+        let mut variation_ratio = 0.0f32;
+        for k in 0..=40 {
+            let x = 0.95 + 0.01 * k as f32;
+            let m = relative(across_groove(mesh, camera, x));
+            let s = relative(across_groove(splats, camera, x));
+            differences.extend(m.iter().zip(&s).map(|(a, b)| (a - b).abs()));
+            for (dm, ds) in m.windows(2).zip(s.windows(2)) {
+                steps += 1;
+                if (ds[1] - ds[0]).abs() > (dm[1] - dm[0]).abs() + 0.06 {
+                    sharp_steps += 1;
+                }
+            }
+            variation_ratio = variation_ratio.max(variation(&s) / (1.3 * variation(&m) + 0.1));
+        }
+        differences.sort_by(f32::total_cmp);
+        Self {
+            p95: differences[differences.len() * 95 / 100],
+            largest: differences[differences.len() - 1],
+            sharp_steps,
+            steps,
+            variation_ratio,
+        }
+    }
+
+    /// What is wrong, if anything: a 95th percentile over 0.06 or a largest difference over
+    /// 0.3, sharp steps in more than 1% of the steps, a line varying more than its bound.
+    fn failures(&self) -> Option<String> {
+        let mut why = Vec::new();
+        if self.p95 > 0.06 || self.largest > 0.3 {
+            why.push(format!(
+                "difference p95 {:.3}, largest {:.3}",
+                self.p95, self.largest
+            ));
+        }
+        if self.sharp_steps * 100 > self.steps {
+            why.push(format!(
+                "{} sharp steps of {}",
+                self.sharp_steps, self.steps
+            ));
+        }
+        if self.variation_ratio > 1.0 {
+            why.push(format!(
+                "total variation {:.2} of its bound",
+                self.variation_ratio
+            ));
+        }
+        (!why.is_empty()).then(|| why.join("; "))
+    }
 }
