@@ -1,7 +1,8 @@
 //! Meshing benchmarks: full extraction against the `isosurface` crate's marching cubes on the
 //! same samples (its 0.0.4 release, with and without normals, and the 0.1.0 alpha), and
 //! `fast-surface-nets` (a different algorithm, for reference), a local re-mesh of a tool-sized
-//! box, a re-mesh by the multi-level mesher after a stroke-sized change on a three-level clay,
+//! box, a re-mesh by the multi-level mesher after a stroke-sized change on a three-level clay
+//! (local around the change, and whole for the ratio),
 //! and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
@@ -30,7 +31,7 @@ use std::time::Instant;
 use criterion::{BenchmarkId, Criterion, Throughput};
 use dynaclay::field::{BSplineLattice, MultiPatchField};
 use dynaclay::mesh::{
-    AdaptiveMeshOptions, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch,
+    AdaptiveMeshOptions, AdaptiveMesher, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch,
     adaptive_cell_count, mesh_adaptive,
 };
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
@@ -404,8 +405,9 @@ fn local_remesh(c: &mut Criterion) {
 /// detail patches of levels 1, 2 and 3 around its +x pole, each holding a bump as wide as
 /// two of its own knot spans (so the multi-level mesher meshes each at its own spacing
 /// there); and the finest patch's coefficients on the surface at the pole, dented by a stroke
-/// as fine as that patch. Returns the clay before and after the stroke.
-fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
+/// as fine as that patch. Returns the clay before and after the stroke, and the world box
+/// outside which the stroke changed nothing.
+fn three_level_clay() -> (MultiPatchField, MultiPatchField, (Vec3, Vec3)) {
     let base = sphere_lattice(24, 8.0);
     let centre = Vec3::splat(11.5);
     let pole = centre + Vec3::X * 8.0;
@@ -432,22 +434,42 @@ fn three_level_clay() -> (MultiPatchField, MultiPatchField) {
     }
     let before = field.clone();
     let mut after = field;
-    let lattice = &mut after.patches[finest].lattice;
-    let node = ((pole - lattice.origin) / lattice.spacing).round();
+    let patch = &mut after.patches[finest];
+    let node = ((pole - patch.lattice.origin) / patch.lattice.spacing).round();
+    let first = [node.x as usize, node.y as usize, node.z as usize];
     // The bumps move the surface out by about a fifth of a base span at the pole: three
     // nodes along +x from the pole hold it.
     for step in 0..3 {
-        let idx = lattice.index(node.x as usize + step, node.y as usize, node.z as usize);
-        lattice.coeffs[idx] -= 0.05;
+        let idx = patch.lattice.index(first[0] + step, first[1], first[2]);
+        patch.lattice.coeffs[idx] -= 0.05;
     }
-    (before, after)
+    let change = patch.coefficient_change_box(first, [first[0] + 2, first[1], first[2]]);
+    (before, after, change)
 }
 
-/// The multi-level mesher after one stroke-sized change on a three-level clay: it meshes the
-/// whole clay again (the change box is a few cells of the finest level; everything else is
-/// the same as before).
+/// A mesh's triangles as their corners' position bits, each rotated to start at its least
+/// corner (keeping the winding), sorted: equal for two meshes with the same triangles.
+fn triangle_set(mesh: &TriMesh) -> Vec<[[u32; 3]; 3]> {
+    let mut set: Vec<_> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
+            let k = (0..3).min_by_key(|&k| p[k]).unwrap();
+            [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
+        })
+        .collect();
+    set.sort_unstable();
+    set
+}
+
+/// The multi-level mesher after one stroke-sized change on a three-level clay: the kept
+/// mesh re-meshed locally around the stroke's change box (and the kept mesh copied out), and
+/// for the ratio the whole clay meshed again. Before timing, the local path's meshes are
+/// checked to hold the same triangles as whole meshes of the clay, after the stroke and after
+/// its undo; each timed local re-mesh is checked to be local and to make polygons.
 fn adaptive_remesh(c: &mut Criterion) {
-    let (before, after) = three_level_clay();
+    let (before, after, (lo, hi)) = three_level_clay();
     let options = AdaptiveMeshOptions::default();
     let leaves = adaptive_cell_count(&after, &options).unwrap();
     let (a, b) = (
@@ -455,20 +477,39 @@ fn adaptive_remesh(c: &mut Criterion) {
         mesh_adaptive(&after, &options).unwrap(),
     );
     assert_ne!(a.positions, b.positions, "the stroke changed the mesh");
+    let mut mesher = AdaptiveMesher::new(&before, &options).unwrap();
+    let stroke = mesher.remesh_box(&after, lo, hi).unwrap();
+    assert!(!stroke.whole);
+    assert_eq!(triangle_set(&mesher.mesh()), triangle_set(&b));
+    let undo = mesher.remesh_box(&before, lo, hi).unwrap();
+    assert_eq!(triangle_set(&mesher.mesh()), triangle_set(&a));
     println!(
-        "three-level clay: {} patches, {leaves} leaves, {} triangles after the stroke",
+        "three-level clay: {} patches, {leaves} leaves, {} triangles after the stroke; \
+         local re-mesh of the stroke: {stroke:?}; of its undo: {undo:?}",
         after.patches.len(),
         b.triangles.len()
     );
     let mut group = c.benchmark_group("adaptive_remesh_three_levels");
     group.sample_size(20);
     let mut flip = false;
-    group.bench_function("dynaclay/whole_clay_after_stroke", |bench| {
+    group.bench_function("dynaclay/local_after_stroke", |bench| {
         bench.iter(|| {
-            // Alternate the stroke and its undo, as an edit and a re-mesh would.
+            // Alternate the stroke and its undo, so every re-mesh has real work.
             flip = !flip;
             let field = if flip { &after } else { &before };
-            black_box(mesh_adaptive(field, &options).unwrap())
+            let report = mesher.remesh_box(field, lo, hi).unwrap();
+            assert!(!report.whole && report.polygons_made > 0, "{report:?}");
+            black_box(mesher.mesh())
+        })
+    });
+    let mut flip = false;
+    group.bench_function("dynaclay/whole_clay_after_stroke", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &after } else { &before };
+            let mesh = mesh_adaptive(field, &options).unwrap();
+            assert!(!mesh.triangles.is_empty());
+            black_box(mesh)
         })
     });
     group.finish();

@@ -6,18 +6,22 @@
 //! connect, force within the device's bound, a disconnect in the middle of the stroke that
 //! zeroes the force, keeps the engine ticking and keeps the sculpt made before it.
 
+// The shared session's script and hand; its lockstep session and checks serve the other arms.
+#[allow(dead_code)]
+#[path = "support/arm_session.rs"]
+mod arm_session;
 mod common;
 #[path = "../devices/tests/support/haply_standins.rs"]
 mod haply_standins;
 
 use std::time::Duration;
 
-use dynaclay::dynamics::Material;
-use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay};
-use dynaclay::io::parse_script;
+use arm_session::{push_plan, push_script, script_hand, script_text};
+use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, build_clay};
 use dynaclay_devices::inverse3::{Inverse3, Inverse3Config};
-use dynaclay_devices::two_diy::{TwoDiy, TwoDiyOptions, TwoDiyVersion};
-use dynaclay_devices::{DeviceInfo, HapticDevice};
+use dynaclay_devices::record::{Record, Recording};
+use dynaclay_devices::two_diy::{SampleClock, TwoDiy, TwoDiyOptions, TwoDiyVersion};
+use dynaclay_devices::{DeviceInfo, DeviceState, HapticDevice};
 use glam::Vec3;
 use haply_standins::{Fault, Hand, Standin};
 
@@ -48,30 +52,15 @@ fn sculpt(
     start: impl FnOnce(Hand) -> Standin,
     device: impl FnOnce(&Standin) -> Box<dyn HapticDevice>,
 ) -> Outcome {
-    // The push of the shared script, 0.2 below the top: a firm press.
-    let text = common::PUSH_SCRIPT.replace(
-        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
-        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
-    );
-    let script = parse_script(&text, "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
+    let script = push_script();
+    let plan = push_plan(&script);
     let field = build_clay(&plan.clay).unwrap();
     let before = field.clone();
     let mut config = EngineConfig::for_field(&field, info);
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = 0.1;
     config.haptics.tool_contact = plan.tool_contact;
-    let trajectory = plan.trajectory(&config.map).unwrap();
-    let standin = start(Box::new(move |k| {
-        trajectory.sample(k as f64 * 1e-3).position_m
-    }));
+    let standin = start(script_hand(info));
     standin.inject_at(DISCONNECT_AT, Fault::Close);
     let mut engine = Lockstep::new(
         &config,
@@ -220,6 +209,8 @@ fn a_two_diy_sculpts_its_plane_in_lockstep_and_a_disconnect_mid_stroke_keeps_the
                     handshake_timeout: PATIENT,
                     reply_wait: PATIENT,
                     stale_after: PATIENT,
+                    // Lockstep's clock: one reply per tick, 1 ms apart.
+                    sample_clock: SampleClock::LOCKSTEP_1KHZ,
                     ..TwoDiyOptions::default()
                 },
             ))
@@ -284,4 +275,70 @@ fn a_headless_run_drives_each_haply_arm_through_its_spec() {
     assert!(inverse3.exchanges() > 10, "{}", inverse3.exchanges());
     assert_eq!(board.log().torques_n_m[0], [0.0, 0.0]);
     assert!(board.exchanges() > 10, "{}", board.exchanges());
+}
+
+/// `dynaclay run --lockstep --record` for [`TICKS`] samples of the pressing script with a 2DIY
+/// on a fresh board stand-in playing the script's hand, as a user runs it; returns its
+/// recording.
+fn two_diy_lockstep_run(dir: &std::path::Path, name: &str) -> Recording {
+    let script = dir.join("press.toml");
+    std::fs::write(&script, script_text()).unwrap();
+    let version = TwoDiyVersion::V3;
+    let board = haply_standins::two_diy_board(version, script_hand(&TwoDiy::info_for(version)));
+    let recording = dir.join(format!("{name}.rec"));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_dynaclay"))
+        .args(["run", "--lockstep", "--no-rt", "--seconds"])
+        .arg(format!("{}", TICKS as f64 * 1e-3))
+        .arg("--script")
+        .arg(&script)
+        .args(["--device", &format!("2diy:{}", board.address), "--record"])
+        .arg(&recording)
+        .arg("--out")
+        .arg(dir.join(name))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{name}: exit {:?}\n{stdout}\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains(&format!("{TICKS} samples of 2diy:")),
+        "{name}: {stdout}"
+    );
+    let recording = Recording::parse(&std::fs::read(&recording).unwrap()).unwrap();
+    assert_eq!(recording.dropped, 0, "{name}: the recording is whole");
+    recording
+}
+
+/// `dynaclay run --lockstep` takes a 2DIY: its samples are stamped by reply count, 1 ms
+/// apart, so two runs of the same script against the same stand-in read the same samples and
+/// send the same forces, bit for bit (on the host's clock the soft start and the velocities
+/// would follow the machine's speed). The press reached the arm.
+#[test]
+fn a_lockstep_run_takes_a_two_diy_and_runs_the_same_every_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = two_diy_lockstep_run(dir.path(), "first");
+    let second = two_diy_lockstep_run(dir.path(), "second");
+    let reads: Vec<DeviceState> = first
+        .records
+        .iter()
+        .filter_map(|r| match r {
+            Record::Read(Ok(s)) => Some(*s),
+            _ => None,
+        })
+        .collect();
+    assert!(reads.len() as u64 > TICKS, "{} reads", reads.len());
+    for (k, w) in reads.windows(2).enumerate() {
+        assert_eq!(w[1].timestamp_us - w[0].timestamp_us, 1000, "read {k}");
+    }
+    let pressed = first
+        .records
+        .iter()
+        .filter(|r| matches!(r, Record::Write { force_n, .. } if force_n.length() > 0.01))
+        .count();
+    assert!(pressed > 100, "{pressed} writes pressed");
+    assert_eq!(first.records, second.records, "the two runs differ");
 }

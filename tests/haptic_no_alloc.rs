@@ -11,9 +11,13 @@
 //! tools on, the area's fine spread refines
 //! under itself during its stroke, a new layout the tick takes); through a carve with tool-shaped
 //! contact (the tool's point shell resting on the clay, the press measured); and through a
-//! pointer stroke fed at 2 Hz, whose path the pointer device interpolates on the haptic thread.
+//! pointer stroke fed at 2 Hz, whose path the pointer device interpolates on the haptic thread;
+//! and through a Falcon's stroke on its stand-in, the driver's command and reply framing, its
+//! kinematics and a stray byte on the line included.
 
 mod common;
+#[path = "../devices/tests/support/falcon_standin.rs"]
+mod falcon_standin;
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -590,6 +594,74 @@ fn a_pointer_stroke_ticks_without_allocating() {
     }
     assert!(
         contact > 500,
+        "the stroke pushed the clay ({contact} ticks)"
+    );
+    assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
+}
+
+/// A stroke through a Novint Falcon on its pseudo-terminal stand-in: each tick's read (the
+/// keep-alive or the reply to the last command, the status frame decoded, the encoders
+/// through the delta kinematics), the force's command frame, and a stray byte on the line (a
+/// failed read mid-stroke, then the soft start) all run in the counted ticks.
+#[test]
+fn a_falcon_stroke_ticks_without_allocating() {
+    use dynaclay_devices::falcon::{Falcon, FalconOptions, SampleClock};
+    use dynaclay_devices::serial_link::BaudPolicy;
+    use falcon_standin::{FalconFaults, falcon_board};
+
+    let s = common::setup(common::PUSH_SCRIPT, vec![]);
+    let sysfs = tempfile::tempdir().unwrap();
+    // As a lockstep run drives it: every read waits for the reply to the previous command,
+    // so each tick takes the path (never a stale sample) whatever the machine's load.
+    let patient = std::time::Duration::from_secs(5);
+    let options = FalconOptions {
+        baud_policy: BaudPolicy::Tolerant,
+        homing_timeout: patient,
+        handshake_timeout: patient,
+        reply_wait: patient,
+        stale_after: patient,
+        usb_serial_sysfs: sysfs.path().to_path_buf(),
+        sample_clock: SampleClock::LOCKSTEP_1KHZ,
+        ..FalconOptions::default()
+    };
+    let info = Falcon::new("unopened", options.clone()).info();
+    let mut config = dynaclay::engine::EngineConfig::for_field(&s.field, &info);
+    config.haptic_rt_priority = None;
+    config.safety.soft_start_s = 0.1;
+    let trajectory = s.plan.trajectory(&config.map).unwrap();
+    // The script's hand, one position per exchange (1 ms of script time each); a stray byte
+    // before the reply of exchange 700 (in the stroke, which runs from 0.1 s to 1.1 s).
+    let board = falcon_board(
+        Box::new(move |k| trajectory.sample(k as f64 * 1e-3).position_m),
+        FalconFaults {
+            stray_byte_at: Some(700),
+            hang_up_at: None,
+        },
+    );
+    let mut stages = build(
+        &config,
+        s.field,
+        Box::new(Falcon::new(&board.path, options)),
+        Box::new(HeadlessSink::default()),
+        true,
+    )
+    .expect("stages build");
+    stages.commands.send(Command::StrokeStart).unwrap();
+    let before = allocs_in_tick();
+    let (mut contact, mut faulted) = (0, 0);
+    for _ in 0..1200 {
+        IN_TICK.with(|f| f.set(true));
+        let out = stages.haptic.tick(Instant::now());
+        IN_TICK.with(|f| f.set(false));
+        contact += u32::from(out.sample.in_contact);
+        faulted += u32::from(out.sample.device_fault);
+        stages.sim.apply_commands();
+        let sample = stages.samples.latest().value;
+        stages.sim.step(&sample);
+    }
+    assert_eq!(faulted, 1, "the stray byte's read failed, and only it");
+    assert!(
+        contact > 300,
         "the stroke pushed the clay ({contact} ticks)"
     );
     assert_eq!(allocs_in_tick(), before, "haptic tick allocated");

@@ -65,6 +65,16 @@ impl SampleClock {
     pub const LOCKSTEP_1KHZ: Self = Self::PerReply {
         period_us: NonZeroU32::new(1000).expect("1000 is not zero"),
     };
+
+    /// The time stamp of the `reply`-th reply of a session (counting from 1), decoded
+    /// `since_start` after the session started, microseconds on this clock.
+    #[must_use]
+    pub fn stamp_us(self, reply: u64, since_start: Duration) -> u64 {
+        match self {
+            Self::Host => u64::try_from(since_start.as_micros()).unwrap_or(u64::MAX),
+            Self::PerReply { period_us } => reply.saturating_mul(u64::from(period_us.get())),
+        }
+    }
 }
 
 /// The arm model a profile describes.
@@ -168,10 +178,8 @@ impl ArmSession {
     /// [`SampleClock`], microseconds since the session started.
     pub(crate) fn reply_time_us(&mut self, now: Instant) -> u64 {
         self.replies += 1;
-        match self.clock {
-            SampleClock::Host => self.elapsed_us(now),
-            SampleClock::PerReply { period_us } => self.replies * u64::from(period_us.get()),
-        }
+        self.clock
+            .stamp_us(self.replies, now.saturating_duration_since(self.started))
     }
 
     /// Takes a fresh sample at `t_us` on the session clock: the velocity comes from the filter

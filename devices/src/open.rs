@@ -6,7 +6,9 @@
 //! engine builds them from [`crate::SimulatedArm`] and [`crate::ReplayDevice`] directly.
 
 use std::path::PathBuf;
+use std::time::Duration;
 
+use crate::arm_link::SampleClock;
 use crate::device::{DeviceError, HapticDevice};
 use crate::dhd_arm::{DhdArm, DhdConfig};
 use crate::falcon::{Falcon, FalconOptions};
@@ -31,6 +33,8 @@ pub struct DriverOptions {
     pub falcon: FalconOptions,
     /// Cartesian serial settings.
     pub serial: SerialArmOptions,
+    /// Haply 2DIY settings (the generation comes from the spec).
+    pub two_diy: TwoDiyOptions,
     /// SpaceMouse pose settings.
     pub spacemouse: PoseInputConfig,
     /// Where OpenHaptics' `libHD.so` comes from (`touch`, `phantom`).
@@ -58,7 +62,35 @@ impl DriverOptions {
         o.dhd_library = explicit(VendorLibrary::ForceDimensionDhd);
         o
     }
+
+    /// These settings for a lockstep run (`dynaclay run --lockstep`: one engine tick per
+    /// device sample, on the device's clock): HD's servo frames are run by the engine's
+    /// ticks, and the arms whose frames carry no clock (the Falcon, the 2DIY) stamp their
+    /// samples by reply count ([`SampleClock::LOCKSTEP_1KHZ`]: each answers one command with
+    /// one reply, one command per tick) and wait up to [`LOCKSTEP_REPLY_WAIT`] for the reply
+    /// to the previous tick's command, so every tick reads that reply whatever the machine's
+    /// load. On the host's clock the soft start, the velocities and so every force would
+    /// follow how fast this machine ran the ticks; stamped by reply count, a run depends on
+    /// the exchanges alone.
+    #[must_use]
+    pub fn for_lockstep(mut self) -> Self {
+        self.hd_servo = HdServo::Lockstep;
+        self.falcon.sample_clock = SampleClock::LOCKSTEP_1KHZ;
+        self.falcon.reply_wait = LOCKSTEP_REPLY_WAIT;
+        self.falcon.stale_after = self.falcon.stale_after.max(LOCKSTEP_REPLY_WAIT);
+        self.two_diy.sample_clock = SampleClock::LOCKSTEP_1KHZ;
+        self.two_diy.reply_wait = LOCKSTEP_REPLY_WAIT;
+        self.two_diy.stale_after = self.two_diy.stale_after.max(LOCKSTEP_REPLY_WAIT);
+        self
+    }
 }
+
+/// Longest a lockstep run's read waits for the reply to the previous tick's command: a
+/// lockstep tick is not held to real time, so a reply that is late on a loaded machine is
+/// waited for instead of skipped (which would make the run depend on the machine's speed).
+/// An arm answers in about a millisecond; one that stays silent this long is reported as a
+/// timeout, as in real time.
+pub const LOCKSTEP_REPLY_WAIT: Duration = Duration::from_secs(1);
 
 fn load_profile(name: &str) -> Result<DeviceProfile, DeviceError> {
     DeviceProfile::load(name).map_err(|e| DeviceError::Config {
@@ -108,7 +140,7 @@ pub fn build_driver(
             &path.to_string_lossy(),
             TwoDiyOptions {
                 version: *version,
-                ..TwoDiyOptions::default()
+                ..opts.two_diy.clone()
             },
         ))),
         DeviceSpec::Hid { profile } => {
@@ -171,6 +203,47 @@ mod tests {
             let d = build_driver(&spec, &o).unwrap_or_else(|e| panic!("{s}: {e}"));
             assert!(!d.is_open(), "{s}");
         }
+    }
+
+    #[test]
+    fn lockstep_stamps_the_clockless_arms_by_reply_at_their_stated_rate() {
+        let o = DriverOptions::default().for_lockstep();
+        assert_eq!(o.hd_servo, HdServo::Lockstep);
+        for (name, clock, wait, stale) in [
+            (
+                "falcon",
+                o.falcon.sample_clock,
+                o.falcon.reply_wait,
+                o.falcon.stale_after,
+            ),
+            (
+                "2diy",
+                o.two_diy.sample_clock,
+                o.two_diy.reply_wait,
+                o.two_diy.stale_after,
+            ),
+        ] {
+            assert_eq!(clock, SampleClock::LOCKSTEP_1KHZ, "{name}");
+            assert_eq!(wait, LOCKSTEP_REPLY_WAIT, "{name}");
+            assert!(
+                stale >= wait,
+                "{name}: silent {stale:?} < the wait {wait:?}"
+            );
+        }
+        // The command line counts a lockstep run's samples at the arm's stated rate: the
+        // reply clock must tick at that rate.
+        let SampleClock::PerReply { period_us } = SampleClock::LOCKSTEP_1KHZ else {
+            panic!("a reply clock")
+        };
+        for spec in ["falcon:/dev/null", "2diy:/dev/null", "2diy:/dev/null:v2"] {
+            let d = build_driver(&spec.parse().unwrap(), &o).unwrap();
+            let rate_hz = d.info().sample_rate_hz;
+            assert_eq!(rate_hz, 1e6 / period_us.get() as f32, "{spec}");
+        }
+        // Real time is untouched.
+        let real = DriverOptions::default();
+        assert_eq!(real.falcon.sample_clock, SampleClock::Host);
+        assert_eq!(real.two_diy.sample_clock, SampleClock::Host);
     }
 
     #[test]

@@ -27,12 +27,16 @@
 //! [`DeviceError::Timeout`]; a port that goes away is [`DeviceError::Disconnected`]. The safety
 //! filter then sends zero.
 //!
-//! Time is the host's monotonic clock when each reply was decoded (the board has no clock).
+//! Time: the board's replies carry no clock, so each sample is stamped on the host's clock
+//! when its reply is decoded ([`SampleClock::Host`]); a lockstep run counts the replies instead
+//! ([`SampleClock::LOCKSTEP_1KHZ`]: the board answers each data message with one reply, one
+//! message per tick), so its soft start, velocities and forces do not depend on the machine.
 
 use std::time::{Duration, Instant};
 
 use glam::{DVec2, Vec3};
 
+pub use crate::arm_link::SampleClock;
 use crate::codec::CodecError;
 use crate::codec::haply_board::{self as board, CCW, CW, MAX_HOST_MESSAGE, PortSetup};
 use crate::device::{DeviceError, DeviceInfo, DeviceState, HapticDevice};
@@ -140,6 +144,10 @@ pub struct TwoDiyOptions {
     pub reply_wait: Duration,
     /// No reply for this long makes `read` fail with a timeout.
     pub stale_after: Duration,
+    /// Where the samples' time stamps come from (the replies carry no time): the host's
+    /// clock in real time; [`SampleClock::LOCKSTEP_1KHZ`] in a lockstep run, where the board's
+    /// one reply per data message is the device's clock.
+    pub sample_clock: SampleClock,
 }
 
 impl Default for TwoDiyOptions {
@@ -151,6 +159,7 @@ impl Default for TwoDiyOptions {
             handshake_timeout: Duration::from_secs(2),
             reply_wait: Duration::from_micros(800),
             stale_after: Duration::from_millis(50),
+            sample_clock: SampleClock::Host,
         }
     }
 }
@@ -332,8 +341,12 @@ impl TwoDiy {
             if let Some(a) = newest {
                 let now = Instant::now();
                 link.last_reply = now;
-                let t_us = now.duration_since(link.started).as_micros() as u64;
                 let replies = link.replies;
+                // The reply to `open`'s zero-torque message is the first.
+                let t_us = self
+                    .opts
+                    .sample_clock
+                    .stamp_us(replies, now.saturating_duration_since(link.started));
                 // Port order: port 1 is joint 2, port 2 joint 1.
                 let (theta1, theta2) = (f64::from(a[1]).to_radians(), f64::from(a[0]).to_radians());
                 match self.pantograph.forward(theta1, theta2) {

@@ -264,7 +264,7 @@ impl HapticStage {
             Err(_) => {
                 // The filter latched the fault and sent zero already.
                 self.counters.device_read_faults(1);
-                self.renderer.reset();
+                self.renderer.device_fault();
                 self.faults_in_a_row = self.faults_in_a_row.saturating_add(1);
                 return self.publish_idle(true);
             }
@@ -315,7 +315,7 @@ impl HapticStage {
             Ok(()) => false,
             Err(_) => {
                 self.counters.device_write_faults(1);
-                self.renderer.reset();
+                self.renderer.device_fault();
                 true
             }
         };

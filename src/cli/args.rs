@@ -329,7 +329,8 @@ pub struct RunArgs {
     /// the same sculpt, bit for bit (simulated arm, or a replay: its samples in lockstep
     /// instead of as its recorded schedule says, which a recording without a usable schedule
     /// needs). With touch, phantom or dhd, one servo tick of the arm per step, for
-    /// `--seconds` of the arm's clock.
+    /// `--seconds` of the arm's clock; with falcon or 2diy, one command and its reply per
+    /// step, the samples stamped 1 ms apart by reply count.
     #[arg(long)]
     pub lockstep: bool,
     /// Ask for SCHED_FIFO on the haptic thread (default on; `--no-rt` to skip).

@@ -6,7 +6,6 @@ use std::time::{Duration, Instant};
 
 use crossbeam::channel::RecvTimeoutError;
 
-use dynaclay_devices::openhaptics_arm::HdServo;
 use dynaclay_devices::record::{RecordingDevice, ReplayDevice, ScheduleGap};
 use dynaclay_devices::spec::DeviceSpec;
 use dynaclay_devices::{HapticDevice, SimArmConfig, SimulatedArm};
@@ -94,17 +93,23 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         .map_err(|e| CliError::output(format!("{}: cannot create", args.out.display()), e))?;
 
     // Lockstep needs a device whose every read is one fresh tick of its own clock: the
-    // simulated arm, a replay, and the vendor-library arms (HD's servo runs one frame per read;
-    // each DHD read is one exchange with the arm).
-    let vendor_arm = matches!(
+    // simulated arm, a replay, the vendor-library arms (HD's servo runs one frame per read;
+    // each DHD read is one exchange with the arm) and the serial arms that answer each command
+    // with one reply, their samples stamped by reply count (the Falcon, the 2DIY).
+    let ticks_per_read = matches!(
         spec,
-        DeviceSpec::OpenHaptics { .. } | DeviceSpec::Dhd { .. }
+        DeviceSpec::OpenHaptics { .. }
+            | DeviceSpec::Dhd { .. }
+            | DeviceSpec::Falcon { .. }
+            | DeviceSpec::TwoDiy { .. }
     );
-    if args.lockstep && !vendor_arm && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. })
+    if args.lockstep
+        && !ticks_per_read
+        && !matches!(spec, DeviceSpec::Sim | DeviceSpec::Replay { .. })
     {
         return Err(CliError::Usage(format!(
-            "--lockstep runs the simulated arm, a replay, touch, phantom or dhd on the device's \
-             own clock; device {} runs in real time",
+            "--lockstep runs the simulated arm, a replay, touch, phantom, dhd, falcon or 2diy \
+             on the device's own clock; device {} runs in real time",
             args.device
         )));
     }
@@ -158,8 +163,10 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
             return Ok(outputs);
         }
         hw if args.lockstep => {
-            let mut options = dynaclay_devices::open::DriverOptions::from_env();
-            options.hd_servo = HdServo::Lockstep;
+            let mut options = dynaclay_devices::open::DriverOptions::from_env().for_lockstep();
+            if let Some(file) = &args.falcon_firmware {
+                options.falcon.firmware = Some(file.clone());
+            }
             let device = dynaclay_devices::open::build_driver(hw, &options)
                 .map_err(|e| CliError::device(args.device.clone(), e))?;
             // One sample per servo tick of the arm for the whole session (1 kHz where the arm

@@ -11,7 +11,7 @@
 use dynaclay::dynamics::Material;
 use dynaclay::engine::{Command, EngineConfig, HeadlessSink, Lockstep, ScriptPlan, build_clay};
 use dynaclay::field::BSplineLattice;
-use dynaclay::io::parse_script;
+use dynaclay::io::{Script, parse_script};
 use dynaclay_devices::{DeviceInfo, HapticDevice, soft_start_gain};
 use glam::Vec3;
 
@@ -47,6 +47,43 @@ pub struct Session {
     pub read_faults: u64,
 }
 
+/// The sessions' script: the shared push script, its path 0.2 below the block's top (the
+/// tool presses on the clay along it).
+pub fn script_text() -> String {
+    super::common::PUSH_SCRIPT.replace(
+        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
+        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
+    )
+}
+
+/// The sessions' script, parsed.
+pub fn push_script() -> Script {
+    parse_script(&script_text(), "test").unwrap()
+}
+
+/// `script` planned on plastic clay, as the sessions run it.
+pub fn push_plan(script: &Script) -> ScriptPlan {
+    ScriptPlan::new(
+        script,
+        "test",
+        std::path::Path::new("."),
+        &[],
+        Material::PLASTIC,
+    )
+    .unwrap()
+}
+
+/// The script's hand in the device frame of an arm described by `info`, as the engine maps
+/// the script's path onto it (the script's clay fitted into the arm's workspace): where it is
+/// at the stand-in's exchange `k`, 1 ms of script time each.
+pub fn script_hand(info: &DeviceInfo) -> HandPath {
+    let plan = push_plan(&push_script());
+    let field = build_clay(&plan.clay).unwrap();
+    let map = EngineConfig::for_field(&field, info).map;
+    let trajectory = plan.trajectory(&map).unwrap();
+    Box::new(move |k| trajectory.sample(k as f64 * 1e-3).position_m)
+}
+
 /// Runs the push script in lockstep for [`TICKS`] ticks. `start` is handed the script's hand
 /// and returns the arm (its stand-in set to play that hand); `info` is the arm's figures;
 /// `before_tick` runs before each tick (to break the link on cue).
@@ -55,29 +92,15 @@ pub fn sculpt(
     start: impl FnOnce(HandPath) -> Box<dyn HapticDevice>,
     mut before_tick: impl FnMut(u64),
 ) -> Session {
-    let text = super::common::PUSH_SCRIPT.replace(
-        "path = [[0.75, 1.3, 0.95], [1.15, 1.3, 0.95]]",
-        "path = [[0.75, 1.225, 0.95], [1.15, 1.225, 0.95]]",
-    );
-    let script = parse_script(&text, "test").unwrap();
-    let plan = ScriptPlan::new(
-        &script,
-        "test",
-        std::path::Path::new("."),
-        &[],
-        Material::PLASTIC,
-    )
-    .unwrap();
+    let script = push_script();
+    let plan = push_plan(&script);
     let field = build_clay(&plan.clay).unwrap();
     let before = field.clone();
     let mut config = EngineConfig::for_field(&field, info);
     config.haptic_rt_priority = None;
     config.safety.soft_start_s = SOFT_START_S;
     config.haptics.tool_contact = plan.tool_contact;
-    let trajectory = plan.trajectory(&config.map).unwrap();
-    let device = start(Box::new(move |k| {
-        trajectory.sample(k as f64 * 1e-3).position_m
-    }));
+    let device = start(script_hand(info));
     let mut engine = Lockstep::new(
         &config,
         field,

@@ -163,6 +163,19 @@ impl Patch {
             })
     }
 
+    /// The world box outside which this patch's term does not change when its coefficients
+    /// with indices `first ..= last` (per axis) change: their nodes widened by two knot
+    /// spans, the reach of a cubic B-spline, mapped to world space: the region a mesher
+    /// meshes again after a stroke.
+    #[must_use]
+    pub fn coefficient_change_box(&self, first: [usize; 3], last: [usize; 3]) -> (Vec3, Vec3) {
+        let l = &self.lattice;
+        let reach = Vec3::splat(2.0 * l.spacing);
+        let lo = l.node_position(first[0], first[1], first[2]) - reach;
+        let hi = l.node_position(last[0], last[1], last[2]) + reach;
+        self.world_box_of(lo.min(hi), hi.max(lo))
+    }
+
     /// The knot spacing in world units: the lattice spacing divided by the largest stretch of
     /// `T_i` (so the finest length this patch resolves).
     #[must_use]

@@ -162,7 +162,25 @@ impl PassivityController {
         self.energy_j = self.energy_j.min(0.0);
     }
 
-    /// Forgets the device position too (a new device, or a fault).
+    /// A device fault in the middle of a contact (a failed read or write; the safety filter
+    /// sent zero): forgets the position, the velocity and the forces sent, so the next sample
+    /// starts a new track, but keeps the energy account, credit and deficit alike.
+    ///
+    /// The account is what the hand has put into this contact, and a fault does not change
+    /// it: the zero force the fault sent does no work, and the intervals around the lost
+    /// sample go unobserved (a reset loses them too). Emptying the account instead would hand
+    /// the rest of the contact a zero balance that the sampling's own small losses and gains
+    /// (a force held over each interval, position counts that step back and forth) tip below
+    /// zero, and the damper would then act where the same contact without the fault felt
+    /// none; it would also forgive a deficit, which a fault must never do. Whether the fault
+    /// ended the contact is the caller's to say: it then calls [`Self::between_contacts`].
+    pub fn lose_track(&mut self) {
+        self.sent_n = [Vec3::ZERO; ACCOUNTS];
+        self.last_position_m = None;
+        self.velocity_m_per_s = Vec3::ZERO;
+    }
+
+    /// Forgets everything, the account included (a new device: another hand, another port).
     pub fn reset(&mut self) {
         self.energy_j = 0.0;
         self.sent_n = [Vec3::ZERO; ACCOUNTS];
@@ -228,5 +246,42 @@ mod tests {
         }
         assert_eq!(pc.damping_n(dt, 0.0), Vec3::ZERO);
         assert!(pc.damping_n(dt, 1e-3).y < 0.0);
+    }
+
+    #[test]
+    fn a_lost_track_keeps_the_account_and_pairs_no_move_across_the_gap() {
+        let dt = 1e-3;
+        let down = Vec3::new(0.0, -1e-4, 0.0);
+        let up_n = Vec3::new(0.0, 2.0, 0.0);
+        // The hand presses down against 2 N for 20 samples: 19 moves of 0.1 mm, each paired
+        // with the 2 N sent before it.
+        let mut pc = PassivityController::new(PassivityConfig::default());
+        for i in 0..20 {
+            pc.observe(down * i as f32, up_n, dt);
+        }
+        let credit = pc.energy_j();
+        assert!((credit - 2.0 * 19.0 * 1e-4).abs() < 1e-6, "{credit}");
+        pc.lose_track();
+        assert_eq!(pc.energy_j(), credit);
+        assert_eq!(pc.damped_velocity_m_per_s(), Vec3::ZERO);
+        // The first sample after the gap is 5 mm away: not paired with any force.
+        pc.observe(down * 70.0, Vec3::ZERO, dt);
+        assert_eq!(pc.energy_j(), credit);
+        // The next moves pair with the forces sent since the gap only (zero, then 2 N).
+        pc.observe(down * 71.0, up_n, dt);
+        assert_eq!(pc.energy_j(), credit);
+        pc.observe(down * 72.0, up_n, dt);
+        assert!((pc.energy_j() - credit - 2.0 * 1e-4).abs() < 1e-7);
+
+        // A deficit is kept too: a fault forgives nothing.
+        let up = Vec3::new(0.0, 0.01, 0.0);
+        let mut pc = PassivityController::new(PassivityConfig::default());
+        for i in 0..20 {
+            pc.observe(up * i as f32, up_n, dt);
+        }
+        let deficit = pc.energy_j();
+        assert!(deficit < 0.0);
+        pc.lose_track();
+        assert_eq!(pc.energy_j(), deficit);
     }
 }

@@ -273,7 +273,19 @@ pub struct ForceRenderer {
     /// The push's direction for the held stroke: the outward normal where the tip first
     /// touched the clay during it (the tool's axis, as Hua & Qin's push vector runs along it).
     push_axis: Option<Vec3>,
+    /// Device faults since the last rendered tick.
+    faults_in_a_row: u32,
+    /// A short fault came in the middle of a contact and the contact has not been seen to
+    /// go on or to end since: the passivity account is kept until then (see
+    /// [`Self::device_fault`]).
+    resuming_contact: bool,
 }
+
+/// Faulted ticks in a row through which a contact is taken to go on, so the passivity
+/// observer keeps its account: 5 ms at 1 kHz, in which a hand at a brisk 0.2 m/s moves 1 mm,
+/// too little to leave the clay and come back into another contact unseen. A longer fault
+/// ends the contact (its credit is dropped, a deficit kept).
+pub const FAULT_TICKS_IN_ONE_CONTACT: u32 = 5;
 
 impl ForceRenderer {
     /// A renderer at rest.
@@ -299,6 +311,8 @@ impl ForceRenderer {
             damping_n_s_per_m: 0.0,
             was_stroke: false,
             push_axis: None,
+            faults_in_a_row: 0,
+            resuming_contact: false,
             config,
         }
     }
@@ -316,16 +330,43 @@ impl ForceRenderer {
         }
     }
 
-    /// Zero force at once and no contact (a device fault or a new device: the safety filter
+    /// Zero force at once, no contact and nothing observed (a new device: the safety filter
     /// sent zero already).
     pub fn reset(&mut self) {
+        self.zero_force();
+        self.passivity.reset();
+        self.faults_in_a_row = 0;
+        self.resuming_contact = false;
+    }
+
+    /// Zero force at once after a device fault (a failed read or write: the safety filter
+    /// sent zero already), every source starting again from zero when the samples come back.
+    ///
+    /// Unlike [`Self::reset`], a fault of at most [`FAULT_TICKS_IN_ONE_CONTACT`] ticks does
+    /// not end the contact: the passivity observer loses its track (position, velocity) but
+    /// keeps its energy account ([`PassivityController::lose_track`]), so after the soft
+    /// start the hand feels what the same contact without the fault would feel. Should the
+    /// first sample after it find the contact over (nothing touched, nothing sculpted), the
+    /// account's credit is dropped as between any two contacts. A longer fault ends the
+    /// contact at once. A deficit is never forgiven.
+    pub fn device_fault(&mut self) {
+        self.zero_force();
+        self.passivity.lose_track();
+        self.faults_in_a_row = self.faults_in_a_row.saturating_add(1);
+        self.resuming_contact = self.faults_in_a_row <= FAULT_TICKS_IN_ONE_CONTACT;
+        if !self.resuming_contact {
+            self.passivity.between_contacts();
+        }
+    }
+
+    /// Every force source to zero at once, the contact released.
+    fn zero_force(&mut self) {
         self.proxy.release();
         self.shape_proxy.release();
         self.touch_fade.reset();
         self.last_touch_n = Vec3::ZERO;
         self.shaper.reset();
         self.output_limit.reset();
-        self.passivity.reset();
         self.touch_blend.reset();
         self.sculpt_blend.reset();
         self.sculpt_fade.reset();
@@ -338,6 +379,7 @@ impl ForceRenderer {
     pub fn render(&mut self, input: &FeltInput) -> Felt {
         let dt = self.shaper.elapsed_s(input.time_us);
         self.passivity.observe(input.position_m, input.sent_n, dt);
+        self.faults_in_a_row = 0;
         let shell = match input.tool {
             FeltTool::Geometric(Some(shell)) if input.tool_contact && self.config.tool_contact => {
                 Some(shell)
@@ -462,8 +504,18 @@ impl ForceRenderer {
         // stays free). The damper is added to the shaped force, not to its target: it answers
         // an oscillation within the tick instead of queueing behind the source's rate limit.
         let shaped = self.shaper.shape(target, dt);
-        let wanted_n_s_per_m = if target == Vec3::ZERO && shaped == Vec3::ZERO {
-            self.passivity.between_contacts();
+        // After a short fault every source starts again from zero, so the first ticks render
+        // nothing while the contact goes on: the contact has ended only if nothing is touched
+        // or sculpted; once something is rendered it has gone on.
+        let acting = touch.touching || sculpting;
+        let resumed = target != Vec3::ZERO || shaped != Vec3::ZERO;
+        if self.resuming_contact && (resumed || !acting) {
+            self.resuming_contact = false;
+        }
+        let wanted_n_s_per_m = if !resumed {
+            if !self.resuming_contact {
+                self.passivity.between_contacts();
+            }
             0.0
         } else {
             // What the touch spring stores and will give back on the way out: the work to
@@ -714,6 +766,87 @@ mod tests {
             max_step <= 0.5 + 1e-5,
             "step {max_step} N over the rate limit"
         );
+    }
+
+    /// A renderer pressed 5 mm into the slab at 0.1 m/s and held in a push stroke for 100
+    /// ticks, and the device time it reached.
+    fn pressed_in_a_stroke(
+        field: &MultiPatchField,
+        stroke: &StrokeGeometry,
+    ) -> (ForceRenderer, u64) {
+        let mut r = ForceRenderer::new(HapticConfig::for_device(2000.0, 10.0));
+        let mut t = 0;
+        let mut sent = Vec3::ZERO;
+        for i in 0..300 {
+            t += 1000;
+            let y = (1.1 - 0.001 * i as f32).max(0.95);
+            // The observer pairs each move with the force sent before it.
+            let f = r.render(&FeltInput {
+                sent_n: sent,
+                ..input(field, stroke, y, t, i >= 200)
+            });
+            sent = f.force_n;
+            if i >= 230 {
+                assert!(f.sculpting, "tick {i}");
+            }
+        }
+        (r, t)
+    }
+
+    #[test]
+    fn a_short_fault_in_a_stroke_keeps_the_energy_account_and_a_lost_contact_drops_its_credit() {
+        let field = slab();
+        let stroke = StrokeGeometry::default();
+        let still = |r: &mut ForceRenderer, t: &mut u64, y: f32, ticks: usize| {
+            let mut last = None;
+            for _ in 0..ticks {
+                *t += 1000;
+                last = Some(r.render(&input(&field, &stroke, y, *t, true)));
+            }
+            last.expect("rendered")
+        };
+        // The press put energy in (the hand pushed the touch spring down): credit.
+        let (mut r, mut t) = pressed_in_a_stroke(&field, &stroke);
+        let credit = still(&mut r, &mut t, 0.95, 1).energy_j;
+        assert!(credit > 1e-3, "{credit} J");
+
+        // One failed read, then the hand still in the clay, in the stroke: the force starts
+        // again from zero, and the account is what it was (the hand has not moved, so no work).
+        r.device_fault();
+        t += 1000;
+        let first = r.render(&input(&field, &stroke, 0.95, t, true));
+        assert_eq!(first.force_n, Vec3::ZERO, "every source starts from zero");
+        assert_eq!(first.energy_j, credit);
+        let later = still(&mut r, &mut t, 0.95, 50);
+        assert_eq!(later.energy_j, credit, "kept through the blend back in");
+        assert!(
+            later.force_n.y > 0.1,
+            "the press is felt again: {}",
+            later.force_n
+        );
+
+        // A new device forgets the account.
+        r.reset();
+        assert_eq!(still(&mut r, &mut t, 0.95, 1).energy_j, 0.0);
+
+        // A short fault after which the hand is out of the clay: the contact ended, so its
+        // credit is dropped.
+        let (mut r, mut t) = pressed_in_a_stroke(&field, &stroke);
+        r.device_fault();
+        assert_eq!(still(&mut r, &mut t, 1.1, 1).energy_j, 0.0);
+
+        // A fault longer than a contact survives: the credit is dropped, in the clay or not.
+        let (mut r, mut t) = pressed_in_a_stroke(&field, &stroke);
+        for _ in 0..=FAULT_TICKS_IN_ONE_CONTACT {
+            r.device_fault();
+        }
+        assert_eq!(still(&mut r, &mut t, 0.95, 1).energy_j, 0.0);
+        // One tick shorter, it is kept.
+        let (mut r, mut t) = pressed_in_a_stroke(&field, &stroke);
+        for _ in 0..FAULT_TICKS_IN_ONE_CONTACT {
+            r.device_fault();
+        }
+        assert!(still(&mut r, &mut t, 0.95, 1).energy_j > 1e-3);
     }
 
     #[test]

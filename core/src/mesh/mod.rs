@@ -22,7 +22,9 @@
 //!   [`BrickOctree::weld_into`] into a kept mesh.
 //! - Multi-resolution export: [`mesh_adaptive`] dual-contours a
 //!   [`crate::field::MultiPatchField`] on an octree whose cells follow the finest patch over
-//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first).
+//!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first);
+//!   an [`AdaptiveMesher`] keeps that mesh and, after a stroke, meshes again only the leaves
+//!   near the change ([`AdaptiveMesher::remesh_box`]).
 
 mod adaptive;
 mod brick;
@@ -30,6 +32,7 @@ mod distance;
 mod error;
 mod export;
 mod grid;
+mod manifold;
 mod octree;
 mod sink;
 mod source;
@@ -40,7 +43,8 @@ mod weld;
 mod work_split;
 
 pub use adaptive::{
-    AdaptiveMeshError, AdaptiveMeshOptions, MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
+    AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, AdaptiveRemeshReport,
+    MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
 };
 pub use brick::{
     BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
@@ -50,6 +54,7 @@ pub use distance::{Hausdorff, hausdorff, point_triangle_distance};
 pub use error::GridError;
 pub use export::{ExportError, MeshFormat, encode_obj, encode_ply, encode_stl, write_mesh};
 pub use grid::SampleGrid;
+pub use manifold::{ManifoldRepair, split_non_manifold};
 pub use octree::{Brick, BrickOctree, MemoryUsage, RefreshReport, WeldPiece, weld_pieces};
 pub use sink::MeshSink;
 pub use source::{FnField, MAX_BLOCK, ScalarField};

@@ -935,19 +935,59 @@ impl SignGrid {
     }
 
     /// Distance from each node within `band` of a point to its nearest point (infinite
-    /// elsewhere), and that point's index.
+    /// elsewhere), and that point's index (the lowest of equally near points).
     fn band_distances(&self, points: &[Vec3], band: f32) -> (Vec<f32>, Vec<u32>) {
+        let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        self.band_distances_on(points, band, threads)
+    }
+
+    /// [`SignGrid::band_distances`] on `threads` threads, each over a run of whole z-planes of
+    /// the grid and every point in order, so the result does not depend on the count.
+    fn band_distances_on(
+        &self,
+        points: &[Vec3],
+        band: f32,
+        threads: usize,
+    ) -> (Vec<f32>, Vec<u32>) {
         let mut dist = vec![f32::INFINITY; self.count()];
         let mut nearest = vec![0u32; self.count()];
+        let plane = self.dims[0] * self.dims[1];
+        let planes_per_thread = self.dims[2].div_ceil(threads.clamp(1, self.dims[2]));
+        let slab = planes_per_thread * plane;
+        std::thread::scope(|scope| {
+            for (t, (dist, nearest)) in dist
+                .chunks_mut(slab)
+                .zip(nearest.chunks_mut(slab))
+                .enumerate()
+            {
+                let first_plane = t * planes_per_thread;
+                scope.spawn(move || self.band_slab(points, band, first_plane, dist, nearest));
+            }
+        });
+        (dist, nearest)
+    }
+
+    /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and
+    /// `nearest` hold.
+    fn band_slab(
+        &self,
+        points: &[Vec3],
+        band: f32,
+        first_plane: usize,
+        dist: &mut [f32],
+        nearest: &mut [u32],
+    ) {
+        let plane = self.dims[0] * self.dims[1];
+        let last_plane = first_plane + dist.len() / plane - 1;
         let reach = (band / self.h).ceil() as i64;
         for (p_index, &p) in points.iter().enumerate() {
             let c = (p / self.h).round();
             let lo = |a: usize| (c[a] as i64 - reach).max(0) as usize;
             let hi = |a: usize| ((c[a] as i64 + reach).max(0) as usize).min(self.dims[a] - 1);
-            for k in lo(2)..=hi(2) {
+            for k in lo(2).max(first_plane)..=hi(2).min(last_plane) {
                 for j in lo(1)..=hi(1) {
                     for i in lo(0)..=hi(0) {
-                        let at = self.index(i, j, k);
+                        let at = self.index(i, j, k) - first_plane * plane;
                         let d = (Vec3::new(i as f32, j as f32, k as f32) * self.h - p).length();
                         if d <= band && d < dist[at] {
                             dist[at] = d;
@@ -957,7 +997,6 @@ impl SignGrid {
                 }
             }
         }
-        (dist, nearest)
     }
 
     /// The exterior by closing: the nodes farther than `gap` from every point that connect
@@ -1511,6 +1550,21 @@ mod tests {
             );
             let beyond = Vec3::new(u.cos(), 0.0, u.sin()) * 4.4;
             assert!(l.value(fit.to_field(beyond)) < l.iso, "outside at {u}");
+        }
+    }
+
+    #[test]
+    fn the_band_is_the_same_on_one_thread_and_on_several() {
+        let grid = SignGrid::new(14, 0.25, 2);
+        let cloud = sphere_cloud(3000, 1.2);
+        let centre = Vec3::splat(13.0 * 0.25 * 0.5);
+        let points: Vec<Vec3> = cloud.points.iter().map(|&p| p + centre).collect();
+        let (dist, nearest) = grid.band_distances_on(&points, 0.5, 1);
+        assert!(dist.iter().any(|d| d.is_finite()) && dist.iter().any(|d| d.is_infinite()));
+        for threads in [2, 3, 7] {
+            let (d, n) = grid.band_distances_on(&points, 0.5, threads);
+            assert!(d.iter().zip(&dist).all(|(a, b)| a.to_bits() == b.to_bits()));
+            assert_eq!(n, nearest, "{threads} threads");
         }
     }
 

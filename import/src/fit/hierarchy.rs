@@ -44,7 +44,8 @@ use super::cloud::{CloudFitError, CloudFitOptions, Screening, SignedBy, sign_clo
 use super::consensus::parallel_map;
 use super::points::PointCloud;
 use dynaclay_core::field::{
-    BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, MultiPatchField, refit_box,
+    BSplineLattice, CoeffBox, MAX_CLAY_COEFFS, MAX_PATCHES, MassGrid, MultiPatchField,
+    refit_box_edit_rows,
 };
 
 /// Points used for the error samples, at most (an even subset of a larger cloud).
@@ -517,11 +518,7 @@ fn changes_topology_unsupported(
     let iso = field.iso();
     let before_values = parallel_map(count, |i| field.value(centre(i)));
     let before: Vec<bool> = before_values.iter().map(|&v| v > iso).collect();
-    let after: Vec<bool> = before_values
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| v + patch.value(centre(i)) > iso)
-        .collect();
+    let after: Vec<bool> = parallel_map(count, |i| before_values[i] + patch.value(centre(i)) > iso);
     let chi_before = voxel_euler_characteristic(&before, n);
     let chi_after = voxel_euler_characteristic(&after, n);
     if chi_after == chi_before {
@@ -648,14 +645,51 @@ fn fit_detail(
         })
         .collect();
     let inner = [dims[0] - 2, dims[1] - 2, dims[2] - 2];
-    refit_box(&mut lattice, [1, 1, 1], inner, data.samples_per_span, |x| {
+    let residual = |x: Vec3| {
         let w = window(x, core_lo, core_hi, fade);
         if w == 0.0 {
             return 0.0;
         }
         let current: f32 = near.iter().map(|l| l.value(x)).sum();
         w * ((data.target)(x) - current)
-    })?;
+    };
+    // NOTE: the residual (the moving planes and the patches fitted so far, at every sample)
+    // is most of a detail patch's cost: it is sampled on every thread first, at the positions
+    // the fit samples, and handed to the fit row by row in the fit's own row order, so the
+    // patch is bit for bit the one a serial sampling gives.
+    let grid = MassGrid::with_samples_per_span(
+        CoeffBox {
+            min: [1, 1, 1],
+            max: inner,
+        },
+        data.samples_per_span,
+    );
+    let [mx, my, _] = grid.dims;
+    let axis_positions = |axis: usize| -> Vec<f32> {
+        (0..grid.dims[axis])
+            .map(|t| {
+                let mut at = [0; 3];
+                at[axis] = t;
+                grid.position(&lattice, at[0], at[1], at[2])[axis]
+            })
+            .collect()
+    };
+    let (xs, ys, zs) = (axis_positions(0), axis_positions(1), axis_positions(2));
+    let sampled = parallel_map(grid.count(), |s| {
+        residual(Vec3::new(xs[s % mx], ys[(s / mx) % my], zs[s / (mx * my)]))
+    });
+    let mut rows = sampled.chunks_exact(mx);
+    refit_box_edit_rows(
+        &mut lattice,
+        [1, 1, 1],
+        inner,
+        data.samples_per_span,
+        |row| {
+            let values = rows.next().expect("one sampled row per row of the fit");
+            debug_assert!(row.xs == xs.as_slice() && row.values.len() == values.len());
+            row.values.copy_from_slice(values);
+        },
+    )?;
     Ok(lattice)
 }
 

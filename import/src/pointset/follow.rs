@@ -37,9 +37,10 @@
 //! covers its whole cell, so the splats of a well-sampled surface leave no holes. Where the
 //! clay curves so tightly that half a spacing is more than [`DISC_CURVATURE_RADII`] of the
 //! curvature radius, the floor drops to that (a flat disc wider than it stands off the
-//! surface); the covering radius is never cut, a hole being worse. Each point also carries its normal's gradient
-//! ([`PointSetView::normal_gradients`], see [`super::curvature`]) so a renderer lights each
-//! pixel of a splat with the normal the surface has there, not the splat's one normal.
+//! surface); the covering radius is never cut, a hole being worse. Each point also carries
+//! its normal's gradient ([`PointSetView::normal_gradients`], see [`super::curvature`]), for
+//! a renderer to light each pixel of a splat with the normal the surface has there rather
+//! than the splat's one normal (the window's splat shader does not read it yet).
 //! Normals are taken from the clay's gradient at every update; a normal's gradient is
 //! refreshed whenever its point moves and whenever the scan passes it.
 
