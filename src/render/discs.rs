@@ -54,12 +54,28 @@ pub struct Disc {
     pub normal_gradient_diagonal: [f32; 3],
     /// Its entries above the diagonal, `(Wxy, Wxz, Wyz)`.
     pub normal_gradient_off_diagonal: [f32; 3],
+    /// How far behind its plane, away from the eye, the disc's rim is taken to lie for the
+    /// depth test, as a fraction of its radius; the depth grows with the squared distance
+    /// from the centre, so where discs overlap the one whose centre is nearest wins
+    /// ([`SPLAT_RIM_DEPTH`]); 0: the plane's depth.
+    pub rim_depth: f32,
 }
 
-pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 9] = wgpu::vertex_attr_array![
+pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 10] = wgpu::vertex_attr_array![
     0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Float32, 4 => Float32x3,
-    5 => Float32, 6 => Float32, 7 => Float32x3, 8 => Float32x3
+    5 => Float32, 6 => Float32, 7 => Float32x3, 8 => Float32x3, 9 => Float32
 ];
+
+/// A splat's [`Disc::rim_depth`]. Overlapping splats of a convex surface (a groove's rounded
+/// rim) all stand above it, and with their planes' depths the farthest one's rim is
+/// nearest the eye and wins: a flat-top splat reaching over the rim paints its flat shading
+/// there, with a sharp step where it ends. Pushing each pixel back by `rim_depth · r · (d/r)²`
+/// (`d` its distance from the centre) lets the splat centred nearest win instead: a disc of
+/// radius `r` on a surface of curvature `κ` stands `κ d² / 2` above it at `d`, under the push
+/// wherever `κ r ≤ 2 · rim_depth`; the follower keeps `κ r` to 0.5 where coverage allows
+/// (`dynaclay_import`'s `DISC_CURVATURE_RADII`). The cost: a surface less than `rim_depth · r` behind a splat's rim may show through
+/// it (the visibility splatting tolerance of Botsch et al. 2004).
+pub const SPLAT_RIM_DEPTH: f32 = 0.5;
 
 fn usable(p: Vec3, n: Vec3, r: f32) -> bool {
     p.is_finite() && n.is_finite() && r.is_finite() && r > 0.0
@@ -85,6 +101,7 @@ pub fn particle_discs(out: &mut Vec<Disc>, positions: &[Vec3], normals: &[Vec3],
                 shade: 0.0,
                 normal_gradient_diagonal: [0.0; 3],
                 normal_gradient_off_diagonal: [0.0; 3],
+                rim_depth: 0.0,
             }),
     );
 }
@@ -136,6 +153,7 @@ pub fn splat_discs(
                     shade: 1.0,
                     normal_gradient_diagonal: w.diagonal_per_fu.to_array(),
                     normal_gradient_off_diagonal: w.off_diagonal_per_fu.to_array(),
+                    rim_depth: SPLAT_RIM_DEPTH,
                 }
             }),
     );
@@ -159,6 +177,7 @@ mod tests {
         assert_eq!(out[0].centre, [1.0, 0.0, 0.0]);
         assert!((out[1].radius - 0.4 * DISC_SCALE).abs() < 1e-7);
         assert_eq!(out[0].colour, PARTICLE_DISC_COLOR);
+        assert_eq!(out[0].rim_depth, 0.0, "particles are drawn at their plane's depth");
     }
 
     #[test]
@@ -189,6 +208,7 @@ mod tests {
         assert_eq!(out[2].normal, [1.0, 0.0, 0.0]);
         assert_eq!(out[2].radius, 0.2);
         assert!(out[1].rim > 1.0 && out[1].shade == 1.0 && out[1].lift == 0.0);
+        assert_eq!(out[1].rim_depth, SPLAT_RIM_DEPTH);
         assert_eq!(out[1].normal_gradient_diagonal, [1.0, 2.0, 3.0]);
         assert_eq!(out[1].normal_gradient_off_diagonal, [4.0, 5.0, 6.0]);
         assert_eq!(
