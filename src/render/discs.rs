@@ -177,7 +177,10 @@ mod tests {
         assert_eq!(out[0].centre, [1.0, 0.0, 0.0]);
         assert!((out[1].radius - 0.4 * DISC_SCALE).abs() < 1e-7);
         assert_eq!(out[0].colour, PARTICLE_DISC_COLOR);
-        assert_eq!(out[0].rim_depth, 0.0, "particles are drawn at their plane's depth");
+        assert_eq!(
+            out[0].rim_depth, 0.0,
+            "particles are drawn at their plane's depth"
+        );
     }
 
     #[test]
