@@ -1443,6 +1443,7 @@ impl SculptApp {
                 &p.normals,
                 &p.colours,
                 &p.radii,
+                &p.normal_gradients,
             );
         }
         self.scene_input.splats = self.discs.len();

@@ -6,8 +6,15 @@
 //!   lifted a little off the surface so the clay does not hide them;
 //! - point-set splats ([`splat_discs`]): discs in each point's own colour, lit by the
 //!   scene's lights, sitting on the surface and large enough to cover it without holes.
+//!   Each splat carries its normal's gradient ([`NormalGradient`]); the shader lights every
+//!   pixel of the disc with the normal the surface has there to first order,
+//!   `normalize(n + W·(x − centre))` (ambient plus Lambert, as before), so overlapping
+//!   splats agree where they meet and a curved surface shades smoothly instead of showing
+//!   one flat-lit facet per disc (Phong splatting, Botsch et al. 2004).
 
 use glam::Vec3;
+
+use crate::pointset::NormalGradient;
 
 /// The particles' disc colour (linear RGB), a green that neither the clay nor the overlays
 /// use.
@@ -42,12 +49,33 @@ pub struct Disc {
     pub rim: f32,
     /// 0: unlit (the colour as is); 1: lit by the scene's lights like the clay.
     pub shade: f32,
+    /// The normal's gradient `W` (per world unit), diagonal `(Wxx, Wyy, Wzz)`; zero: one
+    /// normal over the whole disc.
+    pub normal_gradient_diagonal: [f32; 3],
+    /// Its entries above the diagonal, `(Wxy, Wxz, Wyz)`.
+    pub normal_gradient_off_diagonal: [f32; 3],
+    /// How far behind its plane, away from the eye, the disc's rim is taken to lie for the
+    /// depth test, as a fraction of its radius; the depth grows with the squared distance
+    /// from the centre, so where discs overlap the one whose centre is nearest wins
+    /// ([`SPLAT_RIM_DEPTH`]); 0: the plane's depth.
+    pub rim_depth: f32,
 }
 
-pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 7] = wgpu::vertex_attr_array![
+pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 10] = wgpu::vertex_attr_array![
     0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Float32, 4 => Float32x3,
-    5 => Float32, 6 => Float32
+    5 => Float32, 6 => Float32, 7 => Float32x3, 8 => Float32x3, 9 => Float32
 ];
+
+/// A splat's [`Disc::rim_depth`]. Overlapping splats of a convex surface (a groove's rounded
+/// rim) all stand above it, and with their planes' depths the farthest one's rim is
+/// nearest the eye and wins: a flat-top splat reaching over the rim paints its flat shading
+/// there, with a sharp step where it ends. Pushing each pixel back by `rim_depth · r · (d/r)²`
+/// (`d` its distance from the centre) lets the splat centred nearest win instead: a disc of
+/// radius `r` on a surface of curvature `κ` stands `κ d² / 2` above it at `d`, under the push
+/// wherever `κ r ≤ 2 · rim_depth`; the follower keeps `κ r` to 0.5 where coverage allows
+/// (`dynaclay_import`'s `DISC_CURVATURE_RADII`). The cost: a surface less than `rim_depth · r` behind a splat's rim may show through
+/// it (the visibility splatting tolerance of Botsch et al. 2004).
+pub const SPLAT_RIM_DEPTH: f32 = 0.5;
 
 fn usable(p: Vec3, n: Vec3, r: f32) -> bool {
     p.is_finite() && n.is_finite() && r.is_finite() && r > 0.0
@@ -71,6 +99,9 @@ pub fn particle_discs(out: &mut Vec<Disc>, positions: &[Vec3], normals: &[Vec3],
                 colour: PARTICLE_DISC_COLOR,
                 rim: PARTICLE_RIM,
                 shade: 0.0,
+                normal_gradient_diagonal: [0.0; 3],
+                normal_gradient_off_diagonal: [0.0; 3],
+                rim_depth: 0.0,
             }),
     );
 }
@@ -86,15 +117,17 @@ pub fn srgb8_to_linear(c: u8) -> f32 {
     }
 }
 
-/// Appends one splat per point: its colour (8-bit sRGB), its normal and its radius, lit, no
-/// rim, on the surface; points with a non-finite position or radius are skipped. The four
-/// slices are read up to the shortest.
+/// Appends one splat per point: its colour (8-bit sRGB), its normal, its radius and how its
+/// normal turns across it, lit, no rim, on the surface; points with a non-finite position or
+/// radius are skipped. The first four slices are read up to the shortest; a point past the
+/// end of `normal_gradients`, or with a non-finite one, is lit with its one normal.
 pub fn splat_discs(
     out: &mut Vec<Disc>,
     positions: &[Vec3],
     normals: &[Vec3],
     colours: &[[u8; 3]],
     radii: &[f32],
+    normal_gradients: &[NormalGradient],
 ) {
     out.extend(
         positions
@@ -102,15 +135,26 @@ pub fn splat_discs(
             .zip(normals)
             .zip(colours)
             .zip(radii)
-            .filter(|(((p, n), _), r)| usable(**p, **n, **r))
-            .map(|(((p, n), c), r)| Disc {
-                centre: p.to_array(),
-                normal: n.to_array(),
-                radius: *r,
-                lift: 0.0,
-                colour: c.map(srgb8_to_linear),
-                rim: 2.0,
-                shade: 1.0,
+            .enumerate()
+            .filter(|(_, (((p, n), _), r))| usable(**p, **n, **r))
+            .map(|(i, (((p, n), c), r))| {
+                let w = normal_gradients
+                    .get(i)
+                    .filter(|w| w.is_finite())
+                    .copied()
+                    .unwrap_or(NormalGradient::FLAT);
+                Disc {
+                    centre: p.to_array(),
+                    normal: n.to_array(),
+                    radius: *r,
+                    lift: 0.0,
+                    colour: c.map(srgb8_to_linear),
+                    rim: 2.0,
+                    shade: 1.0,
+                    normal_gradient_diagonal: w.diagonal_per_fu.to_array(),
+                    normal_gradient_off_diagonal: w.off_diagonal_per_fu.to_array(),
+                    rim_depth: SPLAT_RIM_DEPTH,
+                }
             }),
     );
 }
@@ -133,6 +177,10 @@ mod tests {
         assert_eq!(out[0].centre, [1.0, 0.0, 0.0]);
         assert!((out[1].radius - 0.4 * DISC_SCALE).abs() < 1e-7);
         assert_eq!(out[0].colour, PARTICLE_DISC_COLOR);
+        assert_eq!(
+            out[0].rim_depth, 0.0,
+            "particles are drawn at their plane's depth"
+        );
     }
 
     #[test]
@@ -144,6 +192,10 @@ mod tests {
             &[Vec3::Z, Vec3::X, Vec3::Z],
             &[[255, 0, 0], [0, 128, 255], [1, 2, 3]],
             &[0.1, 0.2, 0.3],
+            &[NormalGradient {
+                diagonal_per_fu: Vec3::new(1.0, 2.0, 3.0),
+                off_diagonal_per_fu: Vec3::new(4.0, 5.0, 6.0),
+            }],
         );
         assert_eq!(
             out.len(),
@@ -159,5 +211,12 @@ mod tests {
         assert_eq!(out[2].normal, [1.0, 0.0, 0.0]);
         assert_eq!(out[2].radius, 0.2);
         assert!(out[1].rim > 1.0 && out[1].shade == 1.0 && out[1].lift == 0.0);
+        assert_eq!(out[1].rim_depth, SPLAT_RIM_DEPTH);
+        assert_eq!(out[1].normal_gradient_diagonal, [1.0, 2.0, 3.0]);
+        assert_eq!(out[1].normal_gradient_off_diagonal, [4.0, 5.0, 6.0]);
+        assert_eq!(
+            out[2].normal_gradient_diagonal, [0.0; 3],
+            "past the gradients' end: one normal"
+        );
     }
 }

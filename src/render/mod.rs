@@ -23,8 +23,8 @@ pub use camera::{Camera, NamedView, UnknownView};
 pub use chunk::{ChunkError, MeshChunk, bounds_of};
 pub use context::{AdapterSummary, GpuContext, REQUIRE_GPU_ENV, gpu_required};
 pub use discs::{
-    DISC_LIFT, DISC_SCALE, Disc, PARTICLE_DISC_COLOR, PARTICLE_RIM, particle_discs, splat_discs,
-    srgb8_to_linear,
+    DISC_LIFT, DISC_SCALE, Disc, PARTICLE_DISC_COLOR, PARTICLE_RIM, SPLAT_RIM_DEPTH,
+    particle_discs, splat_discs, srgb8_to_linear,
 };
 pub use environment::{EnvironmentMap, EnvironmentSizeError, linear_to_srgb8};
 pub use error::RenderError;

@@ -240,8 +240,26 @@ fn reference_pixel(
     if n.dot(v) < 0.25 {
         return None;
     }
+    Some(blinn_phong_reference(
+        camera,
+        options,
+        Vec3::from(options.shading.material_color),
+        n,
+        v,
+    ))
+}
+
+/// The colour the mesh pass gives a surface point of albedo `albedo` (linear), unit normal
+/// `n` and unit direction `v` toward the eye, computed on the CPU: ambient plus each light's
+/// Lambert and Blinn-Phong terms (environment off), in 8-bit sRGB.
+fn blinn_phong_reference(
+    camera: &Camera,
+    options: &SceneOptions,
+    albedo: Vec3,
+    n: Vec3,
+    v: Vec3,
+) -> [u8; 3] {
     let s = &options.shading;
-    let albedo = Vec3::from(s.material_color);
     let mut lit = albedo * s.ambient;
     let to_world = camera.view().inverse();
     for light in &s.lights {
@@ -255,11 +273,11 @@ fn reference_pixel(
         };
         lit += Vec3::from(light.color) * (albedo * ndl + Vec3::splat(spec));
     }
-    Some([
+    [
         linear_to_srgb8(lit.x),
         linear_to_srgb8(lit.y),
         linear_to_srgb8(lit.z),
-    ])
+    ]
 }
 
 #[test]
@@ -925,6 +943,7 @@ fn point_set_splats_cover_the_surface_in_their_colours() {
         &positions,
         &colours,
         &vec![spacing; n],
+        &[],
     );
     r.set_discs(&discs).unwrap();
     assert_eq!(r.renderer().disc_count(), n);
@@ -1476,15 +1495,65 @@ fn grooved_block() -> crate::field::BSplineLattice {
 const GROOVE_TOP: f32 = 1.725;
 const GROOVE_Z: f32 = 1.15;
 
-/// Luminance along the line across the groove at x = 1.15 on the top (z from 0.85 to 1.45,
-/// one sample per 0.01), in `img` seen by `camera`.
-fn across_groove(img: &Image, camera: &Camera) -> Vec<f32> {
+/// Luminance along the line across the groove at `x` on the top (z from 0.85 to 1.45, one
+/// sample per 0.01), in `img` seen by `camera`.
+fn across_groove(img: &Image, camera: &Camera, x: f32) -> Vec<f32> {
     let vp = camera.view_projection(W as f32 / H as f32);
     (0..=60)
         .map(|i| {
-            let n = vp.project_point3(Vec3::new(1.15, GROOVE_TOP, 0.85 + 0.01 * i as f32));
+            let n = vp.project_point3(Vec3::new(x, GROOVE_TOP, 0.85 + 0.01 * i as f32));
             let (x, y) = ((n.x + 1.0) * 0.5 * W as f32, (1.0 - n.y) * 0.5 * H as f32);
             luminance(img.pixel(x as u32, y as u32).unwrap())
+        })
+        .collect()
+}
+
+/// The clay's own shading where [`across_groove`] samples an image at `x`: each sample's pixel
+/// ray-cast onto the clay (marched 0.001 apart from just above the top, then bisected), lit
+/// as the mesh pass lights it ([`blinn_phong_reference`]) with albedo `albedo` and the
+/// clay's unit normal there, as luminance.
+fn clay_across_groove(
+    field: &crate::field::MultiPatchField,
+    camera: &Camera,
+    options: &SceneOptions,
+    albedo: Vec3,
+    x: f32,
+) -> Vec<f32> {
+    let vp = camera.view_projection(W as f32 / H as f32);
+    let inv = vp.inverse();
+    let eye = camera.eye();
+    let inside = |p: Vec3| field.value_and_gradient(p).0 > field.iso();
+    (0..=60)
+        .map(|i| {
+            let on_top = Vec3::new(x, GROOVE_TOP, 0.85 + 0.01 * i as f32);
+            let n = vp.project_point3(on_top);
+            let (px, py) = (
+                ((n.x + 1.0) * 0.5 * W as f32).floor(),
+                ((1.0 - n.y) * 0.5 * H as f32).floor(),
+            );
+            let ndc = Vec2::new(
+                (px + 0.5) / W as f32 * 2.0 - 1.0,
+                1.0 - (py + 0.5) / H as f32 * 2.0,
+            );
+            let d = (inv.project_point3(ndc.extend(1.0)) - eye).normalize();
+            let start = (on_top - eye).length() - 0.05;
+            let step = 0.001;
+            let k = (0..400)
+                .find(|&k| inside(eye + d * (start + step * (k + 1) as f32)))
+                .unwrap_or_else(|| panic!("the ray through ({px}, {py}) meets the clay"));
+            let (mut a, mut b) = (start + step * k as f32, start + step * (k + 1) as f32);
+            for _ in 0..30 {
+                let m = 0.5 * (a + b);
+                if inside(eye + d * m) {
+                    b = m;
+                } else {
+                    a = m;
+                }
+            }
+            let p = eye + d * b;
+            let normal = -field.value_and_gradient(p).1.normalize();
+            let [r, g, b] = blinn_phong_reference(camera, options, albedo, normal, -d);
+            luminance([r, g, b, 255])
         })
         .collect()
 }
@@ -1493,7 +1562,14 @@ fn across_groove(img: &Image, camera: &Camera) -> Vec<f32> {
 /// block before it was carved follow the clay into the groove (as many updates as the
 /// window's follower takes), and their splats, drawn alone, shade the line across the groove
 /// as the mesh does: the wall turned from the light dark at the same place, and the whole
-/// profile, relative to the flat top, within 0.1 RMS of the mesh's.
+/// profile, relative to the flat top, within 0.1 RMS of the mesh's. And without facets: over
+/// the groove's straight part, pixel by pixel, within 0.06 of the clay's own brightness
+/// (ray-cast, [`clay_across_groove`]) at the 95th percentile (0.3 at most), sharp steps in at
+/// most 1% of the neighbouring samples, and no line varying more than 1.3 times the clay's +
+/// 0.1 ([`GrooveFacets`]); the same splats lit flat, one normal each, fail these. The clay,
+/// not the mesh, is the reference for the facets: the mesh's normals, interpolated across
+/// triangles two to a knot span, are themselves 0.05 off the clay's at the 95th percentile
+/// (printed) and soften the steep wall's turn from the light, which the splats follow.
 #[test]
 fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
     use crate::pointset::{DEFAULT_COLOUR, FollowOptions, FollowedPoints, PointFollower};
@@ -1548,6 +1624,7 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
         follower.normals(),
         follower.colours(),
         follower.radii(),
+        follower.normal_gradients(),
     );
     r.sync_chunks(&[]).unwrap();
     r.set_discs(&discs).unwrap();
@@ -1561,8 +1638,8 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
     }
 
     let (m, s) = (
-        across_groove(&mesh, &camera),
-        across_groove(&splats, &camera),
+        across_groove(&mesh, &camera, 1.15),
+        across_groove(&splats, &camera, 1.15),
     );
     eprintln!("across the groove, mesh: {m:?}\nsplats: {s:?}");
     // Each profile relative to its own flat top (the splats have the points' colour, the mesh
@@ -1600,4 +1677,128 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
         rms < 0.1,
         "the splats' shading across the groove follows the mesh's within {rms}"
     );
+
+    // Facets, pixel by pixel over the groove's straight part, against the clay ray-cast and
+    // lit with the points' colour (the relative profiles then share one sRGB curve).
+    let splat_albedo = Vec3::from(DEFAULT_COLOUR.map(srgb8_to_linear));
+    let clay = |x: f32| clay_across_groove(&field, &camera, &o, splat_albedo, x);
+    let smooth = GrooveFacets::measure(clay, &splats, &camera);
+    eprintln!("splats lit with their normals' gradients, against the clay: {smooth:?}");
+    let against_mesh =
+        GrooveFacets::measure(|x| across_groove(&mesh, &camera, x), &splats, &camera);
+    eprintln!("the same splats against the mesh: {against_mesh:?}");
+    let mesh_albedo = Vec3::from(o.shading.material_color);
+    let mesh_off = GrooveFacets::measure(
+        |x| clay_across_groove(&field, &camera, &o, mesh_albedo, x),
+        &mesh,
+        &camera,
+    );
+    eprintln!("the mesh against the clay: {mesh_off:?}");
+
+    // The same splats, each lit with its one normal (flat discs), are caught by the
+    // same measures: they are what the measures are for.
+    let mut flat_discs = Vec::new();
+    splat_discs(
+        &mut flat_discs,
+        follower.positions(),
+        follower.normals(),
+        follower.colours(),
+        follower.radii(),
+        &[],
+    );
+    r.set_discs(&flat_discs).unwrap();
+    let faceted = r.render(&camera, &o).unwrap();
+    if let Ok(dir) = std::env::var("DYNACLAY_GROOVE_PNG") {
+        faceted
+            .write_png(&std::path::Path::new(&dir).join("groove_flat_splats.png"))
+            .unwrap();
+    }
+    let flat_lit = GrooveFacets::measure(clay, &faceted, &camera);
+    eprintln!("splats lit flat: {flat_lit:?}");
+    assert!(
+        flat_lit.failures().is_some(),
+        "flat-lit splats show facets the measures catch: {flat_lit:?}"
+    );
+    if let Some(why) = smooth.failures() {
+        panic!("the splats shade the groove as the mesh does: {why}");
+    }
+}
+
+/// How much a splat image of the grooved block departs from a reference (the clay ray-cast,
+/// or the mesh image) over the groove's straight part: 41 lines across it (x from 0.95 to
+/// 1.35, 0.01 apart), 61 samples each (z from 0.85 to 1.45), each profile's brightness
+/// relative to its own flat top.
+#[derive(Debug)]
+struct GrooveFacets {
+    /// 95th percentile of the sample-by-sample difference, fractions of the top.
+    p95: f32,
+    /// The largest difference.
+    largest: f32,
+    /// Neighbouring samples whose difference exceeds the reference's by more than 0.06 of the top
+    /// (a disc's edge), and the steps in all.
+    sharp_steps: usize,
+    steps: usize,
+    /// The largest ratio, over the lines, of the splats' total variation to 1.3 × the
+    /// reference's + 0.1 (a faceted profile climbs and drops at every disc).
+    variation_ratio: f32,
+}
+
+impl GrooveFacets {
+    /// `reference(x)`: the reference's 61 samples along the line at `x`.
+    fn measure(reference: impl Fn(f32) -> Vec<f32>, splats: &Image, camera: &Camera) -> Self {
+        let relative = |p: Vec<f32>| -> Vec<f32> {
+            let t = (p[..5].iter().sum::<f32>() + p[56..].iter().sum::<f32>()) / 10.0;
+            assert!(t > 40.0, "the top is lit ({t})");
+            p.iter().map(|&x| x / t).collect()
+        };
+        let variation = |p: &[f32]| p.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f32>();
+        let (mut differences, mut sharp_steps, mut steps) = (Vec::new(), 0, 0);
+        let mut variation_ratio = 0.0f32;
+        for k in 0..=40 {
+            let x = 0.95 + 0.01 * k as f32;
+            let m = relative(reference(x));
+            let s = relative(across_groove(splats, camera, x));
+            differences.extend(m.iter().zip(&s).map(|(a, b)| (a - b).abs()));
+            for (dm, ds) in m.windows(2).zip(s.windows(2)) {
+                steps += 1;
+                if (ds[1] - ds[0]).abs() > (dm[1] - dm[0]).abs() + 0.06 {
+                    sharp_steps += 1;
+                }
+            }
+            variation_ratio = variation_ratio.max(variation(&s) / (1.3 * variation(&m) + 0.1));
+        }
+        differences.sort_by(f32::total_cmp);
+        Self {
+            p95: differences[differences.len() * 95 / 100],
+            largest: differences[differences.len() - 1],
+            sharp_steps,
+            steps,
+            variation_ratio,
+        }
+    }
+
+    /// What is wrong, if anything: a 95th percentile over 0.06 or a largest difference over
+    /// 0.3, sharp steps in more than 1% of the steps, a line varying more than its bound.
+    fn failures(&self) -> Option<String> {
+        let mut why = Vec::new();
+        if self.p95 > 0.06 || self.largest > 0.3 {
+            why.push(format!(
+                "difference p95 {:.3}, largest {:.3}",
+                self.p95, self.largest
+            ));
+        }
+        if self.sharp_steps * 100 > self.steps {
+            why.push(format!(
+                "{} sharp steps of {}",
+                self.sharp_steps, self.steps
+            ));
+        }
+        if self.variation_ratio > 1.0 {
+            why.push(format!(
+                "total variation {:.2} of its bound",
+                self.variation_ratio
+            ));
+        }
+        (!why.is_empty()).then(|| why.join("; "))
+    }
 }

@@ -31,6 +31,19 @@ use super::profile::{COARSE_BELOW_EDGE_PX, FrameSettings, MeshShading, PREFERRED
 
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// A shader of `shaders/` with `shaders/clay_shading.wgsl` placed before it: the passes that
+/// draw the clay's surface (the mesh, the point-set splats) share that one lighting code.
+macro_rules! clay_shaded {
+    ($file:literal) => {
+        concat!(
+            include_str!("../../shaders/clay_shading.wgsl"),
+            "\n",
+            include_str!(concat!("../../shaders/", $file))
+        )
+    };
+}
+
 /// Edge length of the built-in environment sphere map.
 const ENVIRONMENT_SIZE_PX: u32 = 256;
 
@@ -46,7 +59,7 @@ pub fn supported_sample_count(adapter: &wgpu::Adapter, format: wgpu::TextureForm
     if ok { PREFERRED_SAMPLES } else { 1 }
 }
 
-/// Per-frame uniforms; the layout matches `Frame` in `shaders/mesh.wgsl` and `overlay.wgsl`.
+/// Per-frame uniforms; the layout matches `Frame` in `shaders/clay_shading.wgsl` and `overlay.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct FrameUniforms {
@@ -345,13 +358,11 @@ impl SceneRenderer {
         let mesh_shader = device.create_shader_module(match shading {
             MeshShading::PerPixel => wgpu::ShaderModuleDescriptor {
                 label: Some("mesh.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/mesh.wgsl").into()),
+                source: wgpu::ShaderSource::Wgsl(clay_shaded!("mesh.wgsl").into()),
             },
             MeshShading::VertexLit => wgpu::ShaderModuleDescriptor {
                 label: Some("mesh_vertex_lit.wgsl"),
-                source: wgpu::ShaderSource::Wgsl(
-                    include_str!("../../shaders/mesh_vertex_lit.wgsl").into(),
-                ),
+                source: wgpu::ShaderSource::Wgsl(clay_shaded!("mesh_vertex_lit.wgsl").into()),
             },
         });
         let overlay_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -440,8 +451,17 @@ impl SceneRenderer {
         );
         let disc_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("discs.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/discs.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(clay_shaded!("discs.wgsl").into()),
         });
+        // Splats are lit as the mesh pass lights the clay (`shaders/discs.wgsl`).
+        let disc_constants = [(
+            "KEY_LIGHT_ONLY",
+            if shading == MeshShading::VertexLit {
+                1.0
+            } else {
+                0.0
+            },
+        )];
         let disc_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("discs"),
             layout: Some(&layout),
@@ -474,7 +494,10 @@ impl SceneRenderer {
             fragment: Some(wgpu::FragmentState {
                 module: &disc_shader,
                 entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &disc_constants,
+                    ..Default::default()
+                },
                 targets: &[Some(wgpu::ColorTargetState {
                     format,
                     blend: None,
