@@ -40,7 +40,7 @@
 //! surface); the covering radius is never cut, a hole being worse. Each point also carries
 //! its normal's gradient ([`PointSetView::normal_gradients`], see [`super::curvature`]), for
 //! a renderer to light each pixel of a splat with the normal the surface has there rather
-//! than the splat's one normal (the window's splat shader does not read it yet).
+//! than the splat's one normal (the window's splat shader does: `src/render/discs.rs`).
 //! Normals are taken from the clay's gradient at every update; a normal's gradient is
 //! refreshed whenever its point moves and whenever the scan passes it.
 
