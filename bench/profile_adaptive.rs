@@ -1,0 +1,59 @@
+//! Profiling harness for the multi-level mesher's local re-mesh (for `perf record`): the
+//! three-level clay of the `adaptive_remesh` bench (`bench/support/mesh_clays.rs`), a stroke of three finest-level
+//! coefficients and its undo re-meshed locally, alternately, many times. Prints the best and
+//! median time of one local re-mesh with its mesh copy, and of one whole mesh, for a quick
+//! look; the figures that count come from the criterion bench.
+//!
+//! Run: `cargo bench --bench profile_adaptive -- [rounds] [local]` (with `local`, the whole
+//! mesh is not timed: for a profile of the local path).
+
+use std::hint::black_box;
+use std::time::Instant;
+
+use dynaclay::mesh::{AdaptiveMeshOptions, AdaptiveMesher, mesh_adaptive};
+
+#[path = "support/mesh_clays.rs"]
+mod mesh_clays;
+use mesh_clays::three_level_clay;
+
+fn median_and_best(mut times_ms: Vec<f64>) -> (f64, f64) {
+    times_ms.sort_by(f64::total_cmp);
+    (times_ms[times_ms.len() / 2], times_ms[0])
+}
+
+fn main() {
+    // `cargo bench` adds `--bench`: only the words without dashes are ours.
+    let words: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with("--"))
+        .collect();
+    let rounds: usize = words.first().and_then(|s| s.parse().ok()).unwrap_or(2000);
+    let (before, after, (lo, hi)) = three_level_clay();
+    let options = AdaptiveMeshOptions::default();
+    let mut mesher = AdaptiveMesher::new(&before, &options).expect("mesher");
+    let mut local_ms = Vec::with_capacity(rounds);
+    let mut last = None;
+    for round in 0..rounds {
+        let field = if round % 2 == 0 { &after } else { &before };
+        let start = Instant::now();
+        let report = mesher.remesh_box(field, lo, hi).expect("re-mesh");
+        let mesh = black_box(mesher.mesh());
+        local_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        assert!(!report.whole && report.polygons_made > 0, "{report:?}");
+        last = Some((report, mesh.triangles.len()));
+    }
+    let local_only = words.get(1).is_some_and(|a| a == "local");
+    let whole_rounds = if local_only { 1 } else { (rounds / 100).max(3) };
+    let mut whole_ms = Vec::new();
+    for round in 0..whole_rounds {
+        let field = if round % 2 == 0 { &after } else { &before };
+        let start = Instant::now();
+        black_box(mesh_adaptive(field, &options).expect("whole"));
+        whole_ms.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    let (local_median, local_best) = median_and_best(local_ms);
+    let (whole_median, whole_best) = median_and_best(whole_ms);
+    println!("last local re-mesh: {last:?}");
+    println!("local: median {local_median:.3} ms, best {local_best:.3} ms");
+    println!("whole: median {whole_median:.3} ms, best {whole_best:.3} ms");
+}
