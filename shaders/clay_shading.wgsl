@@ -4,23 +4,7 @@
 // renderer.rs joins them), so a splat and the triangle under it are lit alike: the same
 // ambient, lights, specular and environment layer, never two copies that drift apart.
 
-struct Frame {
-    view_proj: mat4x4<f32>,
-    view: mat4x4<f32>,
-    // xyz: eye position in world units.
-    eye: vec4<f32>,
-    // xyz: world-space unit direction toward each light.
-    light_dir: array<vec4<f32>, 2>,
-    light_color: array<vec4<f32>, 2>,
-    // rgb: unpainted clay colour; a: ambient factor.
-    material: vec4<f32>,
-    // x: specular strength, y: shininess, z: environment opacity.
-    params: vec4<f32>,
-    // x: environment mode (0 off, 1 opaque, 2 transparent, 3 clear coat).
-    flags: vec4<u32>,
-}
-
-@group(0) @binding(0) var<uniform> frame: Frame;
+// `Frame` and `frame` (binding 0) come from shaders/frame.wgsl, placed before this file.
 @group(0) @binding(1) var env_texture: texture_2d<f32>;
 @group(0) @binding(2) var env_sampler: sampler;
 

@@ -1,18 +1,7 @@
 // The overlay pass: workspace and region boxes, the force arrow and the tool wireframe as lines
 // (unlit, zero normal), and the see-through tool sphere as alpha-blended triangles.
 
-struct Frame {
-    view_proj: mat4x4<f32>,
-    view: mat4x4<f32>,
-    eye: vec4<f32>,
-    light_dir: array<vec4<f32>, 2>,
-    light_color: array<vec4<f32>, 2>,
-    material: vec4<f32>,
-    params: vec4<f32>,
-    flags: vec4<u32>,
-}
-
-@group(0) @binding(0) var<uniform> frame: Frame;
+// `Frame` and `frame` (binding 0) come from shaders/frame.wgsl, placed before this file.
 
 struct VertexIn {
     @location(0) position: vec3<f32>,

@@ -32,11 +32,26 @@ use super::profile::{COARSE_BELOW_EDGE_PX, FrameSettings, MeshShading, PREFERRED
 /// Depth buffer format of every pass.
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
-/// A shader of `shaders/` with `shaders/clay_shading.wgsl` placed before it: the passes that
-/// draw the clay's surface (the mesh, the point-set splats) share that one lighting code.
+/// A shader of `shaders/` with `shaders/frame.wgsl` (the per-frame uniforms) placed before
+/// it: every scene pass reads that one layout.
+macro_rules! framed {
+    ($file:literal) => {
+        concat!(
+            include_str!("../../shaders/frame.wgsl"),
+            "\n",
+            include_str!(concat!("../../shaders/", $file))
+        )
+    };
+}
+
+/// A shader of `shaders/` with `shaders/frame.wgsl` and `shaders/clay_shading.wgsl` placed
+/// before it: the passes that draw the clay's surface (the mesh, the point-set splats) share
+/// that one lighting code.
 macro_rules! clay_shaded {
     ($file:literal) => {
         concat!(
+            include_str!("../../shaders/frame.wgsl"),
+            "\n",
             include_str!("../../shaders/clay_shading.wgsl"),
             "\n",
             include_str!(concat!("../../shaders/", $file))
@@ -59,7 +74,7 @@ pub fn supported_sample_count(adapter: &wgpu::Adapter, format: wgpu::TextureForm
     if ok { PREFERRED_SAMPLES } else { 1 }
 }
 
-/// Per-frame uniforms; the layout matches `Frame` in `shaders/clay_shading.wgsl` and `overlay.wgsl`.
+/// Per-frame uniforms; the layout matches `Frame` in `shaders/frame.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct FrameUniforms {
@@ -367,7 +382,7 @@ impl SceneRenderer {
         });
         let overlay_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("overlay.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("../../shaders/overlay.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(framed!("overlay.wgsl").into()),
         });
         let pipeline = |label: &str,
                         module: &wgpu::ShaderModule,
