@@ -5,9 +5,9 @@
 // particles are unlit green with a rim and lifted so the clay does not hide them; point-set
 // splats sit on the surface and are lit as the clay's mesh is (the same shading, chosen by
 // KEY_LIGHT_ONLY as the mesh pass is), each pixel with the normal the surface has there to
-// first order (n + W·offset, W the normal's gradient the splat carries), and each pixel's
+// first order (n + W·offset, W the normal's gradient the splat carries), each pixel's
 // depth pushed back with its squared distance from the centre, so where splats overlap the
-// one centred nearest is seen.
+// one centred nearest is seen, and only from the side their normal points to.
 
 // The rim's colour as a fraction of the disc's.
 const RIM_DARKEN: f32 = 0.25;
@@ -30,6 +30,8 @@ struct DiscIn {
     @location(8) grad_off: vec3<f32>,
     // How far behind its plane the rim is for the depth test, a fraction of the radius.
     @location(9) rim_depth: f32,
+    // 1: drawn only from the side the normal points to (splats of the closed clay).
+    @location(10) one_sided: u32,
 }
 
 struct VertexOut {
@@ -45,6 +47,7 @@ struct VertexOut {
     @location(5) @interpolate(flat) shade: f32,
     // rim_depth × radius: the push away from the eye at the rim, world units.
     @location(6) @interpolate(flat) rim_push: f32,
+    @location(7) @interpolate(flat) one_sided: u32,
 }
 
 struct FragmentOut {
@@ -84,6 +87,7 @@ fn vs_main(@builtin(vertex_index) corner: u32, d: DiscIn) -> VertexOut {
     );
     out.shade = d.shade;
     out.rim_push = max(d.rim_depth, 0.0) * d.radius;
+    out.one_sided = d.one_sided;
     return out;
 }
 
@@ -91,6 +95,11 @@ fn vs_main(@builtin(vertex_index) corner: u32, d: DiscIn) -> VertexOut {
 fn fs_main(v: VertexOut, @builtin(front_facing) front: bool) -> FragmentOut {
     let r2 = dot(v.uv, v.uv);
     if r2 > 1.0 {
+        discard;
+    }
+    // A one-sided disc seen from behind lies on the clay's far side, behind a wall: not drawn,
+    // so where the wall is thinner than the near splats' rim push it does not show through.
+    if !front && v.one_sided != 0u {
         discard;
     }
     let to_eye = safe_normalize(frame.eye.xyz - v.world, vec3<f32>(0.0, 0.0, 1.0));
@@ -104,7 +113,7 @@ fn fs_main(v: VertexOut, @builtin(front_facing) front: bool) -> FragmentOut {
     if v.shade > 0.0 {
         // The surface's normal at this pixel to first order.
         var m = safe_normalize(v.turned_normal, to_eye);
-        // Two-sided as the mesh is: a disc seen from behind is lit as if it faced the viewer.
+        // A two-sided disc, as the mesh: seen from behind, it is lit as if it faced the viewer.
         // The disc's side decides, not the turned normal's, so a pixel whose normal turns a
         // little past the silhouette is lit as the mesh's pixel there is, not flipped over.
         if !front {

@@ -59,11 +59,14 @@ pub struct Disc {
     /// from the centre, so where discs overlap the one whose centre is nearest wins
     /// ([`SPLAT_RIM_DEPTH`]); 0: the plane's depth.
     pub rim_depth: f32,
+    /// 1: the disc is drawn only from the side its normal points to ([`splat_discs`]); 0:
+    /// from both sides.
+    pub one_sided: u32,
 }
 
-pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 10] = wgpu::vertex_attr_array![
+pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 11] = wgpu::vertex_attr_array![
     0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Float32, 4 => Float32x3,
-    5 => Float32, 6 => Float32, 7 => Float32x3, 8 => Float32x3, 9 => Float32
+    5 => Float32, 6 => Float32, 7 => Float32x3, 8 => Float32x3, 9 => Float32, 10 => Uint32
 ];
 
 /// A splat's [`Disc::rim_depth`]. Overlapping splats of a convex surface (a groove's rounded
@@ -74,7 +77,11 @@ pub(crate) const DISC_ATTRIBUTES: [wgpu::VertexAttribute; 10] = wgpu::vertex_att
 /// radius `r` on a surface of curvature `κ` stands `κ d² / 2` above it at `d`, under the push
 /// wherever `κ r ≤ 2 · rim_depth`; the follower keeps `κ r` to 0.5 where coverage allows
 /// (`dynaclay_import`'s `DISC_CURVATURE_RADII`). The cost: a surface less than `rim_depth · r` behind a splat's rim may show through
-/// it (the visibility splatting tolerance of Botsch et al. 2004).
+/// it (the visibility splatting tolerance of Botsch et al. 2004). That surface is the clay's
+/// far side wherever a wall is thinner than the push (a groove's end beside the block's
+/// side), so splats are one-sided ([`Disc::one_sided`]): the points follow a closed clay,
+/// and a splat seen from behind is always on its far side (back-face culling, as surface
+/// splatting does).
 pub const SPLAT_RIM_DEPTH: f32 = 0.5;
 
 fn usable(p: Vec3, n: Vec3, r: f32) -> bool {
@@ -102,6 +109,7 @@ pub fn particle_discs(out: &mut Vec<Disc>, positions: &[Vec3], normals: &[Vec3],
                 normal_gradient_diagonal: [0.0; 3],
                 normal_gradient_off_diagonal: [0.0; 3],
                 rim_depth: 0.0,
+                one_sided: 0,
             }),
     );
 }
@@ -118,7 +126,7 @@ pub fn srgb8_to_linear(c: u8) -> f32 {
 }
 
 /// Appends one splat per point: its colour (8-bit sRGB), its normal, its radius and how its
-/// normal turns across it, lit, no rim, on the surface; points with a non-finite position or
+/// normal turns across it, lit, no rim, on the surface, one-sided; points with a non-finite position or
 /// radius are skipped. The first four slices are read up to the shortest; a point past the
 /// end of `normal_gradients`, or with a non-finite one, is lit with its one normal.
 pub fn splat_discs(
@@ -154,6 +162,7 @@ pub fn splat_discs(
                     normal_gradient_diagonal: w.diagonal_per_fu.to_array(),
                     normal_gradient_off_diagonal: w.off_diagonal_per_fu.to_array(),
                     rim_depth: SPLAT_RIM_DEPTH,
+                    one_sided: 1,
                 }
             }),
     );
@@ -181,6 +190,7 @@ mod tests {
             out[0].rim_depth, 0.0,
             "particles are drawn at their plane's depth"
         );
+        assert_eq!(out[0].one_sided, 0, "particles are seen from both sides");
     }
 
     #[test]
@@ -212,6 +222,10 @@ mod tests {
         assert_eq!(out[2].radius, 0.2);
         assert!(out[1].rim > 1.0 && out[1].shade == 1.0 && out[1].lift == 0.0);
         assert_eq!(out[1].rim_depth, SPLAT_RIM_DEPTH);
+        assert_eq!(
+            out[1].one_sided, 1,
+            "splats are seen from their normal's side only"
+        );
         assert_eq!(out[1].normal_gradient_diagonal, [1.0, 2.0, 3.0]);
         assert_eq!(out[1].normal_gradient_off_diagonal, [4.0, 5.0, 6.0]);
         assert_eq!(

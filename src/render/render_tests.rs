@@ -980,6 +980,79 @@ fn point_set_splats_cover_the_surface_in_their_colours() {
     assert_eq!(r.renderer().disc_count(), 0);
 }
 
+/// A wall thinner than the splats' rim push, seen face on: the near side's splats (blue,
+/// facing the eye) and the far side's (red, facing away, a tenth of a radius behind and
+/// sampled half a spacing apart, as a wall's two sides are) overlap on screen, and where a
+/// near splat's rim is pushed back past the far side's centre the far one would win. Splats
+/// are one-sided, so no red pixel shows; drawn two-sided (the same discs with
+/// `one_sided: 0`), the far side shows through as specks, which this test also checks so it
+/// knows the wall is thin enough to matter.
+#[test]
+fn a_thin_wall_does_not_show_its_far_side_through_the_splats() {
+    let Some(mut r) = offscreen(W, H) else { return };
+    let camera = front_camera(3.5);
+    assert!(camera.eye().z > 1.0, "the front view looks down -z");
+    let options = plain_options();
+    let spacing = 0.05;
+    let radius = spacing;
+    let sheet = |z: f32, offset: f32| -> Vec<Vec3> {
+        let steps = (1.2 / spacing) as i32;
+        (-steps..=steps)
+            .flat_map(|i| {
+                (-steps..=steps).map(move |j| {
+                    Vec3::new(i as f32 * spacing + offset, j as f32 * spacing + offset, z)
+                })
+            })
+            .collect()
+    };
+    let near = sheet(0.0, 0.0);
+    let far = sheet(-0.1 * radius, 0.5 * spacing);
+    let positions: Vec<Vec3> = near.iter().chain(&far).copied().collect();
+    let normals: Vec<Vec3> = near
+        .iter()
+        .map(|_| Vec3::Z)
+        .chain(far.iter().map(|_| -Vec3::Z))
+        .collect();
+    let colours: Vec<[u8; 3]> = near
+        .iter()
+        .map(|_| [0, 0, 255])
+        .chain(far.iter().map(|_| [255, 0, 0]))
+        .collect();
+    let mut discs = Vec::new();
+    let n = positions.len();
+    splat_discs(
+        &mut discs,
+        &positions,
+        &normals,
+        &colours,
+        &vec![radius; n],
+        &[],
+    );
+    assert!(discs.iter().all(|d| d.one_sided == 1));
+    let reddish = |img: &Image| {
+        let mut count = 0;
+        for y in H / 4..3 * H / 4 {
+            for x in W / 4..3 * W / 4 {
+                let p = img.pixel(x, y).unwrap();
+                if p[0] > 40 && p[0] > 2 * p[2] {
+                    count += 1;
+                }
+            }
+        }
+        count
+    };
+    r.set_discs(&discs).unwrap();
+    let one_sided = r.render(&camera, &options).unwrap();
+    assert_eq!(reddish(&one_sided), 0, "the far side shows through");
+    let two_sided: Vec<Disc> = discs.iter().map(|d| Disc { one_sided: 0, ..*d }).collect();
+    r.set_discs(&two_sided).unwrap();
+    let shown = reddish(&r.render(&camera, &options).unwrap());
+    assert!(
+        shown > 50,
+        "two-sided, the far side shows through in {shown} pixels: the wall is too thick to test"
+    );
+}
+
 #[test]
 fn a_software_adapter_gets_one_sample_and_vertex_lit_shading() {
     let mut cpu = wgpu::AdapterInfo::new(wgpu::DeviceType::Cpu, wgpu::Backend::Vulkan);
@@ -1491,6 +1564,22 @@ fn grooved_block() -> crate::field::BSplineLattice {
     clay.base().clone()
 }
 
+/// The pixels that `mesh` shows as clay, two pixels or more inside its silhouette, and
+/// `splats` leaves as background (dark): holes in the splats' cover.
+fn splat_holes(mesh: &Image, splats: &Image) -> Vec<(u32, u32)> {
+    let clay = |img: &Image, x: u32, y: u32| luminance(img.pixel(x, y).unwrap()) > 8.0;
+    let mut holes = Vec::new();
+    for y in 2..mesh.height - 2 {
+        for x in 2..mesh.width - 2 {
+            let inside = (y - 2..=y + 2).all(|v| (x - 2..=x + 2).all(|u| clay(mesh, u, v)));
+            if inside && !clay(splats, x, y) {
+                holes.push((x, y));
+            }
+        }
+    }
+    holes
+}
+
 /// The default block's top and where the groove runs across it.
 const GROOVE_TOP: f32 = 1.725;
 const GROOVE_Z: f32 = 1.15;
@@ -1566,7 +1655,9 @@ fn clay_across_groove(
 /// the groove's straight part, pixel by pixel, within 0.06 of the clay's own brightness
 /// (ray-cast, [`clay_across_groove`]) at the 95th percentile (0.3 at most), sharp steps in at
 /// most 1% of the neighbouring samples, and no line varying more than 1.3 times the clay's +
-/// 0.1 ([`GrooveFacets`]); the same splats lit flat, one normal each, fail these. The clay,
+/// 0.1 ([`GrooveFacets`]); the same splats lit flat, one normal each, fail these. And the
+/// splats cover the clay: at most one pixel in 2000 of the mesh's clay, away from its
+/// silhouette, is left as background ([`splat_holes`]; the splats are one-sided). The clay,
 /// not the mesh, is the reference for the facets: the mesh's normals, interpolated across
 /// triangles two to a knot span, are themselves 0.05 off the clay's at the 95th percentile
 /// (printed) and soften the steep wall's turn from the light, which the splats follow.
@@ -1637,6 +1728,27 @@ fn a_sculpted_groove_shades_in_splats_as_in_the_mesh() {
             .unwrap();
     }
 
+    // No holes: every pixel the mesh covers, away from its silhouette, a splat covers (the
+    // splats are one-sided, so a hole shows the background, not the clay's far side).
+    let holes = splat_holes(&mesh, &splats);
+    let clay_pixels = (0..H)
+        .flat_map(|y| (0..W).map(move |x| (x, y)))
+        .filter(|&(x, y)| luminance(mesh.pixel(x, y).unwrap()) > 8.0)
+        .count();
+    eprintln!(
+        "splat holes: {} of {clay_pixels} clay pixels, at {:?}",
+        holes.len(),
+        &holes[..holes.len().min(20)]
+    );
+    assert!(
+        clay_pixels > W as usize * H as usize / 2,
+        "the block fills the view"
+    );
+    assert!(
+        holes.len() * 2000 <= clay_pixels,
+        "the splats leave {} holes in {clay_pixels} pixels of clay: {holes:?}",
+        holes.len()
+    );
     let (m, s) = (
         across_groove(&mesh, &camera, 1.15),
         across_groove(&splats, &camera, 1.15),

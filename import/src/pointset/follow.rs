@@ -79,6 +79,15 @@ pub const CURVATURE_STEP_SPANS: f32 = 0.25;
 /// cell needs more to be covered): a flat disc of radius `r` on a surface of curvature `κ`
 /// stands `κ r² / 2` off it at its rim, a tenth of its radius at half the curvature radius.
 pub const DISC_CURVATURE_RADII: f32 = 0.5;
+/// A splat's radius over its cell's covering radius: a disc that just reaches its cell's
+/// farthest vertex leaves that vertex on three discs' rims, where a rasteriser may light none
+/// of them (a one-pixel hole); the margin puts it inside.
+pub const COVER_MARGIN: f32 = 1.1;
+/// Two points lie on the same sheet of the surface, for crowding, insertion clearance and
+/// splat cells, only when their normals' cosine exceeds this: a point across a wall thinner
+/// than the spacing (its normal turned away) neither crowds a point out nor shrinks its
+/// splat, or the wall's ridge, sampled from both sides, would be left with holes.
+pub const SAME_SHEET_COSINE: f32 = 0.0;
 
 /// How the points follow the clay.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -202,7 +211,8 @@ pub struct PointFollower {
     clean_scanned: usize,
     gone: Vec<bool>,
     sites: Vec<Vec2>,
-    added: Vec<Vec3>,
+    /// Points inserted in this pass: position and normal.
+    added: Vec<(Vec3, Vec3)>,
     coords: Vec<[f32; 3]>,
 }
 
@@ -219,7 +229,7 @@ fn splat_radius(cell_fu: f32, curvature_per_fu: f32, h: f32) -> f32 {
         f32::INFINITY
     };
     let floor = (0.5 * h).min(bent);
-    cell_fu.clamp(floor, (1.5 * h).max(floor))
+    (COVER_MARGIN * cell_fu).clamp(floor, (1.5 * h).max(floor))
 }
 
 /// `F − iso` and `∇F` of the clay.
@@ -398,7 +408,11 @@ impl PointFollower {
                     .execute();
                 for r in found {
                     let j = r.item as usize;
-                    if j == i || self.gone[j] || r.distance >= 9.0 * h * h {
+                    if j == i
+                        || self.gone[j]
+                        || r.distance >= 9.0 * h * h
+                        || self.normals[j].dot(n) <= SAME_SHEET_COSINE
+                    {
                         continue;
                     }
                     if r.distance < crowd && budget > 0 {
@@ -409,9 +423,9 @@ impl PointFollower {
                     let d = self.positions[j] - p;
                     self.sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                 }
-                for &q in &self.added {
+                for &(q, m) in &self.added {
                     let d = q - p;
-                    if d.length_squared() < 9.0 * h * h {
+                    if d.length_squared() < 9.0 * h * h && m.dot(n) > SAME_SHEET_COSINE {
                         self.sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                     }
                 }
@@ -441,6 +455,7 @@ impl PointFollower {
                     || self.crowds(
                         &tree,
                         y,
+                        normal,
                         (self.options.insert_clearance * self.options.remove_below * h).powi(2),
                     )
                 {
@@ -457,7 +472,7 @@ impl PointFollower {
                     h,
                 ));
                 self.normal_gradients.push(w);
-                self.added.push(y);
+                self.added.push((y, normal));
                 report.inserted += 1;
                 budget -= 1;
             }
@@ -477,20 +492,28 @@ impl PointFollower {
         Ok(report)
     }
 
-    /// Whether a point at `y` would have a point (of `tree` and not marked gone, or added in
-    /// this pass) closer than `clearance_sq.sqrt()`.
-    fn crowds(&self, tree: &ImmutableKdTree<f32, 3>, y: Vec3, clearance_sq: f32) -> bool {
+    /// Whether a point at `y` with normal `normal` would have a point on its sheet (of `tree`
+    /// and not marked gone, or added in this pass) closer than `clearance_sq.sqrt()`.
+    fn crowds(
+        &self,
+        tree: &ImmutableKdTree<f32, 3>,
+        y: Vec3,
+        normal: Vec3,
+        clearance_sq: f32,
+    ) -> bool {
         let want = NonZero::new(CLEARANCE_NEIGHBOURS).unwrap_or(NonZero::<usize>::MIN);
         let near = tree
             .query(&[y.x, y.y, y.z])
             .nearest_n::<SquaredEuclidean<f32>>(want)
             .execute();
-        near.iter()
-            .any(|r| r.distance < clearance_sq && !self.gone[r.item as usize])
-            || self
-                .added
-                .iter()
-                .any(|q| q.distance_squared(y) < clearance_sq)
+        let same_sheet = |m: Vec3| m.dot(normal) > SAME_SHEET_COSINE;
+        near.iter().any(|r| {
+            let j = r.item as usize;
+            r.distance < clearance_sq && !self.gone[j] && same_sheet(self.normals[j])
+        }) || self
+            .added
+            .iter()
+            .any(|&(q, m)| q.distance_squared(y) < clearance_sq && same_sheet(m))
     }
 
     /// Drops the points marked in `gone`; returns how many went.
