@@ -468,7 +468,9 @@ const ENGINE_CELLS_PER_SPAN: u32 = 4;
 /// three-level clay (the stroke of three finest coefficients of `three_level_clay`) the
 /// multi-level mesher re-meshes around the change box and the changed triangles' bricks are
 /// cut again. Both alternate the stroke and its undo and return the bricks for the sink.
-/// Before timing, the cut bricks are checked to weld into the whole multi-level mesh.
+/// Before timing, the cut bricks are checked to weld into the whole multi-level mesh. For
+/// the split of the cost: the mesher's local re-mesh alone, and the cut path at the export's
+/// two cells per span.
 fn graphics_stroke(c: &mut Criterion) {
     let (before, after, (lo, hi)) = three_level_clay();
     // One level: the base alone, dented by three of its own coefficients at the pole.
@@ -499,7 +501,8 @@ fn graphics_stroke(c: &mut Criterion) {
         .remesh_box(&before, lo, hi, &mut levels_tree)
         .unwrap();
     println!(
-        "graphics stroke: one level {} bricks; three levels {} bricks, {} leaves, {}          triangles; the stroke re-meshed {} bricks and removed {}, its undo {} and {}",
+        "graphics stroke: one level {} bricks; three levels {} bricks, {} leaves, {} \
+         triangles; the stroke re-meshed {} bricks and removed {}, its undo {} and {}",
         one_level.brick_count(),
         levels_tree.brick_count(),
         levels.mesher().leaf_count(),
@@ -511,7 +514,7 @@ fn graphics_stroke(c: &mut Criterion) {
     );
 
     let mut group = c.benchmark_group("graphics_stroke");
-    group.sample_size(20);
+    group.sample_size(10);
     let mut flip = false;
     group.bench_function("one_level/marching_cubes_bricks", |bench| {
         bench.iter(|| {
@@ -532,6 +535,41 @@ fn graphics_stroke(c: &mut Criterion) {
             black_box(report)
         })
     });
+    // The mesher's share: the same local re-mesh without the cut into bricks.
+    let mut mesher = AdaptiveMesher::new(&before, &options).unwrap();
+    let mut flip = false;
+    group.bench_function("three_levels/mesher_alone", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &after } else { &before };
+            let report = mesher.remesh_box(field, lo, hi).unwrap();
+            assert!(!report.whole && report.polygons_made > 0, "{report:?}");
+            black_box(report)
+        })
+    });
+    // A new patch layout (a refine, a fold) meshes the whole clay and cuts it.
+    group.bench_function("three_levels/whole_clay_cut_after_new_layout", |bench| {
+        bench.iter(|| {
+            let mut tree = BrickOctree::new(*levels_tree.grid());
+            black_box(AdaptiveBricks::new(&after, &options, &mut tree).unwrap())
+        })
+    });
+    // The export's two cells per span (a quarter of the cells), cut into the same bricks.
+    let (mut coarser, _) =
+        AdaptiveBricks::new(&before, &level_mesh_options(2), &mut levels_tree).unwrap();
+    let mut flip = false;
+    group.bench_function(
+        "three_levels/multi_level_bricks_2_cells_per_span",
+        |bench| {
+            bench.iter(|| {
+                flip = !flip;
+                let field = if flip { &after } else { &before };
+                let report = coarser.remesh_box(field, lo, hi, &mut levels_tree).unwrap();
+                assert!(!report.changed.is_empty());
+                black_box(report)
+            })
+        },
+    );
     group.finish();
 }
 
