@@ -616,6 +616,57 @@ mod tests {
         assert!(window.triangle_count() > grid_cells);
     }
 
+    /// A clay that starts with a detail patch holding detail (a loaded session) is drawn
+    /// from the multi-level mesh from the first update: closed, and finer where the detail is.
+    #[test]
+    fn a_clay_that_starts_with_detail_is_drawn_from_its_levels() {
+        let lattice = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let spacing = lattice.spacing;
+        let config = EngineConfig::for_field(&lattice, &SimArmConfig::default_info());
+        let centre = Vec3::splat(11.0 * spacing * 0.5);
+        let pole = centre + Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);
+        let mut field = MultiPatchField::new(lattice.clone());
+        let half = Vec3::splat(spacing);
+        let detail = field.refine(pole - half, pole + half, 2).unwrap();
+        // A dimple a quarter of a base span wide at the pole.
+        let target = |x: Vec3| {
+            lattice.value(x) - 0.3 * (-(x - pole).length_squared() / (0.06 * spacing)).exp()
+        };
+        field.fit_detail(detail, 2, target).unwrap();
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let s = build(
+            &config,
+            field.clone(),
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap();
+        assert!(s.graphics.meshes_levels());
+        assert!(s.graphics.octree().is_cut());
+        let window = s.graphics.octree().weld();
+        let stats = dynaclay_core::mesh::MeshStats::of(&window);
+        assert_eq!(stats.boundary_edges, 0, "{stats:?}");
+        assert_eq!(stats.misoriented_edges, 0, "{stats:?}");
+        let exported =
+            dynaclay_core::mesh::mesh_adaptive(&field, &level_mesh_options(config.cells_per_span))
+                .unwrap();
+        assert_eq!(triangle_set(&window), triangle_set(&exported));
+        let inner = Vec3::splat(0.3 * spacing);
+        let (_, fine_edge) = triangles_in(&window, pole - inner, pole + inner);
+        let far = centre - Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);
+        let (_, base_edge) = triangles_in(&window, far - inner, far + inner);
+        assert!(
+            fine_edge < 0.5 * base_edge,
+            "edge {fine_edge} at the dimple against {base_edge} on the base"
+        );
+    }
+
     /// A step that changes the clay rings the graphics loop's bell once it has published, and
     /// the tick it starts re-meshes the change; steps that change nothing do not ring.
     #[test]
