@@ -2,7 +2,10 @@
 //! same samples (its 0.0.4 release, with and without normals, and the 0.1.0 alpha), and
 //! `fast-surface-nets` (a different algorithm, for reference), a local re-mesh of a tool-sized
 //! box, a re-mesh by the multi-level mesher after a stroke-sized change on a three-level clay
-//! (local around the change, and whole for the ratio),
+//! (local around the change, and whole for the ratio), the graphics loop's re-mesh of a
+//! stroke-sized change with and without detail patches (`graphics_stroke`: marching cubes of
+//! the one-level clay's bricks against the multi-level mesh cut into bricks, both at the
+//! engine's four cells per span),
 //! and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
@@ -29,9 +32,11 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{BenchmarkId, Criterion, Throughput};
+use dynaclay::engine::level_mesh_options;
+use dynaclay::field::MultiPatchField;
 use dynaclay::mesh::{
-    AdaptiveMeshOptions, AdaptiveMesher, BrickOctree, FnField, SampleGrid, TriMesh, WeldScratch,
-    adaptive_cell_count, mesh_adaptive,
+    AdaptiveBricks, AdaptiveMeshOptions, AdaptiveMesher, BrickOctree, FnField, SampleGrid, TriMesh,
+    WeldScratch, adaptive_cell_count, mesh_adaptive,
 };
 use fast_surface_nets::ndshape::{RuntimeShape, Shape};
 use fast_surface_nets::{SurfaceNetsBuffer, surface_nets};
@@ -454,6 +459,120 @@ fn adaptive_remesh(c: &mut Criterion) {
     group.finish();
 }
 
+/// The engine's cells per knot span (`EngineConfig::cells_per_span`'s default).
+const ENGINE_CELLS_PER_SPAN: u32 = 4;
+
+/// The graphics loop's work for one stroke-sized change, as `GraphicsStage` does it: on the
+/// clay of one patch (the three-level clay's base sphere, a stroke of three base
+/// coefficients at the pole) marching cubes refresh the bricks of the change box; on the
+/// three-level clay (the stroke of three finest coefficients of `three_level_clay`) the
+/// multi-level mesher re-meshes around the change box and the changed triangles' bricks are
+/// cut again. Both alternate the stroke and its undo and return the bricks for the sink.
+/// Before timing, the cut bricks are checked to weld into the whole multi-level mesh. For
+/// the split of the cost: the mesher's local re-mesh alone, and the cut path at the export's
+/// two cells per span.
+fn graphics_stroke(c: &mut Criterion) {
+    let (before, after, (lo, hi)) = three_level_clay();
+    // One level: the base alone, dented by three of its own coefficients at the pole.
+    let base_before = MultiPatchField::new(before.patches[0].lattice.clone());
+    let mut base_after = base_before.clone();
+    let lattice = &mut base_after.patches[0].lattice;
+    let node = [20, 12, 12];
+    for step in 0..3 {
+        let idx = lattice.index(node[0] + step, node[1], node[2]);
+        lattice.coeffs[idx] -= 0.3;
+    }
+    let (base_lo, base_hi) =
+        BrickOctree::coefficient_change_box(lattice, node, [node[0] + 2, node[1], node[2]]);
+    let grid = SampleGrid::for_field(&base_before, ENGINE_CELLS_PER_SPAN).unwrap();
+    let mut one_level = BrickOctree::build(grid, &base_before);
+
+    let options = level_mesh_options(ENGINE_CELLS_PER_SPAN);
+    let grid = SampleGrid::for_field(&before, ENGINE_CELLS_PER_SPAN).unwrap();
+    let mut levels_tree = BrickOctree::new(grid);
+    let (mut levels, _) = AdaptiveBricks::new(&before, &options, &mut levels_tree).unwrap();
+    let stroke = levels.remesh_box(&after, lo, hi, &mut levels_tree).unwrap();
+    assert_eq!(
+        triangle_set(&levels_tree.weld()),
+        triangle_set(&AdaptiveMesher::new(&after, &options).unwrap().mesh()),
+        "the cut bricks weld into the whole multi-level mesh"
+    );
+    let undo = levels
+        .remesh_box(&before, lo, hi, &mut levels_tree)
+        .unwrap();
+    println!(
+        "graphics stroke: one level {} bricks; three levels {} bricks, {} leaves, {} \
+         triangles; the stroke re-meshed {} bricks and removed {}, its undo {} and {}",
+        one_level.brick_count(),
+        levels_tree.brick_count(),
+        levels.mesher().leaf_count(),
+        levels_tree.triangle_count(),
+        stroke.changed.len(),
+        stroke.removed.len(),
+        undo.changed.len(),
+        undo.removed.len()
+    );
+
+    let mut group = c.benchmark_group("graphics_stroke");
+    group.sample_size(10);
+    let mut flip = false;
+    group.bench_function("one_level/marching_cubes_bricks", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &base_after } else { &base_before };
+            let report = one_level.refresh_box(field, base_lo, base_hi);
+            assert!(!report.changed.is_empty());
+            black_box(report)
+        })
+    });
+    let mut flip = false;
+    group.bench_function("three_levels/multi_level_bricks", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &after } else { &before };
+            let report = levels.remesh_box(field, lo, hi, &mut levels_tree).unwrap();
+            assert!(!report.changed.is_empty());
+            black_box(report)
+        })
+    });
+    // The mesher's share: the same local re-mesh without the cut into bricks.
+    let mut mesher = AdaptiveMesher::new(&before, &options).unwrap();
+    let mut flip = false;
+    group.bench_function("three_levels/mesher_alone", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &after } else { &before };
+            let report = mesher.remesh_box(field, lo, hi).unwrap();
+            assert!(!report.whole && report.polygons_made > 0, "{report:?}");
+            black_box(report)
+        })
+    });
+    // A new patch layout (a refine, a fold) meshes the whole clay and cuts it.
+    group.bench_function("three_levels/whole_clay_cut_after_new_layout", |bench| {
+        bench.iter(|| {
+            let mut tree = BrickOctree::new(*levels_tree.grid());
+            black_box(AdaptiveBricks::new(&after, &options, &mut tree).unwrap())
+        })
+    });
+    // The export's two cells per span (a quarter of the cells), cut into the same bricks.
+    let (mut coarser, _) =
+        AdaptiveBricks::new(&before, &level_mesh_options(2), &mut levels_tree).unwrap();
+    let mut flip = false;
+    group.bench_function(
+        "three_levels/multi_level_bricks_2_cells_per_span",
+        |bench| {
+            bench.iter(|| {
+                flip = !flip;
+                let field = if flip { &after } else { &before };
+                let report = coarser.remesh_box(field, lo, hi, &mut levels_tree).unwrap();
+                assert!(!report.changed.is_empty());
+                black_box(report)
+            })
+        },
+    );
+    group.finish();
+}
+
 /// Peak resident memory of this process so far (`VmHWM`), in bytes (Linux).
 fn peak_rss_bytes() -> usize {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
@@ -540,6 +659,7 @@ fn main() {
     memory_at_512();
     let mut c = Criterion::default().configure_from_args();
     local_remesh(&mut c);
+    graphics_stroke(&mut c);
     adaptive_remesh(&mut c);
     full_extraction(&mut c);
     threads(&mut c);

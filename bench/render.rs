@@ -33,6 +33,7 @@ impl Brick {
             normals: &self.normals,
             colors: &[],
             indices: &self.indices,
+            cut: false,
         }
     }
 }

@@ -1,6 +1,15 @@
 //! The graphics stage: turns the newest field patch into re-meshed octree bricks and hands
 //! them to a [`MeshSink`] (the GUI renderer, or the headless counter).
 //!
+//! A clay of one patch is meshed by marching cubes on the octree's grid, brick by brick. A
+//! clay with detail patches is meshed by the multi-level mesher, each region at the spacing
+//! of the finest patch holding detail there (the engine's cells per span of that level), and
+//! the mesh is cut into the octree's bricks ([`AdaptiveBricks`]): the sink gets bricks as
+//! before, closed across the seams between levels, and a stroke re-meshes and reports only
+//! the bricks near it. A new patch layout (a refine, a fold, a grown base) meshes the clay
+//! whole once; a clay the multi-level mesher refuses (over its cell budget) is meshed on the
+//! grid, as a clay of one patch is.
+//!
 //! Not real-time: meshing allocates. It never blocks the other loops: it reads the newest
 //! patch wait-free and works on its own copy of the field.
 //!
@@ -35,7 +44,9 @@ use super::layout::LayoutPort;
 use super::update::{AppliedChange, FieldUpdate};
 use dynaclay_core::field::MultiPatchField;
 pub use dynaclay_core::mesh::MeshSink;
-use dynaclay_core::mesh::{BrickOctree, GridError, RefreshReport, SampleGrid};
+use dynaclay_core::mesh::{
+    AdaptiveBricks, AdaptiveMeshOptions, BrickOctree, GridError, RefreshReport, SampleGrid,
+};
 use dynaclay_core::tools::{ColourField, FreezeMask};
 use glam::Vec3;
 
@@ -95,6 +106,11 @@ pub struct GraphicsStage {
     applied: VecDeque<(u64, u64)>,
     /// Changes applied to `field` but not re-meshed yet (see [`DEFERRED_COEFF_TOLERANCE`]).
     held_back: Option<HeldBack>,
+    /// Cells per knot span of each level (the grid's, and the multi-level mesher's).
+    cells_per_span: u32,
+    /// The multi-level mesh cut into `octree`'s bricks, while the clay has detail patches
+    /// (none: the bricks are marching cubes of the grid).
+    levels: Option<AdaptiveBricks>,
 }
 
 /// Changes applied to the graphics stage's field and not re-meshed yet.
@@ -113,9 +129,9 @@ struct HeldBack {
 const APPLIED_KEPT: usize = 3600;
 
 impl GraphicsStage {
-    /// Builds the stage and meshes `field` in full; `cells_per_span` sets the marching-cubes
-    /// resolution (cells per knot span); paint arrives on `colours`, new patch layouts on
-    /// `layouts`.
+    /// Builds the stage and meshes `field` in full; `cells_per_span` sets the resolution
+    /// (cells per knot span: of the grid's spacing for marching cubes, of each level's for
+    /// the multi-level mesh); paint arrives on `colours`, new patch layouts on `layouts`.
     ///
     /// # Errors
     /// When the sampling grid cannot be made for the lattice.
@@ -134,10 +150,12 @@ impl GraphicsStage {
     ) -> Result<Self, GridError> {
         let grid = SampleGrid::for_field(&field, cells_per_span)?;
         let mut octree = BrickOctree::new(grid);
-        let report = octree.rebuild(&field);
+        let (levels, report) = mesh_whole(&field, cells_per_span, &mut octree);
         sink.update(&octree, &report);
         sink.field(&field);
         Ok(Self {
+            cells_per_span,
+            levels,
             field: Box::new(field),
             layout: 0,
             layouts,
@@ -175,10 +193,12 @@ impl GraphicsStage {
         if let Some(generation) = self.layouts.install(&mut self.field) {
             // A new patch holds nothing yet and a grown base holds empty space where it grew:
             // the field is unchanged. The grid keeps the resolution the engine started with
-            // and grows with the clay.
+            // and grows with the clay. The multi-level mesh follows the patches' layout, so a
+            // clay that has or had detail patches is meshed afresh.
             self.layout = generation;
-            if !self.grid_covers_the_clay() {
-                self.regrid();
+            let regridded = !self.grid_covers_the_clay() && self.regrid();
+            if !regridded && (self.levels.is_some() || self.field.patches.len() > 1) {
+                self.mesh_afresh();
             }
             self.sink.field(&self.field);
         }
@@ -236,7 +256,19 @@ impl GraphicsStage {
         version: u64,
         strokes: super::StrokeStamps,
     ) -> usize {
-        let report = self.octree.refresh_box(&*self.field, change.lo, change.hi);
+        let remeshed = self
+            .levels
+            .as_mut()
+            .map(|levels| levels.remesh_box(&self.field, change.lo, change.hi, &mut self.octree));
+        let report = match remeshed {
+            Some(Ok(report)) => report,
+            Some(Err(_)) => {
+                // Over the multi-level mesher's budget: the grid meshes the clay.
+                self.levels = None;
+                self.octree.rebuild(&*self.field)
+            }
+            None => self.octree.refresh_box(&*self.field, change.lo, change.hi),
+        };
         let n = report.changed.len() + report.removed.len();
         self.counters.graphics_updates(1);
         self.counters.bricks_remeshed(n as u64);
@@ -297,24 +329,47 @@ impl GraphicsStage {
 
     /// Meshes the clay afresh on a grid of the same cell size over its grown support, and
     /// tells the sink that every old brick went and every new one came (brick coordinates
-    /// are counted from the grid's corner, which moved).
-    fn regrid(&mut self) {
+    /// are counted from the grid's corner, which moved); false when no grid could hold the
+    /// clay (nothing was meshed).
+    fn regrid(&mut self) -> bool {
         let cell = self.octree.grid().cell_size;
         let (lo, hi) = self.field.support();
         let Ok(grid) = SampleGrid::covering(lo, hi, cell) else {
             // A clay too large for a grid keeps the old one (and its clipped mesh).
-            return;
+            return false;
         };
         let removed: Vec<[u32; 3]> = self.octree.bricks().map(|b| b.coord).collect();
         self.octree = BrickOctree::new(grid);
         // Everything is meshed afresh, held-back changes with the rest.
         self.held_back = None;
-        let mut report = self.octree.rebuild(&*self.field);
+        let (levels, mut report) = mesh_whole(&self.field, self.cells_per_span, &mut self.octree);
+        self.levels = levels;
         report.removed = removed;
         self.counters.graphics_updates(1);
         self.counters
             .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
         self.sink.update(&self.octree, &report);
+        true
+    }
+
+    /// Meshes the clay afresh on the same grid (after a new patch layout) and hands the sink
+    /// the bricks that changed or went.
+    fn mesh_afresh(&mut self) {
+        // Everything is meshed afresh, held-back changes with the rest.
+        self.held_back = None;
+        let (levels, report) = mesh_whole(&self.field, self.cells_per_span, &mut self.octree);
+        self.levels = levels;
+        self.counters.graphics_updates(1);
+        self.counters
+            .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
+        self.sink.update(&self.octree, &report);
+    }
+
+    /// Whether the bricks hold the multi-level mesh (the clay has detail patches) rather
+    /// than marching cubes of the grid.
+    #[must_use]
+    pub fn meshes_levels(&self) -> bool {
+        self.levels.is_some()
     }
 
     /// This stage's field copy.
@@ -334,6 +389,33 @@ impl GraphicsStage {
     pub fn into_sink(self) -> Box<dyn MeshSink> {
         self.sink
     }
+}
+
+/// The multi-level mesher's options for the stage: `cells_per_span` per knot span of each
+/// level (at least the two it needs) and its default cell budget.
+#[must_use]
+pub fn level_mesh_options(cells_per_span: u32) -> AdaptiveMeshOptions {
+    AdaptiveMeshOptions {
+        cells_per_span: cells_per_span.max(2),
+        ..AdaptiveMeshOptions::default()
+    }
+}
+
+/// Meshes `field` whole into `octree`: a clay with detail patches by the multi-level mesher
+/// (returned, to re-mesh locally after), else (or where that mesher refuses the clay) by
+/// marching cubes on the octree's grid.
+fn mesh_whole(
+    field: &MultiPatchField,
+    cells_per_span: u32,
+    octree: &mut BrickOctree,
+) -> (Option<AdaptiveBricks>, RefreshReport) {
+    if field.patches.len() > 1
+        && let Ok((levels, report)) =
+            AdaptiveBricks::new(field, &level_mesh_options(cells_per_span), octree)
+    {
+        return (Some(levels), report);
+    }
+    (None, octree.rebuild(field))
 }
 
 #[cfg(test)]
@@ -357,6 +439,232 @@ mod tests {
         fn paint(&mut self, _: &BrickOctree, colour: Option<&ColourField>) {
             *self.0.lock() = Some(colour.cloned());
         }
+    }
+
+    /// Keeps every report handed over.
+    struct ReportSink(Arc<Mutex<Vec<RefreshReport>>>);
+
+    impl MeshSink for ReportSink {
+        fn update(&mut self, _: &BrickOctree, report: &RefreshReport) {
+            self.0.lock().push(report.clone());
+        }
+    }
+
+    /// The triangles as position bits, each rotated to start at its least corner, sorted.
+    fn triangle_set(mesh: &dynaclay_core::mesh::TriMesh) -> Vec<[[u32; 3]; 3]> {
+        let mut set: Vec<_> = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
+                let k = (0..3).min_by_key(|&k| p[k]).expect("three corners");
+                [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
+            })
+            .collect();
+        set.sort_unstable();
+        set
+    }
+
+    /// Triangles of `mesh` whose centroid lies in `lo ..= hi`, and their mean edge length.
+    fn triangles_in(mesh: &dynaclay_core::mesh::TriMesh, lo: Vec3, hi: Vec3) -> (usize, f32) {
+        let (mut count, mut edges) = (0, 0.0);
+        for t in &mesh.triangles {
+            let p = t.map(|i| mesh.positions[i as usize]);
+            let c = (p[0] + p[1] + p[2]) / 3.0;
+            if c.cmpge(lo).all() && c.cmple(hi).all() {
+                count += 1;
+                edges += p[0].distance(p[1]) + p[1].distance(p[2]) + p[2].distance(p[0]);
+            }
+        }
+        (count, edges / (3 * count.max(1)) as f32)
+    }
+
+    /// A clay refined at level 2 and carved inside the patch: the sink's bricks weld into the
+    /// multi-level mesh the export makes of the same clay (each level at its own spacing,
+    /// finer inside the patch than the base's grid draws it), closed across the patch's
+    /// seams; the carve re-meshed only bricks near it; undoing the patch's layout (a clay of
+    /// one patch again) goes back to the grid's marching cubes.
+    #[test]
+    fn a_detail_patch_is_drawn_at_its_own_spacing_closed_and_re_meshed_locally() {
+        use dynaclay_core::mesh::{MeshStats, mesh_adaptive};
+
+        // Large enough for a carve to reach a small part of the bricks.
+        let resolution = 24;
+        let field = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let base = field.clone();
+        let spacing = field.spacing;
+        let size = (resolution - 1) as f32 * spacing;
+        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
+        let centre = Vec3::splat(size * 0.5);
+        let surface = centre + Vec3::new(size * 0.25, 0.0, 0.0);
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let reports = Arc::new(Mutex::new(Vec::new()));
+        let mut s = build(
+            &config,
+            field,
+            Box::new(arm),
+            Box::new(ReportSink(Arc::clone(&reports))),
+            true,
+        )
+        .unwrap();
+        let run = |s: &mut super::super::Stages, steps: usize| {
+            for _ in 0..steps {
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+                s.graphics.tick();
+            }
+        };
+        run(&mut s, 10);
+        assert!(!s.graphics.meshes_levels(), "one patch: marching cubes");
+        let grid_cells = s.graphics.octree().triangle_count();
+
+        let half = Vec3::splat(1.2 * spacing);
+        s.commands
+            .send(Command::Refine {
+                lo: surface - half,
+                hi: surface + half,
+                level: 2,
+                reply: None,
+            })
+            .unwrap();
+        run(&mut s, 10);
+        assert_eq!(s.graphics.field().patches.len(), 2);
+        assert!(
+            s.graphics.meshes_levels(),
+            "a detail patch: the levels' mesh"
+        );
+        let bricks = s.graphics.octree().brick_count();
+        reports.lock().clear();
+
+        // A carve a quarter of a base span wide, on the detail patch.
+        let tool = GeometricTool {
+            shape: ToolShape::Sphere {
+                radius_fu: 0.25 * spacing,
+            },
+            action: ToolAction::Remove,
+            falloff_fu: 0.05 * spacing,
+        };
+        s.commands
+            .send(Command::ApplyTool {
+                tool,
+                poses: vec![ToolPose::at(surface)],
+                duration_s: 0.1,
+                patch: 1,
+                reply: None,
+            })
+            .unwrap();
+        run(&mut s, 300);
+        assert_eq!(
+            s.graphics.field().patches.len(),
+            2,
+            "the carve keeps its detail patch"
+        );
+        assert!(s.graphics.meshes_levels());
+
+        // Local: every brick the carve re-meshed lies near it, and they are few.
+        let octree = s.graphics.octree();
+        let span = octree.grid().cell_size * dynaclay_core::mesh::BRICK_CELLS as f32;
+        let mut touched: Vec<[u32; 3]> = reports
+            .lock()
+            .iter()
+            .flat_map(|r| r.changed.iter().chain(&r.removed).copied())
+            .collect();
+        touched.sort_unstable();
+        touched.dedup();
+        assert!(!touched.is_empty(), "the carve reached the sink");
+        let reach = 3.0 * spacing;
+        for c in &touched {
+            let lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
+            assert!(
+                lo.cmple(surface + reach).all() && (lo + span).cmpge(surface - reach).all(),
+                "brick {c:?} re-meshed far from the carve"
+            );
+        }
+        assert!(
+            touched.len() * 3 < bricks,
+            "{} of {bricks} bricks re-meshed",
+            touched.len()
+        );
+
+        // The bricks weld into the export's multi-level mesh, closed and oriented.
+        let window = octree.weld();
+        let stats = MeshStats::of(&window);
+        assert_eq!(stats.boundary_edges, 0, "{stats:?}");
+        assert_eq!(stats.misoriented_edges, 0, "{stats:?}");
+        let exported = mesh_adaptive(
+            s.graphics.field(),
+            &level_mesh_options(config.cells_per_span),
+        )
+        .unwrap();
+        assert_eq!(triangle_set(&window), triangle_set(&exported));
+
+        // Inside the patch it is finer than the base's grid draws the same clay.
+        let grid = SampleGrid::for_lattice(&base, config.cells_per_span).unwrap();
+        let uniform = BrickOctree::build(grid, s.graphics.field()).weld();
+        let inner = Vec3::splat(0.8 * spacing);
+        let (fine, fine_edge) = triangles_in(&window, surface - inner, surface + inner);
+        let (coarse, coarse_edge) = triangles_in(&uniform, surface - inner, surface + inner);
+        assert!(
+            fine > 4 * coarse && fine_edge < 0.5 * coarse_edge,
+            "{fine} triangles of edge {fine_edge} in the patch against {coarse} of {coarse_edge}"
+        );
+        assert!(window.triangle_count() > grid_cells);
+    }
+
+    /// A clay that starts with a detail patch holding detail (a loaded session) is drawn
+    /// from the multi-level mesh from the first update: closed, and finer where the detail is.
+    #[test]
+    fn a_clay_that_starts_with_detail_is_drawn_from_its_levels() {
+        let lattice = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let spacing = lattice.spacing;
+        let config = EngineConfig::for_field(&lattice, &SimArmConfig::default_info());
+        let centre = Vec3::splat(11.0 * spacing * 0.5);
+        let pole = centre + Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);
+        let mut field = MultiPatchField::new(lattice.clone());
+        let half = Vec3::splat(spacing);
+        let detail = field.refine(pole - half, pole + half, 2).unwrap();
+        // A dimple a quarter of a base span wide at the pole.
+        let target = |x: Vec3| {
+            lattice.value(x) - 0.3 * (-(x - pole).length_squared() / (0.06 * spacing)).exp()
+        };
+        field.fit_detail(detail, 2, target).unwrap();
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let s = build(
+            &config,
+            field.clone(),
+            Box::new(arm),
+            Box::new(HeadlessSink::default()),
+            true,
+        )
+        .unwrap();
+        assert!(s.graphics.meshes_levels());
+        assert!(s.graphics.octree().is_cut());
+        let window = s.graphics.octree().weld();
+        let stats = dynaclay_core::mesh::MeshStats::of(&window);
+        assert_eq!(stats.boundary_edges, 0, "{stats:?}");
+        assert_eq!(stats.misoriented_edges, 0, "{stats:?}");
+        let exported =
+            dynaclay_core::mesh::mesh_adaptive(&field, &level_mesh_options(config.cells_per_span))
+                .unwrap();
+        assert_eq!(triangle_set(&window), triangle_set(&exported));
+        let inner = Vec3::splat(0.3 * spacing);
+        let (_, fine_edge) = triangles_in(&window, pole - inner, pole + inner);
+        let far = centre - Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);
+        let (_, base_edge) = triangles_in(&window, far - inner, far + inner);
+        assert!(
+            fine_edge < 0.5 * base_edge,
+            "edge {fine_edge} at the dimple against {base_edge} on the base"
+        );
     }
 
     /// A step that changes the clay rings the graphics loop's bell once it has published, and

@@ -51,7 +51,9 @@ pub use error::{
     SwapRefused,
 };
 pub use force_limit::{ForceLimit, InvalidForceLimit};
-pub use graphics::{DEFERRED_COEFF_TOLERANCE, GraphicsStage, HeadlessSink, MeshSink};
+pub use graphics::{
+    DEFERRED_COEFF_TOLERANCE, GraphicsStage, HeadlessSink, MeshSink, level_mesh_options,
+};
 pub use haptic::{HapticOutcome, HapticStage};
 pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};

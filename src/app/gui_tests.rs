@@ -1140,6 +1140,7 @@ fn the_view_survives_a_size_and_a_mesh_the_gpu_refuses() {
         normals: &n,
         colors: &[],
         indices,
+        cut: false,
     };
     static GOOD: [u32; 3] = [0, 1, 2];
     // An index past the vertices: the upload refuses it.

@@ -21,6 +21,11 @@ pub struct MeshChunk<'a> {
     pub colors: &'a [[f32; 4]],
     /// Triangle list: three vertex indices per triangle, counter-clockwise seen from outside.
     pub indices: &'a [u32],
+    /// A piece of a mesh cut along brick bounds (a clay with detail patches, see
+    /// `dynaclay_core::mesh::AdaptiveBricks`), not the marching cubes of its brick: where it
+    /// meets its neighbours is not on its vertices' bounding box, so the far bricks' coarse
+    /// index lists ([`super::coarse_indices`], which keep that box) are not built for it.
+    pub cut: bool,
 }
 
 /// Why a chunk cannot be drawn.
@@ -139,6 +144,7 @@ mod tests {
             normals: &N,
             colors,
             indices,
+            cut: false,
         }
     }
 

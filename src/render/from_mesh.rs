@@ -87,6 +87,15 @@ impl ChunkMesh {
         Self::from_brick(brick.coord, brick.version, &brick.mesh, colors)
     }
 
+    /// Whether this is a piece of a cut multi-level mesh: its vertices carry shared vertex
+    /// ids ([`crate::mesh::shared_vertex_id`]) rather than grid edge ids.
+    #[must_use]
+    pub fn is_cut(&self) -> bool {
+        self.edge_ids
+            .first()
+            .is_some_and(|&id| crate::mesh::edge_from_id(id).1 == crate::mesh::SHARED_VERTEX_AXIS)
+    }
+
     /// A borrowed view for the renderer.
     #[must_use]
     pub fn as_chunk(&self) -> MeshChunk<'_> {
@@ -97,6 +106,7 @@ impl ChunkMesh {
             normals: &self.normals,
             colors: &self.colors,
             indices: &self.indices,
+            cut: self.is_cut(),
         }
     }
 }
@@ -208,6 +218,23 @@ mod tests {
                 assert_ne!(a, b);
             }
         }
+    }
+
+    /// A piece of a cut multi-level mesh is marked cut (no coarse list is built for it); a
+    /// marching-cubes brick is not.
+    #[test]
+    fn pieces_of_a_cut_mesh_are_marked_and_marching_cubes_bricks_are_not() {
+        let lattice = ball();
+        let octree = BrickOctree::build(SampleGrid::for_lattice(&lattice, 4).unwrap(), &lattice);
+        let brick = octree.bricks().next().expect("the ball has bricks");
+        let marched = ChunkMesh::from_octree_brick(brick, None);
+        assert!(!marched.is_cut() && !marched.as_chunk().cut);
+        let mut piece = brick.mesh.clone();
+        for (n, id) in piece.edge_ids.iter_mut().enumerate() {
+            *id = crate::mesh::shared_vertex_id(n as u32);
+        }
+        let cut = ChunkMesh::from_brick(brick.coord, 1, &piece, Vec::new());
+        assert!(cut.is_cut() && cut.as_chunk().cut);
     }
 
     #[test]

@@ -303,7 +303,8 @@ impl ChunkBuffers {
         self.stats.bytes_uploaded += (vertex_len + index_len) as u64;
         slot.index_count = u32::try_from(self.index_scratch.len()).unwrap_or(u32::MAX);
         slot.buffers = Some(GpuBuffers { vertex, index });
-        if self.build_coarse {
+        // A cut piece's border with its neighbours is not on the box the clustering keeps.
+        if self.build_coarse && chunks.iter().all(|c| !c.cut) {
             slot.coarse = self.upload_coarse(device, queue, old_coarse.map(|c| c.index));
         }
         self.slots.insert(key, slot);

@@ -41,6 +41,7 @@ impl OwnedChunk {
             normals: &self.normals,
             colors: &self.colors,
             indices: &self.indices,
+            cut: false,
         }
     }
 }
@@ -1293,6 +1294,7 @@ fn the_software_profile_skips_triangles_seen_from_behind_and_without_culling_the
         normals: &normals,
         colors: &[],
         indices: &indices,
+        cut: false,
     };
     let camera = front_camera(3.0);
     let options = plain_options();

@@ -207,6 +207,25 @@ pub struct AdaptiveMesher {
     polygons: Vec<[u32; 4]>,
     /// The last re-mesh failed part way: the next one meshes the whole clay.
     stale: bool,
+    /// The triangles the last call took out of the kept mesh, with their centroids where
+    /// they were (see [`AdaptiveMesher::removed_triangles`]).
+    removed: Vec<SlotTriangle>,
+    /// The first of `polygons` the last call made (0 after a whole mesh).
+    first_made: usize,
+}
+
+/// A triangle of an [`AdaptiveMesher`]'s kept mesh, named by the slots of its vertices
+/// ([`AdaptiveMesher::slot_vertex`]), counter-clockwise seen from outside, with its centroid.
+///
+/// A slot names one vertex for as long as the vertex lives; a re-mesh that makes a vertex
+/// again takes away every triangle that used the old one, and a later vertex may take the
+/// freed slot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SlotTriangle {
+    /// The vertex slots.
+    pub slots: [u32; 3],
+    /// The mean of its three vertices' positions.
+    pub centroid: Vec3,
 }
 
 /// The shape of one patch that the octree's frame and targets depend on.
@@ -311,6 +330,8 @@ impl AdaptiveMesher {
             vertices: VertexSlots::default(),
             polygons: Vec::new(),
             stale: false,
+            removed: Vec::new(),
+            first_made: 0,
         };
         mesher.update_tree(field, None)?;
         mesher.cell_proc(field, None, 0);
@@ -363,6 +384,8 @@ impl AdaptiveMesher {
             });
         }
         let mut report = AdaptiveRemeshReport::default();
+        self.removed.clear();
+        self.first_made = self.polygons.len();
         if lo.cmpgt(hi).any() {
             report.leaves = self.tree.leaves;
             return Ok(report);
@@ -378,17 +401,66 @@ impl AdaptiveMesher {
             }
         };
         let kept_vertices = self.vertices.positions.len() - self.vertices.free.len();
-        let alive = &self.vertices.alive;
+        let (alive, positions) = (&self.vertices.alive, &self.vertices.positions);
+        let removed = &mut self.removed;
         let polygons_before = self.polygons.len();
-        self.polygons
-            .retain(|p| p.iter().all(|&v| alive[v as usize]));
+        // A dropped vertex's slot keeps its position until a vertex made below takes it, so
+        // the dropped triangles are named here, split as they were made.
+        self.polygons.retain(|p| {
+            let kept = p.iter().all(|&v| alive[v as usize]);
+            if !kept {
+                removed.extend(slot_triangles(*p, positions));
+            }
+            kept
+        });
         report.polygons_dropped = polygons_before - self.polygons.len();
+        self.first_made = self.polygons.len();
         self.cell_proc(field, Some(&region), 0);
         report.polygons_made = self.polygons.len() + report.polygons_dropped - polygons_before;
         report.vertices_made =
             self.vertices.positions.len() - self.vertices.free.len() - kept_vertices;
         report.leaves = self.tree.leaves;
         Ok(report)
+    }
+
+    /// The kept mesh's triangles by vertex slot, the ones [`AdaptiveMesher::mesh`] holds (the
+    /// same split of each polygon, in the same order).
+    pub fn triangles(&self) -> impl Iterator<Item = SlotTriangle> + '_ {
+        let positions = &self.vertices.positions;
+        self.polygons
+            .iter()
+            .flat_map(move |p| slot_triangles(*p, positions))
+    }
+
+    /// The triangles the last [`AdaptiveMesher::remesh_box`] made (after a whole mesh, every
+    /// triangle).
+    pub fn made_triangles(&self) -> impl Iterator<Item = SlotTriangle> + '_ {
+        let positions = &self.vertices.positions;
+        self.polygons[self.first_made.min(self.polygons.len())..]
+            .iter()
+            .flat_map(move |p| slot_triangles(*p, positions))
+    }
+
+    /// The triangles the last [`AdaptiveMesher::remesh_box`] took out of the kept mesh (none
+    /// after a whole mesh: then the whole mesh is new), each with its centroid where it
+    /// was; their slots may name other vertices now.
+    #[must_use]
+    pub fn removed_triangles(&self) -> &[SlotTriangle] {
+        &self.removed
+    }
+
+    /// The position and unit normal of the vertex in `slot`, while it lives. The normal is
+    /// zero where the field's gradient vanished ([`AdaptiveMesher::mesh`] gives such a vertex
+    /// its triangles' area-weighted normal).
+    #[must_use]
+    pub fn slot_vertex(&self, slot: u32) -> Option<(Vec3, Vec3)> {
+        let s = slot as usize;
+        self.vertices
+            .alive
+            .get(s)
+            .copied()
+            .unwrap_or(false)
+            .then(|| (self.vertices.positions[s], self.vertices.normals[s]))
     }
 
     /// Leaves in the octree.
@@ -466,6 +538,8 @@ impl AdaptiveMesher {
     /// After a failed re-mesh: an empty mesh, and the next call meshes the whole clay.
     fn clear_after_failure(&mut self) {
         self.stale = true;
+        self.removed.clear();
+        self.first_made = 0;
         self.polygons.clear();
         self.vertices = VertexSlots::default();
         self.vertex_of.iter_mut().for_each(|v| *v = NO_VERTEX);
@@ -783,6 +857,28 @@ fn corner_key(p: [u32; 3]) -> u64 {
 /// Appends the quad `ids` (counter-clockwise seen from outside) split along its shorter
 /// diagonal, or the triangle left when one leaf fills two neighbouring places.
 fn triangulate(ids: [u32; 4], positions: &[Vec3], triangles: &mut Vec<[u32; 3]>) {
+    let (split, n) = split_polygon(ids, positions);
+    triangles.extend_from_slice(&split[..n]);
+}
+
+/// The triangles of polygon `slots` (vertex slots, `positions` by slot) as [`triangulate`]
+/// splits it, with their centroids.
+fn slot_triangles(slots: [u32; 4], positions: &[Vec3]) -> impl Iterator<Item = SlotTriangle> {
+    let (split, n) = split_polygon(slots, positions);
+    split.into_iter().take(n).map(|t| SlotTriangle {
+        slots: t,
+        centroid: t
+            .iter()
+            .map(|&s| positions[s as usize])
+            .fold(Vec3::ZERO, |sum, p| sum + p)
+            / 3.0,
+    })
+}
+
+/// The quad `ids` split along its shorter diagonal (two triangles), or the triangle left
+/// when one leaf fills two neighbouring places (one), or nothing: the triangles and their
+/// count.
+fn split_polygon(ids: [u32; 4], positions: &[Vec3]) -> ([[u32; 3]; 2], usize) {
     let mut distinct = [0_u32; 4];
     let mut n = 0;
     for (k, &id) in ids.iter().enumerate() {
@@ -792,19 +888,17 @@ fn triangulate(ids: [u32; 4], positions: &[Vec3], triangles: &mut Vec<[u32; 3]>)
         }
     }
     match n {
-        3 => triangles.push([distinct[0], distinct[1], distinct[2]]),
+        3 => ([[distinct[0], distinct[1], distinct[2]], [0; 3]], 1),
         4 => {
             let at = |i: u32| positions[i as usize];
             let [i0, i1, i2, i3] = distinct;
             if at(i0).distance_squared(at(i2)) <= at(i1).distance_squared(at(i3)) {
-                triangles.push([i0, i1, i2]);
-                triangles.push([i0, i2, i3]);
+                ([[i0, i1, i2], [i0, i2, i3]], 2)
             } else {
-                triangles.push([i1, i2, i3]);
-                triangles.push([i1, i3, i0]);
+                ([[i1, i2, i3], [i1, i3, i0]], 2)
             }
         }
-        _ => {}
+        _ => ([[0; 3]; 2], 0),
     }
 }
 
@@ -1256,7 +1350,7 @@ fn smaller(m: f32, x: f32) -> f32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use std::collections::HashMap;
     use std::f64::consts::PI;
 
@@ -1267,7 +1361,7 @@ mod tests {
     use crate::field::{BSplineLattice, fit_lattice};
 
     /// Base knot spacing of the test fields.
-    const SPACING: f32 = 0.1;
+    pub(in crate::mesh) const SPACING: f32 = 0.1;
 
     /// A smooth density of the solid at signed distance `d` (positive inside): one half on the
     /// surface, 0 and 1 a few spans away.
@@ -1405,7 +1499,7 @@ mod tests {
     /// +x half's cap with a bump of width 0.06 in it, and nested in that a level-2 patch
     /// around the +x pole with a bump of width 0.03 (finer than level 1's spans). Every
     /// patch's box crosses the surface.
-    fn three_levels() -> MultiPatchField {
+    pub(in crate::mesh) fn three_levels() -> MultiPatchField {
         let radius = 0.5;
         let mut field = fitted_base(radius, sphere(radius));
         let p1 = radius * Vec3::new(1.0, -0.6, 0.3).normalize();
@@ -1766,7 +1860,7 @@ mod tests {
     /// Subtracts `depth` from the coefficients of patch `patch` at the nodes from the one
     /// nearest `at` to `count - 1` nodes further along +x; returns the box where the field
     /// changed.
-    fn dent(
+    pub(in crate::mesh) fn dent(
         field: &mut MultiPatchField,
         patch: usize,
         at: Vec3,

@@ -30,6 +30,19 @@ pub const BRICK_SAMPLE_COUNT: usize = BRICK_SAMPLES * BRICK_SAMPLES * BRICK_SAMP
 /// never coincide (which would make degenerate triangles and merge under position welding).
 const T_MARGIN: f32 = 1e-4;
 
+/// The axis an id from [`shared_vertex_id`] carries: no grid edge runs along it.
+pub const SHARED_VERTEX_AXIS: u8 = 3;
+
+/// The id of vertex `number` of a mesh cut into bricks ([`super::AdaptiveBricks`]): every
+/// brick that holds a copy of the vertex gives it this id, and a weld
+/// ([`super::weld_pieces`]) merges the copies by it. It reads back through [`edge_from_id`]
+/// with axis [`SHARED_VERTEX_AXIS`].
+#[inline]
+#[must_use]
+pub fn shared_vertex_id(number: u32) -> u64 {
+    u64::from(number) << 2 | u64::from(SHARED_VERTEX_AXIS)
+}
+
 /// Global id of the grid edge that starts at sample `corner` and runs along `axis`.
 #[inline]
 #[must_use]

@@ -25,8 +25,13 @@
 //!   each region, crack-free across levels ([`adaptive_cell_count`] checks a budget first);
 //!   an [`AdaptiveMesher`] keeps that mesh and, after a stroke, meshes again only the leaves
 //!   near the change ([`AdaptiveMesher::remesh_box`]).
+//! - Multi-resolution drawing: [`AdaptiveBricks`] keeps that mesh cut into a
+//!   [`BrickOctree`]'s bricks (each triangle in the brick that holds its centroid), so the
+//!   graphics loop hands a clay with detail patches to its sink brick by brick, each level at
+//!   its own spacing, and a stroke changes only the bricks near it.
 
 mod adaptive;
+mod adaptive_bricks;
 mod brick;
 mod distance;
 mod error;
@@ -44,11 +49,12 @@ mod work_split;
 
 pub use adaptive::{
     AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, AdaptiveRemeshReport,
-    MAX_ADAPTIVE_DEPTH, adaptive_cell_count, mesh_adaptive,
+    MAX_ADAPTIVE_DEPTH, SlotTriangle, adaptive_cell_count, mesh_adaptive,
 };
+pub use adaptive_bricks::AdaptiveBricks;
 pub use brick::{
-    BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, brick_extent,
-    edge_from_id, edge_id, march_brick, sample_brick,
+    BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, BrickMesh, BrickScratch, SHARED_VERTEX_AXIS,
+    brick_extent, edge_from_id, edge_id, march_brick, sample_brick, shared_vertex_id,
 };
 pub use distance::{Hausdorff, hausdorff, point_triangle_distance};
 pub use error::GridError;

@@ -23,8 +23,9 @@ use std::sync::{Mutex, TryLockError};
 use glam::Vec3;
 
 use super::brick::{
-    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, MAX_BRICK_INDICES, brick_extent,
-    edge_from_id, march_brick, sample_brick, sample_brick_sharing, upper_face,
+    BRICK_CELLS, BRICK_SAMPLES, BrickMesh, BrickScratch, Face, MAX_BRICK_INDICES,
+    SHARED_VERTEX_AXIS, brick_extent, edge_from_id, march_brick, sample_brick,
+    sample_brick_sharing, upper_face,
 };
 use super::grid::SampleGrid;
 use super::source::ScalarField;
@@ -129,6 +130,10 @@ pub struct BrickOctree {
     generation: u64,
     scratch: BrickScratch,
     rebuild_scratch: RebuildScratch,
+    /// The bricks hold the pieces of a multi-level mesh cut along the bricks' bounds
+    /// ([`super::AdaptiveBricks`]), not marching cubes of the grid: they are welded by vertex
+    /// id, and a refresh rebuilds them all.
+    cut: bool,
 }
 
 impl BrickOctree {
@@ -150,6 +155,7 @@ impl BrickOctree {
             generation: 0,
             scratch: BrickScratch::default(),
             rebuild_scratch: RebuildScratch::default(),
+            cut: false,
         }
     }
 
@@ -237,6 +243,7 @@ impl BrickOctree {
         field: &F,
         build: impl FnOnce(&F, &SampleGrid, [u32; 3], u64, &mut [BrickJob<'_>]) -> Vec<Brick>,
     ) -> RefreshReport {
+        self.cut = false;
         self.generation += 1;
         let generation = self.generation;
         let mut report = RefreshReport {
@@ -355,7 +362,8 @@ impl BrickOctree {
     ///
     /// The field must be unchanged on and outside the box's faces (samples within 1e-4 cell of
     /// a face are taken as unchanged); then the result is identical to
-    /// [`BrickOctree::rebuild`]. For a change of lattice coefficients, get the box from
+    /// [`BrickOctree::rebuild`]. An octree that holds a cut multi-level mesh
+    /// ([`BrickOctree::is_cut`]) is rebuilt whole. For a change of lattice coefficients, get the box from
     /// [`BrickOctree::coefficient_change_box`]: a cubic B-spline's change and its gradient
     /// vanish on that box's faces. A box with no sample inside changes nothing.
     pub fn refresh_box<F: ScalarField + ?Sized>(
@@ -364,6 +372,9 @@ impl BrickOctree {
         min: Vec3,
         max: Vec3,
     ) -> RefreshReport {
+        if self.cut {
+            return self.rebuild(field);
+        }
         let Some((lo, hi)) = self.grid.interior_sample_range(min, max) else {
             return RefreshReport {
                 generation: self.generation,
@@ -543,6 +554,65 @@ impl BrickOctree {
         self.bricks.values().filter(move |b| b.version > seen)
     }
 
+    /// The brick whose box holds the world point `p`; a point outside the grid goes to the
+    /// nearest brick (a point that is not finite, to brick 0 along that axis).
+    #[must_use]
+    pub fn brick_at(&self, p: Vec3) -> [u32; 3] {
+        let span = self.grid.cell_size * BRICK_CELLS as f32;
+        std::array::from_fn(|a| {
+            let b = ((p[a] - self.grid.origin[a]) / span).floor();
+            let last = self.brick_counts[a] - 1;
+            if b.is_nan() || b <= 0.0 {
+                0
+            } else if b >= last as f32 {
+                last
+            } else {
+                b as u32
+            }
+        })
+    }
+
+    /// Whether the bricks hold the pieces of a multi-level mesh ([`super::AdaptiveBricks`])
+    /// rather than the marching cubes of the grid.
+    #[must_use]
+    pub fn is_cut(&self) -> bool {
+        self.cut
+    }
+
+    /// Puts pieces of a multi-level mesh in the bricks: each `(coord, mesh)` replaces the
+    /// brick's mesh, or removes the brick where the mesh has no triangle (a brick not stored
+    /// and given nothing is left out of the report). Every brick not named keeps its mesh;
+    /// after the first call the octree is [cut](BrickOctree::is_cut) until a rebuild.
+    pub(super) fn put_pieces(
+        &mut self,
+        pieces: impl IntoIterator<Item = ([u32; 3], BrickMesh)>,
+    ) -> RefreshReport {
+        self.cut = true;
+        self.generation += 1;
+        let mut report = RefreshReport {
+            generation: self.generation,
+            ..RefreshReport::default()
+        };
+        for (coord, mesh) in pieces {
+            let key = morton(coord);
+            if mesh.indices.is_empty() {
+                if self.bricks.remove(&key).is_some() {
+                    report.removed.push(coord);
+                }
+                continue;
+            }
+            let brick = self
+                .bricks
+                .entry(key)
+                .or_insert_with(|| Brick::empty(coord));
+            brick.mesh = mesh;
+            brick.version = self.generation;
+            brick.owned_vertices = 0;
+            report.changed.push(coord);
+        }
+        report
+    }
+
     /// Total triangles over all bricks.
     #[must_use]
     pub fn triangle_count(&self) -> usize {
@@ -609,7 +679,8 @@ impl<'a> WeldPiece<'a, Vec3> {
 /// Welding of brick meshes by edge id, for any set of pieces (the app's export of its
 /// published chunks; [`BrickOctree::weld`] is the octree's faster path for its own bricks and
 /// is tested to give exactly this mesh): vertices on a brick face are merged by their global
-/// edge id, so a vertex two bricks share appears once; the others are unique to their brick. Vertex and
+/// edge id, and so are the copies of a cut mesh's vertex ([`super::shared_vertex_id`]), so a
+/// vertex two bricks share appears once; the others are unique to their brick. Vertex and
 /// triangle order follow `pieces`.
 ///
 /// # Panics
@@ -636,7 +707,8 @@ pub fn weld_pieces<V: Copy + Into<Vec3>>(pieces: &[WeldPiece<'_, V>]) -> TriMesh
         local.clear();
         for (v, &id) in m.edge_ids.iter().enumerate() {
             let (corner, axis) = edge_from_id(id);
-            let on_face = (0..3).any(|a| a != axis as usize && corner[a] % BRICK_CELLS == 0);
+            let on_face = axis == SHARED_VERTEX_AXIS
+                || (0..3).any(|a| a != axis as usize && corner[a] % BRICK_CELLS == 0);
             let next = out.positions.len() as u32;
             let index = if on_face {
                 *shared.entry(id).or_insert(next)

@@ -24,7 +24,7 @@ use std::mem::MaybeUninit;
 use glam::Vec3;
 
 use super::brick::{BRICK_CELLS, BRICK_SAMPLE_COUNT, BRICK_SAMPLES, edge_from_id, prefetch_slice};
-use super::octree::{Brick, BrickOctree, EdgeIdHasher, morton};
+use super::octree::{Brick, BrickOctree, EdgeIdHasher, WeldPiece, morton, weld_pieces};
 use super::trimesh::TriMesh;
 
 /// Most entries in the weld's table of brick ordinals by coordinate (4 MB; a larger grid of
@@ -698,7 +698,19 @@ impl BrickOctree {
     /// [`BrickOctree::weld`] into `out` (its contents replaced), with the working memory in
     /// `scratch`: keep both and weld again after each rebuild, and after the first time the
     /// weld allocates nothing unless the mesh grew. `out` ends exactly as `weld` makes it.
+    ///
+    /// A [cut](BrickOctree::is_cut) octree's bricks are welded by vertex id
+    /// ([`super::weld_pieces`]).
     pub fn weld_into(&self, out: &mut TriMesh, scratch: &mut WeldScratch) {
+        if self.is_cut() {
+            let pieces: Vec<WeldPiece<'_, Vec3>> = self
+                .bricks
+                .values()
+                .map(|b| WeldPiece::of(&b.mesh))
+                .collect();
+            *out = weld_pieces(&pieces);
+            return;
+        }
         weld_serial(self.bricks.values(), self.brick_counts, out, scratch);
     }
 
@@ -711,7 +723,7 @@ impl BrickOctree {
         scratch: &mut WeldScratch,
         threads: usize,
     ) {
-        if threads > 1 && self.bricks.len() > 1 {
+        if threads > 1 && self.bricks.len() > 1 && !self.is_cut() {
             let bricks: Vec<&Brick> = self.bricks.values().collect();
             if weld_parallel(&bricks, self.brick_counts, out, scratch, threads) {
                 return;
