@@ -207,6 +207,10 @@ pub struct AdaptiveMesher {
     polygons: Vec<[u32; 4]>,
     /// The last re-mesh failed part way: the next one meshes the whole clay.
     stale: bool,
+    /// The split tests' coefficient reads, kept within one update of the tree.
+    reads: CoefficientReads,
+    /// A local re-mesh's corner samples inside its region, taken together.
+    region_samples: RegionSamples,
 }
 
 /// The shape of one patch that the octree's frame and targets depend on.
@@ -311,6 +315,8 @@ impl AdaptiveMesher {
             vertices: VertexSlots::default(),
             polygons: Vec::new(),
             stale: false,
+            reads: CoefficientReads::default(),
+            region_samples: RegionSamples::default(),
         };
         mesher.update_tree(field, None)?;
         mesher.cell_proc(field, None, 0);
@@ -369,7 +375,9 @@ impl AdaptiveMesher {
         }
         self.generation += 1;
         let region = self.region(lo, hi);
-        self.forget_corners(&region);
+        if !self.sample_region(field, &region) {
+            self.forget_corners(&region);
+        }
         report.leaves_revisited = match self.update_tree(field, Some(&region)) {
             Ok(n) => n,
             Err(e) => {
@@ -384,6 +392,7 @@ impl AdaptiveMesher {
             .retain(|p| p.iter().all(|&v| alive[v as usize]));
         report.polygons_dropped = polygons_before - self.polygons.len();
         self.cell_proc(field, Some(&region), 0);
+        self.keep_region_samples();
         report.polygons_made = self.polygons.len() + report.polygons_dropped - polygons_before;
         report.vertices_made =
             self.vertices.positions.len() - self.vertices.free.len() - kept_vertices;
@@ -463,8 +472,83 @@ impl AdaptiveMesher {
         }
     }
 
+    /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
+    /// [`RegionSamples::MAX_CORNERS`]: the corner samples of this re-mesh inside the region
+    /// are then read from that block (see [`AdaptiveMesher::corner_value`]) and
+    /// [`AdaptiveMesher::keep_region_samples`] puts those used into the cache, in place of
+    /// the region's old samples. Returns whether it did (else the caller forgets the old
+    /// samples and they are taken again one by one).
+    fn sample_region(&mut self, field: &MultiPatchField, region: &Region) -> bool {
+        let samples = &mut self.region_samples;
+        samples.dims = [0; 3];
+        let root = i64::from(self.tree.root_size);
+        let lo = region.lo.map(|v| v.clamp(0, root));
+        let hi = region.hi.map(|v| v.clamp(0, root));
+        if (0..3).any(|a| lo[a] > hi[a]) {
+            // The region lies beyond the root: no corner of the tree is in it.
+            return true;
+        }
+        let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
+        let count = dims.iter().product::<usize>();
+        if count > RegionSamples::MAX_CORNERS {
+            return false;
+        }
+        // The corners' world coordinates along each axis, as `Tree::point` computes them.
+        let coords = |a: usize, out: &mut Vec<f32>| {
+            out.clear();
+            out.extend((lo[a]..=hi[a]).map(|c| self.tree.origin[a] + self.tree.unit * c as f32));
+        };
+        coords(0, &mut samples.xs);
+        coords(1, &mut samples.ys);
+        coords(2, &mut samples.zs);
+        samples.values.resize(count, 0.0);
+        field.values_on_grid(&samples.xs, &samples.ys, &samples.zs, &mut samples.values);
+        // On the root's boundary no more than the iso-level (as `corner_value`).
+        let mut at = 0;
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    if [x, y, z].iter().any(|&c| c == 0 || c == root) {
+                        samples.values[at] = samples.values[at].min(self.iso);
+                    }
+                    at += 1;
+                }
+            }
+        }
+        samples.used.clear();
+        samples.used.resize(count, false);
+        samples.lo = lo.map(|v| v as u32);
+        samples.dims = dims;
+        true
+    }
+
+    /// Puts the region's samples that this re-mesh used into the cache and drops the
+    /// region's other (old) samples from it, so the cache holds what one-by-one sampling
+    /// would have left there.
+    fn keep_region_samples(&mut self) {
+        let samples = &mut self.region_samples;
+        let [nx, ny, nz] = samples.dims;
+        let mut at = 0;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let p = [x, y, z].map(|v| v as u32);
+                    let key = corner_key(std::array::from_fn(|a| samples.lo[a] + p[a]));
+                    if samples.used[at] {
+                        self.corners.insert(key, samples.values[at]);
+                    } else {
+                        self.corners.remove(&key);
+                    }
+                    at += 1;
+                }
+            }
+        }
+        samples.dims = [0; 3];
+    }
+
     /// After a failed re-mesh: an empty mesh, and the next call meshes the whole clay.
     fn clear_after_failure(&mut self) {
+        self.region_samples.dims = [0; 3];
         self.stale = true;
         self.polygons.clear();
         self.vertices = VertexSlots::default();
@@ -481,6 +565,8 @@ impl AdaptiveMesher {
         region: Option<&Region>,
     ) -> Result<usize, AdaptiveMeshError> {
         let mut revisited = 0;
+        // The coefficients may have changed since the last update.
+        self.reads.clear();
         // The region's world box: where the split tests of large nodes are decided.
         let near = region.map(|r| {
             let at = |p: [i64; 3]| {
@@ -495,7 +581,7 @@ impl AdaptiveMesher {
             if !fresh && !region.is_some_and(|r| r.meets(&node)) {
                 continue;
             }
-            let split = self.tree.should_split(field, &node, near);
+            let split = self.tree.should_split(field, &node, near, &mut self.reads);
             if split {
                 if node.is_leaf() {
                     self.forget_vertex(n);
@@ -591,6 +677,10 @@ impl AdaptiveMesher {
     /// The field at an integer corner; on the root's boundary no more than the iso-level, so
     /// everything outside the root counts as outside.
     fn corner_value(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
+        if let Some(at) = self.region_samples.index(p) {
+            self.region_samples.used[at] = true;
+            return self.region_samples.values[at];
+        }
         let key = corner_key(p);
         if let Some(&v) = self.corners.get(&key) {
             return v;
@@ -772,6 +862,42 @@ impl AdaptiveMesher {
             ids.reverse();
         }
         self.polygons.push(ids);
+    }
+}
+
+/// The corner samples of a local re-mesh's region (clamped to the root), taken together by
+/// [`MultiPatchField::values_on_grid`] (the same values as one by one, with each patch's
+/// weights computed once per coordinate of each axis): in `bench/mesh.rs`
+/// `adaptive_remesh` nearly every corner of a stroke's region is a leaf corner, so sampling
+/// the block costs less than sampling them one by one, and the re-mesh reads them without a
+/// hash lookup. Buffers are kept between re-meshes.
+#[derive(Clone, Debug, Default)]
+struct RegionSamples {
+    /// The block's lowest integer corner.
+    lo: [u32; 3],
+    /// Corners per axis; zero when there is no block.
+    dims: [usize; 3],
+    /// Field value per corner, x fastest.
+    values: Vec<f32>,
+    /// Per corner: whether this re-mesh read it.
+    used: Vec<bool>,
+    /// World coordinates of the corners along each axis.
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    zs: Vec<f32>,
+}
+
+impl RegionSamples {
+    /// Most corners a region is sampled in one block for (a region of 32³ corners); a larger
+    /// one holds many corners that no leaf uses, and is sampled one by one.
+    const MAX_CORNERS: usize = 1 << 15;
+
+    /// Index of integer corner `p` in the block, if it lies there.
+    #[inline]
+    fn index(&self, p: [u32; 3]) -> Option<usize> {
+        let d: [usize; 3] = std::array::from_fn(|a| p[a].wrapping_sub(self.lo[a]) as usize);
+        (d[0] < self.dims[0] && d[1] < self.dims[1] && d[2] < self.dims[2])
+            .then(|| d[0] + self.dims[0] * (d[1] + self.dims[1] * d[2]))
     }
 }
 
@@ -962,10 +1088,11 @@ impl Tree {
         options: &AdaptiveMeshOptions,
     ) -> Result<Self, AdaptiveMeshError> {
         let mut tree = Self::frame(field, options)?;
+        let mut reads = CoefficientReads::default();
         let mut stack = vec![0_usize];
         while let Some(n) = stack.pop() {
             let node = tree.nodes[n];
-            if !tree.should_split(field, &node, None) {
+            if !tree.should_split(field, &node, None, &mut reads) {
                 continue;
             }
             if tree.leaves + 7 > options.max_cells {
@@ -1004,6 +1131,7 @@ impl Tree {
         field: &MultiPatchField,
         node: &Node,
         near: Option<(Vec3, Vec3)>,
+        reads: &mut CoefficientReads,
     ) -> bool {
         if node.size == 1 {
             return false;
@@ -1015,13 +1143,13 @@ impl Tree {
             if smaller
                 && part_lo.cmple(part_hi).all()
                 && self
-                    .split_inputs(field, (lo, hi), (part_lo, part_hi))
+                    .split_inputs(field, (lo, hi), (part_lo, part_hi), reads)
                     .splits(self, field, node)
             {
                 return true;
             }
         }
-        self.split_inputs(field, (lo, hi), (lo, hi))
+        self.split_inputs(field, (lo, hi), (lo, hi), reads)
             .splits(self, field, node)
     }
 
@@ -1032,6 +1160,7 @@ impl Tree {
         field: &MultiPatchField,
         node_box: (Vec3, Vec3),
         read_box: (Vec3, Vec3),
+        reads: &mut CoefficientReads,
     ) -> SplitInputs {
         let (lo, hi) = node_box;
         // One read of each patch's coefficients over the box gives the finest target among
@@ -1043,7 +1172,7 @@ impl Tree {
             slope: 0.0,
         };
         for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
-            let over = patch_over_box(patch, read_box.0, read_box.1);
+            let over = reads.over_box(n, patch, read_box.0, read_box.1);
             let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
             if meets && (n == 0 || over.holds_detail(patch)) {
                 inputs.target_cells = inputs.target_cells.min(*cells);
@@ -1134,6 +1263,7 @@ pub const DETAIL_EPSILON: f32 = 1e-3;
 
 /// What one read of a patch's coefficients over a world box bounds: the patch's term there
 /// and its slope.
+#[derive(Clone, Copy, Debug)]
 struct PatchOverBox {
     /// The convex-hull bound of the term: it is a convex combination of the coefficients
     /// whose support meets the box, those beyond the lattice counting as zero (the bound
@@ -1162,41 +1292,135 @@ impl PatchOverBox {
     }
 }
 
-/// Reads `patch`'s coefficients whose support meets the world box `lo..=hi` once, for both
-/// bounds of [`PatchOverBox`].
-fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
-    let l = &patch.lattice;
-    let (a, b) = patch.patch_box_of(lo, hi);
-    let (ua, ub) = (l.to_lattice(a), l.to_lattice(b));
-    if !(ua.is_finite() && ub.is_finite()) {
-        return PatchOverBox {
-            bounds: None,
-            slope: f32::INFINITY,
-        };
+/// The coefficients of one patch whose support meets a world box: the index ranges (inclusive,
+/// clamped to the lattice) and whether the unclamped ranges reached beyond the lattice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CoefficientRange {
+    /// The box is not finite in the patch's space.
+    NotFinite,
+    /// No coefficient's support meets the box.
+    Empty,
+    /// The coefficients `first[a] ..= last[a]` per axis.
+    Block {
+        first: [usize; 3],
+        last: [usize; 3],
+        beyond: bool,
+    },
+}
+
+impl CoefficientRange {
+    /// The coefficients of `patch` whose support meets the world box `lo..=hi`.
+    fn of(patch: &Patch, lo: Vec3, hi: Vec3) -> Self {
+        let l = &patch.lattice;
+        let (a, b) = patch.patch_box_of(lo, hi);
+        let (ua, ub) = (l.to_lattice(a), l.to_lattice(b));
+        if !(ua.is_finite() && ub.is_finite()) {
+            return Self::NotFinite;
+        }
+        let mut first = [0_usize; 3];
+        let mut last = [0_usize; 3];
+        let mut beyond = false;
+        for axis in 0..3 {
+            let n = l.dims[axis] as i64;
+            let from = ua[axis].floor() as i64 - 1;
+            let to = ub[axis].floor() as i64 + 2;
+            beyond |= from < 0 || to >= n;
+            let (from, to) = (from.max(0), to.min(n - 1));
+            if from > to {
+                return Self::Empty;
+            }
+            first[axis] = from as usize;
+            last[axis] = to as usize;
+        }
+        Self::Block {
+            first,
+            last,
+            beyond,
+        }
     }
-    let mut range = [(0_usize, 0_usize); 3];
-    let mut beyond = false;
-    for axis in 0..3 {
-        let n = l.dims[axis] as i64;
-        let first = ua[axis].floor() as i64 - 1;
-        let last = ub[axis].floor() as i64 + 2;
-        beyond |= first < 0 || last >= n;
-        let (first, last) = (first.max(0), last.min(n - 1));
-        if first > last {
+}
+
+/// The split tests' reads of the patches' coefficients, remembered by patch and range for
+/// as long as the coefficients stay as they are (one update of the tree): the nodes of a
+/// local re-mesh are small and close together, so most of them read the same blocks of the
+/// coarser patches (in `bench/mesh.rs` `adaptive_remesh`, the three coarser patches' blocks
+/// repeat over nearly every node of the stroke).
+#[derive(Clone, Debug, Default)]
+struct CoefficientReads {
+    /// Per patch: the read of a block, keyed by [`CoefficientReads::key`].
+    per_patch: Vec<HashMap<u64, PatchOverBox, BuildHasherDefault<EdgeIdHasher>>>,
+}
+
+impl CoefficientReads {
+    /// Forgets every read (after the coefficients changed).
+    fn clear(&mut self) {
+        self.per_patch.iter_mut().for_each(HashMap::clear);
+    }
+
+    /// The read of patch `n` (`patch`) over the world box `lo..=hi`.
+    fn over_box(&mut self, n: usize, patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
+        let range = CoefficientRange::of(patch, lo, hi);
+        let CoefficientRange::Block {
+            first,
+            last,
+            beyond,
+        } = range
+        else {
+            return read_coefficients(patch, range);
+        };
+        let Some(key) = Self::key(patch, first, last, beyond) else {
+            return read_coefficients(patch, range);
+        };
+        if self.per_patch.len() <= n {
+            self.per_patch.resize_with(n + 1, HashMap::default);
+        }
+        *self.per_patch[n]
+            .entry(key)
+            .or_insert_with(|| read_coefficients(patch, range))
+    }
+
+    /// The block's first and last coefficients' linear indices and the `beyond` flag in one
+    /// word; `None` for a lattice too large for 31-bit indices (read without remembering).
+    fn key(patch: &Patch, first: [usize; 3], last: [usize; 3], beyond: bool) -> Option<u64> {
+        let l = &patch.lattice;
+        if l.coeffs.len() >= 1 << 31 {
+            return None;
+        }
+        let from = l.index(first[0], first[1], first[2]) as u64;
+        let to = l.index(last[0], last[1], last[2]) as u64;
+        Some(from | to << 31 | u64::from(beyond) << 62)
+    }
+}
+
+/// Reads `patch`'s coefficients in `range` once, for both bounds of [`PatchOverBox`].
+fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
+    let (first, last, beyond) = match range {
+        CoefficientRange::NotFinite => {
+            return PatchOverBox {
+                bounds: None,
+                slope: f32::INFINITY,
+            };
+        }
+        CoefficientRange::Empty => {
             return PatchOverBox {
                 bounds: Some((0.0, 0.0)),
                 slope: 0.0,
             };
         }
-        range[axis] = (first as usize, last as usize);
-    }
+        CoefficientRange::Block {
+            first,
+            last,
+            beyond,
+        } => (first, last, beyond),
+    };
+    let l = &patch.lattice;
     let (mut vmin, mut vmax) = if beyond {
         (0.0_f32, 0.0_f32)
     } else {
         (f32::INFINITY, f32::NEG_INFINITY)
     };
     let [nx, ny, nz] = l.dims;
-    let (i0, i1) = range[0];
+    let (i0, i1) = (first[0], last[0]);
     let mut steepest = 0.0_f32;
     // NOTE: row by row over slices (no per-coefficient index or border test), with
     // `larger`/`smaller` in place of `f32::max`/`min`: the same result here (the running
@@ -1208,8 +1432,8 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
             .zip(b)
             .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
     };
-    for k in range[2].0..=range[2].1 {
-        for j in range[1].0..=range[1].1 {
+    for k in first[2]..=last[2] {
+        for j in first[1]..=last[1] {
             let start = l.index(i0, j, k);
             let row = &l.coeffs[start..=start + (i1 - i0)];
             for &c in row {
@@ -1229,10 +1453,10 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
                 }
             }
             steepest = largest_step(steepest, row, &row[1..]);
-            if j < range[1].1 {
+            if j < last[1] {
                 steepest = largest_step(steepest, row, &l.coeffs[start + nx..]);
             }
-            if k < range[2].1 {
+            if k < last[2] {
                 steepest = largest_step(steepest, row, &l.coeffs[start + nx * ny..]);
             }
         }
