@@ -53,6 +53,16 @@
 //! vertices, so its polygon is the one a whole re-mesh would make. The result holds the
 //! same triangles (the same vertex positions, bit for bit) as [`mesh_adaptive`] of the
 //! edited field.
+//!
+//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the corners
+//! of the region (and two finest cells around it) are sampled together, as a grid, by
+//! [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
+//! computed once per coordinate), and read back without a hash lookup; a count of their
+//! inside corners over boxes (a summed-volume table) shows where a node, face or edge of the
+//! traversal has corners all on one side, so no minimal edge there changes sign and the
+//! traversal does not descend; and the split tests remember each patch's block of
+//! coefficients within one update, so the many small nodes of the region read the coarser
+//! patches' blocks once.
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
@@ -482,8 +492,9 @@ impl AdaptiveMesher {
         let samples = &mut self.region_samples;
         samples.dims = [0; 3];
         let root = i64::from(self.tree.root_size);
-        let lo = region.lo.map(|v| v.clamp(0, root));
-        let hi = region.hi.map(|v| v.clamp(0, root));
+        let margin = RegionSamples::MARGIN;
+        let lo = region.lo.map(|v| (v - margin).clamp(0, root));
+        let hi = region.hi.map(|v| (v + margin).clamp(0, root));
         if (0..3).any(|a| lo[a] > hi[a]) {
             // The region lies beyond the root: no corner of the tree is in it.
             return true;
@@ -519,6 +530,7 @@ impl AdaptiveMesher {
         samples.used.resize(count, false);
         samples.lo = lo.map(|v| v as u32);
         samples.dims = dims;
+        samples.count_inside(self.iso);
         true
     }
 
@@ -581,7 +593,13 @@ impl AdaptiveMesher {
             if !fresh && !region.is_some_and(|r| r.meets(&node)) {
                 continue;
             }
-            let split = self.tree.should_split(field, &node, near, &mut self.reads);
+            let split = self.tree.should_split(
+                field,
+                &node,
+                near,
+                &mut self.reads,
+                Some(&self.region_samples),
+            );
             if split {
                 if node.is_leaf() {
                     self.forget_vertex(n);
@@ -674,6 +692,25 @@ impl AdaptiveMesher {
         })
     }
 
+    /// Whether the corners shared by the nodes `around` (the intersection of their closed
+    /// boxes, where every minimal edge among them lies) all lie in the region's block and
+    /// are all inside or all outside: then none of those edges makes a polygon.
+    fn uniform_between(&self, around: &[u32]) -> bool {
+        if self.region_samples.dims[0] == 0 {
+            return false;
+        }
+        let mut lo = [0_u32; 3];
+        let mut hi = [u32::MAX; 3];
+        for &n in around {
+            let node = &self.tree.nodes[n as usize];
+            for a in 0..3 {
+                lo[a] = lo[a].max(node.min[a]);
+                hi[a] = hi[a].min(node.min[a] + node.size);
+            }
+        }
+        self.region_samples.uniform(lo, hi)
+    }
+
     /// The field at an integer corner; on the root's boundary no more than the iso-level, so
     /// everything outside the root counts as outside.
     fn corner_value(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
@@ -747,6 +784,9 @@ impl AdaptiveMesher {
         if node.is_leaf() || !self.revisits(region, n) {
             return;
         }
+        if self.region_samples.uniform(node.min, node.corner(7)) {
+            return;
+        }
         let child = |c: usize| node.children + c as u32;
         for c in 0..8 {
             self.cell_proc(field, region, child(c));
@@ -779,6 +819,9 @@ impl AdaptiveMesher {
             return;
         }
         if !pair.iter().any(|&n| self.revisits(region, n)) {
+            return;
+        }
+        if self.uniform_between(&pair) {
             return;
         }
         let (b, c) = ((a + 1) % 3, (a + 2) % 3);
@@ -820,6 +863,9 @@ impl AdaptiveMesher {
         a: usize,
     ) {
         if !cells.iter().any(|&n| self.revisits(region, n)) {
+            return;
+        }
+        if self.uniform_between(&cells) {
             return;
         }
         if cells.iter().all(|&n| self.tree.nodes[n as usize].is_leaf()) {
@@ -881,6 +927,9 @@ struct RegionSamples {
     values: Vec<f32>,
     /// Per corner: whether this re-mesh read it.
     used: Vec<bool>,
+    /// Summed-volume table of the inside corners: entry `(x, y, z)` (of `dims + 1` per axis,
+    /// x fastest) counts the inside corners below `x`, `y` and `z`.
+    inside_below: Vec<u32>,
     /// World coordinates of the corners along each axis.
     xs: Vec<f32>,
     ys: Vec<f32>,
@@ -891,6 +940,61 @@ impl RegionSamples {
     /// Most corners a region is sampled in one block for (a region of 32³ corners); a larger
     /// one holds many corners that no leaf uses, and is sampled one by one.
     const MAX_CORNERS: usize = 1 << 15;
+
+    /// Finest cells the block reaches beyond the region on every side: the leaves that meet
+    /// the region and reach past it find their corners there too.
+    const MARGIN: i64 = 2;
+
+    /// Fills [`RegionSamples::inside_below`] from the values.
+    fn count_inside(&mut self, iso: f32) {
+        let [nx, ny, nz] = self.dims;
+        let (sx, sy) = (nx + 1, (nx + 1) * (ny + 1));
+        self.inside_below.clear();
+        self.inside_below.resize(sy * (nz + 1), 0);
+        let table = &mut self.inside_below;
+        let mut at = 0;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let inside = u32::from(self.values[at] > iso);
+                    let t = (x + 1) + sx * (y + 1) + sy * (z + 1);
+                    // Inclusion and exclusion over the seven table entries below.
+                    table[t] = inside + table[t - 1] + table[t - sx] + table[t - sy]
+                        - table[t - 1 - sx]
+                        - table[t - 1 - sy]
+                        - table[t - sx - sy]
+                        + table[t - 1 - sx - sy];
+                    at += 1;
+                }
+            }
+        }
+    }
+
+    /// Whether the block holds every integer corner of the box `lo ..= hi` and they are all
+    /// inside or all outside: then no minimal edge within that box changes sign.
+    fn uniform(&self, lo: [u32; 3], hi: [u32; 3]) -> bool {
+        let (Some(_), Some(_)) = (self.index(lo), self.index(hi)) else {
+            return false;
+        };
+        let [nx, ny, _] = self.dims;
+        let (sx, sy) = (nx + 1, (nx + 1) * (ny + 1));
+        let a: [usize; 3] = std::array::from_fn(|k| (lo[k] - self.lo[k]) as usize);
+        let b: [usize; 3] = std::array::from_fn(|k| (hi[k] - self.lo[k]) as usize + 1);
+        let t = |x: usize, y: usize, z: usize| i64::from(self.inside_below[x + sx * y + sy * z]);
+        let inside =
+            t(b[0], b[1], b[2]) - t(a[0], b[1], b[2]) - t(b[0], a[1], b[2]) - t(b[0], b[1], a[2])
+                + t(a[0], a[1], b[2])
+                + t(a[0], b[1], a[2])
+                + t(b[0], a[1], a[2])
+                - t(a[0], a[1], a[2]);
+        let corners: i64 = (0..3).map(|k| (b[k] - a[k]) as i64).product();
+        inside == 0 || inside == corners
+    }
+
+    /// The field at integer corner `p` (not on the root's boundary), if the block holds it.
+    fn value(&self, p: [u32; 3]) -> Option<f32> {
+        self.index(p).map(|at| self.values[at])
+    }
 
     /// Index of integer corner `p` in the block, if it lies there.
     #[inline]
@@ -1092,7 +1196,7 @@ impl Tree {
         let mut stack = vec![0_usize];
         while let Some(n) = stack.pop() {
             let node = tree.nodes[n];
-            if !tree.should_split(field, &node, None, &mut reads) {
+            if !tree.should_split(field, &node, None, &mut reads, None) {
                 continue;
             }
             if tree.leaves + 7 > options.max_cells {
@@ -1132,6 +1236,7 @@ impl Tree {
         node: &Node,
         near: Option<(Vec3, Vec3)>,
         reads: &mut CoefficientReads,
+        samples: Option<&RegionSamples>,
     ) -> bool {
         if node.size == 1 {
             return false;
@@ -1144,13 +1249,13 @@ impl Tree {
                 && part_lo.cmple(part_hi).all()
                 && self
                     .split_inputs(field, (lo, hi), (part_lo, part_hi), reads)
-                    .splits(self, field, node)
+                    .splits(self, field, node, samples)
             {
                 return true;
             }
         }
         self.split_inputs(field, (lo, hi), (lo, hi), reads)
-            .splits(self, field, node)
+            .splits(self, field, node, samples)
     }
 
     /// The split test's inputs for the node with world box `node_box`, from the coefficients
@@ -1228,7 +1333,16 @@ struct SplitInputs {
 impl SplitInputs {
     /// Whether `node` splits by these inputs: its edge is longer than the target and the
     /// field may cross the iso-level in it.
-    fn splits(&self, tree: &Tree, field: &MultiPatchField, node: &Node) -> bool {
+    ///
+    /// `samples`, when given, are a local re-mesh's region samples: the value at the node's
+    /// centre is read there when the centre is one of their corners.
+    fn splits(
+        &self,
+        tree: &Tree,
+        field: &MultiPatchField,
+        node: &Node,
+        samples: Option<&RegionSamples>,
+    ) -> bool {
         let edge = node.size as f32;
         // A little slack so a target that is a power of two times the finest cell, up to
         // rounding, is met exactly rather than split once more.
@@ -1250,7 +1364,17 @@ impl SplitInputs {
         let far_from_iso = || {
             let (lo, hi) = tree.world_box(node);
             let reach = self.slope * 0.5 * (hi - lo).length();
-            (field.value(0.5 * (lo + hi)) - iso).abs() > reach
+            let centre = 0.5 * (lo + hi);
+            let sampled = samples.and_then(|s| {
+                let corner = node.min.map(|m| m + node.size / 2);
+                // The sample is the field at `Tree::point(corner)`: the same only where that
+                // point is the centre, bit for bit.
+                let same = tree.point(corner).to_array().map(f32::to_bits)
+                    == centre.to_array().map(f32::to_bits);
+                same.then(|| s.value(corner)).flatten()
+            });
+            let value = sampled.unwrap_or_else(|| field.value(centre));
+            (value - iso).abs() > reach
         };
         may_cross && (on_boundary || !far_from_iso())
     }
@@ -1322,8 +1446,8 @@ impl CoefficientRange {
         let mut beyond = false;
         for axis in 0..3 {
             let n = l.dims[axis] as i64;
-            let from = ua[axis].floor() as i64 - 1;
-            let to = ub[axis].floor() as i64 + 2;
+            let from = floor_to_int(ua[axis]) - 1;
+            let to = floor_to_int(ub[axis]) + 2;
             beyond |= from < 0 || to >= n;
             let (from, to) = (from.max(0), to.min(n - 1));
             if from > to {
@@ -1464,6 +1588,18 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
     PatchOverBox {
         bounds: Some((vmin, vmax)),
         slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
+    }
+}
+
+/// `x.floor() as i64` for a finite `x`, without a call to `floorf` (x86-64's baseline has
+/// no rounding instruction): truncate, then step down where that rounded a negative value up.
+#[inline]
+fn floor_to_int(x: f32) -> i64 {
+    let t = x as i64;
+    if (t as f32) > x {
+        t.saturating_sub(1)
+    } else {
+        t
     }
 }
 
@@ -2098,6 +2234,85 @@ mod tests {
         assert!(
             grew && shrank,
             "the strokes did not both refine and coarsen the tree"
+        );
+    }
+
+    #[test]
+    fn adaptive_local_remesh_of_a_region_too_large_for_one_block_equals_a_whole_remesh() {
+        // A change box around the whole clay: its region holds far more corners than
+        // `RegionSamples::MAX_CORNERS`, so the corners are forgotten and sampled one by one.
+        let mut field = three_levels();
+        let mut mesher = AdaptiveMesher::new(&field, &options(2)).unwrap();
+        let root = mesher.tree.root_size as usize + 1;
+        assert!(root.pow(3) > RegionSamples::MAX_CORNERS);
+        let pole = 0.5 * Vec3::new(1.0, 0.05, 0.05).normalize();
+        let (lo, hi) = dent(&mut field, 2, pole, 3, 0.05);
+        let (all_lo, all_hi) = field.support();
+        let report = mesher
+            .remesh_box(&field, lo.min(all_lo), hi.max(all_hi))
+            .unwrap();
+        assert!(!report.whole);
+        assert_eq!(report.leaves_revisited, report.leaves);
+        matches_whole(&mesher, &field);
+        // Then a stroke-sized change is sampled as one block again.
+        let (lo, hi) = dent(&mut field, 2, pole, 3, -0.05);
+        let report = mesher.remesh_box(&field, lo, hi).unwrap();
+        assert!(report.leaves_revisited * 10 < report.leaves, "{report:?}");
+        matches_whole(&mesher, &field);
+    }
+
+    #[test]
+    fn region_samples_find_uniform_boxes_as_a_corner_by_corner_count_does() {
+        // A block of 7 × 5 × 6 corners from (3, 4, 5), inside where x + 2y - z > 6.
+        let (lo, dims) = ([3_u32, 4, 5], [7_usize, 5, 6]);
+        let mut samples = RegionSamples {
+            lo,
+            dims,
+            ..RegionSamples::default()
+        };
+        let value = |p: [u32; 3]| p[0] as f32 + 2.0 * p[1] as f32 - p[2] as f32;
+        for z in 0..dims[2] as u32 {
+            for y in 0..dims[1] as u32 {
+                for x in 0..dims[0] as u32 {
+                    samples
+                        .values
+                        .push(value([lo[0] + x, lo[1] + y, lo[2] + z]));
+                }
+            }
+        }
+        samples.count_inside(6.0);
+        let (mut uniform, mut mixed) = (0, 0);
+        for (a, b) in [
+            ([3, 4, 5], [9, 8, 10]),
+            ([3, 4, 5], [3, 4, 5]),
+            ([3, 4, 10], [4, 5, 10]),
+            ([8, 7, 5], [9, 8, 6]),
+            ([5, 6, 7], [6, 7, 8]),
+            ([3, 4, 9], [5, 4, 10]),
+            ([2, 4, 5], [4, 5, 6]),
+            ([8, 7, 9], [9, 8, 11]),
+            ([3, 4, 5], [4, 5, 6]),
+            ([3, 4, 8], [5, 5, 9]),
+        ] {
+            let mut inside = 0;
+            let mut corners = 0;
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        inside += usize::from(value([x, y, z]) > 6.0);
+                        corners += 1;
+                    }
+                }
+            }
+            let held = samples.index(a).is_some() && samples.index(b).is_some();
+            let expected = held && (inside == 0 || inside == corners);
+            assert_eq!(samples.uniform(a, b), expected, "{a:?} ..= {b:?}");
+            uniform += usize::from(expected);
+            mixed += usize::from(held && !expected);
+        }
+        assert!(
+            uniform >= 2 && mixed >= 2,
+            "{uniform} uniform, {mixed} mixed"
         );
     }
 
