@@ -427,7 +427,15 @@ impl AdaptiveMesher {
     fn extraction(&self) -> Extraction {
         let slots = &self.vertices;
         let mut index = vec![NO_VERTEX; slots.positions.len()];
-        let mut out = Extraction::default();
+        let vertices = slots.positions.len() - slots.free.len();
+        let mut out = Extraction {
+            mesh: TriMesh {
+                positions: Vec::with_capacity(vertices),
+                normals: Vec::with_capacity(vertices),
+                triangles: Vec::with_capacity(2 * self.polygons.len()),
+            },
+            vertex_cells: Vec::with_capacity(vertices),
+        };
         for (s, _) in slots.alive.iter().enumerate().filter(|(_, a)| **a) {
             index[s] = out.mesh.positions.len() as u32;
             out.mesh.positions.push(slots.positions[s]);
@@ -1041,10 +1049,10 @@ fn triangulate(ids: [u32; 4], positions: &[Vec3], triangles: &mut Vec<[u32; 3]>)
 /// Vertices where the gradient vanished take the area-weighted normal of their triangles
 /// (or +z when they have none).
 fn finish_normals(mesh: &mut TriMesh) {
-    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
-    if !flat.contains(&true) {
+    if !mesh.normals.contains(&Vec3::ZERO) {
         return;
     }
+    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
         let cross = (b - a).cross(c - a);
