@@ -587,6 +587,7 @@ impl AdaptiveMesher {
         let mut revisited = 0;
         // The coefficients may have changed since the last update.
         self.reads.clear();
+        self.reads.remember = region.is_some();
         // The region's world box: where the split tests of large nodes are decided.
         let near = region.map(|r| {
             let at = |p: [i64; 3]| {
@@ -1473,14 +1474,18 @@ impl CoefficientRange {
 }
 
 /// The split tests' reads of the patches' coefficients, remembered by patch and range for
-/// as long as the coefficients stay as they are (one update of the tree): the nodes of a
-/// local re-mesh are small and close together, so most of them read the same blocks of the
+/// as long as the coefficients stay as they are (one update of the tree) in a local update:
+/// its nodes are small and close together, so most of them read the same blocks of the
 /// coarser patches (in `bench/mesh.rs` `adaptive_remesh`, the three coarser patches' blocks
-/// repeat over nearly every node of the stroke).
+/// repeat over nearly every node of the stroke). A whole update reads each block directly
+/// (its large nodes rarely share one: the lookups cost more than they save, in
+/// `bench/profile_adaptive.rs`).
 #[derive(Clone, Debug, Default)]
 struct CoefficientReads {
     /// Per patch: the read of a block, keyed by [`CoefficientReads::key`].
     per_patch: Vec<HashMap<u64, PatchOverBox, BuildHasherDefault<EdgeIdHasher>>>,
+    /// Whether reads are remembered (in a local update only).
+    remember: bool,
 }
 
 impl CoefficientReads {
@@ -1492,6 +1497,9 @@ impl CoefficientReads {
     /// The read of patch `n` (`patch`) over the world box `lo..=hi`.
     fn over_box(&mut self, n: usize, patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
         let range = CoefficientRange::of(patch, lo, hi);
+        if !self.remember {
+            return read_coefficients(patch, range);
+        }
         let CoefficientRange::Block {
             first,
             last,
