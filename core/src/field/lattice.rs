@@ -179,16 +179,7 @@ impl BSplineLattice {
         if let Some(base) = self.interior_base(&stencil) {
             // Fast path: all 64 coefficients exist, no per-tap range checks. Rows along x are
             // summed as 4-wide vectors and dotted with the x weights once at the end.
-            let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
-            let mut sum = Vec4::ZERO;
-            for (c, &wzc) in wz.iter().enumerate() {
-                let mut plane = Vec4::ZERO;
-                for (b, &wyb) in wy.iter().enumerate() {
-                    plane += wyb * Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
-                }
-                sum += wzc * plane;
-            }
-            return sum.dot(Vec4::from_array(wx));
+            return self.row_sums(base, &wy, &wz).dot(Vec4::from_array(wx));
         }
         let mut sum = 0.0;
         for c in 0..4 {
@@ -294,6 +285,83 @@ impl BSplineLattice {
         }
     }
 
+    /// Values at every point of the grid `xs × ys × zs` (world coordinates along each axis),
+    /// written into `out` with x fastest: `out[i + xs.len() * (j + ys.len() * k)]` is, bit for
+    /// bit, [`BSplineLattice::value`] at `(xs[i], ys[j], zs[k])`.
+    ///
+    /// Separable: the weights are computed once per coordinate of each axis, and the rows of
+    /// coefficients summed with the y and z weights once per run of x coordinates in one knot
+    /// span (then each point is one 4-wide dot product), where [`BSplineLattice::value`] does
+    /// the whole sum per point. Points whose stencil reaches past the lattice's border are
+    /// evaluated one by one.
+    ///
+    /// # Panics
+    /// When `out.len() != xs.len() * ys.len() * zs.len()`.
+    pub fn values_on_grid(&self, xs: &[f32], ys: &[f32], zs: &[f32], out: &mut [f32]) {
+        assert_eq!(
+            out.len(),
+            xs.len() * ys.len() * zs.len(),
+            "one output per grid point"
+        );
+        // Per coordinate: the first coefficient of its stencil where all four lie inside the
+        // lattice (as `stencil` and `interior_base` find it), and its weights.
+        let taps = |coords: &[f32], axis: usize| -> Vec<(Option<usize>, [f32; 4])> {
+            coords
+                .iter()
+                .map(|&x| {
+                    let u = (x - self.origin[axis]) / self.spacing;
+                    let base = u.floor();
+                    let first = base as i64 - 1;
+                    let inside = u.is_finite() && first >= 0 && first + 3 < self.dims[axis] as i64;
+                    (inside.then_some(first as usize), cubic_weights(u - base))
+                })
+                .collect()
+        };
+        let (tx, ty, tz) = (taps(xs, 0), taps(ys, 1), taps(zs, 2));
+        let mut at = 0;
+        for (k, &(fz, wz)) in tz.iter().enumerate() {
+            for (j, &(fy, wy)) in ty.iter().enumerate() {
+                // The y-z sum of the rows from the last x stencil, while x stays in its span.
+                let mut last: Option<(usize, Vec4)> = None;
+                for (i, &(fx, wx)) in tx.iter().enumerate() {
+                    out[at] = match (fx, fy, fz) {
+                        (Some(fx), Some(fy), Some(fz)) => {
+                            let sum = match last {
+                                Some((first, sum)) if first == fx => sum,
+                                _ => {
+                                    let sum = self.row_sums(self.index(fx, fy, fz), &wy, &wz);
+                                    last = Some((fx, sum));
+                                    sum
+                                }
+                            };
+                            sum.dot(Vec4::from_array(wx))
+                        }
+                        _ => self.value(Vec3::new(xs[i], ys[j], zs[k])),
+                    };
+                    at += 1;
+                }
+            }
+        }
+    }
+
+    /// The 4×4×4 coefficients from linear index `base` summed along z and y with the weights
+    /// `wz` and `wy`: four sums along x, one per x tap (the fast path of
+    /// [`BSplineLattice::value`], shared with [`BSplineLattice::values_on_grid`] so that both
+    /// give the same bits).
+    #[inline]
+    fn row_sums(&self, base: usize, wy: &[f32; 4], wz: &[f32; 4]) -> Vec4 {
+        let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
+        let mut sum = Vec4::ZERO;
+        for (c, &wzc) in wz.iter().enumerate() {
+            let mut plane = Vec4::ZERO;
+            for (b, &wyb) in wy.iter().enumerate() {
+                plane += wyb * Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
+            }
+            sum += wzc * plane;
+        }
+        sum
+    }
+
     /// Values and gradients at many points, written into `values` and `gradients`.
     ///
     /// # Panics
@@ -374,6 +442,43 @@ impl Stencil {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn values_on_a_grid_are_the_values_point_by_point_bit_for_bit() {
+        let mut lattice =
+            BSplineLattice::zeros([9, 7, 8], 0.3, Vec3::new(0.1, -0.2, 0.05)).expect("lattice");
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 61) as f32 / 61.0 - 0.3;
+        }
+        // From beyond the support on the low side, across the borders, to beyond the high
+        // side; x steps of a fifth of a span so several points share a span.
+        let axis = |start: f32, step: f32, n: usize| -> Vec<f32> {
+            (0..n).map(|i| start + step * i as f32).collect()
+        };
+        let (xs, ys, zs) = (
+            axis(-1.0, 0.06, 66),
+            axis(-1.1, 0.13, 25),
+            axis(-0.9, 0.17, 22),
+        );
+        let mut out = vec![f32::NAN; xs.len() * ys.len() * zs.len()];
+        lattice.values_on_grid(&xs, &ys, &zs, &mut out);
+        let mut at = 0;
+        let (mut inner, mut zero) = (0, 0);
+        for &z in &zs {
+            for &y in &ys {
+                for &x in &xs {
+                    let one = lattice.value(Vec3::new(x, y, z));
+                    assert_eq!(out[at].to_bits(), one.to_bits(), "at ({x}, {y}, {z})");
+                    inner += usize::from(one != 0.0);
+                    zero += usize::from(one == 0.0);
+                    at += 1;
+                }
+            }
+        }
+        assert!(inner > 0 && zero > 0, "{inner} inside, {zero} outside");
+        // Without points the call writes nothing.
+        lattice.values_on_grid(&[], &ys, &zs, &mut []);
+    }
 
     fn linear_lattice(
         dims: [usize; 3],

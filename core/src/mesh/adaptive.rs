@@ -53,6 +53,16 @@
 //! vertices, so its polygon is the one a whole re-mesh would make. The result holds the
 //! same triangles (the same vertex positions, bit for bit) as [`mesh_adaptive`] of the
 //! edited field.
+//!
+//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the corners
+//! of the region (and two finest cells around it) are sampled together, as a grid, by
+//! [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
+//! computed once per coordinate), and read back without a hash lookup; a count of their
+//! inside corners over boxes (a summed-volume table) shows where a node, face or edge of the
+//! traversal has corners all on one side, so no minimal edge there changes sign and the
+//! traversal does not descend; and the split tests remember each patch's block of
+//! coefficients within one update, so the many small nodes of the region read the coarser
+//! patches' blocks once.
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
@@ -212,6 +222,10 @@ pub struct AdaptiveMesher {
     removed: Vec<SlotTriangle>,
     /// The first of `polygons` the last call made (0 after a whole mesh).
     first_made: usize,
+    /// The split tests' coefficient reads, kept within one update of the tree.
+    reads: CoefficientReads,
+    /// A local re-mesh's corner samples inside its region, taken together.
+    region_samples: RegionSamples,
 }
 
 /// A triangle of an [`AdaptiveMesher`]'s kept mesh, named by the slots of its vertices
@@ -332,6 +346,8 @@ impl AdaptiveMesher {
             stale: false,
             removed: Vec::new(),
             first_made: 0,
+            reads: CoefficientReads::default(),
+            region_samples: RegionSamples::default(),
         };
         mesher.update_tree(field, None)?;
         mesher.cell_proc(field, None, 0);
@@ -392,7 +408,9 @@ impl AdaptiveMesher {
         }
         self.generation += 1;
         let region = self.region(lo, hi);
-        self.forget_corners(&region);
+        if !self.sample_region(field, &region) {
+            self.forget_corners(&region);
+        }
         report.leaves_revisited = match self.update_tree(field, Some(&region)) {
             Ok(n) => n,
             Err(e) => {
@@ -416,6 +434,7 @@ impl AdaptiveMesher {
         report.polygons_dropped = polygons_before - self.polygons.len();
         self.first_made = self.polygons.len();
         self.cell_proc(field, Some(&region), 0);
+        self.keep_region_samples();
         report.polygons_made = self.polygons.len() + report.polygons_dropped - polygons_before;
         report.vertices_made =
             self.vertices.positions.len() - self.vertices.free.len() - kept_vertices;
@@ -480,7 +499,15 @@ impl AdaptiveMesher {
     fn extraction(&self) -> Extraction {
         let slots = &self.vertices;
         let mut index = vec![NO_VERTEX; slots.positions.len()];
-        let mut out = Extraction::default();
+        let vertices = slots.positions.len() - slots.free.len();
+        let mut out = Extraction {
+            mesh: TriMesh {
+                positions: Vec::with_capacity(vertices),
+                normals: Vec::with_capacity(vertices),
+                triangles: Vec::with_capacity(2 * self.polygons.len()),
+            },
+            vertex_cells: Vec::with_capacity(vertices),
+        };
         for (s, _) in slots.alive.iter().enumerate().filter(|(_, a)| **a) {
             index[s] = out.mesh.positions.len() as u32;
             out.mesh.positions.push(slots.positions[s]);
@@ -535,8 +562,85 @@ impl AdaptiveMesher {
         }
     }
 
+    /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
+    /// [`RegionSamples::MAX_CORNERS`]: the corner samples of this re-mesh inside the region
+    /// are then read from that block (see [`AdaptiveMesher::corner_value`]) and
+    /// [`AdaptiveMesher::keep_region_samples`] puts those used into the cache, in place of
+    /// the region's old samples. Returns whether it did (else the caller forgets the old
+    /// samples and they are taken again one by one).
+    fn sample_region(&mut self, field: &MultiPatchField, region: &Region) -> bool {
+        let samples = &mut self.region_samples;
+        samples.dims = [0; 3];
+        let root = i64::from(self.tree.root_size);
+        let margin = RegionSamples::MARGIN;
+        let lo = region.lo.map(|v| (v - margin).clamp(0, root));
+        let hi = region.hi.map(|v| (v + margin).clamp(0, root));
+        if (0..3).any(|a| lo[a] > hi[a]) {
+            // The region lies beyond the root: no corner of the tree is in it.
+            return true;
+        }
+        let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
+        let count = dims.iter().product::<usize>();
+        if count > RegionSamples::MAX_CORNERS {
+            return false;
+        }
+        // The corners' world coordinates along each axis, as `Tree::point` computes them.
+        let coords = |a: usize, out: &mut Vec<f32>| {
+            out.clear();
+            out.extend((lo[a]..=hi[a]).map(|c| self.tree.origin[a] + self.tree.unit * c as f32));
+        };
+        coords(0, &mut samples.xs);
+        coords(1, &mut samples.ys);
+        coords(2, &mut samples.zs);
+        samples.values.resize(count, 0.0);
+        field.values_on_grid(&samples.xs, &samples.ys, &samples.zs, &mut samples.values);
+        // On the root's boundary no more than the iso-level (as `corner_value`).
+        let mut at = 0;
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                for x in lo[0]..=hi[0] {
+                    if [x, y, z].iter().any(|&c| c == 0 || c == root) {
+                        samples.values[at] = samples.values[at].min(self.iso);
+                    }
+                    at += 1;
+                }
+            }
+        }
+        samples.used.clear();
+        samples.used.resize(count, false);
+        samples.lo = lo.map(|v| v as u32);
+        samples.dims = dims;
+        samples.count_inside(self.iso);
+        true
+    }
+
+    /// Puts the region's samples that this re-mesh used into the cache and drops the
+    /// region's other (old) samples from it, so the cache holds what one-by-one sampling
+    /// would have left there.
+    fn keep_region_samples(&mut self) {
+        let samples = &mut self.region_samples;
+        let [nx, ny, nz] = samples.dims;
+        let mut at = 0;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let p = [x, y, z].map(|v| v as u32);
+                    let key = corner_key(std::array::from_fn(|a| samples.lo[a] + p[a]));
+                    if samples.used[at] {
+                        self.corners.insert(key, samples.values[at]);
+                    } else {
+                        self.corners.remove(&key);
+                    }
+                    at += 1;
+                }
+            }
+        }
+        samples.dims = [0; 3];
+    }
+
     /// After a failed re-mesh: an empty mesh, and the next call meshes the whole clay.
     fn clear_after_failure(&mut self) {
+        self.region_samples.dims = [0; 3];
         self.stale = true;
         self.removed.clear();
         self.first_made = 0;
@@ -555,6 +659,9 @@ impl AdaptiveMesher {
         region: Option<&Region>,
     ) -> Result<usize, AdaptiveMeshError> {
         let mut revisited = 0;
+        // The coefficients may have changed since the last update.
+        self.reads.clear();
+        self.reads.remember = region.is_some();
         // The region's world box: where the split tests of large nodes are decided.
         let near = region.map(|r| {
             let at = |p: [i64; 3]| {
@@ -569,7 +676,13 @@ impl AdaptiveMesher {
             if !fresh && !region.is_some_and(|r| r.meets(&node)) {
                 continue;
             }
-            let split = self.tree.should_split(field, &node, near);
+            let split = self.tree.should_split(
+                field,
+                &node,
+                near,
+                &mut self.reads,
+                Some(&self.region_samples),
+            );
             if split {
                 if node.is_leaf() {
                     self.forget_vertex(n);
@@ -662,9 +775,32 @@ impl AdaptiveMesher {
         })
     }
 
+    /// Whether the corners shared by the nodes `around` (the intersection of their closed
+    /// boxes, where every minimal edge among them lies) all lie in the region's block and
+    /// are all inside or all outside: then none of those edges makes a polygon.
+    fn uniform_between(&self, around: &[u32]) -> bool {
+        if self.region_samples.dims[0] == 0 {
+            return false;
+        }
+        let mut lo = [0_u32; 3];
+        let mut hi = [u32::MAX; 3];
+        for &n in around {
+            let node = &self.tree.nodes[n as usize];
+            for a in 0..3 {
+                lo[a] = lo[a].max(node.min[a]);
+                hi[a] = hi[a].min(node.min[a] + node.size);
+            }
+        }
+        self.region_samples.uniform(lo, hi)
+    }
+
     /// The field at an integer corner; on the root's boundary no more than the iso-level, so
     /// everything outside the root counts as outside.
     fn corner_value(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
+        if let Some(at) = self.region_samples.index(p) {
+            self.region_samples.used[at] = true;
+            return self.region_samples.values[at];
+        }
         let key = corner_key(p);
         if let Some(&v) = self.corners.get(&key) {
             return v;
@@ -731,6 +867,9 @@ impl AdaptiveMesher {
         if node.is_leaf() || !self.revisits(region, n) {
             return;
         }
+        if self.region_samples.uniform(node.min, node.corner(7)) {
+            return;
+        }
         let child = |c: usize| node.children + c as u32;
         for c in 0..8 {
             self.cell_proc(field, region, child(c));
@@ -763,6 +902,9 @@ impl AdaptiveMesher {
             return;
         }
         if !pair.iter().any(|&n| self.revisits(region, n)) {
+            return;
+        }
+        if self.uniform_between(&pair) {
             return;
         }
         let (b, c) = ((a + 1) % 3, (a + 2) % 3);
@@ -806,6 +948,9 @@ impl AdaptiveMesher {
         if !cells.iter().any(|&n| self.revisits(region, n)) {
             return;
         }
+        if self.uniform_between(&cells) {
+            return;
+        }
         if cells.iter().all(|&n| self.tree.nodes[n as usize].is_leaf()) {
             self.minimal_edge(field, cells, a);
             return;
@@ -846,6 +991,100 @@ impl AdaptiveMesher {
             ids.reverse();
         }
         self.polygons.push(ids);
+    }
+}
+
+/// The corner samples of a local re-mesh's region (clamped to the root), taken together by
+/// [`MultiPatchField::values_on_grid`] (the same values as one by one, with each patch's
+/// weights computed once per coordinate of each axis): in `bench/mesh.rs`
+/// `adaptive_remesh` nearly every corner of a stroke's region is a leaf corner, so sampling
+/// the block costs less than sampling them one by one, and the re-mesh reads them without a
+/// hash lookup. Buffers are kept between re-meshes.
+#[derive(Clone, Debug, Default)]
+struct RegionSamples {
+    /// The block's lowest integer corner.
+    lo: [u32; 3],
+    /// Corners per axis; zero when there is no block.
+    dims: [usize; 3],
+    /// Field value per corner, x fastest.
+    values: Vec<f32>,
+    /// Per corner: whether this re-mesh read it.
+    used: Vec<bool>,
+    /// Summed-volume table of the inside corners: entry `(x, y, z)` (of `dims + 1` per axis,
+    /// x fastest) counts the inside corners below `x`, `y` and `z`.
+    inside_below: Vec<u32>,
+    /// World coordinates of the corners along each axis.
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    zs: Vec<f32>,
+}
+
+impl RegionSamples {
+    /// Most corners a region is sampled in one block for (a region of 32³ corners); a larger
+    /// one holds many corners that no leaf uses, and is sampled one by one.
+    const MAX_CORNERS: usize = 1 << 15;
+
+    /// Finest cells the block reaches beyond the region on every side: the leaves that meet
+    /// the region and reach past it find their corners there too.
+    const MARGIN: i64 = 2;
+
+    /// Fills [`RegionSamples::inside_below`] from the values.
+    fn count_inside(&mut self, iso: f32) {
+        let [nx, ny, nz] = self.dims;
+        let (sx, sy) = (nx + 1, (nx + 1) * (ny + 1));
+        self.inside_below.clear();
+        self.inside_below.resize(sy * (nz + 1), 0);
+        let table = &mut self.inside_below;
+        let mut at = 0;
+        for z in 0..nz {
+            for y in 0..ny {
+                for x in 0..nx {
+                    let inside = u32::from(self.values[at] > iso);
+                    let t = (x + 1) + sx * (y + 1) + sy * (z + 1);
+                    // Inclusion and exclusion over the seven table entries below.
+                    table[t] = inside + table[t - 1] + table[t - sx] + table[t - sy]
+                        - table[t - 1 - sx]
+                        - table[t - 1 - sy]
+                        - table[t - sx - sy]
+                        + table[t - 1 - sx - sy];
+                    at += 1;
+                }
+            }
+        }
+    }
+
+    /// Whether the block holds every integer corner of the box `lo ..= hi` and they are all
+    /// inside or all outside: then no minimal edge within that box changes sign.
+    fn uniform(&self, lo: [u32; 3], hi: [u32; 3]) -> bool {
+        let (Some(_), Some(_)) = (self.index(lo), self.index(hi)) else {
+            return false;
+        };
+        let [nx, ny, _] = self.dims;
+        let (sx, sy) = (nx + 1, (nx + 1) * (ny + 1));
+        let a: [usize; 3] = std::array::from_fn(|k| (lo[k] - self.lo[k]) as usize);
+        let b: [usize; 3] = std::array::from_fn(|k| (hi[k] - self.lo[k]) as usize + 1);
+        let t = |x: usize, y: usize, z: usize| i64::from(self.inside_below[x + sx * y + sy * z]);
+        let inside =
+            t(b[0], b[1], b[2]) - t(a[0], b[1], b[2]) - t(b[0], a[1], b[2]) - t(b[0], b[1], a[2])
+                + t(a[0], a[1], b[2])
+                + t(a[0], b[1], a[2])
+                + t(b[0], a[1], a[2])
+                - t(a[0], a[1], a[2]);
+        let corners: i64 = (0..3).map(|k| (b[k] - a[k]) as i64).product();
+        inside == 0 || inside == corners
+    }
+
+    /// The field at integer corner `p` (not on the root's boundary), if the block holds it.
+    fn value(&self, p: [u32; 3]) -> Option<f32> {
+        self.index(p).map(|at| self.values[at])
+    }
+
+    /// Index of integer corner `p` in the block, if it lies there.
+    #[inline]
+    fn index(&self, p: [u32; 3]) -> Option<usize> {
+        let d: [usize; 3] = std::array::from_fn(|a| p[a].wrapping_sub(self.lo[a]) as usize);
+        (d[0] < self.dims[0] && d[1] < self.dims[1] && d[2] < self.dims[2])
+            .then(|| d[0] + self.dims[0] * (d[1] + self.dims[1] * d[2]))
     }
 }
 
@@ -905,10 +1144,10 @@ fn split_polygon(ids: [u32; 4], positions: &[Vec3]) -> ([[u32; 3]; 2], usize) {
 /// Vertices where the gradient vanished take the area-weighted normal of their triangles
 /// (or +z when they have none).
 fn finish_normals(mesh: &mut TriMesh) {
-    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
-    if !flat.contains(&true) {
+    if !mesh.normals.contains(&Vec3::ZERO) {
         return;
     }
+    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
     for t in &mesh.triangles {
         let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
         let cross = (b - a).cross(c - a);
@@ -1056,10 +1295,11 @@ impl Tree {
         options: &AdaptiveMeshOptions,
     ) -> Result<Self, AdaptiveMeshError> {
         let mut tree = Self::frame(field, options)?;
+        let mut reads = CoefficientReads::default();
         let mut stack = vec![0_usize];
         while let Some(n) = stack.pop() {
             let node = tree.nodes[n];
-            if !tree.should_split(field, &node, None) {
+            if !tree.should_split(field, &node, None, &mut reads, None) {
                 continue;
             }
             if tree.leaves + 7 > options.max_cells {
@@ -1098,6 +1338,8 @@ impl Tree {
         field: &MultiPatchField,
         node: &Node,
         near: Option<(Vec3, Vec3)>,
+        reads: &mut CoefficientReads,
+        samples: Option<&RegionSamples>,
     ) -> bool {
         if node.size == 1 {
             return false;
@@ -1109,14 +1351,14 @@ impl Tree {
             if smaller
                 && part_lo.cmple(part_hi).all()
                 && self
-                    .split_inputs(field, (lo, hi), (part_lo, part_hi))
-                    .splits(self, field, node)
+                    .split_inputs(field, (lo, hi), (part_lo, part_hi), reads)
+                    .splits(self, field, node, samples)
             {
                 return true;
             }
         }
-        self.split_inputs(field, (lo, hi), (lo, hi))
-            .splits(self, field, node)
+        self.split_inputs(field, (lo, hi), (lo, hi), reads)
+            .splits(self, field, node, samples)
     }
 
     /// The split test's inputs for the node with world box `node_box`, from the coefficients
@@ -1126,6 +1368,7 @@ impl Tree {
         field: &MultiPatchField,
         node_box: (Vec3, Vec3),
         read_box: (Vec3, Vec3),
+        reads: &mut CoefficientReads,
     ) -> SplitInputs {
         let (lo, hi) = node_box;
         // One read of each patch's coefficients over the box gives the finest target among
@@ -1137,7 +1380,7 @@ impl Tree {
             slope: 0.0,
         };
         for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
-            let over = patch_over_box(patch, read_box.0, read_box.1);
+            let over = reads.over_box(n, patch, read_box.0, read_box.1);
             let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
             if meets && (n == 0 || over.holds_detail(patch)) {
                 inputs.target_cells = inputs.target_cells.min(*cells);
@@ -1193,7 +1436,16 @@ struct SplitInputs {
 impl SplitInputs {
     /// Whether `node` splits by these inputs: its edge is longer than the target and the
     /// field may cross the iso-level in it.
-    fn splits(&self, tree: &Tree, field: &MultiPatchField, node: &Node) -> bool {
+    ///
+    /// `samples`, when given, are a local re-mesh's region samples: the value at the node's
+    /// centre is read there when the centre is one of their corners.
+    fn splits(
+        &self,
+        tree: &Tree,
+        field: &MultiPatchField,
+        node: &Node,
+        samples: Option<&RegionSamples>,
+    ) -> bool {
         let edge = node.size as f32;
         // A little slack so a target that is a power of two times the finest cell, up to
         // rounding, is met exactly rather than split once more.
@@ -1215,7 +1467,17 @@ impl SplitInputs {
         let far_from_iso = || {
             let (lo, hi) = tree.world_box(node);
             let reach = self.slope * 0.5 * (hi - lo).length();
-            (field.value(0.5 * (lo + hi)) - iso).abs() > reach
+            let centre = 0.5 * (lo + hi);
+            let sampled = samples.and_then(|s| {
+                let corner = node.min.map(|m| m + node.size / 2);
+                // The sample is the field at `Tree::point(corner)`: the same only where that
+                // point is the centre, bit for bit.
+                let same = tree.point(corner).to_array().map(f32::to_bits)
+                    == centre.to_array().map(f32::to_bits);
+                same.then(|| s.value(corner)).flatten()
+            });
+            let value = sampled.unwrap_or_else(|| field.value(centre));
+            (value - iso).abs() > reach
         };
         may_cross && (on_boundary || !far_from_iso())
     }
@@ -1228,6 +1490,7 @@ pub const DETAIL_EPSILON: f32 = 1e-3;
 
 /// What one read of a patch's coefficients over a world box bounds: the patch's term there
 /// and its slope.
+#[derive(Clone, Copy, Debug)]
 struct PatchOverBox {
     /// The convex-hull bound of the term: it is a convex combination of the coefficients
     /// whose support meets the box, those beyond the lattice counting as zero (the bound
@@ -1256,41 +1519,142 @@ impl PatchOverBox {
     }
 }
 
-/// Reads `patch`'s coefficients whose support meets the world box `lo..=hi` once, for both
-/// bounds of [`PatchOverBox`].
-fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
-    let l = &patch.lattice;
-    let (a, b) = patch.patch_box_of(lo, hi);
-    let (ua, ub) = (l.to_lattice(a), l.to_lattice(b));
-    if !(ua.is_finite() && ub.is_finite()) {
-        return PatchOverBox {
-            bounds: None,
-            slope: f32::INFINITY,
-        };
+/// The coefficients of one patch whose support meets a world box: the index ranges (inclusive,
+/// clamped to the lattice) and whether the unclamped ranges reached beyond the lattice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum CoefficientRange {
+    /// The box is not finite in the patch's space.
+    NotFinite,
+    /// No coefficient's support meets the box.
+    Empty,
+    /// The coefficients `first[a] ..= last[a]` per axis.
+    Block {
+        first: [usize; 3],
+        last: [usize; 3],
+        beyond: bool,
+    },
+}
+
+impl CoefficientRange {
+    /// The coefficients of `patch` whose support meets the world box `lo..=hi`.
+    fn of(patch: &Patch, lo: Vec3, hi: Vec3) -> Self {
+        let l = &patch.lattice;
+        let (a, b) = patch.patch_box_of(lo, hi);
+        let (ua, ub) = (l.to_lattice(a), l.to_lattice(b));
+        if !(ua.is_finite() && ub.is_finite()) {
+            return Self::NotFinite;
+        }
+        let mut first = [0_usize; 3];
+        let mut last = [0_usize; 3];
+        let mut beyond = false;
+        for axis in 0..3 {
+            let n = l.dims[axis] as i64;
+            let from = floor_to_int(ua[axis]) - 1;
+            let to = floor_to_int(ub[axis]) + 2;
+            beyond |= from < 0 || to >= n;
+            let (from, to) = (from.max(0), to.min(n - 1));
+            if from > to {
+                return Self::Empty;
+            }
+            first[axis] = from as usize;
+            last[axis] = to as usize;
+        }
+        Self::Block {
+            first,
+            last,
+            beyond,
+        }
     }
-    let mut range = [(0_usize, 0_usize); 3];
-    let mut beyond = false;
-    for axis in 0..3 {
-        let n = l.dims[axis] as i64;
-        let first = ua[axis].floor() as i64 - 1;
-        let last = ub[axis].floor() as i64 + 2;
-        beyond |= first < 0 || last >= n;
-        let (first, last) = (first.max(0), last.min(n - 1));
-        if first > last {
+}
+
+/// The split tests' reads of the patches' coefficients, remembered by patch and range for
+/// as long as the coefficients stay as they are (one update of the tree) in a local update:
+/// its nodes are small and close together, so most of them read the same blocks of the
+/// coarser patches (in `bench/mesh.rs` `adaptive_remesh`, the three coarser patches' blocks
+/// repeat over nearly every node of the stroke). A whole update reads each block directly
+/// (its large nodes rarely share one: the lookups cost more than they save, in
+/// `bench/profile_adaptive.rs`).
+#[derive(Clone, Debug, Default)]
+struct CoefficientReads {
+    /// Per patch: the read of a block, keyed by [`CoefficientReads::key`].
+    per_patch: Vec<HashMap<u64, PatchOverBox, BuildHasherDefault<EdgeIdHasher>>>,
+    /// Whether reads are remembered (in a local update only).
+    remember: bool,
+}
+
+impl CoefficientReads {
+    /// Forgets every read (after the coefficients changed).
+    fn clear(&mut self) {
+        self.per_patch.iter_mut().for_each(HashMap::clear);
+    }
+
+    /// The read of patch `n` (`patch`) over the world box `lo..=hi`.
+    fn over_box(&mut self, n: usize, patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
+        let range = CoefficientRange::of(patch, lo, hi);
+        if !self.remember {
+            return read_coefficients(patch, range);
+        }
+        let CoefficientRange::Block {
+            first,
+            last,
+            beyond,
+        } = range
+        else {
+            return read_coefficients(patch, range);
+        };
+        let Some(key) = Self::key(patch, first, last, beyond) else {
+            return read_coefficients(patch, range);
+        };
+        if self.per_patch.len() <= n {
+            self.per_patch.resize_with(n + 1, HashMap::default);
+        }
+        *self.per_patch[n]
+            .entry(key)
+            .or_insert_with(|| read_coefficients(patch, range))
+    }
+
+    /// The block's first and last coefficients' linear indices and the `beyond` flag in one
+    /// word; `None` for a lattice too large for 31-bit indices (read without remembering).
+    fn key(patch: &Patch, first: [usize; 3], last: [usize; 3], beyond: bool) -> Option<u64> {
+        let l = &patch.lattice;
+        if l.coeffs.len() >= 1 << 31 {
+            return None;
+        }
+        let from = l.index(first[0], first[1], first[2]) as u64;
+        let to = l.index(last[0], last[1], last[2]) as u64;
+        Some(from | to << 31 | u64::from(beyond) << 62)
+    }
+}
+
+/// Reads `patch`'s coefficients in `range` once, for both bounds of [`PatchOverBox`].
+fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
+    let (first, last, beyond) = match range {
+        CoefficientRange::NotFinite => {
+            return PatchOverBox {
+                bounds: None,
+                slope: f32::INFINITY,
+            };
+        }
+        CoefficientRange::Empty => {
             return PatchOverBox {
                 bounds: Some((0.0, 0.0)),
                 slope: 0.0,
             };
         }
-        range[axis] = (first as usize, last as usize);
-    }
+        CoefficientRange::Block {
+            first,
+            last,
+            beyond,
+        } => (first, last, beyond),
+    };
+    let l = &patch.lattice;
     let (mut vmin, mut vmax) = if beyond {
         (0.0_f32, 0.0_f32)
     } else {
         (f32::INFINITY, f32::NEG_INFINITY)
     };
     let [nx, ny, nz] = l.dims;
-    let (i0, i1) = range[0];
+    let (i0, i1) = (first[0], last[0]);
     let mut steepest = 0.0_f32;
     // NOTE: row by row over slices (no per-coefficient index or border test), with
     // `larger`/`smaller` in place of `f32::max`/`min`: the same result here (the running
@@ -1302,8 +1666,8 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
             .zip(b)
             .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
     };
-    for k in range[2].0..=range[2].1 {
-        for j in range[1].0..=range[1].1 {
+    for k in first[2]..=last[2] {
+        for j in first[1]..=last[1] {
             let start = l.index(i0, j, k);
             let row = &l.coeffs[start..=start + (i1 - i0)];
             for &c in row {
@@ -1323,10 +1687,10 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
                 }
             }
             steepest = largest_step(steepest, row, &row[1..]);
-            if j < range[1].1 {
+            if j < last[1] {
                 steepest = largest_step(steepest, row, &l.coeffs[start + nx..]);
             }
-            if k < range[2].1 {
+            if k < last[2] {
                 steepest = largest_step(steepest, row, &l.coeffs[start + nx * ny..]);
             }
         }
@@ -1334,6 +1698,18 @@ fn patch_over_box(patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
     PatchOverBox {
         bounds: Some((vmin, vmax)),
         slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
+    }
+}
+
+/// `x.floor() as i64` for a finite `x`, without a call to `floorf` (x86-64's baseline has
+/// no rounding instruction): truncate, then step down where that rounded a negative value up.
+#[inline]
+fn floor_to_int(x: f32) -> i64 {
+    let t = x as i64;
+    if (t as f32) > x {
+        t.saturating_sub(1)
+    } else {
+        t
     }
 }
 
@@ -1968,6 +2344,85 @@ pub(super) mod tests {
         assert!(
             grew && shrank,
             "the strokes did not both refine and coarsen the tree"
+        );
+    }
+
+    #[test]
+    fn adaptive_local_remesh_of_a_region_too_large_for_one_block_equals_a_whole_remesh() {
+        // A change box around the whole clay: its region holds far more corners than
+        // `RegionSamples::MAX_CORNERS`, so the corners are forgotten and sampled one by one.
+        let mut field = three_levels();
+        let mut mesher = AdaptiveMesher::new(&field, &options(2)).unwrap();
+        let root = mesher.tree.root_size as usize + 1;
+        assert!(root.pow(3) > RegionSamples::MAX_CORNERS);
+        let pole = 0.5 * Vec3::new(1.0, 0.05, 0.05).normalize();
+        let (lo, hi) = dent(&mut field, 2, pole, 3, 0.05);
+        let (all_lo, all_hi) = field.support();
+        let report = mesher
+            .remesh_box(&field, lo.min(all_lo), hi.max(all_hi))
+            .unwrap();
+        assert!(!report.whole);
+        assert_eq!(report.leaves_revisited, report.leaves);
+        matches_whole(&mesher, &field);
+        // Then a stroke-sized change is sampled as one block again.
+        let (lo, hi) = dent(&mut field, 2, pole, 3, -0.05);
+        let report = mesher.remesh_box(&field, lo, hi).unwrap();
+        assert!(report.leaves_revisited * 10 < report.leaves, "{report:?}");
+        matches_whole(&mesher, &field);
+    }
+
+    #[test]
+    fn region_samples_find_uniform_boxes_as_a_corner_by_corner_count_does() {
+        // A block of 7 × 5 × 6 corners from (3, 4, 5), inside where x + 2y - z > 6.
+        let (lo, dims) = ([3_u32, 4, 5], [7_usize, 5, 6]);
+        let mut samples = RegionSamples {
+            lo,
+            dims,
+            ..RegionSamples::default()
+        };
+        let value = |p: [u32; 3]| p[0] as f32 + 2.0 * p[1] as f32 - p[2] as f32;
+        for z in 0..dims[2] as u32 {
+            for y in 0..dims[1] as u32 {
+                for x in 0..dims[0] as u32 {
+                    samples
+                        .values
+                        .push(value([lo[0] + x, lo[1] + y, lo[2] + z]));
+                }
+            }
+        }
+        samples.count_inside(6.0);
+        let (mut uniform, mut mixed) = (0, 0);
+        for (a, b) in [
+            ([3, 4, 5], [9, 8, 10]),
+            ([3, 4, 5], [3, 4, 5]),
+            ([3, 4, 10], [4, 5, 10]),
+            ([8, 7, 5], [9, 8, 6]),
+            ([5, 6, 7], [6, 7, 8]),
+            ([3, 4, 9], [5, 4, 10]),
+            ([2, 4, 5], [4, 5, 6]),
+            ([8, 7, 9], [9, 8, 11]),
+            ([3, 4, 5], [4, 5, 6]),
+            ([3, 4, 8], [5, 5, 9]),
+        ] {
+            let mut inside = 0;
+            let mut corners = 0;
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        inside += usize::from(value([x, y, z]) > 6.0);
+                        corners += 1;
+                    }
+                }
+            }
+            let held = samples.index(a).is_some() && samples.index(b).is_some();
+            let expected = held && (inside == 0 || inside == corners);
+            assert_eq!(samples.uniform(a, b), expected, "{a:?} ..= {b:?}");
+            uniform += usize::from(expected);
+            mixed += usize::from(held && !expected);
+        }
+        assert!(
+            uniform >= 2 && mixed >= 2,
+            "{uniform} uniform, {mixed} mixed"
         );
     }
 
