@@ -916,26 +916,18 @@ impl MovingPlanes<'_> {
     }
 }
 
-/// The side of the typical points' cells, in typical reaches ([`MOVING_REACH`] `h`).
-///
-/// NOTE: cells of half a reach read fewer points outside the reach (about 1.7 times the points
-/// within it, against 2.9 times), but the search passes 25 rows of cells instead of 9, and
-/// with some thirty points within reach the rows cost more than the points saved: the
-/// stages that search took 10–25% longer in the stage timings of a 50 000-point import.
-const TYPICAL_CELL_REACHES: f32 = 1.0;
-/// Points a cell of the typical points offers, at most.
-const TYPICAL_CELL_OFFER: usize = WIDE_CELL_OFFER;
-
 /// The points bucketed for the radius searches around them, in two grids: those at the
-/// typical bandwidth `h` in cells of a reach ([`MOVING_REACH`] `h`), and the few whose bandwidth is
-/// widened (a sparsely sampled area, a hole's rim) in cells of [`MOVING_REACH`] times the
-/// widest. A moving plane's search then reaches `2h` among the many and only `2h_max` among
-/// the few, instead of `2h_max` among all.
+/// typical bandwidth `h` in cells of their reach ([`MOVING_REACH`] `h`), and the few whose
+/// bandwidth is widened (a sparsely sampled area, a hole's rim) in cells of [`MOVING_REACH`]
+/// times the widest. A moving plane's search then reaches `2h` among the many and only
+/// `2h_max` among the few, instead of `2h_max` among all.
 ///
-/// NOTE: with one grid at the widest reach (up to [`MAX_WIDENING`] times the typical), the
-/// searches of an import of a 50 000-point scan visited about four times the points within
-/// their points' reach, and were over a third of its time (`perf record` of `dynaclay
-/// import`; see bench/RESULTS.md, "Import speed").
+/// NOTE: one grid at the widest reach (up to [`MAX_WIDENING`] times the typical) made every
+/// search reach twice as far as most points need; the two grids took about 7% off the CPU
+/// time of a 50 000-point import. Cells of half the reach read fewer points outside it (about
+/// 1.7 times the points within, against 2.9), but a search then passes 25 rows of cells
+/// instead of 9, and with some thirty points within reach the searching stages took 10–25%
+/// longer (bench/RESULTS.md, "Import speed").
 struct NearPoints {
     /// The points whose bandwidth is the typical one.
     typical: PointGrid,
@@ -954,8 +946,8 @@ impl NearPoints {
         let typical = PointGrid::new(
             points,
             is_typical,
-            TYPICAL_CELL_REACHES * MOVING_REACH * bandwidth,
-            TYPICAL_CELL_OFFER,
+            MOVING_REACH * bandwidth,
+            WIDE_CELL_OFFER,
         );
         let widened = (0..points.len()).any(|i| !is_typical(i)).then(|| {
             PointGrid::new(
