@@ -74,7 +74,8 @@ use std::collections::VecDeque;
 use glam::Vec3;
 
 use super::consensus::{
-    CELL_OFFER, Consensus, PointGrid, least_variance_direction, parallel_map, screen,
+    CELL_OFFER, Consensus, PointGrid, exp_neg, floor_to_i32, least_variance_direction,
+    parallel_map, screen,
 };
 use super::points::PointCloud;
 use super::regularised::refit_regularised;
@@ -200,9 +201,8 @@ pub struct SignedCloud {
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
     /// from the points (beyond the bandwidth) takes its distance from.
     anchors: Vec<Vec3>,
-    /// The points bucketed for the moving planes (cells of [`MOVING_REACH`] times the widest
-    /// point's bandwidth).
-    near_points: PointGrid,
+    /// The points bucketed for the moving planes (see [`NearPoints`]).
+    near_points: NearPoints,
     /// Per point: its plane's bandwidth and weight, set by the local spacing (see
     /// [`LocalScale`]).
     local: Vec<LocalScale>,
@@ -316,7 +316,6 @@ impl SignedCloud {
             &self.confidence,
             &self.local,
             &self.curvature,
-            self.widest,
             x,
         )
     }
@@ -325,7 +324,7 @@ impl SignedCloud {
     fn nearest_point(&self, x: Vec3) -> Option<usize> {
         let u = x / self.grid.h;
         let [mx, my, mz] = self.grid.dims;
-        let corner = |a: f32, m: usize| (a.floor().max(0.0) as usize).min(m - 1);
+        let corner = |a: f32, m: usize| (floor_to_i32(a).max(0) as usize).min(m - 1);
         let (i0, j0, k0) = (corner(u.x, mx), corner(u.y, my), corner(u.z, mz));
         let mut best = (f32::INFINITY, None);
         for c in 0..8 {
@@ -514,12 +513,10 @@ pub fn sign_cloud(
     // The local spacing is read in 3D: only where the noise is under the spacing (the
     // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
     // sampled rather than how thick the noise is.
+    let neighbours = Neighbours::new(&points, MOVING_REACH * bandwidth);
     let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * consensus.point_spacing * scale
     {
-        local_scales(
-            &local_spacings(&points, MOVING_REACH * bandwidth),
-            bandwidth,
-        )
+        local_scales(&local_spacings(&neighbours), bandwidth)
     } else {
         vec![
             LocalScale {
@@ -530,30 +527,25 @@ pub fn sign_cloud(
         ]
     };
     let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
-    let near_points = PointGrid::new(&points, |_| true, MOVING_REACH * widest, WIDE_CELL_OFFER);
+    let near_points = NearPoints::new(&points, &local, bandwidth);
     // A given normal its neighbours overrule (a stray that lies on the surface but points
     // anywhere) takes theirs before the smoothing.
     let (raw_normals, overruled_normals) = if signed_by == SignedBy::Normals {
-        overrule_stray_normals(
-            &near_points,
-            &points,
-            &raw_normals,
-            &confidence,
-            MOVING_REACH * bandwidth,
-        )
+        overrule_stray_normals(&neighbours, &raw_normals, &confidence)
     } else {
         (raw_normals, 0)
     };
     let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
         let p = points[i];
         let mut sum = Vec3::ZERO;
-        near_points.for_each_near(p, MOVING_REACH * bandwidth, |j, q| {
-            let w = confidence[j] * (-(q - p).length_squared() / (bandwidth * bandwidth)).exp();
+        neighbours.for_each(i, |j, q| {
+            let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
             sum += raw_normals[j] * w;
         });
         sum.try_normalize().unwrap_or(raw_normals[i])
     });
-    let curvature = point_curvatures(&near_points, &points, &normals, &confidence, bandwidth);
+    let curvature = point_curvatures(&neighbours, &normals, &confidence, bandwidth);
+    drop(neighbours);
     // Only the points some node takes its fallback plane from need an anchor.
     let mut wanted = vec![false; points.len()];
     for (&p, d) in nearest.iter().zip(&dist) {
@@ -566,15 +558,8 @@ pub fn sign_cloud(
         if !wanted[i] {
             return p;
         }
-        let (weighted, weight) = moving_planes(
-            &near_points,
-            &normals,
-            &confidence,
-            &local,
-            &curvature,
-            widest,
-            p,
-        );
+        let (weighted, weight) =
+            moving_planes(&near_points, &normals, &confidence, &local, &curvature, p);
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -686,15 +671,15 @@ struct LocalScale {
 
 /// Each point's local spacing, field units: the area per point of the disc out to its
 /// [`LOCAL_NEIGHBOURS`]-th nearest other point, `d_k √(π / k)` (so that points on an even
-/// grid of step `s` get about `s`). Searched within `reach`: a point with fewer neighbours
-/// than that within it is given the spacing `reach` would give.
-fn local_spacings(points: &[Vec3], reach: f32) -> Vec<f32> {
-    let grid = PointGrid::new(points, |_| true, reach, WIDE_CELL_OFFER);
+/// grid of step `s` get about `s`), among its `neighbours` (within their reach): a point with
+/// fewer neighbours than that within it is given the spacing the reach would give.
+fn local_spacings(neighbours: &Neighbours<'_>) -> Vec<f32> {
     let per_point = (std::f32::consts::PI / LOCAL_NEIGHBOURS as f32).sqrt();
+    let points = neighbours.points;
     parallel_map(points.len(), |i| {
         let p = points[i];
         let mut near: Vec<f32> = Vec::with_capacity(4 * LOCAL_NEIGHBOURS);
-        grid.for_each_near(p, reach, |j, q| {
+        neighbours.for_each(i, |j, q| {
             if j != i {
                 near.push((q - p).length_squared());
             }
@@ -704,10 +689,112 @@ fn local_spacings(points: &[Vec3], reach: f32) -> Vec<f32> {
                 .1
                 .sqrt()
         } else {
-            reach
+            neighbours.radius
         };
         kth * per_point
     })
+}
+
+/// Neighbours a point has within the typical reach, on average at most, for them to be kept
+/// in lists ([`Neighbours`]); a denser cloud (a noisy scan, whose bandwidth the noise sets)
+/// is searched again at each stage instead, so the lists never cost more than
+/// 4 × this bytes per point.
+pub const MOST_LISTED_NEIGHBOURS: usize = 48;
+
+/// The points within one radius of each point (itself included), for the stages that visit
+/// them for every point in turn (the local spacing, the normals' vote, their smoothing, the
+/// curvature): found by one search per point and kept in lists where they are few enough
+/// (at most [`MOST_LISTED_NEIGHBOURS`] per point on average), searched again by each stage
+/// otherwise. Either way a point's neighbours are visited in the same order.
+///
+/// NOTE: the four stages each searched the same radius around every point; with the lists
+/// they take one search between them (see bench/RESULTS.md, "Import speed").
+struct Neighbours<'a> {
+    points: &'a [Vec3],
+    radius: f32,
+    grid: PointGrid,
+    lists: Option<NeighbourLists>,
+}
+
+/// Per point, its neighbours' indices: the points in runs of `run` (one per thread that
+/// found them), each run with its own offsets (`run + 1` of them) and indices.
+struct NeighbourLists {
+    run: usize,
+    runs: Vec<(Vec<u32>, Vec<u32>)>,
+}
+
+impl<'a> Neighbours<'a> {
+    fn new(points: &'a [Vec3], radius: f32) -> Self {
+        let grid = PointGrid::new(points, |_| true, radius, WIDE_CELL_OFFER);
+        let lists = NeighbourLists::find(&grid, points, radius, MOST_LISTED_NEIGHBOURS);
+        Self {
+            points,
+            radius,
+            grid,
+            lists,
+        }
+    }
+
+    /// Calls `visit(index, position)` for every point within the radius of point `i`.
+    fn for_each(&self, i: usize, mut visit: impl FnMut(usize, Vec3)) {
+        match &self.lists {
+            Some(lists) => {
+                for &j in lists.of(i) {
+                    visit(j as usize, self.points[j as usize]);
+                }
+            }
+            None => self.grid.for_each_near(self.points[i], self.radius, visit),
+        }
+    }
+}
+
+impl NeighbourLists {
+    /// The lists, or `None` where they would hold more than `most_per_point` neighbours per
+    /// point on average.
+    fn find(grid: &PointGrid, points: &[Vec3], radius: f32, most_per_point: usize) -> Option<Self> {
+        let threads = std::thread::available_parallelism()
+            .map_or(1, std::num::NonZeroUsize::get)
+            .min(points.len().div_ceil(4096))
+            .max(1);
+        let run = points.len().div_ceil(threads).max(1);
+        let budget = most_per_point.saturating_mul(run);
+        let find_run = |first: usize| {
+            let mut starts = vec![0u32];
+            let mut members = Vec::new();
+            for &p in &points[first..(first + run).min(points.len())] {
+                grid.for_each_near(p, radius, |j, _| members.push(j as u32));
+                if members.len() > budget {
+                    return None;
+                }
+                starts.push(members.len() as u32);
+            }
+            members.shrink_to_fit();
+            Some((starts, members))
+        };
+        let runs: Vec<Option<(Vec<u32>, Vec<u32>)>> = std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..threads)
+                .map(|t| {
+                    let find_run = &find_run;
+                    scope.spawn(move || find_run(t * run))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+                .collect()
+        });
+        Some(Self {
+            run,
+            runs: runs.into_iter().collect::<Option<_>>()?,
+        })
+    }
+
+    /// Point `i`'s neighbours.
+    fn of(&self, i: usize) -> &[u32] {
+        let (starts, members) = &self.runs[i / self.run];
+        let k = i % self.run;
+        &members[starts[k] as usize..starts[k + 1] as usize]
+    }
 }
 
 /// Each point's bandwidth and area weight from its local spacing `s` and the median spacing
@@ -747,19 +834,19 @@ pub const MAX_CURVATURE_BANDWIDTHS: f32 = 0.5;
 /// `nⱼ − nᵢ = (pⱼ − pᵢ) / R`; the noise across the surface hardly enters, as `nⱼ − nᵢ`
 /// lies nearly in the tangent plane), bounded by [`MAX_CURVATURE_BANDWIDTHS`] / `bandwidth`.
 fn point_curvatures(
-    grid: &PointGrid,
-    points: &[Vec3],
+    neighbours: &Neighbours<'_>,
     normals: &[Vec3],
     confidence: &[f32],
     bandwidth: f32,
 ) -> Vec<f32> {
     let bound = MAX_CURVATURE_BANDWIDTHS / bandwidth;
+    let points = neighbours.points;
     parallel_map(points.len(), |i| {
         let (p, n) = (points[i], normals[i]);
         let (mut turned, mut spread) = (0.0f32, 0.0f32);
-        grid.for_each_near(p, MOVING_REACH * bandwidth, |j, q| {
+        neighbours.for_each(i, |j, q| {
             let d = q - p;
-            let w = confidence[j] * (-d.length_squared() / (bandwidth * bandwidth)).exp();
+            let w = confidence[j] * exp_neg(d.length_squared() / (bandwidth * bandwidth));
             turned += w * (normals[j] - n).dot(d);
             spread += w * d.length_squared();
         });
@@ -773,32 +860,110 @@ fn point_curvatures(
 
 /// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
 /// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
-/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); `widest`
-/// is the largest `hᵢ`.
+/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`).
 fn moving_planes(
-    grid: &PointGrid,
+    near: &NearPoints,
     normals: &[Vec3],
     confidence: &[f32],
     local: &[LocalScale],
     curvature: &[f32],
-    widest: f32,
     x: Vec3,
 ) -> (f32, f32) {
-    let (mut weighted, mut weight) = (0.0f32, 0.0f32);
-    grid.for_each_near(x, MOVING_REACH * widest, |j, p| {
-        let d = x - p;
-        let LocalScale { bandwidth, area } = local[j];
+    let mut sums = (0.0f32, 0.0f32);
+    let planes = MovingPlanes {
+        normals,
+        confidence,
+        local,
+        curvature,
+        x,
+    };
+    near.typical
+        .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
+            planes.add(&mut sums, j, p);
+        });
+    if let Some(widened) = &near.widened {
+        widened.for_each_near(x, MOVING_REACH * near.widest, |j, p| {
+            planes.add(&mut sums, j, p);
+        });
+    }
+    sums
+}
+
+/// The per-point data of the moving planes, and the point `x` they are evaluated at.
+struct MovingPlanes<'a> {
+    normals: &'a [Vec3],
+    confidence: &'a [f32],
+    local: &'a [LocalScale],
+    curvature: &'a [f32],
+    x: Vec3,
+}
+
+impl MovingPlanes<'_> {
+    /// Adds point `j` (at `p`)'s term to `(Σ wᵢ dᵢ(x), Σ wᵢ)` if `x` is within its reach.
+    #[inline(always)]
+    fn add(&self, (weighted, weight): &mut (f32, f32), j: usize, p: Vec3) {
+        let d = self.x - p;
+        let LocalScale { bandwidth, area } = self.local[j];
         let reach = MOVING_REACH * bandwidth;
         let squared = d.length_squared();
         if squared <= reach * reach {
-            let w = confidence[j] * area * (-squared / (bandwidth * bandwidth)).exp();
-            let height = normals[j].dot(d);
+            let w = self.confidence[j] * area * exp_neg(squared / (bandwidth * bandwidth));
+            let height = self.normals[j].dot(d);
             let tangential = (squared - height * height).max(0.0);
-            weighted += w * (height + 0.5 * curvature[j] * tangential);
-            weight += w;
+            *weighted += w * (height + 0.5 * self.curvature[j] * tangential);
+            *weight += w;
         }
-    });
-    (weighted, weight)
+    }
+}
+
+/// The points bucketed for the radius searches around them, in two grids: those at the
+/// typical bandwidth `h` in cells of their reach ([`MOVING_REACH`] `h`), and the few whose
+/// bandwidth is widened (a sparsely sampled area, a hole's rim) in cells of [`MOVING_REACH`]
+/// times the widest. A moving plane's search then reaches `2h` among the many and only
+/// `2h_max` among the few, instead of `2h_max` among all.
+///
+/// NOTE: one grid at the widest reach (up to [`MAX_WIDENING`] times the typical) made every
+/// search reach twice as far as most points need; the two grids took about 7% off the CPU
+/// time of a 50 000-point import. Cells of half the reach read fewer points outside it (about
+/// 1.7 times the points within, against 2.9), but a search then passes 25 rows of cells
+/// instead of 9, and with some thirty points within reach the searching stages took 10–25%
+/// longer (bench/RESULTS.md, "Import speed").
+struct NearPoints {
+    /// The points whose bandwidth is the typical one.
+    typical: PointGrid,
+    /// The points whose bandwidth is wider, if any.
+    widened: Option<PointGrid>,
+    /// The typical bandwidth `h`, field units.
+    bandwidth: f32,
+    /// The widest point's bandwidth, field units.
+    widest: f32,
+}
+
+impl NearPoints {
+    fn new(points: &[Vec3], local: &[LocalScale], bandwidth: f32) -> Self {
+        let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
+        let is_typical = |i: usize| local[i].bandwidth <= bandwidth;
+        let typical = PointGrid::new(
+            points,
+            is_typical,
+            MOVING_REACH * bandwidth,
+            WIDE_CELL_OFFER,
+        );
+        let widened = (0..points.len()).any(|i| !is_typical(i)).then(|| {
+            PointGrid::new(
+                points,
+                |i| !is_typical(i),
+                MOVING_REACH * widest,
+                WIDE_CELL_OFFER,
+            )
+        });
+        Self {
+            typical,
+            widened,
+            bandwidth,
+            widest,
+        }
+    }
 }
 
 /// What the screening and the clean-up did, for the log.
@@ -1241,22 +1406,20 @@ pub const NEIGHBOURS_AGREE: f32 = 0.6;
 /// ... and it lies further than this cosine (60°) from their mean direction.
 pub const NORMAL_AGREEMENT: f32 = 0.5;
 
-/// The given normals `raw`, each one that its neighbours within `reach` overrule replaced by
-/// their confidence-weighted mean direction; and how many were. A stray that lies on the
+/// The given normals `raw`, each one that its `neighbours` overrule replaced by their
+/// confidence-weighted mean direction; and how many were. A stray that lies on the
 /// surface passes the screening (it is not off the plane), but its normal points anywhere,
 /// and one normal turned against its neighbours turns the nodes nearest to it inside out (a
 /// bubble on a stalk). Where the neighbours themselves disagree (both sides of a sheet thinner
-/// than `reach`), every normal is kept.
+/// than their reach), every normal is kept.
 fn overrule_stray_normals(
-    near_points: &PointGrid,
-    points: &[Vec3],
+    neighbours: &Neighbours<'_>,
     raw: &[Vec3],
     confidence: &[f32],
-    reach: f32,
 ) -> (Vec<Vec3>, usize) {
-    let agreed: Vec<Option<Vec3>> = parallel_map(points.len(), |i| {
+    let agreed: Vec<Option<Vec3>> = parallel_map(raw.len(), |i| {
         let (mut resultant, mut weight) = (Vec3::ZERO, 0.0f32);
-        near_points.for_each_near(points[i], reach, |j, _| {
+        neighbours.for_each(i, |j, _| {
             if j != i {
                 resultant += raw[j] * confidence[j];
                 weight += confidence[j];
@@ -1374,6 +1537,104 @@ mod tests {
     }
 
     #[test]
+    fn listed_neighbours_are_the_points_within_reach_and_the_planes_match_a_full_scan() {
+        // A wavy sheet sampled densely on one half and sparsely on the other, so that some
+        // points have widened bandwidths. Each point's neighbours, listed or searched, are
+        // exactly the points a scan of all of them finds within the radius, each once, in the
+        // same order either way; and the moving planes over the two grids sum the same terms
+        // as a scan of every point within its own reach.
+        let mut points = Vec::new();
+        for i in 0..60 {
+            for j in 0..40 {
+                let step = if i < 30 { 1.0 } else { 3.0 };
+                let x = if i < 30 {
+                    i as f32
+                } else {
+                    30.0 + (i - 30) as f32 * step
+                };
+                let y = j as f32 * step.min(2.0);
+                points.push(Vec3::new(x, y, (0.2 * x).sin() + 0.1 * (0.3 * y).cos()));
+            }
+        }
+        let bandwidth = 1.5;
+        let radius = MOVING_REACH * bandwidth;
+        let listed = Neighbours::new(&points, radius);
+        assert!(listed.lists.is_some(), "about 28 neighbours each: listed");
+        let searched = Neighbours {
+            lists: None,
+            ..Neighbours::new(&points, radius)
+        };
+        let too_many = NeighbourLists::find(&listed.grid, &points, radius, 4);
+        assert!(too_many.is_none(), "over 4 per point: not listed");
+        for i in 0..points.len() {
+            let (mut from_lists, mut from_search) = (Vec::new(), Vec::new());
+            listed.for_each(i, |j, q| {
+                assert_eq!(q, points[j]);
+                from_lists.push(j);
+            });
+            searched.for_each(i, |j, _| from_search.push(j));
+            assert_eq!(from_lists, from_search, "point {i}");
+            from_lists.sort_unstable();
+            let within: Vec<usize> = (0..points.len())
+                .filter(|&j| (points[j] - points[i]).length_squared() <= radius * radius)
+                .collect();
+            assert_eq!(from_lists, within, "point {i}");
+        }
+        let local: Vec<LocalScale> = points
+            .iter()
+            .map(|p| LocalScale {
+                bandwidth: if p.x < 30.0 {
+                    bandwidth
+                } else {
+                    2.0 * bandwidth
+                },
+                area: if p.x < 30.0 { 1.0 } else { 4.0 },
+            })
+            .collect();
+        let near = NearPoints::new(&points, &local, bandwidth);
+        assert!(near.widened.is_some() && near.widest == 2.0 * bandwidth);
+        let normals: Vec<Vec3> = points
+            .iter()
+            .map(|p| Vec3::new(-0.2 * (0.2 * p.x).cos(), 0.0, 1.0).normalize())
+            .collect();
+        let confidence: Vec<f32> = (0..points.len())
+            .map(|i| 0.5 + (i % 7) as f32 / 14.0)
+            .collect();
+        let curvature: Vec<f32> = points.iter().map(|p| 0.04 * (0.2 * p.x).sin()).collect();
+        for probe in 0..300 {
+            let x = Vec3::new(
+                (probe as f32 * 0.37) % 120.0,
+                (probe as f32 * 1.13) % 80.0,
+                ((probe % 5) as f32 - 2.0) * 0.7,
+            );
+            let (weighted, weight) =
+                moving_planes(&near, &normals, &confidence, &local, &curvature, x);
+            let (mut full_weighted, mut full_weight) = (0.0f64, 0.0f64);
+            for j in 0..points.len() {
+                let d = x - points[j];
+                let h = local[j].bandwidth;
+                let squared = d.length_squared();
+                if squared <= (MOVING_REACH * h).powi(2) {
+                    let w = f64::from(confidence[j] * local[j].area)
+                        * (-f64::from(squared) / f64::from(h * h)).exp();
+                    let height = normals[j].dot(d);
+                    let tangential = (squared - height * height).max(0.0);
+                    full_weighted += w * f64::from(height + 0.5 * curvature[j] * tangential);
+                    full_weight += w;
+                }
+            }
+            assert!(
+                (f64::from(weight) - full_weight).abs() <= 1e-5 * full_weight.max(1e-3),
+                "weight {weight} against {full_weight} at {x}"
+            );
+            assert!(
+                (f64::from(weighted) - full_weighted).abs() <= 1e-4 * full_weight.max(1e-3),
+                "weighted {weighted} against {full_weighted} at {x}"
+            );
+        }
+    }
+
+    #[test]
     fn a_stray_normal_on_a_flat_patch_is_overruled_and_a_thin_sheets_two_sides_are_kept() {
         // A 20 × 20 patch facing +z; three points' normals point elsewhere: sideways,
         // backwards, and 45° off (within the agreement, kept).
@@ -1382,8 +1643,8 @@ mod tests {
         normals[210] = -Vec3::Z;
         normals[215] = Vec3::new(1.0, 0.0, 1.0).normalize();
         let confidence = vec![1.0; points.len()];
-        let grid = PointGrid::new(&points, |_| true, 3.0, CELL_OFFER);
-        let (agreed, count) = overrule_stray_normals(&grid, &points, &normals, &confidence, 3.0);
+        let neighbours = Neighbours::new(&points, 3.0);
+        let (agreed, count) = overrule_stray_normals(&neighbours, &normals, &confidence);
         assert_eq!(count, 2);
         assert!(agreed[205].dot(Vec3::Z) > 0.99 && agreed[210].dot(Vec3::Z) > 0.99);
         assert_eq!(agreed[215], normals[215]);
@@ -1394,8 +1655,8 @@ mod tests {
         points.extend(top);
         normals.extend(up);
         let confidence = vec![1.0; points.len()];
-        let grid = PointGrid::new(&points, |_| true, 3.0, CELL_OFFER);
-        let (agreed, count) = overrule_stray_normals(&grid, &points, &normals, &confidence, 3.0);
+        let neighbours = Neighbours::new(&points, 3.0);
+        let (agreed, count) = overrule_stray_normals(&neighbours, &normals, &confidence);
         assert_eq!(count, 0);
         assert_eq!(agreed, normals);
     }
@@ -1565,6 +1826,42 @@ mod tests {
             let (d, n) = grid.band_distances_on(&points, 0.5, threads);
             assert!(d.iter().zip(&dist).all(|(a, b)| a.to_bits() == b.to_bits()));
             assert_eq!(n, nearest, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn the_band_is_the_nearest_point_within_it_at_every_node() {
+        // Against a scan of every point at every node: the same distance bit for bit and the
+        // same point (the lowest index of equally near ones), on points off the nodes and on
+        // them, with the band reaching between nodes.
+        let grid = SignGrid::new(8, 0.25, 2);
+        let centre = Vec3::splat(7.0 * 0.25 * 0.5);
+        let mut points: Vec<Vec3> = sphere_cloud(300, 0.5)
+            .points
+            .iter()
+            .map(|&p| p + centre)
+            .collect();
+        points.extend([centre, centre + Vec3::new(0.25, 0.0, 0.125)]);
+        for band in [0.2f32, 0.3, 0.5] {
+            let (dist, nearest) = grid.band_distances_on(&points, band, 2);
+            for at in 0..grid.count() {
+                let x = grid.position(at);
+                let mut best = (f32::INFINITY, 0u32);
+                for (p_index, &p) in points.iter().enumerate() {
+                    let d = (x - p).length();
+                    if d <= band && d < best.0 {
+                        best = (d, p_index as u32);
+                    }
+                }
+                assert_eq!(
+                    dist[at].to_bits(),
+                    best.0.to_bits(),
+                    "band {band}, node {at}"
+                );
+                if best.0.is_finite() {
+                    assert_eq!(nearest[at], best.1, "band {band}, node {at}");
+                }
+            }
         }
     }
 

@@ -12,7 +12,8 @@
 //!    same `--error` means the same on any scan. The bound is never below the cloud's noise
 //!    level (given, or estimated by [`super::consensus`]): the target is the smoothed surface,
 //!    and a residual below the noise is not structure a detail patch should follow. Above
-//!    [`MAX_ERROR_POINTS`] points, an even subset of the points gives the samples.
+//!    [`error_points`] points (about [`ERROR_POINTS_PER_NODE`] for each node of the deepest
+//!    level the surface crosses), an even subset of the points gives the samples.
 //! 3. **Octree.** The root is the cloud's bounding cube. Its eight children, and the children
 //!    of every node that was refined, are visited one depth at a time; a node whose error
 //!    exceeds the bound (and that holds at least [`MIN_NODE_SAMPLES`] samples) gets a detail
@@ -50,6 +51,32 @@ use dynaclay_core::field::{
 
 /// Points used for the error samples, at most (an even subset of a larger cloud).
 pub const MAX_ERROR_POINTS: usize = 200_000;
+/// Points used for the error samples, at most, per node of the deepest level that the
+/// surface crosses (a surface crosses about `4^depth` of the `8^depth` nodes): a few
+/// thousand samples judge a node's RMS error to a few percent, and the samples beyond them
+/// only cost (each is a moving-planes evaluation: with every point of a 50 000-point scan
+/// they were a fifth of the import's time in its stage timings).
+pub const ERROR_POINTS_PER_NODE: usize = 1024;
+
+/// The points that give the error samples, at most, for a hierarchy down to `max_depth`:
+/// [`ERROR_POINTS_PER_NODE`] times `4^depth`, `depth` at least [`DEFAULT_MAX_DEPTH`] (so the
+/// base's error is read from the same samples at any depth up to the default), and at most
+/// [`MAX_ERROR_POINTS`].
+///
+/// # Examples
+/// ```
+/// use dynaclay_import::fit::hierarchy::{MAX_ERROR_POINTS, error_points};
+/// assert_eq!(error_points(0), 16_384);
+/// assert_eq!(error_points(2), 16_384);
+/// assert_eq!(error_points(6), MAX_ERROR_POINTS);
+/// ```
+#[must_use]
+pub fn error_points(max_depth: u32) -> usize {
+    let per_level = 4usize.saturating_pow(max_depth.max(DEFAULT_MAX_DEPTH));
+    ERROR_POINTS_PER_NODE
+        .saturating_mul(per_level)
+        .min(MAX_ERROR_POINTS)
+}
 /// A node with fewer error samples is not refined (too little data to judge it).
 pub const MIN_NODE_SAMPLES: usize = 24;
 /// Detail spans over which a detail patch's window falls from 1 to 0.
@@ -294,7 +321,11 @@ pub fn fit_hierarchy(
         });
     // Three error samples per point (an even subset of a large cloud): on the surface, and
     // half a base span outside and inside along the plane that signs it.
-    let stride = signed.points.len().div_ceil(MAX_ERROR_POINTS).max(1);
+    let stride = signed
+        .points
+        .len()
+        .div_ceil(error_points(options.max_depth))
+        .max(1);
     let offset = 0.5 * signed.spacing;
     let mut at = Vec::with_capacity(3 * signed.points.len() / stride + 3);
     for &p in signed.points.iter().step_by(stride) {
