@@ -5,7 +5,7 @@
 //!   mesh.ply` with its default settings (the clay meshed at 4 cells per knot span within the
 //!   machine's default memory budget, welded), as a child process: its time includes reading
 //!   the cloud and writing the session and the mesh, and its memory is its own peak resident
-//!   set (`wait4`), the whole process, as PoissonRecon's is. The command writes its mesh in the
+//!   set (`VmHWM`, see `run_child`), the whole process, as PoissonRecon's is. The command writes its mesh in the
 //!   clay's units, so the same fit is made again in this process (`fit::fit_import`, then
 //!   `cli::mesh_clay` as `--mesh` does) for the mesh in the cloud's units; that second run is
 //!   not timed.
@@ -16,12 +16,12 @@
 //! * **PoissonRecon** (Kazhdan): the binary named by `POISSON_RECON` (or `PoissonRecon` on the
 //!   `PATH`), run as `PoissonRecon --in cloud.ply --out mesh.ply --depth 8 --samplesPerNode 15`
 //!   (screened by default, point weight 2 × the B-spline degree). Its time includes reading
-//!   the cloud and writing the mesh; its memory is its own peak resident set (`wait4`), the
+//!   the cloud and writing the mesh; its memory is its own peak resident set (`VmHWM`), the
 //!   whole process rather than what it added.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use dynaclay::cli::budget::MemoryBudget;
 use dynaclay::cli::mesh_clay;
@@ -67,40 +67,64 @@ fn measured<T>(work: impl FnOnce() -> T) -> (T, f64, f64) {
     (out, seconds, (peak_bytes() - before).max(0.0))
 }
 
+/// How often [`run_child`] reads a child's peak resident set.
+const PEAK_POLL: Duration = Duration::from_millis(2);
+
 /// Runs `command` to its end with its output discarded: its wall time, seconds, and its peak
-/// resident set, bytes (`wait4`'s `ru_maxrss`); or why it failed, with its stderr.
+/// resident set, bytes: the largest `VmHWM` of its `/proc/<pid>/status`, read every
+/// [`PEAK_POLL`] while it runs (growth in its last poll interval can be missed). `wait4`'s
+/// `ru_maxrss` is not used: a child's `exec` records the resident set of the process it was
+/// forked from (this bench, tens of megabytes by its later rows) in that maximum, so every
+/// child would report at least the bench's own size. Or why it failed, with its stderr.
 fn run_child(mut command: Command) -> Result<(f64, f64), String> {
     let name = format!("{:?}", command.get_program());
     let start = Instant::now();
-    let child = command
+    // `spawn` returns once the child has exec'd: from here its status is its own process's.
+    let mut child = command
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()
         .map_err(|e| format!("{name}: {e}"))?;
-    let pid = i32::try_from(child.id()).map_err(|e| e.to_string())?;
-    let mut stderr = String::new();
-    if let Some(mut pipe) = child.stderr {
-        // Read to the end before waiting, so a chatty child never blocks on a full pipe.
-        let _ = std::io::Read::read_to_string(&mut pipe, &mut stderr);
-    }
-    let mut status = 0;
-    // SAFETY: `rusage` is plain data that wait4 fills; zeroed is a valid value for it.
-    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
-    // SAFETY: `pid` is our own unreaped child (std's `Child` was consumed above without
-    // waiting), and both out-pointers are valid for writes.
-    let reaped = unsafe { libc::wait4(pid, &mut status, 0, &mut usage) };
+    // Drained on its own thread, so a chatty child never blocks on a full pipe.
+    let pipe = child.stderr.take();
+    let stderr = std::thread::spawn(move || {
+        let mut text = String::new();
+        if let Some(mut pipe) = pipe {
+            let _ = std::io::Read::read_to_string(&mut pipe, &mut text);
+        }
+        text
+    });
+    let status_path = PathBuf::from(format!("/proc/{}/status", child.id()));
+    let mut peak_kib = 0_u64;
+    let status = loop {
+        if let Some(kib) = peak_resident_kib(&status_path) {
+            peak_kib = peak_kib.max(kib);
+        }
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) => std::thread::sleep(PEAK_POLL),
+            Err(e) => return Err(format!("{name}: waiting: {e}")),
+        }
+    };
     let seconds = start.elapsed().as_secs_f64();
-    if reaped != pid {
-        return Err(format!("wait4: {}", std::io::Error::last_os_error()));
+    let stderr = stderr.join().unwrap_or_default();
+    if !status.success() {
+        return Err(format!("{name} failed ({status}): {}", stderr.trim()));
     }
-    if !(libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0) {
-        return Err(format!(
-            "{name} failed (status {status}): {}",
-            stderr.trim()
-        ));
+    if peak_kib == 0 {
+        return Err(format!("{name}: no VmHWM in {}", status_path.display()));
     }
-    Ok((seconds, usage.ru_maxrss as f64 * 1024.0))
+    Ok((seconds, peak_kib as f64 * 1024.0))
+}
+
+/// The `VmHWM` line of a `/proc/<pid>/status` file, KiB; `None` when the file or the line
+/// cannot be read (the process has exited).
+fn peak_resident_kib(status_path: &Path) -> Option<u64> {
+    let text = std::fs::read_to_string(status_path).ok()?;
+    text.lines()
+        .find_map(|line| line.strip_prefix("VmHWM:"))
+        .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse().ok())
 }
 
 /// `dynaclay import <ply>` with the default settings and `--mesh`, run as a child process in
@@ -211,8 +235,8 @@ pub fn find_poisson_recon() -> Result<PathBuf, String> {
         .ok_or_else(|| format!("PoissonRecon is not on the PATH and POISSON_RECON is unset; {how}"))
 }
 
-/// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back. The child is reaped
-/// by `wait4`, which also gives its own peak resident set.
+/// Runs PoissonRecon on `ply`, writing `out`, and reads the mesh back; its time and its own
+/// peak resident set are [`run_child`]'s.
 pub fn poisson_recon(binary: &Path, ply: &Path, out: &Path) -> Result<Reconstruction, String> {
     let mut command = Command::new(binary);
     command.arg("--in").arg(ply).arg("--out").arg(out).args([
