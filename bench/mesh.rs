@@ -391,22 +391,6 @@ fn local_remesh(c: &mut Criterion) {
     );
 }
 
-/// A mesh's triangles as their corners' position bits, each rotated to start at its least
-/// corner (keeping the winding), sorted: equal for two meshes with the same triangles.
-fn triangle_set(mesh: &TriMesh) -> Vec<[[u32; 3]; 3]> {
-    let mut set: Vec<_> = mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
-            let k = (0..3).min_by_key(|&k| p[k]).unwrap();
-            [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
-        })
-        .collect();
-    set.sort_unstable();
-    set
-}
-
 /// The multi-level mesher after one stroke-sized change on a three-level clay: the kept
 /// mesh re-meshed locally around the stroke's change box (and the kept mesh copied out), and
 /// for the ratio the whole clay meshed again. Before timing, the local path's meshes are
@@ -424,9 +408,9 @@ fn adaptive_remesh(c: &mut Criterion) {
     let mut mesher = AdaptiveMesher::new(&before, &options).unwrap();
     let stroke = mesher.remesh_box(&after, lo, hi).unwrap();
     assert!(!stroke.whole);
-    assert_eq!(triangle_set(&mesher.mesh()), triangle_set(&b));
+    assert_eq!(mesher.mesh().canonical_triangles(), b.canonical_triangles());
     let undo = mesher.remesh_box(&before, lo, hi).unwrap();
-    assert_eq!(triangle_set(&mesher.mesh()), triangle_set(&a));
+    assert_eq!(mesher.mesh().canonical_triangles(), a.canonical_triangles());
     println!(
         "three-level clay: {} patches, {leaves} leaves, {} triangles after the stroke; \
          local re-mesh of the stroke: {stroke:?}; of its undo: {undo:?}",
@@ -493,8 +477,11 @@ fn graphics_stroke(c: &mut Criterion) {
     let (mut levels, _) = AdaptiveBricks::new(&before, &options, &mut levels_tree).unwrap();
     let stroke = levels.remesh_box(&after, lo, hi, &mut levels_tree).unwrap();
     assert_eq!(
-        triangle_set(&levels_tree.weld()),
-        triangle_set(&AdaptiveMesher::new(&after, &options).unwrap().mesh()),
+        levels_tree.weld().canonical_triangles(),
+        AdaptiveMesher::new(&after, &options)
+            .unwrap()
+            .mesh()
+            .canonical_triangles(),
         "the cut bricks weld into the whole multi-level mesh"
     );
     let undo = levels

@@ -450,21 +450,6 @@ mod tests {
         }
     }
 
-    /// The triangles as position bits, each rotated to start at its least corner, sorted.
-    fn triangle_set(mesh: &dynaclay_core::mesh::TriMesh) -> Vec<[[u32; 3]; 3]> {
-        let mut set: Vec<_> = mesh
-            .triangles
-            .iter()
-            .map(|t| {
-                let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
-                let k = (0..3).min_by_key(|&k| p[k]).expect("three corners");
-                [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
-            })
-            .collect();
-        set.sort_unstable();
-        set
-    }
-
     /// Triangles of `mesh` whose centroid lies in `lo ..= hi`, and their mean edge length.
     fn triangles_in(mesh: &dynaclay_core::mesh::TriMesh, lo: Vec3, hi: Vec3) -> (usize, f32) {
         let (mut count, mut edges) = (0, 0.0);
@@ -601,7 +586,7 @@ mod tests {
             &level_mesh_options(config.cells_per_span),
         )
         .unwrap();
-        assert_eq!(triangle_set(&window), triangle_set(&exported));
+        assert_eq!(window.canonical_triangles(), exported.canonical_triangles());
 
         // Inside the patch it is finer than the base's grid draws the same clay.
         let grid = SampleGrid::for_lattice(&base, config.cells_per_span).unwrap();
@@ -656,7 +641,7 @@ mod tests {
         let exported =
             dynaclay_core::mesh::mesh_adaptive(&field, &level_mesh_options(config.cells_per_span))
                 .unwrap();
-        assert_eq!(triangle_set(&window), triangle_set(&exported));
+        assert_eq!(window.canonical_triangles(), exported.canonical_triangles());
         let inner = Vec3::splat(0.3 * spacing);
         let (_, fine_edge) = triangles_in(&window, pole - inner, pole + inner);
         let far = centre - Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);

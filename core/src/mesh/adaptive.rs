@@ -1144,20 +1144,34 @@ fn split_polygon(ids: [u32; 4], positions: &[Vec3]) -> ([[u32; 3]; 2], usize) {
 /// Vertices where the gradient vanished take the area-weighted normal of their triangles
 /// (or +z when they have none).
 fn finish_normals(mesh: &mut TriMesh) {
-    if !mesh.normals.contains(&Vec3::ZERO) {
+    finish_flat_normals(
+        &mesh.positions,
+        &mut mesh.normals,
+        mesh.triangles.iter().copied(),
+    );
+}
+
+/// Gives each vertex whose normal is zero (its gradient vanished) the area-weighted normal of
+/// `triangles` around it (+z when they have no area); other normals are kept.
+pub(super) fn finish_flat_normals(
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+    triangles: impl Iterator<Item = [u32; 3]> + Clone,
+) {
+    if !normals.contains(&Vec3::ZERO) {
         return;
     }
-    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
-    for t in &mesh.triangles {
-        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+    let flat: Vec<bool> = normals.iter().map(|n| *n == Vec3::ZERO).collect();
+    for t in triangles {
+        let [a, b, c] = t.map(|i| positions[i as usize]);
         let cross = (b - a).cross(c - a);
-        for &i in t {
+        for i in t {
             if flat[i as usize] {
-                mesh.normals[i as usize] += cross;
+                normals[i as usize] += cross;
             }
         }
     }
-    for (n, &f) in mesh.normals.iter_mut().zip(&flat) {
+    for (n, &f) in normals.iter_mut().zip(&flat) {
         if f {
             *n = n.try_normalize().unwrap_or(Vec3::Z);
         }
@@ -2182,22 +2196,6 @@ pub(super) mod tests {
         );
     }
 
-    /// The triangles as sets of their corners' position bits, each rotated to start at its
-    /// least corner (so the winding is kept), sorted.
-    fn triangle_set(mesh: &TriMesh) -> Vec<[[u32; 3]; 3]> {
-        let mut set: Vec<_> = mesh
-            .triangles
-            .iter()
-            .map(|t| {
-                let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
-                let k = (0..3).min_by_key(|&k| p[k]).expect("three corners");
-                [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
-            })
-            .collect();
-        set.sort_unstable();
-        set
-    }
-
     /// The vertices as (position, normal) bits, sorted.
     fn vertex_set(mesh: &TriMesh) -> Vec<[u32; 6]> {
         let mut set: Vec<_> = mesh
@@ -2225,7 +2223,7 @@ pub(super) mod tests {
         let whole = AdaptiveMesher::new(field, &options(2)).unwrap().mesh();
         assert_eq!(local.triangle_count(), whole.triangle_count());
         assert_eq!(vertex_set(&local), vertex_set(&whole));
-        assert_eq!(triangle_set(&local), triangle_set(&whole));
+        assert_eq!(local.canonical_triangles(), whole.canonical_triangles());
         assert_eq!(
             mesher.leaf_count(),
             adaptive_cell_count(field, &options(2)).unwrap()
@@ -2269,7 +2267,10 @@ pub(super) mod tests {
         let s = matches_whole(&mesher, &field);
         println!("fine stroke: {report:?}; {s:?}");
         assert!(!report.whole);
-        assert_ne!(triangle_set(&mesher.mesh()), triangle_set(&before));
+        assert_ne!(
+            mesher.mesh().canonical_triangles(),
+            before.canonical_triangles()
+        );
         assert!(report.polygons_made > 0 && report.polygons_dropped > 0);
         assert!(report.vertices_made > 0 && report.vertices_made <= report.leaves_revisited);
         // Only the leaves near the stroke were visited: under a tenth of the tree (the change
@@ -2312,7 +2313,10 @@ pub(super) mod tests {
         let report = mesher.remesh_box(&original, lo, hi).unwrap();
         assert!(!report.whole);
         matches_whole(&mesher, &original);
-        assert_eq!(triangle_set(&mesher.mesh()), triangle_set(&before));
+        assert_eq!(
+            mesher.mesh().canonical_triangles(),
+            before.canonical_triangles()
+        );
     }
 
     #[test]

@@ -21,7 +21,9 @@ use std::collections::{HashMap, HashSet};
 
 use glam::Vec3;
 
-use super::adaptive::{AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, SlotTriangle};
+use super::adaptive::{
+    AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, SlotTriangle, finish_flat_normals,
+};
 use super::brick::{BrickMesh, shared_vertex_id};
 use super::octree::{BrickOctree, RefreshReport};
 use crate::field::MultiPatchField;
@@ -176,29 +178,10 @@ fn piece(mesher: &AdaptiveMesher, triangles: &[[u32; 3]]) -> BrickMesh {
         }
     }
     if flat {
-        finish_flat_normals(&mut mesh);
+        let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]);
+        finish_flat_normals(&mesh.positions, &mut mesh.normals, triangles);
     }
     mesh
-}
-
-/// Gives each vertex without a normal the area-weighted normal of its triangles (+z when
-/// they have no area).
-fn finish_flat_normals(mesh: &mut BrickMesh) {
-    let flat: Vec<bool> = mesh.normals.iter().map(|n| *n == Vec3::ZERO).collect();
-    for t in mesh.indices.chunks_exact(3) {
-        let [a, b, c] = [t[0], t[1], t[2]].map(|i| mesh.positions[i as usize]);
-        let cross = (b - a).cross(c - a);
-        for &i in t {
-            if flat[i as usize] {
-                mesh.normals[i as usize] += cross;
-            }
-        }
-    }
-    for (n, &f) in mesh.normals.iter_mut().zip(&flat) {
-        if f {
-            *n = n.try_normalize().unwrap_or(Vec3::Z);
-        }
-    }
 }
 
 #[cfg(test)]
@@ -214,21 +197,6 @@ mod tests {
             cells_per_span: 2,
             max_cells: 4_000_000,
         }
-    }
-
-    /// The triangles as position bits, each rotated to start at its least corner, sorted.
-    fn triangle_set(mesh: &TriMesh) -> Vec<[[u32; 3]; 3]> {
-        let mut set: Vec<_> = mesh
-            .triangles
-            .iter()
-            .map(|t| {
-                let p = t.map(|i| mesh.positions[i as usize].to_array().map(f32::to_bits));
-                let k = (0..3).min_by_key(|&k| p[k]).expect("three corners");
-                [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
-            })
-            .collect();
-        set.sort_unstable();
-        set
     }
 
     /// An octree over `field` at base cells of half a span (bricks of four base spans).
@@ -248,7 +216,7 @@ mod tests {
                 .brick(brick.coord)
                 .unwrap_or_else(|| panic!("brick {:?} missing", brick.coord));
             let one = |m: &BrickMesh| {
-                triangle_set(&TriMesh {
+                (TriMesh {
                     positions: m.positions.clone(),
                     normals: m.normals.clone(),
                     triangles: m
@@ -257,11 +225,15 @@ mod tests {
                         .map(|t| [t[0], t[1], t[2]])
                         .collect(),
                 })
+                .canonical_triangles()
             };
             assert_eq!(one(&mine.mesh), one(&brick.mesh), "brick {:?}", brick.coord);
         }
         let welded = octree.weld();
-        assert_eq!(triangle_set(&welded), triangle_set(&whole.mesher().mesh()));
+        assert_eq!(
+            welded.canonical_triangles(),
+            whole.mesher().mesh().canonical_triangles()
+        );
         let s = MeshStats::of(&welded);
         assert_eq!(s.boundary_edges, 0, "{s:?}");
         assert_eq!(s.misoriented_edges, 0, "{s:?}");

@@ -24,6 +24,24 @@ impl TriMesh {
         self.triangles.len()
     }
 
+    /// The triangles as their corners' position bits, each rotated to start at its least
+    /// corner (so the winding is kept), sorted: equal for two meshes exactly when they hold
+    /// the same triangles at the same positions, whatever their vertex order and sharing.
+    #[must_use]
+    pub fn canonical_triangles(&self) -> Vec<[[u32; 3]; 3]> {
+        let mut set: Vec<_> = self
+            .triangles
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| self.positions[i as usize].to_array().map(f32::to_bits));
+                let k = (0..3).min_by_key(|&k| p[k]).unwrap_or(0);
+                [p[k], p[(k + 1) % 3], p[(k + 2) % 3]]
+            })
+            .collect();
+        set.sort_unstable();
+        set
+    }
+
     /// Whether every triangle refers to existing vertices and normals match positions.
     #[must_use]
     pub fn is_well_formed(&self) -> bool {
