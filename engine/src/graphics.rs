@@ -150,7 +150,7 @@ impl GraphicsStage {
     ) -> Result<Self, GridError> {
         let grid = SampleGrid::for_field(&field, cells_per_span)?;
         let mut octree = BrickOctree::new(grid);
-        let (levels, report) = mesh_whole(&field, cells_per_span, &mut octree);
+        let (levels, report) = mesh_whole(&field, &level_mesh_options(cells_per_span), &mut octree);
         sink.update(&octree, &report);
         sink.field(&field);
         Ok(Self {
@@ -342,7 +342,11 @@ impl GraphicsStage {
         self.octree = BrickOctree::new(grid);
         // Everything is meshed afresh, held-back changes with the rest.
         self.held_back = None;
-        let (levels, mut report) = mesh_whole(&self.field, self.cells_per_span, &mut self.octree);
+        let (levels, mut report) = mesh_whole(
+            &self.field,
+            &level_mesh_options(self.cells_per_span),
+            &mut self.octree,
+        );
         self.levels = levels;
         report.removed = removed;
         self.counters.graphics_updates(1);
@@ -357,7 +361,11 @@ impl GraphicsStage {
     fn mesh_afresh(&mut self) {
         // Everything is meshed afresh, held-back changes with the rest.
         self.held_back = None;
-        let (levels, report) = mesh_whole(&self.field, self.cells_per_span, &mut self.octree);
+        let (levels, report) = mesh_whole(
+            &self.field,
+            &level_mesh_options(self.cells_per_span),
+            &mut self.octree,
+        );
         self.levels = levels;
         self.counters.graphics_updates(1);
         self.counters
@@ -402,16 +410,15 @@ pub fn level_mesh_options(cells_per_span: u32) -> AdaptiveMeshOptions {
 }
 
 /// Meshes `field` whole into `octree`: a clay with detail patches by the multi-level mesher
-/// (returned, to re-mesh locally after), else (or where that mesher refuses the clay) by
-/// marching cubes on the octree's grid.
+/// with `options` (returned, to re-mesh locally after), else (or where that mesher refuses
+/// the clay, over its cell budget) by marching cubes on the octree's grid.
 fn mesh_whole(
     field: &MultiPatchField,
-    cells_per_span: u32,
+    options: &AdaptiveMeshOptions,
     octree: &mut BrickOctree,
 ) -> (Option<AdaptiveBricks>, RefreshReport) {
     if field.patches.len() > 1
-        && let Ok((levels, report)) =
-            AdaptiveBricks::new(field, &level_mesh_options(cells_per_span), octree)
+        && let Ok((levels, report)) = AdaptiveBricks::new(field, options, octree)
     {
         return (Some(levels), report);
     }
@@ -650,6 +657,45 @@ mod tests {
             fine_edge < 0.5 * base_edge,
             "edge {fine_edge} at the dimple against {base_edge} on the base"
         );
+    }
+
+    /// A clay with detail whose multi-level mesh would pass the cell budget is meshed by
+    /// marching cubes on the grid instead: no multi-level mesher is kept, the octree is not
+    /// cut, and its bricks weld into a closed mesh of the clay.
+    #[test]
+    fn a_clay_over_the_multi_level_budget_is_meshed_by_marching_cubes() {
+        let lattice = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution: 12,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let spacing = lattice.spacing;
+        let pole = Vec3::splat(11.0 * spacing * 0.5) + Vec3::new(11.0 * spacing * 0.25, 0.0, 0.0);
+        let mut field = MultiPatchField::new(lattice.clone());
+        field
+            .refine(pole - Vec3::splat(spacing), pole + Vec3::splat(spacing), 2)
+            .unwrap();
+        let mut octree = BrickOctree::new(SampleGrid::for_lattice(&lattice, 4).unwrap());
+        let within = level_mesh_options(4);
+        let (levels, _) = mesh_whole(&field, &within, &mut octree);
+        assert!(
+            levels.is_some() && octree.is_cut(),
+            "within budget: multi-level"
+        );
+
+        let tight = AdaptiveMeshOptions {
+            max_cells: 64,
+            ..within
+        };
+        let mut octree = BrickOctree::new(SampleGrid::for_lattice(&lattice, 4).unwrap());
+        let (levels, report) = mesh_whole(&field, &tight, &mut octree);
+        assert!(levels.is_none(), "over budget: no multi-level mesher kept");
+        assert!(!octree.is_cut());
+        assert!(!report.changed.is_empty(), "the grid's bricks were meshed");
+        let stats = dynaclay_core::mesh::MeshStats::of(&octree.weld());
+        assert!(stats.triangles > 0);
+        assert_eq!(stats.boundary_edges, 0, "{stats:?}");
     }
 
     /// A step that changes the clay rings the graphics loop's bell once it has published, and
