@@ -56,7 +56,9 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 
 use super::curvature::{NormalGradient, normal_gradient};
 use super::error::PointSetError;
-use super::sampling::{CLEARANCE_NEIGHBOURS, INSERT_CLEARANCE, farthest_voronoi_vertex};
+use super::sampling::{
+    CLEARANCE_NEIGHBOURS, INSERT_CLEARANCE, farthest_voronoi_vertex, same_sheet,
+};
 use super::surface::PointSet;
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::mesh::{BrickOctree, MeshSink, RefreshReport};
@@ -83,11 +85,6 @@ pub const DISC_CURVATURE_RADII: f32 = 0.5;
 /// farthest vertex leaves that vertex on three discs' rims, where a rasteriser may light none
 /// of them (a one-pixel hole); the margin puts it inside.
 pub const COVER_MARGIN: f32 = 1.1;
-/// Two points lie on the same sheet of the surface, for crowding, insertion clearance and
-/// splat cells, only when their normals' cosine exceeds this: a point across a wall thinner
-/// than the spacing (its normal turned away) neither crowds a point out nor shrinks its
-/// splat, or the wall's ridge, sampled from both sides, would be left with holes.
-pub const SAME_SHEET_COSINE: f32 = 0.0;
 
 /// How the points follow the clay.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -411,7 +408,7 @@ impl PointFollower {
                     if j == i
                         || self.gone[j]
                         || r.distance >= 9.0 * h * h
-                        || self.normals[j].dot(n) <= SAME_SHEET_COSINE
+                        || !same_sheet(self.normals[j], n)
                     {
                         continue;
                     }
@@ -425,7 +422,7 @@ impl PointFollower {
                 }
                 for &(q, m) in &self.added {
                     let d = q - p;
-                    if d.length_squared() < 9.0 * h * h && m.dot(n) > SAME_SHEET_COSINE {
+                    if d.length_squared() < 9.0 * h * h && same_sheet(m, n) {
                         self.sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                     }
                 }
@@ -506,14 +503,13 @@ impl PointFollower {
             .query(&[y.x, y.y, y.z])
             .nearest_n::<SquaredEuclidean<f32>>(want)
             .execute();
-        let same_sheet = |m: Vec3| m.dot(normal) > SAME_SHEET_COSINE;
         near.iter().any(|r| {
             let j = r.item as usize;
-            r.distance < clearance_sq && !self.gone[j] && same_sheet(self.normals[j])
+            r.distance < clearance_sq && !self.gone[j] && same_sheet(self.normals[j], normal)
         }) || self
             .added
             .iter()
-            .any(|&(q, m)| q.distance_squared(y) < clearance_sq && same_sheet(m))
+            .any(|&(q, m)| q.distance_squared(y) < clearance_sq && same_sheet(m, normal))
     }
 
     /// Drops the points marked in `gone`; returns how many went.

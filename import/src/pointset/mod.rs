@@ -45,8 +45,8 @@ pub use normals::{orient_over_mst, plane_normal};
 pub use ply::{encode_point_ply, write_point_ply};
 pub use pull::{PULL_GAIN, PullReport, RESAMPLE_EVERY, pull};
 pub use sampling::{
-    INSERT_CLEARANCE, SamplingOptions, SamplingReport, farthest_voronoi_vertex, nearest_spacings,
-    resample,
+    INSERT_CLEARANCE, SAME_SHEET_COSINE, SamplingOptions, SamplingReport, farthest_voronoi_vertex,
+    nearest_spacings, resample, same_sheet,
 };
 pub use sculpt::{CornerBlend, PointSetSculpt, SculptOptions, UpdateTimes};
 pub use surface::{

@@ -133,6 +133,19 @@ pub fn farthest_voronoi_vertex(sites: &[Vec2], bound: f32) -> Vec2 {
         .unwrap_or(Vec2::ZERO)
 }
 
+/// Two points lie on the same sheet of the surface, for crowding, the insertion clearance and
+/// the tangent-plane Voronoi cells (a splat's radius, an insertion's hole), only when their
+/// normals' cosine exceeds this: a point across a wall thinner than the spacing (its normal
+/// turned away) neither crowds a point out nor shrinks a cell, or the wall's ridge, sampled
+/// from both sides, would be left with holes ([`resample`] and the follower alike).
+pub const SAME_SHEET_COSINE: f32 = 0.0;
+
+/// Whether points with normals `a` and `b` lie on the same sheet ([`SAME_SHEET_COSINE`]).
+#[must_use]
+pub fn same_sheet(a: Vec3, b: Vec3) -> bool {
+    a.dot(b) > SAME_SHEET_COSINE
+}
+
 /// Resamples the points of `set` whose position lies in `lo..=hi` (all when `None`): removal
 /// first, then insertion passes until none inserts. Returns what it did and the old index of
 /// every surviving point (new points have `None`). The point set is reindexed.
@@ -166,7 +179,11 @@ pub fn resample(
                 .execute();
             for c in close {
                 let j = c.item as usize;
-                if j > i && !gone[j] && inside(set.points[j]) {
+                if j > i
+                    && !gone[j]
+                    && inside(set.points[j])
+                    && same_sheet(set.normals[j], set.normals[i])
+                {
                     gone[j] = true;
                     report.removed += 1;
                 }
@@ -200,7 +217,8 @@ pub fn resample(
     for _ in 0..options.max_passes {
         report.passes += 1;
         let tree = tree_of(&set.points)?;
-        let mut added: Vec<Vec3> = Vec::new();
+        // Points inserted in this pass: position and normal.
+        let mut added: Vec<(Vec3, Vec3)> = Vec::new();
         let count = set.len();
         for i in 0..count {
             let p = set.points[i];
@@ -217,14 +235,14 @@ pub fn resample(
                 .execute();
             for r in found {
                 let j = r.item as usize;
-                if j != i && r.distance < 9.0 * h * h {
+                if j != i && r.distance < 9.0 * h * h && same_sheet(set.normals[j], n) {
                     let d = set.points[j] - p;
                     sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                 }
             }
-            for &q in &added {
+            for &(q, m) in &added {
                 let d = q - p;
-                if d.length_squared() < 9.0 * h * h {
+                if d.length_squared() < 9.0 * h * h && same_sheet(m, n) {
                     sites.push(Vec2::new(d.dot(t1), d.dot(t2)));
                 }
             }
@@ -248,24 +266,28 @@ pub fn resample(
             if !y.is_finite() || (y - p).length() > 3.0 * h {
                 continue;
             }
+            let (_, g) = parent.value_and_gradient(y);
+            let normal = (-g).try_normalize().unwrap_or(n);
             let crowded = tree
                 .query(&[y.x, y.y, y.z])
                 .nearest_n::<SquaredEuclidean<f32>>(near)
                 .execute()
                 .iter()
-                .any(|r| r.distance < clearance_sq)
-                || added.iter().any(|q| q.distance_squared(y) < clearance_sq);
+                .any(|r| {
+                    r.distance < clearance_sq && same_sheet(set.normals[r.item as usize], normal)
+                })
+                || added
+                    .iter()
+                    .any(|&(q, m)| q.distance_squared(y) < clearance_sq && same_sheet(m, normal));
             if crowded {
                 continue;
             }
-            let (_, g) = parent.value_and_gradient(y);
-            let normal = (-g).try_normalize().unwrap_or(n);
             set.points.push(y);
             set.normals.push(normal);
             set.colours.push(set.colours[i]);
             set.fields.push(parent.recentred(y, parent.half_fu));
             origin.push(None);
-            added.push(y);
+            added.push((y, normal));
             report.inserted += 1;
         }
         if added.is_empty() {
@@ -305,6 +327,7 @@ pub fn nearest_spacings(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::PointCloud;
     use crate::pointset::PointSetOptions;
     use crate::pointset::surface::tests::sphere_cloud;
 
@@ -339,6 +362,41 @@ mod tests {
                 "{count} points to {fraction}: closest pair {closest} h, then {removed} removed"
             );
         }
+    }
+
+    /// A wall a fifth of the spacing thick, its two faces sampled on the same grid with
+    /// opposite normals: each point's twin across the wall is far closer than the removal
+    /// distance (0.2 h against 0.7 h), yet on another sheet, so resampling the wall's inner
+    /// part (away from its open borders) removes and inserts nothing.
+    #[test]
+    fn a_point_across_a_thin_wall_is_not_a_crowding_neighbour() {
+        let h = 0.05;
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for (z, n) in [(0.0, -Vec3::Z), (0.2 * h, Vec3::Z)] {
+            for i in 0..16 {
+                for j in 0..16 {
+                    points.push(Vec3::new(i as f32 * h, j as f32 * h, z));
+                    normals.push(n);
+                }
+            }
+        }
+        let cloud = PointCloud {
+            points,
+            normals: Some(normals),
+        };
+        let (mut set, _) = PointSet::build(&cloud, &PointSetOptions::default()).unwrap();
+        let before = set.len();
+        let options = SamplingOptions::for_target(h);
+        assert!(0.2 * h < options.remove_below * h);
+        let inner = (
+            Vec3::new(4.0 * h, 4.0 * h, -h),
+            Vec3::new(11.0 * h, 11.0 * h, h),
+        );
+        let (report, _) = resample(&mut set, Some(inner), &options).unwrap();
+        assert_eq!(report.removed, 0, "{report:?}");
+        assert_eq!(report.inserted, 0, "{report:?}");
+        assert_eq!(set.len(), before);
     }
 
     #[test]
