@@ -209,13 +209,16 @@ impl GraphicsStage {
             // the field is unchanged. The grid keeps the resolution the engine started with
             // and grows with the clay. The multi-level mesh follows the patches' layout: it
             // re-meshes the supports of the patches that came or went (the whole clay where
-            // its frame moved), and a clay that gets its first detail patch is meshed afresh.
+            // its frame moved), and a clay that gets its first detail patch or loses its last
+            // one is meshed afresh.
             self.layout = generation;
             let regridded = !self.grid_covers_the_clay() && self.regrid();
             if !regridded {
-                if self.levels.is_some() {
+                let detail = self.field.patches.len() > 1;
+                if self.levels.is_some() && detail {
                     self.remesh_layout(shared_change);
-                } else if self.field.patches.len() > 1 {
+                } else if self.levels.is_some() || detail {
+                    // The first detail patch, or the last one gone (marching cubes again).
                     self.mesh_afresh();
                 }
             }
