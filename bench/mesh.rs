@@ -5,7 +5,8 @@
 //! (local around the change, and whole for the ratio), the graphics loop's re-mesh of a
 //! stroke-sized change with and without detail patches (`graphics_stroke`: marching cubes of
 //! the one-level clay's bricks against the multi-level mesh cut into bricks, both at the
-//! engine's four cells per span),
+//! engine's four cells per span; and a new patch layout, re-meshed over the new patch alone
+//! beside the whole clay meshed and cut again),
 //! and the resident memory of building a sphere at 512³ (measured in a child process).
 //!
 //! Run: `cargo bench --bench mesh -- --warm-up-time 1 --measurement-time 3`
@@ -443,6 +444,21 @@ fn adaptive_remesh(c: &mut Criterion) {
     group.finish();
 }
 
+/// `field` (the three-level clay) with one more patch of its finest level, as wide as its
+/// finest patch, at the sphere's +y pole: a new layout that keeps the mesher's frame.
+fn refined_elsewhere(field: &MultiPatchField) -> MultiPatchField {
+    let finest = field.patches.last().unwrap();
+    let level = (field.patches[0].lattice.spacing / finest.lattice.spacing)
+        .log2()
+        .round() as u32;
+    let (lo, hi) = finest.world_support();
+    let half = 0.5 * (hi - lo) - Vec3::splat(2.0 * finest.lattice.spacing);
+    let pole = Vec3::splat(11.5) + Vec3::Y * 8.0;
+    let mut refined = field.clone();
+    refined.refine(pole - half, pole + half, level).unwrap();
+    refined
+}
+
 /// The engine's cells per knot span (`EngineConfig::cells_per_span`'s default).
 const ENGINE_CELLS_PER_SPAN: u32 = 4;
 
@@ -487,6 +503,28 @@ fn graphics_stroke(c: &mut Criterion) {
     let undo = levels
         .remesh_box(&before, lo, hi, &mut levels_tree)
         .unwrap();
+    // A new layout: a patch of the finest level at the +y pole, as a refine adds it (holding
+    // nothing yet). Re-meshed over its support alone, the cut bricks still weld into the
+    // whole multi-level mesh, and the bricks changed all lie near the new patch.
+    let refined = refined_elsewhere(&before);
+    let layout = levels.remesh_layout(&refined, &mut levels_tree).unwrap();
+    assert_eq!(
+        levels_tree.weld().canonical_triangles(),
+        AdaptiveMesher::new(&refined, &options)
+            .unwrap()
+            .mesh()
+            .canonical_triangles(),
+        "after a new layout the cut bricks weld into the whole multi-level mesh"
+    );
+    let unrefined = levels.remesh_layout(&before, &mut levels_tree).unwrap();
+    println!(
+        "new layout (a finest-level patch at the +y pole): {} bricks re-meshed and {}          removed, {} and {} when it goes again, of {} bricks",
+        layout.changed.len(),
+        layout.removed.len(),
+        unrefined.changed.len(),
+        unrefined.removed.len(),
+        levels_tree.brick_count()
+    );
     println!(
         "graphics stroke: one level {} bricks; three levels {} bricks, {} leaves, {} \
          triangles; the stroke re-meshed {} bricks and removed {}, its undo {} and {}",
@@ -534,11 +572,24 @@ fn graphics_stroke(c: &mut Criterion) {
             black_box(report)
         })
     });
-    // A new patch layout (a refine, a fold) meshes the whole clay and cuts it.
+    // A new patch layout (a refine, a fold) re-meshed whole and cut: what the window did
+    // before a layout was re-meshed locally (and still does where the frame moves).
     group.bench_function("three_levels/whole_clay_cut_after_new_layout", |bench| {
         bench.iter(|| {
             let mut tree = BrickOctree::new(*levels_tree.grid());
-            black_box(AdaptiveBricks::new(&after, &options, &mut tree).unwrap())
+            black_box(AdaptiveBricks::new(&refined, &options, &mut tree).unwrap())
+        })
+    });
+    // The same new layout re-meshed over the new patch's support alone; alternately the
+    // patch comes and goes, so every call has a new layout.
+    let mut flip = false;
+    group.bench_function("three_levels/new_layout_local", |bench| {
+        bench.iter(|| {
+            flip = !flip;
+            let field = if flip { &refined } else { &before };
+            let report = levels.remesh_layout(field, &mut levels_tree).unwrap();
+            assert!(!report.changed.is_empty());
+            black_box(report)
         })
     });
     // The export's two cells per span (a quarter of the cells), cut into the same bricks.

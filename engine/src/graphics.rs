@@ -6,9 +6,11 @@
 //! of the finest patch holding detail there (the engine's cells per span of that level), and
 //! the mesh is cut into the octree's bricks ([`AdaptiveBricks`]): the sink gets bricks as
 //! before, closed across the seams between levels, and a stroke re-meshes and reports only
-//! the bricks near it. A new patch layout (a refine, a fold, a grown base) meshes the clay
-//! whole once; a clay the multi-level mesher refuses (over its cell budget) is meshed on the
-//! grid, as a clay of one patch is.
+//! the bricks near it. A new patch layout (a refine, a fold) re-meshes and reports only the
+//! bricks near the patches that came or went, unless it moves the mesher's frame (a level
+//! finer than any before, a patch or a grown base beyond the clay's support: then the clay is
+//! meshed whole once); a clay the multi-level mesher refuses (over its cell budget) is meshed
+//! on the grid, as a clay of one patch is.
 //!
 //! Not real-time: meshing allocates. It never blocks the other loops: it reads the newest
 //! patch wait-free and works on its own copy of the field.
@@ -190,15 +192,35 @@ impl GraphicsStage {
         if let Some(mask) = self.masks.as_mut().and_then(SnapshotReader::try_fresh) {
             self.sink.mask(&self.octree, mask.value.as_ref());
         }
-        if let Some(generation) = self.layouts.install(&mut self.field) {
+        // The new copy may hold changes beside the layout (a fold writes the base, and
+        // snapshots this loop had not applied yet are in it): where the multi-level mesh is
+        // re-meshed locally, they are found by comparing the copies.
+        let compare = self.levels.is_some();
+        let mut shared_change = None;
+        let installed = self
+            .layouts
+            .install_inspecting(&mut self.field, |old, new| {
+                if compare {
+                    shared_change = new.shared_patches_change_box(old);
+                }
+            });
+        if let Some(generation) = installed {
             // A new patch holds nothing yet and a grown base holds empty space where it grew:
             // the field is unchanged. The grid keeps the resolution the engine started with
-            // and grows with the clay. The multi-level mesh follows the patches' layout, so a
-            // clay that has or had detail patches is meshed afresh.
+            // and grows with the clay. The multi-level mesh follows the patches' layout: it
+            // re-meshes the supports of the patches that came or went (the whole clay where
+            // its frame moved), and a clay that gets its first detail patch or loses its last
+            // one is meshed afresh.
             self.layout = generation;
             let regridded = !self.grid_covers_the_clay() && self.regrid();
-            if !regridded && (self.levels.is_some() || self.field.patches.len() > 1) {
-                self.mesh_afresh();
+            if !regridded {
+                let detail = self.field.patches.len() > 1;
+                if self.levels.is_some() && detail {
+                    self.remesh_layout(shared_change);
+                } else if self.levels.is_some() || detail {
+                    // The first detail patch, or the last one gone (marching cubes again).
+                    self.mesh_afresh();
+                }
             }
             self.sink.field(&self.field);
         }
@@ -367,6 +389,34 @@ impl GraphicsStage {
             &mut self.octree,
         );
         self.levels = levels;
+        self.counters.graphics_updates(1);
+        self.counters
+            .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
+        self.sink.update(&self.octree, &report);
+    }
+
+    /// Re-meshes the multi-level mesh after a new patch layout (see
+    /// [`AdaptiveBricks::remesh_layout`]), with `change` the box where the patches the old
+    /// copy shared with the new one changed their coefficients, and hands the sink the bricks
+    /// that changed or went. Held-back changes stay held back: outside them the mesh is of the
+    /// field as it is.
+    fn remesh_layout(&mut self, change: Option<(Vec3, Vec3)>) {
+        let Some(levels) = self.levels.as_mut() else {
+            return;
+        };
+        let remeshed = match change {
+            Some((lo, hi)) => levels.remesh_box(&self.field, lo, hi, &mut self.octree),
+            None => levels.remesh_layout(&self.field, &mut self.octree),
+        };
+        let report = match remeshed {
+            Ok(report) => report,
+            Err(_) => {
+                // Over the multi-level mesher's budget: the grid meshes the clay.
+                self.levels = None;
+                self.held_back = None;
+                self.octree.rebuild(&*self.field)
+            }
+        };
         self.counters.graphics_updates(1);
         self.counters
             .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
@@ -606,6 +656,43 @@ mod tests {
             "{fine} triangles of edge {fine_edge} in the patch against {coarse} of {coarse_edge}"
         );
         assert!(window.triangle_count() > grid_cells);
+
+        // A second patch of the same level on the far side: a new layout, re-meshed near the
+        // new patch alone, and the bricks still weld into the multi-level mesh of the clay.
+        reports.lock().clear();
+        let far_side = centre - Vec3::new(size * 0.25, 0.0, 0.0);
+        s.commands
+            .send(Command::Refine {
+                lo: far_side - half,
+                hi: far_side + half,
+                level: 2,
+                reply: None,
+            })
+            .unwrap();
+        run(&mut s, 10);
+        assert_eq!(s.graphics.field().patches.len(), 3);
+        let octree = s.graphics.octree();
+        let touched: Vec<[u32; 3]> = reports
+            .lock()
+            .iter()
+            .flat_map(|r| r.changed.iter().chain(&r.removed).copied())
+            .collect();
+        assert!(!touched.is_empty(), "the new patch's support was re-meshed");
+        let (slo, shi) = s.graphics.field().patches[2].world_support();
+        for c in &touched {
+            let lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
+            assert!(
+                lo.cmple(shi + reach).all() && (lo + span).cmpge(slo - reach).all(),
+                "brick {c:?} re-meshed far from the new patch {slo} ..= {shi}"
+            );
+        }
+        let window = octree.weld();
+        let exported = mesh_adaptive(
+            s.graphics.field(),
+            &level_mesh_options(config.cells_per_span),
+        )
+        .unwrap();
+        assert_eq!(window.canonical_triangles(), exported.canonical_triangles());
     }
 
     /// A clay that starts with a detail patch holding detail (a loaded session) is drawn

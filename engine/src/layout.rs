@@ -37,11 +37,23 @@ impl LayoutPort {
     /// back to the simulation. Does nothing (and returns `None`) when no layout waits or when
     /// the return slot is still full.
     pub fn install(&self, field: &mut Box<MultiPatchField>) -> Option<u64> {
+        self.install_inspecting(field, |_, _| {})
+    }
+
+    /// As [`LayoutPort::install`], and before the old copy goes back, calls `inspect` with it
+    /// and the new one (for a reader that compares them, off the haptic thread: the graphics
+    /// loop finds what changed besides the layout).
+    pub fn install_inspecting(
+        &self,
+        field: &mut Box<MultiPatchField>,
+        inspect: impl FnOnce(&MultiPatchField, &MultiPatchField),
+    ) -> Option<u64> {
         if self.retired.is_full() {
             return None;
         }
         let handover = self.incoming.try_recv().ok()?;
         let old = std::mem::replace(field, handover.field);
+        inspect(&old, field);
         // The slot had room and this port is its only sender; if the simulation is gone the
         // copy comes back and is dropped here, at shutdown only.
         let _ = self.retired.try_send(old);

@@ -391,6 +391,61 @@ impl MultiPatchField {
         Ok(())
     }
 
+    /// The world box outside which the patches this field shares with `before` hold the same
+    /// coefficients (`None` where they all do). Shared patches are those before the first
+    /// patch whose lattice shape or map differs, and those after the last (as a new layout
+    /// keeps them: a refine appends a patch, a fold takes one out); their coefficients are
+    /// compared bit for bit, and the box is the support of those that differ. The patches
+    /// between (that came, went or changed shape) are not in it.
+    #[must_use]
+    pub fn shared_patches_change_box(&self, before: &Self) -> Option<(Vec3, Vec3)> {
+        let same_shape = |a: &Patch, b: &Patch| {
+            a.lattice.dims == b.lattice.dims
+                && a.lattice.origin == b.lattice.origin
+                && a.lattice.spacing == b.lattice.spacing
+                && a.world_to_patch == b.world_to_patch
+        };
+        let (old, new) = (&before.patches, &self.patches);
+        let prefix = old
+            .iter()
+            .zip(new)
+            .take_while(|(a, b)| same_shape(a, b))
+            .count();
+        let room = old.len().min(new.len()) - prefix;
+        let suffix = old
+            .iter()
+            .rev()
+            .zip(new.iter().rev())
+            .take(room)
+            .take_while(|(a, b)| same_shape(a, b))
+            .count();
+        let shared = (0..prefix)
+            .map(|i| (i, i))
+            .chain((0..suffix).map(|k| (old.len() - suffix + k, new.len() - suffix + k)));
+        let mut change: Option<(Vec3, Vec3)> = None;
+        for (i, j) in shared {
+            let (a, b) = (&old[i].lattice, &new[j].lattice);
+            let [nx, ny, _] = b.dims;
+            let mut first = [usize::MAX; 3];
+            let mut last = [0_usize; 3];
+            for (n, (p, q)) in a.coeffs.iter().zip(&b.coeffs).enumerate() {
+                if p.to_bits() != q.to_bits() {
+                    let at = [n % nx, (n / nx) % ny, n / (nx * ny)];
+                    for axis in 0..3 {
+                        first[axis] = first[axis].min(at[axis]);
+                        last[axis] = last[axis].max(at[axis]);
+                    }
+                }
+            }
+            if first[0] == usize::MAX {
+                continue;
+            }
+            let (lo, hi) = new[j].coefficient_change_box(first, last);
+            change = Some(change.map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi))));
+        }
+        change
+    }
+
     /// `F(x)`.
     #[inline]
     #[must_use]
@@ -546,6 +601,37 @@ mod tests {
             *c = ((n * 7919) % 53) as f32 / 53.0;
         }
         l
+    }
+
+    #[test]
+    fn shared_patches_change_box_holds_the_changed_coefficients_of_kept_patches() {
+        let mut before = MultiPatchField::new(wavy([12, 12, 12], 0.25));
+        before
+            .refine(Vec3::splat(0.5), Vec3::splat(1.5), 1)
+            .unwrap();
+        assert_eq!(before.shared_patches_change_box(&before), None);
+        // A refine appends a patch: the kept ones are unchanged.
+        let mut after = before.clone();
+        let added = after.refine(Vec3::splat(1.8), Vec3::splat(2.4), 2).unwrap();
+        assert_eq!(after.shared_patches_change_box(&before), None);
+        // Two base coefficients and one of the new patch's change: the box is the base ones'.
+        let base = &mut after.patches[0].lattice;
+        let (a, b) = (base.index(3, 4, 5), base.index(6, 4, 7));
+        base.coeffs[a] += 0.5;
+        base.coeffs[b] = -base.coeffs[b];
+        after.patches[added].lattice.coeffs[0] = 1.0;
+        let expected = after.patches[0].coefficient_change_box([3, 4, 5], [6, 4, 7]);
+        assert_eq!(after.shared_patches_change_box(&before), Some(expected));
+        // A patch taken out of the middle: the patches after it are matched from the end.
+        let mut fewer = after.clone();
+        fewer.patches.remove(1);
+        fewer.patches.last_mut().unwrap().lattice.coeffs[5] = 2.0;
+        let last = fewer.patches.last().unwrap();
+        let at = [5 % last.lattice.dims[0], 0, 0];
+        assert_eq!(
+            fewer.shared_patches_change_box(&after),
+            Some(last.coefficient_change_box(at, at))
+        );
     }
 
     #[test]

@@ -54,15 +54,25 @@
 //! same triangles (the same vertex positions, bit for bit) as [`mesh_adaptive`] of the
 //! edited field.
 //!
+//! A new patch layout is local too ([`AdaptiveMesher::remesh_layout`]): a patch that comes
+//! or goes adds exactly zero beyond its support, so outside the supports of the patches that
+//! came, went or changed every split test and sample is as before; those supports are
+//! re-meshed as a changed box. Only where the octree's frame moves (a patch finer than every
+//! other sets a new finest cell; a patch beyond the others' supports grows the root) is the
+//! whole clay meshed again.
+//!
 //! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the corners
 //! of the region (and two finest cells around it) are sampled together, as a grid, by
 //! [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
 //! computed once per coordinate), and read back without a hash lookup; a count of their
 //! inside corners over boxes (a summed-volume table) shows where a node, face or edge of the
 //! traversal has corners all on one side, so no minimal edge there changes sign and the
-//! traversal does not descend; and the split tests remember each patch's block of
-//! coefficients within one update, so the many small nodes of the region read the coarser
-//! patches' blocks once.
+//! traversal does not descend; the split tests read a node's block of coefficients from
+//! window tables folded once per update over the coefficients near the region (a fold over
+//! the block's rows, not its coefficients: `WindowTables`) and remember each patch's
+//! blocks within one update, so the many small nodes of the region read the coarser
+//! patches' blocks once; and the corner cache lives for one call (nothing of it needs
+//! forgetting after an edit).
 
 use std::collections::HashMap;
 use std::hash::BuildHasherDefault;
@@ -173,9 +183,12 @@ pub fn adaptive_cell_count(
 /// What one [`AdaptiveMesher::remesh_box`] did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct AdaptiveRemeshReport {
-    /// The whole clay was meshed again: the patches' lattices, maps or the iso-level changed
-    /// (so the octree's frame may have), or the last call had failed.
+    /// The whole clay was meshed again: the octree's frame moved with the patches' layout,
+    /// or the iso-level changed, or the last call had failed.
     pub whole: bool,
+    /// The patches' layout changed and the supports of the patches that came, went or
+    /// changed were meshed again locally, with the changed box.
+    pub new_layout: bool,
     /// Leaves of the updated tree whose box meets the changed region or that are new: the
     /// leaves whose vertex and polygons were made again.
     pub leaves_revisited: usize,
@@ -201,9 +214,15 @@ pub struct AdaptiveMesher {
     /// What fixes the tree's frame: each patch's lattice shape and map, and the iso-level.
     frame: Vec<PatchFrame>,
     iso: f32,
-    /// Field value per integer corner (packed 21 bits per axis), sampled once. Keys are
-    /// mixed by SplitMix64's finaliser rather than SipHash: the table is looked up twice per
-    /// minimal edge and eight times per vertex.
+    /// Field value per integer corner (packed 21 bits per axis), sampled once within one
+    /// call (a whole mesh, or a local re-mesh's corners beyond its region's block) and
+    /// emptied after it: no sample outlives the field it was taken of. Keys are mixed by
+    /// SplitMix64's finaliser rather than SipHash: the table is looked up twice per minimal
+    /// edge and eight times per vertex.
+    // NOTE: kept across calls, this cache made a local re-mesh drop every corner of its
+    // block from it (a hash removal per corner, most of them absent) and put the used ones
+    // back: about a tenth of the re-mesh in `bench/profile_adaptive.rs` at 4 cells per
+    // span. Corners beyond the block are few and sampled again instead.
     corners: HashMap<u64, f32, BuildHasherDefault<EdgeIdHasher>>,
     /// Vertex slot per node (leaves only), [`NO_VERTEX`] until made.
     vertex_of: Vec<u32>,
@@ -240,6 +259,18 @@ pub struct SlotTriangle {
     pub slots: [u32; 3],
     /// The mean of its three vertices' positions.
     pub centroid: Vec3,
+}
+
+/// How a field's patches differ from those a kept mesh was made of.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum LayoutChange {
+    /// The same patches.
+    Same,
+    /// The octree's frame (its origin, finest cell or root) moved, or the iso-level changed.
+    Frame,
+    /// Some patches came, went or changed inside the world box `lo ..= hi` (the union of
+    /// their supports), in the same frame.
+    Patches { lo: Vec3, hi: Vec3 },
 }
 
 /// The shape of one patch that the octree's frame and targets depend on.
@@ -351,14 +382,17 @@ impl AdaptiveMesher {
         };
         mesher.update_tree(field, None)?;
         mesher.cell_proc(field, None, 0);
+        mesher.corners = HashMap::default();
         Ok(mesher)
     }
 
     /// Meshes again after `field` changed inside the world box `lo ..= hi` only (outside it
     /// every patch's value is as before): the nodes, corners, vertices and polygons near the
     /// box are made again and spliced into the kept mesh, which then equals what
-    /// [`mesh_adaptive`] makes of `field`. Where the patches' lattices, maps or the iso-level
-    /// changed, or the last call failed, the whole clay is meshed again.
+    /// [`mesh_adaptive`] makes of `field`. Where the patches' layout changed too, the
+    /// supports of the patches that came, went or changed are re-meshed with the box (see
+    /// [`AdaptiveMesher::remesh_layout`]); where that moved the octree's frame, or the
+    /// iso-level changed, or the last call failed, the whole clay is meshed again.
     ///
     /// # Errors
     /// [`AdaptiveMeshError::BadChangeBox`] for a box with a non-finite corner; otherwise as
@@ -373,32 +407,128 @@ impl AdaptiveMesher {
         if !(lo.is_finite() && hi.is_finite()) {
             return Err(AdaptiveMeshError::BadChangeBox { lo, hi });
         }
-        let same_frame = !self.stale
-            && field.iso() == self.iso
-            && field.patches.len() == self.frame.len()
-            && field
-                .patches
-                .iter()
-                .zip(&self.frame)
-                .all(|(p, f)| PatchFrame::of(p) == *f);
-        if !same_frame {
-            let options = self.options;
-            *self = match Self::new(field, &options) {
-                Ok(whole) => whole,
-                Err(e) => {
-                    self.clear_after_failure();
-                    return Err(e);
-                }
-            };
-            return Ok(AdaptiveRemeshReport {
-                whole: true,
-                leaves_revisited: self.tree.leaves,
-                leaves: self.tree.leaves,
-                vertices_made: self.vertices.positions.len(),
-                polygons_dropped: 0,
-                polygons_made: self.polygons.len(),
-            });
+        self.remesh(field, Some((lo, hi)))
+    }
+
+    /// Meshes again after `field`'s patch layout changed (a patch added, removed or given
+    /// another lattice or map) while every patch that kept its place kept its values: as
+    /// [`AdaptiveMesher::remesh_box`] with the supports of the patches that came, went or
+    /// changed as the changed box. Where the octree's frame moved (a patch finer than every
+    /// other, a support beyond the clay's), or the iso-level changed, or the last call failed,
+    /// the whole clay is meshed again.
+    ///
+    /// # Errors
+    /// As [`mesh_adaptive`] (over the budget, the mesher is left empty and the next call
+    /// meshes the whole clay).
+    pub fn remesh_layout(
+        &mut self,
+        field: &MultiPatchField,
+    ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
+        self.remesh(field, None)
+    }
+
+    /// [`AdaptiveMesher::remesh_box`] of `change` (none: only the layout's change).
+    fn remesh(
+        &mut self,
+        field: &MultiPatchField,
+        change: Option<(Vec3, Vec3)>,
+    ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
+        let layout = if self.stale || field.iso() != self.iso {
+            LayoutChange::Frame
+        } else {
+            self.layout_change(field)
+        };
+        let (lo, hi, new_layout) = match (layout, change) {
+            (LayoutChange::Frame, _) => return self.remesh_whole(field),
+            (LayoutChange::Same, Some((lo, hi))) => (lo, hi, false),
+            (LayoutChange::Same, None) => (Vec3::ONE, Vec3::ZERO, false),
+            (LayoutChange::Patches { lo, hi }, None) => (lo, hi, true),
+            (LayoutChange::Patches { lo, hi }, Some((a, b))) if a.cmple(b).all() => {
+                (lo.min(a), hi.max(b), true)
+            }
+            (LayoutChange::Patches { lo, hi }, Some(_)) => (lo, hi, true),
+        };
+        let mut report = self.remesh_region(field, lo, hi)?;
+        report.new_layout = new_layout;
+        Ok(report)
+    }
+
+    /// How `field`'s patches differ from those the kept mesh was made of; where only some
+    /// patches differ and the octree's frame stays, the tree takes the new patches' targets.
+    fn layout_change(&mut self, field: &MultiPatchField) -> LayoutChange {
+        let frames: Vec<PatchFrame> = field.patches.iter().map(PatchFrame::of).collect();
+        if frames == self.frame {
+            return LayoutChange::Same;
         }
+        let Ok(tree) = Tree::frame(field, &self.options) else {
+            return LayoutChange::Frame;
+        };
+        let same =
+            |a: Vec3, b: Vec3| a.to_array().map(f32::to_bits) == b.to_array().map(f32::to_bits);
+        if !(same(tree.origin, self.tree.origin)
+            && tree.unit.to_bits() == self.tree.unit.to_bits()
+            && tree.root_size == self.tree.root_size)
+        {
+            return LayoutChange::Frame;
+        }
+        // The patches before the first difference and after the last keep their terms: a
+        // patch that came or went adds exactly zero beyond its support, so outside the
+        // supports of the patches between, every sum of terms (the field's value, gradient
+        // and bounds) is the same, bit for bit.
+        let (old, new) = (&self.frame, &frames);
+        let prefix = old.iter().zip(new).take_while(|(a, b)| a == b).count();
+        let room = old.len().min(new.len()) - prefix;
+        let suffix = old
+            .iter()
+            .rev()
+            .zip(new.iter().rev())
+            .take(room)
+            .take_while(|(a, b)| a == b)
+            .count();
+        let gone = &self.tree.targets[prefix..old.len() - suffix];
+        let came = &tree.targets[prefix..new.len() - suffix];
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &(slo, shi, _) in gone.iter().chain(came) {
+            lo = lo.min(slo);
+            hi = hi.max(shi);
+        }
+        self.frame = frames;
+        self.tree.targets = tree.targets;
+        LayoutChange::Patches { lo, hi }
+    }
+
+    /// Meshes `field` whole in place of the kept mesh.
+    fn remesh_whole(
+        &mut self,
+        field: &MultiPatchField,
+    ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
+        let options = self.options;
+        *self = match Self::new(field, &options) {
+            Ok(whole) => whole,
+            Err(e) => {
+                self.clear_after_failure();
+                return Err(e);
+            }
+        };
+        Ok(AdaptiveRemeshReport {
+            whole: true,
+            new_layout: false,
+            leaves_revisited: self.tree.leaves,
+            leaves: self.tree.leaves,
+            vertices_made: self.vertices.positions.len(),
+            polygons_dropped: 0,
+            polygons_made: self.polygons.len(),
+        })
+    }
+
+    /// The local re-mesh of the world box `lo ..= hi` (none for an empty box), in the kept
+    /// frame.
+    fn remesh_region(
+        &mut self,
+        field: &MultiPatchField,
+        lo: Vec3,
+        hi: Vec3,
+    ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
         let mut report = AdaptiveRemeshReport::default();
         self.removed.clear();
         self.first_made = self.polygons.len();
@@ -408,9 +538,9 @@ impl AdaptiveMesher {
         }
         self.generation += 1;
         let region = self.region(lo, hi);
-        if !self.sample_region(field, &region) {
-            self.forget_corners(&region);
-        }
+        self.corners.clear();
+        // A region too large for one block has its corners sampled one by one.
+        self.sample_region(field, &region);
         report.leaves_revisited = match self.update_tree(field, Some(&region)) {
             Ok(n) => n,
             Err(e) => {
@@ -434,7 +564,8 @@ impl AdaptiveMesher {
         report.polygons_dropped = polygons_before - self.polygons.len();
         self.first_made = self.polygons.len();
         self.cell_proc(field, Some(&region), 0);
-        self.keep_region_samples();
+        self.region_samples.dims = [0; 3];
+        self.corners.clear();
         report.polygons_made = self.polygons.len() + report.polygons_dropped - polygons_before;
         report.vertices_made =
             self.vertices.positions.len() - self.vertices.free.len() - kept_vertices;
@@ -538,37 +669,11 @@ impl AdaptiveMesher {
         }
     }
 
-    /// Drops the cached samples of the corners inside `region` (their field may have changed):
-    /// one by one when the region holds fewer corners than the cache, else by a sweep.
-    fn forget_corners(&mut self, region: &Region) {
-        let root = i64::from(self.tree.root_size);
-        let lo = region.lo.map(|v| v.clamp(0, root));
-        let hi = region.hi.map(|v| v.clamp(0, root));
-        let count: i64 = (0..3).map(|a| (hi[a] - lo[a] + 1).max(0)).product();
-        if count as u64 <= self.corners.len() as u64 {
-            for z in lo[2]..=hi[2] {
-                for y in lo[1]..=hi[1] {
-                    for x in lo[0]..=hi[0] {
-                        self.corners
-                            .remove(&corner_key([x as u32, y as u32, z as u32]));
-                    }
-                }
-            }
-        } else {
-            self.corners.retain(|&key, _| {
-                let p = [key & 0x1F_FFFF, (key >> 21) & 0x1F_FFFF, key >> 42];
-                !(0..3).all(|a| (lo[a]..=hi[a]).contains(&(p[a] as i64)))
-            });
-        }
-    }
-
     /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
     /// [`RegionSamples::MAX_CORNERS`]: the corner samples of this re-mesh inside the region
-    /// are then read from that block (see [`AdaptiveMesher::corner_value`]) and
-    /// [`AdaptiveMesher::keep_region_samples`] puts those used into the cache, in place of
-    /// the region's old samples. Returns whether it did (else the caller forgets the old
-    /// samples and they are taken again one by one).
-    fn sample_region(&mut self, field: &MultiPatchField, region: &Region) -> bool {
+    /// are then read from that block (see [`AdaptiveMesher::corner_value`]). A larger region
+    /// gets no block: its corners are sampled one by one.
+    fn sample_region(&mut self, field: &MultiPatchField, region: &Region) {
         let samples = &mut self.region_samples;
         samples.dims = [0; 3];
         let root = i64::from(self.tree.root_size);
@@ -577,12 +682,12 @@ impl AdaptiveMesher {
         let hi = region.hi.map(|v| (v + margin).clamp(0, root));
         if (0..3).any(|a| lo[a] > hi[a]) {
             // The region lies beyond the root: no corner of the tree is in it.
-            return true;
+            return;
         }
         let dims: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a] + 1) as usize);
         let count = dims.iter().product::<usize>();
         if count > RegionSamples::MAX_CORNERS {
-            return false;
+            return;
         }
         // The corners' world coordinates along each axis, as `Tree::point` computes them.
         let coords = |a: usize, out: &mut Vec<f32>| {
@@ -606,41 +711,15 @@ impl AdaptiveMesher {
                 }
             }
         }
-        samples.used.clear();
-        samples.used.resize(count, false);
         samples.lo = lo.map(|v| v as u32);
         samples.dims = dims;
         samples.count_inside(self.iso);
-        true
-    }
-
-    /// Puts the region's samples that this re-mesh used into the cache and drops the
-    /// region's other (old) samples from it, so the cache holds what one-by-one sampling
-    /// would have left there.
-    fn keep_region_samples(&mut self) {
-        let samples = &mut self.region_samples;
-        let [nx, ny, nz] = samples.dims;
-        let mut at = 0;
-        for z in 0..nz {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let p = [x, y, z].map(|v| v as u32);
-                    let key = corner_key(std::array::from_fn(|a| samples.lo[a] + p[a]));
-                    if samples.used[at] {
-                        self.corners.insert(key, samples.values[at]);
-                    } else {
-                        self.corners.remove(&key);
-                    }
-                    at += 1;
-                }
-            }
-        }
-        samples.dims = [0; 3];
     }
 
     /// After a failed re-mesh: an empty mesh, and the next call meshes the whole clay.
     fn clear_after_failure(&mut self) {
         self.region_samples.dims = [0; 3];
+        self.corners.clear();
         self.stale = true;
         self.removed.clear();
         self.first_made = 0;
@@ -669,6 +748,12 @@ impl AdaptiveMesher {
             };
             (at(r.lo), at(r.hi))
         });
+        if let Some((lo, hi)) = near {
+            // The small nodes of the region, and those reaching a little beyond it, read
+            // their blocks from the window tables.
+            let reach = Vec3::splat(WindowTables::REACH_CELLS * self.tree.unit);
+            self.reads.prepare_windows(field, lo - reach, hi + reach);
+        }
         // (node, new in this call)
         let mut stack = vec![(0_u32, region.is_none())];
         while let Some((n, fresh)) = stack.pop() {
@@ -798,7 +883,6 @@ impl AdaptiveMesher {
     /// everything outside the root counts as outside.
     fn corner_value(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
         if let Some(at) = self.region_samples.index(p) {
-            self.region_samples.used[at] = true;
             return self.region_samples.values[at];
         }
         let key = corner_key(p);
@@ -1008,8 +1092,6 @@ struct RegionSamples {
     dims: [usize; 3],
     /// Field value per corner, x fastest.
     values: Vec<f32>,
-    /// Per corner: whether this re-mesh read it.
-    used: Vec<bool>,
     /// Summed-volume table of the inside corners: entry `(x, y, z)` (of `dims + 1` per axis,
     /// x fastest) counts the inside corners below `x`, `y` and `z`.
     inside_below: Vec<u32>,
@@ -1592,6 +1674,11 @@ impl CoefficientRange {
 struct CoefficientReads {
     /// Per patch: the read of a block, keyed by [`CoefficientReads::key`].
     per_patch: Vec<HashMap<u64, PatchOverBox, BuildHasherDefault<EdgeIdHasher>>>,
+    /// Per patch: its last read and key. Neighbouring nodes, visited one after another, read
+    /// the same block of a coarser patch, so most reads are answered here without a lookup.
+    last: Vec<Option<(u64, PatchOverBox)>>,
+    /// Per patch: window tables over the coefficients near a local update's region.
+    windows: Vec<WindowTables>,
     /// Whether reads are remembered (in a local update only).
     remember: bool,
 }
@@ -1600,6 +1687,18 @@ impl CoefficientReads {
     /// Forgets every read (after the coefficients changed).
     fn clear(&mut self) {
         self.per_patch.iter_mut().for_each(HashMap::clear);
+        self.last.iter_mut().for_each(|l| *l = None);
+        self.windows.iter_mut().for_each(WindowTables::clear);
+    }
+
+    /// Builds each patch's window tables over its coefficients whose support meets the world
+    /// box `lo ..= hi`.
+    fn prepare_windows(&mut self, field: &MultiPatchField, lo: Vec3, hi: Vec3) {
+        self.windows
+            .resize_with(field.patches.len(), WindowTables::default);
+        for (tables, patch) in self.windows.iter_mut().zip(&field.patches) {
+            tables.build(patch, CoefficientRange::of(patch, lo, hi));
+        }
     }
 
     /// The read of patch `n` (`patch`) over the world box `lo..=hi`.
@@ -1621,10 +1720,22 @@ impl CoefficientReads {
         };
         if self.per_patch.len() <= n {
             self.per_patch.resize_with(n + 1, HashMap::default);
+            self.last.resize(n + 1, None);
         }
-        *self.per_patch[n]
-            .entry(key)
-            .or_insert_with(|| read_coefficients(patch, range))
+        if let Some((last_key, read)) = self.last[n]
+            && last_key == key
+        {
+            return read;
+        }
+        let windows = self.windows.get(n).filter(|_| !beyond);
+        let read = match windows.and_then(|w| w.read(patch, first, last)) {
+            Some(read) => read,
+            None => *self.per_patch[n]
+                .entry(key)
+                .or_insert_with(|| read_coefficients(patch, range)),
+        };
+        self.last[n] = Some((key, read));
+        read
     }
 
     /// The block's first and last coefficients' linear indices and the `beyond` flag in one
@@ -1637,6 +1748,142 @@ impl CoefficientReads {
         let from = l.index(first[0], first[1], first[2]) as u64;
         let to = l.index(last[0], last[1], last[2]) as u64;
         Some(from | to << 31 | u64::from(beyond) << 62)
+    }
+}
+
+/// One patch's coefficients over a block, folded along x in windows of every length up to
+/// [`WindowTables::MAX_WINDOW`], so that the split test's read of a range inside the block
+/// costs a fold over its rows rather than over its coefficients (the read that
+/// [`read_coefficients`] makes coefficient by coefficient: most of a local re-mesh's split
+/// tests in `bench/profile_adaptive.rs` at 4 cells per span). Minima, maxima and absolute
+/// differences are exact and the folds skip NaN as [`larger`] and [`smaller`] do, so a read
+/// from the tables is, bit for bit, the one [`read_coefficients`] makes.
+#[derive(Clone, Debug, Default)]
+struct WindowTables {
+    /// The block's first coefficient per axis.
+    lo: [usize; 3],
+    /// Coefficients per axis; zero when there is no block.
+    dims: [usize; 3],
+    /// Per quantity (see [`WindowTables::QUANTITIES`]) and window length `w` (from 1): at
+    /// block coordinate `(i, j, k)` (x fastest), the fold of the quantity over `i .. i + w`.
+    folds: Vec<f32>,
+}
+
+impl WindowTables {
+    /// The longest window along x (a read of a longer range goes to the coefficients).
+    const MAX_WINDOW: usize = 8;
+    /// The folded quantities: the coefficients' minimum and maximum, and the largest step
+    /// along x, y and z from a coefficient to the next one (within the block).
+    const QUANTITIES: usize = 5;
+    /// Most coefficients in a block (a larger local update reads coefficient by coefficient).
+    const MAX_BLOCK: usize = 1 << 15;
+    /// Finest cells beyond a local update's region that the block still serves: the nodes
+    /// that meet the region and are at most this large.
+    const REACH_CELLS: f32 = 4.0;
+
+    fn clear(&mut self) {
+        self.dims = [0; 3];
+    }
+
+    /// Folds `patch`'s coefficients in `range` (nothing for a range that is not a block).
+    fn build(&mut self, patch: &Patch, range: CoefficientRange) {
+        self.dims = [0; 3];
+        let CoefficientRange::Block { first, last, .. } = range else {
+            return;
+        };
+        let dims: [usize; 3] = std::array::from_fn(|a| last[a] - first[a] + 1);
+        let count = dims.iter().product::<usize>();
+        if count > Self::MAX_BLOCK {
+            return;
+        }
+        let l = &patch.lattice;
+        let [nx, ny, nz] = dims;
+        let plane = Self::QUANTITIES * count;
+        self.folds.clear();
+        self.folds.resize(Self::MAX_WINDOW * plane, 0.0);
+        let c = |i: usize, j: usize, k: usize| {
+            l.coeffs[l.index(first[0] + i, first[1] + j, first[2] + k)]
+        };
+        // Windows of length 1: the quantities themselves (a step out of the block counts as
+        // none).
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let at = i + nx * (j + ny * k);
+                    let v = c(i, j, k);
+                    let step = |q: Option<f32>| {
+                        q.map_or(f32::NEG_INFINITY, |q| {
+                            larger(f32::NEG_INFINITY, (q - v).abs())
+                        })
+                    };
+                    self.folds[at] = smaller(f32::INFINITY, v);
+                    self.folds[count + at] = larger(f32::NEG_INFINITY, v);
+                    self.folds[2 * count + at] = step((i + 1 < nx).then(|| c(i + 1, j, k)));
+                    self.folds[3 * count + at] = step((j + 1 < ny).then(|| c(i, j + 1, k)));
+                    self.folds[4 * count + at] = step((k + 1 < nz).then(|| c(i, j, k + 1)));
+                }
+            }
+        }
+        // Window `w` at `i`: window `w - 1` at `i` with the length-1 entry at `i + w - 1`.
+        for w in 2..=Self::MAX_WINDOW.min(nx) {
+            let (prev, next) = self.folds.split_at_mut((w - 1) * plane);
+            let (prev, ones) = (&prev[(w - 2) * plane..], &prev[..plane]);
+            let next = &mut next[..plane];
+            for q in 0..Self::QUANTITIES {
+                let fold = if q == 0 { smaller } else { larger };
+                for row in 0..ny * nz {
+                    let base = q * count + row * nx;
+                    for i in 0..=nx - w {
+                        next[base + i] = fold(prev[base + i], ones[base + i + w - 1]);
+                    }
+                }
+            }
+        }
+        self.lo = first;
+        self.dims = dims;
+    }
+
+    /// The read of the coefficients `first ..= last` of `patch` (every one inside its
+    /// lattice), if the tables answer it: the range lies in the block, no row of it lies on
+    /// the lattice's border (where [`read_coefficients`] counts steps to the zeros beyond)
+    /// and it is at most [`WindowTables::MAX_WINDOW`] long along x.
+    fn read(&self, patch: &Patch, first: [usize; 3], last: [usize; 3]) -> Option<PatchOverBox> {
+        let l = &patch.lattice;
+        let interior = (0..3).all(|a| first[a] > 0 && last[a] + 1 < l.dims[a]);
+        let len = last[0] - first[0] + 1;
+        let inside = (0..3).all(|a| first[a] >= self.lo[a] && last[a] < self.lo[a] + self.dims[a]);
+        if !(interior && inside && len <= Self::MAX_WINDOW) {
+            return None;
+        }
+        let [nx, ny, nz] = self.dims;
+        let count = nx * ny * nz;
+        let plane = Self::QUANTITIES * count;
+        let i = first[0] - self.lo[0];
+        let (j0, j1) = (first[1] - self.lo[1], last[1] - self.lo[1]);
+        let (k0, k1) = (first[2] - self.lo[2], last[2] - self.lo[2]);
+        let window = |w: usize, q: usize, j: usize, k: usize| {
+            self.folds[(w - 1) * plane + q * count + i + nx * (j + ny * k)]
+        };
+        let (mut vmin, mut vmax, mut steepest) = (f32::INFINITY, f32::NEG_INFINITY, 0.0_f32);
+        for k in k0..=k1 {
+            for j in j0..=j1 {
+                vmin = smaller(vmin, window(len, 0, j, k));
+                vmax = larger(vmax, window(len, 1, j, k));
+                if len > 1 {
+                    steepest = larger(steepest, window(len - 1, 2, j, k));
+                }
+                if j < j1 {
+                    steepest = larger(steepest, window(len, 3, j, k));
+                }
+                if k < k1 {
+                    steepest = larger(steepest, window(len, 4, j, k));
+                }
+            }
+        }
+        Some(PatchOverBox {
+            bounds: Some((vmin, vmax)),
+            slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
+        })
     }
 }
 
@@ -2354,7 +2601,7 @@ pub(super) mod tests {
     #[test]
     fn adaptive_local_remesh_of_a_region_too_large_for_one_block_equals_a_whole_remesh() {
         // A change box around the whole clay: its region holds far more corners than
-        // `RegionSamples::MAX_CORNERS`, so the corners are forgotten and sampled one by one.
+        // `RegionSamples::MAX_CORNERS`, so the corners are sampled one by one.
         let mut field = three_levels();
         let mut mesher = AdaptiveMesher::new(&field, &options(2)).unwrap();
         let root = mesher.tree.root_size as usize + 1;
@@ -2431,20 +2678,122 @@ pub(super) mod tests {
     }
 
     #[test]
-    fn adaptive_local_remesh_meshes_whole_when_the_patches_change() {
+    fn window_tables_read_as_the_coefficients_do() {
+        // A lattice of scattered values, with a NaN and both infinities among them.
+        let mut lattice = BSplineLattice::zeros([12, 10, 11], 0.25, Vec3::ZERO).unwrap();
+        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+            *c = ((n * 7919) % 113) as f32 / 17.0 - 3.0;
+        }
+        let nan_at = lattice.index(5, 4, 6);
+        lattice.coeffs[nan_at] = f32::NAN;
+        let inf_at = lattice.index(3, 5, 5);
+        lattice.coeffs[inf_at] = f32::INFINITY;
+        let neg_at = lattice.index(7, 3, 4);
+        lattice.coeffs[neg_at] = f32::NEG_INFINITY;
+        let patch = Patch::identity(lattice);
+        let mut tables = WindowTables::default();
+        tables.build(
+            &patch,
+            CoefficientRange::Block {
+                first: [1, 1, 2],
+                last: [10, 8, 9],
+                beyond: false,
+            },
+        );
+        let bits = |r: PatchOverBox| {
+            let (a, b) = r.bounds.unwrap();
+            [a.to_bits(), b.to_bits(), r.slope.to_bits()]
+        };
+        let mut answered = 0;
+        for (first, last) in [
+            ([1, 1, 2], [4, 4, 5]),
+            ([2, 2, 3], [6, 5, 7]),
+            ([4, 3, 4], [8, 6, 8]),
+            ([3, 2, 5], [3, 2, 5]),
+            ([1, 1, 2], [8, 8, 9]),
+            ([5, 4, 6], [6, 4, 6]),
+            ([2, 1, 2], [10, 3, 3]),
+        ] {
+            let range = CoefficientRange::Block {
+                first,
+                last,
+                beyond: false,
+            };
+            let expected = read_coefficients(&patch, range);
+            match tables.read(&patch, first, last) {
+                Some(read) => {
+                    assert_eq!(bits(read), bits(expected), "{first:?} ..= {last:?}");
+                    answered += 1;
+                }
+                // Longer than the longest window along x.
+                None => assert!(last[0] - first[0] + 1 > WindowTables::MAX_WINDOW),
+            }
+        }
+        assert_eq!(answered, 6);
+        // On the lattice's border, or beyond the block: the coefficients answer.
+        assert!(tables.read(&patch, [0, 1, 2], [3, 3, 4]).is_none());
+        assert!(tables.read(&patch, [2, 2, 2], [5, 9, 4]).is_none());
+        assert!(tables.read(&patch, [2, 2, 1], [5, 5, 4]).is_none());
+    }
+
+    #[test]
+    fn adaptive_new_patch_layout_is_re_meshed_over_the_new_patch_alone() {
         let mut field = three_levels();
         let mut mesher = AdaptiveMesher::new(&field, &options(2)).unwrap();
+        let leaves = mesher.leaf_count();
+        // A level-1 patch on the far side of the clay, as a refine adds it: it holds nothing
+        // yet, so the mesh stays as it was, and only its support is visited.
         let d = field
             .refine(Vec3::new(-0.7, -0.2, -0.2), Vec3::new(-0.3, 0.2, 0.2), 1)
             .unwrap();
-        let (lo, hi) = dent(&mut field, d, Vec3::new(-0.5, 0.0, 0.0), 2, -0.2);
-        let report = mesher.remesh_box(&field, lo, hi).unwrap();
-        assert!(report.whole, "{report:?}");
+        let report = mesher.remesh_layout(&field).unwrap();
+        assert!(!report.whole && report.new_layout, "{report:?}");
+        assert!(report.leaves_revisited > 0, "{report:?}");
+        assert!(report.leaves_revisited * 4 < leaves, "{report:?}");
+        // Beyond the new patch's support no triangle was taken out or made.
+        let (slo, shi) = field.patches[d].world_support();
+        let margin = Vec3::splat(SPACING);
+        let made: Vec<SlotTriangle> = mesher.made_triangles().collect();
+        for t in mesher.removed_triangles().iter().chain(&made) {
+            assert!(
+                t.centroid.cmpge(slo - margin).all() && t.centroid.cmple(shi + margin).all(),
+                "{t:?} beyond the new patch's support {slo} ..= {shi}"
+            );
+        }
         matches_whole(&mesher, &field);
+        // Its detail, with the layout changed in the same call: a dent and the patch's
+        // support together.
+        let mut dented = field.clone();
+        let e = dented
+            .refine(Vec3::new(-0.2, -0.7, -0.2), Vec3::new(0.2, -0.3, 0.2), 2)
+            .unwrap();
+        let (lo, hi) = dent(&mut dented, e, Vec3::new(0.0, -0.5, 0.0), 2, -0.2);
+        let report = mesher.remesh_box(&dented, lo, hi).unwrap();
+        assert!(!report.whole && report.new_layout, "{report:?}");
+        matches_whole(&mesher, &dented);
+        // A patch that goes (the level-1 patch, from the middle of the list): local too.
+        dented.patches.remove(d);
+        let report = mesher.remesh_layout(&dented).unwrap();
+        assert!(!report.whole && report.new_layout, "{report:?}");
+        matches_whole(&mesher, &dented);
+        // A patch finer than every other sets a new finest cell: the whole clay.
+        dented
+            .refine(Vec3::new(0.4, -0.1, -0.1), Vec3::new(0.6, 0.1, 0.1), 3)
+            .unwrap();
+        let report = mesher.remesh_layout(&dented).unwrap();
+        assert!(report.whole, "{report:?}");
+        matches_whole(&mesher, &dented);
+        // The same layout again: nothing to do.
+        let report = mesher.remesh_layout(&dented).unwrap();
+        assert_eq!(
+            (report.whole, report.new_layout, report.leaves_revisited),
+            (false, false, 0)
+        );
         assert!(matches!(
-            mesher.remesh_box(&field, Vec3::new(0.0, f32::NAN, 0.0), hi),
+            mesher.remesh_box(&dented, Vec3::new(0.0, f32::NAN, 0.0), hi),
             Err(AdaptiveMeshError::BadChangeBox { hi: h, .. }) if h == hi
         ));
+        let field = dented;
         // A box beyond the clay changes nothing.
         let far = Vec3::splat(50.0);
         let report = mesher.remesh_box(&field, far, far + 1.0).unwrap();

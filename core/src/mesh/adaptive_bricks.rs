@@ -15,26 +15,40 @@
 //! takes away every triangle that used it, so every brick holding a copy of a changed vertex
 //! is among them: the copies never disagree.
 //!
+//! A new patch layout is local the same way ([`AdaptiveBricks::remesh_layout`]): only the
+//! bricks near the patches that came, went or changed are cut again, unless the mesher's
+//! frame moved and it meshed the whole clay.
+//!
 //! Not real-time: it allocates (the mesher's re-mesh and each changed brick's buffers).
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
+use std::hash::BuildHasherDefault;
 
 use glam::Vec3;
 
 use super::adaptive::{
-    AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, SlotTriangle, finish_flat_normals,
+    AdaptiveMeshError, AdaptiveMeshOptions, AdaptiveMesher, AdaptiveRemeshReport, SlotTriangle,
+    finish_flat_normals,
 };
 use super::brick::{BrickMesh, shared_vertex_id};
-use super::octree::{BrickOctree, RefreshReport};
+use super::octree::{BrickOctree, EdgeIdHasher, RefreshReport};
 use crate::field::MultiPatchField;
+
+/// Brick coordinates to what a brick holds, hashed by the octree's mixer rather than SipHash.
+type ByBrick<T> = HashMap<[u32; 3], T, BuildHasherDefault<EdgeIdHasher>>;
 
 /// The adaptive mesh of a multi-patch field, kept cut into the bricks of a [`BrickOctree`].
 #[derive(Clone, Debug)]
 pub struct AdaptiveBricks {
     mesher: AdaptiveMesher,
     /// Per brick coordinate: the triangles whose centroid its box holds.
-    triangles: HashMap<[u32; 3], Vec<[u32; 3]>>,
+    triangles: ByBrick<Vec<[u32; 3]>>,
+    /// Per vertex slot: its index in the piece being made, [`NOT_IN_PIECE`] elsewhere.
+    piece_index: Vec<u32>,
 }
+
+/// A slot that the piece being made does not use (yet).
+const NOT_IN_PIECE: u32 = u32::MAX;
 
 impl AdaptiveBricks {
     /// Meshes `field` whole with `options` and puts the mesh in `octree`'s bricks, in place
@@ -49,7 +63,8 @@ impl AdaptiveBricks {
     ) -> Result<(Self, RefreshReport), AdaptiveMeshError> {
         let mut cut = Self {
             mesher: AdaptiveMesher::new(field, options)?,
-            triangles: HashMap::new(),
+            triangles: ByBrick::default(),
+            piece_index: Vec::new(),
         };
         let report = cut.recut(octree);
         Ok((cut, report))
@@ -73,7 +88,33 @@ impl AdaptiveBricks {
         hi: Vec3,
         octree: &mut BrickOctree,
     ) -> Result<RefreshReport, AdaptiveMeshError> {
-        let report = match self.mesher.remesh_box(field, lo, hi) {
+        let report = self.mesher.remesh_box(field, lo, hi);
+        self.cut_again(report, octree)
+    }
+
+    /// Meshes again after `field`'s patch layout changed (see
+    /// [`AdaptiveMesher::remesh_layout`]) and puts the new pieces in `octree`: only the
+    /// bricks near the patches that came, went or changed are meshed again and reported,
+    /// unless the octree's frame moved (then every brick is).
+    ///
+    /// # Errors
+    /// As [`AdaptiveBricks::remesh_box`].
+    pub fn remesh_layout(
+        &mut self,
+        field: &MultiPatchField,
+        octree: &mut BrickOctree,
+    ) -> Result<RefreshReport, AdaptiveMeshError> {
+        let report = self.mesher.remesh_layout(field);
+        self.cut_again(report, octree)
+    }
+
+    /// Puts in `octree` the pieces a re-mesh that gave `report` changed.
+    fn cut_again(
+        &mut self,
+        report: Result<AdaptiveRemeshReport, AdaptiveMeshError>,
+        octree: &mut BrickOctree,
+    ) -> Result<RefreshReport, AdaptiveMeshError> {
+        let report = match report {
             Ok(report) => report,
             Err(e) => {
                 self.triangles.clear();
@@ -84,27 +125,30 @@ impl AdaptiveBricks {
             return Ok(self.recut(octree));
         }
         // Taken away first: a slot freed by a removed triangle may name a vertex of a made one.
-        let mut removed: HashMap<[u32; 3], HashSet<[u32; 3]>> = HashMap::new();
+        let mut removed: ByBrick<Vec<[u32; 3]>> = ByBrick::default();
         for t in self.mesher.removed_triangles() {
             removed
                 .entry(octree.brick_at(t.centroid))
                 .or_default()
-                .insert(t.slots);
+                .push(t.slots);
         }
-        let mut dirty: HashSet<[u32; 3]> = HashSet::with_capacity(removed.len());
-        for (coord, gone) in &removed {
-            if let Some(held) = self.triangles.get_mut(coord) {
-                held.retain(|t| !gone.contains(t));
+        let mut dirty: Vec<[u32; 3]> = Vec::with_capacity(removed.len());
+        for (coord, mut gone) in removed {
+            if let Some(held) = self.triangles.get_mut(&coord) {
+                // A brick's triangles are distinct (each names its own slots), and the gone
+                // ones few: a sorted list answers as a set would.
+                gone.sort_unstable();
+                held.retain(|t| gone.binary_search(t).is_err());
             }
-            dirty.insert(*coord);
+            dirty.push(coord);
         }
         for t in self.mesher.made_triangles() {
             let coord = octree.brick_at(t.centroid);
             self.triangles.entry(coord).or_default().push(t.slots);
-            dirty.insert(coord);
+            dirty.push(coord);
         }
-        let mut dirty: Vec<[u32; 3]> = dirty.into_iter().collect();
         dirty.sort_unstable();
+        dirty.dedup();
         Ok(self.put(octree, dirty))
     }
 
@@ -113,6 +157,7 @@ impl AdaptiveBricks {
     /// held something else and get nothing are removed.
     pub fn recut(&mut self, octree: &mut BrickOctree) -> RefreshReport {
         self.triangles.clear();
+        self.piece_index.clear();
         for SlotTriangle { slots, centroid } in self.mesher.triangles() {
             self.triangles
                 .entry(octree.brick_at(centroid))
@@ -138,13 +183,18 @@ impl AdaptiveBricks {
     /// Meshes the bricks `coords` from their triangles and puts them in `octree` (a brick
     /// left without triangles is removed).
     fn put(&mut self, octree: &mut BrickOctree, coords: Vec<[u32; 3]>) -> RefreshReport {
-        self.triangles.retain(|_, t| !t.is_empty());
+        for c in &coords {
+            if self.triangles.get(c).is_some_and(Vec::is_empty) {
+                self.triangles.remove(c);
+            }
+        }
         let mesher = &self.mesher;
         let triangles = &self.triangles;
+        let piece_index = &mut self.piece_index;
         let pieces = coords.into_iter().map(|c| {
             let mesh = triangles
                 .get(&c)
-                .map(|t| piece(mesher, t))
+                .map(|t| piece(mesher, t, piece_index))
                 .unwrap_or_default();
             (c, mesh)
         });
@@ -158,24 +208,39 @@ impl AdaptiveBricks {
 /// A vertex where the field's gradient vanished (the mesher gives it no normal) takes the
 /// area-weighted normal of its triangles in this brick (the mesher's whole mesh weighs all its
 /// triangles; such vertices are rare and their copies can differ in normal, never in place).
-fn piece(mesher: &AdaptiveMesher, triangles: &[[u32; 3]]) -> BrickMesh {
+///
+/// `piece_index` is scratch, [`NOT_IN_PIECE`] for every slot before and after.
+fn piece(mesher: &AdaptiveMesher, triangles: &[[u32; 3]], piece_index: &mut Vec<u32>) -> BrickMesh {
     let mut mesh = BrickMesh::default();
-    let mut local: HashMap<u32, u32> = HashMap::with_capacity(triangles.len());
     mesh.indices.reserve(3 * triangles.len());
+    // About one vertex per two triangles on a closed mesh, a few more along the brick's sides.
+    let vertices = triangles.len() / 2 + 8;
+    mesh.positions.reserve(vertices);
+    mesh.normals.reserve(vertices);
+    mesh.edge_ids.reserve(vertices);
+    let mut slots: Vec<u32> = Vec::with_capacity(vertices);
     let mut flat = false;
     for t in triangles {
         for &slot in t {
-            let index = *local.entry(slot).or_insert_with(|| {
+            let s = slot as usize;
+            if s >= piece_index.len() {
+                piece_index.resize(s + 1, NOT_IN_PIECE);
+            }
+            if piece_index[s] == NOT_IN_PIECE {
                 let (position, normal) =
                     mesher.slot_vertex(slot).unwrap_or((Vec3::ZERO, Vec3::ZERO));
                 flat |= normal == Vec3::ZERO;
+                piece_index[s] = mesh.positions.len() as u32;
                 mesh.positions.push(position);
                 mesh.normals.push(normal);
                 mesh.edge_ids.push(shared_vertex_id(slot));
-                (mesh.positions.len() - 1) as u32
-            });
-            mesh.indices.push(index);
+                slots.push(slot);
+            }
+            mesh.indices.push(piece_index[s]);
         }
+    }
+    for s in slots {
+        piece_index[s as usize] = NOT_IN_PIECE;
     }
     if flat {
         let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]);
@@ -312,16 +377,54 @@ mod tests {
     }
 
     #[test]
-    fn a_new_layout_is_cut_whole_and_a_rebuild_goes_back_to_marching_cubes() {
+    fn a_new_layout_is_cut_near_the_new_patch_and_a_rebuild_goes_back_to_marching_cubes() {
         let mut field = three_levels();
         let mut octree = octree_for(&field);
         let (mut cut, _) = AdaptiveBricks::new(&field, &options(), &mut octree).unwrap();
+        let bricks_before = octree.brick_count();
         let d = field
             .refine(Vec3::new(-0.7, -0.2, -0.2), Vec3::new(-0.3, 0.2, 0.2), 1)
             .unwrap();
+        let report = cut.remesh_layout(&field, &mut octree).unwrap();
+        matches_fresh_cut(&octree, &field);
+        // Only bricks near the new patch's support were cut again: a triangle taken out or
+        // made has its vertices in leaves meeting the support grown by a finest cell, and
+        // its centroid within two base cells of them.
+        let (slo, shi) = field.patches[d].world_support();
+        let span = octree.grid().cell_size * BRICK_CELLS as f32;
+        let reach = SPACING / 8.0 + 2.0 * SPACING / 2.0;
+        for c in report.changed.iter().chain(&report.removed) {
+            let b_lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
+            let b_hi = b_lo + span;
+            assert!(
+                b_lo.cmple(shi + reach).all() && b_hi.cmpge(slo - reach).all(),
+                "brick {c:?} far from the new patch {slo} ..= {shi}"
+            );
+        }
+        // and bricks far from it there are, kept as they were.
+        let far = octree
+            .bricks()
+            .filter(|b| {
+                let b_lo =
+                    octree.grid().origin + span * Vec3::from_array(b.coord.map(|v| v as f32));
+                b_lo.cmpgt(shi + reach).any() || (b_lo + span).cmplt(slo - reach).any()
+            })
+            .count();
+        assert!(
+            far * 4 >= bricks_before,
+            "{far} of {bricks_before} bricks far"
+        );
+        // Its first stroke is local as ever.
         let (lo, hi) = dent(&mut field, d, Vec3::new(-0.5, 0.0, 0.0), 2, -0.2);
-        let bricks_before = octree.brick_count();
         let report = cut.remesh_box(&field, lo, hi, &mut octree).unwrap();
+        assert!(!report.changed.is_empty());
+        matches_fresh_cut(&octree, &field);
+        // A level finer than every other moves the mesher's frame: every brick is cut again.
+        field
+            .refine(Vec3::new(0.4, -0.1, -0.1), Vec3::new(0.6, 0.1, 0.1), 3)
+            .unwrap();
+        let bricks_before = octree.brick_count();
+        let report = cut.remesh_layout(&field, &mut octree).unwrap();
         assert!(report.changed.len() + report.removed.len() >= bricks_before);
         matches_fresh_cut(&octree, &field);
 
