@@ -693,6 +693,45 @@ mod tests {
         )
         .unwrap();
         assert_eq!(window.canonical_triangles(), exported.canonical_triangles());
+
+        // The detail taken away again: the carve undone (its patch emptied), then a smoothing
+        // over each patch, which writes it and folds it (it holds nothing the base cannot). A
+        // clay of one patch is drawn by marching cubes on the grid again.
+        s.commands.send(Command::Undo).unwrap();
+        run(&mut s, 10);
+        let smooth = GeometricTool {
+            shape: ToolShape::Sphere {
+                radius_fu: 1.5 * spacing,
+            },
+            action: ToolAction::Smooth {
+                rate_per_s: 1.0,
+                kernel_fu: spacing,
+            },
+            falloff_fu: 0.25 * spacing,
+        };
+        for at in [surface, far_side] {
+            s.commands
+                .send(Command::ApplyTool {
+                    tool: smooth.clone(),
+                    poses: vec![ToolPose::at(at)],
+                    duration_s: 0.1,
+                    patch: 0,
+                    reply: None,
+                })
+                .unwrap();
+            run(&mut s, 300);
+        }
+        assert_eq!(s.graphics.field().patches.len(), 1, "both patches folded");
+        assert!(
+            !s.graphics.meshes_levels(),
+            "one patch again: marching cubes"
+        );
+        let grid = *s.graphics.octree().grid();
+        let fresh = BrickOctree::build(grid, s.graphics.field()).weld();
+        assert_eq!(
+            s.graphics.octree().weld().canonical_triangles(),
+            fresh.canonical_triangles()
+        );
     }
 
     /// A clay that starts with a detail patch holding detail (a loaded session) is drawn
