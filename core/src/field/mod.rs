@@ -33,7 +33,7 @@ pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid, sub_lattice};
 pub use multipatch::{
     DetailError, MAX_CLAY_COEFFS, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES,
-    MultiPatchField, OtherPatches, Patch,
+    MultiPatchField, OtherPatches, Patch, shared_ends,
 };
 pub use pick::{BISECTION_STEPS, MARCH_STEP_SPANS, Ray, SurfaceHit, pick_surface};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};

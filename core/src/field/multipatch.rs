@@ -213,6 +213,23 @@ impl Patch {
     }
 }
 
+/// How many items two versions of a list share at each end: the length of the longest
+/// common prefix, and of the longest common suffix of what remains after it (so the two never
+/// overlap), by `same`. A new patch layout keeps the patches before and after those that
+/// came, went or changed.
+pub fn shared_ends<T>(old: &[T], new: &[T], same: impl Fn(&T, &T) -> bool) -> (usize, usize) {
+    let prefix = old.iter().zip(new).take_while(|(a, b)| same(a, b)).count();
+    let room = old.len().min(new.len()) - prefix;
+    let suffix = old
+        .iter()
+        .rev()
+        .zip(new.iter().rev())
+        .take(room)
+        .take_while(|(a, b)| same(a, b))
+        .count();
+    (prefix, suffix)
+}
+
 /// `F(x) = Σ s_i(T_i x)` over a base patch and detail patches: the clay's density, the one
 /// model of eq. (3) that evaluation, forces, meshing, tools and sessions act on.
 ///
@@ -406,19 +423,7 @@ impl MultiPatchField {
                 && a.world_to_patch == b.world_to_patch
         };
         let (old, new) = (&before.patches, &self.patches);
-        let prefix = old
-            .iter()
-            .zip(new)
-            .take_while(|(a, b)| same_shape(a, b))
-            .count();
-        let room = old.len().min(new.len()) - prefix;
-        let suffix = old
-            .iter()
-            .rev()
-            .zip(new.iter().rev())
-            .take(room)
-            .take_while(|(a, b)| same_shape(a, b))
-            .count();
+        let (prefix, suffix) = shared_ends(old, new, same_shape);
         let shared = (0..prefix)
             .map(|i| (i, i))
             .chain((0..suffix).map(|k| (old.len() - suffix + k, new.len() - suffix + k)));
@@ -601,6 +606,19 @@ mod tests {
             *c = ((n * 7919) % 53) as f32 / 53.0;
         }
         l
+    }
+
+    #[test]
+    fn shared_ends_count_what_a_new_layout_keeps_at_each_end_without_counting_twice() {
+        let eq = |a: &u8, b: &u8| a == b;
+        // A patch added in the middle, one taken out, one replaced, one appended.
+        assert_eq!(shared_ends(&[1, 2, 3, 4], &[1, 2, 9, 3, 4], eq), (2, 2));
+        assert_eq!(shared_ends(&[1, 2, 3, 4], &[1, 3, 4], eq), (1, 2));
+        assert_eq!(shared_ends(&[1, 2, 3], &[1, 7, 3], eq), (1, 1));
+        assert_eq!(shared_ends(&[1, 2], &[1, 2, 5], eq), (2, 0));
+        // Equal items everywhere: the suffix takes only what the prefix left.
+        assert_eq!(shared_ends(&[1, 1], &[1, 1, 1], eq), (2, 0));
+        assert_eq!(shared_ends::<u8>(&[], &[4], eq), (0, 0));
     }
 
     #[test]

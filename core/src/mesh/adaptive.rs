@@ -82,7 +82,7 @@ use glam::{Affine3A, Vec3};
 use super::manifold::split_non_manifold;
 use super::octree::EdgeIdHasher;
 use super::trimesh::TriMesh;
-use crate::field::{MultiPatchField, Patch};
+use crate::field::{MultiPatchField, Patch, shared_ends};
 
 /// Most levels below the root: corner coordinates then fit in 21 bits per axis.
 pub const MAX_ADAPTIVE_DEPTH: u32 = 20;
@@ -476,15 +476,7 @@ impl AdaptiveMesher {
         // supports of the patches between, every sum of terms (the field's value, gradient
         // and bounds) is the same, bit for bit.
         let (old, new) = (&self.frame, &frames);
-        let prefix = old.iter().zip(new).take_while(|(a, b)| a == b).count();
-        let room = old.len().min(new.len()) - prefix;
-        let suffix = old
-            .iter()
-            .rev()
-            .zip(new.iter().rev())
-            .take(room)
-            .take_while(|(a, b)| a == b)
-            .count();
+        let (prefix, suffix) = shared_ends(old, new, PartialEq::eq);
         let gone = &self.tree.targets[prefix..old.len() - suffix];
         let came = &tree.targets[prefix..new.len() - suffix];
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);

@@ -304,6 +304,32 @@ mod tests {
         assert_eq!(s.misoriented_edges, 0, "{s:?}");
     }
 
+    /// How far from a changed box a reported brick may lie: a finest cell (the leaves that
+    /// meet the box) and two base cells (a changed triangle's other vertices).
+    const NEAR_CHANGE: f32 = SPACING / 8.0 + 2.0 * SPACING / 2.0;
+
+    fn brick_span(octree: &BrickOctree) -> f32 {
+        octree.grid().cell_size * BRICK_CELLS as f32
+    }
+
+    /// Every brick `report` changed or took away lies within [`NEAR_CHANGE`] of `lo ..= hi`.
+    fn assert_reported_bricks_near(
+        octree: &BrickOctree,
+        report: &RefreshReport,
+        lo: Vec3,
+        hi: Vec3,
+    ) {
+        let span = brick_span(octree);
+        for c in report.changed.iter().chain(&report.removed) {
+            let b_lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
+            let b_hi = b_lo + span;
+            assert!(
+                b_lo.cmple(hi + NEAR_CHANGE).all() && b_hi.cmpge(lo - NEAR_CHANGE).all(),
+                "brick {c:?} far from the change {lo} ..= {hi}"
+            );
+        }
+    }
+
     #[test]
     fn the_bricks_weld_into_the_multi_level_mesh_closed_across_its_seams() {
         let field = three_levels();
@@ -357,16 +383,7 @@ mod tests {
         );
         // A changed triangle uses a vertex made again, in a leaf meeting the box grown by a
         // finest cell; its other vertices lie within two base cells of it.
-        let span = octree.grid().cell_size * BRICK_CELLS as f32;
-        let reach = SPACING / 8.0 + 2.0 * SPACING / 2.0;
-        for c in report.changed.iter().chain(&report.removed) {
-            let b_lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
-            let b_hi = b_lo + span;
-            assert!(
-                b_lo.cmple(hi + reach).all() && b_hi.cmpge(lo - reach).all(),
-                "brick {c:?} far from the change {lo} ..= {hi}"
-            );
-        }
+        assert_reported_bricks_near(&octree, &report, lo, hi);
         matches_fresh_cut(&octree, &field);
         // Versions: only the reported bricks carry the new generation.
         let fresh: Vec<[u32; 3]> = octree
@@ -391,16 +408,8 @@ mod tests {
         // made has its vertices in leaves meeting the support grown by a finest cell, and
         // its centroid within two base cells of them.
         let (slo, shi) = field.patches[d].world_support();
-        let span = octree.grid().cell_size * BRICK_CELLS as f32;
-        let reach = SPACING / 8.0 + 2.0 * SPACING / 2.0;
-        for c in report.changed.iter().chain(&report.removed) {
-            let b_lo = octree.grid().origin + span * Vec3::from_array(c.map(|v| v as f32));
-            let b_hi = b_lo + span;
-            assert!(
-                b_lo.cmple(shi + reach).all() && b_hi.cmpge(slo - reach).all(),
-                "brick {c:?} far from the new patch {slo} ..= {shi}"
-            );
-        }
+        assert_reported_bricks_near(&octree, &report, slo, shi);
+        let (span, reach) = (brick_span(&octree), NEAR_CHANGE);
         // and bricks far from it there are, kept as they were.
         let far = octree
             .bricks()
