@@ -261,6 +261,9 @@ pub const MIN_PIECE_FRACTION: f32 = 0.01;
 
 /// A node with no point within the band.
 const NO_POINT: u32 = u32::MAX;
+/// The side, in nodes, of the blocks the band visits the points by (see
+/// [`SignGrid::spatial_order`]).
+const BAND_BLOCK: usize = 4;
 
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
@@ -304,6 +307,28 @@ impl SignedCloud {
             }
             None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
             None => (-2.0 * self.width, 0.0),
+        }
+    }
+
+    /// [`SignedCloud::distance_and_support`] at a point `x` that no point's moving plane
+    /// reaches (its search would find nothing): the same value, bit for bit, without the
+    /// search.
+    fn unreached_distance(&self, x: Vec3) -> (f32, f32) {
+        match self.nearest_point(x) {
+            Some(p) => {
+                let fallback = (x - self.anchors[p]).dot(self.normals[p]);
+                let beyond = MOVING_REACH * self.widest + 1.8 * self.grid.h;
+                if (x - self.points[p]).length_squared() > beyond * beyond {
+                    return (fallback, 0.0);
+                }
+                // The moving planes' empty sums, as `distance_and_support` adds them.
+                let (weighted, weight) = (0.0f32, 0.0f32);
+                (
+                    (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
+                    weight,
+                )
+            }
+            None => self.distance_and_support(x),
         }
     }
 
@@ -571,6 +596,22 @@ pub fn sign_cloud(
         .zip(&dist)
         .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
+    // A node whose nearest point is beyond every point's reach (or that has none within the
+    // band, where the band reaches at least as far) has no moving plane: its search would
+    // find nothing. The reach is widened by a hair for the rounding of the distances.
+    let reach = MOVING_REACH * widest * (1.0 + 1e-5);
+    let band = BAND_SPANS * spacing;
+    let unreached: Vec<bool> = dist
+        .iter()
+        .map(|&d| {
+            if d.is_finite() {
+                d > reach
+            } else {
+                band >= reach
+            }
+        })
+        .collect();
+    drop(dist);
     let count = grid.count();
     let mut signed = SignedCloud {
         points,
@@ -604,8 +645,14 @@ pub fn sign_cloud(
     // Step 6: the distance at every node, and the pieces too small to be data.
     let at_nodes = parallel_map(count, |at| {
         let [i, j, k] = signed.grid.coords(at);
-        signed.distance_and_support(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
+        let x = Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h;
+        if unreached[at] {
+            signed.unreached_distance(x)
+        } else {
+            signed.distance_and_support(x)
+        }
     });
+    drop(unreached);
     signed.node_distance = at_nodes.iter().map(|&(d, _)| d).collect();
     signed.node_confidence = at_nodes
         .iter()
@@ -1107,36 +1154,80 @@ impl SignGrid {
     }
 
     /// [`SignGrid::band_distances`] on `threads` threads, each over a run of whole z-planes of
-    /// the grid and every point in order, so the result does not depend on the count.
+    /// the grid, so the result does not depend on the count.
     fn band_distances_on(
         &self,
         points: &[Vec3],
         band: f32,
         threads: usize,
     ) -> (Vec<f32>, Vec<u32>) {
-        let mut dist = vec![f32::INFINITY; self.count()];
+        let dist = vec![f32::INFINITY; self.count()];
         let mut nearest = vec![0u32; self.count()];
         let plane = self.dims[0] * self.dims[1];
         let planes_per_thread = self.dims[2].div_ceil(threads.clamp(1, self.dims[2]));
         let slab = planes_per_thread * plane;
+        let order = self.spatial_order(points);
+        let mut squared = dist;
         std::thread::scope(|scope| {
-            for (t, (dist, nearest)) in dist
+            for (t, (squared, nearest)) in squared
                 .chunks_mut(slab)
                 .zip(nearest.chunks_mut(slab))
                 .enumerate()
             {
                 let first_plane = t * planes_per_thread;
-                scope.spawn(move || self.band_slab(points, band, first_plane, dist, nearest));
+                let order = &order;
+                scope.spawn(move || {
+                    self.band_slab(points, order, band, first_plane, squared, nearest);
+                    for d in squared.iter_mut() {
+                        *d = d.sqrt();
+                    }
+                });
             }
         });
-        (dist, nearest)
+        (squared, nearest)
+    }
+
+    /// The indices of `points` ordered by the block of [`BAND_BLOCK`]³ nodes they lie in
+    /// (blocks in z-major order, points in index order within a block), so that the band's
+    /// pass over the points writes nodes that are still in the cache.
+    fn spatial_order(&self, points: &[Vec3]) -> Vec<u32> {
+        let blocks = self.dims.map(|m| m.div_ceil(BAND_BLOCK));
+        let block_of = |p: Vec3| {
+            let b = |a: usize| {
+                (floor_to_i32(p[a] / self.h).max(0) as usize / BAND_BLOCK).min(blocks[a] - 1)
+            };
+            b(0) + blocks[0] * (b(1) + blocks[1] * b(2))
+        };
+        let mut starts = vec![0u32; blocks.iter().product::<usize>() + 1];
+        for &p in points {
+            starts[block_of(p) + 1] += 1;
+        }
+        for b in 1..starts.len() {
+            starts[b] += starts[b - 1];
+        }
+        let mut order = vec![0u32; points.len()];
+        for (i, &p) in points.iter().enumerate() {
+            let b = block_of(p);
+            order[starts[b] as usize] = i as u32;
+            starts[b] += 1;
+        }
+        order
     }
 
     /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and
-    /// `nearest` hold.
+    /// `nearest` hold, as squared distances (their roots are taken once, at the end),
+    /// visiting the points in `order` (any order gives the same result: of equally near points
+    /// the lowest index wins).
+    ///
+    /// NOTE: the nodes are compared by squared distance without a branch, and the points are
+    /// visited block by block ([`SignGrid::spatial_order`]) rather than in the file's order,
+    /// where each point wrote nodes far from the last one's (bench/RESULTS.md, "Import wall
+    /// time"). Cutting each row to the sphere's chord tests half the nodes, but the rows are
+    /// short (nine nodes) and the cut cost more than it saved.
     fn band_slab(
         &self,
         points: &[Vec3],
+        order: &[u32],
         band: f32,
         first_plane: usize,
         dist: &mut [f32],
@@ -1144,20 +1235,35 @@ impl SignGrid {
     ) {
         let plane = self.dims[0] * self.dims[1];
         let last_plane = first_plane + dist.len() / plane - 1;
+        let band_squared = band * band;
         let reach = (band / self.h).ceil() as i64;
-        for (p_index, &p) in points.iter().enumerate() {
+        for &p_index in order {
+            let p = points[p_index as usize];
             let c = (p / self.h).round();
             let lo = |a: usize| (c[a] as i64 - reach).max(0) as usize;
             let hi = |a: usize| ((c[a] as i64 + reach).max(0) as usize).min(self.dims[a] - 1);
+            let (i0, i1) = (lo(0), hi(0));
             for k in lo(2).max(first_plane)..=hi(2).min(last_plane) {
+                let dz = k as f32 * self.h - p.z;
                 for j in lo(1)..=hi(1) {
-                    for i in lo(0)..=hi(0) {
-                        let at = self.index(i, j, k) - first_plane * plane;
-                        let d = (Vec3::new(i as f32, j as f32, k as f32) * self.h - p).length();
-                        if d <= band && d < dist[at] {
-                            dist[at] = d;
-                            nearest[at] = p_index as u32;
-                        }
+                    let dy = j as f32 * self.h - p.y;
+                    if dy * dy + dz * dz > band_squared {
+                        // The row passes outside the sphere: none of its nodes is within it.
+                        continue;
+                    }
+                    let row = self.index(i0, j, k) - first_plane * plane;
+                    let row = row..row + (i1 - i0 + 1);
+                    for (i, (held, by)) in
+                        (i0..).zip(dist[row.clone()].iter_mut().zip(&mut nearest[row]))
+                    {
+                        // The squared distance as `(node − p).length_squared()` gives it.
+                        let squared = Vec3::new(i as f32 * self.h - p.x, dy, dz).length_squared();
+                        // Without a branch: whether a point is nearer than the last is a coin
+                        // toss where the spheres of neighbouring points overlap.
+                        let nearer = (squared <= band_squared)
+                            & ((squared < *held) | ((squared == *held) & (p_index < *by)));
+                        *held = if nearer { squared } else { *held };
+                        *by = if nearer { p_index } else { *by };
                     }
                 }
             }
@@ -1831,9 +1937,9 @@ mod tests {
 
     #[test]
     fn the_band_is_the_nearest_point_within_it_at_every_node() {
-        // Against a scan of every point at every node: the same distance bit for bit and the
-        // same point (the lowest index of equally near ones), on points off the nodes and on
-        // them, with the band reaching between nodes.
+        // Against a scan of every point at every node, in index order: the same distance bit
+        // for bit and the same point (the lowest index of equally near ones), on points off
+        // the nodes and on them, with the band reaching between nodes.
         let grid = SignGrid::new(8, 0.25, 2);
         let centre = Vec3::splat(7.0 * 0.25 * 0.5);
         let mut points: Vec<Vec3> = sphere_cloud(300, 0.5)
@@ -1842,20 +1948,30 @@ mod tests {
             .map(|&p| p + centre)
             .collect();
         points.extend([centre, centre + Vec3::new(0.25, 0.0, 0.125)]);
+        // Two points equally near node (4, 4, 4), in different blocks of the band's order:
+        // the one with the lower index lies in the block visited later.
+        let node = grid.position(grid.index(4, 4, 4));
+        let pair = points.len() as u32;
+        let half_node = Vec3::new(0.5 * grid.h, 0.0, 0.0);
+        points.extend([node + half_node, node - half_node]);
+        let order = grid.spatial_order(&points);
+        let place = |i: u32| order.iter().position(|&o| o == i);
+        assert!(place(pair) > place(pair + 1));
         for band in [0.2f32, 0.3, 0.5] {
             let (dist, nearest) = grid.band_distances_on(&points, band, 2);
+            assert_eq!(nearest[grid.index(4, 4, 4)], pair, "band {band}");
             for at in 0..grid.count() {
                 let x = grid.position(at);
                 let mut best = (f32::INFINITY, 0u32);
                 for (p_index, &p) in points.iter().enumerate() {
-                    let d = (x - p).length();
-                    if d <= band && d < best.0 {
-                        best = (d, p_index as u32);
+                    let squared = (x - p).length_squared();
+                    if squared <= band * band && squared < best.0 {
+                        best = (squared, p_index as u32);
                     }
                 }
                 assert_eq!(
                     dist[at].to_bits(),
-                    best.0.to_bits(),
+                    best.0.sqrt().to_bits(),
                     "band {band}, node {at}"
                 );
                 if best.0.is_finite() {
