@@ -501,8 +501,15 @@ pub fn sign_cloud(
 
     // Steps 3–4: band, exterior, normals.
     let grid = SignGrid::new(n, spacing, sps);
-    let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
-    let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
+    // The exterior (one thread: a flood) is found beside the band (on every thread).
+    let ((dist, nearest), exterior) = std::thread::scope(|scope| {
+        let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
+        let band = grid.band_distances(&points, BAND_SPANS * spacing);
+        let exterior = exterior
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (band, exterior)
+    });
     let given = cloud
         .normals
         .as_ref()
@@ -1067,12 +1074,19 @@ impl SignedCloud {
     /// inside): a blob or a bubble that size is noise the data does not support.
     fn remove_small_pieces(&mut self) {
         let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
-        let (pieces, piece_sizes) = self.grid.components(|at| inside[at]);
+        // The pieces and the holes are labelled side by side (each is one thread's flood).
+        let ((pieces, piece_sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
+            let holes = scope.spawn(|| self.grid.components(|at| !inside[at]));
+            let pieces = self.grid.components(|at| inside[at]);
+            let holes = holes
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (pieces, holes)
+        });
         let Some(&largest) = piece_sizes.iter().max() else {
             return;
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
-        let (holes, hole_sizes) = self.grid.components(|at| !inside[at]);
         let open = self.grid.boundary_components(&holes);
         for (at, forced) in self.forced.iter_mut().enumerate() {
             if inside[at] {
