@@ -261,6 +261,17 @@ pub const MIN_PIECE_FRACTION: f32 = 0.01;
 
 /// A node with no point within the band.
 const NO_POINT: u32 = u32::MAX;
+
+/// Which of the moving planes' points may be within reach of a place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reached {
+    /// Any point.
+    Every,
+    /// Only those whose bandwidth is widened (the typical ones are all beyond reach).
+    Widened,
+    /// None.
+    None,
+}
 /// The side, in nodes, of the blocks the band visits the points by (see
 /// [`SignGrid::spatial_order`]).
 const BAND_BLOCK: usize = 4;
@@ -290,6 +301,12 @@ impl SignedCloud {
     /// The unforced signed distance at `x` and the moving planes' total weight there (how
     /// much data holds it; 0 beyond their reach).
     fn distance_and_support(&self, x: Vec3) -> (f32, f32) {
+        self.distance_and_support_within(x, Reached::Every)
+    }
+
+    /// [`SignedCloud::distance_and_support`] at `x`, searching only the points `reached`
+    /// says may be within reach of it: the same value, bit for bit, with fewer searches.
+    fn distance_and_support_within(&self, x: Vec3, reached: Reached) -> (f32, f32) {
         match self.nearest_point(x) {
             Some(p) => {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
@@ -299,7 +316,19 @@ impl SignedCloud {
                 if (x - self.points[p]).length_squared() > beyond * beyond {
                     return (fallback, 0.0);
                 }
-                let (weighted, weight) = self.moving_planes(x);
+                let (weighted, weight) = match reached {
+                    // The moving planes' empty sums, as they would add them.
+                    Reached::None => (0.0, 0.0),
+                    _ => moving_planes(
+                        &self.near_points,
+                        &self.normals,
+                        &self.confidence,
+                        &self.local,
+                        &self.curvature,
+                        x,
+                        reached == Reached::Every,
+                    ),
+                };
                 (
                     (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
                     weight,
@@ -308,41 +337,6 @@ impl SignedCloud {
             None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
             None => (-2.0 * self.width, 0.0),
         }
-    }
-
-    /// [`SignedCloud::distance_and_support`] at a point `x` that no point's moving plane
-    /// reaches (its search would find nothing): the same value, bit for bit, without the
-    /// search.
-    fn unreached_distance(&self, x: Vec3) -> (f32, f32) {
-        match self.nearest_point(x) {
-            Some(p) => {
-                let fallback = (x - self.anchors[p]).dot(self.normals[p]);
-                let beyond = MOVING_REACH * self.widest + 1.8 * self.grid.h;
-                if (x - self.points[p]).length_squared() > beyond * beyond {
-                    return (fallback, 0.0);
-                }
-                // The moving planes' empty sums, as `distance_and_support` adds them.
-                let (weighted, weight) = (0.0f32, 0.0f32);
-                (
-                    (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
-                    weight,
-                )
-            }
-            None => self.distance_and_support(x),
-        }
-    }
-
-    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach of `x`,
-    /// `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`.
-    fn moving_planes(&self, x: Vec3) -> (f32, f32) {
-        moving_planes(
-            &self.near_points,
-            &self.normals,
-            &self.confidence,
-            &self.local,
-            &self.curvature,
-            x,
-        )
     }
 
     /// The point nearest `x` among the nearest points of the eight nodes around it.
@@ -590,8 +584,15 @@ pub fn sign_cloud(
         if !wanted[i] {
             return p;
         }
-        let (weighted, weight) =
-            moving_planes(&near_points, &normals, &confidence, &local, &curvature, p);
+        let (weighted, weight) = moving_planes(
+            &near_points,
+            &normals,
+            &confidence,
+            &local,
+            &curvature,
+            p,
+            true,
+        );
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -603,18 +604,27 @@ pub fn sign_cloud(
         .zip(&dist)
         .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
-    // A node whose nearest point is beyond every point's reach (or that has none within the
-    // band, where the band reaches at least as far) has no moving plane: its search would
-    // find nothing. The reach is widened by a hair for the rounding of the distances.
-    let reach = MOVING_REACH * widest * (1.0 + 1e-5);
-    let band = BAND_SPANS * spacing;
-    let unreached: Vec<bool> = dist
+    // A node whose nearest point (exact within the band; none within it means none nearer
+    // than the band) is beyond a point's reach is not within the reach of that point's
+    // plane, nor any other's with the same bandwidth: its search among them would find
+    // nothing. The reaches are widened by a hair for the rounding of the distances.
+    let (band, margin) = (BAND_SPANS * spacing, 1.0 + 1e-5);
+    let beyond = |d: f32, reach: f32| {
+        if d.is_finite() {
+            d > reach * margin
+        } else {
+            band >= reach * margin
+        }
+    };
+    let reached: Vec<Reached> = dist
         .iter()
         .map(|&d| {
-            if d.is_finite() {
-                d > reach
+            if beyond(d, MOVING_REACH * widest) {
+                Reached::None
+            } else if beyond(d, MOVING_REACH * bandwidth) {
+                Reached::Widened
             } else {
-                band >= reach
+                Reached::Every
             }
         })
         .collect();
@@ -653,13 +663,9 @@ pub fn sign_cloud(
     let at_nodes = parallel_map(count, |at| {
         let [i, j, k] = signed.grid.coords(at);
         let x = Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h;
-        if unreached[at] {
-            signed.unreached_distance(x)
-        } else {
-            signed.distance_and_support(x)
-        }
+        signed.distance_and_support_within(x, reached[at])
     });
-    drop(unreached);
+    drop(reached);
     signed.node_distance = at_nodes.iter().map(|&(d, _)| d).collect();
     signed.node_confidence = at_nodes
         .iter()
@@ -912,9 +918,11 @@ fn point_curvatures(
     })
 }
 
-/// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
+/// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `near` within [`MOVING_REACH`] of their own
 /// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
-/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`).
+/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); the
+/// points at the typical bandwidth are left out unless `typical` (the caller knows none is
+/// within reach).
 fn moving_planes(
     near: &NearPoints,
     normals: &[Vec3],
@@ -922,6 +930,7 @@ fn moving_planes(
     local: &[LocalScale],
     curvature: &[f32],
     x: Vec3,
+    typical: bool,
 ) -> (f32, f32) {
     let mut sums = (0.0f32, 0.0f32);
     let planes = MovingPlanes {
@@ -931,10 +940,12 @@ fn moving_planes(
         curvature,
         x,
     };
-    near.typical
-        .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
-            planes.add(&mut sums, j, p);
-        });
+    if typical {
+        near.typical
+            .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
+                planes.add(&mut sums, j, p);
+            });
+    }
     if let Some(widened) = &near.widened {
         widened.for_each_near(x, MOVING_REACH * near.widest, |j, p| {
             planes.add(&mut sums, j, p);
@@ -1728,7 +1739,7 @@ mod tests {
                 ((probe % 5) as f32 - 2.0) * 0.7,
             );
             let (weighted, weight) =
-                moving_planes(&near, &normals, &confidence, &local, &curvature, x);
+                moving_planes(&near, &normals, &confidence, &local, &curvature, x, true);
             let (mut full_weighted, mut full_weight) = (0.0f64, 0.0f64);
             for j in 0..points.len() {
                 let d = x - points[j];
@@ -1932,6 +1943,55 @@ mod tests {
             let beyond = Vec3::new(u.cos(), 0.0, u.sin()) * 4.4;
             assert!(l.value(fit.to_field(beyond)) < l.iso, "outside at {u}");
         }
+    }
+
+    #[test]
+    fn the_distances_at_the_nodes_are_the_full_searchs_bit_for_bit() {
+        // A sphere sampled with 1.7 times the spacing on one side (its points weigh more):
+        // every node's distance and weight, found with the searches its nearest point rules
+        // out skipped, is the one a search of every point gives.
+        let (dense, sparse) = (sphere_cloud(6000, 1.0), sphere_cloud(2000, 1.0));
+        let side = |c: &PointCloud, keep: fn(f32) -> bool| {
+            c.points
+                .iter()
+                .zip(c.normals.as_ref().unwrap())
+                .filter(|(p, _)| keep(p.x))
+                .map(|(&p, &n)| (p, n))
+                .collect::<Vec<_>>()
+        };
+        let mut both = side(&dense, |x| x < 0.0);
+        both.extend(side(&sparse, |x| x >= 0.0));
+        let (points, normals): (Vec<Vec3>, Vec<Vec3>) = both.into_iter().unzip();
+        let cloud = PointCloud {
+            points,
+            normals: Some(normals),
+        };
+        let options = CloudFitOptions {
+            resolution: 20,
+            ..CloudFitOptions::default()
+        };
+        let signed = sign_cloud(&cloud, &options).unwrap();
+        let (mut searched, mut compared) = (0, 0);
+        for at in 0..signed.grid.count() {
+            if signed.forced[at] != 0 {
+                continue;
+            }
+            let x = signed.grid.position(at);
+            let (distance, support) = signed.distance_and_support(x);
+            let confidence = UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0);
+            assert_eq!(
+                signed.node_distance[at].to_bits(),
+                distance.to_bits(),
+                "node {at}"
+            );
+            assert_eq!(signed.node_confidence[at].to_bits(), confidence.to_bits());
+            compared += 1;
+            searched += usize::from(support > 0.0);
+        }
+        assert!(
+            searched > 100 && compared > 10 * searched,
+            "{searched} of {compared}"
+        );
     }
 
     #[test]
