@@ -91,9 +91,10 @@ impl PointGrid {
         let dims = [d.x, d.y, d.z];
         let cells = (d.x * d.y * d.z) as usize;
         let index_of = |p: Vec3| {
-            let c = ((p - lo) / cell)
-                .floor()
-                .as_ivec3()
+            // `floor_to_i32` is `floor` then `as i32` (a call into the C library each on the
+            // baseline target; see its NOTE).
+            let u = (p - lo) / cell;
+            let c = IVec3::new(floor_to_i32(u.x), floor_to_i32(u.y), floor_to_i32(u.z))
                 .clamp(IVec3::ZERO, d - IVec3::ONE);
             (c.x + d.x * (c.y + d.y * c.z)) as usize
         };

@@ -76,9 +76,13 @@ impl AxisBasis {
 /// columns, `out_len` of them), into `out` (resized to the result); returns the result's
 /// dimensions. Each output entry is the sum over its row of the matrix, in the row's order,
 /// computed by one of `threads` threads (each takes a run of whole z-planes of the output),
-/// so the result does not depend on the thread count.
+/// so the result does not depend on the thread count; then multiplied by its entry of
+/// `weights`, when given (one per output entry).
 ///
-/// NOTE: along y and z an output line is the weighted sum of whole input lines, added in
+/// NOTE: the output is cleared plane by plane on the threads that fill it, and weighted there
+/// too: cleared and weighted in passes on the calling thread, the half-million samples of a
+/// 40³ fit took about 10 ms of each import's serial time (bench/RESULTS.md, "Import wall
+/// time"). Along y and z an output line is the weighted sum of whole input lines, added in
 /// the matrix row's order (each entry sees the same sums in the same order as a sum per
 /// entry, so the result is the same bit for bit), which the compiler vectorises; along x
 /// each entry reads its four neighbours in one line. The passes write into buffers the
@@ -89,6 +93,7 @@ fn along_axis(
     dims: [usize; 3],
     axis: usize,
     matrix: &[Vec<(usize, f64)>],
+    weights: Option<&[f64]>,
     out: &mut Vec<f64>,
     threads: usize,
 ) -> [usize; 3] {
@@ -97,11 +102,14 @@ fn along_axis(
     let [ox, oy, oz] = out_dims;
     let plane = ox * oy;
     let in_plane = dims[0] * dims[1];
-    out.clear();
+    // Kept from the last product of the same size: each plane is cleared where it is filled.
     out.resize(plane * oz, 0.0);
     let fill = |first_plane: usize, slab: &mut [f64]| {
         for (dz, out_plane) in slab.chunks_exact_mut(plane).enumerate() {
             let z = first_plane + dz;
+            if axis != 0 {
+                out_plane.fill(0.0);
+            }
             match axis {
                 0 | 1 => plane_along(
                     &input[z * in_plane..(z + 1) * in_plane],
@@ -117,6 +125,11 @@ fn along_axis(
                             *value += w * v;
                         }
                     }
+                }
+            }
+            if let Some(weights) = weights {
+                for (value, &w) in out_plane.iter_mut().zip(&weights[z * plane..]) {
+                    *value *= w;
                 }
             }
         }
@@ -137,7 +150,7 @@ fn along_axis(
 }
 
 /// One z-plane of a pass along x (`axis` 0) or y (1): `input` is the plane, `[nx, ny]` its
-/// size, `out` the output plane (zeros on entry).
+/// size, `out` the output plane (every entry set along x; along y, zeros on entry).
 fn plane_along(
     input: &[f64],
     [nx, ny]: [usize; 2],
@@ -188,9 +201,8 @@ fn along_x_then_y(
     let plane = |d: [usize; 3]| d[0] * d[1];
     let (in_plane, first_plane, second_plane) =
         (plane(dims), plane(first_dims), plane(second_dims));
-    first.clear();
+    // Kept from the last product of the same size: each plane is cleared where it is filled.
     first.resize(first_plane * dims[2], 0.0);
-    second.clear();
     second.resize(second_plane * dims[2], 0.0);
     if first_plane == 0 || second_plane == 0 {
         return second_dims;
@@ -204,6 +216,7 @@ fn along_x_then_y(
             let z = z0 + dz;
             let input = &input[z * in_plane..(z + 1) * in_plane];
             plane_along(input, [dims[0], dims[1]], 0, matrices[0], first);
+            second.fill(0.0);
             plane_along(
                 first,
                 [first_dims[0], first_dims[1]],
@@ -240,7 +253,8 @@ struct Passes {
 }
 
 /// `A x` over the three axes (or `Aᵀ x`; with `squared`, the entrywise squares of `A`) into
-/// `out`, on `threads` threads.
+/// `out`, each entry then multiplied by its entry of `weights` when given, on `threads`
+/// threads.
 #[allow(clippy::too_many_arguments)]
 fn apply(
     x: &[f64],
@@ -248,6 +262,7 @@ fn apply(
     bases: &[AxisBasis; 3],
     forward: bool,
     squared: bool,
+    weights: Option<&[f64]>,
     threads: usize,
     passes: &mut Passes,
     out: &mut Vec<f64>,
@@ -270,7 +285,7 @@ fn apply(
     };
     let Passes { first, second } = passes;
     let d = along_x_then_y(x, dims, [&matrix(0), &matrix(1)], first, second, threads);
-    along_axis(second, d, 2, &matrix(2), out, threads);
+    along_axis(second, d, 2, &matrix(2), weights, out, threads);
 }
 
 /// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`.
@@ -384,6 +399,7 @@ fn refit_regularised_on(
             &bases,
             false,
             false,
+            None,
             threads,
             &mut passes,
             &mut b,
@@ -396,6 +412,7 @@ fn refit_regularised_on(
         &bases,
         false,
         true,
+        None,
         threads,
         &mut passes,
         &mut diagonal,
@@ -411,19 +428,18 @@ fn refit_regularised_on(
             &bases,
             true,
             false,
+            Some(&w),
             threads,
             &mut passes,
             &mut at_samples,
         );
-        for (v, &w) in at_samples.iter_mut().zip(&w) {
-            *v *= w;
-        }
         apply(
             &at_samples,
             sample_dims,
             &bases,
             false,
             false,
+            None,
             threads,
             &mut passes,
             out,
@@ -574,7 +590,7 @@ mod tests {
                 let plain = along_axis_plain(&input, dims, axis, matrix);
                 for threads in [1, 3] {
                     let mut out = vec![5.0; 3];
-                    along_axis(&input, dims, axis, matrix, &mut out, threads);
+                    along_axis(&input, dims, axis, matrix, None, &mut out, threads);
                     assert!(
                         out.iter()
                             .map(|v| v.to_bits())
@@ -604,9 +620,9 @@ mod tests {
             };
             let (m0, m1) = (matrix(&basis[0]), matrix(&basis[1]));
             let mut one = Vec::new();
-            let d = along_axis(&input, dims, 0, &m0, &mut one, 1);
+            let d = along_axis(&input, dims, 0, &m0, None, &mut one, 1);
             let mut two = Vec::new();
-            let want_dims = along_axis(&one, d, 1, &m1, &mut two, 1);
+            let want_dims = along_axis(&one, d, 1, &m1, None, &mut two, 1);
             for threads in [1, 2, 3] {
                 let (mut first, mut second) = (vec![9.0; 2], vec![4.0; 5]);
                 let got_dims =
