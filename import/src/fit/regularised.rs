@@ -93,7 +93,7 @@ fn along_axis(
     dims: [usize; 3],
     axis: usize,
     matrix: &[Vec<(usize, f64)>],
-    weights: Option<&[f64]>,
+    weights: Option<&[f32]>,
     out: &mut Vec<f64>,
     threads: usize,
 ) -> [usize; 3] {
@@ -129,7 +129,7 @@ fn along_axis(
             }
             if let Some(weights) = weights {
                 for (value, &w) in out_plane.iter_mut().zip(&weights[z * plane..]) {
-                    *value *= w;
+                    *value *= f64::from(w);
                 }
             }
         }
@@ -262,7 +262,7 @@ fn apply(
     bases: &[AxisBasis; 3],
     forward: bool,
     squared: bool,
-    weights: Option<&[f64]>,
+    weights: Option<&[f32]>,
     threads: usize,
     passes: &mut Passes,
     out: &mut Vec<f64>,
@@ -417,6 +417,9 @@ fn refit_regularised_on(
         &mut passes,
         &mut diagonal,
     );
+    // The weights as `f64` are not kept through the steps: the products convert them as
+    // they weight the samples (the same values), 4 MB fewer for a 40³ fit.
+    drop(w);
     for (d, l) in diagonal.iter_mut().zip(bending_diagonal(dims)) {
         *d = (*d + lambda * l).max(1e-12);
     }
@@ -428,7 +431,7 @@ fn refit_regularised_on(
             &bases,
             true,
             false,
-            Some(&w),
+            Some(weights),
             threads,
             &mut passes,
             &mut at_samples,
