@@ -262,6 +262,20 @@ pub const MIN_PIECE_FRACTION: f32 = 0.01;
 /// A node with no point within the band.
 const NO_POINT: u32 = u32::MAX;
 
+/// Which of the moving planes' points may be within reach of a place.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reached {
+    /// Any point.
+    Every,
+    /// Only those whose bandwidth is widened (the typical ones are all beyond reach).
+    Widened,
+    /// None.
+    None,
+}
+/// The side, in nodes, of the blocks the band visits the points by (see
+/// [`SignGrid::spatial_order`]).
+const BAND_BLOCK: usize = 4;
+
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
     /// band, the Gaussian-weighted mean of the distances to the neighbouring points' tangent
@@ -287,6 +301,12 @@ impl SignedCloud {
     /// The unforced signed distance at `x` and the moving planes' total weight there (how
     /// much data holds it; 0 beyond their reach).
     fn distance_and_support(&self, x: Vec3) -> (f32, f32) {
+        self.distance_and_support_within(x, Reached::Every)
+    }
+
+    /// [`SignedCloud::distance_and_support`] at `x`, searching only the points `reached`
+    /// says may be within reach of it: the same value, bit for bit, with fewer searches.
+    fn distance_and_support_within(&self, x: Vec3, reached: Reached) -> (f32, f32) {
         match self.nearest_point(x) {
             Some(p) => {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
@@ -296,7 +316,19 @@ impl SignedCloud {
                 if (x - self.points[p]).length_squared() > beyond * beyond {
                     return (fallback, 0.0);
                 }
-                let (weighted, weight) = self.moving_planes(x);
+                let (weighted, weight) = match reached {
+                    // The moving planes' empty sums, as they would add them.
+                    Reached::None => (0.0, 0.0),
+                    _ => moving_planes(
+                        &self.near_points,
+                        &self.normals,
+                        &self.confidence,
+                        &self.local,
+                        &self.curvature,
+                        x,
+                        reached == Reached::Every,
+                    ),
+                };
                 (
                     (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
                     weight,
@@ -305,19 +337,6 @@ impl SignedCloud {
             None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
             None => (-2.0 * self.width, 0.0),
         }
-    }
-
-    /// `(Σ wᵢ nᵢ·(x − pᵢ), Σ wᵢ)` over the points within reach of `x`,
-    /// `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)`.
-    fn moving_planes(&self, x: Vec3) -> (f32, f32) {
-        moving_planes(
-            &self.near_points,
-            &self.normals,
-            &self.confidence,
-            &self.local,
-            &self.curvature,
-            x,
-        )
     }
 
     /// The point nearest `x` among the nearest points of the eight nodes around it.
@@ -476,8 +495,15 @@ pub fn sign_cloud(
 
     // Steps 3–4: band, exterior, normals.
     let grid = SignGrid::new(n, spacing, sps);
-    let (dist, nearest) = grid.band_distances(&points, BAND_SPANS * spacing);
-    let exterior = grid.close_and_flood(&points, options.gap_spans * spacing);
+    // The exterior (one thread: a flood) is found beside the band (on every thread).
+    let ((dist, nearest), exterior) = std::thread::scope(|scope| {
+        let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
+        let band = grid.band_distances(&points, BAND_SPANS * spacing);
+        let exterior = exterior
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (band, exterior)
+    });
     let given = cloud
         .normals
         .as_ref()
@@ -558,8 +584,15 @@ pub fn sign_cloud(
         if !wanted[i] {
             return p;
         }
-        let (weighted, weight) =
-            moving_planes(&near_points, &normals, &confidence, &local, &curvature, p);
+        let (weighted, weight) = moving_planes(
+            &near_points,
+            &normals,
+            &confidence,
+            &local,
+            &curvature,
+            p,
+            true,
+        );
         if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -571,6 +604,31 @@ pub fn sign_cloud(
         .zip(&dist)
         .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
         .collect();
+    // A node whose nearest point (exact within the band; none within it means none nearer
+    // than the band) is beyond a point's reach is not within the reach of that point's
+    // plane, nor any other's with the same bandwidth: its search among them would find
+    // nothing. The reaches are widened by a hair for the rounding of the distances.
+    let (band, margin) = (BAND_SPANS * spacing, 1.0 + 1e-5);
+    let beyond = |d: f32, reach: f32| {
+        if d.is_finite() {
+            d > reach * margin
+        } else {
+            band >= reach * margin
+        }
+    };
+    let reached: Vec<Reached> = dist
+        .iter()
+        .map(|&d| {
+            if beyond(d, MOVING_REACH * widest) {
+                Reached::None
+            } else if beyond(d, MOVING_REACH * bandwidth) {
+                Reached::Widened
+            } else {
+                Reached::Every
+            }
+        })
+        .collect();
+    drop(dist);
     let count = grid.count();
     let mut signed = SignedCloud {
         points,
@@ -604,8 +662,10 @@ pub fn sign_cloud(
     // Step 6: the distance at every node, and the pieces too small to be data.
     let at_nodes = parallel_map(count, |at| {
         let [i, j, k] = signed.grid.coords(at);
-        signed.distance_and_support(Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h)
+        let x = Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h;
+        signed.distance_and_support_within(x, reached[at])
     });
+    drop(reached);
     signed.node_distance = at_nodes.iter().map(|&(d, _)| d).collect();
     signed.node_confidence = at_nodes
         .iter()
@@ -858,9 +918,11 @@ fn point_curvatures(
     })
 }
 
-/// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `grid` within [`MOVING_REACH`] of their own
+/// `(Σ wᵢ dᵢ(x), Σ wᵢ)` over the points of `near` within [`MOVING_REACH`] of their own
 /// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
-/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`).
+/// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); the
+/// points at the typical bandwidth are left out unless `typical` (the caller knows none is
+/// within reach).
 fn moving_planes(
     near: &NearPoints,
     normals: &[Vec3],
@@ -868,6 +930,7 @@ fn moving_planes(
     local: &[LocalScale],
     curvature: &[f32],
     x: Vec3,
+    typical: bool,
 ) -> (f32, f32) {
     let mut sums = (0.0f32, 0.0f32);
     let planes = MovingPlanes {
@@ -877,10 +940,12 @@ fn moving_planes(
         curvature,
         x,
     };
-    near.typical
-        .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
-            planes.add(&mut sums, j, p);
-        });
+    if typical {
+        near.typical
+            .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
+                planes.add(&mut sums, j, p);
+            });
+    }
     if let Some(widened) = &near.widened {
         widened.for_each_near(x, MOVING_REACH * near.widest, |j, p| {
             planes.add(&mut sums, j, p);
@@ -1020,12 +1085,19 @@ impl SignedCloud {
     /// inside): a blob or a bubble that size is noise the data does not support.
     fn remove_small_pieces(&mut self) {
         let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
-        let (pieces, piece_sizes) = self.grid.components(|at| inside[at]);
+        // The pieces and the holes are labelled side by side (each is one thread's flood).
+        let ((pieces, piece_sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
+            let holes = scope.spawn(|| self.grid.components(|at| !inside[at]));
+            let pieces = self.grid.components(|at| inside[at]);
+            let holes = holes
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (pieces, holes)
+        });
         let Some(&largest) = piece_sizes.iter().max() else {
             return;
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
-        let (holes, hole_sizes) = self.grid.components(|at| !inside[at]);
         let open = self.grid.boundary_components(&holes);
         for (at, forced) in self.forced.iter_mut().enumerate() {
             if inside[at] {
@@ -1107,36 +1179,80 @@ impl SignGrid {
     }
 
     /// [`SignGrid::band_distances`] on `threads` threads, each over a run of whole z-planes of
-    /// the grid and every point in order, so the result does not depend on the count.
+    /// the grid, so the result does not depend on the count.
     fn band_distances_on(
         &self,
         points: &[Vec3],
         band: f32,
         threads: usize,
     ) -> (Vec<f32>, Vec<u32>) {
-        let mut dist = vec![f32::INFINITY; self.count()];
+        let dist = vec![f32::INFINITY; self.count()];
         let mut nearest = vec![0u32; self.count()];
         let plane = self.dims[0] * self.dims[1];
         let planes_per_thread = self.dims[2].div_ceil(threads.clamp(1, self.dims[2]));
         let slab = planes_per_thread * plane;
+        let order = self.spatial_order(points);
+        let mut squared = dist;
         std::thread::scope(|scope| {
-            for (t, (dist, nearest)) in dist
+            for (t, (squared, nearest)) in squared
                 .chunks_mut(slab)
                 .zip(nearest.chunks_mut(slab))
                 .enumerate()
             {
                 let first_plane = t * planes_per_thread;
-                scope.spawn(move || self.band_slab(points, band, first_plane, dist, nearest));
+                let order = &order;
+                scope.spawn(move || {
+                    self.band_slab(points, order, band, first_plane, squared, nearest);
+                    for d in squared.iter_mut() {
+                        *d = d.sqrt();
+                    }
+                });
             }
         });
-        (dist, nearest)
+        (squared, nearest)
+    }
+
+    /// The indices of `points` ordered by the block of [`BAND_BLOCK`]³ nodes they lie in
+    /// (blocks in z-major order, points in index order within a block), so that the band's
+    /// pass over the points writes nodes that are still in the cache.
+    fn spatial_order(&self, points: &[Vec3]) -> Vec<u32> {
+        let blocks = self.dims.map(|m| m.div_ceil(BAND_BLOCK));
+        let block_of = |p: Vec3| {
+            let b = |a: usize| {
+                (floor_to_i32(p[a] / self.h).max(0) as usize / BAND_BLOCK).min(blocks[a] - 1)
+            };
+            b(0) + blocks[0] * (b(1) + blocks[1] * b(2))
+        };
+        let mut starts = vec![0u32; blocks.iter().product::<usize>() + 1];
+        for &p in points {
+            starts[block_of(p) + 1] += 1;
+        }
+        for b in 1..starts.len() {
+            starts[b] += starts[b - 1];
+        }
+        let mut order = vec![0u32; points.len()];
+        for (i, &p) in points.iter().enumerate() {
+            let b = block_of(p);
+            order[starts[b] as usize] = i as u32;
+            starts[b] += 1;
+        }
+        order
     }
 
     /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and
-    /// `nearest` hold.
+    /// `nearest` hold, as squared distances (their roots are taken once, at the end),
+    /// visiting the points in `order` (any order gives the same result: of equally near points
+    /// the lowest index wins).
+    ///
+    /// NOTE: the nodes are compared by squared distance without a branch, and the points are
+    /// visited block by block ([`SignGrid::spatial_order`]) rather than in the file's order,
+    /// where each point wrote nodes far from the last one's (bench/RESULTS.md, "Import wall
+    /// time"). Cutting each row to the sphere's chord tests half the nodes, but the rows are
+    /// short (nine nodes) and the cut cost more than it saved.
     fn band_slab(
         &self,
         points: &[Vec3],
+        order: &[u32],
         band: f32,
         first_plane: usize,
         dist: &mut [f32],
@@ -1144,20 +1260,35 @@ impl SignGrid {
     ) {
         let plane = self.dims[0] * self.dims[1];
         let last_plane = first_plane + dist.len() / plane - 1;
+        let band_squared = band * band;
         let reach = (band / self.h).ceil() as i64;
-        for (p_index, &p) in points.iter().enumerate() {
+        for &p_index in order {
+            let p = points[p_index as usize];
             let c = (p / self.h).round();
             let lo = |a: usize| (c[a] as i64 - reach).max(0) as usize;
             let hi = |a: usize| ((c[a] as i64 + reach).max(0) as usize).min(self.dims[a] - 1);
+            let (i0, i1) = (lo(0), hi(0));
             for k in lo(2).max(first_plane)..=hi(2).min(last_plane) {
+                let dz = k as f32 * self.h - p.z;
                 for j in lo(1)..=hi(1) {
-                    for i in lo(0)..=hi(0) {
-                        let at = self.index(i, j, k) - first_plane * plane;
-                        let d = (Vec3::new(i as f32, j as f32, k as f32) * self.h - p).length();
-                        if d <= band && d < dist[at] {
-                            dist[at] = d;
-                            nearest[at] = p_index as u32;
-                        }
+                    let dy = j as f32 * self.h - p.y;
+                    if dy * dy + dz * dz > band_squared {
+                        // The row passes outside the sphere: none of its nodes is within it.
+                        continue;
+                    }
+                    let row = self.index(i0, j, k) - first_plane * plane;
+                    let row = row..row + (i1 - i0 + 1);
+                    for (i, (held, by)) in
+                        (i0..).zip(dist[row.clone()].iter_mut().zip(&mut nearest[row]))
+                    {
+                        // The squared distance as `(node − p).length_squared()` gives it.
+                        let squared = Vec3::new(i as f32 * self.h - p.x, dy, dz).length_squared();
+                        // Without a branch: whether a point is nearer than the last is a coin
+                        // toss where the spheres of neighbouring points overlap.
+                        let nearer = (squared <= band_squared)
+                            & ((squared < *held) | ((squared == *held) & (p_index < *by)));
+                        *held = if nearer { squared } else { *held };
+                        *by = if nearer { p_index } else { *by };
                     }
                 }
             }
@@ -1608,7 +1739,7 @@ mod tests {
                 ((probe % 5) as f32 - 2.0) * 0.7,
             );
             let (weighted, weight) =
-                moving_planes(&near, &normals, &confidence, &local, &curvature, x);
+                moving_planes(&near, &normals, &confidence, &local, &curvature, x, true);
             let (mut full_weighted, mut full_weight) = (0.0f64, 0.0f64);
             for j in 0..points.len() {
                 let d = x - points[j];
@@ -1815,6 +1946,55 @@ mod tests {
     }
 
     #[test]
+    fn the_distances_at_the_nodes_are_the_full_searchs_bit_for_bit() {
+        // A sphere sampled with 1.7 times the spacing on one side (its points weigh more):
+        // every node's distance and weight, found with the searches its nearest point rules
+        // out skipped, is the one a search of every point gives.
+        let (dense, sparse) = (sphere_cloud(6000, 1.0), sphere_cloud(2000, 1.0));
+        let side = |c: &PointCloud, keep: fn(f32) -> bool| {
+            c.points
+                .iter()
+                .zip(c.normals.as_ref().unwrap())
+                .filter(|(p, _)| keep(p.x))
+                .map(|(&p, &n)| (p, n))
+                .collect::<Vec<_>>()
+        };
+        let mut both = side(&dense, |x| x < 0.0);
+        both.extend(side(&sparse, |x| x >= 0.0));
+        let (points, normals): (Vec<Vec3>, Vec<Vec3>) = both.into_iter().unzip();
+        let cloud = PointCloud {
+            points,
+            normals: Some(normals),
+        };
+        let options = CloudFitOptions {
+            resolution: 20,
+            ..CloudFitOptions::default()
+        };
+        let signed = sign_cloud(&cloud, &options).unwrap();
+        let (mut searched, mut compared) = (0, 0);
+        for at in 0..signed.grid.count() {
+            if signed.forced[at] != 0 {
+                continue;
+            }
+            let x = signed.grid.position(at);
+            let (distance, support) = signed.distance_and_support(x);
+            let confidence = UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0);
+            assert_eq!(
+                signed.node_distance[at].to_bits(),
+                distance.to_bits(),
+                "node {at}"
+            );
+            assert_eq!(signed.node_confidence[at].to_bits(), confidence.to_bits());
+            compared += 1;
+            searched += usize::from(support > 0.0);
+        }
+        assert!(
+            searched > 100 && compared > 10 * searched,
+            "{searched} of {compared}"
+        );
+    }
+
+    #[test]
     fn the_band_is_the_same_on_one_thread_and_on_several() {
         let grid = SignGrid::new(14, 0.25, 2);
         let cloud = sphere_cloud(3000, 1.2);
@@ -1831,9 +2011,9 @@ mod tests {
 
     #[test]
     fn the_band_is_the_nearest_point_within_it_at_every_node() {
-        // Against a scan of every point at every node: the same distance bit for bit and the
-        // same point (the lowest index of equally near ones), on points off the nodes and on
-        // them, with the band reaching between nodes.
+        // Against a scan of every point at every node, in index order: the same distance bit
+        // for bit and the same point (the lowest index of equally near ones), on points off
+        // the nodes and on them, with the band reaching between nodes.
         let grid = SignGrid::new(8, 0.25, 2);
         let centre = Vec3::splat(7.0 * 0.25 * 0.5);
         let mut points: Vec<Vec3> = sphere_cloud(300, 0.5)
@@ -1842,20 +2022,30 @@ mod tests {
             .map(|&p| p + centre)
             .collect();
         points.extend([centre, centre + Vec3::new(0.25, 0.0, 0.125)]);
+        // Two points equally near node (4, 4, 4), in different blocks of the band's order:
+        // the one with the lower index lies in the block visited later.
+        let node = grid.position(grid.index(4, 4, 4));
+        let pair = points.len() as u32;
+        let half_node = Vec3::new(0.5 * grid.h, 0.0, 0.0);
+        points.extend([node + half_node, node - half_node]);
+        let order = grid.spatial_order(&points);
+        let place = |i: u32| order.iter().position(|&o| o == i);
+        assert!(place(pair) > place(pair + 1));
         for band in [0.2f32, 0.3, 0.5] {
             let (dist, nearest) = grid.band_distances_on(&points, band, 2);
+            assert_eq!(nearest[grid.index(4, 4, 4)], pair, "band {band}");
             for at in 0..grid.count() {
                 let x = grid.position(at);
                 let mut best = (f32::INFINITY, 0u32);
                 for (p_index, &p) in points.iter().enumerate() {
-                    let d = (x - p).length();
-                    if d <= band && d < best.0 {
-                        best = (d, p_index as u32);
+                    let squared = (x - p).length_squared();
+                    if squared <= band * band && squared < best.0 {
+                        best = (squared, p_index as u32);
                     }
                 }
                 assert_eq!(
                     dist[at].to_bits(),
-                    best.0.to_bits(),
+                    best.0.sqrt().to_bits(),
                     "band {band}, node {at}"
                 );
                 if best.0.is_finite() {

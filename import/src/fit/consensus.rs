@@ -91,9 +91,10 @@ impl PointGrid {
         let dims = [d.x, d.y, d.z];
         let cells = (d.x * d.y * d.z) as usize;
         let index_of = |p: Vec3| {
-            let c = ((p - lo) / cell)
-                .floor()
-                .as_ivec3()
+            // `floor_to_i32` is `floor` then `as i32` (a call into the C library each on the
+            // baseline target; see its NOTE).
+            let u = (p - lo) / cell;
+            let c = IVec3::new(floor_to_i32(u.x), floor_to_i32(u.y), floor_to_i32(u.z))
                 .clamp(IVec3::ZERO, d - IVec3::ONE);
             (c.x + d.x * (c.y + d.y * c.z)) as usize
         };
@@ -196,9 +197,20 @@ impl PointGrid {
                 }
                 let from = self.starts[(row + x0) as usize] as usize;
                 let to = self.starts[(row + x1 + 1) as usize] as usize;
-                for (&j, &p) in self.members[from..to].iter().zip(&self.positions[from..to]) {
-                    if (p - x).length_squared() <= r2 {
-                        visit(j as usize, p);
+                // The row's points within reach are picked without a branch per point (its
+                // outcome is a coin toss at the sphere's rim), a chunk at a time, then
+                // visited in order.
+                for first in (from..to).step_by(ROW_CHUNK) {
+                    let positions = &self.positions[first..to.min(first + ROW_CHUNK)];
+                    let mut within = [0u8; ROW_CHUNK];
+                    let mut count = 0;
+                    for (k, &p) in positions.iter().enumerate() {
+                        within[count & (ROW_CHUNK - 1)] = k as u8;
+                        count += usize::from((p - x).length_squared() <= r2);
+                    }
+                    for &k in &within[..count] {
+                        let at = first + usize::from(k);
+                        visit(self.members[at] as usize, self.positions[at]);
                     }
                 }
             }
@@ -249,6 +261,14 @@ pub(crate) fn exp_neg(t: f32) -> f32 {
     // 2^(−k), k in 0..=125: a normal float's exponent field.
     power * f32::from_bits(((127 - k) as u32) << 23)
 }
+
+/// Points of a row of cells [`PointGrid::for_each_near`] tests before it visits those within
+/// reach (a power of two, at most 256).
+///
+/// NOTE: testing a chunk without a branch per point and then visiting the points within
+/// reach took about a third off the radius searches, whose branch on the distance was
+/// mispredicted at the sphere's rim (bench/RESULTS.md, "Import wall time").
+const ROW_CHUNK: usize = 64;
 
 /// The margin, in cells, that [`PointGrid::for_each_near`] keeps when it passes over cells
 /// out of reach: far above the rounding of a coordinate divided by the cell side.
@@ -390,35 +410,13 @@ pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
 /// side) in the points' units; `noise` the scatter if known, same units.
 #[must_use]
 pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
-    let n = points.len();
     let point_spacing = typical_spacing(points, size);
     let mut radius = (NEIGHBOURS / std::f32::consts::PI).sqrt() * point_spacing;
     if let Some(s) = noise {
         radius = radius.max(3.0 * s);
     }
-    radius = radius.clamp(size * 1e-4, size / 8.0);
-    let mut planes = fit_planes(points, radius);
-    let estimate = |planes: &[Option<(Plane, f32)>]| {
-        let stride = n.div_ceil(NOISE_SAMPLES).max(1);
-        let mut rms: Vec<f32> = planes
-            .iter()
-            .step_by(stride)
-            .flatten()
-            .map(|(p, _)| p.rms)
-            .collect();
-        if rms.is_empty() {
-            return 0.0;
-        }
-        let mid = rms.len() / 2;
-        *rms.select_nth_unstable_by(mid, f32::total_cmp).1
-    };
-    let mut sigma = noise.unwrap_or_else(|| estimate(&planes));
-    if noise.is_none() && radius < 3.0 * sigma && radius < size / 8.0 {
-        // The planes were fitted to the scatter: widen and estimate again.
-        radius = (3.0 * sigma).min(size / 8.0);
-        planes = fit_planes(points, radius);
-        sigma = estimate(&planes);
-    }
+    let radius = radius.clamp(size * 1e-4, size / 8.0);
+    let (planes, sigma, radius) = planes_and_noise(points, size, noise, radius);
     let mut counts: Vec<usize> = planes
         .iter()
         .map(|p| p.as_ref().map_or(0, |(p, _)| p.neighbours))
@@ -516,21 +514,100 @@ fn bordering_support(
         .collect()
 }
 
-/// Each point's neighbours' plane (itself left out) and its distance to it.
-fn fit_planes(points: &[Vec3], radius: f32) -> Vec<Option<(Plane, f32)>> {
+/// Each point's neighbours' plane and its distance to it, the noise level (`noise`, or the
+/// median of an even subset's planes' RMS distances) and the radius they were fitted over:
+/// `radius`, or three noise levels where that is wider (the planes at `radius` were fitted
+/// to the scatter; at most an eighth of `size`).
+///
+/// NOTE: the subset's planes are fitted first, and the others only where the radius stands:
+/// a noisy cloud fitted every plane twice (bench/RESULTS.md, "Import wall time").
+fn planes_and_noise(
+    points: &[Vec3],
+    size: f32,
+    noise: Option<f32>,
+    mut radius: f32,
+) -> (Vec<Option<(Plane, f32)>>, f32, f32) {
+    let n = points.len();
+    // The noise is estimated from the planes of an even subset of the points (every
+    // `stride`-th).
+    let stride = n.div_ceil(NOISE_SAMPLES).max(1);
+    let estimate = |sampled: &mut dyn Iterator<Item = &Option<(Plane, f32)>>| {
+        let mut rms: Vec<f32> = sampled.flatten().map(|(p, _)| p.rms).collect();
+        if rms.is_empty() {
+            return 0.0;
+        }
+        let mid = rms.len() / 2;
+        *rms.select_nth_unstable_by(mid, f32::total_cmp).1
+    };
     let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
+    let (mut planes, mut sigma) = match noise {
+        Some(sigma) => (fit_planes(points, &grid, radius, 0), sigma),
+        None => {
+            // The subset's planes first: where they show the radius too narrow for the noise,
+            // the others would be fitted again at a wider one.
+            let sampled = parallel_map(n.div_ceil(stride), |s| {
+                plane_at(points, &grid, radius, s * stride)
+            });
+            let sigma = estimate(&mut sampled.iter());
+            let mut sampled = sampled.into_iter();
+            let planes = if radius < 3.0 * sigma && radius < size / 8.0 {
+                Vec::new()
+            } else {
+                fit_planes(points, &grid, radius, stride)
+                    .into_iter()
+                    .enumerate()
+                    .map(|(i, plane)| {
+                        if i % stride == 0 {
+                            sampled.next().flatten()
+                        } else {
+                            plane
+                        }
+                    })
+                    .collect()
+            };
+            (planes, sigma)
+        }
+    };
+    drop(grid);
+    if noise.is_none() && radius < 3.0 * sigma && radius < size / 8.0 {
+        // The planes were fitted to the scatter: widen and estimate again.
+        radius = (3.0 * sigma).min(size / 8.0);
+        let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
+        planes = fit_planes(points, &grid, radius, 0);
+        sigma = estimate(&mut planes.iter().step_by(stride));
+    }
+    (planes, sigma, radius)
+}
+
+/// Each point's neighbours' plane (itself left out) and its distance to it, among the points
+/// of `grid` (all of `points`, in cells of `radius`); with `skip_every` above 0, the points
+/// whose index is a multiple of it are left out (`None`: their planes are known).
+fn fit_planes(
+    points: &[Vec3],
+    grid: &PointGrid,
+    radius: f32,
+    skip_every: usize,
+) -> Vec<Option<(Plane, f32)>> {
     parallel_map(points.len(), |i| {
-        let p = points[i];
-        let mut near = Vec::with_capacity(2 * NEIGHBOURS as usize);
-        grid.for_each_near(p, radius, |j, _| {
-            if j != i {
-                near.push(j);
-            }
-        });
-        plane_of(points, &near).map(|plane| {
-            let off = (p - plane.centre).dot(plane.normal).abs();
-            (plane, off)
-        })
+        if skip_every > 0 && i % skip_every == 0 {
+            return None;
+        }
+        plane_at(points, grid, radius, i)
+    })
+}
+
+/// Point `i`'s neighbours' plane (itself left out) and its distance to it.
+fn plane_at(points: &[Vec3], grid: &PointGrid, radius: f32, i: usize) -> Option<(Plane, f32)> {
+    let p = points[i];
+    let mut near = Vec::with_capacity(2 * NEIGHBOURS as usize);
+    grid.for_each_near(p, radius, |j, _| {
+        if j != i {
+            near.push(j);
+        }
+    });
+    plane_of(points, &near).map(|plane| {
+        let off = (p - plane.centre).dot(plane.normal).abs();
+        (plane, off)
     })
 }
 
@@ -605,6 +682,66 @@ mod tests {
             );
             assert!(c.far < points.len() / 200, "σ {sigma}: {} dropped", c.far);
             assert_eq!(c.isolated, 0);
+        }
+    }
+
+    #[test]
+    fn the_planes_and_the_noise_are_those_of_fitting_every_plane_first() {
+        // Sheets of more points than the noise takes its estimate from (every other point
+        // sampled), the noise estimated or given: the planes, the noise and the radius are
+        // bit for bit those of the plain order, every plane at the first radius, then the
+        // estimate (and every plane again at a wider radius where the first is too narrow).
+        let bits = |planes: &[Option<(Plane, f32)>]| -> Vec<Option<[u32; 10]>> {
+            planes
+                .iter()
+                .map(|p| {
+                    p.as_ref().map(|(p, off)| {
+                        [
+                            p.centre.x.to_bits(),
+                            p.centre.y.to_bits(),
+                            p.centre.z.to_bits(),
+                            p.normal.x.to_bits(),
+                            p.normal.y.to_bits(),
+                            p.normal.z.to_bits(),
+                            p.rms.to_bits(),
+                            p.neighbours as u32,
+                            off.to_bits(),
+                            0,
+                        ]
+                    })
+                })
+                .collect()
+        };
+        let median_rms = |planes: &[Option<(Plane, f32)>], stride: usize| {
+            let mut rms: Vec<f32> = planes
+                .iter()
+                .step_by(stride)
+                .flatten()
+                .map(|(p, _)| p.rms)
+                .collect();
+            let mid = rms.len() / 2;
+            *rms.select_nth_unstable_by(mid, f32::total_cmp).1
+        };
+        for (sigma, given) in [(0.05f32, None), (0.3, None), (0.3, Some(0.25))] {
+            let points = noisy_square(160, sigma);
+            let size = 160.0;
+            let stride = points.len().div_ceil(NOISE_SAMPLES);
+            assert_eq!(stride, 2);
+            let first = 3.0;
+            let (planes, noise, radius) = planes_and_noise(&points, size, given, first);
+            let grid = PointGrid::new(&points, |_| true, first, CELL_OFFER);
+            let mut plain = fit_planes(&points, &grid, first, 0);
+            let mut plain_noise = given.unwrap_or_else(|| median_rms(&plain, stride));
+            let mut plain_radius = first;
+            if given.is_none() && first < 3.0 * plain_noise {
+                plain_radius = 3.0 * plain_noise;
+                let grid = PointGrid::new(&points, |_| true, plain_radius, CELL_OFFER);
+                plain = fit_planes(&points, &grid, plain_radius, 0);
+                plain_noise = median_rms(&plain, stride);
+            }
+            assert_eq!(bits(&planes), bits(&plain), "σ {sigma}");
+            assert_eq!(noise.to_bits(), plain_noise.to_bits(), "σ {sigma}");
+            assert_eq!(radius.to_bits(), plain_radius.to_bits(), "σ {sigma}");
         }
     }
 

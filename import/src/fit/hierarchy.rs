@@ -233,6 +233,11 @@ struct Samples {
 impl Samples {
     fn new(at: Vec<Vec3>, target: &(dyn Fn(Vec3) -> f32 + Sync), field: &MultiPatchField) -> Self {
         let target = parallel_map(at.len(), |i| target(at[i]));
+        Self::with_targets(at, target, field)
+    }
+
+    /// The samples at `at` whose targets are known.
+    fn with_targets(at: Vec<Vec3>, target: Vec<f32>, field: &MultiPatchField) -> Self {
         let value = parallel_map(at.len(), |i| field.value(at[i]));
         Self { at, target, value }
     }
@@ -310,9 +315,6 @@ pub fn fit_hierarchy(
     go_on(progress, FitProgress::Signing)?;
     let signed = sign_cloud(cloud, &options.base)?;
     go_on(progress, FitProgress::Base)?;
-    let base = signed.fit_base()?;
-    let mut field = MultiPatchField::new(base);
-
     let (lo, hi) = signed
         .points
         .iter()
@@ -333,6 +335,17 @@ pub fn fit_hierarchy(
         at.extend([p, p + n * offset, p - n * offset]);
     }
     let density = |x: Vec3| signed.density(x);
+    // The samples' targets do not depend on the fit: they are found beside the base fit,
+    // whose passes leave the cores idle between them.
+    let (base, targets) = std::thread::scope(|scope| {
+        let targets = scope.spawn(|| parallel_map(at.len(), |i| density(at[i])));
+        let base = signed.fit_base();
+        let targets = targets
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (base, targets)
+    });
+    let mut field = MultiPatchField::new(base?);
     let data = Refinement {
         target: &density,
         spacing: signed.spacing,
@@ -342,7 +355,8 @@ pub fn fit_hierarchy(
         hi,
         noise: signed.noise,
     };
-    let refined = refine(&mut field, &data, at, options, progress)?;
+    let samples = Samples::with_targets(at, targets, &field);
+    let refined = refine_samples(&mut field, &data, samples, options, progress)?;
     Ok(HierarchicalFit {
         field,
         scale: signed.scale,
@@ -419,6 +433,19 @@ pub fn refine(
     progress: &mut dyn FnMut(FitProgress) -> bool,
 ) -> Result<Refined, CloudFitError> {
     check_options(options)?;
+    let samples = Samples::new(at, data.target, field);
+    refine_samples(field, data, samples, options, progress)
+}
+
+/// [`refine`] with the error samples made.
+fn refine_samples(
+    field: &mut MultiPatchField,
+    data: &Refinement<'_>,
+    mut samples: Samples,
+    options: &HierarchyOptions,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+) -> Result<Refined, CloudFitError> {
+    check_options(options)?;
     let go_on = |progress: &mut dyn FnMut(FitProgress) -> bool, stage| {
         if progress(stage) {
             Ok(())
@@ -428,7 +455,6 @@ pub fn refine(
     };
     let (lo, hi) = (data.lo, data.hi);
     let size = (hi - lo).max_element().max(f32::MIN_POSITIVE);
-    let mut samples = Samples::new(at, data.target, field);
     // The bound on the mean square density error: (distance / width)², the distance never
     // below the noise.
     let bound_fraction = options.error.max(data.noise / size);
