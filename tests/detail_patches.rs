@@ -15,10 +15,11 @@ use glam::Vec3;
 const TOP_Y: f32 = 1.725;
 const PRESS: Vec3 = Vec3::new(1.15, TOP_Y, 1.15);
 
-/// Runs a straight press into the top of the default block (with a narrow push tool), after
-/// refining a box around the press point `refine` levels deep (0: no refinement; no automatic
-/// detail either way); returns the final density, the base spacing and the number of patches the haptic loop's copy holds.
-fn press(refine: u32) -> (MultiPatchField, f32, usize) {
+/// Runs a straight press 0.12 into the top of the default block (with a push of a quarter
+/// knot span's radius), after refining a box around the press point `refine` levels deep (0:
+/// no refinement), with automatic detail for force tools on or off; returns the final density,
+/// the base spacing and the number of patches the haptic loop's copy holds.
+fn press(refine: u32, auto_detail_force: bool) -> (MultiPatchField, f32, usize) {
     let start = build_clay(&ClaySpec::default()).unwrap();
     let spacing = start.spacing;
     let pointer = PointerConfig::stepped(1_000);
@@ -27,7 +28,7 @@ fn press(refine: u32) -> (MultiPatchField, f32, usize) {
     config.safety.soft_start_s = 0.05;
     // The refinement compared is the one asked for: the narrow push would otherwise refine
     // under itself (three levels down) in both runs.
-    config.sim.auto_detail_force = false;
+    config.sim.auto_detail_force = auto_detail_force;
     let (device, mut handle) = pointer_device(pointer);
     let mut run = Lockstep::new(
         &config,
@@ -104,8 +105,10 @@ fn dent_width(field: &MultiPatchField, spacing: f32) -> f32 {
 
 #[test]
 fn a_press_inside_a_detail_patch_leaves_a_dent_finer_than_the_base_lattice_holds() {
-    let (coarse, spacing, coarse_patches) = press(0);
-    let (fine, _, fine_patches) = press(2);
+    // The refinement compared is the one asked for: the narrow push would otherwise refine
+    // under itself (three levels down) in both runs.
+    let (coarse, spacing, coarse_patches) = press(0, false);
+    let (fine, _, fine_patches) = press(2, false);
     assert_eq!(
         (coarse_patches, fine_patches),
         (1, 2),
@@ -118,14 +121,13 @@ fn a_press_inside_a_detail_patch_leaves_a_dent_finer_than_the_base_lattice_holds
         fine.patches[0].lattice, start,
         "the base patch is unchanged"
     );
-    let depth = |f: &MultiPatchField| TOP_Y - surface_y(f, PRESS);
     let (dc, df) = (depth(&coarse), depth(&fine));
     eprintln!("dent depth {dc:.4} / {df:.4} (base / detail; spacing {spacing})");
     let (wc, wf) = (dent_width(&coarse, spacing), dent_width(&fine, spacing));
     eprintln!("dent width {wc:.4} / {wf:.4} (base / detail)");
     assert!(
-        df > 0.5 * dc,
-        "the refined dent is as real as the base's: {df} vs {dc}"
+        (df - dc).abs() <= 0.25 * dc,
+        "the refined dent is as deep as the base's: {df} vs {dc}"
     );
     assert!(
         wf < 0.5 * wc,
@@ -135,6 +137,45 @@ fn a_press_inside_a_detail_patch_leaves_a_dent_finer_than_the_base_lattice_holds
         wf < 0.5 * spacing,
         "the refined dent ({wf}) is narrower than half a base knot span ({spacing})"
     );
+}
+
+/// With automatic detail for force tools on, the narrow push refines under itself (three
+/// levels down, with or without a level-2 patch under it) and the press dents as deep as on
+/// the base, within a quarter, and narrower than half a base span.
+#[test]
+fn a_narrow_press_with_automatic_detail_refines_under_itself_and_dents_as_deep_as_on_the_base() {
+    let (base, spacing, _) = press(0, false);
+    let dc = depth(&base);
+    for refine in [0, 2] {
+        let (fine, _, haptic_patches) = press(refine, true);
+        let finest = fine
+            .patches
+            .iter()
+            .map(|p| p.lattice.spacing)
+            .fold(f32::INFINITY, f32::min);
+        assert!(
+            (finest - spacing / 8.0).abs() < 1e-6,
+            "refined three levels down under the push: {finest}"
+        );
+        assert_eq!(
+            haptic_patches,
+            fine.patches.len(),
+            "the haptic copy follows"
+        );
+        let df = depth(&fine);
+        let wf = dent_width(&fine, spacing);
+        eprintln!("over refine {refine}: dent {df:.4} deep, {wf:.4} wide (base {dc:.4} deep)");
+        assert!(
+            (df - dc).abs() <= 0.25 * dc,
+            "the automatic patch's dent is as deep as the base's: {df} vs {dc}"
+        );
+        assert!(wf < 0.5 * spacing, "and narrow: {wf}");
+    }
+}
+
+/// The depth of the dent under the press point below the block's top.
+fn depth(field: &MultiPatchField) -> f32 {
+    TOP_Y - surface_y(field, PRESS)
 }
 
 /// The height of the clay's top above `x` (scanning down from above the block).

@@ -20,7 +20,7 @@ use glam::Vec3;
 
 use super::command::{PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
-use dynaclay_core::dynamics::{ToolForce, start_on_surface};
+use dynaclay_core::dynamics::{ToolBody, ToolForce, start_on_surface};
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry, ToolShell};
 use dynaclay_core::tools::{
@@ -67,6 +67,11 @@ pub struct LiveTool {
     last_tip: Vec3,
     /// Steps the released stroke's targets still act (see [`SETTLE_STEPS`]).
     settle_left: u32,
+    /// Where the push's stroke entered the clay: its force vector's start when it first
+    /// touched.
+    mouth: Option<Vec3>,
+    /// The push's body this step (see [`push_body`]).
+    body: Option<ToolBody>,
 }
 
 fn felt_tool_of(choice: &ToolChoice) -> FeltTool {
@@ -145,6 +150,8 @@ impl LiveTool {
             last_apply: None,
             last_tip: Vec3::ZERO,
             settle_left: 0,
+            mouth: None,
+            body: None,
         }
     }
 
@@ -208,6 +215,8 @@ impl LiveTool {
         self.last_planned = None;
         self.last_apply = None;
         self.len = 0;
+        self.mouth = None;
+        self.body = None;
     }
 
     /// Where the held force stroke took hold of the clay (`None` before it has, and for the
@@ -221,6 +230,12 @@ impl LiveTool {
     #[must_use]
     pub fn forces(&self) -> &[ToolForce] {
         &self.forces[..self.len]
+    }
+
+    /// This step's tool bodies (the push's shaft in the clay, see [`push_body`]).
+    #[must_use]
+    pub fn bodies(&self) -> &[ToolBody] {
+        self.body.as_slice()
     }
 
     /// The bounding box of this step's force vectors grown by their spread radii, if any.
@@ -241,6 +256,7 @@ impl LiveTool {
     /// stroke or a push out of contact gives none.
     pub fn update_forces(&mut self, sample: &ToolSample, field: &MultiPatchField, mass_step: f32) {
         self.len = 0;
+        self.body = None;
         let settling = !sample.stroke_active && self.settle_left > 0;
         if settling {
             self.settle_left -= 1;
@@ -258,6 +274,8 @@ impl LiveTool {
                 if push_on {
                     self.forces[0] = push_force(push, sample, mass_step);
                     self.len = 1;
+                    let mouth = *self.mouth.get_or_insert(sample.force_from_fu);
+                    self.body = push_body(&self.forces[0], mouth, mass_step);
                     let axis = (sample.force_from_fu - sample.force_to_fu).normalize_or_zero();
                     note_push_target(
                         &mut self.targets,
@@ -397,6 +415,26 @@ fn push_force(push: &PushTool, sample: &ToolSample, mass_step: f32) -> ToolForce
         radius: push.radius_fu.max(MIN_PUSH_SPREAD_MASS_STEPS * mass_step),
         gain: push.gain,
     }
+}
+
+/// The push's body: its shaft from a mass step above the start of its force vector (the
+/// surface above the tip; the clay just above it is the vector's own, whose start the
+/// simulation finds again on the clay as it moves) out along the vector's axis to the plane
+/// through `mouth` (where the stroke entered the clay) square to the axis, as wide as the
+/// force's spread; `None` while that shaft is shorter than a mass step. See [`ToolBody`] for
+/// what it does.
+fn push_body(force: &ToolForce, mouth: Vec3, mass_step: f32) -> Option<ToolBody> {
+    let axis = (force.start - force.end).normalize_or_zero();
+    let depth = (mouth - force.end).dot(axis);
+    let outer = force.end + axis * depth;
+    let inner = force.start + axis * mass_step;
+    let shaft = (outer - inner).dot(axis);
+    (axis != Vec3::ZERO && shaft.is_finite() && shaft > mass_step).then_some(ToolBody {
+        inner,
+        outer,
+        distribution: force.distribution,
+        radius: force.radius,
+    })
 }
 
 /// Notes the pressing tip (the push's, or a grab's or pull's cursor pressed into the clay) as a

@@ -64,11 +64,11 @@ use super::error::{CommandError, LatticeShape, LoadRefused, SaveError};
 use super::layout::LayoutSender;
 use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
-use super::symmetry::{Symmetry, clay_centre, mirror_force};
+use super::symmetry::{Symmetry, clay_centre, mirror_body, mirror_force};
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
 use dynaclay_core::dynamics::{
-    ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolForce,
+    ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolBody, ToolForce,
 };
 use dynaclay_core::field::{
     BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around,
@@ -115,11 +115,15 @@ pub struct SimConfig {
     /// detail patch's mass points scale stiffness by their volume, as mass and damping,
     /// which leaves the clay there softer against its inertia by the spacing ratio squared
     /// (an elastic press springs back more slowly than its region lives; painted stiffness
-    /// and mass act weaker); scaling it by the spacing instead, as the springs' energy asks,
-    /// left a narrow press short of its tip (most likely because each step's force on a mass
-    /// point is capped by a travel in knot spans of the patch, not of the base; measuring the
-    /// cap in the base's spans did not fix it). A region moved under a stroke also takes the
-    /// clay as it is as its new rest shape.
+    /// and mass act weaker). Scaling stiffness by the spacing instead, as the springs' energy
+    /// asks, closed a narrow press over its tip (the walls of the hole sealed above it, and
+    /// sprang shut again when the tool left); the push's body
+    /// (`dynaclay_core::dynamics::ToolBody`) and a yield density scaled by the spacing as well
+    /// kept it open (0.118 deep on a level-2 patch, 0.120 on an automatic level-3 one, 0.109
+    /// on the base), but a narrow push drawn along the top then pressed a groove 30% wider
+    /// than its spread (`tests/adaptive_clay.rs`): the consistent springs smooth detail that
+    /// fine away. A region moved under a stroke also takes the clay as it is as its new rest
+    /// shape.
     pub auto_detail_force: bool,
 }
 
@@ -254,6 +258,8 @@ pub struct SimulationStage {
     symmetry: Symmetry,
     /// This step's tool forces with their mirrored copies (used only while mirroring).
     mirrored_forces: Vec<ToolForce>,
+    /// This step's tool bodies and their mirrored copies, with symmetry on.
+    mirrored_bodies: Vec<ToolBody>,
     /// The session's parts the engine does not simulate, carried unchanged from the loaded
     /// session into every session it hands back.
     carried: CarriedSections,
@@ -339,6 +345,7 @@ impl SimulationStage {
             symmetry: Symmetry::OFF,
             // Room for every force of the held tool and its seven mirrored copies.
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
+            mirrored_bodies: Vec::with_capacity(8),
             simulator: Simulator::new(config.step),
             region: None,
             region_patch: 0,
@@ -576,6 +583,11 @@ impl SimulationStage {
                 (true, true) => &self.mirrored_forces,
             };
             self.simulator.set_force_yield(sample.force_yield);
+            self.simulator.set_tool_bodies(match (push, mirroring) {
+                (false, _) => &[],
+                (true, false) => self.tool.bodies(),
+                (true, true) => &self.mirrored_bodies,
+            });
             let (patch, region_box) = (self.region_patch, region.coeff_box());
             if let Some(p) = self.clay.density.patches.get(patch) {
                 self.track.before_region_step(&p.lattice, patch, region_box);
@@ -635,6 +647,13 @@ impl SimulationStage {
         for flip in self.symmetry.flips() {
             for f in self.tool.forces() {
                 self.mirrored_forces.push(mirror_force(f, centre, flip));
+            }
+        }
+        self.mirrored_bodies.clear();
+        self.mirrored_bodies.extend_from_slice(self.tool.bodies());
+        for flip in self.symmetry.flips() {
+            for b in self.tool.bodies() {
+                self.mirrored_bodies.push(mirror_body(b, centre, flip));
             }
         }
     }

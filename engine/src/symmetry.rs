@@ -7,7 +7,7 @@
 
 use glam::Vec3;
 
-use dynaclay_core::dynamics::ToolForce;
+use dynaclay_core::dynamics::{ToolBody, ToolForce};
 use dynaclay_core::field::BSplineLattice;
 
 /// Which mirror planes are on.
@@ -73,6 +73,17 @@ pub fn mirror_force(f: &ToolForce, centre: Vec3, flip: Vec3) -> ToolForce {
         start: mirror(f.start, centre, flip),
         end: mirror(f.end, centre, flip),
         ..*f
+    }
+}
+
+/// A tool body reflected about `centre` (both ends of its shaft).
+#[inline]
+#[must_use]
+pub fn mirror_body(b: &ToolBody, centre: Vec3, flip: Vec3) -> ToolBody {
+    ToolBody {
+        inner: mirror(b.inner, centre, flip),
+        outer: mirror(b.outer, centre, flip),
+        ..*b
     }
 }
 

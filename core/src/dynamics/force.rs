@@ -248,6 +248,28 @@ pub struct ToolForce {
     pub gain: f32,
 }
 
+/// The body of a tool pressed into the clay: its shaft, the capsule of `radius` around the
+/// segment from `inner` (where the tool's force vector starts, the surface above its tip) out
+/// to `outer` (where the tool entered the clay, on the plane it entered through). A real
+/// stylus keeps the clay out of the hole it has made; the tool's force vector acts only at its
+/// tip, so without the body the walls of a hole narrow against its depth close over the tip
+/// (the clay's springs smooth a narrow hole away faster than its plastic flow sets it) and the
+/// tip carves a pocket under a shut top. The simulation pushes out whatever clay lies along
+/// the shaft, as the tool's force vector pushes the clay under the tip (see
+/// `Simulator::set_tool_bodies`); an open hole holds none, so the body adds nothing there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolBody {
+    /// The shaft's inner end: the start of the tool's force vector, on the surface above the
+    /// tip.
+    pub inner: Vec3,
+    /// The shaft's outer end: above the tip, on the plane where the tool entered the clay.
+    pub outer: Vec3,
+    /// Spread shape across the shaft.
+    pub distribution: Distribution,
+    /// Radius of the shaft, world units.
+    pub radius: f32,
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -17,7 +17,7 @@ use glam::Vec3;
 use super::coast::{COAST_REACH_SPANS, CoastField, RegionVelocity, coast_time_s, start_on_coast};
 use super::constraint_solver::ConstraintSolver;
 use super::counters::{StageTimes, StepCounters};
-use super::force::{ToolForce, force_integral};
+use super::force::{ToolBody, ToolForce, force_integral};
 use super::material::{AccelSolver, Neighbourhood, StepParams};
 use super::passes::{self, ChainScratch, Densities, Plastic, SpringFields, max_abs, plastic_drift};
 use super::region::{RegionState, scratch_len};
@@ -101,6 +101,8 @@ pub struct Simulator {
     force_yield: f32,
     /// One force vector's share per column of its box (see `TargetBound`), NaN until read.
     column_room: Vec<f32>,
+    /// The tool bodies each step keeps the clay out of (see [`Simulator::set_tool_bodies`]).
+    bodies: Vec<ToolBody>,
 }
 
 /// Shortest lever of a force vector's integral in the simulation, knot spans (see
@@ -228,6 +230,15 @@ impl Simulator {
         } else {
             0.0
         };
+    }
+
+    /// The tool bodies the following steps keep the clay out of, replacing the last ones
+    /// (none at first): each step pushes out the clay that lies in a body's shaft, on top of
+    /// its force vectors (see [`ToolBody`]). Allocates only when given more bodies than ever
+    /// before.
+    pub fn set_tool_bodies(&mut self, bodies: &[ToolBody]) {
+        self.bodies.clear();
+        self.bodies.extend_from_slice(bodies);
     }
 
     fn ensure_scratch(&mut self, state: &RegionState) {
@@ -484,8 +495,7 @@ impl Simulator {
         self.external[dirty].fill(0.0);
         self.external_dirty = 0..0;
         let grid = &state.grid;
-        let m = grid.dims;
-        if forces.is_empty() {
+        if forces.is_empty() && self.bodies.is_empty() {
             return;
         }
         // Eq. (6) on the coast field (see `coast.rs`): each vector's start re-found on the
@@ -553,30 +563,9 @@ impl Simulator {
             if f == 0.0 {
                 continue;
             }
-            // Mass-index range of the segment's bounding box grown by the radius.
-            let lo = lattice.to_lattice(tf.start.min(tf.end) - tf.radius);
-            let hi = lattice.to_lattice(tf.start.max(tf.end) + tf.radius);
-            let mut range = [(0_usize, 0_usize); 3];
-            let mut empty = false;
-            for a in 0..3 {
-                let step = grid.step(a) as f32;
-                let c0 = grid.coeffs.min[a] as f32;
-                let (first, last) = if step > 0.0 {
-                    (((lo[a] - c0) / step).ceil(), ((hi[a] - c0) / step).floor())
-                } else {
-                    (0.0, 0.0)
-                };
-                let first = first.max(0.0);
-                let last = last.min((m[a] - 1) as f32);
-                if first.is_nan() || last.is_nan() || first > last {
-                    empty = true;
-                    break;
-                }
-                range[a] = (first as usize, last as usize);
-            }
-            if empty {
+            let Some(range) = mass_range(grid, lattice, tf.start, tf.end, tf.radius) else {
                 continue;
-            }
+            };
             // Two passes over the box: the weights and their total, then the scaled forces
             // from the weights kept in the first (the box has at most one weight per point).
             // Each weight is gated by the room its point has left (see `TargetBound`), and the
@@ -635,22 +624,129 @@ impl Simulator {
             } else {
                 f / total
             };
-            let mut weights = self.weights.iter();
+            let mut at_weight = 0;
             for k in range[2].0..=range[2].1 {
                 for j in range[1].0..=range[1].1 {
                     for i in range[0].0..=range[0].1 {
-                        let w = *weights.next().unwrap_or(&0.0);
+                        let w = self.weights[at_weight];
+                        at_weight += 1;
                         if w == 0.0 {
                             continue;
                         }
-                        let at = state.point_index(i, j, k);
-                        self.external[at] += scale * w;
-                        let d = &mut self.external_dirty;
-                        (d.start, d.end) = if d.start >= d.end {
-                            (at, at + 1)
-                        } else {
-                            (d.start.min(at), d.end.max(at + 1))
-                        };
+                        self.add_external(state.point_index(i, j, k), scale * w);
+                    }
+                }
+            }
+        }
+        for n in 0..self.bodies.len() {
+            let body = self.bodies[n];
+            self.add_body_force(state, lattice, coast, &body, coast_cap);
+        }
+    }
+
+    /// Adds `f` to the external force on mass point `at`, noting it among the points written.
+    #[inline]
+    fn add_external(&mut self, at: usize, f: f32) {
+        self.external[at] += f;
+        let d = &mut self.external_dirty;
+        (d.start, d.end) = if d.start >= d.end {
+            (at, at + 1)
+        } else {
+            (d.start.min(at), d.end.max(at + 1))
+        };
+    }
+
+    /// The force of a tool's body ([`ToolBody`]) on the clay in its shaft, added to the
+    /// external forces. The coast density's excess over the iso-level is read at
+    /// [`BODY_STATIONS`] points along the shaft; where there is any, the densities are pushed
+    /// down there, spread across the shaft by the body's `β` and along it by the excess
+    /// itself. The body is rigid: its most loaded mass point is driven at the step's cap
+    /// (`max_coast_step_spans` of surface travel a step, as under a force vector) once the
+    /// clay stands a fiftieth of a knot span into the shaft, fading below that. Nothing
+    /// where the shaft is open (the hole the tool made, or open air); on the coast field the
+    /// body acts as the walls are about to close, and falls silent as they are about to
+    /// clear.
+    fn add_body_force(
+        &mut self,
+        state: &RegionState,
+        lattice: &BSplineLattice,
+        coast: &dyn ImplicitField,
+        body: &ToolBody,
+        coast_cap: f32,
+    ) {
+        let axis = body.outer - body.inner;
+        let len = axis.length();
+        let valid = len.is_finite() && len > 0.0 && body.radius.is_finite() && body.radius > 0.0;
+        if !valid {
+            return;
+        }
+        let iso = coast.iso();
+        let mut excess = [0.0_f32; BODY_STATIONS];
+        let (mut most, mut most_at) = (0.0_f32, 0);
+        for (k, e) in excess.iter_mut().enumerate() {
+            let x = body.inner + axis * ((k as f32 + 0.5) / BODY_STATIONS as f32);
+            *e = (coast.value(x) - iso).max(0.0);
+            if *e > most {
+                (most, most_at) = (*e, k);
+            }
+        }
+        // An open shaft (or a non-finite read): nothing to push out.
+        if most <= 0.0 || !most.is_finite() {
+            return;
+        }
+        // The density ramp across the surface, as `TargetBound` reads it, where the shaft
+        // holds the most clay: it turns the cap's travel into density, and the fade's.
+        let at = body.inner + axis * ((most_at as f32 + 0.5) / BODY_STATIONS as f32);
+        let floor = iso / (2.0 * lattice.spacing);
+        let measured = coast.value_and_gradient(at).1.length();
+        let slope = if measured.is_finite() {
+            measured.max(floor)
+        } else {
+            floor
+        };
+        let fade = (most / (BODY_FADE_SPANS * lattice.spacing * slope)).min(1.0);
+        let grid = &state.grid;
+        let Some(range) = mass_range(grid, lattice, body.inner, body.outer, body.radius) else {
+            return;
+        };
+        // The excess along the shaft at the mass point's projection on it, linear between
+        // the stations.
+        let excess_at = |x: Vec3| {
+            let t = ((x - body.inner).dot(axis) / (len * len)).clamp(0.0, 1.0);
+            let u = (t * BODY_STATIONS as f32 - 0.5).clamp(0.0, (BODY_STATIONS - 1) as f32);
+            let k = (u as usize).min(BODY_STATIONS - 2);
+            let frac = u - k as f32;
+            excess[k] * (1.0 - frac) + excess[k + 1] * frac
+        };
+        let (mut peak, mut at_weight) = (0.0_f32, 0);
+        for k in range[2].0..=range[2].1 {
+            for j in range[1].0..=range[1].1 {
+                for i in range[0].0..=range[0].1 {
+                    let x = grid.position(lattice, i, j, k);
+                    let mut w = body
+                        .distribution
+                        .weight(x, body.inner, body.outer, body.radius);
+                    if w != 0.0 {
+                        w *= excess_at(x);
+                        peak = peak.max(w);
+                    }
+                    self.weights[at_weight] = w;
+                    at_weight += 1;
+                }
+            }
+        }
+        if peak <= 0.0 || !peak.is_finite() {
+            return;
+        }
+        let scale = -coast_cap * slope * fade / peak;
+        let mut weights = 0;
+        for k in range[2].0..=range[2].1 {
+            for j in range[1].0..=range[1].1 {
+                for i in range[0].0..=range[0].1 {
+                    let w = self.weights[weights];
+                    weights += 1;
+                    if w != 0.0 {
+                        self.add_external(state.point_index(i, j, k), scale * w);
                     }
                 }
             }
@@ -1100,6 +1196,47 @@ impl TargetBound {
     }
 }
 
+/// Knot spans the clay must stand into a tool body's shaft for the body to push it out at
+/// the step's full cap (as `TargetBound` fades a column's share).
+const BODY_FADE_SPANS: f32 = 0.02;
+
+/// Stations along a tool body's shaft at which [`Simulator::add_body_force`] reads the clay
+/// in it (a 0.12-long shaft is read every 0.004, a third of a mass step two levels down).
+const BODY_STATIONS: usize = 32;
+
+/// The mass-index range of `grid` in the bounding box of the segment `a → b` grown by
+/// `radius`, per axis (first, last); `None` when the box misses the grid.
+fn mass_range(
+    grid: &crate::field::MassGrid,
+    lattice: &BSplineLattice,
+    a: Vec3,
+    b: Vec3,
+    radius: f32,
+) -> Option<[(usize, usize); 3]> {
+    let lo = lattice.to_lattice(a.min(b) - radius);
+    let hi = lattice.to_lattice(a.max(b) + radius);
+    let mut range = [(0_usize, 0_usize); 3];
+    for axis in 0..3 {
+        let step = grid.step(axis) as f32;
+        let c0 = grid.coeffs.min[axis] as f32;
+        let (first, last) = if step > 0.0 {
+            (
+                ((lo[axis] - c0) / step).ceil(),
+                ((hi[axis] - c0) / step).floor(),
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        let first = first.max(0.0);
+        let last = last.min((grid.dims[axis] - 1) as f32);
+        if first.is_nan() || last.is_nan() || first > last {
+            return None;
+        }
+        range[axis] = (first as usize, last as usize);
+    }
+    Some(range)
+}
+
 /// One patch's lattice with the fixed patches around it: the clay's density as the force
 /// integrals read it while the patch is simulated.
 struct PatchAmongOthers<'a> {
@@ -1129,7 +1266,7 @@ mod tests {
 
     use super::*;
     use crate::dynamics::{
-        Distribution, Integrator, Material, reaction_force, surface_point_on_ray,
+        Distribution, Integrator, Material, ToolBody, reaction_force, surface_point_on_ray,
     };
     use crate::field::{CoeffBox, Primitive, lattice_from_primitive};
 
@@ -1173,6 +1310,66 @@ mod tests {
             radius: 0.12,
             gain,
         })
+    }
+
+    /// A tool body along the x axis through the +x pole: from inside the sphere out past
+    /// its surface, or wholly in the open air beyond it.
+    fn body_along_x(from: f32, to: f32) -> ToolBody {
+        ToolBody {
+            inner: CENTRE + Vec3::X * from,
+            outer: CENTRE + Vec3::X * to,
+            distribution: Distribution::Gaussian,
+            radius: 0.12,
+        }
+    }
+
+    #[test]
+    fn a_tool_body_pushes_out_the_clay_in_its_shaft_and_adds_nothing_where_the_shaft_is_open() {
+        let mut lattice = sphere();
+        let mut state = region(&lattice, CREEP);
+        let mut sim = Simulator::new(StepParams::default());
+        // Open air beyond the pole: no force at all.
+        sim.set_tool_bodies(&[body_along_x(RADIUS + 0.05, RADIUS + 0.3)]);
+        sim.gather_forces(&state, &lattice, &[]);
+        assert!(sim.external.iter().all(|&f| f == 0.0), "an open shaft");
+        // A shaft from 0.1 inside the pole out past it: the clay in it is pushed down, and
+        // only there.
+        let body = body_along_x(RADIUS - 0.1, RADIUS + 0.2);
+        sim.set_tool_bodies(&[body]);
+        sim.gather_forces(&state, &lattice, &[]);
+        assert!(
+            sim.external.iter().all(|&f| f <= 0.0),
+            "the body only removes clay"
+        );
+        let pushed: Vec<usize> = (0..sim.external.len())
+            .filter(|&n| sim.external[n] < 0.0)
+            .collect();
+        assert!(!pushed.is_empty(), "the clay in the shaft is pushed");
+        let m = state.grid.dims;
+        for &n in &pushed {
+            let (i, j, k) = (n % m[0], (n / m[0]) % m[1], n / (m[0] * m[1]));
+            let x = state.grid.position(&lattice, i, j, k);
+            assert!(
+                Distribution::Gaussian.weight(x, body.inner, body.outer, body.radius) > 0.0,
+                "pushed outside the shaft at {x}"
+            );
+        }
+        // Stepped, the pole gives way along the shaft: its surface sinks toward the shaft's
+        // inner end.
+        let mut snap = RegionSnapshot::default();
+        let before = surface_radius(&lattice, Vec3::X);
+        for _ in 0..300 {
+            sim.step(&mut state, &mut lattice, &[], &mut snap).unwrap();
+        }
+        let after = surface_radius(&lattice, Vec3::X);
+        assert!(
+            after < before - 0.05,
+            "the shaft is cleared: surface {before} -> {after}"
+        );
+        assert!(
+            after > RADIUS - 0.1 - 0.02,
+            "no deeper than the shaft's inner end: {after}"
+        );
     }
 
     #[test]
