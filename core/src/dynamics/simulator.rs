@@ -624,19 +624,7 @@ impl Simulator {
             } else {
                 f / total
             };
-            let mut at_weight = 0;
-            for k in range[2].0..=range[2].1 {
-                for j in range[1].0..=range[1].1 {
-                    for i in range[0].0..=range[0].1 {
-                        let w = self.weights[at_weight];
-                        at_weight += 1;
-                        if w == 0.0 {
-                            continue;
-                        }
-                        self.add_external(state.point_index(i, j, k), scale * w);
-                    }
-                }
-            }
+            self.add_weighted_external(state, range, scale);
         }
         for n in 0..self.bodies.len() {
             let body = self.bodies[n];
@@ -739,12 +727,23 @@ impl Simulator {
             return;
         }
         let scale = -coast_cap * slope * fade / peak;
-        let mut weights = 0;
+        self.add_weighted_external(state, range, scale);
+    }
+
+    /// Adds `scale` times the weights of the mass points in `range` (in `self.weights`, x
+    /// fastest, as the range is walked) to their external forces.
+    fn add_weighted_external(
+        &mut self,
+        state: &RegionState,
+        range: [(usize, usize); 3],
+        scale: f32,
+    ) {
+        let mut at_weight = 0;
         for k in range[2].0..=range[2].1 {
             for j in range[1].0..=range[1].1 {
                 for i in range[0].0..=range[0].1 {
-                    let w = self.weights[weights];
-                    weights += 1;
+                    let w = self.weights[at_weight];
+                    at_weight += 1;
                     if w != 0.0 {
                         self.add_external(state.point_index(i, j, k), scale * w);
                     }
