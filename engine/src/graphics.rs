@@ -485,6 +485,7 @@ mod tests {
 
     use super::super::{Command, EngineConfig, ToolSample, build, build_clay};
     use super::*;
+    use dynaclay_core::field::BSplineLattice;
     use dynaclay_core::io::{ClayShape, ClaySpec};
     use dynaclay_core::tools::{GeometricTool, ToolAction, ToolPose, ToolShape};
 
@@ -521,6 +522,48 @@ mod tests {
         (count, edges / (3 * count.max(1)) as f32)
     }
 
+    /// The stages on a sphere clay of `resolution` coefficients a side, with a simulated arm
+    /// held away from it and `sink` in the graphics loop.
+    struct SphereScene {
+        s: super::super::Stages,
+        config: EngineConfig,
+        /// The starting clay.
+        lattice: BSplineLattice,
+        /// Its centre, and a point on its surface (the +x side, a quarter of its size out).
+        centre: Vec3,
+        surface: Vec3,
+    }
+
+    fn sphere_scene(resolution: usize, sink: Box<dyn MeshSink>) -> SphereScene {
+        let lattice = build_clay(&ClaySpec {
+            shape: ClayShape::Sphere,
+            resolution,
+            ..ClaySpec::default()
+        })
+        .unwrap();
+        let size = (resolution - 1) as f32 * lattice.spacing;
+        let config = EngineConfig::for_field(&lattice, &SimArmConfig::default_info());
+        let centre = Vec3::splat(size * 0.5);
+        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
+        let s = build(&config, lattice.clone(), Box::new(arm), sink, true).unwrap();
+        SphereScene {
+            s,
+            config,
+            lattice,
+            centre,
+            surface: centre + Vec3::new(size * 0.25, 0.0, 0.0),
+        }
+    }
+
+    /// `steps` idle simulation steps, each followed by a graphics tick.
+    fn run_idle(s: &mut super::super::Stages, steps: usize) {
+        for _ in 0..steps {
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+            s.graphics.tick();
+        }
+    }
+
     /// A clay refined at level 2 and carved inside the patch: the sink's bricks weld into the
     /// multi-level mesh the export makes of the same clay (each level at its own spacing,
     /// finer inside the patch than the base's grid draws it), closed across the patch's
@@ -531,36 +574,17 @@ mod tests {
         use dynaclay_core::mesh::{MeshStats, mesh_adaptive};
 
         // Large enough for a carve to reach a small part of the bricks.
-        let resolution = 24;
-        let field = build_clay(&ClaySpec {
-            shape: ClayShape::Sphere,
-            resolution,
-            ..ClaySpec::default()
-        })
-        .unwrap();
-        let base = field.clone();
-        let spacing = field.spacing;
-        let size = (resolution - 1) as f32 * spacing;
-        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        let centre = Vec3::splat(size * 0.5);
-        let surface = centre + Vec3::new(size * 0.25, 0.0, 0.0);
-        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
         let reports = Arc::new(Mutex::new(Vec::new()));
-        let mut s = build(
-            &config,
-            field,
-            Box::new(arm),
-            Box::new(ReportSink(Arc::clone(&reports))),
-            true,
-        )
-        .unwrap();
-        let run = |s: &mut super::super::Stages, steps: usize| {
-            for _ in 0..steps {
-                s.sim.apply_commands();
-                s.sim.step(&ToolSample::IDLE);
-                s.graphics.tick();
-            }
-        };
+        let SphereScene {
+            mut s,
+            config,
+            lattice: base,
+            centre,
+            surface,
+        } = sphere_scene(24, Box::new(ReportSink(Arc::clone(&reports))));
+        let spacing = base.spacing;
+        let size = 23.0 * spacing;
+        let run = run_idle;
         run(&mut s, 10);
         assert!(!s.graphics.meshes_levels(), "one patch: marching cubes");
         let grid_cells = s.graphics.octree().triangle_count();
@@ -828,24 +852,12 @@ mod tests {
     /// the tick it starts re-meshes the change; steps that change nothing do not ring.
     #[test]
     fn a_publication_that_changes_the_clay_wakes_the_graphics_loop_to_remesh_it() {
-        let field = build_clay(&ClaySpec {
-            shape: ClayShape::Sphere,
-            resolution: 12,
-            ..ClaySpec::default()
-        })
-        .unwrap();
-        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        let centre = Vec3::splat(11.0 * 0.1 * 0.5);
-        let surface = centre + Vec3::new(11.0 * 0.1 * 0.25, 0.0, 0.0);
-        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
-        let mut s = build(
-            &config,
-            field,
-            Box::new(arm),
-            Box::new(HeadlessSink::default()),
-            true,
-        )
-        .unwrap();
+        let SphereScene {
+            mut s,
+            config,
+            surface,
+            ..
+        } = sphere_scene(12, Box::new(HeadlessSink::default()));
         let (bell, waiter) = dynaclay_loops::wake_bell(config.graphics_max_rate_hz).unwrap();
         s.sim.set_graphics_wake(bell);
         for _ in 0..20 {
@@ -884,32 +896,10 @@ mod tests {
     /// its undo.
     #[test]
     fn paint_travels_from_the_simulation_to_the_sink_and_undo_takes_it_back() {
-        let field = build_clay(&ClaySpec {
-            shape: ClayShape::Sphere,
-            resolution: 12,
-            ..ClaySpec::default()
-        })
-        .unwrap();
-        let config = EngineConfig::for_field(&field, &SimArmConfig::default_info());
-        let centre = Vec3::splat(11.0 * 0.1 * 0.5);
-        let surface = centre + Vec3::new(11.0 * 0.1 * 0.25, 0.0, 0.0);
-        let arm = SimulatedArm::with_trajectory(Trajectory::hold(Vec3::splat(-0.09)));
         let seen = Arc::new(Mutex::new(None));
-        let mut s = build(
-            &config,
-            field,
-            Box::new(arm),
-            Box::new(PaintSink(Arc::clone(&seen))),
-            true,
-        )
-        .unwrap();
-        let run = |s: &mut super::super::Stages| {
-            for _ in 0..40 {
-                s.sim.apply_commands();
-                s.sim.step(&ToolSample::IDLE);
-                s.graphics.tick();
-            }
-        };
+        let SphereScene { mut s, surface, .. } =
+            sphere_scene(12, Box::new(PaintSink(Arc::clone(&seen))));
+        let run = |s: &mut super::super::Stages| run_idle(s, 40);
         run(&mut s);
         assert!(seen.lock().is_none(), "no paint, no call");
 
