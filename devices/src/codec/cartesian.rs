@@ -65,20 +65,7 @@ pub fn encode_state(s: &CartesianState) -> [u8; INPUT_LEN] {
 /// [`CodecError::TooShort`]/[`CodecError::TooLong`] when `bytes` is not [`INPUT_LEN`] long.
 pub fn decode_state(bytes: &[u8]) -> Result<CartesianState, CodecError> {
     const WHAT: &str = "Cartesian input report";
-    if bytes.len() < INPUT_LEN {
-        return Err(CodecError::TooShort {
-            what: WHAT,
-            needed: INPUT_LEN,
-            got: bytes.len(),
-        });
-    }
-    if bytes.len() > INPUT_LEN {
-        return Err(CodecError::TooLong {
-            what: WHAT,
-            max: INPUT_LEN,
-            got: bytes.len(),
-        });
-    }
+    CodecError::check_exact_len(WHAT, bytes, INPUT_LEN)?;
     let i = |k: usize| {
         i32::from_le_bytes([
             bytes[4 * k],
@@ -114,20 +101,7 @@ pub fn encode_command(c: &CartesianCommand) -> [u8; OUTPUT_LEN] {
 /// reserved bytes (with their offset).
 pub fn decode_command(bytes: &[u8]) -> Result<CartesianCommand, CodecError> {
     const WHAT: &str = "Cartesian output report";
-    if bytes.len() < OUTPUT_LEN {
-        return Err(CodecError::TooShort {
-            what: WHAT,
-            needed: OUTPUT_LEN,
-            got: bytes.len(),
-        });
-    }
-    if bytes.len() > OUTPUT_LEN {
-        return Err(CodecError::TooLong {
-            what: WHAT,
-            max: OUTPUT_LEN,
-            got: bytes.len(),
-        });
-    }
+    CodecError::check_exact_len(WHAT, bytes, OUTPUT_LEN)?;
     if bytes[0] != 0 {
         return Err(CodecError::BadByte {
             what: WHAT,

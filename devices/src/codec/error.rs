@@ -65,3 +65,29 @@ pub enum CodecError {
         expected: usize,
     },
 }
+
+impl CodecError {
+    /// `Ok` when `bytes` is exactly `len` bytes long, else [`CodecError::TooShort`] or
+    /// [`CodecError::TooLong`] naming `what`: for fixed-size reports and frames.
+    ///
+    /// # Errors
+    /// As above.
+    pub fn check_exact_len(what: &'static str, bytes: &[u8], len: usize) -> Result<(), Self> {
+        let got = bytes.len();
+        if got < len {
+            return Err(Self::TooShort {
+                what,
+                needed: len,
+                got,
+            });
+        }
+        if got > len {
+            return Err(Self::TooLong {
+                what,
+                max: len,
+                got,
+            });
+        }
+        Ok(())
+    }
+}

@@ -109,20 +109,7 @@ enum Direction {
 /// Checks framing and payload ranges; returns the 14 payload values (byte minus 0x41; a
 /// reply's byte 13 up to 0x7f, its byte 14 always 0).
 fn payload(frame: &[u8], direction: Direction) -> Result<[u8; 14], CodecError> {
-    if frame.len() < FRAME_LEN {
-        return Err(CodecError::TooShort {
-            what: WHAT,
-            needed: FRAME_LEN,
-            got: frame.len(),
-        });
-    }
-    if frame.len() > FRAME_LEN {
-        return Err(CodecError::TooLong {
-            what: WHAT,
-            max: FRAME_LEN,
-            got: frame.len(),
-        });
-    }
+    CodecError::check_exact_len(WHAT, frame, FRAME_LEN)?;
     if frame[0] != START {
         return Err(CodecError::BadByte {
             what: WHAT,

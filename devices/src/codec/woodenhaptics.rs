@@ -176,20 +176,7 @@ pub fn encode_status(status: &WhStatus) -> [u8; INPUT_LEN] {
 /// [`CodecError::TooShort`] or [`CodecError::TooLong`] when `bytes` is not 14 bytes long.
 pub fn decode_status(bytes: &[u8]) -> Result<WhStatus, CodecError> {
     const WHAT: &str = "WoodenHaptics input report";
-    if bytes.len() < INPUT_LEN {
-        return Err(CodecError::TooShort {
-            what: WHAT,
-            needed: INPUT_LEN,
-            got: bytes.len(),
-        });
-    }
-    if bytes.len() > INPUT_LEN {
-        return Err(CodecError::TooLong {
-            what: WHAT,
-            max: INPUT_LEN,
-            got: bytes.len(),
-        });
-    }
+    CodecError::check_exact_len(WHAT, bytes, INPUT_LEN)?;
     let w = |i: usize| i16::from_le_bytes([bytes[2 * i], bytes[2 * i + 1]]);
     Ok(WhStatus {
         encoders: [w(0), w(1), w(2), w(3), w(4), w(5)],
