@@ -160,7 +160,21 @@ fn record_with_clay(
     ticks: usize,
     refine_level: u32,
 ) -> (Vec<Tick>, MultiPatchField, MultiPatchField, WorkspaceMap) {
+    record_with_clay_detail(tool, trajectory, arm, ticks, refine_level, false)
+}
+
+/// [`record_with_clay`], with a fine force tool refining under itself when `force_detail`
+/// (`SimConfig::auto_detail_force`).
+fn record_with_clay_detail(
+    tool: Option<ToolChoice>,
+    trajectory: Trajectory,
+    arm: SimArmConfig,
+    ticks: usize,
+    refine_level: u32,
+    force_detail: bool,
+) -> (Vec<Tick>, MultiPatchField, MultiPatchField, WorkspaceMap) {
     let (field, mut config, _) = clay();
+    config.sim.auto_detail_force = force_detail;
     let spacing = field.spacing;
     config.safety.soft_start_s = 0.0;
     // An arm that renders force: tools are felt with their shape and the clay yields to the
@@ -905,6 +919,24 @@ fn the_builtin_run_lets_every_end_fade() {
 /// no reversal, nothing outside.
 #[test]
 fn a_pull_that_grows_the_clay_mid_stroke_feels_smooth_on_a_recorded_session() {
+    pull_past_the_box(false);
+}
+
+/// The same pull with a fine force tool refining under itself: the stroke refines a detail
+/// patch, and the base still grows before the patch is made past it (a patch holds only what
+/// the base's box holds), so the pulled top leaves the starting box as on the base.
+#[test]
+fn a_pull_refining_under_itself_grows_the_clay_as_on_the_base() {
+    let after = pull_past_the_box(true);
+    assert!(
+        after.patches.len() > 1,
+        "the pull refined under itself ({} patches)",
+        after.patches.len()
+    );
+}
+
+/// The pull of the two tests above, checked as they say; returns the clay after it.
+fn pull_past_the_box(force_detail: bool) -> MultiPatchField {
     let rate_hz = 1000.0;
     let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
     let held = |t: f64| u32::from((0.55..1.9).contains(&t));
@@ -929,8 +961,14 @@ fn a_pull_that_grows_the_clay_mid_stroke_feels_smooth_on_a_recorded_session() {
         radius_fu: 0.1,
         gain: 2.0e6,
     };
-    let (ticks, before, after, _) =
-        record_with_clay(force_tool(pull), lift, SimArmConfig::default(), 3400, 0);
+    let (ticks, before, after, _) = record_with_clay_detail(
+        force_tool(pull),
+        lift,
+        SimArmConfig::default(),
+        3400,
+        0,
+        force_detail,
+    );
     let q = quality(&ticks, rate_hz, Vec3::Y);
     check("pull past the box", &q, step_limit_n);
     assert!(
@@ -961,6 +999,7 @@ fn a_pull_that_grows_the_clay_mid_stroke_feels_smooth_on_a_recorded_session() {
         top(&after) > last_node_y,
         "the pulled top left the starting box"
     );
+    after
 }
 
 /// A detail patch folds back under the touching hand: a fine ball (radius 0.02, a fifth of a

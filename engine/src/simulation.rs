@@ -808,8 +808,10 @@ impl SimulationStage {
     /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
     /// on the patch [`Self::region_patch_for`] picks.
     fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
+        // The base grows under a stroke that reaches past it, whichever patch the region is
+        // on: a detail patch holds only what the base's box holds.
         let mut patch = self.region_patch_for(lo, hi);
-        if patch == 0 && self.make_room(lo, hi) {
+        if self.make_room(lo, hi) {
             patch = self.region_patch_for(lo, hi);
         }
         let lattice = &self.clay.density.patches[patch].lattice;
