@@ -5,7 +5,9 @@
 //! each peer that is present (see [`super::reconstructors`]). Every mesh is judged against the
 //! clean model ([`super::surface_compare`]): the distance from the reconstruction to the model
 //! and back, p50 and p99 as percent of the model's box diagonal; its pieces and the genus of
-//! the largest; the wall time; the peak memory per input point. The last columns are dynaclay
+//! the largest; the wall time; the peak memory per input point. The reconstruction → model
+//! distances are also given signed (positive outside the model), their mean and median: a
+//! surface shifted outward or inward shows there, noise left in it does not. The last columns are dynaclay
 //! over that peer, on the same cloud. A mesh that is empty fails the run at once; one that lies
 //! far from the model (p50 either way over [`FAR_OFF_PERCENT`]) is marked in its row and fails
 //! the run once the table is printed, so the other rows are still seen. The clouds are written
@@ -13,20 +15,24 @@
 //! they are kept (`{model}-{variant}.ply`, the variant's index in [`DISTURBANCES`]) to rerun
 //! one by hand.
 //!
-//! Two environment variables narrow or scale the run: `PEERS_POINTS` sets the points per cloud
+//! Environment variables narrow or scale the run: `PEERS_POINTS` sets the points per cloud
 //! (default [`CLOUD_POINTS`], at most [`MAX_CLOUD_POINTS`]; e.g. a million, to judge the import's
-//! thinning of dense scans) and `PEERS_MODELS` a comma-separated list of model stems to keep.
+//! thinning of dense scans), `PEERS_MODELS` a comma-separated list of model stems to keep, and
+//! `PEERS_NOISE_SCALE` a factor on every cloud's noise (see [`noise_scale`]).
 
 use std::path::{Path, PathBuf};
 
 use super::models::{
-    DISTURBANCES, MODELS, Mesh, OrientedCloud, load_model, models_folder, sample_cloud, write_ply,
+    DISTURBANCES, Disturbance, MODELS, Mesh, OrientedCloud, load_model, models_folder,
+    sample_cloud, write_ply,
 };
 use super::reconstructors::{
     POISSON_DEPTH, Reconstruction, dynaclay, find_poisson_recon, poisson_crate,
     poisson_crate_depth, poisson_recon,
 };
-use super::surface_compare::{TriangleIndex, one_way_distances, quantile, topology};
+use super::surface_compare::{
+    TriangleIndex, one_way_distances, one_way_signed_distances, quantile, topology,
+};
 
 /// Points per cloud unless `PEERS_POINTS` says otherwise.
 pub const CLOUD_POINTS: usize = 50_000;
@@ -84,6 +90,11 @@ struct Accuracy {
     /// Model → reconstruction, percent of the diagonal.
     from_model_p50: f32,
     from_model_p99: f32,
+    /// Reconstruction → model, signed (positive outside the model): mean and median, percent
+    /// of the diagonal. A surface shifted outward or inward shows here; noise left in it does
+    /// not.
+    to_model_signed_mean: f32,
+    to_model_signed_p50: f32,
 }
 
 impl Accuracy {
@@ -119,7 +130,8 @@ fn accuracy(
     let index = TriangleIndex::new(mesh)
         .unwrap_or_else(|| panic!("{label}: the reconstruction has no triangles"));
     let percent = 100.0 / model.diagonal();
-    let mut to_model = one_way_distances(mesh, model_index, samples, 0x5eed_0001);
+    let mut signed = one_way_signed_distances(mesh, model_index, samples, 0x5eed_0001);
+    let mut to_model: Vec<f32> = signed.iter().map(|d| d.abs()).collect();
     let mut from_model = one_way_distances(model, &index, samples, 0x5eed_0002);
     assert!(
         !to_model.is_empty(),
@@ -130,6 +142,10 @@ fn accuracy(
         to_model_p99: quantile(&mut to_model, 0.99) * percent,
         from_model_p50: quantile(&mut from_model, 0.5) * percent,
         from_model_p99: quantile(&mut from_model, 0.99) * percent,
+        to_model_signed_mean: (signed.iter().map(|&d| f64::from(d)).sum::<f64>()
+            / signed.len() as f64) as f32
+            * percent,
+        to_model_signed_p50: quantile(&mut signed, 0.5) * percent,
     }
 }
 
@@ -166,10 +182,25 @@ fn peers(scratch: &Path) -> Vec<Peer> {
     list
 }
 
+/// The factor `PEERS_NOISE_SCALE` sets on every cloud's noise, 1 when unset. The clouds keep
+/// their points and outliers, only the noise is scaled (0: none), so runs at a few factors
+/// tell the fit's own error (its lattice, its smoothing) from the noise left in its surface.
+fn noise_scale() -> f32 {
+    let Some(text) = std::env::var_os("PEERS_NOISE_SCALE") else {
+        return 1.0;
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<f32>() {
+        Ok(scale) if (0.0..=10.0).contains(&scale) => scale,
+        _ => panic!("PEERS_NOISE_SCALE is {text:?}: expected a factor from 0 to 10"),
+    }
+}
+
 /// Prints the comparison; `quick` runs the first variant only, with fewer distance samples.
 pub fn run(quick: bool) {
     let folder = models_folder();
     let samples = if quick { 20_000 } else { 100_000 };
+    let noise_scale = noise_scale();
     let points = cloud_points();
     let variants = if quick {
         &DISTURBANCES[..1]
@@ -192,9 +223,9 @@ pub fn run(quick: bool) {
     );
     let peers = peers(&scratch);
     println!(
-        "| model | cloud | method | time | peak RSS / point | rec→model p50 / p99 | model→rec p50 / p99 | pieces, genus of largest (holes) | dynaclay ÷ this: time | RSS/pt | p50 | p99 |"
+        "| model | cloud | method | time | peak RSS / point | rec→model p50 / p99 | rec→model signed mean / p50 | model→rec p50 / p99 | pieces, genus of largest (holes) | dynaclay ÷ this: time | RSS/pt | p50 | p99 |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut missing = Vec::new();
     let mut far_off = Vec::new();
     for (m, stem, what) in chosen_models() {
@@ -207,16 +238,25 @@ pub fn run(quick: bool) {
         };
         let model_index = TriangleIndex::new(&model).expect("the model has triangles");
         println!(
-            "| {stem} ({what}) | – | clean model ({} triangles) | – | – | – | – | {} | | | | |",
+            "| {stem} ({what}) | – | clean model ({} triangles) | – | – | – | – | – | {} | | | | |",
             model.triangles.len(),
             topology(&model).summary()
         );
         for (v, &variant) in variants.iter().enumerate() {
-            let cloud = sample_cloud(&model, points, variant, (m * 16 + v) as u64 + 1);
+            let scaled = Disturbance {
+                noise_of_diagonal: variant.noise_of_diagonal * noise_scale,
+                ..variant
+            };
+            let variant_name = if noise_scale == 1.0 {
+                variant.name.to_owned()
+            } else {
+                format!("{}, noise × {noise_scale}", variant.name)
+            };
+            let cloud = sample_cloud(&model, points, scaled, (m * 16 + v) as u64 + 1);
             let ply = scratch.join(format!("{stem}-{v}.ply"));
             write_ply(&cloud, &ply).expect("the cloud is written");
             let per_point = |bytes: f64| bytes / cloud.points.len() as f64;
-            let label = |method: &str| format!("{stem}, {}, {method}", variant.name);
+            let label = |method: &str| format!("{stem}, {variant_name}, {method}");
             let ours =
                 dynaclay(&ply, &scratch).unwrap_or_else(|e| panic!("{}: {e}", label("dynaclay")));
             let ours_accuracy = accuracy(
@@ -235,7 +275,7 @@ pub fn run(quick: bool) {
             far_off.extend(ours_far_off);
             print_row(
                 stem,
-                variant.name,
+                &variant_name,
                 ours_name,
                 &ours,
                 per_point(ours.peak_bytes),
@@ -267,7 +307,7 @@ pub fn run(quick: bool) {
                         far_off.extend(theirs_far_off);
                         print_row(
                             stem,
-                            variant.name,
+                            &variant_name,
                             &name,
                             &theirs,
                             per_point(theirs.peak_bytes),
@@ -276,8 +316,8 @@ pub fn run(quick: bool) {
                         );
                     }
                     Err(why) => println!(
-                        "| {stem} | {} | {} | failed: {why} | | | | | | | | |",
-                        variant.name, peer.name
+                        "| {stem} | {} | {} | failed: {why} | | | | | | | | | |",
+                        variant_name, peer.name
                     ),
                 }
             }
@@ -324,10 +364,12 @@ fn print_row(
         },
     );
     println!(
-        "| {model} | {variant} | {method} | {:.2} s | {bytes_per_point:.0} B | {:.3}% / {:.3}% | {:.3}% / {:.3}% | {} | {ratios} |",
+        "| {model} | {variant} | {method} | {:.2} s | {bytes_per_point:.0} B | {:.3}% / {:.3}% | {:+.3}% / {:+.3}% | {:.3}% / {:.3}% | {} | {ratios} |",
         result.seconds,
         accuracy.to_model_p50,
         accuracy.to_model_p99,
+        accuracy.to_model_signed_mean,
+        accuracy.to_model_signed_p50,
         accuracy.from_model_p50,
         accuracy.from_model_p99,
         topology(&result.mesh).summary()

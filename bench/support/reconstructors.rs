@@ -2,7 +2,8 @@
 //! the triangles, with the peak memory it added.
 //!
 //! * **dynaclay**: the command a user runs, `dynaclay import cloud.ply --out clay.dclay --mesh
-//!   mesh.ply` with its default settings (the clay meshed at 4 cells per knot span within the
+//!   mesh.ply` with its default settings (the clay meshed at 4 cells per knot span, or
+//!   `PEERS_CELLS_PER_SPAN`, within the
 //!   machine's default memory budget, welded), as a child process: its time includes reading
 //!   the cloud and writing the session and the mesh, and its memory is its own peak resident
 //!   set (`VmHWM`, see `run_child`), the whole process, as PoissonRecon's is. The command writes its mesh in the
@@ -127,6 +128,21 @@ fn peak_resident_kib(status_path: &Path) -> Option<u64> {
         .and_then(|rest| rest.trim().trim_end_matches("kB").trim().parse().ok())
 }
 
+/// Cells per knot span of the mesh dynaclay's fit is judged by: 4, as `--mesh` exports it,
+/// unless `PEERS_CELLS_PER_SPAN` sets another (1 to 16; a finer mesh tells how much of the
+/// distance is the marching cubes' chords rather than the fit). The timed child always
+/// exports at its default.
+fn mesh_cells_per_span() -> u32 {
+    let Some(text) = std::env::var_os("PEERS_CELLS_PER_SPAN") else {
+        return 4;
+    };
+    let text = text.to_string_lossy();
+    match text.trim().parse::<u32>() {
+        Ok(cells) if (1..=16).contains(&cells) => cells,
+        _ => panic!("PEERS_CELLS_PER_SPAN is {text:?}: expected 1 to 16 cells per span"),
+    }
+}
+
 /// `dynaclay import <ply>` with the default settings and `--mesh`, run as a child process in
 /// `scratch` for its time and memory, and the same fit made here for its mesh in the cloud's
 /// units (see the module docs).
@@ -148,9 +164,13 @@ pub fn dynaclay(ply: &Path, scratch: &Path) -> Result<Reconstruction, String> {
         .map_err(|e| format!("dynaclay import: {e}"))?;
     let (scale, offset) = (fit.scale, fit.offset);
     let session = imported_session(fit.field, ply, 0);
-    let welded = mesh_clay(&session.clay, 4, &MemoryBudget::machine_default())
-        .map_err(|e| format!("dynaclay meshing: {e}"))?
-        .weld();
+    let welded = mesh_clay(
+        &session.clay,
+        mesh_cells_per_span(),
+        &MemoryBudget::machine_default(),
+    )
+    .map_err(|e| format!("dynaclay meshing: {e}"))?
+    .weld();
     Ok(Reconstruction {
         // Back from field units to the cloud's.
         mesh: Mesh {

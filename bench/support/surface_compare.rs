@@ -86,22 +86,43 @@ impl<'a> TriangleIndex<'a> {
     /// Distance from `p` to the nearest triangle.
     #[must_use]
     pub fn distance(&self, p: Vec3) -> f32 {
+        self.nearest(p).map_or(f32::INFINITY, |(d, _, _)| d)
+    }
+
+    /// Distance from `p` to the nearest triangle, negative where `p` lies behind it (inside a
+    /// mesh whose triangles wind counter-clockwise seen from outside): the sign of
+    /// `(p − q) · n` for the nearest point `q` and that triangle's normal `n`.
+    #[must_use]
+    pub fn signed_distance(&self, p: Vec3) -> f32 {
+        match self.nearest(p) {
+            None => f32::INFINITY,
+            Some((d, q, t)) => {
+                let [a, b, c] = self.mesh.corners(self.mesh.triangles[t as usize]);
+                if (p - q).dot((b - a).cross(c - a)) < 0.0 {
+                    -d
+                } else {
+                    d
+                }
+            }
+        }
+    }
+
+    /// The nearest triangle to `p`: its distance, the nearest point on it and its index.
+    fn nearest(&self, p: Vec3) -> Option<(f32, Vec3, u32)> {
         let q = p.to_array();
-        let triangle_distance = |i: u32| -> f32 {
+        let closest = |i: u32| -> (f32, Vec3, u32) {
             let [a, b, c] = self.mesh.corners(self.mesh.triangles[i as usize]);
-            p.distance(closest_on_triangle(p, a, b, c))
+            let on = closest_on_triangle(p, a, b, c);
+            (p.distance(on), on, i)
         };
         let first = self
             .tree
             .query(&q)
             .nearest_n::<SquaredEuclidean<f32>>(NonZero::<usize>::MIN)
             .execute();
-        let Some(nearest) = first.first() else {
-            return f32::INFINITY;
-        };
-        let mut best = triangle_distance(nearest.item);
+        let mut best = closest(first.first()?.item);
         // A triangle nearer than `best` has its centroid within `best + reach` of `p`.
-        let radius = best + self.reach;
+        let radius = best.0 + self.reach;
         for found in &self
             .tree
             .query(&q)
@@ -110,11 +131,14 @@ impl<'a> TriangleIndex<'a> {
             .execute()
         {
             // Its centroid is at least `reach` further than any of its points.
-            if found.distance.sqrt() - self.reach < best {
-                best = best.min(triangle_distance(found.item));
+            if found.distance.sqrt() - self.reach < best.0 {
+                let candidate = closest(found.item);
+                if candidate.0 < best.0 {
+                    best = candidate;
+                }
             }
         }
-        best
+        Some(best)
     }
 }
 
@@ -128,6 +152,25 @@ pub fn one_way_distances(from: &Mesh, to: &TriangleIndex<'_>, count: usize, seed
     let mut rng = Rng::new(seed);
     (0..count)
         .map(|_| to.distance(sampler.sample(&mut rng).0))
+        .collect()
+}
+
+/// Signed distances from `count` points sampled on `from` (seeded) to `to`'s triangles
+/// (see [`TriangleIndex::signed_distance`]).
+#[must_use]
+pub fn one_way_signed_distances(
+    from: &Mesh,
+    to: &TriangleIndex<'_>,
+    count: usize,
+    seed: u64,
+) -> Vec<f32> {
+    let sampler = AreaSampler::new(from);
+    if sampler.area() <= 0.0 {
+        return Vec::new();
+    }
+    let mut rng = Rng::new(seed);
+    (0..count)
+        .map(|_| to.signed_distance(sampler.sample(&mut rng).0))
         .collect()
 }
 
