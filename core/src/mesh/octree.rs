@@ -565,7 +565,7 @@ impl BrickOctree {
             // and between, truncation is the floor.
             let b = (p[a] - self.grid.origin[a]) / span;
             let last = self.brick_counts[a] - 1;
-            if !(b >= 1.0) {
+            if b.is_nan() || b < 1.0 {
                 0
             } else if b >= last as f32 {
                 last
