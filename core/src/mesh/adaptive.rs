@@ -1048,14 +1048,16 @@ impl AdaptiveMesher {
             let f = 3 - a - e;
             let (p, r) = ((e + 1) % 3, (e + 2) % 3);
             for h in 0..2 {
-                let cells = AROUND.map(|[qp, qr]| {
+                let mut cells = [0_u32; 4];
+                for (cell, [qp, qr]) in cells.iter_mut().zip(AROUND) {
                     let mut bit = [0_usize; 3];
                     bit[p] = qp;
                     bit[r] = qr;
                     let node = if bit[a] == 0 { low } else { high };
-                    self.tree
-                        .child_or_leaf(node, (1 - bit[a]) << a | bit[f] << f | h << e)
-                });
+                    *cell = self
+                        .tree
+                        .child_or_leaf(node, (1 - bit[a]) << a | bit[f] << f | h << e);
+                }
                 self.edge_proc(field, region, cells, e);
             }
         }
@@ -1569,14 +1571,19 @@ impl Tree {
         Ok(tree)
     }
 
+    /// Nodes larger than this many finest cells a side, reaching beyond a local re-mesh's
+    /// region, read the part inside it first (see [`Tree::should_split`]).
+    const PART_FIRST_CELLS: u32 = 4;
+
     /// Whether `node` splits: while the field may cross the iso-level inside it and its edge
     /// is longer than the finest target among the patches holding detail there. Reads the
     /// field inside the node's box only (so a change elsewhere never changes the answer).
     ///
     /// `near`, when given, is a box of integer corners where the answer is likely to be
-    /// decided (a local re-mesh's changed region): the coefficients over the part of the node
-    /// inside it are read first, and where they alone prove a split the rest are not read
-    /// (see [`SplitInputs::splits`]); otherwise the whole node is read.
+    /// decided (a local re-mesh's changed region): the coefficients over the part of a node
+    /// larger than [`Tree::PART_FIRST_CELLS`] inside it are read first, and where they alone
+    /// prove a split the rest are not read (see [`SplitInputs::splits`]); otherwise the whole
+    /// node is read.
     fn should_split(
         &self,
         field: &MultiPatchField,
@@ -1589,7 +1596,8 @@ impl Tree {
             return false;
         }
         let (lo, hi) = (node.min, node.corner(7));
-        if let Some(near) = near {
+        // A small node's whole read costs little more than a part's: it is read once.
+        if let Some(near) = near.filter(|_| node.size > Self::PART_FIRST_CELLS) {
             // The corners' world positions grow with their integer coordinates, so the part's
             // world box is the node's world box clipped to the region's.
             let part_lo: [u32; 3] = std::array::from_fn(|a| {
@@ -1667,6 +1675,7 @@ impl Tree {
     }
 
     /// `n` itself when it is a leaf, else its child `c`.
+    #[inline]
     fn child_or_leaf(&self, n: u32, c: usize) -> u32 {
         let node = &self.nodes[n as usize];
         if node.is_leaf() {
