@@ -467,6 +467,22 @@ impl MultiPatchField {
     /// # Panics
     /// When `out.len() != xs.len() * ys.len() * zs.len()`.
     pub fn values_on_grid(&self, xs: &[f32], ys: &[f32], zs: &[f32], out: &mut [f32]) {
+        self.values_on_grid_with(xs, ys, zs, out, &mut Vec::new());
+    }
+
+    /// [`MultiPatchField::values_on_grid`] with `term` as its buffer for one patch's terms
+    /// (resized as needed), so that a caller sampling grid after grid allocates it once.
+    ///
+    /// # Panics
+    /// When `out.len() != xs.len() * ys.len() * zs.len()`.
+    pub fn values_on_grid_with(
+        &self,
+        xs: &[f32],
+        ys: &[f32],
+        zs: &[f32],
+        out: &mut [f32],
+        term: &mut Vec<f32>,
+    ) {
         assert_eq!(
             out.len(),
             xs.len() * ys.len() * zs.len(),
@@ -475,10 +491,10 @@ impl MultiPatchField {
         // The patches' terms are added in order onto the neutral element of `f32`'s `Sum`, as
         // `value` adds them.
         out.fill(std::iter::empty::<f32>().sum());
-        let mut term = vec![0.0; out.len()];
+        term.resize(out.len(), 0.0);
         for patch in &self.patches {
             if patch.is_identity() {
-                patch.lattice.values_on_grid(xs, ys, zs, &mut term);
+                patch.lattice.values_on_grid(xs, ys, zs, term);
             } else {
                 let mut at = 0;
                 for &z in zs {
@@ -490,7 +506,7 @@ impl MultiPatchField {
                     }
                 }
             }
-            for (v, t) in out.iter_mut().zip(&term) {
+            for (v, t) in out.iter_mut().zip(term.iter()) {
                 *v += t;
             }
         }

@@ -14,8 +14,9 @@
 //!
 //! Guarantees: the mesh is closed (the root's boundary counts as outside, whatever the
 //! iso-level) and consistently oriented (triangles counter-clockwise seen from outside,
-//! normals `−∇F/|∇F|` from the analytic gradient); it is welded by construction, one vertex
-//! per leaf that the surface crosses. Each vertex lies in its leaf's box.
+//! normals `−∇F/|∇F|` from the analytic gradient, taken where the vertex's last Newton step
+//! started); it is welded by construction, one vertex per leaf that the surface crosses. Each
+//! vertex lies in its leaf's box.
 //!
 //! Why there are no cracks between levels: polygons are not made per cell, as marching cubes
 //! makes them, but per *minimal edge*: an edge of a leaf that no smaller leaf splits. The
@@ -232,15 +233,22 @@ pub struct AdaptiveMesher {
     generation: u32,
     vertices: VertexSlots,
     /// Each minimal edge's polygon: the vertex slots of its four leaves in [`AROUND`] order,
-    /// counter-clockwise seen from outside (a leaf that fills two places appears twice).
-    polygons: Vec<[u32; 4]>,
+    /// counter-clockwise seen from outside (a leaf that fills two places appears twice),
+    /// kept in buckets by where the edge lies.
+    polygons: PolygonBuckets,
+    /// The integer box (inclusive) of the leaves whose vertex this call dropped: every
+    /// polygon that used one lies on such a leaf's box.
+    forgotten: Option<([u32; 3], [u32; 3])>,
     /// The last re-mesh failed part way: the next one meshes the whole clay.
     stale: bool,
     /// The triangles the last call took out of the kept mesh, with their centroids where
     /// they were (see [`AdaptiveMesher::removed_triangles`]).
     removed: Vec<SlotTriangle>,
-    /// The first of `polygons` the last call made (0 after a whole mesh).
-    first_made: usize,
+    /// The polygons the last local re-mesh made (after a whole mesh, every polygon is new and
+    /// this is empty).
+    made: Vec<[u32; 4]>,
+    /// The last call meshed the whole clay.
+    made_whole: bool,
     /// The split tests' coefficient reads, kept within one update of the tree.
     reads: CoefficientReads,
     /// A local re-mesh's corner samples inside its region, taken together.
@@ -345,11 +353,13 @@ struct Region {
 }
 
 impl Region {
+    #[inline]
     fn meets(&self, node: &Node) -> bool {
-        (0..3).all(|a| {
-            i64::from(node.min[a]) <= self.hi[a]
-                && i64::from(node.min[a]) + i64::from(node.size) >= self.lo[a]
-        })
+        let meets_along = |a: usize| {
+            let min = i64::from(node.min[a]);
+            min <= self.hi[a] && min + i64::from(node.size) >= self.lo[a]
+        };
+        meets_along(0) && meets_along(1) && meets_along(2)
     }
 }
 
@@ -373,16 +383,19 @@ impl AdaptiveMesher {
             touched: vec![0],
             generation: 0,
             vertices: VertexSlots::default(),
-            polygons: Vec::new(),
+            polygons: PolygonBuckets::default(),
+            forgotten: None,
             stale: false,
             removed: Vec::new(),
-            first_made: 0,
+            made: Vec::new(),
+            made_whole: true,
             reads: CoefficientReads::default(),
             region_samples: RegionSamples::default(),
         };
         mesher.update_tree(field, None)?;
         mesher.cell_proc(field, None, 0);
         mesher.corners = HashMap::default();
+        mesher.forgotten = None;
         Ok(mesher)
     }
 
@@ -486,6 +499,7 @@ impl AdaptiveMesher {
         }
         self.frame = frames;
         self.tree.targets = tree.targets;
+        self.tree.floors = tree.floors;
         LayoutChange::Patches { lo, hi }
     }
 
@@ -509,7 +523,7 @@ impl AdaptiveMesher {
             leaves: self.tree.leaves,
             vertices_made: self.vertices.positions.len(),
             polygons_dropped: 0,
-            polygons_made: self.polygons.len(),
+            polygons_made: self.polygons.count,
         })
     }
 
@@ -523,7 +537,8 @@ impl AdaptiveMesher {
     ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
         let mut report = AdaptiveRemeshReport::default();
         self.removed.clear();
-        self.first_made = self.polygons.len();
+        self.made.clear();
+        self.made_whole = false;
         if lo.cmpgt(hi).any() {
             report.leaves = self.tree.leaves;
             return Ok(report);
@@ -541,24 +556,23 @@ impl AdaptiveMesher {
             }
         };
         let kept_vertices = self.vertices.positions.len() - self.vertices.free.len();
-        let (alive, positions) = (&self.vertices.alive, &self.vertices.positions);
-        let removed = &mut self.removed;
-        let polygons_before = self.polygons.len();
         // A dropped vertex's slot keeps its position until a vertex made below takes it, so
         // the dropped triangles are named here, split as they were made.
-        self.polygons.retain(|p| {
-            let kept = p.iter().all(|&v| alive[v as usize]);
-            if !kept {
-                removed.extend(slot_triangles(*p, positions));
-            }
-            kept
-        });
-        report.polygons_dropped = polygons_before - self.polygons.len();
-        self.first_made = self.polygons.len();
+        if let Some((lo, hi)) = self.forgotten.take() {
+            let (alive, positions) = (&self.vertices.alive, &self.vertices.positions);
+            let removed = &mut self.removed;
+            report.polygons_dropped = self.polygons.drop_where(lo, hi, |p| {
+                let kept = p.iter().all(|&v| alive[v as usize]);
+                if !kept {
+                    removed.extend(slot_triangles(*p, positions));
+                }
+                !kept
+            });
+        }
         self.cell_proc(field, Some(&region), 0);
         self.region_samples.dims = [0; 3];
         self.corners.clear();
-        report.polygons_made = self.polygons.len() + report.polygons_dropped - polygons_before;
+        report.polygons_made = self.made.len();
         report.vertices_made =
             self.vertices.positions.len() - self.vertices.free.len() - kept_vertices;
         report.leaves = self.tree.leaves;
@@ -578,8 +592,14 @@ impl AdaptiveMesher {
     /// triangle).
     pub fn made_triangles(&self) -> impl Iterator<Item = SlotTriangle> + '_ {
         let positions = &self.vertices.positions;
-        self.polygons[self.first_made.min(self.polygons.len())..]
-            .iter()
+        let made: &[[u32; 4]] = if self.made_whole { &[] } else { &self.made };
+        let all = self
+            .made_whole
+            .then(|| self.polygons.iter())
+            .into_iter()
+            .flatten();
+        made.iter()
+            .chain(all)
             .flat_map(move |p| slot_triangles(*p, positions))
     }
 
@@ -627,7 +647,7 @@ impl AdaptiveMesher {
             mesh: TriMesh {
                 positions: Vec::with_capacity(vertices),
                 normals: Vec::with_capacity(vertices),
-                triangles: Vec::with_capacity(2 * self.polygons.len()),
+                triangles: Vec::with_capacity(2 * self.polygons.count),
             },
             vertex_cells: Vec::with_capacity(vertices),
         };
@@ -637,7 +657,7 @@ impl AdaptiveMesher {
             out.mesh.normals.push(slots.normals[s]);
             out.vertex_cells.push(slots.cells[s]);
         }
-        for polygon in &self.polygons {
+        for polygon in self.polygons.iter() {
             triangulate(
                 polygon.map(|s| index[s as usize]),
                 &out.mesh.positions,
@@ -690,10 +710,17 @@ impl AdaptiveMesher {
         coords(1, &mut samples.ys);
         coords(2, &mut samples.zs);
         samples.values.resize(count, 0.0);
-        field.values_on_grid(&samples.xs, &samples.ys, &samples.zs, &mut samples.values);
+        field.values_on_grid_with(
+            &samples.xs,
+            &samples.ys,
+            &samples.zs,
+            &mut samples.values,
+            &mut samples.term,
+        );
         // On the root's boundary no more than the iso-level (as `corner_value`).
+        let on_boundary = (0..3).any(|a| lo[a] == 0 || hi[a] == root);
         let mut at = 0;
-        for z in lo[2]..=hi[2] {
+        for z in (lo[2]..=hi[2]).filter(|_| on_boundary) {
             for y in lo[1]..=hi[1] {
                 for x in lo[0]..=hi[0] {
                     if [x, y, z].iter().any(|&c| c == 0 || c == root) {
@@ -714,7 +741,9 @@ impl AdaptiveMesher {
         self.corners.clear();
         self.stale = true;
         self.removed.clear();
-        self.first_made = 0;
+        self.made.clear();
+        self.made_whole = true;
+        self.forgotten = None;
         self.polygons.clear();
         self.vertices = VertexSlots::default();
         self.vertex_of.iter_mut().for_each(|v| *v = NO_VERTEX);
@@ -733,18 +762,15 @@ impl AdaptiveMesher {
         // The coefficients may have changed since the last update.
         self.reads.clear();
         self.reads.remember = region.is_some();
-        // The region's world box: where the split tests of large nodes are decided.
-        let near = region.map(|r| {
+        if let Some(r) = region {
+            // The small nodes of the region, and those reaching a little beyond it, read
+            // their blocks from the window tables.
             let at = |p: [i64; 3]| {
                 self.tree.origin + self.tree.unit * Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)
             };
-            (at(r.lo), at(r.hi))
-        });
-        if let Some((lo, hi)) = near {
-            // The small nodes of the region, and those reaching a little beyond it, read
-            // their blocks from the window tables.
             let reach = Vec3::splat(WindowTables::REACH_CELLS * self.tree.unit);
-            self.reads.prepare_windows(field, lo - reach, hi + reach);
+            self.reads
+                .prepare_windows(field, at(r.lo) - reach, at(r.hi) + reach);
         }
         // (node, new in this call)
         let mut stack = vec![(0_u32, region.is_none())];
@@ -756,7 +782,7 @@ impl AdaptiveMesher {
             let split = self.tree.should_split(
                 field,
                 &node,
-                near,
+                region,
                 &mut self.reads,
                 Some(&self.region_samples),
             );
@@ -842,6 +868,15 @@ impl AdaptiveMesher {
         let slot = std::mem::replace(&mut self.vertex_of[n as usize], NO_VERTEX);
         if slot != NO_VERTEX {
             self.vertices.remove(slot);
+            let node = &self.tree.nodes[n as usize];
+            let (lo, hi) = (node.min, node.corner(7));
+            self.forgotten = Some(match self.forgotten {
+                None => (lo, hi),
+                Some((a, b)) => (
+                    std::array::from_fn(|k| a[k].min(lo[k])),
+                    std::array::from_fn(|k| b[k].max(hi[k])),
+                ),
+            });
         }
     }
 
@@ -873,10 +908,18 @@ impl AdaptiveMesher {
 
     /// The field at an integer corner; on the root's boundary no more than the iso-level, so
     /// everything outside the root counts as outside.
+    #[inline]
     fn corner_value(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
-        if let Some(at) = self.region_samples.index(p) {
-            return self.region_samples.values[at];
+        match self.region_samples.index(p) {
+            Some(at) => self.region_samples.values[at],
+            None => self.corner_value_beyond_block(field, p),
         }
+    }
+
+    /// [`AdaptiveMesher::corner_value`] of a corner that the region's block does not hold:
+    /// from the corner cache, or sampled.
+    #[inline(never)]
+    fn corner_value_beyond_block(&mut self, field: &MultiPatchField, p: [u32; 3]) -> f32 {
         let key = corner_key(p);
         if let Some(&v) = self.corners.get(&key) {
             return v;
@@ -896,22 +939,22 @@ impl AdaptiveMesher {
     /// The vertex of leaf `n`, made on first use: the mass point of the crossings on the
     /// leaf's twelve edges (its centre when none crosses: the surface enters it only through
     /// smaller neighbours' edges), then two Newton steps toward `F = iso` along the gradient,
-    /// each clamped to the leaf's box.
+    /// each clamped to the leaf's box; its normal `−∇F/|∇F|` where the second step started.
     fn vertex(&mut self, field: &MultiPatchField, n: u32) -> u32 {
         if self.vertex_of[n as usize] != NO_VERTEX {
             return self.vertex_of[n as usize];
         }
         let node = self.tree.nodes[n as usize];
         let values: [f32; 8] = std::array::from_fn(|c| self.corner_value(field, node.corner(c)));
-        let (lo, hi) = self.tree.world_box(&node);
+        let points: [Vec3; 8] = std::array::from_fn(|c| self.tree.point(node.corner(c)));
+        let (lo, hi) = (points[0], points[7]);
         let (mut sum, mut count) = (Vec3::ZERO, 0_u32);
         for a in 0..3 {
             for c in (0..8).filter(|c| c & (1 << a) == 0) {
                 let (v0, v1) = (values[c], values[c | 1 << a]);
                 if self.inside(v0) != self.inside(v1) {
                     let t = ((self.iso - v0) / (v1 - v0)).clamp(0.0, 1.0);
-                    let p0 = self.tree.point(node.corner(c));
-                    let p1 = self.tree.point(node.corner(c | 1 << a));
+                    let (p0, p1) = (points[c], points[c | 1 << a]);
                     sum += p0 + (p1 - p0) * t;
                     count += 1;
                 }
@@ -922,14 +965,20 @@ impl AdaptiveMesher {
         } else {
             (lo + hi) * 0.5
         };
+        // The normal is the last step's gradient, taken where that step started (within a
+        // Newton step of the vertex, so nearly on the surface already): a third evaluation of
+        // every patch at the vertex itself cost a twentieth of the window's re-mesh in
+        // `bench/profile_adaptive.rs`.
+        let mut gradient = Vec3::ZERO;
         for _ in 0..2 {
             let (v, g) = field.value_and_gradient(x);
             let g2 = g.length_squared();
             if g2 > 1e-20 && g2.is_finite() {
                 x = (x - g * ((v - self.iso) / g2)).clamp(lo, hi);
             }
+            gradient = g;
         }
-        let normal = -field.value_and_gradient(x).1.normalize_or_zero();
+        let normal = -gradient.normalize_or_zero();
         let slot = self
             .vertices
             .add(x, normal, node.size as f32 * self.tree.unit);
@@ -999,14 +1048,16 @@ impl AdaptiveMesher {
             let f = 3 - a - e;
             let (p, r) = ((e + 1) % 3, (e + 2) % 3);
             for h in 0..2 {
-                let cells = AROUND.map(|[qp, qr]| {
+                let mut cells = [0_u32; 4];
+                for (cell, [qp, qr]) in cells.iter_mut().zip(AROUND) {
                     let mut bit = [0_usize; 3];
                     bit[p] = qp;
                     bit[r] = qr;
                     let node = if bit[a] == 0 { low } else { high };
-                    self.tree
-                        .child_or_leaf(node, (1 - bit[a]) << a | bit[f] << f | h << e)
-                });
+                    *cell = self
+                        .tree
+                        .child_or_leaf(node, (1 - bit[a]) << a | bit[f] << f | h << e);
+                }
                 self.edge_proc(field, region, cells, e);
             }
         }
@@ -1066,7 +1117,93 @@ impl AdaptiveMesher {
         if !in0 {
             ids.reverse();
         }
-        self.polygons.push(ids);
+        self.polygons.push(node.corner(base), ids);
+        if !self.made_whole {
+            self.made.push(ids);
+        }
+    }
+}
+
+/// The kept polygons in buckets of 2^[`PolygonBuckets::SHIFT`] finest cells a side, by the low
+/// end of their minimal edge, so that a local re-mesh looks for the polygons using a dropped
+/// vertex only in the buckets that meet the dropped leaves' box (a polygon's minimal edge
+/// lies on the box of each of its four leaves), not over the whole mesh: the sweep over every
+/// polygon cost 6% of the window's re-mesh in `bench/profile_adaptive.rs`.
+#[derive(Clone, Debug, Default)]
+struct PolygonBuckets {
+    /// The polygons of each bucket, buckets in the order they were first used.
+    buckets: Vec<Vec<[u32; 4]>>,
+    /// Each bucket's coordinates (integer corner shifted right by [`PolygonBuckets::SHIFT`]).
+    coords: Vec<[u32; 3]>,
+    /// The bucket at each coordinate key ([`corner_key`]).
+    at: HashMap<u64, u32, BuildHasherDefault<EdgeIdHasher>>,
+    /// Polygons held.
+    count: usize,
+}
+
+impl PolygonBuckets {
+    /// Log2 of a bucket's edge in finest cells.
+    const SHIFT: u32 = 5;
+
+    fn clear(&mut self) {
+        self.buckets.clear();
+        self.coords.clear();
+        self.at.clear();
+        self.count = 0;
+    }
+
+    /// Adds `polygon`, whose minimal edge's low end is the integer corner `edge`.
+    fn push(&mut self, edge: [u32; 3], polygon: [u32; 4]) {
+        let coord = edge.map(|c| c >> Self::SHIFT);
+        let next = self.buckets.len() as u32;
+        let b = *self.at.entry(corner_key(coord)).or_insert(next);
+        if b == next {
+            self.buckets.push(Vec::new());
+            self.coords.push(coord);
+        }
+        self.buckets[b as usize].push(polygon);
+        self.count += 1;
+    }
+
+    /// Every polygon, bucket by bucket.
+    fn iter(&self) -> impl Iterator<Item = &[u32; 4]> {
+        self.buckets.iter().flatten()
+    }
+
+    /// Drops the polygons for which `drop` holds among those whose minimal edge lies in the
+    /// integer box `lo ..= hi` (and others of the buckets meeting it); returns how many.
+    fn drop_where(
+        &mut self,
+        lo: [u32; 3],
+        hi: [u32; 3],
+        mut drop: impl FnMut(&[u32; 4]) -> bool,
+    ) -> usize {
+        let (a, b) = (lo.map(|c| c >> Self::SHIFT), hi.map(|c| c >> Self::SHIFT));
+        let spanned: u64 = (0..3).map(|k| u64::from(b[k] - a[k]) + 1).product();
+        let before = self.count;
+        let mut sweep = |bucket: &mut Vec<[u32; 4]>, count: &mut usize| {
+            let held = bucket.len();
+            bucket.retain(|p| !drop(p));
+            *count -= held - bucket.len();
+        };
+        if spanned <= self.buckets.len() as u64 {
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        if let Some(&at) = self.at.get(&corner_key([x, y, z])) {
+                            sweep(&mut self.buckets[at as usize], &mut self.count);
+                        }
+                    }
+                }
+            }
+        } else {
+            for (bucket, c) in self.buckets.iter_mut().zip(&self.coords) {
+                if (0..3).all(|k| a[k] <= c[k] && c[k] <= b[k]) {
+                    sweep(bucket, &mut self.count);
+                }
+            }
+        }
+        before - self.count
     }
 }
 
@@ -1087,6 +1224,8 @@ struct RegionSamples {
     /// Summed-volume table of the inside corners: entry `(x, y, z)` (of `dims + 1` per axis,
     /// x fastest) counts the inside corners below `x`, `y` and `z`.
     inside_below: Vec<u32>,
+    /// One patch's term per corner (scratch of [`MultiPatchField::values_on_grid_with`]).
+    term: Vec<f32>,
     /// World coordinates of the corners along each axis.
     xs: Vec<f32>,
     ys: Vec<f32>,
@@ -1102,28 +1241,38 @@ impl RegionSamples {
     /// the region and reach past it find their corners there too.
     const MARGIN: i64 = 2;
 
-    /// Fills [`RegionSamples::inside_below`] from the values.
+    /// Fills [`RegionSamples::inside_below`] from the values: the inside corners counted
+    /// along x, then those counts summed along y, then along z (three passes of one addition
+    /// per entry, over whole rows).
     fn count_inside(&mut self, iso: f32) {
         let [nx, ny, nz] = self.dims;
         let (sx, sy) = (nx + 1, (nx + 1) * (ny + 1));
         self.inside_below.clear();
         self.inside_below.resize(sy * (nz + 1), 0);
         let table = &mut self.inside_below;
-        let mut at = 0;
-        for z in 0..nz {
-            for y in 0..ny {
-                for x in 0..nx {
-                    let inside = u32::from(self.values[at] > iso);
-                    let t = (x + 1) + sx * (y + 1) + sy * (z + 1);
-                    // Inclusion and exclusion over the seven table entries below.
-                    table[t] = inside + table[t - 1] + table[t - sx] + table[t - sy]
-                        - table[t - 1 - sx]
-                        - table[t - 1 - sy]
-                        - table[t - sx - sy]
-                        + table[t - 1 - sx - sy];
-                    at += 1;
-                }
+        for (row, values) in self.values.chunks_exact(nx).enumerate() {
+            let (y, z) = (row % ny, row / ny);
+            let at = sx * (y + 1) + sy * (z + 1);
+            let mut count = 0;
+            for (x, &v) in values.iter().enumerate() {
+                count += u32::from(v > iso);
+                table[at + x + 1] = count;
             }
+        }
+        for z in 1..=nz {
+            for y in 2..=ny {
+                let at = sx * y + sy * z;
+                let (below, row) = table[at - sx..at + sx].split_at_mut(sx);
+                row.iter_mut().zip(below.iter()).for_each(|(t, b)| *t += b);
+            }
+        }
+        for z in 2..=nz {
+            let at = sy * z;
+            let (below, plane) = table[at - sy..at + sy].split_at_mut(sy);
+            plane
+                .iter_mut()
+                .zip(below.iter())
+                .for_each(|(t, b)| *t += b);
         }
     }
 
@@ -1302,6 +1451,9 @@ struct Tree {
     root_size: u32,
     /// Per patch: its world support and its target cell edge (world units).
     targets: Vec<(Vec3, Vec3, f32)>,
+    /// Per patch: its lattice coordinates' floors at the integer corners (`None` for a
+    /// patch with a map), so a split test finds a node's coefficients without arithmetic.
+    floors: Vec<Option<CornerFloors>>,
     /// First nodes of blocks of eight that a collapse took out of the tree, for reuse.
     free_blocks: Vec<u32>,
 }
@@ -1359,6 +1511,11 @@ impl Tree {
                 leaves: 1,
             });
         }
+        let floors = field
+            .patches
+            .iter()
+            .map(|p| CornerFloors::of(p, origin, unit, root_size))
+            .collect();
         Ok(Self {
             nodes: vec![Node {
                 min: [0; 3],
@@ -1373,6 +1530,7 @@ impl Tree {
                 .into_iter()
                 .map(|(lo, hi, t)| (lo, hi, t / unit))
                 .collect(),
+            floors,
             free_blocks: Vec::new(),
         })
     }
@@ -1413,31 +1571,43 @@ impl Tree {
         Ok(tree)
     }
 
+    /// Nodes larger than this many finest cells a side, reaching beyond a local re-mesh's
+    /// region, read the part inside it first (see [`Tree::should_split`]).
+    const PART_FIRST_CELLS: u32 = 4;
+
     /// Whether `node` splits: while the field may cross the iso-level inside it and its edge
     /// is longer than the finest target among the patches holding detail there. Reads the
     /// field inside the node's box only (so a change elsewhere never changes the answer).
     ///
-    /// `near`, when given, is a world box where the answer is likely to be decided (a local
-    /// re-mesh's changed region): the coefficients over the part of the node inside it are
-    /// read first, and where they alone prove a split the rest are not read (see
-    /// [`SplitInputs::splits`]); otherwise the whole node is read.
+    /// `near`, when given, is a box of integer corners where the answer is likely to be
+    /// decided (a local re-mesh's changed region): the coefficients over the part of a node
+    /// larger than [`Tree::PART_FIRST_CELLS`] inside it are read first, and where they alone
+    /// prove a split the rest are not read (see [`SplitInputs::splits`]); otherwise the whole
+    /// node is read.
     fn should_split(
         &self,
         field: &MultiPatchField,
         node: &Node,
-        near: Option<(Vec3, Vec3)>,
+        near: Option<&Region>,
         reads: &mut CoefficientReads,
         samples: Option<&RegionSamples>,
     ) -> bool {
         if node.size == 1 {
             return false;
         }
-        let (lo, hi) = self.world_box(node);
-        if let Some((near_lo, near_hi)) = near {
-            let (part_lo, part_hi) = (lo.max(near_lo), hi.min(near_hi));
+        let (lo, hi) = (node.min, node.corner(7));
+        // A small node's whole read costs little more than a part's: it is read once.
+        if let Some(near) = near.filter(|_| node.size > Self::PART_FIRST_CELLS) {
+            // The corners' world positions grow with their integer coordinates, so the part's
+            // world box is the node's world box clipped to the region's.
+            let part_lo: [u32; 3] = std::array::from_fn(|a| {
+                i64::from(lo[a]).max(near.lo[a]).min(i64::from(u32::MAX)) as u32
+            });
+            let part_hi: [u32; 3] =
+                std::array::from_fn(|a| i64::from(hi[a]).min(near.hi[a]).max(0) as u32);
             let smaller = part_lo != lo || part_hi != hi;
             if smaller
-                && part_lo.cmple(part_hi).all()
+                && (0..3).all(|a| part_lo[a] <= part_hi[a])
                 && self
                     .split_inputs(field, (lo, hi), (part_lo, part_hi), reads)
                     .splits(self, field, node, samples)
@@ -1449,16 +1619,16 @@ impl Tree {
             .splits(self, field, node, samples)
     }
 
-    /// The split test's inputs for the node with world box `node_box`, from the coefficients
-    /// whose support meets `read_box` (the node's box or a part of it).
+    /// The split test's inputs for the node with integer box `node_box`, from the
+    /// coefficients whose support meets `read_box` (the node's box or a part of it).
     fn split_inputs(
         &self,
         field: &MultiPatchField,
-        node_box: (Vec3, Vec3),
-        read_box: (Vec3, Vec3),
+        node_box: ([u32; 3], [u32; 3]),
+        read_box: ([u32; 3], [u32; 3]),
         reads: &mut CoefficientReads,
     ) -> SplitInputs {
-        let (lo, hi) = node_box;
+        let (lo, hi) = (self.point(node_box.0), self.point(node_box.1));
         // One read of each patch's coefficients over the box gives the finest target among
         // the patches that hold detail in it (in cells), the field's convex-hull bound and a
         // bound on its slope.
@@ -1467,10 +1637,22 @@ impl Tree {
             bounds: Some((0.0, 0.0)),
             slope: 0.0,
         };
-        for (n, ((slo, shi, cells), patch)) in self.targets.iter().zip(&field.patches).enumerate() {
-            let over = reads.over_box(n, patch, read_box.0, read_box.1);
+        for (n, (((slo, shi, cells), floors), patch)) in self
+            .targets
+            .iter()
+            .zip(&self.floors)
+            .zip(&field.patches)
+            .enumerate()
+        {
+            let range = match floors {
+                Some(floors) => floors.range(read_box.0, read_box.1, patch.lattice.dims),
+                None => CoefficientRange::of(patch, self.point(read_box.0), self.point(read_box.1)),
+            };
+            let over = reads.over_box(n, patch, range);
             let meets = lo.cmplt(*shi).all() && hi.cmpgt(*slo).all();
-            if meets && (n == 0 || over.holds_detail(patch)) {
+            // A patch with corner floors has no map.
+            let mapped = floors.is_none() && !patch.is_identity();
+            if meets && (n == 0 || over.holds_detail(mapped)) {
                 inputs.target_cells = inputs.target_cells.min(*cells);
             }
             inputs.bounds = inputs
@@ -1493,6 +1675,7 @@ impl Tree {
     }
 
     /// `n` itself when it is a leaf, else its child `c`.
+    #[inline]
     fn child_or_leaf(&self, n: u32, c: usize) -> u32 {
         let node = &self.nodes[n as usize];
         if node.is_leaf() {
@@ -1595,9 +1778,9 @@ struct PatchOverBox {
 
 impl PatchOverBox {
     /// Whether the patch may add more than [`DETAIL_EPSILON`] anywhere in the box (a patch
-    /// with a map, whose bound is taken over a larger box, always may).
-    fn holds_detail(&self, patch: &Patch) -> bool {
-        if !patch.is_identity() {
+    /// with a map, `mapped`, whose bound is taken over a larger box, always may).
+    fn holds_detail(&self, mapped: bool) -> bool {
+        if mapped {
             return true;
         }
         match self.bounds {
@@ -1655,6 +1838,124 @@ impl CoefficientRange {
     }
 }
 
+/// One patch's lattice coordinates at the octree's integer corners, floored, per axis: the
+/// coefficient range of a node's box ([`CoefficientRange::of`] of its world box) read from
+/// six table entries instead of mapping the box's corners into the lattice and rounding them
+/// per node and patch (a tenth of a local re-mesh in `bench/profile_adaptive.rs`). Only for a
+/// patch without a map, whose lattice coordinates along an axis depend on that axis alone.
+///
+/// Each floor is saturated to `LOWEST ..= dims + 3`: the ranges [`CoefficientRange::of`]
+/// makes from the floors (one below and two above, clamped to the lattice) are the same
+/// for every floor beyond those. Corners before the table's first (after its last) along an
+/// axis floor at or below (at or above) the table's first (last) entry, which is saturated:
+/// so the table covers the patch's support and a little more, not the whole root.
+#[derive(Clone, Debug)]
+struct CornerFloors {
+    /// Per axis: the integer coordinate of the table's first entry.
+    first: [u32; 3],
+    /// Per axis: the saturated floor of the lattice coordinate at each integer coordinate
+    /// from `first`.
+    floors: [Vec<i32>; 3],
+    /// Per axis: the highest saturated floor, `dims + 3`.
+    highest: [i32; 3],
+}
+
+impl CornerFloors {
+    /// The lowest saturated floor.
+    const LOWEST: i32 = -4;
+
+    /// The tables of `patch` for the octree's corners `origin + unit · c`, `c` in
+    /// `0 ..= root_size` per axis; `None` for a patch with a map, a lattice too large for
+    /// the saturated floors, or a corner whose lattice coordinate is not finite.
+    fn of(patch: &Patch, origin: Vec3, unit: f32, root_size: u32) -> Option<Self> {
+        if !patch.is_identity() {
+            return None;
+        }
+        let l = &patch.lattice;
+        let mut first = [0_u32; 3];
+        let mut floors: [Vec<i32>; 3] = Default::default();
+        let mut highest = [0_i32; 3];
+        for a in 0..3 {
+            let n = i32::try_from(l.dims[a])
+                .ok()
+                .filter(|n| *n < i32::MAX - 3)?;
+            highest[a] = n + 3;
+            // As `Tree::point` and `BSplineLattice::to_lattice` compute it, axis by axis.
+            let lattice_at = |c: u32| (origin[a] + unit * c as f32 - l.origin[a]) / l.spacing;
+            let saturated =
+                |u: f32| floor_to_int(u).clamp(i64::from(Self::LOWEST), i64::from(n + 3)) as i32;
+            // A first guess at the corners where the floor leaves its saturated ends, then
+            // widened until the ends are reached (or the root's sides).
+            let corner_of = |x: f32| ((x - origin[a]) / unit).clamp(0.0, root_size as f32);
+            let low_end = l.origin[a] + l.spacing * (Self::LOWEST as f32);
+            let high_end = l.origin[a] + l.spacing * (n + 3) as f32;
+            let mut from = (corner_of(low_end) as u32).saturating_sub(1);
+            let mut to = ((corner_of(high_end) as u32).saturating_add(1))
+                .min(root_size)
+                .max(from);
+            while from > 0 && saturated(lattice_at(from)) > Self::LOWEST {
+                from -= 1;
+            }
+            while to < root_size && saturated(lattice_at(to)) < n + 3 {
+                to += 1;
+            }
+            let mut table = Vec::with_capacity((to - from + 1) as usize);
+            for c in from..=to {
+                let u = lattice_at(c);
+                if !u.is_finite() {
+                    return None;
+                }
+                table.push(saturated(u));
+            }
+            first[a] = from;
+            floors[a] = table;
+        }
+        Some(Self {
+            first,
+            floors,
+            highest,
+        })
+    }
+
+    /// The saturated floor at integer coordinate `c` along axis `a`.
+    #[inline]
+    fn floor(&self, a: usize, c: u32) -> i64 {
+        let table = &self.floors[a];
+        let at = c.wrapping_sub(self.first[a]) as usize;
+        i64::from(match table.get(at) {
+            Some(&f) => f,
+            None if c < self.first[a] => Self::LOWEST,
+            None => self.highest[a],
+        })
+    }
+
+    /// [`CoefficientRange::of`] the world box of the integer corners `lo ..= hi` (for the
+    /// lattice of `dims` these tables were made of).
+    #[inline]
+    fn range(&self, lo: [u32; 3], hi: [u32; 3], dims: [usize; 3]) -> CoefficientRange {
+        let mut first = [0_usize; 3];
+        let mut last = [0_usize; 3];
+        let mut beyond = false;
+        for axis in 0..3 {
+            let n = dims[axis] as i64;
+            let from = self.floor(axis, lo[axis]) - 1;
+            let to = self.floor(axis, hi[axis]) + 2;
+            beyond |= from < 0 || to >= n;
+            let (from, to) = (from.max(0), to.min(n - 1));
+            if from > to {
+                return CoefficientRange::Empty;
+            }
+            first[axis] = from as usize;
+            last[axis] = to as usize;
+        }
+        CoefficientRange::Block {
+            first,
+            last,
+            beyond,
+        }
+    }
+}
+
 /// The split tests' reads of the patches' coefficients, remembered by patch and range for
 /// as long as the coefficients stay as they are (one update of the tree) in a local update:
 /// its nodes are small and close together, so most of them read the same blocks of the
@@ -1693,9 +1994,8 @@ impl CoefficientReads {
         }
     }
 
-    /// The read of patch `n` (`patch`) over the world box `lo..=hi`.
-    fn over_box(&mut self, n: usize, patch: &Patch, lo: Vec3, hi: Vec3) -> PatchOverBox {
-        let range = CoefficientRange::of(patch, lo, hi);
+    /// The read of patch `n` (`patch`) of its coefficients `range`.
+    fn over_box(&mut self, n: usize, patch: &Patch, range: CoefficientRange) -> PatchOverBox {
         if !self.remember {
             return read_coefficients(patch, range);
         }
@@ -1759,6 +2059,8 @@ struct WindowTables {
     /// Per quantity (see [`WindowTables::QUANTITIES`]) and window length `w` (from 1): at
     /// block coordinate `(i, j, k)` (x fastest), the fold of the quantity over `i .. i + w`.
     folds: Vec<f32>,
+    /// The patch's [`Patch::world_spacing`], which scales its slope bounds.
+    world_spacing: f32,
 }
 
 impl WindowTables {
@@ -1833,6 +2135,7 @@ impl WindowTables {
         }
         self.lo = first;
         self.dims = dims;
+        self.world_spacing = patch.world_spacing();
     }
 
     /// The read of the coefficients `first ..= last` of `patch` (every one inside its
@@ -1853,28 +2156,36 @@ impl WindowTables {
         let i = first[0] - self.lo[0];
         let (j0, j1) = (first[1] - self.lo[1], last[1] - self.lo[1]);
         let (k0, k1) = (first[2] - self.lo[2], last[2] - self.lo[2]);
-        let window = |w: usize, q: usize, j: usize, k: usize| {
-            self.folds[(w - 1) * plane + q * count + i + nx * (j + ny * k)]
-        };
-        let (mut vmin, mut vmax, mut steepest) = (f32::INFINITY, f32::NEG_INFINITY, 0.0_f32);
+        // Each quantity's table for its window length.
+        let table = |w: usize, q: usize| &self.folds[(w - 1) * plane + q * count..][..count];
+        let (mins, maxs) = (table(len, 0), table(len, 1));
+        let (y_steps, z_steps) = (table(len, 3), table(len, 4));
+        let x_steps = (len > 1).then(|| table(len - 1, 2));
+        // The steps are folded per axis and joined at the end: they are absolute values or
+        // −∞, never NaN or −0, so their largest is the same in any order (the minima and
+        // maxima keep [`read_coefficients`]' order, which decides the sign of a zero).
+        let (mut vmin, mut vmax) = (f32::INFINITY, f32::NEG_INFINITY);
+        let mut steepest = [0.0_f32; 3];
         for k in k0..=k1 {
             for j in j0..=j1 {
-                vmin = smaller(vmin, window(len, 0, j, k));
-                vmax = larger(vmax, window(len, 1, j, k));
-                if len > 1 {
-                    steepest = larger(steepest, window(len - 1, 2, j, k));
+                let row = i + nx * (j + ny * k);
+                vmin = smaller(vmin, mins[row]);
+                vmax = larger(vmax, maxs[row]);
+                if let Some(x_steps) = x_steps {
+                    steepest[0] = larger(steepest[0], x_steps[row]);
                 }
                 if j < j1 {
-                    steepest = larger(steepest, window(len, 3, j, k));
+                    steepest[1] = larger(steepest[1], y_steps[row]);
                 }
                 if k < k1 {
-                    steepest = larger(steepest, window(len, 4, j, k));
+                    steepest[2] = larger(steepest[2], z_steps[row]);
                 }
             }
         }
+        let steepest = larger(larger(steepest[0], steepest[1]), steepest[2]);
         Some(PatchOverBox {
             bounds: Some((vmin, vmax)),
-            slope: 3.0_f32.sqrt() * steepest / patch.world_spacing(),
+            slope: 3.0_f32.sqrt() * steepest / self.world_spacing,
         })
     }
 }
@@ -2634,6 +2945,23 @@ pub(super) mod tests {
             }
         }
         samples.count_inside(6.0);
+        // Every entry of the table counts the inside corners below it, as one by one.
+        let (sx, sy) = (dims[0] + 1, (dims[0] + 1) * (dims[1] + 1));
+        for z in 0..=dims[2] {
+            for y in 0..=dims[1] {
+                for x in 0..=dims[0] {
+                    let below = (0..z)
+                        .flat_map(|k| (0..y).flat_map(move |j| (0..x).map(move |i| [i, j, k])))
+                        .filter(|p| value(std::array::from_fn(|a| lo[a] + p[a] as u32)) > 6.0)
+                        .count();
+                    assert_eq!(
+                        samples.inside_below[x + sx * y + sy * z] as usize,
+                        below,
+                        "below ({x}, {y}, {z})"
+                    );
+                }
+            }
+        }
         let (mut uniform, mut mixed) = (0, 0);
         for (a, b) in [
             ([3, 4, 5], [9, 8, 10]),
@@ -2666,6 +2994,52 @@ pub(super) mod tests {
         assert!(
             uniform >= 2 && mixed >= 2,
             "{uniform} uniform, {mixed} mixed"
+        );
+    }
+
+    #[test]
+    fn corner_floors_give_the_coefficient_ranges_of_the_world_boxes() {
+        // The three-level clay's patches, one more whose origin and spacing are off the
+        // octree's lattice, and one with a map (which gets no tables).
+        let mut field = three_levels();
+        let odd =
+            BSplineLattice::zeros([7, 5, 6], SPACING / 3.0, Vec3::new(-0.123, 0.071, 0.2)).unwrap();
+        field.patches.push(Patch::identity(odd.clone()));
+        let mut mapped = Patch::identity(odd);
+        mapped.world_to_patch = Affine3A::from_rotation_z(0.3);
+        field.patches.push(mapped);
+        let tree = Tree::frame(&field, &options(4)).unwrap();
+        let last = field.patches.len() - 1;
+        assert!(tree.floors[last].is_none());
+        assert!(tree.floors[..last].iter().all(Option::is_some));
+        let root = tree.root_size;
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut below = |m: u32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % (u64::from(m) + 1)) as u32
+        };
+        let (mut empty, mut beyond, mut interior) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let size = 1 << below(root.trailing_zeros());
+            let lo: [u32; 3] = std::array::from_fn(|_| below(root - size));
+            let hi: [u32; 3] = std::array::from_fn(|a| lo[a] + below(size));
+            for (patch, floors) in field.patches.iter().zip(&tree.floors).take(last) {
+                let range = floors.as_ref().unwrap().range(lo, hi, patch.lattice.dims);
+                let world = CoefficientRange::of(patch, tree.point(lo), tree.point(hi));
+                assert_eq!(range, world, "{lo:?} ..= {hi:?}");
+                match range {
+                    CoefficientRange::Empty => empty += 1,
+                    CoefficientRange::Block { beyond: true, .. } => beyond += 1,
+                    CoefficientRange::Block { .. } => interior += 1,
+                    CoefficientRange::NotFinite => unreachable!(),
+                }
+            }
+        }
+        assert!(
+            empty > 100 && beyond > 100 && interior > 100,
+            "{empty} empty, {beyond} beyond, {interior} interior"
         );
     }
 

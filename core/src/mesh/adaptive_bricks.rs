@@ -45,6 +45,11 @@ pub struct AdaptiveBricks {
     triangles: ByBrick<Vec<[u32; 3]>>,
     /// Per vertex slot: its index in the piece being made, [`NOT_IN_PIECE`] elsewhere.
     piece_index: Vec<u32>,
+    /// Per vertex slot: the `mark` of the last cut whose removed triangles used it.
+    slot_marks: Vec<u32>,
+    /// Counts the cuts (from 1; 0 marks no slot). A mark left from long ago (after the count
+    /// wraps) only sends a kept triangle to the search, which keeps it.
+    mark: u32,
 }
 
 /// A slot that the piece being made does not use (yet).
@@ -65,6 +70,8 @@ impl AdaptiveBricks {
             mesher: AdaptiveMesher::new(field, options)?,
             triangles: ByBrick::default(),
             piece_index: Vec::new(),
+            slot_marks: Vec::new(),
+            mark: 0,
         };
         let report = cut.recut(octree);
         Ok((cut, report))
@@ -125,27 +132,51 @@ impl AdaptiveBricks {
             return Ok(self.recut(octree));
         }
         // Taken away first: a slot freed by a removed triangle may name a vertex of a made one.
-        let mut removed: ByBrick<Vec<[u32; 3]>> = ByBrick::default();
+        // The removed triangles by brick, sorted; their vertex slots marked, so that a kept
+        // triangle with an unmarked slot is passed over without a search.
+        self.mark = self.mark.wrapping_add(1).max(1);
+        let mut gone: Vec<([u32; 3], [u32; 3])> = Vec::new();
         for t in self.mesher.removed_triangles() {
-            removed
-                .entry(octree.brick_at(t.centroid))
-                .or_default()
-                .push(t.slots);
-        }
-        let mut dirty: Vec<[u32; 3]> = Vec::with_capacity(removed.len());
-        for (coord, mut gone) in removed {
-            if let Some(held) = self.triangles.get_mut(&coord) {
-                // A brick's triangles are distinct (each names its own slots), and the gone
-                // ones few: a sorted list answers as a set would.
-                gone.sort_unstable();
-                held.retain(|t| gone.binary_search(t).is_err());
+            gone.push((octree.brick_at(t.centroid), t.slots));
+            for &slot in &t.slots {
+                let s = slot as usize;
+                if s >= self.slot_marks.len() {
+                    self.slot_marks.resize(s + 1, 0);
+                }
+                self.slot_marks[s] = self.mark;
             }
-            dirty.push(coord);
         }
-        for t in self.mesher.made_triangles() {
+        gone.sort_unstable();
+        let mut dirty: Vec<[u32; 3]> = gone.iter().map(|g| g.0).collect();
+        dirty.dedup();
+        let (marks, mark) = (&self.slot_marks, self.mark);
+        let mut rest = &gone[..];
+        for &coord in &dirty {
+            let here = rest.partition_point(|g| g.0 == coord);
+            let (gone_here, later) = rest.split_at(here);
+            rest = later;
+            if let Some(held) = self.triangles.get_mut(&coord) {
+                // A brick's triangles are distinct (each names its own slots).
+                held.retain(|t| {
+                    !(t.iter().all(|&s| marks.get(s as usize) == Some(&mark))
+                        && gone_here.binary_search_by(|g| g.1.cmp(t)).is_ok())
+                });
+            }
+        }
+        let mesher = &self.mesher;
+        // Consecutive made triangles mostly fall in one brick: its list is looked up once.
+        let mut current: Option<([u32; 3], &mut Vec<[u32; 3]>)> = None;
+        for t in mesher.made_triangles() {
             let coord = octree.brick_at(t.centroid);
-            self.triangles.entry(coord).or_default().push(t.slots);
-            dirty.push(coord);
+            let held = match current.take() {
+                Some((c, held)) if c == coord => held,
+                _ => {
+                    dirty.push(coord);
+                    self.triangles.entry(coord).or_default()
+                }
+            };
+            held.push(t.slots);
+            current = Some((coord, held));
         }
         dirty.sort_unstable();
         dirty.dedup();

@@ -560,9 +560,12 @@ impl BrickOctree {
     pub fn brick_at(&self, p: Vec3) -> [u32; 3] {
         let span = self.grid.cell_size * BRICK_CELLS as f32;
         std::array::from_fn(|a| {
-            let b = ((p[a] - self.grid.origin[a]) / span).floor();
+            // Compared before rounding down (x86-64's baseline has no rounding instruction):
+            // below 1 (or NaN) the floor is at most 0, from `last` on it is at least `last`,
+            // and between, truncation is the floor.
+            let b = (p[a] - self.grid.origin[a]) / span;
             let last = self.brick_counts[a] - 1;
-            if b.is_nan() || b <= 0.0 {
+            if b.is_nan() || b < 1.0 {
                 0
             } else if b >= last as f32 {
                 last
