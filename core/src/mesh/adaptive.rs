@@ -1815,13 +1815,25 @@ impl CoefficientRange {
         if !(ua.is_finite() && ub.is_finite()) {
             return Self::NotFinite;
         }
+        Self::from_floors(
+            l.dims,
+            std::array::from_fn(|a| floor_to_int(ua[a])),
+            std::array::from_fn(|a| floor_to_int(ub[a])),
+        )
+    }
+
+    /// The coefficients of a lattice of `dims` whose support meets a box whose corners'
+    /// lattice coordinates have the floors `floor_lo` and `floor_hi` per axis: a cubic's
+    /// support reaches one node below a point's floor and two above it.
+    #[inline]
+    fn from_floors(dims: [usize; 3], floor_lo: [i64; 3], floor_hi: [i64; 3]) -> Self {
         let mut first = [0_usize; 3];
         let mut last = [0_usize; 3];
         let mut beyond = false;
         for axis in 0..3 {
-            let n = l.dims[axis] as i64;
-            let from = floor_to_int(ua[axis]) - 1;
-            let to = floor_to_int(ub[axis]) + 2;
+            let n = dims[axis] as i64;
+            let from = floor_lo[axis] - 1;
+            let to = floor_hi[axis] + 2;
             beyond |= from < 0 || to >= n;
             let (from, to) = (from.max(0), to.min(n - 1));
             if from > to {
@@ -1933,26 +1945,11 @@ impl CornerFloors {
     /// lattice of `dims` these tables were made of).
     #[inline]
     fn range(&self, lo: [u32; 3], hi: [u32; 3], dims: [usize; 3]) -> CoefficientRange {
-        let mut first = [0_usize; 3];
-        let mut last = [0_usize; 3];
-        let mut beyond = false;
-        for axis in 0..3 {
-            let n = dims[axis] as i64;
-            let from = self.floor(axis, lo[axis]) - 1;
-            let to = self.floor(axis, hi[axis]) + 2;
-            beyond |= from < 0 || to >= n;
-            let (from, to) = (from.max(0), to.min(n - 1));
-            if from > to {
-                return CoefficientRange::Empty;
-            }
-            first[axis] = from as usize;
-            last[axis] = to as usize;
-        }
-        CoefficientRange::Block {
-            first,
-            last,
-            beyond,
-        }
+        CoefficientRange::from_floors(
+            dims,
+            std::array::from_fn(|a| self.floor(a, lo[a])),
+            std::array::from_fn(|a| self.floor(a, hi[a])),
+        )
     }
 }
 
