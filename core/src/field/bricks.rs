@@ -84,14 +84,39 @@ impl BrickedCoeffs {
     pub fn from_slice(dims: [usize; 3], values: &[f32]) -> Self {
         let mut store = Self::zeros(dims);
         assert_eq!(values.len(), store.len(), "one value per coefficient");
-        let nx = dims[0];
-        for k in 0..dims[2] {
-            for j in 0..dims[1] {
-                let start = nx * (j + dims[1] * k);
-                store.write_row_at([0, j, k], &values[start..start + nx]);
+        let [nx, ny, _] = dims;
+        let [bx, by, bz] = store.bricks_per_axis;
+        // Brick by brick: a brick whose values are all equal is never made dense, so that the
+        // peak memory is the values given and the dense bricks kept.
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let extent = store.brick_extent([bi, bj, bk]);
+                    let [i0, j0, k0] = [bi, bj, bk].map(|b| b * COEFF_BRICK);
+                    let row = |b: usize, c: usize| {
+                        let start = i0 + nx * (j0 + b + ny * (k0 + c));
+                        &values[start..start + extent[0]]
+                    };
+                    let first = values[i0 + nx * (j0 + ny * k0)];
+                    let same = (0..extent[2]).all(|c| {
+                        (0..extent[1])
+                            .all(|b| row(b, c).iter().all(|v| v.to_bits() == first.to_bits()))
+                    });
+                    let at = bi + bx * (bj + by * bk);
+                    store.bricks[at] = if same {
+                        Brick::Uniform(first)
+                    } else {
+                        let mut dense = Box::new([0.0; COEFF_BRICK_VALUES]);
+                        for c in 0..extent[2] {
+                            for b in 0..extent[1] {
+                                dense[offset(0, b, c)..][..extent[0]].copy_from_slice(row(b, c));
+                            }
+                        }
+                        Brick::Dense(dense)
+                    };
+                }
             }
         }
-        store.compact();
         store
     }
 
@@ -248,7 +273,11 @@ impl BrickedCoeffs {
     /// When `n` is not below [`BrickedCoeffs::len`].
     #[inline]
     pub fn set_flat(&mut self, n: usize, value: f32) {
-        assert!(n < self.len(), "index {n} outside {} coefficients", self.len());
+        assert!(
+            n < self.len(),
+            "index {n} outside {} coefficients",
+            self.len()
+        );
         let [i, j, k] = self.coords(n);
         self.set(i, j, k, value);
     }
@@ -454,7 +483,12 @@ impl BrickedCoeffs {
     ///
     /// # Panics
     /// As [`BrickedCoeffs::read_row`].
-    pub fn with_row_mut<R>(&mut self, start: usize, len: usize, f: impl FnOnce(&mut [f32]) -> R) -> R {
+    pub fn with_row_mut<R>(
+        &mut self,
+        start: usize,
+        len: usize,
+        f: impl FnOnce(&mut [f32]) -> R,
+    ) -> R {
         let mut row = vec![0.0; len];
         self.read_row(start, &mut row);
         let out = f(&mut row);
@@ -659,7 +693,11 @@ impl Index<usize> for BrickedCoeffs {
     /// The coefficient at flat index `n`.
     #[inline]
     fn index(&self, n: usize) -> &f32 {
-        assert!(n < self.len(), "index {n} outside {} coefficients", self.len());
+        assert!(
+            n < self.len(),
+            "index {n} outside {} coefficients",
+            self.len()
+        );
         let [i, j, k] = self.coords(n);
         self.at(i, j, k)
     }
@@ -669,7 +707,11 @@ impl IndexMut<usize> for BrickedCoeffs {
     /// The coefficient at flat index `n`; makes its brick dense if it was uniform.
     #[inline]
     fn index_mut(&mut self, n: usize) -> &mut f32 {
-        assert!(n < self.len(), "index {n} outside {} coefficients", self.len());
+        assert!(
+            n < self.len(),
+            "index {n} outside {} coefficients",
+            self.len()
+        );
         let [i, j, k] = self.coords(n);
         self.at_mut(i, j, k)
     }
@@ -906,10 +948,7 @@ mod tests {
         assert_eq!(store.dense_brick_count(), 0);
         assert_eq!(store.get(19, 15, 8), 2.0);
         assert_eq!(store.get(0, 0, 0), 0.0);
-        assert_eq!(
-            store.heap_bytes(),
-            store.brick_count() * size_of::<Brick>()
-        );
+        assert_eq!(store.heap_bytes(), store.brick_count() * size_of::<Brick>());
     }
 
     #[test]
