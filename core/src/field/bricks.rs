@@ -328,28 +328,66 @@ impl BrickedCoeffs {
     /// `b + 4c` holding `(i..i + 4, j + b, k + c)`. A stencil inside one brick is read
     /// straight from it.
     ///
-    /// # Panics
-    /// When the stencil leaves the store.
-    #[inline]
+    /// The caller keeps the stencil inside the store (checked in debug builds; outside it,
+    /// the values read are wrong or a directory read panics).
+    #[inline(always)]
     #[must_use]
     pub fn stencil_rows(&self, [i, j, k]: [usize; 3]) -> [Vec4; 16] {
-        self.check(i + 3, j + 3, k + 3);
+        debug_assert!(
+            i + 3 < self.dims[0] && j + 3 < self.dims[1] && k + 3 < self.dims[2],
+            "stencil at ({i}, {j}, {k}) outside {:?}",
+            self.dims
+        );
         let (a, b, c) = (i & MASK, j & MASK, k & MASK);
-        let mut rows = [Vec4::ZERO; 16];
-        if a <= COEFF_BRICK - 4 && b <= COEFF_BRICK - 4 && c <= COEFF_BRICK - 4 {
-            match &self.bricks[self.brick_index(i, j, k)] {
-                Brick::Uniform(v) => return [Vec4::splat(*v); 16],
+        let [bx, by, _] = self.bricks_per_axis;
+        let first = (i >> SHIFT) + bx * ((j >> SHIFT) + by * (k >> SHIFT));
+        let reach = [a, b, c].map(|o| usize::from(o > COEFF_BRICK - 4));
+        if reach == [0; 3] {
+            // The whole stencil in one brick: one directory read.
+            return match &self.bricks[first] {
+                Brick::Uniform(v) => [Vec4::splat(*v); 16],
+                Brick::Dense(values) => std::array::from_fn(|n| {
+                    let off = a | ((b + (n & 3)) << SHIFT) | ((c + (n >> 2)) << (2 * SHIFT));
+                    Vec4::from_slice(&values[off..off + 4])
+                }),
+            };
+        }
+        // NOTE: the directory is read once per brick the stencil meets (at most 2×2×2), not
+        // once per row: each brick becomes a source, its dense values (offsets kept) or four
+        // copies of its one value (offsets masked to 0), so a row is one masked 4-wide load
+        // whatever the brick holds (`bench/core.rs` `value_and_gradient`).
+        let mut splats = [[0.0_f32; 4]; 8];
+        let mut dense: [Option<&[f32; COEFF_BRICK_VALUES]>; 8] = [None; 8];
+        let mut masks = [0_usize; 8];
+        for n in 0..8 {
+            // A neighbour the stencil does not reach is read as the first brick again (no
+            // branch on where the stencil lies).
+            let (dx, dy, dz) = (n & reach[0], (n >> 1) & reach[1], (n >> 2) & reach[2]);
+            match &self.bricks[first + dx + bx * (dy + by * dz)] {
+                Brick::Uniform(v) => splats[n] = [*v; 4],
                 Brick::Dense(values) => {
-                    for (n, row) in rows.iter_mut().enumerate() {
-                        let at = offset(a, b + (n & 3), c + (n >> 2));
-                        *row = Vec4::from_slice(&values[at..][..4]);
-                    }
-                    return rows;
+                    dense[n] = Some(values);
+                    masks[n] = usize::MAX;
                 }
             }
         }
+        let sources: [&[f32]; 8] =
+            std::array::from_fn(|n| dense[n].map_or(&splats[n][..], |values| &values[..]));
+        let mut rows = [Vec4::ZERO; 16];
         for (n, row) in rows.iter_mut().enumerate() {
-            *row = self.row4_inside(i, j + (n & 3), k + (n >> 2));
+            let (y, z) = (b + (n & 3), c + (n >> 2));
+            let brick_yz = 2 * (y >> SHIFT) + 4 * (z >> SHIFT);
+            let off = ((y & MASK) << SHIFT) | ((z & MASK) << (2 * SHIFT));
+            *row = if reach[0] == 0 {
+                let m = masks[brick_yz];
+                Vec4::from_slice(&sources[brick_yz][(a + off) & m..][..4])
+            } else {
+                Vec4::from_array(std::array::from_fn(|t| {
+                    let x = a + t;
+                    let src = brick_yz + (x >> SHIFT);
+                    sources[src][((x & MASK) + off) & masks[src]]
+                }))
+            };
         }
         rows
     }
@@ -1041,7 +1079,7 @@ mod tests {
         assert_eq!(store[12], 1.0);
         assert_eq!(store[15], 1.0);
         // A visit that writes the same value back changes nothing.
-        store.update_each(|_, v| *v = *v * 1.0);
+        store.update_each(|_, v| *v *= 1.0);
         assert_eq!(store.dense_brick_count(), 1);
     }
 

@@ -263,8 +263,7 @@ impl MassGrid {
                 for i in 0..gd[0] {
                     let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
                     if !b.contains(gi, gj, gk) {
-                        outside[i + gd[0] * (j + gd[1] * k)] =
-                            lattice.coeffs[lattice.index(gi, gj, gk)];
+                        outside[i + gd[0] * (j + gd[1] * k)] = lattice.coeffs.get(gi, gj, gk);
                     }
                 }
             }
