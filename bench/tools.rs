@@ -144,9 +144,9 @@ fn undo_redo(c: &mut Criterion) {
     let mut whole = History::default();
     let mut rec = StepRecorder::new("everything");
     rec.touch_all(&clay);
-    for v in &mut clay.density.patches[0].lattice.coeffs {
+    clay.density.patches[0].lattice.coeffs.update_each(|_, v| {
         *v = 1.0 - *v;
-    }
+    });
     whole.commit(rec, &clay);
     group.bench_function("whole_lattice_step", |bench| {
         bench.iter(|| {
@@ -160,11 +160,11 @@ fn undo_redo(c: &mut Criterion) {
             clay.density.patches[0]
                 .lattice
                 .coeffs
-                .copy_from_slice(black_box(&snapshot));
+                .clone_from(black_box(&snapshot));
             clay.density.patches[0]
                 .lattice
                 .coeffs
-                .copy_from_slice(black_box(&snapshot));
+                .clone_from(black_box(&snapshot));
         });
     });
     let _ = FieldId::Density(0);

@@ -377,12 +377,12 @@ fn session_with_every_section() -> dynaclay::io::Session {
     })
     .unwrap();
     let mut colour = ColourField::matching(&patch).unwrap();
-    for (n, c) in colour.channels[0].coeffs.iter_mut().enumerate() {
+    colour.channels[0].coeffs.update_each(|n, c| {
         *c = (n % 7) as f32 / 7.0;
-    }
+    });
     colour.channels[3].coeffs.fill(1.0);
     let mut second = patch.clone();
-    second.coeffs.iter_mut().for_each(|c| *c *= 0.5);
+    second.coeffs.update_each(|_, c| *c *= 0.5);
     dynaclay::io::Session {
         clay: Clay {
             density: dynaclay::field::MultiPatchField {

@@ -106,9 +106,9 @@ fn haptic_tick_allocates_nothing() {
     let mut applied_before_swap = f32::NAN;
     let mut status = stages.sim.take_status_reader().expect("status reader");
     let mut loaded = stages.sim.lattice().clone();
-    for c in &mut loaded.coeffs {
+    loaded.coeffs.update_each(|_, c| {
         *c *= 0.999;
-    }
+    });
     let mut contact_ticks = 0;
     let mut patched_ticks = 0;
     // Where the fine brush carves (the smoothing wipes it there).

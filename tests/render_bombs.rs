@@ -136,13 +136,13 @@ fn two_patches_of_spacing_1e_3_and_37_are_refused_at_once() {
     // A 4³ coarse patch: its support (7 × 37 m) fits the mesher's grid at the fine spacing,
     // and its surface at that spacing is counted past the budget.
     let mut coarse = ball(4, 37.0, Vec3::splat(-100.0));
-    coarse.coeffs.iter_mut().for_each(|c| *c = 0.3 + 0.4 * *c);
+    coarse.coeffs.update_each(|_, c| *c = 0.3 + 0.4 * *c);
     let fine = ball(12, 1e-3, Vec3::ZERO);
     let session = save(dir.path(), "spacings.dclay", vec![fine.clone(), coarse]);
     assert_refused(&render(&session), "meshing the clay");
     // A 6³ coarse patch: the grid itself is past what the mesher can address.
     let mut coarse = ball(6, 37.0, Vec3::splat(-100.0));
-    coarse.coeffs.iter_mut().for_each(|c| *c = 0.3 + 0.4 * *c);
+    coarse.coeffs.update_each(|_, c| *c = 0.3 + 0.4 * *c);
     let session = save(dir.path(), "wider.dclay", vec![fine, coarse]);
     let out = render(&session);
     assert_eq!(out.code, Some(2), "{}", out.stderr);

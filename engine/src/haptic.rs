@@ -127,6 +127,10 @@ impl HapticStage {
     ) -> Self {
         let requested = device.config().max_force_n;
         let force_limit = ForceLimit::new(requested, device.max_force_n());
+        // The tick writes the published boxes into this copy: dense bricks take them without
+        // allocating.
+        let mut field = field;
+        field.densify_all();
         Self {
             limit_seen: force_limit.requested_bits(),
             force_limit,

@@ -68,9 +68,20 @@ pub struct LayoutSender {
     /// A second receiver on the incoming slot, to replace a layout the reader never took.
     withdraw: Receiver<LayoutHandover>,
     retired: Receiver<Box<MultiPatchField>>,
+    /// Whether the copies offered have every brick dense (for a reader that writes into its
+    /// copy on a thread that must not allocate).
+    dense_copies: bool,
 }
 
 impl LayoutSender {
+    /// This sender, offering copies whose bricks are all dense, so that the reader's writes
+    /// into them never allocate (the haptic loop's).
+    #[must_use]
+    pub fn with_dense_copies(mut self) -> Self {
+        self.dense_copies = true;
+        self
+    }
+
     /// Offers a copy of `field` in layout `generation`, replacing an older offer the reader
     /// has not taken yet, and drops the copies readers have handed back.
     pub fn offer(&self, field: &MultiPatchField, generation: u64) {
@@ -78,9 +89,13 @@ impl LayoutSender {
         while self.withdraw.try_recv().is_ok() {}
         // The slot was just emptied and this is its only sender: the send succeeds unless the
         // reader is gone, when there is nobody left to offer to.
+        let mut copy = Box::new(field.clone());
+        if self.dense_copies {
+            copy.densify_all();
+        }
         let _ = self.incoming.try_send(LayoutHandover {
             generation,
-            field: Box::new(field.clone()),
+            field: copy,
         });
     }
 
@@ -100,6 +115,7 @@ pub fn layout_channel() -> (LayoutSender, LayoutPort) {
             incoming: in_tx,
             withdraw: in_rx.clone(),
             retired: out_rx,
+            dense_copies: false,
         },
         LayoutPort {
             incoming: in_rx,

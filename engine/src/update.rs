@@ -2,7 +2,8 @@
 //! their current values, plus the stroke and step status the other loops need.
 //!
 //! Guarantee: [`FieldUpdate::capture`], [`FieldUpdate::copy_into`] and
-//! [`FieldUpdate::apply_to`] never allocate once the update was built with
+//! [`FieldUpdate::apply_to`] never allocate into a field whose bricks are dense (see
+//! [`dynaclay_core::field::BrickedCoeffs`]; the haptic loop's copy is) once the update was built with
 //! [`FieldUpdate::with_capacity_for`] for the field it carries (room for every coefficient of
 //! every patch, and a box per patch), and do work linear in the boxes' coefficient count,
 //! which is bounded by the field's size. They are safe on the haptic path. The stroke
@@ -98,8 +99,7 @@ impl FieldUpdate {
             for j in b.min[1]..=b.max[1] {
                 let row = lattice.index(b.min[0], j, k);
                 let len = b.max[0] + 1 - b.min[0];
-                self.coeffs
-                    .extend_from_slice(&lattice.coeffs[row..row + len]);
+                lattice.coeffs.extend_row_into(row, len, &mut self.coeffs);
             }
         }
         self.boxes.push(ChangedBox {
@@ -214,7 +214,7 @@ fn copy_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) {
             let row = lattice.index(b.min[0], j, k);
             // The caller's length check guarantees one chunk per row.
             if let Some(from) = rows.next() {
-                lattice.coeffs[row..row + len].copy_from_slice(from);
+                lattice.coeffs.write_row(row, from);
             }
         }
     }
@@ -229,20 +229,21 @@ fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Optio
     let mut src = 0;
     for k in b.min[2]..=b.max[2] {
         for j in b.min[1]..=b.max[1] {
-            let row = lattice.index(b.min[0], j, k);
-            let dst = &mut lattice.coeffs[row..row + len];
             let from = &coeffs[src..src + len];
-            for (i, (d, s)) in dst.iter_mut().zip(from).enumerate() {
+            for (n, s) in from.iter().enumerate() {
+                let i = b.min[0] + n;
+                let d = lattice.coeffs.get(i, j, k);
                 // Bit comparison: a changed NaN payload or signed zero still counts.
                 if d.to_bits() != s.to_bits() {
-                    let moved = (*s - *d).abs();
+                    let moved = (*s - d).abs();
                     largest = largest.max(if moved.is_finite() {
                         moved
                     } else {
                         f32::INFINITY
                     });
-                    *d = *s;
-                    let p = [b.min[0] + i, j, k];
+                    // A write into a dense brick (as in a copy made dense) never allocates.
+                    lattice.coeffs.set(i, j, k, *s);
+                    let p = [i, j, k];
                     changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
                 }
             }
@@ -261,9 +262,9 @@ mod tests {
 
     fn lattice(seed: f32) -> BSplineLattice {
         let mut l = BSplineLattice::zeros([6, 5, 7], 0.5, Vec3::ZERO).unwrap();
-        for (i, c) in l.coeffs.iter_mut().enumerate() {
+        l.coeffs.update_each(|i, c| {
             *c = (i as f32 * 0.37 + seed).sin();
-        }
+        });
         l
     }
 
@@ -271,9 +272,9 @@ mod tests {
     fn two_patches(seed: f32) -> MultiPatchField {
         let mut field = MultiPatchField::new(lattice(seed));
         let mut detail = BSplineLattice::zeros([5, 5, 5], 0.25, Vec3::ONE).unwrap();
-        for (i, c) in detail.coeffs.iter_mut().enumerate() {
+        detail.coeffs.update_each(|i, c| {
             *c = (i as f32 * 0.11 + seed).cos();
-        }
+        });
         field.patches.push(Patch {
             lattice: detail,
             world_to_patch: Affine3A::from_translation(Vec3::new(0.5, 0.0, 0.0)),
@@ -351,10 +352,12 @@ mod tests {
     #[test]
     fn copy_into_writes_the_same_field_as_apply_to() {
         let mut moved = two_patches(1.0);
-        for c in &mut moved.patches[0].lattice.coeffs[40..90] {
+        for n in 40..90 {
+            let c = &mut moved.patches[0].lattice.coeffs[n];
             *c = -*c;
         }
-        for c in &mut moved.patches[1].lattice.coeffs[10..30] {
+        for n in 10..30 {
+            let c = &mut moved.patches[1].lattice.coeffs[n];
             *c = -*c;
         }
         let b = CoeffBox {

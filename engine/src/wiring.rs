@@ -73,6 +73,7 @@ pub fn build(
     let acks = Acks::default();
     let (device_swaps, swap_port) = device_swap_channel();
     let (haptic_layouts, haptic_layout_port) = layout_channel();
+    let haptic_layouts = haptic_layouts.with_dense_copies();
     let (graphics_layouts, graphics_layout_port) = layout_channel();
     let clock = if lockstep {
         EngineClock::stepped()

@@ -279,9 +279,9 @@ pub fn mutate_text(text: &str, mutations: &[Mutation]) -> String {
 #[must_use]
 pub fn valid_session_bytes() -> Vec<u8> {
     let mut lattice = BSplineLattice::zeros([4, 5, 4], 0.25, Vec3::new(0.5, -1.0, 0.0)).unwrap();
-    for (i, c) in lattice.coeffs.iter_mut().enumerate() {
+    lattice.coeffs.update_each(|i, c| {
         *c = (i as f32 * 0.3).sin();
-    }
+    });
     let mut colour = ColourField::matching(&lattice).unwrap();
     colour.channels[3].coeffs.fill(0.5);
     let mut density = dynaclay::field::MultiPatchField::new(lattice);

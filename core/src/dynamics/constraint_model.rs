@@ -544,10 +544,10 @@ mod tests {
     fn sphere_with_detail(x: Vec3) -> MultiPatchField {
         let mut field = MultiPatchField::new(sphere());
         let mut detail = BSplineLattice::zeros([14; 3], 0.05, Vec3::ZERO).unwrap();
-        for (i, c) in detail.coeffs.iter_mut().enumerate() {
+        detail.coeffs.update_each(|i, c| {
             let (x, y, z) = (i % 14, (i / 14) % 14, i / 196);
             *c = 0.3 * ((x as f32 * 0.7).sin() * (y as f32 * 0.4).cos() + 0.1 * z as f32);
-        }
+        });
         let turn = glam::Quat::from_rotation_y(0.4);
         let map = Affine3A::from_scale_rotation_translation(
             Vec3::splat(0.9),

@@ -291,9 +291,9 @@ mod tests {
     fn force_integral_is_exact_for_a_cubic_along_a_segment() {
         // Along a segment parallel to x inside one knot span the field is a cubic in t.
         let mut lattice = BSplineLattice::zeros([8, 8, 8], 0.5, Vec3::ZERO).unwrap();
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+        lattice.coeffs.update_each(|n, c| {
             *c = ((n * 37) % 11) as f32 / 11.0;
-        }
+        });
         let (x0, x1) = (Vec3::new(1.55, 1.7, 2.2), Vec3::new(1.95, 1.7, 2.2));
         let got = force_integral(&lattice, x0, x1);
         // Reference: composite Simpson in f64 on a fine grid.

@@ -160,7 +160,7 @@ impl RegionState {
             for j in 0..n[1] {
                 let row = lattice.index(b.min[0], b.min[1] + j, b.min[2] + k);
                 let dst = n[0] * (j + n[1] * k);
-                self.p[dst..dst + n[0]].copy_from_slice(&lattice.coeffs[row..row + n[0]]);
+                lattice.coeffs.read_row(row, &mut self.p[dst..dst + n[0]]);
             }
         }
         self.p_dot.fill(0.0);

@@ -1083,8 +1083,11 @@ impl Simulator {
         for (r, src) in state.p.chunks_exact(n[0]).enumerate() {
             let (j, k) = (r % n[1], r / n[1]);
             let row = lattice.index(b.min[0], b.min[1] + j, b.min[2] + k);
-            lattice.coeffs[row..row + n[0]].copy_from_slice(src);
+            lattice.coeffs.write_row(row, src);
         }
+        // Rows written with the values a uniform brick holds leave it uniform; a brick the
+        // step moved and brought back to one value is freed again.
+        lattice.coeffs.compact_within(b.min, b.max);
         snapshot.capture(lattice, b, state.version);
     }
 
@@ -1988,7 +1991,7 @@ mod tests {
                     bits(&state.d),
                     bits(&state.d_dot),
                     bits(&state.rest),
-                    bits(&lattice.coeffs),
+                    bits(&lattice.coeffs.to_vec()),
                 ));
             }
             assert!(
@@ -2054,7 +2057,11 @@ mod tests {
                     .unwrap();
             }
             let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            runs.push((bits(&state.p), bits(&state.d), bits(&lattice.coeffs)));
+            runs.push((
+                bits(&state.p),
+                bits(&state.d),
+                bits(&lattice.coeffs.to_vec()),
+            ));
         }
         assert!(runs[0] == runs[1], "one and two threads differ");
         assert!(runs[0].2 != bits_of(&start), "the pull moved nothing");

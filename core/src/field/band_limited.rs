@@ -148,12 +148,12 @@ pub fn smooth_block_lattice(
             f64::from(width),
         )
     });
+    let mut row = Vec::with_capacity(dims[0]);
     for (k, &cz) in axes[2].iter().enumerate() {
         for (j, &cy) in axes[1].iter().enumerate() {
-            let row = lattice.index(0, j, k);
-            for (c, &cx) in lattice.coeffs[row..row + dims[0]].iter_mut().zip(&axes[0]) {
-                *c = (cx * cy * cz) as f32;
-            }
+            row.clear();
+            row.extend(axes[0].iter().map(|&cx| (cx * cy * cz) as f32));
+            lattice.coeffs.write_row_at([0, j, k], &row);
         }
     }
     Ok(lattice)

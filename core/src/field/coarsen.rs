@@ -119,7 +119,7 @@ pub fn apply_coarsening(field: &mut MultiPatchField, plan: &CoarsenPlan) -> supe
             for j in region.min[1]..=region.max[1] {
                 let at = lattice.index(region.min[0], j, k);
                 let row = rows.next().expect("one row of values per row of the box");
-                lattice.coeffs[at..at + n[0]].copy_from_slice(row);
+                lattice.coeffs.write_row(at, row);
             }
         }
     }
@@ -222,7 +222,9 @@ fn window_values(lattice: &BSplineLattice, min: [usize; 3], max: [usize; 3]) -> 
     for k in min[2]..=max[2] {
         for j in min[1]..=max[1] {
             let at = lattice.index(min[0], j, k);
-            values.extend_from_slice(&lattice.coeffs[at..=at + max[0] - min[0]]);
+            lattice
+                .coeffs
+                .extend_row_into(at, max[0] + 1 - min[0], &mut values);
         }
     }
     values

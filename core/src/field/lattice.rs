@@ -3,6 +3,7 @@
 use glam::{Vec3, Vec4};
 
 use super::basis::{cubic_weights, cubic_weights_and_derivatives};
+use super::bricks::BrickedCoeffs;
 
 /// Why a lattice could not be built.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -21,7 +22,8 @@ pub enum LatticeError {
 /// A uniform cubic B-spline field `s(x) = Σ p_ijk B_i(x) B_j(y) B_k(z)`.
 ///
 /// Coefficient `(i, j, k)` is centred on the lattice point `origin + spacing · (i, j, k)` and
-/// stored at `i + nx · (j + ny · k)` (x fastest). Coefficients beyond the lattice count as
+/// addressed as `i + nx · (j + ny · k)` (x fastest), in 8×8×8 bricks of which only those
+/// holding more than one value cost memory ([`BrickedCoeffs`]). Coefficients beyond the lattice count as
 /// zero, so the field fades to zero (empty space) outside it. Where all four coefficients per
 /// axis exist — lattice coordinates in `[1, n − 2]` — the basis is a partition of unity and
 /// linear functions are reproduced exactly; that box is [`BSplineLattice::exact_domain`].
@@ -33,7 +35,7 @@ pub struct BSplineLattice {
     pub spacing: f32,
     pub origin: Vec3,
     pub iso: f32,
-    pub coeffs: Vec<f32>,
+    pub coeffs: BrickedCoeffs,
 }
 
 impl BSplineLattice {
@@ -45,8 +47,34 @@ impl BSplineLattice {
     /// # Errors
     /// When an axis has fewer than 4 coefficients or the spacing is not positive and finite.
     pub fn zeros(dims: [usize; 3], spacing: f32, origin: Vec3) -> Result<Self, LatticeError> {
-        let count = dims[0] * dims[1] * dims[2];
-        Self::from_coeffs(dims, spacing, origin, vec![0.0; count])
+        Self::check(dims, spacing)?;
+        Ok(Self {
+            dims,
+            spacing,
+            origin,
+            iso: Self::DEFAULT_ISO,
+            coeffs: BrickedCoeffs::zeros(dims),
+        })
+    }
+
+    fn check(dims: [usize; 3], spacing: f32) -> Result<(), LatticeError> {
+        if dims.iter().any(|&n| n < 4) {
+            return Err(LatticeError::TooSmall { dims });
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(LatticeError::BadSpacing { spacing });
+        }
+        if dims
+            .iter()
+            .try_fold(1_usize, |acc, &n| acc.checked_mul(n))
+            .is_none()
+        {
+            return Err(LatticeError::WrongLength {
+                expected: usize::MAX,
+                got: 0,
+            });
+        }
+        Ok(())
     }
 
     /// A lattice over the given coefficients (x fastest).
@@ -59,12 +87,7 @@ impl BSplineLattice {
         origin: Vec3,
         coeffs: Vec<f32>,
     ) -> Result<Self, LatticeError> {
-        if dims.iter().any(|&n| n < 4) {
-            return Err(LatticeError::TooSmall { dims });
-        }
-        if !(spacing.is_finite() && spacing > 0.0) {
-            return Err(LatticeError::BadSpacing { spacing });
-        }
+        Self::check(dims, spacing)?;
         let expected = dims[0] * dims[1] * dims[2];
         if coeffs.len() != expected {
             return Err(LatticeError::WrongLength {
@@ -77,7 +100,7 @@ impl BSplineLattice {
             spacing,
             origin,
             iso: Self::DEFAULT_ISO,
-            coeffs,
+            coeffs: BrickedCoeffs::from_slice(dims, &coeffs),
         })
     }
 
@@ -89,23 +112,16 @@ impl BSplineLattice {
     /// # Errors
     /// [`LatticeError::WrongLength`] when the grown lattice's size overflows `usize`.
     pub fn padded(&self, low: [usize; 3], high: [usize; 3]) -> Result<Self, LatticeError> {
-        let dims: [usize; 3] = std::array::from_fn(|a| self.dims[a] + low[a] + high[a]);
-        let count = dims
-            .iter()
+        let dims: [usize; 3] =
+            std::array::from_fn(|a| self.dims[a].saturating_add(low[a]).saturating_add(high[a]));
+        dims.iter()
             .try_fold(1_usize, |acc, &n| acc.checked_mul(n))
             .ok_or(LatticeError::WrongLength {
                 expected: usize::MAX,
                 got: self.coeffs.len(),
             })?;
-        let mut coeffs = vec![0.0; count];
-        for k in 0..self.dims[2] {
-            for j in 0..self.dims[1] {
-                let from = self.index(0, j, k);
-                let to = low[0] + dims[0] * (j + low[1] + dims[1] * (k + low[2]));
-                coeffs[to..to + self.dims[0]]
-                    .copy_from_slice(&self.coeffs[from..from + self.dims[0]]);
-            }
-        }
+        // Whole bricks of padding move the bricks as they are; the new room is uniform zero.
+        let coeffs = self.coeffs.padded(low, high);
         let shift = Vec3::new(low[0] as f32, low[1] as f32, low[2] as f32);
         Ok(Self {
             dims,
@@ -191,11 +207,10 @@ impl BSplineLattice {
                 let Some(j) = stencil.axis(1, b, self.dims[1]) else {
                     continue;
                 };
-                let row = self.index(0, j, k);
                 let mut line = 0.0;
                 for a in 0..4 {
                     if let Some(i) = stencil.axis(0, a, self.dims[0]) {
-                        line += wx[a] * self.coeffs[row + i];
+                        line += wx[a] * self.coeffs.get(i, j, k);
                     }
                 }
                 plane += wy[b] * line;
@@ -219,12 +234,12 @@ impl BSplineLattice {
             // Fast path: all 64 coefficients exist, no per-tap range checks. Rows along x are
             // summed as 4-wide vectors with the y/z weights (three sums share the rows) and
             // dotted with the x weights or their derivatives once at the end.
-            let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
+            let rows = self.coeffs.stencil_rows(base);
             let (mut s, mut sdy, mut sdz) = (Vec4::ZERO, Vec4::ZERO, Vec4::ZERO);
             for c in 0..4 {
                 let (mut plane, mut plane_dy) = (Vec4::ZERO, Vec4::ZERO);
                 for b in 0..4 {
-                    let row = Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
+                    let row = rows[b + 4 * c];
                     plane += wy[b] * row;
                     plane_dy += dy[b] * row;
                 }
@@ -246,11 +261,10 @@ impl BSplineLattice {
                 let Some(j) = stencil.axis(1, b, self.dims[1]) else {
                     continue;
                 };
-                let row = self.index(0, j, k);
                 let (mut lv, mut lg) = (0.0, 0.0);
                 for a in 0..4 {
                     if let Some(i) = stencil.axis(0, a, self.dims[0]) {
-                        let p = self.coeffs[row + i];
+                        let p = self.coeffs.get(i, j, k);
                         lv += wx[a] * p;
                         lg += dx[a] * p;
                     }
@@ -329,7 +343,7 @@ impl BSplineLattice {
                             let sum = match last {
                                 Some((first, sum)) if first == fx => sum,
                                 _ => {
-                                    let sum = self.row_sums(self.index(fx, fy, fz), &wy, &wz);
+                                    let sum = self.row_sums([fx, fy, fz], &wy, &wz);
                                     last = Some((fx, sum));
                                     sum
                                 }
@@ -344,18 +358,18 @@ impl BSplineLattice {
         }
     }
 
-    /// The 4×4×4 coefficients from linear index `base` summed along z and y with the weights
+    /// The 4×4×4 coefficients from coefficient `first` summed along z and y with the weights
     /// `wz` and `wy`: four sums along x, one per x tap (the fast path of
     /// [`BSplineLattice::value`], shared with [`BSplineLattice::values_on_grid`] so that both
     /// give the same bits).
     #[inline]
-    fn row_sums(&self, base: usize, wy: &[f32; 4], wz: &[f32; 4]) -> Vec4 {
-        let (sy, sz) = (self.dims[0], self.dims[0] * self.dims[1]);
+    fn row_sums(&self, first: [usize; 3], wy: &[f32; 4], wz: &[f32; 4]) -> Vec4 {
+        let rows = self.coeffs.stencil_rows(first);
         let mut sum = Vec4::ZERO;
         for (c, &wzc) in wz.iter().enumerate() {
             let mut plane = Vec4::ZERO;
             for (b, &wyb) in wy.iter().enumerate() {
-                plane += wyb * Vec4::from_slice(&self.coeffs[base + b * sy + c * sz..][..4]);
+                plane += wyb * rows[b + 4 * c];
             }
             sum += wzc * plane;
         }
@@ -390,12 +404,12 @@ impl BSplineLattice {
         self.value(x) > self.iso
     }
 
-    /// Index of the stencil's first coefficient when all 4×4×4 lie inside the lattice.
+    /// The stencil's first coefficient when all 4×4×4 lie inside the lattice.
     #[inline]
-    fn interior_base(&self, stencil: &Stencil) -> Option<usize> {
+    fn interior_base(&self, stencil: &Stencil) -> Option<[usize; 3]> {
         let f = stencil.first;
         let inside = (0..3).all(|a| f[a] >= 0 && (f[a] + 3) < self.dims[a] as i64);
-        inside.then(|| self.index(f[0] as usize, f[1] as usize, f[2] as usize))
+        inside.then(|| f.map(|x| x as usize))
     }
 
     fn stencil(&self, x: Vec3) -> Option<Stencil> {
@@ -447,9 +461,9 @@ mod tests {
     fn values_on_a_grid_are_the_values_point_by_point_bit_for_bit() {
         let mut lattice =
             BSplineLattice::zeros([9, 7, 8], 0.3, Vec3::new(0.1, -0.2, 0.05)).expect("lattice");
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
-            *c = ((n * 7919) % 61) as f32 / 61.0 - 0.3;
-        }
+        lattice
+            .coeffs
+            .update_each(|n, c| *c = ((n * 7919) % 61) as f32 / 61.0 - 0.3);
         // From beyond the support on the low side, across the borders, to beyond the high
         // side; x steps of a fifth of a span so several points share a span.
         let axis = |start: f32, step: f32, n: usize| -> Vec<f32> {
@@ -567,9 +581,9 @@ mod tests {
     #[test]
     fn analytic_gradient_matches_central_differences() {
         let mut lattice = BSplineLattice::zeros([6, 7, 8], 0.4, Vec3::new(0.1, -0.2, 0.3)).unwrap();
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
-            *c = ((n * 7919) % 97) as f32 / 97.0;
-        }
+        lattice
+            .coeffs
+            .update_each(|n, c| *c = ((n * 7919) % 97) as f32 / 97.0);
         // Central differences of an f64 evaluation: truncation ~h², rounding ~1e-16/h, both
         // far below the f32 analytic gradient's own rounding.
         let h = 1e-4_f64;
@@ -601,6 +615,63 @@ mod tests {
             let vref = reference_value(&lattice, xd);
             assert!((f64::from(v) - vref).abs() < 1e-5, "value {v} vs {vref}");
         }
+    }
+
+    /// A ball of radius `0.35 n` knot spans in an `n³` lattice, its density ramp two spans
+    /// wide as the starting clays have it, and the heap bytes of its coefficients.
+    fn ball_heap_bytes(n: usize) -> usize {
+        let mut lattice = BSplineLattice::zeros([n; 3], 1.0, Vec3::ZERO).unwrap();
+        let centre = Vec3::splat((n - 1) as f32 / 2.0);
+        let radius = 0.35 * n as f32;
+        let dims = lattice.dims;
+        lattice.coeffs.update_each(|m, c| {
+            let (i, j, k) = (
+                m % dims[0],
+                (m / dims[0]) % dims[1],
+                m / (dims[0] * dims[1]),
+            );
+            let d = (Vec3::new(i as f32, j as f32, k as f32) - centre).length();
+            *c = (0.5 + (radius - d) / 2.0).clamp(0.0, 1.0);
+        });
+        lattice.coeffs.compact();
+        assert!((lattice.value(centre) - 1.0).abs() < 1e-6);
+        assert_eq!(lattice.value(Vec3::splat(1.0)), 0.0);
+        lattice.coeffs.heap_bytes()
+    }
+
+    #[test]
+    fn a_balls_coefficients_take_memory_by_its_area_not_its_volume() {
+        let heaps: Vec<usize> = [64, 128, 256].into_iter().map(ball_heap_bytes).collect();
+        println!("heap bytes at 64³, 128³, 256³: {heaps:?}");
+        let dense = |n: usize| n * n * n * size_of::<f32>();
+        // Doubling the size quadruples the area (×8 the volume): allow a little over ×4 for
+        // the bricks a coarser surface crosses.
+        for pair in heaps.windows(2) {
+            let growth = pair[1] as f64 / pair[0] as f64;
+            assert!(growth < 5.0, "heap grew ×{growth} from {heaps:?}");
+        }
+        assert!(
+            heaps[2] * 8 < dense(256),
+            "256³ ball: {} bytes bricked, {} dense",
+            heaps[2],
+            dense(256)
+        );
+    }
+
+    /// The figure in bench/RESULTS.md: `cargo test --release -p dynaclay-core --lib
+    /// ball_at_512 -- --ignored --nocapture`.
+    #[test]
+    #[ignore = "a figure for bench/RESULTS.md (a 512³ lattice, about a second)"]
+    fn ball_at_512_heap_bytes_bricked_and_dense() {
+        let bricked = ball_heap_bytes(512);
+        let dense = 512_usize.pow(3) * size_of::<f32>();
+        println!(
+            "512³ ball: {bricked} bytes bricked ({:.1} MiB), {dense} bytes dense ({:.1} MiB), 1/{:.1}",
+            bricked as f64 / f64::from(1 << 20),
+            dense as f64 / f64::from(1 << 20),
+            dense as f64 / bricked as f64
+        );
+        assert!(bricked * 8 < dense);
     }
 
     #[test]

@@ -10,6 +10,7 @@
 use glam::Vec3;
 
 use super::axis::AxisBasis;
+use super::bricks::BrickedCoeffs;
 use super::kron::{KronError, KroneckerBasis, apply_axes};
 use super::lattice::BSplineLattice;
 
@@ -262,8 +263,7 @@ impl MassGrid {
                 for i in 0..gd[0] {
                     let (gi, gj, gk) = (grown.min[0] + i, grown.min[1] + j, grown.min[2] + k);
                     if !b.contains(gi, gj, gk) {
-                        outside[i + gd[0] * (j + gd[1] * k)] =
-                            lattice.coeffs[lattice.index(gi, gj, gk)];
+                        outside[i + gd[0] * (j + gd[1] * k)] = lattice.coeffs.get(gi, gj, gk);
                     }
                 }
             }
@@ -315,7 +315,7 @@ pub fn sub_lattice(lattice: &BSplineLattice, region: &CoeffBox, margin: usize) -
     for k in 0..dims[2] {
         for j in 0..dims[1] {
             let row = lattice.index(min[0], min[1] + j, min[2] + k);
-            coeffs.extend_from_slice(&lattice.coeffs[row..row + dims[0]]);
+            lattice.coeffs.extend_row_into(row, dims[0], &mut coeffs);
         }
     }
     BSplineLattice {
@@ -323,6 +323,6 @@ pub fn sub_lattice(lattice: &BSplineLattice, region: &CoeffBox, margin: usize) -
         spacing: lattice.spacing,
         origin: lattice.node_position(min[0], min[1], min[2]),
         iso: lattice.iso,
-        coeffs,
+        coeffs: BrickedCoeffs::from_vec(dims, coeffs),
     }
 }

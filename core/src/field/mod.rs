@@ -7,6 +7,7 @@ mod axis;
 mod band;
 mod band_limited;
 mod basis;
+mod bricks;
 mod coarsen;
 mod implicit;
 mod kron;
@@ -22,6 +23,7 @@ mod sweep;
 pub use axis::{AxisBasis, BandedCholesky, NotPositiveDefinite, centred_cubic};
 pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
+pub use bricks::{BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BYTES, Values};
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, apply_coarsening,
     plan_coarsening,

@@ -250,6 +250,23 @@ impl MultiPatchField {
         }
     }
 
+    /// Makes every brick of every patch dense, so that later writes of coefficients never
+    /// allocate (a copy written on the haptic thread).
+    pub fn densify_all(&mut self) {
+        for p in &mut self.patches {
+            p.lattice.coeffs.densify_all();
+        }
+    }
+
+    /// Makes every dense brick of every patch whose values are all equal one value again
+    /// (see [`super::BrickedCoeffs::compact`]); returns how many bricks it freed.
+    pub fn compact(&mut self) -> usize {
+        self.patches
+            .iter_mut()
+            .map(|p| p.lattice.coeffs.compact())
+            .sum()
+    }
+
     /// The iso-level of the surface: the base patch's (0 for a field without patches).
     #[inline]
     #[must_use]
@@ -618,9 +635,9 @@ mod tests {
 
     fn wavy(dims: [usize; 3], spacing: f32) -> BSplineLattice {
         let mut l = BSplineLattice::zeros(dims, spacing, Vec3::ZERO).unwrap();
-        for (n, c) in l.coeffs.iter_mut().enumerate() {
+        l.coeffs.update_each(|n, c| {
             *c = ((n * 7919) % 53) as f32 / 53.0;
-        }
+        });
         l
     }
 
@@ -714,9 +731,9 @@ mod tests {
         let d = field
             .refine(Vec3::splat(0.7), Vec3::new(1.1, 1.0, 1.2), 2)
             .unwrap();
-        for (n, c) in field.patches[d].lattice.coeffs.iter_mut().enumerate() {
+        field.patches[d].lattice.coeffs.update_each(|n, c| {
             *c = ((n * 31) % 17) as f32 / 170.0 - 0.05;
-        }
+        });
         let axis = |start: f32, step: f32, n: usize| -> Vec<f32> {
             (0..n).map(|i| start + step * i as f32).collect()
         };

@@ -181,8 +181,10 @@ fn refit(
         for k in 0..n[2] {
             for j in 0..n[1] {
                 let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);
-                p_box[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)]
-                    .copy_from_slice(&lattice.coeffs[row..row + n[0]]);
+                lattice.coeffs.read_row(
+                    row,
+                    &mut p_box[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)],
+                );
             }
         }
         let mut inside = vec![0.0_f32; grid.count()];
@@ -248,7 +250,7 @@ fn refit(
         for j in 0..n[1] {
             let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);
             let src = &p[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)];
-            lattice.coeffs[row..row + n[0]].copy_from_slice(src);
+            lattice.coeffs.write_row(row, src);
         }
     }
     Ok(())
@@ -338,9 +340,9 @@ mod tests {
     #[test]
     fn coefficients_outside_the_box_are_bit_identical() {
         let mut lattice = BSplineLattice::zeros([9, 9, 9], 1.0, Vec3::ZERO).unwrap();
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+        lattice.coeffs.update_each(|n, c| {
             *c = ((n * 7919) % 101) as f32 / 101.0;
-        }
+        });
         let before = lattice.clone();
         refit_box(&mut lattice, [0, 2, 3], [3, 6, 8], 2, |x| (x.x * 0.5).sin()).unwrap();
         let b = CoeffBox {
@@ -370,9 +372,9 @@ mod tests {
     #[test]
     fn global_fit_recovers_a_spline_exactly() {
         let mut truth = BSplineLattice::zeros([7, 6, 8], 0.25, Vec3::new(0.1, 0.2, 0.3)).unwrap();
-        for (n, c) in truth.coeffs.iter_mut().enumerate() {
+        truth.coeffs.update_each(|n, c| {
             *c = ((n * 31) % 17) as f32 / 17.0;
-        }
+        });
         let mut fitted = BSplineLattice::zeros(truth.dims, truth.spacing, truth.origin).unwrap();
         fit_lattice(&mut fitted, 1, |x| truth.value(x)).unwrap();
         for (a, b) in fitted.coeffs.iter().zip(&truth.coeffs) {

@@ -101,8 +101,7 @@ impl RegionSnapshot {
         for k in 0..n[2] {
             for j in 0..n[1] {
                 let row = lattice.index(region.min[0], region.min[1] + j, region.min[2] + k);
-                self.coeffs
-                    .extend_from_slice(&lattice.coeffs[row..row + n[0]]);
+                lattice.coeffs.extend_row_into(row, n[0], &mut self.coeffs);
             }
         }
         self.version = version;
@@ -155,7 +154,7 @@ impl RegionSnapshot {
         for (r, src) in self.coeffs.chunks_exact(n[0]).enumerate() {
             let (j, k) = (r % n[1], r / n[1]);
             let row = lattice.index(region.min[0], region.min[1] + j, region.min[2] + k);
-            lattice.coeffs[row..row + n[0]].copy_from_slice(src);
+            lattice.coeffs.write_row(row, src);
         }
         Ok(())
     }
@@ -167,9 +166,9 @@ mod tests {
 
     fn lattice() -> BSplineLattice {
         let mut l = BSplineLattice::zeros([8, 7, 6], 0.5, Vec3::ONE).unwrap();
-        for (n, c) in l.coeffs.iter_mut().enumerate() {
+        l.coeffs.update_each(|n, c| {
             *c = n as f32;
-        }
+        });
         l
     }
 

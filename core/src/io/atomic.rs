@@ -59,7 +59,7 @@ mod tests {
 
     fn session(value: f32) -> Session {
         let mut l = BSplineLattice::zeros([6, 6, 6], 0.1, Vec3::ZERO).unwrap();
-        l.coeffs.iter_mut().for_each(|c| *c = value);
+        l.coeffs.update_each(|_, c| *c = value);
         Session {
             clay: Clay::single(l),
             ..Session::default()

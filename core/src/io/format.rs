@@ -434,7 +434,7 @@ fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), 
     }
     out.extend_from_slice(&l.iso.to_le_bytes());
     out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
-    put_f32s(out, &l.coeffs);
+    put_f32s(out, &l.coeffs.to_vec());
     Ok(())
 }
 
@@ -841,9 +841,9 @@ mod tests {
 
     pub(crate) fn sample_session() -> Session {
         let mut patch = BSplineLattice::zeros([9, 8, 7], 0.25, Vec3::new(-1.0, -1.0, 0.5)).unwrap();
-        for (n, c) in patch.coeffs.iter_mut().enumerate() {
+        patch.coeffs.update_each(|n, c| {
             *c = ((n * 31) % 17) as f32 / 17.0;
-        }
+        });
         patch.iso = 0.45;
         let mut colour = ColourField::matching(&patch).unwrap();
         colour.channels[1].coeffs[5] = 0.75;

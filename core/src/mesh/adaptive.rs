@@ -2227,10 +2227,14 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
             .zip(b)
             .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
     };
+    // Rows copied out of the bricks: this one, and its neighbours along y and z.
+    let len = i1 - i0 + 1;
+    let (mut row, mut next_y, mut next_z) = (vec![0.0; len], vec![0.0; len], vec![0.0; len]);
     for k in first[2]..=last[2] {
         for j in first[1]..=last[1] {
             let start = l.index(i0, j, k);
-            let row = &l.coeffs[start..=start + (i1 - i0)];
+            l.coeffs.read_row(start, &mut row);
+            let row = row.as_slice();
             for &c in row {
                 vmin = smaller(vmin, c);
                 vmax = larger(vmax, c);
@@ -2249,10 +2253,12 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
             }
             steepest = largest_step(steepest, row, &row[1..]);
             if j < last[1] {
-                steepest = largest_step(steepest, row, &l.coeffs[start + nx..]);
+                l.coeffs.read_row(start + nx, &mut next_y);
+                steepest = largest_step(steepest, row, &next_y);
             }
             if k < last[2] {
-                steepest = largest_step(steepest, row, &l.coeffs[start + nx * ny..]);
+                l.coeffs.read_row(start + nx * ny, &mut next_z);
+                steepest = largest_step(steepest, row, &next_z);
             }
         }
     }
@@ -3044,9 +3050,9 @@ pub(super) mod tests {
     fn window_tables_read_as_the_coefficients_do() {
         // A lattice of scattered values, with a NaN and both infinities among them.
         let mut lattice = BSplineLattice::zeros([12, 10, 11], 0.25, Vec3::ZERO).unwrap();
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+        lattice.coeffs.update_each(|n, c| {
             *c = ((n * 7919) % 113) as f32 / 17.0 - 3.0;
-        }
+        });
         let nan_at = lattice.index(5, 4, 6);
         lattice.coeffs[nan_at] = f32::NAN;
         let inf_at = lattice.index(3, 5, 5);

@@ -1310,12 +1310,12 @@ mod tests {
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         for trial in 0..6 {
             let mut lattice = BSplineLattice::zeros([9, 8, 10], 1.0, Vec3::ZERO).unwrap();
-            for c in lattice.coeffs.iter_mut() {
+            lattice.coeffs.update_each(|_, c| {
                 seed ^= seed << 13;
                 seed ^= seed >> 7;
                 seed ^= seed << 17;
                 *c = (seed >> 40) as f32 / (1u64 << 24) as f32 * 1.4;
-            }
+            });
             let grid = SampleGrid::for_lattice(&lattice, 1 + trial % 3).unwrap();
             let tree = BrickOctree::build(grid, &lattice);
             assert!(tree.triangle_count() > 100);

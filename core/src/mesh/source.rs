@@ -293,12 +293,14 @@ impl ScalarField for BSplineLattice {
                 if gj < 0 || gj >= dims[1] {
                     continue;
                 }
-                let row = self.index(0, gj as usize, gk as usize);
-                for i in 0..nx {
-                    let gi = coeff_lo[0] + i as i64;
-                    if gi >= 0 && gi < dims[0] {
-                        coeffs[i + nx * (j + ny * k)] = self.coeffs[row + gi as usize];
-                    }
+                // The part of the row inside the lattice, copied out of the bricks at once.
+                let (lo, hi) = (coeff_lo[0].max(0), (coeff_lo[0] + nx as i64).min(dims[0]));
+                if lo < hi {
+                    let at = (lo - coeff_lo[0]) as usize + nx * (j + ny * k);
+                    self.coeffs.read_row_at(
+                        [lo as usize, gj as usize, gk as usize],
+                        &mut coeffs[at..at + (hi - lo) as usize],
+                    );
                 }
             }
         }
@@ -365,11 +367,13 @@ impl ScalarField for BSplineLattice {
         };
         for k in range[2].0..=range[2].1 {
             for j in range[1].0..=range[1].1 {
-                let row = self.index(0, j as usize, k as usize);
-                for &c in &self.coeffs[row + range[0].0 as usize..=row + range[0].1 as usize] {
-                    vmin = vmin.min(c);
-                    vmax = vmax.max(c);
-                }
+                let len = (range[0].1 - range[0].0 + 1) as usize;
+                (vmin, vmax) = self.coeffs.fold_row_at(
+                    [range[0].0 as usize, j as usize, k as usize],
+                    len,
+                    (vmin, vmax),
+                    |(lo, hi), c| (lo.min(c), hi.max(c)),
+                );
             }
         }
         Some((vmin, vmax))
@@ -447,9 +451,9 @@ mod tests {
 
     fn bumpy_lattice() -> BSplineLattice {
         let mut l = BSplineLattice::zeros([7, 6, 8], 0.5, Vec3::new(-0.3, 0.2, 0.1)).unwrap();
-        for (n, c) in l.coeffs.iter_mut().enumerate() {
+        l.coeffs.update_each(|n, c| {
             *c = ((n * 7919) % 101) as f32 / 101.0;
-        }
+        });
         l
     }
 

@@ -239,6 +239,8 @@ pub fn apply_tool(
     if let Some(held) = held {
         held.restore(lattice);
     }
+    // The edit settled: bricks it left all one value (carved empty, filled solid) free theirs.
+    lattice.coeffs.compact_within(region.min, region.max);
     Ok(ToolReport {
         patch: options.patch,
         coeff_box: Some(region),
@@ -562,6 +564,8 @@ pub fn apply_csg(
     if let Some(held) = held {
         held.restore(lattice);
     }
+    // The edit settled: bricks it left all one value (carved empty, filled solid) free theirs.
+    lattice.coeffs.compact_within(region.min, region.max);
     Ok(ToolReport {
         patch: options.patch,
         coeff_box: Some(region),
@@ -1289,9 +1293,7 @@ mod tests {
             .density
             .refine(at - Vec3::splat(0.5), at + Vec3::splat(0.5), 1)
             .unwrap();
-        for c in &mut clay.density.patches[n].lattice.coeffs {
-            *c = 1.0;
-        }
+        clay.density.patches[n].lattice.coeffs.fill(1.0);
         assert!(clay.density.patches[0].lattice.value(at) < 1e-6);
         assert!(clay.density.value(at) > clay.density.iso());
         let soft = tool(

@@ -13,7 +13,7 @@ pub use crate::field::{CoeffBox, sub_lattice};
 
 /// Edge length (in coefficients) of the bricks the clay's coefficients are counted in: undo
 /// deltas are stored per brick, and the clay grows by whole bricks.
-pub const BRICK: usize = 8;
+pub const BRICK: usize = crate::field::COEFF_BRICK;
 
 /// Which coefficient lattice of a [`Clay`] an edit or an undo delta refers to.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -182,9 +182,9 @@ mod tests {
     fn a_sub_lattice_evaluates_like_the_original_inside_its_margin() {
         let mut lattice =
             BSplineLattice::zeros([16, 12, 10], 0.2, Vec3::new(0.3, -0.1, 0.0)).unwrap();
-        for (n, c) in lattice.coeffs.iter_mut().enumerate() {
+        lattice.coeffs.update_each(|n, c| {
             *c = ((n * 37) % 23) as f32 / 23.0;
-        }
+        });
         let region = CoeffBox {
             min: [5, 0, 3],
             max: [8, 4, 9],

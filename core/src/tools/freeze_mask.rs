@@ -139,11 +139,12 @@ impl FreezeMask {
         let grown_y = hi[1] - lo[1] + 1;
         // Along x: the region's columns, over the grown box's rows and planes.
         let mut along_x = Vec::with_capacity(n[0] * grown_y * (hi[2] - lo[2] + 1));
+        let mut row = vec![0.0; dims[0]];
         for k in lo[2]..=hi[2] {
             for j in lo[1]..=hi[1] {
-                let row = &painted.coeffs[painted.index(0, j, k)..][..dims[0]];
+                painted.coeffs.read_row_at([0, j, k], &mut row);
                 for i in region.min[0]..=region.max[0] {
-                    along_x.push(window_max(row, i, reach));
+                    along_x.push(window_max(&row, i, reach));
                 }
             }
         }

@@ -213,9 +213,9 @@ mod tests {
     fn growing_keeps_the_density_and_the_centre_and_moves_the_paint_with_it() {
         let mut clay = Clay::single(ball(20));
         let mut colour = ColourField::matching(clay.base()).unwrap();
-        for (n, c) in colour.channels[0].coeffs.iter_mut().enumerate() {
+        colour.channels[0].coeffs.update_each(|n, c| {
             *c = (n % 7) as f32 / 7.0;
-        }
+        });
         clay.colour = Some(colour);
         let before = clay.clone();
         let centre = |l: &BSplineLattice| {

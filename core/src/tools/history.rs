@@ -142,12 +142,17 @@ impl Step {
             };
             // Row by row over contiguous slices (see bench/tools.rs, undo_redo_256).
             let mut xor = d.xor.chunks_exact(d.region.dims()[0]);
+            let mut row = vec![0.0; d.region.dims()[0]];
             for_each_row(d.dims, &d.region, |start, len| {
                 let bits = xor.next().expect("one XOR row per region row");
-                for (c, x) in field.coeffs[start..start + len].iter_mut().zip(bits) {
+                let row = &mut row[..len];
+                field.coeffs.read_row(start, row);
+                for (c, x) in row.iter_mut().zip(bits) {
                     *c = f32::from_bits(c.to_bits() ^ x);
                 }
+                field.coeffs.write_row(start, row);
             });
+            field.coeffs.compact_within(d.region.min, d.region.max);
         }
         if let Some(p) = &self.pins {
             // Undo finds the list as the step left it; redo finds it as the step found it.
@@ -312,12 +317,10 @@ impl StepRecorder {
                         continue;
                     };
                     let mut bits = Vec::with_capacity(brick.count());
+                    let mut row = [0.0; BRICK];
                     for_each_row(dims, &brick, |start, len| {
-                        bits.extend(
-                            lattice.coeffs[start..start + len]
-                                .iter()
-                                .map(|c| c.to_bits()),
-                        );
+                        lattice.coeffs.read_row(start, &mut row[..len]);
+                        bits.extend(row[..len].iter().map(|c| c.to_bits()));
                     });
                     self.old.insert(
                         key,
@@ -414,14 +417,13 @@ impl StepRecorder {
                 FieldId::Density(n) if usize::from(n) == index => {
                     // The bits as the step found them go back into the patch kept for undo.
                     let mut bits = saved.bits.chunks_exact(saved.region.dims()[0]);
+                    let mut values = [0.0; BRICK];
                     for_each_row(dims, &saved.region, |start, len| {
                         let row = bits.next().expect("one saved row per region row");
-                        for (c, &b) in before.lattice.coeffs[start..start + len]
-                            .iter_mut()
-                            .zip(row)
-                        {
+                        for (c, &b) in values.iter_mut().zip(row) {
                             *c = f32::from_bits(b);
                         }
+                        before.lattice.coeffs.write_row(start, &values[..len]);
                     });
                 }
                 FieldId::Density(n) if usize::from(n) > index => {
@@ -466,10 +468,12 @@ impl StepRecorder {
                 continue;
             }
             let mut xor = Vec::with_capacity(old.len());
+            let mut row = [0.0; BRICK];
             for_each_row(dims, &region, |start, len| {
                 let n = xor.len();
+                lattice.coeffs.read_row(start, &mut row[..len]);
                 xor.extend(
-                    lattice.coeffs[start..start + len]
+                    row[..len]
                         .iter()
                         .zip(&old[n..n + len])
                         .map(|(c, o)| c.to_bits() ^ o),
@@ -653,9 +657,9 @@ mod tests {
 
     fn clay() -> Clay {
         let mut l = BSplineLattice::zeros([20, 13, 9], 0.1, Vec3::ZERO).unwrap();
-        for (n, c) in l.coeffs.iter_mut().enumerate() {
+        l.coeffs.update_each(|n, c| {
             *c = (n % 7) as f32 * 0.1;
-        }
+        });
         Clay::single(l)
     }
 
@@ -672,14 +676,10 @@ mod tests {
 
     /// Sets every coefficient of density patch `n` to `value(index)`.
     fn fill(clay: &mut Clay, n: usize, value: impl Fn(usize) -> f32) {
-        for (i, c) in clay.density.patches[n]
+        clay.density.patches[n]
             .lattice
             .coeffs
-            .iter_mut()
-            .enumerate()
-        {
-            *c = value(i);
-        }
+            .update_each(|i, c| *c = value(i));
     }
 
     #[test]

@@ -254,11 +254,12 @@ fn set_every_hold(
             r.touch(clay, id, CoeffBox::whole(dims));
         }
         if let Some(mask) = clay.mask.as_mut().and_then(|m| m.patches.get_mut(n)) {
-            for h in &mut mask.coeffs {
+            mask.coeffs.update_each(|_, h| {
                 let new = f(*h).clamp(0.0, 1.0);
                 report.changed += usize::from(new.to_bits() != h.to_bits());
                 *h = new;
-            }
+            });
+            mask.coeffs.compact();
         }
     }
     Ok(report)
@@ -312,7 +313,9 @@ impl HeldRegion {
         }
         let mut before = Vec::with_capacity(region.count());
         for_each_row(lattice, &region, |row| {
-            before.extend_from_slice(&lattice.coeffs[row]);
+            lattice
+                .coeffs
+                .extend_row_into(row.start, row.len(), &mut before);
         });
         Some(Self {
             region,
@@ -366,7 +369,8 @@ fn for_each_row_mut(
     for k in region.min[2]..=region.max[2] {
         for j in region.min[1]..=region.max[1] {
             let start = region.min[0] + dims[0] * (j + dims[1] * k);
-            f(&mut lattice.coeffs[start..start + region.max[0] - region.min[0] + 1]);
+            let len = region.max[0] - region.min[0] + 1;
+            lattice.coeffs.with_row_mut(start, len, &mut f);
         }
     }
 }

@@ -194,7 +194,7 @@ pub fn check_pins(field: &MultiPatchField, pins: &[Constraint]) -> ConstraintRep
         &rows,
         lattice,
         CoeffBox::whole(lattice.dims),
-        &lattice.coeffs,
+        &lattice.coeffs.to_vec(),
         ConstraintPath::Auto,
     )
     .report()

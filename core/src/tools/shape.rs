@@ -444,7 +444,7 @@ mod tests {
     #[test]
     fn freeform_tool_reads_its_lattice_with_iso_mapped_to_one_half() {
         let mut lattice = BSplineLattice::zeros([6, 6, 6], 1.0, Vec3::ZERO).unwrap();
-        lattice.coeffs.iter_mut().for_each(|c| *c = 0.8);
+        lattice.coeffs.update_each(|_, c| *c = 0.8);
         lattice.iso = 0.4;
         let tool = ToolShape::Freeform(FreeformTool {
             lattice,

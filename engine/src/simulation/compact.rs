@@ -97,7 +97,7 @@ impl SimulationStage {
         self.clay.density.patches[0]
             .lattice
             .coeffs
-            .copy_from_slice(&lattice.coeffs);
+            .clone_from(&lattice.coeffs);
         self.commit(rec);
         self.mark_all_changed();
         true

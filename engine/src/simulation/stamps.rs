@@ -194,10 +194,11 @@ fn for_each_row(lattice: &BSplineLattice, b: CoeffBox, mut f: impl FnMut(&[f32])
         return;
     };
     let len = b.max[0] + 1 - b.min[0];
+    let mut values = vec![0.0; len];
     for k in b.min[2]..=b.max[2] {
         for j in b.min[1]..=b.max[1] {
-            let row = lattice.index(b.min[0], j, k);
-            f(&lattice.coeffs[row..row + len]);
+            lattice.coeffs.read_row_at([b.min[0], j, k], &mut values);
+            f(&values);
         }
     }
 }

@@ -16,7 +16,7 @@
 //! Each pass is split over the machine's threads by planes of its output, every entry summed
 //! in one fixed order, so the fit is the same bit for bit on any number of threads.
 
-use dynaclay_core::field::BSplineLattice;
+use dynaclay_core::field::{BSplineLattice, BrickedCoeffs};
 
 /// The iterations stop when the residual falls below this fraction of the right-hand side.
 pub const TOLERANCE: f64 = 1e-5;
@@ -484,9 +484,9 @@ fn refit_regularised_on(
             *p = z + beta * *p;
         }
     }
-    for (c, v) in lattice.coeffs.iter_mut().zip(&x) {
-        *c = *v as f32;
-    }
+    let dims = lattice.dims;
+    let values: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    lattice.coeffs = BrickedCoeffs::from_vec(dims, values);
     iterations
 }
 
