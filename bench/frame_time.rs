@@ -93,7 +93,9 @@ fn large_sculpt(clay: &MultiPatchField, base_cells: u32) -> (MeshSet, u32) {
                 let p = lattice.node_position(x, y, z);
                 let n = lattice.index(x, y, z);
                 let ripple = 0.12 * (k * p.x).sin() * (k * p.y).sin() * (k * p.z).sin();
-                lattice.coeffs[n] = (lattice.coeffs[n] + ripple).clamp(0.0, 1.0);
+                lattice
+                    .coeffs
+                    .set_flat(n, (lattice.coeffs[n] + ripple).clamp(0.0, 1.0));
             }
         }
     }

@@ -357,7 +357,7 @@ fn local_remesh(c: &mut Criterion) {
     let node = [30 + 24, 30, 30];
     let mut after = before.clone();
     let idx = after.index(node[0], node[1], node[2]);
-    after.coeffs[idx] -= 0.4;
+    after.coeffs.add_flat(idx, -0.4);
     let (min, max) = BrickOctree::coefficient_change_box(&after, node, node);
     assert!(
         ((max - min) / grid.cell_size - Vec3::splat(16.0))
@@ -480,7 +480,7 @@ fn graphics_stroke(c: &mut Criterion) {
     let node = [20, 12, 12];
     for step in 0..3 {
         let idx = lattice.index(node[0] + step, node[1], node[2]);
-        lattice.coeffs[idx] -= 0.3;
+        lattice.coeffs.add_flat(idx, -0.3);
     }
     let (base_lo, base_hi) =
         BrickOctree::coefficient_change_box(lattice, node, [node[0] + 2, node[1], node[2]]);

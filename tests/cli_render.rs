@@ -51,10 +51,10 @@ fn painted_ball_session(path: &Path) {
                 let p = lattice.node_position(i, j, k);
                 let d = (p - Vec3::ONE).length() - 0.6;
                 let at = lattice.index(i, j, k);
-                lattice.coeffs[at] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+                lattice.coeffs.set_flat(at, (0.5 - d / 0.6).clamp(0.0, 1.0));
                 if p.x > 0.9 {
-                    colour.channels[0].coeffs[at] = 1.0;
-                    colour.channels[3].coeffs[at] = 1.0;
+                    colour.channels[0].coeffs.set_flat(at, 1.0);
+                    colour.channels[3].coeffs.set_flat(at, 1.0);
                 }
             }
         }

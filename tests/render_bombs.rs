@@ -112,7 +112,7 @@ fn ball(dims: usize, spacing: f32, origin: Vec3) -> BSplineLattice {
             for i in 0..dims {
                 let d = Vec3::new(i as f32 - c, j as f32 - c, k as f32 - c).length();
                 let n = l.index(i, j, k);
-                l.coeffs[n] = (1.0 - d / 8.0).clamp(0.0, 1.0);
+                l.coeffs.set_flat(n, (1.0 - d / 8.0).clamp(0.0, 1.0));
             }
         }
     }

@@ -18,7 +18,9 @@ pub fn sphere_lattice(n: usize, radius_spans: f32) -> BSplineLattice {
             for i in 0..n {
                 let d = radius_spans - (lattice.node_position(i, j, k) - centre).length();
                 let idx = lattice.index(i, j, k);
-                lattice.coeffs[idx] = (0.5 + d / 6.0).clamp(0.0, 1.0);
+                lattice
+                    .coeffs
+                    .set_flat(idx, (0.5 + d / 6.0).clamp(0.0, 1.0));
             }
         }
     }
@@ -51,7 +53,7 @@ pub fn three_level_clay() -> (MultiPatchField, MultiPatchField, (Vec3, Vec3)) {
                     let x = lattice.node_position(i, j, k);
                     let bump = 0.01 * (-(x - pole).length_squared() / (width * width)).exp();
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = bump;
+                    lattice.coeffs.set_flat(idx, bump);
                 }
             }
         }
@@ -65,7 +67,7 @@ pub fn three_level_clay() -> (MultiPatchField, MultiPatchField, (Vec3, Vec3)) {
     // nodes along +x from the pole hold it.
     for step in 0..3 {
         let idx = patch.lattice.index(first[0] + step, first[1], first[2]);
-        patch.lattice.coeffs[idx] -= 0.05;
+        patch.lattice.coeffs.add_flat(idx, -0.05);
     }
     let change = patch.coefficient_change_box(first, [first[0] + 2, first[1], first[2]]);
     (before, after, change)

@@ -991,7 +991,10 @@ mod tests {
         let mut rec = StepRecorder::new("edit");
         rec.touch(&sim.clay, FieldId::Density(0), b);
         let idx = sim.clay.density.patches[0].lattice.index(3, 3, 3);
-        sim.clay.density.patches[0].lattice.coeffs[idx] += 0.25;
+        sim.clay.density.patches[0]
+            .lattice
+            .coeffs
+            .add_flat(idx, 0.25);
         assert!(sim.history.commit(rec, &sim.clay));
         sim.mark_changed(0, b);
     }
@@ -1034,7 +1037,7 @@ mod tests {
             for j in 0..d[1] {
                 for i in 0..d[0] {
                     let idx = loaded.index(i, j, k);
-                    loaded.coeffs[idx] = 0.0;
+                    loaded.coeffs.set_flat(idx, 0.0);
                 }
             }
         }
@@ -1081,7 +1084,7 @@ mod tests {
         for j in 0..loaded.dims[1] {
             for i in 0..loaded.dims[0] {
                 let idx = loaded.index(i, j, top);
-                loaded.coeffs[idx] = 0.0;
+                loaded.coeffs.set_flat(idx, 0.0);
             }
         }
         assert_ne!(loaded, edited);
@@ -1152,7 +1155,7 @@ mod tests {
         let mut s = stages();
         let running = s.sim.lattice().clone();
         let mut colour = dynaclay_core::tools::ColourField::matching(&running).unwrap();
-        colour.channels[2].coeffs[11] = 0.5;
+        colour.channels[2].coeffs.set_flat(11, 0.5);
         let full = Session {
             clay: Clay {
                 density: MultiPatchField::new(running),
@@ -1206,7 +1209,7 @@ mod tests {
         })
         .unwrap();
         let mut nan = before.clone();
-        nan.coeffs[7] = f32::NAN;
+        nan.coeffs.set_flat(7, f32::NAN);
         let mut none = session_with(before.clone(), Material::ELASTIC);
         none.clay.density.patches.clear();
         let mut two = session_with(before.clone(), Material::ELASTIC);

@@ -207,17 +207,7 @@ impl AppliedChange {
 
 /// Copies `coeffs` (the box's values, x fastest) into `lattice`; the caller checked the fit.
 fn copy_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) {
-    let len = b.max[0] + 1 - b.min[0];
-    let mut rows = coeffs.chunks_exact(len);
-    for k in b.min[2]..=b.max[2] {
-        for j in b.min[1]..=b.max[1] {
-            let row = lattice.index(b.min[0], j, k);
-            // The caller's length check guarantees one chunk per row.
-            if let Some(from) = rows.next() {
-                lattice.coeffs.write_row(row, from);
-            }
-        }
-    }
+    lattice.coeffs.write_box(b.min, b.dims(), coeffs);
 }
 
 /// Writes `coeffs` into `lattice` and returns the box of coefficients whose value changed
@@ -288,8 +278,8 @@ mod tests {
     fn apply_measured_reports_the_largest_coefficient_move() {
         let src = two_patches(1.0);
         let mut moved = src.clone();
-        moved.patches[0].lattice.coeffs[7] += 0.25;
-        moved.patches[1].lattice.coeffs[11] -= 0.5;
+        moved.patches[0].lattice.coeffs.add_flat(7, 0.25);
+        moved.patches[1].lattice.coeffs.add_flat(11, -0.5);
         let capture = |field: &MultiPatchField| {
             let mut update = FieldUpdate::with_capacity_for(field);
             for (n, p) in field.patches.iter().enumerate() {
@@ -309,7 +299,7 @@ mod tests {
         );
         assert_eq!(capture(&moved).apply_measured(&mut dst), None);
 
-        moved.patches[0].lattice.coeffs[3] = f32::NAN;
+        moved.patches[0].lattice.coeffs.set_flat(3, f32::NAN);
         let change = capture(&moved).apply_measured(&mut dst).expect("changed");
         assert_eq!(change.largest_move, f32::INFINITY);
     }
@@ -335,7 +325,7 @@ mod tests {
         let mut moved = src.clone();
         let detail = &mut moved.patches[1].lattice;
         let idx = detail.index(2, 3, 4);
-        detail.coeffs[idx] += 1.0;
+        detail.coeffs.add_flat(idx, 1.0);
         let cap = update.coeffs.capacity();
         update.clear();
         update.capture(&moved, 0, b);
@@ -353,12 +343,12 @@ mod tests {
     fn copy_into_writes_the_same_field_as_apply_to() {
         let mut moved = two_patches(1.0);
         for n in 40..90 {
-            let c = &mut moved.patches[0].lattice.coeffs[n];
-            *c = -*c;
+            let coeffs = &mut moved.patches[0].lattice.coeffs;
+            coeffs.set_flat(n, -coeffs[n]);
         }
         for n in 10..30 {
-            let c = &mut moved.patches[1].lattice.coeffs[n];
-            *c = -*c;
+            let coeffs = &mut moved.patches[1].lattice.coeffs;
+            coeffs.set_flat(n, -coeffs[n]);
         }
         let b = CoeffBox {
             min: [0, 1, 1],

@@ -132,7 +132,7 @@ mod tests {
                 for i in 0..12 {
                     let d = (lattice.node_position(i, j, k) - origin - Vec3::ONE).length() - 0.6;
                     let n = lattice.index(i, j, k);
-                    lattice.coeffs[n] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+                    lattice.coeffs.set_flat(n, (0.5 - d / 0.6).clamp(0.0, 1.0));
                 }
             }
         }
@@ -205,7 +205,9 @@ mod tests {
                 for i in 0..28 {
                     let d = Vec3::new(i as f32, j as f32, k as f32) - Vec3::splat(13.5);
                     let n = lattice.index(i, j, k);
-                    lattice.coeffs[n] = (1.0 - d.length() / 20.0).clamp(0.0, 1.0);
+                    lattice
+                        .coeffs
+                        .set_flat(n, (1.0 - d.length() / 20.0).clamp(0.0, 1.0));
                 }
             }
         }
@@ -233,7 +235,7 @@ mod tests {
         let fine = ball(Vec3::ZERO);
         let mut coarse = BSplineLattice::zeros([4; 3], 37.0, Vec3::splat(-50.0)).unwrap();
         coarse.coeffs.fill(0.3);
-        coarse.coeffs[21] = 0.9;
+        coarse.coeffs.set_flat(21, 0.9);
         let mut fine = fine;
         fine.spacing = 1e-3;
         let clay = Clay {

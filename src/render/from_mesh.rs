@@ -203,7 +203,7 @@ mod tests {
                 for i in 0..12 {
                     let d = (lattice.node_position(i, j, k) - Vec3::ONE).length() - 0.6;
                     let n = lattice.index(i, j, k);
-                    lattice.coeffs[n] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+                    lattice.coeffs.set_flat(n, (0.5 - d / 0.6).clamp(0.0, 1.0));
                 }
             }
         }
@@ -300,8 +300,8 @@ mod tests {
             for j in 0..12 {
                 for i in 6..12 {
                     let n = lattice.index(i, j, k);
-                    colour.channels[0].coeffs[n] = 1.0;
-                    colour.channels[3].coeffs[n] = 1.0;
+                    colour.channels[0].coeffs.set_flat(n, 1.0);
+                    colour.channels[3].coeffs.set_flat(n, 1.0);
                 }
             }
         }

@@ -1343,7 +1343,7 @@ fn far_bricks_are_drawn_coarse_without_holes_and_near_ones_in_full() {
             for i in 0..24 {
                 let d = (lattice.node_position(i, j, k) - centre).length() - 0.8;
                 let n = lattice.index(i, j, k);
-                lattice.coeffs[n] = (0.5 - d / 0.6).clamp(0.0, 1.0);
+                lattice.coeffs.set_flat(n, (0.5 - d / 0.6).clamp(0.0, 1.0));
             }
         }
     }

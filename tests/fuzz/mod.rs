@@ -286,7 +286,7 @@ pub fn valid_session_bytes() -> Vec<u8> {
     colour.channels[3].coeffs.fill(0.5);
     let mut density = dynaclay::field::MultiPatchField::new(lattice);
     let mut detail = BSplineLattice::zeros([4, 4, 4], 0.125, Vec3::new(0.6, -0.9, 0.1)).unwrap();
-    detail.coeffs[21] = 0.25;
+    detail.coeffs.set_flat(21, 0.25);
     density.push(
         detail,
         glam::Affine3A::from_rotation_translation(

@@ -321,7 +321,9 @@ mod tests {
             for j in 0..6 {
                 for i in 0..12 {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = (0.5 - (i as f32 * 0.2 - 1.0) / 0.8).clamp(0.0, 1.0);
+                    lattice
+                        .coeffs
+                        .set_flat(idx, (0.5 - (i as f32 * 0.2 - 1.0) / 0.8).clamp(0.0, 1.0));
                 }
             }
         }

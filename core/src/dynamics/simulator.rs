@@ -1079,16 +1079,12 @@ impl Simulator {
         snapshot: &mut RegionSnapshot,
     ) {
         let b = state.coeff_box();
-        let n = b.dims();
-        for (r, src) in state.p.chunks_exact(n[0]).enumerate() {
-            let (j, k) = (r % n[1], r / n[1]);
-            let row = lattice.index(b.min[0], b.min[1] + j, b.min[2] + k);
-            lattice.coeffs.write_row(row, src);
-        }
+        lattice.coeffs.write_box(b.min, b.dims(), &state.p);
         // Rows written with the values a uniform brick holds leave it uniform; a brick the
         // step moved and brought back to one value is freed again.
         lattice.coeffs.compact_within(b.min, b.max);
-        snapshot.capture(lattice, b, state.version);
+        // The lattice now holds `state.p` over the box: the snapshot copies them as they are.
+        snapshot.capture_written(lattice, b, &state.p, state.version);
     }
 
     /// The acceleration computed by the last step (for diagnostics and tests).
@@ -2027,7 +2023,7 @@ mod tests {
                 for i in 0..10 {
                     let d = 0.3 - (start.node_position(i, j, k) - centre).length();
                     let at = start.index(i, j, k);
-                    start.coeffs[at] = (0.5 + d / 0.6).clamp(0.0, 1.0);
+                    start.coeffs.set_flat(at, (0.5 + d / 0.6).clamp(0.0, 1.0));
                 }
             }
         }

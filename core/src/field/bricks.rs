@@ -1,47 +1,132 @@
 //! Sparse storage of a lattice's coefficients: a directory of 8×8×8 bricks, each either one
-//! value for the whole brick (no heap) or 512 values on the heap.
+//! value (no heap) or 11×11×11 values on the heap: its own 8³ and an apron, copies of the next
+//! three coefficients along +x, +y and +z, which the neighbouring bricks own.
 //!
 //! The clay's density is clamped to `[0, 1]`: far from the surface whole bricks hold 0 (empty
 //! space) or 1 (deep inside), so only the bricks near the surface or inside a simulated region
 //! cost memory, and the memory grows with the surface's area rather than the box's volume.
 //!
+//! The apron puts every 4×4×4 cubic stencil inside the brick that owns its low corner: a
+//! stencil is one directory read and sixteen rows at fixed strides, as cheap as a dense
+//! vector's (`bench/core.rs` `value_and_gradient`). The store keeps one invariant: at each of
+//! a brick's 11³ places that lies inside the store, the brick holds the value of the
+//! coefficient there, and a brick is uniform only when all of those values are one value. A
+//! write therefore updates the owner and the apron copies in up to seven lower neighbours
+//! (those whose apron reaches it), making any of them dense if the value changes there.
+//!
 //! Coefficient `(i, j, k)` of an `nx × ny × nz` store is also addressed by its flat index
 //! `i + nx · (j + ny · k)` (x fastest), the order every iteration follows. Reads never
-//! allocate. A write of a value a uniform brick already holds changes nothing; any other write
-//! into a uniform brick makes it dense (one 2 KiB allocation), and [`BrickedCoeffs::compact`]
-//! makes a dense brick whose values are all equal uniform again. A store made dense with
-//! [`BrickedCoeffs::densify_all`] never allocates on writes (the haptic loop's copy).
+//! allocate. A write of a value the uniform bricks holding it already hold changes nothing;
+//! any other write into a uniform brick makes it dense (one allocation of 5 324 bytes), and
+//! [`BrickedCoeffs::compact`] makes a dense brick whose values are all equal uniform again. A
+//! store made dense with [`BrickedCoeffs::densify_all`] never allocates on writes (the haptic
+//! loop's copy).
 
 use std::fmt;
-use std::ops::{Index, IndexMut};
+use std::ops::Index;
 
 use glam::Vec4;
 
-/// Coefficients per brick along each axis.
+/// Coefficients a brick owns along each axis.
 pub const COEFF_BRICK: usize = 8;
-/// Coefficients in one brick.
+/// Coefficients of the next bricks a dense brick copies along each axis (a cubic stencil's
+/// reach past its first coefficient).
+pub const BRICK_APRON: usize = 3;
+/// Coefficients a dense brick holds along each axis: its own and its apron.
+pub const BRICK_SPAN: usize = COEFF_BRICK + BRICK_APRON;
+/// Coefficients a brick owns.
 pub const COEFF_BRICK_VALUES: usize = COEFF_BRICK * COEFF_BRICK * COEFF_BRICK;
+/// Values a dense brick holds (its own and its apron).
+pub const DENSE_BRICK_VALUES: usize = BRICK_SPAN * BRICK_SPAN * BRICK_SPAN;
 /// Heap bytes of one dense brick.
-pub const DENSE_BRICK_BYTES: usize = COEFF_BRICK_VALUES * size_of::<f32>();
+pub const DENSE_BRICK_BYTES: usize = DENSE_BRICK_VALUES * size_of::<f32>();
 
 const SHIFT: usize = 3;
 const MASK: usize = COEFF_BRICK - 1;
+/// Distance between neighbouring values along y within a dense brick.
+const STRIDE_Y: usize = BRICK_SPAN;
+/// Distance between neighbouring values along z within a dense brick.
+const STRIDE_Z: usize = BRICK_SPAN * BRICK_SPAN;
+/// Values from a stencil's first one to past its last within a dense brick.
+const STENCIL_REACH: usize = 3 * STRIDE_Z + 3 * STRIDE_Y + 4;
 
-/// One 8×8×8 brick: a single value for all of it, or every value (x fastest within the brick).
+/// One brick: a single value for all of it, or every value it holds (x fastest, `BRICK_SPAN`
+/// per row).
 #[derive(Clone)]
 enum Brick {
     Uniform(f32),
-    Dense(Box<[f32; COEFF_BRICK_VALUES]>),
+    Dense(Box<[f32; DENSE_BRICK_VALUES]>),
 }
 
-/// Offset of in-brick coordinates `(a, b, c)` (each below 8) within a dense brick.
+/// Offset of in-brick coordinates `(a, b, c)` (each below [`BRICK_SPAN`]) within a dense
+/// brick.
 #[inline]
 fn offset(a: usize, b: usize, c: usize) -> usize {
-    a | (b << SHIFT) | (c << (2 * SHIFT))
+    a + STRIDE_Y * b + STRIDE_Z * c
 }
 
-/// The coefficients of an `nx × ny × nz` lattice, stored in 8×8×8 bricks (see the module
-/// documentation). Equality compares values, whatever the representation.
+/// The bricks along one axis that hold coordinate `x`, with its place in each: its owner,
+/// then the previous brick when `x` lies in that brick's apron. Returns the pairs and how
+/// many are used.
+#[inline]
+fn axis_holders(x: usize) -> ([(usize, usize); 2], usize) {
+    let (brick, local) = (x >> SHIFT, x & MASK);
+    let in_apron = usize::from(local < BRICK_APRON && brick > 0);
+    (
+        [(brick, local), (brick.wrapping_sub(1), local + COEFF_BRICK)],
+        1 + in_apron,
+    )
+}
+
+/// Copies a run of at most one brick's row (up to [`BRICK_SPAN`] values) with fixed-size
+/// copies the compiler keeps inline: two overlapping copies of 8 or 4 values, or one value
+/// at a time below 4. Longer runs go to `copy_from_slice`.
+// NOTE: the box reads and writes of a simulation step are a few thousand such runs; a call
+// into `memmove` for each cost the step several per cent (`bench/core.rs` `step`).
+#[inline(always)]
+fn copy_run(dst: &mut [f32], src: &[f32]) {
+    fn fixed<const N: usize>(dst: &mut [f32], src: &[f32]) {
+        let len = dst.len();
+        let (head, tail) = (dst.split_at_mut(N).0, &src[..N]);
+        head.copy_from_slice(tail);
+        dst[len - N..].copy_from_slice(&src[len - N..]);
+    }
+    assert_eq!(dst.len(), src.len(), "runs of one length");
+    match dst.len() {
+        8..=16 => fixed::<8>(dst, src),
+        4..=7 => fixed::<4>(dst, src),
+        0..=3 => {
+            for (d, s) in dst.iter_mut().zip(src) {
+                *d = *s;
+            }
+        }
+        _ => dst.copy_from_slice(src),
+    }
+}
+
+/// The lowest brick along one axis that holds coordinate `x`: the one before its owner when
+/// `x` lies in that brick's apron.
+#[inline]
+fn lowest_holder(x: usize) -> usize {
+    let (holders, count) = axis_holders(x);
+    holders[count - 1].0
+}
+
+/// Writes `values` at `off` of `brick`; a uniform brick that holds them all already stays
+/// uniform.
+#[inline]
+fn store_run(brick: &mut Brick, off: usize, values: &[f32]) {
+    let keeps = match brick {
+        Brick::Uniform(v) => values.iter().all(|h| h.to_bits() == v.to_bits()),
+        Brick::Dense(_) => false,
+    };
+    if !keeps {
+        densify(brick)[off..off + values.len()].copy_from_slice(values);
+    }
+}
+
+/// The coefficients of an `nx × ny × nz` lattice, stored in 8×8×8 bricks with aprons (see
+/// the module documentation). Equality compares values, whatever the representation.
 #[derive(Clone)]
 pub struct BrickedCoeffs {
     dims: [usize; 3],
@@ -76,7 +161,8 @@ impl BrickedCoeffs {
         Self::uniform(dims, 0.0)
     }
 
-    /// A store holding `values` (x fastest); bricks whose values are all equal stay uniform.
+    /// A store holding `values` (x fastest); bricks whose values (apron included) are all
+    /// equal stay uniform.
     ///
     /// # Panics
     /// When `values.len()` is not the product of `dims`.
@@ -91,7 +177,7 @@ impl BrickedCoeffs {
         for bk in 0..bz {
             for bj in 0..by {
                 for bi in 0..bx {
-                    let extent = store.brick_extent([bi, bj, bk]);
+                    let extent = store.held_extent([bi, bj, bk]);
                     let [i0, j0, k0] = [bi, bj, bk].map(|b| b * COEFF_BRICK);
                     let row = |b: usize, c: usize| {
                         let start = i0 + nx * (j0 + b + ny * (k0 + c));
@@ -106,7 +192,7 @@ impl BrickedCoeffs {
                     store.bricks[at] = if same {
                         Brick::Uniform(first)
                     } else {
-                        let mut dense = Box::new([0.0; COEFF_BRICK_VALUES]);
+                        let mut dense = Box::new([0.0; DENSE_BRICK_VALUES]);
                         for c in 0..extent[2] {
                             for b in 0..extent[1] {
                                 dense[offset(0, b, c)..][..extent[0]].copy_from_slice(row(b, c));
@@ -241,29 +327,25 @@ impl BrickedCoeffs {
         *self.at(i, j, k)
     }
 
-    /// A mutable reference to coefficient `(i, j, k)`; makes its brick dense if it was
-    /// uniform.
-    ///
-    /// # Panics
-    /// When `(i, j, k)` lies outside the store.
-    #[inline]
-    pub fn at_mut(&mut self, i: usize, j: usize, k: usize) -> &mut f32 {
-        self.check(i, j, k);
-        let b = self.brick_index(i, j, k);
-        &mut densify(&mut self.bricks[b])[offset(i & MASK, j & MASK, k & MASK)]
-    }
-
-    /// Sets coefficient `(i, j, k)`; a uniform brick that already holds `value` stays uniform.
+    /// Sets coefficient `(i, j, k)` in its brick and in the aprons that copy it; a uniform
+    /// brick that already holds `value` stays uniform.
     ///
     /// # Panics
     /// When `(i, j, k)` lies outside the store.
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize, value: f32) {
         self.check(i, j, k);
-        let b = self.brick_index(i, j, k);
-        match &mut self.bricks[b] {
-            Brick::Uniform(v) if v.to_bits() == value.to_bits() => {}
-            brick => densify(brick)[offset(i & MASK, j & MASK, k & MASK)] = value,
+        let [bx, by, _] = self.bricks_per_axis;
+        let (xs, nx) = axis_holders(i);
+        let (ys, ny) = axis_holders(j);
+        let (zs, nz) = axis_holders(k);
+        for &(bk, c) in &zs[..nz] {
+            for &(bj, b) in &ys[..ny] {
+                for &(bi, a) in &xs[..nx] {
+                    let at = bi + bx * (bj + by * bk);
+                    store_run(&mut self.bricks[at], offset(a, b, c), &[value]);
+                }
+            }
         }
     }
 
@@ -282,6 +364,16 @@ impl BrickedCoeffs {
         self.set(i, j, k, value);
     }
 
+    /// Adds `delta` to the coefficient at flat index `n` (as [`BrickedCoeffs::set_flat`]).
+    ///
+    /// # Panics
+    /// When `n` is not below [`BrickedCoeffs::len`].
+    #[inline]
+    pub fn add_flat(&mut self, n: usize, delta: f32) {
+        let value = self[n] + delta;
+        self.set_flat(n, value);
+    }
+
     /// Four consecutive coefficients along x from `(i, j, k)` (the row of a cubic stencil).
     ///
     /// # Panics
@@ -290,46 +382,21 @@ impl BrickedCoeffs {
     #[must_use]
     pub fn row4(&self, i: usize, j: usize, k: usize) -> Vec4 {
         self.check(i + 3, j, k);
-        self.row4_inside(i, j, k)
-    }
-
-    /// Four consecutive coefficients along x from `(i, j, k)`; the caller checked the range.
-    #[inline]
-    fn row4_inside(&self, i: usize, j: usize, k: usize) -> Vec4 {
-        let a = i & MASK;
         match &self.bricks[self.brick_index(i, j, k)] {
-            Brick::Dense(values) if a <= COEFF_BRICK - 4 => {
-                Vec4::from_slice(&values[offset(a, j & MASK, k & MASK)..][..4])
-            }
-            Brick::Uniform(v) if a <= COEFF_BRICK - 4 => Vec4::splat(*v),
-            _ => {
-                // The row crosses into the next brick along x.
-                let next = &self.bricks[self.brick_index(i + COEFF_BRICK - a, j, k)];
-                let (b, c) = (j & MASK, k & MASK);
-                let here = &self.bricks[self.brick_index(i, j, k)];
-                let mut row = [0.0; 4];
-                for (t, r) in row.iter_mut().enumerate() {
-                    let (brick, x) = if a + t < COEFF_BRICK {
-                        (here, a + t)
-                    } else {
-                        (next, a + t - COEFF_BRICK)
-                    };
-                    *r = match brick {
-                        Brick::Uniform(v) => *v,
-                        Brick::Dense(values) => values[offset(x, b, c)],
-                    };
-                }
-                Vec4::from_array(row)
+            Brick::Uniform(v) => Vec4::splat(*v),
+            // The row's last three values are in the owner's apron when they cross.
+            Brick::Dense(values) => {
+                Vec4::from_slice(&values[offset(i & MASK, j & MASK, k & MASK)..][..4])
             }
         }
     }
 
     /// The 4×4×4 coefficients from `(i, j, k)` (a cubic stencil) as 16 rows along x, row
-    /// `b + 4c` holding `(i..i + 4, j + b, k + c)`. A stencil inside one brick is read
-    /// straight from it.
+    /// `b + 4c` holding `(i..i + 4, j + b, k + c)`: one directory read, the brick that owns
+    /// `(i, j, k)` holding the whole stencil in its own values and apron.
     ///
     /// The caller keeps the stencil inside the store (checked in debug builds; outside it,
-    /// the values read are wrong or a directory read panics).
+    /// the values read past the store's end are not coefficients).
     #[inline(always)]
     #[must_use]
     pub fn stencil_rows(&self, [i, j, k]: [usize; 3]) -> [Vec4; 16] {
@@ -338,58 +405,18 @@ impl BrickedCoeffs {
             "stencil at ({i}, {j}, {k}) outside {:?}",
             self.dims
         );
-        let (a, b, c) = (i & MASK, j & MASK, k & MASK);
-        let [bx, by, _] = self.bricks_per_axis;
-        let first = (i >> SHIFT) + bx * ((j >> SHIFT) + by * (k >> SHIFT));
-        let reach = [a, b, c].map(|o| usize::from(o > COEFF_BRICK - 4));
-        if reach == [0; 3] {
-            // The whole stencil in one brick: one directory read.
-            return match &self.bricks[first] {
-                Brick::Uniform(v) => [Vec4::splat(*v); 16],
-                Brick::Dense(values) => std::array::from_fn(|n| {
-                    let off = a | ((b + (n & 3)) << SHIFT) | ((c + (n >> 2)) << (2 * SHIFT));
-                    Vec4::from_slice(&values[off..off + 4])
-                }),
-            };
-        }
-        // NOTE: the directory is read once per brick the stencil meets (at most 2×2×2), not
-        // once per row: each brick becomes a source, its dense values (offsets kept) or four
-        // copies of its one value (offsets masked to 0), so a row is one masked 4-wide load
-        // whatever the brick holds (`bench/core.rs` `value_and_gradient`).
-        let mut splats = [[0.0_f32; 4]; 8];
-        let mut dense: [Option<&[f32; COEFF_BRICK_VALUES]>; 8] = [None; 8];
-        let mut masks = [0_usize; 8];
-        for n in 0..8 {
-            // A neighbour the stencil does not reach is read as the first brick again (no
-            // branch on where the stencil lies).
-            let (dx, dy, dz) = (n & reach[0], (n >> 1) & reach[1], (n >> 2) & reach[2]);
-            match &self.bricks[first + dx + bx * (dy + by * dz)] {
-                Brick::Uniform(v) => splats[n] = [*v; 4],
-                Brick::Dense(values) => {
-                    dense[n] = Some(values);
-                    masks[n] = usize::MAX;
-                }
+        match &self.bricks[self.brick_index(i, j, k)] {
+            Brick::Uniform(v) => [Vec4::splat(*v); 16],
+            Brick::Dense(values) => {
+                // NOTE: one slice of the stencil's reach, so the sixteen constant offsets
+                // below need no bounds checks of their own.
+                let block = &values[offset(i & MASK, j & MASK, k & MASK)..][..STENCIL_REACH];
+                std::array::from_fn(|n| {
+                    let off = STRIDE_Y * (n & 3) + STRIDE_Z * (n >> 2);
+                    Vec4::from_slice(&block[off..off + 4])
+                })
             }
         }
-        let sources: [&[f32]; 8] =
-            std::array::from_fn(|n| dense[n].map_or(&splats[n][..], |values| &values[..]));
-        let mut rows = [Vec4::ZERO; 16];
-        for (n, row) in rows.iter_mut().enumerate() {
-            let (y, z) = (b + (n & 3), c + (n >> 2));
-            let brick_yz = 2 * (y >> SHIFT) + 4 * (z >> SHIFT);
-            let off = ((y & MASK) << SHIFT) | ((z & MASK) << (2 * SHIFT));
-            *row = if reach[0] == 0 {
-                let m = masks[brick_yz];
-                Vec4::from_slice(&sources[brick_yz][(a + off) & m..][..4])
-            } else {
-                Vec4::from_array(std::array::from_fn(|t| {
-                    let x = a + t;
-                    let src = brick_yz + (x >> SHIFT);
-                    sources[src][((x & MASK) + off) & masks[src]]
-                }))
-            };
-        }
-        rows
     }
 
     /// Copies `out.len()` coefficients along x from `(i, j, k)` into `out`.
@@ -411,7 +438,7 @@ impl BrickedCoeffs {
             match &self.bricks[self.brick_index(x, j, k)] {
                 Brick::Uniform(v) => here.fill(*v),
                 Brick::Dense(values) => {
-                    here.copy_from_slice(&values[offset(a, b, c)..][..run]);
+                    copy_run(here, &values[offset(a, b, c)..][..run]);
                 }
             }
             rest = after;
@@ -476,8 +503,9 @@ impl BrickedCoeffs {
         self.read_row(start, &mut out[at..]);
     }
 
-    /// Writes `values` along x from `(i, j, k)`. A uniform brick whose part of the run already
-    /// holds its value stays uniform (no allocation); any other stays or becomes dense.
+    /// Writes `values` along x from `(i, j, k)`, into the owners and the aprons that copy
+    /// them. A uniform brick whose part of the run already holds its value stays uniform (no
+    /// allocation); any other stays or becomes dense.
     ///
     /// # Panics
     /// When the run leaves the store.
@@ -486,24 +514,143 @@ impl BrickedCoeffs {
             return;
         }
         self.check(i + values.len() - 1, j, k);
-        let (b, c) = (j & MASK, k & MASK);
+        let [bx, by, _] = self.bricks_per_axis;
+        let (ys, ny) = axis_holders(j);
+        let (zs, nz) = axis_holders(k);
         let mut x = i;
         let mut rest = values;
         while !rest.is_empty() {
-            let a = x & MASK;
+            let (bi, a) = (x >> SHIFT, x & MASK);
             let run = (COEFF_BRICK - a).min(rest.len());
             let (here, after) = rest.split_at(run);
-            let at = self.brick_index(x, j, k);
-            let brick = &mut self.bricks[at];
-            let keeps = match brick {
-                Brick::Uniform(v) => here.iter().all(|h| h.to_bits() == v.to_bits()),
-                Brick::Dense(_) => false,
-            };
-            if !keeps {
-                densify(brick)[offset(a, b, c)..][..run].copy_from_slice(here);
+            for &(bk, c) in &zs[..nz] {
+                for &(bj, b) in &ys[..ny] {
+                    let row = bx * (bj + by * bk);
+                    store_run(&mut self.bricks[bi + row], offset(a, b, c), here);
+                    if a < BRICK_APRON && bi > 0 {
+                        // The run's first values are also in the apron of the brick before.
+                        let copied = &here[..(BRICK_APRON - a).min(run)];
+                        let off = offset(a + COEFF_BRICK, b, c);
+                        store_run(&mut self.bricks[bi - 1 + row], off, copied);
+                    }
+                }
             }
             rest = after;
             x += run;
+        }
+    }
+
+    /// Writes the box of `size` coefficients whose lowest corner is `min`, `values` holding
+    /// them x fastest, into the owners and the aprons that copy them: brick by brick, one
+    /// copy per row of the box's part that a brick holds. A uniform brick whose part already
+    /// holds its value stays uniform (no allocation); any other stays or becomes dense.
+    ///
+    /// # Panics
+    /// When the box leaves the store or `values` does not hold one value per coefficient of
+    /// it.
+    pub fn write_box(&mut self, min: [usize; 3], size: [usize; 3], values: &[f32]) {
+        assert_eq!(
+            values.len(),
+            size.iter().product::<usize>(),
+            "one value per coefficient"
+        );
+        if values.is_empty() {
+            return;
+        }
+        self.check(
+            min[0] + size[0] - 1,
+            min[1] + size[1] - 1,
+            min[2] + size[2] - 1,
+        );
+        let [bx, by, _] = self.bricks_per_axis;
+        let first = min.map(lowest_holder);
+        let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
+        for bk in first[2]..=last[2] {
+            for bj in first[1]..=last[1] {
+                for bi in first[0]..=last[0] {
+                    let origin = [bi, bj, bk].map(|b| b * COEFF_BRICK);
+                    // The box's part this brick holds, in store coordinates (`lo..hi`).
+                    let lo: [usize; 3] = std::array::from_fn(|a| min[a].max(origin[a]));
+                    let hi: [usize; 3] =
+                        std::array::from_fn(|a| (min[a] + size[a]).min(origin[a] + BRICK_SPAN));
+                    if (0..3).any(|a| lo[a] >= hi[a]) {
+                        continue;
+                    }
+                    let len = hi[0] - lo[0];
+                    let source = |y: usize, z: usize| {
+                        let at = lo[0] - min[0] + size[0] * (y - min[1] + size[1] * (z - min[2]));
+                        &values[at..at + len]
+                    };
+                    let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
+                    if let Brick::Uniform(v) = *brick {
+                        let keeps = (lo[2]..hi[2]).all(|z| {
+                            (lo[1]..hi[1])
+                                .all(|y| source(y, z).iter().all(|h| h.to_bits() == v.to_bits()))
+                        });
+                        if keeps {
+                            continue;
+                        }
+                    }
+                    let dense = densify(brick);
+                    for z in lo[2]..hi[2] {
+                        for y in lo[1]..hi[1] {
+                            let off = offset(lo[0] - origin[0], y - origin[1], z - origin[2]);
+                            copy_run(&mut dense[off..off + len], source(y, z));
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Copies the box of `size` coefficients whose lowest corner is `min` into `out`, x
+    /// fastest: brick by brick, one copy per row of the box's part that a brick owns.
+    ///
+    /// # Panics
+    /// When the box leaves the store or `out` does not hold one value per coefficient of it.
+    pub fn read_box(&self, min: [usize; 3], size: [usize; 3], out: &mut [f32]) {
+        assert_eq!(
+            out.len(),
+            size.iter().product::<usize>(),
+            "one value per coefficient"
+        );
+        if out.is_empty() {
+            return;
+        }
+        self.check(
+            min[0] + size[0] - 1,
+            min[1] + size[1] - 1,
+            min[2] + size[2] - 1,
+        );
+        let [bx, by, _] = self.bricks_per_axis;
+        let first = min.map(|m| m >> SHIFT);
+        let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
+        for bk in first[2]..=last[2] {
+            for bj in first[1]..=last[1] {
+                for bi in first[0]..=last[0] {
+                    let origin = [bi, bj, bk].map(|b| b * COEFF_BRICK);
+                    let lo: [usize; 3] = std::array::from_fn(|a| min[a].max(origin[a]));
+                    let hi: [usize; 3] =
+                        std::array::from_fn(|a| (min[a] + size[a]).min(origin[a] + COEFF_BRICK));
+                    let len = hi[0] - lo[0];
+                    let brick = &self.bricks[bi + bx * (bj + by * bk)];
+                    for z in lo[2]..hi[2] {
+                        for y in lo[1]..hi[1] {
+                            let at =
+                                lo[0] - min[0] + size[0] * (y - min[1] + size[1] * (z - min[2]));
+                            let here = &mut out[at..at + len];
+                            match brick {
+                                Brick::Uniform(v) => here.fill(*v),
+                                Brick::Dense(values) => {
+                                    let off =
+                                        offset(lo[0] - origin[0], y - origin[1], z - origin[2]);
+                                    copy_run(here, &values[off..off + len]);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
         }
     }
 
@@ -545,42 +692,27 @@ impl BrickedCoeffs {
     }
 
     /// Calls `f(n, value)` for every coefficient in flat order, where `n` is its flat index,
-    /// letting it change the value. A uniform brick becomes dense only when `f` changes one of
-    /// its values (to other bits).
+    /// letting it change the value. A uniform brick becomes dense only when `f` changes a
+    /// value it holds (to other bits).
     pub fn update_each(&mut self, mut f: impl FnMut(usize, &mut f32)) {
         let [nx, ny, nz] = self.dims;
+        let mut run_values = [0.0_f32; COEFF_BRICK];
         for k in 0..nz {
             for j in 0..ny {
                 let row = nx * (j + ny * k);
                 let mut x = 0;
                 while x < nx {
-                    let a = x & MASK;
-                    let run = (COEFF_BRICK - a).min(nx - x);
-                    let at = self.brick_index(x, j, k);
-                    let brick = &mut self.bricks[at];
-                    let off = offset(a, j & MASK, k & MASK);
-                    if let Brick::Uniform(v) = *brick {
-                        // Visit copies until one changes; then go dense from there.
-                        let mut changed_at = None;
-                        for s in 0..run {
-                            let mut value = v;
-                            f(row + x + s, &mut value);
-                            if value.to_bits() != v.to_bits() {
-                                changed_at = Some((s, value));
-                                break;
-                            }
-                        }
-                        if let Some((s, value)) = changed_at {
-                            let values = densify(brick);
-                            values[off + s] = value;
-                            for t in s + 1..run {
-                                f(row + x + t, &mut values[off + t]);
-                            }
-                        }
-                    } else if let Brick::Dense(values) = brick {
-                        for (s, value) in values[off..off + run].iter_mut().enumerate() {
-                            f(row + x + s, value);
-                        }
+                    let run = (COEFF_BRICK - (x & MASK)).min(nx - x);
+                    let values = &mut run_values[..run];
+                    self.read_row_at([x, j, k], values);
+                    let mut changed = false;
+                    for (s, value) in values.iter_mut().enumerate() {
+                        let before = value.to_bits();
+                        f(row + x + s, value);
+                        changed |= value.to_bits() != before;
+                    }
+                    if changed {
+                        self.write_row_at([x, j, k], values);
                     }
                     x += run;
                 }
@@ -595,8 +727,8 @@ impl BrickedCoeffs {
         }
     }
 
-    /// Makes every dense brick whose coefficients (within the store) all have the same bits
-    /// uniform again, freeing its values; returns how many it freed.
+    /// Makes every dense brick whose values (apron included, within the store) all have the
+    /// same bits uniform again, freeing its values; returns how many it freed.
     pub fn compact(&mut self) -> usize {
         if self.is_empty() {
             return 0;
@@ -605,19 +737,19 @@ impl BrickedCoeffs {
     }
 
     /// [`BrickedCoeffs::compact`] for the bricks that hold a coefficient of the box
-    /// `min..=max` (clipped to the store): where an edit settled.
+    /// `min..=max` (clipped to the store), as owner or in their apron: where an edit settled.
     pub fn compact_within(&mut self, min: [usize; 3], max: [usize; 3]) -> usize {
         if self.is_empty() || (0..3).any(|a| min[a] > max[a] || min[a] >= self.dims[a]) {
             return 0;
         }
-        let first = min.map(|m| m >> SHIFT);
+        let first = min.map(lowest_holder);
         let last: [usize; 3] = std::array::from_fn(|a| max[a].min(self.dims[a] - 1) >> SHIFT);
         let [bx, by, _] = self.bricks_per_axis;
         let mut freed = 0;
         for bk in first[2]..=last[2] {
             for bj in first[1]..=last[1] {
                 for bi in first[0]..=last[0] {
-                    let extent = self.brick_extent([bi, bj, bk]);
+                    let extent = self.held_extent([bi, bj, bk]);
                     let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
                     let Brick::Dense(values) = brick else {
                         continue;
@@ -647,15 +779,72 @@ impl BrickedCoeffs {
         }
     }
 
-    /// Coefficients of brick `(bi, bj, bk)` that lie inside the store, per axis.
-    fn brick_extent(&self, brick: [usize; 3]) -> [usize; 3] {
+    /// Coefficients of brick `brick`'s own values that lie inside the store, per axis.
+    fn owned_extent(&self, brick: [usize; 3]) -> [usize; 3] {
         std::array::from_fn(|a| (self.dims[a] - brick[a] * COEFF_BRICK).min(COEFF_BRICK))
+    }
+
+    /// Coefficients of brick `brick`'s own values and apron that lie inside the store, per
+    /// axis.
+    fn held_extent(&self, brick: [usize; 3]) -> [usize; 3] {
+        std::array::from_fn(|a| (self.dims[a] - brick[a] * COEFF_BRICK).min(BRICK_SPAN))
+    }
+
+    /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
+    /// them; a uniform one stays uniform when they all equal its value and becomes dense
+    /// otherwise.
+    fn refresh_apron(&mut self, brick: [usize; 3]) {
+        let [bx, by, _] = self.bricks_per_axis;
+        let at = brick[0] + bx * (brick[1] + by * brick[2]);
+        let owned = self.owned_extent(brick);
+        let held = self.held_extent(brick);
+        if owned == held {
+            return; // no apron inside the store
+        }
+        if let Brick::Uniform(v) = self.bricks[at] {
+            // Fast case: every neighbour the apron reaches is uniform with the same value.
+            let mut neighbours_agree = true;
+            for d in 1..8_usize {
+                let step = [d & 1, (d >> 1) & 1, d >> 2];
+                let reaches = (0..3).all(|a| step[a] == 0 || held[a] > owned[a]);
+                if reaches {
+                    let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
+                    let same = matches!(
+                        self.bricks[n[0] + bx * (n[1] + by * n[2])],
+                        Brick::Uniform(w) if w.to_bits() == v.to_bits()
+                    );
+                    neighbours_agree &= same;
+                }
+            }
+            if neighbours_agree {
+                return;
+            }
+        }
+        let origin = brick.map(|b| b * COEFF_BRICK);
+        let mut copies = [(0_usize, 0.0_f32); DENSE_BRICK_VALUES - COEFF_BRICK_VALUES];
+        let mut count = 0;
+        for c in 0..held[2] {
+            for b in 0..held[1] {
+                for a in 0..held[0] {
+                    if a < owned[0] && b < owned[1] && c < owned[2] {
+                        continue;
+                    }
+                    let value = self.get(origin[0] + a, origin[1] + b, origin[2] + c);
+                    copies[count] = (offset(a, b, c), value);
+                    count += 1;
+                }
+            }
+        }
+        let target = &mut self.bricks[at];
+        for &(off, value) in &copies[..count] {
+            store_run(target, off, &[value]);
+        }
     }
 
     /// This store with `low[a]` zero coefficients added before and `high[a]` after it along
     /// each axis `a`. When every `low[a]` is a whole number of bricks the bricks move into the
-    /// new directory as they are (a uniform brick stays one value); otherwise the values are
-    /// copied brick by brick, and the result is compacted.
+    /// new directory as they are (a uniform brick stays one value) and the aprons are brought
+    /// up to date; otherwise the values are copied row by row. The result is compacted.
     ///
     /// # Panics
     /// When the grown coefficient count overflows `usize`.
@@ -670,7 +859,6 @@ impl BrickedCoeffs {
                 for bj in 0..by {
                     for bi in 0..bx {
                         let from = [bi, bj, bk];
-                        let extent = self.brick_extent(from);
                         let to = [bi + shift[0], bj + shift[1], bk + shift[2]];
                         let at = grown.brick_index(
                             to[0] * COEFF_BRICK,
@@ -678,24 +866,37 @@ impl BrickedCoeffs {
                             to[2] * COEFF_BRICK,
                         );
                         let brick = &self.bricks[bi + bx * (bj + by * bk)];
-                        if extent == grown.brick_extent(to) {
-                            grown.bricks[at] = brick.clone();
+                        grown.bricks[at] = if self.owned_extent(from) == grown.owned_extent(to) {
+                            brick.clone()
                         } else {
-                            // A partial brick at the old high border now has room for new
-                            // (zero) coefficients: copy only its values.
-                            let mut values = Box::new([0.0; COEFF_BRICK_VALUES]);
-                            for c in 0..extent[2] {
-                                for b in 0..extent[1] {
-                                    for a in 0..extent[0] {
-                                        values[offset(a, b, c)] = match brick {
-                                            Brick::Uniform(v) => *v,
-                                            Brick::Dense(d) => d[offset(a, b, c)],
-                                        };
+                            // A partial brick at the old high border now owns new (zero)
+                            // coefficients: keep only its values inside the old store.
+                            let held = self.held_extent(from);
+                            let mut kept = Box::new([0.0; DENSE_BRICK_VALUES]);
+                            for c in 0..held[2] {
+                                for b in 0..held[1] {
+                                    let off = offset(0, b, c);
+                                    let row = &mut kept[off..off + held[0]];
+                                    match brick {
+                                        Brick::Uniform(v) => row.fill(*v),
+                                        Brick::Dense(values) => {
+                                            row.copy_from_slice(&values[off..off + held[0]]);
+                                        }
                                     }
                                 }
                             }
-                            grown.bricks[at] = Brick::Dense(values);
-                        }
+                            Brick::Dense(kept)
+                        };
+                    }
+                }
+            }
+            // The apron of a brick beside the old store's border now reaches new or moved
+            // neighbours.
+            let [gx, gy, gz] = grown.bricks_per_axis;
+            for bk in 0..gz {
+                for bj in 0..gy {
+                    for bi in 0..gx {
+                        grown.refresh_apron([bi, bj, bk]);
                     }
                 }
             }
@@ -715,9 +916,9 @@ impl BrickedCoeffs {
 
 /// The values of `brick`, made dense first if it was uniform.
 #[inline]
-fn densify(brick: &mut Brick) -> &mut [f32; COEFF_BRICK_VALUES] {
+fn densify(brick: &mut Brick) -> &mut [f32; DENSE_BRICK_VALUES] {
     if let Brick::Uniform(v) = *brick {
-        *brick = Brick::Dense(Box::new([v; COEFF_BRICK_VALUES]));
+        *brick = Brick::Dense(Box::new([v; DENSE_BRICK_VALUES]));
     }
     match brick {
         Brick::Dense(values) => values,
@@ -738,20 +939,6 @@ impl Index<usize> for BrickedCoeffs {
         );
         let [i, j, k] = self.coords(n);
         self.at(i, j, k)
-    }
-}
-
-impl IndexMut<usize> for BrickedCoeffs {
-    /// The coefficient at flat index `n`; makes its brick dense if it was uniform.
-    #[inline]
-    fn index_mut(&mut self, n: usize) -> &mut f32 {
-        assert!(
-            n < self.len(),
-            "index {n} outside {} coefficients",
-            self.len()
-        );
-        let [i, j, k] = self.coords(n);
-        self.at_mut(i, j, k)
     }
 }
 
@@ -898,6 +1085,16 @@ mod tests {
         fn value(&mut self) -> f32 {
             [0.0, 1.0, 0.5, 0.25][self.below(4)]
         }
+        /// A coordinate below `n`, most often within three of a brick's border.
+        fn near_border(&mut self, n: usize) -> usize {
+            if self.below(4) == 0 {
+                return self.below(n);
+            }
+            let border = COEFF_BRICK * self.below(n.div_ceil(COEFF_BRICK) + 1);
+            (border + self.below(2 * BRICK_APRON + 1))
+                .saturating_sub(BRICK_APRON)
+                .min(n - 1)
+        }
     }
 
     fn assert_matches(store: &BrickedCoeffs, model: &[f32]) {
@@ -907,6 +1104,59 @@ mod tests {
         assert_eq!(store.iter().len(), model.len());
         for (n, &m) in model.iter().enumerate() {
             assert_eq!(store[n].to_bits(), m.to_bits(), "at {n}");
+        }
+        assert_aprons_agree(store, model);
+    }
+
+    /// Every value every brick holds inside the store (own and apron) equals the model's
+    /// value of that coefficient, and a uniform brick is uniform over all of them.
+    fn assert_aprons_agree(store: &BrickedCoeffs, model: &[f32]) {
+        let [nx, ny, _] = store.dims;
+        let [bx, by, bz] = store.bricks_per_axis;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let held = store.held_extent([bi, bj, bk]);
+                    let brick = &store.bricks[bi + bx * (bj + by * bk)];
+                    for c in 0..held[2] {
+                        for b in 0..held[1] {
+                            for a in 0..held[0] {
+                                let [i, j, k] = [bi * 8 + a, bj * 8 + b, bk * 8 + c];
+                                let want = model[i + nx * (j + ny * k)];
+                                let got = match brick {
+                                    Brick::Uniform(v) => *v,
+                                    Brick::Dense(values) => values[offset(a, b, c)],
+                                };
+                                assert_eq!(
+                                    got.to_bits(),
+                                    want.to_bits(),
+                                    "brick {:?} holds {got} at ({i}, {j}, {k}), owner {want}",
+                                    [bi, bj, bk]
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// Every stencil inside the store read through the bricks equals the model's.
+    fn assert_stencils_match(store: &BrickedCoeffs, model: &[f32]) {
+        let [nx, ny, nz] = store.dims;
+        for k in 0..=nz - 4 {
+            for j in 0..=ny - 4 {
+                for i in 0..=nx - 4 {
+                    let rows = store.stencil_rows([i, j, k]);
+                    for (n, row) in rows.iter().enumerate() {
+                        let (b, c) = (n & 3, n >> 2);
+                        let start = i + nx * (j + b + ny * (k + c));
+                        let want = Vec4::from_slice(&model[start..start + 4]);
+                        assert_eq!(*row, want, "stencil at {:?} row {n}", [i, j, k]);
+                        assert_eq!(store.row4(i, j + b, k + c), want);
+                    }
+                }
+            }
         }
     }
 
@@ -921,7 +1171,7 @@ mod tests {
                 let n = rng.below(model.len());
                 let v = rng.value();
                 match rng.below(3) {
-                    0 => store[n] = v,
+                    0 => store.add_flat(n, v - store[n]),
                     1 => store.set_flat(n, v),
                     _ => {
                         let [i, j, k] = store.coords(n);
@@ -956,6 +1206,122 @@ mod tests {
     }
 
     #[test]
+    fn writes_near_brick_borders_keep_every_apron_copy_equal_to_its_owner() {
+        let dims = [21, 19, 18];
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut store = BrickedCoeffs::uniform(dims, 1.0);
+        let mut model = vec![1.0_f32; dims.iter().product()];
+        for round in 0..12 {
+            for _ in 0..150 {
+                let at = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+                let v = rng.value();
+                store.set(at[0], at[1], at[2], v);
+                model[at[0] + dims[0] * (at[1] + dims[1] * at[2])] = v;
+            }
+            // A row starting near a border, crossing one or more bricks.
+            let [i, j, k] = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+            let len = 1 + rng.below(dims[0] - i);
+            let row: Vec<f32> = (0..len).map(|_| rng.value()).collect();
+            store.write_row_at([i, j, k], &row);
+            let start = i + dims[0] * (j + dims[1] * k);
+            model[start..start + len].copy_from_slice(&row);
+            // A visit that changes values on some border layers only.
+            let pick = rng.below(COEFF_BRICK);
+            store.update_each(|n, v| {
+                if n % COEFF_BRICK == pick && (n / 7) % 3 == 0 {
+                    *v = 0.5 - *v;
+                }
+            });
+            for (n, m) in model.iter_mut().enumerate() {
+                if n % COEFF_BRICK == pick && (n / 7) % 3 == 0 {
+                    *m = 0.5 - *m;
+                }
+            }
+            if round % 2 == 1 {
+                let box_min = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+                store.compact_within(box_min, box_min.map(|m| m + 9));
+            }
+            assert_matches(&store, &model);
+        }
+        assert_stencils_match(&store, &model);
+    }
+
+    #[test]
+    fn boxes_written_and_read_brick_by_brick_match_the_model() {
+        let dims = [23, 18, 20];
+        let mut rng = Rng(0x5851_f42d_4c95_7f2d);
+        let mut store = BrickedCoeffs::uniform(dims, 0.0);
+        let mut model = vec![0.0_f32; dims.iter().product()];
+        for round in 0..40 {
+            let min = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+            let size: [usize; 3] = std::array::from_fn(|a| 1 + rng.below(dims[a] - min[a]));
+            // Some boxes of one value (uniform bricks keep it), most of mixed values.
+            let one = (round % 4 == 0).then(|| rng.value());
+            let values: Vec<f32> = (0..size.iter().product::<usize>())
+                .map(|_| one.unwrap_or_else(|| rng.value()))
+                .collect();
+            store.write_box(min, size, &values);
+            for (n, &v) in values.iter().enumerate() {
+                let [x, y, z] = [
+                    n % size[0],
+                    (n / size[0]) % size[1],
+                    n / (size[0] * size[1]),
+                ];
+                model[min[0] + x + dims[0] * (min[1] + y + dims[1] * (min[2] + z))] = v;
+            }
+            let mut back = vec![f32::NAN; values.len()];
+            store.read_box(min, size, &mut back);
+            assert_eq!(back, values);
+            if round % 5 == 4 {
+                store.compact();
+            }
+            assert_matches(&store, &model);
+        }
+        assert_stencils_match(&store, &model);
+        // A box of the value a uniform store holds allocates nothing.
+        let mut ones = BrickedCoeffs::uniform(dims, 1.0);
+        ones.write_box([3, 4, 5], [10, 9, 8], &[1.0; 720]);
+        assert_eq!(ones.dense_brick_count(), 0);
+    }
+
+    #[test]
+    fn a_stencil_at_every_base_of_a_random_lattice_equals_the_dense_vectors() {
+        for (seed, dims) in [(3_u64, [19, 18, 17]), (11, [12, 20, 9]), (29, [4, 4, 4])] {
+            let mut rng = Rng(seed);
+            // Mostly zeros and ones with a band of other values, as the clay holds.
+            let model: Vec<f32> = (0..dims.iter().product::<usize>())
+                .map(|n| {
+                    let [i, j, k] = [
+                        n % dims[0],
+                        (n / dims[0]) % dims[1],
+                        n / (dims[0] * dims[1]),
+                    ];
+                    let d = (i + j + k) as f32 - 16.0;
+                    if d.abs() < 3.0 {
+                        rng.next() as f32 / u64::MAX as f32
+                    } else if d < 0.0 {
+                        1.0
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            let store = BrickedCoeffs::from_slice(dims, &model);
+            assert!(store.dense_brick_count() < store.brick_count() || dims == [4, 4, 4]);
+            assert_matches(&store, &model);
+            assert_stencils_match(&store, &model);
+            // The same values written one by one into a uniform store.
+            let mut written = BrickedCoeffs::uniform(dims, 1.0);
+            for (n, &v) in model.iter().enumerate() {
+                written.set_flat(n, v);
+            }
+            assert_eq!(written, store);
+            assert_aprons_agree(&written, &model);
+            assert_stencils_match(&written, &model);
+        }
+    }
+
+    #[test]
     fn compacting_frees_bricks_whose_values_are_all_equal_and_keeps_the_values() {
         let dims = [20, 16, 9];
         let mut store = BrickedCoeffs::zeros(dims);
@@ -965,27 +1331,37 @@ mod tests {
         store.set(1, 1, 1, 0.0);
         assert_eq!(store.dense_brick_count(), 0);
         store.set(1, 1, 1, 1.0);
-        store[19 + 20 * (15 + 16 * 8)] = 2.0;
-        assert_eq!(store.dense_brick_count(), 2);
+        assert_eq!(store.dense_brick_count(), 1, "no brick before the first");
+        // (19, 15, 8) is owned by brick (2, 1, 1) and in the apron of brick (2, 1, 0) below.
+        store.set(19, 15, 8, 2.0);
+        assert_eq!(store.dense_brick_count(), 3);
         let before = store.to_vec();
         assert_eq!(store.compact(), 0);
         assert_eq!(store.to_vec(), before);
-        // Back to zero: the first brick compacts; the partial corner brick holds 2 still.
+        // Back to zero: the first brick compacts; the bricks holding 2 stay.
         store.set(1, 1, 1, 0.0);
-        assert_eq!(store.compact_within([8, 8, 0], [19, 15, 8]), 0, "elsewhere");
+        assert_eq!(
+            store.compact_within([11, 11, 3], [19, 15, 8]),
+            0,
+            "elsewhere"
+        );
         assert_eq!(store.compact_within([0, 0, 0], [3, 3, 3]), 1);
-        assert_eq!(store.dense_brick_count(), 1);
-        // A partial brick whose values inside the store agree compacts too (its unused
-        // room does not count).
-        for k in 8..9 {
-            for j in 8..16 {
-                store.write_row_at([16, j, k], &[2.0; 4]);
-            }
+        assert_eq!(store.dense_brick_count(), 2);
+        // A brick whose values inside the store agree compacts, its unused room not
+        // counting: the corner brick's 4×8×1 coefficients all 2.
+        for j in 8..16 {
+            store.write_row_at([16, j, 8], &[2.0; 4]);
         }
+        store.compact();
+        assert!(matches!(store.bricks[2 + 3 * (1 + 2)], Brick::Uniform(v) if v == 2.0));
+        // Its copies in the aprons below keep those bricks dense until they agree too.
+        assert!(matches!(store.bricks[2 + 3], Brick::Dense(_)));
+        store.fill(2.0);
+        store.set(0, 0, 0, 0.0);
+        store.set(0, 0, 0, 2.0);
         assert_eq!(store.compact(), 1);
         assert_eq!(store.dense_brick_count(), 0);
         assert_eq!(store.get(19, 15, 8), 2.0);
-        assert_eq!(store.get(0, 0, 0), 0.0);
         assert_eq!(store.heap_bytes(), store.brick_count() * size_of::<Brick>());
     }
 
@@ -997,13 +1373,13 @@ mod tests {
         dense.densify_all();
         assert_eq!(dense.dense_brick_count(), dense.brick_count());
         assert_eq!(uniform, dense);
-        dense[100] = 0.25;
+        dense.set_flat(100, 0.25);
         assert_ne!(uniform, dense);
-        dense[100] = 0.5;
+        dense.set_flat(100, 0.5);
         assert_eq!(uniform, dense);
         assert_ne!(uniform, BrickedCoeffs::uniform([9, 11, 10], 0.5));
         let mut nan = uniform.clone();
-        nan[3] = f32::NAN;
+        nan.set_flat(3, f32::NAN);
         assert_ne!(nan, nan.clone(), "a NaN equals nothing, as in a Vec<f32>");
     }
 
@@ -1031,38 +1407,7 @@ mod tests {
     }
 
     #[test]
-    fn stencils_read_the_same_rows_inside_one_brick_and_across_bricks() {
-        let dims = [19, 18, 17];
-        let values: Vec<f32> = (0..dims.iter().product::<usize>())
-            .map(|n| ((n * 7919) % 61) as f32)
-            .collect();
-        let mut store = BrickedCoeffs::from_slice(dims, &values);
-        // One brick uniform, so uniform and dense bricks meet in some stencils.
-        for k in 8..16 {
-            for j in 0..8 {
-                store.write_row_at([8, j, k], &[3.0; 8]);
-            }
-        }
-        store.compact();
-        assert!(store.dense_brick_count() < store.brick_count());
-        for k in 0..=dims[2] - 4 {
-            for j in 0..=dims[1] - 4 {
-                for i in 0..=dims[0] - 4 {
-                    let rows = store.stencil_rows([i, j, k]);
-                    for (n, row) in rows.iter().enumerate() {
-                        let (b, c) = (n & 3, n >> 2);
-                        let want = Vec4::from_array(std::array::from_fn(|t| {
-                            store.get(i + t, j + b, k + c)
-                        }));
-                        assert_eq!(*row, want, "stencil at {:?} row {n}", [i, j, k]);
-                    }
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn the_visit_densifies_only_the_bricks_it_changes() {
+    fn the_visit_densifies_only_the_bricks_that_hold_what_it_changes() {
         let dims = [24, 8, 8];
         let mut store = BrickedCoeffs::uniform(dims, 1.0);
         let mut seen = Vec::new();
@@ -1073,7 +1418,7 @@ mod tests {
             }
         });
         assert_eq!(seen, (0..store.len()).collect::<Vec<_>>());
-        assert_eq!(store.dense_brick_count(), 1);
+        assert_eq!(store.dense_brick_count(), 1, "13 and 14 lie in no apron");
         assert_eq!(store[13], 0.5);
         assert_eq!(store[14], 0.5);
         assert_eq!(store[12], 1.0);
@@ -1081,6 +1426,14 @@ mod tests {
         // A visit that writes the same value back changes nothing.
         store.update_each(|_, v| *v *= 1.0);
         assert_eq!(store.dense_brick_count(), 1);
+        // A change in the first layers of a brick reaches the apron of the brick before.
+        store.update_each(|n, v| {
+            if n == 17 {
+                *v = 0.25;
+            }
+        });
+        assert_eq!(store.dense_brick_count(), 2);
+        assert_eq!(store.row4(14, 0, 0), Vec4::new(0.5, 1.0, 1.0, 0.25));
     }
 
     #[test]
@@ -1090,28 +1443,42 @@ mod tests {
         let mut store = BrickedCoeffs::uniform(dims, 1.0);
         for _ in 0..50 {
             let n = rng.below(store.len());
-            store[n] = rng.value();
+            store.set_flat(n, rng.value());
         }
-        for (low, high) in [([8, 0, 16], [8, 3, 0]), ([3, 1, 0], [0, 2, 5])] {
+        for (low, high) in [
+            ([8, 0, 16], [8, 3, 0]),
+            ([3, 1, 0], [0, 2, 5]),
+            ([0; 3], [6; 3]),
+        ] {
             let grown = store.padded(low, high);
             let gd = grown.dims();
             assert_eq!(gd, std::array::from_fn(|a| dims[a] + low[a] + high[a]));
+            let mut model = vec![0.0; grown.len()];
             for k in 0..gd[2] {
                 for j in 0..gd[1] {
                     for i in 0..gd[0] {
                         let src = [i, j, k];
                         let inside = (0..3).all(|a| src[a] >= low[a] && src[a] - low[a] < dims[a]);
-                        let want = if inside {
-                            store.get(i - low[0], j - low[1], k - low[2])
-                        } else {
-                            0.0
-                        };
-                        assert_eq!(grown.get(i, j, k), want, "at {src:?} padded {low:?}");
+                        if inside {
+                            model[i + gd[0] * (j + gd[1] * k)] =
+                                store.get(i - low[0], j - low[1], k - low[2]);
+                        }
                     }
                 }
             }
-            // Whole uniform bricks of ones survive as uniform; the new room costs nothing.
-            assert!(grown.dense_brick_count() <= store.brick_count());
+            assert_matches(&grown, &model);
+            assert_stencils_match(&grown, &model);
+            // Only bricks whose own values or apron meet the old values are dense: the new
+            // room beyond that costs nothing.
+            let meets = |b: usize, a: usize| {
+                let first = b * COEFF_BRICK;
+                first < low[a] + dims[a] && first + BRICK_SPAN > low[a]
+            };
+            let [bx, by, bz] = grown.bricks_per_axis();
+            let meeting = (0..bx).filter(|&b| meets(b, 0)).count()
+                * (0..by).filter(|&b| meets(b, 1)).count()
+                * (0..bz).filter(|&b| meets(b, 2)).count();
+            assert!(grown.dense_brick_count() <= meeting);
         }
     }
 

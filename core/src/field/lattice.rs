@@ -508,7 +508,9 @@ mod tests {
             for j in 0..dims[1] {
                 for i in 0..dims[0] {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = a.dot(lattice.node_position(i, j, k)) + b;
+                    lattice
+                        .coeffs
+                        .set_flat(idx, a.dot(lattice.node_position(i, j, k)) + b);
                 }
             }
         }
@@ -650,8 +652,11 @@ mod tests {
             let growth = pair[1] as f64 / pair[0] as f64;
             assert!(growth < 5.0, "heap grew ×{growth} from {heaps:?}");
         }
+        // A dense brick holds its 8³ values and an apron, 11³ in all (2.6 times the values it
+        // owns), so the bricked ball beats the dense box by less at this size: about 1/3.6 at
+        // 256³ and 1/7 at 512³ (bench/RESULTS.md).
         assert!(
-            heaps[2] * 8 < dense(256),
+            heaps[2] * 3 < dense(256),
             "256³ ball: {} bytes bricked, {} dense",
             heaps[2],
             dense(256)
@@ -671,7 +676,7 @@ mod tests {
             dense as f64 / f64::from(1 << 20),
             dense as f64 / bricked as f64
         );
-        assert!(bricked * 8 < dense);
+        assert!(bricked * 6 < dense);
     }
 
     #[test]

@@ -23,7 +23,10 @@ mod sweep;
 pub use axis::{AxisBasis, BandedCholesky, NotPositiveDefinite, centred_cubic};
 pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
-pub use bricks::{BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BYTES, Values};
+pub use bricks::{
+    BRICK_APRON, BRICK_SPAN, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BYTES,
+    DENSE_BRICK_VALUES, Values,
+};
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, apply_coarsening,
     plan_coarsening,

@@ -668,15 +668,21 @@ mod tests {
         // Two base coefficients and one of the new patch's change: the box is the base ones'.
         let base = &mut after.patches[0].lattice;
         let (a, b) = (base.index(3, 4, 5), base.index(6, 4, 7));
-        base.coeffs[a] += 0.5;
-        base.coeffs[b] = -base.coeffs[b];
-        after.patches[added].lattice.coeffs[0] = 1.0;
+        base.coeffs.add_flat(a, 0.5);
+        base.coeffs.set_flat(b, -base.coeffs[b]);
+        after.patches[added].lattice.coeffs.set_flat(0, 1.0);
         let expected = after.patches[0].coefficient_change_box([3, 4, 5], [6, 4, 7]);
         assert_eq!(after.shared_patches_change_box(&before), Some(expected));
         // A patch taken out of the middle: the patches after it are matched from the end.
         let mut fewer = after.clone();
         fewer.patches.remove(1);
-        fewer.patches.last_mut().unwrap().lattice.coeffs[5] = 2.0;
+        fewer
+            .patches
+            .last_mut()
+            .unwrap()
+            .lattice
+            .coeffs
+            .set_flat(5, 2.0);
         let last = fewer.patches.last().unwrap();
         let at = [5 % last.lattice.dims[0], 0, 0];
         assert_eq!(

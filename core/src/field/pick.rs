@@ -115,7 +115,10 @@ mod tests {
                 for i in 0..dims[0] {
                     let n = l.node_position(i, j, k);
                     let idx = l.index(i, j, k);
-                    l.coeffs[idx] = 1.0 - ((n - c).length_squared() - h * h) / (2.0 * r * r);
+                    l.coeffs.set_flat(
+                        idx,
+                        1.0 - ((n - c).length_squared() - h * h) / (2.0 * r * r),
+                    );
                 }
             }
         }

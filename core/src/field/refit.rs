@@ -246,13 +246,7 @@ fn refit(
     basis.apply_transpose(&residual, &mut b, &mut scratch);
     basis.solve_gram_into(&b, &mut p, &mut scratch);
 
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            let row = lattice.index(coeffs.min[0], coeffs.min[1] + j, coeffs.min[2] + k);
-            let src = &p[n[0] * (j + n[1] * k)..n[0] * (j + 1 + n[1] * k)];
-            lattice.coeffs.write_row(row, src);
-        }
-    }
+    lattice.coeffs.write_box(coeffs.min, n, &p);
     Ok(())
 }
 
@@ -313,7 +307,9 @@ mod tests {
             for j in 0..11 {
                 for i in 0..12 {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = linear(lattice.node_position(i, j, k)) + 0.5;
+                    lattice
+                        .coeffs
+                        .set_flat(idx, linear(lattice.node_position(i, j, k)) + 0.5);
                 }
             }
         }
@@ -324,7 +320,9 @@ mod tests {
             for j in 2..=7 {
                 for i in 3..=8 {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = ((i * 31 + j * 17 + k) % 7) as f32;
+                    lattice
+                        .coeffs
+                        .set_flat(idx, ((i * 31 + j * 17 + k) % 7) as f32);
                 }
             }
         }

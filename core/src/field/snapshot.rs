@@ -87,6 +87,32 @@ impl RegionSnapshot {
         self.dirty_max = other.dirty_max;
     }
 
+    /// Fill from `values`, the coefficients of `region` (x fastest) just written into
+    /// `lattice`, at `version`: as [`RegionSnapshot::capture`] without reading them back out
+    /// of the lattice's bricks. Reuses the buffer.
+    ///
+    /// # Panics
+    /// When `region` does not fit in the lattice or `values` does not hold one value per
+    /// coefficient of it.
+    pub fn capture_written(
+        &mut self,
+        lattice: &BSplineLattice,
+        region: CoeffBox,
+        values: &[f32],
+        version: u64,
+    ) {
+        assert!(region.fits(lattice.dims), "region outside the lattice");
+        assert_eq!(values.len(), region.count(), "one value per coefficient");
+        self.coeff_origin = region.min;
+        self.coeff_dims = region.dims();
+        self.coeffs.clear();
+        self.coeffs.extend_from_slice(values);
+        self.version = version;
+        let (lo, hi) = region.world_support(lattice);
+        self.dirty_min = lo;
+        self.dirty_max = hi;
+    }
+
     /// Fill from the coefficients of `region` in `lattice`, at `version`; the dirty box is the
     /// support of the region's coefficients. Reuses the buffer.
     ///
@@ -98,12 +124,8 @@ impl RegionSnapshot {
         self.coeff_origin = region.min;
         self.coeff_dims = n;
         self.coeffs.clear();
-        for k in 0..n[2] {
-            for j in 0..n[1] {
-                let row = lattice.index(region.min[0], region.min[1] + j, region.min[2] + k);
-                lattice.coeffs.extend_row_into(row, n[0], &mut self.coeffs);
-            }
-        }
+        self.coeffs.resize(region.count(), 0.0);
+        lattice.coeffs.read_box(region.min, n, &mut self.coeffs);
         self.version = version;
         let (lo, hi) = region.world_support(lattice);
         self.dirty_min = lo;
@@ -150,12 +172,9 @@ impl RegionSnapshot {
                 lattice_dims: lattice.dims,
             });
         }
-        let n = self.coeff_dims;
-        for (r, src) in self.coeffs.chunks_exact(n[0]).enumerate() {
-            let (j, k) = (r % n[1], r / n[1]);
-            let row = lattice.index(region.min[0], region.min[1] + j, region.min[2] + k);
-            lattice.coeffs.write_row(row, src);
-        }
+        lattice
+            .coeffs
+            .write_box(region.min, self.coeff_dims, &self.coeffs);
         Ok(())
     }
 }
@@ -182,6 +201,10 @@ mod tests {
         let mut snap = RegionSnapshot::default();
         snap.capture(&src, region, 7);
         assert_eq!(snap.coeffs.len(), 4 * 4 * 3);
+        // The values written into a lattice, captured as written, equal those read back.
+        let mut written = RegionSnapshot::default();
+        written.capture_written(&src, region, &snap.coeffs, 7);
+        assert_eq!(written, snap);
         let mut dst = BSplineLattice::zeros(src.dims, src.spacing, src.origin).unwrap();
         snap.apply_to(&mut dst).unwrap();
         for k in 0..6 {

@@ -846,9 +846,9 @@ mod tests {
         });
         patch.iso = 0.45;
         let mut colour = ColourField::matching(&patch).unwrap();
-        colour.channels[1].coeffs[5] = 0.75;
+        colour.channels[1].coeffs.set_flat(5, 0.75);
         let mut tool_lattice = BSplineLattice::zeros([5, 5, 5], 0.1, Vec3::ZERO).unwrap();
-        tool_lattice.coeffs[62] = 1.0;
+        tool_lattice.coeffs.set_flat(62, 1.0);
         Session {
             clay: Clay {
                 density: MultiPatchField {
@@ -1132,8 +1132,8 @@ mod tests {
     fn a_freeze_mask_round_trips_and_older_files_read_with_none() {
         let mut session = sample_session();
         let mut mask = FreezeMask::matching(&session.clay.density).unwrap();
-        mask.patches[0].coeffs[7] = 1.0;
-        mask.patches[1].coeffs[3] = 0.25;
+        mask.patches[0].coeffs.set_flat(7, 1.0);
+        mask.patches[1].coeffs.set_flat(3, 0.25);
         session.clay.mask = Some(mask);
         let path = Path::new("mask.dclay");
         let back = decode(&encode(&session).unwrap(), path).unwrap();
@@ -1144,7 +1144,9 @@ mod tests {
         assert!(old.clay.mask.is_none());
         assert_eq!(old.clay.density, session.clay.density);
         // A hold out of range is refused, naming the section and the patch.
-        session.clay.mask.as_mut().unwrap().patches[1].coeffs[3] = 1.5;
+        session.clay.mask.as_mut().unwrap().patches[1]
+            .coeffs
+            .set_flat(3, 1.5);
         let err = decode(&encode(&session).unwrap(), path)
             .unwrap_err()
             .to_string();

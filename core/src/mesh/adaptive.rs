@@ -2092,9 +2092,8 @@ impl WindowTables {
         let plane = Self::QUANTITIES * count;
         self.folds.clear();
         self.folds.resize(Self::MAX_WINDOW * plane, 0.0);
-        let c = |i: usize, j: usize, k: usize| {
-            l.coeffs[l.index(first[0] + i, first[1] + j, first[2] + k)]
-        };
+        let c =
+            |i: usize, j: usize, k: usize| l.coeffs.get(first[0] + i, first[1] + j, first[2] + k);
         // Windows of length 1: the quantities themselves (a step out of the block counts as
         // none).
         for k in 0..nz {
@@ -2231,9 +2230,13 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
     let len = i1 - i0 + 1;
     let (mut row, mut next_y, mut next_z) = (vec![0.0; len], vec![0.0; len], vec![0.0; len]);
     for k in first[2]..=last[2] {
+        // Each row is copied once as `next_y` and then becomes `row` (the first one of a
+        // plane read here).
+        l.coeffs.read_row_at([i0, first[1], k], &mut row);
         for j in first[1]..=last[1] {
-            let start = l.index(i0, j, k);
-            l.coeffs.read_row(start, &mut row);
+            if j > first[1] {
+                std::mem::swap(&mut row, &mut next_y);
+            }
             let row = row.as_slice();
             for &c in row {
                 vmin = smaller(vmin, c);
@@ -2253,11 +2256,11 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
             }
             steepest = largest_step(steepest, row, &row[1..]);
             if j < last[1] {
-                l.coeffs.read_row(start + nx, &mut next_y);
+                l.coeffs.read_row_at([i0, j + 1, k], &mut next_y);
                 steepest = largest_step(steepest, row, &next_y);
             }
             if k < last[2] {
-                l.coeffs.read_row(start + nx * ny, &mut next_z);
+                l.coeffs.read_row_at([i0, j, k + 1], &mut next_z);
                 steepest = largest_step(steepest, row, &next_z);
             }
         }
@@ -2801,7 +2804,7 @@ pub(super) mod tests {
             .map(|v| v as usize);
         for step in 0..count {
             let idx = p.lattice.index(node[0] + step, node[1], node[2]);
-            p.lattice.coeffs[idx] -= depth;
+            p.lattice.coeffs.add_flat(idx, -depth);
         }
         p.coefficient_change_box(node, [node[0] + count - 1, node[1], node[2]])
     }
@@ -3054,11 +3057,11 @@ pub(super) mod tests {
             *c = ((n * 7919) % 113) as f32 / 17.0 - 3.0;
         });
         let nan_at = lattice.index(5, 4, 6);
-        lattice.coeffs[nan_at] = f32::NAN;
+        lattice.coeffs.set_flat(nan_at, f32::NAN);
         let inf_at = lattice.index(3, 5, 5);
-        lattice.coeffs[inf_at] = f32::INFINITY;
+        lattice.coeffs.set_flat(inf_at, f32::INFINITY);
         let neg_at = lattice.index(7, 3, 4);
-        lattice.coeffs[neg_at] = f32::NEG_INFINITY;
+        lattice.coeffs.set_flat(neg_at, f32::NEG_INFINITY);
         let patch = Patch::identity(lattice);
         let mut tables = WindowTables::default();
         tables.build(

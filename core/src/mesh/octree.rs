@@ -1190,7 +1190,9 @@ mod tests {
                 for i in 0..n {
                     let d = radius - (lattice.node_position(i, j, k) - centre).length();
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = (0.5 + d / (6.0 * spacing)).clamp(0.0, 1.0);
+                    lattice
+                        .coeffs
+                        .set_flat(idx, (0.5 + d / (6.0 * spacing)).clamp(0.0, 1.0));
                 }
             }
         }
@@ -1367,7 +1369,7 @@ mod tests {
                 for j in first[1]..=last[1] {
                     for i in first[0]..=last[0] {
                         let idx = lattice.index(i, j, k);
-                        lattice.coeffs[idx] += delta;
+                        lattice.coeffs.add_flat(idx, delta);
                     }
                 }
             }
@@ -1549,7 +1551,7 @@ mod tests {
             for j in at[1] - 3..=at[1] + 3 {
                 for i in at[0] - 3..=at[0] + 3 {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] -= 0.8;
+                    lattice.coeffs.add_flat(idx, -0.8);
                 }
             }
         }
@@ -1745,7 +1747,7 @@ mod tests {
         let seen = tree.generation();
         assert_eq!(tree.changed_since(seen).count(), 0);
         let idx = lattice.index(6, 14, 14);
-        lattice.coeffs[idx] = 1.0;
+        lattice.coeffs.set_flat(idx, 1.0);
         let (min, max) = BrickOctree::coefficient_change_box(&lattice, [6, 14, 14], [6, 14, 14]);
         let report = tree.refresh_lattice(&lattice, min, max);
         let mut changed: Vec<_> = tree.changed_since(seen).map(|b| b.coord).collect();

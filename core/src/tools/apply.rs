@@ -1426,7 +1426,9 @@ mod tests {
             for j in 0..N {
                 for i in 0..N {
                     let idx = lattice.index(i, j, k);
-                    lattice.coeffs[idx] = 0.7 - 0.4 * k as f32 / (N - 1) as f32;
+                    lattice
+                        .coeffs
+                        .set_flat(idx, 0.7 - 0.4 * k as f32 / (N - 1) as f32);
                 }
             }
         }

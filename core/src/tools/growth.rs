@@ -181,7 +181,7 @@ mod tests {
                 for i in 0..n {
                     let d = (l.node_position(i, j, k) - centre).length();
                     let idx = l.index(i, j, k);
-                    l.coeffs[idx] = (1.0 - d / 0.35).clamp(0.0, 1.0);
+                    l.coeffs.set_flat(idx, (1.0 - d / 0.35).clamp(0.0, 1.0));
                 }
             }
         }

@@ -669,7 +669,7 @@ mod tests {
         let l = &mut clay.density.patches[0].lattice;
         let dims = l.dims;
         for_each_index(dims, &region.clipped(dims).unwrap(), |i| {
-            l.coeffs[i] = value
+            l.coeffs.set_flat(i, value)
         });
         history.commit(rec, clay);
     }
@@ -765,7 +765,7 @@ mod tests {
         };
         rec.touch(&clay, FieldId::Density(0), early);
         let at = clay.base().index(12, 4, 3);
-        clay.base_mut().coeffs[at] = -1.0;
+        clay.base_mut().coeffs.set_flat(at, -1.0);
         let growth = clay.grow([8, 0, 8]).unwrap();
         history.regrid(&growth);
         rec.regrid(&growth);
@@ -774,7 +774,7 @@ mod tests {
         let at = clay
             .base()
             .index(late.min[0] + 5, late.min[1] + 2, late.min[2] + 1);
-        clay.base_mut().coeffs[at] = 7.0;
+        clay.base_mut().coeffs.set_flat(at, 7.0);
         // Past the old far side, in a brick that was clipped there before the growth.
         let beyond = CoeffBox {
             min: [29, 4, 9],
@@ -782,7 +782,7 @@ mod tests {
         };
         rec.touch(&clay, FieldId::Density(0), beyond);
         let at = clay.base().index(30, 5, 10);
-        clay.base_mut().coeffs[at] = 5.0;
+        clay.base_mut().coeffs.set_flat(at, 5.0);
         history.commit(rec, &clay);
         let done = clay.clone();
         // Undo the stroke: the grown clay holds the first edit's coefficients again.

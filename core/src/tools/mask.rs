@@ -111,7 +111,9 @@ pub fn ensure_mask(clay: &mut Clay) -> Result<(), MaskError> {
                 for j in 0..l.dims[1] {
                     for i in 0..l.dims[0] {
                         let x = to_world.transform_point3(l.node_position(i, j, k));
-                        fresh.coeffs[l.index(i, j, k)] = snapped_hold(base.value(x));
+                        fresh
+                            .coeffs
+                            .set_flat(l.index(i, j, k), snapped_hold(base.value(x)));
                     }
                 }
             }
@@ -194,17 +196,17 @@ pub fn paint_mask(
                     if w <= 0.0 {
                         continue;
                     }
-                    let h = &mut mask.coeffs[l.index(i, j, k)];
+                    let h = mask.coeffs.get(i, j, k);
                     // A full-weight dab sets the goal exactly (no rounding short of it).
                     let new = match brush.mode {
                         MaskMode::Freeze if w >= 1.0 => 1.0,
                         MaskMode::Free if w >= 1.0 => 0.0,
-                        MaskMode::Freeze => *h + w * (1.0 - *h),
-                        MaskMode::Free => *h * (1.0 - w),
+                        MaskMode::Freeze => h + w * (1.0 - h),
+                        MaskMode::Free => h * (1.0 - w),
                     }
                     .clamp(0.0, 1.0);
-                    report.changed += usize::from(new != *h);
-                    *h = new;
+                    report.changed += usize::from(new != h);
+                    mask.coeffs.set(i, j, k, new);
                 }
             }
         }

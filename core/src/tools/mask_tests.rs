@@ -391,7 +391,9 @@ fn one_painted_coefficient_holds_the_box_its_support_reaches() {
     let mut mask = FreezeMask::matching(&clay.density).unwrap();
     let l = clay.base();
     let painted = [2_usize, 10, 9];
-    mask.patches[0].coeffs[l.index(painted[0], painted[1], painted[2])] = 0.75;
+    mask.patches[0]
+        .coeffs
+        .set_flat(l.index(painted[0], painted[1], painted[2]), 0.75);
     let reach = HOLD_REACH_NODES;
     for region in [
         CoeffBox {

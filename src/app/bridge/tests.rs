@@ -221,7 +221,7 @@ fn the_bridge_loads_sessions_sets_the_force_limit_and_publishes_loop_figures() {
         for j in 0..d[1] {
             for i in 0..d[0] {
                 let idx = carved.index(i, j, k);
-                carved.coeffs[idx] = 0.0;
+                carved.coeffs.set_flat(idx, 0.0);
             }
         }
     }
@@ -746,8 +746,8 @@ fn sink_recolours_the_bricks_paint_covers() {
         for j in 0..d[1] {
             for i in 0..d[0] / 3 {
                 let idx = lattice.index(i, j, k);
-                colour.channels[0].coeffs[idx] = 1.0;
-                colour.channels[3].coeffs[idx] = 1.0;
+                colour.channels[0].coeffs.set_flat(idx, 1.0);
+                colour.channels[3].coeffs.set_flat(idx, 1.0);
             }
         }
     }
@@ -815,7 +815,7 @@ fn sink_tints_the_bricks_the_mask_covers() {
     for k in 0..d[2] {
         for j in 0..d[1] {
             for i in 0..d[0] / 3 {
-                mask.patches[0].coeffs[lattice.index(i, j, k)] = 1.0;
+                mask.patches[0].coeffs.set_flat(lattice.index(i, j, k), 1.0);
             }
         }
     }
