@@ -345,7 +345,8 @@ impl SimulationStage {
             symmetry: Symmetry::OFF,
             // Room for every force of the held tool and its seven mirrored copies.
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
-            mirrored_bodies: Vec::with_capacity(8),
+            // The same for the bodies (the chisel's stand over each of its forces).
+            mirrored_bodies: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
             region_patch: 0,
