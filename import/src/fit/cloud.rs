@@ -1271,20 +1271,7 @@ impl SignGrid {
             };
             b(0) + blocks[0] * (b(1) + blocks[1] * b(2))
         };
-        let mut starts = vec![0u32; blocks.iter().product::<usize>() + 1];
-        for &p in points {
-            starts[block_of(p) + 1] += 1;
-        }
-        for b in 1..starts.len() {
-            starts[b] += starts[b - 1];
-        }
-        let mut order = vec![0u32; points.len()];
-        for (i, &p) in points.iter().enumerate() {
-            let b = block_of(p);
-            order[starts[b] as usize] = i as u32;
-            starts[b] += 1;
-        }
-        order
+        super::consensus::order_by_bucket(points, blocks.iter().product(), block_of)
     }
 
     /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and

@@ -81,23 +81,11 @@ impl PointGrid {
         } else {
             (Vec3::ZERO, Vec3::ZERO)
         };
-        let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
-        let mut cell = cell.max(extent.max_element() * 1e-6).max(f32::MIN_POSITIVE);
-        let dims_for = |cell: f32| (extent / cell).floor().as_ivec3() + IVec3::ONE;
-        while dims_for(cell).as_dvec3().element_product() > MAX_GRID_CELLS as f64 {
-            cell *= 1.25;
-        }
-        let d = dims_for(cell);
+        let cubes = Cubes::covering(lo, hi, cell);
+        let (cell, d) = (cubes.cell, cubes.dims);
         let dims = [d.x, d.y, d.z];
-        let cells = (d.x * d.y * d.z) as usize;
-        let index_of = |p: Vec3| {
-            // `floor_to_i32` is `floor` then `as i32` (a call into the C library each on the
-            // baseline target; see its NOTE).
-            let u = (p - lo) / cell;
-            let c = IVec3::new(floor_to_i32(u.x), floor_to_i32(u.y), floor_to_i32(u.z))
-                .clamp(IVec3::ZERO, d - IVec3::ONE);
-            (c.x + d.x * (c.y + d.y * c.z)) as usize
-        };
+        let cells = cubes.count();
+        let index_of = |p: Vec3| cubes.cube_of(p);
         let mut counts = vec![0u32; cells + 1];
         for (i, &p) in points.iter().enumerate() {
             if keep(i) {
@@ -347,33 +335,75 @@ pub(crate) fn spatial_order(points: &[Vec3], cell: f32) -> Vec<u32> {
     if !lo.is_finite() || !hi.is_finite() {
         return (0..points.len() as u32).collect();
     }
-    let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
-    let mut cell = cell.max(extent.max_element() * 1e-6).max(f32::MIN_POSITIVE);
-    let dims_for = |cell: f32| (extent / cell).floor().as_ivec3() + IVec3::ONE;
-    while dims_for(cell).as_dvec3().element_product() > MAX_GRID_CELLS as f64 {
-        cell *= 1.25;
-    }
-    let d = dims_for(cell);
-    let cube_of = |p: Vec3| {
-        let u = (p - lo) / cell;
-        let c = IVec3::new(floor_to_i32(u.x), floor_to_i32(u.y), floor_to_i32(u.z))
-            .clamp(IVec3::ZERO, d - IVec3::ONE);
-        (c.x + d.x * (c.y + d.y * c.z)) as usize
-    };
-    let mut starts = vec![0u32; (d.x * d.y * d.z) as usize + 1];
+    let cubes = Cubes::covering(lo, hi, cell);
+    order_by_bucket(points, cubes.count(), |p| cubes.cube_of(p))
+}
+
+/// The indices of `points` sorted by `bucket_of` (each below `buckets`), buckets in order and
+/// points in index order within a bucket (a counting sort: two passes, no comparison).
+#[must_use]
+pub(crate) fn order_by_bucket(
+    points: &[Vec3],
+    buckets: usize,
+    bucket_of: impl Fn(Vec3) -> usize,
+) -> Vec<u32> {
+    let mut starts = vec![0u32; buckets + 1];
     for &p in points {
-        starts[cube_of(p) + 1] += 1;
+        starts[bucket_of(p) + 1] += 1;
     }
-    for c in 1..starts.len() {
-        starts[c] += starts[c - 1];
+    for b in 1..starts.len() {
+        starts[b] += starts[b - 1];
     }
     let mut order = vec![0u32; points.len()];
     for (i, &p) in points.iter().enumerate() {
-        let c = cube_of(p);
-        order[starts[c] as usize] = i as u32;
-        starts[c] += 1;
+        let b = bucket_of(p);
+        order[starts[b] as usize] = i as u32;
+        starts[b] += 1;
     }
     order
+}
+
+/// Cubes of one side over a box, in z-major order: the side at least the one asked for, and
+/// larger where the box would need more than [`MAX_GRID_CELLS`] of them.
+#[derive(Clone, Copy, Debug)]
+struct Cubes {
+    lo: Vec3,
+    cell: f32,
+    dims: IVec3,
+}
+
+impl Cubes {
+    /// Cubes of side `cell` (at least) from `lo` over the box to `hi` (both finite).
+    fn covering(lo: Vec3, hi: Vec3, cell: f32) -> Self {
+        let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
+        let mut cell = cell.max(extent.max_element() * 1e-6).max(f32::MIN_POSITIVE);
+        let dims_for = |cell: f32| (extent / cell).floor().as_ivec3() + IVec3::ONE;
+        while dims_for(cell).as_dvec3().element_product() > MAX_GRID_CELLS as f64 {
+            cell *= 1.25;
+        }
+        Self {
+            lo,
+            cell,
+            dims: dims_for(cell),
+        }
+    }
+
+    /// How many cubes.
+    fn count(&self) -> usize {
+        (self.dims.x * self.dims.y * self.dims.z) as usize
+    }
+
+    /// The cube `p` lies in (a point outside the box: the nearest cube on the border).
+    #[inline]
+    fn cube_of(&self, p: Vec3) -> usize {
+        // `floor_to_i32` is `floor` then `as i32` (a call into the C library each on the
+        // baseline target; see its NOTE).
+        let u = (p - self.lo) / self.cell;
+        let d = self.dims;
+        let c = IVec3::new(floor_to_i32(u.x), floor_to_i32(u.y), floor_to_i32(u.z))
+            .clamp(IVec3::ZERO, d - IVec3::ONE);
+        (c.x + d.x * (c.y + d.y * c.z)) as usize
+    }
 }
 
 /// What [`screen`] found.
