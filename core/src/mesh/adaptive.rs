@@ -343,16 +343,40 @@ struct Extraction {
     vertex_cells: Vec<f32>,
 }
 
-/// The integer corners (inclusive) of the region a re-mesh revisits: the change box grown by
-/// one finest cell on every side, so rounding never leaves out a node whose bound query or
-/// samples read a changed coefficient.
-#[derive(Clone, Copy, Debug)]
+/// The integer corners of the region a re-mesh revisits: a node meets it when its closed
+/// box reaches `lo` and starts at or below `hi` along every axis, so the nodes that meet it
+/// are those whose closed box meets the change box grown by [`Region::SLACK_CELLS`] on every
+/// side (every node whose bound query or samples may read a changed coefficient, whatever
+/// the rounding of the box's world coordinates). Along an axis where the grown box lies
+/// within one cell's open interior, `lo` is `hi + 1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Region {
     lo: [i64; 3],
     hi: [i64; 3],
 }
 
 impl Region {
+    /// How far, in finest cells, the change box is grown before it is rounded to the lattice:
+    /// far more than the rounding of a world coordinate (about 1e-4 of a cell on a root of
+    /// 2^20 cells), far less than a cell.
+    // NOTE: a whole finest cell here (the region rounded outward and grown by one) revisited
+    // a shell of leaves around the change box whose split tests, corners and vertices cannot
+    // change: about a sixth of a stroke-sized re-mesh in `bench/mesh.rs` `graphics_stroke`.
+    const SLACK_CELLS: f32 = 1.0 / 64.0;
+
+    /// The region of the change box whose corners are `a ..= b` in (fractional) finest cells
+    /// from the octree's origin, clamped to a little beyond the root of `root_size` cells (so
+    /// a far box stays a valid region that no node meets).
+    fn of_cells(a: Vec3, b: Vec3, root_size: u32) -> Self {
+        let limit = f64::from(root_size) + 2.0;
+        let clamp = |v: f32| f64::from(v).clamp(-2.0, limit) as i64;
+        // The lowest (highest) corner a node reaching the grown box may end (start) at.
+        Self {
+            lo: std::array::from_fn(|k| clamp((a[k] - Self::SLACK_CELLS).ceil())),
+            hi: std::array::from_fn(|k| clamp((b[k] + Self::SLACK_CELLS).floor())),
+        }
+    }
+
     #[inline]
     fn meets(&self, node: &Node) -> bool {
         let meets_along = |a: usize| {
@@ -668,17 +692,10 @@ impl AdaptiveMesher {
         out
     }
 
-    /// The integer region of the world box `lo ..= hi`, one finest cell wider on each side.
+    /// The integer region of the world box `lo ..= hi` (see [`Region`]).
     fn region(&self, lo: Vec3, hi: Vec3) -> Region {
         let to_cells = |x: Vec3| (x - self.tree.origin) / self.tree.unit;
-        let (a, b) = (to_cells(lo), to_cells(hi));
-        // Clamped to a little beyond the root, so a far box stays a valid empty region.
-        let limit = f64::from(self.tree.root_size) + 2.0;
-        let clamp = |v: f32| f64::from(v).clamp(-2.0, limit) as i64;
-        Region {
-            lo: std::array::from_fn(|k| clamp(a[k].floor()) - 1),
-            hi: std::array::from_fn(|k| clamp(b[k].ceil()) + 1),
-        }
+        Region::of_cells(to_cells(lo), to_cells(hi), self.tree.root_size)
     }
 
     /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
@@ -2828,8 +2845,8 @@ pub(super) mod tests {
             report.leaves_revisited,
             report.leaves
         );
-        // Every revisited leaf meets the change box (grown by a finest cell) or is new: the
-        // vertices made lie in it, grown by a leaf.
+        // Every revisited leaf meets the change box (grown by a 64th of a finest cell) or is
+        // new: the vertices made lie in it, grown by a leaf.
         let made: Vec<Vec3> = {
             let whole = vertex_set(&before);
             mesher
@@ -2846,9 +2863,9 @@ pub(super) mod tests {
                 .collect()
         };
         assert!(!made.is_empty());
-        // A revisited leaf meets the box grown by a finest cell; a vertex lies in its leaf,
-        // at most a base cell.
-        let grown = SPACING / 8.0 + SPACING / 2.0 + 1e-5;
+        // A revisited leaf meets the box grown by a 64th of a finest cell; a vertex lies in
+        // its leaf, at most a base cell.
+        let grown = SPACING / 8.0 / 64.0 + SPACING / 2.0 + 1e-5;
         for p in made {
             assert!(
                 p.cmpge(lo - grown).all() && p.cmple(hi + grown).all(),
@@ -2920,6 +2937,52 @@ pub(super) mod tests {
         let report = mesher.remesh_box(&field, lo, hi).unwrap();
         assert!(report.leaves_revisited * 10 < report.leaves, "{report:?}");
         matches_whole(&mesher, &field);
+    }
+
+    #[test]
+    fn a_region_meets_the_nodes_whose_closed_box_meets_the_slightly_grown_change_box() {
+        let slack = f64::from(Region::SLACK_CELLS);
+        // Change boxes on the lattice, a little off it either way, thinner than a cell and
+        // beyond the root's sides (of 64 cells).
+        let edges = [
+            (10.0, 14.0),
+            (10.0 + 1e-3, 14.0 - 1e-3),
+            (10.0 - 1e-3, 14.0 + 1e-3),
+            (10.3, 13.7),
+            (10.2, 10.4),
+            (10.0, 10.0),
+            (-5.0, 3.5),
+            (60.5, 80.0),
+        ];
+        let mut met = 0;
+        for &(a, b) in &edges {
+            let region = Region::of_cells(Vec3::new(a, 12.0, 12.0), Vec3::new(b, 12.0, 12.0), 64);
+            for size in [1_u32, 2, 4, 8] {
+                for m in (0..=64 - size).step_by(size as usize) {
+                    let node = Node {
+                        min: [m, 12 - size / 2, 12 - size / 2],
+                        size,
+                        children: 0,
+                    };
+                    // Along y and z every node holds 12, the box's one corner there; along
+                    // x, the plain test in f64: the closed boxes meet.
+                    let (lo, hi) = (f64::from(m), f64::from(m + size));
+                    let plain = hi >= f64::from(a) - slack && lo <= f64::from(b) + slack;
+                    assert_eq!(region.meets(&node), plain, "{a} ..= {b}, node {node:?}");
+                    met += usize::from(plain);
+                }
+            }
+        }
+        assert!(met > 50, "{met} nodes met");
+        // A change box on the lattice keeps the nodes that only touch it, not one beyond.
+        let region = Region::of_cells(Vec3::splat(10.0), Vec3::splat(14.0), 64);
+        assert_eq!(
+            region,
+            Region {
+                lo: [10; 3],
+                hi: [14; 3]
+            }
+        );
     }
 
     #[test]
