@@ -244,6 +244,9 @@ pub struct AdaptiveMesher {
     /// The triangles the last call took out of the kept mesh, with their centroids where
     /// they were (see [`AdaptiveMesher::removed_triangles`]).
     removed: Vec<SlotTriangle>,
+    /// The vertex slots the last local re-mesh dropped (see
+    /// [`AdaptiveMesher::dropped_slots`]).
+    dropped: Vec<u32>,
     /// The polygons the last local re-mesh made (after a whole mesh, every polygon is new and
     /// this is empty).
     made: Vec<[u32; 4]>,
@@ -411,6 +414,7 @@ impl AdaptiveMesher {
             forgotten: None,
             stale: false,
             removed: Vec::new(),
+            dropped: Vec::new(),
             made: Vec::new(),
             made_whole: true,
             reads: CoefficientReads::default(),
@@ -561,6 +565,7 @@ impl AdaptiveMesher {
     ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
         let mut report = AdaptiveRemeshReport::default();
         self.removed.clear();
+        self.dropped.clear();
         self.made.clear();
         self.made_whole = false;
         if lo.cmpgt(hi).any() {
@@ -633,6 +638,14 @@ impl AdaptiveMesher {
     #[must_use]
     pub fn removed_triangles(&self) -> &[SlotTriangle] {
         &self.removed
+    }
+
+    /// The vertex slots whose vertex the last local re-mesh dropped (none after a whole
+    /// mesh), each once: every kept triangle that used one is among
+    /// [`AdaptiveMesher::removed_triangles`] (with the other triangle of its quad, which may
+    /// use none). A later vertex of the same re-mesh may have taken the slot.
+    pub(super) fn dropped_slots(&self) -> &[u32] {
+        &self.dropped
     }
 
     /// The position and unit normal of the vertex in `slot`, while it lives. The normal is
@@ -758,6 +771,7 @@ impl AdaptiveMesher {
         self.corners.clear();
         self.stale = true;
         self.removed.clear();
+        self.dropped.clear();
         self.made.clear();
         self.made_whole = true;
         self.forgotten = None;
@@ -885,6 +899,7 @@ impl AdaptiveMesher {
         let slot = std::mem::replace(&mut self.vertex_of[n as usize], NO_VERTEX);
         if slot != NO_VERTEX {
             self.vertices.remove(slot);
+            self.dropped.push(slot);
             let node = &self.tree.nodes[n as usize];
             let (lo, hi) = (node.min, node.corner(7));
             self.forgotten = Some(match self.forgotten {
