@@ -62,9 +62,11 @@
 //! other sets a new finest cell; a patch beyond the others' supports grows the root) is the
 //! whole clay meshed again.
 //!
-//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the corners
-//! of the region (and two finest cells around it) are sampled together, as a grid, by
-//! [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
+//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the region
+//! revisited is the change box grown by a 64th of a finest cell (enough for rounding), not by
+//! whole cells, so no shell of unchanged leaves around it is tested, sampled and meshed
+//! again; the corners of the region (and two finest cells around it) are sampled together,
+//! as a grid, by [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
 //! computed once per coordinate), and read back without a hash lookup; a count of their
 //! inside corners over boxes (a summed-volume table) shows where a node, face or edge of the
 //! traversal has corners all on one side, so no minimal edge there changes sign and the
@@ -362,9 +364,10 @@ impl Region {
     /// How far, in finest cells, the change box is grown before it is rounded to the lattice:
     /// far more than the rounding of a world coordinate (about 1e-4 of a cell on a root of
     /// 2^20 cells), far less than a cell.
-    // NOTE: a whole finest cell here (the region rounded outward and grown by one) revisited
-    // a shell of leaves around the change box whose split tests, corners and vertices cannot
-    // change: about a sixth of a stroke-sized re-mesh in `bench/mesh.rs` `graphics_stroke`.
+    // NOTE: a whole finest cell here (the region rounded outward and grown by one more)
+    // revisited a shell of leaves around the change box whose split tests, corners and
+    // vertices cannot change: the window's stroke re-mesh (`bench/mesh.rs` `graphics_stroke`)
+    // took 1.3 times as long with it, in one loaded run.
     const SLACK_CELLS: f32 = 1.0 / 64.0;
 
     /// The region of the change box whose corners are `a ..= b` in (fractional) finest cells
