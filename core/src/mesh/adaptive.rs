@@ -350,10 +350,10 @@ struct Extraction {
 
 /// The integer corners of the region a re-mesh revisits: a node meets it when its closed
 /// box reaches `lo` and starts at or below `hi` along every axis, so the nodes that meet it
-/// are those whose closed box meets the change box grown by [`Region::SLACK_CELLS`] on every
+/// are those whose closed box meets the change box grown by [`Region::slack_cells`] on every
 /// side (every node whose bound query or samples may read a changed coefficient, whatever
-/// the rounding of the box's world coordinates). Along an axis where the grown box lies
-/// within one cell's open interior, `lo` is `hi + 1`.
+/// the rounding of the box's and the nodes' world coordinates). Along an axis where the grown
+/// box lies within one cell's open interior, `lo` is `hi + 1`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Region {
     lo: [i64; 3],
@@ -361,25 +361,36 @@ struct Region {
 }
 
 impl Region {
-    /// How far, in finest cells, the change box is grown before it is rounded to the lattice:
-    /// far more than the rounding of a world coordinate (about 1e-4 of a cell on a root of
-    /// 2^20 cells), far less than a cell.
+    /// How far, in finest cells, the change box is grown before it is rounded to the lattice,
+    /// where the coordinates involved (the box's, the root's, the origin's, in cells) are at
+    /// most `magnitude`: a 64th of a cell and 2^-18 of the magnitude, which is many times the
+    /// rounding of `f32` world coordinates of that size (2^-23 of it per operation) and, for
+    /// a root of up to 2^12 cells, under a fiftieth of a cell.
     // NOTE: a whole finest cell here (the region rounded outward and grown by one more)
     // revisited a shell of leaves around the change box whose split tests, corners and
     // vertices cannot change: the window's stroke re-mesh (`bench/mesh.rs` `graphics_stroke`)
     // took 1.3 times as long with it, in one loaded run.
-    const SLACK_CELLS: f32 = 1.0 / 64.0;
+    fn slack_cells(magnitude: f64) -> f64 {
+        1.0 / 64.0 + magnitude * (-18.0_f64).exp2()
+    }
 
     /// The region of the change box whose corners are `a ..= b` in (fractional) finest cells
-    /// from the octree's origin, clamped to a little beyond the root of `root_size` cells (so
-    /// a far box stays a valid region that no node meets).
-    fn of_cells(a: Vec3, b: Vec3, root_size: u32) -> Self {
+    /// from the octree's origin, `origin` cells from the world's, clamped to a little beyond
+    /// the root of `root_size` cells (so a far box stays a valid region that no node meets).
+    fn of_cells(a: [f64; 3], b: [f64; 3], origin: [f64; 3], root_size: u32) -> Self {
+        let magnitude = a
+            .iter()
+            .chain(&b)
+            .chain(&origin)
+            .map(|v| v.abs())
+            .fold(f64::from(root_size), f64::max);
+        let slack = Self::slack_cells(magnitude);
         let limit = f64::from(root_size) + 2.0;
-        let clamp = |v: f32| f64::from(v).clamp(-2.0, limit) as i64;
+        let clamp = |v: f64| v.clamp(-2.0, limit) as i64;
         // The lowest (highest) corner a node reaching the grown box may end (start) at.
         Self {
-            lo: std::array::from_fn(|k| clamp((a[k] - Self::SLACK_CELLS).ceil())),
-            hi: std::array::from_fn(|k| clamp((b[k] + Self::SLACK_CELLS).floor())),
+            lo: std::array::from_fn(|k| clamp((a[k] - slack).ceil())),
+            hi: std::array::from_fn(|k| clamp((b[k] + slack).floor())),
         }
     }
 
@@ -710,8 +721,16 @@ impl AdaptiveMesher {
 
     /// The integer region of the world box `lo ..= hi` (see [`Region`]).
     fn region(&self, lo: Vec3, hi: Vec3) -> Region {
-        let to_cells = |x: Vec3| (x - self.tree.origin) / self.tree.unit;
-        Region::of_cells(to_cells(lo), to_cells(hi), self.tree.root_size)
+        let unit = f64::from(self.tree.unit);
+        let origin = self.tree.origin.to_array().map(f64::from);
+        let to_cells = |x: Vec3| std::array::from_fn(|k| (f64::from(x[k]) - origin[k]) / unit);
+        let origin_cells = origin.map(|o| o / unit);
+        Region::of_cells(
+            to_cells(lo),
+            to_cells(hi),
+            origin_cells,
+            self.tree.root_size,
+        )
     }
 
     /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
@@ -2959,13 +2978,16 @@ pub(super) mod tests {
 
     #[test]
     fn a_region_meets_the_nodes_whose_closed_box_meets_the_slightly_grown_change_box() {
-        let slack = f64::from(Region::SLACK_CELLS);
+        // The origin's 144 cells are the largest coordinate: every box's slack is theirs.
+        let origin = [144.0, 0.0, 0.0];
+        let slack = Region::slack_cells(144.0);
         // Change boxes on the lattice, a little off it either way, thinner than a cell and
         // beyond the root's sides (of 64 cells).
         let edges = [
             (10.0, 14.0),
             (10.0 + 1e-3, 14.0 - 1e-3),
             (10.0 - 1e-3, 14.0 + 1e-3),
+            (10.0 + 0.05, 14.0 - 0.05),
             (10.3, 13.7),
             (10.2, 10.4),
             (10.0, 10.0),
@@ -2974,7 +2996,7 @@ pub(super) mod tests {
         ];
         let mut met = 0;
         for &(a, b) in &edges {
-            let region = Region::of_cells(Vec3::new(a, 12.0, 12.0), Vec3::new(b, 12.0, 12.0), 64);
+            let region = Region::of_cells([a, 12.0, 12.0], [b, 12.0, 12.0], origin, 64);
             for size in [1_u32, 2, 4, 8] {
                 for m in (0..=64 - size).step_by(size as usize) {
                     let node = Node {
@@ -2985,7 +3007,7 @@ pub(super) mod tests {
                     // Along y and z every node holds 12, the box's one corner there; along
                     // x, the plain test in f64: the closed boxes meet.
                     let (lo, hi) = (f64::from(m), f64::from(m + size));
-                    let plain = hi >= f64::from(a) - slack && lo <= f64::from(b) + slack;
+                    let plain = hi >= a - slack && lo <= b + slack;
                     assert_eq!(region.meets(&node), plain, "{a} ..= {b}, node {node:?}");
                     met += usize::from(plain);
                 }
@@ -2993,7 +3015,7 @@ pub(super) mod tests {
         }
         assert!(met > 50, "{met} nodes met");
         // A change box on the lattice keeps the nodes that only touch it, not one beyond.
-        let region = Region::of_cells(Vec3::splat(10.0), Vec3::splat(14.0), 64);
+        let region = Region::of_cells([10.0; 3], [14.0; 3], [0.0; 3], 64);
         assert_eq!(
             region,
             Region {
