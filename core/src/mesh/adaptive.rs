@@ -63,8 +63,8 @@
 //! whole clay meshed again.
 //!
 //! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the region
-//! revisited is the change box grown by a 64th of a finest cell (enough for rounding), not by
-//! whole cells, so no shell of unchanged leaves around it is tested, sampled and meshed
+//! revisited is the change box grown by a 64th of a finest cell (more on a deep root: enough
+//! for rounding), not by whole cells, so no shell of unchanged leaves around it is tested, sampled and meshed
 //! again; the corners of the region (and two finest cells around it) are sampled together,
 //! as a grid, by [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
 //! computed once per coordinate), and read back without a hash lookup; a count of their
