@@ -4,7 +4,8 @@
 //! with a spread of a quarter knot span (automatic detail for force tools on) refines under
 //! itself and presses a groove within 25%
 //! of the chord of a ball of its spread swept along the tip's path (over twice as wide with
-//! automatic detail off); and an add stroke or a pull stroke
+//! automatic detail off); a chisel of half a knot span's radius refines under itself and cuts
+//! its depth within 10% along the whole stroke; and an add stroke or a pull stroke
 //! of the simulated arm that leaves the starting box extends the exported clay past it,
 //! rounded (no flat face where the box was).
 
@@ -207,6 +208,43 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
         assert!(
             !c.is_finite() || *c > 2.0 * f,
             "on the base alone the groove is {c} wide, not much wider than {f}"
+        );
+    }
+}
+
+/// The top of the clay in `mesh` over `(x, z)`: the highest crossing of the vertical line.
+fn top_at(mesh: &Exported, x: f32, z: f32) -> f32 {
+    let from = Vec3::new(x, 0.0, z);
+    mesh.crossings(from, Vec3::Y)
+        .into_iter()
+        .fold(f32::NEG_INFINITY, f32::max)
+}
+
+#[test]
+fn a_narrow_chisel_refines_under_itself_and_cuts_its_depth_along_the_whole_stroke() {
+    // A chisel of radius half a base knot span, set 0.06 deep, drawn along x over the top
+    // face. Automatic detail for force tools refines under it as it starts; on the finer
+    // patch the clay's springs close a cut this narrow over its targets (a skin of clay over
+    // a hole cut to the full depth) unless the chisel, like the push, keeps the clay out of
+    // the cut it has made. Measured on the exported mesh from above, as a user sees it.
+    let (radius, depth) = (0.05_f32, 0.06_f32);
+    let script = format!(
+        "version = 1\nseconds = 2.2\n[[step]]\ndo = \"stroke\"\n\
+         tool = {{ kind = \"chisel\", depth_fu = {depth}, radius_fu = {radius}, gain = 2e6 }}\n\
+         path = [[0.85, {TOP_Y}, {MID}], [1.45, {TOP_Y}, {MID}]]\nstart_s = 0.2\n\
+         duration_s = 1.0\nhover_fu = 0.3\n"
+    );
+    let (cut, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, true);
+    let depths: Vec<f32> = [0.95, 1.05, 1.15, 1.25, 1.35]
+        .iter()
+        .map(|&x| TOP_Y - top_at(&cut, x, MID))
+        .collect();
+    eprintln!("chisel of radius {radius} set {depth} deep: cut {depths:.4?} ({refines} refines)");
+    assert!(refines >= 1, "the chisel refined under itself");
+    for (x, d) in [0.95, 1.05, 1.15, 1.25, 1.35].iter().zip(&depths) {
+        assert!(
+            (d - depth).abs() <= 0.1 * depth,
+            "at x = {x} the cut is {d} deep against {depth}"
         );
     }
 }

@@ -70,8 +70,9 @@ pub struct LiveTool {
     /// Where the push's stroke entered the clay: its force vector's start when it first
     /// touched.
     mouth: Option<Vec3>,
-    /// The push's body this step (see [`push_body`]).
-    body: Option<ToolBody>,
+    /// This step's tool bodies: the push's shaft ([`push_body`]) or the chisel's shafts over
+    /// its targets ([`chisel_body`]); at most [`MAX_FORCES`], allocated once.
+    bodies: Vec<ToolBody>,
 }
 
 fn felt_tool_of(choice: &ToolChoice) -> FeltTool {
@@ -151,7 +152,7 @@ impl LiveTool {
             last_tip: Vec3::ZERO,
             settle_left: 0,
             mouth: None,
-            body: None,
+            bodies: Vec::with_capacity(MAX_FORCES),
         }
     }
 
@@ -216,7 +217,7 @@ impl LiveTool {
         self.last_apply = None;
         self.len = 0;
         self.mouth = None;
-        self.body = None;
+        self.bodies.clear();
     }
 
     /// Where the held force stroke took hold of the clay (`None` before it has, and for the
@@ -232,10 +233,11 @@ impl LiveTool {
         &self.forces[..self.len]
     }
 
-    /// This step's tool bodies (the push's shaft in the clay, see [`push_body`]).
+    /// This step's tool bodies (the push's shaft in the clay, see [`push_body`]; the
+    /// chisel's over a cut a skin of clay has closed, see [`chisel_body`]).
     #[must_use]
     pub fn bodies(&self) -> &[ToolBody] {
-        self.body.as_slice()
+        &self.bodies
     }
 
     /// The bounding box of this step's force vectors grown by their spread radii, if any.
@@ -256,7 +258,7 @@ impl LiveTool {
     /// stroke or a push out of contact gives none.
     pub fn update_forces(&mut self, sample: &ToolSample, field: &MultiPatchField, mass_step: f32) {
         self.len = 0;
-        self.body = None;
+        self.bodies.clear();
         let settling = !sample.stroke_active && self.settle_left > 0;
         if settling {
             self.settle_left -= 1;
@@ -275,7 +277,8 @@ impl LiveTool {
                     self.forces[0] = push_force(push, sample, mass_step);
                     self.len = 1;
                     let mouth = *self.mouth.get_or_insert(sample.force_from_fu);
-                    self.body = push_body(&self.forces[0], mouth, mass_step);
+                    self.bodies
+                        .extend(push_body(&self.forces[0], mouth, mass_step));
                     let axis = (sample.force_from_fu - sample.force_to_fu).normalize_or_zero();
                     note_push_target(
                         &mut self.targets,
@@ -311,7 +314,7 @@ impl LiveTool {
                         (&mut self.grab, &mut self.normal, &mut self.pressing),
                         (&mut self.targets, &mut self.plan_field),
                         &mut self.last_planned,
-                        &mut self.forces,
+                        (&mut self.forces, &mut self.bodies),
                     );
                 }
             }
@@ -437,6 +440,35 @@ fn push_body(force: &ToolForce, mouth: Vec3, mass_step: f32) -> Option<ToolBody>
     })
 }
 
+/// The chisel's body over one target whose cut a skin of clay has closed: the shaft from the
+/// start of the target's force vector (found again nearest the target: the skin's underside)
+/// out to a mass step past `outermost`, the outermost surface crossing on the target's line
+/// (the skin's top), as wide as the force's spread; `None` while the cut is open (both
+/// crossings the same) or the segment under the start still holds clay (the cut is still on
+/// its way down). The force vector of a target under a skin lies in the hole it has cut, so
+/// the line integral cannot reach the skin: the clay's springs close a cut narrow against its
+/// depth over the target, as they close a narrow push's hole (see [`ToolBody`]). A real
+/// chisel is solid along its whole depth and keeps the cut open.
+fn chisel_body(
+    field: &MultiPatchField,
+    force: &ToolForce,
+    outermost: Vec3,
+    mass_step: f32,
+) -> Option<ToolBody> {
+    let axis = (force.start - force.end).normalize_or_zero();
+    let skin = (outermost - force.start).dot(axis);
+    let closed_over = axis != Vec3::ZERO
+        && skin.is_finite()
+        && skin > 0.25 * mass_step
+        && !field.is_inside(0.5 * (force.start + force.end));
+    closed_over.then_some(ToolBody {
+        inner: force.start,
+        outer: outermost + axis * mass_step,
+        distribution: force.distribution,
+        radius: force.radius,
+    })
+}
+
 /// Notes the pressing tip (the push's, or a grab's or pull's cursor pressed into the clay) as a
 /// target of the stroke's path along the outward `axis` when it has moved a mass step since
 /// the last one (each target spreads over a knot span, two mass steps: the targets overlap,
@@ -544,7 +576,7 @@ fn force_tool_step(
     (grab, normal, pressing): (&mut Option<Vec3>, &mut Vec3, &mut bool),
     (targets, plan_field): (&mut Vec<PenetrationTarget>, &mut Option<MultiPatchField>),
     last_planned: &mut Option<Vec3>,
-    out: &mut [ToolForce],
+    (out, bodies): (&mut [ToolForce], &mut Vec<ToolBody>),
 ) -> usize {
     let penetration = match tool {
         ForceTool::Chisel { depth_fu, .. } => Some((depth_fu, false)),
@@ -602,8 +634,13 @@ fn force_tool_step(
         normal: *normal,
     };
     let mut n = tool.forces(field, &input, out);
+    let chisel = matches!(tool, ForceTool::Chisel { .. });
     for f in &mut out[..n] {
+        let outermost = f.start;
         f.start = start_on_surface(field, f.start, f.end);
+        if chisel && bodies.len() < bodies.capacity() {
+            bodies.extend(chisel_body(field, f, outermost, mass_step));
+        }
     }
     // A grab or pull pressed into the clay pushes the surface down to the cursor (see
     // `ForceTool::forces`): like the push, a stroke that took hold pressed in keeps its path
@@ -645,6 +682,70 @@ mod tests {
             device_time_us: time_us,
             ..ToolSample::IDLE
         }
+    }
+
+    /// The ball with a hole under its top: the coefficients around its vertical axis from
+    /// y = 0.8 to 1.1 emptied, so a skin of clay stands over a void.
+    fn ball_with_a_hole_under_its_top() -> MultiPatchField {
+        let mut lattice = ball();
+        let [nx, ny, nz] = lattice.dims;
+        for k in 0..nz {
+            for j in 0..ny {
+                for i in 0..nx {
+                    let p = lattice.node_position(i, j, k);
+                    let near_axis = (p.x - 0.95).abs() <= 0.15 && (p.z - 0.95).abs() <= 0.15;
+                    if near_axis && (0.75..=1.15).contains(&p.y) {
+                        let n = lattice.index(i, j, k);
+                        lattice.coeffs[n] = 0.0;
+                    }
+                }
+            }
+        }
+        MultiPatchField::new(lattice)
+    }
+
+    #[test]
+    fn a_chisel_body_stands_only_over_a_cut_a_skin_has_closed() {
+        let field = ball_with_a_hole_under_its_top();
+        let on_axis = |y: f32| Vec3::new(0.95, y, 0.95);
+        // The scene: clay over the hole, the hole, clay under it.
+        assert!(field.is_inside(on_axis(1.35)), "the skin");
+        assert!(!field.is_inside(on_axis(0.95)), "the hole");
+        assert!(field.is_inside(on_axis(0.55)), "the clay under the hole");
+        let mass_step = 0.05;
+        let above = on_axis(1.7);
+        // The ball's top: the crossing on the way down from above the ball into the skin.
+        let top = start_on_surface(&field, above, on_axis(1.4));
+        assert!((top.y - 1.45).abs() < 0.05, "top {top}");
+        let force = |start: Vec3, end: Vec3| ToolForce {
+            start,
+            end,
+            distribution: dynaclay_core::dynamics::Distribution::Gaussian,
+            radius: 0.05,
+            gain: 1.0,
+        };
+
+        // A target in the hole: its vector starts again under the skin (the hole's ceiling),
+        // and the body stands from there out past the skin's top.
+        let target = on_axis(0.9);
+        let ceiling = start_on_surface(&field, top, target);
+        assert!(ceiling.y < top.y - 0.1, "ceiling {ceiling}");
+        let body = chisel_body(&field, &force(ceiling, target), top, mass_step)
+            .expect("a body over the skin");
+        assert_eq!(body.inner, ceiling);
+        assert!((body.outer - (top + Vec3::Y * mass_step)).length() < 1e-5);
+        assert_eq!(body.radius, 0.05);
+
+        // An open cut: the vector starts at the outermost crossing, no body.
+        let open_target = on_axis(1.3);
+        assert!(chisel_body(&field, &force(top, open_target), top, mass_step).is_none());
+
+        // A target under the hole's floor: the vector starts on the floor and runs through
+        // clay; the cut is still on its way down there, no body.
+        let deep = on_axis(0.6);
+        let floor = start_on_surface(&field, top, deep);
+        assert!(floor.y < 0.9 && floor.y > 0.6, "floor {floor}");
+        assert!(chisel_body(&field, &force(floor, deep), top, mass_step).is_none());
     }
 
     #[test]

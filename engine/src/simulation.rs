@@ -123,7 +123,12 @@ pub struct SimConfig {
     /// on the base), but a narrow push drawn along the top then pressed a groove 30% wider
     /// than its spread (`tests/adaptive_clay.rs`): the consistent springs smooth detail that
     /// fine away. A region moved under a stroke also takes the clay as it is as its new rest
-    /// shape.
+    /// shape, so an elastic dent on a patch, whose region a deep press outgrows, does not
+    /// spring back; carrying the old region's rest over fixes that but lets the default
+    /// plastic clay's grooves spring back past the push's tolerances. With this on, a stiff or
+    /// heavy painted half still acts weaker than on the base, and a chisel of a huge gain
+    /// (2e9) cuts short on a patch. (A narrow chisel's cut on a patch, which a skin of clay
+    /// used to close, stays open: the chisel has a body, see `live_tool::chisel_body`.)
     pub auto_detail_force: bool,
 }
 
@@ -345,7 +350,8 @@ impl SimulationStage {
             symmetry: Symmetry::OFF,
             // Room for every force of the held tool and its seven mirrored copies.
             mirrored_forces: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
-            mirrored_bodies: Vec::with_capacity(8),
+            // The same for the bodies (the chisel's stand over each of its forces).
+            mirrored_bodies: Vec::with_capacity(8 * super::live_tool::MAX_FORCES),
             simulator: Simulator::new(config.step),
             region: None,
             region_patch: 0,

@@ -62,9 +62,11 @@
 //! other sets a new finest cell; a patch beyond the others' supports grows the root) is the
 //! whole clay meshed again.
 //!
-//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the corners
-//! of the region (and two finest cells around it) are sampled together, as a grid, by
-//! [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
+//! What keeps a stroke-sized re-mesh short (`bench/mesh.rs` `adaptive_remesh`): the region
+//! revisited is the change box grown by a 64th of a finest cell (more on a deep root: enough
+//! for rounding), not by whole cells, so no shell of unchanged leaves around it is tested, sampled and meshed
+//! again; the corners of the region (and two finest cells around it) are sampled together,
+//! as a grid, by [`MultiPatchField::values_on_grid`] (the same values as one by one, each patch's weights
 //! computed once per coordinate), and read back without a hash lookup; a count of their
 //! inside corners over boxes (a summed-volume table) shows where a node, face or edge of the
 //! traversal has corners all on one side, so no minimal edge there changes sign and the
@@ -244,6 +246,9 @@ pub struct AdaptiveMesher {
     /// The triangles the last call took out of the kept mesh, with their centroids where
     /// they were (see [`AdaptiveMesher::removed_triangles`]).
     removed: Vec<SlotTriangle>,
+    /// The vertex slots the last local re-mesh dropped (see
+    /// [`AdaptiveMesher::dropped_slots`]).
+    dropped: Vec<u32>,
     /// The polygons the last local re-mesh made (after a whole mesh, every polygon is new and
     /// this is empty).
     made: Vec<[u32; 4]>,
@@ -343,16 +348,52 @@ struct Extraction {
     vertex_cells: Vec<f32>,
 }
 
-/// The integer corners (inclusive) of the region a re-mesh revisits: the change box grown by
-/// one finest cell on every side, so rounding never leaves out a node whose bound query or
-/// samples read a changed coefficient.
-#[derive(Clone, Copy, Debug)]
+/// The integer corners of the region a re-mesh revisits: a node meets it when its closed
+/// box reaches `lo` and starts at or below `hi` along every axis, so the nodes that meet it
+/// are those whose closed box meets the change box grown by [`Region::slack_cells`] on every
+/// side (every node whose bound query or samples may read a changed coefficient, whatever
+/// the rounding of the box's and the nodes' world coordinates). Along an axis where the grown
+/// box lies within one cell's open interior, `lo` is `hi + 1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Region {
     lo: [i64; 3],
     hi: [i64; 3],
 }
 
 impl Region {
+    /// How far, in finest cells, the change box is grown before it is rounded to the lattice,
+    /// where the coordinates involved (the box's, the root's, the origin's, in cells) are at
+    /// most `magnitude`: a 64th of a cell and 2^-18 of the magnitude, which is many times the
+    /// rounding of `f32` world coordinates of that size (2^-23 of it per operation) and, for
+    /// a root of up to 2^12 cells, under a fiftieth of a cell.
+    // NOTE: a whole finest cell here (the region rounded outward and grown by one more)
+    // revisited a shell of leaves around the change box whose split tests, corners and
+    // vertices cannot change: the window's stroke re-mesh (`bench/mesh.rs` `graphics_stroke`)
+    // took 1.3 times as long with it, in one loaded run.
+    fn slack_cells(magnitude: f64) -> f64 {
+        1.0 / 64.0 + magnitude * (-18.0_f64).exp2()
+    }
+
+    /// The region of the change box whose corners are `a ..= b` in (fractional) finest cells
+    /// from the octree's origin, `origin` cells from the world's, clamped to a little beyond
+    /// the root of `root_size` cells (so a far box stays a valid region that no node meets).
+    fn of_cells(a: [f64; 3], b: [f64; 3], origin: [f64; 3], root_size: u32) -> Self {
+        let magnitude = a
+            .iter()
+            .chain(&b)
+            .chain(&origin)
+            .map(|v| v.abs())
+            .fold(f64::from(root_size), f64::max);
+        let slack = Self::slack_cells(magnitude);
+        let limit = f64::from(root_size) + 2.0;
+        let clamp = |v: f64| v.clamp(-2.0, limit) as i64;
+        // The lowest (highest) corner a node reaching the grown box may end (start) at.
+        Self {
+            lo: std::array::from_fn(|k| clamp((a[k] - slack).ceil())),
+            hi: std::array::from_fn(|k| clamp((b[k] + slack).floor())),
+        }
+    }
+
     #[inline]
     fn meets(&self, node: &Node) -> bool {
         let meets_along = |a: usize| {
@@ -387,6 +428,7 @@ impl AdaptiveMesher {
             forgotten: None,
             stale: false,
             removed: Vec::new(),
+            dropped: Vec::new(),
             made: Vec::new(),
             made_whole: true,
             reads: CoefficientReads::default(),
@@ -537,6 +579,7 @@ impl AdaptiveMesher {
     ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
         let mut report = AdaptiveRemeshReport::default();
         self.removed.clear();
+        self.dropped.clear();
         self.made.clear();
         self.made_whole = false;
         if lo.cmpgt(hi).any() {
@@ -611,6 +654,14 @@ impl AdaptiveMesher {
         &self.removed
     }
 
+    /// The vertex slots whose vertex the last local re-mesh dropped (none after a whole
+    /// mesh), each once: every kept triangle that used one is among
+    /// [`AdaptiveMesher::removed_triangles`] (with the other triangle of its quad, which may
+    /// use none). A later vertex of the same re-mesh may have taken the slot.
+    pub(super) fn dropped_slots(&self) -> &[u32] {
+        &self.dropped
+    }
+
     /// The position and unit normal of the vertex in `slot`, while it lives. The normal is
     /// zero where the field's gradient vanished ([`AdaptiveMesher::mesh`] gives such a vertex
     /// its triangles' area-weighted normal).
@@ -668,17 +719,18 @@ impl AdaptiveMesher {
         out
     }
 
-    /// The integer region of the world box `lo ..= hi`, one finest cell wider on each side.
+    /// The integer region of the world box `lo ..= hi` (see [`Region`]).
     fn region(&self, lo: Vec3, hi: Vec3) -> Region {
-        let to_cells = |x: Vec3| (x - self.tree.origin) / self.tree.unit;
-        let (a, b) = (to_cells(lo), to_cells(hi));
-        // Clamped to a little beyond the root, so a far box stays a valid empty region.
-        let limit = f64::from(self.tree.root_size) + 2.0;
-        let clamp = |v: f32| f64::from(v).clamp(-2.0, limit) as i64;
-        Region {
-            lo: std::array::from_fn(|k| clamp(a[k].floor()) - 1),
-            hi: std::array::from_fn(|k| clamp(b[k].ceil()) + 1),
-        }
+        let unit = f64::from(self.tree.unit);
+        let origin = self.tree.origin.to_array().map(f64::from);
+        let to_cells = |x: Vec3| std::array::from_fn(|k| (f64::from(x[k]) - origin[k]) / unit);
+        let origin_cells = origin.map(|o| o / unit);
+        Region::of_cells(
+            to_cells(lo),
+            to_cells(hi),
+            origin_cells,
+            self.tree.root_size,
+        )
     }
 
     /// Samples every corner of `region` (clamped to the root) at once, where it holds at most
@@ -741,6 +793,7 @@ impl AdaptiveMesher {
         self.corners.clear();
         self.stale = true;
         self.removed.clear();
+        self.dropped.clear();
         self.made.clear();
         self.made_whole = true;
         self.forgotten = None;
@@ -868,6 +921,7 @@ impl AdaptiveMesher {
         let slot = std::mem::replace(&mut self.vertex_of[n as usize], NO_VERTEX);
         if slot != NO_VERTEX {
             self.vertices.remove(slot);
+            self.dropped.push(slot);
             let node = &self.tree.nodes[n as usize];
             let (lo, hi) = (node.min, node.corner(7));
             self.forgotten = Some(match self.forgotten {
@@ -2837,8 +2891,8 @@ pub(super) mod tests {
             report.leaves_revisited,
             report.leaves
         );
-        // Every revisited leaf meets the change box (grown by a finest cell) or is new: the
-        // vertices made lie in it, grown by a leaf.
+        // Every revisited leaf meets the change box (grown by a 64th of a finest cell) or is
+        // new: the vertices made lie in it, grown by a leaf.
         let made: Vec<Vec3> = {
             let whole = vertex_set(&before);
             mesher
@@ -2855,9 +2909,9 @@ pub(super) mod tests {
                 .collect()
         };
         assert!(!made.is_empty());
-        // A revisited leaf meets the box grown by a finest cell; a vertex lies in its leaf,
-        // at most a base cell.
-        let grown = SPACING / 8.0 + SPACING / 2.0 + 1e-5;
+        // A revisited leaf meets the box grown by a 64th of a finest cell; a vertex lies in
+        // its leaf, at most a base cell.
+        let grown = SPACING / 8.0 / 64.0 + SPACING / 2.0 + 1e-5;
         for p in made {
             assert!(
                 p.cmpge(lo - grown).all() && p.cmple(hi + grown).all(),
@@ -2929,6 +2983,55 @@ pub(super) mod tests {
         let report = mesher.remesh_box(&field, lo, hi).unwrap();
         assert!(report.leaves_revisited * 10 < report.leaves, "{report:?}");
         matches_whole(&mesher, &field);
+    }
+
+    #[test]
+    fn a_region_meets_the_nodes_whose_closed_box_meets_the_slightly_grown_change_box() {
+        // The origin's 144 cells are the largest coordinate: every box's slack is theirs.
+        let origin = [144.0, 0.0, 0.0];
+        let slack = Region::slack_cells(144.0);
+        // Change boxes on the lattice, a little off it either way, thinner than a cell and
+        // beyond the root's sides (of 64 cells).
+        let edges = [
+            (10.0, 14.0),
+            (10.0 + 1e-3, 14.0 - 1e-3),
+            (10.0 - 1e-3, 14.0 + 1e-3),
+            (10.0 + 0.05, 14.0 - 0.05),
+            (10.3, 13.7),
+            (10.2, 10.4),
+            (10.0, 10.0),
+            (-5.0, 3.5),
+            (60.5, 80.0),
+        ];
+        let mut met = 0;
+        for &(a, b) in &edges {
+            let region = Region::of_cells([a, 12.0, 12.0], [b, 12.0, 12.0], origin, 64);
+            for size in [1_u32, 2, 4, 8] {
+                for m in (0..=64 - size).step_by(size as usize) {
+                    let node = Node {
+                        min: [m, 12 - size / 2, 12 - size / 2],
+                        size,
+                        children: 0,
+                    };
+                    // Along y and z every node holds 12, the box's one corner there; along
+                    // x, the plain test in f64: the closed boxes meet.
+                    let (lo, hi) = (f64::from(m), f64::from(m + size));
+                    let plain = hi >= a - slack && lo <= b + slack;
+                    assert_eq!(region.meets(&node), plain, "{a} ..= {b}, node {node:?}");
+                    met += usize::from(plain);
+                }
+            }
+        }
+        assert!(met > 50, "{met} nodes met");
+        // A change box on the lattice keeps the nodes that only touch it, not one beyond.
+        let region = Region::of_cells([10.0; 3], [14.0; 3], [0.0; 3], 64);
+        assert_eq!(
+            region,
+            Region {
+                lo: [10; 3],
+                hi: [14; 3]
+            }
+        );
     }
 
     #[test]

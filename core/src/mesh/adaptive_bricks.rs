@@ -45,11 +45,27 @@ pub struct AdaptiveBricks {
     triangles: ByBrick<Vec<[u32; 3]>>,
     /// Per vertex slot: its index in the piece being made, [`NOT_IN_PIECE`] elsewhere.
     piece_index: Vec<u32>,
-    /// Per vertex slot: the `mark` of the last cut whose removed triangles used it.
+    /// Per vertex slot: `mark` where the last cut's re-mesh dropped its vertex, `mark + 1`
+    /// where that cut removed a triangle using it and no dropped slot; older marks elsewhere.
     slot_marks: Vec<u32>,
-    /// Counts the cuts (from 1; 0 marks no slot). A mark left from long ago (after the count
-    /// wraps) only sends a kept triangle to the search, which keeps it.
+    /// Counts the cuts by two, from 2 (0 marks no slot); where it wraps, every slot's mark is
+    /// cleared.
     mark: u32,
+}
+
+/// Gives `slot` the mark `value`.
+fn mark_slot(marks: &mut Vec<u32>, slot: u32, value: u32) {
+    let s = slot as usize;
+    if s >= marks.len() {
+        marks.resize(s + 1, 0);
+    }
+    marks[s] = value;
+}
+
+/// The mark of `slot` (0 where it has none).
+#[inline]
+fn slot_mark(marks: &[u32], slot: u32) -> u32 {
+    marks.get(slot as usize).copied().unwrap_or(0)
 }
 
 /// A slot that the piece being made does not use (yet).
@@ -132,34 +148,56 @@ impl AdaptiveBricks {
             return Ok(self.recut(octree));
         }
         // Taken away first: a slot freed by a removed triangle may name a vertex of a made one.
-        // The removed triangles by brick, sorted; their vertex slots marked, so that a kept
-        // triangle with an unmarked slot is passed over without a search.
-        self.mark = self.mark.wrapping_add(1).max(1);
-        let mut gone: Vec<([u32; 3], [u32; 3])> = Vec::new();
+        // A kept triangle using a dropped slot was removed (its polygon was); the other
+        // triangle of such a quad may use none: those are looked up among the removed
+        // triangles that use no dropped slot, by brick and sorted, where all three of their
+        // slots are so marked.
+        // NOTE: every removed triangle sorted, and searched for from each kept one whose slots
+        // all a removed one used, was about a tenth of the window's stroke re-mesh in
+        // `bench/profile_adaptive.rs` (`1500 local 4 cut`).
+        self.mark = self.mark.wrapping_add(2);
+        if self.mark == 0 {
+            self.slot_marks.fill(0);
+            self.mark = 2;
+        }
+        let (dropped, kept_in_removed) = (self.mark, self.mark + 1);
+        for &slot in self.mesher.dropped_slots() {
+            mark_slot(&mut self.slot_marks, slot, dropped);
+        }
+        let mut dirty: Vec<[u32; 3]> = Vec::new();
+        let mut without_dropped: Vec<([u32; 3], [u32; 3])> = Vec::new();
         for t in self.mesher.removed_triangles() {
-            gone.push((octree.brick_at(t.centroid), t.slots));
-            for &slot in &t.slots {
-                let s = slot as usize;
-                if s >= self.slot_marks.len() {
-                    self.slot_marks.resize(s + 1, 0);
+            let coord = octree.brick_at(t.centroid);
+            if dirty.last() != Some(&coord) {
+                dirty.push(coord);
+            }
+            if !t
+                .slots
+                .iter()
+                .any(|&s| slot_mark(&self.slot_marks, s) == dropped)
+            {
+                without_dropped.push((coord, t.slots));
+                for &slot in &t.slots {
+                    mark_slot(&mut self.slot_marks, slot, kept_in_removed);
                 }
-                self.slot_marks[s] = self.mark;
             }
         }
-        gone.sort_unstable();
-        let mut dirty: Vec<[u32; 3]> = gone.iter().map(|g| g.0).collect();
+        dirty.sort_unstable();
         dirty.dedup();
-        let (marks, mark) = (&self.slot_marks, self.mark);
-        let mut rest = &gone[..];
+        without_dropped.sort_unstable();
+        let marks = &self.slot_marks;
         for &coord in &dirty {
-            let here = rest.partition_point(|g| g.0 == coord);
-            let (gone_here, later) = rest.split_at(here);
-            rest = later;
+            let from = without_dropped.partition_point(|g| g.0 < coord);
+            let here = without_dropped[from..].partition_point(|g| g.0 == coord);
+            let gone_here = &without_dropped[from..from + here];
             if let Some(held) = self.triangles.get_mut(&coord) {
                 // A brick's triangles are distinct (each names its own slots).
                 held.retain(|t| {
-                    !(t.iter().all(|&s| marks.get(s as usize) == Some(&mark))
-                        && gone_here.binary_search_by(|g| g.1.cmp(t)).is_ok())
+                    let mark = |s: u32| slot_mark(marks, s);
+                    let removed = t.iter().any(|&s| mark(s) == dropped)
+                        || (t.iter().all(|&s| mark(s) == kept_in_removed)
+                            && gone_here.binary_search_by(|g| g.1.cmp(t)).is_ok());
+                    !removed
                 });
             }
         }
@@ -422,6 +460,46 @@ mod tests {
             .map(|b| b.coord)
             .collect();
         assert_eq!(fresh.len(), report.changed.len());
+    }
+
+    #[test]
+    fn strokes_and_undos_take_out_exactly_the_removed_triangles_from_the_bricks() {
+        let mut field = three_levels();
+        let original = field.clone();
+        let mut octree = octree_for(&field);
+        let (mut cut, _) = AdaptiveBricks::new(&field, &options(), &mut octree).unwrap();
+        // Strokes on three levels, each followed by a cut compared with a fresh one; then back
+        // to the first field in one re-mesh over all their boxes.
+        let strokes: [(usize, Vec3, usize, f32); 3] = [
+            (2, 0.5 * Vec3::new(1.0, 0.05, 0.05).normalize(), 3, 0.05),
+            (1, 0.5 * Vec3::new(0.9, 0.3, -0.2).normalize(), 2, 0.2),
+            (0, Vec3::new(0.0, 0.5, 0.0), 1, 0.3),
+        ];
+        let (mut all_lo, mut all_hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let mut quads_halved = 0;
+        for (patch, at, count, depth) in strokes {
+            let (lo, hi) = dent(&mut field, patch, at, count, depth);
+            (all_lo, all_hi) = (all_lo.min(lo), all_hi.max(hi));
+            cut.remesh_box(&field, lo, hi, &mut octree).unwrap();
+            // The plain test: a removed triangle is one whose polygon used a dropped vertex;
+            // some keep all three of their slots (the other half of a quad).
+            let dropped = cut.mesher().dropped_slots();
+            assert!(!dropped.is_empty());
+            quads_halved += cut
+                .mesher()
+                .removed_triangles()
+                .iter()
+                .filter(|t| !t.slots.iter().any(|s| dropped.contains(s)))
+                .count();
+            matches_fresh_cut(&octree, &field);
+        }
+        assert!(
+            quads_halved > 0,
+            "every removed triangle used a dropped slot"
+        );
+        cut.remesh_box(&original, all_lo, all_hi, &mut octree)
+            .unwrap();
+        matches_fresh_cut(&octree, &original);
     }
 
     #[test]

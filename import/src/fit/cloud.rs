@@ -194,13 +194,16 @@ pub struct SignedCloud {
     pub points: Vec<Vec3>,
     /// Their unit outward normals, smoothed over the bandwidth.
     pub normals: Vec<Vec3>,
-    /// Given normals overruled by their neighbours' (see [`overrule_stray_normals`]).
+    /// Given normals overruled by their neighbours' (see [`overrule_and_smooth_normals`]).
     pub overruled_normals: usize,
     /// Their confidence in `(0, 1]` (see [`super::consensus`]).
     pub confidence: Vec<f32>,
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
     /// from the points (beyond the bandwidth) takes its distance from.
     anchors: Vec<Vec3>,
+    /// Per point: the moving planes' sums `(Σ wᵢ dᵢ, Σ wᵢ)` at the point itself, found for
+    /// its anchor (NaN where it needs no anchor; see [`SignedCloud::density_at_point`]).
+    planes_at_points: Vec<(f32, f32)>,
     /// The points bucketed for the moving planes (see [`NearPoints`]).
     near_points: NearPoints,
     /// Per point: its plane's bandwidth and weight, set by the local spacing (see
@@ -307,6 +310,24 @@ impl SignedCloud {
     /// [`SignedCloud::distance_and_support`] at `x`, searching only the points `reached`
     /// says may be within reach of it: the same value, bit for bit, with fewer searches.
     fn distance_and_support_within(&self, x: Vec3, reached: Reached) -> (f32, f32) {
+        self.distance_and_support_by(x, || match reached {
+            // The moving planes' empty sums, as they would add them.
+            Reached::None => (0.0, 0.0),
+            _ => moving_planes(
+                &self.near_points,
+                &self.normals,
+                &self.confidence,
+                &self.local,
+                &self.curvature,
+                x,
+                reached == Reached::Every,
+            ),
+        })
+    }
+
+    /// [`SignedCloud::distance_and_support`] at `x`, the moving planes' sums there given by
+    /// `planes` (called only where some point may be within reach).
+    fn distance_and_support_by(&self, x: Vec3, planes: impl FnOnce() -> (f32, f32)) -> (f32, f32) {
         match self.nearest_point(x) {
             Some(p) => {
                 let fallback = (x - self.anchors[p]).dot(self.normals[p]);
@@ -316,19 +337,7 @@ impl SignedCloud {
                 if (x - self.points[p]).length_squared() > beyond * beyond {
                     return (fallback, 0.0);
                 }
-                let (weighted, weight) = match reached {
-                    // The moving planes' empty sums, as they would add them.
-                    Reached::None => (0.0, 0.0),
-                    _ => moving_planes(
-                        &self.near_points,
-                        &self.normals,
-                        &self.confidence,
-                        &self.local,
-                        &self.curvature,
-                        x,
-                        reached == Reached::Every,
-                    ),
-                };
+                let (weighted, weight) = planes();
                 (
                     (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
                     weight,
@@ -359,6 +368,41 @@ impl SignedCloud {
             }
         }
         best.1
+    }
+
+    /// [`SignedCloud::density`] at point `i` (`points[i]`), the same value bit for bit: the
+    /// moving planes at a point that has an anchor were summed for it, and are not summed
+    /// again.
+    ///
+    /// # Panics
+    /// When `i` is not a point's index.
+    #[must_use]
+    pub fn density_at_point(&self, i: usize) -> f32 {
+        let x = self.points[i];
+        let distance = match self.forced[self.grid.nearest_node(x)] {
+            1 => 2.0 * self.width,
+            -1 => -2.0 * self.width,
+            _ => {
+                let known = self.planes_at_points[i];
+                self.distance_and_support_by(x, || {
+                    if known.1.is_nan() {
+                        moving_planes(
+                            &self.near_points,
+                            &self.normals,
+                            &self.confidence,
+                            &self.local,
+                            &self.curvature,
+                            x,
+                            true,
+                        )
+                    } else {
+                        known
+                    }
+                })
+                .0
+            }
+        };
+        density_profile(distance, self.width)
     }
 
     /// The unit outward normal of the plane that signs `x`, or `None` beyond the band.
@@ -487,14 +531,20 @@ pub fn sign_cloud(
     let scale = span_total * spacing / extent;
     let centre_field = Vec3::splat((n - 1) as f32 * spacing * 0.5);
     let offset = centre_field - (lo + hi) * 0.5 * scale;
-    let points: Vec<Vec3> = kept
+    let placed: Vec<Vec3> = kept
         .iter()
         .map(|&i| cloud.points[i] * scale + offset)
         .collect();
+    // The kept points in the order of the signing grid's blocks: every later stage visits
+    // each point's neighbours in turn, and in this order they are mostly the last point's.
+    let grid = SignGrid::new(n, spacing, sps);
+    let order = grid.spatial_order(&placed);
+    let kept: Vec<usize> = order.iter().map(|&k| kept[k as usize]).collect();
+    let points: Vec<Vec3> = order.iter().map(|&k| placed[k as usize]).collect();
+    drop((placed, order));
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
 
     // Steps 3–4: band, exterior, normals.
-    let grid = SignGrid::new(n, spacing, sps);
     // The exterior (one thread: a flood) is found beside the band (on every thread).
     let ((dist, nearest), exterior) = std::thread::scope(|scope| {
         let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
@@ -556,20 +606,15 @@ pub fn sign_cloud(
     let near_points = NearPoints::new(&points, &local, bandwidth);
     // A given normal its neighbours overrule (a stray that lies on the surface but points
     // anywhere) takes theirs before the smoothing.
-    let (raw_normals, overruled_normals) = if signed_by == SignedBy::Normals {
-        overrule_stray_normals(&neighbours, &raw_normals, &confidence)
+    let (normals, overruled_normals) = if signed_by == SignedBy::Normals {
+        overrule_and_smooth_normals(&neighbours, &raw_normals, &confidence, bandwidth)
     } else {
-        (raw_normals, 0)
-    };
-    let normals: Vec<Vec3> = parallel_map(points.len(), |i| {
-        let p = points[i];
-        let mut sum = Vec3::ZERO;
-        neighbours.for_each(i, |j, q| {
-            let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
-            sum += raw_normals[j] * w;
+        let smoothed = parallel_map(points.len(), |i| {
+            smoothed_normal(&neighbours, &raw_normals, &confidence, bandwidth, i)
         });
-        sum.try_normalize().unwrap_or(raw_normals[i])
-    });
+        (smoothed, 0)
+    };
+    drop(raw_normals);
     let curvature = point_curvatures(&neighbours, &normals, &confidence, bandwidth);
     drop(neighbours);
     // Only the points some node takes its fallback plane from need an anchor.
@@ -579,10 +624,10 @@ pub fn sign_cloud(
             wanted[p as usize] = true;
         }
     }
-    let anchors: Vec<Vec3> = parallel_map(points.len(), |i| {
+    let anchored: Vec<(Vec3, (f32, f32))> = parallel_map(points.len(), |i| {
         let (p, normal) = (points[i], normals[i]);
         if !wanted[i] {
-            return p;
+            return (p, (f32::NAN, f32::NAN));
         }
         let (weighted, weight) = moving_planes(
             &near_points,
@@ -593,12 +638,14 @@ pub fn sign_cloud(
             p,
             true,
         );
-        if weight > 0.0 {
+        let anchor = if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
             p
-        }
+        };
+        (anchor, (weighted, weight))
     });
+    let (anchors, planes_at_points): (Vec<Vec3>, Vec<(f32, f32)>) = anchored.into_iter().unzip();
     let nearest: Vec<u32> = nearest
         .into_iter()
         .zip(&dist)
@@ -636,6 +683,7 @@ pub fn sign_cloud(
         overruled_normals,
         confidence,
         anchors,
+        planes_at_points,
         near_points,
         local,
         curvature,
@@ -1223,20 +1271,7 @@ impl SignGrid {
             };
             b(0) + blocks[0] * (b(1) + blocks[1] * b(2))
         };
-        let mut starts = vec![0u32; blocks.iter().product::<usize>() + 1];
-        for &p in points {
-            starts[block_of(p) + 1] += 1;
-        }
-        for b in 1..starts.len() {
-            starts[b] += starts[b - 1];
-        }
-        let mut order = vec![0u32; points.len()];
-        for (i, &p) in points.iter().enumerate() {
-            let b = block_of(p);
-            order[starts[b] as usize] = i as u32;
-            starts[b] += 1;
-        }
-        order
+        super::consensus::order_by_bucket(points, blocks.iter().product(), block_of)
     }
 
     /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and
@@ -1542,7 +1577,9 @@ pub const NORMAL_AGREEMENT: f32 = 0.5;
 /// surface passes the screening (it is not off the plane), but its normal points anywhere,
 /// and one normal turned against its neighbours turns the nodes nearest to it inside out (a
 /// bubble on a stalk). Where the neighbours themselves disagree (both sides of a sheet thinner
-/// than their reach), every normal is kept.
+/// than their reach), every normal is kept. (The import takes the vote within
+/// [`overrule_and_smooth_normals`]; this is its plain form.)
+#[cfg(test)]
 fn overrule_stray_normals(
     neighbours: &Neighbours<'_>,
     raw: &[Vec3],
@@ -1556,11 +1593,7 @@ fn overrule_stray_normals(
                 weight += confidence[j];
             }
         });
-        let length = resultant.length();
-        let overruled = weight > 0.0
-            && length >= NEIGHBOURS_AGREE * weight
-            && raw[i].dot(resultant / length) < NORMAL_AGREEMENT;
-        overruled.then(|| resultant / length)
+        overruling(raw[i], resultant, weight)
     });
     let count = agreed.iter().filter(|a| a.is_some()).count();
     let normals = raw
@@ -1569,6 +1602,97 @@ fn overrule_stray_normals(
         .map(|(&own, agreed)| agreed.unwrap_or(own))
         .collect();
     (normals, count)
+}
+
+/// Point `i`'s normal smoothed over its `neighbours`: the sum of their `normals` weighted by
+/// confidence and the Gaussian of `bandwidth` (its own normal where that sum vanishes).
+fn smoothed_normal(
+    neighbours: &Neighbours<'_>,
+    normals: &[Vec3],
+    confidence: &[f32],
+    bandwidth: f32,
+    i: usize,
+) -> Vec3 {
+    let p = neighbours.points[i];
+    let mut sum = Vec3::ZERO;
+    neighbours.for_each(i, |j, q| {
+        let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
+        sum += normals[j] * w;
+    });
+    sum.try_normalize().unwrap_or(normals[i])
+}
+
+/// The given normals `raw`, each one that its `neighbours` overrule replaced by their
+/// confidence-weighted mean direction ([`overruling`]: a stray that lies on the surface
+/// passes the screening, but its normal points anywhere, and one normal turned against its
+/// neighbours turns the nodes nearest to it inside out), then each smoothed over its
+/// neighbours ([`smoothed_normal`]); and how many were overruled. The neighbours are visited
+/// once for both: a point's smoothing sum is taken from the given normals in the same visit
+/// as the vote, and then corrected by each overruled neighbour's change
+/// (`w (agreed − given)`). The normals are those of the vote over every point followed by
+/// the smoothing, but for the order of the sums (within f32 rounding).
+///
+/// NOTE: a noisy cloud's neighbourhoods are too large to list ([`MOST_LISTED_NEIGHBOURS`]),
+/// and each pass searched them again (bench/RESULTS.md, "Import time against screened
+/// Poisson's").
+fn overrule_and_smooth_normals(
+    neighbours: &Neighbours<'_>,
+    raw: &[Vec3],
+    confidence: &[f32],
+    bandwidth: f32,
+) -> (Vec<Vec3>, usize) {
+    let points = neighbours.points;
+    let found: Vec<(Option<Vec3>, Vec3)> = parallel_map(raw.len(), |i| {
+        let p = points[i];
+        let (mut resultant, mut weight, mut sum) = (Vec3::ZERO, 0.0f32, Vec3::ZERO);
+        neighbours.for_each(i, |j, q| {
+            if j != i {
+                resultant += raw[j] * confidence[j];
+                weight += confidence[j];
+            }
+            let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
+            sum += raw[j] * w;
+        });
+        (overruling(raw[i], resultant, weight), sum)
+    });
+    let overruled: Vec<usize> = (0..raw.len()).filter(|&i| found[i].0.is_some()).collect();
+    let agreed: Vec<Vec3> = raw
+        .iter()
+        .zip(&found)
+        .map(|(&own, (agreed, _))| agreed.unwrap_or(own))
+        .collect();
+    let mut sums: Vec<Vec3> = found.iter().map(|&(_, sum)| sum).collect();
+    drop(found);
+    // Each overruled normal's term in the sums of the points whose neighbours it is among
+    // (it is offered by their search, and they lie within its reach) is corrected.
+    if !overruled.is_empty() {
+        let offered = neighbours.grid.offered(points.len());
+        let all = PointGrid::new(points, |_| true, neighbours.radius, usize::MAX);
+        for &j in overruled.iter().filter(|&&j| offered[j]) {
+            let (q, change) = (points[j], agreed[j] - raw[j]);
+            all.for_each_near(q, neighbours.radius, |i, p| {
+                let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
+                sums[i] += change * w;
+            });
+        }
+    }
+    let smoothed = sums
+        .iter()
+        .zip(&agreed)
+        .map(|(sum, &own)| sum.try_normalize().unwrap_or(own))
+        .collect();
+    (smoothed, overruled.len())
+}
+
+/// The confidence-weighted mean direction of a point's neighbours' normals, `resultant /
+/// |resultant|` (`weight` their total confidence), where it overrules the point's own
+/// normal `own`: the neighbours agree among themselves and `own` is far from them.
+fn overruling(own: Vec3, resultant: Vec3, weight: f32) -> Option<Vec3> {
+    let length = resultant.length();
+    let overruled = weight > 0.0
+        && length >= NEIGHBOURS_AGREE * weight
+        && own.dot(resultant / length) < NORMAL_AGREEMENT;
+    overruled.then(|| resultant / length)
 }
 
 /// Unit normals of `points`: for each, the direction of least variance of its neighbours
@@ -1762,6 +1886,49 @@ mod tests {
                 (f64::from(weighted) - full_weighted).abs() <= 1e-4 * full_weight.max(1e-3),
                 "weighted {weighted} against {full_weighted} at {x}"
             );
+        }
+    }
+
+    #[test]
+    fn the_vote_and_the_smoothing_in_one_visit_are_the_two_passes() {
+        // A wavy sheet with strays (overruled, and within reach of each other), listed and
+        // searched: the normals are those of the vote over every point, then the smoothing,
+        // within f32 rounding.
+        let (mut points, mut normals) = sheet(40, 0.0, Vec3::Z);
+        for (p, n) in points.iter_mut().zip(&mut normals) {
+            p.z = 0.8 * (0.3 * p.x).sin();
+            *n = Vec3::new(-0.24 * (0.3 * p.x).cos(), 0.0, 1.0).normalize();
+        }
+        for stray in [105, 106, 900, 1500] {
+            normals[stray] = Vec3::new(1.0, 0.2, -0.3).normalize();
+        }
+        let confidence: Vec<f32> = (0..points.len())
+            .map(|i| 0.5 + 0.5 * ((i * 37) % 11) as f32 / 10.0)
+            .collect();
+        let bandwidth = 1.2;
+        for listed in [true, false] {
+            let mut neighbours = Neighbours::new(&points, MOVING_REACH * bandwidth);
+            assert!(neighbours.lists.is_some());
+            if !listed {
+                neighbours.lists = None;
+            }
+            let (agreed, count) = overrule_stray_normals(&neighbours, &normals, &confidence);
+            let plain: Vec<Vec3> = (0..points.len())
+                .map(|i| smoothed_normal(&neighbours, &agreed, &confidence, bandwidth, i))
+                .collect();
+            let (fused, fused_count) =
+                overrule_and_smooth_normals(&neighbours, &normals, &confidence, bandwidth);
+            assert_eq!(count, 4);
+            assert_eq!(fused_count, count);
+            let mut corrected = 0;
+            for (i, (a, b)) in fused.iter().zip(&plain).enumerate() {
+                assert!(
+                    (*a - *b).length() < 1e-6,
+                    "listed: {listed}, point {i}: {a} against {b}"
+                );
+                corrected += usize::from(agreed[i] != normals[i]);
+            }
+            assert_eq!(corrected, 4, "listed: {listed}");
         }
     }
 
@@ -2134,6 +2301,40 @@ mod tests {
             searched > 100 && compared > 10 * searched,
             "{searched} of {compared}"
         );
+    }
+
+    #[test]
+    fn the_density_at_a_point_is_the_density_there_bit_for_bit() {
+        // A noisy sphere (some points need no anchor): at every point, the density from the
+        // sums kept for its anchor is the one found afresh.
+        let mut cloud = sphere_cloud(3000, 1.0);
+        let mut seed = 99u32;
+        for p in &mut cloud.points {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            *p *= 1.0 + 0.01 * ((seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5);
+        }
+        let options = CloudFitOptions {
+            resolution: 20,
+            ..CloudFitOptions::default()
+        };
+        let signed = sign_cloud(&cloud, &options).unwrap();
+        let known = signed
+            .planes_at_points
+            .iter()
+            .filter(|sums| !sums.1.is_nan())
+            .count();
+        assert!(
+            known > signed.points.len() / 2,
+            "{known} of {}",
+            signed.points.len()
+        );
+        for (i, &p) in signed.points.iter().enumerate() {
+            assert_eq!(
+                signed.density_at_point(i).to_bits(),
+                signed.density(p).to_bits(),
+                "point {i}"
+            );
+        }
     }
 
     #[test]

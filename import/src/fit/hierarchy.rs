@@ -338,7 +338,17 @@ pub fn fit_hierarchy(
     // The samples' targets do not depend on the fit: they are found beside the base fit,
     // whose passes leave the cores idle between them.
     let (base, targets) = std::thread::scope(|scope| {
-        let targets = scope.spawn(|| parallel_map(at.len(), |i| density(at[i])));
+        let targets = scope.spawn(|| {
+            // Each third sample lies on point `(i / 3) · stride`, whose moving planes the
+            // signing summed already.
+            parallel_map(at.len(), |i| {
+                if i % 3 == 0 {
+                    signed.density_at_point(i / 3 * stride)
+                } else {
+                    density(at[i])
+                }
+            })
+        });
         let base = signed.fit_base();
         let targets = targets
             .join()
