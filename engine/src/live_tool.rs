@@ -696,7 +696,7 @@ mod tests {
                     let near_axis = (p.x - 0.95).abs() <= 0.15 && (p.z - 0.95).abs() <= 0.15;
                     if near_axis && (0.75..=1.15).contains(&p.y) {
                         let n = lattice.index(i, j, k);
-                        lattice.coeffs[n] = 0.0;
+                        lattice.coeffs.set_flat(n, 0.0);
                     }
                 }
             }
