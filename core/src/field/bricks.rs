@@ -540,6 +540,28 @@ impl BrickedCoeffs {
         }
     }
 
+    /// Checks a box of `size` coefficients from `min` against the store and against `len`
+    /// values given for it; whether it holds any coefficient.
+    ///
+    /// # Panics
+    /// When the box leaves the store or `len` is not its number of coefficients.
+    fn check_box(&self, min: [usize; 3], size: [usize; 3], len: usize) -> bool {
+        assert_eq!(
+            len,
+            size.iter().product::<usize>(),
+            "one value per coefficient"
+        );
+        if len == 0 {
+            return false;
+        }
+        self.check(
+            min[0] + size[0] - 1,
+            min[1] + size[1] - 1,
+            min[2] + size[2] - 1,
+        );
+        true
+    }
+
     /// Writes the box of `size` coefficients whose lowest corner is `min`, `values` holding
     /// them x fastest, into the owners and the aprons that copy them: brick by brick, one
     /// copy per row of the box's part that a brick holds. A uniform brick whose part already
@@ -549,19 +571,9 @@ impl BrickedCoeffs {
     /// When the box leaves the store or `values` does not hold one value per coefficient of
     /// it.
     pub fn write_box(&mut self, min: [usize; 3], size: [usize; 3], values: &[f32]) {
-        assert_eq!(
-            values.len(),
-            size.iter().product::<usize>(),
-            "one value per coefficient"
-        );
-        if values.is_empty() {
+        if !self.check_box(min, size, values.len()) {
             return;
         }
-        self.check(
-            min[0] + size[0] - 1,
-            min[1] + size[1] - 1,
-            min[2] + size[2] - 1,
-        );
         let [bx, by, _] = self.bricks_per_axis;
         let first = min.map(lowest_holder);
         let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
@@ -609,19 +621,9 @@ impl BrickedCoeffs {
     /// # Panics
     /// When the box leaves the store or `out` does not hold one value per coefficient of it.
     pub fn read_box(&self, min: [usize; 3], size: [usize; 3], out: &mut [f32]) {
-        assert_eq!(
-            out.len(),
-            size.iter().product::<usize>(),
-            "one value per coefficient"
-        );
-        if out.is_empty() {
+        if !self.check_box(min, size, out.len()) {
             return;
         }
-        self.check(
-            min[0] + size[0] - 1,
-            min[1] + size[1] - 1,
-            min[2] + size[2] - 1,
-        );
         let [bx, by, _] = self.bricks_per_axis;
         let first = min.map(|m| m >> SHIFT);
         let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
