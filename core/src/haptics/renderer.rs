@@ -408,6 +408,7 @@ impl ForceRenderer {
         };
         if !input.stroke_active {
             self.push_axis = None;
+            self.sculpt.end_stroke();
         } else if self.push_axis.is_none() && touch.touching {
             self.push_axis = Some(touch.normal);
         }
@@ -428,9 +429,13 @@ impl ForceRenderer {
                     None => (Vec3::ZERO, None, false),
                 },
                 FeltTool::Force(tool) => {
-                    let f = self
-                        .sculpt
-                        .compute(&tool, input.field, input.tip, input.stroke);
+                    let f = self.sculpt.compute(
+                        &tool,
+                        input.field,
+                        input.tip,
+                        input.stroke,
+                        (input.time_us, self.config.shaping.blend_s),
+                    );
                     (f.reaction, f.first, f.vectors > 0)
                 }
                 _ => (Vec3::ZERO, None, false),

@@ -18,6 +18,14 @@
 //! than [`MAX_FELT_VECTORS`] (a wide area tool) are felt through an evenly strided subset; a
 //! chisel or squirt is felt through its last [`FELT_TARGETS`] targets, the ones near the tool
 //! (earlier ones have reached their depth).
+//!
+//! A chisel's or squirt's targets arrive one at a time as the tip moves on, each with its whole
+//! depth still to cut. Felt at once, each would step the force by its share of the depth (on a
+//! narrow chisel, a fresh target steps a nearly finished cut's force from 0.002 N to 0.036 N in
+//! one tick: the sawtooth of `tests/haptic_quality.rs`'s narrow chisel). So each target's
+//! weight `wᵢ` ramps from 0 to 1 over the ramp time from the tick the haptic loop first sees it,
+//! and the target it pushes out of the felt set ramps from 1 to 0 over the same ticks: the
+//! felt force moves continuously as targets come and go.
 
 use glam::Vec3;
 
@@ -34,6 +42,8 @@ pub const MAX_FELT_VECTORS: usize = 32;
 pub const FELT_TARGETS: usize = 8;
 /// Most curve points and chisel targets a stroke carries to the haptic loop.
 pub const MAX_STROKE_POINTS: usize = 256;
+/// Targets whose arrival times the reaction keeps: the felt ones and as many being let go.
+const TARGET_ARRIVALS: usize = 2 * FELT_TARGETS;
 
 /// What the haptic loop must know of the held tool (plain data).
 // The haptic tick copies the held tool out of each field update: inline, a copy allocates
@@ -142,10 +152,16 @@ pub struct SculptForce {
     pub vectors: usize,
 }
 
-/// Scratch for the force tools' vectors, allocated once.
+/// Scratch for the force tools' vectors, allocated once, and the arrival of the held stroke's
+/// chisel or squirt targets (module docs).
 #[derive(Clone, Debug)]
 pub struct SculptReaction {
     vectors: Vec<ToolForce>,
+    /// Device time at which the haptic loop first saw each of the stroke's newest targets,
+    /// microseconds, at the target's index in the stroke modulo [`TARGET_ARRIVALS`].
+    target_seen_at_us: [u64; TARGET_ARRIVALS],
+    /// How many of the held stroke's targets the haptic loop has seen.
+    targets_seen: usize,
 }
 
 impl Default for SculptReaction {
@@ -159,32 +175,55 @@ impl Default for SculptReaction {
         };
         Self {
             vectors: vec![idle; MAX_TOOL_VECTORS],
+            target_seen_at_us: [0; TARGET_ARRIVALS],
+            targets_seen: 0,
         }
     }
 }
 
 impl SculptReaction {
-    /// The felt reaction of `tool` held at `cursor` for the stroke `stroke` on `field`; zero
-    /// until the stroke has an anchor.
+    /// The felt reaction of `tool` held at `cursor` for the stroke `stroke` on `field`, at
+    /// device time `time_us`; zero until the stroke has an anchor. A chisel's or squirt's
+    /// targets ramp in and out over `target_ramp_s` (module docs).
     pub fn compute(
         &mut self,
         tool: &ForceTool,
         field: &MultiPatchField,
         cursor: Vec3,
         stroke: &StrokeGeometry,
+        (time_us, target_ramp_s): (u64, f32),
     ) -> SculptForce {
         let none = SculptForce {
             reaction: Vec3::ZERO,
             first: None,
             vectors: 0,
         };
+        self.note_targets(&stroke.targets, time_us);
         let Some(anchor) = stroke.anchor else {
             return none;
         };
         if !cursor.is_finite() {
             return none;
         }
-        let targets = &stroke.targets[stroke.targets.len().saturating_sub(FELT_TARGETS)..];
+        let penetration = matches!(tool, ForceTool::Chisel { .. } | ForceTool::Squirt { .. });
+        let planned = stroke.targets.len();
+        let seen_at_us = self.target_seen_at_us;
+        let weight = |index: usize| {
+            if penetration {
+                target_weight(&seen_at_us, index, planned, time_us, target_ramp_s)
+            } else {
+                1.0
+            }
+        };
+        // The newest targets, and before them those still being let go.
+        let mut first_felt = planned.saturating_sub(FELT_TARGETS);
+        while first_felt > 0
+            && planned - first_felt < TARGET_ARRIVALS
+            && weight(first_felt - 1) > 0.0
+        {
+            first_felt -= 1;
+        }
+        let targets = &stroke.targets[first_felt..];
         let input = ForceInput {
             grab: anchor,
             cursor,
@@ -202,16 +241,22 @@ impl SculptReaction {
         let mut reaction = Vec3::ZERO;
         let mut first = None;
         let mut shares = 0.0_f32;
-        for v in self.vectors[..n].iter().step_by(stride) {
+        for (index, v) in self.vectors[..n].iter().enumerate().step_by(stride) {
+            // A chisel's or squirt's vectors are its targets', in order.
+            let arrival = weight(first_felt + index);
+            if arrival <= 0.0 {
+                continue;
+            }
             let start = start_on_surface(field, v.start, v.end);
             if first.is_none() {
                 first = Some((start, v.end));
             }
-            let share = if tool_gain > 0.0 {
-                v.gain / tool_gain
-            } else {
-                1.0
-            };
+            let share = arrival
+                * if tool_gain > 0.0 {
+                    v.gain / tool_gain
+                } else {
+                    1.0
+                };
             reaction += reaction_force(field, start, v.end) * share;
             // Strided: each felt vector stands for `stride` of them.
             shares += share * stride as f32;
@@ -227,6 +272,48 @@ impl SculptReaction {
             vectors: n,
         }
     }
+
+    /// Notes the device time at which each target of the held stroke not seen before arrived
+    /// (a shorter list than seen is a new stroke).
+    fn note_targets(&mut self, targets: &[PenetrationTarget], time_us: u64) {
+        if targets.len() < self.targets_seen {
+            self.targets_seen = 0;
+        }
+        let newest = targets.len().saturating_sub(TARGET_ARRIVALS);
+        for index in self.targets_seen.max(newest)..targets.len() {
+            self.target_seen_at_us[index % TARGET_ARRIVALS] = time_us;
+        }
+        self.targets_seen = targets.len();
+    }
+
+    /// Forgets the held stroke's targets (the stroke ended).
+    pub fn end_stroke(&mut self) {
+        self.targets_seen = 0;
+    }
+}
+
+/// The weight of target `index` of the `planned` ones at `time_us`, the targets having been
+/// first seen at `seen_at_us` (by index modulo [`TARGET_ARRIVALS`]): how far it has ramped in
+/// over `ramp_s`, times how far the target [`FELT_TARGETS`] after it (which pushes it out of
+/// the felt set) has not.
+fn target_weight(
+    seen_at_us: &[u64; TARGET_ARRIVALS],
+    index: usize,
+    planned: usize,
+    time_us: u64,
+    ramp_s: f32,
+) -> f32 {
+    let ramped_in = |i: usize| {
+        if i >= planned {
+            0.0
+        } else if planned - i > TARGET_ARRIVALS || ramp_s <= 0.0 {
+            1.0
+        } else {
+            let age_s = time_us.saturating_sub(seen_at_us[i % TARGET_ARRIVALS]) as f32 * 1e-6;
+            (age_s / ramp_s).min(1.0)
+        }
+    };
+    ramped_in(index) * (1.0 - ramped_in(index + FELT_TARGETS))
 }
 
 #[cfg(test)]
@@ -257,7 +344,7 @@ mod tests {
         let mut last = 0.0;
         for out in [0.05, 0.1, 0.2] {
             let cursor = Vec3::new(1.35 + out, 0.95, 0.95);
-            let f = r.compute(&tool, &field, cursor, &stroke_at(anchor));
+            let f = r.compute(&tool, &field, cursor, &stroke_at(anchor), (0, 0.0));
             assert!(
                 f.reaction.x < 0.0,
                 "pulled back toward the clay: {}",
@@ -277,10 +364,17 @@ mod tests {
             &field,
             Vec3::new(1.351, 0.95, 0.95),
             &stroke_at(anchor),
+            (0, 0.0),
         );
         assert!(f.reaction.length() < 1e-3 * last, "{}", f.reaction);
         // No anchor, no force.
-        let f = r.compute(&tool, &field, Vec3::splat(2.0), &StrokeGeometry::default());
+        let f = r.compute(
+            &tool,
+            &field,
+            Vec3::splat(2.0),
+            &StrokeGeometry::default(),
+            (0, 0.0),
+        );
         assert_eq!(f.reaction, Vec3::ZERO);
     }
 
@@ -296,12 +390,79 @@ mod tests {
             tracks,
             gain: 1.0,
         };
-        let one = r.compute(&area(1), &field, cursor, &stroke_at(anchor));
-        let many = r.compute(&area(12), &field, cursor, &stroke_at(anchor));
+        let one = r.compute(&area(1), &field, cursor, &stroke_at(anchor), (0, 0.0));
+        let many = r.compute(&area(12), &field, cursor, &stroke_at(anchor), (0, 0.0));
         assert!(many.vectors > MAX_FELT_VECTORS);
         assert!(one.reaction.x < 0.0 && many.reaction.x < 0.0);
         // About the single track (the disc is nearly flat over 5 cm), not a hundred times it.
         let ratio = many.reaction.x / one.reaction.x;
         assert!((0.6..1.2).contains(&ratio), "ratio {ratio}");
+    }
+
+    /// A chisel stroke on the ball's top with `count` targets along x, 0.03 deep.
+    fn chisel_stroke(count: usize) -> StrokeGeometry {
+        let top = Vec3::new(0.95, 1.35, 0.95);
+        let targets: Vec<PenetrationTarget> = (0..count)
+            .map(|i| PenetrationTarget {
+                target: top + Vec3::new(0.01 * i as f32 - 0.05, -0.03, 0.0),
+                normal: Vec3::Y,
+                depth_fu: 0.03,
+            })
+            .collect();
+        let mut s = StrokeGeometry::default();
+        s.set(Some(top), Vec3::ZERO, &[], &targets);
+        s
+    }
+
+    #[test]
+    fn a_chisel_target_ramps_in_and_the_one_it_pushes_out_ramps_out() {
+        let field = ball();
+        let tool = ForceTool::Chisel {
+            depth_fu: 0.03,
+            radius_fu: 0.02,
+            gain: 1.0,
+        };
+        let cursor = Vec3::new(0.95, 1.34, 0.95);
+        let ramp_s = 0.02;
+        let at = |r: &mut SculptReaction, stroke: &StrokeGeometry, time_us: u64, ramp_s: f32| {
+            r.compute(&tool, &field, cursor, stroke, (time_us, ramp_s))
+                .reaction
+        };
+        // The first target: nothing on the tick it arrives, a quarter 5 ms on, all of it after
+        // the ramp (as without one).
+        let mut r = SculptReaction::default();
+        let one = chisel_stroke(1);
+        let full = at(&mut SculptReaction::default(), &one, 0, 0.0);
+        assert!(full.y > 0.0, "the cut pushes the hand back up: {full}");
+        assert_eq!(at(&mut r, &one, 1_000_000, ramp_s), Vec3::ZERO);
+        let quarter = at(&mut r, &one, 1_005_000, ramp_s);
+        assert!(
+            (quarter - 0.25 * full).length() < 1e-4 * full.length(),
+            "{quarter} {full}"
+        );
+        assert_eq!(at(&mut r, &one, 1_020_000, ramp_s), full);
+        // Eight targets felt, then a ninth: the force does not step when it arrives, and once
+        // it has ramped in the force is the newest eight's.
+        let mut r = SculptReaction::default();
+        let eight = chisel_stroke(FELT_TARGETS);
+        let nine = chisel_stroke(FELT_TARGETS + 1);
+        assert_eq!(at(&mut r, &eight, 2_000_000, ramp_s), Vec3::ZERO);
+        let settled = at(&mut r, &eight, 2_030_000, ramp_s);
+        assert_eq!(settled, at(&mut SculptReaction::default(), &eight, 0, 0.0));
+        let arriving = at(&mut r, &nine, 2_031_000, ramp_s);
+        assert!(
+            (arriving - settled).length() < 1e-4 * settled.length(),
+            "{arriving} against {settled}"
+        );
+        let newest = at(&mut SculptReaction::default(), &nine, 0, 0.0);
+        assert_ne!(newest, settled, "the ninth target changes the felt force");
+        let midway = at(&mut r, &nine, 2_041_000, ramp_s);
+        assert!(
+            (midway - 0.5 * (settled + newest)).length() < 1e-3 * settled.length(),
+            "{midway} halfway between {settled} and {newest}"
+        );
+        assert_eq!(at(&mut r, &nine, 2_051_000, ramp_s), newest);
+        // A new stroke (a shorter list) ramps its targets in afresh.
+        assert_eq!(at(&mut r, &one, 3_000_000, ramp_s), Vec3::ZERO);
     }
 }
