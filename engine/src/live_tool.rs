@@ -20,7 +20,9 @@ use glam::Vec3;
 
 use super::command::{PushTool, ToolChoice};
 use super::tool_sample::ToolSample;
-use dynaclay_core::dynamics::{ToolBody, ToolForce, start_on_surface};
+use dynaclay_core::dynamics::{
+    ToolBody, ToolForce, start_on_surface, start_on_surface_near_target,
+};
 use dynaclay_core::field::MultiPatchField;
 use dynaclay_core::haptics::{FeltTool, MAX_STROKE_POINTS, StrokeGeometry, ToolShell};
 use dynaclay_core::tools::{
@@ -441,12 +443,12 @@ fn push_body(force: &ToolForce, mouth: Vec3, mass_step: f32) -> Option<ToolBody>
 }
 
 /// The chisel's body over one target whose cut a skin of clay has closed: the shaft from the
-/// start of the target's force vector (found again nearest the target: the skin's underside)
-/// out to a mass step past `outermost`, the outermost surface crossing on the target's line
+/// cut's roof (the crossing nearest the target toward `outermost`, the outermost surface
+/// crossing on the target's line: the skin's underside) out to a mass step past `outermost`
 /// (the skin's top), as wide as the force's spread; `None` while the cut is open (both
-/// crossings the same) or the segment under the start still holds clay (the cut is still on
-/// its way down). The force vector of a target under a skin lies in the hole it has cut, so
-/// the line integral cannot reach the skin: the clay's springs close a cut narrow against its
+/// crossings the same) or the segment under the roof still holds clay (the cut is still on
+/// its way down). The force vector of a target under a skin ends in the hole it has cut, so
+/// its line integral cannot reach the skin: the clay's springs close a cut narrow against its
 /// depth over the target, as they close a narrow push's hole (see [`ToolBody`]). A real
 /// chisel is solid along its whole depth and keeps the cut open.
 fn chisel_body(
@@ -455,14 +457,15 @@ fn chisel_body(
     outermost: Vec3,
     mass_step: f32,
 ) -> Option<ToolBody> {
-    let axis = (force.start - force.end).normalize_or_zero();
-    let skin = (outermost - force.start).dot(axis);
+    let roof = start_on_surface(field, outermost, force.end);
+    let axis = (roof - force.end).normalize_or_zero();
+    let skin = (outermost - roof).dot(axis);
     let closed_over = axis != Vec3::ZERO
         && skin.is_finite()
         && skin > 0.25 * mass_step
-        && !field.is_inside(0.5 * (force.start + force.end));
+        && !field.is_inside(0.5 * (roof + force.end));
     closed_over.then_some(ToolBody {
-        inner: force.start,
+        inner: roof,
         outer: outermost + axis * mass_step,
         distribution: force.distribution,
         radius: force.radius,
@@ -637,7 +640,11 @@ fn force_tool_step(
     let chisel = matches!(tool, ForceTool::Chisel { .. });
     for f in &mut out[..n] {
         let outermost = f.start;
-        f.start = start_on_surface(field, f.start, f.end);
+        f.start = if penetration.is_some() {
+            start_on_surface_near_target(field, f.start, f.end)
+        } else {
+            start_on_surface(field, f.start, f.end)
+        };
         if chisel && bodies.len() < bodies.capacity() {
             bodies.extend(chisel_body(field, f, outermost, mass_step));
         }

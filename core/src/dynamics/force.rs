@@ -110,6 +110,28 @@ pub fn start_on_surface<F: ImplicitField + ?Sized>(lattice: &F, start: Vec3, end
     start
 }
 
+/// [`start_on_surface`] for a vector ending at a fixed target that the surface is moved to (a
+/// chisel's or squirt's): the surface crossing on the vector's line nearest `end`, on either
+/// side of it. Where `end` is outside and the surface has passed it (a cut gone past its
+/// target, under a skin of clay that still closes it above), the nearest crossing is the one
+/// just past `end`, not the clay above: the vector shrinks to zero and reverses as the surface
+/// moves through the target, where the crossing toward `start` would jump from the surface
+/// just short of `end` to the skin (felt as a force stepping on and off each time the surface
+/// crosses the target). Bounded work: [`start_on_surface`]'s and one more march and bisection.
+#[must_use]
+pub fn start_on_surface_near_target<F: ImplicitField + ?Sized>(
+    lattice: &F,
+    start: Vec3,
+    end: Vec3,
+) -> Vec3 {
+    let found = start_on_surface(lattice, start, end);
+    if !(start.is_finite() && end.is_finite()) || is_inside(lattice, end) || found == start {
+        return found;
+    }
+    // `end` outside and a crossing toward `start`: a nearer one past `end`, within as far.
+    first_change(lattice, end, end - found, false).unwrap_or(found)
+}
+
 /// The first point along `from + t · span`, `t ∈ (0, 1]`, whose inside-ness differs from
 /// `from_inside`, refined by bisection; `None` when there is none at the march's resolution.
 /// At most [`REFIND_MARCH_STEPS`]` + `[`REFIND_BISECT_STEPS`] evaluations.
@@ -375,5 +397,52 @@ mod tests {
             Distribution::Constant.weight(Vec3::new(-0.1, 0.0, 0.0), a, b, 0.2),
             1.0
         );
+    }
+
+    /// A cut under a skin, along y: clay below the floor at `floor_y` and in the skin from
+    /// y = 1.0 to 1.1, a hole between (positive inside, iso 0).
+    struct SkinOverCut {
+        floor_y: f32,
+    }
+
+    impl crate::field::ImplicitField for SkinOverCut {
+        fn iso(&self) -> f32 {
+            0.0
+        }
+        fn value(&self, p: Vec3) -> f32 {
+            (self.floor_y - p.y).max((p.y - 1.0).min(1.1 - p.y))
+        }
+        fn value_and_gradient(&self, p: Vec3) -> (f32, Vec3) {
+            let floor = self.floor_y - p.y;
+            let skin = (p.y - 1.0).min(1.1 - p.y);
+            let skin_gradient = if p.y < 1.05 { Vec3::Y } else { -Vec3::Y };
+            if floor >= skin {
+                (floor, -Vec3::Y)
+            } else {
+                (skin, skin_gradient)
+            }
+        }
+    }
+
+    #[test]
+    fn a_target_vector_starts_at_the_surface_nearest_its_target_on_either_side() {
+        let (top, target) = (Vec3::new(0.0, 1.1, 0.0), Vec3::new(0.0, 0.6, 0.0));
+        // The floor moving down through the target: the start follows it, so the vector
+        // shrinks to nothing and grows again the other way.
+        for floor_y in [0.7, 0.65, 0.61, 0.59, 0.55, 0.5] {
+            let field = SkinOverCut { floor_y };
+            let start = start_on_surface_near_target(&field, top, target);
+            assert!(
+                (start.y - floor_y).abs() < 2e-3,
+                "floor at {floor_y}: start {start}"
+            );
+        }
+        // The plain rule finds the skin's underside once the floor is past the target.
+        let past = SkinOverCut { floor_y: 0.59 };
+        assert!((start_on_surface(&past, top, target).y - 1.0).abs() < 2e-3);
+        // Nothing nearer past the target: the crossing toward the start.
+        let open = SkinOverCut { floor_y: -1.0 };
+        let start = start_on_surface_near_target(&open, top, target);
+        assert!((start.y - 1.0).abs() < 2e-3, "{start}");
     }
 }

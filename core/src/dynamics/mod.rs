@@ -30,7 +30,7 @@ pub use counters::{StageTimes, StepCounters};
 pub use force::{
     Distribution, GAUSS_NODES, GAUSS_WEIGHTS, REFIND_BISECT_STEPS, REFIND_MARCH_STEPS, ToolBody,
     ToolForce, force_integral, gauss_legendre_unit, reaction_force, start_on_surface,
-    surface_point_on_ray,
+    start_on_surface_near_target, surface_point_on_ray,
 };
 pub use material::{AccelSolver, Integrator, Material, MaterialError, Neighbourhood, StepParams};
 pub use material_grid::{

@@ -29,7 +29,9 @@
 
 use glam::Vec3;
 
-use crate::dynamics::{Distribution, ToolForce, reaction_force, start_on_surface};
+use crate::dynamics::{
+    Distribution, ToolForce, reaction_force, start_on_surface, start_on_surface_near_target,
+};
 use crate::field::MultiPatchField;
 use crate::tools::{ForceInput, ForceTool, PenetrationTarget};
 
@@ -247,7 +249,11 @@ impl SculptReaction {
             if arrival <= 0.0 {
                 continue;
             }
-            let start = start_on_surface(field, v.start, v.end);
+            let start = if penetration {
+                start_on_surface_near_target(field, v.start, v.end)
+            } else {
+                start_on_surface(field, v.start, v.end)
+            };
             if first.is_none() {
                 first = Some((start, v.end));
             }
