@@ -125,6 +125,38 @@ fn store_run(brick: &mut Brick, off: usize, values: &[f32]) {
     }
 }
 
+/// What [`BrickedCoeffs::box_summary`] finds in a box of coefficients.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxSummary {
+    /// The least coefficient (infinite when all are NaN).
+    pub min: f32,
+    /// The greatest coefficient (minus infinite when all are NaN).
+    pub max: f32,
+    /// The largest difference between neighbours along an axis both in the box (zero when not
+    /// asked for).
+    pub max_step: f32,
+}
+
+/// `x` where it is greater than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn larger(m: f32, x: f32) -> f32 {
+    if x > m { x } else { m }
+}
+
+/// `x` where it is less than `m`, else `m` (so a NaN `x` leaves `m`).
+#[inline]
+fn smaller(m: f32, x: f32) -> f32 {
+    if x < m { x } else { m }
+}
+
+/// The largest of `m` and `|b[n] − a[n]|` over the pairs of `a` and `b`.
+#[inline]
+fn largest_step(m: f32, a: &[f32], b: &[f32]) -> f32 {
+    a.iter()
+        .zip(b)
+        .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
+}
+
 /// The coefficients of an `nx × ny × nz` lattice, stored in 8×8×8 bricks with aprons (see
 /// the module documentation). Equality compares values, whatever the representation.
 #[derive(Clone)]
@@ -483,6 +515,89 @@ impl BrickedCoeffs {
             x += run;
         }
         acc
+    }
+
+    /// The least and greatest coefficient in the box `first ..= last` (inclusive, per axis)
+    /// and, with `steps`, the largest difference between two neighbours along an axis that
+    /// both lie in the box. Brick by brick: a uniform brick is one value (its apron holds the
+    /// next coefficients, so its steps inside the box are all zero), a dense brick is read in
+    /// place, each step to the next coefficient along an axis from its own apron. A NaN
+    /// coefficient is passed over. Allocates nothing.
+    ///
+    /// # Panics
+    /// When the box is empty or leaves the store.
+    #[must_use]
+    pub fn box_summary(&self, first: [usize; 3], last: [usize; 3], steps: bool) -> BoxSummary {
+        assert!(
+            (0..3).all(|a| first[a] <= last[a]),
+            "empty box {first:?} ..= {last:?}"
+        );
+        self.check(last[0], last[1], last[2]);
+        let mut out = BoxSummary {
+            min: f32::INFINITY,
+            max: f32::NEG_INFINITY,
+            max_step: 0.0,
+        };
+        // A brick's own coordinates in the box along `axis` (in-brick, end exclusive), and
+        // whether the coordinate after them is in the box too (then in the brick's apron).
+        let own = |axis: usize, brick: usize| {
+            let from = first[axis].max(brick << SHIFT);
+            let to = last[axis].min((brick << SHIFT) + MASK);
+            (from & MASK, (to & MASK) + 1, to < last[axis])
+        };
+        for bk in first[2] >> SHIFT..=last[2] >> SHIFT {
+            let (c0, c_end, z_next) = own(2, bk);
+            for bj in first[1] >> SHIFT..=last[1] >> SHIFT {
+                let (b0, b_end, y_next) = own(1, bj);
+                for bi in first[0] >> SHIFT..=last[0] >> SHIFT {
+                    let (a0, a_end, x_next) = own(0, bi);
+                    let [bx, by, _] = self.bricks_per_axis;
+                    let brick = &self.bricks[bi + bx * (bj + by * bk)];
+                    let values = match brick {
+                        Brick::Uniform(v) => {
+                            out.min = smaller(out.min, *v);
+                            out.max = larger(out.max, *v);
+                            continue;
+                        }
+                        Brick::Dense(values) => values,
+                    };
+                    // With the next coefficient along x where it is in the box.
+                    let row_len = a_end - a0 + usize::from(x_next);
+                    for c in c0..c_end {
+                        for b in b0..b_end {
+                            let at = offset(a0, b, c);
+                            let row = &values[at..at + row_len];
+                            let mine = &row[..a_end - a0];
+                            for &v in mine {
+                                out.min = smaller(out.min, v);
+                                out.max = larger(out.max, v);
+                            }
+                            if !steps {
+                                continue;
+                            }
+                            out.max_step = largest_step(out.max_step, row, &row[1..]);
+                            if b + 1 < b_end || y_next {
+                                let next = offset(a0, b + 1, c);
+                                out.max_step = largest_step(
+                                    out.max_step,
+                                    mine,
+                                    &values[next..next + mine.len()],
+                                );
+                            }
+                            if c + 1 < c_end || z_next {
+                                let next = offset(a0, b, c + 1);
+                                out.max_step = largest_step(
+                                    out.max_step,
+                                    mine,
+                                    &values[next..next + mine.len()],
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// [`BrickedCoeffs::read_row_at`] from flat index `start`.
@@ -1489,5 +1604,70 @@ mod tests {
     fn reading_past_the_end_panics() {
         let store = BrickedCoeffs::zeros([4, 4, 4]);
         let _ = store[64];
+    }
+
+    /// [`BrickedCoeffs::box_summary`] the plain way, coefficient by coefficient.
+    fn plain_box_summary(store: &BrickedCoeffs, first: [usize; 3], last: [usize; 3]) -> BoxSummary {
+        let mut out = BoxSummary {
+            min: f32::INFINITY,
+            max: f32::NEG_INFINITY,
+            max_step: 0.0,
+        };
+        for k in first[2]..=last[2] {
+            for j in first[1]..=last[1] {
+                for i in first[0]..=last[0] {
+                    let v = store.get(i, j, k);
+                    out.min = smaller(out.min, v);
+                    out.max = larger(out.max, v);
+                    for (axis, next) in [[i + 1, j, k], [i, j + 1, k], [i, j, k + 1]]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        if next[axis] <= last[axis] {
+                            let w = store.get(next[0], next[1], next[2]);
+                            out.max_step = larger(out.max_step, (w - v).abs());
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_box_summary_brick_by_brick_is_the_plain_one() {
+        let mut rng = Rng(0x5eed_b0c5);
+        for _ in 0..40 {
+            let dims = [1 + rng.below(30), 1 + rng.below(30), 1 + rng.below(30)];
+            let mut store = BrickedCoeffs::uniform(dims, rng.value());
+            // A few writes near brick borders, some of them of fractional values, so uniform
+            // and dense bricks mix and steps cross the borders.
+            for _ in 0..rng.below(200) {
+                let at = [
+                    rng.near_border(dims[0]),
+                    rng.near_border(dims[1]),
+                    rng.near_border(dims[2]),
+                ];
+                let v = rng.value() + 0.001 * rng.below(1000) as f32;
+                store.set(at[0], at[1], at[2], v);
+            }
+            for _ in 0..20 {
+                let a: [usize; 3] = std::array::from_fn(|n| rng.below(dims[n]));
+                let b: [usize; 3] = std::array::from_fn(|n| rng.below(dims[n]));
+                let first = std::array::from_fn(|n| a[n].min(b[n]));
+                let last = std::array::from_fn(|n| a[n].max(b[n]));
+                let want = plain_box_summary(&store, first, last);
+                assert_eq!(
+                    store.box_summary(first, last, true),
+                    want,
+                    "{first:?} ..= {last:?}"
+                );
+                let extremes = store.box_summary(first, last, false);
+                assert_eq!(
+                    (extremes.min, extremes.max, extremes.max_step),
+                    (want.min, want.max, 0.0)
+                );
+            }
+        }
     }
 }

@@ -2262,61 +2262,29 @@ fn read_coefficients(patch: &Patch, range: CoefficientRange) -> PatchOverBox {
         } => (first, last, beyond),
     };
     let l = &patch.lattice;
+    // Brick by brick: most of a whole clay's bricks are uniform, one value each.
+    let inside = l.coeffs.box_summary(first, last, true);
     let (mut vmin, mut vmax) = if beyond {
         (0.0_f32, 0.0_f32)
     } else {
         (f32::INFINITY, f32::NEG_INFINITY)
     };
-    let [nx, ny, nz] = l.dims;
-    let (i0, i1) = (first[0], last[0]);
-    let mut steepest = 0.0_f32;
-    // NOTE: row by row over slices (no per-coefficient index or border test), with
-    // `larger`/`smaller` in place of `f32::max`/`min`: the same result here (the running
-    // values start finite and a NaN coefficient is passed over either way) as one compare
-    // and select, not a NaN check per coefficient. The split test is the local re-mesh's
-    // hot loop (`bench/mesh.rs` `adaptive_remesh`).
-    let largest_step = |m: f32, a: &[f32], b: &[f32]| {
-        a.iter()
-            .zip(b)
-            .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
-    };
-    // Rows copied out of the bricks: this one, and its neighbours along y and z.
-    let len = i1 - i0 + 1;
-    let (mut row, mut next_y, mut next_z) = (vec![0.0; len], vec![0.0; len], vec![0.0; len]);
-    for k in first[2]..=last[2] {
-        // Each row is copied once as `next_y` and then becomes `row` (the first one of a
-        // plane read here).
-        l.coeffs.read_row_at([i0, first[1], k], &mut row);
-        for j in first[1]..=last[1] {
-            if j > first[1] {
-                std::mem::swap(&mut row, &mut next_y);
-            }
-            let row = row.as_slice();
-            for &c in row {
-                vmin = smaller(vmin, c);
-                vmax = larger(vmax, c);
-            }
-            // Beyond the lattice the coefficients count as zero: a border coefficient is a
-            // step of its own size.
-            if j == 0 || k == 0 || j + 1 == ny || k + 1 == nz {
-                steepest = row.iter().fold(steepest, |m, &c| larger(m, c.abs()));
-            } else {
-                if i0 == 0 {
-                    steepest = larger(steepest, row[0].abs());
-                }
-                if i1 + 1 == nx {
-                    steepest = larger(steepest, row[row.len() - 1].abs());
-                }
-            }
-            steepest = largest_step(steepest, row, &row[1..]);
-            if j < last[1] {
-                l.coeffs.read_row_at([i0, j + 1, k], &mut next_y);
-                steepest = largest_step(steepest, row, &next_y);
-            }
-            if k < last[2] {
-                l.coeffs.read_row_at([i0, j, k + 1], &mut next_z);
-                steepest = largest_step(steepest, row, &next_z);
-            }
+    vmin = smaller(vmin, inside.min);
+    vmax = larger(vmax, inside.max);
+    let mut steepest = inside.max_step;
+    // Beyond the lattice the coefficients count as zero: a coefficient on its border is a
+    // step of its own size.
+    for axis in 0..3 {
+        let border_faces = [
+            (first[axis] == 0).then_some(0),
+            (last[axis] + 1 == l.dims[axis]).then_some(last[axis]),
+        ];
+        for face in border_faces.into_iter().flatten() {
+            let (mut face_first, mut face_last) = (first, last);
+            face_first[axis] = face;
+            face_last[axis] = face;
+            let on_face = l.coeffs.box_summary(face_first, face_last, false);
+            steepest = larger(steepest, larger(on_face.min.abs(), on_face.max.abs()));
         }
     }
     PatchOverBox {
