@@ -1,8 +1,8 @@
-//! Malformed session files (of format 2: mapped patches, material grids, pins), scripts,
-//! recordings (with the engine's schedule) and point clouds (XYZ, ASCII and binary PLY) are
-//! refused with a typed error, never a
-//! panic, and parsing one never takes more heap than a bound on its size (see
-//! `tests/fuzz/mod.rs` for the mutations and the bound). 256 cases per format here; the long
+//! Malformed session files (of the current format: bricked lattices, mapped patches, material
+//! grids, pins), scripts, recordings (with the engine's schedule) and point clouds (XYZ, ASCII
+//! and binary PLY) are refused with a typed error, never a panic, and parsing one never takes
+//! more heap than a bound on its size (see `tests/fuzz/mod.rs` for the mutations and the
+//! bound). 256 cases per format here; the long
 //! run of a million or more is `cargo bench --bench fuzz_inputs` (figures in bench/RESULTS.md).
 
 mod fuzz;

@@ -901,7 +901,8 @@ impl BrickedCoeffs {
 
     /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
     /// them; a uniform one stays uniform when they all equal its value and becomes dense
-    /// otherwise.
+    /// otherwise. The apron is copied row by row from each of the (up to seven) neighbours
+    /// that own a part of it.
     fn refresh_apron(&mut self, brick: [usize; 3]) {
         let [bx, by, _] = self.bricks_per_axis;
         let at = brick[0] + bx * (brick[1] + by * brick[2]);
@@ -910,44 +911,65 @@ impl BrickedCoeffs {
         if owned == held {
             return; // no apron inside the store
         }
-        if let Brick::Uniform(v) = self.bricks[at] {
-            // Fast case: every neighbour the apron reaches is uniform with the same value.
-            let mut neighbours_agree = true;
-            for d in 1..8_usize {
-                let step = [d & 1, (d >> 1) & 1, d >> 2];
-                let reaches = (0..3).all(|a| step[a] == 0 || held[a] > owned[a]);
-                if reaches {
-                    let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
-                    let same = matches!(
-                        self.bricks[n[0] + bx * (n[1] + by * n[2])],
-                        Brick::Uniform(w) if w.to_bits() == v.to_bits()
-                    );
-                    neighbours_agree &= same;
+        // Per neighbour `brick + step`: the in-brick ranges of the apron it owns.
+        let parts = (1..8_usize).filter_map(|d| {
+            let step = [d & 1, (d >> 1) & 1, d >> 2];
+            let ranges: [(usize, usize); 3] = std::array::from_fn(|a| {
+                if step[a] == 0 {
+                    (0, owned[a])
+                } else {
+                    (COEFF_BRICK, held[a])
                 }
-            }
+            });
+            let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
+            (ranges.iter().all(|(lo, hi)| lo < hi))
+                .then(|| (n[0] + bx * (n[1] + by * n[2]), step, ranges))
+        });
+        // The neighbour's offset of in-brick place `(a, b, c)` of this brick.
+        let source = |step: [usize; 3], a: usize, b: usize, c: usize| {
+            offset(
+                a - COEFF_BRICK * step[0],
+                b - COEFF_BRICK * step[1],
+                c - COEFF_BRICK * step[2],
+            )
+        };
+        if let Brick::Uniform(v) = self.bricks[at] {
+            let same = |w: &f32| w.to_bits() == v.to_bits();
+            let neighbours_agree =
+                parts
+                    .clone()
+                    .all(|(n, step, [x, y, z])| match &self.bricks[n] {
+                        Brick::Uniform(w) => same(w),
+                        Brick::Dense(values) => (z.0..z.1).all(|c| {
+                            (y.0..y.1).all(|b| {
+                                let from = source(step, x.0, b, c);
+                                values[from..from + x.1 - x.0].iter().all(same)
+                            })
+                        }),
+                    });
             if neighbours_agree {
                 return;
             }
         }
-        let origin = brick.map(|b| b * COEFF_BRICK);
-        let mut copies = [(0_usize, 0.0_f32); DENSE_BRICK_VALUES - COEFF_BRICK_VALUES];
-        let mut count = 0;
-        for c in 0..held[2] {
-            for b in 0..held[1] {
-                for a in 0..held[0] {
-                    if a < owned[0] && b < owned[1] && c < owned[2] {
-                        continue;
+        // Taken out of the directory while its neighbours are read.
+        let mut target = std::mem::replace(&mut self.bricks[at], Brick::Uniform(0.0));
+        let values = densify(&mut target);
+        for (n, step, [x, y, z]) in parts {
+            let len = x.1 - x.0;
+            for c in z.0..z.1 {
+                for b in y.0..y.1 {
+                    let to = offset(x.0, b, c);
+                    match &self.bricks[n] {
+                        Brick::Uniform(w) => values[to..to + len].fill(*w),
+                        Brick::Dense(from) => {
+                            let from_at = source(step, x.0, b, c);
+                            copy_run(&mut values[to..to + len], &from[from_at..from_at + len]);
+                        }
                     }
-                    let value = self.get(origin[0] + a, origin[1] + b, origin[2] + c);
-                    copies[count] = (offset(a, b, c), value);
-                    count += 1;
                 }
             }
         }
-        let target = &mut self.bricks[at];
-        for &(off, value) in &copies[..count] {
-            store_run(target, off, &[value]);
-        }
+        self.bricks[at] = target;
     }
 
     /// This store with `low[a]` zero coefficients added before and `high[a]` after it along

@@ -94,9 +94,20 @@ pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
     encode_version(session, FORMAT_VERSION)
 }
 
-/// [`encode`] in format `version` (1 writes no patch maps, 2 no mask, 3 dense lattices; tests
-/// use it to check that old files still read).
-pub(crate) fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionError> {
+/// [`encode`] in format `version`, for a build that reads only older files (and for tests
+/// that check such files still read): 1 writes no patch maps, 2 no freeze mask, 3 every
+/// coefficient of every lattice; [`FORMAT_VERSION`] is what [`encode`] writes.
+///
+/// # Errors
+/// [`SessionError::Invalid`] for a version outside `1..=FORMAT_VERSION`, and as [`encode`].
+pub fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionError> {
+    if !(1..=FORMAT_VERSION).contains(&version) {
+        return Err(SessionError::Invalid {
+            detail: format!(
+                "format version {version}; this build writes versions 1 to {FORMAT_VERSION}"
+            ),
+        });
+    }
     let meta = serde_json::to_vec(&session.meta).map_err(|e| SessionError::Invalid {
         detail: format!("metadata: {e}"),
     })?;
@@ -1815,6 +1826,23 @@ mod tests {
             err.contains("MASK") && err.contains("patch 0") && err.contains("dims"),
             "{err}"
         );
+    }
+
+    #[test]
+    fn only_the_versions_this_build_reads_are_written() {
+        let s = sample_session();
+        for version in [0, FORMAT_VERSION + 1] {
+            let err = encode_version(&s, version).unwrap_err().to_string();
+            assert!(err.contains(&format!("format version {version}")), "{err}");
+        }
+        for version in 1..=FORMAT_VERSION {
+            let bytes = encode_version(&s, version).unwrap();
+            assert_eq!(
+                u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+                version
+            );
+            decode(&bytes, Path::new("v.dclay")).unwrap();
+        }
     }
 
     #[test]
