@@ -273,9 +273,9 @@ pub fn mutate_text(text: &str, mutations: &[Mutation]) -> String {
 // ---------------------------------------------------------------------------------------
 // Sessions.
 
-/// A small session of format 2 with every section: a base patch and a detail patch under a
-/// turned map, colour, a material with painted stiffness and plasticity grids, pins of
-/// each kind and a tool.
+/// A small session of the current format with every section: a base patch and a detail
+/// patch under a turned map, colour, a material with painted stiffness and plasticity grids,
+/// pins of each kind and a tool.
 #[must_use]
 pub fn valid_session_bytes() -> Vec<u8> {
     let mut lattice = BSplineLattice::zeros([4, 5, 4], 0.25, Vec3::new(0.5, -1.0, 0.0)).unwrap();

@@ -157,6 +157,16 @@ fn largest_step(m: f32, a: &[f32], b: &[f32]) -> f32 {
         .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
 }
 
+/// One brick's own coefficients, as a session file stores them (see
+/// [`BrickedCoeffs::for_each_owned_brick`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum OwnedBrick<'a> {
+    /// Every coefficient the brick owns holds this value.
+    Uniform(f32),
+    /// The coefficients the brick owns inside the store, x fastest.
+    Values(&'a [f32]),
+}
+
 /// The coefficients of an `nx × ny × nz` lattice, stored in 8×8×8 bricks with aprons (see
 /// the module documentation). Equality compares values, whatever the representation.
 #[derive(Clone)]
@@ -889,6 +899,103 @@ impl BrickedCoeffs {
         freed
     }
 
+    /// Calls `f` with each brick's own coefficients (never its apron), in directory order
+    /// (brick `(bi, bj, bk)` at `bi + bx · (bj + by · bk)`, x fastest): a brick whose own
+    /// coefficients inside the store all hold the bits of one value is given as
+    /// [`OwnedBrick::Uniform`], any other as [`OwnedBrick::Values`] (the part inside the
+    /// store, x fastest). This is the layout a session file stores; see
+    /// [`BrickedCoeffs::try_from_owned_bricks`] for the way back.
+    pub fn for_each_owned_brick(&self, mut f: impl FnMut(OwnedBrick<'_>)) {
+        let mut scratch = [0.0_f32; COEFF_BRICK_VALUES];
+        let [bx, by, bz] = self.bricks_per_axis;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let extent = self.owned_extent([bi, bj, bk]);
+                    match &self.bricks[bi + bx * (bj + by * bk)] {
+                        Brick::Uniform(v) => f(OwnedBrick::Uniform(*v)),
+                        Brick::Dense(values) => {
+                            let first = values[0];
+                            let mut same = true;
+                            let mut n = 0;
+                            for c in 0..extent[2] {
+                                for b in 0..extent[1] {
+                                    let row = &values[offset(0, b, c)..][..extent[0]];
+                                    same &= row.iter().all(|v| v.to_bits() == first.to_bits());
+                                    scratch[n..n + extent[0]].copy_from_slice(row);
+                                    n += extent[0];
+                                }
+                            }
+                            f(if same {
+                                OwnedBrick::Uniform(first)
+                            } else {
+                                OwnedBrick::Values(&scratch[..n])
+                            });
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// A store of `dims` coefficients built brick by brick from each brick's own
+    /// coefficients, in directory order (see [`BrickedCoeffs::for_each_owned_brick`]):
+    /// `fill(first, extent, out)` is called once per brick with the coordinates of the
+    /// brick's first coefficient, how many of its own coefficients lie inside the store per
+    /// axis, and `out` of their number; it returns `Ok(Some(v))` when they all equal `v`, or
+    /// writes them into `out` (x fastest) and returns `Ok(None)`. The aprons are then copied
+    /// from the neighbours that own them; a brick stays uniform when its own values and its
+    /// apron all agree (so the store holds no more dense bricks than the one it was saved
+    /// from). The directory is allocated first (`dims` bounds it: the caller checks `dims`
+    /// against its budget before calling); each dense brick is allocated when `fill` gives
+    /// its values.
+    ///
+    /// # Errors
+    /// The first error `fill` returns; nothing is kept then.
+    ///
+    /// # Panics
+    /// When the coefficient count overflows `usize`.
+    pub fn try_from_owned_bricks<E>(
+        dims: [usize; 3],
+        mut fill: impl FnMut([usize; 3], [usize; 3], &mut [f32]) -> Result<Option<f32>, E>,
+    ) -> Result<Self, E> {
+        let mut store = Self::zeros(dims);
+        if store.is_empty() {
+            return Ok(store);
+        }
+        let mut scratch = [0.0_f32; COEFF_BRICK_VALUES];
+        let [bx, by, bz] = store.bricks_per_axis;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let extent = store.owned_extent([bi, bj, bk]);
+                    let count = extent.iter().product::<usize>();
+                    let first = [bi, bj, bk].map(|b| b * COEFF_BRICK);
+                    let out = &mut scratch[..count];
+                    store.bricks[bi + bx * (bj + by * bk)] = match fill(first, extent, out)? {
+                        Some(v) => Brick::Uniform(v),
+                        None => {
+                            let mut dense = Box::new([0.0; DENSE_BRICK_VALUES]);
+                            for (row, values) in out.chunks_exact(extent[0]).enumerate() {
+                                let at = offset(0, row % extent[1], row / extent[1]);
+                                dense[at..at + extent[0]].copy_from_slice(values);
+                            }
+                            Brick::Dense(dense)
+                        }
+                    };
+                }
+            }
+        }
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    store.refresh_apron([bi, bj, bk]);
+                }
+            }
+        }
+        Ok(store)
+    }
+
     /// Makes every brick dense, so that later writes never allocate.
     pub fn densify_all(&mut self) {
         for b in &mut self.bricks {
@@ -909,7 +1016,8 @@ impl BrickedCoeffs {
 
     /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
     /// them; a uniform one stays uniform when they all equal its value and becomes dense
-    /// otherwise.
+    /// otherwise. The apron is copied row by row from each of the (up to seven) neighbours
+    /// that own a part of it.
     fn refresh_apron(&mut self, brick: [usize; 3]) {
         let [bx, by, _] = self.bricks_per_axis;
         let at = brick[0] + bx * (brick[1] + by * brick[2]);
@@ -918,44 +1026,65 @@ impl BrickedCoeffs {
         if owned == held {
             return; // no apron inside the store
         }
-        if let Brick::Uniform(v) = self.bricks[at] {
-            // Fast case: every neighbour the apron reaches is uniform with the same value.
-            let mut neighbours_agree = true;
-            for d in 1..8_usize {
-                let step = [d & 1, (d >> 1) & 1, d >> 2];
-                let reaches = (0..3).all(|a| step[a] == 0 || held[a] > owned[a]);
-                if reaches {
-                    let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
-                    let same = matches!(
-                        self.bricks[n[0] + bx * (n[1] + by * n[2])],
-                        Brick::Uniform(w) if w.to_bits() == v.to_bits()
-                    );
-                    neighbours_agree &= same;
+        // Per neighbour `brick + step`: the in-brick ranges of the apron it owns.
+        let parts = (1..8_usize).filter_map(|d| {
+            let step = [d & 1, (d >> 1) & 1, d >> 2];
+            let ranges: [(usize, usize); 3] = std::array::from_fn(|a| {
+                if step[a] == 0 {
+                    (0, owned[a])
+                } else {
+                    (COEFF_BRICK, held[a])
                 }
-            }
+            });
+            let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
+            (ranges.iter().all(|(lo, hi)| lo < hi))
+                .then(|| (n[0] + bx * (n[1] + by * n[2]), step, ranges))
+        });
+        // The neighbour's offset of in-brick place `(a, b, c)` of this brick.
+        let source = |step: [usize; 3], a: usize, b: usize, c: usize| {
+            offset(
+                a - COEFF_BRICK * step[0],
+                b - COEFF_BRICK * step[1],
+                c - COEFF_BRICK * step[2],
+            )
+        };
+        if let Brick::Uniform(v) = self.bricks[at] {
+            let same = |w: &f32| w.to_bits() == v.to_bits();
+            let neighbours_agree =
+                parts
+                    .clone()
+                    .all(|(n, step, [x, y, z])| match &self.bricks[n] {
+                        Brick::Uniform(w) => same(w),
+                        Brick::Dense(values) => (z.0..z.1).all(|c| {
+                            (y.0..y.1).all(|b| {
+                                let from = source(step, x.0, b, c);
+                                values[from..from + x.1 - x.0].iter().all(same)
+                            })
+                        }),
+                    });
             if neighbours_agree {
                 return;
             }
         }
-        let origin = brick.map(|b| b * COEFF_BRICK);
-        let mut copies = [(0_usize, 0.0_f32); DENSE_BRICK_VALUES - COEFF_BRICK_VALUES];
-        let mut count = 0;
-        for c in 0..held[2] {
-            for b in 0..held[1] {
-                for a in 0..held[0] {
-                    if a < owned[0] && b < owned[1] && c < owned[2] {
-                        continue;
+        // Taken out of the directory while its neighbours are read.
+        let mut target = std::mem::replace(&mut self.bricks[at], Brick::Uniform(0.0));
+        let values = densify(&mut target);
+        for (n, step, [x, y, z]) in parts {
+            let len = x.1 - x.0;
+            for c in z.0..z.1 {
+                for b in y.0..y.1 {
+                    let to = offset(x.0, b, c);
+                    match &self.bricks[n] {
+                        Brick::Uniform(w) => values[to..to + len].fill(*w),
+                        Brick::Dense(from) => {
+                            let from_at = source(step, x.0, b, c);
+                            copy_run(&mut values[to..to + len], &from[from_at..from_at + len]);
+                        }
                     }
-                    let value = self.get(origin[0] + a, origin[1] + b, origin[2] + c);
-                    copies[count] = (offset(a, b, c), value);
-                    count += 1;
                 }
             }
         }
-        let target = &mut self.bricks[at];
-        for &(off, value) in &copies[..count] {
-            store_run(target, off, &[value]);
-        }
+        self.bricks[at] = target;
     }
 
     /// This store with `low[a]` zero coefficients added before and `high[a]` after it along
@@ -1275,6 +1404,66 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn owned_bricks_rebuild_the_store_with_its_aprons_and_no_more_dense_bricks() {
+        // Partial bricks at every high border, uniform regions of 0 and 1, a brick whose own
+        // values are uniform but whose apron is not, and scattered values.
+        let dims = [21, 12, 19];
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut model = vec![0.0_f32; dims.iter().product()];
+        for (n, v) in model.iter_mut().enumerate() {
+            let [i, _, k] = [n % 21, (n / 21) % 12, n / (21 * 12)];
+            if k >= 8 && i < 16 {
+                *v = 1.0;
+            }
+            if rng.below(40) == 0 {
+                *v = rng.value();
+            }
+        }
+        let mut store = BrickedCoeffs::from_slice(dims, &model);
+        // A dense brick whose values are all equal again (an edit undone, not compacted).
+        store.set(1, 1, 1, 0.75);
+        store.set(1, 1, 1, model[1 + 21 * (1 + 12)]);
+        let mut records = Vec::new();
+        store.for_each_owned_brick(|b| {
+            records.push(match b {
+                OwnedBrick::Uniform(v) => Err(v),
+                OwnedBrick::Values(values) => Ok(values.to_vec()),
+            });
+        });
+        assert_eq!(records.len(), store.brick_count());
+        assert!(records.iter().any(Result::is_ok) && records.iter().any(Result::is_err));
+        let mut next = records.iter();
+        let back = BrickedCoeffs::try_from_owned_bricks(dims, |first, extent, out| {
+            assert_eq!(out.len(), extent.iter().product::<usize>());
+            assert!((0..3).all(|a| first[a] % COEFF_BRICK == 0 && first[a] < dims[a]));
+            match next.next().expect("one record per brick") {
+                Err(v) => Ok::<_, ()>(Some(*v)),
+                Ok(values) => {
+                    out.copy_from_slice(values);
+                    Ok(None)
+                }
+            }
+        })
+        .unwrap();
+        assert!(next.next().is_none());
+        assert_matches(&back, &model);
+        assert_stencils_match(&back, &model);
+        assert!(back.dense_brick_count() <= store.dense_brick_count());
+        let mut compacted = store.clone();
+        compacted.compact();
+        assert_eq!(back.dense_brick_count(), compacted.dense_brick_count());
+        // An error from the fill stops the build.
+        let failed = BrickedCoeffs::try_from_owned_bricks(dims, |first, _, _| {
+            if first == [8, 0, 0] {
+                Err("bad brick")
+            } else {
+                Ok(Some(0.0))
+            }
+        });
+        assert_eq!(failed.unwrap_err(), "bad brick");
     }
 
     #[test]

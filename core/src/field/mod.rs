@@ -25,7 +25,7 @@ pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 pub use bricks::{
     BRICK_APRON, BRICK_SPAN, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BYTES,
-    DENSE_BRICK_VALUES, Values,
+    DENSE_BRICK_VALUES, OwnedBrick, Values,
 };
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, apply_coarsening,

@@ -22,6 +22,13 @@ pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
 /// Most coefficients a whole clay may hold, all its patches together (256 MiB of `f32`: the
 /// largest import's base, 256³, and three more of its size in detail). Refining, importing
 /// and reading a session all stay within it.
+///
+/// It counts the patches' boxes, not the dense bricks that hold them
+/// ([`super::BrickedCoeffs`]): the live engine's haptic loop keeps a copy of the clay made
+/// dense throughout (every brick with its apron, 11³/8³ of the box's coefficients), so the
+/// box is what a clay costs while it is sculpted, and a refine knows it before the patch is
+/// made. A session file of format 4 stores only the dense bricks, but is read against this
+/// same count, checked before anything is allocated, so a clay that saves loads.
 pub const MAX_CLAY_COEFFS: usize = 64 << 20;
 
 /// Why a detail patch could not be added.

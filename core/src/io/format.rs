@@ -25,6 +25,27 @@
 //! Version 3 adds `MASK` (after `SPRG`, only when the clay has a freeze mask): the patch count
 //! `u32`, then one lattice per patch, in patch order, each with its patch's dims and every hold
 //! within `[0, 1]`. Files of versions 1 and 2 read with no mask.
+//!
+//! Version 4 stores the clay's lattices (each patch's in `PTCH`, the four in `COLR`, the
+//! mask's in `MASK`) sparsely, in the 8×8×8 bricks the clay keeps them in
+//! ([`crate::field::BrickedCoeffs`]): the lattice header as before, but the coefficient count
+//! replaced by the brick count `u64` (`⌈nx/8⌉ · ⌈ny/8⌉ · ⌈nz/8⌉`), then brick records in
+//! directory order (x fastest):
+//!
+//! ```text
+//! run    0u8 | bricks u32 (at least 1, at most the bricks left) | value f32   every coefficient the bricks own is `value`
+//! dense  1u8 | the coefficients the brick owns inside the lattice, f32, x fastest (8³, fewer at a high border)
+//! ```
+//!
+//! A brick's apron (the copies of its neighbours' coefficients it keeps in memory) is never
+//! written: loading rebuilds it, and a brick whose own coefficients and apron all agree is
+//! uniform again, so a loaded clay holds no more dense bricks than the one saved. Before
+//! anything is allocated for a lattice its dims are checked against the clay's budget
+//! ([`MAX_CLAY_COEFFS`] for the patches together, the same check a refine makes, so a clay
+//! that saves loads; the same per colour channel; a mask lattice must have its patch's dims)
+//! and its brick count against its dims; a run's length against the bricks left, a dense
+//! brick's values against the bytes left. The tool library's freeform lattices stay dense
+//! (they are small, and their size is bounded by the bytes that hold them).
 
 use std::path::Path;
 
@@ -34,13 +55,16 @@ use glam::{Affine3A, Vec3};
 use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
 use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material, Neighbourhood};
-use crate::field::{BSplineLattice, MAX_CLAY_COEFFS, MAX_PATCHES, Patch};
+use crate::field::{
+    BSplineLattice, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, MAX_CLAY_COEFFS, MAX_PATCHES,
+    OwnedBrick, Patch,
+};
 use crate::tools::{Clay, ColourField, FreeformTool, FreezeMask, ToolAction, ToolShape};
 
 /// The first eight bytes of every session file.
 pub const MAGIC: [u8; 8] = *b"DYNACLAY";
 /// The format version this build writes and the newest it reads.
-pub const FORMAT_VERSION: u32 = 3;
+pub const FORMAT_VERSION: u32 = 4;
 const HEADER_LEN: usize = 24;
 
 const META: [u8; 4] = *b"META";
@@ -54,6 +78,12 @@ const PINS: [u8; 4] = *b"PINS";
 const SPRINGS: [u8; 4] = *b"SPRG";
 const MASK: [u8; 4] = *b"MASK";
 const END: [u8; 4] = *b"END ";
+/// The first format version whose clay lattices are stored as brick records.
+const BRICKED_VERSION: u32 = 4;
+/// A brick record: a run of uniform bricks.
+const UNIFORM_RUN: u8 = 0;
+/// A brick record: one dense brick's own coefficients.
+const DENSE_BRICK: u8 = 1;
 
 /// Serialises a session.
 ///
@@ -64,9 +94,20 @@ pub fn encode(session: &Session) -> Result<Vec<u8>, SessionError> {
     encode_version(session, FORMAT_VERSION)
 }
 
-/// [`encode`] in format `version` (1 writes no patch maps; tests use it to check that old
-/// files still read).
-fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionError> {
+/// [`encode`] in format `version`, for a build that reads only older files (and for tests
+/// that check such files still read): 1 writes no patch maps, 2 no freeze mask, 3 every
+/// coefficient of every lattice; [`FORMAT_VERSION`] is what [`encode`] writes.
+///
+/// # Errors
+/// [`SessionError::Invalid`] for a version outside `1..=FORMAT_VERSION`, and as [`encode`].
+pub fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionError> {
+    if !(1..=FORMAT_VERSION).contains(&version) {
+        return Err(SessionError::Invalid {
+            detail: format!(
+                "format version {version}; this build writes versions 1 to {FORMAT_VERSION}"
+            ),
+        });
+    }
     let meta = serde_json::to_vec(&session.meta).map_err(|e| SessionError::Invalid {
         detail: format!("metadata: {e}"),
     })?;
@@ -75,7 +116,14 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
         .density
         .patches
         .iter()
-        .map(|p| 4 * p.lattice.coeffs.len() + 104)
+        .map(|p| {
+            let values = if version >= BRICKED_VERSION {
+                COEFF_BRICK_VALUES * p.lattice.coeffs.dense_brick_count()
+            } else {
+                p.lattice.coeffs.len()
+            };
+            4 * values + 104
+        })
         .sum();
     let mut out = Vec::with_capacity(HEADER_LEN + meta.len() + coeff_bytes + 4096);
     out.extend_from_slice(&MAGIC);
@@ -106,7 +154,7 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
     })?;
     for (n, patch) in session.clay.density.patches.iter().enumerate() {
         section(&mut out, PATCH, &mut |o| {
-            put_lattice(o, &patch.lattice, &format!("patch {n}"))?;
+            put_clay_lattice(o, version, &patch.lattice, &format!("patch {n}"))?;
             if version >= 2 {
                 put_map(o, &patch.world_to_patch, &format!("patch {n}"))?;
             }
@@ -120,7 +168,7 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
     if let Some(colour) = &session.clay.colour {
         section(&mut out, COLOUR, &mut |o| {
             for (c, channel) in colour.channels.iter().enumerate() {
-                put_lattice(o, channel, &format!("colour channel {c}"))?;
+                put_clay_lattice(o, version, channel, &format!("colour channel {c}"))?;
             }
             Ok(())
         })?;
@@ -153,7 +201,7 @@ fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, SessionErr
             })?;
             o.extend_from_slice(&count.to_le_bytes());
             for (n, holds) in mask.patches.iter().enumerate() {
-                put_lattice(o, holds, &format!("mask over patch {n}"))?;
+                put_clay_lattice(o, version, holds, &format!("mask over patch {n}"))?;
             }
             Ok(())
         })?;
@@ -284,13 +332,17 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                         "more than {MAX_PATCHES} patches; a clay holds at most {MAX_PATCHES}"
                     )));
                 }
-                let lattice = r.lattice()?;
-                let total = session.clay.density.coefficient_count() + lattice.coeffs.len();
-                if total > MAX_CLAY_COEFFS {
-                    return Err(r.error(&format!(
-                        "the clay holds {total} coefficients with this patch; at most {MAX_CLAY_COEFFS}"
-                    )));
-                }
+                let before = session.clay.density.coefficient_count() as u64;
+                let lattice = r.clay_lattice(version, |_, count| {
+                    let total = before.saturating_add(count);
+                    if total > MAX_CLAY_COEFFS as u64 {
+                        Err(format!(
+                            "the clay holds {total} coefficients with this patch; at most {MAX_CLAY_COEFFS}"
+                        ))
+                    } else {
+                        Ok(())
+                    }
+                })?;
                 let world_to_patch = if version >= 2 {
                     r.map()?
                 } else {
@@ -306,7 +358,18 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 material_seen = true;
             }
             COLOUR => {
-                let channels = [r.lattice()?, r.lattice()?, r.lattice()?, r.lattice()?];
+                let mut channel = || {
+                    r.clay_lattice(version, |_, count| {
+                        if count > MAX_CLAY_COEFFS as u64 {
+                            Err(format!(
+                                "a colour channel of {count} coefficients; at most {MAX_CLAY_COEFFS}"
+                            ))
+                        } else {
+                            Ok(())
+                        }
+                    })
+                };
+                let channels = [channel()?, channel()?, channel()?, channel()?];
                 let colour = ColourField { channels };
                 if !colour.is_consistent() {
                     return Err(r.error("colour channels differ in geometry"));
@@ -325,7 +388,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 };
                 neighbourhood = nb;
             }
-            MASK => session.clay.mask = Some(decode_mask(&mut r, &session.clay)?),
+            MASK => session.clay.mask = Some(decode_mask(&mut r, version, &session.clay)?),
             END => ended = true,
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
@@ -358,7 +421,7 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
 
 /// The `MASK` section: one hold lattice per patch already read, each with its patch's dims and
 /// every hold within `[0, 1]`.
-fn decode_mask(r: &mut Reader, clay: &Clay) -> Result<FreezeMask, SessionError> {
+fn decode_mask(r: &mut Reader, version: u32, clay: &Clay) -> Result<FreezeMask, SessionError> {
     let count = r.u32()? as usize;
     let patches = clay.density.patches.len();
     if count != patches {
@@ -369,13 +432,16 @@ fn decode_mask(r: &mut Reader, clay: &Clay) -> Result<FreezeMask, SessionError> 
     }
     let mut holds = Vec::with_capacity(count);
     for (n, patch) in clay.density.patches.iter().enumerate() {
-        let lattice = r.lattice()?;
-        if lattice.dims != patch.lattice.dims {
-            return Err(r.error(&format!(
-                "the mask over patch {n} has dims {:?}; the patch has {:?}",
-                lattice.dims, patch.lattice.dims
-            )));
-        }
+        let lattice = r.clay_lattice(version, |dims, _| {
+            if dims == patch.lattice.dims {
+                Ok(())
+            } else {
+                Err(format!(
+                    "the mask over patch {n} has dims {dims:?}; the patch has {:?}",
+                    patch.lattice.dims
+                ))
+            }
+        })?;
         if let Some(bad) = lattice.coeffs.iter().find(|h| !(0.0..=1.0).contains(*h)) {
             return Err(r.error(&format!(
                 "a hold of the mask over patch {n} is {bad}; holds lie within [0, 1]"
@@ -435,6 +501,67 @@ fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), 
     out.extend_from_slice(&l.iso.to_le_bytes());
     out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
     put_f32s(out, &l.coeffs.to_vec());
+    Ok(())
+}
+
+/// A lattice of the clay (a patch, a colour channel, a mask): brick records from
+/// [`BRICKED_VERSION`] on, every coefficient before.
+fn put_clay_lattice(
+    out: &mut Vec<u8>,
+    version: u32,
+    l: &BSplineLattice,
+    what: &str,
+) -> Result<(), SessionError> {
+    if version < BRICKED_VERSION {
+        return put_lattice(out, l, what);
+    }
+    if l.coeffs.dims() != l.dims {
+        return Err(SessionError::Invalid {
+            detail: format!(
+                "{what}: coefficients of dims {:?} for a lattice of dims {:?}",
+                l.coeffs.dims(),
+                l.dims
+            ),
+        });
+    }
+    for d in l.dims {
+        let d = u32::try_from(d).map_err(|_| SessionError::Invalid {
+            detail: format!("{what}: dimension {d} too large"),
+        })?;
+        out.extend_from_slice(&d.to_le_bytes());
+    }
+    out.extend_from_slice(&l.spacing.to_le_bytes());
+    for a in 0..3 {
+        out.extend_from_slice(&l.origin[a].to_le_bytes());
+    }
+    out.extend_from_slice(&l.iso.to_le_bytes());
+    out.extend_from_slice(&(l.coeffs.brick_count() as u64).to_le_bytes());
+    // A run of uniform bricks of one value: its length and the value's bits.
+    let mut run: Option<(u32, f32)> = None;
+    let flush = |out: &mut Vec<u8>, run: Option<(u32, f32)>| {
+        if let Some((bricks, value)) = run {
+            out.push(UNIFORM_RUN);
+            out.extend_from_slice(&bricks.to_le_bytes());
+            out.extend_from_slice(&value.to_le_bytes());
+        }
+    };
+    l.coeffs.for_each_owned_brick(|brick| match brick {
+        OwnedBrick::Uniform(v) => match &mut run {
+            Some((bricks, value)) if value.to_bits() == v.to_bits() && *bricks < u32::MAX => {
+                *bricks += 1;
+            }
+            _ => {
+                flush(out, run);
+                run = Some((1, v));
+            }
+        },
+        OwnedBrick::Values(values) => {
+            flush(out, run.take());
+            out.push(DENSE_BRICK);
+            put_f32s(out, values);
+        }
+    });
+    flush(out, run);
     Ok(())
 }
 
@@ -788,6 +915,180 @@ impl Reader<'_> {
         Ok(l)
     }
 
+    /// A lattice of the clay: brick records from [`BRICKED_VERSION`] on (see
+    /// [`Reader::bricked_lattice`]), every coefficient before. `admit` checks its dims and
+    /// coefficient count (an error message when they are refused).
+    fn clay_lattice(
+        &mut self,
+        version: u32,
+        admit: impl FnOnce([usize; 3], u64) -> Result<(), String>,
+    ) -> Result<BSplineLattice, SessionError> {
+        if version >= BRICKED_VERSION {
+            return self.bricked_lattice(admit);
+        }
+        // Every coefficient is in the file: its bytes bound what was allocated.
+        let start = self.cursor.at();
+        let lattice = self.lattice()?;
+        if let Err(detail) = admit(lattice.dims, lattice.coeffs.len() as u64) {
+            self.cursor.rewind_to(start);
+            return Err(self.error(&detail));
+        }
+        Ok(lattice)
+    }
+
+    /// A lattice stored as brick records (see the module documentation). The header is
+    /// checked, and its dims by `admit`, before anything is allocated: the directory (one
+    /// entry per brick) is then bounded by the budget `admit` enforces, and each dense brick
+    /// by the bytes that hold its values.
+    fn bricked_lattice(
+        &mut self,
+        admit: impl FnOnce([usize; 3], u64) -> Result<(), String>,
+    ) -> Result<BSplineLattice, SessionError> {
+        let start = self.cursor.at();
+        let dims = [
+            self.u32()? as usize,
+            self.u32()? as usize,
+            self.u32()? as usize,
+        ];
+        let spacing = self.f32()?;
+        let origin = self.vec3()?;
+        let iso = self.f32()?;
+        let bricks_at = self.cursor.at();
+        let bricks = self.u64()?;
+        let refuse = |r: &mut Self, at: usize, detail: &str| {
+            r.cursor.rewind_to(at);
+            r.error(detail)
+        };
+        if !(origin.is_finite() && iso.is_finite()) {
+            return Err(refuse(
+                self,
+                start,
+                "lattice origin or iso-level is not finite",
+            ));
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(refuse(
+                self,
+                start,
+                &format!("lattice spacing {spacing}: must be finite and above 0"),
+            ));
+        }
+        if dims.iter().any(|&n| n < 4) {
+            return Err(refuse(
+                self,
+                start,
+                &format!("lattice {dims:?}: every axis needs at least 4 coefficients"),
+            ));
+        }
+        let Some(count) = dims
+            .iter()
+            .try_fold(1_u64, |acc, &d| acc.checked_mul(d as u64))
+        else {
+            return Err(refuse(
+                self,
+                start,
+                &format!("lattice {dims:?}: its coefficient count overflows"),
+            ));
+        };
+        if let Err(detail) = admit(dims, count) {
+            return Err(refuse(self, start, &detail));
+        }
+        let expected: u64 = dims
+            .iter()
+            .map(|&n| n.div_ceil(COEFF_BRICK) as u64)
+            .product();
+        if bricks != expected {
+            return Err(refuse(
+                self,
+                bricks_at,
+                &format!("lattice {dims:?} has {expected} bricks; the section says {bricks}"),
+            ));
+        }
+        let [nx, ny, _] = dims;
+        let mut read = 0_u64;
+        let mut run_left = 0_u32;
+        let mut run_value = 0.0_f32;
+        let coeffs = BrickedCoeffs::try_from_owned_bricks(dims, |first, extent, out| {
+            read += 1;
+            if run_left > 0 {
+                run_left -= 1;
+                return Ok(Some(run_value));
+            }
+            let at = self.cursor.at();
+            match self.u8()? {
+                UNIFORM_RUN => {
+                    let length = self.u32()?;
+                    let left = expected - read + 1;
+                    if length == 0 || u64::from(length) > left {
+                        return Err(refuse(
+                            self,
+                            at,
+                            &format!(
+                                "a run of {length} uniform bricks from coefficient {first:?}; \
+                                 {left} bricks are left in the lattice"
+                            ),
+                        ));
+                    }
+                    let value_at = self.cursor.at();
+                    let value = self.f32()?;
+                    if !value.is_finite() {
+                        return Err(refuse(
+                            self,
+                            value_at,
+                            &format!(
+                                "the uniform bricks from coefficient {first:?} hold {value}, \
+                                 not a finite number"
+                            ),
+                        ));
+                    }
+                    run_left = length - 1;
+                    run_value = value;
+                    Ok(Some(value))
+                }
+                DENSE_BRICK => {
+                    let values_at = self.cursor.at();
+                    let raw = self.take(4 * out.len())?;
+                    for (v, b) in out.iter_mut().zip(raw.chunks_exact(4)) {
+                        *v = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                    }
+                    if let Some(n) = out.iter().position(|v| !v.is_finite()) {
+                        let local = [
+                            n % extent[0],
+                            (n / extent[0]) % extent[1],
+                            n / (extent[0] * extent[1]),
+                        ];
+                        let [i, j, k] = std::array::from_fn(|a| first[a] + local[a]);
+                        let flat = i + nx * (j + ny * k);
+                        return Err(refuse(
+                            self,
+                            values_at + 4 * n,
+                            &format!(
+                                "lattice coefficient {flat} is {}, not a finite number",
+                                out[n]
+                            ),
+                        ));
+                    }
+                    Ok(None)
+                }
+                tag => Err(refuse(
+                    self,
+                    at,
+                    &format!(
+                        "brick record {tag}; a record is {UNIFORM_RUN} (a run of uniform \
+                         bricks) or {DENSE_BRICK} (a dense brick)"
+                    ),
+                )),
+            }
+        })?;
+        Ok(BSplineLattice {
+            dims,
+            spacing,
+            origin,
+            iso,
+            coeffs,
+        })
+    }
+
     /// A patch map `T_i` (see [`put_map`]): finite and invertible, with a finite inverse.
     fn map(&mut self) -> Result<Affine3A, SessionError> {
         let start = self.cursor.at();
@@ -1012,22 +1313,30 @@ mod tests {
     #[test]
     fn a_non_finite_coefficient_under_a_valid_checksum_is_refused_at_its_offset() {
         let s = sample_session();
-        let mut bytes = encode(&s).unwrap();
-        let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
-        let first_patch = HEADER_LEN + (16 + meta_len);
-        // The lattice header is 40 bytes; put NaN into coefficient 3 of the first patch.
-        let at = first_patch + 12 + 40 + 4 * 3;
-        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-        let len = u64::from_le_bytes(bytes[first_patch + 4..first_patch + 12].try_into().unwrap());
-        let end = first_patch + 12 + len as usize;
-        let crc = crc32fast::hash(&bytes[first_patch..end]);
-        bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
-        let err = decode(&bytes, Path::new("mem")).unwrap_err().to_string();
-        assert!(err.contains("coefficient 3"), "{err}");
-        assert!(
-            err.contains(&format!("{at}")),
-            "names the byte offset {at}: {err}"
-        );
+        // Version 3: every coefficient after the 40-byte lattice header; version 4: the first
+        // brick's record (its tag byte, then its own coefficients: coefficient 3 is the
+        // fourth of its first row).
+        for (version, record) in [(3, 0), (BRICKED_VERSION, 1)] {
+            let mut bytes = encode_version(&s, version).unwrap();
+            let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
+            let first_patch = HEADER_LEN + (16 + meta_len);
+            if version == BRICKED_VERSION {
+                assert_eq!(bytes[first_patch + 12 + 40], DENSE_BRICK);
+            }
+            let at = first_patch + 12 + 40 + record + 4 * 3;
+            bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+            let len =
+                u64::from_le_bytes(bytes[first_patch + 4..first_patch + 12].try_into().unwrap());
+            let end = first_patch + 12 + len as usize;
+            let crc = crc32fast::hash(&bytes[first_patch..end]);
+            bytes[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+            let err = decode(&bytes, Path::new("mem")).unwrap_err().to_string();
+            assert!(err.contains("coefficient 3"), "version {version}: {err}");
+            assert!(
+                err.contains(&format!("{at}")),
+                "names the byte offset {at}: {err}"
+            );
+        }
     }
 
     #[test]
@@ -1036,8 +1345,11 @@ mod tests {
         let bytes = encode(&s).unwrap();
         // Corrupt a coefficient in the second patch section.
         let meta_len = serde_json::to_vec(&s.meta).unwrap().len();
-        // A patch section: its 16 framing bytes, the lattice (40 + coefficients) and its map (48).
-        let second_patch = HEADER_LEN + (16 + meta_len) + (16 + 40 + 4 * 9 * 8 * 7 + 48);
+        // A patch section: its 16 framing bytes, the lattice (its 40-byte header and two dense
+        // bricks: a tag and 8 × 8 × 7 own coefficients, a tag and 1 × 8 × 7) and its map (48).
+        let records = (1 + 4 * 8 * 8 * 7) + (1 + 4 * 8 * 7);
+        let second_patch = HEADER_LEN + (16 + meta_len) + (16 + 40 + records + 48);
+        assert_eq!(sections(&bytes)[2], (PATCH, second_patch));
         let mut bad = bytes.clone();
         bad[second_patch + 12 + 60] ^= 1;
         match decode(&bad, Path::new("mem")).unwrap_err() {
@@ -1171,5 +1483,394 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(err.contains("PTCH") && err.contains("invertible"), "{err}");
+    }
+    /// Every section's tag and the byte it starts at.
+    fn sections(bytes: &[u8]) -> Vec<([u8; 4], usize)> {
+        let mut out = Vec::new();
+        let mut pos = HEADER_LEN;
+        while pos + 12 <= bytes.len() {
+            let tag: [u8; 4] = bytes[pos..pos + 4].try_into().unwrap();
+            let len = u64::from_le_bytes(bytes[pos + 4..pos + 12].try_into().unwrap()) as usize;
+            out.push((tag, pos));
+            pos += 12 + len + 4;
+        }
+        out
+    }
+
+    /// `bytes` with the payload of section `index` replaced by `payload`, its length and
+    /// checksum made to match (what a hostile writer can do).
+    fn with_payload(bytes: &[u8], index: usize, payload: &[u8]) -> Vec<u8> {
+        let (tag, pos) = sections(bytes)[index];
+        let len = u64::from_le_bytes(bytes[pos + 4..pos + 12].try_into().unwrap()) as usize;
+        let mut out = bytes[..pos].to_vec();
+        out.extend_from_slice(&tag);
+        out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+        out.extend_from_slice(payload);
+        let crc = crc32fast::hash(&out[pos..]);
+        out.extend_from_slice(&crc.to_le_bytes());
+        out.extend_from_slice(&bytes[pos + 12 + len + 4..]);
+        out
+    }
+
+    /// A lattice header of format 4 (dims, spacing, origin, iso, brick count).
+    fn bricked_header(dims: [u32; 3], bricks: u64) -> Vec<u8> {
+        let mut out = Vec::new();
+        for d in dims {
+            out.extend_from_slice(&d.to_le_bytes());
+        }
+        for v in [0.1_f32, 0.0, 0.0, 0.0, 0.5] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&bricks.to_le_bytes());
+        out
+    }
+
+    fn run_record(bricks: u32, value: f32) -> Vec<u8> {
+        let mut out = vec![UNIFORM_RUN];
+        out.extend_from_slice(&bricks.to_le_bytes());
+        out.extend_from_slice(&value.to_le_bytes());
+        out
+    }
+
+    /// A ball of clay: density 1 inside, 0 outside, a band of a few knot spans between, so
+    /// the bricks far from the surface are uniform and those near it dense.
+    fn ball(dims: [usize; 3], spacing: f32) -> BSplineLattice {
+        let mut l = BSplineLattice::zeros(dims, spacing, Vec3::ZERO).unwrap();
+        let centre = Vec3::from_array(dims.map(|n| n as f32)) * spacing * 0.5;
+        let radius = 0.35 * dims[0] as f32 * spacing;
+        let [nx, ny, _] = dims;
+        l.coeffs.update_each(|n, c| {
+            let at = Vec3::new(
+                (n % nx) as f32,
+                ((n / nx) % ny) as f32,
+                (n / (nx * ny)) as f32,
+            ) * spacing;
+            *c = ((radius - at.distance(centre)) / (3.0 * spacing) + 0.5).clamp(0.0, 1.0);
+        });
+        l
+    }
+
+    /// A sculpted clay: a ball, a stroke removed from the base, a detail patch refined over
+    /// part of it with a lump added there, paint over another part, a freeze mask and pins.
+    fn sculpted_session() -> Session {
+        use crate::tools::{ApplyOptions, GeometricTool, ToolPose, apply_tool};
+        let mut clay = Clay::single(ball([40, 36, 44], 0.1));
+        let top = Vec3::new(2.0, 1.8, 2.2 + 0.35 * 4.0);
+        let tool = |shape, action| GeometricTool {
+            shape,
+            action,
+            falloff_fu: 0.15,
+        };
+        let remove = tool(ToolShape::Sphere { radius_fu: 0.4 }, ToolAction::Remove);
+        for k in 0..4 {
+            let at = top + Vec3::new(0.2 * k as f32, 0.0, 0.0);
+            apply_tool(
+                &mut clay,
+                &remove,
+                &ToolPose::at(at),
+                1.0,
+                &ApplyOptions::default(),
+                None,
+            )
+            .unwrap();
+        }
+        let side = Vec3::new(2.0 + 0.35 * 4.0, 1.8, 2.2);
+        let detail = clay
+            .density
+            .refine(side - Vec3::splat(0.5), side + Vec3::splat(0.5), 2)
+            .unwrap();
+        let add = tool(
+            ToolShape::Sphere { radius_fu: 0.2 },
+            ToolAction::Add {
+                deposit_rate_per_s: 2.0,
+            },
+        );
+        let options = ApplyOptions {
+            patch: u16::try_from(detail).unwrap(),
+            ..ApplyOptions::default()
+        };
+        apply_tool(&mut clay, &add, &ToolPose::at(side), 0.5, &options, None).unwrap();
+        let paint = tool(
+            ToolShape::Sphere { radius_fu: 0.5 },
+            ToolAction::Paint {
+                rgb: [0.8, 0.2, 0.1],
+            },
+        );
+        let front = Vec3::new(2.0, 1.8 - 0.35 * 3.6, 2.2);
+        apply_tool(
+            &mut clay,
+            &paint,
+            &ToolPose::at(front),
+            1.0,
+            &ApplyOptions::default(),
+            None,
+        )
+        .unwrap();
+        let mut mask = FreezeMask::matching(&clay.density).unwrap();
+        for n in 0..mask.patches[0].coeffs.len() {
+            if n % 40 < 12 {
+                mask.patches[0].coeffs.set_flat(n, 1.0);
+            }
+        }
+        mask.patches[1].coeffs.set_flat(17, 0.5);
+        clay.mask = Some(mask);
+        clay.constraints = sample_session().clay.constraints;
+        Session {
+            clay,
+            ..sample_session()
+        }
+    }
+
+    /// Every lattice of the clay, in the order the file holds them.
+    fn clay_lattices(clay: &Clay) -> Vec<&BSplineLattice> {
+        let density = clay.density.patches.iter().map(|p| &p.lattice);
+        let colour = clay.colour.iter().flat_map(|c| c.channels.iter());
+        let mask = clay.mask.iter().flat_map(|m| m.patches.iter());
+        density.chain(colour).chain(mask).collect()
+    }
+
+    #[test]
+    fn a_sculpted_multi_patch_clay_round_trips_coefficient_by_coefficient() {
+        let s = sculpted_session();
+        assert!(s.clay.colour.is_some() && s.clay.mask.is_some());
+        assert_eq!(s.clay.density.patches.len(), 2);
+        let base = &s.clay.density.patches[0].lattice.coeffs;
+        assert!(
+            base.dense_brick_count() > 0 && base.dense_brick_count() < base.brick_count(),
+            "the base holds uniform and dense bricks: {base:?}"
+        );
+        let path = Path::new("sculpted.dclay");
+        for version in [3, BRICKED_VERSION] {
+            let back = decode(&encode_version(&s, version).unwrap(), path).unwrap();
+            assert_eq!(back, s, "version {version}");
+            let (saved, loaded) = (clay_lattices(&s.clay), clay_lattices(&back.clay));
+            assert_eq!(saved.len(), 2 + 4 + 2);
+            assert_eq!(saved.len(), loaded.len());
+            for (n, (a, b)) in saved.iter().zip(&loaded).enumerate() {
+                assert_eq!(
+                    (a.dims, a.spacing, a.origin, a.iso),
+                    (b.dims, b.spacing, b.origin, b.iso)
+                );
+                for (c, (x, y)) in a.coeffs.iter().zip(b.coeffs.iter()).enumerate() {
+                    assert_eq!(x.to_bits(), y.to_bits(), "lattice {n} coefficient {c}");
+                }
+                // Nothing is denser than what was saved.
+                assert!(b.coeffs.dense_brick_count() <= a.coeffs.dense_brick_count());
+            }
+            for (a, b) in s
+                .clay
+                .density
+                .patches
+                .iter()
+                .zip(&back.clay.density.patches)
+            {
+                assert_eq!(a.world_to_patch, b.world_to_patch);
+            }
+            assert_eq!(back.clay.constraints, s.clay.constraints);
+            assert_eq!(back.clay.mask, s.clay.mask);
+            assert_eq!(back.clay.colour, s.clay.colour);
+            // The loaded clay samples as the saved one does (the aprons were rebuilt).
+            for k in 0..20 {
+                let x = Vec3::new(0.3 + 0.17 * k as f32, 1.8, 0.4 + 0.19 * k as f32);
+                assert_eq!(
+                    back.clay.density.value_and_gradient(x),
+                    s.clay.density.value_and_gradient(x)
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_large_mostly_uniform_clay_is_much_smaller_in_version_4() {
+        let s = Session {
+            clay: Clay::single(ball([128, 128, 128], 0.05)),
+            ..Session::default()
+        };
+        let v3 = encode_version(&s, 3).unwrap().len();
+        let v4 = encode(&s).unwrap().len();
+        // Version 3 holds every coefficient; version 4 only the bricks near the surface.
+        assert!(v3 > 4 * 128 * 128 * 128, "{v3}");
+        let ratio = v3 as f64 / v4 as f64;
+        assert!(ratio > 5.0, "version 3: {v3} bytes, version 4: {v4} bytes");
+        assert_eq!(
+            decode(&encode(&s).unwrap(), Path::new("ball.dclay")).unwrap(),
+            s
+        );
+    }
+
+    /// The session of `core/src/io/testdata/session_v3.dclay`: two patches (one under a
+    /// turned, scaled map), colour, pins, a freeze mask, a material grid and three tools.
+    fn version_3_fixture_session() -> Session {
+        let mut s = sample_session();
+        let mut mask = FreezeMask::matching(&s.clay.density).unwrap();
+        mask.patches[0].coeffs.set_flat(7, 1.0);
+        mask.patches[1].coeffs.set_flat(3, 0.25);
+        s.clay.mask = Some(mask);
+        s
+    }
+
+    const VERSION_3_FIXTURE: &[u8] = include_bytes!("testdata/session_v3.dclay");
+
+    /// Writes the fixture again (run by hand: `cargo test -p dynaclay-core --lib
+    /// write_the_version_3_fixture -- --ignored`); a version 3 file must never change.
+    #[test]
+    #[ignore = "writes core/src/io/testdata/session_v3.dclay"]
+    fn write_the_version_3_fixture() {
+        let bytes = encode_version(&version_3_fixture_session(), 3).unwrap();
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/io/testdata/session_v3.dclay");
+        std::fs::write(path, bytes).unwrap();
+    }
+
+    #[test]
+    fn a_version_3_file_written_by_an_older_build_still_loads() {
+        assert_eq!(
+            u32::from_le_bytes(VERSION_3_FIXTURE[8..12].try_into().unwrap()),
+            3
+        );
+        let back = decode(VERSION_3_FIXTURE, Path::new("session_v3.dclay")).unwrap();
+        assert_eq!(back, version_3_fixture_session());
+        // Saved again it is a version 4 file that reads back the same.
+        let again = encode(&back).unwrap();
+        assert_eq!(
+            u32::from_le_bytes(again[8..12].try_into().unwrap()),
+            FORMAT_VERSION
+        );
+        assert_eq!(decode(&again, Path::new("again.dclay")).unwrap(), back);
+    }
+
+    #[test]
+    fn hostile_lattice_headers_are_refused_before_anything_is_allocated() {
+        let good = encode(&sample_session()).unwrap();
+        let path = Path::new("hostile.dclay");
+        assert_eq!(sections(&good)[1].0, PATCH);
+        let refused = |payload: Vec<u8>| -> String {
+            match decode(&with_payload(&good, 1, &payload), path) {
+                Err(e @ SessionError::Malformed { .. }) => e.to_string(),
+                other => panic!("{other:?}"),
+            }
+        };
+        // 2^60 coefficients in one run of uniform bricks: over the clay's budget.
+        let huge = [1_u32 << 20; 3];
+        let mut payload = bricked_header(huge, 1 << 51);
+        payload.extend(run_record(u32::MAX, 1.0));
+        let err = refused(payload);
+        assert!(
+            err.contains("PTCH") && err.contains(&format!("at most {MAX_CLAY_COEFFS}")),
+            "{err}"
+        );
+        // A coefficient count that overflows.
+        let err = refused(bricked_header([u32::MAX; 3], 0));
+        assert!(err.contains("overflows"), "{err}");
+        // A brick count that is not the dims'.
+        let err = refused(bricked_header([16, 16, 16], 9));
+        assert!(
+            err.contains("has 8 bricks") && err.contains("says 9"),
+            "{err}"
+        );
+        // A run longer than the bricks left.
+        let mut payload = bricked_header([16, 16, 16], 8);
+        payload.extend(run_record(3, 0.0));
+        payload.extend(run_record(6, 1.0));
+        let err = refused(payload);
+        assert!(
+            err.contains("run of 6") && err.contains("5 bricks are left"),
+            "{err}"
+        );
+        // A run of no bricks, a non-finite value and an unknown record.
+        let mut payload = bricked_header([16, 16, 16], 8);
+        payload.extend(run_record(0, 0.0));
+        assert!(refused(payload).contains("run of 0"));
+        let mut payload = bricked_header([16, 16, 16], 8);
+        payload.extend(run_record(8, f32::INFINITY));
+        assert!(refused(payload).contains("not a finite number"));
+        let mut payload = bricked_header([16, 16, 16], 8);
+        payload.push(7);
+        assert!(refused(payload).contains("brick record 7"));
+        // A dense brick whose values the section does not hold.
+        let mut payload = bricked_header([16, 16, 16], 8);
+        payload.push(DENSE_BRICK);
+        payload.extend_from_slice(&[0; 64]);
+        let err = refused(payload);
+        assert!(err.contains("needs 2048 more bytes"), "{err}");
+        // A colour channel over the budget.
+        let colour = sections(&good)
+            .iter()
+            .position(|(t, _)| *t == COLOUR)
+            .unwrap();
+        let mut payload = bricked_header(huge, 1 << 51);
+        payload.extend(run_record(u32::MAX, 0.0));
+        let err = decode(&with_payload(&good, colour, &payload), path)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("COLR") && err.contains("colour channel"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn a_mask_of_other_dims_is_refused_before_its_bricks_are_read() {
+        let s = version_3_fixture_session();
+        let good = encode(&s).unwrap();
+        let mask = sections(&good)
+            .iter()
+            .position(|(t, _)| *t == MASK)
+            .unwrap();
+        let mut payload = 2_u32.to_le_bytes().to_vec();
+        // A mask over patch 0 of 2^40 coefficients, then nothing.
+        payload.extend(bricked_header([1 << 20, 1 << 20, 4], 1 << 34));
+        let err = decode(&with_payload(&good, mask, &payload), Path::new("m.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("MASK") && err.contains("patch 0") && err.contains("dims"),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn only_the_versions_this_build_reads_are_written() {
+        let s = sample_session();
+        for version in [0, FORMAT_VERSION + 1] {
+            let err = encode_version(&s, version).unwrap_err().to_string();
+            assert!(err.contains(&format!("format version {version}")), "{err}");
+        }
+        for version in 1..=FORMAT_VERSION {
+            let bytes = encode_version(&s, version).unwrap();
+            assert_eq!(
+                u32::from_le_bytes(bytes[8..12].try_into().unwrap()),
+                version
+            );
+            decode(&bytes, Path::new("v.dclay")).unwrap();
+        }
+    }
+
+    #[test]
+    fn a_clay_at_the_edge_of_the_budget_saves_and_loads() {
+        // One patch of exactly MAX_CLAY_COEFFS coefficients (a 512 × 512 × 256 box of empty
+        // space and a small ball): refine and growth admit it, so loading must.
+        let dims = [512, 512, 256];
+        assert_eq!(dims.iter().product::<usize>(), MAX_CLAY_COEFFS);
+        let mut l = BSplineLattice::zeros(dims, 0.01, Vec3::ZERO).unwrap();
+        for n in 0..64 {
+            l.coeffs
+                .set(250 + n % 4, 250 + (n / 4) % 4, 120 + n / 16, 1.0);
+        }
+        let s = Session {
+            clay: Clay::single(l),
+            ..Session::default()
+        };
+        let bytes = encode(&s).unwrap();
+        assert!(bytes.len() < 1 << 20, "{} bytes", bytes.len());
+        let back = decode(&bytes, Path::new("edge.dclay")).unwrap();
+        assert_eq!(back, s);
+        // One more coefficient of detail would not load, nor would it refine.
+        let mut over = s.clone();
+        let tiny = BSplineLattice::zeros([4, 4, 4], 0.001, Vec3::ZERO).unwrap();
+        over.clay.density.push(tiny, Affine3A::IDENTITY);
+        let err = decode(&encode(&over).unwrap(), Path::new("over.dclay"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(&format!("at most {MAX_CLAY_COEFFS}")), "{err}");
     }
 }

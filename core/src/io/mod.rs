@@ -17,7 +17,7 @@ pub use autosave::{
 };
 pub use dynaclay_files::bounded_read;
 pub use error::SessionError;
-pub use format::{FORMAT_VERSION, MAGIC, decode, encode};
+pub use format::{FORMAT_VERSION, MAGIC, decode, encode, encode_version};
 pub use output_rule::{OutputKind, OutputRefused, OutputRule, real_path};
 pub use relief::load_relief;
 pub use script::{
