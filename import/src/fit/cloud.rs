@@ -705,8 +705,8 @@ pub fn sign_cloud(
 /// NOTE: each stray in empty space occupies a cell of its own in the spacing's count of the
 /// surface's cells, and reads as more surface: 5% of a cloud as outliers (about 2 300 of
 /// them dropped as isolated) widened the moving planes by 12–19% over the same cloud's
-/// without them, and gave them a third more neighbours to visit (bench/RESULTS.md, "Import
-/// time: the neighbourhoods").
+/// without them, and gave them a quarter to two fifths more neighbours to visit
+/// (bench/RESULTS.md, "Import time: the neighbourhoods").
 fn kept_spacing(consensus: &Consensus, points: &[Vec3], size: f32, scale: f32) -> f32 {
     if consensus.isolated == 0 {
         return consensus.point_spacing * scale;
@@ -803,9 +803,10 @@ pub const MOST_LISTED_NEIGHBOURS: usize = 48;
 /// Points whose neighbours are counted before the lists are found: where they have over a
 /// quarter more than [`MOST_LISTED_NEIGHBOURS`] on average, the lists are not searched for.
 ///
-/// NOTE: a noisy cloud's lists were searched for until a thread's run went over its budget,
-/// two fifths of a full search each time, for nothing (bench/RESULTS.md, "Import time: the
-/// neighbourhoods").
+/// NOTE: a noisy cloud's lists were searched for until a thread's run went over its budget
+/// (about two fifths of a full search at 1% noise), for nothing, and the lists found so far
+/// were the peak of a million-point import: 182 MB, 137 MB without them (bench/RESULTS.md,
+/// "Import time: the neighbourhoods").
 const LIST_SAMPLES: usize = 512;
 
 /// The points within one radius of each point (itself included), for the stages that visit

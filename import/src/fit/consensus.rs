@@ -504,9 +504,9 @@ fn inlier_bound(median: f32) -> f32 {
 ///
 /// NOTE: decided without finding the median: [`inlier_bound`] never falls as its argument
 /// grows, so the distances whose bound is under the largest distance are the smallest ones,
-/// and the median's bound is under it exactly when more than half of them (`len / 2` or
-/// more, the median's rank) are. Selecting the median for every plane took about 4% of an
-/// import's CPU time, and most planes need no refit (bench/RESULTS.md, "Import time: the
+/// and the median's bound is under it exactly when more than `len / 2` of them (the median's
+/// rank) are. The selection for every plane showed as 3–5% of an import's CPU time in
+/// `perf record`, and most planes need no refit (bench/RESULTS.md, "Import time: the
 /// neighbourhoods").
 fn needs_refit(off: &[f32]) -> bool {
     let mid = off.len() / 2;
@@ -562,9 +562,9 @@ pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
 /// How many of the cubes of side `cell` that a [`PointGrid`] of `points` lays out hold a
 /// point ([`PointGrid::occupied`]), counted from the points' cubes alone.
 ///
-/// NOTE: a grid of the 64³ cubes over the box took some 4 MB for the count, at the import's
-/// peak when the spacing of the kept points is read again (bench/RESULTS.md, "Import time: the
-/// neighbourhoods"); the sorted cube numbers take four bytes a point.
+/// NOTE: a grid of the 64³ cubes over the box took some 4 MB for the count, which the import
+/// now takes twice (the kept points' spacing is read again; bench/RESULTS.md, "Import time:
+/// the neighbourhoods"); the sorted cube numbers take four bytes a point.
 fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
     let (lo, hi) = points
         .iter()
