@@ -75,7 +75,7 @@ use glam::Vec3;
 
 use super::consensus::{
     CELL_OFFER, Consensus, PointGrid, exp_neg, floor_to_i32, least_variance_direction,
-    parallel_map, screen,
+    parallel_map, screen, typical_spacing,
 };
 use super::points::PointCloud;
 use super::regularised::refit_regularised;
@@ -206,12 +206,6 @@ pub struct SignedCloud {
     planes_at_points: Vec<(f32, f32)>,
     /// The points bucketed for the moving planes (see [`NearPoints`]).
     near_points: NearPoints,
-    /// Per point: its plane's bandwidth and weight, set by the local spacing (see
-    /// [`LocalScale`]).
-    local: Vec<LocalScale>,
-    /// Per point: the mean curvature of the surface there, 1 / field units, positive where
-    /// it is convex (see [`point_curvatures`]).
-    curvature: Vec<f32>,
     /// The Gaussian bandwidth of the moving planes where the cloud has its typical spacing,
     /// field units (a point's own is between this and [`MAX_WIDENING`] times it).
     pub bandwidth: f32,
@@ -313,15 +307,7 @@ impl SignedCloud {
         self.distance_and_support_by(x, || match reached {
             // The moving planes' empty sums, as they would add them.
             Reached::None => (0.0, 0.0),
-            _ => moving_planes(
-                &self.near_points,
-                &self.normals,
-                &self.confidence,
-                &self.local,
-                &self.curvature,
-                x,
-                reached == Reached::Every,
-            ),
+            _ => moving_planes(&self.near_points, x, reached == Reached::Every),
         })
     }
 
@@ -386,15 +372,7 @@ impl SignedCloud {
                 let known = self.planes_at_points[i];
                 self.distance_and_support_by(x, || {
                     if known.1.is_nan() {
-                        moving_planes(
-                            &self.near_points,
-                            &self.normals,
-                            &self.confidence,
-                            &self.local,
-                            &self.curvature,
-                            x,
-                            true,
-                        )
+                        moving_planes(&self.near_points, x, true)
                     } else {
                         known
                     }
@@ -583,15 +561,15 @@ pub fn sign_cloud(
     };
     // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
     let noise = consensus.noise * scale;
-    let bandwidth = (BANDWIDTH_SPACINGS * consensus.point_spacing * scale)
+    let point_spacing = kept_spacing(&consensus, &points, extent * scale, scale);
+    let bandwidth = (BANDWIDTH_SPACINGS * point_spacing)
         .max(BANDWIDTH_NOISES * noise)
         .min(spacing);
     // The local spacing is read in 3D: only where the noise is under the spacing (the
     // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
     // sampled rather than how thick the noise is.
     let neighbours = Neighbours::new(&points, MOVING_REACH * bandwidth);
-    let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * consensus.point_spacing * scale
-    {
+    let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * point_spacing {
         local_scales(&local_spacings(&neighbours), bandwidth)
     } else {
         vec![
@@ -603,7 +581,6 @@ pub fn sign_cloud(
         ]
     };
     let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
-    let near_points = NearPoints::new(&points, &local, bandwidth);
     // A given normal its neighbours overrule (a stray that lies on the surface but points
     // anywhere) takes theirs before the smoothing.
     let (normals, overruled_normals) = if signed_by == SignedBy::Normals {
@@ -617,6 +594,14 @@ pub fn sign_cloud(
     drop(raw_normals);
     let curvature = point_curvatures(&neighbours, &normals, &confidence, bandwidth);
     drop(neighbours);
+    let near_points = NearPoints::new(
+        &points,
+        &normals,
+        &confidence,
+        &local,
+        &curvature,
+        bandwidth,
+    );
     // Only the points some node takes its fallback plane from need an anchor.
     let mut wanted = vec![false; points.len()];
     for (&p, d) in nearest.iter().zip(&dist) {
@@ -629,15 +614,7 @@ pub fn sign_cloud(
         if !wanted[i] {
             return (p, (f32::NAN, f32::NAN));
         }
-        let (weighted, weight) = moving_planes(
-            &near_points,
-            &normals,
-            &confidence,
-            &local,
-            &curvature,
-            p,
-            true,
-        );
+        let (weighted, weight) = moving_planes(&near_points, p, true);
         let anchor = if weight > 0.0 {
             p - normal * (weighted / weight)
         } else {
@@ -685,8 +662,6 @@ pub fn sign_cloud(
         anchors,
         planes_at_points,
         near_points,
-        local,
-        curvature,
         bandwidth,
         widest,
         noise,
@@ -721,6 +696,22 @@ pub fn sign_cloud(
         .collect();
     signed.remove_small_pieces();
     Ok(signed)
+}
+
+/// The typical spacing of the kept `points` (field units; `size` their box's longest side,
+/// `scale` field units per file unit): the screening's, found over every point, unless it
+/// dropped isolated points, which are then left out of it.
+///
+/// NOTE: each stray in empty space occupies a cell of its own in the spacing's count of the
+/// surface's cells, and reads as more surface: 5% of a cloud as outliers (about 2 300 of
+/// them dropped as isolated) widened the moving planes by 12–19% over the same cloud's
+/// without them, and gave them a quarter to two fifths more neighbours to visit
+/// (bench/RESULTS.md, "Import time: the neighbourhoods").
+fn kept_spacing(consensus: &Consensus, points: &[Vec3], size: f32, scale: f32) -> f32 {
+    if consensus.isolated == 0 {
+        return consensus.point_spacing * scale;
+    }
+    typical_spacing(points, size)
 }
 
 /// A sample's weight in the regularised fit where no point holds it (beyond the moving
@@ -809,6 +800,15 @@ fn local_spacings(neighbours: &Neighbours<'_>) -> Vec<f32> {
 /// 4 × this bytes per point.
 pub const MOST_LISTED_NEIGHBOURS: usize = 48;
 
+/// Points whose neighbours are counted before the lists are found: where they have over a
+/// quarter more than [`MOST_LISTED_NEIGHBOURS`] on average, the lists are not searched for.
+///
+/// NOTE: a noisy cloud's lists were searched for until a thread's run went over its budget
+/// (about two fifths of a full search at 1% noise), for nothing, and the lists found so far
+/// were the peak of a million-point import: 182 MB, 137 MB without them (bench/RESULTS.md,
+/// "Import time: the neighbourhoods").
+const LIST_SAMPLES: usize = 512;
+
 /// The points within one radius of each point (itself included), for the stages that visit
 /// them for every point in turn (the local spacing, the normals' vote, their smoothing, the
 /// curvature): found by one search per point and kept in lists where they are few enough
@@ -865,6 +865,17 @@ impl NeighbourLists {
             .min(points.len().div_ceil(4096))
             .max(1);
         let run = points.len().div_ceil(threads).max(1);
+        // An even subset (the points are in spatial order) tells a cloud far over the budget
+        // before its lists are searched for.
+        let stride = (points.len() / LIST_SAMPLES).max(1);
+        let (mut sampled, mut found) = (0usize, 0usize);
+        for &p in points.iter().step_by(stride) {
+            grid.for_each_near(p, radius, |_, _| found += 1);
+            sampled += 1;
+        }
+        if 4 * found > 5 * most_per_point.saturating_mul(sampled) {
+            return None;
+        }
         let budget = most_per_point.saturating_mul(run);
         let find_run = |first: usize| {
             let mut starts = vec![0u32];
@@ -971,59 +982,66 @@ fn point_curvatures(
 /// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); the
 /// points at the typical bandwidth are left out unless `typical` (the caller knows none is
 /// within reach).
-fn moving_planes(
-    near: &NearPoints,
-    normals: &[Vec3],
-    confidence: &[f32],
-    local: &[LocalScale],
-    curvature: &[f32],
-    x: Vec3,
-    typical: bool,
-) -> (f32, f32) {
+fn moving_planes(near: &NearPoints, x: Vec3, typical: bool) -> (f32, f32) {
     let mut sums = (0.0f32, 0.0f32);
-    let planes = MovingPlanes {
-        normals,
-        confidence,
-        local,
-        curvature,
-        x,
-    };
     if typical {
         near.typical
-            .for_each_near(x, MOVING_REACH * near.bandwidth, |j, p| {
-                planes.add(&mut sums, j, p);
+            .for_each_slot_near(x, MOVING_REACH * near.bandwidth, |slot, _, p| {
+                near.typical_planes[slot].add(&mut sums, x, p);
             });
     }
     if let Some(widened) = &near.widened {
-        widened.for_each_near(x, MOVING_REACH * near.widest, |j, p| {
-            planes.add(&mut sums, j, p);
+        widened.for_each_slot_near(x, MOVING_REACH * near.widest, |slot, _, p| {
+            near.widened_planes[slot].add(&mut sums, x, p);
         });
     }
     sums
 }
 
-/// The per-point data of the moving planes, and the point `x` they are evaluated at.
-struct MovingPlanes<'a> {
-    normals: &'a [Vec3],
-    confidence: &'a [f32],
-    local: &'a [LocalScale],
-    curvature: &'a [f32],
-    x: Vec3,
+/// One point's moving plane: what its term in the moving planes' sums reads besides its
+/// position, in one record (laid out in its grid's order, so a search reads them in sequence).
+///
+/// NOTE: read from four arrays by the point's index (normals, confidences, scales,
+/// curvatures), the terms took four loads from as many places per neighbour (bench/
+/// RESULTS.md, "Import time: the neighbourhoods"). Each field is the product the sum formed
+/// for itself, so the sums are the same bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct MovingPlane {
+    /// The point's unit outward normal.
+    normal: Vec3,
+    /// Half its curvature, 1 / field units.
+    half_curvature: f32,
+    /// Its confidence times its area weight.
+    weight: f32,
+    /// Its bandwidth squared, field units².
+    bandwidth_squared: f32,
+    /// Its reach ([`MOVING_REACH`] bandwidths) squared, field units².
+    reach_squared: f32,
 }
 
-impl MovingPlanes<'_> {
-    /// Adds point `j` (at `p`)'s term to `(Σ wᵢ dᵢ(x), Σ wᵢ)` if `x` is within its reach.
+impl MovingPlane {
+    fn new(normal: Vec3, confidence: f32, local: LocalScale, curvature: f32) -> Self {
+        let reach = MOVING_REACH * local.bandwidth;
+        Self {
+            normal,
+            half_curvature: 0.5 * curvature,
+            weight: confidence * local.area,
+            bandwidth_squared: local.bandwidth * local.bandwidth,
+            reach_squared: reach * reach,
+        }
+    }
+
+    /// Adds this plane's term (its point at `p`) to `(Σ wᵢ dᵢ(x), Σ wᵢ)` if `x` is within
+    /// its reach.
     #[inline(always)]
-    fn add(&self, (weighted, weight): &mut (f32, f32), j: usize, p: Vec3) {
-        let d = self.x - p;
-        let LocalScale { bandwidth, area } = self.local[j];
-        let reach = MOVING_REACH * bandwidth;
+    fn add(&self, (weighted, weight): &mut (f32, f32), x: Vec3, p: Vec3) {
+        let d = x - p;
         let squared = d.length_squared();
-        if squared <= reach * reach {
-            let w = self.confidence[j] * area * exp_neg(squared / (bandwidth * bandwidth));
-            let height = self.normals[j].dot(d);
+        if squared <= self.reach_squared {
+            let w = self.weight * exp_neg(squared / self.bandwidth_squared);
+            let height = self.normal.dot(d);
             let tangential = (squared - height * height).max(0.0);
-            *weighted += w * (height + 0.5 * self.curvature[j] * tangential);
+            *weighted += w * (height + self.half_curvature * tangential);
             *weight += w;
         }
     }
@@ -1044,8 +1062,12 @@ impl MovingPlanes<'_> {
 struct NearPoints {
     /// The points whose bandwidth is the typical one.
     typical: PointGrid,
+    /// Their planes, in `typical`'s order.
+    typical_planes: Vec<MovingPlane>,
     /// The points whose bandwidth is wider, if any.
     widened: Option<PointGrid>,
+    /// Their planes, in `widened`'s order.
+    widened_planes: Vec<MovingPlane>,
     /// The typical bandwidth `h`, field units.
     bandwidth: f32,
     /// The widest point's bandwidth, field units.
@@ -1053,7 +1075,16 @@ struct NearPoints {
 }
 
 impl NearPoints {
-    fn new(points: &[Vec3], local: &[LocalScale], bandwidth: f32) -> Self {
+    /// The points with their smoothed `normals`, `confidence`, scales `local` and
+    /// `curvature`, at the typical `bandwidth`.
+    fn new(
+        points: &[Vec3],
+        normals: &[Vec3],
+        confidence: &[f32],
+        local: &[LocalScale],
+        curvature: &[f32],
+        bandwidth: f32,
+    ) -> Self {
         let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
         let is_typical = |i: usize| local[i].bandwidth <= bandwidth;
         let typical = PointGrid::new(
@@ -1070,7 +1101,18 @@ impl NearPoints {
                 WIDE_CELL_OFFER,
             )
         });
+        let planes_of = |grid: &PointGrid| -> Vec<MovingPlane> {
+            grid.members()
+                .iter()
+                .map(|&j| {
+                    let j = j as usize;
+                    MovingPlane::new(normals[j], confidence[j], local[j], curvature[j])
+                })
+                .collect()
+        };
         Self {
+            typical_planes: planes_of(&typical),
+            widened_planes: widened.as_ref().map_or_else(Vec::new, planes_of),
             typical,
             widened,
             bandwidth,
@@ -1846,8 +1888,6 @@ mod tests {
                 area: if p.x < 30.0 { 1.0 } else { 4.0 },
             })
             .collect();
-        let near = NearPoints::new(&points, &local, bandwidth);
-        assert!(near.widened.is_some() && near.widest == 2.0 * bandwidth);
         let normals: Vec<Vec3> = points
             .iter()
             .map(|p| Vec3::new(-0.2 * (0.2 * p.x).cos(), 0.0, 1.0).normalize())
@@ -1856,14 +1896,49 @@ mod tests {
             .map(|i| 0.5 + (i % 7) as f32 / 14.0)
             .collect();
         let curvature: Vec<f32> = points.iter().map(|p| 0.04 * (0.2 * p.x).sin()).collect();
+        let near = NearPoints::new(
+            &points,
+            &normals,
+            &confidence,
+            &local,
+            &curvature,
+            bandwidth,
+        );
+        assert!(near.widened.is_some() && near.widest == 2.0 * bandwidth);
+        // Each point's term as the sums formed it from the per-point arrays, in the grids'
+        // order: the records give the same sums bit for bit.
+        let by_arrays = |x: Vec3| {
+            let mut sums = (0.0f32, 0.0f32);
+            let mut add = |j: usize, p: Vec3| {
+                let d = x - p;
+                let LocalScale { bandwidth, area } = local[j];
+                let reach = MOVING_REACH * bandwidth;
+                let squared = d.length_squared();
+                if squared <= reach * reach {
+                    let w = confidence[j] * area * exp_neg(squared / (bandwidth * bandwidth));
+                    let height = normals[j].dot(d);
+                    let tangential = (squared - height * height).max(0.0);
+                    sums.0 += w * (height + 0.5 * curvature[j] * tangential);
+                    sums.1 += w;
+                }
+            };
+            near.typical
+                .for_each_near(x, MOVING_REACH * near.bandwidth, &mut add);
+            if let Some(widened) = &near.widened {
+                widened.for_each_near(x, MOVING_REACH * near.widest, &mut add);
+            }
+            sums
+        };
         for probe in 0..300 {
             let x = Vec3::new(
                 (probe as f32 * 0.37) % 120.0,
                 (probe as f32 * 1.13) % 80.0,
                 ((probe % 5) as f32 - 2.0) * 0.7,
             );
-            let (weighted, weight) =
-                moving_planes(&near, &normals, &confidence, &local, &curvature, x, true);
+            let (weighted, weight) = moving_planes(&near, x, true);
+            let (plain_weighted, plain_weight) = by_arrays(x);
+            assert_eq!(weighted.to_bits(), plain_weighted.to_bits(), "at {x}");
+            assert_eq!(weight.to_bits(), plain_weight.to_bits(), "at {x}");
             let (mut full_weighted, mut full_weight) = (0.0f64, 0.0f64);
             for j in 0..points.len() {
                 let d = x - points[j];
@@ -1981,6 +2056,45 @@ mod tests {
         }
     }
 
+    #[test]
+    fn strays_in_empty_space_do_not_widen_the_moving_planes() {
+        // A sphere of 20 000 points, and the same with 15% strays spread through its box
+        // (isolated, so dropped): the kept points are the same surface, sampled as densely,
+        // and their planes get the same bandwidth.
+        let clean = sphere_cloud(20_000, 3.0);
+        let mut noisy = clean.clone();
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let strays = 3_000;
+        for _ in 0..strays {
+            let p = Vec3::new(uniform(), uniform(), uniform()) * 6.0 - Vec3::splat(3.0);
+            noisy.points.push(p * 0.9);
+            if let Some(normals) = &mut noisy.normals {
+                normals.push(p.normalize_or(Vec3::Y));
+            }
+        }
+        let options = CloudFitOptions::default();
+        let with = sign_cloud(&clean, &options).unwrap();
+        let without = sign_cloud(&noisy, &options).unwrap();
+        assert!(
+            without.consensus.isolated > strays / 2,
+            "{} isolated",
+            without.consensus.isolated
+        );
+        // Both in their own field units: the kept points span the same box. (Counted over
+        // every point, the strays' cells took the spacing, and the bandwidth, 2.6% wider.)
+        let ratio = (without.bandwidth / without.scale) / (with.bandwidth / with.scale);
+        assert!(
+            (ratio - 1.0).abs() < 0.01,
+            "bandwidth {ratio} times the clean cloud's"
+        );
+    }
+
     /// The fitted surface's distance from the centre along `dir`, by bisection.
     fn radius_along(lattice: &BSplineLattice, centre: Vec3, dir: Vec3, reach: f32) -> f32 {
         let (mut a, mut b) = (0.0, reach);
@@ -2028,7 +2142,13 @@ mod tests {
             "the bandwidth is wide enough to matter: {h} / {r}"
         );
         // Each point reads the sphere's curvature from its neighbours' normals.
-        let mut curvature = signed.curvature.clone();
+        let near = &signed.near_points;
+        let mut curvature: Vec<f32> = near
+            .typical_planes
+            .iter()
+            .chain(&near.widened_planes)
+            .map(|plane| 2.0 * plane.half_curvature)
+            .collect();
         let mid = curvature.len() / 2;
         let median = *curvature.select_nth_unstable_by(mid, f32::total_cmp).1;
         assert!(

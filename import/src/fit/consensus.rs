@@ -162,6 +162,25 @@ impl PointGrid {
     /// visits are the same as a scan of every cell, in the same order, with fewer distance
     /// tests.
     pub fn for_each_near(&self, x: Vec3, radius: f32, mut visit: impl FnMut(usize, Vec3)) {
+        self.for_each_slot_near(x, radius, |_, index, position| visit(index, position));
+    }
+
+    /// The points in the order the grid holds them: per slot, the index of its point.
+    #[must_use]
+    pub fn members(&self) -> &[u32] {
+        &self.members
+    }
+
+    /// [`PointGrid::for_each_near`], each visit also told the point's slot in
+    /// [`PointGrid::members`] (`visit(slot, index, position)`): data laid out in the grid's
+    /// order is read in sequence.
+    #[inline]
+    pub fn for_each_slot_near(
+        &self,
+        x: Vec3,
+        radius: f32,
+        mut visit: impl FnMut(usize, usize, Vec3),
+    ) {
         let u = (x - self.origin) / self.cell;
         let r2 = radius * radius;
         // The reach in cells, widened by a hair so that rounding in the cell of a point (its
@@ -209,7 +228,7 @@ impl PointGrid {
                     }
                     for &k in &within[..count] {
                         let at = first + usize::from(k);
-                        visit(self.members[at] as usize, self.positions[at]);
+                        visit(at, self.members[at] as usize, self.positions[at]);
                     }
                 }
             }
@@ -445,21 +464,21 @@ struct Plane {
     neighbours: usize,
 }
 
-fn plane_of(near: &[Vec3]) -> Option<Plane> {
+fn plane_of(near: &[Vec3], off: &mut Vec<f32>) -> Option<Plane> {
     let first = principal_plane(near.iter().copied())?;
     // Robust second pass: refit to the neighbours within three robust deviations (the median
     // absolute distance) of the first plane, so that a few strays among the neighbours do not
     // tilt the plane or inflate its scatter.
-    let mut off: Vec<f32> = near
-        .iter()
-        .map(|&q| (q - first.centre).dot(first.normal).abs())
-        .collect();
-    let mid = off.len() / 2;
-    let mad = *off.select_nth_unstable_by(mid, f32::total_cmp).1 * 1.4826;
-    let keep = 3.0 * mad.max(f32::MIN_POSITIVE);
-    if off[mid..].iter().all(|&d| d <= keep) {
+    off.clear();
+    off.extend(
+        near.iter()
+            .map(|&q| (q - first.centre).dot(first.normal).abs()),
+    );
+    if !needs_refit(off) {
         return Some(first);
     }
+    let mid = off.len() / 2;
+    let keep = inlier_bound(*off.select_nth_unstable_by(mid, f32::total_cmp).1);
     let inliers = near
         .iter()
         .copied()
@@ -469,6 +488,36 @@ fn plane_of(near: &[Vec3]) -> Option<Plane> {
         neighbours: near.len(),
         ..refit
     })
+}
+
+/// The farthest a neighbour may lie from the first plane to be kept for the refit, given the
+/// median of the neighbours' distances to it: three robust deviations (`1.4826 ×` the median
+/// absolute distance).
+#[inline]
+fn inlier_bound(median: f32) -> f32 {
+    let mad = median * 1.4826;
+    3.0 * mad.max(f32::MIN_POSITIVE)
+}
+
+/// Whether some of the distances `off` (to the first plane) lie beyond [`inlier_bound`] of
+/// their median, so the plane is fitted again to the others; `off` is left as it was.
+///
+/// NOTE: decided without finding the median: [`inlier_bound`] never falls as its argument
+/// grows, so the distances whose bound is under the largest distance are the smallest ones,
+/// and the median's bound is under it exactly when more than `len / 2` of them (the median's
+/// rank) are. The selection for every plane showed as 3–5% of an import's CPU time in
+/// `perf record`, and most planes need no refit (bench/RESULTS.md, "Import time: the
+/// neighbourhoods").
+fn needs_refit(off: &[f32]) -> bool {
+    let mid = off.len() / 2;
+    if off.iter().any(|d| !d.is_finite()) {
+        // The median by the total order, as the refit finds it.
+        let mut sorted = off.to_vec();
+        let keep = inlier_bound(*sorted.select_nth_unstable_by(mid, f32::total_cmp).1);
+        return !sorted[mid..].iter().all(|&d| d <= keep);
+    }
+    let widest = off.iter().fold(0.0f32, |a, &d| a.max(d));
+    off.iter().filter(|&&d| inlier_bound(d) < widest).count() > mid
 }
 
 /// The least-squares plane through the points `near` (at least three).
@@ -506,9 +555,32 @@ fn principal_plane(near: impl Iterator<Item = Vec3> + Clone) -> Option<Plane> {
 #[must_use]
 pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
     let coarse = size / 64.0;
-    let occupied = PointGrid::new(points, |_| true, coarse, 1).occupied();
-    let area = occupied as f32 * coarse * coarse;
+    let area = occupied_cubes(points, coarse) as f32 * coarse * coarse;
     (area / points.len().max(1) as f32).sqrt()
+}
+
+/// How many of the cubes of side `cell` that a [`PointGrid`] of `points` lays out hold a
+/// point ([`PointGrid::occupied`]), counted from the points' cubes alone.
+///
+/// NOTE: a grid of the 64³ cubes over the box took some 4 MB for the count, which the import
+/// now takes twice (the kept points' spacing is read again; bench/RESULTS.md, "Import time:
+/// the neighbourhoods"); the sorted cube numbers take four bytes a point.
+fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
+    let (lo, hi) = points
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let (lo, hi) = if lo.x.is_finite() {
+        (lo, hi)
+    } else {
+        (Vec3::ZERO, Vec3::ZERO)
+    };
+    let cubes = Cubes::covering(lo, hi, cell);
+    let mut numbers: Vec<u32> = points.iter().map(|&p| cubes.cube_of(p) as u32).collect();
+    numbers.sort_unstable();
+    numbers.dedup();
+    numbers.len()
 }
 
 /// Screens `points` (see the module docs). `size` is the object's size (its box's longest
@@ -712,16 +784,24 @@ fn fit_planes(
 
 /// Point `i`'s neighbours' plane (itself left out) and its distance to it.
 fn plane_at(points: &[Vec3], grid: &PointGrid, radius: f32, i: usize) -> Option<(Plane, f32)> {
+    thread_local! {
+        /// The neighbours' positions and their distances to the first plane, kept per thread
+        /// across the planes it fits.
+        static SCRATCH: std::cell::RefCell<(Vec<Vec3>, Vec<f32>)> =
+            const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    }
     let p = points[i];
-    let mut near = Vec::with_capacity(2 * NEIGHBOURS as usize);
-    grid.for_each_near(p, radius, |j, q| {
-        if j != i {
-            near.push(q);
-        }
-    });
-    plane_of(&near).map(|plane| {
-        let off = (p - plane.centre).dot(plane.normal).abs();
-        (plane, off)
+    SCRATCH.with_borrow_mut(|(near, off)| {
+        near.clear();
+        grid.for_each_near(p, radius, |j, q| {
+            if j != i {
+                near.push(q);
+            }
+        });
+        plane_of(near, off).map(|plane| {
+            let off = (p - plane.centre).dot(plane.normal).abs();
+            (plane, off)
+        })
     })
 }
 
@@ -1089,5 +1169,105 @@ mod tests {
         // A given noise level is used as given.
         let given = screen(&points, 300.0, Some(0.1));
         assert!(given.noise_given && given.noise == 0.1);
+    }
+
+    /// The robust plane as it was fitted before [`needs_refit`]: the median found by
+    /// selection for every plane.
+    fn plane_by_selected_median(near: &[Vec3]) -> Option<Plane> {
+        let first = principal_plane(near.iter().copied())?;
+        let mut off: Vec<f32> = near
+            .iter()
+            .map(|&q| (q - first.centre).dot(first.normal).abs())
+            .collect();
+        let mid = off.len() / 2;
+        let keep = inlier_bound(*off.select_nth_unstable_by(mid, f32::total_cmp).1);
+        if off[mid..].iter().all(|&d| d <= keep) {
+            return Some(first);
+        }
+        let inliers = near
+            .iter()
+            .copied()
+            .filter(|&q| (q - first.centre).dot(first.normal).abs() <= keep);
+        let refit = principal_plane(inliers).unwrap_or(first);
+        Some(Plane {
+            neighbours: near.len(),
+            ..refit
+        })
+    }
+
+    #[test]
+    fn the_refit_is_decided_as_by_the_selected_median() {
+        // Neighbourhoods of 3 to 60 points on a tilted, curved, noisy patch, some with strays
+        // off it, some flat to the last bit (every distance 0), some with repeated points.
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (mut refitted, mut kept) = (0, 0);
+        let mut off = Vec::new();
+        for case in 0..4000 {
+            let count = 3 + case % 58;
+            let noise = [0.0, 0.001, 0.02, 0.1][case % 4];
+            let bend = [0.0, 0.3][(case / 4) % 2];
+            let mut near: Vec<Vec3> = (0..count)
+                .map(|_| {
+                    let (u, v) = (uniform() * 2.0 - 1.0, uniform() * 2.0 - 1.0);
+                    let h = bend * u * u + noise * (uniform() - 0.5);
+                    Vec3::new(u, v + 0.5 * h, h + 0.2 * u)
+                })
+                .collect();
+            for _ in 0..(case / 8) % 4 {
+                let at = (uniform() * count as f32) as usize % count;
+                near[at].z += 0.5 + uniform();
+            }
+            if case % 7 == 0 {
+                let copy = near[0];
+                near[count / 2] = copy;
+            }
+            let plane = plane_of(&near, &mut off);
+            let reference = plane_by_selected_median(&near);
+            match (plane, reference) {
+                (Some(a), Some(b)) => {
+                    assert_eq!(a.centre, b.centre, "case {case}");
+                    assert_eq!(a.normal, b.normal, "case {case}");
+                    assert_eq!(a.rms.to_bits(), b.rms.to_bits(), "case {case}");
+                    assert_eq!(a.neighbours, b.neighbours, "case {case}");
+                }
+                (None, None) => {}
+                _ => panic!("case {case}: one plane and not the other"),
+            }
+            let first = principal_plane(near.iter().copied()).unwrap();
+            let distances: Vec<f32> = near
+                .iter()
+                .map(|&q| (q - first.centre).dot(first.normal).abs())
+                .collect();
+            if needs_refit(&distances) {
+                refitted += 1;
+            } else {
+                kept += 1;
+            }
+        }
+        // Both outcomes are exercised.
+        assert!(
+            refitted > 500 && kept > 500,
+            "{refitted} refitted, {kept} kept"
+        );
+    }
+
+    #[test]
+    fn the_occupied_cubes_are_the_grids_occupied_cells() {
+        for (points, cell) in [
+            (noisy_square(60, 0.3), 1.7),
+            (noisy_square(40, 0.05), 0.4),
+            (noisy_square(30, 2.0), 6.0),
+            (vec![Vec3::ONE; 5], 1.0),
+            (Vec::new(), 1.0),
+        ] {
+            let grid = PointGrid::new(&points, |_| true, cell, 1);
+            assert_eq!(occupied_cubes(&points, cell), grid.occupied());
+        }
     }
 }
