@@ -71,7 +71,7 @@ use dynaclay_core::dynamics::{
     ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolBody, ToolForce,
 };
 use dynaclay_core::field::{
-    BSplineLattice, CoeffBox, MultiPatchField, RegionSnapshot, coeff_box_around,
+    BSplineLattice, CoeffBox, MultiPatchField, RefusedFolds, RegionSnapshot, coeff_box_around,
 };
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
@@ -290,6 +290,8 @@ pub struct SimulationStage {
     graphics_wake: Option<WakeBell>,
     /// The clay changed since the last publication (a region step, a marked box).
     changed_since_publish: bool,
+    /// The folds of detail patches found refused, by their inputs (see `detail.rs`).
+    refused_folds: RefusedFolds,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -398,6 +400,7 @@ impl SimulationStage {
             track: stamps::StrokeTrack::default(),
             graphics_wake: None,
             changed_since_publish: false,
+            refused_folds: RefusedFolds::default(),
         }
     }
 

@@ -414,26 +414,38 @@ impl BSplineLattice {
 
     fn stencil(&self, x: Vec3) -> Option<Stencil> {
         let u = self.to_lattice(x);
-        if !u.is_finite() {
-            return None;
-        }
-        let base = u.floor();
-        // Beyond two spans outside the lattice every basis function is zero.
-        let n = [
+        // Beyond two spans outside the lattice every basis function is zero: no stencil where
+        // `floor(u) < -3` or `floor(u) > n + 1`, that is where `u < -3` or `u ≥ n + 2` (n a whole
+        // number), checked on `u` itself so that a point away from this lattice (most points
+        // for most patches of a clay) costs no floor. A NaN or infinite `u` fails it too.
+        let n = Vec3::new(
             self.dims[0] as f32,
             self.dims[1] as f32,
             self.dims[2] as f32,
-        ];
-        for axis in 0..3 {
-            if base[axis] < -3.0 || base[axis] > n[axis] + 1.0 {
-                return None;
-            }
+        );
+        if !(u.cmpge(Vec3::splat(-3.0)).all() && u.cmplt(n + 2.0).all()) {
+            return None;
         }
+        let base = Vec3::new(
+            floor_near_lattice(u.x),
+            floor_near_lattice(u.y),
+            floor_near_lattice(u.z),
+        );
         Some(Stencil {
             first: [base.x as i64 - 1, base.y as i64 - 1, base.z as i64 - 1],
             t: u - base,
         })
     }
+}
+
+/// `u.floor()`, bit for bit, for `u` in `-3 .. 2^24` (a point within reach of a lattice, in
+/// its knot spans), without a call to `floorf` (x86-64's baseline has no rounding
+/// instruction): truncate, step down where that rounded a negative value up, and keep the
+/// sign of a zero.
+#[inline]
+fn floor_near_lattice(u: f32) -> f32 {
+    let t = u as i32 as f32;
+    if t > u { t - 1.0 } else { t.copysign(u) }
 }
 
 /// The 4×4×4 block of coefficients that influences one point.
@@ -456,6 +468,60 @@ impl Stencil {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_floor_near_a_lattice_is_the_floor_bit_for_bit() {
+        let mut us = vec![-0.0, 0.0, -3.0, 16_777_215.0, 8_388_607.5, 8_388_608.0];
+        for n in -3_i32..300 {
+            let whole = n as f32;
+            us.extend([whole, whole + 0.5, whole + 0.25, whole - 0.75]);
+            // The floats next to each whole number, either side.
+            us.push(f32::from_bits(whole.to_bits() + 1));
+            if n != 0 {
+                us.push(f32::from_bits(whole.to_bits() - 1));
+            }
+        }
+        us.extend((1..1000).map(|n| n as f32 * 1234.567));
+        for u in us.into_iter().filter(|&u| u >= -3.0) {
+            assert_eq!(
+                floor_near_lattice(u).to_bits(),
+                u.floor().to_bits(),
+                "floor of {u}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_point_two_spans_past_the_lattice_is_zero_and_one_just_inside_is_not() {
+        let lattice =
+            BSplineLattice::from_coeffs([5, 6, 7], 0.5, Vec3::new(1.0, -2.0, 0.25), vec![1.0; 210])
+                .unwrap();
+        let (lo, hi) = lattice.support();
+        let middle = 0.5 * (lo + hi);
+        for axis in 0..3 {
+            let mut e = Vec3::ZERO;
+            e[axis] = 1e-3;
+            for (edge, out) in [(lo, -e), (hi, e)] {
+                let mut at = middle;
+                at[axis] = edge[axis];
+                assert_eq!(lattice.value(at + out), 0.0, "past {at} along {axis}");
+                assert_eq!(lattice.value_and_gradient(at + out), (0.0, Vec3::ZERO));
+                assert!(lattice.value(at - out) > 0.0, "inside {at} along {axis}");
+            }
+        }
+        let spans_out = |spans: f32| hi + Vec3::splat(spans * lattice.spacing);
+        for far in [
+            spans_out(0.7),
+            spans_out(1.2),
+            lo - Vec3::splat(0.7 * lattice.spacing),
+            Vec3::splat(1e30),
+            Vec3::splat(-1e30),
+            Vec3::NAN,
+            Vec3::INFINITY,
+        ] {
+            assert_eq!(lattice.value(far), 0.0, "at {far}");
+        }
+    }
 
     #[test]
     fn values_on_a_grid_are_the_values_point_by_point_bit_for_bit() {

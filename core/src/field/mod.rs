@@ -28,8 +28,8 @@ pub use bricks::{
     DENSE_BRICK_VALUES, OwnedBrick, Values,
 };
 pub use coarsen::{
-    COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, apply_coarsening,
-    plan_coarsening,
+    COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, RefusedFolds,
+    apply_coarsening, plan_coarsening, plan_coarsening_remembering,
 };
 pub use implicit::ImplicitField;
 pub(crate) use kron::PassShape;
@@ -38,7 +38,7 @@ pub use lattice::{BSplineLattice, LatticeError};
 pub use mass_grid::{CoeffBox, MassGrid, sub_lattice};
 pub use multipatch::{
     DetailError, MAX_CLAY_COEFFS, MAX_DETAIL_COEFFS, MAX_DETAIL_LEVEL, MAX_PATCHES,
-    MultiPatchField, OtherPatches, Patch, shared_ends,
+    MultiPatchField, OtherPatches, Patch, shared_ends, sum_value_and_gradient,
 };
 pub use pick::{BISECTION_STEPS, MARCH_STEP_SPANS, Ray, SurfaceHit, pick_surface};
 pub use primitive::{Primitive, density_profile, fit_primitive, lattice_from_primitive};

@@ -540,10 +540,29 @@ impl MultiPatchField {
     #[inline]
     #[must_use]
     pub fn value_and_gradient(&self, x: Vec3) -> (f32, Vec3) {
-        self.patches.iter().fold((0.0, Vec3::ZERO), |(v, g), p| {
-            let (pv, pg) = p.value_and_gradient(x);
-            (v + pv, g + pg)
-        })
+        sum_value_and_gradient(self.patches.iter(), x)
+    }
+
+    /// The patches whose terms can be nonzero somewhere in the world box `lo ..= hi`, in their
+    /// order: every other patch is in world coordinates and its support (where its term can be
+    /// nonzero) ends more than two of its knot spans from the box, so its term is exactly zero
+    /// there, and
+    /// [`sum_value_and_gradient`] over these patches is [`MultiPatchField::value_and_gradient`]
+    /// anywhere in the box (up to the sign of a zero). A check that evaluates the clay at many
+    /// points of a small box sums a few patches instead of all of them.
+    #[must_use]
+    pub fn patches_reaching(&self, lo: Vec3, hi: Vec3) -> Vec<&Patch> {
+        self.patches
+            .iter()
+            .filter(|p| {
+                if !p.is_identity() {
+                    return true;
+                }
+                let (plo, phi) = p.lattice.support();
+                let margin = Vec3::splat(2.0 * p.lattice.spacing);
+                (plo - margin).cmple(hi).all() && (phi + margin).cmpge(lo).all()
+            })
+            .collect()
     }
 
     /// Whether `x` is inside the solid.
@@ -552,6 +571,20 @@ impl MultiPatchField {
     pub fn is_inside(&self, x: Vec3) -> bool {
         self.value(x) > self.iso()
     }
+}
+
+/// The sum of `patches`' terms at `x` and of their world-space gradients, added in order (as
+/// [`MultiPatchField::value_and_gradient`] adds all of a field's).
+#[inline]
+#[must_use]
+pub fn sum_value_and_gradient<'a>(
+    patches: impl IntoIterator<Item = &'a Patch>,
+    x: Vec3,
+) -> (f32, Vec3) {
+    patches.into_iter().fold((0.0, Vec3::ZERO), |(v, g), p| {
+        let (pv, pg) = p.value_and_gradient(x);
+        (v + pv, g + pg)
+    })
 }
 
 impl From<BSplineLattice> for MultiPatchField {
@@ -696,6 +729,48 @@ mod tests {
             fewer.shared_patches_change_box(&after),
             Some(last.coefficient_change_box(at, at))
         );
+    }
+
+    #[test]
+    fn the_patches_reaching_a_box_sum_to_the_field_in_it_and_leave_out_the_far_ones() {
+        let mut field = MultiPatchField::new(wavy([16, 16, 16], 0.25));
+        let near = field.refine(Vec3::splat(0.9), Vec3::splat(1.6), 2).unwrap();
+        let far = field.refine(Vec3::splat(2.8), Vec3::splat(3.4), 1).unwrap();
+        let touching = field.refine(Vec3::splat(1.5), Vec3::splat(2.0), 3).unwrap();
+        for n in [near, far, touching] {
+            let dims = field.patches[n].lattice.dims;
+            let values: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+                .map(|i| ((i * 37 % 101) as f32 / 101.0 - 0.5) * 0.2)
+                .collect();
+            field.patches[n].lattice = BSplineLattice::from_coeffs(
+                dims,
+                field.patches[n].lattice.spacing,
+                field.patches[n].lattice.origin,
+                values,
+            )
+            .unwrap();
+        }
+        let (lo, hi) = (Vec3::splat(1.0), Vec3::splat(1.4));
+        let reaching = field.patches_reaching(lo, hi);
+        let kept: Vec<usize> = reaching
+            .iter()
+            .map(|p| {
+                field
+                    .patches
+                    .iter()
+                    .position(|q| std::ptr::eq(q, *p))
+                    .unwrap()
+            })
+            .collect();
+        assert_eq!(kept, vec![0, near, touching]);
+        for s in 0..=20 {
+            for t in 0..=20 {
+                let f = Vec3::new(s as f32, t as f32, ((s * 7 + t * 3) % 21) as f32) / 20.0;
+                let x = lo + (hi - lo) * f;
+                let (v, g) = sum_value_and_gradient(reaching.iter().copied(), x);
+                assert_eq!((v, g), field.value_and_gradient(x), "at {x}");
+            }
+        }
     }
 
     #[test]

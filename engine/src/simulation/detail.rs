@@ -25,10 +25,16 @@
 //! for its first stroke, or an automatic patch an undo emptied) stays until a step edits it. The fold is part of the step, so
 //! undo gives the patch back. A smoothing wipes detail because it smooths every patch under it,
 //! each on its own term (see [`SimulationStage::patches_smoothed`]).
+//!
+//! The stage remembers the folds it found refused
+//! ([`dynaclay_core::field::plan_coarsening_remembering`]): a step that reaches a patch without
+//! changing it or the coarser patch under it (most steps, once the clay holds many patches)
+//! plans it again for the cost of a fingerprint and one evaluation of the clay, not a refit;
+//! the folds made are those [`dynaclay_core::field::plan_coarsening`] makes.
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
-use dynaclay_core::field::{MAX_DETAIL_LEVEL, plan_coarsening};
+use dynaclay_core::field::{MAX_DETAIL_LEVEL, plan_coarsening_remembering};
 use dynaclay_core::tools::GeometricTool;
 
 /// Knot spans of the patch it sculpts that a brush's width (twice its smallest half extent)
@@ -265,7 +271,8 @@ impl SimulationStage {
             if !(edited || (reached && holds_detail())) {
                 continue;
             }
-            if let Ok(Some(plan)) = plan_coarsening(&self.clay.density, n) {
+            let plan = plan_coarsening_remembering(&self.clay.density, n, &mut self.refused_folds);
+            if let Ok(Some(plan)) = plan {
                 rec.coarsen(&mut self.clay, &plan);
                 folded += 1;
             }
