@@ -241,12 +241,10 @@ fn record_with_clay_detail(
     (out, before, end, map)
 }
 
-#[test]
-fn a_narrow_chisel_feels_smooth_on_a_recorded_session() {
-    // A chisel of half a knot span's radius, set 0.6 of a span deep, on the base: each target
-    // the stroke plans carries its whole depth, a large share of the felt force of a cut that
-    // nearly reached its depth. Felt at once, each arrival stepped the force by 0.034 N in one
-    // tick (1.69 of the rule); `SculptReaction` ramps each target in and out.
+/// A chisel of half a knot span's radius, set 0.6 of a span deep, slid along the top with
+/// force detail on or off: its session checked against the rule of every steady force, and
+/// its cut at three places along the slide, in knot spans, with the patches before and after.
+fn narrow_chisel_session(name: &str, force_detail: bool) -> ([f32; 3], usize, usize) {
     let rate_hz = 1000.0;
     let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
     let spacing = clay().0.spacing;
@@ -261,61 +259,36 @@ fn a_narrow_chisel_feels_smooth_on_a_recorded_session() {
         SimArmConfig::default(),
         3400,
         0,
-        false,
+        force_detail,
     );
-    let q = quality(&t, rate_hz, Vec3::Y);
-    check("narrow chisel", &q, step_limit_n);
-    let cut = cut_along_slide(&before, &after, map);
-    eprintln!(
-        "narrow chisel: cut {cut:.4?} for {:.4} asked",
-        0.6 * spacing
-    );
-    assert!(
-        cut.iter().all(|&c| c > 0.8 * 0.6 * spacing),
-        "the chisel cut {cut:?}"
-    );
+    check(name, &quality(&t, rate_hz, Vec3::Y), step_limit_n);
+    let cut = cut_along_slide(&before, &after, map).map(|c| c / spacing);
+    eprintln!("{name}: cut {cut:.3?} knot spans for 0.6 asked");
+    (cut, before.patches.len(), after.patches.len())
+}
+
+#[test]
+fn a_narrow_chisel_feels_smooth_on_a_recorded_session() {
+    // On the base: each target the stroke plans carries its whole depth, a large share of the
+    // felt force of a cut that nearly reached its depth. Felt at once, each arrival stepped the
+    // force by 0.034 N in one tick (1.69 of the rule); `SculptReaction` ramps each target in
+    // and out.
+    let (cut, _, _) = narrow_chisel_session("narrow chisel", false);
+    assert!(cut.iter().all(|&c| c > 0.8 * 0.6), "the chisel cut {cut:?}");
 }
 
 #[test]
 fn a_narrow_chisel_refining_under_itself_feels_smooth_on_a_recorded_session() {
-    // A chisel of half a knot span's radius, set 0.6 of a span deep, with force detail on: it
-    // refines under itself, where a skin of clay would close its cut without the chisel's body
-    // (`live_tool::chisel_body`). The body lowers the clay the hand feels through; the force
-    // written to the arm must still keep the rule of every steady force. Under a skin the
-    // cut's floor crosses the target again and again: the start of the target's vector is the
-    // crossing nearest the target on either side (`start_on_surface_near_target`); the one
-    // toward the skin made the force step on and off (1.64 of the rule).
-    let rate_hz = 1000.0;
-    let step_limit_n = ShapingConfig::DEFAULT_MAX_RATE_N_PER_S / rate_hz;
-    let spacing = clay().0.spacing;
-    let tool = ForceTool::Chisel {
-        depth_fu: 0.6 * spacing,
-        radius_fu: 0.5 * spacing,
-        gain: 2.0e6,
-    };
-    let (t, before, after, map) = record_with_clay_detail(
-        force_tool(tool),
-        slide_trajectory(0.002),
-        SimArmConfig::default(),
-        3400,
-        0,
-        true,
-    );
-    let q = quality(&t, rate_hz, Vec3::Y);
-    check("narrow chisel, force detail", &q, step_limit_n);
-    assert!(
-        after.patches.len() > before.patches.len(),
-        "the chisel refined under itself"
-    );
-    let cut = cut_along_slide(&before, &after, map);
-    eprintln!(
-        "narrow chisel: cut {cut:.4?} for {:.4} asked",
-        0.6 * spacing
-    );
-    assert!(
-        cut.iter().all(|&c| c > 0.3 * spacing),
-        "the chisel cut {cut:?}"
-    );
+    // With force detail on: it refines under itself, where a skin of clay would close its cut
+    // without the chisel's body (`live_tool::chisel_body`). The body lowers the clay the hand
+    // feels through; the force written to the arm must still keep the rule of every steady
+    // force. Under a skin the cut's floor crosses the target again and again: the start of the
+    // target's vector is the crossing nearest the target on either side
+    // (`start_on_surface_near_target`); the one toward the skin made the force step on and
+    // off (1.64 of the rule).
+    let (cut, before, after) = narrow_chisel_session("narrow chisel, force detail", true);
+    assert!(after > before, "the chisel refined under itself");
+    assert!(cut.iter().all(|&c| c > 0.3), "the chisel cut {cut:?}");
 }
 
 /// Mean-free spectral energy above `cutoff_hz` as a share of the whole, for a signal sampled at

@@ -139,13 +139,13 @@ pub struct BoxSummary {
 
 /// `x` where it is greater than `m`, else `m` (so a NaN `x` leaves `m`).
 #[inline]
-fn larger(m: f32, x: f32) -> f32 {
+pub(crate) fn larger(m: f32, x: f32) -> f32 {
     if x > m { x } else { m }
 }
 
 /// `x` where it is less than `m`, else `m` (so a NaN `x` leaves `m`).
 #[inline]
-fn smaller(m: f32, x: f32) -> f32 {
+pub(crate) fn smaller(m: f32, x: f32) -> f32 {
     if x < m { x } else { m }
 }
 

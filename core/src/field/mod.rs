@@ -23,10 +23,12 @@ mod sweep;
 pub use axis::{AxisBasis, BandedCholesky, NotPositiveDefinite, centred_cubic};
 pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
+// The NaN-skipping maximum and minimum the bricks' box summary and the mesher share.
 pub use bricks::{
-    BRICK_APRON, BRICK_SPAN, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BYTES,
-    DENSE_BRICK_VALUES, OwnedBrick, Values,
+    BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES,
+    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, Values,
 };
+pub(crate) use bricks::{larger, smaller};
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, RefusedFolds,
     apply_coarsening, plan_coarsening, plan_coarsening_remembering,

@@ -488,6 +488,18 @@ fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), 
             ),
         });
     }
+    put_lattice_frame(out, l, what)?;
+    out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
+    put_f32s(out, &l.coeffs.to_vec());
+    Ok(())
+}
+
+/// A lattice's dims, spacing, origin and iso-level.
+fn put_lattice_frame(
+    out: &mut Vec<u8>,
+    l: &BSplineLattice,
+    what: &str,
+) -> Result<(), SessionError> {
     for d in l.dims {
         let d = u32::try_from(d).map_err(|_| SessionError::Invalid {
             detail: format!("{what}: dimension {d} too large"),
@@ -499,8 +511,6 @@ fn put_lattice(out: &mut Vec<u8>, l: &BSplineLattice, what: &str) -> Result<(), 
         out.extend_from_slice(&l.origin[a].to_le_bytes());
     }
     out.extend_from_slice(&l.iso.to_le_bytes());
-    out.extend_from_slice(&(l.coeffs.len() as u64).to_le_bytes());
-    put_f32s(out, &l.coeffs.to_vec());
     Ok(())
 }
 
@@ -524,17 +534,7 @@ fn put_clay_lattice(
             ),
         });
     }
-    for d in l.dims {
-        let d = u32::try_from(d).map_err(|_| SessionError::Invalid {
-            detail: format!("{what}: dimension {d} too large"),
-        })?;
-        out.extend_from_slice(&d.to_le_bytes());
-    }
-    out.extend_from_slice(&l.spacing.to_le_bytes());
-    for a in 0..3 {
-        out.extend_from_slice(&l.origin[a].to_le_bytes());
-    }
-    out.extend_from_slice(&l.iso.to_le_bytes());
+    put_lattice_frame(out, l, what)?;
     out.extend_from_slice(&(l.coeffs.brick_count() as u64).to_le_bytes());
     // A run of uniform bricks of one value: its length and the value's bits.
     let mut run: Option<(u32, f32)> = None;

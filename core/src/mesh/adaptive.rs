@@ -85,7 +85,7 @@ use glam::{Affine3A, Vec3};
 use super::manifold::split_non_manifold;
 use super::octree::EdgeIdHasher;
 use super::trimesh::TriMesh;
-use crate::field::{MultiPatchField, Patch, shared_ends};
+use crate::field::{MultiPatchField, Patch, larger, shared_ends, smaller};
 
 /// Most levels below the root: corner coordinates then fit in 21 bits per axis.
 pub const MAX_ADAPTIVE_DEPTH: u32 = 20;
@@ -551,6 +551,22 @@ impl AdaptiveMesher {
         field: &MultiPatchField,
     ) -> Result<AdaptiveRemeshReport, AdaptiveMeshError> {
         let options = self.options;
+        // The kept mesh goes before the new one is made: held while it was made, it doubled
+        // the peak memory of a whole re-mesh (a clay of 256 patches in `bench/strokes1000.py`'s
+        // session: 1.1 GB resident during the strokes, 2.4 GB at the last re-mesh).
+        if let Ok(root) = Tree::frame(field, &options) {
+            self.clear_after_failure();
+            self.tree = root;
+            self.vertex_of = vec![NO_VERTEX];
+            self.touched = vec![0];
+            self.corners = HashMap::default();
+            self.polygons = PolygonBuckets::default();
+            self.removed = Vec::new();
+            self.dropped = Vec::new();
+            self.made = Vec::new();
+            self.reads = CoefficientReads::default();
+            self.region_samples = RegionSamples::default();
+        }
         *self = match Self::new(field, &options) {
             Ok(whole) => whole,
             Err(e) => {
@@ -2303,18 +2319,6 @@ fn floor_to_int(x: f32) -> i64 {
     } else {
         t
     }
-}
-
-/// `x` where it is greater than `m`, else `m` (so a NaN `x` leaves `m`).
-#[inline]
-fn larger(m: f32, x: f32) -> f32 {
-    if x > m { x } else { m }
-}
-
-/// `x` where it is less than `m`, else `m` (so a NaN `x` leaves `m`).
-#[inline]
-fn smaller(m: f32, x: f32) -> f32 {
-    if x < m { x } else { m }
 }
 
 #[cfg(test)]
