@@ -477,7 +477,10 @@ pub fn apply_stroke(
     mut recorder: Option<&mut StepRecorder>,
 ) -> Result<ToolReport, ToolError> {
     let dt_s = duration_s / poses.len().max(1) as f32;
-    let mut report = ToolReport::default();
+    let mut report = ToolReport {
+        patch: options.patch,
+        ..ToolReport::default()
+    };
     for pose in poses {
         let r = apply_tool(clay, tool, pose, dt_s, options, recorder.as_deref_mut())?;
         report.merge(&r);
@@ -832,6 +835,13 @@ mod tests {
         let report = apply_tool(&mut clay, &t, &ToolPose::at(c), 1.0, &options, None).unwrap();
         assert_eq!(report.patch, 1);
         assert_eq!(clay.base(), &base, "the base patch is untouched");
+        // A stroke of several poses names the patch it edited too (its box indexes that
+        // patch's lattice, and the engine publishes it there).
+        let poses = [ToolPose::at(c), ToolPose::at(c + Vec3::new(0.1, 0.0, 0.0))];
+        let mut stroked = clay.clone();
+        let report = apply_stroke(&mut stroked, &t, &poses, 1.0, &options, None).unwrap();
+        assert_eq!(report.patch, 1);
+        assert!(report.coeff_box.is_some());
         // Inside the tool its potential (1 at the centre) wins: the sum is 1, not 1.3.
         let at_centre = clay.density.value(c);
         assert!(

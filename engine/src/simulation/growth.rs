@@ -84,15 +84,22 @@ impl SimulationStage {
         self.make_room(lo, hi)
     }
 
-    /// Hands the clay's current patch layout to the haptic and graphics loops; every
-    /// coefficient is published again, so that no change is lost while a reader still holds
-    /// the old layout (readers skip updates until their copy has the new one).
+    /// Hands the clay's current patch layout to the haptic and graphics loops.
+    ///
+    /// The copy each reader is offered holds every coefficient as it is now, so the boxes
+    /// pending for the old layout are dropped: publications from here on carry only what
+    /// changes after the offer (with the new layout's patch indices). A reader skips updates
+    /// until it has installed the copy and acknowledges none before, so those changes stay
+    /// pending until both readers hold the new layout. Publishing the whole clay again here
+    /// would be correct too, but every publication until both readers caught up would then
+    /// copy every coefficient (on a large clay, hundreds of megabytes per buffer).
     pub(super) fn publish_layout(&mut self) {
         self.layout_generation += 1;
         for sender in &self.layout_senders {
             sender.offer(&self.clay.density, self.layout_generation);
         }
-        self.mark_all_changed();
+        self.pending = vec![None; self.clay.density.patches.len()];
+        self.changed_since_publish = true;
     }
 }
 
@@ -197,6 +204,96 @@ mod tests {
         s.commands.send(Command::Redo).unwrap();
         tick(&mut s, &ToolSample::IDLE);
         assert_eq!(s.sim.lattice(), &grown);
+    }
+
+    /// Both readers end with the simulation's clay, value for value, when new layouts (a
+    /// refine, a growth) and edits on every patch come while one reader or both lag behind:
+    /// a new layout's copy plus the changes published after it lose nothing, without the
+    /// whole clay published again.
+    #[test]
+    fn lagging_readers_get_every_change_across_new_layouts() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let last = s.sim.lattice().node_position(11, 11, 11);
+        let centre = (s.sim.lattice().origin + last) * 0.5;
+        let top = centre + Vec3::Y * 0.27;
+        let carve = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.05 },
+            action: ToolAction::Remove,
+            falloff_fu: 0.01,
+        };
+        let edit = |s: &mut Stages, tool: GeometricTool, at: Vec3, patch: u16| {
+            s.commands
+                .send(Command::ApplyTool {
+                    tool,
+                    poses: vec![ToolPose::at(at), ToolPose::at(at + Vec3::X * 0.02)],
+                    duration_s: 0.5,
+                    patch,
+                    reply: None,
+                })
+                .unwrap();
+        };
+        let sim_only = |s: &mut Stages, steps: usize| {
+            for _ in 0..steps {
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+            }
+        };
+        for _ in 0..3 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        // A refine and edits on both patches while neither reader runs.
+        s.commands
+            .send(Command::Refine {
+                lo: top - Vec3::splat(0.15),
+                hi: top + Vec3::splat(0.15),
+                level: 2,
+                reply: None,
+            })
+            .unwrap();
+        edit(&mut s, carve.clone(), top, 1);
+        sim_only(&mut s, 3);
+        edit(&mut s, carve.clone(), top + Vec3::Z * 0.05, 1);
+        edit(&mut s, carve.clone(), centre - Vec3::Y * 0.27, 0);
+        sim_only(&mut s, 2);
+        // The haptic loop catches up; the graphics loop still lags. Then the clay grows
+        // (a newer layout) and an edit lands on the detail patch again.
+        for _ in 0..3 {
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+        }
+        edit(
+            &mut s,
+            add_ball(0.3),
+            Vec3::new(last.x + 0.15, centre.y, centre.z),
+            0,
+        );
+        sim_only(&mut s, 1);
+        edit(&mut s, carve.clone(), top - Vec3::Z * 0.05, 1);
+        s.haptic.tick(Instant::now());
+        sim_only(&mut s, 2);
+        for _ in 0..4 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        let counters = s.counters.snapshot();
+        assert_eq!(counters.clay_growths, 1);
+        // The refine's patch, and the one the narrow carve on the base made under itself.
+        assert_eq!(
+            (s.sim.clay.density.patches.len(), counters.auto_refines),
+            (3, 1)
+        );
+        assert!(
+            !s.sim.clay.density.is_inside(top),
+            "the carve on the detail patch is in the clay"
+        );
+        assert!(
+            s.haptic.field() == &s.sim.clay.density,
+            "the haptic loop's copy is the clay's"
+        );
+        assert!(
+            s.graphics.field() == &s.sim.clay.density,
+            "the graphics loop's copy is the clay's"
+        );
     }
 
     #[test]
