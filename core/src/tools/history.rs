@@ -111,6 +111,15 @@ impl Step {
         self.deltas.iter().map(|d| d.xor.len()).sum()
     }
 
+    /// The boxes of density coefficients the step changed: one per recorded brick, as
+    /// (patch, box) in the layout the step applies to.
+    pub fn density_boxes(&self) -> impl Iterator<Item = (u16, CoeffBox)> + '_ {
+        self.deltas.iter().filter_map(|d| match d.field {
+            FieldId::Density(patch) => Some((patch, d.region)),
+            FieldId::Colour(_) | FieldId::Mask(_) => None,
+        })
+    }
+
     /// Checks that every delta fits the clay's fields as they are.
     fn check_deltas(&self, clay: &Clay) -> Result<(), HistoryError> {
         for d in &self.deltas {
@@ -599,6 +608,18 @@ impl History {
         let label = step.label.clone();
         self.undo.push_back(step);
         Ok(Some(label))
+    }
+
+    /// The step the latest [`History::undo`] took back (the next to redo), if any.
+    #[must_use]
+    pub fn next_redo(&self) -> Option<&Step> {
+        self.redo.last()
+    }
+
+    /// The newest step done (the next to undo: the latest recorded or redone), if any.
+    #[must_use]
+    pub fn next_undo(&self) -> Option<&Step> {
+        self.undo.back()
     }
 
     /// Moves every recorded delta of the base and the colour field onto the grown lattices

@@ -302,11 +302,28 @@ impl SimulationStage {
                     self.history.redo(&mut self.clay)
                 };
                 if self.clay.density.patches.len() != patches {
-                    // The step had folded a detail patch away: the layout changes back.
-                    self.pending = vec![None; self.clay.density.patches.len()];
+                    // The step had folded a detail patch away: the layout changes back (the
+                    // offered copy holds the step's coefficients).
                     self.publish_layout();
+                } else if let Ok(Some(_)) = &done {
+                    // Only the step's bricks changed.
+                    let step = if matches!(cmd, Command::Undo) {
+                        self.history.next_redo()
+                    } else {
+                        self.history.next_undo()
+                    };
+                    let boxes: Vec<(u16, CoeffBox)> = step
+                        .map(|s| s.density_boxes().collect())
+                        .unwrap_or_default();
+                    for (patch, b) in boxes {
+                        self.mark_changed(usize::from(patch), b);
+                    }
+                } else if done.is_err() {
+                    // A refused step leaves the clay as it was; publish it whole all the same.
+                    self.mark_all_changed();
                 }
-                self.mark_all_changed();
+                // The paint and the mask are published whole; the graphics loop wakes for them.
+                self.changed_since_publish = true;
                 self.colour_dirty = true;
                 self.mask_dirty = true;
                 self.clay_revision += 1;

@@ -275,6 +275,17 @@ mod tests {
         for _ in 0..4 {
             tick(&mut s, &ToolSample::IDLE);
         }
+        // Both readers hold everything now. Undo and redo publish the step's bricks alone:
+        // two edits undone (the last carve on the detail patch, the lump), one redone.
+        s.commands.send(Command::Undo).unwrap();
+        sim_only(&mut s, 1);
+        s.haptic.tick(Instant::now());
+        s.commands.send(Command::Undo).unwrap();
+        s.commands.send(Command::Redo).unwrap();
+        sim_only(&mut s, 2);
+        for _ in 0..4 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
         let counters = s.counters.snapshot();
         assert_eq!(counters.clay_growths, 1);
         // The refine's patch, and the one the narrow carve on the base made under itself.
