@@ -114,21 +114,26 @@ pub struct SimConfig {
     /// default: on a detail patch the dynamics do not yet keep the material's behaviour. A
     /// detail patch's mass points scale stiffness by their volume, as mass and damping,
     /// which leaves the clay there softer against its inertia by the spacing ratio squared
-    /// (an elastic press springs back more slowly than its region lives; painted stiffness
-    /// and mass act weaker). Scaling stiffness by the spacing instead, as the springs' energy
-    /// asks, closed a narrow press over its tip (the walls of the hole sealed above it, and
-    /// sprang shut again when the tool left); the push's body
+    /// (painted stiffness and mass act weaker). Scaling stiffness by the spacing instead, as
+    /// the springs' energy asks, closed a narrow press over its tip (the walls of the hole
+    /// sealed above it, and sprang shut again when the tool left); the push's body
     /// (`dynaclay_core::dynamics::ToolBody`) and a yield density scaled by the spacing as well
     /// kept it open (0.118 deep on a level-2 patch, 0.120 on an automatic level-3 one, 0.109
     /// on the base), but a narrow push drawn along the top then pressed a groove 30% wider
     /// than its spread (`tests/adaptive_clay.rs`): the consistent springs smooth detail that
-    /// fine away. A region moved under a stroke also takes the clay as it is as its new rest
-    /// shape, so an elastic dent on a patch, whose region a deep press outgrows, does not
-    /// spring back; carrying the old region's rest over fixes that but lets the default
-    /// plastic clay's grooves spring back past the push's tolerances. With this on, a stiff or
-    /// heavy painted half still acts weaker than on the base, and a chisel of a huge gain
-    /// (2e9) cuts short on a patch. (A narrow chisel's cut on a patch, which a skin of clay
-    /// used to close, stays open: the chisel has a body, see `live_tool::chisel_body`.)
+    /// fine away. A region a stroke moves on hands its perfectly elastic points' rest over to
+    /// the next (`RegionState::carry_rest_from`), so an elastic press on a patch, whose region
+    /// a deep press outgrows, springs back (`tests/material_fields.rs`: 0.017 of a 0.100 dent
+    /// left with this on, was 0.080); a plastic point takes the clay as it is as its new rest
+    /// (carrying that over too let the default plastic clay's grooves spring back past the
+    /// push's tolerances). With this on, a stiff painted half still springs back less than
+    /// on the base (dent 0.129 against 0.140 on the soft half, 0.85x required), a heavy one
+    /// lags the unpainted clay by 30 steps to 0.03 deep, as on the base, but is 0.042 deep
+    /// after 200 steps against the unpainted 0.066, not under half of it (on the base 0.026
+    /// against 0.053: the patch's unpainted dent follows the tip closer), and a
+    /// chisel of a huge gain (2e9) cuts short on a patch (worst 16%). (A narrow chisel's cut
+    /// on a patch, which a skin of clay used to close, stays open: the chisel has a body, see
+    /// `live_tool::chisel_body`.)
     pub auto_detail_force: bool,
 }
 
@@ -843,6 +848,15 @@ impl SimulationStage {
             return;
         };
         let b = around.union(&needed);
+        // A region that moves on over the same patch hands its elastic memory over.
+        let previous = if self.region_patch == patch {
+            self.region.take()
+        } else {
+            None
+        };
+        if let Some(old) = &previous {
+            self.mark_changed(patch, old.coeff_box());
+        }
         self.retire_region();
         self.region_patch = patch;
         let n = b.dims();
@@ -853,6 +867,9 @@ impl SimulationStage {
         match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
             Ok(mut state) => {
                 self.apply_painted_material(&mut state);
+                if let Some(old) = &previous {
+                    state.carry_rest_from(old);
+                }
                 dynaclay_core::tools::region_holds(&self.clay, patch, b, &mut state.held);
                 self.region = Some(state);
             }

@@ -171,6 +171,61 @@ impl RegionState {
         self.calm_steps = 0;
     }
 
+    /// Takes over the elastic memory of `old`, a region on the same lattice that this one
+    /// replaces (a stroke that moved past it), at its perfectly elastic mass points: at
+    /// every point the two share whose drift rate (`plasticity_per_s`, set before this call)
+    /// is zero, the rest density becomes the current one minus `old`'s deviation from rest
+    /// there, so an elastic dent made in `old` still springs back. An elastic point's rest
+    /// never drifts, so the one it had is the only rest it can have; a plastic point's rest
+    /// follows the clay anyway, and it takes the clay as it is (as a new region does
+    /// everywhere). Points `old` did not hold keep the current shape as rest. Nothing is
+    /// carried when the grids' mass points do not coincide (another count per knot span).
+    /// Returns the number of points carried. Allocates nothing.
+    pub fn carry_rest_from(&mut self, old: &RegionState) -> usize {
+        let (new_box, old_box) = (self.grid.coeffs, old.grid.coeffs);
+        // Index of a new mass point in the old grid, per axis.
+        let mut shift = [0_i64; 3];
+        for (a, shift) in shift.iter_mut().enumerate() {
+            let (s_new, s_old) = (self.grid.step(a), old.grid.step(a));
+            if s_new <= 0.0 || (s_new - s_old).abs() > 1e-9 {
+                return 0;
+            }
+            let per_span = (1.0 / s_new).round();
+            if (per_span * s_new - 1.0).abs() > 1e-9 {
+                return 0;
+            }
+            *shift = (new_box.min[a] as i64 - old_box.min[a] as i64) * per_span as i64;
+        }
+        let (m, mo) = (self.grid.dims, old.grid.dims);
+        let mut carried = 0;
+        for k in 0..m[2] {
+            let ko = k as i64 + shift[2];
+            if ko < 0 || ko >= mo[2] as i64 {
+                continue;
+            }
+            for j in 0..m[1] {
+                let jo = j as i64 + shift[1];
+                if jo < 0 || jo >= mo[1] as i64 {
+                    continue;
+                }
+                for i in 0..m[0] {
+                    let io = i as i64 + shift[0];
+                    if io < 0 || io >= mo[0] as i64 {
+                        continue;
+                    }
+                    let n = self.point_index(i, j, k);
+                    if self.plasticity_per_s[n] != 0.0 {
+                        continue;
+                    }
+                    let no = old.point_index(io as usize, jo as usize, ko as usize);
+                    self.rest[n] = self.d[n] - (old.d[no] - old.rest[no]);
+                    carried += 1;
+                }
+            }
+        }
+        carried
+    }
+
     fn d_fixed_from(&mut self, lattice: &BSplineLattice) {
         self.grid.fixed_outside(lattice, &mut self.d_fixed);
     }

@@ -2066,4 +2066,62 @@ mod tests {
     fn bits_of(lattice: &BSplineLattice) -> Vec<u32> {
         lattice.coeffs.iter().map(|x| x.to_bits()).collect()
     }
+
+    /// Pulls the elastic sphere's +x pole out for `pull_steps` steps in region `first`, then
+    /// sets up `second` (a box shifted by one coefficient along y, sharing most of the dent)
+    /// with or without `first`'s elastic memory carried over, lets go and steps `rest_steps`
+    /// more; returns the pole's radius when let go and at the end.
+    fn pull_then_move_region(carry: bool, material: Material) -> (f32, f32, usize) {
+        let mut lattice = sphere();
+        let first = region(&lattice, material);
+        let mut state = first;
+        let mut sim = Simulator::new(StepParams::default());
+        let mut snap = RegionSnapshot::default();
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
+        for _ in 0..600 {
+            let Some(tf) = grab(&lattice, cursor, GAIN) else {
+                break;
+            };
+            sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                .unwrap();
+        }
+        let pulled = surface_radius(&lattice, Vec3::X);
+        let shifted = CoeffBox {
+            min: [10, 7, 6],
+            max: [17, 14, 13],
+        };
+        let mut moved = RegionState::new(&lattice, shifted, [15, 15, 15], material).unwrap();
+        let carried = if carry {
+            moved.carry_rest_from(&state)
+        } else {
+            0
+        };
+        let mut sim = Simulator::new(StepParams::default());
+        for _ in 0..1500 {
+            sim.step(&mut moved, &mut lattice, &[], &mut snap).unwrap();
+        }
+        (pulled, surface_radius(&lattice, Vec3::X), carried)
+    }
+
+    #[test]
+    fn an_elastic_dent_springs_back_after_its_region_moves_on() {
+        let (pulled, end, carried) = pull_then_move_region(true, Material::ELASTIC);
+        // The two boxes share 8 x 7 x 8 coefficients: 15 x 13 x 15 mass points.
+        assert_eq!(carried, 15 * 13 * 15);
+        assert!(pulled > RADIUS + 0.05, "pulled to {pulled}");
+        assert!(
+            (end - RADIUS).abs() < 0.2 * (pulled - RADIUS),
+            "sprang back to {end} from {pulled} (rest {RADIUS})"
+        );
+        // Without the memory the moved region takes the pulled pole as its rest shape.
+        let (pulled, kept, _) = pull_then_move_region(false, Material::ELASTIC);
+        eprintln!("pulled {pulled:.4}: {end:.4} carried, {kept:.4} not (rest {RADIUS})");
+        assert!(
+            kept - RADIUS > 0.5 * (pulled - RADIUS),
+            "kept {kept} of {pulled} without the memory"
+        );
+        // A plastic point's rest follows the clay: nothing is carried.
+        let (_, _, carried) = pull_then_move_region(true, Material::PLASTIC);
+        assert_eq!(carried, 0);
+    }
 }
