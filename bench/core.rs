@@ -18,11 +18,11 @@ use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_ma
 use dynaclay::dynamics::{
     Distribution, Material, RegionState, Simulator, StepParams, ToolForce, force_integral,
 };
+use dynaclay::engine::FieldUpdate;
 use dynaclay::field::{
     BSplineLattice, CoeffBox, KronScratch, MultiPatchField, OtherPatches, Primitive,
     RegionSnapshot, SpareBrick, lattice_from_primitive,
 };
-use dynaclay::engine::FieldUpdate;
 use glam::Vec3;
 
 /// A sphere on a lattice of `n + 4` coefficients per axis; the region is the central `n³`
@@ -296,15 +296,28 @@ fn evaluate(c: &mut Criterion) {
 /// (`FieldUpdate::densify_for_copy`, with an empty pool: the steady state of a stroke, whose
 /// bricks were made dense from the pool by its first publication).
 fn haptic_copy(c: &mut Criterion) {
-    let (lattice, _, force) = setup(32, 32);
+    // A ball of radius 0.3 on 64³ coefficients, its density ramped over two knot spans and
+    // clamped to [0, 1], as the clay's is: the bricks inside and far outside hold one value.
+    let (_, _, force) = setup(32, 32);
+    let spacing = 1.0 / 63.0;
+    let mut lattice = BSplineLattice::zeros([64; 3], spacing, Vec3::ZERO).expect("lattice");
+    lattice.coeffs.update_each(|n, c| {
+        let at = Vec3::new(
+            (n % 64) as f32,
+            ((n / 64) % 64) as f32,
+            (n / (64 * 64)) as f32,
+        ) * spacing;
+        let depth = 0.3 - (at - Vec3::splat(0.5)).length();
+        *c = (0.5 + depth / (2.0 * spacing)).clamp(0.0, 1.0);
+    });
     let mut sparse = MultiPatchField::new(lattice);
     sparse.compact();
     let mut dense = sparse.clone();
     dense.densify_all();
-    // The published box of a stroke on the sphere's +x side: 16³ coefficients, each moved.
+    // The published box of a stroke on the sphere's +x side: 24³ coefficients, each moved.
     let published = CoeffBox {
-        min: [20, 10, 10],
-        max: [35, 25, 25],
+        min: [40, 20, 20],
+        max: [63, 43, 43],
     };
     let mut moved = sparse.clone();
     let coeffs = &mut moved.patches[0].lattice.coeffs;
