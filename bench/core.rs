@@ -18,9 +18,10 @@ use criterion::{BatchSize, BenchmarkId, Criterion, criterion_group, criterion_ma
 use dynaclay::dynamics::{
     Distribution, Material, RegionState, Simulator, StepParams, ToolForce, force_integral,
 };
+use dynaclay::engine::FieldUpdate;
 use dynaclay::field::{
     BSplineLattice, CoeffBox, KronScratch, MultiPatchField, OtherPatches, Primitive,
-    RegionSnapshot, lattice_from_primitive,
+    RegionSnapshot, SpareBrick, lattice_from_primitive,
 };
 use glam::Vec3;
 
@@ -288,5 +289,87 @@ fn evaluate(c: &mut Criterion) {
     });
 }
 
-criterion_group!(benches, step, step_layered, step_levels, solve, evaluate);
+/// The haptic loop's copy of the field, sparse (uniform bricks one value, as now) against
+/// every brick dense (the obvious alternative, as the copy was before): the tick's integral
+/// over each, and the tick's write of a stroke's published box into each. In the sparse copy
+/// the write first checks that every brick it needs is dense
+/// (`FieldUpdate::densify_for_copy`, with an empty pool: the steady state of a stroke, whose
+/// bricks were made dense from the pool by its first publication).
+fn haptic_copy(c: &mut Criterion) {
+    // A ball of radius 0.3 on 64³ coefficients, its density ramped over two knot spans and
+    // clamped to [0, 1], as the clay's is: the bricks inside and far outside hold one value.
+    let (_, _, force) = setup(32, 32);
+    let spacing = 1.0 / 63.0;
+    let mut lattice = BSplineLattice::zeros([64; 3], spacing, Vec3::ZERO).expect("lattice");
+    lattice.coeffs.update_each(|n, c| {
+        let at = Vec3::new(
+            (n % 64) as f32,
+            ((n / 64) % 64) as f32,
+            (n / (64 * 64)) as f32,
+        ) * spacing;
+        let depth = 0.3 - (at - Vec3::splat(0.5)).length();
+        *c = (0.5 + depth / (2.0 * spacing)).clamp(0.0, 1.0);
+    });
+    let mut sparse = MultiPatchField::new(lattice);
+    sparse.compact();
+    let mut dense = sparse.clone();
+    dense.densify_all();
+    // The published box of a stroke on the sphere's +x side: 24³ coefficients, each moved.
+    let published = CoeffBox {
+        min: [40, 20, 20],
+        max: [63, 43, 43],
+    };
+    let mut moved = sparse.clone();
+    let coeffs = &mut moved.patches[0].lattice.coeffs;
+    for k in published.min[2]..=published.max[2] {
+        for j in published.min[1]..=published.max[1] {
+            for i in published.min[0]..=published.max[0] {
+                let v = coeffs.get(i, j, k);
+                coeffs.set(i, j, k, v * 0.99 + 0.001 * (i + j + k) as f32);
+            }
+        }
+    }
+    let mut update = FieldUpdate::with_capacity_for(&moved);
+    update.capture(&moved, 0, published);
+    assert!(update.densify_for_copy(&mut sparse, &mut || Some(SpareBrick::new())));
+    let bricks = |f: &MultiPatchField| f.patches[0].lattice.coeffs.dense_brick_count();
+    eprintln!(
+        "haptic_copy: dense bricks {} of {} (sparse copy), {} (dense copy)",
+        bricks(&sparse),
+        sparse.patches[0].lattice.coeffs.brick_count(),
+        bricks(&dense)
+    );
+    let mut group = c.benchmark_group("haptic_copy");
+    for (name, copy) in [("dense", &dense), ("sparse", &sparse)] {
+        group.bench_function(BenchmarkId::new("force_integral", name), |b| {
+            b.iter(|| {
+                black_box(force_integral(
+                    &copy.patches[0].lattice,
+                    black_box(force.start),
+                    black_box(force.end),
+                ))
+            });
+        });
+    }
+    group.bench_function(BenchmarkId::new("write_update", "dense"), |b| {
+        b.iter(|| black_box(update.copy_into(&mut dense)));
+    });
+    group.bench_function(BenchmarkId::new("write_update", "sparse"), |b| {
+        b.iter(|| {
+            let ready = update.densify_for_copy(&mut sparse, &mut || None);
+            black_box(ready && update.copy_into(&mut sparse))
+        });
+    });
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    step,
+    step_layered,
+    step_levels,
+    solve,
+    evaluate,
+    haptic_copy
+);
 criterion_main!(benches);

@@ -547,6 +547,91 @@ fn failed_reads_mid_stroke_tick_without_allocating() {
     assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
 }
 
+/// The haptic loop's copy of the field is sparse: a uniform brick stays one value until an
+/// update's values make it dense, and then its storage comes from the pool the simulation
+/// fills. A session load that changes every coefficient of a 64³ clay (every one of its 512
+/// bricks dense, twice the pool) is applied in the counted ticks without allocating: the tick
+/// takes what the pool holds, waits for the simulation to top it up, and ends with the
+/// simulation's field.
+#[test]
+fn counted_ticks_make_uniform_bricks_dense_from_the_pool_without_allocating() {
+    const BLOCK_64: &str = "version = 1\n[clay]\nshape = \"block\"\nresolution = 64\n";
+    let s = common::setup(BLOCK_64, vec![]);
+    let mut stages = build(
+        &s.config,
+        s.field,
+        Box::new(s.arm),
+        Box::new(HeadlessSink::default()),
+        true,
+    )
+    .expect("stages build");
+    let dense = |field: &dynaclay::field::MultiPatchField| -> usize {
+        field
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.dense_brick_count())
+            .sum()
+    };
+    let bricks = stages.sim.lattice().coeffs.brick_count();
+    let dense_at_start = dense(stages.haptic.field());
+    assert_eq!(bricks, 512);
+    assert!(
+        dense_at_start < bricks / 2,
+        "the copy starts sparse: {dense_at_start} of {bricks} bricks dense"
+    );
+    // Every coefficient moves a little: no brick of the loaded clay is one value.
+    let mut clay = stages.sim.clay().clone();
+    clay.density.patches[0]
+        .lattice
+        .coeffs
+        .update_each(|n, c| *c = 0.5 * *c + 0.25 + 1e-3 * (n % 7) as f32);
+    let loaded = clay.density.clone();
+    stages
+        .commands
+        .send(Command::Load {
+            session: Box::new(Session {
+                clay,
+                ..Session::default()
+            }),
+            source: "every-brick-dense.dclay".into(),
+            keep_history: false,
+            reply: None,
+        })
+        .unwrap();
+    let before = allocs_in_tick();
+    let mut ticks = 0;
+    while *stages.haptic.field() != loaded {
+        assert!(ticks < 2000, "the copy never took the load");
+        IN_TICK.with(|f| f.set(true));
+        stages.haptic.tick(Instant::now());
+        IN_TICK.with(|f| f.set(false));
+        stages.sim.apply_commands();
+        let sample = stages.samples.latest().value;
+        stages.sim.step(&sample);
+        ticks += 1;
+    }
+    assert_eq!(allocs_in_tick(), before, "haptic tick allocated");
+    assert_eq!(
+        stages.sim.clay().density,
+        loaded,
+        "the simulation holds the load"
+    );
+    assert_eq!(
+        dense(stages.haptic.field()),
+        bricks,
+        "every brick became dense in the counted ticks"
+    );
+    let waited = stages.counters.snapshot().haptic_updates_awaiting_bricks;
+    eprintln!(
+        "dense bricks in the copy: {dense_at_start} at the start, {bricks} after {ticks} ticks, \
+         {waited} of them waiting for the pool"
+    );
+    assert!(
+        bricks - dense_at_start > dynaclay::engine::HAPTIC_SPARE_BRICKS && waited > 0,
+        "the load needed more bricks than one pool holds: the tick waited ({waited} ticks)"
+    );
+}
+
 #[test]
 fn a_pointer_stroke_ticks_without_allocating() {
     use dynaclay_devices::pointer::{PointerConfig, pointer_device};

@@ -36,6 +36,7 @@ struct Inner {
     clay_growths: AtomicU64,
     auto_refines: AtomicU64,
     auto_coarsenings: AtomicU64,
+    haptic_updates_awaiting_bricks: AtomicU64,
 }
 
 /// A plain copy of the counters at one moment.
@@ -87,6 +88,11 @@ pub struct CounterSnapshot {
     /// Detail patches folded back into coarser ones once a step had wiped their detail.
     #[serde(default)]
     pub auto_coarsenings: u64,
+    /// Haptic ticks that left a new field update unapplied because the pool of spare dense
+    /// bricks could not yet cover it (see [`crate::HAPTIC_SPARE_BRICKS`]); the tick applies it once the
+    /// simulation has topped the pool up.
+    #[serde(default)]
+    pub haptic_updates_awaiting_bricks: u64,
 }
 
 macro_rules! bump {
@@ -128,6 +134,7 @@ impl EngineCounters {
         clay_growths,
         auto_refines,
         auto_coarsenings,
+        haptic_updates_awaiting_bricks,
     );
 
     /// Raises the recorded peak force to `force_n` if larger.
@@ -173,6 +180,7 @@ impl EngineCounters {
             clay_growths: r(&i.clay_growths),
             auto_refines: r(&i.auto_refines),
             auto_coarsenings: r(&i.auto_coarsenings),
+            haptic_updates_awaiting_bricks: r(&i.haptic_updates_awaiting_bricks),
         }
     }
 }

@@ -4,7 +4,10 @@
 //! blocking lock and does bounded work: one device read and one write (through the safety
 //! filter), one wait-free triple-buffer fetch and one publish, a patch copy of at most the
 //! lattice's coefficients and of the stroke geometry (fixed capacity) when a new snapshot
-//! arrived, the force renderer's bounded work ([`dynaclay_core::haptics::ForceRenderer`]: the touch
+//! arrived (the stage's copy of the field is sparse: before the copy, the uniform bricks it
+//! would make dense are made dense with storage taken from a pool the simulation fills, at
+//! most [`crate::HAPTIC_SPARE_BRICKS`] of them per tick; an update the pool cannot cover yet
+//! waits for the next tick, see [`super::layout`]), the force renderer's bounded work ([`dynaclay_core::haptics::ForceRenderer`]: the touch
 //! proxy, at most one sculpting reaction, blending, passivity and shaping), one relaxed load
 //! each of the requested force limit ([`ForceLimit`]), applied to the filter in constant time
 //! when it changed, and of the haptic gain ([`HapticGain`]), and one wait-free look for a
@@ -34,7 +37,7 @@ use super::motion_to_photon::FeltChange;
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
 use super::workspace::WorkspaceMap;
-use dynaclay_core::field::MultiPatchField;
+use dynaclay_core::field::{MultiPatchField, SpareBrick};
 use dynaclay_core::haptics::{FeltInput, FeltTool, ForceRenderer, HapticConfig, StrokeGeometry};
 
 /// What one tick did (plain data, for tests and the lockstep driver).
@@ -127,10 +130,8 @@ impl HapticStage {
     ) -> Self {
         let requested = device.config().max_force_n;
         let force_limit = ForceLimit::new(requested, device.max_force_n());
-        // The tick writes the published boxes into this copy: dense bricks take them without
-        // allocating.
-        let mut field = field;
-        field.densify_all();
+        // The copy stays as sparse as `field`: the tick makes bricks dense from the layout
+        // port's pool of spares before it writes an update that needs them.
         Self {
             limit_seen: force_limit.requested_bits(),
             force_limit,
@@ -211,6 +212,17 @@ impl HapticStage {
         }
         let stamped = self.updates.latest();
         if stamped.value.layout == self.layout {
+            let layouts = &self.layouts;
+            if !stamped
+                .value
+                .densify_for_copy(&mut self.field, &mut || layouts.take_spare())
+            {
+                // Shutdown only: the simulation has stopped topping the pool up; the bricks
+                // still missing are allocated here, off the loop.
+                stamped
+                    .value
+                    .densify_for_copy(&mut self.field, &mut || Some(SpareBrick::new()));
+            }
             stamped.value.copy_into(&mut self.field);
             self.ack
                 .store(stamped.version, std::sync::atomic::Ordering::Release);
@@ -374,8 +386,18 @@ impl HapticStage {
             self.tool = stamped.value.tool;
             self.stroke_armed = stamped.value.stroke_armed;
             self.stroke.copy_from(&stamped.value.stroke);
-            // An update for another layout waits until that layout's copy arrives.
-            if stamped.value.layout == self.layout {
+            // An update for another layout waits until that layout's copy arrives; one whose
+            // values need more dense bricks than the pool holds yet waits for the pool to be
+            // topped up (the bricks taken so far stay dense: no value changes).
+            let layouts = &self.layouts;
+            let ready = stamped.value.layout == self.layout
+                && stamped
+                    .value
+                    .densify_for_copy(&mut self.field, &mut || layouts.take_spare());
+            if stamped.value.layout == self.layout && !ready {
+                self.counters.haptic_updates_awaiting_bricks(1);
+            }
+            if ready {
                 stamped.value.copy_into(&mut self.field);
                 // The first snapshot holding the newest stroke's first change: this tick's
                 // force is the first rendered on the clay that change made.

@@ -3,10 +3,24 @@
 //! simulation builds each copy (it may allocate) and hands it over; the reader swaps it in and
 //! hands its old copy back to be dropped on the simulation thread.
 //!
-//! Guarantee: the reader's side ([`LayoutPort::install`]) is wait-free and allocation-free: it
-//! uses two crossbeam array channels of capacity one, only through `try_recv` and `try_send`,
-//! and moves boxes by pointer, so no memory is allocated or freed on the haptic thread. The
-//! copy goes back only while the return slot has room; otherwise the handover waits.
+//! Guarantee: the reader's side ([`LayoutPort::install`], [`LayoutPort::take_spare`]) is
+//! wait-free and allocation-free: it uses crossbeam array channels (two of capacity one for
+//! the copies, one of [`HAPTIC_SPARE_BRICKS`] for the spare bricks), only through `try_recv`
+//! and `try_send`, and moves boxes by pointer, so no memory is allocated or freed on the
+//! haptic thread. The copy goes back only while the return slot has room; otherwise the
+//! handover waits.
+//!
+//! The copies are as sparse as the simulation's field: a uniform brick stays one value (see
+//! [`dynaclay_core::field::BrickedCoeffs`]). A reader that must not allocate (the haptic loop)
+//! is given a channel with spare bricks ([`layout_channel_with_spares`]): before it writes an
+//! update, [`super::FieldUpdate::densify_for_copy`] makes dense, from this pool, the uniform
+//! bricks the update's values would make dense; the write then allocates nothing. The
+//! simulation keeps the pool full ([`LayoutSender::drop_retired`], every publication), so the
+//! bricks live in the copy only where the clay holds detail, and the pool's capacity bounds
+//! the work one tick spends on it. An update needing more bricks than the pool holds waits, a
+//! tick at a time, with the bricks already taken kept dense (that changes no value) until the
+//! pool, refilled, covers it; the reader neither applies nor acknowledges it meanwhile, so
+//! the simulation keeps publishing every change since (see [`super::FieldUpdate`]).
 //!
 //! Every [`super::FieldUpdate`] names the layout generation its boxes belong to; a reader
 //! whose copy has another generation neither applies nor acknowledges it, so the simulation
@@ -14,7 +28,17 @@
 
 use crossbeam::channel::{Receiver, Sender, bounded};
 
-use dynaclay_core::field::MultiPatchField;
+use dynaclay_core::field::{DENSE_BRICK_BYTES, MultiPatchField, SpareBrick};
+
+/// Spare dense bricks waiting for the haptic loop (1.3 MiB at [`DENSE_BRICK_BYTES`] each): an
+/// update whose values make at most this many of its copy's uniform bricks dense is applied
+/// in the tick it arrives (a stroke's publication makes a few dense at a time: the bricks its
+/// edit reached for the first time since the previous one), and this is the most bricks one
+/// tick fills (256 × 1 331 values).
+pub const HAPTIC_SPARE_BRICKS: usize = 256;
+
+/// Bytes the haptic loop's pool of spare bricks holds when full.
+pub const HAPTIC_SPARE_BYTES: usize = HAPTIC_SPARE_BRICKS * DENSE_BRICK_BYTES;
 
 /// A copy of the simulation's field in its new layout.
 #[derive(Debug)]
@@ -30,9 +54,18 @@ pub struct LayoutHandover {
 pub struct LayoutPort {
     incoming: Receiver<LayoutHandover>,
     retired: Sender<Box<MultiPatchField>>,
+    /// Spare dense bricks for writes into the copy (none for a reader that may allocate).
+    spares: Option<Receiver<SpareBrick>>,
 }
 
 impl LayoutPort {
+    /// A spare dense brick from the pool the simulation fills, if one waits (never for a
+    /// port made without spares). Wait-free, allocation-free.
+    #[must_use]
+    pub fn take_spare(&self) -> Option<SpareBrick> {
+        self.spares.as_ref()?.try_recv().ok()
+    }
+
     /// Swaps a waiting layout into `field` and returns its generation, sending the old copy
     /// back to the simulation. Does nothing (and returns `None`) when no layout waits or when
     /// the return slot is still full.
@@ -68,58 +101,75 @@ pub struct LayoutSender {
     /// A second receiver on the incoming slot, to replace a layout the reader never took.
     withdraw: Receiver<LayoutHandover>,
     retired: Receiver<Box<MultiPatchField>>,
-    /// Whether the copies offered have every brick dense (for a reader that writes into its
-    /// copy on a thread that must not allocate).
-    dense_copies: bool,
+    /// Where spare dense bricks go to the reader (see the module documentation).
+    spares: Option<Sender<SpareBrick>>,
 }
 
 impl LayoutSender {
-    /// This sender, offering copies whose bricks are all dense, so that the reader's writes
-    /// into them never allocate (the haptic loop's).
-    #[must_use]
-    pub fn with_dense_copies(mut self) -> Self {
-        self.dense_copies = true;
-        self
-    }
-
     /// Offers a copy of `field` in layout `generation`, replacing an older offer the reader
-    /// has not taken yet, and drops the copies readers have handed back.
+    /// has not taken yet, and drops the copies readers have handed back. The copy is as
+    /// sparse as `field`.
     pub fn offer(&self, field: &MultiPatchField, generation: u64) {
         self.drop_retired();
         while self.withdraw.try_recv().is_ok() {}
         // The slot was just emptied and this is its only sender: the send succeeds unless the
         // reader is gone, when there is nobody left to offer to.
-        let mut copy = Box::new(field.clone());
-        if self.dense_copies {
-            copy.densify_all();
-        }
         let _ = self.incoming.try_send(LayoutHandover {
             generation,
-            field: copy,
+            field: Box::new(field.clone()),
         });
     }
 
-    /// Drops the copies readers have handed back (the simulation calls this every step).
+    /// Drops the copies readers have handed back and tops the pool of spare bricks up to its
+    /// capacity, allocating the bricks here (the simulation calls this every publication).
     pub fn drop_retired(&self) {
         while self.retired.try_recv().is_ok() {}
+        if let Some(spares) = &self.spares {
+            // Fails only when the pool is full, or when the reader is gone (nobody to fill
+            // for); this is the pool's only sender, so the room seen cannot shrink meanwhile.
+            while !spares.is_full() && spares.try_send(SpareBrick::new()).is_ok() {}
+        }
     }
 }
 
-/// A connected pair of ends.
+/// A connected pair of ends, for a reader that may allocate when it writes into its copy
+/// (the graphics loop).
 #[must_use]
 pub fn layout_channel() -> (LayoutSender, LayoutPort) {
+    connected(None)
+}
+
+/// A connected pair of ends whose reader also gets a pool of `capacity` spare dense bricks,
+/// filled at once and topped up at every [`LayoutSender::drop_retired`], so that it writes
+/// into its sparse copy without allocating (the haptic loop, with [`HAPTIC_SPARE_BRICKS`]).
+///
+/// # Panics
+/// When `capacity` is zero.
+#[must_use]
+pub fn layout_channel_with_spares(capacity: usize) -> (LayoutSender, LayoutPort) {
+    assert!(capacity > 0, "a pool of spare bricks holds at least one");
+    let (sender, port) = connected(Some(bounded(capacity)));
+    sender.drop_retired();
+    (sender, port)
+}
+
+fn connected(
+    spares: Option<(Sender<SpareBrick>, Receiver<SpareBrick>)>,
+) -> (LayoutSender, LayoutPort) {
     let (in_tx, in_rx) = bounded(1);
     let (out_tx, out_rx) = bounded(1);
+    let (spares_tx, spares_rx) = spares.unzip();
     (
         LayoutSender {
             incoming: in_tx,
             withdraw: in_rx.clone(),
             retired: out_rx,
-            dense_copies: false,
+            spares: spares_tx,
         },
         LayoutPort {
             incoming: in_rx,
             retired: out_tx,
+            spares: spares_rx,
         },
     )
 }
@@ -162,5 +212,26 @@ mod tests {
         sender.drop_retired();
         assert_eq!(port.install(&mut copy), Some(3));
         assert_eq!(copy.patches.len(), 4);
+    }
+
+    #[test]
+    fn offered_copies_stay_sparse_and_the_pool_is_topped_up_at_each_drop() {
+        let (sender, port) = layout_channel_with_spares(3);
+        let mut copy = Box::new(field(1));
+        sender.offer(&field(2), 1);
+        assert_eq!(port.install(&mut copy), Some(1));
+        let dense: usize = copy
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.dense_brick_count())
+            .sum();
+        assert_eq!(dense, 0, "a copy of an all-zero field holds no dense brick");
+        let taken: Vec<_> = std::iter::from_fn(|| port.take_spare()).collect();
+        assert_eq!(taken.len(), 3, "filled when made");
+        assert!(port.take_spare().is_none());
+        sender.drop_retired();
+        assert_eq!(std::iter::from_fn(|| port.take_spare()).count(), 3);
+        let (_, plain) = layout_channel();
+        assert!(plain.take_spare().is_none(), "the graphics end has no pool");
     }
 }

@@ -57,6 +57,7 @@ pub use graphics::{
 pub use haptic::{HapticOutcome, HapticStage};
 pub use haptic_gain::{HapticGain, InvalidHapticGain, MAX_HAPTIC_GAIN};
 pub use io_worker::{IoReport, IoWorker};
+pub use layout::{HAPTIC_SPARE_BRICKS, HAPTIC_SPARE_BYTES};
 pub use live_tool::{GeometricDue, LiveTool, MAX_FORCES, MAX_TARGETS};
 pub use lockstep::{Lockstep, LockstepReport};
 pub use motion_to_photon::{

@@ -1,18 +1,21 @@
 //! The simulation's published state: boxes of coefficients (at most one per density patch) with
 //! their current values, plus the stroke and step status the other loops need.
 //!
-//! Guarantee: [`FieldUpdate::capture`], [`FieldUpdate::copy_into`] and
-//! [`FieldUpdate::apply_to`] never allocate into a field whose bricks are dense (see
-//! [`dynaclay_core::field::BrickedCoeffs`]; the haptic loop's copy is) once the update was built with
+//! Guarantee: [`FieldUpdate::capture`] never allocates once the update was built with
 //! [`FieldUpdate::with_capacity_for`] for the field it carries (room for every coefficient of
-//! every patch, and a box per patch), and do work linear in the boxes' coefficient count,
-//! which is bounded by the field's size. They are safe on the haptic path. The stroke
+//! every patch, and a box per patch). [`FieldUpdate::densify_for_copy`] never allocates (it
+//! takes dense bricks' storage from a pool), and once it has returned `true`,
+//! [`FieldUpdate::copy_into`] of the same update into the same field never allocates either:
+//! the haptic loop's copy stays sparse (see [`dynaclay_core::field::BrickedCoeffs`]). All three
+//! do work linear in the boxes' coefficient count, which is bounded by the field's size. They
+//! are safe on the haptic path. [`FieldUpdate::apply_to`] may make bricks dense (it allocates:
+//! the graphics loop's). The stroke
 //! geometry has a fixed capacity ([`dynaclay_core::haptics::MAX_STROKE_POINTS`]) and is copied with
 //! [`StrokeGeometry::copy_from`], which never allocates.
 
 use glam::Vec3;
 
-use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField};
+use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField, SpareBrick};
 use dynaclay_core::haptics::{FeltTool, StrokeGeometry};
 use dynaclay_core::mesh::BrickOctree;
 
@@ -124,6 +127,32 @@ impl FieldUpdate {
         total == self.coeffs.len()
     }
 
+    /// Makes dense, with storage taken from `spares`, every uniform brick of `field` that
+    /// [`FieldUpdate::copy_into`] of this update would make dense, changing no value. Returns
+    /// whether `field` is ready: then that copy allocates nothing. `false` means `spares` ran
+    /// dry first; the bricks made dense stay so, and a later call (with the pool refilled)
+    /// goes on from there. An update that does not fit `field` needs nothing (`true`).
+    /// Never allocates.
+    pub fn densify_for_copy(
+        &self,
+        field: &mut MultiPatchField,
+        spares: &mut impl FnMut() -> Option<SpareBrick>,
+    ) -> bool {
+        if !self.fits(field) {
+            return true;
+        }
+        let mut rest = self.coeffs.as_slice();
+        for b in &self.boxes {
+            let coeffs = &mut field.patches[usize::from(b.patch)].lattice.coeffs;
+            let (mine, after) = rest.split_at(b.coeff_box.count());
+            if !coeffs.densify_for_box(b.coeff_box.min, b.coeff_box.dims(), mine, spares) {
+                return false;
+            }
+            rest = after;
+        }
+        true
+    }
+
     /// Writes the carried coefficients into `field` without tracking what changed: a row copy
     /// per line of each box, for the haptic path, which needs the values but not the changed
     /// box (the per-coefficient comparison in [`FieldUpdate::apply_to`] is the bulk of its
@@ -231,7 +260,7 @@ fn apply_box(coeffs: &[f32], b: CoeffBox, lattice: &mut BSplineLattice) -> Optio
                     } else {
                         f32::INFINITY
                     });
-                    // A write into a dense brick (as in a copy made dense) never allocates.
+                    // May make a uniform brick dense (an allocation: the graphics loop's).
                     lattice.coeffs.set(i, j, k, *s);
                     let p = [i, j, k];
                     changed = Some(changed.map_or(CoeffBox::point(p), |c| c.grown_to(p)));
@@ -398,5 +427,66 @@ mod tests {
         );
         update.capture(&src, 7, b);
         assert!(update.boxes.is_empty());
+    }
+
+    fn dense_bricks(field: &MultiPatchField) -> usize {
+        field
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.dense_brick_count())
+            .sum()
+    }
+
+    /// A sparse copy takes an update that makes uniform bricks dense: the pool's bricks go
+    /// where the values changed, a dry pool holds the copy back until it is refilled, and the
+    /// copy then writes what `apply_to` writes without making any further brick dense.
+    #[test]
+    fn a_sparse_copy_prepared_from_spares_takes_the_update_without_new_bricks() {
+        let empty =
+            MultiPatchField::new(BSplineLattice::zeros([30, 20, 20], 0.5, Vec3::ZERO).unwrap());
+        let mut moved = empty.clone();
+        // Two coefficients far apart, each in one brick only (no apron copies it).
+        moved.patches[0].lattice.coeffs.set(2, 2, 2, 0.5);
+        moved.patches[0].lattice.coeffs.set(28, 12, 12, 0.25);
+        let mut update = FieldUpdate::with_capacity_for(&moved);
+        update.capture(&moved, 0, CoeffBox::whole([30, 20, 20]));
+
+        let mut copy = empty.clone();
+        assert_eq!(dense_bricks(&copy), 0);
+        let mut pool = 1;
+        let mut take = || {
+            (pool > 0).then(|| {
+                pool -= 1;
+                SpareBrick::new()
+            })
+        };
+        assert!(
+            !update.densify_for_copy(&mut copy, &mut take),
+            "one spare is short"
+        );
+        assert_eq!(copy, empty, "no value changed meanwhile");
+        assert_eq!(dense_bricks(&copy), 1);
+        pool = 1;
+        let mut take = || {
+            (pool > 0).then(|| {
+                pool -= 1;
+                SpareBrick::new()
+            })
+        };
+        assert!(update.densify_for_copy(&mut copy, &mut take));
+        assert_eq!(dense_bricks(&copy), 2);
+        assert!(update.copy_into(&mut copy));
+        assert_eq!(copy, moved);
+        assert_eq!(
+            dense_bricks(&copy),
+            2,
+            "only the bricks whose values changed"
+        );
+
+        let mut applied = empty.clone();
+        assert!(update.apply_to(&mut applied).is_some());
+        assert_eq!(dense_bricks(&applied), dense_bricks(&copy));
+        // A second pass needs no spare at all.
+        assert!(update.densify_for_copy(&mut copy, &mut || None));
     }
 }

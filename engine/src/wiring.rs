@@ -15,7 +15,7 @@ use super::device_swap::{DeviceSwapRequest, device_swap_channel};
 use super::error::EngineError;
 use super::graphics::{GraphicsStage, MeshSink};
 use super::haptic::HapticStage;
-use super::layout::layout_channel;
+use super::layout::{HAPTIC_SPARE_BRICKS, layout_channel, layout_channel_with_spares};
 use super::motion_to_photon::MeshStamp;
 use super::simulation::{Acks, IoJob, SimulationStage};
 use super::tool_sample::ToolSample;
@@ -72,8 +72,7 @@ pub fn build(
     let (io_tx, io_rx) = crossbeam::channel::unbounded();
     let acks = Acks::default();
     let (device_swaps, swap_port) = device_swap_channel();
-    let (haptic_layouts, haptic_layout_port) = layout_channel();
-    let haptic_layouts = haptic_layouts.with_dense_copies();
+    let (haptic_layouts, haptic_layout_port) = layout_channel_with_spares(HAPTIC_SPARE_BRICKS);
     let (graphics_layouts, graphics_layout_port) = layout_channel();
     let clock = if lockstep {
         EngineClock::stepped()

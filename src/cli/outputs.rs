@@ -243,7 +243,8 @@ pub fn write_outputs(
          | haptic ticks | {} |\n| contact ticks | {} |\n| stale ticks | {} |\n\
          | device read faults | {} |\n| device write faults | {} |\n\
          | peak force (mN) | {} |\n| simulation steps | {} |\n| rejected steps | {} |\n\
-         | snapshots published | {} |\n| graphics updates | {} |\n| bricks re-meshed | {} |\n",
+         | snapshots published | {} |\n| graphics updates | {} |\n| bricks re-meshed | {} |\n\
+         | haptic ticks awaiting spare bricks | {} |\n",
         c.haptic_ticks,
         c.contact_ticks,
         c.stale_ticks,
@@ -254,7 +255,8 @@ pub fn write_outputs(
         c.sim_nonfinite_rejected,
         c.snapshots_published,
         c.graphics_updates,
-        c.bricks_remeshed
+        c.bricks_remeshed,
+        c.haptic_updates_awaiting_bricks
     );
     write_atomic(&md_path, md.as_bytes()).map_err(|e| out_err(&md_path, e))?;
     files.push(md_path);

@@ -18,9 +18,15 @@
 //! `i + nx · (j + ny · k)` (x fastest), the order every iteration follows. Reads never
 //! allocate. A write of a value the uniform bricks holding it already hold changes nothing;
 //! any other write into a uniform brick makes it dense (one allocation of 5 324 bytes), and
-//! [`BrickedCoeffs::compact`] makes a dense brick whose values are all equal uniform again. A
-//! store made dense with [`BrickedCoeffs::densify_all`] never allocates on writes (the haptic
-//! loop's copy).
+//! [`BrickedCoeffs::compact`] makes a dense brick whose values are all equal uniform again.
+//!
+//! A store written on a thread that must not allocate (the haptic loop's copy) stays sparse:
+//! before a box write, [`BrickedCoeffs::densify_for_box`] makes dense exactly the uniform
+//! bricks that write would make dense, with storage ([`SpareBrick`]) allocated ahead on
+//! another thread, and reports whether the spares sufficed; the write then allocates nothing.
+//! Making a brick dense this way changes no value, so a pool that runs dry half-way leaves
+//! the store as it was, only partly prepared. [`BrickedCoeffs::densify_all`] remains for a
+//! store that is to take any write at all without allocating.
 
 use std::fmt;
 use std::ops::Index;
@@ -155,6 +161,32 @@ fn largest_step(m: f32, a: &[f32], b: &[f32]) -> f32 {
     a.iter()
         .zip(b)
         .fold(m, |m, (&p, &q)| larger(m, (q - p).abs()))
+}
+
+/// The storage of one dense brick, allocated ahead of time: a store that must not allocate on
+/// writes (the haptic loop's copy) takes one from a pool filled on another thread whenever a
+/// write would make a uniform brick dense (see [`BrickedCoeffs::densify_for_box`]). Its
+/// values are unspecified until it is taken into a store.
+pub struct SpareBrick(Box<[f32; DENSE_BRICK_VALUES]>);
+
+impl SpareBrick {
+    /// A spare brick: one allocation of [`DENSE_BRICK_BYTES`].
+    #[must_use]
+    pub fn new() -> Self {
+        Self(Box::new([0.0; DENSE_BRICK_VALUES]))
+    }
+}
+
+impl Default for SpareBrick {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl fmt::Debug for SpareBrick {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("SpareBrick")
+    }
 }
 
 /// One brick's own coefficients, as a session file stores them (see
@@ -738,6 +770,71 @@ impl BrickedCoeffs {
                 }
             }
         }
+    }
+
+    /// Makes dense, without changing any value, every uniform brick that
+    /// [`BrickedCoeffs::write_box`] of the same box and values would make dense, taking the
+    /// storage from `spares` instead of allocating. Returns whether every such brick is dense
+    /// now: then that write allocates nothing. When `spares` runs dry first it returns
+    /// `false`; the bricks made dense so far stay dense (they hold the values they held), so
+    /// a later call with more spares goes on where this one stopped.
+    ///
+    /// Never allocates. Reads the directory entry of each brick the box reaches, and the
+    /// values that fall in a uniform one (the comparison `write_box` makes too); a brick
+    /// already dense costs one lookup.
+    ///
+    /// # Panics
+    /// As [`BrickedCoeffs::write_box`].
+    pub fn densify_for_box(
+        &mut self,
+        min: [usize; 3],
+        size: [usize; 3],
+        values: &[f32],
+        spares: &mut impl FnMut() -> Option<SpareBrick>,
+    ) -> bool {
+        if !self.check_box(min, size, values.len()) {
+            return true;
+        }
+        let [bx, by, _] = self.bricks_per_axis;
+        let first = min.map(lowest_holder);
+        let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
+        for bk in first[2]..=last[2] {
+            for bj in first[1]..=last[1] {
+                for bi in first[0]..=last[0] {
+                    let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
+                    let Brick::Uniform(v) = *brick else {
+                        continue;
+                    };
+                    let origin = [bi, bj, bk].map(|b| b * COEFF_BRICK);
+                    // The box's part this brick holds, as in `write_box`.
+                    let lo: [usize; 3] = std::array::from_fn(|a| min[a].max(origin[a]));
+                    let hi: [usize; 3] =
+                        std::array::from_fn(|a| (min[a] + size[a]).min(origin[a] + BRICK_SPAN));
+                    if (0..3).any(|a| lo[a] >= hi[a]) {
+                        continue;
+                    }
+                    let len = hi[0] - lo[0];
+                    let keeps = (lo[2]..hi[2]).all(|z| {
+                        (lo[1]..hi[1]).all(|y| {
+                            let at =
+                                lo[0] - min[0] + size[0] * (y - min[1] + size[1] * (z - min[2]));
+                            values[at..at + len]
+                                .iter()
+                                .all(|h| h.to_bits() == v.to_bits())
+                        })
+                    });
+                    if keeps {
+                        continue;
+                    }
+                    let Some(SpareBrick(mut storage)) = spares() else {
+                        return false;
+                    };
+                    storage.fill(v);
+                    *brick = Brick::Dense(storage);
+                }
+            }
+        }
+        true
     }
 
     /// Copies the box of `size` coefficients whose lowest corner is `min` into `out`, x
@@ -1550,6 +1647,68 @@ mod tests {
             assert_matches(&store, &model);
         }
         assert_stencils_match(&store, &model);
+    }
+
+    /// Preparing a box write with spares makes dense exactly the bricks the write would, and
+    /// changes no value; a pool that runs dry stops it, and a later call goes on from there.
+    #[test]
+    fn a_box_write_prepared_with_spares_makes_no_further_brick_dense() {
+        let dims = [23, 18, 20];
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut store = BrickedCoeffs::uniform(dims, 1.0);
+        for round in 0..30 {
+            let min = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+            let size: [usize; 3] = std::array::from_fn(|a| 1 + rng.below(dims[a] - min[a]));
+            // Some boxes repeat the value uniform bricks hold (no brick need change).
+            let one = (round % 3 == 0).then_some(1.0);
+            let values: Vec<f32> = (0..size.iter().product::<usize>())
+                .map(|_| one.unwrap_or_else(|| rng.value()))
+                .collect();
+            let mut written_plainly = store.clone();
+            written_plainly.write_box(min, size, &values);
+
+            let before = store.clone();
+            let mut taken = 0;
+            // At most two spares per call: the calls go on until the box is ready.
+            let mut calls = 0;
+            loop {
+                let mut left = 2;
+                let ready = store.densify_for_box(min, size, &values, &mut || {
+                    (left > 0).then(|| {
+                        left -= 1;
+                        taken += 1;
+                        SpareBrick::new()
+                    })
+                });
+                assert_eq!(store, before, "making bricks dense changes no value");
+                calls += 1;
+                if ready {
+                    break;
+                }
+                assert_eq!(left, 0, "a call stops only when the spares ran out");
+            }
+            assert!(
+                calls <= 1 + taken / 2,
+                "every call but the last used its spares"
+            );
+            let dense_before_write = store.dense_brick_count();
+            store.write_box(min, size, &values);
+            assert_eq!(store, written_plainly);
+            assert_eq!(
+                store.dense_brick_count(),
+                dense_before_write,
+                "the prepared write made no brick dense"
+            );
+            assert_eq!(
+                dense_before_write,
+                written_plainly.dense_brick_count(),
+                "the spares went exactly where a plain write allocates"
+            );
+            assert_eq!(taken, dense_before_write - before.dense_brick_count());
+            if round % 4 == 3 {
+                store.compact();
+            }
+        }
     }
 
     #[test]

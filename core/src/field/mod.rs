@@ -26,7 +26,7 @@ pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 // The NaN-skipping maximum and minimum the bricks' box summary and the mesher share.
 pub use bricks::{
     BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES,
-    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, Values,
+    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, SpareBrick, Values,
 };
 pub(crate) use bricks::{larger, smaller};
 pub use coarsen::{

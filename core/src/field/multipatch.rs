@@ -24,11 +24,13 @@ pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
 /// and reading a session all stay within it.
 ///
 /// It counts the patches' boxes, not the dense bricks that hold them
-/// ([`super::BrickedCoeffs`]): the live engine's haptic loop keeps a copy of the clay made
-/// dense throughout (every brick with its apron, 11³/8³ of the box's coefficients), so the
-/// box is what a clay costs while it is sculpted, and a refine knows it before the patch is
-/// made. A session file of format 4 stores only the dense bricks, but is read against this
-/// same count, checked before anything is allocated, so a clay that saves loads.
+/// ([`super::BrickedCoeffs`]). Every copy of the clay is sparse (the live engine's haptic copy
+/// too: it takes dense bricks from a pool as strokes reach new clay), but any edit inside a
+/// box may make the bricks it reaches dense, and none is refused for that: the box is what a
+/// clay can come to cost while it is sculpted (every brick dense, with its apron, 11³/8³ of
+/// the box's coefficients), and a refine knows it before the patch is made. A session file of
+/// format 4 stores only the dense bricks, but is read against this same count, checked before
+/// anything is allocated, so a clay that saves loads.
 pub const MAX_CLAY_COEFFS: usize = 64 << 20;
 
 /// Why a detail patch could not be added.
