@@ -195,7 +195,7 @@ impl GraphicsStage {
         // The new copy may hold changes beside the layout (a fold writes the base, and
         // snapshots this loop had not applied yet are in it): where the multi-level mesh is
         // re-meshed locally, they are found by comparing the copies.
-        let compare = self.levels.is_some();
+        let compare = self.levels.is_some() || self.field.patches.len() == 1;
         let mut shared_change = None;
         let installed = self
             .layouts
@@ -220,6 +220,11 @@ impl GraphicsStage {
                 } else if self.levels.is_some() || detail {
                     // The first detail patch, or the last one gone (marching cubes again).
                     self.mesh_afresh();
+                } else if let Some((lo, hi)) = shared_change {
+                    // One patch before and after, its coefficients changed (a session loaded
+                    // in place, changes this loop had not applied yet): marching cubes again
+                    // where they did.
+                    self.refresh_layout_change(lo, hi);
                 }
             }
             self.sink.field(&self.field);
@@ -389,6 +394,17 @@ impl GraphicsStage {
             &mut self.octree,
         );
         self.levels = levels;
+        self.counters.graphics_updates(1);
+        self.counters
+            .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);
+        self.sink.update(&self.octree, &report);
+    }
+
+    /// Re-meshes the marching cubes of a one-patch clay inside the world box `lo..=hi`,
+    /// where a new copy of the clay differs from the one it replaced, and hands the sink the
+    /// bricks that changed or went. Held-back changes stay held back.
+    fn refresh_layout_change(&mut self, lo: Vec3, hi: Vec3) {
+        let report = self.octree.refresh_box(&*self.field, lo, hi);
         self.counters.graphics_updates(1);
         self.counters
             .bricks_remeshed((report.changed.len() + report.removed.len()) as u64);

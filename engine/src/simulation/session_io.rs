@@ -32,8 +32,8 @@ impl SimulationStage {
     }
 
     /// Installs `session` (read from `source`): the clay, the uniform material and the
-    /// painted material grids replace the current ones, the active region is dropped and the
-    /// whole field is marked changed so both readers receive all of it. A stroke held across
+    /// painted material grids replace the current ones, the active region is dropped and both
+    /// readers are handed a copy of the new clay (see `publish_layout`). A stroke held across
     /// the load continues on the new clay as a new stroke (a new undo step).
     ///
     /// The undo history is cleared, unless `keep_history` asks to keep it: the replacement is
@@ -95,7 +95,10 @@ impl SimulationStage {
         self.colour_dirty = true;
         self.mask_dirty = true;
         self.config.material = material.uniform;
-        self.mark_all_changed();
+        // The readers take the loaded clay as a copy, as they take a new layout: a
+        // publication of every coefficient would grow each snapshot buffer to the clay's
+        // dense size and keep it.
+        self.publish_layout();
         self.sessions_loaded += 1;
         // A session file loaded is the session being worked on, so autosave follows it; an
         // imported cloud, mesh or volume is not one, and autosave stays where it was.
