@@ -2373,6 +2373,108 @@ mod tests {
     }
 
     #[test]
+    fn the_searched_sums_in_lanes_are_the_same_on_both_builds_and_match_the_plain_sums() {
+        // The wavy sheet's searched neighbourhoods: the vote's, the smoothing's and the
+        // curvature's lanes give the same sums bit for bit on the portable build and on this
+        // CPU's, and the terms a visit of each neighbour adds, within f32 rounding.
+        let (mut points, mut normals) = sheet(30, 0.0, Vec3::Z);
+        for (p, n) in points.iter_mut().zip(&mut normals) {
+            p.z = 0.8 * (0.3 * p.x).sin();
+            *n = Vec3::new(-0.24 * (0.3 * p.x).cos(), 0.0, 1.0).normalize();
+        }
+        let confidence: Vec<f32> = (0..points.len())
+            .map(|i| 0.5 + 0.5 * ((i * 37) % 11) as f32 / 10.0)
+            .collect();
+        let bandwidth = 1.2;
+        let neighbours = Neighbours {
+            lists: None,
+            ..Neighbours::new(&points, MOVING_REACH * bandwidth)
+        };
+        let (radius, squared) = (neighbours.radius, bandwidth * bandwidth);
+        let builds = [false, true].map(|wide| NeighbourColumns {
+            wide_lanes: wide && has_wide_lanes(),
+            ..NeighbourColumns::of(&neighbours.grid, &normals, &confidence)
+        });
+        for i in (0..points.len()).step_by(7) {
+            let (p, n) = (points[i], normals[i]);
+            let found = builds.each_ref().map(|columns| {
+                let mut vote = VoteAndSmoothingSums {
+                    columns,
+                    p,
+                    own: i as u32,
+                    radius_squared: radius * radius,
+                    bandwidth_squared: squared,
+                    resultant: [[0.0; LANES]; 3],
+                    weight: [0.0; LANES],
+                    sum: [[0.0; LANES]; 3],
+                };
+                let mut curvature = CurvatureSums {
+                    columns,
+                    p,
+                    normal: n,
+                    radius_squared: radius * radius,
+                    bandwidth_squared: squared,
+                    turned: [0.0; LANES],
+                    spread: [0.0; LANES],
+                };
+                neighbours.grid.for_each_row_near(p, radius, |slots| {
+                    add_row(&mut vote, slots.clone(), columns.wide_lanes);
+                    add_row(&mut curvature, slots, columns.wide_lanes);
+                });
+                let vector = |lanes: &[Lanes; 3]| lanes.map(|l| total(&l));
+                (
+                    vector(&vote.resultant),
+                    total(&vote.weight),
+                    vector(&vote.sum),
+                    total(&curvature.turned),
+                    total(&curvature.spread),
+                )
+            });
+            type Sums = ([f32; 3], f32, [f32; 3], f32, f32);
+            let bits = |(resultant, weight, sum, turned, spread): &Sums| {
+                (
+                    resultant.map(f32::to_bits),
+                    weight.to_bits(),
+                    sum.map(f32::to_bits),
+                    turned.to_bits(),
+                    spread.to_bits(),
+                )
+            };
+            assert_eq!(bits(&found[0]), bits(&found[1]), "point {i}");
+            let (resultant, weight, sum, turned, spread) = found[0];
+            let (mut plain_resultant, mut plain_weight, mut plain_sum) =
+                (Vec3::ZERO, 0.0f32, Vec3::ZERO);
+            let (mut plain_turned, mut plain_spread) = (0.0f32, 0.0f32);
+            neighbours.for_each(i, |j, q| {
+                let d = q - p;
+                let w = confidence[j] * exp_neg(d.length_squared() / squared);
+                if j != i {
+                    plain_resultant += normals[j] * confidence[j];
+                    plain_weight += confidence[j];
+                }
+                plain_sum += normals[j] * w;
+                plain_turned += w * (normals[j] - n).dot(d);
+                plain_spread += w * d.length_squared();
+            });
+            let near = |a: f32, b: f32, scale: f32| (a - b).abs() <= 1e-5 * scale.max(1.0);
+            for axis in 0..3 {
+                assert!(
+                    near(resultant[axis], plain_resultant[axis], plain_weight),
+                    "{i}"
+                );
+                assert!(near(sum[axis], plain_sum[axis], plain_weight), "{i}");
+            }
+            assert!(near(weight, plain_weight, plain_weight), "{i}");
+            assert!(
+                plain_weight > 5.0,
+                "a neighbourhood, not a few points: {plain_weight}"
+            );
+            assert!(near(turned, plain_turned, plain_spread), "{i}");
+            assert!(near(spread, plain_spread, plain_spread), "{i}");
+        }
+    }
+
+    #[test]
     fn a_stray_normal_on_a_flat_patch_is_overruled_and_a_thin_sheets_two_sides_are_kept() {
         // A 20 × 20 patch facing +z; three points' normals point elsewhere: sideways,
         // backwards, and 45° off (within the agreement, kept).
