@@ -77,6 +77,9 @@ use super::consensus::{
     CELL_OFFER, Consensus, PointGrid, exp_neg, floor_to_i32, least_variance_direction,
     parallel_map, screen, typical_spacing,
 };
+use super::lanes::{
+    LANES, LaneSums, Lanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of, total,
+};
 use super::points::PointCloud;
 use super::regularised::refit_regularised;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
@@ -960,15 +963,38 @@ fn point_curvatures(
 ) -> Vec<f32> {
     let bound = MAX_CURVATURE_BANDWIDTHS / bandwidth;
     let points = neighbours.points;
+    let columns = neighbours
+        .lists
+        .is_none()
+        .then(|| NeighbourColumns::of(&neighbours.grid, normals, confidence));
     parallel_map(points.len(), |i| {
         let (p, n) = (points[i], normals[i]);
-        let (mut turned, mut spread) = (0.0f32, 0.0f32);
-        neighbours.for_each(i, |j, q| {
-            let d = q - p;
-            let w = confidence[j] * exp_neg(d.length_squared() / (bandwidth * bandwidth));
-            turned += w * (normals[j] - n).dot(d);
-            spread += w * d.length_squared();
-        });
+        let (turned, spread) = if let Some(columns) = &columns {
+            let mut sums = CurvatureSums {
+                columns,
+                p,
+                normal: n,
+                radius_squared: neighbours.radius * neighbours.radius,
+                bandwidth_squared: bandwidth * bandwidth,
+                turned: [0.0; LANES],
+                spread: [0.0; LANES],
+            };
+            neighbours
+                .grid
+                .for_each_row_near(p, neighbours.radius, |slots| {
+                    add_row(&mut sums, slots, columns.wide_lanes);
+                });
+            (total(&sums.turned), total(&sums.spread))
+        } else {
+            let (mut turned, mut spread) = (0.0f32, 0.0f32);
+            neighbours.for_each(i, |j, q| {
+                let d = q - p;
+                let w = confidence[j] * exp_neg(d.length_squared() / (bandwidth * bandwidth));
+                turned += w * (normals[j] - n).dot(d);
+                spread += w * d.length_squared();
+            });
+            (turned, spread)
+        };
         if spread > 0.0 {
             (turned / spread).clamp(-bound, bound)
         } else {
@@ -981,69 +1007,172 @@ fn point_curvatures(
 /// bandwidths of `x`, `wᵢ = cᵢ aᵢ exp(−|x − pᵢ|² / hᵢ²)` (confidence, area weight, own
 /// bandwidth), `dᵢ` the distance to the point's osculating sphere (curvature `κᵢ`); the
 /// points at the typical bandwidth are left out unless `typical` (the caller knows none is
-/// within reach).
+/// within reach). Summed in lanes ([`super::lanes`]).
 fn moving_planes(near: &NearPoints, x: Vec3, typical: bool) -> (f32, f32) {
-    let mut sums = (0.0f32, 0.0f32);
+    let mut weighted = [0.0; LANES];
+    let mut weight = [0.0; LANES];
+    let mut add = |grid: &PointGrid, columns: &PlaneColumns, radius: f32| {
+        let mut sums = PlaneSums {
+            columns,
+            x,
+            weighted,
+            weight,
+        };
+        grid.for_each_row_near(x, radius, |slots| {
+            add_row(&mut sums, slots, near.wide_lanes);
+        });
+        (weighted, weight) = (sums.weighted, sums.weight);
+    };
     if typical {
-        near.typical
-            .for_each_slot_near(x, MOVING_REACH * near.bandwidth, |slot, _, p| {
-                near.typical_planes[slot].add(&mut sums, x, p);
-            });
+        add(
+            &near.typical,
+            &near.typical_planes,
+            MOVING_REACH * near.bandwidth,
+        );
     }
     if let Some(widened) = &near.widened {
-        widened.for_each_slot_near(x, MOVING_REACH * near.widest, |slot, _, p| {
-            near.widened_planes[slot].add(&mut sums, x, p);
-        });
+        add(widened, &near.widened_planes, MOVING_REACH * near.widest);
     }
-    sums
+    (total(&weighted), total(&weight))
 }
 
-/// One point's moving plane: what its term in the moving planes' sums reads besides its
-/// position, in one record (laid out in its grid's order, so a search reads them in sequence).
+/// The lanes of [`moving_planes`]' sums at `x`.
+struct PlaneSums<'a> {
+    columns: &'a PlaneColumns,
+    x: Vec3,
+    weighted: Lanes,
+    weight: Lanes,
+}
+
+impl LaneSums for PlaneSums<'_> {
+    #[inline(always)]
+    fn add_block(&mut self, start: usize, valid: usize) {
+        let (c, x) = (self.columns, self.x);
+        let (px, py, pz) = (
+            lanes_of(&c.x, start),
+            lanes_of(&c.y, start),
+            lanes_of(&c.z, start),
+        );
+        let (nx, ny, nz) = (
+            lanes_of(&c.normal_x, start),
+            lanes_of(&c.normal_y, start),
+            lanes_of(&c.normal_z, start),
+        );
+        let half_curvature = lanes_of(&c.half_curvature, start);
+        let weight = lanes_of(&c.weight, start);
+        let bandwidth_squared = lanes_of(&c.bandwidth_squared, start);
+        let reach_squared = lanes_of(&c.reach_squared, start);
+        for l in 0..LANES {
+            // The same operations as `d = x − p`, `d.length_squared()`, `normal.dot(d)`.
+            let (dx, dy, dz) = (x.x - px[l], x.y - py[l], x.z - pz[l]);
+            let squared = dx * dx + dy * dy + dz * dz;
+            let within = (squared <= reach_squared[l]) & (l < valid);
+            let w = weight[l] * exp_neg_lane(squared / bandwidth_squared[l]);
+            let height = nx[l] * dx + ny[l] * dy + nz[l] * dz;
+            let tangential = (squared - height * height).max(0.0);
+            let term = w * (height + half_curvature[l] * tangential);
+            self.weighted[l] += kept(within, term);
+            self.weight[l] += kept(within, w);
+        }
+    }
+}
+
+/// The points' moving planes in a grid's order, a column per field (so [`PlaneSums`] reads
+/// [`LANES`] neighbours' fields with one load each), with [`LANES`] slots of
+/// padding at the end (no point reaches anywhere from them).
 ///
 /// NOTE: read from four arrays by the point's index (normals, confidences, scales,
 /// curvatures), the terms took four loads from as many places per neighbour (bench/
 /// RESULTS.md, "Import time: the neighbourhoods"). Each field is the product the sum formed
-/// for itself, so the sums are the same bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct MovingPlane {
-    /// The point's unit outward normal.
-    normal: Vec3,
+/// for itself.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct PlaneColumns {
+    /// The point's position.
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    /// Its unit outward normal.
+    normal_x: Vec<f32>,
+    normal_y: Vec<f32>,
+    normal_z: Vec<f32>,
     /// Half its curvature, 1 / field units.
-    half_curvature: f32,
+    half_curvature: Vec<f32>,
     /// Its confidence times its area weight.
-    weight: f32,
+    weight: Vec<f32>,
     /// Its bandwidth squared, field units².
-    bandwidth_squared: f32,
-    /// Its reach ([`MOVING_REACH`] bandwidths) squared, field units².
-    reach_squared: f32,
+    bandwidth_squared: Vec<f32>,
+    /// Its reach ([`MOVING_REACH`] bandwidths) squared, field units² (−1 in the padding).
+    reach_squared: Vec<f32>,
 }
 
-impl MovingPlane {
-    fn new(normal: Vec3, confidence: f32, local: LocalScale, curvature: f32) -> Self {
-        let reach = MOVING_REACH * local.bandwidth;
-        Self {
-            normal,
-            half_curvature: 0.5 * curvature,
-            weight: confidence * local.area,
-            bandwidth_squared: local.bandwidth * local.bandwidth,
-            reach_squared: reach * reach,
+impl PlaneColumns {
+    /// The planes of `grid`'s members, in its order: the point `j`'s normal, confidence,
+    /// local scale and curvature from `normals[j]`, `confidence[j]`, `local[j]` and
+    /// `curvature[j]`.
+    fn of(
+        grid: &PointGrid,
+        normals: &[Vec3],
+        confidence: &[f32],
+        local: &[LocalScale],
+        curvature: &[f32],
+    ) -> Self {
+        let len = grid.members().len() + LANES;
+        let mut columns = Self {
+            x: Vec::with_capacity(len),
+            y: Vec::with_capacity(len),
+            z: Vec::with_capacity(len),
+            normal_x: Vec::with_capacity(len),
+            normal_y: Vec::with_capacity(len),
+            normal_z: Vec::with_capacity(len),
+            half_curvature: Vec::with_capacity(len),
+            weight: Vec::with_capacity(len),
+            bandwidth_squared: Vec::with_capacity(len),
+            reach_squared: Vec::with_capacity(len),
+        };
+        for (&j, &p) in grid.members().iter().zip(grid.positions()) {
+            let j = j as usize;
+            let (normal, local) = (normals[j], local[j]);
+            let reach = MOVING_REACH * local.bandwidth;
+            columns.push(
+                p,
+                normal,
+                0.5 * curvature[j],
+                confidence[j] * local.area,
+                local.bandwidth * local.bandwidth,
+                reach * reach,
+            );
         }
+        for _ in 0..LANES {
+            columns.push(Vec3::ZERO, Vec3::ZERO, 0.0, 0.0, 1.0, -1.0);
+        }
+        columns
     }
 
-    /// Adds this plane's term (its point at `p`) to `(Σ wᵢ dᵢ(x), Σ wᵢ)` if `x` is within
-    /// its reach.
-    #[inline(always)]
-    fn add(&self, (weighted, weight): &mut (f32, f32), x: Vec3, p: Vec3) {
-        let d = x - p;
-        let squared = d.length_squared();
-        if squared <= self.reach_squared {
-            let w = self.weight * exp_neg(squared / self.bandwidth_squared);
-            let height = self.normal.dot(d);
-            let tangential = (squared - height * height).max(0.0);
-            *weighted += w * (height + self.half_curvature * tangential);
-            *weight += w;
-        }
+    fn push(
+        &mut self,
+        p: Vec3,
+        normal: Vec3,
+        half_curvature: f32,
+        weight: f32,
+        bandwidth_squared: f32,
+        reach_squared: f32,
+    ) {
+        self.x.push(p.x);
+        self.y.push(p.y);
+        self.z.push(p.z);
+        self.normal_x.push(normal.x);
+        self.normal_y.push(normal.y);
+        self.normal_z.push(normal.z);
+        self.half_curvature.push(half_curvature);
+        self.weight.push(weight);
+        self.bandwidth_squared.push(bandwidth_squared);
+        self.reach_squared.push(reach_squared);
+    }
+
+    /// The planes' halved curvatures, in the grid's order (the padding left out).
+    #[cfg(test)]
+    fn half_curvatures(&self) -> &[f32] {
+        &self.half_curvature[..self.half_curvature.len().saturating_sub(LANES)]
     }
 }
 
@@ -1063,15 +1192,17 @@ struct NearPoints {
     /// The points whose bandwidth is the typical one.
     typical: PointGrid,
     /// Their planes, in `typical`'s order.
-    typical_planes: Vec<MovingPlane>,
+    typical_planes: PlaneColumns,
     /// The points whose bandwidth is wider, if any.
     widened: Option<PointGrid>,
     /// Their planes, in `widened`'s order.
-    widened_planes: Vec<MovingPlane>,
+    widened_planes: PlaneColumns,
     /// The typical bandwidth `h`, field units.
     bandwidth: f32,
     /// The widest point's bandwidth, field units.
     widest: f32,
+    /// Whether the CPU runs the AVX2 build of the sums ([`has_wide_lanes`]).
+    wide_lanes: bool,
 }
 
 impl NearPoints {
@@ -1101,22 +1232,18 @@ impl NearPoints {
                 WIDE_CELL_OFFER,
             )
         });
-        let planes_of = |grid: &PointGrid| -> Vec<MovingPlane> {
-            grid.members()
-                .iter()
-                .map(|&j| {
-                    let j = j as usize;
-                    MovingPlane::new(normals[j], confidence[j], local[j], curvature[j])
-                })
-                .collect()
-        };
+        let planes_of =
+            |grid: &PointGrid| PlaneColumns::of(grid, normals, confidence, local, curvature);
         Self {
             typical_planes: planes_of(&typical),
-            widened_planes: widened.as_ref().map_or_else(Vec::new, planes_of),
+            widened_planes: widened
+                .as_ref()
+                .map_or_else(PlaneColumns::default, planes_of),
             typical,
             widened,
             bandwidth,
             widest,
+            wide_lanes: has_wide_lanes(),
         }
     }
 }
@@ -1292,7 +1419,7 @@ impl SignGrid {
                 let first_plane = t * planes_per_thread;
                 let order = &order;
                 scope.spawn(move || {
-                    self.band_slab(points, order, band, first_plane, squared, nearest);
+                    self.band_slab_on_this_cpu(points, order, band, first_plane, squared, nearest);
                     for d in squared.iter_mut() {
                         *d = d.sqrt();
                     }
@@ -1316,6 +1443,48 @@ impl SignGrid {
         super::consensus::order_by_bucket(points, blocks.iter().product(), block_of)
     }
 
+    /// [`SignGrid::band_slab`], built for AVX2 where the CPU has it (the same operations on
+    /// every node, so the same result bit for bit).
+    ///
+    /// NOTE: on the baseline the rows of nine nodes are compared four at a time (SSE2); a
+    /// point's band was a tenth of a 50 000-point import's CPU (bench/RESULTS.md, "Import
+    /// time: the neighbourhoods in lanes").
+    fn band_slab_on_this_cpu(
+        &self,
+        points: &[Vec3],
+        order: &[u32],
+        band: f32,
+        first_plane: usize,
+        dist: &mut [f32],
+        nearest: &mut [u32],
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if has_wide_lanes() {
+            // SAFETY: the CPU has AVX2 (checked just above).
+            unsafe { self.band_slab_avx2(points, order, band, first_plane, dist, nearest) };
+            return;
+        }
+        self.band_slab(points, order, band, first_plane, dist, nearest);
+    }
+
+    /// [`SignGrid::band_slab`] built for AVX2.
+    ///
+    /// # Safety
+    /// The CPU must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn band_slab_avx2(
+        &self,
+        points: &[Vec3],
+        order: &[u32],
+        band: f32,
+        first_plane: usize,
+        dist: &mut [f32],
+        nearest: &mut [u32],
+    ) {
+        self.band_slab(points, order, band, first_plane, dist, nearest);
+    }
+
     /// [`SignGrid::band_distances`] over the z-planes from `first_plane` that `dist` and
     /// `nearest` hold, as squared distances (their roots are taken once, at the end),
     /// visiting the points in `order` (any order gives the same result: of equally near points
@@ -1326,6 +1495,7 @@ impl SignGrid {
     /// where each point wrote nodes far from the last one's (bench/RESULTS.md, "Import wall
     /// time"). Cutting each row to the sphere's chord tests half the nodes, but the rows are
     /// short (nine nodes) and the cut cost more than it saved.
+    #[inline(always)]
     fn band_slab(
         &self,
         points: &[Vec3],
@@ -1684,17 +1854,48 @@ fn overrule_and_smooth_normals(
     bandwidth: f32,
 ) -> (Vec<Vec3>, usize) {
     let points = neighbours.points;
+    let columns = neighbours
+        .lists
+        .is_none()
+        .then(|| NeighbourColumns::of(&neighbours.grid, raw, confidence));
     let found: Vec<(Option<Vec3>, Vec3)> = parallel_map(raw.len(), |i| {
         let p = points[i];
-        let (mut resultant, mut weight, mut sum) = (Vec3::ZERO, 0.0f32, Vec3::ZERO);
-        neighbours.for_each(i, |j, q| {
-            if j != i {
-                resultant += raw[j] * confidence[j];
-                weight += confidence[j];
-            }
-            let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
-            sum += raw[j] * w;
-        });
+        let (resultant, weight, sum) = if let Some(columns) = &columns {
+            let mut sums = VoteAndSmoothingSums {
+                columns,
+                p,
+                own: i as u32,
+                radius_squared: neighbours.radius * neighbours.radius,
+                bandwidth_squared: bandwidth * bandwidth,
+                resultant: [[0.0; LANES]; 3],
+                weight: [0.0; LANES],
+                sum: [[0.0; LANES]; 3],
+            };
+            neighbours
+                .grid
+                .for_each_row_near(p, neighbours.radius, |slots| {
+                    add_row(&mut sums, slots, columns.wide_lanes);
+                });
+            let vector = |lanes: &[Lanes; 3]| {
+                Vec3::new(total(&lanes[0]), total(&lanes[1]), total(&lanes[2]))
+            };
+            (
+                vector(&sums.resultant),
+                total(&sums.weight),
+                vector(&sums.sum),
+            )
+        } else {
+            let (mut resultant, mut weight, mut sum) = (Vec3::ZERO, 0.0f32, Vec3::ZERO);
+            neighbours.for_each(i, |j, q| {
+                if j != i {
+                    resultant += raw[j] * confidence[j];
+                    weight += confidence[j];
+                }
+                let w = confidence[j] * exp_neg((q - p).length_squared() / (bandwidth * bandwidth));
+                sum += raw[j] * w;
+            });
+            (resultant, weight, sum)
+        };
         (overruling(raw[i], resultant, weight), sum)
     });
     let overruled: Vec<usize> = (0..raw.len()).filter(|&i| found[i].0.is_some()).collect();
@@ -1724,6 +1925,141 @@ fn overrule_and_smooth_normals(
         .map(|(sum, &own)| sum.try_normalize().unwrap_or(own))
         .collect();
     (smoothed, overruled.len())
+}
+
+/// The points of a [`Neighbours`] search grid in its order, a column per field (each a
+/// point's position, a normal and its confidence), with [`LANES`] slots of padding at the end,
+/// for the sums in lanes over the neighbourhoods that are searched rather than listed.
+struct NeighbourColumns {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    normal_x: Vec<f32>,
+    normal_y: Vec<f32>,
+    normal_z: Vec<f32>,
+    confidence: Vec<f32>,
+    /// The point's index (`u32::MAX` in the padding).
+    index: Vec<u32>,
+    /// Whether the CPU runs the AVX2 build of the sums ([`has_wide_lanes`]).
+    wide_lanes: bool,
+}
+
+impl NeighbourColumns {
+    /// `grid`'s members with `normals[j]` and `confidence[j]` for member `j`.
+    fn of(grid: &PointGrid, normals: &[Vec3], confidence: &[f32]) -> Self {
+        let slots = grid.members().iter().zip(grid.positions());
+        let padded = |f: &dyn Fn(usize, Vec3) -> f32| -> Vec<f32> {
+            slots
+                .clone()
+                .map(|(&j, &p)| f(j as usize, p))
+                .chain([0.0; LANES])
+                .collect()
+        };
+        Self {
+            x: padded(&|_, p| p.x),
+            y: padded(&|_, p| p.y),
+            z: padded(&|_, p| p.z),
+            normal_x: padded(&|j, _| normals[j].x),
+            normal_y: padded(&|j, _| normals[j].y),
+            normal_z: padded(&|j, _| normals[j].z),
+            confidence: padded(&|j, _| confidence[j]),
+            index: grid
+                .members()
+                .iter()
+                .copied()
+                .chain([u32::MAX; LANES])
+                .collect(),
+            wide_lanes: has_wide_lanes(),
+        }
+    }
+}
+
+/// The lanes of the vote's and the smoothing's sums around point `own` at `p` (see
+/// [`overrule_and_smooth_normals`]): the same terms as its search adds, each in its lane.
+struct VoteAndSmoothingSums<'a> {
+    columns: &'a NeighbourColumns,
+    p: Vec3,
+    own: u32,
+    radius_squared: f32,
+    bandwidth_squared: f32,
+    resultant: [Lanes; 3],
+    weight: Lanes,
+    sum: [Lanes; 3],
+}
+
+impl LaneSums for VoteAndSmoothingSums<'_> {
+    #[inline(always)]
+    fn add_block(&mut self, start: usize, valid: usize) {
+        let (c, p) = (self.columns, self.p);
+        let (qx, qy, qz) = (
+            lanes_of(&c.x, start),
+            lanes_of(&c.y, start),
+            lanes_of(&c.z, start),
+        );
+        let normal = [
+            lanes_of(&c.normal_x, start),
+            lanes_of(&c.normal_y, start),
+            lanes_of(&c.normal_z, start),
+        ];
+        let confidence = lanes_of(&c.confidence, start);
+        let mut index = [0u32; LANES];
+        index.copy_from_slice(&c.index[start..start + LANES]);
+        for l in 0..LANES {
+            // The same operations as `(q − p).length_squared()`.
+            let (dx, dy, dz) = (qx[l] - p.x, qy[l] - p.y, qz[l] - p.z);
+            let squared = dx * dx + dy * dy + dz * dz;
+            let within = (squared <= self.radius_squared) & (l < valid);
+            let other = within & (index[l] != self.own);
+            let w = confidence[l] * exp_neg_lane(squared / self.bandwidth_squared);
+            for ((resultant, sum), normal) in
+                self.resultant.iter_mut().zip(&mut self.sum).zip(&normal)
+            {
+                resultant[l] += kept(other, normal[l] * confidence[l]);
+                sum[l] += kept(within, normal[l] * w);
+            }
+            self.weight[l] += kept(other, confidence[l]);
+        }
+    }
+}
+
+/// The lanes of [`point_curvatures`]' sums around the point at `p` with normal `normal`: the
+/// same terms as its search adds, each in its lane.
+struct CurvatureSums<'a> {
+    columns: &'a NeighbourColumns,
+    p: Vec3,
+    normal: Vec3,
+    radius_squared: f32,
+    bandwidth_squared: f32,
+    turned: Lanes,
+    spread: Lanes,
+}
+
+impl LaneSums for CurvatureSums<'_> {
+    #[inline(always)]
+    fn add_block(&mut self, start: usize, valid: usize) {
+        let (c, p, n) = (self.columns, self.p, self.normal);
+        let (qx, qy, qz) = (
+            lanes_of(&c.x, start),
+            lanes_of(&c.y, start),
+            lanes_of(&c.z, start),
+        );
+        let (nx, ny, nz) = (
+            lanes_of(&c.normal_x, start),
+            lanes_of(&c.normal_y, start),
+            lanes_of(&c.normal_z, start),
+        );
+        let confidence = lanes_of(&c.confidence, start);
+        for l in 0..LANES {
+            // The same operations as `d = q − p`, `d.length_squared()`, `(nⱼ − n).dot(d)`.
+            let (dx, dy, dz) = (qx[l] - p.x, qy[l] - p.y, qz[l] - p.z);
+            let squared = dx * dx + dy * dy + dz * dz;
+            let within = (squared <= self.radius_squared) & (l < valid);
+            let w = confidence[l] * exp_neg_lane(squared / self.bandwidth_squared);
+            let turn = (nx[l] - n.x) * dx + (ny[l] - n.y) * dy + (nz[l] - n.z) * dz;
+            self.turned[l] += kept(within, w * turn);
+            self.spread[l] += kept(within, w * squared);
+        }
+    }
 }
 
 /// The confidence-weighted mean direction of a point's neighbours' normals, `resultant /
@@ -1905,10 +2241,24 @@ mod tests {
             bandwidth,
         );
         assert!(near.widened.is_some() && near.widest == 2.0 * bandwidth);
-        // Each point's term as the sums formed it from the per-point arrays, in the grids'
-        // order: the records give the same sums bit for bit.
+        // The same planes summed by the portable build (the AVX2 one above, where the CPU has
+        // it).
+        let portable_near = NearPoints {
+            wide_lanes: false,
+            ..NearPoints::new(
+                &points,
+                &normals,
+                &confidence,
+                &local,
+                &curvature,
+                bandwidth,
+            )
+        };
+        // Each point's term from the per-point arrays, added in the grids' order: the lanes
+        // of the records sum the same terms (in another order), and the AVX2 build of the
+        // lanes gives the portable build's sums bit for bit.
         let by_arrays = |x: Vec3| {
-            let mut sums = (0.0f32, 0.0f32);
+            let (mut sums, mut magnitude) = ((0.0f32, 0.0f32), 0.0f32);
             let mut add = |j: usize, p: Vec3| {
                 let d = x - p;
                 let LocalScale { bandwidth, area } = local[j];
@@ -1918,8 +2268,10 @@ mod tests {
                     let w = confidence[j] * area * exp_neg(squared / (bandwidth * bandwidth));
                     let height = normals[j].dot(d);
                     let tangential = (squared - height * height).max(0.0);
-                    sums.0 += w * (height + 0.5 * curvature[j] * tangential);
+                    let term = w * (height + 0.5 * curvature[j] * tangential);
+                    sums.0 += term;
                     sums.1 += w;
+                    magnitude += term.abs();
                 }
             };
             near.typical
@@ -1927,7 +2279,7 @@ mod tests {
             if let Some(widened) = &near.widened {
                 widened.for_each_near(x, MOVING_REACH * near.widest, &mut add);
             }
-            sums
+            (sums, magnitude)
         };
         for probe in 0..300 {
             let x = Vec3::new(
@@ -1936,9 +2288,22 @@ mod tests {
                 ((probe % 5) as f32 - 2.0) * 0.7,
             );
             let (weighted, weight) = moving_planes(&near, x, true);
-            let (plain_weighted, plain_weight) = by_arrays(x);
-            assert_eq!(weighted.to_bits(), plain_weighted.to_bits(), "at {x}");
-            assert_eq!(weight.to_bits(), plain_weight.to_bits(), "at {x}");
+            let ((plain_weighted, plain_weight), magnitude) = by_arrays(x);
+            assert!(
+                (weighted - plain_weighted).abs() <= 1e-6 * magnitude,
+                "weighted {weighted} against {plain_weighted} at {x}"
+            );
+            assert!(
+                (weight - plain_weight).abs() <= 1e-6 * plain_weight,
+                "weight {weight} against {plain_weight} at {x}"
+            );
+            assert_eq!(weight == 0.0, plain_weight == 0.0, "the same terms at {x}");
+            let portable = moving_planes(&portable_near, x, true);
+            assert_eq!(
+                (weighted.to_bits(), weight.to_bits()),
+                (portable.0.to_bits(), portable.1.to_bits()),
+                "at {x}"
+            );
             let (mut full_weighted, mut full_weight) = (0.0f64, 0.0f64);
             for j in 0..points.len() {
                 let d = x - points[j];
@@ -2004,6 +2369,108 @@ mod tests {
                 corrected += usize::from(agreed[i] != normals[i]);
             }
             assert_eq!(corrected, 4, "listed: {listed}");
+        }
+    }
+
+    #[test]
+    fn the_searched_sums_in_lanes_are_the_same_on_both_builds_and_match_the_plain_sums() {
+        // The wavy sheet's searched neighbourhoods: the vote's, the smoothing's and the
+        // curvature's lanes give the same sums bit for bit on the portable build and on this
+        // CPU's, and the terms a visit of each neighbour adds, within f32 rounding.
+        let (mut points, mut normals) = sheet(30, 0.0, Vec3::Z);
+        for (p, n) in points.iter_mut().zip(&mut normals) {
+            p.z = 0.8 * (0.3 * p.x).sin();
+            *n = Vec3::new(-0.24 * (0.3 * p.x).cos(), 0.0, 1.0).normalize();
+        }
+        let confidence: Vec<f32> = (0..points.len())
+            .map(|i| 0.5 + 0.5 * ((i * 37) % 11) as f32 / 10.0)
+            .collect();
+        let bandwidth = 1.2;
+        let neighbours = Neighbours {
+            lists: None,
+            ..Neighbours::new(&points, MOVING_REACH * bandwidth)
+        };
+        let (radius, squared) = (neighbours.radius, bandwidth * bandwidth);
+        let builds = [false, true].map(|wide| NeighbourColumns {
+            wide_lanes: wide && has_wide_lanes(),
+            ..NeighbourColumns::of(&neighbours.grid, &normals, &confidence)
+        });
+        for i in (0..points.len()).step_by(7) {
+            let (p, n) = (points[i], normals[i]);
+            let found = builds.each_ref().map(|columns| {
+                let mut vote = VoteAndSmoothingSums {
+                    columns,
+                    p,
+                    own: i as u32,
+                    radius_squared: radius * radius,
+                    bandwidth_squared: squared,
+                    resultant: [[0.0; LANES]; 3],
+                    weight: [0.0; LANES],
+                    sum: [[0.0; LANES]; 3],
+                };
+                let mut curvature = CurvatureSums {
+                    columns,
+                    p,
+                    normal: n,
+                    radius_squared: radius * radius,
+                    bandwidth_squared: squared,
+                    turned: [0.0; LANES],
+                    spread: [0.0; LANES],
+                };
+                neighbours.grid.for_each_row_near(p, radius, |slots| {
+                    add_row(&mut vote, slots.clone(), columns.wide_lanes);
+                    add_row(&mut curvature, slots, columns.wide_lanes);
+                });
+                let vector = |lanes: &[Lanes; 3]| lanes.map(|l| total(&l));
+                (
+                    vector(&vote.resultant),
+                    total(&vote.weight),
+                    vector(&vote.sum),
+                    total(&curvature.turned),
+                    total(&curvature.spread),
+                )
+            });
+            type Sums = ([f32; 3], f32, [f32; 3], f32, f32);
+            let bits = |(resultant, weight, sum, turned, spread): &Sums| {
+                (
+                    resultant.map(f32::to_bits),
+                    weight.to_bits(),
+                    sum.map(f32::to_bits),
+                    turned.to_bits(),
+                    spread.to_bits(),
+                )
+            };
+            assert_eq!(bits(&found[0]), bits(&found[1]), "point {i}");
+            let (resultant, weight, sum, turned, spread) = found[0];
+            let (mut plain_resultant, mut plain_weight, mut plain_sum) =
+                (Vec3::ZERO, 0.0f32, Vec3::ZERO);
+            let (mut plain_turned, mut plain_spread) = (0.0f32, 0.0f32);
+            neighbours.for_each(i, |j, q| {
+                let d = q - p;
+                let w = confidence[j] * exp_neg(d.length_squared() / squared);
+                if j != i {
+                    plain_resultant += normals[j] * confidence[j];
+                    plain_weight += confidence[j];
+                }
+                plain_sum += normals[j] * w;
+                plain_turned += w * (normals[j] - n).dot(d);
+                plain_spread += w * d.length_squared();
+            });
+            let near = |a: f32, b: f32, scale: f32| (a - b).abs() <= 1e-5 * scale.max(1.0);
+            for axis in 0..3 {
+                assert!(
+                    near(resultant[axis], plain_resultant[axis], plain_weight),
+                    "{i}"
+                );
+                assert!(near(sum[axis], plain_sum[axis], plain_weight), "{i}");
+            }
+            assert!(near(weight, plain_weight, plain_weight), "{i}");
+            assert!(
+                plain_weight > 5.0,
+                "a neighbourhood, not a few points: {plain_weight}"
+            );
+            assert!(near(turned, plain_turned, plain_spread), "{i}");
+            assert!(near(spread, plain_spread, plain_spread), "{i}");
         }
     }
 
@@ -2145,9 +2612,10 @@ mod tests {
         let near = &signed.near_points;
         let mut curvature: Vec<f32> = near
             .typical_planes
+            .half_curvatures()
             .iter()
-            .chain(&near.widened_planes)
-            .map(|plane| 2.0 * plane.half_curvature)
+            .chain(near.widened_planes.half_curvatures())
+            .map(|half| 2.0 * half)
             .collect();
         let mid = curvature.len() / 2;
         let median = *curvature.select_nth_unstable_by(mid, f32::total_cmp).1;
@@ -2470,6 +2938,27 @@ mod tests {
             assert!(d.iter().zip(&dist).all(|(a, b)| a.to_bits() == b.to_bits()));
             assert_eq!(n, nearest, "{threads} threads");
         }
+        // The portable build and the one for this CPU, over every plane.
+        let order = grid.spatial_order(&points);
+        let fresh = || (vec![f32::INFINITY; grid.count()], vec![0u32; grid.count()]);
+        let (mut portable, mut this_cpu) = (fresh(), fresh());
+        grid.band_slab(&points, &order, 0.5, 0, &mut portable.0, &mut portable.1);
+        grid.band_slab_on_this_cpu(&points, &order, 0.5, 0, &mut this_cpu.0, &mut this_cpu.1);
+        assert!(
+            portable
+                .0
+                .iter()
+                .zip(&this_cpu.0)
+                .all(|(a, b)| a.to_bits() == b.to_bits())
+        );
+        assert_eq!(portable.1, this_cpu.1);
+        assert!(
+            portable
+                .0
+                .iter()
+                .zip(&dist)
+                .all(|(a, b)| a.sqrt().to_bits() == b.to_bits())
+        );
     }
 
     #[test]

@@ -27,6 +27,7 @@
 //! [`CELL_OFFER`]), so the cost per point stays bounded on any cloud.
 
 use glam::{DVec3, IVec3, Vec3};
+use std::ops::Range;
 
 /// The neighbours a plane is fitted to, aimed at.
 pub const NEIGHBOURS: f32 = 30.0;
@@ -181,8 +182,34 @@ impl PointGrid {
         radius: f32,
         mut visit: impl FnMut(usize, usize, Vec3),
     ) {
-        let u = (x - self.origin) / self.cell;
         let r2 = radius * radius;
+        self.for_each_row_near(x, radius, |slots| {
+            // The row's points within reach are picked without a branch per point (its
+            // outcome is a coin toss at the sphere's rim), a chunk at a time, then visited
+            // in order.
+            for first in slots.clone().step_by(ROW_CHUNK) {
+                let positions = &self.positions[first..slots.end.min(first + ROW_CHUNK)];
+                let mut within = [0u8; ROW_CHUNK];
+                let mut count = 0;
+                for (k, &p) in positions.iter().enumerate() {
+                    within[count & (ROW_CHUNK - 1)] = k as u8;
+                    count += usize::from((p - x).length_squared() <= r2);
+                }
+                for &k in &within[..count] {
+                    let at = first + usize::from(k);
+                    visit(at, self.members[at] as usize, self.positions[at]);
+                }
+            }
+        });
+    }
+
+    /// The slots (in [`PointGrid::members`]) of the rows of cells that
+    /// [`PointGrid::for_each_near`] passes over for a search within `radius` of `x`, a run of
+    /// slots per row cut to the cells the sphere's section reaches, in the grid's order:
+    /// every offered point within `radius` of `x` is in one of them (with others beyond it).
+    #[inline(always)]
+    pub fn for_each_row_near(&self, x: Vec3, radius: f32, mut visit: impl FnMut(Range<usize>)) {
+        let u = (x - self.origin) / self.cell;
         // The reach in cells, widened by a hair so that rounding in the cell of a point (its
         // coordinates divided by the cell side) can never leave out a point within reach.
         let reach = radius / self.cell + CELL_ROUNDING;
@@ -215,24 +242,17 @@ impl PointGrid {
                 }
                 let from = self.starts[(row + x0) as usize] as usize;
                 let to = self.starts[(row + x1 + 1) as usize] as usize;
-                // The row's points within reach are picked without a branch per point (its
-                // outcome is a coin toss at the sphere's rim), a chunk at a time, then
-                // visited in order.
-                for first in (from..to).step_by(ROW_CHUNK) {
-                    let positions = &self.positions[first..to.min(first + ROW_CHUNK)];
-                    let mut within = [0u8; ROW_CHUNK];
-                    let mut count = 0;
-                    for (k, &p) in positions.iter().enumerate() {
-                        within[count & (ROW_CHUNK - 1)] = k as u8;
-                        count += usize::from((p - x).length_squared() <= r2);
-                    }
-                    for &k in &within[..count] {
-                        let at = first + usize::from(k);
-                        visit(at, self.members[at] as usize, self.positions[at]);
-                    }
+                if from < to {
+                    visit(from..to);
                 }
             }
         }
+    }
+
+    /// The members' positions, in the grid's order (slot by slot).
+    #[must_use]
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
     }
 }
 

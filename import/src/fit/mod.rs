@@ -12,6 +12,7 @@ pub mod consensus;
 pub mod hierarchy;
 pub mod holes;
 pub mod import;
+mod lanes;
 pub mod mesh;
 pub mod paint;
 pub mod point_file;
