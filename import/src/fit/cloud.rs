@@ -78,7 +78,7 @@ use super::consensus::{
     parallel_map, screen, typical_spacing,
 };
 use super::lanes::{
-    LANES, LaneSums, Lanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of, total,
+    LANES, LaneSums, Lanes, WideLanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of, total,
 };
 use super::points::PointCloud;
 use super::regularised::refit_regularised;
@@ -1201,8 +1201,8 @@ struct NearPoints {
     bandwidth: f32,
     /// The widest point's bandwidth, field units.
     widest: f32,
-    /// Whether the CPU runs the AVX2 build of the sums ([`has_wide_lanes`]).
-    wide_lanes: bool,
+    /// Where the CPU runs the AVX2 build of the sums.
+    wide_lanes: Option<WideLanes>,
 }
 
 impl NearPoints {
@@ -1243,7 +1243,7 @@ impl NearPoints {
             widened,
             bandwidth,
             widest,
-            wide_lanes: has_wide_lanes(),
+            wide_lanes: WideLanes::detect(),
         }
     }
 }
@@ -1940,8 +1940,8 @@ struct NeighbourColumns {
     confidence: Vec<f32>,
     /// The point's index (`u32::MAX` in the padding).
     index: Vec<u32>,
-    /// Whether the CPU runs the AVX2 build of the sums ([`has_wide_lanes`]).
-    wide_lanes: bool,
+    /// Where the CPU runs the AVX2 build of the sums.
+    wide_lanes: Option<WideLanes>,
 }
 
 impl NeighbourColumns {
@@ -1969,7 +1969,7 @@ impl NeighbourColumns {
                 .copied()
                 .chain([u32::MAX; LANES])
                 .collect(),
-            wide_lanes: has_wide_lanes(),
+            wide_lanes: WideLanes::detect(),
         }
     }
 }
@@ -2244,7 +2244,7 @@ mod tests {
         // The same planes summed by the portable build (the AVX2 one above, where the CPU has
         // it).
         let portable_near = NearPoints {
-            wide_lanes: false,
+            wide_lanes: None,
             ..NearPoints::new(
                 &points,
                 &normals,
@@ -2392,7 +2392,7 @@ mod tests {
         };
         let (radius, squared) = (neighbours.radius, bandwidth * bandwidth);
         let builds = [false, true].map(|wide| NeighbourColumns {
-            wide_lanes: wide && has_wide_lanes(),
+            wide_lanes: wide.then(WideLanes::detect).flatten(),
             ..NeighbourColumns::of(&neighbours.grid, &normals, &confidence)
         });
         for i in (0..points.len()).step_by(7) {

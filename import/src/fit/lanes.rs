@@ -65,13 +65,26 @@ pub(crate) fn has_wide_lanes() -> bool {
     }
 }
 
+/// Proof that this CPU runs the AVX2 build of [`add_row`]: only [`WideLanes::detect`] makes
+/// one, after asking the CPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct WideLanes(());
+
+impl WideLanes {
+    /// `Some` where this CPU has AVX2.
+    #[must_use]
+    pub(crate) fn detect() -> Option<Self> {
+        has_wide_lanes().then_some(Self(()))
+    }
+}
+
 /// Adds the terms of the points in `slots` (a row of a search) to `sums`, with the AVX2 build
-/// where `wide` (which [`has_wide_lanes`] must have said).
+/// where `wide` is given (the same sums bit for bit).
 #[inline]
-pub(crate) fn add_row<S: LaneSums>(sums: &mut S, slots: Range<usize>, wide: bool) {
+pub(crate) fn add_row<S: LaneSums>(sums: &mut S, slots: Range<usize>, wide: Option<WideLanes>) {
     #[cfg(target_arch = "x86_64")]
-    if wide {
-        // SAFETY: `wide` only where the CPU has AVX2 (this function's contract).
+    if wide.is_some() {
+        // SAFETY: a `WideLanes` exists only where the CPU has AVX2 (`WideLanes::detect`).
         unsafe { add_row_avx2(sums, slots) };
         return;
     }
@@ -160,7 +173,7 @@ mod tests {
             for s in slots.clone() {
                 expected[(s - slots.start) % LANES] += value[s] * 3.0;
             }
-            for wide in [false, has_wide_lanes()] {
+            for wide in [None, WideLanes::detect()] {
                 let mut scaled = Scaled {
                     value: &value,
                     factor: 3.0,
@@ -170,7 +183,7 @@ mod tests {
                 assert_eq!(
                     scaled.sums.map(f32::to_bits),
                     expected.map(f32::to_bits),
-                    "{slots:?}, wide: {wide}"
+                    "{slots:?}, wide: {wide:?}"
                 );
                 assert_eq!(total(&scaled.sums).to_bits(), total(&expected).to_bits());
             }
