@@ -549,10 +549,11 @@ fn failed_reads_mid_stroke_tick_without_allocating() {
 
 /// The haptic loop's copy of the field is sparse: a uniform brick stays one value until an
 /// update's values make it dense, and then its storage comes from the pool the simulation
-/// fills. A session load that changes every coefficient of a 64³ clay (every one of its 512
-/// bricks dense, twice the pool) is applied in the counted ticks without allocating: the tick
-/// takes what the pool holds, waits for the simulation to top it up, and ends with the
-/// simulation's field.
+/// fills. An undo that changes every coefficient of a 64³ clay (back to a loaded clay whose 512
+/// bricks are all dense, twice the pool) is applied in the counted ticks without allocating:
+/// the tick takes what the pool holds, waits for the simulation to top it up, and ends with the
+/// simulation's field. (A load itself reaches the loops as a copy of the clay, like a new
+/// layout, so the undo of a load kept in the history is what publishes every coefficient.)
 #[test]
 fn counted_ticks_make_uniform_bricks_dense_from_the_pool_without_allocating() {
     const BLOCK_64: &str = "version = 1\n[clay]\nshape = \"block\"\nresolution = 64\n";
@@ -573,31 +574,49 @@ fn counted_ticks_make_uniform_bricks_dense_from_the_pool_without_allocating() {
             .sum()
     };
     let bricks = stages.sim.lattice().coeffs.brick_count();
-    let dense_at_start = dense(stages.haptic.field());
     assert_eq!(bricks, 512);
-    assert!(
-        dense_at_start < bricks / 2,
-        "the copy starts sparse: {dense_at_start} of {bricks} bricks dense"
-    );
-    // Every coefficient moves a little: no brick of the loaded clay is one value.
-    let mut clay = stages.sim.clay().clone();
+    let load = |stages: &mut dynaclay::engine::Stages, clay: dynaclay::tools::Clay, keep: bool| {
+        let field = clay.density.clone();
+        stages
+            .commands
+            .send(Command::Load {
+                session: Box::new(Session {
+                    clay,
+                    ..Session::default()
+                }),
+                source: "every-brick-dense.dclay".into(),
+                keep_history: keep,
+                reply: None,
+            })
+            .unwrap();
+        for _ in 0..2000 {
+            if *stages.haptic.field() == field {
+                return;
+            }
+            stages.haptic.tick(Instant::now());
+            stages.sim.apply_commands();
+            let sample = stages.samples.latest().value;
+            stages.sim.step(&sample);
+        }
+        panic!("the copy never took the load");
+    };
+    // Every coefficient moves a little: no brick of this clay is one value.
+    let start = stages.sim.clay().clone();
+    let mut clay = start.clone();
     clay.density.patches[0]
         .lattice
         .coeffs
         .update_each(|n, c| *c = 0.5 * *c + 0.25 + 1e-3 * (n % 7) as f32);
     let loaded = clay.density.clone();
-    stages
-        .commands
-        .send(Command::Load {
-            session: Box::new(Session {
-                clay,
-                ..Session::default()
-            }),
-            source: "every-brick-dense.dclay".into(),
-            keep_history: false,
-            reply: None,
-        })
-        .unwrap();
+    load(&mut stages, clay, false);
+    // The starting block again, the load kept in the history: the copy is sparse again.
+    load(&mut stages, start, true);
+    let dense_at_start = dense(stages.haptic.field());
+    assert!(
+        dense_at_start < bricks / 2,
+        "the copy starts sparse: {dense_at_start} of {bricks} bricks dense"
+    );
+    stages.commands.send(Command::Undo).unwrap();
     let before = allocs_in_tick();
     let mut ticks = 0;
     while *stages.haptic.field() != loaded {
