@@ -78,7 +78,8 @@ use super::consensus::{
     parallel_map, screen, typical_spacing,
 };
 use super::lanes::{
-    LANES, LaneSums, Lanes, WideLanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of, total,
+    LANES, LaneSums, Lanes, WideLanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of,
+    lanes_of_three, total,
 };
 use super::points::PointCloud;
 use super::regularised::refit_regularised;
@@ -1048,16 +1049,8 @@ impl LaneSums for PlaneSums<'_> {
     #[inline(always)]
     fn add_block(&mut self, start: usize, valid: usize) {
         let (c, x) = (self.columns, self.x);
-        let (px, py, pz) = (
-            lanes_of(&c.x, start),
-            lanes_of(&c.y, start),
-            lanes_of(&c.z, start),
-        );
-        let (nx, ny, nz) = (
-            lanes_of(&c.normal_x, start),
-            lanes_of(&c.normal_y, start),
-            lanes_of(&c.normal_z, start),
-        );
+        let [px, py, pz] = c.oriented.positions(start);
+        let [nx, ny, nz] = c.oriented.normals(start);
         let half_curvature = lanes_of(&c.half_curvature, start);
         let weight = lanes_of(&c.weight, start);
         let bandwidth_squared = lanes_of(&c.bandwidth_squared, start);
@@ -1077,6 +1070,52 @@ impl LaneSums for PlaneSums<'_> {
     }
 }
 
+/// Points' positions and unit normals, a column per component, in a search grid's order (the
+/// part [`PlaneColumns`] and [`NeighbourColumns`] share), read [`LANES`] slots at a time.
+#[derive(Clone, Debug, Default, PartialEq)]
+struct OrientedColumns {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    normal_x: Vec<f32>,
+    normal_y: Vec<f32>,
+    normal_z: Vec<f32>,
+}
+
+impl OrientedColumns {
+    fn with_capacity(len: usize) -> Self {
+        Self {
+            x: Vec::with_capacity(len),
+            y: Vec::with_capacity(len),
+            z: Vec::with_capacity(len),
+            normal_x: Vec::with_capacity(len),
+            normal_y: Vec::with_capacity(len),
+            normal_z: Vec::with_capacity(len),
+        }
+    }
+
+    fn push(&mut self, p: Vec3, normal: Vec3) {
+        self.x.push(p.x);
+        self.y.push(p.y);
+        self.z.push(p.z);
+        self.normal_x.push(normal.x);
+        self.normal_y.push(normal.y);
+        self.normal_z.push(normal.z);
+    }
+
+    /// The positions' lanes from slot `start`.
+    #[inline(always)]
+    fn positions(&self, start: usize) -> [Lanes; 3] {
+        lanes_of_three([&self.x, &self.y, &self.z], start)
+    }
+
+    /// The normals' lanes from slot `start`.
+    #[inline(always)]
+    fn normals(&self, start: usize) -> [Lanes; 3] {
+        lanes_of_three([&self.normal_x, &self.normal_y, &self.normal_z], start)
+    }
+}
+
 /// The points' moving planes in a grid's order, a column per field (so [`PlaneSums`] reads
 /// [`LANES`] neighbours' fields with one load each), with [`LANES`] slots of
 /// padding at the end (no point reaches anywhere from them).
@@ -1087,14 +1126,8 @@ impl LaneSums for PlaneSums<'_> {
 /// for itself.
 #[derive(Clone, Debug, Default, PartialEq)]
 struct PlaneColumns {
-    /// The point's position.
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    /// Its unit outward normal.
-    normal_x: Vec<f32>,
-    normal_y: Vec<f32>,
-    normal_z: Vec<f32>,
+    /// The point's position and unit outward normal.
+    oriented: OrientedColumns,
     /// Half its curvature, 1 / field units.
     half_curvature: Vec<f32>,
     /// Its confidence times its area weight.
@@ -1118,12 +1151,7 @@ impl PlaneColumns {
     ) -> Self {
         let len = grid.members().len() + LANES;
         let mut columns = Self {
-            x: Vec::with_capacity(len),
-            y: Vec::with_capacity(len),
-            z: Vec::with_capacity(len),
-            normal_x: Vec::with_capacity(len),
-            normal_y: Vec::with_capacity(len),
-            normal_z: Vec::with_capacity(len),
+            oriented: OrientedColumns::with_capacity(len),
             half_curvature: Vec::with_capacity(len),
             weight: Vec::with_capacity(len),
             bandwidth_squared: Vec::with_capacity(len),
@@ -1157,12 +1185,7 @@ impl PlaneColumns {
         bandwidth_squared: f32,
         reach_squared: f32,
     ) {
-        self.x.push(p.x);
-        self.y.push(p.y);
-        self.z.push(p.z);
-        self.normal_x.push(normal.x);
-        self.normal_y.push(normal.y);
-        self.normal_z.push(normal.z);
+        self.oriented.push(p, normal);
         self.half_curvature.push(half_curvature);
         self.weight.push(weight);
         self.bandwidth_squared.push(bandwidth_squared);
@@ -1931,12 +1954,7 @@ fn overrule_and_smooth_normals(
 /// point's position, a normal and its confidence), with [`LANES`] slots of padding at the end,
 /// for the sums in lanes over the neighbourhoods that are searched rather than listed.
 struct NeighbourColumns {
-    x: Vec<f32>,
-    y: Vec<f32>,
-    z: Vec<f32>,
-    normal_x: Vec<f32>,
-    normal_y: Vec<f32>,
-    normal_z: Vec<f32>,
+    oriented: OrientedColumns,
     confidence: Vec<f32>,
     /// The point's index (`u32::MAX` in the padding).
     index: Vec<u32>,
@@ -1956,12 +1974,14 @@ impl NeighbourColumns {
                 .collect()
         };
         Self {
-            x: padded(&|_, p| p.x),
-            y: padded(&|_, p| p.y),
-            z: padded(&|_, p| p.z),
-            normal_x: padded(&|j, _| normals[j].x),
-            normal_y: padded(&|j, _| normals[j].y),
-            normal_z: padded(&|j, _| normals[j].z),
+            oriented: OrientedColumns {
+                x: padded(&|_, p| p.x),
+                y: padded(&|_, p| p.y),
+                z: padded(&|_, p| p.z),
+                normal_x: padded(&|j, _| normals[j].x),
+                normal_y: padded(&|j, _| normals[j].y),
+                normal_z: padded(&|j, _| normals[j].z),
+            },
             confidence: padded(&|j, _| confidence[j]),
             index: grid
                 .members()
@@ -1991,16 +2011,8 @@ impl LaneSums for VoteAndSmoothingSums<'_> {
     #[inline(always)]
     fn add_block(&mut self, start: usize, valid: usize) {
         let (c, p) = (self.columns, self.p);
-        let (qx, qy, qz) = (
-            lanes_of(&c.x, start),
-            lanes_of(&c.y, start),
-            lanes_of(&c.z, start),
-        );
-        let normal = [
-            lanes_of(&c.normal_x, start),
-            lanes_of(&c.normal_y, start),
-            lanes_of(&c.normal_z, start),
-        ];
+        let [qx, qy, qz] = c.oriented.positions(start);
+        let normal = c.oriented.normals(start);
         let confidence = lanes_of(&c.confidence, start);
         let mut index = [0u32; LANES];
         index.copy_from_slice(&c.index[start..start + LANES]);
@@ -2038,16 +2050,8 @@ impl LaneSums for CurvatureSums<'_> {
     #[inline(always)]
     fn add_block(&mut self, start: usize, valid: usize) {
         let (c, p, n) = (self.columns, self.p, self.normal);
-        let (qx, qy, qz) = (
-            lanes_of(&c.x, start),
-            lanes_of(&c.y, start),
-            lanes_of(&c.z, start),
-        );
-        let (nx, ny, nz) = (
-            lanes_of(&c.normal_x, start),
-            lanes_of(&c.normal_y, start),
-            lanes_of(&c.normal_z, start),
-        );
+        let [qx, qy, qz] = c.oriented.positions(start);
+        let [nx, ny, nz] = c.oriented.normals(start);
         let confidence = lanes_of(&c.confidence, start);
         for l in 0..LANES {
             // The same operations as `d = q − p`, `d.length_squared()`, `(nⱼ − n).dot(d)`.

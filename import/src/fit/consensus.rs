@@ -289,14 +289,20 @@ pub(crate) fn exp_neg(t: f32) -> f32 {
     if z >= 125.0 {
         return 0.0;
     }
-    let k = (z + 0.5) as i32;
+    two_to_minus(z, (z + 0.5) as i32)
+}
+
+/// `2^(−z)` for `z ≥ 0` given `k`, the integer nearest `z` (at most 125): `2^(−k)` written
+/// into a normal float's exponent field, times the degree-6 polynomial for `2^(k − z)`
+/// ([`exp_neg`]'s and the lanes' shared step).
+#[inline(always)]
+pub(crate) fn two_to_minus(z: f32, k: i32) -> f32 {
     let x = k as f32 - z;
     let power = 1.0
         + x * (6.931_472e-1
             + x * (2.402_264_8e-1
                 + x * (5.550_332_5e-2
                     + x * (9.618_437e-3 + x * (1.339_887_4e-3 + x * 1.535_336_2e-4)))));
-    // 2^(−k), k in 0..=125: a normal float's exponent field.
     power * f32::from_bits(((127 - k) as u32) << 23)
 }
 

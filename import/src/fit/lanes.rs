@@ -33,6 +33,12 @@ pub(crate) fn lanes_of(column: &[f32], start: usize) -> Lanes {
     lanes
 }
 
+/// The lanes of three columns from `start` (a point's coordinates, a normal's components).
+#[inline(always)]
+pub(crate) fn lanes_of_three(columns: [&[f32]; 3], start: usize) -> [Lanes; 3] {
+    columns.map(|column| lanes_of(column, start))
+}
+
 /// The lanes added together, in lane order.
 #[inline(always)]
 pub(crate) fn total(lanes: &Lanes) -> f32 {
@@ -121,14 +127,7 @@ pub(crate) fn exp_neg_lane(t: f32) -> f32 {
     // SAFETY: `z + 0.5` is in [0.5, 116], where the truncation is defined (the saturating
     // `as i32` is the same there, but its checks keep it out of vector registers).
     let k: i32 = unsafe { (z + 0.5).to_int_unchecked() };
-    let x = k as f32 - z;
-    let power = 1.0
-        + x * (6.931_472e-1
-            + x * (2.402_264_8e-1
-                + x * (5.550_332_5e-2
-                    + x * (9.618_437e-3 + x * (1.339_887_4e-3 + x * 1.535_336_2e-4)))));
-    // 2^(−k), k in 0..=116: a normal float's exponent field.
-    power * f32::from_bits(((127 - k) as u32) << 23)
+    super::consensus::two_to_minus(z, k)
 }
 
 #[cfg(test)]
