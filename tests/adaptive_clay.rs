@@ -100,10 +100,10 @@ fn a_brush_of_a_256th_of_the_clay_carves_a_groove_of_its_width_on_the_exported_m
 
 /// Runs `script` in the lockstep engine as `dynaclay run --lockstep` does (the simulated arm
 /// on the script's path, no real-time priority), with automatic detail on (for force tools
-/// too, which the default leaves off) or off, and writes
-/// its outputs into `dir` as the run writes them; returns `sculpt.obj` read back and the
-/// automatic refines counted.
-fn run_with_detail(dir: &Path, script: &str, auto_detail: bool) -> (Exported, u64) {
+/// too, which the default leaves off) or off (`None`: the engine's defaults, which a script's
+/// `detail` step can change), and writes its outputs into `dir` as the run writes them;
+/// returns `sculpt.obj` read back and the automatic refines counted.
+fn run_with_detail(dir: &Path, script: &str, auto_detail: Option<bool>) -> (Exported, u64) {
     let script = parse_script(script, "push.toml").unwrap();
     let plan = ScriptPlan::new(&script, "push.toml", dir, &[], Material::PLASTIC).unwrap();
     let field = build_clay(&plan.clay).unwrap();
@@ -111,8 +111,10 @@ fn run_with_detail(dir: &Path, script: &str, auto_detail: bool) -> (Exported, u6
     let mut config = EngineConfig::for_field(&field, &arm_config.info);
     config.haptic_rt_priority = None;
     config.haptics.tool_contact = plan.tool_contact;
-    config.sim.auto_detail = auto_detail;
-    config.sim.auto_detail_force = auto_detail;
+    if let Some(on) = auto_detail {
+        config.sim.auto_detail = on;
+        config.sim.auto_detail_force = on;
+    }
     let arm = SimulatedArm::new(arm_config, plan.trajectory(&config.map).unwrap());
     let mut run = Lockstep::new(
         &config,
@@ -179,8 +181,8 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
     );
     let half_depth = 0.5 * depth;
     let ideal = 2.0 * (radius * radius - half_depth * half_depth).sqrt();
-    let (fine, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, true);
-    let (coarse, none) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, false);
+    let (fine, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, Some(true));
+    let (coarse, none) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, Some(false));
     // Half way down, over the stroke's middle stretch.
     let y = TOP_Y - half_depth;
     let widths = |mesh: &Exported| -> Vec<f32> {
@@ -212,6 +214,55 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
     }
 }
 
+/// A script's `detail` step switches automatic detail for the steps after it, as the window's
+/// Detail switches do: the fine push of the test above refines under itself only after
+/// `force_tools = true` (the engine's default leaves force tools on the base), and the fine
+/// remove brush of the first test refines under itself by default but not after
+/// `automatic = false`.
+#[test]
+fn a_detail_step_switches_automatic_detail_for_the_steps_after_it() {
+    let push = |detail: &str| {
+        format!(
+            "version = 1\nseconds = 1.5\n{detail}[[step]]\ndo = \"stroke\"\n\
+             tool = {{ kind = \"push\", beta = \"constant\", radius_fu = 0.025, gain = 2e6 }}\n\
+             path = [[{}, {y}, {MID}], [{}, {y}, {MID}]]\nstart_s = 0.1\nduration_s = 1.0\n\
+             hover_fu = 0.1\n",
+            MID - 0.1,
+            MID + 0.1,
+            y = TOP_Y - 0.03,
+        )
+    };
+    let radius = 0.5 * SIZE / 256.0;
+    let brush = |detail: &str| {
+        format!(
+            "version = 1\n{detail}[[step]]\ndo = \"tool\"\n\
+             shape = {{ kind = \"sphere\", radius_fu = {radius} }}\naction = {{ kind = \"remove\" }}\n\
+             positions = [[{MID}, {TOP_Y}, {MID}], [{}, {TOP_Y}, {MID}]]\nduration_s = 0.2\n",
+            MID + 0.01
+        )
+    };
+    let refines = |script: String| {
+        let dir = tempfile::tempdir().unwrap();
+        run_with_detail(dir.path(), &script, None).1
+    };
+    let force_on = "[[step]]\ndo = \"detail\"\nforce_tools = true\n";
+    let all_off = "[[step]]\ndo = \"detail\"\nautomatic = false\n";
+    let counts = [
+        refines(push("")),
+        refines(push(force_on)),
+        refines(brush("")),
+        refines(brush(all_off)),
+    ];
+    eprintln!(
+        "automatic refines: push {} / {} with force tools on; brush {} / {} with automatic off",
+        counts[0], counts[1], counts[2], counts[3]
+    );
+    assert_eq!(counts[0], 0, "force tools stay on the base by default");
+    assert!(counts[1] >= 1, "the push refined after force_tools = true");
+    assert!(counts[2] >= 1, "the fine brush refined by default");
+    assert_eq!(counts[3], 0, "no brush refines after automatic = false");
+}
+
 /// The top of the clay in `mesh` over `(x, z)`: the highest crossing of the vertical line.
 fn top_at(mesh: &Exported, x: f32, z: f32) -> f32 {
     let from = Vec3::new(x, 0.0, z);
@@ -234,7 +285,7 @@ fn a_narrow_chisel_refines_under_itself_and_cuts_its_depth_along_the_whole_strok
          path = [[0.85, {TOP_Y}, {MID}], [1.45, {TOP_Y}, {MID}]]\nstart_s = 0.2\n\
          duration_s = 1.0\nhover_fu = 0.3\n"
     );
-    let (cut, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, true);
+    let (cut, refines) = run_with_detail(tempfile::tempdir().unwrap().path(), &script, Some(true));
     let depths: Vec<f32> = [0.95, 1.05, 1.15, 1.25, 1.35]
         .iter()
         .map(|&x| TOP_Y - top_at(&cut, x, MID))

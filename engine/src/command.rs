@@ -140,6 +140,15 @@ pub enum Command {
     SetTool(ToolChoice),
     /// Use this material for regions created from now on.
     SetMaterial(Material),
+    /// Switch automatic detail ([`crate::SimConfig::auto_detail`],
+    /// [`crate::SimConfig::auto_detail_force`]) from the next step on; `None` keeps a
+    /// setting. Patches already made stay.
+    SetAutoDetail {
+        /// Under brushes, and folding wiped detail back.
+        automatic: Option<bool>,
+        /// Under the push and the force strokes too (while `automatic` is on).
+        force_tools: Option<bool>,
+    },
     /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay (the
     /// session's material grids; a parameter without a grid gets one, filled with the uniform
     /// material's value).

@@ -146,6 +146,13 @@ pub enum PlannedAction {
     SetTool(ToolChoice),
     /// Use this material from now on.
     SetMaterial(Material),
+    /// Switch automatic detail under brushes and under force tools (`None` keeps a setting).
+    SetAutoDetail {
+        /// Under brushes (and folding wiped detail back).
+        automatic: Option<bool>,
+        /// Under the push and the force strokes too.
+        force_tools: Option<bool>,
+    },
     /// Paint mass, damping, stiffness or plastic drift rate into a region.
     PaintMaterial(dynaclay_core::dynamics::MaterialPaint),
     /// Paint, invert or clear the freeze mask.
@@ -531,6 +538,13 @@ impl ScriptPlan {
                     lo: glam::Vec3::from_array(*min),
                     hi: glam::Vec3::from_array(*max),
                     level: *level,
+                }),
+                ScriptStep::Detail {
+                    automatic,
+                    force_tools,
+                } => event(PlannedAction::SetAutoDetail {
+                    automatic: *automatic,
+                    force_tools: *force_tools,
                 }),
                 ScriptStep::Redo { count } => event(PlannedAction::Redo(*count)),
                 ScriptStep::Save { path } => event(PlannedAction::Save(base_dir.join(path))),

@@ -289,6 +289,13 @@ impl ScriptDriver {
         let batch: Vec<Command> = match event.action {
             PlannedAction::SetTool(t) => vec![Command::SetTool(t)],
             PlannedAction::SetMaterial(m) => vec![Command::SetMaterial(m)],
+            PlannedAction::SetAutoDetail {
+                automatic,
+                force_tools,
+            } => vec![Command::SetAutoDetail {
+                automatic,
+                force_tools,
+            }],
             PlannedAction::PaintMaterial(paint) => {
                 vec![Command::PaintMaterial { paint, reply: None }]
             }

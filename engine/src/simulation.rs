@@ -107,7 +107,9 @@ pub struct SimConfig {
     /// (scripts), or held until the user answers (the window).
     pub removal_guard: super::RemovalGuard,
     /// Whether a geometric brush narrower than three knot spans of the patch under it adds a
-    /// detail patch under itself first (see `simulation/detail.rs`).
+    /// detail patch under itself first (see `simulation/detail.rs`). The window's Detail
+    /// switches and a script's `detail` step set this and [`Self::auto_detail_force`]
+    /// ([`Command::SetAutoDetail`]).
     pub auto_detail: bool,
     /// Whether a force tool's spread (the push's, a pull's...) narrower than three knot spans
     /// also refines under itself before its region is set up (with `auto_detail` on). Off by

@@ -67,6 +67,11 @@ pub enum EngineCommand {
     SelectTool(ToolChoice),
     /// Replace the material of the simulated region.
     SetMaterial(Material),
+    /// Switch automatic detail under brushes and under force tools.
+    SetAutoDetail {
+        automatic: bool,
+        force_tools: bool,
+    },
     /// Paint mass, damping, stiffness or plastic drift rate into a region of the clay.
     PaintMaterial(crate::dynamics::MaterialPaint),
     /// Remove the painted material: the uniform material applies everywhere.
@@ -168,6 +173,7 @@ impl EngineCommand {
         match self {
             Self::SelectTool(_) => "select tool",
             Self::SetMaterial(_) => "set material",
+            Self::SetAutoDetail { .. } => "set automatic detail",
             Self::PaintMaterial(_) => "paint material",
             Self::ClearMaterialPaint => "clear painted material",
             Self::Mask(edit) => edit.name(),

@@ -1501,3 +1501,35 @@ fn the_render_profile_is_chosen_once_logged_and_shown_in_the_status_line() {
         app.status_line()
     );
 }
+
+#[test]
+fn the_detail_switches_reach_the_engine_and_force_tools_need_automatic_detail() {
+    let (mut h, end) = harness();
+    h.run();
+    h.get_by_label("Detail").click();
+    h.run();
+    drain(&end);
+
+    h.get_by_label("Under force tools too").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetAutoDetail {
+            automatic: true,
+            force_tools: true
+        }]
+    );
+    h.get_by_label("Automatic detail").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetAutoDetail {
+            automatic: false,
+            force_tools: true
+        }]
+    );
+    // With automatic detail off the force tools' switch is greyed out: a click sends nothing.
+    h.get_by_label("Under force tools too").click();
+    h.run();
+    assert!(drain(&end).is_empty());
+}

@@ -5,6 +5,7 @@ mod bridge;
 mod camera_input;
 mod command;
 mod csg_panel;
+mod detail_panel;
 mod device_maker;
 mod device_panel;
 mod edit_requests;

@@ -33,6 +33,9 @@ impl SculptApp {
             .show(ui, |ui| {
                 tool_changed |= self.force_path.ui(ui, &mut self.palette);
             });
+        egui::CollapsingHeader::new("Detail")
+            .default_open(false)
+            .show(ui, |ui| self.detail_pending |= self.detail.ui(ui));
         egui::CollapsingHeader::new("CSG")
             .default_open(false)
             .show(ui, |ui| {

@@ -149,6 +149,8 @@ pub struct SculptApp {
     pub material: Material,
     /// Painting material onto the clay with the brush.
     pub material_brush: MaterialBrush,
+    /// Automatic detail under brushes and force tools, as last set here.
+    pub detail: super::detail_panel::DetailSettings,
     /// The Mask tool: painting, inverting and clearing the freeze mask.
     pub mask: super::mask_panel::MaskPanel,
     pub device: DevicePanel,
@@ -186,6 +188,7 @@ pub struct SculptApp {
     /// Settings that failed to reach the engine and are sent again next frame.
     tool_pending: bool,
     material_pending: bool,
+    pub(super) detail_pending: bool,
     /// Whether the Space key currently holds a stroke.
     key_stroke: bool,
     /// Mesh version last framed by the camera (frames once when the first meshes arrive).
@@ -385,6 +388,8 @@ impl SculptApp {
                 self.framed = false;
                 self.material_loads_seen = None;
                 self.tool_pending = true;
+                // The new engine starts from its defaults: give it the window's detail.
+                self.detail_pending = self.detail != Default::default();
                 if let Some(map) = self.view.workspace_map {
                     self.pointer.set_map(map);
                 }
@@ -431,6 +436,9 @@ impl SculptApp {
         }
         if self.material_pending {
             self.material_pending = !self.send(EngineCommand::SetMaterial(self.material));
+        }
+        if self.detail_pending {
+            self.detail_pending = !self.send(self.detail.command());
         }
     }
 

@@ -54,6 +54,18 @@ impl SimulationStage {
                 self.config.material = m;
                 true
             }
+            Command::SetAutoDetail {
+                automatic,
+                force_tools,
+            } => {
+                if let Some(on) = automatic {
+                    self.config.auto_detail = on;
+                }
+                if let Some(on) = force_tools {
+                    self.config.auto_detail_force = on;
+                }
+                true
+            }
             Command::PaintMaterial { paint, reply } => {
                 let result = self.paint_material(&paint);
                 let ok = result.is_ok();

@@ -77,6 +77,16 @@ impl Bridge {
                 self.send(what, Command::SetTool(choice));
             }
             EngineCommand::SetMaterial(m) => self.send(what, Command::SetMaterial(m)),
+            EngineCommand::SetAutoDetail {
+                automatic,
+                force_tools,
+            } => self.send(
+                what,
+                Command::SetAutoDetail {
+                    automatic: Some(automatic),
+                    force_tools: Some(force_tools),
+                },
+            ),
             EngineCommand::PaintMaterial(paint) => {
                 self.send(what, Command::PaintMaterial { paint, reply: None });
             }

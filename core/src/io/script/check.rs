@@ -333,6 +333,18 @@ pub(super) fn check_step(step: &ScriptStep) -> Result<(), StepFault> {
                     .map_err(|m| fault("projection", format!("projection: {m}")))
             })
         }
+        ScriptStep::Detail {
+            automatic,
+            force_tools,
+        } => {
+            if automatic.is_none() && force_tools.is_none() {
+                return Err(fault(
+                    "automatic",
+                    "a detail step sets `automatic`, `force_tools` or both (true or false)",
+                ));
+            }
+            Ok(())
+        }
         ScriptStep::Refine { min, max, level } => {
             for (name, corner) in [("min", min), ("max", max)] {
                 for v in corner {

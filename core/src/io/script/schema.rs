@@ -607,6 +607,18 @@ pub enum ScriptStep {
         #[serde(default = "one")]
         level: u32,
     },
+    /// Switch automatic detail (absent keys keep their setting): `automatic`, whether a brush
+    /// narrower than three knot spans of the patch under it adds a detail patch under itself
+    /// first, at the level its width needs, and wiped detail folds back (on by default);
+    /// `force_tools`, whether the push and the force strokes follow the same rule while
+    /// `automatic` is on (off by default: on a detail patch painted stiffness and mass act
+    /// weaker than on the base). Takes no script time; not an undo step.
+    Detail {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        automatic: Option<bool>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        force_tools: Option<bool>,
+    },
     /// Pin a place on the clay (one undo step): `kind = "point"` or `"normal"` with `at`,
     /// `kind = "curve"` with `points`. A point off the surface is moved onto it first, and the
     /// step says so.
@@ -990,6 +1002,7 @@ impl ScriptStep {
             ScriptStep::Constrain { .. } => "constrain",
             ScriptStep::Unconstrain { .. } => "unconstrain",
             ScriptStep::Refine { .. } => "refine",
+            ScriptStep::Detail { .. } => "detail",
             ScriptStep::Particles { .. } => "particles",
             ScriptStep::Rbf { .. } => "rbf",
             ScriptStep::CompactRbf { .. } => "compact_rbf",

@@ -311,6 +311,37 @@ fn constrain_keys_must_match_their_kind() {
 }
 
 #[test]
+fn detail_steps_take_either_switch_and_name_the_step_that_sets_neither() {
+    let step = |keys: &str| format!("version = 1\n\n[[step]]\ndo = \"detail\"\n{keys}\n");
+    let s = parse_script(&step("force_tools = true"), "d.toml").unwrap();
+    assert_eq!(
+        s.steps[0],
+        ScriptStep::Detail {
+            automatic: None,
+            force_tools: Some(true)
+        }
+    );
+    assert_eq!(s.steps[0].name(), "detail");
+    let s = parse_script(&step("automatic = false\nforce_tools = false"), "d.toml").unwrap();
+    assert_eq!(
+        s.steps[0],
+        ScriptStep::Detail {
+            automatic: Some(false),
+            force_tools: Some(false)
+        }
+    );
+    let err = parse_script(&step(""), "d.toml").unwrap_err();
+    assert!(
+        err.to_string()
+            .contains("`automatic`, `force_tools` or both")
+            && err.line == Some(3),
+        "{err}"
+    );
+    let err = parse_script(&step("automatic = 1"), "d.toml").unwrap_err();
+    assert!(err.to_string().contains("d.toml"), "{err}");
+}
+
+#[test]
 fn material_steps_take_a_neighbourhood_and_paints_a_ball_or_a_box() {
     let step = |keys: &str| format!("version = 1\n\n[[step]]\n{keys}\n");
     let s = parse_script(&step("do = \"material\"\nneighbourhood = 26"), "m.toml").unwrap();
