@@ -629,7 +629,8 @@ pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
 ///
 /// NOTE: a grid of the 64³ cubes over the box took some 4 MB for the count, which the import
 /// now takes twice (the kept points' spacing is read again; bench/RESULTS.md, "Import time:
-/// the neighbourhoods"); the sorted cube numbers take four bytes a point.
+/// the neighbourhoods"); the sorted cube numbers took four bytes a point and a sort, on the
+/// calling thread alone; a bit per cube is 32 kB.
 fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
     let (lo, hi) = points
         .iter()
@@ -642,10 +643,12 @@ fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
         (Vec3::ZERO, Vec3::ZERO)
     };
     let cubes = Cubes::covering(lo, hi, cell);
-    let mut numbers: Vec<u32> = points.iter().map(|&p| cubes.cube_of(p) as u32).collect();
-    numbers.sort_unstable();
-    numbers.dedup();
-    numbers.len()
+    let mut occupied = vec![0u64; cubes.count().div_ceil(64)];
+    for &p in points {
+        let c = cubes.cube_of(p);
+        occupied[c / 64] |= 1 << (c % 64);
+    }
+    occupied.iter().map(|w| w.count_ones() as usize).sum()
 }
 
 /// Screens `points` (see the module docs). `size` is the object's size (its box's longest
