@@ -1425,8 +1425,8 @@ impl SignGrid {
     /// depend on the count.
     ///
     /// NOTE: with one slab per thread, the thread whose half of the grid held more of the
-    /// surface worked twice as long as the other (bench/RESULTS.md, "Import time: the work
-    /// shared out").
+    /// surface took twice the other's CPU on fandisk at 1% noise (bench/RESULTS.md, "Import
+    /// time: the work shared out").
     fn band_distances_on(
         &self,
         points: &[Vec3],
@@ -1449,7 +1449,8 @@ impl SignGrid {
         );
         let fill = || {
             loop {
-                // A poisoned lock is a panic on another thread, which the scope raises.
+                // A poisoned lock means another thread panicked holding it: this one stops,
+                // and the scope raises that panic.
                 let Some((s, (squared, nearest))) = pending.lock().ok().and_then(|mut p| p.next())
                 else {
                     return;
