@@ -276,6 +276,8 @@ enum Reached {
 /// The side, in nodes, of the blocks the band visits the points by (see
 /// [`SignGrid::spatial_order`]).
 const BAND_BLOCK: usize = 4;
+/// Slabs of z-planes the band is split into per thread ([`SignGrid::band_distances_on`]).
+const BAND_SLABS_PER_THREAD: usize = 4;
 
 impl SignedCloud {
     /// Signed distance from `x` (field units) to the surface, positive outside: within the
@@ -1418,36 +1420,53 @@ impl SignGrid {
         self.band_distances_on(points, band, threads)
     }
 
-    /// [`SignGrid::band_distances`] on `threads` threads, each over a run of whole z-planes of
-    /// the grid, so the result does not depend on the count.
+    /// [`SignGrid::band_distances`] on `threads` threads, over slabs of whole z-planes of the
+    /// grid that each thread takes in turn as it finishes the last, so the result does not
+    /// depend on the count.
+    ///
+    /// NOTE: with one slab per thread, the thread whose half of the grid held more of the
+    /// surface took twice the other's CPU on fandisk at 1% noise (bench/RESULTS.md, "Import
+    /// time: the work shared out").
     fn band_distances_on(
         &self,
         points: &[Vec3],
         band: f32,
         threads: usize,
     ) -> (Vec<f32>, Vec<u32>) {
-        let dist = vec![f32::INFINITY; self.count()];
+        let mut squared = vec![f32::INFINITY; self.count()];
         let mut nearest = vec![0u32; self.count()];
         let plane = self.dims[0] * self.dims[1];
-        let planes_per_thread = self.dims[2].div_ceil(threads.clamp(1, self.dims[2]));
-        let slab = planes_per_thread * plane;
+        let threads = threads.clamp(1, self.dims[2]);
+        let slabs = (threads * BAND_SLABS_PER_THREAD).min(self.dims[2]);
+        let planes_per_slab = self.dims[2].div_ceil(slabs);
+        let slab = planes_per_slab * plane;
         let order = self.spatial_order(points);
-        let mut squared = dist;
-        std::thread::scope(|scope| {
-            for (t, (squared, nearest)) in squared
+        let pending = std::sync::Mutex::new(
+            squared
                 .chunks_mut(slab)
                 .zip(nearest.chunks_mut(slab))
-                .enumerate()
-            {
-                let first_plane = t * planes_per_thread;
-                let order = &order;
-                scope.spawn(move || {
-                    self.band_slab_on_this_cpu(points, order, band, first_plane, squared, nearest);
-                    for d in squared.iter_mut() {
-                        *d = d.sqrt();
-                    }
-                });
+                .enumerate(),
+        );
+        let fill = || {
+            loop {
+                // A poisoned lock means another thread panicked holding it: this one stops,
+                // and the scope raises that panic.
+                let Some((s, (squared, nearest))) = pending.lock().ok().and_then(|mut p| p.next())
+                else {
+                    return;
+                };
+                let first_plane = s * planes_per_slab;
+                self.band_slab_on_this_cpu(points, &order, band, first_plane, squared, nearest);
+                for d in squared.iter_mut() {
+                    *d = d.sqrt();
+                }
             }
+        };
+        std::thread::scope(|scope| {
+            for _ in 1..threads {
+                scope.spawn(fill);
+            }
+            fill();
         });
         (squared, nearest)
     }

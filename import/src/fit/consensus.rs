@@ -318,7 +318,19 @@ const ROW_CHUNK: usize = 64;
 /// out of reach: far above the rounding of a coordinate divided by the cell side.
 const CELL_ROUNDING: f32 = 1e-3;
 
-/// `(0..count).map(f)`, split over the machine's cores in contiguous chunks (in order).
+/// Indices a [`parallel_map`] thread takes at a time, at least.
+const PARALLEL_CHUNK_LEAST: usize = 256;
+/// Chunks a [`parallel_map`] splits its indices into per thread, at most: enough that a
+/// thread that finishes early (its indices cheaper, or its core shared) takes others'.
+const PARALLEL_CHUNKS_PER_THREAD: usize = 16;
+
+/// `(0..count).map(f)`, split over the machine's cores: the indices in contiguous chunks,
+/// each taken by the next free thread (the calling thread one of them), returned in order.
+///
+/// NOTE: with each thread's share fixed (one contiguous run per thread), the stages whose
+/// cost is uneven along the indices (the nodes' distances: the nodes near the surface are
+/// in a few runs of z-planes) waited for one thread with a core's worth of work left
+/// (bench/RESULTS.md, "Import time: the work shared out").
 pub(crate) fn parallel_map<T: Send>(count: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
     let threads = std::thread::available_parallelism()
         .map_or(1, std::num::NonZeroUsize::get)
@@ -326,23 +338,44 @@ pub(crate) fn parallel_map<T: Send>(count: usize, f: impl Fn(usize) -> T + Sync)
     if threads <= 1 {
         return (0..count).map(f).collect();
     }
-    let chunk = count.div_ceil(threads);
-    let f = &f;
+    let chunk = count
+        .div_ceil(threads * PARALLEL_CHUNKS_PER_THREAD)
+        .max(PARALLEL_CHUNK_LEAST);
+    let chunks = count.div_ceil(chunk);
+    // NOTE: Relaxed: the counter only hands out chunk numbers, each exactly once (`fetch_add`
+    // is atomic in any ordering); the values reach the caller through the threads' joins.
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let take = || {
+        let mut done: Vec<(usize, Vec<T>)> = Vec::new();
+        loop {
+            let c = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if c >= chunks {
+                return done;
+            }
+            done.push((
+                c,
+                (c * chunk..((c + 1) * chunk).min(count)).map(&f).collect(),
+            ));
+        }
+    };
+    let (take, mut taken) = (&take, Vec::with_capacity(chunks));
     std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                scope.spawn(move || {
-                    (t * chunk..((t + 1) * chunk).min(count))
-                        .map(f)
-                        .collect::<Vec<T>>()
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .flat_map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
-            .collect()
-    })
+        let handles: Vec<_> = (1..threads).map(|_| scope.spawn(take)).collect();
+        taken.extend(take());
+        for handle in handles {
+            taken.extend(
+                handle
+                    .join()
+                    .unwrap_or_else(|e| std::panic::resume_unwind(e)),
+            );
+        }
+    });
+    taken.sort_unstable_by_key(|&(c, _)| c);
+    let mut values = Vec::with_capacity(count);
+    for (_, chunk_values) in taken {
+        values.extend(chunk_values);
+    }
+    values
 }
 
 /// `f(i)` for every `i` of `order` (a permutation of `0..order.len()`), called in that
@@ -490,8 +523,8 @@ struct Plane {
     neighbours: usize,
 }
 
-fn plane_of(near: &[Vec3], off: &mut Vec<f32>) -> Option<Plane> {
-    let first = principal_plane(near.iter().copied())?;
+fn plane_of(near: &[Vec3], off: &mut Vec<f32>, inliers: &mut Vec<Vec3>) -> Option<Plane> {
+    let first = principal_plane(near)?;
     // Robust second pass: refit to the neighbours within three robust deviations (the median
     // absolute distance) of the first plane, so that a few strays among the neighbours do not
     // tilt the plane or inflate its scatter.
@@ -505,10 +538,12 @@ fn plane_of(near: &[Vec3], off: &mut Vec<f32>) -> Option<Plane> {
     }
     let mid = off.len() / 2;
     let keep = inlier_bound(*off.select_nth_unstable_by(mid, f32::total_cmp).1);
-    let inliers = near
-        .iter()
-        .copied()
-        .filter(|&q| (q - first.centre).dot(first.normal).abs() <= keep);
+    inliers.clear();
+    inliers.extend(
+        near.iter()
+            .copied()
+            .filter(|&q| (q - first.centre).dot(first.normal).abs() <= keep),
+    );
     let refit = principal_plane(inliers).unwrap_or(first);
     Some(Plane {
         neighbours: near.len(),
@@ -547,26 +582,30 @@ fn needs_refit(off: &[f32]) -> bool {
 }
 
 /// The least-squares plane through the points `near` (at least three).
-fn principal_plane(near: impl Iterator<Item = Vec3> + Clone) -> Option<Plane> {
-    let count = near.clone().count();
+fn principal_plane(near: &[Vec3]) -> Option<Plane> {
+    let count = near.len();
     if count < 3 {
         return None;
     }
-    let mean = near.clone().map(Vec3::as_dvec3).sum::<DVec3>() / count as f64;
-    let mut cov = [[0.0f64; 3]; 3];
-    for q in near.clone() {
+    let mean = near.iter().map(|q| q.as_dvec3()).sum::<DVec3>() / count as f64;
+    // The six distinct entries of the symmetric covariance (`d[a] · d[b]` is `d[b] · d[a]`
+    // to the bit).
+    let (mut xx, mut xy, mut xz, mut yy, mut yz, mut zz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for q in near {
         let d = q.as_dvec3() - mean;
-        for (a, row) in cov.iter_mut().enumerate() {
-            for (b, c) in row.iter_mut().enumerate() {
-                *c += d[a] * d[b];
-            }
-        }
+        xx += d.x * d.x;
+        xy += d.x * d.y;
+        xz += d.x * d.z;
+        yy += d.y * d.y;
+        yz += d.y * d.z;
+        zz += d.z * d.z;
     }
+    let cov = [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]];
     let normal = least_variance_direction(cov)
         .try_normalize()
         .unwrap_or(Vec3::Y);
     let centre = mean.as_vec3();
-    let ss: f32 = near.map(|q| (q - centre).dot(normal).powi(2)).sum();
+    let ss: f32 = near.iter().map(|&q| (q - centre).dot(normal).powi(2)).sum();
     Some(Plane {
         centre,
         normal,
@@ -590,7 +629,8 @@ pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
 ///
 /// NOTE: a grid of the 64³ cubes over the box took some 4 MB for the count, which the import
 /// now takes twice (the kept points' spacing is read again; bench/RESULTS.md, "Import time:
-/// the neighbourhoods"); the sorted cube numbers take four bytes a point.
+/// the neighbourhoods"); the sorted cube numbers took four bytes a point and a sort, on the
+/// calling thread alone; a bit per cube is 32 kB.
 fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
     let (lo, hi) = points
         .iter()
@@ -603,10 +643,12 @@ fn occupied_cubes(points: &[Vec3], cell: f32) -> usize {
         (Vec3::ZERO, Vec3::ZERO)
     };
     let cubes = Cubes::covering(lo, hi, cell);
-    let mut numbers: Vec<u32> = points.iter().map(|&p| cubes.cube_of(p) as u32).collect();
-    numbers.sort_unstable();
-    numbers.dedup();
-    numbers.len()
+    let mut occupied = vec![0u64; cubes.count().div_ceil(64)];
+    for &p in points {
+        let c = cubes.cube_of(p);
+        occupied[c / 64] |= 1 << (c % 64);
+    }
+    occupied.iter().map(|w| w.count_ones() as usize).sum()
 }
 
 /// Screens `points` (see the module docs). `size` is the object's size (its box's longest
@@ -813,18 +855,18 @@ fn plane_at(points: &[Vec3], grid: &PointGrid, radius: f32, i: usize) -> Option<
     thread_local! {
         /// The neighbours' positions and their distances to the first plane, kept per thread
         /// across the planes it fits.
-        static SCRATCH: std::cell::RefCell<(Vec<Vec3>, Vec<f32>)> =
-            const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+        static SCRATCH: std::cell::RefCell<(Vec<Vec3>, Vec<f32>, Vec<Vec3>)> =
+            const { std::cell::RefCell::new((Vec::new(), Vec::new(), Vec::new())) };
     }
     let p = points[i];
-    SCRATCH.with_borrow_mut(|(near, off)| {
+    SCRATCH.with_borrow_mut(|(near, off, inliers)| {
         near.clear();
         grid.for_each_near(p, radius, |j, q| {
             if j != i {
                 near.push(q);
             }
         });
-        plane_of(near, off).map(|plane| {
+        plane_of(near, off, inliers).map(|plane| {
             let off = (p - plane.centre).dot(plane.normal).abs();
             (plane, off)
         })
@@ -1067,6 +1109,22 @@ mod tests {
     }
 
     #[test]
+    fn a_parallel_map_returns_every_value_in_order_however_uneven_the_work() {
+        // The first indices cost far more than the rest (as the nodes near a surface do), so
+        // the chunks are taken out of turn; the values still come back by index, once each.
+        let value = |i: usize| {
+            let rounds = if i < 3000 { 400 } else { 1 };
+            (0..rounds).fold(i as u64, |h, r| {
+                h.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(r)
+            })
+        };
+        for count in [0, 1, 4095, 4097, 70_001] {
+            let plain: Vec<u64> = (0..count).map(value).collect();
+            assert_eq!(parallel_map(count, value), plain, "{count}");
+        }
+    }
+
+    #[test]
     fn a_radius_search_visits_exactly_the_points_within_reach_in_the_grid_order() {
         // A noisy sheet, searched at points on it, off it and outside its box, at radii up to
         // two and a half cell sides: the visits are the points within the radius, each once,
@@ -1200,7 +1258,7 @@ mod tests {
     /// The robust plane as it was fitted before [`needs_refit`]: the median found by
     /// selection for every plane.
     fn plane_by_selected_median(near: &[Vec3]) -> Option<Plane> {
-        let first = principal_plane(near.iter().copied())?;
+        let first = principal_plane(near)?;
         let mut off: Vec<f32> = near
             .iter()
             .map(|&q| (q - first.centre).dot(first.normal).abs())
@@ -1210,11 +1268,12 @@ mod tests {
         if off[mid..].iter().all(|&d| d <= keep) {
             return Some(first);
         }
-        let inliers = near
+        let inliers: Vec<Vec3> = near
             .iter()
             .copied()
-            .filter(|&q| (q - first.centre).dot(first.normal).abs() <= keep);
-        let refit = principal_plane(inliers).unwrap_or(first);
+            .filter(|&q| (q - first.centre).dot(first.normal).abs() <= keep)
+            .collect();
+        let refit = principal_plane(&inliers).unwrap_or(first);
         Some(Plane {
             neighbours: near.len(),
             ..refit
@@ -1233,7 +1292,7 @@ mod tests {
             (seed >> 40) as f32 / (1u64 << 24) as f32
         };
         let (mut refitted, mut kept) = (0, 0);
-        let mut off = Vec::new();
+        let (mut off, mut inliers) = (Vec::new(), Vec::new());
         for case in 0..4000 {
             let count = 3 + case % 58;
             let noise = [0.0, 0.001, 0.02, 0.1][case % 4];
@@ -1253,7 +1312,7 @@ mod tests {
                 let copy = near[0];
                 near[count / 2] = copy;
             }
-            let plane = plane_of(&near, &mut off);
+            let plane = plane_of(&near, &mut off, &mut inliers);
             let reference = plane_by_selected_median(&near);
             match (plane, reference) {
                 (Some(a), Some(b)) => {
@@ -1265,7 +1324,7 @@ mod tests {
                 (None, None) => {}
                 _ => panic!("case {case}: one plane and not the other"),
             }
-            let first = principal_plane(near.iter().copied()).unwrap();
+            let first = principal_plane(&near).unwrap();
             let distances: Vec<f32> = near
                 .iter()
                 .map(|&q| (q - first.centre).dot(first.normal).abs())

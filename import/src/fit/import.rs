@@ -19,6 +19,7 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, MARGIN_SPANS, SignedBy};
+use super::consensus::parallel_map;
 use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
     fit_hierarchy,
@@ -536,15 +537,19 @@ fn cloud_size(points: &[Vec3]) -> f32 {
 
 /// How far `points` (mapped to field units by `to_field`) lie from the fitted surface, to
 /// first order (`|F − iso| / |∇F|`), field units: mean and worst.
+///
+/// The distances are found on every core and summed in the points' order.
 fn distance_to_surface(
     field: &MultiPatchField,
     points: &[Vec3],
-    to_field: impl Fn(Vec3) -> Vec3,
+    to_field: impl Fn(Vec3) -> Vec3 + Sync,
 ) -> (f32, f32) {
+    let distances = parallel_map(points.len(), |i| {
+        let (v, g) = field.value_and_gradient(to_field(points[i]));
+        (v - field.iso()).abs() / g.length().max(1e-6)
+    });
     let (mut sum, mut worst) = (0.0f64, 0.0f32);
-    for &p in points {
-        let (v, g) = field.value_and_gradient(to_field(p));
-        let d = (v - field.iso()).abs() / g.length().max(1e-6);
+    for d in distances {
         sum += f64::from(d);
         worst = worst.max(d);
     }

@@ -140,9 +140,15 @@ fn along_axis(
     } else {
         let planes_per_thread = oz.div_ceil(threads);
         std::thread::scope(|scope| {
-            for (t, slab) in out.chunks_mut(planes_per_thread * plane).enumerate() {
+            let mut slabs = out.chunks_mut(planes_per_thread * plane).enumerate();
+            // The calling thread fills the first slab itself (one thread fewer to start).
+            let own = slabs.next();
+            for (t, slab) in slabs {
                 let fill = &fill;
                 scope.spawn(move || fill(t * planes_per_thread, slab));
+            }
+            if let Some((t, slab)) = own {
+                fill(t * planes_per_thread, slab);
             }
         });
     }
@@ -232,13 +238,18 @@ fn along_x_then_y(
     } else {
         let planes_per_thread = dims[2].div_ceil(threads);
         std::thread::scope(|scope| {
-            for (t, (first, second)) in first
+            let mut slabs = first
                 .chunks_mut(planes_per_thread * first_plane)
                 .zip(second.chunks_mut(planes_per_thread * second_plane))
-                .enumerate()
-            {
+                .enumerate();
+            // The calling thread fills the first slab itself (one thread fewer to start).
+            let own = slabs.next();
+            for (t, (first, second)) in slabs {
                 let fill = &fill;
                 scope.spawn(move || fill(t * planes_per_thread, first, second));
+            }
+            if let Some((t, (first, second))) = own {
+                fill(t * planes_per_thread, first, second);
             }
         });
     }
