@@ -18,7 +18,9 @@
 //! Environment variables narrow or scale the run: `PEERS_POINTS` sets the points per cloud
 //! (default [`CLOUD_POINTS`], at most [`MAX_CLOUD_POINTS`]; e.g. a million, to judge the import's
 //! thinning of dense scans), `PEERS_MODELS` a comma-separated list of model stems to keep, and
-//! `PEERS_NOISE_SCALE` a factor on every cloud's noise (see [`noise_scale`]).
+//! `PEERS_NOISE_SCALE` a factor on every cloud's noise (see [`noise_scale`]). With
+//! `PEERS_WORST` set, each row is followed by where on the model its worst 1% of distances
+//! lie, either way (see [`print_worst_places`]).
 
 use std::path::{Path, PathBuf};
 
@@ -31,7 +33,8 @@ use super::reconstructors::{
     poisson_crate_depth, poisson_recon,
 };
 use super::surface_compare::{
-    TriangleIndex, one_way_distances, one_way_signed_distances, quantile, topology,
+    TriangleIndex, one_way_distances, one_way_signed_distances, one_way_signed_samples, quantile,
+    topology,
 };
 
 /// Points per cloud unless `PEERS_POINTS` says otherwise.
@@ -282,6 +285,7 @@ pub fn run(quick: bool) {
                 &ours_accuracy,
                 None,
             );
+            print_worst_places(&model, &model_index, &ours.mesh, samples);
             for peer in &peers {
                 match (peer.run)(&cloud, &ply) {
                     Ok(theirs) => {
@@ -314,6 +318,7 @@ pub fn run(quick: bool) {
                             &theirs_accuracy,
                             Some(ratios),
                         );
+                        print_worst_places(&model, &model_index, &theirs.mesh, samples);
                     }
                     Err(why) => println!(
                         "| {stem} | {} | {} | failed: {why} | | | | | | | | | |",
@@ -335,6 +340,83 @@ pub fn run(quick: bool) {
         far_off.len(),
         far_off.join("\n")
     );
+}
+
+/// Cells per axis of the model's box that [`print_worst_places`] counts the worst samples in.
+const WORST_CELLS: usize = 6;
+/// Cells [`print_worst_places`] lists per direction, at most.
+const WORST_LISTED: usize = 5;
+
+/// With `PEERS_WORST` set: where the reconstruction's worst 1% of distances lie, each way. The
+/// samples over the 99th percentile are counted in a grid of [`WORST_CELLS`]³ cells over the
+/// model's box; the cells holding most are printed with their centre (fractions of the box),
+/// their share of the worst samples and the mean signed distance there (% of the diagonal;
+/// reconstruction → model: positive where the reconstruction lies outside the model; model →
+/// reconstruction: positive where the model lies outside the reconstruction, which is missing
+/// or sunk there).
+fn print_worst_places(model: &Mesh, model_index: &TriangleIndex<'_>, mesh: &Mesh, samples: usize) {
+    if std::env::var_os("PEERS_WORST").is_none() {
+        return;
+    }
+    let Some(index) = TriangleIndex::new(mesh) else {
+        return;
+    };
+    let (lo, hi) = model.bounds();
+    let percent = 100.0 / model.diagonal();
+    let cell_of = |p: glam::Vec3| {
+        let f = ((p - lo) / (hi - lo)).clamp(glam::Vec3::ZERO, glam::Vec3::splat(0.999_999));
+        let c = (f * WORST_CELLS as f32).as_uvec3();
+        (c.x as usize * WORST_CELLS + c.y as usize) * WORST_CELLS + c.z as usize
+    };
+    for (way, sampled) in [
+        (
+            "rec→model",
+            one_way_signed_samples(mesh, model_index, samples, 0x5eed_0001),
+        ),
+        (
+            "model→rec",
+            one_way_signed_samples(model, &index, samples, 0x5eed_0002),
+        ),
+    ] {
+        let mut magnitudes: Vec<f32> = sampled.iter().map(|&(_, d)| d.abs()).collect();
+        let p99 = quantile(&mut magnitudes, 0.99);
+        let worst: Vec<&(glam::Vec3, f32)> =
+            sampled.iter().filter(|&&(_, d)| d.abs() > p99).collect();
+        let mut cells = vec![(0usize, 0.0f64); WORST_CELLS.pow(3)];
+        for &&(p, d) in &worst {
+            let cell = &mut cells[cell_of(p)];
+            cell.0 += 1;
+            cell.1 += f64::from(d);
+        }
+        let mut ranked: Vec<usize> = (0..cells.len()).filter(|&c| cells[c].0 > 0).collect();
+        ranked.sort_by_key(|&c| std::cmp::Reverse(cells[c].0));
+        let listed: Vec<String> = ranked
+            .iter()
+            .take(WORST_LISTED)
+            .map(|&c| {
+                let (count, sum) = cells[c];
+                let at = |i: usize| (i as f32 + 0.5) / WORST_CELLS as f32;
+                let (x, y, z) = (
+                    c / (WORST_CELLS * WORST_CELLS),
+                    (c / WORST_CELLS) % WORST_CELLS,
+                    c % WORST_CELLS,
+                );
+                format!(
+                    "({:.2}, {:.2}, {:.2}): {:.0}%, {:+.3}%",
+                    at(x),
+                    at(y),
+                    at(z),
+                    100.0 * count as f64 / worst.len().max(1) as f64,
+                    sum / count as f64 * f64::from(percent)
+                )
+            })
+            .collect();
+        println!(
+            "|   worst 1% {way} (over {:.3}%) | {} |",
+            p99 * percent,
+            listed.join("; ")
+        );
+    }
 }
 
 /// dynaclay's figure over the peer's.

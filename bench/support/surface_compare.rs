@@ -174,6 +174,28 @@ pub fn one_way_signed_distances(
         .collect()
 }
 
+/// Points sampled on `from` (seeded, as [`one_way_signed_distances`]) with their signed
+/// distances to `to`'s triangles.
+#[must_use]
+pub fn one_way_signed_samples(
+    from: &Mesh,
+    to: &TriangleIndex<'_>,
+    count: usize,
+    seed: u64,
+) -> Vec<(Vec3, f32)> {
+    let sampler = AreaSampler::new(from);
+    if sampler.area() <= 0.0 {
+        return Vec::new();
+    }
+    let mut rng = Rng::new(seed);
+    (0..count)
+        .map(|_| {
+            let p = sampler.sample(&mut rng).0;
+            (p, to.signed_distance(p))
+        })
+        .collect()
+}
+
 /// The `q`-quantile (0..=1) of `values` (sorted in place); NaN when empty.
 #[must_use]
 pub fn quantile(values: &mut [f32], q: f32) -> f32 {

@@ -62,7 +62,8 @@
 //!    refitted by weighted, regularised least squares ([`super::regularised`]): each sample
 //!    weighs by how much the points hold it (the moving planes' total weight `W`, as
 //!    `W / (W + 1)`, and [`UNHELD_WEIGHT`] beyond their reach), beside a bending energy on the
-//!    coefficients ([`BENDING_WEIGHT`]), so the clay follows the data where it is dense and
+//!    coefficients ([`BENDING_WEIGHT`], growing with the noise's square on a noisy cloud:
+//!    [`bending_weight`]), so the clay follows the data where it is dense and
 //!    stays smooth where it is not (over holes, far from the points).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
@@ -442,7 +443,7 @@ impl SignedCloud {
             self.samples_per_span,
             &targets,
             &self.node_confidence,
-            BENDING_WEIGHT,
+            bending_weight(self.noise / self.spacing),
             REGULARISED_STEPS,
         );
         Ok(lattice)
@@ -727,6 +728,29 @@ pub const UNHELD_WEIGHT: f32 = 0.1;
 /// The bending energy's weight `λ` in the regularised fit of the base lattice (see
 /// [`super::regularised`]).
 pub const BENDING_WEIGHT: f32 = 0.002;
+/// The noise, in knot spans, up to which the bending energy keeps [`BENDING_WEIGHT`]; above
+/// it the weight grows with the noise's square (see [`bending_weight`]).
+pub const BENDING_NOISE_SPANS: f32 = 0.125;
+/// The most [`bending_weight`] grows [`BENDING_WEIGHT`] by for a noisy cloud.
+pub const MAX_BENDING_GROWTH: f32 = 16.0;
+
+/// The bending energy's weight for a cloud whose noise (its points' scatter across the
+/// surface, estimated or given) is `noise_spans` knot spans: [`BENDING_WEIGHT`] up to
+/// [`BENDING_NOISE_SPANS`], and above it `BENDING_WEIGHT · (noise / BENDING_NOISE_SPANS)²`, at
+/// most [`MAX_BENDING_GROWTH`] times it. A smoothing spline's best weight grows with the
+/// noise's variance: the data term's residual is mostly noise, and the bending must hold the
+/// surface against it. Below the threshold (a scan's usual noise, a tenth of a span on
+/// 50 000-point clouds at 0.25% of the diagonal) the weight is the one that keeps sharp
+/// edges and bores; at 1% noise (about 0.3 spans) it is some five times that, which takes the
+/// noise out of smooth surfaces where the edges' rounding costs less than the noise left in
+/// (bench/RESULTS.md, "The rocker arm's outliers, strays off a small cap, and a bending that
+/// grows with the noise").
+#[must_use]
+pub fn bending_weight(noise_spans: f32) -> f32 {
+    let over = (noise_spans / BENDING_NOISE_SPANS).max(1.0);
+    BENDING_WEIGHT * (over * over).min(MAX_BENDING_GROWTH)
+}
+
 /// Conjugate-gradient steps of the regularised fit, at most: it starts from the plain fit,
 /// which is near, and the steps are its main cost.
 pub const REGULARISED_STEPS: usize = 20;
@@ -3051,6 +3075,27 @@ mod tests {
             assert!((got - want).abs() < 1e-5, "node {at}: {got} vs {want}");
         }
         assert!(grid.distance_to(&vec![false; grid.count()])[0].is_infinite());
+    }
+
+    #[test]
+    fn the_bending_keeps_its_weight_under_the_noise_threshold_and_grows_with_its_square() {
+        assert_eq!(bending_weight(0.0), BENDING_WEIGHT);
+        assert_eq!(bending_weight(BENDING_NOISE_SPANS), BENDING_WEIGHT);
+        let twice = bending_weight(2.0 * BENDING_NOISE_SPANS);
+        assert!(
+            (twice / BENDING_WEIGHT - 4.0).abs() < 1e-5,
+            "twice the threshold: {twice}"
+        );
+        let mut last = BENDING_WEIGHT;
+        for tenth in 1..60 {
+            let weight = bending_weight(tenth as f32 * 0.1 * BENDING_NOISE_SPANS);
+            assert!(weight >= last, "{weight} under {last}");
+            last = weight;
+        }
+        assert_eq!(
+            bending_weight(100.0 * BENDING_NOISE_SPANS),
+            BENDING_WEIGHT * MAX_BENDING_GROWTH
+        );
     }
 
     #[test]

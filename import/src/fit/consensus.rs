@@ -13,6 +13,13 @@
 //!   times the local scatter (the larger of the cloud's noise and the neighbours' own RMS
 //!   distance to the plane, so that a crease or a tight curve does not count as an
 //!   outlier), are dropped: a return off the consensus surface.
+//!   A point well off the surface has few neighbours, those of a small cap of the surface
+//!   within the radius, and a plane fitted to a cap no wider than the noise's thickness may
+//!   lean anywhere, even through the point: a point with fewer neighbours than
+//!   [`THIN_SUPPORT`] times what a point at the far test's limit would have is also judged
+//!   against the plane of its nearest well-supported neighbour (fitted to a whole disc of
+//!   the surface), and dropped when it lies over [`FAR_DEVIATIONS`] local deviations off
+//!   it (where the noise is well under the radius, [`THIN_FAR_LIMIT`]).
 //! - The **noise level** is the median of the neighbourhoods' RMS distances to their planes
 //!   (a robust estimate of the per-point scatter across the surface), unless the caller
 //!   gives it.
@@ -39,6 +46,17 @@ pub const FAR_DEVIATIONS: f32 = 3.5;
 /// the coordinates' scale, so that the rounding of a clean cloud's coordinates is not taken
 /// for a deviation from the plane.
 pub const PRECISION: f32 = 1e-6;
+/// A point is also judged against its nearest well-supported neighbour's plane when it has
+/// fewer neighbours than this fraction of those a point [`FAR_DEVIATIONS`] noise levels off a
+/// flat surface would have (the median count times the share of the neighbour disc left in
+/// a cap at that height, `1 − (FAR_DEVIATIONS σ / radius)²`): its own neighbours are a cap
+/// too small to fix a plane. A point it finds on that plane keeps its own plane's distance.
+pub const THIN_SUPPORT: f32 = 0.75;
+/// Points are judged by their count of neighbours (see [`THIN_SUPPORT`]) only where the far
+/// test's limit, [`FAR_DEVIATIONS`] noise levels, is at most this fraction of the radius:
+/// where the noise is a larger share of it, a genuine point's count falls steeply with its
+/// own scatter and tells nothing of an outlier.
+pub const THIN_FAR_LIMIT: f32 = 0.5;
 /// A point with few neighbours is judged by its well-supported neighbours' plane only where
 /// [`FAR_DEVIATIONS`] noise levels are under this fraction of the neighbour radius (the far
 /// test can tell a stray just off the surface from a point on it).
@@ -673,7 +691,14 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
         *counts.select_nth_unstable(mid).1
     };
     let fewest = ((median as f32 * ISOLATED_FRACTION).ceil() as usize).max(3);
-    let planes = bordering_support(points, planes, radius, fewest, sigma.max(PRECISION * size));
+    let scatter = sigma.max(PRECISION * size);
+    let far_limit = FAR_DEVIATIONS * scatter / radius;
+    let thin = if far_limit <= THIN_FAR_LIMIT {
+        ((median as f32 * THIN_SUPPORT * (1.0 - far_limit * far_limit)).ceil() as usize).max(fewest)
+    } else {
+        fewest
+    };
+    let planes = bordering_support(points, planes, radius, [fewest, thin], scatter);
     let (mut isolated, mut far) = (0, 0);
     let confidence = planes
         .iter()
@@ -705,20 +730,27 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
     }
 }
 
-/// Per point: the plane it is judged by, or `None` where it is isolated. A point with at
-/// least `fewest` neighbours keeps its neighbours' plane and distance. One with fewer (but
-/// at least three, for a plane) that has a well-supported neighbour (one with `fewest` or
-/// more) within the radius is kept for the far test, its distance the larger of its
-/// deviations (over the local scatter) from its own neighbours' plane and from the nearest
-/// well-supported neighbour's plane, given in noise levels `sigma`: a genuine point of a
-/// sparsely sampled area (a flat face beside a densely sampled edge) lies among
-/// well-supported points and on their planes, while a stray in empty space has none about it.
-/// This holds only where the noise is well under the radius (see [`RESCUE_RADII`]).
+/// Per point: the plane it is judged by, or `None` where it is isolated; `[fewest, thin]`
+/// the neighbour counts that make a point supported and well supported. A point with at
+/// least `thin` neighbours keeps its neighbours' plane and distance. One with fewer (but
+/// at least three, for a plane) is also judged against the plane of its nearest neighbour
+/// within the radius that is well supported (for a point with `fewest` or more: a stray
+/// beside another may be supported by it) or supported (for one with fewer), by its
+/// deviation from it over that plane's scatter, in noise levels `sigma`. A genuine point of
+/// a sparsely sampled area (a flat face beside a densely sampled edge) lies among supported
+/// points and on their planes, while a stray in empty space has none about it, and a stray
+/// a few noise levels off the surface (its neighbours a small cap, their plane leaning
+/// anywhere) lies off its nearest well-supported neighbour's plane. A point under `fewest`
+/// is judged by the larger of its two deviations, and only where the noise is well under
+/// the radius (see [`RESCUE_RADII`]; elsewhere, or with no supported neighbour, it is
+/// isolated). A point with `fewest` or more keeps its own plane and distance unless the
+/// deviation from its neighbour's plane is over [`FAR_DEVIATIONS`] (it is then dropped), or
+/// where it has no well-supported neighbour.
 fn bordering_support(
     points: &[Vec3],
     planes: Vec<Option<(Plane, f32)>>,
     radius: f32,
-    fewest: usize,
+    [fewest, thin]: [usize; 2],
     sigma: f32,
 ) -> Vec<Option<(Plane, f32)>> {
     let count = |i: usize| planes[i].as_ref().map_or(0, |(p, _)| p.neighbours);
@@ -726,16 +758,24 @@ fn bordering_support(
     // neighbours and lies within the far test's reach of their planes, like a sparse genuine
     // point: there, few neighbours mean isolated.
     let resolves = FAR_DEVIATIONS * sigma <= RESCUE_RADII * radius;
+    let judged = |i: usize| {
+        let c = count(i);
+        c < thin && (c >= fewest || resolves)
+    };
     let grid = PointGrid::new(points, |i| count(i) >= fewest, radius, CELL_OFFER);
     let bordering = parallel_map(points.len(), |i| {
-        if count(i) >= fewest || !resolves {
+        if !judged(i) {
             return None;
         }
         let p = points[i];
+        // A supported point is judged against a well-supported one (another stray near it,
+        // supported by it, may have a plane through it); a point under `fewest`, against a
+        // supported one (in a sparsely sampled area, none may be well supported).
+        let least = if count(i) >= fewest { thin } else { fewest };
         let mut nearest = (f32::INFINITY, None);
         grid.for_each_near(p, radius, |j, q| {
             let d = (q - p).length_squared();
-            if j != i && d < nearest.0 {
+            if j != i && d < nearest.0 && count(j) >= least {
                 nearest = (d, Some(j));
             }
         });
@@ -747,13 +787,19 @@ fn bordering_support(
         .into_iter()
         .zip(bordering)
         .map(|(own, bordering)| match (own, bordering) {
-            (Some(own), _) if own.0.neighbours >= fewest => Some(own),
-            // Judged by the larger of its deviations from the two planes.
+            // Judged by the larger of its deviations from the two planes; a supported point
+            // that lies on its nearest well-supported neighbour's plane keeps its own plane
+            // and distance (and so its confidence).
             (Some((plane, off)), Some((rms, off_bordering))) => {
                 let scale = |rms: f32| rms.max(sigma);
-                let worst = (off / scale(plane.rms)).max(off_bordering / scale(rms));
+                let bordering = off_bordering / scale(rms);
+                if plane.neighbours >= fewest && bordering <= FAR_DEVIATIONS {
+                    return Some((plane, off));
+                }
+                let worst = (off / scale(plane.rms)).max(bordering);
                 Some((Plane { rms: 0.0, ..plane }, worst * sigma))
             }
+            (Some(own), None) if own.0.neighbours >= fewest => Some(own),
             _ => None,
         })
         .collect()
@@ -1016,6 +1062,68 @@ mod tests {
             assert!(c.far < points.len() / 200, "σ {sigma}: {} dropped", c.far);
             assert_eq!(c.isolated, 0);
         }
+    }
+
+    #[test]
+    fn strays_a_few_noise_levels_outside_a_noisy_rod_are_dropped_and_the_rod_kept() {
+        // A rod (a cylinder of radius 5) of points scattered at random, one per unit of area,
+        // with noise σ = 0.4 across it (the neighbour radius about eight noise levels, as on
+        // a 50 000-point scan at 0.25% noise), and strays 5 to 7.5 σ outside it: each has a
+        // small cap of the rod's points within the radius, whose own plane, fitted to a cap
+        // hardly wider than the noise on a curved surface, may lean through it. Every stray
+        // must be dropped, and the rod's points kept.
+        let sigma = 0.4f32;
+        let mut seed = 0x9e37_79b9_u64;
+        let mut unit = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let (side, radius) = (120.0f32, 5.0f32);
+        let around = std::f32::consts::TAU * radius;
+        let on_cylinder = |along: f32, angle: f32, height: f32| {
+            Vec3::new(
+                (radius + height) * angle.cos(),
+                along,
+                (radius + height) * angle.sin(),
+            )
+        };
+        let mut points: Vec<Vec3> = (0..(side * around) as usize)
+            .map(|_| {
+                // Sum of twelve uniforms less six: close to a standard normal.
+                let gauss: f32 = (0..12).map(|_| unit()).sum::<f32>() - 6.0;
+                on_cylinder(side * unit(), std::f32::consts::TAU * unit(), sigma * gauss)
+            })
+            .collect();
+        let sheet = points.len();
+        // One stray per block of 4 along the rod and quarter turn around it: some are
+        // within the neighbour radius of each other.
+        for block in 1..30 {
+            for turn in 0..4 {
+                points.push(on_cylinder(
+                    block as f32 * 4.0 + 2.0 * unit(),
+                    (turn as f32 + unit() * 0.5) * std::f32::consts::FRAC_PI_2,
+                    sigma * (5.0 + 2.5 * unit()),
+                ));
+            }
+        }
+        let c = screen(&points, side, None);
+        let kept_strays: Vec<Vec3> = (sheet..points.len())
+            .filter(|&i| c.confidence[i] > 0.0)
+            .map(|i| points[i])
+            .collect();
+        assert!(
+            kept_strays.is_empty(),
+            "{} of {} strays kept: {kept_strays:?}",
+            kept_strays.len(),
+            points.len() - sheet
+        );
+        let dropped = (0..sheet).filter(|&i| c.confidence[i] == 0.0).count();
+        assert!(
+            dropped < sheet / 200,
+            "{dropped} of the sheet's points dropped"
+        );
     }
 
     #[test]
