@@ -66,17 +66,18 @@ use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_body, mirror_force};
 use super::tool_sample::ToolSample;
-use super::update::FieldUpdate;
+use super::update::{FieldUpdate, MAX_UPDATE_COEFFS};
 use dynaclay_core::dynamics::{
     ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolBody, ToolForce,
 };
 use dynaclay_core::field::{
-    BSplineLattice, CoeffBox, MultiPatchField, RefusedFolds, RegionSnapshot, coeff_box_around,
+    BSplineLattice, CoeffBox, DenseBudgetError, MultiPatchField, RefusedFolds, RegionSnapshot,
+    coeff_box_around,
 };
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
     ApplyOptions, Clay, ColourField, FieldId, FreezeMask, History, StepRecorder, ToolAction,
-    ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
+    ToolError, ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
     csg_volume_change, facing_surface, tool_volume_change,
 };
 
@@ -297,6 +298,9 @@ pub struct SimulationStage {
     changed_since_publish: bool,
     /// The folds of detail patches found refused, by their inputs (see `detail.rs`).
     refused_folds: RefusedFolds,
+    /// The newest edit refused for the clay's dense-brick budget (published in
+    /// [`SimStatus::budget_refusal`]).
+    budget_refusal: Option<DenseBudgetError>,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -387,6 +391,7 @@ impl SimulationStage {
             status,
             status_reader: Some(status_reader),
             sessions_loaded: 0,
+            budget_refusal: None,
             colour,
             colour_reader: Some(colour_reader),
             colour_dirty: false,
@@ -760,9 +765,17 @@ impl SimulationStage {
                         self.mark_changed(edited, b);
                     }
                 }
+                Err(ToolError::DenseBudget(refused)) => self.refuse_for_budget(refused),
                 Err(_) => self.counters.command_errors(1),
             }
         }
+    }
+
+    /// Counts and publishes an edit refused because it could pass the clay's dense-brick
+    /// budget (the clay is unchanged; [`SimStatus::budget_refusal`] says what and where).
+    pub(super) fn refuse_for_budget(&mut self, refused: DenseBudgetError) {
+        self.counters.command_errors(1);
+        self.budget_refusal = Some(refused);
     }
 
     /// The patch a region at `x` simulates: the finest patch in world coordinates whose
@@ -858,6 +871,12 @@ impl SimulationStage {
             self.mark_changed(patch, old.coeff_box());
         }
         self.retire_region();
+        // The region's coefficients are written every step: the bricks its box reaches must
+        // fit the clay's budget first (past it the stroke simulates nothing and says why).
+        if let Err(refused) = self.clay.check_dense_room(density_id(patch), b) {
+            self.refuse_for_budget(refused);
+            return;
+        }
         self.region_patch = patch;
         let n = b.dims();
         let s = self.config.samples_per_span.max(1);

@@ -8,7 +8,9 @@ use glam::{Vec3, Vec4};
 
 use super::freeze_mask::FreezeMask;
 use crate::dynamics::Constraint;
-use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
+use crate::field::{
+    BSplineLattice, DenseBudgetError, LatticeError, MultiPatchField, check_dense_room,
+};
 pub use crate::field::{CoeffBox, sub_lattice};
 
 /// Edge length (in coefficients) of the bricks the clay's coefficients are counted in: undo
@@ -138,6 +140,54 @@ impl Clay {
     /// As [`Clay::base`].
     pub fn base_mut(&mut self) -> &mut BSplineLattice {
         self.density.base_mut()
+    }
+
+    /// Every lattice of the clay: the density patches, the colour channels, the mask's.
+    pub fn lattices(&self) -> impl Iterator<Item = &BSplineLattice> {
+        let density = self.density.patches.iter().map(|p| &p.lattice);
+        let colour = self.colour.iter().flat_map(|c| c.channels.iter());
+        let mask = self.mask.iter().flat_map(|m| m.patches.iter());
+        density.chain(colour).chain(mask)
+    }
+
+    /// Dense bricks of every lattice of the clay together: what
+    /// [`crate::field::MAX_DENSE_BRICKS`] bounds. Sums counts the stores keep (no walk).
+    #[must_use]
+    pub fn dense_brick_count(&self) -> usize {
+        self.lattices()
+            .map(|l| l.coeffs.dense_brick_count())
+            .sum()
+    }
+
+    /// Coefficients of box of every lattice of the clay together: what
+    /// [`crate::field::MAX_CLAY_BOX_COEFFS`] bounds.
+    #[must_use]
+    pub fn box_coefficient_count(&self) -> usize {
+        self.lattices().map(|l| l.coeffs.len()).sum()
+    }
+
+    /// Whether a write inside `region` of lattice `id` fits the clay's dense-brick budget,
+    /// counting every uniform brick the box reaches as one it may make dense. A lattice the
+    /// clay does not hold takes no room.
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when it may not fit; check before writing, so that the clay is
+    /// unchanged then.
+    pub fn check_dense_room(&self, id: FieldId, region: CoeffBox) -> Result<(), DenseBudgetError> {
+        let more = self.field(id).map_or(0, |l| {
+            l.coeffs.uniform_bricks_holding(region.min, region.max)
+        });
+        check_dense_room(self.dense_brick_count(), more, Some(region))
+    }
+
+    /// Whether the clay as it is fits its budgets: its dense bricks within
+    /// [`crate::field::MAX_DENSE_BRICKS`] (a clay made elsewhere, an import, before it is
+    /// taken in).
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when it holds more.
+    pub fn check_dense_budget(&self) -> Result<(), DenseBudgetError> {
+        check_dense_room(self.dense_brick_count(), 0, None)
     }
 }
 

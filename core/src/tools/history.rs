@@ -12,7 +12,7 @@ use std::collections::{BTreeMap, VecDeque};
 use super::clay::{BRICK, Clay, CoeffBox, FieldId};
 use super::growth::Growth;
 use crate::dynamics::Constraint;
-use crate::field::{CoarsenPlan, Patch, apply_coarsening};
+use crate::field::{CoarsenPlan, DenseBudgetError, Patch, apply_coarsening, check_dense_room};
 
 /// Default memory bound of the history: 256 MiB.
 pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;
@@ -407,9 +407,22 @@ impl StepRecorder {
     /// rewritten coefficients become deltas, and the removed patch is kept whole as the step
     /// found it, so undo puts it back bit for bit. Later patches move down one index, here as
     /// in the clay.
-    pub fn coarsen(&mut self, clay: &mut Clay, plan: &CoarsenPlan) {
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when the rewritten box could make more bricks of the coarser patch
+    /// dense than the clay's budget leaves, with the detail patch's own dense bricks freed;
+    /// nothing changes then (the detail patch stays).
+    pub fn coarsen(&mut self, clay: &mut Clay, plan: &CoarsenPlan) -> Result<(), DenseBudgetError> {
         let index = plan.patch;
         let id = FieldId::Density(u16::try_from(index).unwrap_or(u16::MAX));
+        if let Some((region, _)) = &plan.rewrite {
+            let into = FieldId::Density(u16::try_from(plan.into).unwrap_or(u16::MAX));
+            let more = clay.field(into).map_or(0, |l| {
+                l.coeffs.uniform_bricks_holding(region.min, region.max)
+            });
+            let freed = clay.field(id).map_or(0, |l| l.coeffs.dense_brick_count());
+            check_dense_room(clay.dense_brick_count() - freed, more, Some(*region))?;
+        }
         if let Some((region, _)) = &plan.rewrite {
             let into = FieldId::Density(u16::try_from(plan.into).unwrap_or(u16::MAX));
             self.touch(clay, into, *region);
@@ -445,6 +458,7 @@ impl StepRecorder {
         }
         self.old = remapped;
         self.removed.push(RemovedPatch { index, before });
+        Ok(())
     }
 
     /// The union of the touched bricks of `field` (`None` if none).
@@ -743,7 +757,7 @@ mod tests {
             rewrite: Some((region, vec![0.25; region.count()])),
             displacement_fu: 0.0,
         };
-        rec.coarsen(&mut clay, &plan);
+        rec.coarsen(&mut clay, &plan).unwrap();
         assert_eq!(clay.density.patches.len(), 2);
         fill(&mut clay, 1, |i| (i % 4) as f32 * 0.03);
         assert!(history.commit(rec, &clay));

@@ -440,6 +440,9 @@ impl SimulationStage {
                 ))
             }
             Err(error) => {
+                if let dynaclay_core::tools::ToolError::DenseBudget(refused) = error {
+                    self.budget_refusal = Some(refused);
+                }
                 // A failed application may have applied earlier poses: publish the patch.
                 self.mark_all_changed();
                 Err(CommandError::Tool {

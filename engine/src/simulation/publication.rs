@@ -43,10 +43,23 @@ impl SimulationStage {
         for sender in &self.layout_senders {
             sender.drop_retired();
         }
-        let region = self
+        let mut region = self
             .region
             .as_ref()
             .map(|r| (self.region_patch, r.coeff_box()));
+        // A publication carries at most MAX_UPDATE_COEFFS coefficients: boxes past that (an
+        // edit over much of a large clay, an undo, boxes far apart whose union is the clay)
+        // reach the readers as a copy of the clay instead, which is sparse (its dense bricks
+        // and its directory), and only the region's box follows in the publication.
+        if self.published_coefficients(region) > MAX_UPDATE_COEFFS {
+            self.publish_layout();
+            self.counters.updates_as_copies(1);
+            // A region past the cap itself (never at the configured sizes) is carried by the
+            // copies too, one per step.
+            if self.published_coefficients(region) > MAX_UPDATE_COEFFS {
+                region = None;
+            }
+        }
         let field = &self.clay.density;
         for w in [&mut self.to_haptic, &mut self.to_graphics] {
             let patch = w.back_mut();
@@ -93,6 +106,24 @@ impl SimulationStage {
             self.publish_mask();
         }
         self.publish_status();
+    }
+
+    /// Coefficients a publication of the pending boxes and the region's box `region` (its
+    /// patch and box) would carry, each box clipped to its lattice.
+    fn published_coefficients(&self, region: Option<(usize, CoeffBox)>) -> usize {
+        let patches = &self.clay.density.patches;
+        self.pending
+            .iter()
+            .enumerate()
+            .filter_map(|(n, pending)| {
+                let b = match (region, pending) {
+                    (Some((rp, r)), p) if rp == n => Some(p.map_or(r, |p| p.union(&r))),
+                    (_, p) => *p,
+                }?;
+                let clipped = b.clipped(patches.get(n)?.lattice.dims)?;
+                Some(clipped.dims().iter().product::<usize>())
+            })
+            .fold(0, usize::saturating_add)
     }
 
     /// Copies the clay's freeze mask into the mask buffer and publishes it (the simulation
@@ -164,6 +195,8 @@ impl SimulationStage {
             pins_revision: self.pins_revision,
             compact: self.compact_status(),
             removal_question: self.removal.question,
+            dense_bricks: self.clay.dense_brick_count(),
+            budget_refusal: self.budget_refusal,
         };
         self.status.publish();
     }
