@@ -544,10 +544,16 @@ mod tests {
     fn a_grid_over_a_base_past_the_sample_budget_is_coarser_and_spans_it() {
         assert_eq!(grid_dims_over([96, 80, 64]), [96, 80, 64]);
         let dims = grid_dims_over([1024, 1024, 1024]);
-        assert!(dims.iter().product::<usize>() <= MAX_GRID_SAMPLES, "{dims:?}");
+        assert!(
+            dims.iter().product::<usize>() <= MAX_GRID_SAMPLES,
+            "{dims:?}"
+        );
         assert_eq!(dims, [256; 3], "one sample every fourth node");
         let long = grid_dims_over([40_000, 40, 40]);
-        assert!(long.iter().product::<usize>() <= MAX_GRID_SAMPLES, "{long:?}");
+        assert!(
+            long.iter().product::<usize>() <= MAX_GRID_SAMPLES,
+            "{long:?}"
+        );
     }
 
     #[test]

@@ -27,6 +27,13 @@
 //! Making a brick dense this way changes no value, so a pool that runs dry half-way leaves
 //! the store as it was, only partly prepared. [`BrickedCoeffs::densify_all`] remains for a
 //! store that is to take any write at all without allocating.
+//!
+//! The store counts its dense bricks as they change ([`BrickedCoeffs::dense_brick_count`]
+//! walks nothing), and [`BrickedCoeffs::uniform_bricks_holding`] bounds what a write inside a
+//! box can make dense: together they let the clay's budget of dense bricks
+//! ([`super::MAX_DENSE_BRICKS`]) be checked before every write, at one directory read per brick
+//! of the write's box. Building a store from a session file's bricks
+//! ([`BrickedCoeffs::try_from_owned_bricks`]) stops before the dense brick past its limit.
 
 use std::fmt;
 use std::ops::Index;

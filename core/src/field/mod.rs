@@ -29,11 +29,11 @@ pub use bricks::{
     BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES,
     DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, OwnedBricksError, SpareBrick, Values,
 };
+pub(crate) use bricks::{larger, smaller};
 pub use budget::{
     DENSE_BRICK_BUDGET_BYTES, DenseBudgetError, MAX_CLAY_BOX_COEFFS, MAX_DENSE_BRICKS,
     MAX_DIRECTORY_BYTES, check_dense_room,
 };
-pub(crate) use bricks::{larger, smaller};
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, RefusedFolds,
     apply_coarsening, plan_coarsening, plan_coarsening_remembering,

@@ -1058,78 +1058,82 @@ impl Reader<'_> {
         let mut read = 0_u64;
         let mut run_left = 0_u32;
         let mut run_value = 0.0_f32;
-        let built = BrickedCoeffs::try_from_owned_bricks(dims, max_dense, |first, extent, out| -> Result<Option<f32>, SessionError> {
-            read += 1;
-            if run_left > 0 {
-                run_left -= 1;
-                return Ok(Some(run_value));
-            }
-            let at = self.cursor.at();
-            match self.u8()? {
-                UNIFORM_RUN => {
-                    let length = self.u32()?;
-                    let left = expected - read + 1;
-                    if length == 0 || u64::from(length) > left {
-                        return Err(refuse(
-                            self,
-                            at,
-                            &format!(
-                                "a run of {length} uniform bricks from coefficient {first:?}; \
+        let built = BrickedCoeffs::try_from_owned_bricks(
+            dims,
+            max_dense,
+            |first, extent, out| -> Result<Option<f32>, SessionError> {
+                read += 1;
+                if run_left > 0 {
+                    run_left -= 1;
+                    return Ok(Some(run_value));
+                }
+                let at = self.cursor.at();
+                match self.u8()? {
+                    UNIFORM_RUN => {
+                        let length = self.u32()?;
+                        let left = expected - read + 1;
+                        if length == 0 || u64::from(length) > left {
+                            return Err(refuse(
+                                self,
+                                at,
+                                &format!(
+                                    "a run of {length} uniform bricks from coefficient {first:?}; \
                                  {left} bricks are left in the lattice"
-                            ),
-                        ));
-                    }
-                    let value_at = self.cursor.at();
-                    let value = self.f32()?;
-                    if !value.is_finite() {
-                        return Err(refuse(
-                            self,
-                            value_at,
-                            &format!(
-                                "the uniform bricks from coefficient {first:?} hold {value}, \
+                                ),
+                            ));
+                        }
+                        let value_at = self.cursor.at();
+                        let value = self.f32()?;
+                        if !value.is_finite() {
+                            return Err(refuse(
+                                self,
+                                value_at,
+                                &format!(
+                                    "the uniform bricks from coefficient {first:?} hold {value}, \
                                  not a finite number"
-                            ),
-                        ));
+                                ),
+                            ));
+                        }
+                        run_left = length - 1;
+                        run_value = value;
+                        Ok(Some(value))
                     }
-                    run_left = length - 1;
-                    run_value = value;
-                    Ok(Some(value))
-                }
-                DENSE_BRICK => {
-                    let values_at = self.cursor.at();
-                    let raw = self.take(4 * out.len())?;
-                    for (v, b) in out.iter_mut().zip(raw.chunks_exact(4)) {
-                        *v = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                    DENSE_BRICK => {
+                        let values_at = self.cursor.at();
+                        let raw = self.take(4 * out.len())?;
+                        for (v, b) in out.iter_mut().zip(raw.chunks_exact(4)) {
+                            *v = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                        }
+                        if let Some(n) = out.iter().position(|v| !v.is_finite()) {
+                            let local = [
+                                n % extent[0],
+                                (n / extent[0]) % extent[1],
+                                n / (extent[0] * extent[1]),
+                            ];
+                            let [i, j, k] = std::array::from_fn(|a| first[a] + local[a]);
+                            let flat = i + nx * (j + ny * k);
+                            return Err(refuse(
+                                self,
+                                values_at + 4 * n,
+                                &format!(
+                                    "lattice coefficient {flat} is {}, not a finite number",
+                                    out[n]
+                                ),
+                            ));
+                        }
+                        Ok(None)
                     }
-                    if let Some(n) = out.iter().position(|v| !v.is_finite()) {
-                        let local = [
-                            n % extent[0],
-                            (n / extent[0]) % extent[1],
-                            n / (extent[0] * extent[1]),
-                        ];
-                        let [i, j, k] = std::array::from_fn(|a| first[a] + local[a]);
-                        let flat = i + nx * (j + ny * k);
-                        return Err(refuse(
-                            self,
-                            values_at + 4 * n,
-                            &format!(
-                                "lattice coefficient {flat} is {}, not a finite number",
-                                out[n]
-                            ),
-                        ));
-                    }
-                    Ok(None)
-                }
-                tag => Err(refuse(
-                    self,
-                    at,
-                    &format!(
-                        "brick record {tag}; a record is {UNIFORM_RUN} (a run of uniform \
+                    tag => Err(refuse(
+                        self,
+                        at,
+                        &format!(
+                            "brick record {tag}; a record is {UNIFORM_RUN} (a run of uniform \
                          bricks) or {DENSE_BRICK} (a dense brick)"
-                    ),
-                )),
-            }
-        });
+                        ),
+                    )),
+                }
+            },
+        );
         let coeffs = match built {
             Ok(coeffs) => coeffs,
             Err(OwnedBricksError::Fill(e)) => return Err(e),

@@ -1455,7 +1455,8 @@ mod tests {
         use crate::field::{DenseBudgetError, MAX_DENSE_BRICKS};
         // A thin clay of empty space spanning more bricks than the budget: 2048 × 1024 × 40
         // coefficients, 256 × 128 × 5 = 163 840 uniform bricks (a 2.5 MiB directory).
-        let mut clay = Clay::single(BSplineLattice::zeros([2048, 1024, 40], H, Vec3::ZERO).unwrap());
+        let mut clay =
+            Clay::single(BSplineLattice::zeros([2048, 1024, 40], H, Vec3::ZERO).unwrap());
         assert!(clay.base().coeffs.brick_count() > MAX_DENSE_BRICKS);
         // Smoothing everything: its box reaches every brick, more than the budget holds.
         let smooth = tool(

@@ -154,9 +154,7 @@ impl Clay {
     /// [`crate::field::MAX_DENSE_BRICKS`] bounds. Sums counts the stores keep (no walk).
     #[must_use]
     pub fn dense_brick_count(&self) -> usize {
-        self.lattices()
-            .map(|l| l.coeffs.dense_brick_count())
-            .sum()
+        self.lattices().map(|l| l.coeffs.dense_brick_count()).sum()
     }
 
     /// Coefficients of box of every lattice of the clay together: what

@@ -167,8 +167,10 @@ impl Clay {
             grown_dense -= old.channels.iter().map(dense_of).sum::<usize>();
             grown_dense += new.iter().map(dense_of).sum::<usize>();
         }
-        if let (Some(old), Some(new)) = (self.mask.as_ref().and_then(|m| m.patches.first()), &base_mask)
-        {
+        if let (Some(old), Some(new)) = (
+            self.mask.as_ref().and_then(|m| m.patches.first()),
+            &base_mask,
+        ) {
             grown_dense = grown_dense - dense_of(old) + dense_of(new);
         }
         check_dense_room(grown_dense, 0, None)?;
@@ -306,8 +308,14 @@ mod tests {
         // … yet the growth made no brick dense: the new coefficients are empty space.
         assert_eq!(clay.dense_brick_count(), dense_before);
         apply_tool(&mut clay, &tool, &pose, 1.0, &ApplyOptions::default(), None).unwrap();
-        assert!(clay.density.value(far) > clay.base().iso, "the lump is there");
-        assert!(clay.density.value(Vec3::splat(0.5)) > clay.base().iso, "the ball too");
+        assert!(
+            clay.density.value(far) > clay.base().iso,
+            "the lump is there"
+        );
+        assert!(
+            clay.density.value(Vec3::splat(0.5)) > clay.base().iso,
+            "the ball too"
+        );
         // The lump costs a few bricks: memory follows the surface, not the box.
         let lump = clay.dense_brick_count() - dense_before;
         assert!((1..=64).contains(&lump), "{lump} bricks");

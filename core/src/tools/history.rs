@@ -281,7 +281,36 @@ pub struct StepRecorder {
 struct SavedBrick {
     region: CoeffBox,
     dims: [usize; 3],
-    bits: Vec<u32>,
+    bits: SavedBits,
+}
+
+/// A touched brick's old bits, x fastest over its region: one word when they were all the
+/// same (empty space, solid inside: what most of a large clay's bricks hold), so that
+/// recording a whole clay costs its dense bricks and a few words per other brick, not its box.
+#[derive(Debug)]
+enum SavedBits {
+    /// Every coefficient held these bits.
+    Same(u32),
+    /// The bits of each coefficient.
+    Each(Vec<u32>),
+}
+
+impl SavedBits {
+    /// The bits of coefficients `n`, … `n + len − 1` of the region, into `out`.
+    fn copy_to(&self, n: usize, out: &mut [u32]) {
+        match self {
+            Self::Same(b) => out.fill(*b),
+            Self::Each(bits) => out.copy_from_slice(&bits[n..n + out.len()]),
+        }
+    }
+
+    /// Every coefficient's bits, `count` of them.
+    fn expanded(&self, count: usize) -> Vec<u32> {
+        match self {
+            Self::Same(b) => vec![*b; count],
+            Self::Each(bits) => bits.clone(),
+        }
+    }
 }
 
 impl StepRecorder {
@@ -325,12 +354,22 @@ impl StepRecorder {
                     let Some(brick) = brick_box([bi, bj, bk]).clipped(dims) else {
                         continue;
                     };
-                    let mut bits = Vec::with_capacity(brick.count());
+                    let mut read = [0_u32; BRICK * BRICK * BRICK];
+                    let mut n = 0;
                     let mut row = [0.0; BRICK];
                     for_each_row(dims, &brick, |start, len| {
                         lattice.coeffs.read_row(start, &mut row[..len]);
-                        bits.extend(row[..len].iter().map(|c| c.to_bits()));
+                        for (b, c) in read[n..n + len].iter_mut().zip(&row[..len]) {
+                            *b = c.to_bits();
+                        }
+                        n += len;
                     });
+                    let read = &read[..n];
+                    let bits = if read.iter().all(|&b| b == read[0]) {
+                        SavedBits::Same(read[0])
+                    } else {
+                        SavedBits::Each(read.to_vec())
+                    };
                     self.old.insert(
                         key,
                         SavedBrick {
@@ -381,8 +420,14 @@ impl StepRecorder {
                 let whole = brick_box(brick)
                     .clipped(growth.new_dims)
                     .expect("a moved brick lies inside the grown lattice");
+                if whole == moved {
+                    saved.region = whole;
+                    saved.dims = growth.new_dims;
+                    return ((field, brick), saved);
+                }
                 let mut bits = Vec::with_capacity(whole.count());
-                let mut old_rows = saved.bits.chunks_exact(moved.dims()[0]);
+                let old_bits = saved.bits.expanded(moved.count());
+                let mut old_rows = old_bits.chunks_exact(moved.dims()[0]);
                 for k in whole.min[2]..=whole.max[2] {
                     for j in whole.min[1]..=whole.max[1] {
                         let kept = (moved.min[1]..=moved.max[1]).contains(&j)
@@ -396,7 +441,7 @@ impl StepRecorder {
                 }
                 saved.region = whole;
                 saved.dims = growth.new_dims;
-                saved.bits = bits;
+                saved.bits = SavedBits::Each(bits);
                 ((field, brick), saved)
             })
             .collect();
@@ -438,7 +483,8 @@ impl StepRecorder {
             match field {
                 FieldId::Density(n) if usize::from(n) == index => {
                     // The bits as the step found them go back into the patch kept for undo.
-                    let mut bits = saved.bits.chunks_exact(saved.region.dims()[0]);
+                    let old_bits = saved.bits.expanded(saved.region.count());
+                    let mut bits = old_bits.chunks_exact(saved.region.dims()[0]);
                     let mut values = [0.0; BRICK];
                     for_each_row(dims, &saved.region, |start, len| {
                         let row = bits.next().expect("one saved row per region row");
@@ -490,15 +536,17 @@ impl StepRecorder {
             if lattice.dims != dims {
                 continue;
             }
-            let mut xor = Vec::with_capacity(old.len());
+            let mut xor = Vec::with_capacity(region.count());
             let mut row = [0.0; BRICK];
+            let mut old_row = [0_u32; BRICK];
             for_each_row(dims, &region, |start, len| {
                 let n = xor.len();
                 lattice.coeffs.read_row(start, &mut row[..len]);
+                old.copy_to(n, &mut old_row[..len]);
                 xor.extend(
                     row[..len]
                         .iter()
-                        .zip(&old[n..n + len])
+                        .zip(&old_row[..len])
                         .map(|(c, o)| c.to_bits() ^ o),
                 );
             });

@@ -201,3 +201,79 @@ impl SimulationStage {
         self.status.publish();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::time::Instant;
+
+    use super::*;
+
+    /// Changes past what one publication carries (every coefficient of a clay grown past
+    /// [`MAX_UPDATE_COEFFS`]) reach the haptic loop as a copy of the clay; no snapshot buffer
+    /// grows past the cap, and the loop ends with the simulation's clay.
+    #[test]
+    fn changes_past_the_update_cap_reach_the_loops_as_a_copy_and_no_buffer_grows() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let haptic_and_sim = |s: &mut super::super::super::Stages, steps: usize| {
+            for _ in 0..steps {
+                s.haptic.tick(Instant::now());
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+            }
+        };
+        haptic_and_sim(&mut s, 2);
+        // Grow the base to 268 × 140 × 140 coefficients (5.25 Mi), as a stroke far out would.
+        s.sim.retire_region();
+        let growth = s.sim.clay.grow([128, 64, 64]).unwrap();
+        s.sim.history.regrid(&growth);
+        s.sim.publish_layout();
+        let coefficients = s.sim.clay.base().coeffs.len();
+        assert!(coefficients > MAX_UPDATE_COEFFS, "{coefficients}");
+        haptic_and_sim(&mut s, 3);
+        assert_eq!(s.haptic.field().base().dims, growth.new_dims);
+        let copies = s.counters.snapshot().updates_as_copies;
+        // A change everywhere (what a failed edit or an undo marks): one copy, not a box of
+        // every coefficient in each buffer.
+        let far = [260, 130, 130];
+        let at = s.sim.clay.base().index(far[0], far[1], far[2]);
+        s.sim.clay.base_mut().coeffs.set_flat(at, 0.25);
+        s.sim.mark_all_changed();
+        haptic_and_sim(&mut s, 4);
+        assert_eq!(s.counters.snapshot().updates_as_copies, copies + 1);
+        for w in [&mut s.sim.to_haptic, &mut s.sim.to_graphics] {
+            assert!(w.back_mut().coeffs.capacity() <= MAX_UPDATE_COEFFS);
+        }
+        assert_eq!(
+            s.haptic.field().base().coeffs.get(far[0], far[1], far[2]),
+            0.25
+        );
+        assert_eq!(s.haptic.field(), &s.sim.clay.density);
+    }
+
+    /// An edit refused for the clay's dense-brick budget is counted and published in the
+    /// status with what and where, and leaves the clay as it was.
+    #[test]
+    fn a_refused_edit_is_counted_and_published_in_the_status() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let mut status = s.sim.take_status_reader().unwrap();
+        let whole = CoeffBox::whole(s.sim.clay.base().dims);
+        // A small clay has room for a region over all of it …
+        assert!(s.sim.clay.check_dense_room(density_id(0), whole).is_ok());
+        // … and a clay at the budget has none.
+        let refused = dynaclay_core::field::check_dense_room(
+            dynaclay_core::field::MAX_DENSE_BRICKS,
+            1,
+            Some(whole),
+        )
+        .unwrap_err();
+        let before = s.sim.clay.clone();
+        s.sim.refuse_for_budget(refused);
+        s.sim.publish();
+        let published = status.latest().value;
+        assert_eq!(published.budget_refusal, Some(refused));
+        assert_eq!(published.dense_bricks, s.sim.clay.dense_brick_count());
+        assert!(published.dense_bricks > 0);
+        assert_eq!(s.counters.snapshot().command_errors, 1);
+        assert_eq!(s.sim.clay, before);
+    }
+}
