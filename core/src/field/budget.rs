@@ -47,6 +47,10 @@ pub const MAX_CLAY_BOX_COEFFS: usize = 1 << 30;
 pub const MAX_DIRECTORY_BYTES: usize =
     MAX_CLAY_BOX_COEFFS / COEFF_BRICK_VALUES * BrickedCoeffs::DIRECTORY_BYTES_PER_BRICK;
 
+// The old box budget of 64 Mi coefficients, every brick dense, fits the dense budget: no clay
+// that loaded before is refused for its dense bricks.
+const _: () = assert!(MAX_DENSE_BRICKS >= (64 << 20) / COEFF_BRICK_VALUES);
+
 /// A write that could make the clay hold more than [`MAX_DENSE_BRICKS`] dense bricks; the
 /// clay was left unchanged.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
@@ -95,9 +99,6 @@ mod tests {
     #[test]
     fn the_budgets_mean_what_their_names_say() {
         assert_eq!(MAX_DENSE_BRICKS, 151_259);
-        assert!(MAX_DENSE_BRICKS * DENSE_BRICK_BYTES <= DENSE_BRICK_BUDGET_BYTES);
-        // The old box budget, every brick dense, fits: no clay that loaded before is refused.
-        assert!(MAX_DENSE_BRICKS >= (64 << 20) / COEFF_BRICK_VALUES);
         assert_eq!(BrickedCoeffs::DIRECTORY_BYTES_PER_BRICK, 16);
         assert_eq!(MAX_DIRECTORY_BYTES, 32 << 20);
     }

@@ -766,6 +766,45 @@ mod tests {
     }
 
     #[test]
+    fn recording_a_whole_sparse_clay_keeps_one_word_per_uniform_brick_and_undoes_exactly() {
+        // 256 × 256 × 64 coefficients of empty space with solid bricks and a ramp in one.
+        let mut l = BSplineLattice::zeros([256, 256, 64], 0.1, Vec3::ZERO).unwrap();
+        for k in 8..16 {
+            for j in 8..24 {
+                for i in 8..16 {
+                    l.coeffs
+                        .set(i, j, k, if j < 16 { 1.0 } else { 0.1 * (i - 8) as f32 });
+                }
+            }
+        }
+        let mut clay = Clay::single(l);
+        let before = clay.clone();
+        let mut rec = StepRecorder::new("open");
+        rec.touch_all(&clay);
+        let bricks = clay.base().coeffs.brick_count();
+        assert_eq!(rec.old.len(), bricks);
+        let each = rec
+            .old
+            .values()
+            .filter(|saved| matches!(saved.bits, SavedBits::Each(_)))
+            .count();
+        assert_eq!(each, 1, "only the ramp's brick holds different values");
+        // Other values in a solid brick, the ramp's and far away: one step, and undo brings
+        // every bit back.
+        clay.base_mut()
+            .coeffs
+            .write_box([8, 8, 8], [8, 16, 8], &[0.25; 1024]);
+        clay.base_mut().coeffs.set(200, 100, 40, -1.0);
+        let mut history = History::default();
+        assert!(history.commit(rec, &clay));
+        history.undo(&mut clay).unwrap();
+        assert!(clay == before);
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay.base().coeffs.get(200, 100, 40), -1.0);
+        assert_eq!(clay.base().coeffs.get(10, 20, 10), 0.25);
+    }
+
+    #[test]
     fn a_step_that_folds_a_patch_away_undoes_and_redoes_bit_for_bit_with_the_layout() {
         let mut clay = clay();
         let z = Vec3::new(0.0, 0.0, 0.3);
