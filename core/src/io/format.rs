@@ -459,18 +459,25 @@ fn decode_mask(
     }
     let mut holds = Vec::with_capacity(count);
     let mut dense_left = dense_room;
+    let mut box_total = clay.box_coefficient_count() as u64;
     for (n, patch) in clay.density.patches.iter().enumerate() {
-        let lattice = r.clay_lattice(version, dense_left, |dims, _| {
-            if dims == patch.lattice.dims {
-                Ok(())
-            } else {
+        let lattice = r.clay_lattice(version, dense_left, |dims, count| {
+            let total = box_total.saturating_add(count);
+            if dims != patch.lattice.dims {
                 Err(format!(
                     "the mask over patch {n} has dims {dims:?}; the patch has {:?}",
                     patch.lattice.dims
                 ))
+            } else if total > MAX_CLAY_BOX_COEFFS as u64 {
+                Err(format!(
+                    "the clay spans {total} coefficients of box with the mask over patch {n}; at most {MAX_CLAY_BOX_COEFFS}"
+                ))
+            } else {
+                Ok(())
             }
         })?;
         dense_left -= lattice.coeffs.dense_brick_count();
+        box_total += lattice.coeffs.len() as u64;
         if let Some(bad) = lattice.coeffs.iter().find(|h| !(0.0..=1.0).contains(*h)) {
             return Err(r.error(&format!(
                 "a hold of the mask over patch {n} is {bad}; holds lie within [0, 1]"

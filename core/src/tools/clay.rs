@@ -9,7 +9,8 @@ use glam::{Vec3, Vec4};
 use super::freeze_mask::FreezeMask;
 use crate::dynamics::Constraint;
 use crate::field::{
-    BSplineLattice, DenseBudgetError, LatticeError, MultiPatchField, check_dense_room,
+    BSplineLattice, DenseBudgetError, DetailError, LatticeError, MAX_CLAY_BOX_COEFFS,
+    MultiPatchField, check_dense_room,
 };
 pub use crate::field::{CoeffBox, sub_lattice};
 
@@ -164,6 +165,26 @@ impl Clay {
         self.lattices().map(|l| l.coeffs.len()).sum()
     }
 
+    /// [`MultiPatchField::refine`] within the clay's box budget counted over every lattice
+    /// (as a growth and a session load count it): the new patch, its freeze-mask lattice
+    /// when the clay has a mask, and every lattice there is must span at most
+    /// [`crate::field::MAX_CLAY_BOX_COEFFS`] coefficients together, so a clay that refines
+    /// saves and loads. Returns the new patch's index.
+    ///
+    /// # Errors
+    /// As [`MultiPatchField::refine`]; the clay is unchanged then.
+    pub fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<usize, DetailError> {
+        let coefficients = self.density.detail_coefficients(lo, hi, level)?;
+        let copies = 1 + usize::from(self.mask.is_some());
+        let total = self
+            .box_coefficient_count()
+            .saturating_add(coefficients.saturating_mul(copies));
+        if total > MAX_CLAY_BOX_COEFFS {
+            return Err(DetailError::ClayTooLarge { total });
+        }
+        self.density.refine(lo, hi, level)
+    }
+
     /// Whether a write inside `region` of lattice `id` fits the clay's dense-brick budget,
     /// counting every uniform brick the box reaches as one it may make dense. A lattice the
     /// clay does not hold takes no room.
@@ -192,6 +213,26 @@ impl Clay {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_refine_counts_every_lattice_of_the_clay_against_the_box_budget() {
+        // A base of 1024 × 1024 × 500 coefficients of empty space (a 16 MiB directory) and a
+        // level-1 patch of 253³ (16 Mi coefficients) over a box of 1.25 field units.
+        let base = BSplineLattice::zeros([1024, 1024, 500], 0.01, Vec3::ZERO).unwrap();
+        let mut clay = Clay::single(base);
+        let (lo, hi) = (Vec3::splat(1.0), Vec3::splat(2.25));
+        let mut masked = clay.clone();
+        masked.mask = Some(FreezeMask::matching(&masked.density).unwrap());
+        assert_eq!(clay.refine(lo, hi, 1), Ok(1));
+        assert_eq!(clay.density.patches.len(), 2);
+        // With a freeze mask the base counts twice and the patch would too: past the budget.
+        let refused = masked.refine(lo, hi, 1);
+        assert!(
+            matches!(refused, Err(DetailError::ClayTooLarge { total }) if total > MAX_CLAY_BOX_COEFFS),
+            "{refused:?}"
+        );
+        assert_eq!(masked.density.patches.len(), 1);
+    }
 
     #[test]
     fn boxes_union_clip_and_bound_their_support() {

@@ -128,15 +128,28 @@ impl Clay {
         let old_dims = self.base().dims;
         let new_dims: [usize; 3] =
             std::array::from_fn(|a| old_dims[a].saturating_add(pad[a].saturating_mul(2)));
-        let base_count = new_dims
+        // Every lattice counts, as a refine and a session load count them: the base, the
+        // colour channels and the base's mask grow; the rest stays.
+        let grown_count = |dims: [usize; 3]| {
+            (0..3).fold(1_usize, |acc, a| {
+                acc.saturating_mul(dims[a].saturating_add(pad[a].saturating_mul(2)))
+            })
+        };
+        let base_mask = self
+            .mask
+            .as_ref()
+            .and_then(|m| m.patches.first())
+            .filter(|m| m.dims == old_dims);
+        let colour = self.colour.iter().flat_map(|c| c.channels.iter());
+        let growing: Vec<&BSplineLattice> = std::iter::once(self.base())
+            .chain(colour)
+            .chain(base_mask)
+            .collect();
+        let staying =
+            self.box_coefficient_count() - growing.iter().map(|l| l.coeffs.len()).sum::<usize>();
+        let total = growing
             .iter()
-            .fold(1_usize, |acc, &n| acc.saturating_mul(n));
-        let details = self.density.coefficient_count() - self.base().coeffs.len();
-        let colour = if self.colour.is_some() { 4 } else { 0 };
-        let mask = usize::from(self.mask.is_some());
-        let total = base_count
-            .saturating_mul(1 + colour + mask)
-            .saturating_add(details);
+            .fold(staying, |acc, l| acc.saturating_add(grown_count(l.dims)));
         if total > MAX_CLAY_BOX_COEFFS {
             return Err(GrowthError::ClayTooLarge {
                 dims: new_dims,

@@ -456,7 +456,7 @@ impl SimulationStage {
     /// Adds a detail patch (see [`Command::Refine`]) and hands the new layout to the readers;
     /// returns what was added (without a "refine" prefix: the caller names the command).
     fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<String, CommandError> {
-        let n = self.clay.density.refine(lo, hi, level)?;
+        let n = self.clay.refine(lo, hi, level)?;
         self.pending.push(None);
         self.publish_layout();
         let l = &self.clay.density.patches[n].lattice;

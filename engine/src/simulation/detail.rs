@@ -236,7 +236,7 @@ impl SimulationStage {
         let room =
             (AUTO_DETAIL_ROOM_WIDTHS * width_fu).max(AUTO_DETAIL_MIN_ROOM_SPANS * spacing_fu);
         let room = Vec3::splat(room);
-        match self.clay.density.refine(lo - room, hi + room, level) {
+        match self.clay.refine(lo - room, hi + room, level) {
             Ok(n) => {
                 self.pending.push(None);
                 self.clay_revision += 1;
