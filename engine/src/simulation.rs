@@ -875,6 +875,7 @@ impl SimulationStage {
         // fit the clay's budget first (past it the stroke simulates nothing and says why).
         if let Err(refused) = self.clay.check_dense_room(density_id(patch), b) {
             self.refuse_for_budget(refused);
+            self.rebuild_pins();
             return;
         }
         self.region_patch = patch;

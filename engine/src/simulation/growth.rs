@@ -9,7 +9,7 @@
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
-use dynaclay_core::tools::{BRICK, GeometricTool, padding_to_cover};
+use dynaclay_core::tools::{BRICK, GeometricTool, GrowthError, padding_to_cover};
 
 impl SimulationStage {
     /// Grows the base patch so that the world box `lo..=hi` lies well inside it; returns
@@ -39,6 +39,10 @@ impl SimulationStage {
         self.retire_region();
         let growth = match self.clay.grow(pad) {
             Ok(growth) => growth,
+            Err(GrowthError::DenseBudget(refused)) => {
+                self.refuse_for_budget(refused);
+                return false;
+            }
             Err(_) => {
                 self.counters.command_errors(1);
                 return false;
