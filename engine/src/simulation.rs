@@ -240,6 +240,13 @@ pub struct SimulationStage {
     acks: Acks,
     /// Per density patch, the box changed outside the region that a reader may not have yet.
     pending: Vec<Option<CoeffBox>>,
+    /// Per density patch, the union of the boxes published since the readers' copies were
+    /// last made (a new layout): the readers never compact their copies, so the bricks in
+    /// these boxes bound the dense bricks they may hold beyond
+    /// [`Self::reader_dense_at_layout`] (see `publication.rs`).
+    reader_reach: Vec<Option<CoeffBox>>,
+    /// Dense bricks of the density patches when the readers' copies were last made.
+    reader_dense_at_layout: usize,
     /// The patch layout's generation (bumped when a detail patch is added).
     layout_generation: u64,
     /// Where new layouts go to the haptic and graphics loops (none in a bare stage).
@@ -342,8 +349,12 @@ impl SimulationStage {
             .map(|p| p.lattice.coeffs.len())
             .max()
             .unwrap_or(0);
-        let scratch = RegionSnapshot::with_capacity(largest);
+        // A region's box, not the clay's: it grows on the simulation thread if a region needs
+        // more.
+        let scratch = RegionSnapshot::with_capacity(largest.min(MAX_UPDATE_COEFFS));
         let pending = vec![None; field.patches.len()];
+        let reader_reach = vec![None; field.patches.len()];
+        let reader_dense_at_layout = field.dense_brick_count();
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
         let (colour, colour_reader) = snapshot_channel(&None);
         let (mask_out, mask_reader) = snapshot_channel(&None);
@@ -380,6 +391,8 @@ impl SimulationStage {
             to_graphics,
             acks,
             pending,
+            reader_reach,
+            reader_dense_at_layout,
             layout_generation: 0,
             layout_senders: Vec::new(),
             pending_since: 0,

@@ -103,6 +103,8 @@ impl SimulationStage {
             sender.offer(&self.clay.density, self.layout_generation);
         }
         self.pending = vec![None; self.clay.density.patches.len()];
+        self.reader_reach = vec![None; self.clay.density.patches.len()];
+        self.reader_dense_at_layout = self.clay.density.dense_brick_count();
         self.changed_since_publish = true;
     }
 }

@@ -4,6 +4,7 @@
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
+use dynaclay_core::field::{BRICK_APRON, COEFF_BRICK, MAX_DENSE_BRICKS};
 
 /// Steps between two publications of a changing colour field. Painting changes it every step;
 /// the graphics loop shows it at 60 Hz, so copying all four channels at the simulation's rate
@@ -60,6 +61,23 @@ impl SimulationStage {
                 region = None;
             }
         }
+        // The readers' copies keep every brick a publication made dense (they are never
+        // compacted, so that the haptic loop frees nothing): once the bricks the published
+        // boxes reach could take them past the clay's dense-brick budget, they get a fresh
+        // copy, as sparse as the clay.
+        for n in 0..self.reader_reach.len() {
+            if let Some(b) = self.box_to_publish(n, region) {
+                let reach = &mut self.reader_reach[n];
+                *reach = Some(reach.map_or(b, |r| r.union(&b)));
+            }
+        }
+        if self.reader_dense_bound() > MAX_DENSE_BRICKS {
+            self.publish_layout();
+            self.counters.updates_as_copies(1);
+            for n in 0..self.reader_reach.len() {
+                self.reader_reach[n] = self.box_to_publish(n, region);
+            }
+        }
         let field = &self.clay.density;
         for w in [&mut self.to_haptic, &mut self.to_graphics] {
             let patch = w.back_mut();
@@ -108,22 +126,38 @@ impl SimulationStage {
         self.publish_status();
     }
 
-    /// Coefficients a publication of the pending boxes and the region's box `region` (its
-    /// patch and box) would carry, each box clipped to its lattice.
+    /// The box of patch `n` a publication of the pending boxes and the region's box `region`
+    /// (its patch and box) carries, clipped to the patch's lattice.
+    fn box_to_publish(&self, n: usize, region: Option<(usize, CoeffBox)>) -> Option<CoeffBox> {
+        let b = match (region, self.pending.get(n)?) {
+            (Some((rp, r)), p) if rp == n => Some(p.map_or(r, |p| p.union(&r))),
+            (_, p) => *p,
+        }?;
+        b.clipped(self.clay.density.patches.get(n)?.lattice.dims)
+    }
+
+    /// Coefficients a publication of the pending boxes and the region's box would carry.
     fn published_coefficients(&self, region: Option<(usize, CoeffBox)>) -> usize {
-        let patches = &self.clay.density.patches;
-        self.pending
-            .iter()
-            .enumerate()
-            .filter_map(|(n, pending)| {
-                let b = match (region, pending) {
-                    (Some((rp, r)), p) if rp == n => Some(p.map_or(r, |p| p.union(&r))),
-                    (_, p) => *p,
-                }?;
-                let clipped = b.clipped(patches.get(n)?.lattice.dims)?;
-                Some(clipped.dims().iter().product::<usize>())
-            })
+        (0..self.pending.len())
+            .filter_map(|n| self.box_to_publish(n, region))
+            .map(|b| b.dims().iter().product::<usize>())
             .fold(0, usize::saturating_add)
+    }
+
+    /// The most dense bricks a reader's copy may hold: the clay's when the copies were made
+    /// and every brick the boxes published since reach (as owner or through its apron).
+    fn reader_dense_bound(&self) -> usize {
+        let bricks = |b: &CoeffBox| {
+            (0..3).fold(1_usize, |acc, a| {
+                let first = b.min[a].saturating_sub(BRICK_APRON) / COEFF_BRICK;
+                acc.saturating_mul(b.max[a] / COEFF_BRICK + 1 - first)
+            })
+        };
+        self.reader_reach
+            .iter()
+            .flatten()
+            .map(bricks)
+            .fold(self.reader_dense_at_layout, usize::saturating_add)
     }
 
     /// Copies the clay's freeze mask into the mask buffer and publishes it (the simulation
@@ -247,6 +281,50 @@ mod tests {
             s.haptic.field().base().coeffs.get(far[0], far[1], far[2]),
             0.25
         );
+        assert_eq!(s.haptic.field(), &s.sim.clay.density);
+    }
+
+    /// The readers' copies never free a brick a publication made dense: once the bricks the
+    /// boxes published since their copies were made reach could take them past the clay's
+    /// budget, they get a fresh, compact copy.
+    #[test]
+    fn readers_get_a_fresh_copy_before_their_bricks_could_pass_the_budget() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let haptic_and_sim = |s: &mut super::super::super::Stages, steps: usize| {
+            for _ in 0..steps {
+                s.haptic.tick(Instant::now());
+                s.sim.apply_commands();
+                s.sim.step(&ToolSample::IDLE);
+            }
+        };
+        haptic_and_sim(&mut s, 2);
+        let copies = s.counters.snapshot().updates_as_copies;
+        let change = CoeffBox {
+            min: [2; 3],
+            max: [9; 3],
+        };
+        // Far from the budget: boxes go as boxes, and the reach grows by theirs.
+        s.sim.mark_changed(0, change);
+        s.sim.publish();
+        assert_eq!(s.counters.snapshot().updates_as_copies, copies);
+        assert!(s.sim.reader_reach[0].is_some_and(|r| r.contains_box(&change)));
+        let bound = s.sim.reader_dense_bound();
+        assert!(
+            bound >= s.sim.clay.density.dense_brick_count() + 8,
+            "{bound}"
+        );
+        // Near it (as if the readers' copies had been made of a clay at its budget): the next
+        // change goes as a copy and the count starts again from the clay's.
+        s.sim.reader_dense_at_layout = MAX_DENSE_BRICKS - 1;
+        s.sim.mark_changed(0, change);
+        s.sim.publish();
+        assert_eq!(s.counters.snapshot().updates_as_copies, copies + 1);
+        assert_eq!(
+            s.sim.reader_dense_at_layout,
+            s.sim.clay.density.dense_brick_count()
+        );
+        assert!(s.sim.reader_dense_bound() < MAX_DENSE_BRICKS);
+        haptic_and_sim(&mut s, 3);
         assert_eq!(s.haptic.field(), &s.sim.clay.density);
     }
 
