@@ -24,7 +24,7 @@ pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
 /// largest import's base, 256³, and three more of its size in detail): a fit holds its
 /// lattices dense while it makes them, so an import is bounded by its box.
 ///
-/// A sculpted clay is bounded otherwise (see [`super::budget`]): by its dense bricks
+/// A sculpted clay is bounded otherwise: by its dense bricks
 /// ([`super::MAX_DENSE_BRICKS`], checked before every write that can make bricks dense) and
 /// by the box its brick directories span ([`super::MAX_CLAY_BOX_COEFFS`], checked by a
 /// refine, a growth and a session load before anything is allocated).
