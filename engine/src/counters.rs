@@ -37,6 +37,7 @@ struct Inner {
     auto_refines: AtomicU64,
     auto_coarsenings: AtomicU64,
     haptic_updates_awaiting_bricks: AtomicU64,
+    updates_as_copies: AtomicU64,
 }
 
 /// A plain copy of the counters at one moment.
@@ -93,6 +94,11 @@ pub struct CounterSnapshot {
     /// simulation has topped the pool up.
     #[serde(default)]
     pub haptic_updates_awaiting_bricks: u64,
+    /// Publications whose changed boxes held more than
+    /// [`crate::MAX_UPDATE_COEFFS`] coefficients, sent to the loops as a copy of the
+    /// clay instead.
+    #[serde(default)]
+    pub updates_as_copies: u64,
 }
 
 macro_rules! bump {
@@ -135,6 +141,7 @@ impl EngineCounters {
         auto_refines,
         auto_coarsenings,
         haptic_updates_awaiting_bricks,
+        updates_as_copies,
     );
 
     /// Raises the recorded peak force to `force_n` if larger.
@@ -181,6 +188,7 @@ impl EngineCounters {
             auto_refines: r(&i.auto_refines),
             auto_coarsenings: r(&i.auto_coarsenings),
             haptic_updates_awaiting_bricks: r(&i.haptic_updates_awaiting_bricks),
+            updates_as_copies: r(&i.updates_as_copies),
         }
     }
 }

@@ -165,6 +165,15 @@ pub enum LoadRefused {
         /// Its value.
         value: f32,
     },
+    /// The clay holds more dense bricks than a clay may (an import or a session made
+    /// elsewhere): editing could not keep it within [`dynaclay_core::field::MAX_DENSE_BRICKS`].
+    #[error("{}: {error}", file.display())]
+    DenseBudget {
+        /// The session's file.
+        file: PathBuf,
+        /// How far over it is.
+        error: dynaclay_core::field::DenseBudgetError,
+    },
 }
 
 /// Why a command to the running simulation failed.

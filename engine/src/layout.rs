@@ -20,7 +20,11 @@
 //! the work one tick spends on it. An update needing more bricks than the pool holds waits, a
 //! tick at a time, with the bricks already taken kept dense (that changes no value) until the
 //! pool, refilled, covers it; the reader neither applies nor acknowledges it meanwhile, so
-//! the simulation keeps publishing every change since (see [`super::FieldUpdate`]).
+//! the simulation keeps publishing every change since (see [`super::FieldUpdate`]). A copy
+//! never frees a brick it made dense (the haptic thread frees nothing); the simulation offers
+//! a fresh copy before the bricks it published since the last one could take a copy past the
+//! clay's dense-brick budget ([`dynaclay_core::field::MAX_DENSE_BRICKS`]), and instead of
+//! boxes of more than [`super::MAX_UPDATE_COEFFS`] coefficients.
 //!
 //! Every [`super::FieldUpdate`] names the layout generation its boxes belong to; a reader
 //! whose copy has another generation neither applies nor acknowledges it, so the simulation

@@ -81,6 +81,6 @@ pub use tool_library::{
     LibraryError, LibraryTool, check_name, describe_preset, make_preset, store_preset,
 };
 pub use tool_sample::ToolSample;
-pub use update::{AppliedChange, ChangedBox, FieldUpdate};
+pub use update::{AppliedChange, ChangedBox, FieldUpdate, MAX_UPDATE_COEFFS};
 pub use wiring::{Stages, build};
 pub use workspace::{REACH_MARGIN, WorkspaceMap, reach_box};

@@ -633,7 +633,7 @@ impl ScriptPlan {
     /// Checks that the script cannot take the clay `clay` past its budgets, before anything
     /// runs: every `refine` step together with the patches already there stays within
     /// [`MAX_PATCHES`](dynaclay_core::field::MAX_PATCHES) patches and
-    /// [`MAX_CLAY_COEFFS`](dynaclay_core::field::MAX_CLAY_COEFFS) coefficients (each step counted at
+    /// [`MAX_CLAY_BOX_COEFFS`](dynaclay_core::field::MAX_CLAY_BOX_COEFFS) coefficients of box (each step counted at
     /// the size it asks for, as if none were undone), and every `constrain` step together
     /// with the pins already there within [`MAX_CONSTRAINTS`](dynaclay_core::dynamics::MAX_CONSTRAINTS).
     /// A `refine` step whose box or level is refused anyway is not counted (it adds nothing).
@@ -642,7 +642,7 @@ impl ScriptPlan {
     /// The step that first goes over, with what it would reach.
     pub fn check_budget(&self, clay: &dynaclay_core::tools::Clay) -> Result<(), ScriptError> {
         use dynaclay_core::dynamics::MAX_CONSTRAINTS;
-        use dynaclay_core::field::{MAX_CLAY_COEFFS, MAX_PATCHES};
+        use dynaclay_core::field::{MAX_CLAY_BOX_COEFFS, MAX_PATCHES};
         let mut patches = clay.density.patches.len();
         let mut coefficients = clay.density.coefficient_count();
         let mut pins = clay.constraints.len();
@@ -659,10 +659,11 @@ impl ScriptPlan {
                             "refine: the script's refine steps would give the clay {patches} \
                              patches; a clay holds at most {MAX_PATCHES}"
                         ))
-                    } else if coefficients > MAX_CLAY_COEFFS {
+                    } else if coefficients > MAX_CLAY_BOX_COEFFS {
                         Some(format!(
                             "refine: the script's refine steps would give the clay \
-                             {coefficients} coefficients; a clay holds at most {MAX_CLAY_COEFFS}"
+                             {coefficients} coefficients of box; a clay spans at most \
+                             {MAX_CLAY_BOX_COEFFS}"
                         ))
                     } else {
                         None

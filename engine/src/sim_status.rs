@@ -9,6 +9,7 @@
 use glam::Vec3;
 
 use dynaclay_core::dynamics::Material;
+use dynaclay_core::field::DenseBudgetError;
 
 /// The simulation's state as observers see it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -36,4 +37,9 @@ pub struct SimStatus {
     /// A step held until the user says it may remove more than half the clay
     /// ([`super::RemovalGuard::Ask`]).
     pub removal_question: Option<super::RemovalQuestion>,
+    /// Dense bricks the clay holds, of [`dynaclay_core::field::MAX_DENSE_BRICKS`].
+    pub dense_bricks: usize,
+    /// The newest edit (a stroke, a tool command, a simulated region) refused because it
+    /// could pass the clay's dense-brick budget: what and where. The clay was left as it was.
+    pub budget_refusal: Option<DenseBudgetError>,
 }

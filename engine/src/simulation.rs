@@ -66,17 +66,18 @@ use super::live_tool::LiveTool;
 use super::sim_status::SimStatus;
 use super::symmetry::{Symmetry, clay_centre, mirror_body, mirror_force};
 use super::tool_sample::ToolSample;
-use super::update::FieldUpdate;
+use super::update::{FieldUpdate, MAX_UPDATE_COEFFS};
 use dynaclay_core::dynamics::{
     ConstraintSolver, Material, RegionState, Simulator, StepParams, ToolBody, ToolForce,
 };
 use dynaclay_core::field::{
-    BSplineLattice, CoeffBox, MultiPatchField, RefusedFolds, RegionSnapshot, coeff_box_around,
+    BSplineLattice, CoeffBox, DenseBudgetError, MultiPatchField, RefusedFolds, RegionSnapshot,
+    coeff_box_around,
 };
 use dynaclay_core::io::{MaterialFields, Session};
 use dynaclay_core::tools::{
     ApplyOptions, Clay, ColourField, FieldId, FreezeMask, History, StepRecorder, ToolAction,
-    ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
+    ToolError, ToolPose, ToolReport, ToolShape, apply_csg, apply_emboss, apply_stroke, apply_tool,
     csg_volume_change, facing_surface, tool_volume_change,
 };
 
@@ -241,6 +242,13 @@ pub struct SimulationStage {
     acks: Acks,
     /// Per density patch, the box changed outside the region that a reader may not have yet.
     pending: Vec<Option<CoeffBox>>,
+    /// Per density patch, the union of the boxes published since the readers' copies were
+    /// last made (a new layout): the readers never compact their copies, so the bricks in
+    /// these boxes bound the dense bricks they may hold beyond
+    /// [`Self::reader_dense_at_layout`] (see `publication.rs`).
+    reader_reach: Vec<Option<CoeffBox>>,
+    /// Dense bricks of the density patches when the readers' copies were last made.
+    reader_dense_at_layout: usize,
     /// The patch layout's generation (bumped when a detail patch is added).
     layout_generation: u64,
     /// Where new layouts go to the haptic and graphics loops (none in a bare stage).
@@ -299,6 +307,9 @@ pub struct SimulationStage {
     changed_since_publish: bool,
     /// The folds of detail patches found refused, by their inputs (see `detail.rs`).
     refused_folds: RefusedFolds,
+    /// The newest edit refused for the clay's dense-brick budget (published in
+    /// [`SimStatus::budget_refusal`]).
+    budget_refusal: Option<DenseBudgetError>,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -340,8 +351,12 @@ impl SimulationStage {
             .map(|p| p.lattice.coeffs.len())
             .max()
             .unwrap_or(0);
-        let scratch = RegionSnapshot::with_capacity(largest);
+        // A region's box, not the clay's: it grows on the simulation thread if a region needs
+        // more.
+        let scratch = RegionSnapshot::with_capacity(largest.min(MAX_UPDATE_COEFFS));
         let pending = vec![None; field.patches.len()];
+        let reader_reach = vec![None; field.patches.len()];
+        let reader_dense_at_layout = field.dense_brick_count();
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
         let (colour, colour_reader) = snapshot_channel(&None);
         let (mask_out, mask_reader) = snapshot_channel(&None);
@@ -378,6 +393,8 @@ impl SimulationStage {
             to_graphics,
             acks,
             pending,
+            reader_reach,
+            reader_dense_at_layout,
             layout_generation: 0,
             layout_senders: Vec::new(),
             pending_since: 0,
@@ -389,6 +406,7 @@ impl SimulationStage {
             status,
             status_reader: Some(status_reader),
             sessions_loaded: 0,
+            budget_refusal: None,
             colour,
             colour_reader: Some(colour_reader),
             colour_dirty: false,
@@ -762,9 +780,17 @@ impl SimulationStage {
                         self.mark_changed(edited, b);
                     }
                 }
+                Err(ToolError::DenseBudget(refused)) => self.refuse_for_budget(refused),
                 Err(_) => self.counters.command_errors(1),
             }
         }
+    }
+
+    /// Counts and publishes an edit refused because it could pass the clay's dense-brick
+    /// budget (the clay is unchanged; [`SimStatus::budget_refusal`] says what and where).
+    pub(super) fn refuse_for_budget(&mut self, refused: DenseBudgetError) {
+        self.counters.command_errors(1);
+        self.budget_refusal = Some(refused);
     }
 
     /// The patch a region at `x` simulates: the finest patch in world coordinates whose
@@ -860,6 +886,13 @@ impl SimulationStage {
             self.mark_changed(patch, old.coeff_box());
         }
         self.retire_region();
+        // The region's coefficients are written every step: the bricks its box reaches must
+        // fit the clay's budget first (past it the stroke simulates nothing and says why).
+        if let Err(refused) = self.clay.check_dense_room(density_id(patch), b) {
+            self.refuse_for_budget(refused);
+            self.rebuild_pins();
+            return;
+        }
         self.region_patch = patch;
         let n = b.dims();
         let s = self.config.samples_per_span.max(1);

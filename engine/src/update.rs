@@ -3,7 +3,10 @@
 //!
 //! Guarantee: [`FieldUpdate::capture`] never allocates once the update was built with
 //! [`FieldUpdate::with_capacity_for`] for the field it carries (room for every coefficient of
-//! every patch, and a box per patch). [`FieldUpdate::densify_for_copy`] never allocates (it
+//! every patch up to [`MAX_UPDATE_COEFFS`], and a box per patch) while the boxes it carries
+//! hold at most that many coefficients: the simulation publishes a copy of the clay instead
+//! of boxes past it (see `simulation/publication.rs`), so no snapshot buffer grows to the
+//! clay's box. [`FieldUpdate::densify_for_copy`] never allocates (it
 //! takes dense bricks' storage from a pool), and once it has returned `true`,
 //! [`FieldUpdate::copy_into`] of the same update into the same field never allocates either:
 //! the haptic loop's copy stays sparse (see [`dynaclay_core::field::BrickedCoeffs`]). All three
@@ -20,6 +23,11 @@ use dynaclay_core::haptics::{FeltTool, StrokeGeometry};
 use dynaclay_core::mesh::BrickOctree;
 
 use super::motion_to_photon::StrokeStamps;
+
+/// Most coefficients one [`FieldUpdate`] carries (4 Mi: 16 MiB in each of the six snapshot
+/// buffers between the simulation and the haptic and graphics loops). A simulated region's
+/// box stays far below it; boxes past it go to the loops as a copy of the clay.
+pub const MAX_UPDATE_COEFFS: usize = 4 << 20;
 
 /// One box of coefficients carried by a [`FieldUpdate`]: which density patch, and where.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -62,11 +70,17 @@ pub struct FieldUpdate {
 }
 
 impl FieldUpdate {
-    /// An empty update with room for every coefficient of every patch of `field`, so later
-    /// captures of any boxes never allocate.
+    /// An empty update with room for every coefficient of every patch of `field`, at most
+    /// [`MAX_UPDATE_COEFFS`], so later captures of boxes that hold at most that many never
+    /// allocate.
     #[must_use]
     pub fn with_capacity_for(field: &MultiPatchField) -> Self {
-        let total = field.patches.iter().map(|p| p.lattice.coeffs.len()).sum();
+        let total = field
+            .patches
+            .iter()
+            .map(|p| p.lattice.coeffs.len())
+            .sum::<usize>()
+            .min(MAX_UPDATE_COEFFS);
         Self {
             boxes: Vec::with_capacity(field.patches.len()),
             coeffs: Vec::with_capacity(total),

@@ -133,6 +133,28 @@ pub enum MaterialGridError {
     },
 }
 
+/// Most samples one material grid holds (64 MiB of `f32`): a grid is dense over the whole
+/// base, so over a base of more coefficient nodes than this (the clay's box may be far larger
+/// than its surface, see [`crate::field::MAX_CLAY_BOX_COEFFS`]) it has fewer samples than
+/// nodes ([`grid_dims_over`]).
+pub const MAX_GRID_SAMPLES: usize = 16 << 20;
+
+/// Samples per axis of a painted grid over a base of `nodes` coefficient nodes per axis: one
+/// per node, or, when that would be more than [`MAX_GRID_SAMPLES`], one every `s` nodes along
+/// every axis, `s` the least stride that fits.
+#[must_use]
+pub fn grid_dims_over(nodes: [usize; 3]) -> [usize; 3] {
+    let count = |dims: [usize; 3]| dims.iter().fold(1_usize, |a, &n| a.saturating_mul(n));
+    let mut stride = 1;
+    loop {
+        let dims = nodes.map(|n| n.saturating_sub(1) / stride + 1);
+        if count(dims) <= MAX_GRID_SAMPLES {
+            return dims;
+        }
+        stride += 1;
+    }
+}
+
 fn need(p: MaterialParam) -> &'static str {
     if p == MaterialParam::Mass {
         "positive"
@@ -173,6 +195,12 @@ impl MaterialGrid {
                 1 + ((m - 1) as f64 * ratio).round() as usize
             }
         });
+        // Past the sample budget the grown grid is coarser (its samples still span the base).
+        let dims = if dims.iter().fold(1_usize, |a, &n| a.saturating_mul(n)) > MAX_GRID_SAMPLES {
+            grid_dims_over(grown_base.dims)
+        } else {
+            dims
+        };
         let mut grown = Self {
             name: self.name.clone(),
             dims,
@@ -443,7 +471,8 @@ pub fn paint_grids(
         let at = match grids.iter().position(|g| g.param() == Some(p)) {
             Some(at) => at,
             None => {
-                grids.push(MaterialGrid::filled(p, base.dims, p.uniform(uniform)));
+                let dims = grid_dims_over(base.dims);
+                grids.push(MaterialGrid::filled(p, dims, p.uniform(uniform)));
                 grids.len() - 1
             }
         };
@@ -509,6 +538,22 @@ mod tests {
 
     fn base() -> BSplineLattice {
         BSplineLattice::zeros([11, 9, 7], 0.1, Vec3::new(0.5, 0.0, -0.2)).unwrap()
+    }
+
+    #[test]
+    fn a_grid_over_a_base_past_the_sample_budget_is_coarser_and_spans_it() {
+        assert_eq!(grid_dims_over([96, 80, 64]), [96, 80, 64]);
+        let dims = grid_dims_over([1024, 1024, 1024]);
+        assert!(
+            dims.iter().product::<usize>() <= MAX_GRID_SAMPLES,
+            "{dims:?}"
+        );
+        assert_eq!(dims, [256; 3], "one sample every fourth node");
+        let long = grid_dims_over([40_000, 40, 40]);
+        assert!(
+            long.iter().product::<usize>() <= MAX_GRID_SAMPLES,
+            "{long:?}"
+        );
     }
 
     #[test]

@@ -34,8 +34,8 @@ pub use force::{
 };
 pub use material::{AccelSolver, Integrator, Material, MaterialError, Neighbourhood, StepParams};
 pub use material_grid::{
-    MaterialGrid, MaterialGridError, MaterialPaint, MaterialParam, PaintRegion, apply_grids,
-    paint_grids,
+    MAX_GRID_SAMPLES, MaterialGrid, MaterialGridError, MaterialPaint, MaterialParam, PaintRegion,
+    apply_grids, grid_dims_over, paint_grids,
 };
 pub use region::{RegionError, RegionState};
 pub use simulator::{Simulator, StepError, StepReport};

@@ -27,6 +27,13 @@
 //! Making a brick dense this way changes no value, so a pool that runs dry half-way leaves
 //! the store as it was, only partly prepared. [`BrickedCoeffs::densify_all`] remains for a
 //! store that is to take any write at all without allocating.
+//!
+//! The store counts its dense bricks as they change ([`BrickedCoeffs::dense_brick_count`]
+//! walks nothing), and [`BrickedCoeffs::uniform_bricks_holding`] bounds what a write inside a
+//! box can make dense: together they let the clay's budget of dense bricks
+//! ([`super::MAX_DENSE_BRICKS`]) be checked before every write, at one directory read per brick
+//! of the write's box. Building a store from a session file's bricks
+//! ([`BrickedCoeffs::try_from_owned_bricks`]) stops before the dense brick past its limit.
 
 use std::fmt;
 use std::ops::Index;
@@ -120,14 +127,15 @@ fn lowest_holder(x: usize) -> usize {
 
 /// Writes `values` at `off` of `brick`; a uniform brick that holds them all already stays
 /// uniform.
+/// `dense` counts the store's dense bricks.
 #[inline]
-fn store_run(brick: &mut Brick, off: usize, values: &[f32]) {
+fn store_run(brick: &mut Brick, off: usize, values: &[f32], dense: &mut usize) {
     let keeps = match brick {
         Brick::Uniform(v) => values.iter().all(|h| h.to_bits() == v.to_bits()),
         Brick::Dense(_) => false,
     };
     if !keeps {
-        densify(brick)[off..off + values.len()].copy_from_slice(values);
+        densify(brick, dense)[off..off + values.len()].copy_from_slice(values);
     }
 }
 
@@ -189,6 +197,20 @@ impl fmt::Debug for SpareBrick {
     }
 }
 
+/// Why [`BrickedCoeffs::try_from_owned_bricks`] made no store.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum OwnedBricksError<E> {
+    /// The bricks' values could not be given.
+    #[error("{0}")]
+    Fill(E),
+    /// The store would hold more dense bricks than it may.
+    #[error("the bricks would make more than {max_dense} dense bricks")]
+    TooManyDense {
+        /// The most dense bricks the store could hold.
+        max_dense: usize,
+    },
+}
+
 /// One brick's own coefficients, as a session file stores them (see
 /// [`BrickedCoeffs::for_each_owned_brick`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -208,6 +230,9 @@ pub struct BrickedCoeffs {
     bricks_per_axis: [usize; 3],
     /// Brick `(bi, bj, bk)` at `bi + bx · (bj + by · bk)`.
     bricks: Vec<Brick>,
+    /// How many of `bricks` are dense: kept by every change of representation, so the count
+    /// (and the clay's memory budget, [`super::MAX_DENSE_BRICKS`]) costs no walk.
+    dense: usize,
 }
 
 impl BrickedCoeffs {
@@ -226,6 +251,7 @@ impl BrickedCoeffs {
             dims,
             bricks_per_axis,
             bricks: vec![Brick::Uniform(value); count],
+            dense: 0,
         }
     }
 
@@ -272,6 +298,7 @@ impl BrickedCoeffs {
                                 dense[offset(0, b, c)..][..extent[0]].copy_from_slice(row(b, c));
                             }
                         }
+                        store.dense += 1;
                         Brick::Dense(dense)
                     };
                 }
@@ -337,9 +364,42 @@ impl BrickedCoeffs {
         self.bricks.len()
     }
 
-    /// Number of dense (heap-allocated) bricks.
+    /// Number of dense (heap-allocated) bricks: a count kept as bricks change, no walk.
     #[must_use]
     pub fn dense_brick_count(&self) -> usize {
+        self.dense
+    }
+
+    /// Bytes one directory entry costs, whatever the brick holds: the memory a store holds
+    /// per [`COEFF_BRICK_VALUES`] coefficients of its box even where it is empty space.
+    pub const DIRECTORY_BYTES_PER_BRICK: usize = size_of::<Brick>();
+
+    /// How many uniform bricks hold a coefficient of the box `min..=max` (clipped to the
+    /// store), as owner or in their apron: the most bricks a write inside that box can make
+    /// dense. Reads one directory entry per brick the box reaches; allocates nothing.
+    #[must_use]
+    pub fn uniform_bricks_holding(&self, min: [usize; 3], max: [usize; 3]) -> usize {
+        if self.is_empty() || (0..3).any(|a| min[a] > max[a] || min[a] >= self.dims[a]) {
+            return 0;
+        }
+        let first = min.map(lowest_holder);
+        let last: [usize; 3] = std::array::from_fn(|a| max[a].min(self.dims[a] - 1) >> SHIFT);
+        let [bx, by, _] = self.bricks_per_axis;
+        let mut uniform = 0;
+        for bk in first[2]..=last[2] {
+            for bj in first[1]..=last[1] {
+                let row = bx * (bj + by * bk);
+                uniform += self.bricks[row + first[0]..=row + last[0]]
+                    .iter()
+                    .filter(|b| matches!(b, Brick::Uniform(_)))
+                    .count();
+            }
+        }
+        uniform
+    }
+
+    /// The dense bricks counted by walking the directory (what `dense` must equal).
+    fn walked_dense_count(&self) -> usize {
         self.bricks
             .iter()
             .filter(|b| matches!(b, Brick::Dense(_)))
@@ -417,7 +477,12 @@ impl BrickedCoeffs {
             for &(bj, b) in &ys[..ny] {
                 for &(bi, a) in &xs[..nx] {
                     let at = bi + bx * (bj + by * bk);
-                    store_run(&mut self.bricks[at], offset(a, b, c), &[value]);
+                    store_run(
+                        &mut self.bricks[at],
+                        offset(a, b, c),
+                        &[value],
+                        &mut self.dense,
+                    );
                 }
             }
         }
@@ -683,12 +748,17 @@ impl BrickedCoeffs {
             for &(bk, c) in &zs[..nz] {
                 for &(bj, b) in &ys[..ny] {
                     let row = bx * (bj + by * bk);
-                    store_run(&mut self.bricks[bi + row], offset(a, b, c), here);
+                    store_run(
+                        &mut self.bricks[bi + row],
+                        offset(a, b, c),
+                        here,
+                        &mut self.dense,
+                    );
                     if a < BRICK_APRON && bi > 0 {
                         // The run's first values are also in the apron of the brick before.
                         let copied = &here[..(BRICK_APRON - a).min(run)];
                         let off = offset(a + COEFF_BRICK, b, c);
-                        store_run(&mut self.bricks[bi - 1 + row], off, copied);
+                        store_run(&mut self.bricks[bi - 1 + row], off, copied, &mut self.dense);
                     }
                 }
             }
@@ -760,7 +830,7 @@ impl BrickedCoeffs {
                             continue;
                         }
                     }
-                    let dense = densify(brick);
+                    let dense = densify(brick, &mut self.dense);
                     for z in lo[2]..hi[2] {
                         for y in lo[1]..hi[1] {
                             let off = offset(lo[0] - origin[0], y - origin[1], z - origin[2]);
@@ -831,6 +901,7 @@ impl BrickedCoeffs {
                     };
                     storage.fill(v);
                     *brick = Brick::Dense(storage);
+                    self.dense += 1;
                 }
             }
         }
@@ -944,11 +1015,52 @@ impl BrickedCoeffs {
         }
     }
 
+    /// Replaces every coefficient `v` by `f(v)`, brick by brick: a uniform brick stays one
+    /// value and a dense one is mapped in place (its apron too, so it stays the copy of its
+    /// neighbours'), so nothing is allocated and no brick is made dense. Returns how many
+    /// coefficients changed bits.
+    pub fn map_values(&mut self, f: impl Fn(f32) -> f32) -> usize {
+        let [bx, by, bz] = self.bricks_per_axis;
+        let mut changed = 0;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let owned = self.owned_extent([bi, bj, bk]);
+                    let held = self.held_extent([bi, bj, bk]);
+                    match &mut self.bricks[bi + bx * (bj + by * bk)] {
+                        Brick::Uniform(v) => {
+                            let new = f(*v);
+                            if new.to_bits() != v.to_bits() {
+                                changed += owned.iter().product::<usize>();
+                                *v = new;
+                            }
+                        }
+                        Brick::Dense(values) => {
+                            for c in 0..held[2] {
+                                for b in 0..held[1] {
+                                    let row = &mut values[offset(0, b, c)..][..held[0]];
+                                    for (a, v) in row.iter_mut().enumerate() {
+                                        let new = f(*v);
+                                        let own = a < owned[0] && b < owned[1] && c < owned[2];
+                                        changed += usize::from(own && new.to_bits() != v.to_bits());
+                                        *v = new;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        changed
+    }
+
     /// Sets every coefficient to `value`; frees every dense brick.
     pub fn fill(&mut self, value: f32) {
         for b in &mut self.bricks {
             *b = Brick::Uniform(value);
         }
+        self.dense = 0;
     }
 
     /// Makes every dense brick whose values (apron included, within the store) all have the
@@ -993,6 +1105,7 @@ impl BrickedCoeffs {
                 }
             }
         }
+        self.dense -= freed;
         freed
     }
 
@@ -1045,17 +1158,21 @@ impl BrickedCoeffs {
     /// apron all agree (so the store holds no more dense bricks than the one it was saved
     /// from). The directory is allocated first (`dims` bounds it: the caller checks `dims`
     /// against its budget before calling); each dense brick is allocated when `fill` gives
-    /// its values.
+    /// its values or an apron needs it, and never more than `max_dense` of them: the store
+    /// is refused before the first one past it is allocated.
     ///
     /// # Errors
-    /// The first error `fill` returns; nothing is kept then.
+    /// [`OwnedBricksError::Fill`] with the first error `fill` returns, or
+    /// [`OwnedBricksError::TooManyDense`] when the store would hold more than `max_dense`
+    /// dense bricks; nothing is kept then.
     ///
     /// # Panics
     /// When the coefficient count overflows `usize`.
     pub fn try_from_owned_bricks<E>(
         dims: [usize; 3],
+        max_dense: usize,
         mut fill: impl FnMut([usize; 3], [usize; 3], &mut [f32]) -> Result<Option<f32>, E>,
-    ) -> Result<Self, E> {
+    ) -> Result<Self, OwnedBricksError<E>> {
         let mut store = Self::zeros(dims);
         if store.is_empty() {
             return Ok(store);
@@ -1069,9 +1186,14 @@ impl BrickedCoeffs {
                     let count = extent.iter().product::<usize>();
                     let first = [bi, bj, bk].map(|b| b * COEFF_BRICK);
                     let out = &mut scratch[..count];
-                    store.bricks[bi + bx * (bj + by * bk)] = match fill(first, extent, out)? {
+                    let given = fill(first, extent, out).map_err(OwnedBricksError::Fill)?;
+                    store.bricks[bi + bx * (bj + by * bk)] = match given {
                         Some(v) => Brick::Uniform(v),
                         None => {
+                            if store.dense >= max_dense {
+                                return Err(OwnedBricksError::TooManyDense { max_dense });
+                            }
+                            store.dense += 1;
                             let mut dense = Box::new([0.0; DENSE_BRICK_VALUES]);
                             for (row, values) in out.chunks_exact(extent[0]).enumerate() {
                                 let at = offset(0, row % extent[1], row / extent[1]);
@@ -1086,7 +1208,10 @@ impl BrickedCoeffs {
         for bk in 0..bz {
             for bj in 0..by {
                 for bi in 0..bx {
-                    store.refresh_apron([bi, bj, bk]);
+                    let may_densify = store.dense < max_dense;
+                    if !store.refresh_apron([bi, bj, bk], may_densify) {
+                        return Err(OwnedBricksError::TooManyDense { max_dense });
+                    }
                 }
             }
         }
@@ -1096,7 +1221,7 @@ impl BrickedCoeffs {
     /// Makes every brick dense, so that later writes never allocate.
     pub fn densify_all(&mut self) {
         for b in &mut self.bricks {
-            densify(b);
+            densify(b, &mut self.dense);
         }
     }
 
@@ -1114,14 +1239,15 @@ impl BrickedCoeffs {
     /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
     /// them; a uniform one stays uniform when they all equal its value and becomes dense
     /// otherwise. The apron is copied row by row from each of the (up to seven) neighbours
-    /// that own a part of it.
-    fn refresh_apron(&mut self, brick: [usize; 3]) {
+    /// that own a part of it. Returns `false`, changing nothing, when a uniform brick would
+    /// have to become dense and `may_densify` is `false`.
+    fn refresh_apron(&mut self, brick: [usize; 3], may_densify: bool) -> bool {
         let [bx, by, _] = self.bricks_per_axis;
         let at = brick[0] + bx * (brick[1] + by * brick[2]);
         let owned = self.owned_extent(brick);
         let held = self.held_extent(brick);
         if owned == held {
-            return; // no apron inside the store
+            return true; // no apron inside the store
         }
         // Per neighbour `brick + step`: the in-brick ranges of the apron it owns.
         let parts = (1..8_usize).filter_map(|d| {
@@ -1160,12 +1286,15 @@ impl BrickedCoeffs {
                         }),
                     });
             if neighbours_agree {
-                return;
+                return true;
+            }
+            if !may_densify {
+                return false;
             }
         }
         // Taken out of the directory while its neighbours are read.
         let mut target = std::mem::replace(&mut self.bricks[at], Brick::Uniform(0.0));
-        let values = densify(&mut target);
+        let values = densify(&mut target, &mut self.dense);
         for (n, step, [x, y, z]) in parts {
             let len = x.1 - x.0;
             for c in z.0..z.1 {
@@ -1182,6 +1311,7 @@ impl BrickedCoeffs {
             }
         }
         self.bricks[at] = target;
+        true
     }
 
     /// This store with `low[a]` zero coefficients added before and `high[a]` after it along
@@ -1239,7 +1369,7 @@ impl BrickedCoeffs {
             for bk in 0..gz {
                 for bj in 0..gy {
                     for bi in 0..gx {
-                        grown.refresh_apron([bi, bj, bk]);
+                        grown.refresh_apron([bi, bj, bk], true);
                     }
                 }
             }
@@ -1252,16 +1382,18 @@ impl BrickedCoeffs {
                 }
             }
         }
+        grown.dense = grown.walked_dense_count();
         grown.compact();
         grown
     }
 }
 
-/// The values of `brick`, made dense first if it was uniform.
+/// The values of `brick`, made dense first if it was uniform (counted in `dense`).
 #[inline]
-fn densify(brick: &mut Brick) -> &mut [f32; DENSE_BRICK_VALUES] {
+fn densify<'a>(brick: &'a mut Brick, dense: &mut usize) -> &'a mut [f32; DENSE_BRICK_VALUES] {
     if let Brick::Uniform(v) = *brick {
         *brick = Brick::Dense(Box::new([v; DENSE_BRICK_VALUES]));
+        *dense += 1;
     }
     match brick {
         Brick::Dense(values) => values,
@@ -1532,35 +1664,113 @@ mod tests {
         });
         assert_eq!(records.len(), store.brick_count());
         assert!(records.iter().any(Result::is_ok) && records.iter().any(Result::is_err));
-        let mut next = records.iter();
-        let back = BrickedCoeffs::try_from_owned_bricks(dims, |first, extent, out| {
-            assert_eq!(out.len(), extent.iter().product::<usize>());
-            assert!((0..3).all(|a| first[a] % COEFF_BRICK == 0 && first[a] < dims[a]));
-            match next.next().expect("one record per brick") {
-                Err(v) => Ok::<_, ()>(Some(*v)),
-                Ok(values) => {
-                    out.copy_from_slice(values);
-                    Ok(None)
+        let rebuild = |max_dense: usize| {
+            let mut next = records.iter();
+            BrickedCoeffs::try_from_owned_bricks(dims, max_dense, |first, extent, out| {
+                assert_eq!(out.len(), extent.iter().product::<usize>());
+                assert!((0..3).all(|a| first[a] % COEFF_BRICK == 0 && first[a] < dims[a]));
+                match next.next().expect("one record per brick") {
+                    Err(v) => Ok::<_, ()>(Some(*v)),
+                    Ok(values) => {
+                        out.copy_from_slice(values);
+                        Ok(None)
+                    }
                 }
-            }
-        })
-        .unwrap();
-        assert!(next.next().is_none());
+            })
+        };
+        let back = rebuild(usize::MAX).unwrap();
         assert_matches(&back, &model);
         assert_stencils_match(&back, &model);
         assert!(back.dense_brick_count() <= store.dense_brick_count());
+        assert_eq!(back.dense_brick_count(), back.walked_dense_count());
         let mut compacted = store.clone();
         compacted.compact();
         assert_eq!(back.dense_brick_count(), compacted.dense_brick_count());
+        // Exactly as many dense bricks as it needs are allowed; one fewer is refused.
+        let needed = back.dense_brick_count();
+        assert_eq!(rebuild(needed).unwrap(), back);
+        assert_eq!(
+            rebuild(needed - 1).unwrap_err(),
+            OwnedBricksError::TooManyDense {
+                max_dense: needed - 1
+            }
+        );
         // An error from the fill stops the build.
-        let failed = BrickedCoeffs::try_from_owned_bricks(dims, |first, _, _| {
+        let failed = BrickedCoeffs::try_from_owned_bricks(dims, usize::MAX, |first, _, _| {
             if first == [8, 0, 0] {
                 Err("bad brick")
             } else {
                 Ok(Some(0.0))
             }
         });
-        assert_eq!(failed.unwrap_err(), "bad brick");
+        assert_eq!(failed.unwrap_err(), OwnedBricksError::Fill("bad brick"));
+    }
+
+    #[test]
+    fn uniform_bricks_that_differ_from_their_neighbours_count_against_the_dense_limit() {
+        // Every brick uniform in the file, alternating values: each brick's apron reaches a
+        // neighbour of the other value, so every brick that has one must become dense.
+        let dims = [32, 8, 8];
+        let build = |max_dense: usize| {
+            BrickedCoeffs::try_from_owned_bricks(dims, max_dense, |first, _, _| {
+                Ok::<_, ()>(Some(if first[0] % 16 == 0 { 0.0 } else { 1.0 }))
+            })
+        };
+        let all = build(usize::MAX).unwrap();
+        assert_eq!(all.dense_brick_count(), 3, "the last brick has no apron");
+        assert_eq!(all.walked_dense_count(), 3);
+        assert_eq!(
+            build(2).unwrap_err(),
+            OwnedBricksError::TooManyDense { max_dense: 2 }
+        );
+    }
+
+    #[test]
+    fn the_dense_count_follows_every_change_and_the_uniform_bound_holds() {
+        let dims = [21, 17, 19];
+        let mut rng = Rng(0x2545_f491_4f6c_dd1d);
+        let mut store = BrickedCoeffs::zeros(dims);
+        for _ in 0..40 {
+            let min: [usize; 3] = std::array::from_fn(|a| rng.below(dims[a]));
+            let size: [usize; 3] = std::array::from_fn(|a| 1 + rng.below(dims[a] - min[a]));
+            let max: [usize; 3] = std::array::from_fn(|a| min[a] + size[a] - 1);
+            let bound = store.uniform_bricks_holding(min, max);
+            let dense_before = store.dense_brick_count();
+            let value = if rng.below(3) == 0 { 0.0 } else { rng.value() };
+            let values = vec![value; size.iter().product()];
+            match rng.below(4) {
+                0 => store.write_box(min, size, &values),
+                1 => store.write_row_at(min, &values[..size[0]]),
+                2 => store.set(min[0], min[1], min[2], value),
+                _ => {
+                    store.compact_within(min, max);
+                }
+            }
+            assert_eq!(store.dense_brick_count(), store.walked_dense_count());
+            assert!(
+                store.dense_brick_count() <= dense_before + bound,
+                "a write in {min:?}..={max:?} made more than {bound} bricks dense"
+            );
+        }
+        assert!(store.dense_brick_count() > 0);
+        let grown = store.padded([8, 0, 8], [3, 5, 0]);
+        assert_eq!(grown.dense_brick_count(), grown.walked_dense_count());
+        let shifted = store.padded([1, 2, 3], [0, 0, 0]);
+        assert_eq!(shifted.dense_brick_count(), shifted.walked_dense_count());
+        let mut all = store.clone();
+        all.densify_all();
+        assert_eq!(all.dense_brick_count(), all.brick_count());
+        assert_eq!(all.uniform_bricks_holding([0; 3], dims.map(|n| n - 1)), 0);
+        all.fill(0.5);
+        assert_eq!(all.dense_brick_count(), 0);
+        assert_eq!(
+            all.uniform_bricks_holding([0; 3], dims.map(|n| n - 1)),
+            all.brick_count()
+        );
+        // A box of one coefficient is held by its owner and the bricks whose aprons copy it.
+        assert_eq!(all.uniform_bricks_holding([9, 9, 9], [9, 9, 9]), 8);
+        assert_eq!(all.uniform_bricks_holding([12, 12, 12], [12, 12, 12]), 1);
+        assert_eq!(all.uniform_bricks_holding([30, 0, 0], [31, 1, 1]), 0);
     }
 
     #[test]

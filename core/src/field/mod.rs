@@ -8,6 +8,7 @@ mod band;
 mod band_limited;
 mod basis;
 mod bricks;
+mod budget;
 mod coarsen;
 mod implicit;
 mod kron;
@@ -26,9 +27,13 @@ pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 // The NaN-skipping maximum and minimum the bricks' box summary and the mesher share.
 pub use bricks::{
     BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES,
-    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, SpareBrick, Values,
+    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, OwnedBricksError, SpareBrick, Values,
 };
 pub(crate) use bricks::{larger, smaller};
+pub use budget::{
+    DENSE_BRICK_BUDGET_BYTES, DenseBudgetError, MAX_CLAY_BOX_COEFFS, MAX_DENSE_BRICKS,
+    MAX_DIRECTORY_BYTES, check_dense_room,
+};
 pub use coarsen::{
     COARSEN_MAX_PATCH_COEFFS, COARSEN_TOLERANCE_SPANS, CoarsenError, CoarsenPlan, RefusedFolds,
     apply_coarsening, plan_coarsening, plan_coarsening_remembering,

@@ -9,6 +9,7 @@
 
 use glam::{Affine3A, Vec3, Vec3A};
 
+use super::budget::MAX_CLAY_BOX_COEFFS;
 use super::lattice::BSplineLattice;
 use super::refit::{FitError, fit_lattice};
 
@@ -19,18 +20,14 @@ pub const MAX_PATCHES: usize = 256;
 pub const MAX_DETAIL_LEVEL: u32 = 6;
 /// Most coefficients one detail patch may hold (64 MiB of `f32`).
 pub const MAX_DETAIL_COEFFS: usize = 16 << 20;
-/// Most coefficients a whole clay may hold, all its patches together (256 MiB of `f32`: the
-/// largest import's base, 256³, and three more of its size in detail). Refining, importing
-/// and reading a session all stay within it.
+/// Most coefficients an import may fit, all its patches together (256 MiB of `f32`: the
+/// largest import's base, 256³, and three more of its size in detail): a fit holds its
+/// lattices dense while it makes them, so an import is bounded by its box.
 ///
-/// It counts the patches' boxes, not the dense bricks that hold them
-/// ([`super::BrickedCoeffs`]). Every copy of the clay is sparse (the live engine's haptic copy
-/// too: it takes dense bricks from a pool as strokes reach new clay), but any edit inside a
-/// box may make the bricks it reaches dense, and none is refused for that: the box is what a
-/// clay can come to cost while it is sculpted (every brick dense, with its apron, 11³/8³ of
-/// the box's coefficients), and a refine knows it before the patch is made. A session file of
-/// format 4 stores only the dense bricks, but is read against this same count, checked before
-/// anything is allocated, so a clay that saves loads.
+/// A sculpted clay is bounded otherwise: by its dense bricks
+/// ([`super::MAX_DENSE_BRICKS`], checked before every write that can make bricks dense) and
+/// by the box its brick directories span ([`super::MAX_CLAY_BOX_COEFFS`], checked by a
+/// refine, a growth and a session load before anything is allocated).
 pub const MAX_CLAY_COEFFS: usize = 64 << 20;
 
 /// Why a detail patch could not be added.
@@ -66,9 +63,10 @@ pub enum DetailError {
         /// Coefficients the patch would hold.
         coefficients: usize,
     },
-    /// The clay would hold more than [`MAX_CLAY_COEFFS`] coefficients with the patch.
+    /// The clay's lattices would span more than [`MAX_CLAY_BOX_COEFFS`] coefficients of box
+    /// with the patch.
     #[error(
-        "the clay would hold {total} coefficients with this patch, more than {MAX_CLAY_COEFFS}; refine a smaller box or a lower level"
+        "the clay would span {total} coefficients of box with this patch, more than {MAX_CLAY_BOX_COEFFS}; refine a smaller box or a lower level"
     )]
     ClayTooLarge {
         /// Coefficients of the clay with the patch.
@@ -330,6 +328,15 @@ impl MultiPatchField {
         self.patches.iter().map(|p| p.lattice.coeffs.len()).sum()
     }
 
+    /// Dense bricks of every patch together (a count each store keeps: no walk).
+    #[must_use]
+    pub fn dense_brick_count(&self) -> usize {
+        self.patches
+            .iter()
+            .map(|p| p.lattice.coeffs.dense_brick_count())
+            .sum()
+    }
+
     /// Coefficients a [`MultiPatchField::refine`] of `lo ..= hi` at `level` would add, checked
     /// as the refine checks them (the box, the level and one patch's size), without adding it.
     ///
@@ -388,7 +395,7 @@ impl MultiPatchField {
         }
         let (coefficients, clo, chi) = detail_size(base, lo, hi, level)?;
         let total = self.coefficient_count().saturating_add(coefficients);
-        if total > MAX_CLAY_COEFFS {
+        if total > MAX_CLAY_BOX_COEFFS {
             return Err(DetailError::ClayTooLarge { total });
         }
         let iso = base.lattice.iso;

@@ -39,12 +39,16 @@
 //!
 //! A brick's apron (the copies of its neighbours' coefficients it keeps in memory) is never
 //! written: loading rebuilds it, and a brick whose own coefficients and apron all agree is
-//! uniform again, so a loaded clay holds no more dense bricks than the one saved. Before
-//! anything is allocated for a lattice its dims are checked against the clay's budget
-//! ([`MAX_CLAY_COEFFS`] for the patches together, the same check a refine makes, so a clay
-//! that saves loads; the same per colour channel; a mask lattice must have its patch's dims)
-//! and its brick count against its dims; a run's length against the bricks left, a dense
-//! brick's values against the bytes left. The tool library's freeform lattices stay dense
+//! uniform again, so a loaded clay holds no more dense bricks than the one saved. Loading
+//! applies the budgets editing keeps (see [`crate::field::MAX_DENSE_BRICKS`]), so a clay that
+//! saves loads and one past them is refused. Before anything is allocated for a lattice its
+//! dims are checked against the clay's box budget ([`MAX_CLAY_BOX_COEFFS`] for every lattice
+//! read so far together, the check a refine and a growth make, which bounds the brick
+//! directory; a mask lattice must have its patch's dims) and its brick count against its
+//! dims; a run's length against the bricks left, a dense brick's values against the bytes
+//! left; and each dense brick, the ones the file gives and the ones an apron needs, against
+//! the dense bricks the clay's budget leaves ([`MAX_DENSE_BRICKS`] for every lattice
+//! together), before it is allocated. The tool library's freeform lattices stay dense
 //! (they are small, and their size is bounded by the bytes that hold them).
 
 use std::path::Path;
@@ -56,8 +60,8 @@ use super::error::SessionError;
 use super::session::{MaterialFields, MaterialGrid, Session, SessionMeta, ToolPreset};
 use crate::dynamics::{Constraint, MAX_CONSTRAINTS, Material, Neighbourhood};
 use crate::field::{
-    BSplineLattice, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, MAX_CLAY_COEFFS, MAX_PATCHES,
-    OwnedBrick, Patch,
+    BSplineLattice, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES, DENSE_BRICK_BUDGET_BYTES,
+    MAX_CLAY_BOX_COEFFS, MAX_DENSE_BRICKS, MAX_PATCHES, OwnedBrick, OwnedBricksError, Patch,
 };
 use crate::tools::{Clay, ColourField, FreeformTool, FreezeMask, ToolAction, ToolShape};
 
@@ -218,8 +222,15 @@ pub fn encode_version(session: &Session, version: u32) -> Result<Vec<u8>, Sessio
 /// # Errors
 /// [`SessionError::NotASession`] for a foreign file, [`SessionError::UnsupportedVersion`],
 /// [`SessionError::Truncated`], [`SessionError::Checksum`] and [`SessionError::Malformed`]
-/// naming the section and byte offset.
+/// naming the section and byte offset; a clay past the budgets of editing (its box, its
+/// dense bricks: see [`crate::field::MAX_DENSE_BRICKS`]) is `Malformed`, refused before the
+/// lattice past them is allocated.
 pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
+    decode_within(bytes, path, MAX_DENSE_BRICKS)
+}
+
+/// [`decode`] for a clay that may hold at most `dense_budget` dense bricks.
+fn decode_within(bytes: &[u8], path: &Path, dense_budget: usize) -> Result<Session, SessionError> {
     let truncated = |section: &str, offset: usize, needed: usize| SessionError::Truncated {
         path: path.to_path_buf(),
         section: section.to_string(),
@@ -332,12 +343,13 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                         "more than {MAX_PATCHES} patches; a clay holds at most {MAX_PATCHES}"
                     )));
                 }
-                let before = session.clay.density.coefficient_count() as u64;
-                let lattice = r.clay_lattice(version, |_, count| {
+                let before = session.clay.box_coefficient_count() as u64;
+                let dense_room = dense_room(&session.clay, dense_budget);
+                let lattice = r.clay_lattice(version, dense_room, |_, count| {
                     let total = before.saturating_add(count);
-                    if total > MAX_CLAY_COEFFS as u64 {
+                    if total > MAX_CLAY_BOX_COEFFS as u64 {
                         Err(format!(
-                            "the clay holds {total} coefficients with this patch; at most {MAX_CLAY_COEFFS}"
+                            "the clay spans {total} coefficients of box with this patch; at most {MAX_CLAY_BOX_COEFFS}"
                         ))
                     } else {
                         Ok(())
@@ -358,16 +370,23 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 material_seen = true;
             }
             COLOUR => {
+                // The channels read so far count against the clay's budgets too.
+                let mut box_total = session.clay.box_coefficient_count() as u64;
+                let mut dense_left = dense_room(&session.clay, dense_budget);
                 let mut channel = || {
-                    r.clay_lattice(version, |_, count| {
-                        if count > MAX_CLAY_COEFFS as u64 {
+                    let lattice = r.clay_lattice(version, dense_left, |_, count| {
+                        let total = box_total.saturating_add(count);
+                        if total > MAX_CLAY_BOX_COEFFS as u64 {
                             Err(format!(
-                                "a colour channel of {count} coefficients; at most {MAX_CLAY_COEFFS}"
+                                "the clay spans {total} coefficients of box with this colour channel; at most {MAX_CLAY_BOX_COEFFS}"
                             ))
                         } else {
                             Ok(())
                         }
-                    })
+                    })?;
+                    box_total += lattice.coeffs.len() as u64;
+                    dense_left -= lattice.coeffs.dense_brick_count();
+                    Ok::<_, SessionError>(lattice)
                 };
                 let channels = [channel()?, channel()?, channel()?, channel()?];
                 let colour = ColourField { channels };
@@ -388,7 +407,10 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
                 };
                 neighbourhood = nb;
             }
-            MASK => session.clay.mask = Some(decode_mask(&mut r, version, &session.clay)?),
+            MASK => {
+                let room = dense_room(&session.clay, dense_budget);
+                session.clay.mask = Some(decode_mask(&mut r, version, &session.clay, room)?);
+            }
             END => ended = true,
             // Unknown but intact: a later minor addition; skip it.
             _ => {}
@@ -421,7 +443,12 @@ pub fn decode(bytes: &[u8], path: &Path) -> Result<Session, SessionError> {
 
 /// The `MASK` section: one hold lattice per patch already read, each with its patch's dims and
 /// every hold within `[0, 1]`.
-fn decode_mask(r: &mut Reader, version: u32, clay: &Clay) -> Result<FreezeMask, SessionError> {
+fn decode_mask(
+    r: &mut Reader,
+    version: u32,
+    clay: &Clay,
+    dense_room: usize,
+) -> Result<FreezeMask, SessionError> {
     let count = r.u32()? as usize;
     let patches = clay.density.patches.len();
     if count != patches {
@@ -431,17 +458,26 @@ fn decode_mask(r: &mut Reader, version: u32, clay: &Clay) -> Result<FreezeMask, 
         )));
     }
     let mut holds = Vec::with_capacity(count);
+    let mut dense_left = dense_room;
+    let mut box_total = clay.box_coefficient_count() as u64;
     for (n, patch) in clay.density.patches.iter().enumerate() {
-        let lattice = r.clay_lattice(version, |dims, _| {
-            if dims == patch.lattice.dims {
-                Ok(())
-            } else {
+        let lattice = r.clay_lattice(version, dense_left, |dims, count| {
+            let total = box_total.saturating_add(count);
+            if dims != patch.lattice.dims {
                 Err(format!(
                     "the mask over patch {n} has dims {dims:?}; the patch has {:?}",
                     patch.lattice.dims
                 ))
+            } else if total > MAX_CLAY_BOX_COEFFS as u64 {
+                Err(format!(
+                    "the clay spans {total} coefficients of box with the mask over patch {n}; at most {MAX_CLAY_BOX_COEFFS}"
+                ))
+            } else {
+                Ok(())
             }
         })?;
+        dense_left -= lattice.coeffs.dense_brick_count();
+        box_total += lattice.coeffs.len() as u64;
         if let Some(bad) = lattice.coeffs.iter().find(|h| !(0.0..=1.0).contains(*h)) {
             return Err(r.error(&format!(
                 "a hold of the mask over patch {n} is {bad}; holds lie within [0, 1]"
@@ -450,6 +486,20 @@ fn decode_mask(r: &mut Reader, version: u32, clay: &Clay) -> Result<FreezeMask, 
         holds.push(lattice);
     }
     Ok(FreezeMask { patches: holds })
+}
+
+/// Dense bricks the clay read so far leaves to the lattices still to come, of `budget`.
+fn dense_room(clay: &Clay, budget: usize) -> usize {
+    budget.saturating_sub(clay.dense_brick_count())
+}
+
+/// Why a lattice that would make the clay hold too many dense bricks is refused.
+fn too_many_dense(max_dense: usize) -> String {
+    format!(
+        "the lattice holds more than the {max_dense} dense bricks the clay's budget leaves it \
+         (a clay holds at most {MAX_DENSE_BRICKS} dense bricks, {} MiB)",
+        DENSE_BRICK_BUDGET_BYTES >> 20
+    )
 }
 
 /// The `PINS` section: a JSON list of constraints, each checked, at most [`MAX_CONSTRAINTS`].
@@ -921,10 +971,11 @@ impl Reader<'_> {
     fn clay_lattice(
         &mut self,
         version: u32,
+        max_dense: usize,
         admit: impl FnOnce([usize; 3], u64) -> Result<(), String>,
     ) -> Result<BSplineLattice, SessionError> {
         if version >= BRICKED_VERSION {
-            return self.bricked_lattice(admit);
+            return self.bricked_lattice(max_dense, admit);
         }
         // Every coefficient is in the file: its bytes bound what was allocated.
         let start = self.cursor.at();
@@ -932,6 +983,11 @@ impl Reader<'_> {
         if let Err(detail) = admit(lattice.dims, lattice.coeffs.len() as u64) {
             self.cursor.rewind_to(start);
             return Err(self.error(&detail));
+        }
+        let dense = lattice.coeffs.dense_brick_count();
+        if dense > max_dense {
+            self.cursor.rewind_to(start);
+            return Err(self.error(&too_many_dense(max_dense)));
         }
         Ok(lattice)
     }
@@ -942,6 +998,7 @@ impl Reader<'_> {
     /// by the bytes that hold its values.
     fn bricked_lattice(
         &mut self,
+        max_dense: usize,
         admit: impl FnOnce([usize; 3], u64) -> Result<(), String>,
     ) -> Result<BSplineLattice, SessionError> {
         let start = self.cursor.at();
@@ -1008,78 +1065,89 @@ impl Reader<'_> {
         let mut read = 0_u64;
         let mut run_left = 0_u32;
         let mut run_value = 0.0_f32;
-        let coeffs = BrickedCoeffs::try_from_owned_bricks(dims, |first, extent, out| {
-            read += 1;
-            if run_left > 0 {
-                run_left -= 1;
-                return Ok(Some(run_value));
-            }
-            let at = self.cursor.at();
-            match self.u8()? {
-                UNIFORM_RUN => {
-                    let length = self.u32()?;
-                    let left = expected - read + 1;
-                    if length == 0 || u64::from(length) > left {
-                        return Err(refuse(
-                            self,
-                            at,
-                            &format!(
-                                "a run of {length} uniform bricks from coefficient {first:?}; \
+        let built = BrickedCoeffs::try_from_owned_bricks(
+            dims,
+            max_dense,
+            |first, extent, out| -> Result<Option<f32>, SessionError> {
+                read += 1;
+                if run_left > 0 {
+                    run_left -= 1;
+                    return Ok(Some(run_value));
+                }
+                let at = self.cursor.at();
+                match self.u8()? {
+                    UNIFORM_RUN => {
+                        let length = self.u32()?;
+                        let left = expected - read + 1;
+                        if length == 0 || u64::from(length) > left {
+                            return Err(refuse(
+                                self,
+                                at,
+                                &format!(
+                                    "a run of {length} uniform bricks from coefficient {first:?}; \
                                  {left} bricks are left in the lattice"
-                            ),
-                        ));
-                    }
-                    let value_at = self.cursor.at();
-                    let value = self.f32()?;
-                    if !value.is_finite() {
-                        return Err(refuse(
-                            self,
-                            value_at,
-                            &format!(
-                                "the uniform bricks from coefficient {first:?} hold {value}, \
+                                ),
+                            ));
+                        }
+                        let value_at = self.cursor.at();
+                        let value = self.f32()?;
+                        if !value.is_finite() {
+                            return Err(refuse(
+                                self,
+                                value_at,
+                                &format!(
+                                    "the uniform bricks from coefficient {first:?} hold {value}, \
                                  not a finite number"
-                            ),
-                        ));
+                                ),
+                            ));
+                        }
+                        run_left = length - 1;
+                        run_value = value;
+                        Ok(Some(value))
                     }
-                    run_left = length - 1;
-                    run_value = value;
-                    Ok(Some(value))
-                }
-                DENSE_BRICK => {
-                    let values_at = self.cursor.at();
-                    let raw = self.take(4 * out.len())?;
-                    for (v, b) in out.iter_mut().zip(raw.chunks_exact(4)) {
-                        *v = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                    DENSE_BRICK => {
+                        let values_at = self.cursor.at();
+                        let raw = self.take(4 * out.len())?;
+                        for (v, b) in out.iter_mut().zip(raw.chunks_exact(4)) {
+                            *v = f32::from_le_bytes(b.try_into().expect("4 bytes"));
+                        }
+                        if let Some(n) = out.iter().position(|v| !v.is_finite()) {
+                            let local = [
+                                n % extent[0],
+                                (n / extent[0]) % extent[1],
+                                n / (extent[0] * extent[1]),
+                            ];
+                            let [i, j, k] = std::array::from_fn(|a| first[a] + local[a]);
+                            let flat = i + nx * (j + ny * k);
+                            return Err(refuse(
+                                self,
+                                values_at + 4 * n,
+                                &format!(
+                                    "lattice coefficient {flat} is {}, not a finite number",
+                                    out[n]
+                                ),
+                            ));
+                        }
+                        Ok(None)
                     }
-                    if let Some(n) = out.iter().position(|v| !v.is_finite()) {
-                        let local = [
-                            n % extent[0],
-                            (n / extent[0]) % extent[1],
-                            n / (extent[0] * extent[1]),
-                        ];
-                        let [i, j, k] = std::array::from_fn(|a| first[a] + local[a]);
-                        let flat = i + nx * (j + ny * k);
-                        return Err(refuse(
-                            self,
-                            values_at + 4 * n,
-                            &format!(
-                                "lattice coefficient {flat} is {}, not a finite number",
-                                out[n]
-                            ),
-                        ));
-                    }
-                    Ok(None)
-                }
-                tag => Err(refuse(
-                    self,
-                    at,
-                    &format!(
-                        "brick record {tag}; a record is {UNIFORM_RUN} (a run of uniform \
+                    tag => Err(refuse(
+                        self,
+                        at,
+                        &format!(
+                            "brick record {tag}; a record is {UNIFORM_RUN} (a run of uniform \
                          bricks) or {DENSE_BRICK} (a dense brick)"
-                    ),
-                )),
+                        ),
+                    )),
+                }
+            },
+        );
+        let coeffs = match built {
+            Ok(coeffs) => coeffs,
+            Err(OwnedBricksError::Fill(e)) => return Err(e),
+            Err(OwnedBricksError::TooManyDense { max_dense }) => {
+                return Err(refuse(self, start, &too_many_dense(max_dense)));
             }
-        })?;
+        };
         Ok(BSplineLattice {
             dims,
             spacing,
@@ -1755,7 +1823,7 @@ mod tests {
         payload.extend(run_record(u32::MAX, 1.0));
         let err = refused(payload);
         assert!(
-            err.contains("PTCH") && err.contains(&format!("at most {MAX_CLAY_COEFFS}")),
+            err.contains("PTCH") && err.contains(&format!("at most {MAX_CLAY_BOX_COEFFS}")),
             "{err}"
         );
         // A coefficient count that overflows.
@@ -1846,16 +1914,18 @@ mod tests {
     }
 
     #[test]
-    fn a_clay_at_the_edge_of_the_budget_saves_and_loads() {
-        // One patch of exactly MAX_CLAY_COEFFS coefficients (a 512 × 512 × 256 box of empty
-        // space and a small ball): refine and growth admit it, so loading must.
-        let dims = [512, 512, 256];
-        assert_eq!(dims.iter().product::<usize>(), MAX_CLAY_COEFFS);
+    fn a_clay_at_the_edge_of_the_box_budget_saves_and_loads() {
+        // One patch of exactly MAX_CLAY_BOX_COEFFS coefficients (a 1024³ box of empty space
+        // and a small ball): its directory is 32 MiB and its file small; refine and growth
+        // admit it, so loading must.
+        let dims = [1024, 1024, 1024];
+        assert_eq!(dims.iter().product::<usize>(), MAX_CLAY_BOX_COEFFS);
         let mut l = BSplineLattice::zeros(dims, 0.01, Vec3::ZERO).unwrap();
         for n in 0..64 {
             l.coeffs
                 .set(250 + n % 4, 250 + (n / 4) % 4, 120 + n / 16, 1.0);
         }
+        let dense = l.coeffs.dense_brick_count();
         let s = Session {
             clay: Clay::single(l),
             ..Session::default()
@@ -1863,14 +1933,103 @@ mod tests {
         let bytes = encode(&s).unwrap();
         assert!(bytes.len() < 1 << 20, "{} bytes", bytes.len());
         let back = decode(&bytes, Path::new("edge.dclay")).unwrap();
-        assert_eq!(back, s);
+        let (a, b) = (&s.clay.base().coeffs, &back.clay.base().coeffs);
+        assert_eq!(b.dims(), dims);
+        assert_eq!(b.dense_brick_count(), dense);
+        for n in 0..64 {
+            let at = [250 + n % 4, 250 + (n / 4) % 4, 120 + n / 16];
+            assert_eq!(b.get(at[0], at[1], at[2]), 1.0);
+        }
+        let sample = |c: &BrickedCoeffs| c.box_summary([240, 240, 110], [270, 270, 140], true);
+        assert_eq!(sample(a), sample(b));
+        assert_eq!(sample(b).max, 1.0);
         // One more coefficient of detail would not load, nor would it refine.
-        let mut over = s.clone();
+        let mut over = s;
         let tiny = BSplineLattice::zeros([4, 4, 4], 0.001, Vec3::ZERO).unwrap();
         over.clay.density.push(tiny, Affine3A::IDENTITY);
         let err = decode(&encode(&over).unwrap(), Path::new("over.dclay"))
             .unwrap_err()
             .to_string();
-        assert!(err.contains(&format!("at most {MAX_CLAY_COEFFS}")), "{err}");
+        assert!(
+            err.contains(&format!("at most {MAX_CLAY_BOX_COEFFS}")),
+            "{err}"
+        );
+    }
+
+    /// A clay of `bricks` dense bricks in a base of 64³ coefficients (one changed value per
+    /// brick, away from every apron), with a colour field whose red channel holds one more.
+    fn clay_of_dense_bricks(bricks: usize) -> Clay {
+        let mut l = BSplineLattice::zeros([64; 3], 0.05, Vec3::ZERO).unwrap();
+        for n in 0..bricks {
+            let [i, j, k] = [n % 8, (n / 8) % 8, n / 64].map(|b| 8 * b + 5);
+            l.coeffs.set(i, j, k, 0.5);
+        }
+        let mut colour = ColourField::matching(&l).unwrap();
+        colour.channels[0].coeffs.set(13, 13, 13, 0.25);
+        let mut clay = Clay::single(l);
+        clay.colour = Some(colour);
+        clay
+    }
+
+    #[test]
+    fn a_clay_at_the_edge_of_the_dense_budget_saves_and_loads_and_one_over_is_refused() {
+        for version in [3, BRICKED_VERSION] {
+            let clay = clay_of_dense_bricks(40);
+            assert_eq!(clay.dense_brick_count(), 41);
+            let s = Session {
+                clay,
+                ..Session::default()
+            };
+            let bytes = encode_version(&s, version).unwrap();
+            let path = Path::new("dense.dclay");
+            // At the edge: exactly the bricks it holds.
+            let back = decode_within(&bytes, path, 41).unwrap();
+            assert_eq!(back, s, "version {version}");
+            assert_eq!(back.clay.dense_brick_count(), 41);
+            // One brick fewer in the budget: the colour channel that needs it is refused.
+            let err = decode_within(&bytes, path, 40).unwrap_err();
+            let text = err.to_string();
+            assert!(
+                matches!(err, SessionError::Malformed { .. })
+                    && text.contains("COLR")
+                    && text.contains("more than the 0 dense bricks"),
+                "version {version}: {text}"
+            );
+            // Fewer still: the patch itself.
+            let text = decode_within(&bytes, path, 39).unwrap_err().to_string();
+            assert!(
+                text.contains("PTCH") && text.contains("more than the 39 dense bricks"),
+                "version {version}: {text}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_hostile_file_of_uniform_bricks_cannot_make_dense_bricks_past_the_budget() {
+        // Every brick uniform, alternating 0 and 1 along x: each brick's apron reaches a
+        // neighbour of the other value, so loading would make nearly every brick dense.
+        let dims = [64, 64, 64];
+        let small = Session {
+            clay: Clay::single(BSplineLattice::zeros([8; 3], 0.1, Vec3::ZERO).unwrap()),
+            ..Session::default()
+        };
+        let good = encode(&small).unwrap();
+        assert_eq!(sections(&good)[1].0, PATCH);
+        let mut payload = bricked_header(dims, 512);
+        for n in 0..512_u32 {
+            payload.extend(run_record(1, (n % 2) as f32));
+        }
+        for v in Affine3A::IDENTITY.to_cols_array() {
+            payload.extend_from_slice(&v.to_le_bytes());
+        }
+        let bytes = with_payload(&good, 1, &payload);
+        let path = Path::new("stripes.dclay");
+        let all = decode(&bytes, path);
+        // Accepted whole under the real budget (448 bricks have an apron) …
+        let clay = all.map(|s| s.clay).unwrap();
+        assert_eq!(clay.base().coeffs.dense_brick_count(), 448);
+        // … and refused, before the brick past it is allocated, under a smaller one.
+        let text = decode_within(&bytes, path, 100).unwrap_err().to_string();
+        assert!(text.contains("more than the 100 dense bricks"), "{text}");
     }
 }

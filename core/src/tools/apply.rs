@@ -21,8 +21,8 @@ use super::mask::hold_before_edit;
 use super::report::{ToolError, ToolReport};
 use super::shape::{ToolPose, ToolShape, density_from_distance};
 use crate::field::{
-    BSplineLattice, MultiPatchField, OtherPatches, SampleRow, coeff_box_around, refit_box_edit,
-    refit_box_edit_rows,
+    BSplineLattice, MultiPatchField, OtherPatches, SampleRow, check_dense_room, coeff_box_around,
+    refit_box_edit, refit_box_edit_rows,
 };
 
 /// A geometric tool: a shape, what it does, and the width of its potential's falloff band.
@@ -157,6 +157,9 @@ pub fn apply_tool(
     let Some(region) = coeff_box_around(lattice, lo, hi, 0) else {
         return Ok(ToolReport::default());
     };
+    // Before anything is written: the bricks the box reaches must fit the clay's budget.
+    clay.check_dense_room(id, region)?;
+    let lattice = clay.field(id).expect("checked above");
     let reach = match tool.action {
         ToolAction::Smooth { kernel_fu, .. } => (kernel_fu / lattice.spacing).ceil() as usize,
         _ => 0,
@@ -534,7 +537,8 @@ pub fn apply_csg(
     let Some(region) = region else {
         return Ok(ToolReport::default());
     };
-    let iso = lattice.iso;
+    clay.check_dense_room(id, region)?;
+    let iso = clay.field(id).expect("checked above").iso;
     if let Some(r) = recorder {
         r.touch(clay, id, region);
     }
@@ -665,9 +669,29 @@ fn paint(
         })
         .collect();
     let iso = patch.iso;
-    if clay.colour.is_none() {
+    // Before anything is written: the four channels' bricks in the tool's box must fit the
+    // clay's budget (a colour field made here is all uniform).
+    let made_colour = clay.colour.is_none();
+    if made_colour {
         let colour = ColourField::matching(patch).map_err(ToolError::Colour)?;
         clay.colour = Some(colour);
+    }
+    let mut more = 0;
+    let mut reached = None;
+    for channel in 0..4_u8 {
+        let lattice = clay.field(FieldId::Colour(channel)).expect("colour exists");
+        if let Some(region) = coeff_box_around(lattice, lo, hi, 0) {
+            more += lattice
+                .coeffs
+                .uniform_bricks_holding(region.min, region.max);
+            reached = Some(region);
+        }
+    }
+    if let Err(refused) = check_dense_room(clay.dense_brick_count(), more, reached) {
+        if made_colour {
+            clay.colour = None;
+        }
+        return Err(refused.into());
     }
     let rgb = tool.action.rgb().unwrap_or([0.0; 3]);
     let mut report = ToolReport::default();
@@ -1424,6 +1448,62 @@ mod tests {
         let far = ToolPose::at(Vec3::splat(100.0));
         let report = apply_tool(&mut clay, &t, &far, 1.0, &ApplyOptions::default(), None).unwrap();
         assert!(report.coeff_box.is_none());
+    }
+
+    #[test]
+    fn an_edit_whose_box_could_pass_the_dense_budget_is_refused_and_changes_nothing() {
+        use crate::field::{DenseBudgetError, MAX_DENSE_BRICKS};
+        // A thin clay of empty space spanning more bricks than the budget: 2048 × 1024 × 40
+        // coefficients, 256 × 128 × 5 = 163 840 uniform bricks (a 2.5 MiB directory).
+        let mut clay =
+            Clay::single(BSplineLattice::zeros([2048, 1024, 40], H, Vec3::ZERO).unwrap());
+        assert!(clay.base().coeffs.brick_count() > MAX_DENSE_BRICKS);
+        // Smoothing everything: its box reaches every brick, more than the budget holds.
+        let smooth = tool(
+            ToolShape::Box {
+                half_extents_fu: Vec3::new(2048.0, 1024.0, 40.0) * H,
+            },
+            ToolAction::Smooth {
+                kernel_fu: 2.0 * H,
+                rate_per_s: 1.0,
+            },
+        );
+        let before = clay.clone();
+        let everywhere = ToolPose::at(Vec3::new(1024.0, 512.0, 20.0) * H);
+        let refused = apply_tool(
+            &mut clay,
+            &smooth,
+            &everywhere,
+            1.0,
+            &ApplyOptions::default(),
+            None,
+        );
+        match refused {
+            Err(ToolError::DenseBudget(DenseBudgetError { dense: 0, more, at })) => {
+                assert!(more > MAX_DENSE_BRICKS, "{more}");
+                assert!(at.is_some());
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(clay.dense_brick_count(), 0);
+        assert!(clay == before, "the clay is unchanged");
+        // A small lump in the same clay fits.
+        let lump = tool(
+            ToolShape::Sphere { radius_fu: 4.0 * H },
+            ToolAction::Add {
+                deposit_rate_per_s: 4.0,
+            },
+        );
+        apply_tool(
+            &mut clay,
+            &lump,
+            &everywhere,
+            1.0,
+            &ApplyOptions::default(),
+            None,
+        )
+        .unwrap();
+        assert!((1..100).contains(&clay.dense_brick_count()));
     }
 
     /// The field change of `action` held for `dwell_s` at the centre of a clay whose density

@@ -8,7 +8,10 @@ use glam::{Vec3, Vec4};
 
 use super::freeze_mask::FreezeMask;
 use crate::dynamics::Constraint;
-use crate::field::{BSplineLattice, LatticeError, MultiPatchField};
+use crate::field::{
+    BSplineLattice, DenseBudgetError, DetailError, LatticeError, MAX_CLAY_BOX_COEFFS,
+    MultiPatchField, check_dense_room,
+};
 pub use crate::field::{CoeffBox, sub_lattice};
 
 /// Edge length (in coefficients) of the bricks the clay's coefficients are counted in: undo
@@ -139,11 +142,97 @@ impl Clay {
     pub fn base_mut(&mut self) -> &mut BSplineLattice {
         self.density.base_mut()
     }
+
+    /// Every lattice of the clay: the density patches, the colour channels, the mask's.
+    pub fn lattices(&self) -> impl Iterator<Item = &BSplineLattice> {
+        let density = self.density.patches.iter().map(|p| &p.lattice);
+        let colour = self.colour.iter().flat_map(|c| c.channels.iter());
+        let mask = self.mask.iter().flat_map(|m| m.patches.iter());
+        density.chain(colour).chain(mask)
+    }
+
+    /// Dense bricks of every lattice of the clay together: what
+    /// [`crate::field::MAX_DENSE_BRICKS`] bounds. Sums counts the stores keep (no walk).
+    #[must_use]
+    pub fn dense_brick_count(&self) -> usize {
+        self.lattices().map(|l| l.coeffs.dense_brick_count()).sum()
+    }
+
+    /// Coefficients of box of every lattice of the clay together: what
+    /// [`crate::field::MAX_CLAY_BOX_COEFFS`] bounds.
+    #[must_use]
+    pub fn box_coefficient_count(&self) -> usize {
+        self.lattices().map(|l| l.coeffs.len()).sum()
+    }
+
+    /// [`MultiPatchField::refine`] within the clay's box budget counted over every lattice
+    /// (as a growth and a session load count it): the new patch, its freeze-mask lattice
+    /// when the clay has a mask, and every lattice there is must span at most
+    /// [`crate::field::MAX_CLAY_BOX_COEFFS`] coefficients together, so a clay that refines
+    /// saves and loads. Returns the new patch's index.
+    ///
+    /// # Errors
+    /// As [`MultiPatchField::refine`]; the clay is unchanged then.
+    pub fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<usize, DetailError> {
+        let coefficients = self.density.detail_coefficients(lo, hi, level)?;
+        let copies = 1 + usize::from(self.mask.is_some());
+        let total = self
+            .box_coefficient_count()
+            .saturating_add(coefficients.saturating_mul(copies));
+        if total > MAX_CLAY_BOX_COEFFS {
+            return Err(DetailError::ClayTooLarge { total });
+        }
+        self.density.refine(lo, hi, level)
+    }
+
+    /// Whether a write inside `region` of lattice `id` fits the clay's dense-brick budget,
+    /// counting every uniform brick the box reaches as one it may make dense. A lattice the
+    /// clay does not hold takes no room.
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when it may not fit; check before writing, so that the clay is
+    /// unchanged then.
+    pub fn check_dense_room(&self, id: FieldId, region: CoeffBox) -> Result<(), DenseBudgetError> {
+        let more = self.field(id).map_or(0, |l| {
+            l.coeffs.uniform_bricks_holding(region.min, region.max)
+        });
+        check_dense_room(self.dense_brick_count(), more, Some(region))
+    }
+
+    /// Whether the clay as it is fits its budgets: its dense bricks within
+    /// [`crate::field::MAX_DENSE_BRICKS`] (a clay made elsewhere, an import, before it is
+    /// taken in).
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when it holds more.
+    pub fn check_dense_budget(&self) -> Result<(), DenseBudgetError> {
+        check_dense_room(self.dense_brick_count(), 0, None)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_refine_counts_every_lattice_of_the_clay_against_the_box_budget() {
+        // A base of 1024 × 1024 × 500 coefficients of empty space (a 16 MiB directory) and a
+        // level-1 patch of 253³ (16 Mi coefficients) over a box of 1.25 field units.
+        let base = BSplineLattice::zeros([1024, 1024, 500], 0.01, Vec3::ZERO).unwrap();
+        let mut clay = Clay::single(base);
+        let (lo, hi) = (Vec3::splat(1.0), Vec3::splat(2.25));
+        let mut masked = clay.clone();
+        masked.mask = Some(FreezeMask::matching(&masked.density).unwrap());
+        assert_eq!(clay.refine(lo, hi, 1), Ok(1));
+        assert_eq!(clay.density.patches.len(), 2);
+        // With a freeze mask the base counts twice and the patch would too: past the budget.
+        let refused = masked.refine(lo, hi, 1);
+        assert!(
+            matches!(refused, Err(DetailError::ClayTooLarge { total }) if total > MAX_CLAY_BOX_COEFFS),
+            "{refused:?}"
+        );
+        assert_eq!(masked.density.patches.len(), 1);
+    }
 
     #[test]
     fn boxes_union_clip_and_bound_their_support() {

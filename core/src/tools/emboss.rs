@@ -69,6 +69,7 @@ pub fn apply_emboss(
     let Some(region) = coeff_box_around(lattice, a, b, 2) else {
         return Ok(ToolReport::default());
     };
+    clay.check_dense_room(id, region)?;
     // The whole clay before the edit: the relief moves the sum's surface (eq. (3)), and the
     // edited patch takes the change.
     let spacing = lattice.spacing;

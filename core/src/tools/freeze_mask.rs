@@ -16,7 +16,7 @@
 
 use glam::Vec3;
 
-use crate::field::{BSplineLattice, CoeffBox, LatticeError, MultiPatchField};
+use crate::field::{BSplineLattice, CoeffBox, DenseBudgetError, LatticeError, MultiPatchField};
 
 /// How far, in nodes along each axis, a painted hold reaches the coefficients it holds.
 ///
@@ -57,6 +57,9 @@ pub enum MaskError {
         /// Why its lattice was refused.
         source: LatticeError,
     },
+    /// The dab could make more of the mask's bricks dense than the clay's budget leaves.
+    #[error("{0}")]
+    DenseBudget(#[from] DenseBudgetError),
 }
 
 /// The clay's freeze mask: one hold lattice per density patch, index for index.

@@ -9,14 +9,18 @@
 //! The colour field grows with the base; material grids are carried over by their owner
 //! ([`crate::dynamics::MaterialGrid::grown`]).
 //!
-//! Budget: the grown clay is checked against [`MAX_CLAY_COEFFS`] before anything is allocated.
-//! The base stays dense: memory grows with the volume the clay has reached, not yet with its
-//! surface alone.
+//! Budget: the grown clay's box is checked against [`MAX_CLAY_BOX_COEFFS`] before anything is
+//! allocated (what its brick directories cost), and its dense bricks against
+//! [`crate::field::MAX_DENSE_BRICKS`] before it replaces the clay. Growth moves bricks as they
+//! are: the new coefficients are uniform empty space, so memory grows with the surface the
+//! clay has, not the box it spans.
 
 use glam::Vec3;
 
 use super::clay::{BRICK, Clay};
-use crate::field::{BSplineLattice, LatticeError, MAX_CLAY_COEFFS};
+use crate::field::{
+    BSplineLattice, DenseBudgetError, LatticeError, MAX_CLAY_BOX_COEFFS, check_dense_room,
+};
 
 /// How many knot spans an edit's box must stay inside the base patch's first and last
 /// nodes: a point's cubic stencil reaches one node below and two above it, so a box kept 1.5
@@ -35,9 +39,9 @@ pub enum GrowthError {
         /// The box's high corner.
         hi: [f32; 3],
     },
-    /// The grown clay would exceed the coefficient budget.
+    /// The grown clay would span more than [`MAX_CLAY_BOX_COEFFS`] coefficients of box.
     #[error(
-        "growing the clay to {dims:?} base coefficients would make {total} coefficients in all, more than {MAX_CLAY_COEFFS}; the edit stays clipped to the clay's box"
+        "growing the clay to {dims:?} base coefficients would make {total} coefficients of box in all, more than {MAX_CLAY_BOX_COEFFS}; the edit stays clipped to the clay's box"
     )]
     ClayTooLarge {
         /// The grown base's dimensions (saturated when they overflow).
@@ -48,6 +52,10 @@ pub enum GrowthError {
     /// The grown lattice could not be made.
     #[error("the grown base lattice: {0}")]
     Lattice(#[from] LatticeError),
+    /// The grown clay would hold more dense bricks than its budget (bricks at the old border
+    /// whose aprons now reach different values).
+    #[error("growing the clay: {0}")]
+    DenseBudget(#[from] DenseBudgetError),
 }
 
 /// How the base patch grew: `pad[a]` coefficients were added before and after it along axis
@@ -103,7 +111,7 @@ impl Clay {
     ///
     /// # Errors
     /// [`GrowthError`] when the box is not finite or the grown clay would exceed
-    /// [`MAX_CLAY_COEFFS`]; the clay is unchanged then.
+    /// [`MAX_CLAY_BOX_COEFFS`] or the dense-brick budget; the clay is unchanged then.
     pub fn grow_to_cover(&mut self, lo: Vec3, hi: Vec3) -> Result<Option<Growth>, GrowthError> {
         match padding_to_cover(self.base(), lo, hi)? {
             Some(pad) => self.grow(pad).map(Some),
@@ -120,16 +128,29 @@ impl Clay {
         let old_dims = self.base().dims;
         let new_dims: [usize; 3] =
             std::array::from_fn(|a| old_dims[a].saturating_add(pad[a].saturating_mul(2)));
-        let base_count = new_dims
+        // Every lattice counts, as a refine and a session load count them: the base, the
+        // colour channels and the base's mask grow; the rest stays.
+        let grown_count = |dims: [usize; 3]| {
+            (0..3).fold(1_usize, |acc, a| {
+                acc.saturating_mul(dims[a].saturating_add(pad[a].saturating_mul(2)))
+            })
+        };
+        let base_mask = self
+            .mask
+            .as_ref()
+            .and_then(|m| m.patches.first())
+            .filter(|m| m.dims == old_dims);
+        let colour = self.colour.iter().flat_map(|c| c.channels.iter());
+        let growing: Vec<&BSplineLattice> = std::iter::once(self.base())
+            .chain(colour)
+            .chain(base_mask)
+            .collect();
+        let staying =
+            self.box_coefficient_count() - growing.iter().map(|l| l.coeffs.len()).sum::<usize>();
+        let total = growing
             .iter()
-            .fold(1_usize, |acc, &n| acc.saturating_mul(n));
-        let details = self.density.coefficient_count() - self.base().coeffs.len();
-        let colour = if self.colour.is_some() { 4 } else { 0 };
-        let mask = usize::from(self.mask.is_some());
-        let total = base_count
-            .saturating_mul(1 + colour + mask)
-            .saturating_add(details);
-        if total > MAX_CLAY_COEFFS {
+            .fold(staying, |acc, l| acc.saturating_add(grown_count(l.dims)));
+        if total > MAX_CLAY_BOX_COEFFS {
             return Err(GrowthError::ClayTooLarge {
                 dims: new_dims,
                 total,
@@ -152,6 +173,20 @@ impl Clay {
             Some(m) if m.dims == old_dims => Some(m.padded(pad, pad)?),
             _ => None,
         };
+        // The grown lattices replace the old ones only if the clay then fits its budget.
+        let dense_of = |l: &BSplineLattice| l.coeffs.dense_brick_count();
+        let mut grown_dense = self.dense_brick_count() - dense_of(self.base()) + dense_of(&base);
+        if let (Some(old), Some(new)) = (&self.colour, &colour) {
+            grown_dense -= old.channels.iter().map(dense_of).sum::<usize>();
+            grown_dense += new.iter().map(dense_of).sum::<usize>();
+        }
+        if let (Some(old), Some(new)) = (
+            self.mask.as_ref().and_then(|m| m.patches.first()),
+            &base_mask,
+        ) {
+            grown_dense = grown_dense - dense_of(old) + dense_of(new);
+        }
+        check_dense_room(grown_dense, 0, None)?;
         *self.base_mut() = base;
         if let (Some(field), Some(channels)) = (self.colour.as_mut(), colour) {
             field.channels = channels;
@@ -170,7 +205,7 @@ impl Clay {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tools::ColourField;
+    use crate::tools::{ColourField, apply_tool};
 
     fn ball(n: usize) -> BSplineLattice {
         let spacing = 1.0 / (n - 3) as f32;
@@ -259,5 +294,46 @@ mod tests {
         let nan = clay.grow_to_cover(Vec3::ZERO, Vec3::new(f32::NAN, 0.5, 0.5));
         assert!(matches!(nan, Err(GrowthError::NotFinite { .. })));
         assert_eq!(clay, before);
+    }
+
+    #[test]
+    fn a_lump_far_past_the_old_box_wall_grows_the_clay_and_costs_only_its_bricks() {
+        use crate::field::{DENSE_BRICK_BYTES, MAX_CLAY_COEFFS};
+        use crate::tools::{ApplyOptions, GeometricTool, ToolAction, ToolPose, ToolShape};
+        let mut clay = Clay::single(ball(40));
+        let dense_before = clay.dense_brick_count();
+        // 600 field units along x: more than 22 000 knot spans each side.
+        let far = Vec3::new(600.0, 0.5, 0.5);
+        let tool = GeometricTool {
+            shape: ToolShape::Sphere { radius_fu: 0.1 },
+            action: ToolAction::Add {
+                deposit_rate_per_s: 4.0,
+            },
+            falloff_fu: 0.05,
+        };
+        let pose = ToolPose::at(far);
+        let (lo, hi) = tool.influence_box(&pose, clay.base().spacing);
+        let growth = clay.grow_to_cover(lo, hi).unwrap().unwrap();
+        // The box is past the old wall (64 Mi coefficients, about 400³) …
+        let box_coeffs = clay.box_coefficient_count();
+        assert!(box_coeffs > MAX_CLAY_COEFFS, "{box_coeffs} coefficients");
+        assert!(growth.new_dims[0] > 40_000, "{growth:?}");
+        // … yet the growth made no brick dense: the new coefficients are empty space.
+        assert_eq!(clay.dense_brick_count(), dense_before);
+        apply_tool(&mut clay, &tool, &pose, 1.0, &ApplyOptions::default(), None).unwrap();
+        assert!(
+            clay.density.value(far) > clay.base().iso,
+            "the lump is there"
+        );
+        assert!(
+            clay.density.value(Vec3::splat(0.5)) > clay.base().iso,
+            "the ball too"
+        );
+        // The lump costs a few bricks: memory follows the surface, not the box.
+        let lump = clay.dense_brick_count() - dense_before;
+        assert!((1..=64).contains(&lump), "{lump} bricks");
+        let heap = clay.base().coeffs.heap_bytes();
+        let dense_heap = clay.dense_brick_count() * DENSE_BRICK_BYTES;
+        assert!(heap < dense_heap + (4 << 20), "{heap} bytes");
     }
 }

@@ -12,7 +12,7 @@ use std::collections::{BTreeMap, VecDeque};
 use super::clay::{BRICK, Clay, CoeffBox, FieldId};
 use super::growth::Growth;
 use crate::dynamics::Constraint;
-use crate::field::{CoarsenPlan, Patch, apply_coarsening};
+use crate::field::{CoarsenPlan, DenseBudgetError, Patch, apply_coarsening, check_dense_room};
 
 /// Default memory bound of the history: 256 MiB.
 pub const DEFAULT_BUDGET_BYTES: usize = 256 << 20;
@@ -281,7 +281,36 @@ pub struct StepRecorder {
 struct SavedBrick {
     region: CoeffBox,
     dims: [usize; 3],
-    bits: Vec<u32>,
+    bits: SavedBits,
+}
+
+/// A touched brick's old bits, x fastest over its region: one word when they were all the
+/// same (empty space, solid inside: what most of a large clay's bricks hold), so that
+/// recording a whole clay costs its dense bricks and a few words per other brick, not its box.
+#[derive(Debug)]
+enum SavedBits {
+    /// Every coefficient held these bits.
+    Same(u32),
+    /// The bits of each coefficient.
+    Each(Vec<u32>),
+}
+
+impl SavedBits {
+    /// The bits of coefficients `n`, … `n + len − 1` of the region, into `out`.
+    fn copy_to(&self, n: usize, out: &mut [u32]) {
+        match self {
+            Self::Same(b) => out.fill(*b),
+            Self::Each(bits) => out.copy_from_slice(&bits[n..n + out.len()]),
+        }
+    }
+
+    /// Every coefficient's bits, `count` of them.
+    fn expanded(&self, count: usize) -> Vec<u32> {
+        match self {
+            Self::Same(b) => vec![*b; count],
+            Self::Each(bits) => bits.clone(),
+        }
+    }
 }
 
 impl StepRecorder {
@@ -325,12 +354,22 @@ impl StepRecorder {
                     let Some(brick) = brick_box([bi, bj, bk]).clipped(dims) else {
                         continue;
                     };
-                    let mut bits = Vec::with_capacity(brick.count());
+                    let mut read = [0_u32; BRICK * BRICK * BRICK];
+                    let mut n = 0;
                     let mut row = [0.0; BRICK];
                     for_each_row(dims, &brick, |start, len| {
                         lattice.coeffs.read_row(start, &mut row[..len]);
-                        bits.extend(row[..len].iter().map(|c| c.to_bits()));
+                        for (b, c) in read[n..n + len].iter_mut().zip(&row[..len]) {
+                            *b = c.to_bits();
+                        }
+                        n += len;
                     });
+                    let read = &read[..n];
+                    let bits = if read.iter().all(|&b| b == read[0]) {
+                        SavedBits::Same(read[0])
+                    } else {
+                        SavedBits::Each(read.to_vec())
+                    };
                     self.old.insert(
                         key,
                         SavedBrick {
@@ -381,8 +420,14 @@ impl StepRecorder {
                 let whole = brick_box(brick)
                     .clipped(growth.new_dims)
                     .expect("a moved brick lies inside the grown lattice");
+                if whole == moved {
+                    saved.region = whole;
+                    saved.dims = growth.new_dims;
+                    return ((field, brick), saved);
+                }
                 let mut bits = Vec::with_capacity(whole.count());
-                let mut old_rows = saved.bits.chunks_exact(moved.dims()[0]);
+                let old_bits = saved.bits.expanded(moved.count());
+                let mut old_rows = old_bits.chunks_exact(moved.dims()[0]);
                 for k in whole.min[2]..=whole.max[2] {
                     for j in whole.min[1]..=whole.max[1] {
                         let kept = (moved.min[1]..=moved.max[1]).contains(&j)
@@ -396,7 +441,7 @@ impl StepRecorder {
                 }
                 saved.region = whole;
                 saved.dims = growth.new_dims;
-                saved.bits = bits;
+                saved.bits = SavedBits::Each(bits);
                 ((field, brick), saved)
             })
             .collect();
@@ -407,9 +452,22 @@ impl StepRecorder {
     /// rewritten coefficients become deltas, and the removed patch is kept whole as the step
     /// found it, so undo puts it back bit for bit. Later patches move down one index, here as
     /// in the clay.
-    pub fn coarsen(&mut self, clay: &mut Clay, plan: &CoarsenPlan) {
+    ///
+    /// # Errors
+    /// [`DenseBudgetError`] when the rewritten box could make more bricks of the coarser patch
+    /// dense than the clay's budget leaves, with the detail patch's own dense bricks freed;
+    /// nothing changes then (the detail patch stays).
+    pub fn coarsen(&mut self, clay: &mut Clay, plan: &CoarsenPlan) -> Result<(), DenseBudgetError> {
         let index = plan.patch;
         let id = FieldId::Density(u16::try_from(index).unwrap_or(u16::MAX));
+        if let Some((region, _)) = &plan.rewrite {
+            let into = FieldId::Density(u16::try_from(plan.into).unwrap_or(u16::MAX));
+            let more = clay.field(into).map_or(0, |l| {
+                l.coeffs.uniform_bricks_holding(region.min, region.max)
+            });
+            let freed = clay.field(id).map_or(0, |l| l.coeffs.dense_brick_count());
+            check_dense_room(clay.dense_brick_count() - freed, more, Some(*region))?;
+        }
         if let Some((region, _)) = &plan.rewrite {
             let into = FieldId::Density(u16::try_from(plan.into).unwrap_or(u16::MAX));
             self.touch(clay, into, *region);
@@ -425,7 +483,8 @@ impl StepRecorder {
             match field {
                 FieldId::Density(n) if usize::from(n) == index => {
                     // The bits as the step found them go back into the patch kept for undo.
-                    let mut bits = saved.bits.chunks_exact(saved.region.dims()[0]);
+                    let old_bits = saved.bits.expanded(saved.region.count());
+                    let mut bits = old_bits.chunks_exact(saved.region.dims()[0]);
                     let mut values = [0.0; BRICK];
                     for_each_row(dims, &saved.region, |start, len| {
                         let row = bits.next().expect("one saved row per region row");
@@ -445,6 +504,7 @@ impl StepRecorder {
         }
         self.old = remapped;
         self.removed.push(RemovedPatch { index, before });
+        Ok(())
     }
 
     /// The union of the touched bricks of `field` (`None` if none).
@@ -476,15 +536,17 @@ impl StepRecorder {
             if lattice.dims != dims {
                 continue;
             }
-            let mut xor = Vec::with_capacity(old.len());
+            let mut xor = Vec::with_capacity(region.count());
             let mut row = [0.0; BRICK];
+            let mut old_row = [0_u32; BRICK];
             for_each_row(dims, &region, |start, len| {
                 let n = xor.len();
                 lattice.coeffs.read_row(start, &mut row[..len]);
+                old.copy_to(n, &mut old_row[..len]);
                 xor.extend(
                     row[..len]
                         .iter()
-                        .zip(&old[n..n + len])
+                        .zip(&old_row[..len])
                         .map(|(c, o)| c.to_bits() ^ o),
                 );
             });
@@ -704,6 +766,45 @@ mod tests {
     }
 
     #[test]
+    fn recording_a_whole_sparse_clay_keeps_one_word_per_uniform_brick_and_undoes_exactly() {
+        // 256 × 256 × 64 coefficients of empty space with solid bricks and a ramp in one.
+        let mut l = BSplineLattice::zeros([256, 256, 64], 0.1, Vec3::ZERO).unwrap();
+        for k in 8..16 {
+            for j in 8..24 {
+                for i in 8..16 {
+                    l.coeffs
+                        .set(i, j, k, if j < 16 { 1.0 } else { 0.1 * (i - 8) as f32 });
+                }
+            }
+        }
+        let mut clay = Clay::single(l);
+        let before = clay.clone();
+        let mut rec = StepRecorder::new("open");
+        rec.touch_all(&clay);
+        let bricks = clay.base().coeffs.brick_count();
+        assert_eq!(rec.old.len(), bricks);
+        let each = rec
+            .old
+            .values()
+            .filter(|saved| matches!(saved.bits, SavedBits::Each(_)))
+            .count();
+        assert_eq!(each, 1, "only the ramp's brick holds different values");
+        // Other values in a solid brick, the ramp's and far away: one step, and undo brings
+        // every bit back.
+        clay.base_mut()
+            .coeffs
+            .write_box([8, 8, 8], [8, 16, 8], &[0.25; 1024]);
+        clay.base_mut().coeffs.set(200, 100, 40, -1.0);
+        let mut history = History::default();
+        assert!(history.commit(rec, &clay));
+        history.undo(&mut clay).unwrap();
+        assert!(clay == before);
+        history.redo(&mut clay).unwrap();
+        assert_eq!(clay.base().coeffs.get(200, 100, 40), -1.0);
+        assert_eq!(clay.base().coeffs.get(10, 20, 10), 0.25);
+    }
+
+    #[test]
     fn a_step_that_folds_a_patch_away_undoes_and_redoes_bit_for_bit_with_the_layout() {
         let mut clay = clay();
         let z = Vec3::new(0.0, 0.0, 0.3);
@@ -743,7 +844,7 @@ mod tests {
             rewrite: Some((region, vec![0.25; region.count()])),
             displacement_fu: 0.0,
         };
-        rec.coarsen(&mut clay, &plan);
+        rec.coarsen(&mut clay, &plan).unwrap();
         assert_eq!(clay.density.patches.len(), 2);
         fill(&mut clay, 1, |i| (i % 4) as f32 * 0.03);
         assert!(history.commit(rec, &clay));

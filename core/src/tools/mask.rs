@@ -20,7 +20,7 @@ use glam::Vec3;
 use super::clay::{Clay, CoeffBox, FieldId};
 use super::freeze_mask::{FreezeMask, MaskError};
 use super::history::StepRecorder;
-use crate::field::BSplineLattice;
+use crate::field::{BSplineLattice, check_dense_room};
 
 /// Whether a mask stroke freezes clay or frees it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -165,6 +165,19 @@ pub fn paint_mask(
         centre_fu - Vec3::splat(brush.radius_fu),
         centre_fu + Vec3::splat(brush.radius_fu),
     );
+    // Before anything is written: the mask's bricks under the brush, on every patch, must
+    // fit the clay's budget.
+    let mut more = 0;
+    let mut reached = None;
+    for (n, patch) in clay.density.patches.iter().enumerate() {
+        let (plo, phi) = patch.patch_box_of(lo, hi);
+        let mask = clay.mask.as_ref().and_then(|m| m.patches.get(n));
+        if let (Some(region), Some(mask)) = (node_box(&patch.lattice, plo, phi), mask) {
+            more += mask.coeffs.uniform_bricks_holding(region.min, region.max);
+            reached = Some(region);
+        }
+    }
+    check_dense_room(clay.dense_brick_count(), more, reached)?;
     for n in 0..clay.density.patches.len() {
         let patch = &clay.density.patches[n];
         let (plo, phi) = patch.patch_box_of(lo, hi);
@@ -256,11 +269,8 @@ fn set_every_hold(
             r.touch(clay, id, CoeffBox::whole(dims));
         }
         if let Some(mask) = clay.mask.as_mut().and_then(|m| m.patches.get_mut(n)) {
-            mask.coeffs.update_each(|_, h| {
-                let new = f(*h).clamp(0.0, 1.0);
-                report.changed += usize::from(new.to_bits() != h.to_bits());
-                *h = new;
-            });
+            // Brick by brick: a uniform brick stays one value (no brick is made dense).
+            report.changed += mask.coeffs.map_values(|h| f(h).clamp(0.0, 1.0));
             mask.coeffs.compact();
         }
     }

@@ -8,7 +8,7 @@ use super::clay::CoeffBox;
 use super::freeze_mask::MaskError;
 use super::projection::EmbossParamsError;
 use super::shape::ShapeError;
-use crate::field::{FitError, LatticeError};
+use crate::field::{DenseBudgetError, FitError, LatticeError};
 
 /// What an application touched.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -69,6 +69,9 @@ pub enum ToolError {
     /// An emboss's parameters are invalid.
     #[error("{0}")]
     Emboss(#[from] EmbossParamsError),
+    /// The edit could make more bricks dense than the clay's budget leaves; nothing changed.
+    #[error("{0}")]
+    DenseBudget(#[from] DenseBudgetError),
 }
 
 impl From<FitError> for ToolError {

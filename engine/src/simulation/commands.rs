@@ -452,6 +452,9 @@ impl SimulationStage {
                 ))
             }
             Err(error) => {
+                if let dynaclay_core::tools::ToolError::DenseBudget(refused) = error {
+                    self.budget_refusal = Some(refused);
+                }
                 // A failed application may have applied earlier poses: publish the patch.
                 self.mark_all_changed();
                 Err(CommandError::Tool {
@@ -465,7 +468,7 @@ impl SimulationStage {
     /// Adds a detail patch (see [`Command::Refine`]) and hands the new layout to the readers;
     /// returns what was added (without a "refine" prefix: the caller names the command).
     fn refine(&mut self, lo: Vec3, hi: Vec3, level: u32) -> Result<String, CommandError> {
-        let n = self.clay.density.refine(lo, hi, level)?;
+        let n = self.clay.refine(lo, hi, level)?;
         self.pending.push(None);
         self.publish_layout();
         let l = &self.clay.density.patches[n].lattice;

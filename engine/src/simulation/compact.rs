@@ -92,6 +92,13 @@ impl SimulationStage {
         if base.dims != lattice.dims || base.coeffs.len() != lattice.coeffs.len() {
             return false;
         }
+        // The new base must fit the clay's dense-brick budget in place of the old one.
+        let dense = self.clay.dense_brick_count() - base.coeffs.dense_brick_count();
+        let more = lattice.coeffs.dense_brick_count();
+        if let Err(refused) = dynaclay_core::field::check_dense_room(dense, more, None) {
+            self.refuse_for_budget(refused);
+            return false;
+        }
         let mut rec = StepRecorder::new("rbf re-interpolation");
         rec.touch(&self.clay, density_id(0), CoeffBox::whole(base.dims));
         self.clay.density.patches[0]

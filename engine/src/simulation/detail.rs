@@ -14,7 +14,7 @@
 //! spans to spare. Each automatic patch is that box and [`AUTO_DETAIL_ROOM_WIDTHS`] brush
 //! widths around it (at least [`AUTO_DETAIL_MIN_ROOM_SPANS`] of its own spans), so a stroke
 //! that moves on adds a patch each time it leaves the last one; the clay's patch and coefficient budgets
-//! bound them ([`dynaclay_core::field::MAX_PATCHES`], [`dynaclay_core::field::MAX_CLAY_COEFFS`]):
+//! bound them ([`dynaclay_core::field::MAX_PATCHES`], [`dynaclay_core::field::MAX_CLAY_BOX_COEFFS`]):
 //! past them the brush sculpts on the finest patch there is.
 //!
 //! Detail goes away the same way: when a step ends (a stroke let go, a tool command, a
@@ -236,7 +236,7 @@ impl SimulationStage {
         let room =
             (AUTO_DETAIL_ROOM_WIDTHS * width_fu).max(AUTO_DETAIL_MIN_ROOM_SPANS * spacing_fu);
         let room = Vec3::splat(room);
-        match self.clay.density.refine(lo - room, hi + room, level) {
+        match self.clay.refine(lo - room, hi + room, level) {
             Ok(n) => {
                 self.pending.push(None);
                 self.clay_revision += 1;
@@ -272,8 +272,10 @@ impl SimulationStage {
                 continue;
             }
             let plan = plan_coarsening_remembering(&self.clay.density, n, &mut self.refused_folds);
-            if let Ok(Some(plan)) = plan {
-                rec.coarsen(&mut self.clay, &plan);
+            // A fold past the clay's dense-brick budget is not made (the detail stays).
+            if let Ok(Some(plan)) = plan
+                && rec.coarsen(&mut self.clay, &plan).is_ok()
+            {
                 folded += 1;
             }
         }

@@ -9,7 +9,7 @@
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
-use dynaclay_core::tools::{BRICK, GeometricTool, padding_to_cover};
+use dynaclay_core::tools::{BRICK, GeometricTool, GrowthError, padding_to_cover};
 
 impl SimulationStage {
     /// Grows the base patch so that the world box `lo..=hi` lies well inside it; returns
@@ -39,6 +39,10 @@ impl SimulationStage {
         self.retire_region();
         let growth = match self.clay.grow(pad) {
             Ok(growth) => growth,
+            Err(GrowthError::DenseBudget(refused)) => {
+                self.refuse_for_budget(refused);
+                return false;
+            }
             Err(_) => {
                 self.counters.command_errors(1);
                 return false;
@@ -99,6 +103,8 @@ impl SimulationStage {
             sender.offer(&self.clay.density, self.layout_generation);
         }
         self.pending = vec![None; self.clay.density.patches.len()];
+        self.reader_reach = vec![None; self.clay.density.patches.len()];
+        self.reader_dense_at_layout = self.clay.density.dense_brick_count();
         self.changed_since_publish = true;
     }
 }
@@ -121,6 +127,54 @@ mod tests {
             },
             falloff_fu: 0.1,
         }
+    }
+
+    /// The process's peak resident set, bytes (`VmHWM` of `/proc/self/status`; 0 where it
+    /// cannot be read).
+    fn peak_rss_bytes() -> u64 {
+        std::fs::read_to_string("/proc/self/status")
+            .ok()
+            .and_then(|status| {
+                let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+                let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+                Some(kib * 1024)
+            })
+            .unwrap_or(0)
+    }
+
+    /// A figure for `bench/RESULTS.md`: a sphere clay grown by 400 knot spans on every side
+    /// (828³ coefficients of box, past the old wall of 64 Mi) in every loop, with its dense
+    /// bricks, its directory and the process's peak memory (no timing).
+    #[test]
+    #[ignore = "a figure for bench/RESULTS.md (a clay of 828³ coefficients of box)"]
+    fn figure_a_clay_grown_past_the_old_box_wall_costs_its_surface() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        for _ in 0..3 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        let rss_before = peak_rss_bytes();
+        let l = s.sim.lattice().clone();
+        let reach = Vec3::splat(400.0 * l.spacing);
+        let (lo, hi) = l.support();
+        assert!(s.sim.make_room(lo - reach, hi + reach));
+        for _ in 0..3 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        let dims = s.sim.lattice().dims;
+        assert_eq!(s.haptic.field().base().dims, dims);
+        assert_eq!(s.graphics.field().base().dims, dims);
+        let coefficients: usize = dims.iter().product();
+        assert!(coefficients > 64 << 20, "{dims:?}");
+        eprintln!(
+            "grown to {dims:?} ({coefficients} coefficients of box): {} dense bricks, \
+             directory {} B, peak RSS {:.1} MB before, {:.1} MB after three ticks of every loop",
+            s.sim.clay.dense_brick_count(),
+            s.sim.clay.base().coeffs.heap_bytes()
+                - s.sim.clay.base().coeffs.dense_brick_count()
+                    * dynaclay_core::field::DENSE_BRICK_BYTES,
+            rss_before as f64 / 1e6,
+            peak_rss_bytes() as f64 / 1e6,
+        );
     }
 
     fn tick(s: &mut Stages, sample: &ToolSample) {

@@ -184,5 +184,11 @@ pub fn check_loadable(
         }
         offset += coeffs.len();
     }
-    Ok(())
+    session
+        .clay
+        .check_dense_budget()
+        .map_err(|error| LoadRefused::DenseBudget {
+            file: file(),
+            error,
+        })
 }
