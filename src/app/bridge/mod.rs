@@ -182,6 +182,7 @@ pub fn start_bridge(
         connected: true,
         repaint,
         shown: None,
+        refusal_shown: None,
         opener,
         tool_radius: PushTool::default().radius_fu,
         compact_particles: None,
@@ -270,6 +271,9 @@ struct Bridge {
     repaint: RepaintSignal,
     /// The view the app was last woken for (`None`: never).
     shown: Option<EngineView>,
+    /// The simulation's newest refused edit as last shown in the log (see
+    /// [`budget_refusal_event`]).
+    refusal_shown: Option<crate::field::DenseBudgetError>,
     opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
@@ -425,6 +429,9 @@ impl Bridge {
             return;
         };
         self.poll_pins(status.pins_revision);
+        if let Some(event) = budget_refusal_event(&mut self.refusal_shown, status.budget_refusal) {
+            let _ = self.events.send(event);
+        }
         let engine = self.engine_mut();
         let tool = engine.latest_tool();
         let counters = engine.counters().snapshot();
@@ -491,4 +498,21 @@ impl Bridge {
             self.repaint.request();
         }
     }
+}
+
+/// The log line for an edit the simulation refused for the clay's dense-brick budget (a stroke
+/// of the hand, which has no reply to carry it): the status holds the newest refusal, so one
+/// line is shown each time it differs from the one `shown` last.
+fn budget_refusal_event(
+    shown: &mut Option<crate::field::DenseBudgetError>,
+    now: Option<crate::field::DenseBudgetError>,
+) -> Option<EngineEvent> {
+    if now == *shown {
+        return None;
+    }
+    *shown = now;
+    now.map(|refused| EngineEvent::Failed {
+        what: "edit".into(),
+        error: refused.to_string(),
+    })
 }

@@ -852,3 +852,29 @@ fn sink_tints_the_bricks_the_mask_covers() {
     let cleared = link.meshes().value.clone();
     assert!(cleared.iter().all(|c| c.colors.is_empty()), "tint cleared");
 }
+
+#[test]
+fn a_refused_edit_is_shown_once_and_a_new_refusal_again() {
+    use crate::field::DenseBudgetError;
+    let first = DenseBudgetError {
+        dense: 10,
+        more: 5,
+        at: None,
+    };
+    let second = DenseBudgetError { more: 6, ..first };
+    let mut shown = None;
+    assert!(budget_refusal_event(&mut shown, None).is_none());
+    let Some(EngineEvent::Failed { what, error }) = budget_refusal_event(&mut shown, Some(first))
+    else {
+        panic!("a refusal is shown");
+    };
+    assert_eq!(what, "edit");
+    assert!(error.contains("refused and nothing changed"), "{error}");
+    assert!(
+        budget_refusal_event(&mut shown, Some(first)).is_none(),
+        "the same refusal, published with every status, is shown once"
+    );
+    assert!(budget_refusal_event(&mut shown, Some(second)).is_some());
+    assert!(budget_refusal_event(&mut shown, None).is_none());
+    assert_eq!(shown, None);
+}
