@@ -242,19 +242,21 @@ mod tests {
 
     use super::*;
 
+    /// `steps` haptic ticks, each followed by a simulation step with the tool idle.
+    fn haptic_and_sim(s: &mut super::super::super::Stages, steps: usize) {
+        for _ in 0..steps {
+            s.haptic.tick(Instant::now());
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+        }
+    }
+
     /// Changes past what one publication carries (every coefficient of a clay grown past
     /// [`MAX_UPDATE_COEFFS`]) reach the haptic loop as a copy of the clay; no snapshot buffer
     /// grows past the cap, and the loop ends with the simulation's clay.
     #[test]
     fn changes_past_the_update_cap_reach_the_loops_as_a_copy_and_no_buffer_grows() {
         let mut s = super::super::tests::stages_on_sphere(12);
-        let haptic_and_sim = |s: &mut super::super::super::Stages, steps: usize| {
-            for _ in 0..steps {
-                s.haptic.tick(Instant::now());
-                s.sim.apply_commands();
-                s.sim.step(&ToolSample::IDLE);
-            }
-        };
         haptic_and_sim(&mut s, 2);
         // Grow the base to 268 × 140 × 140 coefficients (5.25 Mi), as a stroke far out would.
         s.sim.retire_region();
@@ -290,13 +292,6 @@ mod tests {
     #[test]
     fn readers_get_a_fresh_copy_before_their_bricks_could_pass_the_budget() {
         let mut s = super::super::tests::stages_on_sphere(12);
-        let haptic_and_sim = |s: &mut super::super::super::Stages, steps: usize| {
-            for _ in 0..steps {
-                s.haptic.tick(Instant::now());
-                s.sim.apply_commands();
-                s.sim.step(&ToolSample::IDLE);
-            }
-        };
         haptic_and_sim(&mut s, 2);
         let copies = s.counters.snapshot().updates_as_copies;
         let change = CoeffBox {
