@@ -374,16 +374,26 @@ impl BrickedCoeffs {
     /// per [`COEFF_BRICK_VALUES`] coefficients of its box even where it is empty space.
     pub const DIRECTORY_BYTES_PER_BRICK: usize = size_of::<Brick>();
 
+    /// The first and last brick (per axis, inclusive) that hold a coefficient of the box
+    /// `min..=max` clipped to the store, as owner or in their apron; `None` when the box holds
+    /// no coefficient of the store.
+    fn bricks_holding(&self, min: [usize; 3], max: [usize; 3]) -> Option<([usize; 3], [usize; 3])> {
+        if self.is_empty() || (0..3).any(|a| min[a] > max[a] || min[a] >= self.dims[a]) {
+            return None;
+        }
+        let first = min.map(lowest_holder);
+        let last = std::array::from_fn(|a| max[a].min(self.dims[a] - 1) >> SHIFT);
+        Some((first, last))
+    }
+
     /// How many uniform bricks hold a coefficient of the box `min..=max` (clipped to the
     /// store), as owner or in their apron: the most bricks a write inside that box can make
     /// dense. Reads one directory entry per brick the box reaches; allocates nothing.
     #[must_use]
     pub fn uniform_bricks_holding(&self, min: [usize; 3], max: [usize; 3]) -> usize {
-        if self.is_empty() || (0..3).any(|a| min[a] > max[a] || min[a] >= self.dims[a]) {
+        let Some((first, last)) = self.bricks_holding(min, max) else {
             return 0;
-        }
-        let first = min.map(lowest_holder);
-        let last: [usize; 3] = std::array::from_fn(|a| max[a].min(self.dims[a] - 1) >> SHIFT);
+        };
         let [bx, by, _] = self.bricks_per_axis;
         let mut uniform = 0;
         for bk in first[2]..=last[2] {
@@ -1075,11 +1085,9 @@ impl BrickedCoeffs {
     /// [`BrickedCoeffs::compact`] for the bricks that hold a coefficient of the box
     /// `min..=max` (clipped to the store), as owner or in their apron: where an edit settled.
     pub fn compact_within(&mut self, min: [usize; 3], max: [usize; 3]) -> usize {
-        if self.is_empty() || (0..3).any(|a| min[a] > max[a] || min[a] >= self.dims[a]) {
+        let Some((first, last)) = self.bricks_holding(min, max) else {
             return 0;
-        }
-        let first = min.map(lowest_holder);
-        let last: [usize; 3] = std::array::from_fn(|a| max[a].min(self.dims[a] - 1) >> SHIFT);
+        };
         let [bx, by, _] = self.bricks_per_axis;
         let mut freed = 0;
         for bk in first[2]..=last[2] {
