@@ -55,7 +55,8 @@ use crate::fit::{
 };
 use crate::io::{Autosave, AutosavePolicy, Session, load_session, save_session};
 use crate::mesh::{
-    BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, weld_pieces, write_mesh,
+    BrickOctree, ExportError, MeshFormat, RefreshReport, WeldPiece, split_non_manifold,
+    weld_pieces, write_mesh,
 };
 use crate::particles::ParticleFollower;
 use crate::pointset::{FollowedPoints, PointSet, PointSetFollower, PointSetOptions};

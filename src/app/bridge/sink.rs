@@ -157,9 +157,12 @@ pub enum ChunkExportError {
 }
 
 /// Welds the chunks with the mesher's own welding ([`weld_pieces`]: vertices on shared brick
-/// faces are merged by edge id) and writes them in the format named by `path`'s extension;
-/// returns the triangle count. Chunks are welded in id order, so the same set always writes
-/// the same file.
+/// faces are merged by edge id), cuts the sheets that share an edge apart
+/// ([`split_non_manifold`]: a clay with detail patches is drawn by dual contouring, whose
+/// one vertex per leaf joins two sheets through an ambiguous leaf face with an edge of four
+/// triangles) and writes them in the format named by `path`'s extension; returns the triangle
+/// count. So the window's export is closed, oriented and edge-manifold, as a run's is.
+/// Chunks are welded in id order, so the same set always writes the same file.
 ///
 /// # Errors
 /// An unknown extension, an inconsistent chunk or the writer's error, naming the path.
@@ -193,7 +196,8 @@ pub fn export_chunks(set: &MeshSet, path: &Path) -> Result<usize, ChunkExportErr
             indices: &c.indices,
         })
         .collect();
-    let mesh = weld_pieces(&pieces);
+    let mut mesh = weld_pieces(&pieces);
+    split_non_manifold(&mut mesh);
     write_mesh(path, &mesh, format)?;
     Ok(mesh.triangles.len())
 }

@@ -724,6 +724,67 @@ fn sink_publishes_bricks_and_export_welds_them_closed() {
     ));
 }
 
+/// A sphere clay with a rippled detail patch over half of it, meshed by the multi-level
+/// mesher into the window's bricks, as the graphics loop draws a clay with detail: the
+/// ripple's saddles leave leaf faces whose corners alternate in sign, and there dual
+/// contouring's one vertex per leaf joins two sheets with an edge of four triangles. The
+/// window's export cuts them apart: closed, oriented and edge-manifold, with the same
+/// triangles, area and volume as the bricks drawn.
+#[test]
+fn export_of_a_clay_with_detail_cuts_sheets_sharing_an_edge_apart() {
+    use crate::mesh::{AdaptiveBricks, TriMesh};
+    let base = build_clay(&ClaySpec {
+        shape: ClayShape::Sphere,
+        resolution: 16,
+        ..ClaySpec::default()
+    })
+    .unwrap();
+    let plain = base.clone();
+    let mut field = MultiPatchField::new(base);
+    let d = field
+        .refine(Vec3::splat(0.2), Vec3::new(1.3, 1.3, 0.8), 2)
+        .unwrap();
+    let ripple = move |x: Vec3| {
+        plain.value_and_gradient(x).0 + RIPPLE * (40.0 * x.x).sin() * (40.0 * x.y).sin()
+    };
+    const RIPPLE: f32 = 0.12;
+    field.fit_detail(d, 2, ripple).unwrap();
+    let grid = SampleGrid::for_field(&field, 2).unwrap();
+    let mut octree = BrickOctree::new(grid);
+    let options = crate::engine::level_mesh_options(2);
+    let (_levels, report) = AdaptiveBricks::new(&field, &options, &mut octree).unwrap();
+
+    let (mut link, end) = super::super::link::engine_link();
+    let (exports, _exported) = snapshot_channel(&MeshSet::new());
+    let mut sink = GuiMeshSink::new(end.meshes, end.field, exports, end.repaint);
+    sink.update(&octree, &report);
+    let published = link.meshes().value.clone();
+    let drawn = MeshStats::of(&octree.weld());
+    println!("drawn: {drawn:?}");
+    assert!(drawn.non_manifold_edges > 0, "{drawn:?}");
+    assert_eq!(drawn.boundary_edges, 0, "{drawn:?}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rippled.obj");
+    let n = export_chunks(&published, &path).unwrap();
+    let (positions, triangles) = crate::fit::mesh::read_mesh(&path).unwrap();
+    let exported = MeshStats::of(&TriMesh {
+        normals: vec![Vec3::Z; positions.len()],
+        positions,
+        triangles,
+    });
+    println!("exported: {exported:?}");
+    assert_eq!(n, drawn.triangles);
+    assert_eq!(exported.triangles, drawn.triangles);
+    assert_eq!(exported.non_manifold_edges, 0, "{exported:?}");
+    assert_eq!(exported.boundary_edges, 0, "{exported:?}");
+    assert_eq!(exported.misoriented_edges, 0, "{exported:?}");
+    assert!(exported.vertices > drawn.vertices, "{exported:?}");
+    // Nothing moved (the file holds the positions to its printed digits).
+    assert!((exported.area - drawn.area).abs() <= 1e-4 * drawn.area);
+    assert!((exported.volume - drawn.volume).abs() <= 1e-4 * drawn.volume);
+}
+
 /// Paint reaches the chunks: painting the low-x half red recolours (and re-versions)
 /// exactly the bricks it covers; clearing the paint takes the colour off again.
 #[test]
