@@ -10,7 +10,7 @@ use glam::{Affine3A, Vec3};
 #[path = "support/cli.rs"]
 mod cli;
 
-use cli::{dynaclay, save_clay, stderr, zero_clay};
+use cli::{dynaclay, refused, save_clay, stderr, zero_clay};
 
 /// A script of the default block with `count` copies of `step` (TOML keys after `do`).
 fn script_of(dir: &Path, step: &str, count: usize) {
@@ -174,4 +174,78 @@ fn an_import_asking_for_endless_detail_stays_within_the_patch_budget_and_says_so
     let patches = session.clay.density.patches.len();
     println!("{patches} patches");
     assert!(patches <= MAX_PATCHES && patches > 100, "{patches}");
+}
+
+/// A script's `add` far past the clay: growth is symmetric about the lattice's centre, so a
+/// lump 90 field units out on every axis asks for a base of about 1 800³ coefficients, past
+/// the box budget of 1 Gi. The step fails naming the script, the step and the budget; the run
+/// still writes the sculpt, with the clay in its box (the lump clipped away), and a lump 30
+/// out on one axis grows the clay as before.
+#[test]
+fn a_tool_step_past_the_box_budget_fails_naming_it_and_the_sculpt_is_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = |at: &str| {
+        format!(
+            "version = 1\nseconds = 0.3\n\n[clay]\nshape = \"sphere\"\nresolution = 24\n\n\
+             [[step]]\ndo = \"tool\"\nshape = {{ kind = \"sphere\", radius_fu = 0.3 }}\n\
+             action = {{ kind = \"add\", deposit_rate_per_s = 4.0 }}\npositions = [{at}]\n\
+             duration_s = 0.2\n"
+        )
+    };
+    std::fs::write(dir.path().join("far.toml"), script("[90.0, 90.0, 90.0]")).unwrap();
+    let out = dynaclay(
+        dir.path(),
+        &[
+            "run",
+            "--script",
+            "far.toml",
+            "--lockstep",
+            "--no-rt",
+            "--out",
+            "far",
+        ],
+    );
+    let err = refused(
+        &out,
+        &[
+            "far.toml",
+            "step 1",
+            "clipped to the clay's box",
+            "1073741824",
+        ],
+    );
+    assert!(err.contains("growing the clay to [1800, 1800, 1800]"), "{err}");
+    let sculpt =
+        std::fs::read_to_string(dir.path().join("far/sculpt.obj")).expect("the sculpt is written");
+    let max_x = sculpt
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .filter_map(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+        .fold(f32::MIN, f32::max);
+    assert!(
+        max_x > 1.0 && max_x < 2.4,
+        "the clay stays in its box: {max_x}"
+    );
+
+    std::fs::write(dir.path().join("near.toml"), script("[30.0, 1.15, 1.15]")).unwrap();
+    let out = dynaclay(
+        dir.path(),
+        &[
+            "run",
+            "--script",
+            "near.toml",
+            "--lockstep",
+            "--no-rt",
+            "--out",
+            "near",
+        ],
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let sculpt = std::fs::read_to_string(dir.path().join("near/sculpt.obj")).unwrap();
+    let max_x = sculpt
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .filter_map(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+        .fold(f32::MIN, f32::max);
+    assert!(max_x > 30.0, "the lump 30 out is there: {max_x}");
 }

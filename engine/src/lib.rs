@@ -71,7 +71,7 @@ pub use plan::{
 pub use removal_guard::{MOST_REMOVED_UNASKED, RemovalGuard, RemovalQuestion, StrokeRemoval};
 pub use replay::ScheduledReplay;
 pub use script_driver::ScriptDriver;
-pub use sim_status::SimStatus;
+pub use sim_status::{BudgetRefusal, SimStatus};
 pub use simulation::{
     Acks, IoJob, SaveJob, SimConfig, SimOutcome, SimulationStage, check_loadable,
 };

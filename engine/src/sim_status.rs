@@ -9,7 +9,7 @@
 use glam::Vec3;
 
 use dynaclay_core::dynamics::Material;
-use dynaclay_core::field::DenseBudgetError;
+use dynaclay_core::field::{DenseBudgetError, MAX_CLAY_BOX_COEFFS};
 
 /// The simulation's state as observers see it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -39,7 +39,30 @@ pub struct SimStatus {
     pub removal_question: Option<super::RemovalQuestion>,
     /// Dense bricks the clay holds, of [`dynaclay_core::field::MAX_DENSE_BRICKS`].
     pub dense_bricks: usize,
-    /// The newest edit (a stroke, a tool command, a simulated region) refused because it
-    /// could pass the clay's dense-brick budget: what and where. The clay was left as it was.
-    pub budget_refusal: Option<DenseBudgetError>,
+    /// The newest edit (a stroke, a tool command, a simulated region) that one of the clay's
+    /// budgets refused or clipped: what and where.
+    pub budget_refusal: Option<BudgetRefusal>,
+}
+
+/// An edit the clay's budgets stopped, as observers are told of it (plain `Copy` data, so
+/// that the status stays allocation-free to publish).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum BudgetRefusal {
+    /// The edit could have made more bricks dense than the clay may hold; the clay was left
+    /// as it was.
+    #[error("{0}")]
+    DenseBricks(#[from] DenseBudgetError),
+    /// The edit reached past the clay's box, and growing the base to take it would have made
+    /// the clay span more than [`MAX_CLAY_BOX_COEFFS`] coefficients of box: the edit was
+    /// clipped to the box (growth is symmetric about the lattice's centre, so the box's sides
+    /// grow in pairs).
+    #[error(
+        "the clay could not grow to take the edit: a base of {dims:?} coefficients would make {total} coefficients of box in all, more than {MAX_CLAY_BOX_COEFFS}; the edit was clipped to the clay's box"
+    )]
+    ClayBox {
+        /// The grown base's dimensions the edit needed (saturated when they overflow).
+        dims: [usize; 3],
+        /// Coefficients of box the grown clay would span, every lattice together.
+        total: usize,
+    },
 }

@@ -307,9 +307,9 @@ pub struct SimulationStage {
     changed_since_publish: bool,
     /// The folds of detail patches found refused, by their inputs (see `detail.rs`).
     refused_folds: RefusedFolds,
-    /// The newest edit refused for the clay's dense-brick budget (published in
+    /// The newest edit refused or clipped for one of the clay's budgets (published in
     /// [`SimStatus::budget_refusal`]).
-    budget_refusal: Option<DenseBudgetError>,
+    budget_refusal: Option<crate::BudgetRefusal>,
 }
 
 /// The [`FieldId`] of density patch `patch` (the engine's clays hold at most `u16::MAX + 1`
@@ -790,7 +790,7 @@ impl SimulationStage {
     /// budget (the clay is unchanged; [`SimStatus::budget_refusal`] says what and where).
     pub(super) fn refuse_for_budget(&mut self, refused: DenseBudgetError) {
         self.counters.command_errors(1);
-        self.budget_refusal = Some(refused);
+        self.budget_refusal = Some(refused.into());
     }
 
     /// The patch a region at `x` simulates: the finest patch in world coordinates whose

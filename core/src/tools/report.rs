@@ -6,6 +6,7 @@ use glam::Vec3;
 use super::action::ActionError;
 use super::clay::CoeffBox;
 use super::freeze_mask::MaskError;
+use super::growth::GrowthError;
 use super::projection::EmbossParamsError;
 use super::shape::ShapeError;
 use crate::field::{DenseBudgetError, FitError, LatticeError};
@@ -72,6 +73,10 @@ pub enum ToolError {
     /// The edit could make more bricks dense than the clay's budget leaves; nothing changed.
     #[error("{0}")]
     DenseBudget(#[from] DenseBudgetError),
+    /// The edit reached past the clay's box and the clay could not grow to take it (its box
+    /// budget, [`crate::field::MAX_CLAY_BOX_COEFFS`]): it was applied clipped to the box.
+    #[error("{0}")]
+    Growth(GrowthError),
 }
 
 impl From<FitError> for ToolError {

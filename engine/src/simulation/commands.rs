@@ -134,7 +134,9 @@ impl SimulationStage {
                 } else {
                     0.0
                 };
-                self.make_room_for_tool(&tool, &poses, patch);
+                // Past the box budget the tool is applied clipped to the box, and the step
+                // answers with why.
+                let growth = self.make_room_for_tool(&tool, &poses, patch);
                 // A script's tool on the base (the default) gets the detail its brush needs; a
                 // smoothing over detail smooths every patch under it.
                 let (patches, own_term) = match (patch, self.patches_smoothed(&tool, &poses)) {
@@ -171,7 +173,10 @@ impl SimulationStage {
                         (Some(Err(_)), Err(_)) => {}
                     }
                 }
-                let result = result.unwrap_or_else(|| Ok(ToolReport::default()));
+                let result = match (result.unwrap_or_else(|| Ok(ToolReport::default())), growth) {
+                    (Ok(_), Err(refused)) => Err(ToolError::Growth(refused)),
+                    (result, _) => result,
+                };
                 self.colour_dirty |= tool.action.paints();
                 // Whatever was applied before a failure stays undoable.
                 let changed = self.commit(rec);
@@ -452,8 +457,19 @@ impl SimulationStage {
                 ))
             }
             Err(error) => {
-                if let dynaclay_core::tools::ToolError::DenseBudget(refused) = error {
-                    self.budget_refusal = Some(refused);
+                match &error {
+                    dynaclay_core::tools::ToolError::DenseBudget(refused) => {
+                        self.budget_refusal = Some((*refused).into());
+                    }
+                    dynaclay_core::tools::ToolError::Growth(
+                        dynaclay_core::tools::GrowthError::ClayTooLarge { dims, total },
+                    ) => {
+                        self.budget_refusal = Some(crate::BudgetRefusal::ClayBox {
+                            dims: *dims,
+                            total: *total,
+                        });
+                    }
+                    _ => {}
                 }
                 // A failed application may have applied earlier poses: publish the patch.
                 self.mark_all_changed();

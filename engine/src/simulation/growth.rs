@@ -9,19 +9,26 @@
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
+use crate::BudgetRefusal;
 use dynaclay_core::tools::{BRICK, GeometricTool, GrowthError, padding_to_cover};
 
 impl SimulationStage {
     /// Grows the base patch so that the world box `lo..=hi` lies well inside it; returns
-    /// whether it grew. A box past the clay's coefficient budget leaves the clay as it is (the
-    /// edit is clipped, as before) and counts a command error.
+    /// whether it grew. A box past one of the clay's budgets leaves the clay as it is (the
+    /// edit is clipped to the box), counts a command error and publishes why
+    /// ([`SimStatus::budget_refusal`]); [`Self::try_make_room`] also returns it.
     pub(super) fn make_room(&mut self, lo: Vec3, hi: Vec3) -> bool {
+        self.try_make_room(lo, hi).unwrap_or(false)
+    }
+
+    /// [`Self::make_room`], with the growth refused (and published) as the error.
+    pub(super) fn try_make_room(&mut self, lo: Vec3, hi: Vec3) -> Result<bool, GrowthError> {
         let pad = match padding_to_cover(self.clay.base(), lo, hi) {
             Ok(Some(pad)) => pad,
-            Ok(None) => return false,
-            Err(_) => {
+            Ok(None) => return Ok(false),
+            Err(refused) => {
                 self.counters.command_errors(1);
-                return false;
+                return Err(refused);
             }
         };
         // Whole bricks at a time, and at least an eighth of the clay per side: a pull that
@@ -39,13 +46,16 @@ impl SimulationStage {
         self.retire_region();
         let growth = match self.clay.grow(pad) {
             Ok(growth) => growth,
-            Err(GrowthError::DenseBudget(refused)) => {
-                self.refuse_for_budget(refused);
-                return false;
-            }
-            Err(_) => {
-                self.counters.command_errors(1);
-                return false;
+            Err(refused) => {
+                match refused {
+                    GrowthError::DenseBudget(dense) => self.refuse_for_budget(dense),
+                    GrowthError::ClayTooLarge { dims, total } => {
+                        self.counters.command_errors(1);
+                        self.budget_refusal = Some(BudgetRefusal::ClayBox { dims, total });
+                    }
+                    _ => self.counters.command_errors(1),
+                }
+                return Err(refused);
             }
         };
         self.history.regrid(&growth);
@@ -65,19 +75,19 @@ impl SimulationStage {
         self.clay_revision += 1;
         self.counters.clay_growths(1);
         self.publish_layout();
-        true
+        Ok(true)
     }
 
-    /// [`Self::make_room`] for a geometric tool applied at `poses` on density patch `patch`:
-    /// only a tool that can add clay, on the base, grows it.
+    /// [`Self::try_make_room`] for a geometric tool applied at `poses` on density patch
+    /// `patch`: only a tool that can add clay, on the base, grows it.
     pub(super) fn make_room_for_tool(
         &mut self,
         tool: &GeometricTool,
         poses: &[ToolPose],
         patch: u16,
-    ) -> bool {
+    ) -> Result<bool, GrowthError> {
         if patch != 0 || !tool.action.can_add_clay() || poses.is_empty() {
-            return false;
+            return Ok(false);
         }
         let spacing = self.clay.base().spacing;
         let (lo, hi) = poses
@@ -85,7 +95,7 @@ impl SimulationStage {
             .map(|pose| tool.influence_box(pose, spacing))
             .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)))
             .expect("poses is not empty");
-        self.make_room(lo, hi)
+        self.try_make_room(lo, hi)
     }
 
     /// Hands the clay's current patch layout to the haptic and graphics loops.
@@ -116,6 +126,7 @@ mod tests {
     use super::super::super::Stages;
     use super::*;
     use dynaclay_core::dynamics::Distribution;
+    use dynaclay_core::field::MAX_CLAY_BOX_COEFFS;
     use dynaclay_core::mesh::{BrickOctree, SampleGrid};
     use dynaclay_core::tools::{ForceTool, GeometricTool, ToolShape};
 
@@ -258,6 +269,54 @@ mod tests {
         s.commands.send(Command::Redo).unwrap();
         tick(&mut s, &ToolSample::IDLE);
         assert_eq!(s.sim.lattice(), &grown);
+    }
+
+    /// A lump so far out that the grown clay would pass the box budget (growth is symmetric,
+    /// so 10 000 spans out on every axis asks for over 20 000³ coefficients): the clay keeps
+    /// its box, the tool is applied clipped to it, and the answer and the status say why.
+    #[test]
+    fn a_lump_past_the_box_budget_is_clipped_and_says_why() {
+        let mut s = super::super::tests::stages_on_sphere(12);
+        let old = s.sim.lattice().clone();
+        let at = old.origin + Vec3::splat(10_000.0 * old.spacing);
+        let (tx, rx) = crossbeam::channel::bounded(1);
+        s.commands
+            .send(Command::ApplyTool {
+                tool: add_ball(0.3),
+                poses: vec![ToolPose::at(at)],
+                duration_s: 1.0,
+                patch: 0,
+                reply: Some(tx),
+            })
+            .unwrap();
+        for _ in 0..2 {
+            tick(&mut s, &ToolSample::IDLE);
+        }
+        let error = rx.try_recv().unwrap().unwrap_err().to_string();
+        assert!(error.contains("clipped to the clay's box"), "{error}");
+        assert!(error.contains(&MAX_CLAY_BOX_COEFFS.to_string()), "{error}");
+        assert_eq!(s.sim.lattice().dims, old.dims, "no growth");
+        assert_eq!(s.counters.snapshot().clay_growths, 0);
+        assert!(matches!(
+            s.sim.budget_refusal,
+            Some(BudgetRefusal::ClayBox { total, .. }) if total > MAX_CLAY_BOX_COEFFS
+        ));
+        // A lump just past the box still grows the clay.
+        let last = old.node_position(11, 11, 11);
+        let near = Vec3::new(last.x + 0.15, (old.origin.y + last.y) * 0.5, last.z * 0.5);
+        let (tx, rx) = crossbeam::channel::bounded(1);
+        s.commands
+            .send(Command::ApplyTool {
+                tool: add_ball(0.3),
+                poses: vec![ToolPose::at(near)],
+                duration_s: 1.0,
+                patch: 0,
+                reply: Some(tx),
+            })
+            .unwrap();
+        tick(&mut s, &ToolSample::IDLE);
+        rx.try_recv().unwrap().unwrap();
+        assert_eq!(s.counters.snapshot().clay_growths, 1);
     }
 
     /// Both readers end with the simulation's clay, value for value, when new layouts (a

@@ -343,7 +343,7 @@ mod tests {
         s.sim.refuse_for_budget(refused);
         s.sim.publish();
         let published = status.latest().value;
-        assert_eq!(published.budget_refusal, Some(refused));
+        assert_eq!(published.budget_refusal, Some(refused.into()));
         assert_eq!(published.dense_bricks, s.sim.clay.dense_brick_count());
         assert!(published.dense_bricks > 0);
         assert_eq!(s.counters.snapshot().command_errors, 1);

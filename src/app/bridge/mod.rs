@@ -274,7 +274,7 @@ struct Bridge {
     shown: Option<EngineView>,
     /// The simulation's newest refused edit as last shown in the log (see
     /// [`budget_refusal_event`]).
-    refusal_shown: Option<crate::field::DenseBudgetError>,
+    refusal_shown: Option<crate::engine::BudgetRefusal>,
     opener: DeviceOpener,
     tool_radius: f32,
     saves: Vec<Receiver<Result<std::path::PathBuf, crate::engine::SaveError>>>,
@@ -501,12 +501,12 @@ impl Bridge {
     }
 }
 
-/// The log line for an edit the simulation refused for the clay's dense-brick budget (a stroke
-/// of the hand, which has no reply to carry it): the status holds the newest refusal, so one
-/// line is shown each time it differs from the one `shown` last.
+/// The log line for an edit the simulation refused or clipped for one of the clay's budgets (a
+/// stroke of the hand, which has no reply to carry it): the status holds the newest refusal, so
+/// one line is shown each time it differs from the one `shown` last.
 fn budget_refusal_event(
-    shown: &mut Option<crate::field::DenseBudgetError>,
-    now: Option<crate::field::DenseBudgetError>,
+    shown: &mut Option<crate::engine::BudgetRefusal>,
+    now: Option<crate::engine::BudgetRefusal>,
 ) -> Option<EngineEvent> {
     if now == *shown {
         return None;

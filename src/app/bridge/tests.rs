@@ -916,13 +916,17 @@ fn sink_tints_the_bricks_the_mask_covers() {
 
 #[test]
 fn a_refused_edit_is_shown_once_and_a_new_refusal_again() {
+    use crate::engine::BudgetRefusal;
     use crate::field::DenseBudgetError;
-    let first = DenseBudgetError {
+    let first = BudgetRefusal::DenseBricks(DenseBudgetError {
         dense: 10,
         more: 5,
         at: None,
+    });
+    let second = BudgetRefusal::ClayBox {
+        dims: [2048; 3],
+        total: 2048 * 2048 * 2048,
     };
-    let second = DenseBudgetError { more: 6, ..first };
     let mut shown = None;
     assert!(budget_refusal_event(&mut shown, None).is_none());
     let Some(EngineEvent::Failed { what, error }) = budget_refusal_event(&mut shown, Some(first))
@@ -935,7 +939,11 @@ fn a_refused_edit_is_shown_once_and_a_new_refusal_again() {
         budget_refusal_event(&mut shown, Some(first)).is_none(),
         "the same refusal, published with every status, is shown once"
     );
-    assert!(budget_refusal_event(&mut shown, Some(second)).is_some());
+    let Some(EngineEvent::Failed { error, .. }) = budget_refusal_event(&mut shown, Some(second))
+    else {
+        panic!("a clipped growth is shown");
+    };
+    assert!(error.contains("clipped to the clay's box"), "{error}");
     assert!(budget_refusal_event(&mut shown, None).is_none());
     assert_eq!(shown, None);
 }
