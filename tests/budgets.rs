@@ -214,7 +214,10 @@ fn a_tool_step_past_the_box_budget_fails_naming_it_and_the_sculpt_is_kept() {
             "1073741824",
         ],
     );
-    assert!(err.contains("growing the clay to [1800, 1800, 1800]"), "{err}");
+    assert!(
+        err.contains("growing the clay to [1800, 1800, 1800]"),
+        "{err}"
+    );
     let sculpt =
         std::fs::read_to_string(dir.path().join("far/sculpt.obj")).expect("the sculpt is written");
     let max_x = sculpt
