@@ -717,6 +717,64 @@ impl BrickedCoeffs {
         out
     }
 
+    /// The smallest box (first and last coefficient per axis, inclusive) holding every
+    /// coefficient whose bits differ between this store and `other`; `None` when they hold the
+    /// same values. Brick by brick: two uniform bricks are compared as one value each, so two
+    /// copies of a large clay that differ near its surface cost a directory read per brick
+    /// and a read of the bricks that are dense in either. Allocates nothing.
+    ///
+    /// # Panics
+    /// When the stores' dimensions differ.
+    #[must_use]
+    pub fn differing_box(&self, other: &Self) -> Option<([usize; 3], [usize; 3])> {
+        assert_eq!(self.dims, other.dims, "stores of one shape");
+        let mut first = [usize::MAX; 3];
+        let mut last = [0_usize; 3];
+        let mut grow = |at: [usize; 3]| {
+            for axis in 0..3 {
+                first[axis] = first[axis].min(at[axis]);
+                last[axis] = last[axis].max(at[axis]);
+            }
+        };
+        let [bx, by, bz] = self.bricks_per_axis;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let n = bi + bx * (bj + by * bk);
+                    let low = [bi << SHIFT, bj << SHIFT, bk << SHIFT];
+                    // This brick's own coefficients within the store, per axis (end exclusive).
+                    let own: [usize; 3] =
+                        std::array::from_fn(|a| COEFF_BRICK.min(self.dims[a] - low[a]));
+                    let value = |brick: &Brick, a: usize, b: usize, c: usize| match brick {
+                        Brick::Uniform(v) => *v,
+                        Brick::Dense(values) => values[offset(a, b, c)],
+                    };
+                    match (&self.bricks[n], &other.bricks[n]) {
+                        (Brick::Uniform(p), Brick::Uniform(q)) => {
+                            if p.to_bits() != q.to_bits() {
+                                grow(low);
+                                grow(std::array::from_fn(|a| low[a] + own[a] - 1));
+                            }
+                        }
+                        (p, q) => {
+                            for c in 0..own[2] {
+                                for b in 0..own[1] {
+                                    for a in 0..own[0] {
+                                        let (u, v) = (value(p, a, b, c), value(q, a, b, c));
+                                        if u.to_bits() != v.to_bits() {
+                                            grow([low[0] + a, low[1] + b, low[2] + c]);
+                                        }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        (first[0] != usize::MAX).then_some((first, last))
+    }
+
     /// [`BrickedCoeffs::read_row_at`] from flat index `start`.
     ///
     /// # Panics
@@ -2170,6 +2228,57 @@ mod tests {
     fn reading_past_the_end_panics() {
         let store = BrickedCoeffs::zeros([4, 4, 4]);
         let _ = store[64];
+    }
+
+    #[test]
+    fn the_differing_box_brick_by_brick_is_the_plain_one() {
+        let mut rng = Rng(0xd1ff_b0c5);
+        for round in 0..40 {
+            let dims = [1 + rng.below(30), 1 + rng.below(30), 1 + rng.below(30)];
+            let mut a = BrickedCoeffs::uniform(dims, rng.value());
+            for _ in 0..rng.below(100) {
+                let at: [usize; 3] = std::array::from_fn(|n| rng.near_border(dims[n]));
+                a.set(
+                    at[0],
+                    at[1],
+                    at[2],
+                    rng.value() + 0.001 * rng.below(1000) as f32,
+                );
+            }
+            // The copy differs at a few places, some on a brick of its own (uniform against
+            // uniform, dense against uniform), some where both are dense; every fifth not at
+            // all; one round a whole uniform brick's value.
+            let mut b = a.clone();
+            if round % 5 != 0 {
+                for _ in 0..1 + rng.below(4) {
+                    let at: [usize; 3] = std::array::from_fn(|n| rng.below(dims[n]));
+                    let v = b.get(at[0], at[1], at[2]) + 0.5;
+                    b.set(at[0], at[1], at[2], v);
+                }
+            }
+            if round == 7 {
+                b.fill(0.25);
+            }
+            let mut want: Option<([usize; 3], [usize; 3])> = None;
+            for k in 0..dims[2] {
+                for j in 0..dims[1] {
+                    for i in 0..dims[0] {
+                        if a.get(i, j, k).to_bits() != b.get(i, j, k).to_bits() {
+                            let at = [i, j, k];
+                            want = Some(want.map_or((at, at), |(lo, hi)| {
+                                (
+                                    std::array::from_fn(|n| lo[n].min(at[n])),
+                                    std::array::from_fn(|n| hi[n].max(at[n])),
+                                )
+                            }));
+                        }
+                    }
+                }
+            }
+            assert_eq!(a.differing_box(&b), want, "round {round}: {dims:?}");
+            assert_eq!(b.differing_box(&a), want, "round {round}: {dims:?}");
+            assert_eq!(a.differing_box(&a), None);
+        }
     }
 
     /// [`BrickedCoeffs::box_summary`] the plain way, coefficient by coefficient.

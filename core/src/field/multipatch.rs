@@ -463,21 +463,9 @@ impl MultiPatchField {
         let mut change: Option<(Vec3, Vec3)> = None;
         for (i, j) in shared {
             let (a, b) = (&old[i].lattice, &new[j].lattice);
-            let [nx, ny, _] = b.dims;
-            let mut first = [usize::MAX; 3];
-            let mut last = [0_usize; 3];
-            for (n, (p, q)) in a.coeffs.iter().zip(&b.coeffs).enumerate() {
-                if p.to_bits() != q.to_bits() {
-                    let at = [n % nx, (n / nx) % ny, n / (nx * ny)];
-                    for axis in 0..3 {
-                        first[axis] = first[axis].min(at[axis]);
-                        last[axis] = last[axis].max(at[axis]);
-                    }
-                }
-            }
-            if first[0] == usize::MAX {
+            let Some((first, last)) = a.coeffs.differing_box(&b.coeffs) else {
                 continue;
-            }
+            };
             let (lo, hi) = new[j].coefficient_change_box(first, last);
             change = Some(change.map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi))));
         }

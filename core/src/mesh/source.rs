@@ -360,23 +360,16 @@ impl ScalarField for BSplineLattice {
             }
             range[axis] = (a, b);
         }
-        let (mut vmin, mut vmax) = if beyond {
-            (0.0f32, 0.0f32)
+        // Brick by brick: a uniform brick (empty space, solid inside) is one value, so a node
+        // over a large clay's empty box costs a directory read per brick, not per coefficient.
+        let first = range.map(|(a, _)| a as usize);
+        let last = range.map(|(_, b)| b as usize);
+        let inside = self.coeffs.box_summary(first, last, false);
+        Some(if beyond {
+            (inside.min.min(0.0), inside.max.max(0.0))
         } else {
-            (f32::INFINITY, f32::NEG_INFINITY)
-        };
-        for k in range[2].0..=range[2].1 {
-            for j in range[1].0..=range[1].1 {
-                let len = (range[0].1 - range[0].0 + 1) as usize;
-                (vmin, vmax) = self.coeffs.fold_row_at(
-                    [range[0].0 as usize, j as usize, k as usize],
-                    len,
-                    (vmin, vmax),
-                    |(lo, hi), c| (lo.min(c), hi.max(c)),
-                );
-            }
-        }
-        Some((vmin, vmax))
+            (inside.min, inside.max)
+        })
     }
 }
 
