@@ -218,13 +218,7 @@ fn a_tool_step_past_the_box_budget_fails_naming_it_and_the_sculpt_is_kept() {
         err.contains("growing the clay to [1800, 1800, 1800]"),
         "{err}"
     );
-    let sculpt =
-        std::fs::read_to_string(dir.path().join("far/sculpt.obj")).expect("the sculpt is written");
-    let max_x = sculpt
-        .lines()
-        .filter_map(|l| l.strip_prefix("v "))
-        .filter_map(|v| v.split_whitespace().next()?.parse::<f32>().ok())
-        .fold(f32::MIN, f32::max);
+    let max_x = largest_x(&dir.path().join("far/sculpt.obj"));
     assert!(
         max_x > 1.0 && max_x < 2.4,
         "the clay stays in its box: {max_x}"
@@ -244,11 +238,15 @@ fn a_tool_step_past_the_box_budget_fails_naming_it_and_the_sculpt_is_kept() {
         ],
     );
     assert!(out.status.success(), "{}", stderr(&out));
-    let sculpt = std::fs::read_to_string(dir.path().join("near/sculpt.obj")).unwrap();
-    let max_x = sculpt
-        .lines()
+    let max_x = largest_x(&dir.path().join("near/sculpt.obj"));
+    assert!(max_x > 30.0, "the lump 30 out is there: {max_x}");
+}
+
+/// The largest x of the vertices of the OBJ file at `path` (which must exist).
+fn largest_x(path: &Path) -> f32 {
+    let obj = std::fs::read_to_string(path).expect("the sculpt is written");
+    obj.lines()
         .filter_map(|l| l.strip_prefix("v "))
         .filter_map(|v| v.split_whitespace().next()?.parse::<f32>().ok())
-        .fold(f32::MIN, f32::max);
-    assert!(max_x > 30.0, "the lump 30 out is there: {max_x}");
+        .fold(f32::MIN, f32::max)
 }

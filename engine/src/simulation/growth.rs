@@ -140,6 +140,25 @@ mod tests {
         }
     }
 
+    /// Sends an add of a ball of radius 0.3 at `at` on the base, for one second of tool time;
+    /// returns where its answer comes.
+    fn add_lump(
+        s: &mut Stages,
+        at: Vec3,
+    ) -> crossbeam::channel::Receiver<Result<EditOutcome, CommandError>> {
+        let (tx, rx) = crossbeam::channel::bounded(1);
+        s.commands
+            .send(Command::ApplyTool {
+                tool: add_ball(0.3),
+                poses: vec![ToolPose::at(at)],
+                duration_s: 1.0,
+                patch: 0,
+                reply: Some(tx),
+            })
+            .unwrap();
+        rx
+    }
+
     /// The process's peak resident set, bytes (`VmHWM` of `/proc/self/status`; 0 where it
     /// cannot be read).
     fn peak_rss_bytes() -> u64 {
@@ -225,16 +244,7 @@ mod tests {
         let centre = (old.origin + last) * 0.5;
         // Half a radius past the last node: clipped flat before the clay could grow.
         let at = Vec3::new(last.x + 0.15, centre.y, centre.z);
-        let (tx, rx) = crossbeam::channel::bounded(1);
-        s.commands
-            .send(Command::ApplyTool {
-                tool: add_ball(0.3),
-                poses: vec![ToolPose::at(at)],
-                duration_s: 1.0,
-                patch: 0,
-                reply: Some(tx),
-            })
-            .unwrap();
+        let rx = add_lump(&mut s, at);
         for _ in 0..4 {
             tick(&mut s, &ToolSample::IDLE);
         }
@@ -279,16 +289,7 @@ mod tests {
         let mut s = super::super::tests::stages_on_sphere(12);
         let old = s.sim.lattice().clone();
         let at = old.origin + Vec3::splat(10_000.0 * old.spacing);
-        let (tx, rx) = crossbeam::channel::bounded(1);
-        s.commands
-            .send(Command::ApplyTool {
-                tool: add_ball(0.3),
-                poses: vec![ToolPose::at(at)],
-                duration_s: 1.0,
-                patch: 0,
-                reply: Some(tx),
-            })
-            .unwrap();
+        let rx = add_lump(&mut s, at);
         for _ in 0..2 {
             tick(&mut s, &ToolSample::IDLE);
         }
@@ -304,16 +305,7 @@ mod tests {
         // A lump just past the box still grows the clay.
         let last = old.node_position(11, 11, 11);
         let near = Vec3::new(last.x + 0.15, (old.origin.y + last.y) * 0.5, last.z * 0.5);
-        let (tx, rx) = crossbeam::channel::bounded(1);
-        s.commands
-            .send(Command::ApplyTool {
-                tool: add_ball(0.3),
-                poses: vec![ToolPose::at(near)],
-                duration_s: 1.0,
-                patch: 0,
-                reply: Some(tx),
-            })
-            .unwrap();
+        let rx = add_lump(&mut s, near);
         tick(&mut s, &ToolSample::IDLE);
         rx.try_recv().unwrap().unwrap();
         assert_eq!(s.counters.snapshot().clay_growths, 1);
