@@ -16,8 +16,8 @@ use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::error::CliError;
 use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, import_session};
-use crate::io::{OutputKind, OutputRule, save_session};
-use crate::mesh::{MeshFormat, TriMesh, write_mesh};
+use crate::io::{OutputKind, OutputRule, encode, write_atomic};
+use crate::mesh::{MeshFormat, write_mesh};
 
 /// Reads `args.input`, fits a clay to it, writes the session (and the mesh when asked).
 ///
@@ -104,13 +104,12 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         other => CliError::bad_input("import", other),
     })?;
     // The mesh is made (within the memory budget) before anything is written, so a refused
-    // mesh leaves no half-finished import.
-    let mesh = match (&args.mesh, mesh_format) {
-        (Some(path), Some(format)) => {
-            let budget = MemoryBudget::from_flag(args.memory_budget_mib);
-            Some((
-                path,
-                format,
+    // mesh leaves no half-finished import. The session is encoded beside it.
+    let (mesh, encoded) = std::thread::scope(|scope| {
+        let encoded = scope.spawn(|| encode(&session));
+        let mesh = match (&args.mesh, mesh_format) {
+            (Some(path), Some(format)) => {
+                let budget = MemoryBudget::from_flag(args.memory_budget_mib);
                 super::mesh_clay(&session.clay, 4, &budget)
                     .map_err(|e| match e {
                         // The mesh's resolution follows the clay's here.
@@ -119,21 +118,44 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
                             CliError::OverBudget(o)
                         }
                         other => other,
-                    })?
-                    .weld(),
-            ))
-        }
-        _ => None,
-    };
+                    })
+                    .map(|octree| Some((path, format, octree.weld())))
+            }
+            _ => Ok(None),
+        };
+        let encoded = encoded
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (mesh, encoded)
+    });
+    let mesh = mesh?;
+    let bytes = encoded.map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     // The last moment Ctrl-C is heard: from here on the outputs are written whole.
     if INTERRUPTED.load(Ordering::Relaxed) {
         return Err(interrupted());
     }
-    save_session(&args.out, &session)
-        .map_err(|e| CliError::output(args.out.display().to_string(), e))?;
+    // The two files are written side by side: each write ends by flushing its file to disk,
+    // and the two flushes wait together.
+    let (saved, mesh_written) = std::thread::scope(|scope| {
+        let saved = scope.spawn(|| write_atomic(&args.out, &bytes));
+        let mesh_written = mesh
+            .as_ref()
+            .map(|(path, format, mesh)| write_mesh(path, mesh, *format));
+        let saved = saved
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (saved, mesh_written)
+    });
+    saved.map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     say!("wrote {}", args.out.display());
-    if let Some((path, format, mesh)) = mesh {
-        write_fitted_mesh(&mesh, path, format)?;
+    if let (Some((path, _, mesh)), Some(written)) = (&mesh, mesh_written) {
+        written.map_err(|e| CliError::output(path.display().to_string(), e))?;
+        say!(
+            "wrote {} ({} vertices, {} triangles)",
+            path.display(),
+            mesh.vertex_count(),
+            mesh.triangle_count()
+        );
     }
     Ok(())
 }
@@ -175,15 +197,4 @@ fn show_progress(bar: &indicatif::ProgressBar, stage: FitProgress) -> bool {
         }
     }
     !INTERRUPTED.load(Ordering::Relaxed)
-}
-
-fn write_fitted_mesh(mesh: &TriMesh, path: &Path, format: MeshFormat) -> Result<(), CliError> {
-    write_mesh(path, mesh, format).map_err(|e| CliError::output(path.display().to_string(), e))?;
-    say!(
-        "wrote {} ({} vertices, {} triangles)",
-        path.display(),
-        mesh.vertex_count(),
-        mesh.triangle_count()
-    );
-    Ok(())
 }

@@ -58,8 +58,8 @@
 //!    bubble that size is noise, not data (the log counts them).
 //! 7. **Fit.** The signed distances become the clay's density profile
 //!    (`clamp(0.5 − d / width, 0, 1)`, the profile the starting clays use), and the lattice is
-//!    fitted to it by least squares with the Kronecker machinery (`field::fit_lattice`), then
-//!    refitted by weighted, regularised least squares ([`super::regularised`]): each sample
+//!    fitted to it by plain least squares with the Kronecker machinery, then refitted from
+//!    there by weighted, regularised least squares ([`super::regularised`]): each sample
 //!    weighs by how much the points hold it (the moving planes' total weight `W`, as
 //!    `W / (W + 1)`, and [`UNHELD_WEIGHT`] beyond their reach), beside a bending energy on the
 //!    coefficients ([`BENDING_WEIGHT`], following the noise's square: [`bending_weight`]),
@@ -83,8 +83,8 @@ use super::lanes::{
     lanes_of_three, total,
 };
 use super::points::PointCloud;
-use super::regularised::refit_regularised;
-use dynaclay_core::field::{BSplineLattice, FitError, density_profile, fit_lattice};
+use super::regularised::fit_regularised;
+use dynaclay_core::field::{BSplineLattice, FitError, density_profile};
 
 /// Empty knot spans kept around the object on each side.
 pub const MARGIN_SPANS: f32 = 4.0;
@@ -396,19 +396,6 @@ impl SignedCloud {
         self.nearest_point(x).map(|p| self.normals[p])
     }
 
-    /// The density at a node of the signing grid from the distance stored there, or at any
-    /// other point as [`SignedCloud::density`].
-    fn node_density(&self, x: Vec3) -> f32 {
-        let node = self.grid.nearest_node(x);
-        let [i, j, k] = self.grid.coords(node);
-        let at = Vec3::new(i as f32, j as f32, k as f32) * self.grid.h;
-        if (at - x).abs().max_element() <= 1e-4 * self.grid.h {
-            density_profile(self.node_distance[node], self.width)
-        } else {
-            self.density(x)
-        }
-    }
-
     /// The density the clay is fitted to at `x`: the profile of the signed distance,
     /// `clamp(0.5 − d / width, 0, 1)`, the clay's iso-level 0.5 on the surface.
     #[must_use]
@@ -430,15 +417,19 @@ impl SignedCloud {
                     self.spacing
                 ))
             })?;
-        fit_lattice(&mut lattice, self.samples_per_span, |x| {
-            self.node_density(x)
-        })?;
         let targets: Vec<f32> = self
             .node_distance
             .iter()
             .map(|&d| density_profile(d, self.width))
             .collect();
-        refit_regularised(
+        if let Some(at) = targets.iter().position(|t| !t.is_finite()) {
+            let [i, j, k] = self.grid.coords(at);
+            let x = Vec3::new(i as f32, j as f32, k as f32) * self.grid.h;
+            return Err(CloudFitError::Fit(FitError::NonFiniteTarget {
+                at: x.to_array(),
+            }));
+        }
+        fit_regularised(
             &mut lattice,
             self.samples_per_span,
             &targets,

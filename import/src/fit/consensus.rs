@@ -920,9 +920,10 @@ fn plane_at(points: &[Vec3], grid: &PointGrid, radius: f32, i: usize) -> Option<
 }
 
 /// The eigenvector of the symmetric positive semi-definite `cov` with the smallest eigenvalue:
-/// power iteration on the adjugate of `cov`, whose eigenvalues are the products of `cov`'s
-/// in pairs (`λ₁λ₂ ≥ λ₁λ₃ ≥ λ₂λ₃`, with the same eigenvectors), so the iteration gains a
-/// factor `λ₃ / λ₂` per step: a few steps for a neighbourhood of a surface, exact in one for a
+/// power iteration on the fourth power of the adjugate of `cov`. The adjugate's eigenvalues
+/// are the products of `cov`'s in pairs (`λ₁λ₂ ≥ λ₁λ₃ ≥ λ₂λ₃`, with the same eigenvectors),
+/// so a step on it gains a factor `λ₃ / λ₂`, and a step on its fourth power (two squarings,
+/// 54 products) `(λ₃ / λ₂)⁴`: a few steps for a neighbourhood of a surface, exact in one for a
 /// flat one (the adjugate of a rank-2 `cov` is `λ₁λ₂ v₃v₃ᵀ`). Where `cov` is near rank 1
 /// (points along a line: any direction across it is as good) the adjugate vanishes, and
 /// [`least_variance_by_shift`] answers.
@@ -930,7 +931,10 @@ fn plane_at(points: &[Vec3], grid: &PointGrid, radius: f32, i: usize) -> Option<
 /// NOTE: [`least_variance_by_shift`] alone gains only `(λ₁ + λ₃) / (λ₁ + λ₂)` per step,
 /// about ½ for a neighbourhood of a surface: twenty to forty steps, about 6% of an import's
 /// time in `perf record` on a 50 000-point cloud (bench/RESULTS.md, "Import time against
-/// screened Poisson's").
+/// screened Poisson's"). On the adjugate itself a normal took 23–25 steps on average on the
+/// 1% clouds of the peer bench and 7 on the 0.25% ones, 5% of an import's CPU time
+/// (bench/RESULTS.md, "Import time: the work shared out"; "Import time toward a fifth of
+/// PoissonRecon's").
 pub(crate) fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
     let c = cov;
     let adjugate = [
@@ -954,10 +958,48 @@ pub(crate) fn least_variance_direction(cov: [[f64; 3]; 3]) -> Vec3 {
     // `λ₁λ₂` under this share of `trace²` (a line's neighbourhood, or nothing at all) leaves
     // the adjugate to rounding.
     let smallest_product = 1e-10 * trace * trace;
-    match power_iteration(adjugate, least_variance_start(cov), smallest_product) {
+    // The first step on the adjugate itself tells whether it vanishes.
+    let start = least_variance_start(cov);
+    let first = times(adjugate, start);
+    let len = first.length();
+    if len.is_nan() || len <= smallest_product {
+        return least_variance_by_shift(cov);
+    }
+    let fourth = squared_scaled(squared_scaled(adjugate));
+    match power_iteration(fourth, first / len) {
         Some(v) => v.as_vec3(),
         None => least_variance_by_shift(cov),
     }
+}
+
+/// `m v` for a 3 × 3 `m`.
+#[inline]
+fn times(m: [[f64; 3]; 3], v: glam::DVec3) -> glam::DVec3 {
+    glam::DVec3::new(
+        m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
+        m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
+        m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z,
+    )
+}
+
+/// `m²` of the symmetric `m`, divided by its largest entry's magnitude (the eigenvectors are
+/// `m`'s, the eigenvalues squared and scaled alike; the scale keeps repeated squarings
+/// within `f64`'s range). A zero `m` stays zero.
+#[inline]
+fn squared_scaled(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut square = [[0.0; 3]; 3];
+    for (r, row) in square.iter_mut().enumerate() {
+        for (k, value) in row.iter_mut().enumerate() {
+            *value = m[r][0] * m[0][k] + m[r][1] * m[1][k] + m[r][2] * m[2][k];
+        }
+    }
+    let largest = square.iter().flatten().fold(0.0f64, |a, &v| a.max(v.abs()));
+    if largest > 0.0 && largest.is_finite() {
+        for value in square.iter_mut().flatten() {
+            *value /= largest;
+        }
+    }
+    square
 }
 
 /// The axis of `cov`'s least variance, nudged off the axis in case it is orthogonal to the
@@ -971,19 +1013,15 @@ fn least_variance_start(cov: [[f64; 3]; 3]) -> glam::DVec3 {
     v
 }
 
-/// Power iteration on the symmetric `m` from `v` (at most 60 steps, until a step moves the
-/// unit vector by under 10⁻⁶): its eigenvector of the largest eigenvalue, or `None` when a
-/// step's image is not longer than `smallest` (or not a number).
-fn power_iteration(m: [[f64; 3]; 3], mut v: glam::DVec3, smallest: f64) -> Option<glam::DVec3> {
-    for step in 0..60 {
-        let w = glam::DVec3::new(
-            m[0][0] * v.x + m[0][1] * v.y + m[0][2] * v.z,
-            m[1][0] * v.x + m[1][1] * v.y + m[1][2] * v.z,
-            m[2][0] * v.x + m[2][1] * v.y + m[2][2] * v.z,
-        );
+/// Power iteration on the symmetric positive semi-definite `m` from the unit `v` (at most 60
+/// steps, until a step moves the unit vector by under 10⁻⁶): its eigenvector of the largest
+/// eigenvalue, or `None` when a step's image vanishes (or is not a number).
+fn power_iteration(m: [[f64; 3]; 3], mut v: glam::DVec3) -> Option<glam::DVec3> {
+    for _ in 0..60 {
+        let w = times(m, v);
         let len = w.length();
-        if len.is_nan() || len <= smallest {
-            return if step == 0 { None } else { Some(v) };
+        if len.is_nan() || len <= 0.0 {
+            return None;
         }
         let next = w / len;
         let settled = (next - v).length_squared() < 1e-12;

@@ -10,7 +10,9 @@
 //! points, over a hole) the bending energy takes over and the clay stays smooth.
 //!
 //! The normal equations `(AᵀWA + λL) c = AᵀW f` are solved by conjugate gradients with a
-//! Jacobi preconditioner, started from the plain least-squares fit. `A` is the Kronecker
+//! Jacobi preconditioner, started from the plain least-squares fit ([`fit_regularised`]
+//! finds it here: `c₀ = (AᵀA)⁻¹ Aᵀ f`, with `AᵀA` the Kronecker product of the three axes'
+//! banded Gram matrices, solved by their Cholesky factors one axis at a time). `A` is the Kronecker
 //! product of three banded per-axis basis matrices, so each product with it is three passes
 //! of four taps per sample: a few dozen flops per sample and iteration, no matrix stored.
 //! Each pass is split over the machine's threads by planes of its output, every entry summed
@@ -71,6 +73,101 @@ impl AxisBasis {
     }
 }
 
+/// The Cholesky factor `L` of one axis's Gram matrix `AᵀA` (`LLᵀ = AᵀA`; banded, half-bandwidth
+/// at most 3 for the cubic B-spline), dense by rows.
+struct GramFactor {
+    n: usize,
+    /// `L[i][j]` at `i · n + j`, zero above the diagonal and beyond the band.
+    lower: Vec<f64>,
+}
+
+/// Half-bandwidth of a cubic B-spline Gram matrix: coefficients four or more apart share no
+/// sample.
+const GRAM_BAND: usize = 3;
+
+impl GramFactor {
+    /// The factor of `AᵀA` for `basis` (`None` where it is not positive definite: fewer
+    /// samples than coefficients).
+    fn of(basis: &AxisBasis) -> Option<Self> {
+        let n = basis.columns.len();
+        let mut gram = vec![0.0f64; n * n];
+        for row in &basis.rows {
+            for &(i, wi) in row {
+                for &(j, wj) in row {
+                    gram[i * n + j] += wi * wj;
+                }
+            }
+        }
+        let mut lower = vec![0.0f64; n * n];
+        for j in 0..n {
+            let first = j.saturating_sub(GRAM_BAND);
+            let mut pivot = gram[j * n + j];
+            for k in first..j {
+                pivot -= lower[j * n + k] * lower[j * n + k];
+            }
+            // Not positive (or not a number): no factor.
+            if pivot.is_nan() || pivot <= 0.0 {
+                return None;
+            }
+            let pivot = pivot.sqrt();
+            lower[j * n + j] = pivot;
+            for i in j + 1..(j + 1 + GRAM_BAND).min(n) {
+                let mut sum = gram[i * n + j];
+                for k in i.saturating_sub(GRAM_BAND)..j {
+                    sum -= lower[i * n + k] * lower[j * n + k];
+                }
+                lower[i * n + j] = sum / pivot;
+            }
+        }
+        Some(Self { n, lower })
+    }
+
+    /// Solves `AᵀA y = x` along `axis` of the 3-D array `x` (dimensions `dims`, x fastest),
+    /// in place: for every line along the axis, forward then back substitution. The lines are
+    /// handled `inner` entries at a time (every line through a plane across the axis
+    /// together), so the inner loops run over contiguous memory.
+    fn solve_along(&self, x: &mut [f64], dims: [usize; 3], axis: usize) {
+        let n = self.n;
+        debug_assert_eq!(dims[axis], n);
+        let inner: usize = dims[..axis].iter().product();
+        let outer: usize = dims[axis + 1..].iter().product();
+        let l = |i: usize, j: usize| self.lower[i * n + j];
+        for block in x.chunks_exact_mut(inner * n).take(outer) {
+            // Forward: `y[t] = (x[t] − Σ L[t][k] y[k]) / L[t][t]`.
+            for t in 0..n {
+                let (done, rest) = block.split_at_mut(t * inner);
+                let line = &mut rest[..inner];
+                for k in t.saturating_sub(GRAM_BAND)..t {
+                    let w = l(t, k);
+                    for (v, &y) in line.iter_mut().zip(&done[k * inner..(k + 1) * inner]) {
+                        *v -= w * y;
+                    }
+                }
+                let pivot = l(t, t);
+                for v in line.iter_mut() {
+                    *v /= pivot;
+                }
+            }
+            // Back: `x[t] = (y[t] − Σ L[k][t] x[k]) / L[t][t]`.
+            for t in (0..n).rev() {
+                let (head, done) = block.split_at_mut((t + 1) * inner);
+                let line = &mut head[t * inner..];
+                for k in t + 1..(t + 1 + GRAM_BAND).min(n) {
+                    let w = l(k, t);
+                    let from = (k - t - 1) * inner;
+                    for (v, &y) in line.iter_mut().zip(&done[from..from + inner]) {
+                        *v -= w * y;
+                    }
+                }
+                let pivot = l(t, t);
+                for v in line.iter_mut() {
+                    *v /= pivot;
+                }
+            }
+        }
+    }
+}
+
 /// Applies `A` (`forward`: coefficients to samples) or `Aᵀ` along `axis` of the 3-D array
 /// `input` with dimensions `dims`, `matrix` being the rows of that matrix (`A`'s rows or its
 /// columns, `out_len` of them), into `out` (resized to the result); returns the result's
@@ -104,6 +201,11 @@ fn along_axis(
     let in_plane = dims[0] * dims[1];
     // Kept from the last product of the same size: each plane is cleared where it is filled.
     out.resize(plane * oz, 0.0);
+    let taps = if axis == 0 {
+        TapRows::of(matrix, dims[0])
+    } else {
+        None
+    };
     let fill = |first_plane: usize, slab: &mut [f64]| {
         for (dz, out_plane) in slab.chunks_exact_mut(plane).enumerate() {
             let z = first_plane + dz;
@@ -116,6 +218,7 @@ fn along_axis(
                     [dims[0], dims[1]],
                     axis,
                     matrix,
+                    taps.as_ref(),
                     out_plane,
                 ),
                 _ => {
@@ -156,26 +259,37 @@ fn along_axis(
 }
 
 /// One z-plane of a pass along x (`axis` 0) or y (1): `input` is the plane, `[nx, ny]` its
-/// size, `out` the output plane (every entry set along x; along y, zeros on entry).
+/// size, `out` the output plane (every entry set along x; along y, zeros on entry); along x,
+/// `taps` is `matrix` as [`TapRows`] where it can be.
 fn plane_along(
     input: &[f64],
     [nx, ny]: [usize; 2],
     axis: usize,
     matrix: &[Vec<(usize, f64)>],
+    taps: Option<&TapRows>,
     out: &mut [f64],
 ) {
     if axis == 0 {
-        for (line, input_line) in out
+        let lines = out
             .chunks_exact_mut(matrix.len().max(1))
             .zip(input.chunks_exact(nx.max(1)))
-            .take(ny)
-        {
-            for (value, row) in line.iter_mut().zip(matrix) {
-                let mut sum = 0.0;
-                for &(t, w) in row {
-                    sum += w * input_line[t];
+            .take(ny);
+        match taps {
+            Some(taps) => {
+                for (line, input_line) in lines {
+                    taps.line(input_line, line);
                 }
-                *value = sum;
+            }
+            None => {
+                for (line, input_line) in lines {
+                    for (value, row) in line.iter_mut().zip(matrix) {
+                        let mut sum = 0.0;
+                        for &(t, w) in row {
+                            sum += w * input_line[t];
+                        }
+                        *value = sum;
+                    }
+                }
             }
         }
     } else {
@@ -186,6 +300,84 @@ fn plane_along(
                     *value += w * v;
                 }
             }
+        }
+    }
+}
+
+/// A matrix's rows, each a run of consecutive columns, as windows of a fixed width (4, 8, 12
+/// or 16 columns) with their weights, zero outside the run: each entry of a product is the sum
+/// of its window's products in the columns' order, the same value bit for bit as the sum over
+/// the run alone (a zero weight times a finite value adds a zero, which leaves a sum as it
+/// was), with no branch per column.
+///
+/// NOTE: the pass along x summed each entry over its row's list of columns, a loop of three to
+/// seven steps with the list read through a pointer: about 70% of the passes along x and y in
+/// `perf annotate`, and the passes 4–6% of an import's CPU time (bench/RESULTS.md, "Import
+/// time toward a fifth of PoissonRecon's").
+struct TapRows {
+    width: usize,
+    /// Per row: its window's first column.
+    first: Vec<usize>,
+    /// Per row: `width` weights.
+    weights: Vec<f64>,
+}
+
+impl TapRows {
+    /// `matrix` (rows of `(column, weight)`, over `columns` columns) as windows, or `None`
+    /// where a row's columns are not consecutive and ascending, or are more than 16, or the
+    /// window does not fit in the columns.
+    fn of(matrix: &[Vec<(usize, f64)>], columns: usize) -> Option<Self> {
+        let longest = matrix.iter().map(Vec::len).max()?;
+        let width = longest.max(1).div_ceil(4) * 4;
+        if width > 16 || width > columns {
+            return None;
+        }
+        let mut first = Vec::with_capacity(matrix.len());
+        let mut weights = vec![0.0; matrix.len() * width];
+        for (row, window) in matrix.iter().zip(weights.chunks_exact_mut(width)) {
+            let start = row.first().map_or(0, |&(t, _)| t);
+            let consecutive = row.iter().enumerate().all(|(k, &(t, _))| t == start + k);
+            if !consecutive || start + row.len() > columns {
+                return None;
+            }
+            // The window ends within the columns: it starts at the run, or earlier where
+            // the run is near the end.
+            let at = start.min(columns - width);
+            for &(t, w) in row {
+                window[t - at] = w;
+            }
+            first.push(at);
+        }
+        Some(Self {
+            width,
+            first,
+            weights,
+        })
+    }
+
+    /// One line of the product: `out[o] = Σ_k weights[o][k] · input[first[o] + k]`.
+    fn line(&self, input: &[f64], out: &mut [f64]) {
+        match self.width {
+            4 => self.line_of::<4>(input, out),
+            8 => self.line_of::<8>(input, out),
+            12 => self.line_of::<12>(input, out),
+            _ => self.line_of::<16>(input, out),
+        }
+    }
+
+    #[inline(always)]
+    fn line_of<const WIDTH: usize>(&self, input: &[f64], out: &mut [f64]) {
+        for ((value, &at), weights) in out
+            .iter_mut()
+            .zip(&self.first)
+            .zip(self.weights.chunks_exact(WIDTH))
+        {
+            let window = &input[at..at + WIDTH];
+            let mut sum = 0.0;
+            for k in 0..WIDTH {
+                sum += weights[k] * window[k];
+            }
+            *value = sum;
         }
     }
 }
@@ -213,6 +405,7 @@ fn along_x_then_y(
     if first_plane == 0 || second_plane == 0 {
         return second_dims;
     }
+    let taps = TapRows::of(matrices[0], dims[0]);
     let fill = |z0: usize, first: &mut [f64], second: &mut [f64]| {
         for (dz, (first, second)) in first
             .chunks_exact_mut(first_plane)
@@ -221,13 +414,21 @@ fn along_x_then_y(
         {
             let z = z0 + dz;
             let input = &input[z * in_plane..(z + 1) * in_plane];
-            plane_along(input, [dims[0], dims[1]], 0, matrices[0], first);
+            plane_along(
+                input,
+                [dims[0], dims[1]],
+                0,
+                matrices[0],
+                taps.as_ref(),
+                first,
+            );
             second.fill(0.0);
             plane_along(
                 first,
                 [first_dims[0], first_dims[1]],
                 1,
                 matrices[1],
+                None,
                 second,
             );
         }
@@ -377,6 +578,84 @@ pub fn refit_regularised(
     )
 }
 
+/// [`refit_regularised`] from the plain least-squares fit of `targets` (every weight 1, no
+/// bending) rather than from the lattice's coefficients, which are replaced: the plain fit's
+/// `Aᵀ f` is three passes on every thread and its solve three banded substitutions per line,
+/// where a plain fit by the lattice's own sampled target (`field::fit_lattice`) ran on one
+/// thread. Returns the conjugate-gradient steps run.
+///
+/// NOTE: the base of a 50 000-point import took its plain fit from `field::fit_lattice`,
+/// 14–40 ms on the calling thread (bench/RESULTS.md, "Import time toward a fifth of
+/// PoissonRecon's").
+///
+/// # Panics
+/// When `targets` or `weights` do not hold one value per sample.
+pub fn fit_regularised(
+    lattice: &mut BSplineLattice,
+    samples_per_span: usize,
+    targets: &[f32],
+    weights: &[f32],
+    lambda: f32,
+    max_iterations: usize,
+) -> usize {
+    let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let start = plain_fit(lattice.dims, samples_per_span, targets, threads);
+    let start = start.unwrap_or_else(|| lattice.coeffs.iter().map(|&c| f64::from(c)).collect());
+    regularised_from(
+        lattice,
+        samples_per_span,
+        targets,
+        weights,
+        lambda,
+        max_iterations,
+        threads,
+        start,
+    )
+}
+
+/// The plain least-squares fit of the coefficients (`dims`) to `targets` at the samples
+/// (`samples_per_span` per span, x fastest): `(AᵀA)⁻¹ Aᵀ f`; `None` where an axis's Gram
+/// matrix has no Cholesky factor.
+///
+/// # Panics
+/// When `targets` does not hold one value per sample.
+fn plain_fit(
+    dims: [usize; 3],
+    samples_per_span: usize,
+    targets: &[f32],
+    threads: usize,
+) -> Option<Vec<f64>> {
+    let bases = dims.map(|n| AxisBasis::new(n, samples_per_span));
+    let factors = [
+        GramFactor::of(&bases[0])?,
+        GramFactor::of(&bases[1])?,
+        GramFactor::of(&bases[2])?,
+    ];
+    let sample_dims = [bases[0].samples, bases[1].samples, bases[2].samples];
+    assert_eq!(
+        targets.len(),
+        sample_dims.iter().product::<usize>(),
+        "one target per sample"
+    );
+    let f: Vec<f64> = targets.iter().map(|&v| f64::from(v)).collect();
+    let mut c = Vec::new();
+    apply(
+        &f,
+        sample_dims,
+        &bases,
+        false,
+        false,
+        None,
+        threads,
+        &mut Passes::default(),
+        &mut c,
+    );
+    for (axis, factor) in factors.iter().enumerate() {
+        factor.solve_along(&mut c, dims, axis);
+    }
+    Some(c)
+}
+
 /// [`refit_regularised`] with the products by `A` and `Aᵀ` split over `threads` threads; the
 /// result is the same for any count.
 fn refit_regularised_on(
@@ -387,6 +666,32 @@ fn refit_regularised_on(
     lambda: f32,
     max_iterations: usize,
     threads: usize,
+) -> usize {
+    let start = lattice.coeffs.iter().map(|&c| f64::from(c)).collect();
+    regularised_from(
+        lattice,
+        samples_per_span,
+        targets,
+        weights,
+        lambda,
+        max_iterations,
+        threads,
+        start,
+    )
+}
+
+/// The conjugate-gradient steps of [`refit_regularised_on`] from the coefficients `start`
+/// (one per coefficient of `lattice`, x fastest); the result is written into `lattice`.
+#[allow(clippy::too_many_arguments)]
+fn regularised_from(
+    lattice: &mut BSplineLattice,
+    samples_per_span: usize,
+    targets: &[f32],
+    weights: &[f32],
+    lambda: f32,
+    max_iterations: usize,
+    threads: usize,
+    start: Vec<f64>,
 ) -> usize {
     let dims = lattice.dims;
     let bases = dims.map(|n| AxisBasis::new(n, samples_per_span));
@@ -460,7 +765,12 @@ fn refit_regularised_on(
         );
         add_bending(x, dims, lambda, out);
     };
-    let mut x: Vec<f64> = lattice.coeffs.iter().map(|&c| f64::from(c)).collect();
+    let mut x = start;
+    assert_eq!(
+        x.len(),
+        dims.iter().product::<usize>(),
+        "one start per coefficient"
+    );
     let mut ap = Vec::new();
     operator(&x, &mut ap);
     let mut r: Vec<f64> = b.iter().zip(&ap).map(|(b, a)| b - a).collect();
@@ -548,6 +858,91 @@ mod tests {
         }
     }
 
+    #[test]
+    fn the_plain_fit_is_the_lattices_own_least_squares_fit_and_recovers_a_spline() {
+        // Uneven targets on a lattice with an odd and an even side: the plain fit found here
+        // (Aᵀ f by the passes, then the banded Cholesky solves per axis) is the least-squares
+        // fit the lattice's own Kronecker machinery finds (`field::fit_lattice`).
+        let dims = [9, 7, 12];
+        let (sps, spacing) = (2, 0.5);
+        let m = dims.map(|n| (n - 1) * sps + 1);
+        let count = m.iter().product::<usize>();
+        let targets: Vec<f32> = (0..count)
+            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
+            .collect();
+        let plain = plain_fit(dims, sps, &targets, 3).expect("the Gram matrices factor");
+        let mut reference = BSplineLattice::zeros(dims, spacing, Vec3::ZERO).unwrap();
+        dynaclay_core::field::fit_lattice(&mut reference, sps, |x| {
+            let u = x / (spacing / sps as f32);
+            let [i, j, k] = [u.x, u.y, u.z].map(|v| v.round() as usize);
+            targets[i + m[0] * (j + m[1] * k)]
+        })
+        .unwrap();
+        let worst = plain
+            .iter()
+            .zip(reference.coeffs.iter())
+            .map(|(&a, &b)| (a - f64::from(b)).abs())
+            .fold(0.0f64, f64::max);
+        assert!(worst < 1e-4, "the plain fits differ by {worst}");
+        assert!(plain.iter().any(|&c| c.abs() > 0.1));
+        // A spline's own samples give back its coefficients; and the same on one thread.
+        let coeffs: Vec<f32> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 7919) % 23) as f32 / 23.0)
+            .collect();
+        let truth = BSplineLattice::from_coeffs(dims, spacing, Vec3::ZERO, coeffs.clone()).unwrap();
+        let mut samples = Vec::with_capacity(count);
+        for k in 0..m[2] {
+            for j in 0..m[1] {
+                for i in 0..m[0] {
+                    let x = Vec3::new(i as f32, j as f32, k as f32) * spacing / sps as f32;
+                    samples.push(truth.value(x));
+                }
+            }
+        }
+        let recovered = plain_fit(dims, sps, &samples, 1).unwrap();
+        for (at, (&got, &want)) in recovered.iter().zip(&coeffs).enumerate() {
+            assert!(
+                (got - f64::from(want)).abs() < 1e-4,
+                "coefficient {at}: {got} against {want}"
+            );
+        }
+        assert_eq!(plain_fit(dims, sps, &samples, 4).unwrap(), recovered);
+    }
+
+    #[test]
+    fn the_regularised_fit_from_the_plain_fit_is_the_refit_from_the_lattices_plain_fit() {
+        // With uneven weights and a bending energy, run to the tolerance: starting from the
+        // plain fit found here or from the lattice's own, the fits agree within the
+        // tolerance's reach.
+        let dims = [9, 7, 11];
+        let sps = 2;
+        let m = dims.map(|n| (n - 1) * sps + 1);
+        let count = m.iter().product::<usize>();
+        let targets: Vec<f32> = (0..count)
+            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
+            .collect();
+        let weights: Vec<f32> = (0..count)
+            .map(|s| 0.1 + ((s * 31) % 17) as f32 / 17.0)
+            .collect();
+        let mut here = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
+        fit_regularised(&mut here, sps, &targets, &weights, 0.01, 400);
+        let mut there = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
+        dynaclay_core::field::fit_lattice(&mut there, sps, |x| {
+            let u = x / (0.5 / sps as f32);
+            let [i, j, k] = [u.x, u.y, u.z].map(|v| v.round() as usize);
+            targets[i + m[0] * (j + m[1] * k)]
+        })
+        .unwrap();
+        refit_regularised(&mut there, sps, &targets, &weights, 0.01, 400);
+        let worst = here
+            .coeffs
+            .iter()
+            .zip(there.coeffs.iter())
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(worst < 1e-3, "the fits differ by {worst}");
+    }
+
     /// The product along one axis as a plain sum per output entry (the definition).
     fn along_axis_plain(
         input: &[f64],
@@ -576,6 +971,35 @@ mod tests {
             }
         }
         out
+    }
+
+    #[test]
+    fn the_bases_of_a_fit_are_read_as_windows_along_x_and_a_scattered_row_is_not() {
+        // Every basis at one to four samples per span, both ways: each row a run of
+        // consecutive columns within its window (the pass along x takes the windows; the
+        // bit-for-bit test below checks their sums).
+        for sps in 1..=4 {
+            for n in [4, 12, 40] {
+                let basis = AxisBasis::new(n, sps);
+                for (matrix, columns) in [(&basis.rows, n), (&basis.columns, basis.samples)] {
+                    let taps = TapRows::of(matrix, columns);
+                    let Some(taps) = taps else {
+                        assert!(columns < 16, "{n} coefficients, {sps} samples per span");
+                        continue;
+                    };
+                    for (o, row) in matrix.iter().enumerate() {
+                        let window = &taps.weights[o * taps.width..(o + 1) * taps.width];
+                        let total: f64 = row.iter().map(|&(_, w)| w).sum();
+                        assert_eq!(window.iter().sum::<f64>(), total, "row {o}");
+                        for &(t, w) in row {
+                            assert_eq!(window[t - taps.first[o]], w);
+                        }
+                    }
+                }
+            }
+        }
+        let scattered = vec![vec![(0, 1.0), (2, 0.5)]];
+        assert!(TapRows::of(&scattered, 8).is_none());
     }
 
     #[test]
