@@ -816,6 +816,27 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
+    /// `count` targets in [0, 1), spread unevenly over the samples.
+    fn uneven_targets(count: usize) -> Vec<f32> {
+        (0..count)
+            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
+            .collect()
+    }
+
+    /// A 9 × 7 × 11 lattice's fit at two samples per span with uneven targets and weights:
+    /// the lattice's dimensions, the samples per span, the samples per axis, the targets and
+    /// the weights (in [0.1, 1.1)).
+    fn uneven_problem() -> ([usize; 3], usize, [usize; 3], Vec<f32>, Vec<f32>) {
+        let dims = [9, 7, 11];
+        let sps = 2;
+        let m = dims.map(|n| (n - 1) * sps + 1);
+        let count = m.iter().product::<usize>();
+        let weights = (0..count)
+            .map(|s| 0.1 + ((s * 31) % 17) as f32 / 17.0)
+            .collect();
+        (dims, sps, m, uneven_targets(count), weights)
+    }
+
     #[test]
     fn the_basis_matches_the_lattice_and_unit_weights_without_bending_recover_a_spline() {
         // A random-ish spline: its samples are fitted back exactly (the plain least squares
@@ -867,9 +888,7 @@ mod tests {
         let (sps, spacing) = (2, 0.5);
         let m = dims.map(|n| (n - 1) * sps + 1);
         let count = m.iter().product::<usize>();
-        let targets: Vec<f32> = (0..count)
-            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
-            .collect();
+        let targets = uneven_targets(count);
         let plain = plain_fit(dims, sps, &targets, 3).expect("the Gram matrices factor");
         let mut reference = BSplineLattice::zeros(dims, spacing, Vec3::ZERO).unwrap();
         dynaclay_core::field::fit_lattice(&mut reference, sps, |x| {
@@ -914,16 +933,7 @@ mod tests {
         // With uneven weights and a bending energy, run to the tolerance: starting from the
         // plain fit found here or from the lattice's own, the fits agree within the
         // tolerance's reach.
-        let dims = [9, 7, 11];
-        let sps = 2;
-        let m = dims.map(|n| (n - 1) * sps + 1);
-        let count = m.iter().product::<usize>();
-        let targets: Vec<f32> = (0..count)
-            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
-            .collect();
-        let weights: Vec<f32> = (0..count)
-            .map(|s| 0.1 + ((s * 31) % 17) as f32 / 17.0)
-            .collect();
+        let (dims, sps, m, targets, weights) = uneven_problem();
         let mut here = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
         fit_regularised(&mut here, sps, &targets, &weights, 0.01, 400);
         let mut there = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
@@ -1081,16 +1091,7 @@ mod tests {
     fn the_refit_is_the_same_on_one_thread_and_on_several() {
         // Uneven weights and a bending energy, a few steps from zero: every coefficient must
         // come out bit for bit the same whatever the thread count.
-        let dims = [9, 7, 11];
-        let sps = 2;
-        let m = dims.map(|n| (n - 1) * sps + 1);
-        let count = m.iter().product::<usize>();
-        let targets: Vec<f32> = (0..count)
-            .map(|s| ((s * 7919) % 101) as f32 / 101.0)
-            .collect();
-        let weights: Vec<f32> = (0..count)
-            .map(|s| 0.1 + ((s * 31) % 17) as f32 / 17.0)
-            .collect();
+        let (dims, sps, m, targets, weights) = uneven_problem();
         let fit = |threads: usize| {
             let mut lattice = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
             let steps =
