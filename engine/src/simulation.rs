@@ -136,8 +136,29 @@ pub struct SimConfig {
     /// against 0.053: the patch's unpainted dent follows the tip closer), and a
     /// chisel of a huge gain (2e9) cuts short on a patch (worst 16%). (A narrow chisel's cut
     /// on a patch, which a skin of clay used to close, stays open: the chisel has a body, see
-    /// `live_tool::chisel_body`.)
+    /// `live_tool::chisel_body`.) A two-level material on the patch
+    /// ([`Self::two_level_detail`]) fixes the stiff half and the chisel but not the rest.
     pub auto_detail_force: bool,
+    /// Whether a force tool's region on a detail patch takes a two-level material
+    /// (`RegionState::set_coarse_springs`, `coarse.rs` in `dynaclay_core::dynamics`): the
+    /// patch's volume-scaled springs plus springs one base mass spacing apart on the deviation
+    /// averaged around them, so a dent as large as the base's mass spacing meets the base's
+    /// stiffness, with the tool's travel per step and the step's halving threshold reckoned
+    /// in the base's knot spans. Off by default. Measured with [`Self::auto_detail_force`] on
+    /// (lockstep tests, two runs that differ only in the rounding order of the coarse force):
+    /// the stiff painted half springs back on a patch (dent 0.116 against 0.140 on the soft
+    /// half, 0.85x asked; volume-scaled 0.129) and the chisel of gain 2e9 keeps its depth
+    /// (worst 6.2% and 9.7%; volume-scaled 16%); but the narrow elastic press of
+    /// `tests/material_fields.rs` (level 2) is 0.099 deep with some neighbourhoods and
+    /// stalls at 0.024 with another (26 in one run, 18 in the other), the narrow push's
+    /// groove (`tests/adaptive_clay.rs`) comes out 0.028 and 0.013 wide at its narrowest
+    /// against the chord 0.040 (25% allowed), the heavy painted half is still 0.041 deep
+    /// after 200 steps against the unpainted 0.066 (under half asked), and in one run the
+    /// narrow chisel's recorded session (`tests/haptic_quality.rs`) flipped 8 times. Coarse
+    /// springs one base knot span apart kept the groove (0.032-0.033) with the travel in
+    /// the patch's spans, but the narrow elastic press stalled at 0.022 then, and with the
+    /// travel in base spans the soft half of the stiff-half test was left undented (0.0015).
+    pub two_level_detail: bool,
 }
 
 impl Default for SimConfig {
@@ -154,6 +175,7 @@ impl Default for SimConfig {
             removal_guard: super::RemovalGuard::Warn,
             auto_detail: true,
             auto_detail_force: false,
+            two_level_detail: false,
         }
     }
 }
@@ -901,6 +923,11 @@ impl SimulationStage {
         self.region_material = self.config.material;
         match RegionState::new(lattice, b, mass_dims, self.region_material_of(patch)) {
             Ok(mut state) => {
+                if self.config.two_level_detail {
+                    // Coarse springs one base mass spacing apart: every `ratio`-th point.
+                    let ratio = self.spacing_ratio(patch);
+                    state.set_coarse_springs(ratio, ratio);
+                }
                 self.apply_painted_material(&mut state);
                 if let Some(old) = &previous {
                     state.carry_rest_from(old);

@@ -209,7 +209,8 @@ pub struct StepParams {
     /// Smallest time step, seconds: halving stops here.
     pub dt_min_s: f32,
     /// The step halves while `max|p̈| · Δt` exceeds this (largest change of a coefficient
-    /// velocity in one step).
+    /// velocity in one step; on a two-level detail region, see
+    /// [`crate::dynamics::RegionState::set_coarse_springs`], this times its spacing ratio).
     pub max_velocity_change: f32,
     /// Consecutive calm steps (under a quarter of the threshold) before the step grows.
     pub calm_steps_to_grow: u32,
@@ -229,7 +230,9 @@ pub struct StepParams {
     /// every this many steps, to bound f32 drift.
     pub resync_every: u32,
     /// Largest travel of the coast surface (where the clay would come to rest, see
-    /// `dynamics::coast`) that one step's tool forces may cause, knot spans: each force
+    /// `dynamics::coast`) that one step's tool forces may cause, knot spans of the simulated
+    /// patch (of the base on a two-level detail region, see
+    /// [`crate::dynamics::RegionState::set_coarse_springs`]): each force
     /// vector's share on its most loaded mass point is capped so. It bounds how far a huge
     /// gain can carry the surface past a target in one step (the closed loop brings it back
     /// from there) and keeps the step from halving to nothing under such a gain; at the

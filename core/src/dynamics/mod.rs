@@ -1,6 +1,7 @@
 //! Density-spring dynamics of the implicit solid (Hua & Qin §4, §6, §7.2–§7.3): material,
 //! force mapping, the simulated region, geometric constraints and the stepping pipeline.
 
+mod coarse;
 mod coast;
 mod constraint_model;
 mod constraint_solver;

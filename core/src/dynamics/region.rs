@@ -85,6 +85,11 @@ pub struct RegionState {
     /// `p` (empty: nothing held). A held coefficient takes `1 − m` of its acceleration and a
     /// fully held one does not move at all ([`crate::tools::region_holds`] fills it).
     pub held: Vec<f32>,
+    /// Mass points between two coarse points of the region's coarse springs (1, the
+    /// default: none). See [`RegionState::set_coarse_springs`].
+    pub coarse_stride: usize,
+    /// The base's knot spacing over the region's patch's (1 on the base).
+    pub spacing_ratio: usize,
 }
 
 impl RegionState {
@@ -141,6 +146,8 @@ impl RegionState {
             calm_steps: 0,
             steps_since_resync: 0,
             held: Vec::new(),
+            coarse_stride: 1,
+            spacing_ratio: 1,
         };
         state.reload(lattice);
         Ok(state)
@@ -224,6 +231,21 @@ impl RegionState {
             }
         }
         carried
+    }
+
+    /// Makes the region's material two-level (see `dynamics::coarse`): on a detail patch
+    /// whose knot spacing is `1/ratio` of the base's, springs between every `stride`-th mass
+    /// point, on the deviation from rest averaged around them, restore a shape several
+    /// coarse spacings large as strongly as the base does, while a shape finer than a coarse
+    /// spacing meets (almost) only the patch's own volume-scaled springs. A force tool's
+    /// travel per step ([`super::StepParams::max_coast_step_spans`]) and the step's halving
+    /// threshold ([`super::StepParams::max_velocity_change`]) are then reckoned in the base's
+    /// knot spans (`ratio` of the patch's), as the material resists a dent as the base does.
+    /// `ratio` 1 (or 0): none, as on the base; `stride` 1: the base's travel and threshold
+    /// without coarse springs.
+    pub fn set_coarse_springs(&mut self, ratio: usize, stride: usize) {
+        self.spacing_ratio = ratio.max(1);
+        self.coarse_stride = stride.max(1);
     }
 
     fn d_fixed_from(&mut self, lattice: &BSplineLattice) {

@@ -14,6 +14,7 @@ use crate::field::ImplicitField;
 use crate::field::{BSplineLattice, KronScratch, OtherPatches, RegionSnapshot};
 use glam::Vec3;
 
+use super::coarse::CoarseScratch;
 use super::coast::{COAST_REACH_SPANS, CoastField, RegionVelocity, coast_time_s, start_on_coast};
 use super::constraint_solver::ConstraintSolver;
 use super::counters::{StageTimes, StepCounters};
@@ -103,6 +104,8 @@ pub struct Simulator {
     column_room: Vec<f32>,
     /// The tool bodies each step keeps the clay out of (see [`Simulator::set_tool_bodies`]).
     bodies: Vec<ToolBody>,
+    /// The coarse springs' scratch (a detail patch's region, see `dynamics::coarse`).
+    coarse: CoarseScratch,
 }
 
 /// Shortest lever of a force vector's integral in the simulation, knot spans (see
@@ -367,6 +370,9 @@ impl Simulator {
         let t = Instant::now();
         self.gather_forces_over(state, lattice, others, forces);
         times.gather_forces_ns = elapsed_ns(t);
+        let t = Instant::now();
+        self.coarse_spring_forces(state);
+        let coarse_ns = elapsed_ns(t);
 
         let fused = state.neighbourhood == Neighbourhood::Six
             && self.params.solver == AccelSolver::Auto
@@ -376,11 +382,12 @@ impl Simulator {
             let t = Instant::now();
             let solved = self.springs_and_solve(state);
             times.solve_accel_ns = elapsed_ns(t);
+            times.spring_forces_ns = coarse_ns;
             solved
         } else {
             let t = Instant::now();
             self.spring_forces(state);
-            times.spring_forces_ns = elapsed_ns(t);
+            times.spring_forces_ns = elapsed_ns(t) + coarse_ns;
             let t = Instant::now();
             let solved = self.solve_accel(state);
             times.solve_accel_ns = elapsed_ns(t);
@@ -517,8 +524,12 @@ impl Simulator {
             self.params.dt_max_s
         };
         let mean_mass = state.mass.iter().sum::<f32>() / state.mass.len().max(1) as f32;
-        let coast_cap =
-            self.params.max_coast_step_spans * lattice.spacing * mean_mass / ((tau_s + dt) * dt);
+        // The travel is in the base's knot spans (the patch's times its ratio) where the
+        // region's material is two-level: it resists a dent as the base does, so a force
+        // tool may move the clay there as far a step as on the base.
+        let travel =
+            self.params.max_coast_step_spans * lattice.spacing * state.spacing_ratio.max(1) as f32;
+        let coast_cap = travel * mean_mass / ((tau_s + dt) * dt);
         let among = PatchAmongOthers { lattice, others };
         let coast_alone = CoastField {
             field: lattice,
@@ -750,6 +761,27 @@ impl Simulator {
                 }
             }
         }
+    }
+
+    /// The coarse springs of a detail patch's region with a two-level material
+    /// ([`RegionState::set_coarse_springs`]; see `dynamics::coarse`), added to the external
+    /// forces of stage 1 so both spring kernels take them as they are. Nothing otherwise.
+    pub fn coarse_spring_forces(&mut self, state: &RegionState) {
+        if state.coarse_stride < 2 || state.spacing_ratio < 2 {
+            return;
+        }
+        self.ensure_scratch(state);
+        self.coarse.add_forces(
+            state.grid.dims,
+            (state.coarse_stride, state.spacing_ratio),
+            &state.d,
+            &state.rest,
+            &state.stiffness,
+            &mut self.e,
+            &mut self.external,
+        );
+        // Every point may hold a coarse share now: the next step clears them all.
+        self.external_dirty = 0..state.d.len();
     }
 
     /// Stage 2: the total force per mass point: the external forces of stage 1, density
@@ -989,13 +1021,16 @@ impl Simulator {
             p.dt_max_s
         };
         let mut halvings = 0;
-        while max_accel * dt > p.max_velocity_change && dt > p.dt_min_s {
+        // A two-level region's coefficients may move as far a step as the base's in the world
+        // (see `gather_forces_over`): `ratio` of its own knot spans.
+        let vmax = p.max_velocity_change * state.spacing_ratio.max(1) as f32;
+        while max_accel * dt > vmax && dt > p.dt_min_s {
             dt = (0.5 * dt).max(p.dt_min_s);
             halvings += 1;
         }
         if halvings > 0 {
             state.calm_steps = 0;
-        } else if max_accel * dt < 0.25 * p.max_velocity_change {
+        } else if max_accel * dt < 0.25 * vmax {
             state.calm_steps += 1;
             if state.calm_steps >= p.calm_steps_to_grow && dt < p.dt_max_s {
                 dt = (dt * p.growth).min(p.dt_max_s);

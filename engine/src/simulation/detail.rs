@@ -698,6 +698,46 @@ mod tests {
         assert_eq!(off.counters.snapshot().auto_refines, 0);
     }
 
+    /// With the two-level material on, a region on a level-2 patch takes coarse springs one
+    /// base mass spacing apart (every fourth mass point) and steps a pull without a refused
+    /// step; with it off (the default) the region has none, as the base.
+    #[test]
+    fn a_two_level_region_on_a_detail_patch_has_coarse_springs_at_the_base_spacing() {
+        for two_level in [false, true] {
+            let mut s = super::super::tests::stages_on_sphere(12);
+            s.sim.config.two_level_detail = two_level;
+            let top = super::super::tests::sphere_top(&s);
+            let n = s
+                .sim
+                .clay
+                .density
+                .refine(top - Vec3::splat(0.3), top + Vec3::splat(0.3), 2)
+                .unwrap();
+            s.commands
+                .send(Command::SetTool(ToolChoice::Force {
+                    tool: dynaclay_core::tools::ForceTool::Pull {
+                        distribution: dynaclay_core::dynamics::Distribution::Gaussian,
+                        radius_fu: 0.05,
+                        gain: 2.0e6,
+                    },
+                    curve: Vec::new(),
+                    pivot: Vec3::ZERO,
+                }))
+                .unwrap();
+            let up = |t: f32| top + Vec3::Y * (0.05 * t);
+            super::super::tests::drag_tip(&mut s, up, 150, 0);
+            assert_eq!(s.sim.region_patch, n, "the pull is simulated on the patch");
+            let region = s.sim.region.as_ref().expect("a region");
+            let want = if two_level { (4, 4) } else { (1, 1) };
+            assert_eq!((region.coarse_stride, region.spacing_ratio), want);
+            assert_eq!(s.counters.snapshot().sim_nonfinite_rejected, 0);
+            assert!(
+                s.sim.clay.density.is_inside(top + Vec3::Y * 0.01),
+                "the surface rose under the pull (two-level {two_level})"
+            );
+        }
+    }
+
     #[test]
     fn a_region_on_a_detail_patch_holds_as_many_knot_spans_as_on_the_base() {
         // A lattice large enough that the base's region is not clipped by its box.

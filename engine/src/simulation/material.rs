@@ -18,6 +18,18 @@ impl SimulationStage {
         }
     }
 
+    /// The base's knot spacing over `patch`'s (1 on the base; a power of two on a detail
+    /// patch): the stride of a region's coarse springs there.
+    pub(super) fn spacing_ratio(&self, patch: usize) -> usize {
+        let lattice = &self.clay.density.patches[patch].lattice;
+        let ratio = self.clay.base().spacing / lattice.spacing;
+        if ratio.is_finite() && ratio >= 1.0 {
+            ratio.round() as usize
+        } else {
+            1
+        }
+    }
+
     /// Volume of a mass point of `patch` against one of the base patch.
     fn volume_ratio(&self, patch: usize) -> f32 {
         let lattice = &self.clay.density.patches[patch].lattice;
