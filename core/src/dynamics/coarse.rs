@@ -66,6 +66,17 @@ fn hat(i: usize, c: usize, stride: usize) -> f32 {
     }
 }
 
+/// The one or two coarse points (of `coarse` along the axis) whose hats reach fine index `i`,
+/// with their weights there.
+fn hats_reaching(i: usize, coarse: usize, stride: usize) -> impl Iterator<Item = (usize, f32)> {
+    let below = i / stride;
+    [below, below + 1]
+        .into_iter()
+        .filter(move |&j| j < coarse)
+        .map(move |j| (j, hat(i, j * stride, stride)))
+        .filter(|&(_, w)| w != 0.0)
+}
+
 /// The total hat weight of the coarse point `j` over `fine` points along an axis.
 fn hat_total(j: usize, fine: usize, stride: usize) -> f32 {
     let c = j * stride;
@@ -88,16 +99,7 @@ fn restrict_axis(
     for o in 0..outer {
         for i in 0..fine {
             let row = &src[(o * fine + i) * inner..(o * fine + i + 1) * inner];
-            // The one or two coarse points whose hats reach fine index i.
-            let below = i / stride;
-            for j in [below, below + 1] {
-                if j >= coarse {
-                    continue;
-                }
-                let w = hat(i, j * stride, stride);
-                if w == 0.0 {
-                    continue;
-                }
+            for (j, w) in hats_reaching(i, coarse, stride) {
                 let dst = &mut out[(o * coarse + j) * inner..(o * coarse + j + 1) * inner];
                 for (d, &s) in dst.iter_mut().zip(row) {
                     *d += w * s;
@@ -123,15 +125,7 @@ fn prolong_axis(
             if !add {
                 dst.fill(0.0);
             }
-            let below = i / stride;
-            for j in [below, below + 1] {
-                if j >= coarse {
-                    continue;
-                }
-                let w = hat(i, j * stride, stride);
-                if w == 0.0 {
-                    continue;
-                }
+            for (j, w) in hats_reaching(i, coarse, stride) {
                 let row = &src[(o * coarse + j) * inner..(o * coarse + j + 1) * inner];
                 for (d, &s) in dst.iter_mut().zip(row) {
                     *d += w * s;

@@ -330,6 +330,21 @@ mod tests {
     use super::*;
     use dynaclay_core::tools::ToolShape;
 
+    /// Sends the pull of a Gaussian spread `radius_fu` and gain 2e6 as the tool.
+    fn set_pull(s: &Stages, radius_fu: f32) {
+        s.commands
+            .send(Command::SetTool(ToolChoice::Force {
+                tool: dynaclay_core::tools::ForceTool::Pull {
+                    distribution: dynaclay_core::dynamics::Distribution::Gaussian,
+                    radius_fu,
+                    gain: 2.0e6,
+                },
+                curve: Vec::new(),
+                pivot: Vec3::ZERO,
+            }))
+            .unwrap();
+    }
+
     /// The width of the outside of `field` along z around `at` (which is outside): from `at`
     /// both ways to the first inside sample, every 0.0005.
     fn outside_width(field: &MultiPatchField, at: Vec3) -> f32 {
@@ -646,17 +661,7 @@ mod tests {
         let top = super::super::tests::sphere_top(&s);
         // A spread of a fifth of the base's knot span (0.1): level 3.
         let radius_fu = 0.02;
-        s.commands
-            .send(Command::SetTool(ToolChoice::Force {
-                tool: dynaclay_core::tools::ForceTool::Pull {
-                    distribution: dynaclay_core::dynamics::Distribution::Gaussian,
-                    radius_fu,
-                    gain: 2.0e6,
-                },
-                curve: Vec::new(),
-                pivot: Vec3::ZERO,
-            }))
-            .unwrap();
+        set_pull(&s, radius_fu);
         // From the top straight up by a knot span over 0.2 s, held.
         let up = |t: f32| top + Vec3::Y * (0.1 * t);
         super::super::tests::drag_tip(&mut s, up, 200, 0);
@@ -713,17 +718,7 @@ mod tests {
                 .density
                 .refine(top - Vec3::splat(0.3), top + Vec3::splat(0.3), 2)
                 .unwrap();
-            s.commands
-                .send(Command::SetTool(ToolChoice::Force {
-                    tool: dynaclay_core::tools::ForceTool::Pull {
-                        distribution: dynaclay_core::dynamics::Distribution::Gaussian,
-                        radius_fu: 0.05,
-                        gain: 2.0e6,
-                    },
-                    curve: Vec::new(),
-                    pivot: Vec3::ZERO,
-                }))
-                .unwrap();
+            set_pull(&s, 0.05);
             let up = |t: f32| top + Vec3::Y * (0.05 * t);
             super::super::tests::drag_tip(&mut s, up, 150, 0);
             assert_eq!(s.sim.region_patch, n, "the pull is simulated on the patch");
