@@ -1091,7 +1091,7 @@ mod tests {
     fn the_refit_is_the_same_on_one_thread_and_on_several() {
         // Uneven weights and a bending energy, a few steps from zero: every coefficient must
         // come out bit for bit the same whatever the thread count.
-        let (dims, sps, m, targets, weights) = uneven_problem();
+        let (dims, sps, _, targets, weights) = uneven_problem();
         let fit = |threads: usize| {
             let mut lattice = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
             let steps =
