@@ -90,6 +90,11 @@ pub struct RegionState {
     pub coarse_stride: usize,
     /// The base's knot spacing over the region's patch's (1 on the base).
     pub spacing_ratio: usize,
+    /// Mass per point of the material the region was made with, before any painted mass
+    /// (`mass` holds the painted values): the mass a force tool's per-step travel cap is
+    /// sized for where the clay is painted heavier, so heavy clay lags as its mass asks
+    /// (see [`super::Simulator::gather_forces`]).
+    pub material_mass: f32,
 }
 
 impl RegionState {
@@ -148,6 +153,7 @@ impl RegionState {
             held: Vec::new(),
             coarse_stride: 1,
             spacing_ratio: 1,
+            material_mass: material.mass,
         };
         state.reload(lattice);
         Ok(state)

@@ -476,7 +476,9 @@ impl Simulator {
     ///   vector) still is from the plane through the end (`TargetBound`), so the spread does
     ///   not keep carving or raising places already at the target;
     /// - a vector's share on its most loaded point moves that point's coast density by at
-    ///   most `StepParams::max_coast_step_spans` of surface travel per step, whatever the gain.
+    ///   most `StepParams::max_coast_step_spans` of surface travel per step, whatever the gain
+    ///   (sized for the region's mean mass, at most its material's unpainted mass: clay painted
+    ///   heavier moves less than that per step).
     pub fn gather_forces(
         &mut self,
         state: &RegionState,
@@ -523,13 +525,24 @@ impl Simulator {
         } else {
             self.params.dt_max_s
         };
+        // The cap is sized for the region's own mass, but never for more than its material's
+        // unpainted mass: a region painted heavier then takes the unpainted clay's largest
+        // force, and so lags as its mass asks, where a cap that grew with the painted mass
+        // moved heavy clay as fast as light clay at any large gain.
+        // (A mean within rounding of the material's mass is kept as it is: unpainted clay's cap
+        // is the same to the bit as before the cap knew the material.)
         let mean_mass = state.mass.iter().sum::<f32>() / state.mass.len().max(1) as f32;
+        let cap_mass = if mean_mass > state.material_mass * (1.0 + 1e-4) {
+            state.material_mass
+        } else {
+            mean_mass
+        };
         // The travel is in the base's knot spans (the patch's times its ratio) where the
         // region's material is two-level: it resists a dent as the base does, so a force
         // tool may move the clay there as far a step as on the base.
         let travel =
             self.params.max_coast_step_spans * lattice.spacing * state.spacing_ratio.max(1) as f32;
-        let coast_cap = travel * mean_mass / ((tau_s + dt) * dt);
+        let coast_cap = travel * cap_mass / ((tau_s + dt) * dt);
         let among = PatchAmongOthers { lattice, others };
         let coast_alone = CoastField {
             field: lattice,
@@ -1631,6 +1644,42 @@ mod tests {
         assert!(
             (reached - 0.15).abs() < 0.015,
             "surface at {reached} for 0.15"
+        );
+    }
+
+    /// The cap is sized for the material's unpainted mass: a region painted ten times heavier
+    /// under the same huge gain moves under a tenth as far in its first 20 steps (0.004
+    /// against 0.083; a cap that grew with the painted mass let it move 0.023, 0.28 of the
+    /// unpainted clay), and still reaches the cursor.
+    #[test]
+    fn under_a_huge_gain_clay_painted_heavier_lags_as_its_mass_asks() {
+        let cursor = CENTRE + Vec3::X * (RADIUS + 0.15);
+        let run = |mass_scale: f32, steps: usize| {
+            let mut lattice = sphere();
+            let mut state = region(&lattice, CREEP);
+            for m in &mut state.mass {
+                *m *= mass_scale;
+            }
+            let mut sim = Simulator::new(StepParams::default());
+            let mut snap = RegionSnapshot::default();
+            for _ in 0..steps {
+                let tf = grab(&lattice, cursor, 1e15).unwrap();
+                sim.step(&mut state, &mut lattice, &[tf], &mut snap)
+                    .unwrap();
+            }
+            surface_radius(&lattice, Vec3::X) - RADIUS
+        };
+        let (light, heavy) = (run(1.0, 20), run(10.0, 20));
+        println!("20 steps: unpainted {light}, ten times heavier {heavy}");
+        assert!(light > 0.01, "the unpainted clay moved {light} in 20 steps");
+        assert!(
+            heavy < 0.1 * light,
+            "painted ten times heavier it moved {heavy} against {light}"
+        );
+        let reached = run(10.0, 1500);
+        assert!(
+            (reached - 0.15).abs() < 0.015,
+            "the heavy clay's surface at {reached} for 0.15"
         );
     }
 

@@ -64,6 +64,7 @@ impl SimulationStage {
         };
         let m = self.region_material_of(self.region_patch);
         state.mass.fill(m.mass);
+        state.material_mass = m.mass;
         state.damping.fill(m.damping);
         state.stiffness.fill(m.stiffness);
         state.plasticity_per_s.fill(m.plasticity_per_s);
