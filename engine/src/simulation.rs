@@ -153,10 +153,17 @@ pub struct SimConfig {
     /// half, 0.85x asked; volume-scaled 0.129) and the chisel of gain 2e9 keeps its depth
     /// (worst 6.2% and 9.7%; volume-scaled 16%); but the narrow elastic press of
     /// `tests/material_fields.rs` (level 2) is 0.099 deep with some neighbourhoods and
-    /// stalls at 0.024 with another (26 in one run, 18 in the other), the narrow push's
+    /// reads 0.024 deep with another (26 in one run, 18 in the other), the narrow push's
     /// groove (`tests/adaptive_clay.rs`) comes out 0.028 and 0.013 wide at its narrowest
     /// against the chord 0.040 (25% allowed), and in one run the narrow chisel's recorded
-    /// session (`tests/haptic_quality.rs`) flipped 8 times. The heavy painted half, 0.041
+    /// session (`tests/haptic_quality.rs`) flipped 8 times. The first two are skins of clay
+    /// the coarse springs close over the narrow hole, not shallow dents (the crossings along
+    /// the lines the tests measure on, printed by a temporary probe): the press's hole is
+    /// 0.099 deep under a sliver about 0.0005 thick (a fiftieth of the patch's knot span, the
+    /// depth below which the push's body fades) 0.025 below the top on its axis alone; the
+    /// groove is 0.043 wide between its walls where it reads 0.013, with a skin from 0.006 to
+    /// 0.020 below the top along its middle, and 0.021 wide where the skin is not (its floor
+    /// 0.028 deep); where it reads 0.048 a sliver floats 0.014-0.018 above the top. The heavy painted half, 0.041
     /// deep after 200 steps against the unpainted 0.066 while the per-step travel cap was
     /// sized by the region's mean mass, lags as asked since the cap is sized by the unpainted
     /// mass at most: 220 against 160 steps to 0.03 deep, 0.021 against 0.066 after 200 steps
