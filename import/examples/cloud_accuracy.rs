@@ -18,7 +18,7 @@ use std::time::Instant;
 use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh, point_triangle_distance};
 use dynaclay_import::fit::{
     HierarchyOptions, ImportSettings, PointCloud, fit_hierarchy, mesh::read_mesh,
-    resolution_for_points,
+    most_resolution_for_points, resolution_for_points,
 };
 use glam::Vec3;
 
@@ -224,12 +224,16 @@ fn main() {
     };
     let options = HierarchyOptions {
         base: dynaclay_import::fit::CloudFitOptions {
-            // As the import chooses it (see `resolution_for_points`) unless given.
+            // As the import chooses it (set by the noise within the count's bounds) unless
+            // given.
             resolution: if settings.resolution_from_points {
-                resolution_for_points(count)
+                most_resolution_for_points(count)
             } else {
                 settings.resolution
             },
+            fewest_knots_by_noise: settings
+                .resolution_from_points
+                .then(|| resolution_for_points(count)),
             gap_spans: settings.gap_spans,
             ..Default::default()
         },

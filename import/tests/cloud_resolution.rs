@@ -1,6 +1,7 @@
 //! A dense scan chooses a base lattice fine enough for its sharp features: a cube (side 2)
 //! sampled as a 50 000-point cloud with normals and Gaussian noise of 0.25% of its side,
-//! imported from a file with the defaults, lies closer to the cube along its edges (the 99th
+//! imported from a file with the defaults (the knots set by its noise, within what its count
+//! affords), lies closer to the cube along its edges (the 99th
 //! percentile of the distance) than the same file imported on the fixed 32-knot lattice, which
 //! rounds its edges over a wider span; both are one closed piece of genus 0.
 
@@ -10,7 +11,8 @@ use std::path::Path;
 use dynaclay_core::mesh::{BrickOctree, SampleGrid};
 use dynaclay_import::fit::import::MAX_POINTS_RESOLUTION;
 use dynaclay_import::fit::{
-    DEFAULT_RESOLUTION, ImportSettings, ImportedFit, fit_import, resolution_for_points,
+    DEFAULT_RESOLUTION, ImportSettings, ImportedFit, fit_import, most_resolution_for_points,
+    resolution_for_points,
 };
 use glam::Vec3;
 
@@ -105,10 +107,13 @@ fn a_dense_scan_of_a_cube_keeps_its_edges_closer_on_the_lattice_its_count_choose
     let path = dir.path().join("cube.xyz");
     let count = 50_000;
     std::fs::write(&path, cube_xyz(count, 0.0025)).unwrap();
-    let chosen = resolution_for_points(count);
-    assert!(chosen > DEFAULT_RESOLUTION, "{chosen} knots");
-
     let defaults = import(&path, &ImportSettings::default());
+    // The count bounds the knots; a quarter of a percent of noise on a cube's 50 000 points
+    // (a span of 0.9 (σ s)^(1/3) would be some 37 across it) takes the most it affords.
+    let chosen = defaults.field.patches[0].lattice.dims[0];
+    assert!(chosen > DEFAULT_RESOLUTION, "{chosen} knots");
+    assert!(chosen >= resolution_for_points(count), "{chosen} knots");
+    assert_eq!(chosen, most_resolution_for_points(count));
     assert_eq!(defaults.field.patches[0].lattice.dims, [chosen; 3]);
     let fixed = import(
         &path,
@@ -140,6 +145,11 @@ fn the_point_count_chooses_more_knots_for_more_points_within_bounds() {
         assert!(
             (DEFAULT_RESOLUTION..=MAX_POINTS_RESOLUTION).contains(&knots),
             "{points} points: {knots}"
+        );
+        let most = most_resolution_for_points(points);
+        assert!(
+            (knots..=MAX_POINTS_RESOLUTION).contains(&most),
+            "{points} points: at most {most}, at least {knots}"
         );
         assert!(knots >= last, "{points} points: {knots} after {last}");
         last = knots;

@@ -178,8 +178,10 @@ pub struct ImportArgs {
     #[arg(long, value_name = "SESSION")]
     pub out: PathBuf,
     /// Coefficients per axis of the fitted clay (12 to 256; the object spans this less
-    /// eight). Default: 32 for a mesh or a volume; a point cloud's is chosen from its point
-    /// count (32 up to about 27 000 points, 40 at 50 000, at most 48).
+    /// eight). Default: 32 for a mesh or a volume; a point cloud's is chosen from its noise
+    /// (estimated, or `--noise`) and point spacing, a knot span of 0.9 (noise × spacing)^(1/3),
+    /// within bounds its point count sets (32 up to about 27 000 points; 40 to 44 at 50 000;
+    /// at most 48).
     #[arg(long, value_name = "N")]
     pub resolution: Option<usize>,
     /// Holes in a point cloud narrower than twice this, in knot spans, are capped (0.5 to

@@ -55,6 +55,10 @@ pub const REFERENCE_POINTS: usize = 50_000;
 /// 50 000-point scans at 40 knots, 1.16 KB at 44, 0.55–0.65 KB at 32; the whole
 /// `dynaclay import`, writing its session and mesh, at 1.0–1.07 KB at 40 knots).
 pub const RESOLUTION_AT_REFERENCE: f32 = 40.0;
+/// Knots per axis of a cloud of [`REFERENCE_POINTS`] points at most, when its noise is low
+/// enough to want them ([`most_resolution_for_points`]): the fit and its mesh took 1.0–1.1 KB
+/// per point on the peers bench's 50 000-point clouds at 44 knots (the issue's bound 1.2 KB).
+pub const MOST_RESOLUTION_AT_REFERENCE: f32 = 44.0;
 /// The finest base lattice the point count alone chooses, knots per axis (finer is asked for
 /// with `--resolution`): its fit takes about twice the time of the 40-knot one.
 pub const MAX_POINTS_RESOLUTION: usize = 48;
@@ -78,8 +82,31 @@ pub const MAX_POINTS_RESOLUTION: usize = 48;
 /// ```
 #[must_use]
 pub fn resolution_for_points(points: usize) -> usize {
+    knots_for_count(points, RESOLUTION_AT_REFERENCE)
+}
+
+/// The most knots per axis of the base lattice a cloud of `points` points affords, the
+/// noise choosing fewer ([`super::cloud::knots_for_noise`], from [`resolution_for_points`]):
+/// [`MOST_RESOLUTION_AT_REFERENCE`] at [`REFERENCE_POINTS`], growing with the cube root of the
+/// count so that the lattice's memory per point stays the same, within the same bounds.
+///
+/// # Examples
+/// ```
+/// use dynaclay_import::fit::import::most_resolution_for_points;
+/// assert_eq!(most_resolution_for_points(1_000), 32);
+/// assert_eq!(most_resolution_for_points(50_000), 44);
+/// assert_eq!(most_resolution_for_points(1_000_000), 48);
+/// ```
+#[must_use]
+pub fn most_resolution_for_points(points: usize) -> usize {
+    knots_for_count(points, MOST_RESOLUTION_AT_REFERENCE)
+}
+
+/// `at_reference` knots at [`REFERENCE_POINTS`], times the cube root of `points` over it,
+/// from [`DEFAULT_RESOLUTION`] to [`MAX_POINTS_RESOLUTION`].
+fn knots_for_count(points: usize, at_reference: f32) -> usize {
     let ratio = points as f64 / REFERENCE_POINTS as f64;
-    let knots = (f64::from(RESOLUTION_AT_REFERENCE) * ratio.cbrt()).round();
+    let knots = (f64::from(at_reference) * ratio.cbrt()).round();
     // Clamped as a float first: the cube root of any count is far below usize's range.
     knots.clamp(DEFAULT_RESOLUTION as f64, MAX_POINTS_RESOLUTION as f64) as usize
 }
@@ -404,8 +431,10 @@ fn fit_cloud(
 ) -> Result<ImportedFit, ImportError> {
     // Only a cloud file's own points choose the lattice: an open mesh sampled into a cloud
     // has as many points as the sampling made, not as the scan held.
-    let resolution = if matches!(kind, FitPath::Cloud) && settings.resolution_from_points {
-        resolution_for_points(cloud.points.len())
+    // The count sets the most knots; the noise, once the screening knows it, the knots.
+    let knots_from_noise = matches!(kind, FitPath::Cloud) && settings.resolution_from_points;
+    let resolution = if knots_from_noise {
+        most_resolution_for_points(cloud.points.len())
     } else {
         settings.resolution
     };
@@ -414,14 +443,16 @@ fn fit_cloud(
             resolution,
             gap_spans: settings.gap_spans,
             noise: settings.noise_percent.map(|p| p / 100.0),
+            fewest_knots_by_noise: knots_from_noise
+                .then(|| resolution_for_points(cloud.points.len())),
             ..CloudFitOptions::default()
         },
         error: settings.error_percent / 100.0,
         max_depth: settings.max_depth,
     };
     note(format!(
-        "{} points{} from {}, fitting a {}³ clay{} with detail patches down to depth {} where \
-         the error is above {}% of its size",
+        "{} points{} from {}, fitting a {}{}³ clay{} with detail patches down to depth {} \
+         where the error is above {}% of its size",
         cloud.points.len(),
         if cloud.normals.is_some() {
             " with normals"
@@ -429,11 +460,13 @@ fn fit_cloud(
             ""
         },
         path.display(),
+        if knots_from_noise { "at most " } else { "" },
         options.base.resolution,
-        if resolution == settings.resolution {
-            ""
+        if knots_from_noise {
+            " (its knots set by the noise, at most as many as the point count affords; \
+             --resolution sets them)"
         } else {
-            " (its resolution set by the point count; --resolution sets another)"
+            ""
         },
         options.max_depth,
         settings.error_percent
@@ -478,13 +511,16 @@ fn fit_cloud(
     let s = fit.screening;
     note(format!(
         "dropped {} isolated points and {} off the surface their neighbours agree on; turned \
-         {} normals to agree with their neighbours'; noise {:.3}% of the size ({}), smoothed \
-         over {:.3}%; error bound {:.3}%; removed {} small pieces, filled {} small cavities",
+         {} normals to agree with their neighbours'; noise {:.3}% of the size ({}), points \
+         {:.3}% apart; base lattice {}³; smoothed over {:.3}%; error bound {:.3}%; removed {} \
+         small pieces, filled {} small cavities",
         s.isolated,
         s.far,
         s.overruled_normals,
         100.0 * s.noise,
         if s.noise_given { "given" } else { "estimated" },
+        100.0 * s.point_spacing,
+        s.resolution,
         100.0 * s.bandwidth,
         100.0 * fit.bound,
         s.removed_pieces,

@@ -33,7 +33,8 @@ pub use holes::{CappedMesh, MAX_CAPPED_HOLE, UncappedHoles, cap_holes};
 pub use import::{
     DEFAULT_RESOLUTION, FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud,
     ImportedFit, closed_mesh_grid, fit_file, fit_import, import_cloud, import_session,
-    imported_session, is_importable, is_point_cloud, resolution_for_points,
+    imported_session, is_importable, is_point_cloud, most_resolution_for_points,
+    resolution_for_points,
 };
 pub use paint::{PaintError, paint_from_cloud};
 pub use point_file::{read_points, read_points_with_colours};
