@@ -1429,13 +1429,24 @@ impl BrickedCoeffs {
                     }
                 }
             }
-            // The apron of a brick beside the old store's border now reaches new or moved
-            // neighbours.
-            let [gx, gy, gz] = grown.bricks_per_axis;
-            for bk in 0..gz {
-                for bj in 0..gy {
-                    for bi in 0..gx {
-                        grown.refresh_apron([bi, bj, bk], true);
+            // Only the aprons of bricks beside the old store's border can have changed: a
+            // brick one below its low faces now has moved neighbours, and the last two
+            // bricks along an axis now have new (zero) coefficients where their aprons reach
+            // past the old store. Deeper inside, every neighbour moved with its brick; farther
+            // out, every brick and neighbour is new and zero. On a far growth of a small clay
+            // this is a few bricks of a directory of millions.
+            let moved = self.bricks_per_axis;
+            let reach: [std::ops::Range<usize>; 3] =
+                std::array::from_fn(|a| shift[a].saturating_sub(1)..shift[a] + moved[a]);
+            let on_border = |to: [usize; 3]| {
+                (0..3).any(|a| to[a] < shift[a] || to[a] + 2 >= shift[a] + moved[a])
+            };
+            for bk in reach[2].clone() {
+                for bj in reach[1].clone() {
+                    for bi in reach[0].clone() {
+                        if on_border([bi, bj, bk]) {
+                            grown.refresh_apron([bi, bj, bk], true);
+                        }
                     }
                 }
             }
@@ -2179,8 +2190,15 @@ mod tests {
 
     #[test]
     fn padding_moves_whole_bricks_and_copies_unaligned_ones() {
-        let dims = [10, 9, 12];
-        let mut rng = Rng(7);
+        // Stores whose last brick along an axis owns fewer coefficients than an apron holds
+        // (9, 17, 25: one), so the brick before it has an apron reaching past the store.
+        for (dims, seed) in [([10, 9, 12], 7), ([17, 25, 11], 8)] {
+            padding_keeps_values_and_stencils(dims, seed);
+        }
+    }
+
+    fn padding_keeps_values_and_stencils(dims: [usize; 3], seed: u64) {
+        let mut rng = Rng(seed);
         let mut store = BrickedCoeffs::uniform(dims, 1.0);
         for _ in 0..50 {
             let n = rng.below(store.len());
@@ -2190,6 +2208,8 @@ mod tests {
             ([8, 0, 16], [8, 3, 0]),
             ([3, 1, 0], [0, 2, 5]),
             ([0; 3], [6; 3]),
+            ([24, 16, 8], [30, 17, 1]),
+            ([0, 8, 0], [2, 0, 9]),
         ] {
             let grown = store.padded(low, high);
             let gd = grown.dims();
