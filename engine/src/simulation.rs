@@ -45,6 +45,7 @@ mod library;
 mod mask;
 mod material;
 mod publication;
+mod reach;
 mod removal;
 mod session_io;
 mod stamps;
@@ -280,11 +281,11 @@ pub struct SimulationStage {
     acks: Acks,
     /// Per density patch, the box changed outside the region that a reader may not have yet.
     pending: Vec<Option<CoeffBox>>,
-    /// Per density patch, the union of the boxes published since the readers' copies were
-    /// last made (a new layout): the readers never compact their copies, so the bricks in
-    /// these boxes bound the dense bricks they may hold beyond
-    /// [`Self::reader_dense_at_layout`] (see `publication.rs`).
-    reader_reach: Vec<Option<CoeffBox>>,
+    /// Per density patch, the boxes published since the readers' copies were last made (a
+    /// new layout): the readers never compact their copies, so the bricks these boxes reach
+    /// bound the dense bricks they may hold beyond [`Self::reader_dense_at_layout`] (see
+    /// `reach.rs` and `publication.rs`).
+    reader_reach: Vec<reach::Reach>,
     /// Dense bricks of the density patches when the readers' copies were last made.
     reader_dense_at_layout: usize,
     /// The patch layout's generation (bumped when a detail patch is added).
@@ -393,7 +394,7 @@ impl SimulationStage {
         // more.
         let scratch = RegionSnapshot::with_capacity(largest.min(MAX_UPDATE_COEFFS));
         let pending = vec![None; field.patches.len()];
-        let reader_reach = vec![None; field.patches.len()];
+        let reader_reach = vec![reach::Reach::default(); field.patches.len()];
         let reader_dense_at_layout = field.dense_brick_count();
         let (status, status_reader) = snapshot_channel(&SimStatus::default());
         let (colour, colour_reader) = snapshot_channel(&None);

@@ -113,7 +113,7 @@ impl SimulationStage {
             sender.offer(&self.clay.density, self.layout_generation);
         }
         self.pending = vec![None; self.clay.density.patches.len()];
-        self.reader_reach = vec![None; self.clay.density.patches.len()];
+        self.reader_reach = vec![reach::Reach::default(); self.clay.density.patches.len()];
         self.reader_dense_at_layout = self.clay.density.dense_brick_count();
         self.changed_since_publish = true;
     }

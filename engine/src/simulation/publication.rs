@@ -4,7 +4,7 @@
 
 #[allow(clippy::wildcard_imports)] // the stage's own module: its types and imports
 use super::*;
-use dynaclay_core::field::{BRICK_APRON, COEFF_BRICK, MAX_DENSE_BRICKS};
+use dynaclay_core::field::MAX_DENSE_BRICKS;
 
 /// Steps between two publications of a changing colour field. Painting changes it every step;
 /// the graphics loop shows it at 60 Hz, so copying all four channels at the simulation's rate
@@ -67,15 +67,14 @@ impl SimulationStage {
         // copy, as sparse as the clay.
         for n in 0..self.reader_reach.len() {
             if let Some(b) = self.box_to_publish(n, region) {
-                let reach = &mut self.reader_reach[n];
-                *reach = Some(reach.map_or(b, |r| r.union(&b)));
+                self.reader_reach[n].add(b);
             }
         }
         if self.reader_dense_bound() > MAX_DENSE_BRICKS {
             self.publish_layout();
             self.counters.updates_as_copies(1);
             for n in 0..self.reader_reach.len() {
-                self.reader_reach[n] = self.box_to_publish(n, region);
+                self.reader_reach[n] = reach::Reach::of(self.box_to_publish(n, region));
             }
         }
         let field = &self.clay.density;
@@ -147,16 +146,9 @@ impl SimulationStage {
     /// The most dense bricks a reader's copy may hold: the clay's when the copies were made
     /// and every brick the boxes published since reach (as owner or through its apron).
     fn reader_dense_bound(&self) -> usize {
-        let bricks = |b: &CoeffBox| {
-            (0..3).fold(1_usize, |acc, a| {
-                let first = b.min[a].saturating_sub(BRICK_APRON) / COEFF_BRICK;
-                acc.saturating_mul(b.max[a] / COEFF_BRICK + 1 - first)
-            })
-        };
         self.reader_reach
             .iter()
-            .flatten()
-            .map(bricks)
+            .map(reach::Reach::brick_bound)
             .fold(self.reader_dense_at_layout, usize::saturating_add)
     }
 
@@ -302,7 +294,7 @@ mod tests {
         s.sim.mark_changed(0, change);
         s.sim.publish();
         assert_eq!(s.counters.snapshot().updates_as_copies, copies);
-        assert!(s.sim.reader_reach[0].is_some_and(|r| r.contains_box(&change)));
+        assert!(s.sim.reader_reach[0].contains_box(&change));
         let bound = s.sim.reader_dense_bound();
         assert!(
             bound >= s.sim.clay.density.dense_brick_count() + 8,
@@ -319,6 +311,43 @@ mod tests {
             s.sim.clay.density.dense_brick_count()
         );
         assert!(s.sim.reader_dense_bound() < MAX_DENSE_BRICKS);
+        haptic_and_sim(&mut s, 3);
+        assert_eq!(s.haptic.field(), &s.sim.clay.density);
+    }
+
+    /// Two small edits far apart are bounded as two boxes, not as the box spanning both: on a
+    /// clay near its budget they go as boxes, where their union would have sent a copy of
+    /// the whole clay.
+    #[test]
+    fn edits_far_apart_near_the_budget_go_as_boxes() {
+        let mut s = super::super::tests::stages_on_sphere(40);
+        haptic_and_sim(&mut s, 2);
+        let copies = s.counters.snapshot().updates_as_copies;
+        let near = CoeffBox {
+            min: [2; 3],
+            max: [5; 3],
+        };
+        let far = CoeffBox {
+            min: [32; 3],
+            max: [35; 3],
+        };
+        // The two reach 1 + 8 bricks; the box spanning both, 125.
+        s.sim.reader_dense_at_layout = MAX_DENSE_BRICKS - 50;
+        s.sim.mark_changed(0, near);
+        s.sim.publish();
+        // Both readers take it, so the next edit is pending alone.
+        for _ in 0..2 {
+            s.haptic.tick(Instant::now());
+            s.graphics.tick();
+            s.sim.apply_commands();
+            s.sim.step(&ToolSample::IDLE);
+        }
+        s.sim.mark_changed(0, far);
+        s.sim.publish();
+        assert_eq!(s.counters.snapshot().updates_as_copies, copies);
+        assert!(s.sim.reader_dense_bound() < MAX_DENSE_BRICKS);
+        assert!(s.sim.reader_reach[0].contains_box(&near));
+        assert!(s.sim.reader_reach[0].contains_box(&far));
         haptic_and_sim(&mut s, 3);
         assert_eq!(s.haptic.field(), &s.sim.clay.density);
     }
