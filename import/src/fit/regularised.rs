@@ -176,7 +176,7 @@ impl GramFactor {
 /// so the result does not depend on the thread count; then multiplied by its entry of
 /// `weights`, when given (one per output entry).
 ///
-/// NOTE: the output is set plane by plane on the threads that fill it, and weighted there
+/// NOTE: the output is cleared plane by plane on the threads that fill it, and weighted there
 /// too: cleared and weighted in passes on the calling thread, the half-million samples of a
 /// 40³ fit took about 10 ms of each import's serial time (bench/RESULTS.md, "Import wall
 /// time"). Along y and z an output line is the weighted sum of whole input lines, added in
@@ -199,7 +199,7 @@ fn along_axis(
     let [ox, oy, oz] = out_dims;
     let plane = ox * oy;
     let in_plane = dims[0] * dims[1];
-    // Kept from the last product of the same size: each entry is set where its plane is filled.
+    // Kept from the last product of the same size: each plane is cleared where it is filled.
     out.resize(plane * oz, 0.0);
     let taps = if axis == 0 {
         TapRows::of(matrix, dims[0])
@@ -209,6 +209,9 @@ fn along_axis(
     let fill = |first_plane: usize, slab: &mut [f64]| {
         for (dz, out_plane) in slab.chunks_exact_mut(plane).enumerate() {
             let z = first_plane + dz;
+            if axis != 0 {
+                out_plane.fill(0.0);
+            }
             match axis {
                 0 | 1 => plane_along(
                     &input[z * in_plane..(z + 1) * in_plane],
@@ -218,7 +221,14 @@ fn along_axis(
                     taps.as_ref(),
                     out_plane,
                 ),
-                _ => sum_of_lines(out_plane, input, &matrix[z]),
+                _ => {
+                    for &(t, w) in &matrix[z] {
+                        let from = t * in_plane;
+                        for (value, &v) in out_plane.iter_mut().zip(&input[from..from + plane]) {
+                            *value += w * v;
+                        }
+                    }
+                }
             }
             if let Some(weights) = weights {
                 for (value, &w) in out_plane.iter_mut().zip(&weights[z * plane..]) {
@@ -248,33 +258,9 @@ fn along_axis(
     out_dims
 }
 
-/// `out = Σ w · input[t · len .. (t + 1) · len]` over `row`'s `(t, w)` in its order, `len`
-/// being `out`'s length: an output line (or plane) of a pass along y (or z) as the weighted
-/// sum of whole input lines (planes), which the compiler vectorises.
-///
-/// NOTE: the first term is added to a zero here rather than to an output cleared beforehand:
-/// the same sum bit for bit (`0.0 + w · v`, as the plain sum per entry starts), with no pass
-/// to clear the output first. The clearing was 2.3% of an import's CPU in `perf record`
-/// (`memset`; bench/RESULTS.md, "Import time: stage by stage").
-fn sum_of_lines(out: &mut [f64], input: &[f64], row: &[(usize, f64)]) {
-    let len = out.len();
-    let Some((&(t, w), rest)) = row.split_first() else {
-        out.fill(0.0);
-        return;
-    };
-    for (value, &v) in out.iter_mut().zip(&input[t * len..(t + 1) * len]) {
-        *value = 0.0 + w * v;
-    }
-    for &(t, w) in rest {
-        for (value, &v) in out.iter_mut().zip(&input[t * len..(t + 1) * len]) {
-            *value += w * v;
-        }
-    }
-}
-
 /// One z-plane of a pass along x (`axis` 0) or y (1): `input` is the plane, `[nx, ny]` its
-/// size, `out` the output plane (every entry set); along x, `taps` is `matrix` as [`TapRows`]
-/// where it can be.
+/// size, `out` the output plane (every entry set along x; along y, zeros on entry); along x,
+/// `taps` is `matrix` as [`TapRows`] where it can be.
 fn plane_along(
     input: &[f64],
     [nx, ny]: [usize; 2],
@@ -308,7 +294,12 @@ fn plane_along(
         }
     } else {
         for (line, row) in out.chunks_exact_mut(nx.max(1)).zip(matrix) {
-            sum_of_lines(line, input, row);
+            for &(t, w) in row {
+                let from = t * nx;
+                for (value, &v) in line.iter_mut().zip(&input[from..from + nx]) {
+                    *value += w * v;
+                }
+            }
         }
     }
 }
@@ -408,7 +399,7 @@ fn along_x_then_y(
     let plane = |d: [usize; 3]| d[0] * d[1];
     let (in_plane, first_plane, second_plane) =
         (plane(dims), plane(first_dims), plane(second_dims));
-    // Kept from the last product of the same size: each entry is set where its plane is filled.
+    // Kept from the last product of the same size: each plane is cleared where it is filled.
     first.resize(first_plane * dims[2], 0.0);
     second.resize(second_plane * dims[2], 0.0);
     if first_plane == 0 || second_plane == 0 {
@@ -431,6 +422,7 @@ fn along_x_then_y(
                 taps.as_ref(),
                 first,
             );
+            second.fill(0.0);
             plane_along(
                 first,
                 [first_dims[0], first_dims[1]],
