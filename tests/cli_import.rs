@@ -70,15 +70,28 @@ fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
         .arg(&session)
         .arg("--mesh")
         .arg(&mesh)
+        .arg("--timings")
         .output()
         .unwrap();
     let said = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{said}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{said}{err}");
     assert!(said.contains("9000 points"), "{said}");
+    // `--timings` lists the stages on stderr, the signing's own indented under the fit's.
+    for stage in [
+        " ms  reading",
+        " ms      screening",
+        " ms    signing",
+        " ms  fit",
+        " ms  meshing beside the session's encoding",
+        " ms  writing",
+    ] {
+        assert!(err.contains(stage), "{stage:?} in {err}");
+    }
+    assert!(
+        !said.contains(" ms  "),
+        "the log on stdout is unchanged: {said}"
+    );
     let loaded = load_session(&session).expect("the session loads");
     assert_eq!(loaded.clay.density.patches[0].lattice.dims, [32; 3]);
     assert!(

@@ -211,6 +211,10 @@ pub struct ImportArgs {
     /// anything is allocated (exit 2). Default: half of the machine's physical memory.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub memory_budget_mib: Option<u64>,
+    /// Print each stage's wall time on stderr at the end (reading, each stage of a point
+    /// cloud's fit, meshing, encoding, writing), to see where an import spends its time.
+    #[arg(long)]
+    pub timings: bool,
 }
 
 /// `dynaclay points`.

@@ -10,12 +10,14 @@
 use std::io::IsTerminal;
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::args::{ImportArgs, RawSample};
 use super::budget::MemoryBudget;
 use super::error::CliError;
-use crate::fit::{FitProgress, ImportError, ImportSettings, Sample, import_session};
+use crate::fit::{
+    FitProgress, ImportError, ImportSettings, Sample, StageTimes, import_session_timed,
+};
 use crate::io::{OutputKind, OutputRule, encode, write_atomic};
 use crate::mesh::{MeshFormat, write_mesh};
 
@@ -78,7 +80,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     };
     let bar = progress_bar();
     let mut first = true;
-    let session = import_session(
+    let session = import_session_timed(
         &args.input,
         &settings,
         &mut |stage| show_progress(&bar, stage),
@@ -103,10 +105,17 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         ImportError::Fit { .. } => CliError::output("import", e),
         other => CliError::bad_input("import", other),
     })?;
+    let (session, mut times) = session;
+    let started = Instant::now();
+    let mut beside = StageTimes::default();
     // The mesh is made (within the memory budget) before anything is written, so a refused
     // mesh leaves no half-finished import. The session is encoded beside it.
     let (mesh, encoded) = std::thread::scope(|scope| {
-        let encoded = scope.spawn(|| encode(&session));
+        let encoded = scope.spawn(|| {
+            let started = Instant::now();
+            (encode(&session), started.elapsed())
+        });
+        let meshing = Instant::now();
         let mesh = match (&args.mesh, mesh_format) {
             (Some(path), Some(format)) => {
                 let budget = MemoryBudget::from_flag(args.memory_budget_mib);
@@ -123,11 +132,18 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             }
             _ => Ok(None),
         };
-        let encoded = encoded
+        beside.record("meshing", meshing);
+        let (encoded, encoding) = encoded
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        beside.stages.push(crate::fit::StageTime {
+            name: "session's encoding",
+            depth: 0,
+            wall: encoding,
+        });
         (mesh, encoded)
     });
+    times.record_with("meshing beside the session's encoding", started, beside);
     let mesh = mesh?;
     let bytes = encoded.map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     // The last moment Ctrl-C is heard: from here on the outputs are written whole.
@@ -136,6 +152,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     }
     // The two files are written side by side: each write ends by flushing its file to disk,
     // and the two flushes wait together.
+    let started = Instant::now();
     let (saved, mesh_written) = std::thread::scope(|scope| {
         let saved = scope.spawn(|| write_atomic(&args.out, &bytes));
         let mesh_written = mesh
@@ -146,6 +163,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         (saved, mesh_written)
     });
+    times.record("writing", started);
     saved.map_err(|e| CliError::output(args.out.display().to_string(), e))?;
     say!("wrote {}", args.out.display());
     if let (Some((path, _, mesh)), Some(written)) = (&mesh, mesh_written) {
@@ -156,6 +174,18 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
             mesh.vertex_count(),
             mesh.triangle_count()
         );
+    }
+    if args.timings {
+        // On stderr, so the log on stdout reads the same with and without it.
+        use std::io::Write as _;
+        let mut err = std::io::stderr().lock();
+        let _ = writeln!(
+            err,
+            "stage wall times (a stage indented under the next one less indented ran within it):"
+        );
+        for line in times.lines() {
+            let _ = writeln!(err, "{line}");
+        }
     }
     Ok(())
 }

@@ -71,6 +71,7 @@
 //! bound never below the noise level.
 
 use std::collections::VecDeque;
+use std::time::Instant;
 
 use glam::Vec3;
 
@@ -84,6 +85,7 @@ use super::lanes::{
 };
 use super::points::PointCloud;
 use super::regularised::fit_regularised;
+use super::stage_times::StageTimes;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile};
 
 /// Empty knot spans kept around the object on each side.
@@ -258,6 +260,8 @@ pub struct SignedCloud {
     pub offset: Vec3,
     /// How the signs were found.
     pub signed_by: SignedBy,
+    /// The wall time of each stage of [`sign_cloud`].
+    pub times: StageTimes,
 }
 
 /// The moving planes reach this many bandwidths (the Gaussian is `e⁻⁴` there).
@@ -494,8 +498,12 @@ pub fn sign_cloud(
     if !extent.is_finite() || extent <= 0.0 {
         return Err(CloudFitError::Degenerate);
     }
+    let mut times = StageTimes::default();
     // Step 1: the points that agree on a surface, and the noise.
-    let mut consensus = screen(&cloud.points, extent, options.noise.map(|f| f * extent));
+    let mut consensus = times.time("screening", || {
+        screen(&cloud.points, extent, options.noise.map(|f| f * extent))
+    });
+    let started = Instant::now();
     if consensus.kept() < (cloud.points.len() / 2).max(8) {
         // Too few agree for the screening to be trusted (a tiny or very sparse cloud): keep
         // every point at full confidence.
@@ -540,8 +548,10 @@ pub fn sign_cloud(
     let points: Vec<Vec3> = order.iter().map(|&k| placed[k as usize]).collect();
     drop((placed, order));
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
+    times.record("spacing, placement, spatial order", started);
 
     // Steps 3–4: band, exterior, normals.
+    let started = Instant::now();
     // The exterior (one thread: a flood) is found beside the band (on every thread).
     let ((dist, nearest), exterior) = std::thread::scope(|scope| {
         let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
@@ -551,6 +561,8 @@ pub fn sign_cloud(
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
         (band, exterior)
     });
+    times.record("band beside exterior", started);
+    let started = Instant::now();
     let given = cloud
         .normals
         .as_ref()
@@ -578,6 +590,7 @@ pub fn sign_cloud(
             )
         }
     };
+    times.record("given or estimated normals", started);
     // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
     let noise = consensus.noise * scale;
     let point_spacing = kept_point_spacing * scale;
@@ -587,7 +600,10 @@ pub fn sign_cloud(
     // The local spacing is read in 3D: only where the noise is under the spacing (the
     // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
     // sampled rather than how thick the noise is.
-    let neighbours = Neighbours::new(&points, MOVING_REACH * bandwidth);
+    let neighbours = times.time("neighbour lists", || {
+        Neighbours::new(&points, MOVING_REACH * bandwidth)
+    });
+    let started = Instant::now();
     let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * point_spacing {
         local_scales(&local_spacings(&neighbours), bandwidth)
     } else {
@@ -600,6 +616,8 @@ pub fn sign_cloud(
         ]
     };
     let widest = local.iter().map(|l| l.bandwidth).fold(bandwidth, f32::max);
+    times.record("local spacings", started);
+    let started = Instant::now();
     // A given normal its neighbours overrule (a stray that lies on the surface but points
     // anywhere) takes theirs before the smoothing.
     let (normals, overruled_normals) = if signed_by == SignedBy::Normals {
@@ -611,16 +629,22 @@ pub fn sign_cloud(
         (smoothed, 0)
     };
     drop(raw_normals);
-    let curvature = point_curvatures(&neighbours, &normals, &confidence, bandwidth);
+    times.record("normals' vote and smoothing", started);
+    let curvature = times.time("curvature", || {
+        point_curvatures(&neighbours, &normals, &confidence, bandwidth)
+    });
     drop(neighbours);
-    let near_points = NearPoints::new(
-        &points,
-        &normals,
-        &confidence,
-        &local,
-        &curvature,
-        bandwidth,
-    );
+    let near_points = times.time("moving planes' buckets", || {
+        NearPoints::new(
+            &points,
+            &normals,
+            &confidence,
+            &local,
+            &curvature,
+            bandwidth,
+        )
+    });
+    let started = Instant::now();
     // Only the points some node takes its fallback plane from need an anchor.
     let mut wanted = vec![false; points.len()];
     for (&p, d) in nearest.iter().zip(&dist) {
@@ -642,6 +666,8 @@ pub fn sign_cloud(
         (anchor, (weighted, weight))
     });
     let (anchors, planes_at_points): (Vec<Vec3>, Vec<(f32, f32)>) = anchored.into_iter().unzip();
+    times.record("anchors", started);
+    let started = Instant::now();
     let nearest: Vec<u32> = nearest
         .into_iter()
         .zip(&dist)
@@ -672,6 +698,7 @@ pub fn sign_cloud(
         })
         .collect();
     drop(dist);
+    times.record("nodes' reach", started);
     let count = grid.count();
     let mut signed = SignedCloud {
         points,
@@ -701,8 +728,10 @@ pub fn sign_cloud(
         scale,
         offset,
         signed_by,
+        times: StageTimes::default(),
     };
     // Step 6: the distance at every node, and the pieces too small to be data.
+    let started = Instant::now();
     let at_nodes = parallel_map(count, |at| {
         let [i, j, k] = signed.grid.coords(at);
         let x = Vec3::new(i as f32, j as f32, k as f32) * signed.grid.h;
@@ -714,7 +743,9 @@ pub fn sign_cloud(
         .iter()
         .map(|&(_, support)| UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0))
         .collect();
-    signed.remove_small_pieces();
+    times.record("nodes' distances", started);
+    times.time("small pieces", || signed.remove_small_pieces());
+    signed.times = times;
     Ok(signed)
 }
 

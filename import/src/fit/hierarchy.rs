@@ -39,11 +39,14 @@
 //! samples: volumes use it too ([`super::volume::fit_volume_hierarchy`], with the voxels near
 //! the iso-surface as samples).
 
+use std::time::Instant;
+
 use glam::{Affine3A, Vec3};
 
 use super::cloud::{CloudFitError, CloudFitOptions, Screening, SignedBy, sign_cloud};
 use super::consensus::parallel_map;
 use super::points::PointCloud;
+use super::stage_times::{StageTime, StageTimes};
 use dynaclay_core::field::{
     BSplineLattice, CoeffBox, MAX_CLAY_COEFFS, MAX_PATCHES, MassGrid, MultiPatchField,
     refit_box_edit_rows,
@@ -213,6 +216,8 @@ pub struct HierarchicalFit {
     /// The error bound the refinement used: the one asked for, or the noise level where
     /// that is higher, fraction of the size.
     pub bound: f32,
+    /// The wall time of each stage of the fit.
+    pub times: StageTimes,
 }
 
 impl HierarchicalFit {
@@ -313,8 +318,12 @@ pub fn fit_hierarchy(
         }
     };
     go_on(progress, FitProgress::Signing)?;
-    let signed = sign_cloud(cloud, &options.base)?;
+    let mut times = StageTimes::default();
+    let started = Instant::now();
+    let mut signed = sign_cloud(cloud, &options.base)?;
+    times.record_with("signing", started, std::mem::take(&mut signed.times));
     go_on(progress, FitProgress::Base)?;
+    let started = Instant::now();
     let (lo, hi) = signed
         .points
         .iter()
@@ -337,24 +346,36 @@ pub fn fit_hierarchy(
     let density = |x: Vec3| signed.density(x);
     // The samples' targets do not depend on the fit: they are found beside the base fit,
     // whose passes leave the cores idle between them.
+    times.record("error samples", started);
+    let started = Instant::now();
+    let mut beside = StageTimes::default();
     let (base, targets) = std::thread::scope(|scope| {
         let targets = scope.spawn(|| {
+            let started = Instant::now();
             // Each third sample lies on point `(i / 3) · stride`, whose moving planes the
             // signing summed already.
-            parallel_map(at.len(), |i| {
+            let targets = parallel_map(at.len(), |i| {
                 if i % 3 == 0 {
                     signed.density_at_point(i / 3 * stride)
                 } else {
                     density(at[i])
                 }
-            })
+            });
+            (targets, started.elapsed())
         });
-        let base = signed.fit_base();
-        let targets = targets
+        let base = beside.time("base fit", || signed.fit_base());
+        let (targets, targets_wall) = targets
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        beside.stages.push(StageTime {
+            name: "error samples' targets",
+            depth: 0,
+            wall: targets_wall,
+        });
         (base, targets)
     });
+    times.record_with("base fit beside error samples' targets", started, beside);
+    let started = Instant::now();
     let mut field = MultiPatchField::new(base?);
     let data = Refinement {
         target: &density,
@@ -367,6 +388,7 @@ pub fn fit_hierarchy(
     };
     let samples = Samples::with_targets(at, targets, &field);
     let refined = refine_samples(&mut field, &data, samples, options, progress)?;
+    times.record("detail patches", started);
     Ok(HierarchicalFit {
         field,
         scale: signed.scale,
@@ -385,6 +407,7 @@ pub fn fit_hierarchy(
             .map(|&c| c > 0.0)
             .collect(),
         bound: refined.bound,
+        times,
     })
 }
 
@@ -938,6 +961,44 @@ mod tests {
             }
         }
         assert!(crossings > 0);
+    }
+
+    #[test]
+    fn the_fit_times_each_stage_with_the_signing_stages_nested_in_the_signing() {
+        let fit = fit_hierarchy(&sharp_box(), &tight(), &mut |_| true).unwrap();
+        let named: Vec<(&str, usize)> =
+            fit.times.stages.iter().map(|s| (s.name, s.depth)).collect();
+        let at = |stage: (&str, usize)| {
+            named
+                .iter()
+                .position(|&s| s == stage)
+                .unwrap_or_else(|| panic!("{stage:?} not in {named:?}"))
+        };
+        // The signing's own stages, in the order they run, then the signing itself.
+        let signing = [
+            ("screening", 1),
+            ("band beside exterior", 1),
+            ("neighbour lists", 1),
+            ("curvature", 1),
+            ("nodes' distances", 1),
+            ("small pieces", 1),
+            ("signing", 0),
+        ]
+        .map(at);
+        assert!(signing.windows(2).all(|w| w[0] < w[1]), "{named:?}");
+        let after = [
+            ("base fit", 1),
+            ("error samples' targets", 1),
+            ("base fit beside error samples' targets", 0),
+            ("detail patches", 0),
+        ]
+        .map(at);
+        assert!(signing[6] < after[0], "{named:?}");
+        assert!(after.windows(2).all(|w| w[0] < w[1]), "{named:?}");
+        // Nothing nested in the base fit outlasts it (the two ran side by side within it).
+        let parent = fit.times.stages[after[2]].wall;
+        assert!(fit.times.stages[after[0]].wall <= parent);
+        assert!(fit.times.stages[after[1]].wall <= parent);
     }
 
     #[test]

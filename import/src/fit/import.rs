@@ -15,6 +15,7 @@
 //! the error reached), so the CLI prints them and the GUI shows them in its log.
 
 use std::path::Path;
+use std::time::Instant;
 
 use glam::Vec3;
 
@@ -30,6 +31,7 @@ use super::paint::{NEIGHBOURS, paint_from_cloud};
 use super::point_file::read_points_with_colours;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
+use super::stage_times::{StageTime, StageTimes};
 use super::thinning::{MAX_FITTED_POINTS, thin_for_span};
 use super::volume::{
     Sample, Volume, VolumeError, fit_volume_hierarchy, fit_volume_hierarchy_within, read_nrrd,
@@ -244,6 +246,9 @@ pub struct ImportedFit {
     pub scale: f32,
     /// Field position of the file's origin: `field = file · scale + offset`.
     pub offset: Vec3,
+    /// The wall time of each stage of a point cloud's fit (empty for a mesh fitted by its
+    /// signed distance, or a volume).
+    pub times: StageTimes,
 }
 
 impl ImportedFit {
@@ -333,8 +338,18 @@ pub fn import_cloud(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<ImportedCloud, ImportError> {
+    let started = Instant::now();
     let (cloud, colours) = read_points_with_colours(path)?;
-    let fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
+    let read = started.elapsed();
+    let mut fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
+    fit.times.stages.insert(
+        0,
+        StageTime {
+            name: "reading",
+            depth: 0,
+            wall: read,
+        },
+    );
     let mut imported = ImportedCloud {
         fit,
         cloud,
@@ -342,11 +357,14 @@ pub fn import_cloud(
         paint: None,
     };
     if let Some(colours) = &imported.colours {
-        match paint_from_cloud(
+        let started = Instant::now();
+        let painted = paint_from_cloud(
             imported.fit.field.base(),
             &imported.cloud_in_field_units().points,
             colours,
-        ) {
+        );
+        imported.fit.times.record("paint", started);
+        match painted {
             Ok(paint) => {
                 note(format!(
                     "painted from the points' colours (each node from its {NEIGHBOURS} nearest \
@@ -472,6 +490,8 @@ fn fit_cloud(
         settings.error_percent
     ));
     // A scan denser than the finest knot span can use is thinned first (see `thinning`).
+    let mut times = StageTimes::default();
+    let started = Instant::now();
     let size = cloud_size(&cloud.points);
     // The base's spans cover the object less its margin (see `cloud::place`).
     let base_spans = ((options.base.resolution.max(2) - 1) as f32 - 2.0 * MARGIN_SPANS).max(1.0);
@@ -507,7 +527,10 @@ fn fit_cloud(
         }
         None => cloud,
     };
-    let fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    times.record("thinning", started);
+    let started = Instant::now();
+    let mut fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
+    times.record_with("fit", started, std::mem::take(&mut fit.times));
     let s = fit.screening;
     note(format!(
         "dropped {} isolated points and {} off the surface their neighbours agree on; turned \
@@ -533,7 +556,9 @@ fn fit_cloud(
         .zip(&fit.kept)
         .filter_map(|(&p, &kept)| kept.then_some(p))
         .collect();
-    let (mean, worst) = distance_to_surface(&fit.field, &kept, |p| fit.to_field(p));
+    let (mean, worst) = times.time("kept points' distances", || {
+        distance_to_surface(&fit.field, &kept, |p| fit.to_field(p))
+    });
     let percent = |d: f32| 100.0 * d / fit.size;
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
@@ -554,6 +579,7 @@ fn fit_cloud(
         path: kind,
         scale: fit.scale,
         offset: fit.offset,
+        times,
     })
 }
 
@@ -773,6 +799,7 @@ fn fit_mesh_file(
         path: path_taken,
         scale,
         offset,
+        times: StageTimes::default(),
     })
 }
 
@@ -849,6 +876,7 @@ fn fit_volume_file(
         path: FitPath::Volume,
         scale: fit.scale,
         offset: fit.offset,
+        times: StageTimes::default(),
     })
 }
 
@@ -892,15 +920,36 @@ pub fn import_session(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<Session, ImportError> {
+    import_session_timed(path, settings, progress, note).map(|(session, _)| session)
+}
+
+/// [`import_session`], also giving the wall time of each stage (`dynaclay import --timings`):
+/// a point cloud's stages one by one ([`ImportedFit::times`]), a mesh's or a volume's fit as
+/// one stage.
+///
+/// # Errors
+/// As [`fit_file`].
+pub fn import_session_timed(
+    path: &Path,
+    settings: &ImportSettings,
+    progress: &mut dyn FnMut(FitProgress) -> bool,
+    note: &mut dyn FnMut(String),
+) -> Result<(Session, StageTimes), ImportError> {
     if is_point_cloud(path) {
-        let imported = import_cloud(path, settings, progress, note)?;
-        return Ok(imported.into_session(path, dynaclay_core::io::unix_now_s()));
+        let mut imported = import_cloud(path, settings, progress, note)?;
+        let times = std::mem::take(&mut imported.fit.times);
+        return Ok((
+            imported.into_session(path, dynaclay_core::io::unix_now_s()),
+            times,
+        ));
     }
-    let field = fit_file(path, settings, progress, note)?;
-    Ok(imported_session(
-        field,
-        path,
-        dynaclay_core::io::unix_now_s(),
+    let mut times = StageTimes::default();
+    let field = times.time("reading and fit", || {
+        fit_file(path, settings, progress, note)
+    })?;
+    Ok((
+        imported_session(field, path, dynaclay_core::io::unix_now_s()),
+        times,
     ))
 }
 

@@ -19,6 +19,7 @@ pub mod point_file;
 pub mod points;
 pub mod regularised;
 pub mod sdf;
+pub mod stage_times;
 #[cfg(test)]
 mod test_boxes;
 pub mod thinning;
@@ -33,13 +34,14 @@ pub use holes::{CappedMesh, MAX_CAPPED_HOLE, UncappedHoles, cap_holes};
 pub use import::{
     DEFAULT_RESOLUTION, FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud,
     ImportedFit, closed_mesh_grid, fit_file, fit_import, import_cloud, import_session,
-    imported_session, is_importable, is_point_cloud, most_resolution_for_points,
-    resolution_for_points,
+    import_session_timed, imported_session, is_importable, is_point_cloud,
+    most_resolution_for_points, resolution_for_points,
 };
 pub use paint::{PaintError, paint_from_cloud};
 pub use point_file::{read_points, read_points_with_colours};
 pub use points::{MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};
+pub use stage_times::{StageTime, StageTimes};
 pub use volume::{
     Sample, Volume, VolumeError, VolumeFit, VolumeHierarchy, fit_volume, fit_volume_hierarchy,
     fit_volume_hierarchy_within, fit_volume_within, read_nrrd, read_raw,
