@@ -398,6 +398,7 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         screening: Default::default(),
         kept: Vec::new(),
         bound: 0.0,
+        times: Default::default(),
     };
     let truth = shape.sample(20_000, &mut Rng(5));
     let (there, back) = hausdorff(&as_hier, &mesh, shape, &truth);
