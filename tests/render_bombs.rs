@@ -1,7 +1,8 @@
 //! Valid sessions that would take more memory to mesh or render than the machine has are
 //! refused before anything is allocated: exit 2, a message naming the budget and the fix, and a
 //! peak resident set under 64 MB for the whole process. Inputs that never end (`/dev/zero`) or
-//! block (a FIFO) are refused at once.
+//! block (a FIFO) are refused at once, and so is a session whose bricks would pass the clay's
+//! dense-brick budget (768 MiB, the real one).
 //!
 //! The budgets are given with `--memory-budget-mib` so the outcome does not depend on the
 //! machine's memory; the default (half of `MemTotal`) is covered by the unit tests of
@@ -281,4 +282,92 @@ fn endless_and_blocking_inputs_are_refused_at_once() {
         assert!(out.stderr.contains("not a regular file"), "{}", out.stderr);
         assert!(out.peak_rss_bytes < PEAK_LIMIT_BYTES);
     }
+}
+
+/// Replaces the payload of the first section tagged `tag` in session file bytes `file`,
+/// making its length and checksum match, as a hostile writer can (the layout is the one
+/// `dynaclay::io` documents: a 24-byte header, then sections of tag, `u64` length, payload
+/// and the CRC32 of the three).
+fn with_section_payload(file: &[u8], tag: &[u8; 4], payload: &[u8]) -> Vec<u8> {
+    let mut pos = 24;
+    loop {
+        assert!(pos + 12 <= file.len(), "no {tag:?} section");
+        let len = usize::try_from(u64::from_le_bytes(
+            file[pos + 4..pos + 12].try_into().unwrap(),
+        ))
+        .unwrap();
+        let end = pos + 12 + len + 4;
+        if &file[pos..pos + 4] == tag {
+            let mut out = file[..pos].to_vec();
+            out.extend_from_slice(tag);
+            out.extend_from_slice(&(payload.len() as u64).to_le_bytes());
+            out.extend_from_slice(payload);
+            let crc = crc32fast::hash(&out[pos..]);
+            out.extend_from_slice(&crc.to_le_bytes());
+            out.extend_from_slice(&file[end..]);
+            return out;
+        }
+        pos = end;
+    }
+}
+
+/// A session whose base lattice is 512 × 512 × 320 coefficients stored as uniform bricks
+/// whose values alternate along x (9 bytes a brick, 1.5 MB): every brick but the last of each
+/// row has an apron that differs from it, so loading it would make 161 280 dense bricks, past
+/// the clay's 151 259 (768 MiB). It is refused at the real budget having allocated no dense
+/// brick: the apron bricks are counted before any is made.
+#[test]
+fn a_session_whose_uniform_bricks_would_pass_the_dense_budget_is_refused_at_once() {
+    use dynaclay::field::MAX_DENSE_BRICKS;
+    let dir = tempfile::tempdir().unwrap();
+    let small = save(dir.path(), "small.dclay", vec![ball(12, 0.1, Vec3::ZERO)]);
+    let bricks_per_axis = [64_u32, 64, 40];
+    let bricks: u32 = bricks_per_axis.iter().product();
+    let would_be_dense = (bricks_per_axis[0] - 1) * bricks_per_axis[1] * bricks_per_axis[2];
+    assert!(would_be_dense as usize > MAX_DENSE_BRICKS);
+    let mut payload = Vec::new();
+    for n in bricks_per_axis {
+        payload.extend_from_slice(&(n * 8).to_le_bytes());
+    }
+    // Spacing, origin, iso.
+    for v in [0.01_f32, 0.0, 0.0, 0.0, 0.5] {
+        payload.extend_from_slice(&v.to_le_bytes());
+    }
+    payload.extend_from_slice(&u64::from(bricks).to_le_bytes());
+    for n in 0..bricks {
+        // A run of one uniform brick.
+        payload.push(0);
+        payload.extend_from_slice(&1_u32.to_le_bytes());
+        payload.extend_from_slice(&((n % 2) as f32).to_le_bytes());
+    }
+    // The identity map: the linear part column by column, then the translation.
+    for v in glam::Affine3A::IDENTITY.to_cols_array() {
+        payload.extend_from_slice(&v.to_le_bytes());
+    }
+    let hostile = dir.path().join("stripes.dclay");
+    let bytes = with_section_payload(&std::fs::read(&small).unwrap(), b"PTCH", &payload);
+    std::fs::write(&hostile, bytes).unwrap();
+    let png = dir.path().join("out.png");
+    let out = run(&[
+        os("render"),
+        hostile.as_os_str(),
+        os("--out"),
+        png.as_os_str(),
+    ]);
+    println!(
+        "peak {:.1} MB: {}",
+        out.peak_rss_bytes as f64 / 1e6,
+        out.stderr.trim()
+    );
+    assert_eq!(out.code, Some(2), "{}", out.stderr);
+    for needle in ["stripes.dclay", "PTCH", "dense bricks", "768 MiB"] {
+        assert!(out.stderr.contains(needle), "{needle}: {}", out.stderr);
+    }
+    assert!(
+        out.peak_rss_bytes < PEAK_LIMIT_BYTES,
+        "peak {} MB: {}",
+        out.peak_rss_bytes >> 20,
+        out.stderr
+    );
+    assert!(!png.exists());
 }

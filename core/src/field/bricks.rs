@@ -78,6 +78,18 @@ fn offset(a: usize, b: usize, c: usize) -> usize {
     a + STRIDE_Y * b + STRIDE_Z * c
 }
 
+/// The offset, within the neighbour `brick + step` that owns it, of in-brick place
+/// `(a, b, c)` of a brick's apron (each coordinate past [`COEFF_BRICK`] along the axes `step`
+/// moves on).
+#[inline]
+fn apron_source(step: [usize; 3], a: usize, b: usize, c: usize) -> usize {
+    offset(
+        a - COEFF_BRICK * step[0],
+        b - COEFF_BRICK * step[1],
+        c - COEFF_BRICK * step[2],
+    )
+}
+
 /// The bricks along one axis that hold coordinate `x`, with its place in each: its owner,
 /// then the previous brick when `x` lies in that brick's apron. Returns the pairs and how
 /// many are used.
@@ -1224,8 +1236,11 @@ impl BrickedCoeffs {
     /// apron all agree (so the store holds no more dense bricks than the one it was saved
     /// from). The directory is allocated first (`dims` bounds it: the caller checks `dims`
     /// against its budget before calling); each dense brick is allocated when `fill` gives
-    /// its values or an apron needs it, and never more than `max_dense` of them: the store
-    /// is refused before the first one past it is allocated.
+    /// its values, and never more than `max_dense` of them: the store is refused before the
+    /// first one past it is allocated. The uniform bricks whose aprons disagree with them are
+    /// counted before any of them is made dense, so a store whose aprons would pass
+    /// `max_dense` is refused having allocated only the bricks `fill` gave values for (a
+    /// hostile file of uniform runs that alternate costs its directory, not the budget).
     ///
     /// # Errors
     /// [`OwnedBricksError::Fill`] with the first error `fill` returns, or
@@ -1271,16 +1286,33 @@ impl BrickedCoeffs {
                 }
             }
         }
+        // An apron is the neighbours' own values, which the pass below does not change: the
+        // bricks it will make dense are known before it allocates any.
+        let mut to_densify = 0_usize;
         for bk in 0..bz {
             for bj in 0..by {
                 for bi in 0..bx {
-                    let may_densify = store.dense < max_dense;
-                    if !store.refresh_apron([bi, bj, bk], may_densify) {
-                        return Err(OwnedBricksError::TooManyDense { max_dense });
+                    let brick = [bi, bj, bk];
+                    if let Brick::Uniform(v) = store.bricks[bi + bx * (bj + by * bk)]
+                        && !store.apron_holds_only(brick, v)
+                    {
+                        to_densify += 1;
                     }
                 }
             }
         }
+        if store.dense.saturating_add(to_densify) > max_dense {
+            return Err(OwnedBricksError::TooManyDense { max_dense });
+        }
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    let refreshed = store.refresh_apron([bi, bj, bk], true);
+                    debug_assert!(refreshed, "allowed to make bricks dense");
+                }
+            }
+        }
+        debug_assert!(store.dense <= max_dense, "counted before the pass");
         Ok(store)
     }
 
@@ -1302,21 +1334,17 @@ impl BrickedCoeffs {
         std::array::from_fn(|a| (self.dims[a] - brick[a] * COEFF_BRICK).min(BRICK_SPAN))
     }
 
-    /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
-    /// them; a uniform one stays uniform when they all equal its value and becomes dense
-    /// otherwise. The apron is copied row by row from each of the (up to seven) neighbours
-    /// that own a part of it. Returns `false`, changing nothing, when a uniform brick would
-    /// have to become dense and `may_densify` is `false`.
-    fn refresh_apron(&mut self, brick: [usize; 3], may_densify: bool) -> bool {
+    /// The parts of brick `brick`'s apron inside the store, one per neighbour `brick + step`
+    /// that owns one: the neighbour's directory index, `step`, and the in-brick ranges (of
+    /// `brick`'s places) it owns. None when the brick has no apron inside the store.
+    fn apron_parts(
+        &self,
+        brick: [usize; 3],
+    ) -> impl Iterator<Item = (usize, [usize; 3], [(usize, usize); 3])> + Clone + use<> {
         let [bx, by, _] = self.bricks_per_axis;
-        let at = brick[0] + bx * (brick[1] + by * brick[2]);
         let owned = self.owned_extent(brick);
         let held = self.held_extent(brick);
-        if owned == held {
-            return true; // no apron inside the store
-        }
-        // Per neighbour `brick + step`: the in-brick ranges of the apron it owns.
-        let parts = (1..8_usize).filter_map(|d| {
+        (1..8_usize).filter_map(move |d| {
             let step = [d & 1, (d >> 1) & 1, d >> 2];
             let ranges: [(usize, usize); 3] = std::array::from_fn(|a| {
                 if step[a] == 0 {
@@ -1328,36 +1356,43 @@ impl BrickedCoeffs {
             let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
             (ranges.iter().all(|(lo, hi)| lo < hi))
                 .then(|| (n[0] + bx * (n[1] + by * n[2]), step, ranges))
-        });
-        // The neighbour's offset of in-brick place `(a, b, c)` of this brick.
-        let source = |step: [usize; 3], a: usize, b: usize, c: usize| {
-            offset(
-                a - COEFF_BRICK * step[0],
-                b - COEFF_BRICK * step[1],
-                c - COEFF_BRICK * step[2],
-            )
-        };
+        })
+    }
+
+    /// Whether every value of brick `brick`'s apron inside the store (its neighbours' own
+    /// values) is `v`, bit for bit: a uniform brick of `v` there needs no dense storage.
+    /// Reads only.
+    fn apron_holds_only(&self, brick: [usize; 3], v: f32) -> bool {
+        let same = |w: &f32| w.to_bits() == v.to_bits();
+        self.apron_parts(brick)
+            .all(|(n, step, [x, y, z])| match &self.bricks[n] {
+                Brick::Uniform(w) => same(w),
+                Brick::Dense(values) => (z.0..z.1).all(|c| {
+                    (y.0..y.1).all(|b| {
+                        let from = apron_source(step, x.0, b, c);
+                        values[from..from + x.1 - x.0].iter().all(same)
+                    })
+                }),
+            })
+    }
+
+    /// Brings brick `brick`'s apron to the values its neighbours own: a dense brick copies
+    /// them; a uniform one stays uniform when they all equal its value and becomes dense
+    /// otherwise. The apron is copied row by row from each of the (up to seven) neighbours
+    /// that own a part of it. Returns `false`, changing nothing, when a uniform brick would
+    /// have to become dense and `may_densify` is `false`.
+    fn refresh_apron(&mut self, brick: [usize; 3], may_densify: bool) -> bool {
+        let [bx, by, _] = self.bricks_per_axis;
+        let at = brick[0] + bx * (brick[1] + by * brick[2]);
         if let Brick::Uniform(v) = self.bricks[at] {
-            let same = |w: &f32| w.to_bits() == v.to_bits();
-            let neighbours_agree =
-                parts
-                    .clone()
-                    .all(|(n, step, [x, y, z])| match &self.bricks[n] {
-                        Brick::Uniform(w) => same(w),
-                        Brick::Dense(values) => (z.0..z.1).all(|c| {
-                            (y.0..y.1).all(|b| {
-                                let from = source(step, x.0, b, c);
-                                values[from..from + x.1 - x.0].iter().all(same)
-                            })
-                        }),
-                    });
-            if neighbours_agree {
+            if self.apron_holds_only(brick, v) {
                 return true;
             }
             if !may_densify {
                 return false;
             }
         }
+        let parts = self.apron_parts(brick);
         // Taken out of the directory while its neighbours are read.
         let mut target = std::mem::replace(&mut self.bricks[at], Brick::Uniform(0.0));
         let values = densify(&mut target, &mut self.dense);
@@ -1369,7 +1404,7 @@ impl BrickedCoeffs {
                     match &self.bricks[n] {
                         Brick::Uniform(w) => values[to..to + len].fill(*w),
                         Brick::Dense(from) => {
-                            let from_at = source(step, x.0, b, c);
+                            let from_at = apron_source(step, x.0, b, c);
                             copy_run(&mut values[to..to + len], &from[from_at..from_at + len]);
                         }
                     }

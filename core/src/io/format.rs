@@ -48,7 +48,8 @@
 //! dims; a run's length against the bricks left, a dense brick's values against the bytes
 //! left; and each dense brick, the ones the file gives and the ones an apron needs, against
 //! the dense bricks the clay's budget leaves ([`MAX_DENSE_BRICKS`] for every lattice
-//! together), before it is allocated. The tool library's freeform lattices stay dense
+//! together), before it is allocated: the ones the aprons need are counted before any of them
+//! is made, so a file of uniform runs that would need too many costs only its directory. The tool library's freeform lattices stay dense
 //! (they are small, and their size is bounded by the bytes that hold them).
 
 use std::path::Path;
