@@ -250,3 +250,66 @@ fn largest_x(path: &Path) -> f32 {
         .filter_map(|v| v.split_whitespace().next()?.parse::<f32>().ok())
         .fold(f32::MIN, f32::max)
 }
+
+/// A pull stroke whose spread (30 field units on a clay 2.3 across) reaches about 600
+/// coefficients each way: the clay grows to take it (its box fits the box budget), but the
+/// stroke's simulated region would make some 456 000 bricks dense, past the real budget of
+/// 151 259 (768 MiB). The region is refused before anything is allocated for it, the run goes
+/// on and writes the sculpt as it was, and stderr says what was refused and why (a headless
+/// run has no window to show it in).
+#[test]
+fn a_stroke_whose_region_would_pass_the_dense_budget_is_refused_and_said_and_the_sculpt_is_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let script = |radius_fu: f32| {
+        format!(
+            "version = 1\nseconds = 1.5\n\n[clay]\nshape = \"sphere\"\nresolution = 24\n\n\
+             [[step]]\ndo = \"stroke\"\n\
+             tool = {{ kind = \"pull\", beta = \"gaussian\", radius_fu = {radius_fu}, gain = 2e6 }}\n\
+             path = [[1.72, 1.15, 1.15], [2.0, 1.15, 1.15]]\nduration_s = 1.0\nhover_fu = 0.05\n"
+        )
+    };
+    std::fs::write(dir.path().join("wide.toml"), script(30.0)).unwrap();
+    let out = dynaclay(
+        dir.path(),
+        &[
+            "run",
+            "--script",
+            "wide.toml",
+            "--lockstep",
+            "--no-rt",
+            "--out",
+            "wide",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    for needle in [
+        "the clay's budgets refused",
+        "more bricks dense",
+        "at most 151259 dense bricks (768 MiB)",
+        "nothing changed",
+    ] {
+        assert!(err.contains(needle), "{needle}: {err}");
+    }
+    let max_x = largest_x(&dir.path().join("wide/sculpt.obj"));
+    assert!(max_x < 1.8, "the sphere is as it was: {max_x}");
+    // The same stroke with a spread its region can hold pulls the clay out, and says nothing.
+    std::fs::write(dir.path().join("narrow.toml"), script(0.3)).unwrap();
+    let out = dynaclay(
+        dir.path(),
+        &[
+            "run",
+            "--script",
+            "narrow.toml",
+            "--lockstep",
+            "--no-rt",
+            "--out",
+            "narrow",
+        ],
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(!err.contains("budgets"), "{err}");
+    let max_x = largest_x(&dir.path().join("narrow/sculpt.obj"));
+    assert!(max_x > 1.8, "the pull drew the clay out: {max_x}");
+}

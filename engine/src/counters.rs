@@ -34,6 +34,7 @@ struct Inner {
     graphics_deferred: AtomicU64,
     peak_force_milli_n: AtomicU64,
     clay_growths: AtomicU64,
+    budget_refusals: AtomicU64,
     auto_refines: AtomicU64,
     auto_coarsenings: AtomicU64,
     haptic_updates_awaiting_bricks: AtomicU64,
@@ -83,6 +84,11 @@ pub struct CounterSnapshot {
     /// Times the base patch grew to take an edit past its box.
     #[serde(default)]
     pub clay_growths: u64,
+    /// Edits refused for one of the clay's budgets (its dense bricks or its box): a stroke's
+    /// region, a tool's application, a growth. Each left the clay as it was; the latest is in
+    /// [`crate::SimStatus::budget_refusal`] and the run's report.
+    #[serde(default)]
+    pub budget_refusals: u64,
     /// Detail patches added under a fine brush without being asked.
     #[serde(default)]
     pub auto_refines: u64,
@@ -138,6 +144,7 @@ impl EngineCounters {
         bricks_remeshed,
         graphics_deferred,
         clay_growths,
+        budget_refusals,
         auto_refines,
         auto_coarsenings,
         haptic_updates_awaiting_bricks,
@@ -185,6 +192,7 @@ impl EngineCounters {
             graphics_deferred: r(&i.graphics_deferred),
             peak_force_milli_n: r(&i.peak_force_milli_n),
             clay_growths: r(&i.clay_growths),
+            budget_refusals: r(&i.budget_refusals),
             auto_refines: r(&i.auto_refines),
             auto_coarsenings: r(&i.auto_coarsenings),
             haptic_updates_awaiting_bricks: r(&i.haptic_updates_awaiting_bricks),

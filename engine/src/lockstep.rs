@@ -54,6 +54,9 @@ pub struct LockstepReport {
     pub io: IoReport,
     /// Closing the device at the end failed: the session is still here, whole.
     pub device_close_error: Option<dynaclay_devices::DeviceError>,
+    /// The latest edit refused for the clay's budgets (`counters.budget_refusals` counts
+    /// them all).
+    pub budget_refusal: Option<crate::BudgetRefusal>,
 }
 
 impl Lockstep {
@@ -219,6 +222,7 @@ pub(super) fn end_single_thread_run(stages: &mut Stages, io: &mut IoWorker) -> L
         octree: stages.graphics.octree().clone(),
         io: io.report().clone(),
         device_close_error,
+        budget_refusal: stages.sim.last_budget_refusal(),
     }
 }
 

@@ -829,7 +829,20 @@ impl SimulationStage {
     /// budget (the clay is unchanged; [`SimStatus::budget_refusal`] says what and where).
     pub(super) fn refuse_for_budget(&mut self, refused: DenseBudgetError) {
         self.counters.command_errors(1);
-        self.budget_refusal = Some(refused.into());
+        self.note_budget_refusal(refused.into());
+    }
+
+    /// Keeps `refusal` as the latest edit refused for the clay's budgets (published in the
+    /// status, handed back in the run's report) and counts it.
+    pub(super) fn note_budget_refusal(&mut self, refusal: crate::BudgetRefusal) {
+        self.counters.budget_refusals(1);
+        self.budget_refusal = Some(refusal);
+    }
+
+    /// The latest edit refused for the clay's budgets, if any was.
+    #[must_use]
+    pub fn last_budget_refusal(&self) -> Option<crate::BudgetRefusal> {
+        self.budget_refusal
     }
 
     /// The patch a region at `x` simulates: the finest patch in world coordinates whose

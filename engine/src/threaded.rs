@@ -136,6 +136,9 @@ pub struct EngineReport {
     pub io: IoReport,
     /// Closing the device at the end failed: the session is still here, whole.
     pub device_close_error: Option<dynaclay_devices::DeviceError>,
+    /// The latest edit refused for the clay's budgets (`counters.budget_refusals` counts
+    /// them all).
+    pub budget_refusal: Option<crate::BudgetRefusal>,
 }
 
 /// A stopped engine's report and the parts a new engine can start with
@@ -579,6 +582,7 @@ impl Engine {
         // is handed back and the failure reported beside it.
         let device_close_error = haptic_stage.device_mut().close().err();
         let session = sim_stage.session();
+        let budget_refusal = sim_stage.last_budget_refusal();
         drop(sim_stage);
         drop(self.commands);
         let io = match self.io.take().map(JoinHandle::join) {
@@ -610,6 +614,7 @@ impl Engine {
                 safety,
                 io,
                 device_close_error,
+                budget_refusal,
             },
             device: connected.then(|| haptic_stage.into_device()),
             sink,

@@ -308,6 +308,7 @@ pub fn run(args: &RunArgs) -> Result<RunOutputs, CliError> {
         motion.settled_ms.p95
     );
     report_device_faults(&report.safety);
+    report_budget_refusals(report.counters.budget_refusals, report.budget_refusal);
     finish_run(&session_path, &mut driver, &report.io)?;
     match report.device_close_error {
         Some(e) => Err(CliError::DeviceFault(e)),
@@ -493,6 +494,18 @@ fn report_device_faults(safety: &dynaclay_devices::SafetyCounters) {
     }
 }
 
+/// Tells stderr about edits the clay's budgets refused during the run (a stroke's region, a
+/// tool's application, a growth: each left the clay as it was, or clipped to its box), with the
+/// latest one's what and where; a headless run has no window to show them in.
+fn report_budget_refusals(count: u64, latest: Option<crate::engine::BudgetRefusal>) {
+    if let Some(latest) = latest.filter(|_| count > 0) {
+        eprintln!(
+            "dynaclay: warning: the clay's budgets refused or clipped an edit {count} time(s) \
+             during the run (a held stroke is tried again at every step); the latest: {latest}"
+        );
+    }
+}
+
 /// After a finished run whose session was written: removes the recovery file, reports
 /// failed autosaves and steps, and fails on a failed script step.
 fn finish_run(
@@ -659,6 +672,7 @@ fn finish_single_thread_run(
     let outputs = super::outputs::write_lockstep_outputs(&args.out, report, config, &extras(args))?;
     say_raw!("{}", outputs.describe());
     report_device_faults(&report.safety);
+    report_budget_refusals(report.counters.budget_refusals, report.budget_refusal);
     finish_run(session_path, driver, &report.io)?;
     match &report.device_close_error {
         Some(e) => Err(CliError::DeviceFault(e.clone())),

@@ -459,12 +459,12 @@ impl SimulationStage {
             Err(error) => {
                 match &error {
                     dynaclay_core::tools::ToolError::DenseBudget(refused) => {
-                        self.budget_refusal = Some((*refused).into());
+                        self.note_budget_refusal((*refused).into());
                     }
                     dynaclay_core::tools::ToolError::Growth(
                         dynaclay_core::tools::GrowthError::ClayTooLarge { dims, total },
                     ) => {
-                        self.budget_refusal = Some(crate::BudgetRefusal::ClayBox {
+                        self.note_budget_refusal(crate::BudgetRefusal::ClayBox {
                             dims: *dims,
                             total: *total,
                         });

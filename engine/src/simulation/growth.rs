@@ -51,7 +51,7 @@ impl SimulationStage {
                     GrowthError::DenseBudget(dense) => self.refuse_for_budget(dense),
                     GrowthError::ClayTooLarge { dims, total } => {
                         self.counters.command_errors(1);
-                        self.budget_refusal = Some(BudgetRefusal::ClayBox { dims, total });
+                        self.note_budget_refusal(BudgetRefusal::ClayBox { dims, total });
                     }
                     _ => self.counters.command_errors(1),
                 }

@@ -376,6 +376,8 @@ mod tests {
         assert_eq!(published.dense_bricks, s.sim.clay.dense_brick_count());
         assert!(published.dense_bricks > 0);
         assert_eq!(s.counters.snapshot().command_errors, 1);
+        assert_eq!(s.counters.snapshot().budget_refusals, 1);
+        assert_eq!(s.sim.last_budget_refusal(), Some(refused.into()));
         assert_eq!(s.sim.clay, before);
     }
 }
