@@ -252,11 +252,11 @@ fn largest_x(path: &Path) -> f32 {
 }
 
 /// A pull stroke whose spread (30 field units on a clay 2.3 across) reaches about 600
-/// coefficients each way: the clay grows to take it (its box fits the box budget), but the
-/// stroke's simulated region would make some 456 000 bricks dense, past the real budget of
-/// 151 259 (768 MiB). The region is refused before anything is allocated for it, the run goes
-/// on and writes the sculpt as it was, and stderr says what was refused and why (a headless
-/// run has no window to show it in).
+/// coefficients each way: the clay could grow to take it (its box would fit the box budget),
+/// but the stroke's simulated region would make some 427 000 bricks dense, past the real
+/// budget of 151 259 (768 MiB). The region is refused before the clay grows for it and before
+/// anything is allocated for it, the run goes on and writes the sculpt as it was, and stderr
+/// says what was refused and why (a headless run has no window to show it in).
 #[test]
 fn a_stroke_whose_region_would_pass_the_dense_budget_is_refused_and_said_and_the_sculpt_is_kept() {
     let dir = tempfile::tempdir().unwrap();
@@ -293,6 +293,10 @@ fn a_stroke_whose_region_would_pass_the_dense_budget_is_refused_and_said_and_the
     }
     let max_x = largest_x(&dir.path().join("wide/sculpt.obj"));
     assert!(max_x < 1.8, "the sphere is as it was: {max_x}");
+    // Refused before the clay grew for it: the saved clay keeps its starting box.
+    let saved = dynaclay::io::load_session(&dir.path().join("wide/session.dclay")).unwrap();
+    let dims = saved.clay.base().dims;
+    assert!(dims.iter().all(|&n| n <= 32), "the clay's box: {dims:?}");
     // The same stroke with a spread its region can hold pulls the clay out, and says nothing.
     std::fs::write(dir.path().join("narrow.toml"), script(0.3)).unwrap();
     let out = dynaclay(

@@ -902,6 +902,15 @@ impl SimulationStage {
     /// Makes sure the region covers the box `lo..hi` (the force vectors with their spread),
     /// on the patch [`Self::region_patch_for`] picks.
     fn ensure_region(&mut self, lo: Vec3, hi: Vec3) {
+        // A region whose box reaches more bricks than the clay's whole budget, even at the
+        // base's spacing, is refused before the clay grows for it: growing would give the
+        // clay a box it never fills.
+        if let Some(refused) = self.region_past_dense_budget(lo, hi) {
+            self.retire_region();
+            self.refuse_for_budget(refused);
+            self.rebuild_pins();
+            return;
+        }
         // The base grows under a stroke that reaches past it, whichever patch the region is
         // on: a detail patch holds only what the base's box holds.
         let mut patch = self.region_patch_for(lo, hi);

@@ -119,12 +119,12 @@ impl Clay {
         }
     }
 
-    /// Adds `pad[a]` zero coefficients on both sides of axis `a` to the base patch, the
-    /// colour field and the base's mask.
+    /// Whether growing by `pad` ([`Clay::grow`]) keeps the clay within
+    /// [`MAX_CLAY_BOX_COEFFS`] coefficients of box, every lattice together. Reads only.
     ///
     /// # Errors
-    /// As [`Clay::grow_to_cover`].
-    pub fn grow(&mut self, pad: [usize; 3]) -> Result<Growth, GrowthError> {
+    /// [`GrowthError::ClayTooLarge`] when it would not.
+    pub fn check_growth_box(&self, pad: [usize; 3]) -> Result<(), GrowthError> {
         let old_dims = self.base().dims;
         let new_dims: [usize; 3] =
             std::array::from_fn(|a| old_dims[a].saturating_add(pad[a].saturating_mul(2)));
@@ -156,6 +156,19 @@ impl Clay {
                 total,
             });
         }
+        Ok(())
+    }
+
+    /// Adds `pad[a]` zero coefficients on both sides of axis `a` to the base patch, the
+    /// colour field and the base's mask.
+    ///
+    /// # Errors
+    /// As [`Clay::grow_to_cover`].
+    pub fn grow(&mut self, pad: [usize; 3]) -> Result<Growth, GrowthError> {
+        let old_dims = self.base().dims;
+        let new_dims: [usize; 3] =
+            std::array::from_fn(|a| old_dims[a].saturating_add(pad[a].saturating_mul(2)));
+        self.check_growth_box(pad)?;
         let base = self.base().padded(pad, pad)?;
         let colour = match &self.colour {
             Some(c) => {

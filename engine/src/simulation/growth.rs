@@ -23,7 +23,7 @@ impl SimulationStage {
 
     /// [`Self::make_room`], with the growth refused (and published) as the error.
     pub(super) fn try_make_room(&mut self, lo: Vec3, hi: Vec3) -> Result<bool, GrowthError> {
-        let pad = match padding_to_cover(self.clay.base(), lo, hi) {
+        let pad = match self.growth_pad(lo, hi) {
             Ok(Some(pad)) => pad,
             Ok(None) => return Ok(false),
             Err(refused) => {
@@ -31,16 +31,6 @@ impl SimulationStage {
                 return Err(refused);
             }
         };
-        // Whole bricks at a time, and at least an eighth of the clay per side: a pull that
-        // keeps going grows the clay a few times, not at every step.
-        let pad = std::array::from_fn(|a| {
-            let eighth = self.clay.base().dims[a] / 8;
-            pad[a].max(if pad[a] > 0 {
-                eighth.div_ceil(BRICK) * BRICK
-            } else {
-                0
-            })
-        });
         let old_base = (!self.material_grids.is_empty()).then(|| self.clay.base().clone());
         // The region indexes the old lattice: it retires (its coefficients are in the clay).
         self.retire_region();
@@ -76,6 +66,59 @@ impl SimulationStage {
         self.counters.clay_growths(1);
         self.publish_layout();
         Ok(true)
+    }
+
+    /// The padding per side [`Self::try_make_room`] grows the base by to take the world box
+    /// `lo..=hi` (`None` when it lies well inside): whole bricks at a time, and at least an
+    /// eighth of the clay per side, so that a pull that keeps going grows the clay a few
+    /// times, not at every step.
+    fn growth_pad(&self, lo: Vec3, hi: Vec3) -> Result<Option<[usize; 3]>, GrowthError> {
+        Ok(padding_to_cover(self.clay.base(), lo, hi)?.map(|pad| {
+            std::array::from_fn(|a| {
+                let eighth = self.clay.base().dims[a] / 8;
+                pad[a].max(if pad[a] > 0 {
+                    eighth.div_ceil(BRICK) * BRICK
+                } else {
+                    0
+                })
+            })
+        }))
+    }
+
+    /// The refusal a region over the world box `lo..=hi` is sure to meet once the clay has
+    /// grown to take it: the box spans more bricks of the base's spacing (the coarsest, so the
+    /// fewest) than the clay may hold dense, and each brick it reaches is either dense already
+    /// or one it may make dense. `None` when the box could fit, and when the clay cannot grow
+    /// to take it (the region is then clipped to the clay's box, which may fit).
+    pub(super) fn region_past_dense_budget(
+        &self,
+        lo: Vec3,
+        hi: Vec3,
+    ) -> Option<dynaclay_core::field::DenseBudgetError> {
+        use dynaclay_core::field::{COEFF_BRICK, MAX_DENSE_BRICKS};
+        match self.growth_pad(lo, hi) {
+            Ok(Some(pad)) if self.clay.check_growth_box(pad).is_ok() => {}
+            Ok(None) => {}
+            _ => return None,
+        }
+        let spacing = self.clay.base().spacing;
+        // Coefficients along each axis a region over the box holds at least: the box's knot
+        // spans, and each brick holds COEFF_BRICK of them along an axis.
+        let bricks = ((hi - lo) / spacing)
+            .to_array()
+            .iter()
+            .try_fold(1.0_f64, |acc, &n| {
+                (n.is_finite() && n >= 0.0)
+                    .then(|| acc * (f64::from(n) / COEFF_BRICK as f64).ceil().max(1.0))
+            })?;
+        (bricks > MAX_DENSE_BRICKS as f64).then(|| {
+            let dense = self.clay.dense_brick_count();
+            dynaclay_core::field::DenseBudgetError {
+                dense,
+                more: (bricks.min(usize::MAX as f64) as usize).saturating_sub(dense),
+                at: None,
+            }
+        })
     }
 
     /// [`Self::try_make_room`] for a geometric tool applied at `poses` on density patch
