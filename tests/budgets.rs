@@ -260,29 +260,33 @@ fn largest_x(path: &Path) -> f32 {
 #[test]
 fn a_stroke_whose_region_would_pass_the_dense_budget_is_refused_and_said_and_the_sculpt_is_kept() {
     let dir = tempfile::tempdir().unwrap();
-    let script = |radius_fu: f32| {
-        format!(
+    // Runs the pull stroke of spread `radius_fu` as script `name`.toml into folder `name`.
+    let pull = |name: &str, radius_fu: f32| {
+        let script = format!(
             "version = 1\nseconds = 1.5\n\n[clay]\nshape = \"sphere\"\nresolution = 24\n\n\
              [[step]]\ndo = \"stroke\"\n\
              tool = {{ kind = \"pull\", beta = \"gaussian\", radius_fu = {radius_fu}, gain = 2e6 }}\n\
              path = [[1.72, 1.15, 1.15], [2.0, 1.15, 1.15]]\nduration_s = 1.0\nhover_fu = 0.05\n"
-        )
+        );
+        let file = format!("{name}.toml");
+        std::fs::write(dir.path().join(&file), script).unwrap();
+        let out = dynaclay(
+            dir.path(),
+            &[
+                "run",
+                "--script",
+                &file,
+                "--lockstep",
+                "--no-rt",
+                "--out",
+                name,
+            ],
+        );
+        let err = stderr(&out);
+        assert!(out.status.success(), "{err}");
+        (err, largest_x(&dir.path().join(name).join("sculpt.obj")))
     };
-    std::fs::write(dir.path().join("wide.toml"), script(30.0)).unwrap();
-    let out = dynaclay(
-        dir.path(),
-        &[
-            "run",
-            "--script",
-            "wide.toml",
-            "--lockstep",
-            "--no-rt",
-            "--out",
-            "wide",
-        ],
-    );
-    let err = stderr(&out);
-    assert!(out.status.success(), "{err}");
+    let (err, max_x) = pull("wide", 30.0);
     for needle in [
         "the clay's budgets refused",
         "more bricks dense",
@@ -291,29 +295,13 @@ fn a_stroke_whose_region_would_pass_the_dense_budget_is_refused_and_said_and_the
     ] {
         assert!(err.contains(needle), "{needle}: {err}");
     }
-    let max_x = largest_x(&dir.path().join("wide/sculpt.obj"));
     assert!(max_x < 1.8, "the sphere is as it was: {max_x}");
     // Refused before the clay grew for it: the saved clay keeps its starting box.
     let saved = dynaclay::io::load_session(&dir.path().join("wide/session.dclay")).unwrap();
     let dims = saved.clay.base().dims;
     assert!(dims.iter().all(|&n| n <= 32), "the clay's box: {dims:?}");
     // The same stroke with a spread its region can hold pulls the clay out, and says nothing.
-    std::fs::write(dir.path().join("narrow.toml"), script(0.3)).unwrap();
-    let out = dynaclay(
-        dir.path(),
-        &[
-            "run",
-            "--script",
-            "narrow.toml",
-            "--lockstep",
-            "--no-rt",
-            "--out",
-            "narrow",
-        ],
-    );
-    let err = stderr(&out);
-    assert!(out.status.success(), "{err}");
+    let (err, max_x) = pull("narrow", 0.3);
     assert!(!err.contains("budgets"), "{err}");
-    let max_x = largest_x(&dir.path().join("narrow/sculpt.obj"));
     assert!(max_x > 1.8, "the pull drew the clay out: {max_x}");
 }
