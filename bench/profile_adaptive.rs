@@ -21,9 +21,13 @@ use dynaclay::mesh::{
 mod mesh_clays;
 use mesh_clays::three_level_clay;
 
+/// The median and the least of `times_ms` (NaN for none).
 fn median_and_best(mut times_ms: Vec<f64>) -> (f64, f64) {
     times_ms.sort_by(f64::total_cmp);
-    (times_ms[times_ms.len() / 2], times_ms[0])
+    match times_ms.first() {
+        Some(&best) => (times_ms[times_ms.len() / 2], best),
+        None => (f64::NAN, f64::NAN),
+    }
 }
 
 fn main() {
