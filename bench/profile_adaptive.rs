@@ -21,9 +21,13 @@ use dynaclay::mesh::{
 mod mesh_clays;
 use mesh_clays::three_level_clay;
 
+/// The median and the least of `times_ms` (NaN for none).
 fn median_and_best(mut times_ms: Vec<f64>) -> (f64, f64) {
     times_ms.sort_by(f64::total_cmp);
-    (times_ms[times_ms.len() / 2], times_ms[0])
+    match times_ms.first() {
+        Some(&best) => (times_ms[times_ms.len() / 2], best),
+        None => (f64::NAN, f64::NAN),
+    }
 }
 
 fn main() {
@@ -80,8 +84,15 @@ fn main() {
         black_box(mesh_adaptive(field, &options).expect("whole"));
         whole_ms.push(start.elapsed().as_secs_f64() * 1e3);
     }
+    // The stroke (even rounds) and its undo (odd rounds) apart: they re-mesh different
+    // fields and need not cost the same.
+    let (stroke_median, _) = median_and_best(local_ms.iter().copied().step_by(2).collect());
+    let (undo_median, _) = median_and_best(local_ms.iter().copied().skip(1).step_by(2).collect());
     let (local_median, local_best) = median_and_best(local_ms);
     let (whole_median, whole_best) = median_and_best(whole_ms);
-    println!("local: median {local_median:.3} ms, best {local_best:.3} ms");
+    println!(
+        "local: median {local_median:.3} ms, best {local_best:.3} ms (medians: stroke \
+         {stroke_median:.3} ms, undo {undo_median:.3} ms)"
+    );
     println!("whole: median {whole_median:.3} ms, best {whole_best:.3} ms");
 }

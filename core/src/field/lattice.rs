@@ -303,14 +303,20 @@ impl BSplineLattice {
     /// written into `out` with x fastest: `out[i + xs.len() * (j + ys.len() * k)]` is, bit for
     /// bit, [`BSplineLattice::value`] at `(xs[i], ys[j], zs[k])`.
     ///
-    /// Separable: the weights are computed once per coordinate of each axis, and the rows of
-    /// coefficients summed with the y and z weights once per run of x coordinates in one knot
-    /// span (then each point is one 4-wide dot product), where [`BSplineLattice::value`] does
-    /// the whole sum per point. Points whose stencil reaches past the lattice's border are
-    /// evaluated one by one.
+    /// Separable: the weights are computed once per coordinate of each axis; for each y
+    /// coordinate and run of x coordinates in one knot span, the four rows of each z-plane of
+    /// a stencil are summed with the y weights once per run of z coordinates in one knot span,
+    /// and those planes with the z weights once per z coordinate (then each point is one 4-wide
+    /// dot product), where [`BSplineLattice::value`] does the whole sum per point. The sums
+    /// are the ones `value` makes, in its order, so the bits are the same. Points whose
+    /// stencil reaches past the lattice's border are evaluated one by one.
     ///
     /// # Panics
     /// When `out.len() != xs.len() * ys.len() * zs.len()`.
+    // NOTE: the planes were summed again for every z coordinate (per point row) before; at the
+    // window's 4 cells per knot span a plane serves four z coordinates of the finest patch and
+    // up to 32 of the base's (`bench/profile_adaptive.rs` `3000 local 4 cut`, the region's
+    // block).
     pub fn values_on_grid(&self, xs: &[f32], ys: &[f32], zs: &[f32], out: &mut [f32]) {
         assert_eq!(
             out.len(),
@@ -332,48 +338,82 @@ impl BSplineLattice {
                 .collect()
         };
         let (tx, ty, tz) = (taps(xs, 0), taps(ys, 1), taps(zs, 2));
-        let mut at = 0;
-        for (k, &(fz, wz)) in tz.iter().enumerate() {
-            for (j, &(fy, wy)) in ty.iter().enumerate() {
-                // The y-z sum of the rows from the last x stencil, while x stays in its span.
-                let mut last: Option<(usize, Vec4)> = None;
-                for (i, &(fx, wx)) in tx.iter().enumerate() {
-                    out[at] = match (fx, fy, fz) {
-                        (Some(fx), Some(fy), Some(fz)) => {
-                            let sum = match last {
-                                Some((first, sum)) if first == fx => sum,
-                                _ => {
-                                    let sum = self.row_sums([fx, fy, fz], &wy, &wz);
-                                    last = Some((fx, sum));
-                                    sum
-                                }
-                            };
-                            sum.dot(Vec4::from_array(wx))
-                        }
-                        _ => self.value(Vec3::new(xs[i], ys[j], zs[k])),
+        let (nx, ny) = (xs.len(), ys.len());
+        let one_by_one = |out: &mut [f32], i: usize, j: usize, k: usize| {
+            out[i + nx * (j + ny * k)] = self.value(Vec3::new(xs[i], ys[j], zs[k]));
+        };
+        for (j, &(fy, wy)) in ty.iter().enumerate() {
+            let mut i = 0;
+            while i < nx {
+                // The run of x coordinates from `i` that share one stencil along x.
+                let fx = tx[i].0;
+                let end = i + tx[i..].iter().take_while(|t| t.0 == fx).count();
+                let (Some(fx), Some(fy)) = (fx, fy) else {
+                    for k in 0..zs.len() {
+                        (i..end).for_each(|i| one_by_one(out, i, j, k));
+                    }
+                    i = end;
+                    continue;
+                };
+                // The four planes of the last z stencil, each its rows summed with `wy`.
+                let mut last: Option<(usize, [Vec4; 4])> = None;
+                for (k, &(fz, wz)) in tz.iter().enumerate() {
+                    let Some(fz) = fz else {
+                        (i..end).for_each(|i| one_by_one(out, i, j, k));
+                        continue;
                     };
-                    at += 1;
+                    let planes = match last {
+                        Some((first, planes)) if first == fz => planes,
+                        _ => {
+                            let planes = self.plane_sums([fx, fy, fz], &wy);
+                            last = Some((fz, planes));
+                            planes
+                        }
+                    };
+                    let sum = Self::planes_sum(&planes, &wz);
+                    let row = nx * (j + ny * k);
+                    for (o, (_, wx)) in out[row + i..row + end].iter_mut().zip(&tx[i..end]) {
+                        *o = sum.dot(Vec4::from_array(*wx));
+                    }
                 }
+                i = end;
             }
         }
     }
 
-    /// The 4×4×4 coefficients from coefficient `first` summed along z and y with the weights
-    /// `wz` and `wy`: four sums along x, one per x tap (the fast path of
-    /// [`BSplineLattice::value`], shared with [`BSplineLattice::values_on_grid`] so that both
-    /// give the same bits).
+    /// The 4×4×4 coefficients from coefficient `first`, each of their four z-planes summed
+    /// along y with the weights `wy`: per plane four sums along x, one per x tap (the first
+    /// half of [`BSplineLattice::row_sums`], in its order).
     #[inline]
-    fn row_sums(&self, first: [usize; 3], wy: &[f32; 4], wz: &[f32; 4]) -> Vec4 {
+    fn plane_sums(&self, first: [usize; 3], wy: &[f32; 4]) -> [Vec4; 4] {
         let rows = self.coeffs.stencil_rows(first);
-        let mut sum = Vec4::ZERO;
-        for (c, &wzc) in wz.iter().enumerate() {
+        std::array::from_fn(|c| {
             let mut plane = Vec4::ZERO;
             for (b, &wyb) in wy.iter().enumerate() {
                 plane += wyb * rows[b + 4 * c];
             }
-            sum += wzc * plane;
+            plane
+        })
+    }
+
+    /// The planes of [`BSplineLattice::plane_sums`] summed along z with the weights `wz` (the
+    /// second half of [`BSplineLattice::row_sums`], in its order).
+    #[inline]
+    fn planes_sum(planes: &[Vec4; 4], wz: &[f32; 4]) -> Vec4 {
+        let mut sum = Vec4::ZERO;
+        for (plane, &wzc) in planes.iter().zip(wz) {
+            sum += wzc * *plane;
         }
         sum
+    }
+
+    /// The 4×4×4 coefficients from coefficient `first` summed along z and y with the weights
+    /// `wz` and `wy`: four sums along x, one per x tap (the fast path of
+    /// [`BSplineLattice::value`], made of the halves [`BSplineLattice::values_on_grid`] uses
+    /// so that both give the same bits).
+    #[inline]
+    fn row_sums(&self, first: [usize; 3], wy: &[f32; 4], wz: &[f32; 4]) -> Vec4 {
+        Self::planes_sum(&self.plane_sums(first, wy), wz)
     }
 
     /// Values and gradients at many points, written into `values` and `gradients`.
@@ -558,6 +598,44 @@ mod tests {
         assert!(inner > 0 && zero > 0, "{inner} inside, {zero} outside");
         // Without points the call writes nothing.
         lattice.values_on_grid(&[], &ys, &zs, &mut []);
+    }
+
+    #[test]
+    fn values_on_a_grid_dense_along_z_or_descending_are_the_values_point_by_point_bit_for_bit() {
+        // Several z coordinates per knot span share a stencil's planes along z; coordinates
+        // that go down, or jump back into a span left before, must not reuse another's.
+        let mut lattice =
+            BSplineLattice::zeros([10, 9, 11], 0.25, Vec3::new(-0.3, 0.2, -0.1)).expect("lattice");
+        lattice
+            .coeffs
+            .update_each(|n, c| *c = ((n * 104_729) % 97) as f32 / 97.0 - 0.45);
+        let axis = |start: f32, step: f32, n: usize| -> Vec<f32> {
+            (0..n).map(|i| start + step * i as f32).collect()
+        };
+        let mut zs = axis(-0.9, 0.04, 80);
+        zs.extend(axis(2.2, -0.37, 9));
+        zs.extend([0.5, 0.51, 0.5, 1.7, 0.52]);
+        let grids = [
+            (axis(-0.8, 0.03, 40), axis(0.1, 0.05, 30), zs.clone()),
+            (axis(2.5, -0.11, 30), axis(2.3, -0.09, 31), zs),
+        ];
+        let mut inner = 0;
+        for (xs, ys, zs) in grids {
+            let mut out = vec![f32::NAN; xs.len() * ys.len() * zs.len()];
+            lattice.values_on_grid(&xs, &ys, &zs, &mut out);
+            let mut at = 0;
+            for &z in &zs {
+                for &y in &ys {
+                    for &x in &xs {
+                        let one = lattice.value(Vec3::new(x, y, z));
+                        assert_eq!(out[at].to_bits(), one.to_bits(), "at ({x}, {y}, {z})");
+                        inner += usize::from(one != 0.0);
+                        at += 1;
+                    }
+                }
+            }
+        }
+        assert!(inner > 10_000, "{inner} values inside the support");
     }
 
     fn linear_lattice(
