@@ -174,7 +174,8 @@ impl GramFactor {
 /// dimensions. Each output entry is the sum over its row of the matrix, in the row's order,
 /// computed by one of `threads` threads (each takes a run of whole z-planes of the output),
 /// so the result does not depend on the thread count; then multiplied by its entry of
-/// `weights`, when given (one per output entry).
+/// `weights`, when given (one per output entry); then each output z-plane handed to
+/// `finish`, when given, with its `z`, on the thread that filled it.
 ///
 /// NOTE: the output is cleared plane by plane on the threads that fill it, and weighted there
 /// too: cleared and weighted in passes on the calling thread, the half-million samples of a
@@ -191,6 +192,7 @@ fn along_axis(
     axis: usize,
     matrix: &[Vec<(usize, f64)>],
     weights: Option<&[f32]>,
+    finish: Option<&PlaneFinish<'_>>,
     out: &mut Vec<f64>,
     threads: usize,
 ) -> [usize; 3] {
@@ -234,6 +236,9 @@ fn along_axis(
                 for (value, &w) in out_plane.iter_mut().zip(&weights[z * plane..]) {
                     *value *= f64::from(w);
                 }
+            }
+            if let Some(finish) = finish {
+                finish(z, out_plane);
             }
         }
     };
@@ -399,9 +404,17 @@ fn along_x_then_y(
     let plane = |d: [usize; 3]| d[0] * d[1];
     let (in_plane, first_plane, second_plane) =
         (plane(dims), plane(first_dims), plane(second_dims));
-    // Kept from the last product of the same size: each plane is cleared where it is filled.
-    first.resize(first_plane * dims[2], 0.0);
-    second.resize(second_plane * dims[2], 0.0);
+    // Kept from the last product, at least as long: each plane is cleared where it is
+    // filled, so only the entries a product needs are read (`second`'s first
+    // `second_dims`' product), and a buffer grows, never shrinks.
+    //
+    // NOTE: resized to each product's length, the buffers of a regularised fit's step shrank
+    // for one product and grew back for the other (a forward product's first pass is
+    // `samples × coefficients²` entries, a transposed one's `coefficients × samples²`), and
+    // every growth cleared the new tail on the calling thread: 22 of 305 main-thread samples
+    // of the base fit in `perf record` (bench/RESULTS.md, "Import time: the idle core").
+    let first = grown(first, first_plane * dims[2]);
+    let second = grown(second, second_plane * dims[2]);
     if first_plane == 0 || second_plane == 0 {
         return second_dims;
     }
@@ -457,16 +470,30 @@ fn along_x_then_y(
     second_dims
 }
 
-/// The buffers of [`apply`]'s passes, kept across the fit's steps.
+/// `buffer`'s first `len` entries, the buffer grown with zeros where it is shorter (never
+/// shrunk: a longer buffer keeps its tail for the next, longer product).
+fn grown(buffer: &mut Vec<f64>, len: usize) -> &mut [f64] {
+    if buffer.len() < len {
+        buffer.resize(len, 0.0);
+    }
+    &mut buffer[..len]
+}
+
+/// The buffers of [`apply`]'s passes, kept across the fit's steps (each as long as the
+/// longest product that used it).
 #[derive(Default)]
 struct Passes {
     first: Vec<f64>,
     second: Vec<f64>,
 }
 
+/// What [`along_axis`] does to each output z-plane once it is filled: called with the
+/// plane's `z` and its entries, on the thread that filled it.
+type PlaneFinish<'a> = dyn Fn(usize, &mut [f64]) + Sync + 'a;
+
 /// `A x` over the three axes (or `Aᵀ x`; with `squared`, the entrywise squares of `A`) into
-/// `out`, each entry then multiplied by its entry of `weights` when given, on `threads`
-/// threads.
+/// `out`, each entry then multiplied by its entry of `weights` when given, and each output
+/// z-plane then handed to `finish` when given, on `threads` threads.
 #[allow(clippy::too_many_arguments)]
 fn apply(
     x: &[f64],
@@ -475,6 +502,7 @@ fn apply(
     forward: bool,
     squared: bool,
     weights: Option<&[f32]>,
+    finish: Option<&PlaneFinish<'_>>,
     threads: usize,
     passes: &mut Passes,
     out: &mut Vec<f64>,
@@ -497,10 +525,13 @@ fn apply(
     };
     let Passes { first, second } = passes;
     let d = along_x_then_y(x, dims, [&matrix(0), &matrix(1)], first, second, threads);
-    along_axis(second, d, 2, &matrix(2), weights, out, threads);
+    let second = &second[..d.iter().product::<usize>()];
+    along_axis(second, d, 2, &matrix(2), weights, finish, out, threads);
 }
 
-/// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`.
+/// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`, by a
+/// scatter over the grid: the reference [`add_bending_plane`] is tested against.
+#[cfg(test)]
 fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
     let [nx, ny, nz] = dims;
     let strides = [1, nx, nx * ny];
@@ -525,6 +556,43 @@ fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
                 }
             }
         }
+    }
+}
+
+/// [`add_bending`]'s sums for the z-plane `z` of `out` alone (`plane`, `nx · ny` entries):
+/// each entry gathers the terms the scatter of `add_bending` adds to it, in the order it adds
+/// them (axis by axis, and along an axis the rows starting two steps below, one step below
+/// and at the entry), so every entry is the same bit for bit, and the planes can be summed
+/// on the threads that fill them.
+///
+/// NOTE: added by the scatter over the whole grid on the calling thread after each product
+/// by `AᵀWA`, the bending took 25 of the 305 main-thread samples of a 44³ base fit in
+/// `perf record`, with the other core idle (bench/RESULTS.md, "Import time: the idle core").
+fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: &mut [f64]) {
+    let [nx, ny, _] = dims;
+    let strides = [1, nx, nx * ny];
+    let second_difference = |at: usize, st: usize| x[at] - 2.0 * x[at + st] + x[at + 2 * st];
+    for (in_plane, value) in plane.iter_mut().enumerate().take(nx * ny) {
+        let c = [in_plane % nx, in_plane / nx, z];
+        let at = in_plane + z * nx * ny;
+        let mut sum = *value;
+        for axis in 0..3 {
+            let (n, st, c) = (dims[axis], strides[axis], c[axis]);
+            if n < 3 {
+                continue;
+            }
+            // Row `c − 2` (every row below `n − 2` has its three entries on the grid).
+            if c >= 2 {
+                sum += lambda * second_difference(at - 2 * st, st);
+            }
+            if c >= 1 && c + 1 < n {
+                sum -= 2.0 * lambda * second_difference(at - st, st);
+            }
+            if c + 2 < n {
+                sum += lambda * second_difference(at, st);
+            }
+        }
+        *value = sum;
     }
 }
 
@@ -646,6 +714,7 @@ fn plain_fit(
         false,
         false,
         None,
+        None,
         threads,
         &mut Passes::default(),
         &mut c,
@@ -716,6 +785,7 @@ fn regularised_from(
             false,
             false,
             None,
+            None,
             threads,
             &mut passes,
             &mut b,
@@ -728,6 +798,7 @@ fn regularised_from(
         &bases,
         false,
         true,
+        None,
         None,
         threads,
         &mut passes,
@@ -748,6 +819,7 @@ fn regularised_from(
             true,
             false,
             Some(weights),
+            None,
             threads,
             &mut passes,
             &mut at_samples,
@@ -759,11 +831,11 @@ fn regularised_from(
             false,
             false,
             None,
+            Some(&|z, plane: &mut [f64]| add_bending_plane(x, dims, lambda, z, plane)),
             threads,
             &mut passes,
             out,
         );
-        add_bending(x, dims, lambda, out);
     };
     let mut x = start;
     assert_eq!(
@@ -1038,7 +1110,7 @@ mod tests {
                 let plain = along_axis_plain(&input, dims, axis, matrix);
                 for threads in [1, 3] {
                     let mut out = vec![5.0; 3];
-                    along_axis(&input, dims, axis, matrix, None, &mut out, threads);
+                    along_axis(&input, dims, axis, matrix, None, None, &mut out, threads);
                     assert!(
                         out.iter()
                             .map(|v| v.to_bits())
@@ -1068,21 +1140,158 @@ mod tests {
             };
             let (m0, m1) = (matrix(&basis[0]), matrix(&basis[1]));
             let mut one = Vec::new();
-            let d = along_axis(&input, dims, 0, &m0, None, &mut one, 1);
+            let d = along_axis(&input, dims, 0, &m0, None, None, &mut one, 1);
             let mut two = Vec::new();
-            let want_dims = along_axis(&one, d, 1, &m1, None, &mut two, 1);
-            for threads in [1, 2, 3] {
-                let (mut first, mut second) = (vec![9.0; 2], vec![4.0; 5]);
+            let want_dims = along_axis(&one, d, 1, &m1, None, None, &mut two, 1);
+            // Buffers shorter than the passes need, and longer (kept from a larger product).
+            for (threads, kept) in [(1, 2), (2, 5), (3, 5000)] {
+                let (mut first, mut second) = (vec![9.0; kept], vec![4.0; kept]);
                 let got_dims =
                     along_x_then_y(&input, dims, [&m0, &m1], &mut first, &mut second, threads);
                 assert_eq!(got_dims, want_dims);
                 assert!(
-                    second
+                    second[..two.len()]
                         .iter()
                         .map(|v| v.to_bits())
                         .eq(two.iter().map(|v| v.to_bits())),
                     "forward {forward}, {threads} threads"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_bending_by_planes_is_the_scatter_bit_for_bit() {
+        // A grid with an axis too short to bend (2) and one just long enough (3), and a
+        // larger one; uneven coefficients and a non-zero `out` to add to.
+        for dims in [[7, 6, 9], [2, 5, 4], [3, 3, 8], [6, 1, 3]] {
+            let count: usize = dims.iter().product();
+            let x: Vec<f64> = (0..count)
+                .map(|i| ((i * 7919) % 103) as f64 / 103.0 - 0.41)
+                .collect();
+            let start: Vec<f64> = (0..count)
+                .map(|i| ((i * 104_729) % 97) as f64 / 9.7 - 5.0)
+                .collect();
+            let mut scattered = start.clone();
+            add_bending(&x, dims, 0.37, &mut scattered);
+            let mut by_planes = start.clone();
+            let plane = dims[0] * dims[1];
+            for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
+                add_bending_plane(&x, dims, 0.37, z, out);
+            }
+            assert!(
+                by_planes
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .eq(scattered.iter().map(|v| v.to_bits())),
+                "{dims:?}"
+            );
+            assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
+        }
+    }
+
+    #[test]
+    fn products_with_kept_buffers_are_those_with_fresh_buffers_bit_for_bit() {
+        // A fit's step alternates forward and transposed products, whose passes need buffers
+        // of different lengths: kept from one product to the next, they must give what
+        // fresh buffers give, on one thread and several, with and without a plane finisher.
+        let (dims, sps, sample_dims, _, weights) = uneven_problem();
+        let bases = dims.map(|n| AxisBasis::new(n, sps));
+        let coefficients: Vec<f64> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 7919) % 101) as f64 / 101.0 - 0.37)
+            .collect();
+        let finish =
+            |z: usize, plane: &mut [f64]| add_bending_plane(&coefficients, dims, 0.2, z, plane);
+        for threads in [1, 2, 3] {
+            let mut kept = Passes::default();
+            let mut x = coefficients.clone();
+            for round in 0..3 {
+                let (mut samples, mut fresh_samples) = (Vec::new(), Vec::new());
+                apply(
+                    &x,
+                    dims,
+                    &bases,
+                    true,
+                    false,
+                    Some(&weights),
+                    None,
+                    threads,
+                    &mut kept,
+                    &mut samples,
+                );
+                apply(
+                    &x,
+                    dims,
+                    &bases,
+                    true,
+                    false,
+                    Some(&weights),
+                    None,
+                    threads,
+                    &mut Passes::default(),
+                    &mut fresh_samples,
+                );
+                assert_eq!(samples.len(), sample_dims.iter().product::<usize>());
+                assert!(
+                    samples
+                        .iter()
+                        .map(|v| v.to_bits())
+                        .eq(fresh_samples.iter().map(|v| v.to_bits())),
+                    "forward, round {round}, {threads} threads"
+                );
+                let (mut back, mut fresh_back) = (Vec::new(), Vec::new());
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    Some(&finish),
+                    threads,
+                    &mut kept,
+                    &mut back,
+                );
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    Some(&finish),
+                    threads,
+                    &mut Passes::default(),
+                    &mut fresh_back,
+                );
+                assert!(
+                    back.iter()
+                        .map(|v| v.to_bits())
+                        .eq(fresh_back.iter().map(|v| v.to_bits())),
+                    "transposed, round {round}, {threads} threads"
+                );
+                // The finisher ran on every plane: the bending is in the product.
+                let mut plain_back = Vec::new();
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    None,
+                    threads,
+                    &mut Passes::default(),
+                    &mut plain_back,
+                );
+                add_bending(&coefficients, dims, 0.2, &mut plain_back);
+                assert!(
+                    back.iter()
+                        .map(|v| v.to_bits())
+                        .eq(plain_back.iter().map(|v| v.to_bits())),
+                    "finished, round {round}, {threads} threads"
+                );
+                x = back.iter().map(|v| v * 0.5).collect();
             }
         }
     }
