@@ -211,10 +211,18 @@ mod tests {
         };
         let grid = SampleGrid::for_field(&clay.density, 4).unwrap();
         let serial = BrickOctree::build(grid, &clay.density).weld();
-        assert!(serial.triangle_count() > 1000, "{}", serial.triangle_count());
+        assert!(
+            serial.triangle_count() > 1000,
+            "{}",
+            serial.triangle_count()
+        );
         let octree = mesh_clay(&clay, 4, &budget()).unwrap();
         for threads in [1, 2, 3] {
-            assert_eq!(octree.weld_with_threads(threads), serial, "{threads} threads");
+            assert_eq!(
+                octree.weld_with_threads(threads),
+                serial,
+                "{threads} threads"
+            );
         }
     }
 

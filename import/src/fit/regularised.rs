@@ -485,6 +485,8 @@ fn grown(buffer: &mut Vec<f64>, len: usize) -> &mut [f64] {
 struct Passes {
     first: Vec<f64>,
     second: Vec<f64>,
+    /// [`weighted_normal_product`]'s planes after the transposed passes along x and y.
+    third: Vec<f64>,
 }
 
 /// What [`along_axis`] does to each output z-plane once it is filled: called with the
@@ -523,10 +525,126 @@ fn apply(
             std::borrow::Cow::Borrowed(rows)
         }
     };
-    let Passes { first, second } = passes;
+    let Passes { first, second, .. } = passes;
     let d = along_x_then_y(x, dims, [&matrix(0), &matrix(1)], first, second, threads);
     let second = &second[..d.iter().product::<usize>()];
     along_axis(second, d, 2, &matrix(2), weights, finish, out, threads);
+}
+
+/// `Aᵀ W A x` (the weights `W` one per sample of the mass grid) into `out`, each output
+/// z-plane then handed to `finish` when given, on `threads` threads: the same values bit for
+/// bit as [`apply`] forward with the weights and then [`apply`] transposed.
+///
+/// The forward pass along z, the weights and the transposed passes along x and y each keep
+/// a z-plane of the samples to itself, so they run plane by plane on one thread, with the
+/// plane in that thread's cache: the samples (`samples_per_span³` times the coefficients)
+/// are never stored, and the threads are waited for three times per product instead of four.
+///
+/// NOTE: by two [`apply`]s, each step of a 44³ base fit wrote and read back the 658 000
+/// weighted samples (5 MB) and the transposed pass along x's 333 000 entries, and waited for
+/// the threads once more (bench/RESULTS.md, "Import time: the idle core").
+#[allow(clippy::too_many_arguments)]
+fn weighted_normal_product(
+    x: &[f64],
+    dims: [usize; 3],
+    bases: &[AxisBasis; 3],
+    weights: &[f32],
+    finish: Option<&PlaneFinish<'_>>,
+    threads: usize,
+    passes: &mut Passes,
+    out: &mut Vec<f64>,
+) {
+    let Passes {
+        first,
+        second,
+        third,
+    } = passes;
+    let [sx, sy, cz] = along_x_then_y(
+        x,
+        dims,
+        [&bases[0].rows, &bases[1].rows],
+        first,
+        second,
+        threads,
+    );
+    let sz = bases[2].samples;
+    let (cx, cy) = (bases[0].columns.len(), bases[1].columns.len());
+    let second = &second[..sx * sy * cz];
+    let (sample_plane, across_plane, out_plane) = (sx * sy, cx * sy, cx * cy);
+    let third = grown(third, out_plane * sz);
+    if sample_plane == 0 || out_plane == 0 {
+        // No samples, or no coefficients in a plane: the transposed passes sum nothing.
+        third.fill(0.0);
+        along_axis(
+            third,
+            [cx, cy, sz],
+            2,
+            &bases[2].columns,
+            None,
+            finish,
+            out,
+            threads,
+        );
+        return;
+    }
+    let taps = TapRows::of(&bases[0].columns, sx);
+    let fill = |z0: usize, slab: &mut [f64]| {
+        let mut samples = vec![0.0; sample_plane];
+        let mut across = vec![0.0; across_plane];
+        for (dz, plane) in slab.chunks_exact_mut(out_plane).enumerate() {
+            let z = z0 + dz;
+            // `A` along z ([`along_axis`]'s sum per entry, in the row's order), then `W`.
+            samples.fill(0.0);
+            for &(t, w) in &bases[2].rows[z] {
+                let from = t * sample_plane;
+                for (value, &v) in samples.iter_mut().zip(&second[from..from + sample_plane]) {
+                    *value += w * v;
+                }
+            }
+            for (value, &w) in samples.iter_mut().zip(&weights[z * sample_plane..]) {
+                *value *= f64::from(w);
+            }
+            // `Aᵀ` along x, then along y ([`along_x_then_y`]'s plane).
+            plane_along(
+                &samples,
+                [sx, sy],
+                0,
+                &bases[0].columns,
+                taps.as_ref(),
+                &mut across,
+            );
+            plane.fill(0.0);
+            plane_along(&across, [cx, sy], 1, &bases[1].columns, None, plane);
+        }
+    };
+    let threads = threads.clamp(1, sz);
+    if threads == 1 {
+        fill(0, third);
+    } else {
+        let planes_per_thread = sz.div_ceil(threads);
+        std::thread::scope(|scope| {
+            let mut slabs = third.chunks_mut(planes_per_thread * out_plane).enumerate();
+            // The calling thread fills the first slab itself (one thread fewer to start).
+            let own = slabs.next();
+            for (t, slab) in slabs {
+                let fill = &fill;
+                scope.spawn(move || fill(t * planes_per_thread, slab));
+            }
+            if let Some((t, slab)) = own {
+                fill(t * planes_per_thread, slab);
+            }
+        });
+    }
+    along_axis(
+        third,
+        [cx, cy, sz],
+        2,
+        &bases[2].columns,
+        None,
+        finish,
+        out,
+        threads,
+    );
 }
 
 /// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`, by a
@@ -810,27 +928,12 @@ fn regularised_from(
     for (d, l) in diagonal.iter_mut().zip(bending_diagonal(dims)) {
         *d = (*d + lambda * l).max(1e-12);
     }
-    let mut at_samples = Vec::new();
     let mut operator = |x: &[f64], out: &mut Vec<f64>| {
-        apply(
+        weighted_normal_product(
             x,
             dims,
             &bases,
-            true,
-            false,
-            Some(weights),
-            None,
-            threads,
-            &mut passes,
-            &mut at_samples,
-        );
-        apply(
-            &at_samples,
-            sample_dims,
-            &bases,
-            false,
-            false,
-            None,
+            weights,
             Some(&|z, plane: &mut [f64]| add_bending_plane(x, dims, lambda, z, plane)),
             threads,
             &mut passes,
@@ -1292,6 +1395,65 @@ mod tests {
                     "finished, round {round}, {threads} threads"
                 );
                 x = back.iter().map(|v| v * 0.5).collect();
+            }
+        }
+    }
+
+    #[test]
+    fn the_weighted_normal_product_is_the_two_products_bit_for_bit() {
+        // `AᵀWA x` plane by plane against `A x` weighted, then `Aᵀ` of that, each by
+        // `apply`: with kept and fresh buffers, on one thread and several, with the bending
+        // as the finisher and without.
+        let (dims, sps, sample_dims, _, weights) = uneven_problem();
+        let bases = dims.map(|n| AxisBasis::new(n, sps));
+        let x: Vec<f64> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 104_729) % 89) as f64 / 89.0 - 0.52)
+            .collect();
+        let bending = |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, z, plane);
+        let finishes: [Option<&PlaneFinish<'_>>; 2] = [None, Some(&bending)];
+        for finish in finishes {
+            let mut samples = Vec::new();
+            let mut passes = Passes::default();
+            apply(
+                &x,
+                dims,
+                &bases,
+                true,
+                false,
+                Some(&weights),
+                None,
+                1,
+                &mut passes,
+                &mut samples,
+            );
+            let mut want = Vec::new();
+            apply(
+                &samples,
+                sample_dims,
+                &bases,
+                false,
+                false,
+                None,
+                finish,
+                1,
+                &mut passes,
+                &mut want,
+            );
+            for threads in [1, 2, 3, 8] {
+                let mut kept = Passes::default();
+                for round in 0..2 {
+                    let mut got = vec![7.0; 3];
+                    weighted_normal_product(
+                        &x, dims, &bases, &weights, finish, threads, &mut kept, &mut got,
+                    );
+                    assert!(
+                        got.iter()
+                            .map(|v| v.to_bits())
+                            .eq(want.iter().map(|v| v.to_bits())),
+                        "{threads} threads, round {round}, finished {}",
+                        finish.is_some()
+                    );
+                }
             }
         }
     }
