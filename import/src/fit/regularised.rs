@@ -678,39 +678,72 @@ fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
 }
 
 /// [`add_bending`]'s sums for the z-plane `z` of `out` alone (`plane`, `nx · ny` entries):
-/// each entry gathers the terms the scatter of `add_bending` adds to it, in the order it adds
-/// them (axis by axis, and along an axis the rows starting two steps below, one step below
-/// and at the entry), so every entry is the same bit for bit, and the planes can be summed
-/// on the threads that fill them.
+/// the same scatter restricted to the plane's entries, axis by axis and along an axis row
+/// by row in ascending order, so each entry receives the same terms in the same order and
+/// is the same bit for bit, and the planes can be summed on the threads that fill them.
+/// Along z a row's three entries lie in three planes: the plane takes its term from each
+/// of the (at most three) rows that reach it.
 ///
 /// NOTE: added by the scatter over the whole grid on the calling thread after each product
 /// by `AᵀWA`, the bending took 25 of the 305 main-thread samples of a 44³ base fit in
-/// `perf record`, with the other core idle (bench/RESULTS.md, "Import time: the idle core").
+/// `perf record`, with the other core idle; a gather per entry (each entry reading the
+/// nine second differences it takes) was the same bits at 2.7 times the CPU
+/// (bench/RESULTS.md, "Import time: the idle core").
 fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: &mut [f64]) {
-    let [nx, ny, _] = dims;
-    let strides = [1, nx, nx * ny];
-    let second_difference = |at: usize, st: usize| x[at] - 2.0 * x[at + st] + x[at + 2 * st];
-    for (in_plane, value) in plane.iter_mut().enumerate().take(nx * ny) {
-        let c = [in_plane % nx, in_plane / nx, z];
-        let at = in_plane + z * nx * ny;
-        let mut sum = *value;
-        for axis in 0..3 {
-            let (n, st, c) = (dims[axis], strides[axis], c[axis]);
-            if n < 3 {
-                continue;
-            }
-            // Row `c − 2` (every row below `n − 2` has its three entries on the grid).
-            if c >= 2 {
-                sum += lambda * second_difference(at - 2 * st, st);
-            }
-            if c >= 1 && c + 1 < n {
-                sum -= 2.0 * lambda * second_difference(at - st, st);
-            }
-            if c + 2 < n {
-                sum += lambda * second_difference(at, st);
+    let [nx, ny, nz] = dims;
+    let area = nx * ny;
+    let plane = &mut plane[..area];
+    let own = &x[z * area..(z + 1) * area];
+    if nx >= 3 {
+        for (line, out) in own.chunks_exact(nx).zip(plane.chunks_exact_mut(nx)) {
+            for i in 0..nx - 2 {
+                let d = line[i] - 2.0 * line[i + 1] + line[i + 2];
+                out[i] += lambda * d;
+                out[i + 1] -= 2.0 * lambda * d;
+                out[i + 2] += lambda * d;
             }
         }
-        *value = sum;
+    }
+    if ny >= 3 {
+        for j in 0..ny - 2 {
+            let rows = &own[j * nx..(j + 3) * nx];
+            let (low, rest) = plane[j * nx..(j + 3) * nx].split_at_mut(nx);
+            let (mid, high) = rest.split_at_mut(nx);
+            for i in 0..nx {
+                let d = rows[i] - 2.0 * rows[nx + i] + rows[2 * nx + i];
+                low[i] += lambda * d;
+                mid[i] -= 2.0 * lambda * d;
+                high[i] += lambda * d;
+            }
+        }
+    }
+    if nz >= 3 {
+        // Row `r` along z starts in plane `r` and reaches planes `r + 1` and `r + 2`.
+        let row = |r: usize| {
+            (
+                &x[r * area..(r + 1) * area],
+                &x[(r + 1) * area..(r + 2) * area],
+                &x[(r + 2) * area..(r + 3) * area],
+            )
+        };
+        if z >= 2 {
+            let (a, b, c) = row(z - 2);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
+            }
+        }
+        if z >= 1 && z + 1 < nz {
+            let (a, b, c) = row(z - 1);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value -= 2.0 * lambda * (a[k] - 2.0 * b[k] + c[k]);
+            }
+        }
+        if z + 2 < nz {
+            let (a, b, c) = row(z);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
+            }
+        }
     }
 }
 
