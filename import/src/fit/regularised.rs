@@ -617,7 +617,7 @@ fn weighted_normal_product(
             plane_along(&across, [cx, sy], 1, &bases[1].columns, None, plane);
         }
     };
-    let threads = threads.clamp(1, sz);
+    let threads = threads.clamp(1, sz.max(1));
     if threads == 1 {
         fill(0, third);
     } else {
