@@ -186,6 +186,7 @@ impl GramFactor {
 /// each entry reads its four neighbours in one line. The passes write into buffers the
 /// caller keeps, so the fit's twenty steps do not fault in fresh pages for every product
 /// (page faults were 7% of an import in `perf record`).
+#[allow(clippy::too_many_arguments)]
 fn along_axis(
     input: &[f64],
     dims: [usize; 3],
