@@ -119,6 +119,9 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         let mesh = match (&args.mesh, mesh_format) {
             (Some(path), Some(format)) => {
                 let budget = MemoryBudget::from_flag(args.memory_budget_mib);
+                // Built and welded on every core: the same mesh, bit for bit, as on one.
+                let threads =
+                    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
                 super::mesh_clay(&session.clay, 4, &budget)
                     .map_err(|e| match e {
                         // The mesh's resolution follows the clay's here.
@@ -128,7 +131,7 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
                         }
                         other => other,
                     })
-                    .map(|octree| Some((path, format, octree.weld())))
+                    .map(|octree| Some((path, format, octree.weld_with_threads(threads))))
             }
             _ => Ok(None),
         };

@@ -19,7 +19,12 @@ use crate::tools::{Clay, ColourField};
 /// Meshes the clay's surface with `cells_per_span` marching-cubes cells per knot span, after
 /// checking that the mesh fits `budget`: the bricks the mesher would sample are counted first
 /// ([`BrickOctree::count_sampled_bricks`], no sampling, stopped at the budget), each taken at
-/// [`MESH_BYTES_PER_BRICK`].
+/// [`MESH_BYTES_PER_BRICK`]. The bricks are built on the machine's cores
+/// ([`BrickOctree::build_with_threads`]: the same bricks and meshes as on one).
+///
+/// NOTE: built on the calling thread alone, the meshing of a 50 000-point import (about
+/// 52 000 vertices) was the import's last stage with the other core idle (bench/RESULTS.md,
+/// "Import time: the idle core").
 ///
 /// # Errors
 /// [`CliError::OverBudget`] (exit 2) when the mesh would not fit; [`CliError::Output`] when
@@ -77,7 +82,8 @@ pub fn mesh_clay(
             hint,
         }));
     }
-    Ok(BrickOctree::build(grid, density))
+    let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    Ok(BrickOctree::build_with_threads(grid, density, threads))
 }
 
 /// Renders the meshed sculpt to a PNG at `path` (written atomically), painted from `colour`
@@ -187,6 +193,37 @@ mod tests {
             "{both} triangles for two balls of {single}"
         );
         assert!(octree.weld().is_well_formed());
+    }
+
+    #[test]
+    fn the_mesh_on_every_core_is_the_mesh_on_one() {
+        // Two overlapping balls, so the surface crosses many bricks in every thread's share.
+        let clay = Clay {
+            density: MultiPatchField {
+                patches: vec![
+                    Patch::identity(ball(Vec3::ZERO)),
+                    Patch::identity(ball(Vec3::new(1.5, 0.5, 0.0))),
+                ],
+            },
+            colour: None,
+            constraints: Vec::new(),
+            mask: None,
+        };
+        let grid = SampleGrid::for_field(&clay.density, 4).unwrap();
+        let serial = BrickOctree::build(grid, &clay.density).weld();
+        assert!(
+            serial.triangle_count() > 1000,
+            "{}",
+            serial.triangle_count()
+        );
+        let octree = mesh_clay(&clay, 4, &budget()).unwrap();
+        for threads in [1, 2, 3] {
+            assert_eq!(
+                octree.weld_with_threads(threads),
+                serial,
+                "{threads} threads"
+            );
+        }
     }
 
     #[test]

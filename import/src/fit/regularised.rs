@@ -174,7 +174,8 @@ impl GramFactor {
 /// dimensions. Each output entry is the sum over its row of the matrix, in the row's order,
 /// computed by one of `threads` threads (each takes a run of whole z-planes of the output),
 /// so the result does not depend on the thread count; then multiplied by its entry of
-/// `weights`, when given (one per output entry).
+/// `weights`, when given (one per output entry); then each output z-plane handed to
+/// `finish`, when given, with its `z`, on the thread that filled it.
 ///
 /// NOTE: the output is cleared plane by plane on the threads that fill it, and weighted there
 /// too: cleared and weighted in passes on the calling thread, the half-million samples of a
@@ -185,12 +186,14 @@ impl GramFactor {
 /// each entry reads its four neighbours in one line. The passes write into buffers the
 /// caller keeps, so the fit's twenty steps do not fault in fresh pages for every product
 /// (page faults were 7% of an import in `perf record`).
+#[allow(clippy::too_many_arguments)]
 fn along_axis(
     input: &[f64],
     dims: [usize; 3],
     axis: usize,
     matrix: &[Vec<(usize, f64)>],
     weights: Option<&[f32]>,
+    finish: Option<&PlaneFinish<'_>>,
     out: &mut Vec<f64>,
     threads: usize,
 ) -> [usize; 3] {
@@ -234,6 +237,9 @@ fn along_axis(
                 for (value, &w) in out_plane.iter_mut().zip(&weights[z * plane..]) {
                     *value *= f64::from(w);
                 }
+            }
+            if let Some(finish) = finish {
+                finish(z, out_plane);
             }
         }
     };
@@ -399,9 +405,17 @@ fn along_x_then_y(
     let plane = |d: [usize; 3]| d[0] * d[1];
     let (in_plane, first_plane, second_plane) =
         (plane(dims), plane(first_dims), plane(second_dims));
-    // Kept from the last product of the same size: each plane is cleared where it is filled.
-    first.resize(first_plane * dims[2], 0.0);
-    second.resize(second_plane * dims[2], 0.0);
+    // Kept from the last product, at least as long: each plane is cleared where it is
+    // filled, so only the entries a product needs are read (`second`'s first
+    // `second_dims`' product), and a buffer grows, never shrinks.
+    //
+    // NOTE: resized to each product's length, the buffers of a regularised fit's step shrank
+    // for one product and grew back for the other (a forward product's first pass is
+    // `samples × coefficients²` entries, a transposed one's `coefficients × samples²`), and
+    // every growth cleared the new tail on the calling thread: 22 of 305 main-thread samples
+    // of the base fit in `perf record` (bench/RESULTS.md, "Import time: the idle core").
+    let first = grown(first, first_plane * dims[2]);
+    let second = grown(second, second_plane * dims[2]);
     if first_plane == 0 || second_plane == 0 {
         return second_dims;
     }
@@ -457,16 +471,32 @@ fn along_x_then_y(
     second_dims
 }
 
-/// The buffers of [`apply`]'s passes, kept across the fit's steps.
+/// `buffer`'s first `len` entries, the buffer grown with zeros where it is shorter (never
+/// shrunk: a longer buffer keeps its tail for the next, longer product).
+fn grown(buffer: &mut Vec<f64>, len: usize) -> &mut [f64] {
+    if buffer.len() < len {
+        buffer.resize(len, 0.0);
+    }
+    &mut buffer[..len]
+}
+
+/// The buffers of [`apply`]'s passes, kept across the fit's steps (each as long as the
+/// longest product that used it).
 #[derive(Default)]
 struct Passes {
     first: Vec<f64>,
     second: Vec<f64>,
+    /// [`weighted_normal_product`]'s planes after the transposed passes along x and y.
+    third: Vec<f64>,
 }
 
+/// What [`along_axis`] does to each output z-plane once it is filled: called with the
+/// plane's `z` and its entries, on the thread that filled it.
+type PlaneFinish<'a> = dyn Fn(usize, &mut [f64]) + Sync + 'a;
+
 /// `A x` over the three axes (or `Aᵀ x`; with `squared`, the entrywise squares of `A`) into
-/// `out`, each entry then multiplied by its entry of `weights` when given, on `threads`
-/// threads.
+/// `out`, each entry then multiplied by its entry of `weights` when given, and each output
+/// z-plane then handed to `finish` when given, on `threads` threads.
 #[allow(clippy::too_many_arguments)]
 fn apply(
     x: &[f64],
@@ -475,6 +505,7 @@ fn apply(
     forward: bool,
     squared: bool,
     weights: Option<&[f32]>,
+    finish: Option<&PlaneFinish<'_>>,
     threads: usize,
     passes: &mut Passes,
     out: &mut Vec<f64>,
@@ -495,12 +526,131 @@ fn apply(
             std::borrow::Cow::Borrowed(rows)
         }
     };
-    let Passes { first, second } = passes;
+    let Passes { first, second, .. } = passes;
     let d = along_x_then_y(x, dims, [&matrix(0), &matrix(1)], first, second, threads);
-    along_axis(second, d, 2, &matrix(2), weights, out, threads);
+    let second = &second[..d.iter().product::<usize>()];
+    along_axis(second, d, 2, &matrix(2), weights, finish, out, threads);
 }
 
-/// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`.
+/// `Aᵀ W A x` (the weights `W` one per sample of the mass grid) into `out`, each output
+/// z-plane then handed to `finish` when given, on `threads` threads: the same values bit for
+/// bit as [`apply`] forward with the weights and then [`apply`] transposed.
+///
+/// The forward pass along z, the weights and the transposed passes along x and y each keep
+/// a z-plane of the samples to itself, so they run plane by plane on one thread, with the
+/// plane in that thread's cache: the samples (`samples_per_span³` times the coefficients)
+/// are never stored, and the threads are waited for three times per product instead of four.
+///
+/// NOTE: by two [`apply`]s, each step of a 44³ base fit wrote and read back the 658 000
+/// weighted samples (5 MB) and the transposed pass along x's 333 000 entries, and waited for
+/// the threads once more (bench/RESULTS.md, "Import time: the idle core").
+#[allow(clippy::too_many_arguments)]
+fn weighted_normal_product(
+    x: &[f64],
+    dims: [usize; 3],
+    bases: &[AxisBasis; 3],
+    weights: &[f32],
+    finish: Option<&PlaneFinish<'_>>,
+    threads: usize,
+    passes: &mut Passes,
+    out: &mut Vec<f64>,
+) {
+    let Passes {
+        first,
+        second,
+        third,
+    } = passes;
+    let [sx, sy, cz] = along_x_then_y(
+        x,
+        dims,
+        [&bases[0].rows, &bases[1].rows],
+        first,
+        second,
+        threads,
+    );
+    let sz = bases[2].samples;
+    let (cx, cy) = (bases[0].columns.len(), bases[1].columns.len());
+    let second = &second[..sx * sy * cz];
+    let (sample_plane, across_plane, out_plane) = (sx * sy, cx * sy, cx * cy);
+    let third = grown(third, out_plane * sz);
+    if sample_plane == 0 || out_plane == 0 {
+        // No samples, or no coefficients in a plane: the transposed passes sum nothing.
+        third.fill(0.0);
+        along_axis(
+            third,
+            [cx, cy, sz],
+            2,
+            &bases[2].columns,
+            None,
+            finish,
+            out,
+            threads,
+        );
+        return;
+    }
+    let taps = TapRows::of(&bases[0].columns, sx);
+    let fill = |z0: usize, slab: &mut [f64]| {
+        let mut samples = vec![0.0; sample_plane];
+        let mut across = vec![0.0; across_plane];
+        for (dz, plane) in slab.chunks_exact_mut(out_plane).enumerate() {
+            let z = z0 + dz;
+            // `A` along z ([`along_axis`]'s sum per entry, in the row's order), then `W`.
+            samples.fill(0.0);
+            for &(t, w) in &bases[2].rows[z] {
+                let from = t * sample_plane;
+                for (value, &v) in samples.iter_mut().zip(&second[from..from + sample_plane]) {
+                    *value += w * v;
+                }
+            }
+            for (value, &w) in samples.iter_mut().zip(&weights[z * sample_plane..]) {
+                *value *= f64::from(w);
+            }
+            // `Aᵀ` along x, then along y ([`along_x_then_y`]'s plane).
+            plane_along(
+                &samples,
+                [sx, sy],
+                0,
+                &bases[0].columns,
+                taps.as_ref(),
+                &mut across,
+            );
+            plane.fill(0.0);
+            plane_along(&across, [cx, sy], 1, &bases[1].columns, None, plane);
+        }
+    };
+    let threads = threads.clamp(1, sz.max(1));
+    if threads == 1 {
+        fill(0, third);
+    } else {
+        let planes_per_thread = sz.div_ceil(threads);
+        std::thread::scope(|scope| {
+            let mut slabs = third.chunks_mut(planes_per_thread * out_plane).enumerate();
+            // The calling thread fills the first slab itself (one thread fewer to start).
+            let own = slabs.next();
+            for (t, slab) in slabs {
+                let fill = &fill;
+                scope.spawn(move || fill(t * planes_per_thread, slab));
+            }
+            if let Some((t, slab)) = own {
+                fill(t * planes_per_thread, slab);
+            }
+        });
+    }
+    along_axis(
+        third,
+        [cx, cy, sz],
+        2,
+        &bases[2].columns,
+        None,
+        finish,
+        out,
+        threads,
+    );
+}
+
+/// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`, by a
+/// scatter over the grid: the reference [`add_bending_plane`] is tested against.
+#[cfg(test)]
 fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
     let [nx, ny, nz] = dims;
     let strides = [1, nx, nx * ny];
@@ -523,6 +673,76 @@ fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
                     out[at + st] -= 2.0 * lambda * d;
                     out[at + 2 * st] += lambda * d;
                 }
+            }
+        }
+    }
+}
+
+/// [`add_bending`]'s sums for the z-plane `z` of `out` alone (`plane`, `nx · ny` entries):
+/// the same scatter restricted to the plane's entries, axis by axis and along an axis row
+/// by row in ascending order, so each entry receives the same terms in the same order and
+/// is the same bit for bit, and the planes can be summed on the threads that fill them.
+/// Along z a row's three entries lie in three planes: the plane takes its term from each
+/// of the (at most three) rows that reach it.
+///
+/// NOTE: added by the scatter over the whole grid on the calling thread after each product
+/// by `AᵀWA`, the bending took 25 of the 305 main-thread samples of a 44³ base fit in
+/// `perf record`, with the other core idle; a gather per entry (each entry reading the
+/// nine second differences it takes) was the same bits at 2.7 times the CPU
+/// (bench/RESULTS.md, "Import time: the idle core").
+fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: &mut [f64]) {
+    let [nx, ny, nz] = dims;
+    let area = nx * ny;
+    let plane = &mut plane[..area];
+    let own = &x[z * area..(z + 1) * area];
+    if nx >= 3 {
+        for (line, out) in own.chunks_exact(nx).zip(plane.chunks_exact_mut(nx)) {
+            for i in 0..nx - 2 {
+                let d = line[i] - 2.0 * line[i + 1] + line[i + 2];
+                out[i] += lambda * d;
+                out[i + 1] -= 2.0 * lambda * d;
+                out[i + 2] += lambda * d;
+            }
+        }
+    }
+    if ny >= 3 {
+        for j in 0..ny - 2 {
+            let rows = &own[j * nx..(j + 3) * nx];
+            let (low, rest) = plane[j * nx..(j + 3) * nx].split_at_mut(nx);
+            let (mid, high) = rest.split_at_mut(nx);
+            for i in 0..nx {
+                let d = rows[i] - 2.0 * rows[nx + i] + rows[2 * nx + i];
+                low[i] += lambda * d;
+                mid[i] -= 2.0 * lambda * d;
+                high[i] += lambda * d;
+            }
+        }
+    }
+    if nz >= 3 {
+        // Row `r` along z starts in plane `r` and reaches planes `r + 1` and `r + 2`.
+        let row = |r: usize| {
+            (
+                &x[r * area..(r + 1) * area],
+                &x[(r + 1) * area..(r + 2) * area],
+                &x[(r + 2) * area..(r + 3) * area],
+            )
+        };
+        if z >= 2 {
+            let (a, b, c) = row(z - 2);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
+            }
+        }
+        if z >= 1 && z + 1 < nz {
+            let (a, b, c) = row(z - 1);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value -= 2.0 * lambda * (a[k] - 2.0 * b[k] + c[k]);
+            }
+        }
+        if z + 2 < nz {
+            let (a, b, c) = row(z);
+            for (k, value) in plane.iter_mut().enumerate() {
+                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
             }
         }
     }
@@ -646,6 +866,7 @@ fn plain_fit(
         false,
         false,
         None,
+        None,
         threads,
         &mut Passes::default(),
         &mut c,
@@ -716,6 +937,7 @@ fn regularised_from(
             false,
             false,
             None,
+            None,
             threads,
             &mut passes,
             &mut b,
@@ -729,6 +951,7 @@ fn regularised_from(
         false,
         true,
         None,
+        None,
         threads,
         &mut passes,
         &mut diagonal,
@@ -739,31 +962,17 @@ fn regularised_from(
     for (d, l) in diagonal.iter_mut().zip(bending_diagonal(dims)) {
         *d = (*d + lambda * l).max(1e-12);
     }
-    let mut at_samples = Vec::new();
     let mut operator = |x: &[f64], out: &mut Vec<f64>| {
-        apply(
+        weighted_normal_product(
             x,
             dims,
             &bases,
-            true,
-            false,
-            Some(weights),
-            threads,
-            &mut passes,
-            &mut at_samples,
-        );
-        apply(
-            &at_samples,
-            sample_dims,
-            &bases,
-            false,
-            false,
-            None,
+            weights,
+            Some(&|z, plane: &mut [f64]| add_bending_plane(x, dims, lambda, z, plane)),
             threads,
             &mut passes,
             out,
         );
-        add_bending(x, dims, lambda, out);
     };
     let mut x = start;
     assert_eq!(
@@ -1038,7 +1247,7 @@ mod tests {
                 let plain = along_axis_plain(&input, dims, axis, matrix);
                 for threads in [1, 3] {
                     let mut out = vec![5.0; 3];
-                    along_axis(&input, dims, axis, matrix, None, &mut out, threads);
+                    along_axis(&input, dims, axis, matrix, None, None, &mut out, threads);
                     assert!(
                         out.iter()
                             .map(|v| v.to_bits())
@@ -1068,21 +1277,217 @@ mod tests {
             };
             let (m0, m1) = (matrix(&basis[0]), matrix(&basis[1]));
             let mut one = Vec::new();
-            let d = along_axis(&input, dims, 0, &m0, None, &mut one, 1);
+            let d = along_axis(&input, dims, 0, &m0, None, None, &mut one, 1);
             let mut two = Vec::new();
-            let want_dims = along_axis(&one, d, 1, &m1, None, &mut two, 1);
-            for threads in [1, 2, 3] {
-                let (mut first, mut second) = (vec![9.0; 2], vec![4.0; 5]);
+            let want_dims = along_axis(&one, d, 1, &m1, None, None, &mut two, 1);
+            // Buffers shorter than the passes need, and longer (kept from a larger product).
+            for (threads, kept) in [(1, 2), (2, 5), (3, 5000)] {
+                let (mut first, mut second) = (vec![9.0; kept], vec![4.0; kept]);
                 let got_dims =
                     along_x_then_y(&input, dims, [&m0, &m1], &mut first, &mut second, threads);
                 assert_eq!(got_dims, want_dims);
                 assert!(
-                    second
+                    second[..two.len()]
                         .iter()
                         .map(|v| v.to_bits())
                         .eq(two.iter().map(|v| v.to_bits())),
                     "forward {forward}, {threads} threads"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_bending_by_planes_is_the_scatter_bit_for_bit() {
+        // A grid with an axis too short to bend (2) and one just long enough (3), and a
+        // larger one; uneven coefficients and a non-zero `out` to add to.
+        for dims in [[7, 6, 9], [2, 5, 4], [3, 3, 8], [6, 1, 3]] {
+            let count: usize = dims.iter().product();
+            let x: Vec<f64> = (0..count)
+                .map(|i| ((i * 7919) % 103) as f64 / 103.0 - 0.41)
+                .collect();
+            let start: Vec<f64> = (0..count)
+                .map(|i| ((i * 104_729) % 97) as f64 / 9.7 - 5.0)
+                .collect();
+            let mut scattered = start.clone();
+            add_bending(&x, dims, 0.37, &mut scattered);
+            let mut by_planes = start.clone();
+            let plane = dims[0] * dims[1];
+            for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
+                add_bending_plane(&x, dims, 0.37, z, out);
+            }
+            assert!(
+                by_planes
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .eq(scattered.iter().map(|v| v.to_bits())),
+                "{dims:?}"
+            );
+            assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
+        }
+    }
+
+    #[test]
+    fn products_with_kept_buffers_are_those_with_fresh_buffers_bit_for_bit() {
+        // A fit's step alternates forward and transposed products, whose passes need buffers
+        // of different lengths: kept from one product to the next, they must give what
+        // fresh buffers give, on one thread and several, with and without a plane finisher.
+        let (dims, sps, sample_dims, _, weights) = uneven_problem();
+        let bases = dims.map(|n| AxisBasis::new(n, sps));
+        let coefficients: Vec<f64> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 7919) % 101) as f64 / 101.0 - 0.37)
+            .collect();
+        let finish =
+            |z: usize, plane: &mut [f64]| add_bending_plane(&coefficients, dims, 0.2, z, plane);
+        for threads in [1, 2, 3] {
+            let mut kept = Passes::default();
+            let mut x = coefficients.clone();
+            for round in 0..3 {
+                let (mut samples, mut fresh_samples) = (Vec::new(), Vec::new());
+                apply(
+                    &x,
+                    dims,
+                    &bases,
+                    true,
+                    false,
+                    Some(&weights),
+                    None,
+                    threads,
+                    &mut kept,
+                    &mut samples,
+                );
+                apply(
+                    &x,
+                    dims,
+                    &bases,
+                    true,
+                    false,
+                    Some(&weights),
+                    None,
+                    threads,
+                    &mut Passes::default(),
+                    &mut fresh_samples,
+                );
+                assert_eq!(samples.len(), sample_dims.iter().product::<usize>());
+                assert!(
+                    samples
+                        .iter()
+                        .map(|v| v.to_bits())
+                        .eq(fresh_samples.iter().map(|v| v.to_bits())),
+                    "forward, round {round}, {threads} threads"
+                );
+                let (mut back, mut fresh_back) = (Vec::new(), Vec::new());
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    Some(&finish),
+                    threads,
+                    &mut kept,
+                    &mut back,
+                );
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    Some(&finish),
+                    threads,
+                    &mut Passes::default(),
+                    &mut fresh_back,
+                );
+                assert!(
+                    back.iter()
+                        .map(|v| v.to_bits())
+                        .eq(fresh_back.iter().map(|v| v.to_bits())),
+                    "transposed, round {round}, {threads} threads"
+                );
+                // The finisher ran on every plane: the bending is in the product.
+                let mut plain_back = Vec::new();
+                apply(
+                    &samples,
+                    sample_dims,
+                    &bases,
+                    false,
+                    false,
+                    None,
+                    None,
+                    threads,
+                    &mut Passes::default(),
+                    &mut plain_back,
+                );
+                add_bending(&coefficients, dims, 0.2, &mut plain_back);
+                assert!(
+                    back.iter()
+                        .map(|v| v.to_bits())
+                        .eq(plain_back.iter().map(|v| v.to_bits())),
+                    "finished, round {round}, {threads} threads"
+                );
+                x = back.iter().map(|v| v * 0.5).collect();
+            }
+        }
+    }
+
+    #[test]
+    fn the_weighted_normal_product_is_the_two_products_bit_for_bit() {
+        // `AᵀWA x` plane by plane against `A x` weighted, then `Aᵀ` of that, each by
+        // `apply`: with kept and fresh buffers, on one thread and several, with the bending
+        // as the finisher and without.
+        let (dims, sps, sample_dims, _, weights) = uneven_problem();
+        let bases = dims.map(|n| AxisBasis::new(n, sps));
+        let x: Vec<f64> = (0..dims.iter().product::<usize>())
+            .map(|i| ((i * 104_729) % 89) as f64 / 89.0 - 0.52)
+            .collect();
+        let bending = |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, z, plane);
+        let finishes: [Option<&PlaneFinish<'_>>; 2] = [None, Some(&bending)];
+        for finish in finishes {
+            let mut samples = Vec::new();
+            let mut passes = Passes::default();
+            apply(
+                &x,
+                dims,
+                &bases,
+                true,
+                false,
+                Some(&weights),
+                None,
+                1,
+                &mut passes,
+                &mut samples,
+            );
+            let mut want = Vec::new();
+            apply(
+                &samples,
+                sample_dims,
+                &bases,
+                false,
+                false,
+                None,
+                finish,
+                1,
+                &mut passes,
+                &mut want,
+            );
+            for threads in [1, 2, 3, 8] {
+                let mut kept = Passes::default();
+                for round in 0..2 {
+                    let mut got = vec![7.0; 3];
+                    weighted_normal_product(
+                        &x, dims, &bases, &weights, finish, threads, &mut kept, &mut got,
+                    );
+                    assert!(
+                        got.iter()
+                            .map(|v| v.to_bits())
+                            .eq(want.iter().map(|v| v.to_bits())),
+                        "{threads} threads, round {round}, finished {}",
+                        finish.is_some()
+                    );
+                }
             }
         }
     }
