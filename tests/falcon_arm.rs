@@ -250,7 +250,17 @@ fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
         .collect();
     // One good read per sample (and one for the step that installs the starting session),
     // each the next reply on the device's clock: 1 ms later than the one before.
-    assert!(reads.len() as u64 > TICKS, "{} reads", reads.len());
+    let failed: Vec<(usize, &Record)> = first
+        .records
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| matches!(r, Record::Read(Err(_))))
+        .collect();
+    assert!(
+        reads.len() as u64 > TICKS,
+        "{} reads; failed reads (record index, record): {failed:?}",
+        reads.len()
+    );
     for (k, w) in reads.windows(2).enumerate() {
         assert_eq!(w[1].timestamp_us - w[0].timestamp_us, 1000, "read {k}");
     }
