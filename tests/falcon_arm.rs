@@ -250,7 +250,19 @@ fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
         .collect();
     // One good read per sample (and one for the step that installs the starting session),
     // each the next reply on the device's clock: 1 ms later than the one before.
-    assert!(reads.len() as u64 > TICKS, "{} reads", reads.len());
+    // A failed read with the record before it (the write whose reply it waited for).
+    let failed: Vec<(usize, &[Record])> = first
+        .records
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| matches!(w[1], Record::Read(Err(_))))
+        .map(|(i, w)| (i + 1, w))
+        .collect();
+    assert!(
+        reads.len() as u64 > TICKS,
+        "{} reads; failed reads (record index, the record before and it): {failed:?}",
+        reads.len()
+    );
     for (k, w) in reads.windows(2).enumerate() {
         assert_eq!(w[1].timestamp_us - w[0].timestamp_us, 1000, "read {k}");
     }

@@ -54,6 +54,10 @@ pub const BOOT_START_REPLY: u8 = b'A';
 /// Upload chunk: a full-speed USB packet (64) minus the FTDI's two status bytes.
 pub const FIRMWARE_CHUNK: usize = 62;
 
+/// Longest wait for each homing reply in real time; a lockstep run's longer
+/// [`FalconOptions::reply_wait`] wins (see [`Falcon::open_reply_wait`]).
+const HOMING_REPLY_WAIT: Duration = Duration::from_millis(20);
+
 /// Settings of a [`Falcon`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct FalconOptions {
@@ -285,6 +289,24 @@ impl Falcon {
         Ok((fresh, fault))
     }
 
+    /// Reads the reply to the outstanding command within [`FalconOptions::reply_wait`]: the
+    /// first bytes, then, while a frame is started but not whole, the rest of it. A reply can
+    /// reach the port in pieces (a loaded machine runs the other side's write in between);
+    /// stopping at the first piece would report the previous sample again and take this
+    /// reply on the next read, one tick late, so a lockstep run would depend on the load.
+    fn pump_reply(&mut self) -> Result<(bool, Option<DeviceError>), DeviceError> {
+        let start = Instant::now();
+        let (mut fresh, mut fault) = self.pump(self.opts.reply_wait)?;
+        while !fresh && fault.is_none() && self.reader.is_mid_frame() {
+            let left = self.opts.reply_wait.saturating_sub(start.elapsed());
+            if left.is_zero() {
+                break;
+            }
+            (fresh, fault) = self.pump(left)?;
+        }
+        Ok((fresh, fault))
+    }
+
     /// Sends the current command and waits up to `timeout` for any valid reply.
     fn exchange(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
         self.send()?;
@@ -297,9 +319,19 @@ impl Falcon {
         Ok(false)
     }
 
+    /// How long one exchange of `open` waits for its reply, at least `floor`: never less than
+    /// the streaming reply wait. A reply that comes after its exchange gave up stays in flight
+    /// while the next command is sent, so the stream would start one reply ahead of the
+    /// commands; a lockstep run (reply wait 1 s) counts replies as its clock and must start
+    /// with none in flight, however loaded the machine.
+    fn open_reply_wait(&self, floor: Duration) -> Duration {
+        floor.max(self.opts.reply_wait)
+    }
+
     fn firmware_answers(&mut self) -> Result<bool, DeviceError> {
+        let wait = self.open_reply_wait(self.opts.handshake_timeout / 3);
         for _ in 0..3 {
-            if self.exchange(self.opts.handshake_timeout / 3)? {
+            if self.exchange(wait)? {
                 return Ok(true);
             }
         }
@@ -359,6 +391,7 @@ impl Falcon {
 
     fn home(&mut self) -> Result<(), DeviceError> {
         let start = Instant::now();
+        let wait = self.open_reply_wait(HOMING_REPLY_WAIT);
         self.cmd = FalconCommand {
             motor: [0; 3],
             leds: LED_RED,
@@ -370,14 +403,14 @@ impl Falcon {
                     waited_us: start.elapsed().as_micros() as u64,
                 });
             }
-            self.exchange(Duration::from_millis(20))?;
+            self.exchange(wait)?;
         }
         self.cmd = FalconCommand {
             motor: [0; 3],
             leds: LED_GREEN,
             homing: false,
         };
-        self.exchange(Duration::from_millis(20))?;
+        self.exchange(wait)?;
         Ok(())
     }
 
@@ -450,7 +483,7 @@ impl HapticDevice for Falcon {
             // Keep the stream flowing: the firmware answers one frame per command.
             self.send()?;
         }
-        let (fresh, fault) = self.pump(self.opts.reply_wait)?;
+        let (fresh, fault) = self.pump_reply()?;
         let now = Instant::now();
         if fresh {
             self.stream.frame_received(now);

@@ -212,11 +212,15 @@ impl SerialLink {
     pub fn read_available(&mut self, max_wait: Duration) -> Result<&[u8], DeviceError> {
         let start = Instant::now();
         let queued = loop {
+            // The time is taken before the port is asked, so the last look always comes after
+            // the wait is over: a thread descheduled past the deadline still sees a byte that
+            // arrived meanwhile instead of reporting silence.
+            let waited_out = start.elapsed() >= max_wait;
             let n = self
                 .port
                 .bytes_to_read()
                 .map_err(|e| map_serial_error(&e, &self.path))? as usize;
-            if n > 0 || start.elapsed() >= max_wait {
+            if n > 0 || waited_out {
                 break n;
             }
             std::hint::spin_loop();

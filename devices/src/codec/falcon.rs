@@ -231,6 +231,13 @@ impl FalconReader {
         self.len = 0;
     }
 
+    /// Whether a frame has started and not ended: its remaining bytes are on their way (a
+    /// reply can reach the port in more than one piece).
+    #[must_use]
+    pub fn is_mid_frame(&self) -> bool {
+        self.len > 0
+    }
+
     /// Pushes one byte.
     pub fn push(&mut self, byte: u8) -> ReadEvent {
         if self.len == 0 {
