@@ -563,6 +563,33 @@ mod tests {
         }
     }
 
+    /// Asserts that [`BSplineLattice::values_on_grid`] over `xs × ys × zs` gives
+    /// [`BSplineLattice::value`] at every point, bit for bit; returns how many of the values
+    /// are not zero and how many are.
+    fn assert_grid_is_values(
+        lattice: &BSplineLattice,
+        xs: &[f32],
+        ys: &[f32],
+        zs: &[f32],
+    ) -> (usize, usize) {
+        let mut out = vec![f32::NAN; xs.len() * ys.len() * zs.len()];
+        lattice.values_on_grid(xs, ys, zs, &mut out);
+        let mut at = 0;
+        let (mut inner, mut zero) = (0, 0);
+        for &z in zs {
+            for &y in ys {
+                for &x in xs {
+                    let one = lattice.value(Vec3::new(x, y, z));
+                    assert_eq!(out[at].to_bits(), one.to_bits(), "at ({x}, {y}, {z})");
+                    inner += usize::from(one != 0.0);
+                    zero += usize::from(one == 0.0);
+                    at += 1;
+                }
+            }
+        }
+        (inner, zero)
+    }
+
     #[test]
     fn values_on_a_grid_are_the_values_point_by_point_bit_for_bit() {
         let mut lattice =
@@ -580,21 +607,7 @@ mod tests {
             axis(-1.1, 0.13, 25),
             axis(-0.9, 0.17, 22),
         );
-        let mut out = vec![f32::NAN; xs.len() * ys.len() * zs.len()];
-        lattice.values_on_grid(&xs, &ys, &zs, &mut out);
-        let mut at = 0;
-        let (mut inner, mut zero) = (0, 0);
-        for &z in &zs {
-            for &y in &ys {
-                for &x in &xs {
-                    let one = lattice.value(Vec3::new(x, y, z));
-                    assert_eq!(out[at].to_bits(), one.to_bits(), "at ({x}, {y}, {z})");
-                    inner += usize::from(one != 0.0);
-                    zero += usize::from(one == 0.0);
-                    at += 1;
-                }
-            }
-        }
+        let (inner, zero) = assert_grid_is_values(&lattice, &xs, &ys, &zs);
         assert!(inner > 0 && zero > 0, "{inner} inside, {zero} outside");
         // Without points the call writes nothing.
         lattice.values_on_grid(&[], &ys, &zs, &mut []);
@@ -621,19 +634,7 @@ mod tests {
         ];
         let mut inner = 0;
         for (xs, ys, zs) in grids {
-            let mut out = vec![f32::NAN; xs.len() * ys.len() * zs.len()];
-            lattice.values_on_grid(&xs, &ys, &zs, &mut out);
-            let mut at = 0;
-            for &z in &zs {
-                for &y in &ys {
-                    for &x in &xs {
-                        let one = lattice.value(Vec3::new(x, y, z));
-                        assert_eq!(out[at].to_bits(), one.to_bits(), "at ({x}, {y}, {z})");
-                        inner += usize::from(one != 0.0);
-                        at += 1;
-                    }
-                }
-            }
+            inner += assert_grid_is_values(&lattice, &xs, &ys, &zs).0;
         }
         assert!(inner > 10_000, "{inner} values inside the support");
     }

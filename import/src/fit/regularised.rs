@@ -243,25 +243,37 @@ fn along_axis(
             }
         }
     };
-    let threads = threads.clamp(1, oz.max(1));
-    if threads == 1 || plane == 0 {
-        fill(0, out);
-    } else {
-        let planes_per_thread = oz.div_ceil(threads);
-        std::thread::scope(|scope| {
-            let mut slabs = out.chunks_mut(planes_per_thread * plane).enumerate();
-            // The calling thread fills the first slab itself (one thread fewer to start).
-            let own = slabs.next();
-            for (t, slab) in slabs {
-                let fill = &fill;
-                scope.spawn(move || fill(t * planes_per_thread, slab));
-            }
-            if let Some((t, slab)) = own {
-                fill(t * planes_per_thread, slab);
-            }
-        });
-    }
+    fill_slabs_on_threads(out, plane, oz, threads, fill);
     out_dims
+}
+
+/// Calls `fill(first_plane, slab)` over `out` cut into slabs of whole planes of `plane_len`
+/// values each (`planes` planes in all), one slab per thread on up to `threads` threads; the
+/// calling thread fills the first slab itself (one thread fewer to start).
+fn fill_slabs_on_threads(
+    out: &mut [f64],
+    plane_len: usize,
+    planes: usize,
+    threads: usize,
+    fill: impl Fn(usize, &mut [f64]) + Sync,
+) {
+    let threads = threads.clamp(1, planes.max(1));
+    if threads == 1 || plane_len == 0 {
+        fill(0, out);
+        return;
+    }
+    let planes_per_thread = planes.div_ceil(threads);
+    std::thread::scope(|scope| {
+        let mut slabs = out.chunks_mut(planes_per_thread * plane_len).enumerate();
+        let own = slabs.next();
+        for (t, slab) in slabs {
+            let fill = &fill;
+            scope.spawn(move || fill(t * planes_per_thread, slab));
+        }
+        if let Some((t, slab)) = own {
+            fill(t * planes_per_thread, slab);
+        }
+    });
 }
 
 /// One z-plane of a pass along x (`axis` 0) or y (1): `input` is the plane, `[nx, ny]` its
@@ -618,24 +630,7 @@ fn weighted_normal_product(
             plane_along(&across, [cx, sy], 1, &bases[1].columns, None, plane);
         }
     };
-    let threads = threads.clamp(1, sz.max(1));
-    if threads == 1 {
-        fill(0, third);
-    } else {
-        let planes_per_thread = sz.div_ceil(threads);
-        std::thread::scope(|scope| {
-            let mut slabs = third.chunks_mut(planes_per_thread * out_plane).enumerate();
-            // The calling thread fills the first slab itself (one thread fewer to start).
-            let own = slabs.next();
-            for (t, slab) in slabs {
-                let fill = &fill;
-                scope.spawn(move || fill(t * planes_per_thread, slab));
-            }
-            if let Some((t, slab)) = own {
-                fill(t * planes_per_thread, slab);
-            }
-        });
-    }
+    fill_slabs_on_threads(third, out_plane, sz, threads, fill);
     along_axis(
         third,
         [cx, cy, sz],
