@@ -337,7 +337,55 @@ impl SerialLink {
 
 #[cfg(test)]
 mod tests {
+    use serialport::TTYPort;
+
     use super::*;
+
+    /// A link on one end of a pseudo-terminal pair; the other end plays the device.
+    fn link_on_pty() -> (SerialLink, TTYPort) {
+        let (device, host) = TTYPort::pair().expect("pseudo-terminal pair");
+        let link = SerialLink::from_port(Box::new(host), BaudPolicy::Tolerant);
+        (link, device)
+    }
+
+    #[test]
+    fn a_long_wait_sleeps_until_the_bytes_come_and_keeps_the_write_timeout() {
+        let (mut link, mut device) = link_on_pty();
+        let write_timeout = link.port.timeout();
+        let wait = Duration::from_secs(60);
+        assert!(wait > SPIN_WAIT_LIMIT);
+        let writer = std::thread::spawn(move || {
+            device.write_all(b"<reply>").unwrap();
+            device
+        });
+        // The bytes may come in pieces: a wait ends with the first of them.
+        let mut got = Vec::new();
+        while got.len() < 7 {
+            let bytes = link.read_available(wait).unwrap();
+            assert!(!bytes.is_empty(), "a 60 s wait ended without the bytes");
+            got.extend_from_slice(bytes);
+        }
+        assert_eq!(got, b"<reply>");
+        assert_eq!(
+            link.port.timeout(),
+            write_timeout,
+            "the write timeout is back"
+        );
+        drop(writer.join().unwrap());
+    }
+
+    #[test]
+    fn a_hang_up_ends_a_long_wait_as_a_disconnect() {
+        let (mut link, device) = link_on_pty();
+        drop(device);
+        // Spinning on the queued count would wait the whole minute and report silence; the
+        // sleeping wait sees the hang-up.
+        assert_eq!(
+            link.read_available(Duration::from_secs(60))
+                .map(<[u8]>::len),
+            Err(DeviceError::Disconnected)
+        );
+    }
 
     #[test]
     fn a_port_held_exclusively_elsewhere_opens_as_busy_not_as_a_bad_port() {
