@@ -261,6 +261,9 @@ impl SerialLink {
     /// hangs up or the wait is over (the kernel looks at the port once more after the timer
     /// fires, so a byte that came while this thread waited for a CPU is still seen), then
     /// reads what is queued. The port's timeout (the write timeout) is put back.
+    // NOTE: a wait that ends in silence allocates (serialport builds an `io::Error` for its
+    // timeout); that is a missed reply off the real-time path, never a tick's "nothing yet".
+    // `tests/haptic_no_alloc.rs` runs a lockstep Falcon through this path with no allocation.
     fn read_available_asleep(&mut self, max_wait: Duration) -> Result<&[u8], DeviceError> {
         let saved = self.port.timeout();
         let set = self.port.set_timeout(max_wait);
