@@ -195,8 +195,9 @@ fn after_a_stray_byte_a_falcon_feels_what_the_unbroken_session_feels() {
 
 /// Runs `dynaclay run --lockstep --record` for [`TICKS`] samples of the pressing script with a
 /// Falcon on a fresh stand-in playing the script's hand, as a user runs it (the driver's
-/// default options, no firmware file); returns what it printed and its recording.
-fn lockstep_run_through_the_cli(dir: &std::path::Path, name: &str) -> (String, Recording) {
+/// default options, no firmware file); returns what it printed, its recording and the
+/// stand-in's timing ([`standin_timing`]).
+fn lockstep_run_through_the_cli(dir: &std::path::Path, name: &str) -> (String, Recording, String) {
     let script = dir.join("press.toml");
     std::fs::write(&script, arm_session::script_text()).unwrap();
     let info = Falcon::new("unopened", FalconOptions::default()).info();
@@ -223,7 +224,35 @@ fn lockstep_run_through_the_cli(dir: &std::path::Path, name: &str) -> (String, R
     );
     let recording = Recording::parse(&std::fs::read(&recording).unwrap()).unwrap();
     assert_eq!(recording.dropped, 0, "{name}: the recording is whole");
-    (stdout, recording)
+    (stdout, recording, standin_timing(&board.log()))
+}
+
+/// What the stand-in saw of a run, for a failure message: the commands it decoded, the replies
+/// the terminal refused, and each pause of over 200 ms between two commands (exchange, the
+/// pause, then how much of it the stand-in took to reply and how much passed from its reply
+/// to the next command), in milliseconds.
+fn standin_timing(log: &FalconLog) -> String {
+    let pauses: Vec<(usize, u128, u128, u128)> = log
+        .decoded_at
+        .windows(2)
+        .zip(&log.replied_at)
+        .enumerate()
+        .map(|(i, (w, replied))| {
+            (
+                i + 1,
+                (w[1] - w[0]).as_millis(),
+                (*replied - w[0]).as_millis(),
+                (w[1] - *replied).as_millis(),
+            )
+        })
+        .filter(|(_, pause_ms, _, _)| *pause_ms > 200)
+        .collect();
+    format!(
+        "stand-in: {} commands decoded, replies refused {:?}, pauses (exchange, ms, to reply, \
+         reply to next command) {pauses:?}",
+        log.motor_commands.len(),
+        log.reply_write_errors
+    )
 }
 
 /// `dynaclay run --lockstep` takes a Falcon: its samples are stamped by reply count, one
@@ -234,8 +263,8 @@ fn lockstep_run_through_the_cli(dir: &std::path::Path, name: &str) -> (String, R
 #[test]
 fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
     let dir = tempfile::tempdir().unwrap();
-    let (said, first) = lockstep_run_through_the_cli(dir.path(), "first");
-    let (_, second) = lockstep_run_through_the_cli(dir.path(), "second");
+    let (said, first, timing) = lockstep_run_through_the_cli(dir.path(), "first");
+    let (_, second, second_timing) = lockstep_run_through_the_cli(dir.path(), "second");
     assert!(
         said.contains(&format!("{TICKS} samples of falcon:")) && said.contains("in lockstep"),
         "{said}"
@@ -260,7 +289,7 @@ fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
         .collect();
     assert!(
         reads.len() as u64 > TICKS,
-        "{} reads; failed reads (record index, the record before and it): {failed:?}",
+        "{} reads; failed reads (record index, the record before and it): {failed:?}; {timing}",
         reads.len()
     );
     for (k, w) in reads.windows(2).enumerate() {
@@ -272,7 +301,10 @@ fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
         .filter(|r| matches!(r, Record::Write { force_n, .. } if force_n.length() > 0.01))
         .count();
     assert!(pressed > 100, "{pressed} writes pressed");
-    assert_eq!(first.records, second.records, "the two runs differ");
+    assert_eq!(
+        first.records, second.records,
+        "the two runs differ; first {timing}; second {second_timing}"
+    );
     let field = |name: &str| {
         let path = dir.path().join(name).join("session.dclay");
         let session = dynaclay::io::decode(&std::fs::read(&path).unwrap(), &path).unwrap();
@@ -294,7 +326,7 @@ fn a_lockstep_run_takes_a_falcon_and_runs_the_same_every_time() {
 #[test]
 fn a_recorded_lockstep_falcon_stroke_holds_the_steady_contact_rule() {
     let dir = tempfile::tempdir().unwrap();
-    let (_, recording) = lockstep_run_through_the_cli(dir.path(), "steady");
+    let (_, recording, timing) = lockstep_run_through_the_cli(dir.path(), "steady");
     // Each force sent, with the device time of the sample it was rendered from.
     let mut sent = Vec::new();
     let mut time_us = None;
@@ -321,7 +353,7 @@ fn a_recorded_lockstep_falcon_stroke_holds_the_steady_contact_rule() {
     let weakest = steady.iter().map(|f| f.length()).fold(f32::MAX, f32::min);
     assert!(
         weakest > arm_session::PRESSED_N,
-        "{weakest} N: the tool left the clay in steady contact"
+        "{weakest} N: the tool left the clay in steady contact; {timing}"
     );
     let (worst_tick, worst_share) = steady
         .windows(2)

@@ -6,8 +6,10 @@
 //! small rules the drivers agree on (building the arm model, clamping a Cartesian force,
 //! what closing reports).
 //!
-//! After `open`, nothing here allocates or blocks: `SerialStream` reads only what is queued
-//! (spinning at most the wait it is given) and writes wait at most the port's write timeout.
+//! After `open`, nothing here allocates, and with a real-time reply wait nothing blocks:
+//! `SerialStream` reads only what is queued (spinning at most the wait it is given; a wait over
+//! [`crate::serial_link::SPIN_WAIT_LIMIT`], a lockstep run's, sleeps in the kernel instead) and
+//! writes wait at most the port's write timeout.
 //! The session clock and the link health take the time as an argument, so their rules are
 //! tested on an injected clock.
 

@@ -307,16 +307,20 @@ impl Falcon {
         Ok((fresh, fault))
     }
 
-    /// Sends the current command and waits up to `timeout` for any valid reply.
+    /// Sends the current command and waits up to `timeout` for any valid reply (asleep while
+    /// nothing comes: `open` is off the real-time path).
     fn exchange(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
         self.send()?;
         let start = Instant::now();
-        while start.elapsed() < timeout {
-            if self.pump(Duration::from_millis(1))?.0 {
+        loop {
+            let left = timeout.saturating_sub(start.elapsed());
+            if left.is_zero() {
+                return Ok(false);
+            }
+            if self.pump(left)?.0 {
                 return Ok(true);
             }
         }
-        Ok(false)
     }
 
     /// How long one exchange of `open` waits for its reply, at least `floor`: never less than

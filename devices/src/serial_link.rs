@@ -4,8 +4,11 @@
 //!
 //! On the haptic path [`SerialLink::read_available`] asks the OS how many bytes are queued
 //! (`FIONREAD`) and reads only those, optionally spinning for a bounded time first, so it never
-//! blocks in the kernel and never builds an `io::Error` for "nothing yet". Writes wait at most
-//! the port timeout set at open. Error paths may allocate (the OS error is wrapped once).
+//! blocks in the kernel and never builds an `io::Error` for "nothing yet". A wait longer than
+//! [`SPIN_WAIT_LIMIT`] is off the real-time path (a lockstep run's reply wait, `open`'s
+//! exchanges) and sleeps in the kernel instead, so the other side has the CPU it needs to
+//! answer. Writes wait at most the port timeout set at open. Error paths may allocate (the OS
+//! error is wrapped once).
 
 use std::io::{Read, Write};
 use std::time::{Duration, Instant};
@@ -16,6 +19,14 @@ use crate::device::DeviceError;
 
 /// Size of the read buffer: well over what 1 ms of a 1.5 Mbaud link can carry.
 pub const READ_BUF: usize = 512;
+
+/// The longest wait [`SerialLink::read_available`] spends spinning: the real-time reply waits
+/// (a few hundred microseconds inside a 1 ms tick) are below it and spin, as a missed wake-up
+/// would cost the tick. A longer wait sleeps in the kernel until a byte comes: a spinning
+/// wait takes a CPU from whatever has to answer (the device's other end, the kernel's tty
+/// worker that moves a pseudo-terminal's bytes across), and on a loaded machine that kept
+/// replies away for seconds, past a lockstep run's whole reply wait.
+pub const SPIN_WAIT_LIMIT: Duration = Duration::from_millis(2);
 
 /// What to do when the port refuses a baud rate.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -204,12 +215,17 @@ impl SerialLink {
             .map_err(|e| map_io_error(&e, "serial write"))
     }
 
-    /// Returns the bytes queued now, waiting (by spinning) up to `max_wait` for the first one.
-    /// Reads at most [`READ_BUF`] bytes; call again for more.
+    /// Returns the bytes queued now, waiting up to `max_wait` for the first one: by spinning
+    /// up to [`SPIN_WAIT_LIMIT`], asleep in the kernel for a longer wait. Reads at most
+    /// [`READ_BUF`] bytes; call again for more.
     ///
     /// # Errors
-    /// [`DeviceError::Disconnected`] or [`DeviceError::Io`].
+    /// [`DeviceError::Disconnected`] (a sleeping wait also reports a hang-up at once), or
+    /// [`DeviceError::Io`].
     pub fn read_available(&mut self, max_wait: Duration) -> Result<&[u8], DeviceError> {
+        if max_wait > SPIN_WAIT_LIMIT {
+            return self.read_available_asleep(max_wait);
+        }
         let start = Instant::now();
         let queued = loop {
             // The time is taken before the port is asked, so the last look always comes after
@@ -238,6 +254,30 @@ impl SerialLink {
             return Err(DeviceError::Disconnected);
         }
         Ok(&self.buf[..got])
+    }
+
+    /// [`SerialLink::read_available`] for a wait off the real-time path: the port's own read,
+    /// its timeout set to `max_wait`, sleeps in `poll` until a byte is queued, the other side
+    /// hangs up or the wait is over (the kernel looks at the port once more after the timer
+    /// fires, so a byte that came while this thread waited for a CPU is still seen), then
+    /// reads what is queued. The port's timeout (the write timeout) is put back.
+    // NOTE: a wait that ends in silence allocates (serialport builds an `io::Error` for its
+    // timeout); that is a missed reply off the real-time path, never a tick's "nothing yet".
+    // `tests/haptic_no_alloc.rs` runs a lockstep Falcon through this path with no allocation.
+    fn read_available_asleep(&mut self, max_wait: Duration) -> Result<&[u8], DeviceError> {
+        let saved = self.port.timeout();
+        let set = self.port.set_timeout(max_wait);
+        let read = match set {
+            Ok(()) => self.port.read(&mut self.buf),
+            Err(e) => Err(std::io::Error::other(e)),
+        };
+        let _ = self.port.set_timeout(saved);
+        match read {
+            Ok(0) => Err(DeviceError::Disconnected),
+            Ok(got) => Ok(&self.buf[..got]),
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => Ok(&self.buf[..0]),
+            Err(e) => Err(map_io_error(&e, "serial read")),
+        }
     }
 
     /// Checks the line when nothing has arrived for a while: a zero-length wait on the port
@@ -300,7 +340,55 @@ impl SerialLink {
 
 #[cfg(test)]
 mod tests {
+    use serialport::TTYPort;
+
     use super::*;
+
+    /// A link on one end of a pseudo-terminal pair; the other end plays the device.
+    fn link_on_pty() -> (SerialLink, TTYPort) {
+        let (device, host) = TTYPort::pair().expect("pseudo-terminal pair");
+        let link = SerialLink::from_port(Box::new(host), BaudPolicy::Tolerant);
+        (link, device)
+    }
+
+    #[test]
+    fn a_long_wait_sleeps_until_the_bytes_come_and_keeps_the_write_timeout() {
+        let (mut link, mut device) = link_on_pty();
+        let write_timeout = link.port.timeout();
+        let wait = Duration::from_secs(60);
+        assert!(wait > SPIN_WAIT_LIMIT);
+        let writer = std::thread::spawn(move || {
+            device.write_all(b"<reply>").unwrap();
+            device
+        });
+        // The bytes may come in pieces: a wait ends with the first of them.
+        let mut got = Vec::new();
+        while got.len() < 7 {
+            let bytes = link.read_available(wait).unwrap();
+            assert!(!bytes.is_empty(), "a 60 s wait ended without the bytes");
+            got.extend_from_slice(bytes);
+        }
+        assert_eq!(got, b"<reply>");
+        assert_eq!(
+            link.port.timeout(),
+            write_timeout,
+            "the write timeout is back"
+        );
+        drop(writer.join().unwrap());
+    }
+
+    #[test]
+    fn a_hang_up_ends_a_long_wait_as_a_disconnect() {
+        let (mut link, device) = link_on_pty();
+        drop(device);
+        // Spinning on the queued count would wait the whole minute and report silence; the
+        // sleeping wait sees the hang-up.
+        assert_eq!(
+            link.read_available(Duration::from_secs(60))
+                .map(<[u8]>::len),
+            Err(DeviceError::Disconnected)
+        );
+    }
 
     #[test]
     fn a_port_held_exclusively_elsewhere_opens_as_busy_not_as_a_bad_port() {

@@ -17,7 +17,7 @@ use std::io::{Read, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use dynaclay_devices::codec::falcon::{self as fc};
 use dynaclay_devices::delta::Delta;
@@ -45,6 +45,13 @@ pub struct FalconLog {
     pub motor_commands: Vec<[i16; 3]>,
     /// Whether each of those frames asked for homing.
     pub homing: Vec<bool>,
+    /// When each of those frames was decoded (a failure message shows where the link paused).
+    pub decoded_at: Vec<Instant>,
+    /// When the reply to each of them was written.
+    pub replied_at: Vec<Instant>,
+    /// Replies the terminal did not take whole (exchange, error): a silent loss would leave
+    /// the driver waiting for a reply that was never sent.
+    pub reply_write_errors: Vec<(u64, String)>,
 }
 
 /// A running Falcon stand-in.
@@ -110,6 +117,7 @@ pub fn falcon_board(hand: Hand, faults: FalconFaults) -> FalconStandin {
                     let mut l = l2.lock().unwrap();
                     l.motor_commands.push(cmd.motor);
                     l.homing.push(cmd.homing);
+                    l.decoded_at.push(Instant::now());
                 }
                 homed |= cmd.homing;
                 if faults.hang_up_at == Some(k) {
@@ -133,7 +141,14 @@ pub fn falcon_board(hand: Hand, faults: FalconFaults) -> FalconStandin {
                     reply.push(0xee);
                 }
                 reply.extend_from_slice(&frame);
-                let _ = master.write_all(&reply);
+                let written = master.write_all(&reply);
+                {
+                    let mut l = l2.lock().unwrap();
+                    l.replied_at.push(Instant::now());
+                    if let Err(e) = written {
+                        l.reply_write_errors.push((k, e.to_string()));
+                    }
+                }
                 k += 1;
             }
         }
