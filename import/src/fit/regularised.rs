@@ -1921,7 +1921,7 @@ mod tests {
         let weights = vec![0.5f32; targets.len()];
         let problem = coarse_problem(dims, sps, &targets, &weights, 0.04).unwrap();
         assert_eq!(problem.dims, [6, 5, 5]);
-        assert!((problem.lambda - 0.02).abs() < 1e-12);
+        assert!((problem.lambda - 0.02).abs() < 1e-8);
         let c = problem.dims.map(|n| (n - 1) * sps + 1);
         assert_eq!(c, [11, 9, 9]);
         let at = |i: usize, j: usize, k: usize| i + c[0] * (j + c[1] * k);
@@ -1990,7 +1990,8 @@ mod tests {
             .zip(nested_coeffs.iter())
             .map(|(a, b)| (a - b).abs())
             .fold(0.0f32, f32::max);
-        assert!(worst < 1e-3, "the fits differ by {worst}");
+        // (A relative residual of 1e-5 leaves the unheld side's coefficients this far apart.)
+        assert!(worst < 5e-3, "the fits differ by {worst}");
         let (short_cold, _) = fit(NestedSteps { coarse: 0, fine: 4 }, 2);
         let (short_nested, _) = fit(
             NestedSteps {
