@@ -83,7 +83,7 @@ use super::lanes::{
     lanes_of_three, total,
 };
 use super::points::PointCloud;
-use super::regularised::{NestedSteps, fit_regularised};
+use super::regularised::fit_regularised;
 use super::stage_times::StageTimes;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile};
 
@@ -440,17 +440,14 @@ impl SignedCloud {
                 at: x.to_array(),
             }));
         }
-        let report = fit_regularised(
+        fit_regularised(
             &mut lattice,
             self.samples_per_span,
             &targets,
             &self.node_confidence,
             bending_weight(self.noise / self.spacing),
-            regularised_steps_for_experiment(),
+            REGULARISED_STEPS,
         );
-        if std::env::var("DC_NESTED_LOG").is_ok() {
-            eprintln!("nested {report:?}");
-        }
         Ok(lattice)
     }
 }
@@ -854,15 +851,6 @@ pub fn knots_for_noise(noise: f32, point_spacing: f32, fewest: usize, most: usiz
 /// Conjugate-gradient steps of the regularised fit, at most: it starts from the plain fit,
 /// which is near, and the steps are its main cost.
 pub const REGULARISED_STEPS: usize = 20;
-
-fn regularised_steps_for_experiment() -> NestedSteps {
-    let v = std::env::var("DC_NESTED").unwrap_or_else(|_| "0,20".into());
-    let mut it = v.split(',').map(|x| x.parse::<usize>().unwrap());
-    NestedSteps {
-        coarse: it.next().unwrap(),
-        fine: it.next().unwrap(),
-    }
-}
 
 /// The largest noise an import accepts, as a fraction of the object's size.
 pub const MAX_NOISE: f32 = 0.1;

@@ -793,43 +793,15 @@ pub fn refit_regularised(
     )
 }
 
-/// How many conjugate-gradient steps each level of [`fit_regularised`]'s nested iteration
-/// takes, at most.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NestedSteps {
-    /// Steps on the lattice of every other knot (1/8 of the unknowns and of the samples);
-    /// 0 skips the coarse level, and the fine steps start from the plain fit.
-    pub coarse: usize,
-    /// Steps on the lattice itself, from the coarse solution refined onto it.
-    pub fine: usize,
-}
-
-/// What [`fit_regularised`] ran and reached.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct RegularisedReport {
-    /// Conjugate-gradient steps run on the coarse lattice (0 where it was skipped).
-    pub coarse_steps: usize,
-    /// Conjugate-gradient steps run on the lattice itself.
-    pub fine_steps: usize,
-    /// `‖b − M c‖ / ‖b‖` of the normal equations `M c = b` at the coefficients returned
-    /// (the recursively updated residual of the last step).
-    pub relative_residual: f64,
-}
-
-/// [`refit_regularised`] by nested iteration: the same regularised problem is solved first on
-/// the lattice of every other knot ([`coarse_problem`]: the samples restricted by full
-/// weighting, the bending scaled to the coarser span), from its own plain least-squares fit;
-/// the coarse solution is refined exactly onto the lattice's knots ([`prolong`], B-spline
-/// knot insertion), and the conjugate gradients finish at full size from there. The
-/// lattice's coefficients are replaced. Where the coarse lattice cannot be fitted (an axis
-/// of fewer than 7 knots) or `steps.coarse` is 0, the fine steps start from the plain
-/// least-squares fit of `targets` (every weight 1, no bending), and from the lattice's own
-/// coefficients where that has no solution either.
+/// [`refit_regularised`] from the plain least-squares fit of `targets` (every weight 1, no
+/// bending) rather than from the lattice's coefficients, which are replaced: the plain fit's
+/// `Aᵀ f` is three passes on every thread and its solve three banded substitutions per line,
+/// where a plain fit by the lattice's own sampled target (`field::fit_lattice`) ran on one
+/// thread. Returns the conjugate-gradient steps run.
 ///
-/// Why: Jacobi-preconditioned conjugate gradients remove the error's fine ripples in a few
-/// steps but its smooth part (over holes and far from the points, where only the bending
-/// holds the coefficients) slowly; a coarse step costs about an eighth of a fine one and
-/// removes that smooth part at an eighth of the price.
+/// NOTE: the base of a 50 000-point import took its plain fit from `field::fit_lattice`,
+/// 14–40 ms on the calling thread (bench/RESULTS.md, "Import time toward a fifth of
+/// PoissonRecon's").
 ///
 /// # Panics
 /// When `targets` or `weights` do not hold one value per sample.
@@ -839,266 +811,21 @@ pub fn fit_regularised(
     targets: &[f32],
     weights: &[f32],
     lambda: f32,
-    steps: NestedSteps,
-) -> RegularisedReport {
+    max_iterations: usize,
+) -> usize {
     let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
-    fit_regularised_on(
+    let start = plain_fit(lattice.dims, samples_per_span, targets, threads);
+    let start = start.unwrap_or_else(|| lattice.coeffs.iter().map(|&c| f64::from(c)).collect());
+    regularised_from(
         lattice,
         samples_per_span,
         targets,
         weights,
         lambda,
-        steps,
-        threads,
-    )
-}
-
-/// [`fit_regularised`] on `threads` threads; the result is the same for any count.
-fn fit_regularised_on(
-    lattice: &mut BSplineLattice,
-    samples_per_span: usize,
-    targets: &[f32],
-    weights: &[f32],
-    lambda: f32,
-    steps: NestedSteps,
-    threads: usize,
-) -> RegularisedReport {
-    let dims = lattice.dims;
-    let coarse = if steps.coarse > 0 {
-        coarse_problem(dims, samples_per_span, targets, weights, lambda)
-    } else {
-        None
-    };
-    let start = plain_fit(dims, samples_per_span, targets, threads)
-        .unwrap_or_else(|| lattice.coeffs.iter().map(|&c| f64::from(c)).collect());
-    let mut coarse_steps = 0;
-    let mut correct = |residual: &[f64]| -> Vec<f64> {
-        let Some(problem) = coarse.as_ref() else {
-            return vec![0.0; residual.len()];
-        };
-        let right_side = prolong_transposed(residual, problem.dims, dims);
-        let error = solve_regularised(
-            problem.dims,
-            samples_per_span,
-            &problem.targets,
-            &problem.weights,
-            problem.lambda,
-            steps.coarse,
-            threads,
-            vec![0.0; problem.dims.iter().product()],
-            Some(right_side),
-            None,
-        );
-        coarse_steps = error.steps;
-        prolong(&error.coeffs, problem.dims, dims)
-    };
-    let has_coarse = coarse.is_some();
-    let solved = solve_regularised(
-        dims,
-        samples_per_span,
-        targets,
-        weights,
-        f64::from(lambda),
-        steps.fine,
+        max_iterations,
         threads,
         start,
-        None,
-        if has_coarse { Some(&mut correct) } else { None },
-    );
-    write_coeffs(lattice, &solved.coeffs);
-    RegularisedReport {
-        coarse_steps,
-        fine_steps: solved.steps,
-        relative_residual: solved.relative_residual,
-    }
-}
-
-/// The regularised problem of [`fit_regularised`] on the lattice of every other knot.
-struct CoarseProblem {
-    /// The coarse lattice's knots per axis ([`coarse_knots`]).
-    dims: [usize; 3],
-    /// One per coarse sample (the same samples per span, so the coarse samples are every
-    /// other fine sample): the fine targets' weighted mean under the restriction.
-    targets: Vec<f32>,
-    /// One per coarse sample: the fine weights summed under the restriction (up to 8, the
-    /// fine samples a coarse one stands for).
-    weights: Vec<f32>,
-    /// The bending weight at the coarse span.
-    lambda: f64,
-}
-
-/// Knots of the coarse lattice along an axis of `fine` knots: every other knot, and one
-/// more past the last where `fine − 1` is odd, so the coarse lattice covers the fine one.
-fn coarse_knots(fine: usize) -> usize {
-    (fine - 1).div_ceil(2) + 1
-}
-
-/// The coarse lattice's problem for the fine one of `dims` knots, `samples_per_span`,
-/// `targets`, `weights` and bending `lambda`; `None` where an axis would have fewer than
-/// four coarse knots (a coarse plain fit needs four).
-///
-/// Each coarse sample sits on the fine sample of twice its index and takes the fine samples
-/// within one step of it along each axis with weights ½, 1, ½ (full weighting; their sum, 8,
-/// is the fine samples it stands for): its weight is `Σ k w`, its target `Σ k w f / Σ k w`
-/// (`Σ k f / Σ k` where every weight is zero), so the coarse data term approximates the fine
-/// one, `Σ w (F − f)²`, with an eighth of the samples. The bending `λ Σ ‖D₂ c‖²` of a smooth
-/// function grows like the knot span (`‖D₂ c‖² ~ span⁴ F''²` over `span⁻³` coefficients), so
-/// at twice the span it takes `λ / 2`.
-fn coarse_problem(
-    dims: [usize; 3],
-    samples_per_span: usize,
-    targets: &[f32],
-    weights: &[f32],
-    lambda: f32,
-) -> Option<CoarseProblem> {
-    let coarse = dims.map(coarse_knots);
-    if coarse.iter().any(|&n| n < 4) {
-        return None;
-    }
-    let fine_samples = dims.map(|n| (n - 1) * samples_per_span + 1);
-    let coarse_samples = coarse.map(|n| (n - 1) * samples_per_span + 1);
-    let count = fine_samples.iter().product::<usize>();
-    assert_eq!(targets.len(), count, "one target per sample");
-    assert_eq!(weights.len(), count, "one weight per sample");
-    // Three sums restricted axis by axis: Σ k w f, Σ k w and Σ k f, and Σ k.
-    let restricted = |values: Vec<f64>| restrict(values, fine_samples, coarse_samples);
-    let weighted = restricted(
-        targets
-            .iter()
-            .zip(weights)
-            .map(|(&f, &w)| f64::from(f) * f64::from(w))
-            .collect(),
-    );
-    let summed_weights = restricted(weights.iter().map(|&w| f64::from(w)).collect());
-    let plain = restricted(targets.iter().map(|&f| f64::from(f)).collect());
-    let counts = restricted(vec![1.0; count]);
-    let (targets, weights) = weighted
-        .iter()
-        .zip(&summed_weights)
-        .zip(plain.iter().zip(&counts))
-        .map(|((&wf, &w), (&f, &k))| {
-            let target = if w > 0.0 { wf / w } else { f / k.max(1e-30) };
-            (target as f32, w as f32)
-        })
-        .unzip();
-    Some(CoarseProblem {
-        dims: coarse,
-        targets,
-        weights,
-        lambda: f64::from(lambda) / 2.0,
-    })
-}
-
-/// Full weighting of the 3-D array `values` (dimensions `fine`, x fastest) onto every other
-/// entry (dimensions `coarse`), axis by axis: entry `i` along an axis is
-/// `½ v[2i − 1] + v[2i] + ½ v[2i + 1]`, the fine entries past either end left out.
-fn restrict(mut values: Vec<f64>, fine: [usize; 3], coarse: [usize; 3]) -> Vec<f64> {
-    let mut dims = fine;
-    for axis in 0..3 {
-        let inner = [1, dims[0], dims[0] * dims[1]][axis];
-        let (n, m) = (dims[axis], coarse[axis]);
-        let outer = values.len() / (inner * n);
-        let mut out = vec![0.0f64; outer * m * inner];
-        for o in 0..outer {
-            for i in 0..m {
-                let to = (o * m + i) * inner;
-                for (offset, k) in [(-1i64, 0.5), (0, 1.0), (1, 0.5)] {
-                    let at = 2 * i as i64 + offset;
-                    if at < 0 || at >= n as i64 {
-                        continue;
-                    }
-                    let from = (o * n + at as usize) * inner;
-                    for (value, &v) in out[to..to + inner]
-                        .iter_mut()
-                        .zip(&values[from..from + inner])
-                    {
-                        *value += k * v;
-                    }
-                }
-            }
-        }
-        values = out;
-        dims[axis] = m;
-    }
-    values
-}
-
-/// `Pᵀ r` for the knot insertion `P` of [`prolong`]: each coarse coefficient gathers the
-/// fine entries of knots `2j − 2 ..= 2j + 2` with weights `(1, 4, 6, 4, 1) / 8`, axis by
-/// axis (the right side of the coarse correction's equations).
-fn prolong_transposed(fine_values: &[f64], coarse: [usize; 3], fine: [usize; 3]) -> Vec<f64> {
-    let mut values = fine_values.to_vec();
-    let mut dims = fine;
-    for axis in 0..3 {
-        let stride = [1, dims[0], dims[0] * dims[1]][axis];
-        let (from_n, to_n) = (dims[axis], coarse[axis]);
-        let outer = values.len() / (stride * from_n);
-        let mut out = vec![0.0f64; outer * to_n * stride];
-        for o in 0..outer {
-            for j in 0..to_n {
-                let to = (o * to_n + j) * stride;
-                for (offset, k) in KNOT_INSERTION {
-                    let at = 2 * j as i64 + offset;
-                    if at < 0 || at >= from_n as i64 {
-                        continue;
-                    }
-                    let from = (o * from_n + at as usize) * stride;
-                    for (value, &v) in out[to..to + stride]
-                        .iter_mut()
-                        .zip(&values[from..from + stride])
-                    {
-                        *value += k * v;
-                    }
-                }
-            }
-        }
-        values = out;
-        dims[axis] = to_n;
-    }
-    values
-}
-
-/// The fine knots a coarse basis function of knot `j` is made of (`2j + offset`) and their
-/// coefficients: the cubic B-spline's two-scale relation, `(1, 4, 6, 4, 1) / 8`.
-const KNOT_INSERTION: [(i64, f64); 5] = [(-2, 0.125), (-1, 0.5), (0, 0.75), (1, 0.5), (2, 0.125)];
-
-/// The coefficients (`fine` knots) of the spline whose coefficients on the lattice of every
-/// other knot (`coarse` knots, [`coarse_knots`]) are `coarse_coeffs`: by knot insertion, the
-/// coarse basis function of knot `j` is `Σₖ (1, 4, 6, 4, 1)ₖ / 8` times the fine ones of
-/// knots `2j − 2 ..= 2j + 2`, axis by axis. Fine knots past the lattice's ends are left out,
-/// so the two splines are the same wherever those knots' basis functions do not reach (a
-/// knot span in from each end).
-fn prolong(coarse_coeffs: &[f64], coarse: [usize; 3], fine: [usize; 3]) -> Vec<f64> {
-    const INSERTION: [(i64, f64); 5] = [(-2, 0.125), (-1, 0.5), (0, 0.75), (1, 0.5), (2, 0.125)];
-    let mut values = coarse_coeffs.to_vec();
-    let mut dims = coarse;
-    for axis in 0..3 {
-        let stride = [1, dims[0], dims[0] * dims[1]][axis];
-        let (from_n, to_n) = (dims[axis], fine[axis]);
-        let outer = values.len() / (stride * from_n);
-        let mut out = vec![0.0f64; outer * to_n * stride];
-        for o in 0..outer {
-            for j in 0..from_n {
-                let from = (o * from_n + j) * stride;
-                for (offset, k) in KNOT_INSERTION {
-                    let at = 2 * j as i64 + offset;
-                    if at < 0 || at >= to_n as i64 {
-                        continue;
-                    }
-                    let to = (o * to_n + at as usize) * stride;
-                    for (value, &v) in out[to..to + stride]
-                        .iter_mut()
-                        .zip(&values[from..from + stride])
-                    {
-                        *value += k * v;
-                    }
-                }
-            }
-        }
-        values = out;
-        dims[axis] = to_n;
-    }
-    values
+    )
 }
 
 /// The plain least-squares fit of the coefficients (`dims`) to `targets` at the samples
@@ -1157,70 +884,42 @@ fn refit_regularised_on(
     threads: usize,
 ) -> usize {
     let start = lattice.coeffs.iter().map(|&c| f64::from(c)).collect();
-    let solved = solve_regularised(
-        lattice.dims,
+    regularised_from(
+        lattice,
         samples_per_span,
         targets,
         weights,
-        f64::from(lambda),
+        lambda,
         max_iterations,
         threads,
         start,
-        None,
-        None,
-    );
-    write_coeffs(lattice, &solved.coeffs);
-    solved.steps
+    )
 }
 
-/// The coefficients `coeffs` (f64, x fastest) written into `lattice`.
-fn write_coeffs(lattice: &mut BSplineLattice, coeffs: &[f64]) {
-    let values: Vec<f32> = coeffs.iter().map(|&v| v as f32).collect();
-    lattice.coeffs = BrickedCoeffs::from_vec(lattice.dims, values);
-}
-
-/// What [`solve_regularised`] found.
-struct Solved {
-    /// The coefficients, x fastest.
-    coeffs: Vec<f64>,
-    /// The conjugate-gradient steps run.
-    steps: usize,
-    /// `‖r‖ / ‖b‖` at `coeffs`.
-    relative_residual: f64,
-}
-
-/// At most `max_iterations` conjugate-gradient steps on the regularised normal equations of
-/// a lattice of `dims` knots (see the module docs) from the coefficients `start` (one per
-/// coefficient, x fastest), on `threads` threads; the result is the same for any count.
+/// The conjugate-gradient steps of [`refit_regularised_on`] from the coefficients `start`
+/// (one per coefficient of `lattice`, x fastest); the result is written into `lattice`.
 #[allow(clippy::too_many_arguments)]
-fn solve_regularised(
-    dims: [usize; 3],
+fn regularised_from(
+    lattice: &mut BSplineLattice,
     samples_per_span: usize,
     targets: &[f32],
     weights: &[f32],
-    lambda: f64,
+    lambda: f32,
     max_iterations: usize,
     threads: usize,
     start: Vec<f64>,
-    right_side: Option<Vec<f64>>,
-    correction: Option<&mut dyn FnMut(&[f64]) -> Vec<f64>>,
-) -> Solved {
+) -> usize {
+    let dims = lattice.dims;
     let bases = dims.map(|n| AxisBasis::new(n, samples_per_span));
     let sample_dims = [bases[0].samples, bases[1].samples, bases[2].samples];
     let count: usize = sample_dims.iter().product();
     assert_eq!(targets.len(), count, "one target per sample");
     assert_eq!(weights.len(), count, "one weight per sample");
+    let lambda = f64::from(lambda);
     let w: Vec<f64> = weights.iter().map(|&v| f64::from(v)).collect();
     let mut passes = Passes::default();
     let mut b = Vec::new();
-    if let Some(given) = right_side {
-        assert_eq!(
-            given.len(),
-            dims.iter().product::<usize>(),
-            "one per coefficient"
-        );
-        b = given;
-    } else {
+    {
         let wf: Vec<f64> = targets
             .iter()
             .zip(&w)
@@ -1279,23 +978,13 @@ fn solve_regularised(
     let mut ap = Vec::new();
     operator(&x, &mut ap);
     let mut r: Vec<f64> = b.iter().zip(&ap).map(|(b, a)| b - a).collect();
-    if let Some(correct) = correction {
-        let delta = correct(&r);
-        for (x, d) in x.iter_mut().zip(&delta) {
-            *x += d;
-        }
-        operator(&x, &mut ap);
-        for ((r, b), a) in r.iter_mut().zip(&b).zip(&ap) {
-            *r = b - a;
-        }
-    }
     let norm_b = b.iter().map(|v| v * v).sum::<f64>().sqrt().max(1e-30);
     let mut z: Vec<f64> = r.iter().zip(&diagonal).map(|(r, d)| r / d).collect();
     let mut p = z.clone();
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
     let mut iterations = 0;
-    let mut norm_r = r.iter().map(|v| v * v).sum::<f64>().sqrt();
     while iterations < max_iterations {
+        let norm_r = r.iter().map(|v| v * v).sum::<f64>().sqrt();
         if norm_r <= TOLERANCE * norm_b {
             break;
         }
@@ -1319,25 +1008,17 @@ fn solve_regularised(
         for (p, z) in p.iter_mut().zip(&z) {
             *p = z + beta * *p;
         }
-        norm_r = r.iter().map(|v| v * v).sum::<f64>().sqrt();
     }
-    Solved {
-        coeffs: x,
-        steps: iterations,
-        relative_residual: norm_r / norm_b,
-    }
+    let dims = lattice.dims;
+    let values: Vec<f32> = x.iter().map(|&v| v as f32).collect();
+    lattice.coeffs = BrickedCoeffs::from_vec(dims, values);
+    iterations
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::Vec3;
-
-    /// No coarse level: the fine steps (up to 400) from the plain fit.
-    const PLAIN_START_ONLY: NestedSteps = NestedSteps {
-        coarse: 0,
-        fine: 400,
-    };
 
     /// `count` targets in [0, 1), spread unevenly over the samples.
     fn uneven_targets(count: usize) -> Vec<f32> {
@@ -1458,7 +1139,7 @@ mod tests {
         // tolerance's reach.
         let (dims, sps, m, targets, weights) = uneven_problem();
         let mut here = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
-        fit_regularised(&mut here, sps, &targets, &weights, 0.01, PLAIN_START_ONLY);
+        fit_regularised(&mut here, sps, &targets, &weights, 0.01, 400);
         let mut there = BSplineLattice::zeros(dims, 0.5, Vec3::ZERO).unwrap();
         dynaclay_core::field::fit_lattice(&mut there, sps, |x| {
             let u = x / (0.5 / sps as f32);
@@ -1851,182 +1532,5 @@ mod tests {
         // at the low edge tilts it a little) instead of dropping to the unheld targets.
         assert!((at(8.0) - 0.8).abs() < 0.1, "continued: {}", at(8.0));
         assert!(at(6.0) > at(5.0) && at(8.0) > at(6.0) && at(10.0) > at(8.0));
-    }
-
-    #[test]
-    fn the_prolonged_coefficients_are_the_coarse_spline_on_the_fine_lattice() {
-        // A coarse spline (every other knot of the fine lattice, an even and an odd number of
-        // fine spans) and its coefficients refined by knot insertion: the two lattices give
-        // the same values at every sample of the fine fit a knot span in from either end (the
-        // fine knots past the ends, left out, reach no further), by the lattice's own
-        // evaluation.
-        let fine = [13, 10, 9];
-        let coarse = fine.map(coarse_knots);
-        assert_eq!(coarse, [7, 6, 5]);
-        let (spacing, sps) = (0.25f32, 2);
-        let coeffs: Vec<f64> = (0..coarse.iter().product::<usize>())
-            .map(|i| ((i * 7919) % 29) as f64 / 29.0 - 0.3)
-            .collect();
-        let coarse_lattice = BSplineLattice::from_coeffs(
-            coarse,
-            2.0 * spacing,
-            Vec3::ZERO,
-            coeffs.iter().map(|&c| c as f32).collect(),
-        )
-        .unwrap();
-        let refined = prolong(&coeffs, coarse, fine);
-        assert_eq!(refined.len(), fine.iter().product::<usize>());
-        let fine_lattice = BSplineLattice::from_coeffs(
-            fine,
-            spacing,
-            Vec3::ZERO,
-            refined.iter().map(|&c| c as f32).collect(),
-        )
-        .unwrap();
-        let m = fine.map(|n| (n - 1) * sps + 1);
-        let mut checked = 0;
-        for k in sps..m[2] - sps {
-            for j in sps..m[1] - sps {
-                for i in sps..m[0] - sps {
-                    let x = Vec3::new(i as f32, j as f32, k as f32) * spacing / sps as f32;
-                    let (got, want) = (fine_lattice.value(x), coarse_lattice.value(x));
-                    assert!((got - want).abs() < 1e-5, "at {x}: {got} against {want}");
-                    checked += 1;
-                }
-            }
-        }
-        assert!(checked > 1000);
-        assert!(coarse_lattice.value(Vec3::splat(1.0)).abs() > 1e-3);
-    }
-
-    #[test]
-    fn the_coarse_problem_restricts_by_full_weighting() {
-        // Targets linear in the sample's position and one uniform weight: each coarse sample
-        // with all its 27 fine neighbours weighs 8 times the weight and keeps the target at
-        // its own place (full weighting is exact on a linear function); one at an end weighs
-        // less; past the fine samples (an odd number of fine spans) it weighs nothing.
-        let dims = [10, 9, 9];
-        let sps = 2;
-        let m = dims.map(|n| (n - 1) * sps + 1);
-        let target =
-            |i: usize, j: usize, k: usize| 0.01 * i as f32 + 0.02 * j as f32 - 0.03 * k as f32;
-        let mut targets = Vec::new();
-        for k in 0..m[2] {
-            for j in 0..m[1] {
-                for i in 0..m[0] {
-                    targets.push(target(i, j, k));
-                }
-            }
-        }
-        let weights = vec![0.5f32; targets.len()];
-        let problem = coarse_problem(dims, sps, &targets, &weights, 0.04).unwrap();
-        assert_eq!(problem.dims, [6, 5, 5]);
-        assert!((problem.lambda - 0.02).abs() < 1e-8);
-        let c = problem.dims.map(|n| (n - 1) * sps + 1);
-        assert_eq!(c, [11, 9, 9]);
-        let at = |i: usize, j: usize, k: usize| i + c[0] * (j + c[1] * k);
-        for k in 1..c[2] - 1 {
-            for j in 1..c[1] - 1 {
-                for i in 1..c[0] {
-                    let s = at(i, j, k);
-                    if 2 * i + 1 < m[0] {
-                        assert!((problem.weights[s] - 4.0).abs() < 1e-6, "{i} {j} {k}");
-                        let want = target(2 * i, 2 * j, 2 * k);
-                        assert!((problem.targets[s] - want).abs() < 1e-5, "{i} {j} {k}");
-                    } else if 2 * i < m[0] {
-                        // The last fine sample: its half-neighbour past the end is left out.
-                        assert!((problem.weights[s] - 3.0).abs() < 1e-6);
-                    } else {
-                        // Past the last fine sample: nothing to stand for.
-                        assert_eq!(problem.weights[s], 0.0);
-                        assert_eq!(problem.targets[s], 0.0);
-                    }
-                }
-            }
-        }
-        // One more coarse knot than the fine spans fill.
-        assert!(2 * (c[0] - 1) > m[0] - 1);
-    }
-
-    #[test]
-    fn the_nested_fit_reaches_the_cold_fits_solution_and_a_smaller_residual_sooner() {
-        // Points on one part of the lattice only (weight 1 where x < 5 knots, nearly nothing
-        // beyond): the bending alone carries the rest, the smooth error a fine step removes
-        // slowly. Run to the tolerance, the nested fit and the fit from the plain fit agree;
-        // stopped after four fine steps, the nested fit's residual is the smaller.
-        let dims = [16, 9, 10];
-        let sps = 2;
-        let m = dims.map(|n| (n - 1) * sps + 1);
-        let (mut targets, mut weights) = (Vec::new(), Vec::new());
-        for k in 0..m[2] {
-            for j in 0..m[1] {
-                for i in 0..m[0] {
-                    let u = i as f32 / sps as f32;
-                    let wave = 0.05 * ((j * 3 + k * 5) % 7) as f32 / 7.0;
-                    targets.push(if u < 5.0 { 0.1 * u + wave } else { 0.0 });
-                    weights.push(if u < 5.0 { 1.0 } else { 1e-3 });
-                }
-            }
-        }
-        let fit = |steps: NestedSteps, threads: usize| {
-            let mut lattice = BSplineLattice::zeros(dims, 1.0, Vec3::ZERO).unwrap();
-            let report =
-                fit_regularised_on(&mut lattice, sps, &targets, &weights, 0.05, steps, threads);
-            (report, lattice.coeffs)
-        };
-        let (cold, cold_coeffs) = fit(PLAIN_START_ONLY, 2);
-        let (nested, nested_coeffs) = fit(
-            NestedSteps {
-                coarse: 400,
-                fine: 400,
-            },
-            2,
-        );
-        assert!(cold.relative_residual <= TOLERANCE && nested.relative_residual <= TOLERANCE);
-        assert_eq!(cold.coarse_steps, 0);
-        assert!(nested.coarse_steps > 0);
-        let worst = cold_coeffs
-            .iter()
-            .zip(nested_coeffs.iter())
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0f32, f32::max);
-        // (A relative residual of 1e-5 leaves the unheld side's coefficients this far apart.)
-        assert!(worst < 5e-3, "the fits differ by {worst}");
-        let (short_cold, _) = fit(NestedSteps { coarse: 0, fine: 4 }, 2);
-        let (short_nested, _) = fit(
-            NestedSteps {
-                coarse: 30,
-                fine: 4,
-            },
-            2,
-        );
-        assert_eq!((short_cold.fine_steps, short_nested.fine_steps), (4, 4));
-        assert!(
-            short_nested.relative_residual < 0.5 * short_cold.relative_residual,
-            "nested {} against cold {}",
-            short_nested.relative_residual,
-            short_cold.relative_residual
-        );
-        // The same bits on one thread and on several.
-        let one = fit(
-            NestedSteps {
-                coarse: 30,
-                fine: 4,
-            },
-            1,
-        );
-        for threads in [3, 8] {
-            assert_eq!(
-                fit(
-                    NestedSteps {
-                        coarse: 30,
-                        fine: 4
-                    },
-                    threads
-                ),
-                one,
-                "{threads}"
-            );
-        }
     }
 }
