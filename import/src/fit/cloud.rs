@@ -117,6 +117,15 @@ pub struct CloudFitOptions {
     /// it), from `fewest` to [`CloudFitOptions::resolution`]; `None`: exactly
     /// [`CloudFitOptions::resolution`].
     pub fewest_knots_by_noise: Option<usize>,
+    /// The base fit's bending weighed per coefficient by the surface's sharpness
+    /// ([`bending_scale_by_sharpness`]); off: one weight for the whole lattice.
+    ///
+    /// NOTE: off by default and in `dynaclay import`. On the peers bench it took the rocker
+    /// arm with outliers within 1.25× of screened Poisson's p99 (0.288% → 0.269%) and lowered
+    /// the fandisk's and the rocker arm's p99s, but raised the bunny's at 0.25% noise
+    /// (0.812% → 0.866%, the cap over its open base) over the floor (bench/RESULTS.md, "The
+    /// bending by the surface's sharpness").
+    pub bending_by_sharpness: bool,
 }
 
 impl Default for CloudFitOptions {
@@ -128,6 +137,7 @@ impl Default for CloudFitOptions {
             gap_spans: DEFAULT_GAP_SPANS,
             noise: None,
             fewest_knots_by_noise: None,
+            bending_by_sharpness: false,
         }
     }
 }
@@ -263,7 +273,8 @@ pub struct SignedCloud {
     /// The wall time of each stage of [`sign_cloud`].
     pub times: StageTimes,
     /// Per coefficient of the base lattice (x fastest): the scale of its bending weight, from
-    /// how sharp the surface is near it ([`bending_scale_by_sharpness`]).
+    /// how sharp the surface is near it ([`bending_scale_by_sharpness`]); empty unless
+    /// [`CloudFitOptions::bending_by_sharpness`].
     bending_scale: Vec<f32>,
 }
 
@@ -450,7 +461,7 @@ impl SignedCloud {
             &targets,
             &self.node_confidence,
             bending_weight(self.noise / self.spacing),
-            Some(&self.bending_scale),
+            (!self.bending_scale.is_empty()).then_some(self.bending_scale.as_slice()),
             REGULARISED_STEPS,
         );
         Ok(lattice)
@@ -554,16 +565,20 @@ pub fn sign_cloud(
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
     times.record("spacing, placement, spatial order", started);
     // How sharp the surface is near each coefficient sets how much it may bend.
-    let bending_scale = times.time("sharpness", || {
-        let every: Vec<usize> = (0..points.len()).collect();
-        let readings = sharpness_at(
-            &points,
-            &every,
-            consensus.noise * scale,
-            SHARPNESS_RADIUS_SPANS * spacing,
-        );
-        bending_scale_by_sharpness(&readings, n, spacing)
-    });
+    let bending_scale = if !options.bending_by_sharpness {
+        Vec::new()
+    } else {
+        times.time("sharpness", || {
+            let every: Vec<usize> = (0..points.len()).collect();
+            let readings = sharpness_at(
+                &points,
+                &every,
+                consensus.noise * scale,
+                SHARPNESS_RADIUS_SPANS * spacing,
+            );
+            bending_scale_by_sharpness(&readings, n, spacing)
+        })
+    };
 
     // Steps 3–4: band, exterior, normals.
     let started = Instant::now();

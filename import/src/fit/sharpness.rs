@@ -242,7 +242,7 @@ mod tests {
             .map(|_| {
                 let face = (deviates.unit() * 6.0) as usize % 6;
                 let (u, v) = (deviates.unit() * 2.0 - 1.0, deviates.unit() * 2.0 - 1.0);
-                let side = if face % 2 == 0 { 1.0 } else { -1.0 };
+                let side = if face.is_multiple_of(2) { 1.0 } else { -1.0 };
                 let p = match face / 2 {
                     0 => Vec3::new(side, u, v),
                     1 => Vec3::new(u, side, v),
