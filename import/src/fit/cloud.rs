@@ -120,11 +120,12 @@ pub struct CloudFitOptions {
     /// The base fit's bending weighed per coefficient by the surface's sharpness
     /// ([`bending_scale_by_sharpness`]); off: one weight for the whole lattice.
     ///
-    /// NOTE: off by default and in `dynaclay import`. On the peers bench it took the rocker
-    /// arm with outliers within 1.25× of screened Poisson's p99 (0.288% → 0.269%) and lowered
-    /// the fandisk's and the rocker arm's p99s, but raised the bunny's at 0.25% noise
-    /// (0.812% → 0.866%, the cap over its open base) over the floor (bench/RESULTS.md, "The
-    /// bending by the surface's sharpness").
+    /// NOTE: on by default and in `dynaclay import`. On the peers bench it takes the rocker
+    /// arm with outliers within 1.25× of screened Poisson's p99 (0.288% → 0.271%) and lowers
+    /// the fandisk's and the rocker arm's p99s; with no reading taken on the data's border and
+    /// the rule kept off coefficients whose readings lie on one side, the bunny's p99 at 0.25%
+    /// noise (the cap over its open base) holds at main's (bench/RESULTS.md, "The sharpness
+    /// rule kept off the caps").
     pub bending_by_sharpness: bool,
 }
 
@@ -137,7 +138,7 @@ impl Default for CloudFitOptions {
             gap_spans: DEFAULT_GAP_SPANS,
             noise: None,
             fewest_knots_by_noise: None,
-            bending_by_sharpness: false,
+            bending_by_sharpness: true,
         }
     }
 }
@@ -861,26 +862,107 @@ pub const SHARPNESS_REACH_SPANS: f32 = 2.0;
 /// (over the coefficients that have any) keeps the whole bending weight: it stands at the
 /// edge of the data (a hole's rim, a scan's border), where the bending shapes the cap.
 pub const LEAST_READINGS_FRACTION: f32 = 0.5;
+/// The readings within a coefficient's reach, offset from its node along their own surface
+/// (their centroid less its part across their least-squares plane) by at most this fraction
+/// of the reach, surround the node: the data pin the coefficient on every side, and the
+/// sharpness rule applies in full. A node over a straight rim (its data on one side) reads
+/// `4 / 3π ≈ 0.42`; one half the reach inside the data, 0.17.
+pub const SURROUNDED_OFFSET: f32 = 0.15;
+/// The readings' offset along their surface (as [`SURROUNDED_OFFSET`]) from this fraction of
+/// the reach on: the data lie on one side of the node (over or beside a hole), and the
+/// coefficient keeps the whole bending weight, since the bending alone shapes the surface on
+/// the other side (the cap). Between the two the rule's scale is taken in part
+/// (geometrically).
+pub const ONE_SIDED_OFFSET: f32 = 0.3;
+/// The fewest readings within reach whose plane tells their offset along the surface; a
+/// coefficient with fewer keeps the whole weight.
+const LEAST_READINGS_FOR_A_SIDE: u32 = 6;
+
+/// What the readings within a coefficient's reach add up to: their count, the sharpest
+/// reading, and the first and second moments of their offsets from the node (in reaches).
+#[derive(Clone, Copy, Default)]
+struct ReadingsNear {
+    count: u32,
+    sharpest: f32,
+    sum: [f32; 3],
+    /// `Σ d dᵀ`: xx, xy, xz, yy, yz, zz.
+    products: [f32; 6],
+}
+
+impl ReadingsNear {
+    fn add(&mut self, offset: Vec3, reading: f32) {
+        self.count += 1;
+        self.sharpest = self.sharpest.max(reading);
+        let d = offset.to_array();
+        for (s, v) in self.sum.iter_mut().zip(d) {
+            *s += v;
+        }
+        let [x, y, z] = d;
+        for (s, v) in self
+            .products
+            .iter_mut()
+            .zip([x * x, x * y, x * z, y * y, y * z, z * z])
+        {
+            *s += v;
+        }
+    }
+
+    /// How far (in reaches) the readings' centroid lies from the node along their
+    /// least-squares plane: about 0 where they surround it, 0.42 where a straight rim
+    /// passes under it. `None` with fewer than [`LEAST_READINGS_FOR_A_SIDE`] readings.
+    fn offset_along_surface(&self) -> Option<f32> {
+        if self.count < LEAST_READINGS_FOR_A_SIDE {
+            return None;
+        }
+        let c = f64::from(self.count);
+        let mean = self.sum.map(|v| f64::from(v) / c);
+        let [xx, xy, xz, yy, yz, zz] = self.products.map(f64::from);
+        let cov = [
+            [
+                xx / c - mean[0] * mean[0],
+                xy / c - mean[0] * mean[1],
+                xz / c - mean[0] * mean[2],
+            ],
+            [
+                xy / c - mean[1] * mean[0],
+                yy / c - mean[1] * mean[1],
+                yz / c - mean[1] * mean[2],
+            ],
+            [
+                xz / c - mean[2] * mean[0],
+                yz / c - mean[2] * mean[1],
+                zz / c - mean[2] * mean[2],
+            ],
+        ];
+        let normal = least_variance_direction(cov).as_dvec3();
+        let mean = glam::DVec3::from_array(mean);
+        Some((mean - normal * mean.dot(normal)).length() as f32)
+    }
+}
 
 /// Per coefficient of an `n`³ lattice of knot spacing `spacing` (x fastest; coefficient
 /// `(i, j, k)` at `spacing · (i, j, k)`): the scale of the bending weight, from the sharpness
 /// `readings` (position in the lattice's units, the quadric's residual over the noise)
 /// within [`SHARPNESS_REACH_SPANS`] of it. The sharpest reading within reach sets it: 1 up to
 /// [`SMOOTH_RESIDUAL`], [`SHARP_BENDING_SCALE`] from [`SHARP_RESIDUAL`], geometric between;
-/// 1 where no reading is within reach or fewer than [`LEAST_READINGS_FRACTION`] of the
-/// median count are.
+/// taken in full only where the readings surround the node ([`SURROUNDED_OFFSET`]), not at all
+/// where they lie on one side of it ([`ONE_SIDED_OFFSET`]); 1 where no reading is within
+/// reach or fewer than [`LEAST_READINGS_FRACTION`] of the median count are.
 ///
 /// Why: one bending weight for the whole clay rounds a part's sharp edges by what it takes
 /// to smooth its faces. The bending is a smoothing spline's weight, and its best value grows
 /// with the residual it must hold against, which is noise on a smooth face and shape at an
 /// edge; so the weight falls where the residual is shape. On the rocker arm with outliers
 /// the model→reconstruction p99 (its rounded edges) fell from 0.288% to 0.269% of the
-/// diagonal (bench/RESULTS.md, "The bending by the surface's sharpness").
+/// diagonal (bench/RESULTS.md, "The bending by the surface's sharpness"). But where the data
+/// lie on one side of a coefficient only, as along a hole's rim, no data hold its other side:
+/// the surface there (the cap over the hole) is what the bending makes it, and a rim that
+/// reads sharp must not loosen it (the bunny's open base: bench/RESULTS.md, "The sharpness
+/// rule kept off the caps").
 #[must_use]
 pub fn bending_scale_by_sharpness(readings: &[(Vec3, f32)], n: usize, spacing: f32) -> Vec<f32> {
     let count = n * n * n;
-    let mut within = vec![0u32; count];
-    let mut sharpest = vec![0.0f32; count];
+    let mut near = vec![ReadingsNear::default(); count];
     let reach = SHARPNESS_REACH_SPANS * spacing;
     let last = n as i64 - 1;
     for &(p, reading) in readings {
@@ -895,30 +977,35 @@ pub fn bending_scale_by_sharpness(readings: &[(Vec3, f32)], n: usize, spacing: f
                         continue;
                     }
                     let at = i as usize + n * (j as usize + n * k as usize);
-                    within[at] += 1;
-                    sharpest[at] = sharpest[at].max(reading);
+                    near[at].add((p - node) / reach, reading);
                 }
             }
         }
     }
-    let mut counts: Vec<u32> = within.iter().copied().filter(|&c| c > 0).collect();
+    let mut counts: Vec<u32> = near.iter().map(|r| r.count).filter(|&c| c > 0).collect();
     let least = if counts.is_empty() {
         0.0
     } else {
         let mid = counts.len() / 2;
         *counts.select_nth_unstable(mid).1 as f32 * LEAST_READINGS_FRACTION
     };
-    let (smooth, sharp) = (1.0f32, SHARP_BENDING_SCALE);
-    within
-        .iter()
-        .zip(&sharpest)
-        .map(|(&c, &reading)| {
-            if c == 0 || (c as f32) < least {
+    near.iter()
+        .map(|r| {
+            if r.count == 0 || (r.count as f32) < least {
                 return 1.0;
             }
-            let t =
-                ((reading - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL)).clamp(0.0, 1.0);
-            smooth.ln().mul_add(1.0 - t, sharp.ln() * t).exp()
+            let t = ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL))
+                .clamp(0.0, 1.0);
+            if t == 0.0 {
+                return 1.0;
+            }
+            let Some(offset) = r.offset_along_surface() else {
+                return 1.0;
+            };
+            let inside = 1.0
+                - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
+                    .clamp(0.0, 1.0);
+            (SHARP_BENDING_SCALE.ln() * t * inside).exp()
         })
         .collect()
 }
@@ -3618,7 +3705,12 @@ mod tests {
         // but only three readings are, under half the median count (over 20): the bending
         // is kept.
         assert_eq!(at(6, 1, 7), 1.0);
-        assert!((at(6, 2, 5) - SHARP_BENDING_SCALE).abs() < 1e-6);
+        // Over the rim (y = 2) the crease is within reach and enough readings are, but they
+        // all lie on one side of the node: no data hold the surface beyond the rim, and the
+        // cap keeps the whole weight. One reach (two spans) inside the data they surround
+        // the node again, and the crease loosens the bending in full.
+        assert_eq!(at(6, 2, 5), 1.0);
+        assert!((at(6, 4, 5) - SHARP_BENDING_SCALE).abs() < 1e-6);
         // Between the smooth and the sharp residual, the scale falls geometrically.
         let halfway = vec![(
             Vec3::new(6.0, 6.0, 6.0),

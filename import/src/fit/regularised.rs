@@ -703,7 +703,11 @@ fn add_bending_plane(
     // The weight of the row centred on coefficient `at` (a plane's entry `k` is `z·area + k`).
     let weight = |at: usize| scale.map_or(lambda, |s| lambda * s[at]);
     if nx >= 3 {
-        for (j, (line, out)) in own.chunks_exact(nx).zip(plane.chunks_exact_mut(nx)).enumerate() {
+        for (j, (line, out)) in own
+            .chunks_exact(nx)
+            .zip(plane.chunks_exact_mut(nx))
+            .enumerate()
+        {
             let row_start = z * area + j * nx;
             for i in 0..nx - 2 {
                 let w = weight(row_start + i + 1);
@@ -1012,7 +1016,10 @@ fn regularised_from(
     // The weights as `f64` are not kept through the steps: the products convert them as
     // they weight the samples (the same values), 4 MB fewer for a 40³ fit.
     drop(w);
-    for (d, l) in diagonal.iter_mut().zip(bending_diagonal(dims, bending_scale)) {
+    for (d, l) in diagonal
+        .iter_mut()
+        .zip(bending_diagonal(dims, bending_scale))
+    {
         *d = (*d + lambda * l).max(1e-12);
     }
     let mut operator = |x: &[f64], out: &mut Vec<f64>| {
@@ -1021,7 +1028,9 @@ fn regularised_from(
             dims,
             &bases,
             weights,
-            Some(&|z, plane: &mut [f64]| add_bending_plane(x, dims, lambda, bending_scale, z, plane)),
+            Some(&|z, plane: &mut [f64]| {
+                add_bending_plane(x, dims, lambda, bending_scale, z, plane)
+            }),
             threads,
             &mut passes,
             out,
@@ -1362,21 +1371,26 @@ mod tests {
             let start: Vec<f64> = (0..count)
                 .map(|i| ((i * 104_729) % 97) as f64 / 9.7 - 5.0)
                 .collect();
-            let mut scattered = start.clone();
-            add_bending(&x, dims, 0.37, None, &mut scattered);
-            let mut by_planes = start.clone();
-            let plane = dims[0] * dims[1];
-            for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
-                add_bending_plane(&x, dims, 0.37, None, z, out);
+            // The whole weight everywhere, and a weight per coefficient (uneven, some zero).
+            let scale: Vec<f64> = (0..count).map(|i| ((i * 31) % 5) as f64 / 4.0).collect();
+            for scale in [None, Some(scale.as_slice())] {
+                let mut scattered = start.clone();
+                add_bending(&x, dims, 0.37, scale, &mut scattered);
+                let mut by_planes = start.clone();
+                let plane = dims[0] * dims[1];
+                for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
+                    add_bending_plane(&x, dims, 0.37, scale, z, out);
+                }
+                assert!(
+                    by_planes
+                        .iter()
+                        .map(|v| v.to_bits())
+                        .eq(scattered.iter().map(|v| v.to_bits())),
+                    "{dims:?}, scaled {}",
+                    scale.is_some()
+                );
+                assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
             }
-            assert!(
-                by_planes
-                    .iter()
-                    .map(|v| v.to_bits())
-                    .eq(scattered.iter().map(|v| v.to_bits())),
-                "{dims:?}"
-            );
-            assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
         }
     }
 
@@ -1390,8 +1404,9 @@ mod tests {
         let coefficients: Vec<f64> = (0..dims.iter().product::<usize>())
             .map(|i| ((i * 7919) % 101) as f64 / 101.0 - 0.37)
             .collect();
-        let finish =
-            |z: usize, plane: &mut [f64]| add_bending_plane(&coefficients, dims, 0.2, None, z, plane);
+        let finish = |z: usize, plane: &mut [f64]| {
+            add_bending_plane(&coefficients, dims, 0.2, None, z, plane)
+        };
         for threads in [1, 2, 3] {
             let mut kept = Passes::default();
             let mut x = coefficients.clone();
@@ -1496,7 +1511,8 @@ mod tests {
         let x: Vec<f64> = (0..dims.iter().product::<usize>())
             .map(|i| ((i * 104_729) % 89) as f64 / 89.0 - 0.52)
             .collect();
-        let bending = |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, None, z, plane);
+        let bending =
+            |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, None, z, plane);
         let finishes: [Option<&PlaneFinish<'_>>; 2] = [None, Some(&bending)];
         for finish in finishes {
             let mut samples = Vec::new();

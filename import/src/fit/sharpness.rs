@@ -93,17 +93,28 @@ pub fn sharpness_at(points: &[Vec3], kept: &[usize], noise: f32, radius: f32) ->
         let p = kept_points[s * stride];
         let mut near = Vec::with_capacity(4 * SHARPNESS_CELL_OFFER);
         grid.for_each_near(p, radius, |_, q| near.push(q));
-        quadric_residual(&near, radius).map(|r| (p, r / noise))
+        quadric_residual(p, &near, radius)
+            .filter(|&(_, offset)| offset <= BORDER_OFFSET)
+            .map(|(r, _)| (p, r / noise))
     })
     .into_iter()
     .flatten()
     .collect()
 }
 
+/// A neighbourhood whose centroid lies further than this fraction of the radius from its
+/// sampled point along their least-squares plane holds the surface on one side of the point
+/// only: the point lies on the data's border (a hole's rim, a scan's edge), where the residual
+/// reads the border, not the surface, and no reading is taken. A point on a straight border
+/// reads `4 / 3π ≈ 0.42`; one on a crease or a rounded edge, whose neighbours lie on both
+/// sides, about 0.
+pub const BORDER_OFFSET: f32 = 0.25;
+
 /// The RMS residual (the points' units) of the quadric height field fitted to `near` by least
 /// squares in the frame of their least-squares plane, with the six coefficients' degrees of
-/// freedom taken off; `radius` scales the fit for its conditioning.
-fn quadric_residual(near: &[Vec3], radius: f32) -> Option<f32> {
+/// freedom taken off, and how far (in radii) their centroid lies from `at` along that plane;
+/// `radius` scales the fit for its conditioning.
+fn quadric_residual(at: Vec3, near: &[Vec3], radius: f32) -> Option<(f32, f32)> {
     if near.len() < SHARPNESS_LEAST_NEIGHBOURS {
         return None;
     }
@@ -153,7 +164,9 @@ fn quadric_residual(near: &[Vec3], radius: f32) -> Option<f32> {
         })
         .sum();
     let value = ((squared / (count - 6.0)).sqrt() / inverse_radius) as f32;
-    value.is_finite().then_some(value)
+    let from = mean - at.as_dvec3();
+    let offset = ((from - normal * from.dot(normal)).length() * inverse_radius) as f32;
+    value.is_finite().then_some((value, offset))
 }
 
 /// The lower triangle `L` of the symmetric positive definite `m = L Lᵀ`; `None` where `m` is
@@ -275,6 +288,55 @@ mod tests {
         assert!((0.9..1.3).contains(&median), "cube's median {median}");
         let cube_over = square.fraction_over(2.0).unwrap();
         assert!(cube_over > 0.15, "cube over 2: {cube_over}");
+    }
+
+    #[test]
+    fn no_reading_is_taken_on_the_datas_border_and_a_crease_still_reads() {
+        // The upper half of a noisy sphere: open along its equator, whose points have
+        // neighbours on one side only.
+        let noise = 0.005;
+        let radius = 0.25;
+        let dome: Vec<Vec3> = noisy_sphere(40_000, noise, 5)
+            .into_iter()
+            .filter(|p| p.z > 0.0)
+            .collect();
+        let kept: Vec<usize> = (0..dome.len()).collect();
+        let readings = sharpness_at(&dome, &kept, noise, radius);
+        assert!(readings.len() > 1500, "{} readings", readings.len());
+        // Within a tenth of the radius of the rim the centroid lies about 0.4 radii inward
+        // along the surface: no reading.
+        let on_rim = readings.iter().filter(|(p, _)| p.z < 0.1 * radius).count();
+        assert_eq!(on_rim, 0, "readings on the rim");
+        // A radius inside the rim the neighbourhood is whole again, and reads.
+        let inside = readings
+            .iter()
+            .filter(|(p, _)| p.z > radius && p.z < 1.5 * radius)
+            .count();
+        assert!(inside > 100, "{inside} readings a radius inside the rim");
+        // On the cube's edges (neighbours on both faces) the readings are kept, and sharp.
+        let cube = noisy_cube(60_000, noise, 11);
+        let kept: Vec<usize> = (0..cube.len()).collect();
+        let edges = sharpness_at(&cube, &kept, noise, radius)
+            .into_iter()
+            .filter(|(p, _)| {
+                let a = p.abs();
+                // Near an edge (two coordinates near 1), away from the corners.
+                let near = [a.x, a.y, a.z].iter().filter(|&&c| c > 0.97).count();
+                near == 2 && a.min_element() < 0.5
+            })
+            .map(|(_, r)| r)
+            .collect::<Vec<_>>();
+        assert!(
+            edges.len() > 20,
+            "{} readings on the cube's edges",
+            edges.len()
+        );
+        let sharp = edges.iter().filter(|&&r| r > 2.0).count();
+        assert!(
+            10 * sharp >= 9 * edges.len(),
+            "{sharp} of {} over 2",
+            edges.len()
+        );
     }
 
     #[test]
