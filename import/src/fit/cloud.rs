@@ -3711,11 +3711,17 @@ mod tests {
         // the node again, and the crease loosens the bending in full.
         assert_eq!(at(6, 2, 5), 1.0);
         assert!((at(6, 4, 5) - SHARP_BENDING_SCALE).abs() < 1e-6);
-        // Between the smooth and the sharp residual, the scale falls geometrically.
-        let halfway = vec![(
-            Vec3::new(6.0, 6.0, 6.0),
-            0.5 * (SMOOTH_RESIDUAL + SHARP_RESIDUAL),
-        )];
+        // Between the smooth and the sharp residual, the scale falls geometrically (nine
+        // readings around the node: enough, and on every side, for the rule to apply).
+        let halfway: Vec<(Vec3, f32)> = (0..9)
+            .map(|k| {
+                let (dx, dy) = ((k % 3) as f32 - 1.0, (k / 3) as f32 - 1.0);
+                (
+                    Vec3::new(6.0 + 0.5 * dx, 6.0 + 0.5 * dy, 6.0),
+                    0.5 * (SMOOTH_RESIDUAL + SHARP_RESIDUAL),
+                )
+            })
+            .collect();
         let between = bending_scale_by_sharpness(&halfway, n, 1.0)[6 + n * (6 + n * 6)];
         assert!(
             (between - SHARP_BENDING_SCALE.sqrt()).abs() < 1e-5,
