@@ -83,7 +83,8 @@ use super::lanes::{
     lanes_of_three, total,
 };
 use super::points::PointCloud;
-use super::regularised::fit_regularised;
+use super::regularised::fit_regularised_scaled;
+use super::sharpness::sharpness_at;
 use super::stage_times::StageTimes;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile};
 
@@ -116,6 +117,16 @@ pub struct CloudFitOptions {
     /// it), from `fewest` to [`CloudFitOptions::resolution`]; `None`: exactly
     /// [`CloudFitOptions::resolution`].
     pub fewest_knots_by_noise: Option<usize>,
+    /// The base fit's bending weighed per coefficient by the surface's sharpness
+    /// ([`bending_scale_by_sharpness`]); off: one weight for the whole lattice.
+    ///
+    /// NOTE: on by default and in `dynaclay import`. On the peers bench it takes the rocker
+    /// arm with outliers within 1.25× of screened Poisson's p99 (0.288% → 0.271%) and lowers
+    /// the fandisk's and the rocker arm's p99s; with no reading taken on the data's border and
+    /// the rule kept off coefficients whose readings lie on one side, the bunny's p99 at 0.25%
+    /// noise (the cap over its open base) holds at main's (bench/RESULTS.md, "The sharpness
+    /// rule kept off the caps").
+    pub bending_by_sharpness: bool,
 }
 
 impl Default for CloudFitOptions {
@@ -127,6 +138,7 @@ impl Default for CloudFitOptions {
             gap_spans: DEFAULT_GAP_SPANS,
             noise: None,
             fewest_knots_by_noise: None,
+            bending_by_sharpness: true,
         }
     }
 }
@@ -261,6 +273,10 @@ pub struct SignedCloud {
     pub signed_by: SignedBy,
     /// The wall time of each stage of [`sign_cloud`].
     pub times: StageTimes,
+    /// Per coefficient of the base lattice (x fastest): the scale of its bending weight, from
+    /// how sharp the surface is near it ([`bending_scale_by_sharpness`]); empty unless
+    /// [`CloudFitOptions::bending_by_sharpness`].
+    bending_scale: Vec<f32>,
 }
 
 /// The moving planes reach this many bandwidths (the Gaussian is `e⁻⁴` there).
@@ -440,12 +456,13 @@ impl SignedCloud {
                 at: x.to_array(),
             }));
         }
-        fit_regularised(
+        fit_regularised_scaled(
             &mut lattice,
             self.samples_per_span,
             &targets,
             &self.node_confidence,
             bending_weight(self.noise / self.spacing),
+            (!self.bending_scale.is_empty()).then_some(self.bending_scale.as_slice()),
             REGULARISED_STEPS,
         );
         Ok(lattice)
@@ -548,6 +565,21 @@ pub fn sign_cloud(
     drop((placed, order));
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
     times.record("spacing, placement, spatial order", started);
+    // How sharp the surface is near each coefficient sets how much it may bend.
+    let bending_scale = if !options.bending_by_sharpness {
+        Vec::new()
+    } else {
+        times.time("sharpness", || {
+            let every: Vec<usize> = (0..points.len()).collect();
+            let readings = sharpness_at(
+                &points,
+                &every,
+                consensus.noise * scale,
+                SHARPNESS_RADIUS_SPANS * spacing,
+            );
+            bending_scale_by_sharpness(&readings, n, spacing)
+        })
+    };
 
     // Steps 3–4: band, exterior, normals.
     let started = Instant::now();
@@ -728,6 +760,7 @@ pub fn sign_cloud(
         offset,
         signed_by,
         times: StageTimes::default(),
+        bending_scale,
     };
     // Step 6: the distance at every node, and the pieces too small to be data.
     let started = Instant::now();
@@ -808,6 +841,173 @@ pub const MIN_BENDING_SHRINK: f32 = 0.5;
 pub fn bending_weight(noise_spans: f32) -> f32 {
     let ratio = noise_spans / BENDING_NOISE_SPANS;
     BENDING_WEIGHT * (ratio * ratio).clamp(MIN_BENDING_SHRINK, MAX_BENDING_GROWTH)
+}
+
+/// The radius, in knot spans of the base lattice, over which the surface's sharpness is read
+/// ([`super::sharpness`]): a quadric over it takes a smooth patch the lattice can follow,
+/// and leaves a structured residual where an edge, a corner or a thin wall lies within it.
+pub const SHARPNESS_RADIUS_SPANS: f32 = 1.5;
+/// A reading (the quadric's residual over the noise) at most this is a smooth surface: the
+/// coefficients near it keep the whole bending weight.
+pub const SMOOTH_RESIDUAL: f32 = 1.3;
+/// A reading at least this is a sharp feature: the coefficients near it bend with
+/// [`SHARP_BENDING_SCALE`] times the weight (between the two, the scale falls geometrically).
+pub const SHARP_RESIDUAL: f32 = 2.0;
+/// The bending weight's scale where the surface is sharp.
+pub const SHARP_BENDING_SCALE: f32 = 0.25;
+/// A coefficient takes the sharpest reading within this many knot spans of its node (the
+/// cubic B-spline's support).
+pub const SHARPNESS_REACH_SPANS: f32 = 2.0;
+/// A coefficient with fewer readings within reach than this fraction of the median count
+/// (over the coefficients that have any) keeps the whole bending weight: it stands at the
+/// edge of the data (a hole's rim, a scan's border), where the bending shapes the cap.
+pub const LEAST_READINGS_FRACTION: f32 = 0.5;
+/// The readings within a coefficient's reach, offset from its node along their own surface
+/// (their centroid less its part across their least-squares plane) by at most this fraction
+/// of the reach, surround the node: the data pin the coefficient on every side, and the
+/// sharpness rule applies in full. A node over a straight rim (its data on one side) reads
+/// `4 / 3π ≈ 0.42`; one half the reach inside the data, 0.17.
+pub const SURROUNDED_OFFSET: f32 = 0.15;
+/// The readings' offset along their surface (as [`SURROUNDED_OFFSET`]) from this fraction of
+/// the reach on: the data lie on one side of the node (over or beside a hole), and the
+/// coefficient keeps the whole bending weight, since the bending alone shapes the surface on
+/// the other side (the cap). Between the two the rule's scale is taken in part
+/// (geometrically).
+pub const ONE_SIDED_OFFSET: f32 = 0.3;
+/// The fewest readings within reach whose plane tells their offset along the surface; a
+/// coefficient with fewer keeps the whole weight.
+const LEAST_READINGS_FOR_A_SIDE: u32 = 6;
+
+/// What the readings within a coefficient's reach add up to: their count, the sharpest
+/// reading, and the first and second moments of their offsets from the node (in reaches).
+#[derive(Clone, Copy, Default)]
+struct ReadingsNear {
+    count: u32,
+    sharpest: f32,
+    sum: [f32; 3],
+    /// `Σ d dᵀ`: xx, xy, xz, yy, yz, zz.
+    products: [f32; 6],
+}
+
+impl ReadingsNear {
+    fn add(&mut self, offset: Vec3, reading: f32) {
+        self.count += 1;
+        self.sharpest = self.sharpest.max(reading);
+        let d = offset.to_array();
+        for (s, v) in self.sum.iter_mut().zip(d) {
+            *s += v;
+        }
+        let [x, y, z] = d;
+        for (s, v) in self
+            .products
+            .iter_mut()
+            .zip([x * x, x * y, x * z, y * y, y * z, z * z])
+        {
+            *s += v;
+        }
+    }
+
+    /// How far (in reaches) the readings' centroid lies from the node along their
+    /// least-squares plane: about 0 where they surround it, 0.42 where a straight rim
+    /// passes under it. `None` with fewer than [`LEAST_READINGS_FOR_A_SIDE`] readings.
+    fn offset_along_surface(&self) -> Option<f32> {
+        if self.count < LEAST_READINGS_FOR_A_SIDE {
+            return None;
+        }
+        let c = f64::from(self.count);
+        let mean = self.sum.map(|v| f64::from(v) / c);
+        let [xx, xy, xz, yy, yz, zz] = self.products.map(f64::from);
+        let cov = [
+            [
+                xx / c - mean[0] * mean[0],
+                xy / c - mean[0] * mean[1],
+                xz / c - mean[0] * mean[2],
+            ],
+            [
+                xy / c - mean[1] * mean[0],
+                yy / c - mean[1] * mean[1],
+                yz / c - mean[1] * mean[2],
+            ],
+            [
+                xz / c - mean[2] * mean[0],
+                yz / c - mean[2] * mean[1],
+                zz / c - mean[2] * mean[2],
+            ],
+        ];
+        let normal = least_variance_direction(cov).as_dvec3();
+        let mean = glam::DVec3::from_array(mean);
+        Some((mean - normal * mean.dot(normal)).length() as f32)
+    }
+}
+
+/// Per coefficient of an `n`³ lattice of knot spacing `spacing` (x fastest; coefficient
+/// `(i, j, k)` at `spacing · (i, j, k)`): the scale of the bending weight, from the sharpness
+/// `readings` (position in the lattice's units, the quadric's residual over the noise)
+/// within [`SHARPNESS_REACH_SPANS`] of it. The sharpest reading within reach sets it: 1 up to
+/// [`SMOOTH_RESIDUAL`], [`SHARP_BENDING_SCALE`] from [`SHARP_RESIDUAL`], geometric between;
+/// taken in full only where the readings surround the node ([`SURROUNDED_OFFSET`]), not at all
+/// where they lie on one side of it ([`ONE_SIDED_OFFSET`]); 1 where no reading is within
+/// reach or fewer than [`LEAST_READINGS_FRACTION`] of the median count are.
+///
+/// Why: one bending weight for the whole clay rounds a part's sharp edges by what it takes
+/// to smooth its faces. The bending is a smoothing spline's weight, and its best value grows
+/// with the residual it must hold against, which is noise on a smooth face and shape at an
+/// edge; so the weight falls where the residual is shape. On the rocker arm with outliers
+/// the model→reconstruction p99 (its rounded edges) fell from 0.288% to 0.269% of the
+/// diagonal (bench/RESULTS.md, "The bending by the surface's sharpness"). But where the data
+/// lie on one side of a coefficient only, as along a hole's rim, no data hold its other side:
+/// the surface there (the cap over the hole) is what the bending makes it, and a rim that
+/// reads sharp must not loosen it (the bunny's open base: bench/RESULTS.md, "The sharpness
+/// rule kept off the caps").
+#[must_use]
+pub fn bending_scale_by_sharpness(readings: &[(Vec3, f32)], n: usize, spacing: f32) -> Vec<f32> {
+    let count = n * n * n;
+    let mut near = vec![ReadingsNear::default(); count];
+    let reach = SHARPNESS_REACH_SPANS * spacing;
+    let last = n as i64 - 1;
+    for &(p, reading) in readings {
+        let lo = ((p - reach) / spacing).ceil();
+        let hi = ((p + reach) / spacing).floor();
+        let range = |a: f32, b: f32| (a.max(0.0) as i64)..=(b as i64).min(last);
+        for k in range(lo.z, hi.z) {
+            for j in range(lo.y, hi.y) {
+                for i in range(lo.x, hi.x) {
+                    let node = Vec3::new(i as f32, j as f32, k as f32) * spacing;
+                    if (node - p).length_squared() > reach * reach {
+                        continue;
+                    }
+                    let at = i as usize + n * (j as usize + n * k as usize);
+                    near[at].add((p - node) / reach, reading);
+                }
+            }
+        }
+    }
+    let mut counts: Vec<u32> = near.iter().map(|r| r.count).filter(|&c| c > 0).collect();
+    let least = if counts.is_empty() {
+        0.0
+    } else {
+        let mid = counts.len() / 2;
+        *counts.select_nth_unstable(mid).1 as f32 * LEAST_READINGS_FRACTION
+    };
+    near.iter()
+        .map(|r| {
+            if r.count == 0 || (r.count as f32) < least {
+                return 1.0;
+            }
+            let t = ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL))
+                .clamp(0.0, 1.0);
+            if t == 0.0 {
+                return 1.0;
+            }
+            let Some(offset) = r.offset_along_surface() else {
+                return 1.0;
+            };
+            let inside = 1.0
+                - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
+                    .clamp(0.0, 1.0);
+            (SHARP_BENDING_SCALE.ln() * t * inside).exp()
+        })
+        .collect()
 }
 
 /// The base lattice's knot span, as a multiple of the noise-and-sampling scale
@@ -3471,6 +3671,62 @@ mod tests {
                 assert!(got.iter().any(|&e| e) && got.iter().any(|&e| !e));
             }
         }
+    }
+
+    #[test]
+    fn the_bending_falls_near_a_sharp_reading_and_not_on_smooth_ground_or_at_the_datas_edge() {
+        let n = 12;
+        assert!(
+            bending_scale_by_sharpness(&[], n, 1.0)
+                .iter()
+                .all(|&s| s == 1.0)
+        );
+        // A plane of readings at z = 5.5 over x, y in [2, 10]: smooth (1) but for a crease
+        // along x = 6 (3: a structured residual).
+        let mut readings = Vec::new();
+        for a in 0..=16 {
+            for b in 0..=16 {
+                let (x, y) = (2.0 + 0.5 * a as f32, 2.0 + 0.5 * b as f32);
+                let reading = if (x - 6.0).abs() < 0.3 { 3.0 } else { 1.0 };
+                readings.push((Vec3::new(x, y, 5.5), reading));
+            }
+        }
+        let scale = bending_scale_by_sharpness(&readings, n, 1.0);
+        let at = |i: usize, j: usize, k: usize| scale[i + n * (j + n * k)];
+        // On the crease, and within reach of it.
+        assert!((at(6, 6, 5) - SHARP_BENDING_SCALE).abs() < 1e-6);
+        assert!((at(7, 6, 6) - SHARP_BENDING_SCALE).abs() < 1e-6);
+        // On the smooth part, beyond reach of the crease.
+        assert_eq!(at(9, 6, 5), 1.0);
+        assert_eq!(at(3, 6, 6), 1.0);
+        // Beyond reach of every reading.
+        assert_eq!(at(6, 6, 9), 1.0);
+        // At the data's edge the crease is within reach (the reading at (6, 2), 1.8 away),
+        // but only three readings are, under half the median count (over 20): the bending
+        // is kept.
+        assert_eq!(at(6, 1, 7), 1.0);
+        // Over the rim (y = 2) the crease is within reach and enough readings are, but they
+        // all lie on one side of the node: no data hold the surface beyond the rim, and the
+        // cap keeps the whole weight. One reach (two spans) inside the data they surround
+        // the node again, and the crease loosens the bending in full.
+        assert_eq!(at(6, 2, 5), 1.0);
+        assert!((at(6, 4, 5) - SHARP_BENDING_SCALE).abs() < 1e-6);
+        // Between the smooth and the sharp residual, the scale falls geometrically (nine
+        // readings around the node: enough, and on every side, for the rule to apply).
+        let halfway: Vec<(Vec3, f32)> = (0..9)
+            .map(|k| {
+                let (dx, dy) = ((k % 3) as f32 - 1.0, (k / 3) as f32 - 1.0);
+                (
+                    Vec3::new(6.0 + 0.5 * dx, 6.0 + 0.5 * dy, 6.0),
+                    0.5 * (SMOOTH_RESIDUAL + SHARP_RESIDUAL),
+                )
+            })
+            .collect();
+        let between = bending_scale_by_sharpness(&halfway, n, 1.0)[6 + n * (6 + n * 6)];
+        assert!(
+            (between - SHARP_BENDING_SCALE.sqrt()).abs() < 1e-5,
+            "{between}"
+        );
     }
 
     #[test]

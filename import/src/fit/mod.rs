@@ -19,6 +19,7 @@ pub mod point_file;
 pub mod points;
 pub mod regularised;
 pub mod sdf;
+pub mod sharpness;
 pub mod stage_times;
 #[cfg(test)]
 mod test_boxes;

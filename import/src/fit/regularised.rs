@@ -643,10 +643,12 @@ fn weighted_normal_product(
     );
 }
 
-/// `L x = Σ_axes D₂ᵀ D₂ x` on the coefficient grid, added to `out` times `lambda`, by a
-/// scatter over the grid: the reference [`add_bending_plane`] is tested against.
+/// `L x = Σ_axes D₂ᵀ Λ D₂ x` on the coefficient grid, added to `out`, by a scatter over the
+/// grid: each row of `D₂` (the second difference centred on a coefficient) weighs `lambda`
+/// times that coefficient's entry of `scale` (1 where `scale` is `None`); the reference
+/// [`add_bending_plane`] is tested against.
 #[cfg(test)]
-fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
+fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, scale: Option<&[f64]>, out: &mut [f64]) {
     let [nx, ny, nz] = dims;
     let strides = [1, nx, nx * ny];
     for axis in 0..3 {
@@ -663,10 +665,11 @@ fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
                         continue;
                     }
                     let at = i + nx * (j + ny * k);
+                    let weight = scale.map_or(lambda, |s| lambda * s[at + st]);
                     let d = x[at] - 2.0 * x[at + st] + x[at + 2 * st];
-                    out[at] += lambda * d;
-                    out[at + st] -= 2.0 * lambda * d;
-                    out[at + 2 * st] += lambda * d;
+                    out[at] += weight * d;
+                    out[at + st] -= 2.0 * weight * d;
+                    out[at + 2 * st] += weight * d;
                 }
             }
         }
@@ -685,18 +688,33 @@ fn add_bending(x: &[f64], dims: [usize; 3], lambda: f64, out: &mut [f64]) {
 /// `perf record`, with the other core idle; a gather per entry (each entry reading the
 /// nine second differences it takes) was the same bits at 2.7 times the CPU
 /// (bench/RESULTS.md, "Import time: the idle core").
-fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: &mut [f64]) {
+fn add_bending_plane(
+    x: &[f64],
+    dims: [usize; 3],
+    lambda: f64,
+    scale: Option<&[f64]>,
+    z: usize,
+    plane: &mut [f64],
+) {
     let [nx, ny, nz] = dims;
     let area = nx * ny;
     let plane = &mut plane[..area];
     let own = &x[z * area..(z + 1) * area];
+    // The weight of the row centred on coefficient `at` (a plane's entry `k` is `z·area + k`).
+    let weight = |at: usize| scale.map_or(lambda, |s| lambda * s[at]);
     if nx >= 3 {
-        for (line, out) in own.chunks_exact(nx).zip(plane.chunks_exact_mut(nx)) {
+        for (j, (line, out)) in own
+            .chunks_exact(nx)
+            .zip(plane.chunks_exact_mut(nx))
+            .enumerate()
+        {
+            let row_start = z * area + j * nx;
             for i in 0..nx - 2 {
+                let w = weight(row_start + i + 1);
                 let d = line[i] - 2.0 * line[i + 1] + line[i + 2];
-                out[i] += lambda * d;
-                out[i + 1] -= 2.0 * lambda * d;
-                out[i + 2] += lambda * d;
+                out[i] += w * d;
+                out[i + 1] -= 2.0 * w * d;
+                out[i + 2] += w * d;
             }
         }
     }
@@ -705,16 +723,19 @@ fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: 
             let rows = &own[j * nx..(j + 3) * nx];
             let (low, rest) = plane[j * nx..(j + 3) * nx].split_at_mut(nx);
             let (mid, high) = rest.split_at_mut(nx);
+            let centre_start = z * area + (j + 1) * nx;
             for i in 0..nx {
+                let w = weight(centre_start + i);
                 let d = rows[i] - 2.0 * rows[nx + i] + rows[2 * nx + i];
-                low[i] += lambda * d;
-                mid[i] -= 2.0 * lambda * d;
-                high[i] += lambda * d;
+                low[i] += w * d;
+                mid[i] -= 2.0 * w * d;
+                high[i] += w * d;
             }
         }
     }
     if nz >= 3 {
-        // Row `r` along z starts in plane `r` and reaches planes `r + 1` and `r + 2`.
+        // Row `r` along z starts in plane `r`, is centred on plane `r + 1` and reaches plane
+        // `r + 2`.
         let row = |r: usize| {
             (
                 &x[r * area..(r + 1) * area],
@@ -724,29 +745,33 @@ fn add_bending_plane(x: &[f64], dims: [usize; 3], lambda: f64, z: usize, plane: 
         };
         if z >= 2 {
             let (a, b, c) = row(z - 2);
+            let centre = (z - 1) * area;
             for (k, value) in plane.iter_mut().enumerate() {
-                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
+                *value += weight(centre + k) * (a[k] - 2.0 * b[k] + c[k]);
             }
         }
         if z >= 1 && z + 1 < nz {
             let (a, b, c) = row(z - 1);
+            let centre = z * area;
             for (k, value) in plane.iter_mut().enumerate() {
-                *value -= 2.0 * lambda * (a[k] - 2.0 * b[k] + c[k]);
+                *value -= 2.0 * weight(centre + k) * (a[k] - 2.0 * b[k] + c[k]);
             }
         }
         if z + 2 < nz {
             let (a, b, c) = row(z);
+            let centre = (z + 1) * area;
             for (k, value) in plane.iter_mut().enumerate() {
-                *value += lambda * (a[k] - 2.0 * b[k] + c[k]);
+                *value += weight(centre + k) * (a[k] - 2.0 * b[k] + c[k]);
             }
         }
     }
 }
 
-/// The diagonal of `L`.
-fn bending_diagonal(dims: [usize; 3]) -> Vec<f64> {
+/// The diagonal of `L` (see [`add_bending`]; `scale` as there).
+fn bending_diagonal(dims: [usize; 3], scale: Option<&[f64]>) -> Vec<f64> {
     let mut e = vec![0.0; dims.iter().product()];
     let [nx, ny, _] = dims;
+    let strides = [1i64, nx as i64, (nx * ny) as i64];
     for (at, v) in e.iter_mut().enumerate() {
         let c = [at % nx, (at / nx) % ny, at / (nx * ny)];
         for axis in 0..3 {
@@ -754,11 +779,13 @@ fn bending_diagonal(dims: [usize; 3]) -> Vec<f64> {
             if n < 3 {
                 continue;
             }
-            // Rows r = c−2 ..= c of D₂ touch coefficient c with weights 1, −2, 1.
+            // Rows r = c−2 ..= c of D₂ touch coefficient c with weights 1, −2, 1; row r is
+            // centred on r + 1.
             for (offset, w) in [(2i64, 1.0), (1, 4.0), (0, 1.0)] {
                 let r = c[axis] as i64 - offset;
                 if r >= 0 && r + 2 < n {
-                    *v += w;
+                    let centre = at as i64 + (1 - offset) * strides[axis];
+                    *v += w * scale.map_or(1.0, |s| s[centre as usize]);
                 }
             }
         }
@@ -813,15 +840,48 @@ pub fn fit_regularised(
     lambda: f32,
     max_iterations: usize,
 ) -> usize {
+    fit_regularised_scaled(
+        lattice,
+        samples_per_span,
+        targets,
+        weights,
+        lambda,
+        None,
+        max_iterations,
+    )
+}
+
+/// [`fit_regularised`] with the bending weighed per coefficient: the second differences
+/// centred on coefficient `c` (x fastest) weigh `lambda · bending_scale[c]` (`lambda` alone
+/// where `bending_scale` is `None`), so the clay can be held smoother in one region than in
+/// another.
+///
+/// # Panics
+/// When `targets` or `weights` do not hold one value per sample, or `bending_scale` one per
+/// coefficient.
+pub fn fit_regularised_scaled(
+    lattice: &mut BSplineLattice,
+    samples_per_span: usize,
+    targets: &[f32],
+    weights: &[f32],
+    lambda: f32,
+    bending_scale: Option<&[f32]>,
+    max_iterations: usize,
+) -> usize {
     let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     let start = plain_fit(lattice.dims, samples_per_span, targets, threads);
     let start = start.unwrap_or_else(|| lattice.coeffs.iter().map(|&c| f64::from(c)).collect());
+    let scale: Option<Vec<f64>> = bending_scale.map(|s| {
+        assert_eq!(s.len(), start.len(), "one bending scale per coefficient");
+        s.iter().map(|&v| f64::from(v)).collect()
+    });
     regularised_from(
         lattice,
         samples_per_span,
         targets,
         weights,
         lambda,
+        scale.as_deref(),
         max_iterations,
         threads,
         start,
@@ -890,6 +950,7 @@ fn refit_regularised_on(
         targets,
         weights,
         lambda,
+        None,
         max_iterations,
         threads,
         start,
@@ -905,6 +966,7 @@ fn regularised_from(
     targets: &[f32],
     weights: &[f32],
     lambda: f32,
+    bending_scale: Option<&[f64]>,
     max_iterations: usize,
     threads: usize,
     start: Vec<f64>,
@@ -954,7 +1016,10 @@ fn regularised_from(
     // The weights as `f64` are not kept through the steps: the products convert them as
     // they weight the samples (the same values), 4 MB fewer for a 40³ fit.
     drop(w);
-    for (d, l) in diagonal.iter_mut().zip(bending_diagonal(dims)) {
+    for (d, l) in diagonal
+        .iter_mut()
+        .zip(bending_diagonal(dims, bending_scale))
+    {
         *d = (*d + lambda * l).max(1e-12);
     }
     let mut operator = |x: &[f64], out: &mut Vec<f64>| {
@@ -963,7 +1028,9 @@ fn regularised_from(
             dims,
             &bases,
             weights,
-            Some(&|z, plane: &mut [f64]| add_bending_plane(x, dims, lambda, z, plane)),
+            Some(&|z, plane: &mut [f64]| {
+                add_bending_plane(x, dims, lambda, bending_scale, z, plane)
+            }),
             threads,
             &mut passes,
             out,
@@ -1304,21 +1371,26 @@ mod tests {
             let start: Vec<f64> = (0..count)
                 .map(|i| ((i * 104_729) % 97) as f64 / 9.7 - 5.0)
                 .collect();
-            let mut scattered = start.clone();
-            add_bending(&x, dims, 0.37, &mut scattered);
-            let mut by_planes = start.clone();
-            let plane = dims[0] * dims[1];
-            for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
-                add_bending_plane(&x, dims, 0.37, z, out);
+            // The whole weight everywhere, and a weight per coefficient (uneven, some zero).
+            let scale: Vec<f64> = (0..count).map(|i| ((i * 31) % 5) as f64 / 4.0).collect();
+            for scale in [None, Some(scale.as_slice())] {
+                let mut scattered = start.clone();
+                add_bending(&x, dims, 0.37, scale, &mut scattered);
+                let mut by_planes = start.clone();
+                let plane = dims[0] * dims[1];
+                for (z, out) in by_planes.chunks_exact_mut(plane).enumerate() {
+                    add_bending_plane(&x, dims, 0.37, scale, z, out);
+                }
+                assert!(
+                    by_planes
+                        .iter()
+                        .map(|v| v.to_bits())
+                        .eq(scattered.iter().map(|v| v.to_bits())),
+                    "{dims:?}, scaled {}",
+                    scale.is_some()
+                );
+                assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
             }
-            assert!(
-                by_planes
-                    .iter()
-                    .map(|v| v.to_bits())
-                    .eq(scattered.iter().map(|v| v.to_bits())),
-                "{dims:?}"
-            );
-            assert_ne!(scattered, start, "{dims:?}: the bending added nothing");
         }
     }
 
@@ -1332,8 +1404,9 @@ mod tests {
         let coefficients: Vec<f64> = (0..dims.iter().product::<usize>())
             .map(|i| ((i * 7919) % 101) as f64 / 101.0 - 0.37)
             .collect();
-        let finish =
-            |z: usize, plane: &mut [f64]| add_bending_plane(&coefficients, dims, 0.2, z, plane);
+        let finish = |z: usize, plane: &mut [f64]| {
+            add_bending_plane(&coefficients, dims, 0.2, None, z, plane)
+        };
         for threads in [1, 2, 3] {
             let mut kept = Passes::default();
             let mut x = coefficients.clone();
@@ -1416,7 +1489,7 @@ mod tests {
                     &mut Passes::default(),
                     &mut plain_back,
                 );
-                add_bending(&coefficients, dims, 0.2, &mut plain_back);
+                add_bending(&coefficients, dims, 0.2, None, &mut plain_back);
                 assert!(
                     back.iter()
                         .map(|v| v.to_bits())
@@ -1438,7 +1511,8 @@ mod tests {
         let x: Vec<f64> = (0..dims.iter().product::<usize>())
             .map(|i| ((i * 104_729) % 89) as f64 / 89.0 - 0.52)
             .collect();
-        let bending = |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, z, plane);
+        let bending =
+            |z: usize, plane: &mut [f64]| add_bending_plane(&x, dims, 0.3, None, z, plane);
         let finishes: [Option<&PlaneFinish<'_>>; 2] = [None, Some(&bending)];
         for finish in finishes {
             let mut samples = Vec::new();
