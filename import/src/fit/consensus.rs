@@ -350,9 +350,25 @@ const PARALLEL_CHUNKS_PER_THREAD: usize = 16;
 /// in a few runs of z-planes) waited for one thread with a core's worth of work left
 /// (bench/RESULTS.md, "Import time: the work shared out").
 pub(crate) fn parallel_map<T: Send>(count: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    parallel_map_by(count, PARALLEL_LEAST_PER_THREAD, f)
+}
+
+/// Indices per thread, at least, that [`parallel_map`] starts a thread for: fewer calls of a
+/// neighbour search's cost take less time than a thread's start.
+const PARALLEL_LEAST_PER_THREAD: usize = 4096;
+
+/// [`parallel_map`] with a thread for every `least_per_thread` indices (up to the machine's
+/// cores): for calls that cost far more than a neighbour search (a quadric's fit each), of
+/// which a few hundred are worth a thread. The values are `f`'s, in order, whatever the
+/// thread count.
+pub(crate) fn parallel_map_by<T: Send>(
+    count: usize,
+    least_per_thread: usize,
+    f: impl Fn(usize) -> T + Sync,
+) -> Vec<T> {
     let threads = std::thread::available_parallelism()
         .map_or(1, std::num::NonZeroUsize::get)
-        .min(count.div_ceil(4096).max(1));
+        .min(count.div_ceil(least_per_thread.max(1)).max(1));
     if threads <= 1 {
         return (0..count).map(f).collect();
     }
@@ -1267,6 +1283,14 @@ mod tests {
         for count in [0, 1, 4095, 4097, 70_001] {
             let plain: Vec<u64> = (0..count).map(value).collect();
             assert_eq!(parallel_map(count, value), plain, "{count}");
+            // A thread for every few indices (the costly calls' split), and the smallest.
+            for least in [0, 1, 256] {
+                assert_eq!(
+                    parallel_map_by(count, least, value),
+                    plain,
+                    "{count}, {least}"
+                );
+            }
         }
     }
 

@@ -11,7 +11,7 @@
 //! sample's reading is its residual's RMS over `σ` (1 where the surface is smooth at the
 //! radius's scale).
 
-use super::consensus::{PointGrid, least_variance_direction, parallel_map};
+use super::consensus::{PointGrid, least_variance_direction, parallel_map_by};
 use glam::{DVec3, Vec3};
 
 /// Points whose neighbourhoods are read, at most (an even subset of the kept points): the
@@ -89,7 +89,8 @@ pub fn sharpness_at(points: &[Vec3], kept: &[usize], noise: f32, radius: f32) ->
     let grid = PointGrid::new(&kept_points, |_| true, radius, SHARPNESS_CELL_OFFER);
     let stride = kept_points.len().div_ceil(SHARPNESS_SAMPLES).max(1);
     let sampled = kept_points.len().div_ceil(stride);
-    parallel_map(sampled, |s| {
+    // A quadric's fit per sample: a few hundred samples are worth a thread.
+    parallel_map_by(sampled, SHARPNESS_SAMPLES_PER_THREAD, |s| {
         let p = kept_points[s * stride];
         let mut near = Vec::with_capacity(4 * SHARPNESS_CELL_OFFER);
         grid.for_each_near(p, radius, |_, q| near.push(q));
@@ -101,6 +102,12 @@ pub fn sharpness_at(points: &[Vec3], kept: &[usize], noise: f32, radius: f32) ->
     .flatten()
     .collect()
 }
+
+/// Sampled points per thread, at least, of the quadrics' fits: each fit's 6×6 normal
+/// equations and neighbour search cost far more than one neighbour search alone, so unlike
+/// [`super::consensus::parallel_map`]'s thousands, a few hundred are worth a thread (the
+/// stage on one thread was the sharpness rule's whole cost in wall time).
+const SHARPNESS_SAMPLES_PER_THREAD: usize = 256;
 
 /// A neighbourhood whose centroid lies further than this fraction of the radius from its
 /// sampled point along their least-squares plane holds the surface on one side of the point
