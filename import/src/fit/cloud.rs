@@ -565,34 +565,38 @@ pub fn sign_cloud(
     drop((placed, order));
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
     times.record("spacing, placement, spatial order", started);
-    // How sharp the surface is near each coefficient sets how much it may bend.
-    let bending_scale = if !options.bending_by_sharpness {
-        Vec::new()
-    } else {
-        times.time("sharpness", || {
-            let every: Vec<usize> = (0..points.len()).collect();
-            let readings = sharpness_at(
-                &points,
-                &every,
-                consensus.noise * scale,
-                SHARPNESS_RADIUS_SPANS * spacing,
-            );
-            bending_scale_by_sharpness(&readings, n, spacing)
-        })
-    };
-
-    // Steps 3–4: band, exterior, normals.
-    let started = Instant::now();
-    // The exterior (one thread: a flood) is found beside the band (on every thread).
-    let ((dist, nearest), exterior) = std::thread::scope(|scope| {
+    // Steps 3–4: band, exterior, normals. The exterior (one thread: a closing and a flood,
+    // from the points alone) is found beside the sharpness and the band.
+    //
+    // NOTE: beside the band alone it took a core from the band's threads; begun before the
+    // sharpness, it also takes the core the sharpness's grid and bending scales leave idle
+    // (bench/RESULTS.md, "Import time: the signing's serial stretches").
+    let (bending_scale, (dist, nearest), exterior) = std::thread::scope(|scope| {
         let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
+        // How sharp the surface is near each coefficient sets how much it may bend.
+        let bending_scale = if !options.bending_by_sharpness {
+            Vec::new()
+        } else {
+            times.time("sharpness", || {
+                let every: Vec<usize> = (0..points.len()).collect();
+                let readings = sharpness_at(
+                    &points,
+                    &every,
+                    consensus.noise * scale,
+                    SHARPNESS_RADIUS_SPANS * spacing,
+                );
+                bending_scale_by_sharpness(&readings, n, spacing)
+            })
+        };
+
+        let started = Instant::now();
         let band = grid.band_distances(&points, BAND_SPANS * spacing);
         let exterior = exterior
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
-        (band, exterior)
+        times.record("band beside exterior", started);
+        (bending_scale, band, exterior)
     });
-    times.record("band beside exterior", started);
     let started = Instant::now();
     let given = cloud
         .normals
@@ -699,11 +703,15 @@ pub fn sign_cloud(
     let (anchors, planes_at_points): (Vec<Vec3>, Vec<(f32, f32)>) = anchored.into_iter().unzip();
     times.record("anchors", started);
     let started = Instant::now();
-    let nearest: Vec<u32> = nearest
-        .into_iter()
-        .zip(&dist)
-        .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
-        .collect();
+    // The passes over every node below on every core (one thread left the other core idle
+    // for a few milliseconds each).
+    let nearest: Vec<u32> = parallel_map(nearest.len(), |at| {
+        if dist[at].is_finite() {
+            nearest[at]
+        } else {
+            NO_POINT
+        }
+    });
     // A node whose nearest point (exact within the band; none within it means none nearer
     // than the band) is beyond a point's reach is not within the reach of that point's
     // plane, nor any other's with the same bandwidth: its search among them would find
@@ -716,18 +724,16 @@ pub fn sign_cloud(
             band >= reach * margin
         }
     };
-    let reached: Vec<Reached> = dist
-        .iter()
-        .map(|&d| {
-            if beyond(d, MOVING_REACH * widest) {
-                Reached::None
-            } else if beyond(d, MOVING_REACH * bandwidth) {
-                Reached::Widened
-            } else {
-                Reached::Every
-            }
-        })
-        .collect();
+    let reached: Vec<Reached> = parallel_map(dist.len(), |at| {
+        let d = dist[at];
+        if beyond(d, MOVING_REACH * widest) {
+            Reached::None
+        } else if beyond(d, MOVING_REACH * bandwidth) {
+            Reached::Widened
+        } else {
+            Reached::Every
+        }
+    });
     drop(dist);
     times.record("nodes' reach", started);
     let count = grid.count();
@@ -989,25 +995,27 @@ pub fn bending_scale_by_sharpness(readings: &[(Vec3, f32)], n: usize, spacing: f
         let mid = counts.len() / 2;
         *counts.select_nth_unstable(mid).1 as f32 * LEAST_READINGS_FRACTION
     };
-    near.iter()
-        .map(|r| {
-            if r.count == 0 || (r.count as f32) < least {
-                return 1.0;
-            }
-            let t = ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL))
+    // NOTE: on every core: on one, the scales took a 50 000-point import's main thread
+    // some 8 ms, the other core idle (bench/RESULTS.md, "Import time: the signing's serial
+    // stretches").
+    parallel_map(count, |at| {
+        let r = &near[at];
+        if r.count == 0 || (r.count as f32) < least {
+            return 1.0;
+        }
+        let t =
+            ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL)).clamp(0.0, 1.0);
+        if t == 0.0 {
+            return 1.0;
+        }
+        let Some(offset) = r.offset_along_surface() else {
+            return 1.0;
+        };
+        let inside = 1.0
+            - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
                 .clamp(0.0, 1.0);
-            if t == 0.0 {
-                return 1.0;
-            }
-            let Some(offset) = r.offset_along_surface() else {
-                return 1.0;
-            };
-            let inside = 1.0
-                - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
-                    .clamp(0.0, 1.0);
-            (SHARP_BENDING_SCALE.ln() * t * inside).exp()
-        })
-        .collect()
+        (SHARP_BENDING_SCALE.ln() * t * inside).exp()
+    })
 }
 
 /// The base lattice's knot span, as a multiple of the noise-and-sampling scale

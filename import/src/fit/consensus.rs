@@ -87,7 +87,17 @@ impl PointGrid {
     /// when the box would need more than [`MAX_GRID_CELLS`]); each cell keeps an even subset
     /// of at most `offer` of its points.
     #[must_use]
-    pub fn new(points: &[Vec3], keep: impl Fn(usize) -> bool, cell: f32, offer: usize) -> Self {
+    ///
+    /// NOTE: each kept point's cube is found once, on every core, and read by the three
+    /// counting passes that follow on one thread; each pass found it again, and the grids'
+    /// builds were the screening's longest stretch on one thread (bench/RESULTS.md, "Import
+    /// time: the signing's serial stretches").
+    pub fn new(
+        points: &[Vec3],
+        keep: impl Fn(usize) -> bool + Sync,
+        cell: f32,
+        offer: usize,
+    ) -> Self {
         let (lo, hi) = points
             .iter()
             .enumerate()
@@ -104,11 +114,19 @@ impl PointGrid {
         let (cell, d) = (cubes.cell, cubes.dims);
         let dims = [d.x, d.y, d.z];
         let cells = cubes.count();
-        let index_of = |p: Vec3| cubes.cube_of(p);
-        let mut counts = vec![0u32; cells + 1];
-        for (i, &p) in points.iter().enumerate() {
+        // Each point's cube, or `DROPPED` where it is not kept.
+        const DROPPED: u32 = u32::MAX;
+        let cube: Vec<u32> = parallel_map(points.len(), |i| {
             if keep(i) {
-                counts[index_of(p) + 1] += 1;
+                cubes.cube_of(points[i]) as u32
+            } else {
+                DROPPED
+            }
+        });
+        let mut counts = vec![0u32; cells + 1];
+        for &c in &cube {
+            if c != DROPPED {
+                counts[c as usize + 1] += 1;
             }
         }
         // Each cell offers at most `offer`: the points are taken with a stride.
@@ -118,9 +136,9 @@ impl PointGrid {
             .collect();
         let mut seen = vec![0u32; cells];
         let mut offered = vec![0u32; cells + 1];
-        for (i, &p) in points.iter().enumerate() {
-            if keep(i) {
-                let c = index_of(p);
+        for &c in &cube {
+            if c != DROPPED {
+                let c = c as usize;
                 if seen[c].is_multiple_of(strides[c]) {
                     offered[c + 1] += 1;
                 }
@@ -133,9 +151,9 @@ impl PointGrid {
         let mut members = vec![0u32; offered[cells] as usize];
         let mut fill = offered.clone();
         seen.fill(0);
-        for (i, &p) in points.iter().enumerate() {
-            if keep(i) {
-                let c = index_of(p);
+        for (i, &c) in cube.iter().enumerate() {
+            if c != DROPPED {
+                let c = c as usize;
                 if seen[c].is_multiple_of(strides[c]) {
                     members[fill[c] as usize] = i as u32;
                     fill[c] += 1;
@@ -846,9 +864,16 @@ fn planes_and_noise(
         let mid = rms.len() / 2;
         *rms.select_nth_unstable_by(mid, f32::total_cmp).1
     };
-    let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
-    // The planes are fitted in the grid's order (each is the same in any order).
-    let order = spatial_order(points, radius);
+    // The planes are fitted in the grid's order (each is the same in any order), found
+    // beside the grid (both on one thread but for the grid's cubes).
+    let (grid, order) = std::thread::scope(|scope| {
+        let order = scope.spawn(|| spatial_order(points, radius));
+        let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
+        let order = order
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (grid, order)
+    });
     let (mut planes, mut sigma) = match noise {
         Some(sigma) => (fit_planes(points, &grid, &order, radius, 0), sigma),
         None => {
