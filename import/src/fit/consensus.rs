@@ -1320,6 +1320,45 @@ mod tests {
     }
 
     #[test]
+    fn the_grid_holds_each_cells_kept_points_by_stride_in_index_order() {
+        // A noisy sheet of 40 000 points (enough for the cubes to be found on several
+        // threads), some points left out, each cell offering at most 3: per cell, the kept
+        // points in index order, every stride-th of them, as a plain scan of each cell finds.
+        let points = noisy_square(200, 0.3);
+        assert!(points.len() > 2 * PARALLEL_LEAST_PER_THREAD);
+        let keep = |i: usize| i % 7 != 3;
+        let (cell, offer) = (2.5, 3);
+        let grid = PointGrid::new(&points, keep, cell, offer);
+        let kept: Vec<usize> = (0..points.len()).filter(|&i| keep(i)).collect();
+        let (lo, hi) = kept
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &i| {
+                (a.min(points[i]), b.max(points[i]))
+            });
+        let cubes = Cubes::covering(lo, hi, cell);
+        assert_eq!(grid.starts.len(), cubes.count() + 1);
+        let mut cells: Vec<Vec<usize>> = vec![Vec::new(); cubes.count()];
+        for &i in &kept {
+            cells[cubes.cube_of(points[i])].push(i);
+        }
+        let mut offered_anywhere = 0;
+        for (c, in_cell) in cells.iter().enumerate() {
+            let stride = in_cell.len().div_ceil(offer).max(1);
+            let expected: Vec<u32> = in_cell.iter().step_by(stride).map(|&i| i as u32).collect();
+            let held = &grid.members[grid.starts[c] as usize..grid.starts[c + 1] as usize];
+            assert_eq!(held, expected.as_slice(), "cell {c}");
+            offered_anywhere += expected.len();
+        }
+        assert_eq!(grid.members.len(), offered_anywhere);
+        for (slot, &i) in grid.members.iter().enumerate() {
+            assert_eq!(grid.positions[slot], points[i as usize]);
+        }
+        // Some cells held more than they offer, and the left-out points are in none.
+        assert!(offered_anywhere < kept.len());
+        assert!(grid.members.iter().all(|&i| keep(i as usize)));
+    }
+
+    #[test]
     fn a_radius_search_visits_exactly_the_points_within_reach_in_the_grid_order() {
         // A noisy sheet, searched at points on it, off it and outside its box, at radii up to
         // two and a half cell sides: the visits are the points within the radius, each once,
