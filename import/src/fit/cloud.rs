@@ -1662,7 +1662,10 @@ impl SignedCloud {
     /// the largest (their nodes are turned outside) and fills the cavities as small (turned
     /// inside): a blob or a bubble that size is noise the data does not support.
     fn remove_small_pieces(&mut self) {
-        let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
+        // The passes over every node on every core (on one, a few milliseconds each with the
+        // other core idle).
+        let inside: Vec<bool> =
+            parallel_map(self.node_distance.len(), |at| self.node_distance[at] < 0.0);
         // The pieces and the holes are labelled side by side (each is one thread's flood).
         let ((pieces, piece_sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
             let holes = scope.spawn(|| self.grid.components(|at| !inside[at]));
@@ -1677,18 +1680,20 @@ impl SignedCloud {
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
         let open = self.grid.boundary_components(&holes, hole_sizes.len());
-        for (at, forced) in self.forced.iter_mut().enumerate() {
+        let forced = parallel_map(self.forced.len(), |at| {
             if inside[at] {
                 if piece_sizes[pieces[at] as usize] < least {
-                    *forced = 1;
+                    return 1;
                 }
             } else {
                 let h = holes[at] as usize;
                 if !open[h] && hole_sizes[h] < least {
-                    *forced = -1;
+                    return -1;
                 }
             }
-        }
+            self.forced[at]
+        });
+        self.forced = forced;
         self.removed_pieces = piece_sizes.iter().filter(|&&s| s < least).count();
         self.filled_cavities = hole_sizes
             .iter()
@@ -1750,7 +1755,8 @@ impl SignGrid {
     }
 
     /// Distance from each node within `band` of a point to its nearest point (infinite
-    /// elsewhere), and that point's index (the lowest of equally near points).
+    /// elsewhere), and that point's index (the lowest of equally near points). Fastest with
+    /// `points` in [`SignGrid::spatial_order`] (the same result in any order).
     fn band_distances(&self, points: &[Vec3], band: f32) -> (Vec<f32>, Vec<u32>) {
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
         self.band_distances_on(points, band, threads)
@@ -1776,7 +1782,11 @@ impl SignGrid {
         let slabs = (threads * BAND_SLABS_PER_THREAD).min(self.dims[2]);
         let planes_per_slab = self.dims[2].div_ceil(slabs);
         let slab = planes_per_slab * plane;
-        let order = self.spatial_order(points);
+        // NOTE: the signing's points are in the grid's spatial order already (ordered by
+        // [`SignGrid::spatial_order`] when placed), where ordering them again gives them back
+        // as they are, on one thread while the other cores waited: they are visited as given
+        // (any order gives the same result).
+        let order: Vec<u32> = (0..points.len() as u32).collect();
         let pending = std::sync::Mutex::new(
             squared
                 .chunks_mut(slab)
@@ -3499,6 +3509,12 @@ mod tests {
                 .zip(&dist)
                 .all(|(a, b)| a.sqrt().to_bits() == b.to_bits())
         );
+        // Points put in the spatial order (as the signing places them) are in it: the band
+        // visits them as given, in the order it would have put them in.
+        assert!(order.iter().enumerate().any(|(i, &k)| k as usize != i));
+        let placed: Vec<Vec3> = order.iter().map(|&k| points[k as usize]).collect();
+        let again = grid.spatial_order(&placed);
+        assert!(again.iter().enumerate().all(|(i, &k)| k as usize == i));
     }
 
     #[test]
