@@ -703,15 +703,11 @@ pub fn sign_cloud(
     let (anchors, planes_at_points): (Vec<Vec3>, Vec<(f32, f32)>) = anchored.into_iter().unzip();
     times.record("anchors", started);
     let started = Instant::now();
-    // The passes over every node below on every core (one thread left the other core idle
-    // for a few milliseconds each).
-    let nearest: Vec<u32> = parallel_map(nearest.len(), |at| {
-        if dist[at].is_finite() {
-            nearest[at]
-        } else {
-            NO_POINT
-        }
-    });
+    let nearest: Vec<u32> = nearest
+        .into_iter()
+        .zip(&dist)
+        .map(|(p, d)| if d.is_finite() { p } else { NO_POINT })
+        .collect();
     // A node whose nearest point (exact within the band; none within it means none nearer
     // than the band) is beyond a point's reach is not within the reach of that point's
     // plane, nor any other's with the same bandwidth: its search among them would find
@@ -724,16 +720,18 @@ pub fn sign_cloud(
             band >= reach * margin
         }
     };
-    let reached: Vec<Reached> = parallel_map(dist.len(), |at| {
-        let d = dist[at];
-        if beyond(d, MOVING_REACH * widest) {
-            Reached::None
-        } else if beyond(d, MOVING_REACH * bandwidth) {
-            Reached::Widened
-        } else {
-            Reached::Every
-        }
-    });
+    let reached: Vec<Reached> = dist
+        .iter()
+        .map(|&d| {
+            if beyond(d, MOVING_REACH * widest) {
+                Reached::None
+            } else if beyond(d, MOVING_REACH * bandwidth) {
+                Reached::Widened
+            } else {
+                Reached::Every
+            }
+        })
+        .collect();
     drop(dist);
     times.record("nodes' reach", started);
     let count = grid.count();
@@ -995,27 +993,25 @@ pub fn bending_scale_by_sharpness(readings: &[(Vec3, f32)], n: usize, spacing: f
         let mid = counts.len() / 2;
         *counts.select_nth_unstable(mid).1 as f32 * LEAST_READINGS_FRACTION
     };
-    // NOTE: on every core: on one, the scales took a 50 000-point import's main thread
-    // some 8 ms, the other core idle (bench/RESULTS.md, "Import time: the signing's serial
-    // stretches").
-    parallel_map(count, |at| {
-        let r = &near[at];
-        if r.count == 0 || (r.count as f32) < least {
-            return 1.0;
-        }
-        let t =
-            ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL)).clamp(0.0, 1.0);
-        if t == 0.0 {
-            return 1.0;
-        }
-        let Some(offset) = r.offset_along_surface() else {
-            return 1.0;
-        };
-        let inside = 1.0
-            - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
+    near.iter()
+        .map(|r| {
+            if r.count == 0 || (r.count as f32) < least {
+                return 1.0;
+            }
+            let t = ((r.sharpest - SMOOTH_RESIDUAL) / (SHARP_RESIDUAL - SMOOTH_RESIDUAL))
                 .clamp(0.0, 1.0);
-        (SHARP_BENDING_SCALE.ln() * t * inside).exp()
-    })
+            if t == 0.0 {
+                return 1.0;
+            }
+            let Some(offset) = r.offset_along_surface() else {
+                return 1.0;
+            };
+            let inside = 1.0
+                - ((offset - SURROUNDED_OFFSET) / (ONE_SIDED_OFFSET - SURROUNDED_OFFSET))
+                    .clamp(0.0, 1.0);
+            (SHARP_BENDING_SCALE.ln() * t * inside).exp()
+        })
+        .collect()
 }
 
 /// The base lattice's knot span, as a multiple of the noise-and-sampling scale
@@ -1662,10 +1658,7 @@ impl SignedCloud {
     /// the largest (their nodes are turned outside) and fills the cavities as small (turned
     /// inside): a blob or a bubble that size is noise the data does not support.
     fn remove_small_pieces(&mut self) {
-        // The passes over every node on every core (on one, a few milliseconds each with the
-        // other core idle).
-        let inside: Vec<bool> =
-            parallel_map(self.node_distance.len(), |at| self.node_distance[at] < 0.0);
+        let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
         // The pieces and the holes are labelled side by side (each is one thread's flood).
         let ((pieces, piece_sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
             let holes = scope.spawn(|| self.grid.components(|at| !inside[at]));
@@ -1680,20 +1673,18 @@ impl SignedCloud {
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
         let open = self.grid.boundary_components(&holes, hole_sizes.len());
-        let forced = parallel_map(self.forced.len(), |at| {
+        for (at, forced) in self.forced.iter_mut().enumerate() {
             if inside[at] {
                 if piece_sizes[pieces[at] as usize] < least {
-                    return 1;
+                    *forced = 1;
                 }
             } else {
                 let h = holes[at] as usize;
                 if !open[h] && hole_sizes[h] < least {
-                    return -1;
+                    *forced = -1;
                 }
             }
-            self.forced[at]
-        });
-        self.forced = forced;
+        }
         self.removed_pieces = piece_sizes.iter().filter(|&&s| s < least).count();
         self.filled_cavities = hole_sizes
             .iter()

@@ -88,16 +88,12 @@ impl PointGrid {
     /// of at most `offer` of its points.
     #[must_use]
     ///
-    /// NOTE: each kept point's cube is found once, on every core, and read by the three
-    /// counting passes that follow on one thread; each pass found it again, and the grids'
-    /// builds were the screening's longest stretch on one thread (bench/RESULTS.md, "Import
-    /// time: the signing's serial stretches").
-    pub fn new(
-        points: &[Vec3],
-        keep: impl Fn(usize) -> bool + Sync,
-        cell: f32,
-        offer: usize,
-    ) -> Self {
+    /// NOTE: each kept point's cube is found once and read by the three counting passes that
+    /// follow; each pass found it again, and the grids' builds were the screening's longest
+    /// stretch on one thread (bench/RESULTS.md, "Import time: the signing's serial
+    /// stretches"). Found on every core, the cubes took longer on a loaded machine (a
+    /// thread's start waits for a core) than they saved on an idle one.
+    pub fn new(points: &[Vec3], keep: impl Fn(usize) -> bool, cell: f32, offer: usize) -> Self {
         let (lo, hi) = points
             .iter()
             .enumerate()
@@ -116,13 +112,17 @@ impl PointGrid {
         let cells = cubes.count();
         // Each point's cube, or `DROPPED` where it is not kept.
         const DROPPED: u32 = u32::MAX;
-        let cube: Vec<u32> = parallel_map(points.len(), |i| {
-            if keep(i) {
-                cubes.cube_of(points[i]) as u32
-            } else {
-                DROPPED
-            }
-        });
+        let cube: Vec<u32> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| {
+                if keep(i) {
+                    cubes.cube_of(p) as u32
+                } else {
+                    DROPPED
+                }
+            })
+            .collect();
         let mut counts = vec![0u32; cells + 1];
         for &c in &cube {
             if c != DROPPED {
@@ -1321,11 +1321,10 @@ mod tests {
 
     #[test]
     fn the_grid_holds_each_cells_kept_points_by_stride_in_index_order() {
-        // A noisy sheet of 40 000 points (enough for the cubes to be found on several
-        // threads), some points left out, each cell offering at most 3: per cell, the kept
-        // points in index order, every stride-th of them, as a plain scan of each cell finds.
+        // A noisy sheet of 40 000 points, some left out, each cell offering at most 3: per
+        // cell, the kept points in index order, every stride-th of them, as a plain scan of
+        // each cell finds.
         let points = noisy_square(200, 0.3);
-        assert!(points.len() > 2 * PARALLEL_LEAST_PER_THREAD);
         let keep = |i: usize| i % 7 != 3;
         let (cell, offer) = (2.5, 3);
         let grid = PointGrid::new(&points, keep, cell, offer);
