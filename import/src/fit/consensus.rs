@@ -86,13 +86,13 @@ impl PointGrid {
     /// `points` (those where `keep` holds) bucketed in cubes of side `cell` at least (larger
     /// when the box would need more than [`MAX_GRID_CELLS`]); each cell keeps an even subset
     /// of at most `offer` of its points.
-    #[must_use]
     ///
     /// NOTE: each kept point's cube is found once and read by the three counting passes that
     /// follow; each pass found it again, and the grids' builds were the screening's longest
     /// stretch on one thread (bench/RESULTS.md, "Import time: the signing's serial
     /// stretches"). Found on every core, the cubes took longer on a loaded machine (a
     /// thread's start waits for a core) than they saved on an idle one.
+    #[must_use]
     pub fn new(points: &[Vec3], keep: impl Fn(usize) -> bool, cell: f32, offer: usize) -> Self {
         let (lo, hi) = points
             .iter()
@@ -864,8 +864,8 @@ fn planes_and_noise(
         let mid = rms.len() / 2;
         *rms.select_nth_unstable_by(mid, f32::total_cmp).1
     };
-    // The planes are fitted in the grid's order (each is the same in any order), found
-    // beside the grid (both on one thread but for the grid's cubes).
+    // The planes are fitted in the grid's order (each is the same in any order), found on a
+    // thread of its own beside the grid's build (both were on the main thread in turn).
     let (grid, order) = std::thread::scope(|scope| {
         let order = scope.spawn(|| spatial_order(points, radius));
         let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
