@@ -4,15 +4,18 @@
 //! times. Prints the best and median time of one local re-mesh with its mesh copy, and of
 //! one whole mesh, for a quick look; the figures that count come from the criterion bench.
 //!
-//! Run: `cargo bench --bench profile_adaptive -- [rounds] [local] [cells_per_span] [cut]`
-//! (with `local`, the whole mesh is not timed: for a profile of the local path; with a cells
-//! per span, the mesher meshes at that many, 2 by default; with `cut`, the local re-mesh is
-//! the graphics loop's, cut into an octree's bricks on the grid of the engine's cells per
-//! span, as `bench/mesh.rs` `graphics_stroke` times it).
+//! Run: `cargo bench --bench profile_adaptive -- [rounds] [local] [cells_per_span] [cut]
+//! [window]` (with `local`, the whole mesh is not timed: for a profile of the local path; with
+//! a cells per span, the mesher meshes every level at that many, 2 by default; with `cut`, the
+//! local re-mesh is the graphics loop's, cut into an octree's bricks on the grid of the
+//! engine's cells per span, as `bench/mesh.rs` `graphics_stroke` times it; with `window`, the
+//! cells per span are the base's and the detail patches take the graphics loop's share of
+//! them, `dynaclay::engine::level_mesh_options`).
 
 use std::hint::black_box;
 use std::time::Instant;
 
+use dynaclay::engine::level_mesh_options;
 use dynaclay::mesh::{
     AdaptiveBricks, AdaptiveMeshOptions, AdaptiveMesher, BrickOctree, SampleGrid, mesh_adaptive,
 };
@@ -40,11 +43,18 @@ fn main() {
     let local_only = words.get(1).is_some_and(|a| a == "local");
     let cells_per_span: u32 = words.get(2).and_then(|s| s.parse().ok()).unwrap_or(2);
     let cut = words.get(3).is_some_and(|a| a == "cut");
+    let window = words.get(4).is_some_and(|a| a == "window");
     let (before, after, (lo, hi)) = three_level_clay();
-    let options = AdaptiveMeshOptions {
-        cells_per_span,
-        ..AdaptiveMeshOptions::default()
+    let options = if window {
+        level_mesh_options(cells_per_span)
+    } else {
+        AdaptiveMeshOptions {
+            cells_per_span,
+            detail_cells_per_span: cells_per_span,
+            ..AdaptiveMeshOptions::default()
+        }
     };
+    println!("options: {options:?}");
     let mut local_ms = Vec::with_capacity(rounds);
     if cut {
         let grid = SampleGrid::for_field(&before, cells_per_span).expect("grid");

@@ -51,6 +51,7 @@ fn exported(field: &MultiPatchField, dir: &std::path::Path, name: &str) -> Mesh 
     } else {
         let options = AdaptiveMeshOptions {
             cells_per_span: 4,
+            detail_cells_per_span: 4,
             ..AdaptiveMeshOptions::default()
         };
         mesh_adaptive(field, &options).unwrap()

@@ -465,12 +465,23 @@ impl GraphicsStage {
     }
 }
 
-/// The multi-level mesher's options for the stage: `cells_per_span` per knot span of each
-/// level (at least the two it needs) and its default cell budget.
+/// The multi-level mesher's options for the stage: `cells_per_span` per knot span of the
+/// base, half as many per knot span of a detail patch (at least the two every level needs),
+/// and its default cell budget.
+///
+/// Why half on detail: a level-1 patch's span is half the base's, so at half the cells per
+/// span its cells are the base's size, and each finer level's are half the coarser's: the
+/// detail is never drawn coarser than the base, and each level is sampled at least twice per
+/// knot span, as the export samples every level. At the window's 4 cells per base span, the
+/// full 4 on a level-3 patch would be 32 cells per base span, and a stroke's local re-mesh
+/// there, where strokes happen, does four times the work per span for relief its spline
+/// resolves at two (`bench/RESULTS.md`, "The window's detail at two cells per span").
 #[must_use]
 pub fn level_mesh_options(cells_per_span: u32) -> AdaptiveMeshOptions {
+    let cells_per_span = cells_per_span.max(2);
     AdaptiveMeshOptions {
-        cells_per_span: cells_per_span.max(2),
+        cells_per_span,
+        detail_cells_per_span: (cells_per_span / 2).max(2),
         ..AdaptiveMeshOptions::default()
     }
 }

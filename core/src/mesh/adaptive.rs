@@ -6,8 +6,9 @@
 //! finest cell. A node is split while the field may cross the iso-level inside it (by the
 //! convex-hull bound of [`super::ScalarField::bounds`], and a bound on the patches' slopes
 //! over the node; a node the bounds show wholly inside or outside stays a leaf) and its edge
-//! is longer than the target at the node: the smallest `world spacing / cells_per_span` of
-//! the patches whose support meets it. Every leaf's edge is the root's divided by a power of
+//! is longer than the target at the node: the smallest `world spacing / cells per span` of
+//! the patches whose support meets it (the base's and the detail patches' cells per span are
+//! set apart, [`AdaptiveMeshOptions`]). Every leaf's edge is the root's divided by a power of
 //! two, so every leaf corner lies on the integer lattice of the finest cell; corner samples
 //! are keyed by those integer coordinates and taken once, so two leaves that share a corner
 //! see the same value.
@@ -90,21 +91,29 @@ use crate::field::{MultiPatchField, Patch, larger, shared_ends, smaller};
 /// Most levels below the root: corner coordinates then fit in 21 bits per axis.
 pub const MAX_ADAPTIVE_DEPTH: u32 = 20;
 
-/// How finely [`mesh_adaptive`] meshes.
+/// How finely [`mesh_adaptive`] meshes: a region is meshed at the smallest target cell of
+/// the patches covering it, a patch's target being its knot spacing over its cells per span.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AdaptiveMeshOptions {
-    /// Cells per knot span of the finest patch covering a region; at least 2.
+    /// Cells per knot span of the base patch (the field's first); at least 2.
     pub cells_per_span: u32,
+    /// Cells per knot span of each detail patch (every patch after the first); at least 2.
+    /// The window meshes detail at fewer cells per span than the base (see
+    /// `dynaclay_engine::level_mesh_options`): a finer level's span is already half its
+    /// coarser one's, so its cells stay finer than the base's while its stroke-sized
+    /// re-mesh does a quarter of the work per span.
+    pub detail_cells_per_span: u32,
     /// Most leaf cells the octree may hold; the mesher refuses with
     /// [`AdaptiveMeshError::OverBudget`] before it would split beyond this.
     pub max_cells: usize,
 }
 
 impl Default for AdaptiveMeshOptions {
-    /// Two cells per span, at most 4 Mi leaves.
+    /// Two cells per span on every patch, at most 4 Mi leaves.
     fn default() -> Self {
         Self {
             cells_per_span: 2,
+            detail_cells_per_span: 2,
             max_cells: 1 << 22,
         }
     }
@@ -113,7 +122,7 @@ impl Default for AdaptiveMeshOptions {
 /// Why an adaptive mesh could not be made.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum AdaptiveMeshError {
-    /// `cells_per_span` was below 2.
+    /// `cells_per_span` or `detail_cells_per_span` was below 2.
     #[error("cells per span must be at least 2, not {cells_per_span}")]
     CellsPerSpan {
         /// The value asked for.
@@ -1538,22 +1547,28 @@ impl Tree {
         field: &MultiPatchField,
         options: &AdaptiveMeshOptions,
     ) -> Result<Self, AdaptiveMeshError> {
-        if options.cells_per_span < 2 {
+        let least = options.cells_per_span.min(options.detail_cells_per_span);
+        if least < 2 {
             return Err(AdaptiveMeshError::CellsPerSpan {
-                cells_per_span: options.cells_per_span,
+                cells_per_span: least,
             });
         }
         if field.patches.is_empty() {
             return Err(AdaptiveMeshError::EmptyField);
         }
-        let per_span = options.cells_per_span as f32;
         // Each patch's world support and target cell.
         let targets: Vec<(Vec3, Vec3, f32)> = field
             .patches
             .iter()
-            .map(|p| {
+            .enumerate()
+            .map(|(n, p)| {
                 let (lo, hi) = p.world_support();
-                (lo, hi, p.world_spacing() / per_span)
+                let per_span = if n == 0 {
+                    options.cells_per_span
+                } else {
+                    options.detail_cells_per_span
+                };
+                (lo, hi, p.world_spacing() / per_span as f32)
             })
             .collect();
         let usable = |&(lo, hi, t): &(Vec3, Vec3, f32)| {
@@ -2443,6 +2458,7 @@ pub(super) mod tests {
     fn options(cells_per_span: u32) -> AdaptiveMeshOptions {
         AdaptiveMeshOptions {
             cells_per_span,
+            detail_cells_per_span: cells_per_span,
             max_cells: 4_000_000,
         }
     }
@@ -2512,6 +2528,44 @@ pub(super) mod tests {
             .unwrap();
         field.fit_detail(l2, 2, target).unwrap();
         field
+    }
+
+    #[test]
+    fn detail_patches_are_meshed_at_their_own_cells_per_span() {
+        let field = three_levels();
+        let window = AdaptiveMeshOptions {
+            cells_per_span: 4,
+            detail_cells_per_span: 2,
+            ..options(4)
+        };
+        let e = extract(&field, &window).unwrap();
+        let s = closed(&e.mesh);
+        assert_eq!(s.euler_characteristic, 2, "{s:?}");
+        // The base at a quarter span; level 1 at half its half span, the base's cell; level 2
+        // at half its quarter span.
+        let (base, fine) = (SPACING / 4.0, SPACING / 8.0);
+        assert_eq!(sizes(&e.vertex_cells), vec![fine, base]);
+        let in_fine = |p: Vec3| p.x >= 0.3 && p.x <= 0.7 && p.y.abs() <= 0.15 && p.z.abs() <= 0.15;
+        let mut fine_vertices = 0;
+        for (p, c) in e.mesh.positions.iter().zip(&e.vertex_cells) {
+            if p.x < -0.25 {
+                assert_eq!(*c, base, "base vertex at {p}");
+            }
+            if in_fine(*p) && field.patches[2].value(*p).abs() > 10.0 * DETAIL_EPSILON {
+                assert_eq!(*c, fine, "vertex at {p}, where level 2 holds detail");
+            }
+            fine_vertices += usize::from(in_fine(*p) && *c == fine);
+        }
+        assert!(
+            fine_vertices > 50,
+            "{fine_vertices} vertices at level 2's cell"
+        );
+        assert!(worst_surface_offset(&field, &e) < 0.5);
+
+        // Every level at the base's cells per span meshes level 2 twice as finely per axis.
+        let uniform = extract(&field, &options(4)).unwrap();
+        assert_eq!(sizes(&uniform.vertex_cells), vec![fine / 2.0, fine, base]);
+        assert!(e.mesh.positions.len() < uniform.mesh.positions.len());
     }
 
     #[test]
@@ -2643,6 +2697,7 @@ pub(super) mod tests {
         let needed = adaptive_cell_count(&field, &options(2)).unwrap();
         let tight = AdaptiveMeshOptions {
             cells_per_span: 2,
+            detail_cells_per_span: 2,
             max_cells: needed - 1,
         };
         match mesh_adaptive(&field, &tight) {
@@ -2664,6 +2719,7 @@ pub(super) mod tests {
         // refused after a few thousand leaves, not after allocating them.
         let absurd = AdaptiveMeshOptions {
             cells_per_span: 4096,
+            detail_cells_per_span: 4096,
             max_cells: 10_000,
         };
         assert!(matches!(
@@ -2688,6 +2744,16 @@ pub(super) mod tests {
                 &field,
                 &AdaptiveMeshOptions {
                     cells_per_span: 1,
+                    ..tight
+                }
+            ),
+            Err(AdaptiveMeshError::CellsPerSpan { cells_per_span: 1 })
+        );
+        assert_eq!(
+            mesh_adaptive(
+                &field,
+                &AdaptiveMeshOptions {
+                    detail_cells_per_span: 1,
                     ..tight
                 }
             ),

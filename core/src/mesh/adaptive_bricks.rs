@@ -329,6 +329,7 @@ mod tests {
     fn options() -> AdaptiveMeshOptions {
         AdaptiveMeshOptions {
             cells_per_span: 2,
+            detail_cells_per_span: 2,
             max_cells: 4_000_000,
         }
     }
