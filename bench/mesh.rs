@@ -470,7 +470,8 @@ const ENGINE_CELLS_PER_SPAN: u32 = 4;
 /// cut again. Both alternate the stroke and its undo and return the bricks for the sink.
 /// Before timing, the cut bricks are checked to weld into the whole multi-level mesh. For
 /// the split of the cost: the mesher's local re-mesh alone, and the cut path at the export's
-/// two cells per span.
+/// two cells per span and with every level at the window's four (its detail takes two,
+/// `level_mesh_options`).
 fn graphics_stroke(c: &mut Criterion) {
     let (before, after, (lo, hi)) = three_level_clay();
     // One level: the base alone, dented by three of its own coefficients at the pole.
@@ -603,6 +604,26 @@ fn graphics_stroke(c: &mut Criterion) {
                 flip = !flip;
                 let field = if flip { &after } else { &before };
                 let report = coarser.remesh_box(field, lo, hi, &mut levels_tree).unwrap();
+                assert!(!report.changed.is_empty());
+                black_box(report)
+            })
+        },
+    );
+    // Every level at the window's four cells per span (the window before its detail took
+    // half the base's cells per span), cut into the same bricks.
+    let every_level_4 = AdaptiveMeshOptions {
+        detail_cells_per_span: options.cells_per_span,
+        ..options
+    };
+    let (mut finer, _) = AdaptiveBricks::new(&before, &every_level_4, &mut levels_tree).unwrap();
+    let mut flip = false;
+    group.bench_function(
+        "three_levels/multi_level_bricks_every_level_4_cells_per_span",
+        |bench| {
+            bench.iter(|| {
+                flip = !flip;
+                let field = if flip { &after } else { &before };
+                let report = finer.remesh_box(field, lo, hi, &mut levels_tree).unwrap();
                 assert!(!report.changed.is_empty());
                 black_box(report)
             })
