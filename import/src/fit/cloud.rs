@@ -687,13 +687,16 @@ pub fn sign_cloud(
         (anchor, (weighted, weight))
     });
     let (anchors, first_pass): (Vec<Vec3>, Vec<(f32, f32)>) = anchored.into_iter().unzip();
+    let most_offset = MAX_OFFSET_NOISES * noise;
     let heights: Vec<f32> = first_pass
         .iter()
-        .map(
-            |&(weighted, weight)| {
-                if weight > 0.0 { weighted / weight } else { 0.0 }
-            },
-        )
+        .map(|&(weighted, weight)| {
+            if weight > 0.0 {
+                (weighted / weight).clamp(-most_offset, most_offset)
+            } else {
+                0.0
+            }
+        })
         .collect();
     near_points.set_offsets(&heights);
     drop(heights);
@@ -1057,6 +1060,15 @@ pub const MAX_NOISE: f32 = 0.1;
 /// The moving planes' bandwidth, at least, in typical point spacings (about fifteen points
 /// under the Gaussian).
 pub const BANDWIDTH_SPACINGS: f32 = 1.5;
+/// A plane is moved through its point's anchor by at most this many noise levels (the
+/// noise's standard deviation across the surface).
+///
+/// NOTE: the second pass is there to average the noise: a point's height over the first
+/// pass's surface is mostly its noise, under two of its deviations for 95% of the points.
+/// A larger height is the first pass's rounding of a feature (an edge, a corner, where the
+/// planes of both faces meet), not noise; moving the plane by it would round the feature a
+/// second time. On noiseless data no plane moves.
+pub const MAX_OFFSET_NOISES: f32 = 2.0;
 /// The moving planes' bandwidth, at least, in noise levels (the mean of the neighbours'
 /// planes scatters far less than one point's).
 pub const BANDWIDTH_NOISES: f32 = 2.0;
@@ -2858,8 +2870,8 @@ mod tests {
                 let h = local[j].bandwidth;
                 let squared = d.length_squared();
                 if squared <= (MOVING_REACH * h).powi(2) {
-                    let w = f64::from(confidence[j] * local[j].area)
-                        * (-f64::from(squared) / f64::from(h * h)).exp();
+                    let w = f64::from(KERNEL_SCALE * confidence[j] * local[j].area)
+                        * (1.0 - f64::from(squared) / f64::from(MOVING_REACH * h).powi(2));
                     let height = normals[j].dot(d);
                     let tangential = (squared - height * height).max(0.0);
                     full_weighted += w * f64::from(height + 0.5 * curvature[j] * tangential);
