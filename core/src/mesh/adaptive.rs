@@ -1706,10 +1706,11 @@ impl Tree {
         // One read of each patch's coefficients over the box gives the finest target among
         // the patches that hold detail in it (in cells), the field's convex-hull bound and a
         // bound on its slope.
+        let half_diagonal = 0.5 * (hi - lo).length();
         let mut inputs = SplitInputs {
             target_cells: f32::INFINITY,
             bounds: Some((0.0, 0.0)),
-            slope: 0.0,
+            reach: 0.0,
         };
         for (n, (((slo, shi, cells), floors), patch)) in self
             .targets
@@ -1733,7 +1734,7 @@ impl Tree {
                 .bounds
                 .zip(over.bounds)
                 .map(|((a, b), (c, d))| (a + c, b + d));
-            inputs.slope += over.slope;
+            inputs.reach += over.reach(half_diagonal);
         }
         inputs
     }
@@ -1764,18 +1765,20 @@ impl Tree {
 ///
 /// Read over a part of a node's box (a subset of the coefficients the whole box reads) each
 /// input errs only one way: the finest target is no finer (a patch proven to hold detail
-/// over the part holds it over the node), the summed bound is no wider and the slope bound
-/// no larger. Every condition of [`SplitInputs::splits`] grows true with a finer target, a
-/// wider bound and a larger slope, so a split the part proves is the split the whole node's
-/// read gives; a part that does not prove one decides nothing.
+/// over the part holds it over the node), the summed bound is no wider and the reach no
+/// larger (each patch's slope bound and hull are no larger). Every condition of
+/// [`SplitInputs::splits`] grows true with a finer target, a wider bound and a larger reach,
+/// so a split the part proves is the split the whole node's read gives; a part that does not
+/// prove one decides nothing.
 struct SplitInputs {
     /// The finest target cell among the patches holding detail there, in finest cells.
     target_cells: f32,
     /// Sum of the patches' convex-hull bounds; `None` where a box is not finite in a
     /// patch's space.
     bounds: Option<(f32, f32)>,
-    /// Sum of the patches' slope bounds (world units).
-    slope: f32,
+    /// How far the field may move from its value at the node's centre anywhere in the node
+    /// (density units): the sum over the patches of [`PatchOverBox::reach`].
+    reach: f32,
 }
 
 impl SplitInputs {
@@ -1806,12 +1809,12 @@ impl SplitInputs {
             None => true,
         };
         // Whether the field's value at the centre is further from `iso` than the patches can
-        // climb within the node (so the surface cannot cross it): a test that holds where the
-        // convex-hull bound is loose, inside a detail patch whose coefficients cancel the
-        // base's.
+        // move within the node (so the surface cannot cross it): a test that holds where the
+        // summed convex-hull bound is loose, inside a detail patch whose coefficients cancel
+        // the base's.
         let far_from_iso = || {
             let (lo, hi) = tree.world_box(node);
-            let reach = self.slope * 0.5 * (hi - lo).length();
+            let reach = self.reach;
             let centre = 0.5 * (lo + hi);
             let sampled = samples.and_then(|s| {
                 let corner = node.min.map(|m| m + node.size / 2);
@@ -1851,6 +1854,24 @@ struct PatchOverBox {
 }
 
 impl PatchOverBox {
+    /// How far the patch's term may differ between two points of a box whose half diagonal
+    /// is `half_diagonal` (world units), one of them its centre: the slope bound times that
+    /// reach, and never more than the width of the convex-hull bound, which holds the term at
+    /// both points. On a large node the hull is the tighter: a dent of a few fine
+    /// coefficients raises the fine patch's slope bound by the dent over the fine spacing
+    /// but its hull only by the dent, so the nodes deep inside the clay around a stroke stay
+    /// proven far from the iso-level. `slope · half_diagonal` alone where the hull is not
+    /// known or not finite.
+    fn reach(&self, half_diagonal: f32) -> f32 {
+        let by_slope = self.slope * half_diagonal;
+        match self.bounds {
+            // The width is NaN or infinite where a coefficient is infinite, and negative where
+            // every coefficient is NaN; the slope bound stands then.
+            Some((vmin, vmax)) if (0.0..by_slope).contains(&(vmax - vmin)) => vmax - vmin,
+            _ => by_slope,
+        }
+    }
+
     /// Whether the patch may add more than [`DETAIL_EPSILON`] anywhere in the box (a patch
     /// with a map, `mapped`, whose bound is taken over a larger box, always may).
     fn holds_detail(&self, mapped: bool) -> bool {
@@ -3125,6 +3146,68 @@ pub(super) mod tests {
         assert!(
             empty > 100 && beyond > 100 && interior > 100,
             "{empty} empty, {beyond} beyond, {interior} interior"
+        );
+    }
+
+    #[test]
+    fn a_patch_moves_no_further_within_a_box_than_its_reach() {
+        // A smooth slope with a dent of a few coefficients (the stroke the reach is for) and
+        // a steep wall: over large boxes the hull binds, over small ones the slope bound.
+        let mut lattice = BSplineLattice::zeros([14, 13, 12], 0.25, Vec3::ZERO).unwrap();
+        lattice.coeffs.update_each(|n, c| {
+            let (i, j) = (n % 14, (n / 14) % 13);
+            *c = 0.05 * i as f32 + if j > 8 { 0.8 } else { 0.0 };
+        });
+        for (i, j, k) in [(6, 5, 6), (7, 5, 6), (6, 6, 6)] {
+            let at = lattice.index(i, j, k);
+            lattice.coeffs.set_flat(at, lattice.coeffs[at] - 0.05);
+        }
+        let rotated = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(1.3),
+            glam::Quat::from_rotation_y(0.4),
+            Vec3::new(0.2, -0.1, 0.3),
+        );
+        let mut seed = 12_345_u32;
+        let mut unit = move || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let (mut by_hull, mut by_slope) = (0, 0);
+        for patch in [
+            Patch::identity(lattice.clone()),
+            Patch {
+                lattice,
+                world_to_patch: rotated,
+            },
+        ] {
+            for _ in 0..200 {
+                // Sizes from a tenth of a span to a few spans, most of them small.
+                let size = unit().powi(3) * 1.2 + 0.02;
+                let half = Vec3::new(unit(), unit(), unit()) * size + Vec3::splat(0.01);
+                let centre = Vec3::new(unit(), unit(), unit()) * 2.5 + Vec3::splat(0.3);
+                let (lo, hi) = (centre - half, centre + half);
+                let over = read_coefficients(&patch, CoefficientRange::of(&patch, lo, hi));
+                let half_diagonal = 0.5 * (hi - lo).length();
+                let reach = over.reach(half_diagonal);
+                if reach < over.slope * half_diagonal {
+                    by_hull += 1;
+                } else {
+                    by_slope += 1;
+                }
+                let at_centre = patch.value(centre);
+                for _ in 0..64 {
+                    let x = lo + (hi - lo) * Vec3::new(unit(), unit(), unit());
+                    let moved = (patch.value(x) - at_centre).abs();
+                    assert!(
+                        moved <= reach * (1.0 + 1e-4) + 1e-5,
+                        "box {lo}..{hi}: the term moves {moved} at {x}, reach {reach}"
+                    );
+                }
+            }
+        }
+        assert!(
+            by_hull > 20 && by_slope > 20,
+            "{by_hull} by the hull, {by_slope} by the slope"
         );
     }
 

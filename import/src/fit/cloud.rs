@@ -562,34 +562,38 @@ pub fn sign_cloud(
     drop((placed, order));
     let confidence: Vec<f32> = kept.iter().map(|&i| consensus.confidence[i]).collect();
     times.record("spacing, placement, spatial order", started);
-    // How sharp the surface is near each coefficient sets how much it may bend.
-    let bending_scale = if !options.bending_by_sharpness {
-        Vec::new()
-    } else {
-        times.time("sharpness", || {
-            let every: Vec<usize> = (0..points.len()).collect();
-            let readings = sharpness_at(
-                &points,
-                &every,
-                consensus.noise * scale,
-                SHARPNESS_RADIUS_SPANS * spacing,
-            );
-            bending_scale_by_sharpness(&readings, n, spacing)
-        })
-    };
-
-    // Steps 3–4: band, exterior, normals.
-    let started = Instant::now();
-    // The exterior (one thread: a flood) is found beside the band (on every thread).
-    let ((dist, nearest), exterior) = std::thread::scope(|scope| {
+    // Steps 3–4: band, exterior, normals. The exterior (one thread: a closing and a flood,
+    // from the points alone) is found beside the sharpness and the band.
+    //
+    // NOTE: beside the band alone it took a core from the band's threads; begun before the
+    // sharpness, it also takes the core the sharpness's grid and bending scales leave idle
+    // (bench/RESULTS.md, "Import time: the signing's serial stretches").
+    let (bending_scale, (dist, nearest), exterior) = std::thread::scope(|scope| {
         let exterior = scope.spawn(|| grid.close_and_flood(&points, options.gap_spans * spacing));
+        // How sharp the surface is near each coefficient sets how much it may bend.
+        let bending_scale = if !options.bending_by_sharpness {
+            Vec::new()
+        } else {
+            times.time("sharpness", || {
+                let every: Vec<usize> = (0..points.len()).collect();
+                let readings = sharpness_at(
+                    &points,
+                    &every,
+                    consensus.noise * scale,
+                    SHARPNESS_RADIUS_SPANS * spacing,
+                );
+                bending_scale_by_sharpness(&readings, n, spacing)
+            })
+        };
+
+        let started = Instant::now();
         let band = grid.band_distances(&points, BAND_SPANS * spacing);
         let exterior = exterior
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
-        (band, exterior)
+        times.record("band beside exterior", started);
+        (bending_scale, band, exterior)
     });
-    times.record("band beside exterior", started);
     let started = Instant::now();
     let given = cloud
         .normals
@@ -1770,7 +1774,8 @@ impl SignGrid {
     }
 
     /// Distance from each node within `band` of a point to its nearest point (infinite
-    /// elsewhere), and that point's index (the lowest of equally near points).
+    /// elsewhere), and that point's index (the lowest of equally near points). Fastest with
+    /// `points` in [`SignGrid::spatial_order`] (the same result in any order).
     fn band_distances(&self, points: &[Vec3], band: f32) -> (Vec<f32>, Vec<u32>) {
         let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
         self.band_distances_on(points, band, threads)
@@ -1796,7 +1801,11 @@ impl SignGrid {
         let slabs = (threads * BAND_SLABS_PER_THREAD).min(self.dims[2]);
         let planes_per_slab = self.dims[2].div_ceil(slabs);
         let slab = planes_per_slab * plane;
-        let order = self.spatial_order(points);
+        // NOTE: the signing's points are in the grid's spatial order already (ordered by
+        // [`SignGrid::spatial_order`] when placed), where ordering them again gives them back
+        // as they are, on one thread while the other cores waited: they are visited as given
+        // (any order gives the same result).
+        let order: Vec<u32> = (0..points.len() as u32).collect();
         let pending = std::sync::Mutex::new(
             squared
                 .chunks_mut(slab)
@@ -3485,6 +3494,12 @@ mod tests {
                 .zip(&dist)
                 .all(|(a, b)| a.sqrt().to_bits() == b.to_bits())
         );
+        // Points put in the spatial order (as the signing places them) are in it: the band
+        // visits them as given, in the order it would have put them in.
+        assert!(order.iter().enumerate().any(|(i, &k)| k as usize != i));
+        let placed: Vec<Vec3> = order.iter().map(|&k| points[k as usize]).collect();
+        let again = grid.spatial_order(&placed);
+        assert!(again.iter().enumerate().all(|(i, &k)| k as usize == i));
     }
 
     #[test]

@@ -86,6 +86,12 @@ impl PointGrid {
     /// `points` (those where `keep` holds) bucketed in cubes of side `cell` at least (larger
     /// when the box would need more than [`MAX_GRID_CELLS`]); each cell keeps an even subset
     /// of at most `offer` of its points.
+    ///
+    /// NOTE: each kept point's cube is found once and read by the three counting passes that
+    /// follow; each pass found it again, and the grids' builds were the screening's longest
+    /// stretch on one thread (bench/RESULTS.md, "Import time: the signing's serial
+    /// stretches"). Found on every core, the cubes took longer on a loaded machine (a
+    /// thread's start waits for a core) than they saved on an idle one.
     #[must_use]
     pub fn new(points: &[Vec3], keep: impl Fn(usize) -> bool, cell: f32, offer: usize) -> Self {
         let (lo, hi) = points
@@ -104,11 +110,23 @@ impl PointGrid {
         let (cell, d) = (cubes.cell, cubes.dims);
         let dims = [d.x, d.y, d.z];
         let cells = cubes.count();
-        let index_of = |p: Vec3| cubes.cube_of(p);
+        // Each point's cube, or `DROPPED` where it is not kept.
+        const DROPPED: u32 = u32::MAX;
+        let cube: Vec<u32> = points
+            .iter()
+            .enumerate()
+            .map(|(i, &p)| {
+                if keep(i) {
+                    cubes.cube_of(p) as u32
+                } else {
+                    DROPPED
+                }
+            })
+            .collect();
         let mut counts = vec![0u32; cells + 1];
-        for (i, &p) in points.iter().enumerate() {
-            if keep(i) {
-                counts[index_of(p) + 1] += 1;
+        for &c in &cube {
+            if c != DROPPED {
+                counts[c as usize + 1] += 1;
             }
         }
         // Each cell offers at most `offer`: the points are taken with a stride.
@@ -118,9 +136,9 @@ impl PointGrid {
             .collect();
         let mut seen = vec![0u32; cells];
         let mut offered = vec![0u32; cells + 1];
-        for (i, &p) in points.iter().enumerate() {
-            if keep(i) {
-                let c = index_of(p);
+        for &c in &cube {
+            if c != DROPPED {
+                let c = c as usize;
                 if seen[c].is_multiple_of(strides[c]) {
                     offered[c + 1] += 1;
                 }
@@ -133,9 +151,9 @@ impl PointGrid {
         let mut members = vec![0u32; offered[cells] as usize];
         let mut fill = offered.clone();
         seen.fill(0);
-        for (i, &p) in points.iter().enumerate() {
-            if keep(i) {
-                let c = index_of(p);
+        for (i, &c) in cube.iter().enumerate() {
+            if c != DROPPED {
+                let c = c as usize;
                 if seen[c].is_multiple_of(strides[c]) {
                     members[fill[c] as usize] = i as u32;
                     fill[c] += 1;
@@ -846,9 +864,16 @@ fn planes_and_noise(
         let mid = rms.len() / 2;
         *rms.select_nth_unstable_by(mid, f32::total_cmp).1
     };
-    let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
-    // The planes are fitted in the grid's order (each is the same in any order).
-    let order = spatial_order(points, radius);
+    // The planes are fitted in the grid's order (each is the same in any order), found on a
+    // thread of its own beside the grid's build (both were on the main thread in turn).
+    let (grid, order) = std::thread::scope(|scope| {
+        let order = scope.spawn(|| spatial_order(points, radius));
+        let grid = PointGrid::new(points, |_| true, radius, CELL_OFFER);
+        let order = order
+            .join()
+            .unwrap_or_else(|e| std::panic::resume_unwind(e));
+        (grid, order)
+    });
     let (mut planes, mut sigma) = match noise {
         Some(sigma) => (fit_planes(points, &grid, &order, radius, 0), sigma),
         None => {
@@ -1292,6 +1317,44 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_grid_holds_each_cells_kept_points_by_stride_in_index_order() {
+        // A noisy sheet of 40 000 points, some left out, each cell offering at most 3: per
+        // cell, the kept points in index order, every stride-th of them, as a plain scan of
+        // each cell finds.
+        let points = noisy_square(200, 0.3);
+        let keep = |i: usize| i % 7 != 3;
+        let (cell, offer) = (2.5, 3);
+        let grid = PointGrid::new(&points, keep, cell, offer);
+        let kept: Vec<usize> = (0..points.len()).filter(|&i| keep(i)).collect();
+        let (lo, hi) = kept
+            .iter()
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &i| {
+                (a.min(points[i]), b.max(points[i]))
+            });
+        let cubes = Cubes::covering(lo, hi, cell);
+        assert_eq!(grid.starts.len(), cubes.count() + 1);
+        let mut cells: Vec<Vec<usize>> = vec![Vec::new(); cubes.count()];
+        for &i in &kept {
+            cells[cubes.cube_of(points[i])].push(i);
+        }
+        let mut offered_anywhere = 0;
+        for (c, in_cell) in cells.iter().enumerate() {
+            let stride = in_cell.len().div_ceil(offer).max(1);
+            let expected: Vec<u32> = in_cell.iter().step_by(stride).map(|&i| i as u32).collect();
+            let held = &grid.members[grid.starts[c] as usize..grid.starts[c + 1] as usize];
+            assert_eq!(held, expected.as_slice(), "cell {c}");
+            offered_anywhere += expected.len();
+        }
+        assert_eq!(grid.members.len(), offered_anywhere);
+        for (slot, &i) in grid.members.iter().enumerate() {
+            assert_eq!(grid.positions[slot], points[i as usize]);
+        }
+        // Some cells held more than they offer, and the left-out points are in none.
+        assert!(offered_anywhere < kept.len());
+        assert!(grid.members.iter().all(|&i| keep(i as usize)));
     }
 
     #[test]
