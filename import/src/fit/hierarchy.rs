@@ -785,44 +785,8 @@ fn fit_detail(
 
 #[cfg(test)]
 mod tests {
+    use super::super::test_boxes::rounded_box;
     use super::*;
-
-    /// `count` points on a box of half extents `half` with edges rounded by `round`: random
-    /// points projected onto the surface along the distance's gradient.
-    fn rounded_box(count: usize, half: Vec3, round: f32) -> PointCloud {
-        let sdf = |p: Vec3| {
-            let q = p.abs() - (half - Vec3::splat(round));
-            q.max(Vec3::ZERO).length() + q.max_element().min(0.0) - round
-        };
-        let mut seed = 0x2545_f491_u32;
-        let mut unit = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32 * 2.0 - 1.0
-        };
-        let mut points = Vec::with_capacity(count);
-        while points.len() < count {
-            let mut p = Vec3::new(unit(), unit(), unit()) * half * 1.2;
-            for _ in 0..4 {
-                let h = 1e-3;
-                let g = Vec3::new(
-                    sdf(p + Vec3::X * h) - sdf(p - Vec3::X * h),
-                    sdf(p + Vec3::Y * h) - sdf(p - Vec3::Y * h),
-                    sdf(p + Vec3::Z * h) - sdf(p - Vec3::Z * h),
-                )
-                .normalize_or_zero();
-                p -= g * sdf(p);
-            }
-            if sdf(p).abs() < 1e-4 {
-                points.push(p);
-            }
-        }
-        PointCloud {
-            points,
-            normals: None,
-        }
-    }
 
     fn sharp_box() -> PointCloud {
         rounded_box(20_000, Vec3::new(1.0, 0.7, 0.5), 0.03)
@@ -869,9 +833,16 @@ mod tests {
         assert_eq!(chi(5, &shell), 2, "a shell");
     }
 
+    /// A bound the rounded box's base fit does not meet on any node of depth 1 (they read
+    /// 1.07–1.24 times it), so these tests see detail patches made.
+    ///
+    /// NOTE: at 0.001 the nodes read 0.86–0.99 of it once the box's tagged normals all
+    /// pointed out (with the moving planes' Gaussian weight: two over it by under 4%); the
+    /// node over it had been the one where ten edge normals pointed inward (bench/RESULTS.md,
+    /// "The normals turned by the exterior's signed depth").
     fn tight() -> HierarchyOptions {
         HierarchyOptions {
-            error: 0.001,
+            error: 0.0008,
             max_depth: 2,
             ..HierarchyOptions::default()
         }
