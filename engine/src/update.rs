@@ -517,6 +517,12 @@ mod tests {
         assert!(update.apply_to(&mut applied).is_some());
         assert_eq!(dense_bricks(&applied), dense_bricks(&copy));
         // A second pass needs no spare at all.
-        assert!(update.densify_for_copy(&mut copy, &mut || None));
+        assert!(update.densify_for_copy(
+            &mut copy,
+            &mut Pool {
+                bricks: 0,
+                groups: 0
+            }
+        ));
     }
 }
