@@ -185,9 +185,9 @@ fn lowest_holder(x: usize) -> usize {
 /// Widens the box `bounds` (first and last coordinate per axis, inclusive) to hold `at`.
 #[inline]
 fn widen(bounds: &mut ([usize; 3], [usize; 3]), at: [usize; 3]) {
-    for axis in 0..3 {
-        bounds.0[axis] = bounds.0[axis].min(at[axis]);
-        bounds.1[axis] = bounds.1[axis].max(at[axis]);
+    for (axis, x) in at.into_iter().enumerate() {
+        bounds.0[axis] = bounds.0[axis].min(x);
+        bounds.1[axis] = bounds.1[axis].max(x);
     }
 }
 
