@@ -20,8 +20,8 @@ use dynaclay::dynamics::{
 };
 use dynaclay::engine::FieldUpdate;
 use dynaclay::field::{
-    BSplineLattice, CoeffBox, KronScratch, MultiPatchField, OtherPatches, Primitive,
-    RegionSnapshot, SpareBrick, lattice_from_primitive,
+    AllocatingSpares, BSplineLattice, CoeffBox, KronScratch, MultiPatchField, OtherPatches,
+    Primitive, RegionSnapshot, SpareBrick, SpareGroup, SpareStorage, lattice_from_primitive,
 };
 use glam::Vec3;
 
@@ -289,6 +289,18 @@ fn evaluate(c: &mut Criterion) {
     });
 }
 
+/// A pool of spares that is always empty: the steady state of a stroke's writes.
+struct DrySpares;
+
+impl SpareStorage for DrySpares {
+    fn spare_brick(&mut self) -> Option<SpareBrick> {
+        None
+    }
+    fn spare_group(&mut self) -> Option<SpareGroup> {
+        None
+    }
+}
+
 /// The haptic loop's copy of the field, sparse (uniform bricks one value, as now) against
 /// every brick dense (the obvious alternative, as the copy was before): the tick's integral
 /// over each, and the tick's write of a stroke's published box into each. In the sparse copy
@@ -331,7 +343,7 @@ fn haptic_copy(c: &mut Criterion) {
     }
     let mut update = FieldUpdate::with_capacity_for(&moved);
     update.capture(&moved, 0, published);
-    assert!(update.densify_for_copy(&mut sparse, &mut || Some(SpareBrick::new())));
+    assert!(update.densify_for_copy(&mut sparse, &mut AllocatingSpares));
     let bricks = |f: &MultiPatchField| f.patches[0].lattice.coeffs.dense_brick_count();
     eprintln!(
         "haptic_copy: dense bricks {} of {} (sparse copy), {} (dense copy)",
@@ -356,7 +368,7 @@ fn haptic_copy(c: &mut Criterion) {
     });
     group.bench_function(BenchmarkId::new("write_update", "sparse"), |b| {
         b.iter(|| {
-            let ready = update.densify_for_copy(&mut sparse, &mut || None);
+            let ready = update.densify_for_copy(&mut sparse, &mut DrySpares);
             black_box(ready && update.copy_into(&mut sparse))
         });
     });

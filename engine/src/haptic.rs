@@ -37,7 +37,7 @@ use super::motion_to_photon::FeltChange;
 use super::tool_sample::ToolSample;
 use super::update::FieldUpdate;
 use super::workspace::WorkspaceMap;
-use dynaclay_core::field::{MultiPatchField, SpareBrick};
+use dynaclay_core::field::{AllocatingSpares, MultiPatchField};
 use dynaclay_core::haptics::{FeltInput, FeltTool, ForceRenderer, HapticConfig, StrokeGeometry};
 
 /// What one tick did (plain data, for tests and the lockstep driver).
@@ -212,16 +212,15 @@ impl HapticStage {
         }
         let stamped = self.updates.latest();
         if stamped.value.layout == self.layout {
-            let layouts = &self.layouts;
             if !stamped
                 .value
-                .densify_for_copy(&mut self.field, &mut || layouts.take_spare())
+                .densify_for_copy(&mut self.field, &mut &self.layouts)
             {
                 // Shutdown only: the simulation has stopped topping the pool up; the bricks
                 // still missing are allocated here, off the loop.
                 stamped
                     .value
-                    .densify_for_copy(&mut self.field, &mut || Some(SpareBrick::new()));
+                    .densify_for_copy(&mut self.field, &mut AllocatingSpares);
             }
             stamped.value.copy_into(&mut self.field);
             self.ack
@@ -389,11 +388,10 @@ impl HapticStage {
             // An update for another layout waits until that layout's copy arrives; one whose
             // values need more dense bricks than the pool holds yet waits for the pool to be
             // topped up (the bricks taken so far stay dense: no value changes).
-            let layouts = &self.layouts;
             let ready = stamped.value.layout == self.layout
                 && stamped
                     .value
-                    .densify_for_copy(&mut self.field, &mut || layouts.take_spare());
+                    .densify_for_copy(&mut self.field, &mut &self.layouts);
             if stamped.value.layout == self.layout && !ready {
                 self.counters.haptic_updates_awaiting_bricks(1);
             }

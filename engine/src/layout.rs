@@ -3,18 +3,20 @@
 //! simulation builds each copy (it may allocate) and hands it over; the reader swaps it in and
 //! hands its old copy back to be dropped on the simulation thread.
 //!
-//! Guarantee: the reader's side ([`LayoutPort::install`], [`LayoutPort::take_spare`]) is
-//! wait-free and allocation-free: it uses crossbeam array channels (two of capacity one for
-//! the copies, one of [`HAPTIC_SPARE_BRICKS`] for the spare bricks), only through `try_recv`
-//! and `try_send`, and moves boxes by pointer, so no memory is allocated or freed on the
-//! haptic thread. The copy goes back only while the return slot has room; otherwise the
+//! Guarantee: the reader's side ([`LayoutPort::install`], [`LayoutPort::take_spare`],
+//! [`LayoutPort::take_spare_group`]) is wait-free and allocation-free: it uses crossbeam array
+//! channels (two of capacity one for the copies, two of [`HAPTIC_SPARE_BRICKS`] for the spare
+//! bricks and the spare group entries), only through `try_recv` and `try_send`, and moves
+//! boxes by pointer, so no memory is allocated or freed on the haptic thread. The copy goes back only while the return slot has room; otherwise the
 //! handover waits.
 //!
 //! The copies are as sparse as the simulation's field: a uniform brick stays one value (see
 //! [`dynaclay_core::field::BrickedCoeffs`]). A reader that must not allocate (the haptic loop)
 //! is given a channel with spare bricks ([`layout_channel_with_spares`]): before it writes an
 //! update, [`super::FieldUpdate::densify_for_copy`] makes dense, from this pool, the uniform
-//! bricks the update's values would make dense; the write then allocates nothing. The
+//! bricks the update's values would make dense (and gives their groups entries, from the
+//! pool's spare groups, where a group of the copy was one value); the write then allocates
+//! nothing. The
 //! simulation keeps the pool full ([`LayoutSender::drop_retired`], every publication), so the
 //! bricks live in the copy only where the clay holds detail, and the pool's capacity bounds
 //! the work one tick spends on it. An update needing more bricks than the pool holds waits, a
@@ -32,7 +34,9 @@
 
 use crossbeam::channel::{Receiver, Sender, bounded};
 
-use dynaclay_core::field::{DENSE_BRICK_BYTES, MultiPatchField, SpareBrick};
+use dynaclay_core::field::{
+    DENSE_BRICK_BYTES, MultiPatchField, SPARE_GROUP_BYTES, SpareBrick, SpareGroup, SpareStorage,
+};
 
 /// Spare dense bricks waiting for the haptic loop (1.3 MiB at [`DENSE_BRICK_BYTES`] each): an
 /// update whose values make at most this many of its copy's uniform bricks dense is applied
@@ -41,8 +45,9 @@ use dynaclay_core::field::{DENSE_BRICK_BYTES, MultiPatchField, SpareBrick};
 /// tick fills (256 × 1 331 values).
 pub const HAPTIC_SPARE_BRICKS: usize = 256;
 
-/// Bytes the haptic loop's pool of spare bricks holds when full.
-pub const HAPTIC_SPARE_BYTES: usize = HAPTIC_SPARE_BRICKS * DENSE_BRICK_BYTES;
+/// Bytes the haptic loop's pool of spare bricks and spare groups holds when full (as many
+/// groups as bricks: a brick made dense needs at most its group's entries besides).
+pub const HAPTIC_SPARE_BYTES: usize = HAPTIC_SPARE_BRICKS * (DENSE_BRICK_BYTES + SPARE_GROUP_BYTES);
 
 /// A copy of the simulation's field in its new layout.
 #[derive(Debug)]
@@ -58,8 +63,9 @@ pub struct LayoutHandover {
 pub struct LayoutPort {
     incoming: Receiver<LayoutHandover>,
     retired: Sender<Box<MultiPatchField>>,
-    /// Spare dense bricks for writes into the copy (none for a reader that may allocate).
-    spares: Option<Receiver<SpareBrick>>,
+    /// Spare dense bricks and group entries for writes into the copy (none for a reader
+    /// that may allocate).
+    spares: Option<(Receiver<SpareBrick>, Receiver<SpareGroup>)>,
 }
 
 impl LayoutPort {
@@ -67,7 +73,14 @@ impl LayoutPort {
     /// port made without spares). Wait-free, allocation-free.
     #[must_use]
     pub fn take_spare(&self) -> Option<SpareBrick> {
-        self.spares.as_ref()?.try_recv().ok()
+        self.spares.as_ref()?.0.try_recv().ok()
+    }
+
+    /// A spare group's entries from the pool the simulation fills, if one waits (never for a
+    /// port made without spares). Wait-free, allocation-free.
+    #[must_use]
+    pub fn take_spare_group(&self) -> Option<SpareGroup> {
+        self.spares.as_ref()?.1.try_recv().ok()
     }
 
     /// Swaps a waiting layout into `field` and returns its generation, sending the old copy
@@ -98,6 +111,17 @@ impl LayoutPort {
     }
 }
 
+/// The pool behind a reader's end, for [`dynaclay_core::field::BrickedCoeffs::densify_for_box`]:
+/// wait-free, allocation-free.
+impl SpareStorage for &LayoutPort {
+    fn spare_brick(&mut self) -> Option<SpareBrick> {
+        self.take_spare()
+    }
+    fn spare_group(&mut self) -> Option<SpareGroup> {
+        self.take_spare_group()
+    }
+}
+
 /// The simulation's end.
 #[derive(Debug)]
 pub struct LayoutSender {
@@ -105,8 +129,9 @@ pub struct LayoutSender {
     /// A second receiver on the incoming slot, to replace a layout the reader never took.
     withdraw: Receiver<LayoutHandover>,
     retired: Receiver<Box<MultiPatchField>>,
-    /// Where spare dense bricks go to the reader (see the module documentation).
-    spares: Option<Sender<SpareBrick>>,
+    /// Where spare dense bricks and group entries go to the reader (see the module
+    /// documentation).
+    spares: Option<(Sender<SpareBrick>, Sender<SpareGroup>)>,
 }
 
 impl LayoutSender {
@@ -128,10 +153,11 @@ impl LayoutSender {
     /// capacity, allocating the bricks here (the simulation calls this every publication).
     pub fn drop_retired(&self) {
         while self.retired.try_recv().is_ok() {}
-        if let Some(spares) = &self.spares {
+        if let Some((bricks, groups)) = &self.spares {
             // Fails only when the pool is full, or when the reader is gone (nobody to fill
             // for); this is the pool's only sender, so the room seen cannot shrink meanwhile.
-            while !spares.is_full() && spares.try_send(SpareBrick::new()).is_ok() {}
+            while !bricks.is_full() && bricks.try_send(SpareBrick::new()).is_ok() {}
+            while !groups.is_full() && groups.try_send(SpareGroup::new()).is_ok() {}
         }
     }
 }
@@ -143,8 +169,8 @@ pub fn layout_channel() -> (LayoutSender, LayoutPort) {
     connected(None)
 }
 
-/// A connected pair of ends whose reader also gets a pool of `capacity` spare dense bricks,
-/// filled at once and topped up at every [`LayoutSender::drop_retired`], so that it writes
+/// A connected pair of ends whose reader also gets a pool of `capacity` spare dense bricks
+/// and as many spare group entries, filled at once and topped up at every [`LayoutSender::drop_retired`], so that it writes
 /// into its sparse copy without allocating (the haptic loop, with [`HAPTIC_SPARE_BRICKS`]).
 ///
 /// # Panics
@@ -152,14 +178,20 @@ pub fn layout_channel() -> (LayoutSender, LayoutPort) {
 #[must_use]
 pub fn layout_channel_with_spares(capacity: usize) -> (LayoutSender, LayoutPort) {
     assert!(capacity > 0, "a pool of spare bricks holds at least one");
-    let (sender, port) = connected(Some(bounded(capacity)));
+    let (bricks_tx, bricks_rx) = bounded(capacity);
+    let (groups_tx, groups_rx) = bounded(capacity);
+    let (sender, port) = connected(Some(((bricks_tx, groups_tx), (bricks_rx, groups_rx))));
     sender.drop_retired();
     (sender, port)
 }
 
-fn connected(
-    spares: Option<(Sender<SpareBrick>, Receiver<SpareBrick>)>,
-) -> (LayoutSender, LayoutPort) {
+/// The ends of a pool of spares: what the simulation sends, what the reader receives.
+type SparePool = (
+    (Sender<SpareBrick>, Sender<SpareGroup>),
+    (Receiver<SpareBrick>, Receiver<SpareGroup>),
+);
+
+fn connected(spares: Option<SparePool>) -> (LayoutSender, LayoutPort) {
     let (in_tx, in_rx) = bounded(1);
     let (out_tx, out_rx) = bounded(1);
     let (spares_tx, spares_rx) = spares.unzip();
@@ -233,9 +265,15 @@ mod tests {
         let taken: Vec<_> = std::iter::from_fn(|| port.take_spare()).collect();
         assert_eq!(taken.len(), 3, "filled when made");
         assert!(port.take_spare().is_none());
+        let groups: Vec<_> = std::iter::from_fn(|| port.take_spare_group()).collect();
+        assert_eq!(groups.len(), 3, "as many groups, filled when made");
         sender.drop_retired();
         assert_eq!(std::iter::from_fn(|| port.take_spare()).count(), 3);
+        let mut pool = &port;
+        assert!(pool.spare_group().is_some(), "the port is a pool of spares");
+        assert_eq!(std::iter::from_fn(|| pool.spare_group()).count(), 2);
         let (_, plain) = layout_channel();
         assert!(plain.take_spare().is_none(), "the graphics end has no pool");
+        assert!(plain.take_spare_group().is_none());
     }
 }

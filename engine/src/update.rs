@@ -18,7 +18,7 @@
 
 use glam::Vec3;
 
-use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField, SpareBrick};
+use dynaclay_core::field::{BSplineLattice, CoeffBox, MultiPatchField, SpareStorage};
 use dynaclay_core::haptics::{FeltTool, StrokeGeometry};
 use dynaclay_core::mesh::BrickOctree;
 
@@ -150,7 +150,7 @@ impl FieldUpdate {
     pub fn densify_for_copy(
         &self,
         field: &mut MultiPatchField,
-        spares: &mut impl FnMut() -> Option<SpareBrick>,
+        spares: &mut impl SpareStorage,
     ) -> bool {
         if !self.fits(field) {
             return true;
@@ -291,7 +291,7 @@ mod tests {
     use glam::{Affine3A, Vec3};
 
     use super::*;
-    use dynaclay_core::field::Patch;
+    use dynaclay_core::field::{Patch, SpareBrick, SpareGroup};
 
     fn lattice(seed: f32) -> BSplineLattice {
         let mut l = BSplineLattice::zeros([6, 5, 7], 0.5, Vec3::ZERO).unwrap();
@@ -443,6 +443,27 @@ mod tests {
         assert!(update.boxes.is_empty());
     }
 
+    /// Spares that run dry after the counts given.
+    struct Pool {
+        bricks: usize,
+        groups: usize,
+    }
+
+    impl SpareStorage for Pool {
+        fn spare_brick(&mut self) -> Option<SpareBrick> {
+            (self.bricks > 0).then(|| {
+                self.bricks -= 1;
+                SpareBrick::new()
+            })
+        }
+        fn spare_group(&mut self) -> Option<SpareGroup> {
+            (self.groups > 0).then(|| {
+                self.groups -= 1;
+                SpareGroup::new()
+            })
+        }
+    }
+
     fn dense_bricks(field: &MultiPatchField) -> usize {
         field
             .patches
@@ -467,27 +488,22 @@ mod tests {
 
         let mut copy = empty.clone();
         assert_eq!(dense_bricks(&copy), 0);
-        let mut pool = 1;
-        let mut take = || {
-            (pool > 0).then(|| {
-                pool -= 1;
-                SpareBrick::new()
-            })
+        let mut pool = Pool {
+            bricks: 1,
+            groups: 1,
         };
         assert!(
-            !update.densify_for_copy(&mut copy, &mut take),
+            !update.densify_for_copy(&mut copy, &mut pool),
             "one spare is short"
         );
         assert_eq!(copy, empty, "no value changed meanwhile");
         assert_eq!(dense_bricks(&copy), 1);
-        pool = 1;
-        let mut take = || {
-            (pool > 0).then(|| {
-                pool -= 1;
-                SpareBrick::new()
-            })
+        assert_eq!(pool.groups, 0, "the bricks' group took entries once");
+        let mut pool = Pool {
+            bricks: 1,
+            groups: 0,
         };
-        assert!(update.densify_for_copy(&mut copy, &mut take));
+        assert!(update.densify_for_copy(&mut copy, &mut pool));
         assert_eq!(dense_bricks(&copy), 2);
         assert!(update.copy_into(&mut copy));
         assert_eq!(copy, moved);
@@ -501,6 +517,12 @@ mod tests {
         assert!(update.apply_to(&mut applied).is_some());
         assert_eq!(dense_bricks(&applied), dense_bricks(&copy));
         // A second pass needs no spare at all.
-        assert!(update.densify_for_copy(&mut copy, &mut || None));
+        assert!(update.densify_for_copy(
+            &mut copy,
+            &mut Pool {
+                bricks: 0,
+                groups: 0
+            }
+        ));
     }
 }

@@ -7,8 +7,8 @@
 //! cost memory, and the memory grows with the surface's area rather than the box's volume.
 //!
 //! The apron puts every 4×4×4 cubic stencil inside the brick that owns its low corner: a
-//! stencil is one directory read and sixteen rows at fixed strides, as cheap as a dense
-//! vector's (`bench/core.rs` `value_and_gradient`). The store keeps one invariant: at each of
+//! stencil is one brick found in the directory and sixteen rows at fixed strides, about as
+//! cheap as a dense vector's (`bench/core.rs` `value_and_gradient`). The store keeps one invariant: at each of
 //! a brick's 11³ places that lies inside the store, the brick holds the value of the
 //! coefficient there, and a brick is uniform only when all of those values are one value. A
 //! write therefore updates the owner and the apron copies in up to seven lower neighbours
@@ -27,6 +27,21 @@
 //! Making a brick dense this way changes no value, so a pool that runs dry half-way leaves
 //! the store as it was, only partly prepared. [`BrickedCoeffs::densify_all`] remains for a
 //! store that is to take any write at all without allocating.
+//!
+//! The directory has two levels, so that empty space costs per group of bricks, not per brick:
+//! the bricks are gathered in groups of 4×4×4, and a group whose bricks inside the store are
+//! all uniform with one value is that one value (16 bytes for 32³ coefficients); any other group
+//! holds its 64 brick entries on the heap. A stencil read is then two directory reads (the
+//! group, the brick) and sixteen rows. Cloning the store, padding it and summing up its dense
+//! bricks cost one step per group over the empty space (a clay grown to 930³ coefficients has
+//! about 25 000 groups against 1.6 million bricks), which is what the growth step and the
+//! readers' copies of a new layout pay. The groups carry an offset in bricks
+//! (`group_offset`: brick `b` lies in group `(b + offset) / 4` along each axis) so that padding
+//! by whole bricks maps every old group whole onto a new one. A write into a brick of a
+//! uniform group gives the group its entries first (one allocation of 1 KiB): on the haptic
+//! copy [`BrickedCoeffs::densify_for_box`] takes that storage ([`SpareGroup`]) from the same
+//! [`SpareStorage`] as the spare bricks. Only bricks inside the store are ever dense; a
+//! group's entries past the store's end stay uniform and are never read.
 //!
 //! The store counts its dense bricks as they change ([`BrickedCoeffs::dense_brick_count`]
 //! walks nothing), and [`BrickedCoeffs::uniform_bricks_holding`] bounds what a write inside a
@@ -56,6 +71,12 @@ pub const DENSE_BRICK_BYTES: usize = DENSE_BRICK_VALUES * size_of::<f32>();
 
 const SHIFT: usize = 3;
 const MASK: usize = COEFF_BRICK - 1;
+/// Bricks a group holds along each axis.
+const GROUP_SPAN: usize = 4;
+const GROUP_SHIFT: usize = 2;
+const GROUP_MASK: usize = GROUP_SPAN - 1;
+/// Bricks a group holds.
+const GROUP_BRICKS: usize = GROUP_SPAN * GROUP_SPAN * GROUP_SPAN;
 /// Distance between neighbouring values along y within a dense brick.
 const STRIDE_Y: usize = BRICK_SPAN;
 /// Distance between neighbouring values along z within a dense brick.
@@ -69,6 +90,30 @@ const STENCIL_REACH: usize = 3 * STRIDE_Z + 3 * STRIDE_Y + 4;
 enum Brick {
     Uniform(f32),
     Dense(Box<[f32; DENSE_BRICK_VALUES]>),
+}
+
+/// One group of [`GROUP_BRICKS`] bricks (see the module documentation).
+#[derive(Clone)]
+enum Group {
+    /// Every brick of the group inside the store is uniform with this brick's value (always a
+    /// [`Brick::Uniform`], held as a brick so that a read finds a brick in either case).
+    Uniform(Brick),
+    /// The group's bricks, `(a, b, c)` within the group at `a + 4 · (b + 4 · c)`.
+    Bricks(Box<[Brick; GROUP_BRICKS]>),
+}
+
+/// The brick at `slot` of group `group`, the group given its own entries first (holding its
+/// uniform value) when it had none: one allocation, unless the caller made sure the group has
+/// entries already.
+#[inline]
+fn brick_in_group(group: &mut Group, slot: usize) -> &mut Brick {
+    if let Group::Uniform(Brick::Uniform(v)) = *group {
+        *group = Group::Bricks(Box::new(std::array::from_fn(|_| Brick::Uniform(v))));
+    }
+    match group {
+        Group::Bricks(bricks) => &mut bricks[slot],
+        Group::Uniform(_) => unreachable!("given entries above"),
+    }
 }
 
 /// Offset of in-brick coordinates `(a, b, c)` (each below [`BRICK_SPAN`]) within a dense
@@ -137,17 +182,12 @@ fn lowest_holder(x: usize) -> usize {
     holders[count - 1].0
 }
 
-/// Writes `values` at `off` of `brick`; a uniform brick that holds them all already stays
-/// uniform.
-/// `dense` counts the store's dense bricks.
+/// Widens the box `bounds` (first and last coordinate per axis, inclusive) to hold `at`.
 #[inline]
-fn store_run(brick: &mut Brick, off: usize, values: &[f32], dense: &mut usize) {
-    let keeps = match brick {
-        Brick::Uniform(v) => values.iter().all(|h| h.to_bits() == v.to_bits()),
-        Brick::Dense(_) => false,
-    };
-    if !keeps {
-        densify(brick, dense)[off..off + values.len()].copy_from_slice(values);
+fn widen(bounds: &mut ([usize; 3], [usize; 3]), at: [usize; 3]) {
+    for (axis, x) in at.into_iter().enumerate() {
+        bounds.0[axis] = bounds.0[axis].min(x);
+        bounds.1[axis] = bounds.1[axis].max(x);
     }
 }
 
@@ -209,6 +249,57 @@ impl fmt::Debug for SpareBrick {
     }
 }
 
+/// The entries of one group of bricks, allocated ahead of time for a store that must not
+/// allocate on writes (see [`SpareBrick`]): a write into a brick of a group whose bricks are
+/// all one value needs the group's own entries first.
+pub struct SpareGroup(Box<[Brick; GROUP_BRICKS]>);
+
+impl SpareGroup {
+    /// A spare group: one allocation of [`SPARE_GROUP_BYTES`].
+    #[must_use]
+    pub fn new() -> Self {
+        Self(Box::new(std::array::from_fn(|_| Brick::Uniform(0.0))))
+    }
+}
+
+/// Heap bytes of one group's entries ([`SpareGroup`]).
+pub const SPARE_GROUP_BYTES: usize = GROUP_BRICKS * size_of::<Brick>();
+
+impl Default for SpareGroup {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl fmt::Debug for SpareGroup {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("SpareGroup")
+    }
+}
+
+/// Where a store that must not allocate takes the storage a write needs
+/// ([`BrickedCoeffs::densify_for_box`]): each answers `None` when its pool is dry.
+pub trait SpareStorage {
+    /// Storage for one dense brick.
+    fn spare_brick(&mut self) -> Option<SpareBrick>;
+    /// Entries for one group of bricks.
+    fn spare_group(&mut self) -> Option<SpareGroup>;
+}
+
+/// Spare storage allocated on demand, for a store that may allocate (a thread off the loops,
+/// or shutdown).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct AllocatingSpares;
+
+impl SpareStorage for AllocatingSpares {
+    fn spare_brick(&mut self) -> Option<SpareBrick> {
+        Some(SpareBrick::new())
+    }
+    fn spare_group(&mut self) -> Option<SpareGroup> {
+        Some(SpareGroup::new())
+    }
+}
+
 /// Why [`BrickedCoeffs::try_from_owned_bricks`] made no store.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum OwnedBricksError<E> {
@@ -240,8 +331,12 @@ pub struct BrickedCoeffs {
     dims: [usize; 3],
     /// Bricks per axis: `dims[a]` rounded up to whole bricks.
     bricks_per_axis: [usize; 3],
-    /// Brick `(bi, bj, bk)` at `bi + bx · (bj + by · bk)`.
-    bricks: Vec<Brick>,
+    /// Per axis, how many bricks before brick 0 its group holds (below [`GROUP_SPAN`]).
+    group_offset: [usize; 3],
+    /// Groups per axis: the bricks and the offset rounded up to whole groups.
+    groups_per_axis: [usize; 3],
+    /// Group `(gi, gj, gk)` at `gi + gx · (gj + gy · gk)`.
+    groups: Vec<Group>,
     /// How many of `bricks` are dense: kept by every change of representation, so the count
     /// (and the clay's memory budget, [`super::MAX_DENSE_BRICKS`]) costs no walk.
     dense: usize,
@@ -254,17 +349,155 @@ impl BrickedCoeffs {
     /// When the coefficient count overflows `usize`.
     #[must_use]
     pub fn uniform(dims: [usize; 3], value: f32) -> Self {
+        Self::uniform_with_offset(dims, [0; 3], value)
+    }
+
+    /// [`BrickedCoeffs::uniform`] with the groups offset by `group_offset` bricks per axis
+    /// (each below [`GROUP_SPAN`]); allocates one entry per group.
+    fn uniform_with_offset(dims: [usize; 3], group_offset: [usize; 3], value: f32) -> Self {
         dims.iter()
             .try_fold(1_usize, |acc, &n| acc.checked_mul(n))
             .expect("coefficient count overflows usize");
         let bricks_per_axis = dims.map(|n| n.div_ceil(COEFF_BRICK));
-        let count = bricks_per_axis.iter().product();
+        let groups_per_axis: [usize; 3] = std::array::from_fn(|a| {
+            if bricks_per_axis[a] == 0 {
+                0
+            } else {
+                (bricks_per_axis[a] + group_offset[a]).div_ceil(GROUP_SPAN)
+            }
+        });
+        let count = groups_per_axis.iter().product();
         Self {
             dims,
             bricks_per_axis,
-            bricks: vec![Brick::Uniform(value); count],
+            group_offset,
+            groups_per_axis,
+            groups: vec![Group::Uniform(Brick::Uniform(value)); count],
             dense: 0,
         }
+    }
+
+    /// The group holding brick `brick` and the brick's slot in it.
+    #[inline(always)]
+    fn locate(&self, brick: [usize; 3]) -> (usize, usize) {
+        let [x, y, z]: [usize; 3] = std::array::from_fn(|a| brick[a] + self.group_offset[a]);
+        let [gx, gy, _] = self.groups_per_axis;
+        let group = (x >> GROUP_SHIFT) + gx * ((y >> GROUP_SHIFT) + gy * (z >> GROUP_SHIFT));
+        let slot =
+            (x & GROUP_MASK) + GROUP_SPAN * ((y & GROUP_MASK) + GROUP_SPAN * (z & GROUP_MASK));
+        (group, slot)
+    }
+
+    /// Brick `brick` (per axis, below [`BrickedCoeffs::bricks_per_axis`]).
+    #[inline(always)]
+    fn brick(&self, brick: [usize; 3]) -> &Brick {
+        let (group, slot) = self.locate(brick);
+        match &self.groups[group] {
+            Group::Uniform(uniform) => uniform,
+            Group::Bricks(bricks) => &bricks[slot],
+        }
+    }
+
+    /// The brick that owns coefficient `(i, j, k)`.
+    #[inline(always)]
+    fn brick_of(&self, i: usize, j: usize, k: usize) -> &Brick {
+        self.brick([i >> SHIFT, j >> SHIFT, k >> SHIFT])
+    }
+
+    /// Brick `brick`, its group given entries first when it had none (one allocation).
+    #[inline]
+    fn brick_mut(&mut self, brick: [usize; 3]) -> &mut Brick {
+        let (group, slot) = self.locate(brick);
+        brick_in_group(&mut self.groups[group], slot)
+    }
+
+    /// Brick `brick` made dense (counted) when it was uniform; allocates its storage, and
+    /// its group's entries when the group had none.
+    #[inline]
+    fn dense_values_mut(&mut self, brick: [usize; 3]) -> &mut [f32; DENSE_BRICK_VALUES] {
+        let (group, slot) = self.locate(brick);
+        densify(
+            brick_in_group(&mut self.groups[group], slot),
+            &mut self.dense,
+        )
+    }
+
+    /// Puts `brick` at `at` (replacing a uniform brick; the caller counts dense ones): a
+    /// uniform brick equal to its group's value leaves a uniform group as it is.
+    fn put_brick(&mut self, at: [usize; 3], brick: Brick) {
+        let (group, slot) = self.locate(at);
+        if let (Brick::Uniform(w), Group::Uniform(Brick::Uniform(v))) =
+            (&brick, &self.groups[group])
+            && w.to_bits() == v.to_bits()
+        {
+            return;
+        }
+        *brick_in_group(&mut self.groups[group], slot) = brick;
+    }
+
+    /// Writes `values` at `off` of brick `at`; a uniform brick that holds them all already
+    /// stays uniform (and its group as it is).
+    #[inline]
+    fn store_run(&mut self, at: [usize; 3], off: usize, values: &[f32]) {
+        if let Brick::Uniform(v) = *self.brick(at)
+            && values.iter().all(|h| h.to_bits() == v.to_bits())
+        {
+            return;
+        }
+        self.dense_values_mut(at)[off..off + values.len()].copy_from_slice(values);
+    }
+
+    /// The bricks of group `group` (per axis) that lie inside the store, per axis.
+    fn bricks_of_group(&self, group: [usize; 3]) -> [std::ops::Range<usize>; 3] {
+        std::array::from_fn(|a| {
+            let first = (group[a] * GROUP_SPAN).saturating_sub(self.group_offset[a]);
+            let end =
+                ((group[a] + 1) * GROUP_SPAN - self.group_offset[a]).min(self.bricks_per_axis[a]);
+            first..end
+        })
+    }
+
+    /// Group `group` (per axis) and the bricks of it inside the store.
+    fn groups_indexed(&self) -> impl Iterator<Item = (usize, [usize; 3])> + use<> {
+        let [gx, gy, gz] = self.groups_per_axis;
+        (0..gz).flat_map(move |gk| {
+            (0..gy)
+                .flat_map(move |gj| (0..gx).map(move |gi| (gi + gx * (gj + gy * gk), [gi, gj, gk])))
+        })
+    }
+
+    /// Makes uniform again each group in `groups` whose bricks inside the store are all
+    /// uniform with one value, freeing its entries; returns how many it made uniform.
+    fn collapse_groups(&mut self, groups: impl Iterator<Item = (usize, [usize; 3])>) -> usize {
+        let mut collapsed = 0;
+        for (at, group) in groups {
+            let Group::Bricks(bricks) = &self.groups[at] else {
+                continue;
+            };
+            let [x, y, z] = self.bricks_of_group(group);
+            let mut value = None;
+            let mut same = true;
+            'all: for bk in z {
+                for bj in y.clone() {
+                    for bi in x.clone() {
+                        let slot = self.locate([bi, bj, bk]).1;
+                        match (&bricks[slot], value) {
+                            (Brick::Uniform(v), None) => value = Some(*v),
+                            (Brick::Uniform(v), Some(w)) if v.to_bits() == f32::to_bits(w) => {}
+                            _ => {
+                                same = false;
+                                break 'all;
+                            }
+                        }
+                    }
+                }
+            }
+            if same {
+                self.groups[at] = Group::Uniform(Brick::Uniform(value.unwrap_or(0.0)));
+                collapsed += 1;
+            }
+        }
+        collapsed
     }
 
     /// A store of `dims` zero coefficients.
@@ -300,8 +533,7 @@ impl BrickedCoeffs {
                         (0..extent[1])
                             .all(|b| row(b, c).iter().all(|v| v.to_bits() == first.to_bits()))
                     });
-                    let at = bi + bx * (bj + by * bk);
-                    store.bricks[at] = if same {
+                    let brick = if same {
                         Brick::Uniform(first)
                     } else {
                         let mut dense = Box::new([0.0; DENSE_BRICK_VALUES]);
@@ -313,9 +545,11 @@ impl BrickedCoeffs {
                         store.dense += 1;
                         Brick::Dense(dense)
                     };
+                    store.put_brick([bi, bj, bk], brick);
                 }
             }
         }
+        store.collapse_groups(store.groups_indexed());
         store
     }
 
@@ -370,10 +604,22 @@ impl BrickedCoeffs {
         self.len() == 0
     }
 
-    /// Number of bricks in the directory.
+    /// Number of bricks the store's box holds (uniform or dense).
     #[must_use]
     pub fn brick_count(&self) -> usize {
-        self.bricks.len()
+        self.bricks_per_axis.iter().product()
+    }
+
+    /// Number of groups of bricks the directory holds, and how many of them hold their own
+    /// brick entries (the rest are one value each): a walk over the groups.
+    #[must_use]
+    pub fn group_counts(&self) -> (usize, usize) {
+        let expanded = self
+            .groups
+            .iter()
+            .filter(|g| matches!(g, Group::Bricks(_)))
+            .count();
+        (self.groups.len(), expanded)
     }
 
     /// Number of dense (heap-allocated) bricks: a count kept as bricks change, no walk.
@@ -382,8 +628,9 @@ impl BrickedCoeffs {
         self.dense
     }
 
-    /// Bytes one directory entry costs, whatever the brick holds: the memory a store holds
-    /// per [`COEFF_BRICK_VALUES`] coefficients of its box even where it is empty space.
+    /// Bytes one brick's directory entry costs where its group holds entries: the most a
+    /// store holds per [`COEFF_BRICK_VALUES`] coefficients of its box besides its dense bricks
+    /// (a group that is one value costs 1/64 of it per brick, plus its 16-byte share).
     pub const DIRECTORY_BYTES_PER_BRICK: usize = size_of::<Brick>();
 
     /// The first and last brick (per axis, inclusive) that hold a coefficient of the box
@@ -406,14 +653,11 @@ impl BrickedCoeffs {
         let Some((first, last)) = self.bricks_holding(min, max) else {
             return 0;
         };
-        let [bx, by, _] = self.bricks_per_axis;
         let mut uniform = 0;
         for bk in first[2]..=last[2] {
             for bj in first[1]..=last[1] {
-                let row = bx * (bj + by * bk);
-                uniform += self.bricks[row + first[0]..=row + last[0]]
-                    .iter()
-                    .filter(|b| matches!(b, Brick::Uniform(_)))
+                uniform += (first[0]..=last[0])
+                    .filter(|&bi| matches!(self.brick([bi, bj, bk]), Brick::Uniform(_)))
                     .count();
             }
         }
@@ -422,16 +666,25 @@ impl BrickedCoeffs {
 
     /// The dense bricks counted by walking the directory (what `dense` must equal).
     fn walked_dense_count(&self) -> usize {
-        self.bricks
+        self.groups
             .iter()
-            .filter(|b| matches!(b, Brick::Dense(_)))
-            .count()
+            .map(|g| match g {
+                Group::Uniform(_) => 0,
+                Group::Bricks(bricks) => bricks
+                    .iter()
+                    .filter(|b| matches!(b, Brick::Dense(_)))
+                    .count(),
+            })
+            .sum()
     }
 
-    /// Bytes this store holds on the heap: the directory and the dense bricks.
+    /// Bytes this store holds on the heap: the groups, the entries of the groups that hold
+    /// them, and the dense bricks. Walks the groups.
     #[must_use]
     pub fn heap_bytes(&self) -> usize {
-        self.bricks.capacity() * size_of::<Brick>() + self.dense_brick_count() * DENSE_BRICK_BYTES
+        self.groups.capacity() * size_of::<Group>()
+            + self.group_counts().1 * SPARE_GROUP_BYTES
+            + self.dense_brick_count() * DENSE_BRICK_BYTES
     }
 
     /// Coordinates `(i, j, k)` of flat index `n`.
@@ -442,12 +695,6 @@ impl BrickedCoeffs {
         let i = n % nx;
         let rest = n / nx;
         [i, rest % ny, rest / ny]
-    }
-
-    #[inline]
-    fn brick_index(&self, i: usize, j: usize, k: usize) -> usize {
-        let [bx, by, _] = self.bricks_per_axis;
-        (i >> SHIFT) + bx * ((j >> SHIFT) + by * (k >> SHIFT))
     }
 
     #[inline]
@@ -467,7 +714,7 @@ impl BrickedCoeffs {
     #[must_use]
     pub fn at(&self, i: usize, j: usize, k: usize) -> &f32 {
         self.check(i, j, k);
-        match &self.bricks[self.brick_index(i, j, k)] {
+        match self.brick_of(i, j, k) {
             Brick::Uniform(v) => v,
             Brick::Dense(values) => &values[offset(i & MASK, j & MASK, k & MASK)],
         }
@@ -491,20 +738,13 @@ impl BrickedCoeffs {
     #[inline]
     pub fn set(&mut self, i: usize, j: usize, k: usize, value: f32) {
         self.check(i, j, k);
-        let [bx, by, _] = self.bricks_per_axis;
         let (xs, nx) = axis_holders(i);
         let (ys, ny) = axis_holders(j);
         let (zs, nz) = axis_holders(k);
         for &(bk, c) in &zs[..nz] {
             for &(bj, b) in &ys[..ny] {
                 for &(bi, a) in &xs[..nx] {
-                    let at = bi + bx * (bj + by * bk);
-                    store_run(
-                        &mut self.bricks[at],
-                        offset(a, b, c),
-                        &[value],
-                        &mut self.dense,
-                    );
+                    self.store_run([bi, bj, bk], offset(a, b, c), &[value]);
                 }
             }
         }
@@ -543,7 +783,7 @@ impl BrickedCoeffs {
     #[must_use]
     pub fn row4(&self, i: usize, j: usize, k: usize) -> Vec4 {
         self.check(i + 3, j, k);
-        match &self.bricks[self.brick_index(i, j, k)] {
+        match self.brick_of(i, j, k) {
             Brick::Uniform(v) => Vec4::splat(*v),
             // The row's last three values are in the owner's apron when they cross.
             Brick::Dense(values) => {
@@ -553,8 +793,9 @@ impl BrickedCoeffs {
     }
 
     /// The 4×4×4 coefficients from `(i, j, k)` (a cubic stencil) as 16 rows along x, row
-    /// `b + 4c` holding `(i..i + 4, j + b, k + c)`: one directory read, the brick that owns
-    /// `(i, j, k)` holding the whole stencil in its own values and apron.
+    /// `b + 4c` holding `(i..i + 4, j + b, k + c)`: one brick found in the directory (its
+    /// group, then the brick), the brick that owns `(i, j, k)` holding the whole stencil in
+    /// its own values and apron.
     ///
     /// The caller keeps the stencil inside the store (checked in debug builds; outside it,
     /// the values read past the store's end are not coefficients).
@@ -566,7 +807,7 @@ impl BrickedCoeffs {
             "stencil at ({i}, {j}, {k}) outside {:?}",
             self.dims
         );
-        match &self.bricks[self.brick_index(i, j, k)] {
+        match self.brick_of(i, j, k) {
             Brick::Uniform(v) => [Vec4::splat(*v); 16],
             Brick::Dense(values) => {
                 // NOTE: one slice of the stencil's reach, so the sixteen constant offsets
@@ -596,7 +837,7 @@ impl BrickedCoeffs {
             let a = x & MASK;
             let run = (COEFF_BRICK - a).min(rest.len());
             let (here, after) = rest.split_at_mut(run);
-            match &self.bricks[self.brick_index(x, j, k)] {
+            match self.brick_of(x, j, k) {
                 Brick::Uniform(v) => here.fill(*v),
                 Brick::Dense(values) => {
                     copy_run(here, &values[offset(a, b, c)..][..run]);
@@ -629,7 +870,7 @@ impl BrickedCoeffs {
         while x < i + len {
             let a = x & MASK;
             let run = (COEFF_BRICK - a).min(i + len - x);
-            match &self.bricks[self.brick_index(x, j, k)] {
+            match self.brick_of(x, j, k) {
                 Brick::Uniform(v) => {
                     for _ in 0..run {
                         acc = f(acc, *v);
@@ -680,9 +921,7 @@ impl BrickedCoeffs {
                 let (b0, b_end, y_next) = own(1, bj);
                 for bi in first[0] >> SHIFT..=last[0] >> SHIFT {
                     let (a0, a_end, x_next) = own(0, bi);
-                    let [bx, by, _] = self.bricks_per_axis;
-                    let brick = &self.bricks[bi + bx * (bj + by * bk)];
-                    let values = match brick {
+                    let values = match self.brick([bi, bj, bk]) {
                         Brick::Uniform(v) => {
                             out.min = smaller(out.min, *v);
                             out.max = larger(out.max, *v);
@@ -740,19 +979,46 @@ impl BrickedCoeffs {
     #[must_use]
     pub fn differing_box(&self, other: &Self) -> Option<([usize; 3], [usize; 3])> {
         assert_eq!(self.dims, other.dims, "stores of one shape");
-        let mut first = [usize::MAX; 3];
-        let mut last = [0_usize; 3];
-        let mut grow = |at: [usize; 3]| {
-            for axis in 0..3 {
-                first[axis] = first[axis].min(at[axis]);
-                last[axis] = last[axis].max(at[axis]);
+        let mut bounds = ([usize::MAX; 3], [0_usize; 3]);
+        if self.group_offset == other.group_offset {
+            // Groups alike: two groups that are one value each are compared as one value.
+            for (at, group) in self.groups_indexed() {
+                let bricks = self.bricks_of_group(group);
+                if let (Group::Uniform(Brick::Uniform(p)), Group::Uniform(Brick::Uniform(q))) =
+                    (&self.groups[at], &other.groups[at])
+                {
+                    if p.to_bits() != q.to_bits() {
+                        widen(&mut bounds, bricks.clone().map(|r| r.start * COEFF_BRICK));
+                        widen(
+                            &mut bounds,
+                            std::array::from_fn(|a| {
+                                (bricks[a].end * COEFF_BRICK).min(self.dims[a]) - 1
+                            }),
+                        );
+                    }
+                    continue;
+                }
+                self.differing_in_bricks(other, bricks, &mut bounds);
             }
-        };
-        let [bx, by, bz] = self.bricks_per_axis;
-        for bk in 0..bz {
-            for bj in 0..by {
-                for bi in 0..bx {
-                    let n = bi + bx * (bj + by * bk);
+        } else {
+            let bricks = self.bricks_per_axis.map(|n| 0..n);
+            self.differing_in_bricks(other, bricks, &mut bounds);
+        }
+        let (first, last) = bounds;
+        (first[0] != usize::MAX).then_some((first, last))
+    }
+
+    /// [`BrickedCoeffs::differing_box`] over the bricks `bricks` (per axis), widening
+    /// `bounds` (first and last coefficient per axis) by every coefficient that differs.
+    fn differing_in_bricks(
+        &self,
+        other: &Self,
+        bricks: [std::ops::Range<usize>; 3],
+        bounds: &mut ([usize; 3], [usize; 3]),
+    ) {
+        for bk in bricks[2].clone() {
+            for bj in bricks[1].clone() {
+                for bi in bricks[0].clone() {
                     let low = [bi << SHIFT, bj << SHIFT, bk << SHIFT];
                     // This brick's own coefficients within the store, per axis (end exclusive).
                     let own: [usize; 3] =
@@ -761,11 +1027,11 @@ impl BrickedCoeffs {
                         Brick::Uniform(v) => *v,
                         Brick::Dense(values) => values[offset(a, b, c)],
                     };
-                    match (&self.bricks[n], &other.bricks[n]) {
+                    match (self.brick([bi, bj, bk]), other.brick([bi, bj, bk])) {
                         (Brick::Uniform(p), Brick::Uniform(q)) => {
                             if p.to_bits() != q.to_bits() {
-                                grow(low);
-                                grow(std::array::from_fn(|a| low[a] + own[a] - 1));
+                                widen(bounds, low);
+                                widen(bounds, std::array::from_fn(|a| low[a] + own[a] - 1));
                             }
                         }
                         (p, q) => {
@@ -774,7 +1040,7 @@ impl BrickedCoeffs {
                                     for a in 0..own[0] {
                                         let (u, v) = (value(p, a, b, c), value(q, a, b, c));
                                         if u.to_bits() != v.to_bits() {
-                                            grow([low[0] + a, low[1] + b, low[2] + c]);
+                                            widen(bounds, [low[0] + a, low[1] + b, low[2] + c]);
                                         }
                                     }
                                 }
@@ -784,7 +1050,6 @@ impl BrickedCoeffs {
                 }
             }
         }
-        (first[0] != usize::MAX).then_some((first, last))
     }
 
     /// [`BrickedCoeffs::read_row_at`] from flat index `start`.
@@ -816,7 +1081,6 @@ impl BrickedCoeffs {
             return;
         }
         self.check(i + values.len() - 1, j, k);
-        let [bx, by, _] = self.bricks_per_axis;
         let (ys, ny) = axis_holders(j);
         let (zs, nz) = axis_holders(k);
         let mut x = i;
@@ -827,18 +1091,12 @@ impl BrickedCoeffs {
             let (here, after) = rest.split_at(run);
             for &(bk, c) in &zs[..nz] {
                 for &(bj, b) in &ys[..ny] {
-                    let row = bx * (bj + by * bk);
-                    store_run(
-                        &mut self.bricks[bi + row],
-                        offset(a, b, c),
-                        here,
-                        &mut self.dense,
-                    );
+                    self.store_run([bi, bj, bk], offset(a, b, c), here);
                     if a < BRICK_APRON && bi > 0 {
                         // The run's first values are also in the apron of the brick before.
                         let copied = &here[..(BRICK_APRON - a).min(run)];
                         let off = offset(a + COEFF_BRICK, b, c);
-                        store_run(&mut self.bricks[bi - 1 + row], off, copied, &mut self.dense);
+                        self.store_run([bi - 1, bj, bk], off, copied);
                     }
                 }
             }
@@ -881,7 +1139,6 @@ impl BrickedCoeffs {
         if !self.check_box(min, size, values.len()) {
             return;
         }
-        let [bx, by, _] = self.bricks_per_axis;
         let first = min.map(lowest_holder);
         let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
         for bk in first[2]..=last[2] {
@@ -900,8 +1157,7 @@ impl BrickedCoeffs {
                         let at = lo[0] - min[0] + size[0] * (y - min[1] + size[1] * (z - min[2]));
                         &values[at..at + len]
                     };
-                    let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
-                    if let Brick::Uniform(v) = *brick {
+                    if let Brick::Uniform(v) = *self.brick([bi, bj, bk]) {
                         let keeps = (lo[2]..hi[2]).all(|z| {
                             (lo[1]..hi[1])
                                 .all(|y| source(y, z).iter().all(|h| h.to_bits() == v.to_bits()))
@@ -910,7 +1166,7 @@ impl BrickedCoeffs {
                             continue;
                         }
                     }
-                    let dense = densify(brick, &mut self.dense);
+                    let dense = self.dense_values_mut([bi, bj, bk]);
                     for z in lo[2]..hi[2] {
                         for y in lo[1]..hi[1] {
                             let off = offset(lo[0] - origin[0], y - origin[1], z - origin[2]);
@@ -924,14 +1180,15 @@ impl BrickedCoeffs {
 
     /// Makes dense, without changing any value, every uniform brick that
     /// [`BrickedCoeffs::write_box`] of the same box and values would make dense, taking the
-    /// storage from `spares` instead of allocating. Returns whether every such brick is dense
-    /// now: then that write allocates nothing. When `spares` runs dry first it returns
-    /// `false`; the bricks made dense so far stay dense (they hold the values they held), so
-    /// a later call with more spares goes on where this one stopped.
+    /// storage from `spares` instead of allocating: a brick's storage, and first its group's
+    /// entries when its group is one value. Returns whether every such brick is dense now:
+    /// then that write allocates nothing. When `spares` runs dry first it returns `false`;
+    /// the groups given entries and the bricks made dense so far stay so (they hold the
+    /// values they held), so a later call with more spares goes on where this one stopped.
     ///
-    /// Never allocates. Reads the directory entry of each brick the box reaches, and the
-    /// values that fall in a uniform one (the comparison `write_box` makes too); a brick
-    /// already dense costs one lookup.
+    /// Never allocates, and frees nothing. Reads the directory entry of each brick the box
+    /// reaches, and the values that fall in a uniform one (the comparison `write_box` makes
+    /// too); a brick already dense costs one lookup.
     ///
     /// # Panics
     /// As [`BrickedCoeffs::write_box`].
@@ -940,19 +1197,17 @@ impl BrickedCoeffs {
         min: [usize; 3],
         size: [usize; 3],
         values: &[f32],
-        spares: &mut impl FnMut() -> Option<SpareBrick>,
+        spares: &mut impl SpareStorage,
     ) -> bool {
         if !self.check_box(min, size, values.len()) {
             return true;
         }
-        let [bx, by, _] = self.bricks_per_axis;
         let first = min.map(lowest_holder);
         let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
         for bk in first[2]..=last[2] {
             for bj in first[1]..=last[1] {
                 for bi in first[0]..=last[0] {
-                    let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
-                    let Brick::Uniform(v) = *brick else {
+                    let Brick::Uniform(v) = *self.brick([bi, bj, bk]) else {
                         continue;
                     };
                     let origin = [bi, bj, bk].map(|b| b * COEFF_BRICK);
@@ -976,11 +1231,24 @@ impl BrickedCoeffs {
                     if keeps {
                         continue;
                     }
-                    let Some(SpareBrick(mut storage)) = spares() else {
+                    let (group, slot) = self.locate([bi, bj, bk]);
+                    let group = &mut self.groups[group];
+                    if let Group::Uniform(Brick::Uniform(w)) = *group {
+                        let Some(SpareGroup(mut entries)) = spares.spare_group() else {
+                            return false;
+                        };
+                        // The spare's entries are uniform bricks: replacing them frees nothing.
+                        for entry in entries.iter_mut() {
+                            *entry = Brick::Uniform(w);
+                        }
+                        *group = Group::Bricks(entries);
+                    }
+                    let Some(SpareBrick(mut storage)) = spares.spare_brick() else {
                         return false;
                     };
                     storage.fill(v);
-                    *brick = Brick::Dense(storage);
+                    // The brick was uniform: replacing it frees nothing.
+                    *brick_in_group(group, slot) = Brick::Dense(storage);
                     self.dense += 1;
                 }
             }
@@ -997,7 +1265,6 @@ impl BrickedCoeffs {
         if !self.check_box(min, size, out.len()) {
             return;
         }
-        let [bx, by, _] = self.bricks_per_axis;
         let first = min.map(|m| m >> SHIFT);
         let last: [usize; 3] = std::array::from_fn(|a| (min[a] + size[a] - 1) >> SHIFT);
         for bk in first[2]..=last[2] {
@@ -1008,7 +1275,7 @@ impl BrickedCoeffs {
                     let hi: [usize; 3] =
                         std::array::from_fn(|a| (min[a] + size[a]).min(origin[a] + COEFF_BRICK));
                     let len = hi[0] - lo[0];
-                    let brick = &self.bricks[bi + bx * (bj + by * bk)];
+                    let brick = self.brick([bi, bj, bk]);
                     for z in lo[2]..hi[2] {
                         for y in lo[1]..hi[1] {
                             let at =
@@ -1100,33 +1367,57 @@ impl BrickedCoeffs {
     /// neighbours'), so nothing is allocated and no brick is made dense. Returns how many
     /// coefficients changed bits.
     pub fn map_values(&mut self, f: impl Fn(f32) -> f32) -> usize {
-        let [bx, by, bz] = self.bricks_per_axis;
         let mut changed = 0;
-        for bk in 0..bz {
-            for bj in 0..by {
-                for bi in 0..bx {
-                    let owned = self.owned_extent([bi, bj, bk]);
-                    let held = self.held_extent([bi, bj, bk]);
-                    match &mut self.bricks[bi + bx * (bj + by * bk)] {
-                        Brick::Uniform(v) => {
+        for (at, group) in self.groups_indexed() {
+            let bricks = self.bricks_of_group(group);
+            if let Group::Uniform(Brick::Uniform(v)) = &mut self.groups[at] {
+                let new = f(*v);
+                if new.to_bits() != v.to_bits() {
+                    // Every coefficient the group's bricks own inside the store.
+                    changed += (0..3)
+                        .map(|a| {
+                            (bricks[a].end * COEFF_BRICK).min(self.dims[a])
+                                - bricks[a].start * COEFF_BRICK
+                        })
+                        .product::<usize>();
+                    *v = new;
+                }
+                continue;
+            }
+            for bk in bricks[2].clone() {
+                for bj in bricks[1].clone() {
+                    for bi in bricks[0].clone() {
+                        changed += self.map_brick([bi, bj, bk], &f);
+                    }
+                }
+            }
+        }
+        changed
+    }
+
+    /// [`BrickedCoeffs::map_values`] for brick `brick` of a group that holds entries.
+    fn map_brick(&mut self, brick: [usize; 3], f: &impl Fn(f32) -> f32) -> usize {
+        let owned = self.owned_extent(brick);
+        let held = self.held_extent(brick);
+        let (group, slot) = self.locate(brick);
+        let mut changed = 0;
+        match brick_in_group(&mut self.groups[group], slot) {
+            Brick::Uniform(v) => {
+                let new = f(*v);
+                if new.to_bits() != v.to_bits() {
+                    changed += owned.iter().product::<usize>();
+                    *v = new;
+                }
+            }
+            Brick::Dense(values) => {
+                for c in 0..held[2] {
+                    for b in 0..held[1] {
+                        let row = &mut values[offset(0, b, c)..][..held[0]];
+                        for (a, v) in row.iter_mut().enumerate() {
                             let new = f(*v);
-                            if new.to_bits() != v.to_bits() {
-                                changed += owned.iter().product::<usize>();
-                                *v = new;
-                            }
-                        }
-                        Brick::Dense(values) => {
-                            for c in 0..held[2] {
-                                for b in 0..held[1] {
-                                    let row = &mut values[offset(0, b, c)..][..held[0]];
-                                    for (a, v) in row.iter_mut().enumerate() {
-                                        let new = f(*v);
-                                        let own = a < owned[0] && b < owned[1] && c < owned[2];
-                                        changed += usize::from(own && new.to_bits() != v.to_bits());
-                                        *v = new;
-                                    }
-                                }
-                            }
+                            let own = a < owned[0] && b < owned[1] && c < owned[2];
+                            changed += usize::from(own && new.to_bits() != v.to_bits());
+                            *v = new;
                         }
                     }
                 }
@@ -1135,10 +1426,10 @@ impl BrickedCoeffs {
         changed
     }
 
-    /// Sets every coefficient to `value`; frees every dense brick.
+    /// Sets every coefficient to `value`; frees every dense brick and every group's entries.
     pub fn fill(&mut self, value: f32) {
-        for b in &mut self.bricks {
-            *b = Brick::Uniform(value);
+        for g in &mut self.groups {
+            *g = Group::Uniform(Brick::Uniform(value));
         }
         self.dense = 0;
     }
@@ -1154,37 +1445,69 @@ impl BrickedCoeffs {
 
     /// [`BrickedCoeffs::compact`] for the bricks that hold a coefficient of the box
     /// `min..=max` (clipped to the store), as owner or in their apron: where an edit settled.
+    /// A group of those bricks whose bricks are then all uniform with one value becomes that
+    /// value, freeing its entries. Visits the groups the box reaches and the bricks of those
+    /// that hold entries.
     pub fn compact_within(&mut self, min: [usize; 3], max: [usize; 3]) -> usize {
         let Some((first, last)) = self.bricks_holding(min, max) else {
             return 0;
         };
-        let [bx, by, _] = self.bricks_per_axis;
+        let [gx, gy, _] = self.groups_per_axis;
+        let group_of = |b: [usize; 3]| -> [usize; 3] {
+            std::array::from_fn(|a| (b[a] + self.group_offset[a]) >> GROUP_SHIFT)
+        };
+        let (g_first, g_last) = (group_of(first), group_of(last));
         let mut freed = 0;
-        for bk in first[2]..=last[2] {
-            for bj in first[1]..=last[1] {
-                for bi in first[0]..=last[0] {
-                    let extent = self.held_extent([bi, bj, bk]);
-                    let brick = &mut self.bricks[bi + bx * (bj + by * bk)];
-                    let Brick::Dense(values) = brick else {
+        for gk in g_first[2]..=g_last[2] {
+            for gj in g_first[1]..=g_last[1] {
+                for gi in g_first[0]..=g_last[0] {
+                    let at = gi + gx * (gj + gy * gk);
+                    if matches!(self.groups[at], Group::Uniform(_)) {
                         continue;
-                    };
-                    let first = values[0];
-                    let same = (0..extent[2]).all(|c| {
-                        (0..extent[1]).all(|b| {
-                            values[offset(0, b, c)..][..extent[0]]
-                                .iter()
-                                .all(|v| v.to_bits() == first.to_bits())
-                        })
-                    });
-                    if same {
-                        *brick = Brick::Uniform(first);
-                        freed += 1;
                     }
+                    let bricks = self.bricks_of_group([gi, gj, gk]);
+                    let clip =
+                        |a: usize| bricks[a].start.max(first[a])..bricks[a].end.min(last[a] + 1);
+                    for bk in clip(2) {
+                        for bj in clip(1) {
+                            for bi in clip(0) {
+                                freed += usize::from(self.compact_brick([bi, bj, bk]));
+                            }
+                        }
+                    }
+                    self.collapse_groups(std::iter::once((at, [gi, gj, gk])));
                 }
             }
         }
         self.dense -= freed;
         freed
+    }
+
+    /// Makes brick `brick` uniform when it is dense and its values (apron included, within
+    /// the store) all have the same bits; whether it did. Leaves the dense count to the
+    /// caller.
+    fn compact_brick(&mut self, brick: [usize; 3]) -> bool {
+        let extent = self.held_extent(brick);
+        let (group, slot) = self.locate(brick);
+        let Group::Bricks(bricks) = &mut self.groups[group] else {
+            return false;
+        };
+        let brick = &mut bricks[slot];
+        let Brick::Dense(values) = brick else {
+            return false;
+        };
+        let first = values[0];
+        let same = (0..extent[2]).all(|c| {
+            (0..extent[1]).all(|b| {
+                values[offset(0, b, c)..][..extent[0]]
+                    .iter()
+                    .all(|v| v.to_bits() == first.to_bits())
+            })
+        });
+        if same {
+            *brick = Brick::Uniform(first);
+        }
+        same
     }
 
     /// Calls `f` with each brick's own coefficients (never its apron), in directory order
@@ -1200,7 +1523,7 @@ impl BrickedCoeffs {
             for bj in 0..by {
                 for bi in 0..bx {
                     let extent = self.owned_extent([bi, bj, bk]);
-                    match &self.bricks[bi + bx * (bj + by * bk)] {
+                    match self.brick([bi, bj, bk]) {
                         Brick::Uniform(v) => f(OwnedBrick::Uniform(*v)),
                         Brick::Dense(values) => {
                             let first = values[0];
@@ -1268,7 +1591,7 @@ impl BrickedCoeffs {
                     let first = [bi, bj, bk].map(|b| b * COEFF_BRICK);
                     let out = &mut scratch[..count];
                     let given = fill(first, extent, out).map_err(OwnedBricksError::Fill)?;
-                    store.bricks[bi + bx * (bj + by * bk)] = match given {
+                    let brick = match given {
                         Some(v) => Brick::Uniform(v),
                         None => {
                             if store.dense >= max_dense {
@@ -1283,6 +1606,7 @@ impl BrickedCoeffs {
                             Brick::Dense(dense)
                         }
                     };
+                    store.put_brick([bi, bj, bk], brick);
                 }
             }
         }
@@ -1293,7 +1617,7 @@ impl BrickedCoeffs {
             for bj in 0..by {
                 for bi in 0..bx {
                     let brick = [bi, bj, bk];
-                    if let Brick::Uniform(v) = store.bricks[bi + bx * (bj + by * bk)]
+                    if let Brick::Uniform(v) = *store.brick(brick)
                         && !store.apron_holds_only(brick, v)
                     {
                         to_densify += 1;
@@ -1313,13 +1637,19 @@ impl BrickedCoeffs {
             }
         }
         debug_assert!(store.dense <= max_dense, "counted before the pass");
+        store.collapse_groups(store.groups_indexed());
         Ok(store)
     }
 
     /// Makes every brick dense, so that later writes never allocate.
     pub fn densify_all(&mut self) {
-        for b in &mut self.bricks {
-            densify(b, &mut self.dense);
+        let [bx, by, bz] = self.bricks_per_axis;
+        for bk in 0..bz {
+            for bj in 0..by {
+                for bi in 0..bx {
+                    self.dense_values_mut([bi, bj, bk]);
+                }
+            }
         }
     }
 
@@ -1335,13 +1665,12 @@ impl BrickedCoeffs {
     }
 
     /// The parts of brick `brick`'s apron inside the store, one per neighbour `brick + step`
-    /// that owns one: the neighbour's directory index, `step`, and the in-brick ranges (of
-    /// `brick`'s places) it owns. None when the brick has no apron inside the store.
+    /// that owns one: the neighbour, `step`, and the in-brick ranges (of `brick`'s places) it
+    /// owns. None when the brick has no apron inside the store.
     fn apron_parts(
         &self,
         brick: [usize; 3],
-    ) -> impl Iterator<Item = (usize, [usize; 3], [(usize, usize); 3])> + Clone + use<> {
-        let [bx, by, _] = self.bricks_per_axis;
+    ) -> impl Iterator<Item = ([usize; 3], [usize; 3], [(usize, usize); 3])> + Clone + use<> {
         let owned = self.owned_extent(brick);
         let held = self.held_extent(brick);
         (1..8_usize).filter_map(move |d| {
@@ -1354,8 +1683,7 @@ impl BrickedCoeffs {
                 }
             });
             let n: [usize; 3] = std::array::from_fn(|a| brick[a] + step[a]);
-            (ranges.iter().all(|(lo, hi)| lo < hi))
-                .then(|| (n[0] + bx * (n[1] + by * n[2]), step, ranges))
+            (ranges.iter().all(|(lo, hi)| lo < hi)).then_some((n, step, ranges))
         })
     }
 
@@ -1365,7 +1693,7 @@ impl BrickedCoeffs {
     fn apron_holds_only(&self, brick: [usize; 3], v: f32) -> bool {
         let same = |w: &f32| w.to_bits() == v.to_bits();
         self.apron_parts(brick)
-            .all(|(n, step, [x, y, z])| match &self.bricks[n] {
+            .all(|(n, step, [x, y, z])| match self.brick(n) {
                 Brick::Uniform(w) => same(w),
                 Brick::Dense(values) => (z.0..z.1).all(|c| {
                     (y.0..y.1).all(|b| {
@@ -1382,9 +1710,7 @@ impl BrickedCoeffs {
     /// that own a part of it. Returns `false`, changing nothing, when a uniform brick would
     /// have to become dense and `may_densify` is `false`.
     fn refresh_apron(&mut self, brick: [usize; 3], may_densify: bool) -> bool {
-        let [bx, by, _] = self.bricks_per_axis;
-        let at = brick[0] + bx * (brick[1] + by * brick[2]);
-        if let Brick::Uniform(v) = self.bricks[at] {
+        if let Brick::Uniform(v) = *self.brick(brick) {
             if self.apron_holds_only(brick, v) {
                 return true;
             }
@@ -1394,14 +1720,14 @@ impl BrickedCoeffs {
         }
         let parts = self.apron_parts(brick);
         // Taken out of the directory while its neighbours are read.
-        let mut target = std::mem::replace(&mut self.bricks[at], Brick::Uniform(0.0));
+        let mut target = std::mem::replace(self.brick_mut(brick), Brick::Uniform(0.0));
         let values = densify(&mut target, &mut self.dense);
         for (n, step, [x, y, z]) in parts {
             let len = x.1 - x.0;
             for c in z.0..z.1 {
                 for b in y.0..y.1 {
                     let to = offset(x.0, b, c);
-                    match &self.bricks[n] {
+                    match self.brick(n) {
                         Brick::Uniform(w) => values[to..to + len].fill(*w),
                         Brick::Dense(from) => {
                             let from_at = apron_source(step, x.0, b, c);
@@ -1411,36 +1737,65 @@ impl BrickedCoeffs {
                 }
             }
         }
-        self.bricks[at] = target;
+        *self.brick_mut(brick) = target;
         true
     }
 
     /// This store with `low[a]` zero coefficients added before and `high[a]` after it along
-    /// each axis `a`. When every `low[a]` is a whole number of bricks the bricks move into the
-    /// new directory as they are (a uniform brick stays one value) and the aprons are brought
-    /// up to date; otherwise the values are copied row by row. The result is compacted.
+    /// each axis `a`. When every `low[a]` is a whole number of bricks the groups and bricks
+    /// move into the new directory as they are (the new groups' offset maps each old group
+    /// whole onto a new one, so a group that is one value stays one entry, and only the
+    /// groups at the old store's border move brick by brick) and the aprons are brought up
+    /// to date; otherwise the values are copied row by row. The result is compacted.
     ///
     /// # Panics
     /// When the grown coefficient count overflows `usize`.
     #[must_use]
     pub fn padded(&self, low: [usize; 3], high: [usize; 3]) -> Self {
         let dims: [usize; 3] = std::array::from_fn(|a| self.dims[a] + low[a] + high[a]);
-        let mut grown = Self::zeros(dims);
-        if low.iter().all(|l| l % COEFF_BRICK == 0) {
-            let shift = low.map(|l| l / COEFF_BRICK);
-            let [bx, by, bz] = self.bricks_per_axis;
-            for bk in 0..bz {
-                for bj in 0..by {
-                    for bi in 0..bx {
+        if self.is_empty() || low.iter().any(|l| l % COEFF_BRICK != 0) {
+            let mut grown = Self::zeros(dims);
+            let mut row = vec![0.0; self.dims[0]];
+            for k in 0..self.dims[2] {
+                for j in 0..self.dims[1] {
+                    self.read_row_at([0, j, k], &mut row);
+                    grown.write_row_at([low[0], j + low[1], k + low[2]], &row);
+                }
+            }
+            grown.compact();
+            return grown;
+        }
+        let shift = low.map(|l| l / COEFF_BRICK);
+        // Brick b moves to b + shift; with the offset (offset - shift) mod GROUP_SPAN its group
+        // (b + offset) / GROUP_SPAN becomes group (b + offset) / GROUP_SPAN + moved.
+        let group_offset: [usize; 3] = std::array::from_fn(|a| {
+            (self.group_offset[a] + GROUP_SPAN - shift[a] % GROUP_SPAN) % GROUP_SPAN
+        });
+        let moved_groups: [usize; 3] = std::array::from_fn(|a| {
+            (shift[a] + group_offset[a] - self.group_offset[a]) / GROUP_SPAN
+        });
+        let mut grown = Self::uniform_with_offset(dims, group_offset, 0.0);
+        let [gx, gy, _] = grown.groups_per_axis;
+        for (at, group) in self.groups_indexed() {
+            let bricks = self.bricks_of_group(group);
+            // A group all of whose bricks lie inside the old store and own all their
+            // coefficients there moves as it is; its apron copies are refreshed below where
+            // they meet the old border.
+            let whole = (0..3).all(|a| {
+                bricks[a].len() == GROUP_SPAN && bricks[a].end * COEFF_BRICK <= self.dims[a]
+            });
+            if whole {
+                let to: [usize; 3] = std::array::from_fn(|a| group[a] + moved_groups[a]);
+                grown.groups[to[0] + gx * (to[1] + gy * to[2])] = self.groups[at].clone();
+                continue;
+            }
+            for bk in bricks[2].clone() {
+                for bj in bricks[1].clone() {
+                    for bi in bricks[0].clone() {
                         let from = [bi, bj, bk];
-                        let to = [bi + shift[0], bj + shift[1], bk + shift[2]];
-                        let at = grown.brick_index(
-                            to[0] * COEFF_BRICK,
-                            to[1] * COEFF_BRICK,
-                            to[2] * COEFF_BRICK,
-                        );
-                        let brick = &self.bricks[bi + bx * (bj + by * bk)];
-                        grown.bricks[at] = if self.owned_extent(from) == grown.owned_extent(to) {
+                        let to: [usize; 3] = std::array::from_fn(|a| from[a] + shift[a]);
+                        let brick = self.brick(from);
+                        let moved = if self.owned_extent(from) == grown.owned_extent(to) {
                             brick.clone()
                         } else {
                             // A partial brick at the old high border now owns new (zero)
@@ -1461,36 +1816,28 @@ impl BrickedCoeffs {
                             }
                             Brick::Dense(kept)
                         };
+                        grown.put_brick(to, moved);
                     }
                 }
             }
-            // Only the aprons of bricks beside the old store's border can have changed: a
-            // brick one below its low faces now has moved neighbours, and the last two
-            // bricks along an axis now have new (zero) coefficients where their aprons reach
-            // past the old store. Deeper inside, every neighbour moved with its brick; farther
-            // out, every brick and neighbour is new and zero. On a far growth of a small clay
-            // this is a few bricks of a directory of millions.
-            let moved = self.bricks_per_axis;
-            let reach: [std::ops::Range<usize>; 3] =
-                std::array::from_fn(|a| shift[a].saturating_sub(1)..shift[a] + moved[a]);
-            let on_border = |to: [usize; 3]| {
-                (0..3).any(|a| to[a] < shift[a] || to[a] + 2 >= shift[a] + moved[a])
-            };
-            for bk in reach[2].clone() {
-                for bj in reach[1].clone() {
-                    for bi in reach[0].clone() {
-                        if on_border([bi, bj, bk]) {
-                            grown.refresh_apron([bi, bj, bk], true);
-                        }
+        }
+        // Only the aprons of bricks beside the old store's border can have changed: a
+        // brick one below its low faces now has moved neighbours, and the last two
+        // bricks along an axis now have new (zero) coefficients where their aprons reach
+        // past the old store. Deeper inside, every neighbour moved with its brick; farther
+        // out, every brick and neighbour is new and zero. On a far growth of a small clay
+        // this is a few bricks of a directory of millions.
+        let moved = self.bricks_per_axis;
+        let reach: [std::ops::Range<usize>; 3] =
+            std::array::from_fn(|a| shift[a].saturating_sub(1)..shift[a] + moved[a]);
+        let on_border =
+            |to: [usize; 3]| (0..3).any(|a| to[a] < shift[a] || to[a] + 2 >= shift[a] + moved[a]);
+        for bk in reach[2].clone() {
+            for bj in reach[1].clone() {
+                for bi in reach[0].clone() {
+                    if on_border([bi, bj, bk]) {
+                        grown.refresh_apron([bi, bj, bk], true);
                     }
-                }
-            }
-        } else {
-            let mut row = vec![0.0; self.dims[0]];
-            for k in 0..self.dims[2] {
-                for j in 0..self.dims[1] {
-                    self.read_row_at([0, j, k], &mut row);
-                    grown.write_row_at([low[0], j + low[1], k + low[2]], &row);
                 }
             }
         }
@@ -1542,7 +1889,8 @@ impl fmt::Debug for BrickedCoeffs {
         f.debug_struct("BrickedCoeffs")
             .field("dims", &self.dims)
             .field("dense_bricks", &self.dense_brick_count())
-            .field("bricks", &self.bricks.len())
+            .field("bricks", &self.brick_count())
+            .field("groups", &self.group_counts())
             .field("values", &ShortList(self))
             .finish()
     }
@@ -1627,7 +1975,7 @@ impl Values<'_> {
         }
         let a = i & MASK;
         let run = (COEFF_BRICK - a).min(nx - i);
-        self.run = match &store.bricks[store.brick_index(i, j, k)] {
+        self.run = match store.brick_of(i, j, k) {
             Brick::Uniform(v) => Run::Repeat(v, run),
             Brick::Dense(values) => Run::Slice(&values[offset(a, j & MASK, k & MASK)..][..run]),
         };
@@ -1684,7 +2032,93 @@ mod tests {
         }
     }
 
+    /// A pool of spare storage that runs dry after a given number of each.
+    struct Pool {
+        bricks_left: usize,
+        groups_left: usize,
+        bricks_taken: usize,
+        groups_taken: usize,
+    }
+
+    impl Pool {
+        fn new(bricks: usize, groups: usize) -> Self {
+            Self {
+                bricks_left: bricks,
+                groups_left: groups,
+                bricks_taken: 0,
+                groups_taken: 0,
+            }
+        }
+    }
+
+    impl SpareStorage for Pool {
+        fn spare_brick(&mut self) -> Option<SpareBrick> {
+            (self.bricks_left > 0).then(|| {
+                self.bricks_left -= 1;
+                self.bricks_taken += 1;
+                SpareBrick::new()
+            })
+        }
+        fn spare_group(&mut self) -> Option<SpareGroup> {
+            (self.groups_left > 0).then(|| {
+                self.groups_left -= 1;
+                self.groups_taken += 1;
+                SpareGroup::new()
+            })
+        }
+    }
+
+    /// The directory's own promises: the dense count is the dense bricks, no group that is
+    /// one value holds a dense brick, and no brick past the store's end is dense.
+    fn assert_directory_sound(store: &BrickedCoeffs) {
+        assert_eq!(store.dense, store.walked_dense_count(), "dense count");
+        let in_store: usize = store
+            .groups_indexed()
+            .map(|(at, group)| {
+                let bricks = store.bricks_of_group(group);
+                match &store.groups[at] {
+                    Group::Uniform(brick) => {
+                        assert!(
+                            matches!(brick, Brick::Uniform(_)),
+                            "a uniform group's brick"
+                        );
+                        0
+                    }
+                    Group::Bricks(_) => {
+                        let mut dense = 0;
+                        for bk in bricks[2].clone() {
+                            for bj in bricks[1].clone() {
+                                for bi in bricks[0].clone() {
+                                    dense += usize::from(matches!(
+                                        store.brick([bi, bj, bk]),
+                                        Brick::Dense(_)
+                                    ));
+                                }
+                            }
+                        }
+                        dense
+                    }
+                }
+            })
+            .sum();
+        assert_eq!(
+            in_store, store.dense,
+            "every dense brick lies inside the store"
+        );
+        let groups: usize = store.groups_per_axis.iter().product();
+        assert_eq!(store.groups.len(), groups);
+        for a in 0..3 {
+            assert!(store.group_offset[a] < GROUP_SPAN);
+            let span = store.bricks_per_axis[a] + store.group_offset[a];
+            assert!(
+                store.bricks_per_axis[a] == 0
+                    || store.groups_per_axis[a] == span.div_ceil(GROUP_SPAN)
+            );
+        }
+    }
+
     fn assert_matches(store: &BrickedCoeffs, model: &[f32]) {
+        assert_directory_sound(store);
         assert_eq!(store.len(), model.len());
         assert_eq!(store.to_vec(), model);
         assert!(store.iter().copied().eq(model.iter().copied()));
@@ -1704,7 +2138,7 @@ mod tests {
             for bj in 0..by {
                 for bi in 0..bx {
                     let held = store.held_extent([bi, bj, bk]);
-                    let brick = &store.bricks[bi + bx * (bj + by * bk)];
+                    let brick = store.brick([bi, bj, bk]);
                     for c in 0..held[2] {
                         for b in 0..held[1] {
                             for a in 0..held[0] {
@@ -1991,23 +2425,22 @@ mod tests {
 
             let before = store.clone();
             let mut taken = 0;
-            // At most two spares per call: the calls go on until the box is ready.
+            // At most two spare bricks per call (and groups enough): the calls go on until
+            // the box is ready.
             let mut calls = 0;
             loop {
-                let mut left = 2;
-                let ready = store.densify_for_box(min, size, &values, &mut || {
-                    (left > 0).then(|| {
-                        left -= 1;
-                        taken += 1;
-                        SpareBrick::new()
-                    })
-                });
+                let mut pool = Pool::new(2, usize::MAX);
+                let ready = store.densify_for_box(min, size, &values, &mut pool);
+                taken += pool.bricks_taken;
                 assert_eq!(store, before, "making bricks dense changes no value");
                 calls += 1;
                 if ready {
                     break;
                 }
-                assert_eq!(left, 0, "a call stops only when the spares ran out");
+                assert_eq!(
+                    pool.bricks_left, 0,
+                    "a call stops only when the spares ran out"
+                );
             }
             assert!(
                 calls <= 1 + taken / 2,
@@ -2140,16 +2573,20 @@ mod tests {
             store.write_row_at([16, j, 8], &[2.0; 4]);
         }
         store.compact();
-        assert!(matches!(store.bricks[2 + 3 * (1 + 2)], Brick::Uniform(v) if v == 2.0));
+        assert!(matches!(store.brick([2, 1, 1]), Brick::Uniform(v) if *v == 2.0));
         // Its copies in the aprons below keep those bricks dense until they agree too.
-        assert!(matches!(store.bricks[2 + 3], Brick::Dense(_)));
+        assert!(matches!(store.brick([2, 1, 0]), Brick::Dense(_)));
         store.fill(2.0);
         store.set(0, 0, 0, 0.0);
         store.set(0, 0, 0, 2.0);
         assert_eq!(store.compact(), 1);
         assert_eq!(store.dense_brick_count(), 0);
         assert_eq!(store.get(19, 15, 8), 2.0);
-        assert_eq!(store.heap_bytes(), store.brick_count() * size_of::<Brick>());
+        assert_eq!(
+            store.heap_bytes(),
+            size_of::<Group>(),
+            "one group, one value"
+        );
     }
 
     #[test]
@@ -2289,8 +2726,15 @@ mod tests {
     fn the_differing_box_brick_by_brick_is_the_plain_one() {
         let mut rng = Rng(0xd1ff_b0c5);
         for round in 0..40 {
-            let dims = [1 + rng.below(30), 1 + rng.below(30), 1 + rng.below(30)];
+            // Up to three groups per axis; every third store padded by whole bricks on the
+            // low side, so that its groups are offset.
+            let mut dims = [1 + rng.below(70), 1 + rng.below(70), 1 + rng.below(70)];
             let mut a = BrickedCoeffs::uniform(dims, rng.value());
+            if round % 3 == 0 {
+                a.set(0, 0, 0, 0.5);
+                a = a.padded([8, 16, 24], [0; 3]);
+                dims = a.dims();
+            }
             for _ in 0..rng.below(100) {
                 let at: [usize; 3] = std::array::from_fn(|n| rng.near_border(dims[n]));
                 a.set(
@@ -2333,6 +2777,10 @@ mod tests {
             assert_eq!(a.differing_box(&b), want, "round {round}: {dims:?}");
             assert_eq!(b.differing_box(&a), want, "round {round}: {dims:?}");
             assert_eq!(a.differing_box(&a), None);
+            // The same values with the groups not offset: compared brick by brick.
+            let unshifted = BrickedCoeffs::from_slice(dims, &b.to_vec());
+            assert_eq!(a.differing_box(&unshifted), want, "round {round}: {dims:?}");
+            assert_eq!(unshifted.differing_box(&b), None);
         }
     }
 
@@ -2399,5 +2847,226 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A store over several groups, written at random (single values, rows, boxes, maps),
+    /// compacted and padded now and then (whole bricks, so the groups' offset changes, and
+    /// unaligned), against a plain vector: every value, apron and stencil the same, and the
+    /// groups sound.
+    #[test]
+    fn a_grouped_store_under_random_writes_padding_and_compaction_is_the_flat_one() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut dims = [45, 38, 41];
+        let mut store = BrickedCoeffs::uniform(dims, 1.0);
+        let mut model = vec![1.0_f32; dims.iter().product()];
+        for round in 0..24 {
+            for _ in 0..40 {
+                let at = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+                let v = rng.value();
+                store.set(at[0], at[1], at[2], v);
+                model[at[0] + dims[0] * (at[1] + dims[1] * at[2])] = v;
+            }
+            let min = [0, 1, 2].map(|a| rng.near_border(dims[a]));
+            let size: [usize; 3] =
+                std::array::from_fn(|a| 1 + rng.below((dims[a] - min[a]).min(20)));
+            let fill = rng.value();
+            let values: Vec<f32> = (0..size.iter().product::<usize>())
+                .map(|_| if rng.below(3) == 0 { rng.value() } else { fill })
+                .collect();
+            store.write_box(min, size, &values);
+            let mut n = 0;
+            for k in min[2]..min[2] + size[2] {
+                for j in min[1]..min[1] + size[1] {
+                    for i in min[0]..min[0] + size[0] {
+                        model[i + dims[0] * (j + dims[1] * k)] = values[n];
+                        n += 1;
+                    }
+                }
+            }
+            let mut out = vec![0.0; values.len()];
+            store.read_box(min, size, &mut out);
+            assert_eq!(out, values);
+            match round % 6 {
+                1 => {
+                    store.compact();
+                }
+                2 => {
+                    let lo = [0, 1, 2].map(|a| rng.below(dims[a]));
+                    store.compact_within(lo, lo.map(|l| l + 17));
+                }
+                3 => {
+                    let changed = store.map_values(|v| if v == 0.5 { 0.75 } else { v });
+                    let mut want = 0;
+                    for m in &mut model {
+                        if *m == 0.5 {
+                            *m = 0.75;
+                            want += 1;
+                        }
+                    }
+                    assert_eq!(changed, want);
+                }
+                4 | 5 if dims.iter().product::<usize>() < 300_000 => {
+                    // Whole bricks on the low side (0 to 3: every offset change), any number
+                    // on the high side; an unaligned padding now and then.
+                    let low: [usize; 3] = if round % 12 == 11 {
+                        [3, 0, 5]
+                    } else {
+                        std::array::from_fn(|_| COEFF_BRICK * rng.below(4))
+                    };
+                    let high: [usize; 3] = std::array::from_fn(|_| rng.below(6));
+                    let grown = store.padded(low, high);
+                    let gd = grown.dims();
+                    let mut grown_model = vec![0.0; grown.len()];
+                    for k in 0..dims[2] {
+                        for j in 0..dims[1] {
+                            for i in 0..dims[0] {
+                                grown_model
+                                    [i + low[0] + gd[0] * (j + low[1] + gd[1] * (k + low[2]))] =
+                                    model[i + dims[0] * (j + dims[1] * k)];
+                            }
+                        }
+                    }
+                    let mut compacted = grown.clone();
+                    assert_eq!(compacted.compact(), 0, "a padded store comes compacted");
+                    store = grown;
+                    model = grown_model;
+                    dims = gd;
+                }
+                _ => {}
+            }
+            assert_matches(&store, &model);
+        }
+        assert!(
+            store.groups_per_axis.iter().product::<usize>() > 8,
+            "the store spans several groups: {:?}",
+            store.groups_per_axis
+        );
+        assert_stencils_match(&store, &model);
+        // A clone is the same store, groups and all.
+        let copy = store.clone();
+        assert_matches(&copy, &model);
+        assert_eq!(copy.group_counts(), store.group_counts());
+        assert_eq!(copy.heap_bytes(), store.heap_bytes());
+    }
+
+    /// Padding by whole bricks moves the groups as they are: a far growth of a small clay
+    /// holds entries only for the groups its old bricks fall in, and costs one entry per
+    /// group of the new empty space.
+    #[test]
+    fn a_far_padding_costs_per_group_not_per_brick() {
+        let dims = [40, 40, 40];
+        let mut store = BrickedCoeffs::zeros(dims);
+        for k in 10..30 {
+            for j in 10..30 {
+                store.write_row_at([10, j, k], &[1.0; 20]);
+            }
+        }
+        // The block's inner brick holds only 1s: a padded store comes compacted, so compare
+        // with the compacted one.
+        assert_eq!(store.compact(), 1);
+        let before = store.to_vec();
+        let (_, expanded_before) = store.group_counts();
+        // Three paddings of 3, 5 and 7 bricks per side: offsets 1, 0 and 1 in turn.
+        let mut grown = store.clone();
+        for bricks in [3, 5, 7] {
+            let pad = [bricks * COEFF_BRICK; 3];
+            grown = grown.padded(pad, pad);
+            assert_directory_sound(&grown);
+        }
+        let shift = (3 + 5 + 7) * COEFF_BRICK;
+        let gd = grown.dims();
+        assert_eq!(gd, [40 + 2 * shift; 3]);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                let mut row = vec![0.0; dims[0]];
+                grown.read_row_at([shift, j + shift, k + shift], &mut row);
+                assert_eq!(row[..], before[dims[0] * (j + dims[1] * k)..][..dims[0]]);
+            }
+        }
+        assert_eq!(grown.dense_brick_count(), store.dense_brick_count());
+        let (groups, expanded) = grown.group_counts();
+        assert_eq!(
+            groups,
+            (gd[0].div_ceil(COEFF_BRICK) + 1)
+                .div_ceil(GROUP_SPAN)
+                .pow(3)
+        );
+        // The old store's bricks span two groups per axis wherever they land.
+        assert!(
+            expanded <= expanded_before.max(1) * 8,
+            "{expanded} groups with entries"
+        );
+        assert_eq!(
+            grown.heap_bytes(),
+            groups * size_of::<Group>()
+                + expanded * SPARE_GROUP_BYTES
+                + grown.dense_brick_count() * DENSE_BRICK_BYTES
+        );
+        // The grown store's directory is a small part of a flat one's.
+        let directory = grown.heap_bytes() - grown.dense_brick_count() * DENSE_BRICK_BYTES;
+        assert!(
+            directory < grown.brick_count() * size_of::<Brick>() / 4,
+            "{directory} bytes"
+        );
+    }
+
+    /// A box write prepared from a pool whose groups run dry stops before the first brick
+    /// in a uniform group, changes no value, and goes on once the pool holds groups again;
+    /// the prepared write then gives no group entries and makes no brick dense.
+    #[test]
+    fn preparing_a_write_takes_group_entries_from_the_pool_and_waits_when_it_runs_dry() {
+        let dims = [70, 40, 40];
+        let store0 = BrickedCoeffs::zeros(dims);
+        // A box across four groups of uniform zero bricks.
+        let (min, size) = ([28, 28, 5], [10, 8, 3]);
+        let values = vec![0.5; size.iter().product()];
+        let mut plain = store0.clone();
+        plain.write_box(min, size, &values);
+        let mut store = store0.clone();
+        let mut dry = Pool::new(usize::MAX, 0);
+        assert!(!store.densify_for_box(min, size, &values, &mut dry));
+        assert_eq!((dry.bricks_taken, dry.groups_taken), (0, 0));
+        assert_eq!(store.group_counts(), store0.group_counts());
+        let mut one_group = Pool::new(usize::MAX, 1);
+        assert!(!store.densify_for_box(min, size, &values, &mut one_group));
+        assert_eq!(one_group.groups_taken, 1);
+        assert!(one_group.bricks_taken > 0);
+        assert_eq!(store, store0, "no value changed");
+        assert_directory_sound(&store);
+        let mut no_bricks = Pool::new(0, usize::MAX);
+        assert!(!store.densify_for_box(min, size, &values, &mut no_bricks));
+        assert!(
+            no_bricks.groups_taken >= 1,
+            "a group is given entries before its brick"
+        );
+        let mut plenty = Pool::new(usize::MAX, usize::MAX);
+        assert!(store.densify_for_box(min, size, &values, &mut plenty));
+        assert_eq!(store, store0);
+        let groups_before = store.group_counts();
+        let dense_before = store.dense_brick_count();
+        assert_eq!(dense_before, plain.dense_brick_count());
+        assert_eq!(groups_before.1, plain.group_counts().1);
+        assert_eq!(
+            one_group.groups_taken + no_bricks.groups_taken + plenty.groups_taken,
+            groups_before.1
+        );
+        store.write_box(min, size, &values);
+        assert_eq!(store, plain);
+        assert_eq!(
+            store.group_counts(),
+            groups_before,
+            "no group given entries by the write"
+        );
+        assert_eq!(
+            store.dense_brick_count(),
+            dense_before,
+            "no brick made dense by it"
+        );
+        assert_directory_sound(&store);
+        // Compaction after the edit is undone frees the bricks and the groups' entries.
+        store.write_box(min, size, &vec![0.0; values.len()]);
+        store.compact();
+        assert_eq!(store.group_counts(), store0.group_counts());
+        assert_eq!(store.heap_bytes(), store0.heap_bytes());
     }
 }

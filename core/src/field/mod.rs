@@ -26,8 +26,9 @@ pub use band_limited::{band_limited_lattice, smooth_block_lattice, smooth_step};
 pub use basis::{cubic_weights, cubic_weights_and_derivatives};
 // The NaN-skipping maximum and minimum the bricks' box summary and the mesher share.
 pub use bricks::{
-    BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK, COEFF_BRICK_VALUES,
-    DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, OwnedBricksError, SpareBrick, Values,
+    AllocatingSpares, BRICK_APRON, BRICK_SPAN, BoxSummary, BrickedCoeffs, COEFF_BRICK,
+    COEFF_BRICK_VALUES, DENSE_BRICK_BYTES, DENSE_BRICK_VALUES, OwnedBrick, OwnedBricksError,
+    SPARE_GROUP_BYTES, SpareBrick, SpareGroup, SpareStorage, Values,
 };
 pub(crate) use bricks::{larger, smaller};
 pub use budget::{
