@@ -229,7 +229,8 @@ pub enum CsgOperand {
     /// An analytic solid at a pose, its potential falling over `falloff_fu` on each side of
     /// its surface.
     Solid {
-        shape: crate::tools::ToolShape,
+        /// Boxed: a shape (a freeform one holds a lattice) is far larger than a path.
+        shape: Box<crate::tools::ToolShape>,
         pose: crate::tools::ToolPose,
         falloff_fu: f32,
     },

@@ -108,7 +108,7 @@ impl CsgPanel {
                     _ => glam::Quat::IDENTITY,
                 };
                 CsgOperand::Solid {
-                    shape: self.shape(),
+                    shape: Box::new(self.shape()),
                     pose: ToolPose {
                         position_fu: at?,
                         rotation,
@@ -227,7 +227,7 @@ mod tests {
         assert_eq!(
             operand,
             CsgOperand::Solid {
-                shape: ToolShape::Sphere { radius_fu: 0.2 },
+                shape: Box::new(ToolShape::Sphere { radius_fu: 0.2 }),
                 pose: ToolPose::at(Vec3::ONE),
                 falloff_fu: 0.05,
             }

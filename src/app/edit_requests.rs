@@ -78,7 +78,7 @@ pub fn edit_command(request: EngineCommand) -> Option<Result<(Command, PendingRe
                     falloff_fu,
                 } => {
                     let solid = GeometricTool {
-                        shape,
+                        shape: *shape,
                         action: op,
                         falloff_fu,
                     };
@@ -142,7 +142,7 @@ mod tests {
         let solid = EngineCommand::Csg {
             op: ToolAction::Intersection,
             operand: CsgOperand::Solid {
-                shape: ToolShape::Sphere { radius_fu: 0.2 },
+                shape: Box::new(ToolShape::Sphere { radius_fu: 0.2 }),
                 pose: ToolPose::at(Vec3::ONE),
                 falloff_fu: 0.05,
             },
