@@ -1034,9 +1034,10 @@ impl Simulator {
             p.dt_max_s
         };
         let mut halvings = 0;
-        // A two-level region's coefficients may move as far a step as the base's in the world
-        // (see `gather_forces_over`): `ratio` of its own knot spans.
-        let vmax = p.max_velocity_change * state.spacing_ratio.max(1) as f32;
+        // A region whose threshold is the base's (a two-level one, see `gather_forces_over`,
+        // or one set with `set_base_step_threshold`) may move its coefficients as far a step
+        // as the base's in the world: `ratio` of its own knot spans.
+        let vmax = p.max_velocity_change * state.threshold_ratio.max(1) as f32;
         while max_accel * dt > vmax && dt > p.dt_min_s {
             dt = (0.5 * dt).max(p.dt_min_s);
             halvings += 1;
