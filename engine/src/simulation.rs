@@ -141,7 +141,9 @@ pub struct SimConfig {
     /// on a patch, which a skin of clay used to close, stays open: the chisel has a body, see
     /// `live_tool::chisel_body`.) A two-level material on the patch
     /// ([`Self::two_level_detail`]) fixes the stiff half, the heavy half and the chisel but not
-    /// the narrow press, the narrow groove or the narrow chisel's recorded session.
+    /// the narrow press, the narrow groove or the narrow chisel's recorded session. With
+    /// [`Self::detail_base_yield`] on instead, everything passes but the chisel of gain 2e9,
+    /// which cuts shorter still (see there); so this stays off.
     pub auto_detail_force: bool,
     /// Whether a force tool's region on a detail patch takes a two-level material
     /// (`RegionState::set_coarse_springs`, `coarse.rs` in `dynaclay_core::dynamics`): the
