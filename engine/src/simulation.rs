@@ -192,7 +192,7 @@ pub struct SimConfig {
     /// shorter still at the end of its stroke (worst 30%, 16% without this, 10% allowed).
     /// The scaled yield alone (the patch's own threshold) failed the narrow chisel's session
     /// (1.53 of the rule); the tool's travel per step in the base's spans as well pressed the
-    /// narrow groove to 0.019-0.025 wide.
+    /// narrow groove to 0.019-0.031 wide.
     pub detail_base_yield: bool,
 }
 
