@@ -215,8 +215,8 @@ fn a_fine_push_refines_under_itself_and_presses_a_groove_of_its_spread() {
 }
 
 /// A script's `detail` step switches automatic detail for the steps after it, as the window's
-/// Detail switches do: the fine push of the test above refines under itself only after
-/// `force_tools = true` (the engine's default leaves force tools on the base), and the fine
+/// Detail switches do: the fine push of the test above refines under itself by default (force
+/// tools refine as brushes do) but not after `force_tools = false`, and the fine
 /// remove brush of the first test refines under itself by default but not after
 /// `automatic = false`.
 #[test]
@@ -245,20 +245,23 @@ fn a_detail_step_switches_automatic_detail_for_the_steps_after_it() {
         let dir = tempfile::tempdir().unwrap();
         run_with_detail(dir.path(), &script, None).1
     };
-    let force_on = "[[step]]\ndo = \"detail\"\nforce_tools = true\n";
+    let force_off = "[[step]]\ndo = \"detail\"\nforce_tools = false\n";
     let all_off = "[[step]]\ndo = \"detail\"\nautomatic = false\n";
     let counts = [
         refines(push("")),
-        refines(push(force_on)),
+        refines(push(force_off)),
         refines(brush("")),
         refines(brush(all_off)),
     ];
     eprintln!(
-        "automatic refines: push {} / {} with force tools on; brush {} / {} with automatic off",
+        "automatic refines: push {} / {} with force tools off; brush {} / {} with automatic off",
         counts[0], counts[1], counts[2], counts[3]
     );
-    assert_eq!(counts[0], 0, "force tools stay on the base by default");
-    assert!(counts[1] >= 1, "the push refined after force_tools = true");
+    assert!(counts[0] >= 1, "the push refined under itself by default");
+    assert_eq!(
+        counts[1], 0,
+        "the push stays on the base after force_tools = false"
+    );
     assert!(counts[2] >= 1, "the fine brush refined by default");
     assert_eq!(counts[3], 0, "no brush refines after automatic = false");
 }

@@ -1510,6 +1510,16 @@ fn the_detail_switches_reach_the_engine_and_force_tools_need_automatic_detail() 
     h.run();
     drain(&end);
 
+    // On by default, as the engine's: the first click turns it off.
+    h.get_by_label("Under force tools too").click();
+    h.run();
+    assert_eq!(
+        drain(&end),
+        vec![EngineCommand::SetAutoDetail {
+            automatic: true,
+            force_tools: false
+        }]
+    );
     h.get_by_label("Under force tools too").click();
     h.run();
     assert_eq!(

@@ -90,6 +90,13 @@ pub struct RegionState {
     pub coarse_stride: usize,
     /// The base's knot spacing over the region's patch's (1 on the base).
     pub spacing_ratio: usize,
+    /// How many of the region's own knot spans the step's halving threshold
+    /// ([`super::StepParams::max_velocity_change`]) is reckoned in (1 on the base, the spacing
+    /// ratio where the threshold is the base's; see [`RegionState::set_base_step_threshold`]).
+    pub threshold_ratio: usize,
+    /// How many times its patch's travel per step a force may move the clay while it is far
+    /// from its end (1: the patch's travel; see [`RegionState::set_planned_travel_ratio`]).
+    pub planned_travel_ratio: usize,
     /// Mass per point of the material the region was made with, before any painted mass
     /// (`mass` holds the painted values): the mass a force tool's per-step travel cap is
     /// sized for where the clay is painted heavier, so heavy clay lags as its mass asks
@@ -153,6 +160,8 @@ impl RegionState {
             held: Vec::new(),
             coarse_stride: 1,
             spacing_ratio: 1,
+            threshold_ratio: 1,
+            planned_travel_ratio: 1,
             material_mass: material.mass,
         };
         state.reload(lattice);
@@ -251,7 +260,27 @@ impl RegionState {
     /// without coarse springs.
     pub fn set_coarse_springs(&mut self, ratio: usize, stride: usize) {
         self.spacing_ratio = ratio.max(1);
+        self.threshold_ratio = ratio.max(1);
         self.coarse_stride = stride.max(1);
+    }
+
+    /// Reckons the step's halving threshold ([`super::StepParams::max_velocity_change`]) in
+    /// the base's knot spans on a detail patch whose knot spacing is `1/ratio` of the base's,
+    /// so the region's step halves for the same motion in the world as a base region's; a
+    /// force tool's travel per step stays in the patch's own spans. `ratio` 1 (or 0): the
+    /// patch's own spans, as on the base.
+    pub fn set_base_step_threshold(&mut self, ratio: usize) {
+        self.threshold_ratio = ratio.max(1);
+    }
+
+    /// Lets a force on a detail patch whose knot spacing is `1/ratio` of the base's move the
+    /// clay up to the base's travel per step while it is far from its end: never further in a
+    /// step than what is left of its vector, and never less than the patch's own travel
+    /// ([`super::StepParams::max_coast_step_spans`] of its spans). For the tools whose
+    /// targets are planned along a stroke (the chisel, the squirt), which must reach them in
+    /// the time a base region takes. `ratio` 1 (or 0): the patch's own travel.
+    pub fn set_planned_travel_ratio(&mut self, ratio: usize) {
+        self.planned_travel_ratio = ratio.max(1);
     }
 
     fn d_fixed_from(&mut self, lattice: &BSplineLattice) {

@@ -642,7 +642,11 @@ impl Simulator {
             // density by at most `max_coast_step_spans` knot spans of surface travel: no
             // gain carries the coast surface past a target in one step, and the step keeps
             // its size instead of halving down to nothing under a huge gain.
-            let most = coast_cap * bound.slope;
+            // A force planned far ahead on a detail patch may cover what is left of it at the
+            // base's pace (see `RegionState::set_planned_travel_ratio`).
+            let far =
+                far_travel_factor(state, l, self.params.max_coast_step_spans * lattice.spacing);
+            let most = coast_cap * far * bound.slope;
             let scale = if (f / total).abs() * peak > most {
                 most / peak * f.signum()
             } else {
@@ -1034,9 +1038,10 @@ impl Simulator {
             p.dt_max_s
         };
         let mut halvings = 0;
-        // A two-level region's coefficients may move as far a step as the base's in the world
-        // (see `gather_forces_over`): `ratio` of its own knot spans.
-        let vmax = p.max_velocity_change * state.spacing_ratio.max(1) as f32;
+        // A region whose threshold is the base's (a two-level one, see `gather_forces_over`,
+        // or one set with `set_base_step_threshold`) may move its coefficients as far a step
+        // as the base's in the world: `ratio` of its own knot spans.
+        let vmax = p.max_velocity_change * state.threshold_ratio.max(1) as f32;
         while max_accel * dt > vmax && dt > p.dt_min_s {
             dt = (0.5 * dt).max(p.dt_min_s);
             halvings += 1;
@@ -2208,4 +2213,16 @@ mod tests {
         let (_, _, carried) = pull_then_move_region(true, Material::PLASTIC);
         assert_eq!(carried, 0);
     }
+}
+
+/// How many times `patch_travel` (the patch's largest surface travel per step) a force with
+/// `remaining` left to its end may move `state`'s clay in a step: as far as what is left, at
+/// least the patch's travel and at most [`RegionState::planned_travel_ratio`] times it (a
+/// two-level region's travel is the base's already).
+fn far_travel_factor(state: &RegionState, remaining: f32, patch_travel: f32) -> f32 {
+    let ratio = state.planned_travel_ratio.max(1);
+    if ratio <= 1 || state.spacing_ratio > 1 || !(patch_travel > 0.0) {
+        return 1.0;
+    }
+    (remaining / patch_travel).clamp(1.0, ratio as f32)
 }

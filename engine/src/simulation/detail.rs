@@ -2,7 +2,7 @@
 //! or a command's tool step, or the held tool's application in a stroke), a brush narrower than
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
 //! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. With
-//! [`SimConfig::auto_detail_force`] on (off by default, see there), a held force tool (the
+//! [`SimConfig::auto_detail_force`] on (the default, see there), a held force tool (the
 //! push, a pull, a grab of an area...) follows the same rule with twice its spread radius as
 //! its width: the patch is added before the step's region is set up, so the region is
 //! simulated on it and the forces spread over its mass points. The new

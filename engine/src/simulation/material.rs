@@ -8,13 +8,19 @@ use dynaclay_core::dynamics::{MaterialPaint, apply_grids, paint_grids};
 
 impl SimulationStage {
     /// The uniform material of a region on density patch `patch`: the live region's material
-    /// scaled to the volume its mass points hold (a detail patch's hold less than the base's).
+    /// scaled to the volume its mass points hold (a detail patch's hold less than the base's),
+    /// with [`SimConfig::detail_base_yield`] its yield density times the spacing ratio.
     pub(super) fn region_material_of(&self, patch: usize) -> Material {
         if patch == 0 {
             self.region_material
         } else {
-            self.region_material
-                .for_volume_ratio(self.volume_ratio(patch))
+            let mut m = self
+                .region_material
+                .for_volume_ratio(self.volume_ratio(patch));
+            if self.config.detail_base_yield {
+                m.yield_density *= self.spacing_ratio(patch) as f32;
+            }
+            m
         }
     }
 
