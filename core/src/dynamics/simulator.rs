@@ -1311,6 +1311,23 @@ impl ImplicitField for PatchAmongOthers<'_> {
     }
 }
 
+/// How many times `patch_travel` (the patch's largest surface travel per step) a force with
+/// `remaining` left to its end may move `state`'s clay in a step: as far as what is left, at
+/// least the patch's travel and at most [`RegionState::planned_travel_ratio`] times it (a
+/// two-level region's travel is the base's already).
+fn far_travel_factor(state: &RegionState, remaining: f32, patch_travel: f32) -> f32 {
+    let ratio = state.planned_travel_ratio.max(1);
+    if ratio <= 1
+        || state.spacing_ratio > 1
+        || remaining.is_nan()
+        || patch_travel.is_nan()
+        || patch_travel <= 0.0
+    {
+        return 1.0;
+    }
+    (remaining / patch_travel).clamp(1.0, ratio as f32)
+}
+
 #[cfg(test)]
 mod tests {
     use glam::Vec3;
@@ -1820,6 +1837,49 @@ mod tests {
         x
     }
 
+    /// A force on a patch granted the base's pace travels as far a step as what is left of
+    /// its vector, between the patch's own travel and `ratio` times it; without the grant, or
+    /// on a two-level region (whose travel is the base's already), the patch's own.
+    #[test]
+    fn a_planned_force_travels_at_most_what_is_left_and_the_bases_pace() {
+        let lattice = sphere();
+        let b = CoeffBox {
+            min: [10, 6, 6],
+            max: [13, 9, 9],
+        };
+        let mut state = RegionState::new(&lattice, b, [7, 7, 7], Material::PLASTIC).unwrap();
+        let patch_travel = 0.01;
+        assert_eq!(
+            far_travel_factor(&state, 1.0, patch_travel),
+            1.0,
+            "no grant"
+        );
+        state.set_planned_travel_ratio(4);
+        assert_eq!(
+            far_travel_factor(&state, 1.0, patch_travel),
+            4.0,
+            "far: the base's"
+        );
+        assert_eq!(
+            far_travel_factor(&state, 0.025, patch_travel),
+            2.5,
+            "what is left"
+        );
+        assert_eq!(
+            far_travel_factor(&state, 0.002, patch_travel),
+            1.0,
+            "near: the patch's"
+        );
+        assert_eq!(far_travel_factor(&state, f32::NAN, patch_travel), 1.0);
+        assert_eq!(far_travel_factor(&state, 1.0, 0.0), 1.0);
+        state.set_coarse_springs(4, 4);
+        assert_eq!(
+            far_travel_factor(&state, 1.0, patch_travel),
+            1.0,
+            "two-level"
+        );
+    }
+
     /// A painted mass (a heavy half ten times the light one) makes `AᵀMA` non-Kronecker: the
     /// conjugate gradients preconditioned by the mean-mass Kronecker inverse converge, within
     /// the default tolerance and iteration cap, to the direct dense solve.
@@ -2213,16 +2273,4 @@ mod tests {
         let (_, _, carried) = pull_then_move_region(true, Material::PLASTIC);
         assert_eq!(carried, 0);
     }
-}
-
-/// How many times `patch_travel` (the patch's largest surface travel per step) a force with
-/// `remaining` left to its end may move `state`'s clay in a step: as far as what is left, at
-/// least the patch's travel and at most [`RegionState::planned_travel_ratio`] times it (a
-/// two-level region's travel is the base's already).
-fn far_travel_factor(state: &RegionState, remaining: f32, patch_travel: f32) -> f32 {
-    let ratio = state.planned_travel_ratio.max(1);
-    if ratio <= 1 || state.spacing_ratio > 1 || !(patch_travel > 0.0) {
-        return 1.0;
-    }
-    (remaining / patch_travel).clamp(1.0, ratio as f32)
 }

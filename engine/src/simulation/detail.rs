@@ -692,9 +692,10 @@ mod tests {
                 .any(|&c| c != 0.0),
             "the pull moved the detail patch"
         );
-        // With automatic detail for force tools off (the default), the same pull stays on the
-        // base.
+        // With automatic detail for force tools off (on by default), the same pull stays on
+        // the base.
         let mut off = super::super::tests::stages_on_sphere(12);
+        off.sim.config.auto_detail_force = false;
         off.commands
             .send(Command::SetTool(s.sim.tool().clone()))
             .unwrap();
