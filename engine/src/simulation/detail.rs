@@ -188,6 +188,14 @@ impl SimulationStage {
             ToolChoice::Push(push) if sample.in_contact => {
                 (push.radius_fu, [sample.force_from_fu, sample.force_to_fu])
             }
+            // The curve and the bend move a recorded path or an arm about its pivot, not the
+            // clay under the cursor: their reach is the path's, so they stay on the patches
+            // there are (refined under the cursor alone, the curve in the window moved no clay
+            // at all: `app::reach_tests`).
+            ToolChoice::Force {
+                tool: ForceTool::Curve { .. } | ForceTool::Bend { .. },
+                ..
+            } => return,
             ToolChoice::Force { tool, .. } if sample.stroke_active => {
                 let Some(radius_fu) = tool.radius_fu() else {
                     return;
