@@ -3,8 +3,8 @@
 //! [`BRUSH_WIDTH_SPANS`] knot spans of the patch under it gets a detail patch under itself first
 //! (Hua & Qin eq. (3)), at the level its width needs, and the tool edits that patch. With
 //! [`SimConfig::auto_detail_force`] on (the default, see there), a held force tool (the
-//! push, a pull, a grab of an area...) follows the same rule with twice its spread radius as
-//! its width: the patch is added before the step's region is set up, so the region is
+//! push, a pull, a grab of an area...; not the curve or the bend) follows the same rule with
+//! twice its spread radius as its width: the patch is added before the step's region is set up, so the region is
 //! simulated on it and the forces spread over its mass points. The new
 //! layout goes to the haptic and graphics loops as a refine's does (the haptic loop swaps its
 //! copy in wait-free, between ticks).
@@ -166,8 +166,9 @@ impl SimulationStage {
         Some((level, base_spacing / (1_u32 << level) as f32))
     }
 
-    /// Before a step of a held force tool (the push, or a grab, pull, area, curve, chisel,
-    /// squirt or bend stroke) sets up its region, with [`SimConfig::auto_detail_force`] on: a
+    /// Before a step of a held force tool (the push, or a grab, pull, area, chisel or squirt
+    /// stroke; not the curve or the bend, whose reach is their path or arm) sets up its
+    /// region, with [`SimConfig::auto_detail_force`] on: a
     /// tool whose spread is narrower than
     /// [`BRUSH_WIDTH_SPANS`] knot spans of the base gets a detail patch under itself first, by
     /// the rule a geometric brush follows, so the region is set up on that patch
