@@ -1510,36 +1510,22 @@ fn the_detail_switches_reach_the_engine_and_force_tools_need_automatic_detail() 
     h.run();
     drain(&end);
 
+    // Each click and what it sent to the engine.
+    let mut click = |label: &str| {
+        h.get_by_label(label).click();
+        h.run();
+        drain(&end)
+    };
+    let sent = |automatic, force_tools| {
+        vec![EngineCommand::SetAutoDetail {
+            automatic,
+            force_tools,
+        }]
+    };
     // On by default, as the engine's: the first click turns it off.
-    h.get_by_label("Under force tools too").click();
-    h.run();
-    assert_eq!(
-        drain(&end),
-        vec![EngineCommand::SetAutoDetail {
-            automatic: true,
-            force_tools: false
-        }]
-    );
-    h.get_by_label("Under force tools too").click();
-    h.run();
-    assert_eq!(
-        drain(&end),
-        vec![EngineCommand::SetAutoDetail {
-            automatic: true,
-            force_tools: true
-        }]
-    );
-    h.get_by_label("Automatic detail").click();
-    h.run();
-    assert_eq!(
-        drain(&end),
-        vec![EngineCommand::SetAutoDetail {
-            automatic: false,
-            force_tools: true
-        }]
-    );
+    assert_eq!(click("Under force tools too"), sent(true, false));
+    assert_eq!(click("Under force tools too"), sent(true, true));
+    assert_eq!(click("Automatic detail"), sent(false, true));
     // With automatic detail off the force tools' switch is greyed out: a click sends nothing.
-    h.get_by_label("Under force tools too").click();
-    h.run();
-    assert!(drain(&end).is_empty());
+    assert!(click("Under force tools too").is_empty());
 }
