@@ -29,6 +29,32 @@ fn write_torus_xyz(path: &Path) {
     std::fs::write(path, text).unwrap();
 }
 
+/// The torus of [`write_torus_xyz`] with a normal per point (`x y z nx ny nz`): the outward
+/// normal times `sign(i)` for point `i`.
+fn write_torus_xyz_with_normals(path: &Path, sign: impl Fn(usize) -> f32) {
+    let mut text = String::from("# torus with normals\n");
+    for i in 0..150 {
+        for j in 0..60 {
+            let (u, v) = (
+                i as f32 / 150.0 * std::f32::consts::TAU,
+                j as f32 / 60.0 * std::f32::consts::TAU,
+            );
+            let r = 30.0 + 10.0 * v.cos();
+            let s = sign(i * 60 + j);
+            text.push_str(&format!(
+                "{} {} {} {} {} {}\n",
+                r * u.cos(),
+                10.0 * v.sin(),
+                r * u.sin(),
+                s * v.cos() * u.cos(),
+                s * v.sin(),
+                s * v.cos() * u.sin()
+            ));
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
+
 /// Counts the OBJ mesh's vertices, faces and its Euler characteristic `V − E + F`, and whether
 /// every edge has two faces (closed).
 fn obj_topology(path: &Path) -> (usize, usize, i64, bool) {
@@ -102,6 +128,54 @@ fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
     assert!(v > 1000 && f > 2000, "{v} vertices, {f} faces");
     assert!(closed, "the fitted surface is closed");
     assert_eq!(euler, 0, "a torus has genus one (V − E + F = 0)");
+}
+
+#[test]
+fn normals_pointing_in_are_turned_and_normals_of_either_sign_give_way_to_the_flood() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, sign, said_wanted, signed_by) in [
+        (
+            "inward",
+            (|_| -1.0) as fn(usize) -> f32,
+            "the file's normals point inward (9000 of the 9000 points that show a side): \
+             turned them all outward",
+            "signed by the normals",
+        ),
+        (
+            "either",
+            |i| if (i * 7) % 3 == 0 { -1.0 } else { 1.0 },
+            "the file's normals disagree on which side is out",
+            "signed by flood tagging",
+        ),
+    ] {
+        let input = dir.path().join(format!("{name}.xyz"));
+        write_torus_xyz_with_normals(&input, sign);
+        let (session, mesh) = (
+            dir.path().join(format!("{name}.dclay")),
+            dir.path().join(format!("{name}.obj")),
+        );
+        let out = Command::new(BIN)
+            .arg("import")
+            .arg(&input)
+            .arg("--out")
+            .arg(&session)
+            .arg("--mesh")
+            .arg(&mesh)
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success(),
+            "{name}: {said}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(said.contains("9000 points with normals"), "{name}: {said}");
+        assert!(said.contains(said_wanted), "{name}: {said}");
+        assert!(said.contains(signed_by), "{name}: {said}");
+        let (_, _, euler, closed) = obj_topology(&mesh);
+        assert!(closed, "{name}: the fitted surface is closed");
+        assert_eq!(euler, 0, "{name}: one torus, genus one (V − E + F = 0)");
+    }
 }
 
 #[test]

@@ -255,6 +255,45 @@ pub fn sample_cloud(
     cloud
 }
 
+/// Which way a cloud's normals point, as written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NormalsAs {
+    /// As sampled: the model's outward face normals.
+    Sampled,
+    /// Every normal turned: pointing into the model.
+    Inward,
+    /// Each normal turned by a seeded coin toss: a plane's normal with either sign, as an
+    /// unoriented estimate gives.
+    EitherSign,
+}
+
+impl NormalsAs {
+    /// Words for the tables (empty for [`NormalsAs::Sampled`]).
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Sampled => "",
+            Self::Inward => ", normals inward",
+            Self::EitherSign => ", normals of either sign",
+        }
+    }
+
+    /// Turns `cloud`'s normals as `self` says (the coin tosses seeded by `seed`).
+    pub fn apply(self, cloud: &mut OrientedCloud, seed: u64) {
+        let mut rng = Rng::new(seed);
+        for n in &mut cloud.normals {
+            let turn = match self {
+                Self::Sampled => false,
+                Self::Inward => true,
+                Self::EitherSign => rng.unit() < 0.5,
+            };
+            if turn {
+                *n = -*n;
+            }
+        }
+    }
+}
+
 /// Writes the cloud as a binary little-endian PLY with `x y z nx ny nz` floats, the layout
 /// both `dynaclay import` and PoissonRecon read.
 pub fn write_ply(cloud: &OrientedCloud, path: &Path) -> std::io::Result<()> {

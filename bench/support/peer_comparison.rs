@@ -18,14 +18,15 @@
 //! Environment variables narrow or scale the run: `PEERS_POINTS` sets the points per cloud
 //! (default [`CLOUD_POINTS`], at most [`MAX_CLOUD_POINTS`]; e.g. a million, to judge the import's
 //! thinning of dense scans), `PEERS_MODELS` a comma-separated list of model stems to keep, and
-//! `PEERS_NOISE_SCALE` a factor on every cloud's noise (see [`noise_scale`]). With
+//! `PEERS_NOISE_SCALE` a factor on every cloud's noise (see [`noise_scale`]),
+//! `PEERS_NORMALS` which way the clouds' normals point (see [`normals_as`]). With
 //! `PEERS_WORST` set, each row is followed by where on the model its worst 1% of distances
 //! lie, either way (see [`print_worst_places`]).
 
 use std::path::{Path, PathBuf};
 
 use super::models::{
-    DISTURBANCES, Disturbance, MODELS, Mesh, OrientedCloud, load_model, models_folder,
+    DISTURBANCES, Disturbance, MODELS, Mesh, NormalsAs, OrientedCloud, load_model, models_folder,
     sample_cloud, write_ply,
 };
 use super::reconstructors::{
@@ -199,11 +200,27 @@ fn noise_scale() -> f32 {
     }
 }
 
+/// Which way `PEERS_NORMALS` turns every cloud's normals: `inward` (all of them) or
+/// `either-sign` (each by a seeded coin toss); as sampled (outward) when unset. Screened
+/// Poisson takes the normals' signs as given, so its rows far from the model are marked but
+/// do not fail such a run; dynaclay's still do.
+fn normals_as() -> NormalsAs {
+    let Some(text) = std::env::var_os("PEERS_NORMALS") else {
+        return NormalsAs::Sampled;
+    };
+    match text.to_string_lossy().trim() {
+        "inward" => NormalsAs::Inward,
+        "either-sign" => NormalsAs::EitherSign,
+        other => panic!("PEERS_NORMALS is {other:?}: expected inward or either-sign"),
+    }
+}
+
 /// Prints the comparison; `quick` runs the first variant only, with fewer distance samples.
 pub fn run(quick: bool) {
     let folder = models_folder();
     let samples = if quick { 20_000 } else { 100_000 };
     let noise_scale = noise_scale();
+    let normals = normals_as();
     let points = cloud_points();
     let variants = if quick {
         &DISTURBANCES[..1]
@@ -251,11 +268,13 @@ pub fn run(quick: bool) {
                 ..variant
             };
             let variant_name = if noise_scale == 1.0 {
-                variant.name.to_owned()
+                format!("{}{}", variant.name, normals.label())
             } else {
-                format!("{}, noise × {noise_scale}", variant.name)
+                format!("{}, noise × {noise_scale}{}", variant.name, normals.label())
             };
-            let cloud = sample_cloud(&model, points, scaled, (m * 16 + v) as u64 + 1);
+            let seed = (m * 16 + v) as u64 + 1;
+            let mut cloud = sample_cloud(&model, points, scaled, seed);
+            normals.apply(&mut cloud, seed);
             let ply = scratch.join(format!("{stem}-{v}.ply"));
             write_ply(&cloud, &ply).expect("the cloud is written");
             let per_point = |bytes: f64| bytes / cloud.points.len() as f64;
@@ -308,7 +327,9 @@ pub fn run(quick: bool) {
                         } else {
                             peer.name.to_owned()
                         };
-                        far_off.extend(theirs_far_off);
+                        if normals == NormalsAs::Sampled {
+                            far_off.extend(theirs_far_off);
+                        }
                         print_row(
                             stem,
                             &variant_name,

@@ -22,7 +22,11 @@
 //!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
 //! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
 //!    variance of its neighbours turned toward the exterior (the side nearer the grown
-//!    region). A given normal that its neighbours overrule (they agree among themselves and
+//!    region). The file's normals are first checked against the exterior
+//!    ([`NormalSides`]): where nearly all of the points that show a side point in, every
+//!    normal is turned; where a tenth or more point the other way from the rest (normals
+//!    with either sign), they are not used and the exterior signs the cloud as if it had
+//!    none (the log says which). A given normal that its neighbours overrule (they agree among themselves and
 //!    it lies over 60° from their mean: a stray kept near the surface with a normal pointing
 //!    anywhere) takes their mean direction (the log counts them); then every normal is
 //!    averaged over its neighbours with the moving planes' Gaussian, so one noisy or flipped
@@ -173,6 +177,59 @@ pub enum SignedBy {
     Tagging,
 }
 
+/// How a cloud's given normals sit against the exterior the flood found
+/// ([`SignGrid::normal_sides`]): of the points whose probes along `±normal` end one in the
+/// exterior and one not, how many point out and how many in. The other points show no side:
+/// both ends out (beside an open sheet, or across a part thinner than the probe) or both in
+/// (in a cavity, or a concavity too narrow for the flood).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct NormalSides {
+    /// Points whose normal points into the exterior.
+    pub outward: usize,
+    /// Points whose normal points away from it.
+    pub inward: usize,
+}
+
+/// The fewest points that must show a side before the given normals' orientation is
+/// judged: with fewer (an open sheet, a cloud too sparse for the flood) they are kept.
+pub const LEAST_SIDES_SHOWN: usize = 32;
+
+/// The share of the points showing a side that, pointing the other way from the rest, marks
+/// the given normals as unoriented. Correctly oriented scans show a few per cent at most
+/// (noise beside a narrow concavity); a file of plane normals with random signs shows half.
+pub const UNORIENTED_SHARE: f32 = 0.1;
+
+/// What [`sign_cloud`] did with the given normals' orientation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GivenNormals {
+    /// Kept as given: they point out, or too few points show a side to tell.
+    Kept,
+    /// Every normal turned: nearly all pointed in.
+    Turned,
+    /// Not used: they disagree on which side is out ([`UNORIENTED_SHARE`] or more point the
+    /// other way from the rest), so the cloud is signed by flood tagging instead.
+    Unoriented,
+}
+
+impl NormalSides {
+    /// What the counts call for (see [`GivenNormals`]).
+    #[must_use]
+    pub fn verdict(self) -> GivenNormals {
+        let shown = self.outward + self.inward;
+        if shown < LEAST_SIDES_SHOWN {
+            return GivenNormals::Kept;
+        }
+        let minority = self.outward.min(self.inward) as f32 / shown as f32;
+        if minority >= UNORIENTED_SHARE {
+            GivenNormals::Unoriented
+        } else if self.inward > self.outward {
+            GivenNormals::Turned
+        } else {
+            GivenNormals::Kept
+        }
+    }
+}
+
 /// Why a cloud could not be fitted.
 #[derive(Debug, thiserror::Error)]
 pub enum CloudFitError {
@@ -220,6 +277,8 @@ pub struct SignedCloud {
     pub normals: Vec<Vec3>,
     /// Given normals overruled by their neighbours' (see [`overrule_and_smooth_normals`]).
     pub overruled_normals: usize,
+    /// How the given normals sat against the exterior (all zero without given normals).
+    pub normal_sides: NormalSides,
     /// Their confidence in `(0, 1]` (see [`super::consensus`]).
     pub confidence: Vec<f32>,
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
@@ -599,13 +658,30 @@ pub fn sign_cloud(
         .normals
         .as_ref()
         .filter(|ns| ns.len() == cloud.points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
-    let (raw_normals, signed_by) = match given {
-        Some(ns) => (
-            kept.iter()
+    // The given normals are checked against the exterior before they sign anything: a file
+    // whose normals all point in (a scanner's or a converter's convention) would turn the
+    // clay inside out, and one whose normals are unoriented (each a plane's normal with
+    // either sign) would sign the clay at random.
+    let (given, normal_sides) = match given {
+        Some(ns) => {
+            let mut normals: Vec<Vec3> = kept
+                .iter()
                 .map(|&i| ns[i].try_normalize().unwrap_or(Vec3::Y))
-                .collect::<Vec<_>>(),
-            SignedBy::Normals,
-        ),
+                .collect();
+            let sides = grid.normal_sides(&exterior, &points, &normals);
+            match sides.verdict() {
+                GivenNormals::Kept => (Some(normals), sides),
+                GivenNormals::Turned => {
+                    normals.iter_mut().for_each(|n| *n = -*n);
+                    (Some(normals), sides)
+                }
+                GivenNormals::Unoriented => (None, sides),
+            }
+        }
+        None => (None, NormalSides::default()),
+    };
+    let (raw_normals, signed_by) = match given {
+        Some(normals) => (normals, SignedBy::Normals),
         None => {
             let depth = grid.depth_under(&exterior);
             // Each point's normal: the least-variance direction of its neighbours within the
@@ -753,6 +829,7 @@ pub fn sign_cloud(
         points,
         normals,
         overruled_normals,
+        normal_sides,
         confidence,
         anchors,
         near_points,
@@ -1650,6 +1727,8 @@ pub struct Screening {
     pub far: usize,
     /// Given normals overruled by their neighbours'.
     pub overruled_normals: usize,
+    /// How the given normals sat against the exterior, and what was done with them.
+    pub normal_sides: NormalSides,
     /// The noise level (standard deviation across the surface), fraction of the object's
     /// size.
     pub noise: f32,
@@ -1685,6 +1764,7 @@ impl SignedCloud {
             isolated: self.consensus.isolated,
             far: self.consensus.far,
             overruled_normals: self.overruled_normals,
+            normal_sides: self.normal_sides,
             noise: self.noise / size,
             noise_given: self.consensus.noise_given,
             bandwidth: self.bandwidth / size,
@@ -2279,6 +2359,24 @@ impl SignGrid {
             }
         }
         open
+    }
+
+    /// How the unit `normals` of `points` sit against `exterior` (see [`NormalSides`]): each
+    /// point is probed two grid steps out and in along its normal (the tagging's probe), at
+    /// the nodes nearest the probe's ends.
+    fn normal_sides(&self, exterior: &[bool], points: &[Vec3], normals: &[Vec3]) -> NormalSides {
+        let probe = 2.0 * self.h;
+        let mut sides = NormalSides::default();
+        for (&p, &n) in points.iter().zip(normals) {
+            let out_end = exterior[self.nearest_node(p + n * probe)];
+            let in_end = exterior[self.nearest_node(p - n * probe)];
+            match (out_end, in_end) {
+                (true, false) => sides.outward += 1,
+                (false, true) => sides.inward += 1,
+                _ => {}
+            }
+        }
+        sides
     }
 
     /// Each node's signed depth under the border of `exterior`: outside it (a node not in
@@ -3233,6 +3331,144 @@ mod tests {
             mean.abs() < 0.2 * plane_bias,
             "mean distance on the sphere {mean}, a plane's bias {plane_bias}"
         );
+    }
+
+    /// The coefficients' bits, to compare two fits exactly.
+    fn coefficient_bits(fit: &CloudFit) -> Vec<u32> {
+        fit.lattice.coeffs.iter().map(|c| c.to_bits()).collect()
+    }
+
+    /// `cloud` with the normals for which `turn(i)` holds pointing the other way.
+    fn with_normals_turned(cloud: &PointCloud, turn: impl Fn(usize) -> bool) -> PointCloud {
+        let normals = cloud.normals.as_ref().expect("a cloud with normals");
+        PointCloud {
+            points: cloud.points.clone(),
+            normals: Some(
+                normals
+                    .iter()
+                    .enumerate()
+                    .map(|(i, &n)| if turn(i) { -n } else { n })
+                    .collect(),
+            ),
+        }
+    }
+
+    #[test]
+    fn normals_that_all_point_in_are_turned_and_fit_the_outward_ones_bit_for_bit() {
+        let cloud = sphere_cloud(4000, 3.0);
+        let options = CloudFitOptions::default();
+        let inward = with_normals_turned(&cloud, |_| true);
+        let signed = sign_cloud(&inward, &options).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Normals);
+        let sides = signed.normal_sides;
+        assert_eq!(sides.verdict(), GivenNormals::Turned, "{sides:?}");
+        assert!(sides.inward > 3000 && sides.outward == 0, "{sides:?}");
+        let outward = fit_point_cloud(&cloud, &options).unwrap();
+        let turned = fit_point_cloud(&inward, &options).unwrap();
+        assert_eq!(coefficient_bits(&turned), coefficient_bits(&outward));
+        assert_eq!(
+            sign_cloud(&cloud, &options).unwrap().normal_sides.verdict(),
+            GivenNormals::Kept
+        );
+    }
+
+    #[test]
+    fn normals_with_either_sign_are_not_trusted_and_the_flood_signs_the_cloud() {
+        // Plane normals with a sign each by a coin toss, and with one in five turned: the
+        // cloud is signed as if it had no normals (the same fit, bit for bit).
+        let cloud = sphere_cloud(4000, 3.0);
+        let options = CloudFitOptions::default();
+        let bare = PointCloud {
+            points: cloud.points.clone(),
+            normals: None,
+        };
+        let tagged = fit_point_cloud(&bare, &options).unwrap();
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let coins: Vec<bool> = (0..cloud.points.len())
+            .map(|_| {
+                seed = seed
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                (seed >> 63) == 1
+            })
+            .collect();
+        for (what, turned) in [
+            ("coin toss", with_normals_turned(&cloud, |i| coins[i])),
+            ("one in five", with_normals_turned(&cloud, |i| i % 5 == 0)),
+        ] {
+            let signed = sign_cloud(&turned, &options).unwrap();
+            assert_eq!(signed.signed_by, SignedBy::Tagging, "{what}");
+            assert_eq!(
+                signed.normal_sides.verdict(),
+                GivenNormals::Unoriented,
+                "{what}: {:?}",
+                signed.normal_sides
+            );
+            let fit = fit_point_cloud(&turned, &options).unwrap();
+            assert_eq!(coefficient_bits(&fit), coefficient_bits(&tagged), "{what}");
+            let e = worst_radius_error(&fit, 3.0);
+            assert!(e < 0.01, "{what}: {:.3}% of the diameter", e * 100.0);
+        }
+    }
+
+    #[test]
+    fn a_few_strays_pointing_in_are_left_to_their_neighbours_vote() {
+        // One normal in fifty turned: the normals are oriented, the strays are overruled.
+        let cloud = sphere_cloud(4000, 3.0);
+        let options = CloudFitOptions::default();
+        let strays = with_normals_turned(&cloud, |i| i % 50 == 0);
+        let signed = sign_cloud(&strays, &options).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Normals);
+        assert_eq!(signed.normal_sides.verdict(), GivenNormals::Kept);
+        assert!(
+            signed.overruled_normals >= 4000 / 50 - 5,
+            "{}",
+            signed.overruled_normals
+        );
+        let e = worst_radius_error(&fit_point_cloud(&strays, &options).unwrap(), 3.0);
+        assert!(e < 0.01, "{:.3}% of the diameter", e * 100.0);
+    }
+
+    #[test]
+    fn an_open_sheet_shows_no_side_and_keeps_its_normals_whichever_way_they_point() {
+        // A flat square patch: the flood passes around it, so both ends of every probe lie
+        // in the exterior, and its normals (down here) are the only word on its sides.
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        for i in 0..60 {
+            for j in 0..60 {
+                points.push(Vec3::new(i as f32 * 0.05, j as f32 * 0.05, 0.0));
+                normals.push(Vec3::NEG_Z);
+            }
+        }
+        let cloud = PointCloud {
+            points,
+            normals: Some(normals),
+        };
+        let signed = sign_cloud(&cloud, &CloudFitOptions::default()).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Normals);
+        let sides = signed.normal_sides;
+        assert_eq!(sides.verdict(), GivenNormals::Kept, "{sides:?}");
+        assert!(
+            sides.inward + sides.outward < LEAST_SIDES_SHOWN,
+            "{sides:?}"
+        );
+    }
+
+    #[test]
+    fn the_verdict_needs_enough_points_showing_a_side_and_a_clear_majority() {
+        let sides = |outward, inward| NormalSides { outward, inward };
+        assert_eq!(
+            sides(0, LEAST_SIDES_SHOWN - 1).verdict(),
+            GivenNormals::Kept
+        );
+        assert_eq!(sides(0, LEAST_SIDES_SHOWN).verdict(), GivenNormals::Turned);
+        assert_eq!(sides(1000, 0).verdict(), GivenNormals::Kept);
+        // 112 of 1 112 is just over a tenth, 111 just under.
+        assert_eq!(sides(1000, 112).verdict(), GivenNormals::Unoriented);
+        assert_eq!(sides(1000, 111).verdict(), GivenNormals::Kept);
+        assert_eq!(sides(111, 1000).verdict(), GivenNormals::Turned);
+        assert_eq!(sides(112, 1000).verdict(), GivenNormals::Unoriented);
+        assert_eq!(sides(500, 500).verdict(), GivenNormals::Unoriented);
     }
 
     #[test]

@@ -19,7 +19,9 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use super::cloud::{CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, MARGIN_SPANS, SignedBy};
+use super::cloud::{
+    CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, GivenNormals, MARGIN_SPANS, SignedBy,
+};
 use super::consensus::parallel_map;
 use super::hierarchy::{
     DEFAULT_ERROR, DEFAULT_MAX_DEPTH, FitProgress, HierarchyOptions, LevelReport, MAX_DEPTH,
@@ -549,6 +551,21 @@ fn fit_cloud(
         s.removed_pieces,
         s.filled_cavities
     ));
+    let sides = s.normal_sides;
+    match sides.verdict() {
+        GivenNormals::Kept => {}
+        GivenNormals::Turned => note(format!(
+            "the file's normals point inward ({} of the {} points that show a side): turned \
+             them all outward",
+            sides.inward,
+            sides.inward + sides.outward
+        )),
+        GivenNormals::Unoriented => note(format!(
+            "the file's normals disagree on which side is out ({} of the points that show a \
+             side point out, {} in): signed by flood tagging instead",
+            sides.outward, sides.inward
+        )),
+    }
     note_levels(&fit.levels, fit.over_budget, note);
     let kept: Vec<Vec3> = cloud
         .points
