@@ -8,9 +8,10 @@ use dynaclay::io::load_session;
 
 const BIN: &str = env!("CARGO_BIN_EXE_dynaclay");
 
-/// A torus (ring radius 30, tube radius 10, file units) as XYZ text, without normals.
-fn write_torus_xyz(path: &Path) {
-    let mut text = String::from("# torus\n");
+/// A torus's samples (ring radius 30, tube radius 10, file units): 150 × 60 points, each with
+/// its outward normal.
+fn torus_samples() -> Vec<([f32; 3], [f32; 3])> {
+    let mut samples = Vec::with_capacity(150 * 60);
     for i in 0..150 {
         for j in 0..60 {
             let (u, v) = (
@@ -18,41 +19,59 @@ fn write_torus_xyz(path: &Path) {
                 j as f32 / 60.0 * std::f32::consts::TAU,
             );
             let r = 30.0 + 10.0 * v.cos();
-            text.push_str(&format!(
-                "{} {} {}\n",
-                r * u.cos(),
-                10.0 * v.sin(),
-                r * u.sin()
+            samples.push((
+                [r * u.cos(), 10.0 * v.sin(), r * u.sin()],
+                [v.cos() * u.cos(), v.sin(), v.cos() * u.sin()],
             ));
         }
+    }
+    samples
+}
+
+/// The torus of [`torus_samples`] as XYZ text, without normals.
+fn write_torus_xyz(path: &Path) {
+    let mut text = String::from("# torus\n");
+    for ([x, y, z], _) in torus_samples() {
+        text.push_str(&format!("{x} {y} {z}\n"));
     }
     std::fs::write(path, text).unwrap();
 }
 
-/// The torus of [`write_torus_xyz`] with a normal per point (`x y z nx ny nz`): the outward
+/// The torus of [`torus_samples`] with a normal per point (`x y z nx ny nz`): the outward
 /// normal times `sign(i)` for point `i`.
 fn write_torus_xyz_with_normals(path: &Path, sign: impl Fn(usize) -> f32) {
     let mut text = String::from("# torus with normals\n");
-    for i in 0..150 {
-        for j in 0..60 {
-            let (u, v) = (
-                i as f32 / 150.0 * std::f32::consts::TAU,
-                j as f32 / 60.0 * std::f32::consts::TAU,
-            );
-            let r = 30.0 + 10.0 * v.cos();
-            let s = sign(i * 60 + j);
-            text.push_str(&format!(
-                "{} {} {} {} {} {}\n",
-                r * u.cos(),
-                10.0 * v.sin(),
-                r * u.sin(),
-                s * v.cos() * u.cos(),
-                s * v.sin(),
-                s * v.cos() * u.sin()
-            ));
-        }
+    for (i, ([x, y, z], normal)) in torus_samples().into_iter().enumerate() {
+        let [nx, ny, nz] = normal.map(|c| c * sign(i));
+        text.push_str(&format!("{x} {y} {z} {nx} {ny} {nz}\n"));
     }
     std::fs::write(path, text).unwrap();
+}
+
+/// `dynaclay import INPUT --out SESSION --mesh MESH EXTRA…`.
+fn import(input: &Path, session: &Path, mesh: &Path, extra: &[&str]) -> std::process::Output {
+    Command::new(BIN)
+        .arg("import")
+        .arg(input)
+        .arg("--out")
+        .arg(session)
+        .arg("--mesh")
+        .arg(mesh)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+/// [`import`], which must succeed: its log (stdout).
+fn import_ok(input: &Path, session: &Path, mesh: &Path, extra: &[&str]) -> String {
+    let out = import(input, session, mesh, extra);
+    let said = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    said
 }
 
 /// Counts the OBJ mesh's vertices, faces and its Euler characteristic `V − E + F`, and whether
@@ -89,16 +108,7 @@ fn a_torus_cloud_imports_as_a_closed_genus_one_clay() {
     let input = dir.path().join("torus.xyz");
     write_torus_xyz(&input);
     let (session, mesh) = (dir.path().join("torus.dclay"), dir.path().join("torus.obj"));
-    let out = Command::new(BIN)
-        .arg("import")
-        .arg(&input)
-        .arg("--out")
-        .arg(&session)
-        .arg("--mesh")
-        .arg(&mesh)
-        .arg("--timings")
-        .output()
-        .unwrap();
+    let out = import(&input, &session, &mesh, &["--timings"]);
     let said = String::from_utf8_lossy(&out.stdout);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{said}{err}");
@@ -154,21 +164,7 @@ fn normals_pointing_in_are_turned_and_normals_of_either_sign_give_way_to_the_flo
             dir.path().join(format!("{name}.dclay")),
             dir.path().join(format!("{name}.obj")),
         );
-        let out = Command::new(BIN)
-            .arg("import")
-            .arg(&input)
-            .arg("--out")
-            .arg(&session)
-            .arg("--mesh")
-            .arg(&mesh)
-            .output()
-            .unwrap();
-        let said = String::from_utf8_lossy(&out.stdout);
-        assert!(
-            out.status.success(),
-            "{name}: {said}{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let said = import_ok(&input, &session, &mesh, &[]);
         assert!(said.contains("9000 points with normals"), "{name}: {said}");
         assert!(said.contains(said_wanted), "{name}: {said}");
         assert!(said.contains(signed_by), "{name}: {said}");
@@ -337,21 +333,7 @@ fn a_cube_mesh_imports_as_a_closed_clay_near_its_faces() {
         dir.path().join("cube.dclay"),
         dir.path().join("cube.obj.out.obj"),
     );
-    let out = Command::new(BIN)
-        .arg("import")
-        .arg(&input)
-        .arg("--out")
-        .arg(&session)
-        .arg("--mesh")
-        .arg(&mesh)
-        .output()
-        .unwrap();
-    let said = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{said}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    import_ok(&input, &session, &mesh, &[]);
     let (_, _, euler, closed) = obj_topology(&mesh);
     assert!(closed);
     assert_eq!(euler, 2, "a cube has genus zero");
@@ -441,16 +423,7 @@ fn a_mesh_over_the_memory_budget_is_refused_before_anything_is_written() {
     let input = dir.path().join("torus.xyz");
     write_torus_xyz(&input);
     let (session, mesh) = (dir.path().join("torus.dclay"), dir.path().join("torus.obj"));
-    let out = Command::new(BIN)
-        .arg("import")
-        .arg(&input)
-        .arg("--out")
-        .arg(&session)
-        .arg("--mesh")
-        .arg(&mesh)
-        .args(["--memory-budget-mib", "1"])
-        .output()
-        .unwrap();
+    let out = import(&input, &session, &mesh, &["--memory-budget-mib", "1"]);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("memory budget of 1.0 MiB"), "{err}");
@@ -539,21 +512,11 @@ fn a_tight_error_bound_adds_detail_patches_at_finer_spacings_to_the_session() {
             dir.path().join(format!("{name}.dclay")),
             dir.path().join(format!("{name}.obj")),
         );
-        let out = Command::new(BIN)
-            .arg("import")
-            .arg(&input)
-            .arg("--out")
-            .arg(&session)
-            .arg("--mesh")
-            .arg(&mesh)
-            .args(["--error", "0.1", "--max-depth", depth])
-            .output()
-            .unwrap();
-        let said = String::from_utf8_lossy(&out.stdout).into_owned();
-        assert!(
-            out.status.success(),
-            "{said}{}",
-            String::from_utf8_lossy(&out.stderr)
+        let said = import_ok(
+            &input,
+            &session,
+            &mesh,
+            &["--error", "0.1", "--max-depth", depth],
         );
         (load_session(&session).unwrap(), obj_topology(&mesh), said)
     };
