@@ -175,6 +175,34 @@ fn normals_pointing_in_are_turned_and_normals_of_either_sign_give_way_to_the_flo
 }
 
 #[test]
+fn a_cloud_far_from_the_files_origin_is_read_about_its_centre() {
+    // The torus (outer radius 40) placed at georeferenced coordinates, metres at a few
+    // million, where `f32` steps by a quarter of a metre: read as it is, it is lumpy; read
+    // about its centre, it is the torus.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("site.xyz");
+    let mut text = String::new();
+    for ([x, y, z], _) in torus_samples() {
+        let at = [
+            512_345.6 + f64::from(x),
+            5_234_567.8 + f64::from(y),
+            120.0 + f64::from(z),
+        ];
+        text.push_str(&format!("{:.4} {:.4} {:.4}\n", at[0], at[1], at[2]));
+    }
+    std::fs::write(&input, text).unwrap();
+    let (session, mesh) = (dir.path().join("site.dclay"), dir.path().join("site.obj"));
+    let said = import_ok(&input, &session, &mesh, &[]);
+    assert!(
+        said.contains("read in double precision relative to (512345."),
+        "{said}"
+    );
+    let (_, _, euler, closed) = obj_topology(&mesh);
+    assert!(closed, "the fitted surface is closed");
+    assert_eq!(euler, 0, "one torus, genus one (V − E + F = 0)");
+}
+
+#[test]
 fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.xyz");

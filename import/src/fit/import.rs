@@ -30,7 +30,7 @@ use super::hierarchy::{
 use super::holes::cap_holes;
 use super::mesh::{read_mesh, sample_triangles};
 use super::paint::{NEIGHBOURS, paint_from_cloud};
-use super::point_file::read_points_with_colours;
+use super::point_file::read_points_about_their_centre;
 use super::points::{PointCloud, PointColours, PointsError};
 use super::sdf::{MAX_SDF_VOXELS, SdfGrid, signed_distance};
 use super::stage_times::{StageTime, StageTimes};
@@ -304,8 +304,12 @@ pub fn fit_import(
 pub struct ImportedCloud {
     /// The fitted clay and where the file lies in it.
     pub fit: ImportedFit,
-    /// The points as read, in the file's units.
+    /// The points as read, in the file's units, less [`ImportedCloud::origin`].
     pub cloud: PointCloud,
+    /// Where the points were read from, in the file's coordinates: zero, or the centre of
+    /// the cloud's box where it lies far from the file's origin
+    /// ([`super::point_file::read_points_about_their_centre`]).
+    pub origin: glam::DVec3,
     /// The points' colours, when the file has them.
     pub colours: Option<PointColours>,
     /// The colours as the clay's paint ([`paint_from_cloud`]), when the file has colours and
@@ -341,9 +345,16 @@ pub fn import_cloud(
     note: &mut dyn FnMut(String),
 ) -> Result<ImportedCloud, ImportError> {
     let started = Instant::now();
-    let (cloud, colours) = read_points_with_colours(path)?;
+    let (cloud, colours, origin) = read_points_about_their_centre(path)?;
     let read = started.elapsed();
     let mut fit = fit_cloud(path, &cloud, FitPath::Cloud, settings, progress, note)?;
+    if origin != glam::DVec3::ZERO {
+        note(format!(
+            "the points lie far from the file's origin: read in double precision relative to \
+             ({}, {}, {})",
+            origin.x, origin.y, origin.z
+        ));
+    }
     fit.times.stages.insert(
         0,
         StageTime {
@@ -355,6 +366,7 @@ pub fn import_cloud(
     let mut imported = ImportedCloud {
         fit,
         cloud,
+        origin,
         colours,
         paint: None,
     };

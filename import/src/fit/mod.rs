@@ -39,7 +39,9 @@ pub use import::{
     most_resolution_for_points, resolution_for_points,
 };
 pub use paint::{PaintError, paint_from_cloud};
-pub use point_file::{read_points, read_points_with_colours};
+pub use point_file::{
+    FAR_FROM_ORIGIN_SIZES, read_points, read_points_about_their_centre, read_points_with_colours,
+};
 pub use points::{MAX_POINTS, PointCloud, PointColours, PointsError, parse_ply, parse_xyz};
 pub use sdf::{MAX_SDF_VOXELS, SdfGrid, SdfGridError, SignedDistance, signed_distance};
 pub use stage_times::{StageTime, StageTimes};

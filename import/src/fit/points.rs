@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use dynaclay_core::io::bounded_read::BoundedReadError;
 
@@ -84,6 +84,21 @@ pub enum PointsError {
 /// # Errors
 /// [`PointsError::Line`] at the first malformed line.
 pub fn parse_xyz(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
+    parse_xyz_about(bytes, file, DVec3::ZERO)
+}
+
+/// [`parse_xyz`], each position less `origin` (taken in `f64` from the text, then rounded to
+/// `f32`): a cloud far from the file's origin keeps its precision. With `origin` zero, the
+/// values are read straight into `f32`, as [`parse_xyz`] reads them.
+///
+/// # Errors
+/// As [`parse_xyz`].
+pub(crate) fn parse_xyz_about(
+    bytes: &[u8],
+    file: &Path,
+    origin: DVec3,
+) -> Result<PointCloud, PointsError> {
+    let shifted = origin != DVec3::ZERO;
     let text = std::str::from_utf8(bytes).map_err(|e| PointsError::Byte {
         file: file.to_path_buf(),
         offset: e.valid_up_to(),
@@ -112,9 +127,23 @@ pub fn parse_xyz(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
             if count == 6 {
                 return Err(bad("more than six numbers".into()));
             }
-            let v: f32 = token
-                .parse()
-                .map_err(|_| bad(format!("`{token}` is not a number")))?;
+            let v: f32 = if shifted {
+                let wide: f64 = token
+                    .parse()
+                    .map_err(|_| bad(format!("`{token}` is not a number")))?;
+                if !wide.is_finite() {
+                    return Err(bad(format!("`{token}` is not a finite number")));
+                }
+                (if count < 3 {
+                    wide - origin[count]
+                } else {
+                    wide
+                }) as f32
+            } else {
+                token
+                    .parse()
+                    .map_err(|_| bad(format!("`{token}` is not a number")))?
+            };
             if !v.is_finite() {
                 return Err(bad(format!("`{token}` is not a finite number")));
             }
@@ -197,6 +226,19 @@ pub fn parse_ply(bytes: &[u8], file: &Path) -> Result<PointCloud, PointsError> {
 pub fn parse_ply_with_colours(
     bytes: &[u8],
     file: &Path,
+) -> Result<(PointCloud, Option<PointColours>), PointsError> {
+    parse_ply_about(bytes, file, DVec3::ZERO)
+}
+
+/// [`parse_ply_with_colours`], each position less `origin` (in `f64`, before the rounding to
+/// `f32`): a cloud far from the file's origin keeps the precision its file has.
+///
+/// # Errors
+/// As [`parse_ply`].
+pub(crate) fn parse_ply_about(
+    bytes: &[u8],
+    file: &Path,
+    origin: DVec3,
 ) -> Result<(PointCloud, Option<PointColours>), PointsError> {
     let line_err = |line: usize, what: String| PointsError::Line {
         file: file.to_path_buf(),
@@ -387,7 +429,7 @@ pub fn parse_ply_with_colours(
                 }
                 push_row(
                     &row,
-                    [x, y, z],
+                    ([x, y, z], origin),
                     normal_columns,
                     &mut points,
                     normals.as_mut(),
@@ -407,7 +449,7 @@ pub fn parse_ply_with_colours(
                 }
                 push_row(
                     &row,
-                    [x, y, z],
+                    ([x, y, z], origin),
                     normal_columns,
                     &mut points,
                     normals.as_mut(),
@@ -424,15 +466,20 @@ pub fn parse_ply_with_colours(
     Ok((PointCloud { points, normals }, colours))
 }
 
-/// Appends one vertex row; refuses non-finite positions.
+/// Appends one vertex row, its position (columns `xyz`) less `origin`; refuses non-finite
+/// positions.
 fn push_row(
     row: &[f64],
-    xyz: [usize; 3],
+    (xyz, origin): ([usize; 3], DVec3),
     normal_columns: Option<[usize; 3]>,
     points: &mut Vec<Vec3>,
     normals: Option<&mut Vec<Vec3>>,
 ) -> Result<(), String> {
-    let p = Vec3::new(row[xyz[0]] as f32, row[xyz[1]] as f32, row[xyz[2]] as f32);
+    let p = Vec3::new(
+        (row[xyz[0]] - origin.x) as f32,
+        (row[xyz[1]] - origin.y) as f32,
+        (row[xyz[2]] - origin.z) as f32,
+    );
     if !p.is_finite() {
         return Err(format!("position {p} is not finite"));
     }
@@ -541,6 +588,52 @@ mod tests {
             let b = parse_ply(&bin, &file()).unwrap();
             assert_eq!(b, c, "{format}");
         }
+    }
+
+    #[test]
+    fn positions_far_from_the_files_origin_keep_their_precision_read_about_an_origin() {
+        // Points a millimetre apart at a million metres: `f32` steps by 0.0625 there, but
+        // the differences from an origin near them are exact to its precision.
+        let origin = DVec3::new(1.0e6, 2.0e6, -5.0e5);
+        let offsets: Vec<f64> = (0..5).map(|k| 0.001 * f64::from(k)).collect();
+        let close = |c: &PointCloud| {
+            for (p, &d) in c.points.iter().zip(&offsets) {
+                let want = Vec3::new(d as f32, (2.0 * d) as f32, (-d) as f32);
+                assert!((*p - want).abs().max_element() < 1e-7, "{p} against {want}");
+            }
+        };
+        let mut text = String::new();
+        for &d in &offsets {
+            text.push_str(&format!(
+                "{:.6} {:.6} {:.6} 0 0 1\n",
+                origin.x + d,
+                origin.y + 2.0 * d,
+                origin.z - d
+            ));
+        }
+        let about = parse_xyz_about(text.as_bytes(), &file(), origin).unwrap();
+        close(&about);
+        assert_eq!(about.normals.as_deref().map(<[Vec3]>::len), Some(5));
+        // Read as it is, the five collapse onto one or two `f32` values.
+        let plain = parse_xyz(text.as_bytes(), &file()).unwrap();
+        assert!(plain.points.windows(2).any(|w| w[0] == w[1]));
+
+        let props = "property double x\nproperty double y\nproperty double z\n";
+        let mut ascii = ply_header("ascii", offsets.len(), props);
+        ascii.extend_from_slice(text.replace(" 0 0 1", "").as_bytes());
+        close(&parse_ply_about(&ascii, &file(), origin).unwrap().0);
+        let mut binary = ply_header("binary_little_endian", offsets.len(), props);
+        for &d in &offsets {
+            for v in [origin.x + d, origin.y + 2.0 * d, origin.z - d] {
+                binary.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        close(&parse_ply_about(&binary, &file(), origin).unwrap().0);
+        // About a zero origin, the readers are the plain ones bit for bit.
+        assert_eq!(
+            parse_ply_about(&binary, &file(), DVec3::ZERO).unwrap().0,
+            parse_ply(&binary, &file()).unwrap()
+        );
     }
 
     #[test]
