@@ -22,11 +22,11 @@
 //!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
 //! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
 //!    variance of its neighbours turned toward the exterior (the side nearer the grown
-//!    region). The file's normals are first checked against the exterior
-//!    ([`NormalSides`]): where nearly all of the points that show a side point in, every
-//!    normal is turned; where a tenth or more point the other way from the rest (normals
+//!    region). The file's normals are first checked ([`NormalSides`]): where a fifth or
+//!    more of the pairs of neighbouring points on one surface have opposed normals (normals
 //!    with either sign), they are not used and the exterior signs the cloud as if it had
-//!    none (the log says which). A given normal that its neighbours overrule (they agree among themselves and
+//!    none; where two thirds or more of the points that show a side of the exterior point
+//!    in, every normal is turned (the log says which). A given normal that its neighbours overrule (they agree among themselves and
 //!    it lies over 60° from their mean: a stray kept near the surface with a normal pointing
 //!    anywhere) takes their mean direction (the log counts them); then every normal is
 //!    averaged over its neighbours with the moving planes' Gaussian, so one noisy or flipped
@@ -178,52 +178,82 @@ pub enum SignedBy {
     Tagging,
 }
 
-/// How a cloud's given normals sit against the exterior the flood found
-/// ([`SignGrid::normal_sides`]): of the points whose probes along `±normal` end one in the
-/// exterior and one not, how many point out and how many in. The other points show no side:
-/// both ends out (beside an open sheet, or across a part thinner than the probe) or both in
-/// (in a cavity, or a concavity too narrow for the flood).
+/// How a cloud's given normals sit: against their neighbours' ([`opposed_neighbours`]) and
+/// against the exterior the flood found ([`SignGrid::normal_sides`]).
+///
+/// Against the exterior: of the points whose probes along `±normal` end one in the exterior
+/// and one not, how many point out and how many in. The other points show no side: both ends
+/// out (beside an open sheet, or across a part thinner than the probe) or both in (in a
+/// cavity, or a concavity too narrow for the flood). The exterior tells which way a cloud's
+/// normals point, not whether they agree: over a partial scan (one view of an object, open
+/// on its far side) the closing fills the concavities of the near side, whose points then
+/// show the wrong side (a fifth of them on one view of a cartoon cow, under a third on a
+/// bumpy cap). Whether the normals
+/// agree is read from neighbouring points on the same surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NormalSides {
     /// Points whose normal points into the exterior.
     pub outward: usize,
     /// Points whose normal points away from it.
     pub inward: usize,
+    /// Pairs of neighbouring points compared (an even subset of the points, each with its
+    /// neighbours near its tangent plane).
+    pub neighbour_pairs: usize,
+    /// Of those, the pairs whose normals point opposite ways (a negative dot product).
+    pub opposed_pairs: usize,
 }
 
-/// The fewest points that must show a side before the given normals' orientation is
-/// judged: with fewer (an open sheet, a cloud too sparse for the flood) they are kept.
+/// The fewest points that must show a side before the given normals are turned: with fewer
+/// (an open sheet, a cloud too sparse for the flood) they are kept. With enough, they are
+/// turned where more point in than out: a plain majority, since over a partial scan a fifth
+/// to a third of the points that show a side show the wrong one (see [`NormalSides`]).
 pub const LEAST_SIDES_SHOWN: usize = 32;
 
-/// The share of the points showing a side that, pointing the other way from the rest, marks
-/// the given normals as unoriented. Correctly oriented scans show a few per cent at most
-/// (noise beside a narrow concavity); a file of plane normals with random signs shows half.
-pub const UNORIENTED_SHARE: f32 = 0.1;
+/// The fewest neighbouring pairs compared before the given normals can be judged unoriented.
+pub const LEAST_PAIRS_COMPARED: usize = 64;
+
+/// The share of neighbouring pairs with opposed normals that marks the given normals as
+/// unoriented. Oriented scans, whole or partial, show a few per cent at most (across a sharp
+/// edge, in the noise); a file of plane normals with random signs shows half, and one with a
+/// normal in five turned about a third. Fewer turned (one in ten: about a fifth of the
+/// pairs) are left to the neighbours' vote, which overrules each stray.
+pub const UNORIENTED_SHARE: f32 = 0.2;
 
 /// What [`sign_cloud`] did with the given normals' orientation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GivenNormals {
-    /// Kept as given: they point out, or too few points show a side to tell.
+    /// Kept as given: they agree with their neighbours', and point out or too few points
+    /// show a side to tell.
     Kept,
-    /// Every normal turned: nearly all pointed in.
+    /// Every normal turned: more of the points showing a side point in than out (at least
+    /// [`LEAST_SIDES_SHOWN`] of them showing one).
     Turned,
-    /// Not used: they disagree on which side is out ([`UNORIENTED_SHARE`] or more point the
-    /// other way from the rest), so the cloud is signed by flood tagging instead.
+    /// Not used: [`UNORIENTED_SHARE`] or more of the neighbouring pairs point opposite ways,
+    /// so the cloud is signed by flood tagging instead.
     Unoriented,
 }
 
 impl NormalSides {
+    /// The share of the neighbouring pairs compared whose normals point opposite ways (0 with
+    /// none compared).
+    #[must_use]
+    pub fn opposed_share(self) -> f32 {
+        if self.neighbour_pairs == 0 {
+            0.0
+        } else {
+            self.opposed_pairs as f32 / self.neighbour_pairs as f32
+        }
+    }
+
     /// What the counts call for (see [`GivenNormals`]).
     #[must_use]
     pub fn verdict(self) -> GivenNormals {
-        let shown = self.outward + self.inward;
-        if shown < LEAST_SIDES_SHOWN {
-            return GivenNormals::Kept;
+        if self.neighbour_pairs >= LEAST_PAIRS_COMPARED && self.opposed_share() >= UNORIENTED_SHARE
+        {
+            return GivenNormals::Unoriented;
         }
-        let minority = self.outward.min(self.inward) as f32 / shown as f32;
-        if minority >= UNORIENTED_SHARE {
-            GivenNormals::Unoriented
-        } else if self.inward > self.outward {
+        let shown = self.outward + self.inward;
+        if shown >= LEAST_SIDES_SHOWN && self.inward > self.outward {
             GivenNormals::Turned
         } else {
             GivenNormals::Kept
@@ -654,22 +684,36 @@ pub fn sign_cloud(
         times.record("band beside exterior", started);
         (bending_scale, band, exterior)
     });
+    // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
+    let noise = consensus.noise * scale;
+    let point_spacing = kept_point_spacing * scale;
+    let bandwidth = (BANDWIDTH_SPACINGS * point_spacing)
+        .max(BANDWIDTH_NOISES * noise)
+        .min(spacing);
+    let neighbours = times.time("neighbour lists", || {
+        Neighbours::new(&points, MOVING_REACH * bandwidth)
+    });
     let started = Instant::now();
     let given = cloud
         .normals
         .as_ref()
         .filter(|ns| ns.len() == cloud.points.len() && ns.iter().all(|n| *n != Vec3::ZERO));
-    // The given normals are checked against the exterior before they sign anything: a file
-    // whose normals all point in (a scanner's or a converter's convention) would turn the
-    // clay inside out, and one whose normals are unoriented (each a plane's normal with
-    // either sign) would sign the clay at random.
+    // The given normals are checked against their neighbours' and the exterior before they
+    // sign anything: a file whose normals are unoriented (each a plane's normal with either
+    // sign) would sign the clay at random, and one whose normals all point in (a scanner's or
+    // a converter's convention) would turn it inside out.
     let (given, normal_sides) = match given {
         Some(ns) => {
             let mut normals: Vec<Vec3> = kept
                 .iter()
                 .map(|&i| ns[i].try_normalize().unwrap_or(Vec3::Y))
                 .collect();
-            let sides = grid.normal_sides(&exterior, &points, &normals);
+            let (neighbour_pairs, opposed_pairs) = opposed_neighbours(&neighbours, &normals);
+            let sides = NormalSides {
+                neighbour_pairs,
+                opposed_pairs,
+                ..grid.normal_sides(&exterior, &points, &normals)
+            };
             match sides.verdict() {
                 GivenNormals::Kept => (Some(normals), sides),
                 GivenNormals::Turned => {
@@ -710,18 +754,9 @@ pub fn sign_cloud(
         }
     };
     times.record("given or estimated normals", started);
-    // Step 5: the moving planes, at a bandwidth set by the point spacing and the noise.
-    let noise = consensus.noise * scale;
-    let point_spacing = kept_point_spacing * scale;
-    let bandwidth = (BANDWIDTH_SPACINGS * point_spacing)
-        .max(BANDWIDTH_NOISES * noise)
-        .min(spacing);
     // The local spacing is read in 3D: only where the noise is under the spacing (the
     // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
     // sampled rather than how thick the noise is.
-    let neighbours = times.time("neighbour lists", || {
-        Neighbours::new(&points, MOVING_REACH * bandwidth)
-    });
     let started = Instant::now();
     let local = if BANDWIDTH_NOISES * noise <= BANDWIDTH_SPACINGS * point_spacing {
         local_scales(&local_spacings(&neighbours), bandwidth)
@@ -2534,6 +2569,39 @@ pub const NEIGHBOURS_AGREE: f32 = 0.6;
 /// ... and it lies further than this cosine (60°) from their mean direction.
 pub const NORMAL_AGREEMENT: f32 = 0.5;
 
+/// Points of an even subset, at most, that [`opposed_neighbours`] compares with their
+/// neighbours.
+const PAIRED_POINTS: usize = 4096;
+
+/// The sine of the angle from a point's tangent plane (the plane across its `normal`)
+/// within which a neighbour counts as lying on the same surface in [`opposed_neighbours`].
+const SAME_SURFACE_SINE: f32 = 0.5;
+
+/// For an even subset of the points (at most [`PAIRED_POINTS`]), each with each of its
+/// `neighbours` that lies within 30° of its tangent plane: how many such pairs there are,
+/// and in how many the two `normals` point opposite ways. A neighbour off the tangent plane
+/// is left out: across a wall thinner than the search radius, the other side's normals point
+/// the other way, rightly.
+fn opposed_neighbours(neighbours: &Neighbours<'_>, normals: &[Vec3]) -> (usize, usize) {
+    let points = neighbours.points;
+    let stride = points.len().div_ceil(PAIRED_POINTS).max(1);
+    let (mut pairs, mut opposed) = (0usize, 0usize);
+    for i in (0..points.len()).step_by(stride) {
+        let (p, n) = (points[i], normals[i]);
+        neighbours.for_each(i, |j, q| {
+            let d = q - p;
+            let across = n.dot(d);
+            if j != i
+                && across * across <= SAME_SURFACE_SINE * SAME_SURFACE_SINE * d.length_squared()
+            {
+                pairs += 1;
+                opposed += usize::from(n.dot(normals[j]) < 0.0);
+            }
+        });
+    }
+    (pairs, opposed)
+}
+
 /// The given normals `raw`, each one that its `neighbours` overrule replaced by their
 /// confidence-weighted mean direction; and how many were. A stray that lies on the
 /// surface passes the screening (it is not off the plane), but its normal points anywhere,
@@ -3580,20 +3648,136 @@ mod tests {
     }
 
     #[test]
-    fn the_verdict_needs_enough_points_showing_a_side_and_a_clear_majority() {
-        let sides = |outward, inward| NormalSides { outward, inward };
+    fn the_verdict_reads_the_neighbours_for_agreement_and_the_exterior_for_the_side() {
+        let sides = |outward, inward| NormalSides {
+            outward,
+            inward,
+            neighbour_pairs: 1000,
+            opposed_pairs: 0,
+        };
         assert_eq!(
             sides(0, LEAST_SIDES_SHOWN - 1).verdict(),
             GivenNormals::Kept
         );
         assert_eq!(sides(0, LEAST_SIDES_SHOWN).verdict(), GivenNormals::Turned);
         assert_eq!(sides(1000, 0).verdict(), GivenNormals::Kept);
-        // 112 of 1 112 is just over a tenth, 111 just under.
-        assert_eq!(sides(1000, 112).verdict(), GivenNormals::Unoriented);
-        assert_eq!(sides(1000, 111).verdict(), GivenNormals::Kept);
-        assert_eq!(sides(111, 1000).verdict(), GivenNormals::Turned);
-        assert_eq!(sides(112, 1000).verdict(), GivenNormals::Unoriented);
-        assert_eq!(sides(500, 500).verdict(), GivenNormals::Unoriented);
+        // A partial scan's filled concavities show the wrong side: the majority decides.
+        assert_eq!(sides(1000, 999).verdict(), GivenNormals::Kept);
+        assert_eq!(sides(1000, 1000).verdict(), GivenNormals::Kept);
+        assert_eq!(sides(999, 1000).verdict(), GivenNormals::Turned);
+        // A fifth of the neighbouring pairs opposed: unoriented, whatever the exterior says.
+        let pairs = |neighbour_pairs, opposed_pairs| NormalSides {
+            neighbour_pairs,
+            opposed_pairs,
+            ..sides(1000, 0)
+        };
+        assert_eq!(pairs(1000, 199).verdict(), GivenNormals::Kept);
+        assert_eq!(pairs(1000, 200).verdict(), GivenNormals::Unoriented);
+        assert_eq!(
+            NormalSides {
+                neighbour_pairs: 1000,
+                opposed_pairs: 500,
+                ..sides(0, 1000)
+            }
+            .verdict(),
+            GivenNormals::Unoriented
+        );
+        // Too few pairs to judge: kept.
+        assert_eq!(
+            pairs(LEAST_PAIRS_COMPARED - 1, LEAST_PAIRS_COMPARED - 1).verdict(),
+            GivenNormals::Kept
+        );
+        assert!((pairs(1000, 250).opposed_share() - 0.25).abs() < 1e-6);
+        assert_eq!(pairs(0, 0).opposed_share(), 0.0);
+    }
+
+    /// One view of a bumpy sphere: the half of a `count`-point sphere of radius 3 facing +z,
+    /// its radius `3 (1 + 0.2 sin 10x sin 10y sin(10z + 0.5))` over the unit direction
+    /// `(x, y, z)`, with outward normals (by central differences). The bumps' hollows are
+    /// narrower than the closing's gap, so the flood does not reach into them.
+    fn bumpy_cap(count: usize) -> PointCloud {
+        let radius = |d: glam::DVec3| {
+            3.0 * (1.0 + 0.2 * (10.0 * d.x).sin() * (10.0 * d.y).sin() * (10.0 * d.z + 0.5).sin())
+        };
+        let at = |d: glam::DVec3| d.normalize() * radius(d.normalize());
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        for i in 0..count {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
+            if z < 0.0 {
+                continue;
+            }
+            let r = (1.0 - z * z).sqrt();
+            let d = glam::DVec3::new(
+                r * (golden * i as f64).cos(),
+                r * (golden * i as f64).sin(),
+                z,
+            );
+            let u = d.any_orthonormal_vector();
+            let v = d.cross(u);
+            let h = 1e-5;
+            let n = (at(d + u * h) - at(d - u * h))
+                .cross(at(d + v * h) - at(d - v * h))
+                .normalize();
+            let n = if n.dot(d) < 0.0 { -n } else { n };
+            points.push(at(d).as_vec3());
+            normals.push(n.as_vec3());
+        }
+        PointCloud {
+            points,
+            normals: Some(normals),
+        }
+    }
+
+    #[test]
+    fn a_partial_scan_keeps_its_normals_though_its_filled_hollows_show_the_wrong_side() {
+        // The flood goes round the cap's open back, and the closing fills the bumps' hollows
+        // on its front: their points show the inward side though their normals point out. The
+        // normals agree with their neighbours', so they are kept, and turned all in they are
+        // turned back.
+        let cap = bumpy_cap(20_000);
+        let options = CloudFitOptions::default();
+        let signed = sign_cloud(&cap, &options).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Normals);
+        let sides = signed.normal_sides;
+        assert_eq!(sides.verdict(), GivenNormals::Kept, "{sides:?}");
+        let shown = sides.outward + sides.inward;
+        assert!(
+            shown >= 1000 && sides.inward * 10 > shown,
+            "the hollows show the wrong side: {sides:?}"
+        );
+        assert!(
+            sides.neighbour_pairs >= 10_000 && sides.opposed_share() < 0.01,
+            "{sides:?}"
+        );
+        let inward = with_normals_turned(&cap, |_| true);
+        let turned = sign_cloud(&inward, &options).unwrap();
+        assert_eq!(turned.normal_sides.verdict(), GivenNormals::Turned);
+        assert_eq!(
+            coefficient_bits(&fit_point_cloud(&inward, &options).unwrap()),
+            coefficient_bits(&fit_point_cloud(&cap, &options).unwrap())
+        );
+    }
+
+    #[test]
+    fn one_normal_in_ten_turned_is_left_to_the_neighbours_vote() {
+        // A tenth turned: under a fifth of the neighbouring pairs are opposed, the normals
+        // are kept and the vote overrules the strays.
+        let cloud = sphere_cloud(4000, 3.0);
+        let options = CloudFitOptions::default();
+        let strays = with_normals_turned(&cloud, |i| i % 10 == 0);
+        let signed = sign_cloud(&strays, &options).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Normals);
+        let sides = signed.normal_sides;
+        assert_eq!(sides.verdict(), GivenNormals::Kept, "{sides:?}");
+        assert!((0.1..0.2).contains(&sides.opposed_share()), "{sides:?}");
+        assert!(
+            signed.overruled_normals >= 4000 / 10 - 40,
+            "{}",
+            signed.overruled_normals
+        );
+        let e = worst_radius_error(&fit_point_cloud(&strays, &options).unwrap(), 3.0);
+        assert!(e < 0.01, "{:.3}% of the diameter", e * 100.0);
     }
 
     #[test]

@@ -573,9 +573,10 @@ fn fit_cloud(
             sides.inward + sides.outward
         )),
         GivenNormals::Unoriented => note(format!(
-            "the file's normals disagree on which side is out ({} of the points that show a \
-             side point out, {} in): signed by flood tagging instead",
-            sides.outward, sides.inward
+            "the file's normals disagree on which side is out ({:.0}% of {} pairs of \
+             neighbouring points point opposite ways): signed by flood tagging instead",
+            100.0 * sides.opposed_share(),
+            sides.neighbour_pairs
         )),
     }
     note_levels(&fit.levels, fit.over_budget, note);
