@@ -175,6 +175,33 @@ fn normals_pointing_in_are_turned_and_normals_of_either_sign_give_way_to_the_flo
 }
 
 #[test]
+fn one_view_of_a_torus_without_normals_closes_round_its_hole() {
+    // The torus seen from above (the points whose outward normal leans up by more than
+    // 0.2), without normals, as one pass of a depth camera gives it: the flood goes round
+    // the open sheet, whose points' sides are guesses; oriented by their neighbours', the
+    // sheet closes into one clay with the torus's hole through it.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("view.xyz");
+    let mut text = String::from("# the top of a torus\n");
+    for ([x, y, z], [_, ny, _]) in torus_samples() {
+        if ny > 0.2 {
+            text.push_str(&format!("{x} {y} {z}\n"));
+        }
+    }
+    std::fs::write(&input, text).unwrap();
+    let (session, mesh) = (dir.path().join("view.dclay"), dir.path().join("view.obj"));
+    let said = import_ok(&input, &session, &mesh, &[]);
+    assert!(said.contains("signed by flood tagging"), "{said}");
+    assert!(said.contains("points lie on open sheets"), "{said}");
+    let (_, _, euler, closed) = obj_topology(&mesh);
+    assert!(closed, "the fitted surface is closed");
+    assert_eq!(
+        euler, 0,
+        "one piece with the torus's hole, genus one (V − E + F = 0)"
+    );
+}
+
+#[test]
 fn a_cloud_far_from_the_files_origin_is_read_about_its_centre() {
     // The torus (outer radius 40) placed at georeferenced coordinates, metres at a few
     // million, where `f32` steps by a quarter of a metre: read as it is, it is lumpy; read

@@ -310,6 +310,9 @@ pub struct SignedCloud {
     pub overruled_normals: usize,
     /// How the given normals sat against the exterior (all zero without given normals).
     pub normal_sides: NormalSides,
+    /// Where the estimated normals were oriented by their neighbours' over open sheets
+    /// ([`orient_consistently`]), what that did.
+    pub open_sheets: Option<Orienting>,
     /// Their confidence in `(0, 1]` (see [`super::consensus`]).
     pub confidence: Vec<f32>,
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
@@ -725,6 +728,7 @@ pub fn sign_cloud(
         }
         None => (None, NormalSides::default()),
     };
+    let mut open_sheets = None;
     let (raw_normals, signed_by) = match given {
         Some(normals) => (normals, SignedBy::Normals),
         None => {
@@ -747,10 +751,18 @@ pub fn sign_cloud(
                 depth[grid.nearest_node(p - n * probe)] - depth[grid.nearest_node(p + n * probe)]
             };
             let wanted = vec![true; points.len()];
-            (
-                estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side),
-                SignedBy::Tagging,
-            )
+            let mut normals =
+                estimate_normals(&points, &wanted, grid.h, BAND_SPANS * spacing, side);
+            // Over an open sheet (a partial scan's) the exterior lies on both sides and each
+            // point's side is a guess: there the normals are oriented by their neighbours'.
+            let open = grid.open_sheet_points(&exterior, &points, &normals);
+            if open as f32 >= OPEN_SHEET_SHARE * points.len() as f32 {
+                let shows = |p: Vec3, n: Vec3| grid.side_shown(&exterior, p, n);
+                let mut orienting = orient_consistently(&neighbours, &mut normals, shows, side);
+                orienting.open_sheet_points = open;
+                open_sheets = Some(orienting);
+            }
+            (normals, SignedBy::Tagging)
         }
     };
     times.record("given or estimated normals", started);
@@ -866,6 +878,7 @@ pub fn sign_cloud(
         normals,
         overruled_normals,
         normal_sides,
+        open_sheets,
         confidence,
         anchors,
         near_points,
@@ -1800,6 +1813,9 @@ pub struct Screening {
     pub overruled_normals: usize,
     /// How the given normals sat against the exterior, and what was done with them.
     pub normal_sides: NormalSides,
+    /// Where the estimated normals were oriented by their neighbours' over open sheets, what
+    /// that did.
+    pub open_sheets: Option<Orienting>,
     /// The noise level (standard deviation across the surface), fraction of the object's
     /// size.
     pub noise: f32,
@@ -1836,6 +1852,7 @@ impl SignedCloud {
             far: self.consensus.far,
             overruled_normals: self.overruled_normals,
             normal_sides: self.normal_sides,
+            open_sheets: self.open_sheets,
             noise: self.noise / size,
             noise_given: self.consensus.noise_given,
             bandwidth: self.bandwidth / size,
@@ -2432,22 +2449,49 @@ impl SignGrid {
         open
     }
 
+    /// Whether the ends of the tagging's probe from `p` along the unit normal `n`, two grid
+    /// steps out and in, lie in `exterior` (at the nodes nearest them): `(out end, in end)`.
+    fn probe_ends(&self, exterior: &[bool], p: Vec3, n: Vec3) -> (bool, bool) {
+        let probe = 2.0 * self.h;
+        (
+            exterior[self.nearest_node(p + n * probe)],
+            exterior[self.nearest_node(p - n * probe)],
+        )
+    }
+
+    /// The side of `exterior` the unit normal `n` at `p` shows: `+1` where its probe's out end
+    /// lies in the exterior and the in end does not, `−1` the reverse, `0` otherwise.
+    fn side_shown(&self, exterior: &[bool], p: Vec3, n: Vec3) -> i8 {
+        match self.probe_ends(exterior, p, n) {
+            (true, false) => 1,
+            (false, true) => -1,
+            _ => 0,
+        }
+    }
+
     /// How the unit `normals` of `points` sit against `exterior` (see [`NormalSides`]): each
     /// point is probed two grid steps out and in along its normal (the tagging's probe), at
     /// the nodes nearest the probe's ends.
     fn normal_sides(&self, exterior: &[bool], points: &[Vec3], normals: &[Vec3]) -> NormalSides {
-        let probe = 2.0 * self.h;
         let mut sides = NormalSides::default();
         for (&p, &n) in points.iter().zip(normals) {
-            let out_end = exterior[self.nearest_node(p + n * probe)];
-            let in_end = exterior[self.nearest_node(p - n * probe)];
-            match (out_end, in_end) {
-                (true, false) => sides.outward += 1,
-                (false, true) => sides.inward += 1,
+            match self.side_shown(exterior, p, n) {
+                1 => sides.outward += 1,
+                -1 => sides.inward += 1,
                 _ => {}
             }
         }
         sides
+    }
+
+    /// How many of `points` lie on an open sheet: both ends of the probe along their
+    /// `normals` (either sign) in `exterior`.
+    fn open_sheet_points(&self, exterior: &[bool], points: &[Vec3], normals: &[Vec3]) -> usize {
+        points
+            .iter()
+            .zip(normals)
+            .filter(|&(&p, &n)| self.probe_ends(exterior, p, n) == (true, true))
+            .count()
     }
 
     /// Each node's signed depth under the border of `exterior`: outside it (a node not in
@@ -2568,6 +2612,118 @@ const MAX_CELL_NEIGHBOURS: usize = 24;
 pub const NEIGHBOURS_AGREE: f32 = 0.6;
 /// ... and it lies further than this cosine (60°) from their mean direction.
 pub const NORMAL_AGREEMENT: f32 = 0.5;
+
+/// The share of a cloud's points on open sheets (both ends of the tagging's probe in the
+/// exterior) from which [`orient_consistently`] orients the estimated normals. The 12 peer
+/// clouds (closed, at 0.25% and 1% noise and with outliers) have at most a tenth of a per
+/// cent; single views of the same models have 1.7–15% at 1% noise (the closing's shell is
+/// thicker) and 50–90% at 0.25%.
+pub const OPEN_SHEET_SHARE: f32 = 0.01;
+
+/// What [`orient_consistently`] did, for the log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Orienting {
+    /// Points on open sheets (both ends of the probe in the exterior).
+    pub open_sheet_points: usize,
+    /// Pieces of the graph of neighbours on one surface.
+    pub pieces: usize,
+    /// Pieces turned whole.
+    pub turned: usize,
+}
+
+/// Turns `normals` (each a plane's, its sign a guess) so that neighbours on one surface
+/// agree, then each piece of the surface whole to the side most of its points show.
+///
+/// The neighbours on one surface are each point's `neighbours` within 30° of its tangent
+/// plane. From a seed in each piece, a spanning tree over them grows along the pair of the
+/// most nearly parallel normals first (Hoppe et al. 1992): each point takes the sign that
+/// agrees with the point it was reached from. Then the points vote: `shows(p, n)` is `+1`
+/// where `n` points into the exterior and the other way does not, `−1` the reverse, `0`
+/// where the exterior does not tell; a piece where more show the inward side than the
+/// outward one is turned whole. A piece none of whose points shows a side is turned where
+/// `guess(p, n)` (the probe's depths) is negative for more of them than positive.
+///
+/// NOTE: over a partial scan (one view of an object, open on its far side) most points have
+/// the exterior on both sides, and each point's own guess turned it at random: a quarter of
+/// neighbouring pairs pointed opposite ways, and one view of a cartoon cow came back with
+/// 43–73 handles. Of the points that do show a side there, a fifth show the wrong one (the
+/// closing fills the hollows of the near side), in patches that a piece's vote overrules.
+/// On a closed scan with 1% noise, the tree crosses thin parts (a bunny's ears) between
+/// points whose normals are parallel: the whole-piece vote turned the ear's far side in,
+/// which each point's own side had right, so the tree is grown only over open sheets
+/// ([`OPEN_SHEET_SHARE`]).
+fn orient_consistently(
+    neighbours: &Neighbours<'_>,
+    normals: &mut [Vec3],
+    shows: impl Fn(Vec3, Vec3) -> i8,
+    guess: impl Fn(Vec3, Vec3) -> f32,
+) -> Orienting {
+    use std::collections::BinaryHeap;
+    let points = neighbours.points;
+    let count = points.len();
+    // A non-negative f32's bits order as the number does.
+    let key = |agreement: f32| agreement.max(0.0).to_bits();
+    let mut piece_of = vec![u32::MAX; count];
+    let mut best = vec![0u32; count];
+    let mut heap: BinaryHeap<(u32, u32, u32)> = BinaryHeap::new();
+    let mut pieces = 0u32;
+    for seed in 0..count {
+        if piece_of[seed] != u32::MAX {
+            continue;
+        }
+        heap.push((u32::MAX, seed as u32, seed as u32));
+        while let Some((_, j, from)) = heap.pop() {
+            let j = j as usize;
+            if piece_of[j] != u32::MAX {
+                continue;
+            }
+            piece_of[j] = pieces;
+            if normals[from as usize].dot(normals[j]) < 0.0 {
+                normals[j] = -normals[j];
+            }
+            let (p, n) = (points[j], normals[j]);
+            neighbours.for_each(j, |q, at| {
+                if piece_of[q] != u32::MAX {
+                    return;
+                }
+                let d = at - p;
+                let across = n.dot(d);
+                if across * across > SAME_SURFACE_SINE * SAME_SURFACE_SINE * d.length_squared() {
+                    return;
+                }
+                let agreement = key(n.dot(normals[q]).abs());
+                if agreement > best[q] {
+                    best[q] = agreement;
+                    heap.push((agreement, q as u32, j as u32));
+                }
+            });
+        }
+        pieces += 1;
+    }
+    drop(best);
+    // Per piece: the sides shown (outward less inward), and the guesses (the same).
+    let mut votes = vec![(0i64, 0i64); pieces as usize];
+    for ((&p, &n), &piece) in points.iter().zip(normals.iter()).zip(&piece_of) {
+        let g = guess(p, n);
+        let vote = &mut votes[piece as usize];
+        vote.0 += i64::from(shows(p, n));
+        vote.1 += i64::from(g > 0.0) - i64::from(g < 0.0);
+    }
+    let turn: Vec<bool> = votes
+        .iter()
+        .map(|&(shown, guessed)| shown < 0 || (shown == 0 && guessed < 0))
+        .collect();
+    for (n, &piece) in normals.iter_mut().zip(&piece_of) {
+        if turn[piece as usize] {
+            *n = -*n;
+        }
+    }
+    Orienting {
+        open_sheet_points: 0,
+        pieces: pieces as usize,
+        turned: turn.iter().filter(|&&t| t).count(),
+    }
+}
 
 /// Points of an even subset, at most, that [`opposed_neighbours`] compares with their
 /// neighbours.
@@ -3756,6 +3912,53 @@ mod tests {
         assert_eq!(
             coefficient_bits(&fit_point_cloud(&inward, &options).unwrap()),
             coefficient_bits(&fit_point_cloud(&cap, &options).unwrap())
+        );
+    }
+
+    #[test]
+    fn one_view_of_a_torus_without_normals_is_oriented_by_its_neighbours() {
+        // The torus (ring radius 30 about the y axis, tube radius 10) seen from above: the
+        // points whose outward normal leans up by more than 0.2, without normals. The flood
+        // goes round the open sheet, so most points' sides are guesses; the neighbours'
+        // agreement and the points that show a side turn them out.
+        let (ring, tube) = (30.0f32, 10.0f32);
+        let mut points = Vec::new();
+        for i in 0..150 {
+            for j in 0..60 {
+                let u = i as f32 / 150.0 * std::f32::consts::TAU;
+                let v = j as f32 / 60.0 * std::f32::consts::TAU;
+                let r = ring + tube * v.cos();
+                if v.sin() > 0.2 {
+                    points.push(Vec3::new(r * u.cos(), tube * v.sin(), r * u.sin()));
+                }
+            }
+        }
+        let cloud = PointCloud {
+            points,
+            normals: None,
+        };
+        let signed = sign_cloud(&cloud, &CloudFitOptions::default()).unwrap();
+        assert_eq!(signed.signed_by, SignedBy::Tagging);
+        let orienting = signed.open_sheets.expect("oriented over open sheets");
+        assert!(
+            orienting.open_sheet_points * 2 > signed.points.len(),
+            "most points lie on an open sheet: {orienting:?}"
+        );
+        let outward = |p: Vec3| {
+            let q = (p - signed.offset) / signed.scale;
+            let centre = Vec3::new(q.x, 0.0, q.z).normalize() * ring;
+            (q - centre).normalize()
+        };
+        let agree = signed
+            .points
+            .iter()
+            .zip(&signed.normals)
+            .filter(|&(&p, &n)| n.dot(outward(p)) > 0.0)
+            .count();
+        assert!(
+            agree as f32 >= 0.99 * signed.points.len() as f32,
+            "{agree} of {} normals point out ({orienting:?})",
+            signed.points.len()
         );
     }
 

@@ -579,6 +579,14 @@ fn fit_cloud(
             sides.neighbour_pairs
         )),
     }
+    if let Some(o) = s.open_sheets {
+        note(format!(
+            "{} points lie on open sheets (the outside on both sides, as over a partial \
+             scan): their normals were oriented by their neighbours' in {} pieces ({} \
+             turned whole to the side their points show)",
+            o.open_sheet_points, o.pieces, o.turned
+        ));
+    }
     note_levels(&fit.levels, fit.over_budget, note);
     let kept: Vec<Vec3> = cloud
         .points
