@@ -202,6 +202,62 @@ fn one_view_of_a_torus_without_normals_closes_round_its_hole() {
 }
 
 #[test]
+fn one_view_of_a_torus_as_an_open_mesh_is_fitted_with_its_windings_normals() {
+    // The torus's top (the grid's quads whose outward normal leans up by more than 0.2) as an
+    // OBJ mesh, wound outward, and the same wound inward: too open to cap, each is fitted as
+    // points sampled from its triangles with their winding's normals. The open band shows no
+    // side of the exterior, so either winding is kept: the band closes into a shell on the
+    // side its normals point away from, round the torus's hole either way.
+    let dir = tempfile::tempdir().unwrap();
+    let (rows, columns) = (150usize, 60usize);
+    let vertex = |i: usize, j: usize| (i % rows) * columns + (j % columns) + 1;
+    for (name, inward) in [("out", false), ("in", true)] {
+        let mut text = String::new();
+        for ([x, y, z], _) in torus_samples() {
+            text.push_str(&format!("v {x} {y} {z}\n"));
+        }
+        for i in 0..rows {
+            for j in 0..columns {
+                let v = (j as f32 + 0.5) / columns as f32 * std::f32::consts::TAU;
+                if v.sin() <= 0.2 {
+                    continue;
+                }
+                let mut quad = [
+                    vertex(i, j),
+                    vertex(i, j + 1),
+                    vertex(i + 1, j + 1),
+                    vertex(i + 1, j),
+                ];
+                if inward {
+                    quad.reverse();
+                }
+                let [a, b, c, d] = quad;
+                text.push_str(&format!("f {a} {b} {c} {d}\n"));
+            }
+        }
+        let input = dir.path().join(format!("{name}.obj"));
+        std::fs::write(&input, text).unwrap();
+        let (session, mesh) = (
+            dir.path().join(format!("{name}.dclay")),
+            dir.path().join(format!("{name}_fit.obj")),
+        );
+        let said = import_ok(&input, &session, &mesh, &[]);
+        assert!(
+            said.contains("fitting it as a point cloud sampled from its triangles"),
+            "{name}: {said}"
+        );
+        assert!(said.contains("points with normals"), "{name}: {said}");
+        assert!(said.contains("signed by the normals"), "{name}: {said}");
+        let (_, _, euler, closed) = obj_topology(&mesh);
+        assert!(closed, "{name}: the fitted surface is closed");
+        assert_eq!(
+            euler, 0,
+            "{name}: genus one round the torus's hole (V − E + F = 0)"
+        );
+    }
+}
+
+#[test]
 fn a_cloud_far_from_the_files_origin_is_read_about_its_centre() {
     // The torus (outer radius 40) placed at georeferenced coordinates, metres at a few
     // million, where `f32` steps by a quarter of a metre: read as it is, it is lumpy; read

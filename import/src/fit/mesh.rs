@@ -219,13 +219,16 @@ pub fn parse_stl(bytes: &[u8], file: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>)
     Ok((vertices, triangles))
 }
 
-/// Points sampled evenly over `triangles`: the spacing is the mesh's longest side over
-/// [`SAMPLES_ACROSS`]; each triangle gets a barycentric grid fine enough for that spacing
-/// (its corners, edges and inside), at least its corners.
+/// Points sampled evenly over `triangles`, each with its triangle's normal (by its winding,
+/// `(b − a) × (c − a)`): the spacing is the mesh's longest side over [`SAMPLES_ACROSS`]; each
+/// triangle gets a barycentric grid fine enough for that spacing (its corners, edges and
+/// inside), at least its corners. Triangles without area are left out (the triangles around
+/// them cover their points). The import checks the normals as any file's: a mesh whose
+/// winding is not consistent has them set aside, one wound inside out has them turned.
 ///
 /// # Errors
 /// [`PointsError::Empty`] for no triangles; [`PointsError::Line`] (line 0) when the samples
-/// would pass [`super::MAX_POINTS`].
+/// would pass [`super::MAX_POINTS`] or no triangle has an area.
 pub fn sample_triangles(
     vertices: &[Vec3],
     triangles: &[[u32; 3]],
@@ -265,19 +268,32 @@ pub fn sample_triangles(
         });
     }
     let mut points = Vec::with_capacity(total);
+    let mut normals = Vec::with_capacity(total);
     for t in triangles {
         let [a, b, c] = t.map(|i| vertices[i as usize]);
+        // A triangle without area has no normal; the triangles around it cover its points.
+        let Some(normal) = (b - a).cross(c - a).try_normalize() else {
+            continue;
+        };
         let s = steps(t);
         for i in 0..=s {
             for j in 0..=s - i {
                 let (u, v) = (i as f32 / s as f32, j as f32 / s as f32);
                 points.push(a + (b - a) * u + (c - a) * v);
+                normals.push(normal);
             }
         }
     }
+    if points.is_empty() {
+        return Err(PointsError::Line {
+            file: file.to_path_buf(),
+            line: 0,
+            what: "no triangle of the mesh has an area".into(),
+        });
+    }
     Ok(PointCloud {
         points,
-        normals: None,
+        normals: Some(normals),
     })
 }
 
@@ -360,5 +376,30 @@ mod tests {
         );
         let e = sample_triangles(&[], &[], &file()).unwrap_err().to_string();
         assert!(e.contains("no points"), "{e}");
+        let flat = [Vec3::ZERO, Vec3::X, Vec3::X * 2.0];
+        let e = sample_triangles(&flat, &[[0, 1, 2]], &file())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("no triangle of the mesh has an area"), "{e}");
+    }
+
+    #[test]
+    fn samples_carry_their_triangles_normal_by_its_winding() {
+        // The unit cube: each face's samples take its outward normal; a triangle without area
+        // added to it gives no samples.
+        let (mut v, mut t) = parse_obj(CUBE_OBJ.as_bytes(), &file()).unwrap();
+        let whole = sample_triangles(&v, &t, &file()).unwrap();
+        v.extend([Vec3::ZERO, Vec3::splat(0.5), Vec3::ONE]);
+        t.push([8, 9, 10]);
+        let cloud = sample_triangles(&v, &t, &file()).unwrap();
+        assert_eq!(cloud.points.len(), whole.points.len());
+        let normals = cloud.normals.expect("normals by the winding");
+        let centre = Vec3::splat(0.5);
+        for (&p, &n) in cloud.points.iter().zip(&normals) {
+            assert!((n.length() - 1.0).abs() < 1e-5);
+            // Each is a face's axis, pointing away from the cube's centre.
+            assert!(n.abs().max_element() > 0.999, "{n}");
+            assert!((p - centre).dot(n) > 0.49, "{p} {n}");
+        }
     }
 }

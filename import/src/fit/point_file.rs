@@ -108,7 +108,13 @@ fn parse_by_extension(
         }
         Some("obj" | "stl") => {
             let (vertices, triangles) = parse_mesh(bytes, &file)?;
-            sample_triangles(&vertices, &triangles, &file)?
+            // Read as points, a mesh's samples leave its winding behind: the readers of
+            // points (the point-set surfaces, scripts) take given normals as they are, and a
+            // triangle soup's winding need not agree from one triangle to the next.
+            PointCloud {
+                normals: None,
+                ..sample_triangles(&vertices, &triangles, &file)?
+            }
         }
         _ => parse_xyz_about(bytes, &file, origin)?,
     };
