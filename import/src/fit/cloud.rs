@@ -25,12 +25,14 @@
 //!    region). The file's normals are first checked ([`NormalSides`]): where a fifth or
 //!    more of the pairs of neighbouring points on one surface have opposed normals (normals
 //!    with either sign), they are not used and the exterior signs the cloud as if it had
-//!    none; where two thirds or more of the points that show a side of the exterior point
-//!    in, every normal is turned (the log says which). A given normal that its neighbours overrule (they agree among themselves and
-//!    it lies over 60° from their mean: a stray kept near the surface with a normal pointing
-//!    anywhere) takes their mean direction (the log counts them); then every normal is
-//!    averaged over its neighbours with the moving planes' Gaussian, so one noisy or flipped
-//!    normal cannot turn the side of the surface.
+//!    none; where more of the points that show a side of the exterior point in than out,
+//!    every normal is turned (the log says which). Estimated normals over open sheets (a
+//!    partial scan, the exterior on both sides of its points) are oriented by their
+//!    neighbours' ([`OPEN_SHEET_SHARE`]). A given normal that its neighbours overrule (they
+//!    agree among themselves and it lies over 60° from their mean: a stray kept near the
+//!    surface with a normal pointing anywhere) takes their mean direction (the log counts
+//!    them); then every normal is averaged over its neighbours with the moving planes'
+//!    Gaussian, so one noisy or flipped normal cannot turn the side of the surface.
 //! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
 //!    of the distances to the neighbouring points' tangent planes, each weighted by its
 //!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ dᵢ(x) / Σ wᵢ`,
@@ -190,8 +192,8 @@ pub enum SignedBy {
 /// normals point, not whether they agree: over a partial scan (one view of an object, open
 /// on its far side) the closing fills the concavities of the near side, whose points then
 /// show the wrong side (a fifth of them on one view of a cartoon cow, under a third on a
-/// bumpy cap). Whether the normals
-/// agree is read from neighbouring points on the same surface.
+/// bumpy cap). Whether the normals agree is read from neighbouring points on the same
+/// surface.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct NormalSides {
     /// Points whose normal points into the exterior.
@@ -2646,7 +2648,7 @@ pub const NORMAL_AGREEMENT: f32 = 0.5;
 /// exterior) from which [`orient_consistently`] orients the estimated normals. The 12 peer
 /// clouds (closed, at 0.25% and 1% noise and with outliers) have at most a tenth of a per
 /// cent; single views of the same models have 1.7–15% at 1% noise (the closing's shell is
-/// thicker) and 50–90% at 0.25%.
+/// thicker) and 50–100% at 0.25%.
 pub const OPEN_SHEET_SHARE: f32 = 0.01;
 
 /// What [`orient_consistently`] did, for the log.
