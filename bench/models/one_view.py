@@ -18,8 +18,12 @@ if len(sys.argv) not in (4, 5) or sys.argv[2] not in VIEWS or (
     sys.exit(__doc__)
 src, view, out = sys.argv[1], VIEWS[sys.argv[2]], sys.argv[3]
 without_normals = len(sys.argv) == 5
-if out == src:
-    sys.exit("one_view.py: OUT must not be the input cloud")
+import os
+
+if not out.endswith(".xyz"):
+    sys.exit(f"one_view.py: OUT {out!r} must end in .xyz (the only kind this writes)")
+if os.path.exists(out) and (os.path.samefile(out, src) or os.path.islink(out)):
+    sys.exit(f"one_view.py: OUT {out!r} is the input cloud or a link; choose another path")
 kept = 0
 with open(src) as cloud, open(out, "w") as f:
     for number, line in enumerate(cloud, 1):
