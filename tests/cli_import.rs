@@ -202,6 +202,58 @@ fn one_view_of_a_torus_without_normals_closes_round_its_hole() {
 }
 
 #[test]
+fn a_torus_with_one_side_sampled_sparsely_keeps_that_sides_points_and_says_so() {
+    // A noisy torus (tube 10, ring 30, noise 0.2 along the normal) whose side with x < 0
+    // keeps one point in ten, as the side of a scan away from the scanner: those points
+    // have a tenth of the typical count of neighbours, and by the count alone 438 of its
+    // 1 500 were dropped as isolated.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("sparse_side.xyz");
+    let mut seed = 12_345_u32;
+    let mut uniform = || {
+        seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        seed as f32 / 2f32.powi(32)
+    };
+    let mut text = String::from("# a torus, one side sparse\n");
+    for i in 0..300 {
+        for j in 0..100 {
+            let (u, v) = (
+                (i as f32 + 0.5) / 300.0 * std::f32::consts::TAU,
+                (j as f32 + 0.5) / 100.0 * std::f32::consts::TAU,
+            );
+            let tube = 10.0 + 0.2 * ((0..12).map(|_| uniform()).sum::<f32>() - 6.0);
+            let r = 30.0 + tube * v.cos();
+            let [x, y, z] = [r * u.cos(), tube * v.sin(), r * u.sin()];
+            if x < 0.0 && (i * 100 + j) % 10 != 0 {
+                continue;
+            }
+            let [nx, ny, nz] = [v.cos() * u.cos(), v.sin(), v.cos() * u.sin()];
+            text.push_str(&format!("{x} {y} {z} {nx} {ny} {nz}\n"));
+        }
+    }
+    std::fs::write(&input, text).unwrap();
+    let (session, mesh) = (
+        dir.path().join("sparse.dclay"),
+        dir.path().join("sparse.obj"),
+    );
+    let said = import_ok(&input, &session, &mesh, &[]);
+    let dropped: usize = said
+        .split("dropped ")
+        .nth(1)
+        .and_then(|rest| rest.split(' ').next())
+        .and_then(|n| n.parse().ok())
+        .expect("the log says how many points were dropped as isolated");
+    assert!(dropped < 50, "{said}");
+    assert!(
+        said.contains("points of sparsely sampled areas"),
+        "the log says how many points were kept by their nearest neighbours: {said}"
+    );
+    let (_, _, euler, closed) = obj_topology(&mesh);
+    assert!(closed, "the fitted surface is closed");
+    assert_eq!(euler, 0, "one torus, genus one (V − E + F = 0)");
+}
+
+#[test]
 fn one_view_of_a_torus_as_an_open_mesh_is_fitted_with_its_windings_normals() {
     // The torus's top (the grid's quads whose outward normal leans up by more than 0.2) as an
     // OBJ mesh, wound outward, and the same wound inward: too open to cap, each is fitted as

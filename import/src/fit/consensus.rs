@@ -9,6 +9,11 @@
 //!   borders well-supported ones is not isolated but judged by the far test against both
 //!   its own neighbours' plane and its nearest well-supported neighbour's: a point of a
 //!   sparsely sampled area (a flat face beside a densely sampled edge) lies on them.
+//! - Where the cloud is **sparsely sampled** (the side of a scan away from the scanner,
+//!   an area fewer views saw), a point with too few neighbours within the radius is judged
+//!   again by its [`SPARSE_NEIGHBOURS`] nearest points: kept when they lie on a plane, it
+//!   lies amid them and near it, and at least [`SPARSE_GROUP`] such points are linked as
+//!   each other's nearest. A stray in empty space has no such plane about it.
 //! - **Far** points, whose distance to their neighbours' plane is over [`FAR_DEVIATIONS`]
 //!   times the local scatter (the larger of the cloud's noise and the neighbours' own RMS
 //!   distance to the plane, so that a crease or a tight curve does not count as an
@@ -63,6 +68,32 @@ pub const THIN_FAR_LIMIT: f32 = 0.5;
 pub const RESCUE_RADII: f32 = 0.25;
 /// Points a cell of the neighbour search offers, at most.
 pub const CELL_OFFER: usize = 48;
+/// A point left with too few neighbours within the radius is judged again by this many of
+/// its nearest, found within [`SPARSE_RADII`] radii.
+pub const SPARSE_NEIGHBOURS: usize = 16;
+/// How far the nearest neighbours of a point with too few within the radius are looked for,
+/// in neighbour radii: 16 times the area, so a surface sampled at a sixteenth of the typical
+/// density still shows its [`SPARSE_NEIGHBOURS`].
+pub const SPARSE_RADII: f32 = 4.0;
+/// The nearest neighbours of a point with too few within the radius lie on a surface when
+/// their plane's RMS distance is at most this share of the farthest one's distance (or
+/// [`SPARSE_NOISE_ALLOWANCE`] noise levels): a disc of a surface reads the noise and its
+/// curvature's sag, a few hundredths on a smooth surface; a ball of strays reads far more.
+pub const SPARSE_FLATNESS: f32 = 0.15;
+/// A point judged by its nearest neighbours where the cloud is sparse must lie among them:
+/// its offset along their plane from their centroid at most this share of the farthest
+/// one's distance. A point of a sparse surface lies amid its neighbours (under 0.4 of the
+/// reach for 95 in 100 on a half sampled at a tenth of the density); a stray beside a
+/// densely sampled surface has its nearest points in a patch to one side of it (over 0.55
+/// for the peer clouds' strays that pass the other tests).
+pub const SPARSE_AMID: f32 = 0.5;
+/// Points judged by their nearest neighbours where the cloud is sparse are kept only in
+/// groups of at least this many, linked by being among each other's nearest: a few strays
+/// in thousands may pass the other tests by chance, and each kept alone is signed as a blob.
+pub const SPARSE_GROUP: usize = 24;
+/// See [`SPARSE_FLATNESS`]: a sparsely sampled surface's neighbours scatter by the noise
+/// about their plane, which may be over [`SPARSE_FLATNESS`] of their reach in a noisy cloud.
+pub const SPARSE_NOISE_ALLOWANCE: f32 = 2.0;
 /// Points whose neighbourhoods give the noise estimate, at most (an even subset).
 const NOISE_SAMPLES: usize = 20_000;
 
@@ -554,6 +585,9 @@ pub struct Consensus {
     pub isolated: usize,
     /// Points dropped for lying off their neighbours' plane.
     pub far: usize,
+    /// Points kept that had too few neighbours within the radius, judged by their nearest
+    /// neighbours' plane where the cloud is sparsely sampled (see [`SPARSE_NEIGHBOURS`]).
+    pub sparse: usize,
 }
 
 impl Consensus {
@@ -733,6 +767,7 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
         fewest
     };
     let planes = bordering_support(points, planes, radius, [fewest, thin], scatter);
+    let (planes, sparse) = sparse_support(points, planes, radius, thin, scatter);
     let (mut isolated, mut far) = (0, 0);
     let confidence = planes
         .iter()
@@ -761,6 +796,7 @@ pub fn screen(points: &[Vec3], size: f32, noise: Option<f32>) -> Consensus {
         radius,
         isolated,
         far,
+        sparse,
     }
 }
 
@@ -837,6 +873,144 @@ fn bordering_support(
             _ => None,
         })
         .collect()
+}
+
+/// `planes` with each point about to be dropped that had fewer than `thin` neighbours within
+/// `radius` (none: isolated; or a few, too few to fix the plane it is found far from) judged
+/// again by its [`SPARSE_NEIGHBOURS`] nearest points within [`SPARSE_RADII`] radii, where
+/// the cloud may be sampled far more sparsely than its median (the side of a scan away from
+/// the scanner, or an area one view of several saw): the count within `radius` alone takes
+/// such points for strays.
+///
+/// Such a point is judged by its nearest points' plane, like any other by its own, where:
+/// - they lie on a plane (see [`SPARSE_FLATNESS`]): a ball of strays in empty space does not;
+/// - it lies amid them (see [`SPARSE_AMID`]): a stray beside a densely sampled surface has
+///   them all to one side;
+/// - it lies within [`FAR_DEVIATIONS`] local deviations of the plane (noise levels `sigma`)
+///   beyond the sag a curved surface's points leave about their plane;
+/// - and at least [`SPARSE_GROUP`] points so judged are linked by being among each other's
+///   nearest: a sparse surface is many such points, while a few strays in thousands may
+///   pass the tests above by chance, and each kept alone would be signed as a blob.
+///
+/// Every other point stays as it was (isolated, or off its own few neighbours' plane).
+/// Returns the planes and how many points were judged so.
+fn sparse_support(
+    points: &[Vec3],
+    mut planes: Vec<Option<(Plane, f32)>>,
+    radius: f32,
+    thin: usize,
+    sigma: f32,
+) -> (Vec<Option<(Plane, f32)>>, usize) {
+    // The points about to be dropped that had too few neighbours to judge them by.
+    let dropped = |judged: &Option<(Plane, f32)>| match judged {
+        None => true,
+        Some((plane, off)) => {
+            plane.neighbours < thin && *off > FAR_DEVIATIONS * sigma.max(plane.rms)
+        }
+    };
+    let lone: Vec<usize> = (0..planes.len()).filter(|&i| dropped(&planes[i])).collect();
+    if lone.is_empty() {
+        return (planes, 0);
+    }
+    // `p` judged by the plane of `near` (its nearest, the farthest `reach` from it; the
+    // plane fitted robustly, as every point's is): the plane and `p`'s distance to it, or
+    // `None`.
+    let judge = |p: Vec3, near: &[Vec3], reach: f32| {
+        let plane = plane_of(near, &mut Vec::new(), &mut Vec::new())?;
+        if plane.rms > (SPARSE_FLATNESS * reach).max(SPARSE_NOISE_ALLOWANCE * sigma) {
+            return None;
+        }
+        let from_centre = p - plane.centre;
+        let off = from_centre.dot(plane.normal);
+        let along = (from_centre - off * plane.normal).length();
+        // The part of the scatter that is not the noise is the surface's curvature's, and a
+        // point amid a curved cap lies off its points' plane by up to √3 times that: the
+        // point's distance from the surface is taken as its distance beyond that sag.
+        let sag = 3f32.sqrt() * (plane.rms * plane.rms - sigma * sigma).max(0.0).sqrt();
+        let off = (off.abs() - sag).max(0.0);
+        let judged = along <= SPARSE_AMID * reach && off <= FAR_DEVIATIONS * sigma.max(plane.rms);
+        judged.then_some((plane, off))
+    };
+    let search = SPARSE_RADII * radius;
+    let grid = PointGrid::new(points, |_| true, search, CELL_OFFER);
+    // First by all its nearest points: each point's nearest and their reach where judged.
+    let first = parallel_map(lone.len(), |k| {
+        let (i, p) = (lone[k], points[lone[k]]);
+        let mut near: Vec<(f32, u32)> = Vec::new();
+        grid.for_each_near(p, search, |j, q| {
+            if j != i {
+                near.push(((q - p).length_squared(), j as u32));
+            }
+        });
+        if near.len() < SPARSE_NEIGHBOURS {
+            return None;
+        }
+        let (nearest, farthest, _) =
+            near.select_nth_unstable_by(SPARSE_NEIGHBOURS - 1, |a, b| a.0.total_cmp(&b.0));
+        let reach = farthest.0.sqrt();
+        let nearest: Vec<u32> = nearest.iter().chain([&*farthest]).map(|n| n.1).collect();
+        let positions: Vec<Vec3> = nearest.iter().map(|&j| points[j as usize]).collect();
+        judge(p, &positions, reach).map(|_| (nearest, reach))
+    });
+    // Where a point is judged, the index of its place in `lone`.
+    let judged_at = |j: u32| {
+        lone.binary_search(&(j as usize))
+            .ok()
+            .filter(|&m| first[m].is_some())
+    };
+    // Then again by those of its nearest that are supported or judged: strays among a
+    // sparse surface's points lean the first planes toward them.
+    let second = parallel_map(lone.len(), |k| {
+        let (nearest, reach) = first[k].as_ref()?;
+        let positions: Vec<Vec3> = nearest
+            .iter()
+            .filter(|&&j| !dropped(&planes[j as usize]) || judged_at(j).is_some())
+            .map(|&j| points[j as usize])
+            .collect();
+        if positions.len() < SPARSE_NEIGHBOURS / 2 {
+            return None;
+        }
+        judge(points[lone[k]], &positions, *reach)
+    });
+    // The points judged twice, linked through each other's nearest (union–find over `lone`).
+    let mut parent: Vec<u32> = (0..lone.len() as u32).collect();
+    fn root(parent: &mut [u32], mut at: u32) -> u32 {
+        while parent[at as usize] != at {
+            let up = parent[parent[at as usize] as usize];
+            parent[at as usize] = up;
+            at = up;
+        }
+        at
+    }
+    for (k, (nearest, _)) in first
+        .iter()
+        .enumerate()
+        .filter_map(|(k, f)| Some((k, f.as_ref()?)))
+    {
+        if second[k].is_none() {
+            continue;
+        }
+        for m in nearest.iter().filter_map(|&j| judged_at(j)) {
+            if second[m].is_some() {
+                let (a, b) = (root(&mut parent, k as u32), root(&mut parent, m as u32));
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    let mut members = vec![0usize; lone.len()];
+    for k in 0..lone.len() {
+        if second[k].is_some() {
+            members[root(&mut parent, k as u32) as usize] += 1;
+        }
+    }
+    let mut kept = 0;
+    for (k, judged) in second.into_iter().enumerate() {
+        if judged.is_some() && members[root(&mut parent, k as u32) as usize] >= SPARSE_GROUP {
+            planes[lone[k]] = judged;
+            kept += 1;
+        }
+    }
+    (planes, kept)
 }
 
 /// Each point's neighbours' plane and its distance to it, the noise level (`noise`, or the
@@ -1486,6 +1660,84 @@ mod tests {
         // A given noise level is used as given.
         let given = screen(&points, 300.0, Some(0.1));
         assert!(given.noise_given && given.noise == 0.1);
+    }
+
+    /// A sphere of radius 50 about the origin: `count` points spread evenly (a Fibonacci
+    /// spiral) with noise of about `sigma` along the radius, of which those with `x < 0`
+    /// are kept one in `sparse_every`; then `strays` points uniform in the box of side 140.
+    /// Returns the points and how many lie on the sphere.
+    fn sparse_sided_sphere(
+        count: usize,
+        sigma: f32,
+        sparse_every: usize,
+        strays: usize,
+    ) -> (Vec<Vec3>, usize) {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut uniform = move || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
+        let mut points = Vec::new();
+        for i in 0..count {
+            let y = 1.0 - 2.0 * (i as f32 + 0.5) / count as f32;
+            let ring = (1.0 - y * y).sqrt();
+            let turn = golden * i as f32;
+            let dir = Vec3::new(ring * turn.cos(), y, ring * turn.sin());
+            let height = sigma * ((0..12).map(|_| uniform()).sum::<f32>() - 6.0);
+            if dir.x >= 0.0 || i % sparse_every == 0 {
+                points.push(dir * (50.0 + height));
+            }
+        }
+        let on_sphere = points.len();
+        for _ in 0..strays {
+            points.push(Vec3::new(uniform(), uniform(), uniform()) * 140.0 - Vec3::splat(70.0));
+        }
+        (points, on_sphere)
+    }
+
+    #[test]
+    fn a_side_sampled_at_a_tenth_of_the_density_is_kept_and_strays_are_not() {
+        let (points, on_sphere) = sparse_sided_sphere(40_000, 0.1, 10, 1_100);
+        let c = screen(&points, 140.0, None);
+        let sparse: Vec<usize> = (0..on_sphere).filter(|&i| points[i].x < 0.0).collect();
+        let kept_sparse = sparse.iter().filter(|&&i| c.confidence[i] > 0.0).count();
+        // Its points have a tenth of the typical count within the radius, under the
+        // isolated fraction: by the count alone most were dropped.
+        assert!(
+            kept_sparse * 100 >= sparse.len() * 95,
+            "{kept_sparse} of the sparse side's {} kept ({} isolated, {} far in all)",
+            sparse.len(),
+            c.isolated,
+            c.far
+        );
+        let dense_kept = (0..on_sphere)
+            .filter(|&i| points[i].x >= 0.0 && c.confidence[i] > 0.0)
+            .count();
+        assert!(dense_kept * 100 >= (on_sphere - sparse.len()) * 99);
+        // A stray kept lies within a few noise levels of the sphere: none is kept in
+        // empty space, where it would be signed as a blob of its own.
+        let kept_strays: Vec<f32> = (on_sphere..points.len())
+            .filter(|&i| c.confidence[i] > 0.0)
+            .map(|i| (points[i].length() - 50.0).abs())
+            .collect();
+        assert!(kept_strays.iter().all(|&d| d < 1.0), "{kept_strays:?}");
+        assert!(kept_strays.len() <= 10, "{} strays kept", kept_strays.len());
+    }
+
+    #[test]
+    fn strays_alone_are_not_taken_for_a_sparse_surface() {
+        // A twentieth of the points in a ball of strays around a dense sphere: the count
+        // finds them isolated and the nearest-neighbour planes must not bring them back.
+        let (points, on_sphere) = sparse_sided_sphere(20_000, 0.1, 1, 1_000);
+        let c = screen(&points, 140.0, None);
+        let far_kept = (on_sphere..points.len())
+            .filter(|&i| c.confidence[i] > 0.0 && (points[i].length() - 50.0).abs() > 1.0)
+            .count();
+        assert_eq!(far_kept, 0);
+        assert!(c.isolated + c.far >= 900, "{} + {}", c.isolated, c.far);
     }
 
     /// The robust plane as it was fitted before [`needs_refit`]: the median found by

@@ -563,6 +563,13 @@ fn fit_cloud(
         s.removed_pieces,
         s.filled_cavities
     ));
+    if s.sparse > 0 {
+        note(format!(
+            "kept {} points of sparsely sampled areas (too few neighbours within the \
+             screening's radius), judged by the plane of their nearest neighbours",
+            s.sparse
+        ));
+    }
     let sides = s.normal_sides;
     match sides.verdict() {
         GivenNormals::Kept => {}
