@@ -87,6 +87,7 @@ use super::consensus::{
     CELL_OFFER, Consensus, PointGrid, exp_neg, floor_to_i32, least_variance_direction,
     parallel_map, screen, typical_spacing,
 };
+use super::disjoint_sets::DisjointSets;
 use super::lanes::{
     LANES, LaneSums, Lanes, WideLanes, add_row, exp_neg_lane, has_wide_lanes, kept, lanes_of,
     lanes_of_three, total,
@@ -2354,24 +2355,7 @@ impl SignGrid {
             }
             row_runs.push(runs.len());
         }
-        let mut parent: Vec<u32> = (0..runs.len() as u32).collect();
-        fn root(parent: &mut [u32], mut at: u32) -> u32 {
-            while parent[at as usize] != at {
-                let up = parent[parent[at as usize] as usize];
-                parent[at as usize] = up;
-                at = up;
-            }
-            at
-        }
-        fn join(parent: &mut [u32], a: u32, b: u32) {
-            let (ra, rb) = (root(parent, a), root(parent, b));
-            // The lower run stays the root (either would do).
-            if ra < rb {
-                parent[rb as usize] = ra;
-            } else if rb < ra {
-                parent[ra as usize] = rb;
-            }
-        }
+        let mut sets = DisjointSets::new(runs.len());
         for r in 0..rows {
             let (j, k) = (r % my, r / my);
             // Each earlier row this one touches, with the offset of its nodes in index.
@@ -2386,7 +2370,7 @@ impl SignGrid {
                     let (a_first, a_last) = runs[a];
                     let (b_first, b_last) = (runs[b].0 + step, runs[b].1 + step);
                     if a_first < b_last && b_first < a_last {
-                        join(&mut parent, a as u32, b as u32);
+                        sets.join(a as u32, b as u32);
                     }
                     if a_last <= b_last {
                         a += 1;
@@ -2400,7 +2384,7 @@ impl SignGrid {
         let mut of_root = vec![u32::MAX; runs.len()];
         let mut sizes = Vec::new();
         for (run, &(first, last)) in runs.iter().enumerate() {
-            let top = root(&mut parent, run as u32) as usize;
+            let top = sets.root(run as u32) as usize;
             if of_root[top] == u32::MAX {
                 of_root[top] = sizes.len() as u32;
                 sizes.push(0);

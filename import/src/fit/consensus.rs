@@ -38,6 +38,7 @@
 //! the scatter. A dense cell of the search offers an even subset of its points (at most
 //! [`CELL_OFFER`]), so the cost per point stays bounded on any cloud.
 
+use super::disjoint_sets::DisjointSets;
 use glam::{DVec3, IVec3, Vec3};
 use std::ops::Range;
 
@@ -972,16 +973,8 @@ fn sparse_support(
         }
         judge(points[lone[k]], &positions, *reach)
     });
-    // The points judged twice, linked through each other's nearest (union–find over `lone`).
-    let mut parent: Vec<u32> = (0..lone.len() as u32).collect();
-    fn root(parent: &mut [u32], mut at: u32) -> u32 {
-        while parent[at as usize] != at {
-            let up = parent[parent[at as usize] as usize];
-            parent[at as usize] = up;
-            at = up;
-        }
-        at
-    }
+    // The points judged twice, linked through each other's nearest (sets over `lone`).
+    let mut sets = DisjointSets::new(lone.len());
     for (k, (nearest, _)) in first
         .iter()
         .enumerate()
@@ -992,20 +985,19 @@ fn sparse_support(
         }
         for m in nearest.iter().filter_map(|&j| judged_at(j)) {
             if second[m].is_some() {
-                let (a, b) = (root(&mut parent, k as u32), root(&mut parent, m as u32));
-                parent[a.max(b) as usize] = a.min(b);
+                sets.join(k as u32, m as u32);
             }
         }
     }
     let mut members = vec![0usize; lone.len()];
     for k in 0..lone.len() {
         if second[k].is_some() {
-            members[root(&mut parent, k as u32) as usize] += 1;
+            members[sets.root(k as u32) as usize] += 1;
         }
     }
     let mut kept = 0;
     for (k, judged) in second.into_iter().enumerate() {
-        if judged.is_some() && members[root(&mut parent, k as u32) as usize] >= SPARSE_GROUP {
+        if judged.is_some() && members[sets.root(k as u32) as usize] >= SPARSE_GROUP {
             planes[lone[k]] = judged;
             kept += 1;
         }

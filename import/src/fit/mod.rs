@@ -9,6 +9,7 @@
 
 pub mod cloud;
 pub mod consensus;
+mod disjoint_sets;
 pub mod hierarchy;
 pub mod holes;
 pub mod import;
