@@ -318,6 +318,9 @@ pub struct SignedCloud {
     /// Where the estimated normals were oriented by their neighbours' over open sheets
     /// ([`orient_consistently`]), what that did.
     pub open_sheets: Option<Orienting>,
+    /// Where the outside got in through gaps wider than the default closes and the widest
+    /// gap closed them, the points with the outside on both sides before and after.
+    pub gap_widened: Option<GapWidened>,
     /// Their confidence in `(0, 1]` (see [`super::consensus`]).
     pub confidence: Vec<f32>,
     /// Each point moved onto the smoothed surface along its normal: the plane a node far
@@ -721,12 +724,33 @@ pub fn sign_cloud(
     // sign anything: a file whose normals are unoriented (each a plane's normal with either
     // sign) would sign the clay at random, and one whose normals all point in (a scanner's or
     // a converter's convention) would turn it inside out.
+    let mut exterior = exterior;
+    let mut gap_widened = None;
     let (given, normal_sides) = match given {
         Some(ns) => {
             let mut normals: Vec<Vec3> = kept
                 .iter()
                 .map(|&i| ns[i].try_normalize().unwrap_or(Vec3::Y))
                 .collect();
+            // Where the outside gets in through gaps wider than the default closes (a
+            // sparsely sampled side's), the points have it on both sides, and beyond the band
+            // the clay would be signed outside within the object: the widest gap is tried
+            // and kept where it leaves the outside on both sides of half as many points or
+            // fewer. (A partial scan's open sheet has the outside on both sides at any gap.)
+            let open = grid.open_sheet_points(&exterior, &points, &normals);
+            if options.gap_spans == DEFAULT_GAP_SPANS
+                && open as f32 >= OPEN_SHEET_SHARE * points.len() as f32
+            {
+                let wider = grid.close_and_flood(&points, MAX_GAP_SPANS * spacing);
+                let open_wider = grid.open_sheet_points(&wider, &points, &normals);
+                if 2 * open_wider <= open {
+                    exterior = wider;
+                    gap_widened = Some(GapWidened {
+                        open_before: open,
+                        open_after: open_wider,
+                    });
+                }
+            }
             let (neighbour_pairs, opposed_pairs) = opposed_neighbours(&neighbours, &normals);
             let sides = NormalSides {
                 neighbour_pairs,
@@ -895,6 +919,7 @@ pub fn sign_cloud(
         overruled_normals,
         normal_sides,
         open_sheets,
+        gap_widened,
         confidence,
         anchors,
         near_points,
@@ -1816,6 +1841,16 @@ impl NearPoints {
     }
 }
 
+/// The outside's closing widened to [`MAX_GAP_SPANS`]: the points with the outside on both
+/// sides (their normal's probe ends both in it) at the default gap and at the widest.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GapWidened {
+    /// Points with the outside on both sides at [`DEFAULT_GAP_SPANS`].
+    pub open_before: usize,
+    /// The same at [`MAX_GAP_SPANS`].
+    pub open_after: usize,
+}
+
 /// What the screening and the clean-up did, for the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Screening {
@@ -1835,6 +1870,10 @@ pub struct Screening {
     /// Where the estimated normals were oriented by their neighbours' over open sheets, what
     /// that did.
     pub open_sheets: Option<Orienting>,
+    /// Where the outside got in through gaps wider than the default closes and the widest
+    /// gap closed them ([`MAX_GAP_SPANS`]), the points with the outside on both sides before
+    /// and after.
+    pub gap_widened: Option<GapWidened>,
     /// The noise level (standard deviation across the surface), fraction of the object's
     /// size.
     pub noise: f32,
@@ -1873,6 +1912,7 @@ impl SignedCloud {
             overruled_normals: self.overruled_normals,
             normal_sides: self.normal_sides,
             open_sheets: self.open_sheets,
+            gap_widened: self.gap_widened,
             noise: self.noise / size,
             noise_given: self.consensus.noise_given,
             bandwidth: self.bandwidth / size,

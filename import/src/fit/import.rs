@@ -20,7 +20,8 @@ use std::time::Instant;
 use glam::Vec3;
 
 use super::cloud::{
-    CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, GivenNormals, MARGIN_SPANS, SignedBy,
+    CloudFitError, CloudFitOptions, DEFAULT_GAP_SPANS, GivenNormals, MARGIN_SPANS, MAX_GAP_SPANS,
+    SignedBy,
 };
 use super::consensus::parallel_map;
 use super::hierarchy::{
@@ -563,6 +564,14 @@ fn fit_cloud(
         s.removed_pieces,
         s.filled_cavities
     ));
+    if let Some(g) = s.gap_widened {
+        note(format!(
+            "the outside got in between the points (it lay on both sides of {} of them, \
+             through gaps wider than {DEFAULT_GAP_SPANS} knot spans): closed gaps up to \
+             {MAX_GAP_SPANS} spans instead ({} then)",
+            g.open_before, g.open_after
+        ));
+    }
     if s.sparse > 0 {
         note(format!(
             "kept {} points of sparsely sampled areas (too few neighbours within the \
