@@ -254,6 +254,62 @@ fn a_torus_with_one_side_sampled_sparsely_keeps_that_sides_points_and_says_so() 
 }
 
 #[test]
+fn a_hole_a_little_wider_than_the_gap_is_closed_by_the_widest_where_the_normals_are_given() {
+    // A sphere of radius 1 with its outward normals, 40 000 points, open through a hole of
+    // half-angle 10.5° at its bottom: about six knot spans across, wider than the default
+    // gap closes (5), narrower than the widest (7). The outside gets in and lies on both
+    // sides of nearly every point; at the default gap the clay dipped 16% into the hole.
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("holed.xyz");
+    let (count, golden) = (40_000, std::f64::consts::PI * (3.0 - 5f64.sqrt()));
+    let mut text = String::from("# a sphere open at its bottom\n");
+    for i in 0..count {
+        let y = 1.0 - 2.0 * (i as f64 + 0.5) / count as f64;
+        let ring = (1.0 - y * y).sqrt();
+        let (x, z) = (
+            ring * (golden * i as f64).cos(),
+            ring * (golden * i as f64).sin(),
+        );
+        if -y > 10.5f64.to_radians().cos() {
+            continue;
+        }
+        text.push_str(&format!("{x} {y} {z} {x} {y} {z}\n"));
+    }
+    std::fs::write(&input, text).unwrap();
+    let (session, mesh) = (dir.path().join("holed.dclay"), dir.path().join("holed.obj"));
+    let said = import_ok(&input, &session, &mesh, &[]);
+    assert!(
+        said.contains("closed gaps up to 3.5 spans instead"),
+        "the log says the gap was widened: {said}"
+    );
+    let (_, _, euler, closed) = obj_topology(&mesh);
+    assert!(closed && euler == 2, "one closed ball: V − E + F = {euler}");
+    // The mesh's vertices about their centroid: within 5% of their median radius all round,
+    // the hole's cap included.
+    let vertices: Vec<glam::Vec3> = std::fs::read_to_string(&mesh)
+        .unwrap()
+        .lines()
+        .filter_map(|line| line.strip_prefix("v "))
+        .map(|rest| {
+            let c: Vec<f32> = rest
+                .split_whitespace()
+                .map(|v| v.parse().unwrap())
+                .collect();
+            glam::Vec3::new(c[0], c[1], c[2])
+        })
+        .collect();
+    let centre = vertices.iter().copied().sum::<glam::Vec3>() / vertices.len() as f32;
+    let mut radii: Vec<f32> = vertices.iter().map(|v| (*v - centre).length()).collect();
+    radii.sort_by(f32::total_cmp);
+    let median = radii[radii.len() / 2];
+    let (least, most) = (radii[0] / median, radii[radii.len() - 1] / median);
+    assert!(
+        least > 0.95 && most < 1.05,
+        "radii {least}–{most} of the median"
+    );
+}
+
+#[test]
 fn one_view_of_a_torus_as_an_open_mesh_is_fitted_with_its_windings_normals() {
     // The torus's top (the grid's quads whose outward normal leans up by more than 0.2) as an
     // OBJ mesh, wound outward, and the same wound inward: too open to cap, each is fitted as
