@@ -186,7 +186,9 @@ pub struct ImportArgs {
     pub resolution: Option<usize>,
     /// Holes in a point cloud narrower than twice this, in knot spans, are capped (0.5 to
     /// 3.5): the outside is found by a flood that cannot pass them. Wider holes let the
-    /// outside in; narrower concavities are bridged.
+    /// outside in; narrower concavities are bridged. At the default, a cloud with normals
+    /// whose points the outside reaches on both sides is closed again at 3.5 where that
+    /// keeps it out (the log says so).
     #[arg(long, default_value_t = crate::fit::cloud::DEFAULT_GAP_SPANS, value_name = "SPANS")]
     pub gap: f32,
     /// The error bound, in percent of the object's size (its box's longest side; a volume's
