@@ -1,6 +1,6 @@
-"""Thin one side of a cloud: keep every point with x at or over the median and one in 1/SHARE of
-the others, as a scan whose far side was sampled more sparsely (farther from the scanner, or seen
-by fewer views)
+"""Thin one side of a cloud: keep every point with x at or over the median and a share SHARE of the
+others (a seeded random draw), as a scan whose far side was sampled more sparsely (farther from the
+scanner, or seen by fewer views)
 
 Usage: python3 bench/models/sparse_side.py CLOUD.xyz SHARE OUT.xyz [--strays SHARE] [--without-normals]
 
