@@ -20,6 +20,10 @@
 //!    stops short of the points and reaches into a hole as far as a ball of radius `τ` rolled
 //!    over it, so a hole in the cloud (a missing cap, a scanner's shadow) is capped instead of
 //!    letting the outside in. Beyond the band, exterior nodes are outside and the rest inside.
+//!    With the file's normals and the default gap, where the exterior lies on both sides of
+//!    1% or more of the points (it got in through gaps a little wider than `2τ`, as between a
+//!    sparsely sampled side's points), the closing is done again at [`MAX_GAP_SPANS`] and kept
+//!    where that halves them; a partial scan's open sheet has it on both sides at any gap.
 //! 4. **Normals.** Each point's outward normal is the file's, or else the direction of least
 //!    variance of its neighbours turned toward the exterior (the side nearer the grown
 //!    region). The file's normals are first checked ([`NormalSides`]): where a fifth or
