@@ -9,6 +9,8 @@ being out of sight; nothing is occluded, so a hollow facing the view is seen who
 """
 import sys
 
+from oriented_cloud import check_output, points
+
 VIEWS = {"front": (0.0, 0.0, 1.0), "side": (1.0, 0.0, 0.0), "top": (0.0, 1.0, 0.0)}
 FACING = 0.2
 
@@ -18,22 +20,11 @@ if len(sys.argv) not in (4, 5) or sys.argv[2] not in VIEWS or (
     sys.exit(__doc__)
 src, view, out = sys.argv[1], VIEWS[sys.argv[2]], sys.argv[3]
 without_normals = len(sys.argv) == 5
-import os
-
-if not out.endswith(".xyz"):
-    sys.exit(f"one_view.py: OUT {out!r} must end in .xyz (the only kind this writes)")
-if os.path.exists(out) and (os.path.samefile(out, src) or os.path.islink(out)):
-    sys.exit(f"one_view.py: OUT {out!r} is the input cloud or a link; choose another path")
+check_output("one_view.py", out, src)
 kept = 0
-with open(src) as cloud, open(out, "w") as f:
-    for number, line in enumerate(cloud, 1):
-        fields = line.split()
-        if not fields or fields[0].startswith("#"):
-            continue
-        if len(fields) != 6:
-            sys.exit(f"{src}:{number}: expected x y z nx ny nz, found {len(fields)} fields")
-        normal = [float(v) for v in fields[3:]]
-        if sum(a * b for a, b in zip(normal, view)) > FACING:
+with open(out, "w") as f:
+    for fields, values in points(src):
+        if sum(a * b for a, b in zip(values[3:], view)) > FACING:
             f.write(" ".join(fields[:3] if without_normals else fields) + "\n")
             kept += 1
 print(f"{out}: {kept} points facing {sys.argv[2]}")

@@ -10,9 +10,10 @@ count as strays, uniform in the box grown by a tenth of its diagonal on every si
 normals (the peers bench's outlier model). With --without-normals only `x y z` is written.
 """
 import math
-import os
 import random
 import sys
+
+from oriented_cloud import check_output, points
 
 args = sys.argv[1:]
 without_normals = "--without-normals" in args
@@ -37,23 +38,9 @@ except ValueError:
     sys.exit(f"sparse_side.py: SHARE {share_text!r} is not a number")
 if not (0.0 < share <= 1.0) or not (0.0 <= strays <= 1.0):
     sys.exit("sparse_side.py: SHARE must be over 0 and at most 1, --strays 0 to 1")
-if not out.endswith(".xyz"):
-    sys.exit(f"sparse_side.py: OUT {out!r} must end in .xyz (the only kind this writes)")
-if os.path.exists(out) and (os.path.samefile(out, src) or os.path.islink(out)):
-    sys.exit(f"sparse_side.py: OUT {out!r} is the input cloud or a link; choose another path")
+check_output("sparse_side.py", out, src)
 
-rows = []
-with open(src) as cloud:
-    for number, line in enumerate(cloud, 1):
-        fields = line.split()
-        if not fields or fields[0].startswith("#"):
-            continue
-        if len(fields) != 6:
-            sys.exit(f"{src}:{number}: expected x y z nx ny nz, found {len(fields)} fields")
-        try:
-            rows.append([float(v) for v in fields])
-        except ValueError:
-            sys.exit(f"{src}:{number}: a field is not a number")
+rows = [values for _, values in points(src)]
 if not rows:
     sys.exit(f"{src}: no points")
 xs = sorted(r[0] for r in rows)
