@@ -415,6 +415,9 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         voxels.extend(v.to_le_bytes());
     }
     std::fs::write(&nan_voxel, &voxels).unwrap();
+    // Five points far apart: each alone, no surface between them.
+    let scattered = dir.path().join("scattered.xyz");
+    std::fs::write(&scattered, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n").unwrap();
     let stl = dir.path().join("huge.stl");
     let mut header = vec![0u8; 80];
     header.extend(4_000_000_000u32.to_le_bytes());
@@ -440,6 +443,10 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         (vec![stl.as_os_str()], "huge.stl"),
         (vec![bad.as_os_str()], "bad.xyz:2: `x` is not a number"),
         (vec![empty.as_os_str()], "empty.xyz: no points"),
+        (
+            vec![scattered.as_os_str()],
+            "scattered.xyz: fit: the 5 points do not sample a surface",
+        ),
         (vec![huge.as_os_str()], "4000000000 vertices declared"),
         (vec!["/dev/zero".as_ref()], "unknown format"),
     ];

@@ -279,6 +279,21 @@ pub enum CloudFitError {
     /// All points coincide: nothing to fit.
     #[error("the points all lie at one place; a cloud needs extent")]
     Degenerate,
+    /// The points fall apart into small pieces, none held by enough of them to be a surface:
+    /// too few points, or too far apart for their neighbours to join them.
+    #[error(
+        "the {points} points do not sample a surface: they fit as {pieces} separate pieces, \
+         the best held by {most_held} of them ({MIN_PIECE_POINTS} needed); the cloud has too \
+         few points, or they lie too far apart to join up"
+    )]
+    NoSurface {
+        /// The points kept by the screening.
+        points: usize,
+        /// The signed grid's enclosed pieces.
+        pieces: usize,
+        /// The most points holding any one piece.
+        most_held: usize,
+    },
     /// The least-squares fit failed.
     #[error("fit: {0}")]
     Fit(#[from] FitError),
@@ -964,7 +979,14 @@ pub fn sign_cloud(
         .map(|&(_, support)| UNHELD_WEIGHT + (1.0 - UNHELD_WEIGHT) * support / (support + 1.0))
         .collect();
     times.record("nodes' distances", started);
-    times.time("small pieces", || signed.remove_small_pieces());
+    let held = times.time("small pieces", || signed.remove_small_pieces());
+    if held.most_held < MIN_PIECE_POINTS {
+        return Err(CloudFitError::NoSurface {
+            points: signed.points.len(),
+            pieces: held.pieces,
+            most_held: held.most_held,
+        });
+    }
     signed.times = times;
     Ok(signed)
 }
@@ -1930,8 +1952,9 @@ impl SignedCloud {
     /// Removes the enclosed pieces of the signed grid smaller than [`MIN_PIECE_FRACTION`] of
     /// the largest that fewer than [`MIN_PIECE_POINTS`] points hold (their nodes are turned
     /// outside) and fills the cavities smaller than that fraction (turned inside): a blob or a
-    /// bubble that size is noise the data does not support.
-    fn remove_small_pieces(&mut self) {
+    /// bubble that size is noise the data does not support. Returns how many pieces there
+    /// were and the most points holding one of those kept.
+    fn remove_small_pieces(&mut self) -> PiecesHeld {
         let inside: Vec<bool> = self.node_distance.iter().map(|&d| d < 0.0).collect();
         // The pieces and the holes are labelled side by side (each is one thread's flood).
         let ((pieces, piece_sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
@@ -1943,18 +1966,19 @@ impl SignedCloud {
             (pieces, holes)
         });
         let Some(&largest) = piece_sizes.iter().max() else {
-            return;
+            return PiecesHeld {
+                pieces: 0,
+                most_held: 0,
+            };
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
-        // The points holding each small piece: those whose node a grid step in along their
-        // normal lies in it.
+        // The points holding each piece: those whose node a grid step in along their normal
+        // lies in it.
         let mut held_by = vec![0usize; piece_sizes.len()];
-        if piece_sizes.iter().any(|&s| s < least) {
-            for (&p, &n) in self.points.iter().zip(&self.normals) {
-                let at = self.grid.nearest_node(p - n * self.grid.h);
-                if inside[at] {
-                    held_by[pieces[at] as usize] += 1;
-                }
+        for (&p, &n) in self.points.iter().zip(&self.normals) {
+            let at = self.grid.nearest_node(p - n * self.grid.h);
+            if inside[at] {
+                held_by[pieces[at] as usize] += 1;
             }
         }
         let removed: Vec<bool> = piece_sizes
@@ -1962,6 +1986,13 @@ impl SignedCloud {
             .zip(&held_by)
             .map(|(&size, &held)| size < least && held < MIN_PIECE_POINTS)
             .collect();
+        let most_held = held_by
+            .iter()
+            .zip(&removed)
+            .filter(|&(_, &removed)| !removed)
+            .map(|(&held, _)| held)
+            .max()
+            .unwrap_or(0);
         let open = self.grid.boundary_components(&holes, hole_sizes.len());
         for (at, forced) in self.forced.iter_mut().enumerate() {
             if inside[at] {
@@ -1991,7 +2022,20 @@ impl SignedCloud {
                 *c = 1.0;
             }
         }
+        PiecesHeld {
+            pieces: piece_sizes.len(),
+            most_held,
+        }
     }
+}
+
+/// The signed grid's enclosed pieces and how well the points hold them
+/// ([`SignedCloud::remove_small_pieces`]).
+struct PiecesHeld {
+    /// Enclosed pieces, the removed ones included.
+    pieces: usize,
+    /// The most points holding one kept piece.
+    most_held: usize,
 }
 
 /// The signing grid: the fit's sample grid over the whole lattice.
@@ -4810,6 +4854,36 @@ mod tests {
             fit_point_cloud(&point, &CloudFitOptions::default()),
             Err(CloudFitError::Degenerate)
         ));
+    }
+
+    #[test]
+    fn points_too_few_or_too_far_apart_for_a_surface_are_refused_and_a_sparse_ball_is_not() {
+        // Five points at a cube's corners, and a sphere of 24 points: each point is a piece
+        // of its own (no neighbour within reach), held by one point. A sphere of 200 points
+        // (about a fifth of the radius apart) joins up into one ball.
+        let corners = PointCloud {
+            points: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z, Vec3::ONE],
+            normals: None,
+        };
+        let few = sphere_cloud(24, 1.0);
+        for (cloud, count) in [(&corners, 5), (&few, 24)] {
+            match fit_point_cloud(cloud, &CloudFitOptions::default()) {
+                Err(CloudFitError::NoSurface {
+                    points,
+                    pieces,
+                    most_held,
+                }) => {
+                    assert_eq!(points, count);
+                    assert!(pieces > 1, "{pieces} pieces");
+                    assert!(most_held < MIN_PIECE_POINTS, "held by {most_held}");
+                }
+                other => panic!("{count} points: {other:?}"),
+            }
+        }
+        let ball = sphere_cloud(200, 1.0);
+        let fit = fit_point_cloud(&ball, &CloudFitOptions::default()).unwrap();
+        let e = worst_radius_error(&fit, 1.0);
+        assert!(e < 0.02, "{:.3}% of the diameter", e * 100.0);
     }
 
     #[test]
