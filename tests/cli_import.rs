@@ -445,7 +445,7 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
         (vec![empty.as_os_str()], "empty.xyz: no points"),
         (
             vec![scattered.as_os_str()],
-            "scattered.xyz: fit: the 5 points do not sample a surface",
+            "scattered.xyz: the 5 points do not sample a surface",
         ),
         (vec![huge.as_os_str()], "4000000000 vertices declared"),
         (vec!["/dev/zero".as_ref()], "unknown format"),

@@ -601,7 +601,7 @@ impl SignedCloud {
 ///
 /// # Errors
 /// [`CloudFitError::Options`] for bad options, [`CloudFitError::Degenerate`] for a cloud
-/// without extent.
+/// without extent, [`CloudFitError::NoSurface`] for points that sample no surface.
 pub fn sign_cloud(
     cloud: &PointCloud,
     options: &CloudFitOptions,

@@ -302,7 +302,8 @@ impl Node {
 /// # Errors
 /// [`CloudFitError::Options`] for bad options (an error bound that is not positive and
 /// finite, a depth over [`MAX_DEPTH`], or a bad base), [`CloudFitError::Degenerate`] for a
-/// cloud without extent, [`CloudFitError::Fit`] for a failed fit,
+/// cloud without extent, [`CloudFitError::NoSurface`] for points that sample no surface,
+/// [`CloudFitError::Fit`] for a failed fit,
 /// [`CloudFitError::Interrupted`] when `progress` asked to stop.
 pub fn fit_hierarchy(
     cloud: &PointCloud,
