@@ -12,85 +12,16 @@
 //! With `DYNACLAY_MODELS=<folder>` the ignored `public_models` test reports the same figures
 //! for the public models found there (spot, the Stanford bunny, fandisk, rocker arm).
 
+mod support;
+
 use std::collections::HashMap;
 use std::path::Path;
 
-use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh, point_triangle_distance};
+use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh};
 use dynaclay_import::fit::mesh::{read_mesh, sample_triangles};
 use dynaclay_import::fit::{FitPath, ImportSettings, ImportedFit, fit_import};
 use glam::Vec3;
-
-/// Pieces of a mesh (connected by shared edges) and, per piece, its Euler characteristic and
-/// whether every edge has two faces; largest piece first.
-fn pieces(mesh: &TriMesh) -> Vec<(i64, bool)> {
-    let n = mesh.positions.len();
-    let mut parent: Vec<usize> = (0..n).collect();
-    fn root(parent: &mut [usize], mut a: usize) -> usize {
-        while parent[a] != a {
-            parent[a] = parent[parent[a]];
-            a = parent[a];
-        }
-        a
-    }
-    let mut edges: HashMap<(u32, u32), u32> = HashMap::new();
-    for t in &mesh.triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
-            let (ra, rb) = (root(&mut parent, a as usize), root(&mut parent, b as usize));
-            parent[ra] = rb;
-        }
-    }
-    // Per piece: vertices, edges, faces, and whether it is closed.
-    let mut count: HashMap<usize, (i64, i64, i64, bool)> = HashMap::new();
-    let mut used = vec![false; n];
-    for t in &mesh.triangles {
-        for &v in t {
-            used[v as usize] = true;
-        }
-        count
-            .entry(root(&mut parent, t[0] as usize))
-            .or_insert((0, 0, 0, true))
-            .2 += 1;
-    }
-    for (v, _) in used.iter().enumerate().filter(|(_, u)| **u) {
-        count.get_mut(&root(&mut parent, v)).unwrap().0 += 1;
-    }
-    for (&(a, _), &uses) in &edges {
-        let piece = count.get_mut(&root(&mut parent, a as usize)).unwrap();
-        piece.1 += 1;
-        piece.3 &= uses == 2;
-    }
-    let mut out: Vec<(i64, i64, bool)> = count
-        .values()
-        .map(|&(v, e, f, closed)| (f, v - e + f, closed))
-        .collect();
-    out.sort_by_key(|p| std::cmp::Reverse(p.0));
-    out.into_iter()
-        .map(|(_, chi, closed)| (chi, closed))
-        .collect()
-}
-
-/// The `q` quantile of the distances from (up to 3000, evenly chosen) `points` to the
-/// triangles of `mesh`.
-fn quantile_distance(points: &[Vec3], mesh: &TriMesh, q: f32) -> f32 {
-    let stride = points.len().div_ceil(3000).max(1);
-    let mut d: Vec<f32> = points
-        .iter()
-        .step_by(stride)
-        .map(|&p| {
-            mesh.triangles
-                .iter()
-                .map(|t| {
-                    let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
-                    point_triangle_distance(p, a, b, c)
-                })
-                .fold(f32::MAX, f32::min)
-        })
-        .collect();
-    d.sort_by(f32::total_cmp);
-    d[((d.len() - 1) as f32 * q).round() as usize]
-}
+use support::{pieces, quantile_distance};
 
 /// What one import produced: the path, the pieces (Euler characteristic, closed), and the
 /// 99th-percentile distances from the fitted mesh's vertices to the input and from points

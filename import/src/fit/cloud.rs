@@ -89,7 +89,7 @@ use glam::Vec3;
 
 use super::consensus::{
     CELL_OFFER, Consensus, PointGrid, exp_neg, floor_to_i32, least_variance_direction,
-    parallel_map, screen, typical_spacing,
+    parallel_map, screen, sparser_than_the_spacing_grid, typical_spacing,
 };
 use super::disjoint_sets::DisjointSets;
 use super::lanes::{
@@ -363,6 +363,11 @@ pub struct SignedCloud {
     nearest: Vec<u32>,
     /// Per node: outside the closed surface (used beyond the band).
     exterior: Vec<bool>,
+    /// Beyond the moving planes' reach, a node the flood found outside is signed outside, as
+    /// a node beyond the band is, rather than by one anchor's plane
+    /// ([`SignedCloud::beyond_reach`]): on a closed cloud whose points lie further apart than
+    /// the spacing's grid reads ([`sparser_than_the_spacing_grid`]).
+    flood_signs_beyond_reach: bool,
     /// Per node: the side a removed piece was turned to (`+1` outside, `−1` inside), or 0.
     forced: Vec<i8>,
     /// Per node: the signed distance there (the fit samples at the nodes).
@@ -496,7 +501,7 @@ impl SignedCloud {
                 // nearest point: beyond reach by more than that, no point is within reach.
                 let beyond = MOVING_REACH * self.widest + 1.8 * self.grid.h;
                 if (x - self.points[p]).length_squared() > beyond * beyond {
-                    return (fallback, 0.0);
+                    return (self.beyond_reach(x, fallback), 0.0);
                 }
                 let (weighted, weight) = planes();
                 (
@@ -506,6 +511,19 @@ impl SignedCloud {
             }
             None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
             None => (-2.0 * self.width, 0.0),
+        }
+    }
+
+    /// The signed distance at `x`, beyond the moving planes' reach, where the plane of the
+    /// nearest point's anchor gives `fallback`: that, or, where
+    /// [`SignedCloud::flood_signs_beyond_reach`] and the flooded exterior holds `x`, as far
+    /// outside as a node beyond the band. Past the end of a thin part (an ear, a horn) the
+    /// anchor's plane runs on through empty space and puts the nodes on its inner side inside.
+    fn beyond_reach(&self, x: Vec3, fallback: f32) -> f32 {
+        if self.flood_signs_beyond_reach && self.exterior[self.grid.nearest_node(x)] {
+            2.0 * self.width
+        } else {
+            fallback
         }
     }
 
@@ -824,6 +842,14 @@ pub fn sign_cloud(
             (normals, SignedBy::Tagging)
         }
     };
+    // Where the points lie further apart than the spacing's grid reads, the moving planes
+    // reach less far than the next point, and more of the band's nodes lie beyond their
+    // reach, signed by one anchor's plane; past a thin part's end that plane puts nodes
+    // inside where the flood found the outside. Over an open sheet the outside lies on both
+    // sides of the points and the flood cannot judge.
+    let flood_signs_beyond_reach = sparser_than_the_spacing_grid(&cloud.points, extent)
+        && (grid.open_sheet_points(&exterior, &points, &raw_normals) as f32)
+            < OPEN_SHEET_SHARE * points.len() as f32;
     times.record("given or estimated normals", started);
     // The local spacing is read in 3D: only where the noise is under the spacing (the
     // bandwidth set by the spacing, not the noise) does it measure how densely the surface is
@@ -950,6 +976,7 @@ pub fn sign_cloud(
         grid,
         nearest,
         exterior,
+        flood_signs_beyond_reach,
         forced: vec![0; count],
         node_distance: Vec::new(),
         node_confidence: Vec::new(),

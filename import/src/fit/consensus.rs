@@ -704,11 +704,38 @@ fn principal_plane(near: &[Vec3]) -> Option<Plane> {
 /// The typical distance between neighbouring points of `points`, whose box's longest side is
 /// `size`: the surface crosses about `area / cell²` cells of a grid of 64 cells per side, so
 /// the occupied cells give the area, and the area per point the spacing.
+///
+/// A cloud sparser than that grid's cubes reads as one cube's side apart at most (each point
+/// alone in its cube): see [`sparser_than_the_spacing_grid`].
 #[must_use]
 pub fn typical_spacing(points: &[Vec3], size: f32) -> f32 {
-    let coarse = size / 64.0;
+    let coarse = size / SPACING_CUBES_PER_SIDE;
     let area = occupied_cubes(points, coarse) as f32 * coarse * coarse;
     (area / points.len().max(1) as f32).sqrt()
+}
+
+/// The cubes per side of the grid [`typical_spacing`] counts the surface's cubes on.
+pub const SPACING_CUBES_PER_SIDE: f32 = 64.0;
+
+/// The fewest points per occupied cube of [`typical_spacing`]'s grid for its count to measure
+/// the surface rather than the points.
+///
+/// NOTE: with the points at random, one per cube of the surface, about 1.6 lie in each
+/// occupied cube (a third of the cubes the surface crosses hold none). The peers bench's
+/// 50 000-point clouds hold about 4 (bench/RESULTS.md, "Sparse clouds, and a cloud that samples
+/// no surface").
+pub const LEAST_POINTS_PER_OCCUPIED_CUBE: f32 = 2.0;
+
+/// Whether `points` (their box's longest side `size`) hold fewer than
+/// [`LEAST_POINTS_PER_OCCUPIED_CUBE`] points per occupied cube of [`typical_spacing`]'s grid:
+/// its count then measures the points more than the surface, and the spacing it reads comes
+/// near a cube's side however far apart the points lie (as they thin out, the reading stops
+/// at the cube's side while their true spacing grows), so planes set by it may reach less far
+/// than the next point.
+#[must_use]
+pub fn sparser_than_the_spacing_grid(points: &[Vec3], size: f32) -> bool {
+    let occupied = occupied_cubes(points, size / SPACING_CUBES_PER_SIDE).max(1);
+    (points.len() as f32) < LEAST_POINTS_PER_OCCUPIED_CUBE * occupied as f32
 }
 
 /// How many of the cubes of side `cell` that a [`PointGrid`] of `points` lays out hold a
@@ -1817,6 +1844,25 @@ mod tests {
             refitted > 500 && kept > 500,
             "{refitted} refitted, {kept} kept"
         );
+    }
+
+    #[test]
+    fn a_cloud_sparser_than_the_spacing_grid_is_told_apart_and_reads_short() {
+        // 40² points at unit spacing, 39 across: the grid's cubes are 0.61 wide, so each
+        // point is alone in its cube and the spacing reads as a cube's side.
+        let sparse = noisy_square(40, 0.0);
+        assert!(sparser_than_the_spacing_grid(&sparse, 39.0));
+        let read = typical_spacing(&sparse, 39.0);
+        assert!(
+            (read - 39.0 / SPACING_CUBES_PER_SIDE).abs() < 0.01,
+            "{read}"
+        );
+        // 200² points, 199 across: about 9.7 in each 3.1-wide cube, and the spacing reads
+        // true.
+        let dense = noisy_square(200, 0.0);
+        assert!(!sparser_than_the_spacing_grid(&dense, 199.0));
+        let read = typical_spacing(&dense, 199.0);
+        assert!((read - 1.0).abs() < 0.05, "{read}");
     }
 
     #[test]

@@ -1,0 +1,183 @@
+//! A sparse scan fits without lumps: spot (Keenan Crane's closed genus-0 cartoon cow, public
+//! domain, `tests/data/spot.obj`) sampled as 2 000 points spread by area, with their
+//! triangles' normals and Gaussian noise of 0.25% of the diagonal (as
+//! `bench/models/sample_cloud.py` samples the peers bench's sparse clouds), for twelve seeds.
+//! Each cloud is imported as a file, as `dynaclay import` imports it, and the fitted clay is
+//! meshed as `--mesh` meshes it (four cells per knot span, welded).
+//!
+//! The judge is spot's own mesh. Every fit is one closed piece of genus 0, and the 99th
+//! percentile of the distances from its surface to spot's is under 3% of the diagonal. Past
+//! the ears' and horns' ends the plane of one point's anchor ran on through empty space and
+//! put nodes that the flood found outside inside: the clay grew lumps there. Over the seeds,
+//! the median of the 99th percentile of how far the clay outside spot lies from it is under
+//! 1.4% of the diagonal: twice PoissonRecon's 99th percentile (depth 8, `--samplesPerNode
+//! 15`) on such a cloud, 0.70% (bench/RESULTS.md, "Sparse clouds, and a cloud that samples no
+//! surface"). These are guards against lumps, not the issue's floor (1.25 times
+//! PoissonRecon's), which sparse clouds do not yet meet.
+
+mod support;
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh};
+use dynaclay_import::fit::mesh::{read_mesh, sample_triangles};
+use dynaclay_import::fit::{ImportSettings, fit_import};
+use glam::Vec3;
+use support::{pieces, quantile_distance};
+
+/// The clouds sampled, one per seed.
+const SEEDS: u64 = 12;
+
+/// A small seeded generator (a linear congruential step, the top 24 bits).
+struct Uniform(u64);
+
+impl Uniform {
+    fn next(&mut self) -> f32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// A standard normal deviate (Box–Muller).
+    fn normal(&mut self) -> f32 {
+        let u = self.next().max(1e-7);
+        let v = self.next();
+        (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
+    }
+}
+
+/// `count` points spread by area over the triangles, each with its triangle's normal and
+/// Gaussian noise of `noise` (absolute), as `x y z nx ny nz` lines.
+fn sample_cloud(
+    vertices: &[Vec3],
+    triangles: &[[u32; 3]],
+    count: usize,
+    noise: f32,
+    seed: u64,
+) -> String {
+    let mut area_to = Vec::with_capacity(triangles.len());
+    let mut total = 0.0f64;
+    for t in triangles {
+        let [a, b, c] = t.map(|i| vertices[i as usize]);
+        total += f64::from((b - a).cross(c - a).length() / 2.0);
+        area_to.push(total);
+    }
+    let mut uniform = Uniform(seed);
+    let mut text = String::new();
+    for _ in 0..count {
+        let at = f64::from(uniform.next()) * total;
+        let t = area_to
+            .partition_point(|&s| s < at)
+            .min(triangles.len() - 1);
+        let [a, b, c] = triangles[t].map(|i| vertices[i as usize]);
+        let (mut u, mut v) = (uniform.next(), uniform.next());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let jitter = Vec3::new(uniform.normal(), uniform.normal(), uniform.normal());
+        let p = a + (b - a) * u + (c - a) * v + jitter * noise;
+        let n = (b - a).cross(c - a).normalize_or(Vec3::Y);
+        writeln!(text, "{} {} {} {} {} {}", p.x, p.y, p.z, n.x, n.y, n.z).unwrap();
+    }
+    text
+}
+
+/// Whether `p` lies inside the closed `mesh`: a ray from it crosses its triangles an odd
+/// number of times (Möller–Trumbore; the ray's direction is off every axis and diagonal).
+fn inside(mesh: &TriMesh, p: Vec3) -> bool {
+    let dir = Vec3::new(0.5377, 0.6231, 0.5681).normalize();
+    let mut crossings = 0;
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let q = dir.cross(e2);
+        let det = e1.dot(q);
+        if det.abs() < 1e-12 {
+            continue;
+        }
+        let s = p - a;
+        let u = s.dot(q) / det;
+        let r = s.cross(e1);
+        let v = dir.dot(r) / det;
+        if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(r) / det > 0.0 {
+            crossings += 1;
+        }
+    }
+    crossings % 2 == 1
+}
+
+#[test]
+fn a_sparse_scan_of_spot_fits_without_lumps_past_its_ears_and_horns() {
+    let spot = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/spot.obj");
+    let (vertices, triangles) = read_mesh(&spot).unwrap();
+    let (lo, hi) = vertices
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        });
+    let diagonal = (hi - lo).length();
+    let dir = tempfile::tempdir().unwrap();
+    // Per seed: the pieces, and the 99th percentiles of the distances to spot from points
+    // spread evenly over the fitted surface, all of them and those outside spot (the clay
+    // the fit added), percent of the diagonal.
+    let mut report = Vec::new();
+    for seed in 1..=SEEDS {
+        let path = dir.path().join(format!("spot-2000-{seed}.xyz"));
+        let cloud = sample_cloud(&vertices, &triangles, 2000, 0.0025 * diagonal, seed);
+        std::fs::write(&path, cloud).unwrap();
+        let fit = fit_import(
+            &path,
+            &ImportSettings::default(),
+            &mut |_| true,
+            &mut |_| {},
+        )
+        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        // As `dynaclay import --mesh` meshes the clay.
+        let grid = SampleGrid::for_field(&fit.field, 4).unwrap();
+        let fitted = BrickOctree::build(grid, &fit.field).weld();
+        let input = TriMesh {
+            positions: vertices.iter().map(|&p| fit.to_field(p)).collect(),
+            normals: vec![Vec3::Y; vertices.len()],
+            triangles: triangles.clone(),
+        };
+        let percent = 100.0 / (fit.to_field(hi) - fit.to_field(lo)).length();
+        // Evenly over the fitted surface's area (its vertices crowd where the cells cut it
+        // into small triangles), 3 000 of them.
+        let on_fitted = sample_triangles(&fitted.positions, &fitted.triangles, &path)
+            .unwrap()
+            .points;
+        let stride = on_fitted.len().div_ceil(3000).max(1);
+        let on_fitted: Vec<Vec3> = on_fitted.into_iter().step_by(stride).collect();
+        let added: Vec<Vec3> = on_fitted
+            .iter()
+            .copied()
+            .filter(|&p| !inside(&input, p))
+            .collect();
+        let p99 = percent * quantile_distance(&on_fitted, &input, 0.99);
+        let added_p99 = percent * quantile_distance(&added, &input, 0.99);
+        println!(
+            "seed {seed}: pieces {:?}; p99 fitted → spot {p99:.3}%, of the clay outside spot \
+             {added_p99:.3}%",
+            pieces(&fitted)
+        );
+        report.push((seed, pieces(&fitted), p99, added_p99));
+    }
+    for (seed, pieces, p99, _) in &report {
+        assert_eq!(
+            pieces,
+            &vec![(2, true)],
+            "seed {seed}: one closed piece of genus 0"
+        );
+        assert!(*p99 < 3.0, "seed {seed}: p99 fitted → spot {p99:.3}%");
+    }
+    let mut added: Vec<f32> = report.iter().map(|r| r.3).collect();
+    added.sort_by(f32::total_cmp);
+    let median = 0.5 * (added[SEEDS as usize / 2 - 1] + added[SEEDS as usize / 2]);
+    assert!(
+        median < 1.4,
+        "median over the seeds of the p99 of the clay outside spot: {median:.3}% ({added:?})"
+    );
+}
