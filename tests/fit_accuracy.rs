@@ -393,6 +393,7 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         size: 0.0,
         rms_base: 0.0,
         rms: 0.0,
+        loose_pieces: 0,
         levels: Vec::new(),
         over_budget: false,
         screening: Default::default(),

@@ -78,6 +78,9 @@
 //!    coefficients ([`BENDING_WEIGHT`], following the noise's square: [`bending_weight`]),
 //!    so the clay follows the data where it is dense and
 //!    stays smooth where it is not (over holes, far from the points).
+//!    The smooth fit may pinch a thin neck of the signs off into a piece of its own; such a
+//!    loose piece, judged as in step 6 on the signing grid's nodes, is taken out by fitting
+//!    once more with its nodes outside ([`SignedCloud::fit_base_and_count_loose`]).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
 //! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
@@ -97,7 +100,7 @@ use super::lanes::{
     lanes_of_three, total,
 };
 use super::points::PointCloud;
-use super::regularised::fit_regularised_scaled;
+use super::regularised::{fit_regularised_scaled, values_at_samples};
 use super::sharpness::sharpness_at;
 use super::stage_times::StageTimes;
 use dynaclay_core::field::{BSplineLattice, FitError, density_profile};
@@ -576,11 +579,28 @@ impl SignedCloud {
     }
 
     /// The base lattice, fitted by least squares to [`SignedCloud::density`] (its samples lie
-    /// exactly on the signing grid's nodes).
+    /// exactly on the signing grid's nodes), without the loose pieces the fit makes (see
+    /// [`SignedCloud::fit_base_and_count_loose`]).
     ///
     /// # Errors
     /// [`CloudFitError::Fit`] if the fit fails.
     pub fn fit_base(&self) -> Result<BSplineLattice, CloudFitError> {
+        self.fit_base_and_count_loose().map(|(lattice, _)| lattice)
+    }
+
+    /// The base lattice (see [`SignedCloud::fit_base`]) and how many loose pieces of its
+    /// first fit were taken out.
+    ///
+    /// The signs' small pieces are removed before the fit, but the smooth fit may still make
+    /// a piece the signs did not have: a thin neck of them (to a stray just off the surface,
+    /// or to a thin part's end) that the fit cannot follow pinches off. A piece of the fitted
+    /// clay smaller than [`MIN_PIECE_FRACTION`] of the largest that fewer than
+    /// [`MIN_PIECE_POINTS`] points hold is loose, as in the signs; where there are any, the
+    /// clay is fitted once more with their nodes' targets outside.
+    ///
+    /// # Errors
+    /// [`CloudFitError::Fit`] if the fit fails.
+    pub fn fit_base_and_count_loose(&self) -> Result<(BSplineLattice, usize), CloudFitError> {
         let n = self.resolution;
         let mut lattice =
             BSplineLattice::zeros([n; 3], self.spacing, Vec3::ZERO).map_err(|_| {
@@ -601,16 +621,47 @@ impl SignedCloud {
                 at: x.to_array(),
             }));
         }
-        fit_regularised_scaled(
-            &mut lattice,
-            self.samples_per_span,
-            &targets,
-            &self.node_confidence,
-            bending_weight(self.noise / self.spacing),
-            (!self.bending_scale.is_empty()).then_some(self.bending_scale.as_slice()),
-            REGULARISED_STEPS,
-        );
-        Ok(lattice)
+        let fit = |lattice: &mut BSplineLattice, targets: &[f32]| {
+            fit_regularised_scaled(
+                lattice,
+                self.samples_per_span,
+                targets,
+                &self.node_confidence,
+                bending_weight(self.noise / self.spacing),
+                (!self.bending_scale.is_empty()).then_some(self.bending_scale.as_slice()),
+                REGULARISED_STEPS,
+            );
+        };
+        fit(&mut lattice, &targets);
+        let (loose, pieces) = self.loose_pieces(&lattice);
+        if pieces > 0 {
+            let outside = density_profile(2.0 * self.width, self.width);
+            let targets: Vec<f32> = targets
+                .iter()
+                .zip(&loose)
+                .map(|(&t, &loose)| if loose { outside } else { t })
+                .collect();
+            fit(&mut lattice, &targets);
+        }
+        Ok((lattice, pieces))
+    }
+
+    /// Per node of the signing grid: whether it lies inside a loose piece of `lattice`'s clay
+    /// (its density over one half; see [`SignedCloud::fit_base_and_count_loose`]); and how
+    /// many loose pieces there are.
+    fn loose_pieces(&self, lattice: &BSplineLattice) -> (Vec<bool>, usize) {
+        let values = values_at_samples(lattice, self.samples_per_span);
+        let inside = |at: usize| values[at] > 0.5;
+        let (pieces, sizes) = self.grid.components(inside);
+        if sizes.len() < 2 {
+            return (Vec::new(), 0);
+        }
+        let (_, loose) = self.unsupported_pieces(inside, &pieces, &sizes);
+        let count = loose.iter().filter(|&&l| l).count();
+        let at_nodes = (0..values.len())
+            .map(|at| inside(at) && loose[pieces[at] as usize])
+            .collect();
+        (at_nodes, count)
     }
 }
 
@@ -1976,6 +2027,34 @@ impl SignedCloud {
         }
     }
 
+    /// Per piece of the signing grid's nodes (`pieces` labels the nodes `inside`, `sizes`
+    /// counts each piece's nodes): how many points hold it (those whose node a grid step in
+    /// along their normal lies in it), and whether it is too small and too weakly held to be
+    /// data (under [`MIN_PIECE_FRACTION`] of the largest piece's nodes and held by fewer than
+    /// [`MIN_PIECE_POINTS`] points).
+    fn unsupported_pieces(
+        &self,
+        inside: impl Fn(usize) -> bool,
+        pieces: &[u32],
+        sizes: &[usize],
+    ) -> (Vec<usize>, Vec<bool>) {
+        let largest = sizes.iter().copied().max().unwrap_or(0);
+        let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
+        let mut held_by = vec![0usize; sizes.len()];
+        for (&p, &n) in self.points.iter().zip(&self.normals) {
+            let at = self.grid.nearest_node(p - n * self.grid.h);
+            if inside(at) {
+                held_by[pieces[at] as usize] += 1;
+            }
+        }
+        let unsupported = sizes
+            .iter()
+            .zip(&held_by)
+            .map(|(&size, &held)| size < least && held < MIN_PIECE_POINTS)
+            .collect();
+        (held_by, unsupported)
+    }
+
     /// Removes the enclosed pieces of the signed grid smaller than [`MIN_PIECE_FRACTION`] of
     /// the largest that fewer than [`MIN_PIECE_POINTS`] points hold (their nodes are turned
     /// outside) and fills the cavities smaller than that fraction (turned inside): a blob or a
@@ -1999,20 +2078,7 @@ impl SignedCloud {
             };
         };
         let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
-        // The points holding each piece: those whose node a grid step in along their normal
-        // lies in it.
-        let mut held_by = vec![0usize; piece_sizes.len()];
-        for (&p, &n) in self.points.iter().zip(&self.normals) {
-            let at = self.grid.nearest_node(p - n * self.grid.h);
-            if inside[at] {
-                held_by[pieces[at] as usize] += 1;
-            }
-        }
-        let removed: Vec<bool> = piece_sizes
-            .iter()
-            .zip(&held_by)
-            .map(|(&size, &held)| size < least && held < MIN_PIECE_POINTS)
-            .collect();
+        let (held_by, removed) = self.unsupported_pieces(|at| inside[at], &pieces, &piece_sizes);
         let most_held = held_by
             .iter()
             .zip(&removed)
@@ -3900,6 +3966,40 @@ mod tests {
     }
 
     #[test]
+    fn a_loose_piece_of_the_fitted_clay_is_found_and_the_whole_surface_is_not_one() {
+        let options = CloudFitOptions::default();
+        let signed = sign_cloud(&sphere_cloud(4000, 3.0), &options).unwrap();
+        let (lattice, loose) = signed.fit_base_and_count_loose().unwrap();
+        assert_eq!(loose, 0, "one ball, no loose piece");
+        // A blob where no point lies: a block of 2³ coefficients raised to 1 in a corner of
+        // the lattice, outside the ball (the knots' midpoints there read about 0.88).
+        let mut blob = lattice.clone();
+        let block = 3..5;
+        for k in block.clone() {
+            for j in block.clone() {
+                for i in block.clone() {
+                    blob.coeffs.set(i, j, k, 1.0);
+                }
+            }
+        }
+        let (at_nodes, count) = signed.loose_pieces(&blob);
+        assert_eq!(count, 1);
+        let flagged: Vec<usize> = (0..at_nodes.len()).filter(|&at| at_nodes[at]).collect();
+        assert!(!flagged.is_empty());
+        // Every node flagged lies within the block's reach (the basis's two spans about it).
+        let sps = signed.samples_per_span;
+        for &at in &flagged {
+            let c = signed.grid.coords(at);
+            assert!(
+                c.iter().all(|&c| (sps..=6 * sps).contains(&c)),
+                "node {c:?} flagged, away from the blob"
+            );
+        }
+        // Without the blob, the ball alone: nothing loose.
+        assert_eq!(signed.loose_pieces(&lattice).1, 0);
+    }
+
+    #[test]
     fn a_small_object_the_points_hold_is_kept_beside_a_large_one() {
         // A ball of radius 0.5 beside one of radius 3, sampled as densely: under a hundredth
         // of the large ball's volume, but held by its own points, so it stays a piece.
@@ -3917,6 +4017,8 @@ mod tests {
         let options = CloudFitOptions::default();
         let signed = sign_cloud(&both, &options).unwrap();
         assert_eq!(signed.removed_pieces, 0);
+        // Nor is it taken out of the fit as loose.
+        assert_eq!(signed.fit_base_and_count_loose().unwrap().1, 0);
         let fit = fit_point_cloud(&both, &options).unwrap();
         let r = radius_along(
             &fit.lattice,

@@ -204,6 +204,9 @@ pub struct HierarchicalFit {
     pub rms_base: f32,
     /// See [`HierarchicalFit::rms_base`].
     pub rms: f32,
+    /// Loose pieces of the base's first fit taken out (see
+    /// [`super::cloud::SignedCloud::fit_base_and_count_loose`]).
+    pub loose_pieces: usize,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
     /// Whether the clay's budget stopped the refinement short of the bound (see
@@ -364,7 +367,7 @@ pub fn fit_hierarchy(
             });
             (targets, started.elapsed())
         });
-        let base = beside.time("base fit", || signed.fit_base());
+        let base = beside.time("base fit", || signed.fit_base_and_count_loose());
         let (targets, targets_wall) = targets
             .join()
             .unwrap_or_else(|e| std::panic::resume_unwind(e));
@@ -377,7 +380,8 @@ pub fn fit_hierarchy(
     });
     times.record_with("base fit beside error samples' targets", started, beside);
     let started = Instant::now();
-    let mut field = MultiPatchField::new(base?);
+    let (base, loose_pieces) = base?;
+    let mut field = MultiPatchField::new(base);
     let data = Refinement {
         target: &density,
         spacing: signed.spacing,
@@ -397,6 +401,7 @@ pub fn fit_hierarchy(
         signed_by: signed.signed_by,
         size: refined.size,
         rms_base: refined.rms_base,
+        loose_pieces,
         rms: refined.rms,
         levels: refined.levels,
         over_budget: refined.over_budget,

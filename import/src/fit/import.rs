@@ -614,6 +614,13 @@ fn fit_cloud(
         distance_to_surface(&fit.field, &kept, |p| fit.to_field(p))
     });
     let percent = |d: f32| 100.0 * d / fit.size;
+    if fit.loose_pieces > 0 {
+        note(format!(
+            "took out {} loose pieces of the fit (pinched off from the surface, too small and \
+             held by too few points to be data)",
+            fit.loose_pieces
+        ));
+    }
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
          the {} points kept lie {:.3}% of the size from the surface on average, {:.3}% at most",

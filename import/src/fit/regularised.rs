@@ -888,6 +888,29 @@ pub fn fit_regularised_scaled(
     )
 }
 
+/// The values of `lattice` at its samples (`samples_per_span` per span over the lattice, x
+/// fastest: the grid the fits here are fitted on), `A c`.
+#[must_use]
+pub fn values_at_samples(lattice: &BSplineLattice, samples_per_span: usize) -> Vec<f32> {
+    let threads = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+    let bases = lattice.dims.map(|n| AxisBasis::new(n, samples_per_span));
+    let coeffs: Vec<f64> = lattice.coeffs.iter().map(|&c| f64::from(c)).collect();
+    let mut values = Vec::new();
+    apply(
+        &coeffs,
+        lattice.dims,
+        &bases,
+        true,
+        false,
+        None,
+        None,
+        threads,
+        &mut Passes::default(),
+        &mut values,
+    );
+    values.iter().map(|&v| v as f32).collect()
+}
+
 /// The plain least-squares fit of the coefficients (`dims`) to `targets` at the samples
 /// (`samples_per_span` per span, x fastest): `(AᵀA)⁻¹ Aᵀ f`; `None` where an axis's Gram
 /// matrix has no Cholesky factor.
