@@ -1,8 +1,8 @@
 """Sample a mesh (OBJ) into a point cloud with normals and Gaussian noise, as `x y z nx ny nz`
 
-Usage: python3 bench/models/sample_cloud.py MODEL.obj POINTS NOISE_FRACTION_OF_DIAGONAL OUT.xyz
+Usage: python3 bench/models/sample_cloud.py MODEL.obj POINTS NOISE_FRACTION_OF_DIAGONAL OUT.xyz [SEED]
 
-Points are spread by area over the triangles (seeded, so a run is repeatable); each carries its
+Points are spread by area over the triangles (seeded, 1 unless SEED is given, so a run is repeatable); each carries its
 triangle's normal; the noise is isotropic with sigma = NOISE x the model's box diagonal.
 """
 import random, math, sys, bisect
@@ -24,7 +24,7 @@ for a,b,c in F:
     nx=u[1]*w[2]-u[2]*w[1]; ny=u[2]*w[0]-u[0]*w[2]; nz=u[0]*w[1]-u[1]*w[0]
     l=math.sqrt(nx*nx+ny*ny+nz*nz); tot+=l/2; cum.append(tot)
     normals.append((nx/l,ny/l,nz/l) if l>0 else (0,0,1))
-random.seed(1)
+random.seed(int(sys.argv[5]) if len(sys.argv) > 5 else 1)
 with open(out,'w') as f:
     for _ in range(n):
         t=bisect.bisect_left(cum,random.random()*tot); a,b,c=F[t]
