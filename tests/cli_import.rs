@@ -766,3 +766,55 @@ fn a_tight_error_bound_adds_detail_patches_at_finer_spacings_to_the_session() {
     assert!(closed, "the summed surface is closed");
     assert_eq!(euler, 2);
 }
+
+#[test]
+fn the_mesh_lies_over_the_cloud_in_the_clouds_own_coordinates() {
+    // A sphere of radius 5 about (20, −3, 7), 4 000 points with outward normals: the clay is
+    // fitted in its own lattice, and `--mesh` writes the surface back where the points are.
+    // Every vertex lies within 2% of the radius of the sphere; far from the file's origin
+    // (the same sphere 10⁴ along x, over 256 sizes away: read about its centre) too.
+    let dir = tempfile::tempdir().unwrap();
+    for (name, centre) in [("near", [20.0, -3.0, 7.0]), ("far", [1.0e4, -3.0, 7.0])] {
+        let centre = glam::DVec3::from_array(centre);
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let mut text = String::new();
+        for i in 0..4000 {
+            let y = 1.0 - 2.0 * (f64::from(i) + 0.5) / 4000.0;
+            let ring = (1.0 - y * y).sqrt();
+            let n = glam::DVec3::new(
+                ring * (golden * f64::from(i)).cos(),
+                y,
+                ring * (golden * f64::from(i)).sin(),
+            );
+            let p = centre + n * 5.0;
+            text.push_str(&format!(
+                "{} {} {} {} {} {}\n",
+                p.x, p.y, p.z, n.x, n.y, n.z
+            ));
+        }
+        let input = dir.path().join(format!("{name}.xyz"));
+        std::fs::write(&input, text).unwrap();
+        let (session, mesh) = (
+            dir.path().join(format!("{name}.dclay")),
+            dir.path().join(format!("{name}.obj")),
+        );
+        import_ok(&input, &session, &mesh, &[]);
+        let mut count = 0;
+        for line in std::fs::read_to_string(&mesh).unwrap().lines() {
+            let Some(rest) = line.strip_prefix("v ") else {
+                continue;
+            };
+            let c: Vec<f64> = rest
+                .split_whitespace()
+                .map(|v| v.parse().unwrap())
+                .collect();
+            let r = (glam::DVec3::new(c[0], c[1], c[2]) - centre).length();
+            assert!(
+                (r - 5.0).abs() < 0.1,
+                "{name}: a vertex {r} from the centre (radius 5)"
+            );
+            count += 1;
+        }
+        assert!(count > 1000, "{name}: {count} vertices");
+    }
+}

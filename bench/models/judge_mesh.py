@@ -5,11 +5,12 @@ its genus.
 
 Usage: python3 bench/models/judge_mesh.py MODEL.obj MESH.ply   (needs numpy, scipy, trimesh)
 
-`dynaclay import --mesh` writes the surface in the clay's frame (the kept points' box scaled
-and centred into the lattice), not the cloud's: the mesh's largest piece is first brought onto
-the model by a scale and a translation (the boxes, then 30 rounds of trimmed nearest-point
-fitting on 90% of 20 000 of its points). A mesh already in the model's units (PoissonRecon's)
-moves by little; both are judged the same way.
+`dynaclay import --mesh` wrote the surface in the clay's frame (the kept points' box scaled and
+centred into the lattice) until `--mesh` learnt to write it in the cloud's coordinates: the
+mesh's largest piece is first brought onto the model by a scale and a translation (the boxes,
+then 30 rounds of trimmed nearest-point fitting on 90% of 20 000 of its points). A mesh already
+in the model's units (PoissonRecon's, and dynaclay's now) moves by little; all are judged the
+same way, so figures from either frame compare.
 """
 import sys
 import numpy as np

@@ -7,9 +7,10 @@
 //!   machine's default memory budget, welded), as a child process: its time includes reading
 //!   the cloud and writing the session and the mesh, and its memory is its own peak resident
 //!   set (`VmHWM`, see `run_child`), the whole process, as PoissonRecon's is. The command writes its mesh in the
-//!   clay's units, so the same fit is made again in this process (`fit::fit_import`, then
-//!   `cli::mesh_clay` as `--mesh` does) for the mesh in the cloud's units; that second run is
-//!   not timed.
+//!   cloud's coordinates at 4 cells per knot span; the same fit is made again in this process
+//!   (`fit::fit_import`, then `cli::mesh_clay` as `--mesh` does) for the mesh at
+//!   `PEERS_CELLS_PER_SPAN` cells, mapped to the cloud's units as `--mesh` maps it; that
+//!   second run is not timed.
 //! * **poisson_reconstruction** (crates.io): `from_points_and_normals` with the parameters of
 //!   its README and demo — screening 0 and 10 relaxation iterations, the density estimated one
 //!   level above the finest — at depth 8, then `reconstruct_mesh_buffers`. It is given the

@@ -201,6 +201,23 @@ fn fit_and_judge(spot: &Spot, dir: &Path, count: usize, seed: u64) -> Judged {
     judged
 }
 
+/// [`fit_and_judge`] for each of the [`SEEDS`] clouds of `count` points, each fit asserted
+/// to be one closed piece of genus 0.
+fn closed_fits_of_spot(spot: &Spot, count: usize) -> Vec<(u64, Judged)> {
+    let dir = tempfile::tempdir().unwrap();
+    let report: Vec<(u64, Judged)> = (1..=SEEDS)
+        .map(|seed| (seed, fit_and_judge(spot, dir.path(), count, seed)))
+        .collect();
+    for (seed, judged) in &report {
+        assert_eq!(
+            judged.pieces,
+            vec![(2, true)],
+            "{count} points, seed {seed}: one closed piece of genus 0"
+        );
+    }
+    report
+}
+
 /// The median of `values` (an even count).
 fn median(mut values: Vec<f32>) -> f32 {
     values.sort_by(f32::total_cmp);
@@ -210,16 +227,8 @@ fn median(mut values: Vec<f32>) -> f32 {
 #[test]
 fn a_sparse_scan_of_spot_fits_without_lumps_past_its_ears_and_horns() {
     let spot = Spot::read();
-    let dir = tempfile::tempdir().unwrap();
-    let report: Vec<(u64, Judged)> = (1..=SEEDS)
-        .map(|seed| (seed, fit_and_judge(&spot, dir.path(), 2000, seed)))
-        .collect();
+    let report = closed_fits_of_spot(&spot, 2000);
     for (seed, judged) in &report {
-        assert_eq!(
-            judged.pieces,
-            vec![(2, true)],
-            "seed {seed}: one closed piece of genus 0"
-        );
         assert!(
             judged.p99 < 3.0,
             "seed {seed}: p99 fitted → spot {:.3}%",
@@ -271,17 +280,7 @@ fn a_sparser_scan_of_spot_keeps_its_points_and_fits_closer() {
             "seed {seed}: the screening kept {kept} of 1000"
         );
     }
-    let dir = tempfile::tempdir().unwrap();
-    let report: Vec<(u64, Judged)> = (1..=SEEDS)
-        .map(|seed| (seed, fit_and_judge(&spot, dir.path(), 1000, seed)))
-        .collect();
-    for (seed, judged) in &report {
-        assert_eq!(
-            judged.pieces,
-            vec![(2, true)],
-            "seed {seed}: one closed piece of genus 0"
-        );
-    }
+    let report = closed_fits_of_spot(&spot, 1000);
     let p99 = median(report.iter().map(|r| r.1.p99).collect());
     assert!(
         p99 < 1.6,

@@ -206,7 +206,8 @@ pub struct ImportArgs {
     /// the fit smooths at this scale and makes no detail patch finer than it.
     #[arg(long, value_name = "PERCENT")]
     pub noise: Option<f32>,
-    /// Also write the fitted surface as a mesh (.obj, .ply or .stl), to check the fit.
+    /// Also write the fitted surface as a mesh (.obj, .ply or .stl) in the input's
+    /// coordinates (a volume's in voxels), to lay over the input and check the fit.
     #[arg(long, value_name = "FILE")]
     pub mesh: Option<PathBuf>,
     /// The memory budget, MiB: a mesh or image that would need more is refused before

@@ -107,7 +107,11 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
         ImportError::Fit { .. } => CliError::output("import", e),
         other => CliError::bad_input("import", other),
     })?;
-    let (session, mut times) = session;
+    let crate::fit::TimedImport {
+        session,
+        mut times,
+        frame,
+    } = session;
     let started = Instant::now();
     let mut beside = StageTimes::default();
     // The mesh is made (within the memory budget) before anything is written, so a refused
@@ -133,7 +137,15 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
                         }
                         other => other,
                     })
-                    .map(|octree| Some((path, format, octree.weld_with_threads(threads))))
+                    .map(|octree| {
+                        // Back in the input's coordinates, to lay over it (normals keep: the
+                        // map is a uniform scale and a shift).
+                        let mut mesh = octree.weld_with_threads(threads);
+                        for p in &mut mesh.positions {
+                            *p = frame.to_file(*p).as_vec3();
+                        }
+                        Some((path, format, mesh))
+                    })
             }
             _ => Ok(None),
         };

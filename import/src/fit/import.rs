@@ -260,6 +260,38 @@ impl ImportedFit {
     pub fn to_field(&self, p: Vec3) -> Vec3 {
         p * self.scale + self.offset
     }
+
+    /// Where the file lies in the clay, the file's points read about `origin` (see
+    /// [`ImportedCloud::origin`]; zero for a mesh or a volume).
+    #[must_use]
+    pub fn frame(&self, origin: glam::DVec3) -> FileFrame {
+        FileFrame {
+            scale: self.scale,
+            offset: self.offset,
+            origin,
+        }
+    }
+}
+
+/// Where an imported file lies in the clay fitted to it: a point `x` of the file is at
+/// `(x − origin) · scale + offset` in field units. `--mesh` writes the fitted surface back in
+/// the file's coordinates through it, to lay over the input.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FileFrame {
+    /// Field units per file unit (a volume's file unit is its voxel).
+    pub scale: f32,
+    /// Field position of the point the file's points were read about.
+    pub offset: Vec3,
+    /// The point the file's points were read about, in the file's coordinates.
+    pub origin: glam::DVec3,
+}
+
+impl FileFrame {
+    /// A field-unit point in the file's coordinates.
+    #[must_use]
+    pub fn to_file(&self, field: Vec3) -> glam::DVec3 {
+        self.origin + ((field - self.offset) / self.scale).as_dvec3()
+    }
 }
 
 /// Reads `path` and fits a multi-patch clay to it; `progress` sees each stage (answer `false`
@@ -981,7 +1013,7 @@ pub fn import_session(
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
 ) -> Result<Session, ImportError> {
-    import_session_timed(path, settings, progress, note).map(|(session, _)| session)
+    import_session_timed(path, settings, progress, note).map(|imported| imported.session)
 }
 
 /// [`import_session`], also giving the wall time of each stage (`dynaclay import --timings`):
@@ -995,23 +1027,39 @@ pub fn import_session_timed(
     settings: &ImportSettings,
     progress: &mut dyn FnMut(FitProgress) -> bool,
     note: &mut dyn FnMut(String),
-) -> Result<(Session, StageTimes), ImportError> {
+) -> Result<TimedImport, ImportError> {
     if is_point_cloud(path) {
         let mut imported = import_cloud(path, settings, progress, note)?;
         let times = std::mem::take(&mut imported.fit.times);
-        return Ok((
-            imported.into_session(path, dynaclay_core::io::unix_now_s()),
+        let frame = imported.fit.frame(imported.origin);
+        return Ok(TimedImport {
+            session: imported.into_session(path, dynaclay_core::io::unix_now_s()),
             times,
-        ));
+            frame,
+        });
     }
     let mut times = StageTimes::default();
-    let field = times.time("reading and fit", || {
-        fit_file(path, settings, progress, note)
+    let fit = times.time("reading and fit", || {
+        fit_import(path, settings, progress, note)
     })?;
-    Ok((
-        imported_session(field, path, dynaclay_core::io::unix_now_s()),
+    let frame = fit.frame(glam::DVec3::ZERO);
+    Ok(TimedImport {
+        session: imported_session(fit.field, path, dynaclay_core::io::unix_now_s()),
         times,
-    ))
+        frame,
+    })
+}
+
+/// What [`import_session_timed`] gives: the session, each stage's wall time, and where the
+/// file lies in the clay.
+#[derive(Clone, Debug)]
+pub struct TimedImport {
+    /// The session `dynaclay import` writes.
+    pub session: Session,
+    /// The wall time of each stage.
+    pub times: StageTimes,
+    /// Where the file lies in the session's clay.
+    pub frame: FileFrame,
 }
 
 #[cfg(test)]

@@ -34,9 +34,9 @@ pub use cloud::{
 pub use hierarchy::{FitProgress, HierarchicalFit, HierarchyOptions, LevelReport, fit_hierarchy};
 pub use holes::{CappedMesh, MAX_CAPPED_HOLE, UncappedHoles, cap_holes};
 pub use import::{
-    DEFAULT_RESOLUTION, FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings, ImportedCloud,
-    ImportedFit, closed_mesh_grid, fit_file, fit_import, import_cloud, import_session,
-    import_session_timed, imported_session, is_importable, is_point_cloud,
+    DEFAULT_RESOLUTION, FileFrame, FitPath, IMPORT_EXTENSIONS, ImportError, ImportSettings,
+    ImportedCloud, ImportedFit, TimedImport, closed_mesh_grid, fit_file, fit_import, import_cloud,
+    import_session, import_session_timed, imported_session, is_importable, is_point_cloud,
     most_resolution_for_points, resolution_for_points,
 };
 pub use paint::{PaintError, paint_from_cloud};
