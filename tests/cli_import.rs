@@ -418,6 +418,9 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
     // Five points far apart: each alone, no surface between them.
     let scattered = dir.path().join("scattered.xyz");
     std::fs::write(&scattered, "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n").unwrap();
+    // Points spread over 10³⁸ units: past the fit's arithmetic (once a panic).
+    let vast = dir.path().join("vast.xyz");
+    std::fs::write(&vast, "1e38 0 0\n-1e38 0 0\n0 1e38 0\n0 0 1e38\n").unwrap();
     let stl = dir.path().join("huge.stl");
     let mut header = vec![0u8; 80];
     header.extend(4_000_000_000u32.to_le_bytes());
@@ -448,6 +451,10 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
             "scattered.xyz: the 5 points do not sample a surface",
         ),
         (vec![huge.as_os_str()], "4000000000 vertices declared"),
+        (
+            vec![vast.as_os_str()],
+            "vast.xyz: the cloud spans 2e38 units",
+        ),
         (vec!["/dev/zero".as_ref()], "unknown format"),
     ];
     for (args, want) in cases {

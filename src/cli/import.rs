@@ -97,11 +97,13 @@ pub fn import(args: &ImportArgs) -> Result<(), CliError> {
     bar.finish_and_clear();
     let session = session.map_err(|e| match e {
         ImportError::Interrupted => interrupted(),
-        // A cloud without extent, or whose points sample no surface, is bad input, not a
-        // failed fit.
+        // A cloud without extent, or of a size past the fit's arithmetic, or whose points
+        // sample no surface, is bad input, not a failed fit.
         ImportError::Fit {
             source:
-                crate::fit::CloudFitError::Degenerate | crate::fit::CloudFitError::NoSurface { .. },
+                crate::fit::CloudFitError::Degenerate
+                | crate::fit::CloudFitError::ExtentOutOfRange { .. }
+                | crate::fit::CloudFitError::NoSurface { .. },
             ..
         } => CliError::bad_input("import", e),
         ImportError::Fit { .. } => CliError::output("import", e),

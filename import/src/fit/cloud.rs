@@ -273,6 +273,13 @@ impl NormalSides {
     }
 }
 
+/// The largest cloud the fit takes, its box's longest side in file units: the screening and
+/// the band square distances in `f32` (at most `3.4e38`), with room for their sums.
+pub const MAX_CLOUD_EXTENT: f32 = 1e15;
+/// The smallest cloud the fit takes (see [`MAX_CLOUD_EXTENT`]): the least local scatter,
+/// a millionth of the size, squared stays a normal `f32`.
+pub const MIN_CLOUD_EXTENT: f32 = 1e-12;
+
 /// Why a cloud could not be fitted.
 #[derive(Debug, thiserror::Error)]
 pub enum CloudFitError {
@@ -282,6 +289,16 @@ pub enum CloudFitError {
     /// All points coincide: nothing to fit.
     #[error("the points all lie at one place; a cloud needs extent")]
     Degenerate,
+    /// The cloud's size is past what the fit's `f32` arithmetic holds (the squares of its
+    /// distances overflow or vanish).
+    #[error(
+        "the cloud spans {extent:e} units, outside {MIN_CLOUD_EXTENT:e} to {MAX_CLOUD_EXTENT:e}, \
+         where the fit's squared distances overflow or vanish; rescale its units"
+    )]
+    ExtentOutOfRange {
+        /// The longest side of the points' box, file units.
+        extent: f32,
+    },
     /// The points fall apart into small pieces, none held by enough of them to be a surface:
     /// too few points, or too far apart for their neighbours to join them.
     #[error(
@@ -707,8 +724,11 @@ pub fn sign_cloud(
     let spacing = options.spacing;
     let (lo, hi) = bounds(cloud.points.iter().copied());
     let extent = (hi - lo).max_element();
-    if !extent.is_finite() || extent <= 0.0 {
+    if extent <= 0.0 {
         return Err(CloudFitError::Degenerate);
+    }
+    if !(MIN_CLOUD_EXTENT..=MAX_CLOUD_EXTENT).contains(&extent) {
+        return Err(CloudFitError::ExtentOutOfRange { extent });
     }
     let mut times = StageTimes::default();
     // Step 1: the points that agree on a surface, and the noise.
@@ -4983,6 +5003,40 @@ mod tests {
             fit_point_cloud(&point, &CloudFitOptions::default()),
             Err(CloudFitError::Degenerate)
         ));
+    }
+
+    #[test]
+    fn a_cloud_too_large_or_too_small_for_the_arithmetic_is_refused_and_the_bounds_fit() {
+        // The ball scaled to each size: past the bounds refused with its extent (a ball of
+        // 3·10³⁷ about 3·10³⁸ once panicked in the band: its box's centre overflowed), at
+        // them fitted.
+        let ball = sphere_cloud(2000, 1.0);
+        let scaled = |radius: f32, centre: Vec3| PointCloud {
+            points: ball.points.iter().map(|&p| centre + p * radius).collect(),
+            normals: ball.normals.clone(),
+        };
+        for (radius, centre) in [
+            (3e37, Vec3::new(3e38, 0.0, 0.0)),
+            (1e16, Vec3::ZERO),
+            (1e-14, Vec3::ZERO),
+        ] {
+            match fit_point_cloud(&scaled(radius, centre), &CloudFitOptions::default()) {
+                Err(CloudFitError::ExtentOutOfRange { extent }) => {
+                    assert!((extent / (2.0 * radius) - 1.0).abs() < 0.01, "{extent}");
+                }
+                other => panic!("radius {radius}: {other:?}"),
+            }
+        }
+        for radius in [0.49 * MAX_CLOUD_EXTENT, 0.51 * MIN_CLOUD_EXTENT] {
+            let fit = fit_point_cloud(&scaled(radius, Vec3::ZERO), &CloudFitOptions::default())
+                .unwrap_or_else(|e| panic!("radius {radius}: {e}"));
+            let e = worst_radius_error(&fit, radius);
+            assert!(
+                e < 0.02,
+                "radius {radius}: {:.3}% of the diameter",
+                e * 100.0
+            );
+        }
     }
 
     #[test]
