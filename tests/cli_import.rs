@@ -421,6 +421,25 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
     // Points spread over 10³⁸ units: past the fit's arithmetic (once a panic).
     let vast = dir.path().join("vast.xyz");
     std::fs::write(&vast, "1e38 0 0\n-1e38 0 0\n0 1e38 0\n0 0 1e38\n").unwrap();
+    // A closed octahedron 2·10²⁰ across: its weld's diagonal overflowed `f32` and every
+    // vertex welded to one (the error then blamed the triangles' count).
+    let vast_mesh = dir.path().join("vast.obj");
+    let mut octahedron = String::new();
+    for v in [
+        "1e20 0 0",
+        "-1e20 0 0",
+        "0 1e20 0",
+        "0 -1e20 0",
+        "0 0 1e20",
+        "0 0 -1e20",
+    ] {
+        octahedron.push_str(&format!("v {v}\n"));
+    }
+    octahedron.push_str("f 1 3 5\nf 3 2 5\nf 2 4 5\nf 4 1 5\nf 3 1 6\nf 2 3 6\nf 4 2 6\nf 1 4 6\n");
+    std::fs::write(&vast_mesh, &octahedron).unwrap();
+    // The same octahedron 2·10⁻⁴⁰ across: its coordinates are subnormal.
+    let speck_mesh = dir.path().join("speck.obj");
+    std::fs::write(&speck_mesh, octahedron.replace("1e20", "1e-40")).unwrap();
     let stl = dir.path().join("huge.stl");
     let mut header = vec![0u8; 80];
     header.extend(4_000_000_000u32.to_le_bytes());
@@ -455,6 +474,11 @@ fn bad_point_files_and_arguments_are_refused_with_where_and_why() {
             vec![vast.as_os_str()],
             "vast.xyz: the cloud spans 2e38 units",
         ),
+        (
+            vec![vast_mesh.as_os_str()],
+            "vast.obj: the mesh spans 2e20 units",
+        ),
+        (vec![speck_mesh.as_os_str()], "speck.obj: the mesh spans"),
         (vec!["/dev/zero".as_ref()], "unknown format"),
     ];
     for (args, want) in cases {

@@ -273,12 +273,31 @@ impl NormalSides {
     }
 }
 
-/// The largest cloud the fit takes, its box's longest side in file units: the screening and
-/// the band square distances in `f32` (at most `3.4e38`), with room for their sums.
+/// The largest cloud or mesh the fit takes, its box's longest side in file units: the
+/// screening and the band square distances in `f32` (at most `3.4e38`), with room for their
+/// sums, and a mesh's weld measures its diagonal.
 pub const MAX_CLOUD_EXTENT: f32 = 1e15;
-/// The smallest cloud the fit takes (see [`MAX_CLOUD_EXTENT`]): the least local scatter,
-/// a millionth of the size, squared stays a normal `f32`.
+/// The smallest cloud or mesh the fit takes (see [`MAX_CLOUD_EXTENT`]): the least local
+/// scatter, a millionth of the size, squared stays a normal `f32`.
 pub const MIN_CLOUD_EXTENT: f32 = 1e-12;
+
+/// Checks that an input whose box's longest side is `extent` (file units) lies within the
+/// sizes the fit's arithmetic holds, [`MIN_CLOUD_EXTENT`] to [`MAX_CLOUD_EXTENT`]; `what`
+/// names the input in the error (`"cloud"`, `"mesh"`).
+///
+/// # Errors
+/// [`CloudFitError::Degenerate`] for no extent (every point at one place, or none);
+/// [`CloudFitError::ExtentOutOfRange`] for a size past the bounds (an infinite `extent`, a
+/// box whose side overflowed, included).
+pub fn check_extent(what: &'static str, extent: f32) -> Result<(), CloudFitError> {
+    if extent <= 0.0 {
+        return Err(CloudFitError::Degenerate);
+    }
+    if !(MIN_CLOUD_EXTENT..=MAX_CLOUD_EXTENT).contains(&extent) {
+        return Err(CloudFitError::ExtentOutOfRange { what, extent });
+    }
+    Ok(())
+}
 
 /// Why a cloud could not be fitted.
 #[derive(Debug, thiserror::Error)]
@@ -287,15 +306,17 @@ pub enum CloudFitError {
     #[error("{0}")]
     Options(String),
     /// All points coincide: nothing to fit.
-    #[error("the points all lie at one place; a cloud needs extent")]
+    #[error("the points all lie at one place: there is no surface to fit")]
     Degenerate,
-    /// The cloud's size is past what the fit's `f32` arithmetic holds (the squares of its
-    /// distances overflow or vanish).
+    /// The cloud's or mesh's size is past what the fit's `f32` arithmetic holds (the squares
+    /// of its distances overflow or vanish).
     #[error(
-        "the cloud spans {extent:e} units, outside {MIN_CLOUD_EXTENT:e} to {MAX_CLOUD_EXTENT:e}, \
+        "the {what} spans {extent:e} units, outside {MIN_CLOUD_EXTENT:e} to {MAX_CLOUD_EXTENT:e}, \
          where the fit's squared distances overflow or vanish; rescale its units"
     )]
     ExtentOutOfRange {
+        /// What the input is (`"cloud"`, `"mesh"`).
+        what: &'static str,
         /// The longest side of the points' box, file units.
         extent: f32,
     },
@@ -724,12 +745,7 @@ pub fn sign_cloud(
     let spacing = options.spacing;
     let (lo, hi) = bounds(cloud.points.iter().copied());
     let extent = (hi - lo).max_element();
-    if extent <= 0.0 {
-        return Err(CloudFitError::Degenerate);
-    }
-    if !(MIN_CLOUD_EXTENT..=MAX_CLOUD_EXTENT).contains(&extent) {
-        return Err(CloudFitError::ExtentOutOfRange { extent });
-    }
+    check_extent("cloud", extent)?;
     let mut times = StageTimes::default();
     // Step 1: the points that agree on a surface, and the noise.
     let mut consensus = times.time("screening", || {
@@ -5021,7 +5037,10 @@ mod tests {
             (1e-14, Vec3::ZERO),
         ] {
             match fit_point_cloud(&scaled(radius, centre), &CloudFitOptions::default()) {
-                Err(CloudFitError::ExtentOutOfRange { extent }) => {
+                Err(CloudFitError::ExtentOutOfRange {
+                    what: "cloud",
+                    extent,
+                }) => {
                     assert!((extent / (2.0 * radius) - 1.0).abs() < 0.01, "{extent}");
                 }
                 other => panic!("radius {radius}: {other:?}"),

@@ -765,6 +765,9 @@ fn fit_mesh_file(
         }
         .into());
     }
+    // Before the weld, which measures the mesh's diagonal: past the fit's sizes it overflows
+    // (every vertex then welds to one) or the squared distances of the signing vanish.
+    super::cloud::check_extent("mesh", cloud_size(&vertices)).map_err(|e| fit_error(path, e))?;
     let (mesh, check) = check_closed(&vertices, &triangles);
     note(format!(
         "{} triangles from {}: {}",
