@@ -12,8 +12,12 @@
 //! the median of the 99th percentile of how far the clay outside spot lies from it is under
 //! 1.4% of the diagonal: twice PoissonRecon's 99th percentile (depth 8, `--samplesPerNode
 //! 15`) on such a cloud, 0.70% (bench/RESULTS.md, "Sparse clouds, and a cloud that samples no
-//! surface"). These are guards against lumps, not the issue's floor (1.25 times
-//! PoissonRecon's), which sparse clouds do not yet meet.
+//! surface"); 0.89% now (1.18% before the nodes beyond every point's reach were signed by the
+//! flood). These are guards against lumps, not the issue's floor (1.25 times PoissonRecon's),
+//! which sparse clouds do not yet all meet.
+//!
+//! A ball with two thin ears (three overlapping ellipsoids, judged against their own meshes)
+//! is the same guard for a closed shape whose thin parts look in part like an open sheet.
 
 mod support;
 
@@ -248,8 +252,10 @@ fn a_sparse_scan_of_spot_fits_without_lumps_past_its_ears_and_horns() {
 /// genuine points off them, and they were dropped. Now the screening widens its radius there:
 /// it keeps at least 95% of each cloud's points (it kept 613–713 of the 1 000), every fit is
 /// one closed piece of genus 0, and over the seeds the median of the 99th percentile of the
-/// distances from the fitted surface to spot is under 1.6% of the diagonal (1.13% now; it was
-/// 2.64%, each seed's 1.82–4.07%).
+/// distances from the fitted surface to spot is under 1.6% of the diagonal (0.91% now, each
+/// seed's 0.68–1.50%, with the nodes beyond every point's reach signed by the flood, see
+/// `a_sparse_scan_of_thin_ears_fits_without_balls_past_their_tips`; 1.13% before that; it was
+/// 2.64%, each seed's 1.82–4.07%, before the radius was widened).
 #[test]
 fn a_sparser_scan_of_spot_keeps_its_points_and_fits_closer() {
     let spot = Spot::read();
@@ -313,8 +319,9 @@ fn strays(lo: Vec3, hi: Vec3, count: usize, seed: u64) -> String {
 /// did (27, 29, 32): on 27 and 32 the neck pinched between the grid's nodes, finer than the
 /// check sees, and on 29 a detail patch, fitted after the base, made it. With the screening's
 /// radius widened at this density (see `a_sparser_scan_of_spot_keeps_its_points_and_fits_closer`)
-/// those 3 are one piece and 3 others have a second (14, 34, 40). The test fails when more
-/// than 3 fits have a second piece (or any fit is open or empty).
+/// those 3 are one piece and 3 others have a second (14, 34, 40); with the nodes beyond every
+/// point's reach signed by the flood, 10, 14 and 40. The test fails when more than 3 fits
+/// have a second piece (or any fit is open or empty).
 #[test]
 fn strays_about_a_sparse_scan_of_spot_leave_few_loose_pieces() {
     let Spot {
@@ -349,4 +356,162 @@ fn strays_about_a_sparse_scan_of_spot_leave_few_loose_pieces() {
         assert!(!pieces.is_empty(), "seed {seed}: no surface");
         assert!(pieces.iter().all(|p| p.1), "seed {seed}: not closed");
     }
+}
+
+/// A closed ellipsoid of semi-axes `radii` about `centre` as a latitude–longitude mesh of
+/// `rings` bands of `segments` quads, wound outward.
+fn ellipsoid(centre: Vec3, radii: Vec3, rings: u32, segments: u32) -> TriMesh {
+    let at = |ring: u32, segment: u32| {
+        let polar = std::f32::consts::PI * ring as f32 / rings as f32;
+        let azimuth = std::f32::consts::TAU * segment as f32 / segments as f32;
+        let dir = Vec3::new(
+            polar.sin() * azimuth.cos(),
+            polar.cos(),
+            polar.sin() * azimuth.sin(),
+        );
+        centre + dir * radii
+    };
+    // Ring 0 and ring `rings` are the poles, one vertex each.
+    let mut positions = vec![at(0, 0)];
+    for ring in 1..rings {
+        positions.extend((0..segments).map(|segment| at(ring, segment)));
+    }
+    positions.push(at(rings, 0));
+    let south = positions.len() as u32 - 1;
+    let index = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, index(1, s + 1), index(1, s)]);
+        triangles.push([south, index(rings - 1, s), index(rings - 1, s + 1)]);
+        for ring in 1..rings - 1 {
+            let (a, b) = (index(ring, s), index(ring, s + 1));
+            let (c, d) = (index(ring + 1, s), index(ring + 1, s + 1));
+            triangles.push([a, b, d]);
+            triangles.push([a, d, c]);
+        }
+    }
+    TriMesh {
+        normals: vec![Vec3::Y; positions.len()],
+        positions,
+        triangles,
+    }
+}
+
+/// A ball with two thin ears: a unit sphere and two ellipsoids 0.2 thick and 0.4 wide rising
+/// from it to 2.2 above its centre, as three closed meshes that overlap.
+fn eared_ball() -> Vec<TriMesh> {
+    let ear = |x: f32| ellipsoid(Vec3::new(x, 1.45, 0.0), Vec3::new(0.2, 0.75, 0.1), 48, 64);
+    vec![
+        ellipsoid(Vec3::ZERO, Vec3::ONE, 48, 96),
+        ear(-0.4),
+        ear(0.4),
+    ]
+}
+
+/// A sparse scan of a closed shape with thin parts: [`eared_ball`] sampled as 1 700 points
+/// spread by area over its parts, with their triangles' normals and noise of 0.25% of the
+/// diagonal, less each part's points inside another (about 1 670 remain), for twelve seeds.
+///
+/// Across an ear's thickness the tagging's probe reaches the outside on both sides, so 1.6–3.8%
+/// of such a cloud's points look like an open sheet's; the flood signed the nodes beyond the
+/// moving planes' reach only under 1% (a partial scan's open sheet has 17–100%), and past and
+/// beside the ears one anchor's plane ran on through empty space: the clay grew balls there
+/// (the Stanford bunny's ears at 1 000–2 000 points: p99 4.9–5.3% of the diagonal). The
+/// flood now signs them under [`dynaclay_import::fit::cloud::FLOOD_OPEN_SHEET_SHARE`] (10%),
+/// and also the nodes within the widest bandwidth's reach of a point but beyond every
+/// point's own. Every fit is one closed piece of genus 0, and over the seeds the median of the
+/// 99th percentile of how far the clay outside the shape lies from it is under 1.7% of the
+/// diagonal: 1.35% now; 2.98% before (each seed's 0.94–6.67%), 1.99% with the share alone.
+#[test]
+fn a_sparse_scan_of_thin_ears_fits_without_balls_past_their_tips() {
+    let parts = eared_ball();
+    let mut all = TriMesh {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        triangles: Vec::new(),
+    };
+    for part in &parts {
+        let base = all.positions.len() as u32;
+        all.positions.extend(&part.positions);
+        all.normals.extend(&part.normals);
+        all.triangles
+            .extend(part.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+    let area = |mesh: &TriMesh| -> f32 {
+        mesh.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+                (b - a).cross(c - a).length() / 2.0
+            })
+            .sum()
+    };
+    let total_area: f32 = parts.iter().map(area).sum();
+    let (lo, hi) = (Vec3::new(-1.0, -1.0, -1.0), Vec3::new(1.0, 2.2, 1.0));
+    let diagonal = (hi - lo).length();
+    let dir = tempfile::tempdir().unwrap();
+    let mut added_p99 = Vec::new();
+    for seed in 1..=SEEDS {
+        // Each part sampled by its area, its points inside another part left out.
+        let mut kept = String::new();
+        for (k, part) in parts.iter().enumerate() {
+            let share = area(part) / total_area;
+            let count = (1700.0 * share).round() as usize;
+            let cloud = sample_cloud(
+                &part.positions,
+                &part.triangles,
+                count,
+                0.0025 * diagonal,
+                seed * 3 + k as u64,
+            );
+            for line in cloud.lines() {
+                let xyz: Vec<f32> = line
+                    .split_whitespace()
+                    .take(3)
+                    .map(|v| v.parse().unwrap())
+                    .collect();
+                let p = Vec3::new(xyz[0], xyz[1], xyz[2]);
+                let elsewhere = parts
+                    .iter()
+                    .enumerate()
+                    .any(|(j, other)| j != k && inside(other, p));
+                if !elsewhere {
+                    writeln!(kept, "{line}").unwrap();
+                }
+            }
+        }
+        let path = dir.path().join(format!("eared-{seed}.xyz"));
+        std::fs::write(&path, kept).unwrap();
+        let (fit, fitted) = import_and_mesh(&path, seed);
+        assert_eq!(
+            pieces(&fitted),
+            vec![(2, true)],
+            "seed {seed}: one closed piece of genus 0"
+        );
+        let in_field = |mesh: &TriMesh| TriMesh {
+            positions: mesh.positions.iter().map(|&p| fit.to_field(p)).collect(),
+            normals: mesh.normals.clone(),
+            triangles: mesh.triangles.clone(),
+        };
+        let shape = in_field(&all);
+        let parts_in_field: Vec<TriMesh> = parts.iter().map(in_field).collect();
+        let percent = 100.0 / (fit.to_field(hi) - fit.to_field(lo)).length();
+        let on_fitted = sample_triangles(&fitted.positions, &fitted.triangles, &path)
+            .unwrap()
+            .points;
+        let stride = on_fitted.len().div_ceil(3000).max(1);
+        let added: Vec<Vec3> = on_fitted
+            .into_iter()
+            .step_by(stride)
+            .filter(|&p| !parts_in_field.iter().any(|part| inside(part, p)))
+            .collect();
+        let p99 = percent * quantile_distance(&added, &shape, 0.99);
+        println!("eared ball, seed {seed}: p99 of the clay outside it {p99:.3}%");
+        added_p99.push(p99);
+    }
+    let added = median(added_p99);
+    assert!(
+        added < 1.7,
+        "median over the seeds of the p99 of the clay outside the eared ball: {added:.3}%"
+    );
 }
