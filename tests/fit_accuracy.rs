@@ -394,6 +394,7 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         rms_base: 0.0,
         rms: 0.0,
         loose_pieces: 0,
+        fit_cavities: 0,
         levels: Vec::new(),
         over_budget: false,
         screening: Default::default(),

@@ -320,8 +320,10 @@ fn strays(lo: Vec3, hi: Vec3, count: usize, seed: u64) -> String {
 /// check sees, and on 29 a detail patch, fitted after the base, made it. With the screening's
 /// radius widened at this density (see `a_sparser_scan_of_spot_keeps_its_points_and_fits_closer`)
 /// those 3 are one piece and 3 others have a second (14, 34, 40); with the nodes beyond every
-/// point's reach signed by the flood, 10, 14 and 40. The test fails when more than 3 fits
-/// have a second piece (or any fit is open or empty).
+/// point's reach signed by the flood, 10, 14 and 40. On 10 and 40 the second piece was a
+/// bubble inside the clay about a stray kept inside spot; the fit's small cavities are now
+/// filled as the signs' are, and only seed 14 has a second piece. The test fails when more
+/// than 1 fit has a second piece (or any fit is open or empty).
 #[test]
 fn strays_about_a_sparse_scan_of_spot_leave_few_loose_pieces() {
     let Spot {
@@ -348,7 +350,7 @@ fn strays_about_a_sparse_scan_of_spot_leave_few_loose_pieces() {
         .map(|&(seed, _)| seed)
         .collect();
     assert!(
-        more.len() <= 3,
+        more.len() <= 1,
         "{} of {STRAY_SEEDS} fits have more than one piece (seeds {more:?})",
         more.len()
     );

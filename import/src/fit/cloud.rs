@@ -80,7 +80,8 @@
 //!    stays smooth where it is not (over holes, far from the points).
 //!    The smooth fit may pinch a thin neck of the signs off into a piece of its own; such a
 //!    loose piece, judged as in step 6 on the signing grid's nodes, is taken out by fitting
-//!    once more with its nodes outside ([`SignedCloud::fit_base_and_count_loose`]).
+//!    once more with its nodes outside, and a small cavity it closes off inside the clay is
+//!    filled the same way ([`SignedCloud::fit_base_and_count_loose`]).
 //!
 //! This is the base level; [`super::hierarchy`] adds the octree of finer detail patches of
 //! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
@@ -633,19 +634,21 @@ impl SignedCloud {
         self.fit_base_and_count_loose().map(|(lattice, _)| lattice)
     }
 
-    /// The base lattice (see [`SignedCloud::fit_base`]) and how many loose pieces of its
-    /// first fit were taken out.
+    /// The base lattice (see [`SignedCloud::fit_base`]) and how many loose pieces and small
+    /// cavities of its first fit were taken out.
     ///
     /// The signs' small pieces are removed before the fit, but the smooth fit may still make
     /// a piece the signs did not have: a thin neck of them (to a stray just off the surface,
     /// or to a thin part's end) that the fit cannot follow pinches off. A piece of the fitted
     /// clay smaller than [`MIN_PIECE_FRACTION`] of the largest that fewer than
-    /// [`MIN_PIECE_POINTS`] points hold is loose, as in the signs; where there are any, the
-    /// clay is fitted once more with their nodes' targets outside.
+    /// [`MIN_PIECE_POINTS`] points hold is loose, as in the signs, and so is an enclosed
+    /// cavity smaller than that fraction (a bubble closed off inside the clay); where there are
+    /// any, the clay is fitted once more with the pieces' nodes' targets outside and the
+    /// cavities' inside.
     ///
     /// # Errors
     /// [`CloudFitError::Fit`] if the fit fails.
-    pub fn fit_base_and_count_loose(&self) -> Result<(BSplineLattice, usize), CloudFitError> {
+    pub fn fit_base_and_count_loose(&self) -> Result<(BSplineLattice, LooseParts), CloudFitError> {
         let n = self.resolution;
         let mut lattice =
             BSplineLattice::zeros([n; 3], self.spacing, Vec3::ZERO).map_err(|_| {
@@ -678,35 +681,76 @@ impl SignedCloud {
             );
         };
         fit(&mut lattice, &targets);
-        let (loose, pieces) = self.loose_pieces(&lattice);
-        if pieces > 0 {
+        let (parts, found) = self.loose_parts(&lattice);
+        if found != LooseParts::default() {
             let outside = density_profile(2.0 * self.width, self.width);
+            let inside = density_profile(-2.0 * self.width, self.width);
             let targets: Vec<f32> = targets
                 .iter()
-                .zip(&loose)
-                .map(|(&t, &loose)| if loose { outside } else { t })
+                .zip(&parts)
+                .map(|(&t, &part)| match part {
+                    1 => outside,
+                    -1 => inside,
+                    _ => t,
+                })
                 .collect();
             fit(&mut lattice, &targets);
         }
-        Ok((lattice, pieces))
+        Ok((lattice, found))
     }
 
-    /// Per node of the signing grid: whether it lies inside a loose piece of `lattice`'s clay
-    /// (its density over one half; see [`SignedCloud::fit_base_and_count_loose`]); and how
-    /// many loose pieces there are.
-    fn loose_pieces(&self, lattice: &BSplineLattice) -> (Vec<bool>, usize) {
+    /// Per node of the signing grid, what `lattice`'s clay there is that the data does not
+    /// hold: `1` in a loose piece (its density over one half; see
+    /// [`SignedCloud::fit_base_and_count_loose`]), `−1` in a small cavity (its density at most
+    /// one half, enclosed, under [`MIN_PIECE_FRACTION`] of the largest piece's nodes, as the
+    /// signs' cavities are filled), `0` elsewhere (empty where there is neither); and how many
+    /// of each. The smooth fit may close a bubble off from the outside where the signs had a
+    /// channel to it (a stray kept inside the object, its plane turning a pocket of nodes
+    /// out).
+    fn loose_parts(&self, lattice: &BSplineLattice) -> (Vec<i8>, LooseParts) {
         let values = values_at_samples(lattice, self.samples_per_span);
         let inside = |at: usize| values[at] > 0.5;
-        let (pieces, sizes) = self.grid.components(inside);
-        if sizes.len() < 2 {
-            return (Vec::new(), 0);
-        }
-        let (_, loose) = self.unsupported_pieces(inside, &pieces, &sizes);
-        let count = loose.iter().filter(|&&l| l).count();
-        let at_nodes = (0..values.len())
-            .map(|at| inside(at) && loose[pieces[at] as usize])
+        // The pieces and the holes are labelled side by side (each is one thread's flood).
+        let ((pieces, sizes), (holes, hole_sizes)) = std::thread::scope(|scope| {
+            let holes = scope.spawn(|| self.grid.components(|at| !inside(at)));
+            let pieces = self.grid.components(inside);
+            let holes = holes
+                .join()
+                .unwrap_or_else(|e| std::panic::resume_unwind(e));
+            (pieces, holes)
+        });
+        let Some(&largest) = sizes.iter().max() else {
+            return (Vec::new(), LooseParts::default());
+        };
+        let loose = if sizes.len() < 2 {
+            vec![false; sizes.len()]
+        } else {
+            self.unsupported_pieces(inside, &pieces, &sizes).1
+        };
+        let least = (largest as f32 * MIN_PIECE_FRACTION).ceil() as usize;
+        let open = self.grid.boundary_components(&holes, hole_sizes.len());
+        let bubble: Vec<bool> = hole_sizes
+            .iter()
+            .zip(&open)
+            .map(|(&size, &open)| !open && size < least)
             .collect();
-        (at_nodes, count)
+        let found = LooseParts {
+            pieces: loose.iter().filter(|&&l| l).count(),
+            cavities: bubble.iter().filter(|&&b| b).count(),
+        };
+        if found == LooseParts::default() {
+            return (Vec::new(), found);
+        }
+        let at_nodes = (0..values.len())
+            .map(|at| {
+                if inside(at) {
+                    i8::from(loose[pieces[at] as usize])
+                } else {
+                    -i8::from(bubble[holes[at] as usize])
+                }
+            })
+            .collect();
+        (at_nodes, found)
     }
 }
 
@@ -2164,6 +2208,16 @@ impl SignedCloud {
             most_held,
         }
     }
+}
+
+/// What the base's first fit made that the data does not hold, taken out by fitting again
+/// ([`SignedCloud::fit_base_and_count_loose`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LooseParts {
+    /// Loose pieces of clay, turned outside.
+    pub pieces: usize,
+    /// Small enclosed cavities, filled.
+    pub cavities: usize,
 }
 
 /// The signed grid's enclosed pieces and how well the points hold them
@@ -4022,11 +4076,12 @@ mod tests {
     }
 
     #[test]
-    fn a_loose_piece_of_the_fitted_clay_is_found_and_the_whole_surface_is_not_one() {
+    fn a_loose_piece_or_a_small_cavity_of_the_fitted_clay_is_found_and_the_whole_surface_is_not_one()
+     {
         let options = CloudFitOptions::default();
         let signed = sign_cloud(&sphere_cloud(4000, 3.0), &options).unwrap();
         let (lattice, loose) = signed.fit_base_and_count_loose().unwrap();
-        assert_eq!(loose, 0, "one ball, no loose piece");
+        assert_eq!(loose, LooseParts::default(), "one ball, no loose piece");
         // A blob where no point lies: a block of 2³ coefficients raised to 1 in a corner of
         // the lattice, outside the ball (the knots' midpoints there read about 0.88).
         let mut blob = lattice.clone();
@@ -4038,9 +4093,11 @@ mod tests {
                 }
             }
         }
-        let (at_nodes, count) = signed.loose_pieces(&blob);
-        assert_eq!(count, 1);
-        let flagged: Vec<usize> = (0..at_nodes.len()).filter(|&at| at_nodes[at]).collect();
+        let (at_nodes, found) = signed.loose_parts(&blob);
+        assert_eq!(found.pieces, 1);
+        let flagged: Vec<usize> = (0..at_nodes.len())
+            .filter(|&at| at_nodes[at] == 1)
+            .collect();
         assert!(!flagged.is_empty());
         // Every node flagged lies within the block's reach (the basis's two spans about it).
         let sps = signed.samples_per_span;
@@ -4052,7 +4109,34 @@ mod tests {
             );
         }
         // Without the blob, the ball alone: nothing loose.
-        assert_eq!(signed.loose_pieces(&lattice).1, 0);
+        assert_eq!(signed.loose_parts(&lattice).1, LooseParts::default());
+        // A bubble where no point lies: a block of 2³ coefficients at the ball's centre
+        // lowered to 0, a small cavity enclosed in the clay; refitting fills it.
+        let mut bubble = lattice.clone();
+        let middle = signed.resolution / 2;
+        for k in middle - 1..=middle {
+            for j in middle - 1..=middle {
+                for i in middle - 1..=middle {
+                    bubble.coeffs.set(i, j, k, 0.0);
+                }
+            }
+        }
+        let (at_nodes, found) = signed.loose_parts(&bubble);
+        assert_eq!(
+            found,
+            LooseParts {
+                pieces: 0,
+                cavities: 1
+            }
+        );
+        let centre = (middle * sps) as f32 - 0.5 * sps as f32;
+        for at in (0..at_nodes.len()).filter(|&at| at_nodes[at] == -1) {
+            let c = signed.grid.coords(at).map(|c| c as f32);
+            assert!(
+                c.iter().all(|&c| (c - centre).abs() <= 3.0 * sps as f32),
+                "node {c:?} flagged, away from the bubble"
+            );
+        }
     }
 
     #[test]
@@ -4074,7 +4158,7 @@ mod tests {
         let signed = sign_cloud(&both, &options).unwrap();
         assert_eq!(signed.removed_pieces, 0);
         // Nor is it taken out of the fit as loose.
-        assert_eq!(signed.fit_base_and_count_loose().unwrap().1, 0);
+        assert_eq!(signed.fit_base_and_count_loose().unwrap().1.pieces, 0);
         let fit = fit_point_cloud(&both, &options).unwrap();
         let r = radius_along(
             &fit.lattice,

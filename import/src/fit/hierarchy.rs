@@ -207,6 +207,9 @@ pub struct HierarchicalFit {
     /// Loose pieces of the base's first fit taken out (see
     /// [`super::cloud::SignedCloud::fit_base_and_count_loose`]).
     pub loose_pieces: usize,
+    /// Small cavities of the base's first fit filled (see
+    /// [`super::cloud::SignedCloud::fit_base_and_count_loose`]).
+    pub fit_cavities: usize,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
     /// Whether the clay's budget stopped the refinement short of the bound (see
@@ -380,7 +383,7 @@ pub fn fit_hierarchy(
     });
     times.record_with("base fit beside error samples' targets", started, beside);
     let started = Instant::now();
-    let (base, loose_pieces) = base?;
+    let (base, loose) = base?;
     let mut field = MultiPatchField::new(base);
     let data = Refinement {
         target: &density,
@@ -401,7 +404,8 @@ pub fn fit_hierarchy(
         signed_by: signed.signed_by,
         size: refined.size,
         rms_base: refined.rms_base,
-        loose_pieces,
+        loose_pieces: loose.pieces,
+        fit_cavities: loose.cavities,
         rms: refined.rms,
         levels: refined.levels,
         over_budget: refined.over_budget,

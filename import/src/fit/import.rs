@@ -653,6 +653,13 @@ fn fit_cloud(
             fit.loose_pieces
         ));
     }
+    if fit.fit_cavities > 0 {
+        note(format!(
+            "filled {} small cavities of the fit (closed off inside the clay, too small to be \
+             data)",
+            fit.fit_cavities
+        ));
+    }
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
          the {} points kept lie {:.3}% of the size from the surface on average, {:.3}% at most",
