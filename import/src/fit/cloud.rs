@@ -547,12 +547,6 @@ impl SignedCloud {
                     return (self.beyond_reach(x, fallback), 0.0);
                 }
                 let (weighted, weight) = planes();
-                if weight == 0.0 && self.flood_signs_beyond_reach {
-                    // Within the bound but beyond every point's own reach (each point's
-                    // kernel ends at its own bandwidth, the bound at the widest's): as far
-                    // beyond reach as a node past the bound.
-                    return (self.beyond_reach(x, fallback), 0.0);
-                }
                 (
                     (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
                     weight,
