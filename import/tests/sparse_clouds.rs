@@ -419,10 +419,13 @@ fn eared_ball() -> Vec<TriMesh> {
 /// Beside the ears, within the widest point's reach but beyond every point's own, the anchor's
 /// plane still signed and balls remained (a median of 1.99%, each seed's 0.95–4.39%); where
 /// it puts such a node inside and the flood found it outside, the node is now signed outside
-/// by its distance to the point.
+/// by its distance to the point (1.34%, 0.85–2.54%), and so is a node at the edge of the
+/// moving planes' reach ([`dynaclay_import::fit::cloud::EXTRAPOLATED_SPACINGS`]) with no far
+/// rim of a hole ahead.
 /// Every fit is one closed piece of genus 0, and over the seeds the median of the 99th
-/// percentile of how far the clay outside the shape lies from it is under 1.7% of the
-/// diagonal: 1.34% now (each seed's 0.85–2.54%); 2.98% with neither rule (0.94–6.67%).
+/// percentile of how far the clay outside the shape lies from it is under 1.2% of the
+/// diagonal: 1.06% now (each seed's 0.82–1.55%); 2.98% with none of the three rules
+/// (0.94–6.67%).
 #[test]
 fn a_sparse_scan_of_thin_ears_fits_without_balls_past_their_tips() {
     let parts = eared_ball();
@@ -512,7 +515,7 @@ fn a_sparse_scan_of_thin_ears_fits_without_balls_past_their_tips() {
     }
     let added = median(added_p99);
     assert!(
-        added < 1.7,
+        added < 1.2,
         "median over the seeds of the p99 of the clay outside the eared ball: {added:.3}%"
     );
 }

@@ -63,7 +63,13 @@
 //!    Where no point is within reach (over a hole, near the band's edge) the plane of the
 //!    nearest point's *anchor* (the point moved onto the smoothed surface) takes over, which
 //!    spans a hole's rim with the rim's smoothed tangent planes: the hole is closed by a
-//!    smooth cap that continues the surface around it (Hua & Qin Fig. 6).
+//!    smooth cap that continues the surface around it (Hua & Qin Fig. 6). On a closed cloud
+//!    sparser than the lattice reads, past a thin part's end (an ear's tip, a narrow face
+//!    sampled only along its edges) the planes run on through empty space; where they put a
+//!    node inside that the exterior holds, beyond their reach or at its edge
+//!    ([`EXTRAPOLATED_SPACINGS`]) and with no far rim of a hole ahead, the node is outside by
+//!    its distance to the nearest point
+//!    ([`SignedCloud::flood_outside_where_planes_extrapolate`]).
 //! 6. **Pieces.** The signed grid's enclosed pieces smaller than [`MIN_PIECE_FRACTION`] of the
 //!    largest that fewer than [`MIN_PIECE_POINTS`] points hold are turned outside, and its
 //!    enclosed cavities smaller than that fraction are filled: a blob or a bubble that size is
@@ -463,6 +469,18 @@ pub const KERNEL_SCALE: f32 = 2.0 / (MOVING_REACH * MOVING_REACH);
 /// The weight of the nearest point's plane beside the moving planes: it takes over only where
 /// no point lies within reach (over a hole, far from the cloud).
 const FALLBACK_WEIGHT: f32 = 1e-3;
+/// From this many typical point spacings of the nearest point on, a place is at the edge of the
+/// moving planes' reach, where they extrapolate: the typical point's plane reaches
+/// [`MOVING_REACH`] bandwidths of [`BANDWIDTH_SPACINGS`] (3 spacings) and weighs under a third
+/// of its peak here (Epanechnikov's kernel at 5/6 of its reach). There, on a closed sparse
+/// cloud, the flood signs ([`SignedCloud::flood_outside_where_planes_extrapolate`]).
+pub const EXTRAPOLATED_SPACINGS: f32 = 2.5;
+/// How far ahead of a place at the edge of the planes' reach the points of a hole's far rim
+/// are looked for, in its distance to the nearest point
+/// ([`SignedCloud::flood_outside_where_planes_extrapolate`]): a place a third of the way
+/// across a round hole has the far rim at twice that distance, a quarter of the way across at
+/// three times.
+pub const HOLE_ACROSS: f32 = 3.0;
 /// An enclosed piece (or cavity) of the signed grid smaller than this fraction of the largest
 /// piece is removed (filled): noise, not data; a piece only where fewer than
 /// [`MIN_PIECE_POINTS`] points hold it.
@@ -547,15 +565,13 @@ impl SignedCloud {
                     return (self.beyond_reach(x, fallback), 0.0);
                 }
                 let (weighted, weight) = planes();
-                if weight == 0.0
-                    && let Some(outside) = self.flood_outside_unreached(x, p, fallback)
+                let value = (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT);
+                if value < 0.0
+                    && let Some(outside) = self.flood_outside_where_planes_extrapolate(x, p, weight)
                 {
-                    return (outside, 0.0);
+                    return (outside, weight);
                 }
-                (
-                    (weighted + FALLBACK_WEIGHT * fallback) / (weight + FALLBACK_WEIGHT),
-                    weight,
-                )
+                (value, weight)
             }
             None if self.exterior[self.grid.nearest_node(x)] => (2.0 * self.width, 0.0),
             None => (-2.0 * self.width, 0.0),
@@ -575,25 +591,72 @@ impl SignedCloud {
         }
     }
 
-    /// Within the widest point's reach but beyond every point's own (each point's kernel ends
-    /// at its own bandwidth), where the plane of the nearest point `p`'s anchor gives
-    /// `fallback`: where that plane puts `x` inside while
-    /// [`SignedCloud::flood_signs_beyond_reach`] and the flooded exterior holds `x`, the
-    /// signed distance there, outside by the distance to `p` (no farther than a node beyond
-    /// the band); elsewhere `None`, and the plane signs.
+    /// Where the moving planes put `x` inside (the nearest point `p`'s anchor plane alone
+    /// where their total `weight` is 0) while [`SignedCloud::flood_signs_beyond_reach`] and the
+    /// flooded exterior holds `x`, and `x` lies at the edge of the planes' reach or beyond it
+    /// ([`EXTRAPOLATED_SPACINGS`] from `p`, or `weight` 0): the signed distance there, outside
+    /// by the distance to `p` (no farther than a node beyond the band). Elsewhere `None`, and
+    /// the planes sign.
     ///
-    /// NOTE: signing every such node of the exterior as far outside as a node beyond the band
-    /// took the balls past the bunny's ears away, but on a coarse lattice (a bumpy sphere of
+    /// Past the end of a thin part (an ear, a horn, a CAD part's narrow face sampled by its
+    /// edges alone) the planes of the points on its sides run on through empty space and put
+    /// the nodes on their inner side inside: the clay grew balls past the bunny's ears and a
+    /// bulge over the fandisk's narrow end faces at 1 000–2 000 points.
+    ///
+    /// NOTE: signing every node of the exterior with no plane in reach as far outside as a
+    /// node beyond the band took the balls away, but on a coarse lattice (a bumpy sphere of
     /// 6 000 points at 16³) the nodes next to the surface have no plane in reach either, and
-    /// their full width moved the surface (RMS 0.06% → 1.29% of the size). Where the plane
-    /// agrees with the flood it is kept, and where they disagree the distance to the point is
-    /// the size the plane's would have had (bench/RESULTS.md, "Beyond every point's own
-    /// reach").
-    fn flood_outside_unreached(&self, x: Vec3, p: usize, fallback: f32) -> Option<f32> {
-        (fallback < 0.0
-            && self.flood_signs_beyond_reach
-            && self.exterior[self.grid.nearest_node(x)])
-        .then(|| (x - self.points[p]).length().min(2.0 * self.width))
+    /// their full width moved the surface (RMS 0.06% → 1.29% of the size); where the planes
+    /// agree with the flood they are kept, and where they disagree the distance to the point
+    /// is the size the plane's would have had. Nearer the points than the edge of their reach
+    /// the flood is a poor judge: its exterior, rolled in with a ball the gap wide, dips into
+    /// a sparse cloud's holes: from two spacings on, spot at 1 000 points was dented (p99
+    /// 0.86% → 1.58% of the diagonal) and the bunny's ear pierced; from 2.5 on, a sphere of
+    /// 16 000 points with a fifth of its surface cut out in holes 0.12 wide came back dented
+    /// 2.9% of its size (`tests/fit_accuracy.rs`), until a place with the far rim of a hole
+    /// ahead ([`SignedCloud::points_ahead`]) was left to the planes (bench/RESULTS.md, "Where
+    /// the planes extrapolate, the flood signs").
+    fn flood_outside_where_planes_extrapolate(
+        &self,
+        x: Vec3,
+        p: usize,
+        weight: f32,
+    ) -> Option<f32> {
+        if !(self.flood_signs_beyond_reach && self.exterior[self.grid.nearest_node(x)]) {
+            return None;
+        }
+        let to_point = (x - self.points[p]).length();
+        let signs = weight == 0.0
+            || (to_point >= EXTRAPOLATED_SPACINGS * self.point_spacing
+                && !self.points_ahead(x, p, to_point));
+        signs.then(|| to_point.min(2.0 * self.width))
+    }
+
+    /// Whether, seen from `x` beside the nearest point `p` (`to_point` from it), points of
+    /// `p`'s side lie ahead: within [`HOLE_ACROSS`] times `to_point` of `x`, within 60° of
+    /// the way from `p` to `x` along `p`'s plane, their normals within 90° of `p`'s. Across a
+    /// hole in the sampling the points of the far rim lie ahead, and the surface runs on as
+    /// the planes extrapolate it; past a part's end none do. `true` where `x` lies along
+    /// `p`'s normal (no way along the plane).
+    fn points_ahead(&self, x: Vec3, p: usize, to_point: f32) -> bool {
+        let normal = self.normals[p];
+        let off = x - self.points[p];
+        let Some(ahead) = (off - off.dot(normal) * normal).try_normalize() else {
+            return true;
+        };
+        let radius = HOLE_ACROSS * to_point;
+        let mut found = false;
+        let mut visit = |i: usize, q: Vec3| {
+            let d = q - x;
+            found |= d.dot(ahead) >= 0.5 * d.length() && self.normals[i].dot(normal) > 0.0;
+        };
+        self.near_points
+            .typical
+            .for_each_near(x, radius, &mut visit);
+        if let Some(widened) = &self.near_points.widened {
+            widened.for_each_near(x, radius, &mut visit);
+        }
+        found
     }
 
     /// The point nearest `x` among the nearest points of the eight nodes around it.
@@ -2939,13 +3002,14 @@ pub const NORMAL_AGREEMENT: f32 = 0.5;
 /// thicker) and 50–100% at 0.25%.
 pub const OPEN_SHEET_SHARE: f32 = 0.01;
 /// The share of a sparse cloud's points on open sheets (as [`OPEN_SHEET_SHARE`] counts them)
-/// under which the flood signs the nodes beyond the moving planes' reach
-/// ([`SignedCloud::beyond_reach`]). A partial scan's open sheet has the outside on both sides
-/// of most of its points, and the flood cannot judge it: single views of the four bench
-/// models at 700–1 600 points have 17–100%. A closed sparse cloud shows some where the probe
-/// crosses a thin part: 0.2–0.7% on spot but 2.3–4.5% on the Stanford bunny's ears and 1–3%
-/// on the fandisk at 1 000–2 000 points (bench/RESULTS.md, "Past a thin part's end, the flood
-/// signs the nodes of closed clouds up to a tenth open").
+/// under which the flood signs the nodes beyond the moving planes' reach and at its edge
+/// ([`SignedCloud::beyond_reach`], [`SignedCloud::flood_outside_where_planes_extrapolate`]).
+/// A partial scan's open sheet has the outside on both sides of most of its points, and the
+/// flood cannot judge it: single views of the four bench models at 700–1 600 points have
+/// 17–100%. A closed sparse cloud shows some where the probe
+/// crosses a thin part: at 1 000–2 000 points 0.2–1.0% on spot, 0.3–1.4% on the rocker arm,
+/// 0.5–4.1% on the fandisk and 2.3–4.5% on the Stanford bunny's ears (bench/RESULTS.md, "Past
+/// a thin part's end, the flood signs the nodes of closed clouds up to a tenth open").
 ///
 /// NOTE: it was [`OPEN_SHEET_SHARE`] (1%), and the bunny's ears at 1 000–2 000 points grew
 /// balls past their tips (p99 4.9–5.3% of the diagonal).
