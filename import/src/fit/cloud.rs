@@ -611,9 +611,9 @@ impl SignedCloud {
     /// is the size the plane's would have had. Nearer the points than the edge of their reach
     /// the flood is a poor judge: its exterior, rolled in with a ball the gap wide, dips into
     /// a sparse cloud's holes: from two spacings on, spot at 1 000 points was dented (p99
-    /// 0.86% → 1.58% of the diagonal) and the bunny's ear pierced; from 2.5 on, a sphere of
-    /// 16 000 points with a fifth of its surface cut out in holes 0.12 wide came back dented
-    /// 2.9% of its size (`tests/fit_accuracy.rs`), until a place with the far rim of a hole
+    /// 0.86% → 1.58% of the diagonal) and a bunny at 1 000 points pierced (genus 1); from 2.5
+    /// on, a sphere of 16 000 points with a fifth of its surface cut out in holes of radius
+    /// 0.12 came back dented 2.9% of its size (`tests/fit_accuracy.rs`), until a place with the far rim of a hole
     /// ahead ([`SignedCloud::points_ahead`]) was left to the planes (bench/RESULTS.md, "Where
     /// the planes extrapolate, the flood signs").
     fn flood_outside_where_planes_extrapolate(
