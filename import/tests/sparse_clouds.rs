@@ -28,32 +28,12 @@ use dynaclay_import::fit::consensus::screen;
 use dynaclay_import::fit::mesh::{read_mesh, sample_triangles};
 use dynaclay_import::fit::{ImportSettings, ImportedFit, fit_import};
 use glam::Vec3;
-use support::{pieces, quantile_distance};
+use support::{Uniform, pieces, quantile_distance};
 
 /// The clouds sampled, one per seed.
 const SEEDS: u64 = 12;
 /// The clouds with strays sampled, one per seed.
 const STRAY_SEEDS: u64 = 40;
-
-/// A small seeded generator (a linear congruential step, the top 24 bits).
-struct Uniform(u64);
-
-impl Uniform {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    /// A standard normal deviate (Box–Muller).
-    fn normal(&mut self) -> f32 {
-        let u = self.next().max(1e-7);
-        let v = self.next();
-        (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
-    }
-}
 
 /// `count` points spread by area over the triangles, each with its triangle's normal and
 /// Gaussian noise of `noise` (absolute), as `x y z nx ny nz` lines.

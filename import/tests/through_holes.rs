@@ -16,8 +16,6 @@
 //! 0.94–1.18% now (bench/RESULTS.md, "A shut tunnel's walls oriented from its mouths"); the
 //! bar, 1.5%, is over the block's sharp edges, which a cloud without normals rounds.
 
-// Of the shared measures, this test reads the pieces alone.
-#[allow(dead_code)]
 mod support;
 
 use std::fmt::Write as _;
@@ -25,7 +23,7 @@ use std::fmt::Write as _;
 use dynaclay_core::mesh::{BrickOctree, SampleGrid};
 use dynaclay_import::fit::{ImportSettings, fit_import};
 use glam::Vec3;
-use support::pieces;
+use support::{Uniform, pieces};
 
 /// The block's half sides.
 const HALF: Vec3 = Vec3::new(1.0, 1.0, 0.5);
@@ -35,30 +33,6 @@ const HOLE_RADIUS: f32 = 0.15;
 const POINTS: usize = 4000;
 /// The clouds sampled, one per seed.
 const SEEDS: u64 = 6;
-
-/// A small seeded generator (a linear congruential step, the top 24 bits).
-struct Uniform(u64);
-
-impl Uniform {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        (self.0 >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    fn between(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.next()
-    }
-
-    /// A standard normal deviate (Box–Muller).
-    fn normal(&mut self) -> f32 {
-        let u = self.next().max(1e-7);
-        let v = self.next();
-        (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
-    }
-}
 
 /// The block's signed distance, positive outside: the box less the hole's cylinder (exact
 /// off the hole's rims, where it is a lower bound).

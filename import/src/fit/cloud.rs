@@ -93,6 +93,7 @@
 //! Hua & Qin §5 on top of it, fitted to the same [`SignedCloud::density`], with an error
 //! bound never below the noise level.
 
+use std::collections::BinaryHeap;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -3063,14 +3064,11 @@ fn orient_consistently(
     shows: impl Fn(Vec3, Vec3) -> i8,
     guess: impl Fn(Vec3, Vec3) -> f32,
 ) -> Orienting {
-    use std::collections::BinaryHeap;
     let points = neighbours.points;
     let count = points.len();
-    // A non-negative f32's bits order as the number does.
-    let key = |agreement: f32| agreement.max(0.0).to_bits();
     let mut piece_of = vec![u32::MAX; count];
     let mut best = vec![0u32; count];
-    let mut heap: BinaryHeap<(u32, u32, u32)> = BinaryHeap::new();
+    let mut heap = BinaryHeap::new();
     let mut pieces = 0u32;
     for seed in 0..count {
         if piece_of[seed] != u32::MAX {
@@ -3086,22 +3084,8 @@ fn orient_consistently(
             if normals[from as usize].dot(normals[j]) < 0.0 {
                 normals[j] = -normals[j];
             }
-            let (p, n) = (points[j], normals[j]);
-            neighbours.for_each(j, |q, at| {
-                if piece_of[q] != u32::MAX {
-                    return;
-                }
-                let d = at - p;
-                let across = n.dot(d);
-                if across * across > SAME_SURFACE_SINE * SAME_SURFACE_SINE * d.length_squared() {
-                    return;
-                }
-                let agreement = key(n.dot(normals[q]).abs());
-                if agreement > best[q] {
-                    best[q] = agreement;
-                    heap.push((agreement, q as u32, j as u32));
-                }
-            });
+            let reached = |q: usize| piece_of[q] != u32::MAX;
+            offer_same_surface_neighbours(neighbours, normals, j, reached, &mut best, &mut heap);
         }
         pieces += 1;
     }
@@ -3147,7 +3131,6 @@ fn orient_enclosed_by_neighbours(
     normals: &mut [Vec3],
     enclosed: impl Fn(Vec3, Vec3) -> bool,
 ) -> usize {
-    use std::collections::BinaryHeap;
     let points = neighbours.points;
     let is_enclosed: Vec<bool> = points
         .iter()
@@ -3157,35 +3140,12 @@ fn orient_enclosed_by_neighbours(
     if !is_enclosed.contains(&true) {
         return 0;
     }
-    // A non-negative f32's bits order as the number does.
-    let key = |agreement: f32| agreement.max(0.0).to_bits();
     let mut reached: Vec<bool> = is_enclosed.iter().map(|&e| !e).collect();
     let mut best = vec![0u32; points.len()];
-    let mut heap: BinaryHeap<(u32, u32, u32)> = BinaryHeap::new();
-    let offer = |j: usize,
-                 normals: &[Vec3],
-                 reached: &[bool],
-                 best: &mut [u32],
-                 heap: &mut BinaryHeap<(u32, u32, u32)>| {
-        let (p, n) = (points[j], normals[j]);
-        neighbours.for_each(j, |q, at| {
-            if reached[q] {
-                return;
-            }
-            let d = at - p;
-            let across = n.dot(d);
-            if across * across > SAME_SURFACE_SINE * SAME_SURFACE_SINE * d.length_squared() {
-                return;
-            }
-            let agreement = key(n.dot(normals[q]).abs());
-            if agreement > best[q] {
-                best[q] = agreement;
-                heap.push((agreement, q as u32, j as u32));
-            }
-        });
-    };
+    let mut heap = BinaryHeap::new();
     for j in (0..points.len()).filter(|&j| !is_enclosed[j]) {
-        offer(j, normals, &reached, &mut best, &mut heap);
+        let reached = |q: usize| reached[q];
+        offer_same_surface_neighbours(neighbours, normals, j, reached, &mut best, &mut heap);
     }
     let mut turned = 0;
     while let Some((_, q, from)) = heap.pop() {
@@ -3198,9 +3158,45 @@ fn orient_enclosed_by_neighbours(
             normals[q] = -normals[q];
             turned += 1;
         }
-        offer(q, normals, &reached, &mut best, &mut heap);
+        let reached = |k: usize| reached[k];
+        offer_same_surface_neighbours(neighbours, normals, q, reached, &mut best, &mut heap);
     }
     turned
+}
+
+/// The heap of a spanning tree over the points' surfaces: `(agreement, point, reached from)`,
+/// the most nearly parallel pair of normals on top.
+type TreeHeap = BinaryHeap<(u32, u32, u32)>;
+
+/// Offers `heap` each neighbour of point `j` on its surface (within [`SAME_SURFACE_SINE`] of
+/// its tangent plane) that the tree has not `reached`, keyed by how nearly parallel its
+/// normal is to `j`'s, where that beats the `best` offer made to it so far.
+fn offer_same_surface_neighbours(
+    neighbours: &Neighbours<'_>,
+    normals: &[Vec3],
+    j: usize,
+    reached: impl Fn(usize) -> bool,
+    best: &mut [u32],
+    heap: &mut TreeHeap,
+) {
+    // A non-negative f32's bits order as the number does.
+    let key = |agreement: f32| agreement.max(0.0).to_bits();
+    let (p, n) = (neighbours.points[j], normals[j]);
+    neighbours.for_each(j, |q, at| {
+        if reached(q) {
+            return;
+        }
+        let d = at - p;
+        let across = n.dot(d);
+        if across * across > SAME_SURFACE_SINE * SAME_SURFACE_SINE * d.length_squared() {
+            return;
+        }
+        let agreement = key(n.dot(normals[q]).abs());
+        if agreement > best[q] {
+            best[q] = agreement;
+            heap.push((agreement, q as u32, j as u32));
+        }
+    });
 }
 
 /// Points of an even subset, at most, that [`opposed_neighbours`] compares with their

@@ -1,5 +1,7 @@
-//! What the import's integration tests measure on a mesh: its pieces and genus, and how far
-//! points lie from it.
+//! What the import's integration tests measure on a mesh (its pieces and genus, and how far
+//! points lie from it), and the seeded generator they sample their clouds with. Each test
+//! crate uses some of these.
+#![allow(dead_code)]
 
 use std::collections::HashMap;
 
@@ -76,4 +78,29 @@ pub fn quantile_distance(points: &[Vec3], mesh: &TriMesh, q: f32) -> f32 {
         .collect();
     d.sort_by(f32::total_cmp);
     d[((d.len() - 1) as f32 * q).round() as usize]
+}
+
+/// A small seeded generator (a linear congruential step, the top 24 bits).
+pub struct Uniform(pub u64);
+
+impl Uniform {
+    pub fn next(&mut self) -> f32 {
+        self.0 = self
+            .0
+            .wrapping_mul(6_364_136_223_846_793_005)
+            .wrapping_add(1_442_695_040_888_963_407);
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    /// Uniform in `lo..hi`.
+    pub fn between(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.next()
+    }
+
+    /// A standard normal deviate (Box–Muller).
+    pub fn normal(&mut self) -> f32 {
+        let u = self.next().max(1e-7);
+        let v = self.next();
+        (-2.0 * u.ln()).sqrt() * (std::f32::consts::TAU * v).cos()
+    }
 }
