@@ -32,11 +32,13 @@
 //!    none; where more of the points that show a side of the exterior point in than out,
 //!    every normal is turned (the log says which). Estimated normals over open sheets (a
 //!    partial scan, the exterior on both sides of its points) are oriented by their
-//!    neighbours' ([`OPEN_SHEET_SHARE`]). A given normal that its neighbours overrule (they
-//!    agree among themselves and it lies over 60° from their mean: a stray kept near the
-//!    surface with a normal pointing anywhere) takes their mean direction (the log counts
-//!    them); then every normal is averaged over its neighbours with the moving planes'
-//!    Gaussian, so one noisy or flipped normal cannot turn the side of the surface.
+//!    neighbours' ([`OPEN_SHEET_SHARE`]), except on a sparse cloud under a tenth open (a
+//!    closed scan whose probes cross its thin parts), where each point keeps its own side.
+//!    A given normal that its neighbours overrule (they agree among themselves and it lies
+//!    over 60° from their mean: a stray kept near the surface with a normal pointing
+//!    anywhere) takes their mean direction (the log counts them); then every normal is
+//!    averaged over its neighbours with the moving planes' Gaussian, so one noisy or
+//!    flipped normal cannot turn the side of the surface.
 //! 5. **Moving planes.** Within the band, the signed distance is the Gaussian-weighted mean
 //!    of the distances to the neighbouring points' tangent planes, each weighted by its
 //!    confidence (an implicit moving least squares, Kolluri 2005): `Σ wᵢ dᵢ(x) / Σ wᵢ`,
@@ -1056,7 +1058,21 @@ pub fn sign_cloud(
             // Over an open sheet (a partial scan's) the exterior lies on both sides and each
             // point's side is a guess: there the normals are oriented by their neighbours'.
             let open = grid.open_sheet_points(&exterior, &points, &normals);
-            if open as f32 >= OPEN_SHEET_SHARE * points.len() as f32 {
+            // A sparse cloud under a tenth open ([`FLOOD_OPEN_SHEET_SHARE`]) is a closed
+            // scan whose probes cross its thin parts (ears, a fin, the wall beside a hole):
+            // each point's own side stands there, as on a dense closed scan.
+            //
+            // NOTE: the open sheets' tree oriented such clouds from 1% open, and it crossed
+            // from one face of a thin part to the other between points whose normals are
+            // parallel: 80 clouds of the four bench models at 1 000–2 000 points without
+            // normals came back with the right pieces and genus on 52, the fandisk at 1 000
+            // (seed 5) with genus 10 and a p99 of 6.95% of the diagonal. Each point's own side
+            // gives 60 right, p99 lower on 43 and higher on one (the rocker arm at 1 000, seed
+            // 4: 2.57 -> 4.05%, genus 1 -> 3); single views, 27-100% open, are untouched
+            // (bench/RESULTS.md, "A closed sparse scan's thin parts keep their own sides").
+            let closed_sparse =
+                sparse && (open as f32) < FLOOD_OPEN_SHEET_SHARE * points.len() as f32;
+            if open as f32 >= OPEN_SHEET_SHARE * points.len() as f32 && !closed_sparse {
                 let shows = |p: Vec3, n: Vec3| grid.side_shown(&exterior, p, n);
                 let mut orienting = orient_consistently(&neighbours, &mut normals, shows, side);
                 orienting.open_sheet_points = open;
@@ -3057,7 +3073,9 @@ pub struct Orienting {
 /// On a closed scan with 1% noise, the tree crosses thin parts (a bunny's ears) between
 /// points whose normals are parallel: the whole-piece vote turned the ear's far side in,
 /// which each point's own side had right, so the tree is grown only over open sheets
-/// ([`OPEN_SHEET_SHARE`]).
+/// ([`OPEN_SHEET_SHARE`]), and not on a sparse cloud under [`FLOOD_OPEN_SHEET_SHARE`] open,
+/// where a thin part's probes make the share (the same crossing, bench/RESULTS.md, "A closed
+/// sparse scan's thin parts keep their own sides").
 fn orient_consistently(
     neighbours: &Neighbours<'_>,
     normals: &mut [Vec3],
