@@ -3297,17 +3297,21 @@ fn quadric_scatter_at(neighbours: &Neighbours<'_>, normals: &[Vec3], i: usize) -
     let b = rhs;
     let mut a = m;
     let mut x = rhs;
+    // A pivot this small against the equations' largest diagonal entry leaves the quadric
+    // undetermined (the neighbours on a line, or all at one place).
+    let scale = (0..6).map(|k| m[k][k]).fold(0.0f64, f64::max);
     for col in 0..6 {
         let pivot = (col..6).max_by(|&r, &s| a[r][col].abs().total_cmp(&a[s][col].abs()))?;
-        if a[pivot][col].abs() < 1e-12 * a[col][col].abs().max(1e-300) {
+        if a[pivot][col].abs() <= 1e-12 * scale {
             return None;
         }
         a.swap(col, pivot);
         x.swap(col, pivot);
+        let pivot_row = a[col];
         for r in col + 1..6 {
-            let f = a[r][col] / a[col][col];
-            for c in col..6 {
-                a[r][c] -= f * a[col][c];
+            let f = a[r][col] / pivot_row[col];
+            for (entry, above) in a[r][col..].iter_mut().zip(&pivot_row[col..]) {
+                *entry -= f * above;
             }
             x[r] -= f * x[col];
         }
