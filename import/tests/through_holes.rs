@@ -134,3 +134,99 @@ fn a_sparse_cloud_of_a_block_without_normals_fits_with_its_narrow_hole_open() {
         "seeds {failures:?}: not one closed piece of genus 1 with its hole open, near the block"
     );
 }
+
+/// The drilled cylinder's radius, half height and hole radius (its axis the z axis).
+const CYLINDER: (f32, f32, f32) = (1.0, 1.0, 0.2);
+
+/// A point of the drilled cylinder's surface, spread by area: the two caps less the hole's
+/// disc, the side and the hole's wall.
+fn cylinder_point(uniform: &mut Uniform) -> Vec3 {
+    let (radius, half, hole) = CYLINDER;
+    let pi = std::f32::consts::PI;
+    let cap = pi * (radius * radius - hole * hole);
+    let side = 2.0 * pi * radius * 2.0 * half;
+    let wall = 2.0 * pi * hole * 2.0 * half;
+    let at = uniform.next() * (2.0 * cap + side + wall);
+    let around = uniform.between(0.0, 2.0 * pi);
+    if at < 2.0 * cap {
+        // Even in area over the annulus: the radius squared is uniform.
+        let r = uniform.between(hole * hole, radius * radius).sqrt();
+        let z = if at < cap { half } else { -half };
+        Vec3::new(r * around.cos(), r * around.sin(), z)
+    } else {
+        let r = if at < 2.0 * cap + side { radius } else { hole };
+        Vec3::new(
+            r * around.cos(),
+            r * around.sin(),
+            uniform.between(-half, half),
+        )
+    }
+}
+
+#[test]
+fn a_sparse_cloud_of_a_tall_drilled_cylinder_without_normals_keeps_the_outside_out() {
+    // A cylinder as tall as it is wide with a narrow hole along its axis, 1 000 points with
+    // noise of 0.25% of the diagonal and no normals, four seeds. The outside got in between
+    // the points of its side at the default gap and lay on both sides of 83-92% of them:
+    // they were oriented as an open sheet, in some 500 pieces, and the fit came back as a
+    // hollow shell (every place of its body outside) with genus 136-158. Closed again at the widest gap, the
+    // outside stays out: one closed piece whose body is clay all round (its genus is not
+    // yet right, 6-16: the hole's walls; bench/RESULTS.md, "The outside closed out of a
+    // sparse cloud without normals").
+    let (radius, half, _) = CYLINDER;
+    let sigma = 0.0025 * Vec3::new(2.0 * radius, 2.0 * radius, 2.0 * half).length();
+    let dir = tempfile::tempdir().unwrap();
+    let mut failures = Vec::new();
+    for seed in 1..=4u64 {
+        let mut uniform = Uniform(seed);
+        let mut text = String::new();
+        for _ in 0..1000 {
+            let p = cylinder_point(&mut uniform);
+            let jitter = Vec3::new(uniform.normal(), uniform.normal(), uniform.normal());
+            let p = p + jitter * sigma;
+            writeln!(text, "{} {} {}", p.x, p.y, p.z).unwrap();
+        }
+        let path = dir.path().join(format!("cylinder-{seed}.xyz"));
+        std::fs::write(&path, text).unwrap();
+        let fit = fit_import(
+            &path,
+            &ImportSettings::default(),
+            &mut |_| true,
+            &mut |_| {},
+        )
+        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
+        let grid = SampleGrid::for_field(&fit.field, 4).unwrap();
+        let fitted = BrickOctree::build(grid, &fit.field).weld();
+        let found = pieces(&fitted);
+        // The body: a ring of 8 × 5 places midway between the hole and the side; and the
+        // open space round it.
+        let inside = |p: Vec3| fit.field.value(fit.to_field(p)) > fit.field.iso();
+        let ring = |r: f32, z: f32| {
+            (0..8).map(move |k| {
+                let a = k as f32 * std::f32::consts::FRAC_PI_4;
+                Vec3::new(r * a.cos(), r * a.sin(), z)
+            })
+        };
+        let body_out = [-0.6f32, -0.3, 0.0, 0.3, 0.6]
+            .iter()
+            .flat_map(|&z| ring(0.6, z))
+            .filter(|&p| !inside(p))
+            .count();
+        let around_in = [-0.6f32, 0.0, 0.6]
+            .iter()
+            .flat_map(|&z| ring(1.3, z))
+            .filter(|&p| inside(p))
+            .count();
+        println!(
+            "seed {seed}: pieces {found:?}, body places outside {body_out} of 40, \
+             places round it inside {around_in} of 24"
+        );
+        if found.len() != 1 || !found[0].1 || body_out > 0 || around_in > 0 {
+            failures.push(seed);
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "seeds {failures:?}: not one closed piece with its body clay and the outside out"
+    );
+}
