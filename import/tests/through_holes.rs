@@ -169,10 +169,10 @@ fn a_sparse_cloud_of_a_tall_drilled_cylinder_without_normals_keeps_the_outside_o
     // noise of 0.25% of the diagonal and no normals, four seeds. The outside got in between
     // the points of its side at the default gap and lay on both sides of 83-92% of them:
     // they were oriented as an open sheet, in some 500 pieces, and the fit came back as a
-    // hollow shell (every place of its body outside) with genus 137-159. Closed again at the widest gap, the
-    // outside stays out: one closed piece whose body is clay all round (its genus is not
-    // yet right, 6-16: the hole's walls; bench/RESULTS.md, "The outside closed out of a
-    // sparse cloud without normals").
+    // hollow shell (every place of its body outside) with genus 137-159. Closed again at
+    // the widest gap, the outside stays out: one closed piece whose body is clay all round
+    // (its genus is not yet right, 6-16: the hole's walls; bench/RESULTS.md, "The outside
+    // closed out of a sparse cloud without normals").
     let (radius, half, _) = CYLINDER;
     let sigma = 0.0025 * Vec3::new(2.0 * radius, 2.0 * radius, 2.0 * half).length();
     let dir = tempfile::tempdir().unwrap();
