@@ -19,9 +19,10 @@
 mod support;
 
 use std::fmt::Write as _;
+use std::path::Path;
 
-use dynaclay_core::mesh::{BrickOctree, SampleGrid};
-use dynaclay_import::fit::{ImportSettings, fit_import};
+use dynaclay_core::mesh::{BrickOctree, SampleGrid, TriMesh};
+use dynaclay_import::fit::{ImportSettings, ImportedFit, fit_import};
 use glam::Vec3;
 use support::{Uniform, pieces};
 
@@ -76,6 +77,17 @@ fn surface_point(uniform: &mut Uniform) -> Vec3 {
     }
 }
 
+/// Writes `text` (a cloud's `x y z` lines) to `path`, imports it as `dynaclay import` does
+/// and meshes the fitted clay as `--mesh` does.
+fn import_and_mesh(path: &Path, text: &str) -> (ImportedFit, TriMesh) {
+    std::fs::write(path, text).unwrap();
+    let fit = fit_import(path, &ImportSettings::default(), &mut |_| true, &mut |_| {})
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let grid = SampleGrid::for_field(&fit.field, 4).unwrap();
+    let fitted = BrickOctree::build(grid, &fit.field).weld();
+    (fit, fitted)
+}
+
 /// [`POINTS`] points of the block with Gaussian noise of 0.25% of its diagonal, as `x y z`
 /// lines (no normals).
 fn block_cloud(seed: u64) -> String {
@@ -98,16 +110,7 @@ fn a_sparse_cloud_of_a_block_without_normals_fits_with_its_narrow_hole_open() {
     let mut failures = Vec::new();
     for seed in 1..=SEEDS {
         let path = dir.path().join(format!("block-{seed}.xyz"));
-        std::fs::write(&path, block_cloud(seed)).unwrap();
-        let fit = fit_import(
-            &path,
-            &ImportSettings::default(),
-            &mut |_| true,
-            &mut |_| {},
-        )
-        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
-        let grid = SampleGrid::for_field(&fit.field, 4).unwrap();
-        let fitted = BrickOctree::build(grid, &fit.field).weld();
+        let (fit, fitted) = import_and_mesh(&path, &block_cloud(seed));
         let found = pieces(&fitted);
         // Along the hole's axis, between its mouths, the clay is outside.
         let filled = (-8..=8)
@@ -187,16 +190,7 @@ fn a_sparse_cloud_of_a_tall_drilled_cylinder_without_normals_keeps_the_outside_o
             writeln!(text, "{} {} {}", p.x, p.y, p.z).unwrap();
         }
         let path = dir.path().join(format!("cylinder-{seed}.xyz"));
-        std::fs::write(&path, text).unwrap();
-        let fit = fit_import(
-            &path,
-            &ImportSettings::default(),
-            &mut |_| true,
-            &mut |_| {},
-        )
-        .unwrap_or_else(|e| panic!("seed {seed}: {e}"));
-        let grid = SampleGrid::for_field(&fit.field, 4).unwrap();
-        let fitted = BrickOctree::build(grid, &fit.field).weld();
+        let (fit, fitted) = import_and_mesh(&path, &text);
         let found = pieces(&fitted);
         // The body: a ring of 8 × 5 places midway between the hole and the side; and the
         // open space round it.
