@@ -579,16 +579,25 @@ fn fit_cloud(
     let mut fit = fit_hierarchy(cloud, &options, progress).map_err(|e| fit_error(path, e))?;
     times.record_with("fit", started, std::mem::take(&mut fit.times));
     let s = fit.screening;
+    let noise = match (s.noise_given, s.noise_off_quadrics) {
+        (true, _) => format!("noise {:.3}% of the size (given)", 100.0 * s.noise),
+        (false, None) => format!("noise {:.3}% of the size (estimated)", 100.0 * s.noise),
+        (false, Some(q)) => format!(
+            "noise {:.3}% of the size (estimated off quadrics; the lattice and the smoothing \
+             follow the neighbours' planes' scatter, {:.3}%, the curvature over the sparse \
+             cloud's wide neighbourhoods included)",
+            100.0 * q,
+            100.0 * s.noise
+        ),
+    };
     note(format!(
         "dropped {} isolated points and {} off the surface their neighbours agree on; turned \
-         {} normals to agree with their neighbours'; noise {:.3}% of the size ({}), points \
-         {:.3}% apart; base lattice {}³; smoothed over {:.3}%; error bound {:.3}%; removed {} \
-         small pieces, filled {} small cavities",
+         {} normals to agree with their neighbours'; {noise}, points {:.3}% apart; base \
+         lattice {}³; smoothed over {:.3}%; error bound {:.3}%; removed {} small pieces, \
+         filled {} small cavities",
         s.isolated,
         s.far,
         s.overruled_normals,
-        100.0 * s.noise,
-        if s.noise_given { "given" } else { "estimated" },
         100.0 * s.point_spacing,
         s.resolution,
         100.0 * s.bandwidth,

@@ -18,6 +18,7 @@ pub mod mesh;
 pub mod paint;
 pub mod point_file;
 pub mod points;
+mod quadric;
 pub mod regularised;
 pub mod sdf;
 pub mod sharpness;
