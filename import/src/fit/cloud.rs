@@ -4162,8 +4162,8 @@ mod tests {
         // points each with Gaussian noise: sparse enough that the screening widens its
         // radius, where a plane through the neighbours lies off the sphere by its sag and a
         // neighbourhood reaches round the cube's edges. The noise read off quadrics is the
-        // noise: 0.0049 and 0.0183 for the sphere's 0.005 and 0.02 (its neighbours' planes
-        // read 0.0096 for 0.005), 0.0043 and 0.0162 for the cube's.
+        // noise: 0.0049 and 0.0193 for the sphere's 0.005 and 0.02 (its neighbours' planes
+        // read 0.0096 for 0.005), 0.0043 and 0.0196 for the cube's.
         let mut gaussian = Gaussian(11);
         let sphere = sphere_cloud(1000, 1.0);
         let mut cube = Vec::new();

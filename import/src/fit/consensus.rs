@@ -597,8 +597,8 @@ pub struct Consensus {
     /// Whether [`Consensus::noise`] was given rather than estimated.
     pub noise_given: bool,
     /// Where the radius was widened for a sparse cloud and the noise is estimated: the
-    /// points' scatter off quadrics (the noise itself, see [`super::quadric`]), in the
-    /// points' units. [`Consensus::noise`], the neighbours' planes' scatter, then holds the
+    /// points' scatter off quadrics (the median RMS height of sampled points' neighbours off
+    /// the quadric height function fitted to them: the noise itself), in the points' units. [`Consensus::noise`], the neighbours' planes' scatter, then holds the
     /// surface's curvature over the radius too, and is what the fit smooths over.
     pub noise_off_quadrics: Option<f32>,
     /// The typical distance between neighbouring points, in the points' units.
@@ -881,7 +881,11 @@ fn scatter_off_quadrics(
             .step_by(stride)
             .filter_map(|i| {
                 let (plane, _) = planes[i].as_ref()?;
-                let mut heights = QuadricHeights::about(points[i], plane.normal);
+                let mut heights = QuadricHeights::about(
+                    points[i].as_dvec3(),
+                    plane.normal.as_dvec3().normalize(),
+                    f64::from(radius),
+                );
                 grid.for_each_near(points[i], radius, |j, q| {
                     let along = |(near, _): &(Plane, f32)| {
                         near.normal.dot(plane.normal).abs() >= QUADRIC_NORMALS_COSINE
@@ -890,7 +894,7 @@ fn scatter_off_quadrics(
                         heights.add(q);
                     }
                 });
-                heights.scatter()
+                heights.scatter().map(|scatter| scatter as f32)
             })
             .collect(),
     )

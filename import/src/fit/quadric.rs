@@ -6,10 +6,15 @@
 //! A plane through a sparse cloud's neighbours, over the wide radius it needs to hold a
 //! dozen of them, lies off the curved surface by its sag, and their scatter about it reads
 //! the curvature as noise; about the quadric it reads the noise alone (on a sphere of radius
-//! 1 sampled by 1 000 points, a noise of 0.005 reads 0.005, where the plane's sag is about
-//! 0.014).
+//! 1 sampled by 1 000 points, a noise of 0.005 reads 0.0049, where the planes read 0.0096).
+//! Where no quadric follows the points (an edge, a corner, a thin wall within the radius),
+//! the scatter is structured and larger.
+//!
+//! Read by the screening for a sparse cloud's noise
+//! ([`super::consensus::Consensus::noise_off_quadrics`]) and by the sharpness
+//! ([`super::sharpness`]), whose readings are this scatter over the noise.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// The fewest neighbours a quadric is fitted to: six parameters, and as many degrees of
 /// freedom left to read the scatter from.
@@ -19,9 +24,12 @@ pub(crate) const QUADRIC_FEWEST: usize = 9;
 /// neighbour at a time ([`QuadricHeights::add`]) and solved once ([`QuadricHeights::scatter`]).
 pub(crate) struct QuadricHeights {
     /// The point the heights are measured from.
-    origin: Vec3,
+    origin: DVec3,
     /// The tangent frame: two axes across the normal, and the normal.
-    axes: [Vec3; 3],
+    axes: [DVec3; 3],
+    /// The length the coordinates are measured in (a neighbourhood's radius), so that the
+    /// equations' entries are all of order one.
+    unit: f64,
     /// `Σ rowᵀ row` over the neighbours, `row = [u², uv, v², u, v, 1]`.
     gram: [[f64; 6]; 6],
     /// `Σ rowᵀ h`.
@@ -33,12 +41,14 @@ pub(crate) struct QuadricHeights {
 }
 
 impl QuadricHeights {
-    /// Heights measured along `normal` (unit length) from `origin`.
-    pub(crate) fn about(origin: Vec3, normal: Vec3) -> Self {
+    /// Heights measured along `normal` (unit length) from `origin`, in units of `unit` (the
+    /// neighbourhood's radius: positive and finite).
+    pub(crate) fn about(origin: DVec3, normal: DVec3, unit: f64) -> Self {
         let (u_axis, v_axis) = normal.any_orthonormal_pair();
         Self {
             origin,
             axes: [u_axis, v_axis, normal],
+            unit,
             gram: [[0.0; 6]; 6],
             rhs: [0.0; 6],
             heights_squared: 0.0,
@@ -48,8 +58,8 @@ impl QuadricHeights {
 
     /// Adds the neighbour at `at`.
     pub(crate) fn add(&mut self, at: Vec3) {
-        let d = at - self.origin;
-        let [u, v, h] = self.axes.map(|axis| f64::from(d.dot(axis)));
+        let d = (at.as_dvec3() - self.origin) / self.unit;
+        let [u, v, h] = self.axes.map(|axis| d.dot(axis));
         let row = [u * u, u * v, v * v, u, v, 1.0];
         for (r, gram_row) in self.gram.iter_mut().enumerate() {
             for (entry, c) in gram_row.iter_mut().zip(row) {
@@ -62,9 +72,10 @@ impl QuadricHeights {
     }
 
     /// The neighbours' root mean square height off their least-squares quadric, over
-    /// `count − 6` degrees of freedom; `None` with fewer than [`QUADRIC_FEWEST`] neighbours
-    /// or where they do not fix a quadric (all on a line, or at one place).
-    pub(crate) fn scatter(&self) -> Option<f32> {
+    /// `count − 6` degrees of freedom, in the points' units; `None` with fewer than
+    /// [`QUADRIC_FEWEST`] neighbours or where they do not fix a quadric (all on a line, or
+    /// at one place).
+    pub(crate) fn scatter(&self) -> Option<f64> {
         if self.count < QUADRIC_FEWEST {
             return None;
         }
@@ -100,7 +111,8 @@ impl QuadricHeights {
         }
         let explained: f64 = x.iter().zip(&self.rhs).map(|(x, b)| x * b).sum();
         let residual = (self.heights_squared - explained).max(0.0);
-        Some((residual / (self.count - 6) as f64).sqrt() as f32)
+        let scatter = (residual / (self.count - 6) as f64).sqrt() * self.unit;
+        scatter.is_finite().then_some(scatter)
     }
 }
 
@@ -120,7 +132,7 @@ mod tests {
     #[test]
     fn points_on_a_quadric_have_no_scatter_and_a_plane_needs_more_than_a_line() {
         // Heights exactly quadratic in the tangent plane (a saddle, tilted): no scatter.
-        let mut on_quadric = QuadricHeights::about(Vec3::ZERO, Vec3::Z);
+        let mut on_quadric = QuadricHeights::about(DVec3::ZERO, DVec3::Z, 0.5);
         for i in 0..5 {
             for j in 0..5 {
                 let (u, v) = (i as f32 * 0.1 - 0.2, j as f32 * 0.1 - 0.2);
@@ -134,13 +146,13 @@ mod tests {
         let scatter = on_quadric.scatter().expect("25 points fix a quadric");
         assert!(scatter < 1e-5, "scatter {scatter} off an exact quadric");
         // Points on a line leave the quadric undetermined.
-        let mut on_line = QuadricHeights::about(Vec3::ZERO, Vec3::Z);
+        let mut on_line = QuadricHeights::about(DVec3::ZERO, DVec3::Z, 0.5);
         for i in 0..20 {
             on_line.add(Vec3::new(i as f32 * 0.1, 0.0, 0.0));
         }
         assert_eq!(on_line.scatter(), None);
         // Too few neighbours: no reading.
-        let mut few = QuadricHeights::about(Vec3::ZERO, Vec3::Z);
+        let mut few = QuadricHeights::about(DVec3::ZERO, DVec3::Z, 0.5);
         for i in 0..QUADRIC_FEWEST - 1 {
             few.add(Vec3::new(i as f32 * 0.1, (i * i) as f32 * 0.05, 0.0));
         }

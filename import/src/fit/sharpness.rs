@@ -12,6 +12,7 @@
 //! radius's scale).
 
 use super::consensus::{PointGrid, least_variance_direction, parallel_map_by};
+use super::quadric::QuadricHeights;
 use glam::{DVec3, Vec3};
 
 /// Points whose neighbourhoods are read, at most (an even subset of the kept points): the
@@ -138,79 +139,14 @@ fn quadric_residual(at: Vec3, near: &[Vec3], radius: f32) -> Option<(f32, f32)> 
         }
     }
     let normal = least_variance_direction(cov).as_dvec3().try_normalize()?;
-    let across = normal.any_orthonormal_vector();
-    let along = normal.cross(across);
-    // Coordinates in radii: the normal matrix's entries are then all of order one.
-    let inverse_radius = 1.0 / f64::from(radius);
-    let local: Vec<([f64; 6], f64)> = near
-        .iter()
-        .map(|q| {
-            let d = (q.as_dvec3() - mean) * inverse_radius;
-            let (x, y, z) = (d.dot(across), d.dot(along), d.dot(normal));
-            ([x * x, x * y, y * y, x, y, 1.0], z)
-        })
-        .collect();
-    let mut normal_matrix = [[0.0f64; 6]; 6];
-    let mut right = [0.0f64; 6];
-    for (basis, z) in &local {
-        for (row, &ba) in normal_matrix.iter_mut().zip(basis) {
-            for (entry, &bb) in row.iter_mut().zip(basis) {
-                *entry += ba * bb;
-            }
-        }
-        for (r, &ba) in right.iter_mut().zip(basis) {
-            *r += ba * z;
-        }
+    let mut heights = QuadricHeights::about(mean, normal, f64::from(radius));
+    for &q in near {
+        heights.add(q);
     }
-    let coefficients = cholesky_solve(&cholesky(normal_matrix)?, right);
-    let squared: f64 = local
-        .iter()
-        .map(|(basis, z)| {
-            let fitted: f64 = basis.iter().zip(&coefficients).map(|(b, c)| b * c).sum();
-            (z - fitted).powi(2)
-        })
-        .sum();
-    let value = ((squared / (count - 6.0)).sqrt() / inverse_radius) as f32;
+    let value = heights.scatter()? as f32;
     let from = mean - at.as_dvec3();
-    let offset = ((from - normal * from.dot(normal)).length() * inverse_radius) as f32;
-    value.is_finite().then_some((value, offset))
-}
-
-/// The lower triangle `L` of the symmetric positive definite `m = L Lᵀ`; `None` where `m` is
-/// not (the points do not fix a quadric: too few, or on a line).
-fn cholesky(m: [[f64; 6]; 6]) -> Option<[[f64; 6]; 6]> {
-    let mut l = [[0.0f64; 6]; 6];
-    let scale = (0..6).map(|i| m[i][i]).fold(0.0f64, f64::max);
-    for i in 0..6 {
-        for j in 0..=i {
-            let sum: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
-            if i == j {
-                let pivot = m[i][i] - sum;
-                if pivot.is_nan() || pivot <= 1e-12 * scale {
-                    return None;
-                }
-                l[i][i] = pivot.sqrt();
-            } else {
-                l[i][j] = (m[i][j] - sum) / l[j][j];
-            }
-        }
-    }
-    Some(l)
-}
-
-/// `x` with `L Lᵀ x = b`, `L` from [`cholesky`].
-fn cholesky_solve(l: &[[f64; 6]; 6], b: [f64; 6]) -> [f64; 6] {
-    let mut y = [0.0f64; 6];
-    for i in 0..6 {
-        let sum: f64 = (0..i).map(|k| l[i][k] * y[k]).sum();
-        y[i] = (b[i] - sum) / l[i][i];
-    }
-    let mut x = [0.0f64; 6];
-    for i in (0..6).rev() {
-        let sum: f64 = (i + 1..6).map(|k| l[k][i] * x[k]).sum();
-        x[i] = (y[i] - sum) / l[i][i];
-    }
-    x
+    let offset = ((from - normal * from.dot(normal)).length() / f64::from(radius)) as f32;
+    Some((value, offset))
 }
 
 #[cfg(test)]
