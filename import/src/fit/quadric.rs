@@ -30,6 +30,8 @@ pub(crate) struct QuadricHeights {
     /// The length the coordinates are measured in (a neighbourhood's radius), so that the
     /// equations' entries are all of order one.
     unit: f64,
+    /// `1 / unit`.
+    per_unit: f64,
     /// `Σ rowᵀ row` over the neighbours, `row = [u², uv, v², u, v, 1]`.
     gram: [[f64; 6]; 6],
     /// `Σ rowᵀ h`.
@@ -49,6 +51,7 @@ impl QuadricHeights {
             origin,
             axes: [u_axis, v_axis, normal],
             unit,
+            per_unit: 1.0 / unit,
             gram: [[0.0; 6]; 6],
             rhs: [0.0; 6],
             heights_squared: 0.0,
@@ -58,7 +61,7 @@ impl QuadricHeights {
 
     /// Adds the neighbour at `at`.
     pub(crate) fn add(&mut self, at: Vec3) {
-        let d = (at.as_dvec3() - self.origin) / self.unit;
+        let d = (at.as_dvec3() - self.origin) * self.per_unit;
         let [u, v, h] = self.axes.map(|axis| d.dot(axis));
         let row = [u * u, u * v, v * v, u, v, 1.0];
         for (r, gram_row) in self.gram.iter_mut().enumerate() {
