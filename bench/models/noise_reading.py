@@ -16,6 +16,7 @@ import re
 import statistics
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 
@@ -39,20 +40,24 @@ def true_sigma(cloud):
 READING = re.compile(r"noise ([\d.]+)% of the size \(estimated off quadrics; "
                      r"[^,]*, ([\d.]+)%")
 quadrics, planes, without = [], [], []
-for cloud in clouds:
-    run = subprocess.run([binary, 'import', cloud, '--out', '/tmp/noise_reading.dclay'],
-                         capture_output=True, text=True)
-    if run.returncode != 0:
-        sys.exit(f"{cloud}: dynaclay import failed:\n{run.stderr}")
-    found = READING.search(run.stdout + run.stderr)
-    if not found:
-        without.append(cloud)
-        continue
-    points = np.loadtxt(cloud, usecols=(0, 1, 2))
-    true_percent = 100 * true_sigma(cloud) / (points.max(0) - points.min(0)).max()
-    quadrics.append(float(found.group(1)) / true_percent)
-    planes.append(float(found.group(2)) / true_percent)
-    print(f"{cloud} quadrics {quadrics[-1]:.2f} planes {planes[-1]:.2f}")
+# The sessions the imports write go to a folder of their own, removed at the end: nothing
+# outside it is written or replaced.
+with tempfile.TemporaryDirectory(prefix='noise_reading_') as scratch:
+    session = os.path.join(scratch, 'reading.dclay')
+    for cloud in clouds:
+        run = subprocess.run([binary, 'import', cloud, '--out', session],
+                             capture_output=True, text=True)
+        if run.returncode != 0:
+            sys.exit(f"{cloud}: dynaclay import failed:\n{run.stderr}")
+        found = READING.search(run.stdout + run.stderr)
+        if not found:
+            without.append(cloud)
+            continue
+        points = np.loadtxt(cloud, usecols=(0, 1, 2))
+        true_percent = 100 * true_sigma(cloud) / (points.max(0) - points.min(0)).max()
+        quadrics.append(float(found.group(1)) / true_percent)
+        planes.append(float(found.group(2)) / true_percent)
+        print(f"{cloud} quadrics {quadrics[-1]:.2f} planes {planes[-1]:.2f}")
 if quadrics:
     for name, ratios in (('quadrics', quadrics), ('planes', planes)):
         print(f"{name}: {len(ratios)} clouds, {min(ratios):.2f}-{max(ratios):.2f} times the "
