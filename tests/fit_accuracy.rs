@@ -395,6 +395,7 @@ fn an_analytic_density_volume_fits_within_one_voxel_both_ways() {
         rms: 0.0,
         loose_pieces: 0,
         fit_cavities: 0,
+        fit_holes: 0,
         levels: Vec::new(),
         over_budget: false,
         screening: Default::default(),

@@ -45,6 +45,7 @@ use glam::{Affine3A, Vec3};
 
 use super::cloud::{CloudFitError, CloudFitOptions, Screening, SignedBy, sign_cloud};
 use super::consensus::parallel_map;
+use super::handles::Solid;
 use super::points::PointCloud;
 use super::stage_times::{StageTime, StageTimes};
 use dynaclay_core::field::{
@@ -210,6 +211,9 @@ pub struct HierarchicalFit {
     /// Small cavities of the base's first fit filled (see
     /// [`super::cloud::SignedCloud::fit_base_and_count_loose`]).
     pub fit_cavities: usize,
+    /// Small holes through thin walls of a sparse cloud's base fit filled (see
+    /// [`super::cloud::SignedCloud::fit_base_and_count_loose`]).
+    pub fit_holes: usize,
     /// Per depth: nodes checked and refined.
     pub levels: Vec<LevelReport>,
     /// Whether the clay's budget stopped the refinement short of the bound (see
@@ -406,6 +410,7 @@ pub fn fit_hierarchy(
         rms_base: refined.rms_base,
         loose_pieces: loose.pieces,
         fit_cavities: loose.cavities,
+        fit_holes: loose.holes,
         rms: refined.rms,
         levels: refined.levels,
         over_budget: refined.over_budget,
@@ -619,59 +624,14 @@ fn changes_topology_unsupported(
     let before_values = parallel_map(count, |i| field.value(centre(i)));
     let before: Vec<bool> = before_values.iter().map(|&v| v > iso).collect();
     let after: Vec<bool> = parallel_map(count, |i| before_values[i] + patch.value(centre(i)) > iso);
-    let chi_before = voxel_euler_characteristic(&before, n);
-    let chi_after = voxel_euler_characteristic(&after, n);
+    let chi = |inside: &[bool]| Solid::new(n, |i| inside[i]).euler_characteristic();
+    let chi_before = chi(&before);
+    let chi_after = chi(&after);
     if chi_after == chi_before {
         return false;
     }
     let by_data: Vec<bool> = parallel_map(count, |i| target(centre(i)) > iso);
-    chi_after != voxel_euler_characteristic(&by_data, n)
-}
-
-/// The Euler characteristic `V − E + F − C` of the union of the closed unit cubes of the voxels
-/// marked in `inside` (`n[0] × n[1] × n[2]`, x fastest): a vertex, an edge or a face counts
-/// once if any voxel that shares it is inside.
-fn voxel_euler_characteristic(inside: &[bool], n: [usize; 3]) -> i64 {
-    let [nx, ny, nz] = n.map(|v| v as i64);
-    let voxel = |x: i64, y: i64, z: i64| {
-        x >= 0
-            && y >= 0
-            && z >= 0
-            && x < nx
-            && y < ny
-            && z < nz
-            && inside[(x + nx * (y + ny * z)) as usize]
-    };
-    // Whether any voxel of the 2 × 2 × 2 block with low corner `(x, y, z)`, restricted to the
-    // axes in `span` (the others fixed at their upper voxel), is inside.
-    let any = |x: i64, y: i64, z: i64, span: [bool; 3]| {
-        let range = |s: bool| if s { 0..=1 } else { 1..=1 };
-        range(span[0]).any(|dx| {
-            range(span[1])
-                .any(|dy| range(span[2]).any(|dz| voxel(x - 1 + dx, y - 1 + dy, z - 1 + dz)))
-        })
-    };
-    let mut chi = 0i64;
-    for z in 0..=nz {
-        for y in 0..=ny {
-            for x in 0..=nx {
-                // The lattice point (x, y, z) is the low corner of voxel (x, y, z); it, the
-                // three edges and three faces that start at it, and the voxel, each count once.
-                chi += i64::from(any(x, y, z, [true, true, true]));
-                // Edges along x, y, z from this point: shared by the voxels around them in
-                // the other two axes.
-                chi -= i64::from(any(x, y, z, [false, true, true]));
-                chi -= i64::from(any(x, y, z, [true, false, true]));
-                chi -= i64::from(any(x, y, z, [true, true, false]));
-                // Faces normal to x, y, z at this point: shared by the voxels on either side.
-                chi += i64::from(any(x, y, z, [true, false, false]));
-                chi += i64::from(any(x, y, z, [false, true, false]));
-                chi += i64::from(any(x, y, z, [false, false, true]));
-                chi -= i64::from(voxel(x, y, z));
-            }
-        }
-    }
-    chi
+    chi_after != chi(&by_data)
 }
 
 /// Refuses an error bound that is not positive and finite, or a depth over [`MAX_DEPTH`].
@@ -803,46 +763,6 @@ mod tests {
     }
 
     /// Voxels of an `n³` grid inside where `keep(x, y, z)` holds.
-    fn voxels(n: usize, keep: impl Fn(usize, usize, usize) -> bool) -> Vec<bool> {
-        (0..n * n * n)
-            .map(|i| keep(i % n, (i / n) % n, i / (n * n)))
-            .collect()
-    }
-
-    #[test]
-    fn the_voxel_euler_characteristic_counts_pieces_handles_and_cavities() {
-        let chi = |n: usize, keep: &dyn Fn(usize, usize, usize) -> bool| {
-            voxel_euler_characteristic(&voxels(n, keep), [n; 3])
-        };
-        assert_eq!(chi(4, &|_, _, _| false), 0, "empty");
-        assert_eq!(chi(4, &|x, y, z| (x, y, z) == (1, 1, 1)), 1, "one voxel");
-        assert_eq!(chi(4, &|_, _, _| true), 1, "a solid block");
-        assert_eq!(
-            chi(5, &|x, y, z| y == 2 && z == 2 && x != 2),
-            2,
-            "two pieces"
-        );
-        // Two voxels that share only a corner are one piece.
-        assert_eq!(
-            chi(4, &|x, y, z| (x, y, z) == (1, 1, 1)
-                || (x, y, z) == (2, 2, 2)),
-            1
-        );
-        // A square ring, one voxel thick: one piece with one handle.
-        let ring = |x: usize, y: usize, z: usize| {
-            z == 1 && (1..=3).contains(&x) && (1..=3).contains(&y) && (x, y) != (2, 2)
-        };
-        assert_eq!(chi(5, &ring), 0, "a ring");
-        // A hollow cube: one piece enclosing one cavity.
-        let shell = |x: usize, y: usize, z: usize| {
-            (1..=3).contains(&x)
-                && (1..=3).contains(&y)
-                && (1..=3).contains(&z)
-                && (x, y, z) != (2, 2, 2)
-        };
-        assert_eq!(chi(5, &shell), 2, "a shell");
-    }
-
     /// A bound the rounded box's base fit does not meet on any node of depth 1 (they read
     /// 1.07–1.24 times it), so these tests see detail patches made.
     ///

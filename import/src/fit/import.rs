@@ -669,6 +669,13 @@ fn fit_cloud(
             fit.fit_cavities
         ));
     }
+    if fit.fit_holes > 0 {
+        note(format!(
+            "closed {} small holes of the fit (tunnels through thin walls, under about two knot \
+             spans across, that no point holds open)",
+            fit.fit_holes
+        ));
+    }
     note(format!(
         "signed by {}; {} patches; RMS error {:.3}% of the size ({:.3}% with the base alone); \
          the {} points kept lie {:.3}% of the size from the surface on average, {:.3}% at most",

@@ -10,6 +10,7 @@
 pub mod cloud;
 pub mod consensus;
 mod disjoint_sets;
+pub mod handles;
 pub mod hierarchy;
 pub mod holes;
 pub mod import;
