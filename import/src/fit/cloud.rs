@@ -798,7 +798,12 @@ impl SignedCloud {
                 found
             };
         let mut found = take_out_loose(&mut lattice, &mut targets, &self.node_confidence);
-        if self.sparse {
+        let hole_samples: usize = lattice
+            .dims
+            .iter()
+            .map(|&n| (n - 1) * HOLE_SAMPLES_PER_SPAN + 1)
+            .product();
+        if self.sparse && hole_samples <= HOLE_MOST_SAMPLES {
             // The small holes through thin walls, filled with clay held as surely as a point
             // holds its own, and the clay fitted again: kept where that took handles away and
             // joined or split no piece, until a round finds no hole or none is left. A cavity
@@ -1717,6 +1722,12 @@ pub const HOLE_SAMPLES_PER_SPAN: usize = 4;
 /// whose fit had handles the models lack; three quarters 14, a whole span all 18
 /// (bench/RESULTS.md, "Small holes of a sparse fit closed").
 pub const HOLE_CLOSING_RADIUS: usize = 4;
+
+/// The most samples of the hole grid ([`HOLE_SAMPLES_PER_SPAN`] per span over the lattice):
+/// a finer clay (`--resolution` over 53 knots) is not searched for small holes, so the
+/// search's grid (about 40 bytes a sample at its peak) stays under some 340 MB. The default
+/// resolutions reach 48 knots, 6.8 M samples.
+const HOLE_MOST_SAMPLES: usize = 1 << 23;
 
 /// How deep inside the filled holes' nodes are set, in widths of the density profile.
 const HOLE_FILL_DEPTH: f32 = 0.5;
