@@ -16,7 +16,11 @@
 //!
 //! The solid is the union of closed unit cubes, one per voxel inside: two voxels that share a
 //! corner are one piece (26-connected), and the outside is connected through faces
-//! (6-connected), the pairing under which `χ = pieces − handles + cavities`.
+//! (6-connected), the pairing under which `χ = pieces − handles + cavities`. A solid can be
+//! read the other way ([`InsideJoins::Faces`]: the inside through faces, the outside through
+//! corners), as the clay's meshes are (their ambiguous faces keep diagonally touching inside
+//! samples apart, `dynaclay_core::mesh::tables`): its topology is then its complement's read
+//! through corners (pieces and cavities swapped, the handles the same: Alexander duality).
 
 /// Pieces, handles and cavities of a voxel solid.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -49,12 +53,24 @@ impl HoleFill {
     }
 }
 
+/// How the voxels inside a [`Solid`] join into pieces; the outside joins the other way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InsideJoins {
+    /// Voxels inside that share a corner are one piece; the outside joins through faces.
+    Corners,
+    /// Voxels inside join only through a shared face; the outside joins through corners, as
+    /// in the clay's meshes, where two samples inside that touch diagonally are kept apart.
+    Faces,
+}
+
 /// A voxel solid: `dims` voxels (x fastest), inside or not, stored with one layer of outside
 /// voxels around them so that every corner's eight voxels can be read without a bounds check.
 pub struct Solid {
     dims: [usize; 3],
     /// `(dims + 2)` voxels per axis, x fastest; 1 inside, 0 outside.
     padded: Vec<u8>,
+    /// How the voxels inside join.
+    joins: InsideJoins,
 }
 
 /// Per configuration of the eight voxels around a lattice corner (bit `dx + 2 dy + 4 dz` for
@@ -147,9 +163,17 @@ fn neighbour_offsets(faces_only: bool) -> Vec<[i64; 3]> {
 }
 
 impl Solid {
-    /// The solid of the `dims` voxels (x fastest) for which `inside` holds.
+    /// The solid of the `dims` voxels (x fastest) for which `inside` holds, its voxels
+    /// inside joined through corners.
     #[must_use]
     pub fn new(dims: [usize; 3], inside: impl Fn(usize) -> bool) -> Self {
+        Self::joined(dims, InsideJoins::Corners, inside)
+    }
+
+    /// The solid of the `dims` voxels (x fastest) for which `inside` holds, its voxels
+    /// inside joined as `joins` says.
+    #[must_use]
+    pub fn joined(dims: [usize; 3], joins: InsideJoins, inside: impl Fn(usize) -> bool) -> Self {
         let [px, py, pz] = dims.map(|n| n + 2);
         let mut padded = vec![0u8; px * py * pz];
         let mut at = 0;
@@ -162,7 +186,11 @@ impl Solid {
                 }
             }
         }
-        Self { dims, padded }
+        Self {
+            dims,
+            padded,
+            joins,
+        }
     }
 
     /// The padded index of voxel `(x, y, z)` (each from −1 to `dims`).
@@ -188,8 +216,10 @@ impl Solid {
     }
 
     /// `V − E + F − C` of the cells whose low corners are the lattice corners `lo ..= hi`
-    /// (corner `c` is the low corner of voxel `c`; corners run from 0 to `dims`).
-    fn euler_over(&self, lo: [usize; 3], hi: [usize; 3]) -> i64 {
+    /// (corner `c` is the low corner of voxel `c`; corners run from 0 to `dims`), of the
+    /// closed cubes of the voxels inside, or of those outside where `complement`.
+    fn euler_over(&self, lo: [usize; 3], hi: [usize; 3], complement: bool) -> i64 {
+        let flip = if complement { 255 } else { 0 };
         let [px, py, _] = self.dims.map(|n| n + 2);
         let plane = px * py;
         let mut chi = 0i64;
@@ -206,7 +236,7 @@ impl Solid {
                             | usize::from(self.padded[row + x + 1]) << 1;
                         config |= bits << (2 * r);
                     }
-                    chi += i64::from(EULER_SHARES[config]);
+                    chi += i64::from(EULER_SHARES[config ^ flip]);
                 }
             }
         }
@@ -214,15 +244,40 @@ impl Solid {
     }
 
     /// The Euler characteristic `V − E + F − C` of the union of the closed unit cubes of the
-    /// voxels inside.
+    /// voxels inside (the solid's through corners, however its voxels join).
     #[must_use]
     pub fn euler_characteristic(&self) -> i64 {
-        self.euler_over([0; 3], self.dims)
+        self.euler_over([0; 3], self.dims, false)
     }
 
-    /// The pieces, handles and cavities of the solid.
+    /// The change in the solid's Euler characteristic over the corners `lo ..= hi` (see
+    /// [`Solid::euler_over`]) as its voxels join: read off the outside's closed cubes where
+    /// the inside joins through faces, whose characteristic is the complement's less one.
+    /// Only differences of two such counts mean anything.
+    fn euler_share_over(&self, lo: [usize; 3], hi: [usize; 3]) -> i64 {
+        self.euler_over(lo, hi, self.joins == InsideJoins::Faces)
+    }
+
+    /// The pieces, handles and cavities of the solid, its voxels inside joined as it says.
     #[must_use]
     pub fn topology(&self) -> VoxelTopology {
+        match self.joins {
+            InsideJoins::Corners => self.topology_through_corners(),
+            InsideJoins::Faces => {
+                // The complement over the padded grid, padded again, read through corners.
+                let complement = Solid::new(self.dims.map(|n| n + 2), |at| self.padded[at] == 0);
+                let dual = complement.topology_through_corners();
+                VoxelTopology {
+                    pieces: dual.cavities,
+                    handles: dual.handles,
+                    cavities: dual.pieces.saturating_sub(1),
+                }
+            }
+        }
+    }
+
+    /// [`Solid::topology`] with the voxels inside joined through corners.
+    fn topology_through_corners(&self) -> VoxelTopology {
         let pieces = self.count_components(true);
         // The padding joins every outside voxel on the grid's border into one component.
         let cavities = self.count_components(false).saturating_sub(1);
@@ -264,6 +319,63 @@ impl Solid {
                 .collect();
             flood_count(&walled, 0, &steps)
         }
+    }
+
+    /// The voxels outside that the outside through the padding does not reach (the
+    /// cavities' voxels, the outside joined as the solid says: through faces where the inside
+    /// joins through corners, through corners where it joins through faces), x fastest over
+    /// the solid's voxels.
+    #[must_use]
+    pub fn cavity_voxels(&self) -> Vec<usize> {
+        // Flooded in a copy with one more layer, a wall the flood does not enter, from the
+        // padding's first voxel.
+        let [px, py, pz] = self.dims.map(|n| n + 2);
+        let [wx, wy, wz] = [px + 2, py + 2, pz + 2];
+        let mut walled = vec![WALL; wx * wy * wz];
+        for z in 0..pz {
+            for y in 0..py {
+                let from = px * (y + py * z);
+                let to = 1 + wx * (y + 1 + wy * (z + 1));
+                walled[to..to + px].copy_from_slice(&self.padded[from..from + px]);
+            }
+        }
+        let steps: Vec<isize> = neighbour_offsets(self.joins == InsideJoins::Corners)
+            .iter()
+            .map(|o| (o[0] + wx as i64 * (o[1] + wy as i64 * o[2])) as isize)
+            .collect();
+        let start = 1 + wx * (1 + wy);
+        let mut reached = vec![false; walled.len()];
+        reached[start] = true;
+        let mut stack = vec![start];
+        while let Some(at) = stack.pop() {
+            for &step in &steps {
+                let next = at.wrapping_add_signed(step);
+                if walled[next] == 0 && !reached[next] {
+                    reached[next] = true;
+                    stack.push(next);
+                }
+            }
+        }
+        let mut cavities = Vec::new();
+        let mut at = 0;
+        for z in 0..self.dims[2] {
+            for y in 0..self.dims[1] {
+                let row = 2 + wx * (y + 2 + wy * (z + 2));
+                for x in 0..self.dims[0] {
+                    if walled[row + x] == 0 && !reached[row + x] {
+                        cavities.push(at);
+                    }
+                    at += 1;
+                }
+            }
+        }
+        cavities
+    }
+
+    /// How many voxels are inside.
+    #[must_use]
+    pub fn inside_count(&self) -> usize {
+        self.padded.iter().filter(|&&v| v != 0).count()
     }
 
     /// The set `from` (padded indices marked 1) grown by the ball of `offsets`: each marked
@@ -313,10 +425,11 @@ impl Solid {
     }
 
     /// Whether the voxel inside at padded index `at` (not on the padding) is simple: taking
-    /// it out changes no piece, handle or cavity. It is where the voxels inside around it
-    /// are one piece (through corners) and the outside voxels that share a face or an edge
-    /// with it, connected through faces among themselves, are one component that reaches
-    /// it through a face.
+    /// it out changes no piece, handle or cavity. Where the inside joins through corners, it
+    /// is where the voxels inside around it are one piece (through corners) and the outside
+    /// voxels that share a face or an edge with it, connected through faces among themselves,
+    /// are one component that reaches it through a face; where the inside joins through
+    /// faces, the same with the inside and the outside swapped.
     fn is_simple(&self, at: usize) -> bool {
         let around = self.neighbourhood(at);
         let offset = |k: usize| [k % 3, (k / 3) % 3, k / 9].map(|v| v as i64 - 1);
@@ -349,24 +462,31 @@ impl Solid {
             count
         };
         let all: Vec<usize> = (0..27).filter(|&k| k != 13).collect();
-        let inside = |k: usize| k != 13 && around[k] != 0;
-        if components(&inside, false, &all) != 1 {
-            return false;
-        }
-        // The outside among the 18 that share a face or an edge, seeded from the six faces.
         let within_18 = |k: usize| {
             let o = offset(k);
             let steps = o[0].abs() + o[1].abs() + o[2].abs();
             (1..=2).contains(&steps)
         };
-        let outside = |k: usize| within_18(k) && around[k] == 0;
         let faces: Vec<usize> = (0..27)
             .filter(|&k| {
                 let o = offset(k);
                 o[0].abs() + o[1].abs() + o[2].abs() == 1
             })
             .collect();
-        components(&outside, true, &faces) == 1
+        // The side that joins through corners is one piece among all 26; the side that joins
+        // through faces, among the 18 that share a face or an edge and seeded from the six
+        // faces, one component.
+        let (through_corners, through_faces): (&dyn Fn(usize) -> bool, &dyn Fn(usize) -> bool) =
+            match self.joins {
+                InsideJoins::Corners => (&|k: usize| k != 13 && around[k] != 0, &|k: usize| {
+                    within_18(k) && around[k] == 0
+                }),
+                InsideJoins::Faces => (&|k: usize| k != 13 && around[k] == 0, &|k: usize| {
+                    within_18(k) && around[k] != 0
+                }),
+            };
+        components(through_corners, false, &all) == 1
+            && components(through_faces, true, &faces) == 1
     }
 
     /// Takes out of the solid, round by round, each voxel of `run` (padded indices, inside)
@@ -467,9 +587,9 @@ impl Solid {
                     hi[a] = hi[a].max(c[a] as usize + 1);
                 }
             }
-            let chi_before = self.euler_over(lo, hi);
+            let chi_before = self.euler_share_over(lo, hi);
             run.iter().for_each(|&at| self.padded[at] = 1);
-            let chi_after = self.euler_over(lo, hi);
+            let chi_after = self.euler_share_over(lo, hi);
             // A hole filled raises χ by one; a run that changes nothing is passed over
             // without counting the grid again.
             let after = if chi_after > chi_before {
@@ -659,6 +779,99 @@ mod tests {
         let left = run.iter().filter(|&&at| plugged.padded[at] != 0).count();
         assert_eq!(left, 1);
         assert_eq!(plugged.topology().handles, 0);
+    }
+
+    /// A plate four voxels thick (z = 4 ..= 7) about (10, 10) of a 20³ grid with a pinhole:
+    /// a well two deep from below at (10, 10) and one from above at (11, 11), touching only at
+    /// a corner.
+    fn pinholed_plate(joins: InsideJoins) -> Solid {
+        Solid::joined([20; 3], joins, |at| {
+            let (x, y, z) = ((at % 20) as i64, ((at / 20) % 20) as i64, (at / 400) as i64);
+            let on_plate = (4..=7).contains(&z) && (x - 10).abs() <= 4 && (y - 10).abs() <= 4;
+            let well = ((x, y) == (10, 10) && z <= 5) || ((x, y) == (11, 11) && z >= 6);
+            on_plate && !well
+        })
+    }
+
+    #[test]
+    fn a_solid_read_as_its_mesh_keeps_voxels_that_touch_diagonally_apart() {
+        // Two voxels that share a corner: one piece through corners, two through faces.
+        let corner = |joins| {
+            Solid::joined([6; 3], joins, |at| at == 1 + 6 + 36 || at == 2 + 12 + 72).topology()
+        };
+        assert_eq!(corner(InsideJoins::Corners).pieces, 1);
+        assert_eq!(
+            corner(InsideJoins::Faces),
+            VoxelTopology {
+                pieces: 2,
+                handles: 0,
+                cavities: 0
+            }
+        );
+        // The pinhole: the outside passes only through a corner, so the plate has no hole
+        // through corners and one through faces, as its mesh shows it.
+        assert_eq!(pinholed_plate(InsideJoins::Corners).topology().handles, 0);
+        assert_eq!(
+            pinholed_plate(InsideJoins::Faces).topology(),
+            VoxelTopology {
+                pieces: 1,
+                handles: 1,
+                cavities: 0
+            }
+        );
+        // The hollow box and the ring read the same either way.
+        let shell = Solid::joined([10; 3], InsideJoins::Faces, |at| {
+            let [x, y, z] = [at % 10, (at / 10) % 10, at / 100];
+            let inner = |v: usize| (3..=6).contains(&v);
+            let outer = |v: usize| (2..=7).contains(&v);
+            outer(x) && outer(y) && outer(z) && !(inner(x) && inner(y) && inner(z))
+        });
+        assert_eq!(
+            shell.topology(),
+            VoxelTopology {
+                pieces: 1,
+                handles: 0,
+                cavities: 1
+            }
+        );
+        let mut ring = frame(6, 2);
+        ring.joins = InsideJoins::Faces;
+        assert_eq!(ring.topology().handles, 1);
+        // The hollow box's cavity is its 4³ inner voxels either way; the plate has none.
+        let inner = |at: usize| {
+            [at % 10, (at / 10) % 10, at / 100]
+                .iter()
+                .all(|v| (3..=6).contains(v))
+        };
+        let cavity = shell.cavity_voxels();
+        assert_eq!(cavity.len(), 64);
+        assert!(cavity.iter().all(|&at| inner(at)));
+        ring.joins = InsideJoins::Corners;
+        assert!(ring.cavity_voxels().is_empty());
+        assert!(
+            pinholed_plate(InsideJoins::Faces)
+                .cavity_voxels()
+                .is_empty()
+        );
+        // A pocket closed off through faces but open through a corner: a cavity only where the
+        // inside joins through corners (the outside then joins through faces).
+        let pocket = |joins| {
+            Solid::joined([8; 3], joins, |at| {
+                let [x, y, z] = [at % 8, (at / 8) % 8, at / 64];
+                let block = [x, y, z].iter().all(|v| (2..=4).contains(v));
+                block && [x, y, z] != [3, 3, 3] && [x, y, z] != [4, 4, 4]
+            })
+        };
+        assert_eq!(pocket(InsideJoins::Corners).cavity_voxels().len(), 1);
+        assert!(pocket(InsideJoins::Faces).cavity_voxels().is_empty());
+        // Read through faces, the closing fills the pinhole with a voxel or two, and the
+        // plate is left without a hole.
+        let mut plate = pinholed_plate(InsideJoins::Faces);
+        let fill = plate.fill_holes_a_closing_fills(2);
+        assert_eq!(fill.handles_taken(), 1);
+        assert!((1..=2).contains(&fill.voxels.len()), "{:?}", fill.voxels);
+        assert_eq!(plate.topology().handles, 0);
+        assert_eq!(fill.after, plate.topology());
     }
 
     #[test]
