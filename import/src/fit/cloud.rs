@@ -932,9 +932,12 @@ impl SignedCloud {
         }
         // The small cavities the clay encloses as its mesh reads them are filled with the holes:
         // a bubble a refit closed off, or one too small for the signing grid to see.
-        let mut cavities = solid.cavity_voxels();
-        if cavities.len() as f32 > MIN_PIECE_FRACTION * solid.inside_count() as f32 {
-            cavities.clear();
+        let mut cavities = Vec::new();
+        if fill.after.cavities > 0 {
+            cavities = solid.cavity_voxels();
+            if cavities.len() as f32 > MIN_PIECE_FRACTION * solid.inside_count() as f32 {
+                cavities.clear();
+            }
         }
         let mut marked = vec![false; self.grid.count()];
         let [mx, my, mz] = self.grid.dims;
