@@ -289,6 +289,23 @@ impl Solid {
         }
     }
 
+    /// The padded voxels copied into a grid with one more layer around them, marked [`WALL`],
+    /// and that grid's dimensions: a flood of the outside that does not enter the wall has
+    /// every neighbour of a voxel it reaches stored.
+    fn walled(&self) -> (Vec<u8>, [usize; 3]) {
+        let [px, py, pz] = self.dims.map(|n| n + 2);
+        let [wx, wy, wz] = [px + 2, py + 2, pz + 2];
+        let mut walled = vec![WALL; wx * wy * wz];
+        for z in 0..pz {
+            for y in 0..py {
+                let from = px * (y + py * z);
+                let to = 1 + wx * (y + 1 + wy * (z + 1));
+                walled[to..to + px].copy_from_slice(&self.padded[from..from + px]);
+            }
+        }
+        (walled, [wx, wy, wz])
+    }
+
     /// Connected components of the voxels inside (`inside`, through corners) or of the
     /// outside with its padding (through faces).
     fn count_components(&self, inside: bool) -> usize {
@@ -303,16 +320,7 @@ impl Solid {
         } else {
             // The outside is flooded in a copy with one more layer, a wall the flood does
             // not enter, so every voxel it reaches has its face neighbours stored.
-            let [px, py, pz] = self.dims.map(|n| n + 2);
-            let [wx, wy, wz] = [px + 2, py + 2, pz + 2];
-            let mut walled = vec![WALL; wx * wy * wz];
-            for z in 0..pz {
-                for y in 0..py {
-                    let from = px * (y + py * z);
-                    let to = 1 + wx * (y + 1 + wy * (z + 1));
-                    walled[to..to + px].copy_from_slice(&self.padded[from..from + px]);
-                }
-            }
+            let (walled, [wx, wy, _]) = self.walled();
             let steps: Vec<isize> = neighbour_offsets(true)
                 .iter()
                 .map(|o| (o[0] + wx as i64 * (o[1] + wy as i64 * o[2])) as isize)
@@ -329,16 +337,7 @@ impl Solid {
     pub fn cavity_voxels(&self) -> Vec<usize> {
         // Flooded in a copy with one more layer, a wall the flood does not enter, from the
         // padding's first voxel.
-        let [px, py, pz] = self.dims.map(|n| n + 2);
-        let [wx, wy, wz] = [px + 2, py + 2, pz + 2];
-        let mut walled = vec![WALL; wx * wy * wz];
-        for z in 0..pz {
-            for y in 0..py {
-                let from = px * (y + py * z);
-                let to = 1 + wx * (y + 1 + wy * (z + 1));
-                walled[to..to + px].copy_from_slice(&self.padded[from..from + px]);
-            }
-        }
+        let (walled, [wx, wy, _]) = self.walled();
         let steps: Vec<isize> = neighbour_offsets(self.joins == InsideJoins::Corners)
             .iter()
             .map(|o| (o[0] + wx as i64 * (o[1] + wy as i64 * o[2])) as isize)
@@ -650,6 +649,16 @@ mod tests {
         })
     }
 
+    /// A hollow box in a 10³ grid: walls from 2 to 7, the 4³ voxels from 3 to 6 hollow.
+    fn hollow_box(joins: InsideJoins) -> Solid {
+        Solid::joined([10; 3], joins, |at| {
+            let [x, y, z] = [at % 10, (at / 10) % 10, at / 100];
+            let inner = |v: usize| (3..=6).contains(&v);
+            let outer = |v: usize| (2..=7).contains(&v);
+            outer(x) && outer(y) && outer(z) && !(inner(x) && inner(y) && inner(z))
+        })
+    }
+
     #[test]
     fn the_voxel_euler_characteristic_counts_pieces_handles_and_cavities() {
         let chi = |n: usize, keep: &dyn Fn(usize, usize, usize) -> bool| {
@@ -701,20 +710,17 @@ mod tests {
         let ring = frame(6, 2);
         assert_eq!(ring.topology().handles, 1);
         assert_eq!(ring.euler_characteristic(), 0);
-        // A hollow box: one piece, one cavity, χ = 2.
-        let shell = solid(10, |x, y, z| {
-            let inner = |v: i64| (3..=6).contains(&v);
-            let outer = |v: i64| (2..=7).contains(&v);
-            outer(x) && outer(y) && outer(z) && !(inner(x) && inner(y) && inner(z))
-        });
-        assert_eq!(
-            shell.topology(),
-            VoxelTopology {
-                pieces: 1,
-                handles: 0,
-                cavities: 1
-            }
-        );
+        // A hollow box: one piece, one cavity, χ = 2, however its voxels join.
+        for joins in [InsideJoins::Corners, InsideJoins::Faces] {
+            assert_eq!(
+                hollow_box(joins).topology(),
+                VoxelTopology {
+                    pieces: 1,
+                    handles: 0,
+                    cavities: 1
+                }
+            );
+        }
         // Two cubes meeting at one corner are one piece (closed cubes share the corner).
         let corner = solid(6, |x, y, z| {
             (x, y, z) == (1, 1, 1) || (x, y, z) == (2, 2, 2)
@@ -819,21 +825,8 @@ mod tests {
                 cavities: 0
             }
         );
-        // The hollow box and the ring read the same either way.
-        let shell = Solid::joined([10; 3], InsideJoins::Faces, |at| {
-            let [x, y, z] = [at % 10, (at / 10) % 10, at / 100];
-            let inner = |v: usize| (3..=6).contains(&v);
-            let outer = |v: usize| (2..=7).contains(&v);
-            outer(x) && outer(y) && outer(z) && !(inner(x) && inner(y) && inner(z))
-        });
-        assert_eq!(
-            shell.topology(),
-            VoxelTopology {
-                pieces: 1,
-                handles: 0,
-                cavities: 1
-            }
-        );
+        // The ring reads the same either way.
+        let shell = hollow_box(InsideJoins::Faces);
         let mut ring = frame(6, 2);
         ring.joins = InsideJoins::Faces;
         assert_eq!(ring.topology().handles, 1);
