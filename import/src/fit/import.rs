@@ -671,8 +671,8 @@ fn fit_cloud(
     }
     if fit.fit_holes > 0 {
         note(format!(
-            "closed {} small holes of the fit (tunnels through thin walls, under about three knot \
-             spans across, that no point holds open)",
+            "closed {} small holes of the fit (tunnels through thin walls, under about two and a \
+             half knot spans across, that no point holds open)",
             fit.fit_holes
         ));
     }
